@@ -1,0 +1,30 @@
+# Two entry points: `make demo` and `make test`. Each creates .venv when missing and installs
+# what it needs; a stamp file keeps repeated runs fast until pyproject.toml changes.
+PYTHON ?= python3
+VENV ?= .venv
+# Pinned to the CPU build on this machine's disk; override e.g. TORCH_SPEC="torch==2.14.1".
+TORCH_SPEC ?= torch==2.13.0
+PIP_FLAGS ?= -q --disable-pip-version-check
+BIN := $(VENV)/bin
+STAMP := $(VENV)/.hrr-installed
+
+.PHONY: install demo test clean
+
+$(BIN)/python:
+	$(PYTHON) -m venv $(VENV)
+
+$(STAMP): pyproject.toml | $(BIN)/python
+	$(BIN)/pip install $(PIP_FLAGS) "$(TORCH_SPEC)"
+	$(BIN)/pip install $(PIP_FLAGS) -e ".[dev,preview]"
+	touch $(STAMP)
+
+install: $(STAMP)
+
+demo: install
+	$(BIN)/hrr-demo
+
+test: install
+	$(BIN)/python -m pytest -q
+
+clean:
+	rm -rf $(VENV) hrr_work .pytest_cache
