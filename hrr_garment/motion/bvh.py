@@ -1,0 +1,235 @@
+"""BVH reading and writing.
+
+The reader follows each joint's own CHANNELS line (any rotation order, 3 or 6 channels on any
+joint), accepts End Site blocks, blank lines and any whitespace, and checks that the MOTION section
+has exactly the announced number of rows with one value per channel. Position channels replace the
+joint's OFFSET (the usual convention of exporters that key every joint's translation).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import MotionError
+from .rotations import euler_to_matrix, matrix_to_euler
+
+_ROT = {"xrotation": "X", "yrotation": "Y", "zrotation": "Z"}
+_POS = {"xposition": 0, "yposition": 1, "zposition": 2}
+
+
+@dataclass
+class BvhClip:
+    """A parsed BVH file in its own units and naming."""
+
+    names: list[str]
+    parents: list[int]
+    offsets: np.ndarray  # (J, 3) rest offsets, file units
+    end_sites: list[tuple[int, np.ndarray]]  # (parent joint, offset) for each End Site
+    local_rotations: np.ndarray  # (T, J, 3, 3)
+    local_translations: np.ndarray  # (T, J, 3) file units (OFFSET unless position channels)
+    frame_time: float
+
+    @property
+    def num_frames(self) -> int:
+        return int(self.local_rotations.shape[0])
+
+
+class _Tokens:
+    def __init__(self, path: Path, lines: list[str]):
+        self.path = path
+        self.items: list[tuple[int, str]] = [(n + 1, tok) for n, line in enumerate(lines) for tok in line.split()]
+        self.pos = 0
+
+    def next(self, what: str) -> tuple[int, str]:
+        if self.pos >= len(self.items):
+            raise MotionError(self.path, f"unexpected end of file while reading {what} (truncated HIERARCHY?)")
+        item = self.items[self.pos]
+        self.pos += 1
+        return item
+
+    def expect(self, word: str) -> int:
+        line, tok = self.next(repr(word))
+        if tok.upper() != word.upper():
+            raise MotionError(self.path, f"line {line}: expected {word!r}, found {tok!r}")
+        return line
+
+    def floats(self, n: int, what: str) -> np.ndarray:
+        vals = []
+        for _ in range(n):
+            line, tok = self.next(what)
+            try:
+                vals.append(float(tok))
+            except ValueError:
+                raise MotionError(self.path, f"line {line}: expected a number in {what}, found {tok!r}") from None
+        return np.array(vals, dtype=np.float64)
+
+
+def read_bvh(path: str | Path) -> BvhClip:
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8", errors="replace")
+    except OSError as exc:
+        raise MotionError(path, f"cannot read file ({exc.strerror})") from None
+    lines = text.splitlines()
+    motion_line = next((i for i, line in enumerate(lines) if line.strip().upper().startswith("MOTION")), None)
+    if motion_line is None:
+        raise MotionError(path, "no MOTION section (not a BVH file, or truncated)")
+    tokens = _Tokens(path, lines[:motion_line])
+    tokens.expect("HIERARCHY")
+    names: list[str] = []
+    parents: list[int] = []
+    offsets: list[np.ndarray] = []
+    channels: list[list[str]] = []
+    end_sites: list[tuple[int, np.ndarray]] = []
+
+    def parse_joint(parent: int) -> None:
+        line, name = tokens.next("joint name")
+        index = len(names)
+        names.append(name)
+        parents.append(parent)
+        tokens.expect("{")
+        tokens.expect("OFFSET")
+        offsets.append(tokens.floats(3, f"OFFSET of {name}"))
+        tokens.expect("CHANNELS")
+        cline, count_tok = tokens.next(f"channel count of {name}")
+        if count_tok not in ("3", "6"):
+            raise MotionError(path, f"line {cline}: joint {name!r} has {count_tok} channels; 3 or 6 are supported")
+        chans = [tokens.next(f"channels of {name}")[1].lower() for _ in range(int(count_tok))]
+        unknown = [c for c in chans if c not in _ROT and c not in _POS]
+        rot = [c for c in chans if c in _ROT]
+        if unknown or len(rot) != 3:
+            raise MotionError(path, f"line {cline}: joint {name!r} has channels {chans}; need three rotations (and optionally three positions)")
+        channels.append(chans)
+        while True:
+            kline, kw = tokens.next(f"children of {name}")
+            if kw == "}":
+                return
+            if kw.upper() == "JOINT":
+                parse_joint(index)
+            elif kw.upper() == "END":
+                tokens.expect("Site")
+                tokens.expect("{")
+                tokens.expect("OFFSET")
+                end_sites.append((index, tokens.floats(3, f"End Site of {name}")))
+                tokens.expect("}")
+            else:
+                raise MotionError(path, f"line {kline}: unexpected {kw!r} inside joint {name!r}")
+
+    tokens.expect("ROOT")
+    parse_joint(-1)
+    if tokens.pos != len(tokens.items):
+        line, tok = tokens.items[tokens.pos]
+        raise MotionError(path, f"line {line}: unexpected {tok!r} after the hierarchy (only one ROOT is supported)")
+
+    body = [(n, line) for n, line in enumerate(lines[motion_line + 1 :], start=motion_line + 2) if line.strip()]
+    if len(body) < 2 or not body[0][1].strip().lower().startswith("frames:") or not body[1][1].strip().lower().startswith("frame time:"):
+        raise MotionError(path, "MOTION section must start with 'Frames:' and 'Frame Time:' lines")
+    try:
+        n_frames = int(body[0][1].split(":", 1)[1])
+        frame_time = float(body[1][1].split(":", 1)[1])
+    except ValueError:
+        raise MotionError(path, f"line {body[0][0]}: cannot read the frame count or frame time") from None
+    if not (frame_time > 0 and np.isfinite(frame_time)):
+        raise MotionError(path, f"line {body[1][0]}: frame time must be positive, got {frame_time}")
+    rows = body[2:]
+    n_chan = sum(len(c) for c in channels)
+    if len(rows) < n_frames:
+        raise MotionError(path, f"truncated: header announces {n_frames} frames but only {len(rows)} frame rows follow")
+    if len(rows) > n_frames:
+        raise MotionError(path, f"header announces {n_frames} frames but {len(rows)} frame rows follow")
+    if n_frames == 0:
+        raise MotionError(path, "the motion has no frames")
+    split = [r.split() for _, r in rows]
+    for (line_no, _), vals in zip(rows, split):
+        if len(vals) != n_chan:
+            raise MotionError(path, f"line {line_no}: expected {n_chan} values (one per channel), found {len(vals)}")
+    try:
+        data = np.array(split, dtype=np.float64)
+    except ValueError:
+        raise MotionError(path, "frame rows contain values that are not numbers") from None
+    if not np.isfinite(data).all():
+        bad = int(np.argmax(~np.isfinite(data).all(1)))
+        raise MotionError(path, f"non-finite value (NaN or inf) in frame {bad} (line {rows[bad][0]})")
+
+    n_joints = len(names)
+    offsets_arr = np.array(offsets)
+    local_rot = np.empty((n_frames, n_joints, 3, 3))
+    local_trans = np.broadcast_to(offsets_arr, (n_frames, n_joints, 3)).copy()
+    col = 0
+    for j, chans in enumerate(channels):
+        cols = {c: col + k for k, c in enumerate(chans)}
+        order = "".join(_ROT[c] for c in chans if c in _ROT)
+        angles = data[:, [cols[c] for c in chans if c in _ROT]]
+        local_rot[:, j] = euler_to_matrix(angles, order)
+        if "xposition" in cols:
+            local_trans[:, j] = data[:, [cols["xposition"], cols["yposition"], cols["zposition"]]]
+        col += len(chans)
+    return BvhClip(names, parents, offsets_arr, end_sites, local_rot, local_trans, frame_time)
+
+
+def write_bvh(
+    path: str | Path,
+    names: list[str],
+    parents: list[int],
+    offsets: np.ndarray,
+    local_rotations: np.ndarray,
+    root_translation: np.ndarray,
+    frame_time: float,
+    orders: list[str] | str = "ZYX",
+    positions_on_all_joints: bool = False,
+    unit_scale: float = 1.0,
+    end_sites: dict[int, np.ndarray] | None = None,
+) -> None:
+    """Write a BVH. ``unit_scale`` converts metres to file units (e.g. 100 for centimetres).
+
+    ``orders`` is one Euler order for all joints or one per joint. With
+    ``positions_on_all_joints`` every joint gets six channels (its offset keyed every frame).
+    """
+    from ..io_utils import atomic_write_text
+
+    n_joints = len(names)
+    orders = [orders] * n_joints if isinstance(orders, str) else list(orders)
+    end_sites = end_sites or {}
+    children = {j: [c for c, p in enumerate(parents) if p == j] for j in range(n_joints)}
+    out: list[str] = ["HIERARCHY"]
+
+    def emit(j: int, depth: int) -> None:
+        ind = "\t" * depth
+        kind = "ROOT" if parents[j] < 0 else "JOINT"
+        out.append(f"{ind}{kind} {names[j]}")
+        out.append(f"{ind}{{")
+        off = offsets[j] * unit_scale
+        out.append(f"{ind}\tOFFSET {off[0]:.6f} {off[1]:.6f} {off[2]:.6f}")
+        rot = " ".join(f"{a}rotation" for a in orders[j])
+        if parents[j] < 0 or positions_on_all_joints:
+            out.append(f"{ind}\tCHANNELS 6 Xposition Yposition Zposition {rot}")
+        else:
+            out.append(f"{ind}\tCHANNELS 3 {rot}")
+        for c in children[j]:
+            emit(c, depth + 1)
+        if not children[j]:
+            site = end_sites.get(j, np.zeros(3)) * unit_scale
+            out += [f"{ind}\tEnd Site", f"{ind}\t{{", f"{ind}\t\tOFFSET {site[0]:.6f} {site[1]:.6f} {site[2]:.6f}", f"{ind}\t}}"]
+        out.append(f"{ind}}}")
+
+    emit(parents.index(-1), 0)
+    n_frames = local_rotations.shape[0]
+    out += ["MOTION", f"Frames: {n_frames}", f"Frame Time: {frame_time:.8f}"]
+    cols = []
+
+    def visit(j: int) -> None:
+        if parents[j] < 0:
+            cols.append(root_translation * unit_scale)
+        elif positions_on_all_joints:
+            cols.append(np.broadcast_to(offsets[j] * unit_scale, (n_frames, 3)))
+        cols.append(matrix_to_euler(local_rotations[:, j], orders[j]))
+        for c in children[j]:
+            visit(c)
+
+    visit(parents.index(-1))
+    data = np.concatenate(cols, axis=1)
+    out += [" ".join(f"{v:.6f}" for v in row) for row in data]
+    atomic_write_text(path, "\n".join(out) + "\n")

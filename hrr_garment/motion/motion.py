@@ -1,0 +1,106 @@
+"""`Motion`: a clip on the canonical skeleton (local rotations + root translation at a frame rate)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import cached_property
+
+import numpy as np
+
+from ..errors import MotionError
+from .skeleton import CANONICAL, JOINT_INDEX, REST_PELVIS_HEIGHT, HEAD_TOP_ABOVE_HEAD_JOINT, Skeleton, forward_kinematics, sole_heights
+
+FPS = 30.0  # the internal frame rate
+
+
+@dataclass
+class Motion:
+    """A motion on the canonical skeleton.
+
+    local_rotations: (T, 22, 3, 3) float32 parent-relative rotations (SMPL joint order).
+    root_translation: (T, 3) float32 world position of the pelvis joint, metres, Y up.
+    fps: frames per second.
+    source: where it came from (a path or a procedural kind and seed).
+    source_skeleton: the naming scheme detected on input ("canonical" for native/procedural).
+    source_height_m: standing height of the source skeleton, metres.
+    """
+
+    local_rotations: np.ndarray
+    root_translation: np.ndarray
+    fps: float = FPS
+    source: str = ""
+    source_skeleton: str = "canonical"
+    source_height_m: float = REST_PELVIS_HEIGHT + 0.60 + HEAD_TOP_ABOVE_HEAD_JOINT
+    skeleton: Skeleton = field(default=CANONICAL, repr=False)
+
+    def __post_init__(self) -> None:
+        self.local_rotations = np.ascontiguousarray(self.local_rotations, dtype=np.float32)
+        self.root_translation = np.ascontiguousarray(self.root_translation, dtype=np.float32)
+        self.validate()
+
+    def validate(self) -> None:
+        name = self.source or "motion"
+        t = self.local_rotations.shape[0] if self.local_rotations.ndim else 0
+        if self.local_rotations.shape[1:] != (self.skeleton.num_joints, 3, 3):
+            raise MotionError(name, f"local rotations have shape {self.local_rotations.shape}, expected (T, {self.skeleton.num_joints}, 3, 3)")
+        if self.root_translation.shape != (t, 3):
+            raise MotionError(name, f"root translation has shape {self.root_translation.shape}, expected ({t}, 3)")
+        if t == 0:
+            raise MotionError(name, "the motion has no frames")
+        if not (np.isfinite(self.local_rotations).all() and np.isfinite(self.root_translation).all()):
+            bad = ~(np.isfinite(self.local_rotations).reshape(t, -1).all(1) & np.isfinite(self.root_translation).all(1))
+            raise MotionError(name, f"non-finite values in {int(bad.sum())} frame(s), first at frame {int(np.argmax(bad))}")
+        if not (self.fps > 0 and np.isfinite(self.fps)):
+            raise MotionError(name, f"invalid frame rate {self.fps}")
+
+    @property
+    def num_frames(self) -> int:
+        return int(self.local_rotations.shape[0])
+
+    @property
+    def duration_s(self) -> float:
+        return self.num_frames / self.fps
+
+    @cached_property
+    def _fk(self) -> tuple[np.ndarray, np.ndarray]:
+        g_rot, g_pos = forward_kinematics(
+            self.local_rotations.astype(np.float64), self.root_translation.astype(np.float64), self.skeleton.offsets.astype(np.float64), self.skeleton.parents
+        )
+        return g_rot, g_pos
+
+    @property
+    def global_rotations(self) -> np.ndarray:
+        """(T, 22, 3, 3) world rotations (float64)."""
+        return self._fk[0]
+
+    @property
+    def joint_positions(self) -> np.ndarray:
+        """(T, 22, 3) world joint positions in metres (float64)."""
+        return self._fk[1]
+
+    def sole_heights(self) -> np.ndarray:
+        """(T, 6) heights of the feet's sole points above the ground plane y = 0."""
+        return sole_heights(*self._fk)
+
+    def lowest_foot_height(self) -> np.ndarray:
+        """(T,) height of the lowest sole point per frame."""
+        return self.sole_heights().min(axis=1)
+
+    def slice(self, start: int, stop: int) -> "Motion":
+        return Motion(self.local_rotations[start:stop], self.root_translation[start:stop], self.fps, self.source, self.source_skeleton, self.source_height_m, self.skeleton)
+
+    def summary(self) -> dict:
+        pos = self.joint_positions
+        root = pos[:, JOINT_INDEX["pelvis"]]
+        travel = float(np.linalg.norm(np.diff(root[:, [0, 2]], axis=0), axis=1).sum())
+        return {
+            "source": self.source,
+            "source_skeleton": self.source_skeleton,
+            "frames": self.num_frames,
+            "fps": float(self.fps),
+            "duration_s": round(self.duration_s, 4),
+            "height_m": round(float(self.source_height_m), 4),
+            "root_path_length_m": round(travel, 4),
+            "root_displacement_m": round(float(np.linalg.norm(root[-1, [0, 2]] - root[0, [0, 2]])), 4),
+            "mean_lowest_foot_height_m": round(float(self.lowest_foot_height().mean()), 4),
+        }
