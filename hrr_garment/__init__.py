@@ -1,0 +1,23 @@
+"""hrr_garment: loose-garment animation from body motion by hybrid retrieval-regression.
+
+Public API (motion side)::
+
+    from hrr_garment import load_motion, synthesize, motion_features
+    motion = load_motion("walk.bvh")          # any BVH / AMASS npz / native npz -> canonical, 30 fps
+    feats = motion_features(motion)            # (T, 124) float32
+"""
+
+from .errors import HRRError, InputError, MotionError, SkeletonMappingError
+from .motion.features import FEATURE_DIM, FeatureStats, motion_features, windows
+from .motion.io import load_motion, save_amass, save_motion
+from .motion.motion import Motion
+from .motion.skeleton import CANONICAL, JOINT_NAMES
+from .motion.synth import KINDS as MOTION_KINDS
+from .motion.synth import synthesize
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "CANONICAL", "FEATURE_DIM", "FeatureStats", "HRRError", "InputError", "JOINT_NAMES", "MOTION_KINDS", "Motion",
+    "MotionError", "SkeletonMappingError", "load_motion", "motion_features", "save_amass", "save_motion", "synthesize", "windows",
+]  # fmt: skip

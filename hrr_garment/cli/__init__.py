@@ -1,0 +1,1 @@
+"""Command-line tools. Each `main(argv)` returns an exit code; errors print one clear line."""

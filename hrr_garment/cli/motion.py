@@ -1,0 +1,96 @@
+"""hrr-motion: synthesize procedural motions, inspect motion files, compute features."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+from typing import Sequence
+
+import numpy as np
+
+from ..errors import InputError
+from ..io_utils import atomic_path
+from ..motion.features import DEFAULT_WINDOW, motion_features
+from ..motion.io import load_motion, save_motion
+from ..motion.synth import KINDS, kind_parameters, synthesize
+from ._common import run_cli
+
+
+def _add_load_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--unit-scale", type=float, default=None, help="metres per BVH file unit (default: detect from standing height)")
+    p.add_argument("--joint-map", type=Path, default=None, help="YAML mapping canonical joint names to the file's joint names")
+    p.add_argument("--no-ground", action="store_true", help="keep the file's vertical placement instead of standing the feet on y=0")
+
+
+def _load(args: argparse.Namespace):
+    return load_motion(args.file, unit_scale=args.unit_scale, joint_map=args.joint_map, ground=not args.no_ground)
+
+
+def _parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="hrr-motion", description=__doc__)
+    sub = parser.add_subparsers(dest="command", required=True)
+    p = sub.add_parser("synth", help="generate a procedural motion")
+    p.add_argument("kind", choices=sorted(KINDS))
+    p.add_argument("--seconds", type=float, default=6.0)
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--param", action="append", default=[], metavar="NAME=VALUE", help="pin a kind parameter (see 'hrr-motion kinds')")
+    p.add_argument("-o", "--output", type=Path, required=True, help="native motion .npz")
+    sub.add_parser("kinds", help="list procedural kinds and their parameters")
+    p = sub.add_parser("info", help="summary of a motion file after retargeting and resampling")
+    p.add_argument("file", type=Path)
+    p.add_argument("--json", action="store_true")
+    _add_load_options(p)
+    p = sub.add_parser("features", help="write the (T, 124) float32 feature array")
+    p.add_argument("file", type=Path)
+    p.add_argument("-o", "--output", type=Path, required=True)
+    p.add_argument("--window", type=int, default=DEFAULT_WINDOW, help="minimum clip length in frames (one window)")
+    _add_load_options(p)
+    return parser
+
+
+def _body(argv: Sequence[str] | None) -> int:
+    args = _parser().parse_args(argv)
+    if args.command == "kinds":
+        for kind in KINDS:
+            print(f"{kind:14s} {', '.join(kind_parameters(kind)) or '-'}")
+        return 0
+    if args.command == "synth":
+        params = {}
+        for item in args.param:
+            name, _, value = item.partition("=")
+            try:
+                params[name] = float(value)
+            except ValueError:
+                raise InputError("--param", f"{item!r} is not NAME=NUMBER") from None
+        motion = synthesize(args.kind, args.seconds, args.seed, **params)
+        save_motion(motion, args.output)
+        print(f"wrote {args.output} ({motion.num_frames} frames, {motion.duration_s:.2f} s)")
+        return 0
+    motion = _load(args)
+    if args.command == "info":
+        summary = motion.summary()
+        if args.json:
+            json.dump(summary, sys.stdout, indent=2)
+            print()
+        else:
+            for key, value in summary.items():
+                print(f"{key:28s} {value}")
+        return 0
+    feats = motion_features(motion)
+    if feats.shape[0] < args.window:
+        raise InputError(args.file, f"clip has {feats.shape[0]} frames at 30 fps, shorter than one window of {args.window} frames")
+    with atomic_path(args.output) as tmp:
+        with open(tmp, "wb") as fh:
+            np.save(fh, feats)
+    print(f"wrote {args.output} {feats.shape} float32")
+    return 0
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    return run_cli(_body, argv, "hrr-motion")
+
+
+if __name__ == "__main__":
+    sys.exit(main())

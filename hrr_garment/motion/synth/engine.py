@@ -1,0 +1,222 @@
+"""Turns a `Plan` (root path, footsteps, upper-body curves) into a canonical `Motion`.
+
+Feet are placed by footstep planning and analytic two-bone leg IK, so a planted foot stays exactly
+where it landed (no skating) with its sole on the ground (no sinking); the pelvis is lowered
+smoothly wherever a leg could not otherwise reach its foot. Swing feet travel on quintic curves
+(zero velocity and acceleration at lift-off and touch-down).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.ndimage import gaussian_filter1d, maximum_filter1d
+
+from ..motion import FPS, Motion
+from ..rotations import axis_angle_to_matrix, normalize, rotation_about_y
+from ..skeleton import JOINT_INDEX as J
+from ..skeleton import PARENTS, REST_OFFSETS, global_to_local
+
+ANKLE_HEIGHT = 0.08  # ankle joint above the sole with the foot flat (canonical skeleton)
+THIGH = float(np.linalg.norm(REST_OFFSETS[J["l_knee"]]))
+SHIN = float(np.linalg.norm(REST_OFFSETS[J["l_ankle"]]))
+REACH = 0.995 * (THIGH + SHIN)
+
+
+def quintic(s: np.ndarray) -> np.ndarray:
+    """Smoothstep with zero first and second derivatives at 0 and 1."""
+    s = np.clip(s, 0.0, 1.0)
+    return s * s * s * (10.0 - 15.0 * s + 6.0 * s * s)
+
+
+def bump(s: np.ndarray) -> np.ndarray:
+    """0 at the ends, 1 in the middle, zero slope at the ends."""
+    s = np.clip(s, 0.0, 1.0)
+    return 16.0 * s * s * (1.0 - s) * (1.0 - s)
+
+
+def rot_x(a: np.ndarray) -> np.ndarray:
+    return axis_angle_to_matrix(np.stack([a, 0 * a, 0 * a], -1))
+
+
+def rot_z(a: np.ndarray) -> np.ndarray:
+    return axis_angle_to_matrix(np.stack([0 * a, 0 * a, a], -1))
+
+
+@dataclass
+class FootPlan:
+    """Footsteps of one foot: stance intervals in seconds (sorted, disjoint)."""
+
+    side: str  # "l" or "r"
+    stances: list[tuple[float, float]]
+    lateral: float = 0.1  # plant offset from the root path, metres (outwards)
+    forward: float = 0.0  # plant offset along the heading
+    lift: float = 0.08  # swing height of the ankle, metres
+    follow_pelvis: bool = False  # in swing, also rise with the pelvis above its take-off height (jumps)
+    pivot: bool = False  # a planted foot turns with the body (spins) instead of keeping its yaw
+    free_target: np.ndarray | None = None  # (N, 3) ankle offset in the heading frame for a foot that never lands
+
+
+@dataclass
+class Plan:
+    """Everything a procedural clip needs, sampled on a padded 30 fps grid ``t`` (seconds)."""
+
+    t: np.ndarray
+    root_xz: np.ndarray  # (N, 2) pelvis ground position (x, z)
+    yaw: np.ndarray  # (N,) heading of the pelvis
+    pelvis_y: np.ndarray  # (N,) desired pelvis height (lowered where legs cannot reach)
+    feet: list[FootPlan]
+    pelvis_pitch: np.ndarray | None = None  # forward lean of the pelvis (rad)
+    pelvis_roll: np.ndarray | None = None  # sideways tilt (rad, +: left hip up)
+    spine_twist: np.ndarray | None = None  # yaw of the chest relative to the pelvis (rad)
+    spine_lean: np.ndarray | None = None  # extra forward lean of the chest (rad)
+    head_yaw: np.ndarray | None = None  # look direction relative to the heading (rad)
+    arm_swing: dict[str, np.ndarray] = field(default_factory=dict)  # side -> forward swing (rad)
+    arm_abduction: dict[str, np.ndarray] = field(default_factory=dict)  # side -> angle from hanging (rad)
+    elbow_flex: dict[str, np.ndarray] = field(default_factory=dict)  # side -> flexion (rad)
+    pad: int = 0  # frames of padding at each end, cropped from the output
+    ground_y: float = 0.0
+    takeoff_height: float | None = None  # pelvis height at take-off, for feet that follow the pelvis
+
+    def curve(self, value: np.ndarray | None) -> np.ndarray:
+        return np.zeros_like(self.t) if value is None else value
+
+
+def _foot_targets(plan: Plan, foot: FootPlan, pelvis_y: np.ndarray, takeoff_y: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per frame: ankle target (N,3), foot yaw (N,), stance mask (N,)."""
+    t, n = plan.t, len(plan.t)
+    sign = 1.0 if foot.side == "l" else -1.0
+    heading = rotation_about_y(plan.yaw)
+    if not foot.stances:
+        offset = foot.free_target if foot.free_target is not None else np.tile([sign * foot.lateral, ANKLE_HEIGHT + foot.lift, -0.2], (n, 1))
+        pos = np.concatenate([plan.root_xz[:, :1], np.zeros((n, 1)), plan.root_xz[:, 1:]], 1)
+        target = pos + np.einsum("nij,nj->ni", heading, offset * np.array([1.0, 0.0, 1.0]))
+        target[:, 1] = plan.ground_y + offset[:, 1]
+        return target, plan.yaw.copy(), np.zeros(n, bool)
+    plants, plant_yaw = [], []
+    for a, b in foot.stances:
+        m = int(np.clip(np.searchsorted(t, 0.5 * (a + b)), 0, n - 1))
+        local = heading[m] @ np.array([sign * foot.lateral, 0.0, foot.forward])
+        plants.append(np.array([plan.root_xz[m, 0] + local[0], plan.ground_y + ANKLE_HEIGHT, plan.root_xz[m, 1] + local[2]]))
+        plant_yaw.append(plan.yaw[m])
+    target = np.zeros((n, 3))
+    yaw = np.zeros(n)
+    stance = np.zeros(n, bool)
+    starts = np.array([s[0] for s in foot.stances])
+    for i in range(n):
+        k = int(np.searchsorted(starts, t[i], side="right")) - 1  # last stance starting at or before t
+        if k >= 0 and t[i] <= foot.stances[k][1]:
+            target[i], stance[i] = plants[k], True
+            yaw[i] = plan.yaw[i] if foot.pivot else plant_yaw[k]
+            continue
+        if k < 0:  # before the first stance: hold the first plant (padding region)
+            target[i], yaw[i], stance[i] = plants[0], plant_yaw[0], True
+            continue
+        if k + 1 >= len(plants):  # after the last stance
+            target[i], yaw[i], stance[i] = plants[k], plant_yaw[k], True
+            continue
+        t0, t1 = foot.stances[k][1], foot.stances[k + 1][0]
+        s = (t[i] - t0) / (t1 - t0)
+        q = quintic(s)
+        target[i] = (1 - q) * plants[k] + q * plants[k + 1]
+        y0 = plan.yaw[i] if foot.pivot else plant_yaw[k]
+        dy = np.angle(np.exp(1j * (plant_yaw[k + 1] - y0)))
+        yaw[i] = y0 + q * dy
+        rise = foot.lift * bump(s)
+        if foot.follow_pelvis:
+            rise += max(0.0, pelvis_y[i] - takeoff_y)
+        target[i, 1] += rise
+    return target, yaw, stance
+
+
+def _two_bone_ik(hip: np.ndarray, ankle: np.ndarray, pole: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Thigh and shin global rotations (N,3,3) and the reached ankle, knee bending towards ``pole``."""
+    d = ankle - hip
+    dist = np.linalg.norm(d, axis=1, keepdims=True)
+    d = d / np.maximum(dist, 1e-9)
+    dist = np.clip(dist, abs(THIGH - SHIN) + 1e-4, REACH)
+    along = (THIGH**2 - SHIN**2 + dist**2) / (2 * dist)
+    h = np.sqrt(np.maximum(THIGH**2 - along**2, 0.0))
+    bend = normalize(pole - (pole * d).sum(1, keepdims=True) * d)
+    knee = hip + along * d + h * bend
+    reached = hip + dist * d
+    hinge = normalize(np.cross(d, -bend))
+    rest_shin = normalize(REST_OFFSETS[J["l_ankle"]].astype(np.float64))
+    thigh = _bone_frame(normalize(knee - hip), hinge) @ _bone_frame(np.array([0.0, -1.0, 0.0]), np.array([1.0, 0.0, 0.0])).T
+    shin = _bone_frame(normalize(reached - knee), hinge) @ _bone_frame(rest_shin, np.array([1.0, 0.0, 0.0])).T
+    return thigh, shin, reached
+
+
+def _bone_frame(direction: np.ndarray, hinge: np.ndarray) -> np.ndarray:
+    e1 = normalize(direction)
+    e2 = normalize(hinge - (hinge * e1).sum(-1, keepdims=True) * e1)
+    return np.stack([e1, e2, np.cross(e1, e2)], -1)
+
+
+def build_motion(plan: Plan, source: str) -> Motion:
+    n = len(plan.t)
+    heading = rotation_about_y(plan.yaw)
+    pelvis_rot = heading @ rot_x(plan.curve(plan.pelvis_pitch)) @ rot_z(plan.curve(plan.pelvis_roll))
+    pelvis_y = plan.pelvis_y.copy()
+    takeoff_y = plan.takeoff_height if plan.takeoff_height is not None else float(np.max(plan.pelvis_y))
+    hip_off = {s: REST_OFFSETS[J[f"{s}_hip"]].astype(np.float64) for s in "lr"}
+    foot_data = {f.side: _foot_targets(plan, f, plan.pelvis_y, takeoff_y) for f in plan.feet}
+    # Lower the pelvis where a leg cannot reach its target; dilate then smooth the correction so the
+    # result stays continuous in velocity and still lowers at least as much as needed.
+    for _ in range(3):
+        drop = np.zeros(n)
+        for side, (target, _, _) in foot_data.items():
+            hip = np.stack([plan.root_xz[:, 0], pelvis_y, plan.root_xz[:, 1]], 1) + pelvis_rot @ hip_off[side]
+            horiz = np.linalg.norm((target - hip)[:, [0, 2]], axis=1)
+            max_hip_y = target[:, 1] + np.sqrt(np.maximum(REACH**2 - horiz**2, 0.0))
+            drop = np.maximum(drop, hip[:, 1] - max_hip_y)
+        if drop.max() <= 1e-5:
+            break
+        drop = gaussian_filter1d(maximum_filter1d(np.maximum(drop, 0) * 1.05 + 1e-4 * (drop > 0), size=9), 2.0)
+        pelvis_y = pelvis_y - drop
+        foot_data = {f.side: _foot_targets(plan, f, pelvis_y, takeoff_y) for f in plan.feet}
+    glob = np.zeros((n, len(PARENTS), 3, 3))
+    glob[:] = np.eye(3)
+    glob[:, J["pelvis"]] = pelvis_rot
+    root = np.stack([plan.root_xz[:, 0], pelvis_y, plan.root_xz[:, 1]], 1)
+    for side, (target, foot_yaw, _) in foot_data.items():
+        hip = root + pelvis_rot @ hip_off[side]
+        pole = rotation_about_y(foot_yaw) @ np.array([0.0, 0.0, 1.0])
+        thigh, shin, _ = _two_bone_ik(hip, target, pole)
+        glob[:, J[f"{side}_hip"]] = thigh
+        glob[:, J[f"{side}_knee"]] = shin
+        swing = ~foot_data[side][2]
+        toe_up = np.where(swing, 0.25 * np.clip((target[:, 1] - ANKLE_HEIGHT - plan.ground_y) / 0.1, 0, 1), 0.0)
+        glob[:, J[f"{side}_ankle"]] = rotation_about_y(foot_yaw) @ rot_x(-toe_up)
+        glob[:, J[f"{side}_foot"]] = glob[:, J[f"{side}_ankle"]]
+    # Spine: spread the twist and lean over three joints; head keeps looking along the heading.
+    twist, lean = plan.curve(plan.spine_twist), plan.curve(plan.spine_lean)
+    step = rotation_about_y(twist / 3.0) @ rot_x(lean / 3.0) @ rot_z(-plan.curve(plan.pelvis_roll) / 3.0)
+    for joint in ("spine1", "spine2", "spine3"):
+        glob[:, J[joint]] = glob[:, PARENTS[J[joint]]] @ step
+    chest = glob[:, J["spine3"]]
+    head_rot = heading @ rotation_about_y(plan.curve(plan.head_yaw)) @ rot_x(0.5 * plan.curve(plan.pelvis_pitch) + 0.05)
+    glob[:, J["neck"]] = _halfway(chest, head_rot)
+    glob[:, J["head"]] = head_rot
+    for side, sign in (("l", 1.0), ("r", -1.0)):
+        glob[:, J[f"{side}_collar"]] = chest
+        hang = rot_z(-sign * (np.pi / 2 - 0.12 - plan.arm_abduction.get(side, np.zeros(n))))
+        upper = chest @ rot_x(-plan.arm_swing.get(side, np.zeros(n))) @ hang
+        hinge_rest = np.array([0.0, -1.0, 0.0]) if side == "l" else np.array([0.0, 1.0, 0.0])
+        hinge = upper @ hinge_rest
+        flex = plan.elbow_flex.get(side, np.full(n, 0.2))
+        glob[:, J[f"{side}_shoulder"]] = upper
+        glob[:, J[f"{side}_elbow"]] = axis_angle_to_matrix(hinge * flex[:, None]) @ upper
+        glob[:, J[f"{side}_wrist"]] = glob[:, J[f"{side}_elbow"]]
+    local = global_to_local(glob, PARENTS)
+    crop = slice(plan.pad, n - plan.pad)
+    return Motion(local[crop], root[crop], FPS, source)
+
+
+def _halfway(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Rotation halfway between a and b (per frame)."""
+    from ..rotations import matrix_to_axis_angle
+
+    rel = matrix_to_axis_angle(np.swapaxes(a, -1, -2) @ b)
+    return a @ axis_angle_to_matrix(0.5 * rel)
