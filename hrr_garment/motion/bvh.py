@@ -212,7 +212,7 @@ def write_bvh(
             emit(c, depth + 1)
         if not children[j]:
             site = end_sites.get(j, np.zeros(3)) * unit_scale
-            out += [f"{ind}\tEnd Site", f"{ind}\t{{", f"{ind}\t\tOFFSET {site[0]:.6f} {site[1]:.6f} {site[2]:.6f}", f"{ind}\t}}"]
+            out.extend([f"{ind}\tEnd Site", f"{ind}\t{{", f"{ind}\t\tOFFSET {site[0]:.6f} {site[1]:.6f} {site[2]:.6f}", f"{ind}\t}}"])
         out.append(f"{ind}}}")
 
     emit(parents.index(-1), 0)

@@ -9,8 +9,11 @@ from .rotations import matrix_to_quat, quat_slerp, quat_to_matrix
 
 def resample_times(num_frames: int, fps_in: float, fps_out: float) -> np.ndarray:
     """Source-frame coordinates (fractional) of the output frames, covering the same time span."""
+    if abs(fps_in - fps_out) <= 1e-4 * fps_out:  # e.g. BVH "Frame Time: 0.03333333"
+        return np.arange(num_frames, dtype=np.float64)
     duration = (num_frames - 1) / fps_in
-    n_out = int(np.floor(duration * fps_out + 1e-6)) + 1
+    # Tolerate frame times rounded in the file (a 1e-4 frame shortfall still counts as a frame).
+    n_out = int(np.floor(duration * fps_out + 1e-4)) + 1
     return np.minimum(np.arange(n_out) * (fps_in / fps_out), num_frames - 1)
 
 

@@ -68,9 +68,9 @@ def axis_angle_to_matrix(aa: Array) -> Array:
     """(..., 3) axis-angle -> (..., 3, 3) matrix (Rodrigues, exact near zero)."""
     xp = _xp(aa)
     theta2 = (aa * aa).sum(-1)
-    theta = xp.sqrt(theta2)
-    small = theta < 1e-4
-    safe = xp.where(small, xp.ones_like(theta), theta)
+    small = theta2 < 1e-8
+    # sqrt only of safe values: keeps torch gradients finite at the zero rotation.
+    safe = xp.sqrt(xp.where(small, xp.ones_like(theta2), theta2))
     # sin(t)/t and (1-cos t)/t^2 with Taylor series where t is tiny.
     a = xp.where(small, 1.0 - theta2 / 6.0, xp.sin(safe) / safe)
     b = xp.where(small, 0.5 - theta2 / 24.0, (1.0 - xp.cos(safe)) / (safe * safe))
@@ -137,12 +137,12 @@ def matrix_to_quat(m: Array) -> Array:
 
 def axis_angle_to_quat(aa: Array) -> Array:
     xp = _xp(aa)
-    theta = _norm(aa)
-    half = 0.5 * theta
-    small = theta < 1e-4
-    safe = xp.where(small, xp.ones_like(theta), theta)
-    k = xp.where(small, 0.5 - theta * theta / 48.0, xp.sin(half) / safe)
-    return xp.concatenate([xp.cos(half), aa * k], -1)
+    theta2 = (aa * aa).sum(-1)[..., None]
+    small = theta2 < 1e-8
+    safe = xp.sqrt(xp.where(small, xp.ones_like(theta2), theta2))
+    k = xp.where(small, 0.5 - theta2 / 48.0, xp.sin(0.5 * safe) / safe)
+    w = xp.where(small, 1.0 - theta2 / 8.0, xp.cos(0.5 * safe))
+    return xp.concatenate([w, aa * k], -1)
 
 
 def quat_to_axis_angle(q: Array) -> Array:

@@ -1,0 +1,115 @@
+"""Real mocap, BVH variants, AMASS and native npz, resampling."""
+
+import numpy as np
+import pytest
+
+from hrr_garment import load_motion, motion_features, save_amass, save_motion, synthesize
+from hrr_garment.motion.bvh import read_bvh, write_bvh
+from hrr_garment.motion.skeleton import CANONICAL, JOINT_NAMES, PARENTS
+
+
+@pytest.mark.parametrize("name", ["02_01", "131_01", "131_03"])
+def test_cmu_clips_load_and_retarget(cmu_motions, name):
+    motion = cmu_motions[name]
+    assert motion.source_skeleton == ("cmu" if name == "02_01" else "cmu_max")
+    assert motion.fps == 30.0
+    assert 1.55 <= motion.source_height_m <= 1.95
+    assert abs(motion.lowest_foot_height().mean()) < 0.05
+    feats = motion_features(motion)
+    assert feats.shape == (motion.num_frames, 124) and np.isfinite(feats).all()
+    if name in ("02_01", "131_01"):  # the walks
+        assert motion.summary()["root_displacement_m"] > 1.0
+
+
+def test_cmu_frame_counts_follow_resampling(mocap_dir, cmu_motions):
+    clip = read_bvh(mocap_dir / "cmu" / "131_03.bvh")
+    assert clip.num_frames == 1102
+    duration = (clip.num_frames - 1) * clip.frame_time
+    assert cmu_motions["131_03"].num_frames == int(np.floor(duration * 30 + 1e-6)) + 1
+
+
+def _write(motion, path, **kw):
+    write_bvh(path, list(JOINT_NAMES), list(PARENTS), CANONICAL.offsets, motion.local_rotations.astype(np.float64), motion.root_translation.astype(np.float64), 1.0 / motion.fps, **kw)
+
+
+def test_bvh_variants_give_identical_features(tmp_path, rng):
+    motion = synthesize("dance", seconds=3.0, seed=4)
+    plain = tmp_path / "plain.bvh"
+    variant = tmp_path / "variant.bvh"
+    _write(motion, plain)
+    orders = [str(rng.choice(["XYZ", "XZY", "YXZ", "YZX", "ZXY", "ZYX"])) for _ in JOINT_NAMES]
+    _write(motion, variant, orders=orders, positions_on_all_joints=True, unit_scale=100.0)
+    text = variant.read_text().replace("\n", "\n\n", 5)  # blank lines are allowed
+    variant.write_text(text)
+    a, b = load_motion(plain), load_motion(variant)
+    assert b.source_height_m == pytest.approx(a.source_height_m, rel=1e-6)
+    fa, fb = motion_features(a), motion_features(b)
+    assert np.abs(fa - fb).max() <= 1e-4
+    assert np.abs(fa - motion_features(motion)).max() <= 1e-4  # and equal to the original motion
+
+
+def test_bvh_resampling_120fps_matches_every_fourth_frame(tmp_path):
+    fast = synthesize("walk", seconds=2.0, seed=3)
+    # Upsample by writing every frame 4 times slower is not possible; instead treat the clip as 120 fps.
+    path = tmp_path / "fast.bvh"
+    write_bvh(path, list(JOINT_NAMES), list(PARENTS), CANONICAL.offsets, fast.local_rotations.astype(np.float64), fast.root_translation.astype(np.float64), 1.0 / 120.0)
+    slow = load_motion(path, ground=False)
+    assert slow.num_frames == (fast.num_frames - 1) // 4 + 1
+    np.testing.assert_allclose(slow.joint_positions, fast.joint_positions[::4], atol=1e-5)
+
+
+def test_resampling_slerps_between_frames(tmp_path):
+    from hrr_garment.motion.io import resample_motion
+    from hrr_garment.motion.motion import Motion
+
+    base = synthesize("walk", seconds=2.0, seed=0)
+    half = Motion(base.local_rotations[::2], base.root_translation[::2], fps=15.0)
+    up = resample_motion(half, 30.0)
+    assert up.num_frames == (half.num_frames - 1) * 2 + 1
+    np.testing.assert_allclose(up.local_rotations[::2], half.local_rotations, atol=1e-6)
+    # Each in-between frame is the geodesic midpoint: half the rotation from its neighbours.
+    from hrr_garment.motion.rotations import matrix_to_axis_angle
+
+    prev, mid, nxt = (up.local_rotations[k:-1:2].astype(np.float64) for k in (0, 1, 2))
+    first = np.linalg.norm(matrix_to_axis_angle(np.swapaxes(prev, -1, -2) @ mid), axis=-1)
+    whole = np.linalg.norm(matrix_to_axis_angle(np.swapaxes(prev, -1, -2) @ nxt), axis=-1)
+    np.testing.assert_allclose(first, 0.5 * whole, atol=1e-5)
+    np.testing.assert_allclose(up.root_translation[1::2], 0.5 * (half.root_translation[:-1] + half.root_translation[1:]), atol=1e-6)
+
+
+@pytest.mark.parametrize("width", [72, 156, 165])
+def test_amass_round_trip(tmp_path, width):
+    motion = synthesize("walk_curve", seconds=3.0, seed=2)
+    path = tmp_path / "amass.npz"
+    save_amass(motion, path, width=width)
+    with np.load(path) as npz:
+        assert npz["poses"].shape == (motion.num_frames, width)
+        # Z up: the pelvis height is the third coordinate of trans.
+        np.testing.assert_allclose(npz["trans"][:, 2], motion.root_translation[:, 1], atol=1e-6)
+    back = load_motion(path)
+    assert back.source_skeleton == {72: "smpl", 156: "smplh", 165: "smplx"}[width]
+    np.testing.assert_allclose(back.local_rotations, motion.local_rotations, atol=1e-5)
+    np.testing.assert_allclose(back.root_translation, motion.root_translation, atol=1e-4)
+
+
+def test_amass_frame_rate_key_variant_and_resampling(tmp_path):
+    motion = synthesize("walk", seconds=2.0, seed=1)
+    path = tmp_path / "a.npz"
+    save_amass(motion, path)
+    with np.load(path) as npz:
+        data = dict(npz)
+    data["mocap_frame_rate"] = np.float64(60.0)
+    del data["mocap_framerate"]
+    np.savez(tmp_path / "b.npz", **data)
+    back = load_motion(tmp_path / "b.npz")
+    assert back.num_frames == (motion.num_frames - 1) // 2 + 1
+
+
+def test_native_round_trip(tmp_path):
+    motion = synthesize("hop", seconds=2.0, seed=5)
+    path = tmp_path / "m.npz"
+    save_motion(motion, path)
+    back = load_motion(path)
+    np.testing.assert_array_equal(back.local_rotations, motion.local_rotations)
+    np.testing.assert_array_equal(back.root_translation, motion.root_translation)
+    assert back.source == motion.source and back.fps == motion.fps
