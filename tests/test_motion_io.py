@@ -70,7 +70,8 @@ def test_resampling_slerps_between_frames(tmp_path):
     # Each in-between frame is the geodesic midpoint: half the rotation from its neighbours.
     from hrr_garment.motion.rotations import matrix_to_axis_angle
 
-    prev, mid, nxt = (up.local_rotations[k:-1:2].astype(np.float64) for k in (0, 1, 2))
+    rots = up.local_rotations.astype(np.float64)
+    prev, mid, nxt = rots[0:-2:2], rots[1:-1:2], rots[2::2]
     first = np.linalg.norm(matrix_to_axis_angle(np.swapaxes(prev, -1, -2) @ mid), axis=-1)
     whole = np.linalg.norm(matrix_to_axis_angle(np.swapaxes(prev, -1, -2) @ nxt), axis=-1)
     np.testing.assert_allclose(first, 0.5 * whole, atol=1e-5)

@@ -8,7 +8,7 @@ from functools import cached_property
 import numpy as np
 
 from ..errors import MotionError
-from .skeleton import CANONICAL, JOINT_INDEX, REST_PELVIS_HEIGHT, HEAD_TOP_ABOVE_HEAD_JOINT, Skeleton, forward_kinematics, sole_heights
+from .skeleton import CANONICAL, JOINT_INDEX, REST_PELVIS_HEIGHT, HEAD_TOP_ABOVE_HEAD_JOINT, Skeleton, forward_kinematics, sole_heights, sole_points
 
 FPS = 30.0  # the internal frame rate
 
@@ -18,7 +18,7 @@ class Motion:
     """A motion on the canonical skeleton.
 
     local_rotations: (T, 22, 3, 3) float32 parent-relative rotations (SMPL joint order).
-    root_translation: (T, 3) float32 world position of the pelvis joint, metres, Y up.
+    root_translation: (T, 3) float64 world position of the pelvis joint, metres, Y up.
     fps: frames per second.
     source: where it came from (a path or a procedural kind and seed).
     source_skeleton: the naming scheme detected on input ("canonical" for native/procedural).
@@ -35,7 +35,8 @@ class Motion:
 
     def __post_init__(self) -> None:
         self.local_rotations = np.ascontiguousarray(self.local_rotations, dtype=np.float32)
-        self.root_translation = np.ascontiguousarray(self.root_translation, dtype=np.float32)
+        # float64: world positions far from the origin keep millimetre-exact velocities.
+        self.root_translation = np.ascontiguousarray(self.root_translation, dtype=np.float64)
         self.validate()
 
     def validate(self) -> None:
@@ -81,6 +82,10 @@ class Motion:
     def sole_heights(self) -> np.ndarray:
         """(T, 6) heights of the feet's sole points above the ground plane y = 0."""
         return sole_heights(*self._fk)
+
+    def sole_points(self) -> np.ndarray:
+        """(T, 6, 3) world positions of the feet's sole points (heel, ball, toe tip per foot)."""
+        return sole_points(*self._fk)
 
     def lowest_foot_height(self) -> np.ndarray:
         """(T,) height of the lowest sole point per frame."""

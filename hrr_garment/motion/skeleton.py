@@ -130,11 +130,15 @@ def global_to_local(global_rot: np.ndarray, parents: tuple[int, ...]) -> np.ndar
     return local
 
 
-def sole_heights(global_rot: np.ndarray, global_pos: np.ndarray) -> np.ndarray:
-    """(..., 6) heights above y=0 of the sole points of both feet (see SOLE_POINTS)."""
+def sole_points(global_rot: np.ndarray, global_pos: np.ndarray) -> np.ndarray:
+    """(..., 6, 3) world positions of the sole points of both feet (see SOLE_POINTS)."""
     cols = []
     for joint, offset in SOLE_POINTS:
         j = JOINT_INDEX[joint]
-        p = global_pos[..., j, :] + global_rot[..., j, :, :] @ np.asarray(offset, dtype=global_rot.dtype)
-        cols.append(p[..., 1])
-    return np.stack(cols, -1)
+        cols.append(global_pos[..., j, :] + global_rot[..., j, :, :] @ np.asarray(offset, dtype=global_rot.dtype))
+    return np.stack(cols, -2)
+
+
+def sole_heights(global_rot: np.ndarray, global_pos: np.ndarray) -> np.ndarray:
+    """(..., 6) heights above y=0 of the sole points of both feet."""
+    return sole_points(global_rot, global_pos)[..., 1]

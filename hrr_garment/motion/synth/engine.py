@@ -22,6 +22,7 @@ ANKLE_HEIGHT = 0.08  # ankle joint above the sole with the foot flat (canonical 
 THIGH = float(np.linalg.norm(REST_OFFSETS[J["l_knee"]]))
 SHIN = float(np.linalg.norm(REST_OFFSETS[J["l_ankle"]]))
 REACH = 0.995 * (THIGH + SHIN)
+MAX_DROP = 0.05
 
 
 def quintic(s: np.ndarray) -> np.ndarray:
@@ -104,6 +105,7 @@ def _foot_targets(plan: Plan, foot: FootPlan, pelvis_y: np.ndarray, takeoff_y: f
     yaw = np.zeros(n)
     stance = np.zeros(n, bool)
     starts = np.array([s[0] for s in foot.stances])
+    root_vel = np.gradient(plan.root_xz, t, axis=0)
     for i in range(n):
         k = int(np.searchsorted(starts, t[i], side="right")) - 1  # last stance starting at or before t
         if k >= 0 and t[i] <= foot.stances[k][1]:
@@ -119,10 +121,18 @@ def _foot_targets(plan: Plan, foot: FootPlan, pelvis_y: np.ndarray, takeoff_y: f
         t0, t1 = foot.stances[k][1], foot.stances[k + 1][0]
         s = (t[i] - t0) / (t1 - t0)
         q = quintic(s)
-        target[i] = (1 - q) * plants[k] + q * plants[k + 1]
-        y0 = plan.yaw[i] if foot.pivot else plant_yaw[k]
-        dy = np.angle(np.exp(1j * (plant_yaw[k + 1] - y0)))
-        yaw[i] = y0 + q * dy
+        # Swing relative to the moving root (cubic Hermite), so the foot stays within reach of the
+        # hip and leaves and lands with zero world velocity.
+        r0, r1, v0, v1 = (np.array([np.interp(x, t, arr[:, c]) for c in (0, 1)]) for arr, x in ((plan.root_xz, t0), (plan.root_xz, t1), (root_vel, t0), (root_vel, t1)))
+        rel0 = plants[k][[0, 2]] - r0
+        rel1 = plants[k + 1][[0, 2]] - r1
+        h00, h10, h01, h11 = 2 * s**3 - 3 * s**2 + 1, s**3 - 2 * s**2 + s, -2 * s**3 + 3 * s**2, s**3 - s**2
+        rel = h00 * rel0 - h10 * (t1 - t0) * v0 + h01 * rel1 - h11 * (t1 - t0) * v1
+        target[i] = [plan.root_xz[i, 0] + rel[0], plants[k][1], plan.root_xz[i, 1] + rel[1]]
+        if foot.pivot:
+            yaw[i] = plan.yaw[i]
+        else:
+            yaw[i] = plant_yaw[k] + q * np.angle(np.exp(1j * (plant_yaw[k + 1] - plant_yaw[k])))
         rise = foot.lift * bump(s)
         if foot.follow_pelvis:
             rise += max(0.0, pelvis_y[i] - takeoff_y)
@@ -164,7 +174,7 @@ def build_motion(plan: Plan, source: str) -> Motion:
     foot_data = {f.side: _foot_targets(plan, f, plan.pelvis_y, takeoff_y) for f in plan.feet}
     # Lower the pelvis where a leg cannot reach its target; dilate then smooth the correction so the
     # result stays continuous in velocity and still lowers at least as much as needed.
-    for _ in range(3):
+    for _ in range(6):
         drop = np.zeros(n)
         for side, (target, _, _) in foot_data.items():
             hip = np.stack([plan.root_xz[:, 0], pelvis_y, plan.root_xz[:, 1]], 1) + pelvis_rot @ hip_off[side]
@@ -173,7 +183,8 @@ def build_motion(plan: Plan, source: str) -> Motion:
             drop = np.maximum(drop, hip[:, 1] - max_hip_y)
         if drop.max() <= 1e-5:
             break
-        drop = gaussian_filter1d(maximum_filter1d(np.maximum(drop, 0) * 1.05 + 1e-4 * (drop > 0), size=9), 2.0)
+        # At most MAX_DROP per pass: a target out of reach horizontally is left to the IK clamp.
+        drop = gaussian_filter1d(maximum_filter1d(np.clip(drop, 0, MAX_DROP) * 1.05 + 1e-4 * (drop > 0), size=9), 2.0)
         pelvis_y = pelvis_y - drop
         foot_data = {f.side: _foot_targets(plan, f, pelvis_y, takeoff_y) for f in plan.feet}
     glob = np.zeros((n, len(PARENTS), 3, 3))

@@ -66,8 +66,9 @@ def _gait_plan(rng, t, pad, yaw, speed, side_speed, period, duty, lift, lateral,
 
 
 def _cadence(speed: float) -> float:
-    """Steps per second for walking at ``speed`` m/s (step length at most 0.75 m)."""
-    return max(1.4 + 0.45 * (abs(speed) - 0.6), abs(speed) / 0.75)
+    """Steps per second for walking at ``speed`` m/s (step length at most 0.65 m: the feet stay flat
+    in stance, so longer steps would need a deep crouch to keep both feet within reach)."""
+    return max(1.4 + 0.45 * (abs(speed) - 0.6), abs(speed) / 0.65)
 
 
 def idle(rng, seconds, sway=None, sway_hz=None, stance_width=None):
@@ -94,15 +95,16 @@ def walk(rng, seconds, speed=None):
     v = _pick(rng, speed, 0.6, 1.8)
     period = 2.0 / _cadence(v)
     yaw = np.full_like(t, rng.uniform(-np.pi, np.pi))
-    return _gait_plan(rng, t, pad, yaw, v, 0.0, period, 0.62, 0.06 + 0.03 * v, 0.095, 0.012 + 0.008 * v, 0.15 + 0.12 * v, 0.25, lean=0.04)
+    return _gait_plan(rng, t, pad, yaw, v, 0.0, period, 0.58, 0.06 + 0.03 * v, 0.095, 0.012 + 0.008 * v, 0.15 + 0.12 * v, 0.25, lean=0.04)
 
 
 def run(rng, seconds, speed=None):
     t, pad = _grid(seconds)
-    v = _pick(rng, speed, 2.2, 4.0)
-    period = 2.0 / (2.6 + 0.12 * (v - 2.2))
+    v = _pick(rng, speed, 2.0, 3.0)
+    period = 2.0 / (2.7 + 0.2 * (v - 2.0))
     yaw = np.full_like(t, rng.uniform(-np.pi, np.pi))
-    return _gait_plan(rng, t, pad, yaw, v, 0.0, period, 0.38, 0.16 + 0.03 * v, 0.07, 0.025, 0.5, 1.5, lean=0.15)
+    # A high heel kick keeps the trailing foot within reach of the hip during early swing.
+    return _gait_plan(rng, t, pad, yaw, v, 0.0, period, 0.36, 0.3 + 0.04 * v, 0.07, 0.02, 0.5, 1.5, lean=0.15)
 
 
 def walk_curve(rng, seconds, speed=None, turn_rate=None):
@@ -112,7 +114,7 @@ def walk_curve(rng, seconds, speed=None, turn_rate=None):
     rate = np.deg2rad(turn_rate if turn_rate is not None else rng.choice([-1, 1]) * rng.uniform(20, 60))
     wobble = rng.uniform(0.3, 0.8) * rate * np.sin(2 * np.pi * rng.uniform(0.05, 0.15) * t)
     yaw = rng.uniform(-np.pi, np.pi) + np.cumsum((rate + wobble) / FPS)
-    return _gait_plan(rng, t, pad, yaw, v, 0.0, 2.0 / _cadence(v), 0.62, 0.07 + 0.03 * v, 0.095, 0.015, 0.2 + 0.1 * v, 0.25, lean=0.04)
+    return _gait_plan(rng, t, pad, yaw, v, 0.0, 2.0 / _cadence(v), 0.58, 0.07 + 0.03 * v, 0.095, 0.015, 0.2 + 0.1 * v, 0.25, lean=0.04)
 
 
 def turn_in_place(rng, seconds, turn_rate=None):
