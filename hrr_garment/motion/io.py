@@ -192,7 +192,7 @@ def save_motion(motion: Motion, path: str | Path) -> None:
             format=np.str_(NATIVE_FORMAT),
             version=np.int64(NATIVE_VERSION),
             local_rotations=motion.local_rotations.astype(np.float32),
-            root_translation=motion.root_translation.astype(np.float32),
+            root_translation=motion.root_translation.astype(np.float64),
             fps=np.float64(motion.fps),
             source=np.str_(motion.source),
             source_skeleton=np.str_(motion.source_skeleton),
