@@ -1,0 +1,60 @@
+import numpy as np
+import pytest
+import trimesh
+
+from hrr_garment import synthesize
+from hrr_garment.body import DEFAULT_BODY, body_mesh, capsule_signed_distance
+
+
+def test_signed_distance_known_answers():
+    a = np.array([[0.0, 0.0, 0.0]])
+    b = np.array([[0.0, 1.0, 0.0]])
+    r = np.array([0.1])
+    pts = np.array([[0.0, 0.5, 0.0], [0.3, 0.5, 0.0], [0.0, 1.5, 0.0], [0.0, -0.2, 0.0], [0.05, 0.2, 0.0]])
+    d, n, idx = capsule_signed_distance(pts, a, b, r)
+    np.testing.assert_allclose(d, [-0.1, 0.2, 0.4, 0.1, -0.05], atol=1e-12)
+    np.testing.assert_allclose(n[1], [1.0, 0.0, 0.0], atol=1e-12)
+    np.testing.assert_allclose(n[2], [0.0, 1.0, 0.0], atol=1e-12)
+    assert (idx == 0).all()
+
+
+def test_union_takes_the_nearest_capsule(rng):
+    a = rng.normal(size=(4, 3))
+    b = a + rng.normal(size=(4, 3))
+    r = rng.uniform(0.05, 0.2, size=4)
+    pts = rng.normal(size=(200, 3))
+    d, _, idx = capsule_signed_distance(pts, a, b, r)
+    singles = np.stack([capsule_signed_distance(pts, a[i : i + 1], b[i : i + 1], r[i : i + 1])[0] for i in range(4)], 1)
+    np.testing.assert_allclose(d, singles.min(1), atol=1e-12)
+    np.testing.assert_array_equal(idx, singles.argmin(1))
+
+
+def test_posed_body_mesh_lies_on_the_signed_distance_surface():
+    motion = synthesize("dance", 1.0, seed=0)
+    a, b = DEFAULT_BODY.pose_motion(motion)
+    assert a.shape == (motion.num_frames, len(DEFAULT_BODY.capsules), 3)
+    verts, faces = body_mesh(a[10], b[10], DEFAULT_BODY.radii)
+    d, _, _ = capsule_signed_distance(verts, a[10], b[10], DEFAULT_BODY.radii)
+    assert d.max() <= 1e-9 and np.abs(d).min() < 1e-9  # on or inside the union, never outside
+    mesh = trimesh.Trimesh(verts, faces, process=False)
+    assert len(mesh.faces) == len(faces) and mesh.area > 1.0  # an adult body is well over 1 m^2
+    # Joints are inside the body; a point a metre in front of the pelvis is outside.
+    joints = motion.joint_positions[10]
+    d_j, _, _ = capsule_signed_distance(joints, a[10], b[10], DEFAULT_BODY.radii)
+    assert (d_j < 0).all()
+    d_far, _, _ = capsule_signed_distance(joints[:1] + [0.0, 0.0, 1.0], a[10], b[10], DEFAULT_BODY.radii)
+    assert d_far[0] > 0.5
+
+
+def test_body_dimensions_are_plausible():
+    motion = synthesize("idle", 1.0, seed=0)
+    a, b = DEFAULT_BODY.pose_motion(motion)
+    verts, _ = body_mesh(a[0], b[0], DEFAULT_BODY.radii)
+    height = verts[:, 1].max() - min(verts[:, 1].min(), 0.0)
+    assert 1.6 < height < 1.8
+    hips = [c.name for c in DEFAULT_BODY.capsules].index("hips")
+    hip_verts, _ = body_mesh(a[0, hips : hips + 1], b[0, hips : hips + 1], DEFAULT_BODY.radii[hips : hips + 1])
+    width = np.ptp(hip_verts @ motion.global_rotations[0, 0][:, 0])  # along the pelvis' left-right axis
+    assert 0.3 < width < 0.5  # hip width of an adult
+    fuller = DEFAULT_BODY.scaled(1.2)
+    assert fuller.radii == pytest.approx(1.2 * DEFAULT_BODY.radii)
