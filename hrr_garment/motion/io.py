@@ -107,24 +107,12 @@ def load_bvh(path: Path, unit_scale: float | None = None, joint_map: dict | None
     local_rot = resample_rotations(clip.local_rotations, frames)
     local_trans = resample_linear(clip.local_translations, frames) * unit_scale
     # Non-root translations: position channels hold the joint's parent-relative position.
-    g_rot, g_pos = _bvh_fk(local_rot, local_trans, clip.parents)
+    g_rot, g_pos = forward_kinematics(local_rot, local_trans[:, 0], local_trans, clip.parents)
     src = SourceMotion(clip.names, clip.parents, _rest_positions(clip) * unit_scale, g_rot, g_pos, src_fps, str(path))
     check_source(src)
     local, root = retarget(src, mapping, ground=ground)
     height = standing_height_from_legs(src.rest_positions, mapping)
     return Motion(local, root, fps, str(path), scheme, height)
-
-
-def _bvh_fk(local_rot: np.ndarray, local_trans: np.ndarray, parents: list[int]) -> tuple[np.ndarray, np.ndarray]:
-    g_rot = np.empty_like(local_rot)
-    g_pos = np.empty_like(local_trans)
-    for j, p in enumerate(parents):
-        if p < 0:
-            g_rot[:, j], g_pos[:, j] = local_rot[:, j], local_trans[:, j]
-        else:
-            g_rot[:, j] = g_rot[:, p] @ local_rot[:, j]
-            g_pos[:, j] = g_pos[:, p] + (g_rot[:, p] @ local_trans[:, j, :, None])[..., 0]
-    return g_rot, g_pos
 
 
 # --- AMASS -----------------------------------------------------------------------------------------

@@ -160,14 +160,17 @@ def leg_length(rest_positions: np.ndarray, hip: int, knee: int, ankle: int) -> f
 
 
 def _canonical_leg_length() -> float:
-    rest = CANONICAL.rest_positions()
-    return 0.5 * sum(leg_length(rest, JOINT_INDEX[f"{s}_hip"], JOINT_INDEX[f"{s}_knee"], JOINT_INDEX[f"{s}_ankle"]) for s in "lr")
+    return mean_leg_length(CANONICAL.rest_positions(), JOINT_INDEX)
+
+
+def mean_leg_length(rest_positions: np.ndarray, mapping: dict[str, int]) -> float:
+    """Hip-knee-ankle length averaged over both legs; ``mapping`` is canonical name -> index."""
+    return 0.5 * sum(leg_length(rest_positions, mapping[f"{s}_hip"], mapping[f"{s}_knee"], mapping[f"{s}_ankle"]) for s in "lr")
 
 
 def standing_height_from_legs(rest_positions: np.ndarray, mapping: dict[str, int]) -> float:
     """Standing height estimated from the leg bones (rigs differ far more in torso than in legs)."""
-    src_leg = 0.5 * sum(leg_length(rest_positions, mapping[f"{s}_hip"], mapping[f"{s}_knee"], mapping[f"{s}_ankle"]) for s in "lr")
-    return src_leg * CANONICAL_HEIGHT / _canonical_leg_length()
+    return mean_leg_length(rest_positions, mapping) * CANONICAL_HEIGHT / _canonical_leg_length()
 
 
 CANONICAL_HEIGHT = 1.70
@@ -235,10 +238,7 @@ def retarget(src: SourceMotion, mapping_by_name: dict[str, int], ground: bool = 
             align[c] = a
     local = global_to_local(glob, PARENTS)
     pelvis = mapping[JOINT_INDEX["pelvis"]]
-    src_leg = 0.5 * sum(
-        leg_length(src_rest, mapping[JOINT_INDEX[f"{side}_hip"]], mapping[JOINT_INDEX[f"{side}_knee"]], mapping[JOINT_INDEX[f"{side}_ankle"]]) for side in "lr"
-    )
-    root = p_src[:, pelvis] * (_canonical_leg_length() / src_leg)
+    root = p_src[:, pelvis] * (_canonical_leg_length() / mean_leg_length(src_rest, mapping_by_name))
     if ground:
         root = ground_align(local, root)
     return local, root

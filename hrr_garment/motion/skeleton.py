@@ -105,7 +105,7 @@ CANONICAL = Skeleton()
 def forward_kinematics(
     local_rot: Array, root_pos: Array, offsets: Array, parents: tuple[int, ...]
 ) -> tuple[Array, Array]:
-    """Batched FK. local_rot (..., J, 3, 3), root_pos (..., 3), offsets (J, 3).
+    """Batched FK. local_rot (..., J, 3, 3), root_pos (..., 3), offsets (J, 3) or per frame (..., J, 3).
 
     Returns (global rotations (..., J, 3, 3), global positions (..., J, 3)). Works for numpy and
     torch; a root's offset is ignored (its position is ``root_pos``).
@@ -118,7 +118,7 @@ def forward_kinematics(
             g_pos[j] = root_pos
         else:
             g_rot[j] = g_rot[p] @ local_rot[..., j, :, :]
-            g_pos[j] = g_pos[p] + (g_rot[p] @ offsets[j][:, None])[..., 0]
+            g_pos[j] = g_pos[p] + (g_rot[p] @ offsets[..., j, :, None])[..., 0]
     return _stack(g_rot, -3), _stack(g_pos, -2)
 
 

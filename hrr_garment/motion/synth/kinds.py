@@ -59,7 +59,7 @@ def _gait_plan(rng, t, pad, yaw, speed, side_speed, period, duty, lift, lateral,
         pelvis_pitch=np.full_like(t, lean), pelvis_roll=0.05 * np.sin(w),
         spine_twist=-0.08 * np.sin(w) * min(1.0, abs(float(np.mean(speed))) + 0.2), spine_lean=np.full_like(t, 0.5 * lean),
         arm_swing={"l": -swing * np.sin(w), "r": swing * np.sin(w)},
-        arm_abduction={"l": np.full_like(t, 0.08), "r": np.full_like(t, 0.08)},
+        arm_abduction={"l": np.full_like(t, 0.02), "r": np.full_like(t, 0.02)},
         elbow_flex={"l": flex + 0.3 * flex * np.sin(w), "r": flex - 0.3 * flex * np.sin(w)},
         pad=pad,
     )
