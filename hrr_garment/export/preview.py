@@ -9,7 +9,7 @@ import numpy as np
 from ..io_utils import atomic_path
 from ..motion.motion import Motion
 from ..motion.rotations import rotation_about_y, yaw_of
-from ..motion.skeleton import PARENTS
+from ..motion.skeleton import JOINT_NAMES, PARENTS
 
 
 def _pil():
@@ -26,8 +26,6 @@ _CENTRE = (40, 40, 40)
 
 
 def _colour(j: int) -> tuple[int, int, int]:
-    from ..motion.skeleton import JOINT_NAMES
-
     name = JOINT_NAMES[j]
     return _LEFT if name.startswith("l_") else _RIGHT if name.startswith("r_") else _CENTRE
 
@@ -53,14 +51,11 @@ def render_skeleton_preview(rows: list[tuple[str, Motion]], path: str | Path, fr
             for v, (axis, sign) in enumerate(((0, -1.0), (2, 1.0))):  # front: -x to the right; side: +z to the right
                 ox = (2 * k + v) * cell + cell / 2
                 oy = top + 20 + cell * 0.95
-
-                def px(p: np.ndarray) -> tuple[float, float]:
-                    return (ox + sign * p[axis] * scale, oy - p[1] * scale)
-
+                screen = np.stack([ox + sign * local[:, axis] * scale, oy - local[:, 1] * scale], 1)
                 draw.line([(ox - cell * 0.4, oy), (ox + cell * 0.4, oy)], fill=(150, 150, 150), width=1)
                 for j, p in enumerate(PARENTS):
                     if p >= 0:
-                        draw.line([px(local[p]), px(local[j])], fill=_colour(j), width=3)
+                        draw.line([tuple(screen[p]), tuple(screen[j])], fill=_colour(j), width=3)
                 draw.text((ox - cell / 2 + 3, top + 20), f"f{t} {'front' if v == 0 else 'side'}", fill=(90, 90, 90))
     path = Path(path)
     with atomic_path(path) as tmp:

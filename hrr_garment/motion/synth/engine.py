@@ -14,7 +14,7 @@ import numpy as np
 from scipy.ndimage import gaussian_filter1d, maximum_filter1d
 
 from ..motion import FPS, Motion
-from ..rotations import axis_angle_to_matrix, normalize, rotation_about_y
+from ..rotations import axis_angle_to_matrix, matrix_to_axis_angle, normalize, rotation_about_y
 from ..skeleton import JOINT_INDEX as J
 from ..skeleton import PARENTS, REST_OFFSETS, global_to_local
 
@@ -227,7 +227,5 @@ def build_motion(plan: Plan, source: str) -> Motion:
 
 def _halfway(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Rotation halfway between a and b (per frame)."""
-    from ..rotations import matrix_to_axis_angle
-
     rel = matrix_to_axis_angle(np.swapaxes(a, -1, -2) @ b)
     return a @ axis_angle_to_matrix(0.5 * rel)
