@@ -13,12 +13,12 @@ import numpy as np
 
 from ..errors import MotionError
 from ..io_utils import atomic_path
-from .bvh import BvhClip, read_bvh
+from .bvh import read_bvh
 from .motion import FPS, Motion
 from .resample import resample_linear, resample_rotations, resample_times
 from .retarget import SourceMotion, check_source, ground_align, load_joint_map, resolve_joint_map, retarget, standing_height_from_legs
 from .rotations import axis_angle_to_matrix, matrix_to_axis_angle
-from .skeleton import NUM_JOINTS, forward_kinematics
+from .skeleton import NUM_JOINTS, forward_kinematics, rest_positions
 
 NATIVE_FORMAT = "hrr_garment.motion"
 NATIVE_VERSION = 1
@@ -78,8 +78,8 @@ def resample_motion(motion: Motion, fps: float = FPS) -> Motion:
 # --- BVH -------------------------------------------------------------------------------------------
 
 
-def detect_unit_scale(clip: BvhClip, mapping: dict[str, int], path: Path) -> float:
-    rest = _rest_positions(clip)
+def detect_unit_scale(rest: np.ndarray, mapping: dict[str, int], path: Path) -> float:
+    """Metres per file unit, from the standing height of the rest pose ``rest`` (file units)."""
     height_units = standing_height_from_legs(rest, mapping)
     lo, hi = PLAUSIBLE_HEIGHT_M
     fits = [(abs(np.log(height_units * s / 1.7)), s) for s in UNIT_SCALES.values() if lo <= height_units * s <= hi]
@@ -88,18 +88,12 @@ def detect_unit_scale(clip: BvhClip, mapping: dict[str, int], path: Path) -> flo
     return min(fits)[1]
 
 
-def _rest_positions(clip: BvhClip) -> np.ndarray:
-    pos = np.zeros((len(clip.names), 3))
-    for j, p in enumerate(clip.parents):
-        pos[j] = clip.offsets[j] if p < 0 else pos[p] + clip.offsets[j]
-    return pos
-
-
 def load_bvh(path: Path, unit_scale: float | None = None, joint_map: dict | None = None, ground: bool = True, fps: float = FPS) -> Motion:
     clip = read_bvh(path)
     scheme, mapping = resolve_joint_map(clip.names, str(path), joint_map)
+    rest = rest_positions(clip.offsets, clip.parents)
     if unit_scale is None:
-        unit_scale = detect_unit_scale(clip, mapping, path)
+        unit_scale = detect_unit_scale(rest, mapping, path)
     elif not unit_scale > 0:
         raise MotionError(path, f"unit scale must be positive, got {unit_scale}")
     src_fps = 1.0 / clip.frame_time
@@ -108,7 +102,7 @@ def load_bvh(path: Path, unit_scale: float | None = None, joint_map: dict | None
     local_trans = resample_linear(clip.local_translations, frames) * unit_scale
     # Non-root translations: position channels hold the joint's parent-relative position.
     g_rot, g_pos = forward_kinematics(local_rot, local_trans[:, 0], local_trans, clip.parents)
-    src = SourceMotion(clip.names, clip.parents, _rest_positions(clip) * unit_scale, g_rot, g_pos, src_fps, str(path))
+    src = SourceMotion(clip.names, clip.parents, rest * unit_scale, g_rot, g_pos, src_fps, str(path))
     check_source(src)
     local, root = retarget(src, mapping, ground=ground)
     height = standing_height_from_legs(src.rest_positions, mapping)

@@ -74,6 +74,14 @@ SOLE_POINTS: tuple[tuple[str, tuple[float, float, float]], ...] = (
 )
 
 
+def rest_positions(offsets: np.ndarray, parents: tuple[int, ...] | list[int]) -> np.ndarray:
+    """(J, 3) rest-pose joint positions of any tree: offsets accumulated from the root (float64)."""
+    pos = np.zeros((len(parents), 3), dtype=np.float64)
+    for j, p in enumerate(parents):
+        pos[j] = offsets[j] if p < 0 else pos[p] + offsets[j]
+    return pos
+
+
 @dataclass(frozen=True)
 class Skeleton:
     """A kinematic tree: parent indices and parent-relative rest offsets (T-pose, metres)."""
@@ -88,9 +96,7 @@ class Skeleton:
 
     def rest_positions(self, root: np.ndarray | None = None) -> np.ndarray:
         """(J, 3) joint positions in the rest pose with the root at ``root`` (default origin)."""
-        pos = np.zeros((self.num_joints, 3), dtype=np.float64)
-        for j, p in enumerate(self.parents):
-            pos[j] = self.offsets[j] if p < 0 else pos[p] + self.offsets[j]
+        pos = rest_positions(self.offsets, self.parents)
         if root is not None:
             pos += np.asarray(root) - pos[0]
         return pos
