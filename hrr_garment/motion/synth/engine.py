@@ -106,6 +106,7 @@ def _foot_targets(plan: Plan, foot: FootPlan, pelvis_y: np.ndarray, takeoff_y: f
     stance = np.zeros(n, bool)
     starts = np.array([s[0] for s in foot.stances])
     root_vel = np.gradient(plan.root_xz, t, axis=0)
+    swing_ends: dict[int, tuple[np.ndarray, ...]] = {}
     for i in range(n):
         k = int(np.searchsorted(starts, t[i], side="right")) - 1  # last stance starting at or before t
         if k >= 0 and t[i] <= foot.stances[k][1]:
@@ -123,9 +124,10 @@ def _foot_targets(plan: Plan, foot: FootPlan, pelvis_y: np.ndarray, takeoff_y: f
         q = quintic(s)
         # Swing relative to the moving root (cubic Hermite), so the foot stays within reach of the
         # hip and leaves and lands with zero world velocity.
-        r0, r1, v0, v1 = (np.array([np.interp(x, t, arr[:, c]) for c in (0, 1)]) for arr, x in ((plan.root_xz, t0), (plan.root_xz, t1), (root_vel, t0), (root_vel, t1)))
-        rel0 = plants[k][[0, 2]] - r0
-        rel1 = plants[k + 1][[0, 2]] - r1
+        if k not in swing_ends:  # root position and velocity at lift-off and touch-down, once per swing
+            r0, r1, v0, v1 = (np.array([np.interp(x, t, arr[:, c]) for c in (0, 1)]) for arr, x in ((plan.root_xz, t0), (plan.root_xz, t1), (root_vel, t0), (root_vel, t1)))
+            swing_ends[k] = (plants[k][[0, 2]] - r0, plants[k + 1][[0, 2]] - r1, v0, v1)
+        rel0, rel1, v0, v1 = swing_ends[k]
         h00, h10, h01, h11 = 2 * s**3 - 3 * s**2 + 1, s**3 - 2 * s**2 + s, -2 * s**3 + 3 * s**2, s**3 - s**2
         rel = h00 * rel0 - h10 * (t1 - t0) * v0 + h01 * rel1 - h11 * (t1 - t0) * v1
         target[i] = [plan.root_xz[i, 0] + rel[0], plants[k][1], plan.root_xz[i, 1] + rel[1]]
