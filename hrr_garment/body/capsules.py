@@ -114,8 +114,9 @@ def _unit_capsule(segments: int = 16, rings: int = 8) -> tuple[np.ndarray, np.nd
             v2, v3 = v0 + segments, v1 + segments
             faces += [(v0, v2, v1), (v1, v2, v3)]
     faces_arr = np.array(faces)
-    # Drop degenerate triangles at the poles.
-    tri = verts[faces_arr]
+    # Drop degenerate triangles at the poles (measured with the halves apart: the duplicated
+    # equator rings coincide on the unit sphere but bound the cylinder between the ends).
+    tri = (verts + end[:, None] * np.array([0.0, 0.0, 1.0]))[faces_arr]
     area = np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
     return verts, faces_arr[area > 1e-9], end
 

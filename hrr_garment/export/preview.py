@@ -1,7 +1,9 @@
-"""Preview images (PNG) of skeleton motion. Needs the ``preview`` extra (Pillow)."""
+"""Preview images (PNG) of skeleton motion and of meshes (garment over body). Needs the ``preview``
+extra (Pillow)."""
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -48,7 +50,7 @@ def render_skeleton_preview(rows: list[tuple[str, Motion]], path: str | Path, fr
         heading = yaw_of(motion.global_rotations[:, 0])
         for k, t in enumerate(np.linspace(0, motion.num_frames - 1, frames).round().astype(int)):
             local = (pos[t] - pos[t, 0] * np.array([1, 0, 1])) @ rotation_about_y(heading[t])  # heading frame
-            for v, (axis, sign) in enumerate(((0, -1.0), (2, 1.0))):  # front: -x to the right; side: +z to the right
+            for v, (axis, sign) in enumerate(((0, 1.0), (2, -1.0))):  # front: its left on our right; side: from its left
                 ox = (2 * k + v) * cell + cell / 2
                 oy = top + 20 + cell * 0.95
                 screen = np.stack([ox + sign * local[:, axis] * scale, oy - local[:, 1] * scale], 1)
@@ -57,6 +59,63 @@ def render_skeleton_preview(rows: list[tuple[str, Motion]], path: str | Path, fr
                     if p >= 0:
                         draw.line([tuple(screen[p]), tuple(screen[j])], fill=_colour(j), width=3)
                 draw.text((ox - cell / 2 + 3, top + 20), f"f{t} {'front' if v == 0 else 'side'}", fill=(90, 90, 90))
+    path = Path(path)
+    with atomic_path(path) as tmp:
+        img.save(tmp, format="PNG")
+    return path
+
+
+@dataclass(frozen=True)
+class PreviewMesh:
+    """One mesh of a preview frame, already in the view frame (Y up, character facing +Z)."""
+
+    vertices: np.ndarray
+    faces: np.ndarray
+    colour: tuple[int, int, int]
+
+
+# Screen axes per view: (world axis shown left-to-right, its sign, depth axis, its sign).
+_VIEWS = {"front": (0, 1.0, 2, 1.0), "side": (2, -1.0, 0, 1.0), "back": (0, -1.0, 2, -1.0)}
+
+
+def _draw_meshes(draw, meshes: list[PreviewMesh], view: str, centre: tuple[float, float], scale: float) -> None:
+    ax, sx, dz, sz = _VIEWS[view]
+    light = np.zeros(3)
+    light[dz], light[1] = sz, 0.5
+    light /= np.linalg.norm(light)
+    polys, depth, colours = [], [], []
+    for mesh in meshes:
+        tri = mesh.vertices[mesh.faces]
+        normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+        normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-12)
+        shade = 0.35 + 0.65 * np.abs(normal @ light)
+        polys.append(np.stack([centre[0] + sx * tri[..., ax] * scale, centre[1] - tri[..., 1] * scale], -1))
+        depth.append(sz * tri[..., dz].mean(1))
+        colours.append(np.clip(np.outer(shade, mesh.colour), 0, 255).astype(int))
+    polys_all, colours_all = np.concatenate(polys), np.concatenate(colours)
+    for i in np.argsort(np.concatenate(depth)):  # far to near
+        draw.polygon([tuple(p) for p in polys_all[i]], fill=tuple(colours_all[i]))
+
+
+def render_mesh_preview(rows: list[tuple[str, list[list[PreviewMesh]]]], path: str | Path, cell: int = 220,
+                        views: tuple[str, ...] = ("front", "side"), metres: float = 2.0) -> Path:
+    """A grid of flat-shaded orthographic renders: one row per label, each frame in every view.
+
+    ``metres`` is the height of world space a cell shows (feet at the bottom).
+    """
+    Image, ImageDraw = _pil()
+    columns = max(len(frames) for _, frames in rows) * len(views)
+    img = Image.new("RGB", (columns * cell, len(rows) * (cell + 20)), (250, 250, 247))
+    draw = ImageDraw.Draw(img)
+    scale = cell / metres
+    for r, (label, frames) in enumerate(rows):
+        top = r * (cell + 20)
+        draw.text((4, top + 3), label, fill=(0, 0, 0))
+        for k, meshes in enumerate(frames):
+            for v, view in enumerate(views):
+                left = (k * len(views) + v) * cell
+                _draw_meshes(draw, meshes, view, (left + cell / 2, top + 20 + cell * 0.97), scale)
+                draw.text((left + 3, top + cell + 4), view, fill=(120, 120, 120))
     path = Path(path)
     with atomic_path(path) as tmp:
         img.save(tmp, format="PNG")
