@@ -32,8 +32,8 @@ def _default_capsules() -> tuple[Capsule, ...]:
     caps = [
         Capsule("hips", "pelvis", (0.075, -0.06, -0.01), (-0.075, -0.06, -0.01), 0.115),
         Capsule("belly", "spine1", (0.0, 0.0, 0.0), _off("spine2"), 0.115),
-        Capsule("chest", "spine2", (0.06, 0.03, 0.0), (-0.06, 0.03, 0.0), 0.12),
-        Capsule("upper_chest", "spine3", (0.07, 0.08, 0.0), (-0.07, 0.08, 0.0), 0.105),
+        Capsule("chest", "spine2", (0.05, 0.03, 0.0), (-0.05, 0.03, 0.0), 0.11),
+        Capsule("upper_chest", "spine3", (0.055, 0.08, 0.0), (-0.055, 0.08, 0.0), 0.10),
         Capsule("neck", "neck", (0.0, 0.0, 0.0), _off("head"), 0.05),
         Capsule("head", "head", (0.0, 0.05, 0.01), (0.0, 0.09, 0.01), 0.095),
     ]

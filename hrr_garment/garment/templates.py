@@ -39,6 +39,7 @@ class TubeShape:
     straps: bool = False
     strap_x: float = 0.10  # strap centre line, metres from the body's midline
     strap_width: float = 0.035
+    shoulder_band: float = 0.03  # strap vertices this close to the strap's top are attached
 
 
 GARMENT_SHAPES: dict[str, TubeShape] = {
@@ -230,9 +231,13 @@ def make_garment(name: str, vertices: int = DEFAULT_VERTICES, body: BodyModel = 
         faces = np.concatenate([faces, strap_f])
         groups["straps"] = strap_ids
         groups["neckline"] = np.arange(cols)
+        # Only the strap tops ride on the shoulders: skinning a whole strap (or the neckline) would
+        # stretch it by skinning error whenever the collar moves against the spine.
+        strap_y = verts[strap_ids, 1]
+        groups["shoulders"] = strap_ids[strap_y >= strap_y.max() - shape.shoulder_band]
         waist_row = int(np.argmin(np.abs(tube[:, 0, 1] - shape.waist)))
         groups["waistband"] = waist_row * cols + np.arange(cols)
-        attached = ("straps", "neckline", "waistband")
+        attached = ("shoulders", "waistband")
     else:
         groups["waistband"] = np.arange(top_rows * cols)
         attached = ("waistband",)
