@@ -7,6 +7,8 @@ Public API (motion side)::
     feats = motion_features(motion)            # (T, 124) float32
 """
 
+__version__ = "0.1.0"  # before the imports: submodules read it
+
 from .errors import HRRError, InputError, MotionError, SkeletonMappingError
 from .motion.features import FEATURE_DIM, FeatureStats, motion_features, windows
 from .motion.io import load_motion, save_amass, save_motion
@@ -15,7 +17,6 @@ from .motion.skeleton import CANONICAL, JOINT_NAMES
 from .motion.synth import KINDS as MOTION_KINDS
 from .motion.synth import synthesize
 
-__version__ = "0.1.0"
 
 __all__ = [
     "CANONICAL", "FEATURE_DIM", "FeatureStats", "HRRError", "InputError", "JOINT_NAMES", "MOTION_KINDS", "Motion",

@@ -85,7 +85,8 @@ def _import_newton():
     try:
         import warp as wp
 
-        wp.config.quiet = True
+        wp.config.quiet = True  # no banner
+        wp.config.log_level = wp.LOG_WARNING  # no per-module load timings
         import newton
     except ImportError:
         raise ImportError("the cloth simulator needs newton and warp: pip install 'hrr_garment[sim]'") from None

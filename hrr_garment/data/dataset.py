@@ -1,0 +1,158 @@
+"""The garment dataset file (HDF5): one template, many simulated sequences, fixed splits.
+
+Layout (format_version 1; documented in docs/dataset.md)::
+
+    /                      attrs: format_version, fps, garment, units="m", up_axis="y", generator, info (JSON)
+    /template/vertices     (V, 3) float32, rest pose
+    /template/faces        (F, 3) int32
+    /template/attached     (A,) int32
+    /template/groups/<g>   (n,) int32, named vertex groups (attrs: attached_groups on /template)
+    /sequences/<name>/garment          (T, V, 3) float32, world space
+    /sequences/<name>/joints           (T, 22, 3) float32, world joint positions
+    /sequences/<name>/local_rotations  (T, 22, 3, 3) float32
+    /sequences/<name>/root_translation (T, 3) float64
+                      attrs: source, info (JSON: kind, seed, stats...)
+    /splits/{train,val,test}           names of sequences (variable-length UTF-8 strings)
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+from .. import __version__
+from ..errors import InputError
+from ..garment.mesh import GarmentMesh
+from ..motion.motion import FPS, Motion
+
+FORMAT_VERSION = 1
+SPLITS = ("train", "val", "test")
+
+
+class DatasetError(InputError):
+    """A dataset file that is missing, of another format, or inconsistent."""
+
+
+@dataclass
+class SequenceRecord:
+    """One sequence: garment vertices (T, V, 3) world space and the motion that drove them."""
+
+    name: str
+    garment: np.ndarray
+    motion: Motion
+    info: dict = field(default_factory=dict)
+
+
+def split_names(names: list[str], val: float, test: float, seed: int) -> dict[str, list[str]]:
+    """Seeded split by sequence; with three or more sequences val and test get at least one each."""
+    order = sorted(names)
+    rng = np.random.default_rng(seed)
+    rng.shuffle(order)
+    n = len(order)
+    n_val = max(1, int(round(val * n))) if n >= 3 and val > 0 else 0
+    n_test = max(1, int(round(test * n))) if n >= 3 and test > 0 else 0
+    return {"val": sorted(order[:n_val]), "test": sorted(order[n_val:n_val + n_test]),
+            "train": sorted(order[n_val + n_test:])}
+
+
+def write_dataset(path: str | Path, template: GarmentMesh, sequences: list[SequenceRecord],
+                  splits: dict[str, list[str]], info: dict | None = None, compression: str | None = "gzip") -> Path:
+    """Write the whole file atomically (temporary file in the same folder, then rename)."""
+    from ..io_utils import atomic_path
+
+    path = Path(path)
+    with atomic_path(path) as tmp, h5py.File(tmp, "w") as f:
+        f.attrs.update(format_version=FORMAT_VERSION, fps=float(sequences[0].motion.fps if sequences else FPS),
+                       garment=template.name, units="m", up_axis="y", generator=f"hrr_garment {__version__}",
+                       info=json.dumps(info or {}))
+        t = f.create_group("template")
+        t.create_dataset("vertices", data=template.vertices.astype(np.float32))
+        t.create_dataset("faces", data=template.faces.astype(np.int32))
+        t.create_dataset("attached", data=template.attached.astype(np.int32))
+        t.attrs["attached_groups"] = json.dumps(list(template.attached_groups))
+        g = t.create_group("groups")
+        for name, idx in template.groups.items():
+            g.create_dataset(name, data=np.asarray(idx, np.int32))
+        seqs = f.create_group("sequences")
+        opts = {"compression": compression, "shuffle": True} if compression else {}
+        for rec in sequences:
+            s = seqs.create_group(rec.name)
+            v = rec.garment.astype(np.float32)
+            s.create_dataset("garment", data=v, chunks=(1,) + v.shape[1:], **opts)
+            s.create_dataset("joints", data=rec.motion.joint_positions.astype(np.float32), **opts)
+            s.create_dataset("local_rotations", data=rec.motion.local_rotations.astype(np.float32), **opts)
+            s.create_dataset("root_translation", data=rec.motion.root_translation.astype(np.float64))
+            s.attrs["source"] = rec.motion.source
+            s.attrs["info"] = json.dumps(rec.info)
+        sp = f.create_group("splits")
+        str_type = h5py.string_dtype("utf-8")
+        for split in SPLITS:
+            sp.create_dataset(split, data=np.array(splits.get(split, []), dtype=object), dtype=str_type)
+    return path
+
+
+class GarmentDataset:
+    """Read access to a dataset file; checks the format on open.
+
+    >>> ds = GarmentDataset("hrr_work/datasets/dress-quick.h5")
+    >>> ds.splits["train"][:2], ds.template.num_vertices
+    >>> rec = ds.sequence(ds.names[0])   # SequenceRecord with garment (T, V, 3) and motion
+    """
+
+    def __init__(self, path: str | Path):
+        self.path = Path(path)
+        if not self.path.is_file():
+            raise DatasetError(self.path, "no such dataset file (make one with hrr-simulate or hrr-import)")
+        try:
+            with h5py.File(self.path, "r") as f:
+                self._read_header(f)
+        except OSError as exc:
+            raise DatasetError(self.path, f"not a readable HDF5 file ({exc})") from None
+
+    def _read_header(self, f: h5py.File) -> None:
+        version = f.attrs.get("format_version")
+        if version != FORMAT_VERSION:
+            raise DatasetError(self.path, f"format_version {version!r}; this hrr_garment reads {FORMAT_VERSION}")
+        for key in ("template/vertices", "template/faces", "template/attached", "sequences", "splits"):
+            if key not in f:
+                raise DatasetError(self.path, f"missing /{key}")
+        self.fps = float(f.attrs["fps"])
+        self.garment = str(f.attrs["garment"])
+        self.info = json.loads(f.attrs.get("info", "{}"))
+        t = f["template"]
+        groups = {k: t["groups"][k][()] for k in t.get("groups", {})}
+        attached_groups = tuple(json.loads(t.attrs.get("attached_groups", "[]")))
+        if not attached_groups:
+            groups["attached"] = t["attached"][()]
+            attached_groups = ("attached",)
+        self.template = GarmentMesh(self.garment, t["vertices"][()], t["faces"][()], groups, attached_groups)
+        self.names = sorted(f["sequences"].keys())
+        self.splits = {s: [n.decode() if isinstance(n, bytes) else str(n) for n in f["splits"][s][()]]
+                       for s in SPLITS if s in f["splits"]}
+        missing = sorted({n for names in self.splits.values() for n in names} - set(self.names))
+        if missing:
+            raise DatasetError(self.path, f"splits name sequences that are not in the file: {missing[:5]}")
+        self.frames = {n: int(f["sequences"][n]["garment"].shape[0]) for n in self.names}
+
+    def __len__(self) -> int:
+        return len(self.names)
+
+    def sequence(self, name: str) -> SequenceRecord:
+        with h5py.File(self.path, "r") as f:
+            if name not in f["sequences"]:
+                raise DatasetError(self.path, f"no sequence {name!r} (has {len(self.names)}: {self.names[:5]}...)")
+            s = f["sequences"][name]
+            for key in ("garment", "local_rotations", "root_translation"):
+                if key not in s:
+                    raise DatasetError(self.path, f"sequence {name!r} lacks {key!r}")
+            garment = s["garment"][()]
+            motion = Motion(s["local_rotations"][()], s["root_translation"][()], self.fps, str(s.attrs.get("source", name)))
+            info = json.loads(s.attrs.get("info", "{}"))
+        if garment.shape[1:] != self.template.vertices.shape or garment.shape[0] != motion.num_frames:
+            raise DatasetError(self.path, f"sequence {name!r}: garment {garment.shape} does not match "
+                                          f"{motion.num_frames} frames x {self.template.num_vertices} vertices")
+        return SequenceRecord(name, garment, motion, info)

@@ -1,0 +1,120 @@
+"""Wavefront OBJ in and out, keeping vertex order (a simulated frame must match its template).
+
+Reading: ``v`` lines, ``f`` lines (``i``, ``i/t``, ``i//n``, ``i/t/n``, negative indices), polygons
+fan-triangulated, ``g``/``o`` names recorded per face. A garment's attached vertices are either the
+vertices of the faces in a named group (``--attached waistband`` for ``g waistband``), or an
+index file (one 0-based vertex index per line, or a .npy integer array).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ..io_utils import atomic_path
+from .mesh import GarmentError, GarmentMesh, check_garment, repair_mesh
+
+
+def read_obj(path: str | Path) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
+    """(vertices (V, 3) float64, triangles (F, 3) int64, {group name: face indices})."""
+    path = Path(path)
+    if not path.is_file():
+        raise GarmentError(path, "no such file")
+    verts: list[list[float]] = []
+    faces: list[tuple[int, int, int]] = []
+    groups: dict[str, list[int]] = {}
+    current: list[str] = []
+    with open(path, encoding="utf-8", errors="replace") as fh:
+        for lineno, line in enumerate(fh, 1):
+            parts = line.split()
+            if not parts or parts[0].startswith("#"):
+                continue
+            tag = parts[0]
+            try:
+                if tag == "v":
+                    verts.append([float(x) for x in parts[1:4]])
+                    if len(verts[-1]) != 3:
+                        raise ValueError("a vertex needs three coordinates")
+                elif tag == "f":
+                    idx = [int(p.split("/")[0]) for p in parts[1:]]
+                    idx = [i - 1 if i > 0 else len(verts) + i for i in idx]
+                    if len(idx) < 3:
+                        raise ValueError("a face needs at least three vertices")
+                    for k in range(1, len(idx) - 1):  # fan triangulation of polygons
+                        for name in current:
+                            groups.setdefault(name, []).append(len(faces))
+                        faces.append((idx[0], idx[k], idx[k + 1]))
+                elif tag in ("g", "o"):
+                    current = parts[1:] or ["default"]
+            except ValueError as exc:
+                raise GarmentError(path, f"line {lineno}: {exc}: {line.strip()[:60]!r}") from None
+    if not verts or not faces:
+        raise GarmentError(path, f"no mesh: {len(verts)} vertices, {len(faces)} faces")
+    v, f = np.array(verts, np.float64), np.array(faces, np.int64)
+    if f.min() < 0 or f.max() >= len(v):
+        raise GarmentError(path, f"face indices out of range 1..{len(v)}")
+    return v, f, {k: np.array(i, np.int64) for k, i in groups.items()}
+
+
+def read_obj_vertices(path: str | Path) -> np.ndarray:
+    """Only the vertex positions (V, 3), in file order (for simulated frames)."""
+    return read_obj(path)[0]
+
+
+def write_obj(path: str | Path, vertices: np.ndarray, faces: np.ndarray, groups: dict[str, np.ndarray] | None = None) -> Path:
+    """Write atomically. ``groups`` maps names to *vertex* sets: each becomes a ``g`` group holding
+    the faces whose vertices all lie in the set, so ``read`` + ``--attached NAME`` recovers it."""
+    path = Path(path)
+    assigned = np.zeros(len(faces), bool)
+    blocks = []
+    for name, idx in (groups or {}).items():
+        member = np.isin(faces, idx).all(1) & ~assigned
+        assigned |= member
+        blocks.append((name, faces[member]))
+    blocks.insert(0, ("garment", faces[~assigned]))
+    with atomic_path(path) as tmp, open(tmp, "w", encoding="utf-8") as fh:
+        fh.write("# hrr_garment\n")
+        np.savetxt(fh, vertices, fmt="v %.6f %.6f %.6f")
+        for name, block in blocks:
+            if len(block):
+                fh.write(f"g {name}\n")
+                np.savetxt(fh, block + 1, fmt="f %d %d %d")
+    return path
+
+
+def load_garment_obj(path: str | Path, name: str | None = None, attached_group: str | None = None,
+                     attached_file: str | Path | None = None, repair: bool = True) -> GarmentMesh:
+    """A user garment from OBJ, in the canonical rest pose (Y up, metres), checked.
+
+    ``repair`` merges duplicate vertices (1 um), drops degenerate faces and makes the winding
+    consistent; it never changes the vertex count of a clean mesh, so imported frames still match.
+    """
+    path = Path(path)
+    v, f, face_groups = read_obj(path)
+    if attached_file is not None:
+        attached_file = Path(attached_file)
+        try:
+            idx = np.load(attached_file, allow_pickle=False) if attached_file.suffix == ".npy" else \
+                np.loadtxt(attached_file, dtype=np.int64, ndmin=1)
+        except (OSError, ValueError) as exc:
+            raise GarmentError(attached_file, f"not a list of vertex indices ({exc})") from None
+        idx = np.asarray(idx, np.int64).ravel()
+        if len(idx) and (idx.min() < 0 or idx.max() >= len(v)):
+            raise GarmentError(attached_file, f"vertex indices must lie in [0, {len(v)})")
+        attached = idx
+    elif attached_group is not None:
+        if attached_group not in face_groups:
+            raise GarmentError(path, f"no group {attached_group!r}; groups in the file: {sorted(face_groups) or 'none'}")
+        attached = np.unique(f[face_groups[attached_group]].ravel())
+    else:
+        raise GarmentError(path, "no attached vertices given: name an OBJ group (--attached) or an index file (--attached-file)")
+    mesh = GarmentMesh(name or path.stem, v.astype(np.float32), f.astype(np.int32),
+                       {"attached": attached.astype(np.int32)}, ("attached",))
+    if repair:
+        mesh = repair_mesh(mesh)
+    try:
+        check_garment(mesh)
+    except GarmentError as exc:
+        raise GarmentError(path, exc.problem) from None
+    return mesh

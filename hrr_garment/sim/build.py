@@ -1,0 +1,218 @@
+"""Resumable dataset building: simulate each planned sequence in a worker process, keep each
+finished one as an atomic part file, then assemble the HDF5 dataset.
+
+Parts live beside the dataset in ``NAME.parts/``: ``<sequence>.npz`` (arrays only, no pickle) or
+``<sequence>.failed.json`` for a sequence that exploded on every attempt. Each records a key that
+hashes the template, simulator settings and the sequence's spec; a re-run reuses parts whose key
+matches and simulates the rest, so a killed build resumes where it stopped.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import multiprocessing as mp
+import os
+import queue as queue_mod
+import time
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from tqdm.auto import tqdm
+
+from ..data.dataset import SequenceRecord, split_names, write_dataset
+from ..garment.mesh import GarmentMesh
+from ..io_utils import atomic_path, atomic_write_text
+from ..motion.motion import Motion
+from .plan import SequenceSpec
+from .quality import edge_strain, sequence_stats
+from .simulator import SimConfig, SimulationExploded, simulate_garment
+
+PART_VERSION = 1
+
+
+def template_hash(mesh: GarmentMesh) -> str:
+    h = hashlib.sha1()
+    for arr in (mesh.vertices, mesh.faces, mesh.attached):
+        h.update(np.ascontiguousarray(arr).tobytes())
+    return h.hexdigest()[:16]
+
+
+@dataclass
+class BuildReport:
+    path: Path
+    sequences: list[str]
+    rejects: dict[str, str]
+    summary: dict
+    reused: int = 0
+    simulated: int = 0
+    preview: Path | None = None
+    stats: dict[str, dict] = field(default_factory=dict)
+
+
+def _part_paths(parts: Path, name: str) -> tuple[Path, Path]:
+    return parts / f"{name}.npz", parts / f"{name}.failed.json"
+
+
+def _read_part_key(part: Path) -> str | None:
+    try:
+        with np.load(part, allow_pickle=False) as z:
+            return str(z["key"])
+    except (OSError, KeyError, ValueError):
+        return None  # unreadable or from an older layout: simulate again
+
+
+def _simulate_part(spec: SequenceSpec, garment: GarmentMesh, config: dict, key: str, parts: str,
+                   progress_queue=None) -> dict:
+    """Worker: simulate one sequence and write its part file (or failure record)."""
+    part, failed = _part_paths(Path(parts), spec.name)
+    motion = spec.motion()
+    report = (lambda n: progress_queue.put(n)) if progress_queue is not None else None
+    try:
+        result = simulate_garment(garment, motion, SimConfig.from_dict(config), progress=report)
+    except SimulationExploded as exc:
+        atomic_write_text(failed, json.dumps({"key": key, "name": spec.name, "reason": str(exc)}))
+        return {"name": spec.name, "failed": str(exc)}
+    stats = sequence_stats(result.vertices, garment.vertices, garment.edges(), motion, garment.groups.get("hem"))
+    stats.update(substeps=result.substeps, attempts=result.attempts, sim_seconds=result.seconds,
+                 simulated_frames=result.simulated_frames)
+    info = {"kind": spec.kind, "seed": spec.seed, "path": spec.path, "stats": stats}
+    with atomic_path(part) as tmp:
+        with open(tmp, "wb") as fh:
+            np.savez(fh, key=np.array(key), garment=result.vertices, local_rotations=motion.local_rotations,
+                     root_translation=motion.root_translation, fps=np.array(motion.fps),
+                     source=np.array(motion.source), info=np.array(json.dumps(info)))
+    return {"name": spec.name, "stats": stats}
+
+
+def _load_part(part: Path, name: str) -> SequenceRecord:
+    with np.load(part, allow_pickle=False) as z:
+        motion = Motion(z["local_rotations"], z["root_translation"], float(z["fps"]), str(z["source"]))
+        return SequenceRecord(name, z["garment"], motion, json.loads(str(z["info"])))
+
+
+def warm_up(garment: GarmentMesh, config: SimConfig) -> None:
+    """Compile/load the simulator's kernels once in this process (workers then find them cached)."""
+    from ..motion.synth import synthesize
+
+    clip = synthesize("idle", 0.1, seed=0)
+    simulate_garment(garment, clip, SimConfig.from_dict({**config.to_dict(), "settle_s": 0.0, "blend_s": 0.0}))
+
+
+def build_dataset(garment: GarmentMesh, specs: list[SequenceSpec], config: SimConfig, out: str | Path,
+                  jobs: int | None = None, splits: dict[str, float] | None = None, seed: int = 0,
+                  info: dict | None = None, preview: bool = True, progress: bool = True) -> BuildReport:
+    """Simulate what is missing, then write ``out`` (HDF5) atomically. See the module docstring."""
+    out = Path(out)
+    parts = out.with_suffix(".parts")
+    parts.mkdir(parents=True, exist_ok=True)
+    extra = {"template": template_hash(garment), "sim": config.to_dict(), "part_version": PART_VERSION}
+    keys = {s.name: s.key(extra) for s in specs}
+    pending, rejects, reused = [], {}, 0
+    for spec in specs:
+        part, failed = _part_paths(parts, spec.name)
+        if part.exists() and _read_part_key(part) == keys[spec.name]:
+            reused += 1
+        elif failed.exists() and json.loads(failed.read_text()).get("key") == keys[spec.name]:
+            rejects[spec.name] = json.loads(failed.read_text())["reason"]
+        else:
+            pending.append(spec)
+    jobs = max(1, min(jobs or os.cpu_count() or 1, len(pending) or 1))
+    t0 = time.perf_counter()
+    if pending:
+        if progress:
+            print(f"simulating {len(pending)} of {len(specs)} sequences with {jobs} worker(s); "
+                  f"{reused} already done (first run compiles kernels: about two minutes, cached after)")
+        warm_up(garment, config)
+        rejects.update(_run_pending(pending, garment, config, keys, parts, jobs, progress))
+    sim_wall = time.perf_counter() - t0
+    done = [s.name for s in specs if s.name not in rejects and _part_paths(parts, s.name)[0].exists()]
+    records = [_load_part(_part_paths(parts, n)[0], n) for n in done]
+    if not records:
+        raise SimulationExploded(f"every sequence failed; nothing to write to {out}: {rejects}")
+    split = split_names(done, (splits or {}).get("val", 0.1), (splits or {}).get("test", 0.1), seed)
+    summary = summarise(records, garment, rejects, sim_wall, jobs, len(pending))
+    write_dataset(out, garment, records, split, {**(info or {}), "summary": summary, "sim": config.to_dict()})
+    atomic_write_text(out.with_suffix(".summary.json"), json.dumps(summary, indent=2))
+    report = BuildReport(out, done, rejects, summary, reused, len(pending) - len(rejects),
+                         stats={r.name: r.info.get("stats", {}) for r in records})
+    if preview:
+        report.preview = write_preview(records, garment, out.with_suffix(".preview.png"))
+    return report
+
+
+def _run_pending(pending: list[SequenceSpec], garment: GarmentMesh, config: SimConfig, keys: dict[str, str],
+                 parts: Path, jobs: int, progress: bool) -> dict[str, str]:
+    lead = int(round((config.settle_s + config.blend_s) * 30))
+    total = sum(int(round(s.seconds * 30)) + lead if s.kind != "file" else s.stop - s.start + lead for s in pending)
+    bar = tqdm(total=total, unit="frame", desc="simulating", disable=not progress, smoothing=0.05)
+    rejects: dict[str, str] = {}
+    ctx = mp.get_context("spawn")  # Warp is not fork-safe
+    with ctx.Manager() as manager, ProcessPoolExecutor(max_workers=jobs, mp_context=ctx) as pool:
+        progress_queue = manager.Queue()
+        futures = {pool.submit(_simulate_part, s, garment, config.to_dict(), keys[s.name], str(parts), progress_queue): s
+                   for s in pending}
+        remaining = set(futures)
+        while remaining:
+            finished, remaining = wait(remaining, timeout=0.5, return_when=FIRST_COMPLETED)
+            _drain(progress_queue, bar)
+            for fut in finished:
+                result = fut.result()  # a worker crash propagates: the finished parts are kept
+                if "failed" in result:
+                    rejects[result["name"]] = result["failed"]
+                    bar.write(f"rejected {result['name']}: {result['failed']}")
+        _drain(progress_queue, bar)
+    bar.close()
+    return rejects
+
+
+def _drain(progress_queue, bar) -> None:
+    try:
+        while True:
+            bar.update(progress_queue.get_nowait())
+    except queue_mod.Empty:
+        pass
+
+
+def summarise(records: list[SequenceRecord], garment: GarmentMesh, rejects: dict[str, str], sim_wall: float,
+              jobs: int, simulated: int) -> dict:
+    stats = [r.info.get("stats", {}) for r in records]
+    edges = garment.edges()
+    pooled = np.concatenate([edge_strain(r.garment, garment.vertices, edges).ravel() for r in records])
+    sim_frames = sum(s.get("simulated_frames", 0) for s in stats)
+    sim_seconds = sum(s.get("sim_seconds", 0.0) for s in stats)
+    by_kind: dict[str, list[float]] = {}
+    for r, s in zip(records, stats):
+        if "hem_swing_m" in s:
+            by_kind.setdefault(r.info.get("kind", "?"), []).append(s["hem_swing_m"])
+    return {
+        "garment": garment.name, "vertices": garment.num_vertices,
+        "sequences": len(records), "frames": int(sum(len(r.garment) for r in records)),
+        "rejects": rejects,
+        "finite": bool(all(np.isfinite(r.garment).all() for r in records)),
+        "strain_p99": float(np.percentile(pooled, 99)), "strain_max": float(pooled.max()),
+        "penetration_frame_max": float(max(s.get("penetration_max", 0.0) for s in stats)),
+        "penetration_mean": float(np.mean([s.get("penetration_mean", 0.0) for s in stats])),
+        "deepest_mm": float(max(s.get("deepest_mm", 0.0) for s in stats)),
+        "hem_swing_m_by_kind": {k: float(np.mean(v)) for k, v in sorted(by_kind.items())},
+        "sim_frames_per_core_s": float(sim_frames / sim_seconds) if sim_seconds else None,
+        "sim_wall_s": float(sim_wall), "jobs": jobs, "simulated_now": simulated,
+    }
+
+
+def write_preview(records: list[SequenceRecord], garment: GarmentMesh, path: Path, frames: int = 4) -> Path | None:
+    """Front and side views of a walk and a spin (or the first two sequences), in the heading frame."""
+    try:
+        from ..export.preview import render_sequence_preview
+    except ImportError:
+        return None
+    chosen = []
+    for kind in ("walk", "spin"):
+        chosen += [r for r in records if r.info.get("kind") == kind][:1]
+    chosen = chosen or records[:2]
+    try:
+        return render_sequence_preview([(r.name, r.garment, garment.faces, r.motion) for r in chosen], path, frames)
+    except ImportError:
+        return None

@@ -1,0 +1,128 @@
+"""What a dataset build simulates: presets (configs/presets/*.yaml) and the list of sequences.
+
+A preset gives the garment resolution, clip length, how many procedural clips of each kind, split
+fractions, a seed and simulator overrides. ``plan_sequences`` turns it (plus any motion files or
+kinds given on the command line) into named, seeded :class:`SequenceSpec` items, the same on every
+run, so a re-run finds the sequences it already finished.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import re
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import yaml
+
+from ..errors import HRRError, InputError, MotionError
+from ..motion.io import load_motion
+from ..motion.motion import Motion
+from ..motion.synth import KINDS, synthesize
+
+CONFIG_DIR = Path(__file__).resolve().parents[2] / "configs"
+MIN_CLIP_FRAMES = 15  # half a second: shorter clips are mostly lead-in
+FILE_PIECE_S = 12.0  # longer motion files are simulated in pieces of at most this length
+
+
+@dataclass(frozen=True)
+class Preset:
+    name: str
+    vertices: int
+    seconds: float
+    sequences: dict[str, int]
+    splits: dict[str, float] = field(default_factory=lambda: {"val": 0.1, "test": 0.1})
+    seed: int = 0
+    sim: dict = field(default_factory=dict)
+
+
+def preset_names() -> list[str]:
+    return sorted(p.stem for p in (CONFIG_DIR / "presets").glob("*.yaml"))
+
+
+def load_preset(name_or_path: str) -> Preset:
+    """A preset by name (configs/presets/NAME.yaml) or by path to a YAML file."""
+    path = Path(name_or_path)
+    if not path.suffix:
+        path = CONFIG_DIR / "presets" / f"{name_or_path}.yaml"
+        if not path.is_file():
+            raise InputError(name_or_path, f"unknown preset; choose one of {', '.join(preset_names())} or give a YAML file")
+    try:
+        data = yaml.safe_load(path.read_text(encoding="utf-8"))
+        preset = Preset(**data)
+    except (OSError, yaml.YAMLError, TypeError) as exc:
+        raise InputError(path, f"not a valid preset: {exc}") from None
+    unknown = sorted(set(preset.sequences) - set(KINDS))
+    if unknown:
+        raise InputError(path, f"unknown motion kinds {unknown}; available: {', '.join(KINDS)}")
+    return preset
+
+
+@dataclass(frozen=True)
+class SequenceSpec:
+    """One sequence to simulate: a procedural clip (kind, seed, seconds) or a piece of a file."""
+
+    name: str
+    kind: str  # a procedural kind, or "file"
+    seed: int = 0
+    seconds: float = 0.0
+    path: str = ""
+    start: int = 0  # frame range of the file's 30 fps clip
+    stop: int = 0
+
+    def motion(self) -> Motion:
+        if self.kind == "file":
+            return load_motion(self.path).slice(self.start, self.stop)
+        return synthesize(self.kind, self.seconds, seed=self.seed)
+
+    def key(self, extra: dict) -> str:
+        """Content hash of everything that determines the simulated result."""
+        payload = {"spec": asdict(self), **extra}
+        if self.kind == "file":
+            payload["file_sha1"] = hashlib.sha1(Path(self.path).read_bytes()).hexdigest()
+        return hashlib.sha256(json.dumps(payload, sort_keys=True, default=str).encode()).hexdigest()[:16]
+
+
+def _safe(stem: str) -> str:
+    return re.sub(r"[^A-Za-z0-9_.-]+", "_", stem).strip("_") or "clip"
+
+
+def plan_sequences(preset: Preset, motions: list[str] | None = None, seconds: float | None = None) -> list[SequenceSpec]:
+    """The preset's procedural clips, or, when ``motions`` is given, one clip per kind named there
+    (repeat a kind for more) and every motion file named there (long files in pieces)."""
+    seconds = float(seconds or preset.seconds)
+    counts: dict[str, int] = {}
+    files: list[str] = []
+    if motions:
+        for item in motions:
+            if item in KINDS:
+                counts[item] = counts.get(item, 0) + 1
+            elif Path(item).suffix:
+                files.append(item)
+            else:
+                raise InputError(item, f"neither a motion kind ({', '.join(KINDS)}) nor a motion file")
+    else:
+        counts = dict(preset.sequences)
+    specs = [SequenceSpec(f"{kind}_{i:03d}", kind, seed=preset.seed * 1000 + i, seconds=seconds)
+             for kind, n in counts.items() for i in range(n)]
+    for item in files:
+        clip = load_motion(item)
+        if clip.num_frames < MIN_CLIP_FRAMES:
+            raise MotionError(item, f"motion too short to simulate: {clip.num_frames} frames at {clip.fps:g} fps "
+                                    f"(at least {MIN_CLIP_FRAMES})")
+        piece = int(FILE_PIECE_S * clip.fps)
+        starts = list(range(0, clip.num_frames, piece))
+        if len(starts) > 1 and clip.num_frames - starts[-1] < MIN_CLIP_FRAMES:
+            starts.pop()  # fold a short tail into the previous piece
+        for k, start in enumerate(starts):
+            stop = starts[k + 1] if k + 1 < len(starts) else clip.num_frames
+            suffix = f"_p{k}" if len(starts) > 1 else ""
+            specs.append(SequenceSpec(f"{_safe(Path(item).stem)}{suffix}", "file", path=str(Path(item).resolve()),
+                                      start=start, stop=stop))
+    names = [s.name for s in specs]
+    if len(set(names)) != len(names):
+        raise HRRError(f"two motions would get the same sequence name: {sorted(n for n in names if names.count(n) > 1)}")
+    if not specs:
+        raise HRRError("nothing to simulate: the preset lists no sequences and no --motions were given")
+    return specs
