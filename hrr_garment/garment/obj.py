@@ -63,23 +63,24 @@ def read_obj_vertices(path: str | Path) -> np.ndarray:
 
 
 def write_obj(path: str | Path, vertices: np.ndarray, faces: np.ndarray, groups: dict[str, np.ndarray] | None = None) -> Path:
-    """Write atomically. ``groups`` maps names to *vertex* sets: each becomes a ``g`` group holding
-    the faces whose vertices all lie in the set, so ``read`` + ``--attached NAME`` recovers it."""
+    """Write atomically, faces in their order. ``groups`` maps names to *vertex* sets: the faces
+    whose vertices all lie in a set are put in a ``g`` group of that name, so reading the file with
+    ``--attached NAME`` recovers the set (a set that spans no whole face needs an index file)."""
     path = Path(path)
-    assigned = np.zeros(len(faces), bool)
-    blocks = []
+    label = np.zeros(len(faces), np.int64)  # 0: the plain "garment" group
+    names = ["garment"]
     for name, idx in (groups or {}).items():
-        member = np.isin(faces, idx).all(1) & ~assigned
-        assigned |= member
-        blocks.append((name, faces[member]))
-    blocks.insert(0, ("garment", faces[~assigned]))
+        member = np.isin(faces, idx).all(1) & (label == 0)
+        names.append(name)
+        label[member] = len(names) - 1
+    starts = np.flatnonzero(np.r_[True, label[1:] != label[:-1]])
     with atomic_path(path) as tmp, open(tmp, "w", encoding="utf-8") as fh:
         fh.write("# hrr_garment\n")
         np.savetxt(fh, vertices, fmt="v %.6f %.6f %.6f")
-        for name, block in blocks:
-            if len(block):
-                fh.write(f"g {name}\n")
-                np.savetxt(fh, block + 1, fmt="f %d %d %d")
+        for k, start in enumerate(starts):
+            stop = starts[k + 1] if k + 1 < len(starts) else len(faces)
+            fh.write(f"g {names[label[start]]}\n")
+            np.savetxt(fh, faces[start:stop] + 1, fmt="f %d %d %d")
     return path
 
 
