@@ -53,7 +53,7 @@ class SimConfig:
     contact_gap: float = 0.01  # contact detection distance beyond the radius
     gravity: float = 9.81
     settle_s: float = 0.5
-    blend_s: float = 0.5
+    blend_s: float = 0.8  # arms come down from the T-pose at under 3 m/s
     max_speed: float = 30.0  # m/s: a garment point moving faster has exploded
     max_strain: float = 2.5  # edge length / rest length beyond which the cloth has exploded
     retries: int = 1  # extra attempts, each with twice the substeps
