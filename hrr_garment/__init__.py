@@ -17,7 +17,6 @@ from .motion.skeleton import CANONICAL, JOINT_NAMES
 from .motion.synth import KINDS as MOTION_KINDS
 from .motion.synth import synthesize
 
-
 __all__ = [
     "CANONICAL", "FEATURE_DIM", "FeatureStats", "HRRError", "InputError", "JOINT_NAMES", "MOTION_KINDS", "Motion",
     "MotionError", "SkeletonMappingError", "load_motion", "motion_features", "save_amass", "save_motion", "synthesize", "windows",

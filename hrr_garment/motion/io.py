@@ -16,7 +16,15 @@ from ..io_utils import atomic_path
 from .bvh import read_bvh
 from .motion import FPS, Motion
 from .resample import resample_linear, resample_rotations, resample_times
-from .retarget import SourceMotion, check_source, ground_align, load_joint_map, resolve_joint_map, retarget, standing_height_from_legs
+from .retarget import (
+    SourceMotion,
+    check_source,
+    ground_align,
+    load_joint_map,
+    resolve_joint_map,
+    retarget,
+    standing_height_from_legs,
+)
 from .rotations import axis_angle_to_matrix, matrix_to_axis_angle
 from .skeleton import NUM_JOINTS, forward_kinematics, rest_positions
 

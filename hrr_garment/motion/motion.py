@@ -8,7 +8,16 @@ from functools import cached_property
 import numpy as np
 
 from ..errors import MotionError
-from .skeleton import CANONICAL, JOINT_INDEX, REST_PELVIS_HEIGHT, HEAD_TOP_ABOVE_HEAD_JOINT, Skeleton, forward_kinematics, sole_heights, sole_points
+from .skeleton import (
+    CANONICAL,
+    HEAD_TOP_ABOVE_HEAD_JOINT,
+    JOINT_INDEX,
+    REST_PELVIS_HEIGHT,
+    Skeleton,
+    forward_kinematics,
+    sole_heights,
+    sole_points,
+)
 
 FPS = 30.0  # the internal frame rate
 

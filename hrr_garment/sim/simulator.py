@@ -77,8 +77,9 @@ class SimResult:
     vertices: np.ndarray
     substeps: int
     attempts: int
-    seconds: float  # wall time of the successful attempt
+    seconds: float  # wall time of the successful attempt, scene building included
     simulated_frames: int  # lead-in included
+    step_seconds: float = 0.0  # time spent stepping the solver (steady-state cost)
 
 
 def _import_newton():
@@ -201,7 +202,7 @@ class _Scene:
 
 
 def _attempt(garment: GarmentMesh, motion: Motion, body: BodyModel, config: SimConfig,
-             progress: Callable[[int], None] | None) -> tuple[np.ndarray, int]:
+             progress: Callable[[int], None] | None) -> tuple[np.ndarray, int, float]:
     extended, lead = with_lead_in(motion, config.settle_s, config.blend_s)
     rot_y, shift = start_transform(motion)
     start = garment.vertices.astype(np.float64) @ rot_y.T + shift
@@ -214,9 +215,12 @@ def _attempt(garment: GarmentMesh, motion: Motion, body: BodyModel, config: SimC
     rest_len = np.linalg.norm(garment.vertices[edges[:, 0]] - garment.vertices[edges[:, 1]], axis=1)
     dt = 1.0 / motion.fps
     recorded = np.empty((motion.num_frames, garment.num_vertices, 3), np.float32)
+    stepping = 0.0
     for f in range(extended.num_frames):
         prev = max(f - 1, 0)
+        t0 = time.perf_counter()
         verts = scene.step_frame(poses[prev], poses[f], pins[prev], pins[f], dt, config.substeps)
+        stepping += time.perf_counter() - t0
         clip_frame = f - lead
         problem = None
         if not np.isfinite(verts).all():
@@ -236,7 +240,7 @@ def _attempt(garment: GarmentMesh, motion: Motion, body: BodyModel, config: SimC
             recorded[clip_frame] = verts
         if progress is not None:
             progress(1)
-    return recorded, extended.num_frames
+    return recorded, extended.num_frames, stepping
 
 
 def simulate_garment(garment: GarmentMesh, motion: Motion, config: SimConfig = SimConfig(),
@@ -250,9 +254,9 @@ def simulate_garment(garment: GarmentMesh, motion: Motion, config: SimConfig = S
         cfg = replace(config, substeps=config.substeps * 2 ** attempt)
         t0 = time.perf_counter()
         try:
-            vertices, frames = _attempt(garment, motion, body, cfg, progress)
+            vertices, frames, stepping = _attempt(garment, motion, body, cfg, progress)
         except SimulationExploded as exc:
             reasons.append(str(exc))
             continue
-        return SimResult(vertices, cfg.substeps, attempt + 1, time.perf_counter() - t0, frames)
+        return SimResult(vertices, cfg.substeps, attempt + 1, time.perf_counter() - t0, frames, stepping)
     raise SimulationExploded("; ".join(reasons))

@@ -160,6 +160,71 @@ def _two_bone_ik(hip: np.ndarray, ankle: np.ndarray, pole: np.ndarray) -> tuple[
     return thigh, shin, reached
 
 
+MIN_FOOT_GAP = 0.15  # ankle centres, horizontally: shins (r 5.2 cm) stay 4.6 cm apart
+
+
+def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
+    """[start, stop) index ranges where ``mask`` is True."""
+    edges = np.flatnonzero(np.diff(np.r_[0, mask.astype(int), 0]))
+    return list(zip(edges[::2], edges[1::2]))
+
+
+def _lateral_deficit(own: np.ndarray, other: np.ndarray, lateral: np.ndarray, sign: float) -> np.ndarray:
+    """How far ``own`` must move outwards (along ``sign * lateral``) to be MIN_FOOT_GAP from ``other``
+    horizontally; feet far apart front-to-back need no sideways gap (a runner's feet land in line)."""
+    d = (own - other) * np.array([1.0, 0.0, 1.0])
+    side = sign * (d * lateral).sum(-1)
+    along = np.linalg.norm(d - (d * lateral).sum(-1, keepdims=True) * lateral, axis=-1)
+    need = np.sqrt(np.maximum(MIN_FOOT_GAP**2 - along**2, 0.0))
+    return np.where(along < MIN_FOOT_GAP, np.maximum(need - side, 0.0), 0.0)
+
+
+def _keep_feet_apart(plan: Plan, foot_data: dict) -> dict:
+    """Keep each foot out of the other leg: at least MIN_FOOT_GAP between ankles, left on the left.
+
+    Turning, side-stepping and curving gaits otherwise plant or swing one foot into the other leg.
+    A stance that lands too close to the other foot's neighbouring stances is moved outwards as a
+    whole (it stays planted), the move eased in over the swing before it and out over the swing
+    after. A swinging foot that passes too close is pushed outwards, weighted by a bump over the
+    swing so that lift-off and touch-down are untouched.
+    """
+    if set(foot_data) != {"l", "r"}:
+        return foot_data
+    lateral = rotation_about_y(plan.yaw) @ np.array([1.0, 0.0, 0.0])  # (N, 3): towards the left
+    targets = {k: v[0].copy() for k, v in foot_data.items()}
+    stance = {k: v[2] for k, v in foot_data.items()}
+    n = len(plan.t)
+    for side, other, sign in (("l", "r", 1.0), ("r", "l", -1.0)):
+        runs, other_runs = _runs(stance[side]), _runs(stance[other])
+        for k, (a, b) in enumerate(runs):
+            if a == 0:
+                continue  # the first stance is where the clip starts; leave it
+            near = [r for r in other_runs if r[0] < b + 2 and r[1] > a - 2] or \
+                   [min(other_runs, key=lambda r: min(abs(r[0] - b), abs(r[1] - a)))] if other_runs else []
+            mid = (a + b) // 2
+            deficit = max((float(_lateral_deficit(targets[side][mid], targets[other][(r[0] + r[1]) // 2], lateral[mid], sign))
+                           for r in near), default=0.0)
+            before = runs[k - 1][1] if k > 0 else a
+            after = runs[k + 1][0] if k + 1 < len(runs) else b
+            if deficit <= 0 or a - before < 4 or (after - b < 4 and k + 1 < len(runs)):
+                continue  # (no swing long enough to ease the move in or out: leave the stance)
+            ramp = np.zeros(n)
+            ramp[a:b] = 1.0
+            ramp[before:a] = quintic(np.linspace(0, 1, a - before + 2)[1:-1])
+            ramp[b:after] = quintic(np.linspace(1, 0, after - b + 2)[1:-1])
+            targets[side] += ramp[:, None] * (sign * deficit * lateral[mid] * np.array([1.0, 0.0, 1.0]))
+    for side, other, sign in (("l", "r", 1.0), ("r", "l", -1.0)):
+        weight = np.zeros(n)
+        for a, b in _runs(~stance[side]):
+            weight[a:b] = bump(np.linspace(0, 1, b - a + 2)[1:-1]) ** 2  # flatter than the lift at the ends
+        # Smoothed (then widened by a max filter so the smoothing does not undercut the need) to
+        # keep accelerations bounded where the deficit changes quickly.
+        deficit = _lateral_deficit(targets[side], targets[other], lateral, sign)
+        push = weight * gaussian_filter1d(maximum_filter1d(deficit, size=5), 2.0)
+        targets[side] += sign * push[:, None] * lateral * np.array([1.0, 0.0, 1.0])
+    return {k: (targets[k], v[1], v[2]) for k, v in foot_data.items()}
+
+
 def _bone_frame(direction: np.ndarray, hinge: np.ndarray) -> np.ndarray:
     e1 = normalize(direction)
     e2 = normalize(hinge - (hinge * e1).sum(-1, keepdims=True) * e1)
@@ -173,7 +238,7 @@ def build_motion(plan: Plan, source: str) -> Motion:
     pelvis_y = plan.pelvis_y.copy()
     takeoff_y = plan.takeoff_height if plan.takeoff_height is not None else float(np.max(plan.pelvis_y))
     hip_off = {s: REST_OFFSETS[J[f"{s}_hip"]].astype(np.float64) for s in "lr"}
-    foot_data = {f.side: _foot_targets(plan, f, plan.pelvis_y, takeoff_y) for f in plan.feet}
+    foot_data = _keep_feet_apart(plan, {f.side: _foot_targets(plan, f, plan.pelvis_y, takeoff_y) for f in plan.feet})
     # Lower the pelvis where a leg cannot reach its target; dilate then smooth the correction so the
     # result stays continuous in velocity and still lowers at least as much as needed.
     for _ in range(6):
@@ -188,14 +253,18 @@ def build_motion(plan: Plan, source: str) -> Motion:
         # At most MAX_DROP per pass: a target out of reach horizontally is left to the IK clamp.
         drop = gaussian_filter1d(maximum_filter1d(np.clip(drop, 0, MAX_DROP) * 1.05 + 1e-4 * (drop > 0), size=9), 2.0)
         pelvis_y = pelvis_y - drop
-        foot_data = {f.side: _foot_targets(plan, f, pelvis_y, takeoff_y) for f in plan.feet}
+        foot_data = _keep_feet_apart(plan, {f.side: _foot_targets(plan, f, pelvis_y, takeoff_y) for f in plan.feet})
     glob = np.zeros((n, len(PARENTS), 3, 3))
     glob[:] = np.eye(3)
     glob[:, J["pelvis"]] = pelvis_rot
     root = np.stack([plan.root_xz[:, 0], pelvis_y, plan.root_xz[:, 1]], 1)
     for side, (target, foot_yaw, _) in foot_data.items():
         hip = root + pelvis_rot @ hip_off[side]
-        pole = rotation_about_y(foot_yaw) @ np.array([0.0, 0.0, 1.0])
+        # Knees point between the foot and the pelvis heading, slightly outwards: following the
+        # planted foot alone swung a knee into the other leg while the pelvis turned over it.
+        sign = 1.0 if side == "l" else -1.0
+        pole = (rotation_about_y(foot_yaw) @ np.array([0.0, 0.0, 1.0])
+                + rotation_about_y(plan.yaw) @ np.array([0.25 * sign, 0.0, 1.0]))
         thigh, shin, _ = _two_bone_ik(hip, target, pole)
         glob[:, J[f"{side}_hip"]] = thigh
         glob[:, J[f"{side}_knee"]] = shin
