@@ -114,3 +114,18 @@ def test_native_round_trip(tmp_path):
     np.testing.assert_array_equal(back.local_rotations, motion.local_rotations)
     np.testing.assert_array_equal(back.root_translation, motion.root_translation)
     assert back.source == motion.source and back.fps == motion.fps
+
+
+def test_atomic_writes_get_ordinary_permissions(tmp_path):
+    import os
+    import stat
+
+    from hrr_garment.io_utils import atomic_write_text
+
+    umask = os.umask(0o022)
+    try:
+        path = tmp_path / "out.txt"
+        atomic_write_text(path, "x")
+        assert stat.S_IMODE(path.stat().st_mode) == 0o644
+    finally:
+        os.umask(umask)
