@@ -5,19 +5,32 @@ Public API (motion side)::
     from hrr_garment import load_motion, synthesize, motion_features
     motion = load_motion("walk.bvh")          # any BVH / AMASS npz / native npz -> canonical, 30 fps
     feats = motion_features(motion)            # (T, 124) float32
+
+Garment side::
+
+    from hrr_garment import make_garment, simulate_garment, GarmentDataset
+    dress = make_garment("dress", vertices=1000)             # GarmentMesh fitted to the body
+    result = simulate_garment(dress, motion)                  # needs the ``sim`` extra (newton)
+    ds = GarmentDataset("hrr_work/datasets/dress-quick.h5")  # what hrr-simulate writes
 """
 
 __version__ = "0.1.0"  # before the imports: submodules read it
 
+from .data.dataset import GarmentDataset, SequenceRecord
 from .errors import HRRError, InputError, MotionError, SkeletonMappingError
+from .garment.mesh import GarmentError, GarmentMesh
+from .garment.templates import GARMENT_NAMES, make_garment
 from .motion.features import FEATURE_DIM, FeatureStats, motion_features, windows
 from .motion.io import load_motion, save_amass, save_motion
 from .motion.motion import Motion
 from .motion.skeleton import CANONICAL, JOINT_NAMES
 from .motion.synth import KINDS as MOTION_KINDS
 from .motion.synth import synthesize
+from .sim.simulator import SimConfig, SimResult, SimulationExploded, simulate_garment
 
 __all__ = [
     "CANONICAL", "FEATURE_DIM", "FeatureStats", "HRRError", "InputError", "JOINT_NAMES", "MOTION_KINDS", "Motion",
     "MotionError", "SkeletonMappingError", "load_motion", "motion_features", "save_amass", "save_motion", "synthesize", "windows",
+    "GARMENT_NAMES", "GarmentDataset", "GarmentError", "GarmentMesh", "SequenceRecord", "SimConfig", "SimResult",
+    "SimulationExploded", "make_garment", "simulate_garment",
 ]  # fmt: skip

@@ -9,6 +9,7 @@ garment preview. Outputs go to <workspace>/demo; a re-run reuses the finished si
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 from pathlib import Path
 from typing import Sequence
@@ -69,7 +70,7 @@ def _simulate(out: Path) -> None:
     s = report.summary
     print(f"== cloth: {garment.num_vertices}-vertex dress, {s['sequences']} sequences, {s['frames']} frames -> {report.path}")
     print(f"   strain p99 {s['strain_p99']:.3f}, worst-frame penetration {100 * s['penetration_frame_max']:.2f} %, "
-          f"hem swing (m) {s['hem_swing_m_by_kind']}")
+          f"hem swing (m) {json.dumps({k: round(v, 3) for k, v in s['hem_swing_m_by_kind'].items()})}")
     print(f"   garment preview: {report.preview}")
 
 
