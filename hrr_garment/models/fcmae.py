@@ -1,0 +1,191 @@
+"""Fully convolutional mesh autoencoder with spatially varying kernels (FCMAE, Zhou et al. 2020).
+
+Every layer is one :class:`VcConv`: each output vertex has its own neighbour list (a 1-ring on the
+same level, a pooling neighbourhood when going down, the transposed one going up), and its kernel
+for neighbour slot s is ``sum_m coeff[v, s, m] * W_m`` over M shared basis kernels. A
+:class:`Block` adds a residual path (a learned, normalised neighbour average when the vertex count
+changes, a 1x1 map when the channel count changes) as ``sqrt(1 - r) * conv + sqrt(r) * residual``.
+
+The encoder maps (B, V, 3) vertex offsets from the template (in the body's heading frame, scaled
+by the training data's spread) to (B, N, 8) latents on the coarsest level; the decoder maps back.
+Tensors are vertex-major inside, (V, B, C): a gather then picks whole rows of B x C values, which
+keeps it (and its backward, an index_add) fast on the CPU; each layer is one batched matmul of
+(V, B, S * C_in) by per-vertex kernels (V, S * C_in, C_out). ``fast_decoder()`` precomputes those
+kernels for inference.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+import torch
+from torch import nn
+from torch.nn import functional as F
+
+from .hierarchy import Hierarchy, Neighbourhoods
+
+
+@dataclass(frozen=True)
+class AutoencoderConfig:
+    channels: tuple[int, ...] = (16, 32, 64, 128)  # per level; the last value repeats for deeper levels
+    latent_channels: int = 8
+    basis: int = 17
+    residual: float = 0.5
+    latent_fraction: float = 0.01
+    stride: int = 2
+    radius: int = 2
+
+    @classmethod
+    def from_dict(cls, values: dict) -> "AutoencoderConfig":
+        unknown = set(values) - set(cls.__dataclass_fields__)
+        if unknown:
+            raise ValueError(f"unknown autoencoder settings: {', '.join(sorted(unknown))}")
+        values = dict(values)
+        if "channels" in values:
+            values["channels"] = tuple(values["channels"])
+        return cls(**values)
+
+    def to_dict(self) -> dict:
+        d = asdict(self)
+        d["channels"] = list(self.channels)
+        return d
+
+    def channel(self, level: int) -> int:
+        return self.channels[min(level, len(self.channels) - 1)]
+
+
+class VcConv(nn.Module):
+    """Spatially varying convolution from one vertex set to another (see module docstring)."""
+
+    def __init__(self, neighbours: Neighbourhoods, in_channels: int, out_channels: int, basis: int):
+        super().__init__()
+        self.register_buffer("index", torch.as_tensor(neighbours.index, dtype=torch.long))
+        self.register_buffer("mask", torch.as_tensor(neighbours.mask, dtype=torch.float32))
+        slots = self.mask.sum(1).clamp(min=1).unsqueeze(1)  # neighbours per output vertex
+        self.weight = nn.Parameter(torch.randn(basis, in_channels, out_channels) / math.sqrt(in_channels))
+        self.coeff = nn.Parameter(torch.randn(*neighbours.index.shape, basis) / math.sqrt(basis) / slots.sqrt().unsqueeze(-1))
+        self.bias = nn.Parameter(torch.zeros(out_channels))
+
+    def forward(self, x: torch.Tensor, kernel: torch.Tensor | None = None) -> torch.Tensor:
+        """x (V_in, B, C_in) vertex-major -> (V_out, B, C_out). ``kernel``: a precomputed
+        ``effective_kernel()`` (inference); training folds the basis in on every call."""
+        v, s = self.index.shape
+        gathered = torch.index_select(x, 0, self.index.reshape(-1)).reshape(v, s, x.shape[1], x.shape[2])
+        gathered = gathered.permute(0, 2, 1, 3).reshape(v, x.shape[1], -1)  # (V_out, B, S * C_in)
+        k = self.effective_kernel() if kernel is None else kernel
+        return torch.baddbmm(self.bias.expand(v, 1, -1), gathered, k)
+
+    def effective_kernel(self) -> torch.Tensor:
+        """(V_out, S * C_in, C_out): the basis folded into one kernel per output vertex."""
+        coeff = self.coeff * self.mask.unsqueeze(-1)
+        k = torch.einsum("vsm,mcd->vscd", coeff, self.weight)
+        return k.reshape(k.shape[0], -1, k.shape[-1])
+
+
+class ResidualPool(nn.Module):
+    """Learned normalised neighbour average (when vertex sets differ), then 1x1 map if channels differ."""
+
+    def __init__(self, neighbours: Neighbourhoods | None, in_channels: int, out_channels: int):
+        super().__init__()
+        self.neighbours = neighbours is not None
+        if self.neighbours:
+            self.register_buffer("index", torch.as_tensor(neighbours.index, dtype=torch.long))
+            self.register_buffer("mask", torch.as_tensor(neighbours.mask, dtype=torch.float32))
+            self.logits = nn.Parameter(torch.zeros(neighbours.index.shape))
+        self.project = nn.Linear(in_channels, out_channels, bias=False) if in_channels != out_channels else None
+
+    def weights(self) -> torch.Tensor:
+        """(V_out, S), non-negative, each row summing to 1 over the real neighbours."""
+        w = torch.exp(self.logits) * self.mask
+        return w / w.sum(1, keepdim=True)
+
+    def forward(self, x: torch.Tensor, weights: torch.Tensor | None = None) -> torch.Tensor:
+        """x (V_in, B, C_in) -> (V_out, B, C_out)."""
+        if self.neighbours:
+            v, s = self.index.shape
+            gathered = torch.index_select(x, 0, self.index.reshape(-1)).reshape(v, s, -1)
+            w = self.weights() if weights is None else weights
+            x = torch.bmm(w.unsqueeze(1), gathered).reshape(v, *x.shape[1:])
+        return self.project(x) if self.project is not None else x
+
+
+class Block(nn.Module):
+    def __init__(self, conv_nb: Neighbourhoods, pool_nb: Neighbourhoods | None, cin: int, cout: int, basis: int,
+                 residual: float, activation: bool = True):
+        super().__init__()
+        self.conv = VcConv(conv_nb, cin, cout, basis)
+        self.residual = ResidualPool(pool_nb, cin, cout)
+        self.activation = activation
+        self.a, self.b = math.sqrt(1.0 - residual), math.sqrt(residual)
+
+    def forward(self, x: torch.Tensor, kernel: torch.Tensor | None = None, weights: torch.Tensor | None = None) -> torch.Tensor:
+        y = self.conv(x, kernel)
+        if self.activation:
+            y = F.elu(y)
+        return self.a * y + self.b * self.residual(x, weights)
+
+
+class MeshAutoencoder(nn.Module):
+    """FCMAE for one template. ``template`` (V, 3) and the data scale define the input normalisation."""
+
+    def __init__(self, hierarchy: Hierarchy, config: AutoencoderConfig = AutoencoderConfig(),
+                 template: np.ndarray | None = None, scale: float = 0.1):
+        super().__init__()
+        self.config, self.hierarchy = config, hierarchy
+        levels, c = hierarchy.levels, config
+        self.register_buffer("template", torch.as_tensor(np.zeros((hierarchy.sizes[0], 3)) if template is None else template,
+                                                         dtype=torch.float32))
+        self.register_buffer("scale", torch.tensor(float(scale)))
+        enc = [Block(hierarchy.conv[0], None, 3, c.channel(0), c.basis, c.residual)]
+        for level in range(levels - 1):
+            enc.append(Block(hierarchy.down[level], hierarchy.down[level], c.channel(level), c.channel(level + 1),
+                             c.basis, c.residual))
+        enc.append(Block(hierarchy.conv[-1], None, c.channel(levels - 1), c.latent_channels, c.basis, c.residual, False))
+        dec = [Block(hierarchy.conv[-1], None, c.latent_channels, c.channel(levels - 1), c.basis, c.residual)]
+        for level in reversed(range(levels - 1)):
+            dec.append(Block(hierarchy.up[level], hierarchy.up[level], c.channel(level + 1), c.channel(level),
+                             c.basis, c.residual))
+        dec.append(Block(hierarchy.conv[0], None, c.channel(0), 3, c.basis, c.residual, False))
+        self.encoder, self.decoder = nn.Sequential(*enc), nn.Sequential(*dec)
+
+    @property
+    def latent_shape(self) -> tuple[int, int]:
+        return self.hierarchy.sizes[-1], self.config.latent_channels
+
+    def encode(self, vertices: torch.Tensor) -> torch.Tensor:
+        """(B, V, 3) heading-frame vertices -> (B, N, 8) latents."""
+        x = ((vertices - self.template) / self.scale).transpose(0, 1)  # vertex-major inside
+        return self.encoder(x).transpose(0, 1)
+
+    def decode(self, latents: torch.Tensor) -> torch.Tensor:
+        """(B, N, 8) latents -> (B, V, 3) heading-frame vertices."""
+        return self.decoder(latents.transpose(0, 1)).transpose(0, 1) * self.scale + self.template
+
+    def forward(self, vertices: torch.Tensor) -> torch.Tensor:
+        return self.decode(self.encode(vertices))
+
+    def fast_decoder(self) -> "FastDecoder":
+        return FastDecoder(self)
+
+
+class FastDecoder(nn.Module):
+    """Inference-only decoder: the same layers with each basis folded into per-vertex kernels and
+    each residual average's weights computed once, so a call is gathers and batched matmuls.
+    Equal to ``MeshAutoencoder.decode`` up to float32 rounding."""
+
+    def __init__(self, model: MeshAutoencoder):
+        super().__init__()
+        self.blocks = model.decoder
+        with torch.no_grad():
+            self.kernels = [b.conv.effective_kernel().detach().contiguous() for b in self.blocks]
+            self.weights = [b.residual.weights().detach() if b.residual.neighbours else None for b in self.blocks]
+        self.template, self.scale = model.template, model.scale
+
+    @torch.no_grad()
+    def forward(self, latents: torch.Tensor) -> torch.Tensor:
+        x = latents.transpose(0, 1)
+        for block, kernel, weights in zip(self.blocks, self.kernels, self.weights):
+            x = block(x, kernel, weights)
+        return x.transpose(0, 1) * self.scale + self.template

@@ -1,0 +1,220 @@
+"""Training the mesh autoencoder on a garment dataset, then encoding every frame to latents.
+
+Vertices are expressed in the body's heading frame (origin under the pelvis, Z along its
+heading), where a garment's shape depends on the pose but not on where the body is or which way it
+faces. Loss: L1 on vertex positions plus ``laplacian`` x L1 on uniform Laplacian coordinates
+(keeps the surface smooth between vertices). Adam with an exponentially decaying learning rate,
+early stopping on the validation split's per-vertex error, a checkpoint after every epoch (a
+re-run resumes from it), seeded.
+
+Outputs in the model folder (``autoencoder/``): ``config.json``, ``model.pt`` (the best weights,
+a plain state dict), ``checkpoint.pt`` (for resuming), ``latents.npz`` (per sequence (T, N, 8)),
+``report.json``.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+import torch
+from tqdm.auto import tqdm
+
+from ..data.dataset import GarmentDataset
+from ..io_utils import atomic_path, atomic_write_text
+from ..models.fcmae import AutoencoderConfig, MeshAutoencoder
+from ..models.hierarchy import cached_hierarchy
+from ..sim.quality import heading_frame
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    epochs: int = 300
+    batch_size: int = 32
+    learning_rate: float = 1e-3
+    lr_decay: float = 0.97  # per epoch
+    laplacian: float = 0.5
+    patience: int = 30  # epochs without a better validation error before stopping
+    max_minutes: float | None = None  # wall-clock budget for this run
+    seed: int = 0
+    threads: int | None = None
+
+    @classmethod
+    def from_dict(cls, values: dict) -> "TrainConfig":
+        unknown = set(values) - set(cls.__dataclass_fields__)
+        if unknown:
+            raise ValueError(f"unknown training settings: {', '.join(sorted(unknown))}")
+        return cls(**values)
+
+
+@dataclass
+class AutoencoderReport:
+    folder: Path
+    epochs: int
+    best_epoch: int
+    val_pve_mm: float
+    test_pve_mm: float
+    train_pve_mm: float
+    minutes: float
+    latent_shape: tuple[int, int]
+    sizes: tuple[int, ...]
+    extra: dict = field(default_factory=dict)
+
+
+def heading_frames(ds: GarmentDataset, names: list[str]) -> np.ndarray:
+    """All frames of ``names`` in each frame's heading frame, (N, V, 3) float32."""
+    out = []
+    for name in names:
+        rec = ds.sequence(name)
+        out.append(heading_frame(rec.garment.astype(np.float64), rec.motion).astype(np.float32))
+    return np.concatenate(out) if out else np.zeros((0, ds.template.num_vertices, 3), np.float32)
+
+
+def laplacian_operator(index: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
+    """Sparse (V, V) uniform Laplacian from 1-ring lists whose slot 0 is the vertex itself:
+    each vertex minus the mean of its neighbours."""
+    v = index.shape[0]
+    count = mask[:, 1:].sum(1).clamp(min=1)
+    rows = torch.arange(v).unsqueeze(1).expand_as(index[:, 1:])[mask[:, 1:] > 0]
+    cols = index[:, 1:][mask[:, 1:] > 0]
+    vals = -(1.0 / count).unsqueeze(1).expand_as(index[:, 1:])[mask[:, 1:] > 0]
+    i = torch.cat([torch.stack([rows, cols]), torch.arange(v).repeat(2, 1)], 1)
+    return torch.sparse_coo_tensor(i, torch.cat([vals, torch.ones(v)]), (v, v)).coalesce()
+
+
+def apply_laplacian(op: torch.Tensor, x: torch.Tensor) -> torch.Tensor:
+    """(B, V, 3) -> (V, B * 3) Laplacian coordinates (vertex-major: a sparse matmul)."""
+    return torch.sparse.mm(op, x.transpose(0, 1).reshape(x.shape[1], -1))
+
+
+def pve_mm(model: MeshAutoencoder, frames: np.ndarray, batch: int = 64) -> float:
+    """Mean per-vertex Euclidean error (mm) of reconstructing ``frames``."""
+    if len(frames) == 0:
+        return float("nan")
+    total = 0.0
+    with torch.no_grad():
+        for i in range(0, len(frames), batch):
+            x = torch.from_numpy(frames[i:i + batch])
+            total += float((model(x) - x).norm(dim=-1).mean(1).sum())
+    return 1000.0 * total / len(frames)
+
+
+def _key(*parts) -> str:
+    return hashlib.sha1(json.dumps(parts, sort_keys=True, default=str).encode()).hexdigest()[:16]
+
+
+def train_autoencoder(dataset: str | Path, folder: str | Path, model_config: AutoencoderConfig = AutoencoderConfig(),
+                      train_config: TrainConfig = TrainConfig(), cache_dir: Path | None = None,
+                      progress: bool = True) -> AutoencoderReport:
+    """Train (or resume), keep the best weights, encode every sequence. See the module docstring."""
+    t_start = time.perf_counter()
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    torch.manual_seed(train_config.seed)
+    if train_config.threads:
+        torch.set_num_threads(train_config.threads)
+    ds = GarmentDataset(dataset)
+    splits = ds.splits
+    train = heading_frames(ds, splits["train"])
+    val = heading_frames(ds, splits.get("val", []))
+    test = heading_frames(ds, splits.get("test", []))
+    template = ds.template.vertices.astype(np.float32)
+    scale = float(np.std(train - template)) if len(train) else 0.1
+    hierarchy = cached_hierarchy(ds.template.faces, ds.template.num_vertices, cache_dir, latent_fraction=model_config.latent_fraction,
+                                 stride=model_config.stride, radius=model_config.radius, name=str(dataset))
+    model = MeshAutoencoder(hierarchy, model_config, template, scale)
+    optimizer = torch.optim.Adam(model.parameters(), lr=train_config.learning_rate)
+    scheduler = torch.optim.lr_scheduler.ExponentialLR(optimizer, train_config.lr_decay)
+    key = _key(model_config.to_dict(), asdict(train_config) | {"max_minutes": None, "threads": None},
+               ds.garment, ds.template.num_vertices, splits)
+    checkpoint = folder / "checkpoint.pt"
+    state = {"epoch": 0, "best": float("inf"), "best_epoch": 0, "stale": 0}
+    best_weights = {k: v.clone() for k, v in model.state_dict().items()}
+    if checkpoint.exists():
+        saved = torch.load(checkpoint, map_location="cpu", weights_only=True)
+        if saved.get("key") == key:
+            model.load_state_dict(saved["model"])
+            optimizer.load_state_dict(saved["optimizer"])
+            scheduler.load_state_dict(saved["scheduler"])
+            best_weights = saved["best_weights"]
+            state = {k: saved[k] for k in state}
+            torch.set_rng_state(saved["rng"])
+    conv0 = model.encoder[0].conv
+    lap = laplacian_operator(conv0.index, conv0.mask)
+    rng = np.random.default_rng(train_config.seed + state["epoch"])
+    bar = tqdm(total=train_config.epochs, initial=state["epoch"], desc="autoencoder", unit="epoch", disable=not progress)
+    deadline = None if train_config.max_minutes is None else time.perf_counter() + 60 * train_config.max_minutes
+    while state["epoch"] < train_config.epochs and state["stale"] < train_config.patience:
+        if deadline is not None and time.perf_counter() > deadline:
+            break
+        model.train()
+        order = rng.permutation(len(train))
+        losses = []
+        for i in range(0, len(order), train_config.batch_size):
+            x = torch.from_numpy(train[order[i:i + train_config.batch_size]])
+            y = model(x)
+            loss = (y - x).abs().mean() + train_config.laplacian * (apply_laplacian(lap, y - x)).abs().mean()
+            optimizer.zero_grad(set_to_none=True)
+            loss.backward()
+            optimizer.step()
+            losses.append(float(loss))
+        scheduler.step()
+        model.eval()
+        val_err = pve_mm(model, val if len(val) else train[:256])
+        state["epoch"] += 1
+        if val_err < state["best"]:
+            state.update(best=val_err, best_epoch=state["epoch"], stale=0)
+            best_weights = {k: v.detach().clone() for k, v in model.state_dict().items()}
+        else:
+            state["stale"] += 1
+        with atomic_path(checkpoint) as tmp:
+            torch.save({"key": key, "model": model.state_dict(), "optimizer": optimizer.state_dict(),
+                        "scheduler": scheduler.state_dict(), "best_weights": best_weights, "rng": torch.get_rng_state(),
+                        **state}, tmp)
+        bar.set_postfix(loss=f"{np.mean(losses) * 1000:.2f}mm", val=f"{val_err:.2f}mm", best=f"{state['best']:.2f}mm")
+        bar.update(1)
+    bar.close()
+    model.load_state_dict(best_weights)
+    model.eval()
+    with atomic_path(folder / "model.pt") as tmp:
+        torch.save(model.state_dict(), tmp)
+    atomic_write_text(folder / "config.json", json.dumps({"model": model_config.to_dict(), "train": asdict(train_config),
+                                                          "dataset": str(dataset), "garment": ds.garment,
+                                                          "vertices": ds.template.num_vertices, "scale": scale,
+                                                          "sizes": list(hierarchy.sizes)}, indent=2))
+    encode_dataset(model, ds, folder / "latents.npz")
+    report = AutoencoderReport(folder, state["epoch"], state["best_epoch"], state["best"], pve_mm(model, test),
+                               pve_mm(model, train[:: max(1, len(train) // 512)]),
+                               (time.perf_counter() - t_start) / 60, model.latent_shape, hierarchy.sizes)
+    atomic_write_text(folder / "report.json", json.dumps({k: (str(v) if isinstance(v, Path) else v)
+                                                          for k, v in asdict(report).items()}, indent=2))
+    return report
+
+
+def encode_dataset(model: MeshAutoencoder, ds: GarmentDataset, path: Path, batch: int = 64) -> Path:
+    """Latents (T, N, 8) float32 of every sequence, one npz entry per sequence name."""
+    latents = {}
+    with torch.no_grad():
+        for name in ds.names:
+            frames = heading_frames(ds, [name])
+            latents[name] = np.concatenate([model.encode(torch.from_numpy(frames[i:i + batch])).numpy()
+                                            for i in range(0, len(frames), batch)])
+    with atomic_path(path) as tmp, open(tmp, "wb") as fh:
+        np.savez(fh, **latents)
+    return path
+
+
+def load_autoencoder(folder: str | Path, faces: np.ndarray, cache_dir: Path | None = None) -> MeshAutoencoder:
+    """The trained model of ``folder`` (weights only; no pickled objects are loaded)."""
+    folder = Path(folder)
+    meta = json.loads((folder / "config.json").read_text())
+    config = AutoencoderConfig.from_dict(meta["model"])
+    hierarchy = cached_hierarchy(faces, meta["vertices"], cache_dir, latent_fraction=config.latent_fraction,
+                                 stride=config.stride, radius=config.radius)
+    model = MeshAutoencoder(hierarchy, config)
+    model.load_state_dict(torch.load(folder / "model.pt", map_location="cpu", weights_only=True))
+    return model.eval()

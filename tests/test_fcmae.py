@@ -1,0 +1,138 @@
+"""Mesh autoencoder: sampling hierarchy, layers, fast path, overfitting, latent interpolation."""
+
+import numpy as np
+import pytest
+import torch
+
+from hrr_garment.garment.mesh import GarmentError
+from hrr_garment.garment.templates import make_garment
+from hrr_garment.models.fcmae import AutoencoderConfig, MeshAutoencoder
+from hrr_garment.models.hierarchy import build_hierarchy, cached_hierarchy
+from hrr_garment.sim.quality import edge_strain
+
+
+@pytest.fixture(scope="module")
+def skirt():
+    return make_garment("skirt", 300)
+
+
+@pytest.fixture(scope="module")
+def hierarchy(skirt):
+    return build_hierarchy(skirt.faces, skirt.num_vertices)
+
+
+def test_hierarchy_levels_cover_every_vertex(hierarchy, skirt):
+    h = hierarchy
+    assert h.sizes[0] == skirt.num_vertices and all(a > b for a, b in zip(h.sizes, h.sizes[1:]))
+    assert 0.005 * skirt.num_vertices <= h.sizes[-1] <= 0.05 * skirt.num_vertices + 4
+    for level in range(h.levels - 1):
+        down, up = h.down[level], h.up[level]
+        assert down.index.shape[0] == h.sizes[level + 1] and up.index.shape[0] == h.sizes[level]
+        covered = np.zeros(h.sizes[level], bool)
+        covered[down.index[down.mask]] = True
+        assert covered.all()  # every vertex is pooled by some centre
+        assert up.mask.any(1).all()  # ... so unpooling reaches every vertex
+        # Each centre pools itself; unpooling is the transpose of pooling.
+        centres = h.centres[level]
+        assert all(c in down.index[i][down.mask[i]] for i, c in enumerate(centres))
+        pairs_down = {(int(v), i) for i in range(len(down.index)) for v in down.index[i][down.mask[i]]}
+        pairs_up = {(v, int(c)) for v in range(len(up.index)) for c in up.index[v][up.mask[v]]}
+        assert pairs_down == pairs_up
+    for level, conv in enumerate(h.conv):
+        assert conv.index.shape[0] == h.sizes[level] and (conv.index[:, 0] == np.arange(h.sizes[level])).all()
+
+
+def test_hierarchy_is_deterministic_and_cached(tmp_path, skirt, hierarchy):
+    again = cached_hierarchy(skirt.faces, skirt.num_vertices, tmp_path)
+    from_cache = cached_hierarchy(skirt.faces, skirt.num_vertices, tmp_path)
+    assert len(list(tmp_path.glob("hierarchy-*.npz"))) == 1
+    for h in (again, from_cache):
+        assert h.sizes == hierarchy.sizes
+        for a, b in zip(h.down, hierarchy.down):
+            assert np.array_equal(a.index, b.index) and np.array_equal(a.mask, b.mask)
+
+
+def test_disconnected_template_is_rejected():
+    v = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [5, 0, 0], [6, 0, 0], [5, 1, 0]], float)
+    with pytest.raises(GarmentError, match="one connected mesh"):
+        build_hierarchy(np.array([[0, 1, 2], [3, 4, 5]]), 6, name="two.obj")
+
+
+def _model(hierarchy, skirt, seed=0, **cfg):
+    torch.manual_seed(seed)
+    return MeshAutoencoder(hierarchy, AutoencoderConfig(**cfg), skirt.vertices, scale=0.05)
+
+
+def test_shapes_and_normalised_pooling(hierarchy, skirt):
+    model = _model(hierarchy, skirt)
+    x = torch.as_tensor(skirt.vertices)[None].repeat(3, 1, 1)
+    z = model.encode(x)
+    assert z.shape == (3, hierarchy.sizes[-1], 8) and model.decode(z).shape == x.shape
+    # Intermediate shapes: each encoder block lands on its level.
+    h = x.transpose(0, 1)
+    for block, size in zip(model.encoder, [hierarchy.sizes[0], *hierarchy.sizes[1:], hierarchy.sizes[-1]]):
+        h = block(h)
+        assert h.shape[:2] == (size, 3)
+    for block in [*model.encoder, *model.decoder]:
+        if block.residual.neighbours:
+            with torch.no_grad():
+                block.residual.logits.normal_()
+            w = block.residual.weights()
+            assert (w >= 0).all() and torch.allclose(w.sum(1), torch.ones(len(w)))
+            assert (w[block.residual.mask == 0] == 0).all()
+
+
+def test_fast_decoder_equals_training_path(hierarchy, skirt):
+    model = _model(hierarchy, skirt, seed=3)
+    with torch.no_grad():
+        for p in model.parameters():
+            p.add_(0.1 * torch.randn_like(p))  # not the initial values
+    z = torch.randn(5, *model.latent_shape)
+    with torch.no_grad():
+        assert (model.fast_decoder()(z) - model.decode(z)).abs().max() <= 1e-5
+
+
+def _two_frames(skirt):
+    """The skirt swung 8 cm forward and 8 cm back, more towards the hem (smooth shapes)."""
+    v = skirt.vertices.astype(np.float32)
+    depth = np.clip((v[:, 1].max() - v[:, 1]) / np.ptp(v[:, 1]), 0, 1) ** 2
+    frames = []
+    for sign in (1.0, -1.0):
+        f = v.copy()
+        f[:, 2] += sign * 0.08 * depth
+        f[:, 1] += 0.02 * depth * np.cos(np.arctan2(v[:, 0], v[:, 2]))
+        frames.append(f)
+    return torch.as_tensor(np.stack(frames))
+
+
+@pytest.fixture(scope="module")
+def overfit(hierarchy, skirt):
+    model = _model(hierarchy, skirt, seed=1)
+    x = _two_frames(skirt)
+    opt = torch.optim.Adam(model.parameters(), lr=3e-3)
+    sched = torch.optim.lr_scheduler.ExponentialLR(opt, 0.995)
+    for _ in range(600):
+        loss = (model(x) - x).abs().mean()
+        opt.zero_grad()
+        loss.backward()
+        opt.step()
+        sched.step()
+    return model.eval(), x
+
+
+def test_tiny_model_overfits_to_half_a_millimetre(overfit):
+    model, x = overfit
+    with torch.no_grad():
+        err = (model(x) - x).norm(dim=-1).mean(1)
+    assert err.max() < 0.0005, f"per-vertex error {err.tolist()} m"
+
+
+def test_latent_interpolation_has_no_spikes(overfit, skirt):
+    model, x = overfit
+    edges = skirt.edges()
+    with torch.no_grad():
+        z = model.encode(x)
+        ends = model.decode(z).numpy()
+        mids = model.decode(torch.stack([(1 - t) * z[0] + t * z[1] for t in np.linspace(0.1, 0.9, 9)])).numpy()
+    bound = edge_strain(ends, skirt.vertices, edges).max() + 0.05
+    assert edge_strain(mids, skirt.vertices, edges).max() <= bound
