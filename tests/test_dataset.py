@@ -12,7 +12,13 @@ import pytest
 
 from hrr_garment.cli.import_sim import main as import_main
 from hrr_garment.cli.simulate import main as simulate_main
-from hrr_garment.data.dataset import SPLITS, GarmentDataset, SequenceRecord, split_names, write_dataset
+from hrr_garment.data.dataset import (
+    SPLITS,
+    GarmentDataset,
+    SequenceRecord,
+    split_names,
+    write_dataset,
+)
 from hrr_garment.data.importer import export_obj_frames
 from hrr_garment.garment.obj import write_obj
 from hrr_garment.garment.templates import make_garment
@@ -139,3 +145,12 @@ def test_bad_inputs_exit_nonzero_and_write_nothing(tmp_path, capsys):
     _expect_failure(capsys, simulate_main, ["--garment", "skirt", "--motions", str(short), "-o", str(out)], out,
                     "short.npz", "too short")
     _expect_failure(capsys, simulate_main, ["--garment", "skirt", "--preset", "huge", "-o", str(out)], out, "unknown preset")
+
+
+def test_train_without_a_dataset_says_how_to_make_one(tmp_path, capsys, monkeypatch):
+    from hrr_garment.cli.train import main as train_main
+
+    monkeypatch.setenv("HRR_HOME", str(tmp_path))
+    assert train_main(["--garment", "dress", "--stage", "autoencoder"]) == 2
+    err = capsys.readouterr().err
+    assert "dress-quick.h5" in err and "hrr-simulate --garment dress --preset quick" in err

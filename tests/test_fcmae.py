@@ -53,8 +53,7 @@ def test_hierarchy_is_deterministic_and_cached(tmp_path, skirt, hierarchy):
 
 
 def test_disconnected_template_is_rejected():
-    v = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [5, 0, 0], [6, 0, 0], [5, 1, 0]], float)
-    with pytest.raises(GarmentError, match="one connected mesh"):
+    with pytest.raises(GarmentError, match="one connected mesh"):  # two separate triangles
         build_hierarchy(np.array([[0, 1, 2], [3, 4, 5]]), 6, name="two.obj")
 
 
@@ -136,3 +135,38 @@ def test_latent_interpolation_has_no_spikes(overfit, skirt):
         mids = model.decode(torch.stack([(1 - t) * z[0] + t * z[1] for t in np.linspace(0.1, 0.9, 9)])).numpy()
     bound = edge_strain(ends, skirt.vertices, edges).max() + 0.05
     assert edge_strain(mids, skirt.vertices, edges).max() <= bound
+
+
+def test_training_resumes_and_encodes_every_sequence(tmp_path, skirt):
+    from hrr_garment.data.dataset import SequenceRecord, write_dataset
+    from hrr_garment.motion.synth import synthesize
+    from hrr_garment.train.autoencoder import (
+        TrainConfig,
+        load_autoencoder,
+        train_autoencoder,
+    )
+
+    frames = _two_frames(skirt).numpy()
+    records = []
+    for i, kind in enumerate(("walk", "spin", "idle")):
+        motion = synthesize(kind, 0.4, seed=i)  # 12 frames; garment placed in the motion's heading frame
+        from hrr_garment.motion.rotations import rotation_about_y, yaw_of
+
+        yaw = yaw_of(motion.global_rotations[:, 0])
+        t = np.linspace(0, 1, motion.num_frames)[:, None, None]
+        local = (1 - t) * frames[0] + t * frames[1]
+        world = np.einsum("tij,tnj->tni", rotation_about_y(yaw), local) + (motion.root_translation * [1, 0, 1])[:, None]
+        records.append(SequenceRecord(f"{kind}_000", world.astype(np.float32), motion))
+    data = write_dataset(tmp_path / "d.h5", skirt, records, {"train": ["walk_000"], "val": ["spin_000"], "test": ["idle_000"]})
+    cfg = TrainConfig(epochs=2, batch_size=8, patience=10)
+    first = train_autoencoder(data, tmp_path / "ae", train_config=cfg, progress=False)
+    assert first.epochs == 2
+    again = train_autoencoder(data, tmp_path / "ae", train_config=TrainConfig(epochs=3, batch_size=8, patience=10), progress=False)
+    assert again.epochs == 3  # resumed from the checkpoint, one more epoch
+    with np.load(tmp_path / "ae" / "latents.npz") as z:
+        assert sorted(z.files) == ["idle_000", "spin_000", "walk_000"]
+        assert z["walk_000"].shape == (12, *again.latent_shape)
+    model = load_autoencoder(tmp_path / "ae", skirt.faces)
+    x = torch.as_tensor(frames[:1])
+    with torch.no_grad():
+        assert model(x).shape == x.shape

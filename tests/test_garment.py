@@ -5,7 +5,13 @@ import pytest
 
 from hrr_garment.body.capsules import capsule_signed_distance
 from hrr_garment.garment.attachment import bind_attached
-from hrr_garment.garment.mesh import GarmentError, GarmentMesh, check_garment, components, repair_mesh
+from hrr_garment.garment.mesh import (
+    GarmentError,
+    GarmentMesh,
+    check_garment,
+    components,
+    repair_mesh,
+)
 from hrr_garment.garment.obj import load_garment_obj, read_obj, write_obj
 from hrr_garment.garment.templates import GARMENT_NAMES, make_garment, rest_body
 from hrr_garment.motion.synth import synthesize
@@ -118,7 +124,12 @@ def test_skinning_reproduces_rest_pose_and_follows_rigid_motion():
     assert np.allclose(binding.weights.sum(1), 1.0)
     motion = synthesize("idle", 1.0, seed=0)
     rot = np.broadcast_to(np.eye(3), (1, 22, 3, 3))
-    from hrr_garment.motion.skeleton import PARENTS, REST_OFFSETS, REST_PELVIS_HEIGHT, rest_positions
+    from hrr_garment.motion.skeleton import (
+        PARENTS,
+        REST_OFFSETS,
+        REST_PELVIS_HEIGHT,
+        rest_positions,
+    )
 
     rest = rest_positions(REST_OFFSETS, PARENTS)[None] + [0, REST_PELVIS_HEIGHT, 0]
     assert np.allclose(binding.pose(rot, rest)[0], mesh.vertices[mesh.attached], atol=1e-6)

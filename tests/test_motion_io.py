@@ -3,7 +3,13 @@
 import numpy as np
 import pytest
 
-from hrr_garment import load_motion, motion_features, save_amass, save_motion, synthesize
+from hrr_garment import (
+    load_motion,
+    motion_features,
+    save_amass,
+    save_motion,
+    synthesize,
+)
 from hrr_garment.motion.bvh import read_bvh, write_bvh
 from hrr_garment.motion.skeleton import CANONICAL, JOINT_NAMES, PARENTS
 

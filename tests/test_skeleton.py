@@ -2,7 +2,14 @@ import numpy as np
 import torch
 
 from hrr_garment.motion.rotations import axis_angle_to_matrix
-from hrr_garment.motion.skeleton import CANONICAL, JOINT_NAMES, PARENTS, REST_PELVIS_HEIGHT, forward_kinematics, global_to_local
+from hrr_garment.motion.skeleton import (
+    CANONICAL,
+    JOINT_NAMES,
+    PARENTS,
+    REST_PELVIS_HEIGHT,
+    forward_kinematics,
+    global_to_local,
+)
 
 
 def test_rest_pose_is_a_1p7m_t_pose_standing_on_the_ground():

@@ -14,7 +14,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..body.capsules import DEFAULT_BODY, BodyModel, capsule_signed_distance
-from ..motion.skeleton import JOINT_INDEX, PARENTS, REST_OFFSETS, REST_PELVIS_HEIGHT, rest_positions
+from ..motion.skeleton import (
+    JOINT_INDEX,
+    PARENTS,
+    REST_OFFSETS,
+    REST_PELVIS_HEIGHT,
+    rest_positions,
+)
 from .mesh import GarmentMesh
 
 TORSO_JOINTS: tuple[str, ...] = ("pelvis", "spine1", "spine2", "spine3", "neck", "l_collar", "r_collar")

@@ -159,7 +159,8 @@ def cached_hierarchy(faces: np.ndarray, num_vertices: int, cache_dir: Path | Non
     """``build_hierarchy`` with an npz cache (arrays only) keyed by the mesh and options."""
     if cache_dir is None:
         return build_hierarchy(faces, num_vertices, **options)
-    path = Path(cache_dir) / f"hierarchy-{template_key(faces, num_vertices, **options)}.npz"
+    shape_options = {k: v for k, v in options.items() if k != "name"}  # the name only labels errors
+    path = Path(cache_dir) / f"hierarchy-{template_key(faces, num_vertices, **shape_options)}.npz"
     if path.exists():
         with np.load(path, allow_pickle=False) as z:
             levels = int(z["levels"])

@@ -10,7 +10,13 @@ from __future__ import annotations
 import numpy as np
 
 from ..motion.motion import Motion
-from ..motion.rotations import matrix_to_quat, quat_slerp, quat_to_matrix, rotation_about_y, yaw_of
+from ..motion.rotations import (
+    matrix_to_quat,
+    quat_slerp,
+    quat_to_matrix,
+    rotation_about_y,
+    yaw_of,
+)
 from ..motion.skeleton import REST_PELVIS_HEIGHT
 
 

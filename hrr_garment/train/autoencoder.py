@@ -34,9 +34,9 @@ from ..sim.quality import heading_frame
 @dataclass(frozen=True)
 class TrainConfig:
     epochs: int = 300
-    batch_size: int = 32
-    learning_rate: float = 1e-3
-    lr_decay: float = 0.97  # per epoch
+    batch_size: int = 16
+    learning_rate: float = 3e-3
+    lr_decay: float = 0.98  # per epoch
     laplacian: float = 0.5
     patience: int = 30  # epochs without a better validation error before stopping
     max_minutes: float | None = None  # wall-clock budget for this run
@@ -83,7 +83,7 @@ def laplacian_operator(index: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
     cols = index[:, 1:][mask[:, 1:] > 0]
     vals = -(1.0 / count).unsqueeze(1).expand_as(index[:, 1:])[mask[:, 1:] > 0]
     i = torch.cat([torch.stack([rows, cols]), torch.arange(v).repeat(2, 1)], 1)
-    return torch.sparse_coo_tensor(i, torch.cat([vals, torch.ones(v)]), (v, v)).coalesce()
+    return torch.sparse_coo_tensor(i, torch.cat([vals, torch.ones(v)]), (v, v), check_invariants=True).coalesce()
 
 
 def apply_laplacian(op: torch.Tensor, x: torch.Tensor) -> torch.Tensor:
@@ -161,7 +161,7 @@ def train_autoencoder(dataset: str | Path, folder: str | Path, model_config: Aut
             optimizer.zero_grad(set_to_none=True)
             loss.backward()
             optimizer.step()
-            losses.append(float(loss))
+            losses.append(loss.item())
         scheduler.step()
         model.eval()
         val_err = pve_mm(model, val if len(val) else train[:256])

@@ -14,7 +14,12 @@ import numpy as np
 from scipy.ndimage import gaussian_filter1d, maximum_filter1d
 
 from ..motion import FPS, Motion
-from ..rotations import axis_angle_to_matrix, matrix_to_axis_angle, normalize, rotation_about_y
+from ..rotations import (
+    axis_angle_to_matrix,
+    matrix_to_axis_angle,
+    normalize,
+    rotation_about_y,
+)
 from ..skeleton import JOINT_INDEX as J
 from ..skeleton import PARENTS, REST_OFFSETS, global_to_local
 
