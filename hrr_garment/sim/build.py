@@ -203,11 +203,10 @@ def summarise(records: list[SequenceRecord], garment: GarmentMesh, rejects: dict
 
 
 def write_preview(records: list[SequenceRecord], garment: GarmentMesh, path: Path, frames: int = 4) -> Path | None:
-    """Front and side views of a walk and a spin (or the first two sequences), in the heading frame."""
-    try:
-        from ..export.preview import render_sequence_preview
-    except ImportError:
-        return None
+    """Front and side views of a walk and a spin (or the first two sequences), in the heading frame.
+    None when Pillow (the ``preview`` extra) is missing."""
+    from ..export.preview import render_sequence_preview
+
     chosen = []
     for kind in ("walk", "spin"):
         chosen += [r for r in records if r.info.get("kind") == kind][:1]

@@ -168,6 +168,9 @@ class _Scene:
     def _run_substep(self, dt: float) -> None:
         """One substep, replayed from a captured graph: Python launch overhead dominates otherwise."""
         wp, p = self.wp, self.parity
+        if getattr(self, "_dt", dt) != dt:
+            raise ValueError("a scene replays graphs captured for one substep length; build a new scene")
+        self._dt = dt
         if self.graphs[p] is None:
             self._substep(p, dt)  # first run loads modules and lets the solver initialise
             self.graphs[p] = "ready"
