@@ -35,9 +35,9 @@ from ..sim.quality import heading_frame
 class TrainConfig:
     epochs: int = 300
     batch_size: int = 16
-    learning_rate: float = 3e-3
-    lr_decay: float = 0.98  # per epoch
-    laplacian: float = 0.5
+    learning_rate: float = 6e-3
+    lr_decay: float = 0.97  # per epoch
+    laplacian: float = 0.2
     patience: int = 30  # epochs without a better validation error before stopping
     max_minutes: float | None = None  # wall-clock budget for this run
     seed: int = 0
