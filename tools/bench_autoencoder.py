@@ -8,6 +8,7 @@ and the same machine's float32 matrix-multiply rate (a 2048^3 torch.mm) as the p
 
     python tools/bench_autoencoder.py                    # 4,000 and 12,000 vertices
     python tools/bench_autoencoder.py --vertices 4000 --json
+    python tools/bench_autoencoder.py --compile          # also the torch.compile'd decoder
 """
 
 from __future__ import annotations
@@ -47,21 +48,32 @@ def matmul_peak(size: int = 2048, repeat: int = 5) -> float:
     return 2 * size**3 * repeat / (time.perf_counter() - t0) / 1e9
 
 
-def bench(vertices: int, batch: int, seconds: float) -> dict:
+def _rate(decode, z: torch.Tensor, seconds: float) -> float:
+    decode(z)  # warm-up (and compilation, for the compiled decoder)
+    frames, t0 = 0, time.perf_counter()
+    while time.perf_counter() - t0 < seconds:
+        decode(z)
+        frames += len(z)
+    return frames / (time.perf_counter() - t0)
+
+
+def bench(vertices: int, batch: int, seconds: float, compiled: bool) -> dict:
     garment = make_garment("dress", vertices)
     model = MeshAutoencoder(build_hierarchy(garment.faces, garment.num_vertices), AutoencoderConfig(), garment.vertices).eval()
     fast = model.fast_decoder()
     z = torch.randn(batch, *model.latent_shape)
-    fast(z)
-    frames, t0 = 0, time.perf_counter()
-    while time.perf_counter() - t0 < seconds:
-        fast(z)
-        frames += batch
-    fps = frames / (time.perf_counter() - t0)
+    fps = _rate(fast, z, seconds)
     flops = decoder_flops(model)
     return {"vertices": garment.num_vertices, "levels": list(model.hierarchy.sizes), "latent": list(model.latent_shape),
             "batch": batch, "threads": torch.get_num_threads(), "frames_per_s": round(fps, 1),
-            "ms_per_frame": round(1000 / fps, 3), "mflop_per_frame": round(flops / 1e6, 2), "gflops": round(flops * fps / 1e9, 2)}
+            "ms_per_frame": round(1000 / fps, 3), "mflop_per_frame": round(flops / 1e6, 2), "gflops": round(flops * fps / 1e9, 2),
+            **(_compiled(fast, z, seconds) if compiled else {})}
+
+
+def _compiled(fast, z: torch.Tensor, seconds: float) -> dict:
+    decode = fast.compiled()
+    diff = float((decode(z) - fast(z)).abs().max())
+    return {"compiled_frames_per_s": round(_rate(decode, z, seconds), 1), "compiled_max_abs_diff": diff}
 
 
 def main() -> None:
@@ -70,10 +82,11 @@ def main() -> None:
     parser.add_argument("--batch", type=int, default=64)
     parser.add_argument("--seconds", type=float, default=5.0, help="timing window per resolution")
     parser.add_argument("--json", action="store_true", help="one JSON object per resolution, nothing else")
+    parser.add_argument("--compile", action="store_true", help="also time the torch.compile'd decoder (compiles ~1 min)")
     args = parser.parse_args()
     peak = matmul_peak()
     for v in args.vertices:
-        result = bench(v, args.batch, args.seconds)
+        result = bench(v, args.batch, args.seconds, args.compile)
         result["matmul_peak_gflops"] = round(peak, 1)
         result["fraction_of_peak"] = round(result["gflops"] / peak, 3)
         if args.json:
@@ -82,7 +95,8 @@ def main() -> None:
             print(f"{result['vertices']} vertices (levels {result['levels']}): {result['frames_per_s']} frames/s "
                   f"({result['ms_per_frame']} ms/frame, batch {args.batch}, {result['threads']} threads); "
                   f"{result['mflop_per_frame']} MFLOP/frame -> {result['gflops']} GFLOP/s = "
-                  f"{100 * result['fraction_of_peak']:.1f} % of the {peak:.0f} GFLOP/s matmul peak")
+                  f"{100 * result['fraction_of_peak']:.1f} % of the {peak:.0f} GFLOP/s matmul peak"
+                  + (f"; compiled: {result['compiled_frames_per_s']} frames/s" if args.compile else ""))
 
 
 if __name__ == "__main__":
