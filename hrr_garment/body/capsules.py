@@ -12,7 +12,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ..motion.motion import Motion
-from ..motion.skeleton import JOINT_INDEX, REST_OFFSETS
+from ..motion.skeleton import CANONICAL, JOINT_INDEX, REST_OFFSETS, REST_PELVIS_HEIGHT
 
 
 @dataclass(frozen=True)
@@ -73,6 +73,17 @@ class BodyModel:
 
     def pose_motion(self, motion: Motion) -> tuple[np.ndarray, np.ndarray]:
         return self.pose(motion.global_rotations, motion.joint_positions)
+
+    def rest_pose(self) -> tuple[np.ndarray, np.ndarray]:
+        """Capsule ends a, b (C, 3) in the canonical rest pose (feet on the ground)."""
+        rot = np.broadcast_to(np.eye(3), (1, len(REST_OFFSETS), 3, 3))
+        a, b = self.pose(rot, rest_joint_positions()[None])
+        return a[0], b[0]
+
+
+def rest_joint_positions() -> np.ndarray:
+    """(22, 3) joint positions of the canonical rest pose standing at the origin."""
+    return CANONICAL.rest_positions(np.array([0.0, REST_PELVIS_HEIGHT, 0.0]))
 
 
 DEFAULT_BODY = BodyModel()

@@ -13,14 +13,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..body.capsules import DEFAULT_BODY, BodyModel, capsule_signed_distance
-from ..motion.skeleton import (
-    JOINT_INDEX,
-    PARENTS,
-    REST_OFFSETS,
-    REST_PELVIS_HEIGHT,
-    rest_positions,
-)
+from ..body.capsules import DEFAULT_BODY, BodyModel, capsule_signed_distance, rest_joint_positions
+from ..motion.skeleton import JOINT_INDEX, PARENTS
 from .mesh import GarmentMesh
 
 TORSO_JOINTS: tuple[str, ...] = ("pelvis", "spine1", "spine2", "spine3", "neck", "l_collar", "r_collar")
@@ -48,12 +42,11 @@ def bind_attached(mesh: GarmentMesh, body: BodyModel = DEFAULT_BODY, bones: int 
                   joints: tuple[str, ...] = TORSO_JOINTS) -> SkinBinding:
     """Skin the mesh's attached vertices (rest pose) to the nearest capsules among ``joints``."""
     verts = mesh.vertices[mesh.attached].astype(np.float64)
-    joints_rest = rest_positions(REST_OFFSETS, PARENTS) + np.array([0.0, REST_PELVIS_HEIGHT, 0.0])
-    rot = np.broadcast_to(np.eye(3), (1, len(PARENTS), 3, 3))
-    a, b = body.pose(rot, joints_rest[None])
+    joints_rest = rest_joint_positions()
+    a, b = body.rest_pose()
     cap_joint = np.array([JOINT_INDEX[c.joint] for c in body.capsules])
     # Distance to every capsule, then the nearest capsule per distinct joint.
-    dist = np.stack([capsule_signed_distance(verts, a[0, c:c + 1], b[0, c:c + 1], body.radii[c:c + 1])[0]
+    dist = np.stack([capsule_signed_distance(verts, a[c:c + 1], b[c:c + 1], body.radii[c:c + 1])[0]
                      for c in range(len(cap_joint))], 1)
     per_joint = np.full((len(verts), len(PARENTS)), np.inf)
     allowed = {JOINT_INDEX[name] for name in joints}

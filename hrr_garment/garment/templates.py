@@ -18,7 +18,6 @@ import numpy as np
 
 from ..body.capsules import DEFAULT_BODY, BodyModel, capsule_signed_distance
 from ..errors import InputError
-from ..motion.skeleton import PARENTS, REST_OFFSETS, REST_PELVIS_HEIGHT, rest_positions
 from .mesh import GarmentMesh, check_garment
 
 
@@ -57,10 +56,8 @@ DEFAULT_VERTICES = 1000
 
 def rest_body(body: BodyModel = DEFAULT_BODY) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Capsule ends a, b (C, 3) and radii (C,) of the body in the canonical rest pose."""
-    joints = rest_positions(REST_OFFSETS, PARENTS) + np.array([0.0, REST_PELVIS_HEIGHT, 0.0])
-    rot = np.broadcast_to(np.eye(3), (1, len(PARENTS), 3, 3))
-    a, b = body.pose(rot, joints[None])
-    return a[0], b[0], body.radii
+    a, b = body.rest_pose()
+    return a, b, body.radii
 
 
 def body_fit_radius(theta: np.ndarray, height: np.ndarray, gap: float, body: BodyModel = DEFAULT_BODY,

@@ -24,6 +24,7 @@ import torch
 from torch import nn
 from torch.nn import functional as F
 
+from ..settings import from_settings
 from .hierarchy import Hierarchy, Neighbourhoods
 
 
@@ -39,13 +40,9 @@ class AutoencoderConfig:
 
     @classmethod
     def from_dict(cls, values: dict) -> "AutoencoderConfig":
-        unknown = set(values) - set(cls.__dataclass_fields__)
-        if unknown:
-            raise ValueError(f"unknown autoencoder settings: {', '.join(sorted(unknown))}")
-        values = dict(values)
         if "channels" in values:
-            values["channels"] = tuple(values["channels"])
-        return cls(**values)
+            values = {**values, "channels": tuple(values["channels"])}
+        return from_settings(cls, values, "autoencoder")
 
     def to_dict(self) -> dict:
         d = asdict(self)

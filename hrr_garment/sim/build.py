@@ -16,7 +16,7 @@ import os
 import queue as queue_mod
 import time
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -25,7 +25,7 @@ from tqdm.auto import tqdm
 from ..data.dataset import SequenceRecord, split_names, write_dataset
 from ..garment.mesh import GarmentMesh
 from ..io_utils import atomic_path, atomic_write_text
-from ..motion.motion import Motion
+from ..motion.motion import FPS, Motion
 from .plan import SequenceSpec
 from .quality import edge_strain, sequence_stats
 from .simulator import SimConfig, SimulationExploded, simulate_garment
@@ -98,7 +98,7 @@ def warm_up(garment: GarmentMesh, config: SimConfig) -> None:
     from ..motion.synth import synthesize
 
     clip = synthesize("idle", 0.1, seed=0)
-    simulate_garment(garment, clip, SimConfig.from_dict({**config.to_dict(), "settle_s": 0.0, "blend_s": 0.0}))
+    simulate_garment(garment, clip, replace(config, settle_s=0.0, blend_s=0.0))
 
 
 def build_dataset(garment: GarmentMesh, specs: list[SequenceSpec], config: SimConfig, out: str | Path,
@@ -145,8 +145,8 @@ def build_dataset(garment: GarmentMesh, specs: list[SequenceSpec], config: SimCo
 
 def _run_pending(pending: list[SequenceSpec], garment: GarmentMesh, config: SimConfig, keys: dict[str, str],
                  parts: Path, jobs: int, progress: bool) -> dict[str, str]:
-    lead = int(round((config.settle_s + config.blend_s) * 30))
-    total = sum(int(round(s.seconds * 30)) + lead if s.kind != "file" else s.stop - s.start + lead for s in pending)
+    lead = int(round(config.settle_s * FPS)) + int(round(config.blend_s * FPS))  # as with_lead_in counts
+    total = sum(int(round(s.seconds * FPS)) + lead if s.kind != "file" else s.stop - s.start + lead for s in pending)
     bar = tqdm(total=total, unit="frame", desc="simulating", disable=not progress, smoothing=0.05)
     rejects: dict[str, str] = {}
     ctx = mp.get_context("spawn")  # Warp is not fork-safe

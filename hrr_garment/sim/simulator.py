@@ -25,6 +25,7 @@ from ..garment.attachment import bind_attached
 from ..garment.mesh import GarmentMesh
 from ..motion.motion import Motion
 from ..motion.rotations import matrix_to_quat, rotation_between
+from ..settings import from_settings
 from .lead_in import start_transform, with_lead_in
 
 NEWTON_VERSION = "1.8.0"
@@ -61,10 +62,7 @@ class SimConfig:
 
     @classmethod
     def from_dict(cls, values: dict) -> "SimConfig":
-        unknown = set(values) - set(cls.__dataclass_fields__)
-        if unknown:
-            raise HRRError(f"unknown simulator settings: {', '.join(sorted(unknown))}")
-        return cls(**values)
+        return from_settings(cls, values, "simulator")
 
     def to_dict(self) -> dict:
         return asdict(self)

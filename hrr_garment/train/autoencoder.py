@@ -28,6 +28,7 @@ from ..data.dataset import GarmentDataset
 from ..io_utils import atomic_path, atomic_write_text
 from ..models.fcmae import AutoencoderConfig, MeshAutoencoder
 from ..models.hierarchy import cached_hierarchy
+from ..settings import from_settings
 from ..sim.quality import heading_frame
 
 
@@ -45,10 +46,7 @@ class TrainConfig:
 
     @classmethod
     def from_dict(cls, values: dict) -> "TrainConfig":
-        unknown = set(values) - set(cls.__dataclass_fields__)
-        if unknown:
-            raise ValueError(f"unknown training settings: {', '.join(sorted(unknown))}")
-        return cls(**values)
+        return from_settings(cls, values, "training")
 
 
 @dataclass
