@@ -77,6 +77,11 @@ def _main(argv: Sequence[str] | None) -> int:
     report = build_dataset(garment, specs, config, out, jobs=args.jobs, splits=preset.splits, seed=preset.seed,
                            info={"preset": preset.name, "garment_vertices": garment.num_vertices},
                            preview=not args.no_preview, progress=not args.quiet)
+    print_report(report, garment)
+    return 0
+
+
+def print_report(report, garment: GarmentMesh) -> None:
     s = report.summary
     print(f"wrote {report.path}: {s['sequences']} sequences, {s['frames']} frames, {garment.num_vertices} vertices "
           f"({report.reused} reused, {report.simulated} simulated now, {len(report.rejects)} rejected)")
@@ -89,7 +94,6 @@ def _main(argv: Sequence[str] | None) -> int:
         print(f"  rejected {name}: {reason}")
     if report.preview:
         print(f"  preview: {report.preview}")
-    return 0
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -1,19 +1,26 @@
-"""hrr-train: train a garment model from a dataset, stage by stage.
+"""hrr-train: train a garment model, stage by stage, into one bundle directory.
 
-    hrr-train --garment dress                          # every available stage, quick dataset
+    hrr-train --garment dress                        # quick preset: simulate if needed, then every stage
+    hrr-train --garment dress --preset tiny          # a small model in a few minutes (smoke runs)
     hrr-train --garment dress --stage autoencoder --minutes 10
-    hrr-train --dataset my.h5 --stage autoencoder -o hrr_work/models/my
+    hrr-train --dataset my.h5 -o hrr_work/models/my
 
-Stages run in order; each keeps its outputs in the model folder (default
-hrr_work/models/GARMENT-PRESET/) and resumes from its checkpoint when re-run. Available now:
-``autoencoder`` (the FCMAE mesh autoencoder, then every frame encoded to latents). The code space
-and retrieval database stages come next.
+Stages, in order: ``simulate`` (only when the dataset does not exist; as hrr-simulate would),
+``autoencoder`` (the FCMAE mesh autoencoder, then every frame encoded to latents), ``codebook``
+(motion and garment encoders sharing a Gumbel-Softmax code space, the retrieval database, tau
+calibration, the bundle). Each stage resumes from its checkpoint when re-run and is skipped when
+its outputs are current. The bundle lands in hrr_work/models/GARMENT-PRESET/, where
+``hrr-animate --garment GARMENT`` finds it.
+
+Settings: configs/train.yaml, then the preset's ``train:`` section, then ``--config FILE`` (same
+shape), then flags.
 """
 
 from __future__ import annotations
 
 import argparse
 import sys
+import time
 from pathlib import Path
 from typing import Sequence
 
@@ -21,72 +28,140 @@ import yaml
 
 from ..errors import InputError
 from ..paths import workspace
-from ..sim.plan import CONFIG_DIR
+from ..sim.plan import CONFIG_DIR, load_preset
 from ._common import run_cli
 
-STAGES = ("autoencoder",)
+STAGES = ("simulate", "autoencoder", "codebook")
 
 
 def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="hrr-train", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--garment", default=None, help="garment name: finds hrr_work/datasets/GARMENT-PRESET.h5")
-    p.add_argument("--preset", default="quick", help="dataset preset to look for (default quick)")
+    p.add_argument("--garment", default=None, help="garment name: uses hrr_work/datasets/GARMENT-PRESET.h5")
+    p.add_argument("--preset", default="quick", help="dataset and training preset (default quick)")
     p.add_argument("--dataset", type=Path, default=None, help="dataset .h5 (instead of --garment/--preset)")
     p.add_argument("--stage", choices=(*STAGES, "all"), default="all")
-    p.add_argument("--config", type=Path, default=None, help="YAML with model/train sections (default configs/autoencoder.yaml)")
-    p.add_argument("--epochs", type=int, default=None)
-    p.add_argument("--minutes", type=float, default=None, help="wall-clock budget for the autoencoder")
+    p.add_argument("--config", type=Path, default=None, help="YAML overriding configs/train.yaml (same sections)")
+    p.add_argument("--minutes", type=float, default=None, help="wall-clock budget for the autoencoder stage")
     p.add_argument("--threads", type=int, default=None, help="torch CPU threads (default: torch's choice)")
     p.add_argument("-o", "--output", type=Path, default=None, help="model folder (default hrr_work/models/GARMENT-PRESET)")
     p.add_argument("--quiet", action="store_true")
     return p
 
 
-def _config(path: Path | None) -> dict:
-    path = path or CONFIG_DIR / "autoencoder.yaml"
+def _merge(base: dict, override: dict) -> dict:
+    out = dict(base)
+    for key, value in (override or {}).items():
+        out[key] = _merge(out[key], value) if isinstance(value, dict) and isinstance(out.get(key), dict) else value
+    return out
+
+
+def _read_yaml(path: Path) -> dict:
     try:
         data = yaml.safe_load(path.read_text(encoding="utf-8")) or {}
     except (OSError, yaml.YAMLError) as exc:
         raise InputError(path, f"cannot read the training config: {exc}") from None
-    if not isinstance(data, dict) or set(data) - {"model", "train"}:
-        raise InputError(path, "expected a mapping with 'model' and/or 'train' sections")
+    if not isinstance(data, dict) or set(data) - {"autoencoder", "codebook"}:
+        raise InputError(path, "expected a mapping with 'autoencoder' and/or 'codebook' sections (each with model/train)")
     return data
+
+
+def settings(preset_train: dict, user: Path | None) -> dict:
+    cfg = _merge(_read_yaml(CONFIG_DIR / "train.yaml"), preset_train)
+    return _merge(cfg, _read_yaml(user)) if user else cfg
+
+
+def _build(factory, values: dict, source) -> object:
+    try:
+        return factory.from_dict(dict(values or {}))
+    except ValueError as exc:
+        raise InputError(source, str(exc)) from None
+
+
+def _simulate(garment: str, preset, out: Path, quiet: bool) -> None:
+    from ..garment.templates import make_garment
+    from ..sim.build import build_dataset
+    from ..sim.plan import plan_sequences
+    from ..sim.simulator import SimConfig
+    from .simulate import print_report
+
+    mesh = make_garment(garment, preset.vertices)
+    report = build_dataset(mesh, plan_sequences(preset), SimConfig.from_dict(preset.sim), out, splits=preset.splits,
+                           seed=preset.seed, info={"preset": preset.name, "garment_vertices": mesh.num_vertices},
+                           progress=not quiet)
+    print_report(report, mesh)
 
 
 def _main(argv: Sequence[str] | None) -> int:
     args = _parser().parse_args(argv)
+    from ..models.codespace import CodeSpaceConfig
     from ..models.fcmae import AutoencoderConfig
     from ..train.autoencoder import TrainConfig, train_autoencoder
+    from ..train.codebook import CodebookTrainConfig
+    from ..train.stages import run_codebook_stage
 
+    preset = load_preset(args.preset)
     if args.dataset is None:
         if args.garment is None:
             raise InputError("hrr-train", "give --garment NAME (with --preset) or --dataset FILE")
-        args.dataset = workspace() / "datasets" / f"{args.garment}-{args.preset}.h5"
-        if not args.dataset.exists():
-            raise InputError(args.dataset, f"no dataset; make it with: hrr-simulate --garment {args.garment} --preset {args.preset}")
+        args.dataset = workspace() / "datasets" / f"{args.garment}-{preset.name}.h5"
     folder = args.output or workspace() / "models" / args.dataset.stem
-    cfg = _config(args.config)
-    try:
-        model_cfg = AutoencoderConfig.from_dict(cfg.get("model") or {})
-        train_values = dict(cfg.get("train") or {})
-    except ValueError as exc:
-        raise InputError(args.config or "configs/autoencoder.yaml", str(exc)) from None
-    for key, value in (("epochs", args.epochs), ("max_minutes", args.minutes), ("threads", args.threads)):
+    cfg = settings(preset.train, args.config)
+    source = args.config or CONFIG_DIR / "train.yaml"
+    ae_model = _build(AutoencoderConfig, cfg["autoencoder"].get("model"), source)
+    ae_train_values = dict(cfg["autoencoder"].get("train") or {})
+    for key, value in (("max_minutes", args.minutes), ("threads", args.threads)):
         if value is not None:
-            train_values[key] = value
-    try:
-        train_cfg = TrainConfig.from_dict(train_values)
-    except ValueError as exc:
-        raise InputError(args.config or "configs/autoencoder.yaml", str(exc)) from None
-    for stage in STAGES if args.stage == "all" else (args.stage,):
-        if stage == "autoencoder":
-            report = train_autoencoder(args.dataset, folder / "autoencoder", model_cfg, train_cfg,
-                                       cache_dir=workspace() / "cache", progress=not args.quiet)
-            print(f"autoencoder: {report.epochs} epochs (best {report.best_epoch}) in {report.minutes:.1f} min; "
-                  f"per-vertex error val {report.val_pve_mm:.2f} mm, test {report.test_pve_mm:.2f} mm, "
-                  f"train {report.train_pve_mm:.2f} mm; latent {report.latent_shape[0]} x {report.latent_shape[1]} "
-                  f"(levels {' > '.join(str(s) for s in report.sizes)}) -> {report.folder}")
+            ae_train_values[key] = value
+    ae_train = _build(TrainConfig, ae_train_values, source)
+    cs_model = _build(CodeSpaceConfig, cfg["codebook"].get("model"), source)
+    cs_train = _build(CodebookTrainConfig, cfg["codebook"].get("train"), source)
+    if args.threads:
+        import torch
+
+        torch.set_num_threads(args.threads)
+
+    times: dict[str, float] = {}
+    stages = STAGES if args.stage == "all" else (args.stage,)
+    for stage in stages:
+        t0 = time.perf_counter()
+        if stage == "simulate":
+            if args.dataset.exists():
+                continue
+            if args.garment is None:
+                raise InputError(args.dataset, "no such dataset")
+            print(f"simulate: no dataset at {args.dataset}; simulating the {preset.name} preset first")
+            _simulate(args.garment, preset, args.dataset, args.quiet)
+        elif stage == "autoencoder":
+            if not args.dataset.exists():
+                hint = f"hrr-simulate --garment {args.garment} --preset {preset.name}" if args.garment else "hrr-simulate"
+                raise InputError(args.dataset, f"no dataset; make it with: {hint} (or run hrr-train without --stage)")
+            r = train_autoencoder(args.dataset, folder / "autoencoder", ae_model, ae_train, cache_dir=workspace() / "cache",
+                                  progress=not args.quiet)
+            print(f"autoencoder: {r.epochs} epochs (best {r.best_epoch}) in {r.minutes:.1f} min; "
+                  f"per-vertex error val {r.val_pve_mm:.2f} mm, test {r.test_pve_mm:.2f} mm, train {r.train_pve_mm:.2f} mm; "
+                  f"latent {r.latent_shape[0]} x {r.latent_shape[1]} (levels {' > '.join(str(s) for s in r.sizes)})")
+        elif stage == "codebook":
+            r = run_codebook_stage(args.dataset, folder, cs_model, cs_train, cache_dir=workspace() / "cache",
+                                   progress=not args.quiet, info={"preset": preset.name})
+            _print_codebook(r, folder)
+        times[stage] = time.perf_counter() - t0
+    print("time per stage: " + ", ".join(f"{k} {v / 60:.1f} min" for k, v in times.items()))
     return 0
+
+
+def _print_codebook(r: dict, folder: Path) -> None:
+    v = r["validation_mm"]
+    size = sum(p.stat().st_size for p in folder.glob("*.safetensors")) / 1e6
+    t = r["training"]
+    print(f"code space: {t['epochs'] if 'epochs' in t else t['epoch']} epochs (curriculum switch at "
+          f"{t['switched_at']}){' (reused)' if r.get('reused') else ''}; code agreement {r['code_agreement']:.2f} "
+          f"(chance {r['chance_agreement']:.2f}); database {r['windows']['train']} windows, "
+          f"{r['database_codes']['distinct_codes']} distinct codes, {r['database_codes']['dead_classes']} of "
+          f"{r['database_codes']['classes']} classes dead, perplexity {r['database_codes']['perplexity']:.2f}")
+    print(f"validation per-vertex error (window level): hybrid {v['hybrid']:.2f} mm, regression-only "
+          f"{v['regression']:.2f} mm, retrieval-only {v['retrieval']:.2f} mm (autoencoder floor {v['autoencoder']:.2f} mm); "
+          f"tau {r['tau']:.3f}, retrieval usage {100 * v['retrieval_usage']:.0f} %")
+    print(f"bundle: {folder} ({size:.1f} MB)")
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -182,3 +182,20 @@ def _orient_faces(faces: np.ndarray) -> np.ndarray:
             flip[face] = flip[parent] ^ same_dir[(parent, face)]
     faces[flip] = faces[flip][:, ::-1]
     return faces
+
+
+def mirror_map(vertices: np.ndarray, tolerance: float = 1e-6) -> np.ndarray | None:
+    """The left-right mirror permutation of a template symmetric about the plane x = 0, or None.
+
+    Returns ``perm`` such that ``vertices[perm] * (-1, 1, 1) == vertices`` within ``tolerance``
+    metres. A mirrored frame of a symmetric garment is what the simulator gives for the mirrored
+    motion, up to the triangulation: quads split along one diagonal mirror onto the other diagonal,
+    which changes the cloth's response only at the scale of one triangle.
+    """
+    from scipy.spatial import cKDTree
+
+    mirrored = np.asarray(vertices, np.float64) * np.array([-1.0, 1.0, 1.0])
+    dist, perm = cKDTree(np.asarray(vertices, np.float64)).query(mirrored)
+    if dist.max() > tolerance or len(np.unique(perm)) != len(perm):
+        return None
+    return perm.astype(np.int64)

@@ -35,6 +35,7 @@ class Preset:
     splits: dict[str, float] = field(default_factory=lambda: {"val": 0.1, "test": 0.1})
     seed: int = 0
     sim: dict = field(default_factory=dict)
+    train: dict = field(default_factory=dict)  # hrr-train overrides, shaped like configs/train.yaml
 
 
 def preset_names() -> list[str]:

@@ -25,6 +25,7 @@ import torch
 from tqdm.auto import tqdm
 
 from ..data.dataset import GarmentDataset
+from ..garment.mesh import mirror_map
 from ..io_utils import atomic_path, atomic_write_text
 from ..models.fcmae import AutoencoderConfig, MeshAutoencoder
 from ..models.hierarchy import cached_hierarchy
@@ -43,6 +44,7 @@ class TrainConfig:
     max_minutes: float | None = None  # wall-clock budget for this run
     seed: int = 0
     threads: int | None = None
+    mirror: bool = True  # add left-right mirrored training frames when the template is symmetric
 
     @classmethod
     def from_dict(cls, values: dict) -> "TrainConfig":
@@ -121,6 +123,9 @@ def train_autoencoder(dataset: str | Path, folder: str | Path, model_config: Aut
     val = heading_frames(ds, splits.get("val", []))
     test = heading_frames(ds, splits.get("test", []))
     template = ds.template.vertices.astype(np.float32)
+    perm = mirror_map(template) if train_config.mirror else None
+    if perm is not None:  # heading frame: x is the body's left-right axis
+        train = np.concatenate([train, train[:, perm] * np.array([-1, 1, 1], np.float32)])
     scale = float(np.std(train - template)) if len(train) else 0.1
     hierarchy = cached_hierarchy(ds.template.faces, ds.template.num_vertices, cache_dir, latent_fraction=model_config.latent_fraction,
                                  stride=model_config.stride, radius=model_config.radius, name=str(dataset))
@@ -186,7 +191,7 @@ def train_autoencoder(dataset: str | Path, folder: str | Path, model_config: Aut
                                                           "sizes": list(hierarchy.sizes)}, indent=2))
     encode_dataset(model, ds, folder / "latents.npz")
     report = AutoencoderReport(folder, state["epoch"], state["best_epoch"], state["best"], pve_mm(model, test),
-                               pve_mm(model, train[:: max(1, len(train) // 512)]),
+                               pve_mm(model, train[:: max(1, len(train) // 512)]),  # mirrored frames included
                                (time.perf_counter() - t_start) / 60, model.latent_shape, hierarchy.sizes)
     atomic_write_text(folder / "report.json", json.dumps({k: (str(v) if isinstance(v, Path) else v)
                                                           for k, v in asdict(report).items()}, indent=2))

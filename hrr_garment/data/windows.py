@@ -1,0 +1,67 @@
+"""Training windows for the code space: W consecutive frames of motion features and garment latents.
+
+Every window of every sequence, stride 1: window i of a sequence covers frames i .. i + W - 1.
+Statistics for standardising both sides are fitted on the training split's frames only.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..motion.features import FeatureStats, motion_features, windows
+
+
+@dataclass
+class WindowSet:
+    """Windows of several sequences: ``motion`` (N, W, F), ``latents`` (N, W, nodes, C), and where
+    each came from: ``sequence`` (N,) indices into ``names`` and ``start`` (N,) first frames."""
+
+    motion: np.ndarray
+    latents: np.ndarray
+    sequence: np.ndarray
+    start: np.ndarray
+    names: list[str]
+
+    def __len__(self) -> int:
+        return len(self.motion)
+
+    def subset(self, names: list[str]) -> "WindowSet":
+        """The windows of ``names`` (a split), with ``sequence`` indices into ``names``."""
+        keep = np.isin(np.asarray(self.names)[self.sequence] if len(self) else np.zeros(0, str), names)
+        remap = np.array([names.index(n) if n in names else -1 for n in self.names], np.int32)
+        return WindowSet(self.motion[keep], self.latents[keep], remap[self.sequence[keep]], self.start[keep], list(names))
+
+
+def build_windows(features: dict[str, np.ndarray], latents: dict[str, np.ndarray], names: list[str], window: int) -> WindowSet:
+    """Windows of the sequences ``names``; ``features[name]`` (T, F), ``latents[name]`` (T, nodes, C).
+    Sequences shorter than one window contribute none."""
+    motion, lat, seq, start = [], [], [], []
+    for i, name in enumerate(names):
+        f, z = features[name], latents[name]
+        if len(f) != len(z):
+            raise ValueError(f"sequence {name!r}: {len(f)} motion frames but {len(z)} latent frames")
+        if len(f) < window:
+            continue
+        motion.append(windows(f, window, source=name))
+        lat.append(np.moveaxis(np.lib.stride_tricks.sliding_window_view(z, window, axis=0), -1, 1))
+        n = len(f) - window + 1
+        seq.append(np.full(n, i, np.int32))
+        start.append(np.arange(n, dtype=np.int32))
+    if not motion:
+        raise ValueError(f"no sequence has {window} frames or more")
+    return WindowSet(np.ascontiguousarray(np.concatenate(motion), np.float32), np.ascontiguousarray(np.concatenate(lat), np.float32),
+                     np.concatenate(seq), np.concatenate(start), list(names))
+
+
+def dataset_features(dataset, names: list[str]) -> dict[str, np.ndarray]:
+    """Motion features (T, 124) of each named sequence of a :class:`GarmentDataset`."""
+    return {name: motion_features(dataset.sequence(name).motion) for name in names}
+
+
+def fit_stats(features: dict[str, np.ndarray], latents: dict[str, np.ndarray], names: list[str]) -> tuple[FeatureStats, FeatureStats]:
+    """Per-feature motion statistics and per-(node, channel) latent statistics over ``names``' frames."""
+    motion = FeatureStats.fit([features[n] for n in names])
+    lat = FeatureStats.fit([latents[n].reshape(len(latents[n]), -1) for n in names])
+    return motion, lat

@@ -1,0 +1,106 @@
+"""The networks around the shared code space (paper 3.4): motion encoder, garment encoder, decoder.
+
+- :class:`MotionEncoder`: a window of W standardised motion-feature frames (W, 124) -> a GRU over
+  the frames -> temporal self-attention over the GRU states (residual, layer norm) -> attention
+  pooling with a learned query -> code logits (G x K).
+- :class:`GarmentEncoder`: a window of W standardised garment latents, flattened (W x N x 8) -> MLP
+  with two hidden layers (1024, ELU) -> code logits of the same shape.
+- :class:`LatentDecoder` (the paper's "VQ decoder"): the quantised embedding (G x dim) -> MLP
+  mirroring the garment encoder -> the W garment latents (standardised).
+- :class:`CodeSpace` holds the three and the shared :class:`~.codebook.GumbelQuantizer`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+
+import torch
+from torch import nn
+
+from ..settings import from_settings
+from .codebook import GumbelQuantizer
+
+
+@dataclass(frozen=True)
+class CodeSpaceConfig:
+    window: int = 10  # W frames per window
+    groups: int = 512  # G
+    classes: int = 8  # K
+    embedding_dim: int = 8  # values per (group, class) embedding
+    hidden: int = 1024  # garment encoder / decoder MLP width
+    motion_hidden: int = 256  # GRU and attention width
+    attention_heads: int = 4
+
+    @classmethod
+    def from_dict(cls, values: dict) -> "CodeSpaceConfig":
+        return from_settings(cls, values, "codebook model")
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+def _mlp(sizes: list[int]) -> nn.Sequential:
+    layers: list[nn.Module] = []
+    for i, (a, b) in enumerate(zip(sizes[:-1], sizes[1:])):
+        layers.append(nn.Linear(a, b))
+        if i < len(sizes) - 2:
+            layers.append(nn.ELU())
+    return nn.Sequential(*layers)
+
+
+class MotionEncoder(nn.Module):
+    def __init__(self, features: int, logits: int, hidden: int = 256, heads: int = 4):
+        super().__init__()
+        self.inp = nn.Linear(features, hidden)
+        self.gru = nn.GRU(hidden, hidden, batch_first=True)
+        self.attention = nn.MultiheadAttention(hidden, heads, batch_first=True)
+        self.norm = nn.LayerNorm(hidden)
+        self.query = nn.Parameter(torch.randn(1, 1, hidden) / math.sqrt(hidden))
+        self.pool = nn.MultiheadAttention(hidden, heads, batch_first=True)
+        self.out = nn.Sequential(nn.LayerNorm(hidden), nn.Linear(hidden, logits))
+
+    def forward(self, windows: torch.Tensor) -> torch.Tensor:
+        """(B, W, F) -> (B, G * K) logits."""
+        h, _ = self.gru(torch.nn.functional.elu(self.inp(windows)))
+        h = self.norm(h + self.attention(h, h, h, need_weights=False)[0])
+        pooled = self.pool(self.query.expand(len(h), -1, -1), h, h, need_weights=False)[0][:, 0]
+        return self.out(pooled)
+
+
+class GarmentEncoder(nn.Module):
+    def __init__(self, size: int, logits: int, hidden: int = 1024):
+        super().__init__()
+        self.net = _mlp([size, hidden, hidden, logits])
+
+    def forward(self, latents: torch.Tensor) -> torch.Tensor:
+        """(B, W, N, C) or (B, W * N * C) -> (B, G * K) logits."""
+        return self.net(latents.reshape(len(latents), -1))
+
+
+class LatentDecoder(nn.Module):
+    def __init__(self, embedding: int, size: int, hidden: int = 1024):
+        super().__init__()
+        self.net = _mlp([embedding, hidden, hidden, size])
+
+    def forward(self, embedding: torch.Tensor) -> torch.Tensor:
+        """(B, G * dim) -> (B, W * N * C) standardised latents."""
+        return self.net(embedding)
+
+
+class CodeSpace(nn.Module):
+    """Motion encoder, garment encoder, quantiser and decoder for windows of ``latent_shape``
+    (N nodes x C values) garment latents and ``features``-wide motion frames."""
+
+    def __init__(self, config: CodeSpaceConfig, features: int, latent_shape: tuple[int, int]):
+        super().__init__()
+        self.config, self.features, self.latent_shape = config, features, tuple(latent_shape)
+        size = config.window * latent_shape[0] * latent_shape[1]
+        self.quantizer = GumbelQuantizer(config.groups, config.classes, config.embedding_dim)
+        self.motion_encoder = MotionEncoder(features, self.quantizer.logits_size, config.motion_hidden, config.attention_heads)
+        self.garment_encoder = GarmentEncoder(size, self.quantizer.logits_size, config.hidden)
+        self.decoder = LatentDecoder(self.quantizer.embedding_size, size, config.hidden)
+
+    def decode(self, embedding: torch.Tensor) -> torch.Tensor:
+        """(B, G * dim) -> (B, W, N, C) standardised latents."""
+        return self.decoder(embedding).reshape(len(embedding), self.config.window, *self.latent_shape)

@@ -1,0 +1,205 @@
+"""Model bundle: one directory with everything inference needs for one garment (DESIGN 9).
+
+Files (all arrays as safetensors, nothing pickled)::
+
+    bundle.json                  format version, garment, configs, tau, window, database names,
+                                 sha256 of every other file and a content hash over them
+    autoencoder.safetensors      mesh autoencoder (FCMAE) weights
+    motion_encoder.safetensors   garment_encoder.safetensors   decoder.safetensors
+    quantizer.safetensors        the codebook's class embeddings
+    stats.safetensors            motion feature and garment latent mean/std
+    database.safetensors         retrieval database: codes, latent windows, source sequence/frame
+    template.safetensors         template vertices, faces, attached vertex indices
+
+``bundle.json`` is written last: a directory without it (or whose files do not match its hashes)
+is not a bundle, so an interrupted write never looks like a model. :func:`load_bundle` checks the
+version, every file's hash and every tensor's shape, and says which and why when one is off.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import torch
+from safetensors import SafetensorError
+from safetensors.numpy import load_file as load_arrays
+from safetensors.numpy import save_file as save_arrays
+from safetensors.torch import load_file as load_tensors
+from safetensors.torch import save_file as save_tensors
+
+from ..errors import InputError
+from ..garment.mesh import GarmentMesh
+from ..inference.database import CodeDatabase
+from ..io_utils import atomic_path, atomic_write_text
+from ..models.codespace import CodeSpace, CodeSpaceConfig
+from ..models.fcmae import AutoencoderConfig, MeshAutoencoder
+from ..models.hierarchy import cached_hierarchy
+from ..motion.features import FEATURE_DIM, FeatureStats
+
+FORMAT_VERSION = 1
+NETWORKS = ("motion_encoder", "garment_encoder", "decoder", "quantizer")
+
+
+class BundleError(InputError):
+    """A model directory that is missing, incomplete, corrupt, of another version or garment."""
+
+
+@dataclass
+class Bundle:
+    folder: Path
+    meta: dict
+    autoencoder: MeshAutoencoder
+    codespace: CodeSpace
+    motion_stats: FeatureStats
+    latent_stats: FeatureStats
+    database: CodeDatabase
+    template: GarmentMesh
+
+    @property
+    def tau(self) -> float:
+        return float(self.meta["tau"])
+
+    @property
+    def garment(self) -> str:
+        return str(self.meta["garment"])
+
+    @property
+    def content_hash(self) -> str:
+        return str(self.meta["content_hash"])
+
+
+def _sha256(path: Path) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for chunk in iter(lambda: fh.read(1 << 20), b""):
+            h.update(chunk)
+    return h.hexdigest()
+
+
+def _save(path: Path, tensors: dict, numpy: bool = False) -> None:
+    with atomic_path(path) as tmp:
+        if numpy:
+            save_arrays({k: np.ascontiguousarray(v) for k, v in tensors.items()}, str(tmp))
+        else:
+            save_tensors({k: v.detach().contiguous() for k, v in tensors.items()}, str(tmp))
+
+
+def write_bundle(folder: str | Path, *, autoencoder: MeshAutoencoder, codespace: CodeSpace, motion_stats: FeatureStats,
+                 latent_stats: FeatureStats, database: CodeDatabase, template: GarmentMesh, tau: float, info: dict) -> Path:
+    """Write (or replace) the bundle in ``folder``; returns the path of ``bundle.json``."""
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / "bundle.json").unlink(missing_ok=True)  # the old bundle stops being one first
+    _save(folder / "autoencoder.safetensors", autoencoder.state_dict())
+    for name in NETWORKS:
+        _save(folder / f"{name}.safetensors", getattr(codespace, name).state_dict())
+    _save(folder / "stats.safetensors", {"motion_mean": motion_stats.mean, "motion_std": motion_stats.std,
+                                         "latent_mean": latent_stats.mean, "latent_std": latent_stats.std}, numpy=True)
+    _save(folder / "database.safetensors", database.arrays(), numpy=True)
+    _save(folder / "template.safetensors", {"vertices": template.vertices.astype(np.float32),
+                                            "faces": template.faces.astype(np.int32), "attached": template.attached}, numpy=True)
+    files = {p: _sha256(folder / p) for p in sorted(["autoencoder.safetensors", "stats.safetensors", "database.safetensors",
+                                                     "template.safetensors", *[f"{n}.safetensors" for n in NETWORKS]])}
+    meta = {"format_version": FORMAT_VERSION, "garment": template.name, "created": time.strftime("%Y-%m-%dT%H:%M:%S"),
+            "autoencoder": {"config": autoencoder.config.to_dict(), "scale": float(autoencoder.scale),
+                            "sizes": list(autoencoder.hierarchy.sizes)},
+            "codespace": {"config": codespace.config.to_dict(), "features": codespace.features,
+                          "latent_shape": list(codespace.latent_shape)},
+            "tau": float(tau), "database": {"names": database.names, "classes": database.classes, "windows": len(database)},
+            "files": files, "content_hash": hashlib.sha256(json.dumps(files, sort_keys=True).encode()).hexdigest()[:16],
+            **info}
+    atomic_write_text(folder / "bundle.json", json.dumps(meta, indent=2))
+    return folder / "bundle.json"
+
+
+def _load_state(module: torch.nn.Module, path: Path, folder: Path) -> None:
+    try:
+        state = load_tensors(str(path))
+    except (SafetensorError, OSError) as exc:
+        raise BundleError(folder, f"{path.name} is unreadable ({exc})") from None
+    expected = module.state_dict()
+    missing, extra = sorted(set(expected) - set(state)), sorted(set(state) - set(expected))
+    if missing or extra:
+        raise BundleError(folder, f"{path.name} does not fit the configured network (missing {missing[:3]}, unexpected {extra[:3]})")
+    for key, value in state.items():
+        if tuple(value.shape) != tuple(expected[key].shape):
+            raise BundleError(folder, f"{path.name}: {key} has shape {tuple(value.shape)}, the configuration needs "
+                                      f"{tuple(expected[key].shape)}")
+    module.load_state_dict(state)
+
+
+def _arrays(folder: Path, name: str, keys: tuple[str, ...]) -> dict[str, np.ndarray]:
+    try:
+        arrays = load_arrays(str(folder / name))
+    except (SafetensorError, OSError) as exc:
+        raise BundleError(folder, f"{name} is unreadable ({exc})") from None
+    missing = [k for k in keys if k not in arrays]
+    if missing:
+        raise BundleError(folder, f"{name} lacks {missing}")
+    return arrays
+
+
+def read_meta(folder: str | Path) -> dict:
+    """``bundle.json`` after the version and file-hash checks."""
+    folder = Path(folder)
+    path = folder / "bundle.json"
+    if not folder.is_dir():
+        raise BundleError(folder, "no such model directory (train one with hrr-train)")
+    if not path.is_file():
+        raise BundleError(folder, "no bundle.json: not a model bundle, or its training did not finish")
+    try:
+        meta = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, json.JSONDecodeError) as exc:
+        raise BundleError(folder, f"bundle.json is unreadable ({exc})") from None
+    if meta.get("format_version") != FORMAT_VERSION:
+        raise BundleError(folder, f"bundle format_version {meta.get('format_version')!r}; this hrr_garment reads {FORMAT_VERSION} "
+                                  "(retrain with hrr-train)")
+    for name, digest in meta.get("files", {}).items():
+        if not (folder / name).is_file():
+            raise BundleError(folder, f"{name} is missing")
+        if _sha256(folder / name) != digest:
+            raise BundleError(folder, f"{name} does not match its recorded hash (corrupt or truncated file)")
+    return meta
+
+
+def load_bundle(folder: str | Path, cache_dir: Path | None = None) -> Bundle:
+    """Load and check a bundle written by :func:`write_bundle`."""
+    folder = Path(folder)
+    meta = read_meta(folder)
+    try:
+        ae_cfg = AutoencoderConfig.from_dict(meta["autoencoder"]["config"])
+        cs_cfg = CodeSpaceConfig.from_dict(meta["codespace"]["config"])
+        features = int(meta["codespace"]["features"])
+        latent_shape = tuple(meta["codespace"]["latent_shape"])
+    except (KeyError, TypeError, ValueError) as exc:
+        raise BundleError(folder, f"bundle.json has a bad or missing entry ({exc})") from None
+    if features != FEATURE_DIM:
+        raise BundleError(folder, f"the model was trained on {features} motion features; this hrr_garment computes {FEATURE_DIM}")
+    t = _arrays(folder, "template.safetensors", ("vertices", "faces", "attached"))
+    template = GarmentMesh(str(meta["garment"]), t["vertices"], t["faces"], {"attached": t["attached"]}, ("attached",))
+    hierarchy = cached_hierarchy(template.faces, template.num_vertices, cache_dir, latent_fraction=ae_cfg.latent_fraction,
+                                 stride=ae_cfg.stride, radius=ae_cfg.radius, name=str(folder))
+    if list(hierarchy.sizes) != list(meta["autoencoder"].get("sizes", [])):
+        raise BundleError(folder, f"the template's sampling hierarchy has levels {list(hierarchy.sizes)}, the model "
+                                  f"{meta['autoencoder'].get('sizes')}")
+    autoencoder = MeshAutoencoder(hierarchy, ae_cfg, template.vertices, float(meta["autoencoder"]["scale"]))
+    _load_state(autoencoder, folder / "autoencoder.safetensors", folder)
+    codespace = CodeSpace(cs_cfg, features, latent_shape)
+    for name in NETWORKS:
+        _load_state(getattr(codespace, name), folder / f"{name}.safetensors", folder)
+    s = _arrays(folder, "stats.safetensors", ("motion_mean", "motion_std", "latent_mean", "latent_std"))
+    d = _arrays(folder, "database.safetensors", ("codes", "latents", "sequence", "start"))
+    if d["latents"].shape[1:] != (cs_cfg.window, *latent_shape) or d["codes"].shape[1:] != (cs_cfg.groups,):
+        raise BundleError(folder, f"database shapes {d['codes'].shape} / {d['latents'].shape} do not fit the configuration")
+    try:
+        database = CodeDatabase(d["codes"], d["latents"], d["sequence"], d["start"], list(meta["database"]["names"]),
+                                int(meta["database"]["classes"]))
+    except ValueError as exc:
+        raise BundleError(folder, f"database: {exc}") from None
+    return Bundle(folder, meta, autoencoder.eval(), codespace.eval(), FeatureStats(s["motion_mean"], s["motion_std"]),
+                  FeatureStats(s["latent_mean"], s["latent_std"]), database, template)

@@ -1,0 +1,140 @@
+"""Entropy threshold (tau) calibration and per-mode validation errors of a trained code space.
+
+For every validation window the motion encoder gives a code distribution; its entropy H (mean per
+group, nats, 0 .. log K) decides the mode: retrieval when H < tau, regression otherwise. Both
+candidates are decoded to vertices with the mesh autoencoder and compared with the simulated
+frames (per-vertex error in the heading frame, mean over the window's W frames and vertices), so
+the sweep over tau is a cheap selection between two precomputed errors per window. tau = 0 is
+regression only, tau = inf retrieval only; the chosen tau is the sweep's lowest mean error (ties:
+the smallest tau, i.e. the least retrieval).
+
+These are window-level errors; blending overlapping windows at inference (issue "hybrid
+inference") averages them per frame.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+
+from ..inference.database import CodeDatabase
+from ..models.codebook import group_entropy
+from ..models.codespace import CodeSpace
+from ..motion.features import FeatureStats
+
+
+@dataclass
+class WindowPredictions:
+    entropy: np.ndarray  # (N,) motion-code entropy
+    codes: np.ndarray  # (N, G) motion-code class indices
+    regression: np.ndarray  # (N, W, nodes, C) latents from the decoder
+    retrieval: np.ndarray  # (N, W, nodes, C) latents of the best database match
+    match: np.ndarray  # (N,) database row of the match
+    similarity: np.ndarray  # (N,) code similarity of the match
+
+
+@torch.no_grad()
+def predict_windows(model: CodeSpace, motion: np.ndarray, motion_stats: FeatureStats, latent_stats: FeatureStats,
+                    database: CodeDatabase, exclude: np.ndarray | None = None, batch: int = 512) -> WindowPredictions:
+    """Both candidates for every motion window (N, W, F) (raw features)."""
+    model.eval()
+    q = model.quantizer
+    entropy, codes, regression = [], [], []
+    for i in range(0, len(motion), batch):
+        logits = q.split(model.motion_encoder(torch.from_numpy(motion_stats.normalize(motion[i:i + batch]))))
+        entropy.append(group_entropy(logits))
+        idx = logits.argmax(-1)
+        codes.append(idx)
+        regression.append(model.decode(q.embed(torch.nn.functional.one_hot(idx, q.classes).float())))
+    reg = torch.cat(regression).numpy()
+    reg = latent_stats.denormalize(reg.reshape(*reg.shape[:2], -1)).reshape(reg.shape)
+    codes_np = torch.cat(codes).numpy().astype(np.uint8)
+    match, similarity = database.search(codes_np, exclude)
+    return WindowPredictions(torch.cat(entropy).numpy(), codes_np, reg, database.latents[match], match, similarity)
+
+
+def window_errors_mm(decode, latents: np.ndarray, truth: np.ndarray, batch: int = 64) -> np.ndarray:
+    """Per-window per-vertex error (mm): latents (N, W, nodes, C), truth (N, W, V, 3) heading frame;
+    ``decode`` maps (B, nodes, C) tensors to (B, V, 3)."""
+    n, w = latents.shape[:2]
+    flat = torch.from_numpy(np.ascontiguousarray(latents.reshape(n * w, *latents.shape[2:])))
+    out = np.empty(n * w, np.float64)
+    for i in range(0, n * w, batch):
+        pred = decode(flat[i:i + batch]).numpy()
+        out[i:i + batch] = np.linalg.norm(pred - truth.reshape(n * w, *truth.shape[2:])[i:i + batch], axis=-1).mean(-1)
+    return 1000.0 * out.reshape(n, w).mean(1)
+
+
+def sequence_windows(frames: np.ndarray, window: int) -> np.ndarray:
+    """(T, ...) -> (T - W + 1, W, ...) consecutive windows (a view)."""
+    return np.moveaxis(np.lib.stride_tricks.sliding_window_view(frames, window, axis=0), -1, 1)
+
+
+@dataclass
+class ModeErrors:
+    """Per-window validation errors (mm) of both candidates, the autoencoder's own reconstruction
+    (the floor), the motion-code entropies, and the tau sweep over them."""
+
+    regression: np.ndarray
+    retrieval: np.ndarray
+    autoencoder: np.ndarray
+    entropy: np.ndarray
+    sweep: "TauSweep"
+
+    def summary(self, tau: float) -> dict:
+        retrieve = self.entropy < tau
+        return {"hybrid": float(np.where(retrieve, self.retrieval, self.regression).mean()),
+                "regression": float(self.regression.mean()), "retrieval": float(self.retrieval.mean()),
+                "autoencoder": float(self.autoencoder.mean()), "retrieval_usage": float(retrieve.mean()), "tau": tau}
+
+
+def evaluate_modes(codespace: CodeSpace, autoencoder, motion_stats: FeatureStats, latent_stats: FeatureStats,
+                   database: CodeDatabase, motion: dict[str, np.ndarray], frames: dict[str, np.ndarray]) -> ModeErrors:
+    """Both modes on every window of the sequences ``motion`` (features (T, F)) / ``frames``
+    (heading-frame vertices (T, V, 3)), decoded with the autoencoder's fast decoder."""
+    w = codespace.config.window
+    names = [n for n in motion if len(motion[n]) >= w]
+    m = np.concatenate([sequence_windows(motion[n], w) for n in names])
+    truth = np.concatenate([sequence_windows(frames[n], w) for n in names])
+    pred = predict_windows(codespace, m, motion_stats, latent_stats, database)
+    decode = autoencoder.fast_decoder()
+    with torch.no_grad():
+        flat = truth.reshape(-1, *truth.shape[2:])
+        own = np.concatenate([autoencoder.encode(torch.from_numpy(np.ascontiguousarray(flat[i:i + 256]))).numpy()
+                              for i in range(0, len(flat), 256)])
+    err_reg = window_errors_mm(decode, pred.regression, truth)
+    err_ret = window_errors_mm(decode, pred.retrieval, truth)
+    err_ae = window_errors_mm(decode, own.reshape(*truth.shape[:2], *own.shape[1:]), truth)
+    return ModeErrors(err_reg, err_ret, err_ae, pred.entropy, sweep_tau(pred.entropy, err_reg, err_ret))
+
+
+@dataclass
+class TauSweep:
+    taus: list[float]
+    errors_mm: list[float]
+    retrieval_usage: list[float]  # fraction of windows retrieved
+    best_tau: float
+    regression_mm: float
+    retrieval_mm: float
+    hybrid_mm: float
+
+    def to_dict(self) -> dict:
+        return {"taus": [t if math.isfinite(t) else "inf" for t in self.taus], "errors_mm": self.errors_mm,
+                "retrieval_usage": self.retrieval_usage, "best_tau": self.best_tau, "regression_mm": self.regression_mm,
+                "retrieval_mm": self.retrieval_mm, "hybrid_mm": self.hybrid_mm}
+
+
+def sweep_tau(entropy: np.ndarray, regression_err: np.ndarray, retrieval_err: np.ndarray, steps: int = 20) -> TauSweep:
+    """Hybrid error for tau at 0, the entropy's quantiles and infinity; picks the lowest."""
+    quantiles = np.quantile(entropy, np.linspace(0, 1, steps + 1)) if len(entropy) else np.zeros(0)
+    taus = sorted({0.0, *[float(q) + 1e-6 for q in quantiles], math.inf})
+    errors, usage = [], []
+    for tau in taus:
+        retrieve = entropy < tau
+        errors.append(float(np.where(retrieve, retrieval_err, regression_err).mean()))
+        usage.append(float(retrieve.mean()))
+    best = int(np.argmin(errors))  # first minimum: the smallest tau among ties
+    return TauSweep(taus, errors, usage, taus[best], errors[0], errors[-1], errors[best])

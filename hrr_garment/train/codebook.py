@@ -1,0 +1,204 @@
+"""Training the shared code space (paper 3.4): two encoders, one Gumbel-Softmax codebook, a decoder.
+
+Losses on a batch of windows (motion m, garment latents z, both standardised):
+
+- reconstruction  L_rec   = mean (z - decoder(E(c_g)))^2, c_g the garment encoder's code;
+- code matching   L_match = mean (E(c_g) - E(c_m))^2, c_m the motion encoder's code;
+- diversity: log K - entropy of the batch-mean class distribution (both encoders), against collapse.
+
+Curriculum: ``match_weight`` (0.1) until the validation reconstruction loss plateaus (no relative
+improvement above ``plateau_delta`` for ``plateau_patience`` epochs; :class:`PlateauDetector`),
+then ``match_weight_late`` (0.5). After the switch the best weights are kept by the validation loss
+of the regression path (decoder(E(c_m)) against z, what inference uses) and training stops early
+after ``patience`` epochs without improvement. Adam with weight decay; Gumbel temperature decays per
+epoch to a floor. A checkpoint after every epoch: a re-run resumes. One JSON line per epoch in
+``log.jsonl``: losses, code agreement (fraction of groups where the motion and garment argmax
+agree, on validation), per-group perplexity and dead classes of the garment codes, and a histogram
+of the motion codes' entropies.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+import torch
+from tqdm.auto import tqdm
+
+from ..data.windows import WindowSet
+from ..io_utils import atomic_path
+from ..models.codebook import group_entropy
+from ..models.codespace import CodeSpace
+from ..settings import from_settings
+
+
+@dataclass(frozen=True)
+class CodebookTrainConfig:
+    epochs: int = 300
+    batch_size: int = 64
+    learning_rate: float = 1e-4
+    weight_decay: float = 1e-4
+    match_weight: float = 0.1  # stage 1
+    match_weight_late: float = 0.5  # after the reconstruction plateau
+    diversity: float = 0.05
+    temperature: float = 1.0  # Gumbel-Softmax temperature at epoch 0 ...
+    temperature_decay: float = 0.98  # ... times this per epoch ...
+    temperature_min: float = 0.3  # ... down to this
+    plateau_patience: int = 8
+    plateau_delta: float = 0.01  # relative improvement that counts as progress
+    patience: int = 25  # epochs after the switch without a better validation regression loss
+    max_minutes: float | None = None
+    seed: int = 0
+
+    @classmethod
+    def from_dict(cls, values: dict) -> "CodebookTrainConfig":
+        return from_settings(cls, values, "codebook training")
+
+
+class PlateauDetector:
+    """Says once that a loss has plateaued: ``patience`` updates in a row without a relative
+    improvement of more than ``delta`` over the best value seen."""
+
+    def __init__(self, patience: int, delta: float):
+        self.patience, self.delta = patience, delta
+        self.best, self.stale, self.fired = math.inf, 0, False
+
+    def update(self, value: float) -> bool:
+        if self.fired:
+            return False
+        if value < self.best * (1.0 - self.delta):
+            self.best, self.stale = value, 0
+        else:
+            self.best = min(self.best, value)
+            self.stale += 1
+        self.fired = self.stale >= self.patience
+        return self.fired
+
+    def state_dict(self) -> dict:
+        return {"best": self.best, "stale": self.stale, "fired": self.fired}
+
+    def load_state_dict(self, state: dict) -> None:
+        self.best, self.stale, self.fired = float(state["best"]), int(state["stale"]), bool(state["fired"])
+
+
+@dataclass
+class WindowTensors:
+    motion: torch.Tensor  # (N, W, F) standardised
+    latents: torch.Tensor  # (N, W, nodes, C) standardised
+
+    @classmethod
+    def of(cls, windows: WindowSet, motion_stats, latent_stats) -> "WindowTensors":
+        shape = windows.latents.shape
+        lat = latent_stats.normalize(windows.latents.reshape(*shape[:2], -1)).reshape(shape)
+        return cls(torch.from_numpy(motion_stats.normalize(windows.motion)), torch.from_numpy(lat))
+
+
+def _losses(model: CodeSpace, motion: torch.Tensor, latents: torch.Tensor, temperature: float) -> dict[str, torch.Tensor]:
+    q = model.quantizer
+    g_logits, m_logits = model.garment_encoder(latents), model.motion_encoder(motion)
+    _, e_g = q(g_logits, temperature)
+    _, e_m = q(m_logits, temperature)
+    return {"rec": (model.decode(e_g) - latents).pow(2).mean(), "match": (e_g - e_m).pow(2).mean(),
+            "diversity": 0.5 * (q.diversity_loss(g_logits) + q.diversity_loss(m_logits)),
+            "g_logits": g_logits.detach(), "m_logits": m_logits.detach(), "regress": (model.decode(e_m) - latents).pow(2).mean()}
+
+
+@torch.no_grad()
+def evaluate(model: CodeSpace, data: WindowTensors, batch: int = 256) -> dict:
+    """Validation losses and code statistics (eval mode: argmax codes)."""
+    model.eval()
+    sums = {"rec": 0.0, "match": 0.0, "regress": 0.0}
+    agree, entropies, g_idx = 0.0, [], []
+    for i in range(0, len(data.motion), batch):
+        out = _losses(model, data.motion[i:i + batch], data.latents[i:i + batch], 1.0)
+        n = len(out["g_logits"])
+        for k in sums:
+            sums[k] += float(out[k]) * n
+        gi = model.quantizer.split(out["g_logits"]).argmax(-1)
+        mi = model.quantizer.split(out["m_logits"]).argmax(-1)
+        agree += float((gi == mi).float().mean(1).sum())
+        entropies.append(group_entropy(model.quantizer.split(out["m_logits"])))
+        g_idx.append(gi)
+    n = max(1, len(data.motion))
+    ent = torch.cat(entropies) if entropies else torch.zeros(0)
+    usage = model.quantizer.usage(torch.cat(g_idx)) if g_idx else None
+    hist = np.histogram(ent.numpy(), bins=10, range=(0.0, math.log(model.quantizer.classes)))[0].tolist()
+    return {**{k: v / n for k, v in sums.items()}, "agreement": agree / n, "entropy_mean": float(ent.mean()) if len(ent) else float("nan"),
+            "entropy_histogram": hist, "dead_classes": usage.dead if usage else 0,
+            "perplexity": usage.perplexity if usage else float("nan")}
+
+
+def train_codespace(model: CodeSpace, train: WindowTensors, val: WindowTensors, folder: Path,
+                    config: CodebookTrainConfig = CodebookTrainConfig(), key: str = "", progress: bool = True) -> dict:
+    """Train (or resume) in ``folder``; leaves the best weights in ``model`` and returns a summary."""
+    folder.mkdir(parents=True, exist_ok=True)
+    torch.manual_seed(config.seed)
+    optimizer = torch.optim.Adam(model.parameters(), lr=config.learning_rate, weight_decay=config.weight_decay)
+    plateau = PlateauDetector(config.plateau_patience, config.plateau_delta)
+    state = {"epoch": 0, "switched_at": None, "best": math.inf, "best_epoch": 0, "stale": 0}
+    best_weights = {k: v.clone() for k, v in model.state_dict().items()}
+    checkpoint, log_path = folder / "checkpoint.pt", folder / "log.jsonl"
+    if checkpoint.exists():
+        saved = torch.load(checkpoint, map_location="cpu", weights_only=True)
+        if saved.get("key") == key:
+            model.load_state_dict(saved["model"])
+            optimizer.load_state_dict(saved["optimizer"])
+            plateau.load_state_dict(saved["plateau"])
+            best_weights = saved["best_weights"]
+            state = json.loads(saved["state"])
+            torch.set_rng_state(saved["rng"])
+    if state["epoch"] == 0:
+        log_path.unlink(missing_ok=True)
+    gen = torch.Generator().manual_seed(config.seed + state["epoch"])
+    deadline = None if config.max_minutes is None else time.perf_counter() + 60 * config.max_minutes
+    bar = tqdm(total=config.epochs, initial=state["epoch"], desc="code space", unit="epoch", disable=not progress)
+    t0 = time.perf_counter()
+    while state["epoch"] < config.epochs and state["stale"] < config.patience:
+        if deadline is not None and time.perf_counter() > deadline:
+            break
+        epoch = state["epoch"]
+        temperature = max(config.temperature_min, config.temperature * config.temperature_decay ** epoch)
+        match_weight = config.match_weight if state["switched_at"] is None else config.match_weight_late
+        model.train()
+        order = torch.randperm(len(train.motion), generator=gen)
+        sums = {"rec": 0.0, "match": 0.0, "diversity": 0.0}
+        for i in range(0, len(order), config.batch_size):
+            idx = order[i:i + config.batch_size]
+            out = _losses(model, train.motion[idx], train.latents[idx], temperature)
+            loss = out["rec"] + match_weight * out["match"] + config.diversity * out["diversity"]
+            optimizer.zero_grad(set_to_none=True)
+            loss.backward()
+            optimizer.step()
+            for k in sums:
+                sums[k] += out[k].item() * len(idx)
+        metrics = evaluate(model, val)
+        state["epoch"] += 1
+        if state["switched_at"] is None and plateau.update(metrics["rec"]):
+            state["switched_at"] = state["epoch"]
+        if state["switched_at"] is not None:  # stage 2: keep the best regression path
+            score = metrics["regress"]
+            if score < state["best"]:
+                state.update(best=score, best_epoch=state["epoch"], stale=0)
+                best_weights = {k: v.detach().clone() for k, v in model.state_dict().items()}
+            else:
+                state["stale"] += 1
+        record = {"epoch": state["epoch"], "temperature": temperature, "match_weight": match_weight,
+                  **{f"train_{k}": v / len(order) for k, v in sums.items()}, **{f"val_{k}": v for k, v in metrics.items()}}
+        with open(log_path, "a", encoding="utf-8") as fh:
+            fh.write(json.dumps(record) + "\n")
+        with atomic_path(checkpoint) as tmp:
+            torch.save({"key": key, "model": model.state_dict(), "optimizer": optimizer.state_dict(),
+                        "plateau": plateau.state_dict(), "best_weights": best_weights, "state": json.dumps(state),
+                        "rng": torch.get_rng_state()}, tmp)
+        bar.set_postfix(rec=f"{metrics['rec']:.3f}", regress=f"{metrics['regress']:.3f}", agree=f"{metrics['agreement']:.2f}",
+                        stage=1 if state["switched_at"] is None else 2)
+        bar.update(1)
+    bar.close()
+    if state["switched_at"] is not None:
+        model.load_state_dict(best_weights)
+    model.eval()
+    return {**state, "minutes": (time.perf_counter() - t0) / 60, "final": evaluate(model, val), "config": asdict(config)}

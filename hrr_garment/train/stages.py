@@ -1,0 +1,127 @@
+"""The code-space stage of ``hrr-train``: windows -> code space -> database -> tau -> bundle.
+
+Reads the dataset and the autoencoder stage's outputs (``MODEL/autoencoder/``: weights and
+latents of every frame), trains the code space in ``MODEL/codebook/`` (checkpointed, resumable),
+builds the retrieval database from every training window's garment code, calibrates tau on the
+validation split, and writes the bundle at the top of ``MODEL/`` (:mod:`.bundle`). A re-run with
+nothing changed finds the finished report and returns it without redoing anything.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import time
+from dataclasses import asdict
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from ..data.dataset import DatasetError, GarmentDataset
+from ..data.windows import build_windows, dataset_features, fit_stats
+from ..inference.database import CodeDatabase
+from ..io_utils import atomic_write_text
+from ..models.codespace import CodeSpace, CodeSpaceConfig
+from ..motion.features import FEATURE_DIM
+from .autoencoder import heading_frames, load_autoencoder
+from .bundle import read_meta, write_bundle
+from .calibrate import evaluate_modes
+from .codebook import CodebookTrainConfig, WindowTensors, evaluate, train_codespace
+
+
+def check_splits(ds: GarmentDataset) -> None:
+    """The code space needs training and validation sequences."""
+    if not ds.splits.get("train") or not ds.splits.get("val"):
+        raise DatasetError(ds.path, f"needs at least one training and one validation sequence; it has "
+                                    f"{len(ds.splits.get('train', []))} and {len(ds.splits.get('val', []))} "
+                                    f"({len(ds.names)} sequences in all: simulate at least 3)")
+
+
+@torch.no_grad()
+def garment_codes(model: CodeSpace, latents: torch.Tensor, batch: int = 512) -> np.ndarray:
+    """Argmax garment codes (N, G) uint8 of standardised latent windows."""
+    model.eval()
+    out = [model.quantizer.split(model.garment_encoder(latents[i:i + batch])).argmax(-1) for i in range(0, len(latents), batch)]
+    return torch.cat(out).numpy().astype(np.uint8)
+
+
+def run_codebook_stage(dataset: str | Path, folder: str | Path, config: CodeSpaceConfig = CodeSpaceConfig(),
+                       train_config: CodebookTrainConfig = CodebookTrainConfig(), cache_dir: Path | None = None,
+                       progress: bool = True, info: dict | None = None) -> dict:
+    """Train the code space and write the bundle in ``folder``; returns the stage report."""
+    t0 = time.perf_counter()
+    folder = Path(folder)
+    stage = folder / "codebook"
+    ds = GarmentDataset(dataset)
+    check_splits(ds)
+    ae_folder = folder / "autoencoder"
+    if not (ae_folder / "latents.npz").is_file():
+        raise DatasetError(ae_folder, "no latents.npz: run the autoencoder stage first (hrr-train --stage autoencoder)")
+    ae_meta = json.loads((ae_folder / "config.json").read_text())
+    if ae_meta.get("vertices") != ds.template.num_vertices or ae_meta.get("garment") != ds.garment:
+        raise DatasetError(dataset, f"the autoencoder in {ae_folder} was trained on {ae_meta.get('garment')} with "
+                                    f"{ae_meta.get('vertices')} vertices, the dataset is {ds.garment} with {ds.template.num_vertices}")
+    ae_state = torch.load(ae_folder / "model.pt", map_location="cpu", weights_only=True)
+    ae_hash = hashlib.sha256(b"".join(k.encode() + ae_state[k].numpy().tobytes() for k in sorted(ae_state))).hexdigest()[:16]
+    key = hashlib.sha1(json.dumps([config.to_dict(), asdict(train_config) | {"max_minutes": None}, ae_hash, ds.splits],
+                                  sort_keys=True).encode()).hexdigest()[:16]
+    report_path = stage / "report.json"
+    if report_path.is_file() and (folder / "bundle.json").is_file():
+        report = json.loads(report_path.read_text())
+        if report.get("key") == key:
+            try:
+                read_meta(folder)
+                return {**report, "reused": True}
+            except Exception:  # noqa: BLE001 - a broken bundle is rebuilt below
+                pass
+
+    autoencoder = load_autoencoder(ae_folder, ds.template.faces, cache_dir)
+    with np.load(ae_folder / "latents.npz", allow_pickle=False) as f:
+        latents = {name: f[name] for name in ds.names}
+    splits = {k: ds.splits[k] for k in ("train", "val")}
+    features = dataset_features(ds, splits["train"] + splits["val"])
+    motion_stats, latent_stats = fit_stats(features, latents, splits["train"])
+    train_w = build_windows(features, latents, splits["train"], config.window)
+    val_w = build_windows(features, latents, splits["val"], config.window)
+    train_t = WindowTensors.of(train_w, motion_stats, latent_stats)
+    val_t = WindowTensors.of(val_w, motion_stats, latent_stats)
+
+    torch.manual_seed(train_config.seed)
+    model = CodeSpace(config, FEATURE_DIM, autoencoder.latent_shape)
+    summary = train_codespace(model, train_t, val_t, stage, train_config, key, progress)
+
+    database = CodeDatabase(garment_codes(model, train_t.latents), train_w.latents, train_w.sequence, train_w.start,
+                            train_w.names, config.classes)
+    modes = evaluate_modes(model, autoencoder, motion_stats, latent_stats, database,
+                           {n: features[n] for n in splits["val"]}, {n: heading_frames(ds, [n]) for n in splits["val"]})
+    sweep = modes.sweep
+    usage = model.quantizer.usage(torch.from_numpy(database.codes))
+    final = evaluate(model, val_t)
+    report = {"key": key, "windows": {"train": len(train_w), "val": len(val_w)}, "training": summary,
+              "validation_mm": modes.summary(sweep.best_tau), "tau": sweep.best_tau, "sweep": sweep.to_dict(), "code_agreement": final["agreement"], "chance_agreement": 1.0 / config.classes,
+              "database_codes": {"dead_classes": usage.dead, "classes": usage.total, "perplexity": usage.perplexity,
+                                 "distinct_codes": int(len(np.unique(database.codes, axis=0)))},
+              "entropy_histogram": final["entropy_histogram"], "minutes": (time.perf_counter() - t0) / 60}
+    write_bundle(folder, autoencoder=autoencoder, codespace=model, motion_stats=motion_stats, latent_stats=latent_stats,
+                 database=database, template=ds.template, tau=sweep.best_tau,
+                 info={"dataset": str(dataset), "window": config.window, "validation_mm": report["validation_mm"],
+                       **(info or {})})
+    atomic_write_text(report_path, json.dumps(report, indent=2, default=float))
+    return report
+
+
+def evaluate_bundle(bundle, dataset: str | Path, split: str = "val") -> dict:
+    """Recompute a bundle's per-mode window errors on a dataset split (the numbers ``hrr-train``
+    reports for ``val``); the dataset must be of the bundle's garment and template."""
+    ds = GarmentDataset(dataset)
+    if ds.garment != bundle.garment or ds.template.num_vertices != bundle.template.num_vertices \
+            or not np.array_equal(ds.template.faces, bundle.template.faces):
+        raise DatasetError(dataset, f"is a {ds.garment} dataset with {ds.template.num_vertices} vertices; the model in "
+                                    f"{bundle.folder} is for {bundle.garment} with {bundle.template.num_vertices}")
+    names = ds.splits.get(split, [])
+    if not names:
+        raise DatasetError(dataset, f"has no {split!r} sequences")
+    modes = evaluate_modes(bundle.codespace, bundle.autoencoder, bundle.motion_stats, bundle.latent_stats, bundle.database,
+                           dataset_features(ds, names), {n: heading_frames(ds, [n]) for n in names})
+    return modes.summary(bundle.tau)

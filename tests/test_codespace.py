@@ -1,0 +1,211 @@
+"""Code space: quantiser, entropy, windows, curriculum switch, retrieval database, bundle, hrr-train."""
+
+import json
+import math
+
+import numpy as np
+import pytest
+import torch
+
+from hrr_garment.data.windows import build_windows
+from hrr_garment.inference.database import CodeDatabase, code_similarity, pack_codes
+from hrr_garment.models.codebook import GumbelQuantizer, group_entropy
+from hrr_garment.train.codebook import PlateauDetector
+
+
+@pytest.mark.parametrize("groups,classes,dim", [(4, 8, 3), (16, 2, 1), (64, 8, 8)])
+def test_hard_codes_are_one_hot_and_gradients_flow_straight_through(groups, classes, dim):
+    torch.manual_seed(0)
+    q = GumbelQuantizer(groups, classes, dim).train()
+    logits = torch.randn(5, groups * classes, requires_grad=True)
+    codes, emb = q(logits, temperature=0.7)
+    assert codes.shape == (5, groups, classes) and emb.shape == (5, groups * dim)
+    assert torch.equal(codes.detach().sum(-1), torch.ones(5, groups))
+    assert set(codes.detach().unique().tolist()) <= {0.0, 1.0}
+    (emb * torch.randn_like(emb)).sum().backward()
+    assert logits.grad is not None and torch.isfinite(logits.grad).all() and logits.grad.abs().sum() > 0
+    assert q.embedding.grad is not None and q.embedding.grad.abs().sum() > 0
+    q.eval()
+    hard, _ = q(logits)
+    assert torch.equal(hard.argmax(-1), q.split(logits).argmax(-1))  # eval: deterministic argmax
+
+
+@pytest.mark.parametrize("classes", [2, 8, 16])
+def test_entropy_of_one_hot_is_zero_and_of_uniform_is_log_k(classes):
+    one_hot = torch.full((3, 5, classes), -1e4)
+    one_hot[..., 1] = 0.0
+    assert torch.allclose(group_entropy(one_hot), torch.zeros(3), atol=1e-6)
+    assert torch.allclose(group_entropy(torch.zeros(3, 5, classes)), torch.full((3,), math.log(classes)), atol=1e-6)
+
+
+def test_usage_counts_dead_classes_and_perplexity():
+    q = GumbelQuantizer(2, 4, 1)
+    usage = q.usage(torch.tensor([[0, 1], [1, 1], [2, 1], [3, 1]]))
+    assert usage.dead == 3 and usage.total == 8  # group 1 only ever uses class 1
+    assert usage.perplexity == pytest.approx((4 + 1) / 2)
+
+
+def test_curriculum_switches_once_when_the_loss_plateaus():
+    loss = [1.0 / (1 + e) for e in range(10)] + [0.0909] * 20  # falls, then flat from epoch 10
+    detector = PlateauDetector(patience=5, delta=0.01)
+    fired = [e for e, v in enumerate(loss) if detector.update(v)]
+    assert fired == [15]  # last improvement at epoch 10 (0.1 -> 0.0909), then five flat epochs; only once
+
+
+def test_windows_cover_every_start_frame():
+    feats = {"a": np.arange(12 * 2, dtype=np.float32).reshape(12, 2), "b": np.zeros((9, 2), np.float32)}
+    lat = {"a": np.arange(12 * 3 * 2, dtype=np.float32).reshape(12, 3, 2), "b": np.zeros((9, 3, 2), np.float32)}
+    w = build_windows(feats, lat, ["a", "b"], 10)
+    assert len(w) == 3  # b is shorter than a window
+    assert w.motion.shape == (3, 10, 2) and w.latents.shape == (3, 10, 3, 2)
+    for i in range(3):
+        assert np.array_equal(w.motion[i], feats["a"][i:i + 10]) and np.array_equal(w.latents[i], lat["a"][i:i + 10])
+    assert w.start.tolist() == [0, 1, 2] and w.sequence.tolist() == [0, 0, 0]
+
+
+@pytest.fixture
+def database(rng):
+    n, groups, classes = 300, 32, 8
+    codes = rng.integers(0, classes, (n, groups))
+    return CodeDatabase(codes, rng.normal(size=(n, 4, 3, 2)).astype(np.float32), np.arange(n) // 100,
+                        np.arange(n) % 100, ["s0", "s1", "s2"], classes)
+
+
+def test_database_returns_the_exact_match_for_a_training_window(database):
+    idx, sim = database.search(database.codes[[5, 150, 299]])
+    assert idx.tolist() == [5, 150, 299] and np.allclose(sim, 1.0)
+
+
+def test_hamming_search_equals_cosine_on_one_hot_codes(database, rng):
+    queries = rng.integers(0, 8, (40, 32))
+    queries[:10] = database.codes[:10]
+    queries[:10, :5] = (queries[:10, :5] + 1) % 8  # near misses
+    idx, sim = database.search(queries)
+    onehot = lambda c: np.eye(8)[c].reshape(len(c), -1) / math.sqrt(c.shape[1])  # noqa: E731
+    cosine = onehot(queries) @ onehot(database.codes).T
+    assert np.allclose(sim, cosine.max(1)) and np.allclose(cosine[np.arange(40), idx], cosine.max(1))
+    assert np.allclose(code_similarity(queries, database.codes), cosine)
+    assert pack_codes(queries, 8).shape == (40, 32)
+
+
+def test_search_can_exclude_the_query_sequence(database):
+    idx, _ = database.search(database.codes[[5, 150]], exclude=np.array([0, 1]))
+    assert database.sequence[idx[0]] != 0 and database.sequence[idx[1]] != 1
+
+
+def _synthetic_dataset(path, garment):
+    """Sequences whose garment swings with the body's speed and turning (in its heading frame), so
+    garment windows follow from motion windows; no simulator needed."""
+    from hrr_garment.data.dataset import SequenceRecord, write_dataset
+    from hrr_garment.motion.features import motion_features
+    from hrr_garment.motion.rotations import rotation_about_y, yaw_of
+    from hrr_garment.motion.synth import synthesize
+
+    v = garment.vertices.astype(np.float32)
+    depth = np.clip((v[:, 1].max() - v[:, 1]) / np.ptp(v[:, 1]), 0, 1)[None, :] ** 2
+    records = []
+    for name, kind, seed in (("walk_000", "walk", 0), ("walk_001", "walk", 1), ("spin_000", "spin", 0),
+                             ("walk_002", "walk", 2), ("run_000", "run", 0)):
+        motion = synthesize(kind, 1.5, seed=seed)
+        f = motion_features(motion)
+        speed, turn = np.tanh(f[:, -4:-1].sum(1, keepdims=True)), np.tanh(f[:, -1:])
+        local = np.repeat(v[None], motion.num_frames, 0)
+        local[..., 2] -= 0.1 * depth * speed
+        local[..., 0] += 0.1 * depth * turn
+        yaw = yaw_of(motion.global_rotations[:, 0])
+        world = np.einsum("tij,tnj->tni", rotation_about_y(yaw), local) + (motion.root_translation * [1, 0, 1])[:, None]
+        records.append(SequenceRecord(name, world.astype(np.float32), motion))
+    splits = {"train": ["walk_000", "walk_001", "spin_000"], "val": ["walk_002"], "test": ["run_000"]}
+    return write_dataset(path, garment, records, splits)
+
+
+TINY_TRAINING = """
+autoencoder:
+  model: {channels: [8, 16]}
+  train: {epochs: 3, batch_size: 16, max_minutes: null}
+codebook:
+  model: {groups: 16, classes: 4, embedding_dim: 4, hidden: 64, motion_hidden: 32, attention_heads: 2}
+  train: {epochs: 4, learning_rate: 0.001, plateau_patience: 2, patience: 5, max_minutes: null}
+"""
+
+
+@pytest.fixture(scope="module")
+def trained(tmp_path_factory):
+    from hrr_garment.cli.train import main as train_main
+    from hrr_garment.garment.templates import make_garment
+
+    root = tmp_path_factory.mktemp("codespace")
+    data = _synthetic_dataset(root / "skirt.h5", make_garment("skirt", 300))
+    (root / "cfg.yaml").write_text(TINY_TRAINING)
+    args = ["--dataset", str(data), "--config", str(root / "cfg.yaml"), "-o", str(root / "model"), "--quiet"]
+    assert train_main(args) == 0
+    return root, data, args
+
+
+def test_hrr_train_writes_a_bundle_that_reproduces_its_validation_numbers(trained):
+    from hrr_garment.train.bundle import load_bundle
+    from hrr_garment.train.stages import evaluate_bundle
+
+    root, data, _ = trained
+    report = json.loads((root / "model" / "codebook" / "report.json").read_text())
+    log = [json.loads(line) for line in (root / "model" / "codebook" / "log.jsonl").read_text().splitlines()]
+    assert [r["epoch"] for r in log] == [1, 2, 3, 4] and {"val_agreement", "val_perplexity", "val_dead_classes"} <= set(log[0])
+    bundle = load_bundle(root / "model")
+    again = evaluate_bundle(bundle, data)
+    for mode in ("hybrid", "regression", "retrieval", "autoencoder", "retrieval_usage"):
+        assert again[mode] == report["validation_mm"][mode], mode
+    assert report["validation_mm"]["hybrid"] <= min(report["validation_mm"]["regression"], report["validation_mm"]["retrieval"])
+    assert len(bundle.database) == report["windows"]["train"]
+
+
+def test_rerun_resumes_the_code_space_and_skips_finished_stages(trained, capsys):
+    from hrr_garment.cli.train import main as train_main
+
+    root, data, args = trained
+    capsys.readouterr()
+    assert train_main(args) == 0
+    assert "(reused)" in capsys.readouterr().out
+    longer = (root / "cfg.yaml").read_text().replace("epochs: 4", "epochs: 5")
+    (root / "cfg5.yaml").write_text(longer)
+    args5 = [a if a != str(root / "cfg.yaml") else str(root / "cfg5.yaml") for a in args]
+    assert train_main(args5) == 0
+    log = [json.loads(line) for line in (root / "model" / "codebook" / "log.jsonl").read_text().splitlines()]
+    assert [r["epoch"] for r in log] == [1, 2, 3, 4, 5]  # continued from epoch 4's checkpoint, one more epoch
+
+
+def test_corrupt_bundle_and_wrong_garment_are_explained(trained, tmp_path):
+    import shutil
+
+    from hrr_garment.data.dataset import DatasetError
+    from hrr_garment.garment.templates import make_garment
+    from hrr_garment.train.bundle import BundleError, load_bundle
+    from hrr_garment.train.stages import evaluate_bundle
+
+    root, _, _ = trained
+    copy = tmp_path / "model"
+    shutil.copytree(root / "model", copy)
+    dress = _synthetic_dataset(tmp_path / "dress.h5", make_garment("dress", 300))
+    with pytest.raises(DatasetError, match="dress dataset"):
+        evaluate_bundle(load_bundle(copy), dress)
+    db = copy / "database.safetensors"
+    db.write_bytes(db.read_bytes()[:-100])
+    with pytest.raises(BundleError, match="database.safetensors.*corrupt or truncated"):
+        load_bundle(copy)
+    (copy / "bundle.json").unlink()
+    with pytest.raises(BundleError, match="no bundle.json"):
+        load_bundle(copy)
+
+
+def test_too_few_sequences_to_split_is_refused(tmp_path, capsys):
+    from hrr_garment.cli.train import main as train_main
+    from hrr_garment.data.dataset import GarmentDataset, write_dataset
+    from hrr_garment.garment.templates import make_garment
+
+    full = GarmentDataset(_synthetic_dataset(tmp_path / "all.h5", make_garment("skirt", 300)))
+    records = [full.sequence("walk_000")]
+    data = write_dataset(tmp_path / "one.h5", full.template, records, {"train": ["walk_000"], "val": [], "test": []})
+    (tmp_path / "cfg.yaml").write_text(TINY_TRAINING)
+    out = tmp_path / "model"
+    assert train_main(["--dataset", str(data), "--config", str(tmp_path / "cfg.yaml"), "-o", str(out), "--quiet"]) == 2
+    assert "one.h5" in capsys.readouterr().err
+    assert not (out / "bundle.json").exists()
