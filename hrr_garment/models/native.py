@@ -25,6 +25,7 @@ import shutil
 import subprocess
 import tempfile
 import threading
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -37,86 +38,97 @@ SOURCE = r"""
 
 #define ALWAYS_INLINE static inline __attribute__((always_inline))
 
-/* acc (RB, cout) += x rows (RB frames of one neighbour, stride cin) times k (cin, cout). With cout
-   and RB compile-time constants (see hrr_block's switch) the tile stays in registers. */
-ALWAYS_INLINE void tile(float *restrict acc, const float *restrict xs, const float *restrict k,
-                        int cin, const int cout, const int RB)
-{
-    for (int c = 0; c < cin; ++c) {
-        const float *restrict kr = k + (size_t)c * cout;
-        for (int r = 0; r < RB; ++r) {
-            const float xv = xs[(size_t)r * cin + c];
-            #pragma omp simd
-            for (int o = 0; o < cout; ++o) acc[r * cout + o] += xv * kr[o];
-        }
+typedef float v8sf __attribute__((vector_size(32)));
+typedef float v16sf __attribute__((vector_size(64)));
+
+/* acc (B, COUT) = bias + sum_j x[nbr[j]] (B, cin) times K[j] (cin, COUT). Neighbour slot outer,
+   so its kernel block (cin x COUT, at most 64 KB) stays in L1 while all B frames pass through it;
+   then one LANES-wide column block at a time and RB frames at a time, so the RB accumulators stay
+   in vector registers (GCC vector extensions; VT holds LANES floats) and one kernel-row load feeds
+   RB fused multiply-adds with broadcast operands. */
+#define TILE(ROWS)                                                                             \
+    for (int q = 0; q < COUT; q += LANES) {                                                    \
+        VT t[ROWS];                                                                            \
+        for (int r = 0; r < ROWS; ++r) memcpy(&t[r], acc + (size_t)(bb + r) * COUT + q, sizeof(VT)); \
+        const float *restrict xs = xj + (size_t)bb * cin;                                      \
+        for (int c = 0; c < cin; ++c) {                                                        \
+            VT kv;                                                                             \
+            memcpy(&kv, k + (size_t)c * COUT + q, sizeof(VT));                                 \
+            for (int r = 0; r < ROWS; ++r) t[r] += xs[(size_t)r * cin + c] * kv;               \
+        }                                                                                      \
+        for (int r = 0; r < ROWS; ++r) memcpy(acc + (size_t)(bb + r) * COUT + q, &t[r], sizeof(VT)); \
     }
+
+#define DEFINE_CONV(NAME, COUT_, VT_, LANES_)                                                  \
+    static void NAME(float *restrict acc, const float *restrict x, int B, int cin, int j0,      \
+                     int j1, const int32_t *restrict nbr, const float *restrict K,             \
+                     const float *restrict bias)                                               \
+    {                                                                                          \
+        typedef VT_ VT;                                                                        \
+        enum { COUT = COUT_, LANES = LANES_, RB = 16 };                                        \
+        for (int bb = 0; bb < B; ++bb) memcpy(acc + (size_t)bb * COUT, bias, sizeof(float) * COUT); \
+        for (int j = j0; j < j1; ++j) {                                                        \
+            const float *restrict xj = x + (size_t)nbr[j] * B * cin;                           \
+            const float *restrict k = K + (size_t)j * cin * COUT;                              \
+            int bb = 0;                                                                        \
+            for (; bb + RB <= B; bb += RB) TILE(RB)                                            \
+            for (; bb < B; ++bb) TILE(1)                                                       \
+        }                                                                                      \
+    }
+
+DEFINE_CONV(conv8, 8, v8sf, 8)
+DEFINE_CONV(conv16, 16, v16sf, 16)
+DEFINE_CONV(conv32, 32, v16sf, 16)
+DEFINE_CONV(conv64, 64, v16sf, 16)
+DEFINE_CONV(conv128, 128, v16sf, 16)
+
+/* exp(y) for y <= 0 in plain arithmetic so that loops over it vectorise (Cephes' expf polynomial,
+   about 1e-7 relative error); libm's expf is a scalar call per element. */
+ALWAYS_INLINE float exp_nonpositive(float y)
+{
+    y = fmaxf(y, -87.0f);
+    const float n = floorf(y * 1.44269504088896341f + 0.5f);
+    float r = fmaf(n, -0.693359375f, y);
+    r = fmaf(n, 2.12194440e-4f, r);
+    float p = 1.9875691500e-4f;
+    p = fmaf(p, r, 1.3981999507e-3f);
+    p = fmaf(p, r, 8.3334519073e-3f);
+    p = fmaf(p, r, 4.1665795894e-2f);
+    p = fmaf(p, r, 1.6666665459e-1f);
+    p = fmaf(p, r, 5.0000001201e-1f);
+    p = fmaf(p, r * r, r) + 1.0f;
+    const int32_t bits = ((int32_t)n + 127) << 23;
+    float scale;
+    memcpy(&scale, &bits, sizeof scale);
+    return p * scale;
 }
 
-ALWAYS_INLINE void conv_rows(float *restrict acc, const float *restrict x, int B, int cin, const int cout,
-                             const int RB, int j0, int j1, const int32_t *restrict nbr,
-                             const float *restrict K, const float *restrict bias)
-{
-    int bb = 0;
-    for (; bb + RB <= B; bb += RB) {
-        float t[RB * cout];
-        for (int r = 0; r < RB; ++r)
-            for (int o = 0; o < cout; ++o) t[r * cout + o] = bias[o];
-        for (int j = j0; j < j1; ++j)
-            tile(t, x + ((size_t)nbr[j] * B + bb) * cin, K + (size_t)j * cin * cout, cin, cout, RB);
-        memcpy(acc + (size_t)bb * cout, t, sizeof(float) * RB * cout);
-    }
-    for (; bb < B; ++bb) {
-        float t[cout];
-        for (int o = 0; o < cout; ++o) t[o] = bias[o];
-        for (int j = j0; j < j1; ++j)
-            tile(t, x + ((size_t)nbr[j] * B + bb) * cin, K + (size_t)j * cin * cout, cin, cout, 1);
-        memcpy(acc + (size_t)bb * cout, t, sizeof(float) * cout);
-    }
-}
-
-/* Any cout; K transposed (nnz, cout, cin): dot products along cin (for cout = 3). */
-static void conv_rows_dot(float *restrict acc, const float *restrict x, int B, int cin, int cout, int j0,
-                          int j1, const int32_t *restrict nbr, const float *restrict K,
-                          const float *restrict bias)
-{
-    for (int bb = 0; bb < B; ++bb)
-        for (int o = 0; o < cout; ++o) {
-            float s = bias[o];
-            for (int j = j0; j < j1; ++j) {
-                const float *restrict xr = x + ((size_t)nbr[j] * B + bb) * cin;
-                const float *restrict kr = K + ((size_t)j * cout + o) * cin;
-                #pragma omp simd reduction(+:s)
-                for (int c = 0; c < cin; ++c) s += xr[c] * kr[c];
-            }
-            acc[(size_t)bb * cout + o] = s;
-        }
-}
+typedef void (*conv_fn)(float *restrict, const float *restrict, int, int, int, int, const int32_t *restrict,
+                        const float *restrict, const float *restrict);
 
 /* One block for B frames, vertex-major tensors:
      out[v] = a * act(bias + sum_j x[nbr[j]] K[j]) + b * residual(v)
-   x (Vin, B, cin); offsets (V + 1) and nbr (nnz): compressed neighbour rows; K (nnz, cin, cout) for
-   cout in {8, 16, 32, 64, 128}, else (nnz, cout, cin); residual(v) = (sum_j pool[j] x[nbr[j]]) or
-   x[v] when pool is NULL, then times proj (cin, cout) unless proj is NULL (cin == cout). */
+   x (Vin, B, cin); offsets (V + 1) and nbr (nnz): compressed neighbour rows; K (nnz, cin, cout),
+   cout one of 8, 16, 32, 64, 128 (the caller pads); residual(v) = (sum_j pool[j] x[nbr[j]]) or
+   x[v] when pool is NULL, then times proj (cin, cout) unless proj is NULL (cin == cout); the 1x1
+   map runs through the same register-tiled loop as the convolution (one "neighbour"). */
 void hrr_block(const float *x, int B, int cin, int cout, int V, const int32_t *offsets,
                const int32_t *nbr, const float *K, const float *bias, const float *pool,
                const float *proj, float a, float b, int elu, int threads, float *out)
 {
+    conv_fn conv = cout == 8 ? conv8 : cout == 16 ? conv16 : cout == 32 ? conv32 : cout == 64 ? conv64 : conv128;
     #pragma omp parallel num_threads(threads)
     {
         float *acc = (float *)aligned_alloc(64, (((size_t)B * cout * 4 + 63) / 64) * 64);
+        float *mapped = (float *)aligned_alloc(64, (((size_t)B * cout * 4 + 63) / 64) * 64);
         float *res = (float *)aligned_alloc(64, (((size_t)B * cin * 4 + 63) / 64) * 64);
-        float *tmp = (float *)aligned_alloc(64, (((size_t)cout * 4 + 63) / 64) * 64);
+        float *zeros = (float *)calloc(cout, sizeof(float));
         #pragma omp for schedule(static)
         for (int v = 0; v < V; ++v) {
             const int j0 = offsets[v], j1 = offsets[v + 1];
-            switch (cout) {
-            case 8: conv_rows(acc, x, B, cin, 8, 8, j0, j1, nbr, K, bias); break;
-            case 16: conv_rows(acc, x, B, cin, 16, 8, j0, j1, nbr, K, bias); break;
-            case 32: conv_rows(acc, x, B, cin, 32, 4, j0, j1, nbr, K, bias); break;
-            case 64: conv_rows(acc, x, B, cin, 64, 2, j0, j1, nbr, K, bias); break;
-            case 128: conv_rows(acc, x, B, cin, 128, 1, j0, j1, nbr, K, bias); break;
-            default: conv_rows_dot(acc, x, B, cin, cout, j0, j1, nbr, K, bias);
-            }
+            conv(acc, x, B, cin, j0, j1, nbr, K, bias);
+            const float *src = x;
+            int32_t row = v;
             if (pool) {
                 memset(res, 0, sizeof(float) * (size_t)B * cin);
                 for (int j = j0; j < j1; ++j) {
@@ -125,38 +137,39 @@ void hrr_block(const float *x, int B, int cin, int cout, int V, const int32_t *o
                     #pragma omp simd
                     for (size_t i = 0; i < (size_t)B * cin; ++i) res[i] += w * xs[i];
                 }
+                src = res;
+                row = 0;
             }
-            const float *r = pool ? res : x + (size_t)v * B * cin;
-            float *dst = out + (size_t)v * B * cout;
-            for (int bb = 0; bb < B; ++bb) {
-                const float *rr = r + (size_t)bb * cin;
-                const float *ar = acc + (size_t)bb * cout;
-                if (proj) {
-                    memset(tmp, 0, sizeof(float) * cout);
-                    for (int c = 0; c < cin; ++c) {
-                        const float rv = rr[c];
-                        const float *pr = proj + (size_t)c * cout;
-                        #pragma omp simd
-                        for (int o = 0; o < cout; ++o) tmp[o] += rv * pr[o];
-                    }
+            const float *r = src + (size_t)row * B * cin;
+            if (proj) {
+                conv(mapped, src, B, cin, 0, 1, &row, proj, zeros);
+                r = mapped;
+            }
+            float *d = out + (size_t)v * B * cout;
+            const size_t n = (size_t)B * cout;
+            if (elu) {
+                #pragma omp simd
+                for (size_t i = 0; i < n; ++i) {
+                    const float y = acc[i];
+                    d[i] = a * (y > 0.0f ? y : exp_nonpositive(fminf(y, 0.0f)) - 1.0f) + b * r[i];
                 }
-                const float *rp = proj ? tmp : rr;
-                float *d = dst + (size_t)bb * cout;
-                for (int o = 0; o < cout; ++o) {
-                    float y = ar[o];
-                    if (elu) y = y > 0.0f ? y : expm1f(y);
-                    d[o] = a * y + b * rp[o];
-                }
+            } else {
+                #pragma omp simd
+                for (size_t i = 0; i < n; ++i) d[i] = a * acc[i] + b * r[i];
             }
         }
         free(acc);
+        free(mapped);
         free(res);
-        free(tmp);
+        free(zeros);
     }
 }
 """
 
-FLAGS = ["-O3", "-march=native", "-mprefer-vector-width=512", "-fopenmp", "-shared", "-fPIC"]
+FLAGS = ["-O3", "-march=native", "-mprefer-vector-width=512", "-fno-math-errno", "-fno-trapping-math", "-fopenmp",
+         "-Werror=implicit-function-declaration",
+         "-shared", "-fPIC"]
+WIDTHS = (8, 16, 32, 64, 128)  # output widths the kernel is specialised for
 _lock = threading.Lock()
 _loaded: dict[str, ctypes.CDLL | None] = {}
 
@@ -203,7 +216,9 @@ def load_kernel(cache_dir: str | Path | None = None) -> ctypes.CDLL | None:
                                           c_int, f]
                 lib.hrr_block.restype = None
                 _loaded[str(target)] = lib
-            except (OSError, subprocess.CalledProcessError):
+            except (OSError, subprocess.CalledProcessError) as exc:
+                detail = getattr(exc, "stderr", "") or str(exc)
+                warnings.warn(f"native decoder kernel unavailable, using the PyTorch path: {detail[:500]}", RuntimeWarning)
                 _loaded[str(target)] = None
         return _loaded[str(target)]
 
@@ -222,20 +237,24 @@ class NativeBlock:
         self.nbr = np.ascontiguousarray(index[keep], np.int32)
         v, s = index.shape
         cin, cout = kernel.shape[1] // s, kernel.shape[2]
-        k = kernel.reshape(v, s, cin, cout)[keep]  # (nnz, cin, cout)
-        self.transposed = cout not in (8, 16, 32, 64, 128)  # the kernel's specialised widths
-        self.kernel = np.ascontiguousarray(k.transpose(0, 2, 1) if self.transposed else k, np.float32)
-        self.bias = np.ascontiguousarray(bias, np.float32)
+        width = next((w for w in WIDTHS if w >= cout), None)
+        if width is None:
+            raise ValueError(f"the native kernel handles up to {WIDTHS[-1]} output channels, not {cout}")
+        pad = [(0, 0)] * 2 + [(0, width - cout)]  # zero columns: the kernel's widths are fixed
+        self.kernel = np.ascontiguousarray(np.pad(kernel.reshape(v, s, cin, cout)[keep], pad), np.float32)  # (nnz, cin, width)
+        self.bias = np.ascontiguousarray(np.pad(bias, (0, width - cout)), np.float32)
         self.pool = None if pool is None else np.ascontiguousarray(pool[keep], np.float32)
-        self.proj = None if proj is None else np.ascontiguousarray(proj, np.float32)
-        self.cin, self.cout, self.vertices = cin, cout, v
+        if proj is None and width != cout:
+            proj = np.eye(cin, cout, dtype=np.float32)
+        self.proj = None if proj is None else np.ascontiguousarray(np.pad(proj, [(0, 0), (0, width - cout)]), np.float32)
+        self.cin, self.cout, self.width, self.vertices = cin, cout, width, v
         self.a, self.b, self.elu = float(a), float(b), bool(elu)
 
     def __call__(self, lib: ctypes.CDLL, x: np.ndarray, threads: int) -> np.ndarray:
         """x (V_in, B, C_in) float32 C-contiguous -> (V, B, C_out)."""
         batch = x.shape[1]
-        out = np.empty((self.vertices, batch, self.cout), np.float32)
-        lib.hrr_block(_ptr(x), batch, self.cin, self.cout, self.vertices, _ptr(self.offsets, ctypes.c_int32),
+        out = np.empty((self.vertices, batch, self.width), np.float32)
+        lib.hrr_block(_ptr(x), batch, self.cin, self.width, self.vertices, _ptr(self.offsets, ctypes.c_int32),
                       _ptr(self.nbr, ctypes.c_int32), _ptr(self.kernel), _ptr(self.bias),
                       _ptr(self.pool), _ptr(self.proj), self.a, self.b, int(self.elu), threads, _ptr(out))
-        return out
+        return out if self.width == self.cout else np.ascontiguousarray(out[..., :self.cout])
