@@ -38,11 +38,13 @@ class CodeDatabase:
     start: np.ndarray  # (N,) int32 first frame of the window
     names: list[str]
     classes: int
+    motion: np.ndarray | None = None  # (N, W, F) standardised motion windows, for the naive-NN baseline
 
     def __post_init__(self):
         self.codes = np.ascontiguousarray(self.codes, np.uint8)
         n, groups = self.codes.shape
-        if not (len(self.latents) == len(self.sequence) == len(self.start) == n):
+        if not (len(self.latents) == len(self.sequence) == len(self.start) == n) or \
+                (self.motion is not None and len(self.motion) != n):
             raise ValueError(f"database arrays disagree in length: codes {n}, latents {len(self.latents)}, "
                              f"sequence {len(self.sequence)}, start {len(self.start)}")
         if n and int(self.codes.max()) >= self.classes:
@@ -71,5 +73,22 @@ class CodeDatabase:
         rows = np.arange(len(idx))
         return idx[rows, first].astype(np.int64), 1.0 - dist[rows, first] / (2.0 * self.groups)
 
+    def nearest_motion(self, motion: np.ndarray, exclude: np.ndarray | None = None) -> np.ndarray:
+        """Naive nearest neighbour (Euclidean on standardised motion windows (Q, W, F), no codes):
+        the database row per query; the baseline that learned retrieval is compared with."""
+        if self.motion is None:
+            raise ValueError("this database has no motion windows (naive-NN needs them)")
+        if not hasattr(self, "_motion_index"):
+            self._motion_index = faiss.IndexFlatL2(int(np.prod(self.motion.shape[1:])))
+            self._motion_index.add(np.ascontiguousarray(self.motion.reshape(len(self.motion), -1), np.float32))
+        q = np.ascontiguousarray(np.asarray(motion, np.float32).reshape(len(motion), -1))
+        k = 1 if exclude is None else min(len(self), int(np.bincount(self.sequence).max()) + 1)
+        _, idx = self._motion_index.search(q, k)
+        if exclude is None:
+            return idx[:, 0].astype(np.int64)
+        allowed = self.sequence[idx] != np.asarray(exclude)[:, None]
+        return idx[np.arange(len(idx)), allowed.argmax(1)].astype(np.int64)
+
     def arrays(self) -> dict[str, np.ndarray]:
-        return {"codes": self.codes, "latents": self.latents, "sequence": self.sequence, "start": self.start}
+        out = {"codes": self.codes, "latents": self.latents, "sequence": self.sequence, "start": self.start}
+        return out if self.motion is None else {**out, "motion": self.motion}

@@ -31,6 +31,7 @@ class CodeSpaceConfig:
     hidden: int = 1024  # garment encoder / decoder MLP width
     motion_hidden: int = 256  # GRU and attention width
     attention_heads: int = 4
+    dropout: float = 0.0  # after each hidden layer of the garment encoder and the decoder
 
     @classmethod
     def from_dict(cls, values: dict) -> "CodeSpaceConfig":
@@ -40,12 +41,14 @@ class CodeSpaceConfig:
         return asdict(self)
 
 
-def _mlp(sizes: list[int]) -> nn.Sequential:
+def _mlp(sizes: list[int], dropout: float = 0.0) -> nn.Sequential:
     layers: list[nn.Module] = []
     for i, (a, b) in enumerate(zip(sizes[:-1], sizes[1:])):
         layers.append(nn.Linear(a, b))
         if i < len(sizes) - 2:
             layers.append(nn.ELU())
+            if dropout > 0:
+                layers.append(nn.Dropout(dropout))
     return nn.Sequential(*layers)
 
 
@@ -69,9 +72,9 @@ class MotionEncoder(nn.Module):
 
 
 class GarmentEncoder(nn.Module):
-    def __init__(self, size: int, logits: int, hidden: int = 1024):
+    def __init__(self, size: int, logits: int, hidden: int = 1024, dropout: float = 0.0):
         super().__init__()
-        self.net = _mlp([size, hidden, hidden, logits])
+        self.net = _mlp([size, hidden, hidden, logits], dropout)
 
     def forward(self, latents: torch.Tensor) -> torch.Tensor:
         """(B, W, N, C) or (B, W * N * C) -> (B, G * K) logits."""
@@ -79,9 +82,9 @@ class GarmentEncoder(nn.Module):
 
 
 class LatentDecoder(nn.Module):
-    def __init__(self, embedding: int, size: int, hidden: int = 1024):
+    def __init__(self, embedding: int, size: int, hidden: int = 1024, dropout: float = 0.0):
         super().__init__()
-        self.net = _mlp([embedding, hidden, hidden, size])
+        self.net = _mlp([embedding, hidden, hidden, size], dropout)
 
     def forward(self, embedding: torch.Tensor) -> torch.Tensor:
         """(B, G * dim) -> (B, W * N * C) standardised latents."""
@@ -98,8 +101,8 @@ class CodeSpace(nn.Module):
         size = config.window * latent_shape[0] * latent_shape[1]
         self.quantizer = GumbelQuantizer(config.groups, config.classes, config.embedding_dim)
         self.motion_encoder = MotionEncoder(features, self.quantizer.logits_size, config.motion_hidden, config.attention_heads)
-        self.garment_encoder = GarmentEncoder(size, self.quantizer.logits_size, config.hidden)
-        self.decoder = LatentDecoder(self.quantizer.embedding_size, size, config.hidden)
+        self.garment_encoder = GarmentEncoder(size, self.quantizer.logits_size, config.hidden, config.dropout)
+        self.decoder = LatentDecoder(self.quantizer.embedding_size, size, config.hidden, config.dropout)
 
     def decode(self, embedding: torch.Tensor) -> torch.Tensor:
         """(B, G * dim) -> (B, W, N, C) standardised latents."""

@@ -219,5 +219,8 @@ def load_autoencoder(folder: str | Path, faces: np.ndarray, cache_dir: Path | No
     hierarchy = cached_hierarchy(faces, meta["vertices"], cache_dir, latent_fraction=config.latent_fraction,
                                  stride=config.stride, radius=config.radius)
     model = MeshAutoencoder(hierarchy, config)
-    model.load_state_dict(torch.load(folder / "model.pt", map_location="cpu", weights_only=True))
+    state = torch.load(folder / "model.pt", map_location="cpu", weights_only=True)
+    # files from before the neighbour lists stopped being saved (they are rebuilt from the template)
+    state = {k: v for k, v in state.items() if not k.endswith((".index", ".mask"))}
+    model.load_state_dict(state)
     return model.eval()

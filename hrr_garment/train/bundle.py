@@ -8,7 +8,8 @@ Files (all arrays as safetensors, nothing pickled)::
     motion_encoder.safetensors   garment_encoder.safetensors   decoder.safetensors
     quantizer.safetensors        the codebook's class embeddings
     stats.safetensors            motion feature and garment latent mean/std
-    database.safetensors         retrieval database: codes, latent windows, source sequence/frame
+    database.safetensors         retrieval database: codes, latent windows, source sequence/frame,
+                                 standardised motion windows (for the naive-NN baseline)
     template.safetensors         template vertices, faces, attached vertex indices
 
 ``bundle.json`` is written last: a directory without it (or whose files do not match its hashes)
@@ -198,7 +199,7 @@ def load_bundle(folder: str | Path, cache_dir: Path | None = None) -> Bundle:
         raise BundleError(folder, f"database shapes {d['codes'].shape} / {d['latents'].shape} do not fit the configuration")
     try:
         database = CodeDatabase(d["codes"], d["latents"], d["sequence"], d["start"], list(meta["database"]["names"]),
-                                int(meta["database"]["classes"]))
+                                int(meta["database"]["classes"]), d.get("motion"))
     except ValueError as exc:
         raise BundleError(folder, f"database: {exc}") from None
     return Bundle(folder, meta, autoencoder.eval(), codespace.eval(), FeatureStats(s["motion_mean"], s["motion_std"]),

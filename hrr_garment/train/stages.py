@@ -92,7 +92,7 @@ def run_codebook_stage(dataset: str | Path, folder: str | Path, config: CodeSpac
     summary = train_codespace(model, train_t, val_t, stage, train_config, key, progress)
 
     database = CodeDatabase(garment_codes(model, train_t.latents), train_w.latents, train_w.sequence, train_w.start,
-                            train_w.names, config.classes)
+                            train_w.names, config.classes, train_t.motion.numpy())
     modes = evaluate_modes(model, autoencoder, motion_stats, latent_stats, database,
                            {n: features[n] for n in splits["val"]}, {n: heading_frames(ds, [n]) for n in splits["val"]})
     sweep = modes.sweep

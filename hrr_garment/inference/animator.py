@@ -1,0 +1,176 @@
+"""The Python API for animating a garment: :class:`Animator`, :class:`Animation`, :class:`AnimationStream`.
+
+    from hrr_garment import Animator, load_motion
+    animator = Animator.load("dress")                 # hrr_work/models/dress-full, else dress-quick
+    anim = animator.animate(load_motion("walk.bvh"))  # offline, hybrid, collision push-out
+    anim.save("out.h5")
+
+    stream = animator.stream()                        # causal, one frame in, one frame out
+    for t in range(motion.num_frames):
+        vertices = stream.push(motion.slice(t, t + 1))
+"""
+
+from __future__ import annotations
+
+import time
+from collections import deque
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from ..errors import InputError, MotionError
+from ..motion.features import motion_features
+from ..motion.motion import Motion
+from ..paths import workspace
+from ..train.bundle import Bundle, BundleError, load_bundle
+from .collision import PushOutReport, push_out
+from .engine import (
+    Inertializer,
+    blend_windows,
+    causal_features,
+    causal_latents,
+    causal_windows,
+    choose_windows,
+    heading_vertices,
+    pair_features,
+    source_id,
+    to_world,
+)
+
+
+@dataclass
+class Animation:
+    """An animated garment: world-space vertices (T, V, 3) at ``fps``, Y up, metres."""
+
+    vertices: np.ndarray
+    faces: np.ndarray
+    fps: float
+    mode: np.ndarray  # (T,) uint8, 1 = retrieval
+    entropy: np.ndarray  # (T,) float32
+    source: np.ndarray  # (T, 2) int32 retrieved (database sequence, frame) or -1
+    joints: np.ndarray  # (T, 22, 3) body joint positions
+    garment: str
+    model_hash: str
+    source_motion: str
+    settings: dict = field(default_factory=dict)
+    penetration: PushOutReport | None = None
+
+    @property
+    def retrieval_usage(self) -> float:
+        return float(self.mode.mean()) if len(self.mode) else 0.0
+
+    def save(self, path: str | Path) -> Path:
+        """Write ``out.h5`` (see :mod:`hrr_garment.export.h5`), atomically."""
+        from ..export.h5 import write_animation_h5
+
+        return write_animation_h5(path, vertices=self.vertices, faces=self.faces, joints=self.joints, mode=self.mode,
+                                  entropy=self.entropy, source=self.source,
+                                  attrs={"fps": self.fps, "garment": self.garment, "source_motion": self.source_motion,
+                                         "model_hash": self.model_hash, **{k: v for k, v in self.settings.items()}})
+
+
+def find_model(name_or_dir: str | Path) -> Path:
+    """A model directory: the path itself, or hrr_work/models/NAME-full, else NAME-quick."""
+    path = Path(name_or_dir)
+    if (path / "bundle.json").is_file() or path.is_dir():
+        return path
+    tried = [workspace() / "models" / f"{name_or_dir}-{preset}" for preset in ("full", "quick")]
+    for candidate in tried:
+        if (candidate / "bundle.json").is_file():
+            return candidate
+    raise BundleError(name_or_dir, "no trained model: looked for " + ", ".join(str(t) for t in tried)
+                      + f" (train one with: hrr-train --garment {name_or_dir})")
+
+
+class Animator:
+    """A loaded model bundle that animates its garment from body motion."""
+
+    def __init__(self, bundle: Bundle, blend: int = 6):
+        self.bundle = bundle
+        self.blend = blend  # inertialization frames in causal mode
+        self.decoder = bundle.autoencoder.fast_decoder()
+
+    @classmethod
+    def load(cls, model: str | Path) -> "Animator":
+        return cls(load_bundle(find_model(model), workspace() / "cache"))
+
+    @property
+    def window(self) -> int:
+        return self.bundle.codespace.config.window
+
+    def animate(self, motion: Motion, mode: str = "hybrid", tau: float | None = None, collision: bool = True,
+                causal: bool = False, exclude_sequence: int | None = None) -> Animation:
+        """Animate a whole clip (see :mod:`.engine`): ``mode`` hybrid | regression | retrieval |
+        naive-nn; ``tau`` overrides the bundle's; ``causal`` gives what streaming gives;
+        ``exclude_sequence`` keeps one database sequence out of retrieval (evaluation)."""
+        tau = self.bundle.tau if tau is None else float(tau)
+        t_frames, w = motion.num_frames, self.window
+        if t_frames < 1:
+            raise MotionError(motion.source, "the motion has no frames")
+        if causal:
+            feats = causal_windows(causal_features(motion), w)
+            choice = self._choose(feats, mode, tau, exclude_sequence)
+            latents = causal_latents(choice, self.blend)
+            per_frame = np.arange(t_frames)
+        else:
+            feats = motion_features(motion)
+            if t_frames < w:  # shorter than one window: pad with the last frame, keep the first T outputs
+                feats = np.concatenate([feats, np.repeat(feats[-1:], w - t_frames, 0)])
+            windows = np.ascontiguousarray(np.moveaxis(np.lib.stride_tricks.sliding_window_view(feats, w, axis=0), -1, 1))
+            choice = self._choose(windows, mode, tau, exclude_sequence)
+            latents = blend_windows(choice.latents, len(feats))[:t_frames]
+            per_frame = np.clip(np.arange(t_frames) - w // 2, 0, len(windows) - 1)  # the window centred on t
+        vertices = to_world(heading_vertices(self.bundle, latents, self.decoder), motion).astype(np.float32)
+        report = None
+        if collision:
+            vertices, report = push_out(vertices, motion, self.bundle.template.faces)
+        return Animation(vertices, self.bundle.template.faces, motion.fps, choice.retrieved[per_frame].astype(np.uint8),
+                         choice.entropy[per_frame].astype(np.float32), choice.source[per_frame], motion.joint_positions,
+                         self.bundle.garment, self.bundle.content_hash, motion.source,
+                         {"mode": mode, "tau": tau, "causal": int(causal), "collision": int(collision)}, report)
+
+    def _choose(self, windows: np.ndarray, mode: str, tau: float, exclude_sequence: int | None):
+        exclude = None if exclude_sequence is None else np.full(len(windows), exclude_sequence)
+        return choose_windows(self.bundle, windows, mode, tau, exclude)
+
+    def stream(self, mode: str = "hybrid", tau: float | None = None, collision: bool = True) -> "AnimationStream":
+        return AnimationStream(self, mode, self.bundle.tau if tau is None else float(tau), collision)
+
+
+class AnimationStream:
+    """One pose in, one garment frame out, causal (no future frames), bounded memory: the last
+    frame, the last W feature frames and the inertialization state. ``push`` equals frame t of
+    ``animator.animate(motion, causal=True)`` (tested to 1e-5)."""
+
+    def __init__(self, animator: Animator, mode: str, tau: float, collision: bool):
+        self.animator, self.mode, self.tau, self.collision = animator, mode, tau, collision
+        self._prev: Motion | None = None
+        self._features: deque = deque(maxlen=animator.window)
+        self._inert = Inertializer(animator.blend)
+        self.frames = 0
+        self.latency_s: deque = deque(maxlen=1000)  # per push, for diagnostics
+
+    def push(self, pose: Motion) -> np.ndarray:
+        """``pose``: a one-frame :class:`Motion` (canonical skeleton, 30 fps) -> (V, 3) world vertices."""
+        t0 = time.perf_counter()
+        if pose.num_frames != 1:
+            raise InputError(pose.source, f"push one frame at a time (got {pose.num_frames})")
+        feat = pair_features(self._prev, pose)
+        if not self._features:
+            self._features.extend([feat] * (self._features.maxlen - 1))
+        self._features.append(feat)
+        window = np.stack(self._features)[None]
+        choice = choose_windows(self.animator.bundle, window, self.mode, self.tau)
+        src = choice.source[0] - np.array([0, self.frames]) if choice.retrieved[0] else choice.source[0]
+        latent = self._inert.step(choice.latents[0, -1].astype(np.float64), source_id(bool(choice.retrieved[0]), src))
+        with torch.no_grad():
+            local = self.animator.decoder(torch.from_numpy(latent[None].astype(np.float32))).numpy()
+        vertices = to_world(local, pose)
+        if self.collision:
+            vertices, _ = push_out(vertices, pose, self.animator.bundle.template.faces)
+        self._prev = pose
+        self.frames += 1
+        self.latency_s.append(time.perf_counter() - t0)
+        return vertices[0].astype(np.float32)
