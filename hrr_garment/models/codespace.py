@@ -25,10 +25,10 @@ from .codebook import GumbelQuantizer
 @dataclass(frozen=True)
 class CodeSpaceConfig:
     window: int = 10  # W frames per window
-    groups: int = 512  # G
+    groups: int = 64  # G
     classes: int = 8  # K
     embedding_dim: int = 8  # values per (group, class) embedding
-    hidden: int = 1024  # garment encoder / decoder MLP width
+    hidden: int = 512  # garment encoder / decoder MLP width
     motion_hidden: int = 256  # GRU and attention width
     attention_heads: int = 4
     dropout: float = 0.0  # after each hidden layer of the garment encoder and the decoder

@@ -36,9 +36,9 @@ from ..sim.quality import heading_frame
 @dataclass(frozen=True)
 class TrainConfig:
     epochs: int = 300
-    batch_size: int = 16
-    learning_rate: float = 6e-3
-    lr_decay: float = 0.97  # per epoch
+    batch_size: int = 32
+    learning_rate: float = 8e-3
+    lr_decay: float = 0.94  # per epoch
     laplacian: float = 0.2
     patience: int = 30  # epochs without a better validation error before stopping
     max_minutes: float | None = None  # wall-clock budget for this run
@@ -135,7 +135,14 @@ def train_autoencoder(dataset: str | Path, folder: str | Path, model_config: Aut
     key = _key(model_config.to_dict(), asdict(train_config) | {"max_minutes": None, "threads": None},
                ds.garment, ds.template.num_vertices, splits)
     checkpoint = folder / "checkpoint.pt"
-    state = {"epoch": 0, "best": float("inf"), "best_epoch": 0, "stale": 0}
+    report_path = folder / "report.json"
+    if report_path.is_file() and (folder / "latents.npz").is_file() and (folder / "model.pt").is_file():
+        done = json.loads(report_path.read_text())
+        if done.get("key") == key:  # finished with these settings: nothing to redo
+            done.pop("key")
+            return AutoencoderReport(**{**done, "folder": folder, "latent_shape": tuple(done["latent_shape"]),
+                                        "sizes": tuple(done["sizes"]), "extra": {**done.get("extra", {}), "reused": True}})
+    state = {"epoch": 0, "best": float("inf"), "best_epoch": 0, "stale": 0, "elapsed_s": 0.0}
     best_weights = {k: v.clone() for k, v in model.state_dict().items()}
     if checkpoint.exists():
         saved = torch.load(checkpoint, map_location="cpu", weights_only=True)
@@ -144,13 +151,15 @@ def train_autoencoder(dataset: str | Path, folder: str | Path, model_config: Aut
             optimizer.load_state_dict(saved["optimizer"])
             scheduler.load_state_dict(saved["scheduler"])
             best_weights = saved["best_weights"]
-            state = {k: saved[k] for k in state}
+            state = {k: saved.get(k, state[k]) for k in state}
             torch.set_rng_state(saved["rng"])
     conv0 = model.encoder[0].conv
     lap = laplacian_operator(conv0.index, conv0.mask)
     rng = np.random.default_rng(train_config.seed + state["epoch"])
     bar = tqdm(total=train_config.epochs, initial=state["epoch"], desc="autoencoder", unit="epoch", disable=not progress)
-    deadline = None if train_config.max_minutes is None else time.perf_counter() + 60 * train_config.max_minutes
+    # the wall-clock budget counts the time of earlier (interrupted) runs too
+    started, spent = time.perf_counter(), state["elapsed_s"]
+    deadline = None if train_config.max_minutes is None else started + 60 * train_config.max_minutes - spent
     while state["epoch"] < train_config.epochs and state["stale"] < train_config.patience:
         if deadline is not None and time.perf_counter() > deadline:
             break
@@ -169,6 +178,7 @@ def train_autoencoder(dataset: str | Path, folder: str | Path, model_config: Aut
         model.eval()
         val_err = pve_mm(model, val if len(val) else train[:256])
         state["epoch"] += 1
+        state["elapsed_s"] = spent + time.perf_counter() - started
         if val_err < state["best"]:
             state.update(best=val_err, best_epoch=state["epoch"], stale=0)
             best_weights = {k: v.detach().clone() for k, v in model.state_dict().items()}
@@ -193,8 +203,8 @@ def train_autoencoder(dataset: str | Path, folder: str | Path, model_config: Aut
     report = AutoencoderReport(folder, state["epoch"], state["best_epoch"], state["best"], pve_mm(model, test),
                                pve_mm(model, train[:: max(1, len(train) // 512)]),  # mirrored frames included
                                (time.perf_counter() - t_start) / 60, model.latent_shape, hierarchy.sizes)
-    atomic_write_text(folder / "report.json", json.dumps({k: (str(v) if isinstance(v, Path) else v)
-                                                          for k, v in asdict(report).items()}, indent=2))
+    atomic_write_text(report_path, json.dumps({"key": key, **{k: (str(v) if isinstance(v, Path) else v)
+                                                              for k, v in asdict(report).items()}}, indent=2))
     return report
 
 

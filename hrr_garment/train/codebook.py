@@ -40,7 +40,7 @@ from ..settings import from_settings
 class CodebookTrainConfig:
     epochs: int = 300
     batch_size: int = 64
-    learning_rate: float = 1e-4
+    learning_rate: float = 1e-3
     weight_decay: float = 1e-4
     match_weight: float = 0.1  # stage 1
     match_weight_late: float = 0.5  # after the reconstruction plateau
@@ -139,7 +139,7 @@ def train_codespace(model: CodeSpace, train: WindowTensors, val: WindowTensors, 
     torch.manual_seed(config.seed)
     optimizer = torch.optim.Adam(model.parameters(), lr=config.learning_rate, weight_decay=config.weight_decay)
     plateau = PlateauDetector(config.plateau_patience, config.plateau_delta)
-    state = {"epoch": 0, "switched_at": None, "best": math.inf, "best_epoch": 0, "stale": 0}
+    state = {"epoch": 0, "switched_at": None, "best": math.inf, "best_epoch": 0, "stale": 0, "elapsed_s": 0.0}
     best_weights = {k: v.clone() for k, v in model.state_dict().items()}
     checkpoint, log_path = folder / "checkpoint.pt", folder / "log.jsonl"
     if checkpoint.exists():
@@ -149,12 +149,16 @@ def train_codespace(model: CodeSpace, train: WindowTensors, val: WindowTensors, 
             optimizer.load_state_dict(saved["optimizer"])
             plateau.load_state_dict(saved["plateau"])
             best_weights = saved["best_weights"]
-            state = json.loads(saved["state"])
+            state = {**state, **json.loads(saved["state"])}
             torch.set_rng_state(saved["rng"])
     if state["epoch"] == 0:
         log_path.unlink(missing_ok=True)
+    elif log_path.exists():  # drop lines of epochs after the checkpoint (a kill between the two writes)
+        lines = [line for line in log_path.read_text().splitlines() if json.loads(line)["epoch"] <= state["epoch"]]
+        log_path.write_text("".join(line + "\n" for line in lines))
     gen = torch.Generator().manual_seed(config.seed + state["epoch"])
-    deadline = None if config.max_minutes is None else time.perf_counter() + 60 * config.max_minutes
+    started, spent = time.perf_counter(), state["elapsed_s"]  # the budget counts interrupted runs too
+    deadline = None if config.max_minutes is None else started + 60 * config.max_minutes - spent
     bar = tqdm(total=config.epochs, initial=state["epoch"], desc="code space", unit="epoch", disable=not progress)
     t0 = time.perf_counter()
     while state["epoch"] < config.epochs and state["stale"] < config.patience:
@@ -177,6 +181,7 @@ def train_codespace(model: CodeSpace, train: WindowTensors, val: WindowTensors, 
                 sums[k] += out[k].item() * len(idx)
         metrics = evaluate(model, val)
         state["epoch"] += 1
+        state["elapsed_s"] = spent + time.perf_counter() - started
         if state["switched_at"] is None and plateau.update(metrics["rec"]):
             state["switched_at"] = state["epoch"]
         if state["switched_at"] is not None:  # stage 2: keep the best regression path
