@@ -12,6 +12,8 @@ from hrr_garment.inference.database import CodeDatabase, code_similarity, pack_c
 from hrr_garment.models.codebook import GumbelQuantizer, group_entropy
 from hrr_garment.train.codebook import PlateauDetector
 
+from conftest import TINY_TRAINING, synthetic_dataset
+
 
 @pytest.mark.parametrize("groups,classes,dim", [(4, 8, 3), (16, 2, 1), (64, 8, 8)])
 def test_hard_codes_are_one_hot_and_gradients_flow_straight_through(groups, classes, dim):
@@ -93,55 +95,6 @@ def test_search_can_exclude_the_query_sequence(database):
     assert database.sequence[idx[0]] != 0 and database.sequence[idx[1]] != 1
 
 
-def _synthetic_dataset(path, garment):
-    """Sequences whose garment swings with the body's speed and turning (in its heading frame), so
-    garment windows follow from motion windows; no simulator needed."""
-    from hrr_garment.data.dataset import SequenceRecord, write_dataset
-    from hrr_garment.motion.features import motion_features
-    from hrr_garment.motion.rotations import rotation_about_y, yaw_of
-    from hrr_garment.motion.synth import synthesize
-
-    v = garment.vertices.astype(np.float32)
-    depth = np.clip((v[:, 1].max() - v[:, 1]) / np.ptp(v[:, 1]), 0, 1)[None, :] ** 2
-    records = []
-    for name, kind, seed in (("walk_000", "walk", 0), ("walk_001", "walk", 1), ("spin_000", "spin", 0),
-                             ("walk_002", "walk", 2), ("run_000", "run", 0)):
-        motion = synthesize(kind, 1.5, seed=seed)
-        f = motion_features(motion)
-        speed, turn = np.tanh(f[:, -4:-1].sum(1, keepdims=True)), np.tanh(f[:, -1:])
-        local = np.repeat(v[None], motion.num_frames, 0)
-        local[..., 2] -= 0.1 * depth * speed
-        local[..., 0] += 0.1 * depth * turn
-        yaw = yaw_of(motion.global_rotations[:, 0])
-        world = np.einsum("tij,tnj->tni", rotation_about_y(yaw), local) + (motion.root_translation * [1, 0, 1])[:, None]
-        records.append(SequenceRecord(name, world.astype(np.float32), motion))
-    splits = {"train": ["walk_000", "walk_001", "spin_000"], "val": ["walk_002"], "test": ["run_000"]}
-    return write_dataset(path, garment, records, splits)
-
-
-TINY_TRAINING = """
-autoencoder:
-  model: {channels: [8, 16]}
-  train: {epochs: 3, batch_size: 16, max_minutes: null}
-codebook:
-  model: {groups: 16, classes: 4, embedding_dim: 4, hidden: 64, motion_hidden: 32, attention_heads: 2}
-  train: {epochs: 4, learning_rate: 0.001, plateau_patience: 2, patience: 5, max_minutes: null}
-"""
-
-
-@pytest.fixture(scope="module")
-def trained(tmp_path_factory):
-    from hrr_garment.cli.train import main as train_main
-    from hrr_garment.garment.templates import make_garment
-
-    root = tmp_path_factory.mktemp("codespace")
-    data = _synthetic_dataset(root / "skirt.h5", make_garment("skirt", 300))
-    (root / "cfg.yaml").write_text(TINY_TRAINING)
-    args = ["--dataset", str(data), "--config", str(root / "cfg.yaml"), "-o", str(root / "model"), "--quiet"]
-    assert train_main(args) == 0
-    return root, data, args
-
-
 def test_hrr_train_writes_a_bundle_that_reproduces_its_validation_numbers(trained):
     from hrr_garment.train.bundle import load_bundle
     from hrr_garment.train.stages import evaluate_bundle
@@ -184,7 +137,7 @@ def test_corrupt_bundle_and_wrong_garment_are_explained(trained, tmp_path):
     root, _, _ = trained
     copy = tmp_path / "model"
     shutil.copytree(root / "model", copy)
-    dress = _synthetic_dataset(tmp_path / "dress.h5", make_garment("dress", 300))
+    dress = synthetic_dataset(tmp_path / "dress.h5", make_garment("dress", 300))
     with pytest.raises(DatasetError, match="dress dataset"):
         evaluate_bundle(load_bundle(copy), dress)
     db = copy / "database.safetensors"
@@ -201,7 +154,7 @@ def test_too_few_sequences_to_split_is_refused(tmp_path, capsys):
     from hrr_garment.data.dataset import GarmentDataset, write_dataset
     from hrr_garment.garment.templates import make_garment
 
-    full = GarmentDataset(_synthetic_dataset(tmp_path / "all.h5", make_garment("skirt", 300)))
+    full = GarmentDataset(synthetic_dataset(tmp_path / "all.h5", make_garment("skirt", 300)))
     records = [full.sequence("walk_000")]
     data = write_dataset(tmp_path / "one.h5", full.template, records, {"train": ["walk_000"], "val": [], "test": []})
     (tmp_path / "cfg.yaml").write_text(TINY_TRAINING)

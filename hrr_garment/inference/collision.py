@@ -4,8 +4,8 @@ Per frame, every vertex within ``margin`` of the capsule body (or inside it) is 
 nearest capsule's outward normal to ``margin`` outside. Moving only those vertices would leave
 one-vertex spikes where a fold dips in; so the push is spread: the displacement field is smoothed
 over the mesh (``smooth`` Jacobi passes of the uniform Laplacian, each keeping the pushed vertices'
-displacement at least what they need along their normals), so neighbours follow part of the way.
-A final exact projection guarantees that no vertex ends deeper than ``margin`` inside.
+displacement at least what they need along their normals), so neighbours follow part of the way;
+``rounds`` such pushes, then an exact projection guarantees that no vertex ends inside.
 """
 
 from __future__ import annotations
@@ -36,7 +36,7 @@ def mean_operator(faces: np.ndarray, num_vertices: int) -> csr_matrix:
 
 
 def push_out(vertices: np.ndarray, motion: Motion, faces: np.ndarray, body: BodyModel = DEFAULT_BODY, margin: float = 0.002,
-             smooth: int = 3, depth: float = 0.005) -> tuple[np.ndarray, PushOutReport]:
+             smooth: int = 4, rounds: int = 3, depth: float = 0.005) -> tuple[np.ndarray, PushOutReport]:
     """(T, V, 3) world vertices -> pushed copy and a report (fractions of vertices > ``depth`` inside)."""
     a, b = body.pose_motion(motion)
     radii = body.radii
@@ -47,8 +47,10 @@ def push_out(vertices: np.ndarray, motion: Motion, faces: np.ndarray, body: Body
         p = out[t].astype(np.float64)
         d, n, _ = capsule_signed_distance(p, a[t], b[t], radii)
         before[t] = (d < -depth).mean()
-        need = np.maximum(margin - d, 0.0)  # how far along the normal each vertex must move
-        if need.any():
+        for _ in range(rounds):
+            need = np.maximum(margin - d, 0.0)  # how far along the normal each vertex must move
+            if not need.any():
+                break
             hit = need > 0
             disp = need[:, None] * n
             for _ in range(smooth):  # spread the push to the neighbours, never below what is needed
@@ -57,11 +59,11 @@ def push_out(vertices: np.ndarray, motion: Motion, faces: np.ndarray, body: Body
                 disp[hit] += np.maximum(need[hit] - along, 0.0)[:, None] * n[hit]
             p = p + disp
             d, n, _ = capsule_signed_distance(p, a[t], b[t], radii)
-            for _ in range(4):  # exact projection; repeated where a push lands in another capsule
-                if not (d < 0).any():
-                    break
-                p += np.maximum(margin - d, 0.0)[:, None] * n * (d < 0)[:, None]
-                d, n, _ = capsule_signed_distance(p, a[t], b[t], radii)
-            out[t] = p
+        for _ in range(4):  # exact projection; repeated where a push lands in another capsule
+            if not (d < 0).any():
+                break
+            p += np.maximum(margin - d, 0.0)[:, None] * n * (d < 0)[:, None]
+            d, n, _ = capsule_signed_distance(p, a[t], b[t], radii)
+        out[t] = p
         after[t] = (d < -depth).mean()
     return out, PushOutReport(float(before.mean()), float(after.mean()), float(before.max(initial=0)), float(after.max(initial=0)))

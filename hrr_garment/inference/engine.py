@@ -144,9 +144,10 @@ class Inertializer:
         target_vel = target - self._prev_target if self._prev_target is not None and source == self._source else None
         if self._prev is not None and source != self._source:
             vel = target_vel if target_vel is not None else np.zeros_like(target)
-            self._offset = self._prev - target
-            self._offset_vel = self._prev_vel - vel if self._prev_vel is not None else np.zeros_like(target)
-            self._age = 0
+            prev_vel = self._prev_vel if self._prev_vel is not None else np.zeros_like(target)
+            self._offset = self._prev + prev_vel - target  # where the old motion would have gone
+            self._offset_vel = prev_vel - vel
+            self._age = -1
         out = target.copy()
         if self._offset is not None:
             self._age += 1

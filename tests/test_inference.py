@@ -1,0 +1,129 @@
+"""Inference: offline and causal engine, streaming, blending, push-out, hrr-animate and out.h5."""
+
+import math
+
+import numpy as np
+import pytest
+
+from hrr_garment.inference.engine import Inertializer, blend_windows, to_world, window_weights
+from hrr_garment.motion.synth import synthesize
+from hrr_garment.sim.quality import heading_frame
+
+
+@pytest.fixture(scope="module")
+def animator(trained):
+    from hrr_garment.inference.animator import Animator
+
+    root, _, _ = trained
+    return Animator.load(root / "model")
+
+
+def test_stream_equals_offline_causal(animator):
+    motion = synthesize("walk_curve", 1.2, seed=7)
+    causal = animator.animate(motion, causal=True)
+    stream = animator.stream()
+    pushed = np.stack([stream.push(motion.slice(t, t + 1)) for t in range(motion.num_frames)])
+    assert np.abs(pushed - causal.vertices).max() <= 1e-5
+    assert len(stream._features) == animator.window  # bounded memory
+
+
+@pytest.mark.parametrize("mode", ["hybrid", "regression", "retrieval", "naive-nn"])
+def test_every_mode_animates_every_frame(animator, mode):
+    motion = synthesize("spin", 1.0, seed=2)
+    anim = animator.animate(motion, mode=mode)
+    assert anim.vertices.shape == (motion.num_frames, animator.bundle.template.num_vertices, 3)
+    assert np.isfinite(anim.vertices).all() and anim.joints.shape == (motion.num_frames, 22, 3)
+    assert 0 <= anim.entropy.min() and anim.entropy.max() <= math.log(animator.bundle.codespace.config.classes) + 1e-5
+    if mode == "regression":
+        assert anim.mode.sum() == 0 and (anim.source == -1).all()
+    if mode in ("retrieval", "naive-nn"):
+        assert anim.mode.all() and (anim.source >= 0).all()
+
+
+def test_excluding_a_sequence_never_retrieves_it(animator):
+    anim = animator.animate(synthesize("walk", 1.0, seed=0), mode="retrieval", exclude_sequence=0)
+    assert (anim.source[:, 0] != 0).all()
+
+
+def test_clip_shorter_than_a_window_is_padded(animator):
+    anim = animator.animate(synthesize("walk", 0.2, seed=1))  # 6 frames < W = 10
+    assert anim.vertices.shape[0] == 6 and np.isfinite(anim.vertices).all()
+
+
+def test_blending_keeps_a_constant_and_favours_centres():
+    w = window_weights(10)
+    assert np.allclose(w, w[::-1]) and w.argmax() in (4, 5) and w.min() > 0
+    windows = np.full((7, 10, 3, 2), 2.5, np.float32)
+    assert np.allclose(blend_windows(windows, 16), 2.5)
+    ramp = np.arange(16, dtype=np.float32)
+    windows = np.stack([ramp[i:i + 10] for i in range(7)])[..., None]
+    assert np.allclose(blend_windows(windows, 16)[:, 0], ramp)  # consistent windows blend to themselves
+
+
+def test_to_world_inverts_the_heading_frame(rng):
+    motion = synthesize("turn_in_place", 1.0, seed=3)
+    points = rng.normal(size=(motion.num_frames, 5, 3))
+    assert np.allclose(to_world(heading_frame(points, motion), motion), points, atol=1e-9)
+
+
+def test_inertialization_is_continuous_in_position_and_velocity():
+    inert = Inertializer(frames=6)
+    out = np.array([inert.step(np.array([0.01 * t if t < 10 else 1.0 + 0.01 * t]), ("a",) if t < 10 else ("b",))[0]
+                    for t in range(30)])
+    step = np.diff(out)
+    assert abs(step[9] - 0.01) < 0.03  # across the 1.0 jump at frame 10 the velocity carries on ...
+    assert np.abs(np.diff(step)).max() < 6.0 / 6**2  # ... and the jump is absorbed with bounded acceleration
+    assert np.allclose(out[20:], 1.0 + 0.01 * np.arange(20, 30))  # and then follows the new source exactly
+
+
+def test_push_out_moves_vertices_outside_without_spikes():
+    from hrr_garment.body.capsules import DEFAULT_BODY, capsule_signed_distance
+    from hrr_garment.garment.templates import make_garment
+    from hrr_garment.inference.collision import push_out
+    from hrr_garment.sim.quality import edge_strain
+
+    skirt = make_garment("skirt", 300)
+    motion = synthesize("idle", 0.2, seed=0)
+    rest = to_world(heading_frame(np.repeat(skirt.vertices[None], motion.num_frames, 0).astype(np.float64), motion), motion)
+    squeezed = rest.copy()
+    centre = np.array([0.0, 0.0, 0.0])
+    centre[[0, 2]] = rest[0, :, [0, 2]].mean(1)
+    squeezed[..., [0, 2]] = centre[[0, 2]] + 0.85 * (rest[..., [0, 2]] - centre[[0, 2]])  # 15 % narrower: into the hips
+    pushed, report = push_out(squeezed.astype(np.float32), motion, skirt.faces)
+    assert report.inside_before > 0.05 and report.inside_after == 0.0
+    a, b = DEFAULT_BODY.pose_motion(motion)
+    d, _, _ = capsule_signed_distance(pushed[0].astype(np.float64), a[0], b[0], DEFAULT_BODY.radii)
+    assert d.min() > -1e-6
+    edges = skirt.edges()
+    # no spikes: edges end at most 35 % longer than in the unsqueezed skirt
+    assert edge_strain(pushed, skirt.vertices, edges).max() <= edge_strain(rest, skirt.vertices, edges).max() + 0.35
+
+
+def test_hrr_animate_writes_out_h5_and_refuses_bad_motion(trained, tmp_path, capsys):
+    from hrr_garment.cli.animate import main as animate_main
+    from hrr_garment.export.h5 import read_animation_h5
+    from hrr_garment.motion.io import save_motion
+
+    root, _, _ = trained
+    clip = tmp_path / "walk.npz"
+    save_motion(synthesize("walk", 1.0, seed=4), clip)
+    out = tmp_path / "out.h5"
+    assert animate_main([str(clip), "-o", str(out), "--model", str(root / "model")]) == 0
+    assert "retrieval usage" in capsys.readouterr().out
+    data = read_animation_h5(out)
+    assert data["vertices"].shape == (30, 308, 3) and data["faces"].dtype == np.int32
+    assert data["body/joints"].shape == (30, 22, 3) and data["diagnostics/mode"].dtype == np.uint8
+    attrs = data["attrs"]
+    assert attrs["fps"] == 30 and attrs["units"] == "m" and attrs["up_axis"] == "Y" and attrs["garment"] == "skirt"
+    assert attrs["format_version"] == 1 and len(attrs["model_hash"]) == 16
+    with np.load(clip) as z:
+        arrays = dict(z)
+    arrays["root_translation"] = arrays["root_translation"].copy()
+    arrays["root_translation"][3] = np.nan
+    bad = tmp_path / "nan.npz"
+    np.savez(bad, **arrays)
+    out2 = tmp_path / "bad.h5"
+    assert animate_main([str(bad), "-o", str(out2), "--model", str(root / "model")]) == 2
+    assert "nan.npz" in capsys.readouterr().err and not out2.exists()
+    assert animate_main([str(clip), "-o", str(out2), "--model", str(tmp_path / "nothing")]) == 2
+    assert "nothing" in capsys.readouterr().err and not out2.exists()
