@@ -12,6 +12,11 @@ Garment side::
     dress = make_garment("dress", vertices=1000)             # GarmentMesh fitted to the body
     result = simulate_garment(dress, motion)                  # needs the ``sim`` extra (newton)
     ds = GarmentDataset("hrr_work/datasets/dress-quick.h5")  # what hrr-simulate writes
+
+Animation (after ``hrr-train --garment dress``)::
+
+    from hrr_garment import Animator
+    anim = Animator.load("dress").animate(load_motion("walk.bvh"))   # Animation, anim.save("out.h5")
 """
 
 __version__ = "0.1.0"  # before the imports: submodules read it
@@ -27,10 +32,13 @@ from .motion.skeleton import CANONICAL, JOINT_NAMES
 from .motion.synth import KINDS as MOTION_KINDS
 from .motion.synth import synthesize
 from .sim.simulator import SimConfig, SimResult, SimulationExploded, simulate_garment
+from .inference.animator import Animation, AnimationStream, Animator
+from .train.bundle import Bundle, BundleError, load_bundle
 
 __all__ = [
     "CANONICAL", "FEATURE_DIM", "FeatureStats", "HRRError", "InputError", "JOINT_NAMES", "MOTION_KINDS", "Motion",
     "MotionError", "SkeletonMappingError", "load_motion", "motion_features", "save_amass", "save_motion", "synthesize", "windows",
     "GARMENT_NAMES", "GarmentDataset", "GarmentError", "GarmentMesh", "SequenceRecord", "SimConfig", "SimResult",
     "SimulationExploded", "make_garment", "simulate_garment",
+    "Animation", "AnimationStream", "Animator", "Bundle", "BundleError", "load_bundle",
 ]  # fmt: skip

@@ -57,13 +57,15 @@ def push_out(vertices: np.ndarray, motion: Motion, faces: np.ndarray, body: Body
                 disp = mean @ disp
                 along = (disp[hit] * n[hit]).sum(1)
                 disp[hit] += np.maximum(need[hit] - along, 0.0)[:, None] * n[hit]
-            p = p + disp
-            d, n, _ = capsule_signed_distance(p, a[t], b[t], radii)
+            moved = np.flatnonzero(np.abs(disp).sum(1) > 0)  # only these need a new distance
+            p[moved] += disp[moved]
+            d[moved], n[moved], _ = capsule_signed_distance(p[moved], a[t], b[t], radii)
         for _ in range(4):  # exact projection; repeated where a push lands in another capsule
-            if not (d < 0).any():
+            inside = np.flatnonzero(d < 0)
+            if not len(inside):
                 break
-            p += np.maximum(margin - d, 0.0)[:, None] * n * (d < 0)[:, None]
-            d, n, _ = capsule_signed_distance(p, a[t], b[t], radii)
+            p[inside] += (margin - d[inside])[:, None] * n[inside]
+            d[inside], n[inside], _ = capsule_signed_distance(p[inside], a[t], b[t], radii)
         out[t] = p
         after[t] = (d < -depth).mean()
     return out, PushOutReport(float(before.mean()), float(after.mean()), float(before.max(initial=0)), float(after.max(initial=0)))

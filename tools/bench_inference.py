@@ -1,0 +1,113 @@
+"""Benchmark: end-to-end inference speed (motion features -> world-space garment vertices).
+
+Builds a model with random weights at the given template resolution (speed does not depend on the
+weights) and a retrieval database of realistic size (``--database`` windows; the full preset has
+about 5,700), then times on one procedural clip:
+
+- offline animation per mode (hybrid at the default tau, regression-only, retrieval-only), frames/s
+  from the clip's features to world vertices, without and with the collision push-out;
+- streaming: one ``push`` per frame (features, motion encoder, gate, decoder, push-out), per-frame
+  latency percentiles;
+- peak resident memory of the process.
+
+    python tools/bench_inference.py                       # 4,000 and 12,000 vertices
+    python tools/bench_inference.py --vertices 4000 --json
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import resource
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from hrr_garment.garment.templates import make_garment
+from hrr_garment.inference.animator import Animator
+from hrr_garment.inference.database import CodeDatabase
+from hrr_garment.models.codespace import CodeSpace, CodeSpaceConfig
+from hrr_garment.models.fcmae import AutoencoderConfig, MeshAutoencoder
+from hrr_garment.models.hierarchy import build_hierarchy
+from hrr_garment.motion.features import FEATURE_DIM, FeatureStats
+from hrr_garment.motion.synth import synthesize
+from hrr_garment.train.bundle import Bundle
+
+
+def random_bundle(vertices: int, windows: int, seed: int = 0) -> Bundle:
+    torch.manual_seed(seed)
+    rng = np.random.default_rng(seed)
+    garment = make_garment("dress", vertices)
+    ae = MeshAutoencoder(build_hierarchy(garment.faces, garment.num_vertices), AutoencoderConfig(), garment.vertices,
+                         0.02).eval()
+    cfg = CodeSpaceConfig()
+    cs = CodeSpace(cfg, FEATURE_DIM, ae.latent_shape).eval()
+    size = ae.latent_shape[0] * ae.latent_shape[1]
+    db = CodeDatabase(rng.integers(0, cfg.classes, (windows, cfg.groups)),
+                      rng.normal(size=(windows, cfg.window, *ae.latent_shape)).astype(np.float32),
+                      np.arange(windows) // 111, np.arange(windows) % 111, [f"s{i}" for i in range(windows // 111 + 1)],
+                      cfg.classes, rng.normal(size=(windows, cfg.window, FEATURE_DIM)).astype(np.float32))
+    meta = {"tau": 1.0, "garment": "dress", "content_hash": "random"}
+    return Bundle(Path("."), meta, ae, cs, FeatureStats(np.zeros(FEATURE_DIM, np.float32), np.ones(FEATURE_DIM, np.float32)),
+                  FeatureStats(np.zeros(size, np.float32), np.ones(size, np.float32)), db, garment)
+
+
+def _fps(animator: Animator, motion, **kwargs) -> float:
+    animator.animate(motion.slice(0, 40), **kwargs)  # warm-up
+    t0 = time.perf_counter()
+    animator.animate(motion, **kwargs)
+    return motion.num_frames / (time.perf_counter() - t0)
+
+
+def bench(vertices: int, windows: int, seconds: float) -> dict:
+    bundle = random_bundle(vertices, windows)
+    animator = Animator(bundle)
+    motion = synthesize("walk_curve", seconds, seed=0)
+    q = bundle.codespace.quantizer
+    with torch.no_grad():  # a tau at the median entropy: about half the windows retrieve
+        from hrr_garment.models.codebook import group_entropy
+        from hrr_garment.motion.features import motion_features, windows as feature_windows
+
+        logits = bundle.codespace.motion_encoder(torch.from_numpy(np.ascontiguousarray(feature_windows(motion_features(motion), 10))))
+        tau = float(group_entropy(q.split(logits)).median())
+    out = {"vertices": bundle.template.num_vertices, "database_windows": windows, "clip_frames": motion.num_frames,
+           "threads": torch.get_num_threads()}
+    for mode in ("hybrid", "regression", "retrieval"):
+        out[f"fps_{mode}"] = round(_fps(animator, motion, mode=mode, tau=tau, collision=False), 1)
+    out["fps_hybrid_with_collision"] = round(_fps(animator, motion, mode="hybrid", tau=tau, collision=True), 1)
+    for collision in (True, False):
+        stream = animator.stream(tau=tau, collision=collision)
+        for t in range(motion.num_frames):
+            stream.push(motion.slice(t, t + 1))
+        lat = 1000 * np.array(stream.latency_s)[20:]  # after warm-up
+        key = "stream" if collision else "stream_no_collision"
+        out[f"{key}_p50_ms"] = round(float(np.percentile(lat, 50)), 2)
+        out[f"{key}_p99_ms"] = round(float(np.percentile(lat, 99)), 2)
+    out["peak_rss_mb"] = round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 1)
+    out["native_decoder"] = animator.decoder.native
+    return out
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--vertices", type=int, nargs="+", default=[4000, 12000])
+    parser.add_argument("--database", type=int, default=5700, help="database windows (the full preset has ~5,700)")
+    parser.add_argument("--seconds", type=float, default=20.0, help="clip length")
+    parser.add_argument("--json", action="store_true", help="one JSON object per resolution, nothing else")
+    args = parser.parse_args()
+    for v in args.vertices:
+        r = bench(v, args.database, args.seconds)
+        if args.json:
+            print(json.dumps(r))
+        else:
+            print(f"{r['vertices']} vertices, database {r['database_windows']} windows, {r['clip_frames']}-frame clip, "
+                  f"{r['threads']} threads: offline frames/s hybrid {r['fps_hybrid']}, regression {r['fps_regression']}, "
+                  f"retrieval {r['fps_retrieval']} (hybrid with push-out {r['fps_hybrid_with_collision']}); streaming "
+                  f"p50 {r['stream_p50_ms']} ms, p99 {r['stream_p99_ms']} ms (without push-out p50 "
+                  f"{r['stream_no_collision_p50_ms']}, p99 {r['stream_no_collision_p99_ms']}); peak RSS {r['peak_rss_mb']} MB")
+
+
+if __name__ == "__main__":
+    main()
