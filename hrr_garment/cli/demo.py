@@ -1,15 +1,15 @@
 """hrr-demo: the current end-to-end job on built-in inputs.
 
-At this stage: synthesize procedural motions, load a real CMU clip, print their summaries and
-feature shapes, write a skeleton preview image, then simulate a small dress on a walk and a spin
-(newton cloth; the first run on a machine compiles kernels for about a minute) and write the
-garment preview. Outputs go to <workspace>/demo; a re-run reuses the finished simulations.
+Synthesize procedural motions, load a real CMU clip, print their summaries and feature shapes,
+write a skeleton preview image; then train the dress model of the ``--preset`` (default quick:
+simulation, autoencoder and code space, about 25 minutes on 2 cores the first time; every stage is
+reused afterwards) exactly as ``hrr-train --garment dress`` does, and animate the CMU clip (or a
+procedural walk without the shared data) into <workspace>/demo/out.h5.
 """
 
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 from typing import Sequence
@@ -24,7 +24,8 @@ from ._common import run_cli
 def _body(argv: Sequence[str] | None) -> int:
     parser = argparse.ArgumentParser(prog="hrr-demo", description=__doc__)
     parser.add_argument("--out", default=None, help="output folder (default: <workspace>/demo)")
-    parser.add_argument("--no-sim", action="store_true", help="skip the cloth simulation")
+    parser.add_argument("--preset", default="quick", help="training preset of the demo model (tiny: a few minutes)")
+    parser.add_argument("--no-train", action="store_true", help="stop after the motion part")
     args = parser.parse_args(argv)
     out = workspace() / "demo" if args.out is None else Path(args.out)
     rows = []
@@ -51,27 +52,22 @@ def _body(argv: Sequence[str] | None) -> int:
         return 0
     path = render_skeleton_preview(rows, out / "skeleton_preview.png")
     print(f"skeleton preview: {path}")
-    if not args.no_sim:
-        _simulate(out)
-    return 0
+    if args.no_train:
+        return 0
+    from .animate import main as animate_main
+    from .train import main as train_main
 
+    print(f"== training the dress model ({args.preset} preset; reused when already trained)")
+    if train_main(["--garment", "dress", "--preset", args.preset]) != 0:
+        return 2
+    motion_file = clip
+    if motion_file is None or not motion_file.exists():
+        from ..motion.io import save_motion
 
-def _simulate(out: Path) -> None:
-    """The tiny preset's dress on a 2 s walk and spin, through the real dataset builder."""
-    from ..garment.templates import make_garment
-    from ..sim.build import build_dataset
-    from ..sim.plan import load_preset, plan_sequences
-    from ..sim.simulator import SimConfig
-
-    preset = load_preset("tiny")
-    garment = make_garment("dress", preset.vertices)
-    specs = plan_sequences(preset, ["walk", "spin"], 2.0)
-    report = build_dataset(garment, specs, SimConfig.from_dict(preset.sim), out / "dress-demo.h5", splits=preset.splits)
-    s = report.summary
-    print(f"== cloth: {garment.num_vertices}-vertex dress, {s['sequences']} sequences, {s['frames']} frames -> {report.path}")
-    print(f"   strain p99 {s['strain_p99']:.3f}, worst-frame penetration {100 * s['penetration_frame_max']:.2f} %, "
-          f"hem swing (m) {json.dumps({k: round(v, 3) for k, v in s['hem_swing_m_by_kind'].items()})}")
-    print(f"   garment preview: {report.preview}")
+        motion_file = out / "walk.npz"
+        save_motion(synthesize("walk", seconds=6.0, seed=5), motion_file)
+    print(f"== animating {motion_file.name}")
+    return animate_main([str(motion_file), "-o", str(out / "out.h5"), "--model", str(workspace() / "models" / f"dress-{args.preset}")])
 
 
 def main(argv: Sequence[str] | None = None) -> int:
