@@ -127,3 +127,30 @@ def test_hrr_animate_writes_out_h5_and_refuses_bad_motion(trained, tmp_path, cap
     assert "nan.npz" in capsys.readouterr().err and not out2.exists()
     assert animate_main([str(clip), "-o", str(out2), "--model", str(tmp_path / "nothing")]) == 2
     assert "nothing" in capsys.readouterr().err and not out2.exists()
+
+
+def test_hrr_animate_explains_bad_models_and_outputs(trained, tmp_path, capsys, mocap_dir):
+    import shutil
+
+    from hrr_garment.cli.animate import main as animate_main
+
+    root, _, _ = trained
+    clip = mocap_dir / "cmu" / "02_01.bvh"
+    model = tmp_path / "model"
+    shutil.copytree(root / "model", model)
+    cases = [
+        ([str(clip), "-o", str(tmp_path / "out.h5"), "--model", str(model), "--garment", "dress"], "animates a skirt, not a dress"),
+        ([str(clip), "-o", str(tmp_path / "missing" / "out.h5"), "--model", str(model)], "not a writable directory"),
+    ]
+    for args, message in cases:
+        assert animate_main(args) == 2
+        assert message in capsys.readouterr().err
+    weights = model / "decoder.safetensors"
+    weights.write_bytes(weights.read_bytes()[:50])
+    assert animate_main([str(clip), "-o", str(tmp_path / "out.h5"), "--model", str(model)]) == 2
+    assert "decoder.safetensors" in capsys.readouterr().err
+    unknown = tmp_path / "odd.bvh"
+    unknown.write_text(clip.read_text().replace("LeftUpLeg", "Wing").replace("RightUpLeg", "Fin"))
+    assert animate_main([str(unknown), "-o", str(tmp_path / "out.h5"), "--model", str(root / "model")]) == 2
+    assert "odd.bvh" in capsys.readouterr().err
+    assert not list(tmp_path.glob("*.h5")) and not list(tmp_path.glob(".*tmp*"))

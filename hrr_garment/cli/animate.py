@@ -12,6 +12,7 @@ docs/inference.md), written atomically. Offline (default) blends windows centred
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
 from pathlib import Path
@@ -40,16 +41,21 @@ def _main(argv: Sequence[str] | None) -> int:
     from ..inference.animator import Animator, find_model
     from ..motion.io import load_motion
 
-    if (args.garment is None) == (args.model is None):
-        raise InputError("hrr-animate", "give exactly one of --garment NAME or --model DIR")
+    if args.garment is None and args.model is None:
+        raise InputError("hrr-animate", "give --garment NAME or --model DIR")
     if args.output.suffix.lower() not in (".h5", ".hdf5"):
         raise InputError(args.output, "the output must be an .h5 file")
+    parent = args.output.resolve().parent
+    if not parent.is_dir() or not os.access(parent, os.W_OK):
+        raise InputError(args.output, f"cannot write here: {parent} is not a writable directory")
     model_dir = find_model(args.model or args.garment)
     if args.model is None:
         print(f"model: {model_dir}")
     t0 = time.perf_counter()
     motion = load_motion(args.motion, **({"unit_scale": args.unit_scale} if args.unit_scale else {}))
     animator = Animator.load(model_dir)
+    if args.garment is not None and animator.bundle.garment != args.garment:
+        raise InputError(model_dir, f"this model animates a {animator.bundle.garment}, not a {args.garment}")
     anim = animator.animate(motion, mode=args.mode, tau=args.tau, collision=not args.no_collision, causal=args.causal)
     anim.save(args.output)
     seconds = time.perf_counter() - t0
