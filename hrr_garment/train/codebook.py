@@ -45,6 +45,7 @@ class CodebookTrainConfig:
     match_weight: float = 0.1  # stage 1
     match_weight_late: float = 0.5  # after the reconstruction plateau
     diversity: float = 0.05
+    regress: float = 1.0  # weight of decoder(E(c_m)) vs z: trains the regression path directly
     temperature: float = 1.0  # Gumbel-Softmax temperature at epoch 0 ...
     temperature_decay: float = 0.98  # ... times this per epoch ...
     temperature_min: float = 0.3  # ... down to this
@@ -174,6 +175,8 @@ def train_codespace(model: CodeSpace, train: WindowTensors, val: WindowTensors, 
             idx = order[i:i + config.batch_size]
             out = _losses(model, train.motion[idx], train.latents[idx], temperature)
             loss = out["rec"] + match_weight * out["match"] + config.diversity * out["diversity"]
+            if config.regress:
+                loss = loss + config.regress * out["regress"]
             optimizer.zero_grad(set_to_none=True)
             loss.backward()
             optimizer.step()
