@@ -154,3 +154,17 @@ def test_hrr_animate_explains_bad_models_and_outputs(trained, tmp_path, capsys, 
     assert animate_main([str(unknown), "-o", str(tmp_path / "out.h5"), "--model", str(root / "model")]) == 2
     assert "odd.bvh" in capsys.readouterr().err
     assert not list(tmp_path.glob("*.h5")) and not list(tmp_path.glob(".*tmp*"))
+
+
+def test_native_capsule_distance_equals_numpy(rng):
+    from hrr_garment.body.capsules import DEFAULT_BODY, capsule_signed_distance
+    from hrr_garment.models.native import capsule_sdf, load_kernel
+
+    lib = load_kernel()
+    if lib is None:
+        pytest.skip("no C compiler")
+    a, b = DEFAULT_BODY.pose_motion(synthesize("run", 0.2, seed=1))
+    points = rng.normal(size=(500, 3)) * 0.3 + [0.0, 1.0, 0.0]
+    d, n, _ = capsule_signed_distance(points, a[2], b[2], DEFAULT_BODY.radii)
+    d2, n2 = capsule_sdf(lib, points, a[2], b[2], DEFAULT_BODY.radii)
+    assert np.allclose(d, d2, atol=1e-12) and np.allclose(n, n2, atol=1e-12)

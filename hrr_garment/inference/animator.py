@@ -25,7 +25,7 @@ from ..motion.features import motion_features
 from ..motion.motion import Motion
 from ..paths import workspace
 from ..train.bundle import Bundle, BundleError, load_bundle
-from .collision import PushOutReport, push_out
+from .collision import PushOutReport, mean_operator, push_out
 from .engine import (
     Inertializer,
     blend_windows,
@@ -91,6 +91,7 @@ class Animator:
         self.bundle = bundle
         self.blend = blend  # inertialization frames in causal mode
         self.decoder = bundle.autoencoder.fast_decoder()
+        self.smoothing = mean_operator(bundle.template.faces, bundle.template.num_vertices)  # for the push-out
 
     @classmethod
     def load(cls, model: str | Path) -> "Animator":
@@ -125,7 +126,7 @@ class Animator:
         vertices = to_world(heading_vertices(self.bundle, latents, self.decoder), motion).astype(np.float32)
         report = None
         if collision:
-            vertices, report = push_out(vertices, motion, self.bundle.template.faces)
+            vertices, report = push_out(vertices, motion, self.bundle.template.faces, mean=self.smoothing)
         return Animation(vertices, self.bundle.template.faces, motion.fps, choice.retrieved[per_frame].astype(np.uint8),
                          choice.entropy[per_frame].astype(np.float32), choice.source[per_frame], motion.joint_positions,
                          self.bundle.garment, self.bundle.content_hash, motion.source,
@@ -169,7 +170,7 @@ class AnimationStream:
             local = self.animator.decoder(torch.from_numpy(latent[None].astype(np.float32))).numpy()
         vertices = to_world(local, pose)
         if self.collision:
-            vertices, _ = push_out(vertices, pose, self.animator.bundle.template.faces)
+            vertices, _ = push_out(vertices, pose, self.animator.bundle.template.faces, mean=self.animator.smoothing)
         self._prev = pose
         self.frames += 1
         self.latency_s.append(time.perf_counter() - t0)

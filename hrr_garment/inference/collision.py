@@ -36,16 +36,26 @@ def mean_operator(faces: np.ndarray, num_vertices: int) -> csr_matrix:
 
 
 def push_out(vertices: np.ndarray, motion: Motion, faces: np.ndarray, body: BodyModel = DEFAULT_BODY, margin: float = 0.002,
-             smooth: int = 4, rounds: int = 3, depth: float = 0.005) -> tuple[np.ndarray, PushOutReport]:
-    """(T, V, 3) world vertices -> pushed copy and a report (fractions of vertices > ``depth`` inside)."""
+             smooth: int = 4, rounds: int = 3, depth: float = 0.005, mean: csr_matrix | None = None
+             ) -> tuple[np.ndarray, PushOutReport]:
+    """(T, V, 3) world vertices -> pushed copy and a report (fractions of vertices > ``depth`` inside).
+    ``mean``: :func:`mean_operator` of the faces, when the caller keeps one (streaming)."""
     a, b = body.pose_motion(motion)
     radii = body.radii
-    mean = mean_operator(faces, vertices.shape[1])
+    from ..models.native import capsule_sdf, load_kernel
+
+    lib = load_kernel()
+
+    def sdf(points, t):
+        if lib is None:
+            return capsule_signed_distance(points, a[t], b[t], radii)[:2]
+        return capsule_sdf(lib, points, a[t], b[t], radii)
+    mean = mean_operator(faces, vertices.shape[1]) if mean is None else mean
     out = vertices.astype(np.float32).copy()
     before, after = np.zeros(len(out)), np.zeros(len(out))
     for t in range(len(out)):
         p = out[t].astype(np.float64)
-        d, n, _ = capsule_signed_distance(p, a[t], b[t], radii)
+        d, n = sdf(p, t)
         before[t] = (d < -depth).mean()
         for _ in range(rounds):
             need = np.maximum(margin - d, 0.0)  # how far along the normal each vertex must move
@@ -59,13 +69,13 @@ def push_out(vertices: np.ndarray, motion: Motion, faces: np.ndarray, body: Body
                 disp[hit] += np.maximum(need[hit] - along, 0.0)[:, None] * n[hit]
             moved = np.flatnonzero(np.abs(disp).sum(1) > 0)  # only these need a new distance
             p[moved] += disp[moved]
-            d[moved], n[moved], _ = capsule_signed_distance(p[moved], a[t], b[t], radii)
+            d[moved], n[moved] = sdf(p[moved], t)
         for _ in range(4):  # exact projection; repeated where a push lands in another capsule
             inside = np.flatnonzero(d < 0)
             if not len(inside):
                 break
             p[inside] += (margin - d[inside])[:, None] * n[inside]
-            d[inside], n[inside], _ = capsule_signed_distance(p[inside], a[t], b[t], radii)
+            d[inside], n[inside] = sdf(p[inside], t)
         out[t] = p
         after[t] = (d < -depth).mean()
     return out, PushOutReport(float(before.mean()), float(after.mean()), float(before.max(initial=0)), float(after.max(initial=0)))

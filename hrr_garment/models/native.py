@@ -1,4 +1,5 @@
-"""A fused C kernel for the mesh decoder's blocks (inference only), compiled on first use.
+"""Fused C kernels for inference, compiled on first use: the mesh decoder's blocks (below) and the
+capsule-body signed distance of the collision push-out.
 
 PyTorch runs a spatially varying convolution as a gather (materialising every neighbour's row for
 every output vertex: S times the layer's output), a layout copy, then small per-vertex matmuls;
@@ -164,6 +165,34 @@ void hrr_block(const float *x, int B, int cin, int cout, int V, const int32_t *o
         free(zeros);
     }
 }
+
+/* Signed distance of points (N, 3) to the union of C capsules (ends a, b (C, 3), radii (C)):
+   distance (N) and the nearest capsule's outward unit normal (N, 3); negative inside. */
+void hrr_capsule_sdf(const double *p, int N, const double *a, const double *b, const double *radii, int C,
+                     int threads, double *dist, double *normal)
+{
+    #pragma omp parallel for num_threads(threads) schedule(static)
+    for (int i = 0; i < N; ++i) {
+        const double px = p[3 * i], py = p[3 * i + 1], pz = p[3 * i + 2];
+        double best = 1e300, bx = 0, by = 0, bz = 0, baxis = 1;
+        for (int c = 0; c < C; ++c) {
+            const double ax = a[3 * c], ay = a[3 * c + 1], az = a[3 * c + 2];
+            const double ex = b[3 * c] - ax, ey = b[3 * c + 1] - ay, ez = b[3 * c + 2] - az;
+            const double rx = px - ax, ry = py - ay, rz = pz - az;
+            double den = ex * ex + ey * ey + ez * ez;
+            den = den > 1e-12 ? den : 1e-12;
+            double s = (rx * ex + ry * ey + rz * ez) / den;
+            s = s < 0 ? 0 : (s > 1 ? 1 : s);
+            const double dx = rx - s * ex, dy = ry - s * ey, dz = rz - s * ez;
+            const double axis = sqrt(dx * dx + dy * dy + dz * dz);
+            const double sd = axis - radii[c];
+            if (sd < best) { best = sd; bx = dx; by = dy; bz = dz; baxis = axis; }
+        }
+        const double inv = 1.0 / (baxis > 1e-12 ? baxis : 1e-12);
+        dist[i] = best;
+        normal[3 * i] = bx * inv; normal[3 * i + 1] = by * inv; normal[3 * i + 2] = bz * inv;
+    }
+}
 """
 
 FLAGS = ["-O3", "-march=native", "-mprefer-vector-width=512", "-fno-math-errno", "-fno-trapping-math", "-fopenmp",
@@ -215,6 +244,9 @@ def load_kernel(cache_dir: str | Path | None = None) -> ctypes.CDLL | None:
                 lib.hrr_block.argtypes = [f, c_int, c_int, c_int, c_int, i32, i32, f, f, f, f, c_float, c_float, c_int,
                                           c_int, f]
                 lib.hrr_block.restype = None
+                d = ctypes.POINTER(ctypes.c_double)
+                lib.hrr_capsule_sdf.argtypes = [d, c_int, d, d, d, c_int, c_int, d, d]
+                lib.hrr_capsule_sdf.restype = None
                 _loaded[str(target)] = lib
             except (OSError, subprocess.CalledProcessError) as exc:
                 detail = getattr(exc, "stderr", "") or str(exc)
@@ -258,3 +290,14 @@ class NativeBlock:
                       _ptr(self.nbr, ctypes.c_int32), _ptr(self.kernel), _ptr(self.bias),
                       _ptr(self.pool), _ptr(self.proj), self.a, self.b, int(self.elu), threads, _ptr(out))
         return out if self.width == self.cout else np.ascontiguousarray(out[..., :self.cout])
+
+
+def capsule_sdf(lib: ctypes.CDLL, points: np.ndarray, a: np.ndarray, b: np.ndarray, radii: np.ndarray,
+                threads: int = 1) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`hrr_garment.body.capsules.capsule_signed_distance` (distance, normal) in the kernel."""
+    p = np.ascontiguousarray(points, np.float64)
+    a, b, r = (np.ascontiguousarray(x, np.float64) for x in (a, b, radii))
+    dist, normal = np.empty(len(p)), np.empty((len(p), 3))
+    d = ctypes.c_double
+    lib.hrr_capsule_sdf(_ptr(p, d), len(p), _ptr(a, d), _ptr(b, d), _ptr(r, d), len(r), threads, _ptr(dist, d), _ptr(normal, d))
+    return dist, normal
