@@ -166,5 +166,7 @@ def test_native_capsule_distance_equals_numpy(rng):
     a, b = DEFAULT_BODY.pose_motion(synthesize("run", 0.2, seed=1))
     points = rng.normal(size=(500, 3)) * 0.3 + [0.0, 1.0, 0.0]
     d, n, _ = capsule_signed_distance(points, a[2], b[2], DEFAULT_BODY.radii)
-    d2, n2 = capsule_sdf(lib, points, a[2], b[2], DEFAULT_BODY.radii)
-    assert np.allclose(d, d2, atol=1e-12) and np.allclose(n, n2, atol=1e-12)
+    d2, n2 = capsule_sdf(lib, np.stack([points, points + 0.1]), a[2:4], b[2:4], DEFAULT_BODY.radii)
+    assert np.allclose(d, d2[0], atol=1e-12) and np.allclose(n, n2[0], atol=1e-12)
+    d3, _, _ = capsule_signed_distance(points + 0.1, a[3], b[3], DEFAULT_BODY.radii)
+    assert np.allclose(d3, d2[1], atol=1e-12)  # each frame against its own capsules

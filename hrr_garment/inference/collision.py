@@ -35,47 +35,55 @@ def mean_operator(faces: np.ndarray, num_vertices: int) -> csr_matrix:
     return diags(1.0 / np.maximum(np.asarray(a.sum(1)).ravel(), 1)) @ a
 
 
-def push_out(vertices: np.ndarray, motion: Motion, faces: np.ndarray, body: BodyModel = DEFAULT_BODY, margin: float = 0.002,
-             smooth: int = 4, rounds: int = 3, depth: float = 0.005, mean: csr_matrix | None = None
-             ) -> tuple[np.ndarray, PushOutReport]:
-    """(T, V, 3) world vertices -> pushed copy and a report (fractions of vertices > ``depth`` inside).
-    ``mean``: :func:`mean_operator` of the faces, when the caller keeps one (streaming)."""
-    a, b = body.pose_motion(motion)
-    radii = body.radii
+def _distances(points: np.ndarray, a: np.ndarray, b: np.ndarray, radii: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(T, V) signed distances and (T, V, 3) normals of points (T, V, 3) to per-frame capsules."""
     from ..models.native import capsule_sdf, load_kernel
 
     lib = load_kernel()
+    if lib is not None:
+        return capsule_sdf(lib, points, a, b, radii, threads=2)
+    out = [capsule_signed_distance(points[t], a[t], b[t], radii)[:2] for t in range(len(points))]
+    return np.stack([o[0] for o in out]), np.stack([o[1] for o in out])
 
-    def sdf(points, t):
-        if lib is None:
-            return capsule_signed_distance(points, a[t], b[t], radii)[:2]
-        return capsule_sdf(lib, points, a[t], b[t], radii)
+
+def push_out(vertices: np.ndarray, motion: Motion, faces: np.ndarray, body: BodyModel = DEFAULT_BODY, margin: float = 0.002,
+             smooth: int = 4, rounds: int = 3, depth: float = 0.005, mean: csr_matrix | None = None,
+             chunk: int = 64) -> tuple[np.ndarray, PushOutReport]:
+    """(T, V, 3) world vertices -> pushed copy and a report (fractions of vertices > ``depth`` inside).
+    ``mean``: :func:`mean_operator` of the faces, when the caller keeps one (streaming). Frames are
+    processed ``chunk`` at a time, all at once within a chunk."""
+    a, b = body.pose_motion(motion)
     mean = mean_operator(faces, vertices.shape[1]) if mean is None else mean
-    out = vertices.astype(np.float32).copy()
+    out = np.empty(vertices.shape, np.float32)
     before, after = np.zeros(len(out)), np.zeros(len(out))
-    for t in range(len(out)):
-        p = out[t].astype(np.float64)
-        d, n = sdf(p, t)
-        before[t] = (d < -depth).mean()
-        for _ in range(rounds):
-            need = np.maximum(margin - d, 0.0)  # how far along the normal each vertex must move
-            if not need.any():
-                break
-            hit = need > 0
-            disp = need[:, None] * n
-            for _ in range(smooth):  # spread the push to the neighbours, never below what is needed
-                disp = mean @ disp
-                along = (disp[hit] * n[hit]).sum(1)
-                disp[hit] += np.maximum(need[hit] - along, 0.0)[:, None] * n[hit]
-            moved = np.flatnonzero(np.abs(disp).sum(1) > 0)  # only these need a new distance
-            p[moved] += disp[moved]
-            d[moved], n[moved] = sdf(p[moved], t)
-        for _ in range(4):  # exact projection; repeated where a push lands in another capsule
-            inside = np.flatnonzero(d < 0)
-            if not len(inside):
-                break
-            p[inside] += (margin - d[inside])[:, None] * n[inside]
-            d[inside], n[inside] = sdf(p[inside], t)
-        out[t] = p
-        after[t] = (d < -depth).mean()
+    for start in range(0, len(out), chunk):
+        sl = slice(start, start + chunk)
+        out[sl], before[sl], after[sl] = _push_frames(vertices[sl].astype(np.float64), a[sl], b[sl], body.radii, mean, margin,
+                                                      smooth, rounds, depth)
     return out, PushOutReport(float(before.mean()), float(after.mean()), float(before.max(initial=0)), float(after.max(initial=0)))
+
+
+def _push_frames(p: np.ndarray, a: np.ndarray, b: np.ndarray, radii: np.ndarray, mean: csr_matrix, margin: float,
+                 smooth: int, rounds: int, depth: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    t, v = p.shape[:2]
+    d, n = _distances(p, a, b, radii)
+    before = (d < -depth).mean(1)
+    for _ in range(rounds):
+        need = np.maximum(margin - d, 0.0)  # how far along the normal each vertex must move
+        if not need.any():
+            break
+        hit = need > 0
+        disp = need[..., None] * n
+        for _ in range(smooth):  # spread the push to the neighbours, never below what is needed
+            disp = (mean @ disp.transpose(1, 0, 2).reshape(v, -1)).reshape(v, t, 3).transpose(1, 0, 2)
+            short = np.where(hit, np.maximum(need - (disp * n).sum(-1), 0.0), 0.0)
+            disp += short[..., None] * n
+        p = p + disp
+        d, n = _distances(p, a, b, radii)
+    for _ in range(4):  # exact projection; repeated where a push lands in another capsule
+        inside = d < 0
+        if not inside.any():
+            break
+        p = p + np.where(inside, margin - d, 0.0)[..., None] * n
+        d, n = _distances(p, a, b, radii)
+    return p.astype(np.float32), before, (d < -depth).mean(1)

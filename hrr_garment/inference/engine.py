@@ -43,7 +43,7 @@ def to_world(points: np.ndarray, motion: Motion) -> np.ndarray:
 
     rot = rotation_about_y(yaw_of(motion.global_rotations[:, 0]))
     origin = motion.root_translation * np.array([1.0, 0.0, 1.0])
-    return np.einsum("tnj,tij->tni", points, rot) + origin[:, None]
+    return np.matmul(points, rot.transpose(0, 2, 1)) + origin[:, None]
 
 
 def pair_features(previous: Motion | None, current: Motion) -> np.ndarray:

@@ -166,18 +166,20 @@ void hrr_block(const float *x, int B, int cin, int cout, int V, const int32_t *o
     }
 }
 
-/* Signed distance of points (N, 3) to the union of C capsules (ends a, b (C, 3), radii (C)):
-   distance (N) and the nearest capsule's outward unit normal (N, 3); negative inside. */
-void hrr_capsule_sdf(const double *p, int N, const double *a, const double *b, const double *radii, int C,
-                     int threads, double *dist, double *normal)
+/* Signed distance of points to the union of C capsules, frame by frame: points (T, N, 3), capsule
+   ends a, b (T, C, 3), radii (C) -> distance (T, N) and the nearest capsule's outward unit normal
+   (T, N, 3); negative inside. */
+void hrr_capsule_sdf(const double *p, int T, int N, const double *a, const double *b, const double *radii,
+                     int C, int threads, double *dist, double *normal)
 {
     #pragma omp parallel for num_threads(threads) schedule(static)
-    for (int i = 0; i < N; ++i) {
-        const double px = p[3 * i], py = p[3 * i + 1], pz = p[3 * i + 2];
+    for (long k = 0; k < (long)T * N; ++k) {
+        const double *ca = a + (k / N) * 3 * C, *cb = b + (k / N) * 3 * C;
+        const double px = p[3 * k], py = p[3 * k + 1], pz = p[3 * k + 2];
         double best = 1e300, bx = 0, by = 0, bz = 0, baxis = 1;
         for (int c = 0; c < C; ++c) {
-            const double ax = a[3 * c], ay = a[3 * c + 1], az = a[3 * c + 2];
-            const double ex = b[3 * c] - ax, ey = b[3 * c + 1] - ay, ez = b[3 * c + 2] - az;
+            const double ax = ca[3 * c], ay = ca[3 * c + 1], az = ca[3 * c + 2];
+            const double ex = cb[3 * c] - ax, ey = cb[3 * c + 1] - ay, ez = cb[3 * c + 2] - az;
             const double rx = px - ax, ry = py - ay, rz = pz - az;
             double den = ex * ex + ey * ey + ez * ez;
             den = den > 1e-12 ? den : 1e-12;
@@ -189,8 +191,8 @@ void hrr_capsule_sdf(const double *p, int N, const double *a, const double *b, c
             if (sd < best) { best = sd; bx = dx; by = dy; bz = dz; baxis = axis; }
         }
         const double inv = 1.0 / (baxis > 1e-12 ? baxis : 1e-12);
-        dist[i] = best;
-        normal[3 * i] = bx * inv; normal[3 * i + 1] = by * inv; normal[3 * i + 2] = bz * inv;
+        dist[k] = best;
+        normal[3 * k] = bx * inv; normal[3 * k + 1] = by * inv; normal[3 * k + 2] = bz * inv;
     }
 }
 """
@@ -245,7 +247,7 @@ def load_kernel(cache_dir: str | Path | None = None) -> ctypes.CDLL | None:
                                           c_int, f]
                 lib.hrr_block.restype = None
                 d = ctypes.POINTER(ctypes.c_double)
-                lib.hrr_capsule_sdf.argtypes = [d, c_int, d, d, d, c_int, c_int, d, d]
+                lib.hrr_capsule_sdf.argtypes = [d, c_int, c_int, d, d, d, c_int, c_int, d, d]
                 lib.hrr_capsule_sdf.restype = None
                 _loaded[str(target)] = lib
             except (OSError, subprocess.CalledProcessError) as exc:
@@ -294,10 +296,12 @@ class NativeBlock:
 
 def capsule_sdf(lib: ctypes.CDLL, points: np.ndarray, a: np.ndarray, b: np.ndarray, radii: np.ndarray,
                 threads: int = 1) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`hrr_garment.body.capsules.capsule_signed_distance` (distance, normal) in the kernel."""
+    """:func:`hrr_garment.body.capsules.capsule_signed_distance` (distance, normal) in the kernel,
+    for points (T, N, 3) against per-frame capsules a, b (T, C, 3)."""
     p = np.ascontiguousarray(points, np.float64)
     a, b, r = (np.ascontiguousarray(x, np.float64) for x in (a, b, radii))
-    dist, normal = np.empty(len(p)), np.empty((len(p), 3))
+    t, n = p.shape[:2]
+    dist, normal = np.empty((t, n)), np.empty((t, n, 3))
     d = ctypes.c_double
-    lib.hrr_capsule_sdf(_ptr(p, d), len(p), _ptr(a, d), _ptr(b, d), _ptr(r, d), len(r), threads, _ptr(dist, d), _ptr(normal, d))
+    lib.hrr_capsule_sdf(_ptr(p, d), t, n, _ptr(a, d), _ptr(b, d), _ptr(r, d), len(r), threads, _ptr(dist, d), _ptr(normal, d))
     return dist, normal
