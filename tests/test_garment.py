@@ -140,3 +140,15 @@ def test_skinning_reproduces_rest_pose_and_follows_rigid_motion():
 
     assert {JOINT_NAMES[j] for j in np.unique(binding.joints)} <= {"pelvis", "spine1", "spine2", "spine3", "neck",
                                                                    "l_collar", "r_collar"}
+
+
+@pytest.mark.parametrize("name,symmetric", [("dress", True), ("skirt", True), ("pleated_skirt", False), ("asymmetric_skirt", False)])
+def test_mirror_map_finds_left_right_symmetry(name, symmetric):
+    from hrr_garment.garment.mesh import mirror_map
+
+    g = make_garment(name, 300)
+    perm = mirror_map(g.vertices)
+    assert (perm is not None) == symmetric
+    if symmetric:
+        assert np.allclose(g.vertices[perm] * [-1, 1, 1], g.vertices, atol=1e-6)
+        assert np.array_equal(perm[perm], np.arange(g.num_vertices))  # mirroring twice is the identity
