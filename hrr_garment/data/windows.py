@@ -13,6 +13,11 @@ import numpy as np
 from ..motion.features import FeatureStats, motion_features, windows
 
 
+def sequence_windows(frames: np.ndarray, window: int) -> np.ndarray:
+    """(T, ...) -> (T - W + 1, W, ...): every window of consecutive frames (a view, no copy)."""
+    return np.moveaxis(np.lib.stride_tricks.sliding_window_view(frames, window, axis=0), -1, 1)
+
+
 @dataclass
 class WindowSet:
     """Windows of several sequences: ``motion`` (N, W, F), ``latents`` (N, W, nodes, C), and where
@@ -45,7 +50,7 @@ def build_windows(features: dict[str, np.ndarray], latents: dict[str, np.ndarray
         if len(f) < window:
             continue
         motion.append(windows(f, window, source=name))
-        lat.append(np.moveaxis(np.lib.stride_tricks.sliding_window_view(z, window, axis=0), -1, 1))
+        lat.append(sequence_windows(z, window))
         n = len(f) - window + 1
         seq.append(np.full(n, i, np.int32))
         start.append(np.arange(n, dtype=np.int32))

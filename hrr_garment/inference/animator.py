@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from ..data.windows import sequence_windows
 from ..errors import InputError, MotionError
 from ..motion.features import motion_features
 from ..motion.motion import Motion
@@ -119,7 +120,7 @@ class Animator:
             feats = motion_features(motion)
             if t_frames < w:  # shorter than one window: pad with the last frame, keep the first T outputs
                 feats = np.concatenate([feats, np.repeat(feats[-1:], w - t_frames, 0)])
-            windows = np.ascontiguousarray(np.moveaxis(np.lib.stride_tricks.sliding_window_view(feats, w, axis=0), -1, 1))
+            windows = np.ascontiguousarray(sequence_windows(feats, w))
             choice = self._choose(windows, mode, tau, exclude_sequence)
             latents = blend_windows(choice.latents, len(feats))[:t_frames]
             per_frame = np.clip(np.arange(t_frames) - w // 2, 0, len(windows) - 1)  # the window centred on t

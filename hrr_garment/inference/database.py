@@ -60,18 +60,22 @@ class CodeDatabase:
     def search(self, codes: np.ndarray, exclude: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Best match per query code (Q, G): (indices (Q,), cosine similarity (Q,)).
         ``exclude`` (Q,): a sequence index per query whose windows may not be returned (-1: none)."""
-        packed = pack_codes(codes, self.classes)
+        dist, idx = self._search(self.index, pack_codes(codes, self.classes), exclude)
+        return idx, 1.0 - dist / (2.0 * self.groups)
+
+    def _search(self, index, queries: np.ndarray, exclude: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+        """Nearest row per query in ``index`` (distance, row), skipping rows of the query's
+        ``exclude`` sequence: enough neighbours are fetched that one lies outside the largest."""
         if exclude is None or not np.any(np.asarray(exclude) >= 0):
-            dist, idx = self.index.search(packed, 1)
-            return idx[:, 0].astype(np.int64), 1.0 - dist[:, 0] / (2.0 * self.groups)
-        exclude = np.asarray(exclude)
-        # enough neighbours that at least one lies outside the largest excluded sequence
+            dist, idx = index.search(queries, 1)
+            return dist[:, 0], idx[:, 0].astype(np.int64)
         k = min(len(self), int(np.bincount(self.sequence).max()) + 1)
-        dist, idx = self.index.search(packed, k)
-        allowed = self.sequence[idx] != exclude[:, None]
-        first = allowed.argmax(1)
-        rows = np.arange(len(idx))
-        return idx[rows, first].astype(np.int64), 1.0 - dist[rows, first] / (2.0 * self.groups)
+        dist, idx = index.search(queries, k)
+        allowed = self.sequence[idx] != np.asarray(exclude)[:, None]
+        if not allowed.any(1).all():
+            raise ValueError("excluding the query's sequence leaves nothing to retrieve")
+        rows, first = np.arange(len(idx)), allowed.argmax(1)
+        return dist[rows, first], idx[rows, first].astype(np.int64)
 
     def nearest_motion(self, motion: np.ndarray, exclude: np.ndarray | None = None) -> np.ndarray:
         """Naive nearest neighbour (Euclidean on standardised motion windows (Q, W, F), no codes):
@@ -82,12 +86,7 @@ class CodeDatabase:
             self._motion_index = faiss.IndexFlatL2(int(np.prod(self.motion.shape[1:])))
             self._motion_index.add(np.ascontiguousarray(self.motion.reshape(len(self.motion), -1), np.float32))
         q = np.ascontiguousarray(np.asarray(motion, np.float32).reshape(len(motion), -1))
-        k = 1 if exclude is None else min(len(self), int(np.bincount(self.sequence).max()) + 1)
-        _, idx = self._motion_index.search(q, k)
-        if exclude is None:
-            return idx[:, 0].astype(np.int64)
-        allowed = self.sequence[idx] != np.asarray(exclude)[:, None]
-        return idx[np.arange(len(idx)), allowed.argmax(1)].astype(np.int64)
+        return self._search(self._motion_index, q, exclude)[1]
 
     def arrays(self) -> dict[str, np.ndarray]:
         out = {"codes": self.codes, "latents": self.latents, "sequence": self.sequence, "start": self.start}

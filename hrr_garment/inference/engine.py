@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import torch
 
+from ..data.windows import sequence_windows
 from ..motion.features import motion_features
 from ..motion.motion import Motion
 from ..sim.quality import heading_frame
@@ -185,7 +186,7 @@ def causal_latents(choice: WindowChoice, blend: int = 6) -> np.ndarray:
 def causal_windows(features: np.ndarray, size: int) -> np.ndarray:
     """(T, F) -> (T, W, F): window t holds frames t-W+1 .. t, frame 0 repeated before the start."""
     padded = np.concatenate([np.repeat(features[:1], size - 1, 0), features])
-    return np.ascontiguousarray(np.moveaxis(np.lib.stride_tricks.sliding_window_view(padded, size, axis=0), -1, 1))
+    return np.ascontiguousarray(sequence_windows(padded, size))
 
 
 def heading_vertices(bundle: Bundle, latents: np.ndarray, decoder, batch: int = 64) -> np.ndarray:

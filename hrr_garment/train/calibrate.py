@@ -20,6 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
+from ..data.windows import sequence_windows
 from ..inference.database import CodeDatabase
 from ..models.codebook import group_entropy
 from ..models.codespace import CodeSpace
@@ -66,11 +67,6 @@ def window_errors_mm(decode, latents: np.ndarray, truth: np.ndarray, batch: int 
         pred = decode(flat[i:i + batch]).numpy()
         out[i:i + batch] = np.linalg.norm(pred - truth.reshape(n * w, *truth.shape[2:])[i:i + batch], axis=-1).mean(-1)
     return 1000.0 * out.reshape(n, w).mean(1)
-
-
-def sequence_windows(frames: np.ndarray, window: int) -> np.ndarray:
-    """(T, ...) -> (T - W + 1, W, ...) consecutive windows (a view)."""
-    return np.moveaxis(np.lib.stride_tricks.sliding_window_view(frames, window, axis=0), -1, 1)
 
 
 @dataclass
