@@ -5,7 +5,8 @@ nearest capsule's outward normal to ``margin`` outside. Moving only those vertic
 one-vertex spikes where a fold dips in; so the push is spread: the displacement field is smoothed
 over the mesh (``smooth`` Jacobi passes of the uniform Laplacian, each keeping the pushed vertices'
 displacement at least what they need along their normals), so neighbours follow part of the way;
-``rounds`` such pushes, then an exact projection guarantees that no vertex ends inside.
+``rounds`` such pushes, then up to four exact projections onto the surface (a push can land in a
+neighbouring capsule, hence more than one).
 """
 
 from __future__ import annotations
@@ -47,7 +48,7 @@ def _distances(points: np.ndarray, a: np.ndarray, b: np.ndarray, radii: np.ndarr
 
 
 def push_out(vertices: np.ndarray, motion: Motion, faces: np.ndarray, body: BodyModel = DEFAULT_BODY, margin: float = 0.002,
-             smooth: int = 4, rounds: int = 3, depth: float = 0.005, mean: csr_matrix | None = None,
+             smooth: int = 4, rounds: int = 1, depth: float = 0.005, mean: csr_matrix | None = None,
              chunk: int = 64) -> tuple[np.ndarray, PushOutReport]:
     """(T, V, 3) world vertices -> pushed copy and a report (fractions of vertices > ``depth`` inside).
     ``mean``: :func:`mean_operator` of the faces, when the caller keeps one (streaming). Frames are
