@@ -48,6 +48,7 @@ def test_excluding_a_sequence_never_retrieves_it(animator):
 def test_clip_shorter_than_a_window_is_padded(animator):
     anim = animator.animate(synthesize("walk", 0.2, seed=1))  # 6 frames < W = 10
     assert anim.vertices.shape[0] == 6 and np.isfinite(anim.vertices).all()
+    assert animator.animate(synthesize("walk", 0.2, seed=1).slice(0, 1)).vertices.shape[0] == 1
 
 
 def test_blending_keeps_a_constant_and_favours_centres():

@@ -117,7 +117,7 @@ class Animator:
             latents = causal_latents(choice, self.blend)
             per_frame = np.arange(t_frames)
         else:
-            feats = motion_features(motion)
+            feats = motion_features(motion) if t_frames > 1 else causal_features(motion)  # one frame: no velocity
             if t_frames < w:  # shorter than one window: pad with the last frame, keep the first T outputs
                 feats = np.concatenate([feats, np.repeat(feats[-1:], w - t_frames, 0)])
             windows = np.ascontiguousarray(sequence_windows(feats, w))

@@ -25,7 +25,7 @@ from ..io_utils import atomic_write_text
 from ..models.codespace import CodeSpace, CodeSpaceConfig
 from ..motion.features import FEATURE_DIM
 from .autoencoder import heading_frames, load_autoencoder
-from .bundle import read_meta, write_bundle
+from .bundle import BundleError, read_meta, write_bundle
 from .calibrate import evaluate_modes
 from .codebook import CodebookTrainConfig, WindowTensors, evaluate, train_codespace
 
@@ -73,7 +73,7 @@ def run_codebook_stage(dataset: str | Path, folder: str | Path, config: CodeSpac
             try:
                 read_meta(folder)
                 return {**report, "reused": True}
-            except Exception:  # noqa: BLE001 - a broken bundle is rebuilt below
+            except BundleError:  # a damaged bundle is rebuilt below
                 pass
 
     autoencoder = load_autoencoder(ae_folder, ds.template.faces, cache_dir)
