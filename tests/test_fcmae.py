@@ -81,14 +81,19 @@ def test_shapes_and_normalised_pooling(hierarchy, skirt):
             assert (w[block.residual.mask == 0] == 0).all()
 
 
-def test_fast_decoder_equals_training_path(hierarchy, skirt):
+@pytest.mark.parametrize("native", [True, False])
+@pytest.mark.parametrize("batch", [1, 5, 19])
+def test_fast_decoder_equals_training_path(hierarchy, skirt, batch, native):
     model = _model(hierarchy, skirt, seed=3)
     with torch.no_grad():
         for p in model.parameters():
             p.add_(0.1 * torch.randn_like(p))  # not the initial values
-    z = torch.randn(5, *model.latent_shape)
+    fast = model.fast_decoder(native=native)
+    if native and not fast.native:
+        pytest.skip("no C compiler")
+    z = torch.randn(batch, *model.latent_shape)  # 1: the single-frame path; 19: tiles plus a remainder
     with torch.no_grad():
-        assert (model.fast_decoder()(z) - model.decode(z)).abs().max() <= 1e-5
+        assert (fast(z) - model.decode(z)).abs().max() <= 1e-5
 
 
 def _two_frames(skirt):

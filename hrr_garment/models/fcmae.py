@@ -193,6 +193,11 @@ class FastDecoder(nn.Module):
                                       None if b.residual.project is None else b.residual.project.weight.detach().T.numpy(),
                                       b.a, b.b, b.activation)
             for b, k, w in zip(self.blocks, self.kernels, self.weights)]
+        with torch.no_grad():
+            for nb, b in zip(self.native_blocks, self.blocks):
+                nb.set_factored((b.conv.coeff * b.conv.mask.unsqueeze(-1)).numpy(), b.conv.weight.detach().numpy(),
+                                b.conv.mask.numpy(),
+                                None if b.residual.project is None else b.residual.project.weight.detach().T.numpy())
 
     @property
     def native(self) -> bool:
@@ -211,6 +216,11 @@ class FastDecoder(nn.Module):
             return self._torch_forward(latents)
         x = np.ascontiguousarray(latents.detach().to(torch.float32).transpose(0, 1).numpy())
         threads = torch.get_num_threads()
+        if len(latents) == 1:  # one frame (streaming): the factored form reads far less memory
+            x = x[:, 0]
+            for block in self.native_blocks:
+                x = block.one(self.lib, np.ascontiguousarray(x), threads)
+            return torch.from_numpy(x).unsqueeze(0) * self.scale + self.template
         for block in self.native_blocks:
             x = block(self.lib, x, threads)
         return torch.from_numpy(x).transpose(0, 1) * self.scale + self.template

@@ -30,6 +30,7 @@ import warnings
 from pathlib import Path
 
 import numpy as np
+import torch
 
 SOURCE = r"""
 #include <stdint.h>
@@ -195,6 +196,37 @@ void hrr_capsule_sdf(const double *p, int T, int N, const double *a, const doubl
         normal[3 * k] = bx * inv; normal[3 * k + 1] = by * inv; normal[3 * k + 2] = bz * inv;
     }
 }
+
+/* One frame, factored form (streaming): z[v, m, :] = sum_j coeff[j, m] x[nbr[j], :] over v's real
+   neighbour slots (the basis coefficients instead of the folded kernels, which are C_in x C_out
+   times larger and would be read from memory once per frame), and pooled[v, :] =
+   sum_j pool[j] x[nbr[j], :] when pool is given. The caller multiplies z (V, M * cin) by the
+   layer's shared basis (M * cin, cout) in one matrix product. */
+void hrr_factor_gather(const float *x, int cin, int V, int M, const int32_t *offsets, const int32_t *nbr,
+                       const float *coeff, const float *pool, int threads, float *z, float *pooled)
+{
+    #pragma omp parallel for num_threads(threads) schedule(static)
+    for (int v = 0; v < V; ++v) {
+        float *zv = z + (size_t)v * M * cin;
+        memset(zv, 0, sizeof(float) * (size_t)M * cin);
+        if (pool) memset(pooled + (size_t)v * cin, 0, sizeof(float) * cin);
+        for (int j = offsets[v]; j < offsets[v + 1]; ++j) {
+            const float *restrict xr = x + (size_t)nbr[j] * cin;
+            for (int m = 0; m < M; ++m) {
+                const float c = coeff[(size_t)j * M + m];
+                float *restrict zr = zv + (size_t)m * cin;
+                #pragma omp simd
+                for (int i = 0; i < cin; ++i) zr[i] += c * xr[i];
+            }
+            if (pool) {
+                const float w = pool[j];
+                float *restrict pr = pooled + (size_t)v * cin;
+                #pragma omp simd
+                for (int i = 0; i < cin; ++i) pr[i] += w * xr[i];
+            }
+        }
+    }
+}
 """
 
 FLAGS = ["-O3", "-march=native", "-mprefer-vector-width=512", "-fno-math-errno", "-fno-trapping-math", "-fopenmp",
@@ -249,6 +281,8 @@ def load_kernel(cache_dir: str | Path | None = None) -> ctypes.CDLL | None:
                 d = ctypes.POINTER(ctypes.c_double)
                 lib.hrr_capsule_sdf.argtypes = [d, c_int, c_int, d, d, d, c_int, c_int, d, d]
                 lib.hrr_capsule_sdf.restype = None
+                lib.hrr_factor_gather.argtypes = [f, c_int, c_int, c_int, i32, i32, f, f, c_int, f, f]
+                lib.hrr_factor_gather.restype = None
                 _loaded[str(target)] = lib
             except (OSError, subprocess.CalledProcessError) as exc:
                 detail = getattr(exc, "stderr", "") or str(exc)
@@ -283,6 +317,31 @@ class NativeBlock:
         self.proj = None if proj is None else np.ascontiguousarray(np.pad(proj, [(0, 0), (0, width - cout)]), np.float32)
         self.cin, self.cout, self.width, self.vertices = cin, cout, width, v
         self.a, self.b, self.elu = float(a), float(b), bool(elu)
+        self.factored = None  # (coeff (nnz, M), basis (M * cin, cout), proj (cin, cout) or None) via set_factored
+
+    def set_factored(self, coeff: np.ndarray, basis: np.ndarray, mask: np.ndarray, proj: np.ndarray | None) -> None:
+        """Basis coefficients (V, S, M) and basis (M, cin, cout) for single frames (``one``)."""
+        keep = mask > 0
+        self.factored = (np.ascontiguousarray(coeff[keep], np.float32),
+                         torch.from_numpy(np.ascontiguousarray(basis.reshape(-1, basis.shape[-1]), np.float32)),
+                         None if proj is None else torch.from_numpy(np.ascontiguousarray(proj, np.float32)),
+                         torch.from_numpy(np.ascontiguousarray(self.bias[:self.cout])))
+
+    def one(self, lib: ctypes.CDLL, x: np.ndarray, threads: int) -> np.ndarray:
+        """One frame: x (V_in, C_in) float32 -> (V, C_out), the same function as ``__call__``."""
+        coeff, basis, proj, bias = self.factored
+        m = coeff.shape[1]
+        z = np.empty((self.vertices, m * self.cin), np.float32)
+        pooled = np.empty((self.vertices, self.cin), np.float32) if self.pool is not None else None
+        lib.hrr_factor_gather(_ptr(x), self.cin, self.vertices, m, _ptr(self.offsets, ctypes.c_int32),
+                              _ptr(self.nbr, ctypes.c_int32), _ptr(coeff), _ptr(self.pool), threads, _ptr(z), _ptr(pooled))
+        y = torch.addmm(bias, torch.from_numpy(z), basis)
+        if self.elu:
+            y = torch.nn.functional.elu(y)
+        res = torch.from_numpy(pooled if pooled is not None else x)
+        if proj is not None:
+            res = res @ proj
+        return (self.a * y + self.b * res).numpy()
 
     def __call__(self, lib: ctypes.CDLL, x: np.ndarray, threads: int) -> np.ndarray:
         """x (V_in, B, C_in) float32 C-contiguous -> (V, B, C_out)."""
