@@ -19,6 +19,7 @@ PyTorch path; ``HRR_NATIVE=0`` forces that.
 from __future__ import annotations
 
 import ctypes
+import functools
 import hashlib
 import os
 import platform
@@ -237,6 +238,7 @@ _lock = threading.Lock()
 _loaded: dict[str, ctypes.CDLL | None] = {}
 
 
+@functools.lru_cache(maxsize=1)
 def _cpu_signature() -> str:
     try:
         flags = next(line for line in Path("/proc/cpuinfo").read_text().splitlines() if line.startswith("flags"))
@@ -328,11 +330,14 @@ class NativeBlock:
                          torch.from_numpy(np.ascontiguousarray(self.bias[:self.cout])))
 
     def one(self, lib: ctypes.CDLL, x: np.ndarray, threads: int) -> np.ndarray:
-        """One frame: x (V_in, C_in) float32 -> (V, C_out), the same function as ``__call__``."""
+        """One frame: x (V_in, C_in) float32 -> (V, C_out), the same function as ``__call__``. Uses
+        scratch buffers of the block: one call at a time per decoder."""
         coeff, basis, proj, bias = self.factored
         m = coeff.shape[1]
-        z = np.empty((self.vertices, m * self.cin), np.float32)
-        pooled = np.empty((self.vertices, self.cin), np.float32) if self.pool is not None else None
+        if not hasattr(self, "_z"):  # reused: fresh multi-MB buffers per frame cost page faults
+            self._z = np.empty((self.vertices, m * self.cin), np.float32)
+            self._pooled = np.empty((self.vertices, self.cin), np.float32) if self.pool is not None else None
+        z, pooled = self._z, self._pooled
         lib.hrr_factor_gather(_ptr(x), self.cin, self.vertices, m, _ptr(self.offsets, ctypes.c_int32),
                               _ptr(self.nbr, ctypes.c_int32), _ptr(coeff), _ptr(self.pool), threads, _ptr(z), _ptr(pooled))
         y = torch.addmm(bias, torch.from_numpy(z), basis)
