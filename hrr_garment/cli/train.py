@@ -137,7 +137,8 @@ def _main(argv: Sequence[str] | None) -> int:
                 raise InputError(args.dataset, f"no dataset; make it with: {hint} (or run hrr-train without --stage)")
             r = train_autoencoder(args.dataset, folder / "autoencoder", ae_model, ae_train, cache_dir=workspace() / "cache",
                                   progress=not args.quiet)
-            print(f"autoencoder: {r.epochs} epochs (best {r.best_epoch}) in {r.minutes:.1f} min; "
+            print(f"autoencoder: {r.epochs} epochs (best {r.best_epoch}) in {r.minutes:.1f} min"
+                  f"{' (reused)' if r.extra.get('reused') else ''}; "
                   f"per-vertex error val {r.val_pve_mm:.2f} mm, test {r.test_pve_mm:.2f} mm, train {r.train_pve_mm:.2f} mm; "
                   f"latent {r.latent_shape[0]} x {r.latent_shape[1]} (levels {' > '.join(str(s) for s in r.sizes)})")
         elif stage == "codebook":
