@@ -32,8 +32,19 @@ from .motion.skeleton import CANONICAL, JOINT_NAMES
 from .motion.synth import KINDS as MOTION_KINDS
 from .motion.synth import synthesize
 from .sim.simulator import SimConfig, SimResult, SimulationExploded, simulate_garment
-from .inference.animator import Animation, AnimationStream, Animator
-from .train.bundle import Bundle, BundleError, load_bundle
+
+_LAZY = {"Animation": "inference.animator", "AnimationStream": "inference.animator", "Animator": "inference.animator",
+         "Bundle": "train.bundle", "BundleError": "train.bundle", "load_bundle": "train.bundle"}
+
+
+def __getattr__(name: str):
+    """The inference API loads torch, FAISS and safetensors: imported on first use, so the motion
+    and simulation tools start without them."""
+    if name in _LAZY:
+        import importlib
+
+        return getattr(importlib.import_module(f".{_LAZY[name]}", __name__), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 __all__ = [
     "CANONICAL", "FEATURE_DIM", "FeatureStats", "HRRError", "InputError", "JOINT_NAMES", "MOTION_KINDS", "Motion",
