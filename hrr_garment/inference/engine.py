@@ -25,9 +25,7 @@ import torch
 from ..data.windows import sequence_windows
 from ..motion.features import motion_features
 from ..motion.motion import Motion
-from ..sim.quality import heading_frame
 from ..train.bundle import Bundle
-from .database import CodeDatabase
 
 MODES = ("hybrid", "regression", "retrieval", "naive-nn")
 
@@ -74,42 +72,62 @@ class WindowChoice:
     source: np.ndarray  # (N, 2) int32 (database sequence index, start frame) of retrieved windows, else -1
 
 
-def choose_windows(bundle: Bundle, motion_windows: np.ndarray, mode: str, tau: float,
-                   exclude: np.ndarray | None = None, batch: int = 512) -> WindowChoice:
-    """Run the motion encoder on raw feature windows (N, W, F) and pick each window's latents."""
+@dataclass
+class MotionCodes:
+    """The motion encoder's output for N windows."""
+
+    entropy: np.ndarray  # (N,) mean per-group entropy of the code distribution (nats)
+    codes: np.ndarray  # (N, G) uint8 argmax classes
+    regression: np.ndarray | None  # (N, W, nodes, C) decoder latents (not standardised), when asked
+    standardised: np.ndarray  # (N, W, F) the standardised motion windows
+
+
+@torch.no_grad()
+def encode_motion(codespace, motion_stats, latent_stats, motion_windows: np.ndarray, regression: bool = True,
+                  batch: int = 512) -> MotionCodes:
+    """Raw feature windows (N, W, F) -> codes, entropies and (optionally) regressed latents."""
     from ..models.codebook import group_entropy
 
+    codespace.eval()
+    q = codespace.quantizer
+    std = motion_stats.normalize(motion_windows)
+    entropy, codes, reg = [], [], []
+    for i in range(0, len(std), batch):
+        logits = q.split(codespace.motion_encoder(torch.from_numpy(std[i:i + batch])))
+        entropy.append(group_entropy(logits).numpy())
+        idx = logits.argmax(-1)
+        codes.append(idx.numpy().astype(np.uint8))
+        if regression:
+            reg.append(codespace.decode(q.embed(torch.nn.functional.one_hot(idx, q.classes).float())).numpy())
+    latents = None
+    if regression:
+        r = np.concatenate(reg)
+        latents = latent_stats.denormalize(r.reshape(*r.shape[:2], -1)).reshape(r.shape)
+    return MotionCodes(np.concatenate(entropy), np.concatenate(codes), latents, std)
+
+
+def choose_windows(bundle: Bundle, motion_windows: np.ndarray, mode: str, tau: float,
+                   exclude: np.ndarray | None = None) -> WindowChoice:
+    """Run the motion encoder on raw feature windows (N, W, F) and pick each window's latents."""
     if mode not in MODES:
         raise ValueError(f"unknown mode {mode!r}; choose one of {', '.join(MODES)}")
-    cs, q, db = bundle.codespace, bundle.codespace.quantizer, bundle.database
-    std = bundle.motion_stats.normalize(motion_windows)
-    entropy, regression, codes = [], [], []
-    with torch.no_grad():
-        for i in range(0, len(std), batch):
-            logits = q.split(cs.motion_encoder(torch.from_numpy(std[i:i + batch])))
-            entropy.append(group_entropy(logits).numpy())
-            idx = logits.argmax(-1)
-            codes.append(idx.numpy().astype(np.uint8))
-            if mode in ("hybrid", "regression"):
-                regression.append(cs.decode(q.embed(torch.nn.functional.one_hot(idx, q.classes).float())).numpy())
-    entropy_all = np.concatenate(entropy)
-    n = len(entropy_all)
-    retrieved = {"hybrid": entropy_all < tau, "regression": np.zeros(n, bool)}.get(mode, np.ones(n, bool))
-    latents = np.empty((n, *db.latents.shape[1:]), np.float32)
-    if mode in ("hybrid", "regression"):
-        reg = np.concatenate(regression)
-        latents[:] = bundle.latent_stats.denormalize(reg.reshape(n, reg.shape[1], -1)).reshape(reg.shape)
+    db = bundle.database
+    enc = encode_motion(bundle.codespace, bundle.motion_stats, bundle.latent_stats, motion_windows,
+                        regression=mode in ("hybrid", "regression"))
+    n = len(enc.entropy)
+    retrieved = {"hybrid": enc.entropy < tau, "regression": np.zeros(n, bool)}.get(mode, np.ones(n, bool))
+    latents = enc.regression.copy() if enc.regression is not None else np.empty((n, *db.latents.shape[1:]), np.float32)
     source = np.full((n, 2), -1, np.int32)
     if retrieved.any():
         rows = np.flatnonzero(retrieved)
         ex = None if exclude is None else np.asarray(exclude)[rows]
         if mode == "naive-nn":
-            match = db.nearest_motion(std[rows], ex)
+            match = db.nearest_motion(enc.standardised[rows], ex)
         else:
-            match, _ = db.search(np.concatenate(codes)[rows], ex)
+            match, _ = db.search(enc.codes[rows], ex)
         latents[rows] = db.latents[match]
         source[rows] = np.stack([db.sequence[match], db.start[match]], 1)
-    return WindowChoice(latents, retrieved, entropy_all, source)
+    return WindowChoice(latents, retrieved, enc.entropy, source)
 
 
 def blend_windows(latents: np.ndarray, frames: int) -> np.ndarray:
@@ -195,7 +213,3 @@ def heading_vertices(bundle: Bundle, latents: np.ndarray, decoder, batch: int = 
     for i in range(0, len(latents), batch):
         out[i:i + batch] = decoder(torch.from_numpy(np.ascontiguousarray(latents[i:i + batch]))).numpy()
     return out
-
-
-__all__ = ["MODES", "CodeDatabase", "WindowChoice", "blend_windows", "causal_features", "causal_latents", "causal_windows",
-           "choose_windows", "heading_frame", "heading_vertices", "to_world", "window_weights"]

@@ -22,7 +22,7 @@ import torch
 
 from ..data.windows import sequence_windows
 from ..inference.database import CodeDatabase
-from ..models.codebook import group_entropy
+from ..inference.engine import encode_motion
 from ..models.codespace import CodeSpace
 from ..motion.features import FeatureStats
 
@@ -30,31 +30,16 @@ from ..motion.features import FeatureStats
 @dataclass
 class WindowPredictions:
     entropy: np.ndarray  # (N,) motion-code entropy
-    codes: np.ndarray  # (N, G) motion-code class indices
     regression: np.ndarray  # (N, W, nodes, C) latents from the decoder
     retrieval: np.ndarray  # (N, W, nodes, C) latents of the best database match
-    match: np.ndarray  # (N,) database row of the match
-    similarity: np.ndarray  # (N,) code similarity of the match
 
 
-@torch.no_grad()
 def predict_windows(model: CodeSpace, motion: np.ndarray, motion_stats: FeatureStats, latent_stats: FeatureStats,
-                    database: CodeDatabase, exclude: np.ndarray | None = None, batch: int = 512) -> WindowPredictions:
+                    database: CodeDatabase, exclude: np.ndarray | None = None) -> WindowPredictions:
     """Both candidates for every motion window (N, W, F) (raw features)."""
-    model.eval()
-    q = model.quantizer
-    entropy, codes, regression = [], [], []
-    for i in range(0, len(motion), batch):
-        logits = q.split(model.motion_encoder(torch.from_numpy(motion_stats.normalize(motion[i:i + batch]))))
-        entropy.append(group_entropy(logits))
-        idx = logits.argmax(-1)
-        codes.append(idx)
-        regression.append(model.decode(q.embed(torch.nn.functional.one_hot(idx, q.classes).float())))
-    reg = torch.cat(regression).numpy()
-    reg = latent_stats.denormalize(reg.reshape(*reg.shape[:2], -1)).reshape(reg.shape)
-    codes_np = torch.cat(codes).numpy().astype(np.uint8)
-    match, similarity = database.search(codes_np, exclude)
-    return WindowPredictions(torch.cat(entropy).numpy(), codes_np, reg, database.latents[match], match, similarity)
+    enc = encode_motion(model, motion_stats, latent_stats, motion)
+    match, _ = database.search(enc.codes, exclude)
+    return WindowPredictions(enc.entropy, enc.regression, database.latents[match])
 
 
 def window_errors_mm(decode, latents: np.ndarray, truth: np.ndarray, batch: int = 64) -> np.ndarray:
