@@ -32,12 +32,6 @@ class WindowSet:
     def __len__(self) -> int:
         return len(self.motion)
 
-    def subset(self, names: list[str]) -> "WindowSet":
-        """The windows of ``names`` (a split), with ``sequence`` indices into ``names``."""
-        keep = np.isin(np.asarray(self.names)[self.sequence] if len(self) else np.zeros(0, str), names)
-        remap = np.array([names.index(n) if n in names else -1 for n in self.names], np.int32)
-        return WindowSet(self.motion[keep], self.latents[keep], remap[self.sequence[keep]], self.start[keep], list(names))
-
 
 def build_windows(features: dict[str, np.ndarray], latents: dict[str, np.ndarray], names: list[str], window: int) -> WindowSet:
     """Windows of the sequences ``names``; ``features[name]`` (T, F), ``latents[name]`` (T, nodes, C).

@@ -30,6 +30,7 @@ from ..io_utils import atomic_path, atomic_write_text
 from ..models.fcmae import AutoencoderConfig, MeshAutoencoder
 from ..models.hierarchy import cached_hierarchy
 from ..settings import from_settings
+from .checkpoint import load_checkpoint, save_checkpoint
 from ..sim.quality import heading_frame
 
 
@@ -144,15 +145,8 @@ def train_autoencoder(dataset: str | Path, folder: str | Path, model_config: Aut
                                         "sizes": tuple(done["sizes"]), "extra": {**done.get("extra", {}), "reused": True}})
     state = {"epoch": 0, "best": float("inf"), "best_epoch": 0, "stale": 0, "elapsed_s": 0.0}
     best_weights = {k: v.clone() for k, v in model.state_dict().items()}
-    if checkpoint.exists():
-        saved = torch.load(checkpoint, map_location="cpu", weights_only=True)
-        if saved.get("key") == key:
-            model.load_state_dict(saved["model"])
-            optimizer.load_state_dict(saved["optimizer"])
-            scheduler.load_state_dict(saved["scheduler"])
-            best_weights = saved["best_weights"]
-            state = {k: saved.get(k, state[k]) for k in state}
-            torch.set_rng_state(saved["rng"])
+    state, best_weights = load_checkpoint(checkpoint, key, state, best_weights, model=model, optimizer=optimizer,
+                                          scheduler=scheduler)
     conv0 = model.encoder[0].conv
     lap = laplacian_operator(conv0.index, conv0.mask)
     rng = np.random.default_rng(train_config.seed + state["epoch"])
@@ -184,10 +178,7 @@ def train_autoencoder(dataset: str | Path, folder: str | Path, model_config: Aut
             best_weights = {k: v.detach().clone() for k, v in model.state_dict().items()}
         else:
             state["stale"] += 1
-        with atomic_path(checkpoint) as tmp:
-            torch.save({"key": key, "model": model.state_dict(), "optimizer": optimizer.state_dict(),
-                        "scheduler": scheduler.state_dict(), "best_weights": best_weights, "rng": torch.get_rng_state(),
-                        **state}, tmp)
+        save_checkpoint(checkpoint, key, state, best_weights, model=model, optimizer=optimizer, scheduler=scheduler)
         bar.set_postfix(loss=f"{np.mean(losses) * 1000:.2f}mm", val=f"{val_err:.2f}mm", best=f"{state['best']:.2f}mm")
         bar.update(1)
     bar.close()

@@ -30,10 +30,10 @@ import torch
 from tqdm.auto import tqdm
 
 from ..data.windows import WindowSet
-from ..io_utils import atomic_path
 from ..models.codebook import group_entropy
 from ..models.codespace import CodeSpace
 from ..settings import from_settings
+from .checkpoint import load_checkpoint, save_checkpoint
 
 
 @dataclass(frozen=True)
@@ -143,15 +143,8 @@ def train_codespace(model: CodeSpace, train: WindowTensors, val: WindowTensors, 
     state = {"epoch": 0, "switched_at": None, "best": math.inf, "best_epoch": 0, "stale": 0, "elapsed_s": 0.0}
     best_weights = {k: v.clone() for k, v in model.state_dict().items()}
     checkpoint, log_path = folder / "checkpoint.pt", folder / "log.jsonl"
-    if checkpoint.exists():
-        saved = torch.load(checkpoint, map_location="cpu", weights_only=True)
-        if saved.get("key") == key:
-            model.load_state_dict(saved["model"])
-            optimizer.load_state_dict(saved["optimizer"])
-            plateau.load_state_dict(saved["plateau"])
-            best_weights = saved["best_weights"]
-            state = {**state, **json.loads(saved["state"])}
-            torch.set_rng_state(saved["rng"])
+    state, best_weights = load_checkpoint(checkpoint, key, state, best_weights, model=model, optimizer=optimizer,
+                                          plateau=plateau)
     if state["epoch"] == 0:
         log_path.unlink(missing_ok=True)
     elif log_path.exists():  # drop lines of epochs after the checkpoint (a kill between the two writes)
@@ -198,10 +191,7 @@ def train_codespace(model: CodeSpace, train: WindowTensors, val: WindowTensors, 
                   **{f"train_{k}": v / len(order) for k, v in sums.items()}, **{f"val_{k}": v for k, v in metrics.items()}}
         with open(log_path, "a", encoding="utf-8") as fh:
             fh.write(json.dumps(record) + "\n")
-        with atomic_path(checkpoint) as tmp:
-            torch.save({"key": key, "model": model.state_dict(), "optimizer": optimizer.state_dict(),
-                        "plateau": plateau.state_dict(), "best_weights": best_weights, "state": json.dumps(state),
-                        "rng": torch.get_rng_state()}, tmp)
+        save_checkpoint(checkpoint, key, state, best_weights, model=model, optimizer=optimizer, plateau=plateau)
         bar.set_postfix(rec=f"{metrics['rec']:.3f}", regress=f"{metrics['regress']:.3f}", agree=f"{metrics['agreement']:.2f}",
                         stage=1 if state["switched_at"] is None else 2)
         bar.update(1)

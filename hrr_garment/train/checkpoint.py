@@ -1,0 +1,36 @@
+"""Resumable training checkpoints, one format for every training stage.
+
+A checkpoint holds the settings key it was made under, the loop's plain ``state`` (epoch, best
+score, elapsed time... as JSON), the best weights so far, torch's RNG state and the state dict of
+every named stateful object (model, optimizer, scheduler...). It is written atomically after each
+epoch; a checkpoint made under other settings is ignored, so changed settings start afresh.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import torch
+
+from ..io_utils import atomic_path
+
+
+def save_checkpoint(path: Path, key: str, state: dict, best_weights: dict, **stateful) -> None:
+    with atomic_path(path) as tmp:
+        torch.save({"key": key, "state": json.dumps(state), "best_weights": best_weights, "rng": torch.get_rng_state(),
+                    **{name: obj.state_dict() for name, obj in stateful.items()}}, tmp)
+
+
+def load_checkpoint(path: Path, key: str, state: dict, best_weights: dict, **stateful) -> tuple[dict, dict]:
+    """Restore ``stateful`` objects in place from ``path`` when it was saved under ``key``; returns
+    (state, best_weights), the given ones when there is nothing to resume."""
+    if not path.exists():
+        return state, best_weights
+    saved = torch.load(path, map_location="cpu", weights_only=True)
+    if saved.get("key") != key or "state" not in saved:
+        return state, best_weights
+    for name, obj in stateful.items():
+        obj.load_state_dict(saved[name])
+    torch.set_rng_state(saved["rng"])
+    return {**state, **json.loads(saved["state"])}, saved["best_weights"]
