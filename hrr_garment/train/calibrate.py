@@ -98,14 +98,10 @@ class TauSweep:
     errors_mm: list[float]
     retrieval_usage: list[float]  # fraction of windows retrieved
     best_tau: float
-    regression_mm: float
-    retrieval_mm: float
-    hybrid_mm: float
 
     def to_dict(self) -> dict:
         return {"taus": [t if math.isfinite(t) else "inf" for t in self.taus], "errors_mm": self.errors_mm,
-                "retrieval_usage": self.retrieval_usage, "best_tau": self.best_tau, "regression_mm": self.regression_mm,
-                "retrieval_mm": self.retrieval_mm, "hybrid_mm": self.hybrid_mm}
+                "retrieval_usage": self.retrieval_usage, "best_tau": self.best_tau}
 
 
 def sweep_tau(entropy: np.ndarray, regression_err: np.ndarray, retrieval_err: np.ndarray, steps: int = 20) -> TauSweep:
@@ -118,4 +114,4 @@ def sweep_tau(entropy: np.ndarray, regression_err: np.ndarray, retrieval_err: np
         errors.append(float(np.where(retrieve, retrieval_err, regression_err).mean()))
         usage.append(float(retrieve.mean()))
     best = int(np.argmin(errors))  # first minimum: the smallest tau among ties
-    return TauSweep(taus, errors, usage, taus[best], errors[0], errors[-1], errors[best])
+    return TauSweep(taus, errors, usage, taus[best])
