@@ -15,7 +15,7 @@ $(BIN)/python:
 
 $(STAMP): pyproject.toml | $(BIN)/python
 	$(BIN)/pip install $(PIP_FLAGS) "$(TORCH_SPEC)"
-	$(BIN)/pip install $(PIP_FLAGS) -e ".[dev,preview,sim]"
+	$(BIN)/pip install $(PIP_FLAGS) -e ".[dev,preview,video,export,sim]"
 	touch $(STAMP)
 
 install: $(STAMP)

@@ -112,11 +112,12 @@ def test_hrr_animate_writes_out_h5_and_refuses_bad_motion(trained, tmp_path, cap
     assert animate_main([str(clip), "-o", str(out), "--model", str(root / "model")]) == 0
     assert "retrieval usage" in capsys.readouterr().out
     data = read_animation_h5(out)
-    assert data["vertices"].shape == (30, 308, 3) and data["faces"].dtype == np.int32
-    assert data["body/joints"].shape == (30, 22, 3) and data["diagnostics/mode"].dtype == np.uint8
-    attrs = data["attrs"]
+    assert data.vertices.shape == (30, 308, 3) and data.faces.dtype == np.int32
+    assert data.joints.shape == (30, 22, 3) and data.mode.dtype == np.uint8
+    assert data.capsules.shape == (30, len(data.radii), 2, 3)
+    attrs = data.attrs
     assert attrs["fps"] == 30 and attrs["units"] == "m" and attrs["up_axis"] == "Y" and attrs["garment"] == "skirt"
-    assert attrs["format_version"] == 1 and len(attrs["model_hash"]) == 16
+    assert attrs["format_version"] == 2 and len(attrs["model_hash"]) == 16
     with np.load(clip) as z:
         arrays = dict(z)
     arrays["root_translation"] = arrays["root_translation"].copy()

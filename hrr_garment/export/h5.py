@@ -3,29 +3,69 @@
     /faces                (F, 3) int32
     /vertices             (T, V, 3) float32, one frame per chunk, gzip + shuffle
     /body/joints          (T, 22, 3) float32
+    /body/capsules        (T, C, 2, 3) float32, the collision capsules' end points a, b  (version 2)
+    /body/radii           (C,) float32, their radii                                      (version 2)
     /diagnostics/mode     (T,) uint8, 1 = retrieval, 0 = regression
     /diagnostics/entropy  (T,) float32, motion-code entropy (nats)
     /diagnostics/source   (T, 2) int32, retrieved (database sequence, frame) or -1
     attributes: fps, units ("m"), up_axis ("Y"), garment, source_motion, format_version,
                 model_hash, mode, tau, plus any extra ones given
 
-Written to a temporary file and renamed, so a failed run leaves no half file.
+Written to a temporary file and renamed, so a failed run leaves no half file. Version 1 files
+(no body capsules) still read; only what needs the body refuses them.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 
 import h5py
 import numpy as np
 
+from ..errors import InputError
 from ..io_utils import atomic_path
 
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2
+
+
+@dataclass(frozen=True)
+class AnimationFile:
+    """The contents of an out.h5, checked: finite vertices, faces in range, per-frame arrays of T rows."""
+
+    path: Path
+    vertices: np.ndarray  # (T, V, 3) float32, world, metres, Y up
+    faces: np.ndarray  # (F, 3) int32
+    joints: np.ndarray  # (T, 22, 3)
+    mode: np.ndarray  # (T,) uint8
+    entropy: np.ndarray  # (T,)
+    source: np.ndarray  # (T, 2)
+    capsules: np.ndarray | None  # (T, C, 2, 3) or None in version-1 files
+    radii: np.ndarray | None  # (C,)
+    attrs: dict
+
+    @property
+    def fps(self) -> float:
+        return float(self.attrs["fps"])
+
+    @property
+    def num_frames(self) -> int:
+        return int(self.vertices.shape[0])
+
+    def body_mesh(self, t: int, segments: int = 12, rings: int = 6) -> tuple[np.ndarray, np.ndarray]:
+        """(vertices, faces) of the capsule body at frame ``t``; raises when the file has no body."""
+        from ..body.capsules import body_mesh
+
+        if self.capsules is None:
+            raise InputError(self.path, "this file has no body capsules (written by an older hrr-animate); "
+                                        "re-run hrr-animate to include the body")
+        caps = self.capsules[t].astype(np.float64)
+        return body_mesh(caps[:, 0], caps[:, 1], self.radii.astype(np.float64), segments, rings)
 
 
 def write_animation_h5(path: str | Path, *, vertices: np.ndarray, faces: np.ndarray, joints: np.ndarray, mode: np.ndarray,
-                       entropy: np.ndarray, source: np.ndarray, attrs: dict) -> Path:
+                       entropy: np.ndarray, source: np.ndarray, attrs: dict, capsules: np.ndarray | None = None,
+                       radii: np.ndarray | None = None) -> Path:
     path = Path(path)
     t, v = vertices.shape[:2]
     with atomic_path(path) as tmp, h5py.File(tmp, "w") as f:
@@ -33,6 +73,9 @@ def write_animation_h5(path: str | Path, *, vertices: np.ndarray, faces: np.ndar
         f.create_dataset("vertices", data=np.asarray(vertices, np.float32), chunks=(1, v, 3), compression="gzip",
                          compression_opts=4, shuffle=True)
         f.create_dataset("body/joints", data=np.asarray(joints, np.float32))
+        if capsules is not None:
+            f.create_dataset("body/capsules", data=np.asarray(capsules, np.float32))
+            f.create_dataset("body/radii", data=np.asarray(radii, np.float32))
         f.create_dataset("diagnostics/mode", data=np.asarray(mode, np.uint8))
         f.create_dataset("diagnostics/entropy", data=np.asarray(entropy, np.float32))
         f.create_dataset("diagnostics/source", data=np.asarray(source, np.int32).reshape(t, 2))
@@ -41,10 +84,50 @@ def write_animation_h5(path: str | Path, *, vertices: np.ndarray, faces: np.ndar
     return path
 
 
-def read_animation_h5(path: str | Path) -> dict:
-    """Everything in an out.h5 as arrays plus ``attrs``."""
-    with h5py.File(path, "r") as f:
-        out = {k: f[k][()] for k in ("faces", "vertices", "body/joints", "diagnostics/mode", "diagnostics/entropy",
-                                      "diagnostics/source")}
-        out["attrs"] = dict(f.attrs)
-    return out
+def read_animation_h5(path: str | Path) -> AnimationFile:
+    """Read and check an out.h5; problems raise :class:`InputError` naming the file."""
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(path, "no such file")
+    try:
+        f = h5py.File(path, "r")
+    except OSError as exc:
+        raise InputError(path, f"not an HDF5 file ({exc})") from None
+    with f:
+        missing = [k for k in ("faces", "vertices", "body/joints", "diagnostics/mode", "diagnostics/entropy",
+                               "diagnostics/source") if k not in f]
+        if missing:
+            raise InputError(path, f"not an hrr-animate file: missing {', '.join(missing)}")
+        attrs = dict(f.attrs)
+        if "fps" not in attrs:
+            raise InputError(path, "missing the 'fps' attribute")
+        if int(attrs.get("format_version", 1)) > FORMAT_VERSION:
+            raise InputError(path, f"format version {attrs['format_version']} is newer than this hrr_garment "
+                                   f"reads ({FORMAT_VERSION}); upgrade hrr_garment")
+        vertices = f["vertices"][()]
+        faces = f["faces"][()]
+        per_frame = {k: f[k][()] for k in ("body/joints", "diagnostics/mode", "diagnostics/entropy", "diagnostics/source")}
+        capsules = f["body/capsules"][()] if "body/capsules" in f else None
+        radii = f["body/radii"][()] if "body/radii" in f else None
+    if vertices.ndim != 3 or vertices.shape[2] != 3 or vertices.shape[0] < 1:
+        raise InputError(path, f"/vertices must be (T, V, 3) with T >= 1, got {vertices.shape}")
+    if faces.ndim != 2 or faces.shape[1] != 3 or len(faces) == 0:
+        raise InputError(path, f"/faces must be (F, 3), got {faces.shape}")
+    if faces.min() < 0 or faces.max() >= vertices.shape[1]:
+        raise InputError(path, f"/faces index vertices outside 0..{vertices.shape[1] - 1}")
+    bad = np.flatnonzero(~np.isfinite(vertices).all(axis=(1, 2)))
+    if len(bad):
+        raise InputError(path, f"/vertices has non-finite values at frame {bad[0]} ({len(bad)} frames)")
+    t = vertices.shape[0]
+    for key, arr in per_frame.items():
+        if arr.shape[0] != t:
+            raise InputError(path, f"/{key} has {arr.shape[0]} rows, /vertices has {t} frames")
+    if capsules is not None and (capsules.shape[:1] != (t,) or capsules.shape[2:] != (2, 3)
+                                 or radii is None or radii.shape != capsules.shape[1:2]):
+        raise InputError(path, f"/body/capsules {capsules.shape} and /body/radii "
+                               f"{None if radii is None else radii.shape} do not match (T, C, 2, 3) and (C,)")
+    if not float(attrs["fps"]) > 0:
+        raise InputError(path, f"fps must be positive, got {attrs['fps']}")
+    return AnimationFile(path, vertices.astype(np.float32), faces.astype(np.int32), per_frame["body/joints"],
+                         per_frame["diagnostics/mode"].astype(np.uint8), per_frame["diagnostics/entropy"],
+                         per_frame["diagnostics/source"], capsules, radii, attrs)

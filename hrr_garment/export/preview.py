@@ -67,34 +67,73 @@ def render_skeleton_preview(rows: list[tuple[str, Motion]], path: str | Path, fr
 
 @dataclass(frozen=True)
 class PreviewMesh:
-    """One mesh of a preview frame, already in the view frame (Y up, character facing +Z)."""
+    """One mesh of a preview frame (world or view frame: Y up; the character faces +Z at azimuth 0)."""
 
     vertices: np.ndarray
     faces: np.ndarray
     colour: tuple[int, int, int]
 
 
-# Screen axes per view: (world axis shown left-to-right, its sign, depth axis, its sign).
-_VIEWS = {"front": (0, 1.0, 2, 1.0), "side": (2, -1.0, 0, 1.0), "back": (0, -1.0, 2, -1.0)}
+# Camera azimuth (degrees about +Y, from +Z towards +X) per named view: "left" looks at the
+# character's left side (+X), "three-quarter" from front-left.
+VIEWS = {"front": 0.0, "three-quarter": 35.0, "left": 90.0, "side": 90.0, "back": 180.0, "right": 270.0}
 
 
-def _draw_meshes(draw, meshes: list[PreviewMesh], view: str, centre: tuple[float, float], scale: float) -> None:
-    ax, sx, dz, sz = _VIEWS[view]
-    light = np.zeros(3)
-    light[dz], light[1] = sz, 0.5
-    light /= np.linalg.norm(light)
-    polys, depth, colours = [], [], []
+@dataclass(frozen=True)
+class OrthoCamera:
+    """An orthographic camera: ``azimuth``/``elevation`` in degrees, looking at ``target`` (world)."""
+
+    azimuth: float = 0.0
+    elevation: float = 0.0
+    target: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+    @classmethod
+    def named(cls, view: str, elevation: float = 0.0, target=(0.0, 0.0, 0.0)) -> "OrthoCamera":
+        if view not in VIEWS:
+            raise ValueError(f"unknown view {view!r}; choose from {', '.join(VIEWS)}")
+        return cls(VIEWS[view], elevation, tuple(target))
+
+    def axes(self) -> np.ndarray:
+        """Rows: screen right, screen up, towards the camera (an orthonormal, right-handed basis)."""
+        th, ph = np.radians(self.azimuth), np.radians(self.elevation)
+        return np.array([[np.cos(th), 0.0, -np.sin(th)],
+                         [-np.sin(th) * np.sin(ph), np.cos(ph), -np.cos(th) * np.sin(ph)],
+                         [np.sin(th) * np.cos(ph), np.sin(ph), np.cos(th) * np.cos(ph)]])
+
+    def project(self, points: np.ndarray) -> np.ndarray:
+        """(..., 3) world -> (..., 3) camera coordinates (right, up, towards the camera)."""
+        return (points - np.asarray(self.target)) @ self.axes().T
+
+
+def draw_meshes(image, meshes: list[PreviewMesh], camera: OrthoCamera, centre: tuple[float, float], scale: float):
+    """Flat-shaded, two-sided, z-buffered triangles drawn over the PIL ``image``; returns the new image.
+    The light comes from the camera and above."""
+    from .raster import rasterize
+
+    Image, _ = _pil()
+    light = np.array([0.0, 0.5, 1.0]) / np.sqrt(1.25)
+    pixels = np.array(image)
+    depth = np.full(pixels.shape[:2], -np.inf)
     for mesh in meshes:
-        tri = mesh.vertices[mesh.faces]
+        tri = camera.project(mesh.vertices)[mesh.faces]
         normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
         normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-12)
         shade = 0.35 + 0.65 * np.abs(normal @ light)
-        polys.append(np.stack([centre[0] + sx * tri[..., ax] * scale, centre[1] - tri[..., 1] * scale], -1))
-        depth.append(sz * tri[..., dz].mean(1))
-        colours.append(np.clip(np.outer(shade, mesh.colour), 0, 255).astype(int))
-    polys_all, colours_all = np.concatenate(polys), np.concatenate(colours)
-    for i in np.argsort(np.concatenate(depth)):  # far to near
-        draw.polygon([tuple(p) for p in polys_all[i]], fill=tuple(colours_all[i]))
+        screen = np.stack([centre[0] + tri[..., 0] * scale, centre[1] - tri[..., 1] * scale, tri[..., 2]], -1)
+        rasterize(pixels, depth, screen, np.clip(np.outer(shade, mesh.colour), 0, 255).astype(np.uint8))
+    return Image.fromarray(pixels)
+
+
+def draw_ground(draw, camera: OrthoCamera, centre: tuple[float, float], scale: float, half_width: float,
+                spacing: float = 0.5, width: int = 1) -> None:
+    """Grid lines on y = 0 around the camera target, so translation over the ground shows."""
+    tx, _, tz = camera.target
+    grid = lambda c: np.arange(np.ceil((c - half_width) / spacing), np.floor((c + half_width) / spacing) + 1) * spacing
+    lines = [((x, 0.0, tz - half_width), (x, 0.0, tz + half_width)) for x in grid(tx)]
+    lines += [((tx - half_width, 0.0, z), (tx + half_width, 0.0, z)) for z in grid(tz)]
+    for a, b in lines:
+        ends = camera.project(np.array([a, b]))
+        draw.line([(centre[0] + e[0] * scale, centre[1] - e[1] * scale) for e in ends], fill=(205, 205, 200), width=width)
 
 
 def render_mesh_preview(rows: list[tuple[str, list[list[PreviewMesh]]]], path: str | Path, cell: int = 220,
@@ -114,7 +153,9 @@ def render_mesh_preview(rows: list[tuple[str, list[list[PreviewMesh]]]], path: s
         for k, meshes in enumerate(frames):
             for v, view in enumerate(views):
                 left = (k * len(views) + v) * cell
-                _draw_meshes(draw, meshes, view, (left + cell / 2, top + 20 + cell * 0.97), scale)
+                tile = draw_meshes(Image.new("RGB", (cell, cell), (250, 250, 247)), meshes, OrthoCamera.named(view),
+                                   (cell / 2, cell * 0.97), scale)
+                img.paste(tile, (left, top + 20))
                 draw.text((left + 3, top + cell + 4), view, fill=(120, 120, 120))
     path = Path(path)
     with atomic_path(path) as tmp:

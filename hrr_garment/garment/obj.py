@@ -62,6 +62,13 @@ def read_obj_vertices(path: str | Path) -> np.ndarray:
     return read_obj(path)[0]
 
 
+def format_rows(fmt: str, rows: np.ndarray) -> str:
+    """``fmt % row`` for every row, newline-terminated: one string-format call for the whole array
+    (about 10x faster than np.savetxt, which matters for OBJ sequences)."""
+    rows = np.asarray(rows)
+    return ((fmt + "\n") * len(rows)) % tuple(rows.ravel().tolist())
+
+
 def write_obj(path: str | Path, vertices: np.ndarray, faces: np.ndarray, groups: dict[str, np.ndarray] | None = None) -> Path:
     """Write atomically, faces in their order. ``groups`` maps names to *vertex* sets: the faces
     whose vertices all lie in a set are put in a ``g`` group of that name, so reading the file with
@@ -76,11 +83,11 @@ def write_obj(path: str | Path, vertices: np.ndarray, faces: np.ndarray, groups:
     starts = np.flatnonzero(np.r_[True, label[1:] != label[:-1]])
     with atomic_path(path) as tmp, open(tmp, "w", encoding="utf-8") as fh:
         fh.write("# hrr_garment\n")
-        np.savetxt(fh, vertices, fmt="v %.6f %.6f %.6f")
+        fh.write(format_rows("v %.6f %.6f %.6f", vertices))
         for k, start in enumerate(starts):
             stop = starts[k + 1] if k + 1 < len(starts) else len(faces)
             fh.write(f"g {names[label[start]]}\n")
-            np.savetxt(fh, faces[start:stop] + 1, fmt="f %d %d %d")
+            fh.write(format_rows("f %d %d %d", faces[start:stop] + 1))
     return path
 
 

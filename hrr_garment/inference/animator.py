@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from ..body.capsules import DEFAULT_BODY
 from ..data.windows import sequence_windows
 from ..errors import InputError, MotionError
 from ..motion.features import motion_features
@@ -57,6 +58,7 @@ class Animation:
     source_motion: str
     settings: dict = field(default_factory=dict)
     penetration: PushOutReport | None = None
+    capsules: np.ndarray | None = None  # (T, C, 2, 3) collision capsule ends, for previews and exports
 
     @property
     def retrieval_usage(self) -> float:
@@ -67,7 +69,8 @@ class Animation:
         from ..export.h5 import write_animation_h5
 
         return write_animation_h5(path, vertices=self.vertices, faces=self.faces, joints=self.joints, mode=self.mode,
-                                  entropy=self.entropy, source=self.source,
+                                  entropy=self.entropy, source=self.source, capsules=self.capsules,
+                                  radii=None if self.capsules is None else DEFAULT_BODY.radii,
                                   attrs={"fps": self.fps, "garment": self.garment, "source_motion": self.source_motion,
                                          "model_hash": self.model_hash, **{k: v for k, v in self.settings.items()}})
 
@@ -131,7 +134,8 @@ class Animator:
         return Animation(vertices, self.bundle.template.faces, motion.fps, choice.retrieved[per_frame].astype(np.uint8),
                          choice.entropy[per_frame].astype(np.float32), choice.source[per_frame], motion.joint_positions,
                          self.bundle.garment, self.bundle.content_hash, motion.source,
-                         {"mode": mode, "tau": tau, "causal": int(causal), "collision": int(collision)}, report)
+                         {"mode": mode, "tau": tau, "causal": int(causal), "collision": int(collision)}, report,
+                         np.stack(DEFAULT_BODY.pose_motion(motion), 2).astype(np.float32))
 
     def _choose(self, windows: np.ndarray, mode: str, tau: float, exclude_sequence: int | None):
         exclude = None if exclude_sequence is None else np.full(len(windows), exclude_sequence)

@@ -1,0 +1,195 @@
+"""GLB (binary glTF 2.0) export: the garment as a morph-target animation, optionally the body.
+
+The garment is one mesh whose base is frame 0 and which has one morph target per later keyframe
+(the target holds that keyframe minus the base). Its weights are animated with LINEAR
+interpolation: at keyframe k the weights are one-hot on k, so between two keyframes the mesh is
+their linear interpolation, and keyframes (chosen by :mod:`.keyframes`) keep every frame within
+the stated tolerance. glTF is Y up in metres, which is out.h5's convention, so no conversion.
+
+The body is a node per capsule (a rigid mesh) with animated translation and rotation. Needs the
+``export`` extra (pygltflib).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..io_utils import atomic_write_bytes
+from .h5 import AnimationFile
+from .keyframes import Keyframes, select_keyframes
+
+_FLOAT, _UINT = 5126, 5125
+_ARRAY_BUFFER, _ELEMENT_ARRAY_BUFFER = 34962, 34963
+
+
+def _gltf():
+    try:
+        import pygltflib
+    except ImportError:
+        raise ImportError("GLB export needs pygltflib: pip install 'hrr_garment[export]'") from None
+    return pygltflib
+
+
+class _Blob:
+    """The GLB binary chunk under construction: buffer views and accessors appended in order."""
+
+    def __init__(self, gl):
+        self.gl, self.parts, self.size = gl, [], 0
+        self.views: list = []
+        self.accessors: list = []
+
+    def view(self, array: np.ndarray, target: int | None = None, stride: int | None = None) -> int:
+        """``stride`` is required by glTF when several vertex accessors share one view."""
+        data = np.ascontiguousarray(array).tobytes()
+        self.views.append(self.gl.BufferView(buffer=0, byteOffset=self.size, byteLength=len(data), target=target,
+                                             byteStride=stride))
+        pad = (-len(data)) % 4
+        self.parts.append(data + b"\0" * pad)
+        self.size += len(data) + pad
+        return len(self.views) - 1
+
+    def accessor(self, view: int, array: np.ndarray, kind: str, bounds: bool = False, offset: int = 0) -> int:
+        """An accessor over ``array`` (already stored in ``view`` at byte ``offset``)."""
+        flat = array.reshape(len(array), -1)
+        component = _UINT if array.dtype == np.uint32 else _FLOAT
+        extra = {"min": flat.min(0).tolist(), "max": flat.max(0).tolist()} if bounds else {}
+        self.accessors.append(self.gl.Accessor(bufferView=view, byteOffset=offset, componentType=component,
+                                               count=len(array), type=kind, **extra))
+        return len(self.accessors) - 1
+
+    def stored(self, array: np.ndarray, kind: str, target: int | None = None, bounds: bool = False) -> int:
+        return self.accessor(self.view(array, target), array, kind, bounds)
+
+    def bytes(self) -> bytes:
+        return b"".join(self.parts)
+
+
+def _quaternion_z_to(d: np.ndarray) -> np.ndarray:
+    """Unit quaternions (x, y, z, w) rotating +Z onto unit directions d (T, 3), sign-continuous in T."""
+    w = 1.0 + d[:, 2]
+    q = np.concatenate([np.stack([-d[:, 1], d[:, 0], np.zeros(len(d))], 1), w[:, None]], 1)
+    flip = w < 1e-8  # d = -Z: half turn about X
+    q[flip] = (1.0, 0.0, 0.0, 0.0)
+    q /= np.linalg.norm(q, axis=1, keepdims=True)
+    sign = np.cumprod(np.where((q[1:] * q[:-1]).sum(1) < 0, -1.0, 1.0))  # slerp takes the short way
+    q[1:] *= sign[:, None]
+    return q
+
+
+@dataclass(frozen=True)
+class GlbReport:
+    path: Path
+    keyframes: Keyframes
+    bytes: int
+
+
+def write_glb(anim: AnimationFile, path: str | Path, tolerance: float = 0.001, with_body: bool = False) -> GlbReport:
+    """Write ``anim`` as GLB. ``tolerance`` (metres) bounds the keyframe reduction; 0 keeps every frame."""
+    gl = _gltf()
+    path = Path(path)
+    keys = select_keyframes(anim.vertices, tolerance)
+    verts = anim.vertices.astype(np.float32)
+    base = verts[0]
+    deltas = verts[keys.frames[1:]] - base  # (K-1, V, 3)
+    blob = _Blob(gl)
+    position = blob.stored(base, "VEC3", _ARRAY_BUFFER, bounds=True)
+    indices = blob.stored(anim.faces.astype(np.uint32).ravel(), "SCALAR", _ELEMENT_ARRAY_BUFFER)
+    targets = []
+    if len(deltas):
+        view = blob.view(deltas, _ARRAY_BUFFER, stride=12)
+        for k, delta in enumerate(deltas):
+            targets.append(gl.Attributes(POSITION=blob.accessor(view, delta, "VEC3", True, k * delta.nbytes)))
+    materials = [gl.Material(name="garment", doubleSided=True, pbrMetallicRoughness=gl.PbrMetallicRoughness(
+        baseColorFactor=[0.27, 0.43, 0.78, 1.0], metallicFactor=0.0, roughnessFactor=0.9))]
+    primitive = gl.Primitive(attributes=gl.Attributes(POSITION=position), indices=indices, material=0,
+                             targets=targets or None)
+    names = [f"frame_{f:05d}" for f in keys.frames[1:]]
+    meshes = [gl.Mesh(name=str(anim.attrs.get("garment", "garment")), primitives=[primitive],
+                      weights=[0.0] * len(targets) or None, extras={"targetNames": names} if names else None)]
+    nodes = [gl.Node(name="garment", mesh=0)]
+    samplers, channels = [], []
+    if len(targets):
+        times = (keys.frames / anim.fps).astype(np.float32)
+        weights = np.zeros((len(keys.frames), len(targets)), np.float32)
+        weights[np.arange(1, len(keys.frames)), np.arange(len(targets))] = 1.0
+        samplers.append(gl.AnimationSampler(input=blob.stored(times, "SCALAR", bounds=True),
+                                            output=blob.stored(weights.ravel(), "SCALAR"), interpolation="LINEAR"))
+        channels.append(gl.AnimationChannel(sampler=0, target=gl.AnimationChannelTarget(node=0, path="weights")))
+    scene_nodes = [0]
+    if with_body:
+        scene_nodes.append(_add_body(gl, anim, blob, nodes, meshes, materials, samplers, channels))
+    gltf = gl.GLTF2(
+        asset=gl.Asset(generator="hrr_garment", version="2.0"), scene=0,
+        scenes=[gl.Scene(name=str(anim.attrs.get("source_motion", "animation")), nodes=scene_nodes)],
+        nodes=nodes, meshes=meshes, materials=materials, accessors=blob.accessors, bufferViews=blob.views,
+        buffers=[gl.Buffer(byteLength=blob.size)],
+        animations=[gl.Animation(name="garment", samplers=samplers, channels=channels)] if channels else [],
+        extras={"fps": anim.fps, "keyframe_tolerance_m": tolerance, "keyframe_max_error_m": keys.max_error})
+    gltf.set_binary_blob(blob.bytes())
+    data = b"".join(gltf.save_to_bytes())
+    atomic_write_bytes(path, data)
+    return GlbReport(path, keys, len(data))
+
+
+def _add_body(gl, anim: AnimationFile, blob: _Blob, nodes: list, meshes: list, materials: list, samplers: list,
+              channels: list) -> int:
+    """Capsule nodes under a "body" node; returns the body node's index."""
+    from ..body.capsules import body_mesh
+
+    anim.body_mesh(0)  # raises "no body in this file" for version-1 files
+    caps = anim.capsules.astype(np.float64)
+    materials.append(gl.Material(name="body", pbrMetallicRoughness=gl.PbrMetallicRoughness(
+        baseColorFactor=[0.8, 0.76, 0.72, 1.0], metallicFactor=0.0, roughnessFactor=0.8)))
+    times = blob.stored((np.arange(anim.num_frames) / anim.fps).astype(np.float32), "SCALAR", bounds=True)
+    children = []
+    for c, radius in enumerate(anim.radii.astype(np.float64)):
+        axis = caps[:, c, 1] - caps[:, c, 0]
+        length = float(np.linalg.norm(axis, axis=1).mean())  # rigid: the same in every frame
+        v, f = body_mesh(np.zeros((1, 3)), np.array([[0.0, 0.0, length]]), np.array([radius]), 12, 6)
+        prim = gl.Primitive(attributes=gl.Attributes(POSITION=blob.stored(v.astype(np.float32), "VEC3", _ARRAY_BUFFER,
+                                                                          bounds=True)),
+                            indices=blob.stored(f.astype(np.uint32).ravel(), "SCALAR", _ELEMENT_ARRAY_BUFFER),
+                            material=len(materials) - 1)
+        meshes.append(gl.Mesh(name=f"capsule_{c}", primitives=[prim]))
+        direction = axis / np.maximum(np.linalg.norm(axis, axis=1, keepdims=True), 1e-12)
+        nodes.append(gl.Node(name=f"capsule_{c}", mesh=len(meshes) - 1))
+        children.append(len(nodes) - 1)
+        for key, values, kind in (("translation", caps[:, c, 0], "VEC3"), ("rotation", _quaternion_z_to(direction), "VEC4")):
+            samplers.append(gl.AnimationSampler(input=times, output=blob.stored(values.astype(np.float32), kind),
+                                                interpolation="LINEAR"))
+            channels.append(gl.AnimationChannel(sampler=len(samplers) - 1,
+                                                target=gl.AnimationChannelTarget(node=len(nodes) - 1, path=key)))
+    nodes.append(gl.Node(name="body", children=children))
+    return len(nodes) - 1
+
+
+def _accessor_array(gltf, blob: bytes, index: int) -> np.ndarray:
+    acc = gltf.accessors[index]
+    view = gltf.bufferViews[acc.bufferView]
+    width = {"SCALAR": 1, "VEC3": 3, "VEC4": 4}[acc.type]
+    dtype = np.uint32 if acc.componentType == _UINT else np.float32
+    start = (view.byteOffset or 0) + (acc.byteOffset or 0)
+    return np.frombuffer(blob, dtype, acc.count * width, start).reshape(acc.count, width)
+
+
+def read_glb_keyframes(path: str | Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Read back a GLB written by :func:`write_glb`: (keyframe times (K,), garment vertices at those
+    times (K, V, 3) evaluated as base + sum of weighted targets, faces (F, 3))."""
+    gl = _gltf()
+    gltf = gl.GLTF2().load(str(path))
+    blob = gltf.binary_blob()
+    prim = gltf.meshes[gltf.nodes[0].mesh].primitives[0]
+    base = _accessor_array(gltf, blob, prim.attributes.POSITION).astype(np.float64)
+    faces = _accessor_array(gltf, blob, prim.indices).reshape(-1, 3)
+    targets = np.stack([_accessor_array(gltf, blob, t.POSITION) for t in prim.targets or []]) \
+        if prim.targets else np.zeros((0,) + base.shape)
+    if not gltf.animations:
+        return np.zeros(1), base[None], faces
+    sampler = next(gltf.animations[0].samplers[ch.sampler] for ch in gltf.animations[0].channels
+                   if ch.target.path == "weights")
+    times = _accessor_array(gltf, blob, sampler.input)[:, 0]
+    weights = _accessor_array(gltf, blob, sampler.output).reshape(len(times), len(targets)).astype(np.float64)
+    return times, base + np.einsum("kt,tvc->kvc", weights, targets), faces

@@ -1,0 +1,154 @@
+"""Previews of an animation file: shaded frames from a few cameras, written as GIF, MP4 or a PNG
+contact sheet. Needs the ``preview`` extra (Pillow); MP4 also needs an ffmpeg (the ``video`` extra
+ships one, or one on PATH).
+
+The cameras are orthographic and follow the pelvis over the ground (smoothed over one second, so
+the body's own bob and sway stay visible), with a ground grid that shows the translation.
+"""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Iterator
+
+import numpy as np
+from tqdm import tqdm
+
+from ..errors import InputError
+from ..io_utils import atomic_path
+from .h5 import AnimationFile
+from .preview import VIEWS, OrthoCamera, PreviewMesh, _pil, draw_ground, draw_meshes
+
+GARMENT = (70, 110, 200)
+RETRIEVED = (225, 135, 45)  # garment colour on retrieved frames with --color-mode
+BODY = (205, 195, 185)
+PREVIEW_SUFFIXES = (".gif", ".mp4", ".png")
+
+
+@dataclass(frozen=True)
+class PreviewStyle:
+    views: tuple[str, ...] = ("front", "left")
+    size: int = 360  # pixels per view (square)
+    metres: float = 2.3  # world height a view shows
+    elevation: float = 12.0  # degrees the cameras look down
+    with_body: bool = True
+    color_mode: bool = False  # retrieval frames orange, regression blue
+    supersample: int = 2  # rendered this many times larger, then downsampled (anti-aliasing)
+
+    def __post_init__(self):
+        unknown = [v for v in self.views if v not in VIEWS]
+        if unknown or not self.views:
+            raise InputError("--views", f"unknown view(s) {', '.join(unknown) or '(none)'}; choose from {', '.join(VIEWS)}")
+        if self.size < 64:
+            raise InputError("--size", f"at least 64 pixels, got {self.size}")
+
+
+def _smooth_track(points: np.ndarray, fps: float) -> np.ndarray:
+    """Centred moving average over about one second (edges use the shorter window)."""
+    k = max(1, int(round(fps)))
+    kernel = np.ones(k)
+    pad = np.pad(points, ((k // 2, k - 1 - k // 2), (0, 0)), mode="edge")
+    return np.stack([np.convolve(pad[:, i], kernel / k, mode="valid") for i in range(points.shape[1])], 1)
+
+
+def render_frames(anim: AnimationFile, style: PreviewStyle, frames: np.ndarray | None = None,
+                  progress: bool = True) -> Iterator:
+    """PIL images, one per frame index in ``frames`` (default: all), views side by side."""
+    Image, ImageDraw = _pil()
+    frames = np.arange(anim.num_frames) if frames is None else np.asarray(frames)
+    track = _smooth_track(anim.joints[:, 0].astype(np.float64), anim.fps)
+    ss = max(1, style.supersample)
+    cell = style.size * ss
+    scale = cell / style.metres
+    for t in tqdm(frames, desc="render", unit="frame", disable=not progress):
+        img = Image.new("RGB", (cell * len(style.views), cell), (250, 250, 247))
+        retrieved = bool(anim.mode[t])
+        meshes = [PreviewMesh(anim.vertices[t].astype(np.float64), anim.faces,
+                              RETRIEVED if style.color_mode and retrieved else GARMENT)]
+        if style.with_body:
+            meshes.insert(0, PreviewMesh(*anim.body_mesh(t), BODY))
+        target = (track[t, 0], 0.0, track[t, 2])
+        for v, view in enumerate(style.views):
+            camera = OrthoCamera.named(view, style.elevation, target)
+            tile = Image.new("RGB", (cell, cell), (250, 250, 247))
+            centre = (cell / 2, cell * 0.88)
+            draw_ground(ImageDraw.Draw(tile), camera, centre, scale, half_width=1.0, width=ss)
+            img.paste(draw_meshes(tile, meshes, camera, centre, scale), (v * cell, 0))
+        if ss > 1:
+            img = img.resize((style.size * len(style.views), style.size), Image.LANCZOS)
+        draw = ImageDraw.Draw(img)
+        label = f"frame {t}  {t / anim.fps:5.2f} s"
+        if style.color_mode:
+            label += "  retrieval" if retrieved else "  regression"
+        draw.text((6, 4), label, fill=(40, 40, 40))
+        yield img
+
+
+def ffmpeg_executable() -> str:
+    """The ffmpeg the ``video`` extra installs, else one on PATH."""
+    try:
+        import imageio_ffmpeg
+
+        return imageio_ffmpeg.get_ffmpeg_exe()
+    except (ImportError, RuntimeError):
+        pass
+    found = shutil.which("ffmpeg")
+    if found is None:
+        raise ImportError("MP4 previews need ffmpeg: pip install 'hrr_garment[video]' (or put ffmpeg on PATH)")
+    return found
+
+
+def write_preview(anim: AnimationFile, path: str | Path, style: PreviewStyle = PreviewStyle(), every: int = 1,
+                  sheet_frames: int = 6, progress: bool = True) -> Path:
+    """GIF or MP4 of every ``every``-th frame, or (.png) a contact sheet of ``sheet_frames`` frames
+    one under the other. Written atomically."""
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix not in PREVIEW_SUFFIXES:
+        raise InputError(path, f"previews are {', '.join(PREVIEW_SUFFIXES)}, not {suffix or 'no extension'}")
+    if every < 1:
+        raise InputError("--every", f"must be >= 1, got {every}")
+    if suffix == ".png":
+        chosen = np.unique(np.linspace(0, anim.num_frames - 1, min(sheet_frames, anim.num_frames)).round().astype(int))
+        images = list(render_frames(anim, style, chosen, progress))
+        Image, _ = _pil()
+        sheet = Image.new("RGB", (images[0].width, sum(i.height for i in images)))
+        for k, im in enumerate(images):
+            sheet.paste(im, (0, k * images[0].height))
+        with atomic_path(path) as tmp:
+            sheet.save(tmp, format="PNG")
+        return path
+    frames = np.arange(0, anim.num_frames, every)
+    fps = anim.fps / every
+    images = render_frames(anim, style, frames, progress)
+    with atomic_path(path) as tmp:
+        if suffix == ".gif":
+            first = next(images)
+            # GIF delays are whole centiseconds; 30 fps plays at 33.3 fps-ish (3 cs) rather than drifting.
+            first.save(tmp, format="GIF", save_all=True, append_images=list(images), loop=0,
+                       duration=max(20, int(round(100 / fps)) * 10), optimize=False)
+        else:
+            _encode_mp4(images, tmp, fps, style.size * len(style.views), style.size)
+    return path
+
+
+def _encode_mp4(images: Iterator, path: Path, fps: float, width: int, height: int) -> None:
+    """H.264 (yuv420p, even dimensions) through an ffmpeg subprocess fed raw RGB frames."""
+    w, h = width + width % 2, height + height % 2
+    cmd = [ffmpeg_executable(), "-y", "-loglevel", "error", "-f", "rawvideo", "-pix_fmt", "rgb24", "-s", f"{w}x{h}",
+           "-r", f"{fps:g}", "-i", "-", "-an", "-c:v", "libx264", "-pix_fmt", "yuv420p", "-crf", "20",
+           "-movflags", "+faststart", "-f", "mp4", str(path)]
+    proc = subprocess.Popen(cmd, stdin=subprocess.PIPE, stderr=subprocess.PIPE)
+    try:
+        for im in images:
+            frame = np.full((h, w, 3), 250, np.uint8)
+            frame[:height, :width] = np.asarray(im)
+            proc.stdin.write(frame.tobytes())
+    finally:
+        proc.stdin.close()
+        err = proc.stderr.read().decode(errors="replace")
+        if proc.wait() != 0:
+            raise OSError(f"{path}: ffmpeg failed: {err.strip()[-500:]}")
