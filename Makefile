@@ -5,6 +5,8 @@ VENV ?= .venv
 # Pinned to the CPU build on this machine's disk; override e.g. TORCH_SPEC="torch==2.14.1".
 TORCH_SPEC ?= torch==2.13.0
 PIP_FLAGS ?= -q --disable-pip-version-check
+# The Khronos glTF validator (npm) for the GLB export test; installed only where npm exists.
+GLTF_VALIDATOR ?= gltf-validator@2.0.0-dev.3.10
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.hrr-installed
 
@@ -16,6 +18,9 @@ $(BIN)/python:
 $(STAMP): pyproject.toml | $(BIN)/python
 	$(BIN)/pip install $(PIP_FLAGS) "$(TORCH_SPEC)"
 	$(BIN)/pip install $(PIP_FLAGS) -e ".[dev,preview,video,export,sim]"
+	@if command -v npm >/dev/null 2>&1; then \
+		mkdir -p $(VENV)/node && cd $(VENV)/node && npm install --silent --no-audit --no-fund $(GLTF_VALIDATOR); \
+	else echo "npm not found: the GLB validator test will be skipped"; fi
 	touch $(STAMP)
 
 install: $(STAMP)

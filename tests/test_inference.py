@@ -172,3 +172,18 @@ def test_native_capsule_distance_equals_numpy(rng):
     assert np.allclose(d, d2[0], atol=1e-12) and np.allclose(n, n2[0], atol=1e-12)
     d3, _, _ = capsule_signed_distance(points + 0.1, a[3], b[3], DEFAULT_BODY.radii)
     assert np.allclose(d3, d2[1], atol=1e-12)  # each frame against its own capsules
+
+
+def test_game_loop_example_runs_headless(trained, tmp_path, capsys):
+    import importlib.util
+    from pathlib import Path
+
+    root, _, _ = trained
+    spec = importlib.util.spec_from_file_location("game_loop", Path(__file__).parents[1] / "examples" / "game_loop.py")
+    game_loop = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(game_loop)
+    frames = tmp_path / "frames"
+    assert game_loop.main(["--model", str(root / "model"), "--headless", "--seconds", "1", "--frames-dir", str(frames),
+                           "--save-every", "8", "--size", "64"]) == 0
+    assert sorted(p.name for p in frames.iterdir()) == [f"frame_{t:05d}.png" for t in range(0, 30, 8)]
+    assert "stream.push p50" in capsys.readouterr().out

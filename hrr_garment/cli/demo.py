@@ -4,7 +4,8 @@ Synthesize procedural motions, load a real CMU clip, print their summaries and f
 write a skeleton preview image; then train the dress model of the ``--preset`` (default quick:
 simulation, autoencoder and code space, about 25 minutes on 2 cores the first time; every stage is
 reused afterwards) exactly as ``hrr-train --garment dress`` does, and animate the CMU clip (or a
-procedural walk without the shared data) into <workspace>/demo/out.h5.
+procedural walk without the shared data) into <workspace>/demo/out.h5, and render it to
+<workspace>/demo/preview.gif.
 """
 
 from __future__ import annotations
@@ -67,7 +68,12 @@ def _body(argv: Sequence[str] | None) -> int:
         motion_file = out / "walk.npz"
         save_motion(synthesize("walk", seconds=6.0, seed=5), motion_file)
     print(f"== animating {motion_file.name}")
-    return animate_main([str(motion_file), "-o", str(out / "out.h5"), "--model", str(workspace() / "models" / f"dress-{args.preset}")])
+    if animate_main([str(motion_file), "-o", str(out / "out.h5"), "--model", str(workspace() / "models" / f"dress-{args.preset}")]) != 0:
+        return 2
+    from .preview import main as preview_main
+
+    print("== rendering a preview (15 fps GIF, front and left views)")
+    return preview_main([str(out / "out.h5"), "-o", str(out / "preview.gif"), "--every", "2", "--color-mode"])
 
 
 def main(argv: Sequence[str] | None = None) -> int:

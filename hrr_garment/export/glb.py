@@ -184,8 +184,8 @@ def read_glb_keyframes(path: str | Path) -> tuple[np.ndarray, np.ndarray, np.nda
     prim = gltf.meshes[gltf.nodes[0].mesh].primitives[0]
     base = _accessor_array(gltf, blob, prim.attributes.POSITION).astype(np.float64)
     faces = _accessor_array(gltf, blob, prim.indices).reshape(-1, 3)
-    targets = np.stack([_accessor_array(gltf, blob, t.POSITION) for t in prim.targets or []]) \
-        if prim.targets else np.zeros((0,) + base.shape)
+    positions = [t["POSITION"] if isinstance(t, dict) else t.POSITION for t in prim.targets or []]  # dicts once loaded
+    targets = np.stack([_accessor_array(gltf, blob, i) for i in positions]) if positions else np.zeros((0,) + base.shape)
     if not gltf.animations:
         return np.zeros(1), base[None], faces
     sampler = next(gltf.animations[0].samplers[ch.sampler] for ch in gltf.animations[0].channels

@@ -8,6 +8,8 @@ the body's own bob and sway stay visible), with a ground grid that shows the tra
 
 from __future__ import annotations
 
+import multiprocessing
+import os
 import shutil
 import subprocess
 from dataclasses import dataclass
@@ -54,37 +56,72 @@ def _smooth_track(points: np.ndarray, fps: float) -> np.ndarray:
     return np.stack([np.convolve(pad[:, i], kernel / k, mode="valid") for i in range(points.shape[1])], 1)
 
 
-def render_frames(anim: AnimationFile, style: PreviewStyle, frames: np.ndarray | None = None,
-                  progress: bool = True) -> Iterator:
-    """PIL images, one per frame index in ``frames`` (default: all), views side by side."""
+def render_scene(meshes: list[PreviewMesh], target: tuple[float, float, float], style: PreviewStyle, label: str = ""):
+    """One PIL image of ``meshes``: the style's views side by side, cameras aimed at ``target``
+    (on the ground below the pelvis), with a ground grid and ``label`` in the corner."""
     Image, ImageDraw = _pil()
-    frames = np.arange(anim.num_frames) if frames is None else np.asarray(frames)
-    track = _smooth_track(anim.joints[:, 0].astype(np.float64), anim.fps)
     ss = max(1, style.supersample)
     cell = style.size * ss
     scale = cell / style.metres
-    for t in tqdm(frames, desc="render", unit="frame", disable=not progress):
-        img = Image.new("RGB", (cell * len(style.views), cell), (250, 250, 247))
-        retrieved = bool(anim.mode[t])
-        meshes = [PreviewMesh(anim.vertices[t].astype(np.float64), anim.faces,
-                              RETRIEVED if style.color_mode and retrieved else GARMENT)]
-        if style.with_body:
-            meshes.insert(0, PreviewMesh(*anim.body_mesh(t), BODY))
-        target = (track[t, 0], 0.0, track[t, 2])
-        for v, view in enumerate(style.views):
-            camera = OrthoCamera.named(view, style.elevation, target)
-            tile = Image.new("RGB", (cell, cell), (250, 250, 247))
-            centre = (cell / 2, cell * 0.88)
-            draw_ground(ImageDraw.Draw(tile), camera, centre, scale, half_width=1.0, width=ss)
-            img.paste(draw_meshes(tile, meshes, camera, centre, scale), (v * cell, 0))
-        if ss > 1:
-            img = img.resize((style.size * len(style.views), style.size), Image.LANCZOS)
-        draw = ImageDraw.Draw(img)
-        label = f"frame {t}  {t / anim.fps:5.2f} s"
-        if style.color_mode:
-            label += "  retrieval" if retrieved else "  regression"
-        draw.text((6, 4), label, fill=(40, 40, 40))
-        yield img
+    img = Image.new("RGB", (cell * len(style.views), cell), (250, 250, 247))
+    for v, view in enumerate(style.views):
+        camera = OrthoCamera.named(view, style.elevation, target)
+        tile = Image.new("RGB", (cell, cell), (250, 250, 247))
+        centre = (cell / 2, cell * 0.88)
+        draw_ground(ImageDraw.Draw(tile), camera, centre, scale, half_width=1.0, width=ss)
+        img.paste(draw_meshes(tile, meshes, camera, centre, scale), (v * cell, 0))
+    if ss > 1:
+        img = img.resize((style.size * len(style.views), style.size), Image.LANCZOS)
+    if label:
+        ImageDraw.Draw(img).text((6, 4), label, fill=(40, 40, 40))
+    return img
+
+
+def render_frame(anim: AnimationFile, style: PreviewStyle, t: int, track: np.ndarray):
+    """Frame ``t`` of ``anim``; ``track`` (T, 3) is where the cameras aim (see :func:`_smooth_track`)."""
+    retrieved = bool(anim.mode[t])
+    meshes = [PreviewMesh(anim.vertices[t].astype(np.float64), anim.faces,
+                          RETRIEVED if style.color_mode and retrieved else GARMENT)]
+    if style.with_body:
+        meshes.insert(0, PreviewMesh(*anim.body_mesh(t), BODY))
+    label = f"frame {t}  {t / anim.fps:5.2f} s"
+    if style.color_mode:
+        label += "  retrieval" if retrieved else "  regression"
+    return render_scene(meshes, (track[t, 0], 0.0, track[t, 2]), style, label)
+
+
+_WORKER: tuple = ()
+
+
+def _worker_init(anim: AnimationFile, style: PreviewStyle, track: np.ndarray) -> None:
+    global _WORKER
+    _WORKER = (anim, style, track)
+
+
+def _worker_render(t: int) -> tuple[tuple[int, int], bytes]:
+    image = render_frame(_WORKER[0], _WORKER[1], int(t), _WORKER[2])
+    return image.size, image.tobytes()
+
+
+def render_frames(anim: AnimationFile, style: PreviewStyle, frames: np.ndarray | None = None,
+                  progress: bool = True, workers: int | None = None) -> Iterator:
+    """PIL images, in order, one per frame index in ``frames`` (default: all), views side by side.
+    Frames are rendered by ``workers`` processes (default: one per CPU) when there are many."""
+    Image, _ = _pil()
+    frames = np.arange(anim.num_frames) if frames is None else np.asarray(frames)
+    track = _smooth_track(anim.joints[:, 0].astype(np.float64), anim.fps)
+    workers = min(os.cpu_count() or 1, 8) if workers is None else workers
+    bar = tqdm(total=len(frames), desc="render", unit="frame", disable=not progress)
+    if workers <= 1 or len(frames) < 16:
+        for t in frames:
+            yield render_frame(anim, style, int(t), track)
+            bar.update()
+    else:
+        with multiprocessing.get_context().Pool(workers, _worker_init, (anim, style, track)) as pool:
+            for size, data in pool.imap(_worker_render, frames.tolist(), chunksize=4):
+                yield Image.frombytes("RGB", size, data)
+                bar.update()
+    bar.close()
 
 
 def ffmpeg_executable() -> str:
@@ -103,8 +140,8 @@ def ffmpeg_executable() -> str:
 
 def write_preview(anim: AnimationFile, path: str | Path, style: PreviewStyle = PreviewStyle(), every: int = 1,
                   sheet_frames: int = 6, progress: bool = True) -> Path:
-    """GIF or MP4 of every ``every``-th frame, or (.png) a contact sheet of ``sheet_frames`` frames
-    one under the other. Written atomically."""
+    """GIF or MP4 of every ``every``-th frame, or (.png) a contact sheet of ``sheet_frames`` evenly
+    spaced frames one under the other (just the middle frame when 1). Written atomically."""
     path = Path(path)
     suffix = path.suffix.lower()
     if suffix not in PREVIEW_SUFFIXES:
@@ -112,7 +149,9 @@ def write_preview(anim: AnimationFile, path: str | Path, style: PreviewStyle = P
     if every < 1:
         raise InputError("--every", f"must be >= 1, got {every}")
     if suffix == ".png":
-        chosen = np.unique(np.linspace(0, anim.num_frames - 1, min(sheet_frames, anim.num_frames)).round().astype(int))
+        n = min(sheet_frames, anim.num_frames)
+        chosen = np.unique(np.linspace(0, anim.num_frames - 1, n).round().astype(int)) if n > 1 \
+            else np.array([anim.num_frames // 2])  # one frame: the middle one
         images = list(render_frames(anim, style, chosen, progress))
         Image, _ = _pil()
         sheet = Image.new("RGB", (images[0].width, sum(i.height for i in images)))
