@@ -102,6 +102,11 @@ class Animator:
         return cls(load_bundle(find_model(model), workspace() / "cache"))
 
     @property
+    def has_direct(self) -> bool:
+        """Whether the bundle has the direct-regression baseline (mode ``direct``)."""
+        return getattr(self.bundle, "direct", None) is not None
+
+    @property
     def window(self) -> int:
         return self.bundle.codespace.config.window
 

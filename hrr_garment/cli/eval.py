@@ -1,0 +1,180 @@
+"""hrr-eval: compare a model's modes on held-out sequences against simulated ground truth.
+
+    hrr-eval --garment dress                              # workspace model, its dataset's test split
+    hrr-eval --model hrr_work/models/dress-full --split test --tau-sweep 0,0.2,0.4,0.6,0.8,1.0 \\
+             --motions ../shared/data/mocap/cmu/*.bvh -o hrr_work/eval/dress-full
+    hrr-eval --garment dress --split train --exclude-own-sequence --modes retrieval,naive-nn
+
+Writes REPORT_DIR/report.json (schema: docs/results.md), report.md and PNG plots (error over time
+per mode, entropy histogram with tau, tau curve). ``--motions`` simulates the ground truth of real
+motion files with the dataset's simulator settings (cached under the workspace; needs the ``sim``
+extra) and evaluates on them as well. Modes: hybrid, regression, retrieval, naive-nn, and direct
+when the model has the direct-regression baseline (``hrr-train --stage baseline``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+import time
+from pathlib import Path
+from typing import Sequence
+
+from ..errors import InputError
+from ._common import run_cli
+
+ALL_MODES = ("hybrid", "regression", "retrieval", "naive-nn", "direct")
+
+
+def _floats(text: str) -> list[float]:
+    try:
+        values = [float(v) for v in text.split(",") if v.strip()]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected comma-separated numbers, got {text!r}") from None
+    if not values or any(v < 0 or not math.isfinite(v) for v in values):
+        raise argparse.ArgumentTypeError(f"taus must be finite and >= 0, got {text!r}")
+    return sorted(set(values))
+
+
+def _modes(text: str) -> list[str]:
+    modes = [m.strip() for m in text.split(",") if m.strip()]
+    unknown = [m for m in modes if m not in ALL_MODES]
+    if unknown or not modes:
+        raise argparse.ArgumentTypeError(f"unknown mode(s) {unknown}; choose from {', '.join(ALL_MODES)}")
+    return modes
+
+
+def _parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="hrr-eval", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--garment", default=None, help="the workspace model of this garment (full if present, else quick)")
+    p.add_argument("--model", type=Path, default=None, help="model bundle directory (instead of --garment)")
+    p.add_argument("--dataset", type=Path, default=None, help="dataset .h5 (default: the one the model was trained on)")
+    p.add_argument("--split", default="test", choices=("train", "val", "test"))
+    p.add_argument("--modes", type=_modes, default=None,
+                   help="comma-separated (default: hybrid,regression,retrieval,naive-nn, plus direct when trained)")
+    p.add_argument("--tau", type=float, default=None, help="tau for hybrid (default: the model's calibrated one)")
+    p.add_argument("--exclude-own-sequence", action="store_true",
+                   help="keep each sequence's own windows out of retrieval (matters for --split train)")
+    p.add_argument("--tau-sweep", type=_floats, default=None, help="comma-separated taus (default: 10 entropy quantiles)")
+    p.add_argument("--no-sweep", action="store_true", help="skip the tau sweep")
+    p.add_argument("--motions", nargs="+", default=None, help="real motion files to simulate and evaluate on")
+    p.add_argument("--no-collision", action="store_true", help="evaluate without the collision push-out")
+    p.add_argument("--no-plots", action="store_true")
+    p.add_argument("-o", "--output", type=Path, default=None, help="report folder (default: hrr_work/eval/MODEL)")
+    p.add_argument("--quiet", action="store_true", help="no progress bars")
+    return p
+
+
+def default_taus(animator, records) -> list[float]:
+    """0, the deciles of the per-window entropies on these records, and above the maximum."""
+    import numpy as np
+
+    from ..inference.animator import Animator  # noqa: F401  (type of animator)
+
+    h = np.concatenate([animator.animate(r.motion, mode="regression", collision=False).entropy for r in records])
+    top = math.log(animator.bundle.codespace.config.classes) + 1e-3  # at least every entropy: retrieval only
+    return sorted({0.0, *[round(float(q), 4) for q in np.quantile(h, np.linspace(0.1, 0.9, 9))], round(top, 4)})
+
+
+def _main(argv: Sequence[str] | None) -> int:
+    args = _parser().parse_args(argv)
+    from ..data.dataset import DatasetError, GarmentDataset
+    from ..eval.evaluate import evaluate_modes, tau_sweep
+    from ..eval.report import build_report, write_plots, write_report
+    from ..inference.animator import Animator, find_model
+    from ..paths import workspace
+
+    if (args.garment is None) == (args.model is None):
+        raise InputError("hrr-eval", "give exactly one of --garment NAME or --model DIR")
+    t0 = time.perf_counter()
+    model_dir = find_model(args.model or args.garment)
+    animator = Animator.load(model_dir)
+    bundle = animator.bundle
+    dataset = args.dataset or Path(bundle.meta.get("dataset", ""))
+    if not str(dataset) or not dataset.is_file():
+        raise InputError(model_dir, f"its training dataset {str(dataset) or '(unrecorded)'} is not there; give --dataset")
+    ds = GarmentDataset(dataset)
+    if ds.garment != bundle.garment or ds.template.num_vertices != bundle.template.num_vertices:
+        raise DatasetError(dataset, f"is a {ds.garment} dataset with {ds.template.num_vertices} vertices; the model in "
+                                    f"{model_dir} is for {bundle.garment} with {bundle.template.num_vertices}")
+    names = ds.splits.get(args.split, [])
+    if not names:
+        raise DatasetError(dataset, f"has no {args.split!r} sequences")
+    modes = args.modes or [m for m in ALL_MODES if m != "direct" or animator.has_direct]
+    if "direct" in modes and not animator.has_direct:
+        raise InputError(model_dir, "has no direct-regression baseline: train it with hrr-train --stage baseline")
+    out = args.output or workspace() / "eval" / model_dir.name
+    records = [ds.sequence(n) for n in names]
+    collision, progress = not args.no_collision, not args.quiet
+    tau = bundle.tau if args.tau is None else args.tau
+    print(f"evaluating {model_dir} on {len(records)} {args.split} sequences of {dataset} ({sum(len(r.garment) for r in records)} "
+          f"frames): {', '.join(modes)}")
+    results = evaluate_modes(animator, records, modes, tau, args.exclude_own_sequence, collision, progress)
+    sweep = None
+    if not args.no_sweep:
+        taus = args.tau_sweep or default_taus(animator, records)
+        sweep = tau_sweep(animator, records, taus, args.exclude_own_sequence, collision, progress)
+    real = None
+    if args.motions:
+        real = _real_motion(animator, ds, args.motions, modes, tau, collision, progress)
+    report = build_report(
+        model={"folder": str(model_dir), "garment": bundle.garment, "hash": bundle.content_hash, "tau": bundle.tau,
+               "vertices": bundle.template.num_vertices, "preset": bundle.meta.get("preset")},
+        dataset={"path": str(dataset), "split": args.split, "sequences": names,
+                 "frames": int(sum(len(r.garment) for r in records))},
+        settings={"modes": modes, "tau": tau, "collision": collision, "exclude_own_sequence": args.exclude_own_sequence},
+        modes=results, sweep=sweep, real=real, seconds=0.0)
+    plots = [] if args.no_plots else write_plots(Path(out), results, sweep, tau)
+    report["seconds"] = time.perf_counter() - t0
+    json_path, md_path = write_report(out, report, plots)
+    _print_summary(report)
+    print(f"wrote {json_path}, {md_path}" + (f" and {len(plots)} plots" if plots else "") + f" in {report['seconds']:.0f} s")
+    return 0
+
+
+def _real_motion(animator, ds, files: list[str], modes: list[str], tau: float, collision: bool, progress: bool) -> dict:
+    """Simulate the files' ground truth with the dataset's settings (parts cached), evaluate there."""
+    from ..data.dataset import GarmentDataset
+    from ..eval.evaluate import evaluate_modes
+    from ..paths import workspace
+    from ..sim.build import build_dataset
+    from ..sim.plan import load_preset, plan_sequences
+    from ..sim.simulator import SimConfig
+
+    for f in files:
+        if not Path(f).is_file():
+            raise InputError(f, "no such motion file")
+    specs = plan_sequences(load_preset(str(ds.info.get("preset", "quick"))), motions=list(files))
+    config = SimConfig.from_dict(ds.info.get("sim", {}))
+    path = workspace() / "eval" / f"{ds.path.stem}-real-motion.h5"
+    print(f"simulating ground truth for {len(files)} motion file(s) ({len(specs)} pieces; cached in {path.with_suffix('.parts')})")
+    report = build_dataset(ds.template, specs, config, path, splits={"val": 0.0, "test": 0.0}, preview=False,
+                           info={"purpose": "hrr-eval real motion", "source_dataset": str(ds.path)}, progress=progress)
+    real = GarmentDataset(report.path)
+    records = [real.sequence(n) for n in report.sequences]
+    results = evaluate_modes(animator, records, modes, tau, False, collision, progress)
+    return {"files": [str(f) for f in files], "dataset": str(report.path), "sequences": report.sequences,
+            "frames": int(sum(len(r.garment) for r in records)), "rejected": report.rejects,
+            "modes": {m: r.to_dict() for m, r in results.items()}}
+
+
+def _print_summary(report: dict) -> None:
+    for mode, entry in report["modes"].items():
+        m = entry["metrics"]
+        print(f"  {mode:10s} PVE {m['pve_mm']:7.2f} mm  RMSE {m['rmse_mm']:7.2f} mm  STED {m['sted']:.4f}  "
+              f"CD {m['chamfer_cm']:.3f} cm  pen. {m['penetration_pct']:.2f} %  retrieval {100 * m['retrieval_usage']:.0f} %")
+    for name, g in report["goals"].items():
+        if "ratio" in g:
+            status = "" if g["met"] is None else (" met" if g["met"] else " NOT met")
+            print(f"  {name}: {g['ratio']:.3f}" + (f" (target <= {g['target']}){status}" if g["target"] else ""))
+        else:
+            print(f"  tau optimum at {g['best_tau']:.3f}: {'interior' if g['met'] else 'NOT interior'}")
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    return run_cli(_main, argv, "hrr-eval")
+
+
+if __name__ == "__main__":
+    sys.exit(main())

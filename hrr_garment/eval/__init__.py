@@ -1,0 +1,1 @@
+"""Evaluation: metrics against simulated ground truth, mode comparisons, reports (hrr-eval)."""

@@ -1,0 +1,187 @@
+"""hrr-eval's outputs: report.json (schema in docs/results.md), report.md, and PNG plots.
+
+The comparative goals come from the paper's shape (DESIGN section 10): hybrid <= 0.5 x
+regression-only and <= 0.85 x retrieval-only in PVE, learned retrieval <= 0.8 x naive NN, and an
+interior optimum of tau. Each is reported with its ratio and whether it is met; a goal whose modes
+were not evaluated is left out.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+
+from ..io_utils import atomic_path, atomic_write_text
+from .evaluate import ModeResult, TauPoint
+
+REPORT_VERSION = 1
+GOALS = (  # (name, numerator mode, denominator mode, target ratio)
+    ("hybrid_vs_regression", "hybrid", "regression", 0.5),
+    ("hybrid_vs_retrieval", "hybrid", "retrieval", 0.85),
+    ("retrieval_vs_naive_nn", "retrieval", "naive-nn", 0.8),
+    ("hybrid_vs_direct", "hybrid", "direct", None),
+)
+TABLE_METRICS = (("pve_mm", "PVE mm", 2), ("rmse_mm", "RMSE mm", 2), ("sted", "STED", 4), ("chamfer_cm", "CD cm", 3),
+                 ("penetration_pct", "pen. %", 2), ("curvature_error_cm", "E_curv cm", 1), ("strain_p99", "strain p99", 3),
+                 ("stretch_energy_ratio", "stretch E ratio", 2), ("bending_energy_ratio", "bend E ratio", 2),
+                 ("jitter_mm", "jitter mm", 2), ("retrieval_usage", "retrieval", 3))
+
+
+def goals(modes: dict[str, ModeResult], sweep: list[TauPoint] | None) -> dict:
+    out = {}
+    for name, num, den, target in GOALS:
+        if num in modes and den in modes:
+            ratio = modes[num].metrics["pve_mm"] / max(modes[den].metrics["pve_mm"], 1e-12)
+            out[name] = {"ratio": ratio, "target": target, "met": None if target is None else bool(ratio <= target)}
+    if sweep:
+        errors = [p.pve_mm for p in sweep]
+        best = int(np.argmin(errors))
+        interior = 0 < best < len(sweep) - 1 and 0 < sweep[best].retrieval_usage < 1
+        out["interior_tau_optimum"] = {"best_tau": sweep[best].tau, "best_pve_mm": errors[best],
+                                       "retrieval_usage": sweep[best].retrieval_usage, "met": bool(interior)}
+    return out
+
+
+def entropy_summary(modes: dict[str, ModeResult], bins: int = 20) -> dict:
+    """Per-frame motion-code entropy over the evaluated sequences (the same for every mode)."""
+    first = next(iter(modes.values()))
+    h = np.concatenate([s.entropy for s in first.sequences]) if first.sequences else np.zeros(0)
+    counts, edges = np.histogram(h, bins=bins)
+    return {"mean": float(h.mean()) if len(h) else math.nan,
+            "quantiles": {str(q): float(np.quantile(h, q)) for q in (0.05, 0.25, 0.5, 0.75, 0.95)} if len(h) else {},
+            "histogram": {"edges": edges.tolist(), "counts": counts.tolist()}}
+
+
+def build_report(*, model: dict, dataset: dict, settings: dict, modes: dict[str, ModeResult],
+                 sweep: list[TauPoint] | None, real: dict | None, seconds: float) -> dict:
+    return {
+        "format_version": REPORT_VERSION, "model": model, "dataset": dataset, "settings": settings,
+        "modes": {m: r.to_dict() for m, r in modes.items()},
+        "goals": goals(modes, sweep),
+        "tau_sweep": [vars(p) for p in sweep] if sweep else [],
+        "entropy": entropy_summary(modes),
+        "real_motion": real,
+        "seconds": seconds,
+    }
+
+
+def _fmt(value, digits):
+    return "n/a" if value is None or (isinstance(value, float) and not math.isfinite(value)) else f"{value:.{digits}f}"
+
+
+def _mode_table(modes: dict) -> list[str]:
+    lines = ["| mode | " + " | ".join(label for _, label, _ in TABLE_METRICS) + " |",
+             "|---|" + "---:|" * len(TABLE_METRICS)]
+    for mode, entry in modes.items():
+        m = entry["metrics"]
+        lines.append(f"| {mode} | " + " | ".join(_fmt(m.get(k), d) for k, _, d in TABLE_METRICS) + " |")
+    return lines
+
+
+def markdown(report: dict, plots: list[str]) -> str:
+    model, data, settings = report["model"], report["dataset"], report["settings"]
+    out = [f"# Evaluation: {model['garment']} ({Path(model['folder']).name})", "",
+           f"Model `{model['folder']}` (hash {model['hash']}, calibrated tau {model['tau']:.3f}); dataset "
+           f"`{data['path']}`, split **{data['split']}**: {len(data['sequences'])} sequences, {data['frames']} frames. "
+           f"Collision push-out {'on' if settings['collision'] else 'off'}; own sequence excluded from retrieval: "
+           f"{'yes' if settings['exclude_own_sequence'] else 'no'}; tau {settings['tau']:.3f}. "
+           f"Run time {report['seconds']:.0f} s.", "", "## Modes", ""]
+    out += _mode_table(report["modes"])
+    out += ["", "## Goals (the paper's shape; PVE ratios)", "", "| goal | ratio | target | met |", "|---|---:|---:|---|"]
+    for name, g in report["goals"].items():
+        if name == "interior_tau_optimum":
+            out.append(f"| interior tau optimum | best tau {g['best_tau']:.3f} ({g['best_pve_mm']:.2f} mm, retrieval "
+                       f"{100 * g['retrieval_usage']:.0f} %) | interior | {'yes' if g['met'] else 'no'} |")
+        else:
+            target = "" if g["target"] is None else f"<= {g['target']}"
+            met = "" if g["met"] is None else ("yes" if g["met"] else "no")
+            out.append(f"| {name.replace('_', ' ')} | {g['ratio']:.3f} | {target} | {met} |")
+    if report["tau_sweep"]:
+        out += ["", "## Tau sweep (hybrid)", "", "| tau | PVE mm | retrieval usage |", "|---:|---:|---:|"]
+        out += [f"| {p['tau']:.3f} | {p['pve_mm']:.2f} | {100 * p['retrieval_usage']:.1f} % |" for p in report["tau_sweep"]]
+    e = report["entropy"]
+    if e["quantiles"]:
+        q = e["quantiles"]
+        out += ["", f"Motion-code entropy per frame (nats): mean {e['mean']:.3f}, median {q['0.5']:.3f}, "
+                    f"5-95 % {q['0.05']:.3f} .. {q['0.95']:.3f}."]
+    real = report.get("real_motion")
+    if real:
+        out += ["", f"## Real motion ({', '.join(real['files'])})", "",
+                f"Ground truth simulated with the dataset's settings into `{real['dataset']}`; "
+                f"{len(real['sequences'])} sequences, {real['frames']} frames.", ""]
+        out += _mode_table(real["modes"])
+    if plots:
+        out += ["", "## Plots", ""] + [f"![{Path(p).stem}]({Path(p).name})" for p in plots]
+    out += ["", "Metric definitions: docs/results.md."]
+    return "\n".join(out) + "\n"
+
+
+def write_plots(folder: Path, modes: dict[str, ModeResult], sweep: list[TauPoint] | None, tau: float) -> list[str]:
+    """error_over_time.png, entropy_histogram.png, tau_curve.png (with the ``eval`` extra)."""
+    try:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        raise ImportError("hrr-eval plots need matplotlib: pip install 'hrr_garment[eval]' (or pass --no-plots)") from None
+    written = []
+
+    def save(fig, name):
+        with atomic_path(folder / name) as tmp:
+            fig.savefig(tmp, format="png", dpi=110, bbox_inches="tight")
+        plt.close(fig)
+        written.append(str(folder / name))
+
+    fig, ax = plt.subplots(figsize=(10, 3.6))
+    for mode, result in modes.items():
+        ax.plot(np.concatenate([s.per_frame_pve_mm for s in result.sequences]), label=mode, lw=1)
+    bounds = np.cumsum([s.frames for s in next(iter(modes.values())).sequences])[:-1]
+    for b in bounds:
+        ax.axvline(b, color="0.85", lw=0.8)
+    ax.set(xlabel="frame (sequences one after another)", ylabel="per-vertex error (mm)", title="Error over time")
+    ax.legend(ncol=len(modes), fontsize=8)
+    save(fig, "error_over_time.png")
+
+    h = np.concatenate([s.entropy for s in next(iter(modes.values())).sequences])
+    fig, ax = plt.subplots(figsize=(5, 3.4))
+    ax.hist(h, bins=30, color="#4a6fc4")
+    ax.axvline(tau, color="#e0862d", lw=2, label=f"tau = {tau:.3f}")
+    ax.set(xlabel="motion-code entropy (nats)", ylabel="frames", title="Entropy distribution")
+    ax.legend()
+    save(fig, "entropy_histogram.png")
+
+    if sweep:
+        finite = [p for p in sweep if math.isfinite(p.tau)]
+        fig, ax = plt.subplots(figsize=(5, 3.4))
+        ax.plot([p.tau for p in finite], [p.pve_mm for p in finite], "o-", color="#4a6fc4")
+        ax.set(xlabel="tau (nats)", ylabel="hybrid PVE (mm)", title="Tau sweep")
+        ax2 = ax.twinx()
+        ax2.plot([p.tau for p in finite], [100 * p.retrieval_usage for p in finite], "s--", color="#e0862d")
+        ax2.set_ylabel("retrieval usage (%)")
+        save(fig, "tau_curve.png")
+    return written
+
+
+def write_report(folder: str | Path, report: dict, plots: list[str]) -> tuple[Path, Path]:
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    atomic_write_text(folder / "report.json", json.dumps(_clean(report), indent=1, allow_nan=False))
+    atomic_write_text(folder / "report.md", markdown(report, plots))
+    return folder / "report.json", folder / "report.md"
+
+
+def _clean(value):
+    """JSON-ready: numpy scalars to Python, non-finite floats to null (strict JSON has no NaN)."""
+    if isinstance(value, dict):
+        return {str(k): _clean(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_clean(v) for v in value]
+    if isinstance(value, (np.floating, float)):
+        return float(value) if math.isfinite(value) else None
+    if isinstance(value, (np.integer, np.bool_)):
+        return value.item()
+    return value

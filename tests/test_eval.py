@@ -1,0 +1,76 @@
+"""hrr-eval end to end on the tiny trained model (synthetic skirt dataset)."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import pytest
+
+
+def test_hrr_eval_report_end_to_end(trained, tmp_path, capsys):
+    from hrr_garment.cli.eval import main
+
+    root, data, _ = trained
+    out = tmp_path / "report"
+    assert main(["--model", str(root / "model"), "--dataset", str(data), "--split", "test", "--tau-sweep", "0,0.5,1,100",
+                 "-o", str(out), "--quiet"]) == 0
+    report = json.loads((out / "report.json").read_text())
+    assert report["format_version"] == 1 and report["dataset"]["sequences"] == ["run_000"]
+    modes = report["modes"]
+    assert list(modes) == ["hybrid", "regression", "retrieval", "naive-nn"]
+    for name, entry in modes.items():
+        m = entry["metrics"]
+        assert all(v is not None and math.isfinite(v) for v in m.values()), (name, m)
+        assert m["pve_mm"] > 0 and m["rmse_mm"] >= m["pve_mm"] and 0 <= m["penetration_pct"] <= 100
+        assert set(entry["sequences"]) == {"run_000"}
+    assert modes["regression"]["metrics"]["retrieval_usage"] == 0 and modes["retrieval"]["metrics"]["retrieval_usage"] == 1
+    # the sweep's ends are the single modes: tau 0 never retrieves, tau 100 always does
+    sweep = {p["tau"]: p for p in report["tau_sweep"]}
+    assert sweep[0.0]["retrieval_usage"] == 0 and sweep[100.0]["retrieval_usage"] == 1
+    assert sweep[0.0]["pve_mm"] == pytest.approx(modes["regression"]["metrics"]["pve_mm"], rel=1e-9)
+    assert sweep[100.0]["pve_mm"] == pytest.approx(modes["retrieval"]["metrics"]["pve_mm"], rel=1e-9)
+    goals = report["goals"]
+    assert goals["hybrid_vs_regression"]["ratio"] == pytest.approx(
+        modes["hybrid"]["metrics"]["pve_mm"] / modes["regression"]["metrics"]["pve_mm"])
+    assert goals["interior_tau_optimum"]["best_tau"] in sweep
+    hist = report["entropy"]["histogram"]
+    assert sum(hist["counts"]) == report["dataset"]["frames"] and len(hist["edges"]) == len(hist["counts"]) + 1
+    md = (out / "report.md").read_text()
+    assert "| hybrid |" in md and "## Tau sweep" in md
+    for plot in ("error_over_time.png", "entropy_histogram.png", "tau_curve.png"):
+        assert (out / plot).stat().st_size > 1000
+    assert "hybrid_vs_regression" in capsys.readouterr().out
+
+
+def test_hrr_eval_excluding_own_sequence_changes_training_retrieval(trained, tmp_path):
+    from hrr_garment.cli.eval import main
+
+    root, data, _ = trained
+    reports = []
+    for flag in ([], ["--exclude-own-sequence"]):
+        out = tmp_path / f"r{len(flag)}"
+        assert main(["--model", str(root / "model"), "--dataset", str(data), "--split", "train", "--modes", "retrieval",
+                     "--no-sweep", "--no-plots", "-o", str(out), "--quiet", *flag]) == 0
+        reports.append(json.loads((out / "report.json").read_text()))
+    own, excluded = (r["modes"]["retrieval"]["metrics"]["pve_mm"] for r in reports)
+    # with its own windows available retrieval finds the sequence itself: far closer than without
+    assert own < excluded
+
+
+def test_hrr_eval_refuses_bad_input(trained, tmp_path, capsys):
+    from hrr_garment.cli.eval import main
+    from hrr_garment.garment.templates import make_garment
+
+    from conftest import synthetic_dataset
+
+    root, data, _ = trained
+    other = synthetic_dataset(tmp_path / "dress.h5", make_garment("dress", 300))
+    assert main(["--model", str(root / "model"), "--dataset", str(other), "-o", str(tmp_path / "x")]) == 2
+    assert "dress.h5" in capsys.readouterr().err
+    assert main(["--model", str(tmp_path / "nothing"), "-o", str(tmp_path / "x")]) == 2
+    assert main(["--model", str(root / "model"), "--dataset", str(data), "--modes", "direct", "-o", str(tmp_path / "x")]) == 2
+    assert "baseline" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        main(["--model", str(root / "model"), "--modes", "bogus"])
+    assert not (tmp_path / "x").exists()
