@@ -8,7 +8,8 @@
 Stages, in order: ``simulate`` (only when the dataset does not exist; as hrr-simulate would),
 ``autoencoder`` (the FCMAE mesh autoencoder, then every frame encoded to latents), ``codebook``
 (motion and garment encoders sharing a Gumbel-Softmax code space, the retrieval database, tau
-calibration, the bundle). Each stage resumes from its checkpoint when re-run and is skipped when
+calibration, the bundle); ``baseline`` (only when named: the direct-regression baseline that
+``hrr-eval`` compares against, mode ``direct``). Each stage resumes from its checkpoint when re-run and is skipped when
 its outputs are current. The bundle lands in hrr_work/models/GARMENT-PRESET/, where
 ``hrr-animate --garment GARMENT`` finds it.
 
@@ -31,7 +32,7 @@ from ..paths import workspace
 from ..sim.plan import CONFIG_DIR, load_preset
 from ._common import run_cli
 
-STAGES = ("simulate", "autoencoder", "codebook")
+STAGES = ("simulate", "autoencoder", "codebook")  # "all"; the baseline stage runs only when asked for
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -39,7 +40,8 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--garment", default=None, help="garment name: uses hrr_work/datasets/GARMENT-PRESET.h5")
     p.add_argument("--preset", default="quick", help="dataset and training preset (default quick)")
     p.add_argument("--dataset", type=Path, default=None, help="dataset .h5 (instead of --garment/--preset)")
-    p.add_argument("--stage", choices=(*STAGES, "all"), default="all")
+    p.add_argument("--stage", choices=(*STAGES, "baseline", "all"), default="all",
+                   help="one stage; 'baseline' trains the direct-regression baseline for hrr-eval")
     p.add_argument("--config", type=Path, default=None, help="YAML overriding configs/train.yaml (same sections)")
     p.add_argument("--minutes", type=float, default=None, help="wall-clock budget for the autoencoder stage")
     p.add_argument("--threads", type=int, default=None, help="torch CPU threads (default: torch's choice)")
@@ -60,8 +62,9 @@ def _read_yaml(path: Path) -> dict:
         data = yaml.safe_load(path.read_text(encoding="utf-8")) or {}
     except (OSError, yaml.YAMLError) as exc:
         raise InputError(path, f"cannot read the training config: {exc}") from None
-    if not isinstance(data, dict) or set(data) - {"autoencoder", "codebook"}:
-        raise InputError(path, "expected a mapping with 'autoencoder' and/or 'codebook' sections (each with model/train)")
+    if not isinstance(data, dict) or set(data) - {"autoencoder", "codebook", "baseline"}:
+        raise InputError(path, "expected a mapping with 'autoencoder', 'codebook' and/or 'baseline' sections "
+                               "(each with model/train)")
     return data
 
 
@@ -97,6 +100,8 @@ def _main(argv: Sequence[str] | None) -> int:
     from ..models.fcmae import AutoencoderConfig
     from ..train.autoencoder import TrainConfig, train_autoencoder
     from ..train.codebook import CodebookTrainConfig
+    from ..models.direct import DirectConfig
+    from ..train.direct import DirectTrainConfig, run_baseline_stage
     from ..train.stages import run_codebook_stage
 
     preset = load_preset(args.preset)
@@ -115,6 +120,8 @@ def _main(argv: Sequence[str] | None) -> int:
     ae_train = _build(TrainConfig, ae_train_values, source)
     cs_model = _build(CodeSpaceConfig, cfg["codebook"].get("model"), source)
     cs_train = _build(CodebookTrainConfig, cfg["codebook"].get("train"), source)
+    direct_model = _build(DirectConfig, cfg["baseline"].get("model"), source)
+    direct_train = _build(DirectTrainConfig, cfg["baseline"].get("train"), source)
     if args.threads:
         import torch
 
@@ -145,6 +152,11 @@ def _main(argv: Sequence[str] | None) -> int:
             r = run_codebook_stage(args.dataset, folder, cs_model, cs_train, cache_dir=workspace() / "cache",
                                    progress=not args.quiet, info={"preset": preset.name})
             _print_codebook(r, folder)
+        elif stage == "baseline":
+            r = run_baseline_stage(args.dataset, folder, direct_model, direct_train, cache_dir=workspace() / "cache",
+                                   progress=not args.quiet)
+            print(f"baseline (direct regression): {r['epochs']} epochs (best {r['best_epoch']}) in {r['minutes']:.1f} min"
+                  f"{' (reused)' if r.get('reused') else ''}; validation per-vertex error {r['validation_mm']:.2f} mm")
         times[stage] = time.perf_counter() - t0
     print("time per stage: " + ", ".join(f"{k} {v / 60:.1f} min" for k, v in times.items()))
     return 0

@@ -45,10 +45,18 @@ def goals(modes: dict[str, ModeResult], sweep: list[TauPoint] | None) -> dict:
     return out
 
 
+def _entropies(modes: dict[str, ModeResult]) -> np.ndarray:
+    """Per-frame entropies of the first mode that has them (the direct baseline has none)."""
+    for result in modes.values():
+        h = np.concatenate([s.entropy for s in result.sequences]) if result.sequences else np.zeros(0)
+        if len(h) and np.isfinite(h).all():
+            return h
+    return np.zeros(0)
+
+
 def entropy_summary(modes: dict[str, ModeResult], bins: int = 20) -> dict:
     """Per-frame motion-code entropy over the evaluated sequences (the same for every mode)."""
-    first = next(iter(modes.values()))
-    h = np.concatenate([s.entropy for s in first.sequences]) if first.sequences else np.zeros(0)
+    h = _entropies(modes)
     counts, edges = np.histogram(h, bins=bins)
     return {"mean": float(h.mean()) if len(h) else math.nan,
             "quantiles": {str(q): float(np.quantile(h, q)) for q in (0.05, 0.25, 0.5, 0.75, 0.95)} if len(h) else {},
@@ -146,7 +154,7 @@ def write_plots(folder: Path, modes: dict[str, ModeResult], sweep: list[TauPoint
     ax.legend(ncol=len(modes), fontsize=8)
     save(fig, "error_over_time.png")
 
-    h = np.concatenate([s.entropy for s in next(iter(modes.values())).sequences])
+    h = _entropies(modes)
     fig, ax = plt.subplots(figsize=(5, 3.4))
     ax.hist(h, bins=30, color="#4a6fc4")
     ax.axvline(tau, color="#e0862d", lw=2, label=f"tau = {tau:.3f}")

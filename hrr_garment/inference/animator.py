@@ -113,34 +113,49 @@ class Animator:
     def animate(self, motion: Motion, mode: str = "hybrid", tau: float | None = None, collision: bool = True,
                 causal: bool = False, exclude_sequence: int | None = None) -> Animation:
         """Animate a whole clip (see :mod:`.engine`): ``mode`` hybrid | regression | retrieval |
-        naive-nn; ``tau`` overrides the bundle's; ``causal`` gives what streaming gives;
+        naive-nn, or direct (the baseline, when the bundle has it; offline only); ``tau`` overrides the bundle's; ``causal`` gives what streaming gives;
         ``exclude_sequence`` keeps one database sequence out of retrieval (evaluation)."""
         tau = self.bundle.tau if tau is None else float(tau)
         t_frames, w = motion.num_frames, self.window
         if t_frames < 1:
             raise MotionError(motion.source, "the motion has no frames")
-        if causal:
-            feats = causal_windows(causal_features(motion), w)
-            choice = self._choose(feats, mode, tau, exclude_sequence)
-            latents = causal_latents(choice, self.blend)
-            per_frame = np.arange(t_frames)
+        if mode == "direct":
+            latents = self._direct_latents(motion)
+            retrieved, entropy = np.zeros(t_frames, np.uint8), np.full(t_frames, np.nan, np.float32)
+            source = np.full((t_frames, 2), -1, np.int32)
         else:
-            feats = motion_features(motion) if t_frames > 1 else causal_features(motion)  # one frame: no velocity
-            if t_frames < w:  # shorter than one window: pad with the last frame, keep the first T outputs
-                feats = np.concatenate([feats, np.repeat(feats[-1:], w - t_frames, 0)])
-            windows = np.ascontiguousarray(sequence_windows(feats, w))
-            choice = self._choose(windows, mode, tau, exclude_sequence)
-            latents = blend_windows(choice.latents, len(feats))[:t_frames]
-            per_frame = np.clip(np.arange(t_frames) - w // 2, 0, len(windows) - 1)  # the window centred on t
+            if causal:
+                feats = causal_windows(causal_features(motion), w)
+                choice = self._choose(feats, mode, tau, exclude_sequence)
+                latents = causal_latents(choice, self.blend)
+                per_frame = np.arange(t_frames)
+            else:
+                feats = motion_features(motion) if t_frames > 1 else causal_features(motion)  # one frame: no velocity
+                if t_frames < w:  # shorter than one window: pad with the last frame, keep the first T outputs
+                    feats = np.concatenate([feats, np.repeat(feats[-1:], w - t_frames, 0)])
+                windows = np.ascontiguousarray(sequence_windows(feats, w))
+                choice = self._choose(windows, mode, tau, exclude_sequence)
+                latents = blend_windows(choice.latents, len(feats))[:t_frames]
+                per_frame = np.clip(np.arange(t_frames) - w // 2, 0, len(windows) - 1)  # the window centred on t
+            retrieved, entropy = choice.retrieved[per_frame].astype(np.uint8), choice.entropy[per_frame].astype(np.float32)
+            source = choice.source[per_frame]
         vertices = to_world(heading_vertices(self.bundle, latents, self.decoder), motion).astype(np.float32)
         report = None
         if collision:
             vertices, report = push_out(vertices, motion, self.bundle.template.faces, mean=self.smoothing)
-        return Animation(vertices, self.bundle.template.faces, motion.fps, choice.retrieved[per_frame].astype(np.uint8),
-                         choice.entropy[per_frame].astype(np.float32), choice.source[per_frame], motion.joint_positions,
+        return Animation(vertices, self.bundle.template.faces, motion.fps, retrieved, entropy, source, motion.joint_positions,
                          self.bundle.garment, self.bundle.content_hash, motion.source,
                          {"mode": mode, "tau": tau, "causal": int(causal), "collision": int(collision)}, report,
                          np.stack(DEFAULT_BODY.pose_motion(motion), 2).astype(np.float32))
+
+    def _direct_latents(self, motion: Motion) -> np.ndarray:
+        """(T, nodes, C) latents of the direct-regression baseline (causal: a GRU over the clip)."""
+        if self.bundle.direct is None:
+            raise InputError(self.bundle.folder, "has no direct-regression baseline: train it with hrr-train --stage baseline")
+        feats = motion_features(motion) if motion.num_frames > 1 else causal_features(motion)
+        with torch.no_grad():
+            z = self.bundle.direct(torch.from_numpy(self.bundle.motion_stats.normalize(feats).astype(np.float32))[None])[0]
+        return self.bundle.latent_stats.denormalize(z.numpy()).reshape(len(feats), *self.bundle.autoencoder.latent_shape)
 
     def _choose(self, windows: np.ndarray, mode: str, tau: float, exclude_sequence: int | None):
         exclude = None if exclude_sequence is None else np.full(len(windows), exclude_sequence)

@@ -38,6 +38,7 @@ from ..garment.mesh import GarmentMesh
 from ..inference.database import CodeDatabase
 from ..io_utils import atomic_path, atomic_write_text
 from ..models.codespace import CodeSpace, CodeSpaceConfig
+from ..models.direct import DirectConfig, DirectRegressor
 from ..models.fcmae import AutoencoderConfig, MeshAutoencoder
 from ..models.hierarchy import cached_hierarchy
 from ..motion.features import FEATURE_DIM, FeatureStats
@@ -60,6 +61,7 @@ class Bundle:
     latent_stats: FeatureStats
     database: CodeDatabase
     template: GarmentMesh
+    direct: DirectRegressor | None = None  # the direct-regression baseline, when trained
 
     @property
     def tau(self) -> float:
@@ -112,10 +114,25 @@ def write_bundle(folder: str | Path, *, autoencoder: MeshAutoencoder, codespace:
             "codespace": {"config": codespace.config.to_dict(), "features": codespace.features,
                           "latent_shape": list(codespace.latent_shape)},
             "tau": float(tau), "database": {"names": database.names, "classes": database.classes, "windows": len(database)},
-            "files": files, "content_hash": hashlib.sha256(json.dumps(files, sort_keys=True).encode()).hexdigest()[:16],
+            "files": files, "content_hash": _content_hash(files),
             **info}
     atomic_write_text(folder / "bundle.json", json.dumps(meta, indent=2))
     return folder / "bundle.json"
+
+
+def _content_hash(files: dict[str, str]) -> str:
+    return hashlib.sha256(json.dumps(files, sort_keys=True).encode()).hexdigest()[:16]
+
+
+def add_bundle_part(folder: str | Path, name: str, tensors: dict, meta: dict) -> None:
+    """Add (or replace) one weights file of an existing bundle and merge ``meta`` into bundle.json;
+    the file list and content hash are updated, bundle.json last (atomically)."""
+    folder = Path(folder)
+    current = read_meta(folder)
+    _save(folder / name, tensors)
+    files = {**current["files"], name: _sha256(folder / name)}
+    atomic_write_text(folder / "bundle.json", json.dumps({**current, **meta, "files": files,
+                                                          "content_hash": _content_hash(files)}, indent=2))
 
 
 def _load_state(module: torch.nn.Module, path: Path, folder: Path) -> None:
@@ -202,5 +219,13 @@ def load_bundle(folder: str | Path, cache_dir: Path | None = None) -> Bundle:
                                 int(meta["database"]["classes"]), d.get("motion"))
     except ValueError as exc:
         raise BundleError(folder, f"database: {exc}") from None
+    direct = None
+    if "direct" in meta:  # the optional baseline (hrr-train --stage baseline)
+        try:
+            direct = DirectRegressor(DirectConfig.from_dict(meta["direct"]["config"]), features, latent_shape)
+        except (KeyError, TypeError, ValueError) as exc:
+            raise BundleError(folder, f"bundle.json has a bad 'direct' entry ({exc})") from None
+        _load_state(direct, folder / "direct.safetensors", folder)
+        direct.eval()
     return Bundle(folder, meta, autoencoder.eval(), codespace.eval(), FeatureStats(s["motion_mean"], s["motion_std"]),
-                  FeatureStats(s["latent_mean"], s["latent_std"]), database, template)
+                  FeatureStats(s["latent_mean"], s["latent_std"]), database, template, direct)

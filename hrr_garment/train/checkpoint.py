@@ -34,3 +34,13 @@ def load_checkpoint(path: Path, key: str, state: dict, best_weights: dict, **sta
         obj.load_state_dict(saved[name])
     torch.set_rng_state(saved["rng"])
     return {**state, **json.loads(saved["state"])}, saved["best_weights"]
+
+
+def resume_log(path: Path, epoch: int) -> None:
+    """Make a JSON-lines epoch log agree with a checkpoint at ``epoch``: empty when starting afresh,
+    else without the lines of epochs after it (a kill between the two writes)."""
+    if epoch == 0:
+        path.unlink(missing_ok=True)
+    elif path.exists():
+        lines = [line for line in path.read_text().splitlines() if json.loads(line)["epoch"] <= epoch]
+        path.write_text("".join(line + "\n" for line in lines))

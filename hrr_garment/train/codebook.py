@@ -33,7 +33,7 @@ from ..data.windows import WindowSet
 from ..models.codebook import group_entropy
 from ..models.codespace import CodeSpace
 from ..settings import from_settings
-from .checkpoint import load_checkpoint, save_checkpoint
+from .checkpoint import load_checkpoint, resume_log, save_checkpoint
 
 
 @dataclass(frozen=True)
@@ -145,11 +145,7 @@ def train_codespace(model: CodeSpace, train: WindowTensors, val: WindowTensors, 
     checkpoint, log_path = folder / "checkpoint.pt", folder / "log.jsonl"
     state, best_weights = load_checkpoint(checkpoint, key, state, best_weights, model=model, optimizer=optimizer,
                                           plateau=plateau)
-    if state["epoch"] == 0:
-        log_path.unlink(missing_ok=True)
-    elif log_path.exists():  # drop lines of epochs after the checkpoint (a kill between the two writes)
-        lines = [line for line in log_path.read_text().splitlines() if json.loads(line)["epoch"] <= state["epoch"]]
-        log_path.write_text("".join(line + "\n" for line in lines))
+    resume_log(log_path, state["epoch"])
     gen = torch.Generator().manual_seed(config.seed + state["epoch"])
     started, spent = time.perf_counter(), state["elapsed_s"]  # the budget counts interrupted runs too
     deadline = None if config.max_minutes is None else started + 60 * config.max_minutes - spent

@@ -1,0 +1,165 @@
+"""The ``baseline`` stage of ``hrr-train``: the direct-regression baseline (:mod:`..models.direct`).
+
+Trained on the same data as the code space, in the same standardised spaces (the bundle's motion
+and latent statistics, the autoencoder's latents of every frame), with the same kind of budget
+(``baseline.train.max_minutes``, by default the code-space stage's). Random crops of ``crop``
+frames from the training sequences, L1 on the standardised latents, Adam; early stopping on the
+validation sequences run whole. Checkpointed each epoch in ``MODEL/baseline/`` and resumable; the
+weights join the bundle as ``direct.safetensors`` with a ``direct`` entry in bundle.json.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import time
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+import torch
+from tqdm import tqdm
+
+from ..data.dataset import DatasetError, GarmentDataset
+from ..data.windows import dataset_features
+from ..io_utils import atomic_write_text
+from ..models.direct import DirectConfig, DirectRegressor
+from ..motion.features import FEATURE_DIM
+from ..settings import from_settings
+from .autoencoder import heading_frames
+from .bundle import add_bundle_part, load_bundle
+from .checkpoint import load_checkpoint, resume_log, save_checkpoint
+
+
+@dataclass(frozen=True)
+class DirectTrainConfig:
+    epochs: int = 300
+    batch_size: int = 16
+    crop: int = 60  # frames per training crop
+    learning_rate: float = 1e-3
+    weight_decay: float = 1e-4
+    patience: int = 25  # epochs without a better validation loss
+    max_minutes: float | None = None
+    seed: int = 0
+
+    @classmethod
+    def from_dict(cls, values: dict) -> "DirectTrainConfig":
+        return from_settings(cls, values, "baseline training")
+
+
+def _sequences(features: dict, latents: dict, names: list[str], bundle) -> tuple[list[torch.Tensor], list[torch.Tensor]]:
+    motion = [torch.from_numpy(bundle.motion_stats.normalize(features[n]).astype(np.float32)) for n in names]
+    lat = [torch.from_numpy(bundle.latent_stats.normalize(latents[n].reshape(len(latents[n]), -1)).astype(np.float32))
+           for n in names]
+    return motion, lat
+
+
+def _crops(motion: list[torch.Tensor], latents: list[torch.Tensor], crop: int, batch: int, gen: torch.Generator):
+    """Batches of random crops: about one crop per ``crop`` frames of training data per epoch."""
+    lengths = torch.tensor([len(m) for m in motion])
+    picks = max(1, int(lengths.sum()) // crop)
+    seq = torch.multinomial(lengths.float(), picks, replacement=True, generator=gen)
+    for i in range(0, picks, batch):
+        size = min(crop, int(lengths[seq[i:i + batch]].min()))
+        xs, ys = [], []
+        for s in seq[i:i + batch].tolist():
+            start = int(torch.randint(0, len(motion[s]) - size + 1, (1,), generator=gen))
+            xs.append(motion[s][start:start + size])
+            ys.append(latents[s][start:start + size])
+        yield torch.stack(xs), torch.stack(ys)
+
+
+@torch.no_grad()
+def _val_loss(model: DirectRegressor, motion: list[torch.Tensor], latents: list[torch.Tensor]) -> float:
+    model.eval()
+    total = sum(float((model(m[None])[0] - y).abs().sum()) for m, y in zip(motion, latents))
+    return total / sum(y.numel() for y in latents)
+
+
+def train_direct(model: DirectRegressor, train: tuple, val: tuple, folder: Path, config: DirectTrainConfig, key: str,
+                 progress: bool = True) -> dict:
+    folder.mkdir(parents=True, exist_ok=True)
+    torch.manual_seed(config.seed)
+    optimizer = torch.optim.Adam(model.parameters(), lr=config.learning_rate, weight_decay=config.weight_decay)
+    state = {"epoch": 0, "best": math.inf, "best_epoch": 0, "stale": 0, "elapsed_s": 0.0}
+    best_weights = {k: v.clone() for k, v in model.state_dict().items()}
+    checkpoint, log_path = folder / "checkpoint.pt", folder / "log.jsonl"
+    state, best_weights = load_checkpoint(checkpoint, key, state, best_weights, model=model, optimizer=optimizer)
+    resume_log(log_path, state["epoch"])
+    started, spent = time.perf_counter(), state["elapsed_s"]
+    deadline = None if config.max_minutes is None else started + 60 * config.max_minutes - spent
+    bar = tqdm(total=config.epochs, initial=state["epoch"], desc="baseline", unit="epoch", disable=not progress)
+    while state["epoch"] < config.epochs and state["stale"] < config.patience:
+        if deadline is not None and time.perf_counter() > deadline:
+            break
+        model.train()
+        gen = torch.Generator().manual_seed(config.seed + state["epoch"])
+        total, count = 0.0, 0
+        for x, y in _crops(*train, config.crop, config.batch_size, gen):
+            loss = (model(x) - y).abs().mean()
+            optimizer.zero_grad(set_to_none=True)
+            loss.backward()
+            optimizer.step()
+            total, count = total + loss.item() * len(x), count + len(x)
+        val_loss = _val_loss(model, *val)
+        state["epoch"] += 1
+        state["elapsed_s"] = spent + time.perf_counter() - started
+        if val_loss < state["best"]:
+            state.update(best=val_loss, best_epoch=state["epoch"], stale=0)
+            best_weights = {k: v.detach().clone() for k, v in model.state_dict().items()}
+        else:
+            state["stale"] += 1
+        with open(log_path, "a", encoding="utf-8") as fh:
+            fh.write(json.dumps({"epoch": state["epoch"], "train_l1": total / max(count, 1), "val_l1": val_loss}) + "\n")
+        save_checkpoint(checkpoint, key, state, best_weights, model=model, optimizer=optimizer)
+        bar.set_postfix(val=f"{val_loss:.3f}")
+        bar.update(1)
+    bar.close()
+    model.load_state_dict(best_weights)
+    model.eval()
+    return state
+
+
+def run_baseline_stage(dataset: str | Path, folder: str | Path, config: DirectConfig = DirectConfig(),
+                       train_config: DirectTrainConfig = DirectTrainConfig(), cache_dir: Path | None = None,
+                       progress: bool = True) -> dict:
+    """Train the baseline for the bundle in ``folder`` (the code-space stage must have run)."""
+    t0 = time.perf_counter()
+    folder = Path(folder)
+    bundle = load_bundle(folder, cache_dir)
+    ds = GarmentDataset(dataset)
+    if ds.garment != bundle.garment or ds.template.num_vertices != bundle.template.num_vertices:
+        raise DatasetError(dataset, f"is not the dataset of the model in {folder} ({bundle.garment}, "
+                                    f"{bundle.template.num_vertices} vertices)")
+    base_files = {k: v for k, v in bundle.meta["files"].items() if k != "direct.safetensors"}
+    key = hashlib.sha1(json.dumps([config.to_dict(), asdict(train_config) | {"max_minutes": None}, base_files, ds.splits],
+                                  sort_keys=True).encode()).hexdigest()[:16]
+    if bundle.meta.get("direct", {}).get("key") == key:
+        return {**bundle.meta["direct"], "reused": True}
+    with np.load(folder / "autoencoder" / "latents.npz", allow_pickle=False) as f:
+        latents = {name: f[name] for name in ds.names}
+    names = {k: ds.splits[k] for k in ("train", "val")}
+    features = dataset_features(ds, names["train"] + names["val"])
+    train = _sequences(features, latents, names["train"], bundle)
+    val = _sequences(features, latents, names["val"], bundle)
+    torch.manual_seed(train_config.seed)
+    model = DirectRegressor(config, FEATURE_DIM, bundle.autoencoder.latent_shape)
+    state = train_direct(model, train, val, folder / "baseline", train_config, key, progress)
+    val_mm = validation_pve_mm(model, bundle, val[0], heading_frames(ds, names["val"]))
+    entry = {"key": key, "config": config.to_dict(), "train": asdict(train_config), "epochs": state["epoch"],
+             "best_epoch": state["best_epoch"], "validation_mm": val_mm, "minutes": (time.perf_counter() - t0) / 60}
+    add_bundle_part(folder, "direct.safetensors", model.state_dict(), {"direct": entry})
+    atomic_write_text(folder / "baseline" / "report.json", json.dumps(entry, indent=2))
+    return entry
+
+
+@torch.no_grad()
+def validation_pve_mm(model: DirectRegressor, bundle, motion: list[torch.Tensor], truth: np.ndarray) -> float:
+    """Per-vertex error (mm) in the heading frame over the validation frames, decoded."""
+    decode = bundle.autoencoder.fast_decoder()
+    pred = []
+    for m in motion:
+        z = bundle.latent_stats.denormalize(model(m[None])[0].numpy())
+        pred.append(decode(torch.from_numpy(z.reshape(len(z), *bundle.autoencoder.latent_shape).astype(np.float32))).numpy())
+    return 1000.0 * float(np.linalg.norm(np.concatenate(pred) - truth, axis=-1).mean())
