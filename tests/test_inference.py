@@ -7,7 +7,7 @@ import pytest
 
 from hrr_garment.inference.engine import Inertializer, blend_windows, to_world, window_weights
 from hrr_garment.motion.synth import synthesize
-from hrr_garment.sim.quality import heading_frame
+from hrr_garment.motion.frame import to_body_frame
 
 
 @pytest.fixture(scope="module")
@@ -61,10 +61,22 @@ def test_blending_keeps_a_constant_and_favours_centres():
     assert np.allclose(blend_windows(windows, 16)[:, 0], ramp)  # consistent windows blend to themselves
 
 
-def test_to_world_inverts_the_heading_frame(rng):
+def test_to_world_inverts_the_body_frame(rng):
     motion = synthesize("turn_in_place", 1.0, seed=3)
     points = rng.normal(size=(motion.num_frames, 5, 3))
-    assert np.allclose(to_world(heading_frame(points, motion), motion), points, atol=1e-9)
+    assert np.allclose(to_world(to_body_frame(points, motion), motion), points, atol=1e-9)
+
+
+def test_body_frame_follows_the_pelvis_height_and_heading():
+    from hrr_garment.motion.rotations import rotation_about_y, yaw_of
+    from hrr_garment.motion.skeleton import REST_PELVIS_HEIGHT
+
+    motion = synthesize("jump", 1.5, seed=1)  # the pelvis dips and rises
+    assert np.ptp(motion.root_translation[:, 1]) > 0.1
+    offset = np.array([[0.1, -0.3, 0.2], [-0.2, 0.1, 0.05]])  # carried rigidly with the pelvis heading
+    world = motion.root_translation[:, None] + np.einsum("tij,nj->tni", rotation_about_y(yaw_of(motion.global_rotations[:, 0])), offset)
+    local = to_body_frame(world, motion)
+    assert np.allclose(local, offset + [0.0, REST_PELVIS_HEIGHT, 0.0], atol=1e-9)
 
 
 def test_inertialization_is_continuous_in_position_and_velocity():
@@ -85,7 +97,7 @@ def test_push_out_moves_vertices_outside_without_spikes():
 
     skirt = make_garment("skirt", 300)
     motion = synthesize("idle", 0.2, seed=0)
-    rest = to_world(heading_frame(np.repeat(skirt.vertices[None], motion.num_frames, 0).astype(np.float64), motion), motion)
+    rest = to_world(to_body_frame(np.repeat(skirt.vertices[None], motion.num_frames, 0).astype(np.float64), motion), motion)
     squeezed = rest.copy()
     centre = np.array([0.0, 0.0, 0.0])
     centre[[0, 2]] = rest[0, :, [0, 2]].mean(1)

@@ -32,7 +32,7 @@ from hrr_garment.garment.templates import make_garment
 from hrr_garment.inference.engine import to_world
 from hrr_garment.motion.motion import Motion
 from hrr_garment.motion.synth import synthesize
-from hrr_garment.sim.quality import heading_frame
+from hrr_garment.motion.frame import to_body_frame
 
 
 def long_motion(frames: int) -> Motion:
@@ -51,7 +51,7 @@ def long_motion(frames: int) -> Motion:
 def build_animation(path: Path, frames: int, vertices: int) -> Path:
     motion = long_motion(frames)
     dress = make_garment("dress", vertices)
-    rest = heading_frame(dress.vertices[None].astype(np.float64), motion.slice(0, 1))[0]
+    rest = to_body_frame(dress.vertices[None].astype(np.float64), motion.slice(0, 1))[0]
     t = np.arange(frames)[:, None, None] / 30.0
     below_hips = np.clip(1.0 - rest[None, :, 1:2], 0, None)
     swing = 0.08 * below_hips * np.sin(2 * np.pi * 0.9 * t + rest[None, :, 0:1] * 3 + rest[None, :, 2:3] * 2)

@@ -24,6 +24,7 @@ import torch
 
 from ..data.windows import sequence_windows
 from ..motion.features import motion_features
+from ..motion.frame import from_body_frame
 from ..motion.motion import Motion
 from ..train.bundle import Bundle
 
@@ -36,13 +37,9 @@ def window_weights(size: int) -> np.ndarray:
 
 
 def to_world(points: np.ndarray, motion: Motion) -> np.ndarray:
-    """Inverse of :func:`~hrr_garment.sim.quality.heading_frame`: heading-frame points (T, N, 3)
-    to world coordinates."""
-    from ..motion.rotations import rotation_about_y, yaw_of
-
-    rot = rotation_about_y(yaw_of(motion.global_rotations[:, 0]))
-    origin = motion.root_translation * np.array([1.0, 0.0, 1.0])
-    return np.matmul(points, rot.transpose(0, 2, 1)) + origin[:, None]
+    """Body-frame points (T, N, 3), as the models output them, to world coordinates
+    (:func:`~hrr_garment.motion.frame.from_body_frame`)."""
+    return from_body_frame(points, motion)
 
 
 def pair_features(previous: Motion | None, current: Motion) -> np.ndarray:

@@ -31,7 +31,7 @@ from ..models.fcmae import AutoencoderConfig, MeshAutoencoder
 from ..models.hierarchy import cached_hierarchy
 from ..settings import from_settings
 from .checkpoint import load_checkpoint, save_checkpoint
-from ..sim.quality import heading_frame
+from ..motion.frame import FRAME_VERSION, to_body_frame
 
 
 @dataclass(frozen=True)
@@ -66,12 +66,12 @@ class AutoencoderReport:
     extra: dict = field(default_factory=dict)
 
 
-def heading_frames(ds: GarmentDataset, names: list[str]) -> np.ndarray:
-    """All frames of ``names`` in each frame's heading frame, (N, V, 3) float32."""
+def body_frames(ds: GarmentDataset, names: list[str]) -> np.ndarray:
+    """All frames of ``names`` in each frame's body frame (:mod:`..motion.frame`), (N, V, 3) float32."""
     out = []
     for name in names:
         rec = ds.sequence(name)
-        out.append(heading_frame(rec.garment.astype(np.float64), rec.motion).astype(np.float32))
+        out.append(to_body_frame(rec.garment.astype(np.float64), rec.motion).astype(np.float32))
     return np.concatenate(out) if out else np.zeros((0, ds.template.num_vertices, 3), np.float32)
 
 
@@ -120,9 +120,9 @@ def train_autoencoder(dataset: str | Path, folder: str | Path, model_config: Aut
         torch.set_num_threads(train_config.threads)
     ds = GarmentDataset(dataset)
     splits = ds.splits
-    train = heading_frames(ds, splits["train"])
-    val = heading_frames(ds, splits.get("val", []))
-    test = heading_frames(ds, splits.get("test", []))
+    train = body_frames(ds, splits["train"])
+    val = body_frames(ds, splits.get("val", []))
+    test = body_frames(ds, splits.get("test", []))
     template = ds.template.vertices.astype(np.float32)
     perm = mirror_map(template) if train_config.mirror else None
     if perm is not None:  # heading frame: x is the body's left-right axis
@@ -134,7 +134,7 @@ def train_autoencoder(dataset: str | Path, folder: str | Path, model_config: Aut
     optimizer = torch.optim.Adam(model.parameters(), lr=train_config.learning_rate)
     scheduler = torch.optim.lr_scheduler.ExponentialLR(optimizer, train_config.lr_decay)
     key = _key(model_config.to_dict(), asdict(train_config) | {"max_minutes": None, "threads": None},
-               ds.garment, ds.template.num_vertices, splits)
+               ds.garment, ds.template.num_vertices, splits, {"frame": FRAME_VERSION})
     checkpoint = folder / "checkpoint.pt"
     report_path = folder / "report.json"
     if report_path.is_file() and (folder / "latents.npz").is_file() and (folder / "model.pt").is_file():
@@ -204,7 +204,7 @@ def encode_dataset(model: MeshAutoencoder, ds: GarmentDataset, path: Path, batch
     latents = {}
     with torch.no_grad():
         for name in ds.names:
-            frames = heading_frames(ds, [name])
+            frames = body_frames(ds, [name])
             latents[name] = np.concatenate([model.encode(torch.from_numpy(frames[i:i + batch])).numpy()
                                             for i in range(0, len(frames), batch)])
     with atomic_path(path) as tmp, open(tmp, "wb") as fh:

@@ -27,7 +27,7 @@ from ..io_utils import atomic_write_text
 from ..models.direct import DirectConfig, DirectRegressor
 from ..motion.features import FEATURE_DIM
 from ..settings import from_settings
-from .autoencoder import heading_frames
+from .autoencoder import body_frames
 from .bundle import add_bundle_part, load_bundle
 from .checkpoint import load_checkpoint, resume_log, save_checkpoint
 
@@ -146,7 +146,7 @@ def run_baseline_stage(dataset: str | Path, folder: str | Path, config: DirectCo
     torch.manual_seed(train_config.seed)
     model = DirectRegressor(config, FEATURE_DIM, bundle.autoencoder.latent_shape)
     state = train_direct(model, train, val, folder / "baseline", train_config, key, progress)
-    val_mm = validation_pve_mm(model, bundle, val[0], heading_frames(ds, names["val"]))
+    val_mm = validation_pve_mm(model, bundle, val[0], body_frames(ds, names["val"]))
     entry = {"key": key, "config": config.to_dict(), "train": asdict(train_config), "epochs": state["epoch"],
              "best_epoch": state["best_epoch"], "validation_mm": val_mm, "minutes": (time.perf_counter() - t0) / 60}
     add_bundle_part(folder, "direct.safetensors", model.state_dict(), {"direct": entry})

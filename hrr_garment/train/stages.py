@@ -24,7 +24,7 @@ from ..inference.database import CodeDatabase
 from ..io_utils import atomic_write_text
 from ..models.codespace import CodeSpace, CodeSpaceConfig
 from ..motion.features import FEATURE_DIM
-from .autoencoder import heading_frames, load_autoencoder
+from .autoencoder import body_frames, load_autoencoder
 from .bundle import BundleError, read_meta, write_bundle
 from .calibrate import evaluate_modes
 from .codebook import CodebookTrainConfig, WindowTensors, evaluate, train_codespace
@@ -94,7 +94,7 @@ def run_codebook_stage(dataset: str | Path, folder: str | Path, config: CodeSpac
     database = CodeDatabase(garment_codes(model, train_t.latents), train_w.latents, train_w.sequence, train_w.start,
                             train_w.names, config.classes, train_t.motion.numpy())
     modes = evaluate_modes(model, autoencoder, motion_stats, latent_stats, database,
-                           {n: features[n] for n in splits["val"]}, {n: heading_frames(ds, [n]) for n in splits["val"]})
+                           {n: features[n] for n in splits["val"]}, {n: body_frames(ds, [n]) for n in splits["val"]})
     sweep = modes.sweep
     usage = model.quantizer.usage(torch.from_numpy(database.codes))
     final = evaluate(model, val_t)
@@ -123,5 +123,5 @@ def evaluate_bundle(bundle, dataset: str | Path, split: str = "val") -> dict:
     if not names:
         raise DatasetError(dataset, f"has no {split!r} sequences")
     modes = evaluate_modes(bundle.codespace, bundle.autoencoder, bundle.motion_stats, bundle.latent_stats, bundle.database,
-                           dataset_features(ds, names), {n: heading_frames(ds, [n]) for n in names})
+                           dataset_features(ds, names), {n: body_frames(ds, [n]) for n in names})
     return modes.summary(bundle.tau)
