@@ -70,8 +70,6 @@ def default_taus(animator, records) -> list[float]:
     """0, the deciles of the per-window entropies on these records, and above the maximum."""
     import numpy as np
 
-    from ..inference.animator import Animator  # noqa: F401  (type of animator)
-
     h = np.concatenate([animator.animate(r.motion, mode="regression", collision=False).entropy for r in records])
     top = math.log(animator.bundle.codespace.config.classes) + 1e-3  # at least every entropy: retrieval only
     return sorted({0.0, *[round(float(q), 4) for q in np.quantile(h, np.linspace(0.1, 0.9, 9))], round(top, 4)})
