@@ -54,6 +54,16 @@ def test_curriculum_switches_once_when_the_loss_plateaus():
     assert fired == [15]  # last improvement at epoch 10 (0.1 -> 0.0909), then five flat epochs; only once
 
 
+def test_decoding_only_the_last_frame_equals_the_full_window():
+    from hrr_garment.models.codespace import CodeSpace, CodeSpaceConfig
+
+    torch.manual_seed(0)
+    cs = CodeSpace(CodeSpaceConfig(window=5, groups=4, classes=8, embedding_dim=3, hidden=32, motion_hidden=16), 124, (6, 8))
+    embedding = torch.randn(7, cs.quantizer.embedding_size)
+    with torch.no_grad():
+        assert torch.allclose(cs.decode(embedding, last_frame=True), cs.decode(embedding)[:, -1:], atol=1e-6)
+
+
 def test_windows_cover_every_start_frame():
     feats = {"a": np.arange(12 * 2, dtype=np.float32).reshape(12, 2), "b": np.zeros((9, 2), np.float32)}
     lat = {"a": np.arange(12 * 3 * 2, dtype=np.float32).reshape(12, 3, 2), "b": np.zeros((9, 3, 2), np.float32)}

@@ -126,7 +126,7 @@ class Animator:
         else:
             if causal:
                 feats = causal_windows(causal_features(motion), w)
-                choice = self._choose(feats, mode, tau, exclude_sequence)
+                choice = self._choose(feats, mode, tau, exclude_sequence, last_frame=True)
                 latents = causal_latents(choice, self.blend)
                 per_frame = np.arange(t_frames)
             else:
@@ -157,9 +157,9 @@ class Animator:
             z = self.bundle.direct(torch.from_numpy(self.bundle.motion_stats.normalize(feats).astype(np.float32))[None])[0]
         return self.bundle.latent_stats.denormalize(z.numpy()).reshape(len(feats), *self.bundle.autoencoder.latent_shape)
 
-    def _choose(self, windows: np.ndarray, mode: str, tau: float, exclude_sequence: int | None):
+    def _choose(self, windows: np.ndarray, mode: str, tau: float, exclude_sequence: int | None, last_frame: bool = False):
         exclude = None if exclude_sequence is None else np.full(len(windows), exclude_sequence)
-        return choose_windows(self.bundle, windows, mode, tau, exclude)
+        return choose_windows(self.bundle, windows, mode, tau, exclude, last_frame)
 
     def stream(self, mode: str = "hybrid", tau: float | None = None, collision: bool = True) -> "AnimationStream":
         return AnimationStream(self, mode, self.bundle.tau if tau is None else float(tau), collision)
@@ -188,7 +188,7 @@ class AnimationStream:
             self._features.extend([feat] * (self._features.maxlen - 1))
         self._features.append(feat)
         window = np.stack(self._features)[None]
-        choice = choose_windows(self.animator.bundle, window, self.mode, self.tau)
+        choice = choose_windows(self.animator.bundle, window, self.mode, self.tau, last_frame=True)
         src = choice.source[0] - np.array([0, self.frames]) if choice.retrieved[0] else choice.source[0]
         latent = self._inert.step(choice.latents[0, -1].astype(np.float64), source_id(bool(choice.retrieved[0]), src))
         with torch.no_grad():

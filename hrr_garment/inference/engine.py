@@ -63,7 +63,7 @@ def causal_features(motion: Motion) -> np.ndarray:
 class WindowChoice:
     """What the gate decided for each window (N windows)."""
 
-    latents: np.ndarray  # (N, W, nodes, C) chosen garment latents
+    latents: np.ndarray  # (N, W, nodes, C) chosen garment latents ((N, 1, nodes, C): last frames only)
     retrieved: np.ndarray  # (N,) bool
     entropy: np.ndarray  # (N,) motion-code entropy
     source: np.ndarray  # (N, 2) int32 (database sequence index, start frame) of retrieved windows, else -1
@@ -81,11 +81,13 @@ class MotionCodes:
 
 @torch.no_grad()
 def encode_motion(codespace, motion_stats, latent_stats, motion_windows: np.ndarray, regression: bool = True,
-                  batch: int = 512) -> MotionCodes:
-    """Raw feature windows (N, W, F) -> codes, entropies and (optionally) regressed latents."""
+                  batch: int = 512, last_frame: bool = False) -> MotionCodes:
+    """Raw feature windows (N, W, F) -> codes, entropies and (optionally) regressed latents, of
+    every frame of each window or, with ``last_frame``, of its last frame only (N, 1, nodes, C)."""
     from ..models.codebook import group_entropy
 
-    codespace.eval()
+    if codespace.training:
+        codespace.eval()
     q = codespace.quantizer
     std = motion_stats.normalize(motion_windows)
     entropy, codes, reg = [], [], []
@@ -95,7 +97,7 @@ def encode_motion(codespace, motion_stats, latent_stats, motion_windows: np.ndar
         idx = logits.argmax(-1)
         codes.append(idx.numpy().astype(np.uint8))
         if regression:
-            reg.append(codespace.decode(q.embed(torch.nn.functional.one_hot(idx, q.classes).float())).numpy())
+            reg.append(codespace.decode(q.embed(torch.nn.functional.one_hot(idx, q.classes).float()), last_frame).numpy())
     latents = None
     if regression:
         r = np.concatenate(reg)
@@ -104,16 +106,18 @@ def encode_motion(codespace, motion_stats, latent_stats, motion_windows: np.ndar
 
 
 def choose_windows(bundle: Bundle, motion_windows: np.ndarray, mode: str, tau: float,
-                   exclude: np.ndarray | None = None) -> WindowChoice:
-    """Run the motion encoder on raw feature windows (N, W, F) and pick each window's latents."""
+                   exclude: np.ndarray | None = None, last_frame: bool = False) -> WindowChoice:
+    """Run the motion encoder on raw feature windows (N, W, F) and pick each window's latents
+    (with ``last_frame``, only the last frame's: all that causal inference blends)."""
     if mode not in MODES:
         raise ValueError(f"unknown mode {mode!r}; choose one of {', '.join(MODES)}")
     db = bundle.database
     enc = encode_motion(bundle.codespace, bundle.motion_stats, bundle.latent_stats, motion_windows,
-                        regression=mode in ("hybrid", "regression"))
+                        regression=mode in ("hybrid", "regression"), last_frame=last_frame)
     n = len(enc.entropy)
     retrieved = {"hybrid": enc.entropy < tau, "regression": np.zeros(n, bool)}.get(mode, np.ones(n, bool))
-    latents = enc.regression.copy() if enc.regression is not None else np.empty((n, *db.latents.shape[1:]), np.float32)
+    frames = 1 if last_frame else db.latents.shape[1]
+    latents = enc.regression.copy() if enc.regression is not None else np.empty((n, frames, *db.latents.shape[2:]), np.float32)
     source = np.full((n, 2), -1, np.int32)
     if retrieved.any():
         rows = np.flatnonzero(retrieved)
@@ -122,7 +126,7 @@ def choose_windows(bundle: Bundle, motion_windows: np.ndarray, mode: str, tau: f
             match = db.nearest_motion(enc.standardised[rows], ex)
         else:
             match, _ = db.search(enc.codes[rows], ex)
-        latents[rows] = db.latents[match]
+        latents[rows] = db.latents[match, -frames:]
         source[rows] = np.stack([db.sequence[match], db.start[match]], 1)
     return WindowChoice(latents, retrieved, enc.entropy, source)
 

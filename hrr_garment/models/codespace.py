@@ -104,6 +104,15 @@ class CodeSpace(nn.Module):
         self.garment_encoder = GarmentEncoder(size, self.quantizer.logits_size, config.hidden, config.dropout)
         self.decoder = LatentDecoder(self.quantizer.embedding_size, size, config.hidden, config.dropout)
 
-    def decode(self, embedding: torch.Tensor) -> torch.Tensor:
-        """(B, G * dim) -> (B, W, N, C) standardised latents."""
-        return self.decoder(embedding).reshape(len(embedding), self.config.window, *self.latent_shape)
+    def decode(self, embedding: torch.Tensor, last_frame: bool = False) -> torch.Tensor:
+        """(B, G * dim) -> (B, W, N, C) standardised latents; with ``last_frame`` only the window's
+        last frame, (B, 1, N, C), which is all causal inference uses: the output layer's other rows
+        (nine tenths of the decoder's weights) are skipped."""
+        if not last_frame:
+            return self.decoder(embedding).reshape(len(embedding), self.config.window, *self.latent_shape)
+        *hidden, out = self.decoder.net
+        h = embedding
+        for layer in hidden:
+            h = layer(h)
+        n = self.latent_shape[0] * self.latent_shape[1]
+        return torch.nn.functional.linear(h, out.weight[-n:], out.bias[-n:]).reshape(len(embedding), 1, *self.latent_shape)

@@ -198,34 +198,88 @@ void hrr_capsule_sdf(const double *p, int T, int N, const double *a, const doubl
     }
 }
 
-/* One frame, factored form (streaming): z[v, m, :] = sum_j coeff[j, m] x[nbr[j], :] over v's real
-   neighbour slots (the basis coefficients instead of the folded kernels, which are C_in x C_out
-   times larger and would be read from memory once per frame), and pooled[v, :] =
-   sum_j pool[j] x[nbr[j], :] when pool is given. The caller multiplies z (V, M * cin) by the
-   layer's shared basis (M * cin, cout) in one matrix product. */
-void hrr_factor_gather(const float *x, int cin, int V, int M, const int32_t *offsets, const int32_t *nbr,
-                       const float *coeff, const float *pool, int threads, float *z, float *pooled)
+/* One frame, factored and transformed first (streaming): with y = x W (Vin, (M + 1) * WIDTH), the
+   input already multiplied by each of the layer's M shared basis kernels and by the residual's
+   1x1 map (column block M), each block zero-padded from cout to WIDTH columns,
+     out[v] = a * act(bias + sum_j sum_m coeff[j, m] y[nbr[j], m]) + b * res(v),
+   res(v) = sum_j pool[j] y[nbr[j], M] (pool given) or y[v, M]. Per frame this reads the basis
+   coefficients (nnz x M floats) instead of the folded per-vertex kernels (C_in x C_out times
+   larger), and multiplying before gathering costs C_in / C_out times less where channels shrink.
+   The WIDTH accumulators of a vertex stay in vector registers (WIDTH fixed per variant). */
+#define DEFINE_APPLY(NAME, WIDTH_, VT_, LANES_)                                                 \
+    static void NAME(const float *restrict y, int M, int cout, int v0, int v1,                 \
+                     const int32_t *restrict offsets, const int32_t *restrict nbr,             \
+                     const float *restrict coeff, const float *restrict pool,                  \
+                     const float *restrict bias, float a, float b, int elu, float *restrict out) \
+    {                                                                                          \
+        typedef VT_ VT;                                                                        \
+        enum { WIDTH = WIDTH_, LANES = LANES_, NB = WIDTH_ / LANES_ };                          \
+        const size_t ld = (size_t)(M + 1) * WIDTH;                                             \
+        for (int v = v0; v < v1; ++v) {                                                        \
+            VT acc[NB], res[NB];                                                               \
+            for (int q = 0; q < NB; ++q) {                                                     \
+                memcpy(&acc[q], bias + q * LANES, sizeof(VT));                                 \
+                res[q] = acc[q] * 0.0f;                                                        \
+            }                                                                                  \
+            for (int j = offsets[v]; j < offsets[v + 1]; ++j) {                                \
+                const float *restrict yr = y + (size_t)nbr[j] * ld;                            \
+                const float *restrict c = coeff + (size_t)j * M;                               \
+                for (int m = 0; m < M; ++m) {                                                  \
+                    const float cm = c[m];                                                     \
+                    for (int q = 0; q < NB; ++q) {                                             \
+                        VT t;                                                                  \
+                        memcpy(&t, yr + (size_t)m * WIDTH + q * LANES, sizeof(VT));            \
+                        acc[q] += cm * t;                                                      \
+                    }                                                                          \
+                }                                                                              \
+                if (pool) {                                                                    \
+                    const float w = pool[j];                                                   \
+                    for (int q = 0; q < NB; ++q) {                                             \
+                        VT t;                                                                  \
+                        memcpy(&t, yr + (size_t)M * WIDTH + q * LANES, sizeof(VT));            \
+                        res[q] += w * t;                                                       \
+                    }                                                                          \
+                }                                                                              \
+            }                                                                                  \
+            if (!pool)                                                                         \
+                memcpy(res, y + (size_t)v * ld + (size_t)M * WIDTH, sizeof(float) * WIDTH);    \
+            float za[WIDTH], zr[WIDTH];                                                        \
+            memcpy(za, acc, sizeof za);                                                        \
+            memcpy(zr, res, sizeof zr);                                                        \
+            if (elu) {                                                                         \
+                for (int i = 0; i < WIDTH; ++i)                                                \
+                    za[i] = za[i] > 0.0f ? za[i] : exp_nonpositive(fminf(za[i], 0.0f)) - 1.0f; \
+            }                                                                                  \
+            float *d = out + (size_t)v * cout;                                                 \
+            for (int i = 0; i < cout; ++i) d[i] = a * za[i] + b * zr[i];                       \
+        }                                                                                      \
+    }
+
+typedef float v4sf __attribute__((vector_size(16)));
+DEFINE_APPLY(apply4, 4, v4sf, 4)
+DEFINE_APPLY(apply8, 8, v8sf, 8)
+DEFINE_APPLY(apply16, 16, v16sf, 16)
+DEFINE_APPLY(apply32, 32, v16sf, 16)
+DEFINE_APPLY(apply64, 64, v16sf, 16)
+DEFINE_APPLY(apply128, 128, v16sf, 16)
+
+typedef void (*apply_fn)(const float *restrict, int, int, int, int, const int32_t *restrict, const int32_t *restrict,
+                         const float *restrict, const float *restrict, const float *restrict, float, float, int,
+                         float *restrict);
+
+/* width: the padded block width of y, one of 4, 8, 16, 32, 64, 128 (>= cout); bias has width values. */
+void hrr_factor_apply(const float *y, int M, int cout, int width, int V, const int32_t *offsets, const int32_t *nbr,
+                      const float *coeff, const float *pool, const float *bias, float a, float b, int elu,
+                      int threads, float *out)
 {
+    apply_fn fn = width == 4 ? apply4 : width == 8 ? apply8 : width == 16 ? apply16 : width == 32 ? apply32
+                : width == 64 ? apply64 : apply128;
+    enum { CHUNK = 64 };
+    const int chunks = (V + CHUNK - 1) / CHUNK;
     #pragma omp parallel for num_threads(threads) schedule(static)
-    for (int v = 0; v < V; ++v) {
-        float *zv = z + (size_t)v * M * cin;
-        memset(zv, 0, sizeof(float) * (size_t)M * cin);
-        if (pool) memset(pooled + (size_t)v * cin, 0, sizeof(float) * cin);
-        for (int j = offsets[v]; j < offsets[v + 1]; ++j) {
-            const float *restrict xr = x + (size_t)nbr[j] * cin;
-            for (int m = 0; m < M; ++m) {
-                const float c = coeff[(size_t)j * M + m];
-                float *restrict zr = zv + (size_t)m * cin;
-                #pragma omp simd
-                for (int i = 0; i < cin; ++i) zr[i] += c * xr[i];
-            }
-            if (pool) {
-                const float w = pool[j];
-                float *restrict pr = pooled + (size_t)v * cin;
-                #pragma omp simd
-                for (int i = 0; i < cin; ++i) pr[i] += w * xr[i];
-            }
-        }
+    for (int k = 0; k < chunks; ++k) {
+        const int v1 = (k + 1) * CHUNK < V ? (k + 1) * CHUNK : V;
+        fn(y, M, cout, k * CHUNK, v1, offsets, nbr, coeff, pool, bias, a, b, elu, out);
     }
 }
 """
@@ -234,6 +288,7 @@ FLAGS = ["-O3", "-march=native", "-mprefer-vector-width=512", "-fno-math-errno",
          "-Werror=implicit-function-declaration",
          "-shared", "-fPIC"]
 WIDTHS = (8, 16, 32, 64, 128)  # output widths the kernel is specialised for
+APPLY_WIDTHS = (4, 8, 16, 32, 64, 128)  # block widths of the single-frame kernel
 _lock = threading.Lock()
 _loaded: dict[str, ctypes.CDLL | None] = {}
 
@@ -245,6 +300,11 @@ def _cpu_signature() -> str:
     except (OSError, StopIteration):
         flags = ""
     return f"{platform.machine()} {platform.processor()} {flags}"
+
+
+@functools.lru_cache(maxsize=1)
+def _source_key() -> str:
+    return hashlib.sha1("\0".join([SOURCE, *FLAGS, _cpu_signature()]).encode()).hexdigest()[:16]
 
 
 def _compile(target: Path) -> None:
@@ -266,8 +326,9 @@ def load_kernel(cache_dir: str | Path | None = None) -> ctypes.CDLL | None:
         return None
     from ..paths import workspace
 
-    key = hashlib.sha1("\0".join([SOURCE, *FLAGS, _cpu_signature()]).encode()).hexdigest()[:16]
-    target = Path(cache_dir or workspace() / "cache") / f"fcmae_kernel-{key}.so"
+    target = Path(cache_dir or workspace() / "cache") / f"fcmae_kernel-{_source_key()}.so"
+    if str(target) in _loaded:  # the per-frame path (streaming push-out) asks on every call
+        return _loaded[str(target)]
     with _lock:
         if str(target) not in _loaded:
             try:
@@ -283,8 +344,9 @@ def load_kernel(cache_dir: str | Path | None = None) -> ctypes.CDLL | None:
                 d = ctypes.POINTER(ctypes.c_double)
                 lib.hrr_capsule_sdf.argtypes = [d, c_int, c_int, d, d, d, c_int, c_int, d, d]
                 lib.hrr_capsule_sdf.restype = None
-                lib.hrr_factor_gather.argtypes = [f, c_int, c_int, c_int, i32, i32, f, f, c_int, f, f]
-                lib.hrr_factor_gather.restype = None
+                lib.hrr_factor_apply.argtypes = [f, c_int, c_int, c_int, c_int, i32, i32, f, f, f, c_float, c_float,
+                                                 c_int, c_int, f]
+                lib.hrr_factor_apply.restype = None
                 _loaded[str(target)] = lib
             except (OSError, subprocess.CalledProcessError) as exc:
                 detail = getattr(exc, "stderr", "") or str(exc)
@@ -319,34 +381,29 @@ class NativeBlock:
         self.proj = None if proj is None else np.ascontiguousarray(np.pad(proj, [(0, 0), (0, width - cout)]), np.float32)
         self.cin, self.cout, self.width, self.vertices = cin, cout, width, v
         self.a, self.b, self.elu = float(a), float(b), bool(elu)
-        self.factored = None  # (coeff (nnz, M), basis (M * cin, cout), proj (cin, cout) or None) via set_factored
+        self.factored = None  # (coeff (nnz, M), transform (cin, (M + 1) * width), bias, width) via set_factored
 
     def set_factored(self, coeff: np.ndarray, basis: np.ndarray, mask: np.ndarray, proj: np.ndarray | None) -> None:
         """Basis coefficients (V, S, M) and basis (M, cin, cout) for single frames (``one``)."""
         keep = mask > 0
-        self.factored = (np.ascontiguousarray(coeff[keep], np.float32),
-                         torch.from_numpy(np.ascontiguousarray(basis.reshape(-1, basis.shape[-1]), np.float32)),
-                         None if proj is None else torch.from_numpy(np.ascontiguousarray(proj, np.float32)),
-                         torch.from_numpy(np.ascontiguousarray(self.bias[:self.cout])))
+        m, cin, cout = basis.shape
+        width = next(w for w in APPLY_WIDTHS if w >= cout)
+        proj = np.eye(cin, cout, dtype=np.float32) if proj is None else proj  # identity residual: cin == cout
+        # x (Vin, cin) @ transform = [x W_0 | ... | x W_{M-1} | x proj], each block padded to width
+        blocks = np.concatenate([basis, proj[None]], 0)  # (M + 1, cin, cout)
+        blocks = np.pad(blocks, [(0, 0), (0, 0), (0, width - cout)]).transpose(1, 0, 2).reshape(cin, (m + 1) * width)
+        self.factored = (np.ascontiguousarray(coeff[keep], np.float32), torch.from_numpy(np.ascontiguousarray(blocks, np.float32)),
+                         np.ascontiguousarray(np.pad(self.bias[:cout], (0, width - cout)), np.float32), width)
 
     def one(self, lib: ctypes.CDLL, x: np.ndarray, threads: int) -> np.ndarray:
-        """One frame: x (V_in, C_in) float32 -> (V, C_out), the same function as ``__call__``. Uses
-        scratch buffers of the block: one call at a time per decoder."""
-        coeff, basis, proj, bias = self.factored
-        m = coeff.shape[1]
-        if not hasattr(self, "_z"):  # reused: fresh multi-MB buffers per frame cost page faults
-            self._z = np.empty((self.vertices, m * self.cin), np.float32)
-            self._pooled = np.empty((self.vertices, self.cin), np.float32) if self.pool is not None else None
-        z, pooled = self._z, self._pooled
-        lib.hrr_factor_gather(_ptr(x), self.cin, self.vertices, m, _ptr(self.offsets, ctypes.c_int32),
-                              _ptr(self.nbr, ctypes.c_int32), _ptr(coeff), _ptr(self.pool), threads, _ptr(z), _ptr(pooled))
-        y = torch.addmm(bias, torch.from_numpy(z), basis)
-        if self.elu:
-            y = torch.nn.functional.elu(y)
-        res = torch.from_numpy(pooled if pooled is not None else x)
-        if proj is not None:
-            res = res @ proj
-        return (self.a * y + self.b * res).numpy()
+        """One frame: x (V_in, C_in) float32 -> (V, C_out), the same function as ``__call__``."""
+        coeff, transform, bias, width = self.factored
+        y = torch.from_numpy(x) @ transform  # one dense product per layer, multithreaded by torch
+        out = np.empty((self.vertices, self.cout), np.float32)
+        lib.hrr_factor_apply(_ptr(y.numpy()), coeff.shape[1], self.cout, width, self.vertices,
+                             _ptr(self.offsets, ctypes.c_int32), _ptr(self.nbr, ctypes.c_int32), _ptr(coeff),
+                             _ptr(self.pool), _ptr(bias), self.a, self.b, int(self.elu), threads, _ptr(out))
+        return out
 
     def __call__(self, lib: ctypes.CDLL, x: np.ndarray, threads: int) -> np.ndarray:
         """x (V_in, B, C_in) float32 C-contiguous -> (V, B, C_out)."""

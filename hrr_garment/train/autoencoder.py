@@ -30,7 +30,7 @@ from ..io_utils import atomic_path, atomic_write_text
 from ..models.fcmae import AutoencoderConfig, MeshAutoencoder
 from ..models.hierarchy import cached_hierarchy
 from ..settings import from_settings
-from .checkpoint import load_checkpoint, save_checkpoint
+from .checkpoint import keep_if_best, load_checkpoint, save_checkpoint
 from ..motion.frame import FRAME_VERSION, to_body_frame
 
 
@@ -173,11 +173,7 @@ def train_autoencoder(dataset: str | Path, folder: str | Path, model_config: Aut
         val_err = pve_mm(model, val if len(val) else train[:256])
         state["epoch"] += 1
         state["elapsed_s"] = spent + time.perf_counter() - started
-        if val_err < state["best"]:
-            state.update(best=val_err, best_epoch=state["epoch"], stale=0)
-            best_weights = {k: v.detach().clone() for k, v in model.state_dict().items()}
-        else:
-            state["stale"] += 1
+        best_weights = keep_if_best(state, val_err, model, best_weights)
         save_checkpoint(checkpoint, key, state, best_weights, model=model, optimizer=optimizer, scheduler=scheduler)
         bar.set_postfix(loss=f"{np.mean(losses) * 1000:.2f}mm", val=f"{val_err:.2f}mm", best=f"{state['best']:.2f}mm")
         bar.update(1)

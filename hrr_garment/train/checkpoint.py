@@ -36,6 +36,17 @@ def load_checkpoint(path: Path, key: str, state: dict, best_weights: dict, **sta
     return {**state, **json.loads(saved["state"])}, saved["best_weights"]
 
 
+def keep_if_best(state: dict, score: float, model: torch.nn.Module, best_weights: dict) -> dict:
+    """Early-stopping bookkeeping after an epoch scored ``score`` (lower is better): on a new best,
+    record it in ``state`` and return a copy of the model's weights; else count a stale epoch and
+    return ``best_weights`` unchanged."""
+    if score < state["best"]:
+        state.update(best=score, best_epoch=state["epoch"], stale=0)
+        return {k: v.detach().clone() for k, v in model.state_dict().items()}
+    state["stale"] += 1
+    return best_weights
+
+
 def resume_log(path: Path, epoch: int) -> None:
     """Make a JSON-lines epoch log agree with a checkpoint at ``epoch``: empty when starting afresh,
     else without the lines of epochs after it (a kill between the two writes)."""

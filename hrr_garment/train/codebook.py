@@ -33,7 +33,7 @@ from ..data.windows import WindowSet
 from ..models.codebook import group_entropy
 from ..models.codespace import CodeSpace
 from ..settings import from_settings
-from .checkpoint import load_checkpoint, resume_log, save_checkpoint
+from .checkpoint import keep_if_best, load_checkpoint, resume_log, save_checkpoint
 
 
 @dataclass(frozen=True)
@@ -177,12 +177,7 @@ def train_codespace(model: CodeSpace, train: WindowTensors, val: WindowTensors, 
         if state["switched_at"] is None and plateau.update(metrics["rec"]):
             state["switched_at"] = state["epoch"]
         if state["switched_at"] is not None:  # stage 2: keep the best regression path
-            score = metrics["regress"]
-            if score < state["best"]:
-                state.update(best=score, best_epoch=state["epoch"], stale=0)
-                best_weights = {k: v.detach().clone() for k, v in model.state_dict().items()}
-            else:
-                state["stale"] += 1
+            best_weights = keep_if_best(state, metrics["regress"], model, best_weights)
         record = {"epoch": state["epoch"], "temperature": temperature, "match_weight": match_weight,
                   **{f"train_{k}": v / len(order) for k, v in sums.items()}, **{f"val_{k}": v for k, v in metrics.items()}}
         with open(log_path, "a", encoding="utf-8") as fh:

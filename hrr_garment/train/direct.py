@@ -29,7 +29,7 @@ from ..motion.features import FEATURE_DIM
 from ..settings import from_settings
 from .autoencoder import body_frames
 from .bundle import add_bundle_part, load_bundle
-from .checkpoint import load_checkpoint, resume_log, save_checkpoint
+from .checkpoint import keep_if_best, load_checkpoint, resume_log, save_checkpoint
 
 
 @dataclass(frozen=True)
@@ -105,11 +105,7 @@ def train_direct(model: DirectRegressor, train: tuple, val: tuple, folder: Path,
         val_loss = _val_loss(model, *val)
         state["epoch"] += 1
         state["elapsed_s"] = spent + time.perf_counter() - started
-        if val_loss < state["best"]:
-            state.update(best=val_loss, best_epoch=state["epoch"], stale=0)
-            best_weights = {k: v.detach().clone() for k, v in model.state_dict().items()}
-        else:
-            state["stale"] += 1
+        best_weights = keep_if_best(state, val_loss, model, best_weights)
         with open(log_path, "a", encoding="utf-8") as fh:
             fh.write(json.dumps({"epoch": state["epoch"], "train_l1": total / max(count, 1), "val_l1": val_loss}) + "\n")
         save_checkpoint(checkpoint, key, state, best_weights, model=model, optimizer=optimizer)
