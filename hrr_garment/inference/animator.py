@@ -39,6 +39,7 @@ from .engine import (
     pair_features,
     source_id,
     to_world,
+    traced_window_codes,
 )
 
 
@@ -177,6 +178,9 @@ class AnimationStream:
         self._inert = Inertializer(animator.blend)
         self.frames = 0
         self.latency_s: deque = deque(maxlen=1000)  # per push, for diagnostics
+        bundle = animator.bundle
+        self._step = traced_window_codes(bundle.codespace, animator.window, bundle.codespace.features,
+                                         regression=mode in ("hybrid", "regression"))
 
     def push(self, pose: Motion) -> np.ndarray:
         """``pose``: a one-frame :class:`Motion` (canonical skeleton, 30 fps) -> (V, 3) world vertices."""
@@ -188,7 +192,7 @@ class AnimationStream:
             self._features.extend([feat] * (self._features.maxlen - 1))
         self._features.append(feat)
         window = np.stack(self._features)[None]
-        choice = choose_windows(self.animator.bundle, window, self.mode, self.tau, last_frame=True)
+        choice = choose_windows(self.animator.bundle, window, self.mode, self.tau, last_frame=True, step=self._step)
         src = choice.source[0] - np.array([0, self.frames]) if choice.retrieved[0] else choice.source[0]
         latent = self._inert.step(choice.latents[0, -1].astype(np.float64), source_id(bool(choice.retrieved[0]), src))
         with torch.no_grad():

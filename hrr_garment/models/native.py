@@ -206,6 +206,7 @@ void hrr_capsule_sdf(const double *p, int T, int N, const double *a, const doubl
    coefficients (nnz x M floats) instead of the folded per-vertex kernels (C_in x C_out times
    larger), and multiplying before gathering costs C_in / C_out times less where channels shrink.
    The WIDTH accumulators of a vertex stay in vector registers (WIDTH fixed per variant). */
+#define LOAD(PTR) ({ VT t_; memcpy(&t_, (PTR), sizeof(VT)); t_; })
 #define DEFINE_APPLY(NAME, WIDTH_, VT_, LANES_)                                                 \
     static void NAME(const float *restrict y, int M, int cout, int v0, int v1,                 \
                      const int32_t *restrict offsets, const int32_t *restrict nbr,             \
@@ -216,36 +217,29 @@ void hrr_capsule_sdf(const double *p, int T, int N, const double *a, const doubl
         enum { WIDTH = WIDTH_, LANES = LANES_, NB = WIDTH_ / LANES_ };                          \
         const size_t ld = (size_t)(M + 1) * WIDTH;                                             \
         for (int v = v0; v < v1; ++v) {                                                        \
-            VT acc[NB], res[NB];                                                               \
+            float za[WIDTH], zr[WIDTH];                                                        \
             for (int q = 0; q < NB; ++q) {                                                     \
-                memcpy(&acc[q], bias + q * LANES, sizeof(VT));                                 \
-                res[q] = acc[q] * 0.0f;                                                        \
-            }                                                                                  \
-            for (int j = offsets[v]; j < offsets[v + 1]; ++j) {                                \
-                const float *restrict yr = y + (size_t)nbr[j] * ld;                            \
-                const float *restrict c = coeff + (size_t)j * M;                               \
-                for (int m = 0; m < M; ++m) {                                                  \
-                    const float cm = c[m];                                                     \
-                    for (int q = 0; q < NB; ++q) {                                             \
-                        VT t;                                                                  \
-                        memcpy(&t, yr + (size_t)m * WIDTH + q * LANES, sizeof(VT));            \
-                        acc[q] += cm * t;                                                      \
+                /* four independent accumulators: one chain of FMAs would wait on each */      \
+                VT a0 = LOAD(bias + q * LANES), a1 = a0 * 0.0f, a2 = a1, a3 = a1, r = a1;      \
+                for (int j = offsets[v]; j < offsets[v + 1]; ++j) {                            \
+                    const float *restrict yr = y + (size_t)nbr[j] * ld + q * LANES;            \
+                    const float *restrict c = coeff + (size_t)j * M;                           \
+                    int m = 0;                                                                 \
+                    for (; m + 4 <= M; m += 4) {                                               \
+                        a0 += c[m] * LOAD(yr + (size_t)m * WIDTH);                             \
+                        a1 += c[m + 1] * LOAD(yr + (size_t)(m + 1) * WIDTH);                   \
+                        a2 += c[m + 2] * LOAD(yr + (size_t)(m + 2) * WIDTH);                   \
+                        a3 += c[m + 3] * LOAD(yr + (size_t)(m + 3) * WIDTH);                   \
                     }                                                                          \
+                    for (; m < M; ++m) a0 += c[m] * LOAD(yr + (size_t)m * WIDTH);              \
+                    if (pool) r += pool[j] * LOAD(yr + (size_t)M * WIDTH);                     \
                 }                                                                              \
-                if (pool) {                                                                    \
-                    const float w = pool[j];                                                   \
-                    for (int q = 0; q < NB; ++q) {                                             \
-                        VT t;                                                                  \
-                        memcpy(&t, yr + (size_t)M * WIDTH + q * LANES, sizeof(VT));            \
-                        res[q] += w * t;                                                       \
-                    }                                                                          \
-                }                                                                              \
+                const VT sum = (a0 + a1) + (a2 + a3);                                          \
+                memcpy(za + q * LANES, &sum, sizeof(VT));                                      \
+                memcpy(zr + q * LANES, &r, sizeof(VT));                                        \
             }                                                                                  \
             if (!pool)                                                                         \
-                memcpy(res, y + (size_t)v * ld + (size_t)M * WIDTH, sizeof(float) * WIDTH);    \
-            float za[WIDTH], zr[WIDTH];                                                        \
-            memcpy(za, acc, sizeof za);                                                        \
-            memcpy(zr, res, sizeof zr);                                                        \
+                memcpy(zr, y + (size_t)v * ld + (size_t)M * WIDTH, sizeof(float) * WIDTH);     \
             if (elu) {                                                                         \
                 for (int i = 0; i < WIDTH; ++i)                                                \
                     za[i] = za[i] > 0.0f ? za[i] : exp_nonpositive(fminf(za[i], 0.0f)) - 1.0f; \
@@ -291,6 +285,7 @@ WIDTHS = (8, 16, 32, 64, 128)  # output widths the kernel is specialised for
 APPLY_WIDTHS = (4, 8, 16, 32, 64, 128)  # block widths of the single-frame kernel
 _lock = threading.Lock()
 _loaded: dict[str, ctypes.CDLL | None] = {}
+_requests: dict[tuple, ctypes.CDLL | None] = {}
 
 
 @functools.lru_cache(maxsize=1)
@@ -324,11 +319,13 @@ def load_kernel(cache_dir: str | Path | None = None) -> ctypes.CDLL | None:
     or with ``HRR_NATIVE=0``."""
     if os.environ.get("HRR_NATIVE", "1") == "0":
         return None
+    # the per-frame path (streaming push-out) asks on every call: answer without resolving paths
+    request = (cache_dir, os.environ.get("HRR_HOME"), None if cache_dir else os.getcwd())
+    if request in _requests:
+        return _requests[request]
     from ..paths import workspace
 
     target = Path(cache_dir or workspace() / "cache") / f"fcmae_kernel-{_source_key()}.so"
-    if str(target) in _loaded:  # the per-frame path (streaming push-out) asks on every call
-        return _loaded[str(target)]
     with _lock:
         if str(target) not in _loaded:
             try:
@@ -344,14 +341,15 @@ def load_kernel(cache_dir: str | Path | None = None) -> ctypes.CDLL | None:
                 d = ctypes.POINTER(ctypes.c_double)
                 lib.hrr_capsule_sdf.argtypes = [d, c_int, c_int, d, d, d, c_int, c_int, d, d]
                 lib.hrr_capsule_sdf.restype = None
-                lib.hrr_factor_apply.argtypes = [f, c_int, c_int, c_int, c_int, i32, i32, f, f, f, c_float, c_float,
-                                                 c_int, c_int, f]
+                lib.hrr_factor_apply.argtypes = [ctypes.c_void_p, c_int, c_int, c_int, c_int, i32, i32, f, f, f, c_float,
+                                                 c_float, c_int, c_int, ctypes.c_void_p]
                 lib.hrr_factor_apply.restype = None
                 _loaded[str(target)] = lib
             except (OSError, subprocess.CalledProcessError) as exc:
                 detail = getattr(exc, "stderr", "") or str(exc)
                 warnings.warn(f"native decoder kernel unavailable, using the PyTorch path: {detail[:500]}", RuntimeWarning)
                 _loaded[str(target)] = None
+        _requests[request] = _loaded[str(target)]
         return _loaded[str(target)]
 
 
@@ -381,7 +379,7 @@ class NativeBlock:
         self.proj = None if proj is None else np.ascontiguousarray(np.pad(proj, [(0, 0), (0, width - cout)]), np.float32)
         self.cin, self.cout, self.width, self.vertices = cin, cout, width, v
         self.a, self.b, self.elu = float(a), float(b), bool(elu)
-        self.factored = None  # (coeff (nnz, M), transform (cin, (M + 1) * width), bias, width) via set_factored
+        self.factored = None  # (transform (cin, (M + 1) * width), kernel arguments, arrays) via set_factored
 
     def set_factored(self, coeff: np.ndarray, basis: np.ndarray, mask: np.ndarray, proj: np.ndarray | None) -> None:
         """Basis coefficients (V, S, M) and basis (M, cin, cout) for single frames (``one``)."""
@@ -392,17 +390,24 @@ class NativeBlock:
         # x (Vin, cin) @ transform = [x W_0 | ... | x W_{M-1} | x proj], each block padded to width
         blocks = np.concatenate([basis, proj[None]], 0)  # (M + 1, cin, cout)
         blocks = np.pad(blocks, [(0, 0), (0, 0), (0, width - cout)]).transpose(1, 0, 2).reshape(cin, (m + 1) * width)
-        self.factored = (np.ascontiguousarray(coeff[keep], np.float32), torch.from_numpy(np.ascontiguousarray(blocks, np.float32)),
-                         np.ascontiguousarray(np.pad(self.bias[:cout], (0, width - cout)), np.float32), width)
+        coeff = np.ascontiguousarray(coeff[keep], np.float32)
+        bias = np.ascontiguousarray(np.pad(self.bias[:cout], (0, width - cout)), np.float32)
+        # the constant arguments, converted once: ctypes conversions cost microseconds each, per frame
+        constants = (m, self.cout, width, self.vertices, _ptr(self.offsets, ctypes.c_int32), _ptr(self.nbr, ctypes.c_int32),
+                     _ptr(coeff), _ptr(self.pool), _ptr(bias), ctypes.c_float(self.a), ctypes.c_float(self.b), int(self.elu))
+        self.factored = (torch.from_numpy(np.ascontiguousarray(blocks, np.float32)), constants, (coeff, bias))
 
     def one(self, lib: ctypes.CDLL, x: np.ndarray, threads: int) -> np.ndarray:
-        """One frame: x (V_in, C_in) float32 -> (V, C_out), the same function as ``__call__``."""
-        coeff, transform, bias, width = self.factored
-        y = torch.from_numpy(x) @ transform  # one dense product per layer, multithreaded by torch
-        out = np.empty((self.vertices, self.cout), np.float32)
-        lib.hrr_factor_apply(_ptr(y.numpy()), coeff.shape[1], self.cout, width, self.vertices,
-                             _ptr(self.offsets, ctypes.c_int32), _ptr(self.nbr, ctypes.c_int32), _ptr(coeff),
-                             _ptr(self.pool), _ptr(bias), self.a, self.b, int(self.elu), threads, _ptr(out))
+        """One frame: x (V_in, C_in) float32 -> (V, C_out), the same function as ``__call__``. The
+        result lives in a buffer of the block that the next call overwrites (fresh buffers of up
+        to a few MB per frame cost more in page faults than the arithmetic): one call at a time
+        per decoder, and copy what you keep."""
+        transform, constants, _ = self.factored  # the last item keeps the arrays behind the pointers alive
+        if getattr(self, "_buffers", None) is None or self._buffers[0].shape[0] != len(x):
+            self._buffers = (torch.empty(len(x), transform.shape[1]), np.empty((self.vertices, self.cout), np.float32))
+        y, out = self._buffers
+        torch.mm(torch.from_numpy(x), transform, out=y)  # one dense product per layer, multithreaded by torch
+        lib.hrr_factor_apply(y.data_ptr(), *constants, threads, out.ctypes.data)
         return out
 
     def __call__(self, lib: ctypes.CDLL, x: np.ndarray, threads: int) -> np.ndarray:
