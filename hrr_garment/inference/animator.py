@@ -35,6 +35,7 @@ from .engine import (
     causal_latents,
     causal_windows,
     choose_windows,
+    flush_denormals,
     heading_vertices,
     pair_features,
     source_id,
@@ -116,6 +117,11 @@ class Animator:
         """Animate a whole clip (see :mod:`.engine`): ``mode`` hybrid | regression | retrieval |
         naive-nn, or direct (the baseline, when the bundle has it; offline only); ``tau`` overrides the bundle's; ``causal`` gives what streaming gives;
         ``exclude_sequence`` keeps one database sequence out of retrieval (evaluation)."""
+        with flush_denormals():
+            return self._animate(motion, mode, tau, collision, causal, exclude_sequence)
+
+    def _animate(self, motion: Motion, mode: str, tau: float | None, collision: bool, causal: bool,
+                 exclude_sequence: int | None) -> Animation:
         tau = self.bundle.tau if tau is None else float(tau)
         t_frames, w = motion.num_frames, self.window
         if t_frames < 1:
@@ -187,6 +193,14 @@ class AnimationStream:
         t0 = time.perf_counter()
         if pose.num_frames != 1:
             raise InputError(pose.source, f"push one frame at a time (got {pose.num_frames})")
+        with flush_denormals():
+            vertices = self._step_frame(pose)
+        self._prev = pose
+        self.frames += 1
+        self.latency_s.append(time.perf_counter() - t0)
+        return vertices
+
+    def _step_frame(self, pose: Motion) -> np.ndarray:
         feat = pair_features(self._prev, pose)
         if not self._features:
             self._features.extend([feat] * (self._features.maxlen - 1))
@@ -200,7 +214,4 @@ class AnimationStream:
         vertices = to_world(local, pose)
         if self.collision:
             vertices, _ = push_out(vertices, pose, self.animator.bundle.template.faces, mean=self.animator.smoothing)
-        self._prev = pose
-        self.frames += 1
-        self.latency_s.append(time.perf_counter() - t0)
         return vertices[0].astype(np.float32)

@@ -18,6 +18,7 @@ acceleration at its end, so position and velocity stay continuous. Streaming equ
 from __future__ import annotations
 
 import warnings
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -30,6 +31,18 @@ from ..motion.motion import Motion
 from ..train.bundle import Bundle
 
 MODES = ("hybrid", "regression", "retrieval", "naive-nn")
+
+
+@contextmanager
+def flush_denormals():
+    """Treat denormal floats (< 1.2e-38) as zero while inference runs (the CPU's flush-to-zero
+    mode, as game engines run): trained networks produce some, and each product with one takes a
+    slow path (it doubled a trained motion encoder's time). Restores PyTorch's default on exit."""
+    torch.set_flush_denormal(True)
+    try:
+        yield
+    finally:
+        torch.set_flush_denormal(False)
 
 
 def window_weights(size: int) -> np.ndarray:

@@ -174,27 +174,53 @@ void hrr_block(const float *x, int B, int cin, int cout, int V, const int32_t *o
 void hrr_capsule_sdf(const double *p, int T, int N, const double *a, const double *b, const double *radii,
                      int C, int threads, double *dist, double *normal)
 {
+    enum { CHUNK = 256, MAXC = 64 };
+    const int chunks = (N + CHUNK - 1) / CHUNK;
     #pragma omp parallel for num_threads(threads) schedule(static)
-    for (long k = 0; k < (long)T * N; ++k) {
-        const double *ca = a + (k / N) * 3 * C, *cb = b + (k / N) * 3 * C;
-        const double px = p[3 * k], py = p[3 * k + 1], pz = p[3 * k + 2];
-        double best = 1e300, bx = 0, by = 0, bz = 0, baxis = 1;
+    for (long job = 0; job < (long)T * chunks; ++job) {
+        const int t = (int)(job / chunks), i0 = (int)(job % chunks) * CHUNK;
+        const int i1 = i0 + CHUNK < N ? i0 + CHUNK : N;
+        /* the frame's capsules as axis start, axis and 1 / |axis|^2, so the per-point loop below
+           has no division and vectorises across points (one capsule at a time for all lanes) */
+        double cax[MAXC], cay[MAXC], caz[MAXC], cex[MAXC], cey[MAXC], cez[MAXC], cinv[MAXC];
+        const double *ca = a + (size_t)t * 3 * C, *cb = b + (size_t)t * 3 * C;
         for (int c = 0; c < C; ++c) {
-            const double ax = ca[3 * c], ay = ca[3 * c + 1], az = ca[3 * c + 2];
-            const double ex = cb[3 * c] - ax, ey = cb[3 * c + 1] - ay, ez = cb[3 * c + 2] - az;
-            const double rx = px - ax, ry = py - ay, rz = pz - az;
-            double den = ex * ex + ey * ey + ez * ez;
-            den = den > 1e-12 ? den : 1e-12;
-            double s = (rx * ex + ry * ey + rz * ez) / den;
-            s = s < 0 ? 0 : (s > 1 ? 1 : s);
-            const double dx = rx - s * ex, dy = ry - s * ey, dz = rz - s * ez;
-            const double axis = sqrt(dx * dx + dy * dy + dz * dz);
-            const double sd = axis - radii[c];
-            if (sd < best) { best = sd; bx = dx; by = dy; bz = dz; baxis = axis; }
+            cax[c] = ca[3 * c]; cay[c] = ca[3 * c + 1]; caz[c] = ca[3 * c + 2];
+            cex[c] = cb[3 * c] - cax[c]; cey[c] = cb[3 * c + 1] - cay[c]; cez[c] = cb[3 * c + 2] - caz[c];
+            const double den = cex[c] * cex[c] + cey[c] * cey[c] + cez[c] * cez[c];
+            cinv[c] = 1.0 / (den > 1e-12 ? den : 1e-12);
         }
-        const double inv = 1.0 / (baxis > 1e-12 ? baxis : 1e-12);
-        dist[k] = best;
-        normal[3 * k] = bx * inv; normal[3 * k + 1] = by * inv; normal[3 * k + 2] = bz * inv;
+        const double *pt = p + (size_t)t * N * 3;
+        double *dt = dist + (size_t)t * N, *nt = normal + (size_t)t * N * 3;
+        /* capsules outer, points inner (structure of arrays): the inner loop vectorises */
+        double px[CHUNK], py[CHUNK], pz[CHUNK], best[CHUNK], bx[CHUNK], by[CHUNK], bz[CHUNK], baxis[CHUNK];
+        const int n = i1 - i0;
+        for (int i = 0; i < n; ++i) {
+            px[i] = pt[3 * (i0 + i)]; py[i] = pt[3 * (i0 + i) + 1]; pz[i] = pt[3 * (i0 + i) + 2];
+            best[i] = 1e300; bx[i] = 0; by[i] = 0; bz[i] = 0; baxis[i] = 1;
+        }
+        for (int c = 0; c < C; ++c) {
+            const double ax = cax[c], ay = cay[c], az = caz[c], ex = cex[c], ey = cey[c], ez = cez[c];
+            const double inv_den = cinv[c], r = radii[c];
+            #pragma omp simd
+            for (int i = 0; i < n; ++i) {
+                const double rx = px[i] - ax, ry = py[i] - ay, rz = pz[i] - az;
+                double s = (rx * ex + ry * ey + rz * ez) * inv_den;
+                s = s < 0 ? 0 : (s > 1 ? 1 : s);
+                const double dx = rx - s * ex, dy = ry - s * ey, dz = rz - s * ez;
+                const double axis = sqrt(dx * dx + dy * dy + dz * dz);
+                const double sd = axis - r;
+                const int closer = sd < best[i];
+                best[i] = closer ? sd : best[i];
+                bx[i] = closer ? dx : bx[i]; by[i] = closer ? dy : by[i]; bz[i] = closer ? dz : bz[i];
+                baxis[i] = closer ? axis : baxis[i];
+            }
+        }
+        for (int i = 0; i < n; ++i) {
+            const double inv = 1.0 / (baxis[i] > 1e-12 ? baxis[i] : 1e-12);
+            dt[i0 + i] = best[i];
+            nt[3 * (i0 + i)] = bx[i] * inv; nt[3 * (i0 + i) + 1] = by[i] * inv; nt[3 * (i0 + i) + 2] = bz[i] * inv;
+        }
     }
 }
 
@@ -424,6 +450,8 @@ def capsule_sdf(lib: ctypes.CDLL, points: np.ndarray, a: np.ndarray, b: np.ndarr
                 threads: int = 1) -> tuple[np.ndarray, np.ndarray]:
     """:func:`hrr_garment.body.capsules.capsule_signed_distance` (distance, normal) in the kernel,
     for points (T, N, 3) against per-frame capsules a, b (T, C, 3)."""
+    if len(radii) > 64:
+        raise ValueError(f"the native capsule distance handles up to 64 capsules, not {len(radii)}")
     p = np.ascontiguousarray(points, np.float64)
     a, b, r = (np.ascontiguousarray(x, np.float64) for x in (a, b, radii))
     t, n = p.shape[:2]
