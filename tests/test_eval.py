@@ -115,3 +115,17 @@ def test_direct_baseline_trains_is_causal_and_is_evaluated(trained, tmp_path):
     report = json.loads((out / "report.json").read_text())
     assert "direct" in report["modes"] and "hybrid_vs_direct" in report["goals"]
     assert math.isfinite(report["modes"]["direct"]["metrics"]["pve_mm"])
+
+
+def test_gate_analysis_oracle_bounds_both_modes(trained):
+    import importlib.util
+    from pathlib import Path
+
+    spec = importlib.util.spec_from_file_location("gate_analysis", Path(__file__).parents[1] / "tools" / "gate_analysis.py")
+    tool = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(tool)
+    root, data, _ = trained
+    r = tool.analyse(str(root / "model"), str(data), "val")
+    # each window takes its better candidate: never worse than either mode alone
+    assert r["oracle_hybrid_mm"] <= min(r["regression_mm"], r["retrieval_mm"]) + 1e-9
+    assert 0.0 <= r["retrieval_better_fraction"] <= 1.0 and r["windows"] > 0

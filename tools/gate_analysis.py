@@ -1,0 +1,85 @@
+"""Analysis: how much could any retrieval gate gain on a trained model?
+
+For every window of a dataset split (the window-level errors ``hrr-train`` calibrates tau on), it
+computes the regression and retrieval candidates' per-vertex errors and prints:
+
+- the per-mode means and the *oracle hybrid*: each window taking the better of its two candidates,
+  a bound no gate (entropy threshold or other) can beat;
+- how often retrieval is the better candidate;
+- how well two gate signals predict retrieval's advantage (regression error minus retrieval
+  error): the paper's signal (low motion-code entropy) and the retrieved match's code similarity;
+- the same oracle with the naive nearest-neighbour retrieval.
+
+    python tools/gate_analysis.py --model hrr_work/models/dress-quick --split val
+    python tools/gate_analysis.py --model hrr_work/models/dress-full --split test --json
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+
+import numpy as np
+import torch
+
+from hrr_garment.data.dataset import GarmentDataset
+from hrr_garment.data.windows import dataset_features, sequence_windows
+from hrr_garment.inference.engine import encode_motion
+from hrr_garment.train.autoencoder import body_frames
+from hrr_garment.train.bundle import load_bundle
+from hrr_garment.train.calibrate import window_errors_mm
+
+
+def analyse(model: str, dataset: str | None, split: str) -> dict:
+    bundle = load_bundle(model)
+    path = dataset or bundle.meta.get("dataset")
+    if not path:
+        raise SystemExit(f"{model} does not record its dataset; give --dataset")
+    ds = GarmentDataset(path)
+    names = ds.splits.get(split, [])
+    if not names:
+        raise SystemExit(f"{path} has no {split!r} sequences")
+    w = bundle.codespace.config.window
+    features = dataset_features(ds, names)
+    names = [n for n in names if len(features[n]) >= w]
+    motion = np.concatenate([sequence_windows(features[n], w) for n in names])
+    truth = np.concatenate([sequence_windows(body_frames(ds, [n]), w) for n in names])
+    enc = encode_motion(bundle.codespace, bundle.motion_stats, bundle.latent_stats, motion)
+    match, similarity = bundle.database.search(enc.codes)
+    naive = bundle.database.nearest_motion(enc.standardised)
+    decode = bundle.autoencoder.fast_decoder()
+    with torch.no_grad():
+        reg = window_errors_mm(decode, enc.regression, truth)
+        ret = window_errors_mm(decode, bundle.database.latents[match], truth)
+        nn = window_errors_mm(decode, bundle.database.latents[naive], truth)
+    advantage = reg - ret  # > 0 where retrieval is the better candidate
+    return {"model": model, "split": split, "windows": len(reg),
+            "regression_mm": float(reg.mean()), "retrieval_mm": float(ret.mean()), "naive_nn_mm": float(nn.mean()),
+            "oracle_hybrid_mm": float(np.minimum(reg, ret).mean()),
+            "oracle_hybrid_naive_mm": float(np.minimum(reg, nn).mean()),
+            "retrieval_better_fraction": float((advantage > 0).mean()),
+            "corr_advantage_low_entropy": float(np.corrcoef(advantage, -enc.entropy)[0, 1]),
+            "corr_advantage_similarity": float(np.corrcoef(advantage, similarity)[0, 1])}
+
+
+def main(argv: list[str] | None = None) -> None:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--model", required=True, help="model bundle directory")
+    p.add_argument("--dataset", default=None, help="dataset (default: the one the model was trained on)")
+    p.add_argument("--split", default="val", choices=("train", "val", "test"))
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    args = p.parse_args(argv)
+    r = analyse(args.model, args.dataset, args.split)
+    if args.json:
+        print(json.dumps(r))
+        return
+    print(f"{r['model']} {r['split']}: {r['windows']} windows; regression {r['regression_mm']:.2f} mm, retrieval "
+          f"{r['retrieval_mm']:.2f} mm, naive NN {r['naive_nn_mm']:.2f} mm")
+    print(f"oracle hybrid (better candidate per window) {r['oracle_hybrid_mm']:.2f} mm = "
+          f"{r['oracle_hybrid_mm'] / r['regression_mm']:.3f} x regression; with naive NN {r['oracle_hybrid_naive_mm']:.2f} mm")
+    print(f"retrieval better in {100 * r['retrieval_better_fraction']:.1f} % of windows; correlation of its advantage "
+          f"with low entropy {r['corr_advantage_low_entropy']:+.3f}, with match similarity {r['corr_advantage_similarity']:+.3f}")
+
+
+if __name__ == "__main__":
+    main()
