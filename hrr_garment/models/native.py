@@ -41,6 +41,18 @@ SOURCE = r"""
 
 #define ALWAYS_INLINE static inline __attribute__((always_inline))
 
+/* Denormal floats read and produced as zero (flush-to-zero and denormals-are-zero) in the calling
+   thread, restored afterwards: trained weights and activations hold some, and every product with
+   one takes a slow microcode path. Set in each worker thread, which PyTorch's setting misses. */
+#if defined(__x86_64__) || defined(__i386__)
+#include <xmmintrin.h>
+ALWAYS_INLINE unsigned denormals_off(void) { const unsigned old = _mm_getcsr(); _mm_setcsr(old | 0x8040); return old; }
+ALWAYS_INLINE void denormals_restore(unsigned old) { _mm_setcsr(old); }
+#else
+ALWAYS_INLINE unsigned denormals_off(void) { return 0; }
+ALWAYS_INLINE void denormals_restore(unsigned old) { (void)old; }
+#endif
+
 typedef float v8sf __attribute__((vector_size(32)));
 typedef float v16sf __attribute__((vector_size(64)));
 
@@ -89,7 +101,7 @@ DEFINE_CONV(conv128, 128, v16sf, 16)
    about 1e-7 relative error); libm's expf is a scalar call per element. */
 ALWAYS_INLINE float exp_nonpositive(float y)
 {
-    y = fmaxf(y, -87.0f);
+    y = y > -87.0f ? y : -87.0f;  /* a ternary, not fmaxf: no libm call where a loop is not vectorised */
     const float n = floorf(y * 1.44269504088896341f + 0.5f);
     float r = fmaf(n, -0.693359375f, y);
     r = fmaf(n, 2.12194440e-4f, r);
@@ -122,6 +134,7 @@ void hrr_block(const float *x, int B, int cin, int cout, int V, const int32_t *o
     conv_fn conv = cout == 8 ? conv8 : cout == 16 ? conv16 : cout == 32 ? conv32 : cout == 64 ? conv64 : conv128;
     #pragma omp parallel num_threads(threads)
     {
+        const unsigned csr = denormals_off();
         float *acc = (float *)aligned_alloc(64, (((size_t)B * cout * 4 + 63) / 64) * 64);
         float *mapped = (float *)aligned_alloc(64, (((size_t)B * cout * 4 + 63) / 64) * 64);
         float *res = (float *)aligned_alloc(64, (((size_t)B * cin * 4 + 63) / 64) * 64);
@@ -154,7 +167,7 @@ void hrr_block(const float *x, int B, int cin, int cout, int V, const int32_t *o
                 #pragma omp simd
                 for (size_t i = 0; i < n; ++i) {
                     const float y = acc[i];
-                    d[i] = a * (y > 0.0f ? y : exp_nonpositive(fminf(y, 0.0f)) - 1.0f) + b * r[i];
+                    d[i] = a * (y > 0.0f ? y : exp_nonpositive(y < 0.0f ? y : 0.0f) - 1.0f) + b * r[i];
                 }
             } else {
                 #pragma omp simd
@@ -165,6 +178,7 @@ void hrr_block(const float *x, int B, int cin, int cout, int V, const int32_t *o
         free(mapped);
         free(res);
         free(zeros);
+        denormals_restore(csr);
     }
 }
 
@@ -267,10 +281,12 @@ void hrr_capsule_sdf(const double *p, int T, int N, const double *a, const doubl
             if (!pool)                                                                         \
                 memcpy(zr, y + (size_t)v * ld + (size_t)M * WIDTH, sizeof(float) * WIDTH);     \
             if (elu) {                                                                         \
+                _Pragma("omp simd")                                                            \
                 for (int i = 0; i < WIDTH; ++i)                                                \
-                    za[i] = za[i] > 0.0f ? za[i] : exp_nonpositive(fminf(za[i], 0.0f)) - 1.0f; \
+                    za[i] = za[i] > 0.0f ? za[i] : exp_nonpositive(za[i] < 0.0f ? za[i] : 0.0f) - 1.0f; \
             }                                                                                  \
             float *d = out + (size_t)v * cout;                                                 \
+            _Pragma("omp simd")                                                                \
             for (int i = 0; i < cout; ++i) d[i] = a * za[i] + b * zr[i];                       \
         }                                                                                      \
     }
@@ -296,10 +312,15 @@ void hrr_factor_apply(const float *y, int M, int cout, int width, int V, const i
                 : width == 64 ? apply64 : apply128;
     enum { CHUNK = 64 };
     const int chunks = (V + CHUNK - 1) / CHUNK;
-    #pragma omp parallel for num_threads(threads) schedule(static)
-    for (int k = 0; k < chunks; ++k) {
-        const int v1 = (k + 1) * CHUNK < V ? (k + 1) * CHUNK : V;
-        fn(y, M, cout, k * CHUNK, v1, offsets, nbr, coeff, pool, bias, a, b, elu, out);
+    #pragma omp parallel num_threads(threads)
+    {
+        const unsigned csr = denormals_off();
+        #pragma omp for schedule(static)
+        for (int k = 0; k < chunks; ++k) {
+            const int v1 = (k + 1) * CHUNK < V ? (k + 1) * CHUNK : V;
+            fn(y, M, cout, k * CHUNK, v1, offsets, nbr, coeff, pool, bias, a, b, elu, out);
+        }
+        denormals_restore(csr);
     }
 }
 """
