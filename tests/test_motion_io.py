@@ -135,3 +135,18 @@ def test_atomic_writes_get_ordinary_permissions(tmp_path):
         assert stat.S_IMODE(path.stat().st_mode) == 0o644
     finally:
         os.umask(umask)
+
+
+def test_concatenate_reuses_forward_kinematics_exactly():
+    from hrr_garment.motion.motion import Motion
+    from hrr_garment.motion.synth import synthesize
+
+    m = synthesize("dance", 0.5, seed=2)
+    a, b = m.slice(0, 4), m.slice(4, m.num_frames)
+    a.joint_positions, b.joint_positions  # noqa: B018 - computed before concatenating
+    joined = Motion.concatenate([a, b])
+    assert "_fk" in joined.__dict__  # reused, not recomputed
+    fresh = Motion.concatenate([m.slice(0, 4), m.slice(4, m.num_frames)])
+    assert "_fk" not in fresh.__dict__
+    for x, y, z in zip(joined._fk, fresh._fk, m._fk):
+        assert np.array_equal(x, y) and np.array_equal(y, z)

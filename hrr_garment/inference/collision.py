@@ -97,7 +97,8 @@ def _push_frames(p: np.ndarray, a: np.ndarray, b: np.ndarray, radii: np.ndarray,
             break
         # A Jacobi pass spreads the displacement by one ring, so after ``smooth`` passes only the
         # vertices within ``smooth`` rings of a pushed one have moved: the passes run on that part
-        # of the mesh alone (the same numbers, at a fraction of the cost: few vertices touch the body).
+        # of the mesh alone: the same numbers at about half the cost on the dress, whose bodice rests
+        # on the torso (about a fifth of its vertices are within the margin in every frame).
         act = np.flatnonzero(_reach(mean, hit.any(0), smooth))
         sub = _submatrix(mean, act)
         need, hit, na = need[:, act], hit[:, act], n[:, act]

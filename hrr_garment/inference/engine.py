@@ -60,9 +60,10 @@ def pair_features(previous: Motion | None, current: Motion) -> np.ndarray:
     """Features (124,) of the one-frame ``current`` given the frame before it (None at the start:
     the frame is repeated, so velocities are zero)."""
     before = current if previous is None else previous
-    pair = Motion(np.concatenate([before.local_rotations[-1:], current.local_rotations]),
-                  np.concatenate([before.root_translation[-1:], current.root_translation]), current.fps, current.source)
-    return motion_features(pair)[-1]
+    if before.num_frames > 1:
+        before = before.slice(before.num_frames - 1, before.num_frames)
+    current.global_rotations  # noqa: B018 - computes (and caches) the pose's kinematics, reused by the pair
+    return motion_features(Motion.concatenate([before, current]))[-1]
 
 
 def causal_features(motion: Motion) -> np.ndarray:

@@ -385,7 +385,7 @@ def load_kernel(cache_dir: str | Path | None = None) -> ctypes.CDLL | None:
                 lib.hrr_block.argtypes = [f, c_int, c_int, c_int, c_int, i32, i32, f, f, f, f, c_float, c_float, c_int,
                                           c_int, f]
                 lib.hrr_block.restype = None
-                d = ctypes.POINTER(ctypes.c_double)
+                d = ctypes.c_void_p  # addresses from ndarray.ctypes.data: per-frame calls, so the cheapest conversion
                 lib.hrr_capsule_sdf.argtypes = [d, c_int, c_int, d, d, d, c_int, c_int, d, d]
                 lib.hrr_capsule_sdf.restype = None
                 lib.hrr_factor_apply.argtypes = [ctypes.c_void_p, c_int, c_int, c_int, c_int, i32, i32, f, f, f, c_float,
@@ -477,6 +477,6 @@ def capsule_sdf(lib: ctypes.CDLL, points: np.ndarray, a: np.ndarray, b: np.ndarr
     a, b, r = (np.ascontiguousarray(x, np.float64) for x in (a, b, radii))
     t, n = p.shape[:2]
     dist, normal = np.empty((t, n)), np.empty((t, n, 3))
-    d = ctypes.c_double
-    lib.hrr_capsule_sdf(_ptr(p, d), t, n, _ptr(a, d), _ptr(b, d), _ptr(r, d), len(r), threads, _ptr(dist, d), _ptr(normal, d))
+    lib.hrr_capsule_sdf(p.ctypes.data, t, n, a.ctypes.data, b.ctypes.data, r.ctypes.data, len(r), threads, dist.ctypes.data,
+                        normal.ctypes.data)
     return dist, normal

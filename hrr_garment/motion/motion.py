@@ -100,6 +100,18 @@ class Motion:
         """(T,) height of the lowest sole point per frame."""
         return self.sole_heights().min(axis=1)
 
+    @classmethod
+    def concatenate(cls, parts: list["Motion"]) -> "Motion":
+        """The frames of ``parts`` one after another (fps, source and skeleton of the first).
+        Forward kinematics is per frame, so where every part has already computed it the result
+        reuses it instead of computing it again (a stream pairs each new pose with the last)."""
+        first = parts[0]
+        out = cls(np.concatenate([p.local_rotations for p in parts]), np.concatenate([p.root_translation for p in parts]),
+                  first.fps, first.source, first.source_skeleton, first.source_height_m, first.skeleton)
+        if all("_fk" in p.__dict__ for p in parts):
+            out.__dict__["_fk"] = tuple(np.concatenate([p._fk[i] for p in parts]) for i in range(2))
+        return out
+
     def slice(self, start: int, stop: int) -> "Motion":
         return Motion(self.local_rotations[start:stop], self.root_translation[start:stop], self.fps, self.source, self.source_skeleton, self.source_height_m, self.skeleton)
 
