@@ -216,3 +216,29 @@ def test_push_out_submatrix_equals_scipy_indexing(rng):
     m = sparse_random(60, 60, density=0.1, format="csr", random_state=3)
     keep = np.flatnonzero(rng.random(60) < 0.4)
     assert np.array_equal(_submatrix(m, keep).toarray(), m[keep][:, keep].toarray())
+
+
+def test_native_push_out_equals_numpy(rng):
+    from hrr_garment.body.capsules import DEFAULT_BODY
+    from hrr_garment.garment.templates import make_garment
+    from hrr_garment.inference.collision import _push_frames, mean_operator
+    from hrr_garment.models.native import load_kernel, push_out_frames
+
+    lib = load_kernel()
+    if lib is None:
+        pytest.skip("no C compiler")
+    skirt = make_garment("skirt", 300)
+    motion = synthesize("dance", 0.3, seed=4)
+    rest = to_world(to_body_frame(np.repeat(skirt.vertices[None], motion.num_frames, 0).astype(np.float64), motion), motion)
+    centre = rest[:, :, [0, 2]].mean(1, keepdims=True)
+    squeezed = rest.copy()
+    squeezed[..., [0, 2]] = centre + 0.85 * (rest[..., [0, 2]] - centre)  # into the hips
+    squeezed += rng.normal(scale=0.004, size=squeezed.shape)
+    a, b = DEFAULT_BODY.pose_motion(motion)
+    mean = mean_operator(skirt.faces, len(skirt.vertices))
+    for rounds in (1, 2):
+        ref = _push_frames(squeezed.copy(), a, b, DEFAULT_BODY.radii, mean, 0.002, 4, rounds, 0.005)
+        got = push_out_frames(lib, squeezed, a, b, DEFAULT_BODY.radii, mean, 0.002, 4, rounds, 0.005, threads=2)
+        assert ref[1].max() > 0.05  # the test squeezes the skirt into the body
+        assert np.abs(got[0] - ref[0]).max() < 1e-6
+        assert np.allclose(got[1], ref[1]) and np.allclose(got[2], ref[2])

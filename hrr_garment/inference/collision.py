@@ -6,7 +6,9 @@ one-vertex spikes where a fold dips in; so the push is spread: the displacement 
 over the mesh (``smooth`` Jacobi passes of the uniform Laplacian, each keeping the pushed vertices'
 displacement at least what they need along their normals), so neighbours follow part of the way;
 ``rounds`` such pushes, then up to four exact projections onto the surface (a push can land in a
-neighbouring capsule, hence more than one).
+neighbouring capsule, hence more than one). With a C compiler the same steps run in the kernel of
+:mod:`hrr_garment.models.native` (frames in parallel); this module's numpy version is the
+reference and the fallback.
 """
 
 from __future__ import annotations
@@ -57,10 +59,17 @@ def push_out(vertices: np.ndarray, motion: Motion, faces: np.ndarray, body: Body
     mean = mean_operator(faces, vertices.shape[1]) if mean is None else mean
     out = np.empty(vertices.shape, np.float32)
     before, after = np.zeros(len(out)), np.zeros(len(out))
+    from ..models.native import load_kernel, push_out_frames
+
+    lib = load_kernel()
     for start in range(0, len(out), chunk):
         sl = slice(start, start + chunk)
-        out[sl], before[sl], after[sl] = _push_frames(vertices[sl].astype(np.float64), a[sl], b[sl], body.radii, mean, margin,
-                                                      smooth, rounds, depth)
+        if lib is not None:  # the same steps in C, frames in parallel: numpy's per-step overheads dominated
+            out[sl], before[sl], after[sl] = push_out_frames(lib, vertices[sl], a[sl], b[sl], body.radii, mean, margin, smooth,
+                                                             rounds, depth, threads=2)
+        else:
+            out[sl], before[sl], after[sl] = _push_frames(vertices[sl].astype(np.float64), a[sl], b[sl], body.radii, mean,
+                                                          margin, smooth, rounds, depth)
     return out, PushOutReport(float(before.mean()), float(after.mean()), float(before.max(initial=0)), float(after.max(initial=0)))
 
 

@@ -182,60 +182,154 @@ void hrr_block(const float *x, int B, int cin, int cout, int V, const int32_t *o
     }
 }
 
-/* Signed distance of points to the union of C capsules, frame by frame: points (T, N, 3), capsule
-   ends a, b (T, C, 3), radii (C) -> distance (T, N) and the nearest capsule's outward unit normal
-   (T, N, 3); negative inside. */
+/* Signed distance of points to the union of C capsules (one frame's capsule ends ca, cb (C, 3),
+   radii (C)): for entries i0 .. i1 (at most SDF_CHUNK) of the point list idx (NULL: 0, 1, ...),
+   point k = idx[i], writes dist[k] (negative inside) and the nearest capsule's outward unit
+   normal normal[k]. Capsules outer, points inner in structure-of-arrays form, so the inner loop
+   has no division and vectorises across points. */
+enum { SDF_CHUNK = 256, SDF_MAXC = 64 };
+
+static void sdf_chunk(const double *p, const int32_t *idx, int i0, int i1, const double *ca, const double *cb,
+                      const double *radii, int C, double *dist, double *normal)
+{
+    double cax[SDF_MAXC], cay[SDF_MAXC], caz[SDF_MAXC], cex[SDF_MAXC], cey[SDF_MAXC], cez[SDF_MAXC], cinv[SDF_MAXC];
+    for (int c = 0; c < C; ++c) {
+        cax[c] = ca[3 * c]; cay[c] = ca[3 * c + 1]; caz[c] = ca[3 * c + 2];
+        cex[c] = cb[3 * c] - cax[c]; cey[c] = cb[3 * c + 1] - cay[c]; cez[c] = cb[3 * c + 2] - caz[c];
+        const double den = cex[c] * cex[c] + cey[c] * cey[c] + cez[c] * cez[c];
+        cinv[c] = 1.0 / (den > 1e-12 ? den : 1e-12);
+    }
+    double px[SDF_CHUNK], py[SDF_CHUNK], pz[SDF_CHUNK], best[SDF_CHUNK], bx[SDF_CHUNK], by[SDF_CHUNK], bz[SDF_CHUNK],
+           baxis[SDF_CHUNK];
+    const int n = i1 - i0;
+    for (int i = 0; i < n; ++i) {
+        const int k = idx ? idx[i0 + i] : i0 + i;
+        px[i] = p[3 * k]; py[i] = p[3 * k + 1]; pz[i] = p[3 * k + 2];
+        best[i] = 1e300; bx[i] = 0; by[i] = 0; bz[i] = 0; baxis[i] = 1;
+    }
+    for (int c = 0; c < C; ++c) {
+        const double ax = cax[c], ay = cay[c], az = caz[c], ex = cex[c], ey = cey[c], ez = cez[c];
+        const double inv_den = cinv[c], r = radii[c];
+        #pragma omp simd
+        for (int i = 0; i < n; ++i) {
+            const double rx = px[i] - ax, ry = py[i] - ay, rz = pz[i] - az;
+            double s = (rx * ex + ry * ey + rz * ez) * inv_den;
+            s = s < 0 ? 0 : (s > 1 ? 1 : s);
+            const double dx = rx - s * ex, dy = ry - s * ey, dz = rz - s * ez;
+            const double axis = sqrt(dx * dx + dy * dy + dz * dz);
+            const double sd = axis - r;
+            const int closer = sd < best[i];
+            best[i] = closer ? sd : best[i];
+            bx[i] = closer ? dx : bx[i]; by[i] = closer ? dy : by[i]; bz[i] = closer ? dz : bz[i];
+            baxis[i] = closer ? axis : baxis[i];
+        }
+    }
+    for (int i = 0; i < n; ++i) {
+        const int k = idx ? idx[i0 + i] : i0 + i;
+        const double inv = 1.0 / (baxis[i] > 1e-12 ? baxis[i] : 1e-12);
+        dist[k] = best[i];
+        normal[3 * k] = bx[i] * inv; normal[3 * k + 1] = by[i] * inv; normal[3 * k + 2] = bz[i] * inv;
+    }
+}
+
+static void sdf_points(const double *p, const int32_t *idx, int n, const double *ca, const double *cb,
+                       const double *radii, int C, double *dist, double *normal)
+{
+    for (int i0 = 0; i0 < n; i0 += SDF_CHUNK)
+        sdf_chunk(p, idx, i0, i0 + SDF_CHUNK < n ? i0 + SDF_CHUNK : n, ca, cb, radii, C, dist, normal);
+}
+
+/* Frame by frame: points (T, N, 3), capsule ends a, b (T, C, 3) -> dist (T, N), normal (T, N, 3). */
 void hrr_capsule_sdf(const double *p, int T, int N, const double *a, const double *b, const double *radii,
                      int C, int threads, double *dist, double *normal)
 {
-    enum { CHUNK = 256, MAXC = 64 };
-    const int chunks = (N + CHUNK - 1) / CHUNK;
+    const int chunks = (N + SDF_CHUNK - 1) / SDF_CHUNK;
     #pragma omp parallel for num_threads(threads) schedule(static)
     for (long job = 0; job < (long)T * chunks; ++job) {
-        const int t = (int)(job / chunks), i0 = (int)(job % chunks) * CHUNK;
-        const int i1 = i0 + CHUNK < N ? i0 + CHUNK : N;
-        /* the frame's capsules as axis start, axis and 1 / |axis|^2, so the per-point loop below
-           has no division and vectorises across points (one capsule at a time for all lanes) */
-        double cax[MAXC], cay[MAXC], caz[MAXC], cex[MAXC], cey[MAXC], cez[MAXC], cinv[MAXC];
-        const double *ca = a + (size_t)t * 3 * C, *cb = b + (size_t)t * 3 * C;
-        for (int c = 0; c < C; ++c) {
-            cax[c] = ca[3 * c]; cay[c] = ca[3 * c + 1]; caz[c] = ca[3 * c + 2];
-            cex[c] = cb[3 * c] - cax[c]; cey[c] = cb[3 * c + 1] - cay[c]; cez[c] = cb[3 * c + 2] - caz[c];
-            const double den = cex[c] * cex[c] + cey[c] * cey[c] + cez[c] * cez[c];
-            cinv[c] = 1.0 / (den > 1e-12 ? den : 1e-12);
+        const int t = (int)(job / chunks), i0 = (int)(job % chunks) * SDF_CHUNK;
+        sdf_chunk(p + (size_t)t * N * 3, NULL, i0, i0 + SDF_CHUNK < N ? i0 + SDF_CHUNK : N,
+                  a + (size_t)t * 3 * C, b + (size_t)t * 3 * C, radii, C, dist + (size_t)t * N, normal + (size_t)t * N * 3);
+    }
+}
+
+/* The collision push-out of hrr_garment/inference/collision.py for one frame, the same steps:
+   distances; `rounds` times: each vertex needing to move (within `margin` of the body or inside)
+   gets need * normal, spread by `smooth` Jacobi passes of the row-normalised adjacency (CSR
+   indptr/indices/weights) that never lower a pushed vertex's push along its normal; then up to
+   four exact projections of the vertices still inside. Only moved vertices are measured again.
+   before/after: fractions of vertices deeper than `depth`. */
+static void push_frame(double *p, int V, const double *ca, const double *cb, const double *radii, int C,
+                       const int32_t *indptr, const int32_t *indices, const double *weights, double margin,
+                       int smooth, int rounds, double depth, double *before, double *after)
+{
+    double *d = (double *)malloc(sizeof(double) * (size_t)V * 12);
+    double *nrm = d + V, *need = nrm + 3 * (size_t)V, *disp = need + V, *tmp = disp + 3 * (size_t)V;
+    int32_t *list = (int32_t *)malloc(sizeof(int32_t) * (size_t)V);
+    sdf_points(p, NULL, V, ca, cb, radii, C, d, nrm);
+    int deep = 0;
+    for (int v = 0; v < V; ++v) deep += d[v] < -depth;
+    *before = (double)deep / V;
+    for (int r = 0; r < rounds; ++r) {
+        int any = 0;
+        for (int v = 0; v < V; ++v) {
+            need[v] = margin - d[v] > 0.0 ? margin - d[v] : 0.0;
+            any |= need[v] > 0.0;
+            for (int k = 0; k < 3; ++k) disp[3 * v + k] = need[v] * nrm[3 * v + k];
         }
-        const double *pt = p + (size_t)t * N * 3;
-        double *dt = dist + (size_t)t * N, *nt = normal + (size_t)t * N * 3;
-        /* capsules outer, points inner (structure of arrays): the inner loop vectorises */
-        double px[CHUNK], py[CHUNK], pz[CHUNK], best[CHUNK], bx[CHUNK], by[CHUNK], bz[CHUNK], baxis[CHUNK];
-        const int n = i1 - i0;
-        for (int i = 0; i < n; ++i) {
-            px[i] = pt[3 * (i0 + i)]; py[i] = pt[3 * (i0 + i) + 1]; pz[i] = pt[3 * (i0 + i) + 2];
-            best[i] = 1e300; bx[i] = 0; by[i] = 0; bz[i] = 0; baxis[i] = 1;
+        if (!any) break;
+        for (int s = 0; s < smooth; ++s) {
+            for (int v = 0; v < V; ++v) {
+                double x = 0.0, y = 0.0, z = 0.0;
+                for (int j = indptr[v]; j < indptr[v + 1]; ++j) {
+                    const double w = weights[j], *q = disp + 3 * (size_t)indices[j];
+                    x += w * q[0]; y += w * q[1]; z += w * q[2];
+                }
+                if (need[v] > 0.0) {
+                    const double *nv = nrm + 3 * (size_t)v;
+                    double shortfall = need[v] - (x * nv[0] + y * nv[1] + z * nv[2]);
+                    shortfall = shortfall > 0.0 ? shortfall : 0.0;
+                    x += shortfall * nv[0]; y += shortfall * nv[1]; z += shortfall * nv[2];
+                }
+                tmp[3 * v] = x; tmp[3 * v + 1] = y; tmp[3 * v + 2] = z;
+            }
+            double *swap = disp; disp = tmp; tmp = swap;
         }
-        for (int c = 0; c < C; ++c) {
-            const double ax = cax[c], ay = cay[c], az = caz[c], ex = cex[c], ey = cey[c], ez = cez[c];
-            const double inv_den = cinv[c], r = radii[c];
-            #pragma omp simd
-            for (int i = 0; i < n; ++i) {
-                const double rx = px[i] - ax, ry = py[i] - ay, rz = pz[i] - az;
-                double s = (rx * ex + ry * ey + rz * ez) * inv_den;
-                s = s < 0 ? 0 : (s > 1 ? 1 : s);
-                const double dx = rx - s * ex, dy = ry - s * ey, dz = rz - s * ez;
-                const double axis = sqrt(dx * dx + dy * dy + dz * dz);
-                const double sd = axis - r;
-                const int closer = sd < best[i];
-                best[i] = closer ? sd : best[i];
-                bx[i] = closer ? dx : bx[i]; by[i] = closer ? dy : by[i]; bz[i] = closer ? dz : bz[i];
-                baxis[i] = closer ? axis : baxis[i];
+        int m = 0;
+        for (int v = 0; v < V; ++v) {
+            const double *q = disp + 3 * (size_t)v;
+            if (q[0] != 0.0 || q[1] != 0.0 || q[2] != 0.0) {
+                p[3 * v] += q[0]; p[3 * v + 1] += q[1]; p[3 * v + 2] += q[2];
+                list[m++] = v;
             }
         }
-        for (int i = 0; i < n; ++i) {
-            const double inv = 1.0 / (baxis[i] > 1e-12 ? baxis[i] : 1e-12);
-            dt[i0 + i] = best[i];
-            nt[3 * (i0 + i)] = bx[i] * inv; nt[3 * (i0 + i) + 1] = by[i] * inv; nt[3 * (i0 + i) + 2] = bz[i] * inv;
-        }
+        sdf_points(p, list, m, ca, cb, radii, C, d, nrm);
     }
+    for (int it = 0; it < 4; ++it) {
+        int m = 0;
+        for (int v = 0; v < V; ++v)
+            if (d[v] < 0.0) list[m++] = v;
+        if (m == 0) break;
+        for (int i = 0; i < m; ++i) {
+            const int v = list[i];
+            for (int k = 0; k < 3; ++k) p[3 * v + k] += (margin - d[v]) * nrm[3 * v + k];
+        }
+        sdf_points(p, list, m, ca, cb, radii, C, d, nrm);
+    }
+    deep = 0;
+    for (int v = 0; v < V; ++v) deep += d[v] < -depth;
+    *after = (double)deep / V;
+    free(list);
+    free(d);  /* heads the block; disp and tmp were swapped within it */
+}
+
+void hrr_push_out(double *p, int T, int V, const double *a, const double *b, const double *radii, int C,
+                  const int32_t *indptr, const int32_t *indices, const double *weights, double margin, int smooth,
+                  int rounds, double depth, int threads, double *before, double *after)
+{
+    #pragma omp parallel for num_threads(threads) schedule(dynamic)
+    for (int t = 0; t < T; ++t)
+        push_frame(p + (size_t)t * V * 3, V, a + (size_t)t * 3 * C, b + (size_t)t * 3 * C, radii, C, indptr, indices,
+                   weights, margin, smooth, rounds, depth, before + t, after + t);
 }
 
 /* One frame, factored and transformed first (streaming): with y = x W (Vin, (M + 1) * WIDTH), the
@@ -388,6 +482,10 @@ def load_kernel(cache_dir: str | Path | None = None) -> ctypes.CDLL | None:
                 d = ctypes.c_void_p  # addresses from ndarray.ctypes.data: per-frame calls, so the cheapest conversion
                 lib.hrr_capsule_sdf.argtypes = [d, c_int, c_int, d, d, d, c_int, c_int, d, d]
                 lib.hrr_capsule_sdf.restype = None
+                c_double = ctypes.c_double
+                lib.hrr_push_out.argtypes = [d, c_int, c_int, d, d, d, c_int, d, d, d, c_double, c_int, c_int, c_double,
+                                             c_int, d, d]
+                lib.hrr_push_out.restype = None
                 lib.hrr_factor_apply.argtypes = [ctypes.c_void_p, c_int, c_int, c_int, c_int, i32, i32, f, f, f, c_float,
                                                  c_float, c_int, c_int, ctypes.c_void_p]
                 lib.hrr_factor_apply.restype = None
@@ -480,3 +578,23 @@ def capsule_sdf(lib: ctypes.CDLL, points: np.ndarray, a: np.ndarray, b: np.ndarr
     lib.hrr_capsule_sdf(p.ctypes.data, t, n, a.ctypes.data, b.ctypes.data, r.ctypes.data, len(r), threads, dist.ctypes.data,
                         normal.ctypes.data)
     return dist, normal
+
+
+def push_out_frames(lib: ctypes.CDLL, points: np.ndarray, a: np.ndarray, b: np.ndarray, radii: np.ndarray, mean,
+                    margin: float, smooth: int, rounds: int, depth: float, threads: int = 1
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`hrr_garment.inference.collision.push_out`'s per-frame steps in the kernel: points
+    (T, V, 3), capsule ends a, b (T, C, 3), ``mean`` the (V, V) CSR mean operator -> (pushed
+    points float32, fraction deeper than ``depth`` before (T,), after (T,)). Frames in parallel."""
+    if len(radii) > 64:
+        raise ValueError(f"the native push-out handles up to 64 capsules, not {len(radii)}")
+    p = np.array(points, np.float64, order="C")  # a copy: pushed in place
+    a, b, r = (np.ascontiguousarray(x, np.float64) for x in (a, b, radii))
+    indptr, indices = (np.ascontiguousarray(x, np.int32) for x in (mean.indptr, mean.indices))
+    weights = np.ascontiguousarray(mean.data, np.float64)
+    t, v = p.shape[:2]
+    before, after = np.empty(t), np.empty(t)
+    lib.hrr_push_out(p.ctypes.data, t, v, a.ctypes.data, b.ctypes.data, r.ctypes.data, len(r), indptr.ctypes.data,
+                     indices.ctypes.data, weights.ctypes.data, margin, smooth, rounds, depth, threads, before.ctypes.data,
+                     after.ctypes.data)
+    return p.astype(np.float32), before, after
