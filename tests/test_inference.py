@@ -18,13 +18,19 @@ def animator(trained):
     return Animator.load(root / "model")
 
 
-def test_stream_equals_offline_causal(animator):
+@pytest.mark.parametrize("mode", ["hybrid", "regression", "retrieval", "naive-nn"])
+def test_stream_equals_offline_causal(animator, mode):
     motion = synthesize("walk_curve", 1.2, seed=7)
-    causal = animator.animate(motion, causal=True)
-    stream = animator.stream()
+    causal = animator.animate(motion, mode=mode, causal=True)
+    stream = animator.stream(mode=mode)
     pushed = np.stack([stream.push(motion.slice(t, t + 1)) for t in range(motion.num_frames)])
     assert np.abs(pushed - causal.vertices).max() <= 1e-5
     assert len(stream._features) == animator.window  # bounded memory
+
+
+def test_stream_refuses_an_offline_only_mode(animator):
+    with pytest.raises(ValueError, match="direct"):
+        animator.stream(mode="direct")
 
 
 @pytest.mark.parametrize("mode", ["hybrid", "regression", "retrieval", "naive-nn"])

@@ -29,6 +29,7 @@ from ..paths import workspace
 from ..train.bundle import Bundle, BundleError, load_bundle
 from .collision import PushOutReport, mean_operator, push_out
 from .engine import (
+    MODES,
     Inertializer,
     blend_windows,
     causal_features,
@@ -178,6 +179,8 @@ class AnimationStream:
     ``animator.animate(motion, causal=True)`` (tested to 1e-5)."""
 
     def __init__(self, animator: Animator, mode: str, tau: float, collision: bool):
+        if mode not in MODES:
+            raise ValueError(f"streaming runs one of {', '.join(MODES)}, not {mode!r}")
         self.animator, self.mode, self.tau, self.collision = animator, mode, tau, collision
         self._prev: Motion | None = None
         self._features: deque = deque(maxlen=animator.window)

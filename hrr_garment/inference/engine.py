@@ -37,7 +37,8 @@ MODES = ("hybrid", "regression", "retrieval", "naive-nn")
 def flush_denormals():
     """Treat denormal floats (< 1.2e-38) as zero while inference runs (the CPU's flush-to-zero
     mode, as game engines run): trained networks produce some, and each product with one takes a
-    slow path (it doubled a trained motion encoder's time). Restores PyTorch's default on exit."""
+    slow path (it doubled a trained motion encoder's time). Switches it back off on exit (PyTorch's
+    default; the current setting cannot be read)."""
     torch.set_flush_denormal(True)
     try:
         yield
