@@ -1,0 +1,387 @@
+/* hrr_garment's native kernels, compiled on first use by hrr_garment/models/native.py (see its
+   docstring): the mesh decoder's blocks, the single-frame decoder, the capsule-body distance and
+   the collision push-out. */
+
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+#include <math.h>
+
+#define ALWAYS_INLINE static inline __attribute__((always_inline))
+
+/* Denormal floats read and produced as zero (flush-to-zero and denormals-are-zero) in the calling
+   thread, restored afterwards: trained weights and activations hold some, and every product with
+   one takes a slow microcode path. Set in each worker thread, which PyTorch's setting misses. */
+#if defined(__x86_64__) || defined(__i386__)
+#include <xmmintrin.h>
+ALWAYS_INLINE unsigned denormals_off(void) { const unsigned old = _mm_getcsr(); _mm_setcsr(old | 0x8040); return old; }
+ALWAYS_INLINE void denormals_restore(unsigned old) { _mm_setcsr(old); }
+#else
+ALWAYS_INLINE unsigned denormals_off(void) { return 0; }
+ALWAYS_INLINE void denormals_restore(unsigned old) { (void)old; }
+#endif
+
+typedef float v8sf __attribute__((vector_size(32)));
+typedef float v16sf __attribute__((vector_size(64)));
+
+/* acc (B, COUT) = bias + sum_j x[nbr[j]] (B, cin) times K[j] (cin, COUT). Neighbour slot outer,
+   so its kernel block (cin x COUT, at most 64 KB) stays in L1 while all B frames pass through it;
+   then one LANES-wide column block at a time and RB frames at a time, so the RB accumulators stay
+   in vector registers (GCC vector extensions; VT holds LANES floats) and one kernel-row load feeds
+   RB fused multiply-adds with broadcast operands. */
+#define TILE(ROWS)                                                                             \
+    for (int q = 0; q < COUT; q += LANES) {                                                    \
+        VT t[ROWS];                                                                            \
+        for (int r = 0; r < ROWS; ++r) memcpy(&t[r], acc + (size_t)(bb + r) * COUT + q, sizeof(VT)); \
+        const float *restrict xs = xj + (size_t)bb * cin;                                      \
+        for (int c = 0; c < cin; ++c) {                                                        \
+            VT kv;                                                                             \
+            memcpy(&kv, k + (size_t)c * COUT + q, sizeof(VT));                                 \
+            for (int r = 0; r < ROWS; ++r) t[r] += xs[(size_t)r * cin + c] * kv;               \
+        }                                                                                      \
+        for (int r = 0; r < ROWS; ++r) memcpy(acc + (size_t)(bb + r) * COUT + q, &t[r], sizeof(VT)); \
+    }
+
+#define DEFINE_CONV(NAME, COUT_, VT_, LANES_)                                                  \
+    static void NAME(float *restrict acc, const float *restrict x, int B, int cin, int j0,      \
+                     int j1, const int32_t *restrict nbr, const float *restrict K,             \
+                     const float *restrict bias)                                               \
+    {                                                                                          \
+        typedef VT_ VT;                                                                        \
+        enum { COUT = COUT_, LANES = LANES_, RB = 16 };                                        \
+        for (int bb = 0; bb < B; ++bb) memcpy(acc + (size_t)bb * COUT, bias, sizeof(float) * COUT); \
+        for (int j = j0; j < j1; ++j) {                                                        \
+            const float *restrict xj = x + (size_t)nbr[j] * B * cin;                           \
+            const float *restrict k = K + (size_t)j * cin * COUT;                              \
+            int bb = 0;                                                                        \
+            for (; bb + RB <= B; bb += RB) TILE(RB)                                            \
+            for (; bb < B; ++bb) TILE(1)                                                       \
+        }                                                                                      \
+    }
+
+DEFINE_CONV(conv8, 8, v8sf, 8)
+DEFINE_CONV(conv16, 16, v16sf, 16)
+DEFINE_CONV(conv32, 32, v16sf, 16)
+DEFINE_CONV(conv64, 64, v16sf, 16)
+DEFINE_CONV(conv128, 128, v16sf, 16)
+
+/* exp(y) for y <= 0 in plain arithmetic so that loops over it vectorise (Cephes' expf polynomial,
+   about 1e-7 relative error); libm's expf is a scalar call per element. */
+ALWAYS_INLINE float exp_nonpositive(float y)
+{
+    y = y > -87.0f ? y : -87.0f;  /* a ternary, not fmaxf: no libm call where a loop is not vectorised */
+    const float n = floorf(y * 1.44269504088896341f + 0.5f);
+    float r = fmaf(n, -0.693359375f, y);
+    r = fmaf(n, 2.12194440e-4f, r);
+    float p = 1.9875691500e-4f;
+    p = fmaf(p, r, 1.3981999507e-3f);
+    p = fmaf(p, r, 8.3334519073e-3f);
+    p = fmaf(p, r, 4.1665795894e-2f);
+    p = fmaf(p, r, 1.6666665459e-1f);
+    p = fmaf(p, r, 5.0000001201e-1f);
+    p = fmaf(p, r * r, r) + 1.0f;
+    const int32_t bits = ((int32_t)n + 127) << 23;
+    float scale;
+    memcpy(&scale, &bits, sizeof scale);
+    return p * scale;
+}
+
+typedef void (*conv_fn)(float *restrict, const float *restrict, int, int, int, int, const int32_t *restrict,
+                        const float *restrict, const float *restrict);
+
+/* One block for B frames, vertex-major tensors:
+     out[v] = a * act(bias + sum_j x[nbr[j]] K[j]) + b * residual(v)
+   x (Vin, B, cin); offsets (V + 1) and nbr (nnz): compressed neighbour rows; K (nnz, cin, cout),
+   cout one of 8, 16, 32, 64, 128 (the caller pads); residual(v) = (sum_j pool[j] x[nbr[j]]) or
+   x[v] when pool is NULL, then times proj (cin, cout) unless proj is NULL (cin == cout); the 1x1
+   map runs through the same register-tiled loop as the convolution (one "neighbour"). */
+void hrr_block(const float *x, int B, int cin, int cout, int V, const int32_t *offsets,
+               const int32_t *nbr, const float *K, const float *bias, const float *pool,
+               const float *proj, float a, float b, int elu, int threads, float *out)
+{
+    conv_fn conv = cout == 8 ? conv8 : cout == 16 ? conv16 : cout == 32 ? conv32 : cout == 64 ? conv64 : conv128;
+    #pragma omp parallel num_threads(threads)
+    {
+        const unsigned csr = denormals_off();
+        float *acc = (float *)aligned_alloc(64, (((size_t)B * cout * 4 + 63) / 64) * 64);
+        float *mapped = (float *)aligned_alloc(64, (((size_t)B * cout * 4 + 63) / 64) * 64);
+        float *res = (float *)aligned_alloc(64, (((size_t)B * cin * 4 + 63) / 64) * 64);
+        float *zeros = (float *)calloc(cout, sizeof(float));
+        #pragma omp for schedule(static)
+        for (int v = 0; v < V; ++v) {
+            const int j0 = offsets[v], j1 = offsets[v + 1];
+            conv(acc, x, B, cin, j0, j1, nbr, K, bias);
+            const float *src = x;
+            int32_t row = v;
+            if (pool) {
+                memset(res, 0, sizeof(float) * (size_t)B * cin);
+                for (int j = j0; j < j1; ++j) {
+                    const float w = pool[j];
+                    const float *restrict xs = x + (size_t)nbr[j] * B * cin;
+                    #pragma omp simd
+                    for (size_t i = 0; i < (size_t)B * cin; ++i) res[i] += w * xs[i];
+                }
+                src = res;
+                row = 0;
+            }
+            const float *r = src + (size_t)row * B * cin;
+            if (proj) {
+                conv(mapped, src, B, cin, 0, 1, &row, proj, zeros);
+                r = mapped;
+            }
+            float *d = out + (size_t)v * B * cout;
+            const size_t n = (size_t)B * cout;
+            if (elu) {
+                #pragma omp simd
+                for (size_t i = 0; i < n; ++i) {
+                    const float y = acc[i];
+                    d[i] = a * (y > 0.0f ? y : exp_nonpositive(y < 0.0f ? y : 0.0f) - 1.0f) + b * r[i];
+                }
+            } else {
+                #pragma omp simd
+                for (size_t i = 0; i < n; ++i) d[i] = a * acc[i] + b * r[i];
+            }
+        }
+        free(acc);
+        free(mapped);
+        free(res);
+        free(zeros);
+        denormals_restore(csr);
+    }
+}
+
+/* Signed distance of points to the union of C capsules (one frame's capsule ends ca, cb (C, 3),
+   radii (C)): for entries i0 .. i1 (at most SDF_CHUNK) of the point list idx (NULL: 0, 1, ...),
+   point k = idx[i], writes dist[k] (negative inside) and the nearest capsule's outward unit
+   normal normal[k]. Capsules outer, points inner in structure-of-arrays form, so the inner loop
+   has no division and vectorises across points. */
+enum { SDF_CHUNK = 256, SDF_MAXC = 64 };
+
+static void sdf_chunk(const double *p, const int32_t *idx, int i0, int i1, const double *ca, const double *cb,
+                      const double *radii, int C, double *dist, double *normal)
+{
+    double cax[SDF_MAXC], cay[SDF_MAXC], caz[SDF_MAXC], cex[SDF_MAXC], cey[SDF_MAXC], cez[SDF_MAXC], cinv[SDF_MAXC];
+    for (int c = 0; c < C; ++c) {
+        cax[c] = ca[3 * c]; cay[c] = ca[3 * c + 1]; caz[c] = ca[3 * c + 2];
+        cex[c] = cb[3 * c] - cax[c]; cey[c] = cb[3 * c + 1] - cay[c]; cez[c] = cb[3 * c + 2] - caz[c];
+        const double den = cex[c] * cex[c] + cey[c] * cey[c] + cez[c] * cez[c];
+        cinv[c] = 1.0 / (den > 1e-12 ? den : 1e-12);
+    }
+    double px[SDF_CHUNK], py[SDF_CHUNK], pz[SDF_CHUNK], best[SDF_CHUNK], bx[SDF_CHUNK], by[SDF_CHUNK], bz[SDF_CHUNK],
+           baxis[SDF_CHUNK];
+    const int n = i1 - i0;
+    for (int i = 0; i < n; ++i) {
+        const int k = idx ? idx[i0 + i] : i0 + i;
+        px[i] = p[3 * k]; py[i] = p[3 * k + 1]; pz[i] = p[3 * k + 2];
+        best[i] = 1e300; bx[i] = 0; by[i] = 0; bz[i] = 0; baxis[i] = 1;
+    }
+    for (int c = 0; c < C; ++c) {
+        const double ax = cax[c], ay = cay[c], az = caz[c], ex = cex[c], ey = cey[c], ez = cez[c];
+        const double inv_den = cinv[c], r = radii[c];
+        #pragma omp simd
+        for (int i = 0; i < n; ++i) {
+            const double rx = px[i] - ax, ry = py[i] - ay, rz = pz[i] - az;
+            double s = (rx * ex + ry * ey + rz * ez) * inv_den;
+            s = s < 0 ? 0 : (s > 1 ? 1 : s);
+            const double dx = rx - s * ex, dy = ry - s * ey, dz = rz - s * ez;
+            const double axis = sqrt(dx * dx + dy * dy + dz * dz);
+            const double sd = axis - r;
+            const int closer = sd < best[i];
+            best[i] = closer ? sd : best[i];
+            bx[i] = closer ? dx : bx[i]; by[i] = closer ? dy : by[i]; bz[i] = closer ? dz : bz[i];
+            baxis[i] = closer ? axis : baxis[i];
+        }
+    }
+    for (int i = 0; i < n; ++i) {
+        const int k = idx ? idx[i0 + i] : i0 + i;
+        const double inv = 1.0 / (baxis[i] > 1e-12 ? baxis[i] : 1e-12);
+        dist[k] = best[i];
+        normal[3 * k] = bx[i] * inv; normal[3 * k + 1] = by[i] * inv; normal[3 * k + 2] = bz[i] * inv;
+    }
+}
+
+static void sdf_points(const double *p, const int32_t *idx, int n, const double *ca, const double *cb,
+                       const double *radii, int C, double *dist, double *normal)
+{
+    for (int i0 = 0; i0 < n; i0 += SDF_CHUNK)
+        sdf_chunk(p, idx, i0, i0 + SDF_CHUNK < n ? i0 + SDF_CHUNK : n, ca, cb, radii, C, dist, normal);
+}
+
+/* Frame by frame: points (T, N, 3), capsule ends a, b (T, C, 3) -> dist (T, N), normal (T, N, 3). */
+void hrr_capsule_sdf(const double *p, int T, int N, const double *a, const double *b, const double *radii,
+                     int C, int threads, double *dist, double *normal)
+{
+    const int chunks = (N + SDF_CHUNK - 1) / SDF_CHUNK;
+    #pragma omp parallel for num_threads(threads) schedule(static)
+    for (long job = 0; job < (long)T * chunks; ++job) {
+        const int t = (int)(job / chunks), i0 = (int)(job % chunks) * SDF_CHUNK;
+        sdf_chunk(p + (size_t)t * N * 3, NULL, i0, i0 + SDF_CHUNK < N ? i0 + SDF_CHUNK : N,
+                  a + (size_t)t * 3 * C, b + (size_t)t * 3 * C, radii, C, dist + (size_t)t * N, normal + (size_t)t * N * 3);
+    }
+}
+
+/* The collision push-out of hrr_garment/inference/collision.py for one frame, the same steps:
+   distances; `rounds` times: each vertex needing to move (within `margin` of the body or inside)
+   gets need * normal, spread by `smooth` Jacobi passes of the row-normalised adjacency (CSR
+   indptr/indices/weights) that never lower a pushed vertex's push along its normal; then up to
+   four exact projections of the vertices still inside. Only moved vertices are measured again.
+   before/after: fractions of vertices deeper than `depth`. */
+static void push_frame(double *p, int V, const double *ca, const double *cb, const double *radii, int C,
+                       const int32_t *indptr, const int32_t *indices, const double *weights, double margin,
+                       int smooth, int rounds, double depth, double *before, double *after)
+{
+    double *d = (double *)malloc(sizeof(double) * (size_t)V * 12);
+    double *nrm = d + V, *need = nrm + 3 * (size_t)V, *disp = need + V, *tmp = disp + 3 * (size_t)V;
+    int32_t *list = (int32_t *)malloc(sizeof(int32_t) * (size_t)V);
+    sdf_points(p, NULL, V, ca, cb, radii, C, d, nrm);
+    int deep = 0;
+    for (int v = 0; v < V; ++v) deep += d[v] < -depth;
+    *before = (double)deep / V;
+    for (int r = 0; r < rounds; ++r) {
+        int any = 0;
+        for (int v = 0; v < V; ++v) {
+            need[v] = margin - d[v] > 0.0 ? margin - d[v] : 0.0;
+            any |= need[v] > 0.0;
+            for (int k = 0; k < 3; ++k) disp[3 * v + k] = need[v] * nrm[3 * v + k];
+        }
+        if (!any) break;
+        for (int s = 0; s < smooth; ++s) {
+            for (int v = 0; v < V; ++v) {
+                double x = 0.0, y = 0.0, z = 0.0;
+                for (int j = indptr[v]; j < indptr[v + 1]; ++j) {
+                    const double w = weights[j], *q = disp + 3 * (size_t)indices[j];
+                    x += w * q[0]; y += w * q[1]; z += w * q[2];
+                }
+                if (need[v] > 0.0) {
+                    const double *nv = nrm + 3 * (size_t)v;
+                    double shortfall = need[v] - (x * nv[0] + y * nv[1] + z * nv[2]);
+                    shortfall = shortfall > 0.0 ? shortfall : 0.0;
+                    x += shortfall * nv[0]; y += shortfall * nv[1]; z += shortfall * nv[2];
+                }
+                tmp[3 * v] = x; tmp[3 * v + 1] = y; tmp[3 * v + 2] = z;
+            }
+            double *swap = disp; disp = tmp; tmp = swap;
+        }
+        int m = 0;
+        for (int v = 0; v < V; ++v) {
+            const double *q = disp + 3 * (size_t)v;
+            if (q[0] != 0.0 || q[1] != 0.0 || q[2] != 0.0) {
+                p[3 * v] += q[0]; p[3 * v + 1] += q[1]; p[3 * v + 2] += q[2];
+                list[m++] = v;
+            }
+        }
+        sdf_points(p, list, m, ca, cb, radii, C, d, nrm);
+    }
+    for (int it = 0; it < 4; ++it) {
+        int m = 0;
+        for (int v = 0; v < V; ++v)
+            if (d[v] < 0.0) list[m++] = v;
+        if (m == 0) break;
+        for (int i = 0; i < m; ++i) {
+            const int v = list[i];
+            for (int k = 0; k < 3; ++k) p[3 * v + k] += (margin - d[v]) * nrm[3 * v + k];
+        }
+        sdf_points(p, list, m, ca, cb, radii, C, d, nrm);
+    }
+    deep = 0;
+    for (int v = 0; v < V; ++v) deep += d[v] < -depth;
+    *after = (double)deep / V;
+    free(list);
+    free(d);  /* heads the block; disp and tmp were swapped within it */
+}
+
+void hrr_push_out(double *p, int T, int V, const double *a, const double *b, const double *radii, int C,
+                  const int32_t *indptr, const int32_t *indices, const double *weights, double margin, int smooth,
+                  int rounds, double depth, int threads, double *before, double *after)
+{
+    #pragma omp parallel for num_threads(threads) schedule(dynamic)
+    for (int t = 0; t < T; ++t)
+        push_frame(p + (size_t)t * V * 3, V, a + (size_t)t * 3 * C, b + (size_t)t * 3 * C, radii, C, indptr, indices,
+                   weights, margin, smooth, rounds, depth, before + t, after + t);
+}
+
+/* One frame, factored and transformed first (streaming): with y = x W (Vin, (M + 1) * WIDTH), the
+   input already multiplied by each of the layer's M shared basis kernels and by the residual's
+   1x1 map (column block M), each block zero-padded from cout to WIDTH columns,
+     out[v] = a * act(bias + sum_j sum_m coeff[j, m] y[nbr[j], m]) + b * res(v),
+   res(v) = sum_j pool[j] y[nbr[j], M] (pool given) or y[v, M]. Per frame this reads the basis
+   coefficients (nnz x M floats) instead of the folded per-vertex kernels (C_in x C_out times
+   larger), and multiplying before gathering costs C_in / C_out times less where channels shrink.
+   The WIDTH accumulators of a vertex stay in vector registers (WIDTH fixed per variant). */
+#define LOAD(PTR) ({ VT t_; memcpy(&t_, (PTR), sizeof(VT)); t_; })
+#define DEFINE_APPLY(NAME, WIDTH_, VT_, LANES_)                                                 \
+    static void NAME(const float *restrict y, int M, int cout, int v0, int v1,                 \
+                     const int32_t *restrict offsets, const int32_t *restrict nbr,             \
+                     const float *restrict coeff, const float *restrict pool,                  \
+                     const float *restrict bias, float a, float b, int elu, float *restrict out) \
+    {                                                                                          \
+        typedef VT_ VT;                                                                        \
+        enum { WIDTH = WIDTH_, LANES = LANES_, NB = WIDTH_ / LANES_ };                          \
+        const size_t ld = (size_t)(M + 1) * WIDTH;                                             \
+        for (int v = v0; v < v1; ++v) {                                                        \
+            float za[WIDTH], zr[WIDTH];                                                        \
+            for (int q = 0; q < NB; ++q) {                                                     \
+                /* four independent accumulators: one chain of FMAs would wait on each */      \
+                VT a0 = LOAD(bias + q * LANES), a1 = a0 * 0.0f, a2 = a1, a3 = a1, r = a1;      \
+                for (int j = offsets[v]; j < offsets[v + 1]; ++j) {                            \
+                    const float *restrict yr = y + (size_t)nbr[j] * ld + q * LANES;            \
+                    const float *restrict c = coeff + (size_t)j * M;                           \
+                    int m = 0;                                                                 \
+                    for (; m + 4 <= M; m += 4) {                                               \
+                        a0 += c[m] * LOAD(yr + (size_t)m * WIDTH);                             \
+                        a1 += c[m + 1] * LOAD(yr + (size_t)(m + 1) * WIDTH);                   \
+                        a2 += c[m + 2] * LOAD(yr + (size_t)(m + 2) * WIDTH);                   \
+                        a3 += c[m + 3] * LOAD(yr + (size_t)(m + 3) * WIDTH);                   \
+                    }                                                                          \
+                    for (; m < M; ++m) a0 += c[m] * LOAD(yr + (size_t)m * WIDTH);              \
+                    if (pool) r += pool[j] * LOAD(yr + (size_t)M * WIDTH);                     \
+                }                                                                              \
+                const VT sum = (a0 + a1) + (a2 + a3);                                          \
+                memcpy(za + q * LANES, &sum, sizeof(VT));                                      \
+                memcpy(zr + q * LANES, &r, sizeof(VT));                                        \
+            }                                                                                  \
+            if (!pool)                                                                         \
+                memcpy(zr, y + (size_t)v * ld + (size_t)M * WIDTH, sizeof(float) * WIDTH);     \
+            if (elu) {                                                                         \
+                _Pragma("omp simd")                                                            \
+                for (int i = 0; i < WIDTH; ++i)                                                \
+                    za[i] = za[i] > 0.0f ? za[i] : exp_nonpositive(za[i] < 0.0f ? za[i] : 0.0f) - 1.0f; \
+            }                                                                                  \
+            float *d = out + (size_t)v * cout;                                                 \
+            _Pragma("omp simd")                                                                \
+            for (int i = 0; i < cout; ++i) d[i] = a * za[i] + b * zr[i];                       \
+        }                                                                                      \
+    }
+
+typedef float v4sf __attribute__((vector_size(16)));
+DEFINE_APPLY(apply4, 4, v4sf, 4)
+DEFINE_APPLY(apply8, 8, v8sf, 8)
+DEFINE_APPLY(apply16, 16, v16sf, 16)
+DEFINE_APPLY(apply32, 32, v16sf, 16)
+DEFINE_APPLY(apply64, 64, v16sf, 16)
+DEFINE_APPLY(apply128, 128, v16sf, 16)
+
+typedef void (*apply_fn)(const float *restrict, int, int, int, int, const int32_t *restrict, const int32_t *restrict,
+                         const float *restrict, const float *restrict, const float *restrict, float, float, int,
+                         float *restrict);
+
+/* width: the padded block width of y, one of 4, 8, 16, 32, 64, 128 (>= cout); bias has width values. */
+void hrr_factor_apply(const float *y, int M, int cout, int width, int V, const int32_t *offsets, const int32_t *nbr,
+                      const float *coeff, const float *pool, const float *bias, float a, float b, int elu,
+                      int threads, float *out)
+{
+    apply_fn fn = width == 4 ? apply4 : width == 8 ? apply8 : width == 16 ? apply16 : width == 32 ? apply32
+                : width == 64 ? apply64 : apply128;
+    enum { CHUNK = 64 };
+    const int chunks = (V + CHUNK - 1) / CHUNK;
+    #pragma omp parallel num_threads(threads)
+    {
+        const unsigned csr = denormals_off();
+        #pragma omp for schedule(static)
+        for (int k = 0; k < chunks; ++k) {
+            const int v1 = (k + 1) * CHUNK < V ? (k + 1) * CHUNK : V;
+            fn(y, M, cout, k * CHUNK, v1, offsets, nbr, coeff, pool, bias, a, b, elu, out);
+        }
+        denormals_restore(csr);
+    }
+}
