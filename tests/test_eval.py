@@ -41,6 +41,12 @@ def test_hrr_eval_report_end_to_end(trained, tmp_path, capsys):
     for plot in ("error_over_time.png", "entropy_histogram.png", "tau_curve.png"):
         assert (out / plot).stat().st_size > 1000
     assert "hybrid_vs_regression" in capsys.readouterr().out
+    # a real-motion clip whose simulation was rejected is named in report.md, not silently dropped
+    from hrr_garment.eval.report import markdown
+
+    real = {"files": ["a.bvh", "b.bvh"], "dataset": "real.h5", "sequences": ["a"], "frames": 10,
+            "rejected": {"b": "edge strain 2.7 > 2.5"}, "modes": report["modes"]}
+    assert "Not evaluated: `b`, its simulation was rejected (edge strain 2.7 > 2.5)" in markdown({**report, "real_motion": real}, [])
 
 
 def test_hrr_eval_excluding_own_sequence_changes_training_retrieval(trained, tmp_path):

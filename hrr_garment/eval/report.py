@@ -120,6 +120,10 @@ def markdown(report: dict, plots: list[str]) -> str:
         out += ["", f"## Real motion ({', '.join(real['files'])})", "",
                 f"Ground truth simulated with the dataset's settings into `{real['dataset']}`; "
                 f"{len(real['sequences'])} sequences, {real['frames']} frames.", ""]
+        for name, reason in real.get("rejected", {}).items():  # no ground truth: not in the table
+            out += [f"- Not evaluated: `{name}`, its simulation was rejected ({reason})."]
+        if real.get("rejected"):
+            out += [""]
         out += _mode_table(real["modes"])
     if plots:
         out += ["", "## Plots", ""] + [f"![{Path(p).stem}]({Path(p).name})" for p in plots]
