@@ -26,6 +26,9 @@ def test_stream_equals_offline_causal(animator, mode):
     pushed = np.stack([stream.push(motion.slice(t, t + 1)) for t in range(motion.num_frames)])
     assert np.abs(pushed - causal.vertices).max() <= 1e-5
     assert len(stream._features) == animator.window  # bounded memory
+    stages = {k: np.array(v) for k, v in stream.stage_s.items()}  # per-stage timings cover every push
+    assert all(len(v) == motion.num_frames and (v >= 0).all() for v in stages.values())
+    assert sum(v.sum() for v in stages.values()) <= np.sum(stream.latency_s) + 1e-9
 
 
 def test_stream_refuses_an_offline_only_mode(animator):

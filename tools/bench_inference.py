@@ -1,17 +1,20 @@
 """Benchmark: end-to-end inference speed (motion features -> world-space garment vertices).
 
-Builds a model with random weights at the given template resolution (speed does not depend on the
-weights) and a retrieval database of realistic size (``--database`` windows; the full preset has
-about 5,700), then times on one procedural clip:
+Builds a model with random weights at the given template resolution and a retrieval database of
+realistic size (``--database`` windows; the full preset has about 5,700), or loads a trained one
+(``--model``); then times on one procedural clip (or ``--motion FILE``). Speed depends on the
+weights only through denormal numbers, which inference flushes to zero; a trained model's
+push-out has more work (a dress whose bodice rests on the body) than random weights give it.
 
 - offline animation per mode (hybrid at the default tau, regression-only, retrieval-only), frames/s
   from the clip's features to world vertices, without and with the collision push-out;
 - streaming: one ``push`` per frame (features, motion encoder, gate, decoder, push-out), per-frame
-  latency percentiles;
+  latency percentiles and the median time of each stage;
 - peak resident memory of the process.
 
     python tools/bench_inference.py                       # 4,000 and 12,000 vertices
     python tools/bench_inference.py --vertices 4000 --json
+    python tools/bench_inference.py --model hrr_work/models/dress-full --motion ../shared/data/mocap/cmu/131_03.bvh
 """
 
 from __future__ import annotations
@@ -32,6 +35,7 @@ from hrr_garment.models.codespace import CodeSpace, CodeSpaceConfig
 from hrr_garment.models.fcmae import AutoencoderConfig, MeshAutoencoder
 from hrr_garment.models.hierarchy import build_hierarchy
 from hrr_garment.motion.features import FEATURE_DIM, FeatureStats
+from hrr_garment.motion.io import load_motion
 from hrr_garment.motion.synth import synthesize
 from hrr_garment.train.bundle import Bundle
 
@@ -61,19 +65,26 @@ def _fps(animator: Animator, motion, **kwargs) -> float:
     return motion.num_frames / (time.perf_counter() - t0)
 
 
-def bench(vertices: int, windows: int, seconds: float) -> dict:
-    bundle = random_bundle(vertices, windows)
-    animator = Animator(bundle)
-    motion = synthesize("walk_curve", seconds, seed=0)
-    q = bundle.codespace.quantizer
-    with torch.no_grad():  # a tau at the median entropy: about half the windows retrieve
-        from hrr_garment.models.codebook import group_entropy
-        from hrr_garment.motion.features import motion_features, windows as feature_windows
+def _median_entropy_tau(bundle: Bundle, motion) -> float:
+    """A tau at the median window entropy: about half the windows retrieve."""
+    from hrr_garment.models.codebook import group_entropy
+    from hrr_garment.motion.features import motion_features, windows as feature_windows
 
-        logits = bundle.codespace.motion_encoder(torch.from_numpy(np.ascontiguousarray(feature_windows(motion_features(motion), 10))))
-        tau = float(group_entropy(q.split(logits)).median())
-    out = {"vertices": bundle.template.num_vertices, "database_windows": windows, "clip_frames": motion.num_frames,
-           "threads": torch.get_num_threads()}
+    with torch.no_grad():
+        std = bundle.motion_stats.normalize(feature_windows(motion_features(motion), bundle.codespace.config.window))
+        logits = bundle.codespace.motion_encoder(torch.from_numpy(np.ascontiguousarray(std)))
+        return float(group_entropy(bundle.codespace.quantizer.split(logits)).median())
+
+
+def bench(vertices: int, windows: int, seconds: float, model: str | None = None, motion_file: str | None = None) -> dict:
+    """``model``: a trained bundle instead of random weights (its own resolution, database and tau);
+    ``motion_file``: a clip instead of the procedural curved walk."""
+    animator = Animator.load(model) if model else Animator(random_bundle(vertices, windows))
+    bundle = animator.bundle
+    motion = load_motion(motion_file) if motion_file else synthesize("walk_curve", seconds, seed=0)
+    tau = bundle.tau if model else _median_entropy_tau(bundle, motion)
+    out = {"vertices": bundle.template.num_vertices, "database_windows": len(bundle.database), "clip_frames": motion.num_frames,
+           "threads": torch.get_num_threads(), "model": model or "random weights", "motion": motion_file or "procedural walk_curve"}
     for mode in ("hybrid", "regression", "retrieval"):
         out[f"fps_{mode}"] = round(_fps(animator, motion, mode=mode, tau=tau, collision=False), 1)
     out["fps_hybrid_with_collision"] = round(_fps(animator, motion, mode="hybrid", tau=tau, collision=True), 1)
@@ -85,6 +96,8 @@ def bench(vertices: int, windows: int, seconds: float) -> dict:
         key = "stream" if collision else "stream_no_collision"
         out[f"{key}_p50_ms"] = round(float(np.percentile(lat, 50)), 2)
         out[f"{key}_p99_ms"] = round(float(np.percentile(lat, 99)), 2)
+        if collision:  # where a streamed frame's time goes
+            out["stream_stage_p50_ms"] = {k: round(1000 * float(np.median(np.array(v)[20:])), 2) for k, v in stream.stage_s.items()}
     out["peak_rss_mb"] = round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 1)
     out["native_decoder"] = animator.decoder.native
     return out
@@ -95,18 +108,22 @@ def main() -> None:
     parser.add_argument("--vertices", type=int, nargs="+", default=[4000, 12000])
     parser.add_argument("--database", type=int, default=5700, help="database windows (the full preset has ~5,700)")
     parser.add_argument("--seconds", type=float, default=20.0, help="clip length")
+    parser.add_argument("--model", default=None, help="a trained model (directory or garment name) instead of random weights")
+    parser.add_argument("--motion", default=None, help="a motion file (BVH / npz) instead of the procedural clip")
     parser.add_argument("--json", action="store_true", help="one JSON object per resolution, nothing else")
     args = parser.parse_args()
-    for v in args.vertices:
-        r = bench(v, args.database, args.seconds)
+    for v in ([None] if args.model else args.vertices):
+        r = bench(v, args.database, args.seconds, args.model, args.motion)
         if args.json:
             print(json.dumps(r))
         else:
-            print(f"{r['vertices']} vertices, database {r['database_windows']} windows, {r['clip_frames']}-frame clip, "
+            print(f"{r['model']}, {r['motion']}: "
+                  f"{r['vertices']} vertices, database {r['database_windows']} windows, {r['clip_frames']}-frame clip, "
                   f"{r['threads']} threads: offline frames/s hybrid {r['fps_hybrid']}, regression {r['fps_regression']}, "
                   f"retrieval {r['fps_retrieval']} (hybrid with push-out {r['fps_hybrid_with_collision']}); streaming "
                   f"p50 {r['stream_p50_ms']} ms, p99 {r['stream_p99_ms']} ms (without push-out p50 "
                   f"{r['stream_no_collision_p50_ms']}, p99 {r['stream_no_collision_p99_ms']}); peak RSS {r['peak_rss_mb']} MB")
+            print("  streamed frame, median ms per stage: " + ", ".join(f"{k} {v}" for k, v in r["stream_stage_p50_ms"].items()))
 
 
 if __name__ == "__main__":

@@ -173,6 +173,9 @@ class Animator:
         return AnimationStream(self, mode, self.bundle.tau if tau is None else float(tau), collision)
 
 
+STREAM_STAGES = ("features", "encoder", "decoder", "world", "push_out")
+
+
 class AnimationStream:
     """One pose in, one garment frame out, causal (no future frames), bounded memory: the last
     frame, the last W feature frames and the inertialization state. ``push`` equals frame t of
@@ -187,6 +190,9 @@ class AnimationStream:
         self._inert = Inertializer(animator.blend)
         self.frames = 0
         self.latency_s: deque = deque(maxlen=1000)  # per push, for diagnostics
+        # per push and stage (features, encoder: motion encoder + gate + code-space decoder,
+        # decoder: mesh decoder, world, push_out), seconds: where a frame's time goes
+        self.stage_s: dict[str, deque] = {k: deque(maxlen=1000) for k in STREAM_STAGES}
         bundle = animator.bundle
         self._step = traced_window_codes(bundle.codespace, animator.window, bundle.codespace.features,
                                          regression=mode in ("hybrid", "regression"))
@@ -204,17 +210,25 @@ class AnimationStream:
         return vertices
 
     def _step_frame(self, pose: Motion) -> np.ndarray:
+        t = [time.perf_counter()]
         feat = pair_features(self._prev, pose)
         if not self._features:
             self._features.extend([feat] * (self._features.maxlen - 1))
         self._features.append(feat)
         window = np.stack(self._features)[None]
+        t.append(time.perf_counter())
         choice = choose_windows(self.animator.bundle, window, self.mode, self.tau, last_frame=True, step=self._step)
         src = choice.source[0] - np.array([0, self.frames]) if choice.retrieved[0] else choice.source[0]
         latent = self._inert.step(choice.latents[0, -1].astype(np.float64), source_id(bool(choice.retrieved[0]), src))
+        t.append(time.perf_counter())
         with torch.no_grad():
             local = self.animator.decoder(torch.from_numpy(latent[None].astype(np.float32))).numpy()
+        t.append(time.perf_counter())
         vertices = to_world(local, pose)
+        t.append(time.perf_counter())
         if self.collision:
             vertices, _ = push_out(vertices, pose, self.animator.bundle.template.faces, mean=self.animator.smoothing)
+        t.append(time.perf_counter())
+        for name, start, stop in zip(STREAM_STAGES, t, t[1:]):
+            self.stage_s[name].append(stop - start)
         return vertices[0].astype(np.float32)
