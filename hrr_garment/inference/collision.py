@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.sparse import coo_matrix, csr_matrix, diags
 
-from ..body.capsules import DEFAULT_BODY, BodyModel, capsule_signed_distance
+from ..body.capsules import DEFAULT_BODY, BodyModel, frames_signed_distance
 from ..garment.mesh import unique_edges
 from ..motion.motion import Motion
 
@@ -36,17 +36,6 @@ def mean_operator(faces: np.ndarray, num_vertices: int) -> csr_matrix:
     e = unique_edges(faces)
     a = coo_matrix((np.ones(2 * len(e)), (np.r_[e[:, 0], e[:, 1]], np.r_[e[:, 1], e[:, 0]])), (num_vertices, num_vertices)).tocsr()
     return diags(1.0 / np.maximum(np.asarray(a.sum(1)).ravel(), 1)) @ a
-
-
-def _distances(points: np.ndarray, a: np.ndarray, b: np.ndarray, radii: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(T, V) signed distances and (T, V, 3) normals of points (T, V, 3) to per-frame capsules."""
-    from ..models.native import capsule_sdf, load_kernel
-
-    lib = load_kernel()
-    if lib is not None:
-        return capsule_sdf(lib, points, a, b, radii, threads=2)
-    out = [capsule_signed_distance(points[t], a[t], b[t], radii)[:2] for t in range(len(points))]
-    return np.stack([o[0] for o in out]), np.stack([o[1] for o in out])
 
 
 def push_out(vertices: np.ndarray, motion: Motion, faces: np.ndarray, body: BodyModel = DEFAULT_BODY, margin: float = 0.002,
@@ -97,7 +86,7 @@ def _submatrix(m: csr_matrix, keep: np.ndarray) -> csr_matrix:
 
 def _push_frames(p: np.ndarray, a: np.ndarray, b: np.ndarray, radii: np.ndarray, mean: csr_matrix, margin: float,
                  smooth: int, rounds: int, depth: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    d, n = _distances(p, a, b, radii)
+    d, n = frames_signed_distance(p, a, b, radii)
     before = (d < -depth).mean(1)
     for _ in range(rounds):
         need = np.maximum(margin - d, 0.0)  # how far along the normal each vertex must move
@@ -118,12 +107,12 @@ def _push_frames(p: np.ndarray, a: np.ndarray, b: np.ndarray, radii: np.ndarray,
             short = np.where(hit, np.maximum(need - (disp * na).sum(-1), 0.0), 0.0)
             disp += short[..., None] * na
         p[:, act] += disp
-        d[:, act], n[:, act] = _distances(np.ascontiguousarray(p[:, act]), a, b, radii)
+        d[:, act], n[:, act] = frames_signed_distance(np.ascontiguousarray(p[:, act]), a, b, radii)
     for _ in range(4):  # exact projection; repeated where a push lands in another capsule
         inside = d < 0
         if not inside.any():
             break
         act = np.flatnonzero(inside.any(0))
         p[:, act] += np.where(inside[:, act], margin - d[:, act], 0.0)[..., None] * n[:, act]
-        d[:, act], n[:, act] = _distances(np.ascontiguousarray(p[:, act]), a, b, radii)
+        d[:, act], n[:, act] = frames_signed_distance(np.ascontiguousarray(p[:, act]), a, b, radii)
     return p.astype(np.float32), before, (d < -depth).mean(1)

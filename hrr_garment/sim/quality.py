@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..body.capsules import DEFAULT_BODY, BodyModel, capsule_signed_distance
+from ..body.capsules import DEFAULT_BODY, BodyModel, frames_signed_distance
 from ..motion.motion import Motion
 from ..motion.rotations import rotation_about_y, yaw_of
 
@@ -23,9 +23,9 @@ def edge_strain(vertices: np.ndarray, rest: np.ndarray, edges: np.ndarray) -> np
 def body_signed_distance(vertices: np.ndarray, motion: Motion, body: BodyModel = DEFAULT_BODY) -> np.ndarray:
     """(T, V) signed distance of each vertex to the posed capsule body (negative inside)."""
     a, b = body.pose_motion(motion)
-    radii = body.radii
-    return np.stack([capsule_signed_distance(vertices[t].astype(np.float64), a[t], b[t], radii)[0]
-                     for t in range(len(vertices))])
+    chunk = 64  # frames at a time: the normals, which are not kept, stay small
+    return np.concatenate([frames_signed_distance(vertices[t:t + chunk], a[t:t + chunk], b[t:t + chunk], body.radii)[0]
+                           for t in range(0, len(vertices), chunk)]) if len(vertices) else np.zeros((0, vertices.shape[1]))
 
 
 def penetration_fraction(signed_distance: np.ndarray, depth: float = 0.005) -> np.ndarray:
