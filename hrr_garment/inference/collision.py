@@ -62,57 +62,28 @@ def push_out(vertices: np.ndarray, motion: Motion, faces: np.ndarray, body: Body
     return out, PushOutReport(float(before.mean()), float(after.mean()), float(before.max(initial=0)), float(after.max(initial=0)))
 
 
-def _reach(mean: csr_matrix, seeds: np.ndarray, rings: int) -> np.ndarray:
-    """(V,) bool: the vertices within ``rings`` edges of a seed vertex."""
-    reach = seeds.copy()
-    for _ in range(rings):
-        reach |= (mean @ reach.astype(np.float64)) > 0
-    return reach
-
-
-def _submatrix(m: csr_matrix, keep: np.ndarray) -> csr_matrix:
-    """``m[keep][:, keep]`` for sorted indices ``keep``, without scipy's general fancy indexing
-    (which costs about a millisecond per call: too much once per streamed frame)."""
-    start, stop = m.indptr[keep], m.indptr[keep + 1]
-    counts = stop - start
-    entries = np.repeat(stop - np.cumsum(counts), counts) + np.arange(counts.sum())  # the kept rows' entries
-    column = np.full(m.shape[1], -1)
-    column[keep] = np.arange(len(keep))
-    cols = column[m.indices[entries]]
-    inside = cols >= 0
-    indptr = np.concatenate([[0], np.cumsum(inside)])[np.concatenate([[0], np.cumsum(counts)])]
-    return csr_matrix((m.data[entries][inside], cols[inside], indptr), shape=(len(keep), len(keep)))
-
-
 def _push_frames(p: np.ndarray, a: np.ndarray, b: np.ndarray, radii: np.ndarray, mean: csr_matrix, margin: float,
                  smooth: int, rounds: int, depth: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The reference (and the path without a C compiler): whole-mesh arrays, frames at once."""
+    t, v = p.shape[:2]
     d, n = frames_signed_distance(p, a, b, radii)
     before = (d < -depth).mean(1)
     for _ in range(rounds):
         need = np.maximum(margin - d, 0.0)  # how far along the normal each vertex must move
-        hit = need > 0
-        if not hit.any():
+        if not need.any():
             break
-        # A Jacobi pass spreads the displacement by one ring, so after ``smooth`` passes only the
-        # vertices within ``smooth`` rings of a pushed one have moved: the passes run on that part
-        # of the mesh alone: the same numbers at about half the cost on the dress, whose bodice rests
-        # on the torso (about a fifth of its vertices are within the margin in every frame).
-        act = np.flatnonzero(_reach(mean, hit.any(0), smooth))
-        sub = _submatrix(mean, act)
-        need, hit, na = need[:, act], hit[:, act], n[:, act]
-        t, v = need.shape
-        disp = need[..., None] * na
+        hit = need > 0
+        disp = need[..., None] * n
         for _ in range(smooth):  # spread the push to the neighbours, never below what is needed
-            disp = (sub @ disp.transpose(1, 0, 2).reshape(v, -1)).reshape(v, t, 3).transpose(1, 0, 2)
-            short = np.where(hit, np.maximum(need - (disp * na).sum(-1), 0.0), 0.0)
-            disp += short[..., None] * na
-        p[:, act] += disp
-        d[:, act], n[:, act] = frames_signed_distance(np.ascontiguousarray(p[:, act]), a, b, radii)
+            disp = (mean @ disp.transpose(1, 0, 2).reshape(v, -1)).reshape(v, t, 3).transpose(1, 0, 2)
+            short = np.where(hit, np.maximum(need - (disp * n).sum(-1), 0.0), 0.0)
+            disp += short[..., None] * n
+        p = p + disp
+        d, n = frames_signed_distance(p, a, b, radii)
     for _ in range(4):  # exact projection; repeated where a push lands in another capsule
         inside = d < 0
         if not inside.any():
             break
-        act = np.flatnonzero(inside.any(0))
-        p[:, act] += np.where(inside[:, act], margin - d[:, act], 0.0)[..., None] * n[:, act]
-        d[:, act], n[:, act] = frames_signed_distance(np.ascontiguousarray(p[:, act]), a, b, radii)
+        p = p + np.where(inside, margin - d, 0.0)[..., None] * n
+        d, n = frames_signed_distance(p, a, b, radii)
     return p.astype(np.float32), before, (d < -depth).mean(1)
