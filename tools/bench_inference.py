@@ -67,13 +67,12 @@ def _fps(animator: Animator, motion, **kwargs) -> float:
 
 def _median_entropy_tau(bundle: Bundle, motion) -> float:
     """A tau at the median window entropy: about half the windows retrieve."""
-    from hrr_garment.models.codebook import group_entropy
+    from hrr_garment.inference.engine import encode_motion
     from hrr_garment.motion.features import motion_features, windows as feature_windows
 
-    with torch.no_grad():
-        std = bundle.motion_stats.normalize(feature_windows(motion_features(motion), bundle.codespace.config.window))
-        logits = bundle.codespace.motion_encoder(torch.from_numpy(np.ascontiguousarray(std)))
-        return float(group_entropy(bundle.codespace.quantizer.split(logits)).median())
+    windows = np.ascontiguousarray(feature_windows(motion_features(motion), bundle.codespace.config.window))
+    entropy = encode_motion(bundle.codespace, bundle.motion_stats, bundle.latent_stats, windows, regression=False).entropy
+    return float(np.quantile(entropy, 0.5, method="lower"))
 
 
 def bench(vertices: int, windows: int, seconds: float, model: str | None = None, motion_file: str | None = None) -> dict:

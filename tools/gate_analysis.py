@@ -24,10 +24,9 @@ import torch
 
 from hrr_garment.data.dataset import GarmentDataset
 from hrr_garment.data.windows import dataset_features, sequence_windows
-from hrr_garment.inference.engine import encode_motion
 from hrr_garment.train.autoencoder import body_frames
 from hrr_garment.train.bundle import load_bundle
-from hrr_garment.train.calibrate import window_errors_mm
+from hrr_garment.train.calibrate import predict_windows, window_errors_mm
 
 
 def analyse(model: str, dataset: str | None, split: str) -> dict:
@@ -44,13 +43,12 @@ def analyse(model: str, dataset: str | None, split: str) -> dict:
     names = [n for n in names if len(features[n]) >= w]
     motion = np.concatenate([sequence_windows(features[n], w) for n in names])
     truth = np.concatenate([sequence_windows(body_frames(ds, [n]), w) for n in names])
-    enc = encode_motion(bundle.codespace, bundle.motion_stats, bundle.latent_stats, motion)
-    match, similarity = bundle.database.search(enc.codes)
-    naive = bundle.database.nearest_motion(enc.standardised)
+    pred = predict_windows(bundle.codespace, motion, bundle.motion_stats, bundle.latent_stats, bundle.database)
+    naive = bundle.database.nearest_motion(bundle.motion_stats.normalize(motion))
     decode = bundle.autoencoder.fast_decoder()
     with torch.no_grad():
-        reg = window_errors_mm(decode, enc.regression, truth)
-        ret = window_errors_mm(decode, bundle.database.latents[match], truth)
+        reg = window_errors_mm(decode, pred.regression, truth)
+        ret = window_errors_mm(decode, pred.retrieval, truth)
         nn = window_errors_mm(decode, bundle.database.latents[naive], truth)
     advantage = reg - ret  # > 0 where retrieval is the better candidate
     return {"model": model, "split": split, "windows": len(reg),
@@ -58,8 +56,8 @@ def analyse(model: str, dataset: str | None, split: str) -> dict:
             "oracle_hybrid_mm": float(np.minimum(reg, ret).mean()),
             "oracle_hybrid_naive_mm": float(np.minimum(reg, nn).mean()),
             "retrieval_better_fraction": float((advantage > 0).mean()),
-            "corr_advantage_low_entropy": float(np.corrcoef(advantage, -enc.entropy)[0, 1]),
-            "corr_advantage_similarity": float(np.corrcoef(advantage, similarity)[0, 1])}
+            "corr_advantage_low_entropy": float(np.corrcoef(advantage, -pred.entropy)[0, 1]),
+            "corr_advantage_similarity": float(np.corrcoef(advantage, pred.similarity)[0, 1])}
 
 
 def main(argv: list[str] | None = None) -> None:

@@ -182,14 +182,21 @@ class NativeBlock:
         return out if self.width == self.cout else np.ascontiguousarray(out[..., :self.cout])
 
 
+MAX_CAPSULES = 64  # SDF_MAXC in kernels.c
+
+
+def _capsule_arrays(a: np.ndarray, b: np.ndarray, radii: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    if len(radii) > MAX_CAPSULES:
+        raise ValueError(f"the native capsule kernels handle up to {MAX_CAPSULES} capsules, not {len(radii)}")
+    return tuple(np.ascontiguousarray(x, np.float64) for x in (a, b, radii))
+
+
 def capsule_sdf(lib: ctypes.CDLL, points: np.ndarray, a: np.ndarray, b: np.ndarray, radii: np.ndarray,
                 threads: int = 1) -> tuple[np.ndarray, np.ndarray]:
     """:func:`hrr_garment.body.capsules.capsule_signed_distance` (distance, normal) in the kernel,
     for points (T, N, 3) against per-frame capsules a, b (T, C, 3)."""
-    if len(radii) > 64:
-        raise ValueError(f"the native capsule distance handles up to 64 capsules, not {len(radii)}")
+    a, b, r = _capsule_arrays(a, b, radii)
     p = np.ascontiguousarray(points, np.float64)
-    a, b, r = (np.ascontiguousarray(x, np.float64) for x in (a, b, radii))
     t, n = p.shape[:2]
     dist, normal = np.empty((t, n)), np.empty((t, n, 3))
     lib.hrr_capsule_sdf(p.ctypes.data, t, n, a.ctypes.data, b.ctypes.data, r.ctypes.data, len(r), threads, dist.ctypes.data,
@@ -203,10 +210,8 @@ def push_out_frames(lib: ctypes.CDLL, points: np.ndarray, a: np.ndarray, b: np.n
     """:func:`hrr_garment.inference.collision.push_out`'s per-frame steps in the kernel: points
     (T, V, 3), capsule ends a, b (T, C, 3), ``mean`` the (V, V) CSR mean operator -> (pushed
     points float32, fraction deeper than ``depth`` before (T,), after (T,)). Frames in parallel."""
-    if len(radii) > 64:
-        raise ValueError(f"the native push-out handles up to 64 capsules, not {len(radii)}")
+    a, b, r = _capsule_arrays(a, b, radii)
     p = np.array(points, np.float64, order="C")  # a copy: pushed in place
-    a, b, r = (np.ascontiguousarray(x, np.float64) for x in (a, b, radii))
     indptr, indices = (np.ascontiguousarray(x, np.int32) for x in (mean.indptr, mean.indices))
     weights = np.ascontiguousarray(mean.data, np.float64)
     t, v = p.shape[:2]

@@ -32,14 +32,15 @@ class WindowPredictions:
     entropy: np.ndarray  # (N,) motion-code entropy
     regression: np.ndarray  # (N, W, nodes, C) latents from the decoder
     retrieval: np.ndarray  # (N, W, nodes, C) latents of the best database match
+    similarity: np.ndarray  # (N,) cosine similarity of that match's code to the motion code
 
 
 def predict_windows(model: CodeSpace, motion: np.ndarray, motion_stats: FeatureStats, latent_stats: FeatureStats,
                     database: CodeDatabase, exclude: np.ndarray | None = None) -> WindowPredictions:
     """Both candidates for every motion window (N, W, F) (raw features)."""
     enc = encode_motion(model, motion_stats, latent_stats, motion)
-    match, _ = database.search(enc.codes, exclude)
-    return WindowPredictions(enc.entropy, enc.regression, database.latents[match])
+    match, similarity = database.search(enc.codes, exclude)
+    return WindowPredictions(enc.entropy, enc.regression, database.latents[match], similarity)
 
 
 def window_errors_mm(decode, latents: np.ndarray, truth: np.ndarray, batch: int = 64) -> np.ndarray:
