@@ -64,6 +64,31 @@ def test_decoding_only_the_last_frame_equals_the_full_window():
         assert torch.allclose(cs.decode(embedding, last_frame=True), cs.decode(embedding)[:, -1:], atol=1e-6)
 
 
+@pytest.mark.parametrize("window,hidden,heads,latent", [(10, 32, 2, (6, 8)), (7, 48, 3, (5, 3)), (12, 64, 4, (9, 8))])
+@pytest.mark.parametrize("regression,last_frame", [(True, True), (True, False), (False, True)])
+def test_native_window_step_equals_pytorch_and_is_batch_invariant(window, hidden, heads, latent, regression, last_frame):
+    from hrr_garment.inference.engine import WindowCodes
+    from hrr_garment.models.codespace import CodeSpace, CodeSpaceConfig
+    from hrr_garment.models.native_codes import native_window_codes
+
+    torch.manual_seed(window)
+    cfg = CodeSpaceConfig(window=window, groups=6, classes=5, embedding_dim=3, hidden=40, motion_hidden=hidden,
+                          attention_heads=heads)
+    cs = CodeSpace(cfg, 124, latent).eval()
+    native = native_window_codes(cs, regression, last_frame)
+    if native is None:
+        pytest.skip("no C compiler: the native kernels are unavailable")
+    windows = torch.randn(9, window, 124)
+    with torch.no_grad():
+        want = WindowCodes(cs, regression, last_frame)(windows)
+    got = native(windows)
+    assert torch.allclose(got[0], want[0], atol=1e-5) and torch.equal(got[1], want[1])
+    assert got[2].shape == want[2].shape and torch.allclose(got[2], want[2], atol=1e-5)
+    one = native(windows[4:5])  # a stream's single window: the same bits as inside a batch
+    assert all(torch.equal(a, b[4:5]) for a, b in zip(one[:2], got[:2]))
+    assert not regression or torch.equal(one[2], got[2][4:5])
+
+
 def test_windows_cover_every_start_frame():
     feats = {"a": np.arange(12 * 2, dtype=np.float32).reshape(12, 2), "b": np.zeros((9, 2), np.float32)}
     lat = {"a": np.arange(12 * 3 * 2, dtype=np.float32).reshape(12, 3, 2), "b": np.zeros((9, 3, 2), np.float32)}

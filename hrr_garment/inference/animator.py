@@ -23,6 +23,7 @@ import torch
 from ..body.capsules import DEFAULT_BODY
 from ..data.windows import sequence_windows
 from ..errors import InputError, MotionError
+from ..models.native_codes import native_window_codes
 from ..motion.features import motion_features
 from ..motion.motion import Motion
 from ..paths import workspace
@@ -99,6 +100,16 @@ class Animator:
         self.blend = blend  # inertialization frames in causal mode
         self.decoder = bundle.autoencoder.fast_decoder()
         self.smoothing = mean_operator(bundle.template.faces, bundle.template.num_vertices)  # for the push-out
+        self._causal_steps: dict[bool, object] = {}
+
+    def causal_step(self, regression: bool):
+        """The window step (:class:`~.engine.WindowCodes`' function) that causal inference runs,
+        offline and streaming alike, so both compute the same bits: the native kernel
+        (:mod:`hrr_garment.models.native_codes`), or None where it is unavailable (each path then
+        uses its PyTorch form)."""
+        if regression not in self._causal_steps:
+            self._causal_steps[regression] = native_window_codes(self.bundle.codespace, regression, last_frame=True)
+        return self._causal_steps[regression]
 
     @classmethod
     def load(cls, model: str | Path) -> "Animator":
@@ -167,7 +178,8 @@ class Animator:
 
     def _choose(self, windows: np.ndarray, mode: str, tau: float, exclude_sequence: int | None, last_frame: bool = False):
         exclude = None if exclude_sequence is None else np.full(len(windows), exclude_sequence)
-        return choose_windows(self.bundle, windows, mode, tau, exclude, last_frame)
+        step = self.causal_step(mode in ("hybrid", "regression")) if last_frame else None
+        return choose_windows(self.bundle, windows, mode, tau, exclude, last_frame, step=step)
 
     def stream(self, mode: str = "hybrid", tau: float | None = None, collision: bool = True) -> "AnimationStream":
         return AnimationStream(self, mode, self.bundle.tau if tau is None else float(tau), collision)
@@ -194,8 +206,9 @@ class AnimationStream:
         # decoder: mesh decoder, world, push_out), seconds: where a frame's time goes
         self.stage_s: dict[str, deque] = {k: deque(maxlen=1000) for k in STREAM_STAGES}
         bundle = animator.bundle
-        self._step = traced_window_codes(bundle.codespace, animator.window, bundle.codespace.features,
-                                         regression=mode in ("hybrid", "regression"))
+        regression = mode in ("hybrid", "regression")
+        self._step = animator.causal_step(regression) or traced_window_codes(
+            bundle.codespace, animator.window, bundle.codespace.features, regression=regression)
 
     def push(self, pose: Motion) -> np.ndarray:
         """``pose``: a one-frame :class:`Motion` (canonical skeleton, 30 fps) -> (V, 3) world vertices."""

@@ -1,6 +1,7 @@
-"""Fused C kernels for inference (``kernels.c`` beside this module), compiled on first use: the
-mesh decoder's blocks, its single-frame form (streaming), and the capsule-body signed distance and
-push-out of :mod:`hrr_garment.inference.collision`.
+"""Fused C kernels for inference (``kernels.c`` and ``window_codes.c`` beside this module),
+compiled on first use: the mesh decoder's blocks, its single-frame form (streaming), the capsule-body
+signed distance and push-out of :mod:`hrr_garment.inference.collision`, and the code space's window
+step (:mod:`.native_codes`).
 
 PyTorch runs a spatially varying convolution as a gather (materialising every neighbour's row for
 every output vertex: S times the layer's output), a layout copy, then small per-vertex matmuls;
@@ -34,7 +35,8 @@ from pathlib import Path
 import numpy as np
 import torch
 
-SOURCE = (Path(__file__).with_name("kernels.c")).read_text()
+# one library: window_codes.c uses helpers defined in kernels.c
+SOURCE = "\n".join(Path(__file__).with_name(name).read_text() for name in ("kernels.c", "window_codes.c"))
 
 FLAGS = ["-O3", "-march=native", "-mprefer-vector-width=512", "-fno-math-errno", "-fno-trapping-math", "-fopenmp",
          "-Werror=implicit-function-declaration",
@@ -106,6 +108,10 @@ def load_kernel(cache_dir: str | Path | None = None) -> ctypes.CDLL | None:
                 lib.hrr_factor_apply.argtypes = [ctypes.c_void_p, c_int, c_int, c_int, c_int, i32, i32, f, f, f, c_float,
                                                  c_float, c_int, c_int, ctypes.c_void_p]
                 lib.hrr_factor_apply.restype = None
+                lib.hrr_window_codes.argtypes = [d, c_int, d, d, c_int, d, d, d]
+                lib.hrr_window_codes.restype = c_int
+                lib.hrr_window_codes_work.argtypes = [d]
+                lib.hrr_window_codes_work.restype = ctypes.c_long
                 _loaded[str(target)] = lib
             except (OSError, subprocess.CalledProcessError) as exc:
                 detail = getattr(exc, "stderr", "") or str(exc)

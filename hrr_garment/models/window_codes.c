@@ -1,0 +1,232 @@
+/* The code space's window step in C (hrr_garment/models/native_codes.py): for each motion window,
+   the motion encoder (input layer, GRU, self-attention with layer norm, attention pooling, output
+   layer norm and logits), the grouped code (per-group entropy, argmax, the chosen classes'
+   embeddings) and the code-space decoder's MLP. Compiled after kernels.c (one library), whose
+   exp_nonpositive and denormal helpers it uses.
+
+   Why: a stream runs this for one window per frame, and PyTorch spends most of that time between
+   operations (about 190 small operator calls, 1.6-3 ms) on 15 MFLOP of arithmetic. Windows run one
+   per thread, each with the same sequence of operations whatever the batch, so a stream's single
+   window and an offline causal batch give the same bits. */
+
+/* Y (n, out) = X (n, in) W^T + b, with W^T (in, out) packed in panels of PANEL columns: panel k
+   holds columns PANEL k .. PANEL k + PANEL - 1 as (in, PANEL) contiguous floats, zero past out
+   (bias padded likewise). A panel streams through in order (weights come from L3: a window step
+   reads about 7 MB of them, more than L2 holds, and strided rows defeat the prefetcher) into a tile
+   of R rows x PANEL columns of accumulators in registers, each X value broadcast: no horizontal
+   sums. */
+enum { PANEL = 64 };
+static inline v16sf load16(const float *p) { v16sf v; memcpy(&v, p, sizeof v); return v; }
+
+#define DEFINE_TILE(R)                                                                                 \
+    static void tile_##R(const float *restrict X, int in, const float *restrict panel,                 \
+                         const float *restrict b, float *restrict Y, int out, int cols)                \
+    {                                                                                                  \
+        v16sf acc[R][PANEL / 16];                                                                      \
+        for (int c = 0; c < PANEL / 16; ++c) {                                                         \
+            const v16sf bias = load16(b + 16 * c);                                                     \
+            for (int r = 0; r < R; ++r) acc[r][c] = bias;                                              \
+        }                                                                                              \
+        for (int i = 0; i < in; ++i) {                                                                 \
+            v16sf w[PANEL / 16];                                                                       \
+            for (int c = 0; c < PANEL / 16; ++c) w[c] = load16(panel + (size_t)i * PANEL + 16 * c);    \
+            for (int r = 0; r < R; ++r) {                                                              \
+                const float x = X[(size_t)r * in + i];                                                 \
+                for (int c = 0; c < PANEL / 16; ++c) acc[r][c] += x * w[c];                            \
+            }                                                                                          \
+        }                                                                                              \
+        for (int r = 0; r < R; ++r)                                                                    \
+            for (int c = 0; c < PANEL / 16 && 16 * c < cols; ++c)                                      \
+                memcpy(Y + (size_t)r * out + 16 * c, &acc[r][c], sizeof(float) * (cols - 16 * c < 16 ? cols - 16 * c : 16)); \
+    }
+DEFINE_TILE(5)
+DEFINE_TILE(1)
+
+static void linear_rows(const float *restrict X, int n, int in, const float *restrict Wp, const float *restrict b,
+                        int out, float *restrict Y)
+{
+    for (int t = 0; t < n;) {
+        const int rows = n - t >= 5 ? 5 : 1;
+        for (int o = 0; o < out; o += PANEL) {
+            const float *panel = Wp + (size_t)o * in;  /* panel o / PANEL starts after o / PANEL panels of in x PANEL */
+            const int cols = out - o < PANEL ? out - o : PANEL;
+            (rows == 5 ? tile_5 : tile_1)(X + (size_t)t * in, in, panel, b + o, Y + (size_t)t * out + o, out, cols);
+        }
+        t += rows;
+    }
+}
+
+ALWAYS_INLINE float elu1(float y) { return y > 0.0f ? y : exp_nonpositive(y) - 1.0f; }
+
+ALWAYS_INLINE float sigmoid(float y)
+{
+    const float e = exp_nonpositive(y > 0.0f ? -y : y);  /* exp(-|y|) */
+    return y > 0.0f ? 1.0f / (1.0f + e) : e / (1.0f + e);
+}
+
+ALWAYS_INLINE float tanh_(float y)
+{
+    const float e = exp_nonpositive(y > 0.0f ? -2.0f * y : 2.0f * y);  /* exp(-2|y|) */
+    const float m = (1.0f - e) / (1.0f + e);
+    return y > 0.0f ? m : -m;
+}
+
+/* Row-wise layer norm of X (n, H) in place (biased variance, as PyTorch). */
+static void layer_norm(float *X, int n, int H, const float *w, const float *b, float eps)
+{
+    for (int t = 0; t < n; ++t) {
+        float *x = X + (size_t)t * H;
+        float mean = 0.0f, var = 0.0f;
+        for (int i = 0; i < H; ++i) mean += x[i];
+        mean /= (float)H;
+        for (int i = 0; i < H; ++i) var += (x[i] - mean) * (x[i] - mean);
+        const float inv = 1.0f / sqrtf(var / (float)H + eps);
+        for (int i = 0; i < H; ++i) x[i] = (x[i] - mean) * inv * w[i] + b[i];
+    }
+}
+
+/* Multi-head attention core: out (nq, H) = per head softmax(q k^T / sqrt(d)) v, with q rows of
+   stride qs and k, v rows of stride kvs; scores holds nk floats. */
+static void attend(const float *q, int nq, int qs, const float *k, const float *v, int nk, int kvs, int H, int heads,
+                   float *scores, float *out)
+{
+    const int d = H / heads;
+    const float scale = 1.0f / sqrtf((float)d);
+    for (int t = 0; t < nq; ++t)
+        for (int h = 0; h < heads; ++h) {
+            const float *qh = q + (size_t)t * qs + h * d;
+            float top = -INFINITY, sum = 0.0f;
+            for (int s = 0; s < nk; ++s) {
+                const float *kh = k + (size_t)s * kvs + h * d;
+                float dot = 0.0f;
+                #pragma omp simd reduction(+:dot)
+                for (int i = 0; i < d; ++i) dot += qh[i] * kh[i];
+                scores[s] = dot * scale;
+                top = scores[s] > top ? scores[s] : top;
+            }
+            for (int s = 0; s < nk; ++s) sum += (scores[s] = exp_nonpositive(scores[s] - top));
+            float *o = out + (size_t)t * H + h * d;
+            for (int i = 0; i < d; ++i) o[i] = 0.0f;
+            for (int s = 0; s < nk; ++s) {
+                const float p = scores[s] / sum, *vh = v + (size_t)s * kvs + h * d;
+                #pragma omp simd
+                for (int i = 0; i < d; ++i) o[i] += p * vh[i];
+            }
+        }
+}
+
+/* The widest input of the decoder's layers (the embedding or a hidden layer). */
+static long decoder_widest(const int32_t *dims)
+{
+    long widest = (long)dims[4] * dims[6];
+    for (int l = 1; l < dims[7]; ++l) widest = dims[8 + l] > widest ? dims[8 + l] : widest;
+    return widest;
+}
+
+enum { P_INP_W, P_INP_B, P_IH_W, P_IH_B, P_HH_W, P_HH_B, P_ATT_IN_W, P_ATT_IN_B, P_ATT_OUT_W, P_ATT_OUT_B, P_NORM_W,
+       P_NORM_B, P_QUERY, P_POOL_Q_W, P_POOL_Q_B, P_POOL_KV_W, P_POOL_KV_B, P_POOL_OUT_W, P_POOL_OUT_B, P_OUT_NORM_W, P_OUT_NORM_B, P_OUT_W,
+       P_OUT_B, P_EMBEDDING, P_EPS, P_DECODER };
+
+/* dims: F, W, H, heads, G, K, D, L, then the decoder's L + 1 layer sizes (G * D first);
+   params: the pointers in the order of the enum above, then L (weight, bias) pairs; every weight
+   packed in panels (see linear_rows), the pooling's in-projection split into its query and
+   key-value parts;
+   eps holds the two layer norms' epsilons. One window: x (W, F) standardised features -> entropy (mean over
+   groups, nats), argmax (G) and, unless latents is NULL, the decoder's output (last layer size). */
+static void window_codes(const float *x, const int32_t *dims, const float *const *p, float *work, float *entropy,
+                         int64_t *argmax, float *latents)
+{
+    const int F = dims[0], W = dims[1], H = dims[2], heads = dims[3], G = dims[4], K = dims[5], D = dims[6],
+              L = dims[7];
+    const int32_t *sizes = dims + 8;
+    float *a = work, *gi = a + (size_t)W * H, *hs = gi + (size_t)W * 3 * H, *gh = hs + (size_t)W * H,
+          *qkv = gh + 3 * H, *att = qkv + (size_t)W * 3 * H, *scores = att + (size_t)W * H, *q = scores + W,
+          *pooled = q + H, *logits = pooled + H, *h0 = logits + (size_t)G * K;
+
+    linear_rows(x, W, F, p[P_INP_W], p[P_INP_B], H, a);
+    for (size_t i = 0; i < (size_t)W * H; ++i) a[i] = elu1(a[i]);
+    linear_rows(a, W, H, p[P_IH_W], p[P_IH_B], 3 * H, gi);  /* input side of every step at once */
+    for (int t = 0; t < W; ++t) {
+        const float *prev = t ? hs + (size_t)(t - 1) * H : NULL, *g = gi + (size_t)t * 3 * H;
+        float *h = hs + (size_t)t * H;
+        if (prev) linear_rows(prev, 1, H, p[P_HH_W], p[P_HH_B], 3 * H, gh);
+        else memcpy(gh, p[P_HH_B], sizeof(float) * 3 * H);  /* h_0 = 0 */
+        for (int j = 0; j < H; ++j) {
+            const float r = sigmoid(g[j] + gh[j]), z = sigmoid(g[H + j] + gh[H + j]);
+            const float n = tanh_(g[2 * H + j] + r * gh[2 * H + j]);
+            h[j] = (1.0f - z) * n + z * (prev ? prev[j] : 0.0f);
+        }
+    }
+    /* self-attention over the GRU states, residual, layer norm */
+    linear_rows(hs, W, H, p[P_ATT_IN_W], p[P_ATT_IN_B], 3 * H, qkv);
+    attend(qkv, W, 3 * H, qkv + H, qkv + 2 * H, W, 3 * H, H, heads, scores, att);
+    linear_rows(att, W, H, p[P_ATT_OUT_W], p[P_ATT_OUT_B], H, a);
+    for (size_t i = 0; i < (size_t)W * H; ++i) a[i] += hs[i];
+    layer_norm(a, W, H, p[P_NORM_W], p[P_NORM_B], p[P_EPS][0]);
+    /* attention pooling with the learned query (keys and values into qkv's first 2H columns) */
+    linear_rows(p[P_QUERY], 1, H, p[P_POOL_Q_W], p[P_POOL_Q_B], H, q);
+    linear_rows(a, W, H, p[P_POOL_KV_W], p[P_POOL_KV_B], 2 * H, qkv);
+    attend(q, 1, H, qkv, qkv + H, W, 2 * H, H, heads, scores, att);
+    linear_rows(att, 1, H, p[P_POOL_OUT_W], p[P_POOL_OUT_B], H, pooled);
+    layer_norm(pooled, 1, H, p[P_OUT_NORM_W], p[P_OUT_NORM_B], p[P_EPS][1]);
+    linear_rows(pooled, 1, H, p[P_OUT_W], p[P_OUT_B], G * K, logits);
+    /* per group: entropy of the softmax, first argmax, the chosen class's embedding */
+    float total = 0.0f;
+    for (int g = 0; g < G; ++g) {
+        const float *l = logits + (size_t)g * K;
+        int best = 0;
+        for (int k = 1; k < K; ++k) best = l[k] > l[best] ? k : best;
+        float sum = 0.0f, weighted = 0.0f;
+        for (int k = 0; k < K; ++k) {
+            const float e = exp_nonpositive(l[k] - l[best]);
+            sum += e;
+            weighted += e * (l[k] - l[best]);
+        }
+        total += logf(sum) - weighted / sum;  /* -sum p log p, p = e / sum */
+        argmax[g] = best;
+        memcpy(h0 + (size_t)g * D, p[P_EMBEDDING] + ((size_t)g * K + best) * D, sizeof(float) * D);
+    }
+    *entropy = total / (float)G;
+    if (!latents) return;
+    float *in = h0, *spare = h0 + decoder_widest(dims);  /* two buffers as wide as the widest layer */
+    for (int l = 0; l < L; ++l) {
+        float *y = l == L - 1 ? latents : spare;
+        linear_rows(in, 1, sizes[l], p[P_DECODER + 2 * l], p[P_DECODER + 2 * l + 1], sizes[l + 1], y);
+        if (l < L - 1) {
+            for (int i = 0; i < sizes[l + 1]; ++i) y[i] = elu1(y[i]);
+            spare = in;
+            in = y;
+        }
+    }
+}
+
+/* Scratch floats window_codes needs for these dims. */
+long hrr_window_codes_work(const int32_t *dims)
+{
+    const long W = dims[1], H = dims[2], G = dims[4], K = dims[5];
+    return W * H * 9 + 3 * H + W + 2 * H + G * K + 2 * decoder_widest(dims);
+}
+
+/* B windows (B, W, F), one per thread at a time; outputs entropy (B), argmax (B, G), latents
+   (B, last layer size) or NULL. Returns 0, or -1 where scratch memory could not be allocated. */
+int hrr_window_codes(const float *x, int B, const int32_t *dims, const float *const *params, int threads,
+                     float *entropy, int64_t *argmax, float *latents)
+{
+    const int F = dims[0], W = dims[1], G = dims[4], L = dims[7];
+    const long out = dims[8 + L], work = hrr_window_codes_work(dims);
+    int failed = 0;
+    #pragma omp parallel num_threads(threads < B ? threads : B) reduction(|:failed)
+    {
+        const unsigned csr = denormals_off();
+        float *scratch = malloc(sizeof(float) * (size_t)work);
+        failed |= scratch == NULL;
+        #pragma omp for schedule(static)
+        for (int b = 0; b < B; ++b)
+            if (scratch)
+                window_codes(x + (size_t)b * W * F, dims, params, scratch, entropy + b, argmax + (size_t)b * G,
+                             latents ? latents + (size_t)b * out : NULL);
+        free(scratch);
+        denormals_restore(csr);
+    }
+    return failed ? -1 : 0;
+}
