@@ -300,6 +300,68 @@ void hrr_push_out(double *p, int T, int V, const double *a, const double *b, con
                    weights, margin, smooth, rounds, depth, before + t, after + t);
 }
 
+/* Y (n, out) = X (n, in) W^T + b, with W^T (in, out) packed in panels of PANEL columns: panel k
+   holds columns PANEL k .. PANEL k + PANEL - 1 as (in, PANEL) contiguous floats, zero past out
+   (bias padded likewise). A panel streams through in order (weights come from L3: a window step
+   reads about 7 MB of them, more than L2 holds, and strided rows defeat the prefetcher) into a tile
+   of R rows x PANEL columns of accumulators in registers, each X value broadcast: no horizontal
+   sums. Used by the window step (window_codes.c) and the single-frame decoder. */
+enum { PANEL = 64 };
+static inline v16sf load16(const float *p) { v16sf v; memcpy(&v, p, sizeof v); return v; }
+
+#define DEFINE_TILE(R, C)                                                                              \
+    static void tile_##R##_##C(const float *restrict X, int in, const float *restrict panel,           \
+                               const float *restrict b, float *restrict Y, int out, int cols)          \
+    {                                                                                                  \
+        v16sf acc[R][C];                                                                               \
+        for (int c = 0; c < C; ++c) {                                                                  \
+            const v16sf bias = load16(b + 16 * c);                                                     \
+            for (int r = 0; r < R; ++r) acc[r][c] = bias;                                              \
+        }                                                                                              \
+        for (int i = 0; i < in; ++i) {                                                                 \
+            v16sf w[C];                                                                                \
+            for (int c = 0; c < C; ++c) w[c] = load16(panel + (size_t)i * PANEL + 16 * c);             \
+            for (int r = 0; r < R; ++r) {                                                              \
+                const float x = X[(size_t)r * in + i];                                                 \
+                for (int c = 0; c < C; ++c) acc[r][c] += x * w[c];                                     \
+            }                                                                                          \
+        }                                                                                              \
+        for (int r = 0; r < R; ++r)                                                                    \
+            for (int c = 0; c < C; ++c) {                                                              \
+                const int n = cols - 16 * c;                                                           \
+                if (n >= 16) memcpy(Y + (size_t)r * out + 16 * c, &acc[r][c], 64); /* a vector store */ \
+                else memcpy(Y + (size_t)r * out + 16 * c, &acc[r][c], sizeof(float) * n);             \
+            }                                                                                          \
+    }
+DEFINE_TILE(5, 1)
+DEFINE_TILE(5, 2)
+DEFINE_TILE(5, 3)
+DEFINE_TILE(5, 4)
+DEFINE_TILE(1, 1)
+DEFINE_TILE(1, 2)
+DEFINE_TILE(1, 3)
+DEFINE_TILE(1, 4)
+
+typedef void (*tile_fn)(const float *restrict, int, const float *restrict, const float *restrict, float *restrict,
+                        int, int);
+/* by rows (5 or 1) and 16-column vectors (1 to 4): a partial last panel computes only what it needs */
+static const tile_fn TILES[2][4] = {{tile_1_1, tile_1_2, tile_1_3, tile_1_4}, {tile_5_1, tile_5_2, tile_5_3, tile_5_4}};
+
+static void linear_rows(const float *restrict X, int n, int in, const float *restrict Wp, const float *restrict b,
+                        int out, float *restrict Y)
+{
+    for (int t = 0; t < n;) {
+        const int rows = n - t >= 5 ? 5 : 1;
+        for (int o = 0; o < out; o += PANEL) {
+            const float *panel = Wp + (size_t)o * in;  /* after o / PANEL panels of in x PANEL */
+            const int cols = out - o < PANEL ? out - o : PANEL;
+            TILES[rows == 5][(cols + 15) / 16 - 1](X + (size_t)t * in, in, panel, b + o, Y + (size_t)t * out + o, out,
+                                                   cols);
+        }
+        t += rows;
+    }
+}
+
 /* One frame, factored and transformed first (streaming): with y = x W (Vin, (M + 1) * WIDTH), the
    input already multiplied by each of the layer's M shared basis kernels and by the residual's
    1x1 map (column block M), each block zero-padded from cout to WIDTH columns,
@@ -366,17 +428,25 @@ typedef void (*apply_fn)(const float *restrict, int, int, int, int, const int32_
                          float *restrict);
 
 /* width: the padded block width of y, one of 4, 8, 16, 32, 64, 128 (>= cout); bias has width values. */
-void hrr_factor_apply(const float *y, int M, int cout, int width, int V, const int32_t *offsets, const int32_t *nbr,
-                      const float *coeff, const float *pool, const float *bias, float a, float b, int elu,
-                      int threads, float *out)
+/* One decoder block for one frame in one parallel region: y (Vin, (M + 1) * width) = x (Vin, cin)
+   times the transform (packed in panels; zeros: a zero bias as long as a row of y), rows shared
+   among the threads, then the apply above, vertex chunks shared. */
+void hrr_factor_block(const float *x, int Vin, int cin, const float *transform, const float *zeros, float *y, int M,
+                      int cout, int width, int V, const int32_t *offsets, const int32_t *nbr, const float *coeff,
+                      const float *pool, const float *bias, float a, float b, int elu, int threads, float *out)
 {
     apply_fn fn = width == 4 ? apply4 : width == 8 ? apply8 : width == 16 ? apply16 : width == 32 ? apply32
                 : width == 64 ? apply64 : apply128;
-    enum { CHUNK = 64 };
-    const int chunks = (V + CHUNK - 1) / CHUNK;
+    enum { CHUNK = 64, ROWS = 5 };
+    const int chunks = (V + CHUNK - 1) / CHUNK, row_blocks = (Vin + ROWS - 1) / ROWS, ld = (M + 1) * width;
     #pragma omp parallel num_threads(threads)
     {
         const unsigned csr = denormals_off();
+        #pragma omp for schedule(static)
+        for (int r = 0; r < row_blocks; ++r) {
+            const int rows = Vin - r * ROWS < ROWS ? Vin - r * ROWS : ROWS;
+            linear_rows(x + (size_t)r * ROWS * cin, rows, cin, transform, zeros, ld, y + (size_t)r * ROWS * ld);
+        }
         #pragma omp for schedule(static)
         for (int k = 0; k < chunks; ++k) {
             const int v1 = (k + 1) * CHUNK < V ? (k + 1) * CHUNK : V;

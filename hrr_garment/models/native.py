@@ -33,7 +33,6 @@ import warnings
 from pathlib import Path
 
 import numpy as np
-import torch
 
 # one library: window_codes.c uses helpers defined in kernels.c
 SOURCE = "\n".join(Path(__file__).with_name(name).read_text() for name in ("kernels.c", "window_codes.c"))
@@ -105,9 +104,9 @@ def load_kernel(cache_dir: str | Path | None = None) -> ctypes.CDLL | None:
                 lib.hrr_push_out.argtypes = [d, c_int, c_int, d, d, d, c_int, d, d, d, c_double, c_int, c_int, c_double,
                                              c_int, d, d]
                 lib.hrr_push_out.restype = None
-                lib.hrr_factor_apply.argtypes = [ctypes.c_void_p, c_int, c_int, c_int, c_int, i32, i32, f, f, f, c_float,
-                                                 c_float, c_int, c_int, ctypes.c_void_p]
-                lib.hrr_factor_apply.restype = None
+                lib.hrr_factor_block.argtypes = [d, c_int, c_int, d, d, d, c_int, c_int, c_int, c_int, d, d, d, d, d,
+                                                 c_float, c_float, c_int, c_int, d]
+                lib.hrr_factor_block.restype = None
                 lib.hrr_window_codes.argtypes = [d, c_int, d, d, c_int, d, d, d]
                 lib.hrr_window_codes.restype = c_int
                 lib.hrr_window_codes_work.argtypes = [d]
@@ -123,6 +122,17 @@ def load_kernel(cache_dir: str | Path | None = None) -> ctypes.CDLL | None:
 
 def _ptr(a: np.ndarray | None, kind=ctypes.c_float):
     return None if a is None else a.ctypes.data_as(ctypes.POINTER(kind))
+
+
+PANEL = 64  # PANEL in kernels.c
+
+
+def pack_panels(wt: np.ndarray) -> np.ndarray:
+    """A dense product's right-hand matrix (in, out) in the kernels' layout (``linear_rows``):
+    panels of PANEL columns, (panels, in, PANEL), zero-padded to whole panels."""
+    inp, out = wt.shape
+    panels = np.pad(wt, [(0, 0), (0, -out % PANEL)]).reshape(inp, -1, PANEL).transpose(1, 0, 2)
+    return np.ascontiguousarray(panels, np.float32)
 
 
 class NativeBlock:
@@ -160,22 +170,26 @@ class NativeBlock:
         blocks = np.pad(blocks, [(0, 0), (0, 0), (0, width - cout)]).transpose(1, 0, 2).reshape(cin, (m + 1) * width)
         coeff = np.ascontiguousarray(coeff[keep], np.float32)
         bias = np.ascontiguousarray(np.pad(self.bias[:cout], (0, width - cout)), np.float32)
+        transform = pack_panels(blocks)
+        zeros = np.zeros(transform.shape[0] * PANEL, np.float32)  # the product's (absent) bias
         # the constant arguments, converted once: ctypes conversions cost microseconds each, per frame
-        constants = (m, self.cout, width, self.vertices, _ptr(self.offsets, ctypes.c_int32), _ptr(self.nbr, ctypes.c_int32),
-                     _ptr(coeff), _ptr(self.pool), _ptr(bias), ctypes.c_float(self.a), ctypes.c_float(self.b), int(self.elu))
-        self.factored = (torch.from_numpy(np.ascontiguousarray(blocks, np.float32)), constants, (coeff, bias))
+        constants = (transform.ctypes.data, zeros.ctypes.data, m, self.cout, width, self.vertices, self.offsets.ctypes.data,
+                     self.nbr.ctypes.data, coeff.ctypes.data, None if self.pool is None else self.pool.ctypes.data,
+                     bias.ctypes.data, ctypes.c_float(self.a), ctypes.c_float(self.b), int(self.elu))
+        self.factored = ((m + 1) * width, constants, (transform, zeros, coeff, bias))
 
     def one(self, lib: ctypes.CDLL, x: np.ndarray, threads: int) -> np.ndarray:
-        """One frame: x (V_in, C_in) float32 -> (V, C_out), the same function as ``__call__``. The
-        result lives in a buffer of the block that the next call overwrites (fresh buffers of up
-        to a few MB per frame cost more in page faults than the arithmetic): one call at a time
-        per decoder, and copy what you keep."""
-        transform, constants, _ = self.factored  # the last item keeps the arrays behind the pointers alive
+        """One frame: x (V_in, C_in) float32 C-contiguous -> (V, C_out), the same function as
+        ``__call__``, in one kernel call (the transform, then the apply). The result lives in a
+        buffer of the block that the next call overwrites (fresh buffers of up to a few MB per
+        frame cost more in page faults than the arithmetic): one call at a time per decoder, and
+        copy what you keep."""
+        row, constants, _ = self.factored  # the last item keeps the arrays behind the pointers alive
         if getattr(self, "_buffers", None) is None or self._buffers[0].shape[0] != len(x):
-            self._buffers = (torch.empty(len(x), transform.shape[1]), np.empty((self.vertices, self.cout), np.float32))
+            self._buffers = (np.empty((len(x), row), np.float32), np.empty((self.vertices, self.cout), np.float32))
         y, out = self._buffers
-        torch.mm(torch.from_numpy(x), transform, out=y)  # one dense product per layer, multithreaded by torch
-        lib.hrr_factor_apply(y.data_ptr(), *constants, threads, out.ctypes.data)
+        lib.hrr_factor_block(x.ctypes.data, len(x), self.cin, constants[0], constants[1], y.ctypes.data, *constants[2:],
+                             threads, out.ctypes.data)
         return out
 
     def __call__(self, lib: ctypes.CDLL, x: np.ndarray, threads: int) -> np.ndarray:

@@ -20,16 +20,10 @@ import torch
 from . import native
 
 
-PANEL = 64  # PANEL in window_codes.c
-
-
 def pack_linear(weight: np.ndarray, bias: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """A PyTorch linear layer's weight (out, in) and bias (out,) in the kernel's layout: W^T in
-    panels of PANEL columns, (panels, in, PANEL), and the bias, both zero-padded to whole panels."""
-    out, inp = weight.shape
-    pad = -out % PANEL
-    panels = np.pad(weight.T, [(0, 0), (0, pad)]).reshape(inp, -1, PANEL).transpose(1, 0, 2)
-    return np.ascontiguousarray(panels, np.float32), np.ascontiguousarray(np.pad(bias, (0, pad)), np.float32)
+    """A PyTorch linear layer's weight (out, in) and bias (out,) in the kernels' layout: W^T in
+    panels (:func:`.native.pack_panels`) and the bias zero-padded to whole panels."""
+    return native.pack_panels(weight.T), np.ascontiguousarray(np.pad(bias, (0, -len(bias) % native.PANEL)), np.float32)
 
 
 class NativeWindowCodes:

@@ -9,53 +9,6 @@
    per thread, each with the same sequence of operations whatever the batch, so a stream's single
    window and an offline causal batch give the same bits. */
 
-/* Y (n, out) = X (n, in) W^T + b, with W^T (in, out) packed in panels of PANEL columns: panel k
-   holds columns PANEL k .. PANEL k + PANEL - 1 as (in, PANEL) contiguous floats, zero past out
-   (bias padded likewise). A panel streams through in order (weights come from L3: a window step
-   reads about 7 MB of them, more than L2 holds, and strided rows defeat the prefetcher) into a tile
-   of R rows x PANEL columns of accumulators in registers, each X value broadcast: no horizontal
-   sums. */
-enum { PANEL = 64 };
-static inline v16sf load16(const float *p) { v16sf v; memcpy(&v, p, sizeof v); return v; }
-
-#define DEFINE_TILE(R)                                                                                 \
-    static void tile_##R(const float *restrict X, int in, const float *restrict panel,                 \
-                         const float *restrict b, float *restrict Y, int out, int cols)                \
-    {                                                                                                  \
-        v16sf acc[R][PANEL / 16];                                                                      \
-        for (int c = 0; c < PANEL / 16; ++c) {                                                         \
-            const v16sf bias = load16(b + 16 * c);                                                     \
-            for (int r = 0; r < R; ++r) acc[r][c] = bias;                                              \
-        }                                                                                              \
-        for (int i = 0; i < in; ++i) {                                                                 \
-            v16sf w[PANEL / 16];                                                                       \
-            for (int c = 0; c < PANEL / 16; ++c) w[c] = load16(panel + (size_t)i * PANEL + 16 * c);    \
-            for (int r = 0; r < R; ++r) {                                                              \
-                const float x = X[(size_t)r * in + i];                                                 \
-                for (int c = 0; c < PANEL / 16; ++c) acc[r][c] += x * w[c];                            \
-            }                                                                                          \
-        }                                                                                              \
-        for (int r = 0; r < R; ++r)                                                                    \
-            for (int c = 0; c < PANEL / 16 && 16 * c < cols; ++c)                                      \
-                memcpy(Y + (size_t)r * out + 16 * c, &acc[r][c], sizeof(float) * (cols - 16 * c < 16 ? cols - 16 * c : 16)); \
-    }
-DEFINE_TILE(5)
-DEFINE_TILE(1)
-
-static void linear_rows(const float *restrict X, int n, int in, const float *restrict Wp, const float *restrict b,
-                        int out, float *restrict Y)
-{
-    for (int t = 0; t < n;) {
-        const int rows = n - t >= 5 ? 5 : 1;
-        for (int o = 0; o < out; o += PANEL) {
-            const float *panel = Wp + (size_t)o * in;  /* panel o / PANEL starts after o / PANEL panels of in x PANEL */
-            const int cols = out - o < PANEL ? out - o : PANEL;
-            (rows == 5 ? tile_5 : tile_1)(X + (size_t)t * in, in, panel, b + o, Y + (size_t)t * out + o, out, cols);
-        }
-        t += rows;
-    }
-}
-
 ALWAYS_INLINE float elu1(float y) { return y > 0.0f ? y : exp_nonpositive(y) - 1.0f; }
 
 ALWAYS_INLINE float sigmoid(float y)
