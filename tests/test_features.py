@@ -67,3 +67,27 @@ def test_windows_and_standardisation():
     np.testing.assert_allclose(both.std(0)[busy], 1.0, atol=1e-3)
     again = FeatureStats.from_dict(stats.to_dict())
     np.testing.assert_array_equal(again.mean, stats.mean)
+
+
+@pytest.mark.parametrize("kind", ["walk_curve", "spin", "dance"])
+def test_native_kinematics_and_causal_features_equal_numpy(kind, monkeypatch):
+    from hrr_garment.inference.engine import causal_features
+    from hrr_garment.models import native
+    from hrr_garment.motion.skeleton import forward_kinematics
+
+    lib = native.load_kernel()
+    if lib is None:
+        pytest.skip("no C compiler: the native kernels are unavailable")
+    motion = synthesize(kind, seconds=2.0, seed=5)
+    sk = motion.skeleton
+    g_rot, g_pos = native.forward_kinematics(lib, motion.local_rotations, motion.root_translation, sk.offsets, sk.parents)
+    want_rot, want_pos = forward_kinematics(motion.local_rotations.astype(np.float64), motion.root_translation,
+                                            sk.offsets.astype(np.float64), sk.parents)
+    assert np.abs(g_rot - want_rot).max() < 1e-12 and np.abs(g_pos - want_pos).max() < 1e-12
+    got = causal_features(motion)
+    monkeypatch.setattr(native, "load_kernel", lambda *args, **kwargs: None)  # the numpy reference, FK included
+    want = causal_features(Motion(motion.local_rotations, motion.root_translation, motion.fps))
+    assert got.shape == want.shape == (motion.num_frames, 124)
+    assert np.abs(got - want).max() < 1e-5
+    assert np.abs(got[0, 60:]).max() == 0  # frame 0 sees only itself: no velocities
+    assert np.abs(got[1:] - motion_features(motion)[1:]).max() < 1e-5

@@ -63,15 +63,25 @@ def pair_features(previous: Motion | None, current: Motion) -> np.ndarray:
     before = current if previous is None else previous
     if before.num_frames > 1:
         before = before.slice(before.num_frames - 1, before.num_frames)
-    current.global_rotations  # noqa: B018 - computes (and caches) the pose's kinematics, reused by the pair
-    return motion_features(Motion.concatenate([before, current]))[-1]
+    current.global_rotations  # noqa: B018 - computes (and caches) the pose's kinematics, reused by the pair and the next push
+    pair = Motion.concatenate([before, current]) if previous is not None else current
+    return causal_features(pair)[-1]
 
 
 def causal_features(motion: Motion) -> np.ndarray:
     """Features as a stream sees them: frame t from frames t-1 and t only (frame 0: zero
-    velocities). Equal to :func:`motion_features` from frame 1 on."""
-    feats = motion_features(motion) if motion.num_frames > 1 else np.zeros((1, 124), np.float32)
-    feats[0] = pair_features(None, motion.slice(0, 1))
+    velocities). Equal to :func:`motion_features` from frame 1 on. In C where compiled (the same
+    formulas; a stream computes them per frame), else numpy."""
+    from ..models import native
+    from ..motion.skeleton import FEATURE_JOINTS
+
+    lib = native.load_kernel()
+    if lib is not None:
+        return native.causal_features(lib, motion.global_rotations, motion.joint_positions, FEATURE_JOINTS, motion.fps)
+    if motion.num_frames == 1:
+        return motion_features(Motion.concatenate([motion, motion]))[-1:]
+    feats = motion_features(motion)
+    feats[0] = motion_features(Motion.concatenate([motion.slice(0, 1)] * 2))[-1]
     return feats
 
 

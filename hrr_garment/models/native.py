@@ -1,7 +1,8 @@
-"""Fused C kernels for inference (``kernels.c`` and ``window_codes.c`` beside this module),
-compiled on first use: the mesh decoder's blocks, its single-frame form (streaming), the capsule-body
-signed distance and push-out of :mod:`hrr_garment.inference.collision`, and the code space's window
-step (:mod:`.native_codes`).
+"""Fused C kernels for inference (``kernels.c`` and ``window_codes.c`` beside this module,
+``motion/features.c``), compiled on first use: the mesh decoder's blocks, its single-frame form
+(streaming), the capsule-body signed distance and push-out of :mod:`hrr_garment.inference.collision`,
+the code space's window step (:mod:`.native_codes`), and forward kinematics and causal motion
+features (:mod:`hrr_garment.motion`).
 
 PyTorch runs a spatially varying convolution as a gather (materialising every neighbour's row for
 every output vertex: S times the layer's output), a layout copy, then small per-vertex matmuls;
@@ -34,8 +35,9 @@ from pathlib import Path
 
 import numpy as np
 
-# one library: window_codes.c uses helpers defined in kernels.c
-SOURCE = "\n".join(Path(__file__).with_name(name).read_text() for name in ("kernels.c", "window_codes.c"))
+_PACKAGE = Path(__file__).resolve().parent.parent
+# one library, in this order: window_codes.c uses helpers defined in kernels.c
+SOURCE = "\n".join((_PACKAGE / name).read_text() for name in ("models/kernels.c", "models/window_codes.c", "motion/features.c"))
 
 FLAGS = ["-O3", "-march=native", "-mprefer-vector-width=512", "-fno-math-errno", "-fno-trapping-math", "-fopenmp",
          "-Werror=implicit-function-declaration",
@@ -93,14 +95,13 @@ def load_kernel(cache_dir: str | Path | None = None) -> ctypes.CDLL | None:
                 lib = ctypes.CDLL(str(target))
                 f = ctypes.POINTER(ctypes.c_float)
                 i32 = ctypes.POINTER(ctypes.c_int32)
-                c_int, c_float = ctypes.c_int, ctypes.c_float
+                c_int, c_float, c_double = ctypes.c_int, ctypes.c_float, ctypes.c_double
                 lib.hrr_block.argtypes = [f, c_int, c_int, c_int, c_int, i32, i32, f, f, f, f, c_float, c_float, c_int,
                                           c_int, f]
                 lib.hrr_block.restype = None
                 d = ctypes.c_void_p  # addresses from ndarray.ctypes.data: per-frame calls, so the cheapest conversion
                 lib.hrr_capsule_sdf.argtypes = [d, c_int, c_int, d, d, d, c_int, c_int, d, d]
                 lib.hrr_capsule_sdf.restype = None
-                c_double = ctypes.c_double
                 lib.hrr_push_out.argtypes = [d, c_int, c_int, d, d, d, c_int, d, d, d, c_double, c_int, c_int, c_double,
                                              c_int, d, d]
                 lib.hrr_push_out.restype = None
@@ -111,6 +112,10 @@ def load_kernel(cache_dir: str | Path | None = None) -> ctypes.CDLL | None:
                 lib.hrr_window_codes.restype = c_int
                 lib.hrr_window_codes_work.argtypes = [d]
                 lib.hrr_window_codes_work.restype = ctypes.c_long
+                lib.hrr_forward_kinematics.argtypes = [d, d, c_int, c_int, d, d, d, d]
+                lib.hrr_forward_kinematics.restype = None
+                lib.hrr_causal_features.argtypes = [d, d, c_int, c_int, d, c_int, c_double, d]
+                lib.hrr_causal_features.restype = None
                 _loaded[str(target)] = lib
             except (OSError, subprocess.CalledProcessError) as exc:
                 detail = getattr(exc, "stderr", "") or str(exc)
@@ -240,3 +245,31 @@ def push_out_frames(lib: ctypes.CDLL, points: np.ndarray, a: np.ndarray, b: np.n
                      indices.ctypes.data, weights.ctypes.data, margin, smooth, rounds, depth, threads, before.ctypes.data,
                      after.ctypes.data)
     return p.astype(np.float32), before, after
+
+
+def forward_kinematics(lib: ctypes.CDLL, local_rot: np.ndarray, root_pos: np.ndarray, offsets: np.ndarray,
+                       parents) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`hrr_garment.motion.skeleton.forward_kinematics` in the kernel, for numpy motions:
+    local rotations (T, J, 3, 3), root positions (T, 3), offsets (J, 3) -> float64 global rotations
+    (T, J, 3, 3) and positions (T, J, 3)."""
+    local = np.ascontiguousarray(local_rot, np.float32)
+    root = np.ascontiguousarray(root_pos, np.float64)
+    off = np.ascontiguousarray(offsets, np.float64)
+    par = np.ascontiguousarray(parents, np.int32)
+    t, j = local.shape[:2]
+    g_rot, g_pos = np.empty((t, j, 3, 3)), np.empty((t, j, 3))
+    lib.hrr_forward_kinematics(local.ctypes.data, root.ctypes.data, t, j, off.ctypes.data, par.ctypes.data,
+                               g_rot.ctypes.data, g_pos.ctypes.data)
+    return g_rot, g_pos
+
+
+def causal_features(lib: ctypes.CDLL, g_rot: np.ndarray, g_pos: np.ndarray, joints, fps: float) -> np.ndarray:
+    """Motion features (T, 6 F + 4) of every frame from it and the frame before (frame 0 from
+    itself: zero velocities), from global rotations (T, J, 3, 3) and positions (T, J, 3): what
+    :func:`hrr_garment.inference.engine.causal_features` computes in numpy."""
+    rot, pos = np.ascontiguousarray(g_rot, np.float64), np.ascontiguousarray(g_pos, np.float64)
+    idx = np.ascontiguousarray(joints, np.int32)
+    t, j = rot.shape[:2]
+    out = np.empty((t, 6 * len(idx) + 4), np.float32)
+    lib.hrr_causal_features(rot.ctypes.data, pos.ctypes.data, t, j, idx.ctypes.data, len(idx), float(fps), out.ctypes.data)
+    return out

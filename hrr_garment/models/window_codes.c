@@ -2,12 +2,16 @@
    the motion encoder (input layer, GRU, self-attention with layer norm, attention pooling, output
    layer norm and logits), the grouped code (per-group entropy, argmax, the chosen classes'
    embeddings) and the code-space decoder's MLP. Compiled after kernels.c (one library), whose
-   exp_nonpositive and denormal helpers it uses.
+   dense tiles, exp_nonpositive and denormal helpers it uses.
 
    Why: a stream runs this for one window per frame, and PyTorch spends most of that time between
-   operations (about 190 small operator calls, 1.6-3 ms) on 15 MFLOP of arithmetic. Windows run one
-   per thread, each with the same sequence of operations whatever the batch, so a stream's single
-   window and an offline causal batch give the same bits. */
+   operations (about 190 small operator calls, 1.6-3 ms) on 15 MFLOP of arithmetic.
+
+   Threads: window_codes shares its work among the threads of the innermost parallel region
+   (orphaned worksharing: dense tiles, rows, heads and groups), so a stream's single window uses
+   the whole team; a batch runs each window alone in a one-thread region inside its thread. Every
+   value is computed by one thread in one fixed order either way, so a stream and an offline causal
+   batch give the same bits. */
 
 ALWAYS_INLINE float elu1(float y) { return y > 0.0f ? y : exp_nonpositive(y) - 1.0f; }
 
@@ -24,9 +28,32 @@ ALWAYS_INLINE float tanh_(float y)
     return y > 0.0f ? m : -m;
 }
 
-/* Row-wise layer norm of X (n, H) in place (biased variance, as PyTorch). */
+/* linear_rows (kernels.c) with its tiles shared among the team: panel-major, so each thread
+   streams its own part of the weights. Ends with the team's barrier. */
+static void linear_shared(const float *restrict X, int n, int in, const float *restrict Wp, const float *restrict b,
+                          int out, float *restrict Y)
+{
+    const int panels = (out + PANEL - 1) / PANEL, blocks = n / 5 + n % 5;  /* blocks of 5 rows, then single rows */
+    #pragma omp for schedule(static)
+    for (int k = 0; k < panels * blocks; ++k) {
+        const int o = (k / blocks) * PANEL, r = k % blocks;
+        const int t = r < n / 5 ? 5 * r : 5 * (n / 5) + (r - n / 5), rows = r < n / 5 ? 5 : 1;
+        const int cols = out - o < PANEL ? out - o : PANEL;
+        TILES[rows == 5][(cols + 15) / 16 - 1](X + (size_t)t * in, in, Wp + (size_t)o * in, b + o, Y + (size_t)t * out + o,
+                                               out, cols);
+    }
+}
+
+static void elu_shared(float *x, int n)
+{
+    #pragma omp for schedule(static)
+    for (int i = 0; i < n; ++i) x[i] = elu1(x[i]);
+}
+
+/* Row-wise layer norm of X (n, H) in place (biased variance, as PyTorch), rows shared. */
 static void layer_norm(float *X, int n, int H, const float *w, const float *b, float eps)
 {
+    #pragma omp for schedule(static)
     for (int t = 0; t < n; ++t) {
         float *x = X + (size_t)t * H;
         float mean = 0.0f, var = 0.0f;
@@ -39,33 +66,35 @@ static void layer_norm(float *X, int n, int H, const float *w, const float *b, f
 }
 
 /* Multi-head attention core: out (nq, H) = per head softmax(q k^T / sqrt(d)) v, with q rows of
-   stride qs and k, v rows of stride kvs; scores holds nk floats. */
+   stride qs and k, v rows of stride kvs; scores_all holds nq x heads x nk floats. (row, head)
+   pairs shared. */
 static void attend(const float *q, int nq, int qs, const float *k, const float *v, int nk, int kvs, int H, int heads,
-                   float *scores, float *out)
+                   float *scores_all, float *out)
 {
     const int d = H / heads;
     const float scale = 1.0f / sqrtf((float)d);
-    for (int t = 0; t < nq; ++t)
-        for (int h = 0; h < heads; ++h) {
-            const float *qh = q + (size_t)t * qs + h * d;
-            float top = -INFINITY, sum = 0.0f;
-            for (int s = 0; s < nk; ++s) {
-                const float *kh = k + (size_t)s * kvs + h * d;
-                float dot = 0.0f;
-                #pragma omp simd reduction(+:dot)
-                for (int i = 0; i < d; ++i) dot += qh[i] * kh[i];
-                scores[s] = dot * scale;
-                top = scores[s] > top ? scores[s] : top;
-            }
-            for (int s = 0; s < nk; ++s) sum += (scores[s] = exp_nonpositive(scores[s] - top));
-            float *o = out + (size_t)t * H + h * d;
-            for (int i = 0; i < d; ++i) o[i] = 0.0f;
-            for (int s = 0; s < nk; ++s) {
-                const float p = scores[s] / sum, *vh = v + (size_t)s * kvs + h * d;
-                #pragma omp simd
-                for (int i = 0; i < d; ++i) o[i] += p * vh[i];
-            }
+    #pragma omp for schedule(static)
+    for (int job = 0; job < nq * heads; ++job) {
+        const int t = job / heads, h = job % heads;
+        const float *qh = q + (size_t)t * qs + h * d;
+        float *scores = scores_all + (size_t)job * nk, top = -INFINITY, sum = 0.0f;
+        for (int s = 0; s < nk; ++s) {
+            const float *kh = k + (size_t)s * kvs + h * d;
+            float dot = 0.0f;
+            #pragma omp simd reduction(+:dot)
+            for (int i = 0; i < d; ++i) dot += qh[i] * kh[i];
+            scores[s] = dot * scale;
+            top = scores[s] > top ? scores[s] : top;
         }
+        for (int s = 0; s < nk; ++s) sum += (scores[s] = exp_nonpositive(scores[s] - top));
+        float *o = out + (size_t)t * H + h * d;
+        for (int i = 0; i < d; ++i) o[i] = 0.0f;
+        for (int s = 0; s < nk; ++s) {
+            const float p = scores[s] / sum, *vh = v + (size_t)s * kvs + h * d;
+            #pragma omp simd
+            for (int i = 0; i < d; ++i) o[i] += p * vh[i];
+        }
+    }
 }
 
 /* The widest input of the decoder's layers (the embedding or a hidden layer). */
@@ -83,9 +112,10 @@ enum { P_INP_W, P_INP_B, P_IH_W, P_IH_B, P_HH_W, P_HH_B, P_ATT_IN_W, P_ATT_IN_B,
 /* dims: F, W, H, heads, G, K, D, L, then the decoder's L + 1 layer sizes (G * D first);
    params: the pointers in the order of the enum above, then L (weight, bias) pairs; every weight
    packed in panels (see linear_rows), the pooling's in-projection split into its query and
-   key-value parts;
-   eps holds the two layer norms' epsilons. One window: x (W, F) standardised features -> entropy (mean over
-   groups, nats), argmax (G) and, unless latents is NULL, the decoder's output (last layer size). */
+   key-value parts; eps holds the two layer norms' epsilons. One window: x (W, F) standardised
+   features -> entropy (mean over groups, nats), argmax (G) and, unless latents is NULL, the
+   decoder's output (last layer size). Called by every thread of the innermost parallel region,
+   with the same (shared) arguments; work: hrr_window_codes_work floats. */
 static void window_codes(const float *x, const int32_t *dims, const float *const *p, float *work, float *entropy,
                          int64_t *argmax, float *latents)
 {
@@ -93,17 +123,22 @@ static void window_codes(const float *x, const int32_t *dims, const float *const
               L = dims[7];
     const int32_t *sizes = dims + 8;
     float *a = work, *gi = a + (size_t)W * H, *hs = gi + (size_t)W * 3 * H, *gh = hs + (size_t)W * H,
-          *qkv = gh + 3 * H, *att = qkv + (size_t)W * 3 * H, *scores = att + (size_t)W * H, *q = scores + W,
-          *pooled = q + H, *logits = pooled + H, *h0 = logits + (size_t)G * K;
+          *qkv = gh + 3 * H, *att = qkv + (size_t)W * 3 * H, *scores = att + (size_t)W * H,
+          *q = scores + (size_t)W * W * heads, *pooled = q + H, *logits = pooled + H, *group_entropy = logits + (size_t)G * K,
+          *h0 = group_entropy + G, *spare = h0 + decoder_widest(dims);
 
-    linear_rows(x, W, F, p[P_INP_W], p[P_INP_B], H, a);
-    for (size_t i = 0; i < (size_t)W * H; ++i) a[i] = elu1(a[i]);
-    linear_rows(a, W, H, p[P_IH_W], p[P_IH_B], 3 * H, gi);  /* input side of every step at once */
+    linear_shared(x, W, F, p[P_INP_W], p[P_INP_B], H, a);
+    elu_shared(a, W * H);
+    linear_shared(a, W, H, p[P_IH_W], p[P_IH_B], 3 * H, gi);  /* input side of every step at once */
     for (int t = 0; t < W; ++t) {
         const float *prev = t ? hs + (size_t)(t - 1) * H : NULL, *g = gi + (size_t)t * 3 * H;
         float *h = hs + (size_t)t * H;
-        if (prev) linear_rows(prev, 1, H, p[P_HH_W], p[P_HH_B], 3 * H, gh);
-        else memcpy(gh, p[P_HH_B], sizeof(float) * 3 * H);  /* h_0 = 0 */
+        if (prev) linear_shared(prev, 1, H, p[P_HH_W], p[P_HH_B], 3 * H, gh);
+        else {
+            #pragma omp single
+            memcpy(gh, p[P_HH_B], sizeof(float) * 3 * H);  /* h_0 = 0 */
+        }
+        #pragma omp for schedule(static)
         for (int j = 0; j < H; ++j) {
             const float r = sigmoid(g[j] + gh[j]), z = sigmoid(g[H + j] + gh[H + j]);
             const float n = tanh_(g[2 * H + j] + r * gh[2 * H + j]);
@@ -111,20 +146,21 @@ static void window_codes(const float *x, const int32_t *dims, const float *const
         }
     }
     /* self-attention over the GRU states, residual, layer norm */
-    linear_rows(hs, W, H, p[P_ATT_IN_W], p[P_ATT_IN_B], 3 * H, qkv);
+    linear_shared(hs, W, H, p[P_ATT_IN_W], p[P_ATT_IN_B], 3 * H, qkv);
     attend(qkv, W, 3 * H, qkv + H, qkv + 2 * H, W, 3 * H, H, heads, scores, att);
-    linear_rows(att, W, H, p[P_ATT_OUT_W], p[P_ATT_OUT_B], H, a);
-    for (size_t i = 0; i < (size_t)W * H; ++i) a[i] += hs[i];
+    linear_shared(att, W, H, p[P_ATT_OUT_W], p[P_ATT_OUT_B], H, a);
+    #pragma omp for schedule(static)
+    for (int i = 0; i < W * H; ++i) a[i] += hs[i];
     layer_norm(a, W, H, p[P_NORM_W], p[P_NORM_B], p[P_EPS][0]);
     /* attention pooling with the learned query (keys and values into qkv's first 2H columns) */
-    linear_rows(p[P_QUERY], 1, H, p[P_POOL_Q_W], p[P_POOL_Q_B], H, q);
-    linear_rows(a, W, H, p[P_POOL_KV_W], p[P_POOL_KV_B], 2 * H, qkv);
+    linear_shared(p[P_QUERY], 1, H, p[P_POOL_Q_W], p[P_POOL_Q_B], H, q);
+    linear_shared(a, W, H, p[P_POOL_KV_W], p[P_POOL_KV_B], 2 * H, qkv);
     attend(q, 1, H, qkv, qkv + H, W, 2 * H, H, heads, scores, att);
-    linear_rows(att, 1, H, p[P_POOL_OUT_W], p[P_POOL_OUT_B], H, pooled);
+    linear_shared(att, 1, H, p[P_POOL_OUT_W], p[P_POOL_OUT_B], H, pooled);
     layer_norm(pooled, 1, H, p[P_OUT_NORM_W], p[P_OUT_NORM_B], p[P_EPS][1]);
-    linear_rows(pooled, 1, H, p[P_OUT_W], p[P_OUT_B], G * K, logits);
+    linear_shared(pooled, 1, H, p[P_OUT_W], p[P_OUT_B], G * K, logits);
     /* per group: entropy of the softmax, first argmax, the chosen class's embedding */
-    float total = 0.0f;
+    #pragma omp for schedule(static)
     for (int g = 0; g < G; ++g) {
         const float *l = logits + (size_t)g * K;
         int best = 0;
@@ -135,18 +171,23 @@ static void window_codes(const float *x, const int32_t *dims, const float *const
             sum += e;
             weighted += e * (l[k] - l[best]);
         }
-        total += logf(sum) - weighted / sum;  /* -sum p log p, p = e / sum */
+        group_entropy[g] = logf(sum) - weighted / sum;  /* -sum p log p, p = e / sum */
         argmax[g] = best;
         memcpy(h0 + (size_t)g * D, p[P_EMBEDDING] + ((size_t)g * K + best) * D, sizeof(float) * D);
     }
-    *entropy = total / (float)G;
+    #pragma omp single nowait
+    {
+        float total = 0.0f;  /* in group order, whatever the threads */
+        for (int g = 0; g < G; ++g) total += group_entropy[g];
+        *entropy = total / (float)G;
+    }
     if (!latents) return;
-    float *in = h0, *spare = h0 + decoder_widest(dims);  /* two buffers as wide as the widest layer */
+    float *in = h0;
     for (int l = 0; l < L; ++l) {
         float *y = l == L - 1 ? latents : spare;
-        linear_rows(in, 1, sizes[l], p[P_DECODER + 2 * l], p[P_DECODER + 2 * l + 1], sizes[l + 1], y);
+        linear_shared(in, 1, sizes[l], p[P_DECODER + 2 * l], p[P_DECODER + 2 * l + 1], sizes[l + 1], y);
         if (l < L - 1) {
-            for (int i = 0; i < sizes[l + 1]; ++i) y[i] = elu1(y[i]);
+            elu_shared(y, sizes[l + 1]);
             spare = in;
             in = y;
         }
@@ -156,18 +197,31 @@ static void window_codes(const float *x, const int32_t *dims, const float *const
 /* Scratch floats window_codes needs for these dims. */
 long hrr_window_codes_work(const int32_t *dims)
 {
-    const long W = dims[1], H = dims[2], G = dims[4], K = dims[5];
-    return W * H * 9 + 3 * H + W + 2 * H + G * K + 2 * decoder_widest(dims);
+    const long W = dims[1], H = dims[2], heads = dims[3], G = dims[4], K = dims[5];
+    return W * H * 9 + 3 * H + W * W * heads + 2 * H + G * K + G + 2 * decoder_widest(dims);
 }
 
-/* B windows (B, W, F), one per thread at a time; outputs entropy (B), argmax (B, G), latents
-   (B, last layer size) or NULL. Returns 0, or -1 where scratch memory could not be allocated. */
+/* B windows (B, W, F) -> entropy (B), argmax (B, G), latents (B, last layer size) or NULL. One
+   window: the team shares it; more: one window per thread. Returns 0, or -1 where scratch memory
+   could not be allocated. */
 int hrr_window_codes(const float *x, int B, const int32_t *dims, const float *const *params, int threads,
                      float *entropy, int64_t *argmax, float *latents)
 {
     const int F = dims[0], W = dims[1], G = dims[4], L = dims[7];
     const long out = dims[8 + L], work = hrr_window_codes_work(dims);
     int failed = 0;
+    if (B == 1) {
+        float *scratch = malloc(sizeof(float) * (size_t)work);
+        if (!scratch) return -1;
+        #pragma omp parallel num_threads(threads)
+        {
+            const unsigned csr = denormals_off();
+            window_codes(x, dims, params, scratch, entropy, argmax, latents);
+            denormals_restore(csr);
+        }
+        free(scratch);
+        return 0;
+    }
     #pragma omp parallel num_threads(threads < B ? threads : B) reduction(|:failed)
     {
         const unsigned csr = denormals_off();
@@ -175,9 +229,11 @@ int hrr_window_codes(const float *x, int B, const int32_t *dims, const float *co
         failed |= scratch == NULL;
         #pragma omp for schedule(static)
         for (int b = 0; b < B; ++b)
-            if (scratch)
+            if (scratch) {
+                #pragma omp parallel num_threads(1)  /* this window's own one-thread team */
                 window_codes(x + (size_t)b * W * F, dims, params, scratch, entropy + b, argmax + (size_t)b * G,
                              latents ? latents + (size_t)b * out : NULL);
+            }
         free(scratch);
         denormals_restore(csr);
     }

@@ -73,6 +73,12 @@ class Motion:
 
     @cached_property
     def _fk(self) -> tuple[np.ndarray, np.ndarray]:
+        from ..models import native  # the C form where compiled: a streamed pose's FK is per frame
+
+        lib = native.load_kernel()
+        if lib is not None:
+            return native.forward_kinematics(lib, self.local_rotations, self.root_translation, self.skeleton.offsets,
+                                             self.skeleton.parents)
         g_rot, g_pos = forward_kinematics(
             self.local_rotations.astype(np.float64), self.root_translation.astype(np.float64), self.skeleton.offsets.astype(np.float64), self.skeleton.parents
         )
