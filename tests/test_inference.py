@@ -243,3 +243,7 @@ def test_native_push_out_equals_numpy(rng):
         assert ref[1].max() > 0.05  # the test squeezes the skirt into the body
         assert np.abs(got[0] - ref[0]).max() < 1e-6
         assert np.allclose(got[1], ref[1]) and np.allclose(got[2], ref[2])
+        for t in (0, 4):  # one frame at a time (streaming): the threads share the frame
+            one = push_out_frames(lib, squeezed[t:t + 1], a[t:t + 1], b[t:t + 1], DEFAULT_BODY.radii, mean, 0.002, 4,
+                                  rounds, 0.005, threads=2)
+            assert np.array_equal(one[0][0], got[0][t]) and one[1][0] == got[1][t] and one[2][0] == got[2][t]

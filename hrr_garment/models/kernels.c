@@ -6,6 +6,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <math.h>
+#include <omp.h>
 
 #define ALWAYS_INLINE static inline __attribute__((always_inline))
 
@@ -200,9 +201,12 @@ static void sdf_chunk(const double *p, const int32_t *idx, int i0, int i1, const
     }
 }
 
+/* sdf_chunk over n entries of the point list idx (NULL: 0 .. n-1), chunks shared among the team
+   of the innermost parallel region (ends with its barrier). */
 static void sdf_points(const double *p, const int32_t *idx, int n, const double *ca, const double *cb,
                        const double *radii, int C, double *dist, double *normal)
 {
+    #pragma omp for schedule(static)
     for (int i0 = 0; i0 < n; i0 += SDF_CHUNK)
         sdf_chunk(p, idx, i0, i0 + SDF_CHUNK < n ? i0 + SDF_CHUNK : n, ca, cb, radii, C, dist, normal);
 }
@@ -225,27 +229,38 @@ void hrr_capsule_sdf(const double *p, int T, int N, const double *a, const doubl
    gets need * normal, spread by `smooth` Jacobi passes of the row-normalised adjacency (CSR
    indptr/indices/weights) that never lower a pushed vertex's push along its normal; then up to
    four exact projections of the vertices still inside. Only moved vertices are measured again.
-   before/after: fractions of vertices deeper than `depth`. */
+   before/after: fractions of vertices deeper than `depth`. Called by every thread of the innermost
+   parallel region, which share the distances and the smoothing passes; buf (12 V doubles), list
+   (V) and flag (3: one per purpose, so that no thread can see a later value) are the team's
+   shared scratch. */
 static void push_frame(double *p, int V, const double *ca, const double *cb, const double *radii, int C,
                        const int32_t *indptr, const int32_t *indices, const double *weights, double margin,
-                       int smooth, int rounds, double depth, double *before, double *after)
+                       int smooth, int rounds, double depth, double *before, double *after, double *buf,
+                       int32_t *list, int *flag)
 {
-    double *d = (double *)malloc(sizeof(double) * (size_t)V * 12);
-    double *nrm = d + V, *need = nrm + 3 * (size_t)V, *disp = need + V, *tmp = disp + 3 * (size_t)V;
-    int32_t *list = (int32_t *)malloc(sizeof(int32_t) * (size_t)V);
+    double *d = buf, *nrm = d + V, *need = nrm + 3 * (size_t)V, *disp = need + V, *tmp = disp + 3 * (size_t)V;
     sdf_points(p, NULL, V, ca, cb, radii, C, d, nrm);
-    int deep = 0;
-    for (int v = 0; v < V; ++v) deep += d[v] < -depth;
-    *before = (double)deep / V;
+    #pragma omp single
+    {
+        int deep = 0;
+        for (int v = 0; v < V; ++v) deep += d[v] < -depth;
+        *before = (double)deep / V;
+    }
     for (int r = 0; r < rounds; ++r) {
-        int any = 0;
+        #pragma omp for schedule(static)
         for (int v = 0; v < V; ++v) {
             need[v] = margin - d[v] > 0.0 ? margin - d[v] : 0.0;
-            any |= need[v] > 0.0;
             for (int k = 0; k < 3; ++k) disp[3 * v + k] = need[v] * nrm[3 * v + k];
         }
-        if (!any) break;
+        #pragma omp single
+        {
+            int any = 0;
+            for (int v = 0; v < V; ++v) any |= need[v] > 0.0;
+            flag[0] = any;
+        }
+        if (!flag[0]) break;  /* read after the single's barrier; rewritten only after later barriers */
         for (int s = 0; s < smooth; ++s) {
+            #pragma omp for schedule(static)
             for (int v = 0; v < V; ++v) {
                 double x = 0.0, y = 0.0, z = 0.0;
                 for (int j = indptr[v]; j < indptr[v + 1]; ++j) {
@@ -260,44 +275,82 @@ static void push_frame(double *p, int V, const double *ca, const double *cb, con
                 }
                 tmp[3 * v] = x; tmp[3 * v + 1] = y; tmp[3 * v + 2] = z;
             }
-            double *swap = disp; disp = tmp; tmp = swap;
+            double *swap = disp; disp = tmp; tmp = swap;  /* each thread swaps its own pointers alike */
         }
-        int m = 0;
-        for (int v = 0; v < V; ++v) {
-            const double *q = disp + 3 * (size_t)v;
-            if (q[0] != 0.0 || q[1] != 0.0 || q[2] != 0.0) {
-                p[3 * v] += q[0]; p[3 * v + 1] += q[1]; p[3 * v + 2] += q[2];
-                list[m++] = v;
+        #pragma omp single
+        {
+            int m = 0;
+            for (int v = 0; v < V; ++v) {
+                const double *q = disp + 3 * (size_t)v;
+                if (q[0] != 0.0 || q[1] != 0.0 || q[2] != 0.0) {
+                    p[3 * v] += q[0]; p[3 * v + 1] += q[1]; p[3 * v + 2] += q[2];
+                    list[m++] = v;
+                }
             }
+            flag[1] = m;
         }
-        sdf_points(p, list, m, ca, cb, radii, C, d, nrm);
+        sdf_points(p, list, flag[1], ca, cb, radii, C, d, nrm);
     }
     for (int it = 0; it < 4; ++it) {
-        int m = 0;
-        for (int v = 0; v < V; ++v)
-            if (d[v] < 0.0) list[m++] = v;
+        #pragma omp single
+        {
+            int m = 0;
+            for (int v = 0; v < V; ++v)
+                if (d[v] < 0.0) list[m++] = v;
+            flag[2] = m;
+        }
+        const int m = flag[2];
         if (m == 0) break;
+        #pragma omp for schedule(static)
         for (int i = 0; i < m; ++i) {
             const int v = list[i];
             for (int k = 0; k < 3; ++k) p[3 * v + k] += (margin - d[v]) * nrm[3 * v + k];
         }
         sdf_points(p, list, m, ca, cb, radii, C, d, nrm);
     }
-    deep = 0;
-    for (int v = 0; v < V; ++v) deep += d[v] < -depth;
-    *after = (double)deep / V;
-    free(list);
-    free(d);  /* heads the block; disp and tmp were swapped within it */
+    #pragma omp single
+    {
+        int deep = 0;
+        for (int v = 0; v < V; ++v) deep += d[v] < -depth;
+        *after = (double)deep / V;
+    }
 }
 
+/* T frames: one frame at a time shared by the team (a stream's single frame), or several frames
+   in parallel, each in its own one-thread team (offline). */
 void hrr_push_out(double *p, int T, int V, const double *a, const double *b, const double *radii, int C,
                   const int32_t *indptr, const int32_t *indices, const double *weights, double margin, int smooth,
                   int rounds, double depth, int threads, double *before, double *after)
 {
-    #pragma omp parallel for num_threads(threads) schedule(dynamic)
-    for (int t = 0; t < T; ++t)
-        push_frame(p + (size_t)t * V * 3, V, a + (size_t)t * 3 * C, b + (size_t)t * 3 * C, radii, C, indptr, indices,
-                   weights, margin, smooth, rounds, depth, before + t, after + t);
+    enum { MAX_TEAMS = 64 };
+    if (threads > MAX_TEAMS) threads = MAX_TEAMS;
+    const int teams = T < threads ? T : threads, shared = T < threads;  /* shared: one team per frame */
+    double *buf = malloc(sizeof(double) * (size_t)V * 12 * (shared ? 1 : teams));
+    int32_t *list = malloc(sizeof(int32_t) * (size_t)V * (shared ? 1 : teams));
+    int flags[3 * MAX_TEAMS];
+    if (!buf || !list) {
+        for (int t = 0; t < T; ++t) before[t] = after[t] = NAN;  /* out of memory: the caller raises */
+        free(buf);
+        free(list);
+        return;
+    }
+    if (shared) {
+        #pragma omp parallel num_threads(threads)
+        for (int t = 0; t < T; ++t)
+            push_frame(p + (size_t)t * V * 3, V, a + (size_t)t * 3 * C, b + (size_t)t * 3 * C, radii, C, indptr, indices,
+                       weights, margin, smooth, rounds, depth, before + t, after + t, buf, list, flags);
+    } else {
+        #pragma omp parallel for num_threads(teams) schedule(dynamic)
+        for (int t = 0; t < T; ++t) {
+            const int me = omp_get_thread_num();
+            #pragma omp parallel num_threads(1)  /* this frame's own one-thread team */
+            push_frame(p + (size_t)t * V * 3, V, a + (size_t)t * 3 * C, b + (size_t)t * 3 * C, radii, C, indptr, indices,
+                       weights, margin, smooth, rounds, depth, before + t, after + t, buf + (size_t)me * V * 12,
+                       list + (size_t)me * V, flags + 3 * me);
+        }
+    }
+    free(buf);
+    free(list);
 }
 
 /* Y (n, out) = X (n, in) W^T + b, with W^T (in, out) packed in panels of PANEL columns: panel k

@@ -234,7 +234,8 @@ def push_out_frames(lib: ctypes.CDLL, points: np.ndarray, a: np.ndarray, b: np.n
                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """:func:`hrr_garment.inference.collision.push_out`'s per-frame steps in the kernel: points
     (T, V, 3), capsule ends a, b (T, C, 3), ``mean`` the (V, V) CSR mean operator -> (pushed
-    points float32, fraction deeper than ``depth`` before (T,), after (T,)). Frames in parallel."""
+    points float32, fraction deeper than ``depth`` before (T,), after (T,)). Frames in parallel;
+    a single frame (streaming) shared by the threads."""
     a, b, r = _capsule_arrays(a, b, radii)
     p = np.array(points, np.float64, order="C")  # a copy: pushed in place
     indptr, indices = (np.ascontiguousarray(x, np.int32) for x in (mean.indptr, mean.indices))
@@ -244,6 +245,8 @@ def push_out_frames(lib: ctypes.CDLL, points: np.ndarray, a: np.ndarray, b: np.n
     lib.hrr_push_out(p.ctypes.data, t, v, a.ctypes.data, b.ctypes.data, r.ctypes.data, len(r), indptr.ctypes.data,
                      indices.ctypes.data, weights.ctypes.data, margin, smooth, rounds, depth, threads, before.ctypes.data,
                      after.ctypes.data)
+    if np.isnan(before).any():
+        raise MemoryError("the native push-out could not allocate its scratch memory")
     return p.astype(np.float32), before, after
 
 
