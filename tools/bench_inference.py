@@ -9,7 +9,9 @@ push-out has more work (a dress whose bodice rests on the body) than random weig
 - offline animation per mode (hybrid at the default tau, regression-only, retrieval-only), frames/s
   from the clip's features to world vertices, without and with the collision push-out;
 - streaming: one ``push`` per frame (features, motion encoder, gate, decoder, push-out), per-frame
-  latency percentiles and the median time of each stage;
+  latency percentiles and the median time of each stage, pushed back to back, and paced like a
+  game loop (``--pace`` frames/s: the thread idles until the next frame's time, so caches cool and
+  idle worker threads must be woken);
 - peak resident memory of the process.
 
     python tools/bench_inference.py                       # 4,000 and 12,000 vertices
@@ -75,9 +77,11 @@ def _median_entropy_tau(bundle: Bundle, motion) -> float:
     return float(np.quantile(entropy, 0.5, method="lower"))
 
 
-def bench(vertices: int, windows: int, seconds: float, model: str | None = None, motion_file: str | None = None) -> dict:
+def bench(vertices: int, windows: int, seconds: float, model: str | None = None, motion_file: str | None = None,
+          pace: float = 30.0) -> dict:
     """``model``: a trained bundle instead of random weights (its own resolution, database and tau);
-    ``motion_file``: a clip instead of the procedural curved walk."""
+    ``motion_file``: a clip instead of the procedural curved walk; ``pace``: frames/s of the paced
+    stream run (0: none)."""
     animator = Animator.load(model) if model else Animator(random_bundle(vertices, windows))
     bundle = animator.bundle
     motion = load_motion(motion_file) if motion_file else synthesize("walk_curve", seconds, seed=0)
@@ -87,15 +91,18 @@ def bench(vertices: int, windows: int, seconds: float, model: str | None = None,
     for mode in ("hybrid", "regression", "retrieval"):
         out[f"fps_{mode}"] = round(_fps(animator, motion, mode=mode, tau=tau, collision=False), 1)
     out["fps_hybrid_with_collision"] = round(_fps(animator, motion, mode="hybrid", tau=tau, collision=True), 1)
-    for collision in (True, False):
+    runs = [("stream", True, 0.0), ("stream_no_collision", False, 0.0)] + ([("stream_paced", True, pace)] if pace else [])
+    for key, collision, fps in runs:
         stream = animator.stream(tau=tau, collision=collision)
+        start = time.perf_counter()
         for t in range(motion.num_frames):
+            if fps:  # a game loop: the next pose arrives at the next frame time, the thread idles until then
+                time.sleep(max(0.0, start + t / fps - time.perf_counter()))
             stream.push(motion.slice(t, t + 1))
         lat = 1000 * np.array(stream.latency_s)[20:]  # after warm-up
-        key = "stream" if collision else "stream_no_collision"
         out[f"{key}_p50_ms"] = round(float(np.percentile(lat, 50)), 2)
         out[f"{key}_p99_ms"] = round(float(np.percentile(lat, 99)), 2)
-        if collision:  # where a streamed frame's time goes
+        if key == "stream":  # where a streamed frame's time goes
             out["stream_stage_p50_ms"] = {k: round(1000 * float(np.median(np.array(v)[20:])), 2) for k, v in stream.stage_s.items()}
     out["peak_rss_mb"] = round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 1)
     out["native_decoder"] = animator.decoder.native
@@ -109,10 +116,12 @@ def main() -> None:
     parser.add_argument("--seconds", type=float, default=20.0, help="clip length")
     parser.add_argument("--model", default=None, help="a trained model (directory or garment name) instead of random weights")
     parser.add_argument("--motion", default=None, help="a motion file (BVH / npz) instead of the procedural clip")
+    parser.add_argument("--pace", type=float, default=30.0,
+                        help="also stream paced at this many frames/s, idle between pushes as in a game (0: skip)")
     parser.add_argument("--json", action="store_true", help="one JSON object per resolution, nothing else")
     args = parser.parse_args()
     for v in ([None] if args.model else args.vertices):
-        r = bench(v, args.database, args.seconds, args.model, args.motion)
+        r = bench(v, args.database, args.seconds, args.model, args.motion, args.pace)
         if args.json:
             print(json.dumps(r))
         else:
@@ -121,7 +130,9 @@ def main() -> None:
                   f"{r['threads']} threads: offline frames/s hybrid {r['fps_hybrid']}, regression {r['fps_regression']}, "
                   f"retrieval {r['fps_retrieval']} (hybrid with push-out {r['fps_hybrid_with_collision']}); streaming "
                   f"p50 {r['stream_p50_ms']} ms, p99 {r['stream_p99_ms']} ms (without push-out p50 "
-                  f"{r['stream_no_collision_p50_ms']}, p99 {r['stream_no_collision_p99_ms']}); peak RSS {r['peak_rss_mb']} MB")
+                  f"{r['stream_no_collision_p50_ms']}, p99 {r['stream_no_collision_p99_ms']})"
+                  + (f"; paced at {args.pace:g} frames/s p50 {r['stream_paced_p50_ms']} ms, p99 {r['stream_paced_p99_ms']} ms"
+                     if args.pace else "") + f"; peak RSS {r['peak_rss_mb']} MB")
             print("  streamed frame, median ms per stage: " + ", ".join(f"{k} {v}" for k, v in r["stream_stage_p50_ms"].items()))
 
 

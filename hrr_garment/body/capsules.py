@@ -113,11 +113,11 @@ def frames_signed_distance(points: np.ndarray, a: np.ndarray, b: np.ndarray, rad
     """:func:`capsule_signed_distance` frame by frame: points (T, N, 3) against each frame's capsule
     ends a, b (T, C, 3) -> distances (T, N) and normals (T, N, 3). Runs in the native kernel of
     :mod:`hrr_garment.models.native` when it is compiled (equal to 1e-12, tested)."""
-    from ..models.native import capsule_sdf, load_kernel
+    from ..models.native import capsule_sdf, default_threads, load_kernel
 
     lib = load_kernel()
     if lib is not None:
-        return capsule_sdf(lib, points, a, b, radii, threads=2)
+        return capsule_sdf(lib, points, a, b, radii, threads=default_threads())
     out = [capsule_signed_distance(np.asarray(points[t], np.float64), a[t], b[t], radii)[:2] for t in range(len(points))]
     return np.stack([o[0] for o in out]), np.stack([o[1] for o in out])
 

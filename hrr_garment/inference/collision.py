@@ -48,14 +48,14 @@ def push_out(vertices: np.ndarray, motion: Motion, faces: np.ndarray, body: Body
     mean = mean_operator(faces, vertices.shape[1]) if mean is None else mean
     out = np.empty(vertices.shape, np.float32)
     before, after = np.zeros(len(out)), np.zeros(len(out))
-    from ..models.native import load_kernel, push_out_frames
+    from ..models.native import default_threads, load_kernel, push_out_frames
 
     lib = load_kernel()
     for start in range(0, len(out), chunk):
         sl = slice(start, start + chunk)
         if lib is not None:  # the same steps in C, frames in parallel: numpy's per-step overheads dominated
             out[sl], before[sl], after[sl] = push_out_frames(lib, vertices[sl], a[sl], b[sl], body.radii, mean, margin, smooth,
-                                                             rounds, depth, threads=2)
+                                                             rounds, depth, threads=default_threads())
         else:
             out[sl], before[sl], after[sl] = _push_frames(vertices[sl].astype(np.float64), a[sl], b[sl], body.radii, mean,
                                                           margin, smooth, rounds, depth)

@@ -125,6 +125,14 @@ def load_kernel(cache_dir: str | Path | None = None) -> ctypes.CDLL | None:
         return _loaded[str(target)]
 
 
+def default_threads() -> int:
+    """Threads the kernels use unless told: PyTorch's setting (``torch.set_num_threads``), one
+    knob for the whole library."""
+    import torch
+
+    return torch.get_num_threads()
+
+
 def _ptr(a: np.ndarray | None, kind=ctypes.c_float):
     return None if a is None else a.ctypes.data_as(ctypes.POINTER(kind))
 
