@@ -184,6 +184,7 @@ class FastDecoder(nn.Module):
             self.kernels = [b.conv.effective_kernel().detach().contiguous() for b in self.blocks]
             self.weights = [b.residual.weights().detach() if b.residual.neighbours else None for b in self.blocks]
         self.template, self.scale = model.template, model.scale
+        self._template_np = model.template.detach().numpy().astype(np.float32)  # the single-frame path's
         self.lib = native_kernel.load_kernel(cache_dir) if native is not False else None
         if native and self.lib is None:
             raise RuntimeError("the native decoder kernel could not be compiled (is a C compiler installed?)")
@@ -214,13 +215,15 @@ class FastDecoder(nn.Module):
         """(B, N, 8) latents -> (B, V, 3) heading-frame vertices."""
         if not self.native_blocks:
             return self._torch_forward(latents)
-        x = np.ascontiguousarray(latents.detach().to(torch.float32).transpose(0, 1).numpy())
         threads = torch.get_num_threads()
         if len(latents) == 1:  # one frame (streaming): the factored form reads far less memory
-            x = x[:, 0]
+            x = np.ascontiguousarray(latents.detach()[0].to(torch.float32).numpy())
             for block in self.native_blocks:
-                x = block.one(self.lib, np.ascontiguousarray(x), threads)
-            return torch.from_numpy(x).unsqueeze(0) * self.scale + self.template
+                x = block.one(self.lib, x, threads)
+            # numpy, not torch, for the last step: PyTorch's per-operator overhead is a tenth of a
+            # millisecond here
+            return torch.from_numpy((x * np.float32(self.scale) + self._template_np)[None])
+        x = np.ascontiguousarray(latents.detach().to(torch.float32).transpose(0, 1).numpy())
         for block in self.native_blocks:
             x = block(self.lib, x, threads)
         return torch.from_numpy(x).transpose(0, 1) * self.scale + self.template
