@@ -126,8 +126,10 @@ class WindowCodes(torch.nn.Module):
 
 
 def traced_window_codes(codespace, window: int, features: int, regression: bool = True) -> torch.nn.Module:
-    """:class:`WindowCodes` for one causal window at a time (streaming), traced and frozen by
-    TorchScript: the same operations without Python's per-module overhead (about 1 ms of a push).
+    """:class:`WindowCodes` for one causal window at a time (streaming without a C compiler; the
+    native window step of :mod:`hrr_garment.models.native_codes` is used where compiled), traced
+    and frozen by TorchScript: the same operations without Python's per-module overhead (about 1
+    ms of a push).
     Falls back to the eager module where tracing fails."""
     step = WindowCodes(codespace.eval(), regression, last_frame=True).eval()
     try:

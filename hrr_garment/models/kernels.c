@@ -1,6 +1,6 @@
 /* hrr_garment's native kernels, compiled on first use by hrr_garment/models/native.py (see its
-   docstring): the mesh decoder's blocks, the single-frame decoder, the capsule-body distance and
-   the collision push-out. */
+   docstring): the mesh decoder's blocks, the capsule-body distance, the collision push-out, the
+   register-tiled dense product (shared with window_codes.c) and the single-frame decoder. */
 
 #include <stdint.h>
 #include <stdlib.h>
