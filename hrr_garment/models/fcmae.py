@@ -185,6 +185,7 @@ class FastDecoder(nn.Module):
             self.weights = [b.residual.weights().detach() if b.residual.neighbours else None for b in self.blocks]
         self.template, self.scale = model.template, model.scale
         self._template_np = model.template.detach().numpy().astype(np.float32)  # the single-frame path's
+        self._scratch: np.ndarray | None = None
         self.lib = native_kernel.load_kernel(cache_dir) if native is not False else None
         if native and self.lib is None:
             raise RuntimeError("the native decoder kernel could not be compiled (is a C compiler installed?)")
@@ -218,8 +219,11 @@ class FastDecoder(nn.Module):
         threads = torch.get_num_threads()
         if len(latents) == 1:  # one frame (streaming): the factored form reads far less memory
             x = np.ascontiguousarray(latents.detach()[0].to(torch.float32).numpy())
+            if self._scratch is None:  # the largest transform product of any block, shared
+                sizes = [len(x)] + [b.vertices for b in self.native_blocks[:-1]]
+                self._scratch = np.empty(max(n * b.factored[0] for n, b in zip(sizes, self.native_blocks)), np.float32)
             for block in self.native_blocks:
-                x = block.one(self.lib, x, threads)
+                x = block.one(self.lib, x, threads, self._scratch)
             # numpy, not torch, for the last step: PyTorch's per-operator overhead is a tenth of a
             # millisecond here
             return torch.from_numpy((x * np.float32(self.scale) + self._template_np)[None])

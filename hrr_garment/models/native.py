@@ -191,19 +191,22 @@ class NativeBlock:
                      bias.ctypes.data, ctypes.c_float(self.a), ctypes.c_float(self.b), int(self.elu))
         self.factored = ((m + 1) * width, constants, (transform, zeros, coeff, bias))
 
-    def one(self, lib: ctypes.CDLL, x: np.ndarray, threads: int) -> np.ndarray:
+    def one(self, lib: ctypes.CDLL, x: np.ndarray, threads: int, scratch: np.ndarray | None = None) -> np.ndarray:
         """One frame: x (V_in, C_in) float32 C-contiguous -> (V, C_out), the same function as
-        ``__call__``, in one kernel call (the transform, then the apply). The result lives in a
-        buffer of the block that the next call overwrites (fresh buffers of up to a few MB per
-        frame cost more in page faults than the arithmetic): one call at a time per decoder, and
-        copy what you keep."""
+        ``__call__``, in one kernel call (the transform, then the apply). ``scratch``: float32
+        room for the transform's V_in x (M + 1) x width product, which a decoder shares among its
+        blocks (one buffer stays in cache better than one per block). The result lives in a buffer
+        of the block that the next call overwrites (fresh buffers of up to a few MB per frame cost
+        more in page faults than the arithmetic): one call at a time per decoder, and copy what you
+        keep."""
         row, constants, _ = self.factored  # the last item keeps the arrays behind the pointers alive
-        if getattr(self, "_buffers", None) is None or self._buffers[0].shape[0] != len(x):
-            self._buffers = (np.empty((len(x), row), np.float32), np.empty((self.vertices, self.cout), np.float32))
-        y, out = self._buffers
-        lib.hrr_factor_block(x.ctypes.data, len(x), self.cin, constants[0], constants[1], y.ctypes.data, *constants[2:],
-                             threads, out.ctypes.data)
-        return out
+        if scratch is None or scratch.size < len(x) * row:
+            scratch = np.empty(len(x) * row, np.float32)
+        if getattr(self, "_out", None) is None:
+            self._out = np.empty((self.vertices, self.cout), np.float32)
+        lib.hrr_factor_block(x.ctypes.data, len(x), self.cin, constants[0], constants[1], scratch.ctypes.data,
+                             *constants[2:], threads, self._out.ctypes.data)
+        return self._out
 
     def __call__(self, lib: ctypes.CDLL, x: np.ndarray, threads: int) -> np.ndarray:
         """x (V_in, B, C_in) float32 C-contiguous -> (V, B, C_out)."""
