@@ -30,7 +30,8 @@ def pack_linear(weight: np.ndarray, bias: np.ndarray) -> tuple[np.ndarray, np.nd
 class NativeWindowCodes:
     """Standardised windows (B, W, F) -> (entropy (B,), argmax classes (B, G) int64, regressed
     standardised latents (B, W or 1, nodes, C), or an empty tensor without ``regression``).
-    ``lib``: the loaded kernel library (:func:`.native.load_kernel`)."""
+    ``lib``: the loaded kernel library (:func:`.native.load_kernel`). The weights are copied into
+    the kernel's layout when it is made: make a new one after changing the networks."""
 
     def __init__(self, codespace, lib: ctypes.CDLL, regression: bool = True, last_frame: bool = False):
         enc, q, cfg = codespace.motion_encoder, codespace.quantizer, codespace.config
@@ -76,8 +77,8 @@ class NativeWindowCodes:
         entropy, argmax = np.empty(b, np.float32), np.empty((b, self.groups), np.int64)
         latents = np.empty((b, self.rows), np.float32) if self.regression else None
         failed = self.lib.hrr_window_codes(x.ctypes.data, b, self._dims.ctypes.data, ctypes.addressof(self._pointers),
-                                  torch.get_num_threads(), entropy.ctypes.data, argmax.ctypes.data,
-                                  None if latents is None else latents.ctypes.data)
+                                           torch.get_num_threads(), entropy.ctypes.data, argmax.ctypes.data,
+                                           None if latents is None else latents.ctypes.data)
         if failed:
             raise MemoryError("the native window step could not allocate its scratch memory")
         reg = torch.empty(0) if latents is None else torch.from_numpy(latents.reshape(b, -1, *self.latent_shape))
