@@ -323,7 +323,9 @@ void hrr_push_out(double *p, int T, int V, const double *a, const double *b, con
                   int rounds, double depth, int threads, double *before, double *after)
 {
     enum { MAX_TEAMS = 64 };
+    if (T <= 0) return;
     if (threads > MAX_TEAMS) threads = MAX_TEAMS;
+    if (threads < 1) threads = 1;
     const int teams = T < threads ? T : threads, shared = T < threads;  /* shared: one team per frame */
     double *buf = malloc(sizeof(double) * (size_t)V * 12 * (shared ? 1 : teams));
     int32_t *list = malloc(sizeof(int32_t) * (size_t)V * (shared ? 1 : teams));

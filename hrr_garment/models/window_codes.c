@@ -210,6 +210,7 @@ int hrr_window_codes(const float *x, int B, const int32_t *dims, const float *co
     const int F = dims[0], W = dims[1], G = dims[4], L = dims[7];
     const long out = dims[8 + L], work = hrr_window_codes_work(dims);
     int failed = 0;
+    if (B <= 0) return 0;
     if (B == 1) {
         float *scratch = malloc(sizeof(float) * (size_t)work);
         if (!scratch) return -1;
