@@ -247,3 +247,28 @@ def test_native_push_out_equals_numpy(rng):
             one = push_out_frames(lib, squeezed[t:t + 1], a[t:t + 1], b[t:t + 1], DEFAULT_BODY.radii, mean, 0.002, 4,
                                   rounds, 0.005, threads=2)
             assert np.array_equal(one[0][0], got[0][t]) and one[1][0] == got[1][t] and one[2][0] == got[2][t]
+
+
+def test_bench_inference_reports_every_key(capsys):
+    """The benchmark's JSON keeps the keys the issue names (speeds are measured there, not here)."""
+    import importlib.util
+    import json
+    import sys
+    from pathlib import Path
+
+    path = Path(__file__).parents[1] / "tools" / "bench_inference.py"
+    spec = importlib.util.spec_from_file_location("bench_inference", path)
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+    argv = sys.argv
+    sys.argv = [str(path), "--vertices", "300", "--database", "300", "--seconds", "1.5", "--pace", "60", "--json"]
+    try:
+        bench.main()
+    finally:
+        sys.argv = argv
+    report = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    for key in ("vertices", "fps_hybrid", "fps_regression", "fps_retrieval", "stream_p50_ms", "stream_p99_ms",
+                "stream_paced_p50_ms", "stream_paced_p99_ms", "peak_rss_mb"):
+        assert report[key] > 0, key
+    assert report["stream_p50_ms"] <= report["stream_p99_ms"]
+    assert set(report["stream_stage_p50_ms"]) == {"features", "encoder", "decoder", "world", "push_out"}
