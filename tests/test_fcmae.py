@@ -145,14 +145,10 @@ def test_latent_interpolation_has_no_spikes(overfit, skirt):
     assert edge_strain(mids, skirt.vertices, edges).max() <= bound
 
 
-def test_training_resumes_and_encodes_every_sequence(tmp_path, skirt):
+def test_training_resumes_and_encodes_every_sequence(tmp_path, skirt, monkeypatch):
     from hrr_garment.data.dataset import SequenceRecord, write_dataset
     from hrr_garment.motion.synth import synthesize
-    from hrr_garment.train.autoencoder import (
-        TrainConfig,
-        load_autoencoder,
-        train_autoencoder,
-    )
+    from hrr_garment.train import autoencoder as ae
 
     frames = _two_frames(skirt).numpy()
     records = []
@@ -166,15 +162,57 @@ def test_training_resumes_and_encodes_every_sequence(tmp_path, skirt):
         world = np.einsum("tij,tnj->tni", rotation_about_y(yaw), local) + (motion.root_translation * [1, 0, 1])[:, None]
         records.append(SequenceRecord(f"{kind}_000", world.astype(np.float32), motion))
     data = write_dataset(tmp_path / "d.h5", skirt, records, {"train": ["walk_000"], "val": ["spin_000"], "test": ["idle_000"]})
-    cfg = TrainConfig(epochs=2, batch_size=8, patience=10)
-    first = train_autoencoder(data, tmp_path / "ae", train_config=cfg, progress=False)
-    assert first.epochs == 2
-    again = train_autoencoder(data, tmp_path / "ae", train_config=TrainConfig(epochs=3, batch_size=8, patience=10), progress=False)
-    assert again.epochs == 3  # resumed from the checkpoint, one more epoch
+    cfg = ae.TrainConfig(epochs=3, batch_size=8, patience=10)
+
+    # kill the first run after its second checkpoint
+    saves = []
+    save = ae.save_checkpoint
+
+    def save_then_die(*args, **kwargs):
+        save(*args, **kwargs)
+        saves.append(1)
+        if len(saves) == 2:
+            raise KeyboardInterrupt
+
+    monkeypatch.setattr(ae, "save_checkpoint", save_then_die)
+    with pytest.raises(KeyboardInterrupt):
+        ae.train_autoencoder(data, tmp_path / "ae", train_config=cfg, progress=False)
+    assert not (tmp_path / "ae" / "model.pt").exists()  # nothing final written by the killed run
+
+    trained = []
+    step = torch.optim.Adam.step
+
+    def counting_step(self, *args, **kwargs):
+        trained.append(1)
+        return step(self, *args, **kwargs)
+
+    monkeypatch.setattr(ae, "save_checkpoint", save)
+    monkeypatch.setattr(torch.optim.Adam, "step", counting_step)
+    again = ae.train_autoencoder(data, tmp_path / "ae", train_config=cfg, progress=False)
+    assert again.epochs == 3
+    assert len(trained) == 3  # one epoch left after the checkpoint at epoch 2: 12 frames + mirrored, 3 batches of 8
     with np.load(tmp_path / "ae" / "latents.npz") as z:
         assert sorted(z.files) == ["idle_000", "spin_000", "walk_000"]
         assert z["walk_000"].shape == (12, *again.latent_shape)
-    model = load_autoencoder(tmp_path / "ae", skirt.faces)
+    trained.clear()
+    assert ae.train_autoencoder(data, tmp_path / "ae", train_config=cfg, progress=False).extra.get("reused")
+    assert not trained  # finished with these settings: nothing is redone
+    model = ae.load_autoencoder(tmp_path / "ae", skirt.faces)
     x = torch.as_tensor(frames[:1])
     with torch.no_grad():
         assert model(x).shape == x.shape
+
+
+def test_learning_rate_anneals_over_the_run_by_epochs_or_budget():
+    from hrr_garment.train.autoencoder import TrainConfig, run_progress, set_learning_rate
+
+    cfg = TrainConfig(learning_rate=0.01, lr_final=0.02)
+    opt = torch.optim.Adam([torch.nn.Parameter(torch.zeros(1))], lr=1.0)
+    rates = [set_learning_rate(opt, cfg, p) for p in np.linspace(0, 1, 11)]
+    assert rates[0] == pytest.approx(0.01) and rates[-1] == pytest.approx(0.0002)
+    assert rates[5] == pytest.approx(0.5 * (0.01 + 0.0002))  # cosine: halfway at half the run
+    assert np.all(np.diff(rates) < 0) and opt.param_groups[0]["lr"] == rates[-1]
+    assert run_progress(10, 100, 0.0, None) == pytest.approx(0.1)
+    assert run_progress(10, 100, 150.0, 5.0) == pytest.approx(0.5)  # half the budget gone: that wins
+    assert run_progress(90, 100, 150.0, 5.0) == pytest.approx(0.9)
+    assert run_progress(0, 100, 1e6, 5.0) == 1.0  # an overrun budget stays at the end

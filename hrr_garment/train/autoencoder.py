@@ -3,9 +3,9 @@
 Vertices are expressed in the body's heading frame (origin under the pelvis, Z along its
 heading), where a garment's shape depends on the pose but not on where the body is or which way it
 faces. Loss: L1 on vertex positions plus ``laplacian`` x L1 on uniform Laplacian coordinates
-(keeps the surface smooth between vertices). Adam with an exponentially decaying learning rate,
-early stopping on the validation split's per-vertex error, a checkpoint after every epoch (a
-re-run resumes from it), seeded.
+(keeps the surface smooth between vertices). Adam with a cosine learning-rate schedule over the
+run (:func:`set_learning_rate`), early stopping on the validation split's per-vertex error, a
+checkpoint after every epoch (a re-run resumes from it), seeded.
 
 Outputs in the model folder (``autoencoder/``): ``config.json``, ``model.pt`` (the best weights,
 a plain state dict), ``checkpoint.pt`` (for resuming), ``latents.npz`` (per sequence (T, N, 8)),
@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -39,7 +40,7 @@ class TrainConfig:
     epochs: int = 300
     batch_size: int = 32
     learning_rate: float = 8e-3
-    lr_decay: float = 0.94  # per epoch
+    lr_final: float = 0.01  # the cosine schedule's last learning rate, as a fraction of the first
     laplacian: float = 0.2
     patience: int = 30  # epochs without a better validation error before stopping
     max_minutes: float | None = None  # wall-clock budget for this run
@@ -104,6 +105,24 @@ def pve_mm(model: MeshAutoencoder, frames: np.ndarray, batch: int = 64) -> float
     return 1000.0 * total / len(frames)
 
 
+def run_progress(epoch: float, epochs: int, elapsed_s: float, max_minutes: float | None) -> float:
+    """How far the run is, 0 to 1: by epochs, or by the wall-clock budget when that ends first."""
+    by_time = 0.0 if max_minutes is None else elapsed_s / (60.0 * max_minutes)
+    return min(1.0, max(epoch / max(epochs, 1), by_time))
+
+
+def set_learning_rate(optimizer: torch.optim.Optimizer, config: TrainConfig, progress: float) -> float:
+    """Cosine from ``learning_rate`` down to ``lr_final`` x it at the end of the run. Tied to the
+    run's progress rather than to epochs, so a budgeted run (the quick preset) still ends with a
+    small learning rate: with a per-epoch decay it stopped while the rate was high and the
+    weights still noisy, and a long run froze long before its end."""
+    lo = config.learning_rate * config.lr_final
+    lr = lo + 0.5 * (config.learning_rate - lo) * (1.0 + math.cos(math.pi * progress))  # a float: the checkpoint holds it
+    for group in optimizer.param_groups:
+        group["lr"] = lr
+    return lr
+
+
 def _key(*parts) -> str:
     return hashlib.sha1(json.dumps(parts, sort_keys=True, default=str).encode()).hexdigest()[:16]
 
@@ -132,7 +151,6 @@ def train_autoencoder(dataset: str | Path, folder: str | Path, model_config: Aut
                                  stride=model_config.stride, radius=model_config.radius, name=str(dataset))
     model = MeshAutoencoder(hierarchy, model_config, template, scale)
     optimizer = torch.optim.Adam(model.parameters(), lr=train_config.learning_rate)
-    scheduler = torch.optim.lr_scheduler.ExponentialLR(optimizer, train_config.lr_decay)
     key = _key(model_config.to_dict(), asdict(train_config) | {"max_minutes": None, "threads": None},
                ds.garment, ds.template.num_vertices, splits, {"frame": FRAME_VERSION})
     checkpoint = folder / "checkpoint.pt"
@@ -145,8 +163,7 @@ def train_autoencoder(dataset: str | Path, folder: str | Path, model_config: Aut
                                         "sizes": tuple(done["sizes"]), "extra": {**done.get("extra", {}), "reused": True}})
     state = {"epoch": 0, "best": float("inf"), "best_epoch": 0, "stale": 0, "elapsed_s": 0.0}
     best_weights = {k: v.clone() for k, v in model.state_dict().items()}
-    state, best_weights = load_checkpoint(checkpoint, key, state, best_weights, model=model, optimizer=optimizer,
-                                          scheduler=scheduler)
+    state, best_weights = load_checkpoint(checkpoint, key, state, best_weights, model=model, optimizer=optimizer)
     conv0 = model.encoder[0].conv
     lap = laplacian_operator(conv0.index, conv0.mask)
     rng = np.random.default_rng(train_config.seed + state["epoch"])
@@ -161,6 +178,9 @@ def train_autoencoder(dataset: str | Path, folder: str | Path, model_config: Aut
         order = rng.permutation(len(train))
         losses = []
         for i in range(0, len(order), train_config.batch_size):
+            set_learning_rate(optimizer, train_config, run_progress(state["epoch"] + i / len(order), train_config.epochs,
+                                                                    spent + time.perf_counter() - started,
+                                                                    train_config.max_minutes))
             x = torch.from_numpy(train[order[i:i + train_config.batch_size]])
             y = model(x)
             loss = (y - x).abs().mean() + train_config.laplacian * (apply_laplacian(lap, y - x)).abs().mean()
@@ -168,13 +188,12 @@ def train_autoencoder(dataset: str | Path, folder: str | Path, model_config: Aut
             loss.backward()
             optimizer.step()
             losses.append(loss.item())
-        scheduler.step()
         model.eval()
         val_err = pve_mm(model, val if len(val) else train[:256])
         state["epoch"] += 1
         state["elapsed_s"] = spent + time.perf_counter() - started
         best_weights = keep_if_best(state, val_err, model, best_weights)
-        save_checkpoint(checkpoint, key, state, best_weights, model=model, optimizer=optimizer, scheduler=scheduler)
+        save_checkpoint(checkpoint, key, state, best_weights, model=model, optimizer=optimizer)
         bar.set_postfix(loss=f"{np.mean(losses) * 1000:.2f}mm", val=f"{val_err:.2f}mm", best=f"{state['best']:.2f}mm")
         bar.update(1)
     bar.close()
