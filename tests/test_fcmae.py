@@ -204,7 +204,7 @@ def test_training_resumes_and_encodes_every_sequence(tmp_path, skirt, monkeypatc
 
 
 def test_learning_rate_anneals_over_the_run_by_epochs_or_budget():
-    from hrr_garment.train.autoencoder import TrainConfig, run_progress, set_learning_rate
+    from hrr_garment.train.autoencoder import TrainConfig, early_stop, run_progress, set_learning_rate
 
     cfg = TrainConfig(learning_rate=0.01, lr_final=0.02)
     opt = torch.optim.Adam([torch.nn.Parameter(torch.zeros(1))], lr=1.0)
@@ -216,3 +216,18 @@ def test_learning_rate_anneals_over_the_run_by_epochs_or_budget():
     assert run_progress(10, 100, 150.0, 5.0) == pytest.approx(0.5)  # half the budget gone: that wins
     assert run_progress(90, 100, 150.0, 5.0) == pytest.approx(0.9)
     assert run_progress(0, 100, 1e6, 5.0) == 1.0  # an overrun budget stays at the end
+    assert not early_stop(30, 30, 0.5)  # stalled while the rate is high: keep going
+    assert early_stop(30, 30, 0.85) and not early_stop(29, 30, 0.85)
+
+
+def test_training_device_is_checked_before_anything_is_written(tmp_path):
+    from hrr_garment.errors import InputError
+    from hrr_garment.train.autoencoder import TrainConfig, train_autoencoder, training_device
+
+    assert training_device("cpu") == torch.device("cpu")
+    with pytest.raises(InputError, match="not a torch device"):
+        training_device("gpu0")
+    if not torch.cuda.is_available():
+        with pytest.raises(InputError, match="no CUDA device"):
+            train_autoencoder(tmp_path / "missing.h5", tmp_path / "ae", train_config=TrainConfig(device="cuda"))
+        assert not (tmp_path / "ae").exists()

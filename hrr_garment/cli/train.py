@@ -45,6 +45,8 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--config", type=Path, default=None, help="YAML overriding configs/train.yaml (same sections)")
     p.add_argument("--minutes", type=float, default=None, help="wall-clock budget for the autoencoder stage")
     p.add_argument("--threads", type=int, default=None, help="torch CPU threads (default: torch's choice)")
+    p.add_argument("--device", default=None,
+                   help="torch device for the autoencoder stage, e.g. cuda (default cpu; other stages run on the CPU)")
     p.add_argument("-o", "--output", type=Path, default=None, help="model folder (default hrr_work/models/GARMENT-PRESET)")
     p.add_argument("--quiet", action="store_true")
     return p
@@ -114,7 +116,7 @@ def _main(argv: Sequence[str] | None) -> int:
     source = args.config or CONFIG_DIR / "train.yaml"
     ae_model = _build(AutoencoderConfig, cfg["autoencoder"].get("model"), source)
     ae_train_values = dict(cfg["autoencoder"].get("train") or {})
-    for key, value in (("max_minutes", args.minutes), ("threads", args.threads)):
+    for key, value in (("max_minutes", args.minutes), ("threads", args.threads), ("device", args.device)):
         if value is not None:
             ae_train_values[key] = value
     ae_train = _build(TrainConfig, ae_train_values, source)
