@@ -195,20 +195,20 @@ def train_autoencoder(dataset: str | Path, folder: str | Path, model_config: Aut
     # the wall-clock budget counts the time of earlier (interrupted) runs too
     started, spent = time.perf_counter(), state["elapsed_s"]
     deadline = None if train_config.max_minutes is None else started + 60 * train_config.max_minutes - spent
+
+    def progress(epoch: float) -> float:
+        return run_progress(epoch, train_config.epochs, spent + time.perf_counter() - started, train_config.max_minutes)
+
     while state["epoch"] < train_config.epochs:
         if deadline is not None and time.perf_counter() > deadline:
             break
-        if early_stop(state["stale"], train_config.patience,
-                      run_progress(state["epoch"], train_config.epochs, spent + time.perf_counter() - started,
-                                   train_config.max_minutes)):
+        if early_stop(state["stale"], train_config.patience, progress(state["epoch"])):
             break
         model.train()
         order = rng.permutation(len(train))
         losses = []
         for i in range(0, len(order), train_config.batch_size):
-            set_learning_rate(optimizer, train_config, run_progress(state["epoch"] + i / len(order), train_config.epochs,
-                                                                    spent + time.perf_counter() - started,
-                                                                    train_config.max_minutes))
+            set_learning_rate(optimizer, train_config, progress(state["epoch"] + i / len(order)))
             x = torch.from_numpy(train[order[i:i + train_config.batch_size]]).to(device)
             y = model(x)
             loss = (y - x).abs().mean() + train_config.laplacian * (apply_laplacian(lap, y - x)).abs().mean()
