@@ -145,6 +145,23 @@ def test_latent_interpolation_has_no_spikes(overfit, skirt):
     assert edge_strain(mids, skirt.vertices, edges).max() <= bound
 
 
+def test_fitted_latents_beat_the_encoder_and_ignore_batching(overfit, skirt):
+    model, x = overfit
+    rest = torch.as_tensor(skirt.vertices, dtype=torch.float32)
+    unseen = torch.cat([rest + 0.5 * (x - rest), rest + 1.3 * (x[:1] - rest)])  # swings it was not trained on
+    weights = {k: v.clone() for k, v in model.state_dict().items()}
+    fitted = model.fit_latents(unseen, steps=10)
+    with torch.no_grad():
+        encoded = model.encode(unseen)
+        err_encoded = (model.decode(encoded) - unseen).norm(dim=-1).mean(1)
+        err_fitted = (model.decode(fitted) - unseen).norm(dim=-1).mean(1)
+    assert err_fitted.mean() < 0.8 * err_encoded.mean(), (err_fitted, err_encoded)
+    assert all(torch.equal(v, model.state_dict()[k]) for k, v in weights.items())  # the weights stay fixed
+    assert torch.equal(model.fit_latents(unseen, steps=0), encoded)
+    one_by_one = torch.cat([model.fit_latents(unseen[i:i + 1], steps=10) for i in range(len(unseen))])
+    assert torch.allclose(one_by_one, fitted, atol=1e-3)  # a frame's latent does not depend on its batch (up to rounding)
+
+
 def test_training_resumes_and_encodes_every_sequence(tmp_path, skirt, monkeypatch):
     from hrr_garment.data.dataset import SequenceRecord, write_dataset
     from hrr_garment.motion.synth import synthesize
@@ -162,7 +179,7 @@ def test_training_resumes_and_encodes_every_sequence(tmp_path, skirt, monkeypatc
         world = np.einsum("tij,tnj->tni", rotation_about_y(yaw), local) + (motion.root_translation * [1, 0, 1])[:, None]
         records.append(SequenceRecord(f"{kind}_000", world.astype(np.float32), motion))
     data = write_dataset(tmp_path / "d.h5", skirt, records, {"train": ["walk_000"], "val": ["spin_000"], "test": ["idle_000"]})
-    cfg = ae.TrainConfig(epochs=3, batch_size=8, patience=10)
+    cfg = ae.TrainConfig(epochs=3, batch_size=8, patience=10, refine_steps=0)  # counts the training's Adam steps only
 
     # kill the first run after its second checkpoint
     saves = []

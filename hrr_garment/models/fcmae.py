@@ -164,6 +164,31 @@ class MeshAutoencoder(nn.Module):
     def forward(self, vertices: torch.Tensor) -> torch.Tensor:
         return self.decode(self.encode(vertices))
 
+    def fit_latents(self, vertices: torch.Tensor, steps: int = 10, lr: float = 0.03, batch: int = 32) -> torch.Tensor:
+        """(B, V, 3) -> (B, N, 8): the encoder's latents refined by ``steps`` Adam steps on each
+        frame's L1 reconstruction error through the decoder (the weights stay fixed).
+
+        Only the decoder runs at inference; the encoder just turns the dataset into latents for
+        the code space, and on frames it has not seen it lands short of the latent the decoder
+        needs (quick dress: 10 steps take held-out errors from 6.7 / 6.2 to 6.2 / 5.6 mm,
+        docs/autoencoder.md). Each frame's loss is its own mean, summed over the batch, so a
+        frame gets the same latent whatever batch it is in."""
+        out = []
+        for i in range(0, len(vertices), batch):
+            x = vertices[i:i + batch]
+            with torch.no_grad():
+                z = self.encode(x)
+            if steps > 0:
+                z.requires_grad_(True)
+                optimizer = torch.optim.Adam([z], lr=lr)
+                with torch.enable_grad():
+                    for _ in range(steps):
+                        loss = (self.decode(z) - x).abs().mean((1, 2)).sum()
+                        z.grad, = torch.autograd.grad(loss, z)  # latents only: no weight gradients
+                        optimizer.step()
+            out.append(z.detach())
+        return torch.cat(out) if out else torch.zeros(0, *self.latent_shape)
+
     def fast_decoder(self, native: bool | None = None) -> "FastDecoder":
         return FastDecoder(self, native)
 

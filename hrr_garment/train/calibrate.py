@@ -83,13 +83,11 @@ def evaluate_modes(codespace: CodeSpace, autoencoder, motion_stats: FeatureStats
     truth = np.concatenate([sequence_windows(frames[n], w) for n in names])
     pred = predict_windows(codespace, m, motion_stats, latent_stats, database)
     decode = autoencoder.fast_decoder()
-    with torch.no_grad():
-        flat = truth.reshape(-1, *truth.shape[2:])
-        own = np.concatenate([autoencoder.encode(torch.from_numpy(np.ascontiguousarray(flat[i:i + 256]))).numpy()
-                              for i in range(0, len(flat), 256)])
+    # the floor: each frame's own latent, encoded as the training targets were (once per frame, then windowed)
+    own = np.concatenate([sequence_windows(autoencoder.fit_latents(torch.from_numpy(frames[n])).numpy(), w) for n in names])
     err_reg = window_errors_mm(decode, pred.regression, truth)
     err_ret = window_errors_mm(decode, pred.retrieval, truth)
-    err_ae = window_errors_mm(decode, own.reshape(*truth.shape[:2], *own.shape[1:]), truth)
+    err_ae = window_errors_mm(decode, own, truth)
     return ModeErrors(err_reg, err_ret, err_ae, pred.entropy, sweep_tau(pred.entropy, err_reg, err_ret))
 
 
