@@ -1,5 +1,7 @@
 """Mesh autoencoder: sampling hierarchy, layers, fast path, overfitting, latent interpolation."""
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 import torch
@@ -214,6 +216,15 @@ def test_training_resumes_and_encodes_every_sequence(tmp_path, skirt, monkeypatc
     trained.clear()
     assert ae.train_autoencoder(data, tmp_path / "ae", train_config=cfg, progress=False).extra.get("reused")
     assert not trained  # finished with these settings: nothing is redone
+    # another refinement re-encodes the finished run without training it again
+    with np.load(tmp_path / "ae" / "latents.npz") as z:
+        plain = z["spin_000"].copy()
+    saves.clear()
+    monkeypatch.setattr(ae, "save_checkpoint", save_then_die)
+    refined = ae.train_autoencoder(data, tmp_path / "ae", train_config=replace(cfg, refine_steps=3), progress=False)
+    assert not saves and refined.extra["refine_steps"] == 3 and not refined.extra.get("reused")
+    with np.load(tmp_path / "ae" / "latents.npz") as z:
+        assert not np.allclose(z["spin_000"], plain)
     model = ae.load_autoencoder(tmp_path / "ae", skirt.faces)
     x = torch.as_tensor(frames[:1])
     with torch.no_grad():

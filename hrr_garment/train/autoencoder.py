@@ -181,8 +181,13 @@ def train_autoencoder(dataset: str | Path, folder: str | Path, model_config: Aut
                                  stride=model_config.stride, radius=model_config.radius, name=str(dataset))
     model = MeshAutoencoder(hierarchy, model_config, template, scale).to(device)
     optimizer = torch.optim.Adam(model.parameters(), lr=train_config.learning_rate)
-    key = _key(model_config.to_dict(), asdict(train_config) | {"max_minutes": None, "threads": None, "device": None},
-               ds.garment, ds.template.num_vertices, splits, {"frame": FRAME_VERSION})
+    # the checkpoint's key leaves out what only the encoding uses: changing the refinement re-encodes
+    # a finished run (its checkpoint is at the end of training) instead of training it again
+    encoding = {"refine_steps": train_config.refine_steps, "refine_lr": train_config.refine_lr}
+    training = {k: v for k, v in asdict(train_config).items() if k not in encoding}
+    training_key = _key(model_config.to_dict(), training | {"max_minutes": None, "threads": None, "device": None},
+                        ds.garment, ds.template.num_vertices, splits, {"frame": FRAME_VERSION})
+    key = _key(training_key, encoding)
     checkpoint = folder / "checkpoint.pt"
     report_path = folder / "report.json"
     if report_path.is_file() and (folder / "latents.npz").is_file() and (folder / "model.pt").is_file():
@@ -193,7 +198,7 @@ def train_autoencoder(dataset: str | Path, folder: str | Path, model_config: Aut
                                         "sizes": tuple(done["sizes"]), "extra": {**done.get("extra", {}), "reused": True}})
     state = {"epoch": 0, "best": float("inf"), "best_epoch": 0, "stale": 0, "elapsed_s": 0.0}
     best_weights = {k: v.clone() for k, v in model.state_dict().items()}
-    state, best_weights = load_checkpoint(checkpoint, key, state, best_weights, model=model, optimizer=optimizer)
+    state, best_weights = load_checkpoint(checkpoint, training_key, state, best_weights, model=model, optimizer=optimizer)
     conv0 = model.encoder[0].conv
     lap = laplacian_operator(conv0.index.cpu(), conv0.mask.cpu()).to(device)
     rng = np.random.default_rng(train_config.seed + state["epoch"])
@@ -227,7 +232,7 @@ def train_autoencoder(dataset: str | Path, folder: str | Path, model_config: Aut
         state["epoch"] += 1
         state["elapsed_s"] = spent + time.perf_counter() - started
         best_weights = keep_if_best(state, val_err, model, best_weights)
-        save_checkpoint(checkpoint, key, state, best_weights, model=model, optimizer=optimizer)
+        save_checkpoint(checkpoint, training_key, state, best_weights, model=model, optimizer=optimizer)
         bar.set_postfix(loss=f"{np.mean(losses) * 1000:.2f}mm", val=f"{val_err:.2f}mm", best=f"{state['best']:.2f}mm")
         bar.update(1)
     bar.close()
