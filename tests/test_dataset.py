@@ -6,6 +6,7 @@ import signal
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -72,12 +73,16 @@ def built(tmp_path_factory):
     parts = out.with_suffix(".parts")
     cmd = [sys.executable, "-m", "hrr_garment.cli.simulate", *SIM_ARGS, "-o", str(out)]
     proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+
+    def finished_parts() -> list[Path]:  # not the hidden temporary file of a part being written
+        return [p for p in parts.glob("*.npz") if not p.name.startswith(".")]
+
     deadline = time.time() + 300
-    while time.time() < deadline and not list(parts.glob("*.npz")):
+    while time.time() < deadline and not finished_parts():
         time.sleep(0.2)
     os.killpg(proc.pid, signal.SIGKILL)  # the run and its worker processes
     proc.wait()
-    done_before = len(list(parts.glob("*.npz")))
+    done_before = len(finished_parts())
     assert 1 <= done_before < 3 and not out.exists()
     resumed = subprocess.run(cmd, capture_output=True, text=True, timeout=600)
     assert resumed.returncode == 0, resumed.stderr
