@@ -53,6 +53,11 @@ class AutoencoderConfig:
         return self.channels[min(level, len(self.channels) - 1)]
 
 
+def gather_rows(x: torch.Tensor, index: torch.Tensor) -> torch.Tensor:
+    """x (V_in, B, C) -> (V_out, S, B, C): the rows of x at ``index`` (V_out, S)."""
+    return torch.index_select(x, 0, index.reshape(-1)).reshape(*index.shape, *x.shape[1:])
+
+
 class VcConv(nn.Module):
     """Spatially varying convolution from one vertex set to another (see module docstring)."""
 
@@ -67,9 +72,7 @@ class VcConv(nn.Module):
         self.bias = nn.Parameter(torch.zeros(out_channels))
 
     def gather(self, x: torch.Tensor) -> torch.Tensor:
-        """x (V_in, B, C) -> (V_out, S, B, C): each output vertex's neighbour rows."""
-        v, s = self.index.shape
-        return torch.index_select(x, 0, self.index.reshape(-1)).reshape(v, s, *x.shape[1:])
+        return gather_rows(x, self.index)
 
     def forward(self, x: torch.Tensor, kernel: torch.Tensor | None = None, gathered: torch.Tensor | None = None) -> torch.Tensor:
         """x (V_in, B, C_in) vertex-major -> (V_out, B, C_out). ``kernel``: a precomputed
@@ -111,7 +114,7 @@ class ResidualPool(nn.Module):
         if self.neighbours:
             v, s = self.index.shape
             if gathered is None:
-                gathered = torch.index_select(x, 0, self.index.reshape(-1)).reshape(v, s, *x.shape[1:])
+                gathered = gather_rows(x, self.index)
             w = self.weights() if weights is None else weights
             x = torch.bmm(w.unsqueeze(1), gathered.reshape(v, s, -1)).reshape(v, *x.shape[1:])
         return self.project(x) if self.project is not None else x

@@ -174,6 +174,7 @@ def train_autoencoder(dataset: str | Path, folder: str | Path, model_config: Aut
     test = body_frames(ds, splits.get("test", []))
     template = ds.template.vertices.astype(np.float32)
     perm = mirror_map(template) if train_config.mirror else None
+    simulated = len(train)  # the training frames before the mirrored ones are added
     if perm is not None:  # heading frame: x is the body's left-right axis
         train = np.concatenate([train, train[:, perm] * np.array([-1, 1, 1], np.float32)])
     scale = float(np.std(train - template)) if len(train) else 0.1
@@ -250,14 +251,16 @@ def train_autoencoder(dataset: str | Path, folder: str | Path, model_config: Aut
                                                           "vertices": ds.template.num_vertices, "scale": scale,
                                                           "sizes": list(hierarchy.sizes)}, indent=2))
 
-    def split_pve(split: str, every: int = 1) -> float:
+    def refined_pve(split: str, frames: np.ndarray, every: int = 1) -> float:
+        """``frames``: the split's frames in ``splits`` order, as ``latents`` holds them."""
         names = splits.get(split, [])
         if not names:
             return float("nan")
-        return pve_mm(model, body_frames(ds, names)[::every], np.concatenate([latents[n] for n in names])[::every])
+        return pve_mm(model, frames[::every], np.concatenate([latents[n] for n in names])[::every])
 
-    report = AutoencoderReport(folder, state["epoch"], state["best_epoch"], split_pve("val"), split_pve("test"),
-                               split_pve("train", every=4), (time.perf_counter() - t_start) / 60, model.latent_shape,
+    report = AutoencoderReport(folder, state["epoch"], state["best_epoch"], refined_pve("val", val),
+                               refined_pve("test", test), refined_pve("train", train[:simulated], every=4),
+                               (time.perf_counter() - t_start) / 60, model.latent_shape,
                                hierarchy.sizes, {"refine_steps": train_config.refine_steps,
                                                  "encoder_only_mm": {"val": state["best"], "test": pve_mm(model, test)}})
     atomic_write_text(report_path, json.dumps({"key": key, **{k: (str(v) if isinstance(v, Path) else v)
