@@ -161,6 +161,25 @@ def test_rerun_resumes_the_code_space_and_skips_finished_stages(trained, capsys)
     assert [r["epoch"] for r in log] == [1, 2, 3, 4, 5]  # continued from epoch 4's checkpoint, one more epoch
 
 
+def test_a_new_encoding_retrains_the_code_space(trained, tmp_path):
+    """Changing only the refinement re-encodes the same autoencoder weights; the code space (and
+    the bundle's database) trained on the old latents must not be reused."""
+    import shutil
+
+    from hrr_garment.cli.train import main as train_main
+
+    root, data, args = trained
+    shutil.copytree(root / "model", tmp_path / "model")
+    config = (root / "cfg.yaml").read_text().replace("max_minutes: null}", "max_minutes: null, refine_steps: 3}", 1)
+    (tmp_path / "cfg.yaml").write_text(config)
+    before = json.loads((tmp_path / "model" / "codebook" / "report.json").read_text())
+    assert train_main(["--dataset", str(data), "--config", str(tmp_path / "cfg.yaml"), "-o", str(tmp_path / "model"), "--quiet"]) == 0
+    autoencoder = json.loads((tmp_path / "model" / "autoencoder" / "report.json").read_text())
+    after = json.loads((tmp_path / "model" / "codebook" / "report.json").read_text())
+    assert autoencoder["extra"]["refine_steps"] == 3 and autoencoder["epochs"] == 3  # re-encoded, not retrained
+    assert after["key"] != before["key"] and not after.get("reused")
+
+
 def test_corrupt_bundle_and_wrong_garment_are_explained(trained, tmp_path):
     import shutil
 

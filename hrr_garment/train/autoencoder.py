@@ -184,7 +184,8 @@ def train_autoencoder(dataset: str | Path, folder: str | Path, model_config: Aut
     optimizer = torch.optim.Adam(model.parameters(), lr=train_config.learning_rate)
     # the checkpoint's key leaves out what only the encoding uses: changing the refinement re-encodes
     # a finished run (its checkpoint is at the end of training) instead of training it again
-    encoding = {"refine_steps": train_config.refine_steps, "refine_lr": train_config.refine_lr}
+    encoding = {"refine_steps": train_config.refine_steps, "refine_lr": train_config.refine_lr,
+                "refine_objective": "vertex distance"}  # was L1 per coordinate: re-encode those
     training = {k: v for k, v in asdict(train_config).items() if k not in encoding}
     training_key = _key(model_config.to_dict(), training | {"max_minutes": None, "threads": None, "device": None},
                         ds.garment, ds.template.num_vertices, splits, {"frame": FRAME_VERSION})

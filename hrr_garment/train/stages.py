@@ -63,7 +63,12 @@ def run_codebook_stage(dataset: str | Path, folder: str | Path, config: CodeSpac
         raise DatasetError(dataset, f"the autoencoder in {ae_folder} was trained on {ae_meta.get('garment')} with "
                                     f"{ae_meta.get('vertices')} vertices, the dataset is {ds.garment} with {ds.template.num_vertices}")
     ae_state = torch.load(ae_folder / "model.pt", map_location="cpu", weights_only=True)
-    ae_hash = hashlib.sha256(b"".join(k.encode() + ae_state[k].numpy().tobytes() for k in sorted(ae_state))).hexdigest()[:16]
+    with np.load(ae_folder / "latents.npz", allow_pickle=False) as f:
+        latents = {name: f[name] for name in ds.names}
+    # the latents as well as the weights: a changed encoding (refine_steps ...) re-encodes the same
+    # weights, and the code space trained on the old latents must not be reused
+    ae_hash = hashlib.sha256(b"".join([k.encode() + ae_state[k].numpy().tobytes() for k in sorted(ae_state)]
+                                      + [n.encode() + latents[n].tobytes() for n in ds.names])).hexdigest()[:16]
     key = hashlib.sha1(json.dumps([config.to_dict(), asdict(train_config) | {"max_minutes": None}, ae_hash, ds.splits],
                                   sort_keys=True).encode()).hexdigest()[:16]
     report_path = stage / "report.json"
@@ -77,8 +82,6 @@ def run_codebook_stage(dataset: str | Path, folder: str | Path, config: CodeSpac
                 pass
 
     autoencoder = load_autoencoder(ae_folder, ds.template.faces, cache_dir)
-    with np.load(ae_folder / "latents.npz", allow_pickle=False) as f:
-        latents = {name: f[name] for name in ds.names}
     splits = {k: ds.splits[k] for k in ("train", "val")}
     features = dataset_features(ds, splits["train"] + splits["val"])
     motion_stats, latent_stats = fit_stats(features, latents, splits["train"])
