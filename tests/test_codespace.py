@@ -167,6 +167,8 @@ def test_a_new_encoding_retrains_the_code_space(trained, tmp_path):
     import shutil
 
     from hrr_garment.cli.train import main as train_main
+    from hrr_garment.train.bundle import load_bundle
+    from hrr_garment.train.stages import evaluate_bundle
 
     root, data, args = trained
     shutil.copytree(root / "model", tmp_path / "model")
@@ -178,6 +180,11 @@ def test_a_new_encoding_retrains_the_code_space(trained, tmp_path):
     after = json.loads((tmp_path / "model" / "codebook" / "report.json").read_text())
     assert autoencoder["extra"]["refine_steps"] == 3 and autoencoder["epochs"] == 3  # re-encoded, not retrained
     assert after["key"] != before["key"] and not after.get("reused")
+    # the floor is scored with the stage's encoding (3 steps, not the default 10: the same weights
+    # refined for 3 steps land elsewhere), here and from the bundle in a fresh load
+    assert after["validation_mm"]["autoencoder"] != before["validation_mm"]["autoencoder"]
+    again = evaluate_bundle(load_bundle(tmp_path / "model"), data)
+    assert again["autoencoder"] == after["validation_mm"]["autoencoder"]
 
 
 def test_corrupt_bundle_and_wrong_garment_are_explained(trained, tmp_path):

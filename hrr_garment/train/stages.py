@@ -24,7 +24,7 @@ from ..inference.database import CodeDatabase
 from ..io_utils import atomic_write_text
 from ..models.codespace import CodeSpace, CodeSpaceConfig
 from ..motion.features import FEATURE_DIM
-from .autoencoder import body_frames, load_autoencoder
+from .autoencoder import TrainConfig as AutoencoderTrainConfig, body_frames, load_autoencoder
 from .bundle import BundleError, read_meta, write_bundle
 from .calibrate import evaluate_modes
 from .codebook import CodebookTrainConfig, WindowTensors, evaluate, train_codespace
@@ -96,8 +96,10 @@ def run_codebook_stage(dataset: str | Path, folder: str | Path, config: CodeSpac
 
     database = CodeDatabase(garment_codes(model, train_t.latents), train_w.latents, train_w.sequence, train_w.start,
                             train_w.names, config.classes, train_t.motion.numpy())
+    encoding = refine_settings(ae_meta.get("train", {}))
     modes = evaluate_modes(model, autoencoder, motion_stats, latent_stats, database,
-                           {n: features[n] for n in splits["val"]}, {n: body_frames(ds, [n]) for n in splits["val"]})
+                           {n: features[n] for n in splits["val"]}, {n: body_frames(ds, [n]) for n in splits["val"]},
+                           refine=(encoding["refine_steps"], encoding["refine_lr"]))
     sweep = modes.sweep
     usage = model.quantizer.usage(torch.from_numpy(database.codes))
     final = evaluate(model, val_t)
@@ -109,9 +111,17 @@ def run_codebook_stage(dataset: str | Path, folder: str | Path, config: CodeSpac
     write_bundle(folder, autoencoder=autoencoder, codespace=model, motion_stats=motion_stats, latent_stats=latent_stats,
                  database=database, template=ds.template, tau=sweep.best_tau,
                  info={"dataset": str(dataset), "window": config.window, "validation_mm": report["validation_mm"],
-                       **(info or {})})
+                       "encoding": encoding, **(info or {})})
     atomic_write_text(report_path, json.dumps(report, indent=2, default=float))
     return report
+
+
+def refine_settings(values: dict) -> dict:
+    """The autoencoder stage's encoding settings from its saved train config (or a bundle's record);
+    missing ones (files from before they were recorded) are the defaults."""
+    default = AutoencoderTrainConfig()
+    return {"refine_steps": int(values.get("refine_steps", default.refine_steps)),
+            "refine_lr": float(values.get("refine_lr", default.refine_lr))}
 
 
 def evaluate_bundle(bundle, dataset: str | Path, split: str = "val") -> dict:
@@ -125,6 +135,8 @@ def evaluate_bundle(bundle, dataset: str | Path, split: str = "val") -> dict:
     names = ds.splits.get(split, [])
     if not names:
         raise DatasetError(dataset, f"has no {split!r} sequences")
+    encoding = refine_settings(bundle.meta.get("encoding", {}))
     modes = evaluate_modes(bundle.codespace, bundle.autoencoder, bundle.motion_stats, bundle.latent_stats, bundle.database,
-                           dataset_features(ds, names), {n: body_frames(ds, [n]) for n in names})
+                           dataset_features(ds, names), {n: body_frames(ds, [n]) for n in names},
+                           refine=(encoding["refine_steps"], encoding["refine_lr"]))
     return modes.summary(bundle.tau)
