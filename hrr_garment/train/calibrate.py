@@ -74,11 +74,11 @@ class ModeErrors:
 
 
 def evaluate_modes(codespace: CodeSpace, autoencoder, motion_stats: FeatureStats, latent_stats: FeatureStats,
-                   database: CodeDatabase, motion: dict[str, np.ndarray], frames: dict[str, np.ndarray],
-                   refine: tuple[int, float] = (10, 0.03)) -> ModeErrors:
+                   database: CodeDatabase, motion: dict[str, np.ndarray], frames: dict[str, np.ndarray], *,
+                   refine_steps: int, refine_lr: float) -> ModeErrors:
     """Both modes on every window of the sequences ``motion`` (features (T, F)) / ``frames``
-    (heading-frame vertices (T, V, 3)), decoded with the autoencoder's fast decoder. ``refine``:
-    the (steps, lr) the autoencoder stage encoded with, for the floor's latents."""
+    (heading-frame vertices (T, V, 3)), decoded with the autoencoder's fast decoder. ``refine_steps``
+    and ``refine_lr``: the autoencoder stage's encoding, which the floor's latents repeat."""
     w = codespace.config.window
     names = [n for n in motion if len(motion[n]) >= w]
     m = np.concatenate([sequence_windows(motion[n], w) for n in names])
@@ -86,7 +86,7 @@ def evaluate_modes(codespace: CodeSpace, autoencoder, motion_stats: FeatureStats
     pred = predict_windows(codespace, m, motion_stats, latent_stats, database)
     decode = autoencoder.fast_decoder()
     # the floor: each frame's own latent, encoded as the training targets were (once per frame, then windowed)
-    own = np.concatenate([sequence_windows(autoencoder.fit_latents(torch.from_numpy(frames[n]), *refine).numpy(), w) for n in names])
+    own = np.concatenate([sequence_windows(autoencoder.fit_latents(torch.from_numpy(frames[n]), refine_steps, refine_lr).numpy(), w) for n in names])
     err_reg = window_errors_mm(decode, pred.regression, truth)
     err_ret = window_errors_mm(decode, pred.retrieval, truth)
     err_ae = window_errors_mm(decode, own, truth)

@@ -99,7 +99,7 @@ def run_codebook_stage(dataset: str | Path, folder: str | Path, config: CodeSpac
     encoding = refine_settings(ae_meta.get("train", {}))
     modes = evaluate_modes(model, autoencoder, motion_stats, latent_stats, database,
                            {n: features[n] for n in splits["val"]}, {n: body_frames(ds, [n]) for n in splits["val"]},
-                           refine=(encoding["refine_steps"], encoding["refine_lr"]))
+                           **encoding)
     sweep = modes.sweep
     usage = model.quantizer.usage(torch.from_numpy(database.codes))
     final = evaluate(model, val_t)
@@ -138,5 +138,5 @@ def evaluate_bundle(bundle, dataset: str | Path, split: str = "val") -> dict:
     encoding = refine_settings(bundle.meta.get("encoding", {}))
     modes = evaluate_modes(bundle.codespace, bundle.autoencoder, bundle.motion_stats, bundle.latent_stats, bundle.database,
                            dataset_features(ds, names), {n: body_frames(ds, [n]) for n in names},
-                           refine=(encoding["refine_steps"], encoding["refine_lr"]))
+                           **encoding)
     return modes.summary(bundle.tau)
