@@ -248,6 +248,15 @@ def test_learning_rate_anneals_over_the_run_by_epochs_or_budget():
     assert early_stop(30, 30, 0.85) and not early_stop(29, 30, 0.85)
 
 
+def test_the_budget_caps_training_instead_of_being_the_last_start():
+    from hrr_garment.train.autoencoder import epoch_fits
+
+    assert epoch_fits(100.0, None, 50.0)  # no budget
+    assert epoch_fits(99.0, 100.0, None)  # the first epoch always runs
+    assert epoch_fits(70.0, 100.0, 30.0) and not epoch_fits(71.0, 100.0, 30.0)  # 71 + 30 would overrun
+    assert not epoch_fits(101.0, 100.0, None)
+
+
 def test_training_device_is_checked_before_anything_is_written(tmp_path):
     from hrr_garment.errors import InputError
     from hrr_garment.train.autoencoder import TrainConfig, train_autoencoder, training_device

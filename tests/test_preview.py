@@ -30,7 +30,9 @@ def test_rasterize_covers_pixel_centres_inside_any_winding(reverse):
 
 
 def test_rasterize_keeps_the_nearest_fragment_in_any_order():
-    square = lambda x0, z: np.array([[[x0, 0, z], [x0 + 6, 0, z], [x0, 6, z]], [[x0 + 6, 0, z], [x0 + 6, 6, z], [x0, 6, z]]], float)
+    def square(x0, z):
+        return np.array([[[x0, 0, z], [x0 + 6, 0, z], [x0, 6, z]], [[x0 + 6, 0, z], [x0 + 6, 6, z], [x0, 6, z]]], float)
+
     near, far = square(0, 1.0), square(2, -1.0)
     colours = np.array([[10, 0, 0]] * 2 + [[0, 20, 0]] * 2, np.uint8)
     results = []

@@ -128,7 +128,10 @@ def draw_ground(draw, camera: OrthoCamera, centre: tuple[float, float], scale: f
                 spacing: float = 0.5, width: int = 1) -> None:
     """Grid lines on y = 0 around the camera target, so translation over the ground shows."""
     tx, _, tz = camera.target
-    grid = lambda c: np.arange(np.ceil((c - half_width) / spacing), np.floor((c + half_width) / spacing) + 1) * spacing
+
+    def grid(c: float) -> np.ndarray:
+        return np.arange(np.ceil((c - half_width) / spacing), np.floor((c + half_width) / spacing) + 1) * spacing
+
     lines = [((x, 0.0, tz - half_width), (x, 0.0, tz + half_width)) for x in grid(tx)]
     lines += [((tx - half_width, 0.0, z), (tx + half_width, 0.0, z)) for z in grid(tz)]
     for a, b in lines:
