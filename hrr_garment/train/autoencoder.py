@@ -59,6 +59,15 @@ class TrainConfig:
         return from_settings(cls, values, "training")
 
 
+def refine_settings(values: dict) -> dict:
+    """The encoding's settings (``fit_latents``' steps and rate) from a train config as a dict: a
+    run's own, its saved config.json, or a bundle's record. Missing ones (files from before they
+    were recorded) are the defaults."""
+    default = TrainConfig()
+    return {"refine_steps": int(values.get("refine_steps", default.refine_steps)),
+            "refine_lr": float(values.get("refine_lr", default.refine_lr))}
+
+
 @dataclass
 class AutoencoderReport:
     folder: Path
@@ -194,8 +203,8 @@ def train_autoencoder(dataset: str | Path, folder: str | Path, model_config: Aut
     optimizer = torch.optim.Adam(model.parameters(), lr=train_config.learning_rate)
     # the checkpoint's key leaves out what only the encoding uses: changing the refinement re-encodes
     # a finished run (its checkpoint is at the end of training) instead of training it again
-    encoding = {"refine_steps": train_config.refine_steps, "refine_lr": train_config.refine_lr,
-                "refine_objective": "vertex distance"}  # was L1 per coordinate: re-encode those
+    # the objective was L1 per coordinate before: those latents re-encode
+    encoding = refine_settings(asdict(train_config)) | {"refine_objective": "vertex distance"}
     training = {k: v for k, v in asdict(train_config).items() if k not in encoding}
     training_key = _key(model_config.to_dict(), training | {"max_minutes": None, "threads": None, "device": None},
                         ds.garment, ds.template.num_vertices, splits, {"frame": FRAME_VERSION})

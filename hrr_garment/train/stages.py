@@ -24,7 +24,7 @@ from ..inference.database import CodeDatabase
 from ..io_utils import atomic_write_text
 from ..models.codespace import CodeSpace, CodeSpaceConfig
 from ..motion.features import FEATURE_DIM
-from .autoencoder import TrainConfig as AutoencoderTrainConfig, body_frames, load_autoencoder
+from .autoencoder import body_frames, load_autoencoder, refine_settings
 from .bundle import BundleError, read_meta, write_bundle
 from .calibrate import evaluate_modes
 from .codebook import CodebookTrainConfig, WindowTensors, evaluate, train_codespace
@@ -114,14 +114,6 @@ def run_codebook_stage(dataset: str | Path, folder: str | Path, config: CodeSpac
                        "encoding": encoding, **(info or {})})
     atomic_write_text(report_path, json.dumps(report, indent=2, default=float))
     return report
-
-
-def refine_settings(values: dict) -> dict:
-    """The autoencoder stage's encoding settings from its saved train config (or a bundle's record);
-    missing ones (files from before they were recorded) are the defaults."""
-    default = AutoencoderTrainConfig()
-    return {"refine_steps": int(values.get("refine_steps", default.refine_steps)),
-            "refine_lr": float(values.get("refine_lr", default.refine_lr))}
 
 
 def evaluate_bundle(bundle, dataset: str | Path, split: str = "val") -> dict:
