@@ -27,7 +27,7 @@ import numpy as np
 
 from ..errors import MotionError, SkeletonMappingError
 from .motion import Motion
-from .rotations import normalize, rotation_between
+from .rotations import axis_angle_to_matrix, normalize, rotation_between
 from .skeleton import CANONICAL, JOINT_INDEX, JOINT_NAMES, PARENTS, global_to_local
 
 # Canonical joints that may be missing from a source; they then follow their parent rigidly.
@@ -195,6 +195,57 @@ def _reference(c: int, mapping: dict[int, int], src_rest: np.ndarray, child: int
     return None
 
 
+def rest_is_standing(src_rest: np.ndarray, mapping: dict[int, int]) -> bool:
+    """Whether the source's zero pose stands: the spine points away from the legs.
+
+    Rigs exported with their joint orientations baked into the channels (Bandai-Namco: every bone
+    along +x in the zero pose, the legs folded onto the spine) have no usable rest pose; their
+    twist about each bone is then taken from the clip itself (:func:`remove_rig_roll`).
+    """
+    pelvis = src_rest[mapping[JOINT_INDEX["pelvis"]]]
+    up = normalize(src_rest[mapping[JOINT_INDEX["neck"]]] - pelvis)
+    legs = normalize(src_rest[[mapping[JOINT_INDEX["l_ankle"]], mapping[JOINT_INDEX["r_ankle"]]]] - pelvis)
+    return bool((legs @ up < -0.5).all())  # each leg more than 120 degrees from the spine
+
+
+def _mean_rotation(rotations: np.ndarray) -> np.ndarray:
+    """The rotation nearest the element-wise mean of (T, 3, 3) rotations (chordal L2 mean)."""
+    u, _, vt = np.linalg.svd(rotations.mean(0))
+    return u @ np.diag([1.0, 1.0, np.linalg.det(u @ vt)]) @ vt
+
+
+def remove_rig_roll(glob: np.ndarray, g_src: np.ndarray, mapping: dict[int, int], bones: dict[int, np.ndarray],
+                    leaves: list[int]) -> None:
+    """Take each joint's constant twist offset (the rig's roll) out of ``glob`` in place.
+
+    A bone joint's rotation keeps its direction (exact from the positions) and its twist about the
+    bone relative to the canonical parent varies as in the source, but the clip-mean twist is
+    removed; a leaf keeps its rotation relative to its parent less the clip-mean of it. Joints run
+    parents first, so each is measured against its already corrected parent.
+    """
+    for c in range(1, len(JOINT_NAMES)):
+        parent = PARENTS[c]
+        if c in bones:
+            v = normalize(bones[c])
+            d = glob[:, c] @ v  # the bone direction in the world, exact
+            swing = rotation_between(glob[:, parent] @ v, d) @ glob[:, parent]  # twist of the parent
+            twist = np.swapaxes(swing, -1, -2) @ glob[:, c]  # a rotation about v
+            angle = np.arctan2(twist[:, [2, 0, 1], [1, 2, 0]] @ v - twist[:, [1, 2, 0], [2, 0, 1]] @ v,
+                               np.trace(twist, axis1=1, axis2=2) - 1.0)
+            offset = np.arctan2(np.sin(angle).mean(), np.cos(angle).mean())
+            glob[:, c] = glob[:, c] @ axis_angle_to_matrix(-offset * v)
+        elif c in leaves:
+            s, p = mapping[c], mapping.get(parent)
+            if p is None:
+                continue
+            relative = np.swapaxes(g_src[:, p], -1, -2) @ g_src[:, s]  # in the source parent's axes
+            to_canon = _mean_rotation(np.swapaxes(g_src[:, p], -1, -2) @ glob[:, parent])
+            neutral = _mean_rotation(relative)
+            glob[:, c] = glob[:, parent] @ to_canon.T @ relative @ neutral.T @ to_canon
+        else:
+            glob[:, c] = glob[:, parent] if c not in mapping else glob[:, c]
+
+
 def retarget(src: SourceMotion, mapping_by_name: dict[str, int], ground: bool = True) -> tuple[np.ndarray, np.ndarray]:
     """Return canonical (local rotations (T,22,3,3), root translation (T,3))."""
     mapping = {JOINT_INDEX[c]: s for c, s in mapping_by_name.items()}
@@ -205,6 +256,8 @@ def retarget(src: SourceMotion, mapping_by_name: dict[str, int], ground: bool = 
     g_src, p_src = src.global_rotations, src.global_positions
     glob = np.zeros((n_frames, len(JOINT_NAMES), 3, 3))
     align = {}  # rest alignment per canonical joint, used by leaves
+    bones: dict[int, np.ndarray] = {}  # single-bone joints: the canonical rest bone they follow
+    leaves: list[int] = []
     children = {j: [i for i, p in enumerate(PARENTS) if p == j] for j in range(len(JOINT_NAMES))}
     for c in range(len(JOINT_NAMES)):
         parent = PARENTS[c]
@@ -227,15 +280,22 @@ def retarget(src: SourceMotion, mapping_by_name: dict[str, int], ground: bool = 
         elif refs:
             r = refs[0]
             v = canon_rest[r] - canon_rest[c]
-            a = rotation_between(v, src_rest[mapping[r]] - src_rest[s])
+            # Rest alignment by the smallest turn from where the parent's alignment already puts the
+            # bone: the twist about the bone stays the parent's rest twist.
+            parent_align = align.get(parent, np.eye(3))
+            a = rotation_between(parent_align @ v, src_rest[mapping[r]] - src_rest[s]) @ parent_align
             r0 = g_src[:, s] @ a
             q = rotation_between(r0 @ v, p_src[:, mapping[r]] - p_src[:, s])
             glob[:, c] = q @ r0
             align[c] = a
+            bones[c] = v
         else:
             a = align.get(parent, np.eye(3))
             glob[:, c] = g_src[:, s] @ a
             align[c] = a
+            leaves.append(c)
+    if not rest_is_standing(src_rest, mapping):
+        remove_rig_roll(glob, g_src, mapping, bones, leaves)
     local = global_to_local(glob, PARENTS)
     pelvis = mapping[JOINT_INDEX["pelvis"]]
     root = p_src[:, pelvis] * (_canonical_leg_length() / mean_leg_length(src_rest, mapping_by_name))
