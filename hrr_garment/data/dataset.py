@@ -59,6 +59,28 @@ def split_names(names: list[str], val: float, test: float, seed: int) -> dict[st
             "train": sorted(order[n_val + n_test:])}
 
 
+def split_groups(groups: dict[str, str], val: float, test: float, seed: int) -> dict[str, list[str]]:
+    """Seeded split that keeps each group (a content, a style, one clip with its augmentations) whole.
+
+    ``groups`` maps sequence name -> group. Groups are shuffled and given to test, then validation,
+    until each holds its fraction of the sequences (at least one group each when there are three
+    or more groups); the rest train.
+    """
+    members: dict[str, list[str]] = {}
+    for name, group in sorted(groups.items()):
+        members.setdefault(group, []).append(name)
+    order = sorted(members)
+    np.random.default_rng(seed).shuffle(order)
+    total = len(groups)
+    out: dict[str, list[str]] = {"val": [], "test": [], "train": []}
+    for split, fraction in (("test", test), ("val", val)):
+        while order and fraction > 0 and len(order) >= 2 and (not out[split] or len(out[split]) < fraction * total):
+            out[split] += members[order.pop(0)]
+    for group in order:
+        out["train"] += members[group]
+    return {k: sorted(v) for k, v in out.items()}
+
+
 def write_dataset(path: str | Path, template: GarmentMesh, sequences: list[SequenceRecord],
                   splits: dict[str, list[str]], info: dict | None = None, compression: str | None = "gzip") -> Path:
     """Write the whole file atomically (temporary file in the same folder, then rename)."""

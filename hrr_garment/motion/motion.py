@@ -12,6 +12,7 @@ from .skeleton import (
     CANONICAL,
     HEAD_TOP_ABOVE_HEAD_JOINT,
     JOINT_INDEX,
+    MIRROR_JOINTS,
     REST_PELVIS_HEIGHT,
     Skeleton,
     forward_kinematics,
@@ -117,6 +118,15 @@ class Motion:
         if all("_fk" in p.__dict__ for p in parts):
             out.__dict__["_fk"] = tuple(np.concatenate([p._fk[i] for p in parts]) for i in range(2))
         return out
+
+    def mirrored(self) -> "Motion":
+        """The motion reflected left-right (x -> -x): left and right joints swap, rotations are
+        conjugated by the reflection. The canonical skeleton is symmetric, so its joints land on
+        the reflected joints of this motion exactly."""
+        flip = np.diag([-1.0, 1.0, 1.0]).astype(np.float32)
+        local = flip @ self.local_rotations[:, list(MIRROR_JOINTS)] @ flip
+        return Motion(local, self.root_translation * np.array([-1.0, 1.0, 1.0]), self.fps, f"{self.source} (mirrored)",
+                      self.source_skeleton, self.source_height_m, self.skeleton)
 
     def slice(self, start: int, stop: int) -> "Motion":
         return Motion(self.local_rotations[start:stop], self.root_translation[start:stop], self.fps, self.source, self.source_skeleton, self.source_height_m, self.skeleton)

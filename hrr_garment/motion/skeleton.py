@@ -22,6 +22,10 @@ NUM_JOINTS = len(JOINT_NAMES)
 JOINT_INDEX = {name: i for i, name in enumerate(JOINT_NAMES)}
 
 PARENTS: tuple[int, ...] = (-1, 0, 0, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 9, 9, 12, 13, 14, 16, 17, 18, 19)
+# Each joint's left-right counterpart (centre joints are their own).
+MIRROR_JOINTS: tuple[int, ...] = tuple(
+    JOINT_INDEX[{"l": "r", "r": "l"}[n[0]] + n[1:]] if n[:2] in ("l_", "r_") else i for i, n in enumerate(JOINT_NAMES)
+)
 
 # The 20 joints used by motion features: all but the two toe joints (paper 3.3).
 FEATURE_JOINTS: tuple[int, ...] = tuple(i for i, n in enumerate(JOINT_NAMES) if n not in ("l_foot", "r_foot"))

@@ -1,9 +1,11 @@
 """What a dataset build simulates: presets (configs/presets/*.yaml) and the list of sequences.
 
-A preset gives the garment resolution, clip length, how many procedural clips of each kind, split
-fractions, a seed and simulator overrides. ``plan_sequences`` turns it (plus any motion files or
-kinds given on the command line) into named, seeded :class:`SequenceSpec` items, the same on every
-run, so a re-run finds the sequences it already finished.
+A preset gives the garment resolution, clip length, how many procedural clips of each kind, motion
+files (paths, globs, folders, archives: see :mod:`.sources`), split fractions and the clip groups
+they hold out whole, augmentation, a seed and simulator overrides. ``plan_sequences`` turns it
+(plus any motion files or kinds given on the command line) into named, seeded
+:class:`SequenceSpec` items, the same on every run, so a re-run finds the sequences it already
+finished.
 """
 
 from __future__ import annotations
@@ -17,9 +19,10 @@ from pathlib import Path
 import yaml
 
 from ..errors import HRRError, InputError, MotionError
-from ..motion.io import load_motion
+from ..motion.io import load_motion, resample_motion
 from ..motion.motion import Motion
 from ..motion.synth import KINDS, synthesize
+from .sources import DEFAULT_NAME_PATTERN, clip_group, resolve_motion_entries
 
 CONFIG_DIR = Path(__file__).resolve().parents[2] / "configs"
 MIN_CLIP_FRAMES = 15  # half a second: shorter clips are mostly lead-in
@@ -36,6 +39,12 @@ class Preset:
     seed: int = 0
     sim: dict = field(default_factory=dict)
     train: dict = field(default_factory=dict)  # hrr-train overrides, shaped like configs/train.yaml
+    motions: list[str] = field(default_factory=list)  # motion files, globs, folders, archives
+    split_by: str | None = None  # a field of name_pattern whose groups are held out whole
+    name_pattern: str = DEFAULT_NAME_PATTERN
+    mirror: bool = False  # add each sequence mirrored left-right (symmetric garments; no simulation)
+    speed_warps: list[float] = field(default_factory=list)  # motion files re-timed and simulated again
+    base: str = ""  # the preset file's folder: relative motion entries resolve against it first
 
 
 def preset_names() -> list[str]:
@@ -51,9 +60,12 @@ def load_preset(name_or_path: str) -> Preset:
             raise InputError(name_or_path, f"unknown preset; choose one of {', '.join(preset_names())} or give a YAML file")
     try:
         data = yaml.safe_load(path.read_text(encoding="utf-8"))
-        preset = Preset(**data)
+        preset = Preset(**data, base=str(path.resolve().parent))
     except (OSError, yaml.YAMLError, TypeError) as exc:
         raise InputError(path, f"not a valid preset: {exc}") from None
+    bad_warps = [w for w in preset.speed_warps if not (isinstance(w, (int, float)) and 0.25 <= w <= 4.0)]
+    if bad_warps:
+        raise InputError(path, f"speed_warps must be factors between 0.25 and 4, got {bad_warps}")
     unknown = sorted(set(preset.sequences) - set(KINDS))
     if unknown:
         raise InputError(path, f"unknown motion kinds {unknown}; available: {', '.join(KINDS)}")
@@ -69,20 +81,42 @@ class SequenceSpec:
     seed: int = 0
     seconds: float = 0.0
     path: str = ""
-    start: int = 0  # frame range of the file's 30 fps clip
+    start: int = 0  # frame range of the file's 30 fps clip (after any speed warp)
     stop: int = 0
+    speed: float = 1.0  # the file's motion played this much faster (a speed-warp augmentation)
 
     def motion(self) -> Motion:
         if self.kind == "file":
-            return load_motion(self.path).slice(self.start, self.stop)
+            return load_file_motion(self.path, self.speed).slice(self.start, self.stop)
         return synthesize(self.kind, self.seconds, seed=self.seed)
 
     def key(self, extra: dict) -> str:
         """Content hash of everything that determines the simulated result."""
-        payload = {"spec": asdict(self), **extra}
+        spec = asdict(self)
+        if self.speed == 1.0:
+            del spec["speed"]  # keys of unwarped sequences are as before speed warps existed
+        payload = {"spec": spec, **extra}
         if self.kind == "file":
             payload["file_sha1"] = hashlib.sha1(Path(self.path).read_bytes()).hexdigest()
         return hashlib.sha256(json.dumps(payload, sort_keys=True, default=str).encode()).hexdigest()[:16]
+
+
+def load_file_motion(path: str, speed: float = 1.0) -> Motion:
+    """A motion file at 30 fps, played ``speed`` times faster (resampled; features follow)."""
+    motion = load_motion(path)
+    if speed == 1.0:
+        return motion
+    fast = Motion(motion.local_rotations, motion.root_translation, motion.fps * speed, motion.source,
+                  motion.source_skeleton, motion.source_height_m)
+    return resample_motion(fast, motion.fps)
+
+
+def sequence_group(spec: SequenceSpec, preset: Preset) -> str:
+    """The split group of a sequence: a procedural clip is its own; a file's comes from its name
+    (every piece and speed warp of a file shares it)."""
+    if spec.kind != "file":
+        return spec.name
+    return clip_group(Path(spec.path).stem, preset.split_by, preset.name_pattern)
 
 
 def _safe(stem: str) -> str:
@@ -90,40 +124,51 @@ def _safe(stem: str) -> str:
 
 
 def plan_sequences(preset: Preset, motions: list[str] | None = None, seconds: float | None = None) -> list[SequenceSpec]:
-    """The preset's procedural clips, or, when ``motions`` is given, one clip per kind named there
-    (repeat a kind for more) and every motion file named there (long files in pieces)."""
+    """The preset's procedural clips and motion files, or, when ``motions`` is given, one clip per
+    kind named there (repeat a kind for more) and every motion file named there (long files in
+    pieces). The preset's speed warps apply to motion files either way."""
     seconds = float(seconds or preset.seconds)
     counts: dict[str, int] = {}
-    files: list[str] = []
+    entries: list[str] = []
     if motions:
         for item in motions:
             if item in KINDS:
                 counts[item] = counts.get(item, 0) + 1
-            elif Path(item).suffix:
-                files.append(item)
+            elif Path(item).suffix or Path(item).exists() or any(c in item for c in "*?[") or item.startswith("mocap:"):
+                entries.append(item)
             else:
-                raise InputError(item, f"neither a motion kind ({', '.join(KINDS)}) nor a motion file")
+                raise InputError(item, f"neither a motion kind ({', '.join(KINDS)}) nor a motion file, folder or glob")
     else:
         counts = dict(preset.sequences)
+        entries = list(preset.motions)
     specs = [SequenceSpec(f"{kind}_{i:03d}", kind, seed=preset.seed * 1000 + i, seconds=seconds)
              for kind, n in counts.items() for i in range(n)]
-    for item in files:
-        clip = load_motion(item)
-        if clip.num_frames < MIN_CLIP_FRAMES:
-            raise MotionError(item, f"motion too short to simulate: {clip.num_frames} frames at {clip.fps:g} fps "
-                                    f"(at least {MIN_CLIP_FRAMES})")
-        piece = int(FILE_PIECE_S * clip.fps)
-        starts = list(range(0, clip.num_frames, piece))
-        if len(starts) > 1 and clip.num_frames - starts[-1] < MIN_CLIP_FRAMES:
-            starts.pop()  # fold a short tail into the previous piece
-        for k, start in enumerate(starts):
-            stop = starts[k + 1] if k + 1 < len(starts) else clip.num_frames
-            suffix = f"_p{k}" if len(starts) > 1 else ""
-            specs.append(SequenceSpec(f"{_safe(Path(item).stem)}{suffix}", "file", path=str(Path(item).resolve()),
-                                      start=start, stop=stop))
+    files = resolve_motion_entries(entries, Path(preset.base) if preset.base and not motions else None)
+    for path in files:
+        for speed in (1.0, *preset.speed_warps):
+            specs += _file_pieces(str(path), speed)
     names = [s.name for s in specs]
     if len(set(names)) != len(names):
-        raise HRRError(f"two motions would get the same sequence name: {sorted(n for n in names if names.count(n) > 1)}")
+        raise HRRError(f"two motions would get the same sequence name: {sorted({n for n in names if names.count(n) > 1})}")
     if not specs:
         raise HRRError("nothing to simulate: the preset lists no sequences and no --motions were given")
+    return specs
+
+
+def _file_pieces(path: str, speed: float) -> list[SequenceSpec]:
+    """A motion file as sequences of at most FILE_PIECE_S (a short tail folds into the last)."""
+    clip = load_file_motion(path, speed)
+    if clip.num_frames < MIN_CLIP_FRAMES:
+        raise MotionError(path, f"motion too short to simulate: {clip.num_frames} frames at {clip.fps:g} fps "
+                                f"(at least {MIN_CLIP_FRAMES})")
+    piece = int(FILE_PIECE_S * clip.fps)
+    starts = list(range(0, clip.num_frames, piece))
+    if len(starts) > 1 and clip.num_frames - starts[-1] < MIN_CLIP_FRAMES:
+        starts.pop()
+    stem = _safe(Path(path).stem) + (f"_x{speed:g}" if speed != 1.0 else "")
+    specs = []
+    for k, start in enumerate(starts):
+        stop = starts[k + 1] if k + 1 < len(starts) else clip.num_frames
+        suffix = f"_p{k}" if len(starts) > 1 else ""
+        specs.append(SequenceSpec(f"{stem}{suffix}", "file", path=path, start=start, stop=stop, speed=speed))
     return specs
