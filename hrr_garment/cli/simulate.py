@@ -22,7 +22,7 @@ from ..garment.mesh import GarmentMesh
 from ..garment.obj import load_garment_obj
 from ..garment.templates import GARMENT_NAMES, make_garment
 from ..paths import workspace
-from ..sim.plan import load_preset, plan_sequences, preset_names
+from ..sim.plan import build_options, load_preset, plan_sequences, preset_names
 from ._common import run_cli
 
 
@@ -74,9 +74,10 @@ def _main(argv: Sequence[str] | None) -> int:
     if out is None:
         suffix = f"-{args.vertices}v" if args.vertices else ""
         out = workspace() / "datasets" / f"{garment.name}-{preset.name}{suffix}.h5"
-    report = build_dataset(garment, specs, config, out, jobs=args.jobs, splits=preset.splits, seed=preset.seed,
-                           info={"preset": preset.name, "garment_vertices": garment.num_vertices},
-                           preview=not args.no_preview, progress=not args.quiet)
+    options = build_options(preset, specs)
+    options["info"]["garment_vertices"] = garment.num_vertices
+    report = build_dataset(garment, specs, config, out, jobs=args.jobs, preview=not args.no_preview,
+                           progress=not args.quiet, **options)
     print_report(report, garment)
     return 0
 

@@ -85,14 +85,15 @@ def _build(factory, values: dict, source) -> object:
 def _simulate(garment: str, preset, out: Path, quiet: bool) -> None:
     from ..garment.templates import make_garment
     from ..sim.build import build_dataset
-    from ..sim.plan import plan_sequences
+    from ..sim.plan import build_options, plan_sequences
     from ..sim.simulator import SimConfig
     from .simulate import print_report
 
     mesh = make_garment(garment, preset.vertices)
-    report = build_dataset(mesh, plan_sequences(preset), SimConfig.from_dict(preset.sim), out, splits=preset.splits,
-                           seed=preset.seed, info={"preset": preset.name, "garment_vertices": mesh.num_vertices},
-                           progress=not quiet)
+    specs = plan_sequences(preset)
+    options = build_options(preset, specs)
+    options["info"]["garment_vertices"] = mesh.num_vertices
+    report = build_dataset(mesh, specs, SimConfig.from_dict(preset.sim), out, progress=not quiet, **options)
     print_report(report, mesh)
 
 

@@ -22,8 +22,8 @@ from pathlib import Path
 import numpy as np
 from tqdm.auto import tqdm
 
-from ..data.dataset import SequenceRecord, split_names, write_dataset
-from ..garment.mesh import GarmentMesh
+from ..data.dataset import SequenceRecord, split_groups, split_names, write_dataset
+from ..garment.mesh import GarmentMesh, mirror_map
 from ..io_utils import atomic_path, atomic_write_text
 from ..motion.motion import FPS, Motion
 from .plan import SequenceSpec
@@ -103,8 +103,13 @@ def warm_up(garment: GarmentMesh, config: SimConfig) -> None:
 
 def build_dataset(garment: GarmentMesh, specs: list[SequenceSpec], config: SimConfig, out: str | Path,
                   jobs: int | None = None, splits: dict[str, float] | None = None, seed: int = 0,
-                  info: dict | None = None, preview: bool = True, progress: bool = True) -> BuildReport:
-    """Simulate what is missing, then write ``out`` (HDF5) atomically. See the module docstring."""
+                  info: dict | None = None, preview: bool = True, progress: bool = True,
+                  groups: dict[str, str] | None = None, mirror: bool = False) -> BuildReport:
+    """Simulate what is missing, then write ``out`` (HDF5) atomically. See the module docstring.
+
+    ``groups`` (sequence name -> clip group) makes the split hold out whole groups; ``mirror`` adds
+    every sequence reflected left-right as ``NAME_mirror`` in its source's split (a symmetric
+    garment's exact mirror simulation, no solver time; skipped with a note otherwise)."""
     out = Path(out)
     parts = out.with_suffix(".parts")
     parts.mkdir(parents=True, exist_ok=True)
@@ -132,8 +137,15 @@ def build_dataset(garment: GarmentMesh, specs: list[SequenceSpec], config: SimCo
     records = [_load_part(_part_paths(parts, n)[0], n) for n in done]
     if not records:
         raise SimulationExploded(f"every sequence failed; nothing to write to {out}: {rejects}")
-    split = split_names(done, (splits or {}).get("val", 0.1), (splits or {}).get("test", 0.1), seed)
+    val, test = (splits or {}).get("val", 0.1), (splits or {}).get("test", 0.1)
+    if groups:
+        split = split_groups({n: groups.get(n, n) for n in done}, val, test, seed)
+    else:
+        split = split_names(done, val, test, seed)
     summary = summarise(records, garment, rejects, sim_wall, jobs, len(pending))
+    if mirror:
+        records, split = _add_mirrored(records, split, garment, progress)
+        summary["mirrored"] = len(records) // 2 if len(records) > len(done) else 0
     write_dataset(out, garment, records, split, {**(info or {}), "summary": summary, "sim": config.to_dict()})
     atomic_write_text(out.with_suffix(".summary.json"), json.dumps(summary, indent=2))
     report = BuildReport(out, done, rejects, summary, reused, len(pending) - len(rejects),
@@ -141,6 +153,19 @@ def build_dataset(garment: GarmentMesh, specs: list[SequenceSpec], config: SimCo
     if preview:
         report.preview = write_preview(records, garment, out.with_suffix(".preview.png"))
     return report
+
+
+def _add_mirrored(records: list[SequenceRecord], split: dict[str, list[str]], garment: GarmentMesh,
+                  progress: bool) -> tuple[list[SequenceRecord], dict[str, list[str]]]:
+    perm = mirror_map(garment.vertices)
+    if perm is None:
+        if progress:
+            print(f"not mirroring: the {garment.name} template is not symmetric about x = 0")
+        return records, split
+    flip = np.array([-1.0, 1.0, 1.0], np.float32)
+    mirrored = [SequenceRecord(f"{r.name}_mirror", r.garment[:, perm] * flip, r.motion.mirrored(),
+                               {**r.info, "mirror_of": r.name}) for r in records]
+    return records + mirrored, {k: sorted(v + [f"{n}_mirror" for n in v]) for k, v in split.items()}
 
 
 def _run_pending(pending: list[SequenceSpec], garment: GarmentMesh, config: SimConfig, keys: dict[str, str],

@@ -172,3 +172,15 @@ def _file_pieces(path: str, speed: float) -> list[SequenceSpec]:
         suffix = f"_p{k}" if len(starts) > 1 else ""
         specs.append(SequenceSpec(f"{stem}{suffix}", "file", path=path, start=start, stop=stop, speed=speed))
     return specs
+
+
+def build_options(preset: Preset, specs: list[SequenceSpec]) -> dict:
+    """The preset's keyword arguments for ``build_dataset``: splits (by clip group when it names
+    one), seed, mirroring and the provenance recorded in the file."""
+    groups = {s.name: sequence_group(s, preset) for s in specs} if preset.split_by else None
+    info: dict = {"preset": preset.name}
+    if groups:  # recorded in the file: which groups were held out whole
+        info.update(split_by=preset.split_by, groups=groups)
+    if preset.speed_warps or preset.mirror:
+        info["augmentation"] = {"mirror": preset.mirror, "speed_warps": list(preset.speed_warps)}
+    return {"splits": preset.splits, "seed": preset.seed, "groups": groups, "mirror": preset.mirror, "info": info}
