@@ -121,3 +121,41 @@ def test_console_script_exit_code(tmp_path):
     bad.write_text("HIERARCHY\nROOT Hips\n{\n")
     proc = subprocess.run([sys.executable, "-m", "hrr_garment.cli.motion", "info", str(bad)], capture_output=True, text=True)
     assert proc.returncode != 0 and str(bad) in proc.stderr and "Traceback" not in proc.stderr
+
+
+def test_per_joint_poses_and_a_missing_frame_rate_load_with_fps(capsys, tmp_path):
+    """AMASS-style poses given per joint (T, 52, 3) load like (T, 156); a file without a rate key is
+    refused with a message that offers --fps, and loads with it."""
+    motion = synthesize("walk", 1.0, seed=0)
+    flat = tmp_path / "flat.npz"
+    save_amass(motion, flat)
+    data = dict(np.load(flat))
+    per_joint = tmp_path / "per_joint.npz"
+    np.savez(per_joint, poses=data["poses"].reshape(len(data["poses"]), 52, 3), trans=data["trans"])
+    expect_failure(capsys, tmp_path, per_joint, "no frame rate", "--fps")
+    out = tmp_path / "features.npy"
+    assert main(["features", str(per_joint), "--fps", "30", "-o", str(out)]) == 0
+    assert main(["features", str(flat), "-o", str(tmp_path / "flat.npy")]) == 0
+    np.testing.assert_array_equal(np.load(out), np.load(tmp_path / "flat.npy"))
+    # --fps re-times a file that has a rate: 60 given for a 30 fps clip halves its length.
+    assert main(["info", str(flat), "--fps", "60", "--json"]) == 0
+    assert '"frames": 15' in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("rate", ["0", "-30", "nan", "inf", "1e9"])
+def test_bad_fps_values_are_refused(capsys, tmp_path, good_bvh, rate):
+    code = main(["features", str(good_bvh), "--fps", rate, "-o", str(tmp_path / "f.npy")])
+    err = capsys.readouterr().err
+    assert code != 0 and "frame rate" in err and str(good_bvh) in err
+    assert not (tmp_path / "f.npy").exists()
+
+
+def test_bad_frame_rate_keys_are_refused(capsys, tmp_path):
+    motion = synthesize("walk", 1.0, seed=0)
+    path = tmp_path / "amass.npz"
+    save_amass(motion, path)
+    data = dict(np.load(path))
+    for value in (0.0, -1.0, np.nan, np.array([30.0, 60.0]), np.str_("thirty")):
+        bad = tmp_path / "bad_rate.npz"
+        np.savez(bad, poses=data["poses"], trans=data["trans"], mocap_framerate=value)
+        expect_failure(capsys, tmp_path, bad, "mocap_framerate", "frame rate")

@@ -87,3 +87,34 @@ def test_arms_down_rest_pose_is_aligned(tmp_path):
     write_bvh(path, list(JOINT_NAMES), list(PARENTS), offsets, local, motion.root_translation, 1 / 30)
     loaded = load_motion(path)
     np.testing.assert_allclose(loaded.joint_positions, motion.joint_positions, atol=1e-4)
+
+
+def test_a_rig_without_a_standing_rest_pose_keeps_the_garment_attachment(tmp_path):
+    """Rigs exported with their joint orientations baked in (Bandai-Namco's: every bone along +x in
+    the zero pose) carry an arbitrary constant roll per joint. Retargeting must not pass it on: the
+    dress's attached vertices (waistband and strap tops, skinned to the torso joints) land where
+    they do on the original motion."""
+    from hrr_garment.garment.attachment import bind_attached
+    from hrr_garment.garment.templates import make_garment
+    from hrr_garment.motion.retarget import rest_is_standing
+    from hrr_garment.motion.rotations import axis_angle_to_matrix
+    from hrr_garment.motion.skeleton import rest_positions
+
+    motion = synthesize("walk", 2.0, seed=5)
+    roll = axis_angle_to_matrix(np.random.default_rng(0).normal(size=(22, 3)) * 1.5)  # per-joint rig frames
+    g_true = motion.global_rotations
+    local = np.empty_like(g_true)
+    local[:, 0] = g_true[:, 0] @ roll[0]
+    for j in range(1, 22):
+        p = PARENTS[j]
+        local[:, j] = roll[p].T @ motion.local_rotations[:, j].astype(np.float64) @ roll[j]
+    offsets = np.stack([roll[PARENTS[j]].T @ CANONICAL.offsets[j] if j else CANONICAL.offsets[j] for j in range(22)])
+    assert not rest_is_standing(rest_positions(offsets, PARENTS), {j: j for j in range(22)})
+    path = tmp_path / "baked.bvh"
+    write_bvh(path, list(JOINT_NAMES), list(PARENTS), offsets, local, motion.root_translation, 1 / 30)
+    loaded = load_motion(path)
+    np.testing.assert_allclose(loaded.joint_positions, motion.joint_positions, atol=1e-3)
+    binding = bind_attached(make_garment("dress", 400))
+    expected = binding.pose(motion.global_rotations, motion.joint_positions)
+    got = binding.pose(loaded.global_rotations, loaded.joint_positions)
+    assert np.linalg.norm(got - expected, axis=-1).max() < 0.01  # metres

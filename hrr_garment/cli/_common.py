@@ -2,12 +2,20 @@
 
 from __future__ import annotations
 
+import argparse
 import sys
 from typing import Callable, Sequence
 
 from ..errors import HRRError
 
 EXIT_ERROR = 2
+
+
+def add_fps_option(p: argparse.ArgumentParser) -> None:
+    """``--fps``: the motion file's own frame rate, for files that carry none (or a wrong one)."""
+    p.add_argument("--fps", type=float, default=None, metavar="RATE",
+                   help="frame rate the motion file was captured at (for npz files without a rate key; "
+                        "overrides a BVH's frame time)")
 
 
 def run_cli(body: Callable[[Sequence[str] | None], int], argv: Sequence[str] | None, prog: str) -> int:

@@ -19,7 +19,7 @@ from pathlib import Path
 from typing import Sequence
 
 from ..errors import InputError
-from ._common import run_cli
+from ._common import add_fps_option, run_cli
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -34,6 +34,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--no-collision", action="store_true", help="skip the collision push-out")
     p.add_argument("--causal", action="store_true", help="causal windows only, as the streaming API")
     p.add_argument("--unit-scale", type=float, default=None, help="BVH length unit in metres (default: detected)")
+    add_fps_option(p)
     return p
 
 
@@ -53,7 +54,7 @@ def _main(argv: Sequence[str] | None) -> int:
     if args.model is None:
         print(f"model: {model_dir}")
     t0 = time.perf_counter()
-    motion = load_motion(args.motion, **({"unit_scale": args.unit_scale} if args.unit_scale else {}))
+    motion = load_motion(args.motion, unit_scale=args.unit_scale, source_fps=args.fps)
     animator = Animator.load(model_dir)
     if args.garment is not None and animator.bundle.garment != args.garment:
         raise InputError(model_dir, f"this model animates a {animator.bundle.garment}, not a {args.garment}")

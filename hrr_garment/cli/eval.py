@@ -22,7 +22,7 @@ from pathlib import Path
 from typing import Sequence
 
 from ..errors import InputError
-from ._common import run_cli
+from ._common import add_fps_option, run_cli
 
 ALL_MODES = ("hybrid", "regression", "retrieval", "naive-nn", "direct")
 
@@ -59,6 +59,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--tau-sweep", type=_floats, default=None, help="comma-separated taus (default: 10 entropy quantiles)")
     p.add_argument("--no-sweep", action="store_true", help="skip the tau sweep")
     p.add_argument("--motions", nargs="+", default=None, help="real motion files to simulate and evaluate on")
+    add_fps_option(p)
     p.add_argument("--no-collision", action="store_true", help="evaluate without the collision push-out")
     p.add_argument("--no-plots", action="store_true")
     p.add_argument("-o", "--output", type=Path, default=None, help="report folder (default: hrr_work/eval/MODEL)")
@@ -115,7 +116,7 @@ def _main(argv: Sequence[str] | None) -> int:
         sweep = tau_sweep(animator, records, taus, args.exclude_own_sequence, collision, progress)
     real = None
     if args.motions:
-        real = _real_motion(animator, ds, args.motions, modes, tau, collision, progress)
+        real = _real_motion(animator, ds, args.motions, modes, tau, collision, progress, args.fps)
     report = build_report(
         model={"folder": str(model_dir), "garment": bundle.garment, "hash": bundle.content_hash, "tau": bundle.tau,
                "vertices": bundle.template.num_vertices, "preset": bundle.meta.get("preset")},
@@ -131,7 +132,8 @@ def _main(argv: Sequence[str] | None) -> int:
     return 0
 
 
-def _real_motion(animator, ds, files: list[str], modes: list[str], tau: float, collision: bool, progress: bool) -> dict:
+def _real_motion(animator, ds, files: list[str], modes: list[str], tau: float, collision: bool, progress: bool,
+                 source_fps: float | None = None) -> dict:
     """Simulate the files' ground truth with the dataset's settings (parts cached), evaluate there."""
     from ..data.dataset import GarmentDataset
     from ..eval.evaluate import evaluate_modes
@@ -143,7 +145,7 @@ def _real_motion(animator, ds, files: list[str], modes: list[str], tau: float, c
     for f in files:
         if not Path(f).is_file():
             raise InputError(f, "no such motion file")
-    specs = plan_sequences(load_preset(str(ds.info.get("preset", "quick"))), motions=list(files))
+    specs = plan_sequences(load_preset(str(ds.info.get("preset", "quick"))), motions=list(files), source_fps=source_fps)
     config = SimConfig.from_dict(ds.info.get("sim", {}))
     path = workspace() / "eval" / f"{ds.path.stem}-real-motion.h5"
     print(f"simulating ground truth for {len(files)} motion file(s) ({len(specs)} pieces; cached in {path.with_suffix('.parts')})")

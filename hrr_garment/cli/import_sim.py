@@ -20,7 +20,7 @@ from typing import Sequence
 from ..data.importer import frames_to_sequence, import_sequence, read_frames
 from ..garment.obj import load_garment_obj
 from ..motion.io import load_motion
-from ._common import run_cli
+from ._common import add_fps_option, run_cli
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -35,6 +35,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--frames-scale", type=float, default=1.0, help="metres per frame unit (default 1)")
     p.add_argument("--name", default=None, help="sequence name (default: the motion file's name)")
     p.add_argument("--unit-scale", type=float, default=None, help="metres per BVH unit (default: detect)")
+    add_fps_option(p)
     p.add_argument("-o", "--output", type=Path, required=True, help="dataset .h5 to create or extend")
     return p
 
@@ -43,7 +44,7 @@ def _main(argv: Sequence[str] | None) -> int:
     args = _parser().parse_args(argv)
     template = load_garment_obj(args.template, args.garment, args.attached, args.attached_file)
     # Keep the file's placement: the frames are in the motion's world frame.
-    motion = load_motion(args.motion, unit_scale=args.unit_scale, ground=False)
+    motion = load_motion(args.motion, unit_scale=args.unit_scale, ground=False, source_fps=args.fps)
     frames = read_frames(args.frames)
     record = frames_to_sequence(args.name or args.motion.stem, template, motion, frames, str(args.frames),
                                 args.frames_fps, args.frames_scale)

@@ -15,17 +15,19 @@ from ..io_utils import atomic_path
 from ..motion.features import DEFAULT_WINDOW, motion_features
 from ..motion.io import load_motion, save_motion
 from ..motion.synth import KINDS, kind_parameters, synthesize
-from ._common import run_cli
+from ._common import add_fps_option, run_cli
 
 
 def _add_load_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--unit-scale", type=float, default=None, help="metres per BVH file unit (default: detect from standing height)")
     p.add_argument("--joint-map", type=Path, default=None, help="YAML mapping canonical joint names to the file's joint names")
     p.add_argument("--no-ground", action="store_true", help="keep the file's vertical placement instead of standing the feet on y=0")
+    add_fps_option(p)
 
 
 def _load(args: argparse.Namespace):
-    return load_motion(args.file, unit_scale=args.unit_scale, joint_map=args.joint_map, ground=not args.no_ground)
+    return load_motion(args.file, unit_scale=args.unit_scale, joint_map=args.joint_map, ground=not args.no_ground,
+                       source_fps=args.fps)
 
 
 def _parser() -> argparse.ArgumentParser:

@@ -23,7 +23,7 @@ from ..garment.obj import load_garment_obj
 from ..garment.templates import GARMENT_NAMES, make_garment
 from ..paths import workspace
 from ..sim.plan import build_options, load_preset, plan_sequences, preset_names
-from ._common import run_cli
+from ._common import add_fps_option, run_cli
 
 
 def add_garment_options(p: argparse.ArgumentParser) -> None:
@@ -49,6 +49,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--motions", nargs="+", default=None, metavar="KIND_OR_FILE",
                    help="instead of the preset's clips: one clip per kind named (repeat for more) plus motion files")
     p.add_argument("--seconds", type=float, default=None, help="length of each procedural clip (default: the preset's)")
+    add_fps_option(p)
     p.add_argument("--jobs", type=int, default=None, help="worker processes (default: one per core)")
     p.add_argument("--substeps", type=int, default=None, help="override the preset's substeps per frame")
     p.add_argument("--iterations", type=int, default=None, help="override the preset's solver iterations")
@@ -66,7 +67,7 @@ def _main(argv: Sequence[str] | None) -> int:
 
     preset = load_preset(args.preset)
     garment = resolve_garment(args, preset.vertices)
-    specs = plan_sequences(preset, args.motions, args.seconds)
+    specs = plan_sequences(preset, args.motions, args.seconds, args.fps)
     overrides = {k: v for k, v in (("substeps", args.substeps), ("iterations", args.iterations),
                                    ("device", args.device)) if v is not None}
     config = SimConfig.from_dict({**preset.sim, **overrides})

@@ -46,22 +46,45 @@ def load_motion(
     joint_map: str | Path | dict | None = None,
     ground: bool = True,
     fps: float = FPS,
+    source_fps: float | None = None,
 ) -> Motion:
-    """Load a BVH, AMASS-style npz or native npz file as a canonical motion at ``fps``."""
+    """Load a BVH, AMASS-style npz or native npz file as a canonical motion at ``fps``.
+
+    ``source_fps`` is the file's own frame rate, for files that carry none (or a wrong one): it
+    replaces a BVH's frame time and an npz's rate key.
+    """
     path = Path(path)
     if not path.exists():
         raise MotionError(path, "file not found")
+    if source_fps is not None:
+        source_fps = check_source_fps(source_fps, path)
     suffix = path.suffix.lower()
     if suffix == ".bvh":
         custom = load_joint_map(joint_map) if isinstance(joint_map, (str, Path)) else joint_map
-        return load_bvh(path, unit_scale=unit_scale, joint_map=custom, ground=ground, fps=fps)
+        return load_bvh(path, unit_scale=unit_scale, joint_map=custom, ground=ground, fps=fps, source_fps=source_fps)
     if suffix == ".npz":
         data = _read_npz(path)
         if "format" in data and str(data["format"]) == NATIVE_FORMAT:
             motion = _native_from_arrays(data, path)
+            if source_fps is not None:
+                motion.fps = source_fps
             return resample_motion(motion, fps)
-        return load_amass(path, data, ground=ground, fps=fps)
+        return load_amass(path, data, ground=ground, fps=fps, source_fps=source_fps)
     raise MotionError(path, f"unsupported motion file type {suffix!r} (expected .bvh or .npz)")
+
+
+MAX_SOURCE_FPS = 1000.0  # above this a "frame rate" is a unit mistake, not a capture rate
+
+
+def check_source_fps(value: float, path: str | Path) -> float:
+    """A file's frame rate as given by the user: finite, positive and plausible, or a clear error."""
+    arr = np.asarray(value)
+    if arr.size != 1 or arr.dtype.kind not in "iuf":
+        raise MotionError(path, f"frame rate must be one real number, got {str(value)[:40]!r}")
+    rate = float(arr.item())
+    if not (np.isfinite(rate) and 0 < rate <= MAX_SOURCE_FPS):
+        raise MotionError(path, f"frame rate must be a finite number of frames per second in (0, {MAX_SOURCE_FPS:g}], got {rate:g}")
+    return rate
 
 
 def _read_npz(path: Path) -> dict[str, np.ndarray]:
@@ -96,7 +119,8 @@ def detect_unit_scale(rest: np.ndarray, mapping: dict[str, int], path: Path) -> 
     return min(fits)[1]
 
 
-def load_bvh(path: Path, unit_scale: float | None = None, joint_map: dict | None = None, ground: bool = True, fps: float = FPS) -> Motion:
+def load_bvh(path: Path, unit_scale: float | None = None, joint_map: dict | None = None, ground: bool = True, fps: float = FPS,
+             source_fps: float | None = None) -> Motion:
     clip = read_bvh(path)
     scheme, mapping = resolve_joint_map(clip.names, str(path), joint_map)
     rest = rest_positions(clip.offsets, clip.parents)
@@ -104,7 +128,7 @@ def load_bvh(path: Path, unit_scale: float | None = None, joint_map: dict | None
         unit_scale = detect_unit_scale(rest, mapping, path)
     elif not unit_scale > 0:
         raise MotionError(path, f"unit scale must be positive, got {unit_scale}")
-    src_fps = 1.0 / clip.frame_time
+    src_fps = source_fps or 1.0 / clip.frame_time
     frames = resample_times(clip.num_frames, src_fps, fps)
     local_rot = resample_rotations(clip.local_rotations, frames)
     local_trans = resample_linear(clip.local_translations, frames) * unit_scale
@@ -120,23 +144,27 @@ def load_bvh(path: Path, unit_scale: float | None = None, joint_map: dict | None
 # --- AMASS -----------------------------------------------------------------------------------------
 
 
-def load_amass(path: Path, data: dict[str, np.ndarray], ground: bool = True, fps: float = FPS) -> Motion:
-    """AMASS-style npz: the first 22 joints of ``poses`` are SMPL body joints, Z up."""
+def load_amass(path: Path, data: dict[str, np.ndarray], ground: bool = True, fps: float = FPS,
+               source_fps: float | None = None) -> Motion:
+    """AMASS-style npz: the first 22 joints of ``poses`` are SMPL body joints, Z up. ``poses`` is
+    (T, 72|156|165) or per joint (T, 24|52|55, 3); ``source_fps`` stands in for a missing rate key."""
     missing = [k for k in ("poses", "trans") if k not in data]
     rate_key = next((k for k in ("mocap_framerate", "mocap_frame_rate") if k in data), None)
-    if rate_key is None:
-        missing.append("mocap_framerate (or mocap_frame_rate)")
     if missing:
         raise MotionError(path, f"missing keys {missing} (AMASS-style npz needs poses, trans and the frame rate; native npz files carry format={NATIVE_FORMAT!r})")
+    if rate_key is None and source_fps is None:
+        raise MotionError(path, "no frame rate: the file has no mocap_framerate (or mocap_frame_rate) key; "
+                                "give the rate it was captured at with --fps (e.g. --fps 120)")
     poses = np.asarray(data["poses"], dtype=np.float64)
     trans = np.asarray(data["trans"], dtype=np.float64)
+    if poses.ndim == 3 and poses.shape[2] == 3 and poses.shape[1] * 3 in AMASS_WIDTHS:
+        poses = poses.reshape(poses.shape[0], -1)  # per-joint axis-angle
     if poses.ndim != 2 or poses.shape[1] not in AMASS_WIDTHS:
-        raise MotionError(path, f"poses has shape {poses.shape}; expected (T, 72|156|165) for SMPL, SMPL-H or SMPL-X")
+        raise MotionError(path, f"poses has shape {poses.shape}; expected (T, 72|156|165) or (T, 24|52|55, 3) "
+                                "for SMPL, SMPL-H or SMPL-X")
     if trans.shape != (poses.shape[0], 3):
         raise MotionError(path, f"trans has shape {trans.shape}; expected ({poses.shape[0]}, 3) to match poses")
-    rate = float(np.asarray(data[rate_key]))
-    if not rate > 0:
-        raise MotionError(path, f"{rate_key} must be positive, got {rate}")
+    rate = source_fps if source_fps is not None else check_source_fps(data[rate_key], f"{path}: {rate_key}")
     _check_finite(path, poses, trans)
     if poses.shape[0] == 0:
         raise MotionError(path, "the motion has no frames")

@@ -84,26 +84,26 @@ class SequenceSpec:
     start: int = 0  # frame range of the file's 30 fps clip (after any speed warp)
     stop: int = 0
     speed: float = 1.0  # the file's motion played this much faster (a speed-warp augmentation)
+    source_fps: float | None = None  # the file's frame rate where it carries none (--fps)
 
     def motion(self) -> Motion:
         if self.kind == "file":
-            return load_file_motion(self.path, self.speed).slice(self.start, self.stop)
+            return load_file_motion(self.path, self.speed, self.source_fps).slice(self.start, self.stop)
         return synthesize(self.kind, self.seconds, seed=self.seed)
 
     def key(self, extra: dict) -> str:
         """Content hash of everything that determines the simulated result."""
-        spec = asdict(self)
-        if self.speed == 1.0:
-            del spec["speed"]  # keys of unwarped sequences are as before speed warps existed
+        # Defaults of fields added later stay out, so earlier sequences keep their keys.
+        spec = {k: v for k, v in asdict(self).items() if not (k == "speed" and v == 1.0 or k == "source_fps" and v is None)}
         payload = {"spec": spec, **extra}
         if self.kind == "file":
             payload["file_sha1"] = hashlib.sha1(Path(self.path).read_bytes()).hexdigest()
         return hashlib.sha256(json.dumps(payload, sort_keys=True, default=str).encode()).hexdigest()[:16]
 
 
-def load_file_motion(path: str, speed: float = 1.0) -> Motion:
+def load_file_motion(path: str, speed: float = 1.0, source_fps: float | None = None) -> Motion:
     """A motion file at 30 fps, played ``speed`` times faster (resampled; features follow)."""
-    motion = load_motion(path)
+    motion = load_motion(path, source_fps=source_fps)
     if speed == 1.0:
         return motion
     fast = Motion(motion.local_rotations, motion.root_translation, motion.fps * speed, motion.source,
@@ -123,10 +123,12 @@ def _safe(stem: str) -> str:
     return re.sub(r"[^A-Za-z0-9_.-]+", "_", stem).strip("_") or "clip"
 
 
-def plan_sequences(preset: Preset, motions: list[str] | None = None, seconds: float | None = None) -> list[SequenceSpec]:
+def plan_sequences(preset: Preset, motions: list[str] | None = None, seconds: float | None = None,
+                   source_fps: float | None = None) -> list[SequenceSpec]:
     """The preset's procedural clips and motion files, or, when ``motions`` is given, one clip per
     kind named there (repeat a kind for more) and every motion file named there (long files in
-    pieces). The preset's speed warps apply to motion files either way."""
+    pieces). The preset's speed warps apply to motion files either way; ``source_fps`` is the
+    files' own frame rate where they carry none."""
     seconds = float(seconds or preset.seconds)
     counts: dict[str, int] = {}
     entries: list[str] = []
@@ -146,7 +148,7 @@ def plan_sequences(preset: Preset, motions: list[str] | None = None, seconds: fl
     files = resolve_motion_entries(entries, Path(preset.base) if preset.base and not motions else None)
     for path in files:
         for speed in (1.0, *preset.speed_warps):
-            specs += _file_pieces(str(path), speed)
+            specs += _file_pieces(str(path), speed, source_fps)
     names = [s.name for s in specs]
     if len(set(names)) != len(names):
         raise HRRError(f"two motions would get the same sequence name: {sorted({n for n in names if names.count(n) > 1})}")
@@ -155,9 +157,9 @@ def plan_sequences(preset: Preset, motions: list[str] | None = None, seconds: fl
     return specs
 
 
-def _file_pieces(path: str, speed: float) -> list[SequenceSpec]:
+def _file_pieces(path: str, speed: float, source_fps: float | None) -> list[SequenceSpec]:
     """A motion file as sequences of at most FILE_PIECE_S (a short tail folds into the last)."""
-    clip = load_file_motion(path, speed)
+    clip = load_file_motion(path, speed, source_fps)
     if clip.num_frames < MIN_CLIP_FRAMES:
         raise MotionError(path, f"motion too short to simulate: {clip.num_frames} frames at {clip.fps:g} fps "
                                 f"(at least {MIN_CLIP_FRAMES})")
@@ -170,7 +172,8 @@ def _file_pieces(path: str, speed: float) -> list[SequenceSpec]:
     for k, start in enumerate(starts):
         stop = starts[k + 1] if k + 1 < len(starts) else clip.num_frames
         suffix = f"_p{k}" if len(starts) > 1 else ""
-        specs.append(SequenceSpec(f"{stem}{suffix}", "file", path=path, start=start, stop=stop, speed=speed))
+        specs.append(SequenceSpec(f"{stem}{suffix}", "file", path=path, start=start, stop=stop, speed=speed,
+                                  source_fps=source_fps))
     return specs
 
 
