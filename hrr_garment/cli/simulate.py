@@ -5,6 +5,7 @@ Examples::
     hrr-simulate --garment dress --preset quick            # -> hrr_work/datasets/dress-quick.h5
     hrr-simulate --garment skirt --preset tiny --motions walk spin ../shared/data/mocap/cmu/02_01.bvh
     hrr-simulate --template my_dress.obj --attached waistband --preset quick
+    hrr-simulate --garment dress --preset real-quick --executor ray --address HEAD:6379
 
 Re-running the same command skips sequences already simulated (kept in DATASET.parts/).
 """
@@ -50,7 +51,11 @@ def _parser() -> argparse.ArgumentParser:
                    help="instead of the preset's clips: one clip per kind named (repeat for more) plus motion files")
     p.add_argument("--seconds", type=float, default=None, help="length of each procedural clip (default: the preset's)")
     add_fps_option(p)
-    p.add_argument("--jobs", type=int, default=None, help="worker processes (default: one per core)")
+    p.add_argument("--jobs", type=int, default=None, help="worker processes (default: one per core); with "
+                   "--executor ray and no --address, the CPUs of the local Ray instance")
+    p.add_argument("--executor", choices=("local", "ray"), default="local",
+                   help="local process pool (default), or one Ray task per sequence (extra 'cluster')")
+    p.add_argument("--address", default=None, help="Ray cluster to join (with --executor ray; e.g. HEAD:6379 or auto)")
     p.add_argument("--substeps", type=int, default=None, help="override the preset's substeps per frame")
     p.add_argument("--iterations", type=int, default=None, help="override the preset's solver iterations")
     p.add_argument("--device", default=None, help="warp device: auto (default), cpu, cuda:0")
@@ -77,8 +82,10 @@ def _main(argv: Sequence[str] | None) -> int:
         out = workspace() / "datasets" / f"{garment.name}-{preset.name}{suffix}.h5"
     options = build_options(preset, specs)
     options["info"]["garment_vertices"] = garment.num_vertices
+    if args.address and args.executor != "ray":
+        raise InputError("--address", "joins a Ray cluster: use it with --executor ray")
     report = build_dataset(garment, specs, config, out, jobs=args.jobs, preview=not args.no_preview,
-                           progress=not args.quiet, **options)
+                           progress=not args.quiet, executor=args.executor, address=args.address, **options)
     print_report(report, garment)
     return 0
 

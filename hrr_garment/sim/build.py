@@ -1,43 +1,31 @@
-"""Resumable dataset building: simulate each planned sequence in a worker process, keep each
-finished one as an atomic part file, then assemble the HDF5 dataset.
+"""Resumable dataset building: simulate each planned sequence (in local worker processes or as Ray
+tasks, :mod:`.executors`), keep each finished one as an atomic part file, then assemble the HDF5
+dataset from the parts.
 
-Parts live beside the dataset in ``NAME.parts/``: ``<sequence>.npz`` (arrays only, no pickle) or
-``<sequence>.failed.json`` for a sequence that exploded on every attempt. Each records a key that
-hashes the template, simulator settings and the sequence's spec; a re-run reuses parts whose key
-matches and simulates the rest, so a killed build resumes where it stopped.
+Parts live beside the dataset in ``NAME.parts/`` (:mod:`.parts`). Each records a key that hashes
+the template, simulator settings and the sequence's spec; a re-run reuses parts whose key matches
+and simulates the rest, so a killed build resumes where it stopped.
 """
 
 from __future__ import annotations
 
-import hashlib
 import json
-import multiprocessing as mp
 import os
-import queue as queue_mod
 import time
-from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
-from tqdm.auto import tqdm
 
 from ..data.dataset import SequenceRecord, split_groups, split_names, write_dataset
+from ..errors import InputError
 from ..garment.mesh import GarmentMesh, mirror_map
-from ..io_utils import atomic_path, atomic_write_text
-from ..motion.motion import FPS, Motion
+from ..io_utils import atomic_write_text
+from .executors import EXECUTORS, run_local, run_ray
+from .parts import PART_VERSION, load_part, part_paths, read_part_key, template_hash
 from .plan import SequenceSpec
-from .quality import edge_strain, sequence_stats
+from .quality import edge_strain
 from .simulator import SimConfig, SimulationExploded, simulate_garment
-
-PART_VERSION = 1
-
-
-def template_hash(mesh: GarmentMesh) -> str:
-    h = hashlib.sha1()
-    for arr in (mesh.vertices, mesh.faces, mesh.attached):
-        h.update(np.ascontiguousarray(arr).tobytes())
-    return h.hexdigest()[:16]
 
 
 @dataclass
@@ -52,47 +40,6 @@ class BuildReport:
     stats: dict[str, dict] = field(default_factory=dict)
 
 
-def _part_paths(parts: Path, name: str) -> tuple[Path, Path]:
-    return parts / f"{name}.npz", parts / f"{name}.failed.json"
-
-
-def _read_part_key(part: Path) -> str | None:
-    try:
-        with np.load(part, allow_pickle=False) as z:
-            return str(z["key"])
-    except (OSError, KeyError, ValueError):
-        return None  # unreadable or from an older layout: simulate again
-
-
-def _simulate_part(spec: SequenceSpec, garment: GarmentMesh, config: dict, key: str, parts: str,
-                   progress_queue=None) -> dict:
-    """Worker: simulate one sequence and write its part file (or failure record)."""
-    part, failed = _part_paths(Path(parts), spec.name)
-    motion = spec.motion()
-    report = (lambda n: progress_queue.put(n)) if progress_queue is not None else None
-    try:
-        result = simulate_garment(garment, motion, SimConfig.from_dict(config), progress=report)
-    except SimulationExploded as exc:
-        atomic_write_text(failed, json.dumps({"key": key, "name": spec.name, "reason": str(exc)}))
-        return {"name": spec.name, "failed": str(exc)}
-    stats = sequence_stats(result.vertices, garment.vertices, garment.edges(), motion, garment.groups.get("hem"))
-    stats.update(substeps=result.substeps, attempts=result.attempts, sim_seconds=result.seconds,
-                 simulated_frames=result.simulated_frames)
-    info = {"kind": spec.kind, "seed": spec.seed, "path": spec.path, "stats": stats}
-    with atomic_path(part) as tmp:
-        with open(tmp, "wb") as fh:
-            np.savez(fh, key=np.array(key), garment=result.vertices, local_rotations=motion.local_rotations,
-                     root_translation=motion.root_translation, fps=np.array(motion.fps),
-                     source=np.array(motion.source), info=np.array(json.dumps(info)))
-    return {"name": spec.name, "stats": stats}
-
-
-def _load_part(part: Path, name: str) -> SequenceRecord:
-    with np.load(part, allow_pickle=False) as z:
-        motion = Motion(z["local_rotations"], z["root_translation"], float(z["fps"]), str(z["source"]))
-        return SequenceRecord(name, z["garment"], motion, json.loads(str(z["info"])))
-
-
 def warm_up(garment: GarmentMesh, config: SimConfig) -> None:
     """Compile/load the simulator's kernels once in this process (workers then find them cached)."""
     from ..motion.synth import synthesize
@@ -104,12 +51,17 @@ def warm_up(garment: GarmentMesh, config: SimConfig) -> None:
 def build_dataset(garment: GarmentMesh, specs: list[SequenceSpec], config: SimConfig, out: str | Path,
                   jobs: int | None = None, splits: dict[str, float] | None = None, seed: int = 0,
                   info: dict | None = None, preview: bool = True, progress: bool = True,
-                  groups: dict[str, str] | None = None, mirror: bool = False) -> BuildReport:
+                  groups: dict[str, str] | None = None, mirror: bool = False, executor: str = "local",
+                  address: str | None = None) -> BuildReport:
     """Simulate what is missing, then write ``out`` (HDF5) atomically. See the module docstring.
 
     ``groups`` (sequence name -> clip group) makes the split hold out whole groups; ``mirror`` adds
     every sequence reflected left-right as ``NAME_mirror`` in its source's split (a symmetric
-    garment's exact mirror simulation, no solver time; skipped with a note otherwise)."""
+    garment's exact mirror simulation, no solver time; skipped with a note otherwise). ``executor``
+    "ray" runs the pending sequences as Ray tasks (on the cluster at ``address``, or a local
+    instance with ``jobs`` CPUs)."""
+    if executor not in EXECUTORS:
+        raise InputError(executor, f"unknown executor; choose one of {', '.join(EXECUTORS)}")
     out = Path(out)
     parts = out.with_suffix(".parts")
     parts.mkdir(parents=True, exist_ok=True)
@@ -117,24 +69,29 @@ def build_dataset(garment: GarmentMesh, specs: list[SequenceSpec], config: SimCo
     keys = {s.name: s.key(extra) for s in specs}
     pending, rejects, reused = [], {}, 0
     for spec in specs:
-        part, failed = _part_paths(parts, spec.name)
-        if part.exists() and _read_part_key(part) == keys[spec.name]:
+        part, failed = part_paths(parts, spec.name)
+        if part.exists() and read_part_key(part) == keys[spec.name]:
             reused += 1
         elif failed.exists() and json.loads(failed.read_text()).get("key") == keys[spec.name]:
             rejects[spec.name] = json.loads(failed.read_text())["reason"]
         else:
             pending.append(spec)
-    jobs = max(1, min(jobs or os.cpu_count() or 1, len(pending) or 1))
+    if executor == "local":
+        jobs = max(1, min(jobs or os.cpu_count() or 1, len(pending) or 1))
     t0 = time.perf_counter()
     if pending:
         if progress:
-            print(f"simulating {len(pending)} of {len(specs)} sequences with {jobs} worker(s); "
+            where = f"{jobs} worker(s)" if executor == "local" else f"Ray ({address or f'local, {jobs or os.cpu_count()} CPUs'})"
+            print(f"simulating {len(pending)} of {len(specs)} sequences with {where}; "
                   f"{reused} already done (first run compiles kernels: about two minutes, cached after)")
         warm_up(garment, config)
-        rejects.update(_run_pending(pending, garment, config, keys, parts, jobs, progress))
+        if executor == "ray":
+            rejects.update(run_ray(pending, garment, config, keys, parts, jobs, progress, address))
+        else:
+            rejects.update(run_local(pending, garment, config, keys, parts, jobs, progress))
     sim_wall = time.perf_counter() - t0
-    done = [s.name for s in specs if s.name not in rejects and _part_paths(parts, s.name)[0].exists()]
-    records = [_load_part(_part_paths(parts, n)[0], n) for n in done]
+    done = [s.name for s in specs if s.name not in rejects and part_paths(parts, s.name)[0].exists()]
+    records = [load_part(part_paths(parts, n)[0], n) for n in done]
     if not records:
         raise SimulationExploded(f"every sequence failed; nothing to write to {out}: {rejects}")
     val, test = (splits or {}).get("val", 0.1), (splits or {}).get("test", 0.1)
@@ -166,39 +123,6 @@ def _add_mirrored(records: list[SequenceRecord], split: dict[str, list[str]], ga
     mirrored = [SequenceRecord(f"{r.name}_mirror", r.garment[:, perm] * flip, r.motion.mirrored(),
                                {**r.info, "mirror_of": r.name}) for r in records]
     return records + mirrored, {k: sorted(v + [f"{n}_mirror" for n in v]) for k, v in split.items()}
-
-
-def _run_pending(pending: list[SequenceSpec], garment: GarmentMesh, config: SimConfig, keys: dict[str, str],
-                 parts: Path, jobs: int, progress: bool) -> dict[str, str]:
-    lead = int(round(config.settle_s * FPS)) + int(round(config.blend_s * FPS))  # as with_lead_in counts
-    total = sum(int(round(s.seconds * FPS)) + lead if s.kind != "file" else s.stop - s.start + lead for s in pending)
-    bar = tqdm(total=total, unit="frame", desc="simulating", disable=not progress, smoothing=0.05)
-    rejects: dict[str, str] = {}
-    ctx = mp.get_context("spawn")  # Warp is not fork-safe
-    with ctx.Manager() as manager, ProcessPoolExecutor(max_workers=jobs, mp_context=ctx) as pool:
-        progress_queue = manager.Queue()
-        futures = {pool.submit(_simulate_part, s, garment, config.to_dict(), keys[s.name], str(parts), progress_queue): s
-                   for s in pending}
-        remaining = set(futures)
-        while remaining:
-            finished, remaining = wait(remaining, timeout=0.5, return_when=FIRST_COMPLETED)
-            _drain(progress_queue, bar)
-            for fut in finished:
-                result = fut.result()  # a worker crash propagates: the finished parts are kept
-                if "failed" in result:
-                    rejects[result["name"]] = result["failed"]
-                    bar.write(f"rejected {result['name']}: {result['failed']}")
-        _drain(progress_queue, bar)
-    bar.close()
-    return rejects
-
-
-def _drain(progress_queue, bar) -> None:
-    try:
-        while True:
-            bar.update(progress_queue.get_nowait())
-    except queue_mod.Empty:
-        pass
 
 
 def summarise(records: list[SequenceRecord], garment: GarmentMesh, rejects: dict[str, str], sim_wall: float,

@@ -1,0 +1,94 @@
+"""One simulated sequence as a part file: computed anywhere, written by whoever holds the folder.
+
+A part is ``<sequence>.npz`` (arrays only, no pickle) or ``<sequence>.failed.json`` for a sequence
+that exploded on every attempt, each with a key that hashes the template, simulator settings and
+the sequence's spec. :func:`simulate_sequence` computes a part's content from a motion (in a local
+worker or a Ray task on another machine); :func:`write_part` writes it atomically, so the same
+bytes land whichever executor ran it.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from ..data.dataset import SequenceRecord
+from ..garment.mesh import GarmentMesh
+from ..io_utils import atomic_path, atomic_write_text
+from ..motion.motion import Motion
+from .plan import SequenceSpec
+from .quality import sequence_stats
+from .simulator import SimConfig, SimulationExploded, simulate_garment
+
+PART_VERSION = 1
+
+
+def template_hash(mesh: GarmentMesh) -> str:
+    h = hashlib.sha1()
+    for arr in (mesh.vertices, mesh.faces, mesh.attached):
+        h.update(np.ascontiguousarray(arr).tobytes())
+    return h.hexdigest()[:16]
+
+
+def part_paths(parts: Path, name: str) -> tuple[Path, Path]:
+    return parts / f"{name}.npz", parts / f"{name}.failed.json"
+
+
+def read_part_key(part: Path) -> str | None:
+    try:
+        with np.load(part, allow_pickle=False) as z:
+            return str(z["key"])
+    except (OSError, KeyError, ValueError):
+        return None  # unreadable or from an older layout: simulate again
+
+
+@dataclass
+class PartResult:
+    """What one simulation produced: the recorded frames and their statistics, or why it failed."""
+
+    name: str
+    key: str
+    frames: int  # simulated frames, lead-in included (for progress)
+    vertices: np.ndarray | None = None
+    motion: Motion | None = None
+    info: dict | None = None
+    failure: str | None = None
+
+
+def simulate_sequence(spec: SequenceSpec, motion: Motion, garment: GarmentMesh, config: dict, key: str,
+                      progress: Callable[[int], None] | None = None) -> PartResult:
+    """Simulate one sequence (``motion`` is ``spec.motion()``, loaded by the caller)."""
+    try:
+        result = simulate_garment(garment, motion, SimConfig.from_dict(config), progress=progress)
+    except SimulationExploded as exc:
+        return PartResult(spec.name, key, 0, failure=str(exc))
+    stats = sequence_stats(result.vertices, garment.vertices, garment.edges(), motion, garment.groups.get("hem"))
+    stats.update(substeps=result.substeps, attempts=result.attempts, sim_seconds=result.seconds,
+                 simulated_frames=result.simulated_frames)
+    info = {"kind": spec.kind, "seed": spec.seed, "path": spec.path, "stats": stats}
+    return PartResult(spec.name, key, result.simulated_frames, result.vertices, motion, info)
+
+
+def write_part(result: PartResult, parts: Path) -> None:
+    """Write a part (or its failure record) atomically into ``parts``."""
+    part, failed = part_paths(parts, result.name)
+    if result.failure is not None:
+        atomic_write_text(failed, json.dumps({"key": result.key, "name": result.name, "reason": result.failure}))
+        return
+    motion = result.motion
+    with atomic_path(part) as tmp:
+        with open(tmp, "wb") as fh:
+            np.savez(fh, key=np.array(result.key), garment=result.vertices, local_rotations=motion.local_rotations,
+                     root_translation=motion.root_translation, fps=np.array(motion.fps),
+                     source=np.array(motion.source), info=np.array(json.dumps(result.info)))
+
+
+def load_part(part: Path, name: str) -> SequenceRecord:
+    with np.load(part, allow_pickle=False) as z:
+        motion = Motion(z["local_rotations"], z["root_translation"], float(z["fps"]), str(z["source"]))
+        return SequenceRecord(name, z["garment"], motion, json.loads(str(z["info"])))
