@@ -58,3 +58,29 @@ def test_body_dimensions_are_plausible():
     assert 0.3 < width < 0.5  # hip width of an adult
     fuller = DEFAULT_BODY.scaled(1.2)
     assert fuller.radii == pytest.approx(1.2 * DEFAULT_BODY.radii)
+
+
+def _arm_hanging(adduction_deg: float):
+    """A still pose, both arms hanging and turned ``adduction_deg`` towards the body's midline."""
+    from hrr_garment.motion.motion import Motion
+    from hrr_garment.motion.rotations import axis_angle_to_matrix
+    from hrr_garment.motion.skeleton import JOINT_INDEX, REST_PELVIS_HEIGHT
+
+    local = np.broadcast_to(np.eye(3, dtype=np.float32), (10, 22, 3, 3)).copy()
+    for side, sign in (("l", 1.0), ("r", -1.0)):
+        angle = np.radians(-90.0 - adduction_deg) * sign  # about +z: the left arm swings down and in
+        local[:, JOINT_INDEX[f"{side}_shoulder"]] = axis_angle_to_matrix(np.array([0.0, 0.0, angle]))
+    root = np.tile([0.0, REST_PELVIS_HEIGHT, 0.0], (10, 1))
+    return Motion(local, root)
+
+
+def test_limbs_through_the_body_are_flagged_and_ordinary_motion_is_not():
+    from hrr_garment.body.self_contact import SELF_INTERSECTION_DEPTH, limb_intrusion, self_intersecting_frames
+    from hrr_garment.motion.synth import KINDS, synthesize
+
+    for kind in KINDS:
+        assert not self_intersecting_frames(synthesize(kind, 2.0, seed=0)).any(), kind
+    outward, inward = _arm_hanging(-20.0), _arm_hanging(25.0)
+    assert limb_intrusion(outward).max() == 0.0
+    assert limb_intrusion(inward).min() > SELF_INTERSECTION_DEPTH  # forearm and hand deep in the hips
+    assert self_intersecting_frames(inward).all()

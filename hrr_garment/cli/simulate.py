@@ -96,6 +96,8 @@ def print_report(report, garment: GarmentMesh) -> None:
           f"({report.reused} reused, {report.simulated} simulated now, {len(report.rejects)} rejected)")
     print(f"  strain p99 {s['strain_p99']:.3f} (max {s['strain_max']:.2f}); penetration: worst frame "
           f"{100 * s['penetration_frame_max']:.2f} % of vertices > 5 mm inside, mean {100 * s['penetration_mean']:.3f} %")
+    print(f"  {s['self_intersection_frames']} frame(s) where the motion's limbs pass through the body; worst frame "
+          f"outside them {100 * s['penetration_frame_max_clean']:.2f} %")
     if s["sim_frames_per_core_s"]:
         print(f"  {s['sim_frames_per_core_s']:.2f} simulated frames/s per core (lead-in included); wall {s['sim_wall_s']:.0f} s")
     print("  hem swing (m) by kind: " + json.dumps({k: round(v, 3) for k, v in s["hem_swing_m_by_kind"].items()}))

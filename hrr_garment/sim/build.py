@@ -143,6 +143,10 @@ def summarise(records: list[SequenceRecord], garment: GarmentMesh, rejects: dict
         "finite": bool(all(np.isfinite(r.garment).all() for r in records)),
         "strain_p99": float(np.percentile(pooled, 99)), "strain_max": float(pooled.max()),
         "penetration_frame_max": float(max(s.get("penetration_max", 0.0) for s in stats)),
+        # outside frames where the motion's limbs pass through the body (body/self_contact.py)
+        "penetration_frame_max_clean": float(max(s.get("penetration_max_clean", s.get("penetration_max", 0.0))
+                                                 for s in stats)),
+        "self_intersection_frames": int(sum(s.get("self_intersection_frames", 0) for s in stats)),
         "penetration_mean": float(np.mean([s.get("penetration_mean", 0.0) for s in stats])),
         "deepest_mm": float(max(s.get("deepest_mm", 0.0) for s in stats)),
         "hem_swing_m_by_kind": {k: float(np.mean(v)) for k, v in sorted(by_kind.items())},

@@ -9,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..body.capsules import DEFAULT_BODY, BodyModel, frames_signed_distance
+from ..body.self_contact import self_intersecting_frames
 from ..motion.motion import Motion
 from ..motion.rotations import rotation_about_y, yaw_of
 
@@ -57,6 +58,7 @@ def sequence_stats(vertices: np.ndarray, rest: np.ndarray, edges: np.ndarray, mo
     strain = edge_strain(vertices, rest, edges)
     sd = body_signed_distance(vertices, motion, body)
     pen = penetration_fraction(sd)
+    flagged = self_intersecting_frames(motion, body)  # limbs through the body: the capture's flaw
     stats = {
         "frames": int(len(vertices)),
         "finite": bool(np.isfinite(vertices).all()),
@@ -65,6 +67,8 @@ def sequence_stats(vertices: np.ndarray, rest: np.ndarray, edges: np.ndarray, mo
         "penetration_mean": float(pen.mean()),
         "penetration_max": float(pen.max()),
         "deepest_mm": float(max(0.0, -sd.min()) * 1000.0),
+        "self_intersection_frames": int(flagged.sum()),
+        "penetration_max_clean": float(pen[~flagged].max()) if (~flagged).any() else 0.0,
     }
     if hem is not None and len(hem):
         stats["hem_swing_m"] = hem_swing(vertices, motion, hem)
