@@ -34,7 +34,7 @@ from .motion.synth import synthesize
 from .sim.simulator import SimConfig, SimResult, SimulationExploded, simulate_garment
 
 _LAZY = {"Animation": "inference.animator", "AnimationStream": "inference.animator", "Animator": "inference.animator",
-         "Bundle": "train.bundle", "BundleError": "train.bundle", "load_bundle": "train.bundle"}
+         "Bundle": "artifacts.bundle", "BundleError": "artifacts.bundle", "load_bundle": "artifacts.bundle"}
 
 
 def __getattr__(name: str):

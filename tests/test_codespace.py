@@ -8,7 +8,7 @@ import pytest
 import torch
 
 from hrr_garment.data.windows import build_windows
-from hrr_garment.inference.database import CodeDatabase, code_similarity, pack_codes
+from hrr_garment.artifacts.database import CodeDatabase, code_similarity, pack_codes
 from hrr_garment.models.codebook import GumbelQuantizer, group_entropy
 from hrr_garment.train.codebook import PlateauDetector
 
@@ -67,7 +67,7 @@ def test_decoding_only_the_last_frame_equals_the_full_window():
 @pytest.mark.parametrize("window,hidden,heads,latent", [(10, 32, 2, (6, 8)), (7, 48, 3, (5, 3)), (12, 64, 4, (9, 8))])
 @pytest.mark.parametrize("regression,last_frame", [(True, True), (True, False), (False, True)])
 def test_native_window_step_equals_pytorch_and_is_batch_invariant(window, hidden, heads, latent, regression, last_frame):
-    from hrr_garment.inference.engine import WindowCodes
+    from hrr_garment.models.codes import WindowCodes
     from hrr_garment.models.codespace import CodeSpace, CodeSpaceConfig
     from hrr_garment.models.native_codes import native_window_codes
 
@@ -131,7 +131,7 @@ def test_search_can_exclude_the_query_sequence(database):
 
 
 def test_hrr_train_writes_a_bundle_that_reproduces_its_validation_numbers(trained):
-    from hrr_garment.train.bundle import load_bundle
+    from hrr_garment.artifacts.bundle import load_bundle
     from hrr_garment.train.stages import evaluate_bundle
 
     root, data, _ = trained
@@ -167,7 +167,7 @@ def test_a_new_encoding_retrains_the_code_space(trained, tmp_path):
     import shutil
 
     from hrr_garment.cli.train import main as train_main
-    from hrr_garment.train.bundle import load_bundle
+    from hrr_garment.artifacts.bundle import load_bundle
     from hrr_garment.train.stages import evaluate_bundle
 
     root, data, args = trained
@@ -192,7 +192,7 @@ def test_corrupt_bundle_and_wrong_garment_are_explained(trained, tmp_path):
 
     from hrr_garment.data.dataset import DatasetError
     from hrr_garment.garment.templates import make_garment
-    from hrr_garment.train.bundle import BundleError, load_bundle
+    from hrr_garment.artifacts.bundle import BundleError, load_bundle
     from hrr_garment.train.stages import evaluate_bundle
 
     root, _, _ = trained

@@ -23,11 +23,12 @@ import torch
 from ..body.capsules import DEFAULT_BODY
 from ..data.windows import sequence_windows
 from ..errors import InputError, MotionError
+from ..models.codes import traced_window_codes
 from ..models.native_codes import native_window_codes
 from ..motion.features import motion_features
 from ..motion.motion import Motion
 from ..paths import workspace
-from ..train.bundle import Bundle, BundleError, load_bundle
+from ..artifacts.bundle import Bundle, BundleError, load_bundle
 from .collision import PushOutReport, mean_operator, push_out
 from .engine import (
     MODES,
@@ -42,7 +43,6 @@ from .engine import (
     pair_features,
     source_id,
     to_world,
-    traced_window_codes,
 )
 
 
@@ -103,7 +103,7 @@ class Animator:
         self._causal_steps: dict[bool, object] = {}
 
     def causal_step(self, regression: bool):
-        """The window step (:class:`~.engine.WindowCodes`' function) that causal inference runs,
+        """The window step (:class:`~hrr_garment.models.codes.WindowCodes`' function) that causal inference runs,
         offline and streaming alike, so both compute the same bits: the native kernel
         (:mod:`hrr_garment.models.native_codes`), or None where it is unavailable (each path then
         uses its PyTorch form)."""

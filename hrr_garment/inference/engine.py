@@ -17,7 +17,6 @@ acceleration at its end, so position and velocity stay continuous. Streaming equ
 
 from __future__ import annotations
 
-import warnings
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 
@@ -28,7 +27,8 @@ from ..data.windows import sequence_windows
 from ..motion.features import motion_features
 from ..motion.frame import from_body_frame
 from ..motion.motion import Motion
-from ..train.bundle import Bundle
+from ..artifacts.bundle import Bundle
+from ..models.codes import encode_motion
 
 MODES = ("hybrid", "regression", "retrieval", "naive-nn")
 
@@ -93,74 +93,6 @@ class WindowChoice:
     retrieved: np.ndarray  # (N,) bool
     entropy: np.ndarray  # (N,) motion-code entropy
     source: np.ndarray  # (N, 2) int32 (database sequence index, start frame) of retrieved windows, else -1
-
-
-@dataclass
-class MotionCodes:
-    """The motion encoder's output for N windows."""
-
-    entropy: np.ndarray  # (N,) mean per-group entropy of the code distribution (nats)
-    codes: np.ndarray  # (N, G) uint8 argmax classes
-    regression: np.ndarray | None  # (N, W, nodes, C) decoder latents (not standardised), when asked
-    standardised: np.ndarray  # (N, W, F) the standardised motion windows
-
-
-class WindowCodes(torch.nn.Module):
-    """Standardised motion windows (B, W, F) -> (entropy (B,), argmax classes (B, G), regressed
-    standardised latents (B, W or 1, nodes, C), or an empty tensor without ``regression``)."""
-
-    def __init__(self, codespace, regression: bool = True, last_frame: bool = False):
-        super().__init__()
-        self.codespace, self.regression, self.last_frame = codespace, regression, last_frame
-
-    def forward(self, windows: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-        from ..models.codebook import group_entropy
-
-        q = self.codespace.quantizer
-        logits = q.split(self.codespace.motion_encoder(windows))
-        idx = logits.argmax(-1)
-        if not self.regression:
-            return group_entropy(logits), idx, torch.empty(0)
-        embedding = q.embed(torch.nn.functional.one_hot(idx, q.classes).float())
-        return group_entropy(logits), idx, self.codespace.decode(embedding, self.last_frame)
-
-
-def traced_window_codes(codespace, window: int, features: int, regression: bool = True) -> torch.nn.Module:
-    """:class:`WindowCodes` for one causal window at a time (streaming without a C compiler; the
-    native window step of :mod:`hrr_garment.models.native_codes` is used where compiled), traced
-    and frozen by TorchScript: the same operations without Python's per-module overhead (about 1
-    ms of a push).
-    Falls back to the eager module where tracing fails."""
-    step = WindowCodes(codespace.eval(), regression, last_frame=True).eval()
-    try:
-        with torch.no_grad(), warnings.catch_warnings():
-            warnings.simplefilter("ignore")  # batch size 1 is fixed on purpose
-            return torch.jit.freeze(torch.jit.trace(step, torch.zeros(1, window, features)))
-    except RuntimeError:
-        return step
-
-
-@torch.no_grad()
-def encode_motion(codespace, motion_stats, latent_stats, motion_windows: np.ndarray, regression: bool = True,
-                  batch: int = 512, last_frame: bool = False, step: torch.nn.Module | None = None) -> MotionCodes:
-    """Raw feature windows (N, W, F) -> codes, entropies and (optionally) regressed latents, of
-    every frame of each window or, with ``last_frame``, of its last frame only (N, 1, nodes, C).
-    ``step``: a prepared :class:`WindowCodes` with the same settings (streaming)."""
-    if codespace.training:
-        codespace.eval()
-    step = WindowCodes(codespace, regression, last_frame) if step is None else step
-    std = motion_stats.normalize(motion_windows)
-    entropy, codes, reg = [], [], []
-    for i in range(0, len(std), batch):
-        h, idx, r = step(torch.from_numpy(std[i:i + batch]))
-        entropy.append(h.numpy())
-        codes.append(idx.numpy().astype(np.uint8))
-        reg.append(r.numpy())
-    latents = None
-    if regression:
-        r = np.concatenate(reg)
-        latents = latent_stats.denormalize(r.reshape(*r.shape[:2], -1)).reshape(r.shape)
-    return MotionCodes(np.concatenate(entropy), np.concatenate(codes), latents, std)
 
 
 def choose_windows(bundle: Bundle, motion_windows: np.ndarray, mode: str, tau: float,

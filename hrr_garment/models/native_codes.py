@@ -1,5 +1,5 @@
 """The code space's window step in C: :class:`NativeWindowCodes` computes what
-:class:`hrr_garment.inference.engine.WindowCodes` computes (motion encoder -> per-group entropy and
+:class:`.codes.WindowCodes` computes (motion encoder -> per-group entropy and
 argmax -> the chosen embedding -> the code-space decoder), from the same weights, with the kernel in
 ``window_codes.c``.
 

@@ -21,8 +21,8 @@ import numpy as np
 import torch
 
 from ..data.windows import sequence_windows
-from ..inference.database import CodeDatabase
-from ..inference.engine import encode_motion
+from ..artifacts.database import CodeDatabase
+from ..models.codes import encode_motion
 from ..models.codespace import CodeSpace
 from ..motion.features import FeatureStats
 

@@ -22,13 +22,13 @@ import torch
 from tqdm import tqdm
 
 from ..data.dataset import DatasetError, GarmentDataset
+from ..artifacts.bundle import add_bundle_part, load_bundle
 from ..data.windows import dataset_features
 from ..io_utils import atomic_write_text
 from ..models.direct import DirectConfig, DirectRegressor
 from ..motion.features import FEATURE_DIM
 from ..settings import from_settings
 from .autoencoder import body_frames
-from .bundle import add_bundle_part, load_bundle
 from .checkpoint import keep_if_best, load_checkpoint, resume_log, save_checkpoint
 
 

@@ -20,12 +20,12 @@ import torch
 
 from ..data.dataset import DatasetError, GarmentDataset
 from ..data.windows import build_windows, dataset_features, fit_stats
-from ..inference.database import CodeDatabase
+from ..artifacts.bundle import BundleError, read_meta, write_bundle
+from ..artifacts.database import CodeDatabase
 from ..io_utils import atomic_write_text
 from ..models.codespace import CodeSpace, CodeSpaceConfig
 from ..motion.features import FEATURE_DIM
 from .autoencoder import body_frames, load_autoencoder, refine_settings
-from .bundle import BundleError, read_meta, write_bundle
 from .calibrate import evaluate_modes
 from .codebook import CodebookTrainConfig, WindowTensors, evaluate, train_codespace
 

@@ -35,7 +35,7 @@ from safetensors.torch import save_file as save_tensors
 
 from ..errors import InputError
 from ..garment.mesh import GarmentMesh
-from ..inference.database import CodeDatabase
+from .database import CodeDatabase
 from ..io_utils import atomic_path, atomic_write_text
 from ..models.codespace import CodeSpace, CodeSpaceConfig
 from ..models.direct import DirectConfig, DirectRegressor
