@@ -7,7 +7,7 @@ over the mesh (``smooth`` Jacobi passes of the uniform Laplacian, each keeping t
 displacement at least what they need along their normals), so neighbours follow part of the way;
 ``rounds`` such pushes, then up to four exact projections onto the surface (a push can land in a
 neighbouring capsule, hence more than one). With a C compiler the same steps run in the kernel of
-:mod:`hrr_garment.models.native` (frames in parallel); this module's numpy version is the
+:mod:`hrr_garment.native` (frames in parallel); this module's numpy version is the
 reference and the fallback.
 """
 
@@ -48,7 +48,7 @@ def push_out(vertices: np.ndarray, motion: Motion, faces: np.ndarray, body: Body
     mean = mean_operator(faces, vertices.shape[1]) if mean is None else mean
     out = np.empty(vertices.shape, np.float32)
     before, after = np.zeros(len(out)), np.zeros(len(out))
-    from ..models.native import default_threads, load_kernel, push_out_frames
+    from ..native import default_threads, load_kernel, push_out_frames
 
     lib = load_kernel()
     for start in range(0, len(out), chunk):

@@ -72,7 +72,7 @@ def causal_features(motion: Motion) -> np.ndarray:
     """Features as a stream sees them: frame t from frames t-1 and t only (frame 0: zero
     velocities). Equal to :func:`motion_features` from frame 1 on. In C where compiled (the same
     formulas; a stream computes them per frame), else numpy."""
-    from ..models import native
+    from .. import native
     from ..motion.skeleton import FEATURE_JOINTS
 
     lib = native.load_kernel()

@@ -226,7 +226,7 @@ class FastDecoder(nn.Module):
 
     def __init__(self, model: MeshAutoencoder, native: bool | None = None, cache_dir=None):
         super().__init__()
-        from . import native as native_kernel
+        from .. import native as native_kernel
 
         self.blocks = model.decoder
         with torch.no_grad():
