@@ -25,12 +25,13 @@ from .data.dataset import GarmentDataset, SequenceRecord
 from .errors import HRRError, InputError, MotionError, SkeletonMappingError
 from .garment.mesh import GarmentError, GarmentMesh
 from .garment.templates import GARMENT_NAMES, make_garment
-from .motion.features import FEATURE_DIM, FeatureStats, motion_features, windows
+from .motion.features import FEATURE_DIM, FeatureStats, motion_features
 from .motion.io import load_motion, save_amass, save_motion
 from .motion.motion import Motion
 from .motion.skeleton import CANONICAL, JOINT_NAMES
 from .motion.synth import KINDS as MOTION_KINDS
 from .motion.synth import synthesize
+from .motion.windows import windows
 from .sim.simulator import SimConfig, SimResult, SimulationExploded, simulate_garment
 
 _LAZY = {"Animation": "inference.animator", "AnimationStream": "inference.animator", "Animator": "inference.animator",

@@ -5,9 +5,9 @@ import math
 import numpy as np
 import pytest
 
-from hrr_garment.inference.engine import Inertializer, blend_windows, to_world, window_weights
+from hrr_garment.inference.blending import Inertializer, blend_windows, window_weights
 from hrr_garment.motion.synth import synthesize
-from hrr_garment.motion.frame import to_body_frame
+from hrr_garment.motion.frame import from_body_frame, to_body_frame
 
 
 @pytest.fixture(scope="module")
@@ -70,10 +70,10 @@ def test_blending_keeps_a_constant_and_favours_centres():
     assert np.allclose(blend_windows(windows, 16)[:, 0], ramp)  # consistent windows blend to themselves
 
 
-def test_to_world_inverts_the_body_frame(rng):
+def test_from_body_frame_inverts_the_body_frame(rng):
     motion = synthesize("turn_in_place", 1.0, seed=3)
     points = rng.normal(size=(motion.num_frames, 5, 3))
-    assert np.allclose(to_world(to_body_frame(points, motion), motion), points, atol=1e-9)
+    assert np.allclose(from_body_frame(to_body_frame(points, motion), motion), points, atol=1e-9)
 
 
 def test_body_frame_follows_the_pelvis_height_and_heading():
@@ -106,7 +106,7 @@ def test_push_out_moves_vertices_outside_without_spikes():
 
     skirt = make_garment("skirt", 300)
     motion = synthesize("idle", 0.2, seed=0)
-    rest = to_world(to_body_frame(np.repeat(skirt.vertices[None], motion.num_frames, 0).astype(np.float64), motion), motion)
+    rest = from_body_frame(to_body_frame(np.repeat(skirt.vertices[None], motion.num_frames, 0).astype(np.float64), motion), motion)
     squeezed = rest.copy()
     centre = np.array([0.0, 0.0, 0.0])
     centre[[0, 2]] = rest[0, :, [0, 2]].mean(1)
@@ -230,7 +230,7 @@ def test_native_push_out_equals_numpy(rng):
         pytest.skip("no C compiler")
     skirt = make_garment("skirt", 300)
     motion = synthesize("dance", 0.3, seed=4)
-    rest = to_world(to_body_frame(np.repeat(skirt.vertices[None], motion.num_frames, 0).astype(np.float64), motion), motion)
+    rest = from_body_frame(to_body_frame(np.repeat(skirt.vertices[None], motion.num_frames, 0).astype(np.float64), motion), motion)
     centre = rest[:, :, [0, 2]].mean(1, keepdims=True)
     squeezed = rest.copy()
     squeezed[..., [0, 2]] = centre + 0.85 * (rest[..., [0, 2]] - centre)  # into the hips

@@ -70,7 +70,8 @@ def _fps(animator: Animator, motion, **kwargs) -> float:
 def _median_entropy_tau(bundle: Bundle, motion) -> float:
     """A tau at the median window entropy: about half the windows retrieve."""
     from hrr_garment.models.codes import encode_motion
-    from hrr_garment.motion.features import motion_features, windows as feature_windows
+    from hrr_garment.motion.features import motion_features
+    from hrr_garment.motion.windows import windows as feature_windows
 
     windows = np.ascontiguousarray(feature_windows(motion_features(motion), bundle.codespace.config.window))
     entropy = encode_motion(bundle.codespace, bundle.motion_stats, bundle.latent_stats, windows, regression=False).entropy

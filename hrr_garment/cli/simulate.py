@@ -67,6 +67,7 @@ def _parser() -> argparse.ArgumentParser:
 
 def _main(argv: Sequence[str] | None) -> int:
     args = _parser().parse_args(argv)
+    from ..export.preview import write_dataset_preview
     from ..sim.build import build_dataset
     from ..sim.simulator import SimConfig
 
@@ -84,7 +85,7 @@ def _main(argv: Sequence[str] | None) -> int:
     options["info"]["garment_vertices"] = garment.num_vertices
     if args.address and args.executor != "ray":
         raise InputError("--address", "joins a Ray cluster: use it with --executor ray")
-    report = build_dataset(garment, specs, config, out, jobs=args.jobs, preview=not args.no_preview,
+    report = build_dataset(garment, specs, config, out, jobs=args.jobs, preview=None if args.no_preview else write_dataset_preview,
                            progress=not args.quiet, executor=args.executor, address=args.address, **options)
     print_report(report, garment)
     return 0

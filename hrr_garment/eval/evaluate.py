@@ -16,6 +16,7 @@ from tqdm import tqdm
 
 from ..data.dataset import SequenceRecord
 from ..inference.animator import Animator
+from ..inference.modes import Mode
 from ..sim.quality import body_signed_distance
 from . import metrics as M
 
@@ -109,7 +110,7 @@ def tau_sweep(animator: Animator, records: list[SequenceRecord], taus: list[floa
         errors, frames, retrieved = 0.0, 0, 0
         for record in records:
             own = names.index(record.name) if exclude_own_sequence and record.name in names else None
-            anim = animator.animate(record.motion, mode="hybrid", tau=tau, collision=collision, exclude_sequence=own)
+            anim = animator.animate(record.motion, mode=Mode.HYBRID, tau=tau, collision=collision, exclude_sequence=own)
             errors += M.pve_mm(anim.vertices.astype(np.float64), record.garment.astype(np.float64)) * len(anim.vertices)
             frames += len(anim.vertices)
             retrieved += int(anim.mode.sum())

@@ -20,11 +20,11 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from ..data.windows import sequence_windows
 from ..artifacts.database import CodeDatabase
 from ..models.codes import encode_motion
 from ..models.codespace import CodeSpace
 from ..motion.features import FeatureStats
+from ..motion.windows import sequence_windows
 
 
 @dataclass
