@@ -19,8 +19,7 @@ Animation (after ``hrr-train --garment dress``)::
     anim = Animator.load("dress").animate(load_motion("walk.bvh"))   # Animation, anim.save("out.h5")
 """
 
-__version__ = "0.1.0"  # before the imports: submodules read it
-
+from ._version import __version__
 from .data.dataset import GarmentDataset, SequenceRecord
 from .errors import HRRError, InputError, MotionError, SkeletonMappingError
 from .garment.mesh import GarmentError, GarmentMesh
