@@ -132,7 +132,7 @@ def test_push_out_moves_vertices_outside_without_spikes():
 
 def test_hrr_animate_writes_out_h5_and_refuses_bad_motion(trained, tmp_path, capsys):
     from hrr_garment.cli.animate import main as animate_main
-    from hrr_garment.export.h5 import read_animation_h5
+    from hrr_garment.data.animation_file import read_animation_h5
     from hrr_garment.motion.io import save_motion
 
     root, _, _ = trained

@@ -24,7 +24,7 @@ import numpy as np
 
 from hrr_garment.body.capsules import DEFAULT_BODY
 from hrr_garment.export.glb import write_glb
-from hrr_garment.export.h5 import read_animation_h5, write_animation_h5
+from hrr_garment.data.animation_file import read_animation_h5, write_animation_h5
 from hrr_garment.export.pointcache import write_obj_sequence, write_pc2_with_obj
 from hrr_garment.export.usd import write_usd
 from hrr_garment.export.video import PreviewStyle, write_preview

@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from ..io_utils import atomic_write_bytes
-from .h5 import AnimationFile
+from ..data.animation_file import AnimationFile
 from .keyframes import Keyframes, select_keyframes
 
 _FLOAT, _UINT = 5126, 5125

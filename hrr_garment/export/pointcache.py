@@ -21,7 +21,7 @@ from tqdm import tqdm
 from ..errors import InputError
 from ..garment.obj import format_rows, write_obj
 from ..io_utils import atomic_path
-from .h5 import AnimationFile
+from ..data.animation_file import AnimationFile
 
 _PC2_HEADER = struct.Struct("<12siiffi")
 _PC2_MAGIC = b"POINTCACHE2\0"

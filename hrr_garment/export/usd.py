@@ -14,7 +14,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..io_utils import atomic_path
-from .h5 import AnimationFile
+from ..data.animation_file import AnimationFile
 
 USD_SUFFIXES = (".usd", ".usdc", ".usda")
 

@@ -21,7 +21,7 @@ from tqdm import tqdm
 
 from ..errors import InputError
 from ..io_utils import atomic_path
-from .h5 import AnimationFile
+from ..data.animation_file import AnimationFile
 from .preview import VIEWS, OrthoCamera, PreviewMesh, _pil, draw_ground, draw_meshes
 
 GARMENT = (70, 110, 200)

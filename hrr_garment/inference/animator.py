@@ -60,8 +60,8 @@ class Animation:
         return float(self.mode.mean()) if len(self.mode) else 0.0
 
     def save(self, path: str | Path) -> Path:
-        """Write ``out.h5`` (see :mod:`hrr_garment.export.h5`), atomically."""
-        from ..export.h5 import write_animation_h5
+        """Write ``out.h5`` (see :mod:`hrr_garment.data.animation_file`), atomically."""
+        from ..data.animation_file import write_animation_h5
 
         return write_animation_h5(path, vertices=self.vertices, faces=self.faces, joints=self.joints, mode=self.mode,
                                   entropy=self.entropy, source=self.source, capsules=self.capsules,

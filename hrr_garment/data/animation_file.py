@@ -1,4 +1,5 @@
-"""``out.h5``: an animated garment as hrr-animate writes it (DESIGN 9).
+"""``out.h5``: an animated garment as hrr-animate writes it (DESIGN 9). The file format lives in
+``data`` (with the dataset's) because inference writes it and export, eval and the previews read it.
 
     /faces                (F, 3) int32
     /vertices             (T, V, 3) float32, one frame per chunk, gzip + shuffle
