@@ -6,7 +6,7 @@ Files (all arrays as safetensors, nothing pickled)::
                                  sha256 of every other file and a content hash over them
     autoencoder.safetensors      mesh autoencoder (FCMAE) weights
     motion_encoder.safetensors   garment_encoder.safetensors   decoder.safetensors
-    quantizer.safetensors        the codebook's class embeddings
+    quantizer.safetensors        the quantiser's class embeddings
     stats.safetensors            motion feature and garment latent mean/std
     database.safetensors         retrieval database: codes, latent windows, source sequence/frame,
                                  standardised motion windows (for the naive-NN baseline)

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from .codebook import group_entropy
+from .quantizer import group_entropy
 
 
 @dataclass

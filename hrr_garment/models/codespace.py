@@ -7,7 +7,7 @@
   with two hidden layers (1024, ELU) -> code logits of the same shape.
 - :class:`LatentDecoder` (the paper's "VQ decoder"): the quantised embedding (G x dim) -> MLP
   mirroring the garment encoder -> the W garment latents (standardised).
-- :class:`CodeSpace` holds the three and the shared :class:`~.codebook.GumbelQuantizer`.
+- :class:`CodeSpace` holds the three and the shared :class:`~.quantizer.GumbelQuantizer`.
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ import torch
 from torch import nn
 
 from ..settings import from_settings
-from .codebook import GumbelQuantizer
+from .quantizer import GumbelQuantizer
 
 
 @dataclass(frozen=True)
@@ -35,7 +35,7 @@ class CodeSpaceConfig:
 
     @classmethod
     def from_dict(cls, values: dict) -> "CodeSpaceConfig":
-        return from_settings(cls, values, "codebook model")
+        return from_settings(cls, values, "code space model")
 
     def to_dict(self) -> dict:
         return asdict(self)
