@@ -16,12 +16,11 @@ from ..io_utils import atomic_path
 from .bvh import read_bvh
 from .motion import FPS, Motion
 from .resample import resample_linear, resample_rotations, resample_times
+from .joint_maps import load_joint_map, resolve_joint_map
 from .retarget import (
     SourceMotion,
     check_source,
     ground_align,
-    load_joint_map,
-    resolve_joint_map,
     retarget,
     standing_height_from_legs,
 )

@@ -13,7 +13,7 @@ import numpy as np
 
 from ..motion import FPS
 from ..skeleton import REST_PELVIS_HEIGHT
-from .engine import FootPlan, Plan, quintic
+from .plan import FootPlan, Plan, quintic
 
 PAD_S = 1.5
 G = 9.81
