@@ -6,13 +6,12 @@ import math
 import numpy as np
 import pytest
 import torch
+from conftest import TINY_TRAINING, synthetic_dataset
 
-from hrr_garment.data.windows import build_windows
 from hrr_garment.artifacts.database import CodeDatabase, code_similarity, pack_codes
+from hrr_garment.data.windows import build_windows
 from hrr_garment.models.quantizer import GumbelQuantizer, group_entropy
 from hrr_garment.train.codespace_training import PlateauDetector
-
-from conftest import TINY_TRAINING, synthetic_dataset
 
 
 @pytest.mark.parametrize("groups,classes,dim", [(4, 8, 3), (16, 2, 1), (64, 8, 8)])
@@ -180,8 +179,8 @@ def test_a_new_encoding_retrains_the_code_space(trained, tmp_path):
     the bundle's database) trained on the old latents must not be reused."""
     import shutil
 
-    from hrr_garment.cli.train import main as train_main
     from hrr_garment.artifacts.bundle import load_bundle
+    from hrr_garment.cli.train import main as train_main
     from hrr_garment.train.calibrate import evaluate_bundle
 
     root, data, args = trained
@@ -204,9 +203,9 @@ def test_a_new_encoding_retrains_the_code_space(trained, tmp_path):
 def test_corrupt_bundle_and_wrong_garment_are_explained(trained, tmp_path):
     import shutil
 
+    from hrr_garment.artifacts.bundle import BundleError, load_bundle
     from hrr_garment.data.dataset import DatasetError
     from hrr_garment.garment.templates import make_garment
-    from hrr_garment.artifacts.bundle import BundleError, load_bundle
     from hrr_garment.train.calibrate import evaluate_bundle
 
     root, _, _ = trained

@@ -72,8 +72,8 @@ def test_windows_and_standardisation():
 
 @pytest.mark.parametrize("kind", ["walk_curve", "spin", "dance"])
 def test_native_kinematics_and_causal_features_equal_numpy(kind, monkeypatch):
-    from hrr_garment.motion.features import causal_features
     from hrr_garment import native
+    from hrr_garment.motion.features import causal_features
     from hrr_garment.motion.skeleton import forward_kinematics
 
     lib = native.load_kernel()

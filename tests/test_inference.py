@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from hrr_garment.inference.blending import Inertializer, blend_windows, window_weights
-from hrr_garment.motion.synth import synthesize
 from hrr_garment.motion.frame import from_body_frame, to_body_frame
+from hrr_garment.motion.synth import synthesize
 
 
 @pytest.fixture(scope="module")

@@ -5,10 +5,10 @@ import numpy as np
 import pytest
 
 from hrr_garment.garment.templates import GARMENT_NAMES, make_garment
+from hrr_garment.motion.frame import to_body_frame
 from hrr_garment.motion.rotations import yaw_of
 from hrr_garment.motion.synth import synthesize
 from hrr_garment.sim.lead_in import with_lead_in
-from hrr_garment.motion.frame import to_body_frame
 from hrr_garment.sim.quality import sequence_stats
 
 

@@ -23,15 +23,15 @@ from pathlib import Path
 import numpy as np
 
 from hrr_garment.body.capsules import DEFAULT_BODY
-from hrr_garment.export.glb import write_glb
 from hrr_garment.data.animation_file import read_animation_h5, write_animation_h5
+from hrr_garment.export.glb import write_glb
 from hrr_garment.export.pointcache import write_obj_sequence, write_pc2_with_obj
 from hrr_garment.export.usd import write_usd
 from hrr_garment.export.video import PreviewStyle, write_preview
 from hrr_garment.garment.templates import make_garment
+from hrr_garment.motion.frame import from_body_frame, to_body_frame
 from hrr_garment.motion.motion import Motion
 from hrr_garment.motion.synth import synthesize
-from hrr_garment.motion.frame import from_body_frame, to_body_frame
 
 
 def long_motion(frames: int) -> Motion:

@@ -30,16 +30,16 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from hrr_garment.artifacts.bundle import Bundle
+from hrr_garment.artifacts.database import CodeDatabase
 from hrr_garment.garment.templates import make_garment
 from hrr_garment.inference.animator import Animator
-from hrr_garment.artifacts.database import CodeDatabase
 from hrr_garment.models.codespace import CodeSpace, CodeSpaceConfig
 from hrr_garment.models.fcmae import AutoencoderConfig, MeshAutoencoder
 from hrr_garment.models.hierarchy import build_hierarchy
 from hrr_garment.motion.features import FEATURE_DIM, FeatureStats
 from hrr_garment.motion.io import load_motion
 from hrr_garment.motion.synth import synthesize
-from hrr_garment.artifacts.bundle import Bundle
 
 
 def random_bundle(vertices: int, windows: int, seed: int = 0) -> Bundle:

@@ -17,6 +17,8 @@ from ..motion.skeleton import CANONICAL, JOINT_INDEX, REST_OFFSETS, REST_PELVIS_
 
 @dataclass(frozen=True)
 class Capsule:
+    """One capsule of the body: end points ``a`` and ``b`` relative to ``joint``, and its radius."""
+
     name: str
     joint: str
     a: tuple[float, float, float]

@@ -73,6 +73,7 @@ def _main(argv: Sequence[str] | None) -> int:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    """``hrr-animate``; returns the exit status."""
     return run_cli(_main, argv, "hrr-animate")
 
 

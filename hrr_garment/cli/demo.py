@@ -78,6 +78,7 @@ def _body(argv: Sequence[str] | None) -> int:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    """``hrr-demo``; returns the exit status."""
     return run_cli(_body, argv, "hrr-demo")
 
 

@@ -174,6 +174,7 @@ def _print_summary(report: dict) -> None:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    """``hrr-eval``; returns the exit status."""
     return run_cli(_main, argv, "hrr-eval")
 
 

@@ -83,6 +83,7 @@ def _main(argv: Sequence[str] | None) -> int:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    """``hrr-export``; returns the exit status."""
     return run_cli(_main, argv, "hrr-export")
 
 

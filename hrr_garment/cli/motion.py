@@ -92,6 +92,7 @@ def _body(argv: Sequence[str] | None) -> int:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    """``hrr-motion``; returns the exit status."""
     return run_cli(_body, argv, "hrr-motion")
 
 

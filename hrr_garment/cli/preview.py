@@ -53,6 +53,7 @@ def _main(argv: Sequence[str] | None) -> int:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    """``hrr-preview``; returns the exit status."""
     return run_cli(_main, argv, "hrr-preview")
 
 

@@ -28,6 +28,7 @@ from ._common import add_fps_option, run_cli
 
 
 def add_garment_options(p: argparse.ArgumentParser) -> None:
+    """The options that pick a garment (shared with hrr-train)."""
     p.add_argument("--garment", default=None, help=f"built-in template: {', '.join(GARMENT_NAMES)} (or the name of --template)")
     p.add_argument("--template", type=Path, default=None, help="your own garment OBJ in the canonical rest pose (Y up, metres)")
     p.add_argument("--attached", default=None, metavar="GROUP", help="OBJ group whose vertices follow the body (with --template)")
@@ -36,6 +37,7 @@ def add_garment_options(p: argparse.ArgumentParser) -> None:
 
 
 def resolve_garment(args: argparse.Namespace, default_vertices: int) -> GarmentMesh:
+    """The garment the options name: a template, or the user's OBJ."""
     if args.template is not None:
         return load_garment_obj(args.template, args.garment, args.attached, args.attached_file)
     if args.garment is None:
@@ -92,6 +94,7 @@ def _main(argv: Sequence[str] | None) -> int:
 
 
 def print_report(report, garment: GarmentMesh) -> None:
+    """Print a dataset build's summary."""
     s = report.summary
     print(f"wrote {report.path}: {s['sequences']} sequences, {s['frames']} frames, {garment.num_vertices} vertices "
           f"({report.reused} reused, {report.simulated} simulated now, {len(report.rejects)} rejected)")
@@ -109,6 +112,7 @@ def print_report(report, garment: GarmentMesh) -> None:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    """``hrr-simulate``; returns the exit status."""
     return run_cli(_main, argv, "hrr-simulate")
 
 

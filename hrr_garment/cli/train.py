@@ -123,8 +123,8 @@ def _simulate(garment: str, preset, out: Path, quiet: bool) -> None:
 def _main(argv: Sequence[str] | None) -> int:
     args = _parser().parse_args(argv)
     from ..models.codespace import CodeSpaceConfig
-    from ..models.fcmae import AutoencoderConfig
     from ..models.direct import DirectConfig
+    from ..models.fcmae import AutoencoderConfig
     from ..train.autoencoder import TrainConfig, train_autoencoder
     from ..train.baseline import DirectTrainConfig, run_baseline_stage
     from ..train.codespace import run_codespace_stage
@@ -216,6 +216,7 @@ def _print_codespace(report: StageReport, folder: Path) -> None:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    """``hrr-train``; returns the exit status."""
     return run_cli(_main, argv, "hrr-train")
 
 

@@ -67,6 +67,7 @@ class AnimationFile:
 def write_animation_h5(path: str | Path, *, vertices: np.ndarray, faces: np.ndarray, joints: np.ndarray, mode: np.ndarray,
                        entropy: np.ndarray, source: np.ndarray, attrs: dict, capsules: np.ndarray | None = None,
                        radii: np.ndarray | None = None) -> Path:
+    """Write an out.h5 (the layout in the module docstring) atomically; returns its path."""
     path = Path(path)
     t, v = vertices.shape[:2]
     with atomic_path(path) as tmp, h5py.File(tmp, "w") as f:

@@ -23,6 +23,8 @@ from . import metrics as M
 
 @dataclass
 class SequenceResult:
+    """One mode's metrics on one sequence, with its per-frame error, entropy and gate."""
+
     name: str
     frames: int
     metrics: dict[str, float]
@@ -33,6 +35,8 @@ class SequenceResult:
 
 @dataclass
 class ModeResult:
+    """One mode's results over every sequence; ``metrics`` weights them by frames."""
+
     mode: str
     tau: float
     sequences: list[SequenceResult] = field(default_factory=list)
@@ -47,6 +51,8 @@ class ModeResult:
 
 
 def combine(rows: list[dict[str, float]], weights: list[int]) -> dict[str, float]:
+    """Frame-weighted means of per-sequence metrics (RMSE combined as a root mean square, the maximum
+    strain as a maximum)."""
     w = np.asarray(weights, float) / max(sum(weights), 1)
     out = {}
     for key in rows[0]:
@@ -96,6 +102,8 @@ def evaluate_modes(animator: Animator, records: list[SequenceRecord], modes: lis
 
 @dataclass
 class TauPoint:
+    """The hybrid's error and retrieval usage at one tau."""
+
     tau: float
     pve_mm: float
     retrieval_usage: float

@@ -25,6 +25,8 @@ from ..motion.motion import Motion
 
 @dataclass
 class PushOutReport:
+    """How much of the garment was inside the body before and after the push-out."""
+
     inside_before: float  # mean over frames of the fraction of vertices more than `depth` inside
     inside_after: float
     worst_before: float  # worst frame

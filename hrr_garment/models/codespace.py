@@ -24,6 +24,8 @@ from .quantizer import GumbelQuantizer
 
 @dataclass(frozen=True)
 class CodeSpaceConfig:
+    """The code space's sizes: window, groups and classes, embedding and network widths."""
+
     window: int = 10  # W frames per window
     groups: int = 64  # G
     classes: int = 8  # K
@@ -53,6 +55,8 @@ def _mlp(sizes: list[int], dropout: float = 0.0) -> nn.Sequential:
 
 
 class MotionEncoder(nn.Module):
+    """Motion windows (B, W, F) -> code logits (B, G x K): GRU, self-attention, attention pooling."""
+
     def __init__(self, features: int, logits: int, hidden: int = 256, heads: int = 4):
         super().__init__()
         self.inp = nn.Linear(features, hidden)
@@ -72,6 +76,8 @@ class MotionEncoder(nn.Module):
 
 
 class GarmentEncoder(nn.Module):
+    """Garment latent windows -> code logits (B, G x K): an MLP."""
+
     def __init__(self, size: int, logits: int, hidden: int = 1024, dropout: float = 0.0):
         super().__init__()
         self.net = _mlp([size, hidden, hidden, logits], dropout)
@@ -82,6 +88,8 @@ class GarmentEncoder(nn.Module):
 
 
 class LatentDecoder(nn.Module):
+    """A code's embedding -> the window's garment latents: an MLP."""
+
     def __init__(self, embedding: int, size: int, hidden: int = 1024, dropout: float = 0.0):
         super().__init__()
         self.net = _mlp([embedding, hidden, hidden, size], dropout)

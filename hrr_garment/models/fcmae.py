@@ -30,6 +30,8 @@ from .hierarchy import Hierarchy, Neighbourhoods
 
 @dataclass(frozen=True)
 class AutoencoderConfig:
+    """The mesh autoencoder's layer widths, basis size and sampling hierarchy settings."""
+
     channels: tuple[int, ...] = (16, 32, 64, 128)  # per level; the last value repeats for deeper levels
     latent_channels: int = 8
     basis: int = 17
@@ -127,6 +129,8 @@ class ResidualPool(nn.Module):
 
 
 class Block(nn.Module):
+    """One FCMAE block: a spatially varying convolution with a residual path, then pooling or unpooling."""
+
     def __init__(self, conv_nb: Neighbourhoods, pool_nb: Neighbourhoods | None, cin: int, cout: int, basis: int,
                  residual: float, activation: bool = True):
         super().__init__()

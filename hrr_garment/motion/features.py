@@ -23,8 +23,8 @@ import numpy as np
 
 from .. import native
 from ..errors import MotionError
-from .motion import Motion
 from .frame import body_heading
+from .motion import Motion
 from .rotations import matrix_to_axis_angle
 from .skeleton import FEATURE_JOINTS
 

@@ -108,6 +108,7 @@ def _check_required(mapping: dict[str, int], path: str, scheme: str) -> None:
 
 
 def load_joint_map(path: str | Path) -> dict[str, str]:
+    """A YAML joint map (canonical joint: source joint)."""
     import yaml
 
     path = Path(path)

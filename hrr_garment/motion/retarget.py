@@ -29,6 +29,7 @@ from .motion import Motion
 from .rotations import axis_angle_to_matrix, normalize, rotation_between
 from .skeleton import CANONICAL, JOINT_INDEX, JOINT_NAMES, PARENTS, global_to_local
 
+
 @dataclass
 class SourceMotion:
     """A motion on some source skeleton, in metres, Y up, as world-space joint transforms."""
@@ -43,6 +44,7 @@ class SourceMotion:
 
 
 def leg_length(rest_positions: np.ndarray, hip: int, knee: int, ankle: int) -> float:
+    """Hip to knee plus knee to ankle, in the rest pose."""
     return float(np.linalg.norm(rest_positions[knee] - rest_positions[hip]) + np.linalg.norm(rest_positions[ankle] - rest_positions[knee]))
 
 
@@ -205,5 +207,6 @@ def ground_align(local: np.ndarray, root: np.ndarray) -> np.ndarray:
 
 
 def check_source(src: SourceMotion) -> None:
+    """Refuse a source motion with non-finite values after forward kinematics."""
     if not (np.isfinite(src.global_positions).all() and np.isfinite(src.global_rotations).all()):
         raise MotionError(src.path, "non-finite values after forward kinematics")

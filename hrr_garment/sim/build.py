@@ -28,7 +28,6 @@ from .plan import SequenceSpec
 from .quality import edge_strain
 from .simulator import SimConfig, SimulationExploded, simulate_garment
 
-
 # Renders a built dataset's preview image (records, garment, path) -> path or None; rendering lives
 # above this layer (hrr_garment.export.preview.write_dataset_preview), so the caller passes it in.
 PreviewWriter = Callable[[list[SequenceRecord], GarmentMesh, Path], "Path | None"]
@@ -36,6 +35,8 @@ PreviewWriter = Callable[[list[SequenceRecord], GarmentMesh, Path], "Path | None
 
 @dataclass
 class BuildReport:
+    """What build_dataset did: the dataset, its sequences, rejects and summary."""
+
     path: Path
     sequences: list[str]
     rejects: dict[str, str]
@@ -134,6 +135,7 @@ def _add_mirrored(records: list[SequenceRecord], split: dict[str, list[str]], ga
 
 def summarise(records: list[SequenceRecord], garment: GarmentMesh, rejects: dict[str, str], sim_wall: float,
               jobs: int, simulated: int) -> dict:
+    """The dataset summary: counts, quality statistics and simulation speed."""
     stats = [r.info.get("stats", {}) for r in records]
     edges = garment.edges()
     pooled = np.concatenate([edge_strain(r.garment, garment.vertices, edges).ravel() for r in records])

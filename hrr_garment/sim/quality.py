@@ -10,8 +10,8 @@ import numpy as np
 
 from ..body.capsules import DEFAULT_BODY, BodyModel, frames_signed_distance
 from ..body.self_contact import self_intersecting_frames
-from ..motion.motion import Motion
 from ..motion.frame import to_body_frame
+from ..motion.motion import Motion
 
 
 def edge_strain(vertices: np.ndarray, rest: np.ndarray, edges: np.ndarray) -> np.ndarray:

@@ -19,7 +19,7 @@ from __future__ import annotations
 import hashlib
 import json
 import time
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
@@ -27,13 +27,12 @@ import torch
 from tqdm.auto import tqdm
 
 from ..data.dataset import GarmentDataset
-from ..errors import InputError
 from ..garment.mesh import mirror_map
 from ..io_utils import atomic_path, atomic_write_text
 from ..models.fcmae import AutoencoderConfig, MeshAutoencoder
 from ..models.hierarchy import cached_hierarchy
-from ..settings import from_settings
 from ..motion.frame import FRAME_VERSION, to_body_frame
+from ..settings import from_settings
 from .checkpoint import keep_if_best, load_checkpoint, save_checkpoint
 from .mesh_loss import apply_laplacian, laplacian_operator, pve_mm
 from .report import StageReport
@@ -42,6 +41,8 @@ from .schedule import early_stop, epoch_fits, run_progress, set_learning_rate, t
 
 @dataclass(frozen=True)
 class TrainConfig:
+    """The autoencoder stage's training settings (configs/train.yaml, ``autoencoder.train``)."""
+
     epochs: int = 300
     batch_size: int = 32
     learning_rate: float = 8e-3

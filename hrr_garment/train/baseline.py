@@ -21,8 +21,8 @@ import numpy as np
 import torch
 from tqdm import tqdm
 
-from ..data.dataset import DatasetError, GarmentDataset
 from ..artifacts.bundle import add_bundle_part, load_bundle
+from ..data.dataset import DatasetError, GarmentDataset
 from ..data.windows import dataset_features
 from ..io_utils import atomic_write_text
 from ..models.direct import DirectConfig, DirectRegressor
@@ -35,6 +35,8 @@ from .report import StageReport
 
 @dataclass(frozen=True)
 class DirectTrainConfig:
+    """The baseline stage's training settings (``baseline.train``)."""
+
     epochs: int = 300
     batch_size: int = 16
     crop: int = 60  # frames per training crop
@@ -80,6 +82,8 @@ def _val_loss(model: DirectRegressor, motion: list[torch.Tensor], latents: list[
 
 def train_direct(model: DirectRegressor, train: tuple, val: tuple, folder: Path, config: DirectTrainConfig, key: str,
                  progress: bool = True) -> dict:
+    """Train (or resume) the baseline in ``folder``; leaves the best weights in ``model``, returns the
+    loop's state."""
     folder.mkdir(parents=True, exist_ok=True)
     torch.manual_seed(config.seed)
     optimizer = torch.optim.Adam(model.parameters(), lr=config.learning_rate, weight_decay=config.weight_decay)

@@ -34,6 +34,8 @@ from .autoencoder import body_frames, refine_settings
 
 @dataclass
 class WindowPredictions:
+    """Both candidates (regression and retrieval) for every validation window."""
+
     entropy: np.ndarray  # (N,) motion-code entropy
     regression: np.ndarray  # (N, W, nodes, C) latents from the decoder
     retrieval: np.ndarray  # (N, W, nodes, C) latents of the best database match
@@ -100,6 +102,8 @@ def evaluate_modes(codespace: CodeSpace, autoencoder, motion_stats: FeatureStats
 
 @dataclass
 class TauSweep:
+    """The hybrid's error and retrieval usage at each tau, and the best tau."""
+
     taus: list[float]
     errors_mm: list[float]
     retrieval_usage: list[float]  # fraction of windows retrieved

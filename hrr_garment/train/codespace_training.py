@@ -30,14 +30,16 @@ import torch
 from tqdm.auto import tqdm
 
 from ..data.windows import WindowSet
-from ..models.quantizer import group_entropy
 from ..models.codespace import CodeSpace
+from ..models.quantizer import group_entropy
 from ..settings import from_settings
 from .checkpoint import keep_if_best, load_checkpoint, resume_log, save_checkpoint
 
 
 @dataclass(frozen=True)
 class CodeSpaceTrainConfig:
+    """The code-space stage's training settings (``codespace.train``)."""
+
     epochs: int = 300
     batch_size: int = 64
     learning_rate: float = 1e-3
@@ -88,6 +90,8 @@ class PlateauDetector:
 
 @dataclass
 class WindowTensors:
+    """Standardised motion and latent windows as tensors."""
+
     motion: torch.Tensor  # (N, W, F) standardised
     latents: torch.Tensor  # (N, W, nodes, C) standardised
 

@@ -30,10 +30,12 @@ MAX_DROP = 0.05
 
 
 def rot_x(a: np.ndarray) -> np.ndarray:
+    """Rotations about X by angles (N,) -> (N, 3, 3)."""
     return axis_angle_to_matrix(np.stack([a, 0 * a, 0 * a], -1))
 
 
 def rot_z(a: np.ndarray) -> np.ndarray:
+    """Rotations about Z by angles (N,) -> (N, 3, 3)."""
     return axis_angle_to_matrix(np.stack([0 * a, 0 * a, a], -1))
 
 
@@ -185,6 +187,7 @@ def _bone_frame(direction: np.ndarray, hinge: np.ndarray) -> np.ndarray:
 
 
 def build_motion(plan: Plan, source: str) -> Motion:
+    """A Plan as canonical motion: root path, pelvis, spine, arms and IK legs."""
     n = len(plan.t)
     heading = rotation_about_y(plan.yaw)
     pelvis_rot = heading @ rot_x(plan.curve(plan.pelvis_pitch)) @ rot_z(plan.curve(plan.pelvis_roll))

@@ -94,6 +94,7 @@ def _cadence(speed: float) -> float:
 
 
 def idle(rng, seconds, sway=None, sway_hz=None, stance_width=None):
+    """Stand with a slow sway and a wandering look."""
     t, pad = _grid(seconds)
     a, f = _pick(rng, sway, 0.015, 0.045), _pick(rng, sway_hz, 0.12, 0.3)
     width = _pick(rng, stance_width, 0.09, 0.13)
@@ -113,6 +114,7 @@ def idle(rng, seconds, sway=None, sway_hz=None, stance_width=None):
 
 
 def walk(rng, seconds, speed=None):
+    """Walk straight at ``speed`` m/s."""
     t, pad = _grid(seconds)
     v = _pick(rng, speed, 0.6, 1.8)
     period = 2.0 / _cadence(v)
@@ -121,6 +123,7 @@ def walk(rng, seconds, speed=None):
 
 
 def run(rng, seconds, speed=None):
+    """Run straight at ``speed`` m/s."""
     t, pad = _grid(seconds)
     v = _pick(rng, speed, 2.0, 3.0)
     period = 2.0 / (2.7 + 0.2 * (v - 2.0))
@@ -157,6 +160,7 @@ def side_step(rng, seconds, speed=None):
 
 
 def walk_backward(rng, seconds, speed=None):
+    """Walk backwards at ``speed`` m/s."""
     t, pad = _grid(seconds)
     v = _pick(rng, speed, 0.4, 1.0)
     yaw = np.full_like(t, rng.uniform(-np.pi, np.pi))
