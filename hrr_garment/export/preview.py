@@ -9,8 +9,8 @@ from pathlib import Path
 import numpy as np
 
 from ..io_utils import atomic_path
+from ..motion.frame import to_body_frame
 from ..motion.motion import Motion
-from ..motion.rotations import rotation_about_y, yaw_of
 from ..motion.skeleton import JOINT_NAMES, PARENTS
 
 
@@ -35,7 +35,7 @@ def _colour(j: int) -> tuple[int, int, int]:
 def render_skeleton_preview(rows: list[tuple[str, Motion]], path: str | Path, frames: int = 6, cell: int = 180) -> Path:
     """One row per motion: ``frames`` evenly spaced frames, each as a front and a side view.
 
-    Views are in the character's heading frame at that frame (front: looking at its face; side:
+    Views are in the character's ground-level body frame at that frame (front: looking at its face; side:
     from its left), centred on the pelvis, with the ground line drawn; 1 m = ``cell * 0.45`` px.
     """
     Image, ImageDraw = _pil()
@@ -46,10 +46,9 @@ def render_skeleton_preview(rows: list[tuple[str, Motion]], path: str | Path, fr
     for r, (label, motion) in enumerate(rows):
         top = r * (cell + 22)
         draw.text((4, top + 2), label, fill=(0, 0, 0))
-        pos = motion.joint_positions
-        heading = yaw_of(motion.global_rotations[:, 0])
+        joints = to_body_frame(motion.joint_positions, motion, ground=True)
         for k, t in enumerate(np.linspace(0, motion.num_frames - 1, frames).round().astype(int)):
-            local = (pos[t] - pos[t, 0] * np.array([1, 0, 1])) @ rotation_about_y(heading[t])  # heading frame
+            local = joints[t]
             for v, (axis, sign) in enumerate(((0, 1.0), (2, -1.0))):  # front: its left on our right; side: from its left
                 ox = (2 * k + v) * cell + cell / 2
                 oy = top + 20 + cell * 0.95
@@ -171,8 +170,6 @@ def render_sequence_preview(rows: list[tuple[str, np.ndarray, np.ndarray, Motion
     """Garment over body for a few evenly spaced frames of each (label, vertices (T, V, 3), faces,
     motion) row, shown in the ground-level body frame (front and side views)."""
     from ..body.capsules import DEFAULT_BODY, body_mesh
-    from ..motion.frame import to_body_frame
-
     grid = []
     for label, vertices, faces, motion in rows:
         a, b = DEFAULT_BODY.pose_motion(motion)
