@@ -1,4 +1,4 @@
-# Two entry points: `make demo` and `make test`. Each creates .venv when missing and installs
+# Two entry points: `make demo` and `make test` (the layer contract, ruff, then pytest). Each creates .venv when missing and installs
 # what it needs; a stamp file keeps repeated runs fast until pyproject.toml changes.
 PYTHON ?= python3
 VENV ?= .venv
@@ -28,7 +28,10 @@ install: $(STAMP)
 demo: install
 	$(BIN)/hrr-demo
 
+# layers (import-linter, pyproject's contract), lint (ruff), then the tests
 test: install
+	$(BIN)/lint-imports
+	$(BIN)/ruff check .
 	$(BIN)/python -m pytest -q
 
 clean:

@@ -65,6 +65,7 @@ def open_window(title: str) -> Window | None:
 
 
 def main(argv=None) -> int:
+    """Run the game loop over a clip; returns the exit status."""
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--model", default="dress", help="model directory or garment name (default: dress)")
     p.add_argument("--motion", type=Path, default=None, help="BVH/npz to take poses from (default: procedural dance)")

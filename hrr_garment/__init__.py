@@ -19,22 +19,22 @@ Animation (after ``hrr-train --garment dress``)::
     anim = Animator.load("dress").animate(load_motion("walk.bvh"))   # Animation, anim.save("out.h5")
 """
 
-__version__ = "0.1.0"  # before the imports: submodules read it
-
+from ._version import __version__
 from .data.dataset import GarmentDataset, SequenceRecord
 from .errors import HRRError, InputError, MotionError, SkeletonMappingError
 from .garment.mesh import GarmentError, GarmentMesh
 from .garment.templates import GARMENT_NAMES, make_garment
-from .motion.features import FEATURE_DIM, FeatureStats, motion_features, windows
+from .motion.features import FEATURE_DIM, FeatureStats, motion_features
 from .motion.io import load_motion, save_amass, save_motion
 from .motion.motion import Motion
 from .motion.skeleton import CANONICAL, JOINT_NAMES
 from .motion.synth import KINDS as MOTION_KINDS
 from .motion.synth import synthesize
+from .motion.windows import windows
 from .sim.simulator import SimConfig, SimResult, SimulationExploded, simulate_garment
 
 _LAZY = {"Animation": "inference.animator", "AnimationStream": "inference.animator", "Animator": "inference.animator",
-         "Bundle": "train.bundle", "BundleError": "train.bundle", "load_bundle": "train.bundle"}
+         "Bundle": "artifacts.bundle", "BundleError": "artifacts.bundle", "load_bundle": "artifacts.bundle"}
 
 
 def __getattr__(name: str):
@@ -47,7 +47,7 @@ def __getattr__(name: str):
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 __all__ = [
-    "CANONICAL", "FEATURE_DIM", "FeatureStats", "HRRError", "InputError", "JOINT_NAMES", "MOTION_KINDS", "Motion",
+    "__version__", "CANONICAL", "FEATURE_DIM", "FeatureStats", "HRRError", "InputError", "JOINT_NAMES", "MOTION_KINDS", "Motion",
     "MotionError", "SkeletonMappingError", "load_motion", "motion_features", "save_amass", "save_motion", "synthesize", "windows",
     "GARMENT_NAMES", "GarmentDataset", "GarmentError", "GarmentMesh", "SequenceRecord", "SimConfig", "SimResult",
     "SimulationExploded", "make_garment", "simulate_garment",

@@ -75,7 +75,11 @@ def _arm_hanging(adduction_deg: float):
 
 
 def test_limbs_through_the_body_are_flagged_and_ordinary_motion_is_not():
-    from hrr_garment.body.self_contact import SELF_INTERSECTION_DEPTH, limb_intrusion, self_intersecting_frames
+    from hrr_garment.body.self_contact import (
+        SELF_INTERSECTION_DEPTH,
+        limb_intrusion,
+        self_intersecting_frames,
+    )
     from hrr_garment.motion.synth import KINDS, synthesize
 
     for kind in KINDS:

@@ -6,13 +6,12 @@ import math
 import numpy as np
 import pytest
 import torch
-
-from hrr_garment.data.windows import build_windows
-from hrr_garment.inference.database import CodeDatabase, code_similarity, pack_codes
-from hrr_garment.models.codebook import GumbelQuantizer, group_entropy
-from hrr_garment.train.codebook import PlateauDetector
-
 from conftest import TINY_TRAINING, synthetic_dataset
+
+from hrr_garment.artifacts.database import CodeDatabase, code_similarity, pack_codes
+from hrr_garment.data.windows import build_windows
+from hrr_garment.models.quantizer import GumbelQuantizer, group_entropy
+from hrr_garment.train.codespace_training import PlateauDetector
 
 
 @pytest.mark.parametrize("groups,classes,dim", [(4, 8, 3), (16, 2, 1), (64, 8, 8)])
@@ -67,7 +66,7 @@ def test_decoding_only_the_last_frame_equals_the_full_window():
 @pytest.mark.parametrize("window,hidden,heads,latent", [(10, 32, 2, (6, 8)), (7, 48, 3, (5, 3)), (12, 64, 4, (9, 8))])
 @pytest.mark.parametrize("regression,last_frame", [(True, True), (True, False), (False, True)])
 def test_native_window_step_equals_pytorch_and_is_batch_invariant(window, hidden, heads, latent, regression, last_frame):
-    from hrr_garment.inference.engine import WindowCodes
+    from hrr_garment.models.codes import WindowCodes
     from hrr_garment.models.codespace import CodeSpace, CodeSpaceConfig
     from hrr_garment.models.native_codes import native_window_codes
 
@@ -131,8 +130,8 @@ def test_search_can_exclude_the_query_sequence(database):
 
 
 def test_hrr_train_writes_a_bundle_that_reproduces_its_validation_numbers(trained):
-    from hrr_garment.train.bundle import load_bundle
-    from hrr_garment.train.stages import evaluate_bundle
+    from hrr_garment.artifacts.bundle import load_bundle
+    from hrr_garment.train.calibrate import evaluate_bundle
 
     root, data, _ = trained
     report = json.loads((root / "model" / "codebook" / "report.json").read_text())
@@ -144,6 +143,20 @@ def test_hrr_train_writes_a_bundle_that_reproduces_its_validation_numbers(traine
         assert again[mode] == report["validation_mm"][mode], mode
     assert report["validation_mm"]["hybrid"] <= min(report["validation_mm"]["regression"], report["validation_mm"]["retrieval"])
     assert len(bundle.database) == report["windows"]["train"]
+
+
+def test_the_old_codebook_names_still_work_with_a_deprecation_message(trained, capsys):
+    from hrr_garment.cli.train import main as train_main
+
+    root, data, args = trained
+    old = (root / "cfg.yaml").read_text().replace("\ncodespace:", "\ncodebook:")
+    (root / "cfg_old.yaml").write_text(old)
+    args_old = [a if a != str(root / "cfg.yaml") else str(root / "cfg_old.yaml") for a in args]
+    capsys.readouterr()
+    assert train_main([*args_old, "--stage", "codebook"]) == 0
+    out, err = capsys.readouterr()
+    assert "code space:" in out and "(reused)" in out  # the same stage, settings and outputs
+    assert "--stage codebook is now --stage codespace" in err and "'codebook' is now called 'codespace'" in err
 
 
 def test_rerun_resumes_the_code_space_and_skips_finished_stages(trained, capsys):
@@ -166,9 +179,9 @@ def test_a_new_encoding_retrains_the_code_space(trained, tmp_path):
     the bundle's database) trained on the old latents must not be reused."""
     import shutil
 
+    from hrr_garment.artifacts.bundle import load_bundle
     from hrr_garment.cli.train import main as train_main
-    from hrr_garment.train.bundle import load_bundle
-    from hrr_garment.train.stages import evaluate_bundle
+    from hrr_garment.train.calibrate import evaluate_bundle
 
     root, data, args = trained
     shutil.copytree(root / "model", tmp_path / "model")
@@ -190,10 +203,10 @@ def test_a_new_encoding_retrains_the_code_space(trained, tmp_path):
 def test_corrupt_bundle_and_wrong_garment_are_explained(trained, tmp_path):
     import shutil
 
+    from hrr_garment.artifacts.bundle import BundleError, load_bundle
     from hrr_garment.data.dataset import DatasetError
     from hrr_garment.garment.templates import make_garment
-    from hrr_garment.train.bundle import BundleError, load_bundle
-    from hrr_garment.train.stages import evaluate_bundle
+    from hrr_garment.train.calibrate import evaluate_bundle
 
     root, _, _ = trained
     copy = tmp_path / "model"

@@ -65,10 +65,10 @@ def test_hrr_eval_excluding_own_sequence_changes_training_retrieval(trained, tmp
 
 
 def test_hrr_eval_refuses_bad_input(trained, tmp_path, capsys):
+    from conftest import synthetic_dataset
+
     from hrr_garment.cli.eval import main
     from hrr_garment.garment.templates import make_garment
-
-    from conftest import synthetic_dataset
 
     root, data, _ = trained
     other = synthetic_dataset(tmp_path / "dress.h5", make_garment("dress", 300))

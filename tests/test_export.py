@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from hrr_garment.body.capsules import DEFAULT_BODY
-from hrr_garment.export.h5 import read_animation_h5, write_animation_h5
+from hrr_garment.data.animation_file import read_animation_h5, write_animation_h5
 from hrr_garment.export.keyframes import interpolate, select_keyframes
 from hrr_garment.garment.templates import make_garment
 from hrr_garment.motion.synth import synthesize

@@ -212,9 +212,9 @@ def test_training_resumes_and_encodes_every_sequence(tmp_path, skirt, monkeypatc
     assert len(trained) == 3  # one epoch left after the checkpoint at epoch 2: 12 frames + mirrored, 3 batches of 8
     with np.load(tmp_path / "ae" / "latents.npz") as z:
         assert sorted(z.files) == ["idle_000", "spin_000", "walk_000"]
-        assert z["walk_000"].shape == (12, *again.latent_shape)
+        assert z["walk_000"].shape == (12, *again.metrics["latent_shape"])
     trained.clear()
-    assert ae.train_autoencoder(data, tmp_path / "ae", train_config=cfg, progress=False).extra.get("reused")
+    assert ae.train_autoencoder(data, tmp_path / "ae", train_config=cfg, progress=False).reused
     assert not trained  # finished with these settings: nothing is redone
     # another refinement re-encodes the finished run without training it again
     with np.load(tmp_path / "ae" / "latents.npz") as z:
@@ -222,7 +222,7 @@ def test_training_resumes_and_encodes_every_sequence(tmp_path, skirt, monkeypatc
     saves.clear()
     monkeypatch.setattr(ae, "save_checkpoint", save_then_die)
     refined = ae.train_autoencoder(data, tmp_path / "ae", train_config=replace(cfg, refine_steps=3), progress=False)
-    assert not saves and refined.extra["refine_steps"] == 3 and not refined.extra.get("reused")
+    assert not saves and refined.metrics["extra"]["refine_steps"] == 3 and not refined.reused
     with np.load(tmp_path / "ae" / "latents.npz") as z:
         assert not np.allclose(z["spin_000"], plain)
     model = ae.load_autoencoder(tmp_path / "ae", skirt.faces)
@@ -232,7 +232,8 @@ def test_training_resumes_and_encodes_every_sequence(tmp_path, skirt, monkeypatc
 
 
 def test_learning_rate_anneals_over_the_run_by_epochs_or_budget():
-    from hrr_garment.train.autoencoder import TrainConfig, early_stop, run_progress, set_learning_rate
+    from hrr_garment.train.autoencoder import TrainConfig
+    from hrr_garment.train.schedule import early_stop, run_progress, set_learning_rate
 
     cfg = TrainConfig(learning_rate=0.01, lr_final=0.02)
     opt = torch.optim.Adam([torch.nn.Parameter(torch.zeros(1))], lr=1.0)
@@ -249,7 +250,7 @@ def test_learning_rate_anneals_over_the_run_by_epochs_or_budget():
 
 
 def test_the_budget_caps_training_instead_of_being_the_last_start():
-    from hrr_garment.train.autoencoder import epoch_fits
+    from hrr_garment.train.schedule import epoch_fits
 
     assert epoch_fits(100.0, None, 50.0)  # no budget
     assert epoch_fits(99.0, 100.0, None)  # the first epoch always runs
@@ -259,7 +260,8 @@ def test_the_budget_caps_training_instead_of_being_the_last_start():
 
 def test_training_device_is_checked_before_anything_is_written(tmp_path):
     from hrr_garment.errors import InputError
-    from hrr_garment.train.autoencoder import TrainConfig, train_autoencoder, training_device
+    from hrr_garment.train.autoencoder import TrainConfig, train_autoencoder
+    from hrr_garment.train.schedule import training_device
 
     assert training_device("cpu") == torch.device("cpu")
     with pytest.raises(InputError, match="not a torch device"):

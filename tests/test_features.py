@@ -2,7 +2,8 @@ import numpy as np
 import pytest
 
 from hrr_garment import FeatureStats, MotionError, motion_features, synthesize, windows
-from hrr_garment.motion.features import SLICE_T, SLICE_V, SLICE_W, heading
+from hrr_garment.motion.features import SLICE_T, SLICE_V, SLICE_W
+from hrr_garment.motion.frame import body_heading
 from hrr_garment.motion.motion import Motion
 from hrr_garment.motion.rotations import rotation_about_y
 from hrr_garment.motion.skeleton import FEATURE_JOINTS
@@ -28,7 +29,7 @@ def test_feature_layout_and_velocities_match_finite_differences():
     motion = synthesize("walk", seconds=2.0, seed=1)
     f = motion_features(motion).astype(np.float64)
     assert f.shape == (motion.num_frames, 124) and f.dtype == np.float64
-    _, h = heading(motion)
+    _, h = body_heading(motion)
     pos = motion.joint_positions[:, list(FEATURE_JOINTS)]
     t = 10
     world_v = (pos[t] - pos[t - 1]) * 30.0
@@ -37,7 +38,7 @@ def test_feature_layout_and_velocities_match_finite_differences():
     np.testing.assert_allclose(f[t, SLICE_T], root_v @ h[t], atol=1e-4)
     # walking forward: the root moves along +z of its heading frame at the walking speed
     assert f[:, SLICE_T][:, 2].mean() > 0.5 and abs(f[:, SLICE_T][:, 0].mean()) < 0.05
-    yaw = np.unwrap(heading(motion)[0])
+    yaw = np.unwrap(body_heading(motion)[0])
     np.testing.assert_allclose(f[1:, SLICE_W][:, 0], np.diff(yaw) * 30.0, atol=1e-4)
 
 
@@ -71,8 +72,8 @@ def test_windows_and_standardisation():
 
 @pytest.mark.parametrize("kind", ["walk_curve", "spin", "dance"])
 def test_native_kinematics_and_causal_features_equal_numpy(kind, monkeypatch):
-    from hrr_garment.inference.engine import causal_features
-    from hrr_garment.models import native
+    from hrr_garment import native
+    from hrr_garment.motion.features import causal_features
     from hrr_garment.motion.skeleton import forward_kinematics
 
     lib = native.load_kernel()

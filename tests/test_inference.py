@@ -5,9 +5,9 @@ import math
 import numpy as np
 import pytest
 
-from hrr_garment.inference.engine import Inertializer, blend_windows, to_world, window_weights
+from hrr_garment.inference.blending import Inertializer, blend_windows, window_weights
+from hrr_garment.motion.frame import from_body_frame, to_body_frame
 from hrr_garment.motion.synth import synthesize
-from hrr_garment.motion.frame import to_body_frame
 
 
 @pytest.fixture(scope="module")
@@ -70,10 +70,10 @@ def test_blending_keeps_a_constant_and_favours_centres():
     assert np.allclose(blend_windows(windows, 16)[:, 0], ramp)  # consistent windows blend to themselves
 
 
-def test_to_world_inverts_the_body_frame(rng):
+def test_from_body_frame_inverts_the_body_frame(rng):
     motion = synthesize("turn_in_place", 1.0, seed=3)
     points = rng.normal(size=(motion.num_frames, 5, 3))
-    assert np.allclose(to_world(to_body_frame(points, motion), motion), points, atol=1e-9)
+    assert np.allclose(from_body_frame(to_body_frame(points, motion), motion), points, atol=1e-9)
 
 
 def test_body_frame_follows_the_pelvis_height_and_heading():
@@ -106,7 +106,7 @@ def test_push_out_moves_vertices_outside_without_spikes():
 
     skirt = make_garment("skirt", 300)
     motion = synthesize("idle", 0.2, seed=0)
-    rest = to_world(to_body_frame(np.repeat(skirt.vertices[None], motion.num_frames, 0).astype(np.float64), motion), motion)
+    rest = from_body_frame(to_body_frame(np.repeat(skirt.vertices[None], motion.num_frames, 0).astype(np.float64), motion), motion)
     squeezed = rest.copy()
     centre = np.array([0.0, 0.0, 0.0])
     centre[[0, 2]] = rest[0, :, [0, 2]].mean(1)
@@ -132,7 +132,7 @@ def test_push_out_moves_vertices_outside_without_spikes():
 
 def test_hrr_animate_writes_out_h5_and_refuses_bad_motion(trained, tmp_path, capsys):
     from hrr_garment.cli.animate import main as animate_main
-    from hrr_garment.export.h5 import read_animation_h5
+    from hrr_garment.data.animation_file import read_animation_h5
     from hrr_garment.motion.io import save_motion
 
     root, _, _ = trained
@@ -190,7 +190,7 @@ def test_hrr_animate_explains_bad_models_and_outputs(trained, tmp_path, capsys, 
 
 def test_native_capsule_distance_equals_numpy(rng):
     from hrr_garment.body.capsules import DEFAULT_BODY, capsule_signed_distance
-    from hrr_garment.models.native import capsule_sdf, load_kernel
+    from hrr_garment.native import capsule_sdf, load_kernel
 
     lib = load_kernel()
     if lib is None:
@@ -223,14 +223,14 @@ def test_native_push_out_equals_numpy(rng):
     from hrr_garment.body.capsules import DEFAULT_BODY
     from hrr_garment.garment.templates import make_garment
     from hrr_garment.inference.collision import _push_frames, mean_operator
-    from hrr_garment.models.native import load_kernel, push_out_frames
+    from hrr_garment.native import load_kernel, push_out_frames
 
     lib = load_kernel()
     if lib is None:
         pytest.skip("no C compiler")
     skirt = make_garment("skirt", 300)
     motion = synthesize("dance", 0.3, seed=4)
-    rest = to_world(to_body_frame(np.repeat(skirt.vertices[None], motion.num_frames, 0).astype(np.float64), motion), motion)
+    rest = from_body_frame(to_body_frame(np.repeat(skirt.vertices[None], motion.num_frames, 0).astype(np.float64), motion), motion)
     centre = rest[:, :, [0, 2]].mean(1, keepdims=True)
     squeezed = rest.copy()
     squeezed[..., [0, 2]] = centre + 0.85 * (rest[..., [0, 2]] - centre)  # into the hips

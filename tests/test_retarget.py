@@ -6,7 +6,7 @@ import yaml
 
 from hrr_garment import load_motion, motion_features, synthesize
 from hrr_garment.motion.bvh import write_bvh
-from hrr_garment.motion.retarget import NAMING_SCHEMES
+from hrr_garment.motion.joint_maps import NAMING_SCHEMES
 from hrr_garment.motion.skeleton import CANONICAL, JOINT_INDEX, JOINT_NAMES, PARENTS
 
 

@@ -5,10 +5,11 @@ import numpy as np
 import pytest
 
 from hrr_garment.garment.templates import GARMENT_NAMES, make_garment
+from hrr_garment.motion.frame import to_body_frame
 from hrr_garment.motion.rotations import yaw_of
 from hrr_garment.motion.synth import synthesize
 from hrr_garment.sim.lead_in import with_lead_in
-from hrr_garment.sim.quality import heading_frame, sequence_stats
+from hrr_garment.sim.quality import sequence_stats
 
 
 def test_lead_in_starts_in_rest_pose_where_the_clip_starts():
@@ -27,10 +28,10 @@ def test_lead_in_starts_in_rest_pose_where_the_clip_starts():
     assert step[:lead].max() < 0.08 and step[:lead + 1].max() <= step[lead:].max()
 
 
-def test_heading_frame_removes_root_motion():
+def test_ground_level_body_frame_removes_root_motion():
     clip = synthesize("walk_curve", 2.0, seed=1)
     pelvis = clip.joint_positions[:, :1]
-    local = heading_frame(pelvis, clip)
+    local = to_body_frame(pelvis, clip, ground=True)
     assert np.allclose(local[..., [0, 2]], 0.0, atol=1e-9)
     assert np.allclose(local[..., 1], pelvis[..., 1])
 

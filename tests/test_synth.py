@@ -76,9 +76,9 @@ def test_jump_leaves_the_ground_and_spin_turns():
     jump = synthesize("jump", 4.0, seed=3, height=0.25)
     assert jump.lowest_foot_height().max() > 0.15
     spin = synthesize("spin", 4.0, seed=3, revolutions_per_s=1.0)
-    from hrr_garment.motion.features import heading
+    from hrr_garment.motion.frame import body_heading
 
-    turns = abs(np.unwrap(heading(spin)[0])[-1] - heading(spin)[0][0]) / (2 * np.pi)
+    turns = abs(np.unwrap(body_heading(spin)[0])[-1] - body_heading(spin)[0][0]) / (2 * np.pi)
     assert turns > 2.0
 
 

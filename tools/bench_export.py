@@ -23,16 +23,15 @@ from pathlib import Path
 import numpy as np
 
 from hrr_garment.body.capsules import DEFAULT_BODY
+from hrr_garment.data.animation_file import read_animation_h5, write_animation_h5
 from hrr_garment.export.glb import write_glb
-from hrr_garment.export.h5 import read_animation_h5, write_animation_h5
 from hrr_garment.export.pointcache import write_obj_sequence, write_pc2_with_obj
 from hrr_garment.export.usd import write_usd
 from hrr_garment.export.video import PreviewStyle, write_preview
 from hrr_garment.garment.templates import make_garment
-from hrr_garment.inference.engine import to_world
+from hrr_garment.motion.frame import from_body_frame, to_body_frame
 from hrr_garment.motion.motion import Motion
 from hrr_garment.motion.synth import synthesize
-from hrr_garment.motion.frame import to_body_frame
 
 
 def long_motion(frames: int) -> Motion:
@@ -57,7 +56,7 @@ def build_animation(path: Path, frames: int, vertices: int) -> Path:
     swing = 0.08 * below_hips * np.sin(2 * np.pi * 0.9 * t + rest[None, :, 0:1] * 3 + rest[None, :, 2:3] * 2)
     local = rest[None] + swing * np.array([1.0, 0.15, 0.6])
     a, b = DEFAULT_BODY.pose_motion(motion)
-    return write_animation_h5(path, vertices=to_world(local, motion), faces=dress.faces, joints=motion.joint_positions,
+    return write_animation_h5(path, vertices=from_body_frame(local, motion), faces=dress.faces, joints=motion.joint_positions,
                               mode=np.zeros(frames, np.uint8), entropy=np.zeros(frames), source=np.full((frames, 2), -1),
                               attrs={"fps": 30.0, "garment": "dress", "source_motion": "bench"},
                               capsules=np.stack([a, b], 2), radii=DEFAULT_BODY.radii)

@@ -30,16 +30,16 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from hrr_garment.artifacts.bundle import Bundle
+from hrr_garment.artifacts.database import CodeDatabase
 from hrr_garment.garment.templates import make_garment
 from hrr_garment.inference.animator import Animator
-from hrr_garment.inference.database import CodeDatabase
 from hrr_garment.models.codespace import CodeSpace, CodeSpaceConfig
 from hrr_garment.models.fcmae import AutoencoderConfig, MeshAutoencoder
 from hrr_garment.models.hierarchy import build_hierarchy
 from hrr_garment.motion.features import FEATURE_DIM, FeatureStats
 from hrr_garment.motion.io import load_motion
 from hrr_garment.motion.synth import synthesize
-from hrr_garment.train.bundle import Bundle
 
 
 def random_bundle(vertices: int, windows: int, seed: int = 0) -> Bundle:
@@ -69,8 +69,9 @@ def _fps(animator: Animator, motion, **kwargs) -> float:
 
 def _median_entropy_tau(bundle: Bundle, motion) -> float:
     """A tau at the median window entropy: about half the windows retrieve."""
-    from hrr_garment.inference.engine import encode_motion
-    from hrr_garment.motion.features import motion_features, windows as feature_windows
+    from hrr_garment.models.codes import encode_motion
+    from hrr_garment.motion.features import motion_features
+    from hrr_garment.motion.windows import windows as feature_windows
 
     windows = np.ascontiguousarray(feature_windows(motion_features(motion), bundle.codespace.config.window))
     entropy = encode_motion(bundle.codespace, bundle.motion_stats, bundle.latent_stats, windows, regression=False).entropy

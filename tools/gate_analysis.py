@@ -22,10 +22,11 @@ import json
 import numpy as np
 import torch
 
+from hrr_garment.artifacts.bundle import load_bundle
 from hrr_garment.data.dataset import GarmentDataset
-from hrr_garment.data.windows import dataset_features, sequence_windows
+from hrr_garment.data.windows import dataset_features
+from hrr_garment.motion.windows import sequence_windows
 from hrr_garment.train.autoencoder import body_frames
-from hrr_garment.train.bundle import load_bundle
 from hrr_garment.train.calibrate import predict_windows, window_errors_mm
 
 

@@ -17,6 +17,8 @@ from ..motion.skeleton import CANONICAL, JOINT_INDEX, REST_OFFSETS, REST_PELVIS_
 
 @dataclass(frozen=True)
 class Capsule:
+    """One capsule of the body: end points ``a`` and ``b`` relative to ``joint``, and its radius."""
+
     name: str
     joint: str
     a: tuple[float, float, float]
@@ -112,8 +114,8 @@ def capsule_signed_distance(points: np.ndarray, a: np.ndarray, b: np.ndarray, ra
 def frames_signed_distance(points: np.ndarray, a: np.ndarray, b: np.ndarray, radii: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """:func:`capsule_signed_distance` frame by frame: points (T, N, 3) against each frame's capsule
     ends a, b (T, C, 3) -> distances (T, N) and normals (T, N, 3). Runs in the native kernel of
-    :mod:`hrr_garment.models.native` when it is compiled (equal to 1e-12, tested)."""
-    from ..models.native import capsule_sdf, default_threads, load_kernel
+    :mod:`hrr_garment.native` when it is compiled (equal to 1e-12, tested)."""
+    from ..native import capsule_sdf, default_threads, load_kernel
 
     lib = load_kernel()
     if lib is not None:

@@ -19,6 +19,7 @@ from pathlib import Path
 from typing import Sequence
 
 from ..errors import InputError
+from ..inference.modes import Mode
 from ._common import add_fps_option, run_cli
 
 
@@ -28,7 +29,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("-o", "--output", type=Path, required=True, help="out.h5 to write")
     p.add_argument("--garment", default=None, help="use the workspace model of this garment")
     p.add_argument("--model", type=Path, default=None, help="model bundle directory (instead of --garment)")
-    p.add_argument("--mode", default="hybrid", choices=("hybrid", "regression", "retrieval", "naive-nn", "direct"),
+    p.add_argument("--mode", default=Mode.HYBRID.value, choices=[m.value for m in Mode],
                    help="direct: the baseline, when the model has it (hrr-train --stage baseline)")
     p.add_argument("--tau", type=float, default=None, help="entropy threshold (default: the model's calibrated one)")
     p.add_argument("--no-collision", action="store_true", help="skip the collision push-out")
@@ -72,6 +73,7 @@ def _main(argv: Sequence[str] | None) -> int:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    """``hrr-animate``; returns the exit status."""
     return run_cli(_main, argv, "hrr-animate")
 
 

@@ -15,9 +15,10 @@ import sys
 from pathlib import Path
 from typing import Sequence
 
-from ..motion.features import motion_features, windows
+from ..motion.features import motion_features
 from ..motion.io import load_motion
 from ..motion.synth import synthesize
+from ..motion.windows import windows
 from ..paths import find_mocap_dir, workspace
 from ._common import run_cli
 
@@ -77,6 +78,7 @@ def _body(argv: Sequence[str] | None) -> int:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    """``hrr-demo``; returns the exit status."""
     return run_cli(_body, argv, "hrr-demo")
 
 

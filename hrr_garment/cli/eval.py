@@ -22,9 +22,10 @@ from pathlib import Path
 from typing import Sequence
 
 from ..errors import InputError
+from ..inference.modes import Mode
 from ._common import add_fps_option, run_cli
 
-ALL_MODES = ("hybrid", "regression", "retrieval", "naive-nn", "direct")
+ALL_MODES = tuple(m.value for m in Mode)
 
 
 def _floats(text: str) -> list[float]:
@@ -100,8 +101,8 @@ def _main(argv: Sequence[str] | None) -> int:
     names = ds.splits.get(args.split, [])
     if not names:
         raise DatasetError(dataset, f"has no {args.split!r} sequences")
-    modes = args.modes or [m for m in ALL_MODES if m != "direct" or animator.has_direct]
-    if "direct" in modes and not animator.has_direct:
+    modes = args.modes or [m for m in ALL_MODES if m != Mode.DIRECT or animator.has_direct]
+    if Mode.DIRECT in modes and not animator.has_direct:
         raise InputError(model_dir, "has no direct-regression baseline: train it with hrr-train --stage baseline")
     out = args.output or workspace() / "eval" / model_dir.name
     records = [ds.sequence(n) for n in names]
@@ -149,7 +150,7 @@ def _real_motion(animator, ds, files: list[str], modes: list[str], tau: float, c
     config = SimConfig.from_dict(ds.info.get("sim", {}))
     path = workspace() / "eval" / f"{ds.path.stem}-real-motion.h5"
     print(f"simulating ground truth for {len(files)} motion file(s) ({len(specs)} pieces; cached in {path.with_suffix('.parts')})")
-    report = build_dataset(ds.template, specs, config, path, splits={"val": 0.0, "test": 0.0}, preview=False,
+    report = build_dataset(ds.template, specs, config, path, splits={"val": 0.0, "test": 0.0},
                            info={"purpose": "hrr-eval real motion", "source_dataset": str(ds.path)}, progress=progress)
     real = GarmentDataset(report.path)
     records = [real.sequence(n) for n in report.sequences]
@@ -173,6 +174,7 @@ def _print_summary(report: dict) -> None:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    """``hrr-eval``; returns the exit status."""
     return run_cli(_main, argv, "hrr-eval")
 
 

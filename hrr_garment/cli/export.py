@@ -43,7 +43,7 @@ def _size(paths: list[Path]) -> str:
 
 def _main(argv: Sequence[str] | None) -> int:
     args = _parser().parse_args(argv)
-    from ..export.h5 import read_animation_h5
+    from ..data.animation_file import read_animation_h5
 
     fmt = args.to or _BY_SUFFIX.get(args.output.suffix.lower())
     if fmt is None:
@@ -83,6 +83,7 @@ def _main(argv: Sequence[str] | None) -> int:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    """``hrr-export``; returns the exit status."""
     return run_cli(_main, argv, "hrr-export")
 
 

@@ -54,6 +54,7 @@ def _main(argv: Sequence[str] | None) -> int:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    """``hrr-import``; returns the exit status."""
     return run_cli(_main, argv, "hrr-import")
 
 

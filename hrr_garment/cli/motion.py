@@ -12,9 +12,10 @@ import numpy as np
 
 from ..errors import InputError
 from ..io_utils import atomic_path
-from ..motion.features import DEFAULT_WINDOW, motion_features
+from ..motion.features import motion_features
 from ..motion.io import load_motion, save_motion
 from ..motion.synth import KINDS, kind_parameters, synthesize
+from ..motion.windows import DEFAULT_WINDOW
 from ._common import add_fps_option, run_cli
 
 
@@ -91,6 +92,7 @@ def _body(argv: Sequence[str] | None) -> int:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    """``hrr-motion``; returns the exit status."""
     return run_cli(_body, argv, "hrr-motion")
 
 

@@ -39,7 +39,7 @@ def _parser() -> argparse.ArgumentParser:
 
 def _main(argv: Sequence[str] | None) -> int:
     args = _parser().parse_args(argv)
-    from ..export.h5 import read_animation_h5
+    from ..data.animation_file import read_animation_h5
     from ..export.video import PreviewStyle, write_preview
 
     t0 = time.perf_counter()
@@ -53,6 +53,7 @@ def _main(argv: Sequence[str] | None) -> int:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    """``hrr-preview``; returns the exit status."""
     return run_cli(_main, argv, "hrr-preview")
 
 

@@ -28,6 +28,7 @@ from ._common import add_fps_option, run_cli
 
 
 def add_garment_options(p: argparse.ArgumentParser) -> None:
+    """The options that pick a garment (shared with hrr-train)."""
     p.add_argument("--garment", default=None, help=f"built-in template: {', '.join(GARMENT_NAMES)} (or the name of --template)")
     p.add_argument("--template", type=Path, default=None, help="your own garment OBJ in the canonical rest pose (Y up, metres)")
     p.add_argument("--attached", default=None, metavar="GROUP", help="OBJ group whose vertices follow the body (with --template)")
@@ -36,6 +37,7 @@ def add_garment_options(p: argparse.ArgumentParser) -> None:
 
 
 def resolve_garment(args: argparse.Namespace, default_vertices: int) -> GarmentMesh:
+    """The garment the options name: a template, or the user's OBJ."""
     if args.template is not None:
         return load_garment_obj(args.template, args.garment, args.attached, args.attached_file)
     if args.garment is None:
@@ -67,6 +69,7 @@ def _parser() -> argparse.ArgumentParser:
 
 def _main(argv: Sequence[str] | None) -> int:
     args = _parser().parse_args(argv)
+    from ..export.preview import write_dataset_preview
     from ..sim.build import build_dataset
     from ..sim.simulator import SimConfig
 
@@ -84,13 +87,14 @@ def _main(argv: Sequence[str] | None) -> int:
     options["info"]["garment_vertices"] = garment.num_vertices
     if args.address and args.executor != "ray":
         raise InputError("--address", "joins a Ray cluster: use it with --executor ray")
-    report = build_dataset(garment, specs, config, out, jobs=args.jobs, preview=not args.no_preview,
+    report = build_dataset(garment, specs, config, out, jobs=args.jobs, preview=None if args.no_preview else write_dataset_preview,
                            progress=not args.quiet, executor=args.executor, address=args.address, **options)
     print_report(report, garment)
     return 0
 
 
 def print_report(report, garment: GarmentMesh) -> None:
+    """Print a dataset build's summary."""
     s = report.summary
     print(f"wrote {report.path}: {s['sequences']} sequences, {s['frames']} frames, {garment.num_vertices} vertices "
           f"({report.reused} reused, {report.simulated} simulated now, {len(report.rejects)} rejected)")
@@ -108,6 +112,7 @@ def print_report(report, garment: GarmentMesh) -> None:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    """``hrr-simulate``; returns the exit status."""
     return run_cli(_main, argv, "hrr-simulate")
 
 

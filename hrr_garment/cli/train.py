@@ -4,9 +4,10 @@
     hrr-train --garment dress --preset tiny          # a small model in a few minutes (smoke runs)
     hrr-train --garment dress --stage autoencoder --minutes 10
     hrr-train --dataset my.h5 -o hrr_work/models/my
+    hrr-train --garment dress --stage codespace     # one stage
 
 Stages, in order: ``simulate`` (only when the dataset does not exist; as hrr-simulate would),
-``autoencoder`` (the FCMAE mesh autoencoder, then every frame encoded to latents), ``codebook``
+``autoencoder`` (the FCMAE mesh autoencoder, then every frame encoded to latents), ``codespace``
 (motion and garment encoders sharing a Gumbel-Softmax code space, the retrieval database, tau
 calibration, the bundle); ``baseline`` (only when named: the direct-regression baseline that
 ``hrr-eval`` compares against, mode ``direct``). Each stage resumes from its checkpoint when re-run and is skipped when
@@ -14,7 +15,8 @@ its outputs are current. The bundle lands in hrr_work/models/GARMENT-PRESET/, wh
 ``hrr-animate --garment GARMENT`` finds it.
 
 Settings: configs/train.yaml, then the preset's ``train:`` section, then ``--config FILE`` (same
-shape), then flags.
+shape), then flags. The stage ``codebook`` and a config section ``codebook:`` are the old names of
+``codespace``: still accepted, with a deprecation message.
 """
 
 from __future__ import annotations
@@ -30,9 +32,12 @@ import yaml
 from ..errors import InputError
 from ..paths import workspace
 from ..sim.plan import CONFIG_DIR, load_preset
+from ..train.report import StageReport
 from ._common import run_cli
 
-STAGES = ("simulate", "autoencoder", "codebook")  # "all"; the baseline stage runs only when asked for
+STAGES = ("simulate", "autoencoder", "codespace")  # "all"; the baseline stage runs only when asked for
+SECTIONS = ("autoencoder", "codespace", "baseline")  # of the training config
+OLD_CODESPACE_NAME = "codebook"  # the old name of the stage and of its config section (deprecated)
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -40,8 +45,9 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--garment", default=None, help="garment name: uses hrr_work/datasets/GARMENT-PRESET.h5")
     p.add_argument("--preset", default="quick", help="dataset and training preset (default quick)")
     p.add_argument("--dataset", type=Path, default=None, help="dataset .h5 (instead of --garment/--preset)")
-    p.add_argument("--stage", choices=(*STAGES, "baseline", "all"), default="all",
-                   help="one stage; 'baseline' trains the direct-regression baseline for hrr-eval")
+    p.add_argument("--stage", choices=(*STAGES, "baseline", "all", OLD_CODESPACE_NAME), default="all",
+                   help="one stage; 'baseline' trains the direct-regression baseline for hrr-eval "
+                        f"('{OLD_CODESPACE_NAME}': deprecated name of 'codespace')")
     p.add_argument("--config", type=Path, default=None, help="YAML overriding configs/train.yaml (same sections)")
     p.add_argument("--minutes", type=float, default=None, help="wall-clock budget for the autoencoder stage")
     p.add_argument("--threads", type=int, default=None, help="torch CPU threads (default: torch's choice)")
@@ -64,15 +70,30 @@ def _read_yaml(path: Path) -> dict:
         data = yaml.safe_load(path.read_text(encoding="utf-8")) or {}
     except (OSError, yaml.YAMLError) as exc:
         raise InputError(path, f"cannot read the training config: {exc}") from None
-    if not isinstance(data, dict) or set(data) - {"autoencoder", "codebook", "baseline"}:
-        raise InputError(path, "expected a mapping with 'autoencoder', 'codebook' and/or 'baseline' sections "
-                               "(each with model/train)")
+    return _sections(data, path)
+
+
+def _sections(data, source) -> dict:
+    """A training config's sections, checked, the code space's old section name renamed."""
+    if isinstance(data, dict) and OLD_CODESPACE_NAME in data:
+        _deprecated(f"{source}: the config section '{OLD_CODESPACE_NAME}' is now called 'codespace'")
+        if "codespace" in data:
+            raise InputError(source, f"has both a '{OLD_CODESPACE_NAME}' and a 'codespace' section; keep 'codespace'")
+        data = {("codespace" if k == OLD_CODESPACE_NAME else k): v for k, v in data.items()}
+    if not isinstance(data, dict) or set(data) - set(SECTIONS):
+        raise InputError(source, "expected a mapping with 'autoencoder', 'codespace' and/or 'baseline' sections "
+                                 "(each with model/train)")
     return data
 
 
-def settings(preset_train: dict, user: Path | None) -> dict:
-    cfg = _merge(_read_yaml(CONFIG_DIR / "train.yaml"), preset_train)
+def settings(preset_train: dict, user: Path | None, preset_name: str = "preset") -> dict:
+    """The training settings: configs/train.yaml, then the preset's, then the user's file."""
+    cfg = _merge(_read_yaml(CONFIG_DIR / "train.yaml"), _sections(preset_train or {}, f"the {preset_name} preset's train section"))
     return _merge(cfg, _read_yaml(user)) if user else cfg
+
+
+def _deprecated(message: str) -> None:
+    print(f"hrr-train: deprecated: {message}", file=sys.stderr)
 
 
 def _build(factory, values: dict, source) -> object:
@@ -83,6 +104,7 @@ def _build(factory, values: dict, source) -> object:
 
 
 def _simulate(garment: str, preset, out: Path, quiet: bool) -> None:
+    from ..export.preview import write_dataset_preview
     from ..garment.templates import make_garment
     from ..sim.build import build_dataset
     from ..sim.plan import build_options, plan_sequences
@@ -93,19 +115,24 @@ def _simulate(garment: str, preset, out: Path, quiet: bool) -> None:
     specs = plan_sequences(preset)
     options = build_options(preset, specs)
     options["info"]["garment_vertices"] = mesh.num_vertices
-    report = build_dataset(mesh, specs, SimConfig.from_dict(preset.sim), out, progress=not quiet, **options)
+    report = build_dataset(mesh, specs, SimConfig.from_dict(preset.sim), out, progress=not quiet,
+                           preview=write_dataset_preview, **options)
     print_report(report, mesh)
 
 
 def _main(argv: Sequence[str] | None) -> int:
     args = _parser().parse_args(argv)
     from ..models.codespace import CodeSpaceConfig
+    from ..models.direct import DirectConfig
     from ..models.fcmae import AutoencoderConfig
     from ..train.autoencoder import TrainConfig, train_autoencoder
-    from ..train.codebook import CodebookTrainConfig
-    from ..models.direct import DirectConfig
-    from ..train.direct import DirectTrainConfig, run_baseline_stage
-    from ..train.stages import run_codebook_stage
+    from ..train.baseline import DirectTrainConfig, run_baseline_stage
+    from ..train.codespace import run_codespace_stage
+    from ..train.codespace_training import CodeSpaceTrainConfig
+
+    if args.stage == OLD_CODESPACE_NAME:
+        _deprecated(f"--stage {OLD_CODESPACE_NAME} is now --stage codespace")
+        args.stage = "codespace"
 
     preset = load_preset(args.preset)
     if args.dataset is None:
@@ -113,7 +140,7 @@ def _main(argv: Sequence[str] | None) -> int:
             raise InputError("hrr-train", "give --garment NAME (with --preset) or --dataset FILE")
         args.dataset = workspace() / "datasets" / f"{args.garment}-{preset.name}.h5"
     folder = args.output or workspace() / "models" / args.dataset.stem
-    cfg = settings(preset.train, args.config)
+    cfg = settings(preset.train, args.config, preset.name)
     source = args.config or CONFIG_DIR / "train.yaml"
     ae_model = _build(AutoencoderConfig, cfg["autoencoder"].get("model"), source)
     ae_train_values = dict(cfg["autoencoder"].get("train") or {})
@@ -121,8 +148,8 @@ def _main(argv: Sequence[str] | None) -> int:
         if value is not None:
             ae_train_values[key] = value
     ae_train = _build(TrainConfig, ae_train_values, source)
-    cs_model = _build(CodeSpaceConfig, cfg["codebook"].get("model"), source)
-    cs_train = _build(CodebookTrainConfig, cfg["codebook"].get("train"), source)
+    cs_model = _build(CodeSpaceConfig, cfg["codespace"].get("model"), source)
+    cs_train = _build(CodeSpaceTrainConfig, cfg["codespace"].get("train"), source)
     direct_model = _build(DirectConfig, cfg["baseline"].get("model"), source)
     direct_train = _build(DirectTrainConfig, cfg["baseline"].get("train"), source)
     if args.threads:
@@ -147,30 +174,38 @@ def _main(argv: Sequence[str] | None) -> int:
                 raise InputError(args.dataset, f"no dataset; make it with: {hint} (or run hrr-train without --stage)")
             r = train_autoencoder(args.dataset, folder / "autoencoder", ae_model, ae_train, cache_dir=workspace() / "cache",
                                   progress=not args.quiet)
-            print(f"autoencoder: {r.epochs} epochs (best {r.best_epoch}) in {r.minutes:.1f} min"
-                  f"{' (reused)' if r.extra.get('reused') else ''}; "
-                  f"per-vertex error val {r.val_pve_mm:.2f} mm, test {r.test_pve_mm:.2f} mm, train {r.train_pve_mm:.2f} mm; "
-                  f"latent {r.latent_shape[0]} x {r.latent_shape[1]} (levels {' > '.join(str(s) for s in r.sizes)})")
-        elif stage == "codebook":
-            r = run_codebook_stage(args.dataset, folder, cs_model, cs_train, cache_dir=workspace() / "cache",
-                                   progress=not args.quiet, info={"preset": preset.name})
-            _print_codebook(r, folder)
+            _print_autoencoder(r)
+        elif stage == "codespace":
+            r = run_codespace_stage(args.dataset, folder, cs_model, cs_train, cache_dir=workspace() / "cache",
+                                    progress=not args.quiet, info={"preset": preset.name})
+            _print_codespace(r, folder)
         elif stage == "baseline":
             r = run_baseline_stage(args.dataset, folder, direct_model, direct_train, cache_dir=workspace() / "cache",
                                    progress=not args.quiet)
-            print(f"baseline (direct regression): {r['epochs']} epochs (best {r['best_epoch']}) in {r['minutes']:.1f} min"
-                  f"{' (reused)' if r.get('reused') else ''}; validation per-vertex error {r['validation_mm']:.2f} mm")
+            print(f"baseline (direct regression): {_epochs(r)}; validation per-vertex error "
+                  f"{r.metrics['validation_mm']:.2f} mm")
         times[stage] = time.perf_counter() - t0
     print("time per stage: " + ", ".join(f"{k} {v / 60:.1f} min" for k, v in times.items()))
     return 0
 
 
-def _print_codebook(r: dict, folder: Path) -> None:
+def _epochs(r: StageReport) -> str:
+    return f"{r.epochs} epochs (best {r.best_epoch}) in {r.minutes:.1f} min{' (reused)' if r.reused else ''}"
+
+
+def _print_autoencoder(r: StageReport) -> None:
+    m = r.metrics
+    print(f"autoencoder: {_epochs(r)}; per-vertex error val {m['val_pve_mm']:.2f} mm, test {m['test_pve_mm']:.2f} mm, "
+          f"train {m['train_pve_mm']:.2f} mm; latent {m['latent_shape'][0]} x {m['latent_shape'][1]} "
+          f"(levels {' > '.join(str(s) for s in m['sizes'])})")
+
+
+def _print_codespace(report: StageReport, folder: Path) -> None:
+    r = report.metrics
     v = r["validation_mm"]
     size = sum(p.stat().st_size for p in folder.glob("*.safetensors")) / 1e6
-    t = r["training"]
-    print(f"code space: {t['epochs'] if 'epochs' in t else t['epoch']} epochs (curriculum switch at "
-          f"{t['switched_at']}){' (reused)' if r.get('reused') else ''}; code agreement {r['code_agreement']:.2f} "
+    print(f"code space: {report.epochs} epochs (curriculum switch at "
+          f"{r['training']['switched_at']}){' (reused)' if report.reused else ''}; code agreement {r['code_agreement']:.2f} "
           f"(chance {r['chance_agreement']:.2f}); database {r['windows']['train']} windows, "
           f"{r['database_codes']['distinct_codes']} distinct codes, {r['database_codes']['dead_classes']} of "
           f"{r['database_codes']['classes']} classes dead, perplexity {r['database_codes']['perplexity']:.2f}")
@@ -181,6 +216,7 @@ def _print_codebook(r: dict, folder: Path) -> None:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    """``hrr-train``; returns the exit status."""
     return run_cli(_main, argv, "hrr-train")
 
 

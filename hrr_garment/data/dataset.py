@@ -24,7 +24,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from .. import __version__
+from .._version import __version__
 from ..errors import InputError
 from ..garment.mesh import GarmentMesh
 from ..motion.motion import FPS, Motion

@@ -10,12 +10,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..motion.features import FeatureStats, motion_features, windows
-
-
-def sequence_windows(frames: np.ndarray, window: int) -> np.ndarray:
-    """(T, ...) -> (T - W + 1, W, ...): every window of consecutive frames (a view, no copy)."""
-    return np.moveaxis(np.lib.stride_tricks.sliding_window_view(frames, window, axis=0), -1, 1)
+from ..motion.features import FeatureStats, motion_features
+from ..motion.windows import sequence_windows, windows
 
 
 @dataclass

@@ -16,12 +16,15 @@ from tqdm import tqdm
 
 from ..data.dataset import SequenceRecord
 from ..inference.animator import Animator
+from ..inference.modes import Mode
 from ..sim.quality import body_signed_distance
 from . import metrics as M
 
 
 @dataclass
 class SequenceResult:
+    """One mode's metrics on one sequence, with its per-frame error, entropy and gate."""
+
     name: str
     frames: int
     metrics: dict[str, float]
@@ -32,6 +35,8 @@ class SequenceResult:
 
 @dataclass
 class ModeResult:
+    """One mode's results over every sequence; ``metrics`` weights them by frames."""
+
     mode: str
     tau: float
     sequences: list[SequenceResult] = field(default_factory=list)
@@ -46,6 +51,8 @@ class ModeResult:
 
 
 def combine(rows: list[dict[str, float]], weights: list[int]) -> dict[str, float]:
+    """Frame-weighted means of per-sequence metrics (RMSE combined as a root mean square, the maximum
+    strain as a maximum)."""
     w = np.asarray(weights, float) / max(sum(weights), 1)
     out = {}
     for key in rows[0]:
@@ -95,6 +102,8 @@ def evaluate_modes(animator: Animator, records: list[SequenceRecord], modes: lis
 
 @dataclass
 class TauPoint:
+    """The hybrid's error and retrieval usage at one tau."""
+
     tau: float
     pve_mm: float
     retrieval_usage: float
@@ -109,7 +118,7 @@ def tau_sweep(animator: Animator, records: list[SequenceRecord], taus: list[floa
         errors, frames, retrieved = 0.0, 0, 0
         for record in records:
             own = names.index(record.name) if exclude_own_sequence and record.name in names else None
-            anim = animator.animate(record.motion, mode="hybrid", tau=tau, collision=collision, exclude_sequence=own)
+            anim = animator.animate(record.motion, mode=Mode.HYBRID, tau=tau, collision=collision, exclude_sequence=own)
             errors += M.pve_mm(anim.vertices.astype(np.float64), record.garment.astype(np.float64)) * len(anim.vertices)
             frames += len(anim.vertices)
             retrieved += int(anim.mode.sum())

@@ -81,18 +81,22 @@ def dihedral_angles(v: np.ndarray, topo: MeshTopology) -> np.ndarray:
 
 
 def pve_mm(pred: np.ndarray, truth: np.ndarray) -> float:
+    """Mean per-vertex Euclidean error (mm)."""
     return 1000.0 * float(np.linalg.norm(pred - truth, axis=-1).mean())
 
 
 def rmse_mm(pred: np.ndarray, truth: np.ndarray) -> float:
+    """Root mean square per-vertex error (mm)."""
     return 1000.0 * float(np.sqrt(((pred - truth) ** 2).sum(-1).mean()))
 
 
 def per_frame_pve_mm(pred: np.ndarray, truth: np.ndarray) -> np.ndarray:
+    """Mean per-vertex error (mm) of each frame, (T,)."""
     return 1000.0 * np.linalg.norm(pred - truth, axis=-1).mean(-1)
 
 
 def sted(pred: np.ndarray, truth: np.ndarray, topo: MeshTopology) -> dict[str, float]:
+    """Spatio-temporal edge difference (STED): edge-length deviation, spatial and temporal."""
     lp, lg = _edge_lengths(pred, topo.edges), _edge_lengths(truth, topo.edges)  # (T, E)
     lg = np.maximum(lg, 1e-12)
     dev = (lp - lg) / lg
@@ -114,6 +118,7 @@ def sted(pred: np.ndarray, truth: np.ndarray, topo: MeshTopology) -> dict[str, f
 
 
 def chamfer_cm(pred: np.ndarray, truth: np.ndarray) -> float:
+    """Symmetric Chamfer distance (cm), mean over frames."""
     total = 0.0
     for p, g in zip(pred, truth):
         total += 0.5 * (cKDTree(g).query(p)[0].mean() + cKDTree(p).query(g)[0].mean())
@@ -131,6 +136,7 @@ def curvature_error_cm(pred: np.ndarray, truth: np.ndarray, topo: MeshTopology) 
 
 
 def edge_strain_percentiles(pred: np.ndarray, rest: np.ndarray, topo: MeshTopology) -> dict[str, float]:
+    """Percentiles and maximum of edge length over rest length."""
     strain = _edge_lengths(pred, topo.edges) / np.maximum(_edge_lengths(rest, topo.edges), 1e-12)
     p50, p95, p99 = np.percentile(strain, [50, 95, 99])
     return {"strain_p50": float(p50), "strain_p95": float(p95), "strain_p99": float(p99), "strain_max": float(strain.max())}
@@ -159,6 +165,7 @@ def cloth_energies(v: np.ndarray, rest: np.ndarray, topo: MeshTopology) -> tuple
 
 
 def energy_ratios(pred: np.ndarray, truth: np.ndarray, rest: np.ndarray, topo: MeshTopology) -> dict[str, float]:
+    """Predicted over true mean stretching and bending energies."""
     sp, bp = cloth_energies(pred, rest, topo)
     sg, bg = cloth_energies(truth, rest, topo)
     return {"stretch_energy_ratio": float(sp.mean() / max(sg.mean(), 1e-30)),
@@ -166,6 +173,8 @@ def energy_ratios(pred: np.ndarray, truth: np.ndarray, rest: np.ndarray, topo: M
 
 
 def jitter_mm(pred: np.ndarray, truth: np.ndarray) -> dict[str, float]:
+    """Jitter: the predicted against the true acceleration (second differences), and the
+    prediction's own mean acceleration (mm per frame squared)."""
     if len(pred) < 3:
         return {"jitter_mm": 0.0, "acceleration_mm": 0.0}
     ap, ag = np.diff(pred, 2, axis=0), np.diff(truth, 2, axis=0)

@@ -31,6 +31,8 @@ TABLE_METRICS = (("pve_mm", "PVE mm", 2), ("rmse_mm", "RMSE mm", 2), ("sted", "S
 
 
 def goals(modes: dict[str, ModeResult], sweep: list[TauPoint] | None) -> dict:
+    """Each goal of GOALS (one mode's error over another's, against a target), and whether the tau
+    sweep's optimum is interior."""
     out = {}
     for name, num, den, target in GOALS:
         if num in modes and den in modes:
@@ -65,6 +67,7 @@ def entropy_summary(modes: dict[str, ModeResult], bins: int = 20) -> dict:
 
 def build_report(*, model: dict, dataset: dict, settings: dict, modes: dict[str, ModeResult],
                  sweep: list[TauPoint] | None, real: dict | None, seconds: float) -> dict:
+    """The report.json contents (schema: docs/results.md)."""
     return {
         "format_version": REPORT_VERSION, "model": model, "dataset": dataset, "settings": settings,
         "modes": {m: r.to_dict() for m, r in modes.items()},
@@ -90,6 +93,7 @@ def _mode_table(modes: dict) -> list[str]:
 
 
 def markdown(report: dict, plots: list[str]) -> str:
+    """report.md: the report's tables, with the plots."""
     model, data, settings = report["model"], report["dataset"], report["settings"]
     out = [f"# Evaluation: {model['garment']} ({Path(model['folder']).name})", "",
            f"Model `{model['folder']}` (hash {model['hash']}, calibrated tau {model['tau']:.3f}); dataset "
@@ -179,6 +183,7 @@ def write_plots(folder: Path, modes: dict[str, ModeResult], sweep: list[TauPoint
 
 
 def write_report(folder: str | Path, report: dict, plots: list[str]) -> tuple[Path, Path]:
+    """Write report.json and report.md into ``folder``; returns their paths."""
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     atomic_write_text(folder / "report.json", json.dumps(_clean(report), indent=1, allow_nan=False))

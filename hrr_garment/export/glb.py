@@ -17,8 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..data.animation_file import AnimationFile
 from ..io_utils import atomic_write_bytes
-from .h5 import AnimationFile
 from .keyframes import Keyframes, select_keyframes
 
 _FLOAT, _UINT = 5126, 5125
@@ -81,6 +81,8 @@ def _quaternion_z_to(d: np.ndarray) -> np.ndarray:
 
 @dataclass(frozen=True)
 class GlbReport:
+    """What write_glb wrote: the path, the keyframes and the size."""
+
     path: Path
     keyframes: Keyframes
     bytes: int

@@ -15,6 +15,8 @@ import numpy as np
 
 @dataclass(frozen=True)
 class Keyframes:
+    """The frames kept for export and the worst error of interpolating between them."""
+
     frames: np.ndarray  # (K,) int, increasing, first 0 and last T-1
     max_error: float  # metres: the worst per-vertex distance of any frame from the interpolation
 

@@ -18,10 +18,10 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
+from ..data.animation_file import AnimationFile
 from ..errors import InputError
 from ..garment.obj import format_rows, write_obj
 from ..io_utils import atomic_path
-from .h5 import AnimationFile
 
 _PC2_HEADER = struct.Struct("<12siiffi")
 _PC2_MAGIC = b"POINTCACHE2\0"

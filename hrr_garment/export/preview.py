@@ -9,8 +9,8 @@ from pathlib import Path
 import numpy as np
 
 from ..io_utils import atomic_path
+from ..motion.frame import to_body_frame
 from ..motion.motion import Motion
-from ..motion.rotations import rotation_about_y, yaw_of
 from ..motion.skeleton import JOINT_NAMES, PARENTS
 
 
@@ -35,7 +35,7 @@ def _colour(j: int) -> tuple[int, int, int]:
 def render_skeleton_preview(rows: list[tuple[str, Motion]], path: str | Path, frames: int = 6, cell: int = 180) -> Path:
     """One row per motion: ``frames`` evenly spaced frames, each as a front and a side view.
 
-    Views are in the character's heading frame at that frame (front: looking at its face; side:
+    Views are in the character's ground-level body frame at that frame (front: looking at its face; side:
     from its left), centred on the pelvis, with the ground line drawn; 1 m = ``cell * 0.45`` px.
     """
     Image, ImageDraw = _pil()
@@ -46,10 +46,9 @@ def render_skeleton_preview(rows: list[tuple[str, Motion]], path: str | Path, fr
     for r, (label, motion) in enumerate(rows):
         top = r * (cell + 22)
         draw.text((4, top + 2), label, fill=(0, 0, 0))
-        pos = motion.joint_positions
-        heading = yaw_of(motion.global_rotations[:, 0])
+        joints = to_body_frame(motion.joint_positions, motion, ground=True)
         for k, t in enumerate(np.linspace(0, motion.num_frames - 1, frames).round().astype(int)):
-            local = (pos[t] - pos[t, 0] * np.array([1, 0, 1])) @ rotation_about_y(heading[t])  # heading frame
+            local = joints[t]
             for v, (axis, sign) in enumerate(((0, 1.0), (2, -1.0))):  # front: its left on our right; side: from its left
                 ox = (2 * k + v) * cell + cell / 2
                 oy = top + 20 + cell * 0.95
@@ -169,18 +168,30 @@ def render_mesh_preview(rows: list[tuple[str, list[list[PreviewMesh]]]], path: s
 def render_sequence_preview(rows: list[tuple[str, np.ndarray, np.ndarray, Motion]], path: str | Path,
                             frames: int = 4, cell: int = 220) -> Path:
     """Garment over body for a few evenly spaced frames of each (label, vertices (T, V, 3), faces,
-    motion) row, shown in the pelvis heading frame (front and side views)."""
+    motion) row, shown in the ground-level body frame (front and side views)."""
     from ..body.capsules import DEFAULT_BODY, body_mesh
-    from ..sim.quality import heading_frame
-
     grid = []
     for label, vertices, faces, motion in rows:
         a, b = DEFAULT_BODY.pose_motion(motion)
         cells = []
         for t in np.linspace(0, len(vertices) - 1, frames).round().astype(int):
-            garment = heading_frame(vertices[t:t + 1].astype(np.float64), motion.slice(t, t + 1))[0]
-            ends = heading_frame(np.stack([a[t], b[t]])[None].reshape(1, -1, 3), motion.slice(t, t + 1))[0]
+            garment = to_body_frame(vertices[t:t + 1].astype(np.float64), motion.slice(t, t + 1), ground=True)[0]
+            ends = to_body_frame(np.stack([a[t], b[t]])[None].reshape(1, -1, 3), motion.slice(t, t + 1), ground=True)[0]
             bv, bf = body_mesh(ends[: len(a[t])], ends[len(a[t]):], DEFAULT_BODY.radii, 12, 6)
             cells.append([PreviewMesh(bv, bf, (205, 195, 185)), PreviewMesh(garment, faces, (70, 110, 200))])
         grid.append((f"{label} (frames {0}-{len(vertices) - 1})", cells))
     return render_mesh_preview(grid, path, cell=cell)
+
+
+def write_dataset_preview(records: list, garment, path: Path, frames: int = 4) -> Path | None:
+    """Front and side views of a walk and a spin (or the first two sequences) of a built
+    dataset (``SequenceRecord``s of a ``GarmentMesh``), in the ground-level body frame.
+    None when Pillow (the ``preview`` extra) is missing."""
+    chosen = []
+    for kind in ("walk", "spin"):
+        chosen += [r for r in records if r.info.get("kind") == kind][:1]
+    chosen = chosen or records[:2]
+    try:
+        return render_sequence_preview([(r.name, r.garment, garment.faces, r.motion) for r in chosen], path, frames)
+    except ImportError:
+        return None

@@ -12,9 +12,9 @@ from pathlib import Path
 
 import numpy as np
 
+from ..data.animation_file import AnimationFile
 from ..errors import InputError
 from ..io_utils import atomic_path
-from .h5 import AnimationFile
 
 USD_SUFFIXES = (".usd", ".usdc", ".usda")
 
@@ -44,6 +44,7 @@ def _define_mesh(stage, prim_path: str, faces: np.ndarray, frames, colour: tuple
 
 
 def write_usd(anim: AnimationFile, path: str | Path, with_body: bool = False) -> Path:
+    """Write an animation as USD (.usda or .usdc), with the body when asked; returns the path."""
     Tf, Usd, UsdGeom, _ = _pxr()
     path = Path(path)
     if path.suffix.lower() not in USD_SUFFIXES:

@@ -19,9 +19,9 @@ from typing import Iterator
 import numpy as np
 from tqdm import tqdm
 
+from ..data.animation_file import AnimationFile
 from ..errors import InputError
 from ..io_utils import atomic_path
-from .h5 import AnimationFile
 from .preview import VIEWS, OrthoCamera, PreviewMesh, _pil, draw_ground, draw_meshes
 
 GARMENT = (70, 110, 200)
@@ -32,6 +32,8 @@ PREVIEW_SUFFIXES = (".gif", ".mp4", ".png")
 
 @dataclass(frozen=True)
 class PreviewStyle:
+    """How a preview is drawn: size, views, colours."""
+
     views: tuple[str, ...] = ("front", "left")
     size: int = 360  # pixels per view (square)
     metres: float = 2.3  # world height a view shows

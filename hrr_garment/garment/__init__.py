@@ -1,0 +1,1 @@
+"""Garments: templates fitted to the body, mesh checks and repairs, attachment, OBJ."""

@@ -1,0 +1,21 @@
+"""Hybrid inference: a motion in, an animated garment out (paper 3.5, DESIGN 7).
+
+Modules: :mod:`.animator` (the API: Animator, Animation, AnimationStream), :mod:`.modes`,
+:mod:`.gate` (retrieval or regression per window), :mod:`.blending` (windows to frames,
+inertialization), :mod:`.decoding` (the mesh decoder, the denormal switch), :mod:`.collision`
+(push-out). The code-space step itself is :mod:`hrr_garment.models.codes`.
+
+Offline (default): features of the whole clip -> every window (stride 1, W frames, centred
+coverage) -> motion encoder -> code distribution -> per window, retrieval from the database when
+its entropy is below tau, else regression by the decoder -> per frame, the overlapping windows'
+latents blended with weights that peak at window centres (sin^2, so a window fades in and out
+smoothly and a change of source between windows is a cross-fade, continuous in position and
+velocity) -> autoencoder decoder -> body frame to world -> collision push-out.
+
+Causal (``causal=True``, and the streaming API): frame t sees only frames <= t. Its window is the
+W frames ending at t (the clip's first frame repeated before the start); its garment latent is that
+window's last frame. When the source changes (mode, or retrieved clip) the jump is removed by
+inertialization: the offset between the previous output and the new source (and between their
+velocities) decays to zero over ``blend`` frames with a quintic that has zero velocity and
+acceleration at its end, so position and velocity stay continuous. Streaming equals offline causal.
+"""

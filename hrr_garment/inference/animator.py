@@ -20,30 +20,21 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from ..artifacts.bundle import Bundle, BundleError, load_bundle
 from ..body.capsules import DEFAULT_BODY
-from ..data.windows import sequence_windows
 from ..errors import InputError, MotionError
+from ..models.codes import traced_window_codes
 from ..models.native_codes import native_window_codes
-from ..motion.features import motion_features
+from ..motion.features import causal_features, motion_features, pair_features
+from ..motion.frame import from_body_frame
 from ..motion.motion import Motion
+from ..motion.windows import causal_windows, sequence_windows
 from ..paths import workspace
-from ..train.bundle import Bundle, BundleError, load_bundle
+from .blending import Inertializer, blend_windows, causal_latents, source_id
 from .collision import PushOutReport, mean_operator, push_out
-from .engine import (
-    MODES,
-    Inertializer,
-    blend_windows,
-    causal_features,
-    causal_latents,
-    causal_windows,
-    choose_windows,
-    flush_denormals,
-    heading_vertices,
-    pair_features,
-    source_id,
-    to_world,
-    traced_window_codes,
-)
+from .decoding import body_frame_vertices, flush_denormals
+from .gate import choose_windows
+from .modes import CODE_MODES, Mode
 
 
 @dataclass
@@ -69,8 +60,8 @@ class Animation:
         return float(self.mode.mean()) if len(self.mode) else 0.0
 
     def save(self, path: str | Path) -> Path:
-        """Write ``out.h5`` (see :mod:`hrr_garment.export.h5`), atomically."""
-        from ..export.h5 import write_animation_h5
+        """Write ``out.h5`` (see :mod:`hrr_garment.data.animation_file`), atomically."""
+        from ..data.animation_file import write_animation_h5
 
         return write_animation_h5(path, vertices=self.vertices, faces=self.faces, joints=self.joints, mode=self.mode,
                                   entropy=self.entropy, source=self.source, capsules=self.capsules,
@@ -103,7 +94,7 @@ class Animator:
         self._causal_steps: dict[bool, object] = {}
 
     def causal_step(self, regression: bool):
-        """The window step (:class:`~.engine.WindowCodes`' function) that causal inference runs,
+        """The window step (:class:`~hrr_garment.models.codes.WindowCodes`' function) that causal inference runs,
         offline and streaming alike, so both compute the same bits: the native kernel
         (:mod:`hrr_garment.models.native_codes`), or None where it is unavailable (each path then
         uses its PyTorch form)."""
@@ -124,9 +115,9 @@ class Animator:
     def window(self) -> int:
         return self.bundle.codespace.config.window
 
-    def animate(self, motion: Motion, mode: str = "hybrid", tau: float | None = None, collision: bool = True,
+    def animate(self, motion: Motion, mode: Mode | str = Mode.HYBRID, tau: float | None = None, collision: bool = True,
                 causal: bool = False, exclude_sequence: int | None = None) -> Animation:
-        """Animate a whole clip (see :mod:`.engine`): ``mode`` hybrid | regression | retrieval |
+        """Animate a whole clip (see :mod:`hrr_garment.inference`): ``mode`` hybrid | regression | retrieval |
         naive-nn, or direct (the baseline, when the bundle has it; offline only); ``tau`` overrides the bundle's; ``causal`` gives what streaming gives;
         ``exclude_sequence`` keeps one database sequence out of retrieval (evaluation)."""
         with flush_denormals():
@@ -138,7 +129,7 @@ class Animator:
         t_frames, w = motion.num_frames, self.window
         if t_frames < 1:
             raise MotionError(motion.source, "the motion has no frames")
-        if mode == "direct":
+        if mode == Mode.DIRECT:
             latents = self._direct_latents(motion)
             retrieved, entropy = np.zeros(t_frames, np.uint8), np.full(t_frames, np.nan, np.float32)
             source = np.full((t_frames, 2), -1, np.int32)
@@ -158,13 +149,13 @@ class Animator:
                 per_frame = np.clip(np.arange(t_frames) - w // 2, 0, len(windows) - 1)  # the window centred on t
             retrieved, entropy = choice.retrieved[per_frame].astype(np.uint8), choice.entropy[per_frame].astype(np.float32)
             source = choice.source[per_frame]
-        vertices = to_world(heading_vertices(self.bundle, latents, self.decoder), motion).astype(np.float32)
+        vertices = from_body_frame(body_frame_vertices(self.bundle, latents, self.decoder), motion).astype(np.float32)
         report = None
         if collision:
             vertices, report = push_out(vertices, motion, self.bundle.template.faces, mean=self.smoothing)
         return Animation(vertices, self.bundle.template.faces, motion.fps, retrieved, entropy, source, motion.joint_positions,
                          self.bundle.garment, self.bundle.content_hash, motion.source,
-                         {"mode": mode, "tau": tau, "causal": int(causal), "collision": int(collision)}, report,
+                         {"mode": str(mode), "tau": tau, "causal": int(causal), "collision": int(collision)}, report,
                          np.stack(DEFAULT_BODY.pose_motion(motion), 2).astype(np.float32))
 
     def _direct_latents(self, motion: Motion) -> np.ndarray:
@@ -178,10 +169,10 @@ class Animator:
 
     def _choose(self, windows: np.ndarray, mode: str, tau: float, exclude_sequence: int | None, last_frame: bool = False):
         exclude = None if exclude_sequence is None else np.full(len(windows), exclude_sequence)
-        step = self.causal_step(mode in ("hybrid", "regression")) if last_frame else None
+        step = self.causal_step(mode in (Mode.HYBRID, Mode.REGRESSION)) if last_frame else None
         return choose_windows(self.bundle, windows, mode, tau, exclude, last_frame, step=step)
 
-    def stream(self, mode: str = "hybrid", tau: float | None = None, collision: bool = True) -> "AnimationStream":
+    def stream(self, mode: Mode | str = Mode.HYBRID, tau: float | None = None, collision: bool = True) -> "AnimationStream":
         return AnimationStream(self, mode, self.bundle.tau if tau is None else float(tau), collision)
 
 
@@ -194,8 +185,9 @@ class AnimationStream:
     ``animator.animate(motion, causal=True)`` (tested to 1e-5)."""
 
     def __init__(self, animator: Animator, mode: str, tau: float, collision: bool):
-        if mode not in MODES:
-            raise ValueError(f"streaming runs one of {', '.join(MODES)}, not {mode!r}")
+        if mode not in CODE_MODES:
+            raise ValueError(f"streaming runs one of {', '.join(CODE_MODES)}, not {str(mode)!r}")
+        mode = Mode(mode)
         self.animator, self.mode, self.tau, self.collision = animator, mode, tau, collision
         self._prev: Motion | None = None
         self._features: deque = deque(maxlen=animator.window)
@@ -206,7 +198,7 @@ class AnimationStream:
         # decoder: mesh decoder, world, push_out), seconds: where a frame's time goes
         self.stage_s: dict[str, deque] = {k: deque(maxlen=1000) for k in STREAM_STAGES}
         bundle = animator.bundle
-        regression = mode in ("hybrid", "regression")
+        regression = mode.regresses
         self._step = animator.causal_step(regression) or traced_window_codes(
             bundle.codespace, animator.window, bundle.codespace.features, regression=regression)
 
@@ -237,7 +229,7 @@ class AnimationStream:
         with torch.no_grad():
             local = self.animator.decoder(torch.from_numpy(latent[None].astype(np.float32))).numpy()
         t.append(time.perf_counter())
-        vertices = to_world(local, pose)
+        vertices = from_body_frame(local, pose)
         t.append(time.perf_counter())
         if self.collision:
             vertices, _ = push_out(vertices, pose, self.animator.bundle.template.faces, mean=self.animator.smoothing)

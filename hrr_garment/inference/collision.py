@@ -7,7 +7,7 @@ over the mesh (``smooth`` Jacobi passes of the uniform Laplacian, each keeping t
 displacement at least what they need along their normals), so neighbours follow part of the way;
 ``rounds`` such pushes, then up to four exact projections onto the surface (a push can land in a
 neighbouring capsule, hence more than one). With a C compiler the same steps run in the kernel of
-:mod:`hrr_garment.models.native` (frames in parallel); this module's numpy version is the
+:mod:`hrr_garment.native` (frames in parallel); this module's numpy version is the
 reference and the fallback.
 """
 
@@ -25,6 +25,8 @@ from ..motion.motion import Motion
 
 @dataclass
 class PushOutReport:
+    """How much of the garment was inside the body before and after the push-out."""
+
     inside_before: float  # mean over frames of the fraction of vertices more than `depth` inside
     inside_after: float
     worst_before: float  # worst frame
@@ -48,7 +50,7 @@ def push_out(vertices: np.ndarray, motion: Motion, faces: np.ndarray, body: Body
     mean = mean_operator(faces, vertices.shape[1]) if mean is None else mean
     out = np.empty(vertices.shape, np.float32)
     before, after = np.zeros(len(out)), np.zeros(len(out))
-    from ..models.native import default_threads, load_kernel, push_out_frames
+    from ..native import default_threads, load_kernel, push_out_frames
 
     lib = load_kernel()
     for start in range(0, len(out), chunk):

@@ -7,7 +7,7 @@
   with two hidden layers (1024, ELU) -> code logits of the same shape.
 - :class:`LatentDecoder` (the paper's "VQ decoder"): the quantised embedding (G x dim) -> MLP
   mirroring the garment encoder -> the W garment latents (standardised).
-- :class:`CodeSpace` holds the three and the shared :class:`~.codebook.GumbelQuantizer`.
+- :class:`CodeSpace` holds the three and the shared :class:`~.quantizer.GumbelQuantizer`.
 """
 
 from __future__ import annotations
@@ -19,11 +19,13 @@ import torch
 from torch import nn
 
 from ..settings import from_settings
-from .codebook import GumbelQuantizer
+from .quantizer import GumbelQuantizer
 
 
 @dataclass(frozen=True)
 class CodeSpaceConfig:
+    """The code space's sizes: window, groups and classes, embedding and network widths."""
+
     window: int = 10  # W frames per window
     groups: int = 64  # G
     classes: int = 8  # K
@@ -35,7 +37,7 @@ class CodeSpaceConfig:
 
     @classmethod
     def from_dict(cls, values: dict) -> "CodeSpaceConfig":
-        return from_settings(cls, values, "codebook model")
+        return from_settings(cls, values, "code space model")
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -53,6 +55,8 @@ def _mlp(sizes: list[int], dropout: float = 0.0) -> nn.Sequential:
 
 
 class MotionEncoder(nn.Module):
+    """Motion windows (B, W, F) -> code logits (B, G x K): GRU, self-attention, attention pooling."""
+
     def __init__(self, features: int, logits: int, hidden: int = 256, heads: int = 4):
         super().__init__()
         self.inp = nn.Linear(features, hidden)
@@ -72,6 +76,8 @@ class MotionEncoder(nn.Module):
 
 
 class GarmentEncoder(nn.Module):
+    """Garment latent windows -> code logits (B, G x K): an MLP."""
+
     def __init__(self, size: int, logits: int, hidden: int = 1024, dropout: float = 0.0):
         super().__init__()
         self.net = _mlp([size, hidden, hidden, logits], dropout)
@@ -82,6 +88,8 @@ class GarmentEncoder(nn.Module):
 
 
 class LatentDecoder(nn.Module):
+    """A code's embedding -> the window's garment latents: an MLP."""
+
     def __init__(self, embedding: int, size: int, hidden: int = 1024, dropout: float = 0.0):
         super().__init__()
         self.net = _mlp([embedding, hidden, hidden, size], dropout)

@@ -19,6 +19,8 @@ from ..settings import from_settings
 
 @dataclass(frozen=True)
 class DirectConfig:
+    """The direct-regression baseline's sizes."""
+
     hidden: int = 256  # GRU and head width
     layers: int = 2  # GRU layers
     dropout: float = 0.0  # between GRU layers
@@ -32,6 +34,8 @@ class DirectConfig:
 
 
 class DirectRegressor(nn.Module):
+    """Motion features (B, T, F) -> garment latents per frame (B, T, nodes x C): a GRU and a head."""
+
     def __init__(self, config: DirectConfig, features: int, latent_shape: tuple[int, int]):
         super().__init__()
         self.config, self.features, self.latent_shape = config, features, tuple(latent_shape)

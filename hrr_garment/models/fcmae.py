@@ -30,6 +30,8 @@ from .hierarchy import Hierarchy, Neighbourhoods
 
 @dataclass(frozen=True)
 class AutoencoderConfig:
+    """The mesh autoencoder's layer widths, basis size and sampling hierarchy settings."""
+
     channels: tuple[int, ...] = (16, 32, 64, 128)  # per level; the last value repeats for deeper levels
     latent_channels: int = 8
     basis: int = 17
@@ -127,6 +129,8 @@ class ResidualPool(nn.Module):
 
 
 class Block(nn.Module):
+    """One FCMAE block: a spatially varying convolution with a residual path, then pooling or unpooling."""
+
     def __init__(self, conv_nb: Neighbourhoods, pool_nb: Neighbourhoods | None, cin: int, cout: int, basis: int,
                  residual: float, activation: bool = True):
         super().__init__()
@@ -226,7 +230,7 @@ class FastDecoder(nn.Module):
 
     def __init__(self, model: MeshAutoencoder, native: bool | None = None, cache_dir=None):
         super().__init__()
-        from . import native as native_kernel
+        from .. import native as native_kernel
 
         self.blocks = model.decoder
         with torch.no_grad():

@@ -150,6 +150,7 @@ def build_hierarchy(faces: np.ndarray, num_vertices: int, latent_fraction: float
 
 
 def template_key(faces: np.ndarray, num_vertices: int, **options) -> str:
+    """A short hash of a template's faces, size and hierarchy options (the cache key)."""
     h = hashlib.sha1(np.ascontiguousarray(faces, np.int64).tobytes())
     h.update(repr((num_vertices, sorted(options.items()))).encode())
     return h.hexdigest()[:16]

@@ -1,5 +1,5 @@
 """The code space's window step in C: :class:`NativeWindowCodes` computes what
-:class:`hrr_garment.inference.engine.WindowCodes` computes (motion encoder -> per-group entropy and
+:class:`.codes.WindowCodes` computes (motion encoder -> per-group entropy and
 argmax -> the chosen embedding -> the code-space decoder), from the same weights, with the kernel in
 ``window_codes.c``.
 
@@ -18,19 +18,19 @@ import ctypes
 import numpy as np
 import torch
 
-from . import native
+from .. import native
 
 
 def pack_linear(weight: np.ndarray, bias: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """A PyTorch linear layer's weight (out, in) and bias (out,) in the kernels' layout: W^T in
-    panels (:func:`.native.pack_panels`) and the bias zero-padded to whole panels."""
+    panels (:func:`hrr_garment.native.pack_panels`) and the bias zero-padded to whole panels."""
     return native.pack_panels(weight.T), np.ascontiguousarray(np.pad(bias, (0, -len(bias) % native.PANEL)), np.float32)
 
 
 class NativeWindowCodes:
     """Standardised windows (B, W, F) -> (entropy (B,), argmax classes (B, G) int64, regressed
     standardised latents (B, W or 1, nodes, C), or an empty tensor without ``regression``).
-    ``lib``: the loaded kernel library (:func:`.native.load_kernel`). The weights are copied into
+    ``lib``: the loaded kernel library (:func:`hrr_garment.native.load_kernel`). The weights are copied into
     the kernel's layout when it is made: make a new one after changing the networks."""
 
     def __init__(self, codespace, lib: ctypes.CDLL, regression: bool = True, last_frame: bool = False):

@@ -1,0 +1,1 @@
+"""Body motion: skeleton, rotations, files, retargeting, procedural clips, body frame, features, windows."""

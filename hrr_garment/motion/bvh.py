@@ -68,6 +68,7 @@ class _Tokens:
 
 
 def read_bvh(path: str | Path) -> BvhClip:
+    """Parse a BVH file into its hierarchy and channels (no retargeting)."""
     path = Path(path)
     try:
         text = path.read_text(encoding="utf-8", errors="replace")

@@ -1,15 +1,18 @@
-"""Per-frame motion features (paper 3.3; DESIGN 4) and sliding windows.
+"""Per-frame motion features (paper 3.3; DESIGN 4), offline and causal, and their statistics.
 
-f_t = [r (60); v (60); t (3); w (1)] = 124 values, all in the heading frame at frame t (origin at
-the pelvis projected on the ground, rotated by the pelvis yaw only):
+f_t = [r (60); v (60); t (3); w (1)] = 124 values, all in the body frame's orientation at frame t
+(rotated by the pelvis yaw only, :func:`~hrr_garment.motion.frame.body_heading`):
 
-* r: global rotation of each of the 20 feature joints, expressed in the heading frame, axis-angle;
-* v: world velocity of each feature joint, (p_t - p_{t-1}) / dt, rotated into the heading frame;
-* t: root (pelvis) translation velocity in the heading frame;
+* r: global rotation of each of the 20 feature joints, expressed in the body frame, axis-angle;
+* v: world velocity of each feature joint, (p_t - p_{t-1}) / dt, rotated into the body frame;
+* t: root (pelvis) translation velocity in the body frame;
 * w: yaw angular velocity (rad/s), wrapped to (-pi, pi] per frame step.
 
-Velocities at frame 0 use the first difference (frames 0 and 1), so every frame has a value. The
-features do not change when the whole motion is translated or rotated about the vertical axis.
+Offline (:func:`motion_features`), velocities at frame 0 use the first difference (frames 0 and
+1), so every frame has a value. Causal (:func:`causal_features`, what a stream sees), frame t uses
+frames t-1 and t only, frame 0 itself (zero velocities); the same formulas, in C where compiled
+(``hrr_garment/native/features.c``). The features do not change when the whole motion is
+translated or rotated about the vertical axis. Windows over them: :mod:`.windows`.
 """
 
 from __future__ import annotations
@@ -18,24 +21,19 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .. import native
 from ..errors import MotionError
+from .frame import body_heading
 from .motion import Motion
-from .rotations import matrix_to_axis_angle, rotation_about_y, yaw_of
+from .rotations import matrix_to_axis_angle
 from .skeleton import FEATURE_JOINTS
 
 FEATURE_DIM = 124
-DEFAULT_WINDOW = 10
 # Column slices of the feature vector.
 SLICE_R = slice(0, 60)
 SLICE_V = slice(60, 120)
 SLICE_T = slice(120, 123)
 SLICE_W = slice(123, 124)
-
-
-def heading(motion: Motion) -> tuple[np.ndarray, np.ndarray]:
-    """Per frame: yaw angle (T,) and heading rotation (T, 3, 3) of the pelvis."""
-    yaw = yaw_of(motion.global_rotations[:, 0])
-    return yaw, rotation_about_y(yaw)
 
 
 def _first_difference(x: np.ndarray, fps: float) -> np.ndarray:
@@ -49,8 +47,8 @@ def motion_features(motion: Motion) -> np.ndarray:
     """(T, 124) float32 features of a canonical motion."""
     if motion.num_frames < 2:
         raise MotionError(motion.source or "motion", f"needs at least 2 frames for velocities, has {motion.num_frames}")
-    yaw, h = heading(motion)
-    h_t = np.swapaxes(h, -1, -2)  # world -> heading frame
+    yaw, h = body_heading(motion)
+    h_t = np.swapaxes(h, -1, -2)  # world -> body frame (rotation only)
     joints = list(FEATURE_JOINTS)
     g_rot = motion.global_rotations[:, joints]
     r = matrix_to_axis_angle(h_t[:, None] @ g_rot).reshape(motion.num_frames, -1)
@@ -64,12 +62,29 @@ def motion_features(motion: Motion) -> np.ndarray:
     return np.concatenate([r, v, t, w], axis=1).astype(np.float32)
 
 
-def windows(features: np.ndarray, size: int = DEFAULT_WINDOW, stride: int = 1, source: str = "motion") -> np.ndarray:
-    """(N, size, D) overlapping windows, N = (T - size) // stride + 1 (a view, no copy)."""
-    if features.shape[0] < size:
-        raise MotionError(source, f"clip has {features.shape[0]} frames, shorter than one window of {size} frames")
-    view = np.lib.stride_tricks.sliding_window_view(features, size, axis=0)  # (N, D, size)
-    return np.swapaxes(view, 1, 2)[::stride]
+def causal_features(motion: Motion) -> np.ndarray:
+    """Features as a stream sees them: frame t from frames t-1 and t only (frame 0: zero
+    velocities). Equal to :func:`motion_features` from frame 1 on. In C where compiled (the same
+    formulas; a stream computes them per frame), else numpy."""
+    lib = native.load_kernel()
+    if lib is not None:
+        return native.causal_features(lib, motion.global_rotations, motion.joint_positions, FEATURE_JOINTS, motion.fps)
+    if motion.num_frames == 1:
+        return motion_features(Motion.concatenate([motion, motion]))[-1:]
+    feats = motion_features(motion)
+    feats[0] = motion_features(Motion.concatenate([motion.slice(0, 1)] * 2))[-1]
+    return feats
+
+
+def pair_features(previous: Motion | None, current: Motion) -> np.ndarray:
+    """Features (124,) of the one-frame ``current`` given the frame before it (None at the start:
+    the frame is repeated, so velocities are zero)."""
+    before = current if previous is None else previous
+    if before.num_frames > 1:
+        before = before.slice(before.num_frames - 1, before.num_frames)
+    current.global_rotations  # noqa: B018 - computes (and caches) the pose's kinematics, reused by the pair and the next push
+    pair = Motion.concatenate([before, current]) if previous is not None else current
+    return causal_features(pair)[-1]
 
 
 @dataclass

@@ -9,6 +9,10 @@ procedural training motions put every predicted frame 8 cm too low (docs/results
 rest pelvis height the frame equals the ground-level heading frame, so the rest template is
 unchanged in it.
 
+The *ground-level* body frame (``ground=True``; FRAME_VERSION 1) keeps the origin on the ground
+under the pelvis, so heights stay absolute: the dataset's quality statistics (hem swing) and the
+dataset previews use it. Motion features use only the frame's rotation (:func:`body_heading`).
+
 FRAME_VERSION is part of every trained model's settings key and the bundle format: models trained
 in another frame are retrained, never silently misread.
 """
@@ -24,15 +28,23 @@ from .skeleton import REST_PELVIS_HEIGHT
 FRAME_VERSION = 2  # 1: ground-level origin (heights absolute); 2: origin follows the pelvis height
 
 
-def body_frame_origin(motion: Motion) -> np.ndarray:
-    """(T, 3) world position of the body frame's origin."""
+def body_heading(motion: Motion) -> tuple[np.ndarray, np.ndarray]:
+    """Per frame: the pelvis yaw (T,) and the body frame's rotation (T, 3, 3), body frame -> world."""
+    yaw = yaw_of(motion.global_rotations[:, 0])
+    return yaw, rotation_about_y(yaw)
+
+
+def body_frame_origin(motion: Motion, ground: bool = False) -> np.ndarray:
+    """(T, 3) world position of the body frame's origin (``ground``: of the ground-level frame)."""
+    if ground:
+        return motion.root_translation * np.array([1.0, 0.0, 1.0])
     return motion.root_translation - np.array([0.0, REST_PELVIS_HEIGHT, 0.0])
 
 
-def to_body_frame(points: np.ndarray, motion: Motion) -> np.ndarray:
-    """World points (T, N, 3) -> body frame."""
-    rot = rotation_about_y(yaw_of(motion.global_rotations[:, 0]))  # heading -> world
-    return np.einsum("tni,tij->tnj", points - body_frame_origin(motion)[:, None], rot)
+def to_body_frame(points: np.ndarray, motion: Motion, ground: bool = False) -> np.ndarray:
+    """World points (T, N, 3) -> body frame (``ground``: the ground-level body frame)."""
+    _, rot = body_heading(motion)
+    return np.einsum("tni,tij->tnj", points - body_frame_origin(motion, ground)[:, None], rot)
 
 
 def from_body_frame(points: np.ndarray, motion: Motion) -> np.ndarray:

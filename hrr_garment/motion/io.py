@@ -14,14 +14,13 @@ import numpy as np
 from ..errors import MotionError
 from ..io_utils import atomic_path
 from .bvh import read_bvh
+from .joint_maps import load_joint_map, resolve_joint_map
 from .motion import FPS, Motion
 from .resample import resample_linear, resample_rotations, resample_times
 from .retarget import (
     SourceMotion,
     check_source,
     ground_align,
-    load_joint_map,
-    resolve_joint_map,
     retarget,
     standing_height_from_legs,
 )
@@ -96,6 +95,7 @@ def _read_npz(path: Path) -> dict[str, np.ndarray]:
 
 
 def resample_motion(motion: Motion, fps: float = FPS) -> Motion:
+    """The motion at ``fps`` (rotations slerped, translations interpolated)."""
     if abs(motion.fps - fps) < 1e-6:
         return motion
     frames = resample_times(motion.num_frames, motion.fps, fps)
@@ -121,6 +121,7 @@ def detect_unit_scale(rest: np.ndarray, mapping: dict[str, int], path: Path) -> 
 
 def load_bvh(path: Path, unit_scale: float | None = None, joint_map: dict | None = None, ground: bool = True, fps: float = FPS,
              source_fps: float | None = None) -> Motion:
+    """A BVH file as canonical motion: retargeted, grounded and resampled."""
     clip = read_bvh(path)
     scheme, mapping = resolve_joint_map(clip.names, str(path), joint_map)
     rest = rest_positions(clip.offsets, clip.parents)

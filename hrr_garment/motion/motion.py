@@ -74,7 +74,7 @@ class Motion:
 
     @cached_property
     def _fk(self) -> tuple[np.ndarray, np.ndarray]:
-        from ..models import native  # the C form where compiled: a streamed pose's FK is per frame
+        from .. import native  # the C form where compiled: a streamed pose's FK is per frame
 
         lib = native.load_kernel()
         if lib is not None:

@@ -28,6 +28,7 @@ def resample_rotations(rot: np.ndarray, src_frames: np.ndarray) -> np.ndarray:
 
 
 def resample_linear(x: np.ndarray, src_frames: np.ndarray) -> np.ndarray:
+    """Linear interpolation of per-frame values at fractional source frames."""
     i0 = np.floor(src_frames).astype(int)
     i1 = np.minimum(i0 + 1, x.shape[0] - 1)
     frac = (src_frames - i0).reshape((-1,) + (1,) * (x.ndim - 1))

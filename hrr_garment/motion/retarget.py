@@ -1,6 +1,6 @@
 """Retargeting a source skeleton's motion onto the canonical skeleton.
 
-Joints are matched by name (built-in naming schemes, or a user map in YAML). Rotations are
+Joints are matched by name (:mod:`.joint_maps`: built-in naming schemes, or a user map in YAML). Rotations are
 transferred with rest-pose alignment, so that a source whose rest pose differs from the canonical
 T-pose (arms down, splayed legs, extra zero-length joints) drives the canonical bones in the same
 directions as its own:
@@ -21,71 +21,13 @@ do not skate) and, by default, shifted vertically so the feet stand on y = 0.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 
-from ..errors import MotionError, SkeletonMappingError
+from ..errors import MotionError
 from .motion import Motion
 from .rotations import axis_angle_to_matrix, normalize, rotation_between
 from .skeleton import CANONICAL, JOINT_INDEX, JOINT_NAMES, PARENTS, global_to_local
-
-# Canonical joints that may be missing from a source; they then follow their parent rigidly.
-OPTIONAL_JOINTS = frozenset({"spine2", "l_collar", "r_collar", "l_foot", "r_foot"})
-
-
-def _lr(template: dict[str, list[str]]) -> dict[str, list[str]]:
-    """Expand '{s}'/'{S}' placeholders into left and right entries of a naming scheme."""
-    out: dict[str, list[str]] = {}
-    for key, names in template.items():
-        if "{side}" in key:
-            for side, s, S, full in (("l", "l", "L", "Left"), ("r", "r", "R", "Right")):
-                out[key.replace("{side}", side)] = [n.format(s=s, S=S, Side=full) for n in names]
-        else:
-            out[key] = names
-    return out
-
-
-# Canonical joint -> accepted source names (matched case-insensitively, namespace prefix stripped).
-NAMING_SCHEMES: dict[str, dict[str, list[str]]] = {
-    "smpl": _lr({
-        "pelvis": ["pelvis", "m_avg_pelvis"], "spine1": ["spine1", "m_avg_spine1"], "spine2": ["spine2", "m_avg_spine2"],
-        "spine3": ["spine3", "m_avg_spine3"], "neck": ["neck", "m_avg_neck"], "head": ["head", "m_avg_head"],
-        "{side}_hip": ["{s}_hip", "{S}_Hip", "{Side}_hip", "m_avg_{S}_hip"], "{side}_knee": ["{s}_knee", "{Side}_knee", "m_avg_{S}_knee"],
-        "{side}_ankle": ["{s}_ankle", "{Side}_ankle", "m_avg_{S}_ankle"], "{side}_foot": ["{s}_foot", "{Side}_foot", "m_avg_{S}_foot"],
-        "{side}_collar": ["{s}_collar", "{Side}_collar", "m_avg_{S}_collar"], "{side}_shoulder": ["{s}_shoulder", "{Side}_shoulder", "m_avg_{S}_shoulder"],
-        "{side}_elbow": ["{s}_elbow", "{Side}_elbow", "m_avg_{S}_elbow"], "{side}_wrist": ["{s}_wrist", "{Side}_wrist", "m_avg_{S}_wrist"],
-    }),
-    # CMU as converted to BVH by most public sets (e.g. 02_01): LeftUpLeg / LowerBack / LeftArm ...
-    "cmu": _lr({
-        "pelvis": ["Hips"], "spine1": ["LowerBack"], "spine2": ["Spine"], "spine3": ["Spine1"], "neck": ["Neck"], "head": ["Head"],
-        "{side}_hip": ["{Side}UpLeg"], "{side}_knee": ["{Side}Leg"], "{side}_ankle": ["{Side}Foot"], "{side}_foot": ["{Side}ToeBase"],
-        "{side}_collar": ["{Side}Shoulder"], "{side}_shoulder": ["{Side}Arm"], "{side}_elbow": ["{Side}ForeArm"], "{side}_wrist": ["{Side}Hand"],
-    }),
-    # CMU's "3dsMax-friendly" naming (e.g. 131_01): LeftHip / lowerback / Chest / LeftCollar ...
-    "cmu_max": _lr({
-        "pelvis": ["Hips"], "spine1": ["lowerback"], "spine2": ["Chest"], "spine3": ["Chest2"], "neck": ["lowerneck", "Neck"], "head": ["Head"],
-        "{side}_hip": ["{Side}Hip"], "{side}_knee": ["{Side}Knee"], "{side}_ankle": ["{Side}Ankle"], "{side}_foot": ["{Side}Toe"],
-        "{side}_collar": ["{Side}Collar"], "{side}_shoulder": ["{Side}Shoulder"], "{side}_elbow": ["{Side}Elbow"], "{side}_wrist": ["{Side}Wrist"],
-    }),
-    # Bandai-Namco research motion sets: Hips, Spine, Chest, UpperLeg_L ... (one spine joint fewer).
-    "bandai_namco": _lr({
-        "pelvis": ["Hips"], "spine1": ["Spine"], "spine3": ["Chest"], "neck": ["Neck"], "head": ["Head"],
-        "{side}_hip": ["UpperLeg_{S}"], "{side}_knee": ["LowerLeg_{S}"], "{side}_ankle": ["Foot_{S}"], "{side}_foot": ["Toes_{S}", "Toe_{S}"],
-        "{side}_collar": ["Shoulder_{S}"], "{side}_shoulder": ["UpperArm_{S}"], "{side}_elbow": ["LowerArm_{S}"], "{side}_wrist": ["Hand_{S}"],
-    }),
-    # Mixamo (names carry a "mixamorig:" prefix, stripped before matching).
-    "mixamo": _lr({
-        "pelvis": ["Hips"], "spine1": ["Spine"], "spine2": ["Spine1"], "spine3": ["Spine2"], "neck": ["Neck"], "head": ["Head"],
-        "{side}_hip": ["{Side}UpLeg"], "{side}_knee": ["{Side}Leg"], "{side}_ankle": ["{Side}Foot"], "{side}_foot": ["{Side}ToeBase"],
-        "{side}_collar": ["{Side}Shoulder"], "{side}_shoulder": ["{Side}Arm"], "{side}_elbow": ["{Side}ForeArm"], "{side}_wrist": ["{Side}Hand"],
-    }),
-    "canonical": {n: [n] for n in JOINT_NAMES},
-}
-
-
-def _key(name: str) -> str:
-    return name.split(":")[-1].strip().lower()
 
 
 @dataclass
@@ -101,61 +43,8 @@ class SourceMotion:
     path: str
 
 
-def resolve_joint_map(names: list[str], path: str, custom_map: dict[str, str] | None = None) -> tuple[str, dict[str, int]]:
-    """Pick a naming scheme (or apply ``custom_map``): returns (scheme name, canonical -> source index)."""
-    lookup: dict[str, int] = {}
-    for i, n in enumerate(names):
-        lookup.setdefault(_key(n), i)
-    if custom_map is not None:
-        unknown = sorted(set(custom_map) - set(JOINT_NAMES))
-        if unknown:
-            raise SkeletonMappingError(path, f"joint map names unknown canonical joints {unknown}; canonical joints are {list(JOINT_NAMES)}")
-        missing_src = sorted(src for src in custom_map.values() if _key(src) not in lookup)
-        if missing_src:
-            raise SkeletonMappingError(path, f"joint map refers to joints {missing_src} that the file does not have")
-        mapping = {c: lookup[_key(s)] for c, s in custom_map.items()}
-        _check_required(mapping, path, "custom")
-        return "custom", mapping
-    best: tuple[int, str, dict[str, int]] | None = None
-    for scheme, table in NAMING_SCHEMES.items():
-        mapping = {}
-        for canon, candidates in table.items():
-            idx = next((lookup[_key(c)] for c in candidates if _key(c) in lookup), None)
-            if idx is not None:
-                mapping[canon] = idx
-        required_ok = all(j in mapping for j in JOINT_NAMES if j not in OPTIONAL_JOINTS)
-        score = len(mapping) + (100 if required_ok else 0)
-        if best is None or score > best[0]:
-            best = (score, scheme, mapping)
-    assert best is not None
-    _check_required(best[2], path, best[1])
-    return best[1], best[2]
-
-
-def _check_required(mapping: dict[str, int], path: str, scheme: str) -> None:
-    missing = [j for j in JOINT_NAMES if j not in mapping and j not in OPTIONAL_JOINTS]
-    if missing:
-        raise SkeletonMappingError(
-            path,
-            f"unknown skeleton: could not map canonical joints {missing} (closest naming scheme: {scheme}). "
-            "Pass a joint map YAML ('canonical_name: source_joint_name' per line) with --joint-map.",
-        )
-
-
-def load_joint_map(path: str | Path) -> dict[str, str]:
-    import yaml
-
-    path = Path(path)
-    try:
-        data = yaml.safe_load(path.read_text())
-    except (OSError, yaml.YAMLError) as exc:
-        raise MotionError(path, f"cannot read joint map: {exc}") from None
-    if not isinstance(data, dict) or not all(isinstance(k, str) and isinstance(v, str) for k, v in data.items()):
-        raise MotionError(path, "joint map must be a mapping 'canonical_joint: source_joint'")
-    return data
-
-
 def leg_length(rest_positions: np.ndarray, hip: int, knee: int, ankle: int) -> float:
+    """Hip to knee plus knee to ankle, in the rest pose."""
     return float(np.linalg.norm(rest_positions[knee] - rest_positions[hip]) + np.linalg.norm(rest_positions[ankle] - rest_positions[knee]))
 
 
@@ -318,5 +207,6 @@ def ground_align(local: np.ndarray, root: np.ndarray) -> np.ndarray:
 
 
 def check_source(src: SourceMotion) -> None:
+    """Refuse a source motion with non-finite values after forward kinematics."""
     if not (np.isfinite(src.global_positions).all() and np.isfinite(src.global_rotations).all()):
         raise MotionError(src.path, "non-finite values after forward kinematics")

@@ -136,6 +136,7 @@ def matrix_to_quat(m: Array) -> Array:
 
 
 def axis_angle_to_quat(aa: Array) -> Array:
+    """Axis-angle (..., 3) -> unit quaternions (..., 4), w first."""
     xp = _xp(aa)
     theta2 = (aa * aa).sum(-1)[..., None]
     small = theta2 < 1e-8
@@ -146,6 +147,7 @@ def axis_angle_to_quat(aa: Array) -> Array:
 
 
 def quat_to_axis_angle(q: Array) -> Array:
+    """Unit quaternions (..., 4), w first -> axis-angle (..., 3)."""
     xp = _xp(q)
     q = normalize(q)
     q = xp.where(q[..., :1] < 0, -q, q)
@@ -210,6 +212,7 @@ def sixd_to_matrix(d6: Array) -> Array:
 
 
 def cross(a: Array, b: Array) -> Array:
+    """Cross product over the last axis."""
     ax, ay, az = a[..., 0], a[..., 1], a[..., 2]
     bx, by, bz = b[..., 0], b[..., 1], b[..., 2]
     return _stack([ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx], -1)

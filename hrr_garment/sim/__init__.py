@@ -1,0 +1,1 @@
+"""Ground truth: the cloth simulator, presets, motion sources and the resumable dataset builder."""

@@ -14,6 +14,7 @@ import os
 import time
 from dataclasses import dataclass, field, replace
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 
@@ -27,9 +28,15 @@ from .plan import SequenceSpec
 from .quality import edge_strain
 from .simulator import SimConfig, SimulationExploded, simulate_garment
 
+# Renders a built dataset's preview image (records, garment, path) -> path or None; rendering lives
+# above this layer (hrr_garment.export.preview.write_dataset_preview), so the caller passes it in.
+PreviewWriter = Callable[[list[SequenceRecord], GarmentMesh, Path], "Path | None"]
+
 
 @dataclass
 class BuildReport:
+    """What build_dataset did: the dataset, its sequences, rejects and summary."""
+
     path: Path
     sequences: list[str]
     rejects: dict[str, str]
@@ -50,7 +57,7 @@ def warm_up(garment: GarmentMesh, config: SimConfig) -> None:
 
 def build_dataset(garment: GarmentMesh, specs: list[SequenceSpec], config: SimConfig, out: str | Path,
                   jobs: int | None = None, splits: dict[str, float] | None = None, seed: int = 0,
-                  info: dict | None = None, preview: bool = True, progress: bool = True,
+                  info: dict | None = None, preview: PreviewWriter | None = None, progress: bool = True,
                   groups: dict[str, str] | None = None, mirror: bool = False, executor: str = "local",
                   address: str | None = None) -> BuildReport:
     """Simulate what is missing, then write ``out`` (HDF5) atomically. See the module docstring.
@@ -59,7 +66,8 @@ def build_dataset(garment: GarmentMesh, specs: list[SequenceSpec], config: SimCo
     every sequence reflected left-right as ``NAME_mirror`` in its source's split (a symmetric
     garment's exact mirror simulation, no solver time; skipped with a note otherwise). ``executor``
     "ray" runs the pending sequences as Ray tasks (on the cluster at ``address``, or a local
-    instance with ``jobs`` CPUs)."""
+    instance with ``jobs`` CPUs). ``preview``: renders the dataset's preview image beside it
+    (``hrr-simulate`` passes :func:`hrr_garment.export.preview.write_dataset_preview`)."""
     if executor not in EXECUTORS:
         raise InputError(executor, f"unknown executor; choose one of {', '.join(EXECUTORS)}")
     out = Path(out)
@@ -108,7 +116,7 @@ def build_dataset(garment: GarmentMesh, specs: list[SequenceSpec], config: SimCo
     report = BuildReport(out, done, rejects, summary, reused, len(pending) - len(rejects),
                          stats={r.name: r.info.get("stats", {}) for r in records})
     if preview:
-        report.preview = write_preview(records, garment, out.with_suffix(".preview.png"))
+        report.preview = preview(records, garment, out.with_suffix(".preview.png"))
     return report
 
 
@@ -127,6 +135,7 @@ def _add_mirrored(records: list[SequenceRecord], split: dict[str, list[str]], ga
 
 def summarise(records: list[SequenceRecord], garment: GarmentMesh, rejects: dict[str, str], sim_wall: float,
               jobs: int, simulated: int) -> dict:
+    """The dataset summary: counts, quality statistics and simulation speed."""
     stats = [r.info.get("stats", {}) for r in records]
     edges = garment.edges()
     pooled = np.concatenate([edge_strain(r.garment, garment.vertices, edges).ravel() for r in records])
@@ -153,18 +162,3 @@ def summarise(records: list[SequenceRecord], garment: GarmentMesh, rejects: dict
         "sim_frames_per_core_s": float(sim_frames / sim_seconds) if sim_seconds else None,
         "sim_wall_s": float(sim_wall), "jobs": jobs, "simulated_now": simulated,
     }
-
-
-def write_preview(records: list[SequenceRecord], garment: GarmentMesh, path: Path, frames: int = 4) -> Path | None:
-    """Front and side views of a walk and a spin (or the first two sequences), in the heading frame.
-    None when Pillow (the ``preview`` extra) is missing."""
-    from ..export.preview import render_sequence_preview
-
-    chosen = []
-    for kind in ("walk", "spin"):
-        chosen += [r for r in records if r.info.get("kind") == kind][:1]
-    chosen = chosen or records[:2]
-    try:
-        return render_sequence_preview([(r.name, r.garment, garment.faces, r.motion) for r in chosen], path, frames)
-    except ImportError:
-        return None

@@ -29,6 +29,7 @@ PART_VERSION = 1
 
 
 def template_hash(mesh: GarmentMesh) -> str:
+    """A short hash of the template's vertices, faces and attached vertices."""
     h = hashlib.sha1()
     for arr in (mesh.vertices, mesh.faces, mesh.attached):
         h.update(np.ascontiguousarray(arr).tobytes())
@@ -36,10 +37,12 @@ def template_hash(mesh: GarmentMesh) -> str:
 
 
 def part_paths(parts: Path, name: str) -> tuple[Path, Path]:
+    """A sequence's part file and its failure note."""
     return parts / f"{name}.npz", parts / f"{name}.failed.json"
 
 
 def read_part_key(part: Path) -> str | None:
+    """The settings key a part was made under, or None for an unreadable part."""
     try:
         with np.load(part, allow_pickle=False) as z:
             return str(z["key"])
@@ -89,6 +92,7 @@ def write_part(result: PartResult, parts: Path) -> None:
 
 
 def load_part(part: Path, name: str) -> SequenceRecord:
+    """A finished part as a SequenceRecord."""
     with np.load(part, allow_pickle=False) as z:
         motion = Motion(z["local_rotations"], z["root_translation"], float(z["fps"]), str(z["source"]))
         return SequenceRecord(name, z["garment"], motion, json.loads(str(z["info"])))

@@ -31,6 +31,8 @@ FILE_PIECE_S = 12.0  # longer motion files are simulated in pieces of at most th
 
 @dataclass(frozen=True)
 class Preset:
+    """A dataset and training preset (configs/presets/NAME.yaml)."""
+
     name: str
     vertices: int
     seconds: float
@@ -48,6 +50,7 @@ class Preset:
 
 
 def preset_names() -> list[str]:
+    """The presets in configs/presets."""
     return sorted(p.stem for p in (CONFIG_DIR / "presets").glob("*.yaml"))
 
 

@@ -10,8 +10,8 @@ import numpy as np
 
 from ..body.capsules import DEFAULT_BODY, BodyModel, frames_signed_distance
 from ..body.self_contact import self_intersecting_frames
+from ..motion.frame import to_body_frame
 from ..motion.motion import Motion
-from ..motion.rotations import rotation_about_y, yaw_of
 
 
 def edge_strain(vertices: np.ndarray, rest: np.ndarray, edges: np.ndarray) -> np.ndarray:
@@ -34,21 +34,13 @@ def penetration_fraction(signed_distance: np.ndarray, depth: float = 0.005) -> n
     return (signed_distance < -depth).mean(axis=1)
 
 
-def heading_frame(points: np.ndarray, motion: Motion) -> np.ndarray:
-    """Express world points (T, N, 3) in the pelvis heading frame: origin under the pelvis on the
-    ground plane's height-free axes, Z along the pelvis heading, Y up."""
-    yaw = yaw_of(motion.global_rotations[:, 0])
-    rot = rotation_about_y(yaw)  # heading -> world
-    origin = motion.root_translation * np.array([1.0, 0.0, 1.0])
-    return np.einsum("tni,tij->tnj", points - origin[:, None], rot)
-
-
 def hem_swing(vertices: np.ndarray, motion: Motion, hem: np.ndarray) -> float:
-    """Mean over hem vertices of the standard deviation (metres) of their heading-frame position.
+    """Mean over hem vertices of the standard deviation (metres) of their position in the
+    ground-level body frame (:func:`~hrr_garment.motion.frame.to_body_frame`).
 
     Zero for a garment rigidly skinned to the pelvis; a skirt that swings scores centimetres.
     """
-    local = heading_frame(vertices[:, hem], motion)
+    local = to_body_frame(vertices[:, hem], motion, ground=True)
     return float(np.sqrt(local.var(axis=0).sum(-1)).mean())
 
 

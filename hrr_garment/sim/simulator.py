@@ -114,6 +114,7 @@ def _nlerp(q0: np.ndarray, q1: np.ndarray, t: float) -> np.ndarray:
 
 
 def resolve_device(wp, device: str) -> str:
+    """The warp device for ``device`` (``auto``: the first GPU, else the CPU)."""
     if device == "auto":
         return "cuda:0" if wp.get_cuda_device_count() > 0 else "cpu"
     return device

@@ -1,0 +1,1 @@
+"""Training, one module per stage (autoencoder, codespace, baseline), and tau calibration."""

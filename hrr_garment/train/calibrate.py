@@ -1,4 +1,5 @@
-"""Entropy threshold (tau) calibration and per-mode validation errors of a trained code space.
+"""Entropy threshold (tau) calibration and per-mode validation errors of a trained code space (at
+training time, and again from a saved bundle: :func:`evaluate_bundle`).
 
 For every validation window the motion encoder gives a code distribution; its entropy H (mean per
 group, nats, 0 .. log K) decides the mode: retrieval when H < tau, regression otherwise. Both
@@ -16,19 +17,25 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 import torch
 
-from ..data.windows import sequence_windows
-from ..inference.database import CodeDatabase
-from ..inference.engine import encode_motion
+from ..artifacts.database import CodeDatabase
+from ..data.dataset import DatasetError, GarmentDataset
+from ..data.windows import dataset_features
+from ..models.codes import encode_motion
 from ..models.codespace import CodeSpace
 from ..motion.features import FeatureStats
+from ..motion.windows import sequence_windows
+from .autoencoder import body_frames, refine_settings
 
 
 @dataclass
 class WindowPredictions:
+    """Both candidates (regression and retrieval) for every validation window."""
+
     entropy: np.ndarray  # (N,) motion-code entropy
     regression: np.ndarray  # (N, W, nodes, C) latents from the decoder
     retrieval: np.ndarray  # (N, W, nodes, C) latents of the best database match
@@ -95,6 +102,8 @@ def evaluate_modes(codespace: CodeSpace, autoencoder, motion_stats: FeatureStats
 
 @dataclass
 class TauSweep:
+    """The hybrid's error and retrieval usage at each tau, and the best tau."""
+
     taus: list[float]
     errors_mm: list[float]
     retrieval_usage: list[float]  # fraction of windows retrieved
@@ -116,3 +125,21 @@ def sweep_tau(entropy: np.ndarray, regression_err: np.ndarray, retrieval_err: np
         usage.append(float(retrieve.mean()))
     best = int(np.argmin(errors))  # first minimum: the smallest tau among ties
     return TauSweep(taus, errors, usage, taus[best])
+
+
+def evaluate_bundle(bundle, dataset: str | Path, split: str = "val") -> dict:
+    """Recompute a bundle's per-mode window errors on a dataset split (the numbers ``hrr-train``
+    reports for ``val``); the dataset must be of the bundle's garment and template."""
+    ds = GarmentDataset(dataset)
+    if ds.garment != bundle.garment or ds.template.num_vertices != bundle.template.num_vertices \
+            or not np.array_equal(ds.template.faces, bundle.template.faces):
+        raise DatasetError(dataset, f"is a {ds.garment} dataset with {ds.template.num_vertices} vertices; the model in "
+                                    f"{bundle.folder} is for {bundle.garment} with {bundle.template.num_vertices}")
+    names = ds.splits.get(split, [])
+    if not names:
+        raise DatasetError(dataset, f"has no {split!r} sequences")
+    encoding = refine_settings(bundle.meta.get("encoding", {}))
+    modes = evaluate_modes(bundle.codespace, bundle.autoencoder, bundle.motion_stats, bundle.latent_stats, bundle.database,
+                           dataset_features(ds, names), {n: body_frames(ds, [n]) for n in names},
+                           **encoding)
+    return modes.summary(bundle.tau)

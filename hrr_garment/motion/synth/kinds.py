@@ -6,13 +6,14 @@ gives a deterministic, varied clip; passing a value pins it.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
 
 from ..motion import FPS
 from ..skeleton import REST_PELVIS_HEIGHT
-from .engine import FootPlan, Plan, quintic
+from .plan import FootPlan, Plan, quintic
 
 PAD_S = 1.5
 G = 9.81
@@ -45,19 +46,40 @@ def _path(t: np.ndarray, yaw: np.ndarray, forward: np.ndarray, sideways: np.ndar
     return np.stack([np.cumsum(vx * dt), np.cumsum(vz * dt)], 1)
 
 
-def _gait_plan(rng, t, pad, yaw, speed, side_speed, period, duty, lift, lateral, bob, swing, flex, lean=0.0, pivot=False) -> Plan:
+@dataclass(frozen=True)
+class Gait:
+    """A stepping kind's numbers for :func:`_gait_plan` (metres, seconds, radians)."""
+
+    speed: float | np.ndarray  # forward speed along the heading (m/s; negative: backwards)
+    side_speed: float | np.ndarray  # sideways speed (m/s; positive: to the character's left)
+    period: float  # seconds per stride (two steps)
+    duty: float  # fraction of the stride each foot is planted
+    lift: float  # swing foot height
+    lateral: float  # half the stance width
+    bob: float  # pelvis bob amplitude
+    swing: float  # arm swing amplitude
+    flex: float  # mean elbow flexion
+    lean: float = 0.0  # forward lean of the pelvis (the spine takes half)
+    pivot: bool = False  # planted feet turn with the body (spins)
+
+
+def _gait_plan(rng, t, pad, yaw, gait: Gait) -> Plan:
     """Shared by every stepping kind: alternating feet, arm swing opposite the legs."""
+    period = gait.period
     phase = rng.uniform(0, period)
     w = 2 * np.pi * (t - phase) / period
     feet = [
-        FootPlan("l", _stances(t, period, duty, phase), lateral=lateral, lift=lift, pivot=pivot),
-        FootPlan("r", _stances(t, period, duty, phase + 0.5 * period), lateral=lateral, lift=lift, pivot=pivot),
+        FootPlan("l", _stances(t, period, gait.duty, phase), lateral=gait.lateral, lift=gait.lift, pivot=gait.pivot),
+        FootPlan("r", _stances(t, period, gait.duty, phase + 0.5 * period), lateral=gait.lateral, lift=gait.lift,
+                 pivot=gait.pivot),
     ]
+    bob, swing, flex, lean = gait.bob, gait.swing, gait.flex, gait.lean
     return Plan(
-        t=t, root_xz=_path(t, yaw, speed, side_speed), yaw=yaw,
+        t=t, root_xz=_path(t, yaw, gait.speed, gait.side_speed), yaw=yaw,
         pelvis_y=STAND - 2 * bob + bob * np.cos(2 * w), feet=feet,
         pelvis_pitch=np.full_like(t, lean), pelvis_roll=0.05 * np.sin(w),
-        spine_twist=-0.08 * np.sin(w) * min(1.0, abs(float(np.mean(speed))) + 0.2), spine_lean=np.full_like(t, 0.5 * lean),
+        spine_twist=-0.08 * np.sin(w) * min(1.0, abs(float(np.mean(gait.speed))) + 0.2),
+        spine_lean=np.full_like(t, 0.5 * lean),
         arm_swing={"l": -swing * np.sin(w), "r": swing * np.sin(w)},
         arm_abduction={"l": np.full_like(t, 0.02), "r": np.full_like(t, 0.02)},
         elbow_flex={"l": flex + 0.3 * flex * np.sin(w), "r": flex - 0.3 * flex * np.sin(w)},
@@ -72,6 +94,7 @@ def _cadence(speed: float) -> float:
 
 
 def idle(rng, seconds, sway=None, sway_hz=None, stance_width=None):
+    """Stand with a slow sway and a wandering look."""
     t, pad = _grid(seconds)
     a, f = _pick(rng, sway, 0.015, 0.045), _pick(rng, sway_hz, 0.12, 0.3)
     width = _pick(rng, stance_width, 0.09, 0.13)
@@ -91,20 +114,22 @@ def idle(rng, seconds, sway=None, sway_hz=None, stance_width=None):
 
 
 def walk(rng, seconds, speed=None):
+    """Walk straight at ``speed`` m/s."""
     t, pad = _grid(seconds)
     v = _pick(rng, speed, 0.6, 1.8)
     period = 2.0 / _cadence(v)
     yaw = np.full_like(t, rng.uniform(-np.pi, np.pi))
-    return _gait_plan(rng, t, pad, yaw, v, 0.0, period, 0.58, 0.06 + 0.03 * v, 0.095, 0.012 + 0.008 * v, 0.15 + 0.12 * v, 0.25, lean=0.04)
+    return _gait_plan(rng, t, pad, yaw, Gait(speed=v, side_speed=0.0, period=period, duty=0.58, lift=0.06 + 0.03 * v, lateral=0.095, bob=0.012 + 0.008 * v, swing=0.15 + 0.12 * v, flex=0.25, lean=0.04))
 
 
 def run(rng, seconds, speed=None):
+    """Run straight at ``speed`` m/s."""
     t, pad = _grid(seconds)
     v = _pick(rng, speed, 2.0, 3.0)
     period = 2.0 / (2.7 + 0.2 * (v - 2.0))
     yaw = np.full_like(t, rng.uniform(-np.pi, np.pi))
     # A high heel kick keeps the trailing foot within reach of the hip during early swing.
-    return _gait_plan(rng, t, pad, yaw, v, 0.0, period, 0.36, 0.3 + 0.04 * v, 0.07, 0.02, 0.5, 1.5, lean=0.15)
+    return _gait_plan(rng, t, pad, yaw, Gait(speed=v, side_speed=0.0, period=period, duty=0.36, lift=0.3 + 0.04 * v, lateral=0.07, bob=0.02, swing=0.5, flex=1.5, lean=0.15))
 
 
 def walk_curve(rng, seconds, speed=None, turn_rate=None):
@@ -114,7 +139,7 @@ def walk_curve(rng, seconds, speed=None, turn_rate=None):
     rate = np.deg2rad(turn_rate if turn_rate is not None else rng.choice([-1, 1]) * rng.uniform(20, 60))
     wobble = rng.uniform(0.3, 0.8) * rate * np.sin(2 * np.pi * rng.uniform(0.05, 0.15) * t)
     yaw = rng.uniform(-np.pi, np.pi) + np.cumsum((rate + wobble) / FPS)
-    return _gait_plan(rng, t, pad, yaw, v, 0.0, 2.0 / _cadence(v), 0.58, 0.07 + 0.03 * v, 0.095, 0.015, 0.2 + 0.1 * v, 0.25, lean=0.04)
+    return _gait_plan(rng, t, pad, yaw, Gait(speed=v, side_speed=0.0, period=2.0 / _cadence(v), duty=0.58, lift=0.07 + 0.03 * v, lateral=0.095, bob=0.015, swing=0.2 + 0.1 * v, flex=0.25, lean=0.04))
 
 
 def turn_in_place(rng, seconds, turn_rate=None):
@@ -123,7 +148,7 @@ def turn_in_place(rng, seconds, turn_rate=None):
     rate = np.deg2rad(turn_rate if turn_rate is not None else rng.choice([-1, 1]) * rng.uniform(45, 90))
     ramp = quintic((t + 0.3) / 0.8) * quintic((seconds + 0.3 - t) / 0.8)
     yaw = rng.uniform(-np.pi, np.pi) + np.cumsum(rate * ramp / FPS)
-    return _gait_plan(rng, t, pad, yaw, 0.0, 0.0, 1.2, 0.66, 0.05, 0.1, 0.006, 0.05, 0.25)
+    return _gait_plan(rng, t, pad, yaw, Gait(speed=0.0, side_speed=0.0, period=1.2, duty=0.66, lift=0.05, lateral=0.1, bob=0.006, swing=0.05, flex=0.25))
 
 
 def side_step(rng, seconds, speed=None):
@@ -131,14 +156,15 @@ def side_step(rng, seconds, speed=None):
     t, pad = _grid(seconds)
     v = _pick(rng, speed, 0.2, 0.4) * (rng.choice([-1, 1]) if speed is None else 1.0)
     yaw = np.full_like(t, rng.uniform(-np.pi, np.pi))
-    return _gait_plan(rng, t, pad, yaw, 0.0, v, 1.3, 0.7, 0.06, 0.13, 0.008, 0.05, 0.25)
+    return _gait_plan(rng, t, pad, yaw, Gait(speed=0.0, side_speed=v, period=1.3, duty=0.7, lift=0.06, lateral=0.13, bob=0.008, swing=0.05, flex=0.25))
 
 
 def walk_backward(rng, seconds, speed=None):
+    """Walk backwards at ``speed`` m/s."""
     t, pad = _grid(seconds)
     v = _pick(rng, speed, 0.4, 1.0)
     yaw = np.full_like(t, rng.uniform(-np.pi, np.pi))
-    return _gait_plan(rng, t, pad, yaw, -v, 0.0, 2.0 / _cadence(0.8 * v), 0.66, 0.07, 0.095, 0.01, 0.1, 0.3, lean=0.02)
+    return _gait_plan(rng, t, pad, yaw, Gait(speed=-v, side_speed=0.0, period=2.0 / _cadence(0.8 * v), duty=0.66, lift=0.07, lateral=0.095, bob=0.01, swing=0.1, flex=0.3, lean=0.02))
 
 
 def spin(rng, seconds, revolutions_per_s=None, arm_raise=None):
@@ -147,7 +173,7 @@ def spin(rng, seconds, revolutions_per_s=None, arm_raise=None):
     rps = _pick(rng, revolutions_per_s, 0.6, 1.3) * rng.choice([-1, 1])
     ramp = quintic((t + 0.2) / 1.0) * quintic((seconds + 0.2 - t) / 1.0)
     yaw = rng.uniform(-np.pi, np.pi) + np.cumsum(2 * np.pi * rps * ramp / FPS)
-    plan = _gait_plan(rng, t, pad, yaw, 0.0, 0.0, 0.6, 0.6, 0.05, 0.08, 0.006, 0.05, 0.4, pivot=True)
+    plan = _gait_plan(rng, t, pad, yaw, Gait(speed=0.0, side_speed=0.0, period=0.6, duty=0.6, lift=0.05, lateral=0.08, bob=0.006, swing=0.05, flex=0.4, pivot=True))
     raise_ = _pick(rng, arm_raise, 0.6, 1.3)
     plan.arm_abduction = {s: raise_ * (0.3 + 0.7 * ramp) for s in "lr"}
     return plan
@@ -159,7 +185,7 @@ def dance(rng, seconds, sway=None, tempo_hz=None):
     a, f = _pick(rng, sway, 0.08, 0.2), _pick(rng, tempo_hz, 0.4, 0.7)
     yaw = rng.uniform(-np.pi, np.pi) + 0.5 * np.sin(2 * np.pi * 0.1 * t + rng.uniform(0, 6.3))
     w = 2 * np.pi * f * t
-    plan = _gait_plan(rng, t, pad, yaw, 0.0, 2 * np.pi * f * a * np.cos(w), 1.0 / f, 0.7, 0.06, 0.11, 0.01, 0.1, 0.5)
+    plan = _gait_plan(rng, t, pad, yaw, Gait(speed=0.0, side_speed=2 * np.pi * f * a * np.cos(w), period=1.0 / f, duty=0.7, lift=0.06, lateral=0.11, bob=0.01, swing=0.1, flex=0.5))
     plan.pelvis_roll = 0.15 * np.sin(w + 0.5)
     plan.pelvis_y = STAND - 0.04 + 0.025 * np.cos(4 * np.pi * f * t)
     plan.spine_twist = 0.25 * np.sin(w + rng.uniform(0, 6.3))

@@ -31,12 +31,16 @@ def group_entropy(logits: torch.Tensor) -> torch.Tensor:
 
 @dataclass(frozen=True)
 class CodeUsage:
+    """How evenly codes use the classes: dead classes and per-group perplexity."""
+
     dead: int  # (group, class) pairs never chosen
     perplexity: float  # mean over groups of exp(entropy of the class frequencies); K when uniform
     total: int  # G x K
 
 
 class GumbelQuantizer(nn.Module):
+    """G groups of K classes with learned embeddings; see the module docstring."""
+
     def __init__(self, groups: int = 512, classes: int = 8, dim: int = 8):
         super().__init__()
         self.groups, self.classes, self.dim = groups, classes, dim

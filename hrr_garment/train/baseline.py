@@ -21,6 +21,7 @@ import numpy as np
 import torch
 from tqdm import tqdm
 
+from ..artifacts.bundle import add_bundle_part, load_bundle
 from ..data.dataset import DatasetError, GarmentDataset
 from ..data.windows import dataset_features
 from ..io_utils import atomic_write_text
@@ -28,12 +29,14 @@ from ..models.direct import DirectConfig, DirectRegressor
 from ..motion.features import FEATURE_DIM
 from ..settings import from_settings
 from .autoencoder import body_frames
-from .bundle import add_bundle_part, load_bundle
 from .checkpoint import keep_if_best, load_checkpoint, resume_log, save_checkpoint
+from .report import StageReport
 
 
 @dataclass(frozen=True)
 class DirectTrainConfig:
+    """The baseline stage's training settings (``baseline.train``)."""
+
     epochs: int = 300
     batch_size: int = 16
     crop: int = 60  # frames per training crop
@@ -79,6 +82,8 @@ def _val_loss(model: DirectRegressor, motion: list[torch.Tensor], latents: list[
 
 def train_direct(model: DirectRegressor, train: tuple, val: tuple, folder: Path, config: DirectTrainConfig, key: str,
                  progress: bool = True) -> dict:
+    """Train (or resume) the baseline in ``folder``; leaves the best weights in ``model``, returns the
+    loop's state."""
     folder.mkdir(parents=True, exist_ok=True)
     torch.manual_seed(config.seed)
     optimizer = torch.optim.Adam(model.parameters(), lr=config.learning_rate, weight_decay=config.weight_decay)
@@ -119,8 +124,9 @@ def train_direct(model: DirectRegressor, train: tuple, val: tuple, folder: Path,
 
 def run_baseline_stage(dataset: str | Path, folder: str | Path, config: DirectConfig = DirectConfig(),
                        train_config: DirectTrainConfig = DirectTrainConfig(), cache_dir: Path | None = None,
-                       progress: bool = True) -> dict:
-    """Train the baseline for the bundle in ``folder`` (the code-space stage must have run)."""
+                       progress: bool = True) -> StageReport:
+    """Train the baseline for the bundle in ``folder`` (the code-space stage must have run);
+    ``metrics`` is its ``direct`` entry in bundle.json."""
     t0 = time.perf_counter()
     folder = Path(folder)
     bundle = load_bundle(folder, cache_dir)
@@ -132,7 +138,7 @@ def run_baseline_stage(dataset: str | Path, folder: str | Path, config: DirectCo
     key = hashlib.sha1(json.dumps([config.to_dict(), asdict(train_config) | {"max_minutes": None}, base_files, ds.splits],
                                   sort_keys=True).encode()).hexdigest()[:16]
     if bundle.meta.get("direct", {}).get("key") == key:
-        return {**bundle.meta["direct"], "reused": True}
+        return _stage_report({**bundle.meta["direct"], "reused": True}, folder, reused=True)
     with np.load(folder / "autoencoder" / "latents.npz", allow_pickle=False) as f:
         latents = {name: f[name] for name in ds.names}
     names = {k: ds.splits[k] for k in ("train", "val")}
@@ -147,7 +153,12 @@ def run_baseline_stage(dataset: str | Path, folder: str | Path, config: DirectCo
              "best_epoch": state["best_epoch"], "validation_mm": val_mm, "minutes": (time.perf_counter() - t0) / 60}
     add_bundle_part(folder, "direct.safetensors", model.state_dict(), {"direct": entry})
     atomic_write_text(folder / "baseline" / "report.json", json.dumps(entry, indent=2))
-    return entry
+    return _stage_report(entry, folder)
+
+
+def _stage_report(entry: dict, folder: Path, reused: bool = False) -> StageReport:
+    return StageReport("baseline", folder / "baseline", int(entry["epochs"]), int(entry["best_epoch"]),
+                       float(entry["minutes"]), reused, entry)
 
 
 @torch.no_grad()

@@ -1,9 +1,11 @@
 /* Forward kinematics and causal motion features in C, compiled with the other kernels by
-   hrr_garment/models/native.py and called from hrr_garment/motion/native_features.py. The numpy
+   hrr_garment/native/__init__.py and called through it from hrr_garment/motion/ (motion.py, features.py). The numpy
    forms (motion/skeleton.py forward_kinematics, motion/features.py motion_features,
    motion/rotations.py matrix_to_axis_angle) are the reference: the same formulas in the same
    order, in double precision, tested equal. Why: a stream computes one pose's kinematics and
    features per frame, about 50 small numpy calls (0.6-1 ms) for some microseconds of arithmetic. */
+
+#include "hrr_native.h"
 
 /* T frames of J joints: local rotations (T, J, 3, 3) float32, root positions (T, 3), bone
    offsets (J, 3), parents (J, -1 for the root) -> global rotations (T, J, 3, 3), positions (T, J, 3). */

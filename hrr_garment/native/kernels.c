@@ -1,29 +1,8 @@
-/* hrr_garment's native kernels, compiled on first use by hrr_garment/models/native.py (see its
+/* hrr_garment's native kernels, compiled on first use by hrr_garment/native/__init__.py (see its
    docstring): the mesh decoder's blocks, the capsule-body distance, the collision push-out, the
    register-tiled dense product (shared with window_codes.c) and the single-frame decoder. */
 
-#include <stdint.h>
-#include <stdlib.h>
-#include <string.h>
-#include <math.h>
-#include <omp.h>
-
-#define ALWAYS_INLINE static inline __attribute__((always_inline))
-
-/* Denormal floats read and produced as zero (flush-to-zero and denormals-are-zero) in the calling
-   thread, restored afterwards: trained weights and activations hold some, and every product with
-   one takes a slow microcode path. Set in each worker thread, which PyTorch's setting misses. */
-#if defined(__x86_64__) || defined(__i386__)
-#include <xmmintrin.h>
-ALWAYS_INLINE unsigned denormals_off(void) { const unsigned old = _mm_getcsr(); _mm_setcsr(old | 0x8040); return old; }
-ALWAYS_INLINE void denormals_restore(unsigned old) { _mm_setcsr(old); }
-#else
-ALWAYS_INLINE unsigned denormals_off(void) { return 0; }
-ALWAYS_INLINE void denormals_restore(unsigned old) { (void)old; }
-#endif
-
-typedef float v8sf __attribute__((vector_size(32)));
-typedef float v16sf __attribute__((vector_size(64)));
+#include "hrr_native.h"
 
 /* acc (B, COUT) = bias + sum_j x[nbr[j]] (B, cin) times K[j] (cin, COUT). Neighbour slot outer,
    so its kernel block (cin x COUT, at most 64 KB) stays in L1 while all B frames pass through it;
@@ -361,7 +340,6 @@ void hrr_push_out(double *p, int T, int V, const double *a, const double *b, con
    reads about 7 MB of them, more than L2 holds, and strided rows defeat the prefetcher) into a tile
    of R rows x PANEL columns of accumulators in registers, each X value broadcast: no horizontal
    sums. Used by the window step (window_codes.c) and the single-frame decoder. */
-enum { PANEL = 64 };
 static inline v16sf load16(const float *p) { v16sf v; memcpy(&v, p, sizeof v); return v; }
 
 #define DEFINE_TILE(R, C)                                                                              \
@@ -397,8 +375,6 @@ DEFINE_TILE(1, 2)
 DEFINE_TILE(1, 3)
 DEFINE_TILE(1, 4)
 
-typedef void (*tile_fn)(const float *restrict, int, const float *restrict, const float *restrict, float *restrict,
-                        int, int);
 /* by rows (5 or 1) and 16-column vectors (1 to 4): a partial last panel computes only what it needs */
 static const tile_fn TILES[2][4] = {{tile_1_1, tile_1_2, tile_1_3, tile_1_4}, {tile_5_1, tile_5_2, tile_5_3, tile_5_4}};
 

@@ -1,8 +1,10 @@
-"""Fused C kernels for inference (``kernels.c`` and ``window_codes.c`` beside this module,
-``motion/features.c``), compiled on first use: the mesh decoder's blocks, its single-frame form
-(streaming), the capsule-body signed distance and push-out of :mod:`hrr_garment.inference.collision`,
-the code space's window step (:mod:`.native_codes`), and forward kinematics and causal motion
-features (:mod:`hrr_garment.motion`).
+"""Fused C kernels (``kernels.c``, ``window_codes.c`` and ``features.c`` in this folder, sharing
+``hrr_native.h``), compiled on first use, and their ctypes glue: the mesh decoder's blocks, its
+single-frame form (streaming), the capsule-body signed distance (:mod:`hrr_garment.body`) and
+push-out of :mod:`hrr_garment.inference.collision`, the code space's window step
+(:mod:`hrr_garment.models.native_codes`), and forward kinematics and causal motion features
+(:mod:`hrr_garment.motion`). The ground floor of the package: it imports nothing of hrr_garment
+but :mod:`hrr_garment.paths` (where the compiled library is cached).
 
 PyTorch runs a spatially varying convolution as a gather (materialising every neighbour's row for
 every output vertex: S times the layer's output), a layout copy, then small per-vertex matmuls;
@@ -35,9 +37,12 @@ from pathlib import Path
 
 import numpy as np
 
-_PACKAGE = Path(__file__).resolve().parent.parent
-# one library, in this order: window_codes.c uses helpers defined in kernels.c
-SOURCE = "\n".join((_PACKAGE / name).read_text() for name in ("models/kernels.c", "models/window_codes.c", "motion/features.c"))
+_HERE = Path(__file__).resolve().parent
+HEADER = "hrr_native.h"  # what the sources share (helpers of kernels.c used by window_codes.c)
+# one translation unit, so shared helpers inline across files; each source includes the header
+SOURCES = ("kernels.c", "window_codes.c", "features.c")
+SOURCE = "\n".join((_HERE / name).read_text() for name in SOURCES)
+_HEADER_TEXT = (_HERE / HEADER).read_text()
 
 FLAGS = ["-O3", "-march=native", "-mprefer-vector-width=512", "-fno-math-errno", "-fno-trapping-math", "-fopenmp",
          "-Werror=implicit-function-declaration",
@@ -60,7 +65,7 @@ def _cpu_signature() -> str:
 
 @functools.lru_cache(maxsize=1)
 def _source_key() -> str:
-    return hashlib.sha1("\0".join([SOURCE, *FLAGS, _cpu_signature()]).encode()).hexdigest()[:16]
+    return hashlib.sha1("\0".join([_HEADER_TEXT, SOURCE, *FLAGS, _cpu_signature()]).encode()).hexdigest()[:16]
 
 
 def _compile(target: Path) -> None:
@@ -71,7 +76,8 @@ def _compile(target: Path) -> None:
     with tempfile.TemporaryDirectory(dir=target.parent) as tmp:
         src, lib = Path(tmp) / "kernel.c", Path(tmp) / "kernel.so"
         src.write_text(SOURCE)
-        subprocess.run([compiler, *FLAGS, str(src), "-o", str(lib), "-lm"], check=True, capture_output=True, text=True)
+        subprocess.run([compiler, *FLAGS, f"-I{_HERE}", str(src), "-o", str(lib), "-lm"], check=True, capture_output=True,
+                       text=True)
         os.replace(lib, target)  # atomic: a concurrent process sees the whole library or none
 
 
@@ -137,7 +143,7 @@ def _ptr(a: np.ndarray | None, kind=ctypes.c_float):
     return None if a is None else a.ctypes.data_as(ctypes.POINTER(kind))
 
 
-PANEL = 64  # PANEL in kernels.c
+PANEL = 64  # PANEL in hrr_native.h
 
 
 def pack_panels(wt: np.ndarray) -> np.ndarray:
@@ -280,7 +286,7 @@ def forward_kinematics(lib: ctypes.CDLL, local_rot: np.ndarray, root_pos: np.nda
 def causal_features(lib: ctypes.CDLL, g_rot: np.ndarray, g_pos: np.ndarray, joints, fps: float) -> np.ndarray:
     """Motion features (T, 6 F + 4) of every frame from it and the frame before (frame 0 from
     itself: zero velocities), from global rotations (T, J, 3, 3) and positions (T, J, 3): what
-    :func:`hrr_garment.inference.engine.causal_features` computes in numpy."""
+    :func:`hrr_garment.motion.features.causal_features` computes in numpy."""
     rot, pos = np.ascontiguousarray(g_rot, np.float64), np.ascontiguousarray(g_pos, np.float64)
     idx = np.ascontiguousarray(joints, np.int32)
     t, j = rot.shape[:2]

@@ -32,6 +32,8 @@ def code_similarity(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 @dataclass
 class CodeDatabase:
+    """Every training window's garment code, true latents and source, searchable by code."""
+
     codes: np.ndarray  # (N, G) uint8 class indices of the garment codes
     latents: np.ndarray  # (N, W, nodes, C) float32 true garment latents (not standardised)
     sequence: np.ndarray  # (N,) int32 index into names

@@ -1,8 +1,8 @@
 /* The code space's window step in C (hrr_garment/models/native_codes.py): for each motion window,
    the motion encoder (input layer, GRU, self-attention with layer norm, attention pooling, output
    layer norm and logits), the grouped code (per-group entropy, argmax, the chosen classes'
-   embeddings) and the code-space decoder's MLP. Compiled after kernels.c (one library), whose
-   dense tiles, exp_nonpositive and denormal helpers it uses.
+   embeddings) and the code-space decoder's MLP. Compiled with kernels.c (one library), whose
+   dense tiles, exp_nonpositive and denormal helpers it uses (declared in hrr_native.h).
 
    Why: a stream runs this for one window per frame, and PyTorch spends most of that time between
    operations (about 190 small operator calls, 1.6-3 ms) on 15 MFLOP of arithmetic.
@@ -12,6 +12,8 @@
    the whole team; a batch runs each window alone in a one-thread region inside its thread. Every
    value is computed by one thread in one fixed order either way, so a stream and an offline causal
    batch give the same bits. */
+
+#include "hrr_native.h"
 
 ALWAYS_INLINE float elu1(float y) { return y > 0.0f ? y : exp_nonpositive(y) - 1.0f; }
 

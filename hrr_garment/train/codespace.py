@@ -1,10 +1,12 @@
 """The code-space stage of ``hrr-train``: windows -> code space -> database -> tau -> bundle.
 
 Reads the dataset and the autoencoder stage's outputs (``MODEL/autoencoder/``: weights and
-latents of every frame), trains the code space in ``MODEL/codebook/`` (checkpointed, resumable),
-builds the retrieval database from every training window's garment code, calibrates tau on the
-validation split, and writes the bundle at the top of ``MODEL/`` (:mod:`.bundle`). A re-run with
-nothing changed finds the finished report and returns it without redoing anything.
+latents of every frame), trains the code space in ``MODEL/codebook/`` (checkpointed, resumable;
+the folder keeps the stage's old name so that models trained before the rename resume), builds
+the retrieval database from every training window's garment code, calibrates tau on the
+validation split, and writes the bundle at the top of ``MODEL/``
+(:mod:`hrr_garment.artifacts.bundle`). A re-run with nothing changed finds the finished report
+and returns it without redoing anything.
 """
 
 from __future__ import annotations
@@ -18,16 +20,19 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from ..artifacts.bundle import BundleError, read_meta, write_bundle
+from ..artifacts.database import CodeDatabase
 from ..data.dataset import DatasetError, GarmentDataset
 from ..data.windows import build_windows, dataset_features, fit_stats
-from ..inference.database import CodeDatabase
 from ..io_utils import atomic_write_text
 from ..models.codespace import CodeSpace, CodeSpaceConfig
 from ..motion.features import FEATURE_DIM
 from .autoencoder import body_frames, load_autoencoder, refine_settings
-from .bundle import BundleError, read_meta, write_bundle
 from .calibrate import evaluate_modes
-from .codebook import CodebookTrainConfig, WindowTensors, evaluate, train_codespace
+from .codespace_training import CodeSpaceTrainConfig, WindowTensors, evaluate, train_codespace
+from .report import StageReport
+
+STAGE_FOLDER = "codebook"  # under MODEL/: the name from before "code space" was the stage's name
 
 
 def check_splits(ds: GarmentDataset) -> None:
@@ -42,45 +47,75 @@ def check_splits(ds: GarmentDataset) -> None:
 def garment_codes(model: CodeSpace, latents: torch.Tensor, batch: int = 512) -> np.ndarray:
     """Argmax garment codes (N, G) uint8 of standardised latent windows."""
     model.eval()
-    out = [model.quantizer.split(model.garment_encoder(latents[i:i + batch])).argmax(-1) for i in range(0, len(latents), batch)]
+    out = [model.quantizer.split(model.garment_encoder(latents[i:i + batch])).argmax(-1)
+           for i in range(0, len(latents), batch)]
     return torch.cat(out).numpy().astype(np.uint8)
 
 
-def run_codebook_stage(dataset: str | Path, folder: str | Path, config: CodeSpaceConfig = CodeSpaceConfig(),
-                       train_config: CodebookTrainConfig = CodebookTrainConfig(), cache_dir: Path | None = None,
-                       progress: bool = True, info: dict | None = None) -> dict:
-    """Train the code space and write the bundle in ``folder``; returns the stage report."""
-    t0 = time.perf_counter()
-    folder = Path(folder)
-    stage = folder / "codebook"
-    ds = GarmentDataset(dataset)
-    check_splits(ds)
-    ae_folder = folder / "autoencoder"
+def _autoencoder_outputs(ds: GarmentDataset, dataset, ae_folder: Path) -> tuple[dict, dict, dict[str, np.ndarray]]:
+    """The autoencoder stage's config.json, weights and per-sequence latents, checked against the dataset."""
     if not (ae_folder / "latents.npz").is_file():
         raise DatasetError(ae_folder, "no latents.npz: run the autoencoder stage first (hrr-train --stage autoencoder)")
     ae_meta = json.loads((ae_folder / "config.json").read_text())
     if ae_meta.get("vertices") != ds.template.num_vertices or ae_meta.get("garment") != ds.garment:
         raise DatasetError(dataset, f"the autoencoder in {ae_folder} was trained on {ae_meta.get('garment')} with "
-                                    f"{ae_meta.get('vertices')} vertices, the dataset is {ds.garment} with {ds.template.num_vertices}")
+                                    f"{ae_meta.get('vertices')} vertices, the dataset is {ds.garment} with "
+                                    f"{ds.template.num_vertices}")
     ae_state = torch.load(ae_folder / "model.pt", map_location="cpu", weights_only=True)
     with np.load(ae_folder / "latents.npz", allow_pickle=False) as f:
         latents = {name: f[name] for name in ds.names}
+    return ae_meta, ae_state, latents
+
+
+def _stage_key(config: CodeSpaceConfig, train_config: CodeSpaceTrainConfig, ae_state: dict,
+               latents: dict[str, np.ndarray], ds: GarmentDataset) -> str:
+    """The settings key: a finished stage with this key is reused, a checkpoint resumed."""
     # the latents as well as the weights: a changed encoding (refine_steps ...) re-encodes the same
     # weights, and the code space trained on the old latents must not be reused
     ae_hash = hashlib.sha256(b"".join([k.encode() + ae_state[k].numpy().tobytes() for k in sorted(ae_state)]
                                       + [n.encode() + latents[n].tobytes() for n in ds.names])).hexdigest()[:16]
-    key = hashlib.sha1(json.dumps([config.to_dict(), asdict(train_config) | {"max_minutes": None}, ae_hash, ds.splits],
-                                  sort_keys=True).encode()).hexdigest()[:16]
-    report_path = stage / "report.json"
-    if report_path.is_file() and (folder / "bundle.json").is_file():
-        report = json.loads(report_path.read_text())
-        if report.get("key") == key:
-            try:
-                read_meta(folder)
-                return {**report, "reused": True}
-            except BundleError:  # a damaged bundle is rebuilt below
-                pass
+    return hashlib.sha1(json.dumps([config.to_dict(), asdict(train_config) | {"max_minutes": None}, ae_hash, ds.splits],
+                                   sort_keys=True).encode()).hexdigest()[:16]
 
+
+def _stage_report(report: dict, folder: Path, reused: bool = False) -> StageReport:
+    training = report["training"]
+    return StageReport("codespace", folder, int(training["epoch"]), int(training["best_epoch"]), float(report["minutes"]),
+                       reused, {**report, "reused": True} if reused else report)
+
+
+def _finished(folder: Path, report_path: Path, key: str) -> dict | None:
+    """The report of a finished stage with these settings whose bundle is intact, else None."""
+    if not (report_path.is_file() and (folder / "bundle.json").is_file()):
+        return None
+    report = json.loads(report_path.read_text())
+    if report.get("key") != key:
+        return None
+    try:
+        read_meta(folder)
+    except BundleError:  # a damaged bundle is rebuilt
+        return None
+    return report
+
+
+def run_codespace_stage(dataset: str | Path, folder: str | Path, config: CodeSpaceConfig = CodeSpaceConfig(),
+                        train_config: CodeSpaceTrainConfig = CodeSpaceTrainConfig(), cache_dir: Path | None = None,
+                        progress: bool = True, info: dict | None = None) -> StageReport:
+    """Train the code space and write the bundle in ``folder``; ``metrics`` is the stage's report.json."""
+    t0 = time.perf_counter()
+    folder = Path(folder)
+    stage = folder / STAGE_FOLDER
+    ds = GarmentDataset(dataset)
+    check_splits(ds)
+    ae_folder = folder / "autoencoder"
+    ae_meta, ae_state, latents = _autoencoder_outputs(ds, dataset, ae_folder)
+    key = _stage_key(config, train_config, ae_state, latents, ds)
+    report_path = stage / "report.json"
+    done = _finished(folder, report_path, key)
+    if done is not None:
+        return _stage_report(done, stage, reused=True)
+
+    # windows of both splits, standardised with the training split's statistics
     autoencoder = load_autoencoder(ae_folder, ds.template.faces, cache_dir)
     splits = {k: ds.splits[k] for k in ("train", "val")}
     features = dataset_features(ds, splits["train"] + splits["val"])
@@ -94,6 +129,7 @@ def run_codebook_stage(dataset: str | Path, folder: str | Path, config: CodeSpac
     model = CodeSpace(config, FEATURE_DIM, autoencoder.latent_shape)
     summary = train_codespace(model, train_t, val_t, stage, train_config, key, progress)
 
+    # the database of every training window's garment code, then tau on the validation split
     database = CodeDatabase(garment_codes(model, train_t.latents), train_w.latents, train_w.sequence, train_w.start,
                             train_w.names, config.classes, train_t.motion.numpy())
     encoding = refine_settings(ae_meta.get("train", {}))
@@ -104,7 +140,8 @@ def run_codebook_stage(dataset: str | Path, folder: str | Path, config: CodeSpac
     usage = model.quantizer.usage(torch.from_numpy(database.codes))
     final = evaluate(model, val_t)
     report = {"key": key, "windows": {"train": len(train_w), "val": len(val_w)}, "training": summary,
-              "validation_mm": modes.summary(sweep.best_tau), "tau": sweep.best_tau, "sweep": sweep.to_dict(), "code_agreement": final["agreement"], "chance_agreement": 1.0 / config.classes,
+              "validation_mm": modes.summary(sweep.best_tau), "tau": sweep.best_tau, "sweep": sweep.to_dict(),
+              "code_agreement": final["agreement"], "chance_agreement": 1.0 / config.classes,
               "database_codes": {"dead_classes": usage.dead, "classes": usage.total, "perplexity": usage.perplexity,
                                  "distinct_codes": int(len(np.unique(database.codes, axis=0)))},
               "entropy_histogram": final["entropy_histogram"], "minutes": (time.perf_counter() - t0) / 60}
@@ -113,22 +150,4 @@ def run_codebook_stage(dataset: str | Path, folder: str | Path, config: CodeSpac
                  info={"dataset": str(dataset), "window": config.window, "validation_mm": report["validation_mm"],
                        "encoding": encoding, **(info or {})})
     atomic_write_text(report_path, json.dumps(report, indent=2, default=float))
-    return report
-
-
-def evaluate_bundle(bundle, dataset: str | Path, split: str = "val") -> dict:
-    """Recompute a bundle's per-mode window errors on a dataset split (the numbers ``hrr-train``
-    reports for ``val``); the dataset must be of the bundle's garment and template."""
-    ds = GarmentDataset(dataset)
-    if ds.garment != bundle.garment or ds.template.num_vertices != bundle.template.num_vertices \
-            or not np.array_equal(ds.template.faces, bundle.template.faces):
-        raise DatasetError(dataset, f"is a {ds.garment} dataset with {ds.template.num_vertices} vertices; the model in "
-                                    f"{bundle.folder} is for {bundle.garment} with {bundle.template.num_vertices}")
-    names = ds.splits.get(split, [])
-    if not names:
-        raise DatasetError(dataset, f"has no {split!r} sequences")
-    encoding = refine_settings(bundle.meta.get("encoding", {}))
-    modes = evaluate_modes(bundle.codespace, bundle.autoencoder, bundle.motion_stats, bundle.latent_stats, bundle.database,
-                           dataset_features(ds, names), {n: body_frames(ds, [n]) for n in names},
-                           **encoding)
-    return modes.summary(bundle.tau)
+    return _stage_report(report, stage)

@@ -1,4 +1,4 @@
-"""Training the shared code space (paper 3.4): two encoders, one Gumbel-Softmax codebook, a decoder.
+"""Training the shared code space (paper 3.4): two encoders, one Gumbel-Softmax quantiser, a decoder.
 
 Losses on a batch of windows (motion m, garment latents z, both standardised):
 
@@ -30,14 +30,16 @@ import torch
 from tqdm.auto import tqdm
 
 from ..data.windows import WindowSet
-from ..models.codebook import group_entropy
 from ..models.codespace import CodeSpace
+from ..models.quantizer import group_entropy
 from ..settings import from_settings
 from .checkpoint import keep_if_best, load_checkpoint, resume_log, save_checkpoint
 
 
 @dataclass(frozen=True)
-class CodebookTrainConfig:
+class CodeSpaceTrainConfig:
+    """The code-space stage's training settings (``codespace.train``)."""
+
     epochs: int = 300
     batch_size: int = 64
     learning_rate: float = 1e-3
@@ -56,8 +58,8 @@ class CodebookTrainConfig:
     seed: int = 0
 
     @classmethod
-    def from_dict(cls, values: dict) -> "CodebookTrainConfig":
-        return from_settings(cls, values, "codebook training")
+    def from_dict(cls, values: dict) -> "CodeSpaceTrainConfig":
+        return from_settings(cls, values, "code space training")
 
 
 class PlateauDetector:
@@ -88,6 +90,8 @@ class PlateauDetector:
 
 @dataclass
 class WindowTensors:
+    """Standardised motion and latent windows as tensors."""
+
     motion: torch.Tensor  # (N, W, F) standardised
     latents: torch.Tensor  # (N, W, nodes, C) standardised
 
@@ -134,7 +138,7 @@ def evaluate(model: CodeSpace, data: WindowTensors, batch: int = 256) -> dict:
 
 
 def train_codespace(model: CodeSpace, train: WindowTensors, val: WindowTensors, folder: Path,
-                    config: CodebookTrainConfig = CodebookTrainConfig(), key: str = "", progress: bool = True) -> dict:
+                    config: CodeSpaceTrainConfig = CodeSpaceTrainConfig(), key: str = "", progress: bool = True) -> dict:
     """Train (or resume) in ``folder``; leaves the best weights in ``model`` and returns a summary."""
     folder.mkdir(parents=True, exist_ok=True)
     torch.manual_seed(config.seed)

@@ -1,4 +1,5 @@
-"""``out.h5``: an animated garment as hrr-animate writes it (DESIGN 9).
+"""``out.h5``: an animated garment as hrr-animate writes it (DESIGN 9). The file format lives in
+``data`` (with the dataset's) because inference writes it and export, eval and the previews read it.
 
     /faces                (F, 3) int32
     /vertices             (T, V, 3) float32, one frame per chunk, gzip + shuffle
@@ -66,6 +67,7 @@ class AnimationFile:
 def write_animation_h5(path: str | Path, *, vertices: np.ndarray, faces: np.ndarray, joints: np.ndarray, mode: np.ndarray,
                        entropy: np.ndarray, source: np.ndarray, attrs: dict, capsules: np.ndarray | None = None,
                        radii: np.ndarray | None = None) -> Path:
+    """Write an out.h5 (the layout in the module docstring) atomically; returns its path."""
     path = Path(path)
     t, v = vertices.shape[:2]
     with atomic_path(path) as tmp, h5py.File(tmp, "w") as f:

@@ -6,7 +6,7 @@ Files (all arrays as safetensors, nothing pickled)::
                                  sha256 of every other file and a content hash over them
     autoencoder.safetensors      mesh autoencoder (FCMAE) weights
     motion_encoder.safetensors   garment_encoder.safetensors   decoder.safetensors
-    quantizer.safetensors        the codebook's class embeddings
+    quantizer.safetensors        the quantiser's class embeddings
     stats.safetensors            motion feature and garment latent mean/std
     database.safetensors         retrieval database: codes, latent windows, source sequence/frame,
                                  standardised motion windows (for the naive-NN baseline)
@@ -35,13 +35,13 @@ from safetensors.torch import save_file as save_tensors
 
 from ..errors import InputError
 from ..garment.mesh import GarmentMesh
-from ..inference.database import CodeDatabase
 from ..io_utils import atomic_path, atomic_write_text
 from ..models.codespace import CodeSpace, CodeSpaceConfig
 from ..models.direct import DirectConfig, DirectRegressor
 from ..models.fcmae import AutoencoderConfig, MeshAutoencoder
 from ..models.hierarchy import cached_hierarchy
 from ..motion.features import FEATURE_DIM, FeatureStats
+from .database import CodeDatabase
 
 FORMAT_VERSION = 2  # 2: garments in the pelvis-following body frame (motion/frame.py)
 NETWORKS = ("motion_encoder", "garment_encoder", "decoder", "quantizer")
@@ -53,6 +53,8 @@ class BundleError(InputError):
 
 @dataclass
 class Bundle:
+    """A loaded model bundle: the networks, statistics, database and template inference needs."""
+
     folder: Path
     meta: dict
     autoencoder: MeshAutoencoder

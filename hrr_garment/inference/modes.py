@@ -1,0 +1,32 @@
+"""The inference modes: one name for each, in one place (the CLI choices, the animator's checks,
+the evaluation's list)."""
+
+from __future__ import annotations
+
+import enum
+
+
+class Mode(str, enum.Enum):
+    """How a garment latent is chosen per window. A ``str`` subclass: ``Mode.HYBRID == "hybrid"``,
+    and it formats as its value."""
+
+    HYBRID = "hybrid"  # retrieval where the motion code's entropy is below tau, else regression
+    REGRESSION = "regression"  # the code-space decoder's latents
+    RETRIEVAL = "retrieval"  # the database window with the nearest garment code
+    NAIVE_NN = "naive-nn"  # the database window with the nearest standardised motion (a baseline)
+    DIRECT = "direct"  # the direct-regression baseline (a GRU; offline only, when the bundle has it)
+
+    def __str__(self) -> str:
+        return self.value
+
+    def __format__(self, spec: str) -> str:
+        return format(self.value, spec)
+
+    @property
+    def regresses(self) -> bool:
+        """Whether the code-space decoder runs (hybrid and regression)."""
+        return self in (Mode.HYBRID, Mode.REGRESSION)
+
+
+#: the modes that run the motion encoder and the gate (offline, causal and streaming)
+CODE_MODES = (Mode.HYBRID, Mode.REGRESSION, Mode.RETRIEVAL, Mode.NAIVE_NN)

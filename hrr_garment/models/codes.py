@@ -1,0 +1,83 @@
+"""The code space's window step, shared by calibration (``train``) and inference: standardised
+motion windows -> motion encoder -> per-group entropy and argmax code -> the chosen classes'
+embedding -> the code-space decoder's regressed garment latents.
+
+:class:`WindowCodes` is the PyTorch form; :mod:`.native_codes` computes the same in C for causal
+inference; :func:`traced_window_codes` is the TorchScript form a stream uses without a compiler.
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+
+from .quantizer import group_entropy
+
+
+@dataclass
+class MotionCodes:
+    """The motion encoder's output for N windows."""
+
+    entropy: np.ndarray  # (N,) mean per-group entropy of the code distribution (nats)
+    codes: np.ndarray  # (N, G) uint8 argmax classes
+    regression: np.ndarray | None  # (N, W, nodes, C) decoder latents (not standardised), when asked
+    standardised: np.ndarray  # (N, W, F) the standardised motion windows
+
+
+class WindowCodes(torch.nn.Module):
+    """Standardised motion windows (B, W, F) -> (entropy (B,), argmax classes (B, G), regressed
+    standardised latents (B, W or 1, nodes, C), or an empty tensor without ``regression``)."""
+
+    def __init__(self, codespace, regression: bool = True, last_frame: bool = False):
+        super().__init__()
+        self.codespace, self.regression, self.last_frame = codespace, regression, last_frame
+
+    def forward(self, windows: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        q = self.codespace.quantizer
+        logits = q.split(self.codespace.motion_encoder(windows))
+        idx = logits.argmax(-1)
+        if not self.regression:
+            return group_entropy(logits), idx, torch.empty(0)
+        embedding = q.embed(torch.nn.functional.one_hot(idx, q.classes).float())
+        return group_entropy(logits), idx, self.codespace.decode(embedding, self.last_frame)
+
+
+def traced_window_codes(codespace, window: int, features: int, regression: bool = True) -> torch.nn.Module:
+    """:class:`WindowCodes` for one causal window at a time (streaming without a C compiler; the
+    native window step of :mod:`.native_codes` is used where compiled), traced
+    and frozen by TorchScript: the same operations without Python's per-module overhead (about 1
+    ms of a push).
+    Falls back to the eager module where tracing fails."""
+    step = WindowCodes(codespace.eval(), regression, last_frame=True).eval()
+    try:
+        with torch.no_grad(), warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # batch size 1 is fixed on purpose
+            return torch.jit.freeze(torch.jit.trace(step, torch.zeros(1, window, features)))
+    except RuntimeError:
+        return step
+
+
+@torch.no_grad()
+def encode_motion(codespace, motion_stats, latent_stats, motion_windows: np.ndarray, regression: bool = True,
+                  batch: int = 512, last_frame: bool = False, step: torch.nn.Module | None = None) -> MotionCodes:
+    """Raw feature windows (N, W, F) -> codes, entropies and (optionally) regressed latents, of
+    every frame of each window or, with ``last_frame``, of its last frame only (N, 1, nodes, C).
+    ``step``: a prepared :class:`WindowCodes` with the same settings (streaming)."""
+    if codespace.training:
+        codespace.eval()
+    step = WindowCodes(codespace, regression, last_frame) if step is None else step
+    std = motion_stats.normalize(motion_windows)
+    entropy, codes, reg = [], [], []
+    for i in range(0, len(std), batch):
+        h, idx, r = step(torch.from_numpy(std[i:i + batch]))
+        entropy.append(h.numpy())
+        codes.append(idx.numpy().astype(np.uint8))
+        reg.append(r.numpy())
+    latents = None
+    if regression:
+        r = np.concatenate(reg)
+        latents = latent_stats.denormalize(r.reshape(*r.shape[:2], -1)).reshape(r.shape)
+    return MotionCodes(np.concatenate(entropy), np.concatenate(codes), latents, std)

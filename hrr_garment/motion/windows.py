@@ -1,0 +1,33 @@
+"""Sliding windows over per-frame arrays, the one place for them: every window of a clip
+(offline inference and training), or the window ending at each frame (causal inference).
+
+All are views or one copy of the frames; a window holds W consecutive frames, window i covering
+frames i .. i + W - 1 (offline) or t - W + 1 .. t (causal, window t).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import MotionError
+
+DEFAULT_WINDOW = 10
+
+
+def sequence_windows(frames: np.ndarray, window: int) -> np.ndarray:
+    """(T, ...) -> (T - W + 1, W, ...): every window of consecutive frames (a view, no copy)."""
+    return np.moveaxis(np.lib.stride_tricks.sliding_window_view(frames, window, axis=0), -1, 1)
+
+
+def windows(features: np.ndarray, size: int = DEFAULT_WINDOW, stride: int = 1, source: str = "motion") -> np.ndarray:
+    """(N, size, D) overlapping windows, N = (T - size) // stride + 1 (a view, no copy); a clip
+    shorter than one window is an error that names ``source``."""
+    if features.shape[0] < size:
+        raise MotionError(source, f"clip has {features.shape[0]} frames, shorter than one window of {size} frames")
+    return sequence_windows(features, size)[::stride]
+
+
+def causal_windows(features: np.ndarray, size: int) -> np.ndarray:
+    """(T, F) -> (T, W, F): window t holds frames t-W+1 .. t, frame 0 repeated before the start."""
+    padded = np.concatenate([np.repeat(features[:1], size - 1, 0), features])
+    return np.ascontiguousarray(sequence_windows(padded, size))

@@ -1,0 +1,43 @@
+/* hrr_native.h: what the three C sources of hrr_garment/native/ share. They are compiled together
+   as one translation unit (kernels.c, window_codes.c, features.c, in that order; see
+   hrr_garment/native/__init__.py), so helpers stay static and inline across files; this header
+   declares the ones defined in kernels.c that window_codes.c uses, instead of relying on the order
+   of concatenation. Include guard: every source includes it. */
+
+#ifndef HRR_NATIVE_H
+#define HRR_NATIVE_H
+
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+#include <math.h>
+#include <omp.h>
+
+#define ALWAYS_INLINE static inline __attribute__((always_inline))
+
+/* Denormal floats read and produced as zero (flush-to-zero and denormals-are-zero) in the calling
+   thread, restored afterwards: trained weights and activations hold some, and every product with
+   one takes a slow microcode path. Set in each worker thread, which PyTorch's setting misses. */
+#if defined(__x86_64__) || defined(__i386__)
+#include <xmmintrin.h>
+ALWAYS_INLINE unsigned denormals_off(void) { const unsigned old = _mm_getcsr(); _mm_setcsr(old | 0x8040); return old; }
+ALWAYS_INLINE void denormals_restore(unsigned old) { _mm_setcsr(old); }
+#else
+ALWAYS_INLINE unsigned denormals_off(void) { return 0; }
+ALWAYS_INLINE void denormals_restore(unsigned old) { (void)old; }
+#endif
+
+typedef float v8sf __attribute__((vector_size(32)));
+typedef float v16sf __attribute__((vector_size(64)));
+
+/* exp(y) for y <= 0, vectorisable (kernels.c) */
+ALWAYS_INLINE float exp_nonpositive(float y);
+
+/* The register-tiled dense product (kernels.c): weights in panels of PANEL columns, tiles by rows
+   (5 or 1) and 16-column vectors (1 to 4). */
+enum { PANEL = 64 };
+typedef void (*tile_fn)(const float *restrict, int, const float *restrict, const float *restrict, float *restrict,
+                        int, int);
+static const tile_fn TILES[2][4];
+
+#endif

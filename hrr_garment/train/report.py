@@ -1,0 +1,24 @@
+"""What every training stage returns: :class:`StageReport`, one dataclass for all of them."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+
+@dataclass
+class StageReport:
+    """A finished (or reused) training stage.
+
+    The fields every stage has are typed; ``metrics`` holds the stage's own numbers, as its
+    ``report.json`` records them (the autoencoder's per-vertex errors, the code space's validation
+    errors and database statistics, the baseline's validation error).
+    """
+
+    stage: str  # "autoencoder", "codespace" or "baseline"
+    folder: Path  # where the stage's outputs are
+    epochs: int  # epochs trained, interrupted runs included
+    best_epoch: int  # the epoch whose weights were kept
+    minutes: float  # wall time of the run that made the outputs
+    reused: bool = False  # the outputs were current: nothing was trained or written
+    metrics: dict = field(default_factory=dict)
