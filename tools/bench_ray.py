@@ -43,7 +43,7 @@ def main() -> None:
         ways = [("ray", n) for n in args.workers] + [("local", max(args.workers))]
         for executor, jobs in ways:
             out = Path(tmp) / f"{executor}-{jobs}.h5"
-            report = build_dataset(garment, specs, config, out, jobs=jobs, preview=False, progress=False,
+            report = build_dataset(garment, specs, config, out, jobs=jobs, preview=None, progress=False,
                                    executor=executor)
             s = report.summary
             frames = sum(st.get("simulated_frames", 0) for st in report.stats.values())
