@@ -33,6 +33,10 @@ def content_of(name: str, info: dict) -> str:
     return match.group("content") if match else stem
 
 
+def _empty_row() -> dict:
+    return {"clips": 0, "rejected": 0, "frames": 0, "strain": [], "pen_max": 0.0, "pen_max_clean": 0.0, "flagged": 0}
+
+
 def report(path: Path) -> dict:
     ds = GarmentDataset(path)
     edges = ds.template.edges()
@@ -41,8 +45,7 @@ def report(path: Path) -> dict:
         rec = ds.sequence(name)
         if "mirror_of" in rec.info:
             continue
-        row = rows.setdefault(content_of(name, rec.info), {"clips": 0, "rejected": 0, "frames": 0, "strain": [],
-                                                           "pen_max": 0.0, "pen_max_clean": 0.0, "flagged": 0})
+        row = rows.setdefault(content_of(name, rec.info), _empty_row())
         strain = edge_strain(rec.garment, ds.template.vertices, edges)
         pen = penetration_fraction(body_signed_distance(rec.garment, rec.motion))
         flagged = self_intersecting_frames(rec.motion)
@@ -53,9 +56,7 @@ def report(path: Path) -> dict:
         row["pen_max_clean"] = max(row["pen_max_clean"], float(pen[~flagged].max()) if (~flagged).any() else 0.0)
         row["flagged"] += int(flagged.sum())
     for name in ds.info.get("summary", {}).get("rejects", {}):
-        rows.setdefault(content_of(name, {"path": name}), {"clips": 0, "rejected": 0, "frames": 0, "strain": [],
-                                                           "pen_max": 0.0, "pen_max_clean": 0.0, "flagged": 0})
-        rows[content_of(name, {"path": name})]["rejected"] += 1
+        rows.setdefault(content_of(name, {"path": name}), _empty_row())["rejected"] += 1
     table = {}
     pooled = []
     for content, row in sorted(rows.items()):

@@ -131,8 +131,8 @@ def remove_rig_roll(glob: np.ndarray, g_src: np.ndarray, mapping: dict[int, int]
             to_canon = _mean_rotation(np.swapaxes(g_src[:, p], -1, -2) @ glob[:, parent])
             neutral = _mean_rotation(relative)
             glob[:, c] = glob[:, parent] @ to_canon.T @ relative @ neutral.T @ to_canon
-        else:
-            glob[:, c] = glob[:, parent] if c not in mapping else glob[:, c]
+        elif c not in mapping:  # follows its corrected parent rigidly
+            glob[:, c] = glob[:, parent]
 
 
 def retarget(src: SourceMotion, mapping_by_name: dict[str, int], ground: bool = True) -> tuple[np.ndarray, np.ndarray]:

@@ -110,7 +110,7 @@ def build_dataset(garment: GarmentMesh, specs: list[SequenceSpec], config: SimCo
     summary = summarise(records, garment, rejects, sim_wall, jobs, len(pending))
     if mirror:
         records, split = _add_mirrored(records, split, garment, progress)
-        summary["mirrored"] = len(records) // 2 if len(records) > len(done) else 0
+        summary["mirrored"] = len(records) - len(done)
     write_dataset(out, garment, records, split, {**(info or {}), "summary": summary, "sim": config.to_dict()})
     atomic_write_text(out.with_suffix(".summary.json"), json.dumps(summary, indent=2))
     report = BuildReport(out, done, rejects, summary, reused, len(pending) - len(rejects),

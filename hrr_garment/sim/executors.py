@@ -19,6 +19,7 @@ from tqdm.auto import tqdm
 
 from ..garment.mesh import GarmentMesh
 from ..motion.motion import FPS
+from .lead_in import lead_in_frames
 from .parts import PartResult, simulate_sequence, write_part
 from .plan import SequenceSpec
 from .simulator import SimConfig
@@ -27,7 +28,7 @@ EXECUTORS = ("local", "ray")
 
 
 def _frames_to_simulate(spec: SequenceSpec, config: SimConfig) -> int:
-    lead = int(round(config.settle_s * FPS)) + int(round(config.blend_s * FPS))  # as with_lead_in counts
+    lead = sum(lead_in_frames(config.settle_s, config.blend_s, FPS))
     return (int(round(spec.seconds * FPS)) if spec.kind != "file" else spec.stop - spec.start) + lead
 
 

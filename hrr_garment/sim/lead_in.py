@@ -27,14 +27,18 @@ def start_transform(motion: Motion) -> tuple[np.ndarray, np.ndarray]:
     return rotation_about_y(np.array(yaw)), np.array([root[0], 0.0, root[2]])
 
 
+def lead_in_frames(settle_s: float, blend_s: float, fps: float) -> tuple[int, int]:
+    """Frames of settling and of blending that :func:`with_lead_in` puts before a clip at ``fps``."""
+    return int(round(settle_s * fps)), int(round(blend_s * fps))
+
+
 def with_lead_in(motion: Motion, settle_s: float, blend_s: float) -> tuple[Motion, int]:
     """The clip preceded by ``settle_s`` of rest pose and ``blend_s`` of easing into frame 0.
 
     Returns (extended motion, number of lead-in frames); frame ``lead`` of the result is the
     clip's frame 0.
     """
-    settle = int(round(settle_s * motion.fps))
-    blend = int(round(blend_s * motion.fps))
+    settle, blend = lead_in_frames(settle_s, blend_s, motion.fps)
     rot_y, shift = start_transform(motion)
     joints = motion.local_rotations.shape[1]
     rest_local = np.broadcast_to(np.eye(3, dtype=np.float32), (joints, 3, 3)).copy()
