@@ -60,17 +60,20 @@ def test_body_dimensions_are_plausible():
     assert fuller.radii == pytest.approx(1.2 * DEFAULT_BODY.radii)
 
 
-def _arm_hanging(adduction_deg: float):
-    """A still pose, both arms hanging and turned ``adduction_deg`` towards the body's midline."""
+def _arm_hanging(adduction_deg):
+    """Both arms hanging and turned ``adduction_deg`` towards the body's midline: a still pose of
+    10 frames for a number, one frame per angle for a sequence."""
     from hrr_garment.motion.motion import Motion
     from hrr_garment.motion.rotations import axis_angle_to_matrix
     from hrr_garment.motion.skeleton import JOINT_INDEX, REST_PELVIS_HEIGHT
 
-    local = np.broadcast_to(np.eye(3, dtype=np.float32), (10, 22, 3, 3)).copy()
+    angles = np.broadcast_to(np.asarray(adduction_deg, float), (10,) if np.ndim(adduction_deg) == 0 else np.shape(adduction_deg))
+    local = np.broadcast_to(np.eye(3, dtype=np.float32), (len(angles), 22, 3, 3)).copy()
     for side, sign in (("l", 1.0), ("r", -1.0)):
-        angle = np.radians(-90.0 - adduction_deg) * sign  # about +z: the left arm swings down and in
-        local[:, JOINT_INDEX[f"{side}_shoulder"]] = axis_angle_to_matrix(np.array([0.0, 0.0, angle]))
-    root = np.tile([0.0, REST_PELVIS_HEIGHT, 0.0], (10, 1))
+        angle = np.radians(-90.0 - angles) * sign  # about +z: the left arm swings down and in
+        axis_angle = np.stack([np.zeros_like(angle), np.zeros_like(angle), angle], -1)
+        local[:, JOINT_INDEX[f"{side}_shoulder"]] = axis_angle_to_matrix(axis_angle)
+    root = np.tile([0.0, REST_PELVIS_HEIGHT, 0.0], (len(angles), 1))
     return Motion(local, root)
 
 
@@ -88,3 +91,30 @@ def test_limbs_through_the_body_are_flagged_and_ordinary_motion_is_not():
     assert limb_intrusion(outward).max() == 0.0
     assert limb_intrusion(inward).min() > SELF_INTERSECTION_DEPTH  # forearm and hand deep in the hips
     assert self_intersecting_frames(inward).all()
+
+
+def test_a_self_intersection_episode_is_flagged_whole_with_its_recovery():
+    from hrr_garment.body.self_contact import (
+        CONTACT_DEPTH,
+        SELF_INTERSECTION_DEPTH,
+        limb_intrusion,
+        self_intersecting_frames,
+    )
+
+    # arms swing in through the hips, about 0.9 cm a degree from -4 degrees on, and out again
+    ramp = np.arange(-6.0, 6.0)
+    motion = _arm_hanging(np.concatenate([np.full(5, -20.0), ramp, ramp[::-1], np.full(10, -20.0)]))
+    intrusion = limb_intrusion(motion)
+    flagged = self_intersecting_frames(motion)
+    episode = np.flatnonzero(intrusion > CONTACT_DEPTH)
+    start, stop = episode[0], episode[-1] + 1
+    assert (np.diff(episode) == 1).all() and intrusion.max() > SELF_INTERSECTION_DEPTH
+    # shallow frames at both ends of the episode count with it, and so does the recovery
+    assert ((intrusion > CONTACT_DEPTH) & (intrusion < SELF_INTERSECTION_DEPTH)).sum() >= 2
+    recovery = round(0.1 * motion.fps)
+    assert np.array_equal(np.flatnonzero(flagged), np.arange(start, stop + recovery))
+    assert not self_intersecting_frames(motion, recovery_s=0.0)[stop:].any()
+    # an episode that never passes the depth flags nothing
+    shallow = _arm_hanging(np.concatenate([np.full(5, -20.0), ramp[:5], ramp[:5][::-1], np.full(5, -20.0)]))
+    assert 0 < limb_intrusion(shallow).max() < SELF_INTERSECTION_DEPTH
+    assert not self_intersecting_frames(shallow).any()

@@ -40,6 +40,10 @@ def test_presets_plan_named_seeded_sequences():
     full = plan_sequences(load_preset("full"))
     assert len(full) >= 50 and sum(s.seconds for s in full) * 30 >= 6000
     quick = load_preset("quick")
+    for name, vertices in (("real-quick", 1000), ("real-full", 4000)):  # clips held out by style
+        real = load_preset(name)
+        assert real.vertices == vertices and real.split_by == "style" and real.mirror
+        assert "mocap:bandai/clips.tar.xz" in real.motions
     assert 1300 <= sum(s.seconds for s in plan_sequences(quick)) * 30 <= 1800
 
 
