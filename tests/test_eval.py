@@ -16,7 +16,8 @@ def test_hrr_eval_report_end_to_end(trained, tmp_path, capsys):
     assert main(["--model", str(root / "model"), "--dataset", str(data), "--split", "test", "--tau-sweep", "0,0.5,1,100",
                  "-o", str(out), "--quiet"]) == 0
     report = json.loads((out / "report.json").read_text())
-    assert report["format_version"] == 1 and report["dataset"]["sequences"] == ["run_000"]
+    assert report["format_version"] == 2 and report["dataset"]["sequences"] == ["run_000"]
+    assert report["ensemble"] == {"members": 0}  # a synthetic dataset: no simulator settings to perturb
     modes = report["modes"]
     assert list(modes) == ["hybrid", "regression", "retrieval", "naive-nn"]
     for name, entry in modes.items():
@@ -40,13 +41,45 @@ def test_hrr_eval_report_end_to_end(trained, tmp_path, capsys):
     assert "| hybrid |" in md and "## Tau sweep" in md
     for plot in ("error_over_time.png", "entropy_histogram.png", "tau_curve.png"):
         assert (out / plot).stat().st_size > 1000
-    assert "hybrid_vs_regression" in capsys.readouterr().out
+    printed = capsys.readouterr().out
+    assert "hybrid_vs_regression" in printed and "no ensemble ground truth" in printed
     # a real-motion clip whose simulation was rejected is named in report.md, not silently dropped
     from hrr_garment.eval.report import markdown
 
     real = {"files": ["a.bvh", "b.bvh"], "dataset": "real.h5", "sequences": ["a"], "frames": 10,
             "rejected": {"b": "edge strain 2.7 > 2.5"}, "modes": report["modes"]}
     assert "Not evaluated: `b`, its simulation was rejected (edge strain 2.7 > 2.5)" in markdown({**report, "real_motion": real}, [])
+
+
+def test_ensemble_scores_lead_the_report(trained):
+    import numpy as np
+
+    from hrr_garment.data.dataset import GarmentDataset
+    from hrr_garment.eval.ensemble import TruthEnsemble
+    from hrr_garment.eval.evaluate import evaluate_modes
+    from hrr_garment.eval.report import build_report, markdown
+    from hrr_garment.inference.animator import Animator
+
+    root, data, _ = trained
+    animator, record = Animator.load(root / "model"), GarmentDataset(data).sequence("run_000")
+    shift = np.array([0.003, 0.0, 0.0], np.float32)  # two truths 3 mm either side of the recorded one
+    members = np.stack([record.garment + shift, record.garment - shift])
+    ensembles = {record.name: TruthEnsemble(record.name, members, ["+x", "-x"], {})}
+    results = evaluate_modes(animator, [record], ["regression", "retrieval"], ensembles=ensembles, progress=False)
+    for result in results.values():
+        e = result.ensemble
+        assert e["floor_mm"] == pytest.approx(6.0, rel=1e-4) and e["sequences"] == 1
+        assert e["pve_floor_ratio"] == pytest.approx(e["pve_members_mm"] / e["floor_mm"])
+        # the members' mean is the recorded truth: PVE to it is the single-truth PVE
+        assert e["pve_ensemble_mean_mm"] == pytest.approx(result.metrics["pve_mm"], rel=1e-4)
+        assert e["pve_members_mm"] >= e["pve_ensemble_mean_mm"] and e["energy_score_mm"] >= 0
+        assert 0 <= e["penetration_before_worst_pct"] <= 100 and e["acceleration_ratio"] > 0
+    report = build_report(model={"folder": "m", "garment": "skirt", "hash": "h", "tau": 0.1}, dataset={
+        "path": "d.h5", "split": "test", "sequences": [record.name], "frames": len(record.garment)},
+        settings={"collision": True, "exclude_own_sequence": False, "tau": 0.1}, modes=results, sweep=None, real=None,
+        seconds=1.0, ensemble={"members": 2, "perturbations": ["+x", "-x"], "sequences": 1})
+    md = markdown(report, [])
+    assert md.index("ensemble ground truth") < md.index("## Modes") and "| simulation (truths) | 1.00 |" in md
 
 
 def test_hrr_eval_excluding_own_sequence_changes_training_retrieval(trained, tmp_path):

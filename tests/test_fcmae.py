@@ -54,6 +54,19 @@ def test_hierarchy_is_deterministic_and_cached(tmp_path, skirt, hierarchy):
             assert np.array_equal(a.index, b.index) and np.array_equal(a.mask, b.mask)
 
 
+def test_latent_level_keeps_a_minimum_of_nodes():
+    from hrr_garment.models.fcmae import AutoencoderConfig
+
+    dress = make_garment("dress", 1000)
+    one_percent = build_hierarchy(dress.faces, dress.num_vertices)
+    floored = build_hierarchy(dress.faces, dress.num_vertices, min_latent_nodes=64)
+    assert one_percent.sizes[-1] < 32  # 1 % of 1,046 vertices: the ~18-node level
+    assert floored.sizes == one_percent.sizes[:-1] and 48 <= floored.sizes[-1] <= 96  # the level nearest 64
+    # a model saved before the option existed loads with the hierarchy it was trained on
+    assert AutoencoderConfig.from_dict({"latent_fraction": 0.01}).min_latent_nodes == 4
+    assert AutoencoderConfig().hierarchy_options()["min_latent_nodes"] == 4
+
+
 def test_disconnected_template_is_rejected():
     with pytest.raises(GarmentError, match="one connected mesh"):  # two separate triangles
         build_hierarchy(np.array([[0, 1, 2], [3, 4, 5]]), 6, name="two.obj")

@@ -211,8 +211,7 @@ def load_bundle(folder: str | Path, cache_dir: Path | None = None) -> Bundle:
         raise BundleError(folder, f"the model was trained on {features} motion features; this hrr_garment computes {FEATURE_DIM}")
     t = _arrays(folder, "template.safetensors", ("vertices", "faces", "attached"))
     template = GarmentMesh(str(meta["garment"]), t["vertices"], t["faces"], {"attached": t["attached"]}, ("attached",))
-    hierarchy = cached_hierarchy(template.faces, template.num_vertices, cache_dir, latent_fraction=ae_cfg.latent_fraction,
-                                 stride=ae_cfg.stride, radius=ae_cfg.radius, name=str(folder))
+    hierarchy = cached_hierarchy(template.faces, template.num_vertices, cache_dir, **ae_cfg.hierarchy_options(), name=str(folder))
     if list(hierarchy.sizes) != list(meta["autoencoder"].get("sizes", [])):
         raise BundleError(folder, f"the template's sampling hierarchy has levels {list(hierarchy.sizes)}, the model "
                                   f"{meta['autoencoder'].get('sizes')}")

@@ -6,7 +6,10 @@
     hrr-eval --garment dress --split train --exclude-own-sequence --modes retrieval,naive-nn
 
 Writes REPORT_DIR/report.json (schema: docs/results.md), report.md and PNG plots (error over time
-per mode, entropy histogram with tau, tau curve). ``--motions`` simulates the ground truth of real
+per mode, entropy histogram with tau, tau curve). Each evaluated sequence of a simulated dataset is
+also simulated ``--ensemble K`` more times with tiny perturbations (cached under the workspace):
+report.md leads with every mode's error relative to that ensemble's spread (PVE / floor) and its
+plausibility relative to the truths (needs the ``sim`` extra; ``--ensemble 0`` skips it). ``--motions`` simulates the ground truth of real
 motion files with the dataset's simulator settings (cached under the workspace; needs the ``sim``
 extra) and evaluates on them as well. Modes: hybrid, regression, retrieval, naive-nn, and direct
 when the model has the direct-regression baseline (``hrr-train --stage baseline``).
@@ -52,6 +55,8 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--model", type=Path, default=None, help="model bundle directory (instead of --garment)")
     p.add_argument("--dataset", type=Path, default=None, help="dataset .h5 (default: the one the model was trained on)")
     p.add_argument("--split", default="test", choices=("train", "val", "test"))
+    p.add_argument("--sequences", type=int, default=None, metavar="N",
+                   help="evaluate N sequences of the split, evenly spaced in name order (default: all)")
     p.add_argument("--modes", type=_modes, default=None,
                    help="comma-separated (default: hybrid,regression,retrieval,naive-nn, plus direct when trained)")
     p.add_argument("--tau", type=float, default=None, help="tau for hybrid (default: the model's calibrated one)")
@@ -61,6 +66,9 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--no-sweep", action="store_true", help="skip the tau sweep")
     p.add_argument("--motions", nargs="+", default=None, help="real motion files to simulate and evaluate on")
     add_fps_option(p)
+    p.add_argument("--ensemble", type=int, default=4, metavar="K",
+                   help="perturbed simulations per sequence for the ensemble ground truth (default 4; 0: none)")
+    p.add_argument("--jobs", type=int, default=None, help="processes simulating the ensemble (default: one per core)")
     p.add_argument("--no-collision", action="store_true", help="evaluate without the collision push-out")
     p.add_argument("--no-plots", action="store_true")
     p.add_argument("-o", "--output", type=Path, default=None, help="report folder (default: hrr_work/eval/MODEL)")
@@ -79,6 +87,8 @@ def default_taus(animator, records) -> list[float]:
 
 def _main(argv: Sequence[str] | None) -> int:
     args = _parser().parse_args(argv)
+    import numpy as np
+
     from ..data.dataset import DatasetError, GarmentDataset
     from ..eval.evaluate import evaluate_modes, tau_sweep
     from ..eval.report import build_report, write_plots, write_report
@@ -101,29 +111,37 @@ def _main(argv: Sequence[str] | None) -> int:
     names = ds.splits.get(args.split, [])
     if not names:
         raise DatasetError(dataset, f"has no {args.split!r} sequences")
+    if args.sequences is not None:
+        if args.sequences < 1:
+            raise InputError("hrr-eval", f"--sequences must be at least 1, got {args.sequences}")
+        names = [names[i] for i in sorted({int(round(i)) for i in np.linspace(0, len(names) - 1, min(args.sequences, len(names)))})]
     modes = args.modes or [m for m in ALL_MODES if m != Mode.DIRECT or animator.has_direct]
     if Mode.DIRECT in modes and not animator.has_direct:
         raise InputError(model_dir, "has no direct-regression baseline: train it with hrr-train --stage baseline")
     out = args.output or workspace() / "eval" / model_dir.name
     records = [ds.sequence(n) for n in names]
     collision, progress = not args.no_collision, not args.quiet
+    if args.ensemble == 1 or args.ensemble < 0:
+        raise InputError("hrr-eval", f"--ensemble takes 0 (none) or at least 2 members, got {args.ensemble}")
+    ensembles = _ensembles(ds, records, args.ensemble, args.jobs, progress)
     tau = bundle.tau if args.tau is None else args.tau
     print(f"evaluating {model_dir} on {len(records)} {args.split} sequences of {dataset} ({sum(len(r.garment) for r in records)} "
           f"frames): {', '.join(modes)}")
-    results = evaluate_modes(animator, records, modes, tau, args.exclude_own_sequence, collision, progress)
+    results = evaluate_modes(animator, records, modes, tau, args.exclude_own_sequence, collision, progress, ensembles)
     sweep = None
     if not args.no_sweep:
         taus = args.tau_sweep or default_taus(animator, records)
         sweep = tau_sweep(animator, records, taus, args.exclude_own_sequence, collision, progress)
     real = None
     if args.motions:
-        real = _real_motion(animator, ds, args.motions, modes, tau, collision, progress, args.fps)
+        real = _real_motion(animator, ds, args.motions, modes, tau, collision, progress, args.fps, args.ensemble, args.jobs)
     report = build_report(
         model={"folder": str(model_dir), "garment": bundle.garment, "hash": bundle.content_hash, "tau": bundle.tau,
                "vertices": bundle.template.num_vertices, "preset": bundle.meta.get("preset")},
         dataset={"path": str(dataset), "split": args.split, "sequences": names,
                  "frames": int(sum(len(r.garment) for r in records))},
         settings={"modes": modes, "tau": tau, "collision": collision, "exclude_own_sequence": args.exclude_own_sequence},
+        ensemble=_ensemble_summary(ensembles, records, args.ensemble),
         modes=results, sweep=sweep, real=real, seconds=0.0)
     plots = [] if args.no_plots else write_plots(Path(out), results, sweep, tau)
     report["seconds"] = time.perf_counter() - t0
@@ -133,8 +151,31 @@ def _main(argv: Sequence[str] | None) -> int:
     return 0
 
 
+def _ensembles(ds, records, members: int, jobs: int | None, progress: bool) -> dict:
+    """The truth ensembles of ``records`` (none when ``members`` is 0 or the dataset was not simulated)."""
+    if not members:
+        return {}
+    if "sim" not in ds.info:
+        print(f"{ds.path} records no simulator settings (not built by hrr-simulate): no ensemble ground truth")
+        return {}
+    from ..eval.ensemble import truth_ensembles
+    from ..sim.simulator import SimConfig
+
+    return truth_ensembles(ds.template, records, SimConfig.from_dict(ds.info["sim"]), members, jobs, progress=progress)
+
+
+def _ensemble_summary(ensembles: dict, records, members: int) -> dict:
+    """What report.json records about the truth ensembles."""
+    if not ensembles:
+        return {"members": 0}
+    first = next(iter(ensembles.values()))
+    return {"members": members, "perturbations": first.perturbations, "sequences": len(ensembles),
+            "without_ensemble": [r.name for r in records if r.name not in ensembles],
+            "failed_members": {name: e.failed for name, e in ensembles.items() if e.failed}}
+
+
 def _real_motion(animator, ds, files: list[str], modes: list[str], tau: float, collision: bool, progress: bool,
-                 source_fps: float | None = None) -> dict:
+                 source_fps: float | None = None, members: int = 0, jobs: int | None = None) -> dict:
     """Simulate the files' ground truth with the dataset's settings (parts cached), evaluate there."""
     from ..data.dataset import GarmentDataset
     from ..eval.evaluate import evaluate_modes
@@ -154,17 +195,22 @@ def _real_motion(animator, ds, files: list[str], modes: list[str], tau: float, c
                            info={"purpose": "hrr-eval real motion", "source_dataset": str(ds.path)}, progress=progress)
     real = GarmentDataset(report.path)
     records = [real.sequence(n) for n in report.sequences]
-    results = evaluate_modes(animator, records, modes, tau, False, collision, progress)
+    ensembles = _ensembles(real, records, members, jobs, progress)
+    results = evaluate_modes(animator, records, modes, tau, False, collision, progress, ensembles)
     return {"files": [str(f) for f in files], "dataset": str(report.path), "sequences": report.sequences,
             "frames": int(sum(len(r.garment) for r in records)), "rejected": report.rejects,
+            "ensemble": _ensemble_summary(ensembles, records, members),
             "modes": {m: r.to_dict() for m, r in results.items()}}
 
 
 def _print_summary(report: dict) -> None:
     for mode, entry in report["modes"].items():
         m = entry["metrics"]
+        e = entry.get("ensemble") or {}
+        floor = f"  PVE/floor {e['pve_floor_ratio']:.2f} (floor {e['floor_mm']:.1f} mm)" if "pve_floor_ratio" in e else ""
         print(f"  {mode:10s} PVE {m['pve_mm']:7.2f} mm  RMSE {m['rmse_mm']:7.2f} mm  STED {m['sted']:.4f}  "
-              f"CD {m['chamfer_cm']:.3f} cm  pen. {m['penetration_pct']:.2f} %  retrieval {100 * m['retrieval_usage']:.0f} %")
+              f"CD {m['chamfer_cm']:.3f} cm  pen. {m['penetration_pct']:.2f} %  retrieval {100 * m['retrieval_usage']:.0f} %"
+              + floor)
     for name, g in report["goals"].items():
         if "ratio" in g:
             status = "" if g["met"] is None else (" met" if g["met"] else " NOT met")

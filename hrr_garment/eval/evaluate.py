@@ -17,8 +17,10 @@ from tqdm import tqdm
 from ..data.dataset import SequenceRecord
 from ..inference.animator import Animator
 from ..inference.modes import Mode
-from ..sim.quality import body_signed_distance
+from ..sim.quality import body_signed_distance, penetration_fraction
 from . import metrics as M
+from .ensemble import TruthEnsemble
+from .ensemble_metrics import ensemble_metrics, ensemble_ratios
 
 
 @dataclass
@@ -31,6 +33,7 @@ class SequenceResult:
     per_frame_pve_mm: np.ndarray  # (T,)
     entropy: np.ndarray  # (T,) motion-code entropy of the window centred on each frame
     retrieved: np.ndarray  # (T,) bool
+    ensemble: dict[str, float] = field(default_factory=dict)  # against the truth ensemble, when there is one
 
 
 @dataclass
@@ -45,9 +48,23 @@ class ModeResult:
     def metrics(self) -> dict[str, float]:
         return combine([s.metrics for s in self.sequences], [s.frames for s in self.sequences])
 
+    @property
+    def ensemble(self) -> dict[str, float]:
+        """Ensemble scores over the sequences that have a truth ensemble (empty when none has)."""
+        rows = [s for s in self.sequences if s.ensemble]
+        if not rows:
+            return {}
+        combined = combine([s.ensemble for s in rows], [s.frames for s in rows])
+        return {**combined, **ensemble_ratios(combined), "sequences": len(rows)}
+
     def to_dict(self) -> dict:
-        return {"mode": self.mode, "tau": self.tau, "metrics": self.metrics,
-                "sequences": {s.name: {"frames": s.frames, **s.metrics} for s in self.sequences}}
+        return {"mode": self.mode, "tau": self.tau, "metrics": self.metrics, "ensemble": self.ensemble,
+                "sequences": {s.name: {"frames": s.frames, **s.metrics, **({"ensemble": {**s.ensemble, **ensemble_ratios(s.ensemble)}}
+                                                                            if s.ensemble else {})}
+                              for s in self.sequences}}
+
+
+MAXIMA = ("strain_max", "truth_strain_max", "penetration_before_worst_pct", "truth_penetration_worst_pct")
 
 
 def combine(rows: list[dict[str, float]], weights: list[int]) -> dict[str, float]:
@@ -59,7 +76,7 @@ def combine(rows: list[dict[str, float]], weights: list[int]) -> dict[str, float
         values = np.array([r[key] for r in rows])
         if key == "rmse_mm":
             out[key] = float(np.sqrt((w * values ** 2).sum()))
-        elif key == "strain_max":
+        elif key in MAXIMA:
             out[key] = float(values.max())
         else:
             out[key] = float((w * values).sum())
@@ -78,25 +95,52 @@ def sequence_metrics(pred: np.ndarray, truth: np.ndarray, record: SequenceRecord
     return out
 
 
+def sequence_ensemble_metrics(anim_vertices: np.ndarray, before_push_out: tuple[float, float] | None,
+                              ensemble: TruthEnsemble, record: SequenceRecord, rest: np.ndarray, topo: M.MeshTopology,
+                              hem: np.ndarray | None) -> dict[str, float]:
+    """Ensemble scores of one prediction, with the penetration before the collision push-out
+    (``before_push_out``: mean and worst-frame fraction; None when there was no push-out) and the
+    members' own penetration and strain beside it."""
+    out = ensemble_metrics(anim_vertices, ensemble.members, record.motion, rest, topo, hem)
+    if before_push_out is None:
+        pen = penetration_fraction(body_signed_distance(anim_vertices, record.motion))
+        before_push_out = float(pen.mean()), float(pen.max())
+    truth_pen = [penetration_fraction(body_signed_distance(m, record.motion)) for m in ensemble.members]
+    strain = M.edge_strain_percentiles(ensemble.members.reshape(-1, *ensemble.members.shape[2:]), rest, topo)
+    out.update(penetration_before_pct=100.0 * before_push_out[0], penetration_before_worst_pct=100.0 * before_push_out[1],
+               truth_penetration_pct=100.0 * float(np.mean([p.mean() for p in truth_pen])),
+               truth_penetration_worst_pct=100.0 * float(max(p.max() for p in truth_pen)),
+               truth_strain_p99=strain["strain_p99"], truth_strain_max=strain["strain_max"])
+    return out
+
+
 def evaluate_modes(animator: Animator, records: list[SequenceRecord], modes: list[str], tau: float | None = None,
-                   exclude_own_sequence: bool = False, collision: bool = True, progress: bool = True) -> dict[str, ModeResult]:
+                   exclude_own_sequence: bool = False, collision: bool = True, progress: bool = True,
+                   ensembles: dict[str, TruthEnsemble] | None = None) -> dict[str, ModeResult]:
     """Each mode on each record. ``exclude_own_sequence`` keeps a record's own database sequence
-    (when it is one: training sequences) out of retrieval, as in the paper's comparison."""
+    (when it is one: training sequences) out of retrieval, as in the paper's comparison. Records
+    with a truth ensemble in ``ensembles`` are also scored against it."""
     bundle = animator.bundle
     tau = bundle.tau if tau is None else float(tau)
     topo = M.MeshTopology.of(bundle.template.faces, bundle.template.num_vertices)
     rest = bundle.template.vertices.astype(np.float64)
+    hem = bundle.template.groups.get("hem")
+    ensembles = ensembles or {}
     names = list(bundle.database.names)
     results = {m: ModeResult(m, tau) for m in modes}
     jobs = [(m, r) for r in records for m in modes]
     for mode, record in tqdm(jobs, desc="evaluate", unit="run", disable=not progress):
         own = names.index(record.name) if exclude_own_sequence and record.name in names else None
         anim = animator.animate(record.motion, mode=mode, tau=tau, collision=collision, exclude_sequence=own)
+        ensemble = {}
+        if record.name in ensembles:
+            before = (anim.penetration.inside_before, anim.penetration.worst_before) if anim.penetration else None
+            ensemble = sequence_ensemble_metrics(anim.vertices, before, ensembles[record.name], record, rest, topo, hem)
         results[mode].sequences.append(SequenceResult(
             record.name, len(record.garment),
             sequence_metrics(anim.vertices, record.garment, record, rest, topo, anim.mode.astype(bool)),
             M.per_frame_pve_mm(anim.vertices.astype(np.float64), record.garment.astype(np.float64)),
-            anim.entropy.astype(np.float64), anim.mode.astype(bool)))
+            anim.entropy.astype(np.float64), anim.mode.astype(bool), ensemble))
     return results
 
 

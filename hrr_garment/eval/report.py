@@ -17,7 +17,7 @@ import numpy as np
 from ..io_utils import atomic_path, atomic_write_text
 from .evaluate import ModeResult, TauPoint
 
-REPORT_VERSION = 1
+REPORT_VERSION = 2  # 2: truth ensembles ("ensemble" per mode and at the top level)
 GOALS = (  # (name, numerator mode, denominator mode, target ratio)
     ("hybrid_vs_regression", "hybrid", "regression", 0.5),
     ("hybrid_vs_retrieval", "hybrid", "retrieval", 0.85),
@@ -28,6 +28,12 @@ TABLE_METRICS = (("pve_mm", "PVE mm", 2), ("rmse_mm", "RMSE mm", 2), ("sted", "S
                  ("penetration_pct", "pen. %", 2), ("curvature_error_cm", "E_curv cm", 1), ("strain_p99", "strain p99", 3),
                  ("stretch_energy_ratio", "stretch E ratio", 2), ("bending_energy_ratio", "bend E ratio", 2),
                  ("jitter_mm", "jitter mm", 2), ("retrieval_usage", "retrieval", 3))
+ENSEMBLE_METRICS = (("pve_floor_ratio", "PVE / floor", 2), ("pve_members_mm", "PVE to members mm", 2),
+                    ("pve_ensemble_mean_mm", "PVE to mean mm", 2), ("energy_score_mm", "energy score mm", 2),
+                    ("penetration_before_worst_pct", "pen. before push-out, worst frame %", 2),
+                    ("strain_p99", "strain p99", 3), ("strain_max", "strain max", 2), ("jitter_ratio", "jitter ratio", 2),
+                    ("acceleration_ratio", "accel. ratio", 2), ("bending_energy_ratio", "sharpness (bend E ratio)", 2),
+                    ("hem_swing_ratio", "hem swing ratio", 2))
 
 
 def goals(modes: dict[str, ModeResult], sweep: list[TauPoint] | None) -> dict:
@@ -66,10 +72,11 @@ def entropy_summary(modes: dict[str, ModeResult], bins: int = 20) -> dict:
 
 
 def build_report(*, model: dict, dataset: dict, settings: dict, modes: dict[str, ModeResult],
-                 sweep: list[TauPoint] | None, real: dict | None, seconds: float) -> dict:
+                 sweep: list[TauPoint] | None, real: dict | None, seconds: float, ensemble: dict | None = None) -> dict:
     """The report.json contents (schema: docs/results.md)."""
     return {
         "format_version": REPORT_VERSION, "model": model, "dataset": dataset, "settings": settings,
+        "ensemble": ensemble or {"members": 0},
         "modes": {m: r.to_dict() for m, r in modes.items()},
         "goals": goals(modes, sweep),
         "tau_sweep": [vars(p) for p in sweep] if sweep else [],
@@ -92,6 +99,27 @@ def _mode_table(modes: dict) -> list[str]:
     return lines
 
 
+def _ensemble_table(modes: dict, ensemble: dict) -> list[str]:
+    """One row per mode against the truth ensemble, the truths' own values in the last row."""
+    rows = {mode: {**entry["ensemble"], "strain_p99": entry["metrics"]["strain_p99"], "strain_max": entry["metrics"]["strain_max"]}
+            for mode, entry in modes.items() if entry.get("ensemble")}
+    if not rows:
+        return []
+    any_row = next(iter(rows.values()))
+    truth = {"pve_floor_ratio": 1.0, "pve_members_mm": any_row["floor_mm"], "penetration_before_worst_pct":
+             any_row.get("truth_penetration_worst_pct"), "strain_p99": any_row.get("truth_strain_p99"),
+             "strain_max": any_row.get("truth_strain_max"), **{k: 1.0 for k, _, _ in ENSEMBLE_METRICS if k.endswith("_ratio")}}
+    lines = [f"Against {ensemble['members']} perturbed simulations of each of {ensemble['sequences']} sequences "
+             f"({', '.join(ensemble['perturbations'])}); floor = mean PVE between two of them, "
+             f"{any_row['floor_mm']:.2f} mm. PVE / floor is 1 for a prediction as good as a fresh simulation and about "
+             "0.71 for the perfect mean; ratios are the prediction's value over the truths'.", "",
+             "| mode | " + " | ".join(label for _, label, _ in ENSEMBLE_METRICS) + " |",
+             "|---|" + "---:|" * len(ENSEMBLE_METRICS)]
+    for mode, m in [*rows.items(), ("simulation (truths)", truth)]:
+        lines.append(f"| {mode} | " + " | ".join(_fmt(m.get(k), d) for k, _, d in ENSEMBLE_METRICS) + " |")
+    return lines
+
+
 def markdown(report: dict, plots: list[str]) -> str:
     """report.md: the report's tables, with the plots."""
     model, data, settings = report["model"], report["dataset"], report["settings"]
@@ -100,7 +128,11 @@ def markdown(report: dict, plots: list[str]) -> str:
            f"`{data['path']}`, split **{data['split']}**: {len(data['sequences'])} sequences, {data['frames']} frames. "
            f"Collision push-out {'on' if settings['collision'] else 'off'}; own sequence excluded from retrieval: "
            f"{'yes' if settings['exclude_own_sequence'] else 'no'}; tau {settings['tau']:.3f}. "
-           f"Run time {report['seconds']:.0f} s.", "", "## Modes", ""]
+           f"Run time {report['seconds']:.0f} s.", ""]
+    lead = _ensemble_table(report["modes"], report.get("ensemble", {}))
+    if lead:
+        out += ["## Against the simulator's own chaos (ensemble ground truth)", "", *lead, ""]
+    out += ["## Modes (against the dataset's single simulation)", ""]
     out += _mode_table(report["modes"])
     out += ["", "## Goals (the paper's shape; PVE ratios)", "", "| goal | ratio | target | met |", "|---|---:|---:|---|"]
     for name, g in report["goals"].items():
@@ -128,6 +160,8 @@ def markdown(report: dict, plots: list[str]) -> str:
             out += [f"- Not evaluated: `{name}`, its simulation was rejected ({reason})."]
         if real.get("rejected"):
             out += [""]
+        lead = _ensemble_table(real["modes"], real.get("ensemble", {}))
+        out += [*lead, ""] if lead else []
         out += _mode_table(real["modes"])
     if plots:
         out += ["", "## Plots", ""] + [f"![{Path(p).stem}]({Path(p).name})" for p in plots]

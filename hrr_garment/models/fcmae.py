@@ -37,6 +37,7 @@ class AutoencoderConfig:
     basis: int = 17
     residual: float = 0.5
     latent_fraction: float = 0.01
+    min_latent_nodes: int = 4  # configs/train.yaml asks 64; 4 keeps models trained before it loading as they were
     stride: int = 2
     radius: int = 2
 
@@ -50,6 +51,11 @@ class AutoencoderConfig:
         d = asdict(self)
         d["channels"] = list(self.channels)
         return d
+
+    def hierarchy_options(self) -> dict:
+        """The keyword arguments of :func:`~hrr_garment.models.hierarchy.build_hierarchy` this model uses."""
+        return {"latent_fraction": self.latent_fraction, "min_latent_nodes": self.min_latent_nodes,
+                "stride": self.stride, "radius": self.radius}
 
     def channel(self, level: int) -> int:
         return self.channels[min(level, len(self.channels) - 1)]

@@ -212,8 +212,7 @@ def train_autoencoder(dataset: str | Path, folder: str | Path, model_config: Aut
     ds = GarmentDataset(dataset)
     frames = training_frames(ds, train_config.mirror)
     hierarchy = cached_hierarchy(ds.template.faces, ds.template.num_vertices, cache_dir,
-                                 latent_fraction=model_config.latent_fraction, stride=model_config.stride,
-                                 radius=model_config.radius, name=str(dataset))
+                                 **model_config.hierarchy_options(), name=str(dataset))
     model = MeshAutoencoder(hierarchy, model_config, ds.template.vertices.astype(np.float32), frames.scale).to(device)
     optimizer = torch.optim.Adam(model.parameters(), lr=train_config.learning_rate)
     training_key, key = _settings_keys(model_config, train_config, ds)
@@ -269,8 +268,7 @@ def load_autoencoder(folder: str | Path, faces: np.ndarray, cache_dir: Path | No
     folder = Path(folder)
     meta = json.loads((folder / "config.json").read_text())
     config = AutoencoderConfig.from_dict(meta["model"])
-    hierarchy = cached_hierarchy(faces, meta["vertices"], cache_dir, latent_fraction=config.latent_fraction,
-                                 stride=config.stride, radius=config.radius)
+    hierarchy = cached_hierarchy(faces, meta["vertices"], cache_dir, **config.hierarchy_options())
     model = MeshAutoencoder(hierarchy, config)
     state = torch.load(folder / "model.pt", map_location="cpu", weights_only=True)
     # files from before the neighbour lists stopped being saved (they are rebuilt from the template)

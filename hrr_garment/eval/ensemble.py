@@ -1,0 +1,157 @@
+"""Ensemble ground truth: K perturbed re-simulations of each evaluated sequence (DESIGN section 12).
+
+Cloth simulation is chaotic: the same motion simulated with the density changed by one part in
+10,000 ends 15-25 mm PVE away from the first run, so a single simulated truth cannot rank models
+below that. Each evaluated sequence is therefore simulated again K times (default 4), each
+member with one small perturbation of the dataset's own simulator settings:
+
+    member 0: density x (1 + 1e-4)      member 1: density x (1 - 1e-4)
+    member 2: settle one frame longer   member 3: settle one frame shorter
+    members 4-7: the same at twice the size, and so on.
+
+The dataset's recorded frames are not a member: every member is perturbed alike, so none is
+privileged. Members are cached one file each under ``$HRR_HOME/cache/ensemble`` (keyed by the
+template, the motion and the settings), so an interrupted or repeated evaluation simulates only
+what is missing, and every model evaluated on the same data shares them. A member whose
+simulation explodes is left out (and reported); a sequence needs two members for a floor.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import multiprocessing as mp
+import os
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+from tqdm.auto import tqdm
+
+from ..data.dataset import SequenceRecord
+from ..garment.mesh import GarmentMesh
+from ..io_utils import atomic_path, atomic_write_text
+from ..paths import workspace
+from ..sim.parts import template_hash
+from ..sim.simulator import SimConfig, SimulationExploded, simulate_garment
+
+DENSITY_STEP = 1.0e-4
+ENSEMBLE_VERSION = 1
+
+
+def member_config(config: SimConfig, k: int, fps: float) -> tuple[SimConfig, str]:
+    """The settings of member ``k`` and a short description of its perturbation."""
+    size, kind = k // 4 + 1, k % 4
+    if kind < 2:
+        factor = 1.0 + (1 if kind == 0 else -1) * DENSITY_STEP * size
+        return replace(config, density=config.density * factor), f"density x {factor:.6g}"
+    frames = (1 if kind == 2 else -1) * size
+    settle = config.settle_s + frames / fps
+    if settle < 0:
+        raise ValueError(f"member {k} would settle {settle:.3f} s: use fewer members or a longer settle")
+    return replace(config, settle_s=settle), f"settle {frames:+d} frame{'s' if abs(frames) > 1 else ''}"
+
+
+@dataclass
+class TruthEnsemble:
+    """The K simulated truths of one sequence (members that exploded left out)."""
+
+    name: str
+    members: np.ndarray  # (K, T, V, 3) float32, world space
+    perturbations: list[str]
+    failed: dict[str, str]  # perturbation -> why its simulation was rejected
+
+    @property
+    def mean(self) -> np.ndarray:
+        return self.members.astype(np.float64).mean(0)
+
+
+def _member_key(garment: GarmentMesh, record: SequenceRecord, config: SimConfig) -> str:
+    h = hashlib.sha256()
+    h.update(json.dumps({"version": ENSEMBLE_VERSION, "template": template_hash(garment), "config": config.to_dict()},
+                        sort_keys=True).encode())
+    for array in (record.motion.local_rotations, record.motion.root_translation):
+        h.update(np.ascontiguousarray(array).tobytes())
+    h.update(repr(record.motion.fps).encode())
+    return h.hexdigest()[:20]
+
+
+def _simulate_member(garment: GarmentMesh, record: SequenceRecord, config: dict, path: str) -> str | None:
+    """Simulate one member into ``path`` (atomically); returns why it failed, or None."""
+    try:
+        result = simulate_garment(garment, record.motion, SimConfig.from_dict(config))
+    except SimulationExploded as exc:
+        atomic_write_text(Path(path).with_suffix(".failed.json"), json.dumps({"reason": str(exc)}))
+        return str(exc)
+    with atomic_path(path) as tmp:
+        with open(tmp, "wb") as fh:
+            np.save(fh, result.vertices.astype(np.float32))
+    return None
+
+
+def _readable(path: Path) -> bool:
+    try:
+        np.load(path, mmap_mode="r", allow_pickle=False)
+        return True
+    except (OSError, ValueError):
+        return False
+
+
+def _cached(path: Path) -> tuple[np.ndarray | None, str | None]:
+    failed = path.with_suffix(".failed.json")
+    if failed.is_file():
+        return None, json.loads(failed.read_text())["reason"]
+    if path.is_file():
+        try:
+            return np.load(path, allow_pickle=False), None
+        except (OSError, ValueError):
+            return None, None  # unreadable: simulate again
+    return None, None
+
+
+def truth_ensembles(garment: GarmentMesh, records: list[SequenceRecord], config: SimConfig, members: int = 4,
+                    jobs: int | None = None, cache: str | Path | None = None,
+                    progress: bool = True) -> dict[str, TruthEnsemble]:
+    """``members`` perturbed simulations of each record (cached; missing ones run in ``jobs`` processes)."""
+    if members < 2:
+        raise ValueError(f"an ensemble needs at least 2 members, got {members}")
+    cache = Path(cache) if cache is not None else workspace() / "cache" / "ensemble"
+    cache.mkdir(parents=True, exist_ok=True)
+    plan: dict[tuple[str, int], tuple[Path, SimConfig, str]] = {}
+    for record in records:
+        for k in range(members):
+            cfg, label = member_config(config, k, record.motion.fps)
+            plan[record.name, k] = (cache / f"{_member_key(garment, record, cfg)}.npy", cfg, label)
+    missing = [(name, k) for (name, k), (path, _, _) in plan.items()
+               if not path.with_suffix(".failed.json").is_file() and not _readable(path)]
+    if missing:
+        by_name = {r.name: r for r in records}
+        frames = sum(by_name[name].motion.num_frames for name, _ in missing)
+        print(f"simulating {len(missing)} ensemble member(s) of {len(records)} sequence(s) ({frames} frames; "
+              f"cached in {cache})")
+        ctx = mp.get_context("spawn")  # Warp is not fork-safe
+        with ProcessPoolExecutor(max_workers=jobs or os.cpu_count() or 1, mp_context=ctx) as pool, \
+                tqdm(total=frames, unit="frame", desc="ensemble truth", disable=not progress) as bar:
+            futures = {pool.submit(_simulate_member, garment, by_name[name], plan[name, k][1].to_dict(),
+                                   str(plan[name, k][0])): (name, k) for name, k in missing}
+            for fut in as_completed(futures):
+                name, k = futures[fut]
+                reason = fut.result()
+                if reason is not None:
+                    bar.write(f"ensemble member {k} of {name} rejected: {reason}")
+                bar.update(by_name[name].motion.num_frames)
+    out = {}
+    for record in records:
+        arrays, labels, failed = [], [], {}
+        for k in range(members):
+            path, _, label = plan[record.name, k]
+            vertices, reason = _cached(path)
+            if vertices is None:
+                failed[label] = reason or "missing"
+            else:
+                arrays.append(vertices)
+                labels.append(label)
+        if len(arrays) >= 2:
+            out[record.name] = TruthEnsemble(record.name, np.stack(arrays), labels, failed)
+    return out
