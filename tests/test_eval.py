@@ -168,3 +168,12 @@ def test_gate_analysis_oracle_bounds_both_modes(trained):
     # each window takes its better candidate: never worse than either mode alone
     assert r["oracle_hybrid_mm"] <= min(r["regression_mm"], r["retrieval_mm"]) + 1e-9
     assert 0.0 <= r["retrieval_better_fraction"] <= 1.0 and r["windows"] > 0
+
+
+def test_demo_says_which_dataset_its_model_was_trained_on(trained, capsys):
+    from hrr_garment.cli.demo import _say_dataset
+
+    root, data, _ = trained
+    _say_dataset(root / "model")
+    said = capsys.readouterr().out
+    assert f"trained on {data}" in said and "sequences" in said and "frames" in said

@@ -68,13 +68,30 @@ def _body(argv: Sequence[str] | None) -> int:
 
         motion_file = out / "walk.npz"
         save_motion(synthesize("walk", seconds=6.0, seed=5), motion_file)
+    model = workspace() / "models" / f"dress-{args.preset}"
+    _say_dataset(model)
     print(f"== animating {motion_file.name}")
-    if animate_main([str(motion_file), "-o", str(out / "out.h5"), "--model", str(workspace() / "models" / f"dress-{args.preset}")]) != 0:
+    if animate_main([str(motion_file), "-o", str(out / "out.h5"), "--model", str(model)]) != 0:
         return 2
     from .preview import main as preview_main
 
     print("== rendering a preview (15 fps GIF, front and left views)")
     return preview_main([str(out / "out.h5"), "-o", str(out / "preview.gif"), "--every", "2", "--color-mode"])
+
+
+def _say_dataset(model: Path) -> None:
+    """Print which dataset the demo model was trained on (its bundle records it)."""
+    import json
+
+    from ..data.dataset import GarmentDataset
+
+    dataset = Path(json.loads((model / "bundle.json").read_text()).get("dataset", ""))
+    if not dataset.is_file():
+        print(f"   trained on {dataset} (no longer there)")
+        return
+    ds = GarmentDataset(dataset)
+    print(f"   trained on {dataset}: preset {ds.info.get('preset', '?')}, {len(ds.names)} sequences, "
+          f"{sum(ds.frames.values())} frames")
 
 
 def main(argv: Sequence[str] | None = None) -> int:
