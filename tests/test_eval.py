@@ -93,6 +93,11 @@ def test_hrr_eval_excluding_own_sequence_changes_training_retrieval(trained, tmp
                      "--no-sweep", "--no-plots", "-o", str(out), "--quiet", *flag]) == 0
         reports.append(json.loads((out / "report.json").read_text()))
     own, excluded = (r["modes"]["retrieval"]["metrics"]["pve_mm"] for r in reports)
+    train = reports[0]["dataset"]["sequences"]
+    out = tmp_path / "two"
+    assert main(["--model", str(root / "model"), "--dataset", str(data), "--split", "train", "--modes", "retrieval",
+                 "--sequences", "2", "--no-sweep", "--no-plots", "-o", str(out), "--quiet"]) == 0
+    assert json.loads((out / "report.json").read_text())["dataset"]["sequences"] == [train[0], train[-1]]
     # with its own windows available retrieval finds the sequence itself: far closer than without
     assert own < excluded
 
