@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -150,6 +151,9 @@ def _load_state(module: torch.nn.Module, path: Path, folder: Path) -> None:
         if tuple(value.shape) != tuple(expected[key].shape):
             raise BundleError(folder, f"{path.name}: {key} has shape {tuple(value.shape)}, the configuration needs "
                                       f"{tuple(expected[key].shape)}")
+    bad = [key for key, value in state.items() if value.is_floating_point() and not torch.isfinite(value).all()]
+    if bad:
+        raise BundleError(folder, f"{path.name}: non-finite weights in {bad[:3]}")
     # Weight decay leaves some never-used weights (e.g. attention projections) at denormal
     # magnitudes (< 1.2e-38); CPUs take a slow path for each product with one, which doubled the
     # motion encoder's time on a trained model. As weights they are zeros.
@@ -170,11 +174,48 @@ def _arrays(folder: Path, name: str, keys: tuple[str, ...]) -> dict[str, np.ndar
     missing = [k for k in keys if k not in arrays]
     if missing:
         raise BundleError(folder, f"{name} lacks {missing}")
+    bad = [k for k, v in arrays.items() if np.issubdtype(v.dtype, np.floating) and not np.isfinite(v).all()]
+    if bad:
+        raise BundleError(folder, f"{name}: non-finite values in {bad[:3]}")
     return arrays
 
 
+def _required_files(meta: dict) -> set[str]:
+    """Every file :func:`load_bundle` opens for this bundle: each must be listed with its hash."""
+    names = {"autoencoder.safetensors", "stats.safetensors", "database.safetensors", "template.safetensors",
+             *[f"{n}.safetensors" for n in NETWORKS]}
+    return names | ({"direct.safetensors"} if "direct" in meta else set())
+
+
+def _check_manifest(folder: Path, meta: object) -> dict:
+    """bundle.json's structure, file list and content hash; the integrity check has no off switch."""
+    if not isinstance(meta, dict):
+        raise BundleError(folder, f"bundle.json holds a {type(meta).__name__}, not an object")
+    files = meta.get("files")
+    if not isinstance(files, dict) or not all(isinstance(k, str) and isinstance(v, str) for k, v in files.items()):
+        raise BundleError(folder, "bundle.json has no valid 'files' list (file name -> sha256): refusing an unverifiable model")
+    unlisted = sorted(_required_files(meta) - set(files))
+    if unlisted:
+        raise BundleError(folder, f"bundle.json does not list {unlisted} with their hashes: refusing an unverifiable model")
+    for name in files:
+        if name != Path(name).name or name in ("", ".", "..") or "\\" in name:
+            raise BundleError(folder, f"bundle.json lists {name!r}: bundle files must lie directly in the bundle folder")
+    if meta.get("content_hash") != _content_hash(files):
+        raise BundleError(folder, f"content_hash {meta.get('content_hash')!r} does not match the file list "
+                                  f"({_content_hash(files)}): bundle.json was edited")
+    garment, tau = meta.get("garment"), meta.get("tau")
+    if not isinstance(garment, str) or not garment:
+        raise BundleError(folder, f"bundle.json 'garment' must be a name, got {garment!r}")
+    if isinstance(tau, bool) or not isinstance(tau, (int, float)) or not math.isfinite(tau) or tau < 0:
+        raise BundleError(folder, f"bundle.json 'tau' must be a finite number >= 0, got {tau!r}")
+    for section in ("autoencoder", "codespace", "database"):
+        if not isinstance(meta.get(section), dict):
+            raise BundleError(folder, f"bundle.json lacks its {section!r} section")
+    return meta
+
+
 def read_meta(folder: str | Path) -> dict:
-    """``bundle.json`` after the version and file-hash checks."""
+    """``bundle.json`` after the version, manifest and file-hash checks."""
     folder = Path(folder)
     path = folder / "bundle.json"
     if not folder.is_dir():
@@ -183,12 +224,14 @@ def read_meta(folder: str | Path) -> dict:
         raise BundleError(folder, "no bundle.json: not a model bundle, or its training did not finish")
     try:
         meta = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, json.JSONDecodeError) as exc:
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise BundleError(folder, f"bundle.json is unreadable ({exc})") from None
-    if meta.get("format_version") != FORMAT_VERSION:
-        raise BundleError(folder, f"bundle format_version {meta.get('format_version')!r}; this hrr_garment reads {FORMAT_VERSION} "
+    if not isinstance(meta, dict) or meta.get("format_version") != FORMAT_VERSION:
+        version = meta.get("format_version") if isinstance(meta, dict) else None
+        raise BundleError(folder, f"bundle format_version {version!r}; this hrr_garment reads {FORMAT_VERSION} "
                                   "(retrain with hrr-train)")
-    for name, digest in meta.get("files", {}).items():
+    _check_manifest(folder, meta)
+    for name, digest in meta["files"].items():
         if not (folder / name).is_file():
             raise BundleError(folder, f"{name} is missing")
         if _sha256(folder / name) != digest:
