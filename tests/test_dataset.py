@@ -44,14 +44,27 @@ def test_presets_plan_named_seeded_sequences():
         real = load_preset(name)
         assert real.vertices == vertices and real.split_by == "style" and real.mirror
         assert "mocap:bandai/clips.tar.xz" in real.motions
-    assert 1300 <= sum(s.seconds for s in plan_sequences(quick)) * 30 <= 1800
+    assert 2000 <= sum(s.seconds for s in plan_sequences(quick)) * 30 <= 2400
+
+
+def test_test_split_holds_five_sequences_where_the_data_allows():
+    from hrr_garment.data.dataset import split_groups, test_size
+
+    assert [test_size(n, 0.1) for n in (2, 5, 13, 18, 100)] == [0, 1, 4, 5, 10]
+    quick = split_names([f"s{i}" for i in range(18)], 0.1, 0.1, seed=0)
+    assert len(quick["test"]) == 5 and len(quick["val"]) == 2 and len(quick["train"]) == 11
+    # by group: whole groups until five sequences are held out
+    groups = {f"{g}_{i}": g for g in "abcdefgh" for i in range(3)}
+    split = split_groups(groups, 0.1, 0.1, seed=0)
+    assert 5 <= len(split["test"]) <= 8 and len(split["test"]) % 3 == 0
+    assert {groups[n] for n in split["test"]}.isdisjoint(groups[n] for n in split["train"])
 
 
 def test_split_is_by_sequence_seeded_and_complete():
     names = [f"s{i}" for i in range(20)]
     a, b = split_names(names, 0.1, 0.1, seed=0), split_names(names[::-1], 0.1, 0.1, seed=0)
     assert a == b
-    assert sorted(sum(a.values(), [])) == sorted(names) and len(a["val"]) == 2 and len(a["test"]) == 2
+    assert sorted(sum(a.values(), [])) == sorted(names) and len(a["val"]) == 2 and len(a["test"]) == 5  # MIN_TEST
     assert split_names(names, 0.1, 0.1, seed=1) != a
 
 

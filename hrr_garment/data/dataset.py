@@ -47,14 +47,26 @@ class SequenceRecord:
     info: dict = field(default_factory=dict)
 
 
+MIN_TEST = 5  # sequences: a test split of one clip measures that clip, not the model
+
+
+def test_size(total: int, fraction: float, minimum: int = MIN_TEST) -> int:
+    """Sequences the test split should hold: ``fraction`` of ``total`` but at least ``minimum``, and
+    never more than a third of them (a tiny dataset keeps most for training), at least one from three."""
+    if total < 3 or fraction <= 0:
+        return 0
+    return max(1, int(round(fraction * total)), min(minimum, total // 3))
+
+
 def split_names(names: list[str], val: float, test: float, seed: int) -> dict[str, list[str]]:
-    """Seeded split by sequence; with three or more sequences val and test get at least one each."""
+    """Seeded split by sequence; with three or more sequences val and test get at least one each,
+    and test at least :data:`MIN_TEST` where the data allows (:func:`test_size`)."""
     order = sorted(names)
     rng = np.random.default_rng(seed)
     rng.shuffle(order)
     n = len(order)
     n_val = max(1, int(round(val * n))) if n >= 3 and val > 0 else 0
-    n_test = max(1, int(round(test * n))) if n >= 3 and test > 0 else 0
+    n_test = test_size(n, test)
     return {"val": sorted(order[:n_val]), "test": sorted(order[n_val:n_val + n_test]),
             "train": sorted(order[n_val + n_test:])}
 
@@ -73,8 +85,9 @@ def split_groups(groups: dict[str, str], val: float, test: float, seed: int) -> 
     np.random.default_rng(seed).shuffle(order)
     total = len(groups)
     out: dict[str, list[str]] = {"val": [], "test": [], "train": []}
+    wanted = {"test": max(test * total, test_size(total, test)), "val": val * total}
     for split, fraction in (("test", test), ("val", val)):
-        while order and fraction > 0 and len(order) >= 2 and (not out[split] or len(out[split]) < fraction * total):
+        while order and fraction > 0 and len(order) >= 2 and (not out[split] or len(out[split]) < wanted[split]):
             out[split] += members[order.pop(0)]
     for group in order:
         out["train"] += members[group]
