@@ -1,11 +1,11 @@
-"""Atomic file writing: write to a temporary file beside the target, then rename.
-
-A failed or interrupted run never leaves a half-written file under the target name.
-"""
+"""Atomic file writing (write to a temporary file beside the target, then rename: a failed or
+interrupted run never leaves a half-written file under the target name), and strict JSON."""
 
 from __future__ import annotations
 
 import contextlib
+import json
+import math
 import os
 import tempfile
 from pathlib import Path
@@ -42,3 +42,21 @@ def atomic_write_bytes(path: str | Path, data: bytes) -> None:
     """Write ``data`` to ``path`` atomically."""
     with atomic_path(path) as tmp:
         tmp.write_bytes(data)
+
+
+def _json_ready(value):
+    """numpy scalars to Python, non-finite floats to None: strict JSON has no NaN or Infinity."""
+    if isinstance(value, dict):
+        return {str(k): _json_ready(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_json_ready(v) for v in value]
+    if hasattr(value, "item") and callable(value.item) and getattr(value, "ndim", None) == 0:
+        value = value.item()  # a numpy scalar
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    return value
+
+
+def strict_json(value, **kwargs) -> str:
+    """``json.dumps`` that writes non-finite numbers as ``null`` instead of NaN / Infinity."""
+    return json.dumps(_json_ready(value), allow_nan=False, **kwargs)

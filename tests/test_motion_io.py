@@ -137,6 +137,17 @@ def test_atomic_writes_get_ordinary_permissions(tmp_path):
         os.umask(umask)
 
 
+def test_strict_json_writes_non_finite_numbers_as_null():
+    import json
+
+    from hrr_garment.io_utils import strict_json
+
+    value = {"a": float("nan"), "b": [np.float32(np.inf), np.float64(1.5), np.int64(3)], "c": (np.bool_(True), "x")}
+    text = strict_json(value)
+    assert "NaN" not in text and "Infinity" not in text
+    assert json.loads(text) == {"a": None, "b": [None, 1.5, 3], "c": [True, "x"]}
+
+
 def test_concatenate_reuses_forward_kinematics_exactly():
     from hrr_garment.motion.motion import Motion
     from hrr_garment.motion.synth import synthesize

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 from typing import Sequence
@@ -11,7 +10,7 @@ from typing import Sequence
 import numpy as np
 
 from ..errors import InputError
-from ..io_utils import atomic_path
+from ..io_utils import atomic_path, strict_json
 from ..motion.features import motion_features
 from ..motion.io import load_motion, save_motion
 from ..motion.synth import KINDS, kind_parameters, synthesize
@@ -75,8 +74,7 @@ def _body(argv: Sequence[str] | None) -> int:
     if args.command == "info":
         summary = motion.summary()
         if args.json:
-            json.dump(summary, sys.stdout, indent=2)
-            print()
+            print(strict_json(summary, indent=2))  # a non-finite value prints as null, never NaN
         else:
             for key, value in summary.items():
                 print(f"{key:28s} {value}")

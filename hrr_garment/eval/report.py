@@ -8,13 +8,12 @@ were not evaluated is left out.
 
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
 
 import numpy as np
 
-from ..io_utils import atomic_path, atomic_write_text
+from ..io_utils import atomic_path, atomic_write_text, strict_json
 from .evaluate import ModeResult, TauPoint
 
 REPORT_VERSION = 2  # 2: truth ensembles ("ensemble" per mode and at the top level)
@@ -220,19 +219,6 @@ def write_report(folder: str | Path, report: dict, plots: list[str]) -> tuple[Pa
     """Write report.json and report.md into ``folder``; returns their paths."""
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
-    atomic_write_text(folder / "report.json", json.dumps(_clean(report), indent=1, allow_nan=False))
+    atomic_write_text(folder / "report.json", strict_json(report, indent=1))
     atomic_write_text(folder / "report.md", markdown(report, plots))
     return folder / "report.json", folder / "report.md"
-
-
-def _clean(value):
-    """JSON-ready: numpy scalars to Python, non-finite floats to null (strict JSON has no NaN)."""
-    if isinstance(value, dict):
-        return {str(k): _clean(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_clean(v) for v in value]
-    if isinstance(value, (np.floating, float)):
-        return float(value) if math.isfinite(value) else None
-    if isinstance(value, (np.integer, np.bool_)):
-        return value.item()
-    return value
