@@ -62,6 +62,8 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--iterations", type=int, default=None, help="override the preset's solver iterations")
     p.add_argument("--device", default=None, help="warp device: auto (default), cpu, cuda:0")
     p.add_argument("-o", "--output", type=Path, default=None, help="dataset .h5 (default: hrr_work/datasets/GARMENT-PRESET.h5)")
+    p.add_argument("--retry-rejected", action="store_true",
+                   help="simulate sequences an earlier run rejected again (after upgrading the simulator)")
     p.add_argument("--no-preview", action="store_true", help="skip the preview image")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     return p
@@ -87,7 +89,7 @@ def _main(argv: Sequence[str] | None) -> int:
     options["info"]["garment_vertices"] = garment.num_vertices
     if args.address and args.executor != "ray":
         raise InputError("--address", "joins a Ray cluster: use it with --executor ray")
-    report = build_dataset(garment, specs, config, out, jobs=args.jobs, preview=None if args.no_preview else write_dataset_preview,
+    report = build_dataset(garment, specs, config, out, jobs=args.jobs, retry_rejected=args.retry_rejected, preview=None if args.no_preview else write_dataset_preview,
                            progress=not args.quiet, executor=args.executor, address=args.address, **options)
     print_report(report, garment)
     return 0

@@ -59,14 +59,15 @@ def build_dataset(garment: GarmentMesh, specs: list[SequenceSpec], config: SimCo
                   jobs: int | None = None, splits: dict[str, float] | None = None, seed: int = 0,
                   info: dict | None = None, preview: PreviewWriter | None = None, progress: bool = True,
                   groups: dict[str, str] | None = None, mirror: bool = False, executor: str = "local",
-                  address: str | None = None) -> BuildReport:
+                  address: str | None = None, retry_rejected: bool = False) -> BuildReport:
     """Simulate what is missing, then write ``out`` (HDF5) atomically. See the module docstring.
 
     ``groups`` (sequence name -> clip group) makes the split hold out whole groups; ``mirror`` adds
     every sequence reflected left-right as ``NAME_mirror`` in its source's split (a symmetric
     garment's exact mirror simulation, no solver time; skipped with a note otherwise). ``executor``
     "ray" runs the pending sequences as Ray tasks (on the cluster at ``address``, or a local
-    instance with ``jobs`` CPUs). ``preview``: renders the dataset's preview image beside it
+    instance with ``jobs`` CPUs). ``retry_rejected`` simulates sequences that an earlier run
+    rejected again (after a simulator change that may save them). ``preview``: renders the dataset's preview image beside it
     (``hrr-simulate`` passes :func:`hrr_garment.export.preview.write_dataset_preview`)."""
     if executor not in EXECUTORS:
         raise InputError(executor, f"unknown executor; choose one of {', '.join(EXECUTORS)}")
@@ -80,7 +81,7 @@ def build_dataset(garment: GarmentMesh, specs: list[SequenceSpec], config: SimCo
         part, failed = part_paths(parts, spec.name)
         if part.exists() and read_part_key(part) == keys[spec.name]:
             reused += 1
-        elif failed.exists() and json.loads(failed.read_text()).get("key") == keys[spec.name]:
+        elif not retry_rejected and failed.exists() and json.loads(failed.read_text()).get("key") == keys[spec.name]:
             rejects[spec.name] = json.loads(failed.read_text())["reason"]
         else:
             pending.append(spec)

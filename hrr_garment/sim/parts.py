@@ -72,7 +72,7 @@ def simulate_sequence(spec: SequenceSpec, motion: Motion, garment: GarmentMesh, 
         return PartResult(spec.name, key, 0, failure=str(exc))
     stats = sequence_stats(result.vertices, garment.vertices, garment.edges(), motion, garment.groups.get("hem"))
     stats.update(substeps=result.substeps, attempts=result.attempts, sim_seconds=result.seconds,
-                 simulated_frames=result.simulated_frames)
+                 simulated_frames=result.simulated_frames, arm_contact=result.arm_contact)
     info = {"kind": spec.kind, "seed": spec.seed, "path": spec.path, "stats": stats}
     return PartResult(spec.name, key, result.simulated_frames, result.vertices, motion, info)
 
@@ -84,6 +84,7 @@ def write_part(result: PartResult, parts: Path) -> None:
         atomic_write_text(failed, json.dumps({"key": result.key, "name": result.name, "reason": result.failure}))
         return
     motion = result.motion
+    failed.unlink(missing_ok=True)  # an earlier rejection that a retry has now saved
     with atomic_path(part) as tmp:
         with open(tmp, "wb") as fh:
             np.savez(fh, key=np.array(result.key), garment=result.vertices, local_rotations=motion.local_rotations,

@@ -8,7 +8,12 @@ convergence, so the defaults are 10 substeps x 3 iterations.
 
 A frame that is not finite, moves faster than ``max_speed`` or stretches an edge beyond
 ``max_strain`` raises :class:`SimulationExploded`; ``simulate_garment`` retries with twice the
-substeps before giving up.
+substeps, and, for a motion whose own limbs pass through the body
+(:mod:`hrr_garment.body.self_contact`), once more with the arms (upper arms, forearms, hands) not
+touching the cloth: an arm sunk into the hips or belly pinches the cloth between two overlapping
+capsules and tears it, while an arm passing through the cloth is a small, visible flaw of the
+capture's own making. (Forearms and hands alone saved a Bandai wave but not CMU 131_01 / 131_03
+at 4,266 vertices; with the upper arms all three hold.)
 """
 
 from __future__ import annotations
@@ -20,6 +25,7 @@ from typing import Callable
 import numpy as np
 
 from ..body.capsules import DEFAULT_BODY, BodyModel
+from ..body.self_contact import self_intersecting_frames
 from ..errors import HRRError
 from ..garment.attachment import bind_attached
 from ..garment.mesh import GarmentMesh
@@ -29,6 +35,7 @@ from ..settings import from_settings
 from .lead_in import start_transform, with_lead_in
 
 NEWTON_VERSION = "1.8.0"
+ARM_CAPSULES = ("upper_arm", "forearm", "hand")  # taken off the cloth in the last retry
 
 
 class SimulationExploded(HRRError):
@@ -78,6 +85,7 @@ class SimResult:
     seconds: float  # wall time of the successful attempt, scene building included
     simulated_frames: int  # lead-in included
     step_seconds: float = 0.0  # time spent stepping the solver (steady-state cost)
+    arm_contact: bool = True  # False: forearms and hands did not touch the cloth (the last retry)
 
 
 def _import_newton():
@@ -124,16 +132,20 @@ class _Scene:
     """A newton model of one garment and the capsule body, stepped frame by frame."""
 
     def __init__(self, garment: GarmentMesh, start_vertices: np.ndarray, half_lengths: np.ndarray,
-                 body: BodyModel, config: SimConfig):
+                 body: BodyModel, config: SimConfig, arm_contact: bool = True):
         wp, newton = _import_newton()
         self.wp, self.config = wp, config
         self.device = resolve_device(wp, config.device)
         builder = newton.ModelBuilder(up_axis=newton.Axis.Y, gravity=(0.0, -config.gravity, 0.0))
         shape_cfg = newton.ModelBuilder.ShapeConfig(ke=config.contact_ke, kd=config.contact_kd, mu=config.contact_mu,
                                                     has_shape_collision=False)
+        no_cloth = newton.ModelBuilder.ShapeConfig(ke=config.contact_ke, kd=config.contact_kd, mu=config.contact_mu,
+                                                   has_shape_collision=False, has_particle_collision=False)
         for c, capsule in enumerate(body.capsules):
             b = builder.add_body(mass=0.0, is_kinematic=True, label=capsule.name)
-            builder.add_shape_capsule(b, radius=capsule.radius, half_height=float(half_lengths[c]), cfg=shape_cfg)
+            arm = capsule.name.endswith(tuple(f"_{part}" for part in ARM_CAPSULES))
+            builder.add_shape_capsule(b, radius=capsule.radius, half_height=float(half_lengths[c]),
+                                      cfg=no_cloth if arm and not arm_contact else shape_cfg)
         builder.add_ground_plane(cfg=newton.ModelBuilder.ShapeConfig(ke=config.contact_ke, kd=config.contact_kd,
                                                                     mu=config.contact_mu))
         builder.add_cloth_mesh(
@@ -204,7 +216,7 @@ class _Scene:
 
 
 def _attempt(garment: GarmentMesh, motion: Motion, body: BodyModel, config: SimConfig,
-             progress: Callable[[int], None] | None) -> tuple[np.ndarray, int, float]:
+             progress: Callable[[int], None] | None, arm_contact: bool = True) -> tuple[np.ndarray, int, float]:
     extended, lead = with_lead_in(motion, config.settle_s, config.blend_s)
     rot_y, shift = start_transform(motion)
     start = garment.vertices.astype(np.float64) @ rot_y.T + shift
@@ -212,7 +224,7 @@ def _attempt(garment: GarmentMesh, motion: Motion, body: BodyModel, config: SimC
     poses = np.concatenate([centre, quat], -1)
     binding = bind_attached(garment, body)
     pins = binding.pose(extended.global_rotations.astype(np.float64), extended.joint_positions)
-    scene = _Scene(garment, start, half, body, config)
+    scene = _Scene(garment, start, half, body, config, arm_contact)
     edges = garment.edges()
     rest_len = np.linalg.norm(garment.vertices[edges[:, 0]] - garment.vertices[edges[:, 1]], axis=1)
     dt = 1.0 / motion.fps
@@ -237,7 +249,7 @@ def _attempt(garment: GarmentMesh, motion: Motion, body: BodyModel, config: SimC
         if problem:
             where = f"clip frame {clip_frame}" if clip_frame >= 0 else f"lead-in frame {f}"
             raise SimulationExploded(f"{garment.name} on {motion.source}: {problem} at {where} "
-                                     f"({config.substeps} substeps)")
+                                     f"({config.substeps} substeps{'' if arm_contact else ', arms off the cloth'})")
         if clip_frame >= 0:
             recorded[clip_frame] = verts
         if progress is not None:
@@ -247,18 +259,22 @@ def _attempt(garment: GarmentMesh, motion: Motion, body: BodyModel, config: SimC
 
 def simulate_garment(garment: GarmentMesh, motion: Motion, config: SimConfig = SimConfig(),
                      body: BodyModel = DEFAULT_BODY, progress: Callable[[int], None] | None = None) -> SimResult:
-    """Simulate ``garment`` on ``motion`` (30 fps canonical); retries with more substeps on explosion.
+    """Simulate ``garment`` on ``motion`` (30 fps canonical); on explosion retries with more substeps,
+    then (for a motion with self-intersecting limbs) with the arms off the cloth.
 
     Raises :class:`SimulationExploded` (with every attempt's reason) when all attempts fail.
     """
+    attempts = [(config.substeps * 2 ** k, True) for k in range(config.retries + 1)]
     reasons = []
-    for attempt in range(config.retries + 1):
-        cfg = replace(config, substeps=config.substeps * 2 ** attempt)
+    for number, (substeps, arm_contact) in enumerate(attempts, 1):
+        cfg = replace(config, substeps=substeps)
         t0 = time.perf_counter()
         try:
-            vertices, frames, stepping = _attempt(garment, motion, body, cfg, progress)
+            vertices, frames, stepping = _attempt(garment, motion, body, cfg, progress, arm_contact)
         except SimulationExploded as exc:
             reasons.append(str(exc))
+            if number == len(attempts) and arm_contact and self_intersecting_frames(motion, body).any():
+                attempts.append((config.substeps, False))
             continue
-        return SimResult(vertices, cfg.substeps, attempt + 1, time.perf_counter() - t0, frames, stepping)
+        return SimResult(vertices, cfg.substeps, number, time.perf_counter() - t0, frames, stepping, arm_contact)
     raise SimulationExploded("; ".join(reasons))
