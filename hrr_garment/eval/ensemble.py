@@ -62,10 +62,6 @@ class TruthEnsemble:
     perturbations: list[str]
     failed: dict[str, str]  # perturbation -> why its simulation was rejected
 
-    @property
-    def mean(self) -> np.ndarray:
-        return self.members.astype(np.float64).mean(0)
-
 
 def _member_key(garment: GarmentMesh, record: SequenceRecord, config: SimConfig) -> str:
     h = hashlib.sha256()

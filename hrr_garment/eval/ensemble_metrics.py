@@ -67,18 +67,34 @@ def _mean_norm_mm(a: np.ndarray) -> float:
     return 1000.0 * float(np.linalg.norm(a, axis=-1).mean()) if a.size else 0.0
 
 
+def truth_metrics(members: np.ndarray, motion: Motion, rest: np.ndarray, topo: MeshTopology,
+                  hem: np.ndarray | None = None) -> dict[str, float]:
+    """The members' own values (the floor and every ``truth_*`` key): one computation per sequence,
+    shared by every mode scored against it."""
+    out = {"floor_mm": mean_pairwise_mm(members)}
+    if members.shape[1] >= 3:
+        acc = _acceleration(members)
+        out["truth_jitter_mm"] = mean_pairwise_mm(acc, lambda a, b: _mean_norm_mm(a - b))
+        out["truth_acceleration_mm"] = _mean_norm_mm(acc)
+    stretch, bend = zip(*(cloth_energies(m, rest, topo) for m in members))
+    out.update(truth_stretch_energy=float(np.mean(stretch)), truth_bending_energy=float(np.mean(bend)))
+    if hem is not None and len(hem):
+        out["truth_hem_swing_m"] = float(np.mean([hem_swing(m, motion, hem) for m in members]))
+    return out
+
+
 def ensemble_metrics(pred: np.ndarray, members: np.ndarray, motion: Motion, rest: np.ndarray, topo: MeshTopology,
-                     hem: np.ndarray | None = None) -> dict[str, float]:
+                     hem: np.ndarray | None = None, truth: dict[str, float] | None = None) -> dict[str, float]:
     """Accuracy and plausibility of one sequence's prediction against its truth ensemble.
 
     Absolute values (``*_mm``, energies, swing) are returned for the prediction and, prefixed
-    ``truth_``, for the members, so that sequences can be combined before taking ratios
-    (:func:`ensemble_ratios`).
+    ``truth_``, for the members (``truth``: :func:`truth_metrics` of these members, computed here
+    when not given), so that sequences can be combined before taking ratios (:func:`ensemble_ratios`).
     """
     x = _samples(pred).astype(np.float64)
     point = x[0] if len(x) == 1 else x.mean(0)
     out = {
-        "floor_mm": mean_pairwise_mm(members),
+        **(truth if truth is not None else truth_metrics(members, motion, rest, topo, hem)),
         "pve_members_mm": float(np.mean([_pve_mm(s, m) for s in x for m in members])),
         "pve_ensemble_mean_mm": _pve_mm(point, members.astype(np.float64).mean(0)),
         "energy_score_mm": energy_score_mm(x, members),
@@ -86,16 +102,11 @@ def ensemble_metrics(pred: np.ndarray, members: np.ndarray, motion: Motion, rest
     if len(point) >= 3:
         acc_pred, acc_truth = _acceleration(x), _acceleration(members)
         out["jitter_mm"] = float(np.mean([_mean_norm_mm(a - b) for a in acc_pred for b in acc_truth]))
-        out["truth_jitter_mm"] = mean_pairwise_mm(acc_truth, lambda a, b: _mean_norm_mm(a - b))
         out["acceleration_mm"] = _mean_norm_mm(acc_pred)
-        out["truth_acceleration_mm"] = _mean_norm_mm(acc_truth)
     stretch, bend = zip(*(cloth_energies(s, rest, topo) for s in x))
-    truth_stretch, truth_bend = zip(*(cloth_energies(m, rest, topo) for m in members))
-    out.update(stretch_energy=float(np.mean(stretch)), truth_stretch_energy=float(np.mean(truth_stretch)),
-               bending_energy=float(np.mean(bend)), truth_bending_energy=float(np.mean(truth_bend)))
+    out.update(stretch_energy=float(np.mean(stretch)), bending_energy=float(np.mean(bend)))
     if hem is not None and len(hem):
         out["hem_swing_m"] = float(np.mean([hem_swing(s, motion, hem) for s in x]))
-        out["truth_hem_swing_m"] = float(np.mean([hem_swing(m, motion, hem) for m in members]))
     return out
 
 

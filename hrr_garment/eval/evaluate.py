@@ -20,7 +20,7 @@ from ..inference.modes import Mode
 from ..sim.quality import body_signed_distance, penetration_fraction
 from . import metrics as M
 from .ensemble import TruthEnsemble
-from .ensemble_metrics import ensemble_metrics, ensemble_ratios
+from .ensemble_metrics import ensemble_metrics, ensemble_ratios, truth_metrics
 
 
 @dataclass
@@ -95,22 +95,28 @@ def sequence_metrics(pred: np.ndarray, truth: np.ndarray, record: SequenceRecord
     return out
 
 
+def ensemble_truth(ensemble: TruthEnsemble, record: SequenceRecord, rest: np.ndarray, topo: M.MeshTopology,
+                   hem: np.ndarray | None) -> dict[str, float]:
+    """The members' own values, the penetration and strain beside the floor and the other ``truth_*``."""
+    truth_pen = [penetration_fraction(body_signed_distance(m, record.motion)) for m in ensemble.members]
+    strain = M.edge_strain_percentiles(ensemble.members.reshape(-1, *ensemble.members.shape[2:]), rest, topo)
+    return {**truth_metrics(ensemble.members, record.motion, rest, topo, hem),
+            "truth_penetration_pct": 100.0 * float(np.mean([p.mean() for p in truth_pen])),
+            "truth_penetration_worst_pct": 100.0 * float(max(p.max() for p in truth_pen)),
+            "truth_strain_p99": strain["strain_p99"], "truth_strain_max": strain["strain_max"]}
+
+
 def sequence_ensemble_metrics(anim_vertices: np.ndarray, before_push_out: tuple[float, float] | None,
                               ensemble: TruthEnsemble, record: SequenceRecord, rest: np.ndarray, topo: M.MeshTopology,
-                              hem: np.ndarray | None) -> dict[str, float]:
+                              hem: np.ndarray | None, truth: dict[str, float]) -> dict[str, float]:
     """Ensemble scores of one prediction, with the penetration before the collision push-out
     (``before_push_out``: mean and worst-frame fraction; None when there was no push-out) and the
-    members' own penetration and strain beside it."""
-    out = ensemble_metrics(anim_vertices, ensemble.members, record.motion, rest, topo, hem)
+    members' own values (``truth``, from :func:`ensemble_truth`) beside it."""
+    out = ensemble_metrics(anim_vertices, ensemble.members, record.motion, rest, topo, hem, truth)
     if before_push_out is None:
         pen = penetration_fraction(body_signed_distance(anim_vertices, record.motion))
         before_push_out = float(pen.mean()), float(pen.max())
-    truth_pen = [penetration_fraction(body_signed_distance(m, record.motion)) for m in ensemble.members]
-    strain = M.edge_strain_percentiles(ensemble.members.reshape(-1, *ensemble.members.shape[2:]), rest, topo)
-    out.update(penetration_before_pct=100.0 * before_push_out[0], penetration_before_worst_pct=100.0 * before_push_out[1],
-               truth_penetration_pct=100.0 * float(np.mean([p.mean() for p in truth_pen])),
-               truth_penetration_worst_pct=100.0 * float(max(p.max() for p in truth_pen)),
-               truth_strain_p99=strain["strain_p99"], truth_strain_max=strain["strain_max"])
+    out.update(penetration_before_pct=100.0 * before_push_out[0], penetration_before_worst_pct=100.0 * before_push_out[1])
     return out
 
 
@@ -126,6 +132,7 @@ def evaluate_modes(animator: Animator, records: list[SequenceRecord], modes: lis
     rest = bundle.template.vertices.astype(np.float64)
     hem = bundle.template.groups.get("hem")
     ensembles = ensembles or {}
+    truths: dict[str, dict[str, float]] = {}  # per record, computed once for every mode
     names = list(bundle.database.names)
     results = {m: ModeResult(m, tau) for m in modes}
     jobs = [(m, r) for r in records for m in modes]
@@ -135,7 +142,10 @@ def evaluate_modes(animator: Animator, records: list[SequenceRecord], modes: lis
         ensemble = {}
         if record.name in ensembles:
             before = (anim.penetration.inside_before, anim.penetration.worst_before) if anim.penetration else None
-            ensemble = sequence_ensemble_metrics(anim.vertices, before, ensembles[record.name], record, rest, topo, hem)
+            if record.name not in truths:
+                truths[record.name] = ensemble_truth(ensembles[record.name], record, rest, topo, hem)
+            ensemble = sequence_ensemble_metrics(anim.vertices, before, ensembles[record.name], record, rest, topo, hem,
+                                                 truths[record.name])
         results[mode].sequences.append(SequenceResult(
             record.name, len(record.garment),
             sequence_metrics(anim.vertices, record.garment, record, rest, topo, anim.mode.astype(bool)),
