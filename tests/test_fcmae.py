@@ -283,3 +283,29 @@ def test_training_device_is_checked_before_anything_is_written(tmp_path):
         with pytest.raises(InputError, match="no CUDA device"):
             train_autoencoder(tmp_path / "missing.h5", tmp_path / "ae", train_config=TrainConfig(device="cuda"))
         assert not (tmp_path / "ae").exists()
+
+
+def test_mirrored_datasets_are_not_mirrored_again_and_epochs_are_bounded(tmp_path, skirt, monkeypatch):
+    from hrr_garment.data.dataset import GarmentDataset, SequenceRecord, write_dataset
+    from hrr_garment.motion.synth import synthesize
+    from hrr_garment.train import autoencoder as ae
+
+    motion = synthesize("idle", 0.8, seed=0)  # 24 frames
+    frames = np.repeat(skirt.vertices[None], motion.num_frames, 0).astype(np.float32)
+    records = [SequenceRecord(n, frames, motion) for n in ("a", "b", "c")]
+    splits = {"train": ["a"], "val": ["b"], "test": ["c"]}
+    plain = write_dataset(tmp_path / "plain.h5", skirt, records, splits)
+    mirrored = write_dataset(tmp_path / "mirrored.h5", skirt, records, splits, info={"augmentation": {"mirror": True}})
+    assert len(ae.training_frames(GarmentDataset(plain), mirror=True).train) == 48  # mirrored here
+    assert len(ae.training_frames(GarmentDataset(mirrored), mirror=True).train) == 24  # mirrored by the simulator
+    steps = []
+    step = torch.optim.Adam.step
+
+    def counting_step(self, *args, **kwargs):
+        steps.append(1)
+        return step(self, *args, **kwargs)
+
+    monkeypatch.setattr(torch.optim.Adam, "step", counting_step)
+    cfg = ae.TrainConfig(epochs=2, batch_size=4, refine_steps=0, frames_per_epoch=8)
+    ae.train_autoencoder(plain, tmp_path / "ae", train_config=cfg, progress=False)
+    assert len(steps) == 4  # two epochs of 8 of the 48 frames, in batches of 4

@@ -77,8 +77,9 @@ def test_explosion_is_detected_retried_and_reported(simulator):
     assert "edge strain" in message and "(10 substeps)" in message and "(20 substeps)" in message
 
 
-def _arms_in_the_hips(frames: int = 15):
-    """A still pose with both forearms deep in the hips (a capture flaw the simulator must survive)."""
+def _arms_in_the_hips(frames: int = 15, away: int = 0):
+    """A still pose with both forearms deep in the hips (a capture flaw the simulator must survive),
+    after ``away`` frames of the T-pose."""
     from hrr_garment.motion.motion import Motion
     from hrr_garment.motion.rotations import axis_angle_to_matrix
     from hrr_garment.motion.skeleton import JOINT_INDEX, REST_PELVIS_HEIGHT
@@ -86,10 +87,11 @@ def _arms_in_the_hips(frames: int = 15):
     local = np.broadcast_to(np.eye(3, dtype=np.float32), (frames, 22, 3, 3)).copy()
     for side, sign in (("l", 1.0), ("r", -1.0)):
         local[:, JOINT_INDEX[f"{side}_shoulder"]] = axis_angle_to_matrix(np.array([0.0, 0.0, np.radians(-115.0) * sign]))
+        local[:away, JOINT_INDEX[f"{side}_shoulder"]] = np.eye(3, dtype=np.float32)  # the T-pose
     return Motion(local, np.tile([0.0, REST_PELVIS_HEIGHT, 0.0], (frames, 1)))
 
 
-def test_limbs_through_the_body_get_a_last_try_with_the_arms_off_the_cloth(simulator):
+def test_limbs_through_the_body_get_last_tries_with_the_arms_off_the_cloth(simulator):
     simulate_garment, SimConfig = simulator
     from hrr_garment.body.capsules import DEFAULT_BODY
     from hrr_garment.body.self_contact import self_intersecting_frames
@@ -98,15 +100,29 @@ def test_limbs_through_the_body_get_a_last_try_with_the_arms_off_the_cloth(simul
     garment = make_garment("skirt", 200)
     motion = _arms_in_the_hips()
     assert self_intersecting_frames(motion).all()
-    # the arms' capsules stop colliding with particles, every other capsule still does
+    # switching the arms off the cloth clears their particle-collision flag, and only theirs; on again restores it
     _, _, half = capsule_transforms(motion, DEFAULT_BODY)
-    flags = _Scene(garment, garment.vertices, half, DEFAULT_BODY, SimConfig(), arm_contact=False).model.shape_flags.numpy()
+    scene = _Scene(garment, garment.vertices, half, DEFAULT_BODY, SimConfig())
+    before = scene.model.shape_flags.numpy().copy()
+    scene.set_arm_contact(False)
+    flags = scene.model.shape_flags.numpy()
     arms = [i for i, c in enumerate(DEFAULT_BODY.capsules) if c.name.endswith(tuple(f"_{p}" for p in ARM_CAPSULES))]
     touches_cloth = (flags[:len(DEFAULT_BODY.capsules)] & 4) > 0  # newton.ShapeFlags.COLLIDE_PARTICLES
     assert len(arms) == 6 and not touches_cloth[arms].any() and touches_cloth[np.setdiff1d(np.arange(len(flags) - 1), arms)].all()
-    # every attempt fails here (an impossible strain bound): the third is the arms-off one
+    scene.set_arm_contact(True)
+    assert np.array_equal(scene.model.shape_flags.numpy(), before)
+    # every attempt fails here (an impossible strain bound); the arms stay in the hips on every
+    # frame, so the episode is the whole clip and the last attempt has the arms off throughout
     with pytest.raises(SimulationExploded) as info:
         simulate_garment(garment, motion, SimConfig(max_strain=1.0 + 1e-4, retries=1, settle_s=0.1, blend_s=0.1))
-    assert "(10 substeps, arms off the cloth)" in str(info.value)
+    assert str(info.value).count("substeps") == 3 and "(10 substeps, arms off the cloth)" in str(info.value)
+    # arms that reach the hips part-way through: first off during that episode only, then throughout
+    late = _arms_in_the_hips(15, away=8)
+    assert not self_intersecting_frames(late)[:8].any() and self_intersecting_frames(late)[8:].all()
+    with pytest.raises(SimulationExploded) as info:
+        simulate_garment(garment, late, SimConfig(max_strain=1.0 + 1e-4, retries=1, settle_s=0.1, blend_s=0.1))
+    reasons = str(info.value).split("; ")
+    assert len(reasons) == 5 and all("(10 substeps, arms off the cloth on 7 frames)" in r for r in reasons[2:4])
+    assert reasons[4].endswith("(10 substeps, arms off the cloth)")
     result = simulate_garment(garment, motion, SimConfig(settle_s=0.1, blend_s=0.1))
-    assert result.arm_contact and result.attempts == 1  # a motion that holds keeps its arms on the cloth
+    assert result.arms_off_frames == 0 and result.attempts == 1  # a motion that holds keeps its arms on the cloth

@@ -5,7 +5,8 @@ noise, a hand on the hip solved too deep, retargeting onto other proportions). C
 two capsules that overlap cannot stay outside both, so penetration on those frames says nothing
 about the simulator. A frame is flagged when a forearm or hand sinks into the torso or a thigh, or
 a leg into the other leg, by more than ``depth`` (default 2.5 cm: more than soft tissue gives),
-together with the rest of that episode and the frames the cloth needs to get back out.
+together with the rest of that episode (from the moment the cloth between limb and body is caught)
+and the frames the cloth needs to get back out.
 Measured: Bandai-Namco clips stay under 3 cm on every frame and mostly at 0; CMU 131_01, a hand on
 the hip, reaches 10.7 cm.
 """
@@ -23,26 +24,28 @@ LEG_PARTS = ("thigh", "shin")
 AXIS_SAMPLES = 5  # points along each limb's axis
 
 
-def _pairs(body: BodyModel) -> list[tuple[int, list[int]]]:
-    """(limb capsule, capsules its axis must stay out of) by index into ``body.capsules``."""
+def _pairs(body: BodyModel, parts: tuple[str, ...]) -> list[tuple[int, list[int]]]:
+    """(limb capsule, capsules its axis must stay out of) by index into ``body.capsules``, for the
+    limbs named in ``parts``."""
     index = {c.name: i for i, c in enumerate(body.capsules)}
     pairs = []
     for side, other in (("l", "r"), ("r", "l")):
         targets = [index[n] for n in (*TORSO, f"{side}_thigh", f"{other}_thigh") if n in index]
-        pairs += [(index[f"{side}_{p}"], targets) for p in ARM_PARTS if f"{side}_{p}" in index]
+        pairs += [(index[f"{side}_{p}"], targets) for p in ARM_PARTS if f"{side}_{p}" in index and p in parts]
         legs = [index[f"{other}_{p}"] for p in LEG_PARTS if f"{other}_{p}" in index]
-        pairs += [(index[f"{side}_{p}"], legs) for p in LEG_PARTS if f"{side}_{p}" in index]
+        pairs += [(index[f"{side}_{p}"], legs) for p in LEG_PARTS if f"{side}_{p}" in index and p in parts]
     return pairs
 
 
-def limb_intrusion(motion: Motion, body: BodyModel = DEFAULT_BODY) -> np.ndarray:
-    """(T,) metres by which a limb's surface sinks deepest into a capsule it should stay out of
-    (0 where they do not overlap): sampled along the limb's axis."""
+def limb_intrusion(motion: Motion, body: BodyModel = DEFAULT_BODY, parts: tuple[str, ...] = ARM_PARTS + LEG_PARTS) -> np.ndarray:
+    """(T,) metres by which a limb's surface sinks deepest into a capsule it should stay out of,
+    negative for the gap between their surfaces where they do not overlap: sampled along the
+    limb's axis. ``parts``: the limbs to look at (default all of them)."""
     a, b = body.pose_motion(motion)
     radii = body.radii
     t = np.linspace(0.0, 1.0, AXIS_SAMPLES)
-    deepest = np.zeros(motion.num_frames)
-    for limb, targets in _pairs(body):
+    deepest = np.full(motion.num_frames, -np.inf)
+    for limb, targets in _pairs(body, parts):
         points = a[:, limb, None] + t[None, :, None] * (b[:, limb] - a[:, limb])[:, None]  # (T, S, 3)
         ta, tb = a[:, targets], b[:, targets]  # (T, K, 3)
         ab = tb - ta
@@ -55,30 +58,48 @@ def limb_intrusion(motion: Motion, body: BodyModel = DEFAULT_BODY) -> np.ndarray
 
 
 SELF_INTERSECTION_DEPTH = 0.025  # metres: deeper than soft tissue gives
-CONTACT_DEPTH = 0.01  # metres: where an episode of a limb sinking into the body starts and ends
+# metres: an episode starts and ends where the cloth no longer fits between limb and body (the
+# simulator's particles are 6 mm in radius)
+PINCH_GAP = 0.012
 RECOVERY_S = 0.1  # seconds after an episode during which the cloth it trapped is pushed back out
 
 
-def self_intersecting_frames(motion: Motion, body: BodyModel = DEFAULT_BODY,
-                             depth: float = SELF_INTERSECTION_DEPTH, contact: float = CONTACT_DEPTH,
-                             recovery_s: float = RECOVERY_S) -> np.ndarray:
-    """(T,) True on the frames of each episode in which a limb sinks more than ``depth`` metres into
-    the body (a flaw of the capture).
+def self_intersection_episodes(motion: Motion, body: BodyModel = DEFAULT_BODY,
+                               depth: float = SELF_INTERSECTION_DEPTH, gap: float = PINCH_GAP,
+                               recovery_s: float = RECOVERY_S,
+                               parts: tuple[str, ...] = ARM_PARTS + LEG_PARTS) -> list[tuple[int, int]]:
+    """(start, stop) frame ranges of the episodes in which a limb sinks more than ``depth`` metres
+    into the body (a flaw of the capture), ``stop`` one past the last frame.
 
-    An episode runs from the frame the limb first sinks ``contact`` metres in to the frame it is
-    out again, plus ``recovery_s`` seconds: cloth pinched between two overlapping capsules is pushed
-    out by contact forces over a few frames, not at once (CMU 131_03: 1.3 % of the dress still
-    inside two frames after the hand left the hip, 0.96 % at most once those frames are counted
-    with their episode). Episodes that never pass ``depth`` (a hand resting lightly on the hip)
-    flag nothing.
+    An episode runs from the frame the limb comes within ``gap`` metres of the body (the cloth
+    between them is caught from there on) to the frame it is that far away again, plus
+    ``recovery_s`` seconds: cloth pinched between two overlapping capsules is pushed out by contact
+    forces over a few frames, not at once (131_03: 1.3 % of the dress still inside two frames after
+    the hand left the hip). Episodes that never pass ``depth`` (a hand resting lightly on the hip)
+    are not returned; overlapping ranges are merged. ``parts``: the limbs to look at.
     """
-    intrusion = limb_intrusion(motion, body)
-    flagged = np.zeros(len(intrusion), bool)
+    intrusion = limb_intrusion(motion, body, parts)
     recovery = int(round(recovery_s * motion.fps))
-    touching = np.concatenate([[False], intrusion > contact, [False]])
-    starts = np.flatnonzero(~touching[:-1] & touching[1:])
-    stops = np.flatnonzero(touching[:-1] & ~touching[1:])  # one past each episode's last frame
+    near = np.concatenate([[False], intrusion > -gap, [False]])
+    starts = np.flatnonzero(~near[:-1] & near[1:])
+    stops = np.flatnonzero(near[:-1] & ~near[1:])  # one past each episode's last frame
+    episodes: list[tuple[int, int]] = []
     for start, stop in zip(starts, stops):
-        if intrusion[start:stop].max() > depth:
-            flagged[start:stop + recovery] = True
+        if intrusion[start:stop].max() <= depth:
+            continue
+        stop = min(int(stop) + recovery, len(intrusion))
+        if episodes and start <= episodes[-1][1]:
+            episodes[-1] = (episodes[-1][0], stop)
+        else:
+            episodes.append((int(start), stop))
+    return episodes
+
+
+def self_intersecting_frames(motion: Motion, body: BodyModel = DEFAULT_BODY,
+                             depth: float = SELF_INTERSECTION_DEPTH, gap: float = PINCH_GAP,
+                             recovery_s: float = RECOVERY_S) -> np.ndarray:
+    """(T,) True on the frames of :func:`self_intersection_episodes`."""
+    flagged = np.zeros(motion.num_frames, bool)
+    for start, stop in self_intersection_episodes(motion, body, depth, gap, recovery_s):
+        flagged[start:stop] = True
     return flagged

@@ -3,7 +3,9 @@
 The reader follows each joint's own CHANNELS line (any rotation order, 3 or 6 channels on any
 joint), accepts End Site blocks, blank lines and any whitespace, and checks that the MOTION section
 has exactly the announced number of rows with one value per channel. Position channels replace the
-joint's OFFSET (the usual convention of exporters that key every joint's translation).
+joint's OFFSET (the usual convention of exporters that key every joint's translation). The
+hierarchy's depth and size, the frame time and the magnitude of every value are bounded
+(:mod:`.limits`), so a hostile file gets a one-line error instead of a crash or an absurd motion.
 """
 
 from __future__ import annotations
@@ -14,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import MotionError
+from .limits import MAX_BVH_DEPTH, MAX_BVH_JOINTS, MAX_BVH_VALUE, MIN_SOURCE_FPS, max_frames
 from .rotations import euler_to_matrix, matrix_to_euler
 
 _ROT = {"xrotation": "X", "yrotation": "Y", "zrotation": "Z"}
@@ -64,7 +67,11 @@ class _Tokens:
                 vals.append(float(tok))
             except ValueError:
                 raise MotionError(self.path, f"line {line}: expected a number in {what}, found {tok!r}") from None
-        return np.array(vals, dtype=np.float64)
+        out = np.array(vals, dtype=np.float64)
+        if not (np.abs(out) <= MAX_BVH_VALUE).all():
+            raise MotionError(self.path, f"line {line}: {what} has {out.tolist()}; values must be finite and within "
+                                         f"+-{MAX_BVH_VALUE:g} file units")
+        return out
 
 
 def read_bvh(path: str | Path) -> BvhClip:
@@ -86,8 +93,11 @@ def read_bvh(path: str | Path) -> BvhClip:
     channels: list[list[str]] = []
     end_sites: list[tuple[int, np.ndarray]] = []
 
-    def parse_joint(parent: int) -> None:
+    def parse_joint(parent: int, depth: int) -> None:
         line, name = tokens.next("joint name")
+        if depth > MAX_BVH_DEPTH or len(names) >= MAX_BVH_JOINTS:
+            raise MotionError(path, f"line {line}: joint {name!r} is {'nested ' + str(depth) + ' deep' if depth > MAX_BVH_DEPTH else 'one joint too many'}; "
+                                    f"at most {MAX_BVH_DEPTH} levels and {MAX_BVH_JOINTS} joints are read")
         index = len(names)
         names.append(name)
         parents.append(parent)
@@ -101,15 +111,17 @@ def read_bvh(path: str | Path) -> BvhClip:
         chans = [tokens.next(f"channels of {name}")[1].lower() for _ in range(int(count_tok))]
         unknown = [c for c in chans if c not in _ROT and c not in _POS]
         rot = [c for c in chans if c in _ROT]
-        if unknown or len(rot) != 3:
-            raise MotionError(path, f"line {cline}: joint {name!r} has channels {chans}; need three rotations (and optionally three positions)")
+        pos = [c for c in chans if c in _POS]
+        if unknown or len(set(rot)) != 3 or len(rot) != 3 or (pos and len(set(pos)) != 3):
+            raise MotionError(path, f"line {cline}: joint {name!r} has channels {chans}; need the three rotations "
+                                    "X, Y and Z once each (and optionally the three positions)")
         channels.append(chans)
         while True:
             kline, kw = tokens.next(f"children of {name}")
             if kw == "}":
                 return
             if kw.upper() == "JOINT":
-                parse_joint(index)
+                parse_joint(index, depth + 1)
             elif kw.upper() == "END":
                 tokens.expect("Site")
                 tokens.expect("{")
@@ -120,7 +132,7 @@ def read_bvh(path: str | Path) -> BvhClip:
                 raise MotionError(path, f"line {kline}: unexpected {kw!r} inside joint {name!r}")
 
     tokens.expect("ROOT")
-    parse_joint(-1)
+    parse_joint(-1, 0)
     if tokens.pos != len(tokens.items):
         line, tok = tokens.items[tokens.pos]
         raise MotionError(path, f"line {line}: unexpected {tok!r} after the hierarchy (only one ROOT is supported)")
@@ -133,8 +145,12 @@ def read_bvh(path: str | Path) -> BvhClip:
         frame_time = float(body[1][1].split(":", 1)[1])
     except ValueError:
         raise MotionError(path, f"line {body[0][0]}: cannot read the frame count or frame time") from None
-    if not (frame_time > 0 and np.isfinite(frame_time)):
-        raise MotionError(path, f"line {body[1][0]}: frame time must be positive, got {frame_time}")
+    if not (np.isfinite(frame_time) and 0 < frame_time <= 1.0 / MIN_SOURCE_FPS):
+        raise MotionError(path, f"line {body[1][0]}: frame time must be a positive number of seconds up to "
+                                f"{1.0 / MIN_SOURCE_FPS:g}, got {frame_time:g} (give the capture rate with --fps)")
+    if n_frames > max_frames():
+        raise MotionError(path, f"line {body[0][0]}: {n_frames:,} frames, over the limit of {max_frames():,} "
+                                "(set HRR_MAX_FRAMES to raise it)")
     rows = body[2:]
     n_chan = sum(len(c) for c in channels)
     if len(rows) < n_frames:
@@ -154,6 +170,10 @@ def read_bvh(path: str | Path) -> BvhClip:
     if not np.isfinite(data).all():
         bad = int(np.argmax(~np.isfinite(data).all(1)))
         raise MotionError(path, f"non-finite value (NaN or inf) in frame {bad} (line {rows[bad][0]})")
+    if not (np.abs(data) <= MAX_BVH_VALUE).all():
+        bad = int(np.argmax((np.abs(data) > MAX_BVH_VALUE).any(1)))
+        raise MotionError(path, f"frame {bad} (line {rows[bad][0]}) has a value beyond +-{MAX_BVH_VALUE:g} "
+                                "(file units or degrees): a corrupt row")
 
     n_joints = len(names)
     offsets_arr = np.array(offsets)

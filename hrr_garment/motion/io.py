@@ -15,6 +15,7 @@ from ..errors import MotionError
 from ..io_utils import atomic_path
 from .bvh import read_bvh
 from .joint_maps import load_joint_map, resolve_joint_map
+from .limits import MAX_SOURCE_FPS, MIN_SOURCE_FPS, check_frame_budget, check_root_speed, max_npz_bytes
 from .motion import FPS, Motion
 from .resample import resample_linear, resample_rotations, resample_times
 from .retarget import (
@@ -37,6 +38,10 @@ PLAUSIBLE_HEIGHT_M = (1.2, 2.3)
 # Z-up (AMASS) to Y-up: rotate -90 degrees about X, so +Z becomes +Y and +Y becomes -Z.
 Z_UP_TO_Y_UP = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
 AMASS_WIDTHS = {72: "smpl", 156: "smplh", 165: "smplx"}
+NPZ_KINDS = "biufUS"  # dtype kinds an npz may hold: numbers and strings (bool only where it is read as such)
+MAX_AXIS_ANGLE = 8 * np.pi  # radians: AMASS poses stay near pi; more is a scaled or corrupt file
+MAX_TRANSLATION_M = 1.0e4
+ROTATION_TOLERANCE = 1e-3  # how far a stored rotation matrix may be from orthonormal
 
 
 def load_motion(
@@ -60,19 +65,22 @@ def load_motion(
     suffix = path.suffix.lower()
     if suffix == ".bvh":
         custom = load_joint_map(joint_map) if isinstance(joint_map, (str, Path)) else joint_map
-        return load_bvh(path, unit_scale=unit_scale, joint_map=custom, ground=ground, fps=fps, source_fps=source_fps)
-    if suffix == ".npz":
+        motion = load_bvh(path, unit_scale=unit_scale, joint_map=custom, ground=ground, fps=fps, source_fps=source_fps)
+    elif suffix == ".npz":
         data = _read_npz(path)
         if "format" in data and str(data["format"]) == NATIVE_FORMAT:
             motion = _native_from_arrays(data, path)
             if source_fps is not None:
                 motion.fps = source_fps
-            return resample_motion(motion, fps)
-        return load_amass(path, data, ground=ground, fps=fps, source_fps=source_fps)
-    raise MotionError(path, f"unsupported motion file type {suffix!r} (expected .bvh or .npz)")
-
-
-MAX_SOURCE_FPS = 1000.0  # above this a "frame rate" is a unit mistake, not a capture rate
+            motion = resample_motion(motion, fps, path)
+        else:
+            motion = load_amass(path, data, ground=ground, fps=fps, source_fps=source_fps)
+    else:
+        raise MotionError(path, f"unsupported motion file type {suffix!r} (expected .bvh or .npz)")
+    # what every format must give, whatever its values: a finite motion whose root does not teleport
+    _check_finite(path, motion.local_rotations, motion.root_translation)
+    check_root_speed(path, motion.root_translation, motion.fps)
+    return motion
 
 
 def check_source_fps(value: float, path: str | Path) -> float:
@@ -81,23 +89,58 @@ def check_source_fps(value: float, path: str | Path) -> float:
     if arr.size != 1 or arr.dtype.kind not in "iuf":
         raise MotionError(path, f"frame rate must be one real number, got {str(value)[:40]!r}")
     rate = float(arr.item())
-    if not (np.isfinite(rate) and 0 < rate <= MAX_SOURCE_FPS):
-        raise MotionError(path, f"frame rate must be a finite number of frames per second in (0, {MAX_SOURCE_FPS:g}], got {rate:g}")
+    if not (np.isfinite(rate) and MIN_SOURCE_FPS <= rate <= MAX_SOURCE_FPS):
+        raise MotionError(path, f"frame rate must be a finite number of frames per second in [{MIN_SOURCE_FPS:g}, "
+                                f"{MAX_SOURCE_FPS:g}], got {rate:g}")
     return rate
 
 
 def _read_npz(path: Path) -> dict[str, np.ndarray]:
+    """Every array of an npz, after checking each one's declared size and dtype from its header:
+    numbers and strings only (never objects), and at most ``max_npz_bytes()`` in all, so a huge
+    declared shape or a compression bomb is refused before it is allocated."""
+    limit, total, arrays = max_npz_bytes(), 0, {}
     try:
-        with np.load(path, allow_pickle=False) as npz:
-            return {k: npz[k] for k in npz.files}
-    except (OSError, ValueError, zipfile.BadZipFile, EOFError) as exc:
+        with zipfile.ZipFile(path) as archive:
+            for member in archive.infolist():
+                name = member.filename[:-4] if member.filename.endswith(".npy") else member.filename
+                with archive.open(member) as fh:
+                    version = np.lib.format.read_magic(fh)
+                    read_header = np.lib.format.read_array_header_1_0 if version == (1, 0) else np.lib.format.read_array_header_2_0
+                    shape, _, dtype = read_header(fh)
+                if dtype.hasobject or dtype.kind not in NPZ_KINDS:
+                    raise MotionError(path, f"array {name!r} has dtype {dtype}; motion files hold numbers and strings only")
+                total += max(int(np.prod(shape, dtype=np.float64)) * dtype.itemsize, member.file_size)
+                if total > limit:
+                    raise MotionError(path, f"its arrays take over {limit:,} bytes uncompressed (array {name!r} has shape "
+                                            f"{shape}); set HRR_MAX_NPZ_BYTES to raise the limit")
+            with np.load(path, allow_pickle=False) as npz:
+                arrays = {k: npz[k] for k in npz.files}
+    except (OSError, ValueError, zipfile.BadZipFile, EOFError, KeyError) as exc:
         raise MotionError(path, f"not a readable npz file ({exc})") from None
+    return arrays
 
 
-def resample_motion(motion: Motion, fps: float = FPS) -> Motion:
+def _numeric(path: Path, data: dict[str, np.ndarray], key: str, bound: float) -> np.ndarray:
+    """``data[key]`` as float64: real numbers (not bool, complex, dates or text), finite and within
+    +-``bound``."""
+    values = data[key]
+    if values.dtype.kind not in "iuf":
+        raise MotionError(path, f"{key} has dtype {values.dtype}; expected real numbers")
+    values = values.astype(np.float64)
+    if values.size and values.ndim:
+        _check_finite(path, values)
+    if values.size and not (np.abs(values) <= bound).all():
+        frame = int(np.argmax(~(np.abs(values.reshape(len(values), -1)) <= bound).all(1))) if values.ndim else 0
+        raise MotionError(path, f"{key} has a value beyond +-{bound:g} (first at frame {frame}): a wrong unit or a corrupt file")
+    return values
+
+
+def resample_motion(motion: Motion, fps: float = FPS, path: str | Path | None = None) -> Motion:
     """The motion at ``fps`` (rotations slerped, translations interpolated)."""
     if abs(motion.fps - fps) < 1e-6:
         return motion
+    check_frame_budget(path or motion.source, motion.num_frames, motion.fps, fps)
     frames = resample_times(motion.num_frames, motion.fps, fps)
     return Motion(
         resample_rotations(motion.local_rotations.astype(np.float64), frames),
@@ -127,9 +170,10 @@ def load_bvh(path: Path, unit_scale: float | None = None, joint_map: dict | None
     rest = rest_positions(clip.offsets, clip.parents)
     if unit_scale is None:
         unit_scale = detect_unit_scale(rest, mapping, path)
-    elif not unit_scale > 0:
-        raise MotionError(path, f"unit scale must be positive, got {unit_scale}")
+    elif not (np.isfinite(unit_scale) and unit_scale > 0):
+        raise MotionError(path, f"unit scale must be a positive number of metres per file unit, got {unit_scale}")
     src_fps = source_fps or 1.0 / clip.frame_time
+    check_frame_budget(path, clip.num_frames, src_fps, fps)
     frames = resample_times(clip.num_frames, src_fps, fps)
     local_rot = resample_rotations(clip.local_rotations, frames)
     local_trans = resample_linear(clip.local_translations, frames) * unit_scale
@@ -156,22 +200,22 @@ def load_amass(path: Path, data: dict[str, np.ndarray], ground: bool = True, fps
     if rate_key is None and source_fps is None:
         raise MotionError(path, "no frame rate: the file has no mocap_framerate (or mocap_frame_rate) key; "
                                 "give the rate it was captured at with --fps (e.g. --fps 120)")
-    poses = np.asarray(data["poses"], dtype=np.float64)
-    trans = np.asarray(data["trans"], dtype=np.float64)
+    poses = _numeric(path, data, "poses", MAX_AXIS_ANGLE)
+    trans = _numeric(path, data, "trans", MAX_TRANSLATION_M)
     if poses.ndim == 3 and poses.shape[2] == 3 and poses.shape[1] * 3 in AMASS_WIDTHS:
-        poses = poses.reshape(poses.shape[0], -1)  # per-joint axis-angle
+        poses = poses.reshape(poses.shape[0], poses.shape[1] * 3)  # per-joint axis-angle
     if poses.ndim != 2 or poses.shape[1] not in AMASS_WIDTHS:
         raise MotionError(path, f"poses has shape {poses.shape}; expected (T, 72|156|165) or (T, 24|52|55, 3) "
                                 "for SMPL, SMPL-H or SMPL-X")
     if trans.shape != (poses.shape[0], 3):
         raise MotionError(path, f"trans has shape {trans.shape}; expected ({poses.shape[0]}, 3) to match poses")
-    rate = source_fps if source_fps is not None else check_source_fps(data[rate_key], f"{path}: {rate_key}")
-    _check_finite(path, poses, trans)
     if poses.shape[0] == 0:
         raise MotionError(path, "the motion has no frames")
+    rate = source_fps if source_fps is not None else check_source_fps(data[rate_key], f"{path}: {rate_key}")
     local = axis_angle_to_matrix(poses[:, : NUM_JOINTS * 3].reshape(-1, NUM_JOINTS, 3))
     local[:, 0] = Z_UP_TO_Y_UP @ local[:, 0]
     root = trans @ Z_UP_TO_Y_UP.T
+    check_frame_budget(path, poses.shape[0], rate, fps)
     frames = resample_times(poses.shape[0], rate, fps)
     local = resample_rotations(local, frames)
     root = resample_linear(root, frames)
@@ -220,16 +264,38 @@ def save_motion(motion: Motion, path: str | Path) -> None:
 
 
 def _native_from_arrays(data: dict[str, np.ndarray], path: Path) -> Motion:
-    version = int(data.get("version", -1))
-    if version != NATIVE_VERSION:
-        raise MotionError(path, f"native motion format version {version} is not supported (this build reads version {NATIVE_VERSION})")
+    version = data.get("version", np.int64(-1))
+    if version.dtype.kind not in "iu" or version.size != 1 or int(version) != NATIVE_VERSION:
+        raise MotionError(path, f"native motion format version {str(version)[:20]} is not supported (this build reads version {NATIVE_VERSION})")
     missing = [k for k in ("local_rotations", "root_translation", "fps") if k not in data]
     if missing:
         raise MotionError(path, f"missing keys {missing}")
-    rot = data["local_rotations"]
+    rot = _numeric(path, data, "local_rotations", 1.0 + ROTATION_TOLERANCE)
     if rot.ndim != 4 or rot.shape[1:] != (NUM_JOINTS, 3, 3):
         raise MotionError(path, f"local_rotations has shape {rot.shape}; expected (T, {NUM_JOINTS}, 3, 3)")
-    if data["root_translation"].shape != (rot.shape[0], 3):
-        raise MotionError(path, f"root_translation has shape {data['root_translation'].shape}; expected ({rot.shape[0]}, 3)")
-    _check_finite(path, rot, data["root_translation"])
-    return Motion(rot, data["root_translation"], float(data["fps"]), str(data.get("source", path)), str(data.get("source_skeleton", "canonical")), float(data.get("source_height_m", 1.7)))
+    if rot.shape[0] == 0:
+        raise MotionError(path, "the motion has no frames")
+    # rotations, not any 3 x 3: orthonormal with determinant +1 (no zeros, scales or reflections)
+    error = np.abs(np.einsum("...ji,...jk->...ik", rot, rot) - np.eye(3)).max(axis=(-2, -1))
+    error = np.maximum(error, np.abs(np.linalg.det(rot) - 1.0))
+    if (error > ROTATION_TOLERANCE).any():
+        frame, joint = np.unravel_index(int(np.argmax(error)), error.shape)
+        raise MotionError(path, f"local_rotations[{frame}, {joint}] is not a rotation matrix (off by {error.max():.3g})")
+    root = _numeric(path, data, "root_translation", MAX_TRANSLATION_M)
+    if root.shape != (rot.shape[0], 3):
+        raise MotionError(path, f"root_translation has shape {root.shape}; expected ({rot.shape[0]}, 3)")
+    fps = check_source_fps(data["fps"], path)
+    height = float(_numeric(path, data, "source_height_m", PLAUSIBLE_HEIGHT_M[1] * 2)) if "source_height_m" in data else 1.7
+    if not height > 0:
+        raise MotionError(path, f"source_height_m must be a positive height in metres, got {height:g}")
+    return Motion(rot, root, fps, _text(data, "source", str(path)), _text(data, "source_skeleton", "canonical"), height)
+
+
+def _text(data: dict[str, np.ndarray], key: str, default: str) -> str:
+    """A string entry (``default`` when absent); numbers and arrays are not names."""
+    value = data.get(key)
+    if value is None:
+        return default
+    if value.dtype.kind not in "US" or value.size != 1:
+        raise MotionError(default, f"{key} must be a string, got a {value.dtype} array of shape {value.shape}")
+    return str(value.item())[:1000]

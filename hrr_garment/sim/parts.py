@@ -72,7 +72,7 @@ def simulate_sequence(spec: SequenceSpec, motion: Motion, garment: GarmentMesh, 
         return PartResult(spec.name, key, 0, failure=str(exc))
     stats = sequence_stats(result.vertices, garment.vertices, garment.edges(), motion, garment.groups.get("hem"))
     stats.update(substeps=result.substeps, attempts=result.attempts, sim_seconds=result.seconds,
-                 simulated_frames=result.simulated_frames, arm_contact=result.arm_contact)
+                 simulated_frames=result.simulated_frames, arms_off_frames=result.arms_off_frames)
     info = {"kind": spec.kind, "seed": spec.seed, "path": spec.path, "stats": stats}
     return PartResult(spec.name, key, result.simulated_frames, result.vertices, motion, info)
 

@@ -9,11 +9,12 @@ convergence, so the defaults are 10 substeps x 3 iterations.
 A frame that is not finite, moves faster than ``max_speed`` or stretches an edge beyond
 ``max_strain`` raises :class:`SimulationExploded`; ``simulate_garment`` retries with twice the
 substeps, and, for a motion whose own limbs pass through the body
-(:mod:`hrr_garment.body.self_contact`), once more with the arms (upper arms, forearms, hands) not
-touching the cloth: an arm sunk into the hips or belly pinches the cloth between two overlapping
-capsules and tears it, while an arm passing through the cloth is a small, visible flaw of the
-capture's own making. (Forearms and hands alone saved a Bandai wave but not CMU 131_01 / 131_03
-at 4,266 vertices; with the upper arms all three hold.)
+(:mod:`hrr_garment.body.self_contact`), with the arms (upper arms, forearms, hands) not touching
+the cloth: first during those episodes only, then over the whole clip. An arm sunk into the hips or
+belly pinches the cloth between two overlapping capsules and tears it, while an arm passing through
+the cloth is a small, visible flaw of the capture's own making; keeping the arms on the cloth
+outside the episodes keeps it outside them there. (Forearms and hands alone saved a Bandai wave
+but not CMU 131_01 / 131_03 at 4,266 vertices; with the upper arms all three hold.)
 """
 
 from __future__ import annotations
@@ -24,8 +25,8 @@ from typing import Callable
 
 import numpy as np
 
-from ..body.capsules import DEFAULT_BODY, BodyModel
-from ..body.self_contact import self_intersecting_frames
+from ..body.capsules import DEFAULT_BODY, BodyModel, frames_signed_distance
+from ..body.self_contact import ARM_PARTS, self_intersection_episodes
 from ..errors import HRRError
 from ..garment.attachment import bind_attached
 from ..garment.mesh import GarmentMesh
@@ -35,7 +36,11 @@ from ..settings import from_settings
 from .lead_in import start_transform, with_lead_in
 
 NEWTON_VERSION = "1.8.0"
-ARM_CAPSULES = ("upper_arm", "forearm", "hand")  # taken off the cloth in the last retry
+ARM_CAPSULES = ("upper_arm", "forearm", "hand")  # taken off the cloth in the last retries
+# after an episode the arms come back on once at most this fraction of the cloth is inside them:
+# first 0.5 % (CMU 131_01 then 0.07 % outside flagged frames, where waiting for none left the
+# arms off, through the cloth, for 31 more frames: 1.43 %), then, if that tears, none (131_03)
+ARMS_BACK_INSIDE = (0.005, 0.0)
 
 
 class SimulationExploded(HRRError):
@@ -85,7 +90,7 @@ class SimResult:
     seconds: float  # wall time of the successful attempt, scene building included
     simulated_frames: int  # lead-in included
     step_seconds: float = 0.0  # time spent stepping the solver (steady-state cost)
-    arm_contact: bool = True  # False: forearms and hands did not touch the cloth (the last retry)
+    arms_off_frames: int = 0  # clip frames on which the arms did not touch the cloth (the last retries)
 
 
 def _import_newton():
@@ -132,20 +137,19 @@ class _Scene:
     """A newton model of one garment and the capsule body, stepped frame by frame."""
 
     def __init__(self, garment: GarmentMesh, start_vertices: np.ndarray, half_lengths: np.ndarray,
-                 body: BodyModel, config: SimConfig, arm_contact: bool = True):
+                 body: BodyModel, config: SimConfig):
         wp, newton = _import_newton()
         self.wp, self.config = wp, config
         self.device = resolve_device(wp, config.device)
         builder = newton.ModelBuilder(up_axis=newton.Axis.Y, gravity=(0.0, -config.gravity, 0.0))
         shape_cfg = newton.ModelBuilder.ShapeConfig(ke=config.contact_ke, kd=config.contact_kd, mu=config.contact_mu,
                                                     has_shape_collision=False)
-        no_cloth = newton.ModelBuilder.ShapeConfig(ke=config.contact_ke, kd=config.contact_kd, mu=config.contact_mu,
-                                                   has_shape_collision=False, has_particle_collision=False)
+        self.arm_shapes = []
         for c, capsule in enumerate(body.capsules):
             b = builder.add_body(mass=0.0, is_kinematic=True, label=capsule.name)
-            arm = capsule.name.endswith(tuple(f"_{part}" for part in ARM_CAPSULES))
-            builder.add_shape_capsule(b, radius=capsule.radius, half_height=float(half_lengths[c]),
-                                      cfg=no_cloth if arm and not arm_contact else shape_cfg)
+            shape = builder.add_shape_capsule(b, radius=capsule.radius, half_height=float(half_lengths[c]), cfg=shape_cfg)
+            if capsule.name.endswith(tuple(f"_{part}" for part in ARM_CAPSULES)):
+                self.arm_shapes.append(shape)
         builder.add_ground_plane(cfg=newton.ModelBuilder.ShapeConfig(ke=config.contact_ke, kd=config.contact_kd,
                                                                     mu=config.contact_mu))
         builder.add_cloth_mesh(
@@ -170,6 +174,19 @@ class _Scene:
         self.attached = garment.attached
         self.parity = 0  # states[parity] holds the current positions
         self.graphs: list = [None, None]
+        self.arm_contact = True
+        self.collide_particles = int(newton.ShapeFlags.COLLIDE_PARTICLES)
+
+    def set_arm_contact(self, on: bool) -> None:
+        """Let the arm capsules touch the cloth or not. The contact kernels read the shape flags on
+        every launch (captured graphs included) and VBD's candidate tables stay valid."""
+        if on == self.arm_contact:
+            return
+        flags = self.model.shape_flags.numpy()
+        flags[self.arm_shapes] = flags[self.arm_shapes] | self.collide_particles if on else \
+            flags[self.arm_shapes] & ~self.collide_particles
+        self.model.shape_flags.assign(flags)
+        self.arm_contact = on
 
     def _substep(self, parity: int, dt: float) -> None:
         state_in, state_out = self.states[parity], self.states[1 - parity]
@@ -211,20 +228,34 @@ class _Scene:
             self._run_substep(dt / substeps)
         return self.states[self.parity].particle_q.numpy().copy()
 
+    def current(self) -> np.ndarray:
+        return self.states[self.parity].particle_q.numpy()
+
     def speeds(self) -> np.ndarray:
         return np.linalg.norm(self.states[self.parity].particle_qd.numpy(), axis=1)
 
 
 def _attempt(garment: GarmentMesh, motion: Motion, body: BodyModel, config: SimConfig,
-             progress: Callable[[int], None] | None, arm_contact: bool = True) -> tuple[np.ndarray, int, float]:
+             progress: Callable[[int], None] | None, arms_off: np.ndarray | None = None,
+             back_inside: float = 0.0) -> tuple[np.ndarray, int, float, int]:
+    """One simulation; ``arms_off``: (T,) clip frames on which the arms do not touch the cloth (the
+    lead-in follows the clip's first frame). The arms come back only once at most ``back_inside``
+    of the cloth is inside them: switched on around cloth that an arm passed
+    through, the contact throws it out at once (CMU 131_03 tore the full dress nine frames after an
+    episode ended)."""
     extended, lead = with_lead_in(motion, config.settle_s, config.blend_s)
+    if arms_off is None:
+        arms_off = np.zeros(motion.num_frames, bool)
+    arms_off = np.concatenate([np.full(lead, arms_off[0]), arms_off])
     rot_y, shift = start_transform(motion)
     start = garment.vertices.astype(np.float64) @ rot_y.T + shift
     centre, quat, half = capsule_transforms(extended, body)
     poses = np.concatenate([centre, quat], -1)
     binding = bind_attached(garment, body)
     pins = binding.pose(extended.global_rotations.astype(np.float64), extended.joint_positions)
-    scene = _Scene(garment, start, half, body, config, arm_contact)
+    scene = _Scene(garment, start, half, body, config)
+    arms = [c for c, capsule in enumerate(body.capsules) if capsule.name.endswith(tuple(f"_{p}" for p in ARM_CAPSULES))]
+    arm_a, arm_b = (ends[:, arms] for ends in body.pose_motion(extended))
     edges = garment.edges()
     rest_len = np.linalg.norm(garment.vertices[edges[:, 0]] - garment.vertices[edges[:, 1]], axis=1)
     dt = 1.0 / motion.fps
@@ -233,6 +264,10 @@ def _attempt(garment: GarmentMesh, motion: Motion, body: BodyModel, config: SimC
     for f in range(extended.num_frames):
         prev = max(f - 1, 0)
         t0 = time.perf_counter()
+        if arms_off[f] or not scene.arm_contact and \
+                _inside_fraction(scene.current(), arm_a[f], arm_b[f], body.radii[arms]) > back_inside:
+            arms_off[f] = True  # kept off until the cloth is clear of them
+        scene.set_arm_contact(not arms_off[f])
         verts = scene.step_frame(poses[prev], poses[f], pins[prev], pins[f], dt, config.substeps)
         stepping += time.perf_counter() - t0
         clip_frame = f - lead
@@ -249,32 +284,52 @@ def _attempt(garment: GarmentMesh, motion: Motion, body: BodyModel, config: SimC
         if problem:
             where = f"clip frame {clip_frame}" if clip_frame >= 0 else f"lead-in frame {f}"
             raise SimulationExploded(f"{garment.name} on {motion.source}: {problem} at {where} "
-                                     f"({config.substeps} substeps{'' if arm_contact else ', arms off the cloth'})")
+                                     f"({config.substeps} substeps{_arms_note(arms_off[lead:])})")
         if clip_frame >= 0:
             recorded[clip_frame] = verts
         if progress is not None:
             progress(1)
-    return recorded, extended.num_frames, stepping
+    return recorded, extended.num_frames, stepping, int(arms_off[lead:].sum())
+
+
+def _inside_fraction(vertices: np.ndarray, a: np.ndarray, b: np.ndarray, radii: np.ndarray) -> float:
+    """The fraction of vertices inside the capsules a-b (C, 3)."""
+    return float((frames_signed_distance(vertices[None], a[None], b[None], radii)[0] < 0).mean())
+
+
+def _arms_note(arms_off: np.ndarray) -> str:
+    if arms_off.all():
+        return ", arms off the cloth"
+    return f", arms off the cloth on {int(arms_off.sum())} frames" if arms_off.any() else ""
 
 
 def simulate_garment(garment: GarmentMesh, motion: Motion, config: SimConfig = SimConfig(),
                      body: BodyModel = DEFAULT_BODY, progress: Callable[[int], None] | None = None) -> SimResult:
     """Simulate ``garment`` on ``motion`` (30 fps canonical); on explosion retries with more substeps,
-    then (for a motion with self-intersecting limbs) with the arms off the cloth.
+    then (for a motion with self-intersecting limbs) with the arms off the cloth during those
+    episodes, then over the whole clip.
 
     Raises :class:`SimulationExploded` (with every attempt's reason) when all attempts fail.
     """
-    attempts = [(config.substeps * 2 ** k, True) for k in range(config.retries + 1)]
+    # (substeps, clip frames with the arms off the cloth, fraction of the cloth inside the arms they come back at)
+    attempts: list[tuple[int, np.ndarray | None, float]] = [(config.substeps * 2 ** k, None, 0.0)
+                                                          for k in range(config.retries + 1)]
     reasons = []
-    for number, (substeps, arm_contact) in enumerate(attempts, 1):
+    for number, (substeps, arms_off, back_inside) in enumerate(attempts, 1):
         cfg = replace(config, substeps=substeps)
         t0 = time.perf_counter()
         try:
-            vertices, frames, stepping = _attempt(garment, motion, body, cfg, progress, arm_contact)
+            vertices, frames, stepping, off = _attempt(garment, motion, body, cfg, progress, arms_off, back_inside)
         except SimulationExploded as exc:
             reasons.append(str(exc))
-            if number == len(attempts) and arm_contact and self_intersecting_frames(motion, body).any():
-                attempts.append((config.substeps, False))
+            if number == config.retries + 1:  # every substep count failed: the arms, if they are the cause
+                episodes = np.zeros(motion.num_frames, bool)
+                for start, stop in self_intersection_episodes(motion, body, parts=ARM_PARTS):
+                    episodes[start:stop] = True
+                if episodes.any() and not episodes.all():
+                    attempts += [(config.substeps, episodes, inside) for inside in ARMS_BACK_INSIDE]
+                if episodes.any():
+                    attempts.append((config.substeps, np.ones_like(episodes), 0.0))
             continue
-        return SimResult(vertices, cfg.substeps, number, time.perf_counter() - t0, frames, stepping, arm_contact)
+        return SimResult(vertices, cfg.substeps, number, time.perf_counter() - t0, frames, stepping, off)
     raise SimulationExploded("; ".join(reasons))

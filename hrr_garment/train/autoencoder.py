@@ -53,7 +53,9 @@ class TrainConfig:
     seed: int = 0
     threads: int | None = None
     device: str = "cpu"  # torch device to train on ("cuda" on a GPU machine); the outputs are the same files
-    mirror: bool = True  # add left-right mirrored training frames when the template is symmetric
+    mirror: bool = True  # add left-right mirrored training frames when the template is symmetric (and the
+    #                      dataset does not hold mirrored sequences already)
+    frames_per_epoch: int | None = 16384  # an epoch draws at most this many training frames (None: all)
     refine_steps: int = 10  # Adam steps on each encoded latent through the decoder (0: the encoder's latents)
     refine_lr: float = 0.03
 
@@ -91,15 +93,21 @@ def body_frames(ds: GarmentDataset, names: list[str]) -> np.ndarray:
     return np.concatenate(out) if out else np.zeros((0, ds.template.num_vertices, 3), np.float32)
 
 
+def holds_mirrors(ds: GarmentDataset) -> bool:
+    """Whether the dataset was built with every sequence mirrored (``hrr-simulate`` with a preset's
+    ``mirror: true``): then mirroring its frames again only doubles them."""
+    return bool(ds.info.get("augmentation", {}).get("mirror"))
+
+
 def training_frames(ds: GarmentDataset, mirror: bool) -> TrainingFrames:
-    """Every split's frames, the training split with its left-right mirror when asked and the
-    template is symmetric."""
+    """Every split's frames, the training split with its left-right mirror when asked, the
+    template is symmetric and the dataset does not hold the mirrored sequences already."""
     splits = ds.splits
     train = body_frames(ds, splits["train"])
     val = body_frames(ds, splits.get("val", []))
     test = body_frames(ds, splits.get("test", []))
     template = ds.template.vertices.astype(np.float32)
-    perm = mirror_map(template) if mirror else None
+    perm = mirror_map(template) if mirror and not holds_mirrors(ds) else None
     simulated = len(train)
     if perm is not None:  # body frame: x is the body's left-right axis
         train = np.concatenate([train, train[:, perm] * np.array([-1, 1, 1], np.float32)])
@@ -171,7 +179,10 @@ def _fit(model: MeshAutoencoder, optimizer: torch.optim.Optimizer, frames: Train
         if early_stop(state["stale"], config.patience, run_fraction(state["epoch"])):
             break
         model.train()
-        order = rng.permutation(len(train))
+        # a bounded epoch: one pass over the real-motion library's 114,000 frames took 18 min on
+        # 2 cores, longer than its whole budget, so validation, checkpoints and the budget check
+        # would wait for it; each epoch draws a fresh sample instead
+        order = rng.permutation(len(train))[:config.frames_per_epoch]
         losses = []
         for i in range(0, len(order), config.batch_size):
             set_learning_rate(optimizer, config, run_fraction(state["epoch"] + i / len(order)))

@@ -55,6 +55,7 @@ class CodeSpaceTrainConfig:
     plateau_delta: float = 0.01  # relative improvement that counts as progress
     patience: int = 25  # epochs after the switch without a better validation regression loss
     max_minutes: float | None = None
+    windows_per_epoch: int | None = 8192  # an epoch draws at most this many training windows (None: all)
     seed: int = 0
 
     @classmethod
@@ -162,7 +163,9 @@ def train_codespace(model: CodeSpace, train: WindowTensors, val: WindowTensors, 
         temperature = max(config.temperature_min, config.temperature * config.temperature_decay ** epoch)
         match_weight = config.match_weight if state["switched_at"] is None else config.match_weight_late
         model.train()
-        order = torch.randperm(len(train.motion), generator=gen)
+        # bounded epochs: the temperature, the plateau switch and the patience count epochs, and
+        # the real-motion library has some 100,000 windows; each epoch draws a fresh sample
+        order = torch.randperm(len(train.motion), generator=gen)[:config.windows_per_epoch]
         sums = {"rec": 0.0, "match": 0.0, "diversity": 0.0}
         for i in range(0, len(order), config.batch_size):
             idx = order[i:i + config.batch_size]
