@@ -60,3 +60,33 @@ def _json_ready(value):
 def strict_json(value, **kwargs) -> str:
     """``json.dumps`` that writes non-finite numbers as ``null`` instead of NaN / Infinity."""
     return json.dumps(_json_ready(value), allow_nan=False, **kwargs)
+
+
+@contextlib.contextmanager
+def exclusive_lock(path: str | Path, resource: object, busy: str) -> Iterator[Path]:
+    """Hold an exclusive advisory lock on ``path`` (created if missing) for the block, or raise
+    :class:`~hrr_garment.errors.InputError` at once for ``resource``, saying ``busy`` and the
+    holder's pid, when another process holds it. The operating system releases the lock when its
+    holder exits, however it exits, so no stale lock outlives a killed run."""
+    import fcntl
+
+    from .errors import InputError
+
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with open(path, "a+", encoding="utf-8") as fh:
+        try:
+            fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            fh.seek(0)
+            raise InputError(resource, f"{busy} (process {fh.read().strip() or 'unknown'} holds {path})") from None
+        fh.seek(0)
+        fh.truncate()
+        fh.write(str(os.getpid()))
+        fh.flush()
+        try:
+            yield path
+        finally:
+            fh.seek(0)
+            fh.truncate()
+            fcntl.flock(fh, fcntl.LOCK_UN)

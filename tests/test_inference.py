@@ -272,3 +272,23 @@ def test_bench_inference_reports_every_key(capsys):
         assert report[key] > 0, key
     assert report["stream_p50_ms"] <= report["stream_p99_ms"]
     assert set(report["stream_stage_p50_ms"]) == {"features", "encoder", "decoder", "world", "push_out"}
+
+
+@pytest.mark.parametrize("damage, phrase", [
+    (lambda v: v.__setitem__((3, 5, 0), np.nan), r"non-finite vertices on 1 frame\(s\), first at frame 3"),
+    (lambda v: v.__setitem__((2, 0, 1), 7.0), "m from the body at frame 2"),
+])
+def test_an_absurd_animation_is_refused_and_nothing_is_written(tmp_path, damage, phrase):
+    from hrr_garment.errors import InputError
+    from hrr_garment.inference.animator import Animation
+
+    motion = synthesize("walk", 0.2, seed=0)
+    joints = motion.joint_positions.astype(np.float32)
+    vertices = joints[:, :1] + np.zeros((1, 10, 3), np.float32)  # every vertex at the pelvis
+    anim = Animation(vertices, np.array([[0, 1, 2]]), 30.0, np.zeros(len(joints), np.uint8), np.zeros(len(joints), np.float32),
+                     -np.ones((len(joints), 2), np.int32), joints, "skirt", "hash", "walk")
+    anim.check(tmp_path / "ok.h5")  # a plausible one passes
+    damage(anim.vertices)
+    with pytest.raises(InputError, match=phrase):
+        anim.save(tmp_path / "out.h5")
+    assert not list(tmp_path.iterdir())

@@ -37,6 +37,9 @@ from .gate import choose_windows
 from .modes import CODE_MODES, Mode
 
 
+MAX_REACH_M = 1.5  # metres from the nearest body joint a garment vertex may be (a long dress's hem: under 0.6)
+
+
 @dataclass
 class Animation:
     """An animated garment: world-space vertices (T, V, 3) at ``fps``, Y up, metres."""
@@ -59,10 +62,27 @@ class Animation:
     def retrieval_usage(self) -> float:
         return float(self.mode.mean()) if len(self.mode) else 0.0
 
+    def check(self, target: str | Path) -> None:
+        """Refuse to hand on an absurd result: non-finite vertices or joints, or a garment vertex
+        farther than ``MAX_REACH_M`` from every joint (a damaged or mismatched model, not cloth)."""
+        for name, values in (("vertices", self.vertices), ("joints", self.joints)):
+            bad = ~np.isfinite(values.reshape(len(values), -1)).all(1)
+            if bad.any():
+                raise InputError(target, f"the model produced non-finite {name} on {int(bad.sum())} frame(s), first at "
+                                         f"frame {int(np.argmax(bad))}; nothing written (is the model bundle damaged?)")
+        for t in range(0, len(self.vertices), 256):  # nearest joint of every vertex, a block of frames at a time
+            v, j = self.vertices[t:t + 256], self.joints[t:t + 256]
+            reach = np.sqrt(((v[:, :, None] - j[:, None]) ** 2).sum(-1).min(-1)).max(1)
+            if (reach > MAX_REACH_M).any():
+                frame = t + int(np.argmax(reach > MAX_REACH_M))
+                raise InputError(target, f"the model put a garment vertex {reach.max():.2f} m from the body at frame {frame} "
+                                         f"(more than {MAX_REACH_M:g} m); nothing written (a damaged or mismatched model?)")
+
     def save(self, path: str | Path) -> Path:
-        """Write ``out.h5`` (see :mod:`hrr_garment.data.animation_file`), atomically."""
+        """Write ``out.h5`` (see :mod:`hrr_garment.data.animation_file`), atomically, after :meth:`check`."""
         from ..data.animation_file import write_animation_h5
 
+        self.check(path)
         return write_animation_h5(path, vertices=self.vertices, faces=self.faces, joints=self.joints, mode=self.mode,
                                   entropy=self.entropy, source=self.source, capsules=self.capsules,
                                   radii=None if self.capsules is None else DEFAULT_BODY.radii,

@@ -21,7 +21,7 @@ import numpy as np
 from ..data.dataset import SequenceRecord, split_groups, split_names, write_dataset
 from ..errors import InputError
 from ..garment.mesh import GarmentMesh, mirror_map
-from ..io_utils import atomic_write_text
+from ..io_utils import atomic_write_text, exclusive_lock
 from .executors import EXECUTORS, run_local, run_ray
 from .parts import PART_VERSION, load_part, part_paths, read_part_key, template_hash
 from .plan import SequenceSpec
@@ -74,51 +74,53 @@ def build_dataset(garment: GarmentMesh, specs: list[SequenceSpec], config: SimCo
     out = Path(out)
     parts = out.with_suffix(".parts")
     parts.mkdir(parents=True, exist_ok=True)
-    extra = {"template": template_hash(garment), "sim": config.to_dict(), "part_version": PART_VERSION}
-    keys = {s.name: s.key(extra) for s in specs}
-    pending, rejects, reused = [], {}, 0
-    for spec in specs:
-        part, failed = part_paths(parts, spec.name)
-        if part.exists() and read_part_key(part) == keys[spec.name]:
-            reused += 1
-        elif not retry_rejected and failed.exists() and json.loads(failed.read_text()).get("key") == keys[spec.name]:
-            rejects[spec.name] = json.loads(failed.read_text())["reason"]
+    busy = "another hrr-simulate is building this dataset; wait for it, or write elsewhere with -o"
+    with exclusive_lock(out.with_suffix(".lock"), out, busy):
+        extra = {"template": template_hash(garment), "sim": config.to_dict(), "part_version": PART_VERSION}
+        keys = {s.name: s.key(extra) for s in specs}
+        pending, rejects, reused = [], {}, 0
+        for spec in specs:
+            part, failed = part_paths(parts, spec.name)
+            if part.exists() and read_part_key(part) == keys[spec.name]:
+                reused += 1
+            elif not retry_rejected and failed.exists() and json.loads(failed.read_text()).get("key") == keys[spec.name]:
+                rejects[spec.name] = json.loads(failed.read_text())["reason"]
+            else:
+                pending.append(spec)
+        if executor == "local":
+            jobs = max(1, min(jobs or os.cpu_count() or 1, len(pending) or 1))
+        t0 = time.perf_counter()
+        if pending:
+            if progress:
+                where = f"{jobs} worker(s)" if executor == "local" else f"Ray ({address or f'local, {jobs or os.cpu_count()} CPUs'})"
+                print(f"simulating {len(pending)} of {len(specs)} sequences with {where}; "
+                      f"{reused} already done (first run compiles kernels: about two minutes, cached after)")
+            warm_up(garment, config)
+            if executor == "ray":
+                rejects.update(run_ray(pending, garment, config, keys, parts, jobs, progress, address))
+            else:
+                rejects.update(run_local(pending, garment, config, keys, parts, jobs, progress))
+        sim_wall = time.perf_counter() - t0
+        done = [s.name for s in specs if s.name not in rejects and part_paths(parts, s.name)[0].exists()]
+        records = [load_part(part_paths(parts, n)[0], n) for n in done]
+        if not records:
+            raise SimulationExploded(f"every sequence failed; nothing to write to {out}: {rejects}")
+        val, test = (splits or {}).get("val", 0.1), (splits or {}).get("test", 0.1)
+        if groups:
+            split = split_groups({n: groups.get(n, n) for n in done}, val, test, seed)
         else:
-            pending.append(spec)
-    if executor == "local":
-        jobs = max(1, min(jobs or os.cpu_count() or 1, len(pending) or 1))
-    t0 = time.perf_counter()
-    if pending:
-        if progress:
-            where = f"{jobs} worker(s)" if executor == "local" else f"Ray ({address or f'local, {jobs or os.cpu_count()} CPUs'})"
-            print(f"simulating {len(pending)} of {len(specs)} sequences with {where}; "
-                  f"{reused} already done (first run compiles kernels: about two minutes, cached after)")
-        warm_up(garment, config)
-        if executor == "ray":
-            rejects.update(run_ray(pending, garment, config, keys, parts, jobs, progress, address))
-        else:
-            rejects.update(run_local(pending, garment, config, keys, parts, jobs, progress))
-    sim_wall = time.perf_counter() - t0
-    done = [s.name for s in specs if s.name not in rejects and part_paths(parts, s.name)[0].exists()]
-    records = [load_part(part_paths(parts, n)[0], n) for n in done]
-    if not records:
-        raise SimulationExploded(f"every sequence failed; nothing to write to {out}: {rejects}")
-    val, test = (splits or {}).get("val", 0.1), (splits or {}).get("test", 0.1)
-    if groups:
-        split = split_groups({n: groups.get(n, n) for n in done}, val, test, seed)
-    else:
-        split = split_names(done, val, test, seed)
-    summary = summarise(records, garment, rejects, sim_wall, jobs, len(pending))
-    if mirror:
-        records, split = _add_mirrored(records, split, garment, progress)
-        summary["mirrored"] = len(records) - len(done)
-    write_dataset(out, garment, records, split, {**(info or {}), "summary": summary, "sim": config.to_dict()})
-    atomic_write_text(out.with_suffix(".summary.json"), json.dumps(summary, indent=2))
-    report = BuildReport(out, done, rejects, summary, reused, len(pending) - len(rejects),
-                         stats={r.name: r.info.get("stats", {}) for r in records})
-    if preview:
-        report.preview = preview(records, garment, out.with_suffix(".preview.png"))
-    return report
+            split = split_names(done, val, test, seed)
+        summary = summarise(records, garment, rejects, sim_wall, jobs, len(pending))
+        if mirror:
+            records, split = _add_mirrored(records, split, garment, progress)
+            summary["mirrored"] = len(records) - len(done)
+        write_dataset(out, garment, records, split, {**(info or {}), "summary": summary, "sim": config.to_dict()})
+        atomic_write_text(out.with_suffix(".summary.json"), json.dumps(summary, indent=2))
+        report = BuildReport(out, done, rejects, summary, reused, len(pending) - len(rejects),
+                             stats={r.name: r.info.get("stats", {}) for r in records})
+        if preview:
+            report.preview = preview(records, garment, out.with_suffix(".preview.png"))
+        return report
 
 
 def _add_mirrored(records: list[SequenceRecord], split: dict[str, list[str]], garment: GarmentMesh,
