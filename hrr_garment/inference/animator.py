@@ -36,7 +36,6 @@ from .decoding import body_frame_vertices, flush_denormals
 from .gate import choose_windows
 from .modes import CODE_MODES, Mode
 
-
 MAX_REACH_M = 1.5  # metres from the nearest body joint a garment vertex may be (a long dress's hem: under 0.6)
 
 
