@@ -82,16 +82,25 @@ def test_frame_limits_are_explicit_and_raisable(capsys, tmp_path, good_bvh, monk
         load_motion(slow)
 
 
-def _amass(tmp_path, name, **overrides):
-    motion = synthesize("walk", seconds=1.0, seed=0)
-    path = tmp_path / "base.npz"
-    save_amass(motion, path)
+def _npz(tmp_path, name, save, **overrides):
+    """A one-second walk written by ``save`` (save_amass or save_motion), then rewritten with
+    ``overrides`` replacing or adding arrays."""
+    path = tmp_path / f"base-{save.__name__}.npz"
+    save(synthesize("walk", seconds=1.0, seed=0), path)
     with np.load(path) as f:
         arrays = {k: f[k] for k in f.files}
     arrays.update(overrides)
     out = tmp_path / name
     np.savez(out, **arrays)
     return out
+
+
+def _amass(tmp_path, name, **overrides):
+    return _npz(tmp_path, name, save_amass, **overrides)
+
+
+def _native(tmp_path, name, **overrides):
+    return _npz(tmp_path, name, save_motion, **overrides)
 
 
 @pytest.mark.parametrize("name, overrides, phrase", [
@@ -109,17 +118,6 @@ def _amass(tmp_path, name, **overrides):
 ])
 def test_hostile_amass_files_are_refused(capsys, tmp_path, name, overrides, phrase):
     expect_failure(capsys, tmp_path, _amass(tmp_path, name, **overrides), phrase)
-
-
-def _native(tmp_path, name, **overrides):
-    path = tmp_path / "base-native.npz"
-    save_motion(synthesize("walk", seconds=1.0, seed=0), path)
-    with np.load(path) as f:
-        arrays = {k: f[k] for k in f.files}
-    arrays.update(overrides)
-    out = tmp_path / name
-    np.savez(out, **arrays)
-    return out
 
 
 @pytest.mark.parametrize("name, change, phrase", [
