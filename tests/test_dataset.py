@@ -15,6 +15,7 @@ from hrr_garment.cli.import_sim import main as import_main
 from hrr_garment.cli.simulate import main as simulate_main
 from hrr_garment.data.dataset import (
     SPLITS,
+    DatasetError,
     GarmentDataset,
     SequenceRecord,
     split_names,
@@ -212,3 +213,59 @@ def test_a_dataset_being_built_is_locked_against_a_second_build(tmp_path):
     with pytest.raises(Exception, match="every sequence failed; nothing to write"):
         build_dataset(make_garment("skirt", 200), [], SimConfig(), out, progress=False)
     assert not out.exists()
+
+
+def _damaged(path, damage):
+    import h5py
+
+    skirt = make_garment("skirt", 200)
+    motion = synthesize("idle", 0.3, seed=0)
+    frames = np.repeat(skirt.vertices[None], motion.num_frames, 0).astype(np.float32)
+    write_dataset(path, skirt, [SequenceRecord("a", frames, motion)], {"train": ["a"], "val": [], "test": []},
+                  compression=None)
+    with h5py.File(path, "r+") as f:
+        damage(f)
+    return path
+
+
+def _set(key, value):
+    def damage(f):
+        f[key][...] = value
+    return damage
+
+
+def _attr(key, value):
+    def damage(f):
+        (f[key] if key else f).attrs["info"] = value
+    return damage
+
+
+@pytest.mark.parametrize("damage, phrase", [
+    (lambda f: f.__delitem__("sequences/a/garment"), "sequence 'a' lacks 'garment'"),
+    (_set("sequences/a/garment", np.nan), "non-finite garment vertices on 9 frame(s), first at frame 0"),
+    (_set("sequences/a/root_translation", np.inf), "sequence 'a': non-finite values in 9 frame(s)"),
+    (_attr("sequences/a", "{not json"), "attribute 'info' is not valid JSON"),
+    (_attr("", "[1, 2]"), "attribute 'info' should hold a dict"),
+])
+def test_damaged_datasets_are_refused_naming_the_file_and_sequence(tmp_path, damage, phrase):
+    path = _damaged(tmp_path / "d.h5", damage)
+    with pytest.raises(DatasetError, match=phrase.replace("(", r"\(").replace(")", r"\)")) as info:
+        GarmentDataset(path).sequence("a")  # the header's own checks come first where they can
+    assert str(path) in str(info.value)
+
+
+def test_random_bytes_inside_a_chunk_are_a_clear_error(tmp_path):
+    path = tmp_path / "d.h5"
+    skirt = make_garment("skirt", 200)
+    motion = synthesize("idle", 1.0, seed=0)
+    frames = np.random.default_rng(0).normal(size=(motion.num_frames, skirt.num_vertices, 3)).astype(np.float32)
+    write_dataset(path, skirt, [SequenceRecord("a", frames, motion)], {"train": ["a"], "val": [], "test": []})
+    import h5py
+
+    with h5py.File(path, "r") as f:  # where the compressed garment array's first chunk lies in the file
+        offset = f["sequences/a/garment"].id.get_chunk_info(0).byte_offset
+    data = bytearray(path.read_bytes())
+    data[offset + 16:offset + 4096] = np.random.default_rng(1).integers(0, 256, 4080, dtype=np.uint8).tobytes()
+    path.write_bytes(bytes(data))
+    with pytest.raises(DatasetError, match="sequence 'a' cannot be read"):
+        GarmentDataset(path).sequence("a")

@@ -25,7 +25,7 @@ import h5py
 import numpy as np
 
 from .._version import __version__
-from ..errors import InputError
+from ..errors import InputError, MotionError
 from ..garment.mesh import GarmentMesh
 from ..motion.motion import FPS, Motion
 
@@ -147,6 +147,8 @@ class GarmentDataset:
                 self._read_header(f)
         except OSError as exc:
             raise DatasetError(self.path, f"not a readable HDF5 file ({exc})") from None
+        except (KeyError, ValueError, TypeError) as exc:  # a header of the wrong shape or type
+            raise DatasetError(self.path, f"damaged header ({type(exc).__name__}: {exc})") from None
 
     def _read_header(self, f: h5py.File) -> None:
         version = f.attrs.get("format_version")
@@ -157,10 +159,10 @@ class GarmentDataset:
                 raise DatasetError(self.path, f"missing /{key}")
         self.fps = float(f.attrs["fps"])
         self.garment = str(f.attrs["garment"])
-        self.info = json.loads(f.attrs.get("info", "{}"))
+        self.info = _json_attr(self.path, f.attrs, "info", {})
         t = f["template"]
         groups = {k: t["groups"][k][()] for k in t.get("groups", {})}
-        attached_groups = tuple(json.loads(t.attrs.get("attached_groups", "[]")))
+        attached_groups = tuple(_json_attr(self.path, t.attrs, "attached_groups", []))
         if not attached_groups:
             groups["attached"] = t["attached"][()]
             attached_groups = ("attached",)
@@ -171,23 +173,53 @@ class GarmentDataset:
         missing = sorted({n for names in self.splits.values() for n in names} - set(self.names))
         if missing:
             raise DatasetError(self.path, f"splits name sequences that are not in the file: {missing[:5]}")
+        lacking = [n for n in self.names if "garment" not in f["sequences"][n]]
+        if lacking:
+            raise DatasetError(self.path, f"sequence {lacking[0]!r} lacks 'garment'"
+                                          + (f" (and {len(lacking) - 1} more)" if len(lacking) > 1 else ""))
         self.frames = {n: int(f["sequences"][n]["garment"].shape[0]) for n in self.names}
 
     def __len__(self) -> int:
         return len(self.names)
 
     def sequence(self, name: str) -> SequenceRecord:
-        with h5py.File(self.path, "r") as f:
-            if name not in f["sequences"]:
-                raise DatasetError(self.path, f"no sequence {name!r} (has {len(self.names)}: {self.names[:5]}...)")
-            s = f["sequences"][name]
-            for key in ("garment", "local_rotations", "root_translation"):
-                if key not in s:
-                    raise DatasetError(self.path, f"sequence {name!r} lacks {key!r}")
-            garment = s["garment"][()]
-            motion = Motion(s["local_rotations"][()], s["root_translation"][()], self.fps, str(s.attrs.get("source", name)))
-            info = json.loads(s.attrs.get("info", "{}"))
+        """One sequence, checked: its arrays present, readable, finite and of the template's shape."""
+        try:
+            with h5py.File(self.path, "r") as f:
+                if name not in f["sequences"]:
+                    raise DatasetError(self.path, f"no sequence {name!r} (has {len(self.names)}: {self.names[:5]}...)")
+                s = f["sequences"][name]
+                for key in ("garment", "local_rotations", "root_translation"):
+                    if key not in s:
+                        raise DatasetError(self.path, f"sequence {name!r} lacks {key!r}")
+                garment = s["garment"][()]
+                motion = Motion(s["local_rotations"][()], s["root_translation"][()], self.fps, str(s.attrs.get("source", name)))
+                info = _json_attr(self.path, s.attrs, "info", {}, f"sequence {name!r}: ")
+        except OSError as exc:  # a damaged chunk ("filter returned failure"), a truncated file
+            raise DatasetError(self.path, f"sequence {name!r} cannot be read ({exc})") from None
+        except MotionError as exc:  # the motion's own checks (shapes, frames)
+            raise DatasetError(self.path, f"sequence {name!r}: {exc.problem}") from None
         if garment.shape[1:] != self.template.vertices.shape or garment.shape[0] != motion.num_frames:
             raise DatasetError(self.path, f"sequence {name!r}: garment {garment.shape} does not match "
                                           f"{motion.num_frames} frames x {self.template.num_vertices} vertices")
+        for what, values in (("garment vertices", garment), ("rotations", motion.local_rotations),
+                             ("root translations", motion.root_translation)):
+            bad = ~np.isfinite(values.reshape(len(values), -1)).all(1)
+            if bad.any():
+                raise DatasetError(self.path, f"sequence {name!r}: non-finite {what} on {int(bad.sum())} frame(s), "
+                                              f"first at frame {int(np.argmax(bad))}")
         return SequenceRecord(name, garment, motion, info)
+
+
+def _json_attr(path: Path, attrs, key: str, default, where: str = ""):
+    """A JSON-valued HDF5 attribute, or a DatasetError that names it."""
+    raw = attrs.get(key)
+    if raw is None:
+        return default
+    try:
+        value = json.loads(raw)
+    except (TypeError, ValueError) as exc:
+        raise DatasetError(path, f"{where}attribute {key!r} is not valid JSON ({exc})") from None
+    if not isinstance(value, type(default)):
+        raise DatasetError(path, f"{where}attribute {key!r} should hold a {type(default).__name__}, not a {type(value).__name__}")
+    return value
