@@ -97,9 +97,10 @@ def self_intersection_episodes(motion: Motion, body: BodyModel = DEFAULT_BODY,
 
 def self_intersecting_frames(motion: Motion, body: BodyModel = DEFAULT_BODY,
                              depth: float = SELF_INTERSECTION_DEPTH, gap: float = PINCH_GAP,
-                             recovery_s: float = RECOVERY_S) -> np.ndarray:
+                             recovery_s: float = RECOVERY_S,
+                             parts: tuple[str, ...] = ARM_PARTS + LEG_PARTS) -> np.ndarray:
     """(T,) True on the frames of :func:`self_intersection_episodes`."""
     flagged = np.zeros(motion.num_frames, bool)
-    for start, stop in self_intersection_episodes(motion, body, depth, gap, recovery_s):
+    for start, stop in self_intersection_episodes(motion, body, depth, gap, recovery_s, parts):
         flagged[start:stop] = True
     return flagged

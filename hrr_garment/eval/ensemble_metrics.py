@@ -73,13 +73,22 @@ def truth_metrics(members: np.ndarray, motion: Motion, rest: np.ndarray, topo: M
     shared by every mode scored against it."""
     out = {"floor_mm": mean_pairwise_mm(members)}
     if members.shape[1] >= 3:
-        acc = _acceleration(members)
-        out["truth_jitter_mm"] = mean_pairwise_mm(acc, lambda a, b: _mean_norm_mm(a - b))
-        out["truth_acceleration_mm"] = _mean_norm_mm(acc)
-    stretch, bend = zip(*(cloth_energies(m, rest, topo) for m in members))
-    out.update(truth_stretch_energy=float(np.mean(stretch)), truth_bending_energy=float(np.mean(bend)))
+        out["truth_jitter_mm"] = mean_pairwise_mm(_acceleration(members), lambda a, b: _mean_norm_mm(a - b))
+    out.update({f"truth_{k}": v for k, v in _cloth_values(members, motion, rest, topo, hem).items()})
+    return out
+
+
+def _cloth_values(samples: np.ndarray, motion: Motion, rest: np.ndarray, topo: MeshTopology,
+                  hem: np.ndarray | None) -> dict[str, float]:
+    """Mean acceleration, stretch and bending energy and hem swing of samples (S, T, V, 3): the
+    same quantities for a prediction and (as ``truth_*``) for the members."""
+    out = {}
+    if samples.shape[1] >= 3:
+        out["acceleration_mm"] = _mean_norm_mm(_acceleration(samples))
+    stretch, bend = zip(*(cloth_energies(s, rest, topo) for s in samples))
+    out.update(stretch_energy=float(np.mean(stretch)), bending_energy=float(np.mean(bend)))
     if hem is not None and len(hem):
-        out["truth_hem_swing_m"] = float(np.mean([hem_swing(m, motion, hem) for m in members]))
+        out["hem_swing_m"] = float(np.mean([hem_swing(s, motion, hem) for s in samples]))
     return out
 
 
@@ -102,11 +111,7 @@ def ensemble_metrics(pred: np.ndarray, members: np.ndarray, motion: Motion, rest
     if len(point) >= 3:
         acc_pred, acc_truth = _acceleration(x), _acceleration(members)
         out["jitter_mm"] = float(np.mean([_mean_norm_mm(a - b) for a in acc_pred for b in acc_truth]))
-        out["acceleration_mm"] = _mean_norm_mm(acc_pred)
-    stretch, bend = zip(*(cloth_energies(s, rest, topo) for s in x))
-    out.update(stretch_energy=float(np.mean(stretch)), bending_energy=float(np.mean(bend)))
-    if hem is not None and len(hem):
-        out["hem_swing_m"] = float(np.mean([hem_swing(s, motion, hem) for s in x]))
+    out.update(_cloth_values(x, motion, rest, topo, hem))
     return out
 
 

@@ -26,7 +26,7 @@ from typing import Callable
 import numpy as np
 
 from ..body.capsules import DEFAULT_BODY, BodyModel, frames_signed_distance
-from ..body.self_contact import ARM_PARTS, self_intersection_episodes
+from ..body.self_contact import ARM_PARTS, self_intersecting_frames
 from ..errors import HRRError
 from ..garment.attachment import bind_attached
 from ..garment.mesh import GarmentMesh
@@ -41,6 +41,11 @@ ARM_CAPSULES = ("upper_arm", "forearm", "hand")  # taken off the cloth in the la
 # first 0.5 % (CMU 131_01 then 0.07 % outside flagged frames, where waiting for none left the
 # arms off, through the cloth, for 31 more frames: 1.43 %), then, if that tears, none (131_03)
 ARMS_BACK_INSIDE = (0.005, 0.0)
+
+
+def arm_capsules(body: BodyModel) -> list[int]:
+    """Indices into ``body.capsules`` of the capsules the arms-off retries take off the cloth."""
+    return [c for c, capsule in enumerate(body.capsules) if capsule.name.endswith(tuple(f"_{p}" for p in ARM_CAPSULES))]
 
 
 class SimulationExploded(HRRError):
@@ -144,12 +149,11 @@ class _Scene:
         builder = newton.ModelBuilder(up_axis=newton.Axis.Y, gravity=(0.0, -config.gravity, 0.0))
         shape_cfg = newton.ModelBuilder.ShapeConfig(ke=config.contact_ke, kd=config.contact_kd, mu=config.contact_mu,
                                                     has_shape_collision=False)
-        self.arm_shapes = []
+        shapes = []
         for c, capsule in enumerate(body.capsules):
             b = builder.add_body(mass=0.0, is_kinematic=True, label=capsule.name)
-            shape = builder.add_shape_capsule(b, radius=capsule.radius, half_height=float(half_lengths[c]), cfg=shape_cfg)
-            if capsule.name.endswith(tuple(f"_{part}" for part in ARM_CAPSULES)):
-                self.arm_shapes.append(shape)
+            shapes.append(builder.add_shape_capsule(b, radius=capsule.radius, half_height=float(half_lengths[c]), cfg=shape_cfg))
+        self.arm_shapes = [shapes[c] for c in arm_capsules(body)]
         builder.add_ground_plane(cfg=newton.ModelBuilder.ShapeConfig(ke=config.contact_ke, kd=config.contact_kd,
                                                                     mu=config.contact_mu))
         builder.add_cloth_mesh(
@@ -254,7 +258,7 @@ def _attempt(garment: GarmentMesh, motion: Motion, body: BodyModel, config: SimC
     binding = bind_attached(garment, body)
     pins = binding.pose(extended.global_rotations.astype(np.float64), extended.joint_positions)
     scene = _Scene(garment, start, half, body, config)
-    arms = [c for c, capsule in enumerate(body.capsules) if capsule.name.endswith(tuple(f"_{p}" for p in ARM_CAPSULES))]
+    arms = arm_capsules(body)
     arm_a, arm_b = (ends[:, arms] for ends in body.pose_motion(extended))
     edges = garment.edges()
     rest_len = np.linalg.norm(garment.vertices[edges[:, 0]] - garment.vertices[edges[:, 1]], axis=1)
@@ -323,9 +327,7 @@ def simulate_garment(garment: GarmentMesh, motion: Motion, config: SimConfig = S
         except SimulationExploded as exc:
             reasons.append(str(exc))
             if number == config.retries + 1:  # every substep count failed: the arms, if they are the cause
-                episodes = np.zeros(motion.num_frames, bool)
-                for start, stop in self_intersection_episodes(motion, body, parts=ARM_PARTS):
-                    episodes[start:stop] = True
+                episodes = self_intersecting_frames(motion, body, parts=ARM_PARTS)
                 if episodes.any() and not episodes.all():
                     attempts += [(config.substeps, episodes, inside) for inside in ARMS_BACK_INSIDE]
                 if episodes.any():
