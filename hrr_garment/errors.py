@@ -7,13 +7,21 @@ class HRRError(Exception):
     """Base class for errors the command-line tools report without a traceback."""
 
 
-class InputError(HRRError):
-    """Bad user input: names the offending file and says what is wrong with it."""
+class FileProblem(HRRError):
+    """An error about one file: the message is ``PATH: problem``."""
 
     def __init__(self, path: object, problem: str):
         self.path = str(path)
         self.problem = problem
         super().__init__(f"{self.path}: {problem}")
+
+
+class InputError(FileProblem):
+    """Bad user input: names the offending file and says what is wrong with it."""
+
+
+class OutputError(FileProblem):
+    """An output that cannot be written (disk full, read-only folder, a device or folder in the way)."""
 
 
 class MotionError(InputError):

@@ -4,6 +4,7 @@ interrupted run never leaves a half-written file under the target name), and str
 from __future__ import annotations
 
 import contextlib
+import errno
 import json
 import math
 import os
@@ -11,14 +12,41 @@ import tempfile
 from pathlib import Path
 from typing import Iterator
 
+import h5py
+
+from .errors import InputError, OutputError
+
+
+# Errors of the storage itself (full, over quota, read-only, no permission, failing), as opposed to a
+# bug or bad input inside the writing code: these become one-line OutputErrors naming the target. An
+# OSError without an errno counts too: writers such as numpy's zip report a short write that way.
+_STORAGE_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EFBIG, errno.EACCES, errno.EPERM, errno.EIO,
+                   errno.ENOENT, errno.ENOTDIR, errno.EISDIR, errno.EXDEV, errno.ENAMETOOLONG}
+
+
+def storage_error(path: str | Path, exc: OSError) -> OutputError:
+    """The one-line error for an output that the storage refused (``exc`` from the OS or HDF5)."""
+    reason = os.strerror(exc.errno) if exc.errno else str(exc)
+    return OutputError(path, f"cannot write the output: {reason}")
+
 
 @contextlib.contextmanager
 def atomic_path(path: str | Path) -> Iterator[Path]:
-    """Yield a temporary path in the target's folder; rename it onto ``path`` on success."""
+    """Yield a temporary path in the target's folder; rename it onto ``path`` on success.
+
+    A target that exists and is not a regular file (a folder, a device such as /dev/full) is refused
+    before anything is written, and storage failures (disk full, read-only or missing folder, special
+    file systems such as /proc) raise :class:`OutputError` naming ``path``; the temporary file is
+    removed either way."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp" + path.suffix, dir=path.parent)
-    os.close(fd)
+    if path.exists() and not path.is_file():
+        raise OutputError(path, "exists and is not a regular file (a folder or a device); give a file path")
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp" + path.suffix, dir=path.parent)
+        os.close(fd)
+    except OSError as exc:
+        raise storage_error(path, exc) from None
     tmp_path = Path(tmp)
     try:
         yield tmp_path
@@ -27,9 +55,76 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
         os.umask(umask)
         os.chmod(tmp_path, 0o666 & ~umask)
         os.replace(tmp_path, path)
+    except OSError as exc:
+        if exc.errno is not None and exc.errno not in _STORAGE_ERRNOS:
+            raise  # e.g. a broken pipe: not the storage, so not reported as if it were
+        raise storage_error(path, exc) from None
     finally:
-        if tmp_path.exists():
-            tmp_path.unlink()
+        with contextlib.suppress(OSError):
+            tmp_path.unlink(missing_ok=True)
+
+
+class _DeferredErrorFile:
+    """A binary file for h5py's file-object driver that keeps the first write error for later.
+
+    HDF5 does not survive I/O errors well: after a failed write (a full disk, a file-size limit),
+    closing the file prints tracebacks from h5py's clean-up and can crash the interpreter. So this
+    file tells HDF5 every write succeeded, drops the writes after the first failure, and
+    :func:`atomic_h5` raises the kept error once HDF5 has closed the file cleanly."""
+
+    def __init__(self, fh):
+        self._fh = fh
+        self.error: OSError | None = None
+
+    def write(self, data) -> int:
+        view = memoryview(data).cast("B")
+        done = 0
+        while self.error is None and done < len(view):
+            try:
+                written = self._fh.write(view[done:])
+            except OSError as exc:
+                self.error = exc
+                break
+            if not written:
+                self.error = OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+            done += written or 0
+        return len(view)
+
+    def truncate(self, size: int | None = None) -> int | None:
+        if self.error is None:
+            try:
+                return self._fh.truncate(size)
+            except OSError as exc:
+                self.error = exc
+        return size
+
+    def readinto(self, buffer) -> int:
+        return self._fh.readinto(buffer)
+
+    def read(self, size: int = -1) -> bytes:
+        return self._fh.read(size)
+
+    def seek(self, offset: int, whence: int = 0) -> int:
+        return self._fh.seek(offset, whence)
+
+    def tell(self) -> int:
+        return self._fh.tell()
+
+    def flush(self) -> None:  # unbuffered: nothing is held here
+        pass
+
+
+@contextlib.contextmanager
+def atomic_h5(path: str | Path) -> Iterator[h5py.File]:
+    """An HDF5 file written atomically (see :func:`atomic_path`). A storage failure while writing
+    it raises :class:`OutputError` naming ``path`` after the file is closed (see
+    :class:`_DeferredErrorFile` for why HDF5 must not see the error itself)."""
+    with atomic_path(path) as tmp, open(tmp, "w+b", buffering=0) as fh:
+        sink = _DeferredErrorFile(fh)
+        with h5py.File(sink, "w") as f:
+            yield f
+        if sink.error is not None:
+            raise sink.error
 
 
 def atomic_write_text(path: str | Path, text: str) -> None:
@@ -69,8 +164,6 @@ def exclusive_lock(path: str | Path, resource: object, busy: str) -> Iterator[Pa
     holder's pid, when another process holds it. The operating system releases the lock when its
     holder exits, however it exits, so no stale lock outlives a killed run."""
     import fcntl
-
-    from .errors import InputError
 
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)

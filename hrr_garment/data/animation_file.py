@@ -25,7 +25,7 @@ import h5py
 import numpy as np
 
 from ..errors import InputError
-from ..io_utils import atomic_path
+from ..io_utils import atomic_h5
 
 FORMAT_VERSION = 2
 
@@ -70,7 +70,7 @@ def write_animation_h5(path: str | Path, *, vertices: np.ndarray, faces: np.ndar
     """Write an out.h5 (the layout in the module docstring) atomically; returns its path."""
     path = Path(path)
     t, v = vertices.shape[:2]
-    with atomic_path(path) as tmp, h5py.File(tmp, "w") as f:
+    with atomic_h5(path) as f:
         f.create_dataset("faces", data=np.asarray(faces, np.int32))
         f.create_dataset("vertices", data=np.asarray(vertices, np.float32), chunks=(1, v, 3), compression="gzip",
                          compression_opts=4, shuffle=True)

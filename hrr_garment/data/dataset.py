@@ -97,10 +97,10 @@ def split_groups(groups: dict[str, str], val: float, test: float, seed: int) -> 
 def write_dataset(path: str | Path, template: GarmentMesh, sequences: list[SequenceRecord],
                   splits: dict[str, list[str]], info: dict | None = None, compression: str | None = "gzip") -> Path:
     """Write the whole file atomically (temporary file in the same folder, then rename)."""
-    from ..io_utils import atomic_path
+    from ..io_utils import atomic_h5
 
     path = Path(path)
-    with atomic_path(path) as tmp, h5py.File(tmp, "w") as f:
+    with atomic_h5(path) as f:
         f.attrs.update(format_version=FORMAT_VERSION, fps=float(sequences[0].motion.fps if sequences else FPS),
                        garment=template.name, units="m", up_axis="y", generator=f"hrr_garment {__version__}",
                        info=json.dumps(info or {}))

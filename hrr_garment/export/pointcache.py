@@ -21,7 +21,7 @@ from tqdm import tqdm
 from ..data.animation_file import AnimationFile
 from ..errors import InputError
 from ..garment.obj import format_rows, write_obj
-from ..io_utils import atomic_path
+from ..io_utils import atomic_path, storage_error
 
 _PC2_HEADER = struct.Struct("<12siiffi")
 _PC2_MAGIC = b"POINTCACHE2\0"
@@ -55,8 +55,13 @@ def read_pc2(path: str | Path) -> tuple[np.ndarray, float, float]:
 def write_pc2_with_obj(anim: AnimationFile, path: str | Path) -> tuple[Path, Path]:
     """``path`` (.pc2) plus the base mesh (frame 0) beside it as the same name with .obj."""
     path = Path(path)
-    base = write_obj(path.with_suffix(".obj"), anim.vertices[0], anim.faces)
-    return write_pc2(anim.vertices, path), base
+    write_pc2(anim.vertices, path)
+    try:
+        base = write_obj(path.with_suffix(".obj"), anim.vertices[0], anim.faces)
+    except BaseException:
+        path.unlink(missing_ok=True)  # a cache without its base mesh is of no use: leave neither
+        raise
+    return path, base
 
 
 def write_obj_sequence(anim: AnimationFile, directory: str | Path, stem: str | None = None,
@@ -68,10 +73,13 @@ def write_obj_sequence(anim: AnimationFile, directory: str | Path, stem: str | N
     if directory.exists() and not directory.is_dir():
         raise InputError(directory, "an OBJ sequence is written into a folder, and this is a file")
     stem = stem or str(anim.attrs.get("garment", "garment"))
-    directory.parent.mkdir(parents=True, exist_ok=True)
     faces = "g garment\n" + format_rows("f %d %d %d", anim.faces + 1)
     names = [f"{stem}_{t:05d}.obj" for t in range(anim.num_frames)]
-    staging = Path(tempfile.mkdtemp(prefix=f".{directory.name}.", dir=directory.parent))
+    try:
+        directory.parent.mkdir(parents=True, exist_ok=True)
+        staging = Path(tempfile.mkdtemp(prefix=f".{directory.name}.", dir=directory.parent))
+    except OSError as exc:
+        raise storage_error(directory, exc) from None
     try:
         for name, vertices in zip(tqdm(names, desc="obj", unit="frame", disable=not progress), anim.vertices):
             with open(staging / name, "w", encoding="utf-8") as fh:
@@ -83,6 +91,8 @@ def write_obj_sequence(anim: AnimationFile, directory: str | Path, stem: str | N
             (directory / stale).unlink()
         for name in names:
             os.replace(staging / name, directory / name)
+    except OSError as exc:  # disk full or the folder made read-only meanwhile
+        raise storage_error(directory, exc) from None
     finally:
         shutil.rmtree(staging, ignore_errors=True)
     return [directory / n for n in names]

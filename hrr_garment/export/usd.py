@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from ..data.animation_file import AnimationFile
-from ..errors import InputError
+from ..errors import InputError, OutputError
 from ..io_utils import atomic_path
 
 USD_SUFFIXES = (".usd", ".usdc", ".usda")
@@ -65,6 +65,11 @@ def write_usd(anim: AnimationFile, path: str | Path, with_body: bool = False) ->
         _define_mesh(stage, "/Animation/body", faces, (anim.body_mesh(t)[0] for t in range(anim.num_frames)),
                      (0.8, 0.76, 0.72))
     with atomic_path(path) as tmp:
-        if not stage.GetRootLayer().Export(str(tmp), args={"format": "usda" if path.suffix.lower() == ".usda" else "usdc"}):
-            raise OSError(f"{path}: USD export failed")
+        try:
+            written = stage.GetRootLayer().Export(str(tmp), args={"format": "usda" if path.suffix.lower() == ".usda" else "usdc"})
+        except Tf.ErrorException as exc:  # USD reports a full disk as a list of its own errors
+            first = str(exc).strip().splitlines()[0] if str(exc).strip() else "USD could not write it"
+            raise OutputError(path, f"cannot write the output: {first.split(': ', 1)[-1].strip(chr(39))}") from None
+        if not written:
+            raise OutputError(path, "cannot write the output: USD export failed")
     return path

@@ -8,6 +8,7 @@ the body's own bob and sway stay visible), with a ground grid that shows the tra
 
 from __future__ import annotations
 
+import contextlib
 import multiprocessing
 import os
 import shutil
@@ -20,7 +21,7 @@ import numpy as np
 from tqdm import tqdm
 
 from ..data.animation_file import AnimationFile
-from ..errors import InputError
+from ..errors import InputError, OutputError
 from ..io_utils import atomic_path
 from .preview import VIEWS, OrthoCamera, PreviewMesh, _pil, draw_ground, draw_meshes
 
@@ -172,12 +173,13 @@ def write_preview(anim: AnimationFile, path: str | Path, style: PreviewStyle = P
             first.save(tmp, format="GIF", save_all=True, append_images=list(images), loop=0,
                        duration=max(20, int(round(100 / fps)) * 10), optimize=False)
         else:
-            _encode_mp4(images, tmp, fps, style.size * len(style.views), style.size)
+            _encode_mp4(images, tmp, fps, style.size * len(style.views), style.size, target=path)
     return path
 
 
-def _encode_mp4(images: Iterator, path: Path, fps: float, width: int, height: int) -> None:
-    """H.264 (yuv420p, even dimensions) through an ffmpeg subprocess fed raw RGB frames."""
+def _encode_mp4(images: Iterator, path: Path, fps: float, width: int, height: int, target: Path) -> None:
+    """H.264 (yuv420p, even dimensions) through an ffmpeg subprocess fed raw RGB frames, into
+    ``path``; a failure (a full disk, say) is an :class:`OutputError` naming ``target``."""
     w, h = width + width % 2, height + height % 2
     cmd = [ffmpeg_executable(), "-y", "-loglevel", "error", "-f", "rawvideo", "-pix_fmt", "rgb24", "-s", f"{w}x{h}",
            "-r", f"{fps:g}", "-i", "-", "-an", "-c:v", "libx264", "-pix_fmt", "yuv420p", "-crf", "20",
@@ -187,9 +189,14 @@ def _encode_mp4(images: Iterator, path: Path, fps: float, width: int, height: in
         for im in images:
             frame = np.full((h, w, 3), 250, np.uint8)
             frame[:height, :width] = np.asarray(im)
-            proc.stdin.write(frame.tobytes())
+            try:
+                proc.stdin.write(frame.tobytes())
+            except BrokenPipeError:  # ffmpeg stopped: its exit status and message say why
+                break
     finally:
-        proc.stdin.close()
+        with contextlib.suppress(BrokenPipeError):
+            proc.stdin.close()
         err = proc.stderr.read().decode(errors="replace")
         if proc.wait() != 0:
-            raise OSError(f"{path}: ffmpeg failed: {err.strip()[-500:]}")
+            last = err.strip().splitlines()[-1] if err.strip() else f"exit status {proc.returncode}"
+            raise OutputError(target, f"ffmpeg failed: {last[-300:]}")
