@@ -127,6 +127,16 @@ def atomic_h5(path: str | Path) -> Iterator[h5py.File]:
             raise sink.error
 
 
+def remove_empty_folders(root: str | Path) -> None:
+    """Remove ``root`` and the folders under it that hold no file (deepest first); keep the rest."""
+    root = Path(root)
+    if not root.is_dir():
+        return
+    for folder in sorted((p for p in root.rglob("*") if p.is_dir()), key=lambda p: -len(p.parts)) + [root]:
+        with contextlib.suppress(OSError):
+            folder.rmdir()  # fails, as it should, on a folder that is not empty
+
+
 def atomic_write_text(path: str | Path, text: str) -> None:
     """Write ``text`` (UTF-8) to ``path`` atomically."""
     with atomic_path(path) as tmp:

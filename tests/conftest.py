@@ -31,29 +31,10 @@ def rng() -> np.random.Generator:
 
 
 def synthetic_dataset(path, garment):
-    """Sequences whose garment swings with the body's speed and turning (in its heading frame), so
-    garment windows follow from motion windows; no simulator needed."""
-    from hrr_garment.data.dataset import SequenceRecord, write_dataset
-    from hrr_garment.motion.features import motion_features
-    from hrr_garment.motion.rotations import rotation_about_y, yaw_of
-    from hrr_garment.motion.synth import synthesize
+    """The simulator-free dataset (hrr_garment.data.synthetic): its garment follows the motion."""
+    from hrr_garment.data.synthetic import write_synthetic_dataset
 
-    v = garment.vertices.astype(np.float32)
-    depth = np.clip((v[:, 1].max() - v[:, 1]) / np.ptp(v[:, 1]), 0, 1)[None, :] ** 2
-    records = []
-    for name, kind, seed in (("walk_000", "walk", 0), ("walk_001", "walk", 1), ("spin_000", "spin", 0),
-                             ("walk_002", "walk", 2), ("run_000", "run", 0)):
-        motion = synthesize(kind, 1.5, seed=seed)
-        f = motion_features(motion)
-        speed, turn = np.tanh(f[:, -4:-1].sum(1, keepdims=True)), np.tanh(f[:, -1:])
-        local = np.repeat(v[None], motion.num_frames, 0)
-        local[..., 2] -= 0.1 * depth * speed
-        local[..., 0] += 0.1 * depth * turn
-        yaw = yaw_of(motion.global_rotations[:, 0])
-        world = np.einsum("tij,tnj->tni", rotation_about_y(yaw), local) + (motion.root_translation * [1, 0, 1])[:, None]
-        records.append(SequenceRecord(name, world.astype(np.float32), motion))
-    splits = {"train": ["walk_000", "walk_001", "spin_000"], "val": ["walk_002"], "test": ["run_000"]}
-    return write_dataset(path, garment, records, splits)
+    return write_synthetic_dataset(path, garment)
 
 
 TINY_TRAINING = """

@@ -30,6 +30,7 @@ from typing import Sequence
 import yaml
 
 from ..errors import InputError
+from ..io_utils import remove_empty_folders
 from ..paths import workspace
 from ..sim.plan import CONFIG_DIR, load_preset
 from ..train.report import StageReport
@@ -125,9 +126,8 @@ def _main(argv: Sequence[str] | None) -> int:
     from ..models.codespace import CodeSpaceConfig
     from ..models.direct import DirectConfig
     from ..models.fcmae import AutoencoderConfig
-    from ..train.autoencoder import TrainConfig, train_autoencoder
-    from ..train.baseline import DirectTrainConfig, run_baseline_stage
-    from ..train.codespace import run_codespace_stage
+    from ..train.autoencoder import TrainConfig
+    from ..train.baseline import DirectTrainConfig
     from ..train.codespace_training import CodeSpaceTrainConfig
 
     if args.stage == OLD_CODESPACE_NAME:
@@ -157,6 +157,19 @@ def _main(argv: Sequence[str] | None) -> int:
 
         torch.set_num_threads(args.threads)
 
+    try:
+        return _run_stages(args, preset, folder, (ae_model, ae_train), (cs_model, cs_train), (direct_model, direct_train))
+    except BaseException:
+        remove_empty_folders(folder)  # what a failed run made and never filled; finished stages stay for resuming
+        raise
+
+
+def _run_stages(args, preset, folder: Path, autoencoder: tuple, codespace: tuple, baseline: tuple) -> int:
+    from ..train.autoencoder import train_autoencoder
+    from ..train.baseline import run_baseline_stage
+    from ..train.codespace import run_codespace_stage
+
+    (ae_model, ae_train), (cs_model, cs_train), (direct_model, direct_train) = autoencoder, codespace, baseline
     times: dict[str, float] = {}
     stages = STAGES if args.stage == "all" else (args.stage,)
     for stage in stages:

@@ -130,6 +130,9 @@ def write_dataset(path: str | Path, template: GarmentMesh, sequences: list[Seque
     return path
 
 
+SEQUENCE_ARRAYS = ("garment", "local_rotations", "root_translation")  # what every sequence must hold
+
+
 class GarmentDataset:
     """Read access to a dataset file; checks the format on open.
 
@@ -173,10 +176,19 @@ class GarmentDataset:
         missing = sorted({n for names in self.splits.values() for n in names} - set(self.names))
         if missing:
             raise DatasetError(self.path, f"splits name sequences that are not in the file: {missing[:5]}")
-        lacking = [n for n in self.names if "garment" not in f["sequences"][n]]
-        if lacking:
-            raise DatasetError(self.path, f"sequence {lacking[0]!r} lacks 'garment'"
-                                          + (f" (and {len(lacking) - 1} more)" if len(lacking) > 1 else ""))
+        for key in SEQUENCE_ARRAYS:
+            lacking = [n for n in self.names if key not in f["sequences"][n]]
+            if lacking:
+                raise DatasetError(self.path, f"sequence {lacking[0]!r} lacks {key!r}"
+                                              + (f" (and {len(lacking) - 1} more)" if len(lacking) > 1 else ""))
+        for n in self.names:  # shapes from the headers only: cheap, and a bad file fails before any training
+            s = f["sequences"][n]
+            frames = s["garment"].shape[0]
+            shapes = {k: s[k].shape for k in SEQUENCE_ARRAYS}
+            if (shapes["garment"][1:] != self.template.vertices.shape or shapes["local_rotations"][0] != frames
+                    or shapes["root_translation"] != (frames, 3)):
+                raise DatasetError(self.path, f"sequence {n!r}: arrays of mismatched shapes {shapes} "
+                                              f"for a template of {self.template.num_vertices} vertices")
         self.frames = {n: int(f["sequences"][n]["garment"].shape[0]) for n in self.names}
 
     def __len__(self) -> int:
@@ -189,7 +201,7 @@ class GarmentDataset:
                 if name not in f["sequences"]:
                     raise DatasetError(self.path, f"no sequence {name!r} (has {len(self.names)}: {self.names[:5]}...)")
                 s = f["sequences"][name]
-                for key in ("garment", "local_rotations", "root_translation"):
+                for key in SEQUENCE_ARRAYS:
                     if key not in s:
                         raise DatasetError(self.path, f"sequence {name!r} lacks {key!r}")
                 garment = s["garment"][()]
