@@ -39,9 +39,9 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
     file systems such as /proc) raise :class:`OutputError` naming ``path``; the temporary file is
     removed either way."""
     path = Path(path)
-    if path.exists() and not path.is_file():
-        raise OutputError(path, "exists and is not a regular file (a folder or a device); give a file path")
     try:
+        if path.exists() and not path.is_file():
+            raise OutputError(path, "exists and is not a regular file (a folder or a device); give a file path")
         path.parent.mkdir(parents=True, exist_ok=True)
         fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp" + path.suffix, dir=path.parent)
         os.close(fd)

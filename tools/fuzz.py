@@ -13,7 +13,7 @@ limit. Outcomes:
 - failures: ``traceback`` (or any other exit status, a crash), ``hang`` (past the time limit),
   ``memory`` (killed, or MemoryError), ``bad output`` (exit 0 with a non-finite or absurd result),
   ``partial file`` (a failed run that left its output or a temporary file), and ``vague error``
-  (a clean error whose line names neither the input nor the output).
+  (a clean error whose line names neither the input nor the output, or that warnings precede).
 
 Failing cases are kept under ``WORK/failures/`` with their command, for reproduction.
 """
@@ -311,7 +311,7 @@ def mutate_h5(src: Path, dst: Path, rng: np.random.Generator, arrays: tuple[str,
             holder = f[name].parent if rng.random() < 0.5 else f
             attrs = list(holder.attrs)
             if attrs:
-                holder.attrs[str(rng.choice(attrs))] = rng.choice(["{not json", "-1", "nan", "[]"])
+                holder.attrs[str(rng.choice(attrs))] = str(rng.choice(["{not json", "-1", "nan", "[]"]))
         else:
             del f[name]
         return f"{kind} {name}"
@@ -438,7 +438,7 @@ def _limits(memory_gib: float):
 
 
 def run_case(case: Case, timeout: float, memory_gib: float) -> dict:
-    env = {**os.environ, "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "PYTHONWARNINGS": "default"}
+    env = {**os.environ, "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
     start = time.perf_counter()
     proc = subprocess.Popen(case.command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
                             stdin=subprocess.DEVNULL, preexec_fn=_limits(memory_gib), errors="replace")
@@ -473,6 +473,8 @@ def judge(case: Case, rc: int, err: str, hung: bool) -> tuple[str, str]:
             return "vague error", "exit 2 without an error line"
         if case.names and not any(n in lines[-1] for n in case.names) and "usage:" not in err:
             return "vague error", lines[-1][-300:]
+        if "Warning" in err:  # warnings printed before the one line bury it
+            return "vague error", "warnings before the error: " + next(ln for ln in err.splitlines() if "Warning" in ln)[-200:]
         return "clean error", lines[-1][-200:]
     if leftovers:
         return "partial file", f"left {leftovers}"

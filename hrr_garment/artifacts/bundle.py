@@ -35,7 +35,7 @@ from safetensors.torch import load_file as load_tensors
 from safetensors.torch import save_file as save_tensors
 
 from ..errors import InputError
-from ..garment.mesh import GarmentMesh
+from ..garment.mesh import GarmentError, GarmentMesh, check_garment
 from ..io_utils import atomic_path, atomic_write_text
 from ..models.codespace import CodeSpace, CodeSpaceConfig
 from ..models.direct import DirectConfig, DirectRegressor
@@ -254,6 +254,10 @@ def load_bundle(folder: str | Path, cache_dir: Path | None = None) -> Bundle:
         raise BundleError(folder, f"the model was trained on {features} motion features; this hrr_garment computes {FEATURE_DIM}")
     t = _arrays(folder, "template.safetensors", ("vertices", "faces", "attached"))
     template = GarmentMesh(str(meta["garment"]), t["vertices"], t["faces"], {"attached": t["attached"]}, ("attached",))
+    try:
+        check_garment(template)
+    except GarmentError as exc:
+        raise BundleError(folder, f"template.safetensors: {exc.problem}") from None
     hierarchy = cached_hierarchy(template.faces, template.num_vertices, cache_dir, **ae_cfg.hierarchy_options(), name=str(folder))
     if list(hierarchy.sizes) != list(meta["autoencoder"].get("sizes", [])):
         raise BundleError(folder, f"the template's sampling hierarchy has levels {list(hierarchy.sizes)}, the model "

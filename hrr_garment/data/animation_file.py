@@ -30,6 +30,16 @@ from ..io_utils import atomic_h5
 FORMAT_VERSION = 2
 
 
+def _fps(path: Path, attrs: dict) -> float:
+    """The file's frame rate attribute: one finite number in [1, 1000]."""
+    if "fps" not in attrs:
+        raise InputError(path, "missing the 'fps' attribute")
+    value = np.asarray(attrs["fps"])
+    if value.size != 1 or value.dtype.kind not in "iuf" or not 1 <= float(value.item()) <= 1000:
+        raise InputError(path, f"the 'fps' attribute must be a frame rate in [1, 1000], got {str(attrs['fps'])[:40]!r}")
+    return float(value.item())
+
+
 @dataclass(frozen=True)
 class AnimationFile:
     """The contents of an out.h5, checked: finite vertices, faces in range, per-frame arrays of T rows."""
@@ -95,41 +105,52 @@ def read_animation_h5(path: str | Path) -> AnimationFile:
         f = h5py.File(path, "r")
     except OSError as exc:
         raise InputError(path, f"not an HDF5 file ({exc})") from None
-    with f:
-        missing = [k for k in ("faces", "vertices", "body/joints", "diagnostics/mode", "diagnostics/entropy",
-                               "diagnostics/source") if k not in f]
-        if missing:
-            raise InputError(path, f"not an hrr-animate file: missing {', '.join(missing)}")
-        attrs = dict(f.attrs)
-        if "fps" not in attrs:
-            raise InputError(path, "missing the 'fps' attribute")
-        if int(attrs.get("format_version", 1)) > FORMAT_VERSION:
-            raise InputError(path, f"format version {attrs['format_version']} is newer than this hrr_garment "
-                                   f"reads ({FORMAT_VERSION}); upgrade hrr_garment")
-        vertices = f["vertices"][()]
-        faces = f["faces"][()]
-        per_frame = {k: f[k][()] for k in ("body/joints", "diagnostics/mode", "diagnostics/entropy", "diagnostics/source")}
-        capsules = f["body/capsules"][()] if "body/capsules" in f else None
-        radii = f["body/radii"][()] if "body/radii" in f else None
+    try:
+        with f:
+            missing = [k for k in ("faces", "vertices", "body/joints", "diagnostics/mode", "diagnostics/entropy",
+                                   "diagnostics/source") if k not in f]
+            if missing:
+                raise InputError(path, f"not an hrr-animate file: missing {', '.join(missing)}")
+            attrs = dict(f.attrs)
+            vertices = f["vertices"][()]
+            faces = f["faces"][()]
+            per_frame = {k: f[k][()] for k in ("body/joints", "diagnostics/mode", "diagnostics/entropy",
+                                               "diagnostics/source")}
+            capsules = f["body/capsules"][()] if "body/capsules" in f else None
+            radii = f["body/radii"][()] if "body/radii" in f else None
+    except (OSError, RuntimeError, ValueError, TypeError, KeyError) as exc:  # damaged chunks, headers, attributes
+        raise InputError(path, f"damaged file, cannot be read ({type(exc).__name__}: {str(exc)[:200]})") from None
+    attrs["fps"] = _fps(path, attrs)
+    version = attrs.get("format_version", 1)
+    if not isinstance(version, (int, np.integer)) or version < 1:
+        raise InputError(path, f"format_version must be a positive integer, got {version!r}")
+    if version > FORMAT_VERSION:
+        raise InputError(path, f"format version {version} is newer than this hrr_garment reads ({FORMAT_VERSION}); "
+                               "upgrade hrr_garment")
+    for key, arr in (("vertices", vertices), ("faces", faces), *per_frame.items()):
+        if not isinstance(arr, np.ndarray) or arr.dtype.kind not in "biuf":
+            raise InputError(path, f"/{key} must hold numbers, got {getattr(arr, 'dtype', type(arr))}")
     if vertices.ndim != 3 or vertices.shape[2] != 3 or vertices.shape[0] < 1:
         raise InputError(path, f"/vertices must be (T, V, 3) with T >= 1, got {vertices.shape}")
     if faces.ndim != 2 or faces.shape[1] != 3 or len(faces) == 0:
         raise InputError(path, f"/faces must be (F, 3), got {faces.shape}")
     if faces.min() < 0 or faces.max() >= vertices.shape[1]:
         raise InputError(path, f"/faces index vertices outside 0..{vertices.shape[1] - 1}")
-    bad = np.flatnonzero(~np.isfinite(vertices).all(axis=(1, 2)))
-    if len(bad):
-        raise InputError(path, f"/vertices has non-finite values at frame {bad[0]} ({len(bad)} frames)")
+    for key, arr in (("vertices", vertices), ("body/joints", per_frame["body/joints"]), ("body/capsules", capsules),
+                     ("body/radii", radii)):
+        if arr is not None and arr.dtype.kind == "f" and not np.isfinite(arr).all():
+            frames = np.flatnonzero(~np.isfinite(arr.reshape(len(arr), -1)).all(1))
+            raise InputError(path, f"/{key} has non-finite values at frame {frames[0]} ({len(frames)} frames)")
     t = vertices.shape[0]
     for key, arr in per_frame.items():
-        if arr.shape[0] != t:
-            raise InputError(path, f"/{key} has {arr.shape[0]} rows, /vertices has {t} frames")
+        if arr.ndim == 0 or arr.shape[0] != t:
+            raise InputError(path, f"/{key} has {arr.shape[:1]} rows, /vertices has {t} frames")
+    if per_frame["body/joints"].shape[1:] != (22, 3):
+        raise InputError(path, f"/body/joints must be (T, 22, 3), got {per_frame['body/joints'].shape}")
     if capsules is not None and (capsules.shape[:1] != (t,) or capsules.shape[2:] != (2, 3)
                                  or radii is None or radii.shape != capsules.shape[1:2]):
         raise InputError(path, f"/body/capsules {capsules.shape} and /body/radii "
                                f"{None if radii is None else radii.shape} do not match (T, C, 2, 3) and (C,)")
-    if not float(attrs["fps"]) > 0:
-        raise InputError(path, f"fps must be positive, got {attrs['fps']}")
     return AnimationFile(path, vertices.astype(np.float32), faces.astype(np.int32), per_frame["body/joints"],
                          per_frame["diagnostics/mode"].astype(np.uint8), per_frame["diagnostics/entropy"],
                          per_frame["diagnostics/source"], capsules, radii, attrs)

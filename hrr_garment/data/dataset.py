@@ -26,7 +26,7 @@ import numpy as np
 
 from .._version import __version__
 from ..errors import InputError, MotionError
-from ..garment.mesh import GarmentMesh
+from ..garment.mesh import GarmentError, GarmentMesh, check_garment
 from ..motion.motion import FPS, Motion
 
 FORMAT_VERSION = 1
@@ -150,7 +150,7 @@ class GarmentDataset:
                 self._read_header(f)
         except OSError as exc:
             raise DatasetError(self.path, f"not a readable HDF5 file ({exc})") from None
-        except (KeyError, ValueError, TypeError) as exc:  # a header of the wrong shape or type
+        except (KeyError, ValueError, TypeError, IndexError) as exc:  # a header of the wrong shape or type
             raise DatasetError(self.path, f"damaged header ({type(exc).__name__}: {exc})") from None
 
     def _read_header(self, f: h5py.File) -> None:
@@ -170,6 +170,10 @@ class GarmentDataset:
             groups["attached"] = t["attached"][()]
             attached_groups = ("attached",)
         self.template = GarmentMesh(self.garment, t["vertices"][()], t["faces"][()], groups, attached_groups)
+        try:
+            check_garment(self.template)
+        except GarmentError as exc:
+            raise DatasetError(self.path, f"its template garment: {exc.problem}") from None
         self.names = sorted(f["sequences"].keys())
         self.splits = {s: [n.decode() if isinstance(n, bytes) else str(n) for n in f["splits"][s][()]]
                        for s in SPLITS if s in f["splits"]}
