@@ -16,7 +16,6 @@ import h5py
 
 from .errors import InputError, OutputError
 
-
 # Errors of the storage itself (full, over quota, read-only, no permission, failing), as opposed to a
 # bug or bad input inside the writing code: these become one-line OutputErrors naming the target. An
 # OSError without an errno counts too: writers such as numpy's zip report a short write that way.

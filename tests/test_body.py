@@ -95,6 +95,8 @@ def test_limbs_through_the_body_are_flagged_and_ordinary_motion_is_not():
 
 def test_a_self_intersection_episode_is_flagged_whole_with_its_recovery():
     from hrr_garment.body.self_contact import (
+        ARM_PARTS,
+        LEG_PARTS,
         PINCH_GAP,
         SELF_INTERSECTION_DEPTH,
         limb_intrusion,
@@ -102,11 +104,14 @@ def test_a_self_intersection_episode_is_flagged_whole_with_its_recovery():
         self_intersection_episodes,
     )
 
+    # without the upper arms: in this motion they lie along the chest throughout (their own
+    # episodes are tested below)
+    parts = ARM_PARTS + LEG_PARTS
     # arms swing in through the hips, about 0.9 cm a degree from -4 degrees on, and out again
     ramp = np.arange(-6.0, 6.0)
     motion = _arm_hanging(np.concatenate([np.full(5, -20.0), ramp, ramp[::-1], np.full(10, -20.0)]))
-    intrusion = limb_intrusion(motion)
-    flagged = self_intersecting_frames(motion)
+    intrusion = limb_intrusion(motion, parts=parts)
+    flagged = self_intersecting_frames(motion, parts=parts)
     episode = np.flatnonzero(intrusion > -PINCH_GAP)
     start, stop = episode[0], episode[-1] + 1
     assert (np.diff(episode) == 1).all() and intrusion.max() > SELF_INTERSECTION_DEPTH
@@ -114,12 +119,34 @@ def test_a_self_intersection_episode_is_flagged_whole_with_its_recovery():
     assert ((intrusion > -PINCH_GAP) & (intrusion < SELF_INTERSECTION_DEPTH)).sum() >= 2
     recovery = round(0.1 * motion.fps)
     assert np.array_equal(np.flatnonzero(flagged), np.arange(start, stop + recovery))
-    assert self_intersection_episodes(motion) == [(start, stop + recovery)]
+    assert self_intersection_episodes(motion, parts=parts) == [(start, stop + recovery)]
     # a wider gap (the simulator's arms-off window) starts the same episode earlier, ends it later
-    (wide_start, wide_stop), = self_intersection_episodes(motion, gap=0.032)
+    (wide_start, wide_stop), = self_intersection_episodes(motion, gap=0.032, parts=parts)
     assert wide_start < start and wide_stop > stop + recovery
-    assert not self_intersecting_frames(motion, recovery_s=0.0)[stop:].any()
+    assert not self_intersecting_frames(motion, recovery_s=0.0, parts=parts)[stop:].any()
     # an episode that never passes the depth flags nothing
     shallow = _arm_hanging(np.concatenate([np.full(5, -20.0), ramp[:5], ramp[:5][::-1], np.full(5, -20.0)]))
-    assert 0 < limb_intrusion(shallow).max() < SELF_INTERSECTION_DEPTH
-    assert not self_intersecting_frames(shallow).any()
+    assert 0 < limb_intrusion(shallow, parts=parts).max() < SELF_INTERSECTION_DEPTH
+    assert not self_intersecting_frames(shallow, parts=parts).any()
+
+
+def test_an_upper_arm_in_the_chest_is_its_own_episode():
+    from hrr_garment.body.self_contact import (
+        ARM_PARTS,
+        SELF_INTERSECTION_DEPTH,
+        limb_intrusions,
+        self_intersecting_frames,
+    )
+
+    # the arms hang 2.7 cm clear of the chest; in the middle frames the upper arms press 5.5 cm in
+    # (CMU 131_03's right upper arm sinks 3.7 cm into the chest)
+    angles = np.concatenate([np.full(10, -40.0), np.full(6, 10.0), np.full(14, -40.0)])
+    motion = _arm_hanging(angles)
+    upper = limb_intrusions(motion, parts=("upper_arm",))
+    assert upper.shape == (2, len(angles)) and upper.max() > SELF_INTERSECTION_DEPTH
+    flagged = self_intersecting_frames(motion, parts=("upper_arm",))
+    recovery = round(0.1 * motion.fps)
+    assert np.array_equal(np.flatnonzero(flagged), np.arange(10, 16 + recovery))
+    # with the forearms and hands, which are deep only in the middle: the episodes join, no more
+    both = self_intersecting_frames(motion)
+    assert (both == (flagged | self_intersecting_frames(motion, parts=ARM_PARTS))).all()

@@ -276,6 +276,18 @@ def _escape(folder, meta):
     _retamper_hashes(folder, meta, ["../secret.txt"])
 
 
+def _bad_template_faces(folder, meta):
+    """Found by tools/fuzz.py: template faces that index past the vertices, hashes redone."""
+    from safetensors.numpy import load_file, save_file
+
+    path = folder / "template.safetensors"
+    arrays = load_file(str(path))
+    arrays["faces"] = arrays["faces"].copy()
+    arrays["faces"][0, 0] = -587202263
+    save_file(arrays, str(path))
+    _retamper_hashes(folder, meta, ["template.safetensors"])
+
+
 TAMPERS = {  # name: (edit of bundle.json's dict, or of the folder and dict; the error it must raise)
     "files deleted": (lambda f, m: m.pop("files"), "no valid 'files'"),
     "one file unlisted": (lambda f, m: m["files"].pop("decoder.safetensors"), r"does not list \['decoder.safetensors'\]"),
@@ -289,6 +301,7 @@ TAMPERS = {  # name: (edit of bundle.json's dict, or of the folder and dict; the
     "database missing": (lambda f, m: m.pop("database"), "lacks its 'database' section"),
     "NaN weights, hashes redone": (_nan_weights, "decoder.safetensors: non-finite weights"),
     "NaN statistics, hashes redone": (_nan_stats, "stats.safetensors: non-finite values"),
+    "template faces out of range, hashes redone": (_bad_template_faces, "template.safetensors: face indices must lie"),
 }
 
 

@@ -246,6 +246,13 @@ def _attr(key, value):
     (_set("sequences/a/root_translation", np.inf), "sequence 'a': non-finite values in 9 frame(s)"),
     (_attr("sequences/a", "{not json"), "attribute 'info' is not valid JSON"),
     (_attr("", "[1, 2]"), "attribute 'info' should hold a dict"),
+    # found by tools/fuzz.py: a damaged template, an array of the wrong shape, a missing motion array
+    (_set("template/vertices", np.nan), "its template garment: vertex positions contain NaN"),
+    (_set("template/faces", 10**6), "its template garment: face indices must lie in"),
+    (lambda f: f.__delitem__("sequences/a/root_translation"), "sequence 'a' lacks 'root_translation'"),
+    (lambda f: (f.__delitem__("sequences/a/garment"),
+                f.create_dataset("sequences/a/garment", data=np.zeros((9, 201, 3), np.float32))),
+     "sequence 'a': arrays of mismatched shapes"),
 ])
 def test_damaged_datasets_are_refused_naming_the_file_and_sequence(tmp_path, damage, phrase):
     path = _damaged(tmp_path / "d.h5", damage)

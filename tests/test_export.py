@@ -208,7 +208,22 @@ def test_hrr_export_refuses_bad_input_without_output(out_h5, tmp_path, capsys):
     with h5py.File(tmp_path / "nokey.h5", "w") as f:
         f.create_dataset("vertices", data=np.zeros((2, 3, 3)))
     (tmp_path / "text.h5").write_text("not hdf5")
+    # found by tools/fuzz.py: a text frame rate, bytes flipped inside the compressed vertices, NaN joints
+    write_animation_h5(tmp_path / "fps.h5", **{**_animation_arrays(), "attrs": {"fps": "{not json"}})
+    write_animation_h5(tmp_path / "chunk.h5", **_animation_arrays())
+    with h5py.File(tmp_path / "chunk.h5", "r") as f:
+        offset = f["vertices"].id.get_chunk_info(3).byte_offset
+    data = bytearray((tmp_path / "chunk.h5").read_bytes())
+    data[offset + 8:offset + 200] = bytes(range(192))
+    (tmp_path / "chunk.h5").write_bytes(bytes(data))
+    joints = _animation_arrays()
+    joints["joints"] = joints["joints"].copy()
+    joints["joints"][5, 2, 0] = np.inf
+    write_animation_h5(tmp_path / "joints.h5", **joints)
     cases = [
+        (["fps.h5", "-o", "x.glb"], "the 'fps' attribute must be a frame rate"),
+        (["chunk.h5", "-o", "x.glb"], "damaged file, cannot be read"),
+        (["joints.h5", "-o", "x.glb"], "/body/joints has non-finite values at frame 5"),
         (["nan.h5", "-o", "x.glb"], "frame 7"),
         (["nokey.h5", "-o", "x.glb"], "missing faces"),
         (["text.h5", "-o", "x.glb"], "not an HDF5 file"),

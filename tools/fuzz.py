@@ -54,6 +54,8 @@ codespace:
 
 @dataclass
 class Samples:
+    """The valid inputs the mutations start from."""
+
     model: Path
     dataset: Path
     config: Path
@@ -101,6 +103,14 @@ EXTREMES = ["1e308", "-1e308", "nan", "inf", "-inf", "0", "-0", "1e6", "-1e6", "
 
 def _numbers(text: str) -> list[re.Match]:
     return list(re.finditer(r"(?<![A-Za-z_])-?\d+(\.\d+)?(e-?\d+)?", text))
+
+
+def _is_number(token: str) -> bool:
+    try:
+        float(token)
+    except ValueError:
+        return False
+    return True
 
 
 def mutate_text(text: str, rng: np.random.Generator) -> tuple[str, str]:
@@ -157,8 +167,8 @@ def mutate_text(text: str, rng: np.random.Generator) -> tuple[str, str]:
         out = []
         for ln in lines:
             if ln.strip().startswith("OFFSET"):
-                vals = [float(v) * factor for v in ln.split()[1:]]
-                ln = "OFFSET " + " ".join(repr(v) for v in vals)
+                vals = [float(v) * factor if _is_number(v) else v for v in ln.split()[1:]]
+                ln = "OFFSET " + " ".join(map(str, vals))
             out.append(ln)
         return "\n".join(out), f"{kind} x{factor:g}"
     word = str(rng.choice(["HIERARCHY", "ROOT", "JOINT", "End Site", "MOTION", "OFFSET"]))
@@ -322,6 +332,8 @@ def mutate_h5(src: Path, dst: Path, rng: np.random.Generator, arrays: tuple[str,
 
 @dataclass
 class Case:
+    """One mutated input and the command that runs it."""
+
     number: int
     kind: str
     mutation: str
@@ -353,7 +365,11 @@ def make_case(number: int, samples: Samples, work: Path, rng: np.random.Generato
                 text = data.decode("latin-1")
                 done.append(what)
             else:
-                text, what = mutate_text(text, rng)
+                try:
+                    text, what = mutate_text(text, rng)
+                except ValueError:  # an earlier mutation removed what this one edits: damage bytes instead
+                    data, what = mutate_bytes(text.encode("latin-1", errors="replace"), rng)
+                    text = data.decode("latin-1")
                 done.append(what)
         src = folder / "clip.bvh"
         src.write_bytes(text.encode("latin-1", errors="replace"))
@@ -455,9 +471,17 @@ def run_case(case: Case, timeout: float, memory_gib: float) -> dict:
             "seconds": round(seconds, 2), "outcome": outcome, "detail": detail, "stderr": err[-2000:]}
 
 
+def _exists(path: Path) -> bool:
+    try:
+        return path.exists()
+    except OSError:  # a name too long for the system: nothing can be there
+        return False
+
+
 def judge(case: Case, rc: int, err: str, hung: bool) -> tuple[str, str]:
+    special = str(case.output).startswith(("/proc", "/sys", "/dev"))
     leftovers = [p.name for p in case.output.parent.glob(f".{case.output.name[:40]}*")] \
-        if case.output.parent.is_dir() and not str(case.output).startswith(("/proc", "/sys", "/dev")) else []
+        if not special and _exists(case.output.parent) else []
     if hung:
         return "hang", "past the time limit"
     if rc in (-9, 137) or "MemoryError" in err or "Cannot allocate memory" in err:
@@ -466,7 +490,7 @@ def judge(case: Case, rc: int, err: str, hung: bool) -> tuple[str, str]:
         last = err.strip().splitlines()[-1] if err.strip() else f"exit {rc}"
         return "traceback", last[-300:]
     if rc == 2:
-        if leftovers or (case.output.exists() and case.kind != "output path"):
+        if leftovers or (not special and _exists(case.output) and case.kind != "output path"):
             return "partial file", f"left {leftovers or case.output.name}"
         lines = [ln for ln in err.splitlines() if "error:" in ln]
         if not lines:
@@ -484,7 +508,7 @@ def judge(case: Case, rc: int, err: str, hung: bool) -> tuple[str, str]:
 
 def check_output(path: Path) -> str:
     """'' when a successful run's output reads back finite and plausible; else what is wrong."""
-    if not path.exists():
+    if not _exists(path):
         return "exit 0 but no output"
     try:
         if path.suffix == ".h5":
@@ -551,26 +575,30 @@ def main(argv: list[str] | None = None) -> int:
     args = p.parse_args(argv)
     samples = make_samples(args.work / "samples")
     shutil.rmtree(args.work / "failures", ignore_errors=True)
-    cases = []
-    for n in range(args.cases):
+
+    def one(n: int) -> dict:
+        """Make case ``n`` (its own seeded generator: reproducible alone) and run it."""
         rng = np.random.default_rng([args.seed, n])
         case = make_case(n, samples, args.work, rng)
         while args.only and case.kind != args.only:
             case = make_case(n, samples, args.work, rng)
-        cases.append(case)
+        folder = args.work / "cases" / f"{n:05d}"
+        try:
+            r = run_case(case, args.timeout, args.memory_gib)
+        except Exception as exc:  # noqa: BLE001 - a fuzzer bug must not hide the other cases
+            r = {**asdict(case), "output": str(case.output), "rc": None, "seconds": 0.0, "outcome": "traceback",
+                 "detail": f"fuzzer error: {type(exc).__name__}: {exc}", "stderr": ""}
+        if r["outcome"] in FAILURES:
+            kept = args.work / "failures" / folder.name
+            shutil.copytree(folder, kept, dirs_exist_ok=True)
+            (kept / "command.txt").write_text(" ".join(map(str, r["command"])) + "\n\n" + r["stderr"])
+        shutil.rmtree(folder, ignore_errors=True)
+        return r
+
     start = time.perf_counter()
-    results = []
     with ThreadPoolExecutor(args.jobs) as pool:
-        futures = [pool.submit(run_case, c, args.timeout, args.memory_gib) for c in cases]
-        for fut in tqdm(as_completed(futures), total=len(futures), desc="fuzz", unit="case"):
-            r = fut.result()
-            results.append(r)
-            folder = args.work / "cases" / f"{r['number']:05d}"
-            if r["outcome"] in FAILURES:
-                kept = args.work / "failures" / folder.name
-                shutil.copytree(folder, kept, dirs_exist_ok=True)
-                (kept / "command.txt").write_text(" ".join(map(str, r["command"])) + "\n\n" + r["stderr"])
-            shutil.rmtree(folder, ignore_errors=True)
+        futures = [pool.submit(one, n) for n in range(args.cases)]
+        results = [f.result() for f in tqdm(as_completed(futures), total=len(futures), desc="fuzz", unit="case")]
     results.sort(key=lambda r: r["number"])
     print(write_report(results, args.work, time.perf_counter() - start))
     return 1 if any(r["outcome"] in FAILURES for r in results) else 0

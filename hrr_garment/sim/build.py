@@ -21,7 +21,7 @@ import numpy as np
 from ..data.dataset import SequenceRecord, split_groups, split_names, write_dataset
 from ..errors import InputError
 from ..garment.mesh import GarmentMesh, mirror_map
-from ..io_utils import atomic_write_text, exclusive_lock
+from ..io_utils import atomic_write_text, exclusive_lock, strict_json
 from .executors import EXECUTORS, run_local, run_ray
 from .parts import PART_VERSION, load_part, part_paths, read_part_key, template_hash
 from .plan import SequenceSpec
@@ -115,7 +115,7 @@ def build_dataset(garment: GarmentMesh, specs: list[SequenceSpec], config: SimCo
             records, split = _add_mirrored(records, split, garment, progress)
             summary["mirrored"] = len(records) - len(done)
         write_dataset(out, garment, records, split, {**(info or {}), "summary": summary, "sim": config.to_dict()})
-        atomic_write_text(out.with_suffix(".summary.json"), json.dumps(summary, indent=2))
+        atomic_write_text(out.with_suffix(".summary.json"), strict_json(summary, indent=2))
         report = BuildReport(out, done, rejects, summary, reused, len(pending) - len(rejects),
                              stats={r.name: r.info.get("stats", {}) for r in records})
         if preview:

@@ -28,7 +28,7 @@ from tqdm.auto import tqdm
 
 from ..data.dataset import GarmentDataset
 from ..garment.mesh import mirror_map
-from ..io_utils import atomic_path, atomic_write_text
+from ..io_utils import atomic_path, atomic_write_text, strict_json
 from ..models.fcmae import AutoencoderConfig, MeshAutoencoder
 from ..models.hierarchy import cached_hierarchy
 from ..motion.frame import FRAME_VERSION, to_body_frame
@@ -257,7 +257,7 @@ def train_autoencoder(dataset: str | Path, folder: str | Path, model_config: Aut
               "sizes": hierarchy.sizes,
               "extra": {"refine_steps": train_config.refine_steps,
                         "encoder_only_mm": {"val": state["best"], "test": pve_mm(model, frames.test)}}}
-    atomic_write_text(folder / "report.json", json.dumps(record, indent=2))
+    atomic_write_text(folder / "report.json", strict_json(record, indent=2))
     return _stage_report(record, folder)
 
 

@@ -24,7 +24,7 @@ from tqdm import tqdm
 from ..artifacts.bundle import add_bundle_part, load_bundle
 from ..data.dataset import DatasetError, GarmentDataset
 from ..data.windows import dataset_features
-from ..io_utils import atomic_write_text
+from ..io_utils import atomic_write_text, strict_json
 from ..models.direct import DirectConfig, DirectRegressor
 from ..motion.features import FEATURE_DIM
 from ..settings import from_settings
@@ -112,7 +112,7 @@ def train_direct(model: DirectRegressor, train: tuple, val: tuple, folder: Path,
         state["elapsed_s"] = spent + time.perf_counter() - started
         best_weights = keep_if_best(state, val_loss, model, best_weights)
         with open(log_path, "a", encoding="utf-8") as fh:
-            fh.write(json.dumps({"epoch": state["epoch"], "train_l1": total / max(count, 1), "val_l1": val_loss}) + "\n")
+            fh.write(strict_json({"epoch": state["epoch"], "train_l1": total / max(count, 1), "val_l1": val_loss}) + "\n")
         save_checkpoint(checkpoint, key, state, best_weights, model=model, optimizer=optimizer)
         bar.set_postfix(val=f"{val_loss:.3f}")
         bar.update(1)
@@ -152,7 +152,7 @@ def run_baseline_stage(dataset: str | Path, folder: str | Path, config: DirectCo
     entry = {"key": key, "config": config.to_dict(), "train": asdict(train_config), "epochs": state["epoch"],
              "best_epoch": state["best_epoch"], "validation_mm": val_mm, "minutes": (time.perf_counter() - t0) / 60}
     add_bundle_part(folder, "direct.safetensors", model.state_dict(), {"direct": entry})
-    atomic_write_text(folder / "baseline" / "report.json", json.dumps(entry, indent=2))
+    atomic_write_text(folder / "baseline" / "report.json", strict_json(entry, indent=2))
     return _stage_report(entry, folder)
 
 

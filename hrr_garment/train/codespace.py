@@ -24,7 +24,7 @@ from ..artifacts.bundle import BundleError, read_meta, write_bundle
 from ..artifacts.database import CodeDatabase
 from ..data.dataset import DatasetError, GarmentDataset
 from ..data.windows import build_windows, dataset_features, fit_stats
-from ..io_utils import atomic_write_text
+from ..io_utils import atomic_write_text, strict_json
 from ..models.codespace import CodeSpace, CodeSpaceConfig
 from ..motion.features import FEATURE_DIM
 from .autoencoder import body_frames, load_autoencoder, refine_settings
@@ -149,5 +149,5 @@ def run_codespace_stage(dataset: str | Path, folder: str | Path, config: CodeSpa
                  database=database, template=ds.template, tau=sweep.best_tau,
                  info={"dataset": str(dataset), "window": config.window, "validation_mm": report["validation_mm"],
                        "encoding": encoding, **(info or {})})
-    atomic_write_text(report_path, json.dumps(report, indent=2, default=float))
+    atomic_write_text(report_path, strict_json(report, indent=2, default=float))
     return _stage_report(report, stage)

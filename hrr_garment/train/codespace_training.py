@@ -19,7 +19,6 @@ of the motion codes' entropies.
 
 from __future__ import annotations
 
-import json
 import math
 import time
 from dataclasses import asdict, dataclass
@@ -30,6 +29,7 @@ import torch
 from tqdm.auto import tqdm
 
 from ..data.windows import WindowSet
+from ..io_utils import strict_json
 from ..models.codespace import CodeSpace
 from ..models.quantizer import group_entropy
 from ..settings import from_settings
@@ -188,7 +188,7 @@ def train_codespace(model: CodeSpace, train: WindowTensors, val: WindowTensors, 
         record = {"epoch": state["epoch"], "temperature": temperature, "match_weight": match_weight,
                   **{f"train_{k}": v / len(order) for k, v in sums.items()}, **{f"val_{k}": v for k, v in metrics.items()}}
         with open(log_path, "a", encoding="utf-8") as fh:
-            fh.write(json.dumps(record) + "\n")
+            fh.write(strict_json(record) + "\n")
         save_checkpoint(checkpoint, key, state, best_weights, model=model, optimizer=optimizer, plateau=plateau)
         bar.set_postfix(rec=f"{metrics['rec']:.3f}", regress=f"{metrics['regress']:.3f}", agree=f"{metrics['agreement']:.2f}",
                         stage=1 if state["switched_at"] is None else 2)
