@@ -36,7 +36,7 @@ from safetensors.torch import save_file as save_tensors
 
 from ..errors import InputError
 from ..garment.mesh import GarmentError, GarmentMesh, check_garment
-from ..io_utils import atomic_path, atomic_write_text
+from ..io_utils import atomic_path, atomic_write_text, strict_json
 from ..models.codespace import CodeSpace, CodeSpaceConfig
 from ..models.direct import DirectConfig, DirectRegressor
 from ..models.fcmae import AutoencoderConfig, MeshAutoencoder
@@ -119,7 +119,7 @@ def write_bundle(folder: str | Path, *, autoencoder: MeshAutoencoder, codespace:
             "tau": float(tau), "database": {"names": database.names, "classes": database.classes, "windows": len(database)},
             "files": files, "content_hash": _content_hash(files),
             **info}
-    atomic_write_text(folder / "bundle.json", json.dumps(meta, indent=2))
+    atomic_write_text(folder / "bundle.json", strict_json(meta, indent=2))
     return folder / "bundle.json"
 
 
@@ -134,7 +134,7 @@ def add_bundle_part(folder: str | Path, name: str, tensors: dict, meta: dict) ->
     current = read_meta(folder)
     _save(folder / name, tensors)
     files = {**current["files"], name: _sha256(folder / name)}
-    atomic_write_text(folder / "bundle.json", json.dumps({**current, **meta, "files": files,
+    atomic_write_text(folder / "bundle.json", strict_json({**current, **meta, "files": files,
                                                           "content_hash": _content_hash(files)}, indent=2))
 
 

@@ -288,14 +288,15 @@ def _native_from_arrays(data: dict[str, np.ndarray], path: Path) -> Motion:
     height = float(_numeric(path, data, "source_height_m", PLAUSIBLE_HEIGHT_M[1] * 2)) if "source_height_m" in data else 1.7
     if not height > 0:
         raise MotionError(path, f"source_height_m must be a positive height in metres, got {height:g}")
-    return Motion(rot, root, fps, _text(data, "source", str(path)), _text(data, "source_skeleton", "canonical"), height)
+    return Motion(rot, root, fps, _text(path, data, "source", str(path)), _text(path, data, "source_skeleton", "canonical"),
+                  height)
 
 
-def _text(data: dict[str, np.ndarray], key: str, default: str) -> str:
-    """A string entry (``default`` when absent); numbers and arrays are not names."""
+def _text(path: Path, data: dict[str, np.ndarray], key: str, default: str) -> str:
+    """A string entry of the file at ``path`` (``default`` when absent); numbers and arrays are not names."""
     value = data.get(key)
     if value is None:
         return default
     if value.dtype.kind not in "US" or value.size != 1:
-        raise MotionError(default, f"{key} must be a string, got a {value.dtype} array of shape {value.shape}")
+        raise MotionError(path, f"{key} must be a string, got a {value.dtype} array of shape {value.shape}")
     return str(value.item())[:1000]
