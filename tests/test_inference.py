@@ -292,3 +292,28 @@ def test_an_absurd_animation_is_refused_and_nothing_is_written(tmp_path, damage,
     with pytest.raises(InputError, match=phrase):
         anim.save(tmp_path / "out.h5")
     assert not list(tmp_path.iterdir())
+
+
+def test_a_push_that_would_tear_the_cloth_is_undone_as_far_as_it_tears():
+    from hrr_garment.garment.templates import make_garment
+    from hrr_garment.inference.collision import MAX_PUSH_STRAIN, limit_push_strain
+    from hrr_garment.sim.quality import edge_strain
+
+    skirt = make_garment("skirt", 300)
+    edges = skirt.edges()
+    rng = np.random.default_rng(5)
+    unpushed = np.repeat(skirt.vertices[None], 3, 0).astype(np.float32)
+    unpushed[2] *= np.float32(1.3)  # a frame the decoder stretched 1.3 x everywhere: not the push's doing
+    pushed = unpushed.copy()
+    moved = rng.choice(skirt.num_vertices, 4, replace=False)
+    pushed[1, moved] += np.float32([0.0, 0.0, 0.3])  # four vertices shoved 30 cm across a limb
+    pushed[2, moved] += np.float32([0.0, 0.0, 0.002])  # a gentle push on the stretched frame
+    limited = limit_push_strain(pushed, unpushed, skirt.faces, skirt.vertices)
+    assert edge_strain(pushed[1:2], skirt.vertices, edges).max() > 5
+    assert edge_strain(limited[1:2], skirt.vertices, edges).max() < MAX_PUSH_STRAIN * 1.1
+    assert np.array_equal(limited[0], pushed[0]) and np.array_equal(limited[2], pushed[2])  # nothing to undo
+    # only the torn neighbourhood moves: most of the skirt keeps its position exactly, and what lies
+    # 15 cm or more from the shoved vertices moves by millimetres at most
+    change = np.linalg.norm(limited[1] - pushed[1], axis=-1)
+    far = np.linalg.norm(skirt.vertices[:, None] - skirt.vertices[moved][None], axis=-1).min(1) > 0.15
+    assert (change == 0).mean() > 0.5 and change[far].max() < 0.005

@@ -171,7 +171,8 @@ class Animator:
         vertices = from_body_frame(body_frame_vertices(self.bundle, latents, self.decoder), motion).astype(np.float32)
         report = None
         if collision:
-            vertices, report = push_out(vertices, motion, self.bundle.template.faces, mean=self.smoothing)
+            vertices, report = push_out(vertices, motion, self.bundle.template.faces, mean=self.smoothing,
+                                        rest=self.bundle.template.vertices)
         return Animation(vertices, self.bundle.template.faces, motion.fps, retrieved, entropy, source, motion.joint_positions,
                          self.bundle.garment, self.bundle.content_hash, motion.source,
                          {"mode": str(mode), "tau": tau, "causal": int(causal), "collision": int(collision)}, report,
@@ -248,10 +249,11 @@ class AnimationStream:
         with torch.no_grad():
             local = self.animator.decoder(torch.from_numpy(latent[None].astype(np.float32))).numpy()
         t.append(time.perf_counter())
-        vertices = from_body_frame(local, pose)
+        vertices = from_body_frame(local, pose).astype(np.float32)  # as offline: the same push-out inputs
         t.append(time.perf_counter())
         if self.collision:
-            vertices, _ = push_out(vertices, pose, self.animator.bundle.template.faces, mean=self.animator.smoothing)
+            vertices, _ = push_out(vertices, pose, self.animator.bundle.template.faces, mean=self.animator.smoothing,
+                                   rest=self.animator.bundle.template.vertices)
         t.append(time.perf_counter())
         for name, start, stop in zip(STREAM_STAGES, t, t[1:]):
             self.stage_s[name].append(stop - start)
