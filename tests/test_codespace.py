@@ -336,3 +336,21 @@ def test_bundle_json_that_is_not_an_object_or_not_text_is_refused(trained, tmp_p
     (copy / "bundle.json").write_bytes(b'{"garment": "\xff\xfe"}')
     with pytest.raises(BundleError, match="unreadable"):
         load_bundle(copy)
+
+
+def test_a_dataset_no_stage_can_finish_is_refused_before_training(tmp_path, capsys):
+    """Found by tools/fuzz.py: without a validation split the autoencoder trained for minutes and
+    left its stage behind before the code space refused the dataset."""
+    import h5py
+
+    from hrr_garment.cli.train import main as train_main
+    from hrr_garment.garment.templates import make_garment
+
+    data = synthetic_dataset(tmp_path / "skirt.h5", make_garment("skirt", 300))
+    with h5py.File(data, "r+") as f:
+        del f["splits/val"]
+    (tmp_path / "cfg.yaml").write_text(TINY_TRAINING)
+    out = tmp_path / "model"
+    assert train_main(["--dataset", str(data), "--config", str(tmp_path / "cfg.yaml"), "-o", str(out), "--quiet"]) == 2
+    assert "needs at least one training and one validation sequence" in capsys.readouterr().err
+    assert not out.exists()

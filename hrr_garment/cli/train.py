@@ -172,6 +172,11 @@ def _run_stages(args, preset, folder: Path, autoencoder: tuple, codespace: tuple
     (ae_model, ae_train), (cs_model, cs_train), (direct_model, direct_train) = autoencoder, codespace, baseline
     times: dict[str, float] = {}
     stages = STAGES if args.stage == "all" else (args.stage,)
+    if args.dataset.exists() and {"autoencoder", "codespace"} & set(stages):
+        from ..data.dataset import GarmentDataset
+        from ..train.codespace import check_splits
+
+        check_splits(GarmentDataset(args.dataset))  # a dataset the code space cannot use fails before any training
     for stage in stages:
         t0 = time.perf_counter()
         if stage == "simulate":
