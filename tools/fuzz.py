@@ -178,6 +178,8 @@ def mutate_text(text: str, rng: np.random.Generator) -> tuple[str, str]:
 def mutate_bytes(data: bytes, rng: np.random.Generator) -> tuple[bytes, str]:
     """Byte-level damage for any file: flips, truncation, an empty file, random bytes."""
     kind = rng.choice(["flip", "truncate", "empty", "random"], p=[0.6, 0.25, 0.05, 0.1])
+    if not data and kind in ("flip", "truncate"):
+        kind = "random"  # nothing left to damage
     if kind == "flip":
         buf = bytearray(data)
         n = int(rng.integers(1, 64))
@@ -579,15 +581,18 @@ def main(argv: list[str] | None = None) -> int:
     def one(n: int) -> dict:
         """Make case ``n`` (its own seeded generator: reproducible alone) and run it."""
         rng = np.random.default_rng([args.seed, n])
-        case = make_case(n, samples, args.work, rng)
-        while args.only and case.kind != args.only:
-            case = make_case(n, samples, args.work, rng)
         folder = args.work / "cases" / f"{n:05d}"
+        case = None
         try:
+            case = make_case(n, samples, args.work, rng)
+            while args.only and case.kind != args.only:
+                case = make_case(n, samples, args.work, rng)
             r = run_case(case, args.timeout, args.memory_gib)
-        except Exception as exc:  # noqa: BLE001 - a fuzzer bug must not hide the other cases
-            r = {**asdict(case), "output": str(case.output), "rc": None, "seconds": 0.0, "outcome": "traceback",
-                 "detail": f"fuzzer error: {type(exc).__name__}: {exc}", "stderr": ""}
+        except Exception as exc:  # noqa: BLE001 - a fuzzer bug must not hide the other cases; it counts as a failure
+            r = {"number": n, "kind": case.kind if case else "fuzzer", "mutation": case.mutation if case else "",
+                 "command": case.command if case else [], "output": str(case.output) if case else "", "rc": None,
+                 "seconds": 0.0, "outcome": "traceback", "detail": f"fuzzer error: {type(exc).__name__}: {exc}",
+                 "stderr": ""}
         if r["outcome"] in FAILURES:
             kept = args.work / "failures" / folder.name
             shutil.copytree(folder, kept, dirs_exist_ok=True)
