@@ -296,7 +296,7 @@ def test_an_absurd_animation_is_refused_and_nothing_is_written(tmp_path, damage,
 
 def test_a_push_that_would_tear_the_cloth_is_undone_as_far_as_it_tears():
     from hrr_garment.garment.templates import make_garment
-    from hrr_garment.inference.collision import MAX_PUSH_STRAIN, limit_push_strain
+    from hrr_garment.inference.collision import MAX_PUSH_STRAIN, EdgeLimits, limit_push_strain
     from hrr_garment.sim.quality import edge_strain
 
     skirt = make_garment("skirt", 300)
@@ -308,7 +308,8 @@ def test_a_push_that_would_tear_the_cloth_is_undone_as_far_as_it_tears():
     moved = rng.choice(skirt.num_vertices, 4, replace=False)
     pushed[1, moved] += np.float32([0.0, 0.0, 0.3])  # four vertices shoved 30 cm across a limb
     pushed[2, moved] += np.float32([0.0, 0.0, 0.002])  # a gentle push on the stretched frame
-    limited = limit_push_strain(pushed, unpushed, skirt.faces, skirt.vertices)
+    limited, torn = limit_push_strain(pushed, unpushed, EdgeLimits.of(skirt.faces, skirt.vertices))
+    assert torn.tolist() == [False, True, False]
     assert edge_strain(pushed[1:2], skirt.vertices, edges).max() > 5
     assert edge_strain(limited[1:2], skirt.vertices, edges).max() < MAX_PUSH_STRAIN * 1.1
     assert np.array_equal(limited[0], pushed[0]) and np.array_equal(limited[2], pushed[2])  # nothing to undo

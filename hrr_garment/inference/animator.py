@@ -31,7 +31,7 @@ from ..motion.motion import Motion
 from ..motion.windows import causal_windows, sequence_windows
 from ..paths import workspace
 from .blending import Inertializer, blend_windows, causal_latents, source_id
-from .collision import PushOutReport, mean_operator, push_out
+from .collision import EdgeLimits, PushOutReport, mean_operator, push_out
 from .decoding import body_frame_vertices, flush_denormals
 from .gate import choose_windows
 from .modes import CODE_MODES, Mode
@@ -110,6 +110,7 @@ class Animator:
         self.blend = blend  # inertialization frames in causal mode
         self.decoder = bundle.autoencoder.fast_decoder()
         self.smoothing = mean_operator(bundle.template.faces, bundle.template.num_vertices)  # for the push-out
+        self.edge_limits = EdgeLimits.of(bundle.template.faces, bundle.template.vertices)  # for the push-out's strain limit
         self._causal_steps: dict[bool, object] = {}
 
     def causal_step(self, regression: bool):
@@ -172,7 +173,7 @@ class Animator:
         report = None
         if collision:
             vertices, report = push_out(vertices, motion, self.bundle.template.faces, mean=self.smoothing,
-                                        rest=self.bundle.template.vertices)
+                                        limits=self.edge_limits)
         return Animation(vertices, self.bundle.template.faces, motion.fps, retrieved, entropy, source, motion.joint_positions,
                          self.bundle.garment, self.bundle.content_hash, motion.source,
                          {"mode": str(mode), "tau": tau, "causal": int(causal), "collision": int(collision)}, report,
@@ -253,7 +254,7 @@ class AnimationStream:
         t.append(time.perf_counter())
         if self.collision:
             vertices, _ = push_out(vertices, pose, self.animator.bundle.template.faces, mean=self.animator.smoothing,
-                                   rest=self.animator.bundle.template.vertices)
+                                   limits=self.animator.edge_limits)
         t.append(time.perf_counter())
         for name, start, stop in zip(STREAM_STAGES, t, t[1:]):
             self.stage_s[name].append(stop - start)

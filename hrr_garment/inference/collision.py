@@ -25,6 +25,7 @@ from ..motion.motion import Motion
 # edges a push may stretch to (times their rest length): the simulator's own data reach 2.1-2.5 at
 # their worst frame and 1.12-1.15 at p99; a push that needs more is across a limb, not out of the body
 MAX_PUSH_STRAIN = 1.5
+LIMIT_TOLERANCE_M = 1e-5  # an edge this little over its limit counts as within it (the limiter stops)
 OVER_RELAXATION = 3.0  # of the strain limiter's Jacobi steps (each divided by a vertex's degree, about 6)
 
 
@@ -45,14 +46,41 @@ def mean_operator(faces: np.ndarray, num_vertices: int) -> csr_matrix:
     return diags(1.0 / np.maximum(np.asarray(a.sum(1)).ravel(), 1)) @ a
 
 
+@dataclass(frozen=True)
+class EdgeLimits:
+    """What :func:`limit_push_strain` needs of a garment, made once per template (the streaming
+    path calls the push-out every frame): its edges, their rest lengths, the (V, E) incidence that
+    moves an edge's two ends toward each other (+1 first vertex, -1 second) and each vertex's degree."""
+
+    edges: np.ndarray
+    rest_length: np.ndarray
+    signs: csr_matrix
+    degree: np.ndarray
+
+    @classmethod
+    def of(cls, faces: np.ndarray, rest: np.ndarray) -> "EdgeLimits":
+        edges = unique_edges(faces)
+        v, e = len(rest), len(edges)
+        signs = csr_matrix((np.r_[np.ones(e), -np.ones(e)], (np.r_[edges[:, 0], edges[:, 1]], np.r_[np.arange(e), np.arange(e)])),
+                           shape=(v, e))
+        degree = np.maximum(np.asarray(abs(signs).sum(1)).ravel(), 1.0)
+        return cls(edges, np.linalg.norm(rest[edges[:, 1]] - rest[edges[:, 0]], axis=-1), signs, degree)
+
+    def lengths(self, p: np.ndarray) -> np.ndarray:
+        """(T, E) edge lengths of (T, V, 3) positions."""
+        return np.linalg.norm(p[:, self.edges[:, 1]] - p[:, self.edges[:, 0]], axis=-1)
+
+
 def push_out(vertices: np.ndarray, motion: Motion, faces: np.ndarray, body: BodyModel = DEFAULT_BODY, margin: float = 0.002,
              smooth: int = 4, rounds: int = 1, depth: float = 0.005, mean: csr_matrix | None = None,
-             chunk: int = 64, rest: np.ndarray | None = None, max_strain: float = MAX_PUSH_STRAIN) -> tuple[np.ndarray, PushOutReport]:
+             chunk: int = 64, limits: EdgeLimits | None = None,
+             max_strain: float = MAX_PUSH_STRAIN) -> tuple[np.ndarray, PushOutReport]:
     """(T, V, 3) world vertices -> pushed copy and a report (fractions of vertices > ``depth`` inside).
     ``mean``: :func:`mean_operator` of the faces, when the caller keeps one (streaming). Frames are
-    processed ``chunk`` at a time, all at once within a chunk. With ``rest`` (the template's (V, 3)
-    rest positions), the push stretches no edge past ``max_strain`` times its rest length, or past
-    its stretch before the push where that was more (:func:`limit_push_strain`)."""
+    processed ``chunk`` at a time, all at once within a chunk. With ``limits`` (:class:`EdgeLimits`
+    of the faces and the template's rest positions), the push stretches no edge past ``max_strain``
+    times its rest length, or past its stretch before the push where that was more
+    (:func:`limit_push_strain`)."""
     a, b = body.pose_motion(motion)
     mean = mean_operator(faces, vertices.shape[1]) if mean is None else mean
     out = np.empty(vertices.shape, np.float32)
@@ -68,54 +96,51 @@ def push_out(vertices: np.ndarray, motion: Motion, faces: np.ndarray, body: Body
         else:
             out[sl], before[sl], after[sl] = _push_frames(vertices[sl].astype(np.float64), a[sl], b[sl], body.radii, mean,
                                                           margin, smooth, rounds, depth)
-    if rest is not None:
-        out = limit_push_strain(out, vertices, faces, rest, max_strain)
-        after = (frames_signed_distance(out.astype(np.float64), a, b, body.radii)[0] < -depth).mean(1)
+    if limits is not None:
+        out, torn = limit_push_strain(out, vertices, limits, max_strain)
+        if torn.any():  # only the frames the limit moved have a new "after"
+            inside = frames_signed_distance(out[torn].astype(np.float64), a[torn], b[torn], body.radii)[0] < -depth
+            after[torn] = inside.mean(1)
     return out, PushOutReport(float(before.mean()), float(after.mean()), float(before.max(initial=0)), float(after.max(initial=0)))
 
 
-def limit_push_strain(pushed: np.ndarray, unpushed: np.ndarray, faces: np.ndarray, rest: np.ndarray,
-                      max_strain: float = MAX_PUSH_STRAIN, iterations: int = 60) -> np.ndarray:
+def limit_push_strain(pushed: np.ndarray, unpushed: np.ndarray, limits: EdgeLimits,
+                      max_strain: float = MAX_PUSH_STRAIN, iterations: int = 60) -> tuple[np.ndarray, np.ndarray]:
     """Undo as much of a push as tears the cloth: ``iterations`` Jacobi passes of edge-length
     projection (each over-long edge's two ends move toward each other, a vertex by the sum of its
-    corrections over its degree, over-relaxed) on the frames where an edge of ``pushed`` is longer than ``max_strain`` times its
-    rest length and longer than it was ``unpushed``; every other edge and frame is left as it is.
+    corrections over its degree, over-relaxed) on the frames where an edge of ``pushed`` is longer
+    than ``max_strain`` times its rest length and longer than it was ``unpushed``; every other edge
+    and frame is left as it is. Returns the vertices and the (T,) mask of the frames it changed.
 
     Why: where the capture drives a limb through the body (a hand in the belly), a vertex caught in
     both capsules is pushed out of the nearest surface, across the limb, while its neighbours stay:
     edges ten times their length (CMU 131_03), which no simulator would produce."""
-    edges = unique_edges(faces)
-    rest_len = np.linalg.norm(rest[edges[:, 1]] - rest[edges[:, 0]], axis=-1)
-
-    def lengths(p: np.ndarray) -> np.ndarray:
-        return np.linalg.norm(p[:, edges[:, 1]] - p[:, edges[:, 0]], axis=-1)
-
-    limit = np.maximum(max_strain * rest_len, lengths(unpushed.astype(np.float64)))  # (T, E)
-    torn = (lengths(pushed.astype(np.float64)) > limit * (1 + 1e-6)).any(1)
+    limit = np.maximum(max_strain * limits.rest_length, limits.lengths(unpushed.astype(np.float64)))  # (T, E)
+    torn = (limits.lengths(pushed.astype(np.float64)) > limit * (1 + 1e-6)).any(1)
     if not torn.any():
-        return pushed
+        return pushed, torn
     p, limit = pushed[torn].astype(np.float64), limit[torn]
-    v, e = p.shape[1], len(edges)
-    # (V, E) incidence: +1 at an edge's first vertex, -1 at its second; moves both ends toward each other
-    signs = csr_matrix((np.r_[np.ones(e), -np.ones(e)], (np.r_[edges[:, 0], edges[:, 1]], np.r_[np.arange(e), np.arange(e)])),
-                       shape=(v, e))
+    t, v, e = len(p), p.shape[1], len(limits.edges)
     # each vertex moves by its corrections summed over its degree: a constant weight, so that the
     # result depends smoothly on the input (dividing by the number of over-long edges, which jumps
     # as an edge crosses its limit, made streaming and offline results differ by 0.04 mm)
-    degree = np.maximum(np.asarray(abs(signs).sum(1)).ravel(), 1.0)[None, :, None]
-    for _ in range(iterations):
-        d = p[:, edges[:, 1]] - p[:, edges[:, 0]]  # (t, E, 3)
+    degree = limits.degree[None, :, None]
+    active = np.arange(t)  # frames still over the limit: each stops on its own, so a frame's result
+    for _ in range(iterations):  # does not depend on the others it is batched with (streaming = offline)
+        q, lim = p[active], limit[active]
+        d = q[:, limits.edges[:, 1]] - q[:, limits.edges[:, 0]]  # (a, E, 3)
         length = np.linalg.norm(d, axis=-1)
-        excess = np.maximum(length - limit, 0.0)
-        if not excess.any():
+        excess = np.maximum(length - lim, 0.0)
+        still = excess.max(1) > LIMIT_TOLERANCE_M
+        if not still.any():
             break
-        corr = (0.5 * excess / np.maximum(length, 1e-12))[..., None] * d  # (t, E, 3)
-        t = len(p)
-        delta = (signs @ corr.transpose(1, 0, 2).reshape(e, -1)).reshape(v, t, 3).transpose(1, 0, 2)
-        p += OVER_RELAXATION * delta / degree
+        active, d, length, excess = active[still], d[still], length[still], excess[still]
+        corr = (0.5 * excess / np.maximum(length, 1e-12))[..., None] * d  # (a, E, 3)
+        delta = (limits.signs @ corr.transpose(1, 0, 2).reshape(e, -1)).reshape(v, len(active), 3).transpose(1, 0, 2)
+        p[active] += OVER_RELAXATION * delta / degree
     out = pushed.copy()
     out[torn] = p.astype(pushed.dtype)
-    return out
+    return out, torn
 
 
 def _push_frames(p: np.ndarray, a: np.ndarray, b: np.ndarray, radii: np.ndarray, mean: csr_matrix, margin: float,
