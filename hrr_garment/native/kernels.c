@@ -334,6 +334,52 @@ void hrr_push_out(double *p, int T, int V, const double *a, const double *b, con
     free(list);
 }
 
+/* The push-out's strain limit (hrr_garment.inference.collision.limit_push_strain) on one frame:
+   Jacobi passes of edge-length projection. Every edge longer than its limit moves its two ends
+   toward each other by half the excess each; a vertex moves by its corrections summed, times omega
+   over its degree. Stops once no edge is more than tol over its limit. delta: 3 V doubles. */
+static void limit_frame(double *p, int V, int E, const int32_t *edges, const double *limit, const double *degree,
+                        int iterations, double tol, double omega, double *delta)
+{
+    for (int it = 0; it < iterations; ++it) {
+        memset(delta, 0, sizeof(double) * 3 * (size_t)V);
+        double worst = 0.0;
+        for (int e = 0; e < E; ++e) {
+            const int i = edges[2 * e], j = edges[2 * e + 1];
+            const double dx = p[3 * j] - p[3 * i], dy = p[3 * j + 1] - p[3 * i + 1], dz = p[3 * j + 2] - p[3 * i + 2];
+            const double length = sqrt(dx * dx + dy * dy + dz * dz), excess = length - limit[e];
+            if (excess <= 0.0) continue;
+            if (excess > worst) worst = excess;
+            const double c = 0.5 * excess / (length > 1e-12 ? length : 1e-12);
+            delta[3 * i] += c * dx; delta[3 * i + 1] += c * dy; delta[3 * i + 2] += c * dz;
+            delta[3 * j] -= c * dx; delta[3 * j + 1] -= c * dy; delta[3 * j + 2] -= c * dz;
+        }
+        if (worst <= tol) break;
+        for (int v = 0; v < V; ++v) {
+            const double w = omega / degree[v];
+            p[3 * v] += w * delta[3 * v]; p[3 * v + 1] += w * delta[3 * v + 1]; p[3 * v + 2] += w * delta[3 * v + 2];
+        }
+    }
+}
+
+/* T frames (T, V, 3) in place, each with its own limits (T, E); frames in parallel. Returns 0, or
+   -1 when the scratch memory could not be had (nothing changed). */
+int hrr_limit_strain(double *p, int T, int V, int E, const int32_t *edges, const double *limit, const double *degree,
+                     int iterations, double tol, double omega, int threads)
+{
+    if (T <= 0) return 0;
+    if (threads < 1) threads = 1;
+    if (threads > T) threads = T;
+    double *delta = malloc(sizeof(double) * 3 * (size_t)V * threads);
+    if (!delta) return -1;
+    #pragma omp parallel for num_threads(threads) schedule(dynamic)
+    for (int t = 0; t < T; ++t)
+        limit_frame(p + (size_t)t * V * 3, V, E, edges, limit + (size_t)t * E, degree, iterations, tol, omega,
+                    delta + (size_t)omp_get_thread_num() * V * 3);
+    free(delta);
+    return 0;
+}
+
 /* Y (n, out) = X (n, in) W^T + b, with W^T (in, out) packed in panels of PANEL columns: panel k
    holds columns PANEL k .. PANEL k + PANEL - 1 as (in, PANEL) contiguous floats, zero past out
    (bias padded likewise). A panel streams through in order (weights come from L3: a window step
