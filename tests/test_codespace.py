@@ -145,6 +145,21 @@ def test_hrr_train_writes_a_bundle_that_reproduces_its_validation_numbers(traine
     assert len(bundle.database) == report["windows"]["train"]
 
 
+def test_the_code_space_anneals_its_learning_rate_over_the_run_and_keeps_its_best_epoch(trained):
+    """Cosine from learning_rate to lr_final x it over the run's epochs (tiny config: 4 epochs of
+    1e-3, lr_final 0.01), and the bundle holds the epoch with the best validation regression."""
+    import json
+
+    root = trained[0]
+    log = [json.loads(line) for line in (root / "model" / "codebook" / "log.jsonl").read_text().splitlines()]
+    rates = [r["learning_rate"] for r in log]
+    assert len(rates) == 4 and all(a > b for a, b in zip(rates, rates[1:]))
+    assert rates[0] < 1e-3 and rates[-1] < 1e-3 * 0.05  # logged at each epoch's last batch, just short of the end
+    report = json.loads((root / "model" / "codebook" / "report.json").read_text())["training"]
+    best = min(range(4), key=lambda i: log[i]["val_regress"])
+    assert report["best_epoch"] == best + 1 and report["final"]["regress"] == pytest.approx(log[best]["val_regress"], rel=1e-5)
+
+
 def test_the_old_codebook_names_still_work_with_a_deprecation_message(trained, capsys):
     from hrr_garment.cli.train import main as train_main
 

@@ -8,10 +8,12 @@ Losses on a batch of windows (motion m, garment latents z, both standardised):
 
 Curriculum: ``match_weight`` (0.1) until the validation reconstruction loss plateaus (no relative
 improvement above ``plateau_delta`` for ``plateau_patience`` epochs; :class:`PlateauDetector`),
-then ``match_weight_late`` (0.5). After the switch the best weights are kept by the validation loss
-of the regression path (decoder(E(c_m)) against z, what inference uses) and training stops early
-after ``patience`` epochs without improvement. Adam with weight decay; Gumbel temperature decays per
-epoch to a floor. A checkpoint after every epoch: a re-run resumes. One JSON line per epoch in
+then ``match_weight_late`` (0.5). The best weights are kept by the validation loss of the
+regression path (decoder(E(c_m)) against z, what inference uses); training stops early after
+``patience`` epochs without improvement, but only in the last fifth of the run. Adam with weight
+decay and the autoencoder's cosine learning-rate schedule over the run's progress (epochs or the
+wall-clock budget, :mod:`.schedule`): a budgeted run ends at a small rate instead of stopping
+with noisy weights. Gumbel temperature decays per epoch to a floor. A checkpoint after every epoch: a re-run resumes. One JSON line per epoch in
 ``log.jsonl``: losses, code agreement (fraction of groups where the motion and garment argmax
 agree, on validation), per-group perplexity and dead classes of the garment codes, and a histogram
 of the motion codes' entropies.
@@ -34,6 +36,7 @@ from ..models.codespace import CodeSpace
 from ..models.quantizer import group_entropy
 from ..settings import from_settings
 from .checkpoint import keep_if_best, load_checkpoint, resume_log, save_checkpoint
+from .schedule import early_stop, epoch_fits, run_progress, set_learning_rate
 
 
 @dataclass(frozen=True)
@@ -43,6 +46,7 @@ class CodeSpaceTrainConfig:
     epochs: int = 300
     batch_size: int = 64
     learning_rate: float = 1e-3
+    lr_final: float = 0.01  # cosine schedule over the run (epochs or budget) down to this x learning_rate
     weight_decay: float = 1e-4
     match_weight: float = 0.1  # stage 1
     match_weight_late: float = 0.5  # after the reconstruction plateau
@@ -156,10 +160,16 @@ def train_codespace(model: CodeSpace, train: WindowTensors, val: WindowTensors, 
     deadline = None if config.max_minutes is None else started + 60 * config.max_minutes - spent
     bar = tqdm(total=config.epochs, initial=state["epoch"], desc="code space", unit="epoch", disable=not progress)
     t0 = time.perf_counter()
-    while state["epoch"] < config.epochs and state["stale"] < config.patience:
-        if deadline is not None and time.perf_counter() > deadline:
+
+    def run_fraction(epoch: float) -> float:
+        return run_progress(epoch, config.epochs, spent + time.perf_counter() - started, config.max_minutes)
+
+    epoch_s = None  # the last epoch's duration
+    while state["epoch"] < config.epochs:
+        if not epoch_fits(time.perf_counter(), deadline, epoch_s) or \
+                early_stop(state["stale"], config.patience, run_fraction(state["epoch"])):
             break
-        epoch = state["epoch"]
+        epoch_started, epoch = time.perf_counter(), state["epoch"]
         temperature = max(config.temperature_min, config.temperature * config.temperature_decay ** epoch)
         match_weight = config.match_weight if state["switched_at"] is None else config.match_weight_late
         model.train()
@@ -168,6 +178,7 @@ def train_codespace(model: CodeSpace, train: WindowTensors, val: WindowTensors, 
         order = torch.randperm(len(train.motion), generator=gen)[:config.windows_per_epoch]
         sums = {"rec": 0.0, "match": 0.0, "diversity": 0.0}
         for i in range(0, len(order), config.batch_size):
+            set_learning_rate(optimizer, config, run_fraction(epoch + i / len(order)))
             idx = order[i:i + config.batch_size]
             out = _losses(model, train.motion[idx], train.latents[idx], temperature)
             loss = out["rec"] + match_weight * out["match"] + config.diversity * out["diversity"]
@@ -183,9 +194,11 @@ def train_codespace(model: CodeSpace, train: WindowTensors, val: WindowTensors, 
         state["elapsed_s"] = spent + time.perf_counter() - started
         if state["switched_at"] is None and plateau.update(metrics["rec"]):
             state["switched_at"] = state["epoch"]
-        if state["switched_at"] is not None:  # stage 2: keep the best regression path
-            best_weights = keep_if_best(state, metrics["regress"], model, best_weights)
+        # the best regression path (what inference uses) is kept in both stages: a budgeted run
+        # on a large library can end before the plateau switch (real-quick: 17 epochs, no switch)
+        best_weights = keep_if_best(state, metrics["regress"], model, best_weights)
         record = {"epoch": state["epoch"], "temperature": temperature, "match_weight": match_weight,
+                  "learning_rate": optimizer.param_groups[0]["lr"],
                   **{f"train_{k}": v / len(order) for k, v in sums.items()}, **{f"val_{k}": v for k, v in metrics.items()}}
         with open(log_path, "a", encoding="utf-8") as fh:
             fh.write(strict_json(record) + "\n")
@@ -193,8 +206,8 @@ def train_codespace(model: CodeSpace, train: WindowTensors, val: WindowTensors, 
         bar.set_postfix(rec=f"{metrics['rec']:.3f}", regress=f"{metrics['regress']:.3f}", agree=f"{metrics['agreement']:.2f}",
                         stage=1 if state["switched_at"] is None else 2)
         bar.update(1)
+        epoch_s = time.perf_counter() - epoch_started
     bar.close()
-    if state["switched_at"] is not None:
-        model.load_state_dict(best_weights)
+    model.load_state_dict(best_weights)
     model.eval()
     return {**state, "minutes": (time.perf_counter() - t0) / 60, "final": evaluate(model, val), "config": asdict(config)}
