@@ -104,7 +104,44 @@ def test_glb_reloads_to_the_same_vertices_and_validates(out_h5, tmp_path, tolera
     assert np.linalg.norm(interpolate(full, keys) - anim.vertices, axis=-1).max() <= tolerance + 1e-5
     if tolerance > 0:
         assert len(keys) < anim.num_frames
+    # the normals a renderer shades with (base + weighted targets, normalised) are those of the
+    # morphed positions, recomputed, within a small angle
+    from hrr_garment.export.glb import read_glb_normals
+    from hrr_garment.garment.mesh import vertex_normals
+
+    shaded = read_glb_normals(report.path)
+    angle = np.degrees(np.arccos(np.clip((shaded * vertex_normals(verts, faces)).sum(-1), -1, 1)))
+    assert shaded.shape == verts.shape and angle.max() < 0.05
     _validate(report.path)
+
+
+def test_glb_without_normals_is_smaller_and_has_none(out_h5, tmp_path):
+    from hrr_garment.export.glb import read_glb_normals, write_glb
+
+    anim = read_animation_h5(out_h5)
+    with_normals = write_glb(anim, tmp_path / "n.glb", tolerance=0.0)
+    without = write_glb(anim, tmp_path / "p.glb", tolerance=0.0, normals=False)
+    assert read_glb_normals(without.path) is None and read_glb_normals(with_normals.path) is not None
+    assert without.bytes < 0.6 * with_normals.bytes
+    _validate(without.path)
+
+
+def test_vertex_normals_of_known_shapes():
+    from hrr_garment.garment.mesh import vertex_normals
+
+    square = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]], float)
+    faces = np.array([[0, 1, 2], [1, 3, 2]])
+    assert np.allclose(vertex_normals(square, faces), [0, 0, 1])
+    assert np.allclose(vertex_normals(square, faces[:, ::-1]), [0, 0, -1])  # the winding's side
+    # a closed octahedron: every vertex normal points out along its own position
+    verts = np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]], float)
+    octa = np.array([[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4], [2, 0, 5], [1, 2, 5], [3, 1, 5], [0, 3, 5]])
+    assert np.allclose(vertex_normals(verts, octa), verts)
+    # batched frames equal frame by frame; rotation and scale carry over; an unused vertex gets +Y
+    frames = np.stack([verts, 2 * verts @ np.array([[0, -1, 0], [1, 0, 0], [0, 0, 1]], float).T])
+    assert np.allclose(vertex_normals(frames, octa)[1], vertex_normals(frames[1], octa))
+    assert np.allclose(vertex_normals(frames, octa)[1], frames[1] / 2)
+    assert np.allclose(vertex_normals(np.r_[square, [[5, 5, 5]]], faces)[4], [0, 1, 0])
 
 
 def test_glb_with_body_animates_one_node_per_capsule(out_h5, tmp_path):

@@ -33,6 +33,8 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--tolerance", type=float, default=1.0,
                    help="GLB keyframe reduction: max per-vertex deviation in mm from every frame (0: every frame)")
     p.add_argument("--with-body", action="store_true", help="also export the collision body (GLB, USD)")
+    p.add_argument("--no-normals", action="store_true",
+                   help="GLB: leave the vertex normals out (about half the file; engines then shade flat or recompute)")
     return p
 
 
@@ -50,6 +52,8 @@ def _main(argv: Sequence[str] | None) -> int:
         raise InputError(args.output, f"cannot tell the format from the extension; give --to {'|'.join(_FORMATS)}")
     if args.tolerance < 0:
         raise InputError("--tolerance", f"must be >= 0 mm, got {args.tolerance}")
+    if args.no_normals and fmt != "glb":
+        raise InputError(args.output, f"--no-normals is for glb, not {fmt}")
     if args.with_body and fmt in ("pc2", "obj"):
         raise InputError(args.output, f"--with-body is for glb and usd, not {fmt}")
     t0 = time.perf_counter()
@@ -58,7 +62,8 @@ def _main(argv: Sequence[str] | None) -> int:
     if fmt == "glb":
         from ..export.glb import write_glb
 
-        report = write_glb(anim, args.output, tolerance=args.tolerance / 1000.0, with_body=args.with_body)
+        report = write_glb(anim, args.output, tolerance=args.tolerance / 1000.0, with_body=args.with_body,
+                           normals=not args.no_normals)
         written = [report.path]
         detail = (f"; {len(report.keyframes.frames)} keyframes of {anim.num_frames} frames, "
                   f"max deviation {1000 * report.keyframes.max_error:.2f} mm (bound {args.tolerance:g} mm)")

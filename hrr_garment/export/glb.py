@@ -6,6 +6,12 @@ interpolation: at keyframe k the weights are one-hot on k, so between two keyfra
 their linear interpolation, and keyframes (chosen by :mod:`.keyframes`) keep every frame within
 the stated tolerance. glTF is Y up in metres, which is out.h5's convention, so no conversion.
 
+Normals (unless ``normals=False``): the base carries frame 0's vertex normals and each target its
+keyframe's normals minus them, so an engine that morphs normals (three.js, Blender, Unity) shades
+the cloth smoothly; without them three.js shades every triangle flat. Renderers normalise the
+blended normal, so between keyframes it is the normalised blend of the two keyframes' normals.
+They add about as many bytes as the positions.
+
 The body is a node per capsule (a rigid mesh) with animated translation and rotation. Needs the
 ``export`` extra (pygltflib).
 """
@@ -18,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from ..data.animation_file import AnimationFile
+from ..garment.mesh import vertex_normals
 from ..io_utils import atomic_write_bytes
 from .keyframes import Keyframes, select_keyframes
 
@@ -88,8 +95,10 @@ class GlbReport:
     bytes: int
 
 
-def write_glb(anim: AnimationFile, path: str | Path, tolerance: float = 0.001, with_body: bool = False) -> GlbReport:
-    """Write ``anim`` as GLB. ``tolerance`` (metres) bounds the keyframe reduction; 0 keeps every frame."""
+def write_glb(anim: AnimationFile, path: str | Path, tolerance: float = 0.001, with_body: bool = False,
+              normals: bool = True) -> GlbReport:
+    """Write ``anim`` as GLB. ``tolerance`` (metres) bounds the keyframe reduction; 0 keeps every
+    frame. ``normals``: vertex normals on the base and the targets (see the module docstring)."""
     gl = _gltf()
     path = Path(path)
     keys = select_keyframes(anim.vertices, tolerance)
@@ -99,14 +108,23 @@ def write_glb(anim: AnimationFile, path: str | Path, tolerance: float = 0.001, w
     blob = _Blob(gl)
     position = blob.stored(base, "VEC3", _ARRAY_BUFFER, bounds=True)
     indices = blob.stored(anim.faces.astype(np.uint32).ravel(), "SCALAR", _ELEMENT_ARRAY_BUFFER)
+    normal, normal_deltas = None, None
+    if normals:
+        keyframe_normals = vertex_normals(verts[keys.frames], anim.faces).astype(np.float32)  # (K, V, 3)
+        normal = blob.stored(keyframe_normals[0], "VEC3", _ARRAY_BUFFER)
+        normal_deltas = keyframe_normals[1:] - keyframe_normals[0]
     targets = []
     if len(deltas):
         view = blob.view(deltas, _ARRAY_BUFFER, stride=12)
+        normal_view = None if normal_deltas is None else blob.view(normal_deltas, _ARRAY_BUFFER, stride=12)
         for k, delta in enumerate(deltas):
-            targets.append(gl.Attributes(POSITION=blob.accessor(view, delta, "VEC3", True, k * delta.nbytes)))
+            target = {"POSITION": blob.accessor(view, delta, "VEC3", True, k * delta.nbytes)}
+            if normal_view is not None:
+                target["NORMAL"] = blob.accessor(normal_view, normal_deltas[k], "VEC3", False, k * delta.nbytes)
+            targets.append(gl.Attributes(**target))
     materials = [gl.Material(name="garment", doubleSided=True, pbrMetallicRoughness=gl.PbrMetallicRoughness(
         baseColorFactor=[0.27, 0.43, 0.78, 1.0], metallicFactor=0.0, roughnessFactor=0.9))]
-    primitive = gl.Primitive(attributes=gl.Attributes(POSITION=position), indices=indices, material=0,
+    primitive = gl.Primitive(attributes=gl.Attributes(POSITION=position, NORMAL=normal), indices=indices, material=0,
                              targets=targets or None)
     names = [f"frame_{f:05d}" for f in keys.frames[1:]]
     meshes = [gl.Mesh(name=str(anim.attrs.get("garment", "garment")), primitives=[primitive],
@@ -177,17 +195,19 @@ def _accessor_array(gltf, blob: bytes, index: int) -> np.ndarray:
     return np.frombuffer(blob, dtype, acc.count * width, start).reshape(acc.count, width)
 
 
-def read_glb_keyframes(path: str | Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Read back a GLB written by :func:`write_glb`: (keyframe times (K,), garment vertices at those
-    times (K, V, 3) evaluated as base + sum of weighted targets, faces (F, 3))."""
+def _morphed(path: str | Path, attribute: str) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
+    """The garment mesh's ``attribute`` (POSITION or NORMAL) at the animation's keyframes, base +
+    sum of weighted targets: (times (K,), values (K, V, 3) or None without the attribute, faces)."""
     gl = _gltf()
     gltf = gl.GLTF2().load(str(path))
     blob = gltf.binary_blob()
     prim = gltf.meshes[gltf.nodes[0].mesh].primitives[0]
-    base = _accessor_array(gltf, blob, prim.attributes.POSITION).astype(np.float64)
     faces = _accessor_array(gltf, blob, prim.indices).reshape(-1, 3)
-    positions = [t["POSITION"] if isinstance(t, dict) else t.POSITION for t in prim.targets or []]  # dicts once loaded
-    targets = np.stack([_accessor_array(gltf, blob, i) for i in positions]) if positions else np.zeros((0,) + base.shape)
+    if getattr(prim.attributes, attribute) is None:
+        return np.zeros(1), None, faces
+    base = _accessor_array(gltf, blob, getattr(prim.attributes, attribute)).astype(np.float64)
+    found = [t[attribute] if isinstance(t, dict) else getattr(t, attribute) for t in prim.targets or []]  # dicts once loaded
+    targets = np.stack([_accessor_array(gltf, blob, i) for i in found]) if found else np.zeros((0,) + base.shape)
     if not gltf.animations:
         return np.zeros(1), base[None], faces
     sampler = next(gltf.animations[0].samplers[ch.sampler] for ch in gltf.animations[0].channels
@@ -195,3 +215,16 @@ def read_glb_keyframes(path: str | Path) -> tuple[np.ndarray, np.ndarray, np.nda
     times = _accessor_array(gltf, blob, sampler.input)[:, 0]
     weights = _accessor_array(gltf, blob, sampler.output).reshape(len(times), len(targets)).astype(np.float64)
     return times, base + np.einsum("kt,tvc->kvc", weights, targets), faces
+
+
+def read_glb_keyframes(path: str | Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Read back a GLB written by :func:`write_glb`: (keyframe times (K,), garment vertices at those
+    times (K, V, 3) evaluated as base + sum of weighted targets, faces (F, 3))."""
+    return _morphed(path, "POSITION")
+
+
+def read_glb_normals(path: str | Path) -> np.ndarray | None:
+    """The garment's normals at the keyframes as a renderer shades them (base + weighted targets,
+    normalised), (K, V, 3); None when the file has none (``normals=False``)."""
+    normals = _morphed(path, "NORMAL")[1]
+    return None if normals is None else normals / np.linalg.norm(normals, axis=-1, keepdims=True)

@@ -61,6 +61,24 @@ def face_areas(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     return 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=-1)
 
 
+def vertex_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Unit vertex normals, (..., V, 3) from (..., V, 3) positions: the area-weighted mean of the
+    adjacent faces' normals (the sum of their unnormalised cross products), on the winding's side.
+    A vertex with no face, or whose faces cancel, gets +Y: renderers expect unit vectors."""
+    from scipy.sparse import csr_matrix
+
+    v = np.asarray(vertices, np.float64)
+    num = v.shape[-2]
+    tri = v[..., faces, :]  # (..., F, 3 corners, 3)
+    cross = np.cross(tri[..., 1, :] - tri[..., 0, :], tri[..., 2, :] - tri[..., 0, :])  # (..., F, 3): 2 x area
+    corners = csr_matrix((np.ones(faces.size), (faces.T.ravel(), np.tile(np.arange(len(faces)), 3))),
+                         shape=(num, len(faces)))  # vertex <- each face it is a corner of
+    per_face = np.moveaxis(cross, -2, 0).reshape(len(faces), -1)  # (F, ... x 3)
+    normals = np.moveaxis((corners @ per_face).reshape(num, *v.shape[:-2], 3), 0, -2)
+    length = np.linalg.norm(normals, axis=-1, keepdims=True)
+    return np.where(length > 1e-20, normals / np.maximum(length, 1e-300), np.array([0.0, 1.0, 0.0]))
+
+
 def _directed_edge_counts(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Per undirected edge: (edge (E,2), faces using it, faces using it in the i->j direction)."""
     directed = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
