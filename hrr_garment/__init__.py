@@ -33,7 +33,7 @@ from .motion.synth import synthesize
 from .motion.windows import windows
 from .sim.simulator import SimConfig, SimResult, SimulationExploded, simulate_garment
 
-_LAZY = {"Animation": "inference.animator", "AnimationStream": "inference.animator", "Animator": "inference.animator",
+_LAZY = {"Animation": "inference.animator", "AnimationStream": "inference.stream", "CrowdStream": "inference.stream", "Animator": "inference.animator",
          "Bundle": "artifacts.bundle", "BundleError": "artifacts.bundle", "load_bundle": "artifacts.bundle"}
 
 
@@ -51,5 +51,5 @@ __all__ = [
     "MotionError", "SkeletonMappingError", "load_motion", "motion_features", "save_amass", "save_motion", "synthesize", "windows",
     "GARMENT_NAMES", "GarmentDataset", "GarmentError", "GarmentMesh", "SequenceRecord", "SimConfig", "SimResult",
     "SimulationExploded", "make_garment", "simulate_garment",
-    "Animation", "AnimationStream", "Animator", "Bundle", "BundleError", "load_bundle",
+    "Animation", "AnimationStream", "Animator", "CrowdStream", "Bundle", "BundleError", "load_bundle",
 ]  # fmt: skip

@@ -1,4 +1,4 @@
-"""The Python API for animating a garment: :class:`Animator`, :class:`Animation`, :class:`AnimationStream`.
+"""The Python API for animating a garment: :class:`Animator` and :class:`Animation` (streams: :mod:`.stream`).
 
     from hrr_garment import Animator, load_motion
     animator = Animator.load("dress")                 # hrr_work/models/dress-full, else dress-quick
@@ -8,12 +8,12 @@
     stream = animator.stream()                        # causal, one frame in, one frame out
     for t in range(motion.num_frames):
         vertices = stream.push(motion.slice(t, t + 1))
+    crowd = animator.crowd()                          # many characters, one call a frame
+    vertices = crowd.push(rotations, roots, keys)     # (N, 22, 4) quaternions, (N, 3) -> (N, V, 3)
 """
 
 from __future__ import annotations
 
-import time
-from collections import deque
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -23,18 +23,18 @@ import torch
 from ..artifacts.bundle import Bundle, BundleError, load_bundle
 from ..body.capsules import DEFAULT_BODY
 from ..errors import InputError, MotionError
-from ..models.codes import traced_window_codes
 from ..models.native_codes import native_window_codes
-from ..motion.features import causal_features, motion_features, pair_features
+from ..motion.features import causal_features, motion_features
 from ..motion.frame import from_body_frame
 from ..motion.motion import Motion
 from ..motion.windows import causal_windows, sequence_windows
 from ..paths import workspace
-from .blending import Inertializer, blend_windows, causal_latents, source_id
+from .blending import blend_windows, causal_latents
 from .collision import EdgeLimits, PushOutReport, mean_operator, push_out
 from .decoding import body_frame_vertices, flush_denormals
 from .gate import choose_windows
-from .modes import CODE_MODES, Mode
+from .modes import Mode
+from .stream import AnimationStream, CrowdStream
 
 MAX_REACH_M = 1.5  # metres from the nearest body joint a garment vertex may be (a long dress's hem: under 0.6)
 
@@ -193,69 +193,13 @@ class Animator:
         step = self.causal_step(mode in (Mode.HYBRID, Mode.REGRESSION)) if last_frame else None
         return choose_windows(self.bundle, windows, mode, tau, exclude, last_frame, step=step)
 
-    def stream(self, mode: Mode | str = Mode.HYBRID, tau: float | None = None, collision: bool = True) -> "AnimationStream":
-        return AnimationStream(self, mode, self.bundle.tau if tau is None else float(tau), collision)
+    def stream(self, mode: Mode | str = Mode.HYBRID, tau: float | None = None, collision: bool = True,
+               rig=None) -> AnimationStream:
+        """One character, causal, one pose in and one frame out (:class:`~.stream.AnimationStream`);
+        ``rig``: a :class:`~hrr_garment.motion.stream_rig.StreamRig` for poses on a source skeleton."""
+        return AnimationStream(self, mode, tau, collision, rig)
 
-
-STREAM_STAGES = ("features", "encoder", "decoder", "world", "push_out")
-
-
-class AnimationStream:
-    """One pose in, one garment frame out, causal (no future frames), bounded memory: the last
-    frame, the last W feature frames and the inertialization state. ``push`` equals frame t of
-    ``animator.animate(motion, causal=True)`` (tested to 1e-5)."""
-
-    def __init__(self, animator: Animator, mode: str, tau: float, collision: bool):
-        if mode not in CODE_MODES:
-            raise ValueError(f"streaming runs one of {', '.join(CODE_MODES)}, not {str(mode)!r}")
-        mode = Mode(mode)
-        self.animator, self.mode, self.tau, self.collision = animator, mode, tau, collision
-        self._prev: Motion | None = None
-        self._features: deque = deque(maxlen=animator.window)
-        self._inert = Inertializer(animator.blend)
-        self.frames = 0
-        self.latency_s: deque = deque(maxlen=1000)  # per push, for diagnostics
-        # per push and stage (features, encoder: motion encoder + gate + code-space decoder,
-        # decoder: mesh decoder, world, push_out), seconds: where a frame's time goes
-        self.stage_s: dict[str, deque] = {k: deque(maxlen=1000) for k in STREAM_STAGES}
-        bundle = animator.bundle
-        regression = mode.regresses
-        self._step = animator.causal_step(regression) or traced_window_codes(
-            bundle.codespace, animator.window, bundle.codespace.features, regression=regression)
-
-    def push(self, pose: Motion) -> np.ndarray:
-        """``pose``: a one-frame :class:`Motion` (canonical skeleton, 30 fps) -> (V, 3) world vertices."""
-        t0 = time.perf_counter()
-        if pose.num_frames != 1:
-            raise InputError(pose.source, f"push one frame at a time (got {pose.num_frames})")
-        with flush_denormals():
-            vertices = self._step_frame(pose)
-        self._prev = pose
-        self.frames += 1
-        self.latency_s.append(time.perf_counter() - t0)
-        return vertices
-
-    def _step_frame(self, pose: Motion) -> np.ndarray:
-        t = [time.perf_counter()]
-        feat = pair_features(self._prev, pose)
-        if not self._features:
-            self._features.extend([feat] * (self._features.maxlen - 1))
-        self._features.append(feat)
-        window = np.stack(self._features)[None]
-        t.append(time.perf_counter())
-        choice = choose_windows(self.animator.bundle, window, self.mode, self.tau, last_frame=True, step=self._step)
-        src = choice.source[0] - np.array([0, self.frames]) if choice.retrieved[0] else choice.source[0]
-        latent = self._inert.step(choice.latents[0, -1].astype(np.float64), source_id(bool(choice.retrieved[0]), src))
-        t.append(time.perf_counter())
-        with torch.no_grad():
-            local = self.animator.decoder(torch.from_numpy(latent[None].astype(np.float32))).numpy()
-        t.append(time.perf_counter())
-        vertices = from_body_frame(local, pose).astype(np.float32)  # as offline: the same push-out inputs
-        t.append(time.perf_counter())
-        if self.collision:
-            vertices, _ = push_out(vertices, pose, self.animator.bundle.template.faces, mean=self.animator.smoothing,
-                                   limits=self.animator.edge_limits)
-        t.append(time.perf_counter())
-        for name, start, stop in zip(STREAM_STAGES, t, t[1:]):
-            self.stage_s[name].append(stop - start)
-        return vertices[0].astype(np.float32)
+    def crowd(self, mode: Mode | str = Mode.HYBRID, tau: float | None = None, collision: bool = True,
+              rig=None) -> CrowdStream:
+        """Many characters, one call per frame for all of them (:class:`~.stream.CrowdStream`)."""
+        return CrowdStream(self, mode, tau, collision, rig)

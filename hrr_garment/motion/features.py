@@ -23,9 +23,8 @@ import numpy as np
 
 from .. import native
 from ..errors import MotionError
-from .frame import body_heading
 from .motion import Motion
-from .rotations import matrix_to_axis_angle
+from .rotations import matrix_to_axis_angle, rotation_about_y, yaw_of
 from .skeleton import FEATURE_JOINTS
 
 FEATURE_DIM = 124
@@ -47,18 +46,23 @@ def motion_features(motion: Motion) -> np.ndarray:
     """(T, 124) float32 features of a canonical motion."""
     if motion.num_frames < 2:
         raise MotionError(motion.source or "motion", f"needs at least 2 frames for velocities, has {motion.num_frames}")
-    yaw, h = body_heading(motion)
-    h_t = np.swapaxes(h, -1, -2)  # world -> body frame (rotation only)
+    return _features(motion.global_rotations, motion.joint_positions, motion.fps)
+
+
+def _features(global_rotations: np.ndarray, joint_positions: np.ndarray, fps: float) -> np.ndarray:
+    """:func:`motion_features` of (T >= 2) frames' global rotations (T, 22, 3, 3) and joint positions (T, 22, 3)."""
+    frames = len(global_rotations)
+    yaw = yaw_of(global_rotations[:, 0])
+    h_t = np.swapaxes(rotation_about_y(yaw), -1, -2)  # world -> body frame (rotation only; frame.body_heading)
     joints = list(FEATURE_JOINTS)
-    g_rot = motion.global_rotations[:, joints]
-    r = matrix_to_axis_angle(h_t[:, None] @ g_rot).reshape(motion.num_frames, -1)
-    vel = _first_difference(motion.joint_positions[:, joints], motion.fps)
-    v = np.einsum("tij,tkj->tki", h_t, vel).reshape(motion.num_frames, -1)
-    t = np.einsum("tij,tj->ti", h_t, _first_difference(motion.joint_positions[:, 0], motion.fps))
+    r = matrix_to_axis_angle(h_t[:, None] @ global_rotations[:, joints]).reshape(frames, -1)
+    vel = _first_difference(joint_positions[:, joints], fps)
+    v = np.einsum("tij,tkj->tki", h_t, vel).reshape(frames, -1)
+    t = np.einsum("tij,tj->ti", h_t, _first_difference(joint_positions[:, 0], fps))
     dyaw = np.empty_like(yaw)
     dyaw[1:] = np.angle(np.exp(1j * (yaw[1:] - yaw[:-1])))
     dyaw[0] = dyaw[1] if len(yaw) > 1 else 0.0
-    w = (dyaw * motion.fps)[:, None]
+    w = (dyaw * fps)[:, None]
     return np.concatenate([r, v, t, w], axis=1).astype(np.float32)
 
 
@@ -85,6 +89,27 @@ def pair_features(previous: Motion | None, current: Motion) -> np.ndarray:
     current.global_rotations  # noqa: B018 - computes (and caches) the pose's kinematics, reused by the pair and the next push
     pair = Motion.concatenate([before, current]) if previous is not None else current
     return causal_features(pair)[-1]
+
+
+def pair_features_batch(previous: list[tuple[np.ndarray, np.ndarray] | None], current: Motion) -> np.ndarray:
+    """Features (N, 124) of each frame i of ``current`` given the pose before it, ``previous[i]``:
+    its global rotations (22, 3, 3) and joint positions (22, 3), or None at a start (the frame
+    repeated: zero velocities). The frames are independent (N characters' poses in one call);
+    row i equals :func:`pair_features` of that character's two frames."""
+    g_rot, g_pos = current.global_rotations, current.joint_positions
+    n = current.num_frames
+    if len(previous) != n:
+        raise ValueError(f"{n} poses but {len(previous)} previous poses")
+    # pose i and the one before it as frames 2i and 2i + 1 of one sequence: a causal feature frame
+    # depends on its own frame and the one before only, so the odd frames are the pairs' features
+    rot, pos = np.empty((2 * n, *g_rot.shape[1:])), np.empty((2 * n, *g_pos.shape[1:]))
+    rot[1::2], pos[1::2] = g_rot, g_pos
+    for i, prev in enumerate(previous):
+        rot[2 * i], pos[2 * i] = (g_rot[i], g_pos[i]) if prev is None else prev
+    lib = native.load_kernel()
+    if lib is not None:
+        return native.causal_features(lib, rot, pos, FEATURE_JOINTS, current.fps)[1::2]
+    return _features(rot, pos, current.fps)[1::2]
 
 
 @dataclass

@@ -1,0 +1,200 @@
+"""Streaming: poses in as a game has them each frame, garment frames out, causal, for one character
+(:class:`AnimationStream`) or many in one call (:class:`CrowdStream`).
+
+    crowd = animator.crowd()                              # hybrid, the model's tau, push-out on
+    for frame in game:
+        vertices = crowd.push(rotations, roots, keys)     # (N, J, 4) quaternions, (N, 3) -> (N, V, 3)
+    crowd.leave("npc_7")                                  # a character that left the scene
+
+Each character keeps its own state: its last pose, its last W feature frames and its
+inertialization. A push runs every stage once for all the characters in it: the features, the
+window step (motion encoder, gate, code-space decoder), the mesh decoder and the collision
+push-out, each batched through the native kernels. So N characters pushed together give what
+each gives pushed alone (tested), and a character's output is frame t of
+``animator.animate(motion, causal=True)`` on its clip (tested to 1e-5).
+
+Poses are local joint rotations, parent-relative, as quaternions (x, y, z, w: glTF, Unity and
+Unreal order), axis-angle vectors or 3 x 3 matrices, on the canonical skeleton
+(:data:`~hrr_garment.motion.skeleton.JOINT_NAMES`, 22 joints) or on a source rig through the
+same joint map and retargeting as its files (:class:`~hrr_garment.motion.stream_rig.StreamRig`);
+roots are the pelvis positions in metres, Y up.
+"""
+
+from __future__ import annotations
+
+import time
+from collections import deque
+from collections.abc import Hashable, Mapping, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+import torch
+
+from ..errors import InputError
+from ..models.codes import traced_window_codes
+from ..motion.features import pair_features_batch
+from ..motion.frame import from_body_frame
+from ..motion.motion import Motion
+from ..motion.poses import poses_to_motion
+from .blending import Inertializer, source_id
+from .collision import push_out
+from .decoding import flush_denormals
+from .gate import choose_windows
+from .modes import CODE_MODES, Mode
+
+STREAM_STAGES = ("features", "encoder", "decoder", "world", "push_out")
+
+
+@dataclass
+class _Character:
+    """One character's streaming state."""
+
+    features: deque
+    inertializer: Inertializer
+    previous: tuple[np.ndarray, np.ndarray] | None = None  # its last pose: global rotations and joint positions
+    frames: int = 0
+
+
+@dataclass
+class _Timings:
+    """Per push: its latency and each stage's seconds (the last 1,000 pushes)."""
+
+    latency_s: deque = field(default_factory=lambda: deque(maxlen=1000))
+    stage_s: dict = field(default_factory=lambda: {k: deque(maxlen=1000) for k in STREAM_STAGES})
+
+
+class CrowdStream:
+    """Many characters streamed in one call per frame; see the module docstring. ``rig``: a
+    :class:`~hrr_garment.motion.stream_rig.StreamRig` when poses come on a source skeleton."""
+
+    def __init__(self, animator, mode: str = Mode.HYBRID, tau: float | None = None, collision: bool = True, rig=None):
+        if mode not in CODE_MODES:
+            raise ValueError(f"streaming runs one of {', '.join(CODE_MODES)}, not {str(mode)!r}")
+        self.animator, self.mode, self.collision, self.rig = animator, Mode(mode), collision, rig
+        self.tau = animator.bundle.tau if tau is None else float(tau)
+        self._characters: dict[Hashable, _Character] = {}
+        self.timings = _Timings()
+        regression = self.mode.regresses
+        bundle = animator.bundle
+        self._step = animator.causal_step(regression) or traced_window_codes(
+            bundle.codespace, animator.window, bundle.codespace.features, regression=regression)
+
+    @property
+    def characters(self) -> list:
+        """The keys of the characters streamed so far and not left, in the order they joined."""
+        return list(self._characters)
+
+    def leave(self, key: Hashable) -> None:
+        """Forget a character: pushed again later, it starts afresh (as from a standstill)."""
+        if key not in self._characters:
+            raise KeyError(f"no character {key!r} in this stream (characters: {self.characters})")
+        del self._characters[key]
+
+    def push(self, rotations: np.ndarray, roots: np.ndarray, keys: Sequence[Hashable] | None = None) -> np.ndarray:
+        """One frame of N characters: ``rotations`` (N, J, 4) quaternions (x, y, z, w), (N, J, 3)
+        axis-angle or (N, J, 3, 3) matrices, local; ``roots`` (N, 3) pelvis positions, metres; ``keys``
+        one id per character (default 0 .. N-1; a new id joins). -> (N, V, 3) world vertices, float32."""
+        rotations, roots = np.asarray(rotations), np.asarray(roots)
+        keys = list(range(len(rotations))) if keys is None else list(keys)
+        if self.rig is not None:
+            poses = self.rig.to_canonical(rotations, roots)
+        else:
+            poses = poses_to_motion(rotations, roots)
+        return self._push(keys, poses)
+
+    def push_motions(self, poses: Mapping[Hashable, Motion]) -> np.ndarray:
+        """One frame of each character as a one-frame :class:`Motion` on the canonical skeleton ->
+        (N, V, 3), rows in the mapping's order."""
+        for key, pose in poses.items():
+            if pose.num_frames != 1:
+                raise InputError(pose.source or str(key), f"push one frame at a time (got {pose.num_frames})")
+        motions = list(poses.values())
+        stacked = motions[0] if len(motions) == 1 else Motion.concatenate(motions)
+        return self._push(list(poses), stacked)
+
+    def _push(self, keys: list, poses: Motion) -> np.ndarray:
+        """``poses``: one frame per key, as an N-frame motion (frames are characters here)."""
+        t0 = time.perf_counter()
+        if len(keys) != poses.num_frames or len(set(keys)) != len(keys):
+            raise InputError("push", f"{poses.num_frames} poses need as many distinct keys, got {len(keys)} keys "
+                                     f"({len(set(keys))} distinct)")
+        with flush_denormals():
+            vertices = self._step_frame(keys, poses)
+        self.timings.latency_s.append(time.perf_counter() - t0)
+        return vertices
+
+    def _step_frame(self, keys: list, poses: Motion) -> np.ndarray:
+        t = [time.perf_counter()]
+        window = self.animator.window
+        chars = [self._characters.setdefault(k, _Character(deque(maxlen=window), Inertializer(self.animator.blend)))
+                 for k in keys]
+        features = pair_features_batch([c.previous for c in chars], poses)
+        for c, feat in zip(chars, features):
+            if not c.features:  # the first frame repeated before the start, as offline causal
+                c.features.extend([feat] * (window - 1))
+            c.features.append(feat)
+        windows = np.stack([np.stack(c.features) for c in chars])  # (N, W, F)
+        t.append(time.perf_counter())
+        choice = choose_windows(self.animator.bundle, windows, self.mode, self.tau, last_frame=True, step=self._step)
+        latents = np.empty((len(chars), *choice.latents.shape[2:]), np.float32)
+        for i, c in enumerate(chars):
+            retrieved = bool(choice.retrieved[i])
+            src = choice.source[i] - np.array([0, c.frames]) if retrieved else choice.source[i]
+            latents[i] = c.inertializer.step(choice.latents[i, -1].astype(np.float64), source_id(retrieved, src))
+        t.append(time.perf_counter())
+        with torch.no_grad():
+            local = self.animator.decoder(torch.from_numpy(latents)).numpy()
+        t.append(time.perf_counter())
+        vertices = from_body_frame(local, poses).astype(np.float32)  # as offline: the same push-out inputs
+        t.append(time.perf_counter())
+        if self.collision:
+            vertices, _ = push_out(vertices, poses, self.animator.bundle.template.faces, mean=self.animator.smoothing,
+                                   limits=self.animator.edge_limits)
+        t.append(time.perf_counter())
+        for i, c in enumerate(chars):
+            c.previous = (poses.global_rotations[i], poses.joint_positions[i])
+            c.frames += 1
+        for name, start, stop in zip(STREAM_STAGES, t, t[1:]):
+            self.timings.stage_s[name].append(stop - start)
+        return vertices.astype(np.float32, copy=False)
+
+
+class AnimationStream:
+    """One character: one pose in, one garment frame out, causal (no future frames), bounded memory.
+    ``push`` equals frame t of ``animator.animate(motion, causal=True)`` (tested to 1e-5)."""
+
+    def __init__(self, animator, mode: str = Mode.HYBRID, tau: float | None = None, collision: bool = True, rig=None):
+        self.crowd = CrowdStream(animator, mode, tau, collision, rig)
+
+    @property
+    def mode(self) -> Mode:
+        return self.crowd.mode
+
+    @property
+    def frames(self) -> int:
+        chars = self.crowd._characters
+        return chars[0].frames if chars else 0
+
+    @property
+    def latency_s(self) -> deque:
+        """Seconds per push, the last 1,000 (diagnostics)."""
+        return self.crowd.timings.latency_s
+
+    @property
+    def stage_s(self) -> dict[str, deque]:
+        """Seconds per push and stage (features, encoder: motion encoder + gate + code-space decoder,
+        decoder: mesh decoder, world, push_out): where a frame's time goes."""
+        return self.crowd.timings.stage_s
+
+    def push(self, pose: Motion | None = None, *, rotation: np.ndarray | None = None,
+             root: np.ndarray | None = None) -> np.ndarray:
+        """A one-frame :class:`Motion` on the canonical skeleton, or raw arrays: ``rotation`` (J, 4)
+        quaternions (x, y, z, w), (J, 3) axis-angle or (J, 3, 3) matrices and ``root`` (3,) ->
+        (V, 3) world vertices."""
+        if pose is not None:
+            if rotation is not None or root is not None:
+                raise TypeError("push takes a pose or rotation= and root=, not both")
+            return self.crowd.push_motions({0: pose})[0]
+        if rotation is None or root is None:
+            raise TypeError("push needs a one-frame Motion, or rotation= and root=")
+        return self.crowd.push(np.asarray(rotation)[None], np.asarray(root)[None], [0])[0]

@@ -1,0 +1,70 @@
+"""Raw poses as a game engine hands them over each frame -> a :class:`Motion` whose frames are the poses.
+
+Local (parent-relative) joint rotations in one of three forms, told apart by their last axes:
+
+* (N, J, 4) unit quaternions, (x, y, z, w) by default: the order of glTF, Unity and Unreal
+  (``quaternion_order="wxyz"`` for the other);
+* (N, J, 3) axis-angle vectors (axis times the angle in radians);
+* (N, J, 3, 3) rotation matrices (acting on column vectors).
+
+Roots (N, 3) are pelvis positions in metres, Y up. The arrays are checked (shape, finite values,
+quaternions not near zero, matrices that are rotations) and converted in one vectorised step: no
+per-pose objects.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import MotionError
+from .motion import FPS, Motion
+from .rotations import axis_angle_to_matrix, quat_to_matrix
+from .skeleton import CANONICAL
+
+QUATERNION_ORDERS = ("xyzw", "wxyz")
+
+
+def rotations_to_matrices(rotations: np.ndarray, joints: int, quaternion_order: str = "xyzw",
+                          source: str = "pose") -> np.ndarray:
+    """(N, J, 4 | 3 | 3 x 3) local rotations -> (N, J, 3, 3) float64 matrices, checked."""
+    r = np.asarray(rotations, np.float64)
+    if r.ndim not in (3, 4) or r.shape[1] != joints or r.shape[2:] not in ((4,), (3,), (3, 3)):
+        raise MotionError(source, f"rotations have shape {r.shape}: expected (N, {joints}, 4) quaternions, "
+                                  f"(N, {joints}, 3) axis-angle or (N, {joints}, 3, 3) matrices")
+    if not np.isfinite(r).all():
+        bad = np.argwhere(~np.isfinite(r.reshape(len(r), joints, -1)).all(-1))[0]
+        raise MotionError(source, f"rotations are not finite (pose {bad[0]}, joint {bad[1]})")
+    if r.shape[2:] == (4,):
+        if quaternion_order not in QUATERNION_ORDERS:
+            raise ValueError(f"quaternion_order must be one of {QUATERNION_ORDERS}, not {quaternion_order!r}")
+        norm = np.linalg.norm(r, axis=-1)
+        if (norm < 0.5).any() or (norm > 2.0).any():
+            bad = np.argwhere((norm < 0.5) | (norm > 2.0))[0]
+            raise MotionError(source, f"quaternion of pose {bad[0]}, joint {bad[1]} has length {norm[tuple(bad)]:.3g}, "
+                                      "not a rotation (unit quaternions expected)")
+        wxyz = r[..., [3, 0, 1, 2]] if quaternion_order == "xyzw" else r
+        return quat_to_matrix(wxyz)
+    if r.shape[2:] == (3,):
+        return axis_angle_to_matrix(r)
+    error = np.abs(r @ np.swapaxes(r, -1, -2) - np.eye(3)).max((-2, -1))
+    if (error > 1e-3).any() or (np.linalg.det(r) < 0).any():
+        bad = np.argwhere((error > 1e-3) | (np.linalg.det(r) < 0))[0]
+        raise MotionError(source, f"the matrix of pose {bad[0]}, joint {bad[1]} is not a rotation")
+    return r
+
+
+def check_roots(roots: np.ndarray, poses: int, source: str = "pose") -> np.ndarray:
+    """(N, 3) root positions, checked -> float64."""
+    root = np.asarray(roots, np.float64)
+    if root.shape != (poses, 3):
+        raise MotionError(source, f"roots have shape {root.shape}, expected ({poses}, 3): one pelvis position per pose")
+    if not np.isfinite(root).all():
+        raise MotionError(source, f"root of pose {int(np.argwhere(~np.isfinite(root).all(1))[0, 0])} is not finite")
+    return root
+
+
+def poses_to_motion(rotations: np.ndarray, roots: np.ndarray, quaternion_order: str = "xyzw", fps: float = FPS,
+                    source: str = "pose") -> Motion:
+    """N canonical-skeleton poses -> an N-frame :class:`Motion` (22 joints, SMPL order)."""
+    matrices = rotations_to_matrices(rotations, CANONICAL.num_joints, quaternion_order, source)
+    return Motion(matrices.astype(np.float32), check_roots(roots, len(matrices), source), fps, source)
