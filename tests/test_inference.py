@@ -76,6 +76,38 @@ def test_raw_poses_stream_like_the_same_clip_from_its_file(animator, tmp_path, f
     assert np.abs(single.push(rotation=rotations[0], root=motion.root_translation[0]) - expected[0]).max() <= 1e-4
 
 
+def test_a_source_rig_streams_like_its_file(animator, tmp_path):
+    """Poses on a rig with another joint order, centimetres and a baked roll per joint (Bandai-
+    Namco's kind of rig: no standing rest pose), pushed as the BVH has them, give what animating
+    the file gives: the same joint map, retargeting, roll and floor."""
+    from hrr_garment.motion.bvh import read_bvh, write_bvh
+    from hrr_garment.motion.io import load_motion
+    from hrr_garment.motion.rotations import axis_angle_to_matrix, matrix_to_quat
+    from hrr_garment.motion.skeleton import CANONICAL, JOINT_NAMES, PARENTS
+    from hrr_garment.motion.stream_rig import StreamRig
+
+    motion = synthesize("dance", 1.0, seed=6)
+    roll = axis_angle_to_matrix(np.random.default_rng(0).normal(size=(22, 3)) * 1.5)  # per-joint rig frames
+    local = np.empty_like(motion.global_rotations)
+    local[:, 0] = motion.global_rotations[:, 0] @ roll[0]
+    for j in range(1, 22):
+        local[:, j] = roll[PARENTS[j]].T @ motion.local_rotations[:, j].astype(np.float64) @ roll[j]
+    offsets = np.stack([roll[PARENTS[j]].T @ CANONICAL.offsets[j] if j else CANONICAL.offsets[j] for j in range(22)])
+    order = [0, 3, 6, 9, 12, 15, 13, 16, 18, 20, 14, 17, 19, 21, 1, 4, 7, 10, 2, 5, 8, 11]  # spine first, then limbs
+    path = tmp_path / "rig.bvh"
+    write_bvh(path, [JOINT_NAMES[j] for j in order], [order.index(PARENTS[j]) if j else -1 for j in order],
+              offsets[order], local[:, order], motion.root_translation, 1 / 30, unit_scale=100.0)
+    expected = animator.animate(load_motion(path), causal=True).vertices
+    clip = read_bvh(path)  # what an engine holds each frame: the rig's local rotations, the root in its units
+    rig = StreamRig.from_bvh(path)
+    assert rig.unit_scale == pytest.approx(0.01) and rig.calibration.roll is not None
+    crowd = animator.crowd(rig=rig)
+    quats = matrix_to_quat(clip.local_rotations.astype(np.float64))[..., [1, 2, 3, 0]]
+    for t in range(clip.num_frames):
+        out = crowd.push(quats[t][None], clip.local_translations[t, :1], keys=["hero"])
+        assert np.abs(out[0] - expected[t]).max() <= 1e-4, t
+
+
 @pytest.mark.parametrize("rotations, roots, phrase", [
     (np.zeros((2, 21, 4)), np.zeros((2, 3)), r"expected \(N, 22, 4\) quaternions"),
     (np.full((1, 22, 3), np.nan), np.zeros((1, 3)), "rotations are not finite"),

@@ -12,11 +12,16 @@ push-out has more work (a dress whose bodice rests on the body) than random weig
   latency percentiles and the median time of each stage, pushed back to back, and paced like a
   game loop (``--pace`` frames/s: the thread idles until the next frame's time, so caches cool and
   idle worker threads must be woken);
+- a crowd (``--crowd N ...``): N characters streamed in one call per frame (``animator.crowd()``),
+  each playing the clip from its own start frame and place, poses handed over as an engine does
+  (quaternions and roots); p50 / p99 of the whole N-character step, back to back and paced, the
+  cost per character and character-frames/s, for each N (the scaling);
 - peak resident memory of the process.
 
     python tools/bench_inference.py                       # 4,000 and 12,000 vertices
     python tools/bench_inference.py --vertices 4000 --json
     python tools/bench_inference.py --model hrr_work/models/dress-full --motion ../shared/data/mocap/cmu/131_03.bvh
+    python tools/bench_inference.py --vertices 4266 --crowd 1 2 4 8 16 32 64   # the crowd's scaling
 """
 
 from __future__ import annotations
@@ -78,8 +83,33 @@ def _median_entropy_tau(bundle: Bundle, motion) -> float:
     return float(np.quantile(entropy, 0.5, method="lower"))
 
 
+def bench_crowd(animator: Animator, motion, tau: float, characters: int, pace: float, frames: int = 150) -> dict:
+    """``characters`` streamed together for ``frames`` frames: character i plays ``motion`` from frame
+    7 i (wrapping) and stands 2 i metres to the side; returns the step's latency percentiles (ms),
+    back to back and paced at ``pace`` frames/s, and the cost per character."""
+    from hrr_garment.motion.rotations import matrix_to_quat
+
+    quats = matrix_to_quat(motion.local_rotations.astype(np.float64))[..., [1, 2, 3, 0]]  # (x, y, z, w)
+    offsets = np.arange(characters) * 7
+    side = np.stack([2.0 * np.arange(characters), np.zeros(characters), np.zeros(characters)], 1)
+    out = {}
+    for key, fps in (("", 0.0), ("paced_", pace)):
+        crowd = animator.crowd(tau=tau)
+        start = time.perf_counter()
+        for t in range(frames):
+            if fps:
+                time.sleep(max(0.0, start + t / fps - time.perf_counter()))
+            idx = (t + offsets) % motion.num_frames
+            crowd.push(quats[idx], motion.root_translation[idx] + side)
+        lat = 1000 * np.array(crowd.timings.latency_s)[20:]
+        out[f"{key}p50_ms"], out[f"{key}p99_ms"] = (round(float(np.percentile(lat, q)), 2) for q in (50, 99))
+    out["per_character_us"] = round(1000 * out["p50_ms"] / characters, 1)
+    out["character_frames_per_s"] = round(1000 * characters / out["p50_ms"], 1)
+    return out
+
+
 def bench(vertices: int, windows: int, seconds: float, model: str | None = None, motion_file: str | None = None,
-          pace: float = 30.0) -> dict:
+          pace: float = 30.0, crowd: list[int] | None = None) -> dict:
     """``model``: a trained bundle instead of random weights (its own resolution, database and tau);
     ``motion_file``: a clip instead of the procedural curved walk; ``pace``: frames/s of the paced
     stream run (0: none)."""
@@ -105,6 +135,8 @@ def bench(vertices: int, windows: int, seconds: float, model: str | None = None,
         out[f"{key}_p99_ms"] = round(float(np.percentile(lat, 99)), 2)
         if key == "stream":  # where a streamed frame's time goes
             out["stream_stage_p50_ms"] = {k: round(1000 * float(np.median(np.array(v)[20:])), 2) for k, v in stream.stage_s.items()}
+    if crowd:
+        out["crowd"] = {str(n): bench_crowd(animator, motion, tau, n, pace) for n in crowd}
     out["peak_rss_mb"] = round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 1)
     out["native_decoder"] = animator.decoder.native
     return out
@@ -119,10 +151,12 @@ def main() -> None:
     parser.add_argument("--motion", default=None, help="a motion file (BVH / npz) instead of the procedural clip")
     parser.add_argument("--pace", type=float, default=30.0,
                         help="also stream paced at this many frames/s, idle between pushes as in a game (0: skip)")
+    parser.add_argument("--crowd", type=int, nargs="*", default=[],
+                        help="also stream crowds of these many characters, one call per frame (e.g. 1 8 32)")
     parser.add_argument("--json", action="store_true", help="one JSON object per resolution, nothing else")
     args = parser.parse_args()
     for v in ([None] if args.model else args.vertices):
-        r = bench(v, args.database, args.seconds, args.model, args.motion, args.pace)
+        r = bench(v, args.database, args.seconds, args.model, args.motion, args.pace, args.crowd)
         if args.json:
             print(json.dumps(r))
         else:
@@ -135,6 +169,10 @@ def main() -> None:
                   + (f"; paced at {args.pace:g} frames/s p50 {r['stream_paced_p50_ms']} ms, p99 {r['stream_paced_p99_ms']} ms"
                      if args.pace else "") + f"; peak RSS {r['peak_rss_mb']} MB")
             print("  streamed frame, median ms per stage: " + ", ".join(f"{k} {v}" for k, v in r["stream_stage_p50_ms"].items()))
+            for n, c in r.get("crowd", {}).items():
+                print(f"  crowd of {n}: step p50 {c['p50_ms']} ms, p99 {c['p99_ms']} ms (paced p50 {c['paced_p50_ms']}, "
+                      f"p99 {c['paced_p99_ms']}); {c['per_character_us']} us a character, "
+                      f"{c['character_frames_per_s']} character-frames/s")
 
 
 if __name__ == "__main__":

@@ -165,6 +165,15 @@ def detect_unit_scale(rest: np.ndarray, mapping: dict[str, int], path: Path) -> 
 def load_bvh(path: Path, unit_scale: float | None = None, joint_map: dict | None = None, ground: bool = True, fps: float = FPS,
              source_fps: float | None = None) -> Motion:
     """A BVH file as canonical motion: retargeted, grounded and resampled."""
+    src, scheme, mapping, _ = bvh_source(path, unit_scale, joint_map, fps, source_fps)
+    local, root = retarget(src, mapping, ground=ground)
+    return Motion(local, root, fps, str(path), scheme, standing_height_from_legs(src.rest_positions, mapping))
+
+
+def bvh_source(path: Path, unit_scale: float | None = None, joint_map: dict | None = None, fps: float = FPS,
+               source_fps: float | None = None) -> tuple[SourceMotion, str, dict[str, int], float]:
+    """A BVH file on its own skeleton, in metres, resampled to ``fps``: (the motion, the naming
+    scheme, canonical joint name -> source joint index, metres per file unit)."""
     clip = read_bvh(path)
     scheme, mapping = resolve_joint_map(clip.names, str(path), joint_map)
     rest = rest_positions(clip.offsets, clip.parents)
@@ -181,9 +190,7 @@ def load_bvh(path: Path, unit_scale: float | None = None, joint_map: dict | None
     g_rot, g_pos = forward_kinematics(local_rot, local_trans[:, 0], local_trans, clip.parents)
     src = SourceMotion(clip.names, clip.parents, rest * unit_scale, g_rot, g_pos, src_fps, str(path))
     check_source(src)
-    local, root = retarget(src, mapping, ground=ground)
-    height = standing_height_from_legs(src.rest_positions, mapping)
-    return Motion(local, root, fps, str(path), scheme, height)
+    return src, scheme, mapping, unit_scale
 
 
 # --- AMASS -----------------------------------------------------------------------------------------

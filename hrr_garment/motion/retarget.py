@@ -104,39 +104,75 @@ def _mean_rotation(rotations: np.ndarray) -> np.ndarray:
 
 
 def remove_rig_roll(glob: np.ndarray, g_src: np.ndarray, mapping: dict[int, int], bones: dict[int, np.ndarray],
-                    leaves: list[int]) -> None:
-    """Take each joint's constant twist offset (the rig's roll) out of ``glob`` in place.
+                    leaves: list[int], roll: dict | None = None) -> dict:
+    """Take each joint's constant twist offset (the rig's roll) out of ``glob`` in place; returns
+    the offsets it took out (``roll``: take out these instead of measuring them on this clip).
 
     A bone joint's rotation keeps its direction (exact from the positions) and its twist about the
     bone relative to the canonical parent varies as in the source, but the clip-mean twist is
     removed; a leaf keeps its rotation relative to its parent less the clip-mean of it. Joints run
     parents first, so each is measured against its already corrected parent.
     """
+    used: dict = {}
     for c in range(1, len(JOINT_NAMES)):
         parent = PARENTS[c]
         if c in bones:
             v = normalize(bones[c])
-            d = glob[:, c] @ v  # the bone direction in the world, exact
-            swing = rotation_between(glob[:, parent] @ v, d) @ glob[:, parent]  # twist of the parent
-            twist = np.swapaxes(swing, -1, -2) @ glob[:, c]  # a rotation about v
-            angle = np.arctan2(twist[:, [2, 0, 1], [1, 2, 0]] @ v - twist[:, [1, 2, 0], [2, 0, 1]] @ v,
-                               np.trace(twist, axis1=1, axis2=2) - 1.0)
-            offset = np.arctan2(np.sin(angle).mean(), np.cos(angle).mean())
-            glob[:, c] = glob[:, c] @ axis_angle_to_matrix(-offset * v)
+            if roll is None:
+                d = glob[:, c] @ v  # the bone direction in the world, exact
+                swing = rotation_between(glob[:, parent] @ v, d) @ glob[:, parent]  # twist of the parent
+                twist = np.swapaxes(swing, -1, -2) @ glob[:, c]  # a rotation about v
+                angle = np.arctan2(twist[:, [2, 0, 1], [1, 2, 0]] @ v - twist[:, [1, 2, 0], [2, 0, 1]] @ v,
+                                   np.trace(twist, axis1=1, axis2=2) - 1.0)
+                used[c] = float(np.arctan2(np.sin(angle).mean(), np.cos(angle).mean()))
+            else:
+                used[c] = roll[c]
+            glob[:, c] = glob[:, c] @ axis_angle_to_matrix(-used[c] * v)
         elif c in leaves:
             s, p = mapping[c], mapping.get(parent)
             if p is None:
                 continue
             relative = np.swapaxes(g_src[:, p], -1, -2) @ g_src[:, s]  # in the source parent's axes
-            to_canon = _mean_rotation(np.swapaxes(g_src[:, p], -1, -2) @ glob[:, parent])
-            neutral = _mean_rotation(relative)
+            if roll is None:
+                used[c] = (_mean_rotation(np.swapaxes(g_src[:, p], -1, -2) @ glob[:, parent]), _mean_rotation(relative))
+            else:
+                used[c] = roll[c]
+            to_canon, neutral = used[c]
             glob[:, c] = glob[:, parent] @ to_canon.T @ relative @ neutral.T @ to_canon
         elif c not in mapping:  # follows its corrected parent rigidly
             glob[:, c] = glob[:, parent]
+    return used
 
 
-def retarget(src: SourceMotion, mapping_by_name: dict[str, int], ground: bool = True) -> tuple[np.ndarray, np.ndarray]:
-    """Return canonical (local rotations (T,22,3,3), root translation (T,3))."""
+@dataclass(frozen=True)
+class RetargetCalibration:
+    """What retargeting measures on a whole clip, fixed for a stream of single poses: each joint's
+    rig roll (None for a rig whose rest pose stands: nothing to measure) and the floor, the height
+    of the feet's sole points that the root is lowered by (:func:`clip_floor`)."""
+
+    roll: dict | None
+    floor: float
+
+
+def retarget(src: SourceMotion, mapping_by_name: dict[str, int], ground: bool = True,
+             calibration: RetargetCalibration | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Return canonical (local rotations (T,22,3,3), root translation (T,3)). The rig roll and the
+    floor are measured on this clip, or taken from ``calibration`` (a stream's poses one by one)."""
+    local, root, _ = _retarget(src, mapping_by_name, None if calibration is None else calibration.roll)
+    if ground:
+        root = root.copy()
+        root[:, 1] -= clip_floor(local, root) if calibration is None else calibration.floor
+    return local, root
+
+
+def calibrate_retarget(src: SourceMotion, mapping_by_name: dict[str, int]) -> RetargetCalibration:
+    """The rig roll and floor of a whole clip, for :func:`retarget` of other poses on the same rig."""
+    local, root, roll = _retarget(src, mapping_by_name, None)
+    return RetargetCalibration(roll, clip_floor(local, root))
+
+
+def _retarget(src: SourceMotion, mapping_by_name: dict[str, int], roll: dict | None) -> tuple[np.ndarray, np.ndarray, dict | None]:
+    """Canonical local rotations, the root before grounding, and the rig roll taken out (None: none)."""
     mapping = {JOINT_INDEX[c]: s for c, s in mapping_by_name.items()}
     n_frames = src.global_rotations.shape[0]
     canon_rest = CANONICAL.rest_positions()
@@ -183,26 +219,24 @@ def retarget(src: SourceMotion, mapping_by_name: dict[str, int], ground: bool = 
             glob[:, c] = g_src[:, s] @ a
             align[c] = a
             leaves.append(c)
-    if not rest_is_standing(src_rest, mapping):
-        remove_rig_roll(glob, g_src, mapping, bones, leaves)
+    used = None if rest_is_standing(src_rest, mapping) else remove_rig_roll(glob, g_src, mapping, bones, leaves, roll)
     local = global_to_local(glob, PARENTS)
     pelvis = mapping[JOINT_INDEX["pelvis"]]
     root = p_src[:, pelvis] * (_canonical_leg_length() / mean_leg_length(src_rest, mapping_by_name))
-    if ground:
-        root = ground_align(local, root)
-    return local, root
+    return local, root, used
+
+
+def clip_floor(local: np.ndarray, root: np.ndarray) -> float:
+    """The height of the floor under a clip: the 10th percentile over its frames of the lowest sole
+    point. That point is ~0 whenever a foot is planted, and the percentile is robust to jumps and
+    hops (airborne frames are higher)."""
+    return float(np.percentile(Motion(local, root).lowest_foot_height(), 10))
 
 
 def ground_align(local: np.ndarray, root: np.ndarray) -> np.ndarray:
-    """Shift the root vertically so the feet's sole points stand on y = 0.
-
-    The lowest sole point per frame is ~0 whenever a foot is planted; its 10th percentile over the
-    clip is taken as the floor, which is robust to jumps and hops (airborne frames are higher).
-    """
-    motion = Motion(local, root)
-    floor = float(np.percentile(motion.lowest_foot_height(), 10))
+    """Shift the root vertically so the feet's sole points stand on y = 0 (:func:`clip_floor`)."""
     out = root.astype(np.float64).copy()
-    out[:, 1] -= floor
+    out[:, 1] -= clip_floor(local, root)
     return out
 
 
