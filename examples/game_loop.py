@@ -1,14 +1,16 @@
-"""A game-loop style use of the streaming API: one pose in, one garment frame out, drawn live.
+"""A game-loop style use of the streaming API: a few dancers, one call per frame for all of them.
 
     python examples/game_loop.py                                   # workspace dress model, procedural dance
     python examples/game_loop.py --motion ../shared/data/mocap/cmu/02_01.bvh --model hrr_work/models/dress-quick
-    python examples/game_loop.py --headless --frames-dir hrr_work/game_frames
+    python examples/game_loop.py --characters 8 --headless --frames-dir hrr_work/game_frames
 
-A game would take each pose from its animation system; here the poses come from a motion file (or
-a procedural clip) and are pushed one frame at a time, as they would arrive. With a display and
-Tk, a window shows the garment over the body; without one (or with --headless) every
---save-every-th frame is written as PNG. At the end it prints the per-frame latency of
-``stream.push`` (the garment step a game would pay) and of drawing.
+A game takes each character's pose from its animation system as arrays: local joint rotations
+(quaternions, x y z w) and a root position. Here the poses come from a motion file (or a
+procedural clip): character i plays it from its own start frame, standing in a row, and every
+frame all the characters' arrays go to ``crowd.push`` in one call, as they would arrive. With a
+display and Tk, a window shows the garments over the bodies; without one (or with --headless)
+every --save-every-th frame is written as PNG. At the end it prints the latency of ``crowd.push``
+(the garment step a game would pay for all its dancers) and of drawing.
 """
 
 from __future__ import annotations
@@ -25,6 +27,7 @@ from hrr_garment import Animator, load_motion
 from hrr_garment.body.capsules import DEFAULT_BODY, body_mesh
 from hrr_garment.export.preview import PreviewMesh
 from hrr_garment.export.video import BODY, GARMENT, PreviewStyle, render_scene
+from hrr_garment.motion.rotations import matrix_to_quat
 from hrr_garment.motion.synth import synthesize
 
 
@@ -70,6 +73,7 @@ def main(argv=None) -> int:
     p.add_argument("--model", default="dress", help="model directory or garment name (default: dress)")
     p.add_argument("--motion", type=Path, default=None, help="BVH/npz to take poses from (default: procedural dance)")
     p.add_argument("--seconds", type=float, default=6.0, help="length of the procedural clip")
+    p.add_argument("--characters", type=int, default=3, help="dancers streamed together (default 3)")
     p.add_argument("--headless", action="store_true", help="never open a window")
     p.add_argument("--frames-dir", type=Path, default=Path("hrr_work/game_frames"), help="PNG frames when headless")
     p.add_argument("--save-every", type=int, default=10, help="headless: save every N-th frame")
@@ -79,27 +83,34 @@ def main(argv=None) -> int:
 
     animator = Animator.load(args.model)
     motion = load_motion(args.motion) if args.motion else synthesize("dance", args.seconds, seed=3)
-    stream = animator.stream()  # hybrid, the model's tau, collision push-out
+    crowd = animator.crowd()  # hybrid, the model's tau, collision push-out
+    n = max(1, args.characters)
+    # what the game's animation system holds for each character: local rotations and its root
+    quats = matrix_to_quat(motion.local_rotations.astype(np.float64))[..., [1, 2, 3, 0]]  # (x, y, z, w)
+    start_frame = (np.arange(n) * motion.num_frames) // n
+    place = np.stack([1.2 * (np.arange(n) - (n - 1) / 2), np.zeros(n), np.zeros(n)], 1)
     faces = animator.bundle.template.faces
     style = PreviewStyle(views=("front", "three-quarter"), size=args.size, supersample=1)
-    window = None if args.headless else open_window(f"hrr_garment: {animator.bundle.garment}")
+    window = None if args.headless else open_window(f"hrr_garment: {animator.bundle.garment} x {n}")
     if window is None:
         args.frames_dir.mkdir(parents=True, exist_ok=True)
     ends_a, ends_b = DEFAULT_BODY.pose_motion(motion)
     push_ms, draw_ms = [], []
     start = time.perf_counter()
     for t in range(motion.num_frames):
-        pose = motion.slice(t, t + 1)  # what the game's animation system hands over this tick
+        frame = (start_frame + t) % motion.num_frames  # each character's frame of the clip this tick
         t0 = time.perf_counter()
-        vertices = stream.push(pose)
+        vertices = crowd.push(quats[frame], motion.root_translation[frame] + place, keys=range(n))  # (n, V, 3)
         push_ms.append(1000 * (time.perf_counter() - t0))
         if window is None and t % args.save_every:
             continue
         t0 = time.perf_counter()
-        body = body_mesh(ends_a[t], ends_b[t], DEFAULT_BODY.radii, 12, 6)
-        pelvis = pose.joint_positions[0, 0]
-        image = render_scene([PreviewMesh(*body, BODY), PreviewMesh(vertices.astype(np.float64), faces, GARMENT)],
-                             (pelvis[0], 0.0, pelvis[2]), style, f"frame {t}  push {push_ms[-1]:.1f} ms")
+        meshes = []
+        for i, f in enumerate(frame):
+            body_v, body_f = body_mesh(ends_a[f] + place[i], ends_b[f] + place[i], DEFAULT_BODY.radii, 12, 6)
+            meshes += [PreviewMesh(body_v, body_f, BODY), PreviewMesh(vertices[i].astype(np.float64), faces, GARMENT)]
+        centre = motion.root_translation[frame].mean(0) + place.mean(0)
+        image = render_scene(meshes, (centre[0], 0.0, centre[2]), style, f"frame {t}  push {push_ms[-1]:.1f} ms")
         if window is not None:
             window.show(image)
             if window.closed:
@@ -110,8 +121,8 @@ def main(argv=None) -> int:
         if args.realtime:
             time.sleep(max(0.0, start + (t + 1) / motion.fps - time.perf_counter()))
     p50, p99 = np.percentile(push_ms, [50, 99])
-    print(f"{len(push_ms)} frames of {animator.bundle.garment} ({len(vertices)} vertices): stream.push p50 {p50:.1f} ms, "
-          f"p99 {p99:.1f} ms; drawing {np.mean(draw_ms):.0f} ms per shown frame"
+    print(f"{len(push_ms)} frames of {n} x {animator.bundle.garment} ({vertices.shape[1]} vertices): crowd.push p50 "
+          f"{p50:.1f} ms, p99 {p99:.1f} ms for all {n}; drawing {np.mean(draw_ms):.0f} ms per shown frame"
           + ("" if window else f"; frames in {args.frames_dir}"))
     return 0
 

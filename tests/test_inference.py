@@ -315,7 +315,7 @@ def test_game_loop_example_runs_headless(trained, tmp_path, capsys):
     assert game_loop.main(["--model", str(root / "model"), "--headless", "--seconds", "1", "--frames-dir", str(frames),
                            "--save-every", "8", "--size", "64"]) == 0
     assert sorted(p.name for p in frames.iterdir()) == [f"frame_{t:05d}.png" for t in range(0, 30, 8)]
-    assert "stream.push p50" in capsys.readouterr().out
+    assert "crowd.push p50" in capsys.readouterr().out
 
 
 def test_native_push_out_equals_numpy(rng):
