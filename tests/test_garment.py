@@ -152,3 +152,14 @@ def test_mirror_map_finds_left_right_symmetry(name, symmetric):
     if symmetric:
         assert np.allclose(g.vertices[perm] * [-1, 1, 1], g.vertices, atol=1e-6)
         assert np.array_equal(perm[perm], np.arange(g.num_vertices))  # mirroring twice is the identity
+
+
+@pytest.mark.parametrize("vertices", [300, 400, 1000, 4000, 12000])
+def test_dress_straps_pass_over_the_shoulders_not_the_head(vertices):
+    """At 400 and 4,000 vertices the straps once looped over the head (1.68 m high)."""
+    from hrr_garment.body.capsules import DEFAULT_BODY
+
+    dress = make_garment("dress", vertices)
+    a, b = DEFAULT_BODY.rest_pose()
+    neck = [i for i, c in enumerate(DEFAULT_BODY.capsules) if c.joint == "neck"][0]
+    assert dress.vertices[dress.groups["straps"], 1].max() < min(a[neck, 1], b[neck, 1]) + 0.05

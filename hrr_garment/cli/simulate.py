@@ -5,6 +5,7 @@ Examples::
     hrr-simulate --garment dress --preset quick            # -> hrr_work/datasets/dress-quick.h5
     hrr-simulate --garment skirt --preset tiny --motions walk spin ../shared/data/mocap/cmu/02_01.bvh
     hrr-simulate --template my_dress.obj --attached waistband --preset quick
+    hrr-simulate --template artist_dress.obj --fit --attached auto --preset quick   # another convention
     hrr-simulate --garment dress --preset real-quick --executor ray --address HEAD:6379
 
 Re-running the same command skips sequences already simulated (kept in DATASET.parts/).
@@ -31,15 +32,39 @@ def add_garment_options(p: argparse.ArgumentParser) -> None:
     """The options that pick a garment (shared with hrr-train)."""
     p.add_argument("--garment", default=None, help=f"built-in template: {', '.join(GARMENT_NAMES)} (or the name of --template)")
     p.add_argument("--template", type=Path, default=None, help="your own garment OBJ in the canonical rest pose (Y up, metres)")
-    p.add_argument("--attached", default=None, metavar="GROUP", help="OBJ group whose vertices follow the body (with --template)")
+    p.add_argument("--attached", default=None, metavar="GROUP",
+                   help="OBJ group whose vertices follow the body (with --template); 'auto': the top band lying on the torso")
     p.add_argument("--attached-file", type=Path, default=None, help="file of 0-based attached vertex indices (with --template)")
     p.add_argument("--vertices", type=int, default=None, help="template resolution (default: the preset's)")
+    p.add_argument("--fit", action="store_true",
+                   help="the OBJ is in another convention: detect its unit and up axis and place it on the body")
+    p.add_argument("--up", default=None, choices=("+x", "-x", "+y", "-y", "+z", "-z"), help="with --fit: the OBJ's up axis")
+    p.add_argument("--unit", default=None, choices=("m", "cm", "mm", "in"), help="with --fit: the OBJ's length unit")
+    p.add_argument("--dense-ok", action="store_true",
+                   help="simulate a template far denser than the preset's resolution anyway (slow; see --preset full)")
+
+
+DENSE_FACTOR = 3  # a template with more than this many times the preset's vertices is refused
 
 
 def resolve_garment(args: argparse.Namespace, default_vertices: int) -> GarmentMesh:
-    """The garment the options name: a template, or the user's OBJ."""
+    """The garment the options name: a template, or the user's OBJ (fitted, its attached vertices
+    found, and refused when far denser than the preset's resolution unless --dense-ok)."""
     if args.template is not None:
-        return load_garment_obj(args.template, args.garment, args.attached, args.attached_file)
+        notes: list[str] = []
+        mesh = load_garment_obj(args.template, args.garment, args.attached, args.attached_file, fit=args.fit,
+                                up=args.up, unit=args.unit, notes=notes)
+        for note in notes:
+            print(note)
+        if mesh.num_vertices > DENSE_FACTOR * default_vertices and not args.dense_ok:
+            raise InputError(args.template, f"has {mesh.num_vertices:,} vertices, far more than this preset's "
+                                            f"{default_vertices:,}: the solver settings are tuned for that resolution "
+                                            "and the simulation time grows with it. Decimate the mesh to about "
+                                            f"{default_vertices:,} vertices, use a denser preset (--preset full: 4,000), "
+                                            "or pass --dense-ok")
+        return mesh
+    if args.fit or args.up or args.unit:
+        raise InputError("--fit", "places your own garment: use it with --template OBJ")
     if args.garment is None:
         raise InputError("hrr-simulate", "give --garment NAME or --template OBJ")
     return make_garment(args.garment, args.vertices or default_vertices)

@@ -169,6 +169,11 @@ def render_sequence_preview(rows: list[tuple[str, np.ndarray, np.ndarray, Motion
                             frames: int = 4, cell: int = 220) -> Path:
     """Garment over body for a few evenly spaced frames of each (label, vertices (T, V, 3), faces,
     motion) row, shown in the ground-level body frame (front and side views)."""
+    return render_mesh_preview(sequence_rows(rows, frames), path, cell=cell)
+
+
+def sequence_rows(rows: list[tuple[str, np.ndarray, np.ndarray, Motion]], frames: int = 4) -> list:
+    """:func:`render_sequence_preview`'s rows of meshes."""
     from ..body.capsules import DEFAULT_BODY, body_mesh
     grid = []
     for label, vertices, faces, motion in rows:
@@ -180,7 +185,7 @@ def render_sequence_preview(rows: list[tuple[str, np.ndarray, np.ndarray, Motion
             bv, bf = body_mesh(ends[: len(a[t])], ends[len(a[t]):], DEFAULT_BODY.radii, 12, 6)
             cells.append([PreviewMesh(bv, bf, (205, 195, 185)), PreviewMesh(garment, faces, (70, 110, 200))])
         grid.append((f"{label} (frames {0}-{len(vertices) - 1})", cells))
-    return render_mesh_preview(grid, path, cell=cell)
+    return grid
 
 
 def write_dataset_preview(records: list, garment, path: Path, frames: int = 4) -> Path | None:
@@ -192,6 +197,26 @@ def write_dataset_preview(records: list, garment, path: Path, frames: int = 4) -
         chosen += [r for r in records if r.info.get("kind") == kind][:1]
     chosen = chosen or records[:2]
     try:
-        return render_sequence_preview([(r.name, r.garment, garment.faces, r.motion) for r in chosen], path, frames)
+        rest = [("the template on the rest body; attached vertices (they follow the body) in orange",
+                 [template_meshes(garment)])]
+        return render_mesh_preview(rest + sequence_rows([(r.name, r.garment, garment.faces, r.motion) for r in chosen],
+                                                        frames), path)
     except ImportError:
         return None
+
+
+def template_meshes(garment, marker: float = 0.015) -> list[PreviewMesh]:
+    """The body in the canonical rest pose, the garment's template and a small octahedron on every
+    attached vertex: where a fitted garment sits, and what follows the body."""
+    from ..body.capsules import DEFAULT_BODY, body_mesh
+
+    a, b = DEFAULT_BODY.rest_pose()
+    bv, bf = body_mesh(a, b, DEFAULT_BODY.radii, 12, 6)
+    tips = np.concatenate([np.eye(3), -np.eye(3)]) * marker
+    octahedron = np.array([[0, 1, 2], [1, 3, 2], [3, 4, 2], [4, 0, 2], [1, 0, 5], [3, 1, 5], [4, 3, 5], [0, 4, 5]])
+    corners = tips[[0, 1, 3, 4, 2, 5]]  # +x, +y, -x, -y around the z axis, then +z, -z
+    attached = garment.vertices[garment.attached].astype(np.float64)
+    mv = (attached[:, None] + corners[None]).reshape(-1, 3)
+    mf = (octahedron[None] + 6 * np.arange(len(attached))[:, None, None]).reshape(-1, 3)
+    return [PreviewMesh(bv, bf, (205, 195, 185)), PreviewMesh(garment.vertices.astype(np.float64), garment.faces, (70, 110, 200)),
+            PreviewMesh(mv, mf, (235, 130, 30))]

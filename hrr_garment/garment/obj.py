@@ -92,14 +92,28 @@ def write_obj(path: str | Path, vertices: np.ndarray, faces: np.ndarray, groups:
 
 
 def load_garment_obj(path: str | Path, name: str | None = None, attached_group: str | None = None,
-                     attached_file: str | Path | None = None, repair: bool = True) -> GarmentMesh:
+                     attached_file: str | Path | None = None, repair: bool = True, fit: bool = False,
+                     up: str | None = None, unit: str | None = None, notes: list[str] | None = None) -> GarmentMesh:
     """A user garment from OBJ, in the canonical rest pose (Y up, metres), checked.
 
     ``repair`` merges duplicate vertices (1 um), drops degenerate faces and makes the winding
     consistent; it never changes the vertex count of a clean mesh, so imported frames still match.
+    ``fit``: the file is in another convention; place it on the body (:func:`~.fit.fit_garment`,
+    ``up`` and ``unit`` override what it detects). ``attached_group="auto"`` (and no such group in
+    the file): the top band on the torso (:func:`~.fit.auto_attached`). What was done is appended
+    to ``notes``.
     """
+    from .fit import auto_attached, fit_garment
+
     path = Path(path)
+    notes = [] if notes is None else notes
     v, f, face_groups = read_obj(path)
+    if fit:
+        placed = fit_garment(v, f, up=up, unit=unit, source=str(path))
+        v = placed.apply(v)
+        notes.append(f"fitted {path.name}: {placed.describe()}")
+    elif up is not None or unit is not None:
+        raise GarmentError(path, "--up and --unit go with --fit")
     if attached_file is not None:
         attached_file = Path(attached_file)
         try:
@@ -111,12 +125,16 @@ def load_garment_obj(path: str | Path, name: str | None = None, attached_group: 
         if len(idx) and (idx.min() < 0 or idx.max() >= len(v)):
             raise GarmentError(attached_file, f"vertex indices must lie in [0, {len(v)})")
         attached = idx
+    elif attached_group == "auto" and "auto" not in face_groups:
+        attached = auto_attached(v, source=str(path))
+        notes.append(f"attached (auto): {len(attached)} vertices of the top band that lie on the torso")
     elif attached_group is not None:
         if attached_group not in face_groups:
             raise GarmentError(path, f"no group {attached_group!r}; groups in the file: {sorted(face_groups) or 'none'}")
         attached = np.unique(f[face_groups[attached_group]].ravel())
     else:
-        raise GarmentError(path, "no attached vertices given: name an OBJ group (--attached) or an index file (--attached-file)")
+        raise GarmentError(path, "no attached vertices given: name an OBJ group (--attached GROUP), an index file "
+                                 "(--attached-file), or let the top band on the torso be found (--attached auto)")
     mesh = GarmentMesh(name or path.stem, v.astype(np.float32), f.astype(np.int32),
                        {"attached": attached.astype(np.int32)}, ("attached",))
     if repair:

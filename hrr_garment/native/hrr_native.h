@@ -27,6 +27,16 @@ ALWAYS_INLINE unsigned denormals_off(void) { return 0; }
 ALWAYS_INLINE void denormals_restore(unsigned old) { (void)old; }
 #endif
 
+/* How many floats the vector registers hold decides how large a register tile may be: AVX-512 has 32
+   registers of 16 floats, AVX2 (AMD Zen 1-3 and most desktop Intel parts) 16 of 8. A tile sized
+   for the first (a 5 x 64 dense tile, 16 conv rows of 16 floats) spills on the second: the decoder
+   ran 7x slower on a Zen AVX2 machine than it needed to. */
+#if defined(__AVX512F__)
+#define WIDE_REGISTERS 1
+#else
+#define WIDE_REGISTERS 0
+#endif
+
 typedef float v8sf __attribute__((vector_size(32)));
 typedef float v16sf __attribute__((vector_size(64)));
 

@@ -28,7 +28,8 @@
                      const float *restrict bias)                                               \
     {                                                                                          \
         typedef VT_ VT;                                                                        \
-        enum { COUT = COUT_, LANES = LANES_, RB = 16 };                                        \
+        /* 16 accumulators fit AVX-512's registers; AVX2 holds 12 of 8 floats or 6 of 16 */    \
+        enum { COUT = COUT_, LANES = LANES_, RB = WIDE_REGISTERS ? 16 : LANES_ == 8 ? 12 : 6 }; \
         for (int bb = 0; bb < B; ++bb) memcpy(acc + (size_t)bb * COUT, bias, sizeof(float) * COUT); \
         for (int j = j0; j < j1; ++j) {                                                        \
             const float *restrict xj = x + (size_t)nbr[j] * B * cin;                           \
@@ -388,6 +389,14 @@ int hrr_limit_strain(double *p, int T, int V, int E, const int32_t *edges, const
    sums. Used by the window step (window_codes.c) and the single-frame decoder. */
 static inline v16sf load16(const float *p) { v16sf v; memcpy(&v, p, sizeof v); return v; }
 
+#define STORE_TILE_COLUMN(R, c, acc_of)                                                                \
+    for (int r = 0; r < R; ++r) {                                                                      \
+        const int n = cols - 16 * (c);                                                                 \
+        if (n >= 16) memcpy(Y + (size_t)r * out + 16 * (c), &acc_of, 64); /* a vector store */          \
+        else memcpy(Y + (size_t)r * out + 16 * (c), &acc_of, sizeof(float) * n);                        \
+    }
+#if WIDE_REGISTERS
+/* R rows x C vectors of accumulators at once: 20 of AVX-512's 32 registers at 5 x 4 */
 #define DEFINE_TILE(R, C)                                                                              \
     static void tile_##R##_##C(const float *restrict X, int in, const float *restrict panel,           \
                                const float *restrict b, float *restrict Y, int out, int cols)          \
@@ -405,13 +414,27 @@ static inline v16sf load16(const float *p) { v16sf v; memcpy(&v, p, sizeof v); r
                 for (int c = 0; c < C; ++c) acc[r][c] += x * w[c];                                     \
             }                                                                                          \
         }                                                                                              \
-        for (int r = 0; r < R; ++r)                                                                    \
-            for (int c = 0; c < C; ++c) {                                                              \
-                const int n = cols - 16 * c;                                                           \
-                if (n >= 16) memcpy(Y + (size_t)r * out + 16 * c, &acc[r][c], 64); /* a vector store */ \
-                else memcpy(Y + (size_t)r * out + 16 * c, &acc[r][c], sizeof(float) * n);             \
-            }                                                                                          \
+        for (int c = 0; c < C; ++c) STORE_TILE_COLUMN(R, c, acc[r][c])                                 \
     }
+#else
+/* one 16-column vector at a time (R x 2 AVX2 registers, 10 at 5 rows, plus the weights): the X
+   rows are read C times, the weights once, as above */
+#define DEFINE_TILE(R, C)                                                                              \
+    static void tile_##R##_##C(const float *restrict X, int in, const float *restrict panel,           \
+                               const float *restrict b, float *restrict Y, int out, int cols)          \
+    {                                                                                                  \
+        for (int c = 0; c < C; ++c) {                                                                  \
+            v16sf acc[R];                                                                              \
+            const v16sf bias = load16(b + 16 * c);                                                     \
+            for (int r = 0; r < R; ++r) acc[r] = bias;                                                 \
+            for (int i = 0; i < in; ++i) {                                                             \
+                const v16sf w = load16(panel + (size_t)i * PANEL + 16 * c);                            \
+                for (int r = 0; r < R; ++r) acc[r] += X[(size_t)r * in + i] * w;                       \
+            }                                                                                          \
+            STORE_TILE_COLUMN(R, c, acc[r])                                                            \
+        }                                                                                              \
+    }
+#endif
 DEFINE_TILE(5, 1)
 DEFINE_TILE(5, 2)
 DEFINE_TILE(5, 3)

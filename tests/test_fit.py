@@ -1,0 +1,110 @@
+"""Your own garment: fitting a mesh authored in another convention, finding its attached vertices,
+refusing bad or far too dense meshes, and the whole way through simulate, train and animate."""
+
+import argparse
+
+import numpy as np
+import pytest
+
+from hrr_garment.garment.fit import _rotation_to_y, auto_attached, fit_garment, hem_up_axis
+from hrr_garment.garment.mesh import GarmentError
+from hrr_garment.garment.obj import write_obj
+from hrr_garment.garment.templates import make_garment
+from hrr_garment.motion.skeleton import REST_PELVIS_HEIGHT
+
+
+def authored(vertices: np.ndarray) -> np.ndarray:
+    """As an artist might have it: centimetres, Z up, modelled around a pelvis at the origin."""
+    v = vertices.astype(np.float64) - [0.0, REST_PELVIS_HEIGHT, 0.0]
+    return np.stack([v[:, 0], -v[:, 2], v[:, 1]], 1) * 100.0
+
+
+@pytest.mark.parametrize("name, convert, unit, up", [
+    ("dress", authored, "cm", "+z"),
+    ("skirt", lambda v: v * 1000.0, "mm", "+y"),  # millimetres, already standing on the ground
+    # lying along -x (turned so that the fit's rotation undoes it: front and back cannot be told apart)
+    ("dress", lambda v: v @ _rotation_to_y(0, -1.0), "m", "-x"),
+])
+def test_a_garment_in_another_convention_lands_where_the_template_is(name, convert, unit, up):
+    garment = make_garment(name, 400)
+    fit = fit_garment(convert(garment.vertices), garment.faces)
+    assert (fit.unit, fit.up) == (unit, up)
+    assert np.linalg.det(fit.rotation) == pytest.approx(1.0)
+    assert np.abs(fit.apply(convert(garment.vertices)) - garment.vertices).max() < 0.012  # metres: within a centimetre
+    assert "unit " + unit in fit.describe()
+
+
+def test_up_axis_comes_from_the_hem_and_can_be_given():
+    garment = make_garment("skirt", 400)  # wider than it is tall: the longest extent is not up
+    assert np.ptp(garment.vertices[:, 2]) > np.ptp(garment.vertices[:, 1])
+    assert hem_up_axis(garment.vertices, garment.faces) == (1, 1.0)
+    flipped = fit_garment(garment.vertices * [1, -1, -1], garment.faces, up="-y")
+    assert flipped.up == "-y" and np.abs(flipped.apply(garment.vertices * [1, -1, -1]) - garment.vertices).max() < 0.005
+    with pytest.raises(GarmentError, match="cannot tell the unit"):
+        fit_garment(garment.vertices * 1e5, garment.faces)
+    closed = np.array([[0, 1, 2], [0, 3, 1], [1, 3, 2], [2, 3, 0]])
+    with pytest.raises(GarmentError, match="no open boundary"):
+        fit_garment(np.array([[0, 0, 0], [0.5, 0, 0], [0, 0.5, 0], [0, 0, 0.5]]), closed)
+
+
+def test_auto_attached_is_the_top_band_on_the_torso():
+    skirt = make_garment("skirt", 400)
+    assert np.array_equal(np.sort(auto_attached(skirt.vertices)), np.sort(skirt.attached))  # the waistband
+    dress = make_garment("dress", 400)
+    found = auto_attached(dress.vertices)
+    assert set(found) <= set(dress.groups["straps"]) and set(found) >= set(dress.groups["shoulders"])  # strap tops
+    with pytest.raises(GarmentError, match="lies within 2 cm of the torso"):
+        auto_attached(dress.vertices + [0.0, 0.0, 0.5])  # half a metre in front of the body
+
+
+def test_a_far_too_dense_template_is_refused_with_a_way_forward(tmp_path, capsys):
+    from hrr_garment.cli.simulate import main as simulate_main
+    from hrr_garment.cli.simulate import resolve_garment
+
+    dense = make_garment("dress", 1200)
+    path = tmp_path / "dense.obj"
+    write_obj(path, authored(dense.vertices), dense.faces)
+    out = tmp_path / "never.h5"
+    assert simulate_main(["--template", str(path), "--fit", "--attached", "auto", "--preset", "tiny", "-o", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "dense.obj" in err and "far more than this preset's 300" in err and "--dense-ok" in err
+    assert not out.exists()
+    args = argparse.Namespace(template=path, garment=None, attached="auto", attached_file=None, fit=True, up=None,
+                              unit=None, dense_ok=True)
+    assert resolve_garment(args, 300).num_vertices == dense.num_vertices
+    assert simulate_main(["--garment", "dress", "--fit", "-o", str(out)]) == 2
+    assert "use it with --template" in capsys.readouterr().err
+
+
+def test_an_artist_dress_goes_through_simulate_train_and_animate(tmp_path, capsys):
+    """No groups, centimetres, Z up, pelvis at the origin: --fit --attached auto, a tiny simulation,
+    a tiny model, an animation."""
+    pytest.importorskip("newton", reason="the sim extra is not installed")
+    from hrr_garment.cli.animate import main as animate_main
+    from hrr_garment.cli.simulate import main as simulate_main
+    from hrr_garment.cli.train import main as train_main
+    from hrr_garment.data.animation_file import read_animation_h5
+    from hrr_garment.data.dataset import GarmentDataset
+    from hrr_garment.motion.io import save_motion
+    from hrr_garment.motion.synth import synthesize
+
+    from .conftest import TINY_TRAINING
+
+    dress = make_garment("dress", 300)
+    obj = tmp_path / "artist_dress.obj"
+    write_obj(obj, authored(dress.vertices), dress.faces)
+    data = tmp_path / "artist.h5"
+    assert simulate_main(["--template", str(obj), "--fit", "--attached", "auto", "--preset", "tiny", "--motions", "walk",
+                          "spin", "walk", "--seconds", "1.0", "--jobs", "1", "--quiet", "-o", str(data)]) == 0
+    out = capsys.readouterr().out
+    assert "fitted artist_dress.obj: unit cm (x0.01), up axis +z -> +y" in out and "attached (auto):" in out
+    ds = GarmentDataset(data)
+    assert np.abs(ds.template.vertices - dress.vertices).max() < 0.005 and len(ds.template.attached) > 0
+    assert data.with_suffix(".preview.png").is_file()
+    (tmp_path / "cfg.yaml").write_text(TINY_TRAINING)
+    assert train_main(["--dataset", str(data), "--config", str(tmp_path / "cfg.yaml"), "-o", str(tmp_path / "model"),
+                       "--quiet"]) == 0
+    save_motion(synthesize("dance", 1.0, seed=9), tmp_path / "dance.npz")
+    assert animate_main([str(tmp_path / "dance.npz"), "--model", str(tmp_path / "model"), "-o", str(tmp_path / "out.h5")]) == 0
+    anim = read_animation_h5(tmp_path / "out.h5")
+    assert anim.vertices.shape == (30, dress.num_vertices, 3) and np.isfinite(anim.vertices).all()
