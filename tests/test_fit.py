@@ -88,7 +88,7 @@ def test_an_artist_dress_goes_through_simulate_train_and_animate(tmp_path, capsy
     from hrr_garment.motion.io import save_motion
     from hrr_garment.motion.synth import synthesize
 
-    from .conftest import TINY_TRAINING
+    from conftest import TINY_TRAINING
 
     dress = make_garment("dress", 300)
     obj = tmp_path / "artist_dress.obj"
