@@ -145,6 +145,27 @@ def test_hrr_train_writes_a_bundle_that_reproduces_its_validation_numbers(traine
     assert len(bundle.database) == report["windows"]["train"]
 
 
+def test_calibration_on_a_window_sample_is_the_sample_of_the_full_errors(trained):
+    """max_windows keeps evenly spaced windows: their errors are exactly those windows' full errors."""
+    from hrr_garment.artifacts.bundle import load_bundle
+    from hrr_garment.data.dataset import GarmentDataset
+    from hrr_garment.data.windows import dataset_features
+    from hrr_garment.train.autoencoder import body_frames
+    from hrr_garment.train.calibrate import evaluate_modes
+
+    root, data, _ = trained
+    bundle, ds = load_bundle(root / "model"), GarmentDataset(data)
+    names = ds.splits["val"]
+    args = (bundle.codespace, bundle.autoencoder, bundle.motion_stats, bundle.latent_stats, bundle.database,
+            dataset_features(ds, names), {n: body_frames(ds, [n]) for n in names})
+    full = evaluate_modes(*args, refine_steps=0, refine_lr=0.0, max_windows=None)
+    sample = evaluate_modes(*args, refine_steps=0, refine_lr=0.0, max_windows=7)
+    keep = np.linspace(0, len(full.regression) - 1, 7).round().astype(int)
+    assert len(full.regression) > 7 and len(sample.regression) == 7
+    for field in ("regression", "retrieval", "autoencoder", "entropy"):
+        np.testing.assert_allclose(getattr(sample, field), getattr(full, field)[keep], rtol=1e-5, atol=1e-4)
+
+
 def test_the_code_space_anneals_its_learning_rate_over_the_run_and_keeps_its_best_epoch(trained):
     """Cosine from learning_rate to lr_final x it over the run's epochs (tiny config: 4 epochs of
     1e-3, lr_final 0.01), and the bundle holds the epoch with the best validation regression."""

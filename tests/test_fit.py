@@ -80,6 +80,8 @@ def test_an_artist_dress_goes_through_simulate_train_and_animate(tmp_path, capsy
     """No groups, centimetres, Z up, pelvis at the origin: --fit --attached auto, a tiny simulation,
     a tiny model, an animation."""
     pytest.importorskip("newton", reason="the sim extra is not installed")
+    from conftest import TINY_TRAINING
+
     from hrr_garment.cli.animate import main as animate_main
     from hrr_garment.cli.simulate import main as simulate_main
     from hrr_garment.cli.train import main as train_main
@@ -87,8 +89,6 @@ def test_an_artist_dress_goes_through_simulate_train_and_animate(tmp_path, capsy
     from hrr_garment.data.dataset import GarmentDataset
     from hrr_garment.motion.io import save_motion
     from hrr_garment.motion.synth import synthesize
-
-    from conftest import TINY_TRAINING
 
     dress = make_garment("dress", 300)
     obj = tmp_path / "artist_dress.obj"

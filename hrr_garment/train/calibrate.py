@@ -31,6 +31,11 @@ from ..motion.features import FeatureStats
 from ..motion.windows import sequence_windows
 from .autoencoder import body_frames, refine_settings
 
+# Windows the tau sweep decodes at most (evenly spaced; stride-1 windows overlap in W - 1 frames, so
+# a sample loses little): all 11,600 of the real-motion library's validation windows, three modes of
+# W frames each, took 10 minutes to decode on the Xeon and 40 on a 2-core AVX2 machine.
+MAX_WINDOWS = 2000
+
 
 @dataclass
 class WindowPredictions:
@@ -82,18 +87,22 @@ class ModeErrors:
 
 def evaluate_modes(codespace: CodeSpace, autoencoder, motion_stats: FeatureStats, latent_stats: FeatureStats,
                    database: CodeDatabase, motion: dict[str, np.ndarray], frames: dict[str, np.ndarray], *,
-                   refine_steps: int, refine_lr: float) -> ModeErrors:
-    """Both modes on every window of the sequences ``motion`` (features (T, F)) / ``frames``
-    (heading-frame vertices (T, V, 3)), decoded with the autoencoder's fast decoder. ``refine_steps``
-    and ``refine_lr``: the autoencoder stage's encoding, which the floor's latents repeat."""
+                   refine_steps: int, refine_lr: float, max_windows: int | None = MAX_WINDOWS) -> ModeErrors:
+    """Both modes on the windows of the sequences ``motion`` (features (T, F)) / ``frames``
+    (heading-frame vertices (T, V, 3)), decoded with the autoencoder's fast decoder: every window,
+    or ``max_windows`` of them evenly spaced. ``refine_steps`` and ``refine_lr``: the autoencoder
+    stage's encoding, which the floor's latents repeat."""
     w = codespace.config.window
     names = [n for n in motion if len(motion[n]) >= w]
     m = np.concatenate([sequence_windows(motion[n], w) for n in names])
     truth = np.concatenate([sequence_windows(frames[n], w) for n in names])
-    pred = predict_windows(codespace, m, motion_stats, latent_stats, database)
-    decode = autoencoder.fast_decoder()
     # the floor: each frame's own latent, encoded as the training targets were (once per frame, then windowed)
     own = np.concatenate([sequence_windows(autoencoder.fit_latents(torch.from_numpy(frames[n]), refine_steps, refine_lr).numpy(), w) for n in names])
+    if max_windows is not None and len(m) > max_windows:
+        keep = np.linspace(0, len(m) - 1, max_windows).round().astype(int)
+        m, truth, own = m[keep], truth[keep], own[keep]
+    pred = predict_windows(codespace, np.ascontiguousarray(m), motion_stats, latent_stats, database)
+    decode = autoencoder.fast_decoder()
     err_reg = window_errors_mm(decode, pred.regression, truth)
     err_ret = window_errors_mm(decode, pred.retrieval, truth)
     err_ae = window_errors_mm(decode, own, truth)
