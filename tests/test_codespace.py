@@ -143,6 +143,10 @@ def test_hrr_train_writes_a_bundle_that_reproduces_its_validation_numbers(traine
         assert again[mode] == report["validation_mm"][mode], mode
     assert report["validation_mm"]["hybrid"] <= min(report["validation_mm"]["regression"], report["validation_mm"]["retrieval"])
     assert len(bundle.database) == report["windows"]["train"]
+    from hrr_garment.data.dataset import GarmentDataset
+
+    groups = GarmentDataset(data).template.groups  # kept in the bundle: evaluation measures the hem's swing
+    assert set(groups) <= set(bundle.template.groups) and np.array_equal(bundle.template.groups["hem"], groups["hem"])
 
 
 def test_calibration_on_a_window_sample_is_the_sample_of_the_full_errors(trained):

@@ -6,7 +6,7 @@ import argparse
 import numpy as np
 import pytest
 
-from hrr_garment.garment.fit import _rotation_to_y, auto_attached, fit_garment, hem_up_axis
+from hrr_garment.garment.fit import _rotation_to_y, auto_attached, fit_garment, hem_loop, hem_up_axis
 from hrr_garment.garment.mesh import GarmentError
 from hrr_garment.garment.obj import write_obj
 from hrr_garment.garment.templates import make_garment
@@ -45,6 +45,12 @@ def test_up_axis_comes_from_the_hem_and_can_be_given():
     closed = np.array([[0, 1, 2], [0, 3, 1], [1, 3, 2], [2, 3, 0]])
     with pytest.raises(GarmentError, match="no open boundary"):
         fit_garment(np.array([[0, 0, 0], [0.5, 0, 0], [0, 0.5, 0], [0, 0, 0.5]]), closed)
+
+
+@pytest.mark.parametrize("name", ["dress", "skirt", "pleated_skirt", "asymmetric_skirt"])
+def test_the_hem_is_the_longest_open_boundary(name):
+    garment = make_garment(name, 500)
+    assert np.array_equal(hem_loop(garment.vertices, garment.faces), np.sort(garment.groups["hem"]))
 
 
 def test_auto_attached_is_the_top_band_on_the_torso():

@@ -10,7 +10,7 @@ Files (all arrays as safetensors, nothing pickled)::
     stats.safetensors            motion feature and garment latent mean/std
     database.safetensors         retrieval database: codes, latent windows, source sequence/frame,
                                  standardised motion windows (for the naive-NN baseline)
-    template.safetensors         template vertices, faces, attached vertex indices
+    template.safetensors         template vertices, faces, attached vertex indices, vertex groups (group/NAME)
 
 ``bundle.json`` is written last: a directory without it (or whose files do not match its hashes)
 is not a bundle, so an interrupted write never looks like a model. :func:`load_bundle` checks the
@@ -107,8 +107,11 @@ def write_bundle(folder: str | Path, *, autoencoder: MeshAutoencoder, codespace:
     _save(folder / "stats.safetensors", {"motion_mean": motion_stats.mean, "motion_std": motion_stats.std,
                                          "latent_mean": latent_stats.mean, "latent_std": latent_stats.std}, numpy=True)
     _save(folder / "database.safetensors", database.arrays(), numpy=True)
+    # the template's vertex groups too (``group/NAME``): evaluation measures the hem's swing
     _save(folder / "template.safetensors", {"vertices": template.vertices.astype(np.float32),
-                                            "faces": template.faces.astype(np.int32), "attached": template.attached}, numpy=True)
+                                            "faces": template.faces.astype(np.int32), "attached": template.attached,
+                                            **{f"group/{k}": np.asarray(v, np.int32) for k, v in template.groups.items()
+                                               if k != "attached"}}, numpy=True)
     files = {p: _sha256(folder / p) for p in sorted(["autoencoder.safetensors", "stats.safetensors", "database.safetensors",
                                                      "template.safetensors", *[f"{n}.safetensors" for n in NETWORKS]])}
     meta = {"format_version": FORMAT_VERSION, "garment": template.name, "created": time.strftime("%Y-%m-%dT%H:%M:%S"),
@@ -253,7 +256,8 @@ def load_bundle(folder: str | Path, cache_dir: Path | None = None) -> Bundle:
     if features != FEATURE_DIM:
         raise BundleError(folder, f"the model was trained on {features} motion features; this hrr_garment computes {FEATURE_DIM}")
     t = _arrays(folder, "template.safetensors", ("vertices", "faces", "attached"))
-    template = GarmentMesh(str(meta["garment"]), t["vertices"], t["faces"], {"attached": t["attached"]}, ("attached",))
+    groups = {k.split("/", 1)[1]: v for k, v in t.items() if k.startswith("group/")}  # none in bundles before 2026-11-24
+    template = GarmentMesh(str(meta["garment"]), t["vertices"], t["faces"], {**groups, "attached": t["attached"]}, ("attached",))
     try:
         check_garment(template)
     except GarmentError as exc:

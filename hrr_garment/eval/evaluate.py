@@ -131,6 +131,10 @@ def evaluate_modes(animator: Animator, records: list[SequenceRecord], modes: lis
     topo = M.MeshTopology.of(bundle.template.faces, bundle.template.num_vertices)
     rest = bundle.template.vertices.astype(np.float64)
     hem = bundle.template.groups.get("hem")
+    if hem is None:  # a bundle from before templates kept their groups, or a user garment without one
+        from ..garment.fit import hem_loop
+
+        hem = hem_loop(bundle.template.vertices, bundle.template.faces)
     ensembles = ensembles or {}
     truths: dict[str, dict[str, float]] = {}  # per record, computed once for every mode
     names = list(bundle.database.names)

@@ -73,9 +73,9 @@ def _rotation_to_y(axis: int, sign: float) -> np.ndarray:
     return r if sign > 0 else np.diag([1.0, -1.0, -1.0]) @ r
 
 
-def hem_up_axis(vertices: np.ndarray, faces: np.ndarray, source: str = "garment") -> tuple[int, float]:
-    """(axis 0/1/2, sign): the coordinate axis nearest the normal of the longest boundary loop, signed
-    to point from that loop toward the rest of the mesh."""
+def hem_loop(vertices: np.ndarray, faces: np.ndarray, source: str = "garment") -> np.ndarray:
+    """Vertex indices of the hem: the mesh's longest open boundary loop (a skirt or dress is a tube
+    open at the hem; the waist, neck and arm openings are shorter)."""
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
 
@@ -89,8 +89,13 @@ def hem_up_axis(vertices: np.ndarray, faces: np.ndarray, source: str = "garment"
     graph = coo_matrix((np.ones(len(open_edges)), (open_edges[:, 0], open_edges[:, 1])), shape=(n, n))
     labels = connected_components(graph, directed=False)[1][open_edges[:, 0]]
     length = np.linalg.norm(vertices[open_edges[:, 1]] - vertices[open_edges[:, 0]], axis=1)
-    hem = open_edges[labels == np.argmax(np.bincount(labels, weights=length))]
-    ring = vertices[np.unique(hem)]
+    return np.unique(open_edges[labels == np.argmax(np.bincount(labels, weights=length))])
+
+
+def hem_up_axis(vertices: np.ndarray, faces: np.ndarray, source: str = "garment") -> tuple[int, float]:
+    """(axis 0/1/2, sign): the coordinate axis nearest the normal of the hem (:func:`hem_loop`),
+    signed to point from the hem toward the rest of the mesh."""
+    ring = vertices[hem_loop(vertices, faces, source)]
     normal = np.linalg.svd(ring - ring.mean(0))[2][-1]  # the loop's plane normal
     axis = int(np.argmax(np.abs(normal)))
     sign = 1.0 if (vertices.mean(0) - ring.mean(0))[axis] > 0 else -1.0
