@@ -11,15 +11,15 @@
    RB fused multiply-adds with broadcast operands. */
 #define TILE(ROWS)                                                                             \
     for (int q = 0; q < COUT; q += LANES) {                                                    \
-        VT t[ROWS];                                                                            \
-        for (int r = 0; r < ROWS; ++r) memcpy(&t[r], acc + (size_t)(bb + r) * COUT + q, sizeof(VT)); \
+        VT t[ROWS]; /* loaded and stored through copies: an accumulator whose address is taken stays on the stack */ \
+        for (int r = 0; r < ROWS; ++r) { VT v_; memcpy(&v_, acc + (size_t)(bb + r) * COUT + q, sizeof(VT)); t[r] = v_; } \
         const float *restrict xs = xj + (size_t)bb * cin;                                      \
         for (int c = 0; c < cin; ++c) {                                                        \
             VT kv;                                                                             \
             memcpy(&kv, k + (size_t)c * COUT + q, sizeof(VT));                                 \
             for (int r = 0; r < ROWS; ++r) t[r] += xs[(size_t)r * cin + c] * kv;               \
         }                                                                                      \
-        for (int r = 0; r < ROWS; ++r) memcpy(acc + (size_t)(bb + r) * COUT + q, &t[r], sizeof(VT)); \
+        for (int r = 0; r < ROWS; ++r) { const VT v_ = t[r]; memcpy(acc + (size_t)(bb + r) * COUT + q, &v_, sizeof(VT)); } \
     }
 
 #define DEFINE_CONV(NAME, COUT_, VT_, LANES_)                                                  \
@@ -28,8 +28,8 @@
                      const float *restrict bias)                                               \
     {                                                                                          \
         typedef VT_ VT;                                                                        \
-        /* 16 accumulators fit AVX-512's registers; AVX2 holds 12 of 8 floats or 6 of 16 */    \
-        enum { COUT = COUT_, LANES = LANES_, RB = WIDE_REGISTERS ? 16 : LANES_ == 8 ? 12 : 6 }; \
+        /* 16 accumulators fit AVX-512's 32 registers; AVX2 holds 12 of its 16 */              \
+        enum { COUT = COUT_, LANES = LANES_, RB = WIDE_REGISTERS ? 16 : 12 };                  \
         for (int bb = 0; bb < B; ++bb) memcpy(acc + (size_t)bb * COUT, bias, sizeof(float) * COUT); \
         for (int j = j0; j < j1; ++j) {                                                        \
             const float *restrict xj = x + (size_t)nbr[j] * B * cin;                           \
@@ -40,11 +40,20 @@
         }                                                                                      \
     }
 
+/* GCC splits a 16-float vector into two 8-float halves on AVX2, and does it through the stack:
+   there every accumulator is 8 floats wide */
+#if WIDE_REGISTERS
+typedef v16sf vwide;
+enum { WIDE_LANES = 16 };
+#else
+typedef v8sf vwide;
+enum { WIDE_LANES = 8 };
+#endif
 DEFINE_CONV(conv8, 8, v8sf, 8)
-DEFINE_CONV(conv16, 16, v16sf, 16)
-DEFINE_CONV(conv32, 32, v16sf, 16)
-DEFINE_CONV(conv64, 64, v16sf, 16)
-DEFINE_CONV(conv128, 128, v16sf, 16)
+DEFINE_CONV(conv16, 16, vwide, WIDE_LANES)
+DEFINE_CONV(conv32, 32, vwide, WIDE_LANES)
+DEFINE_CONV(conv64, 64, vwide, WIDE_LANES)
+DEFINE_CONV(conv128, 128, vwide, WIDE_LANES)
 
 /* exp(y) for y <= 0 in plain arithmetic so that loops over it vectorise (Cephes' expf polynomial,
    about 1e-7 relative error); libm's expf is a scalar call per element. */
@@ -389,11 +398,14 @@ int hrr_limit_strain(double *p, int T, int V, int E, const int32_t *edges, const
    sums. Used by the window step (window_codes.c) and the single-frame decoder. */
 static inline v16sf load16(const float *p) { v16sf v; memcpy(&v, p, sizeof v); return v; }
 
+/* stores through a copy: taking an accumulator's own address kept the whole tile on the stack
+   (every multiply-add a load and a store), which GCC does on AVX2 */
 #define STORE_TILE_COLUMN(R, c, acc_of)                                                                \
     for (int r = 0; r < R; ++r) {                                                                      \
         const int n = cols - 16 * (c);                                                                 \
-        if (n >= 16) memcpy(Y + (size_t)r * out + 16 * (c), &acc_of, 64); /* a vector store */          \
-        else memcpy(Y + (size_t)r * out + 16 * (c), &acc_of, sizeof(float) * n);                        \
+        const v16sf v_ = acc_of;                                                                       \
+        if (n >= 16) memcpy(Y + (size_t)r * out + 16 * (c), &v_, 64); /* a vector store */              \
+        else memcpy(Y + (size_t)r * out + 16 * (c), &v_, sizeof(float) * n);                            \
     }
 #if WIDE_REGISTERS
 /* R rows x C vectors of accumulators at once: 20 of AVX-512's 32 registers at 5 x 4 */
@@ -417,21 +429,34 @@ static inline v16sf load16(const float *p) { v16sf v; memcpy(&v, p, sizeof v); r
         for (int c = 0; c < C; ++c) STORE_TILE_COLUMN(R, c, acc[r][c])                                 \
     }
 #else
-/* one 16-column vector at a time (R x 2 AVX2 registers, 10 at 5 rows, plus the weights): the X
-   rows are read C times, the weights once, as above */
+/* one 16-column group at a time as two 8-float halves (R x 2 AVX2 registers, 10 at 5 rows, plus
+   the two weight halves): the X rows are read C times, the weights once, as above */
+static inline v8sf load8(const float *p) { v8sf v; memcpy(&v, p, sizeof v); return v; }
 #define DEFINE_TILE(R, C)                                                                              \
     static void tile_##R##_##C(const float *restrict X, int in, const float *restrict panel,           \
                                const float *restrict b, float *restrict Y, int out, int cols)          \
     {                                                                                                  \
         for (int c = 0; c < C; ++c) {                                                                  \
-            v16sf acc[R];                                                                              \
-            const v16sf bias = load16(b + 16 * c);                                                     \
-            for (int r = 0; r < R; ++r) acc[r] = bias;                                                 \
+            v8sf lo[R], hi[R];                                                                         \
+            const v8sf blo = load8(b + 16 * c), bhi = load8(b + 16 * c + 8);                           \
+            for (int r = 0; r < R; ++r) { lo[r] = blo; hi[r] = bhi; }                                  \
             for (int i = 0; i < in; ++i) {                                                             \
-                const v16sf w = load16(panel + (size_t)i * PANEL + 16 * c);                            \
-                for (int r = 0; r < R; ++r) acc[r] += X[(size_t)r * in + i] * w;                       \
+                const v8sf wlo = load8(panel + (size_t)i * PANEL + 16 * c);                            \
+                const v8sf whi = load8(panel + (size_t)i * PANEL + 16 * c + 8);                        \
+                for (int r = 0; r < R; ++r) {                                                          \
+                    const float x = X[(size_t)r * in + i];                                             \
+                    lo[r] += x * wlo;                                                                  \
+                    hi[r] += x * whi;                                                                  \
+                }                                                                                      \
             }                                                                                          \
-            STORE_TILE_COLUMN(R, c, acc[r])                                                            \
+            for (int r = 0; r < R; ++r) {                                                              \
+                const int n = cols - 16 * c;                                                           \
+                float v_[16];                                                                          \
+                const v8sf a_ = lo[r], b_ = hi[r];                                                     \
+                memcpy(v_, &a_, 32);                                                                   \
+                memcpy(v_ + 8, &b_, 32);                                                               \
+                memcpy(Y + (size_t)r * out + 16 * c, v_, sizeof(float) * (n >= 16 ? 16 : n));         \
+            }                                                                                          \
         }                                                                                              \
     }
 #endif
@@ -518,10 +543,10 @@ static void linear_rows(const float *restrict X, int n, int in, const float *res
 typedef float v4sf __attribute__((vector_size(16)));
 DEFINE_APPLY(apply4, 4, v4sf, 4)
 DEFINE_APPLY(apply8, 8, v8sf, 8)
-DEFINE_APPLY(apply16, 16, v16sf, 16)
-DEFINE_APPLY(apply32, 32, v16sf, 16)
-DEFINE_APPLY(apply64, 64, v16sf, 16)
-DEFINE_APPLY(apply128, 128, v16sf, 16)
+DEFINE_APPLY(apply16, 16, vwide, WIDE_LANES)
+DEFINE_APPLY(apply32, 32, vwide, WIDE_LANES)
+DEFINE_APPLY(apply64, 64, vwide, WIDE_LANES)
+DEFINE_APPLY(apply128, 128, vwide, WIDE_LANES)
 
 typedef void (*apply_fn)(const float *restrict, int, int, int, int, const int32_t *restrict, const int32_t *restrict,
                          const float *restrict, const float *restrict, const float *restrict, float, float, int,
