@@ -420,9 +420,16 @@ def test_a_push_that_would_tear_the_cloth_is_undone_as_far_as_it_tears():
 
 
 def test_the_native_strain_limit_matches_the_numpy_reference():
-    """The kernel's Jacobi passes are the reference's: same edges, weights and per-frame stop."""
+    """The kernel's limits, torn frames and Jacobi passes are the reference's: same edges, weights
+    and per-frame stop (the kernel measures only edges whose ends moved: the same result)."""
     from hrr_garment.garment.templates import make_garment
-    from hrr_garment.inference.collision import LIMIT_TOLERANCE_M, OVER_RELAXATION, EdgeLimits, _limit_frames
+    from hrr_garment.inference.collision import (
+        LIMIT_TOLERANCE_M,
+        MAX_PUSH_STRAIN,
+        OVER_RELAXATION,
+        EdgeLimits,
+        _limit_frames,
+    )
     from hrr_garment.native import limit_strain, load_kernel
 
     lib = load_kernel()
@@ -431,13 +438,17 @@ def test_the_native_strain_limit_matches_the_numpy_reference():
     skirt = make_garment("skirt", 300)
     limits = EdgeLimits.of(skirt.faces, skirt.vertices)
     rng = np.random.default_rng(2)
-    p = np.repeat(skirt.vertices[None], 4, 0).astype(np.float64)
+    unpushed = np.repeat(skirt.vertices[None], 4, 0).astype(np.float64)
+    p = unpushed.copy()
     for t, size in enumerate([0.3, 0.05, 0.0, 0.12]):  # frame 2: nothing over the limit
         p[t, rng.choice(skirt.num_vertices, 5, replace=False)] += rng.normal(size=(5, 3)) * size
-    limit = np.repeat(1.5 * limits.rest_length[None], 4, 0)
+    limit = np.repeat(MAX_PUSH_STRAIN * limits.rest_length[None], 4, 0)
     ref = _limit_frames(p.copy(), limit, limits, 60)
-    got = limit_strain(lib, p, limits.edges, limit, limits.degree, 60, LIMIT_TOLERANCE_M, OVER_RELAXATION, threads=2)
-    assert np.abs(got - ref).max() < 1e-9
+    got, torn = limit_strain(lib, p, unpushed, limits.native_arrays, MAX_PUSH_STRAIN, 60, LIMIT_TOLERANCE_M,
+                             OVER_RELAXATION, threads=2)
+    assert torn.tolist() == [True, True, False, True]
+    assert np.abs(got - ref).max() < 1e-8  # metres: float rounding of the same passes
     assert np.array_equal(got[2], p[2]) and np.abs(got - p).max() > 0.01
-    one = limit_strain(lib, p[3:], limits.edges, limit[3:], limits.degree, 60, LIMIT_TOLERANCE_M, OVER_RELAXATION)
+    one, _ = limit_strain(lib, p[3:], unpushed[3:], limits.native_arrays, MAX_PUSH_STRAIN, 60, LIMIT_TOLERANCE_M,
+                          OVER_RELAXATION)
     assert np.array_equal(one[0], got[3])  # a frame's result does not depend on its batch

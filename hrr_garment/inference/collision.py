@@ -14,6 +14,7 @@ reference and the fallback.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 from scipy.sparse import coo_matrix, csr_matrix, diags
@@ -66,6 +67,14 @@ class EdgeLimits:
         degree = np.maximum(np.asarray(abs(signs).sum(1)).ravel(), 1.0)
         return cls(edges, np.linalg.norm(rest[edges[:, 1]] - rest[edges[:, 0]], axis=-1), signs, degree)
 
+    @cached_property
+    def native_arrays(self) -> tuple[np.ndarray, ...]:
+        """(edges int32, rest lengths, degrees, the incidence's indptr and indices int32): what the
+        kernel takes, converted once (a stream limits every frame)."""
+        return tuple(np.ascontiguousarray(x, dtype) for x, dtype in (
+            (self.edges, np.int32), (self.rest_length, np.float64), (self.degree, np.float64),
+            (self.signs.indptr, np.int32), (self.signs.indices, np.int32)))
+
     def lengths(self, p: np.ndarray) -> np.ndarray:
         """(T, E) edge lengths of (T, V, 3) positions."""
         return np.linalg.norm(p[:, self.edges[:, 1]] - p[:, self.edges[:, 0]], axis=-1)
@@ -115,21 +124,24 @@ def limit_push_strain(pushed: np.ndarray, unpushed: np.ndarray, limits: EdgeLimi
     Why: where the capture drives a limb through the body (a hand in the belly), a vertex caught in
     both capsules is pushed out of the nearest surface, across the limb, while its neighbours stay:
     edges ten times their length (CMU 131_03), which no simulator would produce."""
+    from ..native import default_threads, limit_strain, load_kernel
+
+    lib = load_kernel()
+    if lib is not None:  # the same in C: the limits, the torn frames and the passes, which measure only
+        # the edges that can have changed
+        p, torn = limit_strain(lib, pushed, unpushed, limits.native_arrays, max_strain, iterations, LIMIT_TOLERANCE_M,
+                               OVER_RELAXATION, threads=default_threads())
+        if not torn.any():
+            return pushed, torn
+        out = pushed.copy()
+        out[torn] = p[torn].astype(pushed.dtype)
+        return out, torn
     limit = np.maximum(max_strain * limits.rest_length, limits.lengths(unpushed.astype(np.float64)))  # (T, E)
     torn = (limits.lengths(pushed.astype(np.float64)) > limit * (1 + 1e-6)).any(1)
     if not torn.any():
         return pushed, torn
-    p, limit = pushed[torn].astype(np.float64), limit[torn]
-    from ..native import default_threads, limit_strain, load_kernel
-
-    lib = load_kernel()
-    if lib is not None:  # the same passes in C: numpy's were 9 ms of a streamed frame's 17
-        p = limit_strain(lib, p, limits.edges, limit, limits.degree, iterations, LIMIT_TOLERANCE_M, OVER_RELAXATION,
-                         threads=default_threads())
-    else:
-        p = _limit_frames(p, limit, limits, iterations)
     out = pushed.copy()
-    out[torn] = p.astype(pushed.dtype)
+    out[torn] = _limit_frames(pushed[torn].astype(np.float64), limit[torn], limits, iterations).astype(pushed.dtype)
     return out, torn
 
 

@@ -111,7 +111,8 @@ def load_kernel(cache_dir: str | Path | None = None) -> ctypes.CDLL | None:
                 lib.hrr_push_out.argtypes = [d, c_int, c_int, d, d, d, c_int, d, d, d, c_double, c_int, c_int, c_double,
                                              c_int, d, d]
                 lib.hrr_push_out.restype = None
-                lib.hrr_limit_strain.argtypes = [d, c_int, c_int, c_int, d, d, d, c_int, c_double, c_double, c_int]
+                lib.hrr_limit_strain.argtypes = [d, d, c_int, c_int, c_int, d, d, c_double, d, d, d, c_int, c_double, c_double,
+                                                 c_int, d]
                 lib.hrr_limit_strain.restype = c_int
                 lib.hrr_factor_block.argtypes = [d, c_int, c_int, d, d, d, c_int, c_int, c_int, c_int, d, d, d, d, d,
                                                  c_float, c_float, c_int, c_int, d]
@@ -269,19 +270,21 @@ def push_out_frames(lib: ctypes.CDLL, points: np.ndarray, a: np.ndarray, b: np.n
     return p.astype(np.float32), before, after
 
 
-def limit_strain(lib: ctypes.CDLL, points: np.ndarray, edges: np.ndarray, limit: np.ndarray, degree: np.ndarray,
-                 iterations: int, tol: float, omega: float, threads: int = 1) -> np.ndarray:
-    """:func:`hrr_garment.inference.collision.limit_push_strain`'s Jacobi passes in the kernel:
-    points (T, V, 3), edges (E, 2), per-frame limits (T, E), vertex degrees (V,) -> the limited
-    points, float64 (T, V, 3). Frames in parallel; each stops on its own."""
-    p = np.array(points, np.float64, order="C")  # a copy: moved in place
-    e = np.ascontiguousarray(edges, np.int32)
-    lim = np.ascontiguousarray(limit, np.float64)
-    deg = np.ascontiguousarray(degree, np.float64)
-    if lib.hrr_limit_strain(p.ctypes.data, len(p), p.shape[1], len(e), e.ctypes.data, lim.ctypes.data, deg.ctypes.data,
-                            iterations, tol, omega, threads) != 0:
+def limit_strain(lib: ctypes.CDLL, pushed: np.ndarray, unpushed: np.ndarray, edge_arrays: tuple, max_strain: float,
+                 iterations: int, tol: float, omega: float, threads: int = 1) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`hrr_garment.inference.collision.limit_push_strain` in the kernel: pushed and unpushed
+    points (T, V, 3), ``edge_arrays`` (:attr:`~hrr_garment.inference.collision.EdgeLimits.native_arrays`)
+    -> (the limited points, float64 (T, V, 3); the (T,) mask of frames that had an edge over its
+    limit). Frames in parallel; each stops on its own."""
+    p = np.array(pushed, np.float64, order="C")  # a copy: moved in place
+    u = np.ascontiguousarray(unpushed, np.float64)
+    edges, rest, degree, ptr, idx = edge_arrays
+    torn = np.zeros(len(p), np.uint8)
+    if lib.hrr_limit_strain(p.ctypes.data, u.ctypes.data, len(p), p.shape[1], len(edges), edges.ctypes.data, rest.ctypes.data,
+                            max_strain, degree.ctypes.data, ptr.ctypes.data, idx.ctypes.data, iterations, tol, omega,
+                            threads, torn.ctypes.data) != 0:
         raise MemoryError("the native strain limit could not allocate its scratch memory")
-    return p
+    return p, torn.astype(bool)
 
 
 def forward_kinematics(lib: ctypes.CDLL, local_rot: np.ndarray, root_pos: np.ndarray, offsets: np.ndarray,
