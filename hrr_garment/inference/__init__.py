@@ -1,6 +1,7 @@
 """Hybrid inference: a motion in, an animated garment out (paper 3.5, DESIGN 7).
 
-Modules: :mod:`.animator` (the API: Animator, Animation, AnimationStream), :mod:`.modes`,
+Modules: :mod:`.animator` (the API: Animator, Animation), :mod:`.stream` (AnimationStream, and
+CrowdStream for many characters in one call), :mod:`.modes`,
 :mod:`.gate` (retrieval or regression per window), :mod:`.blending` (windows to frames,
 inertialization), :mod:`.decoding` (the mesh decoder, the denormal switch), :mod:`.collision`
 (push-out). The code-space step itself is :mod:`hrr_garment.models.codes`.
