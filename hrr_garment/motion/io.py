@@ -1,6 +1,6 @@
 """Loading any supported motion file as a canonical `Motion` at 30 fps, and saving motions.
 
-Formats: BVH (retargeted by joint names), AMASS-style npz (SMPL / SMPL-H / SMPL-X pose widths,
+Formats: BVH (retargeted by joint names: :mod:`.bvh_motion`), AMASS-style npz (SMPL / SMPL-H / SMPL-X pose widths,
 Z up), and the project's native npz. Files are never unpickled.
 """
 
@@ -13,27 +13,17 @@ import numpy as np
 
 from ..errors import MotionError
 from ..io_utils import atomic_path
-from .bvh import read_bvh
-from .joint_maps import load_joint_map, resolve_joint_map
+from .bvh_motion import PLAUSIBLE_HEIGHT_M, load_bvh
+from .joint_maps import load_joint_map
 from .limits import MAX_SOURCE_FPS, MIN_SOURCE_FPS, check_frame_budget, check_root_speed, max_npz_bytes
 from .motion import FPS, Motion
 from .resample import resample_linear, resample_rotations, resample_times
-from .retarget import (
-    SourceMotion,
-    check_source,
-    ground_align,
-    retarget,
-    standing_height_from_legs,
-)
+from .retarget import ground_align
 from .rotations import axis_angle_to_matrix, matrix_to_axis_angle
-from .skeleton import NUM_JOINTS, forward_kinematics, rest_positions
+from .skeleton import NUM_JOINTS
 
 NATIVE_FORMAT = "hrr_garment.motion"
 NATIVE_VERSION = 1
-
-# Known length units (metres per file unit), tried in this order when detecting from height.
-UNIT_SCALES = {"m": 1.0, "cm": 0.01, "mm": 0.001, "inch": 0.0254, "cmu": 0.0254 / 0.45, "dm": 0.1, "ft": 0.3048}
-PLAUSIBLE_HEIGHT_M = (1.2, 2.3)
 
 # Z-up (AMASS) to Y-up: rotate -90 degrees about X, so +Z becomes +Y and +Y becomes -Z.
 Z_UP_TO_Y_UP = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
@@ -147,50 +137,6 @@ def resample_motion(motion: Motion, fps: float = FPS, path: str | Path | None = 
         resample_linear(motion.root_translation.astype(np.float64), frames),
         fps, motion.source, motion.source_skeleton, motion.source_height_m,
     )
-
-
-# --- BVH -------------------------------------------------------------------------------------------
-
-
-def detect_unit_scale(rest: np.ndarray, mapping: dict[str, int], path: Path) -> float:
-    """Metres per file unit, from the standing height of the rest pose ``rest`` (file units)."""
-    height_units = standing_height_from_legs(rest, mapping)
-    lo, hi = PLAUSIBLE_HEIGHT_M
-    fits = [(abs(np.log(height_units * s / 1.7)), s) for s in UNIT_SCALES.values() if lo <= height_units * s <= hi]
-    if not fits:
-        raise MotionError(path, f"cannot detect the length unit: standing height is {height_units:.4g} file units, which is no plausible human height in {', '.join(UNIT_SCALES)}; pass --unit-scale (metres per file unit)")
-    return min(fits)[1]
-
-
-def load_bvh(path: Path, unit_scale: float | None = None, joint_map: dict | None = None, ground: bool = True, fps: float = FPS,
-             source_fps: float | None = None) -> Motion:
-    """A BVH file as canonical motion: retargeted, grounded and resampled."""
-    src, scheme, mapping, _ = bvh_source(path, unit_scale, joint_map, fps, source_fps)
-    local, root = retarget(src, mapping, ground=ground)
-    return Motion(local, root, fps, str(path), scheme, standing_height_from_legs(src.rest_positions, mapping))
-
-
-def bvh_source(path: Path, unit_scale: float | None = None, joint_map: dict | None = None, fps: float = FPS,
-               source_fps: float | None = None) -> tuple[SourceMotion, str, dict[str, int], float]:
-    """A BVH file on its own skeleton, in metres, resampled to ``fps``: (the motion, the naming
-    scheme, canonical joint name -> source joint index, metres per file unit)."""
-    clip = read_bvh(path)
-    scheme, mapping = resolve_joint_map(clip.names, str(path), joint_map)
-    rest = rest_positions(clip.offsets, clip.parents)
-    if unit_scale is None:
-        unit_scale = detect_unit_scale(rest, mapping, path)
-    elif not (np.isfinite(unit_scale) and unit_scale > 0):
-        raise MotionError(path, f"unit scale must be a positive number of metres per file unit, got {unit_scale}")
-    src_fps = source_fps or 1.0 / clip.frame_time
-    check_frame_budget(path, clip.num_frames, src_fps, fps)
-    frames = resample_times(clip.num_frames, src_fps, fps)
-    local_rot = resample_rotations(clip.local_rotations, frames)
-    local_trans = resample_linear(clip.local_translations, frames) * unit_scale
-    # Non-root translations: position channels hold the joint's parent-relative position.
-    g_rot, g_pos = forward_kinematics(local_rot, local_trans[:, 0], local_trans, clip.parents)
-    src = SourceMotion(clip.names, clip.parents, rest * unit_scale, g_rot, g_pos, src_fps, str(path))
-    check_source(src)
-    return src, scheme, mapping, unit_scale
 
 
 # --- AMASS -----------------------------------------------------------------------------------------

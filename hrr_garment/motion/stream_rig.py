@@ -24,7 +24,7 @@ import numpy as np
 
 from ..errors import MotionError
 from .bvh import read_bvh
-from .io import bvh_source
+from .bvh_motion import bvh_source
 from .motion import FPS, Motion
 from .poses import check_roots, rotations_to_matrices
 from .retarget import (
