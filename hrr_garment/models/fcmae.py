@@ -284,7 +284,7 @@ class FastDecoder(nn.Module):
             return self._torch_forward(latents)
         threads = torch.get_num_threads()
         if 1 < len(latents) < SINGLE_FRAME_BELOW:  # a few frames (a small crowd): one at a time is faster
-            return torch.cat([self.forward(latents[i:i + 1]).clone() for i in range(len(latents))])
+            return torch.cat([self.forward(latents[i:i + 1]) for i in range(len(latents))])  # each a fresh array
         if len(latents) == 1:  # one frame (streaming): the factored form reads far less memory
             x = np.ascontiguousarray(latents.detach()[0].to(torch.float32).numpy())
             if self._scratch is None:  # the largest transform product of any block, shared

@@ -80,22 +80,11 @@ def causal_features(motion: Motion) -> np.ndarray:
     return feats
 
 
-def pair_features(previous: Motion | None, current: Motion) -> np.ndarray:
-    """Features (124,) of the one-frame ``current`` given the frame before it (None at the start:
-    the frame is repeated, so velocities are zero)."""
-    before = current if previous is None else previous
-    if before.num_frames > 1:
-        before = before.slice(before.num_frames - 1, before.num_frames)
-    current.global_rotations  # noqa: B018 - computes (and caches) the pose's kinematics, reused by the pair and the next push
-    pair = Motion.concatenate([before, current]) if previous is not None else current
-    return causal_features(pair)[-1]
-
-
 def pair_features_batch(previous: list[tuple[np.ndarray, np.ndarray] | None], current: Motion) -> np.ndarray:
     """Features (N, 124) of each frame i of ``current`` given the pose before it, ``previous[i]``:
     its global rotations (22, 3, 3) and joint positions (22, 3), or None at a start (the frame
     repeated: zero velocities). The frames are independent (N characters' poses in one call);
-    row i equals :func:`pair_features` of that character's two frames."""
+    row i equals the last row of :func:`causal_features` of that character's two frames."""
     g_rot, g_pos = current.global_rotations, current.joint_positions
     n = current.num_frames
     if len(previous) != n:

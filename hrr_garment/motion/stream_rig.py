@@ -23,7 +23,6 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import MotionError
-from .bvh import read_bvh
 from .bvh_motion import bvh_source
 from .motion import FPS, Motion
 from .poses import check_roots, rotations_to_matrices
@@ -35,7 +34,7 @@ from .retarget import (
     retarget,
     standing_height_from_legs,
 )
-from .skeleton import forward_kinematics, rest_positions
+from .skeleton import forward_kinematics
 
 
 @dataclass(frozen=True)
@@ -59,14 +58,14 @@ class StreamRig:
         """The rig of a BVH file (its joint names resolved as :func:`~.io.load_motion` does, the
         unit detected unless given), calibrated on ``calibration_clip`` (default: the same file)."""
         path = Path(path)
-        clip = read_bvh(path)
-        src, scheme, mapping, scale = bvh_source(Path(calibration_clip or path), unit_scale, joint_map)
-        if list(src.names) != list(clip.names) or len(src.parents) != len(clip.parents):
+        rig, scheme, mapping, scale = bvh_source(path, unit_scale, joint_map)  # the skeleton and unit, read once
+        calibration = rig if calibration_clip is None else bvh_source(Path(calibration_clip), scale, joint_map)[0]
+        if list(calibration.names) != list(rig.names) or list(calibration.parents) != list(rig.parents):
             raise MotionError(calibration_clip, f"is not on the rig of {path}: its joints differ")
-        if calibration_clip is not None and unit_scale is None:  # the rig's own unit, not the clip's guess
-            scale = bvh_source(path, None, joint_map)[3]
-        return cls(list(clip.names), list(clip.parents), clip.offsets * scale, rest_positions(clip.offsets, clip.parents) * scale,
-                   mapping, scheme, scale, calibrate_retarget(src, mapping), str(path))
+        rest = rig.rest_positions  # metres; a joint's offset is its rest position less its parent's (the root's is unused)
+        offsets = rest - rest[[max(p, 0) for p in rig.parents]]
+        return cls(list(rig.names), list(rig.parents), offsets, rest, mapping, scheme, scale,
+                   calibrate_retarget(calibration, mapping), str(path))
 
     @property
     def num_joints(self) -> int:
