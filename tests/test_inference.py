@@ -289,7 +289,8 @@ def test_hrr_animate_explains_bad_models_and_outputs(trained, tmp_path, capsys, 
 
 def test_native_capsule_distance_equals_numpy(rng):
     from hrr_garment.body.capsules import DEFAULT_BODY, capsule_signed_distance
-    from hrr_garment.native import capsule_sdf, load_kernel
+    from hrr_garment.native import load_kernel
+    from hrr_garment.native.body import capsule_sdf
 
     lib = load_kernel()
     if lib is None:
@@ -322,7 +323,8 @@ def test_native_push_out_equals_numpy(rng):
     from hrr_garment.body.capsules import DEFAULT_BODY
     from hrr_garment.garment.templates import make_garment
     from hrr_garment.inference.collision import _push_frames, mean_operator
-    from hrr_garment.native import load_kernel, push_out_frames
+    from hrr_garment.native import load_kernel
+    from hrr_garment.native.body import push_out_frames
 
     lib = load_kernel()
     if lib is None:
@@ -430,7 +432,8 @@ def test_the_native_strain_limit_matches_the_numpy_reference():
         EdgeLimits,
         _limit_frames,
     )
-    from hrr_garment.native import limit_strain, load_kernel
+    from hrr_garment.native import load_kernel
+    from hrr_garment.native.body import limit_strain
 
     lib = load_kernel()
     if lib is None:

@@ -115,7 +115,8 @@ def frames_signed_distance(points: np.ndarray, a: np.ndarray, b: np.ndarray, rad
     """:func:`capsule_signed_distance` frame by frame: points (T, N, 3) against each frame's capsule
     ends a, b (T, C, 3) -> distances (T, N) and normals (T, N, 3). Runs in the native kernel of
     :mod:`hrr_garment.native` when it is compiled (equal to 1e-12, tested)."""
-    from ..native import capsule_sdf, default_threads, load_kernel
+    from ..native import default_threads, load_kernel
+    from ..native.body import capsule_sdf
 
     lib = load_kernel()
     if lib is not None:

@@ -94,7 +94,8 @@ def push_out(vertices: np.ndarray, motion: Motion, faces: np.ndarray, body: Body
     mean = mean_operator(faces, vertices.shape[1]) if mean is None else mean
     out = np.empty(vertices.shape, np.float32)
     before, after = np.zeros(len(out)), np.zeros(len(out))
-    from ..native import default_threads, load_kernel, push_out_frames
+    from ..native import default_threads, load_kernel
+    from ..native.body import push_out_frames
 
     lib = load_kernel()
     for start in range(0, len(out), chunk):
@@ -124,7 +125,8 @@ def limit_push_strain(pushed: np.ndarray, unpushed: np.ndarray, limits: EdgeLimi
     Why: where the capture drives a limb through the body (a hand in the belly), a vertex caught in
     both capsules is pushed out of the nearest surface, across the limb, while its neighbours stay:
     edges ten times their length (CMU 131_03), which no simulator would produce."""
-    from ..native import default_threads, limit_strain, load_kernel
+    from ..native import default_threads, load_kernel
+    from ..native.body import limit_strain
 
     lib = load_kernel()
     if lib is not None:  # the same in C: the limits, the torn frames and the passes, which measure only

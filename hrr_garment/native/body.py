@@ -1,0 +1,68 @@
+"""ctypes glue of the kernels that work against the capsule body: the signed distance of points
+to it, the collision push-out and the push-out's strain limit (``kernels.c``; library from
+:func:`hrr_garment.native.load_kernel`)."""
+
+from __future__ import annotations
+
+import ctypes
+
+import numpy as np
+
+MAX_CAPSULES = 64  # SDF_MAXC in kernels.c
+
+
+def _capsule_arrays(a: np.ndarray, b: np.ndarray, radii: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    if len(radii) > MAX_CAPSULES:
+        raise ValueError(f"the native capsule kernels handle up to {MAX_CAPSULES} capsules, not {len(radii)}")
+    return tuple(np.ascontiguousarray(x, np.float64) for x in (a, b, radii))
+
+
+def capsule_sdf(lib: ctypes.CDLL, points: np.ndarray, a: np.ndarray, b: np.ndarray, radii: np.ndarray,
+                threads: int = 1) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`hrr_garment.body.capsules.capsule_signed_distance` (distance, normal) in the kernel,
+    for points (T, N, 3) against per-frame capsules a, b (T, C, 3)."""
+    a, b, r = _capsule_arrays(a, b, radii)
+    p = np.ascontiguousarray(points, np.float64)
+    t, n = p.shape[:2]
+    dist, normal = np.empty((t, n)), np.empty((t, n, 3))
+    lib.hrr_capsule_sdf(p.ctypes.data, t, n, a.ctypes.data, b.ctypes.data, r.ctypes.data, len(r), threads, dist.ctypes.data,
+                        normal.ctypes.data)
+    return dist, normal
+
+
+def push_out_frames(lib: ctypes.CDLL, points: np.ndarray, a: np.ndarray, b: np.ndarray, radii: np.ndarray, mean,
+                    margin: float, smooth: int, rounds: int, depth: float, threads: int = 1
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`hrr_garment.inference.collision.push_out`'s per-frame steps in the kernel: points
+    (T, V, 3), capsule ends a, b (T, C, 3), ``mean`` the (V, V) CSR mean operator -> (pushed
+    points float32, fraction deeper than ``depth`` before (T,), after (T,)). Frames in parallel;
+    a single frame (streaming) shared by the threads."""
+    a, b, r = _capsule_arrays(a, b, radii)
+    p = np.array(points, np.float64, order="C")  # a copy: pushed in place
+    indptr, indices = (np.ascontiguousarray(x, np.int32) for x in (mean.indptr, mean.indices))
+    weights = np.ascontiguousarray(mean.data, np.float64)
+    t, v = p.shape[:2]
+    before, after = np.empty(t), np.empty(t)
+    lib.hrr_push_out(p.ctypes.data, t, v, a.ctypes.data, b.ctypes.data, r.ctypes.data, len(r), indptr.ctypes.data,
+                     indices.ctypes.data, weights.ctypes.data, margin, smooth, rounds, depth, threads, before.ctypes.data,
+                     after.ctypes.data)
+    if np.isnan(before).any():
+        raise MemoryError("the native push-out could not allocate its scratch memory")
+    return p.astype(np.float32), before, after
+
+
+def limit_strain(lib: ctypes.CDLL, pushed: np.ndarray, unpushed: np.ndarray, edge_arrays: tuple, max_strain: float,
+                 iterations: int, tol: float, omega: float, threads: int = 1) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`hrr_garment.inference.collision.limit_push_strain` in the kernel: pushed and unpushed
+    points (T, V, 3), ``edge_arrays`` (:attr:`~hrr_garment.inference.collision.EdgeLimits.native_arrays`)
+    -> (the limited points, float64 (T, V, 3); the (T,) mask of frames that had an edge over its
+    limit). Frames in parallel; each stops on its own."""
+    p = np.array(pushed, np.float64, order="C")  # a copy: moved in place
+    u = np.ascontiguousarray(unpushed, np.float64)
+    edges, rest, degree, ptr, idx = edge_arrays
+    torn = np.zeros(len(p), np.uint8)
+    if lib.hrr_limit_strain(p.ctypes.data, u.ctypes.data, len(p), p.shape[1], len(edges), edges.ctypes.data, rest.ctypes.data,
+                            max_strain, degree.ctypes.data, ptr.ctypes.data, idx.ctypes.data, iterations, tol, omega,
+                            threads, torn.ctypes.data) != 0:
+        raise MemoryError("the native strain limit could not allocate its scratch memory")
+    return p, torn.astype(bool)
