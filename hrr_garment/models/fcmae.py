@@ -11,13 +11,14 @@ by the training data's spread) to (B, N, 8) latents on the coarsest level; the d
 Tensors are vertex-major inside, (V, B, C): a gather then picks whole rows of B x C values, which
 keeps it (and its backward, an index_add) fast on the CPU; each layer is one batched matmul of
 (V, B, S * C_in) by per-vertex kernels (V, S * C_in, C_out). ``fast_decoder()`` precomputes those
-kernels for inference.
+kernels for inference (:mod:`.fast_decoder`).
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 import torch
@@ -26,6 +27,9 @@ from torch.nn import functional as F
 
 from ..settings import from_settings
 from .hierarchy import Hierarchy, Neighbourhoods
+
+if TYPE_CHECKING:
+    from .fast_decoder import FastDecoder
 
 
 @dataclass(frozen=True)
@@ -224,85 +228,7 @@ class MeshAutoencoder(nn.Module):
         return torch.cat(out) if out else torch.zeros(0, *self.latent_shape)
 
     def fast_decoder(self, native: bool | None = None) -> "FastDecoder":
+        """The inference-only form of :attr:`decoder` (:mod:`.fast_decoder`)."""
+        from .fast_decoder import FastDecoder
+
         return FastDecoder(self, native)
-
-
-# Batches smaller than this decode frame by frame through the single-frame path: the batched
-# path reads every per-vertex kernel once per call, which pays off from about a dozen frames (on 2
-# AMD EPYC cores at 4,156 vertices: one frame 1.8-3.0 ms; batches of 2-8 3.7-6.5 ms a frame,
-# of 16 2.2, of 64 1.5)
-SINGLE_FRAME_BELOW = 12
-
-
-class FastDecoder(nn.Module):
-    """Inference-only decoder: the same layers with each basis folded into per-vertex kernels and
-    each residual average's weights computed once. By default a call runs the fused C kernel of
-    :mod:`.native` (compiled on first use; about 5x faster on the CPU); without a C compiler, or
-    with ``native=False``, it runs the PyTorch blocks (gathers and batched matmuls). Both equal
-    ``MeshAutoencoder.decode`` up to float32 rounding."""
-
-    def __init__(self, model: MeshAutoencoder, native: bool | None = None, cache_dir=None):
-        super().__init__()
-        from .. import native as native_kernel
-
-        self.blocks = model.decoder
-        with torch.no_grad():
-            self.kernels = [b.conv.effective_kernel().detach().contiguous() for b in self.blocks]
-            self.weights = [b.residual.weights().detach() if b.residual.neighbours else None for b in self.blocks]
-        self.template, self.scale = model.template, model.scale
-        self._template_np = model.template.detach().numpy().astype(np.float32)  # the single-frame path's
-        self._scratch: np.ndarray | None = None
-        self.lib = native_kernel.load_kernel(cache_dir) if native is not False else None
-        if native and self.lib is None:
-            raise RuntimeError("the native decoder kernel could not be compiled (is a C compiler installed?)")
-        self.native_blocks = [] if self.lib is None else [
-            native_kernel.NativeBlock(b.conv.index.numpy(), b.conv.mask.numpy(), k.numpy(), b.conv.bias.detach().numpy(),
-                                      None if w is None else w.numpy(),
-                                      None if b.residual.project is None else b.residual.project.weight.detach().T.numpy(),
-                                      b.a, b.b, b.activation)
-            for b, k, w in zip(self.blocks, self.kernels, self.weights)]
-        with torch.no_grad():
-            for nb, b in zip(self.native_blocks, self.blocks):
-                nb.set_factored((b.conv.coeff * b.conv.mask.unsqueeze(-1)).numpy(), b.conv.weight.detach().numpy(),
-                                b.conv.mask.numpy(),
-                                None if b.residual.project is None else b.residual.project.weight.detach().T.numpy())
-
-    @property
-    def native(self) -> bool:
-        return bool(self.native_blocks)
-
-    def compiled(self):
-        """The PyTorch path through torch.compile (Inductor fuses the gathers with the layout
-        copies): about 1.9x faster than the plain PyTorch path, slower than the native kernel;
-        the first call per batch shape compiles for about a minute."""
-        return torch.compile(self._torch_forward, dynamic=False)
-
-    @torch.no_grad()
-    def forward(self, latents: torch.Tensor) -> torch.Tensor:
-        """(B, N, 8) latents -> (B, V, 3) heading-frame vertices."""
-        if not self.native_blocks:
-            return self._torch_forward(latents)
-        threads = torch.get_num_threads()
-        if 1 < len(latents) < SINGLE_FRAME_BELOW:  # a few frames (a small crowd): one at a time is faster
-            return torch.cat([self.forward(latents[i:i + 1]) for i in range(len(latents))])  # each a fresh array
-        if len(latents) == 1:  # one frame (streaming): the factored form reads far less memory
-            x = np.ascontiguousarray(latents.detach()[0].to(torch.float32).numpy())
-            if self._scratch is None:  # the largest transform product of any block, shared
-                sizes = [len(x)] + [b.vertices for b in self.native_blocks[:-1]]
-                self._scratch = np.empty(max(n * b.factored[0] for n, b in zip(sizes, self.native_blocks)), np.float32)
-            for block in self.native_blocks:
-                x = block.one(self.lib, x, threads, self._scratch)
-            # numpy, not torch, for the last step: PyTorch's per-operator overhead is a tenth of a
-            # millisecond here
-            return torch.from_numpy((x * np.float32(self.scale) + self._template_np)[None])
-        x = np.ascontiguousarray(latents.detach().to(torch.float32).transpose(0, 1).numpy())
-        for block in self.native_blocks:
-            x = block(self.lib, x, threads)
-        return torch.from_numpy(x).transpose(0, 1) * self.scale + self.template
-
-    @torch.no_grad()
-    def _torch_forward(self, latents: torch.Tensor) -> torch.Tensor:
-        x = latents.transpose(0, 1)
-        for block, kernel, weights in zip(self.blocks, self.kernels, self.weights):
-            x = block(x, kernel, weights)
-        return x.transpose(0, 1) * self.scale + self.template
