@@ -17,9 +17,10 @@ from .bvh_motion import PLAUSIBLE_HEIGHT_M, load_bvh
 from .joint_maps import load_joint_map
 from .limits import MAX_SOURCE_FPS, MIN_SOURCE_FPS, check_frame_budget, check_root_speed, max_npz_bytes
 from .motion import FPS, Motion
+from .poses import ROTATION_TOLERANCE
 from .resample import resample_linear, resample_rotations, resample_times
 from .retarget import ground_align
-from .rotations import axis_angle_to_matrix, matrix_to_axis_angle
+from .rotations import axis_angle_to_matrix, matrix_to_axis_angle, rotation_matrix_error
 from .skeleton import NUM_JOINTS
 
 NATIVE_FORMAT = "hrr_garment.motion"
@@ -31,7 +32,6 @@ AMASS_WIDTHS = {72: "smpl", 156: "smplh", 165: "smplx"}
 NPZ_KINDS = "biufUS"  # dtype kinds an npz may hold: numbers and strings (bool only where it is read as such)
 MAX_AXIS_ANGLE = 8 * np.pi  # radians: AMASS poses stay near pi; more is a scaled or corrupt file
 MAX_TRANSLATION_M = 1.0e4
-ROTATION_TOLERANCE = 1e-3  # how far a stored rotation matrix may be from orthonormal
 
 
 def load_motion(
@@ -229,8 +229,7 @@ def _native_from_arrays(data: dict[str, np.ndarray], path: Path) -> Motion:
     if rot.shape[0] == 0:
         raise MotionError(path, "the motion has no frames")
     # rotations, not any 3 x 3: orthonormal with determinant +1 (no zeros, scales or reflections)
-    error = np.abs(np.einsum("...ji,...jk->...ik", rot, rot) - np.eye(3)).max(axis=(-2, -1))
-    error = np.maximum(error, np.abs(np.linalg.det(rot) - 1.0))
+    error = rotation_matrix_error(rot)
     if (error > ROTATION_TOLERANCE).any():
         frame, joint = np.unravel_index(int(np.argmax(error)), error.shape)
         raise MotionError(path, f"local_rotations[{frame}, {joint}] is not a rotation matrix (off by {error.max():.3g})")

@@ -18,10 +18,11 @@ import numpy as np
 
 from ..errors import MotionError
 from .motion import FPS, Motion
-from .rotations import axis_angle_to_matrix, quat_to_matrix
+from .rotations import axis_angle_to_matrix, quat_to_matrix, rotation_matrix_error
 from .skeleton import CANONICAL
 
 QUATERNION_ORDERS = ("xyzw", "wxyz")
+ROTATION_TOLERANCE = 1e-3  # how far a given rotation matrix may be from one (rotation_matrix_error)
 
 
 def rotations_to_matrices(rotations: np.ndarray, joints: int, quaternion_order: str = "xyzw",
@@ -46,9 +47,9 @@ def rotations_to_matrices(rotations: np.ndarray, joints: int, quaternion_order: 
         return quat_to_matrix(wxyz)
     if r.shape[2:] == (3,):
         return axis_angle_to_matrix(r)
-    error = np.abs(r @ np.swapaxes(r, -1, -2) - np.eye(3)).max((-2, -1))
-    if (error > 1e-3).any() or (np.linalg.det(r) < 0).any():
-        bad = np.argwhere((error > 1e-3) | (np.linalg.det(r) < 0))[0]
+    error = rotation_matrix_error(r)
+    if (error > ROTATION_TOLERANCE).any():
+        bad = np.argwhere(error > ROTATION_TOLERANCE)[0]
         raise MotionError(source, f"the matrix of pose {bad[0]}, joint {bad[1]} is not a rotation")
     return r
 

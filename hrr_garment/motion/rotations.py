@@ -238,6 +238,13 @@ def matrix_to_euler(m: np.ndarray, order: str) -> np.ndarray:
     return Rotation.from_matrix(m.reshape(-1, 3, 3)).as_euler(order.upper(), degrees=True).reshape(*shape, 3)
 
 
+def rotation_matrix_error(m: np.ndarray) -> np.ndarray:
+    """How far (..., 3, 3) matrices are from rotations: the larger of max |M^T M - I| and
+    |det M - 1| (0 for a rotation; zeros, scales and reflections score high), shape (...)."""
+    error = np.abs(np.einsum("...ji,...jk->...ik", m, m) - np.eye(3)).max(axis=(-2, -1))
+    return np.maximum(error, np.abs(np.linalg.det(m) - 1.0))
+
+
 def rotation_about_y(yaw: np.ndarray) -> np.ndarray:
     """(...,) yaw angles in radians -> (..., 3, 3) rotations about +Y."""
     c, s = np.cos(yaw), np.sin(yaw)
