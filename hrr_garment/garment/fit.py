@@ -27,7 +27,7 @@ import numpy as np
 
 from ..body.capsules import DEFAULT_BODY, BodyModel, capsule_signed_distance
 from .attachment import TORSO_JOINTS
-from .mesh import GarmentError
+from .mesh import GarmentError, boundary_edges, edge_components
 
 UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001, "in": 0.0254}
 GARMENT_SIZE_M = (0.2, 2.2)  # largest extent of any plausible garment
@@ -76,18 +76,10 @@ def _rotation_to_y(axis: int, sign: float) -> np.ndarray:
 def hem_loop(vertices: np.ndarray, faces: np.ndarray, source: str = "garment") -> np.ndarray:
     """Vertex indices of the hem: the mesh's longest open boundary loop (a skirt or dress is a tube
     open at the hem; the waist, neck and arm openings are shorter)."""
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
-
-    from .mesh import _directed_edge_counts
-
-    edges, counts, _ = _directed_edge_counts(np.asarray(faces))
-    open_edges = edges[counts == 1]
+    open_edges = boundary_edges(faces)
     if not len(open_edges):
         raise GarmentError(source, "the mesh has no open boundary (no hem): give its up axis with --up")
-    n = len(vertices)
-    graph = coo_matrix((np.ones(len(open_edges)), (open_edges[:, 0], open_edges[:, 1])), shape=(n, n))
-    labels = connected_components(graph, directed=False)[1][open_edges[:, 0]]
+    labels = edge_components(len(vertices), open_edges)[open_edges[:, 0]]
     length = np.linalg.norm(vertices[open_edges[:, 1]] - vertices[open_edges[:, 0]], axis=1)
     return np.unique(open_edges[labels == np.argmax(np.bincount(labels, weights=length))])
 

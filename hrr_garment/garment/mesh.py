@@ -91,9 +91,20 @@ def _directed_edge_counts(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray, np
 
 def components(num_vertices: int, faces: np.ndarray) -> np.ndarray:
     """Connected-component label per vertex (vertices in no face get their own components)."""
-    e = unique_edges(faces)
-    graph = coo_matrix((np.ones(len(e)), (e[:, 0], e[:, 1])), shape=(num_vertices, num_vertices))
+    return edge_components(num_vertices, unique_edges(faces))
+
+
+def edge_components(num_vertices: int, edges: np.ndarray) -> np.ndarray:
+    """Connected-component label per vertex of the graph of ``edges`` (E, 2) (a vertex on no edge
+    is its own component)."""
+    graph = coo_matrix((np.ones(len(edges)), (edges[:, 0], edges[:, 1])), shape=(num_vertices, num_vertices))
     return connected_components(graph, directed=False)[1]
+
+
+def boundary_edges(faces: np.ndarray) -> np.ndarray:
+    """The (E, 2) edges used by one face only: the mesh's open boundary (i < j)."""
+    edges, counts, _ = _directed_edge_counts(np.asarray(faces))
+    return edges[counts == 1]
 
 
 def check_garment(mesh: GarmentMesh, min_area: float = 1e-10) -> None:
