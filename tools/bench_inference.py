@@ -42,7 +42,7 @@ from hrr_garment.inference.animator import Animator
 from hrr_garment.models.codespace import CodeSpace, CodeSpaceConfig
 from hrr_garment.models.fcmae import AutoencoderConfig, MeshAutoencoder
 from hrr_garment.models.hierarchy import build_hierarchy
-from hrr_garment.motion.features import FEATURE_DIM, FeatureStats
+from hrr_garment.motion.features import FeatureStats
 from hrr_garment.motion.io import load_motion
 from hrr_garment.motion.synth import synthesize
 
@@ -54,14 +54,14 @@ def random_bundle(vertices: int, windows: int, seed: int = 0) -> Bundle:
     ae = MeshAutoencoder(build_hierarchy(garment.faces, garment.num_vertices), AutoencoderConfig(), garment.vertices,
                          0.02).eval()
     cfg = CodeSpaceConfig()
-    cs = CodeSpace(cfg, FEATURE_DIM, ae.latent_shape).eval()
+    cs = CodeSpace(cfg, cfg.features, ae.latent_shape).eval()
     size = ae.latent_shape[0] * ae.latent_shape[1]
     db = CodeDatabase(rng.integers(0, cfg.classes, (windows, cfg.groups)),
                       rng.normal(size=(windows, cfg.window, *ae.latent_shape)).astype(np.float32),
                       np.arange(windows) // 111, np.arange(windows) % 111, [f"s{i}" for i in range(windows // 111 + 1)],
-                      cfg.classes, rng.normal(size=(windows, cfg.window, FEATURE_DIM)).astype(np.float32))
+                      cfg.classes, rng.normal(size=(windows, cfg.window, cfg.features)).astype(np.float32))
     meta = {"tau": 1.0, "garment": "dress", "content_hash": "random"}
-    return Bundle(Path("."), meta, ae, cs, FeatureStats(np.zeros(FEATURE_DIM, np.float32), np.ones(FEATURE_DIM, np.float32)),
+    return Bundle(Path("."), meta, ae, cs, FeatureStats(np.zeros(cfg.features, np.float32), np.ones(cfg.features, np.float32)),
                   FeatureStats(np.zeros(size, np.float32), np.ones(size, np.float32)), db, garment)
 
 
@@ -76,9 +76,11 @@ def _median_entropy_tau(bundle: Bundle, motion) -> float:
     """A tau at the median window entropy: about half the windows retrieve."""
     from hrr_garment.models.codes import encode_motion
     from hrr_garment.motion.features import motion_features
+    from hrr_garment.motion.memory import with_memory
     from hrr_garment.motion.windows import windows as feature_windows
 
-    windows = np.ascontiguousarray(feature_windows(motion_features(motion), bundle.codespace.config.window))
+    feats = with_memory(motion_features(motion), motion.fps, bundle.codespace.config.memory_seconds)
+    windows = np.ascontiguousarray(feature_windows(feats, bundle.codespace.config.window))
     entropy = encode_motion(bundle.codespace, bundle.motion_stats, bundle.latent_stats, windows, regression=False).entropy
     return float(np.quantile(entropy, 0.5, method="lower"))
 

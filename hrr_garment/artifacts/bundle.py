@@ -41,7 +41,7 @@ from ..models.codespace import CodeSpace, CodeSpaceConfig
 from ..models.direct import DirectConfig, DirectRegressor
 from ..models.fcmae import AutoencoderConfig, MeshAutoencoder
 from ..models.hierarchy import cached_hierarchy
-from ..motion.features import FEATURE_DIM, FeatureStats
+from ..motion.features import FeatureStats
 from .database import CodeDatabase
 
 FORMAT_VERSION = 2  # 2: garments in the pelvis-following body frame (motion/frame.py)
@@ -248,13 +248,14 @@ def load_bundle(folder: str | Path, cache_dir: Path | None = None) -> Bundle:
     meta = read_meta(folder)
     try:
         ae_cfg = AutoencoderConfig.from_dict(meta["autoencoder"]["config"])
-        cs_cfg = CodeSpaceConfig.from_dict(meta["codespace"]["config"])
+        # bundles written before the motion memory (2026-11-24) have none
+        cs_cfg = CodeSpaceConfig.from_dict({"memory_seconds": [], **meta["codespace"]["config"]})
         features = int(meta["codespace"]["features"])
         latent_shape = tuple(meta["codespace"]["latent_shape"])
     except (KeyError, TypeError, ValueError) as exc:
         raise BundleError(folder, f"bundle.json has a bad or missing entry ({exc})") from None
-    if features != FEATURE_DIM:
-        raise BundleError(folder, f"the model was trained on {features} motion features; this hrr_garment computes {FEATURE_DIM}")
+    if features != cs_cfg.features:
+        raise BundleError(folder, f"the model was trained on {features} motion features; its settings give {cs_cfg.features}")
     t = _arrays(folder, "template.safetensors", ("vertices", "faces", "attached"))
     groups = {k.split("/", 1)[1]: v for k, v in t.items() if k.startswith("group/")}  # none in bundles before 2026-11-24
     template = GarmentMesh(str(meta["garment"]), t["vertices"], t["faces"], {**groups, "attached": t["attached"]}, ("attached",))

@@ -6,11 +6,13 @@ Statistics for standardising both sides are fitted on the training split's frame
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
 from ..motion.features import FeatureStats, motion_features
+from ..motion.memory import with_memory
 from ..motion.windows import sequence_windows, windows
 
 
@@ -50,9 +52,14 @@ def build_windows(features: dict[str, np.ndarray], latents: dict[str, np.ndarray
                      np.concatenate(seq), np.concatenate(start), list(names))
 
 
-def dataset_features(dataset, names: list[str]) -> dict[str, np.ndarray]:
-    """Motion features (T, 124) of each named sequence of a :class:`GarmentDataset`."""
-    return {name: motion_features(dataset.sequence(name).motion) for name in names}
+def dataset_features(dataset, names: list[str], memory_seconds: Sequence[float]) -> dict[str, np.ndarray]:
+    """Motion features (T, 124 + memory) of each named sequence of a :class:`GarmentDataset`, with
+    the motion memory of ``memory_seconds`` (:mod:`hrr_garment.motion.memory`)."""
+    out = {}
+    for name in names:
+        motion = dataset.sequence(name).motion
+        out[name] = with_memory(motion_features(motion), motion.fps, memory_seconds)
+    return out
 
 
 def fit_stats(features: dict[str, np.ndarray], latents: dict[str, np.ndarray], names: list[str]) -> tuple[FeatureStats, FeatureStats]:

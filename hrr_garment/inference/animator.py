@@ -26,6 +26,7 @@ from ..errors import InputError, MotionError
 from ..models.native_codes import native_window_codes
 from ..motion.features import causal_features, motion_features
 from ..motion.frame import from_body_frame
+from ..motion.memory import with_memory
 from ..motion.motion import Motion
 from ..motion.windows import causal_windows, sequence_windows
 from ..paths import workspace
@@ -155,12 +156,12 @@ class Animator:
             source = np.full((t_frames, 2), -1, np.int32)
         else:
             if causal:
-                feats = causal_windows(causal_features(motion), w)
+                feats = causal_windows(self.features(motion, causal=True), w)
                 choice = self._choose(feats, mode, tau, exclude_sequence, last_frame=True)
                 latents = causal_latents(choice, self.blend)
                 per_frame = np.arange(t_frames)
             else:
-                feats = motion_features(motion) if t_frames > 1 else causal_features(motion)  # one frame: no velocity
+                feats = self.features(motion)
                 if t_frames < w:  # shorter than one window: pad with the last frame, keep the first T outputs
                     feats = np.concatenate([feats, np.repeat(feats[-1:], w - t_frames, 0)])
                 windows = np.ascontiguousarray(sequence_windows(feats, w))
@@ -183,10 +184,16 @@ class Animator:
         """(T, nodes, C) latents of the direct-regression baseline (causal: a GRU over the clip)."""
         if self.bundle.direct is None:
             raise InputError(self.bundle.folder, "has no direct-regression baseline: train it with hrr-train --stage baseline")
-        feats = motion_features(motion) if motion.num_frames > 1 else causal_features(motion)
+        feats = self.features(motion)
         with torch.no_grad():
             z = self.bundle.direct(torch.from_numpy(self.bundle.motion_stats.normalize(feats).astype(np.float32))[None])[0]
         return self.bundle.latent_stats.denormalize(z.numpy()).reshape(len(feats), *self.bundle.autoencoder.latent_shape)
+
+    def features(self, motion: Motion, causal: bool = False) -> np.ndarray:
+        """The model's per-frame motion features (T, F) of a clip: the plain ones, offline or as a
+        stream sees them (``causal``), with the motion memory the model was trained with."""
+        plain = causal_features(motion) if causal or motion.num_frames < 2 else motion_features(motion)  # one frame: no velocity
+        return with_memory(plain, motion.fps, self.bundle.codespace.config.memory_seconds)
 
     def _choose(self, windows: np.ndarray, mode: str, tau: float, exclude_sequence: int | None, last_frame: bool = False):
         exclude = None if exclude_sequence is None else np.full(len(windows), exclude_sequence)

@@ -6,8 +6,8 @@
         vertices = crowd.push(rotations, roots, keys)     # (N, J, 4) quaternions, (N, 3) -> (N, V, 3)
     crowd.leave("npc_7")                                  # a character that left the scene
 
-Each character keeps its own state: its last pose, its last W feature frames and its
-inertialization. A push runs every stage once for all the characters in it: the features, the
+Each character keeps its own state: its last pose, its motion memory, its last W feature frames
+and its inertialization. A push runs every stage once for all the characters in it: the features, the
 window step (motion encoder, gate, code-space decoder), the mesh decoder and the collision
 push-out, each batched through the native kernels. So N characters pushed together give what
 each gives pushed alone (tested), and a character's output is frame t of
@@ -34,6 +34,7 @@ from ..errors import InputError
 from ..models.codes import traced_window_codes
 from ..motion.features import pair_features_batch
 from ..motion.frame import from_body_frame
+from ..motion.memory import MEMORY_WIDTH, MotionMemory
 from ..motion.motion import Motion
 from ..motion.poses import poses_to_motion
 from .blending import Inertializer, source_id
@@ -52,6 +53,7 @@ class _Character:
     features: deque
     inertializer: Inertializer
     previous: tuple[np.ndarray, np.ndarray] | None = None  # its last pose: global rotations and joint positions
+    memory: np.ndarray | None = None  # its motion memory's state (k, 64), when the model has one
     frames: int = 0
 
 
@@ -123,12 +125,29 @@ class CrowdStream:
         self.timings.latency_s.append(time.perf_counter() - t0)
         return vertices
 
+    def _with_memory(self, chars: list[_Character], features: np.ndarray, fps: float) -> np.ndarray:
+        """The pushed frame's features (N, 124) with each character's motion memory, carried one
+        frame on (:mod:`hrr_garment.motion.memory`), as offline causal computes it over the clip."""
+        seconds = self.animator.bundle.codespace.config.memory_seconds
+        if not seconds:
+            return features
+        memory = MotionMemory(seconds, fps)
+        fresh = np.array([c.memory is None for c in chars])
+        state = np.empty((len(chars), len(seconds), MEMORY_WIDTH))
+        if fresh.any():
+            state[fresh] = memory.start(features[fresh])
+        if not fresh.all():
+            state[~fresh] = memory.step(np.stack([c.memory for c in chars if c.memory is not None]), features[~fresh])
+        for c, s in zip(chars, state):
+            c.memory = s
+        return np.concatenate([features, memory.values(state)], 1)
+
     def _step_frame(self, keys: list, poses: Motion) -> np.ndarray:
         t = [time.perf_counter()]
         window = self.animator.window
         chars = [self._characters.setdefault(k, _Character(deque(maxlen=window), Inertializer(self.animator.blend)))
                  for k in keys]
-        features = pair_features_batch([c.previous for c in chars], poses)
+        features = self._with_memory(chars, pair_features_batch([c.previous for c in chars], poses), poses.fps)
         for c, feat in zip(chars, features):
             if not c.features:  # the first frame repeated before the start, as offline causal
                 c.features.extend([feat] * (window - 1))

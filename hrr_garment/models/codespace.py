@@ -18,6 +18,7 @@ from dataclasses import asdict, dataclass
 import torch
 from torch import nn
 
+from ..motion.memory import check_memory_seconds, feature_width
 from ..settings import from_settings
 from .quantizer import GumbelQuantizer
 
@@ -34,6 +35,15 @@ class CodeSpaceConfig:
     motion_hidden: int = 256  # GRU and attention width
     attention_heads: int = 4
     dropout: float = 0.0  # after each hidden layer of the garment encoder and the decoder
+    memory_seconds: tuple[float, ...] = (0.5, 1.5)  # motion memory's time constants (motion.memory); () for none
+
+    def __post_init__(self):
+        object.__setattr__(self, "memory_seconds", check_memory_seconds(self.memory_seconds))
+
+    @property
+    def features(self) -> int:
+        """Motion features per frame: the 124 plain ones and the memory's."""
+        return feature_width(self.memory_seconds)
 
     @classmethod
     def from_dict(cls, values: dict) -> "CodeSpaceConfig":

@@ -26,7 +26,6 @@ from ..data.dataset import DatasetError, GarmentDataset
 from ..data.windows import dataset_features
 from ..io_utils import atomic_write_text, strict_json
 from ..models.direct import DirectConfig, DirectRegressor
-from ..motion.features import FEATURE_DIM
 from ..settings import from_settings
 from .autoencoder import body_frames
 from .checkpoint import keep_if_best, load_checkpoint, resume_log, save_checkpoint
@@ -142,11 +141,11 @@ def run_baseline_stage(dataset: str | Path, folder: str | Path, config: DirectCo
     with np.load(folder / "autoencoder" / "latents.npz", allow_pickle=False) as f:
         latents = {name: f[name] for name in ds.names}
     names = {k: ds.splits[k] for k in ("train", "val")}
-    features = dataset_features(ds, names["train"] + names["val"])
+    features = dataset_features(ds, names["train"] + names["val"], bundle.codespace.config.memory_seconds)
     train = _sequences(features, latents, names["train"], bundle)
     val = _sequences(features, latents, names["val"], bundle)
     torch.manual_seed(train_config.seed)
-    model = DirectRegressor(config, FEATURE_DIM, bundle.autoencoder.latent_shape)
+    model = DirectRegressor(config, bundle.codespace.features, bundle.autoencoder.latent_shape)
     state = train_direct(model, train, val, folder / "baseline", train_config, key, progress)
     val_mm = validation_pve_mm(model, bundle, val[0], body_frames(ds, names["val"]))
     entry = {"key": key, "config": config.to_dict(), "train": asdict(train_config), "epochs": state["epoch"],

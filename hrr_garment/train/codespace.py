@@ -26,7 +26,6 @@ from ..data.dataset import DatasetError, GarmentDataset
 from ..data.windows import build_windows, dataset_features, fit_stats
 from ..io_utils import atomic_write_text, strict_json
 from ..models.codespace import CodeSpace, CodeSpaceConfig
-from ..motion.features import FEATURE_DIM
 from .autoencoder import body_frames, load_autoencoder, refine_settings
 from .calibrate import evaluate_modes
 from .codespace_training import CodeSpaceTrainConfig, WindowTensors, evaluate, train_codespace
@@ -118,7 +117,7 @@ def run_codespace_stage(dataset: str | Path, folder: str | Path, config: CodeSpa
     # windows of both splits, standardised with the training split's statistics
     autoencoder = load_autoencoder(ae_folder, ds.template.faces, cache_dir)
     splits = {k: ds.splits[k] for k in ("train", "val")}
-    features = dataset_features(ds, splits["train"] + splits["val"])
+    features = dataset_features(ds, splits["train"] + splits["val"], config.memory_seconds)
     motion_stats, latent_stats = fit_stats(features, latents, splits["train"])
     train_w = build_windows(features, latents, splits["train"], config.window)
     val_w = build_windows(features, latents, splits["val"], config.window)
@@ -126,7 +125,7 @@ def run_codespace_stage(dataset: str | Path, folder: str | Path, config: CodeSpa
     val_t = WindowTensors.of(val_w, motion_stats, latent_stats)
 
     torch.manual_seed(train_config.seed)
-    model = CodeSpace(config, FEATURE_DIM, autoencoder.latent_shape)
+    model = CodeSpace(config, config.features, autoencoder.latent_shape)
     summary = train_codespace(model, train_t, val_t, stage, train_config, key, progress)
 
     # the database of every training window's garment code, then tau on the validation split
