@@ -69,6 +69,25 @@ def test_split_is_by_sequence_seeded_and_complete():
     assert split_names(names, 0.1, 0.1, seed=1) != a
 
 
+
+@pytest.mark.parametrize("seed", range(6))
+def test_split_by_kind_holds_out_only_kinds_that_also_train(seed):
+    """The quick preset's procedural clips: every held-out clip's kind keeps a training clip, and
+    the split still has its sizes; single-clip kinds all train."""
+    from hrr_garment.sim.plan import build_options, load_preset, plan_sequences
+
+    preset = load_preset("quick")
+    specs = plan_sequences(preset)
+    kinds = build_options(preset, specs)["kinds"]
+    split = split_names(list(kinds), 0.1, 0.1, seed, kinds)
+    assert sorted(sum(split.values(), [])) == sorted(kinds) and (len(split["val"]), len(split["test"])) == (2, 5)
+    trained = {kinds[n] for n in split["train"]}
+    assert {kinds[n] for n in split["test"] + split["val"]} <= trained
+    assert {k for k, n in preset.sequences.items() if n == 1} <= trained
+    # where too few kinds repeat, the rest are held out as without kinds (sizes first)
+    few = {"a_0": "a", "a_1": "a", "b_0": "b", "c_0": "c", "d_0": "d", "e_0": "e", "f_0": "f"}
+    assert len(split_names(list(few), 0.1, 0.3, seed, few)["test"]) == 2
+
 def test_dataset_file_round_trip(tmp_path):
     garment = make_garment("skirt", 200)
     clip = synthesize("walk", 1.0, seed=0)

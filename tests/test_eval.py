@@ -117,6 +117,11 @@ def test_hrr_eval_refuses_bad_input(trained, tmp_path, capsys):
     assert "baseline" in capsys.readouterr().err
     with pytest.raises(SystemExit):
         main(["--model", str(root / "model"), "--modes", "bogus"])
+    # a motion pattern the shell left unexpanded fails at once, not after the evaluation
+    assert main(["--model", str(root / "model"), "--dataset", str(data), "--motions", str(tmp_path / "*.bvh"),
+                 "-o", str(tmp_path / "x")]) == 2
+    captured = capsys.readouterr()
+    assert "*.bvh" in captured.err and "unquoted" in captured.err and "evaluating" not in captured.out
     assert not (tmp_path / "x").exists()
 
 

@@ -97,6 +97,10 @@ def _main(argv: Sequence[str] | None) -> int:
 
     if (args.garment is None) == (args.model is None):
         raise InputError("hrr-eval", "give exactly one of --garment NAME or --model DIR")
+    for f in args.motions or []:  # before minutes of evaluation, not after them
+        if not Path(f).is_file():
+            raise InputError(f, "no such motion file" + (" (a pattern the shell did not expand: leave it unquoted)"
+                                                         if any(c in f for c in "*?[") else ""))
     t0 = time.perf_counter()
     model_dir = find_model(args.model or args.garment)
     animator = Animator.load(model_dir)
@@ -184,9 +188,6 @@ def _real_motion(animator, ds, files: list[str], modes: list[str], tau: float, c
     from ..sim.plan import load_preset, plan_sequences
     from ..sim.simulator import SimConfig
 
-    for f in files:
-        if not Path(f).is_file():
-            raise InputError(f, "no such motion file")
     specs = plan_sequences(load_preset(str(ds.info.get("preset", "quick"))), motions=list(files), source_fps=source_fps)
     config = SimConfig.from_dict(ds.info.get("sim", {}))
     path = workspace() / "eval" / f"{ds.path.stem}-real-motion.h5"

@@ -18,6 +18,7 @@ Layout (format_version 1; documented in docs/dataset.md)::
 from __future__ import annotations
 
 import json
+from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -58,15 +59,29 @@ def test_size(total: int, fraction: float, minimum: int = MIN_TEST) -> int:
     return max(1, int(round(fraction * total)), min(minimum, total // 3))
 
 
-def split_names(names: list[str], val: float, test: float, seed: int) -> dict[str, list[str]]:
+def split_names(names: list[str], val: float, test: float, seed: int,
+                kinds: dict[str, str] | None = None) -> dict[str, list[str]]:
     """Seeded split by sequence; with three or more sequences val and test get at least one each,
-    and test at least :data:`MIN_TEST` where the data allows (:func:`test_size`)."""
+    and test at least :data:`MIN_TEST` where the data allows (:func:`test_size`).
+
+    ``kinds`` (sequence name -> motion kind, procedural clips) makes the held-out splits in
+    distribution: a clip is held out only while its kind keeps a clip in training, so every test
+    and validation clip is of a kind the model trained on (a kind with one clip trains). Where
+    that leaves too few to hold out, the rest are drawn as without kinds."""
     order = sorted(names)
     rng = np.random.default_rng(seed)
     rng.shuffle(order)
     n = len(order)
     n_val = max(1, int(round(val * n))) if n >= 3 and val > 0 else 0
     n_test = test_size(n, test)
+    if kinds:
+        training = Counter(kinds.get(name, name) for name in order)
+        held = []
+        for name in order:
+            if len(held) < n_val + n_test and training[kinds.get(name, name)] > 1:
+                held.append(name)
+                training[kinds.get(name, name)] -= 1
+        order = held + [name for name in order if name not in held]
     return {"val": sorted(order[:n_val]), "test": sorted(order[n_val:n_val + n_test]),
             "train": sorted(order[n_val + n_test:])}
 

@@ -8,10 +8,10 @@
    operations (about 190 small operator calls, 1.6-3 ms) on 15 MFLOP of arithmetic.
 
    Threads: window_codes shares its work among the threads of the innermost parallel region
-   (orphaned worksharing: dense tiles, rows, heads and groups), so a stream's single window uses
-   the whole team; a batch runs each window alone in a one-thread region inside its thread. Every
-   value is computed by one thread in one fixed order either way, so a stream and an offline causal
-   batch give the same bits. */
+   (orphaned worksharing: dense tiles, rows, heads and groups) and runs a batch of windows in
+   lockstep, each layer once for all of them. Every value is computed by one thread in one fixed
+   order, the same for a window alone or in a batch, so a stream and an offline causal batch give
+   the same bits. */
 
 #include "hrr_native.h"
 
@@ -67,21 +67,23 @@ static void layer_norm(float *X, int n, int H, const float *w, const float *b, f
     }
 }
 
-/* Multi-head attention core: out (nq, H) = per head softmax(q k^T / sqrt(d)) v, with q rows of
-   stride qs and k, v rows of stride kvs; scores_all holds nq x heads x nk floats. (row, head)
-   pairs shared. */
+/* Multi-head attention core over several windows: window w's out (nq, H) = per head
+   softmax(q k^T / sqrt(d)) v, with q rows of stride qs starting at q + w * q_step, k and v rows of
+   stride kvs starting at k, v + w * kv_step, out rows at out + w * out_step; scores_all holds
+   windows x nq x heads x nk floats. (window, row, head) triples shared. */
 static void attend(const float *q, int nq, int qs, const float *k, const float *v, int nk, int kvs, int H, int heads,
-                   float *scores_all, float *out)
+                   float *scores_all, float *out, int windows, long q_step, long kv_step, long out_step)
 {
     const int d = H / heads;
     const float scale = 1.0f / sqrtf((float)d);
     #pragma omp for schedule(static)
-    for (int job = 0; job < nq * heads; ++job) {
-        const int t = job / heads, h = job % heads;
-        const float *qh = q + (size_t)t * qs + h * d;
+    for (long job = 0; job < (long)windows * nq * heads; ++job) {
+        const long w = job / ((long)nq * heads);
+        const int t = (int)(job / heads % nq), h = (int)(job % heads);
+        const float *qh = q + w * q_step + (size_t)t * qs + h * d, *kw = k + w * kv_step, *vw = v + w * kv_step;
         float *scores = scores_all + (size_t)job * nk, top = -INFINITY, sum = 0.0f;
         for (int s = 0; s < nk; ++s) {
-            const float *kh = k + (size_t)s * kvs + h * d;
+            const float *kh = kw + (size_t)s * kvs + h * d;
             float dot = 0.0f;
             #pragma omp simd reduction(+:dot)
             for (int i = 0; i < d; ++i) dot += qh[i] * kh[i];
@@ -89,10 +91,10 @@ static void attend(const float *q, int nq, int qs, const float *k, const float *
             top = scores[s] > top ? scores[s] : top;
         }
         for (int s = 0; s < nk; ++s) sum += (scores[s] = exp_nonpositive(scores[s] - top));
-        float *o = out + (size_t)t * H + h * d;
+        float *o = out + w * out_step + (size_t)t * H + h * d;
         for (int i = 0; i < d; ++i) o[i] = 0.0f;
         for (int s = 0; s < nk; ++s) {
-            const float p = scores[s] / sum, *vh = v + (size_t)s * kvs + h * d;
+            const float p = scores[s] / sum, *vh = vw + (size_t)s * kvs + h * d;
             #pragma omp simd
             for (int i = 0; i < d; ++i) o[i] += p * vh[i];
         }
@@ -114,57 +116,67 @@ enum { P_INP_W, P_INP_B, P_IH_W, P_IH_B, P_HH_W, P_HH_B, P_ATT_IN_W, P_ATT_IN_B,
 /* dims: F, W, H, heads, G, K, D, L, then the decoder's L + 1 layer sizes (G * D first);
    params: the pointers in the order of the enum above, then L (weight, bias) pairs; every weight
    packed in panels (see linear_rows), the pooling's in-projection split into its query and
-   key-value parts; eps holds the two layer norms' epsilons. One window: x (W, F) standardised
-   features -> entropy (mean over groups, nats), argmax (G) and, unless latents is NULL, the
-   decoder's output (last layer size). Called by every thread of the innermost parallel region,
-   with the same (shared) arguments; work: hrr_window_codes_work floats. */
-static void window_codes(const float *x, const int32_t *dims, const float *const *p, float *work, float *entropy,
+   key-value parts; eps holds the two layer norms' epsilons. B windows in lockstep: x (B, W, F)
+   standardised features -> entropy (B, mean over groups, nats), argmax (B, G) and, unless latents
+   is NULL, the decoder's output (B, last layer size). Every layer runs once for all B windows
+   (the GRU one step for all of them at a time), so each weight panel is read once per five rows
+   rather than once per window: a crowd's 32 windows read the 7 MB of weights about seven times,
+   not 32. A row's value does not depend on the other rows (the tiles keep one accumulator chain
+   per row), so a window gives the same bits alone or in a batch. Called by every thread of the
+   innermost parallel region, with the same (shared) arguments; work: window_codes_work floats. */
+static void window_codes(const float *x, int B, const int32_t *dims, const float *const *p, float *work, float *entropy,
                          int64_t *argmax, float *latents)
 {
     const int F = dims[0], W = dims[1], H = dims[2], heads = dims[3], G = dims[4], K = dims[5], D = dims[6],
               L = dims[7];
     const int32_t *sizes = dims + 8;
-    float *a = work, *gi = a + (size_t)W * H, *hs = gi + (size_t)W * 3 * H, *gh = hs + (size_t)W * H,
-          *qkv = gh + 3 * H, *att = qkv + (size_t)W * 3 * H, *scores = att + (size_t)W * H,
-          *q = scores + (size_t)W * W * heads, *pooled = q + H, *logits = pooled + H, *group_entropy = logits + (size_t)G * K,
-          *h0 = group_entropy + G, *spare = h0 + decoder_widest(dims);
+    const long BW = (long)B * W, widest = decoder_widest(dims);
+    float *a = work, *gi = a + BW * H, *hs = gi + BW * 3 * H, *gh = hs + BW * H, *state = gh + (long)B * 3 * H,
+          *qkv = state + 2L * B * H, *att = qkv + BW * 3 * H, *scores = att + BW * H, *q = scores + BW * W * heads,
+          *pooled = q + H, *logits = pooled + (long)B * H, *group_entropy = logits + (long)B * G * K,
+          *h0 = group_entropy + (long)B * G, *spare = h0 + B * widest;
 
-    linear_shared(x, W, F, p[P_INP_W], p[P_INP_B], H, a);
-    elu_shared(a, W * H);
-    linear_shared(a, W, H, p[P_IH_W], p[P_IH_B], 3 * H, gi);  /* input side of every step at once */
-    for (int t = 0; t < W; ++t) {
-        const float *prev = t ? hs + (size_t)(t - 1) * H : NULL, *g = gi + (size_t)t * 3 * H;
-        float *h = hs + (size_t)t * H;
-        if (prev) linear_shared(prev, 1, H, p[P_HH_W], p[P_HH_B], 3 * H, gh);
+    linear_shared(x, (int)BW, F, p[P_INP_W], p[P_INP_B], H, a);
+    elu_shared(a, (int)(BW * H));
+    linear_shared(a, (int)BW, H, p[P_IH_W], p[P_IH_B], 3 * H, gi);  /* input side of every step at once */
+    for (int t = 0; t < W; ++t) {  /* one GRU step for every window; rows of hs: window-major */
+        const float *prev = t ? state + (long)((t - 1) % 2) * B * H : NULL;
+        float *cur = state + (long)(t % 2) * B * H;
+        if (prev) linear_shared(prev, B, H, p[P_HH_W], p[P_HH_B], 3 * H, gh);
         else {
             #pragma omp single
-            memcpy(gh, p[P_HH_B], sizeof(float) * 3 * H);  /* h_0 = 0 */
+            for (int b = 0; b < B; ++b) memcpy(gh + (long)b * 3 * H, p[P_HH_B], sizeof(float) * 3 * H);  /* h_0 = 0 */
         }
         #pragma omp for schedule(static)
-        for (int j = 0; j < H; ++j) {
-            const float r = sigmoid(g[j] + gh[j]), z = sigmoid(g[H + j] + gh[H + j]);
-            const float n = tanh_(g[2 * H + j] + r * gh[2 * H + j]);
-            h[j] = (1.0f - z) * n + z * (prev ? prev[j] : 0.0f);
+        for (long j = 0; j < (long)B * H; ++j) {
+            const long b = j / H;
+            const int i = (int)(j % H);
+            const float *g = gi + (b * W + t) * 3 * H, *gg = gh + b * 3 * H;
+            const float r = sigmoid(g[i] + gg[i]), z = sigmoid(g[H + i] + gg[H + i]);
+            const float n = tanh_(g[2 * H + i] + r * gg[2 * H + i]);
+            cur[j] = hs[(b * W + t) * H + i] = (1.0f - z) * n + z * (prev ? prev[j] : 0.0f);
         }
     }
-    /* self-attention over the GRU states, residual, layer norm */
-    linear_shared(hs, W, H, p[P_ATT_IN_W], p[P_ATT_IN_B], 3 * H, qkv);
-    attend(qkv, W, 3 * H, qkv + H, qkv + 2 * H, W, 3 * H, H, heads, scores, att);
-    linear_shared(att, W, H, p[P_ATT_OUT_W], p[P_ATT_OUT_B], H, a);
+    /* self-attention over each window's GRU states, residual, layer norm */
+    linear_shared(hs, (int)BW, H, p[P_ATT_IN_W], p[P_ATT_IN_B], 3 * H, qkv);
+    attend(qkv, W, 3 * H, qkv + H, qkv + 2 * H, W, 3 * H, H, heads, scores, att, B, (long)W * 3 * H, (long)W * 3 * H,
+           (long)W * H);
+    linear_shared(att, (int)BW, H, p[P_ATT_OUT_W], p[P_ATT_OUT_B], H, a);
     #pragma omp for schedule(static)
-    for (int i = 0; i < W * H; ++i) a[i] += hs[i];
-    layer_norm(a, W, H, p[P_NORM_W], p[P_NORM_B], p[P_EPS][0]);
+    for (long i = 0; i < BW * H; ++i) a[i] += hs[i];
+    layer_norm(a, (int)BW, H, p[P_NORM_W], p[P_NORM_B], p[P_EPS][0]);
     /* attention pooling with the learned query (keys and values into qkv's first 2H columns) */
     linear_shared(p[P_QUERY], 1, H, p[P_POOL_Q_W], p[P_POOL_Q_B], H, q);
-    linear_shared(a, W, H, p[P_POOL_KV_W], p[P_POOL_KV_B], 2 * H, qkv);
-    attend(q, 1, H, qkv, qkv + H, W, 2 * H, H, heads, scores, att);
-    linear_shared(att, 1, H, p[P_POOL_OUT_W], p[P_POOL_OUT_B], H, pooled);
-    layer_norm(pooled, 1, H, p[P_OUT_NORM_W], p[P_OUT_NORM_B], p[P_EPS][1]);
-    linear_shared(pooled, 1, H, p[P_OUT_W], p[P_OUT_B], G * K, logits);
-    /* per group: entropy of the softmax, first argmax, the chosen class's embedding */
+    linear_shared(a, (int)BW, H, p[P_POOL_KV_W], p[P_POOL_KV_B], 2 * H, qkv);
+    attend(q, 1, H, qkv, qkv + H, W, 2 * H, H, heads, scores, att, B, 0, (long)W * 2 * H, H);
+    linear_shared(att, B, H, p[P_POOL_OUT_W], p[P_POOL_OUT_B], H, pooled);
+    layer_norm(pooled, B, H, p[P_OUT_NORM_W], p[P_OUT_NORM_B], p[P_EPS][1]);
+    linear_shared(pooled, B, H, p[P_OUT_W], p[P_OUT_B], G * K, logits);
+    /* per window and group: entropy of the softmax, first argmax, the chosen class's embedding */
     #pragma omp for schedule(static)
-    for (int g = 0; g < G; ++g) {
-        const float *l = logits + (size_t)g * K;
+    for (long j = 0; j < (long)B * G; ++j) {
+        const int g = (int)(j % G);
+        const float *l = logits + j * K;
         int best = 0;
         for (int k = 1; k < K; ++k) best = l[k] > l[best] ? k : best;
         float sum = 0.0f, weighted = 0.0f;
@@ -173,72 +185,63 @@ static void window_codes(const float *x, const int32_t *dims, const float *const
             sum += e;
             weighted += e * (l[k] - l[best]);
         }
-        group_entropy[g] = logf(sum) - weighted / sum;  /* -sum p log p, p = e / sum */
-        argmax[g] = best;
-        memcpy(h0 + (size_t)g * D, p[P_EMBEDDING] + ((size_t)g * K + best) * D, sizeof(float) * D);
+        group_entropy[j] = logf(sum) - weighted / sum;  /* -sum p log p, p = e / sum */
+        argmax[j] = best;
+        memcpy(h0 + j * D, p[P_EMBEDDING] + ((size_t)g * K + best) * D, sizeof(float) * D);
     }
-    #pragma omp single nowait
-    {
+    #pragma omp for schedule(static)
+    for (int b = 0; b < B; ++b) {
         float total = 0.0f;  /* in group order, whatever the threads */
-        for (int g = 0; g < G; ++g) total += group_entropy[g];
-        *entropy = total / (float)G;
+        for (int g = 0; g < G; ++g) total += group_entropy[(long)b * G + g];
+        entropy[b] = total / (float)G;
     }
     if (!latents) return;
-    float *in = h0;
+    float *in = h0;  /* (B, G * D); h0 and spare hold B rows of the widest layer each */
     for (int l = 0; l < L; ++l) {
         float *y = l == L - 1 ? latents : spare;
-        linear_shared(in, 1, sizes[l], p[P_DECODER + 2 * l], p[P_DECODER + 2 * l + 1], sizes[l + 1], y);
+        linear_shared(in, B, sizes[l], p[P_DECODER + 2 * l], p[P_DECODER + 2 * l + 1], sizes[l + 1], y);
         if (l < L - 1) {
-            elu_shared(y, sizes[l + 1]);
+            elu_shared(y, B * sizes[l + 1]);
             spare = in;
             in = y;
         }
     }
 }
 
-/* Scratch floats window_codes needs for these dims. */
-long hrr_window_codes_work(const int32_t *dims)
+enum { LOCKSTEP = 64 };  /* windows per lockstep pass: bounds the scratch memory of a long clip */
+
+/* Scratch floats window_codes needs for B windows of these dims. */
+static long window_codes_work(const int32_t *dims, long B)
 {
     const long W = dims[1], H = dims[2], heads = dims[3], G = dims[4], K = dims[5];
-    return W * H * 9 + 3 * H + W * W * heads + 2 * H + G * K + G + 2 * decoder_widest(dims);
+    return B * (W * H * 9 + 3 * H + 2 * H + W * W * heads + H + G * K + G + 2 * decoder_widest(dims)) + H;
 }
 
-/* B windows (B, W, F) -> entropy (B), argmax (B, G), latents (B, last layer size) or NULL. One
-   window: the team shares it; more: one window per thread. Returns 0, or -1 where scratch memory
-   could not be allocated. */
+/* Scratch floats hrr_window_codes allocates for one pass (diagnostics). */
+long hrr_window_codes_work(const int32_t *dims) { return window_codes_work(dims, LOCKSTEP); }
+
+/* B windows (B, W, F) -> entropy (B), argmax (B, G), latents (B, last layer size) or NULL, in
+   lockstep passes of up to LOCKSTEP windows, the team sharing each pass. Returns 0, or -1 where
+   scratch memory could not be allocated. */
 int hrr_window_codes(const float *x, int B, const int32_t *dims, const float *const *params, int threads,
                      float *entropy, int64_t *argmax, float *latents)
 {
     const int F = dims[0], W = dims[1], G = dims[4], L = dims[7];
-    const long out = dims[8 + L], work = hrr_window_codes_work(dims);
-    int failed = 0;
+    const long out = dims[8 + L];
     if (B <= 0) return 0;
-    if (B == 1) {
-        float *scratch = malloc(sizeof(float) * (size_t)work);
-        if (!scratch) return -1;
-        #pragma omp parallel num_threads(threads)
-        {
-            const unsigned csr = denormals_off();
-            window_codes(x, dims, params, scratch, entropy, argmax, latents);
-            denormals_restore(csr);
-        }
-        free(scratch);
-        return 0;
-    }
-    #pragma omp parallel num_threads(threads < B ? threads : B) reduction(|:failed)
+    float *scratch = malloc(sizeof(float) * (size_t)window_codes_work(dims, B < LOCKSTEP ? B : LOCKSTEP));
+    if (!scratch) return -1;
+    #pragma omp parallel num_threads(threads)
     {
         const unsigned csr = denormals_off();
-        float *scratch = malloc(sizeof(float) * (size_t)work);
-        failed |= scratch == NULL;
-        #pragma omp for schedule(static)
-        for (int b = 0; b < B; ++b)
-            if (scratch) {
-                #pragma omp parallel num_threads(1)  /* this window's own one-thread team */
-                window_codes(x + (size_t)b * W * F, dims, params, scratch, entropy + b, argmax + (size_t)b * G,
-                             latents ? latents + (size_t)b * out : NULL);
-            }
-        free(scratch);
+        for (int b = 0; b < B; b += LOCKSTEP) {  /* every thread takes every pass; the layers share out the work */
+            const int n = B - b < LOCKSTEP ? B - b : LOCKSTEP;
+            window_codes(x + (size_t)b * W * F, n, dims, params, scratch, entropy + b, argmax + (size_t)b * G,
+                         latents ? latents + (size_t)b * out : NULL);
+            #pragma omp barrier
+        }
         denormals_restore(csr);
     }
-    return failed ? -1 : 0;
+    free(scratch);
+    return 0;
 }

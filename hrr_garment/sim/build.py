@@ -59,7 +59,8 @@ def build_dataset(garment: GarmentMesh, specs: list[SequenceSpec], config: SimCo
                   jobs: int | None = None, splits: dict[str, float] | None = None, seed: int = 0,
                   info: dict | None = None, preview: PreviewWriter | None = None, progress: bool = True,
                   groups: dict[str, str] | None = None, mirror: bool = False, executor: str = "local",
-                  address: str | None = None, retry_rejected: bool = False) -> BuildReport:
+                  address: str | None = None, retry_rejected: bool = False,
+                  kinds: dict[str, str] | None = None) -> BuildReport:
     """Simulate what is missing, then write ``out`` (HDF5) atomically. See the module docstring.
 
     ``groups`` (sequence name -> clip group) makes the split hold out whole groups; ``mirror`` adds
@@ -67,7 +68,9 @@ def build_dataset(garment: GarmentMesh, specs: list[SequenceSpec], config: SimCo
     garment's exact mirror simulation, no solver time; skipped with a note otherwise). ``executor``
     "ray" runs the pending sequences as Ray tasks (on the cluster at ``address``, or a local
     instance with ``jobs`` CPUs). ``retry_rejected`` simulates sequences that an earlier run
-    rejected again (after a simulator change that may save them). ``preview``: renders the dataset's preview image beside it
+    rejected again (after a simulator change that may save them). ``kinds`` (sequence name ->
+    motion kind, procedural clips) holds out only clips of kinds that also train
+    (:func:`~hrr_garment.data.dataset.split_names`). ``preview``: renders the dataset's preview image beside it
     (``hrr-simulate`` passes :func:`hrr_garment.export.preview.write_dataset_preview`)."""
     if executor not in EXECUTORS:
         raise InputError(executor, f"unknown executor; choose one of {', '.join(EXECUTORS)}")
@@ -109,7 +112,7 @@ def build_dataset(garment: GarmentMesh, specs: list[SequenceSpec], config: SimCo
         if groups:
             split = split_groups({n: groups.get(n, n) for n in done}, val, test, seed)
         else:
-            split = split_names(done, val, test, seed)
+            split = split_names(done, val, test, seed, kinds)
         summary = summarise(records, garment, rejects, sim_wall, jobs, len(pending))
         if mirror:
             records, split = _add_mirrored(records, split, garment, progress)

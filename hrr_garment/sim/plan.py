@@ -189,4 +189,6 @@ def build_options(preset: Preset, specs: list[SequenceSpec]) -> dict:
         info.update(split_by=preset.split_by, groups=groups)
     if preset.speed_warps or preset.mirror:
         info["augmentation"] = {"mirror": preset.mirror, "speed_warps": list(preset.speed_warps)}
-    return {"splits": preset.splits, "seed": preset.seed, "groups": groups, "mirror": preset.mirror, "info": info}
+    kinds = {s.name: s.kind for s in specs if s.kind != "file"}  # procedural clips: held out in distribution
+    return {"splits": preset.splits, "seed": preset.seed, "groups": groups, "mirror": preset.mirror, "info": info,
+            "kinds": kinds or None}
