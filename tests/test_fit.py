@@ -93,6 +93,7 @@ def test_an_artist_dress_goes_through_simulate_train_and_animate(tmp_path, capsy
     from hrr_garment.cli.train import main as train_main
     from hrr_garment.data.animation_file import read_animation_h5
     from hrr_garment.data.dataset import GarmentDataset
+    from hrr_garment.inference.animator import Animator
     from hrr_garment.motion.io import save_motion
     from hrr_garment.motion.synth import synthesize
 
@@ -107,10 +108,17 @@ def test_an_artist_dress_goes_through_simulate_train_and_animate(tmp_path, capsy
     ds = GarmentDataset(data)
     assert np.abs(ds.template.vertices - dress.vertices).max() < 0.005 and len(ds.template.attached) > 0
     assert data.with_suffix(".preview.png").is_file()
-    (tmp_path / "cfg.yaml").write_text(TINY_TRAINING)
+    # without the motion memory, as bundles written before it: the 124 plain features end to end
+    (tmp_path / "cfg.yaml").write_text(TINY_TRAINING.replace("attention_heads: 2}", "attention_heads: 2, memory_seconds: []}"))
     assert train_main(["--dataset", str(data), "--config", str(tmp_path / "cfg.yaml"), "-o", str(tmp_path / "model"),
                        "--quiet"]) == 0
-    save_motion(synthesize("dance", 1.0, seed=9), tmp_path / "dance.npz")
+    dance = synthesize("dance", 1.0, seed=9)
+    save_motion(dance, tmp_path / "dance.npz")
     assert animate_main([str(tmp_path / "dance.npz"), "--model", str(tmp_path / "model"), "-o", str(tmp_path / "out.h5")]) == 0
     anim = read_animation_h5(tmp_path / "out.h5")
     assert anim.vertices.shape == (30, dress.num_vertices, 3) and np.isfinite(anim.vertices).all()
+    animator = Animator.load(tmp_path / "model")
+    assert animator.bundle.codespace.features == 124 and animator.bundle.codespace.config.memory_seconds == ()
+    stream = animator.stream()
+    streamed = np.stack([stream.push(dance.slice(t, t + 1)) for t in range(5)])
+    np.testing.assert_allclose(streamed, animator.animate(dance.slice(0, 5), causal=True).vertices, atol=1e-5)
