@@ -58,3 +58,39 @@ def trained(tmp_path_factory):
     args = ["--dataset", str(data), "--config", str(root / "cfg.yaml"), "-o", str(root / "model"), "--quiet"]
     assert train_main(args) == 0
     return root, data, args
+
+
+def authored(vertices: np.ndarray) -> np.ndarray:
+    """As an artist might have it: centimetres, Z up, modelled around a pelvis at the origin."""
+    from hrr_garment.motion.skeleton import REST_PELVIS_HEIGHT
+
+    v = vertices.astype(np.float64) - [0.0, REST_PELVIS_HEIGHT, 0.0]
+    return np.stack([v[:, 0], -v[:, 2], v[:, 1]], 1) * 100.0
+
+
+@pytest.fixture(scope="session")
+def artist_model(tmp_path_factory):
+    """An artist's dress OBJ (no groups, centimetres, Z up) simulated with ``--fit --attached auto``
+    (tiny preset, three 1 s clips) and a tiny model trained on it without the motion memory:
+    (dataset, model folder, what hrr-simulate printed)."""
+    pytest.importorskip("newton", reason="the sim extra is not installed")
+    import contextlib
+    import io
+
+    from hrr_garment.cli.simulate import main as simulate_main
+    from hrr_garment.cli.train import main as train_main
+    from hrr_garment.garment.obj import write_obj
+    from hrr_garment.garment.templates import make_garment
+
+    root = tmp_path_factory.mktemp("artist")
+    dress = make_garment("dress", 300)
+    obj = root / "artist_dress.obj"
+    write_obj(obj, authored(dress.vertices), dress.faces)
+    data = root / "artist.h5"
+    printed = io.StringIO()
+    with contextlib.redirect_stdout(printed):
+        assert simulate_main(["--template", str(obj), "--fit", "--attached", "auto", "--preset", "tiny", "--motions",
+                              "walk", "spin", "walk", "--seconds", "1.0", "--jobs", "1", "--quiet", "-o", str(data)]) == 0
+    (root / "cfg.yaml").write_text(TINY_TRAINING.replace("attention_heads: 2}", "attention_heads: 2, memory_seconds: []}"))
+    assert train_main(["--dataset", str(data), "--config", str(root / "cfg.yaml"), "-o", str(root / "model"), "--quiet"]) == 0
+    return data, root / "model", printed.getvalue()

@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import math
 
+import numpy as np
 import pytest
 
 
@@ -187,3 +188,64 @@ def test_demo_says_which_dataset_its_model_was_trained_on(trained, capsys):
     _say_dataset(root / "model")
     said = capsys.readouterr().out
     assert f"trained on {data}" in said and "sequences" in said and "frames" in said
+
+
+def test_library_plays_are_seeded_edits_of_the_training_clips(tmp_path):
+    from conftest import synthetic_dataset
+
+    from hrr_garment.data.dataset import GarmentDataset
+    from hrr_garment.eval.library import MIN_ENTRY_S, library_plays, plays_digest, save_plays
+    from hrr_garment.garment.templates import make_garment
+    from hrr_garment.motion.io import load_motion
+
+    ds = GarmentDataset(synthetic_dataset(tmp_path / "skirt.h5", make_garment("skirt", 200)))
+    names = ds.splits["train"]
+    plays = library_plays(ds, names, 4, seconds=2.0, seed=3)
+    assert [p.name for p in plays] == ["play_00", "play_01", "play_02", "play_03"]
+    assert plays_digest(plays) == plays_digest(library_plays(ds, names, 4, seconds=2.0, seed=3))
+    assert plays_digest(plays) != plays_digest(library_plays(ds, names, 4, seconds=2.0, seed=4))
+    for p in plays:
+        replay = "->" not in p.description
+        assert replay == (p.name in ("play_00", "play_02"))
+        assert 0 < p.motion.num_frames <= 60 and np.isfinite(p.motion.root_translation).all()
+        clips = [part.split(" x")[0] for part in p.description.split(" -> ")]
+        assert all(c in names for c in clips), p.description
+        entries = [float(part.split(" from ")[1].split(" s")[0]) for part in p.description.split(" -> ")]
+        assert all(e >= MIN_ENTRY_S - 1e-9 for e in entries), p.description  # never where the database's clip began
+    files = save_plays(plays, tmp_path / "plays")
+    again = load_motion(files[1])
+    np.testing.assert_allclose(again.root_translation, plays[1].motion.root_translation)
+    assert json.loads((tmp_path / "plays" / "plays.json").read_text())["play_01"] == plays[1].description
+    with pytest.raises(ValueError, match="count"):
+        library_plays(ds, names, 0)
+
+
+def test_library_protocol_in_hrr_eval(artist_model, tmp_path, monkeypatch):
+    """Plays of a simulated dataset's training clips, simulated with their ensembles, evaluated with
+    their own sweep and goals (conftest's tiny artist dress)."""
+    from hrr_garment.cli.eval import main
+
+    monkeypatch.setenv("HRR_HOME", str(tmp_path / "work"))
+    data, model, _ = artist_model
+    out = tmp_path / "report"
+    assert main(["--model", str(model), "--dataset", str(data), "--split", "test", "--ensemble", "2", "--jobs", "1",
+                 "--library", "2", "--tau-sweep", "0,100", "--no-plots", "-o", str(out), "--quiet"]) == 0
+    report = json.loads((out / "report.json").read_text())
+    assert report["format_version"] == 3
+    lib = report["library"]
+    assert list(lib["plays"]) == ["play_00", "play_01"] and "->" in lib["plays"]["play_01"]
+    assert lib["sequences"] == ["play_00", "play_01"] and not lib["rejected"]
+    assert lib["ensemble"]["members"] == 2 and lib["ensemble"]["sequences"] == 2
+    modes = lib["modes"]
+    assert modes["regression"]["metrics"]["retrieval_usage"] == 0 and modes["retrieval"]["metrics"]["retrieval_usage"] == 1
+    assert all(math.isfinite(modes[m]["ensemble"]["pve_floor_ratio"]) for m in modes)
+    sweep = {p["tau"]: p for p in lib["tau_sweep"]}
+    assert sweep[0.0]["pve_mm"] == pytest.approx(modes["regression"]["metrics"]["pve_mm"], rel=1e-9)
+    assert sweep[100.0]["pve_mm"] == pytest.approx(modes["retrieval"]["metrics"]["pve_mm"], rel=1e-9)
+    goals = lib["goals"]
+    assert goals["hybrid_vs_regression"]["ratio"] == pytest.approx(
+        modes["hybrid"]["metrics"]["pve_mm"] / modes["regression"]["metrics"]["pve_mm"])
+    scores = {m: modes[m]["ensemble"]["energy_score_mm"] for m in ("hybrid", "regression", "retrieval")}
+    assert goals["energy_score_vs_single_modes"]["met"] == (scores["hybrid"] < min(scores["regression"], scores["retrieval"]))
+    md = (out / "report.md").read_text()
+    assert "## Library protocol" in md and lib["plays"]["play_01"] in md

@@ -5,18 +5,12 @@ import argparse
 
 import numpy as np
 import pytest
+from conftest import authored
 
 from hrr_garment.garment.fit import _rotation_to_y, auto_attached, fit_garment, hem_loop, hem_up_axis
 from hrr_garment.garment.mesh import GarmentError
 from hrr_garment.garment.obj import write_obj
 from hrr_garment.garment.templates import make_garment
-from hrr_garment.motion.skeleton import REST_PELVIS_HEIGHT
-
-
-def authored(vertices: np.ndarray) -> np.ndarray:
-    """As an artist might have it: centimetres, Z up, modelled around a pelvis at the origin."""
-    v = vertices.astype(np.float64) - [0.0, REST_PELVIS_HEIGHT, 0.0]
-    return np.stack([v[:, 0], -v[:, 2], v[:, 1]], 1) * 100.0
 
 
 @pytest.mark.parametrize("name, convert, unit, up", [
@@ -82,42 +76,29 @@ def test_a_far_too_dense_template_is_refused_with_a_way_forward(tmp_path, capsys
     assert "use it with --template" in capsys.readouterr().err
 
 
-def test_an_artist_dress_goes_through_simulate_train_and_animate(tmp_path, capsys):
+def test_an_artist_dress_goes_through_simulate_train_and_animate(artist_model, tmp_path):
     """No groups, centimetres, Z up, pelvis at the origin: --fit --attached auto, a tiny simulation,
-    a tiny model, an animation."""
-    pytest.importorskip("newton", reason="the sim extra is not installed")
-    from conftest import TINY_TRAINING
-
+    a tiny model (conftest's ``artist_model``), an animation."""
     from hrr_garment.cli.animate import main as animate_main
-    from hrr_garment.cli.simulate import main as simulate_main
-    from hrr_garment.cli.train import main as train_main
     from hrr_garment.data.animation_file import read_animation_h5
     from hrr_garment.data.dataset import GarmentDataset
     from hrr_garment.inference.animator import Animator
     from hrr_garment.motion.io import save_motion
     from hrr_garment.motion.synth import synthesize
 
+    data, model, out = artist_model
     dress = make_garment("dress", 300)
-    obj = tmp_path / "artist_dress.obj"
-    write_obj(obj, authored(dress.vertices), dress.faces)
-    data = tmp_path / "artist.h5"
-    assert simulate_main(["--template", str(obj), "--fit", "--attached", "auto", "--preset", "tiny", "--motions", "walk",
-                          "spin", "walk", "--seconds", "1.0", "--jobs", "1", "--quiet", "-o", str(data)]) == 0
-    out = capsys.readouterr().out
     assert "fitted artist_dress.obj: unit cm (x0.01), up axis +z -> +y" in out and "attached (auto):" in out
     ds = GarmentDataset(data)
     assert np.abs(ds.template.vertices - dress.vertices).max() < 0.005 and len(ds.template.attached) > 0
     assert data.with_suffix(".preview.png").is_file()
-    # without the motion memory, as bundles written before it: the 124 plain features end to end
-    (tmp_path / "cfg.yaml").write_text(TINY_TRAINING.replace("attention_heads: 2}", "attention_heads: 2, memory_seconds: []}"))
-    assert train_main(["--dataset", str(data), "--config", str(tmp_path / "cfg.yaml"), "-o", str(tmp_path / "model"),
-                       "--quiet"]) == 0
     dance = synthesize("dance", 1.0, seed=9)
     save_motion(dance, tmp_path / "dance.npz")
-    assert animate_main([str(tmp_path / "dance.npz"), "--model", str(tmp_path / "model"), "-o", str(tmp_path / "out.h5")]) == 0
+    assert animate_main([str(tmp_path / "dance.npz"), "--model", str(model), "-o", str(tmp_path / "out.h5")]) == 0
     anim = read_animation_h5(tmp_path / "out.h5")
     assert anim.vertices.shape == (30, dress.num_vertices, 3) and np.isfinite(anim.vertices).all()
-    animator = Animator.load(tmp_path / "model")
+    # trained without the motion memory, as bundles written before it: the 124 plain features end to end
+    animator = Animator.load(model)
     assert animator.bundle.codespace.features == 124 and animator.bundle.codespace.config.memory_seconds == ()
     stream = animator.stream()
     streamed = np.stack([stream.push(dance.slice(t, t + 1)) for t in range(5)])

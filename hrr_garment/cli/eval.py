@@ -65,6 +65,10 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--tau-sweep", type=_floats, default=None, help="comma-separated taus (default: 10 entropy quantiles)")
     p.add_argument("--no-sweep", action="store_true", help="skip the tau sweep")
     p.add_argument("--motions", nargs="+", default=None, help="real motion files to simulate and evaluate on")
+    p.add_argument("--library", type=int, default=8, metavar="N",
+                   help="library protocol: N plays of the model's training clips re-timed, entered part-way and "
+                        "blended into each other, simulated and evaluated (default 8; 0: skip)")
+    p.add_argument("--library-seed", type=int, default=0, help="seed of the library plays (default 0)")
     add_fps_option(p)
     p.add_argument("--ensemble", type=int, default=4, metavar="K",
                    help="perturbed simulations per sequence for the ensemble ground truth (default 4; 0: none)")
@@ -125,6 +129,8 @@ def _main(argv: Sequence[str] | None) -> int:
     out = args.output or workspace() / "eval" / model_dir.name
     records = [ds.sequence(n) for n in names]
     collision, progress = not args.no_collision, not args.quiet
+    if args.library < 0:
+        raise InputError("hrr-eval", f"--library takes 0 (none) or a number of plays, got {args.library}")
     if args.ensemble == 1 or args.ensemble < 0:
         raise InputError("hrr-eval", f"--ensemble takes 0 (none) or at least 2 members, got {args.ensemble}")
     ensembles = _ensembles(ds, records, args.ensemble, args.jobs, progress)
@@ -139,6 +145,10 @@ def _main(argv: Sequence[str] | None) -> int:
     real = None
     if args.motions:
         real = _real_motion(animator, ds, args.motions, modes, tau, collision, progress, args.fps, args.ensemble, args.jobs)
+    library = None
+    if args.library:
+        library = _library(animator, ds, args.library, args.library_seed, modes, tau, collision, progress, args.ensemble,
+                           args.jobs, args.tau_sweep, not args.no_sweep)
     report = build_report(
         model={"folder": str(model_dir), "garment": bundle.garment, "hash": bundle.content_hash, "tau": bundle.tau,
                "vertices": bundle.template.num_vertices, "preset": bundle.meta.get("preset")},
@@ -146,7 +156,7 @@ def _main(argv: Sequence[str] | None) -> int:
                  "frames": int(sum(len(r.garment) for r in records))},
         settings={"modes": modes, "tau": tau, "collision": collision, "exclude_own_sequence": args.exclude_own_sequence},
         ensemble=_ensemble_summary(ensembles, records, args.ensemble),
-        modes=results, sweep=sweep, real=real, seconds=0.0)
+        modes=results, sweep=sweep, real=real, library=library, seconds=0.0)
     plots = [] if args.no_plots else write_plots(Path(out), results, sweep, tau)
     report["seconds"] = time.perf_counter() - t0
     json_path, md_path = write_report(out, report, plots)
@@ -178,30 +188,67 @@ def _ensemble_summary(ensembles: dict, records, members: int) -> dict:
             "failed_members": {name: e.failed for name, e in ensembles.items() if e.failed}}
 
 
-def _real_motion(animator, ds, files: list[str], modes: list[str], tau: float, collision: bool, progress: bool,
-                 source_fps: float | None = None, members: int = 0, jobs: int | None = None) -> dict:
-    """Simulate the files' ground truth with the dataset's settings (parts cached), evaluate there."""
+def _simulated(animator, ds, specs, path: Path, purpose: str, modes: list[str], tau: float, collision: bool,
+               progress: bool, members: int, jobs: int | None) -> tuple[dict, list]:
+    """Simulate the ground truth of ``specs`` with the dataset's settings into ``path`` (parts cached)
+    and evaluate every mode there: the report section and the records."""
     from ..data.dataset import GarmentDataset
     from ..eval.evaluate import evaluate_modes
-    from ..paths import workspace
     from ..sim.build import build_dataset
-    from ..sim.plan import load_preset, plan_sequences
     from ..sim.simulator import SimConfig
 
-    specs = plan_sequences(load_preset(str(ds.info.get("preset", "quick"))), motions=list(files), source_fps=source_fps)
     config = SimConfig.from_dict(ds.info.get("sim", {}))
-    path = workspace() / "eval" / f"{ds.path.stem}-real-motion.h5"
-    print(f"simulating ground truth for {len(files)} motion file(s) ({len(specs)} pieces; cached in {path.with_suffix('.parts')})")
+    print(f"simulating ground truth for {len(specs)} sequence(s) (cached in {path.with_suffix('.parts')})")
     report = build_dataset(ds.template, specs, config, path, splits={"val": 0.0, "test": 0.0},
-                           info={"purpose": "hrr-eval real motion", "source_dataset": str(ds.path)}, progress=progress)
-    real = GarmentDataset(report.path)
-    records = [real.sequence(n) for n in report.sequences]
-    ensembles = _ensembles(real, records, members, jobs, progress)
+                           info={"purpose": purpose, "source_dataset": str(ds.path)}, progress=progress)
+    data = GarmentDataset(report.path)
+    records = [data.sequence(n) for n in report.sequences]
+    ensembles = _ensembles(data, records, members, jobs, progress)
     results = evaluate_modes(animator, records, modes, tau, False, collision, progress, ensembles)
-    return {"files": [str(f) for f in files], "dataset": str(report.path), "sequences": report.sequences,
+    return {"dataset": str(report.path), "sequences": report.sequences,
             "frames": int(sum(len(r.garment) for r in records)), "rejected": report.rejects,
             "ensemble": _ensemble_summary(ensembles, records, members),
-            "modes": {m: r.to_dict() for m, r in results.items()}}
+            "modes": {m: r.to_dict() for m, r in results.items()}}, records
+
+
+def _real_motion(animator, ds, files: list[str], modes: list[str], tau: float, collision: bool, progress: bool,
+                 source_fps: float | None = None, members: int = 0, jobs: int | None = None) -> dict:
+    """The real motion files' section: their ground truth simulated with the dataset's settings."""
+    from ..paths import workspace
+    from ..sim.plan import load_preset, plan_sequences
+
+    specs = plan_sequences(load_preset(str(ds.info.get("preset", "quick"))), motions=list(files), source_fps=source_fps)
+    path = workspace() / "eval" / f"{ds.path.stem}-real-motion.h5"
+    section, _ = _simulated(animator, ds, specs, path, "hrr-eval real motion", modes, tau, collision, progress, members, jobs)
+    return {"files": [str(f) for f in files], **section}
+
+
+def _library(animator, ds, count: int, seed: int, modes: list[str], tau: float, collision: bool, progress: bool,
+             members: int, jobs: int | None, taus: list[float] | None, sweep: bool) -> dict | None:
+    """The library protocol's section (docs/results.md): ``count`` plays of the clips in the
+    model's database, simulated and evaluated, with their own tau sweep and goals."""
+    from ..eval.evaluate import tau_sweep
+    from ..eval.library import library_plays, plays_digest, save_plays
+    from ..eval.report import library_goals
+    from ..paths import workspace
+    from ..sim.plan import SequenceSpec
+
+    if "sim" not in ds.info:
+        print(f"{ds.path} records no simulator settings (not built by hrr-simulate): no library protocol")
+        return None
+    names = [n for n in animator.bundle.database.names if n in ds.frames]
+    plays = library_plays(ds, names, count, seed=seed)
+    folder = workspace() / "eval" / "library" / f"{ds.path.stem}-{plays_digest(plays)}"
+    files = save_plays(plays, folder)
+    print(f"library protocol: {count} plays of the database's clips (motions in {folder})")
+    specs = [SequenceSpec(p.name, "file", path=str(f), start=0, stop=p.motion.num_frames) for p, f in zip(plays, files)]
+    section, records = _simulated(animator, ds, specs, folder / "truth.h5", "hrr-eval library protocol", modes, tau,
+                                  collision, progress, members, jobs)
+    points = tau_sweep(animator, records, taus or default_taus(animator, records), False, collision, progress) \
+        if sweep and records else None
+    section.update(plays={p.name: p.description for p in plays}, seed=seed, tau_sweep=[vars(p) for p in points or []],
+                   goals=library_goals(section["modes"], points))
+    return section
 
 
 def _print_summary(report: dict) -> None:
@@ -212,7 +259,20 @@ def _print_summary(report: dict) -> None:
         print(f"  {mode:10s} PVE {m['pve_mm']:7.2f} mm  RMSE {m['rmse_mm']:7.2f} mm  STED {m['sted']:.4f}  "
               f"CD {m['chamfer_cm']:.3f} cm  pen. {m['penetration_pct']:.2f} %  retrieval {100 * m['retrieval_usage']:.0f} %"
               + floor)
-    for name, g in report["goals"].items():
+    _print_goals(report["goals"])
+    library = report.get("library")
+    if library:
+        print(f"library protocol ({len(library['sequences'])} plays):")
+        for mode, entry in library["modes"].items():
+            e = entry.get("ensemble") or {}
+            floor = f"  PVE/floor {e['pve_floor_ratio']:.2f}" if "pve_floor_ratio" in e else ""
+            print(f"  {mode:10s} PVE {entry['metrics']['pve_mm']:7.2f} mm  retrieval "
+                  f"{100 * entry['metrics']['retrieval_usage']:.0f} %" + floor)
+        _print_goals(library["goals"])
+
+
+def _print_goals(goals: dict) -> None:
+    for name, g in goals.items():
         if "ratio" in g:
             status = "" if g["met"] is None else (" met" if g["met"] else " NOT met")
             print(f"  {name}: {g['ratio']:.3f}" + (f" (target <= {g['target']}){status}" if g["target"] else ""))

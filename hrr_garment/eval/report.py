@@ -16,7 +16,7 @@ import numpy as np
 from ..io_utils import atomic_path, atomic_write_text, strict_json
 from .evaluate import ModeResult, TauPoint
 
-REPORT_VERSION = 2  # 2: truth ensembles ("ensemble" per mode and at the top level)
+REPORT_VERSION = 3  # 2: truth ensembles ("ensemble" per mode and at the top level); 3: "library" protocol
 GOALS = (  # (name, numerator mode, denominator mode, target ratio)
     ("hybrid_vs_regression", "hybrid", "regression", 0.5),
     ("hybrid_vs_retrieval", "hybrid", "retrieval", 0.85),
@@ -44,11 +44,38 @@ def goals(modes: dict[str, ModeResult], sweep: list[TauPoint] | None) -> dict:
             ratio = modes[num].metrics["pve_mm"] / max(modes[den].metrics["pve_mm"], 1e-12)
             out[name] = {"ratio": ratio, "target": target, "met": None if target is None else bool(ratio <= target)}
     if sweep:
-        errors = [p.pve_mm for p in sweep]
-        best = int(np.argmin(errors))
-        interior = 0 < best < len(sweep) - 1 and 0 < sweep[best].retrieval_usage < 1
-        out["interior_tau_optimum"] = {"best_tau": sweep[best].tau, "best_pve_mm": errors[best],
-                                       "retrieval_usage": sweep[best].retrieval_usage, "met": bool(interior)}
+        out["interior_tau_optimum"] = _best_tau(sweep)
+    return out
+
+
+LIBRARY_TARGET = 0.7  # hybrid PVE over regression-only's on the library protocol
+
+
+def _best_tau(sweep: list[TauPoint]) -> dict:
+    """The sweep's lowest-error tau, and whether it is interior (neither never nor always retrieval)."""
+    errors = [p.pve_mm for p in sweep]
+    best = int(np.argmin(errors))
+    interior = 0 < best < len(sweep) - 1 and 0 < sweep[best].retrieval_usage < 1
+    return {"best_tau": sweep[best].tau, "best_pve_mm": errors[best], "retrieval_usage": sweep[best].retrieval_usage,
+            "met": bool(interior)}
+
+
+def library_goals(modes: dict[str, dict], sweep: list[TauPoint] | None) -> dict:
+    """The library protocol's goals (report.json's mode entries): hybrid at most LIBRARY_TARGET x
+    regression-only in PVE, a better energy score than both single modes (against the truth
+    ensemble), and an interior tau optimum."""
+    out = {}
+    if "hybrid" in modes and "regression" in modes:
+        ratio = modes["hybrid"]["metrics"]["pve_mm"] / max(modes["regression"]["metrics"]["pve_mm"], 1e-12)
+        out["hybrid_vs_regression"] = {"ratio": ratio, "target": LIBRARY_TARGET, "met": bool(ratio <= LIBRARY_TARGET)}
+    scores = {m: modes[m].get("ensemble", {}).get("energy_score_mm") for m in ("hybrid", "regression", "retrieval")
+              if m in modes}
+    if len(scores) == 3 and None not in scores.values():
+        rival = min(scores["regression"], scores["retrieval"])
+        out["energy_score_vs_single_modes"] = {"ratio": scores["hybrid"] / max(rival, 1e-12), "target": 1.0,
+                                               "met": bool(scores["hybrid"] < rival)}
+    if sweep:
+        out["interior_tau_optimum"] = _best_tau(sweep)
     return out
 
 
@@ -71,7 +98,8 @@ def entropy_summary(modes: dict[str, ModeResult], bins: int = 20) -> dict:
 
 
 def build_report(*, model: dict, dataset: dict, settings: dict, modes: dict[str, ModeResult],
-                 sweep: list[TauPoint] | None, real: dict | None, seconds: float, ensemble: dict | None = None) -> dict:
+                 sweep: list[TauPoint] | None, real: dict | None, seconds: float, ensemble: dict | None = None,
+                 library: dict | None = None) -> dict:
     """The report.json contents (schema: docs/results.md)."""
     return {
         "format_version": REPORT_VERSION, "model": model, "dataset": dataset, "settings": settings,
@@ -81,6 +109,7 @@ def build_report(*, model: dict, dataset: dict, settings: dict, modes: dict[str,
         "tau_sweep": [vars(p) for p in sweep] if sweep else [],
         "entropy": entropy_summary(modes),
         "real_motion": real,
+        "library": library,
         "seconds": seconds,
     }
 
@@ -133,18 +162,9 @@ def markdown(report: dict, plots: list[str]) -> str:
         out += ["## Against the simulator's own chaos (ensemble ground truth)", "", *lead, ""]
     out += ["## Modes (against the dataset's single simulation)", ""]
     out += _mode_table(report["modes"])
-    out += ["", "## Goals (the paper's shape; PVE ratios)", "", "| goal | ratio | target | met |", "|---|---:|---:|---|"]
-    for name, g in report["goals"].items():
-        if name == "interior_tau_optimum":
-            out.append(f"| interior tau optimum | best tau {g['best_tau']:.3f} ({g['best_pve_mm']:.2f} mm, retrieval "
-                       f"{100 * g['retrieval_usage']:.0f} %) | interior | {'yes' if g['met'] else 'no'} |")
-        else:
-            target = "" if g["target"] is None else f"<= {g['target']}"
-            met = "" if g["met"] is None else ("yes" if g["met"] else "no")
-            out.append(f"| {name.replace('_', ' ')} | {g['ratio']:.3f} | {target} | {met} |")
+    out += ["", "## Goals (the paper's shape; PVE ratios)", "", *_goal_table(report["goals"])]
     if report["tau_sweep"]:
-        out += ["", "## Tau sweep (hybrid)", "", "| tau | PVE mm | retrieval usage |", "|---:|---:|---:|"]
-        out += [f"| {p['tau']:.3f} | {p['pve_mm']:.2f} | {100 * p['retrieval_usage']:.1f} % |" for p in report["tau_sweep"]]
+        out += ["", "## Tau sweep (hybrid)", "", *_sweep_table(report["tau_sweep"])]
     e = report["entropy"]
     if e["quantiles"]:
         q = e["quantiles"]
@@ -152,20 +172,51 @@ def markdown(report: dict, plots: list[str]) -> str:
                     f"5-95 % {q['0.05']:.3f} .. {q['0.95']:.3f}."]
     real = report.get("real_motion")
     if real:
-        out += ["", f"## Real motion ({', '.join(real['files'])})", "",
-                f"Ground truth simulated with the dataset's settings into `{real['dataset']}`; "
-                f"{len(real['sequences'])} sequences, {real['frames']} frames.", ""]
-        for name, reason in real.get("rejected", {}).items():  # no ground truth: not in the table
-            out += [f"- Not evaluated: `{name}`, its simulation was rejected ({reason})."]
-        if real.get("rejected"):
-            out += [""]
-        lead = _ensemble_table(real["modes"], real.get("ensemble", {}))
-        out += [*lead, ""] if lead else []
-        out += _mode_table(real["modes"])
+        out += ["", f"## Real motion ({', '.join(real['files'])})", "", *_simulated_section(real)]
+    library = report.get("library")
+    if library:
+        out += ["", "## Library protocol (the training clips played again)", "",
+                "Clips of the model's database re-timed by 0.9-1.1, entered part-way and cross-faded into each other "
+                f"over 0.3-0.5 s (seed {library['seed']}), as a game's animation system plays its library:", ""]
+        out += [f"- `{name}`: {description}" for name, description in library["plays"].items()]
+        out += ["", *_simulated_section(library), "", "Goals on this protocol:", "", *_goal_table(library["goals"])]
+        if library["tau_sweep"]:
+            out += ["", *_sweep_table(library["tau_sweep"])]
     if plots:
         out += ["", "## Plots", ""] + [f"![{Path(p).stem}]({Path(p).name})" for p in plots]
     out += ["", "Metric definitions: docs/results.md."]
     return "\n".join(out) + "\n"
+
+
+def _goal_table(goals: dict) -> list[str]:
+    lines = ["| goal | ratio | target | met |", "|---|---:|---:|---|"]
+    for name, g in goals.items():
+        if name == "interior_tau_optimum":
+            lines.append(f"| interior tau optimum | best tau {g['best_tau']:.3f} ({g['best_pve_mm']:.2f} mm, retrieval "
+                         f"{100 * g['retrieval_usage']:.0f} %) | interior | {'yes' if g['met'] else 'no'} |")
+        else:
+            target = "" if g["target"] is None else f"<= {g['target']}"
+            met = "" if g["met"] is None else ("yes" if g["met"] else "no")
+            lines.append(f"| {name.replace('_', ' ')} | {g['ratio']:.3f} | {target} | {met} |")
+    return lines
+
+
+def _sweep_table(points: list[dict]) -> list[str]:
+    return ["| tau | PVE mm | retrieval usage |", "|---:|---:|---:|",
+            *[f"| {p['tau']:.3f} | {p['pve_mm']:.2f} | {100 * p['retrieval_usage']:.1f} % |" for p in points]]
+
+
+def _simulated_section(section: dict) -> list[str]:
+    """A section whose ground truth hrr-eval simulated (real motion, library plays): where, what
+    was rejected, the ensemble table and the mode table."""
+    out = [f"Ground truth simulated with the dataset's settings into `{section['dataset']}`; "
+           f"{len(section['sequences'])} sequences, {section['frames']} frames.", ""]
+    for name, reason in section.get("rejected", {}).items():  # no ground truth: not in the table
+        out += [f"- Not evaluated: `{name}`, its simulation was rejected ({reason})."]
+    if section.get("rejected"):
+        out += [""]
+    lead = _ensemble_table(section["modes"], section.get("ensemble", {}))
+    return out + ([*lead, ""] if lead else []) + _mode_table(section["modes"])
 
 
 def write_plots(folder: Path, modes: dict[str, ModeResult], sweep: list[TauPoint] | None, tau: float) -> list[str]:

@@ -19,7 +19,8 @@ from pathlib import Path
 import yaml
 
 from ..errors import HRRError, InputError, MotionError
-from ..motion.io import load_motion, resample_motion
+from ..motion.edit import retimed
+from ..motion.io import load_motion
 from ..motion.motion import Motion
 from ..motion.synth import KINDS, synthesize
 from .sources import DEFAULT_NAME_PATTERN, clip_group, resolve_motion_entries
@@ -106,12 +107,7 @@ class SequenceSpec:
 
 def load_file_motion(path: str, speed: float = 1.0, source_fps: float | None = None) -> Motion:
     """A motion file at 30 fps, played ``speed`` times faster (resampled; features follow)."""
-    motion = load_motion(path, source_fps=source_fps)
-    if speed == 1.0:
-        return motion
-    fast = Motion(motion.local_rotations, motion.root_translation, motion.fps * speed, motion.source,
-                  motion.source_skeleton, motion.source_height_m)
-    return resample_motion(fast, motion.fps)
+    return retimed(load_motion(path, source_fps=source_fps), speed)
 
 
 def sequence_group(spec: SequenceSpec, preset: Preset) -> str:
