@@ -94,3 +94,19 @@ def artist_model(tmp_path_factory):
     (root / "cfg.yaml").write_text(TINY_TRAINING.replace("attention_heads: 2}", "attention_heads: 2, memory_seconds: []}"))
     assert train_main(["--dataset", str(data), "--config", str(root / "cfg.yaml"), "-o", str(root / "model"), "--quiet"]) == 0
     return data, root / "model", printed.getvalue()
+
+
+@pytest.fixture(scope="session")
+def paper_model(trained, tmp_path_factory):
+    """``trained``'s autoencoder with a code space validated the paper's way (hrr-train --validation
+    windows): the model folder."""
+    import shutil
+
+    from hrr_garment.cli.train import main as train_main
+
+    root, data, _ = trained
+    folder = tmp_path_factory.mktemp("paper") / "model"
+    shutil.copytree(root / "model" / "autoencoder", folder / "autoencoder")
+    assert train_main(["--dataset", str(data), "--config", str(root / "cfg.yaml"), "-o", str(folder),
+                       "--stage", "codespace", "--validation", "windows", "--quiet"]) == 0
+    return folder

@@ -99,6 +99,47 @@ def test_windows_cover_every_start_frame():
     assert w.start.tolist() == [0, 1, 2] and w.sequence.tolist() == [0, 0, 0]
 
 
+@pytest.mark.parametrize("seed", [0, 1])
+def test_split_windows_partitions_the_windows_nine_to_one(seed):
+    from hrr_garment.data.windows import split_windows
+
+    feats = {n: np.random.default_rng(i).normal(size=(40, 2)).astype(np.float32) for i, n in enumerate("abc")}
+    lat = {n: np.zeros((40, 3, 2), np.float32) for n in "abc"}
+    every = build_windows(feats, lat, ["a", "b", "c"], 10)
+    train, val = split_windows(every, 0.1, seed)
+    assert len(val) == round(0.1 * len(every)) and len(train) + len(val) == len(every)
+    pairs = lambda w: {(int(q), int(s)) for q, s in zip(w.sequence, w.start)}  # noqa: E731
+    assert pairs(train) | pairs(val) == pairs(every) and not pairs(train) & pairs(val)
+    for i in range(len(val)):  # each window keeps its own frames and source
+        assert np.array_equal(val.motion[i], feats["abc"[val.sequence[i]]][val.start[i]:val.start[i] + 10])
+    again = split_windows(every, 0.1, seed)[1]
+    assert pairs(again) == pairs(val) and pairs(split_windows(every, 0.1, seed + 7)[1]) != pairs(val)
+    with pytest.raises(ValueError):
+        split_windows(every, 1.0)
+
+
+def test_the_paper_protocol_validates_on_a_tenth_of_the_training_clips_windows(trained, paper_model):
+    """hrr-train --validation windows: the training and validation clips' windows split 9:1, the
+    database holds the nine tenths, tau is calibrated on the tenth, and the bundle says so."""
+    from hrr_garment.artifacts.bundle import load_bundle
+    from hrr_garment.cli.train import main as train_main
+    from hrr_garment.data.dataset import GarmentDataset
+
+    root, data, args = trained
+    report = json.loads((paper_model / "codebook" / "report.json").read_text())
+    clips = json.loads((root / "model" / "codebook" / "report.json").read_text())
+    ds = GarmentDataset(data)
+    every = sum(max(ds.frames[n] - 9, 0) for n in ds.splits["train"] + ds.splits["val"])
+    assert report["windows"]["val"] == round(0.1 * every) and report["windows"]["train"] + report["windows"]["val"] == every
+    assert report["key"] != clips["key"]
+    bundle = load_bundle(paper_model)
+    assert bundle.meta["validation"] == "windows" and load_bundle(root / "model").meta["validation"] == "clips"
+    assert len(bundle.database) == report["windows"]["train"]
+    assert set(bundle.database.names) == set(ds.splits["train"] + ds.splits["val"])
+    with pytest.raises(SystemExit):
+        train_main([*args[:-1], "--validation", "folds"])
+
+
 @pytest.fixture
 def database(rng):
     n, groups, classes = 300, 32, 8

@@ -17,7 +17,7 @@ def test_hrr_eval_report_end_to_end(trained, tmp_path, capsys):
     assert main(["--model", str(root / "model"), "--dataset", str(data), "--split", "test", "--tau-sweep", "0,0.5,1,100",
                  "-o", str(out), "--quiet"]) == 0
     report = json.loads((out / "report.json").read_text())
-    assert report["format_version"] == 2 and report["dataset"]["sequences"] == ["run_000"]
+    assert report["format_version"] == 3 and report["dataset"]["sequences"] == ["run_000"]
     assert report["ensemble"] == {"members": 0}  # a synthetic dataset: no simulator settings to perturb
     modes = report["modes"]
     assert list(modes) == ["hybrid", "regression", "retrieval", "naive-nn"]
@@ -249,3 +249,27 @@ def test_library_protocol_in_hrr_eval(artist_model, tmp_path, monkeypatch):
     assert goals["energy_score_vs_single_modes"]["met"] == (scores["hybrid"] < min(scores["regression"], scores["retrieval"]))
     md = (out / "report.md").read_text()
     assert "## Library protocol" in md and lib["plays"]["play_01"] in md
+
+
+def test_paper_protocol_beside_the_papers_ratios(trained, paper_model, tmp_path, capsys):
+    from hrr_garment.cli.eval import main
+    from hrr_garment.eval.report import PAPER_RATIOS
+
+    root, data, _ = trained
+    out = tmp_path / "report"
+    assert main(["--model", str(root / "model"), "--dataset", str(data), "--paper", str(paper_model), "--no-sweep",
+                 "--no-plots", "-o", str(out), "--quiet"]) == 0
+    report = json.loads((out / "report.json").read_text())
+    paper = report["paper"]
+    assert paper["model"] == str(paper_model) and paper["paper_ratios"] == {k: list(v) for k, v in PAPER_RATIOS.items()}
+    modes = paper["modes"]
+    assert set(modes) == set(report["modes"]) and all(set(m["sequences"]) == {"run_000"} for m in modes.values())
+    assert paper["goals"]["hybrid_vs_regression"]["ratio"] == pytest.approx(
+        modes["hybrid"]["metrics"]["pve_mm"] / modes["regression"]["metrics"]["pve_mm"])
+    md = (out / "report.md").read_text()
+    assert "## Paper protocol" in md and "| hybrid vs regression |" in md and "0.37-0.49" in md
+    # a model validated on held-out clips is not the paper's protocol
+    capsys.readouterr()
+    assert main(["--model", str(root / "model"), "--dataset", str(data), "--paper", str(root / "model"), "--no-sweep",
+                 "--no-plots", "-o", str(tmp_path / "x"), "--quiet"]) == 2
+    assert "--validation windows" in capsys.readouterr().err

@@ -71,6 +71,9 @@ def _parser() -> argparse.ArgumentParser:
                    help="library protocol: N plays of the model's training clips re-timed, entered part-way and "
                         "blended into each other, simulated and evaluated (default 8; 0: skip)")
     p.add_argument("--library-seed", type=int, default=0, help="seed of the library plays (default 0)")
+    p.add_argument("--paper", type=Path, default=None, metavar="DIR",
+                   help="the paper protocol: a model of the same dataset trained with hrr-train --validation windows, "
+                        "evaluated on the same sequences, its ratios beside the paper's")
     add_fps_option(p)
     p.add_argument("--ensemble", type=int, default=4, metavar="K",
                    help="perturbed simulations per sequence for the ensemble ground truth (default 4; 0: none)")
@@ -147,6 +150,9 @@ def _main(argv: Sequence[str] | None) -> int:
     real = None
     if args.motions:
         real = _real_motion(animator, ds, args.motions, modes, tau, collision, progress, args.fps, args.ensemble, args.jobs)
+    paper = None
+    if args.paper:
+        paper = _paper(args.paper, bundle, records, modes, collision, progress, ensembles)
     library = None
     if args.library:
         library = _library(animator, ds, args.library, args.library_seed, modes, tau, collision, progress, args.ensemble,
@@ -158,7 +164,7 @@ def _main(argv: Sequence[str] | None) -> int:
                  "frames": int(sum(len(r.garment) for r in records))},
         settings={"modes": modes, "tau": tau, "collision": collision, "exclude_own_sequence": args.exclude_own_sequence},
         ensemble=_ensemble_summary(ensembles, records, args.ensemble),
-        modes=results, sweep=sweep, real=real, library=library, seconds=0.0)
+        modes=results, sweep=sweep, real=real, library=library, paper=paper, seconds=0.0)
     plots = [] if args.no_plots else write_plots(Path(out), results, sweep, tau)
     report["seconds"] = time.perf_counter() - t0
     json_path, md_path = write_report(out, report, plots)
@@ -225,6 +231,30 @@ def _real_motion(animator, ds, files: list[str], modes: list[str], tau: float, c
     return {"files": [str(f) for f in files], **section}
 
 
+def _paper(folder: Path, bundle, records, modes: list[str], collision: bool, progress: bool, ensembles: dict) -> dict:
+    """The paper protocol's section: a model whose code space was validated on a tenth of its
+    training clips' windows, on the same sequences, with its goals beside the paper's ratios."""
+    from ..eval.evaluate import evaluate_modes
+    from ..eval.report import PAPER_RATIOS, goals
+    from ..inference.animator import Animator, find_model
+
+    folder = find_model(folder)
+    animator = Animator.load(folder)
+    other = animator.bundle
+    if other.meta.get("validation", "clips") != "windows":
+        raise InputError(folder, "was validated on held-out clips; the paper protocol needs a model trained with "
+                                 "hrr-train --validation windows")
+    if other.garment != bundle.garment or other.template.num_vertices != bundle.template.num_vertices:
+        raise InputError(folder, f"is a {other.garment} model with {other.template.num_vertices} vertices; the evaluated "
+                                 f"one is {bundle.garment} with {bundle.template.num_vertices}")
+    modes = [m for m in modes if m != Mode.DIRECT or animator.has_direct]
+    print(f"paper protocol: {folder} (calibrated tau {other.tau:.3f}) on the same {len(records)} sequences")
+    results = evaluate_modes(animator, records, modes, other.tau, False, collision, progress, ensembles)
+    return {"model": str(folder), "hash": other.content_hash, "tau": other.tau,
+            "modes": {m: r.to_dict() for m, r in results.items()}, "goals": goals(results, None),
+            "paper_ratios": PAPER_RATIOS}
+
+
 def _library(animator, ds, count: int, seed: int, modes: list[str], tau: float, collision: bool, progress: bool,
              members: int, jobs: int | None, taus: list[float] | None, sweep: bool) -> dict | None:
     """The library protocol's section (docs/results.md): ``count`` plays of the clips in the
@@ -262,6 +292,13 @@ def _print_summary(report: dict) -> None:
               f"CD {m['chamfer_cm']:.3f} cm  pen. {m['penetration_pct']:.2f} %  retrieval {100 * m['retrieval_usage']:.0f} %"
               + floor)
     _print_goals(report["goals"])
+    paper = report.get("paper")
+    if paper:
+        print(f"paper protocol ({paper['model']}, tau {paper['tau']:.3f}):")
+        for name, g in paper["goals"].items():
+            low, high = paper["paper_ratios"].get(name, (None, None))
+            beside = f" (paper {low:.2f}-{high:.2f})" if low is not None else ""
+            print(f"  {name}: {g['ratio']:.3f}{beside}")
     library = report.get("library")
     if library:
         print(f"library protocol ({len(library['sequences'])} plays):")

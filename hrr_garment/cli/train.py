@@ -51,6 +51,9 @@ def _parser() -> argparse.ArgumentParser:
                         f"('{OLD_CODESPACE_NAME}': deprecated name of 'codespace')")
     p.add_argument("--config", type=Path, default=None, help="YAML overriding configs/train.yaml (same sections)")
     p.add_argument("--minutes", type=float, default=None, help="wall-clock budget for the autoencoder stage")
+    p.add_argument("--validation", choices=("clips", "windows"), default=None,
+                   help="the code space's validation: the dataset's held-out clips (default) or, as the paper did, "
+                        "a random tenth of the training clips' windows (docs/results.md, the paper protocol)")
     p.add_argument("--threads", type=int, default=None, help="torch CPU threads (default: torch's choice)")
     p.add_argument("--device", default=None,
                    help="torch device for the autoencoder stage, e.g. cuda (default cpu; other stages run on the CPU)")
@@ -149,7 +152,10 @@ def _main(argv: Sequence[str] | None) -> int:
             ae_train_values[key] = value
     ae_train = _build(TrainConfig, ae_train_values, source)
     cs_model = _build(CodeSpaceConfig, cfg["codespace"].get("model"), source)
-    cs_train = _build(CodeSpaceTrainConfig, cfg["codespace"].get("train"), source)
+    cs_train_values = dict(cfg["codespace"].get("train") or {})
+    if args.validation is not None:
+        cs_train_values["validation"] = args.validation
+    cs_train = _build(CodeSpaceTrainConfig, cs_train_values, source)
     direct_model = _build(DirectConfig, cfg["baseline"].get("model"), source)
     direct_train = _build(DirectTrainConfig, cfg["baseline"].get("train"), source)
     if args.threads:

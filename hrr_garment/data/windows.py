@@ -30,6 +30,24 @@ class WindowSet:
     def __len__(self) -> int:
         return len(self.motion)
 
+    def subset(self, rows: np.ndarray) -> "WindowSet":
+        """The windows ``rows`` (indices or a mask), ``names`` kept whole."""
+        return WindowSet(self.motion[rows], self.latents[rows], self.sequence[rows], self.start[rows], self.names)
+
+
+def split_windows(windows: WindowSet, fraction: float, seed: int = 0) -> tuple[WindowSet, WindowSet]:
+    """The windows split at random, ``fraction`` of them into the second set: the paper's
+    validation protocol (its clips' windows split 9:1). Neighbouring stride-1 windows share all but
+    one frame, so a validation window's frames are nearly all in training too: this measures
+    interpolation within the training clips, not generalisation."""
+    if not 0.0 < fraction < 1.0:
+        raise ValueError(f"fraction must be strictly between 0 and 1, got {fraction}")
+    order = np.random.default_rng(seed).permutation(len(windows))
+    cut = int(round(len(windows) * fraction))
+    if cut == 0 or cut == len(windows):
+        raise ValueError(f"{len(windows)} windows cannot be split {1 - fraction:g} : {fraction:g}")
+    return windows.subset(np.sort(order[cut:])), windows.subset(np.sort(order[:cut]))
+
 
 def build_windows(features: dict[str, np.ndarray], latents: dict[str, np.ndarray], names: list[str], window: int) -> WindowSet:
     """Windows of the sequences ``names``; ``features[name]`` (T, F), ``latents[name]`` (T, nodes, C).

@@ -28,7 +28,6 @@ from ..data.windows import dataset_features
 from ..models.codes import encode_motion
 from ..models.codespace import CodeSpace
 from ..motion.features import FeatureStats
-from ..motion.windows import sequence_windows
 from .autoencoder import body_frames, refine_settings
 
 # Windows the tau sweep decodes at most (evenly spaced; stride-1 windows overlap in W - 1 frames, so
@@ -87,20 +86,34 @@ class ModeErrors:
 
 def evaluate_modes(codespace: CodeSpace, autoencoder, motion_stats: FeatureStats, latent_stats: FeatureStats,
                    database: CodeDatabase, motion: dict[str, np.ndarray], frames: dict[str, np.ndarray], *,
-                   refine_steps: int, refine_lr: float, max_windows: int | None = MAX_WINDOWS) -> ModeErrors:
-    """Both modes on the windows of the sequences ``motion`` (features (T, F)) / ``frames``
-    (heading-frame vertices (T, V, 3)), decoded with the autoencoder's fast decoder: every window,
-    or ``max_windows`` of them evenly spaced. ``refine_steps`` and ``refine_lr``: the autoencoder
-    stage's encoding, which the floor's latents repeat."""
+                   refine_steps: int, refine_lr: float, max_windows: int | None = MAX_WINDOWS,
+                   windows: list[tuple[str, int]] | None = None) -> ModeErrors:
+    """Both modes on windows of the sequences ``motion`` (features (T, F)) / ``frames``
+    (heading-frame vertices (T, V, 3)), decoded with the autoencoder's fast decoder: ``windows``
+    ((sequence, first frame) pairs; default every window of every sequence), or ``max_windows`` of
+    them evenly spaced. ``refine_steps`` and ``refine_lr``: the autoencoder stage's encoding, which
+    the floor's latents repeat."""
     w = codespace.config.window
-    names = [n for n in motion if len(motion[n]) >= w]
-    m = np.concatenate([sequence_windows(motion[n], w) for n in names])
-    truth = np.concatenate([sequence_windows(frames[n], w) for n in names])
-    # the floor: each frame's own latent, encoded as the training targets were (once per frame, then windowed)
-    own = np.concatenate([sequence_windows(autoencoder.fit_latents(torch.from_numpy(frames[n]), refine_steps, refine_lr).numpy(), w) for n in names])
-    if max_windows is not None and len(m) > max_windows:
-        keep = np.linspace(0, len(m) - 1, max_windows).round().astype(int)
-        m, truth, own = m[keep], truth[keep], own[keep]
+    if windows is None:
+        windows = [(n, s) for n in motion for s in range(len(motion[n]) - w + 1)]
+    if max_windows is not None and len(windows) > max_windows:
+        windows = [windows[i] for i in np.linspace(0, len(windows) - 1, max_windows).round().astype(int)]
+    if not windows:
+        raise ValueError(f"no validation sequence has {w} frames or more")
+    m = np.stack([motion[n][s:s + w] for n, s in windows])
+    truth = np.stack([frames[n][s:s + w] for n, s in windows])
+    # the floor: each frame's own latent, encoded as the training targets were (each frame fitted
+    # once, on its own: fit_latents gives a frame the same latent whatever batch it is in)
+    needed: dict[str, set[int]] = {}
+    for n, s in windows:
+        needed.setdefault(n, set()).update(range(s, s + w))
+    own_frames = {}
+    for n, rows in needed.items():
+        rows_sorted = np.array(sorted(rows))
+        fitted = autoencoder.fit_latents(torch.from_numpy(frames[n][rows_sorted]), refine_steps, refine_lr).numpy()
+        own_frames[n] = np.zeros((len(frames[n]), *fitted.shape[1:]), fitted.dtype)
+        own_frames[n][rows_sorted] = fitted
+    own = np.stack([own_frames[n][s:s + w] for n, s in windows])
     pred = predict_windows(codespace, np.ascontiguousarray(m), motion_stats, latent_stats, database)
     decode = autoencoder.fast_decoder()
     err_reg = window_errors_mm(decode, pred.regression, truth)

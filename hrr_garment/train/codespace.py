@@ -23,12 +23,18 @@ import torch
 from ..artifacts.bundle import BundleError, read_meta, write_bundle
 from ..artifacts.database import CodeDatabase
 from ..data.dataset import DatasetError, GarmentDataset
-from ..data.windows import build_windows, dataset_features, fit_stats
+from ..data.windows import build_windows, dataset_features, fit_stats, split_windows
 from ..io_utils import atomic_write_text, strict_json
 from ..models.codespace import CodeSpace, CodeSpaceConfig
 from .autoencoder import body_frames, load_autoencoder, refine_settings
 from .calibrate import evaluate_modes
-from .codespace_training import CodeSpaceTrainConfig, WindowTensors, evaluate, train_codespace
+from .codespace_training import (
+    PAPER_VALIDATION_FRACTION,
+    CodeSpaceTrainConfig,
+    WindowTensors,
+    evaluate,
+    train_codespace,
+)
 from .report import StageReport
 
 STAGE_FOLDER = "codebook"  # under MODEL/: the name from before "code space" was the stage's name
@@ -114,13 +120,21 @@ def run_codespace_stage(dataset: str | Path, folder: str | Path, config: CodeSpa
     if done is not None:
         return _stage_report(done, stage, reused=True)
 
-    # windows of both splits, standardised with the training split's statistics
     autoencoder = load_autoencoder(ae_folder, ds.template.faces, cache_dir)
     splits = {k: ds.splits[k] for k in ("train", "val")}
     features = dataset_features(ds, splits["train"] + splits["val"], config.memory_seconds)
-    motion_stats, latent_stats = fit_stats(features, latents, splits["train"])
-    train_w = build_windows(features, latents, splits["train"], config.window)
-    val_w = build_windows(features, latents, splits["val"], config.window)
+    if train_config.validation == "windows":
+        # the paper's protocol: the windows of the training and validation clips split 9:1
+        clips = splits["train"] + splits["val"]
+        train_w, val_w = split_windows(build_windows(features, latents, clips, config.window),
+                                       PAPER_VALIDATION_FRACTION, train_config.seed)
+        motion_stats, latent_stats = fit_stats(features, latents, clips)
+        calibration = [(clips[i], int(s)) for i, s in zip(val_w.sequence, val_w.start)]
+    else:  # windows of both splits, standardised with the training split's statistics
+        train_w = build_windows(features, latents, splits["train"], config.window)
+        val_w = build_windows(features, latents, splits["val"], config.window)
+        motion_stats, latent_stats = fit_stats(features, latents, splits["train"])
+        calibration = None
     train_t = WindowTensors.of(train_w, motion_stats, latent_stats)
     val_t = WindowTensors.of(val_w, motion_stats, latent_stats)
 
@@ -132,9 +146,10 @@ def run_codespace_stage(dataset: str | Path, folder: str | Path, config: CodeSpa
     database = CodeDatabase(garment_codes(model, train_t.latents), train_w.latents, train_w.sequence, train_w.start,
                             train_w.names, config.classes, train_t.motion.numpy())
     encoding = refine_settings(ae_meta.get("train", {}))
+    val_names = sorted({n for n, _ in calibration}) if calibration else splits["val"]
     modes = evaluate_modes(model, autoencoder, motion_stats, latent_stats, database,
-                           {n: features[n] for n in splits["val"]}, {n: body_frames(ds, [n]) for n in splits["val"]},
-                           **encoding)
+                           {n: features[n] for n in val_names}, {n: body_frames(ds, [n]) for n in val_names},
+                           **encoding, windows=calibration)
     sweep = modes.sweep
     usage = model.quantizer.usage(torch.from_numpy(database.codes))
     final = evaluate(model, val_t)
@@ -147,6 +162,6 @@ def run_codespace_stage(dataset: str | Path, folder: str | Path, config: CodeSpa
     write_bundle(folder, autoencoder=autoencoder, codespace=model, motion_stats=motion_stats, latent_stats=latent_stats,
                  database=database, template=ds.template, tau=sweep.best_tau,
                  info={"dataset": str(dataset), "window": config.window, "validation_mm": report["validation_mm"],
-                       "encoding": encoding, **(info or {})})
+                       "encoding": encoding, "validation": train_config.validation, **(info or {})})
     atomic_write_text(report_path, strict_json(report, indent=2, default=float))
     return _stage_report(report, stage)

@@ -34,9 +34,12 @@ from ..data.windows import WindowSet
 from ..io_utils import strict_json
 from ..models.codespace import CodeSpace
 from ..models.quantizer import group_entropy
-from ..settings import from_settings
+from ..settings import SettingsError, from_settings
 from .checkpoint import keep_if_best, load_checkpoint, resume_log, save_checkpoint
 from .schedule import early_stop, epoch_fits, run_progress, set_learning_rate
+
+VALIDATION_PROTOCOLS = ("clips", "windows")
+PAPER_VALIDATION_FRACTION = 0.1  # "windows": the paper's 9:1 split of the training clips' windows
 
 
 @dataclass(frozen=True)
@@ -60,7 +63,13 @@ class CodeSpaceTrainConfig:
     patience: int = 25  # epochs after the switch without a better validation regression loss
     max_minutes: float | None = None
     windows_per_epoch: int | None = 8192  # an epoch draws at most this many training windows (None: all)
+    validation: str = "clips"  # "clips": the dataset's val split; "windows": the paper's 9:1 split of windows
     seed: int = 0
+
+    def __post_init__(self) -> None:
+        if self.validation not in VALIDATION_PROTOCOLS:
+            raise SettingsError(f"code space training: validation must be one of {', '.join(VALIDATION_PROTOCOLS)}, "
+                                f"got {self.validation!r}")
 
     @classmethod
     def from_dict(cls, values: dict) -> "CodeSpaceTrainConfig":
