@@ -71,7 +71,8 @@ def authored(vertices: np.ndarray) -> np.ndarray:
 @pytest.fixture(scope="session")
 def artist_model(tmp_path_factory):
     """An artist's dress OBJ (no groups, centimetres, Z up) simulated with ``--fit --attached auto``
-    (tiny preset, three 1 s clips) and a tiny model trained on it without the motion memory:
+    (tiny preset, three 1 s clips) and a tiny model trained on it as models were before the motion
+    memory and the expected-code regression:
     (dataset, model folder, what hrr-simulate printed)."""
     pytest.importorskip("newton", reason="the sim extra is not installed")
     import contextlib
@@ -91,7 +92,9 @@ def artist_model(tmp_path_factory):
     with contextlib.redirect_stdout(printed):
         assert simulate_main(["--template", str(obj), "--fit", "--attached", "auto", "--preset", "tiny", "--motions",
                               "walk", "spin", "walk", "--seconds", "1.0", "--jobs", "1", "--quiet", "-o", str(data)]) == 0
-    (root / "cfg.yaml").write_text(TINY_TRAINING.replace("attention_heads: 2}", "attention_heads: 2, memory_seconds: []}"))
+    # as bundles written before the motion memory and the expected-code regression
+    (root / "cfg.yaml").write_text(TINY_TRAINING.replace("attention_heads: 2}", "attention_heads: 2, memory_seconds: [], "
+                                                                                "regression_code: argmax}"))
     assert train_main(["--dataset", str(data), "--config", str(root / "cfg.yaml"), "-o", str(root / "model"), "--quiet"]) == 0
     return data, root / "model", printed.getvalue()
 

@@ -64,15 +64,17 @@ def test_decoding_only_the_last_frame_equals_the_full_window():
 
 
 @pytest.mark.parametrize("window,hidden,heads,latent", [(10, 32, 2, (6, 8)), (7, 48, 3, (5, 3)), (12, 64, 4, (9, 8))])
-@pytest.mark.parametrize("regression,last_frame", [(True, True), (True, False), (False, True)])
-def test_native_window_step_equals_pytorch_and_is_batch_invariant(window, hidden, heads, latent, regression, last_frame):
+@pytest.mark.parametrize("regression,last_frame,code", [(True, True, "expected"), (True, False, "expected"),
+                                                        (False, True, "expected"), (True, True, "argmax")])
+def test_native_window_step_equals_pytorch_and_is_batch_invariant(window, hidden, heads, latent, regression, last_frame,
+                                                                    code):
     from hrr_garment.models.codes import WindowCodes
     from hrr_garment.models.codespace import CodeSpace, CodeSpaceConfig
     from hrr_garment.models.native_codes import native_window_codes
 
     torch.manual_seed(window)
     cfg = CodeSpaceConfig(window=window, groups=6, classes=5, embedding_dim=3, hidden=40, motion_hidden=hidden,
-                          attention_heads=heads)
+                          attention_heads=heads, regression_code=code)
     cs = CodeSpace(cfg, 124, latent).eval()
     native = native_window_codes(cs, regression, last_frame)
     if native is None:
@@ -86,6 +88,29 @@ def test_native_window_step_equals_pytorch_and_is_batch_invariant(window, hidden
     one = native(windows[4:5])  # a stream's single window: the same bits as inside a batch
     assert all(torch.equal(a, b[4:5]) for a, b in zip(one[:2], got[:2]))
     assert not regression or torch.equal(one[2], got[2][4:5])
+
+
+def test_the_expected_code_is_the_mean_embedding_under_each_groups_softmax():
+    from hrr_garment.models.codes import regression_embedding
+    from hrr_garment.models.codespace import CodeSpace, CodeSpaceConfig
+    from hrr_garment.settings import SettingsError
+
+    cs = {code: CodeSpace(CodeSpaceConfig(window=4, groups=3, classes=5, embedding_dim=2, hidden=8, motion_hidden=8,
+                                          attention_heads=2, regression_code=code), 124, (2, 2)) for code in ("expected", "argmax")}
+    cs["argmax"].quantizer.embedding.data = cs["expected"].quantizer.embedding.data
+    table = cs["expected"].quantizer.embedding.detach()  # (G, K, D)
+    with torch.no_grad():
+        uniform = regression_embedding(cs["expected"], torch.zeros(1, 3, 5))
+        assert torch.allclose(uniform.reshape(3, 2), table.mean(1), atol=1e-6)  # every class equally likely: the mean
+        peaked = torch.full((1, 3, 5), -50.0)
+        peaked[0, [0, 1, 2], [4, 0, 2]] = 50.0  # certain codes: both kinds give the same classes' embeddings
+        assert torch.allclose(regression_embedding(cs["expected"], peaked), regression_embedding(cs["argmax"], peaked), atol=1e-6)
+        logits = torch.randn(2, 3, 5)
+        weights = torch.softmax(logits, -1)
+        assert torch.allclose(regression_embedding(cs["expected"], logits).reshape(2, 3, 2),
+                              torch.einsum("bgk,gkd->bgd", weights, table), atol=1e-6)
+    with pytest.raises(SettingsError, match="regression_code"):
+        CodeSpaceConfig(regression_code="mode")
 
 
 def test_windows_cover_every_start_frame():
@@ -435,3 +460,17 @@ def test_a_dataset_no_stage_can_finish_is_refused_before_training(tmp_path, caps
     assert train_main(["--dataset", str(data), "--config", str(tmp_path / "cfg.yaml"), "-o", str(out), "--quiet"]) == 2
     assert "needs at least one training and one validation sequence" in capsys.readouterr().err
     assert not out.exists()
+
+
+def test_a_bundle_written_before_the_expected_code_regresses_from_the_argmax(trained, tmp_path):
+    import shutil
+
+    from hrr_garment.artifacts.bundle import load_bundle
+
+    root, _, _ = trained
+    assert load_bundle(root / "model").codespace.config.regression_code == "expected"  # the default now
+    shutil.copytree(root / "model", tmp_path / "old")
+    meta = json.loads((tmp_path / "old" / "bundle.json").read_text())
+    del meta["codespace"]["config"]["regression_code"]
+    (tmp_path / "old" / "bundle.json").write_text(json.dumps(meta))
+    assert load_bundle(tmp_path / "old").codespace.config.regression_code == "argmax"

@@ -97,9 +97,11 @@ def test_an_artist_dress_goes_through_simulate_train_and_animate(artist_model, t
     assert animate_main([str(tmp_path / "dance.npz"), "--model", str(model), "-o", str(tmp_path / "out.h5")]) == 0
     anim = read_animation_h5(tmp_path / "out.h5")
     assert anim.vertices.shape == (30, dress.num_vertices, 3) and np.isfinite(anim.vertices).all()
-    # trained without the motion memory, as bundles written before it: the 124 plain features end to end
+    # trained as bundles were before the motion memory and the expected code: the 124 plain features
+    # and the argmax regression end to end
     animator = Animator.load(model)
-    assert animator.bundle.codespace.features == 124 and animator.bundle.codespace.config.memory_seconds == ()
+    config = animator.bundle.codespace.config
+    assert animator.bundle.codespace.features == 124 and config.memory_seconds == () and config.regression_code == "argmax"
     stream = animator.stream()
     streamed = np.stack([stream.push(dance.slice(t, t + 1)) for t in range(5)])
     np.testing.assert_allclose(streamed, animator.animate(dance.slice(0, 5), causal=True).vertices, atol=1e-5)

@@ -1,6 +1,7 @@
 """The code space's window step, shared by calibration (``train``) and inference: standardised
-motion windows -> motion encoder -> per-group entropy and argmax code -> the chosen classes'
-embedding -> the code-space decoder's regressed garment latents.
+motion windows -> motion encoder -> per-group entropy and argmax code -> the regression's
+embedding (the code distribution's mean, or the argmax classes') -> the code-space decoder's
+regressed garment latents.
 
 :class:`WindowCodes` is the PyTorch form; :mod:`.native_codes` computes the same in C for causal
 inference; :func:`traced_window_codes` is the TorchScript form a stream uses without a compiler.
@@ -27,6 +28,17 @@ class MotionCodes:
     standardised: np.ndarray  # (N, W, F) the standardised motion windows
 
 
+def regression_embedding(codespace, logits: torch.Tensor) -> torch.Tensor:
+    """What the regression decodes from grouped motion logits (B, G, K): the embedding averaged
+    over each group's softmax (``regression_code`` "expected": the code distribution's mean, which
+    the decoder maps closer to the conditional mean than any one code; -0.8 mm on real-quick
+    validation windows, docs/codespace.md) or the argmax class's (the paper's)."""
+    q = codespace.quantizer
+    if codespace.config.regression_code == "expected":
+        return q.embed(torch.softmax(logits, -1))
+    return q.embed(torch.nn.functional.one_hot(logits.argmax(-1), q.classes).to(logits.dtype))
+
+
 class WindowCodes(torch.nn.Module):
     """Standardised motion windows (B, W, F) -> (entropy (B,), argmax classes (B, G), regressed
     standardised latents (B, W or 1, nodes, C), or an empty tensor without ``regression``)."""
@@ -41,8 +53,7 @@ class WindowCodes(torch.nn.Module):
         idx = logits.argmax(-1)
         if not self.regression:
             return group_entropy(logits), idx, torch.empty(0)
-        embedding = q.embed(torch.nn.functional.one_hot(idx, q.classes).float())
-        return group_entropy(logits), idx, self.codespace.decode(embedding, self.last_frame)
+        return group_entropy(logits), idx, self.codespace.decode(regression_embedding(self.codespace, logits), self.last_frame)
 
 
 def traced_window_codes(codespace, window: int, features: int, regression: bool = True) -> torch.nn.Module:

@@ -19,8 +19,10 @@ import torch
 from torch import nn
 
 from ..motion.memory import check_memory_seconds, feature_width
-from ..settings import from_settings
+from ..settings import SettingsError, from_settings
 from .quantizer import GumbelQuantizer
+
+REGRESSION_CODES = ("expected", "argmax")
 
 
 @dataclass(frozen=True)
@@ -36,9 +38,15 @@ class CodeSpaceConfig:
     attention_heads: int = 4
     dropout: float = 0.0  # after each hidden layer of the garment encoder and the decoder
     memory_seconds: tuple[float, ...] = (0.5, 1.5)  # motion memory's time constants (motion.memory); () for none
+    # what the regression decodes: "expected", the embedding averaged over the motion code's
+    # distribution (each group's softmax), or "argmax", the most likely class's (the paper's)
+    regression_code: str = "expected"
 
     def __post_init__(self):
         object.__setattr__(self, "memory_seconds", check_memory_seconds(self.memory_seconds))
+        if self.regression_code not in REGRESSION_CODES:
+            raise SettingsError(f"code space model: regression_code must be one of {', '.join(REGRESSION_CODES)}, "
+                                f"got {self.regression_code!r}")
 
     @property
     def features(self) -> int:

@@ -1,6 +1,6 @@
 """The code space's window step in C: :class:`NativeWindowCodes` computes what
 :class:`.codes.WindowCodes` computes (motion encoder -> per-group entropy and
-argmax -> the chosen embedding -> the code-space decoder), from the same weights, with the kernel in
+argmax -> the regression's embedding -> the code-space decoder), from the same weights, with the kernel in
 ``window_codes.c``.
 
 Used for causal inference, streaming and offline alike, so both run the same arithmetic: a stream
@@ -68,7 +68,7 @@ class NativeWindowCodes:
                         for w in weights]  # kept alive: the kernel reads them through pointers
         self._pointers = (ctypes.c_void_p * len(self._arrays))(*[a.ctypes.data for a in self._arrays])
         self._dims = np.array([codespace.features, cfg.window, cfg.motion_hidden, cfg.attention_heads, q.groups, q.classes,
-                               q.dim, len(linears), *sizes], np.int32)
+                               q.dim, len(linears), *sizes, int(cfg.regression_code == "expected")], np.int32)
         self.groups = q.groups
 
     def __call__(self, windows: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:

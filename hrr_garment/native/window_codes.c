@@ -113,7 +113,9 @@ enum { P_INP_W, P_INP_B, P_IH_W, P_IH_B, P_HH_W, P_HH_B, P_ATT_IN_W, P_ATT_IN_B,
        P_NORM_B, P_QUERY, P_POOL_Q_W, P_POOL_Q_B, P_POOL_KV_W, P_POOL_KV_B, P_POOL_OUT_W, P_POOL_OUT_B, P_OUT_NORM_W, P_OUT_NORM_B, P_OUT_W,
        P_OUT_B, P_EMBEDDING, P_EPS, P_DECODER };
 
-/* dims: F, W, H, heads, G, K, D, L, then the decoder's L + 1 layer sizes (G * D first);
+/* dims: F, W, H, heads, G, K, D, L, then the decoder's L + 1 layer sizes (G * D first), then 1
+   where the regression decodes the expected embedding (the mean over each group's softmax), 0
+   where it decodes the argmax class's;
    params: the pointers in the order of the enum above, then L (weight, bias) pairs; every weight
    packed in panels (see linear_rows), the pooling's in-projection split into its query and
    key-value parts; eps holds the two layer norms' epsilons. B windows in lockstep: x (B, W, F)
@@ -130,6 +132,7 @@ static void window_codes(const float *x, int B, const int32_t *dims, const float
     const int F = dims[0], W = dims[1], H = dims[2], heads = dims[3], G = dims[4], K = dims[5], D = dims[6],
               L = dims[7];
     const int32_t *sizes = dims + 8;
+    const int expected = dims[9 + L];  /* the regression decodes the expected embedding, else the argmax's */
     const long BW = (long)B * W, widest = decoder_widest(dims);
     float *a = work, *gi = a + BW * H, *hs = gi + BW * 3 * H, *gh = hs + BW * H, *state = gh + (long)B * 3 * H,
           *qkv = state + 2L * B * H, *att = qkv + BW * 3 * H, *scores = att + BW * H, *q = scores + BW * W * heads,
@@ -172,7 +175,7 @@ static void window_codes(const float *x, int B, const int32_t *dims, const float
     linear_shared(att, B, H, p[P_POOL_OUT_W], p[P_POOL_OUT_B], H, pooled);
     layer_norm(pooled, B, H, p[P_OUT_NORM_W], p[P_OUT_NORM_B], p[P_EPS][1]);
     linear_shared(pooled, B, H, p[P_OUT_W], p[P_OUT_B], G * K, logits);
-    /* per window and group: entropy of the softmax, first argmax, the chosen class's embedding */
+    /* per window and group: entropy of the softmax, first argmax, the regression's embedding */
     #pragma omp for schedule(static)
     for (long j = 0; j < (long)B * G; ++j) {
         const int g = (int)(j % G);
@@ -187,7 +190,17 @@ static void window_codes(const float *x, int B, const int32_t *dims, const float
         }
         group_entropy[j] = logf(sum) - weighted / sum;  /* -sum p log p, p = e / sum */
         argmax[j] = best;
-        memcpy(h0 + j * D, p[P_EMBEDDING] + ((size_t)g * K + best) * D, sizeof(float) * D);
+        const float *embedding = p[P_EMBEDDING] + (size_t)g * K * D;
+        float *row = h0 + j * D;
+        if (expected) {  /* the embedding averaged over the group's softmax */
+            for (int d = 0; d < D; ++d) row[d] = 0.0f;
+            for (int k = 0; k < K; ++k) {
+                const float weight = exp_nonpositive(l[k] - l[best]) / sum;
+                for (int d = 0; d < D; ++d) row[d] += weight * embedding[(size_t)k * D + d];
+            }
+        } else {
+            memcpy(row, embedding + (size_t)best * D, sizeof(float) * D);
+        }
     }
     #pragma omp for schedule(static)
     for (int b = 0; b < B; ++b) {

@@ -32,6 +32,7 @@ from tqdm.auto import tqdm
 
 from ..data.windows import WindowSet
 from ..io_utils import strict_json
+from ..models.codes import regression_embedding
 from ..models.codespace import CodeSpace
 from ..models.quantizer import group_entropy
 from ..settings import SettingsError, from_settings
@@ -121,9 +122,12 @@ def _losses(model: CodeSpace, motion: torch.Tensor, latents: torch.Tensor, tempe
     g_logits, m_logits = model.garment_encoder(latents), model.motion_encoder(motion)
     _, e_g = q(g_logits, temperature)
     _, e_m = q(m_logits, temperature)
+    # the regression path as inference runs it: the code distribution's mean embedding (or the
+    # sampled code's, for the paper's argmax regression)
+    e_reg = regression_embedding(model, q.split(m_logits)) if model.config.regression_code == "expected" else e_m
     return {"rec": (model.decode(e_g) - latents).pow(2).mean(), "match": (e_g - e_m).pow(2).mean(),
             "diversity": 0.5 * (q.diversity_loss(g_logits) + q.diversity_loss(m_logits)),
-            "g_logits": g_logits.detach(), "m_logits": m_logits.detach(), "regress": (model.decode(e_m) - latents).pow(2).mean()}
+            "g_logits": g_logits.detach(), "m_logits": m_logits.detach(), "regress": (model.decode(e_reg) - latents).pow(2).mean()}
 
 
 @torch.no_grad()
