@@ -17,7 +17,7 @@ def test_hrr_eval_report_end_to_end(trained, tmp_path, capsys):
     assert main(["--model", str(root / "model"), "--dataset", str(data), "--split", "test", "--tau-sweep", "0,0.5,1,100",
                  "-o", str(out), "--quiet"]) == 0
     report = json.loads((out / "report.json").read_text())
-    assert report["format_version"] == 3 and report["dataset"]["sequences"] == ["run_000"]
+    assert report["format_version"] == 4 and report["dataset"]["sequences"] == ["run_000"]
     assert report["ensemble"] == {"members": 0}  # a synthetic dataset: no simulator settings to perturb
     modes = report["modes"]
     assert list(modes) == ["hybrid", "regression", "retrieval", "naive-nn"]
@@ -179,6 +179,8 @@ def test_gate_analysis_oracle_bounds_both_modes(trained):
     # each window takes its better candidate: never worse than either mode alone
     assert r["oracle_hybrid_mm"] <= min(r["regression_mm"], r["retrieval_mm"]) + 1e-9
     assert 0.0 <= r["retrieval_better_fraction"] <= 1.0 and r["windows"] > 0
+    corr = [r[f"corr_advantage_low_{g}_doubt"] for g in ("entropy", "similarity", "distance")]
+    assert all(-1.0 <= c <= 1.0 or c != c for c in corr)  # a correlation per gate (NaN where a signal is constant)
 
 
 def test_demo_says_which_dataset_its_model_was_trained_on(trained, capsys):
@@ -231,7 +233,7 @@ def test_library_protocol_in_hrr_eval(artist_model, tmp_path, monkeypatch):
     assert main(["--model", str(model), "--dataset", str(data), "--split", "test", "--ensemble", "2", "--jobs", "1",
                  "--library", "2", "--tau-sweep", "0,100", "--no-plots", "-o", str(out), "--quiet"]) == 0
     report = json.loads((out / "report.json").read_text())
-    assert report["format_version"] == 3
+    assert report["format_version"] == 4
     lib = report["library"]
     assert list(lib["plays"]) == ["play_00", "play_01"] and "->" in lib["plays"]["play_01"]
     assert lib["sequences"] == ["play_00", "play_01"] and not lib["rejected"]

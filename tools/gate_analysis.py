@@ -6,8 +6,9 @@ computes the regression and retrieval candidates' per-vertex errors and prints:
 - the per-mode means and the *oracle hybrid*: each window taking the better of its two candidates,
   a bound no gate (entropy threshold or other) can beat;
 - how often retrieval is the better candidate;
-- how well two gate signals predict retrieval's advantage (regression error minus retrieval
-  error): the paper's signal (low motion-code entropy) and the retrieved match's code similarity;
+- how well the gate signals (hrr_garment.artifacts.gate_signals) predict retrieval's advantage
+  (regression error minus retrieval error): low doubt of each, i.e. low motion-code entropy (the
+  paper's), high code similarity of the match, low motion distance of the match;
 - the same oracle with the naive nearest-neighbour retrieval.
 
     python tools/gate_analysis.py --model hrr_work/models/dress-quick --split val
@@ -57,8 +58,7 @@ def analyse(model: str, dataset: str | None, split: str) -> dict:
             "oracle_hybrid_mm": float(np.minimum(reg, ret).mean()),
             "oracle_hybrid_naive_mm": float(np.minimum(reg, nn).mean()),
             "retrieval_better_fraction": float((advantage > 0).mean()),
-            "corr_advantage_low_entropy": float(np.corrcoef(advantage, -pred.entropy)[0, 1]),
-            "corr_advantage_similarity": float(np.corrcoef(advantage, pred.similarity)[0, 1])}
+            **{f"corr_advantage_low_{g}_doubt": float(np.corrcoef(advantage, -d)[0, 1]) for g, d in pred.doubts().items()}}
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -76,8 +76,9 @@ def main(argv: list[str] | None = None) -> None:
           f"{r['retrieval_mm']:.2f} mm, naive NN {r['naive_nn_mm']:.2f} mm")
     print(f"oracle hybrid (better candidate per window) {r['oracle_hybrid_mm']:.2f} mm = "
           f"{r['oracle_hybrid_mm'] / r['regression_mm']:.3f} x regression; with naive NN {r['oracle_hybrid_naive_mm']:.2f} mm")
+    corr = ", ".join(f"{k.split('_low_')[1].removesuffix('_doubt')} {v:+.3f}" for k, v in r.items() if k.startswith("corr_"))
     print(f"retrieval better in {100 * r['retrieval_better_fraction']:.1f} % of windows; correlation of its advantage "
-          f"with low entropy {r['corr_advantage_low_entropy']:+.3f}, with match similarity {r['corr_advantage_similarity']:+.3f}")
+          f"with each gate's confidence (low doubt): {corr}")
 
 
 if __name__ == "__main__":

@@ -2,7 +2,7 @@
 
 Files (all arrays as safetensors, nothing pickled)::
 
-    bundle.json                  format version, garment, configs, tau, window, database names,
+    bundle.json                  format version, garment, configs, gate and tau, window, database names,
                                  sha256 of every other file and a content hash over them
     autoencoder.safetensors      mesh autoencoder (FCMAE) weights
     motion_encoder.safetensors   garment_encoder.safetensors   decoder.safetensors
@@ -43,6 +43,7 @@ from ..models.fcmae import AutoencoderConfig, MeshAutoencoder
 from ..models.hierarchy import cached_hierarchy
 from ..motion.features import FeatureStats
 from .database import CodeDatabase
+from .gate_signals import GATE_SIGNALS
 
 FORMAT_VERSION = 2  # 2: garments in the pelvis-following body frame (motion/frame.py)
 NETWORKS = ("motion_encoder", "garment_encoder", "decoder", "quantizer")
@@ -68,7 +69,26 @@ class Bundle:
 
     @property
     def tau(self) -> float:
+        """The calibrated threshold of the model's gate (:attr:`gate`)."""
         return float(self.meta["tau"])
+
+    @property
+    def gate(self) -> str:
+        """The hybrid's calibrated gate signal (bundles written before the match gates: entropy)."""
+        return str(self.meta.get("gate", "entropy"))
+
+    def gate_tau(self, signal: str) -> float:
+        """The threshold calibrated for gate ``signal``: :attr:`tau` for the model's own gate, the
+        training's calibration of each other signal otherwise."""
+        if signal == self.gate:
+            return self.tau
+        if signal not in GATE_SIGNALS:
+            raise BundleError(self.folder, f"has no gate {signal!r}; the gates are {', '.join(GATE_SIGNALS)}")
+        calibrated = self.meta.get("gates", {}).get(signal)
+        if not calibrated:
+            raise BundleError(self.folder, f"was not calibrated for the {signal!r} gate (trained before it, or "
+                                           "hrr-train --stage codespace again); give its threshold with --tau")
+        return float(calibrated["tau"])
 
     @property
     def garment(self) -> str:
@@ -96,8 +116,12 @@ def _save(path: Path, tensors: dict, numpy: bool = False) -> None:
 
 
 def write_bundle(folder: str | Path, *, autoencoder: MeshAutoencoder, codespace: CodeSpace, motion_stats: FeatureStats,
-                 latent_stats: FeatureStats, database: CodeDatabase, template: GarmentMesh, tau: float, info: dict) -> Path:
-    """Write (or replace) the bundle in ``folder``; returns the path of ``bundle.json``."""
+                 latent_stats: FeatureStats, database: CodeDatabase, template: GarmentMesh, tau: float, info: dict,
+                 gate: str = "entropy") -> Path:
+    """Write (or replace) the bundle in ``folder``; returns the path of ``bundle.json``. ``tau``:
+    the threshold of the hybrid's ``gate`` signal."""
+    if gate not in GATE_SIGNALS:
+        raise ValueError(f"unknown gate signal {gate!r}; choose one of {', '.join(GATE_SIGNALS)}")
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     (folder / "bundle.json").unlink(missing_ok=True)  # the old bundle stops being one first
@@ -119,7 +143,7 @@ def write_bundle(folder: str | Path, *, autoencoder: MeshAutoencoder, codespace:
                             "sizes": list(autoencoder.hierarchy.sizes)},
             "codespace": {"config": codespace.config.to_dict(), "features": codespace.features,
                           "latent_shape": list(codespace.latent_shape)},
-            "tau": float(tau), "database": {"names": database.names, "classes": database.classes, "windows": len(database)},
+            "tau": float(tau), "gate": gate, "database": {"names": database.names, "classes": database.classes, "windows": len(database)},
             "files": files, "content_hash": _content_hash(files),
             **info}
     atomic_write_text(folder / "bundle.json", strict_json(meta, indent=2))
@@ -211,6 +235,8 @@ def _check_manifest(folder: Path, meta: object) -> dict:
         raise BundleError(folder, f"bundle.json 'garment' must be a name, got {garment!r}")
     if isinstance(tau, bool) or not isinstance(tau, (int, float)) or not math.isfinite(tau) or tau < 0:
         raise BundleError(folder, f"bundle.json 'tau' must be a finite number >= 0, got {tau!r}")
+    if meta.get("gate", "entropy") not in GATE_SIGNALS:
+        raise BundleError(folder, f"bundle.json 'gate' must be one of {', '.join(GATE_SIGNALS)}, got {meta.get('gate')!r}")
     for section in ("autoencoder", "codespace", "database"):
         if not isinstance(meta.get(section), dict):
             raise BundleError(folder, f"bundle.json lacks its {section!r} section")

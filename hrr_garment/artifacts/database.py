@@ -6,6 +6,9 @@ of groups whose classes agree. On one-hot vectors that is exactly ``1 - hamming 
 Hamming distance of the packed bit vectors (each disagreeing group flips two bits), so the search
 runs on a FAISS binary index (popcounts over G x K / 8 bytes per code) and returns the same
 neighbours as a float inner-product index over the normalised one-hot vectors, 32x smaller.
+
+The gate signals that judge a match (:mod:`.gate_signals`) use :meth:`CodeDatabase.search` and
+:meth:`CodeDatabase.motion_distance`.
 """
 
 from __future__ import annotations
@@ -89,6 +92,14 @@ class CodeDatabase:
             self._motion_index.add(np.ascontiguousarray(self.motion.reshape(len(self.motion), -1), np.float32))
         q = np.ascontiguousarray(np.asarray(motion, np.float32).reshape(len(motion), -1))
         return self._search(self._motion_index, q, exclude)[1]
+
+    def motion_distance(self, motion: np.ndarray, rows: np.ndarray) -> np.ndarray:
+        """RMS difference (standardised units) between query motion windows (Q, W, F), standardised,
+        and the database windows ``rows`` (Q,): how close a retrieved window's motion is to the query's."""
+        if self.motion is None:
+            raise ValueError("this database has no motion windows (the distance gate needs them)")
+        diff = np.asarray(motion, np.float32).reshape(len(rows), -1) - self.motion[rows].reshape(len(rows), -1)
+        return np.sqrt(np.mean(diff.astype(np.float64) ** 2, axis=1))
 
     def arrays(self) -> dict[str, np.ndarray]:
         out = {"codes": self.codes, "latents": self.latents, "sequence": self.sequence, "start": self.start}

@@ -18,6 +18,7 @@ import time
 from pathlib import Path
 from typing import Sequence
 
+from ..artifacts.gate_signals import GATE_SIGNALS
 from ..errors import InputError
 from ..inference.modes import Mode
 from ._common import add_fps_option, run_cli
@@ -31,7 +32,10 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--model", type=Path, default=None, help="model bundle directory (instead of --garment)")
     p.add_argument("--mode", default=Mode.HYBRID.value, choices=[m.value for m in Mode],
                    help="direct: the baseline, when the model has it (hrr-train --stage baseline)")
-    p.add_argument("--tau", type=float, default=None, help="entropy threshold (default: the model's calibrated one)")
+    p.add_argument("--gate", default=None, choices=GATE_SIGNALS,
+                   help="what the hybrid thresholds: the motion code's entropy (the paper's), the match's code "
+                        "similarity or its motion distance (default: the model's calibrated choice)")
+    p.add_argument("--tau", type=float, default=None, help="the gate's threshold (default: the model's calibrated one)")
     p.add_argument("--no-collision", action="store_true", help="skip the collision push-out")
     p.add_argument("--causal", action="store_true", help="causal windows only, as the streaming API")
     p.add_argument("--unit-scale", type=float, default=None, help="BVH length unit in metres (default: detected)")
@@ -59,11 +63,13 @@ def _main(argv: Sequence[str] | None) -> int:
     animator = Animator.load(model_dir)
     if args.garment is not None and animator.bundle.garment != args.garment:
         raise InputError(model_dir, f"this model animates a {animator.bundle.garment}, not a {args.garment}")
-    anim = animator.animate(motion, mode=args.mode, tau=args.tau, collision=not args.no_collision, causal=args.causal)
+    anim = animator.animate(motion, mode=args.mode, tau=args.tau, collision=not args.no_collision, causal=args.causal,
+                            gate=args.gate)
     anim.save(args.output)
     seconds = time.perf_counter() - t0
     print(f"wrote {args.output}: {anim.vertices.shape[0]} frames ({motion.duration_s:.2f} s at {anim.fps:g} fps), "
-          f"{anim.vertices.shape[1]} vertices; mode {args.mode}, tau {anim.settings['tau']:.3f}, "
+          f"{anim.vertices.shape[1]} vertices; mode {args.mode}, gate {anim.settings['gate']} < "
+          f"{anim.settings['tau']:.3f}, "
           f"retrieval usage {100 * anim.retrieval_usage:.1f} % of frames; {seconds:.1f} s")
     if anim.penetration is not None:
         p = anim.penetration

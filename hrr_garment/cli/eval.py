@@ -26,6 +26,7 @@ import time
 from pathlib import Path
 from typing import Sequence
 
+from ..artifacts.gate_signals import GATE_SIGNALS
 from ..errors import InputError
 from ..inference.modes import Mode
 from ._common import add_fps_option, run_cli
@@ -61,10 +62,14 @@ def _parser() -> argparse.ArgumentParser:
                    help="evaluate N sequences of the split, evenly spaced in name order (default: all)")
     p.add_argument("--modes", type=_modes, default=None,
                    help="comma-separated (default: hybrid,regression,retrieval,naive-nn, plus direct when trained)")
-    p.add_argument("--tau", type=float, default=None, help="tau for hybrid (default: the model's calibrated one)")
+    p.add_argument("--gate", default=None, choices=GATE_SIGNALS,
+                   help="the hybrid's gate signal: motion-code entropy (the paper's), the match's code similarity or "
+                        "its motion distance (default: the model's calibrated choice); the sweeps run on it")
+    p.add_argument("--tau", type=float, default=None, help="the gate's threshold (default: the one calibrated for it)")
     p.add_argument("--exclude-own-sequence", action="store_true",
                    help="keep each sequence's own windows out of retrieval (matters for --split train)")
-    p.add_argument("--tau-sweep", type=_floats, default=None, help="comma-separated taus (default: 10 entropy quantiles)")
+    p.add_argument("--tau-sweep", type=_floats, default=None,
+                   help="comma-separated taus (default: 0, the gate signal's deciles and above its maximum)")
     p.add_argument("--no-sweep", action="store_true", help="skip the tau sweep")
     p.add_argument("--motions", nargs="+", default=None, help="real motion files to simulate and evaluate on")
     p.add_argument("--library", type=int, default=8, metavar="N",
@@ -85,13 +90,17 @@ def _parser() -> argparse.ArgumentParser:
     return p
 
 
-def default_taus(animator, records) -> list[float]:
-    """0, the deciles of the per-window entropies on these records, and above the maximum."""
+def default_taus(animator, records, gate: str) -> list[float]:
+    """0, the deciles of the gate signal's per-frame doubts on these records, and above the maximum
+    (retrieval only)."""
     import numpy as np
 
-    h = np.concatenate([animator.animate(r.motion, mode="regression", collision=False).entropy for r in records])
-    top = math.log(animator.bundle.codespace.config.classes) + 1e-3  # at least every entropy: retrieval only
-    return sorted({0.0, *[round(float(q), 4) for q in np.quantile(h, np.linspace(0.1, 0.9, 9))], round(top, 4)})
+    h = np.concatenate([animator.animate(r.motion, mode="hybrid", tau=0.0, collision=False, gate=gate).doubt
+                        for r in records])
+    top = float(h.max()) + 1e-3 if len(h) else 1.0
+    if gate == "entropy":  # at least every entropy
+        top = max(top, math.log(animator.bundle.codespace.config.classes) + 1e-3)
+    return sorted({0.0, *[round(float(q), 4) for q in np.quantile(h, np.linspace(0.1, 0.9, 9))], round(top + 5e-5, 4)})
 
 
 def _main(argv: Sequence[str] | None) -> int:
@@ -139,33 +148,35 @@ def _main(argv: Sequence[str] | None) -> int:
     if args.ensemble == 1 or args.ensemble < 0:
         raise InputError("hrr-eval", f"--ensemble takes 0 (none) or at least 2 members, got {args.ensemble}")
     ensembles = _ensembles(ds, records, args.ensemble, args.jobs, progress)
-    tau = bundle.tau if args.tau is None else args.tau
+    gate, tau = animator.gate_setting(args.gate, args.tau)
     print(f"evaluating {model_dir} on {len(records)} {args.split} sequences of {dataset} ({sum(len(r.garment) for r in records)} "
           f"frames): {', '.join(modes)}")
-    results = evaluate_modes(animator, records, modes, tau, args.exclude_own_sequence, collision, progress, ensembles)
+    results = evaluate_modes(animator, records, modes, tau, args.exclude_own_sequence, collision, progress, ensembles, gate)
     sweep = None
     if not args.no_sweep:
-        taus = args.tau_sweep or default_taus(animator, records)
-        sweep = tau_sweep(animator, records, taus, args.exclude_own_sequence, collision, progress)
+        taus = args.tau_sweep or default_taus(animator, records, gate)
+        sweep = tau_sweep(animator, records, taus, args.exclude_own_sequence, collision, progress, gate)
     real = None
     if args.motions:
-        real = _real_motion(animator, ds, args.motions, modes, tau, collision, progress, args.fps, args.ensemble, args.jobs)
+        real = _real_motion(animator, ds, args.motions, modes, (gate, tau), collision, progress, args.fps, args.ensemble,
+                            args.jobs)
     paper = None
     if args.paper:
         paper = _paper(args.paper, bundle, records, modes, collision, progress, ensembles)
     library = None
     if args.library:
-        library = _library(animator, ds, args.library, args.library_seed, modes, tau, collision, progress, args.ensemble,
+        library = _library(animator, ds, args.library, args.library_seed, modes, (gate, tau), collision, progress, args.ensemble,
                            args.jobs, args.tau_sweep, not args.no_sweep)
     report = build_report(
-        model={"folder": str(model_dir), "garment": bundle.garment, "hash": bundle.content_hash, "tau": bundle.tau,
+        model={"folder": str(model_dir), "garment": bundle.garment, "hash": bundle.content_hash, "gate": bundle.gate,
+               "tau": bundle.tau, "gates": bundle.meta.get("gates", {}),
                "vertices": bundle.template.num_vertices, "preset": bundle.meta.get("preset")},
         dataset={"path": str(dataset), "split": args.split, "sequences": names,
                  "frames": int(sum(len(r.garment) for r in records))},
-        settings={"modes": modes, "tau": tau, "collision": collision, "exclude_own_sequence": args.exclude_own_sequence},
+        settings={"modes": modes, "gate": gate, "tau": tau, "collision": collision, "exclude_own_sequence": args.exclude_own_sequence},
         ensemble=_ensemble_summary(ensembles, records, args.ensemble),
         modes=results, sweep=sweep, real=real, library=library, paper=paper, seconds=0.0)
-    plots = [] if args.no_plots else write_plots(Path(out), results, sweep, tau)
+    plots = [] if args.no_plots else write_plots(Path(out), results, sweep, tau, gate)
     report["seconds"] = time.perf_counter() - t0
     json_path, md_path = write_report(out, report, plots)
     _print_summary(report)
@@ -196,10 +207,11 @@ def _ensemble_summary(ensembles: dict, records, members: int) -> dict:
             "failed_members": {name: e.failed for name, e in ensembles.items() if e.failed}}
 
 
-def _simulated(animator, ds, specs, path: Path, purpose: str, modes: list[str], tau: float, collision: bool,
-               progress: bool, members: int, jobs: int | None) -> tuple[dict, list]:
+def _simulated(animator, ds, specs, path: Path, purpose: str, modes: list[str], gate_tau: tuple[str, float],
+               collision: bool, progress: bool, members: int, jobs: int | None) -> tuple[dict, list]:
     """Simulate the ground truth of ``specs`` with the dataset's settings into ``path`` (parts cached)
-    and evaluate every mode there: the report section and the records."""
+    and evaluate every mode there (the hybrid with ``gate_tau``: signal, threshold): the report
+    section and the records."""
     from ..data.dataset import GarmentDataset
     from ..eval.evaluate import evaluate_modes
     from ..sim.build import build_dataset
@@ -212,14 +224,16 @@ def _simulated(animator, ds, specs, path: Path, purpose: str, modes: list[str], 
     data = GarmentDataset(report.path)
     records = [data.sequence(n) for n in report.sequences]
     ensembles = _ensembles(data, records, members, jobs, progress)
-    results = evaluate_modes(animator, records, modes, tau, False, collision, progress, ensembles)
+    gate, tau = gate_tau
+    results = evaluate_modes(animator, records, modes, tau, False, collision, progress, ensembles, gate)
     return {"dataset": str(report.path), "sequences": report.sequences,
             "frames": int(sum(len(r.garment) for r in records)), "rejected": report.rejects,
             "ensemble": _ensemble_summary(ensembles, records, members),
             "modes": {m: r.to_dict() for m, r in results.items()}}, records
 
 
-def _real_motion(animator, ds, files: list[str], modes: list[str], tau: float, collision: bool, progress: bool,
+def _real_motion(animator, ds, files: list[str], modes: list[str], gate_tau: tuple[str, float], collision: bool,
+                 progress: bool,
                  source_fps: float | None = None, members: int = 0, jobs: int | None = None) -> dict:
     """The real motion files' section: their ground truth simulated with the dataset's settings."""
     from ..paths import workspace
@@ -227,7 +241,8 @@ def _real_motion(animator, ds, files: list[str], modes: list[str], tau: float, c
 
     specs = plan_sequences(load_preset(str(ds.info.get("preset", "quick"))), motions=list(files), source_fps=source_fps)
     path = workspace() / "eval" / f"{ds.path.stem}-real-motion.h5"
-    section, _ = _simulated(animator, ds, specs, path, "hrr-eval real motion", modes, tau, collision, progress, members, jobs)
+    section, _ = _simulated(animator, ds, specs, path, "hrr-eval real motion", modes, gate_tau, collision, progress,
+                            members, jobs)
     return {"files": [str(f) for f in files], **section}
 
 
@@ -248,14 +263,15 @@ def _paper(folder: Path, bundle, records, modes: list[str], collision: bool, pro
         raise InputError(folder, f"is a {other.garment} model with {other.template.num_vertices} vertices; the evaluated "
                                  f"one is {bundle.garment} with {bundle.template.num_vertices}")
     modes = [m for m in modes if m != Mode.DIRECT or animator.has_direct]
-    print(f"paper protocol: {folder} (calibrated tau {other.tau:.3f}) on the same {len(records)} sequences")
-    results = evaluate_modes(animator, records, modes, other.tau, False, collision, progress, ensembles)
-    return {"model": str(folder), "hash": other.content_hash, "tau": other.tau,
+    print(f"paper protocol: {folder} (calibrated gate {other.gate} < {other.tau:.3f}) on the same {len(records)} sequences")
+    results = evaluate_modes(animator, records, modes, other.tau, False, collision, progress, ensembles, other.gate)
+    return {"model": str(folder), "hash": other.content_hash, "gate": other.gate, "tau": other.tau,
             "modes": {m: r.to_dict() for m, r in results.items()}, "goals": goals(results, None),
             "paper_ratios": PAPER_RATIOS}
 
 
-def _library(animator, ds, count: int, seed: int, modes: list[str], tau: float, collision: bool, progress: bool,
+def _library(animator, ds, count: int, seed: int, modes: list[str], gate_tau: tuple[str, float], collision: bool,
+             progress: bool,
              members: int, jobs: int | None, taus: list[float] | None, sweep: bool) -> dict | None:
     """The library protocol's section (docs/results.md): ``count`` plays of the clips in the
     model's database, simulated and evaluated, with their own tau sweep and goals."""
@@ -274,10 +290,11 @@ def _library(animator, ds, count: int, seed: int, modes: list[str], tau: float, 
     files = save_plays(plays, folder)
     print(f"library protocol: {count} plays of the database's clips (motions in {folder})")
     specs = [SequenceSpec(p.name, "file", path=str(f), start=0, stop=p.motion.num_frames) for p, f in zip(plays, files)]
-    section, records = _simulated(animator, ds, specs, folder / "truth.h5", "hrr-eval library protocol", modes, tau,
+    section, records = _simulated(animator, ds, specs, folder / "truth.h5", "hrr-eval library protocol", modes, gate_tau,
                                   collision, progress, members, jobs)
-    points = tau_sweep(animator, records, taus or default_taus(animator, records), False, collision, progress) \
-        if sweep and records else None
+    gate = gate_tau[0]
+    points = tau_sweep(animator, records, taus or default_taus(animator, records, gate), False, collision, progress,
+                       gate) if sweep and records else None
     section.update(plays={p.name: p.description for p in plays}, seed=seed, tau_sweep=[vars(p) for p in points or []],
                    goals=library_goals(section["modes"], points))
     return section

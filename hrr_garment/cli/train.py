@@ -235,7 +235,11 @@ def _print_codespace(report: StageReport, folder: Path) -> None:
           f"{r['database_codes']['classes']} classes dead, perplexity {r['database_codes']['perplexity']:.2f}")
     print(f"validation per-vertex error (window level): hybrid {v['hybrid']:.2f} mm, regression-only "
           f"{v['regression']:.2f} mm, retrieval-only {v['retrieval']:.2f} mm (autoencoder floor {v['autoencoder']:.2f} mm); "
-          f"tau {r['tau']:.3f}, retrieval usage {100 * v['retrieval_usage']:.0f} %")
+          f"gate {r.get('gate', 'entropy')} < tau {r['tau']:.3f}, retrieval usage {100 * v['retrieval_usage']:.0f} %")
+    if "gates" in r:  # reports from before the match gates have only the entropy's
+        print("gates calibrated on validation: " + "; ".join(
+            f"{g} < {c['tau']:.3f}: {c['validation_mm']:.2f} mm, {100 * c['retrieval_usage']:.0f} % retrieval"
+            for g, c in r["gates"].items()))
     print(f"bundle: {folder} ({size:.1f} MB)")
 
 

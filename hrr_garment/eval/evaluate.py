@@ -43,6 +43,7 @@ class ModeResult:
     mode: str
     tau: float
     sequences: list[SequenceResult] = field(default_factory=list)
+    gate: str = "entropy"  # the hybrid's gate signal, which tau thresholds
 
     @property
     def metrics(self) -> dict[str, float]:
@@ -58,7 +59,7 @@ class ModeResult:
         return {**combined, **ensemble_ratios(combined), "sequences": len(rows)}
 
     def to_dict(self) -> dict:
-        return {"mode": self.mode, "tau": self.tau, "metrics": self.metrics, "ensemble": self.ensemble,
+        return {"mode": self.mode, "gate": self.gate, "tau": self.tau, "metrics": self.metrics, "ensemble": self.ensemble,
                 "sequences": {s.name: {"frames": s.frames, **s.metrics, **({"ensemble": {**s.ensemble, **ensemble_ratios(s.ensemble)}}
                                                                             if s.ensemble else {})}
                               for s in self.sequences}}
@@ -122,12 +123,13 @@ def sequence_ensemble_metrics(anim_vertices: np.ndarray, before_push_out: tuple[
 
 def evaluate_modes(animator: Animator, records: list[SequenceRecord], modes: list[str], tau: float | None = None,
                    exclude_own_sequence: bool = False, collision: bool = True, progress: bool = True,
-                   ensembles: dict[str, TruthEnsemble] | None = None) -> dict[str, ModeResult]:
+                   ensembles: dict[str, TruthEnsemble] | None = None, gate: str | None = None) -> dict[str, ModeResult]:
     """Each mode on each record. ``exclude_own_sequence`` keeps a record's own database sequence
     (when it is one: training sequences) out of retrieval, as in the paper's comparison. Records
-    with a truth ensemble in ``ensembles`` are also scored against it."""
+    with a truth ensemble in ``ensembles`` are also scored against it. ``gate``, ``tau``: the
+    hybrid's (default the model's calibrated ones)."""
     bundle = animator.bundle
-    tau = bundle.tau if tau is None else float(tau)
+    gate, tau = animator.gate_setting(gate, tau)
     topo = M.MeshTopology.of(bundle.template.faces, bundle.template.num_vertices)
     rest = bundle.template.vertices.astype(np.float64)
     hem = bundle.template.groups.get("hem")
@@ -138,11 +140,11 @@ def evaluate_modes(animator: Animator, records: list[SequenceRecord], modes: lis
     ensembles = ensembles or {}
     truths: dict[str, dict[str, float]] = {}  # per record, computed once for every mode
     names = list(bundle.database.names)
-    results = {m: ModeResult(m, tau) for m in modes}
+    results = {m: ModeResult(m, tau, gate=gate) for m in modes}
     jobs = [(m, r) for r in records for m in modes]
     for mode, record in tqdm(jobs, desc="evaluate", unit="run", disable=not progress):
         own = names.index(record.name) if exclude_own_sequence and record.name in names else None
-        anim = animator.animate(record.motion, mode=mode, tau=tau, collision=collision, exclude_sequence=own)
+        anim = animator.animate(record.motion, mode=mode, tau=tau, collision=collision, exclude_sequence=own, gate=gate)
         ensemble = {}
         if record.name in ensembles:
             before = (anim.penetration.inside_before, anim.penetration.worst_before) if anim.penetration else None
@@ -168,15 +170,17 @@ class TauPoint:
 
 
 def tau_sweep(animator: Animator, records: list[SequenceRecord], taus: list[float], exclude_own_sequence: bool = False,
-              collision: bool = True, progress: bool = True) -> list[TauPoint]:
-    """Hybrid PVE and retrieval usage (fraction of frames) at each tau, on the same records."""
+              collision: bool = True, progress: bool = True, gate: str | None = None) -> list[TauPoint]:
+    """Hybrid PVE and retrieval usage (fraction of frames) at each tau of ``gate`` (default the
+    model's), on the same records."""
     names = list(animator.bundle.database.names)
     points = []
     for tau in tqdm(taus, desc="tau sweep", unit="tau", disable=not progress):
         errors, frames, retrieved = 0.0, 0, 0
         for record in records:
             own = names.index(record.name) if exclude_own_sequence and record.name in names else None
-            anim = animator.animate(record.motion, mode=Mode.HYBRID, tau=tau, collision=collision, exclude_sequence=own)
+            anim = animator.animate(record.motion, mode=Mode.HYBRID, tau=tau, collision=collision, exclude_sequence=own,
+                                    gate=gate)
             errors += M.pve_mm(anim.vertices.astype(np.float64), record.garment.astype(np.float64)) * len(anim.vertices)
             frames += len(anim.vertices)
             retrieved += int(anim.mode.sum())

@@ -16,7 +16,7 @@ import numpy as np
 from ..io_utils import atomic_path, atomic_write_text, strict_json
 from .evaluate import ModeResult, TauPoint
 
-REPORT_VERSION = 3  # 2: truth ensembles ("ensemble" per mode and at the top level); 3: "library" and "paper"
+REPORT_VERSION = 4  # 2: truth ensembles ("ensemble" per mode and at the top level); 3: "library" and "paper"; 4: the gate signal ("gate" beside each "tau", the model's calibrated "gates")
 GOALS = (  # (name, numerator mode, denominator mode, target ratio)
     ("hybrid_vs_regression", "hybrid", "regression", 0.5),
     ("hybrid_vs_retrieval", "hybrid", "retrieval", 0.85),
@@ -157,10 +157,12 @@ def markdown(report: dict, plots: list[str]) -> str:
     """report.md: the report's tables, with the plots."""
     model, data, settings = report["model"], report["dataset"], report["settings"]
     out = [f"# Evaluation: {model['garment']} ({Path(model['folder']).name})", "",
-           f"Model `{model['folder']}` (hash {model['hash']}, calibrated tau {model['tau']:.3f}); dataset "
+           f"Model `{model['folder']}` (hash {model['hash']}, calibrated gate {model.get('gate', 'entropy')} < "
+           f"{model['tau']:.3f}); dataset "
            f"`{data['path']}`, split **{data['split']}**: {len(data['sequences'])} sequences, {data['frames']} frames. "
            f"Collision push-out {'on' if settings['collision'] else 'off'}; own sequence excluded from retrieval: "
-           f"{'yes' if settings['exclude_own_sequence'] else 'no'}; tau {settings['tau']:.3f}. "
+           f"{'yes' if settings['exclude_own_sequence'] else 'no'}; hybrid gate {settings.get('gate', 'entropy')} < "
+           f"{settings['tau']:.3f}. "
            f"Run time {report['seconds']:.0f} s.", ""]
     lead = _ensemble_table(report["modes"], report.get("ensemble", {}))
     if lead:
@@ -169,7 +171,7 @@ def markdown(report: dict, plots: list[str]) -> str:
     out += _mode_table(report["modes"])
     out += ["", "## Goals (the paper's shape; PVE ratios)", "", *_goal_table(report["goals"])]
     if report["tau_sweep"]:
-        out += ["", "## Tau sweep (hybrid)", "", *_sweep_table(report["tau_sweep"])]
+        out += ["", f"## Tau sweep (hybrid, gate {settings.get('gate', 'entropy')})", "", *_sweep_table(report["tau_sweep"])]
     e = report["entropy"]
     if e["quantiles"]:
         q = e["quantiles"]
@@ -181,7 +183,8 @@ def markdown(report: dict, plots: list[str]) -> str:
     paper = report.get("paper")
     if paper:
         out += ["", "## Paper protocol (code space validated on a tenth of its training clips' windows)", "",
-                f"Model `{paper['model']}` (hash {paper['hash']}, calibrated tau {paper['tau']:.3f}) on the same "
+                f"Model `{paper['model']}` (hash {paper['hash']}, calibrated gate {paper.get('gate', 'entropy')} < "
+                f"{paper['tau']:.3f}) on the same "
                 "sequences. The paper reserved 3-5 test clips and split the rest 9:1 into training and validation "
                 "(by window): tau is calibrated on windows of the training clips.", ""]
         lead = _ensemble_table(paper["modes"], report.get("ensemble", {}))
@@ -239,8 +242,10 @@ def _simulated_section(section: dict) -> list[str]:
     return out + ([*lead, ""] if lead else []) + _mode_table(section["modes"])
 
 
-def write_plots(folder: Path, modes: dict[str, ModeResult], sweep: list[TauPoint] | None, tau: float) -> list[str]:
-    """error_over_time.png, entropy_histogram.png, tau_curve.png (with the ``eval`` extra)."""
+def write_plots(folder: Path, modes: dict[str, ModeResult], sweep: list[TauPoint] | None, tau: float,
+                gate: str = "entropy") -> list[str]:
+    """error_over_time.png, entropy_histogram.png, tau_curve.png (with the ``eval`` extra); tau
+    thresholds ``gate``'s signal (marked on the entropy histogram when that is the entropy)."""
     try:
         import matplotlib
 
@@ -269,16 +274,18 @@ def write_plots(folder: Path, modes: dict[str, ModeResult], sweep: list[TauPoint
     h = _entropies(modes)
     fig, ax = plt.subplots(figsize=(5, 3.4))
     ax.hist(h, bins=30, color="#4a6fc4")
-    ax.axvline(tau, color="#e0862d", lw=2, label=f"tau = {tau:.3f}")
+    if gate == "entropy":
+        ax.axvline(tau, color="#e0862d", lw=2, label=f"tau = {tau:.3f}")
+        ax.legend()
     ax.set(xlabel="motion-code entropy (nats)", ylabel="frames", title="Entropy distribution")
-    ax.legend()
     save(fig, "entropy_histogram.png")
 
     if sweep:
         finite = [p for p in sweep if math.isfinite(p.tau)]
         fig, ax = plt.subplots(figsize=(5, 3.4))
         ax.plot([p.tau for p in finite], [p.pve_mm for p in finite], "o-", color="#4a6fc4")
-        ax.set(xlabel="tau (nats)", ylabel="hybrid PVE (mm)", title="Tau sweep")
+        ax.set(xlabel={"entropy": "tau (nats)", "similarity": "tau (1 - code similarity)",
+                       "distance": "tau (motion distance)"}.get(gate, "tau"), ylabel="hybrid PVE (mm)", title="Tau sweep")
         ax2 = ax.twinx()
         ax2.plot([p.tau for p in finite], [100 * p.retrieval_usage for p in finite], "s--", color="#e0862d")
         ax2.set_ylabel("retrieval usage (%)")

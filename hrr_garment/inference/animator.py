@@ -57,6 +57,7 @@ class Animation:
     settings: dict = field(default_factory=dict)
     penetration: PushOutReport | None = None
     capsules: np.ndarray | None = None  # (T, C, 2, 3) collision capsule ends, for previews and exports
+    doubt: np.ndarray | None = None  # (T,) the gate signal's value per frame (retrieval where below tau)
 
     @property
     def retrieval_usage(self) -> float:
@@ -137,27 +138,34 @@ class Animator:
         return self.bundle.codespace.config.window
 
     def animate(self, motion: Motion, mode: Mode | str = Mode.HYBRID, tau: float | None = None, collision: bool = True,
-                causal: bool = False, exclude_sequence: int | None = None) -> Animation:
+                causal: bool = False, exclude_sequence: int | None = None, gate: str | None = None) -> Animation:
         """Animate a whole clip (see :mod:`hrr_garment.inference`): ``mode`` hybrid | regression | retrieval |
-        naive-nn, or direct (the baseline, when the bundle has it; offline only); ``tau`` overrides the bundle's; ``causal`` gives what streaming gives;
-        ``exclude_sequence`` keeps one database sequence out of retrieval (evaluation)."""
+        naive-nn, or direct (the baseline, when the bundle has it; offline only); ``gate`` the hybrid's
+        signal (default the model's calibrated one, :data:`~hrr_garment.artifacts.database.GATE_SIGNALS`)
+        and ``tau`` its threshold (default the one calibrated for that signal); ``causal`` gives what
+        streaming gives; ``exclude_sequence`` keeps one database sequence out of retrieval (evaluation)."""
+        gate, tau = self.gate_setting(gate, tau)
         with flush_denormals():
-            return self._animate(motion, mode, tau, collision, causal, exclude_sequence)
+            return self._animate(motion, mode, tau, collision, causal, exclude_sequence, gate)
 
-    def _animate(self, motion: Motion, mode: str, tau: float | None, collision: bool, causal: bool,
-                 exclude_sequence: int | None) -> Animation:
-        tau = self.bundle.tau if tau is None else float(tau)
+    def gate_setting(self, gate: str | None, tau: float | None) -> tuple[str, float]:
+        """The gate signal and threshold to run: the model's calibrated ones unless given."""
+        gate = self.bundle.gate if gate is None else str(gate)
+        return gate, self.bundle.gate_tau(gate) if tau is None else float(tau)
+
+    def _animate(self, motion: Motion, mode: str, tau: float, collision: bool, causal: bool,
+                 exclude_sequence: int | None, gate: str) -> Animation:
         t_frames, w = motion.num_frames, self.window
         if t_frames < 1:
             raise MotionError(motion.source, "the motion has no frames")
         if mode == Mode.DIRECT:
             latents = self._direct_latents(motion)
             retrieved, entropy = np.zeros(t_frames, np.uint8), np.full(t_frames, np.nan, np.float32)
-            source = np.full((t_frames, 2), -1, np.int32)
+            source, doubt = np.full((t_frames, 2), -1, np.int32), entropy.copy()
         else:
             if causal:
                 feats = causal_windows(self.features(motion, causal=True), w)
-                choice = self._choose(feats, mode, tau, exclude_sequence, last_frame=True)
+                choice = self._choose(feats, mode, tau, exclude_sequence, gate, last_frame=True)
                 latents = causal_latents(choice, self.blend)
                 per_frame = np.arange(t_frames)
             else:
@@ -165,11 +173,11 @@ class Animator:
                 if t_frames < w:  # shorter than one window: pad with the last frame, keep the first T outputs
                     feats = np.concatenate([feats, np.repeat(feats[-1:], w - t_frames, 0)])
                 windows = np.ascontiguousarray(sequence_windows(feats, w))
-                choice = self._choose(windows, mode, tau, exclude_sequence)
+                choice = self._choose(windows, mode, tau, exclude_sequence, gate)
                 latents = blend_windows(choice.latents, len(feats))[:t_frames]
                 per_frame = np.clip(np.arange(t_frames) - w // 2, 0, len(windows) - 1)  # the window centred on t
             retrieved, entropy = choice.retrieved[per_frame].astype(np.uint8), choice.entropy[per_frame].astype(np.float32)
-            source = choice.source[per_frame]
+            source, doubt = choice.source[per_frame], choice.doubt[per_frame].astype(np.float32)
         vertices = from_body_frame(body_frame_vertices(self.bundle, latents, self.decoder), motion).astype(np.float32)
         report = None
         if collision:
@@ -177,8 +185,8 @@ class Animator:
                                         limits=self.edge_limits)
         return Animation(vertices, self.bundle.template.faces, motion.fps, retrieved, entropy, source, motion.joint_positions,
                          self.bundle.garment, self.bundle.content_hash, motion.source,
-                         {"mode": str(mode), "tau": tau, "causal": int(causal), "collision": int(collision)}, report,
-                         np.stack(DEFAULT_BODY.pose_motion(motion), 2).astype(np.float32))
+                         {"mode": str(mode), "gate": gate, "tau": tau, "causal": int(causal), "collision": int(collision)},
+                         report, np.stack(DEFAULT_BODY.pose_motion(motion), 2).astype(np.float32), doubt)
 
     def _direct_latents(self, motion: Motion) -> np.ndarray:
         """(T, nodes, C) latents of the direct-regression baseline (causal: a GRU over the clip)."""
@@ -195,18 +203,20 @@ class Animator:
         plain = causal_features(motion) if causal or motion.num_frames < 2 else motion_features(motion)  # one frame: no velocity
         return with_memory(plain, motion.fps, self.bundle.codespace.config.memory_seconds)
 
-    def _choose(self, windows: np.ndarray, mode: str, tau: float, exclude_sequence: int | None, last_frame: bool = False):
+    def _choose(self, windows: np.ndarray, mode: str, tau: float, exclude_sequence: int | None, gate: str,
+                last_frame: bool = False):
         exclude = None if exclude_sequence is None else np.full(len(windows), exclude_sequence)
         step = self.causal_step(mode in (Mode.HYBRID, Mode.REGRESSION)) if last_frame else None
-        return choose_windows(self.bundle, windows, mode, tau, exclude, last_frame, step=step)
+        return choose_windows(self.bundle, windows, mode, tau, exclude, last_frame, step=step, gate=gate)
 
     def stream(self, mode: Mode | str = Mode.HYBRID, tau: float | None = None, collision: bool = True,
-               rig=None) -> AnimationStream:
+               rig=None, gate: str | None = None) -> AnimationStream:
         """One character, causal, one pose in and one frame out (:class:`~.stream.AnimationStream`);
-        ``rig``: a :class:`~hrr_garment.motion.stream_rig.StreamRig` for poses on a source skeleton."""
-        return AnimationStream(self, mode, tau, collision, rig)
+        ``rig``: a :class:`~hrr_garment.motion.stream_rig.StreamRig` for poses on a source skeleton;
+        ``gate``, ``tau``: as :meth:`animate`."""
+        return AnimationStream(self, mode, tau, collision, rig, gate)
 
     def crowd(self, mode: Mode | str = Mode.HYBRID, tau: float | None = None, collision: bool = True,
-              rig=None) -> CrowdStream:
+              rig=None, gate: str | None = None) -> CrowdStream:
         """Many characters, one call per frame for all of them (:class:`~.stream.CrowdStream`)."""
-        return CrowdStream(self, mode, tau, collision, rig)
+        return CrowdStream(self, mode, tau, collision, rig, gate)

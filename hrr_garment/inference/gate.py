@@ -1,6 +1,9 @@
-"""The gate of hybrid inference: per motion window, the motion code's entropy against tau picks
-retrieval from the database (low entropy: a confident code) or the code-space decoder's
-regression; the other modes force one side (see :class:`.modes.Mode`)."""
+"""The gate of hybrid inference: per motion window, a doubt about retrieving against tau picks
+retrieval from the database (doubt below tau) or the code-space decoder's regression; the other
+modes force one side (see :class:`.modes.Mode`). The doubt is the motion code's entropy (the
+paper's switch, the default) or a judgement of the match itself: one minus its code similarity, or
+its motion distance (:data:`~hrr_garment.artifacts.database.GATE_SIGNALS`). The match signals
+search the database for every window, not only for the retrieved ones."""
 
 from __future__ import annotations
 
@@ -10,6 +13,7 @@ import numpy as np
 import torch
 
 from ..artifacts.bundle import Bundle
+from ..artifacts.gate_signals import GATE_SIGNALS, gate_doubt
 from ..models.codes import encode_motion
 from .modes import CODE_MODES, Mode
 
@@ -21,23 +25,31 @@ class WindowChoice:
     latents: np.ndarray  # (N, W, nodes, C) chosen garment latents ((N, 1, nodes, C): last frames only)
     retrieved: np.ndarray  # (N,) bool
     entropy: np.ndarray  # (N,) motion-code entropy
+    doubt: np.ndarray  # (N,) the gate signal's value (retrieval where below tau; the entropy by default)
     source: np.ndarray  # (N, 2) int32 (database sequence index, start frame) of retrieved windows, else -1
 
 
 def choose_windows(bundle: Bundle, motion_windows: np.ndarray, mode: str, tau: float,
                    exclude: np.ndarray | None = None, last_frame: bool = False,
-                   step: torch.nn.Module | None = None) -> WindowChoice:
+                   step: torch.nn.Module | None = None, gate: str = "entropy") -> WindowChoice:
     """Run the motion encoder on raw feature windows (N, W, F) and pick each window's latents
     (with ``last_frame``, only the last frame's: all that causal inference blends). ``step``:
-    see :func:`encode_motion`."""
+    see :func:`encode_motion`; ``gate``: the hybrid's signal (see the module docstring)."""
     if mode not in CODE_MODES:
         raise ValueError(f"unknown mode {str(mode)!r}; choose one of {', '.join(CODE_MODES)}")
     mode = Mode(mode)
+    if gate not in GATE_SIGNALS:
+        raise ValueError(f"unknown gate signal {gate!r}; choose one of {', '.join(GATE_SIGNALS)}")
     db = bundle.database
     enc = encode_motion(bundle.codespace, bundle.motion_stats, bundle.latent_stats, motion_windows,
                         regression=mode.regresses, last_frame=last_frame, step=step)
     n = len(enc.entropy)
-    retrieved = {Mode.HYBRID: enc.entropy < tau, Mode.REGRESSION: np.zeros(n, bool)}.get(mode, np.ones(n, bool))
+    doubt, match = enc.entropy, None
+    if gate != "entropy" and mode is Mode.HYBRID:  # the match decides: search every window first
+        match, similarity = db.search(enc.codes, exclude)
+        distance = db.motion_distance(enc.standardised, match) if gate == "distance" else None
+        doubt = gate_doubt(gate, enc.entropy, similarity, distance)
+    retrieved = {Mode.HYBRID: doubt < tau, Mode.REGRESSION: np.zeros(n, bool)}.get(mode, np.ones(n, bool))
     frames = 1 if last_frame else db.latents.shape[1]
     latents = enc.regression.copy() if enc.regression is not None else np.empty((n, frames, *db.latents.shape[2:]), np.float32)
     source = np.full((n, 2), -1, np.int32)
@@ -45,9 +57,11 @@ def choose_windows(bundle: Bundle, motion_windows: np.ndarray, mode: str, tau: f
         rows = np.flatnonzero(retrieved)
         ex = None if exclude is None else np.asarray(exclude)[rows]
         if mode is Mode.NAIVE_NN:
-            match = db.nearest_motion(enc.standardised[rows], ex)
+            found = db.nearest_motion(enc.standardised[rows], ex)
+        elif match is not None:
+            found = match[rows]
         else:
-            match, _ = db.search(enc.codes[rows], ex)
-        latents[rows] = db.latents[match, -frames:]
-        source[rows] = np.stack([db.sequence[match], db.start[match]], 1)
-    return WindowChoice(latents, retrieved, enc.entropy, source)
+            found, _ = db.search(enc.codes[rows], ex)
+        latents[rows] = db.latents[found, -frames:]
+        source[rows] = np.stack([db.sequence[found], db.start[found]], 1)
+    return WindowChoice(latents, retrieved, enc.entropy, np.asarray(doubt, np.float64), source)

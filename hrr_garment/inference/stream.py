@@ -69,11 +69,12 @@ class CrowdStream:
     """Many characters streamed in one call per frame; see the module docstring. ``rig``: a
     :class:`~hrr_garment.motion.stream_rig.StreamRig` when poses come on a source skeleton."""
 
-    def __init__(self, animator, mode: str = Mode.HYBRID, tau: float | None = None, collision: bool = True, rig=None):
+    def __init__(self, animator, mode: str = Mode.HYBRID, tau: float | None = None, collision: bool = True, rig=None,
+                 gate: str | None = None):
         if mode not in CODE_MODES:
             raise ValueError(f"streaming runs one of {', '.join(CODE_MODES)}, not {str(mode)!r}")
         self.animator, self.mode, self.collision, self.rig = animator, Mode(mode), collision, rig
-        self.tau = animator.bundle.tau if tau is None else float(tau)
+        self.gate, self.tau = animator.gate_setting(gate, tau)
         self._characters: dict[Hashable, _Character] = {}
         self.timings = _Timings()
         regression = self.mode.regresses
@@ -154,7 +155,8 @@ class CrowdStream:
             c.features.append(feat)
         windows = np.stack([np.stack(c.features) for c in chars])  # (N, W, F)
         t.append(time.perf_counter())
-        choice = choose_windows(self.animator.bundle, windows, self.mode, self.tau, last_frame=True, step=self._step)
+        choice = choose_windows(self.animator.bundle, windows, self.mode, self.tau, last_frame=True, step=self._step,
+                                gate=self.gate)
         latents = np.empty((len(chars), *choice.latents.shape[2:]), np.float32)
         for i, c in enumerate(chars):
             retrieved = bool(choice.retrieved[i])
@@ -182,8 +184,9 @@ class AnimationStream:
     """One character: one pose in, one garment frame out, causal (no future frames), bounded memory.
     ``push`` equals frame t of ``animator.animate(motion, causal=True)`` (tested to 1e-5)."""
 
-    def __init__(self, animator, mode: str = Mode.HYBRID, tau: float | None = None, collision: bool = True, rig=None):
-        self.crowd = CrowdStream(animator, mode, tau, collision, rig)
+    def __init__(self, animator, mode: str = Mode.HYBRID, tau: float | None = None, collision: bool = True, rig=None,
+                 gate: str | None = None):
+        self.crowd = CrowdStream(animator, mode, tau, collision, rig, gate)
 
     @property
     def mode(self) -> Mode:

@@ -1,13 +1,15 @@
-"""Entropy threshold (tau) calibration and per-mode validation errors of a trained code space (at
-training time, and again from a saved bundle: :func:`evaluate_bundle`).
+"""Gate calibration (its signal and threshold tau) and per-mode validation errors of a trained code
+space (at training time, and again from a saved bundle: :func:`evaluate_bundle`).
 
-For every validation window the motion encoder gives a code distribution; its entropy H (mean per
-group, nats, 0 .. log K) decides the mode: retrieval when H < tau, regression otherwise. Both
-candidates are decoded to vertices with the mesh autoencoder and compared with the simulated
-frames (per-vertex error in the heading frame, mean over the window's W frames and vertices), so
-the sweep over tau is a cheap selection between two precomputed errors per window. tau = 0 is
-regression only, tau = inf retrieval only; the chosen tau is the sweep's lowest mean error (ties:
-the smallest tau, i.e. the least retrieval).
+For every validation window the gate has a doubt about retrieving: the motion code's entropy H
+(mean per group, nats, 0 .. log K; the paper's), one minus the match's code similarity, or the
+match's motion distance (:data:`~hrr_garment.artifacts.database.GATE_SIGNALS`); retrieval where the
+doubt is below tau, regression otherwise. Both candidates are decoded to vertices with the mesh
+autoencoder and compared with the simulated frames (per-vertex error in the heading frame, mean
+over the window's W frames and vertices), so the sweep over tau is a cheap selection between two
+precomputed errors per window. tau = 0 is regression only, tau = inf retrieval only; each signal's
+tau is its sweep's lowest mean error (ties: the smallest tau, i.e. the least retrieval), and the
+gate is the signal whose optimum is lowest (ties: the first of GATE_SIGNALS, the paper's entropy).
 
 These are window-level errors; blending overlapping windows at inference (issue "hybrid
 inference") averages them per frame.
@@ -23,6 +25,7 @@ import numpy as np
 import torch
 
 from ..artifacts.database import CodeDatabase
+from ..artifacts.gate_signals import GATE_SIGNALS, gate_doubt
 from ..data.dataset import DatasetError, GarmentDataset
 from ..data.windows import dataset_features
 from ..models.codes import encode_motion
@@ -44,6 +47,12 @@ class WindowPredictions:
     regression: np.ndarray  # (N, W, nodes, C) latents from the decoder
     retrieval: np.ndarray  # (N, W, nodes, C) latents of the best database match
     similarity: np.ndarray  # (N,) cosine similarity of that match's code to the motion code
+    distance: np.ndarray | None  # (N,) that match's motion distance (None: the database has no motion)
+
+    def doubts(self) -> dict[str, np.ndarray]:
+        """Each gate signal's doubt per window (the signals this database supports)."""
+        return {g: gate_doubt(g, self.entropy, self.similarity, self.distance) for g in GATE_SIGNALS
+                if g != "distance" or self.distance is not None}
 
 
 def predict_windows(model: CodeSpace, motion: np.ndarray, motion_stats: FeatureStats, latent_stats: FeatureStats,
@@ -51,7 +60,8 @@ def predict_windows(model: CodeSpace, motion: np.ndarray, motion_stats: FeatureS
     """Both candidates for every motion window (N, W, F) (raw features)."""
     enc = encode_motion(model, motion_stats, latent_stats, motion)
     match, similarity = database.search(enc.codes, exclude)
-    return WindowPredictions(enc.entropy, enc.regression, database.latents[match], similarity)
+    distance = None if database.motion is None else database.motion_distance(enc.standardised, match)
+    return WindowPredictions(enc.entropy, enc.regression, database.latents[match], similarity, distance)
 
 
 def window_errors_mm(decode, latents: np.ndarray, truth: np.ndarray, batch: int = 64) -> np.ndarray:
@@ -69,19 +79,40 @@ def window_errors_mm(decode, latents: np.ndarray, truth: np.ndarray, batch: int 
 @dataclass
 class ModeErrors:
     """Per-window validation errors (mm) of both candidates, the autoencoder's own reconstruction
-    (the floor), the motion-code entropies, and the tau sweep over them."""
+    (the floor), each gate signal's doubts, and the tau sweep over each."""
 
     regression: np.ndarray
     retrieval: np.ndarray
     autoencoder: np.ndarray
-    entropy: np.ndarray
-    sweep: "TauSweep"
+    doubts: dict[str, np.ndarray]  # gate signal -> (N,) doubt per window
+    sweeps: dict[str, "TauSweep"]  # gate signal -> its sweep
 
-    def summary(self, tau: float) -> dict:
-        retrieve = self.entropy < tau
+    @property
+    def entropy(self) -> np.ndarray:
+        return self.doubts["entropy"]
+
+    @property
+    def gate(self) -> str:
+        """The calibrated gate: the signal whose sweep reaches the lowest error (ties: the paper's
+        entropy, then the order of GATE_SIGNALS)."""
+        return min(self.sweeps, key=lambda g: (min(self.sweeps[g].errors_mm), GATE_SIGNALS.index(g)))
+
+    @property
+    def sweep(self) -> "TauSweep":
+        """The calibrated gate's sweep."""
+        return self.sweeps[self.gate]
+
+    def summary(self, tau: float, gate: str = "entropy") -> dict:
+        retrieve = self.doubts[gate] < tau
         return {"hybrid": float(np.where(retrieve, self.retrieval, self.regression).mean()),
                 "regression": float(self.regression.mean()), "retrieval": float(self.retrieval.mean()),
-                "autoencoder": float(self.autoencoder.mean()), "retrieval_usage": float(retrieve.mean()), "tau": tau}
+                "autoencoder": float(self.autoencoder.mean()), "retrieval_usage": float(retrieve.mean()), "tau": tau,
+                "gate": gate}
+
+    def gates(self) -> dict[str, dict]:
+        """Each signal's calibration: its best tau, the hybrid's error there and its retrieval usage."""
+        return {g: {"tau": s.best_tau, "validation_mm": min(s.errors_mm),
+                    "retrieval_usage": s.retrieval_usage[s.taus.index(s.best_tau)]} for g, s in self.sweeps.items()}
 
 
 def evaluate_modes(codespace: CodeSpace, autoencoder, motion_stats: FeatureStats, latent_stats: FeatureStats,
@@ -119,7 +150,8 @@ def evaluate_modes(codespace: CodeSpace, autoencoder, motion_stats: FeatureStats
     err_reg = window_errors_mm(decode, pred.regression, truth)
     err_ret = window_errors_mm(decode, pred.retrieval, truth)
     err_ae = window_errors_mm(decode, own, truth)
-    return ModeErrors(err_reg, err_ret, err_ae, pred.entropy, sweep_tau(pred.entropy, err_reg, err_ret))
+    doubts = pred.doubts()
+    return ModeErrors(err_reg, err_ret, err_ae, doubts, {g: sweep_tau(d, err_reg, err_ret) for g, d in doubts.items()})
 
 
 @dataclass
@@ -136,13 +168,16 @@ class TauSweep:
                 "retrieval_usage": self.retrieval_usage, "best_tau": self.best_tau}
 
 
-def sweep_tau(entropy: np.ndarray, regression_err: np.ndarray, retrieval_err: np.ndarray, steps: int = 20) -> TauSweep:
-    """Hybrid error for tau at 0, the entropy's quantiles and infinity; picks the lowest."""
-    quantiles = np.quantile(entropy, np.linspace(0, 1, steps + 1)) if len(entropy) else np.zeros(0)
-    taus = sorted({0.0, *[float(q) + 1e-6 for q in quantiles], math.inf})
+def sweep_tau(doubt: np.ndarray, regression_err: np.ndarray, retrieval_err: np.ndarray, steps: int = 20) -> TauSweep:
+    """Hybrid error for tau at 0, the doubt's quantiles and above its maximum (retrieval only, and a
+    finite threshold a bundle can store: a window more doubtful than any seen regresses); picks the
+    lowest."""
+    quantiles = np.quantile(doubt, np.linspace(0, 1, steps + 1)) if len(doubt) else np.zeros(0)
+    top = float(np.max(doubt)) + 1.0 if len(doubt) else math.inf
+    taus = sorted({0.0, *[float(q) + 1e-6 for q in quantiles], top})
     errors, usage = [], []
     for tau in taus:
-        retrieve = entropy < tau
+        retrieve = doubt < tau
         errors.append(float(np.where(retrieve, retrieval_err, regression_err).mean()))
         usage.append(float(retrieve.mean()))
     best = int(np.argmin(errors))  # first minimum: the smallest tau among ties
@@ -164,4 +199,4 @@ def evaluate_bundle(bundle, dataset: str | Path, split: str = "val") -> dict:
     modes = evaluate_modes(bundle.codespace, bundle.autoencoder, bundle.motion_stats, bundle.latent_stats, bundle.database,
                            dataset_features(ds, names, bundle.codespace.config.memory_seconds), {n: body_frames(ds, [n]) for n in names},
                            **encoding)
-    return modes.summary(bundle.tau)
+    return modes.summary(bundle.tau, bundle.gate)

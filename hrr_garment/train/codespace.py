@@ -150,18 +150,20 @@ def run_codespace_stage(dataset: str | Path, folder: str | Path, config: CodeSpa
     modes = evaluate_modes(model, autoencoder, motion_stats, latent_stats, database,
                            {n: features[n] for n in val_names}, {n: body_frames(ds, [n]) for n in val_names},
                            **encoding, windows=calibration)
-    sweep = modes.sweep
+    gate, sweep = modes.gate, modes.sweep
     usage = model.quantizer.usage(torch.from_numpy(database.codes))
     final = evaluate(model, val_t)
     report = {"key": key, "windows": {"train": len(train_w), "val": len(val_w)}, "training": summary,
-              "validation_mm": modes.summary(sweep.best_tau), "tau": sweep.best_tau, "sweep": sweep.to_dict(),
+              "validation_mm": modes.summary(sweep.best_tau, gate), "gate": gate, "tau": sweep.best_tau,
+              "gates": modes.gates(), "sweep": sweep.to_dict(),
               "code_agreement": final["agreement"], "chance_agreement": 1.0 / config.classes,
               "database_codes": {"dead_classes": usage.dead, "classes": usage.total, "perplexity": usage.perplexity,
                                  "distinct_codes": int(len(np.unique(database.codes, axis=0)))},
               "entropy_histogram": final["entropy_histogram"], "minutes": (time.perf_counter() - t0) / 60}
     write_bundle(folder, autoencoder=autoencoder, codespace=model, motion_stats=motion_stats, latent_stats=latent_stats,
-                 database=database, template=ds.template, tau=sweep.best_tau,
+                 database=database, template=ds.template, tau=sweep.best_tau, gate=gate,
                  info={"dataset": str(dataset), "window": config.window, "validation_mm": report["validation_mm"],
+                       "gates": report["gates"],
                        "encoding": encoding, "validation": train_config.validation, **(info or {})})
     atomic_write_text(report_path, strict_json(report, indent=2, default=float))
     return _stage_report(report, stage)
