@@ -95,14 +95,15 @@ def test_limbs_through_the_body_get_last_tries_with_the_arms_off_the_cloth(simul
     simulate_garment, SimConfig = simulator
     from hrr_garment.body.capsules import DEFAULT_BODY
     from hrr_garment.body.self_contact import self_intersecting_frames
-    from hrr_garment.sim.simulator import ARM_CAPSULES, SimulationExploded, _Scene, capsule_transforms
+    from hrr_garment.sim.scene import ARM_CAPSULES, ClothScene, capsule_transforms
+    from hrr_garment.sim.simulator import SimulationExploded
 
     garment = make_garment("skirt", 200)
     motion = _arms_in_the_hips()
     assert self_intersecting_frames(motion).all()
     # switching the arms off the cloth clears their particle-collision flag, and only theirs; on again restores it
     _, _, half = capsule_transforms(motion, DEFAULT_BODY)
-    scene = _Scene(garment, garment.vertices, half, DEFAULT_BODY, SimConfig())
+    scene = ClothScene(garment, garment.vertices, half, DEFAULT_BODY, SimConfig())
     before = scene.model.shape_flags.numpy().copy()
     scene.set_arm_contact(False)
     flags = scene.model.shape_flags.numpy()

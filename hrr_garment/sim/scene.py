@@ -1,0 +1,167 @@
+"""The newton scene the simulator steps: the capsule body as kinematic rigid bodies, the garment as
+VBD cloth with its attached vertices pinned (zero mass, written every substep), advanced one frame
+at a time from captured CUDA/CPU graphs. :mod:`.simulator` decides what to simulate and how to
+retry; this module only talks to newton and warp (extra ``sim``).
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from ..body.capsules import BodyModel
+from ..garment.mesh import GarmentMesh
+from ..motion.motion import Motion
+from ..motion.rotations import matrix_to_quat, rotation_between
+
+if TYPE_CHECKING:
+    from .simulator import SimConfig
+
+ARM_CAPSULES = ("upper_arm", "forearm", "hand")  # taken off the cloth in the simulator's last retries
+
+
+def arm_capsules(body: BodyModel) -> list[int]:
+    """Indices into ``body.capsules`` of the capsules the arms-off retries take off the cloth."""
+    return [c for c, capsule in enumerate(body.capsules) if capsule.name.endswith(tuple(f"_{p}" for p in ARM_CAPSULES))]
+
+
+def _import_newton():
+    try:
+        import warp as wp
+
+        wp.config.quiet = True  # no banner
+        wp.config.log_level = wp.LOG_WARNING  # no per-module load timings
+        import newton
+    except ImportError:
+        raise ImportError("the cloth simulator needs newton and warp: pip install 'hrr_garment[sim]'") from None
+    return wp, newton
+
+
+def capsule_transforms(motion: Motion, body: BodyModel) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per frame and capsule: centre (T, C, 3), quaternion (T, C, 4) as x, y, z, w rotating +Z onto
+    the capsule axis, and the half length of the axis (C,)."""
+    joint_idx = [motion.skeleton.names.index(c.joint) for c in body.capsules]
+    a_loc = np.array([c.a for c in body.capsules])
+    b_loc = np.array([c.b for c in body.capsules])
+    axis = b_loc - a_loc
+    half = 0.5 * np.linalg.norm(axis, axis=1)
+    align = rotation_between(np.broadcast_to([0.0, 0.0, 1.0], axis.shape), axis)  # (C, 3, 3) in joint frame
+    rot = motion.global_rotations[:, joint_idx].astype(np.float64) @ align[None]
+    centre = motion.joint_positions[:, joint_idx] + np.einsum("tcij,cj->tci", motion.global_rotations[:, joint_idx], 0.5 * (a_loc + b_loc))
+    q = matrix_to_quat(rot)  # w, x, y, z
+    return centre, np.concatenate([q[..., 1:], q[..., :1]], -1), half
+
+
+def _nlerp(q0: np.ndarray, q1: np.ndarray, t: float) -> np.ndarray:
+    q1 = np.where(((q0 * q1).sum(-1, keepdims=True) < 0), -q1, q1)
+    q = (1 - t) * q0 + t * q1
+    return q / np.linalg.norm(q, axis=-1, keepdims=True)
+
+
+def resolve_device(wp, device: str) -> str:
+    """The warp device for ``device`` (``auto``: the first GPU, else the CPU)."""
+    if device == "auto":
+        return "cuda:0" if wp.get_cuda_device_count() > 0 else "cpu"
+    return device
+
+
+class ClothScene:
+    """A newton model of one garment and the capsule body, stepped frame by frame."""
+
+    def __init__(self, garment: GarmentMesh, start_vertices: np.ndarray, half_lengths: np.ndarray,
+                 body: BodyModel, config: "SimConfig"):
+        wp, newton = _import_newton()
+        self.wp, self.config = wp, config
+        self.device = resolve_device(wp, config.device)
+        builder = newton.ModelBuilder(up_axis=newton.Axis.Y, gravity=(0.0, -config.gravity, 0.0))
+        shape_cfg = newton.ModelBuilder.ShapeConfig(ke=config.contact_ke, kd=config.contact_kd, mu=config.contact_mu,
+                                                    has_shape_collision=False)
+        shapes = []
+        for c, capsule in enumerate(body.capsules):
+            b = builder.add_body(mass=0.0, is_kinematic=True, label=capsule.name)
+            shapes.append(builder.add_shape_capsule(b, radius=capsule.radius, half_height=float(half_lengths[c]), cfg=shape_cfg))
+        self.arm_shapes = [shapes[c] for c in arm_capsules(body)]
+        builder.add_ground_plane(cfg=newton.ModelBuilder.ShapeConfig(ke=config.contact_ke, kd=config.contact_kd,
+                                                                    mu=config.contact_mu))
+        builder.add_cloth_mesh(
+            pos=wp.vec3(0.0, 0.0, 0.0), rot=wp.quat_identity(), scale=1.0, vel=wp.vec3(0.0, 0.0, 0.0),
+            vertices=[wp.vec3(*v) for v in start_vertices.astype(float)], indices=garment.faces.ravel().tolist(),
+            density=config.density, tri_ke=config.tri_ke, tri_ka=config.tri_ka, tri_kd=config.tri_kd,
+            edge_ke=config.edge_ke, edge_kd=config.edge_kd, particle_radius=config.particle_radius,
+        )
+        for i in garment.attached:
+            builder.particle_mass[int(i)] = 0.0  # zero mass: pinned, positions written each substep
+        builder.color(include_bending=True)
+        self.model = builder.finalize(device=self.device)
+        self.model.soft_contact_ke = config.contact_ke
+        self.model.soft_contact_kd = config.contact_kd
+        self.model.soft_contact_mu = config.contact_mu
+        self.pipeline = newton.CollisionPipeline(self.model, soft_contact_gap=config.contact_gap)
+        self.contacts = self.pipeline.contacts()
+        self.solver = newton.solvers.SolverVBD(self.model, iterations=config.iterations,
+                                               integrate_with_external_rigid_solver=True)
+        self.states = (self.model.state(), self.model.state())
+        self.control = self.model.control()
+        self.attached = garment.attached
+        self.parity = 0  # states[parity] holds the current positions
+        self.graphs: list = [None, None]
+        self.arm_contact = True
+        self.collide_particles = int(newton.ShapeFlags.COLLIDE_PARTICLES)
+
+    def set_arm_contact(self, on: bool) -> None:
+        """Let the arm capsules touch the cloth or not. The contact kernels read the shape flags on
+        every launch (captured graphs included) and VBD's candidate tables stay valid."""
+        if on == self.arm_contact:
+            return
+        flags = self.model.shape_flags.numpy()
+        flags[self.arm_shapes] = flags[self.arm_shapes] | self.collide_particles if on else \
+            flags[self.arm_shapes] & ~self.collide_particles
+        self.model.shape_flags.assign(flags)
+        self.arm_contact = on
+
+    def _substep(self, parity: int, dt: float) -> None:
+        state_in, state_out = self.states[parity], self.states[1 - parity]
+        self.pipeline.collide(state_in, self.contacts)
+        self.solver.step(state_in, state_out, self.control, self.contacts, dt)
+
+    def _run_substep(self, dt: float) -> None:
+        """One substep, replayed from a captured graph: Python launch overhead dominates otherwise."""
+        wp, p = self.wp, self.parity
+        if getattr(self, "_dt", dt) != dt:
+            raise ValueError("a scene replays graphs captured for one substep length; build a new scene")
+        self._dt = dt
+        if self.graphs[p] is None:
+            self._substep(p, dt)  # first run loads modules and lets the solver initialise
+            self.graphs[p] = "ready"
+        elif self.graphs[p] == "ready":
+            with wp.ScopedCapture(device=self.device) as capture:
+                self._substep(p, dt)
+            self.graphs[p] = capture.graph
+            wp.capture_launch(capture.graph)
+        else:
+            wp.capture_launch(self.graphs[p])
+        self.parity = 1 - p
+
+    def step_frame(self, body_from: np.ndarray, body_to: np.ndarray, pin_from: np.ndarray, pin_to: np.ndarray,
+                   dt: float, substeps: int) -> np.ndarray:
+        """Advance one frame; body_* (C, 7) [p, q(xyzw)], pin_* (A, 3). Returns positions (V, 3)."""
+        for k in range(substeps):
+            t0, t1 = k / substeps, (k + 1) / substeps
+            state_in, state_out = self.states[self.parity], self.states[1 - self.parity]
+            # The solver derives body contact velocities from the old (input) and new (output) poses.
+            for state, t in ((state_in, t0), (state_out, t1)):
+                pose = np.concatenate([(1 - t) * body_from[:, :3] + t * body_to[:, :3],
+                                       _nlerp(body_from[:, 3:], body_to[:, 3:], t)], 1)
+                state.body_q.assign(pose.astype(np.float32))
+            q = state_in.particle_q.numpy()
+            q[self.attached] = (1 - t1) * pin_from + t1 * pin_to
+            state_in.particle_q.assign(q)
+            self._run_substep(dt / substeps)
+        return self.states[self.parity].particle_q.numpy().copy()
+
+    def current(self) -> np.ndarray:
+        return self.states[self.parity].particle_q.numpy()
+
+    def speeds(self) -> np.ndarray:
+        return np.linalg.norm(self.states[self.parity].particle_qd.numpy(), axis=1)
