@@ -91,6 +91,20 @@ class Bundle:
         return float(calibrated["tau"])
 
     @property
+    def has_residual(self) -> bool:
+        """Whether the residual mode can run: a calibrated weight and the database's motion windows."""
+        return isinstance(self.meta.get("residual"), dict) and self.database.motion is not None
+
+    @property
+    def residual_weight(self) -> float:
+        """The residual mode's calibrated weight (:mod:`.residual`)."""
+        if not self.has_residual:
+            raise BundleError(self.folder, "has no calibrated residual weight (trained before the residual mode): run "
+                                           f"hrr-train --stage codespace -o {self.folder} on its dataset again (the "
+                                           "trained weights are kept; only the weight is calibrated)")
+        return float(self.meta["residual"]["weight"])
+
+    @property
     def garment(self) -> str:
         return str(self.meta["garment"])
 
@@ -165,6 +179,13 @@ def add_bundle_part(folder: str | Path, name: str, tensors: dict, meta: dict) ->
                                                           "content_hash": _content_hash(files)}, indent=2))
 
 
+def update_bundle_meta(folder: str | Path, meta: dict) -> None:
+    """Merge ``meta`` into an existing bundle's bundle.json (atomically; the files are unchanged)."""
+    folder = Path(folder)
+    current = read_meta(folder)
+    atomic_write_text(folder / "bundle.json", strict_json({**current, **meta}, indent=2))
+
+
 def _load_state(module: torch.nn.Module, path: Path, folder: Path) -> None:
     try:
         state = load_tensors(str(path))
@@ -237,6 +258,10 @@ def _check_manifest(folder: Path, meta: object) -> dict:
         raise BundleError(folder, f"bundle.json 'tau' must be a finite number >= 0, got {tau!r}")
     if meta.get("gate", "entropy") not in GATE_SIGNALS:
         raise BundleError(folder, f"bundle.json 'gate' must be one of {', '.join(GATE_SIGNALS)}, got {meta.get('gate')!r}")
+    residual = meta.get("residual", {"weight": 0.0})
+    weight = residual.get("weight") if isinstance(residual, dict) else None
+    if isinstance(weight, bool) or not isinstance(weight, (int, float)) or not math.isfinite(weight) or weight < 0:
+        raise BundleError(folder, f"bundle.json 'residual' must hold a finite 'weight' >= 0, got {residual!r}")
     for section in ("autoencoder", "codespace", "database"):
         if not isinstance(meta.get(section), dict):
             raise BundleError(folder, f"bundle.json lacks its {section!r} section")

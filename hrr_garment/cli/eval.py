@@ -137,9 +137,12 @@ def _main(argv: Sequence[str] | None) -> int:
         if args.sequences < 1:
             raise InputError("hrr-eval", f"--sequences must be at least 1, got {args.sequences}")
         names = [names[i] for i in sorted({int(round(i)) for i in np.linspace(0, len(names) - 1, min(args.sequences, len(names)))})]
-    modes = args.modes or [m for m in ALL_MODES if m != Mode.DIRECT or animator.has_direct]
+    modes = args.modes or [m for m in ALL_MODES if animator.supports(m)]
     if Mode.DIRECT in modes and not animator.has_direct:
         raise InputError(model_dir, "has no direct-regression baseline: train it with hrr-train --stage baseline")
+    if Mode.RESIDUAL in modes and not bundle.has_residual:
+        raise InputError(model_dir, "has no calibrated residual weight (trained before the residual mode): run "
+                                    "hrr-train --stage codespace with its dataset and -o on it again")
     out = args.output or workspace() / "eval" / model_dir.name
     records = [ds.sequence(n) for n in names]
     collision, progress = not args.no_collision, not args.quiet
@@ -262,7 +265,7 @@ def _paper(folder: Path, bundle, records, modes: list[str], collision: bool, pro
     if other.garment != bundle.garment or other.template.num_vertices != bundle.template.num_vertices:
         raise InputError(folder, f"is a {other.garment} model with {other.template.num_vertices} vertices; the evaluated "
                                  f"one is {bundle.garment} with {bundle.template.num_vertices}")
-    modes = [m for m in modes if m != Mode.DIRECT or animator.has_direct]
+    modes = [m for m in modes if animator.supports(m)]
     print(f"paper protocol: {folder} (calibrated gate {other.gate} < {other.tau:.3f}) on the same {len(records)} sequences")
     results = evaluate_modes(animator, records, modes, other.tau, False, collision, progress, ensembles, other.gate)
     return {"model": str(folder), "hash": other.content_hash, "gate": other.gate, "tau": other.tau,

@@ -240,6 +240,9 @@ def _print_codespace(report: StageReport, folder: Path) -> None:
         print("gates calibrated on validation: " + "; ".join(
             f"{g} < {c['tau']:.3f}: {c['validation_mm']:.2f} mm, {100 * c['retrieval_usage']:.0f} % retrieval"
             for g, c in r["gates"].items()))
+    if r.get("residual"):  # the residual mode's weight (reports before it, or databases without motion: none)
+        print(f"residual mode: weight {r['residual']['weight']:g}, {r['residual']['validation_mm']:.2f} mm ("
+              + ", ".join(f"{w}: {e:.2f}" for w, e in r["residual"]["errors_mm"].items()) + ")")
     print(f"bundle: {folder} ({size:.1f} MB)")
 
 

@@ -133,6 +133,13 @@ class Animator:
         """Whether the bundle has the direct-regression baseline (mode ``direct``)."""
         return getattr(self.bundle, "direct", None) is not None
 
+    def supports(self, mode: Mode | str) -> bool:
+        """Whether this model runs ``mode``: direct needs the baseline, residual a calibrated weight."""
+        mode = Mode(mode)
+        if mode is Mode.DIRECT:
+            return self.has_direct
+        return self.bundle.has_residual if mode is Mode.RESIDUAL else True
+
     @property
     def window(self) -> int:
         return self.bundle.codespace.config.window
@@ -206,7 +213,7 @@ class Animator:
     def _choose(self, windows: np.ndarray, mode: str, tau: float, exclude_sequence: int | None, gate: str,
                 last_frame: bool = False):
         exclude = None if exclude_sequence is None else np.full(len(windows), exclude_sequence)
-        step = self.causal_step(mode in (Mode.HYBRID, Mode.REGRESSION)) if last_frame else None
+        step = self.causal_step(Mode(mode).regresses) if last_frame else None
         return choose_windows(self.bundle, windows, mode, tau, exclude, last_frame, step=step, gate=gate)
 
     def stream(self, mode: Mode | str = Mode.HYBRID, tau: float | None = None, collision: bool = True,

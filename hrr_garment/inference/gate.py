@@ -3,7 +3,8 @@ retrieval from the database (doubt below tau) or the code-space decoder's regres
 modes force one side (see :class:`.modes.Mode`). The doubt is the motion code's entropy (the
 paper's switch, the default) or a judgement of the match itself: one minus its code similarity, or
 its motion distance (:data:`~hrr_garment.artifacts.database.GATE_SIGNALS`). The match signals
-search the database for every window, not only for the retrieved ones."""
+search the database for every window, not only for the retrieved ones. The residual mode has no
+gate: every window is the regression plus its match's detail (:mod:`hrr_garment.artifacts.residual`)."""
 
 from __future__ import annotations
 
@@ -14,6 +15,7 @@ import torch
 
 from ..artifacts.bundle import Bundle
 from ..artifacts.gate_signals import GATE_SIGNALS, gate_doubt
+from ..artifacts.residual import match_regression, residual_latents
 from ..models.codes import encode_motion
 from .modes import CODE_MODES, Mode
 
@@ -23,7 +25,7 @@ class WindowChoice:
     """What the gate decided for each window (N windows)."""
 
     latents: np.ndarray  # (N, W, nodes, C) chosen garment latents ((N, 1, nodes, C): last frames only)
-    retrieved: np.ndarray  # (N,) bool
+    retrieved: np.ndarray  # (N,) bool: the database gave the latents (every window in the residual mode)
     entropy: np.ndarray  # (N,) motion-code entropy
     doubt: np.ndarray  # (N,) the gate signal's value (retrieval where below tau; the entropy by default)
     source: np.ndarray  # (N, 2) int32 (database sequence index, start frame) of retrieved windows, else -1
@@ -44,13 +46,19 @@ def choose_windows(bundle: Bundle, motion_windows: np.ndarray, mode: str, tau: f
     enc = encode_motion(bundle.codespace, bundle.motion_stats, bundle.latent_stats, motion_windows,
                         regression=mode.regresses, last_frame=last_frame, step=step)
     n = len(enc.entropy)
+    frames = 1 if last_frame else db.latents.shape[1]
     doubt, match = enc.entropy, None
+    if mode is Mode.RESIDUAL:
+        match, similarity = db.search(enc.codes, exclude)
+        own = match_regression(bundle.codespace, bundle.motion_stats, bundle.latent_stats, db, match, last_frame, step)
+        latents = residual_latents(enc.regression, db.latents[match, -frames:], own, similarity, bundle.residual_weight)
+        return WindowChoice(latents, np.ones(n, bool), enc.entropy, np.asarray(doubt, np.float64),
+                            np.stack([db.sequence[match], db.start[match]], 1).astype(np.int32))
     if gate != "entropy" and mode is Mode.HYBRID:  # the match decides: search every window first
         match, similarity = db.search(enc.codes, exclude)
         distance = db.motion_distance(enc.standardised, match) if gate == "distance" else None
         doubt = gate_doubt(gate, enc.entropy, similarity, distance)
     retrieved = {Mode.HYBRID: doubt < tau, Mode.REGRESSION: np.zeros(n, bool)}.get(mode, np.ones(n, bool))
-    frames = 1 if last_frame else db.latents.shape[1]
     latents = enc.regression.copy() if enc.regression is not None else np.empty((n, frames, *db.latents.shape[2:]), np.float32)
     source = np.full((n, 2), -1, np.int32)
     if retrieved.any():

@@ -13,6 +13,7 @@ class Mode(str, enum.Enum):
     HYBRID = "hybrid"  # retrieval where the motion code's entropy is below tau, else regression
     REGRESSION = "regression"  # the code-space decoder's latents
     RETRIEVAL = "retrieval"  # the database window with the nearest garment code
+    RESIDUAL = "residual"  # regression plus the nearest window's detail (artifacts/residual.py)
     NAIVE_NN = "naive-nn"  # the database window with the nearest standardised motion (a baseline)
     DIRECT = "direct"  # the direct-regression baseline (a GRU; offline only, when the bundle has it)
 
@@ -24,9 +25,9 @@ class Mode(str, enum.Enum):
 
     @property
     def regresses(self) -> bool:
-        """Whether the code-space decoder runs (hybrid and regression)."""
-        return self in (Mode.HYBRID, Mode.REGRESSION)
+        """Whether the code-space decoder runs (hybrid, regression and residual)."""
+        return self in (Mode.HYBRID, Mode.REGRESSION, Mode.RESIDUAL)
 
 
 #: the modes that run the motion encoder and the gate (offline, causal and streaming)
-CODE_MODES = (Mode.HYBRID, Mode.REGRESSION, Mode.RETRIEVAL, Mode.NAIVE_NN)
+CODE_MODES = (Mode.HYBRID, Mode.REGRESSION, Mode.RETRIEVAL, Mode.RESIDUAL, Mode.NAIVE_NN)

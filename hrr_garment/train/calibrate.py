@@ -11,6 +11,10 @@ precomputed errors per window. tau = 0 is regression only, tau = inf retrieval o
 tau is its sweep's lowest mean error (ties: the smallest tau, i.e. the least retrieval), and the
 gate is the signal whose optimum is lowest (ties: the first of GATE_SIGNALS, the paper's entropy).
 
+The residual mode (:mod:`hrr_garment.artifacts.residual`) is calibrated on the same windows: its
+weight is the one of 0 (plain regression) and :data:`RESIDUAL_WEIGHTS` with the lowest mean error
+(ties: the smaller weight).
+
 These are window-level errors; blending overlapping windows at inference (issue "hybrid
 inference") averages them per frame.
 """
@@ -26,6 +30,7 @@ import torch
 
 from ..artifacts.database import CodeDatabase
 from ..artifacts.gate_signals import GATE_SIGNALS, gate_doubt
+from ..artifacts.residual import RESIDUAL_WEIGHTS, match_regression, residual_latents
 from ..data.dataset import DatasetError, GarmentDataset
 from ..data.windows import dataset_features
 from ..models.codes import encode_motion
@@ -41,13 +46,19 @@ MAX_WINDOWS = 2000
 
 @dataclass
 class WindowPredictions:
-    """Both candidates (regression and retrieval) for every validation window."""
+    """Both candidates (regression and retrieval) for every validation window, and what residual
+    retrieval needs."""
 
     entropy: np.ndarray  # (N,) motion-code entropy
     regression: np.ndarray  # (N, W, nodes, C) latents from the decoder
     retrieval: np.ndarray  # (N, W, nodes, C) latents of the best database match
     similarity: np.ndarray  # (N,) cosine similarity of that match's code to the motion code
     distance: np.ndarray | None  # (N,) that match's motion distance (None: the database has no motion)
+    match_regression: np.ndarray | None  # (N, W, nodes, C) the regression of the match's own motion (idem)
+
+    def residual(self, weight: float) -> np.ndarray:
+        """The residual mode's latents at ``weight``."""
+        return residual_latents(self.regression, self.retrieval, self.match_regression, self.similarity, weight)
 
     def doubts(self) -> dict[str, np.ndarray]:
         """Each gate signal's doubt per window (the signals this database supports)."""
@@ -60,8 +71,11 @@ def predict_windows(model: CodeSpace, motion: np.ndarray, motion_stats: FeatureS
     """Both candidates for every motion window (N, W, F) (raw features)."""
     enc = encode_motion(model, motion_stats, latent_stats, motion)
     match, similarity = database.search(enc.codes, exclude)
-    distance = None if database.motion is None else database.motion_distance(enc.standardised, match)
-    return WindowPredictions(enc.entropy, enc.regression, database.latents[match], similarity, distance)
+    distance = own = None
+    if database.motion is not None:
+        distance = database.motion_distance(enc.standardised, match)
+        own = match_regression(model, motion_stats, latent_stats, database, match)
+    return WindowPredictions(enc.entropy, enc.regression, database.latents[match], similarity, distance, own)
 
 
 def window_errors_mm(decode, latents: np.ndarray, truth: np.ndarray, batch: int = 64) -> np.ndarray:
@@ -86,6 +100,7 @@ class ModeErrors:
     autoencoder: np.ndarray
     doubts: dict[str, np.ndarray]  # gate signal -> (N,) doubt per window
     sweeps: dict[str, "TauSweep"]  # gate signal -> its sweep
+    residual: dict[float, np.ndarray] | None = None  # residual weight -> (N,) errors (None: not calibrated)
 
     @property
     def entropy(self) -> np.ndarray:
@@ -109,6 +124,11 @@ class ModeErrors:
                 "autoencoder": float(self.autoencoder.mean()), "retrieval_usage": float(retrieve.mean()), "tau": tau,
                 "gate": gate}
 
+    def residual_calibration(self) -> dict | None:
+        """The residual mode's weight (the lowest mean error of 0 and the tried weights; ties: the
+        smaller), its error and every weight's, or None where it was not evaluated."""
+        return None if self.residual is None else choose_residual_weight(self.regression, self.residual)
+
     def gates(self) -> dict[str, dict]:
         """Each signal's calibration: its best tau, the hybrid's error there and its retrieval usage."""
         return {g: {"tau": s.best_tau, "validation_mm": min(s.errors_mm),
@@ -125,14 +145,7 @@ def evaluate_modes(codespace: CodeSpace, autoencoder, motion_stats: FeatureStats
     them evenly spaced. ``refine_steps`` and ``refine_lr``: the autoencoder stage's encoding, which
     the floor's latents repeat."""
     w = codespace.config.window
-    if windows is None:
-        windows = [(n, s) for n in motion for s in range(len(motion[n]) - w + 1)]
-    if max_windows is not None and len(windows) > max_windows:
-        windows = [windows[i] for i in np.linspace(0, len(windows) - 1, max_windows).round().astype(int)]
-    if not windows:
-        raise ValueError(f"no validation sequence has {w} frames or more")
-    m = np.stack([motion[n][s:s + w] for n, s in windows])
-    truth = np.stack([frames[n][s:s + w] for n, s in windows])
+    windows, m, truth = calibration_windows(motion, frames, w, windows, max_windows)
     # the floor: each frame's own latent, encoded as the training targets were (each frame fitted
     # once, on its own: fit_latents gives a frame the same latent whatever batch it is in)
     needed: dict[str, set[int]] = {}
@@ -145,13 +158,60 @@ def evaluate_modes(codespace: CodeSpace, autoencoder, motion_stats: FeatureStats
         own_frames[n] = np.zeros((len(frames[n]), *fitted.shape[1:]), fitted.dtype)
         own_frames[n][rows_sorted] = fitted
     own = np.stack([own_frames[n][s:s + w] for n, s in windows])
-    pred = predict_windows(codespace, np.ascontiguousarray(m), motion_stats, latent_stats, database)
+    pred = predict_windows(codespace, m, motion_stats, latent_stats, database)
     decode = autoencoder.fast_decoder()
     err_reg = window_errors_mm(decode, pred.regression, truth)
     err_ret = window_errors_mm(decode, pred.retrieval, truth)
     err_ae = window_errors_mm(decode, own, truth)
     doubts = pred.doubts()
-    return ModeErrors(err_reg, err_ret, err_ae, doubts, {g: sweep_tau(d, err_reg, err_ret) for g, d in doubts.items()})
+    return ModeErrors(err_reg, err_ret, err_ae, doubts, {g: sweep_tau(d, err_reg, err_ret) for g, d in doubts.items()},
+                      residual_errors(pred, decode, truth))
+
+
+def calibration_windows(motion: dict[str, np.ndarray], frames: dict[str, np.ndarray], window: int,
+                        windows: list[tuple[str, int]] | None = None,
+                        max_windows: int | None = MAX_WINDOWS) -> tuple[list[tuple[str, int]], np.ndarray, np.ndarray]:
+    """The (sequence, first frame) pairs calibration decodes (``windows``, default every window of
+    every sequence; at most ``max_windows`` of them, evenly spaced) and their motion (N, W, F) and
+    true frames (N, W, V, 3)."""
+    if windows is None:
+        windows = [(n, s) for n in motion for s in range(len(motion[n]) - window + 1)]
+    if max_windows is not None and len(windows) > max_windows:
+        windows = [windows[i] for i in np.linspace(0, len(windows) - 1, max_windows).round().astype(int)]
+    if not windows:
+        raise ValueError(f"no validation sequence has {window} frames or more")
+    m = np.stack([motion[n][s:s + window] for n, s in windows])
+    truth = np.stack([frames[n][s:s + window] for n, s in windows])
+    return windows, np.ascontiguousarray(m), truth
+
+
+def residual_errors(pred: WindowPredictions, decode, truth: np.ndarray) -> dict[float, np.ndarray] | None:
+    """Per-window errors (mm) of the residual mode at each of :data:`RESIDUAL_WEIGHTS` (None where
+    the database has no motion windows to regress the matches from)."""
+    if pred.match_regression is None:
+        return None
+    return {w: window_errors_mm(decode, pred.residual(w), truth) for w in RESIDUAL_WEIGHTS}
+
+
+def calibrate_residual(codespace: CodeSpace, autoencoder, motion_stats: FeatureStats, latent_stats: FeatureStats,
+                       database: CodeDatabase, motion: dict[str, np.ndarray], frames: dict[str, np.ndarray],
+                       windows: list[tuple[str, int]] | None = None, max_windows: int | None = MAX_WINDOWS) -> dict:
+    """The residual mode's calibration alone (:meth:`ModeErrors.residual_calibration`), on the
+    windows :func:`evaluate_modes` uses: for a model trained before the residual mode."""
+    _, m, truth = calibration_windows(motion, frames, codespace.config.window, windows, max_windows)
+    pred = predict_windows(codespace, m, motion_stats, latent_stats, database)
+    if pred.match_regression is None:
+        raise ValueError("the database has no motion windows: the residual mode cannot run on this model")
+    decode = autoencoder.fast_decoder()
+    return choose_residual_weight(window_errors_mm(decode, pred.regression, truth), residual_errors(pred, decode, truth))
+
+
+def choose_residual_weight(regression_err: np.ndarray, residual_err: dict[float, np.ndarray]) -> dict:
+    """The weight of 0 (regression) and the tried ones with the lowest mean error (ties: the
+    smaller), its error, and every weight's."""
+    errors = {0.0: float(np.mean(regression_err)), **{w: float(np.mean(e)) for w, e in residual_err.items()}}
+    weight = min(errors, key=lambda w: (errors[w], w))
+    return {"weight": weight, "validation_mm": errors[weight], "errors_mm": {str(w): e for w, e in errors.items()}}
 
 
 @dataclass

@@ -4,9 +4,10 @@ Reads the dataset and the autoencoder stage's outputs (``MODEL/autoencoder/``: w
 latents of every frame), trains the code space in ``MODEL/codebook/`` (checkpointed, resumable;
 the folder keeps the stage's old name so that models trained before the rename resume), builds
 the retrieval database from every training window's garment code, calibrates tau on the
-validation split, and writes the bundle at the top of ``MODEL/``
-(:mod:`hrr_garment.artifacts.bundle`). A re-run with nothing changed finds the finished report
-and returns it without redoing anything.
+validation split (the hybrid's gate and the residual mode's weight), and writes the bundle at the
+top of ``MODEL/`` (:mod:`hrr_garment.artifacts.bundle`). A re-run with nothing changed finds the
+finished report and returns it without redoing anything (a bundle from before the residual mode
+only has that weight calibrated).
 """
 
 from __future__ import annotations
@@ -20,14 +21,14 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from ..artifacts.bundle import BundleError, read_meta, write_bundle
+from ..artifacts.bundle import BundleError, load_bundle, read_meta, update_bundle_meta, write_bundle
 from ..artifacts.database import CodeDatabase
 from ..data.dataset import DatasetError, GarmentDataset
 from ..data.windows import build_windows, dataset_features, fit_stats, split_windows
 from ..io_utils import atomic_write_text, strict_json
 from ..models.codespace import CodeSpace, CodeSpaceConfig
 from .autoencoder import body_frames, load_autoencoder, refine_settings
-from .calibrate import evaluate_modes
+from .calibrate import calibrate_residual, evaluate_modes
 from .codespace_training import (
     PAPER_VALIDATION_FRACTION,
     CodeSpaceTrainConfig,
@@ -103,6 +104,40 @@ def _finished(folder: Path, report_path: Path, key: str) -> dict | None:
     return report
 
 
+def _windows(features: dict, latents: dict, splits: dict, config: CodeSpaceConfig, train_config: CodeSpaceTrainConfig):
+    """Training and validation windows, their statistics, and the windows calibration decodes
+    (None: every window of the validation clips)."""
+    if train_config.validation == "windows":
+        # the paper's protocol: the windows of the training and validation clips split 9:1
+        clips = splits["train"] + splits["val"]
+        train_w, val_w = split_windows(build_windows(features, latents, clips, config.window),
+                                       PAPER_VALIDATION_FRACTION, train_config.seed)
+        motion_stats, latent_stats = fit_stats(features, latents, clips)
+        calibration = [(clips[i], int(s)) for i, s in zip(val_w.sequence, val_w.start)]
+    else:  # windows of both splits, standardised with the training split's statistics
+        train_w = build_windows(features, latents, splits["train"], config.window)
+        val_w = build_windows(features, latents, splits["val"], config.window)
+        motion_stats, latent_stats = fit_stats(features, latents, splits["train"])
+        calibration = None
+    return train_w, val_w, motion_stats, latent_stats, calibration
+
+
+def _add_residual(folder: Path, report_path: Path, report: dict, ds: GarmentDataset, features: dict,
+                  val_names: list[str], calibration: list | None, cache_dir: Path | None) -> dict:
+    """Calibrate the residual mode of a finished bundle that predates it, on the windows its tau
+    was calibrated on; recorded in bundle.json and the stage's report."""
+    bundle = load_bundle(folder, cache_dir)
+    if bundle.database.motion is None:  # no motion windows to regress the matches from
+        return report
+    residual = calibrate_residual(bundle.codespace, bundle.autoencoder, bundle.motion_stats, bundle.latent_stats,
+                                  bundle.database, {n: features[n] for n in val_names},
+                                  {n: body_frames(ds, [n]) for n in val_names}, windows=calibration)
+    update_bundle_meta(folder, {"residual": residual})
+    report = {**report, "residual": residual}
+    atomic_write_text(report_path, strict_json(report, indent=2, default=float))
+    return report
+
+
 def run_codespace_stage(dataset: str | Path, folder: str | Path, config: CodeSpaceConfig = CodeSpaceConfig(),
                         train_config: CodeSpaceTrainConfig = CodeSpaceTrainConfig(), cache_dir: Path | None = None,
                         progress: bool = True, info: dict | None = None) -> StageReport:
@@ -117,24 +152,18 @@ def run_codespace_stage(dataset: str | Path, folder: str | Path, config: CodeSpa
     key = _stage_key(config, train_config, ae_state, latents, ds)
     report_path = stage / "report.json"
     done = _finished(folder, report_path, key)
-    if done is not None:
+    if done is not None and "residual" in read_meta(folder):
+        return _stage_report(done, stage, reused=True)
+    splits = {k: ds.splits[k] for k in ("train", "val")}
+    features = dataset_features(ds, splits["train"] + splits["val"], config.memory_seconds)
+    train_w, val_w, motion_stats, latent_stats, calibration = _windows(features, latents, splits, config, train_config)
+    encoding = refine_settings(ae_meta.get("train", {}))
+    val_names = sorted({n for n, _ in calibration}) if calibration else splits["val"]
+    if done is not None:  # trained before the residual mode: calibrate it alone
+        done = _add_residual(folder, report_path, done, ds, features, val_names, calibration, cache_dir)
         return _stage_report(done, stage, reused=True)
 
     autoencoder = load_autoencoder(ae_folder, ds.template.faces, cache_dir)
-    splits = {k: ds.splits[k] for k in ("train", "val")}
-    features = dataset_features(ds, splits["train"] + splits["val"], config.memory_seconds)
-    if train_config.validation == "windows":
-        # the paper's protocol: the windows of the training and validation clips split 9:1
-        clips = splits["train"] + splits["val"]
-        train_w, val_w = split_windows(build_windows(features, latents, clips, config.window),
-                                       PAPER_VALIDATION_FRACTION, train_config.seed)
-        motion_stats, latent_stats = fit_stats(features, latents, clips)
-        calibration = [(clips[i], int(s)) for i, s in zip(val_w.sequence, val_w.start)]
-    else:  # windows of both splits, standardised with the training split's statistics
-        train_w = build_windows(features, latents, splits["train"], config.window)
-        val_w = build_windows(features, latents, splits["val"], config.window)
-        motion_stats, latent_stats = fit_stats(features, latents, splits["train"])
-        calibration = None
     train_t = WindowTensors.of(train_w, motion_stats, latent_stats)
     val_t = WindowTensors.of(val_w, motion_stats, latent_stats)
 
@@ -145,8 +174,6 @@ def run_codespace_stage(dataset: str | Path, folder: str | Path, config: CodeSpa
     # the database of every training window's garment code, then tau on the validation split
     database = CodeDatabase(garment_codes(model, train_t.latents), train_w.latents, train_w.sequence, train_w.start,
                             train_w.names, config.classes, train_t.motion.numpy())
-    encoding = refine_settings(ae_meta.get("train", {}))
-    val_names = sorted({n for n, _ in calibration}) if calibration else splits["val"]
     modes = evaluate_modes(model, autoencoder, motion_stats, latent_stats, database,
                            {n: features[n] for n in val_names}, {n: body_frames(ds, [n]) for n in val_names},
                            **encoding, windows=calibration)
@@ -155,7 +182,7 @@ def run_codespace_stage(dataset: str | Path, folder: str | Path, config: CodeSpa
     final = evaluate(model, val_t)
     report = {"key": key, "windows": {"train": len(train_w), "val": len(val_w)}, "training": summary,
               "validation_mm": modes.summary(sweep.best_tau, gate), "gate": gate, "tau": sweep.best_tau,
-              "gates": modes.gates(), "sweep": sweep.to_dict(),
+              "gates": modes.gates(), "sweep": sweep.to_dict(), "residual": modes.residual_calibration(),
               "code_agreement": final["agreement"], "chance_agreement": 1.0 / config.classes,
               "database_codes": {"dead_classes": usage.dead, "classes": usage.total, "perplexity": usage.perplexity,
                                  "distinct_codes": int(len(np.unique(database.codes, axis=0)))},
@@ -163,7 +190,7 @@ def run_codespace_stage(dataset: str | Path, folder: str | Path, config: CodeSpa
     write_bundle(folder, autoencoder=autoencoder, codespace=model, motion_stats=motion_stats, latent_stats=latent_stats,
                  database=database, template=ds.template, tau=sweep.best_tau, gate=gate,
                  info={"dataset": str(dataset), "window": config.window, "validation_mm": report["validation_mm"],
-                       "gates": report["gates"],
+                       "gates": report["gates"], **({"residual": report["residual"]} if report["residual"] else {}),
                        "encoding": encoding, "validation": train_config.validation, **(info or {})})
     atomic_write_text(report_path, strict_json(report, indent=2, default=float))
     return _stage_report(report, stage)

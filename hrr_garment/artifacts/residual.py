@@ -1,0 +1,45 @@
+"""Residual retrieval: the regression plus the detail of the retrieved window.
+
+Regression predicts the conditional mean, which is smooth; a retrieved database window is a real
+simulation, sharp but only one sample of a chaotic cloth. Residual retrieval keeps the mean and
+adds what the match has that the regressor cannot predict, its *residual*: the match's true
+latents minus the regression of the match's own motion. Where the query's motion is the match's,
+the two regressions cancel and the result is the match itself; elsewhere the residual carries the
+match's folds and swing onto the regression's shape, not the match's pose. Scaled by the match's
+code similarity (how many code groups it shares with the query: a poor match adds little) and by
+one weight per model, calibrated on validation like tau (:mod:`hrr_garment.train.calibrate`).
+
+Unreal Engine's ML Deformer went the same way, from nearest-neighbour poses to a regression plus
+the residual detail of the matched poses.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import torch
+
+from ..models.codes import encode_motion
+from .database import CodeDatabase
+
+#: the weights the calibration tries (0, plain regression, is always among the candidates)
+RESIDUAL_WEIGHTS = (0.25, 0.5, 1.0)
+
+
+def match_regression(codespace, motion_stats, latent_stats, database: CodeDatabase, rows: np.ndarray,
+                     last_frame: bool = False, step: torch.nn.Module | None = None) -> np.ndarray:
+    """What the regression predicts for the database windows ``rows`` (Q,) from their own motion:
+    (Q, W or 1, nodes, C) latents, not standardised (``step``, ``last_frame``: as
+    :func:`~hrr_garment.models.codes.encode_motion`, so causal inference repeats its own bits)."""
+    if database.motion is None:
+        raise ValueError("this database has no motion windows (residual retrieval needs them)")
+    raw = motion_stats.denormalize(database.motion[rows])
+    return encode_motion(codespace, motion_stats, latent_stats, raw, regression=True, last_frame=last_frame,
+                         step=step).regression
+
+
+def residual_latents(regression: np.ndarray, matched: np.ndarray, matched_regression: np.ndarray,
+                     similarity: np.ndarray, weight: float) -> np.ndarray:
+    """regression + weight x similarity x (matched - matched_regression), per window: latents
+    (N, W, nodes, C) each, similarity (N,) in [0, 1]."""
+    scale = (float(weight) * np.asarray(similarity, np.float32)).reshape(-1, *[1] * (regression.ndim - 1))
+    return (regression + scale * (matched - matched_regression)).astype(np.float32)
