@@ -20,7 +20,7 @@ def test_hrr_eval_report_end_to_end(trained, tmp_path, capsys):
     assert report["format_version"] == 4 and report["dataset"]["sequences"] == ["run_000"]
     assert report["ensemble"] == {"members": 0}  # a synthetic dataset: no simulator settings to perturb
     modes = report["modes"]
-    assert list(modes) == ["hybrid", "regression", "retrieval", "naive-nn"]
+    assert list(modes) == ["hybrid", "regression", "retrieval", "residual", "naive-nn"]  # residual: calibrated in training
     for name, entry in modes.items():
         m = entry["metrics"]
         assert all(v is not None and math.isfinite(v) for v in m.values()), (name, m)
@@ -36,6 +36,8 @@ def test_hrr_eval_report_end_to_end(trained, tmp_path, capsys):
     assert goals["hybrid_vs_regression"]["ratio"] == pytest.approx(
         modes["hybrid"]["metrics"]["pve_mm"] / modes["regression"]["metrics"]["pve_mm"])
     assert goals["interior_tau_optimum"]["best_tau"] in sweep
+    assert goals["residual_vs_regression"]["ratio"] == pytest.approx(
+        modes["residual"]["metrics"]["pve_mm"] / modes["regression"]["metrics"]["pve_mm"])
     hist = report["entropy"]["histogram"]
     assert sum(hist["counts"]) == report["dataset"]["frames"] and len(hist["edges"]) == len(hist["counts"]) + 1
     md = (out / "report.md").read_text()
