@@ -7,7 +7,7 @@ import shutil
 import numpy as np
 import pytest
 
-from hrr_garment.artifacts.residual import residual_latents
+from hrr_garment.artifacts.residual import RESIDUAL_WEIGHTS, residual_latents
 from hrr_garment.motion.synth import synthesize
 from hrr_garment.train.calibrate import choose_residual_weight
 
@@ -33,20 +33,23 @@ def test_the_residual_adds_the_matchs_detail_scaled_by_its_similarity(rng):
     assert np.allclose(residual_latents(own, own + detail, own, np.ones(3), 1.0), own + detail, atol=1e-6)
 
 
-def test_the_calibration_keeps_the_weight_with_the_lowest_error_and_the_smaller_on_a_tie():
+def test_the_calibration_keeps_the_most_detail_within_the_accuracy_allowance():
     regression = np.array([2.0, 2.0])
-    picked = choose_residual_weight(regression, {0.25: np.array([1.0, 2.0]), 0.5: np.array([1.5, 1.5]),
-                                                 1.0: np.array([3.0, 3.0])})
-    assert picked["weight"] == 0.25 and picked["validation_mm"] == pytest.approx(1.5)
-    assert picked["errors_mm"] == {"0.0": 2.0, "0.25": 1.5, "0.5": 1.5, "1.0": 3.0}
-    assert choose_residual_weight(regression, {0.5: np.array([2.5, 2.5])})["weight"] == 0.0  # regression wins
+    tried = {0.25: np.array([2.0, 2.1]), 0.5: np.array([2.06, 2.06]), 1.0: np.array([3.0, 3.0])}
+    picked = choose_residual_weight(regression, tried, allowance=1.03)
+    assert picked["weight"] == 0.5 and picked["validation_mm"] == pytest.approx(2.06)  # exactly at 1.03 x
+    assert picked["errors_mm"] == {"0.0": 2.0, "0.25": 2.05, "0.5": 2.06, "1.0": 3.0}
+    assert choose_residual_weight(regression, tried, allowance=1.0)["weight"] == 0.0  # nothing within: regression
+    assert choose_residual_weight(regression, {0.5: np.array([1.0, 1.0])}, allowance=1.0)["weight"] == 0.5
 
 
 def test_training_calibrates_the_residual_weight_into_the_bundle(animator):
     residual = animator.bundle.meta["residual"]
     assert animator.bundle.has_residual and animator.supports("residual")
-    assert residual["weight"] in (0.0, 0.25, 0.5, 1.0)
-    assert residual["validation_mm"] == pytest.approx(min(residual["errors_mm"].values()))
+    errors = residual["errors_mm"]
+    assert set(errors) == {"0.0", *map(str, RESIDUAL_WEIGHTS)} and residual["validation_mm"] == errors[str(residual["weight"])]
+    allowed = [float(w) for w, e in errors.items() if e <= residual["allowance"] * errors["0.0"]]
+    assert residual["weight"] == max([0.0, *allowed])
 
 
 def test_residual_at_weight_zero_is_the_regression_and_otherwise_adds_the_matches(animator, monkeypatch):

@@ -12,8 +12,8 @@ tau is its sweep's lowest mean error (ties: the smallest tau, i.e. the least ret
 gate is the signal whose optimum is lowest (ties: the first of GATE_SIGNALS, the paper's entropy).
 
 The residual mode (:mod:`hrr_garment.artifacts.residual`) is calibrated on the same windows: its
-weight is the one of 0 (plain regression) and :data:`RESIDUAL_WEIGHTS` with the lowest mean error
-(ties: the smaller weight).
+weight is the largest of 0 (plain regression) and :data:`RESIDUAL_WEIGHTS` whose mean error stays
+within :data:`ACCURACY_ALLOWANCE` of the regression's.
 
 These are window-level errors; blending overlapping windows at inference (issue "hybrid
 inference") averages them per frame.
@@ -30,7 +30,7 @@ import torch
 
 from ..artifacts.database import CodeDatabase
 from ..artifacts.gate_signals import GATE_SIGNALS, gate_doubt
-from ..artifacts.residual import RESIDUAL_WEIGHTS, match_regression, residual_latents
+from ..artifacts.residual import ACCURACY_ALLOWANCE, RESIDUAL_WEIGHTS, match_regression, residual_latents
 from ..data.dataset import DatasetError, GarmentDataset
 from ..data.windows import dataset_features
 from ..models.codes import encode_motion
@@ -125,8 +125,8 @@ class ModeErrors:
                 "gate": gate}
 
     def residual_calibration(self) -> dict | None:
-        """The residual mode's weight (the lowest mean error of 0 and the tried weights; ties: the
-        smaller), its error and every weight's, or None where it was not evaluated."""
+        """The residual mode's weight (:func:`choose_residual_weight`), its error and every
+        weight's, or None where it was not evaluated."""
         return None if self.residual is None else choose_residual_weight(self.regression, self.residual)
 
     def gates(self) -> dict[str, dict]:
@@ -206,12 +206,14 @@ def calibrate_residual(codespace: CodeSpace, autoencoder, motion_stats: FeatureS
     return choose_residual_weight(window_errors_mm(decode, pred.regression, truth), residual_errors(pred, decode, truth))
 
 
-def choose_residual_weight(regression_err: np.ndarray, residual_err: dict[float, np.ndarray]) -> dict:
-    """The weight of 0 (regression) and the tried ones with the lowest mean error (ties: the
-    smaller), its error, and every weight's."""
+def choose_residual_weight(regression_err: np.ndarray, residual_err: dict[float, np.ndarray],
+                           allowance: float = ACCURACY_ALLOWANCE) -> dict:
+    """The largest weight (0: regression) whose mean error is at most ``allowance`` x the
+    regression's, its error, and every weight's."""
     errors = {0.0: float(np.mean(regression_err)), **{w: float(np.mean(e)) for w, e in residual_err.items()}}
-    weight = min(errors, key=lambda w: (errors[w], w))
-    return {"weight": weight, "validation_mm": errors[weight], "errors_mm": {str(w): e for w, e in errors.items()}}
+    weight = max(w for w, e in errors.items() if w == 0.0 or e <= allowance * errors[0.0])
+    return {"weight": weight, "validation_mm": errors[weight], "allowance": allowance,
+            "errors_mm": {str(w): e for w, e in errors.items()}}
 
 
 @dataclass
