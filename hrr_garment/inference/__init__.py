@@ -16,7 +16,8 @@ velocity) -> autoencoder decoder -> body frame to world -> collision push-out.
 Causal (``causal=True``, and the streaming API): frame t sees only frames <= t. Its window is the
 W frames ending at t (the clip's first frame repeated before the start); its garment latent is that
 window's last frame. When the source changes (mode, or retrieved clip) the jump is removed by
-inertialization: the offset between the previous output and the new source (and between their
-velocities) decays to zero over ``blend`` frames with a quintic that has zero velocity and
-acceleration at its end, so position and velocity stay continuous. Streaming equals offline causal.
+inertialization: the jump between the old and the new source (in position and velocity) becomes an
+offset that decays as a critically damped spring over about ``blend`` frames, so position and
+velocity stay continuous; switches in quick succession add up and decay together. Streaming equals
+offline causal.
 """
