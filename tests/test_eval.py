@@ -20,7 +20,7 @@ def test_hrr_eval_report_end_to_end(trained, tmp_path, capsys):
     assert report["format_version"] == 4 and report["dataset"]["sequences"] == ["run_000"]
     assert report["ensemble"] == {"members": 0}  # a synthetic dataset: no simulator settings to perturb
     modes = report["modes"]
-    assert list(modes) == ["hybrid", "regression", "retrieval", "residual", "naive-nn"]  # residual: calibrated in training
+    assert list(modes) == ["hybrid", "regression", "retrieval", "residual", "detail", "naive-nn"]  # residual: calibrated in training
     for name, entry in modes.items():
         m = entry["metrics"]
         assert all(v is not None and math.isfinite(v) for v in m.values()), (name, m)

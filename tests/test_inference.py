@@ -18,7 +18,7 @@ def animator(trained):
     return Animator.load(root / "model")
 
 
-@pytest.mark.parametrize("mode", ["hybrid", "regression", "retrieval", "naive-nn"])
+@pytest.mark.parametrize("mode", ["hybrid", "regression", "retrieval", "detail", "naive-nn"])
 def test_stream_equals_offline_causal(animator, mode):
     motion = synthesize("walk_curve", 1.2, seed=7)
     causal = animator.animate(motion, mode=mode, causal=True)

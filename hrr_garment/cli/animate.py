@@ -32,7 +32,8 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--model", type=Path, default=None, help="model bundle directory (instead of --garment)")
     p.add_argument("--mode", default=Mode.HYBRID.value, choices=[m.value for m in Mode],
                    help="hybrid (default): the calibrated gate between retrieval and regression; residual: "
-                        "regression plus the matched window's detail; direct: the baseline, when the model has it "
+                        "regression plus the matched window's detail; detail: the regression's shape with the "
+                        "matched window's folds; direct: the baseline, when the model has it "
                         "(hrr-train --stage baseline)")
     p.add_argument("--gate", default=None, choices=GATE_SIGNALS,
                    help="what the hybrid thresholds: the motion code's entropy (the paper's), the match's code "

@@ -61,7 +61,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--sequences", type=int, default=None, metavar="N",
                    help="evaluate N sequences of the split, evenly spaced in name order (default: all)")
     p.add_argument("--modes", type=_modes, default=None,
-                   help="comma-separated (default: hybrid,regression,retrieval,residual,naive-nn; residual where calibrated, direct where trained)")
+                   help="comma-separated (default: hybrid,regression,retrieval,residual,detail,naive-nn; residual where calibrated, direct where trained)")
     p.add_argument("--gate", default=None, choices=GATE_SIGNALS,
                    help="the hybrid's gate signal: motion-code entropy (the paper's), the match's code similarity or "
                         "its motion distance (default: the model's calibrated choice); the sweeps run on it")

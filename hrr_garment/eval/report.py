@@ -23,6 +23,7 @@ GOALS = (  # (name, numerator mode, denominator mode, target ratio)
     ("retrieval_vs_naive_nn", "retrieval", "naive-nn", 0.8),
     ("hybrid_vs_direct", "hybrid", "direct", None),
     ("residual_vs_regression", "residual", "regression", None),  # what the borrowed detail costs or gains
+    ("detail_vs_regression", "detail", "regression", None),
 )
 TABLE_METRICS = (("pve_mm", "PVE mm", 2), ("rmse_mm", "RMSE mm", 2), ("sted", "STED", 4), ("chamfer_cm", "CD cm", 3),
                  ("penetration_pct", "pen. %", 2), ("curvature_error_cm", "E_curv cm", 1), ("strain_p99", "strain p99", 3),

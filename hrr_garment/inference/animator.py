@@ -33,6 +33,7 @@ from ..paths import workspace
 from .blending import blend_windows, causal_latents
 from .collision import EdgeLimits, PushOutReport, mean_operator, push_out
 from .decoding import body_frame_vertices, flush_denormals
+from .detail import add_detail
 from .gate import choose_windows
 from .modes import Mode
 from .stream import AnimationStream, CrowdStream
@@ -166,7 +167,7 @@ class Animator:
         if t_frames < 1:
             raise MotionError(motion.source, "the motion has no frames")
         if mode == Mode.DIRECT:
-            latents = self._direct_latents(motion)
+            latents, detail = self._direct_latents(motion), None
             retrieved, entropy = np.zeros(t_frames, np.uint8), np.full(t_frames, np.nan, np.float32)
             source, doubt = np.full((t_frames, 2), -1, np.int32), entropy.copy()
         else:
@@ -174,6 +175,7 @@ class Animator:
                 feats = causal_windows(self.features(motion, causal=True), w)
                 choice = self._choose(feats, mode, tau, exclude_sequence, gate, last_frame=True)
                 latents = causal_latents(choice, self.blend)
+                detail = None if choice.detail is None else causal_latents(choice, self.blend, detail=True)
                 per_frame = np.arange(t_frames)
             else:
                 feats = self.features(motion)
@@ -182,10 +184,14 @@ class Animator:
                 windows = np.ascontiguousarray(sequence_windows(feats, w))
                 choice = self._choose(windows, mode, tau, exclude_sequence, gate)
                 latents = blend_windows(choice.latents, len(feats))[:t_frames]
+                detail = None if choice.detail is None else blend_windows(choice.detail, len(feats))[:t_frames]
                 per_frame = np.clip(np.arange(t_frames) - w // 2, 0, len(windows) - 1)  # the window centred on t
             retrieved, entropy = choice.retrieved[per_frame].astype(np.uint8), choice.entropy[per_frame].astype(np.float32)
             source, doubt = choice.source[per_frame], choice.doubt[per_frame].astype(np.float32)
-        vertices = from_body_frame(body_frame_vertices(self.bundle, latents, self.decoder), motion).astype(np.float32)
+        local = body_frame_vertices(self.bundle, latents, self.decoder)
+        if detail is not None:  # the detail mode: the matches' folds on the regression's shape
+            local = add_detail(local, body_frame_vertices(self.bundle, detail, self.decoder), self.smoothing)
+        vertices = from_body_frame(local, motion).astype(np.float32)
         report = None
         if collision:
             vertices, report = push_out(vertices, motion, self.bundle.template.faces, mean=self.smoothing,

@@ -79,12 +79,23 @@ def source_id(retrieved: bool, source: np.ndarray) -> tuple:
     return ("regression",) if not retrieved else ("retrieval", int(source[0]), int(source[1]))
 
 
-def causal_latents(choice: WindowChoice, blend: int = 6) -> np.ndarray:
+def latent_sources(choice: WindowChoice, detail: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """The latents a causal path inertializes and whether each window's came from the database:
+    the choice's own, or with ``detail`` the detail mode's matches (in the detail mode the choice's
+    own latents are the regression's, one continuous source)."""
+    if detail:
+        return choice.detail, np.ones(len(choice.detail), bool)
+    return choice.latents, choice.retrieved & (choice.detail is None)
+
+
+def causal_latents(choice: WindowChoice, blend: int = 6, detail: bool = False) -> np.ndarray:
     """Frame t's latent = the last frame of the window ending at t, made continuous across source
-    changes by :class:`Inertializer`. ``choice`` has one window per frame."""
+    changes by :class:`Inertializer`. ``choice`` has one window per frame; ``detail``: see
+    :func:`latent_sources`."""
+    latents, retrieved = latent_sources(choice, detail)
     inert = Inertializer(blend)
-    out = np.empty((len(choice.latents), *choice.latents.shape[2:]), np.float32)
+    out = np.empty((len(latents), *latents.shape[2:]), np.float32)
     for t in range(len(out)):
-        src = choice.source[t] - np.array([0, t]) if choice.retrieved[t] else choice.source[t]
-        out[t] = inert.step(choice.latents[t, -1].astype(np.float64), source_id(bool(choice.retrieved[t]), src))
+        src = choice.source[t] - np.array([0, t]) if retrieved[t] else choice.source[t]
+        out[t] = inert.step(latents[t, -1].astype(np.float64), source_id(bool(retrieved[t]), src))
     return out

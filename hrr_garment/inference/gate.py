@@ -4,7 +4,8 @@ modes force one side (see :class:`.modes.Mode`). The doubt is the motion code's 
 paper's switch, the default) or a judgement of the match itself: one minus its code similarity, or
 its motion distance (:data:`~hrr_garment.artifacts.database.GATE_SIGNALS`). The match signals
 search the database for every window, not only for the retrieved ones. The residual mode has no
-gate: every window is the regression plus its match's detail (:mod:`hrr_garment.artifacts.residual`)."""
+gate: every window is the regression plus its match's detail (:mod:`hrr_garment.artifacts.residual`);
+nor has the detail mode, which returns both the regression and the match (:mod:`.detail`)."""
 
 from __future__ import annotations
 
@@ -29,6 +30,7 @@ class WindowChoice:
     entropy: np.ndarray  # (N,) motion-code entropy
     doubt: np.ndarray  # (N,) the gate signal's value (retrieval where below tau; the entropy by default)
     source: np.ndarray  # (N, 2) int32 (database sequence index, start frame) of retrieved windows, else -1
+    detail: np.ndarray | None = None  # the detail mode: the matches' latents (``latents`` are the regression's)
 
 
 def choose_windows(bundle: Bundle, motion_windows: np.ndarray, mode: str, tau: float,
@@ -48,6 +50,11 @@ def choose_windows(bundle: Bundle, motion_windows: np.ndarray, mode: str, tau: f
     n = len(enc.entropy)
     frames = 1 if last_frame else db.latents.shape[1]
     doubt, match = enc.entropy, None
+    if mode is Mode.DETAIL:  # both paths; the vertices are combined after decoding (.detail)
+        match, _ = db.search(enc.codes, exclude)
+        return WindowChoice(enc.regression, np.ones(n, bool), enc.entropy, np.asarray(doubt, np.float64),
+                            np.stack([db.sequence[match], db.start[match]], 1).astype(np.int32),
+                            db.latents[match, -frames:])
     if mode is Mode.RESIDUAL:
         match, similarity = db.search(enc.codes, exclude)
         own = match_regression(bundle.codespace, bundle.motion_stats, bundle.latent_stats, db, match, last_frame, step)

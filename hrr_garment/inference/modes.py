@@ -14,6 +14,7 @@ class Mode(str, enum.Enum):
     REGRESSION = "regression"  # the code-space decoder's latents
     RETRIEVAL = "retrieval"  # the database window with the nearest garment code
     RESIDUAL = "residual"  # regression plus the nearest window's detail (artifacts/residual.py)
+    DETAIL = "detail"  # regression's shape plus the nearest window's folds (inference/detail.py)
     NAIVE_NN = "naive-nn"  # the database window with the nearest standardised motion (a baseline)
     DIRECT = "direct"  # the direct-regression baseline (a GRU; offline only, when the bundle has it)
 
@@ -25,9 +26,9 @@ class Mode(str, enum.Enum):
 
     @property
     def regresses(self) -> bool:
-        """Whether the code-space decoder runs (hybrid, regression and residual)."""
-        return self in (Mode.HYBRID, Mode.REGRESSION, Mode.RESIDUAL)
+        """Whether the code-space decoder runs (hybrid, regression, residual and detail)."""
+        return self in (Mode.HYBRID, Mode.REGRESSION, Mode.RESIDUAL, Mode.DETAIL)
 
 
 #: the modes that run the motion encoder and the gate (offline, causal and streaming)
-CODE_MODES = (Mode.HYBRID, Mode.REGRESSION, Mode.RETRIEVAL, Mode.RESIDUAL, Mode.NAIVE_NN)
+CODE_MODES = (Mode.HYBRID, Mode.REGRESSION, Mode.RETRIEVAL, Mode.RESIDUAL, Mode.DETAIL, Mode.NAIVE_NN)

@@ -37,9 +37,10 @@ from ..motion.frame import from_body_frame
 from ..motion.memory import MEMORY_WIDTH, MotionMemory
 from ..motion.motion import Motion
 from ..motion.poses import poses_to_motion
-from .blending import Inertializer, source_id
+from .blending import Inertializer, latent_sources, source_id
 from .collision import push_out
 from .decoding import flush_denormals
+from .detail import add_detail
 from .gate import choose_windows
 from .modes import CODE_MODES, Mode
 
@@ -52,6 +53,7 @@ class _Character:
 
     features: deque
     inertializer: Inertializer
+    detail_inertializer: Inertializer  # the detail mode's matches (a source of their own)
     previous: tuple[np.ndarray, np.ndarray] | None = None  # its last pose: global rotations and joint positions
     memory: np.ndarray | None = None  # its motion memory's state (k, 64), when the model has one
     frames: int = 0
@@ -146,7 +148,8 @@ class CrowdStream:
     def _step_frame(self, keys: list, poses: Motion) -> np.ndarray:
         t = [time.perf_counter()]
         window = self.animator.window
-        chars = [self._characters.setdefault(k, _Character(deque(maxlen=window), Inertializer(self.animator.blend)))
+        blend = self.animator.blend
+        chars = [self._characters.setdefault(k, _Character(deque(maxlen=window), Inertializer(blend), Inertializer(blend)))
                  for k in keys]
         features = self._with_memory(chars, pair_features_batch([c.previous for c in chars], poses), poses.fps)
         for c, feat in zip(chars, features):
@@ -157,14 +160,20 @@ class CrowdStream:
         t.append(time.perf_counter())
         choice = choose_windows(self.animator.bundle, windows, self.mode, self.tau, last_frame=True, step=self._step,
                                 gate=self.gate)
-        latents = np.empty((len(chars), *choice.latents.shape[2:]), np.float32)
-        for i, c in enumerate(chars):
-            retrieved = bool(choice.retrieved[i])
-            src = choice.source[i] - np.array([0, c.frames]) if retrieved else choice.source[i]
-            latents[i] = c.inertializer.step(choice.latents[i, -1].astype(np.float64), source_id(retrieved, src))
+        paths = [(latent_sources(choice), [c.inertializer for c in chars])]
+        if choice.detail is not None:  # the detail mode: the matches too, decoded in the same batch
+            paths.append((latent_sources(choice, detail=True), [c.detail_inertializer for c in chars]))
+        latents = np.empty((len(paths) * len(chars), *choice.latents.shape[2:]), np.float32)
+        for p, ((path_latents, retrieved), inertializers) in enumerate(paths):
+            for i, (c, inert) in enumerate(zip(chars, inertializers)):
+                src = choice.source[i] - np.array([0, c.frames]) if retrieved[i] else choice.source[i]
+                latents[p * len(chars) + i] = inert.step(path_latents[i, -1].astype(np.float64),
+                                                         source_id(bool(retrieved[i]), src))
         t.append(time.perf_counter())
         with torch.no_grad():
             local = self.animator.decoder(torch.from_numpy(latents)).numpy()
+        if choice.detail is not None:
+            local = add_detail(local[:len(chars)], local[len(chars):], self.animator.smoothing)
         t.append(time.perf_counter())
         vertices = from_body_frame(local, poses).astype(np.float32)  # as offline: the same push-out inputs
         t.append(time.perf_counter())
