@@ -65,11 +65,16 @@ def random_bundle(vertices: int, windows: int, seed: int = 0) -> Bundle:
                   FeatureStats(np.zeros(size, np.float32), np.ones(size, np.float32)), db, garment)
 
 
-def _fps(animator: Animator, motion, **kwargs) -> float:
+def _fps(animator: Animator, motion, repeat: int = 3, **kwargs) -> float:
+    """Frames/s of offline animation: the median of ``repeat`` timed passes (one pass swung by
+    +-15 % from run to run on a 2-core machine)."""
     animator.animate(motion.slice(0, 40), **kwargs)  # warm-up
-    t0 = time.perf_counter()
-    animator.animate(motion, **kwargs)
-    return motion.num_frames / (time.perf_counter() - t0)
+    seconds = []
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        animator.animate(motion, **kwargs)
+        seconds.append(time.perf_counter() - t0)
+    return motion.num_frames / float(np.median(seconds))
 
 
 def _median_entropy_tau(bundle: Bundle, motion) -> float:
@@ -111,19 +116,19 @@ def bench_crowd(animator: Animator, motion, tau: float, characters: int, pace: f
 
 
 def bench(vertices: int, windows: int, seconds: float, model: str | None = None, motion_file: str | None = None,
-          pace: float = 30.0, crowd: list[int] | None = None) -> dict:
+          pace: float = 30.0, crowd: list[int] | None = None, repeat: int = 3) -> dict:
     """``model``: a trained bundle instead of random weights (its own resolution, database and tau);
     ``motion_file``: a clip instead of the procedural curved walk; ``pace``: frames/s of the paced
-    stream run (0: none)."""
+    stream run (0: none); ``repeat``: timed passes per offline figure (their median)."""
     animator = Animator.load(model) if model else Animator(random_bundle(vertices, windows))
     bundle = animator.bundle
     motion = load_motion(motion_file) if motion_file else synthesize("walk_curve", seconds, seed=0)
     tau = bundle.tau if model else _median_entropy_tau(bundle, motion)
     out = {"vertices": bundle.template.num_vertices, "database_windows": len(bundle.database), "clip_frames": motion.num_frames,
            "threads": torch.get_num_threads(), "model": model or "random weights", "motion": motion_file or "procedural walk_curve"}
-    for mode in ("hybrid", "regression", "retrieval"):
-        out[f"fps_{mode}"] = round(_fps(animator, motion, mode=mode, tau=tau, collision=False), 1)
-    out["fps_hybrid_with_collision"] = round(_fps(animator, motion, mode="hybrid", tau=tau, collision=True), 1)
+    for mode in ("hybrid", "regression", "retrieval", "detail"):
+        out[f"fps_{mode}"] = round(_fps(animator, motion, repeat, mode=mode, tau=tau, collision=False), 1)
+    out["fps_hybrid_with_collision"] = round(_fps(animator, motion, repeat, mode="hybrid", tau=tau, collision=True), 1)
     runs = [("stream", True, 0.0), ("stream_no_collision", False, 0.0)] + ([("stream_paced", True, pace)] if pace else [])
     for key, collision, fps in runs:
         stream = animator.stream(tau=tau, collision=collision)
@@ -155,17 +160,18 @@ def main() -> None:
                         help="also stream paced at this many frames/s, idle between pushes as in a game (0: skip)")
     parser.add_argument("--crowd", type=int, nargs="*", default=[],
                         help="also stream crowds of these many characters, one call per frame (e.g. 1 8 32)")
+    parser.add_argument("--repeat", type=int, default=3, help="timed passes per offline figure (their median)")
     parser.add_argument("--json", action="store_true", help="one JSON object per resolution, nothing else")
     args = parser.parse_args()
     for v in ([None] if args.model else args.vertices):
-        r = bench(v, args.database, args.seconds, args.model, args.motion, args.pace, args.crowd)
+        r = bench(v, args.database, args.seconds, args.model, args.motion, args.pace, args.crowd, args.repeat)
         if args.json:
             print(json.dumps(r))
         else:
             print(f"{r['model']}, {r['motion']}: "
                   f"{r['vertices']} vertices, database {r['database_windows']} windows, {r['clip_frames']}-frame clip, "
                   f"{r['threads']} threads: offline frames/s hybrid {r['fps_hybrid']}, regression {r['fps_regression']}, "
-                  f"retrieval {r['fps_retrieval']} (hybrid with push-out {r['fps_hybrid_with_collision']}); streaming "
+                  f"retrieval {r['fps_retrieval']}, detail {r['fps_detail']} (hybrid with push-out {r['fps_hybrid_with_collision']}); streaming "
                   f"p50 {r['stream_p50_ms']} ms, p99 {r['stream_p99_ms']} ms (without push-out p50 "
                   f"{r['stream_no_collision_p50_ms']}, p99 {r['stream_no_collision_p99_ms']})"
                   + (f"; paced at {args.pace:g} frames/s p50 {r['stream_paced_p50_ms']} ms, p99 {r['stream_paced_p99_ms']} ms"
