@@ -381,7 +381,7 @@ def test_bench_inference_reports_every_key(capsys):
     finally:
         sys.argv = argv
     report = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
-    for key in ("vertices", "fps_hybrid", "fps_regression", "fps_retrieval", "stream_p50_ms", "stream_p99_ms",
+    for key in ("vertices", "fps_hybrid", "fps_regression", "fps_retrieval", "fps_detail", "stream_p50_ms", "stream_p99_ms",
                 "stream_paced_p50_ms", "stream_paced_p99_ms", "peak_rss_mb"):
         assert report[key] > 0, key
     assert report["stream_p50_ms"] <= report["stream_p99_ms"]
