@@ -31,15 +31,16 @@ def test_stream_equals_offline_causal(animator, mode):
     assert sum(v.sum() for v in stages.values()) <= np.sum(stream.latency_s) + 1e-9
 
 
-def test_a_crowd_streamed_together_equals_each_character_streamed_alone(animator):
+@pytest.mark.parametrize("mode", ["hybrid", "detail"])  # detail: two latent paths a character, one decode batch
+def test_a_crowd_streamed_together_equals_each_character_streamed_alone(animator, mode):
     """Characters join and leave between frames; each one's frames equal its own offline causal
     animation (which the single stream equals), whatever the others in the same push."""
     clips = {"a": synthesize("walk_curve", 1.0, seed=1), "b": synthesize("spin", 1.0, seed=2),
              "c": synthesize("dance", 1.0, seed=3)}
-    alone = {k: animator.animate(m, causal=True).vertices for k, m in clips.items()}
+    alone = {k: animator.animate(m, mode=mode, causal=True).vertices for k, m in clips.items()}
     joins = {"a": 0, "b": 4, "c": 9}  # b joins at frame 4; a leaves after frame 19, c after 24
     leaves = {"a": 20, "b": 30, "c": 25}
-    crowd = animator.crowd()
+    crowd = animator.crowd(mode=mode)
     for frame in range(30):
         present = [k for k in clips if joins[k] <= frame < leaves[k]]
         for k in set(crowd.characters) - set(present):
