@@ -70,10 +70,12 @@ def _main(argv: Sequence[str] | None) -> int:
                             gate=args.gate)
     anim.save(args.output)
     seconds = time.perf_counter() - t0
+    # the gate decides in the hybrid only; the other modes retrieve always, never, or add a match's detail
+    gate = f", gate {anim.settings['gate']} < {anim.settings['tau']:.3f}" if args.mode == Mode.HYBRID else ""
+    used = "database used" if args.mode in (Mode.RESIDUAL, Mode.DETAIL) else "retrieval usage"
     print(f"wrote {args.output}: {anim.vertices.shape[0]} frames ({motion.duration_s:.2f} s at {anim.fps:g} fps), "
-          f"{anim.vertices.shape[1]} vertices; mode {args.mode}, gate {anim.settings['gate']} < "
-          f"{anim.settings['tau']:.3f}, "
-          f"retrieval usage {100 * anim.retrieval_usage:.1f} % of frames; {seconds:.1f} s")
+          f"{anim.vertices.shape[1]} vertices; mode {args.mode}{gate}, "
+          f"{used} {100 * anim.retrieval_usage:.1f} % of frames; {seconds:.1f} s")
     if anim.penetration is not None:
         p = anim.penetration
         print(f"  penetration (vertices > 5 mm inside the body): before push-out {100 * p.inside_before:.2f} % "
