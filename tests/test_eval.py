@@ -17,7 +17,7 @@ def test_hrr_eval_report_end_to_end(trained, tmp_path, capsys):
     assert main(["--model", str(root / "model"), "--dataset", str(data), "--split", "test", "--tau-sweep", "0,0.5,1,100",
                  "-o", str(out), "--quiet"]) == 0
     report = json.loads((out / "report.json").read_text())
-    assert report["format_version"] == 4 and report["dataset"]["sequences"] == ["run_000"]
+    assert report["format_version"] == 5 and report["dataset"]["sequences"] == ["run_000"]
     assert report["ensemble"] == {"members": 0}  # a synthetic dataset: no simulator settings to perturb
     modes = report["modes"]
     assert list(modes) == ["hybrid", "regression", "retrieval", "residual", "detail", "naive-nn"]  # residual: calibrated in training
@@ -32,6 +32,8 @@ def test_hrr_eval_report_end_to_end(trained, tmp_path, capsys):
     assert sweep[0.0]["retrieval_usage"] == 0 and sweep[100.0]["retrieval_usage"] == 1
     assert sweep[0.0]["pve_mm"] == pytest.approx(modes["regression"]["metrics"]["pve_mm"], rel=1e-9)
     assert sweep[100.0]["pve_mm"] == pytest.approx(modes["retrieval"]["metrics"]["pve_mm"], rel=1e-9)
+    for tau, mode in ((0.0, "regression"), (100.0, "retrieval")):  # plausibility beside accuracy, per tau
+        assert sweep[tau]["sharpness"] == pytest.approx(modes[mode]["metrics"]["bending_energy_ratio"], rel=1e-9)
     goals = report["goals"]
     assert goals["hybrid_vs_regression"]["ratio"] == pytest.approx(
         modes["hybrid"]["metrics"]["pve_mm"] / modes["regression"]["metrics"]["pve_mm"])
@@ -235,7 +237,7 @@ def test_library_protocol_in_hrr_eval(artist_model, tmp_path, monkeypatch):
     assert main(["--model", str(model), "--dataset", str(data), "--split", "test", "--ensemble", "2", "--jobs", "1",
                  "--library", "2", "--tau-sweep", "0,100", "--no-plots", "-o", str(out), "--quiet"]) == 0
     report = json.loads((out / "report.json").read_text())
-    assert report["format_version"] == 4
+    assert report["format_version"] == 5
     lib = report["library"]
     assert list(lib["plays"]) == ["play_00", "play_01"] and "->" in lib["plays"]["play_01"]
     assert lib["sequences"] == ["play_00", "play_01"] and not lib["rejected"]

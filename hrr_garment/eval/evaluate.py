@@ -162,27 +162,33 @@ def evaluate_modes(animator: Animator, records: list[SequenceRecord], modes: lis
 
 @dataclass
 class TauPoint:
-    """The hybrid's error and retrieval usage at one tau."""
+    """The hybrid's error, retrieval usage and sharpness at one tau."""
 
     tau: float
     pve_mm: float
     retrieval_usage: float
+    sharpness: float = float("nan")  # bending energy over the truth's (frames of every sequence together)
 
 
 def tau_sweep(animator: Animator, records: list[SequenceRecord], taus: list[float], exclude_own_sequence: bool = False,
               collision: bool = True, progress: bool = True, gate: str | None = None) -> list[TauPoint]:
-    """Hybrid PVE and retrieval usage (fraction of frames) at each tau of ``gate`` (default the
-    model's), on the same records."""
+    """Hybrid PVE, retrieval usage (fraction of frames) and sharpness at each tau of ``gate``
+    (default the model's), on the same records: accuracy and plausibility side by side."""
     names = list(animator.bundle.database.names)
+    template = animator.bundle.template
+    rest, topo = template.vertices.astype(np.float64), M.MeshTopology.of(template.faces, template.num_vertices)
+    truth_bending = sum(float(M.cloth_energies(r.garment.astype(np.float64), rest, topo)[1].sum()) for r in records)
     points = []
     for tau in tqdm(taus, desc="tau sweep", unit="tau", disable=not progress):
-        errors, frames, retrieved = 0.0, 0, 0
+        errors, frames, retrieved, bending = 0.0, 0, 0, 0.0
         for record in records:
             own = names.index(record.name) if exclude_own_sequence and record.name in names else None
             anim = animator.animate(record.motion, mode=Mode.HYBRID, tau=tau, collision=collision, exclude_sequence=own,
                                     gate=gate)
-            errors += M.pve_mm(anim.vertices.astype(np.float64), record.garment.astype(np.float64)) * len(anim.vertices)
+            pred = anim.vertices.astype(np.float64)
+            errors += M.pve_mm(pred, record.garment.astype(np.float64)) * len(anim.vertices)
             frames += len(anim.vertices)
             retrieved += int(anim.mode.sum())
-        points.append(TauPoint(float(tau), errors / frames, retrieved / frames))
+            bending += float(M.cloth_energies(pred, rest, topo)[1].sum())
+        points.append(TauPoint(float(tau), errors / frames, retrieved / frames, bending / max(truth_bending, 1e-30)))
     return points

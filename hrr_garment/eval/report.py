@@ -16,7 +16,7 @@ import numpy as np
 from ..io_utils import atomic_path, atomic_write_text, strict_json
 from .evaluate import ModeResult, TauPoint
 
-REPORT_VERSION = 4  # 2: truth ensembles ("ensemble" per mode and at the top level); 3: "library" and "paper"; 4: the gate signal ("gate" beside each "tau", the model's calibrated "gates")
+REPORT_VERSION = 5  # 2: truth ensembles ("ensemble" per mode and at the top level); 3: "library" and "paper"; 4: the gate signal ("gate" beside each "tau", the model's calibrated "gates"); 5: "sharpness" in each tau-sweep point
 GOALS = (  # (name, numerator mode, denominator mode, target ratio)
     ("hybrid_vs_regression", "hybrid", "regression", 0.5),
     ("hybrid_vs_retrieval", "hybrid", "retrieval", 0.85),
@@ -227,8 +227,9 @@ def _goal_table(goals: dict) -> list[str]:
 
 
 def _sweep_table(points: list[dict]) -> list[str]:
-    return ["| tau | PVE mm | retrieval usage |", "|---:|---:|---:|",
-            *[f"| {p['tau']:.3f} | {p['pve_mm']:.2f} | {100 * p['retrieval_usage']:.1f} % |" for p in points]]
+    return ["| tau | PVE mm | retrieval usage | sharpness (bend E ratio) |", "|---:|---:|---:|---:|",
+            *[f"| {p['tau']:.3f} | {p['pve_mm']:.2f} | {100 * p['retrieval_usage']:.1f} % | {p.get('sharpness', math.nan):.2f} |"
+              for p in points]]
 
 
 def _simulated_section(section: dict) -> list[str]:
@@ -288,9 +289,13 @@ def write_plots(folder: Path, modes: dict[str, ModeResult], sweep: list[TauPoint
         ax.plot([p.tau for p in finite], [p.pve_mm for p in finite], "o-", color="#4a6fc4")
         ax.set(xlabel={"entropy": "tau (nats)", "similarity": "tau (1 - code similarity)",
                        "distance": "tau (motion distance)"}.get(gate, "tau"), ylabel="hybrid PVE (mm)", title="Tau sweep")
-        ax2 = ax.twinx()
-        ax2.plot([p.tau for p in finite], [100 * p.retrieval_usage for p in finite], "s--", color="#e0862d")
-        ax2.set_ylabel("retrieval usage (%)")
+        ax2 = ax.twinx()  # plausibility beside accuracy: how much retrieval, and how sharp the result
+        ax2.plot([p.tau for p in finite], [100 * p.retrieval_usage for p in finite], "s--", color="#e0862d",
+                 label="retrieval usage")
+        ax2.plot([p.tau for p in finite], [100 * p.sharpness for p in finite], "^:", color="#3a9b5c",
+                 label="sharpness (bending energy, % of the truth's)")
+        ax2.set_ylabel("%")
+        ax2.legend(fontsize=7)
         save(fig, "tau_curve.png")
     return written
 
