@@ -50,17 +50,15 @@ def choose_windows(bundle: Bundle, motion_windows: np.ndarray, mode: str, tau: f
     n = len(enc.entropy)
     frames = 1 if last_frame else db.latents.shape[1]
     doubt, match = enc.entropy, None
-    if mode is Mode.DETAIL:  # both paths; the vertices are combined after decoding (.detail)
-        match, _ = db.search(enc.codes, exclude)
-        return WindowChoice(enc.regression, np.ones(n, bool), enc.entropy, np.asarray(doubt, np.float64),
-                            np.stack([db.sequence[match], db.start[match]], 1).astype(np.int32),
-                            db.latents[match, -frames:])
-    if mode is Mode.RESIDUAL:
+    if mode in (Mode.RESIDUAL, Mode.DETAIL):  # no gate: every window's regression and its best match
         match, similarity = db.search(enc.codes, exclude)
+        matched, everywhere = db.latents[match, -frames:], np.ones(n, bool)
+        source = np.stack([db.sequence[match], db.start[match]], 1).astype(np.int32)
+        if mode is Mode.DETAIL:  # both paths; their vertices are combined after decoding (.detail)
+            return WindowChoice(enc.regression, everywhere, enc.entropy, np.asarray(doubt, np.float64), source, matched)
         own = match_regression(bundle.codespace, bundle.motion_stats, bundle.latent_stats, db, match, last_frame, step)
-        latents = residual_latents(enc.regression, db.latents[match, -frames:], own, similarity, bundle.residual_weight)
-        return WindowChoice(latents, np.ones(n, bool), enc.entropy, np.asarray(doubt, np.float64),
-                            np.stack([db.sequence[match], db.start[match]], 1).astype(np.int32))
+        latents = residual_latents(enc.regression, matched, own, similarity, bundle.residual_weight)
+        return WindowChoice(latents, everywhere, enc.entropy, np.asarray(doubt, np.float64), source)
     if gate != "entropy" and mode is Mode.HYBRID:  # the match decides: search every window first
         match, similarity = db.search(enc.codes, exclude)
         distance = db.motion_distance(enc.standardised, match) if gate == "distance" else None
