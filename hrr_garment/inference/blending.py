@@ -54,6 +54,11 @@ class Inertializer:
     _prev_target: np.ndarray | None = None
     _prev_target_vel: np.ndarray | None = None
 
+    def __post_init__(self) -> None:
+        # one frame of a critically damped spring (exact) with half-life frames / 3: fixed per stream
+        self._damping = 2.0 * np.log(2.0) / max(self.frames / 3.0, 1e-6)
+        self._decay = float(np.exp(-self._damping))
+
     def step(self, target: np.ndarray, source: tuple) -> np.ndarray:
         """target: this frame's latent from ``source`` (a hashable id of where it came from)."""
         if self._offset is None:
@@ -64,10 +69,8 @@ class Inertializer:
             old_vel = self._prev_target_vel if self._prev_target_vel is not None else np.zeros_like(target)
             self._offset = self._offset + self._prev_target + old_vel - target
             self._offset_vel = self._offset_vel + old_vel
-        # one frame of a critically damped spring (exact), half-life frames / 3
-        damping = 2.0 * np.log(2.0) / max(self.frames / 3.0, 1e-6)
+        damping, decay = self._damping, self._decay
         j1 = self._offset_vel + self._offset * damping
-        decay = np.exp(-damping)
         self._offset, self._offset_vel = decay * (self._offset + j1), decay * (self._offset_vel - j1 * damping)
         self._prev_target_vel = target - self._prev_target if same else None
         self._prev_target, self._source = target, source
