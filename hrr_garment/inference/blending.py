@@ -82,6 +82,14 @@ def source_id(retrieved: bool, source: np.ndarray) -> tuple:
     return ("regression",) if not retrieved else ("retrieval", int(source[0]), int(source[1]))
 
 
+def inertialize(inert: Inertializer, latent: np.ndarray, retrieved: bool, source: np.ndarray, frame: int) -> np.ndarray:
+    """One causal frame of one latent path: ``latent`` (nodes, C), the last frame of the window
+    ending at clip frame ``frame``; a retrieved window's ``source`` (database sequence, start) is
+    taken back to that clip's frame 0 first, so consecutive windows of one clip keep one id."""
+    src = source - np.array([0, frame]) if retrieved else source
+    return inert.step(latent.astype(np.float64), source_id(bool(retrieved), src))
+
+
 def latent_sources(choice: WindowChoice, detail: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """The latents a causal path inertializes and whether each window's came from the database:
     the choice's own, or with ``detail`` the detail mode's matches (in the detail mode the choice's
@@ -99,6 +107,5 @@ def causal_latents(choice: WindowChoice, blend: int = 6, detail: bool = False) -
     inert = Inertializer(blend)
     out = np.empty((len(latents), *latents.shape[2:]), np.float32)
     for t in range(len(out)):
-        src = choice.source[t] - np.array([0, t]) if retrieved[t] else choice.source[t]
-        out[t] = inert.step(latents[t, -1].astype(np.float64), source_id(bool(retrieved[t]), src))
+        out[t] = inertialize(inert, latents[t, -1], retrieved[t], choice.source[t], t)
     return out

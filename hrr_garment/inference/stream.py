@@ -37,7 +37,7 @@ from ..motion.frame import from_body_frame
 from ..motion.memory import MEMORY_WIDTH, MotionMemory
 from ..motion.motion import Motion
 from ..motion.poses import poses_to_motion
-from .blending import Inertializer, latent_sources, source_id
+from .blending import Inertializer, inertialize, latent_sources
 from .collision import push_out
 from .decoding import flush_denormals
 from .detail import add_detail
@@ -166,9 +166,7 @@ class CrowdStream:
         latents = np.empty((len(paths) * len(chars), *choice.latents.shape[2:]), np.float32)
         for p, ((path_latents, retrieved), inertializers) in enumerate(paths):
             for i, (c, inert) in enumerate(zip(chars, inertializers)):
-                src = choice.source[i] - np.array([0, c.frames]) if retrieved[i] else choice.source[i]
-                latents[p * len(chars) + i] = inert.step(path_latents[i, -1].astype(np.float64),
-                                                         source_id(bool(retrieved[i]), src))
+                latents[p * len(chars) + i] = inertialize(inert, path_latents[i, -1], retrieved[i], choice.source[i], c.frames)
         t.append(time.perf_counter())
         with torch.no_grad():
             local = self.animator.decoder(torch.from_numpy(latents)).numpy()
