@@ -349,22 +349,19 @@ void hrr_push_out(double *p, int T, int V, const double *a, const double *b, con
    toward each other by half the excess each; a vertex moves by its corrections summed, times omega
    over its degree. Stops once no edge is more than tol over its limit.
    Only edges that can be over their limit are measured: after the first pass, those with an end
-   that moved in the last one (an edge whose ends stayed keeps its length). The same result as
-   measuring every edge every pass, in the same order: a pass over a torn neighbourhood costs its
-   size, not the mesh's (36 of 37 thousand edges at 12,500 vertices never move).
-   vertex_edges (indptr V + 1, indices): each vertex's edges. Scratch: delta (3 V doubles),
-   touched (V ints), vmark (V bytes), active (E ints), emark (E bytes). */
-static int compare_int32(const void *a, const void *b)
-{
-    const int32_t x = *(const int32_t *)a, y = *(const int32_t *)b;
-    return (x > y) - (x < y);
-}
-
+   that moved in the last one (an edge whose ends stayed keeps its length), in any order: each
+   over-long edge keeps its correction (corr, 3 doubles), and a moved vertex gathers its edges'
+   corrections in its own fixed edge order (ve), so the sums, and the result, do not depend on the
+   order edges were measured in. A pass over a torn neighbourhood costs its size, not the mesh's
+   (36 of 37 thousand edges at 12,500 vertices never move); an earlier form kept the edges in
+   ascending order with a sort every pass, which cost more than the passes themselves.
+   vertex_edges (indptr V + 1, indices): each vertex's edges. Scratch: corr (3 E doubles), touched
+   (V ints), vmark (V bytes), active (E ints), emark (E bytes: 1 listed for the next pass, 2 over
+   its limit in this one). */
 static void limit_frame(double *p, int V, int E, const int32_t *edges, const double *limit, const double *degree,
                         const int32_t *ve_ptr, const int32_t *ve_idx, int iterations, double tol, double omega,
-                        double *delta, int32_t *touched, unsigned char *vmark, int32_t *active, unsigned char *emark)
+                        double *corr, int32_t *touched, unsigned char *vmark, int32_t *active, unsigned char *emark)
 {
-    memset(delta, 0, sizeof(double) * 3 * (size_t)V);
     memset(vmark, 0, (size_t)V);
     memset(emark, 0, (size_t)E);
     int n_active = E;
@@ -372,32 +369,41 @@ static void limit_frame(double *p, int V, int E, const int32_t *edges, const dou
     for (int it = 0; it < iterations; ++it) {
         double worst = 0.0;
         int n_touched = 0;
-        for (int k = 0; k < n_active; ++k) {  /* ascending edge order, as a full pass */
+        for (int k = 0; k < n_active; ++k) {
             const int e = active[k];
             const int i = edges[2 * e], j = edges[2 * e + 1];
             const double dx = p[3 * j] - p[3 * i], dy = p[3 * j + 1] - p[3 * i + 1], dz = p[3 * j + 2] - p[3 * i + 2];
             const double length = sqrt(dx * dx + dy * dy + dz * dz), excess = length - limit[e];
+            emark[e] = 0;
             if (excess <= 0.0) continue;
             if (excess > worst) worst = excess;
             const double c = 0.5 * excess / (length > 1e-12 ? length : 1e-12);
+            corr[3 * e] = c * dx; corr[3 * e + 1] = c * dy; corr[3 * e + 2] = c * dz;
+            emark[e] = 2;
             if (!vmark[i]) { vmark[i] = 1; touched[n_touched++] = i; }
             if (!vmark[j]) { vmark[j] = 1; touched[n_touched++] = j; }
-            delta[3 * i] += c * dx; delta[3 * i + 1] += c * dy; delta[3 * i + 2] += c * dz;
-            delta[3 * j] -= c * dx; delta[3 * j + 1] -= c * dy; delta[3 * j + 2] -= c * dz;
         }
         if (worst <= tol) break;
-        n_active = 0;
-        for (int k = 0; k < n_touched; ++k) {
+        for (int k = 0; k < n_touched; ++k) {  /* gather: corrections are fixed, so moving at once is Jacobi */
             const int v = touched[k];
+            double x = 0.0, y = 0.0, z = 0.0;
+            for (int q = ve_ptr[v]; q < ve_ptr[v + 1]; ++q) {
+                const int e = ve_idx[q];
+                if (emark[e] != 2) continue;
+                const double s = edges[2 * e] == v ? 1.0 : -1.0;  /* the first end moves along the edge */
+                x += s * corr[3 * e]; y += s * corr[3 * e + 1]; z += s * corr[3 * e + 2];
+            }
             const double w = omega / degree[v];
-            p[3 * v] += w * delta[3 * v]; p[3 * v + 1] += w * delta[3 * v + 1]; p[3 * v + 2] += w * delta[3 * v + 2];
-            delta[3 * v] = delta[3 * v + 1] = delta[3 * v + 2] = 0.0;
+            p[3 * v] += w * x; p[3 * v + 1] += w * y; p[3 * v + 2] += w * z;
+        }
+        for (int k = 0; k < n_active; ++k) emark[active[k]] = 0;
+        n_active = 0;
+        for (int k = 0; k < n_touched; ++k) {  /* the edges the next pass measures */
+            const int v = touched[k];
             vmark[v] = 0;
-            for (int q = ve_ptr[v]; q < ve_ptr[v + 1]; ++q)  /* the edges the next pass measures */
+            for (int q = ve_ptr[v]; q < ve_ptr[v + 1]; ++q)
                 if (!emark[ve_idx[q]]) { emark[ve_idx[q]] = 1; active[n_active++] = ve_idx[q]; }
         }
-        qsort(active, (size_t)n_active, sizeof(int32_t), compare_int32);
-        for (int k = 0; k < n_active; ++k) emark[active[k]] = 0;
     }
 }
 
@@ -413,13 +419,13 @@ int hrr_limit_strain(double *p, const double *unpushed, int T, int V, int E, con
     if (T <= 0) return 0;
     if (threads < 1) threads = 1;
     if (threads > T) threads = T;
-    const size_t per = sizeof(double) * (3 * (size_t)V + (size_t)E) + (sizeof(int32_t) + 1) * ((size_t)V + (size_t)E) + 64;
+    const size_t per = sizeof(double) * 4 * (size_t)E + (sizeof(int32_t) + 1) * ((size_t)V + (size_t)E) + 64;
     unsigned char *scratch = malloc(per * threads);
     if (!scratch) return -1;
     #pragma omp parallel for num_threads(threads) schedule(dynamic)
     for (int t = 0; t < T; ++t) {
         unsigned char *mine = scratch + per * (size_t)omp_get_thread_num();
-        double *delta = (double *)mine, *limit = delta + 3 * (size_t)V;
+        double *corr = (double *)mine, *limit = corr + 3 * (size_t)E;
         int32_t *touched = (int32_t *)(limit + E);
         int32_t *active = touched + V;
         unsigned char *vmark = (unsigned char *)(active + E), *emark = vmark + V;
@@ -436,7 +442,7 @@ int hrr_limit_strain(double *p, const double *unpushed, int T, int V, int E, con
         }
         torn[t] = (unsigned char)over;
         if (over)
-            limit_frame(pt, V, E, edges, limit, degree, ve_ptr, ve_idx, iterations, tol, omega, delta, touched, vmark,
+            limit_frame(pt, V, E, edges, limit, degree, ve_ptr, ve_idx, iterations, tol, omega, corr, touched, vmark,
                         active, emark);
     }
     free(scratch);
