@@ -176,6 +176,22 @@ def test_from_body_frame_inverts_the_body_frame(rng):
     assert np.allclose(from_body_frame(to_body_frame(points, motion), motion), points, atol=1e-9)
 
 
+@pytest.mark.parametrize("native", ["1", "0"])
+def test_world_vertices_are_the_body_frame_inverse_in_float32(rng, monkeypatch, native):
+    """The kernel (and its fallback) rounds what from_body_frame computes in double: within one
+    float32 step of it, frame by frame, one frame alone as in a batch."""
+    from hrr_garment.motion.frame import world_vertices
+
+    monkeypatch.setenv("HRR_NATIVE", native)
+    motion = synthesize("walk_curve", 1.0, seed=4)
+    points = rng.normal(size=(motion.num_frames, 300, 3)).astype(np.float32)
+    got = world_vertices(points, motion)
+    ref = from_body_frame(points, motion)
+    assert got.dtype == np.float32 and got.shape == points.shape
+    assert np.abs(got - ref).max() <= 2 * np.spacing(np.float32(np.abs(ref).max()))
+    assert np.array_equal(world_vertices(points[7:8], motion.slice(7, 8))[0], got[7])
+
+
 def test_body_frame_follows_the_pelvis_height_and_heading():
     from hrr_garment.motion.rotations import rotation_about_y, yaw_of
     from hrr_garment.motion.skeleton import REST_PELVIS_HEIGHT
@@ -469,3 +485,33 @@ def test_the_native_strain_limit_matches_the_numpy_reference():
     one, _ = limit_strain(lib, p[3:], unpushed[3:], limits.native_arrays, MAX_PUSH_STRAIN, 60, LIMIT_TOLERANCE_M,
                           OVER_RELAXATION)
     assert np.array_equal(one[0], got[3])  # a frame's result does not depend on its batch
+
+def test_pinning_the_workers_leaves_the_caller_free(monkeypatch):
+    """A stream pins its OpenMP workers, each to one CPU other than the caller's, and leaves the
+    calling thread's own affinity as it was (it belongs to the user's program)."""
+    import os
+
+    from hrr_garment import native
+
+    lib = native.load_kernel()
+    allowed = os.sched_getaffinity(0)
+    if lib is None or len(allowed) < 2:
+        pytest.skip("needs the kernel and two CPUs")
+    monkeypatch.delenv("OMP_PROC_BIND", raising=False)
+    monkeypatch.setenv("HRR_PIN_THREADS", "1")
+    monkeypatch.setattr(native, "_pinned", {})
+    native.pin_workers(2)
+    assert os.sched_getaffinity(0) == allowed
+    me = os.getpid()
+
+    def affinity(task: str) -> set[int]:
+        text = open(f"/proc/{me}/task/{task}/status").read()
+        spans = next(line for line in text.splitlines() if line.startswith("Cpus_allowed_list")).split()[1]
+        cpus = set()
+        for span in spans.split(","):
+            lo, _, hi = span.partition("-")
+            cpus.update(range(int(lo), int(hi or lo) + 1))
+        return cpus
+
+    pinned = [cpus for task in os.listdir(f"/proc/{me}/task") if (cpus := affinity(task)) != allowed]
+    assert pinned and all(len(cpus) == 1 and cpus <= allowed for cpus in pinned)

@@ -25,7 +25,7 @@ from ..body.capsules import DEFAULT_BODY
 from ..errors import InputError, MotionError
 from ..models.native_codes import native_window_codes
 from ..motion.features import causal_features, motion_features
-from ..motion.frame import from_body_frame
+from ..motion.frame import world_vertices
 from ..motion.memory import with_memory
 from ..motion.motion import Motion
 from ..motion.windows import causal_windows, sequence_windows
@@ -191,7 +191,7 @@ class Animator:
         local = body_frame_vertices(self.bundle, latents, self.decoder)
         if detail is not None:  # the detail mode: the matches' folds on the regression's shape
             local = add_detail(local, body_frame_vertices(self.bundle, detail, self.decoder), self.smoothing)
-        vertices = from_body_frame(local, motion).astype(np.float32)
+        vertices = world_vertices(local, motion)
         report = None
         if collision:
             vertices, report = push_out(vertices, motion, self.bundle.template.faces, mean=self.smoothing,

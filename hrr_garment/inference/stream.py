@@ -33,10 +33,11 @@ import torch
 from ..errors import InputError
 from ..models.codes import traced_window_codes
 from ..motion.features import pair_features_batch
-from ..motion.frame import from_body_frame
+from ..motion.frame import world_vertices
 from ..motion.memory import MEMORY_WIDTH, MotionMemory
 from ..motion.motion import Motion
 from ..motion.poses import poses_to_motion
+from ..native import pin_workers
 from .blending import Inertializer, inertialize, latent_sources
 from .collision import push_out
 from .decoding import flush_denormals
@@ -147,6 +148,7 @@ class CrowdStream:
 
     def _step_frame(self, keys: list, poses: Motion) -> np.ndarray:
         t = [time.perf_counter()]
+        pin_workers()  # a game loop idles between frames: its next frame must not wait for workers to move
         window = self.animator.window
         blend = self.animator.blend
         chars = [self._characters.setdefault(k, _Character(deque(maxlen=window), Inertializer(blend), Inertializer(blend)))
@@ -173,11 +175,11 @@ class CrowdStream:
         if choice.detail is not None:
             local = add_detail(local[:len(chars)], local[len(chars):], self.animator.smoothing)
         t.append(time.perf_counter())
-        vertices = from_body_frame(local, poses).astype(np.float32)  # as offline: the same push-out inputs
+        vertices = world_vertices(local, poses)  # as offline: the same push-out inputs
         t.append(time.perf_counter())
         if self.collision:
             vertices, _ = push_out(vertices, poses, self.animator.bundle.template.faces, mean=self.animator.smoothing,
-                                   limits=self.animator.edge_limits)
+                                   limits=self.animator.edge_limits, report=False)
         t.append(time.perf_counter())
         for i, c in enumerate(chars):
             c.previous = (poses.global_rotations[i], poses.joint_positions[i])

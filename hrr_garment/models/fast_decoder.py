@@ -77,9 +77,13 @@ class FastDecoder(nn.Module):
             # millisecond here
             return torch.from_numpy((x * np.float32(self.scale) + self._template_np)[None])
         x = np.ascontiguousarray(latents.detach().to(torch.float32).transpose(0, 1).numpy())
-        for block in self.native_blocks:
+        for block in self.native_blocks[:-1]:
             x = block(self.lib, x, threads)
-        return torch.from_numpy(x).transpose(0, 1) * self.scale + self.template
+        x = torch.from_numpy(self.native_blocks[-1](self.lib, x, threads, padded=True))  # (V, B, width >= 3)
+        # frames first and contiguous in one pass that reads the padded rows where they lie: slicing,
+        # transposing and scaling one after another took 2.8 ms of a 64-character crowd's frame, this 0.8
+        out = torch.empty(len(latents), *self.template.shape)
+        return torch.add(self.template, x[..., :out.shape[-1]].permute(1, 0, 2), alpha=self.scale, out=out)
 
     @torch.no_grad()
     def _torch_forward(self, latents: torch.Tensor) -> torch.Tensor:

@@ -60,3 +60,15 @@ def from_body_frame(points: np.ndarray, motion: Motion) -> np.ndarray:
     out[..., 1] = points[..., 1] + origin[:, 1:2]
     out[..., 2] = c * z - s * x + origin[:, 2:3]
     return out
+
+
+def world_vertices(points: np.ndarray, motion: Motion) -> np.ndarray:
+    """:func:`from_body_frame` rounded to float32, what inference hands on (the push-out, the
+    caller): computed in the native kernel where compiled (frames in parallel, no temporaries)."""
+    from .. import native
+
+    lib = native.load_kernel()
+    if lib is None:
+        return from_body_frame(points, motion).astype(np.float32)
+    return native.body_to_world(lib, points, yaw_of(motion.global_rotations[:, 0]), body_frame_origin(motion),
+                                native.default_threads())

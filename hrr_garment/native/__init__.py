@@ -126,6 +126,12 @@ def load_kernel(cache_dir: str | Path | None = None) -> ctypes.CDLL | None:
                 lib.hrr_forward_kinematics.restype = None
                 lib.hrr_causal_features.argtypes = [d, d, c_int, c_int, d, c_int, c_double, d]
                 lib.hrr_causal_features.restype = None
+                lib.hrr_body_to_world.argtypes = [d, c_int, c_int, d, d, c_int, d]
+                lib.hrr_body_to_world.restype = None
+                lib.hrr_pin_workers.argtypes = [c_int]
+                lib.hrr_pin_workers.restype = c_int
+                lib.hrr_current_cpu.argtypes = []
+                lib.hrr_current_cpu.restype = c_int
                 _loaded[str(target)] = lib
             except (OSError, subprocess.CalledProcessError) as exc:
                 detail = getattr(exc, "stderr", "") or str(exc)
@@ -141,6 +147,28 @@ def default_threads() -> int:
     import torch
 
     return torch.get_num_threads()
+
+
+_pinned: dict[int, tuple[int, int]] = {}  # calling thread -> (threads, its CPU) its workers were pinned for
+
+
+def pin_workers(threads: int | None = None) -> None:
+    """Pins the OpenMP worker threads of the calling thread to CPUs other than the caller's
+    (``hrr_pin_workers`` in ``kernels.c`` says why: a stream paced like a game loop lost about 5 ms
+    a frame waking unpinned workers). Cheap enough for every frame: it acts only when the thread
+    count changed or the caller moved to another CPU. Does nothing with ``HRR_PIN_THREADS=0``,
+    where ``OMP_PROC_BIND`` is set (the user binds threads), or without the kernel."""
+    if os.environ.get("HRR_PIN_THREADS", "1") == "0" or "OMP_PROC_BIND" in os.environ:
+        return
+    lib = load_kernel()
+    if lib is None:
+        return
+    threads = default_threads() if threads is None else threads
+    key = (threads, lib.hrr_current_cpu())
+    me = threading.get_ident()
+    if _pinned.get(me) != key:
+        lib.hrr_pin_workers(threads)  # -1 (a refused system call): left as the scheduler has them
+        _pinned[me] = key
 
 
 def _ptr(a: np.ndarray | None, kind=ctypes.c_float):
@@ -218,14 +246,16 @@ class NativeBlock:
                              *constants[2:], threads, self._out.ctypes.data)
         return self._out
 
-    def __call__(self, lib: ctypes.CDLL, x: np.ndarray, threads: int) -> np.ndarray:
-        """x (V_in, B, C_in) float32 C-contiguous -> (V, B, C_out)."""
+    def __call__(self, lib: ctypes.CDLL, x: np.ndarray, threads: int, padded: bool = False) -> np.ndarray:
+        """x (V_in, B, C_in) float32 C-contiguous -> (V, B, C_out), or with ``padded`` the kernel's
+        own (V, B, width) rows, whose columns past C_out are zero (a caller that copies anyway
+        slices them itself)."""
         batch = x.shape[1]
         out = np.empty((self.vertices, batch, self.width), np.float32)
         lib.hrr_block(_ptr(x), batch, self.cin, self.width, self.vertices, _ptr(self.offsets, ctypes.c_int32),
                       _ptr(self.nbr, ctypes.c_int32), _ptr(self.kernel), _ptr(self.bias),
                       _ptr(self.pool), _ptr(self.proj), self.a, self.b, int(self.elu), threads, _ptr(out))
-        return out if self.width == self.cout else np.ascontiguousarray(out[..., :self.cout])
+        return out if padded or self.width == self.cout else np.ascontiguousarray(out[..., :self.cout])
 
 
 def forward_kinematics(lib: ctypes.CDLL, local_rot: np.ndarray, root_pos: np.ndarray, offsets: np.ndarray,
@@ -253,4 +283,15 @@ def causal_features(lib: ctypes.CDLL, g_rot: np.ndarray, g_pos: np.ndarray, join
     t, j = rot.shape[:2]
     out = np.empty((t, 6 * len(idx) + 4), np.float32)
     lib.hrr_causal_features(rot.ctypes.data, pos.ctypes.data, t, j, idx.ctypes.data, len(idx), float(fps), out.ctypes.data)
+    return out
+
+
+def body_to_world(lib: ctypes.CDLL, points: np.ndarray, yaw: np.ndarray, origin: np.ndarray, threads: int = 1) -> np.ndarray:
+    """:func:`hrr_garment.motion.frame.from_body_frame` in the kernel, into float32: body-frame
+    points (T, N, 3), each frame's yaw (T,) and body-frame origin (T, 3) -> world points (T, N, 3)."""
+    p = np.ascontiguousarray(points, np.float32)
+    turn = np.ascontiguousarray(np.stack([np.cos(yaw), np.sin(yaw)], 1), np.float64)
+    o = np.ascontiguousarray(origin, np.float64)
+    out = np.empty(p.shape, np.float32)
+    lib.hrr_body_to_world(p.ctypes.data, p.shape[0], p.shape[1], turn.ctypes.data, o.ctypes.data, threads, out.ctypes.data)
     return out

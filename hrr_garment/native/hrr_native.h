@@ -7,6 +7,9 @@
 #ifndef HRR_NATIVE_H
 #define HRR_NATIVE_H
 
+#ifndef _GNU_SOURCE
+#define _GNU_SOURCE /* sched_getcpu and the CPU_* affinity macros (hrr_pin_workers) */
+#endif
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
