@@ -46,7 +46,7 @@ int hrr_pin_workers(int threads)
 }
 
 /* The CPU the calling thread runs on (-1 where unknown): a pinned pool is re-pinned when its
-   caller has moved onto one of its workers' CPUs. */
+   caller has moved to another CPU (which may be one of its workers'). */
 int hrr_current_cpu(void)
 {
 #ifdef __linux__
@@ -426,8 +426,7 @@ static void limit_frame(double *p, int V, int E, const int32_t *edges, const dou
             const int i = edges[2 * e], j = edges[2 * e + 1];
             const double dx = p[3 * j] - p[3 * i], dy = p[3 * j + 1] - p[3 * i + 1], dz = p[3 * j + 2] - p[3 * i + 2];
             const double length = sqrt(dx * dx + dy * dy + dz * dz), excess = length - limit[e];
-            emark[e] = 0;
-            if (excess <= 0.0) continue;
+            if (excess <= 0.0) continue;  /* its mark stays 1 (or 0): the gather skips it */
             if (excess > worst) worst = excess;
             const double c = 0.5 * excess / (length > 1e-12 ? length : 1e-12);
             corr[3 * e] = c * dx; corr[3 * e + 1] = c * dy; corr[3 * e + 2] = c * dz;
