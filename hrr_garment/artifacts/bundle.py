@@ -43,7 +43,7 @@ from ..models.fcmae import AutoencoderConfig, MeshAutoencoder
 from ..models.hierarchy import cached_hierarchy
 from ..motion.features import FeatureStats
 from .database import CodeDatabase
-from .gate_signals import GATE_SIGNALS
+from .gate_signals import GATE_SIGNALS, check_gate_signal
 
 FORMAT_VERSION = 2  # 2: garments in the pelvis-following body frame (motion/frame.py)
 NETWORKS = ("motion_encoder", "garment_encoder", "decoder", "quantizer")
@@ -95,13 +95,17 @@ class Bundle:
         """Whether the residual mode can run: a calibrated weight and the database's motion windows."""
         return isinstance(self.meta.get("residual"), dict) and self.database.motion is not None
 
-    @property
-    def residual_weight(self) -> float:
-        """The residual mode's calibrated weight (:mod:`.residual`)."""
+    def require_residual(self) -> None:
+        """A BundleError, naming the model and the fix, where the residual mode cannot run."""
         if not self.has_residual:
             raise BundleError(self.folder, "has no calibrated residual weight (trained before the residual mode): run "
                                            f"hrr-train --stage codespace -o {self.folder} on its dataset again (the "
                                            "trained weights are kept; only the weight is calibrated)")
+
+    @property
+    def residual_weight(self) -> float:
+        """The residual mode's calibrated weight (:mod:`.residual`)."""
+        self.require_residual()
         return float(self.meta["residual"]["weight"])
 
     @property
@@ -134,8 +138,7 @@ def write_bundle(folder: str | Path, *, autoencoder: MeshAutoencoder, codespace:
                  gate: str = "entropy") -> Path:
     """Write (or replace) the bundle in ``folder``; returns the path of ``bundle.json``. ``tau``:
     the threshold of the hybrid's ``gate`` signal."""
-    if gate not in GATE_SIGNALS:
-        raise ValueError(f"unknown gate signal {gate!r}; choose one of {', '.join(GATE_SIGNALS)}")
+    check_gate_signal(gate)
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     (folder / "bundle.json").unlink(missing_ok=True)  # the old bundle stops being one first

@@ -19,6 +19,13 @@ import numpy as np
 GATE_SIGNALS = ("entropy", "similarity", "distance")
 
 
+def check_gate_signal(signal: str) -> str:
+    """``signal`` if it is one of :data:`GATE_SIGNALS`; a ValueError naming them otherwise."""
+    if signal not in GATE_SIGNALS:
+        raise ValueError(f"unknown gate signal {signal!r}; choose one of {', '.join(GATE_SIGNALS)}")
+    return signal
+
+
 def gate_doubt(signal: str, entropy: np.ndarray, similarity: np.ndarray | None = None,
                distance: np.ndarray | None = None) -> np.ndarray:
     """Per-window doubt about retrieving (lower: retrieve) from the gate ``signal``'s inputs: the
@@ -29,6 +36,5 @@ def gate_doubt(signal: str, entropy: np.ndarray, similarity: np.ndarray | None =
         return 1.0 - np.asarray(similarity, np.float64)
     if signal == "distance" and distance is not None:
         return np.asarray(distance, np.float64)
-    if signal not in GATE_SIGNALS:
-        raise ValueError(f"unknown gate signal {signal!r}; choose one of {', '.join(GATE_SIGNALS)}")
+    check_gate_signal(signal)
     raise ValueError(f"the {signal!r} gate needs the match's {signal}")

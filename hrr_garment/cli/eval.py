@@ -140,9 +140,8 @@ def _main(argv: Sequence[str] | None) -> int:
     modes = args.modes or [m for m in ALL_MODES if animator.supports(m)]
     if Mode.DIRECT in modes and not animator.has_direct:
         raise InputError(model_dir, "has no direct-regression baseline: train it with hrr-train --stage baseline")
-    if Mode.RESIDUAL in modes and not bundle.has_residual:
-        raise InputError(model_dir, "has no calibrated residual weight (trained before the residual mode): run "
-                                    "hrr-train --stage codespace with its dataset and -o on it again")
+    if Mode.RESIDUAL in modes:
+        bundle.require_residual()
     out = args.output or workspace() / "eval" / model_dir.name
     records = [ds.sequence(n) for n in names]
     collision, progress = not args.no_collision, not args.quiet

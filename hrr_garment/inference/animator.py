@@ -149,7 +149,7 @@ class Animator:
                 causal: bool = False, exclude_sequence: int | None = None, gate: str | None = None) -> Animation:
         """Animate a whole clip (see :mod:`hrr_garment.inference`): ``mode`` hybrid | regression | retrieval |
         naive-nn, or direct (the baseline, when the bundle has it; offline only); ``gate`` the hybrid's
-        signal (default the model's calibrated one, :data:`~hrr_garment.artifacts.database.GATE_SIGNALS`)
+        signal (default the model's calibrated one, :data:`~hrr_garment.artifacts.gate_signals.GATE_SIGNALS`)
         and ``tau`` its threshold (default the one calibrated for that signal); ``causal`` gives what
         streaming gives; ``exclude_sequence`` keeps one database sequence out of retrieval (evaluation)."""
         gate, tau = self.gate_setting(gate, tau)

@@ -2,7 +2,7 @@
 retrieval from the database (doubt below tau) or the code-space decoder's regression; the other
 modes force one side (see :class:`.modes.Mode`). The doubt is the motion code's entropy (the
 paper's switch, the default) or a judgement of the match itself: one minus its code similarity, or
-its motion distance (:data:`~hrr_garment.artifacts.database.GATE_SIGNALS`). The match signals
+its motion distance (:data:`~hrr_garment.artifacts.gate_signals.GATE_SIGNALS`). The match signals
 search the database for every window, not only for the retrieved ones. The residual mode has no
 gate: every window is the regression plus its match's detail (:mod:`hrr_garment.artifacts.residual`);
 nor has the detail mode, which returns both the regression and the match (:mod:`.detail`)."""
@@ -15,7 +15,7 @@ import numpy as np
 import torch
 
 from ..artifacts.bundle import Bundle
-from ..artifacts.gate_signals import GATE_SIGNALS, gate_doubt
+from ..artifacts.gate_signals import check_gate_signal, gate_doubt
 from ..artifacts.residual import match_regression, residual_latents
 from ..models.codes import encode_motion
 from .modes import CODE_MODES, Mode
@@ -42,8 +42,7 @@ def choose_windows(bundle: Bundle, motion_windows: np.ndarray, mode: str, tau: f
     if mode not in CODE_MODES:
         raise ValueError(f"unknown mode {str(mode)!r}; choose one of {', '.join(CODE_MODES)}")
     mode = Mode(mode)
-    if gate not in GATE_SIGNALS:
-        raise ValueError(f"unknown gate signal {gate!r}; choose one of {', '.join(GATE_SIGNALS)}")
+    check_gate_signal(gate)
     db = bundle.database
     enc = encode_motion(bundle.codespace, bundle.motion_stats, bundle.latent_stats, motion_windows,
                         regression=mode.regresses, last_frame=last_frame, step=step)

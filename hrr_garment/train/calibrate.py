@@ -3,7 +3,7 @@ space (at training time, and again from a saved bundle: :func:`evaluate_bundle`)
 
 For every validation window the gate has a doubt about retrieving: the motion code's entropy H
 (mean per group, nats, 0 .. log K; the paper's), one minus the match's code similarity, or the
-match's motion distance (:data:`~hrr_garment.artifacts.database.GATE_SIGNALS`); retrieval where the
+match's motion distance (:data:`~hrr_garment.artifacts.gate_signals.GATE_SIGNALS`); retrieval where the
 doubt is below tau, regression otherwise. Both candidates are decoded to vertices with the mesh
 autoencoder and compared with the simulated frames (per-vertex error in the heading frame, mean
 over the window's W frames and vertices), so the sweep over tau is a cheap selection between two
