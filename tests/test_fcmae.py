@@ -10,6 +10,7 @@ from hrr_garment.garment.mesh import GarmentError
 from hrr_garment.garment.templates import make_garment
 from hrr_garment.models.fcmae import AutoencoderConfig, MeshAutoencoder
 from hrr_garment.models.hierarchy import build_hierarchy, cached_hierarchy
+from hrr_garment.native import bf16_bits, bf16_pairs
 from hrr_garment.sim.quality import edge_strain
 
 
@@ -112,6 +113,88 @@ def test_fast_decoder_equals_training_path(hierarchy, skirt, batch, native):
         assert (first - model.decode(z)).abs().max() <= 1e-5
         fast(torch.randn_like(z))  # reused scratch buffers must not leak into, or alias, earlier results
         assert torch.equal(fast(z), first) and (first - model.decode(z)).abs().max() <= 1e-5
+
+
+def _amx_decoder(model):
+    fast = model.fast_decoder()
+    if not fast.native or not fast.lib.hrr_amx_ready():
+        pytest.skip("no AMX (bfloat16 decoding) on this CPU")
+    return model.fast_decoder(precision="bfloat16")
+
+
+def test_bfloat16_bits_round_as_pytorch_and_pair_rows():
+    x = torch.randn(1000) * torch.logspace(-6, 6, 1000)
+    x[:4] = torch.tensor([1.0 + 2 ** -8, 1.0 + 3 * 2 ** -8, -0.0, 65504.0])  # ties round to even both ways
+    assert np.array_equal(bf16_bits(x.numpy()), x.bfloat16().view(torch.int16).numpy().view(np.uint16))
+    m = np.arange(2 * 4 * 3, dtype=np.float32).reshape(2, 4, 3)  # (matrices, cin, width): small integers are exact
+    pairs = bf16_pairs(m)
+    assert pairs.shape == (2, 2, 3, 2)
+    back = torch.from_numpy(pairs.astype(np.int16)).view(torch.bfloat16).float().numpy()
+    assert np.array_equal(back[:, 1, 2], m[:, 2:4, 2])  # pair row p, column n: input rows 2p and 2p + 1
+
+
+@pytest.mark.parametrize("batch", [6, 19, 40])
+def test_bfloat16_decoder_stays_within_its_rounding(hierarchy, skirt, batch):
+    model = _model(hierarchy, skirt, seed=3)
+    with torch.no_grad():
+        for p in model.parameters():
+            p.add_(0.1 * torch.randn_like(p))
+    fast = _amx_decoder(model)
+    z = torch.randn(batch, *model.latent_shape)  # 6: one padded tile of 16; 19: two tiles; 40: a pair and one
+    with torch.no_grad():
+        exact = model.decode(z)
+        first = fast(z)
+        fast(torch.randn(batch + 9, *model.latent_shape))  # other frames in the kept buffers, padding included
+        assert torch.equal(fast(z), first)
+    # end to end: 5 blocks of 8-significant-bit rounding (2^-9 relative), sums in float32
+    shape = (exact - model.template).norm(dim=-1)
+    error = (first - exact).norm(dim=-1)
+    assert error.mean() <= 1e-2 * shape.mean() and error.max() <= 5e-2 * shape.max()
+
+
+def _bf16(a):
+    return torch.from_numpy(np.ascontiguousarray(a, np.float32)).bfloat16().double().numpy()
+
+
+def test_bfloat16_block_equals_its_rounded_reference(hierarchy, skirt):
+    """Each AMX block against the same block in float64 from bfloat16-rounded inputs, kernels and
+    residual map: what is left is float32 summation order."""
+    model = _model(hierarchy, skirt, seed=3)
+    fast = _amx_decoder(model)
+    x = torch.randn(model.latent_shape[0], 19, model.latent_shape[1]).numpy()
+    for i, block in enumerate(fast.native_blocks):
+        last = i == len(fast.native_blocks) - 1
+        xb = np.zeros((len(x), 32, x.shape[2]), np.uint16)
+        xb[:, :19] = bf16_bits(x)
+        got = block.call_bf16(fast.lib, xb, 1, last)[:, :19, :block.cout]
+        got = torch.from_numpy(got.astype(np.int16)).view(torch.bfloat16).double().numpy() if not last else got
+        xr = _bf16(x)
+        kernel, proj = _bf16(block.kernel[..., :block.cout]), _bf16(np.eye(block.cin, block.cout) if block.proj is None
+                                                                     else block.proj[:, :block.cout])
+        want = np.empty((block.vertices, 19, block.cout))
+        for v in range(block.vertices):
+            j = slice(block.offsets[v], block.offsets[v + 1])
+            rows = xr[block.nbr[j]]  # (S, B, cin)
+            y = np.einsum("sbc,sco->bo", rows, kernel[j]) + block.bias[:block.cout]
+            projected = rows @ proj if block.pool is not None else xr[v] @ proj
+            residual = np.einsum("s,sbo->bo", block.pool[j], projected) if block.pool is not None else projected
+            act = np.where(y > 0, y, np.expm1(np.minimum(y, 0))) if block.elu else y
+            want[v] = block.a * act + block.b * residual
+        tolerance = 1e-5 * np.abs(want).max() if last else 2 ** -8 * np.abs(want) + 1e-6 * np.abs(want).max()
+        assert (np.abs(got - want) <= tolerance).all(), f"block {i}"
+        x = got.astype(np.float32)
+
+
+def test_bfloat16_without_amx_is_refused_clearly(hierarchy, skirt, monkeypatch):
+    model = _model(hierarchy, skirt, seed=3)
+    fast = model.fast_decoder()
+    if not fast.native:
+        pytest.skip("no C compiler")
+    monkeypatch.setattr(fast.lib, "hrr_amx_ready", lambda: 0)
+    with pytest.raises(RuntimeError, match="AMX"):
+        model.fast_decoder(precision="bfloat16")
+    with pytest.raises(ValueError, match="precision"):
+        model.fast_decoder(precision="float16")
 
 
 def _two_frames(skirt):

@@ -22,6 +22,7 @@ push-out has more work (a dress whose bodice rests on the body) than random weig
     python tools/bench_inference.py --vertices 4000 --json
     python tools/bench_inference.py --model hrr_work/models/dress-full --motion ../shared/data/mocap/cmu/131_03.bvh
     python tools/bench_inference.py --vertices 4266 --crowd 1 2 4 8 16 32 64   # the crowd's scaling
+    python tools/bench_inference.py --vertices 4000 --crowd 32 --precision bfloat16   # decoder on AMX
 """
 
 from __future__ import annotations
@@ -45,6 +46,7 @@ from hrr_garment.models.hierarchy import build_hierarchy
 from hrr_garment.motion.features import FeatureStats
 from hrr_garment.motion.io import load_motion
 from hrr_garment.motion.synth import synthesize
+from hrr_garment.native import PRECISIONS
 
 
 def random_bundle(vertices: int, windows: int, seed: int = 0) -> Bundle:
@@ -116,16 +118,18 @@ def bench_crowd(animator: Animator, motion, tau: float, characters: int, pace: f
 
 
 def bench(vertices: int, windows: int, seconds: float, model: str | None = None, motion_file: str | None = None,
-          pace: float = 30.0, crowd: list[int] | None = None, repeat: int = 3) -> dict:
+          pace: float = 30.0, crowd: list[int] | None = None, repeat: int = 3, precision: str = "float32") -> dict:
     """``model``: a trained bundle instead of random weights (its own resolution, database and tau);
     ``motion_file``: a clip instead of the procedural curved walk; ``pace``: frames/s of the paced
-    stream run (0: none); ``repeat``: timed passes per offline figure (their median)."""
-    animator = Animator.load(model) if model else Animator(random_bundle(vertices, windows))
+    stream run (0: none); ``repeat``: timed passes per offline figure (their median); ``precision``:
+    the mesh decoder's arithmetic for batches."""
+    animator = (Animator.load(model, precision=precision) if model
+                else Animator(random_bundle(vertices, windows), precision=precision))
     bundle = animator.bundle
     motion = load_motion(motion_file) if motion_file else synthesize("walk_curve", seconds, seed=0)
     tau = bundle.tau if model else _median_entropy_tau(bundle, motion)
     out = {"vertices": bundle.template.num_vertices, "database_windows": len(bundle.database), "clip_frames": motion.num_frames,
-           "threads": torch.get_num_threads(), "model": model or "random weights", "motion": motion_file or "procedural walk_curve"}
+           "threads": torch.get_num_threads(), "precision": precision, "model": model or "random weights", "motion": motion_file or "procedural walk_curve"}
     for mode in ("hybrid", "regression", "retrieval", "detail"):
         out[f"fps_{mode}"] = round(_fps(animator, motion, repeat, mode=mode, tau=tau, collision=False), 1)
     out["fps_hybrid_with_collision"] = round(_fps(animator, motion, repeat, mode="hybrid", tau=tau, collision=True), 1)
@@ -161,16 +165,18 @@ def main() -> None:
     parser.add_argument("--crowd", type=int, nargs="*", default=[],
                         help="also stream crowds of these many characters, one call per frame (e.g. 1 8 32)")
     parser.add_argument("--repeat", type=int, default=3, help="timed passes per offline figure (their median)")
+    parser.add_argument("--precision", choices=PRECISIONS, default="float32",
+                        help="the mesh decoder's arithmetic for batches (crowds, offline); bfloat16 needs AMX")
     parser.add_argument("--json", action="store_true", help="one JSON object per resolution, nothing else")
     args = parser.parse_args()
     for v in ([None] if args.model else args.vertices):
-        r = bench(v, args.database, args.seconds, args.model, args.motion, args.pace, args.crowd, args.repeat)
+        r = bench(v, args.database, args.seconds, args.model, args.motion, args.pace, args.crowd, args.repeat, args.precision)
         if args.json:
             print(json.dumps(r))
         else:
             print(f"{r['model']}, {r['motion']}: "
                   f"{r['vertices']} vertices, database {r['database_windows']} windows, {r['clip_frames']}-frame clip, "
-                  f"{r['threads']} threads: offline frames/s hybrid {r['fps_hybrid']}, regression {r['fps_regression']}, "
+                  f"{r['threads']} threads, {r['precision']} decoder: offline frames/s hybrid {r['fps_hybrid']}, regression {r['fps_regression']}, "
                   f"retrieval {r['fps_retrieval']}, detail {r['fps_detail']} (hybrid with push-out {r['fps_hybrid_with_collision']}); streaming "
                   f"p50 {r['stream_p50_ms']} ms, p99 {r['stream_p99_ms']} ms (without push-out p50 "
                   f"{r['stream_no_collision_p50_ms']}, p99 {r['stream_no_collision_p99_ms']})"

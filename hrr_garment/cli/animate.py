@@ -21,6 +21,7 @@ from typing import Sequence
 from ..artifacts.gate_signals import GATE_SIGNALS
 from ..errors import InputError
 from ..inference.modes import Mode
+from ..native import PRECISIONS
 from ._common import add_fps_option, run_cli
 
 
@@ -41,6 +42,9 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--tau", type=float, default=None, help="the gate's threshold (default: the model's calibrated one)")
     p.add_argument("--no-collision", action="store_true", help="skip the collision push-out")
     p.add_argument("--causal", action="store_true", help="causal windows only, as the streaming API")
+    p.add_argument("--precision", choices=PRECISIONS, default="float32",
+                   help="the mesh decoder's arithmetic: bfloat16 runs on AMX (recent Intel Xeons), about 3x faster, "
+                        "within hundredths of a millimetre on average (default: float32)")
     p.add_argument("--unit-scale", type=float, default=None, help="BVH length unit in metres (default: detected)")
     add_fps_option(p)
     return p
@@ -63,7 +67,7 @@ def _main(argv: Sequence[str] | None) -> int:
         print(f"model: {model_dir}")
     t0 = time.perf_counter()
     motion = load_motion(args.motion, unit_scale=args.unit_scale, source_fps=args.fps)
-    animator = Animator.load(model_dir)
+    animator = Animator.load(model_dir, precision=args.precision)
     if args.garment is not None and animator.bundle.garment != args.garment:
         raise InputError(model_dir, f"this model animates a {animator.bundle.garment}, not a {args.garment}")
     anim = animator.animate(motion, mode=args.mode, tau=args.tau, collision=not args.no_collision, causal=args.causal,

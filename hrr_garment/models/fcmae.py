@@ -227,8 +227,8 @@ class MeshAutoencoder(nn.Module):
             out.append(z.detach())
         return torch.cat(out) if out else torch.zeros(0, *self.latent_shape)
 
-    def fast_decoder(self, native: bool | None = None) -> "FastDecoder":
+    def fast_decoder(self, native: bool | None = None, precision: str = "float32") -> "FastDecoder":
         """The inference-only form of :attr:`decoder` (:mod:`.fast_decoder`)."""
         from .fast_decoder import FastDecoder
 
-        return FastDecoder(self, native)
+        return FastDecoder(self, native, precision=precision)

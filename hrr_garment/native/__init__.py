@@ -41,7 +41,7 @@ import numpy as np
 _HERE = Path(__file__).resolve().parent
 HEADER = "hrr_native.h"  # what the sources share (helpers of kernels.c used by window_codes.c)
 # one translation unit, so shared helpers inline across files; each source includes the header
-SOURCES = ("kernels.c", "window_codes.c", "features.c")
+SOURCES = ("kernels.c", "amx_block.c", "window_codes.c", "features.c")
 SOURCE = "\n".join((_HERE / name).read_text() for name in SOURCES)
 _HEADER_TEXT = (_HERE / HEADER).read_text()
 
@@ -50,6 +50,7 @@ FLAGS = ["-O3", "-march=native", "-mprefer-vector-width=512", "-fno-math-errno",
          "-shared", "-fPIC"]
 WIDTHS = (8, 16, 32, 64, 128)  # output widths the kernel is specialised for
 APPLY_WIDTHS = (4, 8, 16, 32, 64, 128)  # block widths of the single-frame kernel
+PRECISIONS = ("float32", "bfloat16")  # the batched decoder's arithmetic (bfloat16: hrr_block_bf16, AMX)
 _lock = threading.Lock()
 _loaded: dict[str, ctypes.CDLL | None] = {}
 _requests: dict[tuple, ctypes.CDLL | None] = {}
@@ -128,6 +129,11 @@ def load_kernel(cache_dir: str | Path | None = None) -> ctypes.CDLL | None:
                 lib.hrr_causal_features.restype = None
                 lib.hrr_body_to_world.argtypes = [d, c_int, c_int, d, d, c_int, d]
                 lib.hrr_body_to_world.restype = None
+                lib.hrr_block_bf16.argtypes = [d, c_int, c_int, c_int, c_int, c_int, d, d, d, d, d, d, c_float, c_float,
+                                               c_int, c_int, d, d, d]
+                lib.hrr_block_bf16.restype = c_int
+                lib.hrr_amx_ready.argtypes = []
+                lib.hrr_amx_ready.restype = c_int
                 lib.hrr_pin_workers.argtypes = [c_int]
                 lib.hrr_pin_workers.restype = c_int
                 lib.hrr_current_cpu.argtypes = []
@@ -184,6 +190,20 @@ def pack_panels(wt: np.ndarray) -> np.ndarray:
     inp, out = wt.shape
     panels = np.pad(wt, [(0, 0), (0, -out % PANEL)]).reshape(inp, -1, PANEL).transpose(1, 0, 2)
     return np.ascontiguousarray(panels, np.float32)
+
+
+def bf16_bits(a: np.ndarray) -> np.ndarray:
+    """float32 -> bfloat16 bits (uint16), rounded to nearest even as PyTorch rounds."""
+    bits = np.ascontiguousarray(a, np.float32).view(np.uint32)
+    return ((bits + np.uint32(0x7FFF) + ((bits >> 16) & 1)) >> 16).astype(np.uint16)
+
+
+def bf16_pairs(m: np.ndarray) -> np.ndarray:
+    """Matrices (..., cin, width) float32 -> AMX's pair-interleaved bfloat16 (..., cin / 2, width, 2):
+    input rows 2p and 2p + 1 of each column side by side."""
+    *lead, cin, width = m.shape
+    pairs = bf16_bits(m).reshape(*lead, cin // 2, 2, width)
+    return np.ascontiguousarray(np.swapaxes(pairs, -1, -2))
 
 
 class NativeBlock:
@@ -245,6 +265,39 @@ class NativeBlock:
         lib.hrr_factor_block(x.ctypes.data, len(x), self.cin, constants[0], constants[1], scratch.ctypes.data,
                              *constants[2:], threads, self._out.ctypes.data)
         return self._out
+
+    def set_bf16(self) -> None:
+        """This block's constants in the bfloat16 form of ``hrr_block_bf16`` (``amx_block.c``): kernels
+        and the residual's 1x1 map rounded and pair-interleaved, output width a multiple of 16 or a
+        narrow 4 or 8."""
+        cout = self.cout
+        width = next((w for w in (4, 8) if w >= cout), -(-cout // 16) * 16)
+        pad = [(0, 0)] * 2 + [(0, width - cout)]
+        proj = np.eye(self.cin, cout, dtype=np.float32) if self.proj is None else self.proj[:, :cout]
+        kernel = bf16_pairs(np.pad(self.kernel[..., :cout], pad))
+        bias = np.ascontiguousarray(np.pad(self.bias[:cout], (0, width - cout)), np.float32)
+        self.bf16 = (width, kernel, bf16_pairs(np.pad(proj, pad[1:])), bias)
+
+    def call_bf16(self, lib: ctypes.CDLL, x: np.ndarray, threads: int, last: bool, out: np.ndarray | None = None,
+                  scratch: np.ndarray | None = None) -> np.ndarray:
+        """x (V_in, Bp, C_in) bfloat16 bits (uint16), Bp a multiple of 16 -> ``out`` (V, Bp, width): the
+        next block's bfloat16 input, or float32 for the ``last`` block (``set_bf16`` first).
+        ``scratch``: float32 room for V_in x Bp x width (the residual's projection). A decoder
+        passes buffers it keeps: fresh ones cost more in page faults than the block."""
+        width, kernel, proj, bias = self.bf16
+        batch = x.shape[1]
+        need = x.shape[0] * batch * width
+        scratch = np.empty(need, np.float32) if scratch is None or scratch.size < need else scratch
+        if out is None:
+            out = np.empty((self.vertices, batch, width), np.float32 if last else np.uint16)
+        status = lib.hrr_block_bf16(x.ctypes.data, batch, self.cin, width, x.shape[0], self.vertices,
+                                    self.offsets.ctypes.data, self.nbr.ctypes.data, kernel.ctypes.data, bias.ctypes.data,
+                                    None if self.pool is None else self.pool.ctypes.data, proj.ctypes.data,
+                                    self.a, self.b, int(self.elu), threads, scratch.ctypes.data,
+                                    None if last else out.ctypes.data, out.ctypes.data if last else None)
+        if status:
+            raise RuntimeError("bfloat16 decoding needs AMX (an Intel Xeon of Sapphire Rapids or newer, on Linux)")
+        return out
 
     def __call__(self, lib: ctypes.CDLL, x: np.ndarray, threads: int, padded: bool = False) -> np.ndarray:
         """x (V_in, B, C_in) float32 C-contiguous -> (V, B, C_out), or with ``padded`` the kernel's
