@@ -93,32 +93,40 @@ def push_out(vertices: np.ndarray, motion: Motion, faces: np.ndarray, body: Body
     None, and the frames the limit moved are not measured again (a quarter of a crowd's push-out)."""
     a, b = body.pose_motion(motion)
     mean = mean_operator(faces, vertices.shape[1]) if mean is None else mean
-    out = np.empty(vertices.shape, np.float32)
-    before, after = np.zeros(len(out)), np.zeros(len(out))
+    before, after = np.zeros(len(vertices)), np.zeros(len(vertices))
     from ..native import default_threads, load_kernel
     from ..native.body import push_out_frames
 
     lib = load_kernel()
-    for start in range(0, len(out), chunk):
-        sl = slice(start, start + chunk)
-        if lib is not None:  # the same steps in C, frames in parallel: numpy's per-step overheads dominated
-            out[sl], before[sl], after[sl] = push_out_frames(lib, vertices[sl], a[sl], b[sl], body.radii, mean, margin, smooth,
-                                                             rounds, depth, threads=default_threads())
-        else:
+    if lib is not None:  # the same steps in C, frames in parallel: numpy's per-step overheads dominated.
+        # In float64 from the push through the strain limit, converted once each way: a 32-character
+        # crowd spent a millisecond a frame converting and copying between the two
+        unpushed = np.ascontiguousarray(vertices, np.float64)
+        out = np.empty(vertices.shape, np.float64)
+        for start in range(0, len(out), chunk):
+            sl = slice(start, start + chunk)
+            _, before[sl], after[sl] = push_out_frames(lib, unpushed[sl], a[sl], b[sl], body.radii, mean, margin, smooth,
+                                                       rounds, depth, threads=default_threads(), out=out[sl])
+    else:
+        unpushed, out = vertices, np.empty(vertices.shape, np.float32)
+        for start in range(0, len(out), chunk):
+            sl = slice(start, start + chunk)
             out[sl], before[sl], after[sl] = _push_frames(vertices[sl].astype(np.float64), a[sl], b[sl], body.radii, mean,
                                                           margin, smooth, rounds, depth)
     if limits is not None:
-        out, torn = limit_push_strain(out, vertices, limits, max_strain)
+        out, torn = limit_push_strain(out, unpushed, limits, max_strain, in_place=True)
         if report and torn.any():  # only the frames the limit moved have a new "after"
             inside = frames_signed_distance(out[torn].astype(np.float64), a[torn], b[torn], body.radii)[0] < -depth
             after[torn] = inside.mean(1)
+    out = out.astype(np.float32, copy=False)
     if not report:
         return out, None
     return out, PushOutReport(float(before.mean()), float(after.mean()), float(before.max(initial=0)), float(after.max(initial=0)))
 
 
 def limit_push_strain(pushed: np.ndarray, unpushed: np.ndarray, limits: EdgeLimits,
-                      max_strain: float = MAX_PUSH_STRAIN, iterations: int = 60) -> tuple[np.ndarray, np.ndarray]:
+                      max_strain: float = MAX_PUSH_STRAIN, iterations: int = 60,
+                      in_place: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """Undo as much of a push as tears the cloth: ``iterations`` Jacobi passes of edge-length
     projection (each over-long edge's two ends move toward each other, a vertex by the sum of its
     corrections over its degree, over-relaxed) on the frames where an edge of ``pushed`` is longer
@@ -135,8 +143,8 @@ def limit_push_strain(pushed: np.ndarray, unpushed: np.ndarray, limits: EdgeLimi
     if lib is not None:  # the same in C: the limits, the torn frames and the passes, which measure only
         # the edges that can have changed
         p, torn = limit_strain(lib, pushed, unpushed, limits.native_arrays, max_strain, iterations, LIMIT_TOLERANCE_M,
-                               OVER_RELAXATION, threads=default_threads())
-        if not torn.any():
+                               OVER_RELAXATION, threads=default_threads(), in_place=in_place)
+        if p is pushed or not torn.any():
             return pushed, torn
         out = pushed.copy()
         out[torn] = p[torn].astype(pushed.dtype)

@@ -103,11 +103,11 @@ class FastDecoder(nn.Module):
         x = np.ascontiguousarray(latents.detach().to(torch.float32).transpose(0, 1).numpy())
         for block in self.native_blocks[:-1]:
             x = block(self.lib, x, threads)
-        x = torch.from_numpy(self.native_blocks[-1](self.lib, x, threads, padded=True))  # (V, B, width >= 3)
+        x = self.native_blocks[-1](self.lib, x, threads, padded=True)  # (V, B, width >= 3)
         # frames first and contiguous in one pass that reads the padded rows where they lie: slicing,
-        # transposing and scaling one after another took 2.8 ms of a 64-character crowd's frame, this 0.8
-        out = torch.empty(len(latents), *self.template.shape)
-        return torch.add(self.template, x[..., :out.shape[-1]].permute(1, 0, 2), alpha=self.scale, out=out)
+        # transposing and scaling one after another took 2.8 ms of a 64-character crowd's frame
+        return torch.from_numpy(native_kernel.rows_to_frames(self.lib, x, len(latents), self._template_np,
+                                                             float(self.scale), threads))
 
     def _forward_bf16(self, latents: torch.Tensor, threads: int) -> torch.Tensor:
         batch = len(latents)
@@ -116,8 +116,8 @@ class FastDecoder(nn.Module):
         x[:, :batch] = native_kernel.bf16_bits(latents.detach().to(torch.float32).transpose(0, 1).numpy())
         for i, (block, out) in enumerate(zip(self.native_blocks, outs)):
             x = block.call_bf16(self.lib, x, threads, i == len(outs) - 1, out, scratch)
-        frames = torch.from_numpy(x)[:, :batch, :self.template.shape[-1]].permute(1, 0, 2)
-        return torch.add(self.template, frames, alpha=self.scale, out=torch.empty(batch, *self.template.shape))
+        return torch.from_numpy(native_kernel.rows_to_frames(self.lib, x, batch, self._template_np, float(self.scale),
+                                                             threads))
 
     def _buffers_bf16(self, padded: int) -> list[np.ndarray]:
         """The bfloat16 path's input, each block's output and the shared projection room, for

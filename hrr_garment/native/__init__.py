@@ -132,6 +132,8 @@ def load_kernel(cache_dir: str | Path | None = None) -> ctypes.CDLL | None:
                 lib.hrr_block_bf16.argtypes = [d, c_int, c_int, c_int, c_int, c_int, d, d, d, d, d, d, c_float, c_float,
                                                c_int, c_int, d, d, d]
                 lib.hrr_block_bf16.restype = c_int
+                lib.hrr_rows_to_frames.argtypes = [d, c_int, c_int, c_int, c_int, c_int, d, c_float, c_int, d]
+                lib.hrr_rows_to_frames.restype = None
                 lib.hrr_amx_ready.argtypes = []
                 lib.hrr_amx_ready.restype = c_int
                 lib.hrr_pin_workers.argtypes = [c_int]
@@ -309,6 +311,17 @@ class NativeBlock:
                       _ptr(self.nbr, ctypes.c_int32), _ptr(self.kernel), _ptr(self.bias),
                       _ptr(self.pool), _ptr(self.proj), self.a, self.b, int(self.elu), threads, _ptr(out))
         return out if padded or self.width == self.cout else np.ascontiguousarray(out[..., :self.cout])
+
+
+def rows_to_frames(lib: ctypes.CDLL, rows: np.ndarray, frames: int, template: np.ndarray, scale: float,
+                   threads: int) -> np.ndarray:
+    """A decoder's last block rows (V, Bp, width) float32, C-contiguous -> (frames, V, C) float32
+    ``template + scale * rows[:, :frames, :C]`` with C the template's columns."""
+    v, padded, width = rows.shape
+    out = np.empty((frames, v, template.shape[1]), np.float32)
+    lib.hrr_rows_to_frames(rows.ctypes.data, v, padded, width, frames, template.shape[1], template.ctypes.data,
+                           ctypes.c_float(scale), threads, out.ctypes.data)
+    return out
 
 
 def forward_kinematics(lib: ctypes.CDLL, local_rot: np.ndarray, root_pos: np.ndarray, offsets: np.ndarray,

@@ -180,3 +180,22 @@ int hrr_block_bf16(const uint16_t *x, int Bp, int cin, int width, int Vin, int V
     return -1;
 #endif
 }
+
+/* The decoder's last rows (V, Bp, width) float32 -> frames out (B, V, C) = template (V, C) + scale *
+   rows[:, :B, :C]: frames first, in one pass (PyTorch's strided add took 0.5 ms for 32 frames of
+   4,156 vertices). */
+void hrr_rows_to_frames(const float *rows, int V, int Bp, int width, int B, int C, const float *template_,
+                        float scale, int threads, float *out)
+{
+    enum { CHUNK = 64 }; /* vertices per pass: their rows of every frame stay in L1, each frame's run is written whole */
+    #pragma omp parallel for num_threads(threads) schedule(static)
+    for (int v0 = 0; v0 < V; v0 += CHUNK) {
+        const int v1 = v0 + CHUNK < V ? v0 + CHUNK : V;
+        for (int f = 0; f < B; ++f)
+            for (int v = v0; v < v1; ++v) {
+                const float *restrict r = rows + ((size_t)v * Bp + f) * width;
+                float *restrict o = out + ((size_t)f * V + v) * C;
+                for (int c = 0; c < C; ++c) o[c] = template_[(size_t)v * C + c] + scale * r[c];
+            }
+    }
+}

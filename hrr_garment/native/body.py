@@ -31,14 +31,19 @@ def capsule_sdf(lib: ctypes.CDLL, points: np.ndarray, a: np.ndarray, b: np.ndarr
 
 
 def push_out_frames(lib: ctypes.CDLL, points: np.ndarray, a: np.ndarray, b: np.ndarray, radii: np.ndarray, mean,
-                    margin: float, smooth: int, rounds: int, depth: float, threads: int = 1
-                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                    margin: float, smooth: int, rounds: int, depth: float, threads: int = 1,
+                    out: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """:func:`hrr_garment.inference.collision.push_out`'s per-frame steps in the kernel: points
     (T, V, 3), capsule ends a, b (T, C, 3), ``mean`` the (V, V) CSR mean operator -> (pushed
     points float32, fraction deeper than ``depth`` before (T,), after (T,)). Frames in parallel;
-    a single frame (streaming) shared by the threads."""
+    a single frame (streaming) shared by the threads. With ``out`` (C-contiguous float64, the
+    points' shape) the points are copied there, pushed in place and returned in float64."""
     a, b, r = _capsule_arrays(a, b, radii)
-    p = np.array(points, np.float64, order="C")  # a copy: pushed in place
+    if out is not None and (out.dtype != np.float64 or out.shape != points.shape or not out.flags.c_contiguous):
+        raise ValueError("out must be a C-contiguous float64 array of the points' shape")
+    p = np.array(points, np.float64, order="C") if out is None else out  # pushed in place
+    if out is not None:
+        np.copyto(out, points)
     indptr, indices = (np.ascontiguousarray(x, np.int32) for x in (mean.indptr, mean.indices))
     weights = np.ascontiguousarray(mean.data, np.float64)
     t, v = p.shape[:2]
@@ -48,16 +53,19 @@ def push_out_frames(lib: ctypes.CDLL, points: np.ndarray, a: np.ndarray, b: np.n
                      after.ctypes.data)
     if np.isnan(before).any():
         raise MemoryError("the native push-out could not allocate its scratch memory")
-    return p.astype(np.float32), before, after
+    return (p if out is not None else p.astype(np.float32)), before, after
 
 
 def limit_strain(lib: ctypes.CDLL, pushed: np.ndarray, unpushed: np.ndarray, edge_arrays: tuple, max_strain: float,
-                 iterations: int, tol: float, omega: float, threads: int = 1) -> tuple[np.ndarray, np.ndarray]:
+                 iterations: int, tol: float, omega: float, threads: int = 1,
+                 in_place: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """:func:`hrr_garment.inference.collision.limit_push_strain` in the kernel: pushed and unpushed
     points (T, V, 3), ``edge_arrays`` (:attr:`~hrr_garment.inference.collision.EdgeLimits.native_arrays`)
     -> (the limited points, float64 (T, V, 3); the (T,) mask of frames that had an edge over its
-    limit). Frames in parallel; each stops on its own."""
-    p = np.array(pushed, np.float64, order="C")  # a copy: moved in place
+    limit). Frames in parallel; each stops on its own. ``in_place``: a C-contiguous float64
+    ``pushed`` is moved where it lies (and returned) instead of copied."""
+    own = in_place and pushed.dtype == np.float64 and pushed.flags.c_contiguous
+    p = pushed if own else np.array(pushed, np.float64, order="C")  # moved in place
     u = np.ascontiguousarray(unpushed, np.float64)
     edges, rest, degree, ptr, idx = edge_arrays
     torn = np.zeros(len(p), np.uint8)
