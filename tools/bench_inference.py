@@ -92,7 +92,7 @@ def _median_entropy_tau(bundle: Bundle, motion) -> float:
     return float(np.quantile(entropy, 0.5, method="lower"))
 
 
-def bench_crowd(animator: Animator, motion, tau: float, characters: int, pace: float, frames: int = 150) -> dict:
+def bench_crowd(animator: Animator, motion, tau: float, characters: int, pace: float, frames: int = 300) -> dict:
     """``characters`` streamed together for ``frames`` frames: character i plays ``motion`` from frame
     7 i (wrapping) and stands 2 i metres to the side; returns the step's latency percentiles (ms),
     back to back and paced at ``pace`` frames/s, and the cost per character."""
@@ -118,11 +118,13 @@ def bench_crowd(animator: Animator, motion, tau: float, characters: int, pace: f
 
 
 def bench(vertices: int, windows: int, seconds: float, model: str | None = None, motion_file: str | None = None,
-          pace: float = 30.0, crowd: list[int] | None = None, repeat: int = 3, precision: str = "float32") -> dict:
+          pace: float = 30.0, crowd: list[int] | None = None, repeat: int = 3, precision: str = "float32",
+          crowd_frames: int = 300) -> dict:
     """``model``: a trained bundle instead of random weights (its own resolution, database and tau);
     ``motion_file``: a clip instead of the procedural curved walk; ``pace``: frames/s of the paced
     stream run (0: none); ``repeat``: timed passes per offline figure (their median); ``precision``:
-    the mesh decoder's arithmetic for batches."""
+    the mesh decoder's arithmetic for batches; ``crowd_frames``: steps per crowd run (the first 20
+    are warm-up)."""
     animator = (Animator.load(model, precision=precision) if model
                 else Animator(random_bundle(vertices, windows), precision=precision))
     bundle = animator.bundle
@@ -147,7 +149,7 @@ def bench(vertices: int, windows: int, seconds: float, model: str | None = None,
         if key == "stream":  # where a streamed frame's time goes
             out["stream_stage_p50_ms"] = {k: round(1000 * float(np.median(np.array(v)[20:])), 2) for k, v in stream.stage_s.items()}
     if crowd:
-        out["crowd"] = {str(n): bench_crowd(animator, motion, tau, n, pace) for n in crowd}
+        out["crowd"] = {str(n): bench_crowd(animator, motion, tau, n, pace, crowd_frames) for n in crowd}
     out["peak_rss_mb"] = round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 1)
     out["native_decoder"] = animator.decoder.native
     return out
@@ -164,13 +166,16 @@ def main() -> None:
                         help="also stream paced at this many frames/s, idle between pushes as in a game (0: skip)")
     parser.add_argument("--crowd", type=int, nargs="*", default=[],
                         help="also stream crowds of these many characters, one call per frame (e.g. 1 8 32)")
+    parser.add_argument("--crowd-frames", type=int, default=300,
+                        help="steps per crowd run, the first 20 warm-up (p99 of 280: the third-worst step)")
     parser.add_argument("--repeat", type=int, default=3, help="timed passes per offline figure (their median)")
     parser.add_argument("--precision", choices=PRECISIONS, default="float32",
                         help="the mesh decoder's arithmetic for batches (crowds, offline); bfloat16 needs AMX")
     parser.add_argument("--json", action="store_true", help="one JSON object per resolution, nothing else")
     args = parser.parse_args()
     for v in ([None] if args.model else args.vertices):
-        r = bench(v, args.database, args.seconds, args.model, args.motion, args.pace, args.crowd, args.repeat, args.precision)
+        r = bench(v, args.database, args.seconds, args.model, args.motion, args.pace, args.crowd, args.repeat, args.precision,
+                  args.crowd_frames)
         if args.json:
             print(json.dumps(r))
         else:
