@@ -48,7 +48,7 @@ static void linear_shared(const float *restrict X, int n, int in, const float *r
 
 static void elu_shared(float *x, int n)
 {
-    #pragma omp for schedule(static)
+    #pragma omp for simd schedule(static)
     for (int i = 0; i < n; ++i) x[i] = elu1(x[i]);
 }
 
@@ -151,13 +151,16 @@ static void window_codes(const float *x, int B, const int32_t *dims, const float
             for (int b = 0; b < B; ++b) memcpy(gh + (long)b * 3 * H, p[P_HH_B], sizeof(float) * 3 * H);  /* h_0 = 0 */
         }
         #pragma omp for schedule(static)
-        for (long j = 0; j < (long)B * H; ++j) {
-            const long b = j / H;
-            const int i = (int)(j % H);
-            const float *g = gi + (b * W + t) * 3 * H, *gg = gh + b * 3 * H;
-            const float r = sigmoid(g[i] + gg[i]), z = sigmoid(g[H + i] + gg[H + i]);
-            const float n = tanh_(g[2 * H + i] + r * gg[2 * H + i]);
-            cur[j] = hs[(b * W + t) * H + i] = (1.0f - z) * n + z * (prev ? prev[j] : 0.0f);
+        for (long b = 0; b < B; ++b) {  /* by window, each window's H gates in vectors (scalar: 1.2 of 4.5 ms) */
+            const float *restrict g = gi + (b * W + t) * 3 * H, *restrict gg = gh + b * 3 * H;
+            const float *restrict before = prev ? prev + b * H : NULL;
+            float *restrict now = cur + b * H, *restrict out = hs + (b * W + t) * H;
+            #pragma omp simd
+            for (int i = 0; i < H; ++i) {
+                const float r = sigmoid(g[i] + gg[i]), z = sigmoid(g[H + i] + gg[H + i]);
+                const float n = tanh_(g[2 * H + i] + r * gg[2 * H + i]);
+                now[i] = out[i] = (1.0f - z) * n + z * (before ? before[i] : 0.0f);
+            }
         }
     }
     /* self-attention over each window's GRU states, residual, layer norm */
