@@ -29,6 +29,7 @@ from hrr_garment.export.preview import PreviewMesh
 from hrr_garment.export.video import BODY, GARMENT, PreviewStyle, render_scene
 from hrr_garment.motion.rotations import matrix_to_quat
 from hrr_garment.motion.synth import synthesize
+from hrr_garment.native import PRECISIONS
 
 
 class Window:
@@ -79,9 +80,11 @@ def main(argv=None) -> int:
     p.add_argument("--save-every", type=int, default=10, help="headless: save every N-th frame")
     p.add_argument("--realtime", action="store_true", help="wait so frames are shown at the clip's rate")
     p.add_argument("--size", type=int, default=320, help="pixels per view")
+    p.add_argument("--precision", choices=PRECISIONS, default="float32",
+                   help="the mesh decoder's arithmetic: bfloat16 (AMX, recent Intel Xeons) for large crowds")
     args = p.parse_args(argv)
 
-    animator = Animator.load(args.model)
+    animator = Animator.load(args.model, precision=args.precision)
     motion = load_motion(args.motion) if args.motion else synthesize("dance", args.seconds, seed=3)
     crowd = animator.crowd()  # hybrid, the model's tau, collision push-out
     n = max(1, args.characters)

@@ -30,3 +30,7 @@ class MotionError(InputError):
 
 class SkeletonMappingError(MotionError):
     """A source skeleton whose joints cannot be mapped onto the canonical skeleton."""
+
+
+class UnsupportedHardware(HRRError, RuntimeError):
+    """An option this machine's processor (or its build of the kernels) cannot run."""

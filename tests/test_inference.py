@@ -259,10 +259,11 @@ def test_push_out_moves_vertices_outside_without_spikes():
     assert moved[~near].any() and not moved[~ring].any()
 
 
-def test_hrr_animate_writes_out_h5_and_refuses_bad_motion(trained, tmp_path, capsys):
+def test_hrr_animate_writes_out_h5_and_refuses_bad_motion(trained, tmp_path, capsys, monkeypatch):
     from hrr_garment.cli.animate import main as animate_main
     from hrr_garment.data.animation_file import read_animation_h5
     from hrr_garment.motion.io import save_motion
+    from hrr_garment.native import load_kernel
 
     root, _, _ = trained
     clip = tmp_path / "walk.npz"
@@ -288,6 +289,15 @@ def test_hrr_animate_writes_out_h5_and_refuses_bad_motion(trained, tmp_path, cap
     assert "nan.npz" in capsys.readouterr().err and not out2.exists()
     assert animate_main([str(clip), "-o", str(out2), "--model", str(tmp_path / "nothing")]) == 2
     assert "nothing" in capsys.readouterr().err and not out2.exists()
+    half = [str(clip), "-o", str(out2), "--model", str(root / "model"), "--precision", "bfloat16"]
+    lib = load_kernel()
+    if lib is not None and lib.hrr_amx_ready():  # bfloat16 decoding runs where AMX is
+        assert animate_main(half) == 0
+        assert np.abs(read_animation_h5(out2).vertices - data.vertices).mean() <= 1e-3
+        out2.unlink()
+        monkeypatch.setattr(lib, "hrr_amx_ready", lambda: 0)  # and is refused clearly elsewhere
+    assert animate_main(half) == 2
+    assert "AMX" in capsys.readouterr().err and not out2.exists()
 
 
 def test_hrr_animate_explains_bad_models_and_outputs(trained, tmp_path, capsys, mocap_dir):
@@ -515,3 +525,22 @@ def test_pinning_the_workers_leaves_the_caller_free(monkeypatch):
 
     pinned = [cpus for task in os.listdir(f"/proc/{me}/task") if (cpus := affinity(task)) != allowed]
     assert pinned and all(len(cpus) == 1 and cpus <= allowed for cpus in pinned)
+
+
+def test_a_bfloat16_crowd_stays_near_the_float32_one(animator):
+    """Eight characters (a batch the AMX decoder takes) in bfloat16: the same gate decisions and
+    windows, vertices within bfloat16's rounding of the float32 crowd's."""
+    from hrr_garment.inference.animator import Animator
+
+    if not animator.decoder.native or not animator.decoder.lib.hrr_amx_ready():
+        pytest.skip("no AMX (bfloat16 decoding) on this CPU")
+    half = Animator(animator.bundle, precision="bfloat16")
+    clips = [synthesize(kind, 1.0, seed=i) for i, kind in enumerate(["walk_curve", "spin", "dance", "idle"] * 2)]
+    crowds = [a.crowd(collision=False) for a in (animator, half)]
+    error = []
+    for t in range(clips[0].num_frames):
+        poses = {i: c.slice(t, t + 1) for i, c in enumerate(clips)}
+        exact, rounded = (crowd.push_motions(poses) for crowd in crowds)
+        error.append(np.linalg.norm(rounded - exact, axis=-1))
+    error = np.array(error)
+    assert error.mean() <= 2e-4 and error.max() <= 2e-3  # metres

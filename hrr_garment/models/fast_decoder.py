@@ -9,6 +9,7 @@ import torch
 from torch import nn
 
 from .. import native as native_kernel
+from ..errors import UnsupportedHardware
 from ..native import PRECISIONS
 
 # Batches smaller than this decode frame by frame through the single-frame path: the batched
@@ -59,7 +60,7 @@ class FastDecoder(nn.Module):
         self.precision = precision
         if precision == "bfloat16":
             if self.lib is None or not self.lib.hrr_amx_ready():
-                raise RuntimeError("precision='bfloat16' needs the native kernel on a CPU with AMX (an Intel Xeon of "
+                raise UnsupportedHardware("precision='bfloat16' needs the native kernel on a CPU with AMX (an Intel Xeon of "
                                    "Sapphire Rapids or newer, on Linux); this machine decodes in float32 only")
             for nb in self.native_blocks:
                 nb.set_bf16()
