@@ -18,10 +18,10 @@ from ..native import PRECISIONS
 # of 16 2.2, of 64 1.5)
 SINGLE_FRAME_BELOW = 12
 # In bfloat16 (AMX) a batch pads to whole tiles of 16 frames and streams all its kernels (62 MB at
-# 4,156 vertices) from memory, at many times float32's arithmetic rate: from this many frames one
-# padded batch beats frames one at a time (on 2 Xeon cores at 4,156 vertices: a batch of 4-16
-# frames 5.0-5.2 ms, one frame 1.0, 32 frames 6.9 against 24 in float32)
-BF16_BATCH_FROM = 6
+# 4,156 vertices) at many times float32's arithmetic rate: from this many frames one padded batch
+# beats frames one at a time (on 2 Xeon cores at 4,156 vertices: 8 or 16 frames 3.3 ms, one frame
+# 0.95; 32 frames 5.7 against 22 in float32)
+BF16_BATCH_FROM = 4
 
 
 class FastDecoder(nn.Module):
