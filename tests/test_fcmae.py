@@ -10,7 +10,7 @@ from hrr_garment.garment.mesh import GarmentError
 from hrr_garment.garment.templates import make_garment
 from hrr_garment.models.fcmae import AutoencoderConfig, MeshAutoencoder
 from hrr_garment.models.hierarchy import build_hierarchy, cached_hierarchy
-from hrr_garment.native import bf16_bits, bf16_pairs
+from hrr_garment.native.decoder import bf16_bits, bf16_pairs
 from hrr_garment.sim.quality import edge_strain
 
 

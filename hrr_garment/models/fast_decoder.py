@@ -11,6 +11,7 @@ from torch import nn
 from .. import native as native_kernel
 from ..errors import UnsupportedHardware
 from ..native import PRECISIONS
+from ..native.decoder import NativeBlock, bf16_bits, rows_to_frames
 
 # Batches smaller than this decode frame by frame through the single-frame path: the batched
 # path reads every per-vertex kernel once per call, which pays off from about a dozen frames (on 2
@@ -50,7 +51,7 @@ class FastDecoder(nn.Module):
         if native and self.lib is None:
             raise RuntimeError("the native decoder kernel could not be compiled (is a C compiler installed?)")
         self.native_blocks = [] if self.lib is None else [
-            native_kernel.NativeBlock(b.conv.index.numpy(), b.conv.mask.numpy(), k.numpy(), b.conv.bias.detach().numpy(),
+            NativeBlock(b.conv.index.numpy(), b.conv.mask.numpy(), k.numpy(), b.conv.bias.detach().numpy(),
                                       None if w is None else w.numpy(),
                                       None if b.residual.project is None else b.residual.project.weight.detach().T.numpy(),
                                       b.a, b.b, b.activation)
@@ -107,17 +108,17 @@ class FastDecoder(nn.Module):
         x = self.native_blocks[-1](self.lib, x, threads, padded=True)  # (V, B, width >= 3)
         # frames first and contiguous in one pass that reads the padded rows where they lie: slicing,
         # transposing and scaling one after another took 2.8 ms of a 64-character crowd's frame
-        return torch.from_numpy(native_kernel.rows_to_frames(self.lib, x, len(latents), self._template_np,
+        return torch.from_numpy(rows_to_frames(self.lib, x, len(latents), self._template_np,
                                                              float(self.scale), threads))
 
     def _forward_bf16(self, latents: torch.Tensor, threads: int) -> torch.Tensor:
         batch = len(latents)
         x, *outs, scratch = self._buffers_bf16(-(-batch // 16) * 16)
         # padding frames keep whatever an earlier call left there: every frame is decoded on its own
-        x[:, :batch] = native_kernel.bf16_bits(latents.detach().to(torch.float32).transpose(0, 1).numpy())
+        x[:, :batch] = bf16_bits(latents.detach().to(torch.float32).transpose(0, 1).numpy())
         for i, (block, out) in enumerate(zip(self.native_blocks, outs)):
             x = block.call_bf16(self.lib, x, threads, i == len(outs) - 1, out, scratch)
-        return torch.from_numpy(native_kernel.rows_to_frames(self.lib, x, batch, self._template_np, float(self.scale),
+        return torch.from_numpy(rows_to_frames(self.lib, x, batch, self._template_np, float(self.scale),
                                                              threads))
 
     def _buffers_bf16(self, padded: int) -> list[np.ndarray]:

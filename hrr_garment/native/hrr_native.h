@@ -1,8 +1,8 @@
-/* hrr_native.h: what the three C sources of hrr_garment/native/ share. They are compiled together
-   as one translation unit (kernels.c, window_codes.c, features.c, in that order; see
+/* hrr_native.h: what the four C sources of hrr_garment/native/ share. They are compiled together
+   as one translation unit (kernels.c, amx_block.c, window_codes.c, features.c, in that order; see
    hrr_garment/native/__init__.py), so helpers stay static and inline across files; this header
-   declares the ones defined in kernels.c that window_codes.c uses, instead of relying on the order
-   of concatenation. Include guard: every source includes it. */
+   declares the ones defined in kernels.c that amx_block.c and window_codes.c use, instead of
+   relying on the order of concatenation. Include guard: every source includes it. */
 
 #ifndef HRR_NATIVE_H
 #define HRR_NATIVE_H
