@@ -95,3 +95,27 @@ def test_mirrored_sequences_join_their_source_split():
     # Reflecting twice gives the frames back; each vertex lands where its mirror partner was.
     np.testing.assert_allclose(mirrored.garment[:, perm] * [-1, 1, 1], frames, atol=1e-6)
     assert mirrored.info["mirror_of"] == "a"
+
+
+@pytest.mark.parametrize("sequences,missing", [({"walk": 3, "spin": 1, "run": 1}, []),
+                                               ({"walk": 4, "spin": 2, "run": 1}, ["spin_001", "walk_003"])])
+def test_hrr_train_simulates_what_a_grown_preset_adds(tmp_path, monkeypatch, sequences, missing):
+    """A workspace's dataset made with an earlier, smaller version of a preset: hrr-train simulates
+    the sequences it lacks (build_dataset reuses the finished ones) instead of training on it."""
+    import yaml
+    from conftest import synthetic_dataset
+
+    import hrr_garment.cli.train as train_cli
+    from hrr_garment.garment.templates import make_garment
+
+    monkeypatch.setenv("HRR_HOME", str(tmp_path))
+    (tmp_path / "datasets").mkdir()
+    synthetic_dataset(tmp_path / "datasets" / "skirt-grown.h5", make_garment("skirt", 300))  # run, spin, walk x 3
+    preset = tmp_path / "grown.yaml"
+    preset.write_text(yaml.safe_dump({"name": "grown", "vertices": 300, "seconds": 2.0, "sequences": sequences}))
+    calls = []
+    monkeypatch.setattr(train_cli, "_simulate", lambda garment, p, out, quiet: calls.append((garment, p.name, out)))
+    assert sorted(train_cli._missing_sequences(tmp_path / "datasets" / "skirt-grown.h5", load_preset(str(preset)))) == missing
+    assert train_cli.main(["--garment", "skirt", "--preset", str(preset), "--stage", "simulate", "--quiet"]) == 0
+    assert calls == ([("skirt", "grown", tmp_path / "datasets" / "skirt-grown.h5")] if missing else [])
+    assert train_cli._missing_sequences(tmp_path / "nothing.h5", load_preset(str(preset))) == []

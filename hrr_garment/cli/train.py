@@ -170,6 +170,18 @@ def _main(argv: Sequence[str] | None) -> int:
         raise
 
 
+def _missing_sequences(dataset: Path, preset) -> list[str]:
+    """The preset's sequences that an existing dataset of it does not hold (none where there is no
+    dataset yet): a workspace made with an earlier, smaller version of the preset."""
+    if not dataset.exists():
+        return []
+    from ..data.dataset import GarmentDataset
+    from ..sim.plan import plan_sequences
+
+    held = set(GarmentDataset(dataset).names)
+    return [spec.name for spec in plan_sequences(preset) if spec.name not in held]
+
+
 def _run_stages(args, preset, folder: Path, autoencoder: tuple, codespace: tuple, baseline: tuple) -> int:
     from ..train.autoencoder import train_autoencoder
     from ..train.baseline import run_baseline_stage
@@ -186,11 +198,16 @@ def _run_stages(args, preset, folder: Path, autoencoder: tuple, codespace: tuple
     for stage in stages:
         t0 = time.perf_counter()
         if stage == "simulate":
-            if args.dataset.exists():
+            missing = _missing_sequences(args.dataset, preset) if args.garment is not None else []
+            if args.dataset.exists() and not missing:
                 continue
             if args.garment is None:
                 raise InputError(args.dataset, "no such dataset")
-            print(f"simulate: no dataset at {args.dataset}; simulating the {preset.name} preset first")
+            if args.dataset.exists():  # the preset grew since this dataset was made: add what it lacks
+                print(f"simulate: {args.dataset} lacks {len(missing)} of the {preset.name} preset's sequences "
+                      f"(e.g. {missing[0]}); simulating them (its own are reused)")
+            else:
+                print(f"simulate: no dataset at {args.dataset}; simulating the {preset.name} preset first")
             _simulate(args.garment, preset, args.dataset, args.quiet)
         elif stage == "autoencoder":
             if not args.dataset.exists():
