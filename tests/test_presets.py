@@ -97,11 +97,16 @@ def test_mirrored_sequences_join_their_source_split():
     assert mirrored.info["mirror_of"] == "a"
 
 
-@pytest.mark.parametrize("sequences,missing", [({"walk": 3, "spin": 1, "run": 1}, []),
-                                               ({"walk": 4, "spin": 2, "run": 1}, ["spin_001", "walk_003"])])
-def test_hrr_train_simulates_what_a_grown_preset_adds(tmp_path, monkeypatch, sequences, missing):
+@pytest.mark.parametrize("sequences,motions,missing", [({"walk": 3, "spin": 1, "run": 1}, None, []),
+                                                       ({"walk": 4, "spin": 2, "run": 1}, None, ["spin_001", "walk_003"]),
+                                                       ({"walk": 4, "spin": 2, "run": 1}, ["walk", "spin"], [])])
+def test_hrr_train_simulates_what_a_grown_preset_adds(tmp_path, monkeypatch, sequences, motions, missing):
     """A workspace's dataset made with an earlier, smaller version of a preset: hrr-train simulates
-    the sequences it lacks (build_dataset reuses the finished ones) instead of training on it."""
+    the sequences it lacks (build_dataset reuses the finished ones) instead of training on it; a
+    dataset of the user's own clips (hrr-simulate --motions) is left as it is."""
+    import json
+
+    import h5py
     import yaml
     from conftest import synthetic_dataset
 
@@ -110,12 +115,14 @@ def test_hrr_train_simulates_what_a_grown_preset_adds(tmp_path, monkeypatch, seq
 
     monkeypatch.setenv("HRR_HOME", str(tmp_path))
     (tmp_path / "datasets").mkdir()
-    synthetic_dataset(tmp_path / "datasets" / "skirt-grown.h5", make_garment("skirt", 300))  # run, spin, walk x 3
+    dataset = synthetic_dataset(tmp_path / "datasets" / "skirt-grown.h5", make_garment("skirt", 300))  # run, spin, walk x 3
+    with h5py.File(dataset, "a") as f:  # as hrr-simulate records what it simulated
+        f.attrs["info"] = json.dumps({"preset": "grown", "motions": motions})
     preset = tmp_path / "grown.yaml"
     preset.write_text(yaml.safe_dump({"name": "grown", "vertices": 300, "seconds": 2.0, "sequences": sequences}))
     calls = []
     monkeypatch.setattr(train_cli, "_simulate", lambda garment, p, out, quiet: calls.append((garment, p.name, out)))
-    assert sorted(train_cli._missing_sequences(tmp_path / "datasets" / "skirt-grown.h5", load_preset(str(preset)))) == missing
+    assert sorted(train_cli._missing_sequences(dataset, load_preset(str(preset)))) == missing
     assert train_cli.main(["--garment", "skirt", "--preset", str(preset), "--stage", "simulate", "--quiet"]) == 0
-    assert calls == ([("skirt", "grown", tmp_path / "datasets" / "skirt-grown.h5")] if missing else [])
+    assert calls == ([("skirt", "grown", dataset)] if missing else [])
     assert train_cli._missing_sequences(tmp_path / "nothing.h5", load_preset(str(preset))) == []

@@ -112,6 +112,7 @@ def _main(argv: Sequence[str] | None) -> int:
         out = workspace() / "datasets" / f"{garment.name}-{preset.name}{suffix}.h5"
     options = build_options(preset, specs)
     options["info"]["garment_vertices"] = garment.num_vertices
+    options["info"]["motions"] = list(args.motions) if args.motions else None  # None: the preset's own clips
     if args.address and args.executor != "ray":
         raise InputError("--address", "joins a Ray cluster: use it with --executor ray")
     report = build_dataset(garment, specs, config, out, jobs=args.jobs, retry_rejected=args.retry_rejected, preview=None if args.no_preview else write_dataset_preview,

@@ -171,15 +171,20 @@ def _main(argv: Sequence[str] | None) -> int:
 
 
 def _missing_sequences(dataset: Path, preset) -> list[str]:
-    """The preset's sequences that an existing dataset of it does not hold (none where there is no
-    dataset yet): a workspace made with an earlier, smaller version of the preset."""
+    """The preset's sequences that an existing dataset of its own clips does not hold: a workspace
+    made with an earlier, smaller version of the preset. None where there is no dataset yet, or
+    where it holds other clips (``hrr-simulate --motions``, or a different preset): that one is the
+    user's choice."""
     if not dataset.exists():
         return []
     from ..data.dataset import GarmentDataset
     from ..sim.plan import plan_sequences
 
-    held = set(GarmentDataset(dataset).names)
-    return [spec.name for spec in plan_sequences(preset) if spec.name not in held]
+    ds = GarmentDataset(dataset)
+    planned = [spec.name for spec in plan_sequences(preset)]
+    if ds.info.get("preset") != preset.name or ds.info.get("motions") or not set(ds.names) <= set(planned):
+        return []
+    return [name for name in planned if name not in set(ds.names)]
 
 
 def _run_stages(args, preset, folder: Path, autoencoder: tuple, codespace: tuple, baseline: tuple) -> int:
