@@ -86,7 +86,7 @@ def main(argv=None) -> int:
 
     animator = Animator.load(args.model, precision=args.precision)
     motion = load_motion(args.motion) if args.motion else synthesize("dance", args.seconds, seed=3)
-    crowd = animator.crowd()  # hybrid, the model's tau, collision push-out
+    crowd = animator.crowd()  # the model's calibrated mode (auto), its tau, collision push-out
     n = max(1, args.characters)
     # what the game's animation system holds for each character: local rotations and its root
     quats = matrix_to_quat(motion.local_rotations.astype(np.float64))[..., [1, 2, 3, 0]]  # (x, y, z, w)

@@ -405,6 +405,8 @@ TAMPERS = {  # name: (edit of bundle.json's dict, or of the folder and dict; the
     "tau negative": (lambda f, m: m.update(tau=-1.0), "'tau' must be a finite number"),
     "garment a list": (lambda f, m: m.update(garment=["skirt"]), "'garment' must be a name"),
     "database missing": (lambda f, m: m.pop("database"), "lacks its 'database' section"),
+    "auto an unknown mode": (lambda f, m: m.update(auto={"mode": "retrieval"}), "'auto' must hold a 'mode' of"),
+    "auto a string": (lambda f, m: m.update(auto="detail"), "'auto' must hold a 'mode' of"),
     "NaN weights, hashes redone": (_nan_weights, "decoder.safetensors: non-finite weights"),
     "NaN statistics, hashes redone": (_nan_stats, "stats.safetensors: non-finite values"),
     "template faces out of range, hashes redone": (_bad_template_faces, "template.safetensors: face indices must lie"),

@@ -1,5 +1,6 @@
 """Inference: offline and causal engine, streaming, blending, push-out, hrr-animate and out.h5."""
 
+import json
 import math
 
 import numpy as np
@@ -270,7 +271,10 @@ def test_hrr_animate_writes_out_h5_and_refuses_bad_motion(trained, tmp_path, cap
     save_motion(synthesize("walk", 1.0, seed=4), clip)
     out = tmp_path / "out.h5"
     assert animate_main([str(clip), "-o", str(out), "--model", str(root / "model")]) == 0
-    assert "retrieval usage" in capsys.readouterr().out
+    said = capsys.readouterr().out
+    auto = json.loads((root / "model" / "bundle.json").read_text())["auto"]["mode"]  # the default mode runs it
+    assert f"mode auto = {auto}" in said
+    assert ("database used" if auto in ("residual", "detail") else "retrieval usage") in said
     data = read_animation_h5(out)
     assert data.vertices.shape == (30, 308, 3) and data.faces.dtype == np.int32
     assert data.joints.shape == (30, 22, 3) and data.mode.dtype == np.uint8

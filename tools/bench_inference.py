@@ -103,7 +103,7 @@ def bench_crowd(animator: Animator, motion, tau: float, characters: int, pace: f
     side = np.stack([2.0 * np.arange(characters), np.zeros(characters), np.zeros(characters)], 1)
     out = {}
     for key, fps in (("", 0.0), ("paced_", pace)):
-        crowd = animator.crowd(tau=tau)
+        crowd = animator.crowd(mode="hybrid", tau=tau)
         start = time.perf_counter()
         for t in range(frames):
             if fps:
@@ -137,7 +137,7 @@ def bench(vertices: int, windows: int, seconds: float, model: str | None = None,
     out["fps_hybrid_with_collision"] = round(_fps(animator, motion, repeat, mode="hybrid", tau=tau, collision=True), 1)
     runs = [("stream", True, 0.0), ("stream_no_collision", False, 0.0)] + ([("stream_paced", True, pace)] if pace else [])
     for key, collision, fps in runs:
-        stream = animator.stream(tau=tau, collision=collision)
+        stream = animator.stream(mode="hybrid", tau=tau, collision=collision)
         start = time.perf_counter()
         for t in range(motion.num_frames):
             if fps:  # a game loop: the next pose arrives at the next frame time, the thread idles until then

@@ -47,6 +47,7 @@ from .gate_signals import GATE_SIGNALS, check_gate_signal
 
 FORMAT_VERSION = 2  # 2: garments in the pelvis-following body frame (motion/frame.py)
 NETWORKS = ("motion_encoder", "garment_encoder", "decoder", "quantizer")
+AUTO_CHOICES = ("hybrid", "residual", "detail")  # what mode ``auto`` may stand for (eval/auto_mode.py chooses)
 
 
 class BundleError(InputError):
@@ -107,6 +108,13 @@ class Bundle:
         """The residual mode's calibrated weight (:mod:`.residual`)."""
         self.require_residual()
         return float(self.meta["residual"]["weight"])
+
+    @property
+    def auto_mode(self) -> str:
+        """The mode ``auto`` runs: the one calibrated at training (:mod:`hrr_garment.eval.auto_mode`);
+        hybrid for a bundle calibrated before it, or where the residual mode it chose cannot run."""
+        mode = str(self.meta.get("auto", {}).get("mode", "hybrid"))
+        return "hybrid" if mode == "residual" and not self.has_residual else mode
 
     @property
     def garment(self) -> str:
@@ -265,6 +273,9 @@ def _check_manifest(folder: Path, meta: object) -> dict:
     weight = residual.get("weight") if isinstance(residual, dict) else None
     if isinstance(weight, bool) or not isinstance(weight, (int, float)) or not math.isfinite(weight) or weight < 0:
         raise BundleError(folder, f"bundle.json 'residual' must hold a finite 'weight' >= 0, got {residual!r}")
+    auto = meta.get("auto", {"mode": "hybrid"})
+    if not isinstance(auto, dict) or auto.get("mode") not in AUTO_CHOICES:
+        raise BundleError(folder, f"bundle.json 'auto' must hold a 'mode' of {', '.join(AUTO_CHOICES)}, got {auto!r}")
     for section in ("autoencoder", "codespace", "database"):
         if not isinstance(meta.get(section), dict):
             raise BundleError(folder, f"bundle.json lacks its {section!r} section")

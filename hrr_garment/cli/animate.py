@@ -31,15 +31,17 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("-o", "--output", type=Path, required=True, help="out.h5 to write")
     p.add_argument("--garment", default=None, help="use the workspace model of this garment")
     p.add_argument("--model", type=Path, default=None, help="model bundle directory (instead of --garment)")
-    p.add_argument("--mode", default=Mode.HYBRID.value, choices=[m.value for m in Mode],
-                   help="hybrid (default): the calibrated gate between retrieval and regression; residual: "
-                        "regression plus the matched window's detail; detail: the regression's shape with the "
-                        "matched window's folds; direct: the baseline, when the model has it "
-                        "(hrr-train --stage baseline)")
+    p.add_argument("--mode", default=Mode.AUTO.value, choices=[m.value for m in Mode],
+                   help="auto (default): the mode this model was calibrated to run, the most plausible cloth within "
+                        "3 %% of the most accurate (bundle.json 'auto'); hybrid: the calibrated gate between retrieval "
+                        "and regression; residual: regression plus the matched window's detail; detail: the "
+                        "regression's shape with the matched window's folds; direct: the baseline, when the model "
+                        "has it (hrr-train --stage baseline)")
     p.add_argument("--gate", default=None, choices=GATE_SIGNALS,
                    help="what the hybrid thresholds: the motion code's entropy (the paper's), the match's code "
                         "similarity or its motion distance (default: the model's calibrated choice)")
-    p.add_argument("--tau", type=float, default=None, help="the gate's threshold (default: the model's calibrated one)")
+    p.add_argument("--tau", type=float, default=None, help="the gate's threshold (default: the model's calibrated one); --gate or --tau "
+                        "with the default mode runs the hybrid, whose settings they are")
     p.add_argument("--no-collision", action="store_true", help="skip the collision push-out")
     p.add_argument("--causal", action="store_true", help="causal windows only, as the streaming API")
     p.add_argument("--precision", choices=PRECISIONS, default="float32",
@@ -75,10 +77,12 @@ def _main(argv: Sequence[str] | None) -> int:
     anim.save(args.output)
     seconds = time.perf_counter() - t0
     # the gate decides in the hybrid only; the other modes retrieve always, never, or add a match's detail
-    gate = f", gate {anim.settings['gate']} < {anim.settings['tau']:.3f}" if args.mode == Mode.HYBRID else ""
-    used = "database used" if args.mode in (Mode.RESIDUAL, Mode.DETAIL) else "retrieval usage"
+    mode = Mode(anim.settings["mode"])
+    gate = f", gate {anim.settings['gate']} < {anim.settings['tau']:.3f}" if mode == Mode.HYBRID else ""
+    used = "database used" if mode in (Mode.RESIDUAL, Mode.DETAIL) else "retrieval usage"
+    named = f"{args.mode} = {mode}" if args.mode != mode else str(mode)
     print(f"wrote {args.output}: {anim.vertices.shape[0]} frames ({motion.duration_s:.2f} s at {anim.fps:g} fps), "
-          f"{anim.vertices.shape[1]} vertices; mode {args.mode}{gate}, "
+          f"{anim.vertices.shape[1]} vertices; mode {named}{gate}, "
           f"{used} {100 * anim.retrieval_usage:.1f} % of frames; {seconds:.1f} s")
     if anim.penetration is not None:
         p = anim.penetration

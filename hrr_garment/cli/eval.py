@@ -137,7 +137,7 @@ def _main(argv: Sequence[str] | None) -> int:
         if args.sequences < 1:
             raise InputError("hrr-eval", f"--sequences must be at least 1, got {args.sequences}")
         names = [names[i] for i in sorted({int(round(i)) for i in np.linspace(0, len(names) - 1, min(args.sequences, len(names)))})]
-    modes = args.modes or [m for m in ALL_MODES if animator.supports(m)]
+    modes = args.modes or [m for m in ALL_MODES if m != Mode.AUTO and animator.supports(m)]  # auto: one of them
     if Mode.DIRECT in modes and not animator.has_direct:
         raise InputError(model_dir, "has no direct-regression baseline: train it with hrr-train --stage baseline")
     if Mode.RESIDUAL in modes:
@@ -171,7 +171,8 @@ def _main(argv: Sequence[str] | None) -> int:
                            args.jobs, args.tau_sweep, not args.no_sweep)
     report = build_report(
         model={"folder": str(model_dir), "garment": bundle.garment, "hash": bundle.content_hash, "gate": bundle.gate,
-               "tau": bundle.tau, "gates": bundle.meta.get("gates", {}),
+               "tau": bundle.tau, "gates": bundle.meta.get("gates", {}), "auto": bundle.auto_mode,
+               "auto_calibration": bundle.meta.get("auto"),
                "vertices": bundle.template.num_vertices, "preset": bundle.meta.get("preset")},
         dataset={"path": str(dataset), "split": args.split, "sequences": names,
                  "frames": int(sum(len(r.garment) for r in records))},

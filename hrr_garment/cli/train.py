@@ -225,6 +225,7 @@ def _run_stages(args, preset, folder: Path, autoencoder: tuple, codespace: tuple
             r = run_codespace_stage(args.dataset, folder, cs_model, cs_train, cache_dir=workspace() / "cache",
                                     progress=not args.quiet, info={"preset": preset.name})
             _print_codespace(r, folder)
+            _auto_mode(folder, args.dataset, not args.quiet)
         elif stage == "baseline":
             r = run_baseline_stage(args.dataset, folder, direct_model, direct_train, cache_dir=workspace() / "cache",
                                    progress=not args.quiet)
@@ -233,6 +234,25 @@ def _run_stages(args, preset, folder: Path, autoencoder: tuple, codespace: tuple
         times[stage] = time.perf_counter() - t0
     print("time per stage: " + ", ".join(f"{k} {v / 60:.1f} min" for k, v in times.items()))
     return 0
+
+
+def _auto_mode(folder: Path, dataset: Path, progress: bool) -> None:
+    """Calibrate the mode ``auto`` runs (:mod:`hrr_garment.eval.auto_mode`) on the validation clips,
+    once per bundle (a model trained before it gets it on its next ``--stage codespace``)."""
+    from ..artifacts.bundle import read_meta, update_bundle_meta
+
+    if "auto" not in read_meta(folder):
+        from ..data.dataset import GarmentDataset
+        from ..eval.auto_mode import calibrate_auto_mode
+        from ..inference.animator import Animator
+
+        ds = GarmentDataset(dataset)
+        records = [ds.sequence(n) for n in ds.splits.get("val", [])]
+        update_bundle_meta(folder, {"auto": calibrate_auto_mode(Animator.load(folder), records, progress=progress)})
+    auto = read_meta(folder)["auto"]
+    print(f"auto mode: {auto['mode']} (on {auto['sequences']} validation clips: " + "; ".join(
+        f"{m} {c['pve_mm']:.2f} mm, sharpness {c['sharpness']:.2f}, hem swing {c['hem_swing']:.2f}"
+        for m, c in auto["candidates"].items()) + ")")
 
 
 def _epochs(r: StageReport) -> str:

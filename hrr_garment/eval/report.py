@@ -16,7 +16,7 @@ import numpy as np
 from ..io_utils import atomic_path, atomic_write_text, strict_json
 from .evaluate import ModeResult, TauPoint
 
-REPORT_VERSION = 5  # 2: truth ensembles ("ensemble" per mode and at the top level); 3: "library" and "paper"; 4: the gate signal ("gate" beside each "tau", the model's calibrated "gates"); 5: "sharpness" in each tau-sweep point
+REPORT_VERSION = 6  # 2: truth ensembles ("ensemble" per mode and at the top level); 3: "library" and "paper"; 4: the gate signal ("gate" beside each "tau", the model's calibrated "gates"); 5: "sharpness" in each tau-sweep point; 6: the model's "auto" mode and its "auto_calibration"
 GOALS = (  # (name, numerator mode, denominator mode, target ratio)
     ("hybrid_vs_regression", "hybrid", "regression", 0.5),
     ("hybrid_vs_retrieval", "hybrid", "retrieval", 0.85),
@@ -160,7 +160,7 @@ def markdown(report: dict, plots: list[str]) -> str:
     model, data, settings = report["model"], report["dataset"], report["settings"]
     out = [f"# Evaluation: {model['garment']} ({Path(model['folder']).name})", "",
            f"Model `{model['folder']}` (hash {model['hash']}, calibrated gate {model.get('gate', 'entropy')} < "
-           f"{model['tau']:.3f}); dataset "
+           f"{model['tau']:.3f}; the default mode, auto, runs {model.get('auto', 'hybrid')}); dataset "
            f"`{data['path']}`, split **{data['split']}**: {len(data['sequences'])} sequences, {data['frames']} frames. "
            f"Collision push-out {'on' if settings['collision'] else 'off'}; own sequence excluded from retrieval: "
            f"{'yes' if settings['exclude_own_sequence'] else 'no'}; hybrid gate {settings.get('gate', 'entropy')} < "

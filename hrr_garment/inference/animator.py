@@ -139,7 +139,7 @@ class Animator:
 
     def supports(self, mode: Mode | str) -> bool:
         """Whether this model runs ``mode``: direct needs the baseline, residual a calibrated weight."""
-        mode = Mode(mode)
+        mode = self.resolve_mode(mode)
         if mode is Mode.DIRECT:
             return self.has_direct
         return self.bundle.has_residual if mode is Mode.RESIDUAL else True
@@ -148,16 +148,27 @@ class Animator:
     def window(self) -> int:
         return self.bundle.codespace.config.window
 
-    def animate(self, motion: Motion, mode: Mode | str = Mode.HYBRID, tau: float | None = None, collision: bool = True,
+    def animate(self, motion: Motion, mode: Mode | str = Mode.AUTO, tau: float | None = None, collision: bool = True,
                 causal: bool = False, exclude_sequence: int | None = None, gate: str | None = None) -> Animation:
-        """Animate a whole clip (see :mod:`hrr_garment.inference`): ``mode`` hybrid | regression | retrieval |
-        naive-nn, or direct (the baseline, when the bundle has it; offline only); ``gate`` the hybrid's
-        signal (default the model's calibrated one, :data:`~hrr_garment.artifacts.gate_signals.GATE_SIGNALS`)
-        and ``tau`` its threshold (default the one calibrated for that signal); ``causal`` gives what
+        """Animate a whole clip (see :mod:`hrr_garment.inference`): ``mode`` auto (the model's calibrated
+        choice, :meth:`resolve_mode`) | hybrid | regression | retrieval | residual | detail | naive-nn,
+        or direct (the baseline, when the bundle has it; offline only); ``gate`` the hybrid's signal
+        (default the model's calibrated one, :data:`~hrr_garment.artifacts.gate_signals.GATE_SIGNALS`) and
+        ``tau`` its threshold (default the one calibrated for that signal); ``causal`` gives what
         streaming gives; ``exclude_sequence`` keeps one database sequence out of retrieval (evaluation)."""
+        mode = self.resolve_mode(mode, gate is not None or tau is not None)
         gate, tau = self.gate_setting(gate, tau)
         with flush_denormals():
             return self._animate(motion, mode, tau, collision, causal, exclude_sequence, gate)
+
+    def resolve_mode(self, mode: Mode | str, gated: bool = False) -> Mode:
+        """``mode`` itself, or for ``auto`` the mode this model was calibrated to run
+        (:attr:`~hrr_garment.artifacts.bundle.Bundle.auto_mode`); ``gated``: a gate or tau was
+        given, which are the hybrid's settings, so auto runs the hybrid."""
+        mode = Mode(mode)
+        if mode is not Mode.AUTO:
+            return mode
+        return Mode.HYBRID if gated else Mode(self.bundle.auto_mode)
 
     def gate_setting(self, gate: str | None, tau: float | None) -> tuple[str, float]:
         """The gate signal and threshold to run: the model's calibrated ones unless given."""
@@ -225,14 +236,14 @@ class Animator:
         step = self.causal_step(Mode(mode).regresses) if last_frame else None
         return choose_windows(self.bundle, windows, mode, tau, exclude, last_frame, step=step, gate=gate)
 
-    def stream(self, mode: Mode | str = Mode.HYBRID, tau: float | None = None, collision: bool = True,
+    def stream(self, mode: Mode | str = Mode.AUTO, tau: float | None = None, collision: bool = True,
                rig=None, gate: str | None = None) -> AnimationStream:
         """One character, causal, one pose in and one frame out (:class:`~.stream.AnimationStream`);
         ``rig``: a :class:`~hrr_garment.motion.stream_rig.StreamRig` for poses on a source skeleton;
         ``gate``, ``tau``: as :meth:`animate`."""
         return AnimationStream(self, mode, tau, collision, rig, gate)
 
-    def crowd(self, mode: Mode | str = Mode.HYBRID, tau: float | None = None, collision: bool = True,
+    def crowd(self, mode: Mode | str = Mode.AUTO, tau: float | None = None, collision: bool = True,
               rig=None, gate: str | None = None) -> CrowdStream:
         """Many characters, one call per frame for all of them (:class:`~.stream.CrowdStream`)."""
         return CrowdStream(self, mode, tau, collision, rig, gate)

@@ -10,6 +10,7 @@ class Mode(str, enum.Enum):
     """How a garment latent is chosen per window. A ``str`` subclass: ``Mode.HYBRID == "hybrid"``,
     and it formats as its value."""
 
+    AUTO = "auto"  # the model's calibrated choice among hybrid, residual and detail (eval/auto_mode.py)
     HYBRID = "hybrid"  # retrieval where the motion code's entropy is below tau, else regression
     REGRESSION = "regression"  # the code-space decoder's latents
     RETRIEVAL = "retrieval"  # the database window with the nearest garment code
@@ -26,7 +27,8 @@ class Mode(str, enum.Enum):
 
     @property
     def regresses(self) -> bool:
-        """Whether the code-space decoder runs (hybrid, regression, residual and detail)."""
+        """Whether the code-space decoder runs (hybrid, regression, residual and detail; auto is
+        resolved to one of these first, :meth:`~hrr_garment.inference.animator.Animator.resolve_mode`)."""
         return self in (Mode.HYBRID, Mode.REGRESSION, Mode.RESIDUAL, Mode.DETAIL)
 
 

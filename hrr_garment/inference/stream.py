@@ -72,11 +72,11 @@ class CrowdStream:
     """Many characters streamed in one call per frame; see the module docstring. ``rig``: a
     :class:`~hrr_garment.motion.stream_rig.StreamRig` when poses come on a source skeleton."""
 
-    def __init__(self, animator, mode: str = Mode.HYBRID, tau: float | None = None, collision: bool = True, rig=None,
+    def __init__(self, animator, mode: str = Mode.AUTO, tau: float | None = None, collision: bool = True, rig=None,
                  gate: str | None = None):
-        if mode not in CODE_MODES:
-            raise ValueError(f"streaming runs one of {', '.join(CODE_MODES)}, not {str(mode)!r}")
-        self.animator, self.mode, self.collision, self.rig = animator, Mode(mode), collision, rig
+        if mode != Mode.AUTO and mode not in CODE_MODES:
+            raise ValueError(f"streaming runs auto or one of {', '.join(CODE_MODES)}, not {str(mode)!r}")
+        self.animator, self.mode, self.collision, self.rig = animator, animator.resolve_mode(mode, gate is not None or tau is not None), collision, rig
         self.gate, self.tau = animator.gate_setting(gate, tau)
         self._characters: dict[Hashable, _Character] = {}
         self.timings = _Timings()
@@ -193,7 +193,7 @@ class AnimationStream:
     """One character: one pose in, one garment frame out, causal (no future frames), bounded memory.
     ``push`` equals frame t of ``animator.animate(motion, causal=True)`` (tested to 1e-5)."""
 
-    def __init__(self, animator, mode: str = Mode.HYBRID, tau: float | None = None, collision: bool = True, rig=None,
+    def __init__(self, animator, mode: str = Mode.AUTO, tau: float | None = None, collision: bool = True, rig=None,
                  gate: str | None = None):
         self.crowd = CrowdStream(animator, mode, tau, collision, rig, gate)
 

@@ -1,0 +1,93 @@
+"""The ``auto`` mode's calibration: which of the hybrid, residual and detail modes a model runs
+by default.
+
+Against a chaotic truth the most accurate output is close to the conditional mean, and the mean is
+blurry: its folds and its hem's swing average away. The modes that use the database trade a little
+accuracy for real simulated detail (docs/results.md). ``auto`` is the calibrated trade, chosen on
+the validation clips through the product path (``Animator.animate``: offline, blended, push-out on)
+by one documented criterion that counts both:
+
+1. accuracy first: the candidates whose PVE is within :data:`ACCURACY_ALLOWANCE` (3 %) of the most
+   accurate candidate's;
+2. then plausibility: of those, the one whose cloth looks most like the simulation, i.e. the
+   smallest *plausibility gap* ``max(|ln sharpness|, |ln hem swing|)``, sharpness being the bending
+   energy over the truth's and hem swing the hem's amplitude over the truth's (0: both as in the
+   simulation; a half and a double are equally far);
+3. ties: the cheaper mode (hybrid, then residual, then detail: the order of :data:`AUTO_CHOICES`).
+
+A model whose residual mode is not calibrated chooses between the other two.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from tqdm import tqdm
+
+from ..artifacts.bundle import AUTO_CHOICES
+from ..artifacts.residual import ACCURACY_ALLOWANCE
+from ..data.dataset import SequenceRecord
+from ..garment.fit import hem_loop
+from ..inference.animator import Animator
+from ..sim.quality import hem_swing
+from . import metrics as M
+
+AUTO_MAX_SEQUENCES = 24  # validation clips the choice animates at most (evenly spaced): about a minute
+
+
+def plausibility_gap(sharpness: float, swing: float) -> float:
+    """``max(|ln sharpness|, |ln hem swing|)``: 0 where both ratios are 1 (inf where one is 0)."""
+    if sharpness <= 0 or swing <= 0:
+        return math.inf
+    return max(abs(math.log(sharpness)), abs(math.log(swing)))
+
+
+def pick_auto_mode(candidates: dict[str, dict[str, float]], allowance: float = ACCURACY_ALLOWANCE) -> str:
+    """The criterion of the module docstring on each candidate's ``pve_mm``, ``sharpness`` and
+    ``hem_swing`` (ratios to the truth)."""
+    best = min(c["pve_mm"] for c in candidates.values())
+    eligible = [m for m, c in candidates.items() if c["pve_mm"] <= allowance * best]
+    order = {m: i for i, m in enumerate(AUTO_CHOICES)}
+    return min(eligible, key=lambda m: (plausibility_gap(candidates[m]["sharpness"], candidates[m]["hem_swing"]),
+                                        order.get(m, len(order))))
+
+
+def _hem(animator: Animator) -> np.ndarray:
+    template = animator.bundle.template
+    hem = template.groups.get("hem")
+    return hem_loop(template.vertices, template.faces) if hem is None else hem
+
+
+def calibrate_auto_mode(animator: Animator, records: list[SequenceRecord], allowance: float = ACCURACY_ALLOWANCE,
+                        max_sequences: int | None = AUTO_MAX_SEQUENCES, progress: bool = True) -> dict:
+    """Each candidate's PVE (mm, against each record's simulation), sharpness and hem swing on
+    ``records`` (at most ``max_sequences`` of them, evenly spaced), and the mode the criterion picks:
+    ``{"mode", "criterion", "allowance", "sequences", "frames", "candidates": {mode: {...}}}``, what
+    bundle.json keeps under ``auto``."""
+    if not records:
+        raise ValueError("the auto mode is calibrated on validation sequences, and there are none")
+    if max_sequences is not None and len(records) > max_sequences:
+        records = [records[i] for i in np.linspace(0, len(records) - 1, max_sequences).round().astype(int)]
+    template = animator.bundle.template
+    rest, topo = template.vertices.astype(np.float64), M.MeshTopology.of(template.faces, template.num_vertices)
+    hem = _hem(animator)
+    modes = [m for m in AUTO_CHOICES if animator.supports(m)]
+    names = list(animator.bundle.database.names)
+    frames = sum(len(r.garment) for r in records)
+    truth_bend = sum(float(M.cloth_energies(r.garment.astype(np.float64), rest, topo)[1].sum()) for r in records)
+    truth_swing = sum(hem_swing(r.garment, r.motion, hem) * len(r.garment) for r in records)
+    candidates = {}
+    for mode in tqdm(modes, desc="auto mode", unit="mode", disable=not progress):
+        error = bend = swing = 0.0
+        for r in records:  # a clip that is in the database (the paper's validation) may not retrieve itself
+            own = names.index(r.name) if r.name in names else None
+            pred = animator.animate(r.motion, mode=mode, exclude_sequence=own).vertices.astype(np.float64)
+            error += M.pve_mm(pred, r.garment.astype(np.float64)) * len(pred)
+            bend += float(M.cloth_energies(pred, rest, topo)[1].sum())
+            swing += hem_swing(pred, r.motion, hem) * len(pred)
+        candidates[mode] = {"pve_mm": error / frames, "sharpness": bend / max(truth_bend, 1e-30),
+                            "hem_swing": swing / max(truth_swing, 1e-30)}
+    return {"mode": pick_auto_mode(candidates, allowance), "allowance": allowance, "sequences": len(records),
+            "frames": frames, "criterion": "the most plausible (max |ln sharpness|, |ln hem swing|) within the "
+                                           "allowance x the most accurate PVE", "candidates": candidates}

@@ -1,0 +1,104 @@
+"""The auto mode: its criterion on hand-made numbers, its calibration against the evaluation's
+own PVE, and that auto runs the calibrated mode in every path (offline, causal, streamed)."""
+
+import json
+import math
+import shutil
+
+import numpy as np
+import pytest
+
+from hrr_garment.eval.auto_mode import calibrate_auto_mode, pick_auto_mode, plausibility_gap
+from hrr_garment.motion.synth import synthesize
+
+
+def _c(pve, sharpness, swing):
+    return {"pve_mm": pve, "sharpness": sharpness, "hem_swing": swing}
+
+
+def test_plausibility_gap_weighs_too_smooth_and_too_sharp_alike():
+    assert plausibility_gap(1.0, 1.0) == 0.0
+    assert plausibility_gap(0.5, 1.0) == pytest.approx(plausibility_gap(2.0, 1.0)) == pytest.approx(math.log(2))
+    assert plausibility_gap(0.9, 0.25) == pytest.approx(math.log(4))  # the worse of the two ratios
+    assert plausibility_gap(0.0, 1.0) == math.inf
+
+
+@pytest.mark.parametrize("candidates, expected", [
+    # the sharper mode is within 3 % of the most accurate: it is chosen
+    ({"hybrid": _c(30.0, 0.13, 0.60), "residual": _c(30.3, 0.16, 0.63), "detail": _c(30.8, 0.40, 0.63)}, "detail"),
+    # 4 % worse is too much, however sharp: the most plausible of the rest
+    ({"hybrid": _c(30.0, 0.13, 0.60), "residual": _c(30.6, 0.16, 0.63), "detail": _c(31.2, 0.90, 0.95)}, "residual"),
+    # the most accurate need not be the hybrid, and the allowance is measured from it
+    ({"hybrid": _c(30.5, 0.13, 0.60), "residual": _c(30.0, 0.16, 0.63), "detail": _c(30.8, 0.40, 0.63)}, "detail"),
+    # equally plausible: the cheaper mode
+    ({"hybrid": _c(30.0, 0.50, 0.60), "detail": _c(30.0, 2.0, 0.60)}, "hybrid"),
+    # too sharp counts against a mode as much as too smooth
+    ({"hybrid": _c(30.0, 0.50, 0.90), "detail": _c(30.5, 3.0, 0.95)}, "hybrid"),
+])
+def test_the_criterion_takes_the_most_plausible_of_the_accurate(candidates, expected):
+    assert pick_auto_mode(candidates) == expected
+    assert pick_auto_mode(candidates, allowance=1.0) == min(candidates, key=lambda m: (candidates[m]["pve_mm"],
+                                                                                        list(candidates).index(m)))
+
+
+def test_hrr_train_calibrates_auto_and_it_agrees_with_the_evaluation(trained):
+    from hrr_garment.artifacts.bundle import AUTO_CHOICES
+    from hrr_garment.data.dataset import GarmentDataset
+    from hrr_garment.eval.evaluate import evaluate_modes
+    from hrr_garment.inference.animator import Animator
+
+    root, data, _ = trained
+    meta = json.loads((root / "model" / "bundle.json").read_text())
+    auto = meta["auto"]
+    assert auto["mode"] in AUTO_CHOICES and set(auto["candidates"]) <= set(AUTO_CHOICES)
+    assert auto["mode"] == pick_auto_mode(auto["candidates"], auto["allowance"])
+    animator = Animator.load(root / "model")
+    assert animator.bundle.auto_mode == auto["mode"]
+    ds = GarmentDataset(data)
+    records = [ds.sequence(n) for n in ds.splits["val"]]
+    again = calibrate_auto_mode(animator, records, progress=False)
+    for mode, c in auto["candidates"].items():  # deterministic
+        assert again["candidates"][mode] == pytest.approx(c)
+    # the same PVE as hrr-eval's on these clips (its own path: every metric, the single simulation)
+    pve = evaluate_modes(animator, records, ["hybrid"], progress=False)["hybrid"].metrics["pve_mm"]
+    assert again["candidates"]["hybrid"]["pve_mm"] == pytest.approx(pve, rel=1e-6)
+    for c in again["candidates"].values():
+        assert c["pve_mm"] > 0 and c["sharpness"] > 0 and c["hem_swing"] > 0
+
+
+@pytest.mark.parametrize("chosen", ["detail", "hybrid"])
+def test_auto_runs_the_calibrated_mode_everywhere(trained, tmp_path, chosen):
+    from hrr_garment.artifacts.bundle import update_bundle_meta
+    from hrr_garment.inference.animator import Animator
+
+    root, _, _ = trained
+    copy = tmp_path / "model"
+    shutil.copytree(root / "model", copy)
+    update_bundle_meta(copy, {"auto": {"mode": chosen}})
+    animator = Animator.load(copy)
+    motion = synthesize("walk", 1.0, seed=5)
+    default = animator.animate(motion, collision=False)
+    named = animator.animate(motion, mode=chosen, collision=False)
+    assert default.settings["mode"] == chosen and np.array_equal(default.vertices, named.vertices)
+    causal = animator.animate(motion, mode=chosen, collision=False, causal=True)
+    stream = animator.stream(collision=False)
+    assert stream.mode == chosen
+    streamed = np.stack([stream.push(motion.slice(t, t + 1)) for t in range(motion.num_frames)])
+    assert np.allclose(streamed, causal.vertices, atol=1e-5)
+
+
+def test_a_model_without_auto_runs_the_hybrid(trained, tmp_path):
+    from hrr_garment.artifacts.bundle import read_meta
+    from hrr_garment.inference.animator import Animator
+
+    root, _, _ = trained
+    copy = tmp_path / "model"
+    shutil.copytree(root / "model", copy)
+    meta = read_meta(copy)
+    meta.pop("auto")
+    (copy / "bundle.json").write_text(json.dumps(meta))
+    animator = Animator.load(copy)
+    assert animator.resolve_mode("auto") == "hybrid"
+    motion = synthesize("walk", 0.5, seed=6)
+    assert np.array_equal(animator.animate(motion, collision=False).vertices,
+                          animator.animate(motion, mode="hybrid", collision=False).vertices)
