@@ -42,7 +42,7 @@ def test_the_criterion_takes_the_most_plausible_of_the_accurate(candidates, expe
 
 
 def test_hrr_train_calibrates_auto_and_it_agrees_with_the_evaluation(trained):
-    from hrr_garment.artifacts.bundle import AUTO_CHOICES
+    from hrr_garment.artifacts.manifest import AUTO_CHOICES
     from hrr_garment.data.dataset import GarmentDataset
     from hrr_garment.eval.evaluate import evaluate_modes
     from hrr_garment.inference.animator import Animator

@@ -109,7 +109,8 @@ def test_stream_with_a_match_gate_equals_offline_causal(animator, gate):
 def test_a_bundle_before_the_match_gates_runs_the_entropy_and_says_what_is_missing(trained, tmp_path):
     import shutil
 
-    from hrr_garment.artifacts.bundle import BundleError, _content_hash, load_bundle
+    from hrr_garment.artifacts.bundle import BundleError, load_bundle
+    from hrr_garment.artifacts.manifest import content_hash
 
     root, _, _ = trained
     old = tmp_path / "old"
@@ -117,7 +118,7 @@ def test_a_bundle_before_the_match_gates_runs_the_entropy_and_says_what_is_missi
     meta = json.loads((old / "bundle.json").read_text())
     for key in ("gate", "gates"):
         meta.pop(key)
-    meta["content_hash"] = _content_hash(meta["files"])
+    meta["content_hash"] = content_hash(meta["files"])
     (old / "bundle.json").write_text(json.dumps(meta))
     bundle = load_bundle(old)
     assert bundle.gate == "entropy" and bundle.gate_tau("entropy") == bundle.tau

@@ -19,9 +19,6 @@ version, every file's hash and every tensor's shape, and says which and why when
 
 from __future__ import annotations
 
-import hashlib
-import json
-import math
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -34,7 +31,6 @@ from safetensors.numpy import save_file as save_arrays
 from safetensors.torch import load_file as load_tensors
 from safetensors.torch import save_file as save_tensors
 
-from ..errors import InputError
 from ..garment.mesh import GarmentError, GarmentMesh, check_garment
 from ..io_utils import atomic_path, atomic_write_text, strict_json
 from ..models.codespace import CodeSpace, CodeSpaceConfig
@@ -44,14 +40,7 @@ from ..models.hierarchy import cached_hierarchy
 from ..motion.features import FeatureStats
 from .database import CodeDatabase
 from .gate_signals import GATE_SIGNALS, check_gate_signal
-
-FORMAT_VERSION = 2  # 2: garments in the pelvis-following body frame (motion/frame.py)
-NETWORKS = ("motion_encoder", "garment_encoder", "decoder", "quantizer")
-AUTO_CHOICES = ("hybrid", "residual", "detail")  # what mode ``auto`` may stand for (eval/auto_mode.py chooses)
-
-
-class BundleError(InputError):
-    """A model directory that is missing, incomplete, corrupt, of another version or garment."""
+from .manifest import FORMAT_VERSION, NETWORKS, BundleError, content_hash, read_meta, sha256
 
 
 @dataclass
@@ -125,14 +114,6 @@ class Bundle:
         return str(self.meta["content_hash"])
 
 
-def _sha256(path: Path) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as fh:
-        for chunk in iter(lambda: fh.read(1 << 20), b""):
-            h.update(chunk)
-    return h.hexdigest()
-
-
 def _save(path: Path, tensors: dict, numpy: bool = False) -> None:
     with atomic_path(path) as tmp:
         if numpy:
@@ -161,7 +142,7 @@ def write_bundle(folder: str | Path, *, autoencoder: MeshAutoencoder, codespace:
                                             "faces": template.faces.astype(np.int32), "attached": template.attached,
                                             **{f"group/{k}": np.asarray(v, np.int32) for k, v in template.groups.items()
                                                if k != "attached"}}, numpy=True)
-    files = {p: _sha256(folder / p) for p in sorted(["autoencoder.safetensors", "stats.safetensors", "database.safetensors",
+    files = {p: sha256(folder / p) for p in sorted(["autoencoder.safetensors", "stats.safetensors", "database.safetensors",
                                                      "template.safetensors", *[f"{n}.safetensors" for n in NETWORKS]])}
     meta = {"format_version": FORMAT_VERSION, "garment": template.name, "created": time.strftime("%Y-%m-%dT%H:%M:%S"),
             "autoencoder": {"config": autoencoder.config.to_dict(), "scale": float(autoencoder.scale),
@@ -169,14 +150,10 @@ def write_bundle(folder: str | Path, *, autoencoder: MeshAutoencoder, codespace:
             "codespace": {"config": codespace.config.to_dict(), "features": codespace.features,
                           "latent_shape": list(codespace.latent_shape)},
             "tau": float(tau), "gate": gate, "database": {"names": database.names, "classes": database.classes, "windows": len(database)},
-            "files": files, "content_hash": _content_hash(files),
+            "files": files, "content_hash": content_hash(files),
             **info}
     atomic_write_text(folder / "bundle.json", strict_json(meta, indent=2))
     return folder / "bundle.json"
-
-
-def _content_hash(files: dict[str, str]) -> str:
-    return hashlib.sha256(json.dumps(files, sort_keys=True).encode()).hexdigest()[:16]
 
 
 def add_bundle_part(folder: str | Path, name: str, tensors: dict, meta: dict) -> None:
@@ -185,9 +162,9 @@ def add_bundle_part(folder: str | Path, name: str, tensors: dict, meta: dict) ->
     folder = Path(folder)
     current = read_meta(folder)
     _save(folder / name, tensors)
-    files = {**current["files"], name: _sha256(folder / name)}
+    files = {**current["files"], name: sha256(folder / name)}
     atomic_write_text(folder / "bundle.json", strict_json({**current, **meta, "files": files,
-                                                          "content_hash": _content_hash(files)}, indent=2))
+                                                          "content_hash": content_hash(files)}, indent=2))
 
 
 def update_bundle_meta(folder: str | Path, meta: dict) -> None:
@@ -237,74 +214,6 @@ def _arrays(folder: Path, name: str, keys: tuple[str, ...]) -> dict[str, np.ndar
     if bad:
         raise BundleError(folder, f"{name}: non-finite values in {bad[:3]}")
     return arrays
-
-
-def _required_files(meta: dict) -> set[str]:
-    """Every file :func:`load_bundle` opens for this bundle: each must be listed with its hash."""
-    names = {"autoencoder.safetensors", "stats.safetensors", "database.safetensors", "template.safetensors",
-             *[f"{n}.safetensors" for n in NETWORKS]}
-    return names | ({"direct.safetensors"} if "direct" in meta else set())
-
-
-def _check_manifest(folder: Path, meta: object) -> dict:
-    """bundle.json's structure, file list and content hash; the integrity check has no off switch."""
-    if not isinstance(meta, dict):
-        raise BundleError(folder, f"bundle.json holds a {type(meta).__name__}, not an object")
-    files = meta.get("files")
-    if not isinstance(files, dict) or not all(isinstance(k, str) and isinstance(v, str) for k, v in files.items()):
-        raise BundleError(folder, "bundle.json has no valid 'files' list (file name -> sha256): refusing an unverifiable model")
-    unlisted = sorted(_required_files(meta) - set(files))
-    if unlisted:
-        raise BundleError(folder, f"bundle.json does not list {unlisted} with their hashes: refusing an unverifiable model")
-    for name in files:
-        if name != Path(name).name or name in ("", ".", "..") or "\\" in name:
-            raise BundleError(folder, f"bundle.json lists {name!r}: bundle files must lie directly in the bundle folder")
-    if meta.get("content_hash") != _content_hash(files):
-        raise BundleError(folder, f"content_hash {meta.get('content_hash')!r} does not match the file list "
-                                  f"({_content_hash(files)}): bundle.json was edited")
-    garment, tau = meta.get("garment"), meta.get("tau")
-    if not isinstance(garment, str) or not garment:
-        raise BundleError(folder, f"bundle.json 'garment' must be a name, got {garment!r}")
-    if isinstance(tau, bool) or not isinstance(tau, (int, float)) or not math.isfinite(tau) or tau < 0:
-        raise BundleError(folder, f"bundle.json 'tau' must be a finite number >= 0, got {tau!r}")
-    if meta.get("gate", "entropy") not in GATE_SIGNALS:
-        raise BundleError(folder, f"bundle.json 'gate' must be one of {', '.join(GATE_SIGNALS)}, got {meta.get('gate')!r}")
-    residual = meta.get("residual", {"weight": 0.0})
-    weight = residual.get("weight") if isinstance(residual, dict) else None
-    if isinstance(weight, bool) or not isinstance(weight, (int, float)) or not math.isfinite(weight) or weight < 0:
-        raise BundleError(folder, f"bundle.json 'residual' must hold a finite 'weight' >= 0, got {residual!r}")
-    auto = meta.get("auto", {"mode": "hybrid"})
-    if not isinstance(auto, dict) or auto.get("mode") not in AUTO_CHOICES:
-        raise BundleError(folder, f"bundle.json 'auto' must hold a 'mode' of {', '.join(AUTO_CHOICES)}, got {auto!r}")
-    for section in ("autoencoder", "codespace", "database"):
-        if not isinstance(meta.get(section), dict):
-            raise BundleError(folder, f"bundle.json lacks its {section!r} section")
-    return meta
-
-
-def read_meta(folder: str | Path) -> dict:
-    """``bundle.json`` after the version, manifest and file-hash checks."""
-    folder = Path(folder)
-    path = folder / "bundle.json"
-    if not folder.is_dir():
-        raise BundleError(folder, "no such model directory (train one with hrr-train)")
-    if not path.is_file():
-        raise BundleError(folder, "no bundle.json: not a model bundle, or its training did not finish")
-    try:
-        meta = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise BundleError(folder, f"bundle.json is unreadable ({exc})") from None
-    if not isinstance(meta, dict) or meta.get("format_version") != FORMAT_VERSION:
-        version = meta.get("format_version") if isinstance(meta, dict) else None
-        raise BundleError(folder, f"bundle format_version {version!r}; this hrr_garment reads {FORMAT_VERSION} "
-                                  "(retrain with hrr-train)")
-    _check_manifest(folder, meta)
-    for name, digest in meta["files"].items():
-        if not (folder / name).is_file():
-            raise BundleError(folder, f"{name} is missing")
-        if _sha256(folder / name) != digest:
-            raise BundleError(folder, f"{name} does not match its recorded hash (corrupt or truncated file)")
-    return meta
 
 
 def load_bundle(folder: str | Path, cache_dir: Path | None = None) -> Bundle:

@@ -25,7 +25,7 @@ import math
 import numpy as np
 from tqdm import tqdm
 
-from ..artifacts.bundle import AUTO_CHOICES
+from ..artifacts.manifest import AUTO_CHOICES
 from ..artifacts.residual import ACCURACY_ALLOWANCE
 from ..data.dataset import SequenceRecord
 from ..garment.fit import hem_loop
