@@ -95,6 +95,8 @@ def analyse(model: str, split: str, sequences: int | None) -> dict:
             "detail (decoded: the detail mode)": animator.animate(record.motion, mode="detail", collision=False).vertices,
             "detail (raw, centre)": add_detail(regression, centre, animator.smoothing),
             "detail (raw, centre, 1 pass)": add_detail(regression, centre, animator.smoothing, passes=1),
+            "detail (raw, centre, 1 pass, strength 0.8)": add_detail(regression, centre, animator.smoothing, strength=0.8,
+                                                                      passes=1),
             "detail (raw, centre, strength 1.2)": add_detail(regression, centre, animator.smoothing, strength=1.2),
             "detail (raw, blended)": add_detail(regression, blended, animator.smoothing),
         }
@@ -124,9 +126,9 @@ def main() -> None:
         print(json.dumps(result, indent=1))
         return
     print(f"{args.model}, {args.split}: {len(result['sequences'])} clips, {result['frames']} frames")
-    print(f"{'':36s} {'PVE mm':>8s} {'x reg':>6s} {'sharp':>6s} {'hem':>6s} {'jitter':>7s}")
+    print(f"{'':44s} {'PVE mm':>8s} {'x reg':>6s} {'sharp':>6s} {'hem':>6s} {'jitter':>7s}")
     for key, r in result["modes"].items():
-        print(f"{key:36s} {r['pve_mm']:8.2f} {r['pve_vs_regression']:6.3f} {r['sharpness']:6.2f} {r['hem_swing']:6.2f} "
+        print(f"{key:44s} {r['pve_mm']:8.2f} {r['pve_vs_regression']:6.3f} {r['sharpness']:6.2f} {r['hem_swing']:6.2f} "
               f"{r['jitter_mm']:7.2f}")
 
 
