@@ -29,7 +29,7 @@ import numpy as np
 
 from hrr_garment.data.dataset import GarmentDataset
 from hrr_garment.eval import metrics as M
-from hrr_garment.garment.fit import hem_loop
+from hrr_garment.garment.fit import hem_vertices
 from hrr_garment.inference.animator import Animator
 from hrr_garment.inference.blending import window_weights
 from hrr_garment.inference.detail import add_detail
@@ -78,8 +78,7 @@ def analyse(model: str, split: str, sequences: int | None) -> dict:
         names = [names[i] for i in sorted({int(round(i)) for i in np.linspace(0, len(names) - 1, min(sequences, len(names)))})]
     template = animator.bundle.template
     rest, topo = template.vertices.astype(np.float64), M.MeshTopology.of(template.faces, template.num_vertices)
-    hem = template.groups.get("hem")
-    hem = hem_loop(template.vertices, template.faces) if hem is None else hem
+    hem = hem_vertices(template)
     sums: dict[str, np.ndarray] = {}
     truth_sums = np.zeros(2)
     frames, cache = 0, {}

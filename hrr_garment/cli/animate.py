@@ -40,8 +40,9 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--gate", default=None, choices=GATE_SIGNALS,
                    help="what the hybrid thresholds: the motion code's entropy (the paper's), the match's code "
                         "similarity or its motion distance (default: the model's calibrated choice)")
-    p.add_argument("--tau", type=float, default=None, help="the gate's threshold (default: the model's calibrated one); --gate or --tau "
-                        "with the default mode runs the hybrid, whose settings they are")
+    p.add_argument("--tau", type=float, default=None,
+                   help="the gate's threshold (default: the model's calibrated one); --gate or --tau with the default "
+                        "mode runs the hybrid, whose settings they are")
     p.add_argument("--no-collision", action="store_true", help="skip the collision push-out")
     p.add_argument("--causal", action="store_true", help="causal windows only, as the streaming API")
     p.add_argument("--precision", choices=PRECISIONS, default="float32",

@@ -241,15 +241,16 @@ def _auto_mode(folder: Path, dataset: Path, progress: bool) -> None:
     once per bundle (a model trained before it gets it on its next ``--stage codespace``)."""
     from ..artifacts.bundle import read_meta, update_bundle_meta
 
-    if "auto" not in read_meta(folder):
+    auto = read_meta(folder).get("auto")  # reading it hashes every file: once
+    if auto is None:
         from ..data.dataset import GarmentDataset
         from ..eval.auto_mode import calibrate_auto_mode
         from ..inference.animator import Animator
 
         ds = GarmentDataset(dataset)
         records = [ds.sequence(n) for n in ds.splits.get("val", [])]
-        update_bundle_meta(folder, {"auto": calibrate_auto_mode(Animator.load(folder), records, progress=progress)})
-    auto = read_meta(folder)["auto"]
+        auto = calibrate_auto_mode(Animator.load(folder), records, progress=progress)
+        update_bundle_meta(folder, {"auto": auto})
     print(f"auto mode: {auto['mode']} (on {auto['sequences']} validation clips: " + "; ".join(
         f"{m} {c['pve_mm']:.2f} mm, sharpness {c['sharpness']:.2f}, hem swing {c['hem_swing']:.2f}"
         for m, c in auto["candidates"].items()) + ")")

@@ -28,7 +28,7 @@ from tqdm import tqdm
 from ..artifacts.manifest import AUTO_CHOICES
 from ..artifacts.residual import ACCURACY_ALLOWANCE
 from ..data.dataset import SequenceRecord
-from ..garment.fit import hem_loop
+from ..garment.fit import hem_vertices
 from ..inference.animator import Animator
 from ..sim.quality import hem_swing
 from . import metrics as M
@@ -53,12 +53,6 @@ def pick_auto_mode(candidates: dict[str, dict[str, float]], allowance: float = A
                                         order.get(m, len(order))))
 
 
-def _hem(animator: Animator) -> np.ndarray:
-    template = animator.bundle.template
-    hem = template.groups.get("hem")
-    return hem_loop(template.vertices, template.faces) if hem is None else hem
-
-
 def calibrate_auto_mode(animator: Animator, records: list[SequenceRecord], allowance: float = ACCURACY_ALLOWANCE,
                         max_sequences: int | None = AUTO_MAX_SEQUENCES, progress: bool = True) -> dict:
     """Each candidate's PVE (mm, against each record's simulation), sharpness and hem swing on
@@ -71,19 +65,20 @@ def calibrate_auto_mode(animator: Animator, records: list[SequenceRecord], allow
         records = [records[i] for i in np.linspace(0, len(records) - 1, max_sequences).round().astype(int)]
     template = animator.bundle.template
     rest, topo = template.vertices.astype(np.float64), M.MeshTopology.of(template.faces, template.num_vertices)
-    hem = _hem(animator)
+    hem = hem_vertices(template)
     modes = [m for m in AUTO_CHOICES if animator.supports(m)]
     names = list(animator.bundle.database.names)
-    frames = sum(len(r.garment) for r in records)
-    truth_bend = sum(float(M.cloth_energies(r.garment.astype(np.float64), rest, topo)[1].sum()) for r in records)
-    truth_swing = sum(hem_swing(r.garment, r.motion, hem) * len(r.garment) for r in records)
+    truths = [r.garment.astype(np.float64) for r in records]
+    frames = sum(len(t) for t in truths)
+    truth_bend = sum(float(M.cloth_energies(t, rest, topo)[1].sum()) for t in truths)
+    truth_swing = sum(hem_swing(t, r.motion, hem) * len(t) for t, r in zip(truths, records))
     candidates = {}
     for mode in tqdm(modes, desc="auto mode", unit="mode", disable=not progress):
         error = bend = swing = 0.0
-        for r in records:  # a clip that is in the database (the paper's validation) may not retrieve itself
+        for r, truth in zip(records, truths):  # a clip in the database (the paper's validation) may not retrieve itself
             own = names.index(r.name) if r.name in names else None
             pred = animator.animate(r.motion, mode=mode, exclude_sequence=own).vertices.astype(np.float64)
-            error += M.pve_mm(pred, r.garment.astype(np.float64)) * len(pred)
+            error += M.pve_mm(pred, truth) * len(pred)
             bend += float(M.cloth_energies(pred, rest, topo)[1].sum())
             swing += hem_swing(pred, r.motion, hem) * len(pred)
         candidates[mode] = {"pve_mm": error / frames, "sharpness": bend / max(truth_bend, 1e-30),

@@ -15,6 +15,7 @@ import numpy as np
 from tqdm import tqdm
 
 from ..data.dataset import SequenceRecord
+from ..garment.fit import hem_vertices
 from ..inference.animator import Animator
 from ..inference.modes import Mode
 from ..sim.quality import body_signed_distance, penetration_fraction
@@ -132,11 +133,7 @@ def evaluate_modes(animator: Animator, records: list[SequenceRecord], modes: lis
     gate, tau = animator.gate_setting(gate, tau)
     topo = M.MeshTopology.of(bundle.template.faces, bundle.template.num_vertices)
     rest = bundle.template.vertices.astype(np.float64)
-    hem = bundle.template.groups.get("hem")
-    if hem is None:  # a bundle from before templates kept their groups, or a user garment without one
-        from ..garment.fit import hem_loop
-
-        hem = hem_loop(bundle.template.vertices, bundle.template.faces)
+    hem = hem_vertices(bundle.template)
     ensembles = ensembles or {}
     truths: dict[str, dict[str, float]] = {}  # per record, computed once for every mode
     names = list(bundle.database.names)

@@ -27,7 +27,7 @@ import numpy as np
 
 from ..body.capsules import DEFAULT_BODY, BodyModel, capsule_signed_distance
 from .attachment import TORSO_JOINTS
-from .mesh import GarmentError, boundary_edges, edge_components
+from .mesh import GarmentError, GarmentMesh, boundary_edges, edge_components
 
 UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001, "in": 0.0254}
 GARMENT_SIZE_M = (0.2, 2.2)  # largest extent of any plausible garment
@@ -82,6 +82,13 @@ def hem_loop(vertices: np.ndarray, faces: np.ndarray, source: str = "garment") -
     labels = edge_components(len(vertices), open_edges)[open_edges[:, 0]]
     length = np.linalg.norm(vertices[open_edges[:, 1]] - vertices[open_edges[:, 0]], axis=1)
     return np.unique(open_edges[labels == np.argmax(np.bincount(labels, weights=length))])
+
+
+def hem_vertices(mesh: GarmentMesh) -> np.ndarray:
+    """The hem's vertex indices: the mesh's ``hem`` group, or for a mesh without one (a bundle from
+    before templates kept their groups, a user garment) its :func:`hem_loop`."""
+    hem = mesh.groups.get("hem")
+    return hem_loop(mesh.vertices, mesh.faces, mesh.name) if hem is None else hem
 
 
 def hem_up_axis(vertices: np.ndarray, faces: np.ndarray, source: str = "garment") -> tuple[int, float]:

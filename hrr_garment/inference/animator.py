@@ -156,19 +156,19 @@ class Animator:
         (default the model's calibrated one, :data:`~hrr_garment.artifacts.gate_signals.GATE_SIGNALS`) and
         ``tau`` its threshold (default the one calibrated for that signal); ``causal`` gives what
         streaming gives; ``exclude_sequence`` keeps one database sequence out of retrieval (evaluation)."""
-        mode = self.resolve_mode(mode, gate is not None or tau is not None)
+        mode = self.resolve_mode(mode, gate, tau)
         gate, tau = self.gate_setting(gate, tau)
         with flush_denormals():
             return self._animate(motion, mode, tau, collision, causal, exclude_sequence, gate)
 
-    def resolve_mode(self, mode: Mode | str, gated: bool = False) -> Mode:
+    def resolve_mode(self, mode: Mode | str, gate: str | None = None, tau: float | None = None) -> Mode:
         """``mode`` itself, or for ``auto`` the mode this model was calibrated to run
-        (:attr:`~hrr_garment.artifacts.bundle.Bundle.auto_mode`); ``gated``: a gate or tau was
-        given, which are the hybrid's settings, so auto runs the hybrid."""
+        (:attr:`~hrr_garment.artifacts.bundle.Bundle.auto_mode`); an explicit ``gate`` or ``tau`` is
+        the hybrid's setting, so with either auto runs the hybrid."""
         mode = Mode(mode)
         if mode is not Mode.AUTO:
             return mode
-        return Mode.HYBRID if gated else Mode(self.bundle.auto_mode)
+        return Mode.HYBRID if gate is not None or tau is not None else Mode(self.bundle.auto_mode)
 
     def gate_setting(self, gate: str | None, tau: float | None) -> tuple[str, float]:
         """The gate signal and threshold to run: the model's calibrated ones unless given."""

@@ -76,7 +76,8 @@ class CrowdStream:
                  gate: str | None = None):
         if mode != Mode.AUTO and mode not in CODE_MODES:
             raise ValueError(f"streaming runs auto or one of {', '.join(CODE_MODES)}, not {str(mode)!r}")
-        self.animator, self.mode, self.collision, self.rig = animator, animator.resolve_mode(mode, gate is not None or tau is not None), collision, rig
+        self.animator, self.collision, self.rig = animator, collision, rig
+        self.mode = animator.resolve_mode(mode, gate, tau)
         self.gate, self.tau = animator.gate_setting(gate, tau)
         self._characters: dict[Hashable, _Character] = {}
         self.timings = _Timings()
