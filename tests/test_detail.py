@@ -1,13 +1,17 @@
-"""The detail mode: the regression's shape plus the high spatial frequencies of the retrieved
-window (its folds), split by the mesh's 1-ring mean."""
+"""The detail mode: the regression's shape plus simulated folds, the high spatial frequencies of
+the database's frames (the fold store), chosen frame by frame by a playhead (the fold track)."""
 
 import numpy as np
 import pytest
 
+from hrr_garment.artifacts.folds import FoldStore
+from hrr_garment.garment.smoothing import high_frequencies, mean_operator
 from hrr_garment.garment.templates import make_garment
-from hrr_garment.inference.collision import mean_operator
-from hrr_garment.inference.detail import add_detail
+from hrr_garment.inference.detail import add_folds
+from hrr_garment.inference.fold_track import FoldTrack, causal_proposals, offline_proposals, track_folds
+from hrr_garment.motion.frame import from_body_frame, to_body_frame
 from hrr_garment.motion.synth import synthesize
+from hrr_garment.motion.windows import sequence_windows
 
 
 @pytest.fixture(scope="module")
@@ -16,42 +20,175 @@ def skirt():
     return garment, mean_operator(garment.faces, garment.num_vertices)
 
 
-def test_detail_takes_the_folds_and_leaves_the_shape(skirt, rng):
+def _rotation(angle: float) -> np.ndarray:
+    c, s = np.cos(angle), np.sin(angle)
+    return np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]])
+
+
+def test_high_frequencies_keep_folds_and_drop_shape(skirt, rng):
     garment, mean = skirt
-    regression = np.repeat(garment.vertices[None], 2, 0).astype(np.float32)
-    # a retrieval displaced as a whole (low frequency) adds nothing: the high-pass removes constants
-    assert np.allclose(add_detail(regression, regression + [0.05, -0.02, 0.01], mean), regression, atol=1e-6)
-    # per-vertex noise (the highest frequency) mostly passes ...
-    folds = rng.normal(0.0, 0.003, regression.shape)
-    out = add_detail(regression, regression + folds, mean)
-    kept = np.sum((out - regression) * folds) / np.sum(folds * folds)
+    frames = np.repeat(garment.vertices[None], 2, 0).astype(np.float64)
+    assert np.allclose(high_frequencies(frames + [0.05, -0.02, 0.01], mean, 1), high_frequencies(frames, mean, 1))
+    folds = rng.normal(0.0, 0.003, frames.shape)  # per-vertex noise: the highest frequency, mostly kept
+    kept = np.sum(high_frequencies(folds, mean, 3) * folds) / np.sum(folds * folds)
     assert 0.6 < kept < 1.1
-    # ... strength scales it linearly, 0 is the regression
-    assert np.allclose(add_detail(regression, regression + folds, mean, strength=0.5) - regression,
-                       0.5 * (out - regression), atol=1e-6)
-    assert np.array_equal(add_detail(regression, regression + folds, mean, strength=0.0), regression)
+    rot = _rotation(0.7)  # commutes with rotations: the same in the body frame and the world
+    assert np.allclose(high_frequencies(frames @ rot.T, mean, 2), high_frequencies(frames, mean, 2) @ rot.T)
 
 
-def test_detail_commutes_with_a_rigid_motion(skirt, rng):
-    """So it can run in the body frame and equal the same done in the world."""
+@pytest.mark.parametrize("passes", [1, 3])
+def test_the_fold_store_keeps_each_frame_within_half_a_step(skirt, rng, passes):
     garment, mean = skirt
-    a = garment.vertices[None].astype(np.float64) + rng.normal(0, 0.01, (1, garment.num_vertices, 3))
-    b = a + rng.normal(0, 0.01, a.shape)
-    c, s = np.cos(0.7), np.sin(0.7)
-    rot = np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]])
-    moved = add_detail(a @ rot.T + [1.0, 0.0, 2.0], b @ rot.T + [1.0, 0.0, 2.0], mean)
-    assert np.allclose(moved, add_detail(a, b, mean).astype(np.float64) @ rot.T + [1.0, 0.0, 2.0], atol=1e-5)
+    sequences = [garment.vertices[None] + rng.normal(0, 0.004, (n, garment.num_vertices, 3)) for n in (5, 1, 7)]
+    store = FoldStore.build(sequences, mean, passes)
+    assert store.detail.dtype == np.int8 and list(store.lengths) == [5, 1, 7] and store.passes == passes
+    exact = np.concatenate([high_frequencies(s, mean, passes) for s in sequences])
+    one = np.stack([np.arange(13), np.zeros(13, int)], 1)
+    got = store.folds(one, np.array([[1.0, 0.0]] * 13))
+    assert np.all(np.abs(got - exact) <= store.scale[:, None, None] / 2 + 1e-9)
+    assert np.abs(got - exact).max() < 0.01 * np.abs(exact).max()
+    # weighted rows: a linear mix of the stored frames
+    mixed = store.folds(np.array([[store.rows(2, 3), store.rows(0, 4)]]), np.array([[0.25, 0.75]]))
+    assert np.allclose(mixed[0], 0.25 * got[5 + 1 + 3] + 0.75 * got[4])
+    with pytest.raises(IndexError):
+        store.rows(1, 1)  # sequence 1 has one frame
 
 
-def test_the_detail_mode_is_the_regression_plus_the_retrievals_folds(trained):
+def test_the_fold_store_refuses_inconsistent_arrays():
+    detail = np.zeros((4, 10, 3), np.int8)
+    with pytest.raises(ValueError, match="int8"):
+        FoldStore(detail.astype(np.float32), np.ones(4), [0, 4])
+    with pytest.raises(ValueError, match="offsets"):
+        FoldStore(detail, np.ones(4), [0, 3])
+    with pytest.raises(ValueError, match="scales"):
+        FoldStore(detail, np.array([1.0, np.nan, 1.0, 1.0]), [0, 4])
+
+
+def test_folds_replace_the_regressions_own_and_commute_with_a_rigid_motion(skirt, rng):
+    garment, mean = skirt
+    regression = garment.vertices[None].astype(np.float64) + rng.normal(0, 0.01, (2, garment.num_vertices, 3))
+    folds = high_frequencies(regression + rng.normal(0, 0.003, regression.shape), mean, 1)
+    assert np.allclose(add_folds(regression, folds, mean, 1, strength=0.0), regression, atol=1e-6)
+    # the regression's own high frequencies in, nothing changes; strength scales the change linearly
+    assert np.allclose(add_folds(regression, high_frequencies(regression, mean, 1), mean, 1), regression, atol=1e-6)
+    full = add_folds(regression, folds, mean, 1, strength=1.0) - regression
+    assert np.allclose(add_folds(regression, folds, mean, 1, strength=0.5) - regression, 0.5 * full, atol=1e-6)
+    rot, shift = _rotation(0.7), np.array([1.0, 0.0, 2.0])
+    moved = add_folds(regression @ rot.T + shift, folds @ rot.T, mean, 1)
+    assert np.allclose(moved, add_folds(regression, folds, mean, 1).astype(np.float64) @ rot.T + shift, atol=1e-5)
+
+
+OFFSETS = np.array([0, 100, 130, 400])  # three database sequences of 100, 30 and 270 frames
+
+
+def test_the_track_follows_agreeing_proposals_forward_without_a_switch():
+    proposals = np.array([[2, 50 + t + (t % 3) - 1] for t in range(40)])  # sequence 2, wobbling by a frame
+    rows, weights = track_folds(proposals, OFFSETS)
+    assert np.array_equal(rows[:, 0], OFFSETS[2] + 49 + np.arange(40))  # from the first proposal, a frame on per frame
+    assert np.array_equal(weights[:, 0], np.ones(40))
+
+
+def test_the_track_jumps_after_hold_frames_of_disagreement_and_fades_the_old_folds_out():
+    track = FoldTrack(OFFSETS, hold=4, fade=3)
+    steps = [track.step(0, 10 + t) for t in range(5)]  # agreeing with itself
+    steps += [track.step(1, 5) for _ in range(10)]  # a proposal elsewhere, the same every frame
+    rows = np.array([r for r, _ in steps])
+    weights = np.array([w for _, w in steps])
+    assert np.allclose(weights.sum(1), 1.0)
+    jump = 5 + 4 - 1  # the fourth disagreeing frame
+    assert np.array_equal(rows[:jump, 0], np.arange(10, 10 + jump))  # played forward until then
+    assert rows[jump, 0] == OFFSETS[1] + 5 and rows[jump, 1] == 10 + jump  # then the proposal, the old fading
+    assert np.allclose(weights[jump:jump + 4, 1], [3 / 4, 2 / 4, 1 / 4, 0.0])
+    assert np.array_equal(rows[jump + 1:jump + 3, 1], [11 + jump, 12 + jump])  # the old plays on as it fades
+
+
+def test_the_track_jumps_where_its_sequence_ends():
+    track = FoldTrack(OFFSETS, hold=50)
+    rows = [track.step(1, 27)[0][0] for _ in range(2)] + [track.step(0, 3)[0][0] for _ in range(2)]
+    assert rows == [OFFSETS[1] + 27, OFFSETS[1] + 28, OFFSETS[1] + 29, 3]  # 29 is its last: then the proposal
+
+
+def test_proposals_are_each_frames_frame_in_its_match():
+    source = np.array([[0, 10], [1, 40], [2, 7], [0, 60]])  # 4 windows of 5 frames: 8 frames
+    assert offline_proposals(source, 8, 5).tolist() == [[0, 10], [0, 11], [0, 12], [1, 42], [2, 9], [0, 62], [0, 63],
+                                                        [0, 64]]
+    assert causal_proposals(source, 5).tolist() == [[0, 14], [1, 44], [2, 11], [0, 64]]
+
+
+def test_the_detail_mode_is_the_regression_plus_the_tracked_simulated_folds(trained):
     from hrr_garment.inference.animator import Animator
 
     root, _, _ = trained
     animator = Animator.load(root / "model")
+    store = animator.bundle.folds
+    assert store is not None and len(store.lengths) == len(animator.bundle.database.names)
     motion = synthesize("walk", 1.0, seed=3)
     regression = animator.animate(motion, mode="regression", collision=False).vertices
-    retrieval = animator.animate(motion, mode="retrieval", collision=False)
     detail = animator.animate(motion, mode="detail", collision=False)
-    assert np.allclose(detail.vertices, add_detail(regression, retrieval.vertices, animator.smoothing), atol=1e-4)
+    retrieval = animator.animate(motion, mode="retrieval", collision=False)
     assert detail.mode.all() and np.array_equal(detail.source, retrieval.source)
+    # the same by hand: the track over the windows' matches, their folds on the regression in the body frame
+    windows = np.ascontiguousarray(sequence_windows(animator.features(motion), animator.window))
+    source = animator._choose(windows, "detail", 0.0, None, "entropy").source
+    rows, weights = track_folds(offline_proposals(source, motion.num_frames, animator.window), store.offsets)
+    local = to_body_frame(regression.astype(np.float64), motion)
+    expected = from_body_frame(add_folds(local, store.folds(rows, weights), animator.smoothing, store.passes), motion)
+    assert np.abs(detail.vertices - expected).max() < 1e-4
     assert not np.allclose(detail.vertices, regression, atol=1e-3)
+
+
+def test_a_bundle_before_the_folds_says_how_to_add_them_and_hrr_train_does(trained, tmp_path, capsys):
+    import json
+    import shutil
+
+    from hrr_garment.artifacts.bundle import BundleError, update_bundle_meta
+    from hrr_garment.artifacts.manifest import FOLDS_FILE, content_hash
+    from hrr_garment.cli.train import main as train_main
+    from hrr_garment.inference.animator import Animator
+
+    root, data, args = trained
+    old = tmp_path / "model"
+    shutil.copytree(root / "model", old)
+    stage = ["--dataset", str(data), "--config", args[3], "--stage", "codespace", "-o", str(old), "--quiet"]
+    assert train_main(stage) == 0  # current with these settings (other tests train the shared model on)
+    folds = (old / FOLDS_FILE).read_bytes()
+    meta = json.loads((old / "bundle.json").read_text())
+    del meta["folds"], meta["files"][FOLDS_FILE]
+    meta["content_hash"] = content_hash(meta["files"])
+    (old / FOLDS_FILE).unlink()
+    (old / "bundle.json").write_text(json.dumps(meta))
+    update_bundle_meta(old, {"auto": {**meta["auto"], "mode": "detail"}})
+    animator = Animator.load(old)
+    assert not animator.supports("detail") and animator.resolve_mode("auto") == "hybrid"
+    with pytest.raises(BundleError, match="hrr-train --stage codespace"):
+        animator.animate(synthesize("walk", 0.5, seed=1), mode="detail")
+    with pytest.raises(BundleError, match="no simulated folds"):
+        animator.stream(mode="detail")
+    # the finished stage is reused (nothing retrained), the folds added as they were, auto calibrated anew
+    weights = (old / "motion_encoder.safetensors").read_bytes()
+    capsys.readouterr()
+    assert train_main(stage) == 0
+    assert "(reused)" in capsys.readouterr().out and (old / "motion_encoder.safetensors").read_bytes() == weights
+    assert (old / FOLDS_FILE).read_bytes() == folds
+    animator = Animator.load(old)
+    assert animator.supports("detail") and "detail" in animator.bundle.meta["auto"]["candidates"]
+
+
+def test_a_damaged_fold_store_is_refused(trained, tmp_path):
+    import shutil
+
+    from hrr_garment.artifacts.bundle import BundleError, add_bundle_part, load_bundle
+    from hrr_garment.artifacts.manifest import FOLDS_FILE
+
+    root, _, _ = trained
+    copy = tmp_path / "model"
+    shutil.copytree(root / "model", copy)
+    store = load_bundle(copy).folds
+    short = {**store.arrays(), "offsets": store.offsets[:-1]}  # one database sequence too few
+    add_bundle_part(copy, FOLDS_FILE, short, {}, numpy=True)
+    with pytest.raises(BundleError, match="offsets must rise"):
+        load_bundle(copy)
+    fewer = {"detail": store.detail[:, :-1], "scale": store.scale, "offsets": store.offsets}
+    add_bundle_part(copy, FOLDS_FILE, fewer, {}, numpy=True)
+    with pytest.raises(BundleError, match="vertices"):
+        load_bundle(copy)

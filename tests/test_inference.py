@@ -250,7 +250,7 @@ def test_push_out_moves_vertices_outside_without_spikes():
     # no spikes: edges end at most 35 % longer than in the unsqueezed skirt
     assert edge_strain(pushed, skirt.vertices, edges).max() <= edge_strain(rest, skirt.vertices, edges).max() + 0.35
     # the push spreads over the 4 rings around the vertices it needs to move, and nowhere else
-    from hrr_garment.inference.collision import mean_operator
+    from hrr_garment.garment.smoothing import mean_operator
 
     near = capsule_signed_distance(squeezed[0].astype(np.float64), a[0], b[0], DEFAULT_BODY.radii)[0] < 0.002
     adjacency, ring = mean_operator(skirt.faces, len(skirt.vertices)), near.copy()

@@ -38,6 +38,7 @@ import torch
 
 from hrr_garment.artifacts.bundle import Bundle
 from hrr_garment.artifacts.database import CodeDatabase
+from hrr_garment.artifacts.folds import FoldStore
 from hrr_garment.garment.templates import make_garment
 from hrr_garment.inference.animator import Animator
 from hrr_garment.models.codespace import CodeSpace, CodeSpaceConfig
@@ -63,8 +64,11 @@ def random_bundle(vertices: int, windows: int, seed: int = 0) -> Bundle:
                       np.arange(windows) // 111, np.arange(windows) % 111, [f"s{i}" for i in range(windows // 111 + 1)],
                       cfg.classes, rng.normal(size=(windows, cfg.window, cfg.features)).astype(np.float32))
     meta = {"tau": 1.0, "garment": "dress", "content_hash": "random"}
+    lengths = np.full(len(db.names), 111 + cfg.window - 1)  # every sequence's frames, as many as its windows cover
+    folds = FoldStore(rng.integers(-127, 128, (int(lengths.sum()), garment.num_vertices, 3), dtype=np.int8),
+                      np.full(int(lengths.sum()), 1e-4, np.float32), np.r_[0, np.cumsum(lengths)])
     return Bundle(Path("."), meta, ae, cs, FeatureStats(np.zeros(cfg.features, np.float32), np.ones(cfg.features, np.float32)),
-                  FeatureStats(np.zeros(size, np.float32), np.ones(size, np.float32)), db, garment)
+                  FeatureStats(np.zeros(size, np.float32), np.ones(size, np.float32)), db, garment, folds=folds)
 
 
 def _fps(animator: Animator, motion, repeat: int = 3, **kwargs) -> float:

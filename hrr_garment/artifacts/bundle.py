@@ -11,6 +11,7 @@ Files (all arrays as safetensors, nothing pickled)::
     database.safetensors         retrieval database: codes, latent windows, source sequence/frame,
                                  standardised motion windows (for the naive-NN baseline)
     template.safetensors         template vertices, faces, attached vertex indices, vertex groups (group/NAME)
+    folds.safetensors            every database frame's simulated folds, for the detail mode (:mod:`.folds`)
 
 ``bundle.json`` is written last: a directory without it (or whose files do not match its hashes)
 is not a bundle, so an interrupted write never looks like a model. :func:`load_bundle` checks the
@@ -39,8 +40,9 @@ from ..models.fcmae import AutoencoderConfig, MeshAutoencoder
 from ..models.hierarchy import cached_hierarchy
 from ..motion.features import FeatureStats
 from .database import CodeDatabase
+from .folds import FoldStore
 from .gate_signals import GATE_SIGNALS, check_gate_signal
-from .manifest import FORMAT_VERSION, NETWORKS, BundleError, content_hash, read_meta, sha256
+from .manifest import FOLDS_FILE, FORMAT_VERSION, NETWORKS, BundleError, content_hash, read_meta, sha256
 
 
 @dataclass
@@ -56,6 +58,7 @@ class Bundle:
     database: CodeDatabase
     template: GarmentMesh
     direct: DirectRegressor | None = None  # the direct-regression baseline, when trained
+    folds: FoldStore | None = None  # the database frames' folds (bundles before 2026-11-25: none)
 
     @property
     def tau(self) -> float:
@@ -98,12 +101,20 @@ class Bundle:
         self.require_residual()
         return float(self.meta["residual"]["weight"])
 
+    def require_folds(self) -> None:
+        """A BundleError, naming the model and the fix, where the detail mode cannot run."""
+        if self.folds is None:
+            raise BundleError(self.folder, "has no simulated folds for the detail mode (trained before them): run "
+                                           f"hrr-train --stage codespace -o {self.folder} on its dataset again (the "
+                                           "trained weights are kept; only the folds are added)")
+
     @property
     def auto_mode(self) -> str:
         """The mode ``auto`` runs: the one calibrated at training (:mod:`hrr_garment.eval.auto_mode`);
-        hybrid for a bundle calibrated before it, or where the residual mode it chose cannot run."""
+        hybrid for a bundle calibrated before it, or where the mode it chose cannot run."""
         mode = str(self.meta.get("auto", {}).get("mode", "hybrid"))
-        return "hybrid" if mode == "residual" and not self.has_residual else mode
+        runnable = {"residual": self.has_residual, "detail": self.folds is not None}.get(mode, True)
+        return mode if runnable else "hybrid"
 
     @property
     def garment(self) -> str:
@@ -124,9 +135,9 @@ def _save(path: Path, tensors: dict, numpy: bool = False) -> None:
 
 def write_bundle(folder: str | Path, *, autoencoder: MeshAutoencoder, codespace: CodeSpace, motion_stats: FeatureStats,
                  latent_stats: FeatureStats, database: CodeDatabase, template: GarmentMesh, tau: float, info: dict,
-                 gate: str = "entropy") -> Path:
+                 gate: str = "entropy", folds: FoldStore | None = None) -> Path:
     """Write (or replace) the bundle in ``folder``; returns the path of ``bundle.json``. ``tau``:
-    the threshold of the hybrid's ``gate`` signal."""
+    the threshold of the hybrid's ``gate`` signal; ``folds``: the detail mode's (:mod:`.folds`)."""
     check_gate_signal(gate)
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
@@ -142,8 +153,13 @@ def write_bundle(folder: str | Path, *, autoencoder: MeshAutoencoder, codespace:
                                             "faces": template.faces.astype(np.int32), "attached": template.attached,
                                             **{f"group/{k}": np.asarray(v, np.int32) for k, v in template.groups.items()
                                                if k != "attached"}}, numpy=True)
-    files = {p: sha256(folder / p) for p in sorted(["autoencoder.safetensors", "stats.safetensors", "database.safetensors",
-                                                     "template.safetensors", *[f"{n}.safetensors" for n in NETWORKS]])}
+    parts = ["autoencoder.safetensors", "stats.safetensors", "database.safetensors", "template.safetensors",
+             *[f"{n}.safetensors" for n in NETWORKS]]
+    if folds is not None:
+        _save(folder / FOLDS_FILE, folds.arrays(), numpy=True)
+        parts.append(FOLDS_FILE)
+        info = {**info, "folds": fold_meta(folds)}
+    files = {p: sha256(folder / p) for p in sorted(parts)}
     meta = {"format_version": FORMAT_VERSION, "garment": template.name, "created": time.strftime("%Y-%m-%dT%H:%M:%S"),
             "autoencoder": {"config": autoencoder.config.to_dict(), "scale": float(autoencoder.scale),
                             "sizes": list(autoencoder.hierarchy.sizes)},
@@ -156,12 +172,14 @@ def write_bundle(folder: str | Path, *, autoencoder: MeshAutoencoder, codespace:
     return folder / "bundle.json"
 
 
-def add_bundle_part(folder: str | Path, name: str, tensors: dict, meta: dict) -> None:
-    """Add (or replace) one weights file of an existing bundle and merge ``meta`` into bundle.json;
-    the file list and content hash are updated, bundle.json last (atomically)."""
+def add_bundle_part(folder: str | Path, name: str, tensors: dict, meta: dict, numpy: bool = False,
+                    drop: tuple[str, ...] = ()) -> None:
+    """Add (or replace) one file of an existing bundle (torch tensors, or ``numpy`` arrays) and
+    merge ``meta`` into bundle.json without the keys ``drop``; the file list and content hash are
+    updated, bundle.json last (atomically)."""
     folder = Path(folder)
-    current = read_meta(folder)
-    _save(folder / name, tensors)
+    current = {k: v for k, v in read_meta(folder).items() if k not in drop}
+    _save(folder / name, tensors, numpy)
     files = {**current["files"], name: sha256(folder / name)}
     atomic_write_text(folder / "bundle.json", strict_json({**current, **meta, "files": files,
                                                           "content_hash": content_hash(files)}, indent=2))
@@ -172,6 +190,17 @@ def update_bundle_meta(folder: str | Path, meta: dict) -> None:
     folder = Path(folder)
     current = read_meta(folder)
     atomic_write_text(folder / "bundle.json", strict_json({**current, **meta}, indent=2))
+
+
+def fold_meta(folds: FoldStore) -> dict:
+    """bundle.json's ``folds`` entry."""
+    return {"passes": folds.passes, "frames": len(folds.detail)}
+
+
+def add_fold_store(folder: str | Path, folds: FoldStore) -> None:
+    """Add the detail mode's folds to a bundle trained before them; its auto calibration, made
+    without them, is dropped (``hrr-train`` makes it again)."""
+    add_bundle_part(folder, FOLDS_FILE, folds.arrays(), {"folds": fold_meta(folds)}, numpy=True, drop=("auto",))
 
 
 def _load_state(module: torch.nn.Module, path: Path, folder: Path) -> None:
@@ -256,6 +285,7 @@ def load_bundle(folder: str | Path, cache_dir: Path | None = None) -> Bundle:
                                 int(meta["database"]["classes"]), d.get("motion"))
     except ValueError as exc:
         raise BundleError(folder, f"database: {exc}") from None
+    folds = _load_folds(folder, meta, template, database) if "folds" in meta else None
     direct = None
     if "direct" in meta:  # the optional baseline (hrr-train --stage baseline)
         try:
@@ -265,4 +295,20 @@ def load_bundle(folder: str | Path, cache_dir: Path | None = None) -> Bundle:
         _load_state(direct, folder / "direct.safetensors", folder)
         direct.eval()
     return Bundle(folder, meta, autoencoder.eval(), codespace.eval(), FeatureStats(s["motion_mean"], s["motion_std"]),
-                  FeatureStats(s["latent_mean"], s["latent_std"]), database, template, direct)
+                  FeatureStats(s["latent_mean"], s["latent_std"]), database, template, direct, folds)
+
+
+def _load_folds(folder: Path, meta: dict, template: GarmentMesh, database: CodeDatabase) -> FoldStore:
+    """The fold store, checked against the template and every database window it must cover."""
+    f = _arrays(folder, FOLDS_FILE, ("detail", "scale", "offsets"))
+    try:
+        folds = FoldStore(f["detail"], f["scale"], f["offsets"], meta["folds"]["passes"])
+    except (KeyError, TypeError, ValueError) as exc:
+        raise BundleError(folder, f"{FOLDS_FILE}: {exc}") from None
+    if folds.num_vertices != template.num_vertices or len(folds.lengths) != len(database.names):
+        raise BundleError(folder, f"{FOLDS_FILE} holds {len(folds.lengths)} sequences of {folds.num_vertices} vertices; "
+                                  f"the model has {len(database.names)} of {template.num_vertices}")
+    window = database.latents.shape[1]
+    if len(database) and (database.start + window > folds.lengths[database.sequence]).any():
+        raise BundleError(folder, f"{FOLDS_FILE} is shorter than the database windows it must cover")
+    return folds

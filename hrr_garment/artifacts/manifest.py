@@ -18,6 +18,7 @@ from .gate_signals import GATE_SIGNALS
 
 FORMAT_VERSION = 2  # 2: garments in the pelvis-following body frame (motion/frame.py)
 NETWORKS = ("motion_encoder", "garment_encoder", "decoder", "quantizer")
+FOLDS_FILE = "folds.safetensors"  # the detail mode's simulated folds (.folds), in bundles since 2026-11-25
 AUTO_CHOICES = ("hybrid", "residual", "detail")  # what mode ``auto`` may stand for (eval/auto_mode.py chooses)
 
 
@@ -43,7 +44,7 @@ def required_files(meta: dict) -> set[str]:
     """Every file :func:`.bundle.load_bundle` opens for this bundle: each must be listed with its hash."""
     names = {"autoencoder.safetensors", "stats.safetensors", "database.safetensors", "template.safetensors",
              *[f"{n}.safetensors" for n in NETWORKS]}
-    return names | ({"direct.safetensors"} if "direct" in meta else set())
+    return names | ({"direct.safetensors"} if "direct" in meta else set()) | ({FOLDS_FILE} if "folds" in meta else set())
 
 
 def check_manifest(folder: Path, meta: object) -> dict:

@@ -23,6 +23,7 @@ import torch
 from ..artifacts.bundle import Bundle, BundleError, load_bundle
 from ..body.capsules import DEFAULT_BODY
 from ..errors import InputError, MotionError
+from ..garment.smoothing import mean_operator
 from ..models.native_codes import native_window_codes
 from ..motion.features import causal_features, motion_features
 from ..motion.frame import world_vertices
@@ -31,9 +32,10 @@ from ..motion.motion import Motion
 from ..motion.windows import causal_windows, sequence_windows
 from ..paths import workspace
 from .blending import blend_windows, causal_latents
-from .collision import EdgeLimits, PushOutReport, mean_operator, push_out
+from .collision import EdgeLimits, PushOutReport, push_out
 from .decoding import body_frame_vertices, flush_denormals
-from .detail import add_detail
+from .detail import add_folds
+from .fold_track import causal_proposals, offline_proposals, track_folds
 from .gate import choose_windows
 from .modes import Mode
 from .stream import AnimationStream, CrowdStream
@@ -138,11 +140,11 @@ class Animator:
         return getattr(self.bundle, "direct", None) is not None
 
     def supports(self, mode: Mode | str) -> bool:
-        """Whether this model runs ``mode``: direct needs the baseline, residual a calibrated weight."""
+        """Whether this model runs ``mode``: direct needs the baseline, residual a calibrated weight,
+        detail the simulated folds."""
         mode = self.resolve_mode(mode)
-        if mode is Mode.DIRECT:
-            return self.has_direct
-        return self.bundle.has_residual if mode is Mode.RESIDUAL else True
+        return {Mode.DIRECT: self.has_direct, Mode.RESIDUAL: self.bundle.has_residual,
+                Mode.DETAIL: self.bundle.folds is not None}.get(mode, True)
 
     @property
     def window(self) -> int:
@@ -180,8 +182,10 @@ class Animator:
         t_frames, w = motion.num_frames, self.window
         if t_frames < 1:
             raise MotionError(motion.source, "the motion has no frames")
+        if mode is Mode.DETAIL:
+            self.bundle.require_folds()
         if mode == Mode.DIRECT:
-            latents, detail = self._direct_latents(motion), None
+            latents, proposals = self._direct_latents(motion), None
             retrieved, entropy = np.zeros(t_frames, np.uint8), np.full(t_frames, np.nan, np.float32)
             source, doubt = np.full((t_frames, 2), -1, np.int32), entropy.copy()
         else:
@@ -189,7 +193,7 @@ class Animator:
                 feats = causal_windows(self.features(motion, causal=True), w)
                 choice = self._choose(feats, mode, tau, exclude_sequence, gate, last_frame=True)
                 latents = causal_latents(choice, self.blend)
-                detail = None if choice.detail is None else causal_latents(choice, self.blend, detail=True)
+                proposals = causal_proposals(choice.source, w) if choice.detail else None
                 per_frame = np.arange(t_frames)
             else:
                 feats = self.features(motion)
@@ -198,13 +202,15 @@ class Animator:
                 windows = np.ascontiguousarray(sequence_windows(feats, w))
                 choice = self._choose(windows, mode, tau, exclude_sequence, gate)
                 latents = blend_windows(choice.latents, len(feats))[:t_frames]
-                detail = None if choice.detail is None else blend_windows(choice.detail, len(feats))[:t_frames]
+                proposals = offline_proposals(choice.source, t_frames, w) if choice.detail else None
                 per_frame = np.clip(np.arange(t_frames) - w // 2, 0, len(windows) - 1)  # the window centred on t
             retrieved, entropy = choice.retrieved[per_frame].astype(np.uint8), choice.entropy[per_frame].astype(np.float32)
             source, doubt = choice.source[per_frame], choice.doubt[per_frame].astype(np.float32)
         local = body_frame_vertices(self.bundle, latents, self.decoder)
-        if detail is not None:  # the detail mode: the matches' folds on the regression's shape
-            local = add_detail(local, body_frame_vertices(self.bundle, detail, self.decoder), self.smoothing)
+        if proposals is not None:  # the detail mode: simulated folds on the regression's shape
+            store = self.bundle.folds
+            rows, weights = track_folds(proposals, store.offsets)
+            local = add_folds(local, store.folds(rows, weights), self.smoothing, store.passes)
         vertices = world_vertices(local, motion)
         report = None
         if collision:

@@ -90,20 +90,16 @@ def inertialize(inert: Inertializer, latent: np.ndarray, retrieved: bool, source
     return inert.step(latent.astype(np.float64), source_id(bool(retrieved), src))
 
 
-def latent_sources(choice: WindowChoice, detail: bool = False) -> tuple[np.ndarray, np.ndarray]:
-    """The latents a causal path inertializes and whether each window's came from the database:
-    the choice's own, or with ``detail`` the detail mode's matches (in the detail mode the choice's
-    own latents are the regression's, one continuous source)."""
-    if detail:
-        return choice.detail, np.ones(len(choice.detail), bool)
-    return choice.latents, choice.retrieved & (choice.detail is None)
+def latent_sources(choice: WindowChoice) -> tuple[np.ndarray, np.ndarray]:
+    """The latents a causal path inertializes and whether each window's came from the database (in
+    the detail mode they are the regression's, one continuous source, whatever lends the folds)."""
+    return choice.latents, choice.retrieved & (not choice.detail)
 
 
-def causal_latents(choice: WindowChoice, blend: int = 6, detail: bool = False) -> np.ndarray:
+def causal_latents(choice: WindowChoice, blend: int = 6) -> np.ndarray:
     """Frame t's latent = the last frame of the window ending at t, made continuous across source
-    changes by :class:`Inertializer`. ``choice`` has one window per frame; ``detail``: see
-    :func:`latent_sources`."""
-    latents, retrieved = latent_sources(choice, detail)
+    changes by :class:`Inertializer`. ``choice`` has one window per frame."""
+    latents, retrieved = latent_sources(choice)
     inert = Inertializer(blend)
     out = np.empty((len(latents), *latents.shape[2:]), np.float32)
     for t in range(len(out)):

@@ -17,10 +17,11 @@ from dataclasses import dataclass
 from functools import cached_property
 
 import numpy as np
-from scipy.sparse import coo_matrix, csr_matrix, diags
+from scipy.sparse import csr_matrix
 
 from ..body.capsules import DEFAULT_BODY, BodyModel, frames_signed_distance
 from ..garment.mesh import unique_edges
+from ..garment.smoothing import mean_operator
 from ..motion.motion import Motion
 
 # edges a push may stretch to (times their rest length): the simulator's own data reach 2.1-2.5 at
@@ -38,13 +39,6 @@ class PushOutReport:
     inside_after: float
     worst_before: float  # worst frame
     worst_after: float
-
-
-def mean_operator(faces: np.ndarray, num_vertices: int) -> csr_matrix:
-    """(V, V) row-normalised adjacency: each vertex -> mean of its 1-ring."""
-    e = unique_edges(faces)
-    a = coo_matrix((np.ones(2 * len(e)), (np.r_[e[:, 0], e[:, 1]], np.r_[e[:, 1], e[:, 0]])), (num_vertices, num_vertices)).tocsr()
-    return diags(1.0 / np.maximum(np.asarray(a.sum(1)).ravel(), 1)) @ a
 
 
 @dataclass(frozen=True)

@@ -5,7 +5,8 @@ paper's switch, the default) or a judgement of the match itself: one minus its c
 its motion distance (:data:`~hrr_garment.artifacts.gate_signals.GATE_SIGNALS`). The match signals
 search the database for every window, not only for the retrieved ones. The residual mode has no
 gate: every window is the regression plus its match's detail (:mod:`hrr_garment.artifacts.residual`);
-nor has the detail mode, which returns both the regression and the match (:mod:`.detail`)."""
+nor has the detail mode, which returns the regression and the match whose simulated folds it adds
+(:mod:`.detail`)."""
 
 from __future__ import annotations
 
@@ -30,7 +31,7 @@ class WindowChoice:
     entropy: np.ndarray  # (N,) motion-code entropy
     doubt: np.ndarray  # (N,) the gate signal's value (retrieval where below tau; the entropy by default)
     source: np.ndarray  # (N, 2) int32 (database sequence index, start frame) of retrieved windows, else -1
-    detail: np.ndarray | None = None  # the detail mode: the matches' latents (``latents`` are the regression's)
+    detail: bool = False  # the detail mode: ``latents`` are the regression's, ``source`` the matches that lend their folds
 
 
 def choose_windows(bundle: Bundle, motion_windows: np.ndarray, mode: str, tau: float,
@@ -51,10 +52,11 @@ def choose_windows(bundle: Bundle, motion_windows: np.ndarray, mode: str, tau: f
     doubt, match = enc.entropy, None
     if mode in (Mode.RESIDUAL, Mode.DETAIL):  # no gate: every window's regression and its best match
         match, similarity = db.search(enc.codes, exclude)
-        matched, everywhere = db.latents[match, -frames:], np.ones(n, bool)
+        everywhere = np.ones(n, bool)
         source = np.stack([db.sequence[match], db.start[match]], 1).astype(np.int32)
-        if mode is Mode.DETAIL:  # both paths; their vertices are combined after decoding (.detail)
-            return WindowChoice(enc.regression, everywhere, enc.entropy, np.asarray(doubt, np.float64), source, matched)
+        if mode is Mode.DETAIL:  # the matches' folds are added to the decoded regression (.detail)
+            return WindowChoice(enc.regression, everywhere, enc.entropy, np.asarray(doubt, np.float64), source, detail=True)
+        matched = db.latents[match, -frames:]
         own = match_regression(bundle.codespace, bundle.motion_stats, bundle.latent_stats, db, match, last_frame, step)
         latents = residual_latents(enc.regression, matched, own, similarity, bundle.residual_weight)
         return WindowChoice(latents, everywhere, enc.entropy, np.asarray(doubt, np.float64), source)

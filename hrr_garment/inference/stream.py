@@ -41,7 +41,8 @@ from ..native import pin_workers
 from .blending import Inertializer, inertialize, latent_sources
 from .collision import push_out
 from .decoding import flush_denormals
-from .detail import add_detail
+from .detail import add_folds
+from .fold_track import FoldTrack
 from .gate import choose_windows
 from .modes import CODE_MODES, Mode
 
@@ -54,7 +55,7 @@ class _Character:
 
     features: deque
     inertializer: Inertializer
-    detail_inertializer: Inertializer  # the detail mode's matches (a source of their own)
+    fold_track: FoldTrack | None = None  # the detail mode's playhead in the database's folds
     previous: tuple[np.ndarray, np.ndarray] | None = None  # its last pose: global rotations and joint positions
     memory: np.ndarray | None = None  # its motion memory's state (k, 64), when the model has one
     frames: int = 0
@@ -79,6 +80,8 @@ class CrowdStream:
         self.animator, self.collision, self.rig = animator, collision, rig
         self.mode = animator.resolve_mode(mode, gate, tau)
         self.gate, self.tau = animator.gate_setting(gate, tau)
+        if self.mode is Mode.DETAIL:
+            animator.bundle.require_folds()
         self._characters: dict[Hashable, _Character] = {}
         self.timings = _Timings()
         regression = self.mode.regresses
@@ -147,13 +150,23 @@ class CrowdStream:
             c.memory = s
         return np.concatenate([features, memory.values(state)], 1)
 
+    def _folds(self, chars: list[_Character], source: np.ndarray) -> np.ndarray:
+        """(N, V, 3): each character's folds this frame, its :class:`FoldTrack` stepped on the last
+        frame of its window's match (as :func:`~.fold_track.causal_proposals`)."""
+        store, window = self.animator.bundle.folds, self.animator.window
+        steps = []
+        for c, (sequence, start) in zip(chars, source):
+            if c.fold_track is None:
+                c.fold_track = FoldTrack(store.offsets)
+            steps.append(c.fold_track.step(sequence, start + window - 1))
+        return store.folds(np.stack([r for r, _ in steps]), np.stack([w for _, w in steps]))
+
     def _step_frame(self, keys: list, poses: Motion) -> np.ndarray:
         t = [time.perf_counter()]
         pin_workers()  # a game loop idles between frames: its next frame must not wait for workers to move
         window = self.animator.window
         blend = self.animator.blend
-        chars = [self._characters.setdefault(k, _Character(deque(maxlen=window), Inertializer(blend), Inertializer(blend)))
-                 for k in keys]
+        chars = [self._characters.setdefault(k, _Character(deque(maxlen=window), Inertializer(blend))) for k in keys]
         features = self._with_memory(chars, pair_features_batch([c.previous for c in chars], poses), poses.fps)
         for c, feat in zip(chars, features):
             if not c.features:  # the first frame repeated before the start, as offline causal
@@ -163,18 +176,15 @@ class CrowdStream:
         t.append(time.perf_counter())
         choice = choose_windows(self.animator.bundle, windows, self.mode, self.tau, last_frame=True, step=self._step,
                                 gate=self.gate)
-        paths = [(latent_sources(choice), [c.inertializer for c in chars])]
-        if choice.detail is not None:  # the detail mode: the matches too, decoded in the same batch
-            paths.append((latent_sources(choice, detail=True), [c.detail_inertializer for c in chars]))
-        latents = np.empty((len(paths) * len(chars), *choice.latents.shape[2:]), np.float32)
-        for p, ((path_latents, retrieved), inertializers) in enumerate(paths):
-            for i, (c, inert) in enumerate(zip(chars, inertializers)):
-                latents[p * len(chars) + i] = inertialize(inert, path_latents[i, -1], retrieved[i], choice.source[i], c.frames)
+        path_latents, retrieved = latent_sources(choice)
+        latents = np.empty((len(chars), *choice.latents.shape[2:]), np.float32)
+        for i, c in enumerate(chars):
+            latents[i] = inertialize(c.inertializer, path_latents[i, -1], retrieved[i], choice.source[i], c.frames)
         t.append(time.perf_counter())
         with torch.no_grad():
             local = self.animator.decoder(torch.from_numpy(latents)).numpy()
-        if choice.detail is not None:
-            local = add_detail(local[:len(chars)], local[len(chars):], self.animator.smoothing)
+        if choice.detail:  # the detail mode: each character's playhead one frame on, its folds added
+            local = add_folds(local, self._folds(chars, choice.source), self.animator.smoothing, self.animator.bundle.folds.passes)
         t.append(time.perf_counter())
         vertices = world_vertices(local, poses)  # as offline: the same push-out inputs
         t.append(time.perf_counter())

@@ -7,7 +7,7 @@ the retrieval database from every training window's garment code, calibrates tau
 validation split (the hybrid's gate and the residual mode's weight), and writes the bundle at the
 top of ``MODEL/`` (:mod:`hrr_garment.artifacts.bundle`). A re-run with nothing changed finds the
 finished report and returns it without redoing anything (a bundle from before the residual mode
-only has that weight calibrated).
+or the detail mode's folds only has what it lacks added).
 """
 
 from __future__ import annotations
@@ -20,11 +20,21 @@ from pathlib import Path
 
 import numpy as np
 import torch
+from tqdm import tqdm
 
-from ..artifacts.bundle import BundleError, load_bundle, read_meta, update_bundle_meta, write_bundle
+from ..artifacts.bundle import (
+    BundleError,
+    add_fold_store,
+    load_bundle,
+    read_meta,
+    update_bundle_meta,
+    write_bundle,
+)
 from ..artifacts.database import CodeDatabase
+from ..artifacts.folds import FoldStore
 from ..data.dataset import DatasetError, GarmentDataset
 from ..data.windows import build_windows, dataset_features, fit_stats, split_windows
+from ..garment.smoothing import mean_operator
 from ..io_utils import atomic_write_text, strict_json
 from ..models.codespace import CodeSpace, CodeSpaceConfig
 from .autoencoder import body_frames, load_autoencoder, refine_settings
@@ -90,18 +100,24 @@ def _stage_report(report: dict, folder: Path, reused: bool = False) -> StageRepo
                        reused, {**report, "reused": True} if reused else report)
 
 
-def _finished(folder: Path, report_path: Path, key: str) -> dict | None:
-    """The report of a finished stage with these settings whose bundle is intact, else None."""
+def _finished(folder: Path, report_path: Path, key: str) -> tuple[dict, dict] | None:
+    """The report and bundle.json of a finished stage with these settings whose bundle is intact, else None."""
     if not (report_path.is_file() and (folder / "bundle.json").is_file()):
         return None
     report = json.loads(report_path.read_text())
     if report.get("key") != key:
         return None
     try:
-        read_meta(folder)
+        return report, read_meta(folder)
     except BundleError:  # a damaged bundle is rebuilt
         return None
-    return report
+
+
+def fold_store(ds: GarmentDataset, names: list[str], progress: bool = True) -> FoldStore:
+    """The detail mode's folds of the database sequences ``names`` (:mod:`hrr_garment.artifacts.folds`)."""
+    mean = mean_operator(ds.template.faces, ds.template.num_vertices)
+    return FoldStore.build((body_frames(ds, [n]) for n in tqdm(names, desc="folds", unit="sequence", disable=not progress)),
+                           mean)
 
 
 def _windows(features: dict, latents: dict, splits: dict, config: CodeSpaceConfig, train_config: CodeSpaceTrainConfig):
@@ -151,8 +167,11 @@ def run_codespace_stage(dataset: str | Path, folder: str | Path, config: CodeSpa
     ae_meta, ae_state, latents = _autoencoder_outputs(ds, dataset, ae_folder)
     key = _stage_key(config, train_config, ae_state, latents, ds)
     report_path = stage / "report.json"
-    done = _finished(folder, report_path, key)
-    if done is not None and "residual" in read_meta(folder):
+    finished = _finished(folder, report_path, key)
+    done, meta = finished if finished is not None else (None, {})
+    if done is not None and "folds" not in meta:  # trained before the folds: add them alone
+        add_fold_store(folder, fold_store(ds, list(meta["database"]["names"]), progress))
+    if done is not None and "residual" in meta:
         return _stage_report(done, stage, reused=True)
     splits = {k: ds.splits[k] for k in ("train", "val")}
     features = dataset_features(ds, splits["train"] + splits["val"], config.memory_seconds)
@@ -189,6 +208,7 @@ def run_codespace_stage(dataset: str | Path, folder: str | Path, config: CodeSpa
               "entropy_histogram": final["entropy_histogram"], "minutes": (time.perf_counter() - t0) / 60}
     write_bundle(folder, autoencoder=autoencoder, codespace=model, motion_stats=motion_stats, latent_stats=latent_stats,
                  database=database, template=ds.template, tau=sweep.best_tau, gate=gate,
+                 folds=fold_store(ds, train_w.names, progress),
                  info={"dataset": str(dataset), "window": config.window, "validation_mm": report["validation_mm"],
                        "gates": report["gates"], **({"residual": report["residual"]} if report["residual"] else {}),
                        "encoding": encoding, "validation": train_config.validation, **(info or {})})

@@ -1,0 +1,93 @@
+"""The detail mode's folds: the high spatial frequencies of every simulated frame in the database.
+
+Everything decoded through the mesh autoencoder keeps about three quarters of the true frames'
+bending energy, and a blend of overlapping windows averages much of the rest away; the simulated
+frames themselves carry all of it. The store keeps, for every frame of every database sequence, in
+the body frame (:mod:`hrr_garment.motion.frame`), what is left of the frame after ``passes``
+passes of the mesh's 1-ring mean (:func:`~hrr_garment.garment.smoothing.high_frequencies`): its folds
+and wrinkles, a few millimetres, without the shape. Stored as int8 with one scale per frame (a
+quarter of float32; the rounding error is at most half a step, about 0.1 mm on a dress), rows in
+the database's sequence order (``offsets``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.sparse import csr_matrix
+
+from ..garment.smoothing import high_frequencies
+
+FOLD_PASSES = 1  # passes of the 1-ring mean that separate the folds from the shape (docs/results.md)
+
+
+@dataclass
+class FoldStore:
+    """Every database frame's folds: ``folds(rows, weights)`` gives weighted sums of them."""
+
+    detail: np.ndarray  # (N, V, 3) int8: each frame's high frequencies, in steps of its scale
+    scale: np.ndarray  # (N,) float32: metres per step
+    offsets: np.ndarray  # (S + 1,) int64: sequence s's frames are rows offsets[s] .. offsets[s + 1] - 1
+    passes: int = FOLD_PASSES
+
+    def __post_init__(self) -> None:
+        self.detail = np.asarray(self.detail)
+        self.scale = np.asarray(self.scale, np.float32)
+        self.offsets = np.asarray(self.offsets, np.int64)
+        if self.detail.dtype != np.int8 or self.detail.ndim != 3 or self.detail.shape[2] != 3:
+            raise ValueError(f"fold detail must be (N, V, 3) int8, got {self.detail.shape} {self.detail.dtype}")
+        if self.scale.shape != (len(self.detail),) or not np.isfinite(self.scale).all() or (self.scale < 0).any():
+            raise ValueError(f"fold scales must be {len(self.detail)} finite numbers >= 0, got shape {self.scale.shape}")
+        o = self.offsets
+        if o.ndim != 1 or len(o) < 1 or o[0] != 0 or o[-1] != len(self.detail) or (np.diff(o) < 0).any():
+            raise ValueError(f"fold offsets must rise from 0 to {len(self.detail)}")
+        if not isinstance(self.passes, (int, np.integer)) or self.passes < 1:
+            raise ValueError(f"fold passes must be a whole number >= 1, got {self.passes!r}")
+        self.passes = int(self.passes)
+
+    @classmethod
+    def build(cls, sequences: Iterable[np.ndarray], mean: csr_matrix, passes: int = FOLD_PASSES) -> "FoldStore":
+        """From each database sequence's body-frame vertices (T_s, V, 3), in the database's order."""
+        detail, scale, lengths = [], [], [0]
+        for frames in sequences:
+            high = high_frequencies(frames, mean, passes)
+            step = np.abs(high).max(axis=(1, 2)) / 127.0
+            detail.append(np.round(high / np.where(step > 0, step, 1.0)[:, None, None]).astype(np.int8))
+            scale.append(step.astype(np.float32))
+            lengths.append(len(frames))
+        if len(detail) == 0:
+            raise ValueError("a fold store needs at least one sequence")
+        return cls(np.concatenate(detail), np.concatenate(scale), np.cumsum(lengths), passes)
+
+    @property
+    def lengths(self) -> np.ndarray:
+        """(S,) frames of each sequence."""
+        return np.diff(self.offsets)
+
+    @property
+    def num_vertices(self) -> int:
+        return int(self.detail.shape[1])
+
+    def rows(self, sequence: np.ndarray, frame: np.ndarray) -> np.ndarray:
+        """Store rows of (database sequence, frame) pairs (any matching shapes)."""
+        sequence, frame = np.asarray(sequence, np.int64), np.asarray(frame, np.int64)
+        if ((frame < 0) | (frame >= self.lengths[sequence])).any():
+            raise IndexError("a fold frame outside its sequence")
+        return self.offsets[sequence] + frame
+
+    def folds(self, rows: np.ndarray, weights: np.ndarray) -> np.ndarray:
+        """(T, K) rows and weights -> (T, V, 3) float64: each frame's weighted sum of those rows' folds
+        (weights of 0 read nothing)."""
+        rows, weights = np.asarray(rows), np.asarray(weights, np.float64)
+        out = np.zeros((len(rows), self.num_vertices, 3))
+        for k in range(rows.shape[1]):
+            used = weights[:, k] != 0
+            if used.any():
+                r = rows[used, k]
+                out[used] += (weights[used, k] * self.scale[r])[:, None, None] * self.detail[r]
+        return out
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        return {"detail": self.detail, "scale": self.scale, "offsets": self.offsets}
