@@ -35,7 +35,7 @@ def _parser() -> argparse.ArgumentParser:
                    help="auto (default): the mode this model was calibrated to run, the most plausible cloth within "
                         "3 %% of the most accurate (bundle.json 'auto'); hybrid: the calibrated gate between retrieval "
                         "and regression; residual: regression plus the matched window's detail; detail: the "
-                        "regression's shape with the matched window's folds; direct: the baseline, when the model "
+                        "regression's shape with simulated folds from the database; direct: the baseline, when the model "
                         "has it (hrr-train --stage baseline)")
     p.add_argument("--gate", default=None, choices=GATE_SIGNALS,
                    help="what the hybrid thresholds: the motion code's entropy (the paper's), the match's code "

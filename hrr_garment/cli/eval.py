@@ -61,7 +61,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--sequences", type=int, default=None, metavar="N",
                    help="evaluate N sequences of the split, evenly spaced in name order (default: all)")
     p.add_argument("--modes", type=_modes, default=None,
-                   help="comma-separated (default: hybrid,regression,retrieval,residual,detail,naive-nn; residual where calibrated, direct where trained)")
+                   help="comma-separated (default: hybrid,regression,retrieval,residual,detail,naive-nn; residual where calibrated, detail where the model has folds, direct where trained)")
     p.add_argument("--gate", default=None, choices=GATE_SIGNALS,
                    help="the hybrid's gate signal: motion-code entropy (the paper's), the match's code similarity or "
                         "its motion distance (default: the model's calibrated choice); the sweeps run on it")
@@ -142,6 +142,8 @@ def _main(argv: Sequence[str] | None) -> int:
         raise InputError(model_dir, "has no direct-regression baseline: train it with hrr-train --stage baseline")
     if Mode.RESIDUAL in modes:
         bundle.require_residual()
+    if Mode.DETAIL in modes:
+        bundle.require_folds()
     out = args.output or workspace() / "eval" / model_dir.name
     records = [ds.sequence(n) for n in names]
     collision, progress = not args.no_collision, not args.quiet

@@ -1,0 +1,82 @@
+"""Analysis: how much hem swing and sharpness can an accurate prediction have?
+
+Against a chaotic truth the most accurate prediction is the conditional mean, and a mean of
+simulations swings and folds less than each of them. This tool measures it on held-out clips with
+the truth ensembles ``hrr-eval --ensemble K`` cached (perturbed re-simulations of each clip;
+docs/results.md): the members' own mean (the best accurate prediction there is, up to the chaos a
+mean of K samples keeps) scored as the evaluation scores a model (PVE to the members over the floor,
+sharpness and hem swing over the members'), and the hem swing of the conditional mean itself,
+extrapolated to infinitely many members: per hem vertex, the temporal variance of one member is
+``V_c + s2`` and that of a mean of K is ``V_c + s2 / K`` (the chaos independent between members),
+which gives the predictable part ``V_c``.
+
+    python tools/swing_ceiling.py --model hrr_work/models/dress-real-quick --split test --sequences 12
+"""
+
+from __future__ import annotations
+
+import argparse
+import itertools
+
+import numpy as np
+
+from hrr_garment.data.dataset import GarmentDataset
+from hrr_garment.eval import metrics as M
+from hrr_garment.eval.ensemble import truth_ensembles
+from hrr_garment.garment.fit import hem_vertices
+from hrr_garment.inference.animator import Animator
+from hrr_garment.motion.frame import to_body_frame
+from hrr_garment.sim.quality import hem_swing
+from hrr_garment.sim.simulator import SimConfig
+
+
+def analyse(model: str, split: str, sequences: int | None, members: int) -> dict:
+    animator = Animator.load(model)
+    ds = GarmentDataset(animator.bundle.meta["dataset"])
+    names = ds.splits.get(split, [])
+    if sequences:
+        names = [names[i] for i in sorted({int(round(i)) for i in np.linspace(0, len(names) - 1, min(sequences, len(names)))})]
+    records = [ds.sequence(n) for n in names]
+    ensembles = truth_ensembles(ds.template, records, SimConfig.from_dict(ds.info["sim"]), members, jobs=2)
+    template = animator.bundle.template
+    rest, topo = template.vertices.astype(np.float64), M.MeshTopology.of(template.faces, template.num_vertices)
+    hem = hem_vertices(template)
+    sums = np.zeros(8)  # frames x: floor, PVE of the mean; bending of the mean, of the members; swing ditto; sqrt V_c, sqrt var_1
+    for record in records:
+        if record.name not in ensembles:
+            continue
+        m = ensembles[record.name].members.astype(np.float64)
+        k, t = len(m), m.shape[1]
+        mean = m.mean(0)
+        floor = np.mean([M.pve_mm(a, b) for a, b in itertools.combinations(m, 2)])
+        local = np.stack([to_body_frame(x[:, hem], record.motion, ground=True) for x in m])  # (K, T, H, 3)
+        var_one = local.var(axis=1).sum(-1).mean(0)  # (H,) a member's temporal variance, mean over members
+        var_mean = local.mean(0).var(axis=0).sum(-1)  # the mean's
+        chaos = np.maximum(var_one - var_mean, 0.0) * k / (k - 1)
+        sums += t * np.array([floor, np.mean([M.pve_mm(mean, x) for x in m]),
+                              M.cloth_energies(mean, rest, topo)[1].mean(), np.mean([M.cloth_energies(x, rest, topo)[1].mean() for x in m]),
+                              hem_swing(mean, record.motion, hem), np.mean([hem_swing(x, record.motion, hem) for x in m]),
+                              np.sqrt(np.maximum(var_one - chaos, 0.0)).mean(), np.sqrt(var_one).mean()])
+    frames = sum(len(r.garment) for r in records if r.name in ensembles)
+    return {"clips": len(ensembles), "members": members, "floor_mm": sums[0] / max(frames, 1),
+            "mean_pve_over_floor": sums[1] / sums[0], "mean_sharpness": sums[2] / sums[3],
+            "mean_hem_swing": sums[4] / sums[5],
+            "conditional_mean_hem_swing": sums[6] / sums[7]}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--model", required=True, help="a trained model directory (its dataset and template)")
+    parser.add_argument("--split", default="test", help="dataset split of held-out clips (default test)")
+    parser.add_argument("--sequences", type=int, default=None, help="at most this many of them, evenly spaced")
+    parser.add_argument("--ensemble", type=int, default=4, help="members per clip, as hrr-eval ran them (default 4)")
+    args = parser.parse_args()
+    r = analyse(args.model, args.split, args.sequences, args.ensemble)
+    print(f"{r['clips']} clips, {r['members']} members each, floor {r['floor_mm']:.2f} mm")
+    print(f"the members' mean: PVE / floor {r['mean_pve_over_floor']:.3f}, sharpness {r['mean_sharpness']:.2f}, "
+          f"hem swing {r['mean_hem_swing']:.2f}")
+    print(f"the conditional mean (infinitely many members): hem swing {r['conditional_mean_hem_swing']:.2f}")
+
+
+if __name__ == "__main__":
+    main()
