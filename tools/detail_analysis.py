@@ -5,8 +5,9 @@ frames (the bundle's fold store) to the regression, frame by frame from a playhe
 the matches forward (the fold track). This tool measures, on held-out clips of a trained model
 (offline, no push-out, against each clip's single simulation), the mode as shipped and variants of
 its settings: the folds' strength, the track's hold and fade, no track at all (each frame's own
-proposal), and a swing gain (the regression's body-frame departure from its mean shape scaled up:
-the hem swing the mean lacks, at a price in PVE).
+proposal), and a swing gain (the regression's body-frame departure from the training frames' mean
+shape, or from its own causal running mean, scaled up: the hem swing the mean lacks, at a price in
+PVE).
 
 Sharpness is the bending energy over the truth's, hem swing the hem's amplitude over the truth's,
 jitter the mean distance between predicted and true accelerations (docs/results.md, Metrics).
@@ -36,6 +37,17 @@ TRACKS = [("shipped", DETAIL_STRENGTH, None, None), ("strength 0.6", 0.6, None, 
           ("no track (each frame's proposal)", DETAIL_STRENGTH, 1, 0), ("hold 4, fade 3", DETAIL_STRENGTH, 4, 3),
           ("hold 16, fade 6", DETAIL_STRENGTH, 16, 6), ("hold 8, fade 12", DETAIL_STRENGTH, 8, 12)]
 SWING_GAINS = (1.25, 1.5)
+RUNNING_MEAN_S = 1.0  # time constant of the causal running mean a swing gain may scale from instead
+
+
+def _running_mean(local: np.ndarray, fps: float, seconds: float = RUNNING_MEAN_S) -> np.ndarray:
+    """Causal exponential running mean over frames of (T, V, 3), started at the first frame."""
+    alpha = 1.0 - np.exp(-1.0 / (seconds * fps))
+    out = np.empty_like(local)
+    out[0] = local[0]
+    for t in range(1, len(local)):
+        out[t] = out[t - 1] + alpha * (local[t] - out[t - 1])
+    return out
 
 
 def _proposals(animator: Animator, motion, causal: bool) -> np.ndarray:
@@ -82,11 +94,13 @@ def analyse(model: str, split: str, sequences: int | None) -> dict:
                 outputs[f"detail, {label} ({kind})"] = from_body_frame(
                     add_folds(local, folds, animator.smoothing, store.passes, strength), motion)
                 if label == "shipped" and not causal:
+                    running = _running_mean(local, motion.fps)
                     for gain in SWING_GAINS:
-                        swung = mean_shape + gain * (local - mean_shape)
-                        outputs[f"regression, swing gain {gain:g}"] = from_body_frame(swung, motion)
-                        outputs[f"detail, swing gain {gain:g}"] = from_body_frame(
-                            add_folds(swung, folds, animator.smoothing, store.passes, strength), motion)
+                        for ref, centre in (("mean shape", mean_shape), (f"{RUNNING_MEAN_S:g} s running mean", running)):
+                            swung = centre + gain * (local - centre)
+                            outputs[f"regression, swing gain {gain:g} ({ref})"] = from_body_frame(swung, motion)
+                            outputs[f"detail, swing gain {gain:g} ({ref})"] = from_body_frame(
+                                add_folds(swung, folds, animator.smoothing, store.passes, strength), motion)
         truth_sums += [M.cloth_energies(truth, rest, topo)[1].sum(), hem_swing(truth, motion, hem) * len(truth)]
         frames += len(truth)
         for key, pred in outputs.items():
