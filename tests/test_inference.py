@@ -32,7 +32,7 @@ def test_stream_equals_offline_causal(animator, mode):
     assert sum(v.sum() for v in stages.values()) <= np.sum(stream.latency_s) + 1e-9
 
 
-@pytest.mark.parametrize("mode", ["hybrid", "detail"])  # detail: two latent paths a character, one decode batch
+@pytest.mark.parametrize("mode", ["hybrid", "detail"])  # detail: a fold playhead per character
 def test_a_crowd_streamed_together_equals_each_character_streamed_alone(animator, mode):
     """Characters join and leave between frames; each one's frames equal its own offline causal
     animation (which the single stream equals), whatever the others in the same push."""

@@ -6,8 +6,8 @@
         vertices = crowd.push(rotations, roots, keys)     # (N, J, 4) quaternions, (N, 3) -> (N, V, 3)
     crowd.leave("npc_7")                                  # a character that left the scene
 
-Each character keeps its own state: its last pose, its motion memory, its last W feature frames
-and its inertialization. A push runs every stage once for all the characters in it: the features, the
+Each character keeps its own state: its last pose, its motion memory, its last W feature frames,
+its inertialization and, in the detail mode, its fold playhead (:mod:`.fold_track`). A push runs every stage once for all the characters in it: the features, the
 window step (motion encoder, gate, code-space decoder), the mesh decoder and the collision
 push-out, each batched through the native kernels. So N characters pushed together give what
 each gives pushed alone (tested), and a character's output is frame t of
