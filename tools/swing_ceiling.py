@@ -8,7 +8,10 @@ mean of K samples keeps) scored as the evaluation scores a model (PVE to the mem
 sharpness and hem swing over the members'), and the hem swing of the conditional mean itself,
 extrapolated to infinitely many members: per hem vertex, the temporal variance of one member is
 ``V_c + s2`` and that of a mean of K is ``V_c + s2 / K`` (the chaos independent between members),
-which gives the predictable part ``V_c``.
+which gives the predictable part ``V_c``. Beside it, the model's own ceilings on the same clips
+(against each clip's single simulation): the autoencoder's reconstruction of the true frames, and
+the code space's (each true window through the garment encoder, its argmax code and the decoder,
+windows blended): what the discrete code can give back of a garment it is shown.
 
     python tools/swing_ceiling.py --model hrr_work/models/dress-real-quick --split test --sequences 12
 """
@@ -17,17 +20,57 @@ from __future__ import annotations
 
 import argparse
 import itertools
+from pathlib import Path
 
 import numpy as np
+import torch
 
 from hrr_garment.data.dataset import GarmentDataset
 from hrr_garment.eval import metrics as M
 from hrr_garment.eval.ensemble import truth_ensembles
 from hrr_garment.garment.fit import hem_vertices
 from hrr_garment.inference.animator import Animator
-from hrr_garment.motion.frame import to_body_frame
+from hrr_garment.inference.blending import blend_windows
+from hrr_garment.inference.decoding import body_frame_vertices
+from hrr_garment.motion.frame import to_body_frame, world_vertices
+from hrr_garment.motion.windows import sequence_windows
 from hrr_garment.sim.quality import hem_swing
 from hrr_garment.sim.simulator import SimConfig
+
+
+def code_reconstruction(animator: Animator, latents: np.ndarray) -> np.ndarray:
+    """(T, nodes, C) true latents -> (T, nodes, C): each window through the garment encoder, its
+    argmax code and the code-space decoder, overlapping windows blended as inference blends them."""
+    b, w = animator.bundle, animator.window
+    standard = b.latent_stats.normalize(latents.reshape(len(latents), -1)).reshape(latents.shape)
+    windows = np.ascontiguousarray(sequence_windows(standard.astype(np.float32), w))
+    cs = b.codespace
+    with torch.no_grad():
+        logits = cs.garment_encoder(torch.from_numpy(windows.reshape(len(windows), -1)))
+        decoded = cs.decode(cs.quantizer.embed(cs.quantizer.codes(logits))).numpy()
+    decoded = b.latent_stats.denormalize(decoded.reshape(*decoded.shape[:2], -1)).reshape(decoded.shape)
+    return blend_windows(decoded, len(latents))
+
+
+def ceilings(animator: Animator, records: list, hem: np.ndarray) -> dict:
+    """PVE (mm) and hem swing over the truth's of the autoencoder's and the code space's own
+    reconstructions of ``records``' true frames, and of the regression."""
+    folder = Path(animator.bundle.folder) / "autoencoder" / "latents.npz"
+    sums = {k: np.zeros(2) for k in ("autoencoder", "code space", "regression")}
+    truth_swing = frames = 0.0
+    with np.load(folder) as stored:
+        for r in records:
+            truth = r.garment.astype(np.float64)
+            z = stored[r.name].astype(np.float32)
+            outs = {"autoencoder": z, "code space": code_reconstruction(animator, z)}
+            preds = {k: world_vertices(body_frame_vertices(animator.bundle, v, animator.decoder), r.motion) for k, v in outs.items()}
+            preds["regression"] = animator.animate(r.motion, mode="regression", collision=False).vertices
+            for k, p in preds.items():
+                p = np.asarray(p, np.float64)
+                sums[k] += [M.pve_mm(p, truth) * len(truth), hem_swing(p, r.motion, hem) * len(truth)]
+            truth_swing += hem_swing(truth, r.motion, hem) * len(truth)
+            frames += len(truth)
+    return {k: {"pve_mm": s[0] / frames, "hem_swing": s[1] / truth_swing} for k, s in sums.items()}
 
 
 def analyse(model: str, split: str, sequences: int | None, members: int) -> dict:
@@ -57,11 +100,12 @@ def analyse(model: str, split: str, sequences: int | None, members: int) -> dict
                               M.cloth_energies(mean, rest, topo)[1].mean(), np.mean([M.cloth_energies(x, rest, topo)[1].mean() for x in m]),
                               hem_swing(mean, record.motion, hem), np.mean([hem_swing(x, record.motion, hem) for x in m]),
                               np.sqrt(np.maximum(var_one - chaos, 0.0)).mean(), np.sqrt(var_one).mean()])
+    own = ceilings(animator, records, hem)
     frames = sum(len(r.garment) for r in records if r.name in ensembles)
     return {"clips": len(ensembles), "members": members, "floor_mm": sums[0] / max(frames, 1),
             "mean_pve_over_floor": sums[1] / sums[0], "mean_sharpness": sums[2] / sums[3],
             "mean_hem_swing": sums[4] / sums[5],
-            "conditional_mean_hem_swing": sums[6] / sums[7]}
+            "conditional_mean_hem_swing": sums[6] / sums[7], "reconstructions": own}
 
 
 def main() -> None:
@@ -76,6 +120,8 @@ def main() -> None:
     print(f"the members' mean: PVE / floor {r['mean_pve_over_floor']:.3f}, sharpness {r['mean_sharpness']:.2f}, "
           f"hem swing {r['mean_hem_swing']:.2f}")
     print(f"the conditional mean (infinitely many members): hem swing {r['conditional_mean_hem_swing']:.2f}")
+    for k, c in r["reconstructions"].items():
+        print(f"{k + (' reconstruction' if k != 'regression' else ''):28s} PVE {c['pve_mm']:6.2f} mm, hem swing {c['hem_swing']:.2f}")
 
 
 if __name__ == "__main__":
