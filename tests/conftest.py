@@ -60,6 +60,20 @@ def trained(tmp_path_factory):
     return root, data, args
 
 
+def current_copy(trained, folder: Path) -> tuple[Path, list[str]]:
+    """A copy of the shared trained model in ``folder``, brought up to date with a ``--stage
+    codespace`` re-run (other tests train the shared model on), and that re-run's arguments."""
+    import shutil
+
+    from hrr_garment.cli.train import main as train_main
+
+    root, data, args = trained
+    shutil.copytree(root / "model", folder)
+    stage = ["--dataset", str(data), "--config", args[3], "--stage", "codespace", "-o", str(folder), "--quiet"]
+    assert train_main(stage) == 0
+    return folder, stage
+
+
 def authored(vertices: np.ndarray) -> np.ndarray:
     """As an artist might have it: centimetres, Z up, modelled around a pelvis at the origin."""
     from hrr_garment.motion.skeleton import REST_PELVIS_HEIGHT

@@ -139,18 +139,15 @@ def test_the_detail_mode_is_the_regression_plus_the_tracked_simulated_folds(trai
 
 def test_a_bundle_before_the_folds_says_how_to_add_them_and_hrr_train_does(trained, tmp_path, capsys):
     import json
-    import shutil
+
+    from conftest import current_copy
 
     from hrr_garment.artifacts.bundle import BundleError, update_bundle_meta
     from hrr_garment.artifacts.manifest import FOLDS_FILE, content_hash
     from hrr_garment.cli.train import main as train_main
     from hrr_garment.inference.animator import Animator
 
-    root, data, args = trained
-    old = tmp_path / "model"
-    shutil.copytree(root / "model", old)
-    stage = ["--dataset", str(data), "--config", args[3], "--stage", "codespace", "-o", str(old), "--quiet"]
-    assert train_main(stage) == 0  # current with these settings (other tests train the shared model on)
+    old, stage = current_copy(trained, tmp_path / "model")
     folds = (old / FOLDS_FILE).read_bytes()
     meta = json.loads((old / "bundle.json").read_text())
     del meta["folds"], meta["files"][FOLDS_FILE]

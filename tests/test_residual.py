@@ -2,10 +2,10 @@
 regression of its own motion), scaled by the match's code similarity and a calibrated weight."""
 
 import json
-import shutil
 
 import numpy as np
 import pytest
+from conftest import current_copy
 
 from hrr_garment.artifacts.residual import RESIDUAL_WEIGHTS, residual_latents
 from hrr_garment.motion.synth import synthesize
@@ -92,11 +92,7 @@ def test_a_bundle_before_the_residual_mode_says_how_to_calibrate_it_and_hrr_trai
     from hrr_garment.cli.train import main as train_main
     from hrr_garment.inference.animator import Animator
 
-    root, data, args = trained
-    old = tmp_path / "model"
-    shutil.copytree(root / "model", old)
-    stage = ["--dataset", str(data), "--config", args[3], "--stage", "codespace", "-o", str(old), "--quiet"]
-    assert train_main(stage) == 0  # current with these settings (other tests train the shared model on)
+    old, stage = current_copy(trained, tmp_path / "model")
     meta = json.loads((old / "bundle.json").read_text())
     calibrated = meta.pop("residual")
     (old / "bundle.json").write_text(json.dumps(meta))

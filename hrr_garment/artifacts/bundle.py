@@ -158,7 +158,7 @@ def write_bundle(folder: str | Path, *, autoencoder: MeshAutoencoder, codespace:
     if folds is not None:
         _save(folder / FOLDS_FILE, folds.arrays(), numpy=True)
         parts.append(FOLDS_FILE)
-        info = {**info, "folds": fold_meta(folds)}
+        info = {**info, "folds": folds.meta}
     files = {p: sha256(folder / p) for p in sorted(parts)}
     meta = {"format_version": FORMAT_VERSION, "garment": template.name, "created": time.strftime("%Y-%m-%dT%H:%M:%S"),
             "autoencoder": {"config": autoencoder.config.to_dict(), "scale": float(autoencoder.scale),
@@ -190,17 +190,6 @@ def update_bundle_meta(folder: str | Path, meta: dict) -> None:
     folder = Path(folder)
     current = read_meta(folder)
     atomic_write_text(folder / "bundle.json", strict_json({**current, **meta}, indent=2))
-
-
-def fold_meta(folds: FoldStore) -> dict:
-    """bundle.json's ``folds`` entry."""
-    return {"passes": folds.passes, "frames": len(folds.detail)}
-
-
-def add_fold_store(folder: str | Path, folds: FoldStore) -> None:
-    """Add the detail mode's folds to a bundle trained before them; its auto calibration, made
-    without them, is dropped (``hrr-train`` makes it again)."""
-    add_bundle_part(folder, FOLDS_FILE, folds.arrays(), {"folds": fold_meta(folds)}, numpy=True, drop=("auto",))
 
 
 def _load_state(module: torch.nn.Module, path: Path, folder: Path) -> None:
@@ -303,12 +292,8 @@ def _load_folds(folder: Path, meta: dict, template: GarmentMesh, database: CodeD
     f = _arrays(folder, FOLDS_FILE, ("detail", "scale", "offsets"))
     try:
         folds = FoldStore(f["detail"], f["scale"], f["offsets"], meta["folds"]["passes"])
+        folds.check_fits(template.num_vertices, len(database.names), database.sequence,
+                         database.start + database.latents.shape[1])
     except (KeyError, TypeError, ValueError) as exc:
         raise BundleError(folder, f"{FOLDS_FILE}: {exc}") from None
-    if folds.num_vertices != template.num_vertices or len(folds.lengths) != len(database.names):
-        raise BundleError(folder, f"{FOLDS_FILE} holds {len(folds.lengths)} sequences of {folds.num_vertices} vertices; "
-                                  f"the model has {len(database.names)} of {template.num_vertices}")
-    window = database.latents.shape[1]
-    if len(database) and (database.start + window > folds.lengths[database.sequence]).any():
-        raise BundleError(folder, f"{FOLDS_FILE} is shorter than the database windows it must cover")
     return folds

@@ -91,3 +91,17 @@ class FoldStore:
 
     def arrays(self) -> dict[str, np.ndarray]:
         return {"detail": self.detail, "scale": self.scale, "offsets": self.offsets}
+
+    @property
+    def meta(self) -> dict:
+        """bundle.json's ``folds`` entry."""
+        return {"passes": self.passes, "frames": len(self.detail)}
+
+    def check_fits(self, num_vertices: int, sequences: int, sequence: np.ndarray, end: np.ndarray) -> None:
+        """A ValueError unless the store fits a model: ``num_vertices`` per frame, ``sequences``
+        database sequences, and frames up to ``end`` (exclusive) of each database window's ``sequence``."""
+        if self.num_vertices != num_vertices or len(self.lengths) != sequences:
+            raise ValueError(f"it holds {len(self.lengths)} sequences of {self.num_vertices} vertices; the model has "
+                             f"{sequences} of {num_vertices}")
+        if len(sequence) and (end > self.lengths[sequence]).any():
+            raise ValueError("it is shorter than the database windows it must cover")

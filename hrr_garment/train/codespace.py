@@ -24,7 +24,7 @@ from tqdm import tqdm
 
 from ..artifacts.bundle import (
     BundleError,
-    add_fold_store,
+    add_bundle_part,
     load_bundle,
     read_meta,
     update_bundle_meta,
@@ -32,6 +32,7 @@ from ..artifacts.bundle import (
 )
 from ..artifacts.database import CodeDatabase
 from ..artifacts.folds import FoldStore
+from ..artifacts.manifest import FOLDS_FILE
 from ..data.dataset import DatasetError, GarmentDataset
 from ..data.windows import build_windows, dataset_features, fit_stats, split_windows
 from ..garment.smoothing import mean_operator
@@ -169,8 +170,9 @@ def run_codespace_stage(dataset: str | Path, folder: str | Path, config: CodeSpa
     report_path = stage / "report.json"
     finished = _finished(folder, report_path, key)
     done, meta = finished if finished is not None else (None, {})
-    if done is not None and "folds" not in meta:  # trained before the folds: add them alone
-        add_fold_store(folder, fold_store(ds, list(meta["database"]["names"]), progress))
+    if done is not None and "folds" not in meta:  # trained before the folds: add them alone, and drop
+        folds = fold_store(ds, list(meta["database"]["names"]), progress)  # the auto choice made without them
+        add_bundle_part(folder, FOLDS_FILE, folds.arrays(), {"folds": folds.meta}, numpy=True, drop=("auto",))
     if done is not None and "residual" in meta:
         return _stage_report(done, stage, reused=True)
     splits = {k: ds.splits[k] for k in ("train", "val")}
