@@ -227,7 +227,7 @@ def test_calibration_on_a_window_sample_is_the_sample_of_the_full_errors(trained
     bundle, ds = load_bundle(root / "model"), GarmentDataset(data)
     names = ds.splits["val"]
     args = (bundle.codespace, bundle.autoencoder, bundle.motion_stats, bundle.latent_stats, bundle.database,
-            dataset_features(ds, names, bundle.codespace.config.memory_seconds), {n: body_frames(ds, [n]) for n in names})
+            dataset_features(ds, names, bundle.codespace.config.memory), {n: body_frames(ds, [n]) for n in names})
     full = evaluate_modes(*args, refine_steps=0, refine_lr=0.0, max_windows=None)
     sample = evaluate_modes(*args, refine_steps=0, refine_lr=0.0, max_windows=7)
     keep = np.linspace(0, len(full.regression) - 1, 7).round().astype(int)

@@ -90,7 +90,7 @@ def _median_entropy_tau(bundle: Bundle, motion) -> float:
     from hrr_garment.motion.memory import with_memory
     from hrr_garment.motion.windows import windows as feature_windows
 
-    feats = with_memory(motion_features(motion), motion.fps, bundle.codespace.config.memory_seconds)
+    feats = with_memory(motion_features(motion), motion.fps, bundle.codespace.config.memory)
     windows = np.ascontiguousarray(feature_windows(feats, bundle.codespace.config.window))
     entropy = encode_motion(bundle.codespace, bundle.motion_stats, bundle.latent_stats, windows, regression=False).entropy
     return float(np.quantile(entropy, 0.5, method="lower"))

@@ -242,7 +242,7 @@ def load_bundle(folder: str | Path, cache_dir: Path | None = None) -> Bundle:
         ae_cfg = AutoencoderConfig.from_dict(meta["autoencoder"]["config"])
         # bundles written before the motion memory (2026-11-24) have none
         # settings added later take their old behaviour in bundles written before them
-        cs_cfg = CodeSpaceConfig.from_dict({"memory_seconds": [], "regression_code": "argmax", **meta["codespace"]["config"]})
+        cs_cfg = CodeSpaceConfig.from_dict({"memory_seconds": [], "resonator_hz": [], "regression_code": "argmax", **meta["codespace"]["config"]})
         features = int(meta["codespace"]["features"])
         latent_shape = tuple(meta["codespace"]["latent_shape"])
     except (KeyError, TypeError, ValueError) as exc:

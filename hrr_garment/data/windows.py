@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..motion.features import FeatureStats, motion_features
-from ..motion.memory import with_memory
+from ..motion.memory import MemorySpec, with_memory
 from ..motion.windows import sequence_windows, windows
 
 
@@ -70,13 +70,13 @@ def build_windows(features: dict[str, np.ndarray], latents: dict[str, np.ndarray
                      np.concatenate(seq), np.concatenate(start), list(names))
 
 
-def dataset_features(dataset, names: list[str], memory_seconds: Sequence[float]) -> dict[str, np.ndarray]:
+def dataset_features(dataset, names: list[str], memory: MemorySpec | Sequence[float]) -> dict[str, np.ndarray]:
     """Motion features (T, 124 + memory) of each named sequence of a :class:`GarmentDataset`, with
-    the motion memory of ``memory_seconds`` (:mod:`hrr_garment.motion.memory`)."""
+    the motion memory ``memory`` (:mod:`hrr_garment.motion.memory`)."""
     out = {}
     for name in names:
         motion = dataset.sequence(name).motion
-        out[name] = with_memory(motion_features(motion), motion.fps, memory_seconds)
+        out[name] = with_memory(motion_features(motion), motion.fps, memory)
     return out
 
 

@@ -234,7 +234,7 @@ class Animator:
         """The model's per-frame motion features (T, F) of a clip: the plain ones, offline or as a
         stream sees them (``causal``), with the motion memory the model was trained with."""
         plain = causal_features(motion) if causal or motion.num_frames < 2 else motion_features(motion)  # one frame: no velocity
-        return with_memory(plain, motion.fps, self.bundle.codespace.config.memory_seconds)
+        return with_memory(plain, motion.fps, self.bundle.codespace.config.memory)
 
     def _choose(self, windows: np.ndarray, mode: str, tau: float, exclude_sequence: int | None, gate: str,
                 last_frame: bool = False):

@@ -34,7 +34,7 @@ from ..errors import InputError
 from ..models.codes import traced_window_codes
 from ..motion.features import pair_features_batch
 from ..motion.frame import world_vertices
-from ..motion.memory import MEMORY_WIDTH, MotionMemory
+from ..motion.memory import MEMORY_WIDTH, motion_memory
 from ..motion.motion import Motion
 from ..motion.poses import poses_to_motion
 from ..native import pin_workers
@@ -57,7 +57,7 @@ class _Character:
     inertializer: Inertializer
     fold_track: FoldTrack | None = None  # the detail mode's playhead in the database's folds
     previous: tuple[np.ndarray, np.ndarray] | None = None  # its last pose: global rotations and joint positions
-    memory: np.ndarray | None = None  # its motion memory's state (k, 64), when the model has one
+    memory: np.ndarray | None = None  # its motion memory's state (rows, 64), when the model has one
     frames: int = 0
 
 
@@ -136,12 +136,12 @@ class CrowdStream:
     def _with_memory(self, chars: list[_Character], features: np.ndarray, fps: float) -> np.ndarray:
         """The pushed frame's features (N, 124) with each character's motion memory, carried one
         frame on (:mod:`hrr_garment.motion.memory`), as offline causal computes it over the clip."""
-        seconds = self.animator.bundle.codespace.config.memory_seconds
-        if not seconds:
+        spec = self.animator.bundle.codespace.config.memory
+        if not spec:
             return features
-        memory = MotionMemory(seconds, fps)
+        memory = motion_memory(spec, float(fps))
         fresh = np.array([c.memory is None for c in chars])
-        state = np.empty((len(chars), len(seconds), MEMORY_WIDTH))
+        state = np.empty((len(chars), spec.rows, MEMORY_WIDTH))
         if fresh.any():
             state[fresh] = memory.start(features[fresh])
         if not fresh.all():

@@ -18,7 +18,7 @@ from dataclasses import asdict, dataclass
 import torch
 from torch import nn
 
-from ..motion.memory import check_memory_seconds, feature_width
+from ..motion.memory import MemorySpec, feature_width
 from ..settings import SettingsError, from_settings
 from .quantizer import GumbelQuantizer
 
@@ -37,21 +37,33 @@ class CodeSpaceConfig:
     motion_hidden: int = 256  # GRU and attention width
     attention_heads: int = 4
     dropout: float = 0.0  # after each hidden layer of the garment encoder and the decoder
-    memory_seconds: tuple[float, ...] = (0.5, 1.5)  # motion memory's time constants (motion.memory); () for none
+    memory_seconds: tuple[float, ...] = (0.5, 1.5)  # motion memory's averages' time constants (motion.memory); () for none
+    resonator_hz: tuple[float, ...] = ()  # the motion memory's resonators' frequencies; () for none
+    resonator_damping: float = 0.3  # their damping ratio
     # what the regression decodes: "expected", the embedding averaged over the motion code's
     # distribution (each group's softmax), or "argmax", the most likely class's (the paper's)
     regression_code: str = "expected"
 
     def __post_init__(self):
-        object.__setattr__(self, "memory_seconds", check_memory_seconds(self.memory_seconds))
+        try:
+            spec = MemorySpec(tuple(self.memory_seconds), tuple(self.resonator_hz), float(self.resonator_damping))
+        except (TypeError, ValueError) as exc:
+            raise SettingsError(f"code space model: {exc}") from None
+        object.__setattr__(self, "memory_seconds", spec.seconds)
+        object.__setattr__(self, "resonator_hz", spec.resonator_hz)
         if self.regression_code not in REGRESSION_CODES:
             raise SettingsError(f"code space model: regression_code must be one of {', '.join(REGRESSION_CODES)}, "
                                 f"got {self.regression_code!r}")
 
     @property
+    def memory(self) -> MemorySpec:
+        """The motion memory the features carry (:mod:`hrr_garment.motion.memory`)."""
+        return MemorySpec(self.memory_seconds, self.resonator_hz, self.resonator_damping)
+
+    @property
     def features(self) -> int:
         """Motion features per frame: the 124 plain ones and the memory's."""
-        return feature_width(self.memory_seconds)
+        return feature_width(self.memory)
 
     @classmethod
     def from_dict(cls, values: dict) -> "CodeSpaceConfig":

@@ -1,75 +1,145 @@
-"""Motion memory: exponential moving averages of the body's velocities over a few time constants,
-appended to the per-frame features (:mod:`.features`) so that the motion encoder's 10-frame
-window (a third of a second) knows what the body did before it.
+"""Motion memory: what the body did before the motion encoder's 10-frame window (a third of a
+second), appended to the per-frame features (:mod:`.features`).
 
 A loose skirt's hem still swings from a turn made a second ago; the window alone cannot see that
-turn. For each time constant s (``seconds``) and each frame t, the memory holds
+turn. Two kinds of memory, both linear filters of the frame's velocity features u_t (the 20 feature
+joints' velocities and the root's, all 3-vectors in the body frame, and the yaw rate):
 
-    m_t = a R_t m_{t-1} + (1 - a) u_t,   a = exp(-1 / (fps s)),   m_0 = u_0
+- **Averages** over time constants s (``MemorySpec.seconds``):
+  ``m_t = a R_t m_{t-1} + (1 - a) u_t``, ``a = exp(-1 / (fps s))``, ``m_0 = u_0``.
+- **Resonators** at frequencies f (``MemorySpec.resonator_hz``) with damping ratio zeta: a damped
+  pendulum bob hung from each velocity, ``x'' + 2 zeta w x' + w^2 x = -du/dt`` (w = 2 pi f), the
+  linear model of a hem driven by the body's acceleration. The bob's displacement x and velocity
+  q = u + x' are its state, ``s_t = A R_t s_{t-1} + B u_t`` with the exact (zero-order hold)
+  discretisation of ``x' = q - u, q' = -w^2 x - 2 zeta w (q - u)``, at rest at the start
+  (``x_0 = 0, q_0 = u_0``). The features are w x and q: where a pendulum of that period would be
+  in its swing, which an average cannot say (an average has no phase).
 
-where u_t are the frame's velocity features (the 20 feature joints' velocities and the root's, all
-3-vectors in the body frame, and the yaw rate) and R_t turns last frame's body frame into this
-frame's (the yaw step from the yaw-rate feature). So m_t is the exponentially weighted average of
-the world velocities, seen from the body frame at t: like the features, it does not change when
-the whole motion is moved or turned about the vertical axis (tested).
+R_t turns last frame's body frame into this frame's (the yaw step from the yaw-rate feature), so
+the memory is of the world velocities, seen from the body frame at t: like the features, it does
+not change when the whole motion is moved or turned about the vertical axis (tested).
 
 It is computed from the features alone, one frame after another, so offline clips, causal clips
 and streams (:class:`MotionMemory`, carried per character) give the same values from the same
-features. Models store their time constants (``CodeSpaceConfig.memory_seconds``); none gives the
-124 plain features of models trained before it.
+features. Models store their memory (``CodeSpaceConfig.memory_seconds``, ``resonator_hz``,
+``resonator_damping``); none gives the 124 plain features of models trained before it.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
-from scipy.signal import lfilter
+from scipy.linalg import expm
+from scipy.signal import lfilter, lfilter_zi, ss2tf
 
 from .features import FEATURE_DIM, SLICE_T, SLICE_V, SLICE_W
 from .rotations import rotation_about_y
 
 VECTORS = (SLICE_V.stop - SLICE_V.start + SLICE_T.stop - SLICE_T.start) // 3  # 21: 20 joint velocities, the root's
-MEMORY_WIDTH = 3 * VECTORS + 1  # values per time constant: the 3-vectors and the yaw rate
+MEMORY_WIDTH = 3 * VECTORS + 1  # values per average (and per resonator output): the 3-vectors and the yaw rate
 
 
-def feature_width(memory_seconds: Sequence[float]) -> int:
-    """Features per frame with memory of ``memory_seconds`` time constants: 124 + 64 per constant."""
-    return FEATURE_DIM + MEMORY_WIDTH * len(memory_seconds)
-
-
-def check_memory_seconds(memory_seconds: Sequence[float]) -> tuple[float, ...]:
-    """The time constants as a tuple of positive seconds, or a ValueError."""
+def check_memory_seconds(memory_seconds: Sequence[float], what: str = "memory time constants",
+                         unit: str = "seconds") -> tuple[float, ...]:
+    """The values as a tuple of positive numbers, or a ValueError."""
     values = tuple(float(s) for s in memory_seconds)
     if any(not np.isfinite(s) or s <= 0 for s in values):
-        raise ValueError(f"memory time constants must be positive seconds, got {list(memory_seconds)}")
+        raise ValueError(f"{what} must be positive {unit}, got {list(memory_seconds)}")
     return values
 
 
-class MotionMemory:
-    """The memory of N motions advanced one frame at a time (streams: one row per character)."""
+@dataclass(frozen=True)
+class MemorySpec:
+    """Which memory a model's features carry: averages over ``seconds`` and resonators at
+    ``resonator_hz`` with damping ratio ``damping``."""
 
-    def __init__(self, memory_seconds: Sequence[float], fps: float):
-        self.seconds = check_memory_seconds(memory_seconds)
+    seconds: tuple[float, ...] = ()
+    resonator_hz: tuple[float, ...] = ()
+    damping: float = 0.3
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "seconds", check_memory_seconds(self.seconds))
+        object.__setattr__(self, "resonator_hz", check_memory_seconds(self.resonator_hz, "resonator frequencies", "hertz"))
+        if not (np.isfinite(self.damping) and 0.0 < self.damping < 1.0):
+            raise ValueError(f"resonator damping must be a ratio between 0 and 1 (underdamped), got {self.damping}")
+
+    @classmethod
+    def of(cls, value: "MemorySpec | Sequence[float]") -> "MemorySpec":
+        """A spec, or averages only from a sequence of time constants."""
+        return value if isinstance(value, MemorySpec) else cls(tuple(value))
+
+    @property
+    def rows(self) -> int:
+        """Rows of MEMORY_WIDTH values a frame: one per average, two per resonator."""
+        return len(self.seconds) + 2 * len(self.resonator_hz)
+
+    def __bool__(self) -> bool:
+        return self.rows > 0
+
+
+def feature_width(memory: MemorySpec | Sequence[float]) -> int:
+    """Features per frame with ``memory``: 124 + 64 per average and 128 per resonator."""
+    return FEATURE_DIM + MEMORY_WIDTH * MemorySpec.of(memory).rows
+
+
+def resonator_step(hz: float, damping: float, fps: float) -> tuple[np.ndarray, np.ndarray]:
+    """The exact one-frame step (A (2, 2), B (2,)) of a resonator's state (x, q) driven by u."""
+    w = 2.0 * np.pi * hz
+    a = np.array([[0.0, 1.0], [-w * w, -2.0 * damping * w]])
+    b = np.array([-1.0, 2.0 * damping * w])
+    step = expm(a / fps)
+    return step, np.linalg.solve(a, (step - np.eye(2)) @ b)
+
+
+class MotionMemory:
+    """The memory of N motions advanced one frame at a time (streams: one row per character).
+    The state is (N, rows, 64): the averages, then each resonator's x and q."""
+
+    def __init__(self, memory: MemorySpec | Sequence[float], fps: float):
+        self.spec, self.fps = MemorySpec.of(memory), float(fps)
+        self.seconds = self.spec.seconds
         self.decay = np.exp(-1.0 / (fps * np.array(self.seconds)))[:, None]  # (k, 1): broadcast over (N, k, 64)
-        self.fps = float(fps)
+        steps = [resonator_step(f, self.spec.damping, fps) for f in self.spec.resonator_hz]
+        self.resonator_a = np.array([a for a, _ in steps]).reshape(-1, 2, 2)  # (r, 2, 2)
+        self.resonator_b = np.array([b for _, b in steps]).reshape(-1, 2)  # (r, 2)
+        self.omega = 2.0 * np.pi * np.array(self.spec.resonator_hz)
 
     def start(self, features: np.ndarray) -> np.ndarray:
-        """The state (N, k, 64) at a motion's first frame, from its features (N, 124)."""
-        return np.repeat(_velocities(features)[:, None], len(self.seconds), 1)
+        """The state (N, rows, 64) at a motion's first frame, from its features (N, 124): every
+        average at the first velocities, every bob at rest (x 0, q the first velocities)."""
+        u = _velocities(features)
+        k, r = len(self.seconds), len(self.spec.resonator_hz)
+        state = np.repeat(u[:, None], k + 2 * r, 1)
+        state[:, k::2] = 0.0
+        return state
 
     def step(self, state: np.ndarray, features: np.ndarray) -> np.ndarray:
-        """The state (N, k, 64) one frame on, from the last state and this frame's features (N, 124)."""
-        n, k = len(state), len(self.seconds)
+        """The state (N, rows, 64) one frame on, from the last state and this frame's features (N, 124)."""
+        n, rows, k = len(state), state.shape[1], len(self.seconds)
         turn = rotation_about_y(-features[:, SLICE_W][:, 0].astype(np.float64) / self.fps)  # (N, 3, 3): last body frame -> this
-        vectors = state[..., :-1].reshape(n, k, VECTORS, 3) @ np.swapaxes(turn, -1, -2)[:, None]
-        carried = np.concatenate([vectors.reshape(n, k, -1), state[..., -1:]], -1)
-        return self.decay * carried + (1.0 - self.decay) * _velocities(features)[:, None]
+        vectors = state[..., :-1].reshape(n, rows, VECTORS, 3) @ np.swapaxes(turn, -1, -2)[:, None]
+        carried = np.concatenate([vectors.reshape(n, rows, -1), state[..., -1:]], -1)
+        u = _velocities(features)[:, None]
+        averages = self.decay * carried[:, :k] + (1.0 - self.decay) * u
+        bobs = carried[:, k:].reshape(n, -1, 2, MEMORY_WIDTH)
+        bobs = self.resonator_a @ bobs + self.resonator_b[..., None] * u[:, None]
+        return np.concatenate([averages, bobs.reshape(n, -1, MEMORY_WIDTH)], 1)
 
-    @staticmethod
-    def values(state: np.ndarray) -> np.ndarray:
-        """The state as feature columns (N, k x 64), float32."""
-        return state.reshape(len(state), -1).astype(np.float32)
+    def values(self, state: np.ndarray) -> np.ndarray:
+        """The state as feature columns (N, rows x 64), float32: the averages, w x and q."""
+        k = len(self.seconds)
+        out = state.copy()
+        out[:, k::2] *= self.omega[None, :, None]
+        return out.reshape(len(state), -1).astype(np.float32)
+
+
+@lru_cache(maxsize=16)
+def motion_memory(memory: MemorySpec, fps: float) -> MotionMemory:
+    """A :class:`MotionMemory`, made once per spec and frame rate (a stream steps it every push)."""
+    return MotionMemory(memory, fps)
 
 
 def _velocities(features: np.ndarray) -> np.ndarray:
@@ -77,24 +147,31 @@ def _velocities(features: np.ndarray) -> np.ndarray:
     return np.concatenate([features[:, SLICE_V], features[:, SLICE_T], features[:, SLICE_W]], 1).astype(np.float64)
 
 
-def with_memory(features: np.ndarray, fps: float, memory_seconds: Sequence[float]) -> np.ndarray:
-    """(T, 124) features of one motion -> (T, 124 + 64 k) with its memory appended; unchanged
-    (the same array) without time constants. The recursion of :class:`MotionMemory` in closed
-    form: the velocities turned into the first frame's body frame (the yaw steps summed), a linear
-    filter there, turned back into each frame's body frame (the same values to rounding, tested)."""
-    if not len(memory_seconds):
+def with_memory(features: np.ndarray, fps: float, memory: MemorySpec | Sequence[float]) -> np.ndarray:
+    """(T, 124) features of one motion -> (T, 124 + 64 rows) with its memory appended; unchanged
+    (the same array) without any. The recursion of :class:`MotionMemory` in closed form: the
+    velocities turned into the first frame's body frame (the yaw steps summed), linear filters
+    there, turned back into each frame's body frame (the same values to rounding, tested)."""
+    memory = MotionMemory(memory, fps)
+    if not memory.spec:
         return features
-    memory = MotionMemory(memory_seconds, fps)
     heading = np.cumsum(features[:, SLICE_W][:, 0].astype(np.float64)) / fps  # yaw since frame 0 ...
     heading -= heading[0]  # ... frame 0's own step is before it
     to_first = rotation_about_y(heading)  # (T, 3, 3): frame t's body frame -> frame 0's
     u = _velocities(features)
     vectors = u[:, :-1].reshape(len(u), VECTORS, 3) @ np.swapaxes(to_first, -1, -2)
     first = np.concatenate([vectors.reshape(len(u), -1), u[:, -1:]], 1)
-    out = np.empty((len(features), feature_width(memory.seconds)), np.float32)
+    filtered = [lfilter([1.0 - a], [1.0, -a], first, axis=0, zi=a * first[:1])[0] for a in memory.decay[:, 0]]
+    for a, b, w in zip(memory.resonator_a, memory.resonator_b, memory.omega):
+        # s_t = A s_{t-1} + B u_t, y_t = C s_t: as a standard state space in s_{t-1}, outputs C A and C B
+        c = np.diag([w, 1.0])
+        for row in range(2):
+            num, den = ss2tf(a, b[:, None], (c @ a)[row:row + 1], (c @ b)[row:row + 1, None])
+            num = num[0]
+            filtered.append(lfilter(num, den, first, axis=0, zi=lfilter_zi(num, den)[:, None] * first[:1])[0])
+    out = np.empty((len(features), feature_width(memory.spec)), np.float32)
     out[:, :FEATURE_DIM] = features
-    for i, a in enumerate(memory.decay[:, 0]):
-        smoothed = lfilter([1.0 - a], [1.0, -a], first, axis=0, zi=a * first[:1])[0]
+    for i, smoothed in enumerate(filtered):
         back = smoothed[:, :-1].reshape(len(u), VECTORS, 3) @ to_first
         cols = slice(FEATURE_DIM + i * MEMORY_WIDTH, FEATURE_DIM + (i + 1) * MEMORY_WIDTH)
         out[:, cols] = np.concatenate([back.reshape(len(u), -1), smoothed[:, -1:]], 1)

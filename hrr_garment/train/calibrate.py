@@ -259,6 +259,6 @@ def evaluate_bundle(bundle, dataset: str | Path, split: str = "val") -> dict:
         raise DatasetError(dataset, f"has no {split!r} sequences")
     encoding = refine_settings(bundle.meta.get("encoding", {}))
     modes = evaluate_modes(bundle.codespace, bundle.autoencoder, bundle.motion_stats, bundle.latent_stats, bundle.database,
-                           dataset_features(ds, names, bundle.codespace.config.memory_seconds), {n: body_frames(ds, [n]) for n in names},
+                           dataset_features(ds, names, bundle.codespace.config.memory), {n: body_frames(ds, [n]) for n in names},
                            **encoding)
     return modes.summary(bundle.tau, bundle.gate)
