@@ -111,6 +111,8 @@ def test_the_expected_code_is_the_mean_embedding_under_each_groups_softmax():
                               torch.einsum("bgk,gkd->bgd", weights, table), atol=1e-6)
     with pytest.raises(SettingsError, match="regression_code"):
         CodeSpaceConfig(regression_code="mode")
+    with pytest.raises(SettingsError, match="code space model: resonator damping"):
+        CodeSpaceConfig(resonator_hz=(1.0,), resonator_damping=1.5)
 
 
 def test_windows_cover_every_start_frame():

@@ -101,7 +101,8 @@ def test_an_artist_dress_goes_through_simulate_train_and_animate(artist_model, t
     # and the argmax regression end to end
     animator = Animator.load(model)
     config = animator.bundle.codespace.config
-    assert animator.bundle.codespace.features == 124 and config.memory_seconds == () and config.regression_code == "argmax"
+    assert animator.bundle.codespace.features == 124 and config.memory_seconds == () == config.resonator_hz \
+        and config.regression_code == "argmax"
     stream = animator.stream()
     streamed = np.stack([stream.push(dance.slice(t, t + 1)) for t in range(5)])
     np.testing.assert_allclose(streamed, animator.animate(dance.slice(0, 5), causal=True).vertices, atol=1e-5)

@@ -8,8 +8,9 @@ Files (all arrays as safetensors, nothing pickled)::
     motion_encoder.safetensors   garment_encoder.safetensors   decoder.safetensors
     quantizer.safetensors        the quantiser's class embeddings
     stats.safetensors            motion feature and garment latent mean/std
-    database.safetensors         retrieval database: codes, latent windows, source sequence/frame,
-                                 standardised motion windows (for the naive-NN baseline)
+    database.safetensors         retrieval database: codes, source sequence/frame, and the windows'
+                                 latents and standardised motion, each frame once (bundles before
+                                 2026-11-26: every window in full)
     template.safetensors         template vertices, faces, attached vertex indices, vertex groups (group/NAME)
     folds.safetensors            every database frame's simulated folds, for the detail mode (:mod:`.folds`)
 
@@ -266,14 +267,13 @@ def load_bundle(folder: str | Path, cache_dir: Path | None = None) -> Bundle:
     for name in NETWORKS:
         _load_state(getattr(codespace, name), folder / f"{name}.safetensors", folder)
     s = _arrays(folder, "stats.safetensors", ("motion_mean", "motion_std", "latent_mean", "latent_std"))
-    d = _arrays(folder, "database.safetensors", ("codes", "latents", "sequence", "start"))
-    if d["latents"].shape[1:] != (cs_cfg.window, *latent_shape) or d["codes"].shape[1:] != (cs_cfg.groups,):
-        raise BundleError(folder, f"database shapes {d['codes'].shape} / {d['latents'].shape} do not fit the configuration")
+    d = _arrays(folder, "database.safetensors", ("codes", "sequence", "start"))
     try:
-        database = CodeDatabase(d["codes"], d["latents"], d["sequence"], d["start"], list(meta["database"]["names"]),
-                                int(meta["database"]["classes"]), d.get("motion"))
-    except ValueError as exc:
+        database = CodeDatabase.from_arrays(d, list(meta["database"]["names"]), int(meta["database"]["classes"]), cs_cfg.window)
+    except (KeyError, TypeError, ValueError) as exc:
         raise BundleError(folder, f"database: {exc}") from None
+    if database.latents.shape[1:] != (cs_cfg.window, *latent_shape) or database.codes.shape[1:] != (cs_cfg.groups,):
+        raise BundleError(folder, f"database shapes {database.codes.shape} / {database.latents.shape} do not fit the configuration")
     folds = _load_folds(folder, meta, template, database) if "folds" in meta else None
     direct = None
     if "direct" in meta:  # the optional baseline (hrr-train --stage baseline)

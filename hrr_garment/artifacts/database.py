@@ -7,6 +7,10 @@ Hamming distance of the packed bit vectors (each disagreeing group flips two bit
 runs on a FAISS binary index (popcounts over G x K / 8 bytes per code) and returns the same
 neighbours as a float inner-product index over the normalised one-hot vectors, 32x smaller.
 
+Stride-1 windows share all but one frame with their neighbours, so a database built from a
+dataset's sequences keeps each frame once (:class:`WindowFrames`) and reads a window as W
+consecutive frames: ten times smaller than the windows themselves, on disk and in memory.
+
 The gate signals that judge a match (:mod:`.gate_signals`) use :meth:`CodeDatabase.search` and
 :meth:`CodeDatabase.motion_distance`.
 """
@@ -17,6 +21,42 @@ from dataclasses import dataclass
 
 import faiss
 import numpy as np
+
+FRAMES_KEY = {"latents": "latent_frames", "motion": "motion_frames"}  # a bundle's names for the frame form
+
+
+class WindowFrames:
+    """Windows of W consecutive rows of a per-frame array, read like an (N, W, ...) array of
+    windows: row i is ``frames[first[i] : first[i] + W]``. Indexing gathers (``[rows]``,
+    ``[rows, -k:]``); nothing else of numpy's array interface is offered."""
+
+    def __init__(self, frames: np.ndarray, first: np.ndarray, window: int):
+        self.frames, self.first, self.window = frames, np.asarray(first, np.int64), int(window)
+        if self.window < 1 or self.first.ndim != 1:
+            raise ValueError(f"a window needs at least one frame and one first frame per window, got window {window} "
+                             f"and first frames of shape {self.first.shape}")
+        if len(self.first) and (self.first.min() < 0 or self.first.max() + self.window > len(frames)):
+            raise ValueError(f"windows of {self.window} frames from frames {int(self.first.min())}-{int(self.first.max())} "
+                             f"run past the {len(frames)} frames stored")
+
+    def __len__(self) -> int:
+        return len(self.first)
+
+    @property
+    def shape(self) -> tuple[int, ...]:
+        return (len(self.first), self.window, *self.frames.shape[1:])
+
+    @property
+    def dtype(self) -> np.dtype:
+        return self.frames.dtype
+
+    def __getitem__(self, key) -> np.ndarray:
+        rows, within = key if isinstance(key, tuple) else (key, slice(None))
+        return self.frames[self.first[rows][..., None] + np.arange(self.window)[within]]
+
+    def windows(self) -> np.ndarray:
+        """Every window, (N, W, ...): W times the memory of the frames."""
+        return self[np.arange(len(self))]
 
 
 def pack_codes(codes: np.ndarray, classes: int) -> np.ndarray:
@@ -38,12 +78,12 @@ class CodeDatabase:
     """Every training window's garment code, true latents and source, searchable by code."""
 
     codes: np.ndarray  # (N, G) uint8 class indices of the garment codes
-    latents: np.ndarray  # (N, W, nodes, C) float32 true garment latents (not standardised)
+    latents: np.ndarray | WindowFrames  # (N, W, nodes, C) float32 true garment latents (not standardised)
     sequence: np.ndarray  # (N,) int32 index into names
     start: np.ndarray  # (N,) int32 first frame of the window
     names: list[str]
     classes: int
-    motion: np.ndarray | None = None  # (N, W, F) standardised motion windows, for the naive-NN baseline
+    motion: np.ndarray | WindowFrames | None = None  # (N, W, F) standardised motion windows (naive NN, gate signals)
 
     def __post_init__(self):
         self.codes = np.ascontiguousarray(self.codes, np.uint8)
@@ -87,9 +127,10 @@ class CodeDatabase:
         the database row per query; the baseline that learned retrieval is compared with."""
         if self.motion is None:
             raise ValueError("this database has no motion windows (naive-NN needs them)")
-        if not hasattr(self, "_motion_index"):
-            self._motion_index = faiss.IndexFlatL2(int(np.prod(self.motion.shape[1:])))
-            self._motion_index.add(np.ascontiguousarray(self.motion.reshape(len(self.motion), -1), np.float32))
+        if not hasattr(self, "_motion_index"):  # every window in full: the baseline's memory, built on first use
+            windows = self.motion.windows() if isinstance(self.motion, WindowFrames) else self.motion
+            self._motion_index = faiss.IndexFlatL2(int(np.prod(windows.shape[1:])))
+            self._motion_index.add(np.ascontiguousarray(windows.reshape(len(windows), -1), np.float32))
         q = np.ascontiguousarray(np.asarray(motion, np.float32).reshape(len(motion), -1))
         return self._search(self._motion_index, q, exclude)[1]
 
@@ -102,5 +143,28 @@ class CodeDatabase:
         return np.sqrt(np.mean(diff.astype(np.float64) ** 2, axis=1))
 
     def arrays(self) -> dict[str, np.ndarray]:
-        out = {"codes": self.codes, "latents": self.latents, "sequence": self.sequence, "start": self.start}
-        return out if self.motion is None else {**out, "motion": self.motion}
+        """What a bundle stores: windows as frames (``latent_frames``, ``motion_frames`` and each
+        window's ``first`` frame) when the database keeps them so, else as windows."""
+        out = {"codes": self.codes, "sequence": self.sequence, "start": self.start}
+        for name, value in (("latents", self.latents), ("motion", self.motion)):
+            if isinstance(value, WindowFrames):
+                out[FRAMES_KEY[name]], out["first"] = value.frames, value.first
+            elif value is not None:
+                out[name] = value
+        return out
+
+    @classmethod
+    def from_arrays(cls, arrays: dict[str, np.ndarray], names: list[str], classes: int, window: int) -> "CodeDatabase":
+        """The database :meth:`arrays` stored (either form); ValueError when they do not fit."""
+        def read(name: str):
+            frames = FRAMES_KEY[name]
+            if frames in arrays:
+                if "first" not in arrays:
+                    raise ValueError(f"{frames} without the windows' first frames")
+                return WindowFrames(arrays[frames], arrays["first"], window)
+            return arrays.get(name)
+
+        latents = read("latents")
+        if latents is None:
+            raise ValueError("no garment latents (latent_frames or latents)")
+        return cls(arrays["codes"], latents, arrays["sequence"], arrays["start"], names, classes, read("motion"))
