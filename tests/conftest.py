@@ -107,7 +107,7 @@ def artist_model(tmp_path_factory):
         assert simulate_main(["--template", str(obj), "--fit", "--attached", "auto", "--preset", "tiny", "--motions",
                               "walk", "spin", "walk", "--seconds", "1.0", "--jobs", "1", "--quiet", "-o", str(data)]) == 0
     # as bundles written before the motion memory and the expected-code regression
-    (root / "cfg.yaml").write_text(TINY_TRAINING.replace("attention_heads: 2}", "attention_heads: 2, memory_seconds: [], "
+    (root / "cfg.yaml").write_text(TINY_TRAINING.replace("attention_heads: 2}", "attention_heads: 2, memory_seconds: [], resonator_hz: [], "
                                                                                 "regression_code: argmax}"))
     assert train_main(["--dataset", str(data), "--config", str(root / "cfg.yaml"), "-o", str(root / "model"), "--quiet"]) == 0
     return data, root / "model", printed.getvalue()

@@ -2,7 +2,9 @@
 reading windows from frames gives the windows themselves, every search and distance is unchanged,
 a bundle stores the frames, and bundles that stored every window still load."""
 
+import importlib.util
 import shutil
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -60,6 +62,12 @@ def test_a_database_of_frames_answers_as_the_one_of_windows_and_stores_them_once
     assert np.array_equal(again.latents[np.arange(len(w))], w.latents) and np.array_equal(again.motion.windows(), w.motion)
     old = CodeDatabase.from_arrays(whole.arrays(), names, 4, WINDOW)  # the windows themselves, as bundles stored them
     assert np.array_equal(old.latents, w.latents)
+    back = WindowFrames.of_windows(w.latents, w.sequence, w.start)  # the windows back into frames
+    assert np.array_equal(back.windows(), w.latents) and len(back.frames) == 9 + 7  # the short sequence has no window
+    bad = w.latents.copy()
+    bad[1, 0] += 1.0  # window 1's first frame is window 0's second
+    with pytest.raises(ValueError, match="not stride-1 crops"):
+        WindowFrames.of_windows(bad, w.sequence, w.start)
     with pytest.raises(ValueError, match="without the windows' first frames"):
         CodeDatabase.from_arrays({k: v for k, v in stored.items() if k != "first"}, names, 4, WINDOW)
 
@@ -78,3 +86,10 @@ def test_a_trained_bundle_stores_frames_and_one_that_stored_windows_still_loads(
     assert isinstance(old.database.latents, np.ndarray) and np.array_equal(old.database.latents, windows["latents"])
     motion = np.random.default_rng(0).normal(size=(3, *windows["motion"].shape[1:])).astype(np.float32)
     assert np.array_equal(old.database.nearest_motion(motion), bundle.database.nearest_motion(motion))
+    spec = importlib.util.spec_from_file_location("compact_database", Path(__file__).parents[1] / "tools" / "compact_database.py")
+    tool = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(tool)
+    before, after = tool.compact(copy)  # tools/compact_database.py: back to the frame form, checked
+    assert after < before and load_file(str(copy / "database.safetensors")).keys() == stored.keys()
+    again = load_bundle(copy).database
+    assert np.array_equal(again.latents.windows(), windows["latents"]) and np.array_equal(again.motion.frames, stored["motion_frames"])

@@ -37,7 +37,7 @@ import numpy as np
 import torch
 
 from hrr_garment.artifacts.bundle import Bundle
-from hrr_garment.artifacts.database import CodeDatabase
+from hrr_garment.artifacts.database import CodeDatabase, WindowFrames
 from hrr_garment.artifacts.folds import FoldStore
 from hrr_garment.garment.templates import make_garment
 from hrr_garment.inference.animator import Animator
@@ -59,14 +59,16 @@ def random_bundle(vertices: int, windows: int, seed: int = 0) -> Bundle:
     cfg = CodeSpaceConfig()
     cs = CodeSpace(cfg, cfg.features, ae.latent_shape).eval()
     size = ae.latent_shape[0] * ae.latent_shape[1]
+    sequence, start = np.arange(windows) // 111, np.arange(windows) % 111
+    lengths = np.full(int(sequence[-1]) + 1, 111 + cfg.window - 1)  # every sequence's frames, as many as its windows cover
+    first, frames = np.r_[0, np.cumsum(lengths)][sequence] + start, int(lengths.sum())
     db = CodeDatabase(rng.integers(0, cfg.classes, (windows, cfg.groups)),
-                      rng.normal(size=(windows, cfg.window, *ae.latent_shape)).astype(np.float32),
-                      np.arange(windows) // 111, np.arange(windows) % 111, [f"s{i}" for i in range(windows // 111 + 1)],
-                      cfg.classes, rng.normal(size=(windows, cfg.window, cfg.features)).astype(np.float32))
+                      WindowFrames(rng.normal(size=(frames, *ae.latent_shape)).astype(np.float32), first, cfg.window),
+                      sequence, start, [f"s{i}" for i in range(len(lengths))], cfg.classes,
+                      WindowFrames(rng.normal(size=(frames, cfg.features)).astype(np.float32), first, cfg.window))
     meta = {"tau": 1.0, "garment": "dress", "content_hash": "random"}
-    lengths = np.full(len(db.names), 111 + cfg.window - 1)  # every sequence's frames, as many as its windows cover
-    folds = FoldStore(rng.integers(-127, 128, (int(lengths.sum()), garment.num_vertices, 3), dtype=np.int8),
-                      np.full(int(lengths.sum()), 1e-4, np.float32), np.r_[0, np.cumsum(lengths)])
+    folds = FoldStore(rng.integers(-127, 128, (frames, garment.num_vertices, 3), dtype=np.int8),
+                      np.full(frames, 1e-4, np.float32), np.r_[0, np.cumsum(lengths)])
     return Bundle(Path("."), meta, ae, cs, FeatureStats(np.zeros(cfg.features, np.float32), np.ones(cfg.features, np.float32)),
                   FeatureStats(np.zeros(size, np.float32), np.ones(size, np.float32)), db, garment, folds=folds)
 

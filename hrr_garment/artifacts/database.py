@@ -39,6 +39,26 @@ class WindowFrames:
             raise ValueError(f"windows of {self.window} frames from frames {int(self.first.min())}-{int(self.first.max())} "
                              f"run past the {len(frames)} frames stored")
 
+    @classmethod
+    def of_windows(cls, windows: np.ndarray, sequence: np.ndarray, start: np.ndarray, chunk: int = 4096) -> "WindowFrames":
+        """Stride-1 windows (N, W, ...) cut from sequences (each one's ``sequence`` and ``start``)
+        back into their frames; ValueError where two windows disagree about a frame they share."""
+        n, window = windows.shape[:2]
+        sequence, start = np.asarray(sequence, np.int64), np.asarray(start, np.int64)
+        ends = np.zeros(int(sequence.max()) + 1 if n else 0, np.int64)
+        np.maximum.at(ends, sequence, start + window)
+        offsets = np.concatenate([[0], np.cumsum(ends)])
+        rows = (offsets[sequence] + start)[:, None] + np.arange(window)
+        frames = np.zeros((int(offsets[-1]), *windows.shape[2:]), windows.dtype)
+        frames[rows.reshape(-1)] = windows.reshape(n * window, *windows.shape[2:])
+        covered = np.zeros(len(frames), bool)
+        covered[rows.reshape(-1)] = True
+        out = cls(frames[covered], (np.cumsum(covered) - 1)[rows[:, 0]], window)  # frames no window holds dropped
+        for i in range(0, n, chunk):
+            if not np.array_equal(out[np.arange(i, min(n, i + chunk))], windows[i:i + chunk]):
+                raise ValueError("the windows are not stride-1 crops of sequences: two disagree about a frame they share")
+        return out
+
     def __len__(self) -> int:
         return len(self.first)
 

@@ -38,7 +38,7 @@ class CodeSpaceConfig:
     attention_heads: int = 4
     dropout: float = 0.0  # after each hidden layer of the garment encoder and the decoder
     memory_seconds: tuple[float, ...] = (0.5, 1.5)  # motion memory's averages' time constants (motion.memory); () for none
-    resonator_hz: tuple[float, ...] = ()  # the motion memory's resonators' frequencies; () for none
+    resonator_hz: tuple[float, ...] = (0.6, 1.0, 1.6)  # the motion memory's resonators' frequencies; () for none
     resonator_damping: float = 0.3  # their damping ratio
     # what the regression decodes: "expected", the embedding averaged over the motion code's
     # distribution (each group's softmax), or "argmax", the most likely class's (the paper's)
