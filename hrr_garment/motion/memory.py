@@ -106,6 +106,14 @@ class MotionMemory:
         self.resonator_a = np.array([a for a, _ in steps]).reshape(-1, 2, 2)  # (r, 2, 2)
         self.resonator_b = np.array([b for _, b in steps]).reshape(-1, 2)  # (r, 2)
         self.omega = 2.0 * np.pi * np.array(self.spec.resonator_hz)
+        # the same recursion as transfer functions for a whole clip (with_memory): s_t = A s_{t-1} + B u_t,
+        # y_t = C s_t is a standard state space in s_{t-1} with outputs C A and C B; C = diag(w, 1)
+        self.resonator_filters = []
+        for a, b, w in zip(self.resonator_a, self.resonator_b, self.omega):
+            c = np.diag([w, 1.0])
+            for row in range(2):
+                num, den = ss2tf(a, b[:, None], (c @ a)[row:row + 1], (c @ b)[row:row + 1, None])
+                self.resonator_filters.append((num[0], den, lfilter_zi(num[0], den)))
 
     def start(self, features: np.ndarray) -> np.ndarray:
         """The state (N, rows, 64) at a motion's first frame, from its features (N, 124): every
@@ -152,7 +160,7 @@ def with_memory(features: np.ndarray, fps: float, memory: MemorySpec | Sequence[
     (the same array) without any. The recursion of :class:`MotionMemory` in closed form: the
     velocities turned into the first frame's body frame (the yaw steps summed), linear filters
     there, turned back into each frame's body frame (the same values to rounding, tested)."""
-    memory = MotionMemory(memory, fps)
+    memory = motion_memory(MemorySpec.of(memory), float(fps))  # its resonators' steps made once
     if not memory.spec:
         return features
     heading = np.cumsum(features[:, SLICE_W][:, 0].astype(np.float64)) / fps  # yaw since frame 0 ...
@@ -162,13 +170,7 @@ def with_memory(features: np.ndarray, fps: float, memory: MemorySpec | Sequence[
     vectors = u[:, :-1].reshape(len(u), VECTORS, 3) @ np.swapaxes(to_first, -1, -2)
     first = np.concatenate([vectors.reshape(len(u), -1), u[:, -1:]], 1)
     filtered = [lfilter([1.0 - a], [1.0, -a], first, axis=0, zi=a * first[:1])[0] for a in memory.decay[:, 0]]
-    for a, b, w in zip(memory.resonator_a, memory.resonator_b, memory.omega):
-        # s_t = A s_{t-1} + B u_t, y_t = C s_t: as a standard state space in s_{t-1}, outputs C A and C B
-        c = np.diag([w, 1.0])
-        for row in range(2):
-            num, den = ss2tf(a, b[:, None], (c @ a)[row:row + 1], (c @ b)[row:row + 1, None])
-            num = num[0]
-            filtered.append(lfilter(num, den, first, axis=0, zi=lfilter_zi(num, den)[:, None] * first[:1])[0])
+    filtered += [lfilter(num, den, first, axis=0, zi=zi[:, None] * first[:1])[0] for num, den, zi in memory.resonator_filters]
     out = np.empty((len(features), feature_width(memory.spec)), np.float32)
     out[:, :FEATURE_DIM] = features
     for i, smoothed in enumerate(filtered):
