@@ -52,6 +52,10 @@ def test_a_database_of_frames_answers_as_the_one_of_windows_and_stores_them_once
     query = w.motion[[1, 8, 4]] + 0.01
     assert np.array_equal(framed.nearest_motion(query), whole.nearest_motion(query))
     assert np.array_equal(framed.nearest_motion(query, np.array([0, 2, -1])), whole.nearest_motion(query, np.array([0, 2, -1])))
+    batch = framed.nearest_motion(query)
+    assert [int(framed.nearest_motion(q[None])[0]) for q in query] == batch.tolist()  # alone = in a batch
+    twins = CodeDatabase(codes[:4], w.latents[:4], np.zeros(4, np.int32), np.arange(4), names, 4, w.motion[[2, 1, 2, 3]])
+    assert twins.nearest_motion(w.motion[[2]])[0] == 0  # an exact tie goes to the lowest row
     rows = np.array([2, 9, 0])
     np.testing.assert_allclose(framed.motion_distance(query, rows), whole.motion_distance(query, rows), rtol=1e-6)
     stored = framed.arrays()

@@ -22,6 +22,7 @@ from dataclasses import dataclass
 import faiss
 import numpy as np
 
+RERANK = 8  # naive nearest neighbour: candidates ranked again in float64
 FRAMES_KEY = {"latents": "latent_frames", "motion": "motion_frames"}  # a bundle's names for the frame form
 
 
@@ -144,7 +145,12 @@ class CodeDatabase:
 
     def nearest_motion(self, motion: np.ndarray, exclude: np.ndarray | None = None) -> np.ndarray:
         """Naive nearest neighbour (Euclidean on standardised motion windows (Q, W, F), no codes):
-        the database row per query; the baseline that learned retrieval is compared with."""
+        the database row per query; the baseline that learned retrieval is compared with.
+
+        FAISS finds candidates in float32 by a path that depends on how many queries come at once
+        (BLAS for a batch, a loop for a few), so a near tie could go one way offline and the other
+        in a stream. The best ``RERANK`` candidates are therefore ranked again in float64, ties to
+        the lowest row: the same answer for a query alone or in a batch."""
         if self.motion is None:
             raise ValueError("this database has no motion windows (naive-NN needs them)")
         if not hasattr(self, "_motion_index"):  # every window in full: the baseline's memory, built on first use
@@ -152,7 +158,19 @@ class CodeDatabase:
             self._motion_index = faiss.IndexFlatL2(int(np.prod(windows.shape[1:])))
             self._motion_index.add(np.ascontiguousarray(windows.reshape(len(windows), -1), np.float32))
         q = np.ascontiguousarray(np.asarray(motion, np.float32).reshape(len(motion), -1))
-        return self._search(self._motion_index, q, exclude)[1]
+        excluding = exclude is not None and np.any(np.asarray(exclude) >= 0)
+        k = min(len(self), RERANK + (int(np.bincount(self.sequence).max()) if excluding else 0))
+        _, idx = self._motion_index.search(q, k)
+        allowed = self.sequence[idx] != np.asarray(exclude)[:, None] if excluding else np.ones(idx.shape, bool)
+        if not allowed.any(1).all():
+            raise ValueError("excluding the query's sequence leaves nothing to retrieve")
+        rows = np.arange(len(idx))[:, None]
+        first = np.argsort(~allowed, axis=1, kind="stable")[:, :RERANK]  # the best allowed candidates, in order
+        idx, allowed = idx[rows, first], allowed[rows, first]
+        cand = self.motion[idx.reshape(-1)].reshape(*idx.shape, -1).astype(np.float64)
+        dist = np.where(allowed, ((cand - q[:, None].astype(np.float64)) ** 2).sum(-1), np.inf)
+        best = np.lexsort((idx, dist), axis=-1)[:, 0]  # the nearest, ties to the lowest row
+        return idx[rows[:, 0], best].astype(np.int64)
 
     def motion_distance(self, motion: np.ndarray, rows: np.ndarray) -> np.ndarray:
         """RMS difference (standardised units) between query motion windows (Q, W, F), standardised,

@@ -51,6 +51,7 @@ class CodeSpaceConfig:
             raise SettingsError(f"code space model: {exc}") from None
         object.__setattr__(self, "memory_seconds", spec.seconds)
         object.__setattr__(self, "resonator_hz", spec.resonator_hz)
+        object.__setattr__(self, "resonator_damping", spec.damping)
         if self.regression_code not in REGRESSION_CODES:
             raise SettingsError(f"code space model: regression_code must be one of {', '.join(REGRESSION_CODES)}, "
                                 f"got {self.regression_code!r}")

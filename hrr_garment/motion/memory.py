@@ -63,6 +63,7 @@ class MemorySpec:
     def __post_init__(self) -> None:
         object.__setattr__(self, "seconds", check_memory_seconds(self.seconds))
         object.__setattr__(self, "resonator_hz", check_memory_seconds(self.resonator_hz, "resonator frequencies", "hertz"))
+        object.__setattr__(self, "damping", float(self.damping))
         if not (np.isfinite(self.damping) and 0.0 < self.damping < 1.0):
             raise ValueError(f"resonator damping must be a ratio between 0 and 1 (underdamped), got {self.damping}")
 
