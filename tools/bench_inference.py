@@ -61,11 +61,14 @@ def random_bundle(vertices: int, windows: int, seed: int = 0) -> Bundle:
     size = ae.latent_shape[0] * ae.latent_shape[1]
     sequence, start = np.arange(windows) // 111, np.arange(windows) % 111
     lengths = np.full(int(sequence[-1]) + 1, 111 + cfg.window - 1)  # every sequence's frames, as many as its windows cover
-    first, frames = np.r_[0, np.cumsum(lengths)][sequence] + start, int(lengths.sum())
-    db = CodeDatabase(rng.integers(0, cfg.classes, (windows, cfg.groups)),
-                      WindowFrames(rng.normal(size=(frames, *ae.latent_shape)).astype(np.float32), first, cfg.window),
-                      sequence, start, [f"s{i}" for i in range(len(lengths))], cfg.classes,
-                      WindowFrames(rng.normal(size=(frames, cfg.features)).astype(np.float32), first, cfg.window))
+    frames = int(lengths.sum())
+
+    def random_frames(*shape: int) -> WindowFrames:
+        return WindowFrames.of_sequences([rng.normal(size=(n, *shape)).astype(np.float32) for n in lengths], sequence, start,
+                                         cfg.window)
+
+    db = CodeDatabase(rng.integers(0, cfg.classes, (windows, cfg.groups)), random_frames(*ae.latent_shape), sequence, start,
+                      [f"s{i}" for i in range(len(lengths))], cfg.classes, random_frames(cfg.features))
     meta = {"tau": 1.0, "garment": "dress", "content_hash": "random"}
     folds = FoldStore(rng.integers(-127, 128, (frames, garment.num_vertices, 3), dtype=np.int8),
                       np.full(frames, 1e-4, np.float32), np.r_[0, np.cumsum(lengths)])

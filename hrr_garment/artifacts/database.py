@@ -60,6 +60,13 @@ class WindowFrames:
                 raise ValueError("the windows are not stride-1 crops of sequences: two disagree about a frame they share")
         return out
 
+    @classmethod
+    def of_sequences(cls, frames: list[np.ndarray], sequence: np.ndarray, start: np.ndarray, window: int) -> "WindowFrames":
+        """Windows (``sequence``, ``start`` each) of the per-frame arrays ``frames`` of sequences
+        (T_s, ...), stored one after another."""
+        offsets = np.concatenate([[0], np.cumsum([len(f) for f in frames])])
+        return cls(np.concatenate(frames), offsets[np.asarray(sequence)] + np.asarray(start), window)
+
     def __len__(self) -> int:
         return len(self.first)
 
@@ -126,22 +133,23 @@ class CodeDatabase:
     def search(self, codes: np.ndarray, exclude: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Best match per query code (Q, G): (indices (Q,), cosine similarity (Q,)).
         ``exclude`` (Q,): a sequence index per query whose windows may not be returned (-1: none)."""
-        dist, idx = self._search(self.index, pack_codes(codes, self.classes), exclude)
-        return idx, 1.0 - dist / (2.0 * self.groups)
+        dist, idx, _ = self._search(self.index, pack_codes(codes, self.classes), exclude)
+        return idx[:, 0], 1.0 - dist[:, 0] / (2.0 * self.groups)
 
-    def _search(self, index, queries: np.ndarray, exclude: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
-        """Nearest row per query in ``index`` (distance, row), skipping rows of the query's
-        ``exclude`` sequence: enough neighbours are fetched that one lies outside the largest."""
-        if exclude is None or not np.any(np.asarray(exclude) >= 0):
-            dist, idx = index.search(queries, 1)
-            return dist[:, 0], idx[:, 0].astype(np.int64)
-        k = min(len(self), int(np.bincount(self.sequence).max()) + 1)
+    def _search(self, index, queries: np.ndarray, exclude: np.ndarray | None,
+                n: int = 1) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The ``n`` nearest rows per query in ``index`` (distances, rows, allowed; each (Q, n), in
+        order of distance), skipping rows of the query's ``exclude`` sequence: enough neighbours are
+        fetched that ``n`` lie outside the largest. Where fewer are allowed, the rest are marked
+        not allowed; the first always is."""
+        excluding = exclude is not None and np.any(np.asarray(exclude) >= 0)
+        k = min(len(self), n + (int(np.bincount(self.sequence).max()) if excluding else 0))
         dist, idx = index.search(queries, k)
-        allowed = self.sequence[idx] != np.asarray(exclude)[:, None]
+        allowed = self.sequence[idx] != np.asarray(exclude)[:, None] if excluding else np.ones(idx.shape, bool)
         if not allowed.any(1).all():
             raise ValueError("excluding the query's sequence leaves nothing to retrieve")
-        rows, first = np.arange(len(idx)), allowed.argmax(1)
-        return dist[rows, first], idx[rows, first].astype(np.int64)
+        rows, first = np.arange(len(idx))[:, None], np.argsort(~allowed, axis=1, kind="stable")[:, :n]  # allowed first, in order
+        return dist[rows, first], idx[rows, first].astype(np.int64), allowed[rows, first]
 
     def nearest_motion(self, motion: np.ndarray, exclude: np.ndarray | None = None) -> np.ndarray:
         """Naive nearest neighbour (Euclidean on standardised motion windows (Q, W, F), no codes):
@@ -158,19 +166,11 @@ class CodeDatabase:
             self._motion_index = faiss.IndexFlatL2(int(np.prod(windows.shape[1:])))
             self._motion_index.add(np.ascontiguousarray(windows.reshape(len(windows), -1), np.float32))
         q = np.ascontiguousarray(np.asarray(motion, np.float32).reshape(len(motion), -1))
-        excluding = exclude is not None and np.any(np.asarray(exclude) >= 0)
-        k = min(len(self), RERANK + (int(np.bincount(self.sequence).max()) if excluding else 0))
-        _, idx = self._motion_index.search(q, k)
-        allowed = self.sequence[idx] != np.asarray(exclude)[:, None] if excluding else np.ones(idx.shape, bool)
-        if not allowed.any(1).all():
-            raise ValueError("excluding the query's sequence leaves nothing to retrieve")
-        rows = np.arange(len(idx))[:, None]
-        first = np.argsort(~allowed, axis=1, kind="stable")[:, :RERANK]  # the best allowed candidates, in order
-        idx, allowed = idx[rows, first], allowed[rows, first]
+        _, idx, allowed = self._search(self._motion_index, q, exclude, RERANK)
         cand = self.motion[idx.reshape(-1)].reshape(*idx.shape, -1).astype(np.float64)
         dist = np.where(allowed, ((cand - q[:, None].astype(np.float64)) ** 2).sum(-1), np.inf)
         best = np.lexsort((idx, dist), axis=-1)[:, 0]  # the nearest, ties to the lowest row
-        return idx[rows[:, 0], best].astype(np.int64)
+        return idx[np.arange(len(idx)), best]
 
     def motion_distance(self, motion: np.ndarray, rows: np.ndarray) -> np.ndarray:
         """RMS difference (standardised units) between query motion windows (Q, W, F), standardised,

@@ -101,8 +101,7 @@ class MotionMemory:
 
     def __init__(self, memory: MemorySpec | Sequence[float], fps: float):
         self.spec, self.fps = MemorySpec.of(memory), float(fps)
-        self.seconds = self.spec.seconds
-        self.decay = np.exp(-1.0 / (fps * np.array(self.seconds)))[:, None]  # (k, 1): broadcast over (N, k, 64)
+        self.decay = np.exp(-1.0 / (fps * np.array(self.spec.seconds)))[:, None]  # (k, 1): broadcast over (N, k, 64)
         steps = [resonator_step(f, self.spec.damping, fps) for f in self.spec.resonator_hz]
         self.resonator_a = np.array([a for a, _ in steps]).reshape(-1, 2, 2)  # (r, 2, 2)
         self.resonator_b = np.array([b for _, b in steps]).reshape(-1, 2)  # (r, 2)
@@ -120,14 +119,14 @@ class MotionMemory:
         """The state (N, rows, 64) at a motion's first frame, from its features (N, 124): every
         average at the first velocities, every bob at rest (x 0, q the first velocities)."""
         u = _velocities(features)
-        k, r = len(self.seconds), len(self.spec.resonator_hz)
+        k, r = len(self.spec.seconds), len(self.spec.resonator_hz)
         state = np.repeat(u[:, None], k + 2 * r, 1)
         state[:, k::2] = 0.0
         return state
 
     def step(self, state: np.ndarray, features: np.ndarray) -> np.ndarray:
         """The state (N, rows, 64) one frame on, from the last state and this frame's features (N, 124)."""
-        n, rows, k = len(state), state.shape[1], len(self.seconds)
+        n, rows, k = len(state), state.shape[1], len(self.spec.seconds)
         turn = rotation_about_y(-features[:, SLICE_W][:, 0].astype(np.float64) / self.fps)  # (N, 3, 3): last body frame -> this
         vectors = state[..., :-1].reshape(n, rows, VECTORS, 3) @ np.swapaxes(turn, -1, -2)[:, None]
         carried = np.concatenate([vectors.reshape(n, rows, -1), state[..., -1:]], -1)
@@ -139,7 +138,7 @@ class MotionMemory:
 
     def values(self, state: np.ndarray) -> np.ndarray:
         """The state as feature columns (N, rows x 64), float32: the averages, w x and q."""
-        k = len(self.seconds)
+        k = len(self.spec.seconds)
         out = state.copy()
         out[:, k::2] *= self.omega[None, :, None]
         return out.reshape(len(state), -1).astype(np.float32)

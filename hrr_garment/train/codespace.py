@@ -124,9 +124,8 @@ def fold_store(ds: GarmentDataset, names: list[str], progress: bool = True) -> F
 def window_frames(frames: dict[str, np.ndarray], windows: WindowSet) -> WindowFrames:
     """``windows``' rows read from their sequences' per-frame arrays ``frames`` (name -> (T, ...)):
     the database keeps each frame once instead of once per window that holds it."""
-    arrays = [np.asarray(frames[n], np.float32) for n in windows.names]
-    offsets = np.concatenate([[0], np.cumsum([len(a) for a in arrays])])
-    return WindowFrames(np.concatenate(arrays), offsets[windows.sequence] + windows.start, windows.motion.shape[1])
+    return WindowFrames.of_sequences([np.asarray(frames[n], np.float32) for n in windows.names], windows.sequence,
+                                     windows.start, windows.motion.shape[1])
 
 
 def _windows(features: dict, latents: dict, splits: dict, config: CodeSpaceConfig, train_config: CodeSpaceTrainConfig):
