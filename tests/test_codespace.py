@@ -121,6 +121,7 @@ def test_windows_cover_every_start_frame():
     w = build_windows(feats, lat, ["a", "b"], 10)
     assert len(w) == 3  # b is shorter than a window
     assert w.motion.shape == (3, 10, 2) and w.latents.shape == (3, 10, 3, 2)
+    assert len(w.motion.frames) == 12  # each frame once
     for i in range(3):
         assert np.array_equal(w.motion[i], feats["a"][i:i + 10]) and np.array_equal(w.latents[i], lat["a"][i:i + 10])
     assert w.start.tolist() == [0, 1, 2] and w.sequence.tolist() == [0, 0, 0]

@@ -37,8 +37,9 @@ import numpy as np
 import torch
 
 from hrr_garment.artifacts.bundle import Bundle
-from hrr_garment.artifacts.database import CodeDatabase, WindowFrames
+from hrr_garment.artifacts.database import CodeDatabase
 from hrr_garment.artifacts.folds import FoldStore
+from hrr_garment.data.windows import WindowFrames
 from hrr_garment.garment.templates import make_garment
 from hrr_garment.inference.animator import Animator
 from hrr_garment.models.codespace import CodeSpace, CodeSpaceConfig

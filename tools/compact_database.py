@@ -3,7 +3,7 @@
 Bundles written before 2026-11-26 store every stride-1 window of the database in full (W = 10 copies
 of each frame's latents and standardised motion: 2.5 GB for real-quick); they load and run as they
 are, at that cost in memory and load time. This rewrites ``database.safetensors`` in the frame form
-hrr-train writes now (hrr_garment.artifacts.database.WindowFrames), after checking that every window
+hrr-train writes now (hrr_garment.data.windows.WindowFrames), after checking that every window
 reads back bit for bit, and updates bundle.json's hashes. Nothing else of the bundle changes.
 
     python tools/compact_database.py hrr_work/models/dress-real-quick
@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from hrr_garment.artifacts.bundle import add_bundle_part, load_bundle
-from hrr_garment.artifacts.database import WindowFrames
+from hrr_garment.data.windows import WindowFrames
 
 
 def compact(folder: Path) -> tuple[int, int]:

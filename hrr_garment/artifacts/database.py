@@ -22,69 +22,10 @@ from dataclasses import dataclass
 import faiss
 import numpy as np
 
+from ..data.windows import WindowFrames
+
 RERANK = 8  # naive nearest neighbour: candidates ranked again in float64
 FRAMES_KEY = {"latents": "latent_frames", "motion": "motion_frames"}  # a bundle's names for the frame form
-
-
-class WindowFrames:
-    """Windows of W consecutive rows of a per-frame array, read like an (N, W, ...) array of
-    windows: row i is ``frames[first[i] : first[i] + W]``. Indexing gathers (``[rows]``,
-    ``[rows, -k:]``); nothing else of numpy's array interface is offered."""
-
-    def __init__(self, frames: np.ndarray, first: np.ndarray, window: int):
-        self.frames, self.first, self.window = frames, np.asarray(first, np.int64), int(window)
-        if self.window < 1 or self.first.ndim != 1:
-            raise ValueError(f"a window needs at least one frame and one first frame per window, got window {window} "
-                             f"and first frames of shape {self.first.shape}")
-        if len(self.first) and (self.first.min() < 0 or self.first.max() + self.window > len(frames)):
-            raise ValueError(f"windows of {self.window} frames from frames {int(self.first.min())}-{int(self.first.max())} "
-                             f"run past the {len(frames)} frames stored")
-
-    @classmethod
-    def of_windows(cls, windows: np.ndarray, sequence: np.ndarray, start: np.ndarray, chunk: int = 4096) -> "WindowFrames":
-        """Stride-1 windows (N, W, ...) cut from sequences (each one's ``sequence`` and ``start``)
-        back into their frames; ValueError where two windows disagree about a frame they share."""
-        n, window = windows.shape[:2]
-        sequence, start = np.asarray(sequence, np.int64), np.asarray(start, np.int64)
-        ends = np.zeros(int(sequence.max()) + 1 if n else 0, np.int64)
-        np.maximum.at(ends, sequence, start + window)
-        offsets = np.concatenate([[0], np.cumsum(ends)])
-        rows = (offsets[sequence] + start)[:, None] + np.arange(window)
-        frames = np.zeros((int(offsets[-1]), *windows.shape[2:]), windows.dtype)
-        frames[rows.reshape(-1)] = windows.reshape(n * window, *windows.shape[2:])
-        covered = np.zeros(len(frames), bool)
-        covered[rows.reshape(-1)] = True
-        out = cls(frames[covered], (np.cumsum(covered) - 1)[rows[:, 0]], window)  # frames no window holds dropped
-        for i in range(0, n, chunk):
-            if not np.array_equal(out[np.arange(i, min(n, i + chunk))], windows[i:i + chunk]):
-                raise ValueError("the windows are not stride-1 crops of sequences: two disagree about a frame they share")
-        return out
-
-    @classmethod
-    def of_sequences(cls, frames: list[np.ndarray], sequence: np.ndarray, start: np.ndarray, window: int) -> "WindowFrames":
-        """Windows (``sequence``, ``start`` each) of the per-frame arrays ``frames`` of sequences
-        (T_s, ...), stored one after another."""
-        offsets = np.concatenate([[0], np.cumsum([len(f) for f in frames])])
-        return cls(np.concatenate(frames), offsets[np.asarray(sequence)] + np.asarray(start), window)
-
-    def __len__(self) -> int:
-        return len(self.first)
-
-    @property
-    def shape(self) -> tuple[int, ...]:
-        return (len(self.first), self.window, *self.frames.shape[1:])
-
-    @property
-    def dtype(self) -> np.dtype:
-        return self.frames.dtype
-
-    def __getitem__(self, key) -> np.ndarray:
-        rows, within = key if isinstance(key, tuple) else (key, slice(None))
-        return self.frames[self.first[rows][..., None] + np.arange(self.window)[within]]
-
-    def windows(self) -> np.ndarray:
-        """Every window, (N, W, ...): W times the memory of the frames."""
-        return self[np.arange(len(self))]
 
 
 def pack_codes(codes: np.ndarray, classes: int) -> np.ndarray:

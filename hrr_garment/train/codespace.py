@@ -30,11 +30,11 @@ from ..artifacts.bundle import (
     update_bundle_meta,
     write_bundle,
 )
-from ..artifacts.database import CodeDatabase, WindowFrames
+from ..artifacts.database import CodeDatabase
 from ..artifacts.folds import FoldStore
 from ..artifacts.manifest import FOLDS_FILE
 from ..data.dataset import DatasetError, GarmentDataset
-from ..data.windows import WindowSet, build_windows, dataset_features, fit_stats, split_windows
+from ..data.windows import build_windows, dataset_features, fit_stats, split_windows
 from ..garment.smoothing import mean_operator
 from ..io_utils import atomic_write_text, strict_json
 from ..models.codespace import CodeSpace, CodeSpaceConfig
@@ -61,11 +61,11 @@ def check_splits(ds: GarmentDataset) -> None:
 
 
 @torch.no_grad()
-def garment_codes(model: CodeSpace, latents: torch.Tensor, batch: int = 512) -> np.ndarray:
+def garment_codes(model: CodeSpace, windows: WindowTensors, batch: int = 512) -> np.ndarray:
     """Argmax garment codes (N, G) uint8 of standardised latent windows."""
     model.eval()
-    out = [model.quantizer.split(model.garment_encoder(latents[i:i + batch])).argmax(-1)
-           for i in range(0, len(latents), batch)]
+    out = [model.quantizer.split(model.garment_encoder(windows[i:i + batch][1])).argmax(-1)
+           for i in range(0, len(windows), batch)]
     return torch.cat(out).numpy().astype(np.uint8)
 
 
@@ -119,13 +119,6 @@ def fold_store(ds: GarmentDataset, names: list[str], progress: bool = True) -> F
     mean = mean_operator(ds.template.faces, ds.template.num_vertices)
     return FoldStore.build((body_frames(ds, [n]) for n in tqdm(names, desc="folds", unit="sequence", disable=not progress)),
                            mean)
-
-
-def window_frames(frames: dict[str, np.ndarray], windows: WindowSet) -> WindowFrames:
-    """``windows``' rows read from their sequences' per-frame arrays ``frames`` (name -> (T, ...)):
-    the database keeps each frame once instead of once per window that holds it."""
-    return WindowFrames.of_sequences([np.asarray(frames[n], np.float32) for n in windows.names], windows.sequence,
-                                     windows.start, windows.motion.shape[1])
 
 
 def _windows(features: dict, latents: dict, splits: dict, config: CodeSpaceConfig, train_config: CodeSpaceTrainConfig):
@@ -200,9 +193,8 @@ def run_codespace_stage(dataset: str | Path, folder: str | Path, config: CodeSpa
     summary = train_codespace(model, train_t, val_t, stage, train_config, key, progress)
 
     # the database of every training window's garment code, then tau on the validation split
-    database = CodeDatabase(garment_codes(model, train_t.latents), window_frames(latents, train_w),
-                            train_w.sequence, train_w.start, train_w.names, config.classes,
-                            window_frames({n: motion_stats.normalize(features[n]) for n in train_w.names}, train_w))
+    database = CodeDatabase(garment_codes(model, train_t), train_w.latents, train_w.sequence, train_w.start,
+                            train_w.names, config.classes, train_w.motion.with_frames(train_t.motion.numpy()))
     modes = evaluate_modes(model, autoencoder, motion_stats, latent_stats, database,
                            {n: features[n] for n in val_names}, {n: body_frames(ds, [n]) for n in val_names},
                            **encoding, windows=calibration)

@@ -105,16 +105,31 @@ class PlateauDetector:
 
 @dataclass
 class WindowTensors:
-    """Standardised motion and latent windows as tensors."""
+    """Standardised motion and latent windows as tensors, each frame stored once: window i is
+    rows ``first[i] .. first[i] + window - 1`` of both (the real-motion library's training windows
+    would take 3.6 GB as windows; :class:`~hrr_garment.data.windows.WindowFrames`)."""
 
-    motion: torch.Tensor  # (N, W, F) standardised
-    latents: torch.Tensor  # (N, W, nodes, C) standardised
+    motion: torch.Tensor  # (frames, F) standardised
+    latents: torch.Tensor  # (frames, nodes, C) standardised
+    first: torch.Tensor  # (N,) int64
+    window: int
 
     @classmethod
     def of(cls, windows: WindowSet, motion_stats, latent_stats) -> "WindowTensors":
-        shape = windows.latents.shape
-        lat = latent_stats.normalize(windows.latents.reshape(*shape[:2], -1)).reshape(shape)
-        return cls(torch.from_numpy(motion_stats.normalize(windows.motion)), torch.from_numpy(lat))
+        if not np.array_equal(windows.motion.first, windows.latents.first):
+            raise ValueError("the motion and latent windows are not read from the same frames")
+        lat = windows.latents.frames
+        lat = latent_stats.normalize(lat.reshape(len(lat), -1)).reshape(lat.shape)
+        return cls(torch.from_numpy(motion_stats.normalize(windows.motion.frames)), torch.from_numpy(lat),
+                   torch.from_numpy(windows.motion.first), windows.motion.window)
+
+    def __len__(self) -> int:
+        return len(self.first)
+
+    def __getitem__(self, rows) -> tuple[torch.Tensor, torch.Tensor]:
+        """The windows ``rows`` (a slice or indices): motion (n, W, F) and latents (n, W, nodes, C)."""
+        frames = self.first[rows].unsqueeze(-1) + torch.arange(self.window)
+        return self.motion[frames], self.latents[frames]
 
 
 def _losses(model: CodeSpace, motion: torch.Tensor, latents: torch.Tensor, temperature: float) -> dict[str, torch.Tensor]:
@@ -136,8 +151,8 @@ def evaluate(model: CodeSpace, data: WindowTensors, batch: int = 256) -> dict:
     model.eval()
     sums = {"rec": 0.0, "match": 0.0, "regress": 0.0}
     agree, entropies, g_idx = 0.0, [], []
-    for i in range(0, len(data.motion), batch):
-        out = _losses(model, data.motion[i:i + batch], data.latents[i:i + batch], 1.0)
+    for i in range(0, len(data), batch):
+        out = _losses(model, *data[i:i + batch], 1.0)
         n = len(out["g_logits"])
         for k in sums:
             sums[k] += float(out[k]) * n
@@ -146,7 +161,7 @@ def evaluate(model: CodeSpace, data: WindowTensors, batch: int = 256) -> dict:
         agree += float((gi == mi).float().mean(1).sum())
         entropies.append(group_entropy(model.quantizer.split(out["m_logits"])))
         g_idx.append(gi)
-    n = max(1, len(data.motion))
+    n = max(1, len(data))
     ent = torch.cat(entropies) if entropies else torch.zeros(0)
     usage = model.quantizer.usage(torch.cat(g_idx)) if g_idx else None
     hist = np.histogram(ent.numpy(), bins=10, range=(0.0, math.log(model.quantizer.classes)))[0].tolist()
@@ -188,12 +203,12 @@ def train_codespace(model: CodeSpace, train: WindowTensors, val: WindowTensors, 
         model.train()
         # bounded epochs: the temperature, the plateau switch and the patience count epochs, and
         # the real-motion library has some 100,000 windows; each epoch draws a fresh sample
-        order = torch.randperm(len(train.motion), generator=gen)[:config.windows_per_epoch]
+        order = torch.randperm(len(train), generator=gen)[:config.windows_per_epoch]
         sums = {"rec": 0.0, "match": 0.0, "diversity": 0.0}
         for i in range(0, len(order), config.batch_size):
             set_learning_rate(optimizer, config, run_fraction(epoch + i / len(order)))
             idx = order[i:i + config.batch_size]
-            out = _losses(model, train.motion[idx], train.latents[idx], temperature)
+            out = _losses(model, *train[idx], temperature)
             loss = out["rec"] + match_weight * out["match"] + config.diversity * out["diversity"]
             if config.regress:
                 loss = loss + config.regress * out["regress"]
