@@ -45,9 +45,11 @@ from .codespace_training import (
     CodeSpaceTrainConfig,
     WindowTensors,
     evaluate,
+    mean_square,
     train_codespace,
 )
 from .report import StageReport
+from .vertex_metric import VertexMetric, sample_frames
 
 STAGE_FOLDER = "codebook"  # under MODEL/: the name from before "code space" was the stage's name
 
@@ -188,9 +190,13 @@ def run_codespace_stage(dataset: str | Path, folder: str | Path, config: CodeSpa
     train_t = WindowTensors.of(train_w, motion_stats, latent_stats)
     val_t = WindowTensors.of(val_w, motion_stats, latent_stats)
 
+    latent_loss = mean_square
+    if train_config.latent_loss == "vertex":
+        latent_loss = VertexMetric.of_decoder(autoencoder, sample_frames(train_w.latents.frames, seed=train_config.seed),
+                                              latent_stats.std, train_config.vertex_ridge, progress=progress)
     torch.manual_seed(train_config.seed)
     model = CodeSpace(config, config.features, autoencoder.latent_shape)
-    summary = train_codespace(model, train_t, val_t, stage, train_config, key, progress)
+    summary = train_codespace(model, train_t, val_t, stage, train_config, key, progress, latent_loss)
 
     # the database of every training window's garment code, then tau on the validation split
     database = CodeDatabase(garment_codes(model, train_t), train_w.latents, train_w.sequence, train_w.start,

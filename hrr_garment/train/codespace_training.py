@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
@@ -40,6 +41,7 @@ from .checkpoint import keep_if_best, load_checkpoint, resume_log, save_checkpoi
 from .schedule import early_stop, epoch_fits, run_progress, set_learning_rate
 
 VALIDATION_PROTOCOLS = ("clips", "windows")
+LATENT_LOSSES = ("standardised", "vertex")
 PAPER_VALIDATION_FRACTION = 0.1  # "windows": the paper's 9:1 split of the training clips' windows
 
 
@@ -65,12 +67,22 @@ class CodeSpaceTrainConfig:
     max_minutes: float | None = None
     windows_per_epoch: int | None = 8192  # an epoch draws at most this many training windows (None: all)
     validation: str = "clips"  # "clips": the dataset's val split; "windows": the paper's 9:1 split of windows
+    # how a latent window's error is measured: "standardised", the mean square of the standardised
+    # latents; "vertex", the decoder's first-order vertex error (.vertex_metric), with vertex_ridge
+    # of the former mixed in
+    latent_loss: str = "standardised"
+    vertex_ridge: float = 0.05
     seed: int = 0
 
     def __post_init__(self) -> None:
         if self.validation not in VALIDATION_PROTOCOLS:
             raise SettingsError(f"code space training: validation must be one of {', '.join(VALIDATION_PROTOCOLS)}, "
                                 f"got {self.validation!r}")
+        if self.latent_loss not in LATENT_LOSSES:
+            raise SettingsError(f"code space training: latent_loss must be one of {', '.join(LATENT_LOSSES)}, "
+                                f"got {self.latent_loss!r}")
+        if not 0.0 <= self.vertex_ridge <= 1.0:
+            raise SettingsError(f"code space training: vertex_ridge must be in [0, 1], got {self.vertex_ridge}")
 
     @classmethod
     def from_dict(cls, values: dict) -> "CodeSpaceTrainConfig":
@@ -132,7 +144,13 @@ class WindowTensors:
         return self.motion[frames], self.latents[frames]
 
 
-def _losses(model: CodeSpace, motion: torch.Tensor, latents: torch.Tensor, temperature: float) -> dict[str, torch.Tensor]:
+def mean_square(error: torch.Tensor) -> torch.Tensor:
+    """The mean square of standardised latent errors: the code space's default latent loss."""
+    return error.pow(2).mean()
+
+
+def _losses(model: CodeSpace, motion: torch.Tensor, latents: torch.Tensor, temperature: float,
+            latent_loss: Callable[[torch.Tensor], torch.Tensor] = mean_square) -> dict[str, torch.Tensor]:
     q = model.quantizer
     g_logits, m_logits = model.garment_encoder(latents), model.motion_encoder(motion)
     _, e_g = q(g_logits, temperature)
@@ -140,19 +158,21 @@ def _losses(model: CodeSpace, motion: torch.Tensor, latents: torch.Tensor, tempe
     # the regression path as inference runs it: the code distribution's mean embedding (or the
     # sampled code's, for the paper's argmax regression)
     e_reg = regression_embedding(model, q.split(m_logits)) if model.config.regression_code == "expected" else e_m
-    return {"rec": (model.decode(e_g) - latents).pow(2).mean(), "match": (e_g - e_m).pow(2).mean(),
+    return {"rec": latent_loss(model.decode(e_g) - latents), "match": (e_g - e_m).pow(2).mean(),
             "diversity": 0.5 * (q.diversity_loss(g_logits) + q.diversity_loss(m_logits)),
-            "g_logits": g_logits.detach(), "m_logits": m_logits.detach(), "regress": (model.decode(e_reg) - latents).pow(2).mean()}
+            "g_logits": g_logits.detach(), "m_logits": m_logits.detach(), "regress": latent_loss(model.decode(e_reg) - latents)}
 
 
 @torch.no_grad()
-def evaluate(model: CodeSpace, data: WindowTensors, batch: int = 256) -> dict:
-    """Validation losses and code statistics (eval mode: argmax codes)."""
+def evaluate(model: CodeSpace, data: WindowTensors, batch: int = 256,
+             latent_loss: Callable[[torch.Tensor], torch.Tensor] = mean_square) -> dict:
+    """Validation losses (the latent errors measured by ``latent_loss``) and code statistics (eval
+    mode: argmax codes)."""
     model.eval()
     sums = {"rec": 0.0, "match": 0.0, "regress": 0.0}
     agree, entropies, g_idx = 0.0, [], []
     for i in range(0, len(data), batch):
-        out = _losses(model, *data[i:i + batch], 1.0)
+        out = _losses(model, *data[i:i + batch], 1.0, latent_loss)
         n = len(out["g_logits"])
         for k in sums:
             sums[k] += float(out[k]) * n
@@ -171,8 +191,11 @@ def evaluate(model: CodeSpace, data: WindowTensors, batch: int = 256) -> dict:
 
 
 def train_codespace(model: CodeSpace, train: WindowTensors, val: WindowTensors, folder: Path,
-                    config: CodeSpaceTrainConfig = CodeSpaceTrainConfig(), key: str = "", progress: bool = True) -> dict:
-    """Train (or resume) in ``folder``; leaves the best weights in ``model`` and returns a summary."""
+                    config: CodeSpaceTrainConfig = CodeSpaceTrainConfig(), key: str = "", progress: bool = True,
+                    latent_loss: Callable[[torch.Tensor], torch.Tensor] = mean_square) -> dict:
+    """Train (or resume) in ``folder``; leaves the best weights in ``model`` and returns a summary.
+    ``latent_loss`` measures the latent windows' errors (:class:`.vertex_metric.VertexMetric` for
+    ``config.latent_loss`` "vertex")."""
     folder.mkdir(parents=True, exist_ok=True)
     torch.manual_seed(config.seed)
     optimizer = torch.optim.Adam(model.parameters(), lr=config.learning_rate, weight_decay=config.weight_decay)
@@ -208,7 +231,7 @@ def train_codespace(model: CodeSpace, train: WindowTensors, val: WindowTensors, 
         for i in range(0, len(order), config.batch_size):
             set_learning_rate(optimizer, config, run_fraction(epoch + i / len(order)))
             idx = order[i:i + config.batch_size]
-            out = _losses(model, *train[idx], temperature)
+            out = _losses(model, *train[idx], temperature, latent_loss)
             loss = out["rec"] + match_weight * out["match"] + config.diversity * out["diversity"]
             if config.regress:
                 loss = loss + config.regress * out["regress"]
@@ -217,7 +240,7 @@ def train_codespace(model: CodeSpace, train: WindowTensors, val: WindowTensors, 
             optimizer.step()
             for k in sums:
                 sums[k] += out[k].item() * len(idx)
-        metrics = evaluate(model, val)
+        metrics = evaluate(model, val, latent_loss=latent_loss)
         state["epoch"] += 1
         state["elapsed_s"] = spent + time.perf_counter() - started
         if state["switched_at"] is None and plateau.update(metrics["rec"]):
@@ -238,4 +261,5 @@ def train_codespace(model: CodeSpace, train: WindowTensors, val: WindowTensors, 
     bar.close()
     model.load_state_dict(best_weights)
     model.eval()
-    return {**state, "minutes": (time.perf_counter() - t0) / 60, "final": evaluate(model, val), "config": asdict(config)}
+    return {**state, "minutes": (time.perf_counter() - t0) / 60, "final": evaluate(model, val, latent_loss=latent_loss),
+            "config": asdict(config)}
