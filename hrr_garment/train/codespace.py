@@ -93,7 +93,10 @@ def _stage_key(config: CodeSpaceConfig, train_config: CodeSpaceTrainConfig, ae_s
     # weights, and the code space trained on the old latents must not be reused
     ae_hash = hashlib.sha256(b"".join([k.encode() + ae_state[k].numpy().tobytes() for k in sorted(ae_state)]
                                       + [n.encode() + latents[n].tobytes() for n in ds.names])).hexdigest()[:16]
-    return hashlib.sha1(json.dumps([config.to_dict(), asdict(train_config) | {"max_minutes": None}, ae_hash, ds.splits],
+    training = asdict(train_config) | {"max_minutes": None}
+    if train_config.latent_loss == "standardised":  # as before the setting existed: finished stages stay reused
+        training = {k: v for k, v in training.items() if k not in ("latent_loss", "vertex_ridge")}
+    return hashlib.sha1(json.dumps([config.to_dict(), training, ae_hash, ds.splits],
                                    sort_keys=True).encode()).hexdigest()[:16]
 
 
