@@ -115,26 +115,37 @@ def test_proposals_are_each_frames_frame_in_its_match():
     assert causal_proposals(source, 5).tolist() == [[0, 14], [1, 44], [2, 11], [0, 64]]
 
 
-def test_the_detail_mode_is_the_regression_plus_the_tracked_simulated_folds(trained):
+@pytest.mark.parametrize("base", ["residual", "regression"])
+def test_the_detail_mode_is_its_base_plus_the_tracked_simulated_folds(trained, base):
+    """The folds ride on the residual mode's latents (bundles since 2026-11-26 with a residual
+    weight above 0) or on the regression's (bundles trained before: no ``detail_base``)."""
     from hrr_garment.inference.animator import Animator
 
     root, _, _ = trained
     animator = Animator.load(root / "model")
+    meta = animator.bundle.meta
+    assert meta["detail_base"] == "residual" and animator.bundle.has_residual
+    meta["residual"] = {**meta["residual"], "weight": 0.7}  # a weight the tiny model may not have calibrated
+    if base == "regression":
+        del meta["detail_base"]
+    assert animator.bundle.detail_base == base
     store = animator.bundle.folds
     assert store is not None and len(store.lengths) == len(animator.bundle.database.names)
     motion = synthesize("walk", 1.0, seed=3)
     regression = animator.animate(motion, mode="regression", collision=False).vertices
+    shape = animator.animate(motion, mode=base, collision=False).vertices
     detail = animator.animate(motion, mode="detail", collision=False)
     retrieval = animator.animate(motion, mode="retrieval", collision=False)
     assert detail.mode.all() and np.array_equal(detail.source, retrieval.source)
-    # the same by hand: the track over the windows' matches, their folds on the regression in the body frame
+    # the same by hand: the track over the windows' matches, their folds on the base in the body frame
     windows = np.ascontiguousarray(sequence_windows(animator.features(motion), animator.window))
     source = animator._choose(windows, "detail", 0.0, None, "entropy").source
     rows, weights = track_folds(offline_proposals(source, motion.num_frames, animator.window), store.offsets)
-    local = to_body_frame(regression.astype(np.float64), motion)
+    local = to_body_frame(shape.astype(np.float64), motion)
     expected = from_body_frame(add_folds(local, store.folds(rows, weights), animator.smoothing, store.passes), motion)
     assert np.abs(detail.vertices - expected).max() < 1e-4
-    assert not np.allclose(detail.vertices, regression, atol=1e-3)
+    assert not np.allclose(detail.vertices, shape, atol=1e-3)
+    assert (base == "regression") == np.allclose(shape, regression, atol=1e-5)
 
 
 def test_a_bundle_before_the_folds_says_how_to_add_them_and_hrr_train_does(trained, tmp_path, capsys):

@@ -110,6 +110,15 @@ class Bundle:
                                            "trained weights are kept; only the folds are added)")
 
     @property
+    def detail_base(self) -> str:
+        """The latents the detail mode puts its simulated folds on: "residual", the residual mode's
+        (bundles trained since 2026-11-26 that have a residual weight above 0), else "regression"
+        (bundles trained before keep the detail mode their auto mode was calibrated with)."""
+        if self.meta.get("detail_base") == "residual" and self.has_residual and self.residual_weight > 0:
+            return "residual"
+        return "regression"
+
+    @property
     def auto_mode(self) -> str:
         """The mode ``auto`` runs: the one calibrated at training (:mod:`hrr_garment.eval.auto_mode`);
         hybrid for a bundle calibrated before it, or where the mode it chose cannot run."""

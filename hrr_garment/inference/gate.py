@@ -31,7 +31,7 @@ class WindowChoice:
     entropy: np.ndarray  # (N,) motion-code entropy
     doubt: np.ndarray  # (N,) the gate signal's value (retrieval where below tau; the entropy by default)
     source: np.ndarray  # (N, 2) int32 (database sequence index, start frame) of retrieved windows, else -1
-    detail: bool = False  # the detail mode: ``latents`` are the regression's, ``source`` the matches that lend their folds
+    detail: bool = False  # the detail mode: ``source`` the matches that lend their folds to ``latents``
 
 
 def choose_windows(bundle: Bundle, motion_windows: np.ndarray, mode: str, tau: float,
@@ -54,12 +54,16 @@ def choose_windows(bundle: Bundle, motion_windows: np.ndarray, mode: str, tau: f
         match, similarity = db.search(enc.codes, exclude)
         everywhere = np.ones(n, bool)
         source = np.stack([db.sequence[match], db.start[match]], 1).astype(np.int32)
-        if mode is Mode.DETAIL:  # the matches' folds are added to the decoded regression (.detail)
-            return WindowChoice(enc.regression, everywhere, enc.entropy, np.asarray(doubt, np.float64), source, detail=True)
-        matched = db.latents[match, -frames:]
-        own = match_regression(bundle.codespace, bundle.motion_stats, bundle.latent_stats, db, match, last_frame, step)
-        latents = residual_latents(enc.regression, matched, own, similarity, bundle.residual_weight)
-        return WindowChoice(latents, everywhere, enc.entropy, np.asarray(doubt, np.float64), source)
+        latents = enc.regression
+        # the detail mode adds the matches' folds (.detail) to the residual mode's latents (the
+        # match's own departure from the regression carries the hem's swing, the folds its
+        # sharpness; docs/results.md), or to the regression's in bundles trained before
+        if mode is Mode.RESIDUAL or bundle.detail_base == "residual":
+            matched = db.latents[match, -frames:]
+            own = match_regression(bundle.codespace, bundle.motion_stats, bundle.latent_stats, db, match, last_frame, step)
+            latents = residual_latents(enc.regression, matched, own, similarity, bundle.residual_weight)
+        return WindowChoice(latents, everywhere, enc.entropy, np.asarray(doubt, np.float64), source,
+                            detail=mode is Mode.DETAIL)
     if gate != "entropy" and mode is Mode.HYBRID:  # the match decides: search every window first
         match, similarity = db.search(enc.codes, exclude)
         distance = db.motion_distance(enc.standardised, match) if gate == "distance" else None
