@@ -8,7 +8,13 @@ import shutil
 import numpy as np
 import pytest
 
-from hrr_garment.eval.auto_mode import calibrate_auto_mode, pick_auto_mode, plausibility_gap
+from hrr_garment.eval.auto_mode import (
+    DETAIL_ON_RESIDUAL,
+    calibrate_auto_mode,
+    pick_auto_and_detail,
+    pick_auto_mode,
+    plausibility_gap,
+)
 from hrr_garment.motion.synth import synthesize
 
 
@@ -41,6 +47,20 @@ def test_the_criterion_takes_the_most_plausible_of_the_accurate(candidates, expe
                                                                                         list(candidates).index(m)))
 
 
+@pytest.mark.parametrize("pves, expected", [
+    ((27.0, 27.2, 27.7, 27.9), ("detail", "regression")),  # on the residual out of the allowance: the other
+    ((27.0, 27.2, 27.7, 27.6), ("detail", "residual")),  # both within: the more plausible
+    ((27.0, 27.2, 28.5, 28.6), ("residual", "residual")),  # neither within: auto elsewhere, the detail mode's
+])  # base by the criterion between the two alone
+def test_the_detail_modes_base_is_chosen_by_the_same_criterion(pves, expected):
+    plausibility = [(0.15, 0.6), (0.2, 0.7), (0.73, 0.71), (0.74, 0.73)]
+    labels = ["hybrid", "residual", "detail", DETAIL_ON_RESIDUAL]
+    candidates = {k: {"pve_mm": p, "sharpness": s, "hem_swing": w} for k, p, (s, w) in zip(labels, pves, plausibility)}
+    assert pick_auto_and_detail(candidates, 1.03) == expected
+    del candidates[DETAIL_ON_RESIDUAL]  # no residual weight: the regression's
+    assert pick_auto_and_detail(candidates, 1.03)[1] == "regression"
+
+
 def test_hrr_train_calibrates_auto_and_it_agrees_with_the_evaluation(trained):
     from hrr_garment.artifacts.manifest import AUTO_CHOICES
     from hrr_garment.data.dataset import GarmentDataset
@@ -50,8 +70,8 @@ def test_hrr_train_calibrates_auto_and_it_agrees_with_the_evaluation(trained):
     root, data, _ = trained
     meta = json.loads((root / "model" / "bundle.json").read_text())
     auto = meta["auto"]
-    assert auto["mode"] in AUTO_CHOICES and set(auto["candidates"]) <= set(AUTO_CHOICES)
-    assert auto["mode"] == pick_auto_mode(auto["candidates"], auto["allowance"])
+    assert auto["mode"] in AUTO_CHOICES and set(auto["candidates"]) <= {*AUTO_CHOICES, DETAIL_ON_RESIDUAL}
+    assert (auto["mode"], auto["detail_base"]) == pick_auto_and_detail(auto["candidates"], auto["allowance"])
     animator = Animator.load(root / "model")
     assert animator.bundle.auto_mode == auto["mode"]
     ds = GarmentDataset(data)
@@ -64,18 +84,28 @@ def test_hrr_train_calibrates_auto_and_it_agrees_with_the_evaluation(trained):
     assert again["candidates"]["hybrid"]["pve_mm"] == pytest.approx(pve, rel=1e-6)
     for c in again["candidates"].values():
         assert c["pve_mm"] > 0 and c["sharpness"] > 0 and c["hem_swing"] > 0
+    # with a residual weight the detail mode is measured on both bases, each as the mode runs it
+    animator.bundle.meta["residual"] = {**animator.bundle.meta["residual"], "weight": 0.7}
+    both = calibrate_auto_mode(animator, records[:1], progress=False)
+    for label, base in (("detail", "regression"), (DETAIL_ON_RESIDUAL, "residual")):
+        with animator.bundle.detail_on(base):
+            pred = animator.animate(records[0].motion, mode="detail").vertices
+        assert both["candidates"][label]["pve_mm"] == pytest.approx(float(np.linalg.norm(pred - records[0].garment, axis=-1).mean()) * 1000, rel=1e-5)
+    assert both["candidates"]["detail"]["pve_mm"] != both["candidates"][DETAIL_ON_RESIDUAL]["pve_mm"]
 
 
-@pytest.mark.parametrize("chosen", ["detail", "hybrid"])
-def test_auto_runs_the_calibrated_mode_everywhere(trained, tmp_path, chosen):
+@pytest.mark.parametrize("chosen, base", [("detail", "regression"), ("detail", "residual"), ("hybrid", "regression")])
+def test_auto_runs_the_calibrated_mode_everywhere(trained, tmp_path, chosen, base):
     from hrr_garment.artifacts.bundle import update_bundle_meta
     from hrr_garment.inference.animator import Animator
 
     root, _, _ = trained
     copy = tmp_path / "model"
     shutil.copytree(root / "model", copy)
-    update_bundle_meta(copy, {"auto": {"mode": chosen}})
+    residual = json.loads((copy / "bundle.json").read_text())["residual"]
+    update_bundle_meta(copy, {"auto": {"mode": chosen, "detail_base": base}, "residual": {**residual, "weight": 0.7}})
     animator = Animator.load(copy)
+    assert animator.bundle.detail_base == base
     motion = synthesize("walk", 1.0, seed=5)
     default = animator.animate(motion, collision=False)
     named = animator.animate(motion, mode=chosen, collision=False)

@@ -410,6 +410,8 @@ TAMPERS = {  # name: (edit of bundle.json's dict, or of the folder and dict; the
     "database missing": (lambda f, m: m.pop("database"), "lacks its 'database' section"),
     "auto an unknown mode": (lambda f, m: m.update(auto={"mode": "retrieval"}), "'auto' must hold a 'mode' of"),
     "auto a string": (lambda f, m: m.update(auto="detail"), "'auto' must hold a 'mode' of"),
+    "detail base unknown": (lambda f, m: m.update(auto={"mode": "detail", "detail_base": "retrieval"}),
+                            "'detail_base' must be one of regression, residual"),
     "NaN weights, hashes redone": (_nan_weights, "decoder.safetensors: non-finite weights"),
     "NaN statistics, hashes redone": (_nan_stats, "stats.safetensors: non-finite values"),
     "template faces out of range, hashes redone": (_bad_template_faces, "template.safetensors: face indices must lie"),

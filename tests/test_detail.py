@@ -117,18 +117,20 @@ def test_proposals_are_each_frames_frame_in_its_match():
 
 @pytest.mark.parametrize("base", ["residual", "regression"])
 def test_the_detail_mode_is_its_base_plus_the_tracked_simulated_folds(trained, base):
-    """The folds ride on the residual mode's latents (bundles since 2026-11-26 with a residual
-    weight above 0) or on the regression's (bundles trained before: no ``detail_base``)."""
+    """The folds ride on the residual mode's latents or on the regression's, as the auto
+    calibration chose (bundle.json auto.detail_base; the regression's in bundles from before)."""
     from hrr_garment.inference.animator import Animator
 
     root, _, _ = trained
     animator = Animator.load(root / "model")
     meta = animator.bundle.meta
-    assert meta["detail_base"] == "residual" and animator.bundle.has_residual
+    assert animator.bundle.has_residual
     meta["residual"] = {**meta["residual"], "weight": 0.7}  # a weight the tiny model may not have calibrated
-    if base == "regression":
-        del meta["detail_base"]
+    meta["auto"] = {**meta["auto"], "detail_base": base}
     assert animator.bundle.detail_base == base
+    if base == "regression":  # as bundles calibrated before the choice read
+        del meta["auto"]["detail_base"]
+        assert animator.bundle.detail_base == "regression"
     store = animator.bundle.folds
     assert store is not None and len(store.lengths) == len(animator.bundle.database.names)
     motion = synthesize("walk", 1.0, seed=3)

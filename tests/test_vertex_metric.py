@@ -77,8 +77,9 @@ def test_frames_are_sampled_seeded_and_settings_checked():
         CodeSpaceTrainConfig(vertex_ridge=1.5)
 
 
-def test_the_code_space_trains_on_the_vertex_loss(trained, tmp_path):
-    """hrr-train with codespace.train.latent_loss vertex: a new stage key, the metric in its log."""
+def test_the_code_space_trains_on_either_latent_loss(trained, tmp_path):
+    """The vertex loss is the default; codespace.train.latent_loss standardised trains with the plain
+    mean square under another stage key."""
     import json
     import shutil
 
@@ -86,15 +87,17 @@ def test_the_code_space_trains_on_the_vertex_loss(trained, tmp_path):
 
     root, data, args = trained
     shutil.copytree(root / "model", tmp_path / "model")
-    config = (root / "cfg.yaml").read_text().replace("patience: 5, max_minutes: null}", "patience: 5, max_minutes: null, latent_loss: vertex}")
-    assert "latent_loss: vertex" in config
+    config = (root / "cfg.yaml").read_text().replace("patience: 5, max_minutes: null}",
+                                                     "patience: 5, max_minutes: null, latent_loss: standardised}")
+    assert "latent_loss: standardised" in config
     (tmp_path / "cfg.yaml").write_text(config)
     before = json.loads((tmp_path / "model" / "codebook" / "report.json").read_text())
     stage = ["--dataset", str(data), "--config", str(tmp_path / "cfg.yaml"), "--stage", "codespace", "-o",
              str(tmp_path / "model"), "--quiet"]
     assert train_main(stage) == 0
     after = json.loads((tmp_path / "model" / "codebook" / "report.json").read_text())
-    assert after["key"] != before["key"] and after["training"]["config"]["latent_loss"] == "vertex"
+    assert before["training"]["config"]["latent_loss"] == "vertex"
+    assert after["key"] != before["key"] and after["training"]["config"]["latent_loss"] == "standardised"
     logged = [json.loads(line) for line in (tmp_path / "model" / "codebook" / "log.jsonl").read_text().splitlines()]
     assert len(logged) == after["training"]["epoch"] and all(np.isfinite(r["val_regress"]) for r in logged)
     assert np.isfinite(after["validation_mm"]["regression"])

@@ -22,6 +22,8 @@ version, every file's hash and every tensor's shape, and says which and why when
 from __future__ import annotations
 
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -43,7 +45,16 @@ from ..motion.features import FeatureStats
 from .database import CodeDatabase
 from .folds import FoldStore
 from .gate_signals import GATE_SIGNALS, check_gate_signal
-from .manifest import FOLDS_FILE, FORMAT_VERSION, NETWORKS, BundleError, content_hash, read_meta, sha256
+from .manifest import (
+    DETAIL_BASES,
+    FOLDS_FILE,
+    FORMAT_VERSION,
+    NETWORKS,
+    BundleError,
+    content_hash,
+    read_meta,
+    sha256,
+)
 
 
 @dataclass
@@ -111,12 +122,27 @@ class Bundle:
 
     @property
     def detail_base(self) -> str:
-        """The latents the detail mode puts its simulated folds on: "residual", the residual mode's
-        (bundles trained since 2026-11-26 that have a residual weight above 0), else "regression"
-        (bundles trained before keep the detail mode their auto mode was calibrated with)."""
-        if self.meta.get("detail_base") == "residual" and self.has_residual and self.residual_weight > 0:
-            return "residual"
-        return "regression"
+        """The latents the detail mode puts its simulated folds on, as the auto calibration chose
+        (:mod:`hrr_garment.eval.auto_mode`): "residual", the residual mode's, or "regression" (also
+        for bundles calibrated before the choice, and where the residual cannot run)."""
+        base = self.meta.get("auto", {}).get("detail_base", "regression")
+        return "residual" if base == "residual" and self.has_residual and self.residual_weight > 0 else "regression"
+
+    @contextmanager
+    def detail_on(self, base: str) -> Iterator[None]:
+        """Run the detail mode on ``base`` ("regression" or "residual") inside the block: how the
+        auto calibration measures both before choosing."""
+        if base not in DETAIL_BASES:
+            raise ValueError(f"the detail mode's base is one of {', '.join(DETAIL_BASES)}, got {base!r}")
+        saved = self.meta.get("auto")
+        self.meta["auto"] = {**(saved or {}), "detail_base": base}
+        try:
+            yield
+        finally:
+            if saved is None:
+                del self.meta["auto"]
+            else:
+                self.meta["auto"] = saved
 
     @property
     def auto_mode(self) -> str:

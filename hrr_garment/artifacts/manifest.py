@@ -20,6 +20,7 @@ FORMAT_VERSION = 2  # 2: garments in the pelvis-following body frame (motion/fra
 NETWORKS = ("motion_encoder", "garment_encoder", "decoder", "quantizer")
 FOLDS_FILE = "folds.safetensors"  # the detail mode's simulated folds (.folds), in bundles since 2026-11-25
 AUTO_CHOICES = ("hybrid", "residual", "detail")  # what mode ``auto`` may stand for (eval/auto_mode.py chooses)
+DETAIL_BASES = ("regression", "residual")  # what the detail mode's folds may ride on (eval/auto_mode.py chooses)
 
 
 class BundleError(InputError):
@@ -77,6 +78,9 @@ def check_manifest(folder: Path, meta: object) -> dict:
     auto = meta.get("auto", {"mode": "hybrid"})
     if not isinstance(auto, dict) or auto.get("mode") not in AUTO_CHOICES:
         raise BundleError(folder, f"bundle.json 'auto' must hold a 'mode' of {', '.join(AUTO_CHOICES)}, got {auto!r}")
+    if auto.get("detail_base", "regression") not in DETAIL_BASES:
+        raise BundleError(folder, f"bundle.json 'auto' 'detail_base' must be one of {', '.join(DETAIL_BASES)}, "
+                                  f"got {auto.get('detail_base')!r}")
     for section in ("autoencoder", "codespace", "database"):
         if not isinstance(meta.get(section), dict):
             raise BundleError(folder, f"bundle.json lacks its {section!r} section")

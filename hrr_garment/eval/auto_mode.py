@@ -15,7 +15,12 @@ by one documented criterion that counts both:
    simulation; a half and a double are equally far);
 3. ties: the cheaper mode (hybrid, then residual, then detail: the order of :data:`AUTO_CHOICES`).
 
-A model whose residual mode is not calibrated chooses between the other two.
+The detail mode is measured twice where the residual mode runs: its simulated folds on the
+regression's latents and on the residual mode's (:data:`DETAIL_ON_RESIDUAL`: the residual brings the
+match's swing). The criterion picks among all four; the detail mode's base is the picked one's, or,
+where auto is not a detail mode, the one the criterion picks between the two detail candidates
+alone (what ``--mode detail`` runs). A model whose residual mode is not calibrated chooses between
+the hybrid and the detail mode on the regression.
 """
 
 from __future__ import annotations
@@ -34,6 +39,7 @@ from ..sim.quality import hem_swing
 from . import metrics as M
 
 AUTO_MAX_SEQUENCES = 24  # validation clips the choice animates at most (evenly spaced): about a minute
+DETAIL_ON_RESIDUAL = "detail on residual"  # the candidate: the detail mode's folds on the residual mode's latents
 
 
 def plausibility_gap(sharpness: float, swing: float) -> float:
@@ -53,12 +59,21 @@ def pick_auto_mode(candidates: dict[str, dict[str, float]], allowance: float = A
                                         order.get(m, len(order))))
 
 
+def pick_auto_and_detail(candidates: dict[str, dict[str, float]], allowance: float = ACCURACY_ALLOWANCE) -> tuple[str, str]:
+    """(the mode auto runs, the detail mode's base) by the criterion on candidates labelled by mode,
+    the detail mode's on the residual as :data:`DETAIL_ON_RESIDUAL` (see the module docstring)."""
+    picked = pick_auto_mode(candidates, allowance)
+    details = {k: c for k, c in candidates.items() if k in ("detail", DETAIL_ON_RESIDUAL)}
+    detail = picked if picked in details else (pick_auto_mode(details, allowance) if details else "detail")
+    return ("detail" if picked in details else picked), ("residual" if detail == DETAIL_ON_RESIDUAL else "regression")
+
+
 def calibrate_auto_mode(animator: Animator, records: list[SequenceRecord], allowance: float = ACCURACY_ALLOWANCE,
                         max_sequences: int | None = AUTO_MAX_SEQUENCES, progress: bool = True) -> dict:
     """Each candidate's PVE (mm, against each record's simulation), sharpness and hem swing on
     ``records`` (at most ``max_sequences`` of them, evenly spaced), and the mode the criterion picks:
-    ``{"mode", "criterion", "allowance", "sequences", "frames", "candidates": {mode: {...}}}``, what
-    bundle.json keeps under ``auto``."""
+    ``{"mode", "detail_base", "criterion", "allowance", "sequences", "frames", "candidates": {label:
+    {...}}}``, what bundle.json keeps under ``auto``."""
     if not records:
         raise ValueError("the auto mode is calibrated on validation sequences, and there are none")
     if max_sequences is not None and len(records) > max_sequences:
@@ -66,23 +81,28 @@ def calibrate_auto_mode(animator: Animator, records: list[SequenceRecord], allow
     template = animator.bundle.template
     rest, topo = template.vertices.astype(np.float64), M.MeshTopology.of(template.faces, template.num_vertices)
     hem = hem_vertices(template)
-    modes = [m for m in AUTO_CHOICES if animator.supports(m)]
+    candidates_of = {m: (m, "regression") for m in AUTO_CHOICES if animator.supports(m)}  # label -> mode, detail base
+    bundle = animator.bundle
+    if "detail" in candidates_of and bundle.has_residual and bundle.residual_weight > 0:
+        candidates_of[DETAIL_ON_RESIDUAL] = ("detail", "residual")
     names = list(animator.bundle.database.names)
     truths = [r.garment.astype(np.float64) for r in records]
     frames = sum(len(t) for t in truths)
     truth_bend = sum(float(M.cloth_energies(t, rest, topo)[1].sum()) for t in truths)
     truth_swing = sum(hem_swing(t, r.motion, hem) * len(t) for t, r in zip(truths, records))
     candidates = {}
-    for mode in tqdm(modes, desc="auto mode", unit="mode", disable=not progress):
+    for label, (mode, base) in tqdm(candidates_of.items(), desc="auto mode", unit="mode", disable=not progress):
         error = bend = swing = 0.0
         for r, truth in zip(records, truths):  # a clip in the database (the paper's validation) may not retrieve itself
             own = names.index(r.name) if r.name in names else None
-            pred = animator.animate(r.motion, mode=mode, exclude_sequence=own).vertices.astype(np.float64)
+            with bundle.detail_on(base):
+                pred = animator.animate(r.motion, mode=mode, exclude_sequence=own).vertices.astype(np.float64)
             error += M.pve_mm(pred, truth) * len(pred)
             bend += float(M.cloth_energies(pred, rest, topo)[1].sum())
             swing += hem_swing(pred, r.motion, hem) * len(pred)
-        candidates[mode] = {"pve_mm": error / frames, "sharpness": bend / max(truth_bend, 1e-30),
-                            "hem_swing": swing / max(truth_swing, 1e-30)}
-    return {"mode": pick_auto_mode(candidates, allowance), "allowance": allowance, "sequences": len(records),
+        candidates[label] = {"pve_mm": error / frames, "sharpness": bend / max(truth_bend, 1e-30),
+                             "hem_swing": swing / max(truth_swing, 1e-30)}
+    mode, detail_base = pick_auto_and_detail(candidates, allowance)
+    return {"mode": mode, "detail_base": detail_base, "allowance": allowance, "sequences": len(records),
             "frames": frames, "criterion": "the most plausible (max |ln sharpness|, |ln hem swing|) within the "
                                            "allowance x the most accurate PVE", "candidates": candidates}

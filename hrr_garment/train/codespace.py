@@ -222,7 +222,6 @@ def run_codespace_stage(dataset: str | Path, folder: str | Path, config: CodeSpa
                  folds=fold_store(ds, train_w.names, progress),
                  info={"dataset": str(dataset), "window": config.window, "validation_mm": report["validation_mm"],
                        "gates": report["gates"], **({"residual": report["residual"]} if report["residual"] else {}),
-                       "encoding": encoding, "validation": train_config.validation, "detail_base": "residual",
-                       **(info or {})})
+                       "encoding": encoding, "validation": train_config.validation, **(info or {})})
     atomic_write_text(report_path, strict_json(report, indent=2, default=float))
     return _stage_report(report, stage)
