@@ -251,7 +251,8 @@ def _auto_mode(folder: Path, dataset: Path, progress: bool) -> None:
         records = [ds.sequence(n) for n in ds.splits.get("val", [])]
         auto = calibrate_auto_mode(Animator.load(folder), records, progress=progress)
         update_bundle_meta(folder, {"auto": auto})
-    print(f"auto mode: {auto['mode']} (on {auto['sequences']} validation clips: " + "; ".join(
+    base = auto.get("detail_base", "regression")
+    print(f"auto mode: {auto['mode']} (the detail mode's folds on the {base}; on {auto['sequences']} validation clips: " + "; ".join(
         f"{m} {c['pve_mm']:.2f} mm, sharpness {c['sharpness']:.2f}, hem swing {c['hem_swing']:.2f}"
         for m, c in auto["candidates"].items()) + ")")
 
