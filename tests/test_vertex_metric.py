@@ -78,8 +78,8 @@ def test_frames_are_sampled_seeded_and_settings_checked():
 
 
 def test_the_code_space_trains_on_either_latent_loss(trained, tmp_path):
-    """The vertex loss is the default; codespace.train.latent_loss standardised trains with the plain
-    mean square under another stage key."""
+    """codespace.train.latent_loss vertex (the real-motion presets') trains with the decoder's vertex
+    error under another stage key than the default's plain mean square."""
     import json
     import shutil
 
@@ -88,16 +88,16 @@ def test_the_code_space_trains_on_either_latent_loss(trained, tmp_path):
     root, data, args = trained
     shutil.copytree(root / "model", tmp_path / "model")
     config = (root / "cfg.yaml").read_text().replace("patience: 5, max_minutes: null}",
-                                                     "patience: 5, max_minutes: null, latent_loss: standardised}")
-    assert "latent_loss: standardised" in config
+                                                     "patience: 5, max_minutes: null, latent_loss: vertex}")
+    assert "latent_loss: vertex" in config
     (tmp_path / "cfg.yaml").write_text(config)
     before = json.loads((tmp_path / "model" / "codebook" / "report.json").read_text())
     stage = ["--dataset", str(data), "--config", str(tmp_path / "cfg.yaml"), "--stage", "codespace", "-o",
              str(tmp_path / "model"), "--quiet"]
     assert train_main(stage) == 0
     after = json.loads((tmp_path / "model" / "codebook" / "report.json").read_text())
-    assert before["training"]["config"]["latent_loss"] == "vertex"
-    assert after["key"] != before["key"] and after["training"]["config"]["latent_loss"] == "standardised"
+    assert before["training"]["config"]["latent_loss"] == "standardised"
+    assert after["key"] != before["key"] and after["training"]["config"]["latent_loss"] == "vertex"
     logged = [json.loads(line) for line in (tmp_path / "model" / "codebook" / "log.jsonl").read_text().splitlines()]
     assert len(logged) == after["training"]["epoch"] and all(np.isfinite(r["val_regress"]) for r in logged)
     assert np.isfinite(after["validation_mm"]["regression"])

@@ -70,7 +70,7 @@ class CodeSpaceTrainConfig:
     # how a latent window's error is measured: "standardised", the mean square of the standardised
     # latents; "vertex", the decoder's first-order vertex error (.vertex_metric), with vertex_ridge
     # of the former mixed in
-    latent_loss: str = "vertex"
+    latent_loss: str = "standardised"
     vertex_ridge: float = 0.05
     seed: int = 0
 
