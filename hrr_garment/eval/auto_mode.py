@@ -40,6 +40,7 @@ from . import metrics as M
 
 AUTO_MAX_SEQUENCES = 24  # validation clips the choice animates at most (evenly spaced): about a minute
 DETAIL_ON_RESIDUAL = "detail on residual"  # the candidate: the detail mode's folds on the residual mode's latents
+DETAIL_CANDIDATES = {"detail": "regression", DETAIL_ON_RESIDUAL: "residual"}  # the detail mode's candidates: label -> base
 
 
 def plausibility_gap(sharpness: float, swing: float) -> float:
@@ -63,9 +64,9 @@ def pick_auto_and_detail(candidates: dict[str, dict[str, float]], allowance: flo
     """(the mode auto runs, the detail mode's base) by the criterion on candidates labelled by mode,
     the detail mode's on the residual as :data:`DETAIL_ON_RESIDUAL` (see the module docstring)."""
     picked = pick_auto_mode(candidates, allowance)
-    details = {k: c for k, c in candidates.items() if k in ("detail", DETAIL_ON_RESIDUAL)}
+    details = {k: c for k, c in candidates.items() if k in DETAIL_CANDIDATES}
     detail = picked if picked in details else (pick_auto_mode(details, allowance) if details else "detail")
-    return ("detail" if picked in details else picked), ("residual" if detail == DETAIL_ON_RESIDUAL else "regression")
+    return ("detail" if picked in details else picked), DETAIL_CANDIDATES[detail]
 
 
 def calibrate_auto_mode(animator: Animator, records: list[SequenceRecord], allowance: float = ACCURACY_ALLOWANCE,
@@ -81,10 +82,10 @@ def calibrate_auto_mode(animator: Animator, records: list[SequenceRecord], allow
     template = animator.bundle.template
     rest, topo = template.vertices.astype(np.float64), M.MeshTopology.of(template.faces, template.num_vertices)
     hem = hem_vertices(template)
-    candidates_of = {m: (m, "regression") for m in AUTO_CHOICES if animator.supports(m)}  # label -> mode, detail base
-    bundle = animator.bundle
+    candidates_of = {m: (m, DETAIL_CANDIDATES.get(m, "regression")) for m in AUTO_CHOICES if animator.supports(m)}
+    bundle = animator.bundle  # label -> (mode, the detail mode's base)
     if "detail" in candidates_of and bundle.has_residual and bundle.residual_weight > 0:
-        candidates_of[DETAIL_ON_RESIDUAL] = ("detail", "residual")
+        candidates_of[DETAIL_ON_RESIDUAL] = ("detail", DETAIL_CANDIDATES[DETAIL_ON_RESIDUAL])
     names = list(animator.bundle.database.names)
     truths = [r.garment.astype(np.float64) for r in records]
     frames = sum(len(t) for t in truths)

@@ -55,9 +55,9 @@ def choose_windows(bundle: Bundle, motion_windows: np.ndarray, mode: str, tau: f
         everywhere = np.ones(n, bool)
         source = np.stack([db.sequence[match], db.start[match]], 1).astype(np.int32)
         latents = enc.regression
-        # the detail mode adds the matches' folds (.detail) to the residual mode's latents (the
-        # match's own departure from the regression carries the hem's swing, the folds its
-        # sharpness; docs/results.md), or to the regression's in bundles trained before
+        # the detail mode adds the matches' folds (.detail) to the regression's latents or to the
+        # residual mode's (the match's own departure from the regression carries the hem's swing,
+        # the folds its sharpness), as the bundle's auto calibration chose (Bundle.detail_base)
         if mode is Mode.RESIDUAL or bundle.detail_base == "residual":
             matched = db.latents[match, -frames:]
             own = match_regression(bundle.codespace, bundle.motion_stats, bundle.latent_stats, db, match, last_frame, step)

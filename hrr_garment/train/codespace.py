@@ -66,8 +66,8 @@ def check_splits(ds: GarmentDataset) -> None:
 def garment_codes(model: CodeSpace, windows: WindowTensors, batch: int = 512) -> np.ndarray:
     """Argmax garment codes (N, G) uint8 of standardised latent windows."""
     model.eval()
-    out = [model.quantizer.split(model.garment_encoder(windows[i:i + batch][1])).argmax(-1)
-           for i in range(0, len(windows), batch)]
+    out = [model.quantizer.split(model.garment_encoder(windows.latents[windows.frame_rows(slice(i, i + batch))])).argmax(-1)
+           for i in range(0, len(windows), batch)]  # the latent windows alone: the encoder reads no motion
     return torch.cat(out).numpy().astype(np.uint8)
 
 

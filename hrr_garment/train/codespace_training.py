@@ -138,9 +138,13 @@ class WindowTensors:
     def __len__(self) -> int:
         return len(self.first)
 
+    def frame_rows(self, rows) -> torch.Tensor:
+        """(n, W) the stored frames of the windows ``rows`` (a slice or indices)."""
+        return self.first[rows].unsqueeze(-1) + torch.arange(self.window)
+
     def __getitem__(self, rows) -> tuple[torch.Tensor, torch.Tensor]:
         """The windows ``rows`` (a slice or indices): motion (n, W, F) and latents (n, W, nodes, C)."""
-        frames = self.first[rows].unsqueeze(-1) + torch.arange(self.window)
+        frames = self.frame_rows(rows)
         return self.motion[frames], self.latents[frames]
 
 
