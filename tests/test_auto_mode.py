@@ -9,8 +9,10 @@ import numpy as np
 import pytest
 
 from hrr_garment.eval.auto_mode import (
-    DETAIL_ON_RESIDUAL,
+    DETAIL_CANDIDATES,
+    DETAIL_STRENGTHS,
     calibrate_auto_mode,
+    detail_label,
     pick_auto_and_detail,
     pick_auto_mode,
     plausibility_gap,
@@ -25,7 +27,8 @@ def _c(pve, sharpness, swing):
 def test_plausibility_gap_weighs_too_smooth_and_too_sharp_alike():
     assert plausibility_gap(1.0, 1.0) == 0.0
     assert plausibility_gap(0.5, 1.0) == pytest.approx(plausibility_gap(2.0, 1.0)) == pytest.approx(math.log(2))
-    assert plausibility_gap(0.9, 0.25) == pytest.approx(math.log(4))  # the worse of the two ratios
+    assert plausibility_gap(0.9, 0.25) == pytest.approx(math.hypot(math.log(0.9), math.log(4)))  # both count
+    assert plausibility_gap(0.8, 0.7) < plausibility_gap(0.6, 0.7)  # a gain in one counts while the other lags
     assert plausibility_gap(0.0, 1.0) == math.inf
 
 
@@ -47,18 +50,25 @@ def test_the_criterion_takes_the_most_plausible_of_the_accurate(candidates, expe
                                                                                         list(candidates).index(m)))
 
 
+R8, R10, RR8, RR10 = (detail_label(b, s) for b, s in (("regression", 0.8), ("regression", 1.0), ("residual", 0.8),
+                                                         ("residual", 1.0)))
+
+
 @pytest.mark.parametrize("pves, expected", [
-    ((27.0, 27.2, 27.7, 27.9), ("detail", "regression")),  # on the residual out of the allowance: the other
-    ((27.0, 27.2, 27.7, 27.6), ("detail", "residual")),  # both within: the more plausible
-    ((27.0, 27.2, 28.5, 28.6), ("residual", "residual")),  # neither within: auto elsewhere, the detail mode's
-])  # base by the criterion between the two alone
-def test_the_detail_modes_base_is_chosen_by_the_same_criterion(pves, expected):
-    plausibility = [(0.15, 0.6), (0.2, 0.7), (0.73, 0.71), (0.74, 0.73)]
-    labels = ["hybrid", "residual", "detail", DETAIL_ON_RESIDUAL]
+    ((27.0, 27.2, 27.7, 27.8, 27.9, 28.2), ("detail", "regression", 1.0)),  # x1 on the regression within; on the residual not
+    ((27.0, 27.2, 27.7, 28.0, 27.6, 27.8), ("detail", "residual", 1.0)),  # all within: the most plausible
+    ((27.0, 27.2, 27.7, 28.0, 27.6, 28.2), ("detail", "residual", 0.8)),  # the strongest folds cost too much
+    ((27.0, 27.2, 28.5, 28.6, 28.7, 28.9), ("residual", "residual", 1.0)),  # none within: auto elsewhere, the
+])  # detail mode's setting by the criterion among the detail candidates alone
+def test_the_detail_modes_setting_is_chosen_by_the_same_criterion(pves, expected):
+    plausibility = [(0.15, 0.6), (0.2, 0.7), (0.73, 0.71), (0.95, 0.72), (0.74, 0.73), (0.96, 0.74)]
+    labels = ["hybrid", "residual", R8, R10, RR8, RR10]
     candidates = {k: {"pve_mm": p, "sharpness": s, "hem_swing": w} for k, p, (s, w) in zip(labels, pves, plausibility)}
     assert pick_auto_and_detail(candidates, 1.03) == expected
-    del candidates[DETAIL_ON_RESIDUAL]  # no residual weight: the regression's
+    for label in (RR8, RR10):  # no residual weight: the regression's
+        del candidates[label]
     assert pick_auto_and_detail(candidates, 1.03)[1] == "regression"
+    assert pick_auto_and_detail({"hybrid": candidates["hybrid"]}, 1.03)[0] == "hybrid"  # no folds: no detail candidate
 
 
 def test_hrr_train_calibrates_auto_and_it_agrees_with_the_evaluation(trained):
@@ -70,8 +80,9 @@ def test_hrr_train_calibrates_auto_and_it_agrees_with_the_evaluation(trained):
     root, data, _ = trained
     meta = json.loads((root / "model" / "bundle.json").read_text())
     auto = meta["auto"]
-    assert auto["mode"] in AUTO_CHOICES and set(auto["candidates"]) <= {*AUTO_CHOICES, DETAIL_ON_RESIDUAL}
-    assert (auto["mode"], auto["detail_base"]) == pick_auto_and_detail(auto["candidates"], auto["allowance"])
+    assert auto["mode"] in AUTO_CHOICES and set(auto["candidates"]) <= {*AUTO_CHOICES, *DETAIL_CANDIDATES}
+    assert (auto["mode"], auto["detail_base"], auto["detail_strength"]) == pick_auto_and_detail(auto["candidates"],
+                                                                                                auto["allowance"])
     animator = Animator.load(root / "model")
     assert animator.bundle.auto_mode == auto["mode"]
     ds = GarmentDataset(data)
@@ -84,18 +95,21 @@ def test_hrr_train_calibrates_auto_and_it_agrees_with_the_evaluation(trained):
     assert again["candidates"]["hybrid"]["pve_mm"] == pytest.approx(pve, rel=1e-6)
     for c in again["candidates"].values():
         assert c["pve_mm"] > 0 and c["sharpness"] > 0 and c["hem_swing"] > 0
-    # with a residual weight the detail mode is measured on both bases, each as the mode runs it
+    # with a residual weight the detail mode is measured on both bases at every strength, each as the mode runs it
     animator.bundle.meta["residual"] = {**animator.bundle.meta["residual"], "weight": 0.7}
     both = calibrate_auto_mode(animator, records[:1], progress=False)
-    for label, base in (("detail", "regression"), (DETAIL_ON_RESIDUAL, "residual")):
-        with animator.bundle.detail_on(base):
+    assert set(both["candidates"]) >= set(DETAIL_CANDIDATES)
+    for label, (base, strength) in DETAIL_CANDIDATES.items():
+        with animator.bundle.detail_on(base, strength):
             pred = animator.animate(records[0].motion, mode="detail").vertices
         assert both["candidates"][label]["pve_mm"] == pytest.approx(float(np.linalg.norm(pred - records[0].garment, axis=-1).mean()) * 1000, rel=1e-5)
-    assert both["candidates"]["detail"]["pve_mm"] != both["candidates"][DETAIL_ON_RESIDUAL]["pve_mm"]
+    pves = [both["candidates"][detail_label(base, s)]["pve_mm"] for base in ("regression", "residual") for s in DETAIL_STRENGTHS]
+    assert len(set(pves)) == len(pves)  # each setting changes the output
 
 
-@pytest.mark.parametrize("chosen, base", [("detail", "regression"), ("detail", "residual"), ("hybrid", "regression")])
-def test_auto_runs_the_calibrated_mode_everywhere(trained, tmp_path, chosen, base):
+@pytest.mark.parametrize("chosen, base, strength", [("detail", "regression", 0.6), ("detail", "residual", 1.0),
+                                                    ("hybrid", "regression", 0.8)])
+def test_auto_runs_the_calibrated_mode_everywhere(trained, tmp_path, chosen, base, strength):
     from hrr_garment.artifacts.bundle import update_bundle_meta
     from hrr_garment.inference.animator import Animator
 
@@ -103,9 +117,10 @@ def test_auto_runs_the_calibrated_mode_everywhere(trained, tmp_path, chosen, bas
     copy = tmp_path / "model"
     shutil.copytree(root / "model", copy)
     residual = json.loads((copy / "bundle.json").read_text())["residual"]
-    update_bundle_meta(copy, {"auto": {"mode": chosen, "detail_base": base}, "residual": {**residual, "weight": 0.7}})
+    update_bundle_meta(copy, {"auto": {"mode": chosen, "detail_base": base, "detail_strength": strength},
+                              "residual": {**residual, "weight": 0.7}})
     animator = Animator.load(copy)
-    assert animator.bundle.detail_base == base
+    assert animator.bundle.detail_base == base and animator.bundle.detail_strength == strength
     motion = synthesize("walk", 1.0, seed=5)
     default = animator.animate(motion, collision=False)
     named = animator.animate(motion, mode=chosen, collision=False)

@@ -115,10 +115,12 @@ def test_proposals_are_each_frames_frame_in_its_match():
     assert causal_proposals(source, 5).tolist() == [[0, 14], [1, 44], [2, 11], [0, 64]]
 
 
-@pytest.mark.parametrize("base", ["residual", "regression"])
-def test_the_detail_mode_is_its_base_plus_the_tracked_simulated_folds(trained, base):
-    """The folds ride on the residual mode's latents or on the regression's, as the auto
-    calibration chose (bundle.json auto.detail_base; the regression's in bundles from before)."""
+@pytest.mark.parametrize("base, strength", [("residual", 1.0), ("regression", None)])
+def test_the_detail_mode_is_its_base_plus_the_tracked_simulated_folds(trained, base, strength):
+    """The folds ride on the residual mode's latents or on the regression's at a strength, as the
+    auto calibration chose (bundle.json auto.detail_base and detail_strength; the regression's and
+    0.8 in bundles from before)."""
+    from hrr_garment.artifacts.folds import DETAIL_STRENGTH
     from hrr_garment.inference.animator import Animator
 
     root, _, _ = trained
@@ -126,11 +128,11 @@ def test_the_detail_mode_is_its_base_plus_the_tracked_simulated_folds(trained, b
     meta = animator.bundle.meta
     assert animator.bundle.has_residual
     meta["residual"] = {**meta["residual"], "weight": 0.7}  # a weight the tiny model may not have calibrated
-    meta["auto"] = {**meta["auto"], "detail_base": base}
+    meta["auto"] = {**meta["auto"], "detail_base": base, "detail_strength": strength}
     assert animator.bundle.detail_base == base
     if base == "regression":  # as bundles calibrated before the choice read
-        del meta["auto"]["detail_base"]
-        assert animator.bundle.detail_base == "regression"
+        del meta["auto"]["detail_base"], meta["auto"]["detail_strength"]
+        assert animator.bundle.detail_base == "regression" and animator.bundle.detail_strength == DETAIL_STRENGTH
     store = animator.bundle.folds
     assert store is not None and len(store.lengths) == len(animator.bundle.database.names)
     motion = synthesize("walk", 1.0, seed=3)
@@ -144,7 +146,8 @@ def test_the_detail_mode_is_its_base_plus_the_tracked_simulated_folds(trained, b
     source = animator._choose(windows, "detail", 0.0, None, "entropy").source
     rows, weights = track_folds(offline_proposals(source, motion.num_frames, animator.window), store.offsets)
     local = to_body_frame(shape.astype(np.float64), motion)
-    expected = from_body_frame(add_folds(local, store.folds(rows, weights), animator.smoothing, store.passes), motion)
+    expected = from_body_frame(add_folds(local, store.folds(rows, weights), animator.smoothing, store.passes,
+                                         strength or DETAIL_STRENGTH), motion)
     assert np.abs(detail.vertices - expected).max() < 1e-4
     assert not np.allclose(detail.vertices, shape, atol=1e-3)
     assert (base == "regression") == np.allclose(shape, regression, atol=1e-5)
@@ -181,7 +184,7 @@ def test_a_bundle_before_the_folds_says_how_to_add_them_and_hrr_train_does(train
     assert "(reused)" in capsys.readouterr().out and (old / "motion_encoder.safetensors").read_bytes() == weights
     assert (old / FOLDS_FILE).read_bytes() == folds
     animator = Animator.load(old)
-    assert animator.supports("detail") and "detail" in animator.bundle.meta["auto"]["candidates"]
+    assert animator.supports("detail") and "detail x0.8" in animator.bundle.meta["auto"]["candidates"]
 
 
 def test_a_damaged_fold_store_is_refused(trained, tmp_path):

@@ -26,16 +26,17 @@ from hrr_garment.data.dataset import GarmentDataset
 from hrr_garment.eval import metrics as M
 from hrr_garment.garment.fit import hem_vertices
 from hrr_garment.inference.animator import Animator
-from hrr_garment.inference.detail import DETAIL_STRENGTH, add_folds
+from hrr_garment.inference.detail import add_folds
 from hrr_garment.inference.fold_track import causal_proposals, offline_proposals, track_folds
 from hrr_garment.motion.frame import from_body_frame, to_body_frame
 from hrr_garment.motion.windows import causal_windows, sequence_windows
 from hrr_garment.sim.quality import hem_swing
 
-# (label, strength, hold, fade): hold 1 and fade 0 take each frame's own proposal
-TRACKS = [("shipped", DETAIL_STRENGTH, None, None), ("strength 0.6", 0.6, None, None), ("strength 1.0", 1.0, None, None),
-          ("no track (each frame's proposal)", DETAIL_STRENGTH, 1, 0), ("hold 4, fade 3", DETAIL_STRENGTH, 4, 3),
-          ("hold 16, fade 6", DETAIL_STRENGTH, 16, 6), ("hold 8, fade 12", DETAIL_STRENGTH, 8, 12)]
+# (label, strength, hold, fade): strength None is the model's calibrated one; hold 1 and fade 0
+# take each frame's own proposal
+TRACKS = [("shipped", None, None, None), ("strength 0.6", 0.6, None, None), ("strength 1.0", 1.0, None, None),
+          ("no track (each frame's proposal)", None, 1, 0), ("hold 4, fade 3", None, 4, 3),
+          ("hold 16, fade 6", None, 16, 6), ("hold 8, fade 12", None, 8, 12)]
 SWING_GAINS = (1.25, 1.5)
 RUNNING_MEAN_S = 1.0  # time constant of the causal running mean a swing gain may scale from instead
 
@@ -91,6 +92,7 @@ def analyse(model: str, split: str, sequences: int | None) -> dict:
             for label, strength, hold, fade in TRACKS if not causal else TRACKS[:1]:
                 rows, weights = track_folds(proposals, store.offsets, **{k: v for k, v in (("hold", hold), ("fade", fade)) if v is not None})
                 folds = store.folds(rows, weights)
+                strength = animator.bundle.detail_strength if strength is None else strength
                 outputs[f"detail, {label} ({kind})"] = from_body_frame(
                     add_folds(local, folds, animator.smoothing, store.passes, strength), motion)
                 if label == "shipped" and not causal:

@@ -43,12 +43,13 @@ from ..models.fcmae import AutoencoderConfig, MeshAutoencoder
 from ..models.hierarchy import cached_hierarchy
 from ..motion.features import FeatureStats
 from .database import CodeDatabase
-from .folds import FoldStore
+from .folds import DETAIL_STRENGTH, FoldStore
 from .gate_signals import GATE_SIGNALS, check_gate_signal
 from .manifest import (
     DETAIL_BASES,
     FOLDS_FILE,
     FORMAT_VERSION,
+    MAX_DETAIL_STRENGTH,
     NETWORKS,
     BundleError,
     content_hash,
@@ -128,14 +129,24 @@ class Bundle:
         base = self.meta.get("auto", {}).get("detail_base", "regression")
         return "residual" if base == "residual" and self.has_residual and self.residual_weight > 0 else "regression"
 
+    @property
+    def detail_strength(self) -> float:
+        """The strength of the detail mode's simulated folds, as the auto calibration chose
+        (:data:`~.folds.DETAIL_STRENGTH` for bundles calibrated before the choice)."""
+        return float(self.meta.get("auto", {}).get("detail_strength", DETAIL_STRENGTH))
+
     @contextmanager
-    def detail_on(self, base: str) -> Iterator[None]:
-        """Run the detail mode on ``base`` ("regression" or "residual") inside the block: how the
-        auto calibration measures both before choosing."""
+    def detail_on(self, base: str, strength: float | None = None) -> Iterator[None]:
+        """Run the detail mode on ``base`` ("regression" or "residual"), its folds at ``strength``
+        (None: as calibrated) inside the block: how the auto calibration measures each before choosing."""
         if base not in DETAIL_BASES:
             raise ValueError(f"the detail mode's base is one of {', '.join(DETAIL_BASES)}, got {base!r}")
+        if strength is not None and not 0 < strength <= MAX_DETAIL_STRENGTH:
+            raise ValueError(f"the detail mode's strength is in (0, {MAX_DETAIL_STRENGTH:g}], got {strength!r}")
         saved = self.meta.get("auto")
         self.meta["auto"] = {**(saved or {}), "detail_base": base}
+        if strength is not None:
+            self.meta["auto"]["detail_strength"] = float(strength)
         try:
             yield
         finally:

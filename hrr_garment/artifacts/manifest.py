@@ -21,6 +21,7 @@ NETWORKS = ("motion_encoder", "garment_encoder", "decoder", "quantizer")
 FOLDS_FILE = "folds.safetensors"  # the detail mode's simulated folds (.folds), in bundles since 2026-11-25
 AUTO_CHOICES = ("hybrid", "residual", "detail")  # what mode ``auto`` may stand for (eval/auto_mode.py chooses)
 DETAIL_BASES = ("regression", "residual")  # what the detail mode's folds may ride on (eval/auto_mode.py chooses)
+MAX_DETAIL_STRENGTH = 2.0  # the detail mode's folds at most twice the simulated ones (eval/auto_mode.py chooses)
 
 
 class BundleError(InputError):
@@ -81,6 +82,10 @@ def check_manifest(folder: Path, meta: object) -> dict:
     if auto.get("detail_base", "regression") not in DETAIL_BASES:
         raise BundleError(folder, f"bundle.json 'auto' 'detail_base' must be one of {', '.join(DETAIL_BASES)}, "
                                   f"got {auto.get('detail_base')!r}")
+    strength = auto.get("detail_strength", 1.0)
+    if isinstance(strength, bool) or not isinstance(strength, (int, float)) or not 0 < strength <= MAX_DETAIL_STRENGTH:
+        raise BundleError(folder, f"bundle.json 'auto' 'detail_strength' must be a number in (0, {MAX_DETAIL_STRENGTH:g}], "
+                                  f"got {strength!r}")
     for section in ("autoencoder", "codespace", "database"):
         if not isinstance(meta.get(section), dict):
             raise BundleError(folder, f"bundle.json lacks its {section!r} section")

@@ -240,6 +240,7 @@ def _auto_mode(folder: Path, dataset: Path, progress: bool) -> None:
     """Calibrate the mode ``auto`` runs (:mod:`hrr_garment.eval.auto_mode`) on the validation clips,
     once per bundle (a model trained before it gets it on its next ``--stage codespace``)."""
     from ..artifacts.bundle import read_meta, update_bundle_meta
+    from ..artifacts.folds import DETAIL_STRENGTH
 
     auto = read_meta(folder).get("auto")  # reading it hashes every file: once
     if auto is None:
@@ -251,8 +252,8 @@ def _auto_mode(folder: Path, dataset: Path, progress: bool) -> None:
         records = [ds.sequence(n) for n in ds.splits.get("val", [])]
         auto = calibrate_auto_mode(Animator.load(folder), records, progress=progress)
         update_bundle_meta(folder, {"auto": auto})
-    base = auto.get("detail_base", "regression")
-    print(f"auto mode: {auto['mode']} (the detail mode's folds on the {base}; on {auto['sequences']} validation clips: " + "; ".join(
+    detail = f"x{auto.get('detail_strength', DETAIL_STRENGTH):g} on the {auto.get('detail_base', 'regression')}"
+    print(f"auto mode: {auto['mode']} (the detail mode's folds {detail}; on {auto['sequences']} validation clips: " + "; ".join(
         f"{m} {c['pve_mm']:.2f} mm, sharpness {c['sharpness']:.2f}, hem swing {c['hem_swing']:.2f}"
         for m, c in auto["candidates"].items()) + ")")
 

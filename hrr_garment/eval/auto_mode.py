@@ -1,5 +1,5 @@
 """The ``auto`` mode's calibration: which of the hybrid, residual and detail modes a model runs
-by default.
+by default, and how the detail mode runs.
 
 Against a chaotic truth the most accurate output is close to the conditional mean, and the mean is
 blurry: its folds and its hem's swing average away. The modes that use the database trade a little
@@ -10,17 +10,19 @@ by one documented criterion that counts both:
 1. accuracy first: the candidates whose PVE is within :data:`ACCURACY_ALLOWANCE` (3 %) of the most
    accurate candidate's;
 2. then plausibility: of those, the one whose cloth looks most like the simulation, i.e. the
-   smallest *plausibility gap* ``max(|ln sharpness|, |ln hem swing|)``, sharpness being the bending
+   smallest *plausibility gap* ``hypot(ln sharpness, ln hem swing)``, sharpness being the bending
    energy over the truth's and hem swing the hem's amplitude over the truth's (0: both as in the
-   simulation; a half and a double are equally far);
-3. ties: the cheaper mode (hybrid, then residual, then detail: the order of :data:`AUTO_CHOICES`).
+   simulation; a half and a double are equally far, and a gain in either counts);
+3. ties: the cheaper mode (hybrid, then residual, then detail: the order of :data:`AUTO_CHOICES`),
+   then the more accurate.
 
-The detail mode is measured twice where the residual mode runs: its simulated folds on the
-regression's latents and on the residual mode's (:data:`DETAIL_ON_RESIDUAL`: the residual brings the
-match's swing). The criterion picks among all four; the detail mode's base is the picked one's, or,
-where auto is not a detail mode, the one the criterion picks between the two detail candidates
-alone (what ``--mode detail`` runs). A model whose residual mode is not calibrated chooses between
-the hybrid and the detail mode on the regression.
+The detail mode is measured in several settings (:data:`DETAIL_CANDIDATES`): its simulated folds at
+each of :data:`DETAIL_STRENGTHS`, on the regression's latents and, where the residual mode runs, on
+the residual mode's (which bring the match's swing). The folds' strength is the trade itself: on
+held-out real clips the sharpness grows with it faster than the error (docs/results.md). The
+criterion picks among all candidates; the detail mode's setting is the picked one's, or, where auto
+is not a detail mode, the one the criterion picks among the detail candidates alone (what
+``--mode detail`` runs).
 """
 
 from __future__ import annotations
@@ -30,7 +32,8 @@ import math
 import numpy as np
 from tqdm import tqdm
 
-from ..artifacts.manifest import AUTO_CHOICES
+from ..artifacts.folds import DETAIL_STRENGTH
+from ..artifacts.manifest import AUTO_CHOICES, DETAIL_BASES
 from ..artifacts.residual import ACCURACY_ALLOWANCE
 from ..data.dataset import SequenceRecord
 from ..garment.fit import hem_vertices
@@ -39,42 +42,55 @@ from ..sim.quality import hem_swing
 from . import metrics as M
 
 AUTO_MAX_SEQUENCES = 24  # validation clips the choice animates at most (evenly spaced): about a minute
-DETAIL_ON_RESIDUAL = "detail on residual"  # the candidate: the detail mode's folds on the residual mode's latents
-DETAIL_CANDIDATES = {"detail": "regression", DETAIL_ON_RESIDUAL: "residual"}  # the detail mode's candidates: label -> base
+DETAIL_STRENGTHS = (0.6, 0.8, 1.0)  # the folds' strengths measured (1: the simulated folds as they are)
+
+
+def detail_label(base: str, strength: float) -> str:
+    """A detail candidate's name in the calibration: ``detail x0.8``, ``detail on residual x1``."""
+    return f"detail{'' if base == 'regression' else ' on ' + base} x{strength:g}"
+
+
+#: the detail mode's candidates: label -> (base, strength)
+DETAIL_CANDIDATES = {detail_label(b, s): (b, s) for b in DETAIL_BASES for s in DETAIL_STRENGTHS}
 
 
 def plausibility_gap(sharpness: float, swing: float) -> float:
-    """``max(|ln sharpness|, |ln hem swing|)``: 0 where both ratios are 1 (inf where one is 0)."""
+    """``hypot(ln sharpness, ln hem swing)``: 0 where both ratios are 1 (inf where one is 0)."""
     if sharpness <= 0 or swing <= 0:
         return math.inf
-    return max(abs(math.log(sharpness)), abs(math.log(swing)))
+    return math.hypot(math.log(sharpness), math.log(swing))
 
 
 def pick_auto_mode(candidates: dict[str, dict[str, float]], allowance: float = ACCURACY_ALLOWANCE) -> str:
     """The criterion of the module docstring on each candidate's ``pve_mm``, ``sharpness`` and
-    ``hem_swing`` (ratios to the truth)."""
+    ``hem_swing`` (ratios to the truth); a candidate labelled by :data:`DETAIL_CANDIDATES` is the
+    detail mode."""
     best = min(c["pve_mm"] for c in candidates.values())
     eligible = [m for m, c in candidates.items() if c["pve_mm"] <= allowance * best]
     order = {m: i for i, m in enumerate(AUTO_CHOICES)}
     return min(eligible, key=lambda m: (plausibility_gap(candidates[m]["sharpness"], candidates[m]["hem_swing"]),
-                                        order.get(m, len(order))))
+                                        order.get("detail" if m in DETAIL_CANDIDATES else m, len(order)),
+                                        candidates[m]["pve_mm"]))
 
 
-def pick_auto_and_detail(candidates: dict[str, dict[str, float]], allowance: float = ACCURACY_ALLOWANCE) -> tuple[str, str]:
-    """(the mode auto runs, the detail mode's base) by the criterion on candidates labelled by mode,
-    the detail mode's on the residual as :data:`DETAIL_ON_RESIDUAL` (see the module docstring)."""
+def pick_auto_and_detail(candidates: dict[str, dict[str, float]],
+                         allowance: float = ACCURACY_ALLOWANCE) -> tuple[str, str, float]:
+    """(the mode auto runs, the detail mode's base, its strength) by the criterion on candidates
+    labelled by mode, the detail mode's by :data:`DETAIL_CANDIDATES` (see the module docstring)."""
     picked = pick_auto_mode(candidates, allowance)
     details = {k: c for k, c in candidates.items() if k in DETAIL_CANDIDATES}
-    detail = picked if picked in details else (pick_auto_mode(details, allowance) if details else "detail")
-    return ("detail" if picked in details else picked), DETAIL_CANDIDATES[detail]
+    if not details:
+        return picked, "regression", DETAIL_STRENGTH
+    detail = picked if picked in details else pick_auto_mode(details, allowance)
+    return ("detail" if picked in details else picked), *DETAIL_CANDIDATES[detail]
 
 
 def calibrate_auto_mode(animator: Animator, records: list[SequenceRecord], allowance: float = ACCURACY_ALLOWANCE,
                         max_sequences: int | None = AUTO_MAX_SEQUENCES, progress: bool = True) -> dict:
     """Each candidate's PVE (mm, against each record's simulation), sharpness and hem swing on
     ``records`` (at most ``max_sequences`` of them, evenly spaced), and the mode the criterion picks:
-    ``{"mode", "detail_base", "criterion", "allowance", "sequences", "frames", "candidates": {label:
-    {...}}}``, what bundle.json keeps under ``auto``."""
+    ``{"mode", "detail_base", "detail_strength", "criterion", "allowance", "sequences", "frames",
+    "candidates": {label: {...}}}``, what bundle.json keeps under ``auto``."""
     if not records:
         raise ValueError("the auto mode is calibrated on validation sequences, and there are none")
     if max_sequences is not None and len(records) > max_sequences:
@@ -82,28 +98,31 @@ def calibrate_auto_mode(animator: Animator, records: list[SequenceRecord], allow
     template = animator.bundle.template
     rest, topo = template.vertices.astype(np.float64), M.MeshTopology.of(template.faces, template.num_vertices)
     hem = hem_vertices(template)
-    candidates_of = {m: (m, DETAIL_CANDIDATES.get(m, "regression")) for m in AUTO_CHOICES if animator.supports(m)}
-    bundle = animator.bundle  # label -> (mode, the detail mode's base)
-    if "detail" in candidates_of and bundle.has_residual and bundle.residual_weight > 0:
-        candidates_of[DETAIL_ON_RESIDUAL] = ("detail", DETAIL_CANDIDATES[DETAIL_ON_RESIDUAL])
+    bundle = animator.bundle
+    candidates_of = {m: (m, "regression", None) for m in AUTO_CHOICES if m != "detail" and animator.supports(m)}
+    if animator.supports("detail"):  # label -> (mode, the detail mode's base, its strength)
+        residual = bundle.has_residual and bundle.residual_weight > 0
+        candidates_of |= {label: ("detail", base, strength) for label, (base, strength) in DETAIL_CANDIDATES.items()
+                          if base == "regression" or residual}
     names = list(animator.bundle.database.names)
     truths = [r.garment.astype(np.float64) for r in records]
     frames = sum(len(t) for t in truths)
     truth_bend = sum(float(M.cloth_energies(t, rest, topo)[1].sum()) for t in truths)
     truth_swing = sum(hem_swing(t, r.motion, hem) * len(t) for t, r in zip(truths, records))
     candidates = {}
-    for label, (mode, base) in tqdm(candidates_of.items(), desc="auto mode", unit="mode", disable=not progress):
+    for label, (mode, base, strength) in tqdm(candidates_of.items(), desc="auto mode", unit="mode", disable=not progress):
         error = bend = swing = 0.0
         for r, truth in zip(records, truths):  # a clip in the database (the paper's validation) may not retrieve itself
             own = names.index(r.name) if r.name in names else None
-            with bundle.detail_on(base):
+            with bundle.detail_on(base, strength):
                 pred = animator.animate(r.motion, mode=mode, exclude_sequence=own).vertices.astype(np.float64)
             error += M.pve_mm(pred, truth) * len(pred)
             bend += float(M.cloth_energies(pred, rest, topo)[1].sum())
             swing += hem_swing(pred, r.motion, hem) * len(pred)
         candidates[label] = {"pve_mm": error / frames, "sharpness": bend / max(truth_bend, 1e-30),
                              "hem_swing": swing / max(truth_swing, 1e-30)}
-    mode, detail_base = pick_auto_and_detail(candidates, allowance)
-    return {"mode": mode, "detail_base": detail_base, "allowance": allowance, "sequences": len(records),
-            "frames": frames, "criterion": "the most plausible (max |ln sharpness|, |ln hem swing|) within the "
-                                           "allowance x the most accurate PVE", "candidates": candidates}
+    mode, detail_base, detail_strength = pick_auto_and_detail(candidates, allowance)
+    return {"mode": mode, "detail_base": detail_base, "detail_strength": detail_strength, "allowance": allowance,
+            "sequences": len(records), "frames": frames,
+            "criterion": "the most plausible (hypot(ln sharpness, ln hem swing)) within the allowance x the most "
+                         "accurate PVE", "candidates": candidates}

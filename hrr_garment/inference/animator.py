@@ -210,7 +210,7 @@ class Animator:
         if proposals is not None:  # the detail mode: simulated folds on the regression's shape
             store = self.bundle.folds
             rows, weights = track_folds(proposals, store.offsets)
-            local = add_folds(local, store.folds(rows, weights), self.smoothing, store.passes)
+            local = add_folds(local, store.folds(rows, weights), self.smoothing, store.passes, self.bundle.detail_strength)
         vertices = world_vertices(local, motion)
         report = None
         if collision:

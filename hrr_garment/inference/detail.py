@@ -9,7 +9,8 @@ high-pass of the store (:func:`~hrr_garment.garment.smoothing.high_frequencies`)
 
     detail = regression + strength * (folds - H(regression))
 
-which swaps the regression's own high frequencies for ``strength`` x the simulated ones. H removes
+which swaps the regression's own high frequencies for ``strength`` x the simulated ones (the
+strength is calibrated per model with the auto mode: :mod:`hrr_garment.eval.auto_mode`). H removes
 anything constant over the mesh and commutes with rotations, so this holds in the body frame and in
 the world alike. Measured on held-out real clips: docs/results.md.
 """
@@ -19,9 +20,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.sparse import csr_matrix
 
+from ..artifacts.folds import DETAIL_STRENGTH
 from ..garment.smoothing import high_frequencies
-
-DETAIL_STRENGTH = 0.8  # of the simulated folds (1 over-sharpens: the regression's own folds are not all wrong)
 
 
 def add_folds(regression: np.ndarray, folds: np.ndarray, mean: csr_matrix, passes: int,

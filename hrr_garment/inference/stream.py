@@ -184,7 +184,9 @@ class CrowdStream:
         with torch.no_grad():
             local = self.animator.decoder(torch.from_numpy(latents)).numpy()
         if choice.detail:  # the detail mode: each character's playhead one frame on, its folds added
-            local = add_folds(local, self._folds(chars, choice.source), self.animator.smoothing, self.animator.bundle.folds.passes)
+            bundle = self.animator.bundle
+            local = add_folds(local, self._folds(chars, choice.source), self.animator.smoothing, bundle.folds.passes,
+                              bundle.detail_strength)
         t.append(time.perf_counter())
         vertices = world_vertices(local, poses)  # as offline: the same push-out inputs
         t.append(time.perf_counter())
