@@ -110,7 +110,7 @@ def test_hrr_train_calibrates_auto_and_it_agrees_with_the_evaluation(trained):
 @pytest.mark.parametrize("chosen, base, strength", [("detail", "regression", 0.6), ("detail", "residual", 1.0),
                                                     ("hybrid", "regression", 0.8)])
 def test_auto_runs_the_calibrated_mode_everywhere(trained, tmp_path, chosen, base, strength):
-    from hrr_garment.artifacts.bundle import update_bundle_meta
+    from hrr_garment.artifacts.bundle_writer import update_bundle_meta
     from hrr_garment.inference.animator import Animator
 
     root, _, _ = trained

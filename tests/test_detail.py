@@ -158,7 +158,8 @@ def test_a_bundle_before_the_folds_says_how_to_add_them_and_hrr_train_does(train
 
     from conftest import current_copy
 
-    from hrr_garment.artifacts.bundle import BundleError, update_bundle_meta
+    from hrr_garment.artifacts.bundle import BundleError
+    from hrr_garment.artifacts.bundle_writer import update_bundle_meta
     from hrr_garment.artifacts.manifest import FOLDS_FILE, content_hash
     from hrr_garment.cli.train import main as train_main
     from hrr_garment.inference.animator import Animator
@@ -190,7 +191,8 @@ def test_a_bundle_before_the_folds_says_how_to_add_them_and_hrr_train_does(train
 def test_a_damaged_fold_store_is_refused(trained, tmp_path):
     import shutil
 
-    from hrr_garment.artifacts.bundle import BundleError, add_bundle_part, load_bundle
+    from hrr_garment.artifacts.bundle import BundleError, load_bundle
+    from hrr_garment.artifacts.bundle_writer import add_bundle_part
     from hrr_garment.artifacts.manifest import FOLDS_FILE
 
     root, _, _ = trained

@@ -239,7 +239,8 @@ def _run_stages(args, preset, folder: Path, autoencoder: tuple, codespace: tuple
 def _auto_mode(folder: Path, dataset: Path, progress: bool) -> None:
     """Calibrate the mode ``auto`` runs (:mod:`hrr_garment.eval.auto_mode`) on the validation clips,
     once per bundle (a model trained before it gets it on its next ``--stage codespace``)."""
-    from ..artifacts.bundle import read_meta, update_bundle_meta
+    from ..artifacts.bundle import read_meta
+    from ..artifacts.bundle_writer import update_bundle_meta
     from ..artifacts.folds import DETAIL_STRENGTH
 
     auto = read_meta(folder).get("auto")  # reading it hashes every file: once

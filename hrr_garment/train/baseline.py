@@ -21,7 +21,8 @@ import numpy as np
 import torch
 from tqdm import tqdm
 
-from ..artifacts.bundle import add_bundle_part, load_bundle
+from ..artifacts.bundle import load_bundle
+from ..artifacts.bundle_writer import add_bundle_part
 from ..data.dataset import DatasetError, GarmentDataset
 from ..data.windows import dataset_features
 from ..io_utils import atomic_write_text, strict_json

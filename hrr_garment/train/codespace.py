@@ -22,14 +22,8 @@ import numpy as np
 import torch
 from tqdm import tqdm
 
-from ..artifacts.bundle import (
-    BundleError,
-    add_bundle_part,
-    load_bundle,
-    read_meta,
-    update_bundle_meta,
-    write_bundle,
-)
+from ..artifacts.bundle import BundleError, load_bundle, read_meta
+from ..artifacts.bundle_writer import add_bundle_part, update_bundle_meta, write_bundle
 from ..artifacts.database import CodeDatabase
 from ..artifacts.folds import FoldStore
 from ..artifacts.manifest import FOLDS_FILE

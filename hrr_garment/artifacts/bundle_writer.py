@@ -1,0 +1,91 @@
+"""Writing a model bundle (:mod:`.bundle`): every file atomically, ``bundle.json`` last.
+
+A folder whose ``bundle.json`` is missing, or whose files do not match the hashes it lists, is not a
+bundle (:func:`~.manifest.read_meta` refuses it), so an interrupted write never looks like a model.
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import numpy as np
+from safetensors.numpy import save_file as save_arrays
+from safetensors.torch import save_file as save_tensors
+
+from ..garment.mesh import GarmentMesh
+from ..io_utils import atomic_path, atomic_write_text, strict_json
+from ..models.codespace import CodeSpace
+from ..models.fcmae import MeshAutoencoder
+from ..motion.features import FeatureStats
+from .database import CodeDatabase
+from .folds import FoldStore
+from .gate_signals import check_gate_signal
+from .manifest import FOLDS_FILE, FORMAT_VERSION, NETWORKS, content_hash, read_meta, sha256
+
+
+def _save(path: Path, tensors: dict, numpy: bool = False) -> None:
+    with atomic_path(path) as tmp:
+        if numpy:
+            save_arrays({k: np.ascontiguousarray(v) for k, v in tensors.items()}, str(tmp))
+        else:
+            save_tensors({k: v.detach().contiguous() for k, v in tensors.items()}, str(tmp))
+
+
+def write_bundle(folder: str | Path, *, autoencoder: MeshAutoencoder, codespace: CodeSpace, motion_stats: FeatureStats,
+                 latent_stats: FeatureStats, database: CodeDatabase, template: GarmentMesh, tau: float, info: dict,
+                 gate: str = "entropy", folds: FoldStore | None = None) -> Path:
+    """Write (or replace) the bundle in ``folder``; returns the path of ``bundle.json``. ``tau``:
+    the threshold of the hybrid's ``gate`` signal; ``folds``: the detail mode's (:mod:`.folds`)."""
+    check_gate_signal(gate)
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / "bundle.json").unlink(missing_ok=True)  # the old bundle stops being one first
+    _save(folder / "autoencoder.safetensors", autoencoder.state_dict())
+    for name in NETWORKS:
+        _save(folder / f"{name}.safetensors", getattr(codespace, name).state_dict())
+    _save(folder / "stats.safetensors", {"motion_mean": motion_stats.mean, "motion_std": motion_stats.std,
+                                         "latent_mean": latent_stats.mean, "latent_std": latent_stats.std}, numpy=True)
+    _save(folder / "database.safetensors", database.arrays(), numpy=True)
+    # the template's vertex groups too (``group/NAME``): evaluation measures the hem's swing
+    _save(folder / "template.safetensors", {"vertices": template.vertices.astype(np.float32),
+                                            "faces": template.faces.astype(np.int32), "attached": template.attached,
+                                            **{f"group/{k}": np.asarray(v, np.int32) for k, v in template.groups.items()
+                                               if k != "attached"}}, numpy=True)
+    parts = ["autoencoder.safetensors", "stats.safetensors", "database.safetensors", "template.safetensors",
+             *[f"{n}.safetensors" for n in NETWORKS]]
+    if folds is not None:
+        _save(folder / FOLDS_FILE, folds.arrays(), numpy=True)
+        parts.append(FOLDS_FILE)
+        info = {**info, "folds": folds.meta}
+    files = {p: sha256(folder / p) for p in sorted(parts)}
+    meta = {"format_version": FORMAT_VERSION, "garment": template.name, "created": time.strftime("%Y-%m-%dT%H:%M:%S"),
+            "autoencoder": {"config": autoencoder.config.to_dict(), "scale": float(autoencoder.scale),
+                            "sizes": list(autoencoder.hierarchy.sizes)},
+            "codespace": {"config": codespace.config.to_dict(), "features": codespace.features,
+                          "latent_shape": list(codespace.latent_shape)},
+            "tau": float(tau), "gate": gate, "database": {"names": database.names, "classes": database.classes, "windows": len(database)},
+            "files": files, "content_hash": content_hash(files),
+            **info}
+    atomic_write_text(folder / "bundle.json", strict_json(meta, indent=2))
+    return folder / "bundle.json"
+
+
+def add_bundle_part(folder: str | Path, name: str, tensors: dict, meta: dict, numpy: bool = False,
+                    drop: tuple[str, ...] = ()) -> None:
+    """Add (or replace) one file of an existing bundle (torch tensors, or ``numpy`` arrays) and
+    merge ``meta`` into bundle.json without the keys ``drop``; the file list and content hash are
+    updated, bundle.json last (atomically)."""
+    folder = Path(folder)
+    current = {k: v for k, v in read_meta(folder).items() if k not in drop}
+    _save(folder / name, tensors, numpy)
+    files = {**current["files"], name: sha256(folder / name)}
+    atomic_write_text(folder / "bundle.json", strict_json({**current, **meta, "files": files,
+                                                          "content_hash": content_hash(files)}, indent=2))
+
+
+def update_bundle_meta(folder: str | Path, meta: dict) -> None:
+    """Merge ``meta`` into an existing bundle's bundle.json (atomically; the files are unchanged)."""
+    folder = Path(folder)
+    current = read_meta(folder)
+    atomic_write_text(folder / "bundle.json", strict_json({**current, **meta}, indent=2))
