@@ -28,6 +28,14 @@ from typing import Sequence
 
 from ..artifacts.gate_signals import GATE_SIGNALS
 from ..errors import InputError
+from ..eval.protocols import (
+    default_taus,
+    ensemble_summary,
+    library_section,
+    paper_section,
+    real_motion_section,
+    truth_ensembles_of,
+)
 from ..inference.modes import Mode
 from ._common import add_fps_option, run_cli
 
@@ -90,19 +98,6 @@ def _parser() -> argparse.ArgumentParser:
     return p
 
 
-def default_taus(animator, records, gate: str) -> list[float]:
-    """0, the deciles of the gate signal's per-frame doubts on these records, and above the maximum
-    (retrieval only)."""
-    import numpy as np
-
-    h = np.concatenate([animator.animate(r.motion, mode="hybrid", tau=0.0, collision=False, gate=gate).doubt
-                        for r in records])
-    top = float(h.max()) + 1e-3 if len(h) else 1.0
-    if gate == "entropy":  # at least every entropy
-        top = max(top, math.log(animator.bundle.codespace.config.classes) + 1e-3)
-    return sorted({0.0, *[round(float(q), 4) for q in np.quantile(h, np.linspace(0.1, 0.9, 9))], round(top + 5e-5, 4)})
-
-
 def _main(argv: Sequence[str] | None) -> int:
     args = _parser().parse_args(argv)
     import numpy as np
@@ -151,7 +146,7 @@ def _main(argv: Sequence[str] | None) -> int:
         raise InputError("hrr-eval", f"--library takes 0 (none) or a number of plays, got {args.library}")
     if args.ensemble == 1 or args.ensemble < 0:
         raise InputError("hrr-eval", f"--ensemble takes 0 (none) or at least 2 members, got {args.ensemble}")
-    ensembles = _ensembles(ds, records, args.ensemble, args.jobs, progress)
+    ensembles = truth_ensembles_of(ds, records, args.ensemble, args.jobs, progress)
     gate, tau = animator.gate_setting(args.gate, args.tau)
     print(f"evaluating {model_dir} on {len(records)} {args.split} sequences of {dataset} ({sum(len(r.garment) for r in records)} "
           f"frames): {', '.join(modes)}")
@@ -162,14 +157,14 @@ def _main(argv: Sequence[str] | None) -> int:
         sweep = tau_sweep(animator, records, taus, args.exclude_own_sequence, collision, progress, gate)
     real = None
     if args.motions:
-        real = _real_motion(animator, ds, args.motions, modes, (gate, tau), collision, progress, args.fps, args.ensemble,
+        real = real_motion_section(animator, ds, args.motions, modes, (gate, tau), collision, progress, args.fps, args.ensemble,
                             args.jobs)
     paper = None
     if args.paper:
-        paper = _paper(args.paper, bundle, records, modes, collision, progress, ensembles)
+        paper = paper_section(args.paper, bundle, records, modes, collision, progress, ensembles)
     library = None
     if args.library:
-        library = _library(animator, ds, args.library, args.library_seed, modes, (gate, tau), collision, progress, args.ensemble,
+        library = library_section(animator, ds, args.library, args.library_seed, modes, (gate, tau), collision, progress, args.ensemble,
                            args.jobs, args.tau_sweep, not args.no_sweep)
     report = build_report(
         model={"folder": str(model_dir), "garment": bundle.garment, "hash": bundle.content_hash, "gate": bundle.gate,
@@ -179,7 +174,7 @@ def _main(argv: Sequence[str] | None) -> int:
         dataset={"path": str(dataset), "split": args.split, "sequences": names,
                  "frames": int(sum(len(r.garment) for r in records))},
         settings={"modes": modes, "gate": gate, "tau": tau, "collision": collision, "exclude_own_sequence": args.exclude_own_sequence},
-        ensemble=_ensemble_summary(ensembles, records, args.ensemble),
+        ensemble=ensemble_summary(ensembles, records, args.ensemble),
         modes=results, sweep=sweep, real=real, library=library, paper=paper, seconds=0.0)
     plots = [] if args.no_plots else write_plots(Path(out), results, sweep, tau, gate)
     report["seconds"] = time.perf_counter() - t0
@@ -187,122 +182,6 @@ def _main(argv: Sequence[str] | None) -> int:
     _print_summary(report)
     print(f"wrote {json_path}, {md_path}" + (f" and {len(plots)} plots" if plots else "") + f" in {report['seconds']:.0f} s")
     return 0
-
-
-def _ensembles(ds, records, members: int, jobs: int | None, progress: bool) -> dict:
-    """The truth ensembles of ``records`` (none when ``members`` is 0 or the dataset was not simulated)."""
-    if not members:
-        return {}
-    if "sim" not in ds.info:
-        print(f"{ds.path} records no simulator settings (not built by hrr-simulate): no ensemble ground truth")
-        return {}
-    from ..eval.ensemble import truth_ensembles
-    from ..sim.simulator import SimConfig
-
-    return truth_ensembles(ds.template, records, SimConfig.from_dict(ds.info["sim"]), members, jobs, progress=progress)
-
-
-def _ensemble_summary(ensembles: dict, records, members: int) -> dict:
-    """What report.json records about the truth ensembles."""
-    if not ensembles:
-        return {"members": 0}
-    first = next(iter(ensembles.values()))
-    return {"members": members, "perturbations": first.perturbations, "sequences": len(ensembles),
-            "without_ensemble": [r.name for r in records if r.name not in ensembles],
-            "failed_members": {name: e.failed for name, e in ensembles.items() if e.failed}}
-
-
-def _simulated(animator, ds, specs, path: Path, purpose: str, modes: list[str], gate_tau: tuple[str, float],
-               collision: bool, progress: bool, members: int, jobs: int | None) -> tuple[dict, list]:
-    """Simulate the ground truth of ``specs`` with the dataset's settings into ``path`` (parts cached)
-    and evaluate every mode there (the hybrid with ``gate_tau``: signal, threshold): the report
-    section and the records."""
-    from ..data.dataset import GarmentDataset
-    from ..eval.evaluate import evaluate_modes
-    from ..sim.build import build_dataset
-    from ..sim.simulator import SimConfig
-
-    config = SimConfig.from_dict(ds.info.get("sim", {}))
-    print(f"simulating ground truth for {len(specs)} sequence(s) (cached in {path.with_suffix('.parts')})")
-    report = build_dataset(ds.template, specs, config, path, splits={"val": 0.0, "test": 0.0},
-                           info={"purpose": purpose, "source_dataset": str(ds.path)}, progress=progress)
-    data = GarmentDataset(report.path)
-    records = [data.sequence(n) for n in report.sequences]
-    ensembles = _ensembles(data, records, members, jobs, progress)
-    gate, tau = gate_tau
-    results = evaluate_modes(animator, records, modes, tau, False, collision, progress, ensembles, gate)
-    return {"dataset": str(report.path), "sequences": report.sequences,
-            "frames": int(sum(len(r.garment) for r in records)), "rejected": report.rejects,
-            "ensemble": _ensemble_summary(ensembles, records, members),
-            "modes": {m: r.to_dict() for m, r in results.items()}}, records
-
-
-def _real_motion(animator, ds, files: list[str], modes: list[str], gate_tau: tuple[str, float], collision: bool,
-                 progress: bool,
-                 source_fps: float | None = None, members: int = 0, jobs: int | None = None) -> dict:
-    """The real motion files' section: their ground truth simulated with the dataset's settings."""
-    from ..paths import workspace
-    from ..sim.plan import load_preset, plan_sequences
-
-    specs = plan_sequences(load_preset(str(ds.info.get("preset", "quick"))), motions=list(files), source_fps=source_fps)
-    path = workspace() / "eval" / f"{ds.path.stem}-real-motion.h5"
-    section, _ = _simulated(animator, ds, specs, path, "hrr-eval real motion", modes, gate_tau, collision, progress,
-                            members, jobs)
-    return {"files": [str(f) for f in files], **section}
-
-
-def _paper(folder: Path, bundle, records, modes: list[str], collision: bool, progress: bool, ensembles: dict) -> dict:
-    """The paper protocol's section: a model whose code space was validated on a tenth of its
-    training clips' windows, on the same sequences, with its goals beside the paper's ratios."""
-    from ..eval.evaluate import evaluate_modes
-    from ..eval.report import PAPER_RATIOS, goals
-    from ..inference.animator import Animator, find_model
-
-    folder = find_model(folder)
-    animator = Animator.load(folder)
-    other = animator.bundle
-    if other.meta.get("validation", "clips") != "windows":
-        raise InputError(folder, "was validated on held-out clips; the paper protocol needs a model trained with "
-                                 "hrr-train --validation windows")
-    if other.garment != bundle.garment or other.template.num_vertices != bundle.template.num_vertices:
-        raise InputError(folder, f"is a {other.garment} model with {other.template.num_vertices} vertices; the evaluated "
-                                 f"one is {bundle.garment} with {bundle.template.num_vertices}")
-    modes = [m for m in modes if animator.supports(m)]
-    print(f"paper protocol: {folder} (calibrated gate {other.gate} < {other.tau:.3f}) on the same {len(records)} sequences")
-    results = evaluate_modes(animator, records, modes, other.tau, False, collision, progress, ensembles, other.gate)
-    return {"model": str(folder), "hash": other.content_hash, "gate": other.gate, "tau": other.tau,
-            "modes": {m: r.to_dict() for m, r in results.items()}, "goals": goals(results, None),
-            "paper_ratios": PAPER_RATIOS}
-
-
-def _library(animator, ds, count: int, seed: int, modes: list[str], gate_tau: tuple[str, float], collision: bool,
-             progress: bool,
-             members: int, jobs: int | None, taus: list[float] | None, sweep: bool) -> dict | None:
-    """The library protocol's section (docs/results.md): ``count`` plays of the clips in the
-    model's database, simulated and evaluated, with their own tau sweep and goals."""
-    from ..eval.evaluate import tau_sweep
-    from ..eval.library import library_plays, plays_digest, save_plays
-    from ..eval.report import library_goals
-    from ..paths import workspace
-    from ..sim.plan import SequenceSpec
-
-    if "sim" not in ds.info:
-        print(f"{ds.path} records no simulator settings (not built by hrr-simulate): no library protocol")
-        return None
-    names = [n for n in animator.bundle.database.names if n in ds.frames]
-    plays = library_plays(ds, names, count, seed=seed)
-    folder = workspace() / "eval" / "library" / f"{ds.path.stem}-{plays_digest(plays)}"
-    files = save_plays(plays, folder)
-    print(f"library protocol: {count} plays of the database's clips (motions in {folder})")
-    specs = [SequenceSpec(p.name, "file", path=str(f), start=0, stop=p.motion.num_frames) for p, f in zip(plays, files)]
-    section, records = _simulated(animator, ds, specs, folder / "truth.h5", "hrr-eval library protocol", modes, gate_tau,
-                                  collision, progress, members, jobs)
-    gate = gate_tau[0]
-    points = tau_sweep(animator, records, taus or default_taus(animator, records, gate), False, collision, progress,
-                       gate) if sweep and records else None
-    section.update(plays={p.name: p.description for p in plays}, seed=seed, tau_sweep=[vars(p) for p in points or []],
-                   goals=library_goals(section["modes"], points))
-    return section
 
 
 def _print_summary(report: dict) -> None:

@@ -1,0 +1,140 @@
+"""hrr-eval's protocols beyond the dataset's own split (docs/results.md): real motion files, the
+game's clip library played again, the paper's protocol, each simulated for its ground truth with the
+dataset's settings (cached under the workspace) and, with truth ensembles, against the chaos floor.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InputError
+
+
+def default_taus(animator, records, gate: str) -> list[float]:
+    """0, the deciles of the gate signal's per-frame doubts on these records, and above the maximum
+    (retrieval only)."""
+    h = np.concatenate([animator.animate(r.motion, mode="hybrid", tau=0.0, collision=False, gate=gate).doubt
+                        for r in records])
+    top = float(h.max()) + 1e-3 if len(h) else 1.0
+    if gate == "entropy":  # at least every entropy
+        top = max(top, math.log(animator.bundle.codespace.config.classes) + 1e-3)
+    return sorted({0.0, *[round(float(q), 4) for q in np.quantile(h, np.linspace(0.1, 0.9, 9))], round(top + 5e-5, 4)})
+
+
+def truth_ensembles_of(ds, records, members: int, jobs: int | None, progress: bool) -> dict:
+    """The truth ensembles of ``records`` (none when ``members`` is 0 or the dataset was not simulated)."""
+    if not members:
+        return {}
+    if "sim" not in ds.info:
+        print(f"{ds.path} records no simulator settings (not built by hrr-simulate): no ensemble ground truth")
+        return {}
+    from ..sim.simulator import SimConfig
+    from .ensemble import truth_ensembles
+
+    return truth_ensembles(ds.template, records, SimConfig.from_dict(ds.info["sim"]), members, jobs, progress=progress)
+
+
+def ensemble_summary(ensembles: dict, records, members: int) -> dict:
+    """What report.json records about the truth ensembles."""
+    if not ensembles:
+        return {"members": 0}
+    first = next(iter(ensembles.values()))
+    return {"members": members, "perturbations": first.perturbations, "sequences": len(ensembles),
+            "without_ensemble": [r.name for r in records if r.name not in ensembles],
+            "failed_members": {name: e.failed for name, e in ensembles.items() if e.failed}}
+
+
+def simulated_section(animator, ds, specs, path: Path, purpose: str, modes: list[str], gate_tau: tuple[str, float],
+               collision: bool, progress: bool, members: int, jobs: int | None) -> tuple[dict, list]:
+    """Simulate the ground truth of ``specs`` with the dataset's settings into ``path`` (parts cached)
+    and evaluate every mode there (the hybrid with ``gate_tau``: signal, threshold): the report
+    section and the records."""
+    from ..data.dataset import GarmentDataset
+    from ..sim.build import build_dataset
+    from ..sim.simulator import SimConfig
+    from .evaluate import evaluate_modes
+
+    config = SimConfig.from_dict(ds.info.get("sim", {}))
+    print(f"simulating ground truth for {len(specs)} sequence(s) (cached in {path.with_suffix('.parts')})")
+    report = build_dataset(ds.template, specs, config, path, splits={"val": 0.0, "test": 0.0},
+                           info={"purpose": purpose, "source_dataset": str(ds.path)}, progress=progress)
+    data = GarmentDataset(report.path)
+    records = [data.sequence(n) for n in report.sequences]
+    ensembles = truth_ensembles_of(data, records, members, jobs, progress)
+    gate, tau = gate_tau
+    results = evaluate_modes(animator, records, modes, tau, False, collision, progress, ensembles, gate)
+    return {"dataset": str(report.path), "sequences": report.sequences,
+            "frames": int(sum(len(r.garment) for r in records)), "rejected": report.rejects,
+            "ensemble": ensemble_summary(ensembles, records, members),
+            "modes": {m: r.to_dict() for m, r in results.items()}}, records
+
+
+def real_motion_section(animator, ds, files: list[str], modes: list[str], gate_tau: tuple[str, float], collision: bool,
+                 progress: bool,
+                 source_fps: float | None = None, members: int = 0, jobs: int | None = None) -> dict:
+    """The real motion files' section: their ground truth simulated with the dataset's settings."""
+    from ..paths import workspace
+    from ..sim.plan import load_preset, plan_sequences
+
+    specs = plan_sequences(load_preset(str(ds.info.get("preset", "quick"))), motions=list(files), source_fps=source_fps)
+    path = workspace() / "eval" / f"{ds.path.stem}-real-motion.h5"
+    section, _ = simulated_section(animator, ds, specs, path, "hrr-eval real motion", modes, gate_tau, collision, progress,
+                            members, jobs)
+    return {"files": [str(f) for f in files], **section}
+
+
+def paper_section(folder: Path, bundle, records, modes: list[str], collision: bool, progress: bool, ensembles: dict) -> dict:
+    """The paper protocol's section: a model whose code space was validated on a tenth of its
+    training clips' windows, on the same sequences, with its goals beside the paper's ratios."""
+    from ..inference.animator import Animator, find_model
+    from .evaluate import evaluate_modes
+    from .report import PAPER_RATIOS, goals
+
+    folder = find_model(folder)
+    animator = Animator.load(folder)
+    other = animator.bundle
+    if other.meta.get("validation", "clips") != "windows":
+        raise InputError(folder, "was validated on held-out clips; the paper protocol needs a model trained with "
+                                 "hrr-train --validation windows")
+    if other.garment != bundle.garment or other.template.num_vertices != bundle.template.num_vertices:
+        raise InputError(folder, f"is a {other.garment} model with {other.template.num_vertices} vertices; the evaluated "
+                                 f"one is {bundle.garment} with {bundle.template.num_vertices}")
+    modes = [m for m in modes if animator.supports(m)]
+    print(f"paper protocol: {folder} (calibrated gate {other.gate} < {other.tau:.3f}) on the same {len(records)} sequences")
+    results = evaluate_modes(animator, records, modes, other.tau, False, collision, progress, ensembles, other.gate)
+    return {"model": str(folder), "hash": other.content_hash, "gate": other.gate, "tau": other.tau,
+            "modes": {m: r.to_dict() for m, r in results.items()}, "goals": goals(results, None),
+            "paper_ratios": PAPER_RATIOS}
+
+
+def library_section(animator, ds, count: int, seed: int, modes: list[str], gate_tau: tuple[str, float], collision: bool,
+             progress: bool,
+             members: int, jobs: int | None, taus: list[float] | None, sweep: bool) -> dict | None:
+    """The library protocol's section (docs/results.md): ``count`` plays of the clips in the
+    model's database, simulated and evaluated, with their own tau sweep and goals."""
+    from ..paths import workspace
+    from ..sim.plan import SequenceSpec
+    from .evaluate import tau_sweep
+    from .library import library_plays, plays_digest, save_plays
+    from .report import library_goals
+
+    if "sim" not in ds.info:
+        print(f"{ds.path} records no simulator settings (not built by hrr-simulate): no library protocol")
+        return None
+    names = [n for n in animator.bundle.database.names if n in ds.frames]
+    plays = library_plays(ds, names, count, seed=seed)
+    folder = workspace() / "eval" / "library" / f"{ds.path.stem}-{plays_digest(plays)}"
+    files = save_plays(plays, folder)
+    print(f"library protocol: {count} plays of the database's clips (motions in {folder})")
+    specs = [SequenceSpec(p.name, "file", path=str(f), start=0, stop=p.motion.num_frames) for p, f in zip(plays, files)]
+    section, records = simulated_section(animator, ds, specs, folder / "truth.h5", "hrr-eval library protocol", modes, gate_tau,
+                                  collision, progress, members, jobs)
+    gate = gate_tau[0]
+    points = tau_sweep(animator, records, taus or default_taus(animator, records, gate), False, collision, progress,
+                       gate) if sweep and records else None
+    section.update(plays={p.name: p.description for p in plays}, seed=seed, tau_sweep=[vars(p) for p in points or []],
+                   goals=library_goals(section["modes"], points))
+    return section
