@@ -14,9 +14,10 @@ Files (all arrays as safetensors, nothing pickled)::
     template.safetensors         template vertices, faces, attached vertex indices, vertex groups (group/NAME)
     folds.safetensors            every database frame's simulated folds, for the detail mode (:mod:`.folds`)
 
-``bundle.json`` is written last (:mod:`.bundle_writer`): a directory without it (or whose files do not match its hashes)
-is not a bundle, so an interrupted write never looks like a model. :func:`load_bundle` checks the
-version, every file's hash and every tensor's shape, and says which and why when one is off.
+``bundle.json`` is written last (:mod:`.bundle_writer`): a directory without it (or whose files do
+not match its hashes) is not a bundle, so an interrupted write never looks like a model.
+:func:`load_bundle` checks the version, every file's hash and every tensor's shape, and says which
+and why when one is off.
 """
 
 from __future__ import annotations
