@@ -27,6 +27,7 @@ from pathlib import Path
 
 import numpy as np
 import torch
+from tqdm import tqdm
 
 from ..artifacts.database import CodeDatabase
 from ..artifacts.gate_signals import GATE_SIGNALS, gate_doubt
@@ -138,12 +139,13 @@ class ModeErrors:
 def evaluate_modes(codespace: CodeSpace, autoencoder, motion_stats: FeatureStats, latent_stats: FeatureStats,
                    database: CodeDatabase, motion: dict[str, np.ndarray], frames: dict[str, np.ndarray], *,
                    refine_steps: int, refine_lr: float, max_windows: int | None = MAX_WINDOWS,
-                   windows: list[tuple[str, int]] | None = None) -> ModeErrors:
+                   windows: list[tuple[str, int]] | None = None, progress: bool = False) -> ModeErrors:
     """Both modes on windows of the sequences ``motion`` (features (T, F)) / ``frames``
     (heading-frame vertices (T, V, 3)), decoded with the autoencoder's fast decoder: ``windows``
     ((sequence, first frame) pairs; default every window of every sequence), or ``max_windows`` of
     them evenly spaced. ``refine_steps`` and ``refine_lr``: the autoencoder stage's encoding, which
-    the floor's latents repeat."""
+    the floor's latents repeat. ``progress``: bars over the floor's encoding and the residual
+    weights, the slow parts at full resolution on a CPU."""
     w = codespace.config.window
     windows, m, truth = calibration_windows(motion, frames, w, windows, max_windows)
     # the floor: each frame's own latent, encoded as the training targets were (each frame fitted
@@ -152,7 +154,7 @@ def evaluate_modes(codespace: CodeSpace, autoencoder, motion_stats: FeatureStats
     for n, s in windows:
         needed.setdefault(n, set()).update(range(s, s + w))
     own_frames = {}
-    for n, rows in needed.items():
+    for n, rows in tqdm(needed.items(), desc="calibration floor", unit="sequence", disable=not progress):
         rows_sorted = np.array(sorted(rows))
         fitted = autoencoder.fit_latents(torch.from_numpy(frames[n][rows_sorted]), refine_steps, refine_lr).numpy()
         own_frames[n] = np.zeros((len(frames[n]), *fitted.shape[1:]), fitted.dtype)
@@ -165,7 +167,7 @@ def evaluate_modes(codespace: CodeSpace, autoencoder, motion_stats: FeatureStats
     err_ae = window_errors_mm(decode, own, truth)
     doubts = pred.doubts()
     return ModeErrors(err_reg, err_ret, err_ae, doubts, {g: sweep_tau(d, err_reg, err_ret) for g, d in doubts.items()},
-                      residual_errors(pred, decode, truth))
+                      residual_errors(pred, decode, truth, progress))
 
 
 def calibration_windows(motion: dict[str, np.ndarray], frames: dict[str, np.ndarray], window: int,
@@ -185,12 +187,14 @@ def calibration_windows(motion: dict[str, np.ndarray], frames: dict[str, np.ndar
     return windows, np.ascontiguousarray(m), truth
 
 
-def residual_errors(pred: WindowPredictions, decode, truth: np.ndarray) -> dict[float, np.ndarray] | None:
+def residual_errors(pred: WindowPredictions, decode, truth: np.ndarray,
+                    progress: bool = False) -> dict[float, np.ndarray] | None:
     """Per-window errors (mm) of the residual mode at each of :data:`RESIDUAL_WEIGHTS` (None where
     the database has no motion windows to regress the matches from)."""
     if pred.match_regression is None:
         return None
-    return {w: window_errors_mm(decode, pred.residual(w), truth) for w in RESIDUAL_WEIGHTS}
+    return {w: window_errors_mm(decode, pred.residual(w), truth)
+            for w in tqdm(RESIDUAL_WEIGHTS, desc="residual weights", unit="weight", disable=not progress)}
 
 
 def calibrate_residual(codespace: CodeSpace, autoencoder, motion_stats: FeatureStats, latent_stats: FeatureStats,

@@ -200,7 +200,7 @@ def run_codespace_stage(dataset: str | Path, folder: str | Path, config: CodeSpa
                             train_w.names, config.classes, train_w.motion.with_frames(train_t.motion.numpy()))
     modes = evaluate_modes(model, autoencoder, motion_stats, latent_stats, database,
                            {n: features[n] for n in val_names}, {n: body_frames(ds, [n]) for n in val_names},
-                           **encoding, windows=calibration)
+                           **encoding, windows=calibration, progress=progress)
     gate, sweep = modes.gate, modes.sweep
     usage = model.quantizer.usage(torch.from_numpy(database.codes))
     final = evaluate(model, val_t)
