@@ -49,6 +49,7 @@ from .manifest import (
     NETWORKS,
     BundleError,
     read_meta,
+    valid_detail_strength,
 )
 
 
@@ -135,7 +136,7 @@ class Bundle:
         (None: as calibrated) inside the block: how the auto calibration measures each before choosing."""
         if base not in DETAIL_BASES:
             raise ValueError(f"the detail mode's base is one of {', '.join(DETAIL_BASES)}, got {base!r}")
-        if strength is not None and not 0 < strength <= MAX_DETAIL_STRENGTH:
+        if strength is not None and not valid_detail_strength(strength):
             raise ValueError(f"the detail mode's strength is in (0, {MAX_DETAIL_STRENGTH:g}], got {strength!r}")
         saved = self.meta.get("auto")
         self.meta["auto"] = {**(saved or {}), "detail_base": base}

@@ -24,6 +24,11 @@ DETAIL_BASES = ("regression", "residual")  # what the detail mode's folds may ri
 MAX_DETAIL_STRENGTH = 2.0  # the detail mode's folds at most twice the simulated ones (eval/auto_mode.py chooses)
 
 
+def valid_detail_strength(value: object) -> bool:
+    """Whether ``value`` is a strength the detail mode's folds may run at: a number in (0, max]."""
+    return not isinstance(value, bool) and isinstance(value, (int, float)) and 0 < value <= MAX_DETAIL_STRENGTH
+
+
 class BundleError(InputError):
     """A model directory that is missing, incomplete, corrupt, of another version or garment."""
 
@@ -83,7 +88,7 @@ def check_manifest(folder: Path, meta: object) -> dict:
         raise BundleError(folder, f"bundle.json 'auto' 'detail_base' must be one of {', '.join(DETAIL_BASES)}, "
                                   f"got {auto.get('detail_base')!r}")
     strength = auto.get("detail_strength", 1.0)
-    if isinstance(strength, bool) or not isinstance(strength, (int, float)) or not 0 < strength <= MAX_DETAIL_STRENGTH:
+    if not valid_detail_strength(strength):
         raise BundleError(folder, f"bundle.json 'auto' 'detail_strength' must be a number in (0, {MAX_DETAIL_STRENGTH:g}], "
                                   f"got {strength!r}")
     for section in ("autoencoder", "codespace", "database"):

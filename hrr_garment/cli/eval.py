@@ -28,14 +28,6 @@ from typing import Sequence
 
 from ..artifacts.gate_signals import GATE_SIGNALS
 from ..errors import InputError
-from ..eval.protocols import (
-    default_taus,
-    ensemble_summary,
-    library_section,
-    paper_section,
-    real_motion_section,
-    truth_ensembles_of,
-)
 from ..inference.modes import Mode
 from ._common import add_fps_option, run_cli
 
@@ -104,6 +96,14 @@ def _main(argv: Sequence[str] | None) -> int:
 
     from ..data.dataset import DatasetError, GarmentDataset
     from ..eval.evaluate import evaluate_modes, tau_sweep
+    from ..eval.protocols import (
+        default_taus,
+        ensemble_summary,
+        library_section,
+        paper_section,
+        real_motion_section,
+        truth_ensembles_of,
+    )
     from ..eval.report import build_report, write_plots, write_report
     from ..inference.animator import Animator, find_model
     from ..paths import workspace
@@ -157,15 +157,15 @@ def _main(argv: Sequence[str] | None) -> int:
         sweep = tau_sweep(animator, records, taus, args.exclude_own_sequence, collision, progress, gate)
     real = None
     if args.motions:
-        real = real_motion_section(animator, ds, args.motions, modes, (gate, tau), collision, progress, args.fps, args.ensemble,
-                            args.jobs)
+        real = real_motion_section(animator, ds, args.motions, modes, (gate, tau), collision, progress, args.fps,
+                                   args.ensemble, args.jobs)
     paper = None
     if args.paper:
         paper = paper_section(args.paper, bundle, records, modes, collision, progress, ensembles)
     library = None
     if args.library:
-        library = library_section(animator, ds, args.library, args.library_seed, modes, (gate, tau), collision, progress, args.ensemble,
-                           args.jobs, args.tau_sweep, not args.no_sweep)
+        library = library_section(animator, ds, args.library, args.library_seed, modes, (gate, tau), collision, progress,
+                                  args.ensemble, args.jobs, args.tau_sweep, not args.no_sweep)
     report = build_report(
         model={"folder": str(model_dir), "garment": bundle.garment, "hash": bundle.content_hash, "gate": bundle.gate,
                "tau": bundle.tau, "gates": bundle.meta.get("gates", {}), "auto": bundle.auto_mode,

@@ -241,22 +241,18 @@ def _auto_mode(folder: Path, dataset: Path, progress: bool) -> None:
     once per bundle (a model trained before it gets it on its next ``--stage codespace``)."""
     from ..artifacts.bundle import read_meta
     from ..artifacts.bundle_writer import update_bundle_meta
-    from ..artifacts.folds import DETAIL_STRENGTH
+    from ..eval.auto_mode import calibrate_auto_mode, describe_auto
 
     auto = read_meta(folder).get("auto")  # reading it hashes every file: once
     if auto is None:
         from ..data.dataset import GarmentDataset
-        from ..eval.auto_mode import calibrate_auto_mode
         from ..inference.animator import Animator
 
         ds = GarmentDataset(dataset)
         records = [ds.sequence(n) for n in ds.splits.get("val", [])]
         auto = calibrate_auto_mode(Animator.load(folder), records, progress=progress)
         update_bundle_meta(folder, {"auto": auto})
-    detail = f"x{auto.get('detail_strength', DETAIL_STRENGTH):g} on the {auto.get('detail_base', 'regression')}"
-    print(f"auto mode: {auto['mode']} (the detail mode's folds {detail}; on {auto['sequences']} validation clips: " + "; ".join(
-        f"{m} {c['pve_mm']:.2f} mm, sharpness {c['sharpness']:.2f}, hem swing {c['hem_swing']:.2f}"
-        for m, c in auto["candidates"].items()) + ")")
+    print(describe_auto(auto))
 
 
 def _epochs(r: StageReport) -> str:

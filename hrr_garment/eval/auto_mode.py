@@ -126,3 +126,12 @@ def calibrate_auto_mode(animator: Animator, records: list[SequenceRecord], allow
             "sequences": len(records), "frames": frames,
             "criterion": "the most plausible (hypot(ln sharpness, ln hem swing)) within the allowance x the most "
                          "accurate PVE", "candidates": candidates}
+
+
+def describe_auto(auto: dict) -> str:
+    """One line on a calibration (``bundle.json``'s ``auto``): the choice, the detail mode's setting
+    and every candidate's numbers."""
+    detail = f"x{auto.get('detail_strength', DETAIL_STRENGTH):g} on the {auto.get('detail_base', 'regression')}"
+    return (f"auto mode: {auto['mode']} (the detail mode's folds {detail}; on {auto['sequences']} validation clips: "
+            + "; ".join(f"{m} {c['pve_mm']:.2f} mm, sharpness {c['sharpness']:.2f}, hem swing {c['hem_swing']:.2f}"
+                        for m, c in auto["candidates"].items()) + ")")
