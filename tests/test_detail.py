@@ -207,3 +207,50 @@ def test_a_damaged_fold_store_is_refused(trained, tmp_path):
     add_bundle_part(copy, FOLDS_FILE, fewer, {}, numpy=True)
     with pytest.raises(BundleError, match="vertices"):
         load_bundle(copy)
+
+
+def test_hrr_animate_runs_the_detail_mode_as_it_is_told(trained, tmp_path, capsys):
+    """``--detail-strength`` / ``--detail-base`` set the detail mode's look (with the default mode
+    they run it), the output records the setting, and a setting the model cannot run is refused
+    before anything is written."""
+    import json
+    import shutil
+
+    from hrr_garment.artifacts.bundle_writer import update_bundle_meta
+    from hrr_garment.cli.animate import main as animate_main
+    from hrr_garment.data.animation_file import read_animation_h5
+    from hrr_garment.inference.animator import Animator
+    from hrr_garment.motion.io import save_motion
+
+    root, _, _ = trained
+    model = tmp_path / "model"
+    shutil.copytree(root / "model", model)
+    residual = json.loads((model / "bundle.json").read_text())["residual"]
+    update_bundle_meta(model, {"residual": {**residual, "weight": 0.7}})
+    motion = synthesize("walk", 1.0, seed=4)
+    clip = tmp_path / "walk.npz"
+    save_motion(motion, clip)
+    out = tmp_path / "out.h5"
+    assert animate_main([str(clip), "-o", str(out), "--model", str(model), "--detail-strength", "1.3",
+                         "--detail-base", "residual", "--no-collision"]) == 0
+    assert "mode auto = detail, folds x1.3 on the residual" in capsys.readouterr().out
+    written = read_animation_h5(out)
+    assert written.attrs["detail_strength"] == 1.3 and written.attrs["detail_base"] == "residual"
+    animator = Animator.load(model)
+    with animator.bundle.detail_on("residual", 1.3):
+        expected = animator.animate(motion, mode="detail", collision=False).vertices
+    assert np.array_equal(written.vertices, expected)
+    calibrated = animator.animate(motion, mode="detail", collision=False)  # the block restored the model's own
+    assert calibrated.settings["detail_strength"] == animator.bundle.detail_strength != 1.3
+    assert not np.allclose(calibrated.vertices, expected, atol=1e-4)
+
+    refused = tmp_path / "refused.h5"
+    update_bundle_meta(model, {"residual": {**residual, "weight": 0.0}})
+    for extra, phrase in ((["--detail-strength", "0"], "must be in (0, 2]"),
+                          (["--detail-strength", "2.5"], "must be in (0, 2]"),
+                          (["--detail-strength", "1", "--mode", "hybrid"], "--mode hybrid does not use them"),
+                          (["--detail-base", "regression", "--tau", "0.1"], "give --mode to say which"),
+                          (["--detail-base", "residual"], "residual weight is calibrated to 0")):
+        assert animate_main([str(clip), "-o", str(refused), "--model", str(model), "--no-collision", *extra]) == 2
+        assert phrase in capsys.readouterr().err, extra
+        assert not refused.exists()

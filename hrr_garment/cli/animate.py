@@ -3,6 +3,7 @@
     hrr-animate walk.bvh -o out.h5 --garment dress        # workspace model (full if present, else quick)
     hrr-animate clip.npz -o out.h5 --model hrr_work/models/dress-quick --mode retrieval
     hrr-animate walk.bvh -o out.h5 --garment dress --causal --no-collision
+    hrr-animate walk.bvh -o out.h5 --garment dress --detail-strength 1 --detail-base residual
 
 MOTION: BVH, AMASS-style npz or the native npz (resampled to 30 fps). Output: out.h5 (see
 docs/inference.md), written atomically. Offline (default) blends windows centred on each frame;
@@ -22,7 +23,7 @@ from ..artifacts.gate_signals import GATE_SIGNALS
 from ..errors import InputError
 from ..inference.modes import Mode
 from ..native import PRECISIONS
-from ._common import add_fps_option, run_cli
+from ._common import add_detail_options, add_fps_option, detail_setting, run_cli
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -43,6 +44,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--tau", type=float, default=None,
                    help="the gate's threshold (default: the model's calibrated one); --gate or --tau with the default "
                         "mode runs the hybrid, whose settings they are")
+    add_detail_options(p)
     p.add_argument("--no-collision", action="store_true", help="skip the collision push-out")
     p.add_argument("--causal", action="store_true", help="causal windows only, as the streaming API")
     p.add_argument("--precision", choices=PRECISIONS, default="float32",
@@ -73,13 +75,24 @@ def _main(argv: Sequence[str] | None) -> int:
     animator = Animator.load(model_dir, precision=args.precision)
     if args.garment is not None and animator.bundle.garment != args.garment:
         raise InputError(model_dir, f"this model animates a {animator.bundle.garment}, not a {args.garment}")
-    anim = animator.animate(motion, mode=args.mode, tau=args.tau, collision=not args.no_collision, causal=args.causal,
-                            gate=args.gate)
+    mode = args.mode
+    if args.detail_strength is not None or args.detail_base is not None:  # the detail mode's settings, as --gate/--tau the hybrid's
+        if mode == Mode.AUTO and (args.gate is not None or args.tau is not None):
+            raise InputError("hrr-animate", "--gate/--tau set the hybrid and --detail-strength/--detail-base the detail "
+                                            "mode: give --mode to say which")
+        if mode == Mode.AUTO:
+            mode = Mode.DETAIL.value
+        elif mode != Mode.DETAIL:
+            raise InputError("hrr-animate", f"--detail-strength and --detail-base set the detail mode; --mode {mode} does not use them")
+    with detail_setting(args, animator.bundle):
+        anim = animator.animate(motion, mode=mode, tau=args.tau, collision=not args.no_collision, causal=args.causal,
+                                gate=args.gate)
     anim.save(args.output)
     seconds = time.perf_counter() - t0
     # the gate decides in the hybrid only; the other modes retrieve always, never, or add a match's detail
     mode = Mode(anim.settings["mode"])
-    gate = f", gate {anim.settings['gate']} < {anim.settings['tau']:.3f}" if mode == Mode.HYBRID else ""
+    gate = (f", gate {anim.settings['gate']} < {anim.settings['tau']:.3f}" if mode == Mode.HYBRID else
+            f", folds x{anim.settings['detail_strength']:g} on the {anim.settings['detail_base']}" if mode == Mode.DETAIL else "")
     used = "database used" if mode in (Mode.RESIDUAL, Mode.DETAIL) else "retrieval usage"
     named = f"{args.mode} = {mode}" if args.mode != mode else str(mode)
     print(f"wrote {args.output}: {anim.vertices.shape[0]} frames ({motion.duration_s:.2f} s at {anim.fps:g} fps), "

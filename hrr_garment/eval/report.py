@@ -16,7 +16,7 @@ import numpy as np
 from ..io_utils import atomic_path, atomic_write_text, strict_json
 from .evaluate import ModeResult, TauPoint
 
-REPORT_VERSION = 6  # 2: truth ensembles ("ensemble" per mode and at the top level); 3: "library" and "paper"; 4: the gate signal ("gate" beside each "tau", the model's calibrated "gates"); 5: "sharpness" in each tau-sweep point; 6: the model's "auto" mode and its "auto_calibration"
+REPORT_VERSION = 7  # 2: truth ensembles ("ensemble" per mode and at the top level); 3: "library" and "paper"; 4: the gate signal ("gate" beside each "tau", the model's calibrated "gates"); 5: "sharpness" in each tau-sweep point; 6: the model's "auto" mode and its "auto_calibration"; 7: the detail mode's setting ("settings" "detail": strength, base)
 GOALS = (  # (name, numerator mode, denominator mode, target ratio)
     ("hybrid_vs_regression", "hybrid", "regression", 0.5),
     ("hybrid_vs_retrieval", "hybrid", "retrieval", 0.85),
@@ -155,6 +155,11 @@ def _ensemble_table(modes: dict, ensemble: dict) -> list[str]:
     return lines
 
 
+def _detail_clause(detail: dict | None) -> str:
+    """"; detail mode: folds x0.8 on the regression" where the detail mode ran."""
+    return f"; detail mode: folds x{detail['strength']:g} on the {detail['base']}" if detail else ""
+
+
 def markdown(report: dict, plots: list[str]) -> str:
     """report.md: the report's tables, with the plots."""
     model, data, settings = report["model"], report["dataset"], report["settings"]
@@ -164,7 +169,7 @@ def markdown(report: dict, plots: list[str]) -> str:
            f"`{data['path']}`, split **{data['split']}**: {len(data['sequences'])} sequences, {data['frames']} frames. "
            f"Collision push-out {'on' if settings['collision'] else 'off'}; own sequence excluded from retrieval: "
            f"{'yes' if settings['exclude_own_sequence'] else 'no'}; hybrid gate {settings.get('gate', 'entropy')} < "
-           f"{settings['tau']:.3f}. "
+           f"{settings['tau']:.3f}" + _detail_clause(settings.get("detail")) + ". "
            f"Run time {report['seconds']:.0f} s.", ""]
     lead = _ensemble_table(report["modes"], report.get("ensemble", {}))
     if lead:

@@ -218,8 +218,15 @@ class Animator:
                                         limits=self.edge_limits)
         return Animation(vertices, self.bundle.template.faces, motion.fps, retrieved, entropy, source, motion.joint_positions,
                          self.bundle.garment, self.bundle.content_hash, motion.source,
-                         {"mode": str(mode), "gate": gate, "tau": tau, "causal": int(causal), "collision": int(collision)},
+                         {"mode": str(mode), "gate": gate, "tau": tau, "causal": int(causal), "collision": int(collision),
+                          **self._detail_settings(mode)},
                          report, np.stack(DEFAULT_BODY.pose_motion(motion), 2).astype(np.float32), doubt)
+
+    def _detail_settings(self, mode: Mode) -> dict:
+        """What the detail mode ran with, for the output's attributes; nothing for the other modes."""
+        if mode is not Mode.DETAIL:
+            return {}
+        return {"detail_strength": self.bundle.detail_strength, "detail_base": self.bundle.detail_base}
 
     def _direct_latents(self, motion: Motion) -> np.ndarray:
         """(T, nodes, C) latents of the direct-regression baseline (causal: a GRU over the clip)."""
