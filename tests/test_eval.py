@@ -17,7 +17,7 @@ def test_hrr_eval_report_end_to_end(trained, tmp_path, capsys):
     assert main(["--model", str(root / "model"), "--dataset", str(data), "--split", "test", "--tau-sweep", "0,0.5,1,100",
                  "--detail-strength", "1.2", "-o", str(out), "--quiet"]) == 0
     report = json.loads((out / "report.json").read_text())
-    assert report["format_version"] == 7 and report["dataset"]["sequences"] == ["run_000"]
+    assert report["format_version"] == 8 and report["dataset"]["sequences"] == ["run_000"]
     base = json.loads((root / "model" / "bundle.json").read_text())["auto"]["detail_base"]
     assert report["settings"]["detail"] == {"strength": 1.2, "base": base}  # as asked; the base as calibrated
     assert f"detail mode: folds x1.2 on the {base}" in (out / "report.md").read_text()
@@ -229,6 +229,45 @@ def test_library_plays_are_seeded_edits_of_the_training_clips(tmp_path):
         library_plays(ds, names, 0)
 
 
+def test_a_play_knows_its_source_frames_and_plays_their_simulation_along(tmp_path, monkeypatch):
+    """The database-simulation reference: at speed 1 a replay's reference is the clip's own simulated
+    frames, and a transition's second clip, turned and moved to carry on, keeps its cloth where it
+    was on the body (every vertex's distance to every joint)."""
+    from conftest import synthetic_dataset
+
+    from hrr_garment.data.dataset import GarmentDataset
+    from hrr_garment.eval import library
+    from hrr_garment.garment.templates import make_garment
+
+    ds = GarmentDataset(synthetic_dataset(tmp_path / "skirt.h5", make_garment("skirt", 200)))
+    monkeypatch.setattr(library, "SPEED_RANGE", (1.0, 1.0))
+    plays = library.library_plays(ds, ds.splits["train"], 4, seconds=2.0, seed=3)
+
+    def distances(vertices, joints):
+        return np.linalg.norm(vertices[:, :, None] - joints[:, None], axis=-1)
+
+    for play in plays:
+        sim = library.source_simulation(ds, play)
+        assert sim.shape == (play.motion.num_frames, ds.template.num_vertices, 3) and sim.dtype == np.float32
+        assert sum(len(s.frames) for s in play.sources) - play.blend == play.motion.num_frames
+        first = play.sources[0]
+        clip = ds.sequence(first.clip)
+        shown = first.frames.astype(int)
+        assert np.array_equal(shown, first.frames) and shown[0] >= 1  # entered part-way, whole frames at speed 1
+        head = len(shown) - play.blend
+        np.testing.assert_allclose(sim[:head], clip.garment[shown[:head]], atol=1e-5)
+        if len(play.sources) == 2:
+            second = play.sources[1]
+            other = ds.sequence(second.clip)
+            tail = second.frames.astype(int)[play.blend:]
+            joints = play.motion.joint_positions[head + play.blend:]
+            np.testing.assert_allclose(distances(sim[head + play.blend:], joints),
+                                       distances(other.garment[tail], other.motion.joint_positions[tail]), atol=1e-4)
+    assert any(len(p.sources) == 2 for p in plays)
+    with pytest.raises(ValueError, match="sources"):
+        library.source_simulation(ds, library.LibraryPlay("bare", "", plays[0].motion))
+
+
 def test_library_protocol_in_hrr_eval(artist_model, tmp_path, monkeypatch):
     """Plays of a simulated dataset's training clips, simulated with their ensembles, evaluated with
     their own sweep and goals (conftest's tiny artist dress)."""
@@ -240,7 +279,7 @@ def test_library_protocol_in_hrr_eval(artist_model, tmp_path, monkeypatch):
     assert main(["--model", str(model), "--dataset", str(data), "--split", "test", "--ensemble", "2", "--jobs", "1",
                  "--library", "2", "--tau-sweep", "0,100", "--no-plots", "-o", str(out), "--quiet"]) == 0
     report = json.loads((out / "report.json").read_text())
-    assert report["format_version"] == 7
+    assert report["format_version"] == 8
     lib = report["library"]
     assert list(lib["plays"]) == ["play_00", "play_01"] and "->" in lib["plays"]["play_01"]
     assert lib["sequences"] == ["play_00", "play_01"] and not lib["rejected"]
@@ -256,8 +295,11 @@ def test_library_protocol_in_hrr_eval(artist_model, tmp_path, monkeypatch):
         modes["hybrid"]["metrics"]["pve_mm"] / modes["regression"]["metrics"]["pve_mm"])
     scores = {m: modes[m]["ensemble"]["energy_score_mm"] for m in ("hybrid", "regression", "retrieval")}
     assert goals["energy_score_vs_single_modes"]["met"] == (scores["hybrid"] < min(scores["regression"], scores["retrieval"]))
+    reference = lib["source_simulation"]  # the database's own simulation of the played frames
+    assert reference["metrics"]["retrieval_usage"] == 1 and math.isfinite(reference["ensemble"]["pve_floor_ratio"])
+    assert set(reference["sequences"]) == {"play_00", "play_01"}
     md = (out / "report.md").read_text()
-    assert "## Library protocol" in md and lib["plays"]["play_01"] in md
+    assert "## Library protocol" in md and lib["plays"]["play_01"] in md and "| database simulation |" in md
 
 
 def test_paper_protocol_beside_the_papers_ratios(trained, paper_model, tmp_path, capsys):

@@ -9,6 +9,7 @@ maxima).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -122,6 +123,31 @@ def sequence_ensemble_metrics(anim_vertices: np.ndarray, before_push_out: tuple[
     return out
 
 
+class _Scorer:
+    """Scores predictions of one garment against records and their truth ensembles, the truths'
+    own ensemble values computed once per record."""
+
+    def __init__(self, template, ensembles: dict[str, TruthEnsemble] | None):
+        self.topo = M.MeshTopology.of(template.faces, template.num_vertices)
+        self.rest = template.vertices.astype(np.float64)
+        self.hem = hem_vertices(template)
+        self.ensembles = ensembles or {}
+        self.truths: dict[str, dict[str, float]] = {}
+
+    def sequence(self, vertices: np.ndarray, record: SequenceRecord, retrieved: np.ndarray, entropy: np.ndarray,
+                 before_push_out: tuple[float, float] | None) -> SequenceResult:
+        ensemble = {}
+        if record.name in self.ensembles:
+            if record.name not in self.truths:
+                self.truths[record.name] = ensemble_truth(self.ensembles[record.name], record, self.rest, self.topo, self.hem)
+            ensemble = sequence_ensemble_metrics(vertices, before_push_out, self.ensembles[record.name], record, self.rest,
+                                                 self.topo, self.hem, self.truths[record.name])
+        return SequenceResult(record.name, len(record.garment),
+                              sequence_metrics(vertices, record.garment, record, self.rest, self.topo, retrieved),
+                              M.per_frame_pve_mm(vertices.astype(np.float64), record.garment.astype(np.float64)),
+                              entropy, retrieved, ensemble)
+
+
 def evaluate_modes(animator: Animator, records: list[SequenceRecord], modes: list[str], tau: float | None = None,
                    exclude_own_sequence: bool = False, collision: bool = True, progress: bool = True,
                    ensembles: dict[str, TruthEnsemble] | None = None, gate: str | None = None) -> dict[str, ModeResult]:
@@ -131,30 +157,30 @@ def evaluate_modes(animator: Animator, records: list[SequenceRecord], modes: lis
     hybrid's (default the model's calibrated ones)."""
     bundle = animator.bundle
     gate, tau = animator.gate_setting(gate, tau)
-    topo = M.MeshTopology.of(bundle.template.faces, bundle.template.num_vertices)
-    rest = bundle.template.vertices.astype(np.float64)
-    hem = hem_vertices(bundle.template)
-    ensembles = ensembles or {}
-    truths: dict[str, dict[str, float]] = {}  # per record, computed once for every mode
+    scorer = _Scorer(bundle.template, ensembles)
     names = list(bundle.database.names)
     results = {m: ModeResult(m, tau, gate=gate) for m in modes}
     jobs = [(m, r) for r in records for m in modes]
     for mode, record in tqdm(jobs, desc="evaluate", unit="run", disable=not progress):
         own = names.index(record.name) if exclude_own_sequence and record.name in names else None
         anim = animator.animate(record.motion, mode=mode, tau=tau, collision=collision, exclude_sequence=own, gate=gate)
-        ensemble = {}
-        if record.name in ensembles:
-            before = (anim.penetration.inside_before, anim.penetration.worst_before) if anim.penetration else None
-            if record.name not in truths:
-                truths[record.name] = ensemble_truth(ensembles[record.name], record, rest, topo, hem)
-            ensemble = sequence_ensemble_metrics(anim.vertices, before, ensembles[record.name], record, rest, topo, hem,
-                                                 truths[record.name])
-        results[mode].sequences.append(SequenceResult(
-            record.name, len(record.garment),
-            sequence_metrics(anim.vertices, record.garment, record, rest, topo, anim.mode.astype(bool)),
-            M.per_frame_pve_mm(anim.vertices.astype(np.float64), record.garment.astype(np.float64)),
-            anim.entropy.astype(np.float64), anim.mode.astype(bool), ensemble))
+        before = (anim.penetration.inside_before, anim.penetration.worst_before) if anim.penetration else None
+        results[mode].sequences.append(scorer.sequence(anim.vertices, record, anim.mode.astype(bool),
+                                                       anim.entropy.astype(np.float64), before))
     return results
+
+
+def evaluate_vertices(label: str, predictions: dict[str, np.ndarray], records: list[SequenceRecord], template,
+                      ensembles: dict[str, TruthEnsemble] | None = None) -> ModeResult:
+    """Given vertices (record name -> (T, V, 3) world) scored as a mode's would be, all of them
+    counted as retrieved (a reference row: what a simulation of the right clip gives)."""
+    result = ModeResult(label, math.nan)
+    scorer = _Scorer(template, ensembles)
+    for record in records:
+        frames = len(record.garment)
+        result.sequences.append(scorer.sequence(predictions[record.name], record, np.ones(frames, bool),
+                                                np.full(frames, np.nan), None))
+    return result
 
 
 @dataclass

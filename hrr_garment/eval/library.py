@@ -13,6 +13,11 @@ it is not the database's own simulation) and scored against its own truth ensemb
 sequence. Plays come from a seeded generator: the same dataset, count and seed give the same
 plays. They are saved as native motion files (``hrr-animate`` plays them) in a folder named by
 their content, so a repeated evaluation finds their simulations cached.
+
+Each play also knows where its frames came from (:class:`PlaySource`: which clip, at which of its
+frames), so the database's own simulation of those frames can be played along with it
+(:func:`source_simulation`): what retrieval would give if it found the right clip at the right
+moment every frame, the protocol's ceiling for any retrieval.
 """
 
 from __future__ import annotations
@@ -26,33 +31,51 @@ import numpy as np
 
 from ..data.dataset import DatasetError, GarmentDataset
 from ..io_utils import atomic_write_text
-from ..motion.edit import crossfade, retimed
+from ..motion.edit import crossfade, retimed, smoothstep_weights
+from ..motion.frame import from_body_frame, to_body_frame
 from ..motion.io import save_motion
 from ..motion.motion import Motion
+from ..motion.resample import resample_times
 
 SPEED_RANGE = (0.9, 1.1)  # re-timing factors a game applies to match a character's speed
 BLEND_S = (0.3, 0.5)  # cross-fade lengths between two clips
 MIN_ENTRY_S = 0.2  # a play enters its clip at least this far in (never where the database's simulation began)
 MIN_CLIP_S = 1.0  # shorter training clips are not played (too little left after the entry)
+SOURCE_SIMULATION = "database simulation"  # the reference row: the source clips' own simulation, played along
+
+
+@dataclass(frozen=True)
+class PlaySource:
+    """One clip's part of a play: the training clip and, for each of the part's frames, the clip's
+    frame it shows (fractional where the play is re-timed)."""
+
+    clip: str
+    frames: np.ndarray  # (n,) float64
 
 
 @dataclass(frozen=True)
 class LibraryPlay:
-    """One play: a name, how it was made from the training clips, and its motion."""
+    """One play: a name, how it was made from the training clips, and its motion; ``sources`` the
+    clips' parts it plays in order, cross-faded over ``blend`` frames (0: one part)."""
 
     name: str
     description: str
     motion: Motion
+    sources: tuple[PlaySource, ...] = ()
+    blend: int = 0
 
 
-def _entered(motion: Motion, rng: np.random.Generator, frames: int) -> tuple[Motion, str]:
+def _entered(motion: Motion, rng: np.random.Generator, frames: int, clip: str) -> tuple[Motion, str, PlaySource]:
     """``motion`` re-timed and entered at a random later frame, at most ``frames`` long."""
     speed = float(rng.uniform(*SPEED_RANGE))
     played = retimed(motion, speed)
     earliest = int(round(MIN_ENTRY_S * motion.fps))
     latest = max(played.num_frames - frames, earliest)  # the last start that still leaves ``frames`` frames
     start = int(rng.integers(earliest, latest + 1))
-    return played.slice(start, min(start + frames, played.num_frames)), f"x{speed:.2f} from {start / motion.fps:.2f} s"
+    stop = min(start + frames, played.num_frames)
+    shown = resample_times(motion.num_frames, motion.fps * speed, motion.fps)[start:stop] if speed != 1.0 else \
+        np.arange(start, stop, dtype=np.float64)  # as retimed() samples the clip
+    return played.slice(start, stop), f"x{speed:.2f} from {start / motion.fps:.2f} s", PlaySource(clip, shown)
 
 
 def library_plays(ds: GarmentDataset, names: list[str], count: int, seconds: float = 4.0,
@@ -78,18 +101,43 @@ def library_plays(ds: GarmentDataset, names: list[str], count: int, seconds: flo
     for i in range(count):
         a = usable[int(rng.integers(len(usable)))]
         if i % 2 == 0:
-            played, how = _entered(motion(a), rng, frames)
-            plays.append(LibraryPlay(f"play_{i:02d}", f"{a} {how}", played))
+            played, how, source = _entered(motion(a), rng, frames, a)
+            plays.append(LibraryPlay(f"play_{i:02d}", f"{a} {how}", played, (source,)))
             continue
         others = [n for n in usable if n != a] or usable  # one clip: a transition into itself, elsewhere
         b = others[int(rng.integers(len(others)))]
         blend = int(round(rng.uniform(*BLEND_S) * fps))
-        first, how_a = _entered(motion(a), rng, frames // 2 + blend)
-        second, how_b = _entered(motion(b), rng, frames - frames // 2)
+        first, how_a, source_a = _entered(motion(a), rng, frames // 2 + blend, a)
+        second, how_b, source_b = _entered(motion(b), rng, frames - frames // 2, b)
         blend = min(blend, first.num_frames, second.num_frames)
         plays.append(LibraryPlay(f"play_{i:02d}", f"{a} {how_a} -> {b} {how_b}, {blend / fps:.2f} s blend",
-                                 crossfade(first, second, blend)))
+                                 crossfade(first, second, blend), (source_a, source_b), blend))
     return plays
+
+
+def source_simulation(ds: GarmentDataset, play: LibraryPlay) -> np.ndarray:
+    """(T, V, 3) float32 world vertices: the dataset's own simulation of the frames the play shows,
+    each in the body frame of its clip's pose, placed on the play's motion (re-timed frames
+    interpolated linearly; over a transition's blend the two parts cross-fade with the motion's
+    weights)."""
+    if not play.sources:
+        raise ValueError(f"{play.name} does not record its sources")
+    parts = []
+    for source in play.sources:
+        record = ds.sequence(source.clip)
+        local = to_body_frame(record.garment.astype(np.float64), record.motion)
+        i0 = np.floor(source.frames).astype(np.int64)
+        i1 = np.minimum(i0 + 1, len(local) - 1)
+        f = (source.frames - i0)[:, None, None]
+        parts.append((1 - f) * local[i0] + f * local[i1])
+    local = parts[0]
+    if len(parts) == 2:
+        first, second, n = parts[0], parts[1], play.blend
+        w = smoothstep_weights(n)[:, None, None]
+        local = np.concatenate([first[:len(first) - n], (1 - w) * first[len(first) - n:] + w * second[:n], second[n:]])
+    if len(local) != play.motion.num_frames:
+        raise ValueError(f"{play.name}: its sources give {len(local)} frames for {play.motion.num_frames} of motion")
+    return from_body_frame(local, play.motion).astype(np.float32)
 
 
 def plays_digest(plays: list[LibraryPlay]) -> str:

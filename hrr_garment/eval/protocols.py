@@ -48,10 +48,10 @@ def ensemble_summary(ensembles: dict, records, members: int) -> dict:
 
 
 def simulated_section(animator, ds, specs, path: Path, purpose: str, modes: list[str], gate_tau: tuple[str, float],
-               collision: bool, progress: bool, members: int, jobs: int | None) -> tuple[dict, list]:
+               collision: bool, progress: bool, members: int, jobs: int | None) -> tuple[dict, list, dict]:
     """Simulate the ground truth of ``specs`` with the dataset's settings into ``path`` (parts cached)
     and evaluate every mode there (the hybrid with ``gate_tau``: signal, threshold): the report
-    section and the records."""
+    section, the records and their truth ensembles."""
     from ..data.dataset import GarmentDataset
     from ..sim.build import build_dataset
     from ..sim.simulator import SimConfig
@@ -69,7 +69,7 @@ def simulated_section(animator, ds, specs, path: Path, purpose: str, modes: list
     return {"dataset": str(report.path), "sequences": report.sequences,
             "frames": int(sum(len(r.garment) for r in records)), "rejected": report.rejects,
             "ensemble": ensemble_summary(ensembles, records, members),
-            "modes": {m: r.to_dict() for m, r in results.items()}}, records
+            "modes": {m: r.to_dict() for m, r in results.items()}}, records, ensembles
 
 
 def real_motion_section(animator, ds, files: list[str], modes: list[str], gate_tau: tuple[str, float], collision: bool,
@@ -81,8 +81,8 @@ def real_motion_section(animator, ds, files: list[str], modes: list[str], gate_t
 
     specs = plan_sequences(load_preset(str(ds.info.get("preset", "quick"))), motions=list(files), source_fps=source_fps)
     path = workspace() / "eval" / f"{ds.path.stem}-real-motion.h5"
-    section, _ = simulated_section(animator, ds, specs, path, "hrr-eval real motion", modes, gate_tau, collision, progress,
-                            members, jobs)
+    section, _, _ = simulated_section(animator, ds, specs, path, "hrr-eval real motion", modes, gate_tau, collision,
+                                      progress, members, jobs)
     return {"files": [str(f) for f in files], **section}
 
 
@@ -117,8 +117,8 @@ def library_section(animator, ds, count: int, seed: int, modes: list[str], gate_
     model's database, simulated and evaluated, with their own tau sweep and goals."""
     from ..paths import workspace
     from ..sim.plan import SequenceSpec
-    from .evaluate import tau_sweep
-    from .library import library_plays, plays_digest, save_plays
+    from .evaluate import evaluate_vertices, tau_sweep
+    from .library import SOURCE_SIMULATION, library_plays, plays_digest, save_plays, source_simulation
     from .report import library_goals
 
     if "sim" not in ds.info:
@@ -130,11 +130,14 @@ def library_section(animator, ds, count: int, seed: int, modes: list[str], gate_
     files = save_plays(plays, folder)
     print(f"library protocol: {count} plays of the database's clips (motions in {folder})")
     specs = [SequenceSpec(p.name, "file", path=str(f), start=0, stop=p.motion.num_frames) for p, f in zip(plays, files)]
-    section, records = simulated_section(animator, ds, specs, folder / "truth.h5", "hrr-eval library protocol", modes, gate_tau,
-                                  collision, progress, members, jobs)
+    section, records, ensembles = simulated_section(animator, ds, specs, folder / "truth.h5", "hrr-eval library protocol",
+                                                    modes, gate_tau, collision, progress, members, jobs)
+    by_name = {p.name: p for p in plays}
+    reference = evaluate_vertices(SOURCE_SIMULATION, {r.name: source_simulation(ds, by_name[r.name]) for r in records},
+                                  records, animator.bundle.template, ensembles)
     gate = gate_tau[0]
     points = tau_sweep(animator, records, taus or default_taus(animator, records, gate), False, collision, progress,
                        gate) if sweep and records else None
-    section.update(plays={p.name: p.description for p in plays}, seed=seed, tau_sweep=[vars(p) for p in points or []],
+    section.update(plays={p.name: p.description for p in plays}, seed=seed, source_simulation=reference.to_dict(), tau_sweep=[vars(p) for p in points or []],
                    goals=library_goals(section["modes"], points))
     return section

@@ -15,8 +15,9 @@ import numpy as np
 
 from ..io_utils import atomic_path, atomic_write_text, strict_json
 from .evaluate import ModeResult, TauPoint
+from .library import SOURCE_SIMULATION
 
-REPORT_VERSION = 7  # 2: truth ensembles ("ensemble" per mode and at the top level); 3: "library" and "paper"; 4: the gate signal ("gate" beside each "tau", the model's calibrated "gates"); 5: "sharpness" in each tau-sweep point; 6: the model's "auto" mode and its "auto_calibration"; 7: the detail mode's setting ("settings" "detail": strength, base)
+REPORT_VERSION = 8  # 2: truth ensembles ("ensemble" per mode and at the top level); 3: "library" and "paper"; 4: the gate signal ("gate" beside each "tau", the model's calibrated "gates"); 5: "sharpness" in each tau-sweep point; 6: the model's "auto" mode and its "auto_calibration"; 7: the detail mode's setting ("settings" "detail": strength, base); 8: the library's "source_simulation" reference
 GOALS = (  # (name, numerator mode, denominator mode, target ratio)
     ("hybrid_vs_regression", "hybrid", "regression", 0.5),
     ("hybrid_vs_retrieval", "hybrid", "retrieval", 0.85),
@@ -246,8 +247,14 @@ def _simulated_section(section: dict) -> list[str]:
         out += [f"- Not evaluated: `{name}`, its simulation was rejected ({reason})."]
     if section.get("rejected"):
         out += [""]
-    lead = _ensemble_table(section["modes"], section.get("ensemble", {}))
-    return out + ([*lead, ""] if lead else []) + _mode_table(section["modes"])
+    modes, note = section["modes"], []
+    if section.get("source_simulation"):  # the library plays' reference row
+        modes = {**modes, SOURCE_SIMULATION: section["source_simulation"]}
+        note = ["", f"*{SOURCE_SIMULATION}*: the dataset's own simulation of the frames each play shows (re-timed "
+                    "frames interpolated, blends cross-faded), played along: what retrieval gives if it finds the "
+                    "right clip at the right moment every frame, its ceiling on this protocol."]
+    lead = _ensemble_table(modes, section.get("ensemble", {}))
+    return out + ([*lead, ""] if lead else []) + _mode_table(modes) + note
 
 
 def write_plots(folder: Path, modes: dict[str, ModeResult], sweep: list[TauPoint] | None, tau: float,

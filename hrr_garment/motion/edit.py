@@ -45,6 +45,13 @@ def aligned(motion: Motion, heading: float, position: np.ndarray) -> Motion:
                   motion.skeleton)
 
 
+def smoothstep_weights(frames: int) -> np.ndarray:
+    """(frames,) the second clip's weight over a cross-fade: smoothstep, strictly between 0 and 1,
+    so both ends stay in the blend (zero rate of change where it starts and ends)."""
+    x = (np.arange(frames) + 1.0) / (frames + 1.0)
+    return x * x * (3.0 - 2.0 * x)
+
+
 def crossfade(first: Motion, second: Motion, frames: int) -> Motion:
     """``first``, then ``second`` entered over the last ``frames`` frames of ``first``.
 
@@ -63,8 +70,7 @@ def crossfade(first: Motion, second: Motion, frames: int) -> Motion:
                          f"({first.num_frames} and {second.num_frames} frames)")
     start = first.num_frames - frames
     second = aligned(second, float(yaw_of(first.global_rotations[start, 0])), first.root_translation[start])
-    x = (np.arange(frames) + 1.0) / (frames + 1.0)
-    w = x * x * (3.0 - 2.0 * x)  # smoothstep, strictly between 0 and 1: both ends stay in the blend
+    w = smoothstep_weights(frames)
     qa = matrix_to_quat(first.local_rotations[start:].astype(np.float64))
     qb = matrix_to_quat(second.local_rotations[:frames].astype(np.float64))
     blend_rot = quat_to_matrix(quat_slerp(qa, qb, np.broadcast_to(w[:, None], qa.shape[:-1])))
