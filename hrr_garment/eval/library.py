@@ -73,8 +73,7 @@ def _entered(motion: Motion, rng: np.random.Generator, frames: int, clip: str) -
     latest = max(played.num_frames - frames, earliest)  # the last start that still leaves ``frames`` frames
     start = int(rng.integers(earliest, latest + 1))
     stop = min(start + frames, played.num_frames)
-    shown = resample_times(motion.num_frames, motion.fps * speed, motion.fps)[start:stop] if speed != 1.0 else \
-        np.arange(start, stop, dtype=np.float64)  # as retimed() samples the clip
+    shown = resample_times(motion.num_frames, motion.fps * speed, motion.fps)[start:stop]  # as retimed() samples the clip
     return played.slice(start, stop), f"x{speed:.2f} from {start / motion.fps:.2f} s", PlaySource(clip, shown)
 
 
