@@ -100,8 +100,7 @@ def test_hrr_train_calibrates_auto_and_it_agrees_with_the_evaluation(trained):
     both = calibrate_auto_mode(animator, records[:1], progress=False)
     assert set(both["candidates"]) >= set(DETAIL_CANDIDATES)
     for label, (base, strength) in DETAIL_CANDIDATES.items():
-        with animator.bundle.detail_on(base, strength):
-            pred = animator.animate(records[0].motion, mode="detail").vertices
+        pred = animator.animate(records[0].motion, mode="detail", detail_base=base, detail_strength=strength).vertices
         assert both["candidates"][label]["pve_mm"] == pytest.approx(float(np.linalg.norm(pred - records[0].garment, axis=-1).mean()) * 1000, rel=1e-5)
     pves = [both["candidates"][detail_label(base, s)]["pve_mm"] for base in ("regression", "residual") for s in DETAIL_STRENGTHS]
     assert len(set(pves)) == len(pves)  # each setting changes the output

@@ -237,19 +237,28 @@ def test_hrr_animate_runs_the_detail_mode_as_it_is_told(trained, tmp_path, capsy
     written = read_animation_h5(out)
     assert written.attrs["detail_strength"] == 1.3 and written.attrs["detail_base"] == "residual"
     animator = Animator.load(model)
-    with animator.bundle.detail_on("residual", 1.3):
-        expected = animator.animate(motion, mode="detail", collision=False).vertices
-    assert np.array_equal(written.vertices, expected)
-    calibrated = animator.animate(motion, mode="detail", collision=False)  # the block restored the model's own
+    expected = animator.animate(motion, detail_base="residual", detail_strength=1.3, collision=False)
+    assert expected.settings["mode"] == "detail" and np.array_equal(written.vertices, expected.vertices)
+    calibrated = animator.animate(motion, mode="detail", collision=False)
     assert calibrated.settings["detail_strength"] == animator.bundle.detail_strength != 1.3
-    assert not np.allclose(calibrated.vertices, expected, atol=1e-4)
+    assert not np.allclose(calibrated.vertices, expected.vertices, atol=1e-4)
+    # a stream keeps the look it was made with, frame by frame as offline causal
+    stream = animator.stream(mode="detail", detail_base="residual", detail_strength=1.3, collision=False)
+    streamed = np.stack([stream.push(motion.slice(t, t + 1)) for t in range(motion.num_frames)])
+    causal = animator.animate(motion, mode="detail", detail_base="residual", detail_strength=1.3, collision=False,
+                              causal=True)
+    assert np.allclose(streamed, causal.vertices, atol=1e-5)
+    for kwargs in ({"mode": "hybrid", "detail_strength": 1.0}, {"tau": 0.1, "detail_base": "regression"},
+                   {"detail_strength": 0.0}, {"detail_base": "shape"}):
+        with pytest.raises(ValueError):
+            animator.animate(motion, collision=False, **kwargs)
 
     refused = tmp_path / "refused.h5"
     update_bundle_meta(model, {"residual": {**residual, "weight": 0.0}})
     for extra, phrase in ((["--detail-strength", "0"], "must be in (0, 2]"),
                           (["--detail-strength", "2.5"], "must be in (0, 2]"),
-                          (["--detail-strength", "1", "--mode", "hybrid"], "--mode hybrid does not use them"),
-                          (["--detail-base", "regression", "--tau", "0.1"], "give --mode to say which"),
+                          (["--detail-strength", "1", "--mode", "hybrid"], "mode hybrid does not use them"),
+                          (["--detail-base", "regression", "--tau", "0.1"], "name the mode"),
                           (["--detail-base", "residual"], "residual weight is calibrated to 0")):
         assert animate_main([str(clip), "-o", str(refused), "--model", str(model), "--no-collision", *extra]) == 2
         assert phrase in capsys.readouterr().err, extra

@@ -22,8 +22,6 @@ and why when one is off.
 
 from __future__ import annotations
 
-from collections.abc import Iterator
-from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -130,25 +128,22 @@ class Bundle:
         (:data:`~.folds.DETAIL_STRENGTH` for bundles calibrated before the choice)."""
         return float(self.meta.get("auto", {}).get("detail_strength", DETAIL_STRENGTH))
 
-    @contextmanager
-    def detail_on(self, base: str, strength: float | None = None) -> Iterator[None]:
-        """Run the detail mode on ``base`` ("regression" or "residual"), its folds at ``strength``
-        (None: as calibrated) inside the block: how the auto calibration measures each before choosing."""
+    def detail_setting(self, base: str | None = None, strength: float | None = None) -> tuple[str, float]:
+        """(base, strength) the detail mode runs: the calibrated ones (:attr:`detail_base`,
+        :attr:`detail_strength`) unless given; a ValueError for a base or strength it cannot take,
+        a BundleError where a residual base has no residual to ride on."""
+        base = self.detail_base if base is None else base
+        strength = self.detail_strength if strength is None else strength
         if base not in DETAIL_BASES:
             raise ValueError(f"the detail mode's base is one of {', '.join(DETAIL_BASES)}, got {base!r}")
-        if strength is not None and not valid_detail_strength(strength):
+        if not valid_detail_strength(strength):
             raise ValueError(f"the detail mode's strength is in (0, {MAX_DETAIL_STRENGTH:g}], got {strength!r}")
-        saved = self.meta.get("auto")
-        self.meta["auto"] = {**(saved or {}), "detail_base": base}
-        if strength is not None:
-            self.meta["auto"]["detail_strength"] = float(strength)
-        try:
-            yield
-        finally:
-            if saved is None:
-                del self.meta["auto"]
-            else:
-                self.meta["auto"] = saved
+        if base == "residual":
+            self.require_residual()
+            if self.residual_weight <= 0:
+                raise BundleError(self.folder, "its residual weight is calibrated to 0, so the residual mode is the "
+                                               "regression: run the detail mode on the regression")
+        return base, float(strength)
 
     @property
     def auto_mode(self) -> str:

@@ -3,15 +3,11 @@
 from __future__ import annotations
 
 import argparse
-import contextlib
 import sys
-from typing import TYPE_CHECKING, Callable, ContextManager, Sequence
+from typing import Callable, Sequence
 
 from ..artifacts.manifest import DETAIL_BASES, MAX_DETAIL_STRENGTH, valid_detail_strength
 from ..errors import HRRError, InputError
-
-if TYPE_CHECKING:
-    from ..artifacts.bundle import Bundle
 
 EXIT_ERROR = 2
 
@@ -34,22 +30,12 @@ def add_detail_options(p: argparse.ArgumentParser) -> None:
                         "brings the matched window's swing (default: the model's calibrated choice)")
 
 
-def detail_setting(args: argparse.Namespace, bundle: "Bundle") -> ContextManager[None]:
-    """The detail mode as ``--detail-strength`` / ``--detail-base`` ask, for a ``with`` block (the
-    model's calibrated setting where they ask nothing): an InputError for a strength out of range or
-    a residual base the model cannot run."""
-    if args.detail_strength is None and args.detail_base is None:
-        return contextlib.nullcontext()
+def detail_options(args: argparse.Namespace) -> dict:
+    """``--detail-strength`` / ``--detail-base`` as keyword arguments of ``Animator.animate`` (empty
+    where they ask nothing); an InputError for a strength out of range."""
     if args.detail_strength is not None and not valid_detail_strength(args.detail_strength):
         raise InputError("--detail-strength", f"must be in (0, {MAX_DETAIL_STRENGTH:g}], got {args.detail_strength:g}")
-    bundle.require_folds()
-    base = args.detail_base or bundle.detail_base
-    if base == "residual":
-        bundle.require_residual()
-        if bundle.residual_weight <= 0:
-            raise InputError(bundle.folder, "its residual weight is calibrated to 0, so the residual mode is the "
-                                            "regression: use --detail-base regression")
-    return bundle.detail_on(base, args.detail_strength)
+    return {k: v for k, v in (("detail_base", args.detail_base), ("detail_strength", args.detail_strength)) if v is not None}
 
 
 def run_cli(body: Callable[[Sequence[str] | None], int], argv: Sequence[str] | None, prog: str) -> int:

@@ -23,7 +23,7 @@ from ..artifacts.gate_signals import GATE_SIGNALS
 from ..errors import InputError
 from ..inference.modes import Mode
 from ..native import PRECISIONS
-from ._common import add_detail_options, add_fps_option, detail_setting, run_cli
+from ._common import add_detail_options, add_fps_option, detail_options, run_cli
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -75,18 +75,13 @@ def _main(argv: Sequence[str] | None) -> int:
     animator = Animator.load(model_dir, precision=args.precision)
     if args.garment is not None and animator.bundle.garment != args.garment:
         raise InputError(model_dir, f"this model animates a {animator.bundle.garment}, not a {args.garment}")
-    mode = args.mode
-    if args.detail_strength is not None or args.detail_base is not None:  # the detail mode's settings, as --gate/--tau the hybrid's
-        if mode == Mode.AUTO and (args.gate is not None or args.tau is not None):
-            raise InputError("hrr-animate", "--gate/--tau set the hybrid and --detail-strength/--detail-base the detail "
-                                            "mode: give --mode to say which")
-        if mode == Mode.AUTO:
-            mode = Mode.DETAIL.value
-        elif mode != Mode.DETAIL:
-            raise InputError("hrr-animate", f"--detail-strength and --detail-base set the detail mode; --mode {mode} does not use them")
-    with detail_setting(args, animator.bundle):
-        anim = animator.animate(motion, mode=mode, tau=args.tau, collision=not args.no_collision, causal=args.causal,
-                                gate=args.gate)
+    detail = detail_options(args)
+    try:  # --gate/--tau run the hybrid, --detail-* the detail mode; asking both, or a mode without them, is refused
+        mode = animator.resolve_mode(args.mode, args.gate, args.tau, bool(detail))
+    except ValueError as exc:
+        raise InputError("hrr-animate", str(exc)) from None
+    anim = animator.animate(motion, mode=mode, tau=args.tau, collision=not args.no_collision, causal=args.causal,
+                            gate=args.gate, **detail)
     anim.save(args.output)
     seconds = time.perf_counter() - t0
     # the gate decides in the hybrid only; the other modes retrieve always, never, or add a match's detail

@@ -29,7 +29,7 @@ from typing import Sequence
 from ..artifacts.gate_signals import GATE_SIGNALS
 from ..errors import InputError
 from ..inference.modes import Mode
-from ._common import add_detail_options, add_fps_option, detail_setting, run_cli
+from ._common import add_detail_options, add_fps_option, detail_options, run_cli
 
 ALL_MODES = tuple(m.value for m in Mode)
 
@@ -97,6 +97,7 @@ def _main(argv: Sequence[str] | None) -> int:
 
     from ..data.dataset import DatasetError, GarmentDataset
     from ..eval.evaluate import evaluate_modes, tau_sweep
+    from ..eval.plots import write_plots
     from ..eval.protocols import (
         default_taus,
         ensemble_summary,
@@ -105,7 +106,7 @@ def _main(argv: Sequence[str] | None) -> int:
         real_motion_section,
         truth_ensembles_of,
     )
-    from ..eval.report import build_report, write_plots, write_report
+    from ..eval.report import build_report, write_report
     from ..inference.animator import Animator, find_model
     from ..paths import workspace
 
@@ -142,7 +143,8 @@ def _main(argv: Sequence[str] | None) -> int:
         bundle.require_folds()
     elif args.detail_strength is not None or args.detail_base is not None:
         raise InputError("hrr-eval", "--detail-strength and --detail-base set the detail mode, which --modes leaves out")
-    detail_as_asked = detail_setting(args, bundle)  # checked now, not after minutes of simulation
+    detail_options(args)  # checked now, not after the simulations
+    look = bundle.detail_setting(args.detail_base, args.detail_strength) if Mode.DETAIL in modes else None
     out = args.output or workspace() / "eval" / model_dir.name
     records = [ds.sequence(n) for n in names]
     collision, progress = not args.no_collision, not args.quiet
@@ -154,24 +156,23 @@ def _main(argv: Sequence[str] | None) -> int:
     gate, tau = animator.gate_setting(args.gate, args.tau)
     print(f"evaluating {model_dir} on {len(records)} {args.split} sequences of {dataset} ({sum(len(r.garment) for r in records)} "
           f"frames): {', '.join(modes)}")
-    with detail_as_asked:  # the main model's detail mode as asked (not the --paper model's)
-        detail = {"strength": bundle.detail_strength, "base": bundle.detail_base}
-        results = evaluate_modes(animator, records, modes, tau, args.exclude_own_sequence, collision, progress, ensembles, gate)
-        sweep = None
-        if not args.no_sweep:
-            taus = args.tau_sweep or default_taus(animator, records, gate)
-            sweep = tau_sweep(animator, records, taus, args.exclude_own_sequence, collision, progress, gate)
-        real = None
-        if args.motions:
-            real = real_motion_section(animator, ds, args.motions, modes, (gate, tau), collision, progress, args.fps,
-                                       args.ensemble, args.jobs)
-        paper = None
-        if args.paper:
-            paper = paper_section(args.paper, bundle, records, modes, collision, progress, ensembles)
-        library = None
-        if args.library:
-            library = library_section(animator, ds, args.library, args.library_seed, modes, (gate, tau), collision, progress,
-                                      args.ensemble, args.jobs, args.tau_sweep, not args.no_sweep)
+    results = evaluate_modes(animator, records, modes, tau, args.exclude_own_sequence, collision, progress, ensembles, gate,
+                             look)
+    sweep = None
+    if not args.no_sweep:
+        taus = args.tau_sweep or default_taus(animator, records, gate)
+        sweep = tau_sweep(animator, records, taus, args.exclude_own_sequence, collision, progress, gate)
+    real = None
+    if args.motions:
+        real = real_motion_section(animator, ds, args.motions, modes, (gate, tau), collision, progress, args.fps,
+                                   args.ensemble, args.jobs, look)
+    paper = None
+    if args.paper:
+        paper = paper_section(args.paper, bundle, records, modes, collision, progress, ensembles)
+    library = None
+    if args.library:
+        library = library_section(animator, ds, args.library, args.library_seed, modes, (gate, tau), collision, progress,
+                                  args.ensemble, args.jobs, args.tau_sweep, not args.no_sweep, look)
     report = build_report(
         model={"folder": str(model_dir), "garment": bundle.garment, "hash": bundle.content_hash, "gate": bundle.gate,
                "tau": bundle.tau, "gates": bundle.meta.get("gates", {}), "auto": bundle.auto_mode,
@@ -180,7 +181,7 @@ def _main(argv: Sequence[str] | None) -> int:
         dataset={"path": str(dataset), "split": args.split, "sequences": names,
                  "frames": int(sum(len(r.garment) for r in records))},
         settings={"modes": modes, "gate": gate, "tau": tau, "collision": collision, "exclude_own_sequence": args.exclude_own_sequence,
-                  **({"detail": detail} if Mode.DETAIL in modes else {})},
+                  **({"detail": {"base": look[0], "strength": look[1]}} if look else {})},
         ensemble=ensemble_summary(ensembles, records, args.ensemble),
         modes=results, sweep=sweep, real=real, library=library, paper=paper, seconds=0.0)
     plots = [] if args.no_plots else write_plots(Path(out), results, sweep, tau, gate)

@@ -114,8 +114,8 @@ def calibrate_auto_mode(animator: Animator, records: list[SequenceRecord], allow
         error = bend = swing = 0.0
         for r, truth in zip(records, truths):  # a clip in the database (the paper's validation) may not retrieve itself
             own = names.index(r.name) if r.name in names else None
-            with bundle.detail_on(base, strength):
-                pred = animator.animate(r.motion, mode=mode, exclude_sequence=own).vertices.astype(np.float64)
+            look = {"detail_base": base, "detail_strength": strength} if mode == "detail" else {}
+            pred = animator.animate(r.motion, mode=mode, exclude_sequence=own, **look).vertices.astype(np.float64)
             error += M.pve_mm(pred, truth) * len(pred)
             bend += float(M.cloth_energies(pred, rest, topo)[1].sum())
             swing += hem_swing(pred, r.motion, hem) * len(pred)

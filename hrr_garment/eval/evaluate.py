@@ -150,11 +150,13 @@ class _Scorer:
 
 def evaluate_modes(animator: Animator, records: list[SequenceRecord], modes: list[str], tau: float | None = None,
                    exclude_own_sequence: bool = False, collision: bool = True, progress: bool = True,
-                   ensembles: dict[str, TruthEnsemble] | None = None, gate: str | None = None) -> dict[str, ModeResult]:
+                   ensembles: dict[str, TruthEnsemble] | None = None, gate: str | None = None,
+                   detail: tuple[str, float] | None = None) -> dict[str, ModeResult]:
     """Each mode on each record. ``exclude_own_sequence`` keeps a record's own database sequence
     (when it is one: training sequences) out of retrieval, as in the paper's comparison. Records
     with a truth ensemble in ``ensembles`` are also scored against it. ``gate``, ``tau``: the
-    hybrid's (default the model's calibrated ones)."""
+    hybrid's (default the model's calibrated ones); ``detail``: the detail mode's base and strength
+    (default the calibrated ones)."""
     bundle = animator.bundle
     gate, tau = animator.gate_setting(gate, tau)
     scorer = _Scorer(bundle.template, ensembles)
@@ -163,7 +165,9 @@ def evaluate_modes(animator: Animator, records: list[SequenceRecord], modes: lis
     jobs = [(m, r) for r in records for m in modes]
     for mode, record in tqdm(jobs, desc="evaluate", unit="run", disable=not progress):
         own = names.index(record.name) if exclude_own_sequence and record.name in names else None
-        anim = animator.animate(record.motion, mode=mode, tau=tau, collision=collision, exclude_sequence=own, gate=gate)
+        look = {"detail_base": detail[0], "detail_strength": detail[1]} if detail and mode == Mode.DETAIL else {}
+        anim = animator.animate(record.motion, mode=mode, tau=tau, collision=collision, exclude_sequence=own, gate=gate,
+                                **look)
         before = (anim.penetration.inside_before, anim.penetration.worst_before) if anim.penetration else None
         results[mode].sequences.append(scorer.sequence(anim.vertices, record, anim.mode.astype(bool),
                                                        anim.entropy.astype(np.float64), before))

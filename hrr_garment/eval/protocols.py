@@ -48,10 +48,11 @@ def ensemble_summary(ensembles: dict, records, members: int) -> dict:
 
 
 def simulated_section(animator, ds, specs, path: Path, purpose: str, modes: list[str], gate_tau: tuple[str, float],
-               collision: bool, progress: bool, members: int, jobs: int | None) -> tuple[dict, list, dict]:
+               collision: bool, progress: bool, members: int, jobs: int | None,
+               detail: tuple[str, float] | None = None) -> tuple[dict, list, dict]:
     """Simulate the ground truth of ``specs`` with the dataset's settings into ``path`` (parts cached)
-    and evaluate every mode there (the hybrid with ``gate_tau``: signal, threshold): the report
-    section, the records and their truth ensembles."""
+    and evaluate every mode there (the hybrid with ``gate_tau``: signal, threshold; the detail mode
+    with ``detail``: base, strength): the report section, the records and their truth ensembles."""
     from ..data.dataset import GarmentDataset
     from ..sim.build import build_dataset
     from ..sim.simulator import SimConfig
@@ -65,7 +66,7 @@ def simulated_section(animator, ds, specs, path: Path, purpose: str, modes: list
     records = [data.sequence(n) for n in report.sequences]
     ensembles = truth_ensembles_of(data, records, members, jobs, progress)
     gate, tau = gate_tau
-    results = evaluate_modes(animator, records, modes, tau, False, collision, progress, ensembles, gate)
+    results = evaluate_modes(animator, records, modes, tau, False, collision, progress, ensembles, gate, detail)
     return {"dataset": str(report.path), "sequences": report.sequences,
             "frames": int(sum(len(r.garment) for r in records)), "rejected": report.rejects,
             "ensemble": ensemble_summary(ensembles, records, members),
@@ -74,7 +75,8 @@ def simulated_section(animator, ds, specs, path: Path, purpose: str, modes: list
 
 def real_motion_section(animator, ds, files: list[str], modes: list[str], gate_tau: tuple[str, float], collision: bool,
                  progress: bool,
-                 source_fps: float | None = None, members: int = 0, jobs: int | None = None) -> dict:
+                 source_fps: float | None = None, members: int = 0, jobs: int | None = None,
+                 detail: tuple[str, float] | None = None) -> dict:
     """The real motion files' section: their ground truth simulated with the dataset's settings."""
     from ..paths import workspace
     from ..sim.plan import load_preset, plan_sequences
@@ -82,7 +84,7 @@ def real_motion_section(animator, ds, files: list[str], modes: list[str], gate_t
     specs = plan_sequences(load_preset(str(ds.info.get("preset", "quick"))), motions=list(files), source_fps=source_fps)
     path = workspace() / "eval" / f"{ds.path.stem}-real-motion.h5"
     section, _, _ = simulated_section(animator, ds, specs, path, "hrr-eval real motion", modes, gate_tau, collision,
-                                      progress, members, jobs)
+                                      progress, members, jobs, detail)
     return {"files": [str(f) for f in files], **section}
 
 
@@ -112,7 +114,8 @@ def paper_section(folder: Path, bundle, records, modes: list[str], collision: bo
 
 def library_section(animator, ds, count: int, seed: int, modes: list[str], gate_tau: tuple[str, float], collision: bool,
              progress: bool,
-             members: int, jobs: int | None, taus: list[float] | None, sweep: bool) -> dict | None:
+             members: int, jobs: int | None, taus: list[float] | None, sweep: bool,
+             detail: tuple[str, float] | None = None) -> dict | None:
     """The library protocol's section (docs/results.md): ``count`` plays of the clips in the
     model's database, simulated and evaluated, with their own tau sweep and goals."""
     from ..paths import workspace
@@ -131,7 +134,7 @@ def library_section(animator, ds, count: int, seed: int, modes: list[str], gate_
     print(f"library protocol: {count} plays of the database's clips (motions in {folder})")
     specs = [SequenceSpec(p.name, "file", path=str(f), start=0, stop=p.motion.num_frames) for p, f in zip(plays, files)]
     section, records, ensembles = simulated_section(animator, ds, specs, folder / "truth.h5", "hrr-eval library protocol",
-                                                    modes, gate_tau, collision, progress, members, jobs)
+                                                    modes, gate_tau, collision, progress, members, jobs, detail)
     by_name = {p.name: p for p in plays}
     reference = evaluate_vertices(SOURCE_SIMULATION, {r.name: source_simulation(ds, by_name[r.name]) for r in records},
                                   records, animator.bundle.template, ensembles)

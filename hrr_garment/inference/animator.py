@@ -151,26 +151,38 @@ class Animator:
         return self.bundle.codespace.config.window
 
     def animate(self, motion: Motion, mode: Mode | str = Mode.AUTO, tau: float | None = None, collision: bool = True,
-                causal: bool = False, exclude_sequence: int | None = None, gate: str | None = None) -> Animation:
+                causal: bool = False, exclude_sequence: int | None = None, gate: str | None = None,
+                detail_base: str | None = None, detail_strength: float | None = None) -> Animation:
         """Animate a whole clip (see :mod:`hrr_garment.inference`): ``mode`` auto (the model's calibrated
         choice, :meth:`resolve_mode`) | hybrid | regression | retrieval | residual | detail | naive-nn,
         or direct (the baseline, when the bundle has it; offline only); ``gate`` the hybrid's signal
         (default the model's calibrated one, :data:`~hrr_garment.artifacts.gate_signals.GATE_SIGNALS`) and
         ``tau`` its threshold (default the one calibrated for that signal); ``causal`` gives what
-        streaming gives; ``exclude_sequence`` keeps one database sequence out of retrieval (evaluation)."""
-        mode = self.resolve_mode(mode, gate, tau)
+        streaming gives; ``exclude_sequence`` keeps one database sequence out of retrieval (evaluation);
+        ``detail_base`` ("regression" or "residual") and ``detail_strength`` (in (0, 2], 1: the
+        folds as simulated) the detail mode's look (default the model's calibrated one)."""
+        mode = self.resolve_mode(mode, gate, tau, detail_base is not None or detail_strength is not None)
         gate, tau = self.gate_setting(gate, tau)
+        detail = self.bundle.detail_setting(detail_base, detail_strength) if mode is Mode.DETAIL else None
         with flush_denormals():
-            return self._animate(motion, mode, tau, collision, causal, exclude_sequence, gate)
+            return self._animate(motion, mode, tau, collision, causal, exclude_sequence, gate, detail)
 
-    def resolve_mode(self, mode: Mode | str, gate: str | None = None, tau: float | None = None) -> Mode:
+    def resolve_mode(self, mode: Mode | str, gate: str | None = None, tau: float | None = None,
+                     detail: bool = False) -> Mode:
         """``mode`` itself, or for ``auto`` the mode this model was calibrated to run
         (:attr:`~hrr_garment.artifacts.bundle.Bundle.auto_mode`); an explicit ``gate`` or ``tau`` is
-        the hybrid's setting, so with either auto runs the hybrid."""
+        the hybrid's setting, so with either auto runs the hybrid, and a detail setting (``detail``:
+        one was given) the detail mode's. A ValueError where the settings ask for two modes or a
+        named mode does not use them."""
         mode = Mode(mode)
+        hybrid = gate is not None or tau is not None
+        if detail and mode not in (Mode.AUTO, Mode.DETAIL):
+            raise ValueError(f"a detail base or strength sets the detail mode; mode {mode.value} does not use them")
         if mode is not Mode.AUTO:
             return mode
-        return Mode.HYBRID if gate is not None or tau is not None else Mode(self.bundle.auto_mode)
+        if hybrid and detail:
+            raise ValueError("a gate or tau sets the hybrid and a detail base or strength the detail mode: name the mode")
+        return Mode.HYBRID if hybrid else Mode.DETAIL if detail else Mode(self.bundle.auto_mode)
 
     def gate_setting(self, gate: str | None, tau: float | None) -> tuple[str, float]:
         """The gate signal and threshold to run: the model's calibrated ones unless given."""
@@ -178,7 +190,7 @@ class Animator:
         return gate, self.bundle.gate_tau(gate) if tau is None else float(tau)
 
     def _animate(self, motion: Motion, mode: str, tau: float, collision: bool, causal: bool,
-                 exclude_sequence: int | None, gate: str) -> Animation:
+                 exclude_sequence: int | None, gate: str, detail: tuple[str, float] | None) -> Animation:
         t_frames, w = motion.num_frames, self.window
         if t_frames < 1:
             raise MotionError(motion.source, "the motion has no frames")
@@ -191,7 +203,7 @@ class Animator:
         else:
             if causal:
                 feats = causal_windows(self.features(motion, causal=True), w)
-                choice = self._choose(feats, mode, tau, exclude_sequence, gate, last_frame=True)
+                choice = self._choose(feats, mode, tau, exclude_sequence, gate, detail, last_frame=True)
                 latents = causal_latents(choice, self.blend)
                 proposals = causal_proposals(choice.source, w) if choice.detail else None
                 per_frame = np.arange(t_frames)
@@ -200,17 +212,17 @@ class Animator:
                 if t_frames < w:  # shorter than one window: pad with the last frame, keep the first T outputs
                     feats = np.concatenate([feats, np.repeat(feats[-1:], w - t_frames, 0)])
                 windows = np.ascontiguousarray(sequence_windows(feats, w))
-                choice = self._choose(windows, mode, tau, exclude_sequence, gate)
+                choice = self._choose(windows, mode, tau, exclude_sequence, gate, detail)
                 latents = blend_windows(choice.latents, len(feats))[:t_frames]
                 proposals = offline_proposals(choice.source, t_frames, w) if choice.detail else None
                 per_frame = np.clip(np.arange(t_frames) - w // 2, 0, len(windows) - 1)  # the window centred on t
             retrieved, entropy = choice.retrieved[per_frame].astype(np.uint8), choice.entropy[per_frame].astype(np.float32)
             source, doubt = choice.source[per_frame], choice.doubt[per_frame].astype(np.float32)
         local = body_frame_vertices(self.bundle, latents, self.decoder)
-        if proposals is not None:  # the detail mode: simulated folds on the regression's shape
+        if proposals is not None:  # the detail mode: simulated folds on the regression's shape (or the residual's)
             store = self.bundle.folds
             rows, weights = track_folds(proposals, store.offsets)
-            local = add_folds(local, store.folds(rows, weights), self.smoothing, store.passes, self.bundle.detail_strength)
+            local = add_folds(local, store.folds(rows, weights), self.smoothing, store.passes, detail[1])
         vertices = world_vertices(local, motion)
         report = None
         if collision:
@@ -219,14 +231,8 @@ class Animator:
         return Animation(vertices, self.bundle.template.faces, motion.fps, retrieved, entropy, source, motion.joint_positions,
                          self.bundle.garment, self.bundle.content_hash, motion.source,
                          {"mode": str(mode), "gate": gate, "tau": tau, "causal": int(causal), "collision": int(collision),
-                          **self._detail_settings(mode)},
+                          **({"detail_base": detail[0], "detail_strength": detail[1]} if detail else {})},
                          report, np.stack(DEFAULT_BODY.pose_motion(motion), 2).astype(np.float32), doubt)
-
-    def _detail_settings(self, mode: Mode) -> dict:
-        """What the detail mode ran with, for the output's attributes; nothing for the other modes."""
-        if mode is not Mode.DETAIL:
-            return {}
-        return {"detail_strength": self.bundle.detail_strength, "detail_base": self.bundle.detail_base}
 
     def _direct_latents(self, motion: Motion) -> np.ndarray:
         """(T, nodes, C) latents of the direct-regression baseline (causal: a GRU over the clip)."""
@@ -244,19 +250,22 @@ class Animator:
         return with_memory(plain, motion.fps, self.bundle.codespace.config.memory)
 
     def _choose(self, windows: np.ndarray, mode: str, tau: float, exclude_sequence: int | None, gate: str,
-                last_frame: bool = False):
+                detail: tuple[str, float] | None = None, last_frame: bool = False):
         exclude = None if exclude_sequence is None else np.full(len(windows), exclude_sequence)
         step = self.causal_step(Mode(mode).regresses) if last_frame else None
-        return choose_windows(self.bundle, windows, mode, tau, exclude, last_frame, step=step, gate=gate)
+        return choose_windows(self.bundle, windows, mode, tau, exclude, last_frame, step=step, gate=gate,
+                              detail_base=detail[0] if detail else "regression")
 
     def stream(self, mode: Mode | str = Mode.AUTO, tau: float | None = None, collision: bool = True,
-               rig=None, gate: str | None = None) -> AnimationStream:
+               rig=None, gate: str | None = None, detail_base: str | None = None,
+               detail_strength: float | None = None) -> AnimationStream:
         """One character, causal, one pose in and one frame out (:class:`~.stream.AnimationStream`);
         ``rig``: a :class:`~hrr_garment.motion.stream_rig.StreamRig` for poses on a source skeleton;
-        ``gate``, ``tau``: as :meth:`animate`."""
-        return AnimationStream(self, mode, tau, collision, rig, gate)
+        ``gate``, ``tau``, ``detail_base``, ``detail_strength``: as :meth:`animate`."""
+        return AnimationStream(self, mode, tau, collision, rig, gate, detail_base, detail_strength)
 
     def crowd(self, mode: Mode | str = Mode.AUTO, tau: float | None = None, collision: bool = True,
-              rig=None, gate: str | None = None) -> CrowdStream:
+              rig=None, gate: str | None = None, detail_base: str | None = None,
+              detail_strength: float | None = None) -> CrowdStream:
         """Many characters, one call per frame for all of them (:class:`~.stream.CrowdStream`)."""
-        return CrowdStream(self, mode, tau, collision, rig, gate)
+        return CrowdStream(self, mode, tau, collision, rig, gate, detail_base, detail_strength)

@@ -36,10 +36,13 @@ class WindowChoice:
 
 def choose_windows(bundle: Bundle, motion_windows: np.ndarray, mode: str, tau: float,
                    exclude: np.ndarray | None = None, last_frame: bool = False,
-                   step: torch.nn.Module | None = None, gate: str = "entropy") -> WindowChoice:
+                   step: torch.nn.Module | None = None, gate: str = "entropy",
+                   detail_base: str = "regression") -> WindowChoice:
     """Run the motion encoder on raw feature windows (N, W, F) and pick each window's latents
     (with ``last_frame``, only the last frame's: all that causal inference blends). ``step``:
-    see :func:`encode_motion`; ``gate``: the hybrid's signal (see the module docstring)."""
+    see :func:`encode_motion`; ``gate``: the hybrid's signal (see the module docstring);
+    ``detail_base``: the latents the detail mode's folds ride on, the regression's or the residual
+    mode's."""
     if mode not in CODE_MODES:
         raise ValueError(f"unknown mode {str(mode)!r}; choose one of {', '.join(CODE_MODES)}")
     mode = Mode(mode)
@@ -57,8 +60,8 @@ def choose_windows(bundle: Bundle, motion_windows: np.ndarray, mode: str, tau: f
         latents = enc.regression
         # the detail mode adds the matches' folds (.detail) to the regression's latents or to the
         # residual mode's (the match's own departure from the regression carries the hem's swing,
-        # the folds its sharpness), as the bundle's auto calibration chose (Bundle.detail_base)
-        if mode is Mode.RESIDUAL or bundle.detail_base == "residual":
+        # the folds its sharpness)
+        if mode is Mode.RESIDUAL or detail_base == "residual":
             matched = db.latents[match, -frames:]
             own = match_regression(bundle.codespace, bundle.motion_stats, bundle.latent_stats, db, match, last_frame, step)
             latents = residual_latents(enc.regression, matched, own, similarity, bundle.residual_weight)

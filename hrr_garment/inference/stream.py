@@ -74,14 +74,16 @@ class CrowdStream:
     :class:`~hrr_garment.motion.stream_rig.StreamRig` when poses come on a source skeleton."""
 
     def __init__(self, animator, mode: str = Mode.AUTO, tau: float | None = None, collision: bool = True, rig=None,
-                 gate: str | None = None):
+                 gate: str | None = None, detail_base: str | None = None, detail_strength: float | None = None):
         if mode != Mode.AUTO and mode not in CODE_MODES:
             raise ValueError(f"streaming runs auto or one of {', '.join(CODE_MODES)}, not {str(mode)!r}")
         self.animator, self.collision, self.rig = animator, collision, rig
-        self.mode = animator.resolve_mode(mode, gate, tau)
+        self.mode = animator.resolve_mode(mode, gate, tau, detail_base is not None or detail_strength is not None)
         self.gate, self.tau = animator.gate_setting(gate, tau)
+        self.detail = None  # the detail mode's (base, strength), fixed for the stream's life
         if self.mode is Mode.DETAIL:
             animator.bundle.require_folds()
+            self.detail = animator.bundle.detail_setting(detail_base, detail_strength)
         self._characters: dict[Hashable, _Character] = {}
         self.timings = _Timings()
         regression = self.mode.regresses
@@ -175,7 +177,7 @@ class CrowdStream:
         windows = np.stack([np.stack(c.features) for c in chars])  # (N, W, F)
         t.append(time.perf_counter())
         choice = choose_windows(self.animator.bundle, windows, self.mode, self.tau, last_frame=True, step=self._step,
-                                gate=self.gate)
+                                gate=self.gate, detail_base=self.detail[0] if self.detail else "regression")
         path_latents, retrieved = latent_sources(choice)
         latents = np.empty((len(chars), *choice.latents.shape[2:]), np.float32)
         for i, c in enumerate(chars):
@@ -184,9 +186,8 @@ class CrowdStream:
         with torch.no_grad():
             local = self.animator.decoder(torch.from_numpy(latents)).numpy()
         if choice.detail:  # the detail mode: each character's playhead one frame on, its folds added
-            bundle = self.animator.bundle
-            local = add_folds(local, self._folds(chars, choice.source), self.animator.smoothing, bundle.folds.passes,
-                              bundle.detail_strength)
+            local = add_folds(local, self._folds(chars, choice.source), self.animator.smoothing,
+                              self.animator.bundle.folds.passes, self.detail[1])
         t.append(time.perf_counter())
         vertices = world_vertices(local, poses)  # as offline: the same push-out inputs
         t.append(time.perf_counter())
@@ -207,8 +208,8 @@ class AnimationStream:
     ``push`` equals frame t of ``animator.animate(motion, causal=True)`` (tested to 1e-5)."""
 
     def __init__(self, animator, mode: str = Mode.AUTO, tau: float | None = None, collision: bool = True, rig=None,
-                 gate: str | None = None):
-        self.crowd = CrowdStream(animator, mode, tau, collision, rig, gate)
+                 gate: str | None = None, detail_base: str | None = None, detail_strength: float | None = None):
+        self.crowd = CrowdStream(animator, mode, tau, collision, rig, gate, detail_base, detail_strength)
 
     @property
     def mode(self) -> Mode:
