@@ -129,3 +129,29 @@ def test_a_trained_bundle_stores_frames_and_one_that_stored_windows_still_loads(
     assert after < before and load_file(str(copy / "database.safetensors")).keys() == stored.keys()
     again = load_bundle(copy).database
     assert np.array_equal(again.latents.windows(), windows["latents"]) and np.array_equal(again.motion.frames, stored["motion_frames"])
+
+
+def test_everything_before_a_database_runs_without_faiss():
+    """FAISS is imported where an index is built, so training a mesh autoencoder needs none (a bare
+    GPU image); building a database without it says what to install."""
+    import subprocess
+    import sys
+
+    script = (
+        "import sys\n"
+        "class Block:\n"
+        "    def find_spec(self, name, path=None, target=None):\n"
+        "        if name == 'faiss': raise ImportError('no faiss here')\n"
+        "sys.meta_path.insert(0, Block())\n"
+        "import numpy as np\n"
+        "import hrr_garment.cli.train, hrr_garment.train.autoencoder, hrr_garment.inference.animator\n"
+        "from hrr_garment.artifacts.database import CodeDatabase\n"
+        "try:\n"
+        "    CodeDatabase(np.zeros((2, 3), np.uint8), np.zeros((2, 4, 3, 2), np.float32), np.zeros(2, np.int32),\n"
+        "                 np.zeros(2, np.int32), ['a'], 4)\n"
+        "except ImportError as exc:\n"
+        "    print(exc)\n"
+    )
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert "pip install faiss-cpu" in done.stdout

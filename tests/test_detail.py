@@ -248,6 +248,8 @@ def test_hrr_animate_runs_the_detail_mode_as_it_is_told(trained, tmp_path, capsy
     causal = animator.animate(motion, mode="detail", detail_base="residual", detail_strength=1.3, collision=False,
                               causal=True)
     assert np.allclose(streamed, causal.vertices, atol=1e-5)
+    from_array = animator.animate(motion, detail_strength=np.float32(1.3), detail_base="residual", collision=False)
+    assert from_array.settings["detail_strength"] == pytest.approx(1.3) and isinstance(from_array.settings["detail_strength"], float)
     for kwargs in ({"mode": "hybrid", "detail_strength": 1.0}, {"tau": 0.1, "detail_base": "regression"},
                    {"detail_strength": 0.0}, {"detail_base": "shape"}):
         with pytest.raises(ValueError):

@@ -134,6 +134,8 @@ class Bundle:
         a BundleError where a residual base has no residual to ride on."""
         base = self.detail_base if base is None else base
         strength = self.detail_strength if strength is None else strength
+        if isinstance(strength, np.generic):  # a numpy scalar from a caller's array: its Python value
+            strength = strength.item()
         if base not in DETAIL_BASES:
             raise ValueError(f"the detail mode's base is one of {', '.join(DETAIL_BASES)}, got {base!r}")
         if not valid_detail_strength(strength):

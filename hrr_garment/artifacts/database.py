@@ -19,13 +19,22 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import faiss
 import numpy as np
 
 from ..data.windows import WindowFrames
 
 RERANK = 8  # naive nearest neighbour: candidates ranked again in float64
 FRAMES_KEY = {"latents": "latent_frames", "motion": "motion_frames"}  # a bundle's names for the frame form
+
+
+def _faiss():
+    """The FAISS module, imported where an index is built: everything up to the first database
+    (training a mesh autoencoder on a bare GPU image, say) runs without it."""
+    try:
+        import faiss
+    except ImportError:
+        raise ImportError("the retrieval database needs FAISS, a core dependency: pip install faiss-cpu") from None
+    return faiss
 
 
 def pack_codes(codes: np.ndarray, classes: int) -> np.ndarray:
@@ -65,7 +74,7 @@ class CodeDatabase:
             raise ValueError(f"database codes use class {int(self.codes.max())} but there are {self.classes} classes")
         self.groups = groups
         packed = pack_codes(self.codes, self.classes)
-        self.index = faiss.IndexBinaryFlat(packed.shape[1] * 8)
+        self.index = _faiss().IndexBinaryFlat(packed.shape[1] * 8)
         self.index.add(packed)
 
     def __len__(self) -> int:
@@ -104,7 +113,7 @@ class CodeDatabase:
             raise ValueError("this database has no motion windows (naive-NN needs them)")
         if not hasattr(self, "_motion_index"):  # every window in full: the baseline's memory, built on first use
             windows = self.motion.windows() if isinstance(self.motion, WindowFrames) else self.motion
-            self._motion_index = faiss.IndexFlatL2(int(np.prod(windows.shape[1:])))
+            self._motion_index = _faiss().IndexFlatL2(int(np.prod(windows.shape[1:])))
             self._motion_index.add(np.ascontiguousarray(windows.reshape(len(windows), -1), np.float32))
         q = np.ascontiguousarray(np.asarray(motion, np.float32).reshape(len(motion), -1))
         _, idx, allowed = self._search(self._motion_index, q, exclude, RERANK)
