@@ -35,7 +35,7 @@ from ..motion.edit import crossfade, retimed, smoothstep_weights
 from ..motion.frame import from_body_frame, to_body_frame
 from ..motion.io import save_motion
 from ..motion.motion import Motion
-from ..motion.resample import resample_times
+from ..motion.resample import resample_linear, resample_times
 
 SPEED_RANGE = (0.9, 1.1)  # re-timing factors a game applies to match a character's speed
 BLEND_S = (0.3, 0.5)  # cross-fade lengths between two clips
@@ -124,11 +124,7 @@ def source_simulation(ds: GarmentDataset, play: LibraryPlay) -> np.ndarray:
     parts = []
     for source in play.sources:
         record = ds.sequence(source.clip)
-        local = to_body_frame(record.garment.astype(np.float64), record.motion)
-        i0 = np.floor(source.frames).astype(np.int64)
-        i1 = np.minimum(i0 + 1, len(local) - 1)
-        f = (source.frames - i0)[:, None, None]
-        parts.append((1 - f) * local[i0] + f * local[i1])
+        parts.append(resample_linear(to_body_frame(record.garment.astype(np.float64), record.motion), source.frames))
     local = parts[0]
     if len(parts) == 2:
         first, second, n = parts[0], parts[1], play.blend

@@ -141,6 +141,6 @@ def library_section(animator, ds, count: int, seed: int, modes: list[str], gate_
     gate = gate_tau[0]
     points = tau_sweep(animator, records, taus or default_taus(animator, records, gate), False, collision, progress,
                        gate) if sweep and records else None
-    section.update(plays={p.name: p.description for p in plays}, seed=seed, source_simulation=reference.to_dict(), tau_sweep=[vars(p) for p in points or []],
-                   goals=library_goals(section["modes"], points))
+    section.update(plays={p.name: p.description for p in plays}, seed=seed, source_simulation=reference.to_dict(),
+                   tau_sweep=[vars(p) for p in points or []], goals=library_goals(section["modes"], points))
     return section
