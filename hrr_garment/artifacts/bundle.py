@@ -9,15 +9,16 @@ Files (all arrays as safetensors, nothing pickled)::
     quantizer.safetensors        the quantiser's class embeddings
     stats.safetensors            motion feature and garment latent mean/std
     database.safetensors         retrieval database: codes, source sequence/frame, and the windows'
-                                 latents and standardised motion, each frame once (bundles before
-                                 2026-11-26: every window in full)
+                                 latents and standardised motion, each frame once (or, in older
+                                 bundles, every window in full: :class:`.database.CodeDatabase` reads both)
     template.safetensors         template vertices, faces, attached vertex indices, vertex groups (group/NAME)
     folds.safetensors            every database frame's simulated folds, for the detail mode (:mod:`.folds`)
 
 ``bundle.json`` is written last (:mod:`.bundle_writer`): a directory without it (or whose files do
 not match its hashes) is not a bundle, so an interrupted write never looks like a model.
-:func:`load_bundle` checks the version, every file's hash and every tensor's shape, and says which
-and why when one is off.
+:func:`load_bundle` checks the version (older manifests are upgraded by
+:func:`~.manifest.migrate_manifest`), every file's hash and every tensor's shape, and says which and
+why when one is off.
 """
 
 from __future__ import annotations
@@ -38,17 +39,9 @@ from ..models.fcmae import AutoencoderConfig, MeshAutoencoder
 from ..models.hierarchy import cached_hierarchy
 from ..motion.features import FeatureStats
 from .database import CodeDatabase
-from .folds import DETAIL_STRENGTH, FoldStore
+from .folds import FoldStore
 from .gate_signals import GATE_SIGNALS
-from .manifest import (
-    DETAIL_BASES,
-    FOLDS_FILE,
-    MAX_DETAIL_STRENGTH,
-    NETWORKS,
-    BundleError,
-    read_meta,
-    valid_detail_strength,
-)
+from .manifest import FOLDS_FILE, NETWORKS, UNCALIBRATED_AUTO, BundleError, read_meta
 
 
 @dataclass
@@ -64,7 +57,7 @@ class Bundle:
     database: CodeDatabase
     template: GarmentMesh
     direct: DirectRegressor | None = None  # the direct-regression baseline, when trained
-    folds: FoldStore | None = None  # the database frames' folds (bundles before 2026-11-25: none)
+    folds: FoldStore | None = None  # the database frames' folds, for the detail mode (where the bundle has them)
 
     @property
     def tau(self) -> float:
@@ -73,8 +66,8 @@ class Bundle:
 
     @property
     def gate(self) -> str:
-        """The hybrid's calibrated gate signal (bundles written before the match gates: entropy)."""
-        return str(self.meta.get("gate", "entropy"))
+        """The hybrid's calibrated gate signal."""
+        return str(self.meta["gate"])
 
     def gate_tau(self, signal: str) -> float:
         """The threshold calibrated for gate ``signal``: :attr:`tau` for the model's own gate, the
@@ -83,7 +76,7 @@ class Bundle:
             return self.tau
         if signal not in GATE_SIGNALS:
             raise BundleError(self.folder, f"has no gate {signal!r}; the gates are {', '.join(GATE_SIGNALS)}")
-        calibrated = self.meta.get("gates", {}).get(signal)
+        calibrated = self.meta["gates"].get(signal)
         if not calibrated:
             raise BundleError(self.folder, f"was not calibrated for the {signal!r} gate (trained before it, or "
                                            "hrr-train --stage codespace again); give its threshold with --tau")
@@ -118,40 +111,27 @@ class Bundle:
     def detail_base(self) -> str:
         """The latents the detail mode puts its simulated folds on, as the auto calibration chose
         (:mod:`hrr_garment.eval.auto_mode`): "residual", the residual mode's, or "regression" (also
-        for bundles calibrated before the choice, and where the residual cannot run)."""
-        base = self.meta.get("auto", {}).get("detail_base", "regression")
+        before the calibration, and where the residual cannot run)."""
+        base = self.auto["detail_base"]
         return "residual" if base == "residual" and self.has_residual and self.residual_weight > 0 else "regression"
 
     @property
     def detail_strength(self) -> float:
         """The strength of the detail mode's simulated folds, as the auto calibration chose
-        (:data:`~.folds.DETAIL_STRENGTH` for bundles calibrated before the choice)."""
-        return float(self.meta.get("auto", {}).get("detail_strength", DETAIL_STRENGTH))
+        (:data:`~.folds.DETAIL_STRENGTH` before the calibration)."""
+        return float(self.auto["detail_strength"])
 
-    def detail_setting(self, base: str | None = None, strength: float | None = None) -> tuple[str, float]:
-        """(base, strength) the detail mode runs: the calibrated ones (:attr:`detail_base`,
-        :attr:`detail_strength`) unless given; a ValueError for a base or strength it cannot take,
-        a BundleError where a residual base has no residual to ride on."""
-        base = self.detail_base if base is None else base
-        strength = self.detail_strength if strength is None else strength
-        if isinstance(strength, np.generic):  # a numpy scalar from a caller's array: its Python value
-            strength = strength.item()
-        if base not in DETAIL_BASES:
-            raise ValueError(f"the detail mode's base is one of {', '.join(DETAIL_BASES)}, got {base!r}")
-        if not valid_detail_strength(strength):
-            raise ValueError(f"the detail mode's strength is in (0, {MAX_DETAIL_STRENGTH:g}], got {strength!r}")
-        if base == "residual":
-            self.require_residual()
-            if self.residual_weight <= 0:
-                raise BundleError(self.folder, "its residual weight is calibrated to 0, so the residual mode is the "
-                                               "regression: run the detail mode on the regression")
-        return base, float(strength)
+    @property
+    def auto(self) -> dict:
+        """bundle.json's ``auto``: what the auto calibration chose, or, before it ran, the hybrid
+        with the default detail look."""
+        return self.meta.get("auto", UNCALIBRATED_AUTO)
 
     @property
     def auto_mode(self) -> str:
         """The mode ``auto`` runs: the one calibrated at training (:mod:`hrr_garment.eval.auto_mode`);
-        hybrid for a bundle calibrated before it, or where the mode it chose cannot run."""
-        mode = str(self.meta.get("auto", {}).get("mode", "hybrid"))
+        hybrid before the calibration, or where the mode it chose cannot run."""
+        mode = str(self.auto["mode"])
         runnable = {"residual": self.has_residual, "detail": self.folds is not None}.get(mode, True)
         return mode if runnable else "hybrid"
 
@@ -212,9 +192,7 @@ def load_bundle(folder: str | Path, cache_dir: Path | None = None) -> Bundle:
     meta = read_meta(folder)
     try:
         ae_cfg = AutoencoderConfig.from_dict(meta["autoencoder"]["config"])
-        # bundles written before the motion memory (2026-11-24) have none
-        # settings added later take their old behaviour in bundles written before them
-        cs_cfg = CodeSpaceConfig.from_dict({"memory_seconds": [], "resonator_hz": [], "regression_code": "argmax", **meta["codespace"]["config"]})
+        cs_cfg = CodeSpaceConfig.from_dict(meta["codespace"]["config"])
         features = int(meta["codespace"]["features"])
         latent_shape = tuple(meta["codespace"]["latent_shape"])
     except (KeyError, TypeError, ValueError) as exc:
@@ -222,7 +200,7 @@ def load_bundle(folder: str | Path, cache_dir: Path | None = None) -> Bundle:
     if features != cs_cfg.features:
         raise BundleError(folder, f"the model was trained on {features} motion features; its settings give {cs_cfg.features}")
     t = _arrays(folder, "template.safetensors", ("vertices", "faces", "attached"))
-    groups = {k.split("/", 1)[1]: v for k, v in t.items() if k.startswith("group/")}  # none in bundles before 2026-11-24
+    groups = {k.split("/", 1)[1]: v for k, v in t.items() if k.startswith("group/")}  # the template's vertex groups, if any
     template = GarmentMesh(str(meta["garment"]), t["vertices"], t["faces"], {**groups, "attached": t["attached"]}, ("attached",))
     try:
         check_garment(template)

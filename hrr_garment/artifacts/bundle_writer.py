@@ -64,7 +64,7 @@ def write_bundle(folder: str | Path, *, autoencoder: MeshAutoencoder, codespace:
                             "sizes": list(autoencoder.hierarchy.sizes)},
             "codespace": {"config": codespace.config.to_dict(), "features": codespace.features,
                           "latent_shape": list(codespace.latent_shape)},
-            "tau": float(tau), "gate": gate, "database": {"names": database.names, "classes": database.classes, "windows": len(database)},
+            "tau": float(tau), "gate": gate, "gates": {}, "database": {"names": database.names, "classes": database.classes, "windows": len(database)},
             "files": files, "content_hash": content_hash(files),
             **info}
     atomic_write_text(folder / "bundle.json", strict_json(meta, indent=2))

@@ -2,8 +2,22 @@
 
 It records the format version, the garment, the calibrated settings (gate, tau, residual weight,
 auto mode) and the sha256 of every other file with a content hash over them. :func:`read_meta`
-refuses a manifest that is of another version, malformed, edited by hand or out of step with its
-files, and says which and why; there is no off switch.
+refuses a manifest that is malformed, edited by hand or out of step with its files, and says which
+and why; there is no off switch.
+
+Versions: :data:`FORMAT_VERSION` moves whenever a field arrives or changes meaning, and
+:func:`migrate_manifest` upgrades an older manifest to the current one in memory, one step per
+version, so that everything after it reads every field as the current version defines it.
+
+- 1: garments in world coordinates (not readable: retrain).
+- 2: garments in the pelvis-following body frame (:mod:`hrr_garment.motion.frame`); optional
+  fields that later arrived one by one (``gate``, ``gates``, ``residual``, ``auto`` and its detail
+  look, ``folds``, the code space's motion memory and regression code).
+- 3: every calibrated field present with its value: ``gate``, ``gates`` (each other signal's
+  calibrated tau), ``auto.detail_base`` and ``auto.detail_strength`` wherever ``auto`` is, and the
+  code space's ``memory_seconds``, ``resonator_hz`` and ``regression_code``. ``auto`` is absent
+  until training calibrates it (``auto`` then runs the hybrid), ``residual`` where the database
+  has no motion windows, ``folds`` and ``direct`` where the bundle has no such part.
 """
 
 from __future__ import annotations
@@ -14,13 +28,17 @@ import math
 from pathlib import Path
 
 from ..errors import InputError
+from .folds import DETAIL_STRENGTH
 from .gate_signals import GATE_SIGNALS
 
-FORMAT_VERSION = 2  # 2: garments in the pelvis-following body frame (motion/frame.py)
+FORMAT_VERSION = 3  # see the module docstring
+OLDEST_READABLE = 2  # version 1 kept garments in world coordinates: no step upgrades its networks
 NETWORKS = ("motion_encoder", "garment_encoder", "decoder", "quantizer")
-FOLDS_FILE = "folds.safetensors"  # the detail mode's simulated folds (.folds), in bundles since 2026-11-25
+FOLDS_FILE = "folds.safetensors"  # the detail mode's simulated folds (.folds)
 AUTO_CHOICES = ("hybrid", "residual", "detail")  # what mode ``auto`` may stand for (eval/auto_mode.py chooses)
 DETAIL_BASES = ("regression", "residual")  # what the detail mode's folds may ride on (eval/auto_mode.py chooses)
+#: what ``auto`` stands for until training calibrates it: the hybrid, with the default detail look
+UNCALIBRATED_AUTO = {"mode": "hybrid", "detail_base": "regression", "detail_strength": DETAIL_STRENGTH}
 MAX_DETAIL_STRENGTH = 2.0  # the detail mode's folds at most twice the simulated ones (eval/auto_mode.py chooses)
 
 
@@ -75,25 +93,53 @@ def check_manifest(folder: Path, meta: object) -> dict:
         raise BundleError(folder, f"bundle.json 'garment' must be a name, got {garment!r}")
     if isinstance(tau, bool) or not isinstance(tau, (int, float)) or not math.isfinite(tau) or tau < 0:
         raise BundleError(folder, f"bundle.json 'tau' must be a finite number >= 0, got {tau!r}")
-    if meta.get("gate", "entropy") not in GATE_SIGNALS:
+    if meta.get("gate") not in GATE_SIGNALS:
         raise BundleError(folder, f"bundle.json 'gate' must be one of {', '.join(GATE_SIGNALS)}, got {meta.get('gate')!r}")
     residual = meta.get("residual", {"weight": 0.0})
     weight = residual.get("weight") if isinstance(residual, dict) else None
     if isinstance(weight, bool) or not isinstance(weight, (int, float)) or not math.isfinite(weight) or weight < 0:
         raise BundleError(folder, f"bundle.json 'residual' must hold a finite 'weight' >= 0, got {residual!r}")
-    auto = meta.get("auto", {"mode": "hybrid"})
+    gates = meta.get("gates")
+    if not isinstance(gates, dict) or not all(k in GATE_SIGNALS and isinstance(v, dict) for k, v in gates.items()):
+        raise BundleError(folder, f"bundle.json 'gates' must map gate signals to their calibration, got {gates!r}")
+    auto = meta.get("auto", UNCALIBRATED_AUTO)
     if not isinstance(auto, dict) or auto.get("mode") not in AUTO_CHOICES:
         raise BundleError(folder, f"bundle.json 'auto' must hold a 'mode' of {', '.join(AUTO_CHOICES)}, got {auto!r}")
-    if auto.get("detail_base", "regression") not in DETAIL_BASES:
+    if auto.get("detail_base") not in DETAIL_BASES:
         raise BundleError(folder, f"bundle.json 'auto' 'detail_base' must be one of {', '.join(DETAIL_BASES)}, "
                                   f"got {auto.get('detail_base')!r}")
-    strength = auto.get("detail_strength", 1.0)
+    strength = auto.get("detail_strength")
     if not valid_detail_strength(strength):
         raise BundleError(folder, f"bundle.json 'auto' 'detail_strength' must be a number in (0, {MAX_DETAIL_STRENGTH:g}], "
                                   f"got {strength!r}")
     for section in ("autoencoder", "codespace", "database"):
         if not isinstance(meta.get(section), dict):
             raise BundleError(folder, f"bundle.json lacks its {section!r} section")
+    return meta
+
+
+def migrate_manifest(folder: Path, meta: object) -> dict:
+    """``meta`` upgraded to :data:`FORMAT_VERSION`, one step per version (the module docstring
+    says what each brought); a BundleError for a version this hrr_garment cannot read."""
+    version = meta.get("format_version") if isinstance(meta, dict) else None
+    if isinstance(version, bool) or not isinstance(version, int) or not OLDEST_READABLE <= version <= FORMAT_VERSION:
+        hint = "upgrade hrr_garment" if isinstance(version, int) and version > FORMAT_VERSION else "retrain with hrr-train"
+        raise BundleError(folder, f"bundle format_version {version!r}; this hrr_garment reads {OLDEST_READABLE} to "
+                                  f"{FORMAT_VERSION} ({hint})")
+    if version == 2:
+        meta = _from_version_2(meta)
+    return meta
+
+
+def _from_version_2(meta: dict) -> dict:
+    """Version 2 -> 3: the values a field took where a version-2 bundle left it out."""
+    meta = {**meta, "format_version": 3, "gate": meta.get("gate", "entropy"), "gates": meta.get("gates", {})}
+    if isinstance(meta.get("auto"), dict):
+        meta["auto"] = {**UNCALIBRATED_AUTO, **meta["auto"]}
+    codespace = meta.get("codespace")
+    if isinstance(codespace, dict) and isinstance(codespace.get("config"), dict):
+        config = {"memory_seconds": [], "resonator_hz": [], "regression_code": "argmax", **codespace["config"]}
+        meta["codespace"] = {**codespace, "config": config}
     return meta
 
 
@@ -109,11 +155,7 @@ def read_meta(folder: str | Path) -> dict:
         meta = json.loads(path.read_text(encoding="utf-8"))
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise BundleError(folder, f"bundle.json is unreadable ({exc})") from None
-    if not isinstance(meta, dict) or meta.get("format_version") != FORMAT_VERSION:
-        version = meta.get("format_version") if isinstance(meta, dict) else None
-        raise BundleError(folder, f"bundle format_version {version!r}; this hrr_garment reads {FORMAT_VERSION} "
-                                  "(retrain with hrr-train)")
-    check_manifest(folder, meta)
+    check_manifest(folder, migrate_manifest(folder, meta))
     for name, digest in meta["files"].items():
         if not (folder / name).is_file():
             raise BundleError(folder, f"{name} is missing")

@@ -6,8 +6,9 @@ import argparse
 import sys
 from typing import Callable, Sequence
 
-from ..artifacts.manifest import DETAIL_BASES, MAX_DETAIL_STRENGTH, valid_detail_strength
+from ..artifacts.manifest import DETAIL_BASES, MAX_DETAIL_STRENGTH
 from ..errors import HRRError, InputError
+from ..inference.run_settings import DetailLook, RunSettings
 
 EXIT_ERROR = 2
 
@@ -30,12 +31,22 @@ def add_detail_options(p: argparse.ArgumentParser) -> None:
                         "brings the matched window's swing (default: the model's calibrated choice)")
 
 
-def detail_options(args: argparse.Namespace) -> dict:
-    """``--detail-strength`` / ``--detail-base`` as keyword arguments of ``Animator.animate`` (empty
-    where they ask nothing); an InputError for a strength out of range."""
-    if args.detail_strength is not None and not valid_detail_strength(args.detail_strength):
-        raise InputError("--detail-strength", f"must be in (0, {MAX_DETAIL_STRENGTH:g}], got {args.detail_strength:g}")
-    return {k: v for k, v in (("detail_base", args.detail_base), ("detail_strength", args.detail_strength)) if v is not None}
+def detail_look(args: argparse.Namespace) -> DetailLook:
+    """``--detail-strength`` / ``--detail-base`` as a :class:`DetailLook` (nothing chosen where
+    neither is given); an InputError naming the flag for a value it cannot take."""
+    try:
+        return DetailLook(args.detail_base, args.detail_strength)
+    except (TypeError, ValueError) as exc:
+        raise InputError("--detail-strength", str(exc)) from None
+
+
+def run_settings_of(args: argparse.Namespace, prog: str, **fields) -> RunSettings:
+    """``--mode`` (where the command has it), ``--gate`` and ``--tau`` and ``fields`` as
+    :class:`RunSettings`; an InputError for values or combinations they cannot take."""
+    try:
+        return RunSettings(**({"mode": args.mode} if hasattr(args, "mode") else {}), gate=args.gate, tau=args.tau, **fields)
+    except (TypeError, ValueError) as exc:
+        raise InputError(prog, str(exc)) from None
 
 
 def run_cli(body: Callable[[Sequence[str] | None], int], argv: Sequence[str] | None, prog: str) -> int:

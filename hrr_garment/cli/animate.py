@@ -23,7 +23,7 @@ from ..artifacts.gate_signals import GATE_SIGNALS
 from ..errors import InputError
 from ..inference.modes import Mode
 from ..native import PRECISIONS
-from ._common import add_detail_options, add_fps_option, detail_options, run_cli
+from ._common import add_detail_options, add_fps_option, detail_look, run_cli, run_settings_of
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -75,24 +75,21 @@ def _main(argv: Sequence[str] | None) -> int:
     animator = Animator.load(model_dir, precision=args.precision)
     if args.garment is not None and animator.bundle.garment != args.garment:
         raise InputError(model_dir, f"this model animates a {animator.bundle.garment}, not a {args.garment}")
-    detail = detail_options(args)
-    try:  # --gate/--tau run the hybrid, --detail-* the detail mode; asking both, or a mode without them, is refused
-        mode = animator.resolve_mode(args.mode, args.gate, args.tau, bool(detail))
-    except ValueError as exc:
-        raise InputError("hrr-animate", str(exc)) from None
-    anim = animator.animate(motion, mode=mode, tau=args.tau, collision=not args.no_collision, causal=args.causal,
-                            gate=args.gate, **detail)
+    # --gate/--tau run the hybrid, --detail-* the detail mode; asking both, or a mode without them, is refused
+    settings = run_settings_of(args, "hrr-animate", detail=detail_look(args), collision=not args.no_collision,
+                               causal=args.causal)
+    anim = animator.animate(motion, settings)
     anim.save(args.output)
     seconds = time.perf_counter() - t0
     # the gate decides in the hybrid only; the other modes retrieve always, never, or add a match's detail
     mode = Mode(anim.settings["mode"])
     gate = (f", gate {anim.settings['gate']} < {anim.settings['tau']:.3f}" if mode == Mode.HYBRID else
             f", folds x{anim.settings['detail_strength']:g} on the {anim.settings['detail_base']}" if mode == Mode.DETAIL else "")
-    used = "database used" if mode in (Mode.RESIDUAL, Mode.DETAIL) else "retrieval usage"
+    used = ("a database match on every frame" if mode in (Mode.RESIDUAL, Mode.DETAIL) else
+            f"retrieval usage {100 * anim.retrieval_usage:.1f} % of frames")
     named = f"{args.mode} = {mode}" if args.mode != mode else str(mode)
     print(f"wrote {args.output}: {anim.vertices.shape[0]} frames ({motion.duration_s:.2f} s at {anim.fps:g} fps), "
-          f"{anim.vertices.shape[1]} vertices; mode {named}{gate}, "
-          f"{used} {100 * anim.retrieval_usage:.1f} % of frames; {seconds:.1f} s")
+          f"{anim.vertices.shape[1]} vertices; mode {named}{gate}, {used}; {seconds:.1f} s")
     if anim.penetration is not None:
         p = anim.penetration
         print(f"  penetration (vertices > 5 mm inside the body): before push-out {100 * p.inside_before:.2f} % "

@@ -5,7 +5,7 @@
              --motions ../shared/data/mocap/cmu/*.bvh -o hrr_work/eval/dress-full
     hrr-eval --garment dress --split train --exclude-own-sequence --modes retrieval,naive-nn
 
-Writes REPORT_DIR/report.json (schema: docs/results.md), report.md and PNG plots (error over time
+Writes REPORT_DIR/report.json (schema: docs/evaluation.md), report.md and PNG plots (error over time
 per mode, entropy histogram with tau, tau curve). Each evaluated sequence of a simulated dataset is
 also simulated ``--ensemble K`` more times with tiny perturbations (cached under the workspace):
 report.md leads with every mode's error relative to that ensemble's spread (PVE / floor) and its
@@ -23,13 +23,16 @@ import argparse
 import math
 import sys
 import time
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Sequence
 
 from ..artifacts.gate_signals import GATE_SIGNALS
 from ..errors import InputError
+from ..eval.evaluate import EvaluationSettings, evaluate_modes, tau_sweep
 from ..inference.modes import Mode
-from ._common import add_detail_options, add_fps_option, detail_options, run_cli
+from ..paths import workspace
+from ._common import add_detail_options, add_fps_option, detail_look, run_cli, run_settings_of
 
 ALL_MODES = tuple(m.value for m in Mode)
 
@@ -93,22 +96,42 @@ def _parser() -> argparse.ArgumentParser:
 
 def _main(argv: Sequence[str] | None) -> int:
     args = _parser().parse_args(argv)
+    from ..eval.plots import write_plots
+    from ..eval.report import write_report
+
+    t0 = time.perf_counter()
+    job = _job(args)
+    report = _evaluate(job, args)
+    out = args.output or workspace() / "eval" / job.model_dir.name
+    plots = [] if args.no_plots else write_plots(Path(out), job.results, job.sweep, report["settings"]["tau"],
+                                                 report["settings"]["gate"])
+    report["seconds"] = time.perf_counter() - t0
+    json_path, md_path = write_report(out, report, plots)
+    _print_summary(report)
+    print(f"wrote {json_path}, {md_path}" + (f" and {len(plots)} plots" if plots else "") + f" in {report['seconds']:.0f} s")
+    return 0
+
+
+@dataclass
+class _Job:
+    """One hrr-eval run: the model, its dataset's records and the settings, all checked before any work."""
+
+    model_dir: Path
+    animator: object
+    ds: object
+    names: list[str]
+    records: list
+    settings: EvaluationSettings
+    results: dict | None = None
+    sweep: list | None = None
+
+
+def _job(args) -> _Job:
+    """The model, the dataset's records and the evaluation settings, each checked (before minutes of work)."""
     import numpy as np
 
     from ..data.dataset import DatasetError, GarmentDataset
-    from ..eval.evaluate import evaluate_modes, tau_sweep
-    from ..eval.plots import write_plots
-    from ..eval.protocols import (
-        default_taus,
-        ensemble_summary,
-        library_section,
-        paper_section,
-        real_motion_section,
-        truth_ensembles_of,
-    )
-    from ..eval.report import build_report, write_report
     from ..inference.animator import Animator, find_model
-    from ..paths import workspace
 
     if (args.garment is None) == (args.model is None):
         raise InputError("hrr-eval", "give exactly one of --garment NAME or --model DIR")
@@ -116,7 +139,6 @@ def _main(argv: Sequence[str] | None) -> int:
         if not Path(f).is_file():
             raise InputError(f, "no such motion file" + (" (a pattern the shell did not expand: leave it unquoted)"
                                                          if any(c in f for c in "*?[") else ""))
-    t0 = time.perf_counter()
     model_dir = find_model(args.model or args.garment)
     animator = Animator.load(model_dir)
     bundle = animator.bundle
@@ -137,59 +159,68 @@ def _main(argv: Sequence[str] | None) -> int:
     modes = args.modes or [m for m in ALL_MODES if m != Mode.AUTO and animator.supports(m)]  # auto: one of them
     if Mode.DIRECT in modes and not animator.has_direct:
         raise InputError(model_dir, "has no direct-regression baseline: train it with hrr-train --stage baseline")
-    if Mode.RESIDUAL in modes:
-        bundle.require_residual()
-    if Mode.DETAIL in modes:
-        bundle.require_folds()
-    elif args.detail_strength is not None or args.detail_base is not None:
+    look = detail_look(args)
+    if look.chosen and Mode.DETAIL not in modes:
         raise InputError("hrr-eval", "--detail-strength and --detail-base set the detail mode, which --modes leaves out")
-    detail_options(args)  # checked now, not after the simulations
-    look = bundle.detail_setting(args.detail_base, args.detail_strength) if Mode.DETAIL in modes else None
-    out = args.output or workspace() / "eval" / model_dir.name
-    records = [ds.sequence(n) for n in names]
-    collision, progress = not args.no_collision, not args.quiet
     if args.library < 0:
         raise InputError("hrr-eval", f"--library takes 0 (none) or a number of plays, got {args.library}")
     if args.ensemble == 1 or args.ensemble < 0:
         raise InputError("hrr-eval", f"--ensemble takes 0 (none) or at least 2 members, got {args.ensemble}")
-    ensembles = truth_ensembles_of(ds, records, args.ensemble, args.jobs, progress)
-    gate, tau = animator.gate_setting(args.gate, args.tau)
-    print(f"evaluating {model_dir} on {len(records)} {args.split} sequences of {dataset} ({sum(len(r.garment) for r in records)} "
-          f"frames): {', '.join(modes)}")
-    results = evaluate_modes(animator, records, modes, tau, args.exclude_own_sequence, collision, progress, ensembles, gate,
-                             look)
-    sweep = None
+    run = run_settings_of(args, "hrr-eval", collision=not args.no_collision, detail=look)
+    settings = EvaluationSettings(tuple(modes), run, exclude_own_sequence=args.exclude_own_sequence,
+                                  members=args.ensemble, jobs=args.jobs, progress=not args.quiet)
+    for mode in modes:  # each mode's settings against the model (a residual without its calibration...), now
+        animator.resolve(settings.run_for(mode))
+    return _Job(model_dir, animator, ds, names, [ds.sequence(n) for n in names], settings)
+
+
+def _evaluate(job: _Job, args) -> dict:
+    """Every protocol asked for, into report.json's dictionary."""
+    from ..eval.protocols import (
+        LibraryPlays,
+        default_taus,
+        ensemble_summary,
+        library_section,
+        paper_section,
+        real_motion_section,
+        truth_ensembles_of,
+    )
+    from ..eval.report import build_report
+
+    animator, records, settings = job.animator, job.records, job.settings
+    bundle = animator.bundle
+    ensembles = truth_ensembles_of(job.ds, records, settings.members, settings.jobs, settings.progress)
+    print(f"evaluating {job.model_dir} on {len(records)} {args.split} sequences of {job.ds.path} "
+          f"({sum(len(r.garment) for r in records)} frames): {', '.join(settings.modes)}")
+    job.results = evaluate_modes(animator, records, settings, ensembles)
     if not args.no_sweep:
-        taus = args.tau_sweep or default_taus(animator, records, gate)
-        sweep = tau_sweep(animator, records, taus, args.exclude_own_sequence, collision, progress, gate)
-    real = None
-    if args.motions:
-        real = real_motion_section(animator, ds, args.motions, modes, (gate, tau), collision, progress, args.fps,
-                                   args.ensemble, args.jobs, look)
-    paper = None
-    if args.paper:
-        paper = paper_section(args.paper, bundle, records, modes, collision, progress, ensembles)
+        job.sweep = tau_sweep(animator, records, args.tau_sweep or default_taus(animator, records, settings.run), settings)
+    real = real_motion_section(animator, job.ds, args.motions, settings, args.fps) if args.motions else None
+    paper = paper_section(args.paper, bundle, records, settings, ensembles) if args.paper else None
     library = None
     if args.library:
-        library = library_section(animator, ds, args.library, args.library_seed, modes, (gate, tau), collision, progress,
-                                  args.ensemble, args.jobs, args.tau_sweep, not args.no_sweep, look)
-    report = build_report(
-        model={"folder": str(model_dir), "garment": bundle.garment, "hash": bundle.content_hash, "gate": bundle.gate,
-               "tau": bundle.tau, "gates": bundle.meta.get("gates", {}), "auto": bundle.auto_mode,
+        plays = LibraryPlays(args.library, args.library_seed, args.tau_sweep, not args.no_sweep)
+        library = library_section(animator, job.ds, plays, settings)
+    return build_report(
+        model={"folder": str(job.model_dir), "garment": bundle.garment, "hash": bundle.content_hash, "gate": bundle.gate,
+               "tau": bundle.tau, "gates": bundle.meta["gates"], "auto": bundle.auto_mode,
                "auto_calibration": bundle.meta.get("auto"),
                "vertices": bundle.template.num_vertices, "preset": bundle.meta.get("preset")},
-        dataset={"path": str(dataset), "split": args.split, "sequences": names,
+        dataset={"path": str(job.ds.path), "split": args.split, "sequences": job.names,
                  "frames": int(sum(len(r.garment) for r in records))},
-        settings={"modes": modes, "gate": gate, "tau": tau, "collision": collision, "exclude_own_sequence": args.exclude_own_sequence,
-                  **({"detail": {"base": look[0], "strength": look[1]}} if look else {})},
-        ensemble=ensemble_summary(ensembles, records, args.ensemble),
-        modes=results, sweep=sweep, real=real, library=library, paper=paper, seconds=0.0)
-    plots = [] if args.no_plots else write_plots(Path(out), results, sweep, tau, gate)
-    report["seconds"] = time.perf_counter() - t0
-    json_path, md_path = write_report(out, report, plots)
-    _print_summary(report)
-    print(f"wrote {json_path}, {md_path}" + (f" and {len(plots)} plots" if plots else "") + f" in {report['seconds']:.0f} s")
-    return 0
+        settings=evaluation_record(animator, settings),
+        ensemble=ensemble_summary(ensembles, records, settings.members),
+        modes=job.results, sweep=job.sweep, real=real, library=library, paper=paper, seconds=0.0)
+
+
+def evaluation_record(animator, settings: EvaluationSettings) -> dict:
+    """report.json's ``settings``: the modes, the hybrid's resolved run (gate, tau, push-out) and,
+    where the detail mode runs, its resolved look, as out.h5 records them."""
+    record = {k: v for k, v in animator.resolve(settings.run_for(Mode.HYBRID)).record().items() if k not in ("mode", "causal")}
+    if Mode.DETAIL in settings.modes:
+        detail = animator.resolve(settings.run_for(Mode.DETAIL)).record()
+        record.update(detail_base=detail["detail_base"], detail_strength=detail["detail_strength"])
+    return {"modes": list(settings.modes), "exclude_own_sequence": settings.exclude_own_sequence, **record}
 
 
 def _print_summary(report: dict) -> None:

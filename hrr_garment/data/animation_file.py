@@ -1,19 +1,26 @@
 """``out.h5``: an animated garment as hrr-animate writes it (DESIGN 9). The file format lives in
 ``data`` (with the dataset's) because inference writes it and export, eval and the previews read it.
 
-    /faces                (F, 3) int32
-    /vertices             (T, V, 3) float32, one frame per chunk, gzip + shuffle
-    /body/joints          (T, 22, 3) float32
-    /body/capsules        (T, C, 2, 3) float32, the collision capsules' end points a, b  (version 2)
-    /body/radii           (C,) float32, their radii                                      (version 2)
-    /diagnostics/mode     (T,) uint8, 1 = retrieval, 0 = regression
-    /diagnostics/entropy  (T,) float32, motion-code entropy (nats)
-    /diagnostics/source   (T, 2) int32, retrieved (database sequence, frame) or -1
-    attributes: fps, units ("m"), up_axis ("Y"), garment, source_motion, format_version,
-                model_hash, mode, tau, plus any extra ones given
+    /faces                  (F, 3) int32
+    /vertices               (T, V, 3) float32, one frame per chunk, gzip + shuffle
+    /body/joints            (T, 22, 3) float32
+    /body/capsules          (T, C, 2, 3) float32, the collision capsules' end points a, b
+    /body/radii             (C,) float32, their radii
+    /diagnostics/retrieved  (T,) uint8, 1 = the frame's window was retrieved from the database as simulated
+    /diagnostics/entropy    (T,) float32, motion-code entropy (nats)
+    /diagnostics/match      (T, 2) int32, the database window (sequence, start frame) that gave or lent
+                            to the frame (retrieval; the residual and detail modes' match), or -1
+    attributes: fps, units ("m"), up_axis ("Y"), garment, source_motion (the motion file),
+                format_version, model_hash, and the run's settings: mode (the inference mode), gate,
+                tau, causal, collision, detail_base and detail_strength (detail mode)
 
-Written to a temporary file and renamed, so a failed run leaves no half file. Version 1 files
-(no body capsules) still read; only what needs the body refuses them.
+Written to a temporary file and renamed, so a failed run leaves no half file.
+
+Versions (``format_version``; :func:`read_animation_h5` upgrades older files as it reads them):
+1 had no body capsules (still read; only what needs the body refuses such a file); 2 added them;
+3 renamed ``diagnostics/mode`` to ``diagnostics/retrieved`` (the inference mode is the ``mode``
+attribute) and ``diagnostics/source`` to ``diagnostics/match``, and ``retrieved`` no longer marks
+the residual and detail modes' frames, whose windows are the regression's with a match's detail.
 """
 
 from __future__ import annotations
@@ -27,7 +34,8 @@ import numpy as np
 from ..errors import InputError
 from ..io_utils import atomic_h5
 
-FORMAT_VERSION = 2
+FORMAT_VERSION = 3
+PER_FRAME = ("body/joints", "diagnostics/retrieved", "diagnostics/entropy", "diagnostics/match")
 
 
 def _fps(path: Path, attrs: dict) -> float:
@@ -48,9 +56,9 @@ class AnimationFile:
     vertices: np.ndarray  # (T, V, 3) float32, world, metres, Y up
     faces: np.ndarray  # (F, 3) int32
     joints: np.ndarray  # (T, 22, 3)
-    mode: np.ndarray  # (T,) uint8
+    retrieved: np.ndarray  # (T,) uint8
     entropy: np.ndarray  # (T,)
-    source: np.ndarray  # (T, 2)
+    match: np.ndarray  # (T, 2)
     capsules: np.ndarray | None  # (T, C, 2, 3) or None in version-1 files
     radii: np.ndarray | None  # (C,)
     attrs: dict
@@ -74,11 +82,25 @@ class AnimationFile:
         return body_mesh(caps[:, 0], caps[:, 1], self.radii.astype(np.float64), segments, rings)
 
 
-def write_animation_h5(path: str | Path, *, vertices: np.ndarray, faces: np.ndarray, joints: np.ndarray, mode: np.ndarray,
-                       entropy: np.ndarray, source: np.ndarray, attrs: dict, capsules: np.ndarray | None = None,
-                       radii: np.ndarray | None = None) -> Path:
+@dataclass(frozen=True)
+class AnimationArrays:
+    """The arrays an out.h5 holds (shapes in the module docstring)."""
+
+    vertices: np.ndarray
+    faces: np.ndarray
+    joints: np.ndarray
+    retrieved: np.ndarray
+    entropy: np.ndarray
+    match: np.ndarray
+    capsules: np.ndarray | None = None
+    radii: np.ndarray | None = None
+
+
+def write_animation_h5(path: str | Path, arrays: AnimationArrays, attrs: dict) -> Path:
     """Write an out.h5 (the layout in the module docstring) atomically; returns its path."""
     path = Path(path)
+    a = arrays
+    vertices, faces, joints, capsules, radii = a.vertices, a.faces, a.joints, a.capsules, a.radii
     t, v = vertices.shape[:2]
     with atomic_h5(path) as f:
         f.create_dataset("faces", data=np.asarray(faces, np.int32))
@@ -88,9 +110,9 @@ def write_animation_h5(path: str | Path, *, vertices: np.ndarray, faces: np.ndar
         if capsules is not None:
             f.create_dataset("body/capsules", data=np.asarray(capsules, np.float32))
             f.create_dataset("body/radii", data=np.asarray(radii, np.float32))
-        f.create_dataset("diagnostics/mode", data=np.asarray(mode, np.uint8))
-        f.create_dataset("diagnostics/entropy", data=np.asarray(entropy, np.float32))
-        f.create_dataset("diagnostics/source", data=np.asarray(source, np.int32).reshape(t, 2))
+        f.create_dataset("diagnostics/retrieved", data=np.asarray(a.retrieved, np.uint8))
+        f.create_dataset("diagnostics/entropy", data=np.asarray(a.entropy, np.float32))
+        f.create_dataset("diagnostics/match", data=np.asarray(a.match, np.int32).reshape(t, 2))
         f.attrs.update({"fps": 30.0, "units": "m", "up_axis": "Y", "format_version": FORMAT_VERSION})
         f.attrs.update({k: v for k, v in attrs.items() if v is not None})
     return path
@@ -107,26 +129,22 @@ def read_animation_h5(path: str | Path) -> AnimationFile:
         raise InputError(path, f"not an HDF5 file ({exc})") from None
     try:
         with f:
-            missing = [k for k in ("faces", "vertices", "body/joints", "diagnostics/mode", "diagnostics/entropy",
-                                   "diagnostics/source") if k not in f]
+            attrs = dict(f.attrs)
+            version = _version(path, attrs)
+            names = {**{k: k for k in PER_FRAME}, **(OLD_NAMES if version < 3 else {})}
+            missing = [k for k in ("faces", "vertices") if k not in f] + [names[k] for k in PER_FRAME if names[k] not in f]
             if missing:
                 raise InputError(path, f"not an hrr-animate file: missing {', '.join(missing)}")
-            attrs = dict(f.attrs)
             vertices = f["vertices"][()]
             faces = f["faces"][()]
-            per_frame = {k: f[k][()] for k in ("body/joints", "diagnostics/mode", "diagnostics/entropy",
-                                               "diagnostics/source")}
+            per_frame = {k: f[names[k]][()] for k in PER_FRAME}
             capsules = f["body/capsules"][()] if "body/capsules" in f else None
             radii = f["body/radii"][()] if "body/radii" in f else None
     except (OSError, RuntimeError, ValueError, TypeError, KeyError) as exc:  # damaged chunks, headers, attributes
         raise InputError(path, f"damaged file, cannot be read ({type(exc).__name__}: {str(exc)[:200]})") from None
     attrs["fps"] = _fps(path, attrs)
-    version = attrs.get("format_version", 1)
-    if not isinstance(version, (int, np.integer)) or version < 1:
-        raise InputError(path, f"format_version must be a positive integer, got {version!r}")
-    if version > FORMAT_VERSION:
-        raise InputError(path, f"format version {version} is newer than this hrr_garment reads ({FORMAT_VERSION}); "
-                               "upgrade hrr_garment")
+    if version < 3:
+        per_frame, attrs = _from_version_2(per_frame, attrs)
     for key, arr in (("vertices", vertices), ("faces", faces), *per_frame.items()):
         if not isinstance(arr, np.ndarray) or arr.dtype.kind not in "biuf":
             raise InputError(path, f"/{key} must hold numbers, got {getattr(arr, 'dtype', type(arr))}")
@@ -151,6 +169,30 @@ def read_animation_h5(path: str | Path) -> AnimationFile:
                                  or radii is None or radii.shape != capsules.shape[1:2]):
         raise InputError(path, f"/body/capsules {capsules.shape} and /body/radii "
                                f"{None if radii is None else radii.shape} do not match (T, C, 2, 3) and (C,)")
-    return AnimationFile(path, vertices.astype(np.float32), faces.astype(np.int32), per_frame["body/joints"],
-                         per_frame["diagnostics/mode"].astype(np.uint8), per_frame["diagnostics/entropy"],
-                         per_frame["diagnostics/source"], capsules, radii, attrs)
+    return AnimationFile(path=path, vertices=vertices.astype(np.float32), faces=faces.astype(np.int32),
+                         joints=per_frame["body/joints"], retrieved=per_frame["diagnostics/retrieved"].astype(np.uint8),
+                         entropy=per_frame["diagnostics/entropy"], match=per_frame["diagnostics/match"],
+                         capsules=capsules, radii=radii, attrs=attrs)
+
+
+#: version 1 and 2 names of the datasets version 3 renamed
+OLD_NAMES = {"diagnostics/retrieved": "diagnostics/mode", "diagnostics/match": "diagnostics/source"}
+
+
+def _version(path: Path, attrs: dict) -> int:
+    """The file's format version (1 where it has none): one this hrr_garment reads."""
+    version = attrs.get("format_version", 1)
+    if isinstance(version, (bool, np.bool_)) or not isinstance(version, (int, np.integer)) or version < 1:
+        raise InputError(path, f"format_version must be a positive integer, got {version!r}")
+    if version > FORMAT_VERSION:
+        raise InputError(path, f"format version {version} is newer than this hrr_garment reads ({FORMAT_VERSION}); "
+                               "upgrade hrr_garment")
+    return int(version)
+
+
+def _from_version_2(per_frame: dict, attrs: dict) -> tuple[dict, dict]:
+    """Versions 1-2 -> 3: ``retrieved`` marked every frame of the residual and detail modes (their
+    database match), which version 3 records in ``match`` only."""
+    if str(attrs.get("mode", "")) in ("residual", "detail"):
+        per_frame = {**per_frame, "diagnostics/retrieved": np.zeros_like(per_frame["diagnostics/retrieved"])}
+    return per_frame, {**attrs, "format_version": FORMAT_VERSION}

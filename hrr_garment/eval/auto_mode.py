@@ -38,6 +38,7 @@ from ..artifacts.residual import ACCURACY_ALLOWANCE
 from ..data.dataset import SequenceRecord
 from ..garment.fit import hem_vertices
 from ..inference.animator import Animator
+from ..inference.run_settings import DetailLook
 from ..sim.quality import hem_swing
 from . import metrics as M
 
@@ -114,8 +115,8 @@ def calibrate_auto_mode(animator: Animator, records: list[SequenceRecord], allow
         error = bend = swing = 0.0
         for r, truth in zip(records, truths):  # a clip in the database (the paper's validation) may not retrieve itself
             own = names.index(r.name) if r.name in names else None
-            look = {"detail_base": base, "detail_strength": strength} if mode == "detail" else {}
-            pred = animator.animate(r.motion, mode=mode, exclude_sequence=own, **look).vertices.astype(np.float64)
+            look = DetailLook(base, strength) if mode == "detail" else DetailLook()
+            pred = animator.animate(r.motion, mode=mode, detail=look, exclude_sequence=own).vertices.astype(np.float64)
             error += M.pve_mm(pred, truth) * len(pred)
             bend += float(M.cloth_energies(pred, rest, topo)[1].sum())
             swing += hem_swing(pred, r.motion, hem) * len(pred)
@@ -131,7 +132,7 @@ def calibrate_auto_mode(animator: Animator, records: list[SequenceRecord], allow
 def describe_auto(auto: dict) -> str:
     """One line on a calibration (``bundle.json``'s ``auto``): the choice, the detail mode's setting
     and every candidate's numbers."""
-    detail = f"x{auto.get('detail_strength', DETAIL_STRENGTH):g} on the {auto.get('detail_base', 'regression')}"
+    detail = f"x{auto['detail_strength']:g} on the {auto['detail_base']}"
     return (f"auto mode: {auto['mode']} (the detail mode's folds {detail}; on {auto['sequences']} validation clips: "
             + "; ".join(f"{m} {c['pve_mm']:.2f} mm, sharpness {c['sharpness']:.2f}, hem swing {c['hem_swing']:.2f}"
                         for m, c in auto["candidates"].items()) + ")")

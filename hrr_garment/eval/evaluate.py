@@ -19,6 +19,7 @@ from ..data.dataset import SequenceRecord
 from ..garment.fit import hem_vertices
 from ..inference.animator import Animator
 from ..inference.modes import Mode
+from ..inference.run_settings import DetailLook, RunSettings
 from ..sim.quality import body_signed_distance, penetration_fraction
 from . import metrics as M
 from .ensemble import TruthEnsemble
@@ -148,28 +149,45 @@ class _Scorer:
                               entropy, retrieved, ensemble)
 
 
-def evaluate_modes(animator: Animator, records: list[SequenceRecord], modes: list[str], tau: float | None = None,
-                   exclude_own_sequence: bool = False, collision: bool = True, progress: bool = True,
-                   ensembles: dict[str, TruthEnsemble] | None = None, gate: str | None = None,
-                   detail: tuple[str, float] | None = None) -> dict[str, ModeResult]:
-    """Each mode on each record. ``exclude_own_sequence`` keeps a record's own database sequence
-    (when it is one: training sequences) out of retrieval, as in the paper's comparison. Records
-    with a truth ensemble in ``ensembles`` are also scored against it. ``gate``, ``tau``: the
-    hybrid's (default the model's calibrated ones); ``detail``: the detail mode's base and strength
-    (default the calibrated ones)."""
+@dataclass(frozen=True)
+class EvaluationSettings:
+    """What an evaluation runs on every protocol: the modes, the run settings they share, the truths."""
+
+    modes: tuple[str, ...]
+    # the hybrid's gate and tau, the detail mode's look (used by that mode only) and the push-out;
+    # its mode is each of ``modes`` in turn
+    run: RunSettings = field(default_factory=RunSettings)
+    exclude_own_sequence: bool = False  # keep a record's own database sequence out of retrieval (the paper's comparison)
+    members: int = 0  # truth ensemble members per sequence (0: none)
+    jobs: int | None = None  # simulation workers for the truths
+    progress: bool = True
+
+    def run_for(self, mode: str) -> RunSettings:
+        """The run settings of ``mode``: the shared ones, the detail look only where it applies."""
+        return self.run.replace(mode=mode, detail=self.run.detail if Mode(mode) is Mode.DETAIL else DetailLook())
+
+
+def _own_sequence(names: list[str], record: SequenceRecord, exclude: bool) -> int | None:
+    """The record's own database sequence where it is one and ``exclude`` asks to keep it out."""
+    return names.index(record.name) if exclude and record.name in names else None
+
+
+def evaluate_modes(animator: Animator, records: list[SequenceRecord], settings: EvaluationSettings,
+                   ensembles: dict[str, TruthEnsemble] | None = None) -> dict[str, ModeResult]:
+    """Each of ``settings.modes`` on each record, as ``settings`` ask. Records with a truth ensemble
+    in ``ensembles`` are also scored against it."""
     bundle = animator.bundle
-    gate, tau = animator.gate_setting(gate, tau)
     scorer = _Scorer(bundle.template, ensembles)
     names = list(bundle.database.names)
-    results = {m: ModeResult(m, tau, gate=gate) for m in modes}
-    jobs = [(m, r) for r in records for m in modes]
-    for mode, record in tqdm(jobs, desc="evaluate", unit="run", disable=not progress):
-        own = names.index(record.name) if exclude_own_sequence and record.name in names else None
-        look = {"detail_base": detail[0], "detail_strength": detail[1]} if detail and mode == Mode.DETAIL else {}
-        anim = animator.animate(record.motion, mode=mode, tau=tau, collision=collision, exclude_sequence=own, gate=gate,
-                                **look)
+    runs = {m: settings.run_for(m) for m in settings.modes}
+    hybrid = animator.resolve(settings.run_for(Mode.HYBRID))  # each mode's result records the hybrid's gate and tau
+    results = {m: ModeResult(m, hybrid.tau, gate=hybrid.gate) for m in settings.modes}
+    jobs = [(m, r) for r in records for m in settings.modes]
+    for mode, record in tqdm(jobs, desc="evaluate", unit="run", disable=not settings.progress):
+        own = _own_sequence(names, record, settings.exclude_own_sequence)
+        anim = animator.animate(record.motion, runs[mode], exclude_sequence=own)
         before = (anim.penetration.inside_before, anim.penetration.worst_before) if anim.penetration else None
-        results[mode].sequences.append(scorer.sequence(anim.vertices, record, anim.mode.astype(bool),
+        results[mode].sequences.append(scorer.sequence(anim.vertices, record, anim.retrieved.astype(bool),
                                                        anim.entropy.astype(np.float64), before))
     return results
 
@@ -197,25 +215,25 @@ class TauPoint:
     sharpness: float = float("nan")  # bending energy over the truth's (frames of every sequence together)
 
 
-def tau_sweep(animator: Animator, records: list[SequenceRecord], taus: list[float], exclude_own_sequence: bool = False,
-              collision: bool = True, progress: bool = True, gate: str | None = None) -> list[TauPoint]:
-    """Hybrid PVE, retrieval usage (fraction of frames) and sharpness at each tau of ``gate``
-    (default the model's), on the same records: accuracy and plausibility side by side."""
+def tau_sweep(animator: Animator, records: list[SequenceRecord], taus: list[float],
+              settings: EvaluationSettings) -> list[TauPoint]:
+    """Hybrid PVE, retrieval usage (fraction of frames) and sharpness at each tau of the settings'
+    gate (default the model's), on the same records: accuracy and plausibility side by side."""
     names = list(animator.bundle.database.names)
     template = animator.bundle.template
     rest, topo = template.vertices.astype(np.float64), M.MeshTopology.of(template.faces, template.num_vertices)
     truth_bending = sum(float(M.cloth_energies(r.garment.astype(np.float64), rest, topo)[1].sum()) for r in records)
+    hybrid = settings.run_for(Mode.HYBRID)
     points = []
-    for tau in tqdm(taus, desc="tau sweep", unit="tau", disable=not progress):
+    for tau in tqdm(taus, desc="tau sweep", unit="tau", disable=not settings.progress):
         errors, frames, retrieved, bending = 0.0, 0, 0, 0.0
         for record in records:
-            own = names.index(record.name) if exclude_own_sequence and record.name in names else None
-            anim = animator.animate(record.motion, mode=Mode.HYBRID, tau=tau, collision=collision, exclude_sequence=own,
-                                    gate=gate)
+            own = _own_sequence(names, record, settings.exclude_own_sequence)
+            anim = animator.animate(record.motion, hybrid.replace(tau=tau), exclude_sequence=own)
             pred = anim.vertices.astype(np.float64)
             errors += M.pve_mm(pred, record.garment.astype(np.float64)) * len(anim.vertices)
             frames += len(anim.vertices)
-            retrieved += int(anim.mode.sum())
+            retrieved += int(anim.retrieved.sum())
             bending += float(M.cloth_energies(pred, rest, topo)[1].sum())
         points.append(TauPoint(float(tau), errors / frames, retrieved / frames, bending / max(truth_bending, 1e-30)))
     return points

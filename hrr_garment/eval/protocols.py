@@ -1,4 +1,4 @@
-"""hrr-eval's protocols beyond the dataset's own split (docs/results.md): real motion files, the
+"""hrr-eval's protocols beyond the dataset's own split (docs/evaluation.md): real motion files, the
 game's clip library played again, the paper's protocol, each simulated for its ground truth with the
 dataset's settings (cached under the workspace) and, with truth ensembles, against the chaos floor.
 """
@@ -6,20 +6,23 @@ dataset's settings (cached under the workspace) and, with truth ensembles, again
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import InputError
+from ..inference.run_settings import DetailLook, RunSettings
+from .evaluate import EvaluationSettings, evaluate_modes, evaluate_vertices, tau_sweep
 
 
-def default_taus(animator, records, gate: str) -> list[float]:
-    """0, the deciles of the gate signal's per-frame doubts on these records, and above the maximum
-    (retrieval only)."""
-    h = np.concatenate([animator.animate(r.motion, mode="hybrid", tau=0.0, collision=False, gate=gate).doubt
-                        for r in records])
+def default_taus(animator, records, run: RunSettings) -> list[float]:
+    """0, the deciles of the hybrid gate's per-frame doubts on these records (``run``'s gate, default
+    the model's), and above the maximum (retrieval only)."""
+    hybrid = run.replace(mode="hybrid", tau=0.0, collision=False, detail=DetailLook())
+    h = np.concatenate([animator.animate(r.motion, hybrid).doubt for r in records])
     top = float(h.max()) + 1e-3 if len(h) else 1.0
-    if gate == "entropy":  # at least every entropy
+    if animator.resolve(hybrid).gate == "entropy":  # at least every entropy
         top = max(top, math.log(animator.bundle.codespace.config.classes) + 1e-3)
     return sorted({0.0, *[round(float(q), 4) for q in np.quantile(h, np.linspace(0.1, 0.9, 9))], round(top + 5e-5, 4)})
 
@@ -47,52 +50,65 @@ def ensemble_summary(ensembles: dict, records, members: int) -> dict:
             "failed_members": {name: e.failed for name, e in ensembles.items() if e.failed}}
 
 
-def simulated_section(animator, ds, specs, path: Path, purpose: str, modes: list[str], gate_tau: tuple[str, float],
-               collision: bool, progress: bool, members: int, jobs: int | None,
-               detail: tuple[str, float] | None = None) -> tuple[dict, list, dict]:
-    """Simulate the ground truth of ``specs`` with the dataset's settings into ``path`` (parts cached)
-    and evaluate every mode there (the hybrid with ``gate_tau``: signal, threshold; the detail mode
-    with ``detail``: base, strength): the report section, the records and their truth ensembles."""
+@dataclass(frozen=True)
+class SimulatedTruth:
+    """Sequences whose ground truth an evaluation simulates: their specs, the dataset file to
+    simulate them into (parts cached beside it) and what the file is for."""
+
+    specs: list
+    path: Path
+    purpose: str
+
+
+@dataclass(frozen=True)
+class LibraryPlays:
+    """The library protocol's request: ``count`` plays drawn with ``seed``; its own tau sweep
+    (``sweep``) at ``taus`` (default: :func:`default_taus`)."""
+
+    count: int
+    seed: int = 0
+    taus: list[float] | None = None
+    sweep: bool = True
+
+
+def simulated_section(animator, ds, truth: SimulatedTruth, settings: EvaluationSettings) -> tuple[dict, list, dict]:
+    """Simulate the ground truth of ``truth`` with the dataset's settings (parts cached) and
+    evaluate every mode there: the report section, the records and their truth ensembles."""
     from ..data.dataset import GarmentDataset
     from ..sim.build import build_dataset
     from ..sim.simulator import SimConfig
-    from .evaluate import evaluate_modes
 
     config = SimConfig.from_dict(ds.info.get("sim", {}))
-    print(f"simulating ground truth for {len(specs)} sequence(s) (cached in {path.with_suffix('.parts')})")
-    report = build_dataset(ds.template, specs, config, path, splits={"val": 0.0, "test": 0.0},
-                           info={"purpose": purpose, "source_dataset": str(ds.path)}, progress=progress)
+    print(f"simulating ground truth for {len(truth.specs)} sequence(s) (cached in {truth.path.with_suffix('.parts')})")
+    report = build_dataset(ds.template, truth.specs, config, truth.path, splits={"val": 0.0, "test": 0.0},
+                           info={"purpose": truth.purpose, "source_dataset": str(ds.path)}, progress=settings.progress)
     data = GarmentDataset(report.path)
     records = [data.sequence(n) for n in report.sequences]
-    ensembles = truth_ensembles_of(data, records, members, jobs, progress)
-    gate, tau = gate_tau
-    results = evaluate_modes(animator, records, modes, tau, False, collision, progress, ensembles, gate, detail)
+    ensembles = truth_ensembles_of(data, records, settings.members, settings.jobs, settings.progress)
+    results = evaluate_modes(animator, records, settings, ensembles)
     return {"dataset": str(report.path), "sequences": report.sequences,
             "frames": int(sum(len(r.garment) for r in records)), "rejected": report.rejects,
-            "ensemble": ensemble_summary(ensembles, records, members),
+            "ensemble": ensemble_summary(ensembles, records, settings.members),
             "modes": {m: r.to_dict() for m, r in results.items()}}, records, ensembles
 
 
-def real_motion_section(animator, ds, files: list[str], modes: list[str], gate_tau: tuple[str, float], collision: bool,
-                 progress: bool,
-                 source_fps: float | None = None, members: int = 0, jobs: int | None = None,
-                 detail: tuple[str, float] | None = None) -> dict:
+def real_motion_section(animator, ds, files: list[str], settings: EvaluationSettings,
+                        source_fps: float | None = None) -> dict:
     """The real motion files' section: their ground truth simulated with the dataset's settings."""
     from ..paths import workspace
     from ..sim.plan import load_preset, plan_sequences
 
     specs = plan_sequences(load_preset(str(ds.info.get("preset", "quick"))), motions=list(files), source_fps=source_fps)
-    path = workspace() / "eval" / f"{ds.path.stem}-real-motion.h5"
-    section, _, _ = simulated_section(animator, ds, specs, path, "hrr-eval real motion", modes, gate_tau, collision,
-                                      progress, members, jobs, detail)
+    truth = SimulatedTruth(specs, workspace() / "eval" / f"{ds.path.stem}-real-motion.h5", "hrr-eval real motion")
+    section, _, _ = simulated_section(animator, ds, truth, settings)
     return {"files": [str(f) for f in files], **section}
 
 
-def paper_section(folder: Path, bundle, records, modes: list[str], collision: bool, progress: bool, ensembles: dict) -> dict:
+def paper_section(folder: Path, bundle, records, settings: EvaluationSettings, ensembles: dict) -> dict:
     """The paper protocol's section: a model whose code space was validated on a tenth of its
-    training clips' windows, on the same sequences, with its goals beside the paper's ratios."""
+    training clips' windows, on the same sequences, with its goals beside the paper's ratios (its
+    own calibrated gate and tau)."""
     from ..inference.animator import Animator, find_model
-    from .evaluate import evaluate_modes
     from .report import PAPER_RATIOS, goals
 
     folder = find_model(folder)
@@ -104,23 +120,21 @@ def paper_section(folder: Path, bundle, records, modes: list[str], collision: bo
     if other.garment != bundle.garment or other.template.num_vertices != bundle.template.num_vertices:
         raise InputError(folder, f"is a {other.garment} model with {other.template.num_vertices} vertices; the evaluated "
                                  f"one is {bundle.garment} with {bundle.template.num_vertices}")
-    modes = [m for m in modes if animator.supports(m)]
+    modes = tuple(m for m in settings.modes if animator.supports(m))
     print(f"paper protocol: {folder} (calibrated gate {other.gate} < {other.tau:.3f}) on the same {len(records)} sequences")
-    results = evaluate_modes(animator, records, modes, other.tau, False, collision, progress, ensembles, other.gate)
+    own = replace(settings, modes=modes, exclude_own_sequence=False,
+                  run=RunSettings(collision=settings.run.collision))  # its own calibrated gate, tau and look
+    results = evaluate_modes(animator, records, own, ensembles)
     return {"model": str(folder), "hash": other.content_hash, "gate": other.gate, "tau": other.tau,
             "modes": {m: r.to_dict() for m, r in results.items()}, "goals": goals(results, None),
             "paper_ratios": PAPER_RATIOS}
 
 
-def library_section(animator, ds, count: int, seed: int, modes: list[str], gate_tau: tuple[str, float], collision: bool,
-             progress: bool,
-             members: int, jobs: int | None, taus: list[float] | None, sweep: bool,
-             detail: tuple[str, float] | None = None) -> dict | None:
-    """The library protocol's section (docs/results.md): ``count`` plays of the clips in the
-    model's database, simulated and evaluated, with their own tau sweep and goals."""
+def library_section(animator, ds, plays_asked: LibraryPlays, settings: EvaluationSettings) -> dict | None:
+    """The library protocol's section (docs/evaluation.md): plays of the clips in the model's
+    database, simulated and evaluated, with their own tau sweep and goals."""
     from ..paths import workspace
     from ..sim.plan import SequenceSpec
-    from .evaluate import evaluate_vertices, tau_sweep
     from .library import SOURCE_SIMULATION, library_plays, plays_digest, save_plays, source_simulation
     from .report import library_goals
 
@@ -128,19 +142,20 @@ def library_section(animator, ds, count: int, seed: int, modes: list[str], gate_
         print(f"{ds.path} records no simulator settings (not built by hrr-simulate): no library protocol")
         return None
     names = [n for n in animator.bundle.database.names if n in ds.frames]
-    plays = library_plays(ds, names, count, seed=seed)
+    plays = library_plays(ds, names, plays_asked.count, seed=plays_asked.seed)
     folder = workspace() / "eval" / "library" / f"{ds.path.stem}-{plays_digest(plays)}"
     files = save_plays(plays, folder)
-    print(f"library protocol: {count} plays of the database's clips (motions in {folder})")
+    print(f"library protocol: {plays_asked.count} plays of the database's clips (motions in {folder})")
     specs = [SequenceSpec(p.name, "file", path=str(f), start=0, stop=p.motion.num_frames) for p, f in zip(plays, files)]
-    section, records, ensembles = simulated_section(animator, ds, specs, folder / "truth.h5", "hrr-eval library protocol",
-                                                    modes, gate_tau, collision, progress, members, jobs, detail)
+    settings = replace(settings, exclude_own_sequence=False)
+    section, records, ensembles = simulated_section(
+        animator, ds, SimulatedTruth(specs, folder / "truth.h5", "hrr-eval library protocol"), settings)
     by_name = {p.name: p for p in plays}
     reference = evaluate_vertices(SOURCE_SIMULATION, {r.name: source_simulation(ds, by_name[r.name]) for r in records},
-                                  records, animator.bundle.template, ensembles)
-    gate = gate_tau[0]
-    points = tau_sweep(animator, records, taus or default_taus(animator, records, gate), False, collision, progress,
-                       gate) if sweep and records else None
-    section.update(plays={p.name: p.description for p in plays}, seed=seed, source_simulation=reference.to_dict(),
+                                  records, template=animator.bundle.template, ensembles=ensembles)
+    points = None
+    if plays_asked.sweep and records:
+        points = tau_sweep(animator, records, plays_asked.taus or default_taus(animator, records, settings.run), settings)
+    section.update(plays={p.name: p.description for p in plays}, seed=plays_asked.seed, source_simulation=reference.to_dict(),
                    tau_sweep=[vars(p) for p in points or []], goals=library_goals(section["modes"], points))
     return section

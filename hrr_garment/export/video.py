@@ -82,7 +82,7 @@ def render_scene(meshes: list[PreviewMesh], target: tuple[float, float, float], 
 
 def render_frame(anim: AnimationFile, style: PreviewStyle, t: int, track: np.ndarray):
     """Frame ``t`` of ``anim``; ``track`` (T, 3) is where the cameras aim (see :func:`_smooth_track`)."""
-    retrieved = bool(anim.mode[t])
+    retrieved = bool(anim.retrieved[t])
     meshes = [PreviewMesh(anim.vertices[t].astype(np.float64), anim.faces,
                           RETRIEVED if style.color_mode and retrieved else GARMENT)]
     if style.with_body:

@@ -36,8 +36,9 @@ from .collision import EdgeLimits, PushOutReport, push_out
 from .decoding import body_frame_vertices, flush_denormals
 from .detail import add_folds
 from .fold_track import causal_proposals, offline_proposals, track_folds
-from .gate import choose_windows
-from .modes import Mode
+from .gate import WindowChoice, choose_windows
+from .modes import CODE_MODES, Mode
+from .run_settings import ResolvedRun, RunSettings, run_settings
 from .stream import AnimationStream, CrowdStream
 
 MAX_REACH_M = 1.5  # metres from the nearest body joint a garment vertex may be (a long dress's hem: under 0.6)
@@ -45,18 +46,19 @@ MAX_REACH_M = 1.5  # metres from the nearest body joint a garment vertex may be 
 
 @dataclass
 class Animation:
-    """An animated garment: world-space vertices (T, V, 3) at ``fps``, Y up, metres."""
+    """An animated garment: world-space vertices (T, V, 3) at ``fps``, Y up, metres, and what made
+    each frame (``settings``: the run as :meth:`~.run_settings.ResolvedRun.record` gives it)."""
 
     vertices: np.ndarray
     faces: np.ndarray
     fps: float
-    mode: np.ndarray  # (T,) uint8, 1 = retrieval
-    entropy: np.ndarray  # (T,) float32
-    source: np.ndarray  # (T, 2) int32 retrieved (database sequence, frame) or -1
+    retrieved: np.ndarray  # (T,) uint8, 1 = the frame's window is a database window as simulated (never in residual/detail)
+    entropy: np.ndarray  # (T,) float32 motion-code entropy
+    match: np.ndarray  # (T, 2) int32 the database window (sequence, start frame) that gave or lent to the frame, or -1
     joints: np.ndarray  # (T, 22, 3) body joint positions
     garment: str
     model_hash: str
-    source_motion: str
+    motion_file: str  # where the motion came from (its file, or a description)
     settings: dict = field(default_factory=dict)
     penetration: PushOutReport | None = None
     capsules: np.ndarray | None = None  # (T, C, 2, 3) collision capsule ends, for previews and exports
@@ -64,7 +66,8 @@ class Animation:
 
     @property
     def retrieval_usage(self) -> float:
-        return float(self.mode.mean()) if len(self.mode) else 0.0
+        """The fraction of frames whose window was retrieved from the database."""
+        return float(self.retrieved.mean()) if len(self.retrieved) else 0.0
 
     def check(self, target: str | Path) -> None:
         """Refuse to hand on an absurd result: non-finite vertices or joints, or a garment vertex
@@ -84,14 +87,14 @@ class Animation:
 
     def save(self, path: str | Path) -> Path:
         """Write ``out.h5`` (see :mod:`hrr_garment.data.animation_file`), atomically, after :meth:`check`."""
-        from ..data.animation_file import write_animation_h5
+        from ..data.animation_file import AnimationArrays, write_animation_h5
 
         self.check(path)
-        return write_animation_h5(path, vertices=self.vertices, faces=self.faces, joints=self.joints, mode=self.mode,
-                                  entropy=self.entropy, source=self.source, capsules=self.capsules,
-                                  radii=None if self.capsules is None else DEFAULT_BODY.radii,
-                                  attrs={"fps": self.fps, "garment": self.garment, "source_motion": self.source_motion,
-                                         "model_hash": self.model_hash, **{k: v for k, v in self.settings.items()}})
+        arrays = AnimationArrays(vertices=self.vertices, faces=self.faces, joints=self.joints, retrieved=self.retrieved,
+                                 entropy=self.entropy, match=self.match, capsules=self.capsules,
+                                 radii=None if self.capsules is None else DEFAULT_BODY.radii)
+        return write_animation_h5(path, arrays, {"fps": self.fps, "garment": self.garment, "source_motion": self.motion_file,
+                                                 "model_hash": self.model_hash, **self.settings})
 
 
 def find_model(name_or_dir: str | Path) -> Path:
@@ -141,8 +144,9 @@ class Animator:
 
     def supports(self, mode: Mode | str) -> bool:
         """Whether this model runs ``mode``: direct needs the baseline, residual a calibrated weight,
-        detail the simulated folds."""
-        mode = self.resolve_mode(mode)
+        detail the simulated folds (auto: the mode it was calibrated to run)."""
+        mode = Mode(mode)
+        mode = Mode(self.bundle.auto_mode) if mode is Mode.AUTO else mode
         return {Mode.DIRECT: self.has_direct, Mode.RESIDUAL: self.bundle.has_residual,
                 Mode.DETAIL: self.bundle.folds is not None}.get(mode, True)
 
@@ -150,89 +154,74 @@ class Animator:
     def window(self) -> int:
         return self.bundle.codespace.config.window
 
-    def animate(self, motion: Motion, mode: Mode | str = Mode.AUTO, tau: float | None = None, collision: bool = True,
-                causal: bool = False, exclude_sequence: int | None = None, gate: str | None = None,
-                detail_base: str | None = None, detail_strength: float | None = None) -> Animation:
-        """Animate a whole clip (see :mod:`hrr_garment.inference`): ``mode`` auto (the model's calibrated
-        choice, :meth:`resolve_mode`) | hybrid | regression | retrieval | residual | detail | naive-nn,
-        or direct (the baseline, when the bundle has it; offline only); ``gate`` the hybrid's signal
-        (default the model's calibrated one, :data:`~hrr_garment.artifacts.gate_signals.GATE_SIGNALS`) and
-        ``tau`` its threshold (default the one calibrated for that signal); ``causal`` gives what
-        streaming gives; ``exclude_sequence`` keeps one database sequence out of retrieval (evaluation);
-        ``detail_base`` ("regression" or "residual") and ``detail_strength`` (in (0, 2], 1: the
-        folds as simulated) the detail mode's look (default the model's calibrated one)."""
-        mode = self.resolve_mode(mode, gate, tau, detail_base is not None or detail_strength is not None)
-        gate, tau = self.gate_setting(gate, tau)
-        detail = self.bundle.detail_setting(detail_base, detail_strength) if mode is Mode.DETAIL else None
+    def resolve(self, settings: RunSettings | None = None, **changes) -> ResolvedRun:
+        """The run ``settings`` (with keyword ``changes``: :class:`~.run_settings.RunSettings`'
+        fields) resolved against this model: what :meth:`animate` runs with them."""
+        return run_settings(settings, changes).resolve(self.bundle)
+
+    def animate(self, motion: Motion, settings: RunSettings | None = None, *, exclude_sequence: int | None = None,
+                **changes) -> Animation:
+        """Animate a whole clip (see :mod:`hrr_garment.inference`) as ``settings`` ask
+        (:class:`~.run_settings.RunSettings`; default: the model's calibrated mode, push-out on,
+        offline), with keyword ``changes`` to them (``animate(motion, mode="regression",
+        collision=False)``). ``exclude_sequence`` keeps one database sequence out of retrieval
+        (evaluation)."""
+        run = self.resolve(settings, **changes)
+        if exclude_sequence is not None:
+            exclude_sequence = self._database_sequence(exclude_sequence)
         with flush_denormals():
-            return self._animate(motion, mode, tau, collision, causal, exclude_sequence, gate, detail)
+            return self._animate(motion, run, exclude_sequence)
 
-    def resolve_mode(self, mode: Mode | str, gate: str | None = None, tau: float | None = None,
-                     detail: bool = False) -> Mode:
-        """``mode`` itself, or for ``auto`` the mode this model was calibrated to run
-        (:attr:`~hrr_garment.artifacts.bundle.Bundle.auto_mode`); an explicit ``gate`` or ``tau`` is
-        the hybrid's setting, so with either auto runs the hybrid, and a detail setting (``detail``:
-        one was given) the detail mode's. A ValueError where the settings ask for two modes or a
-        named mode does not use them."""
-        mode = Mode(mode)
-        hybrid = gate is not None or tau is not None
-        if detail and mode not in (Mode.AUTO, Mode.DETAIL):
-            raise ValueError(f"a detail base or strength sets the detail mode; mode {mode.value} does not use them")
-        if mode is not Mode.AUTO:
-            return mode
-        if hybrid and detail:
-            raise ValueError("a gate or tau sets the hybrid and a detail base or strength the detail mode: name the mode")
-        return Mode.HYBRID if hybrid else Mode.DETAIL if detail else Mode(self.bundle.auto_mode)
+    def _database_sequence(self, index: object) -> int:
+        """``index`` as a database sequence index; a ValueError naming the range otherwise."""
+        if isinstance(index, np.integer):
+            index = int(index)
+        count = len(self.bundle.database.names)
+        if isinstance(index, bool) or not isinstance(index, int) or not 0 <= index < count:
+            raise ValueError(f"exclude_sequence must be a database sequence index in 0..{count - 1}, got {index!r}")
+        return index
 
-    def gate_setting(self, gate: str | None, tau: float | None) -> tuple[str, float]:
-        """The gate signal and threshold to run: the model's calibrated ones unless given."""
-        gate = self.bundle.gate if gate is None else str(gate)
-        return gate, self.bundle.gate_tau(gate) if tau is None else float(tau)
-
-    def _animate(self, motion: Motion, mode: str, tau: float, collision: bool, causal: bool,
-                 exclude_sequence: int | None, gate: str, detail: tuple[str, float] | None) -> Animation:
+    def _animate(self, motion: Motion, run: ResolvedRun, exclude_sequence: int | None) -> Animation:
         t_frames, w = motion.num_frames, self.window
         if t_frames < 1:
             raise MotionError(motion.source, "the motion has no frames")
-        if mode is Mode.DETAIL:
-            self.bundle.require_folds()
-        if mode == Mode.DIRECT:
+        if run.mode == Mode.DIRECT:
             latents, proposals = self._direct_latents(motion), None
             retrieved, entropy = np.zeros(t_frames, np.uint8), np.full(t_frames, np.nan, np.float32)
-            source, doubt = np.full((t_frames, 2), -1, np.int32), entropy.copy()
+            match, doubt = np.full((t_frames, 2), -1, np.int32), entropy.copy()
         else:
-            if causal:
+            if run.causal:
                 feats = causal_windows(self.features(motion, causal=True), w)
-                choice = self._choose(feats, mode, tau, exclude_sequence, gate, detail, last_frame=True)
+                choice = self._choose(feats, run, exclude_sequence, last_frame=True)
                 latents = causal_latents(choice, self.blend)
-                proposals = causal_proposals(choice.source, w) if choice.detail else None
+                proposals = causal_proposals(choice.match, w) if choice.lends_folds else None
                 per_frame = np.arange(t_frames)
             else:
                 feats = self.features(motion)
                 if t_frames < w:  # shorter than one window: pad with the last frame, keep the first T outputs
                     feats = np.concatenate([feats, np.repeat(feats[-1:], w - t_frames, 0)])
                 windows = np.ascontiguousarray(sequence_windows(feats, w))
-                choice = self._choose(windows, mode, tau, exclude_sequence, gate, detail)
+                choice = self._choose(windows, run, exclude_sequence)
                 latents = blend_windows(choice.latents, len(feats))[:t_frames]
-                proposals = offline_proposals(choice.source, t_frames, w) if choice.detail else None
+                proposals = offline_proposals(choice.match, t_frames, w) if choice.lends_folds else None
                 per_frame = np.clip(np.arange(t_frames) - w // 2, 0, len(windows) - 1)  # the window centred on t
             retrieved, entropy = choice.retrieved[per_frame].astype(np.uint8), choice.entropy[per_frame].astype(np.float32)
-            source, doubt = choice.source[per_frame], choice.doubt[per_frame].astype(np.float32)
+            match, doubt = choice.match[per_frame], choice.doubt[per_frame].astype(np.float32)
         local = body_frame_vertices(self.bundle, latents, self.decoder)
         if proposals is not None:  # the detail mode: simulated folds on the regression's shape (or the residual's)
             store = self.bundle.folds
             rows, weights = track_folds(proposals, store.offsets)
-            local = add_folds(local, store.folds(rows, weights), self.smoothing, store.passes, detail[1])
+            local = add_folds(local, store.folds(rows, weights), self.smoothing, store.passes, run.detail.strength)
         vertices = world_vertices(local, motion)
         report = None
-        if collision:
+        if run.collision:
             vertices, report = push_out(vertices, motion, self.bundle.template.faces, mean=self.smoothing,
                                         limits=self.edge_limits)
-        return Animation(vertices, self.bundle.template.faces, motion.fps, retrieved, entropy, source, motion.joint_positions,
-                         self.bundle.garment, self.bundle.content_hash, motion.source,
-                         {"mode": str(mode), "gate": gate, "tau": tau, "causal": int(causal), "collision": int(collision),
-                          **({"detail_base": detail[0], "detail_strength": detail[1]} if detail else {})},
-                         report, np.stack(DEFAULT_BODY.pose_motion(motion), 2).astype(np.float32), doubt)
+        return Animation(vertices=vertices, faces=self.bundle.template.faces, fps=motion.fps, retrieved=retrieved,
+                         entropy=entropy, match=match, joints=motion.joint_positions, garment=self.bundle.garment,
+                         model_hash=self.bundle.content_hash, motion_file=motion.source, settings=run.record(),
+                         penetration=report, capsules=np.stack(DEFAULT_BODY.pose_motion(motion), 2).astype(np.float32),
+                         doubt=doubt)
 
     def _direct_latents(self, motion: Motion) -> np.ndarray:
         """(T, nodes, C) latents of the direct-regression baseline (causal: a GRU over the clip)."""
@@ -249,23 +238,26 @@ class Animator:
         plain = causal_features(motion) if causal or motion.num_frames < 2 else motion_features(motion)  # one frame: no velocity
         return with_memory(plain, motion.fps, self.bundle.codespace.config.memory)
 
-    def _choose(self, windows: np.ndarray, mode: str, tau: float, exclude_sequence: int | None, gate: str,
-                detail: tuple[str, float] | None = None, last_frame: bool = False):
+    def _choose(self, windows: np.ndarray, run: ResolvedRun, exclude_sequence: int | None = None,
+                last_frame: bool = False) -> WindowChoice:
         exclude = None if exclude_sequence is None else np.full(len(windows), exclude_sequence)
-        step = self.causal_step(Mode(mode).regresses) if last_frame else None
-        return choose_windows(self.bundle, windows, mode, tau, exclude, last_frame, step=step, gate=gate,
-                              detail_base=detail[0] if detail else "regression")
+        step = self.causal_step(run.mode.regresses) if last_frame else None
+        return choose_windows(self.bundle, windows, run, exclude=exclude, last_frame=last_frame, step=step)
 
-    def stream(self, mode: Mode | str = Mode.AUTO, tau: float | None = None, collision: bool = True,
-               rig=None, gate: str | None = None, detail_base: str | None = None,
-               detail_strength: float | None = None) -> AnimationStream:
+    def stream(self, settings: RunSettings | None = None, *, rig=None, **changes) -> AnimationStream:
         """One character, causal, one pose in and one frame out (:class:`~.stream.AnimationStream`);
-        ``rig``: a :class:`~hrr_garment.motion.stream_rig.StreamRig` for poses on a source skeleton;
-        ``gate``, ``tau``, ``detail_base``, ``detail_strength``: as :meth:`animate`."""
-        return AnimationStream(self, mode, tau, collision, rig, gate, detail_base, detail_strength)
+        ``settings`` and keyword ``changes`` as :meth:`animate` (a stream is causal whatever they
+        say; its settings hold for its life); ``rig``: a
+        :class:`~hrr_garment.motion.stream_rig.StreamRig` for poses on a source skeleton."""
+        return AnimationStream(self, self._stream_run(settings, changes), rig=rig)
 
-    def crowd(self, mode: Mode | str = Mode.AUTO, tau: float | None = None, collision: bool = True,
-              rig=None, gate: str | None = None, detail_base: str | None = None,
-              detail_strength: float | None = None) -> CrowdStream:
-        """Many characters, one call per frame for all of them (:class:`~.stream.CrowdStream`)."""
-        return CrowdStream(self, mode, tau, collision, rig, gate, detail_base, detail_strength)
+    def crowd(self, settings: RunSettings | None = None, *, rig=None, **changes) -> CrowdStream:
+        """Many characters, one call per frame for all of them (:class:`~.stream.CrowdStream`);
+        arguments as :meth:`stream`."""
+        return CrowdStream(self, self._stream_run(settings, changes), rig=rig)
+
+    def _stream_run(self, settings: RunSettings | None, changes: dict) -> ResolvedRun:
+        run = self.resolve(settings, **{**changes, "causal": True})
+        if run.mode not in CODE_MODES:
+            raise ValueError(f"streaming runs auto or one of {', '.join(CODE_MODES)}, not {run.mode.value!r}")
+        return run

@@ -91,9 +91,9 @@ def inertialize(inert: Inertializer, latent: np.ndarray, retrieved: bool, source
 
 
 def latent_sources(choice: WindowChoice) -> tuple[np.ndarray, np.ndarray]:
-    """The latents a causal path inertializes and whether each window's came from the database (in
-    the detail mode they are the regression's, one continuous source, whatever lends the folds)."""
-    return choice.latents, choice.retrieved & (not choice.detail)
+    """The latents a causal path inertializes and whether each window's change with its match
+    (:attr:`~.gate.WindowChoice.follows_match`)."""
+    return choice.latents, choice.follows_match
 
 
 def causal_latents(choice: WindowChoice, blend: int = 6) -> np.ndarray:
@@ -103,5 +103,5 @@ def causal_latents(choice: WindowChoice, blend: int = 6) -> np.ndarray:
     inert = Inertializer(blend)
     out = np.empty((len(latents), *latents.shape[2:]), np.float32)
     for t in range(len(out)):
-        out[t] = inertialize(inert, latents[t, -1], retrieved[t], choice.source[t], t)
+        out[t] = inertialize(inert, latents[t, -1], retrieved[t], choice.match[t], t)
     return out

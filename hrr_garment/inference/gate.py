@@ -16,10 +16,11 @@ import numpy as np
 import torch
 
 from ..artifacts.bundle import Bundle
-from ..artifacts.gate_signals import check_gate_signal, gate_doubt
+from ..artifacts.gate_signals import gate_doubt
 from ..artifacts.residual import match_regression, residual_latents
 from ..models.codes import encode_motion
 from .modes import CODE_MODES, Mode
+from .run_settings import ResolvedRun
 
 
 @dataclass
@@ -27,26 +28,29 @@ class WindowChoice:
     """What the gate decided for each window (N windows)."""
 
     latents: np.ndarray  # (N, W, nodes, C) chosen garment latents ((N, 1, nodes, C): last frames only)
-    retrieved: np.ndarray  # (N,) bool: the database gave the latents (every window in the residual mode)
+    retrieved: np.ndarray  # (N,) bool: the latents are the database window's, as simulated
     entropy: np.ndarray  # (N,) motion-code entropy
     doubt: np.ndarray  # (N,) the gate signal's value (retrieval where below tau; the entropy by default)
-    source: np.ndarray  # (N, 2) int32 (database sequence index, start frame) of retrieved windows, else -1
-    detail: bool = False  # the detail mode: ``source`` the matches that lend their folds to ``latents``
+    match: np.ndarray  # (N, 2) int32 (database sequence index, start frame) of the window that gave or lent, else -1
+    lends_folds: bool = False  # the detail mode: ``match`` lends its simulated folds to ``latents``
+    # (N,) bool: the latents change with the match (retrieved windows, and every residual window's),
+    # so a change of match is a change of source for causal inertialization (None: ``retrieved``)
+    follows_match: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        if self.follows_match is None:
+            self.follows_match = self.retrieved
 
 
-def choose_windows(bundle: Bundle, motion_windows: np.ndarray, mode: str, tau: float,
-                   exclude: np.ndarray | None = None, last_frame: bool = False,
-                   step: torch.nn.Module | None = None, gate: str = "entropy",
-                   detail_base: str = "regression") -> WindowChoice:
-    """Run the motion encoder on raw feature windows (N, W, F) and pick each window's latents
-    (with ``last_frame``, only the last frame's: all that causal inference blends). ``step``:
-    see :func:`encode_motion`; ``gate``: the hybrid's signal (see the module docstring);
-    ``detail_base``: the latents the detail mode's folds ride on, the regression's or the residual
-    mode's."""
+def choose_windows(bundle: Bundle, motion_windows: np.ndarray, run: ResolvedRun, *, exclude: np.ndarray | None = None,
+                   last_frame: bool = False, step: torch.nn.Module | None = None) -> WindowChoice:
+    """Run the motion encoder on raw feature windows (N, W, F) and pick each window's latents as
+    ``run`` asks (its mode, gate and tau, the detail mode's base; with ``last_frame``, only the
+    last frame's latents: all that causal inference blends). ``exclude``: (N,) a database sequence
+    each window may not retrieve from; ``step``: see :func:`encode_motion`."""
+    mode = run.mode
     if mode not in CODE_MODES:
         raise ValueError(f"unknown mode {str(mode)!r}; choose one of {', '.join(CODE_MODES)}")
-    mode = Mode(mode)
-    check_gate_signal(gate)
     db = bundle.database
     enc = encode_motion(bundle.codespace, bundle.motion_stats, bundle.latent_stats, motion_windows,
                         regression=mode.regresses, last_frame=last_frame, step=step)
@@ -55,23 +59,23 @@ def choose_windows(bundle: Bundle, motion_windows: np.ndarray, mode: str, tau: f
     doubt, match = enc.entropy, None
     if mode in (Mode.RESIDUAL, Mode.DETAIL):  # no gate: every window's regression and its best match
         match, similarity = db.search(enc.codes, exclude)
-        everywhere = np.ones(n, bool)
-        source = np.stack([db.sequence[match], db.start[match]], 1).astype(np.int32)
+        matched = np.stack([db.sequence[match], db.start[match]], 1).astype(np.int32)
         latents = enc.regression
         # the detail mode adds the matches' folds (.detail) to the regression's latents or to the
         # residual mode's (the match's own departure from the regression carries the hem's swing,
         # the folds its sharpness)
-        if mode is Mode.RESIDUAL or detail_base == "residual":
-            matched = db.latents[match, -frames:]
+        residual = mode is Mode.RESIDUAL or run.fold_base == "residual"
+        if residual:
             own = match_regression(bundle.codespace, bundle.motion_stats, bundle.latent_stats, db, match, last_frame, step)
-            latents = residual_latents(enc.regression, matched, own, similarity, bundle.residual_weight)
-        return WindowChoice(latents, everywhere, enc.entropy, np.asarray(doubt, np.float64), source,
-                            detail=mode is Mode.DETAIL)
-    if gate != "entropy" and mode is Mode.HYBRID:  # the match decides: search every window first
+            latents = residual_latents(enc.regression, db.latents[match, -frames:], own, similarity, bundle.residual_weight)
+        # a detail window's latents are the regression's, one continuous source whatever lends the folds
+        return WindowChoice(latents, np.zeros(n, bool), enc.entropy, np.asarray(doubt, np.float64), matched,
+                            lends_folds=mode is Mode.DETAIL, follows_match=np.full(n, mode is Mode.RESIDUAL))
+    if run.gate != "entropy" and mode is Mode.HYBRID:  # the match decides: search every window first
         match, similarity = db.search(enc.codes, exclude)
-        distance = db.motion_distance(enc.standardised, match) if gate == "distance" else None
-        doubt = gate_doubt(gate, enc.entropy, similarity, distance)
-    retrieved = {Mode.HYBRID: doubt < tau, Mode.REGRESSION: np.zeros(n, bool)}.get(mode, np.ones(n, bool))
+        distance = db.motion_distance(enc.standardised, match) if run.gate == "distance" else None
+        doubt = gate_doubt(run.gate, enc.entropy, similarity, distance)
+    retrieved = {Mode.HYBRID: doubt < run.tau, Mode.REGRESSION: np.zeros(n, bool)}.get(mode, np.ones(n, bool))
     latents = enc.regression.copy() if enc.regression is not None else np.empty((n, frames, *db.latents.shape[2:]), np.float32)
     source = np.full((n, 2), -1, np.int32)
     if retrieved.any():

@@ -44,7 +44,8 @@ from .decoding import flush_denormals
 from .detail import add_folds
 from .fold_track import FoldTrack
 from .gate import choose_windows
-from .modes import CODE_MODES, Mode
+from .modes import Mode
+from .run_settings import ResolvedRun
 
 STREAM_STAGES = ("features", "encoder", "decoder", "world", "push_out")
 
@@ -73,23 +74,21 @@ class CrowdStream:
     """Many characters streamed in one call per frame; see the module docstring. ``rig``: a
     :class:`~hrr_garment.motion.stream_rig.StreamRig` when poses come on a source skeleton."""
 
-    def __init__(self, animator, mode: str = Mode.AUTO, tau: float | None = None, collision: bool = True, rig=None,
-                 gate: str | None = None, detail_base: str | None = None, detail_strength: float | None = None):
-        if mode != Mode.AUTO and mode not in CODE_MODES:
-            raise ValueError(f"streaming runs auto or one of {', '.join(CODE_MODES)}, not {str(mode)!r}")
-        self.animator, self.collision, self.rig = animator, collision, rig
-        self.mode = animator.resolve_mode(mode, gate, tau, detail_base is not None or detail_strength is not None)
-        self.gate, self.tau = animator.gate_setting(gate, tau)
-        self.detail = None  # the detail mode's (base, strength), fixed for the stream's life
-        if self.mode is Mode.DETAIL:
-            animator.bundle.require_folds()
-            self.detail = animator.bundle.detail_setting(detail_base, detail_strength)
+    def __init__(self, animator, run: ResolvedRun, *, rig=None):
+        """``run``: the settings, resolved for ``animator``'s model (:meth:`~.animator.Animator.crowd`
+        makes both); they hold for the stream's life."""
+        self.animator, self.run, self.rig = animator, run, rig
         self._characters: dict[Hashable, _Character] = {}
         self.timings = _Timings()
-        regression = self.mode.regresses
+        regression = run.mode.regresses
         bundle = animator.bundle
         self._step = animator.causal_step(regression) or traced_window_codes(
             bundle.codespace, animator.window, bundle.codespace.features, regression=regression)
+
+    @property
+    def mode(self) -> Mode:
+        """The mode the stream runs (``auto`` resolved)."""
+        return self.run.mode
 
     @property
     def characters(self) -> list:
@@ -176,22 +175,21 @@ class CrowdStream:
             c.features.append(feat)
         windows = np.stack([np.stack(c.features) for c in chars])  # (N, W, F)
         t.append(time.perf_counter())
-        choice = choose_windows(self.animator.bundle, windows, self.mode, self.tau, last_frame=True, step=self._step,
-                                gate=self.gate, detail_base=self.detail[0] if self.detail else "regression")
+        choice = choose_windows(self.animator.bundle, windows, self.run, last_frame=True, step=self._step)
         path_latents, retrieved = latent_sources(choice)
         latents = np.empty((len(chars), *choice.latents.shape[2:]), np.float32)
         for i, c in enumerate(chars):
-            latents[i] = inertialize(c.inertializer, path_latents[i, -1], retrieved[i], choice.source[i], c.frames)
+            latents[i] = inertialize(c.inertializer, path_latents[i, -1], retrieved[i], choice.match[i], c.frames)
         t.append(time.perf_counter())
         with torch.no_grad():
             local = self.animator.decoder(torch.from_numpy(latents)).numpy()
-        if choice.detail:  # the detail mode: each character's playhead one frame on, its folds added
-            local = add_folds(local, self._folds(chars, choice.source), self.animator.smoothing,
-                              self.animator.bundle.folds.passes, self.detail[1])
+        if choice.lends_folds:  # the detail mode: each character's playhead one frame on, its folds added
+            local = add_folds(local, self._folds(chars, choice.match), self.animator.smoothing,
+                              self.animator.bundle.folds.passes, self.run.detail.strength)
         t.append(time.perf_counter())
         vertices = world_vertices(local, poses)  # as offline: the same push-out inputs
         t.append(time.perf_counter())
-        if self.collision:
+        if self.run.collision:
             vertices, _ = push_out(vertices, poses, self.animator.bundle.template.faces, mean=self.animator.smoothing,
                                    limits=self.animator.edge_limits, report=False)
         t.append(time.perf_counter())
@@ -207,9 +205,8 @@ class AnimationStream:
     """One character: one pose in, one garment frame out, causal (no future frames), bounded memory.
     ``push`` equals frame t of ``animator.animate(motion, causal=True)`` (tested to 1e-5)."""
 
-    def __init__(self, animator, mode: str = Mode.AUTO, tau: float | None = None, collision: bool = True, rig=None,
-                 gate: str | None = None, detail_base: str | None = None, detail_strength: float | None = None):
-        self.crowd = CrowdStream(animator, mode, tau, collision, rig, gate, detail_base, detail_strength)
+    def __init__(self, animator, run: ResolvedRun, *, rig=None):
+        self.crowd = CrowdStream(animator, run, rig=rig)
 
     @property
     def mode(self) -> Mode:

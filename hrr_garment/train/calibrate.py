@@ -136,16 +136,34 @@ class ModeErrors:
                     "retrieval_usage": s.retrieval_usage[s.taus.index(s.best_tau)]} for g, s in self.sweeps.items()}
 
 
-def evaluate_modes(codespace: CodeSpace, autoencoder, motion_stats: FeatureStats, latent_stats: FeatureStats,
-                   database: CodeDatabase, motion: dict[str, np.ndarray], frames: dict[str, np.ndarray], *,
-                   refine_steps: int, refine_lr: float, max_windows: int | None = MAX_WINDOWS,
-                   windows: list[tuple[str, int]] | None = None, progress: bool = False) -> ModeErrors:
-    """Both modes on windows of the sequences ``motion`` (features (T, F)) / ``frames``
-    (heading-frame vertices (T, V, 3)), decoded with the autoencoder's fast decoder: ``windows``
-    ((sequence, first frame) pairs; default every window of every sequence), or ``max_windows`` of
-    them evenly spaced. ``refine_steps`` and ``refine_lr``: the autoencoder stage's encoding, which
-    the floor's latents repeat. ``progress``: bars over the floor's encoding and the residual
-    weights, the slow parts at full resolution on a CPU."""
+@dataclass(frozen=True)
+class WindowModel:
+    """What the window-level calibration runs: a code space with its statistics and retrieval
+    database, and the mesh autoencoder that decodes (a bundle's, or one in training)."""
+
+    codespace: CodeSpace
+    autoencoder: object
+    motion_stats: FeatureStats
+    latent_stats: FeatureStats
+    database: CodeDatabase
+
+    @classmethod
+    def of_bundle(cls, bundle) -> "WindowModel":
+        return cls(bundle.codespace, bundle.autoencoder, bundle.motion_stats, bundle.latent_stats, bundle.database)
+
+
+def window_mode_errors(model: WindowModel, motion: dict[str, np.ndarray], frames: dict[str, np.ndarray], *,
+                       encoding: dict, max_windows: int | None = MAX_WINDOWS,
+                       windows: list[tuple[str, int]] | None = None, progress: bool = False) -> ModeErrors:
+    """Both modes' window-level errors on windows of the sequences ``motion`` (features (T, F)) /
+    ``frames`` (heading-frame vertices (T, V, 3)), decoded with the autoencoder's fast decoder:
+    ``windows`` ((sequence, first frame) pairs; default every window of every sequence), or
+    ``max_windows`` of them evenly spaced. ``encoding``: the autoencoder stage's ``refine_steps``
+    and ``refine_lr``, which the floor's latents repeat. ``progress``: bars over the floor's
+    encoding and the residual weights, the slow parts at full resolution on a CPU."""
+    codespace, autoencoder = model.codespace, model.autoencoder
+    motion_stats, latent_stats, database = model.motion_stats, model.latent_stats, model.database
+    refine_steps, refine_lr = encoding["refine_steps"], encoding["refine_lr"]
     w = codespace.config.window
     windows, m, truth = calibration_windows(motion, frames, w, windows, max_windows)
     # the floor: each frame's own latent, encoded as the training targets were (each frame fitted
@@ -197,16 +215,15 @@ def residual_errors(pred: WindowPredictions, decode, truth: np.ndarray,
             for w in tqdm(RESIDUAL_WEIGHTS, desc="residual weights", unit="weight", disable=not progress)}
 
 
-def calibrate_residual(codespace: CodeSpace, autoencoder, motion_stats: FeatureStats, latent_stats: FeatureStats,
-                       database: CodeDatabase, motion: dict[str, np.ndarray], frames: dict[str, np.ndarray],
+def calibrate_residual(model: WindowModel, motion: dict[str, np.ndarray], frames: dict[str, np.ndarray],
                        windows: list[tuple[str, int]] | None = None, max_windows: int | None = MAX_WINDOWS) -> dict:
     """The residual mode's calibration alone (:meth:`ModeErrors.residual_calibration`), on the
-    windows :func:`evaluate_modes` uses: for a model trained before the residual mode."""
-    _, m, truth = calibration_windows(motion, frames, codespace.config.window, windows, max_windows)
-    pred = predict_windows(codespace, m, motion_stats, latent_stats, database)
+    windows :func:`window_mode_errors` uses: for a model trained before the residual mode."""
+    _, m, truth = calibration_windows(motion, frames, model.codespace.config.window, windows, max_windows)
+    pred = predict_windows(model.codespace, m, model.motion_stats, model.latent_stats, model.database)
     if pred.match_regression is None:
         raise ValueError("the database has no motion windows: the residual mode cannot run on this model")
-    decode = autoencoder.fast_decoder()
+    decode = model.autoencoder.fast_decoder()
     return choose_residual_weight(window_errors_mm(decode, pred.regression, truth), residual_errors(pred, decode, truth))
 
 
@@ -262,7 +279,6 @@ def evaluate_bundle(bundle, dataset: str | Path, split: str = "val") -> dict:
     if not names:
         raise DatasetError(dataset, f"has no {split!r} sequences")
     encoding = refine_settings(bundle.meta.get("encoding", {}))
-    modes = evaluate_modes(bundle.codespace, bundle.autoencoder, bundle.motion_stats, bundle.latent_stats, bundle.database,
-                           dataset_features(ds, names, bundle.codespace.config.memory), {n: body_frames(ds, [n]) for n in names},
-                           **encoding)
+    modes = window_mode_errors(WindowModel.of_bundle(bundle), dataset_features(ds, names, bundle.codespace.config.memory),
+                               {n: body_frames(ds, [n]) for n in names}, encoding=encoding)
     return modes.summary(bundle.tau, bundle.gate)

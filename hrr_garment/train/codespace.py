@@ -33,7 +33,7 @@ from ..garment.smoothing import mean_operator
 from ..io_utils import atomic_write_text, strict_json
 from ..models.codespace import CodeSpace, CodeSpaceConfig
 from .autoencoder import body_frames, load_autoencoder, refine_settings
-from .calibrate import calibrate_residual, evaluate_modes
+from .calibrate import WindowModel, calibrate_residual, window_mode_errors
 from .codespace_training import (
     PAPER_VALIDATION_FRACTION,
     CodeSpaceTrainConfig,
@@ -145,8 +145,7 @@ def _add_residual(folder: Path, report_path: Path, report: dict, ds: GarmentData
     bundle = load_bundle(folder, cache_dir)
     if bundle.database.motion is None:  # no motion windows to regress the matches from
         return report
-    residual = calibrate_residual(bundle.codespace, bundle.autoencoder, bundle.motion_stats, bundle.latent_stats,
-                                  bundle.database, {n: features[n] for n in val_names},
+    residual = calibrate_residual(WindowModel.of_bundle(bundle), {n: features[n] for n in val_names},
                                   {n: body_frames(ds, [n]) for n in val_names}, windows=calibration)
     update_bundle_meta(folder, {"residual": residual})
     report = {**report, "residual": residual}
@@ -198,9 +197,9 @@ def run_codespace_stage(dataset: str | Path, folder: str | Path, config: CodeSpa
     # the database of every training window's garment code, then tau on the validation split
     database = CodeDatabase(garment_codes(model, train_t), train_w.latents, train_w.sequence, train_w.start,
                             train_w.names, config.classes, train_w.motion.with_frames(train_t.motion.numpy()))
-    modes = evaluate_modes(model, autoencoder, motion_stats, latent_stats, database,
-                           {n: features[n] for n in val_names}, {n: body_frames(ds, [n]) for n in val_names},
-                           **encoding, windows=calibration, progress=progress)
+    modes = window_mode_errors(WindowModel(model, autoencoder, motion_stats, latent_stats, database),
+                               {n: features[n] for n in val_names}, {n: body_frames(ds, [n]) for n in val_names},
+                               encoding=encoding, windows=calibration, progress=progress)
     gate, sweep = modes.gate, modes.sweep
     usage = model.quantizer.usage(torch.from_numpy(database.codes))
     final = evaluate(model, val_t)

@@ -1,0 +1,175 @@
+"""What a run is asked to do, as settings objects: :class:`DetailLook` and :class:`RunSettings`,
+and :class:`ResolvedRun`, the same settings resolved against one model.
+
+    settings = RunSettings(mode="detail", detail=DetailLook(base="residual", strength=1.0))
+    anim = animator.animate(motion, settings)              # or animator.animate(motion, mode="detail", ...)
+    crowd = animator.crowd(settings.replace(collision=False))
+
+A :class:`RunSettings` holds what the caller chose; a field left at None takes the model's
+calibrated value (bundle.json). Values are checked when the object is made, so a bad tau or
+strength is refused where it enters, naming the field. :meth:`RunSettings.resolve` fills in the
+model's values once, against one bundle, and refuses what that model cannot run (a residual base
+without a residual calibration, a named mode given another mode's settings). Everything below the
+API (the gate, the streams, the evaluation, the calibration) takes the :class:`ResolvedRun`; out.h5
+and report.json record :meth:`ResolvedRun.record`, written from this one place.
+
+New per-run choices (the body, the material) arrive here as fields, not as new arguments on
+every function that hands a run on.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..artifacts.bundle import Bundle, BundleError
+from ..artifacts.gate_signals import GATE_SIGNALS
+from ..artifacts.manifest import DETAIL_BASES, MAX_DETAIL_STRENGTH, valid_detail_strength
+from .modes import Mode
+
+#: keyword arguments of the API before the settings objects, and what replaced them
+RENAMED = {"detail_base": "detail=DetailLook(base=...)", "detail_strength": "detail=DetailLook(strength=...)"}
+
+
+def _number(value: object, what: str) -> float:
+    """A real number as a Python float (numpy scalars included); a TypeError for anything else."""
+    if isinstance(value, np.generic):
+        value = value.item()
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise TypeError(f"{what} must be a number, got {type(value).__name__} {value!r}")
+    return float(value)
+
+
+@dataclass(frozen=True)
+class DetailLook:
+    """The detail mode's look: what its simulated folds ride on and how strong they are.
+
+    ``base``: "regression" (the regression's shape) or "residual" (the residual mode's, which brings
+    the matched window's swing); ``strength``: the folds at this multiple of their simulated size, in
+    (0, 2] (1: as simulated). None takes the model's calibrated value (bundle.json ``auto``)."""
+
+    base: str | None = None
+    strength: float | None = None
+
+    def __post_init__(self) -> None:
+        if self.base is not None and self.base not in DETAIL_BASES:
+            raise ValueError(f"the detail mode's base is one of {', '.join(DETAIL_BASES)}, got {self.base!r}")
+        if self.strength is not None:
+            strength = _number(self.strength, "the detail mode's strength")
+            if not valid_detail_strength(strength):
+                raise ValueError(f"the detail mode's strength is in (0, {MAX_DETAIL_STRENGTH:g}], got {strength!r}")
+            object.__setattr__(self, "strength", strength)
+
+    @property
+    def chosen(self) -> bool:
+        """Whether the caller chose anything (a base or a strength)."""
+        return self.base is not None or self.strength is not None
+
+
+@dataclass(frozen=True)
+class RunSettings:
+    """How to animate, as asked (see the module docstring). None: the model's calibrated value."""
+
+    # auto (the model's calibrated choice) | hybrid | regression | retrieval | residual | detail |
+    # naive-nn | direct (the baseline, offline only, where the bundle has it)
+    mode: Mode | str = Mode.AUTO
+    # the hybrid's gate signal (entropy | similarity | distance) and its threshold: with the default
+    # mode, either one runs the hybrid, whose settings they are
+    gate: str | None = None
+    tau: float | None = None
+    # the detail mode's look: with the default mode, a chosen look runs the detail mode
+    detail: DetailLook = field(default_factory=DetailLook)
+    collision: bool = True  # the collision push-out against the body
+    causal: bool = False  # no future frames: what the streaming API gives
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "mode", Mode(self.mode))
+        if self.gate is not None and self.gate not in GATE_SIGNALS:
+            raise ValueError(f"gate must be one of {', '.join(GATE_SIGNALS)}, got {self.gate!r}")
+        if self.tau is not None:
+            tau = _number(self.tau, "tau")
+            if not math.isfinite(tau) or tau < 0:
+                raise ValueError(f"tau must be a finite number >= 0 (the gate's doubt is never negative), got {tau!r}")
+            object.__setattr__(self, "tau", tau)
+        if not isinstance(self.detail, DetailLook):
+            raise TypeError(f"detail must be a DetailLook, got {type(self.detail).__name__}")
+        for name in ("collision", "causal"):
+            value = getattr(self, name)
+            if not isinstance(value, (bool, np.bool_)):
+                raise TypeError(f"{name} must be True or False, got {value!r}")
+            object.__setattr__(self, name, bool(value))
+        if self.mode is Mode.AUTO and self.hybrid_chosen and self.detail.chosen:
+            raise ValueError("a gate or tau sets the hybrid and a detail look the detail mode: name the mode")
+        if self.detail.chosen and self.mode not in (Mode.AUTO, Mode.DETAIL):
+            raise ValueError(f"a detail look sets the detail mode; mode {self.mode.value} does not use it")
+
+    @property
+    def hybrid_chosen(self) -> bool:
+        """Whether the caller chose a gate or a tau (the hybrid's settings)."""
+        return self.gate is not None or self.tau is not None
+
+    def replace(self, **changes) -> RunSettings:
+        """A copy with ``changes`` (field names); a TypeError naming any other keyword."""
+        unknown = sorted(set(changes) - {f.name for f in dataclasses.fields(self)})
+        if unknown:
+            hints = [f"{k} (now {RENAMED[k]})" for k in unknown if k in RENAMED]
+            raise TypeError(f"unknown run setting(s) {', '.join(unknown)}; the settings are "
+                            f"{', '.join(f.name for f in dataclasses.fields(self))}"
+                            + (f": {'; '.join(hints)}" if hints else ""))
+        return dataclasses.replace(self, **changes) if changes else self
+
+    def resolve(self, bundle: Bundle) -> ResolvedRun:
+        """These settings with the model's calibrated values filled in, checked against ``bundle``."""
+        mode = self.mode
+        if mode is Mode.AUTO:
+            mode = Mode.HYBRID if self.hybrid_chosen else Mode.DETAIL if self.detail.chosen else Mode(bundle.auto_mode)
+        gate = bundle.gate if self.gate is None else self.gate
+        tau = bundle.gate_tau(gate) if self.tau is None else self.tau
+        look = None
+        if mode is Mode.DETAIL:
+            bundle.require_folds()
+            look = DetailLook(bundle.detail_base if self.detail.base is None else self.detail.base,
+                              bundle.detail_strength if self.detail.strength is None else self.detail.strength)
+            if look.base == "residual":
+                bundle.require_residual()
+                if bundle.residual_weight <= 0:
+                    raise BundleError(bundle.folder, "its residual weight is calibrated to 0, so the residual mode is "
+                                                     "the regression: run the detail mode on the regression")
+        elif mode is Mode.RESIDUAL:
+            bundle.require_residual()
+        return ResolvedRun(mode=mode, gate=gate, tau=tau, detail=look, collision=self.collision, causal=self.causal)
+
+
+@dataclass(frozen=True)
+class ResolvedRun:
+    """Run settings resolved against one model: every value concrete (see :meth:`RunSettings.resolve`)."""
+
+    mode: Mode  # never auto
+    gate: str
+    tau: float
+    detail: DetailLook | None  # concrete base and strength in the detail mode, else None
+    collision: bool
+    causal: bool
+
+    @property
+    def fold_base(self) -> str:
+        """What the detail mode's folds ride on ("regression" outside the detail mode)."""
+        return self.detail.base if self.detail is not None else "regression"
+
+    def record(self) -> dict:
+        """What out.h5's attributes and report.json's settings record of the run."""
+        out = {"mode": str(self.mode), "gate": self.gate, "tau": self.tau, "causal": int(self.causal),
+               "collision": int(self.collision)}
+        if self.detail is not None:
+            out.update(detail_base=self.detail.base, detail_strength=self.detail.strength)
+        return out
+
+
+def run_settings(settings: RunSettings | None, changes: dict) -> RunSettings:
+    """``settings`` (default :class:`RunSettings`) with the API call's keyword ``changes``."""
+    if settings is not None and not isinstance(settings, RunSettings):
+        raise TypeError(f"settings must be a RunSettings, got {type(settings).__name__} (modes go as mode=...)")
+    return (settings or RunSettings()).replace(**changes)
