@@ -155,7 +155,7 @@ def read_meta(folder: str | Path) -> dict:
         meta = json.loads(path.read_text(encoding="utf-8"))
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise BundleError(folder, f"bundle.json is unreadable ({exc})") from None
-    check_manifest(folder, migrate_manifest(folder, meta))
+    meta = check_manifest(folder, migrate_manifest(folder, meta))
     for name, digest in meta["files"].items():
         if not (folder / name).is_file():
             raise BundleError(folder, f"{name} is missing")

@@ -23,22 +23,15 @@ from __future__ import annotations
 
 import argparse
 import sys
-import time
 from pathlib import Path
 from typing import Sequence
 
-import yaml
-
 from ..errors import InputError
-from ..io_utils import remove_empty_folders
 from ..paths import workspace
-from ..sim.plan import CONFIG_DIR, load_preset
+from ..pipeline.train import OLD_CODESPACE_NAME, STAGES, TrainCallback, TrainSettings, train_model
+from ..sim.plan import load_preset
 from ..train.report import StageReport
 from ._common import run_cli
-
-STAGES = ("simulate", "autoencoder", "codespace")  # "all"; the baseline stage runs only when asked for
-SECTIONS = ("autoencoder", "codespace", "baseline")  # of the training config
-OLD_CODESPACE_NAME = "codebook"  # the old name of the stage and of its config section (deprecated)
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -53,7 +46,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--minutes", type=float, default=None, help="wall-clock budget for the autoencoder stage")
     p.add_argument("--validation", choices=("clips", "windows"), default=None,
                    help="the code space's validation: the dataset's held-out clips (default) or, as the paper did, "
-                        "a random tenth of the training clips' windows (docs/results.md, the paper protocol)")
+                        "a random tenth of the training clips' windows (docs/evaluation.md, the paper protocol)")
     p.add_argument("--threads", type=int, default=None, help="torch CPU threads (default: torch's choice)")
     p.add_argument("--device", default=None,
                    help="torch device for the autoencoder stage, e.g. cuda (default cpu; other stages run on the CPU)")
@@ -62,197 +55,59 @@ def _parser() -> argparse.ArgumentParser:
     return p
 
 
-def _merge(base: dict, override: dict) -> dict:
-    out = dict(base)
-    for key, value in (override or {}).items():
-        out[key] = _merge(out[key], value) if isinstance(value, dict) and isinstance(out.get(key), dict) else value
-    return out
+class _Printer(TrainCallback):
+    """hrr-train's report of each stage, as it ends."""
+
+    def on_message(self, text: str) -> None:
+        print(f"hrr-train: {text}", file=sys.stderr if text.startswith("deprecated") else sys.stdout)
+
+    def on_stage_end(self, stage: str, result) -> None:
+        if stage == "simulate" and result is not None:
+            from .simulate import print_report
+
+            print_report(result.report, result.mesh)
+        elif stage == "autoencoder":
+            _print_autoencoder(result)
+        elif stage == "codespace":
+            _print_codespace(result)
+        elif stage == "auto":
+            from ..eval.auto_mode import describe_auto
+
+            print(describe_auto(result))
+        elif stage == "baseline":
+            print(f"baseline (direct regression): {_epochs(result)}; validation per-vertex error "
+                  f"{result.metrics['validation_mm']:.2f} mm")
 
 
-def _read_yaml(path: Path) -> dict:
-    try:
-        data = yaml.safe_load(path.read_text(encoding="utf-8")) or {}
-    except (OSError, yaml.YAMLError) as exc:
-        raise InputError(path, f"cannot read the training config: {exc}") from None
-    return _sections(data, path)
-
-
-def _sections(data, source) -> dict:
-    """A training config's sections, checked, the code space's old section name renamed."""
-    if isinstance(data, dict) and OLD_CODESPACE_NAME in data:
-        _deprecated(f"{source}: the config section '{OLD_CODESPACE_NAME}' is now called 'codespace'")
-        if "codespace" in data:
-            raise InputError(source, f"has both a '{OLD_CODESPACE_NAME}' and a 'codespace' section; keep 'codespace'")
-        data = {("codespace" if k == OLD_CODESPACE_NAME else k): v for k, v in data.items()}
-    if not isinstance(data, dict) or set(data) - set(SECTIONS):
-        raise InputError(source, "expected a mapping with 'autoencoder', 'codespace' and/or 'baseline' sections "
-                                 "(each with model/train)")
-    return data
-
-
-def settings(preset_train: dict, user: Path | None, preset_name: str = "preset") -> dict:
-    """The training settings: configs/train.yaml, then the preset's, then the user's file."""
-    cfg = _merge(_read_yaml(CONFIG_DIR / "train.yaml"), _sections(preset_train or {}, f"the {preset_name} preset's train section"))
-    return _merge(cfg, _read_yaml(user)) if user else cfg
-
-
-def _deprecated(message: str) -> None:
-    print(f"hrr-train: deprecated: {message}", file=sys.stderr)
-
-
-def _build(factory, values: dict, source) -> object:
-    try:
-        return factory.from_dict(dict(values or {}))
-    except ValueError as exc:
-        raise InputError(source, str(exc)) from None
-
-
-def _simulate(garment: str, preset, out: Path, quiet: bool) -> None:
-    from ..export.preview import write_dataset_preview
-    from ..garment.templates import make_garment
-    from ..sim.build import build_dataset
-    from ..sim.plan import build_options, plan_sequences
-    from ..sim.simulator import SimConfig
-    from .simulate import print_report
-
-    mesh = make_garment(garment, preset.vertices)
-    specs = plan_sequences(preset)
-    options = build_options(preset, specs)
-    options["info"]["garment_vertices"] = mesh.num_vertices
-    report = build_dataset(mesh, specs, SimConfig.from_dict(preset.sim), out, progress=not quiet,
-                           preview=write_dataset_preview, **options)
-    print_report(report, mesh)
+def _overrides(args) -> dict:
+    """The flags that override the training config's values, in its sections' shape."""
+    ae = {k: v for k, v in (("max_minutes", args.minutes), ("threads", args.threads), ("device", args.device)) if v is not None}
+    cs = {"validation": args.validation} if args.validation is not None else {}
+    return {"autoencoder": {"train": ae}, "codespace": {"train": cs}}
 
 
 def _main(argv: Sequence[str] | None) -> int:
     args = _parser().parse_args(argv)
-    from ..models.codespace import CodeSpaceConfig
-    from ..models.direct import DirectConfig
-    from ..models.fcmae import AutoencoderConfig
-    from ..train.autoencoder import TrainConfig
-    from ..train.baseline import DirectTrainConfig
-    from ..train.codespace_training import CodeSpaceTrainConfig
-
+    printer = _Printer()
     if args.stage == OLD_CODESPACE_NAME:
-        _deprecated(f"--stage {OLD_CODESPACE_NAME} is now --stage codespace")
+        printer.on_message(f"deprecated: --stage {OLD_CODESPACE_NAME} is now --stage codespace")
         args.stage = "codespace"
-
     preset = load_preset(args.preset)
     if args.dataset is None:
         if args.garment is None:
             raise InputError("hrr-train", "give --garment NAME (with --preset) or --dataset FILE")
         args.dataset = workspace() / "datasets" / f"{args.garment}-{preset.name}.h5"
     folder = args.output or workspace() / "models" / args.dataset.stem
-    cfg = settings(preset.train, args.config, preset.name)
-    source = args.config or CONFIG_DIR / "train.yaml"
-    ae_model = _build(AutoencoderConfig, cfg["autoencoder"].get("model"), source)
-    ae_train_values = dict(cfg["autoencoder"].get("train") or {})
-    for key, value in (("max_minutes", args.minutes), ("threads", args.threads), ("device", args.device)):
-        if value is not None:
-            ae_train_values[key] = value
-    ae_train = _build(TrainConfig, ae_train_values, source)
-    cs_model = _build(CodeSpaceConfig, cfg["codespace"].get("model"), source)
-    cs_train_values = dict(cfg["codespace"].get("train") or {})
-    if args.validation is not None:
-        cs_train_values["validation"] = args.validation
-    cs_train = _build(CodeSpaceTrainConfig, cs_train_values, source)
-    direct_model = _build(DirectConfig, cfg["baseline"].get("model"), source)
-    direct_train = _build(DirectTrainConfig, cfg["baseline"].get("train"), source)
+    settings = TrainSettings.load(preset, args.config, _overrides(args), printer)
     if args.threads:
         import torch
 
         torch.set_num_threads(args.threads)
-
-    try:
-        return _run_stages(args, preset, folder, (ae_model, ae_train), (cs_model, cs_train), (direct_model, direct_train))
-    except BaseException:
-        remove_empty_folders(folder)  # what a failed run made and never filled; finished stages stay for resuming
-        raise
-
-
-def _missing_sequences(dataset: Path, preset) -> list[str]:
-    """The preset's sequences that an existing dataset of its own clips does not hold: a workspace
-    made with an earlier, smaller version of the preset. None where there is no dataset yet, or
-    where it holds other clips (``hrr-simulate --motions``, or a different preset): that one is the
-    user's choice."""
-    if not dataset.exists():
-        return []
-    from ..data.dataset import GarmentDataset
-    from ..sim.plan import plan_sequences
-
-    ds = GarmentDataset(dataset)
-    planned = [spec.name for spec in plan_sequences(preset)]
-    if ds.info.get("preset") != preset.name or ds.info.get("motions") or not set(ds.names) <= set(planned):
-        return []
-    return [name for name in planned if name not in set(ds.names)]
-
-
-def _run_stages(args, preset, folder: Path, autoencoder: tuple, codespace: tuple, baseline: tuple) -> int:
-    from ..train.autoencoder import train_autoencoder
-    from ..train.baseline import run_baseline_stage
-    from ..train.codespace import run_codespace_stage
-
-    (ae_model, ae_train), (cs_model, cs_train), (direct_model, direct_train) = autoencoder, codespace, baseline
-    times: dict[str, float] = {}
-    stages = STAGES if args.stage == "all" else (args.stage,)
-    if args.dataset.exists() and {"autoencoder", "codespace"} & set(stages):
-        from ..data.dataset import GarmentDataset
-        from ..train.codespace import check_splits
-
-        check_splits(GarmentDataset(args.dataset))  # a dataset the code space cannot use fails before any training
-    for stage in stages:
-        t0 = time.perf_counter()
-        if stage == "simulate":
-            missing = _missing_sequences(args.dataset, preset) if args.garment is not None else []
-            if args.dataset.exists() and not missing:
-                continue
-            if args.garment is None:
-                raise InputError(args.dataset, "no such dataset")
-            if args.dataset.exists():  # the preset grew since this dataset was made: add what it lacks
-                print(f"simulate: {args.dataset} lacks {len(missing)} of the {preset.name} preset's sequences "
-                      f"(e.g. {missing[0]}); simulating them (its own are reused)")
-            else:
-                print(f"simulate: no dataset at {args.dataset}; simulating the {preset.name} preset first")
-            _simulate(args.garment, preset, args.dataset, args.quiet)
-        elif stage == "autoencoder":
-            if not args.dataset.exists():
-                hint = f"hrr-simulate --garment {args.garment} --preset {preset.name}" if args.garment else "hrr-simulate"
-                raise InputError(args.dataset, f"no dataset; make it with: {hint} (or run hrr-train without --stage)")
-            r = train_autoencoder(args.dataset, folder / "autoencoder", ae_model, ae_train, cache_dir=workspace() / "cache",
-                                  progress=not args.quiet)
-            _print_autoencoder(r)
-        elif stage == "codespace":
-            r = run_codespace_stage(args.dataset, folder, cs_model, cs_train, cache_dir=workspace() / "cache",
-                                    progress=not args.quiet, info={"preset": preset.name})
-            _print_codespace(r, folder)
-            _auto_mode(folder, args.dataset, not args.quiet)
-        elif stage == "baseline":
-            r = run_baseline_stage(args.dataset, folder, direct_model, direct_train, cache_dir=workspace() / "cache",
-                                   progress=not args.quiet)
-            print(f"baseline (direct regression): {_epochs(r)}; validation per-vertex error "
-                  f"{r.metrics['validation_mm']:.2f} mm")
-        times[stage] = time.perf_counter() - t0
-    print("time per stage: " + ", ".join(f"{k} {v / 60:.1f} min" for k, v in times.items()))
+    result = train_model(args.dataset, folder, settings, stages=STAGES if args.stage == "all" else (args.stage,),
+                         garment=args.garment, preset=preset, progress=not args.quiet, callback=printer)
+    print(f"bundle: {folder}")
+    print("time per stage: " + ", ".join(f"{k} {v / 60:.1f} min" for k, v in result.seconds.items()))
     return 0
-
-
-def _auto_mode(folder: Path, dataset: Path, progress: bool) -> None:
-    """Calibrate the mode ``auto`` runs (:mod:`hrr_garment.eval.auto_mode`) on the validation clips,
-    once per bundle (a model trained before it gets it on its next ``--stage codespace``)."""
-    from ..artifacts.bundle import read_meta
-    from ..artifacts.bundle_writer import update_bundle_meta
-    from ..eval.auto_mode import calibrate_auto_mode, describe_auto
-
-    auto = read_meta(folder).get("auto")  # reading it hashes every file: once
-    if auto is None:
-        from ..data.dataset import GarmentDataset
-        from ..inference.animator import Animator
-
-        ds = GarmentDataset(dataset)
-        records = [ds.sequence(n) for n in ds.splits.get("val", [])]
-        auto = calibrate_auto_mode(Animator.load(folder), records, progress=progress)
-        update_bundle_meta(folder, {"auto": auto})
-    print(describe_auto(auto))
 
 
 def _epochs(r: StageReport) -> str:
@@ -266,9 +121,10 @@ def _print_autoencoder(r: StageReport) -> None:
           f"(levels {' > '.join(str(s) for s in m['sizes'])})")
 
 
-def _print_codespace(report: StageReport, folder: Path) -> None:
+def _print_codespace(report: StageReport) -> None:
     r = report.metrics
     v = r["validation_mm"]
+    folder = report.folder.parent
     size = sum(p.stat().st_size for p in folder.glob("*.safetensors")) / 1e6
     print(f"code space: {report.epochs} epochs (curriculum switch at "
           f"{r['training']['switched_at']}){' (reused)' if report.reused else ''}; code agreement {r['code_agreement']:.2f} "
@@ -285,7 +141,7 @@ def _print_codespace(report: StageReport, folder: Path) -> None:
     if r.get("residual"):  # the residual mode's weight (reports before it, or databases without motion: none)
         print(f"residual mode: weight {r['residual']['weight']:g}, {r['residual']['validation_mm']:.2f} mm ("
               + ", ".join(f"{w}: {e:.2f}" for w, e in r["residual"]["errors_mm"].items()) + ")")
-    print(f"bundle: {folder} ({size:.1f} MB)")
+    print(f"bundle files: {size:.1f} MB")
 
 
 def main(argv: Sequence[str] | None = None) -> int:

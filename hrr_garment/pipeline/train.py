@@ -1,0 +1,279 @@
+"""Training a garment model end to end: :class:`TrainSettings` and :func:`train_model`.
+
+    from hrr_garment.pipeline.train import TrainSettings, train_model
+    from hrr_garment.sim.plan import load_preset
+
+    preset = load_preset("tiny")
+    settings = TrainSettings.load(preset)                       # configs/train.yaml, then the preset's
+    result = train_model("hrr_work/datasets/skirt-tiny.h5", "hrr_work/models/skirt-tiny", settings,
+                         garment="skirt", preset=preset)        # simulates first where the dataset is missing
+    result.auto                                                 # what the auto mode was calibrated to run
+
+The stages, in order: ``simulate`` (only where the dataset does not exist, or lacks sequences its
+preset has gained), ``autoencoder`` (the FCMAE mesh autoencoder, then every frame encoded),
+``codespace`` (the shared code space, the retrieval database, the gate's and the residual mode's
+calibration, the bundle), then the auto mode's calibration on the validation clips; ``baseline``
+(the direct-regression baseline) only when asked for. Each stage resumes from its checkpoint and
+is skipped when its outputs are current. A :class:`TrainCallback` hears each stage's end and
+messages; the command line's prints them, a library caller may ignore them.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import yaml
+
+from ..errors import InputError
+from ..io_utils import remove_empty_folders
+from ..models.codespace import CodeSpaceConfig
+from ..models.direct import DirectConfig
+from ..models.fcmae import AutoencoderConfig
+from ..paths import workspace
+from ..sim.plan import CONFIG_DIR, Preset
+from ..train.autoencoder import TrainConfig
+from ..train.baseline import DirectTrainConfig
+from ..train.codespace_training import CodeSpaceTrainConfig
+from ..train.report import StageReport
+
+STAGES = ("simulate", "autoencoder", "codespace")  # what "all" runs; the baseline runs only when asked for
+SECTIONS = ("autoencoder", "codespace", "baseline")  # of the training config
+OLD_CODESPACE_NAME = "codebook"  # the old name of the code-space stage and config section (deprecated)
+
+
+class TrainCallback:
+    """Hears what training does; every method does nothing unless overridden."""
+
+    def on_message(self, text: str) -> None:
+        """A line worth telling a person (a dataset simulated first, a deprecated setting)."""
+
+    def on_stage_end(self, stage: str, result: StageReport | dict | None) -> None:
+        """A stage finished: its report (``simulate``: a :class:`SimulatedDataset`, None where the
+        dataset was there; ``auto``: the calibration's dict)."""
+
+
+def _merge(base: dict, override: dict) -> dict:
+    out = dict(base)
+    for key, value in (override or {}).items():
+        out[key] = _merge(out[key], value) if isinstance(value, dict) and isinstance(out.get(key), dict) else value
+    return out
+
+
+def _sections(data, source, callback: TrainCallback) -> dict:
+    """A training config's sections, checked, the code space's old section name renamed."""
+    if isinstance(data, dict) and OLD_CODESPACE_NAME in data:
+        callback.on_message(f"deprecated: {source}: the config section '{OLD_CODESPACE_NAME}' is now called 'codespace'")
+        if "codespace" in data:
+            raise InputError(source, f"has both a '{OLD_CODESPACE_NAME}' and a 'codespace' section; keep 'codespace'")
+        data = {("codespace" if k == OLD_CODESPACE_NAME else k): v for k, v in data.items()}
+    if not isinstance(data, dict) or set(data) - set(SECTIONS):
+        raise InputError(source, "expected a mapping with 'autoencoder', 'codespace' and/or 'baseline' sections "
+                                 "(each with model/train)")
+    return data
+
+
+def _read_yaml(path: Path, callback: TrainCallback) -> dict:
+    try:
+        data = yaml.safe_load(Path(path).read_text(encoding="utf-8")) or {}
+    except (OSError, yaml.YAMLError) as exc:
+        raise InputError(path, f"cannot read the training config: {exc}") from None
+    return _sections(data, path, callback)
+
+
+def _build(factory, values: dict, source) -> object:
+    try:
+        return factory.from_dict(dict(values or {}))
+    except ValueError as exc:
+        raise InputError(source, str(exc)) from None
+
+
+@dataclass(frozen=True)
+class TrainSettings:
+    """Every stage's model and training settings (each a config dataclass of its stage)."""
+
+    autoencoder: AutoencoderConfig = field(default_factory=AutoencoderConfig)
+    autoencoder_train: TrainConfig = field(default_factory=TrainConfig)
+    codespace: CodeSpaceConfig = field(default_factory=CodeSpaceConfig)
+    codespace_train: CodeSpaceTrainConfig = field(default_factory=CodeSpaceTrainConfig)
+    baseline: DirectConfig = field(default_factory=DirectConfig)
+    baseline_train: DirectTrainConfig = field(default_factory=DirectTrainConfig)
+
+    @classmethod
+    def load(cls, preset: Preset | None = None, user_config: str | Path | None = None, overrides: dict | None = None,
+             callback: TrainCallback | None = None) -> "TrainSettings":
+        """configs/train.yaml, then the preset's ``train:`` section, then ``user_config`` (a YAML of
+        the same sections), then ``overrides`` (``{"autoencoder": {"train": {"max_minutes": 5}}}``)."""
+        callback = callback or TrainCallback()
+        values = _read_yaml(CONFIG_DIR / "train.yaml", callback)
+        if preset is not None:
+            values = _merge(values, _sections(preset.train or {}, f"the {preset.name} preset's train section", callback))
+        if user_config is not None:
+            values = _merge(values, _read_yaml(Path(user_config), callback))
+        values = _merge(values, _sections(overrides or {}, "the overrides", callback))
+        source = user_config or CONFIG_DIR / "train.yaml"
+        built = {}
+        for section, (model_cls, train_cls) in {"autoencoder": (AutoencoderConfig, TrainConfig),
+                                                "codespace": (CodeSpaceConfig, CodeSpaceTrainConfig),
+                                                "baseline": (DirectConfig, DirectTrainConfig)}.items():
+            built[section] = _build(model_cls, values.get(section, {}).get("model"), source)
+            built[f"{section}_train"] = _build(train_cls, values.get(section, {}).get("train"), source)
+        return cls(**built)
+
+
+@dataclass
+class TrainResult:
+    """What :func:`train_model` did: each stage's report, the auto calibration, seconds per stage."""
+
+    folder: Path
+    reports: dict[str, StageReport] = field(default_factory=dict)
+    auto: dict | None = None  # bundle.json's "auto" after the code-space stage
+    seconds: dict[str, float] = field(default_factory=dict)
+
+
+def train_model(dataset: str | Path, folder: str | Path, settings: TrainSettings, *, stages: tuple[str, ...] = STAGES,
+                garment: str | None = None, preset: Preset | None = None, progress: bool = True,
+                callback: TrainCallback | None = None) -> TrainResult:
+    """Run ``stages`` (see the module docstring) on ``dataset`` into the bundle folder ``folder``.
+    ``garment`` and ``preset``: what the ``simulate`` stage builds where the dataset is missing
+    (without a garment it is the user's dataset, and must exist)."""
+    dataset, folder = Path(dataset), Path(folder)
+    callback = callback or TrainCallback()
+    unknown = [s for s in stages if s not in (*STAGES, "baseline")]
+    if unknown:
+        raise ValueError(f"unknown stage(s) {unknown}; the stages are {', '.join((*STAGES, 'baseline'))}")
+    result = TrainResult(folder)
+    try:
+        if dataset.exists() and {"autoencoder", "codespace"} & set(stages):
+            from ..data.dataset import GarmentDataset
+            from ..train.codespace import check_splits
+
+            check_splits(GarmentDataset(dataset))  # a dataset the code space cannot use fails before any training
+        for stage in stages:
+            t0 = time.perf_counter()
+            report = _STAGE_RUNNERS[stage](dataset, folder, settings, _Context(garment, preset, progress, callback))
+            if isinstance(report, StageReport):
+                result.reports[stage] = report
+            callback.on_stage_end(stage, report)
+            if stage == "codespace":
+                result.auto = calibrate_auto(folder, dataset, progress)
+                callback.on_stage_end("auto", result.auto)
+            result.seconds[stage] = time.perf_counter() - t0
+    except BaseException:
+        remove_empty_folders(folder)  # what a failed run made and never filled; finished stages stay for resuming
+        raise
+    return result
+
+
+@dataclass(frozen=True)
+class _Context:
+    garment: str | None
+    preset: Preset | None
+    progress: bool
+    callback: TrainCallback
+
+
+def _simulate_stage(dataset: Path, folder: Path, settings: TrainSettings, ctx: _Context) -> SimulatedDataset | None:
+    missing = missing_sequences(dataset, ctx.preset) if ctx.garment is not None and ctx.preset is not None else []
+    if dataset.exists() and not missing:
+        return None
+    if ctx.garment is None or ctx.preset is None:
+        raise InputError(dataset, "no such dataset")
+    if dataset.exists():  # the preset grew since this dataset was made: add what it lacks
+        ctx.callback.on_message(f"simulate: {dataset} lacks {len(missing)} of the {ctx.preset.name} preset's sequences "
+                                f"(e.g. {missing[0]}); simulating them (its own are reused)")
+    else:
+        ctx.callback.on_message(f"simulate: no dataset at {dataset}; simulating the {ctx.preset.name} preset first")
+    return simulate_preset(ctx.garment, ctx.preset, dataset, progress=ctx.progress)
+
+
+def _autoencoder_stage(dataset: Path, folder: Path, settings: TrainSettings, ctx: _Context) -> StageReport:
+    from ..train.autoencoder import train_autoencoder
+
+    if not dataset.exists():
+        hint = f"hrr-simulate --garment {ctx.garment} --preset {ctx.preset.name}" if ctx.garment and ctx.preset else "hrr-simulate"
+        raise InputError(dataset, f"no dataset; make it with: {hint} (or run hrr-train without --stage)")
+    return train_autoencoder(dataset, folder / "autoencoder", settings.autoencoder, settings.autoencoder_train,
+                             cache_dir=workspace() / "cache", progress=ctx.progress)
+
+
+def _codespace_stage(dataset: Path, folder: Path, settings: TrainSettings, ctx: _Context) -> StageReport:
+    from ..train.codespace import run_codespace_stage
+
+    info = {"preset": ctx.preset.name} if ctx.preset is not None else None
+    return run_codespace_stage(dataset, folder, settings.codespace, settings.codespace_train,
+                               cache_dir=workspace() / "cache", progress=ctx.progress, info=info)
+
+
+def _baseline_stage(dataset: Path, folder: Path, settings: TrainSettings, ctx: _Context) -> StageReport:
+    from ..train.baseline import run_baseline_stage
+
+    return run_baseline_stage(dataset, folder, settings.baseline, settings.baseline_train,
+                              cache_dir=workspace() / "cache", progress=ctx.progress)
+
+
+_STAGE_RUNNERS = {"simulate": _simulate_stage, "autoencoder": _autoencoder_stage, "codespace": _codespace_stage,
+                  "baseline": _baseline_stage}
+
+
+def calibrate_auto(folder: str | Path, dataset: str | Path, progress: bool = True) -> dict:
+    """The mode ``auto`` runs (:mod:`hrr_garment.eval.auto_mode`), calibrated on the dataset's
+    validation clips once per bundle and recorded in bundle.json; the recorded one where it was."""
+    from ..artifacts.bundle import read_meta
+    from ..artifacts.bundle_writer import update_bundle_meta
+
+    auto = read_meta(folder).get("auto")  # reading it hashes every file: once
+    if auto is None:
+        from ..data.dataset import GarmentDataset
+        from ..eval.auto_mode import calibrate_auto_mode
+        from ..inference.animator import Animator
+
+        ds = GarmentDataset(dataset)
+        records = [ds.sequence(n) for n in ds.splits.get("val", [])]
+        auto = calibrate_auto_mode(Animator.load(folder), records, progress=progress)
+        update_bundle_meta(folder, {"auto": auto})
+    return auto
+
+
+def missing_sequences(dataset: Path, preset: Preset) -> list[str]:
+    """The preset's sequences that an existing dataset of its own clips does not hold: a workspace
+    made with an earlier, smaller version of the preset. None where there is no dataset yet, or
+    where it holds other clips (``hrr-simulate --motions``, or a different preset): that one is the
+    user's choice."""
+    if not dataset.exists():
+        return []
+    from ..data.dataset import GarmentDataset
+    from ..sim.plan import plan_sequences
+
+    ds = GarmentDataset(dataset)
+    planned = [spec.name for spec in plan_sequences(preset)]
+    if ds.info.get("preset") != preset.name or ds.info.get("motions") or not set(ds.names) <= set(planned):
+        return []
+    return [name for name in planned if name not in set(ds.names)]
+
+
+@dataclass(frozen=True)
+class SimulatedDataset:
+    """What the ``simulate`` stage built: the build's report and the garment simulated."""
+
+    report: object  # :class:`~hrr_garment.sim.build.BuildReport`
+    mesh: object  # :class:`~hrr_garment.garment.mesh.GarmentMesh`
+
+
+def simulate_preset(garment: str, preset: Preset, out: Path, progress: bool = True) -> SimulatedDataset:
+    """Simulate ``preset``'s sequences of ``garment`` into the dataset ``out`` (as hrr-simulate
+    would; finished sequences are reused)."""
+    from ..export.preview import write_dataset_preview
+    from ..garment.templates import make_garment
+    from ..sim.build import build_dataset
+    from ..sim.plan import build_options, plan_sequences
+    from ..sim.simulator import SimConfig
+
+    mesh = make_garment(garment, preset.vertices)
+    specs = plan_sequences(preset)
+    options = build_options(preset, specs)
+    options["info"]["garment_vertices"] = mesh.num_vertices
+    report = build_dataset(mesh, specs, SimConfig.from_dict(preset.sim), out, progress=progress,
+                           preview=write_dataset_preview, **options)
+    return SimulatedDataset(report, mesh)
