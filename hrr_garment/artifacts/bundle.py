@@ -201,7 +201,7 @@ def load_bundle(folder: str | Path, cache_dir: Path | None = None) -> Bundle:
         raise BundleError(folder, f"the model was trained on {features} motion features; its settings give {cs_cfg.features}")
     t = _arrays(folder, "template.safetensors", ("vertices", "faces", "attached"))
     groups = {k.split("/", 1)[1]: v for k, v in t.items() if k.startswith("group/")}  # the template's vertex groups, if any
-    template = GarmentMesh(str(meta["garment"]), t["vertices"], t["faces"], {**groups, "attached": t["attached"]}, ("attached",))
+    template = GarmentMesh(str(meta["garment"]), t["vertices"], t["faces"], groups={**groups, "attached": t["attached"]}, attached_groups=("attached",))
     try:
         check_garment(template)
     except GarmentError as exc:
@@ -210,7 +210,7 @@ def load_bundle(folder: str | Path, cache_dir: Path | None = None) -> Bundle:
     if list(hierarchy.sizes) != list(meta["autoencoder"].get("sizes", [])):
         raise BundleError(folder, f"the template's sampling hierarchy has levels {list(hierarchy.sizes)}, the model "
                                   f"{meta['autoencoder'].get('sizes')}")
-    autoencoder = MeshAutoencoder(hierarchy, ae_cfg, template.vertices, float(meta["autoencoder"]["scale"]))
+    autoencoder = MeshAutoencoder(hierarchy, ae_cfg, template.vertices, scale=float(meta["autoencoder"]["scale"]))
     _load_state(autoencoder, folder / "autoencoder.safetensors", folder)
     codespace = CodeSpace(cs_cfg, features, latent_shape)
     for name in NETWORKS:
@@ -240,7 +240,7 @@ def _load_folds(folder: Path, meta: dict, template: GarmentMesh, database: CodeD
     """The fold store, checked against the template and every database window it must cover."""
     f = _arrays(folder, FOLDS_FILE, ("detail", "scale", "offsets"))
     try:
-        folds = FoldStore(f["detail"], f["scale"], f["offsets"], meta["folds"]["passes"])
+        folds = FoldStore(f["detail"], f["scale"], f["offsets"], passes=meta["folds"]["passes"])
         folds.check_fits(template.num_vertices, len(database.names), database.sequence,
                          database.start + database.latents.shape[1])
     except (KeyError, TypeError, ValueError) as exc:

@@ -39,7 +39,7 @@ def match_regression(codespace, motion_stats, latent_stats, database: CodeDataba
     if database.motion is None:
         raise ValueError("this database has no motion windows (residual retrieval needs them)")
     raw = motion_stats.denormalize(database.motion[rows])
-    return encode_motion(codespace, motion_stats, latent_stats, raw, regression=True, last_frame=last_frame,
+    return encode_motion(codespace, motion_stats, latent_stats, motion_windows=raw, regression=True, last_frame=last_frame,
                          step=step).regression
 
 

@@ -103,8 +103,8 @@ def _main(argv: Sequence[str] | None) -> int:
     job = _job(args)
     report = _evaluate(job, args)
     out = args.output or workspace() / "eval" / job.model_dir.name
-    plots = [] if args.no_plots else write_plots(Path(out), job.results, job.sweep, report["settings"]["tau"],
-                                                 report["settings"]["gate"])
+    plots = [] if args.no_plots else write_plots(Path(out), job.results, job.sweep, tau=report["settings"]["tau"],
+                                                 gate=report["settings"]["gate"])
     report["seconds"] = time.perf_counter() - t0
     json_path, md_path = write_report(out, report, plots)
     _print_summary(report)
@@ -189,18 +189,18 @@ def _evaluate(job: _Job, args) -> dict:
 
     animator, records, settings = job.animator, job.records, job.settings
     bundle = animator.bundle
-    ensembles = truth_ensembles_of(job.ds, records, settings.members, settings.jobs, settings.progress)
+    ensembles = truth_ensembles_of(job.ds, records, settings.members, jobs=settings.jobs, progress=settings.progress)
     print(f"evaluating {job.model_dir} on {len(records)} {args.split} sequences of {job.ds.path} "
           f"({sum(len(r.garment) for r in records)} frames): {', '.join(settings.modes)}")
-    job.results = evaluate_modes(animator, records, settings, ensembles)
+    job.results = evaluate_modes(animator, records, settings, ensembles=ensembles)
     if not args.no_sweep:
-        job.sweep = tau_sweep(animator, records, args.tau_sweep or default_taus(animator, records, settings.run), settings)
-    real = real_motion_section(animator, job.ds, args.motions, settings, args.fps) if args.motions else None
-    paper = paper_section(args.paper, bundle, records, settings, ensembles) if args.paper else None
+        job.sweep = tau_sweep(animator, records, args.tau_sweep or default_taus(animator, records, settings.run), settings=settings)
+    real = real_motion_section(animator, job.ds, args.motions, settings=settings, source_fps=args.fps) if args.motions else None
+    paper = paper_section(args.paper, bundle, records, settings=settings, ensembles=ensembles) if args.paper else None
     library = None
     if args.library:
-        plays = LibraryPlays(args.library, args.library_seed, args.tau_sweep, not args.no_sweep)
-        library = library_section(animator, job.ds, plays, settings)
+        plays = LibraryPlays(args.library, args.library_seed, args.tau_sweep, sweep=not args.no_sweep)
+        library = library_section(animator, job.ds, plays, settings=settings)
     return build_report(
         model={"folder": str(job.model_dir), "garment": bundle.garment, "hash": bundle.content_hash, "gate": bundle.gate,
                "tau": bundle.tau, "gates": bundle.meta["gates"], "auto": bundle.auto_mode,

@@ -79,7 +79,7 @@ class AnimationFile:
             raise InputError(self.path, "this file has no body capsules (written by an older hrr-animate); "
                                         "re-run hrr-animate to include the body")
         caps = self.capsules[t].astype(np.float64)
-        return body_mesh(caps[:, 0], caps[:, 1], self.radii.astype(np.float64), segments, rings)
+        return body_mesh(caps[:, 0], caps[:, 1], self.radii.astype(np.float64), segments=segments, rings=rings)
 
 
 @dataclass(frozen=True)

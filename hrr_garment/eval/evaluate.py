@@ -94,7 +94,7 @@ def sequence_metrics(pred: np.ndarray, truth: np.ndarray, record: SequenceRecord
     out = {"pve_mm": M.pve_mm(pred, truth), "rmse_mm": M.rmse_mm(pred, truth), **M.sted(pred, truth, topo),
            "chamfer_cm": M.chamfer_cm(pred, truth), **M.penetration_pct(body_signed_distance(pred, record.motion)),
            "curvature_error_cm": M.curvature_error_cm(pred, truth, topo),
-           **M.edge_strain_percentiles(pred, rest, topo), **M.energy_ratios(pred, truth, rest, topo),
+           **M.edge_strain_percentiles(pred, rest, topo), **M.energy_ratios(pred, truth, rest, topo=topo),
            **M.jitter_mm(pred, truth), "retrieval_usage": float(np.mean(retrieved))}
     return out
 
@@ -104,7 +104,7 @@ def ensemble_truth(ensemble: TruthEnsemble, record: SequenceRecord, rest: np.nda
     """The members' own values, the penetration and strain beside the floor and the other ``truth_*``."""
     truth_pen = [penetration_fraction(body_signed_distance(m, record.motion)) for m in ensemble.members]
     strain = M.edge_strain_percentiles(ensemble.members.reshape(-1, *ensemble.members.shape[2:]), rest, topo)
-    return {**truth_metrics(ensemble.members, record.motion, rest, topo, hem),
+    return {**truth_metrics(ensemble.members, record.motion, rest, topo=topo, hem=hem),
             "truth_penetration_pct": 100.0 * float(np.mean([p.mean() for p in truth_pen])),
             "truth_penetration_worst_pct": 100.0 * float(max(p.max() for p in truth_pen)),
             "truth_strain_p99": strain["strain_p99"], "truth_strain_max": strain["strain_max"]}
@@ -116,7 +116,7 @@ def sequence_ensemble_metrics(anim_vertices: np.ndarray, before_push_out: tuple[
     """Ensemble scores of one prediction, with the penetration before the collision push-out
     (``before_push_out``: mean and worst-frame fraction; None when there was no push-out) and the
     members' own values (``truth``, from :func:`ensemble_truth`) beside it."""
-    out = ensemble_metrics(anim_vertices, ensemble.members, record.motion, rest, topo, hem, truth)
+    out = ensemble_metrics(anim_vertices, ensemble.members, record.motion, rest=rest, topo=topo, hem=hem, truth=truth)
     if before_push_out is None:
         pen = penetration_fraction(body_signed_distance(anim_vertices, record.motion))
         before_push_out = float(pen.mean()), float(pen.max())

@@ -155,7 +155,7 @@ def save_plays(plays: list[LibraryPlay], folder: str | Path) -> list[Path]:
         path = folder / f"{p.name}.npz"
         if not path.is_file():
             save_motion(Motion(p.motion.local_rotations, p.motion.root_translation, p.motion.fps,
-                               f"library play: {p.description}"), path)
+                               source=f"library play: {p.description}"), path)
         paths.append(path)
     atomic_write_text(folder / "plays.json", json.dumps({p.name: p.description for p in plays}, indent=1))
     return paths

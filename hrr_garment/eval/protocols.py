@@ -37,7 +37,7 @@ def truth_ensembles_of(ds, records, members: int, jobs: int | None, progress: bo
     from ..sim.simulator import SimConfig
     from .ensemble import truth_ensembles
 
-    return truth_ensembles(ds.template, records, SimConfig.from_dict(ds.info["sim"]), members, jobs, progress=progress)
+    return truth_ensembles(ds.template, records, SimConfig.from_dict(ds.info["sim"]), members=members, jobs=jobs, progress=progress)
 
 
 def ensemble_summary(ensembles: dict, records, members: int) -> dict:
@@ -80,12 +80,12 @@ def simulated_section(animator, ds, truth: SimulatedTruth, settings: EvaluationS
 
     config = SimConfig.from_dict(ds.info.get("sim", {}))
     print(f"simulating ground truth for {len(truth.specs)} sequence(s) (cached in {truth.path.with_suffix('.parts')})")
-    report = build_dataset(ds.template, truth.specs, config, truth.path, splits={"val": 0.0, "test": 0.0},
+    report = build_dataset(ds.template, truth.specs, config, out=truth.path, splits={"val": 0.0, "test": 0.0},
                            info={"purpose": truth.purpose, "source_dataset": str(ds.path)}, progress=settings.progress)
     data = GarmentDataset(report.path)
     records = [data.sequence(n) for n in report.sequences]
     ensembles = truth_ensembles_of(data, records, settings.members, settings.jobs, settings.progress)
-    results = evaluate_modes(animator, records, settings, ensembles)
+    results = evaluate_modes(animator, records, settings, ensembles=ensembles)
     return {"dataset": str(report.path), "sequences": report.sequences,
             "frames": int(sum(len(r.garment) for r in records)), "rejected": report.rejects,
             "ensemble": ensemble_summary(ensembles, records, settings.members),
@@ -124,7 +124,7 @@ def paper_section(folder: Path, bundle, records, settings: EvaluationSettings, e
     print(f"paper protocol: {folder} (calibrated gate {other.gate} < {other.tau:.3f}) on the same {len(records)} sequences")
     own = replace(settings, modes=modes, exclude_own_sequence=False,
                   run=RunSettings(collision=settings.run.collision))  # its own calibrated gate, tau and look
-    results = evaluate_modes(animator, records, own, ensembles)
+    results = evaluate_modes(animator, records, own, ensembles=ensembles)
     return {"model": str(folder), "hash": other.content_hash, "gate": other.gate, "tau": other.tau,
             "modes": {m: r.to_dict() for m, r in results.items()}, "goals": goals(results, None),
             "paper_ratios": PAPER_RATIOS}
@@ -155,7 +155,7 @@ def library_section(animator, ds, plays_asked: LibraryPlays, settings: Evaluatio
                                   records, template=animator.bundle.template, ensembles=ensembles)
     points = None
     if plays_asked.sweep and records:
-        points = tau_sweep(animator, records, plays_asked.taus or default_taus(animator, records, settings.run), settings)
+        points = tau_sweep(animator, records, plays_asked.taus or default_taus(animator, records, settings.run), settings=settings)
     section.update(plays={p.name: p.description for p in plays}, seed=plays_asked.seed, source_simulation=reference.to_dict(),
                    tau_sweep=[vars(p) for p in points or []], goals=library_goals(section["modes"], points))
     return section

@@ -211,7 +211,7 @@ class Animator:
         if proposals is not None:  # the detail mode: simulated folds on the regression's shape (or the residual's)
             store = self.bundle.folds
             rows, weights = track_folds(proposals, store.offsets)
-            local = add_folds(local, store.folds(rows, weights), self.smoothing, store.passes, run.detail.strength)
+            local = add_folds(local, store.folds(rows, weights), self.smoothing, passes=store.passes, strength=run.detail.strength)
         vertices = world_vertices(local, motion)
         report = None
         if run.collision:

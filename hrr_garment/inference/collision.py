@@ -99,8 +99,8 @@ def push_out(vertices: np.ndarray, motion: Motion, faces: np.ndarray, body: Body
         out = np.empty(vertices.shape, np.float64)
         for start in range(0, len(out), chunk):
             sl = slice(start, start + chunk)
-            _, before[sl], after[sl] = push_out_frames(lib, unpushed[sl], a[sl], b[sl], body.radii, mean, margin, smooth,
-                                                       rounds, depth, threads=default_threads(), out=out[sl])
+            _, before[sl], after[sl] = push_out_frames(lib, unpushed[sl], a[sl], b=b[sl], radii=body.radii, mean=mean, margin=margin, smooth=smooth,
+                                                       rounds=rounds, depth=depth, threads=default_threads(), out=out[sl])
     else:
         unpushed, out = vertices, np.empty(vertices.shape, np.float32)
         for start in range(0, len(out), chunk):
@@ -110,7 +110,7 @@ def push_out(vertices: np.ndarray, motion: Motion, faces: np.ndarray, body: Body
     if limits is not None:
         out, torn = limit_push_strain(out, unpushed, limits, max_strain, in_place=True)
         if report and torn.any():  # only the frames the limit moved have a new "after"
-            inside = frames_signed_distance(out[torn].astype(np.float64), a[torn], b[torn], body.radii)[0] < -depth
+            inside = frames_signed_distance(out[torn].astype(np.float64), a[torn], b[torn], radii=body.radii)[0] < -depth
             after[torn] = inside.mean(1)
     out = out.astype(np.float32, copy=False)
     if not report:
@@ -136,8 +136,8 @@ def limit_push_strain(pushed: np.ndarray, unpushed: np.ndarray, limits: EdgeLimi
     lib = load_kernel()
     if lib is not None:  # the same in C: the limits, the torn frames and the passes, which measure only
         # the edges that can have changed
-        p, torn = limit_strain(lib, pushed, unpushed, limits.native_arrays, max_strain, iterations, LIMIT_TOLERANCE_M,
-                               OVER_RELAXATION, threads=default_threads(), in_place=in_place)
+        p, torn = limit_strain(lib, pushed, unpushed, edge_arrays=limits.native_arrays, max_strain=max_strain, iterations=iterations, tol=LIMIT_TOLERANCE_M,
+                               omega=OVER_RELAXATION, threads=default_threads(), in_place=in_place)
         if p is pushed or not torn.any():
             return pushed, torn
         out = pushed.copy()
@@ -180,7 +180,7 @@ def _push_frames(p: np.ndarray, a: np.ndarray, b: np.ndarray, radii: np.ndarray,
                  smooth: int, rounds: int, depth: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The reference (and the path without a C compiler): whole-mesh arrays, frames at once."""
     t, v = p.shape[:2]
-    d, n = frames_signed_distance(p, a, b, radii)
+    d, n = frames_signed_distance(p, a, b, radii=radii)
     before = (d < -depth).mean(1)
     for _ in range(rounds):
         need = np.maximum(margin - d, 0.0)  # how far along the normal each vertex must move
@@ -193,11 +193,11 @@ def _push_frames(p: np.ndarray, a: np.ndarray, b: np.ndarray, radii: np.ndarray,
             short = np.where(hit, np.maximum(need - (disp * n).sum(-1), 0.0), 0.0)
             disp += short[..., None] * n
         p = p + disp
-        d, n = frames_signed_distance(p, a, b, radii)
+        d, n = frames_signed_distance(p, a, b, radii=radii)
     for _ in range(4):  # exact projection; repeated where a push lands in another capsule
         inside = d < 0
         if not inside.any():
             break
         p = p + np.where(inside, margin - d, 0.0)[..., None] * n
-        d, n = frames_signed_distance(p, a, b, radii)
+        d, n = frames_signed_distance(p, a, b, radii=radii)
     return p.astype(np.float32), before, (d < -depth).mean(1)

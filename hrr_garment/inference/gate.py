@@ -52,7 +52,7 @@ def choose_windows(bundle: Bundle, motion_windows: np.ndarray, run: ResolvedRun,
     if mode not in CODE_MODES:
         raise ValueError(f"unknown mode {str(mode)!r}; choose one of {', '.join(CODE_MODES)}")
     db = bundle.database
-    enc = encode_motion(bundle.codespace, bundle.motion_stats, bundle.latent_stats, motion_windows,
+    enc = encode_motion(bundle.codespace, bundle.motion_stats, bundle.latent_stats, motion_windows=motion_windows,
                         regression=mode.regresses, last_frame=last_frame, step=step)
     n = len(enc.entropy)
     frames = 1 if last_frame else db.latents.shape[1]
@@ -66,15 +66,15 @@ def choose_windows(bundle: Bundle, motion_windows: np.ndarray, run: ResolvedRun,
         # the folds its sharpness)
         residual = mode is Mode.RESIDUAL or run.fold_base == "residual"
         if residual:
-            own = match_regression(bundle.codespace, bundle.motion_stats, bundle.latent_stats, db, match, last_frame, step)
-            latents = residual_latents(enc.regression, db.latents[match, -frames:], own, similarity, bundle.residual_weight)
+            own = match_regression(bundle.codespace, bundle.motion_stats, bundle.latent_stats, database=db, rows=match, last_frame=last_frame, step=step)
+            latents = residual_latents(enc.regression, db.latents[match, -frames:], own, similarity=similarity, weight=bundle.residual_weight)
         # a detail window's latents are the regression's, one continuous source whatever lends the folds
         return WindowChoice(latents, np.zeros(n, bool), enc.entropy, np.asarray(doubt, np.float64), matched,
                             lends_folds=mode is Mode.DETAIL, follows_match=np.full(n, mode is Mode.RESIDUAL))
     if run.gate != "entropy" and mode is Mode.HYBRID:  # the match decides: search every window first
         match, similarity = db.search(enc.codes, exclude)
         distance = db.motion_distance(enc.standardised, match) if run.gate == "distance" else None
-        doubt = gate_doubt(run.gate, enc.entropy, similarity, distance)
+        doubt = gate_doubt(run.gate, enc.entropy, similarity, distance=distance)
     retrieved = {Mode.HYBRID: doubt < run.tau, Mode.REGRESSION: np.zeros(n, bool)}.get(mode, np.ones(n, bool))
     latents = enc.regression.copy() if enc.regression is not None else np.empty((n, frames, *db.latents.shape[2:]), np.float32)
     source = np.full((n, 2), -1, np.int32)

@@ -179,13 +179,13 @@ class CrowdStream:
         path_latents, retrieved = latent_sources(choice)
         latents = np.empty((len(chars), *choice.latents.shape[2:]), np.float32)
         for i, c in enumerate(chars):
-            latents[i] = inertialize(c.inertializer, path_latents[i, -1], retrieved[i], choice.match[i], c.frames)
+            latents[i] = inertialize(c.inertializer, path_latents[i, -1], retrieved[i], source=choice.match[i], frame=c.frames)
         t.append(time.perf_counter())
         with torch.no_grad():
             local = self.animator.decoder(torch.from_numpy(latents)).numpy()
         if choice.lends_folds:  # the detail mode: each character's playhead one frame on, its folds added
             local = add_folds(local, self._folds(chars, choice.match), self.animator.smoothing,
-                              self.animator.bundle.folds.passes, self.run.detail.strength)
+                              passes=self.animator.bundle.folds.passes, strength=self.run.detail.strength)
         t.append(time.perf_counter())
         vertices = world_vertices(local, poses)  # as offline: the same push-out inputs
         t.append(time.perf_counter())

@@ -194,7 +194,7 @@ def _autoencoder_stage(dataset: Path, folder: Path, settings: TrainSettings, ctx
     if not dataset.exists():
         hint = f"hrr-simulate --garment {ctx.garment} --preset {ctx.preset.name}" if ctx.garment and ctx.preset else "hrr-simulate"
         raise InputError(dataset, f"no dataset; make it with: {hint} (or run hrr-train without --stage)")
-    return train_autoencoder(dataset, folder / "autoencoder", settings.autoencoder, settings.autoencoder_train,
+    return train_autoencoder(dataset, folder / "autoencoder", settings.autoencoder, train_config=settings.autoencoder_train,
                              cache_dir=workspace() / "cache", progress=ctx.progress)
 
 
@@ -202,14 +202,14 @@ def _codespace_stage(dataset: Path, folder: Path, settings: TrainSettings, ctx: 
     from ..train.codespace import run_codespace_stage
 
     info = {"preset": ctx.preset.name} if ctx.preset is not None else None
-    return run_codespace_stage(dataset, folder, settings.codespace, settings.codespace_train,
+    return run_codespace_stage(dataset, folder, settings.codespace, train_config=settings.codespace_train,
                                cache_dir=workspace() / "cache", progress=ctx.progress, info=info)
 
 
 def _baseline_stage(dataset: Path, folder: Path, settings: TrainSettings, ctx: _Context) -> StageReport:
     from ..train.baseline import run_baseline_stage
 
-    return run_baseline_stage(dataset, folder, settings.baseline, settings.baseline_train,
+    return run_baseline_stage(dataset, folder, settings.baseline, train_config=settings.baseline_train,
                               cache_dir=workspace() / "cache", progress=ctx.progress)
 
 
@@ -274,6 +274,6 @@ def simulate_preset(garment: str, preset: Preset, out: Path, progress: bool = Tr
     specs = plan_sequences(preset)
     options = build_options(preset, specs)
     options["info"]["garment_vertices"] = mesh.num_vertices
-    report = build_dataset(mesh, specs, SimConfig.from_dict(preset.sim), out, progress=progress,
+    report = build_dataset(mesh, specs, SimConfig.from_dict(preset.sim), out=out, progress=progress,
                            preview=write_dataset_preview, **options)
     return SimulatedDataset(report, mesh)

@@ -59,23 +59,23 @@ class WindowPredictions:
 
     def residual(self, weight: float) -> np.ndarray:
         """The residual mode's latents at ``weight``."""
-        return residual_latents(self.regression, self.retrieval, self.match_regression, self.similarity, weight)
+        return residual_latents(self.regression, self.retrieval, self.match_regression, similarity=self.similarity, weight=weight)
 
     def doubts(self) -> dict[str, np.ndarray]:
         """Each gate signal's doubt per window (the signals this database supports)."""
-        return {g: gate_doubt(g, self.entropy, self.similarity, self.distance) for g in GATE_SIGNALS
+        return {g: gate_doubt(g, self.entropy, self.similarity, distance=self.distance) for g in GATE_SIGNALS
                 if g != "distance" or self.distance is not None}
 
 
 def predict_windows(model: CodeSpace, motion: np.ndarray, motion_stats: FeatureStats, latent_stats: FeatureStats,
                     database: CodeDatabase, exclude: np.ndarray | None = None) -> WindowPredictions:
     """Both candidates for every motion window (N, W, F) (raw features)."""
-    enc = encode_motion(model, motion_stats, latent_stats, motion)
+    enc = encode_motion(model, motion_stats, latent_stats, motion_windows=motion)
     match, similarity = database.search(enc.codes, exclude)
     distance = own = None
     if database.motion is not None:
         distance = database.motion_distance(enc.standardised, match)
-        own = match_regression(model, motion_stats, latent_stats, database, match)
+        own = match_regression(model, motion_stats, latent_stats, database=database, rows=match)
     return WindowPredictions(enc.entropy, enc.regression, database.latents[match], similarity, distance, own)
 
 

@@ -96,8 +96,8 @@ def _stage_key(config: CodeSpaceConfig, train_config: CodeSpaceTrainConfig, ae_s
 
 def _stage_report(report: dict, folder: Path, reused: bool = False) -> StageReport:
     training = report["training"]
-    return StageReport("codespace", folder, int(training["epoch"]), int(training["best_epoch"]), float(report["minutes"]),
-                       reused, {**report, "reused": True} if reused else report)
+    return StageReport("codespace", folder, int(training["epoch"]), best_epoch=int(training["best_epoch"]), minutes=float(report["minutes"]),
+                       reused=reused, metrics={**report, "reused": True} if reused else report)
 
 
 def _finished(folder: Path, report_path: Path, key: str) -> tuple[dict, dict] | None:
@@ -126,13 +126,13 @@ def _windows(features: dict, latents: dict, splits: dict, config: CodeSpaceConfi
     if train_config.validation == "windows":
         # the paper's protocol: the windows of the training and validation clips split 9:1
         clips = splits["train"] + splits["val"]
-        train_w, val_w = split_windows(build_windows(features, latents, clips, config.window),
+        train_w, val_w = split_windows(build_windows(features, latents, clips, window=config.window),
                                        PAPER_VALIDATION_FRACTION, train_config.seed)
         motion_stats, latent_stats = fit_stats(features, latents, clips)
         calibration = [(clips[i], int(s)) for i, s in zip(val_w.sequence, val_w.start)]
     else:  # windows of both splits, standardised with the training split's statistics
-        train_w = build_windows(features, latents, splits["train"], config.window)
-        val_w = build_windows(features, latents, splits["val"], config.window)
+        train_w = build_windows(features, latents, splits["train"], window=config.window)
+        val_w = build_windows(features, latents, splits["val"], window=config.window)
         motion_stats, latent_stats = fit_stats(features, latents, splits["train"])
         calibration = None
     return train_w, val_w, motion_stats, latent_stats, calibration
@@ -170,7 +170,7 @@ def run_codespace_stage(dataset: str | Path, folder: str | Path, config: CodeSpa
     done, meta = finished if finished is not None else (None, {})
     if done is not None and "folds" not in meta:  # trained before the folds: add them alone, and drop
         folds = fold_store(ds, list(meta["database"]["names"]), progress)  # the auto choice made without them
-        add_bundle_part(folder, FOLDS_FILE, folds.arrays(), {"folds": folds.meta}, numpy=True, drop=("auto",))
+        add_bundle_part(folder, FOLDS_FILE, folds.arrays(), meta={"folds": folds.meta}, numpy=True, drop=("auto",))
     if done is not None and "residual" in meta:
         return _stage_report(done, stage, reused=True)
     splits = {k: ds.splits[k] for k in ("train", "val")}
@@ -192,12 +192,12 @@ def run_codespace_stage(dataset: str | Path, folder: str | Path, config: CodeSpa
                                               latent_stats.std, train_config.vertex_ridge, progress=progress)
     torch.manual_seed(train_config.seed)
     model = CodeSpace(config, config.features, autoencoder.latent_shape)
-    summary = train_codespace(model, train_t, val_t, stage, train_config, key, progress, latent_loss)
+    summary = train_codespace(model, train_t, val_t, folder=stage, config=train_config, key=key, progress=progress, latent_loss=latent_loss)
 
     # the database of every training window's garment code, then tau on the validation split
-    database = CodeDatabase(garment_codes(model, train_t), train_w.latents, train_w.sequence, train_w.start,
-                            train_w.names, config.classes, train_w.motion.with_frames(train_t.motion.numpy()))
-    modes = window_mode_errors(WindowModel(model, autoencoder, motion_stats, latent_stats, database),
+    database = CodeDatabase(garment_codes(model, train_t), train_w.latents, train_w.sequence, start=train_w.start,
+                            names=train_w.names, classes=config.classes, motion=train_w.motion.with_frames(train_t.motion.numpy()))
+    modes = window_mode_errors(WindowModel(model, autoencoder, motion_stats, latent_stats=latent_stats, database=database),
                                {n: features[n] for n in val_names}, {n: body_frames(ds, [n]) for n in val_names},
                                encoding=encoding, windows=calibration, progress=progress)
     gate, sweep = modes.gate, modes.sweep
