@@ -10,7 +10,7 @@ shape, or from its own causal running mean, scaled up: the hem swing the mean la
 PVE).
 
 Sharpness is the bending energy over the truth's, hem swing the hem's amplitude over the truth's,
-jitter the mean distance between predicted and true accelerations (docs/results.md, Metrics).
+jitter the mean distance between predicted and true accelerations (docs/evaluation.md, Metrics).
 
     python tools/detail_analysis.py --model hrr_work/models/dress-real-quick --split test --sequences 12
 """

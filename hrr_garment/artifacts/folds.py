@@ -20,7 +20,7 @@ from scipy.sparse import csr_matrix
 
 from ..garment.smoothing import high_frequencies
 
-FOLD_PASSES = 1  # passes of the 1-ring mean that separate the folds from the shape (docs/results.md)
+FOLD_PASSES = 1  # passes of the 1-ring mean that separate the folds from the shape (docs/history/results-log.md)
 DETAIL_STRENGTH = 0.8  # the folds' strength where a bundle's auto mode was not calibrated (.manifest)
 
 

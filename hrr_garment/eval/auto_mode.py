@@ -3,7 +3,7 @@ by default, and how the detail mode runs.
 
 Against a chaotic truth the most accurate output is close to the conditional mean, and the mean is
 blurry: its folds and its hem's swing average away. The modes that use the database trade a little
-accuracy for real simulated detail (docs/results.md). ``auto`` is the calibrated trade, chosen on
+accuracy for real simulated detail (docs/decisions/0009-auto-mode-default.md). ``auto`` is the calibrated trade, chosen on
 the validation clips through the product path (``Animator.animate``: offline, blended, push-out on)
 by one documented criterion that counts both:
 
@@ -19,7 +19,7 @@ by one documented criterion that counts both:
 The detail mode is measured in several settings (:data:`DETAIL_CANDIDATES`): its simulated folds at
 each of :data:`DETAIL_STRENGTHS`, on the regression's latents and, where the residual mode runs, on
 the residual mode's (which bring the match's swing). The folds' strength is the trade itself: on
-held-out real clips the sharpness grows with it faster than the error (docs/results.md). The
+held-out real clips the sharpness grows with it faster than the error (docs/decisions/0005-detail-strength-calibrated.md). The
 criterion picks among all candidates; the detail mode's setting is the picked one's, or, where auto
 is not a detail mode, the one the criterion picks among the detail candidates alone (what
 ``--mode detail`` runs).

@@ -3,7 +3,7 @@ and plausibility relative to what the truths themselves do.
 
 ``pred`` is (T, V, 3) (one prediction) or (S, T, V, 3) (S samples of a prediction); ``members``
 is (K, T, V, 3), K >= 2. Distances between two sequences are PVE (mean over frames and vertices
-of the Euclidean distance, mm). Definitions (docs/results.md repeats them):
+of the Euclidean distance, mm). Definitions (docs/evaluation.md repeats them):
 
 - floor: mean PVE between two different members (mean over the K(K-1)/2 pairs): how far apart
   two equally valid simulations are.

@@ -2,7 +2,7 @@
 
 All take world-space vertex arrays of the same template, ``pred`` and ``truth`` (T, V, 3) in
 metres, and return plain floats in the units their names state. The formulas, exactly as
-implemented (docs/results.md repeats them):
+implemented (docs/evaluation.md repeats them):
 
 - PVE (mm): mean over frames and vertices of ||p - g||.
 - RMSE (mm): sqrt of the mean over frames and vertices of ||p - g||^2.

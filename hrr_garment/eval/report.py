@@ -1,9 +1,20 @@
-"""hrr-eval's outputs: report.json (schema in docs/results.md), report.md, and PNG plots.
+"""hrr-eval's outputs: report.json (schema in docs/evaluation.md), report.md, and PNG plots.
 
 The comparative goals come from the paper's shape (DESIGN section 10): hybrid <= 0.5 x
 regression-only and <= 0.85 x retrieval-only in PVE, learned retrieval <= 0.8 x naive NN, and an
 interior optimum of tau. Each is reported with its ratio and whether it is met; a goal whose modes
 were not evaluated is left out.
+
+report.json's ``format_version`` moves whenever a field arrives or changes meaning. Nothing in the
+package reads a report back; the versions, for readers of old reports: 2 truth ensembles
+(``ensemble`` per mode and at the top level); 3 ``library`` and ``paper``; 4 the gate signal
+(``gate`` beside each ``tau``, the model's calibrated ``gates``); 5 ``sharpness`` in each tau-sweep
+point; 6 the model's ``auto`` mode and its ``auto_calibration``; 7 the detail mode's look
+(``settings.detail``: strength, base); 8 the library's ``source_simulation`` reference; 9
+``settings`` as the run's record writes it (out.h5's attributes: ``gate``, ``tau``, ``collision``,
+and ``detail_base`` / ``detail_strength`` where the detail mode ran, in place of
+``settings.detail``), and ``retrieval_usage`` counts only windows retrieved as simulated (the
+residual and detail modes, which add a match's detail to the regression, report 0).
 """
 
 from __future__ import annotations
@@ -17,7 +28,7 @@ from ..io_utils import atomic_write_text, strict_json
 from .evaluate import ModeResult, TauPoint
 from .library import SOURCE_SIMULATION
 
-REPORT_VERSION = 8  # 2: truth ensembles ("ensemble" per mode and at the top level); 3: "library" and "paper"; 4: the gate signal ("gate" beside each "tau", the model's calibrated "gates"); 5: "sharpness" in each tau-sweep point; 6: the model's "auto" mode and its "auto_calibration"; 7: the detail mode's setting ("settings" "detail": strength, base); 8: the library's "source_simulation" reference
+REPORT_VERSION = 9  # report.json's "format_version": see the module docstring
 GOALS = (  # (name, numerator mode, denominator mode, target ratio)
     ("hybrid_vs_regression", "hybrid", "regression", 0.5),
     ("hybrid_vs_retrieval", "hybrid", "retrieval", 0.85),
@@ -107,7 +118,7 @@ def entropy_summary(modes: dict[str, ModeResult], bins: int = 20) -> dict:
 def build_report(*, model: dict, dataset: dict, settings: dict, modes: dict[str, ModeResult],
                  sweep: list[TauPoint] | None, real: dict | None, seconds: float, ensemble: dict | None = None,
                  library: dict | None = None, paper: dict | None = None) -> dict:
-    """The report.json contents (schema: docs/results.md)."""
+    """The report.json contents (schema: docs/evaluation.md)."""
     return {
         "format_version": REPORT_VERSION, "model": model, "dataset": dataset, "settings": settings,
         "ensemble": ensemble or {"members": 0},
@@ -156,9 +167,11 @@ def _ensemble_table(modes: dict, ensemble: dict) -> list[str]:
     return lines
 
 
-def _detail_clause(detail: dict | None) -> str:
+def _detail_clause(settings: dict) -> str:
     """"; detail mode: folds x0.8 on the regression" where the detail mode ran."""
-    return f"; detail mode: folds x{detail['strength']:g} on the {detail['base']}" if detail else ""
+    if "detail_strength" not in settings:
+        return ""
+    return f"; detail mode: folds x{settings['detail_strength']:g} on the {settings['detail_base']}"
 
 
 def markdown(report: dict, plots: list[str]) -> str:
@@ -169,8 +182,8 @@ def markdown(report: dict, plots: list[str]) -> str:
            f"{model['tau']:.3f}; the default mode, auto, runs {model.get('auto', 'hybrid')}); dataset "
            f"`{data['path']}`, split **{data['split']}**: {len(data['sequences'])} sequences, {data['frames']} frames. "
            f"Collision push-out {'on' if settings['collision'] else 'off'}; own sequence excluded from retrieval: "
-           f"{'yes' if settings['exclude_own_sequence'] else 'no'}; hybrid gate {settings.get('gate', 'entropy')} < "
-           f"{settings['tau']:.3f}" + _detail_clause(settings.get("detail")) + ". "
+           f"{'yes' if settings['exclude_own_sequence'] else 'no'}; hybrid gate {settings['gate']} < "
+           f"{settings['tau']:.3f}" + _detail_clause(settings) + ". "
            f"Run time {report['seconds']:.0f} s.", ""]
     lead = _ensemble_table(report["modes"], report.get("ensemble", {}))
     if lead:
@@ -215,7 +228,7 @@ def markdown(report: dict, plots: list[str]) -> str:
             out += ["", *_sweep_table(library["tau_sweep"])]
     if plots:
         out += ["", "## Plots", ""] + [f"![{Path(p).stem}]({Path(p).name})" for p in plots]
-    out += ["", "Metric definitions: docs/results.md."]
+    out += ["", "Metric definitions: docs/evaluation.md."]
     return "\n".join(out) + "\n"
 
 
