@@ -7,6 +7,7 @@ bundle (:func:`~.manifest.read_meta` refuses it), so an interrupted write never 
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -32,12 +33,26 @@ def _save(path: Path, tensors: dict, numpy: bool = False) -> None:
             save_tensors({k: v.detach().contiguous() for k, v in tensors.items()}, str(tmp))
 
 
-def write_bundle(folder: str | Path, *, autoencoder: MeshAutoencoder, codespace: CodeSpace, motion_stats: FeatureStats,
-                 latent_stats: FeatureStats, database: CodeDatabase, template: GarmentMesh, tau: float, info: dict,
-                 gate: str = "entropy", folds: FoldStore | None = None) -> Path:
+@dataclass(frozen=True)
+class BundleParts:
+    """What a bundle holds besides its manifest's settings: the trained networks, their
+    statistics, the retrieval database, the template and the detail mode's folds (:mod:`.folds`)."""
+
+    autoencoder: MeshAutoencoder
+    codespace: CodeSpace
+    motion_stats: FeatureStats
+    latent_stats: FeatureStats
+    database: CodeDatabase
+    template: GarmentMesh
+    folds: FoldStore | None = None
+
+
+def write_bundle(folder: str | Path, parts: BundleParts, *, tau: float, info: dict, gate: str = "entropy") -> Path:
     """Write (or replace) the bundle in ``folder``; returns the path of ``bundle.json``. ``tau``:
-    the threshold of the hybrid's ``gate`` signal; ``folds``: the detail mode's (:mod:`.folds`)."""
+    the threshold of the hybrid's ``gate`` signal; ``info``: more of bundle.json's fields."""
     check_gate_signal(gate)
+    autoencoder, codespace, template, folds = parts.autoencoder, parts.codespace, parts.template, parts.folds
+    motion_stats, latent_stats, database = parts.motion_stats, parts.latent_stats, parts.database
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     (folder / "bundle.json").unlink(missing_ok=True)  # the old bundle stops being one first

@@ -210,7 +210,8 @@ def _evaluate(job: _Job, args) -> dict:
                  "frames": int(sum(len(r.garment) for r in records))},
         settings=evaluation_record(animator, settings),
         ensemble=ensemble_summary(ensembles, records, settings.members),
-        modes=job.results, sweep=job.sweep, real=real, library=library, paper=paper, seconds=0.0)
+        modes=job.results, sweep=job.sweep, protocols={"real_motion": real, "library": library, "paper": paper},
+        seconds=0.0)
 
 
 def evaluation_record(animator, settings: EvaluationSettings) -> dict:

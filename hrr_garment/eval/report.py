@@ -116,9 +116,11 @@ def entropy_summary(modes: dict[str, ModeResult], bins: int = 20) -> dict:
 
 
 def build_report(*, model: dict, dataset: dict, settings: dict, modes: dict[str, ModeResult],
-                 sweep: list[TauPoint] | None, real: dict | None, seconds: float, ensemble: dict | None = None,
-                 library: dict | None = None, paper: dict | None = None) -> dict:
-    """The report.json contents (schema: docs/evaluation.md)."""
+                 sweep: list[TauPoint] | None, seconds: float, ensemble: dict | None = None,
+                 protocols: dict | None = None) -> dict:
+    """The report.json contents (schema: docs/evaluation.md); ``protocols``: the sections of the
+    protocols beyond the split that ran (``real_motion``, ``library``, ``paper``; None where not)."""
+    protocols = protocols or {}
     return {
         "format_version": REPORT_VERSION, "model": model, "dataset": dataset, "settings": settings,
         "ensemble": ensemble or {"members": 0},
@@ -126,9 +128,9 @@ def build_report(*, model: dict, dataset: dict, settings: dict, modes: dict[str,
         "goals": goals(modes, sweep),
         "tau_sweep": [vars(p) for p in sweep] if sweep else [],
         "entropy": entropy_summary(modes),
-        "real_motion": real,
-        "library": library,
-        "paper": paper,
+        "real_motion": protocols.get("real_motion"),
+        "library": protocols.get("library"),
+        "paper": protocols.get("paper"),
         "seconds": seconds,
     }
 

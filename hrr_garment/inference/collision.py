@@ -74,9 +74,23 @@ class EdgeLimits:
         return np.linalg.norm(p[:, self.edges[:, 1]] - p[:, self.edges[:, 0]], axis=-1)
 
 
-def push_out(vertices: np.ndarray, motion: Motion, faces: np.ndarray, body: BodyModel = DEFAULT_BODY, margin: float = 0.002,
-             smooth: int = 4, rounds: int = 1, depth: float = 0.005, mean: csr_matrix | None = None,
-             chunk: int = 64, limits: EdgeLimits | None = None, max_strain: float = MAX_PUSH_STRAIN,
+@dataclass(frozen=True)
+class PushOutSettings:
+    """How the push-out moves the cloth (the defaults are the product's)."""
+
+    margin: float = 0.002  # metres outside the body surface a pushed vertex lands
+    smooth: int = 4  # passes spreading each push to the neighbours (never below what is needed)
+    rounds: int = 1  # push-and-spread rounds before the exact projection
+    depth: float = 0.005  # metres inside the body that count as penetration in the report
+    max_strain: float = MAX_PUSH_STRAIN  # no edge stretched past this x its rest length by the push
+    chunk: int = 64  # frames processed at once
+
+
+PUSH_OUT = PushOutSettings()
+
+
+def push_out(vertices: np.ndarray, motion: Motion, faces: np.ndarray, *, body: BodyModel = DEFAULT_BODY,
+             settings: PushOutSettings = PUSH_OUT, mean: csr_matrix | None = None, limits: EdgeLimits | None = None,
              report: bool = True) -> tuple[np.ndarray, PushOutReport | None]:
     """(T, V, 3) world vertices -> pushed copy and a report (fractions of vertices > ``depth`` inside).
     ``mean``: :func:`mean_operator` of the faces, when the caller keeps one (streaming). Frames are
@@ -85,6 +99,7 @@ def push_out(vertices: np.ndarray, motion: Motion, faces: np.ndarray, body: Body
     times its rest length, or past its stretch before the push where that was more
     (:func:`limit_push_strain`). Without ``report`` (a stream, which discards it) the report is
     None, and the frames the limit moved are not measured again (a quarter of a crowd's push-out)."""
+    margin, smooth, rounds, depth, chunk = settings.margin, settings.smooth, settings.rounds, settings.depth, settings.chunk
     a, b = body.pose_motion(motion)
     mean = mean_operator(faces, vertices.shape[1]) if mean is None else mean
     before, after = np.zeros(len(vertices)), np.zeros(len(vertices))
@@ -105,10 +120,10 @@ def push_out(vertices: np.ndarray, motion: Motion, faces: np.ndarray, body: Body
         unpushed, out = vertices, np.empty(vertices.shape, np.float32)
         for start in range(0, len(out), chunk):
             sl = slice(start, start + chunk)
-            out[sl], before[sl], after[sl] = _push_frames(vertices[sl].astype(np.float64), a[sl], b[sl], body.radii, mean,
-                                                          margin, smooth, rounds, depth)
+            out[sl], before[sl], after[sl] = _push_frames(vertices[sl].astype(np.float64), (a[sl], b[sl], body.radii),
+                                                          mean, settings)
     if limits is not None:
-        out, torn = limit_push_strain(out, unpushed, limits, max_strain, in_place=True)
+        out, torn = limit_push_strain(out, unpushed, limits, settings.max_strain, in_place=True)
         if report and torn.any():  # only the frames the limit moved have a new "after"
             inside = frames_signed_distance(out[torn].astype(np.float64), a[torn], b[torn], radii=body.radii)[0] < -depth
             after[torn] = inside.mean(1)
@@ -176,9 +191,12 @@ def _limit_frames(p: np.ndarray, limit: np.ndarray, limits: EdgeLimits, iteratio
     return p
 
 
-def _push_frames(p: np.ndarray, a: np.ndarray, b: np.ndarray, radii: np.ndarray, mean: csr_matrix, margin: float,
-                 smooth: int, rounds: int, depth: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The reference (and the path without a C compiler): whole-mesh arrays, frames at once."""
+def _push_frames(p: np.ndarray, capsules: tuple[np.ndarray, np.ndarray, np.ndarray], mean: csr_matrix,
+                 settings: PushOutSettings) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The reference (and the path without a C compiler): whole-mesh arrays, frames at once;
+    ``capsules``: the frames' capsule ends a, b (T, C, 3) and the radii (C,)."""
+    a, b, radii = capsules
+    margin, smooth, rounds, depth = settings.margin, settings.smooth, settings.rounds, settings.depth
     t, v = p.shape[:2]
     d, n = frames_signed_distance(p, a, b, radii=radii)
     before = (d < -depth).mean(1)

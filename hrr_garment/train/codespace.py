@@ -23,7 +23,7 @@ import torch
 from tqdm import tqdm
 
 from ..artifacts.bundle import BundleError, load_bundle, read_meta
-from ..artifacts.bundle_writer import add_bundle_part, update_bundle_meta, write_bundle
+from ..artifacts.bundle_writer import BundleParts, add_bundle_part, update_bundle_meta, write_bundle
 from ..artifacts.database import CodeDatabase
 from ..artifacts.folds import FoldStore
 from ..artifacts.manifest import FOLDS_FILE
@@ -210,9 +210,9 @@ def run_codespace_stage(dataset: str | Path, folder: str | Path, config: CodeSpa
               "database_codes": {"dead_classes": usage.dead, "classes": usage.total, "perplexity": usage.perplexity,
                                  "distinct_codes": int(len(np.unique(database.codes, axis=0)))},
               "entropy_histogram": final["entropy_histogram"], "minutes": (time.perf_counter() - t0) / 60}
-    write_bundle(folder, autoencoder=autoencoder, codespace=model, motion_stats=motion_stats, latent_stats=latent_stats,
-                 database=database, template=ds.template, tau=sweep.best_tau, gate=gate,
-                 folds=fold_store(ds, train_w.names, progress),
+    parts = BundleParts(autoencoder=autoencoder, codespace=model, motion_stats=motion_stats, latent_stats=latent_stats,
+                        database=database, template=ds.template, folds=fold_store(ds, train_w.names, progress))
+    write_bundle(folder, parts, tau=sweep.best_tau, gate=gate,
                  info={"dataset": str(dataset), "window": config.window, "validation_mm": report["validation_mm"],
                        "gates": report["gates"], **({"residual": report["residual"]} if report["residual"] else {}),
                        "encoding": encoding, "validation": train_config.validation, **(info or {})})
