@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from hrr_garment.body.capsules import DEFAULT_BODY
-from hrr_garment.data.animation_file import read_animation_h5, write_animation_h5
+from hrr_garment.data.animation_file import AnimationArrays, read_animation_h5, write_animation_h5
 from hrr_garment.export.glb import write_glb
 from hrr_garment.export.pointcache import write_obj_sequence, write_pc2_with_obj
 from hrr_garment.export.usd import write_usd
@@ -56,10 +56,10 @@ def build_animation(path: Path, frames: int, vertices: int) -> Path:
     swing = 0.08 * below_hips * np.sin(2 * np.pi * 0.9 * t + rest[None, :, 0:1] * 3 + rest[None, :, 2:3] * 2)
     local = rest[None] + swing * np.array([1.0, 0.15, 0.6])
     a, b = DEFAULT_BODY.pose_motion(motion)
-    return write_animation_h5(path, vertices=from_body_frame(local, motion), faces=dress.faces, joints=motion.joint_positions,
-                              mode=np.zeros(frames, np.uint8), entropy=np.zeros(frames), source=np.full((frames, 2), -1),
-                              attrs={"fps": 30.0, "garment": "dress", "source_motion": "bench"},
-                              capsules=np.stack([a, b], 2), radii=DEFAULT_BODY.radii)
+    arrays = AnimationArrays(vertices=from_body_frame(local, motion), faces=dress.faces, joints=motion.joint_positions,
+                             retrieved=np.zeros(frames, np.uint8), entropy=np.zeros(frames), match=np.full((frames, 2), -1),
+                             capsules=np.stack([a, b], 2), radii=DEFAULT_BODY.radii)
+    return write_animation_h5(path, arrays, {"fps": 30.0, "garment": "dress", "source_motion": "bench"})
 
 
 def _size(path: Path) -> int:

@@ -70,7 +70,7 @@ def random_bundle(vertices: int, windows: int, seed: int = 0) -> Bundle:
 
     db = CodeDatabase(rng.integers(0, cfg.classes, (windows, cfg.groups)), random_frames(*ae.latent_shape), sequence, start,
                       [f"s{i}" for i in range(len(lengths))], cfg.classes, random_frames(cfg.features))
-    meta = {"tau": 1.0, "garment": "dress", "content_hash": "random"}
+    meta = {"tau": 1.0, "gate": "entropy", "gates": {}, "garment": "dress", "content_hash": "random"}
     folds = FoldStore(rng.integers(-127, 128, (frames, garment.num_vertices, 3), dtype=np.int8),
                       np.full(frames, 1e-4, np.float32), np.r_[0, np.cumsum(lengths)])
     return Bundle(Path("."), meta, ae, cs, FeatureStats(np.zeros(cfg.features, np.float32), np.ones(cfg.features, np.float32)),

@@ -28,6 +28,7 @@ from hrr_garment.garment.fit import hem_vertices
 from hrr_garment.inference.animator import Animator
 from hrr_garment.inference.detail import add_folds
 from hrr_garment.inference.fold_track import causal_proposals, offline_proposals, track_folds
+from hrr_garment.inference.run_settings import DetailLook
 from hrr_garment.motion.frame import from_body_frame, to_body_frame
 from hrr_garment.motion.windows import causal_windows, sequence_windows
 from hrr_garment.sim.quality import hem_swing
@@ -53,11 +54,12 @@ def _running_mean(local: np.ndarray, fps: float, seconds: float = RUNNING_MEAN_S
 
 def _proposals(animator: Animator, motion, causal: bool) -> np.ndarray:
     w = animator.window
+    run = animator.resolve(mode="detail", detail=DetailLook(base="regression"))
     if causal:
         windows = causal_windows(animator.features(motion, causal=True), w)
-        return causal_proposals(animator._choose(windows, "detail", 0.0, None, "entropy", last_frame=True).source, w)
+        return causal_proposals(animator._choose(windows, run, last_frame=True).match, w)
     windows = np.ascontiguousarray(sequence_windows(animator.features(motion), w))
-    return offline_proposals(animator._choose(windows, "detail", 0.0, None, "entropy").source, motion.num_frames, w)
+    return offline_proposals(animator._choose(windows, run).match, motion.num_frames, w)
 
 
 def analyse(model: str, split: str, sequences: int | None) -> dict:

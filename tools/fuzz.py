@@ -408,8 +408,8 @@ def make_case(number: int, samples: Samples, work: Path, rng: np.random.Generato
                     out / "report", [src.name])
     if kind == "animation":
         src = folder / "out.h5"
-        what = mutate_h5(samples.animation, src, rng, ("vertices", "faces", "joints", "capsules", "radii", "mode",
-                                                        "entropy", "source"))
+        what = mutate_h5(samples.animation, src, rng, ("vertices", "faces", "joints", "capsules", "radii", "retrieved",
+                                                        "entropy", "match"))
         target = rng.choice(["a.glb", "a.pc2", "a.usda", "a.png"])
         if target == "a.png":
             command = _cli("preview", src, "-o", out / target, "--size", 64, "--frames", 2)
