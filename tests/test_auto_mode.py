@@ -74,8 +74,9 @@ def test_the_detail_modes_setting_is_chosen_by_the_same_criterion(pves, expected
 def test_hrr_train_calibrates_auto_and_it_agrees_with_the_evaluation(trained):
     from hrr_garment.artifacts.manifest import AUTO_CHOICES
     from hrr_garment.data.dataset import GarmentDataset
-    from hrr_garment.eval.evaluate import evaluate_modes
+    from hrr_garment.eval.evaluate import EvaluationSettings, evaluate_modes
     from hrr_garment.inference.animator import Animator
+    from hrr_garment.inference.run_settings import DetailLook
 
     root, data, _ = trained
     meta = json.loads((root / "model" / "bundle.json").read_text())
@@ -91,7 +92,7 @@ def test_hrr_train_calibrates_auto_and_it_agrees_with_the_evaluation(trained):
     for mode, c in auto["candidates"].items():  # deterministic
         assert again["candidates"][mode] == pytest.approx(c)
     # the same PVE as hrr-eval's on these clips (its own path: every metric, the single simulation)
-    pve = evaluate_modes(animator, records, ["hybrid"], progress=False)["hybrid"].metrics["pve_mm"]
+    pve = evaluate_modes(animator, records, EvaluationSettings(("hybrid",), progress=False))["hybrid"].metrics["pve_mm"]
     assert again["candidates"]["hybrid"]["pve_mm"] == pytest.approx(pve, rel=1e-6)
     for c in again["candidates"].values():
         assert c["pve_mm"] > 0 and c["sharpness"] > 0 and c["hem_swing"] > 0
@@ -100,7 +101,7 @@ def test_hrr_train_calibrates_auto_and_it_agrees_with_the_evaluation(trained):
     both = calibrate_auto_mode(animator, records[:1], progress=False)
     assert set(both["candidates"]) >= set(DETAIL_CANDIDATES)
     for label, (base, strength) in DETAIL_CANDIDATES.items():
-        pred = animator.animate(records[0].motion, mode="detail", detail_base=base, detail_strength=strength).vertices
+        pred = animator.animate(records[0].motion, mode="detail", detail=DetailLook(base, strength)).vertices
         assert both["candidates"][label]["pve_mm"] == pytest.approx(float(np.linalg.norm(pred - records[0].garment, axis=-1).mean()) * 1000, rel=1e-5)
     pves = [both["candidates"][detail_label(base, s)]["pve_mm"] for base in ("regression", "residual") for s in DETAIL_STRENGTHS]
     assert len(set(pves)) == len(pves)  # each setting changes the output
@@ -142,7 +143,7 @@ def test_a_model_without_auto_runs_the_hybrid(trained, tmp_path):
     meta.pop("auto")
     (copy / "bundle.json").write_text(json.dumps(meta))
     animator = Animator.load(copy)
-    assert animator.resolve_mode("auto") == "hybrid"
+    assert animator.resolve().mode == "hybrid"
     motion = synthesize("walk", 0.5, seed=6)
     assert np.array_equal(animator.animate(motion, collision=False).vertices,
                           animator.animate(motion, mode="hybrid", collision=False).vertices)

@@ -224,15 +224,16 @@ def test_calibration_on_a_window_sample_is_the_sample_of_the_full_errors(trained
     from hrr_garment.data.dataset import GarmentDataset
     from hrr_garment.data.windows import dataset_features
     from hrr_garment.train.autoencoder import body_frames
-    from hrr_garment.train.calibrate import evaluate_modes
+    from hrr_garment.train.calibrate import WindowModel, window_mode_errors
 
     root, data, _ = trained
     bundle, ds = load_bundle(root / "model"), GarmentDataset(data)
     names = ds.splits["val"]
-    args = (bundle.codespace, bundle.autoencoder, bundle.motion_stats, bundle.latent_stats, bundle.database,
-            dataset_features(ds, names, bundle.codespace.config.memory), {n: body_frames(ds, [n]) for n in names})
-    full = evaluate_modes(*args, refine_steps=0, refine_lr=0.0, max_windows=None)
-    sample = evaluate_modes(*args, refine_steps=0, refine_lr=0.0, max_windows=7)
+    args = (WindowModel.of_bundle(bundle), dataset_features(ds, names, bundle.codespace.config.memory),
+            {n: body_frames(ds, [n]) for n in names})
+    encoding = {"refine_steps": 0, "refine_lr": 0.0}
+    full = window_mode_errors(*args, encoding=encoding, max_windows=None)
+    sample = window_mode_errors(*args, encoding=encoding, max_windows=7)
     keep = np.linspace(0, len(full.regression) - 1, 7).round().astype(int)
     assert len(full.regression) > 7 and len(sample.regression) == 7
     for field in ("regression", "retrieval", "autoencoder", "entropy"):
@@ -410,11 +411,16 @@ TAMPERS = {  # name: (edit of bundle.json's dict, or of the folder and dict; the
     "database missing": (lambda f, m: m.pop("database"), "lacks its 'database' section"),
     "auto an unknown mode": (lambda f, m: m.update(auto={"mode": "retrieval"}), "'auto' must hold a 'mode' of"),
     "auto a string": (lambda f, m: m.update(auto="detail"), "'auto' must hold a 'mode' of"),
+    "gates missing": (lambda f, m: m.pop("gates"), "'gates' must map gate signals"),
+    "a newer format": (lambda f, m: m.update(format_version=4), "format_version 4; .* upgrade hrr_garment"),
+    "format 1": (lambda f, m: m.update(format_version=1), "format_version 1; .* retrain"),
     "detail base unknown": (lambda f, m: m.update(auto={"mode": "detail", "detail_base": "retrieval"}),
                             "'detail_base' must be one of regression, residual"),
-    "detail strength negative": (lambda f, m: m.update(auto={"mode": "detail", "detail_strength": -0.5}),
+    "detail strength negative": (lambda f, m: m.update(auto={"mode": "detail", "detail_base": "regression",
+                                                             "detail_strength": -0.5}),
                                  "'detail_strength' must be a number in"),
-    "detail strength NaN": (lambda f, m: m.update(auto={"mode": "detail", "detail_strength": float("nan")}),
+    "detail strength NaN": (lambda f, m: m.update(auto={"mode": "detail", "detail_base": "regression",
+                                                        "detail_strength": float("nan")}),
                             "'detail_strength' must be a number in"),
     "NaN weights, hashes redone": (_nan_weights, "decoder.safetensors: non-finite weights"),
     "NaN statistics, hashes redone": (_nan_stats, "stats.safetensors: non-finite values"),
@@ -483,5 +489,6 @@ def test_a_bundle_written_before_the_expected_code_regresses_from_the_argmax(tra
     shutil.copytree(root / "model", tmp_path / "old")
     meta = json.loads((tmp_path / "old" / "bundle.json").read_text())
     del meta["codespace"]["config"]["regression_code"]
+    meta["format_version"] = 2  # version 2 left it out; version 3 writes it
     (tmp_path / "old" / "bundle.json").write_text(json.dumps(meta))
     assert load_bundle(tmp_path / "old").codespace.config.regression_code == "argmax"

@@ -5,10 +5,12 @@ import numpy as np
 import pytest
 
 from hrr_garment.artifacts.folds import FoldStore
+from hrr_garment.artifacts.manifest import migrate_manifest
 from hrr_garment.garment.smoothing import high_frequencies, mean_operator
 from hrr_garment.garment.templates import make_garment
 from hrr_garment.inference.detail import add_folds
 from hrr_garment.inference.fold_track import FoldTrack, causal_proposals, offline_proposals, track_folds
+from hrr_garment.inference.run_settings import DetailLook, RunSettings
 from hrr_garment.motion.frame import from_body_frame, to_body_frame
 from hrr_garment.motion.synth import synthesize
 from hrr_garment.motion.windows import sequence_windows
@@ -130,8 +132,9 @@ def test_the_detail_mode_is_its_base_plus_the_tracked_simulated_folds(trained, b
     meta["residual"] = {**meta["residual"], "weight": 0.7}  # a weight the tiny model may not have calibrated
     meta["auto"] = {**meta["auto"], "detail_base": base, "detail_strength": strength}
     assert animator.bundle.detail_base == base
-    if base == "regression":  # as bundles calibrated before the choice read
-        del meta["auto"]["detail_base"], meta["auto"]["detail_strength"]
+    if base == "regression":  # as version-2 bundles calibrated before the choice read, upgraded
+        old = {**meta, "format_version": 2, "auto": {"mode": meta["auto"]["mode"]}}
+        meta["auto"] = migrate_manifest(animator.bundle.folder, old)["auto"]
         assert animator.bundle.detail_base == "regression" and animator.bundle.detail_strength == DETAIL_STRENGTH
     store = animator.bundle.folds
     assert store is not None and len(store.lengths) == len(animator.bundle.database.names)
@@ -140,10 +143,10 @@ def test_the_detail_mode_is_its_base_plus_the_tracked_simulated_folds(trained, b
     shape = animator.animate(motion, mode=base, collision=False).vertices
     detail = animator.animate(motion, mode="detail", collision=False)
     retrieval = animator.animate(motion, mode="retrieval", collision=False)
-    assert detail.mode.all() and np.array_equal(detail.source, retrieval.source)
+    assert not detail.retrieved.any() and np.array_equal(detail.match, retrieval.match)
     # the same by hand: the track over the windows' matches, their folds on the base in the body frame
     windows = np.ascontiguousarray(sequence_windows(animator.features(motion), animator.window))
-    source = animator._choose(windows, "detail", 0.0, None, "entropy").source
+    source = animator._choose(windows, animator.resolve(mode="detail")).match
     rows, weights = track_folds(offline_proposals(source, motion.num_frames, animator.window), store.offsets)
     local = to_body_frame(shape.astype(np.float64), motion)
     expected = from_body_frame(add_folds(local, store.folds(rows, weights), animator.smoothing, store.passes,
@@ -169,11 +172,12 @@ def test_a_bundle_before_the_folds_says_how_to_add_them_and_hrr_train_does(train
     meta = json.loads((old / "bundle.json").read_text())
     del meta["folds"], meta["files"][FOLDS_FILE]
     meta["content_hash"] = content_hash(meta["files"])
+    meta["format_version"] = 2  # a bundle written before the folds
     (old / FOLDS_FILE).unlink()
     (old / "bundle.json").write_text(json.dumps(meta))
     update_bundle_meta(old, {"auto": {**meta["auto"], "mode": "detail"}})
     animator = Animator.load(old)
-    assert not animator.supports("detail") and animator.resolve_mode("auto") == "hybrid"
+    assert not animator.supports("detail") and animator.resolve().mode == "hybrid"
     with pytest.raises(BundleError, match="hrr-train --stage codespace"):
         animator.animate(synthesize("walk", 0.5, seed=1), mode="detail")
     with pytest.raises(BundleError, match="no simulated folds"):
@@ -237,23 +241,27 @@ def test_hrr_animate_runs_the_detail_mode_as_it_is_told(trained, tmp_path, capsy
     written = read_animation_h5(out)
     assert written.attrs["detail_strength"] == 1.3 and written.attrs["detail_base"] == "residual"
     animator = Animator.load(model)
-    expected = animator.animate(motion, detail_base="residual", detail_strength=1.3, collision=False)
+    look = DetailLook(base="residual", strength=1.3)
+    expected = animator.animate(motion, detail=look, collision=False)
     assert expected.settings["mode"] == "detail" and np.array_equal(written.vertices, expected.vertices)
     calibrated = animator.animate(motion, mode="detail", collision=False)
     assert calibrated.settings["detail_strength"] == animator.bundle.detail_strength != 1.3
     assert not np.allclose(calibrated.vertices, expected.vertices, atol=1e-4)
     # a stream keeps the look it was made with, frame by frame as offline causal
-    stream = animator.stream(mode="detail", detail_base="residual", detail_strength=1.3, collision=False)
+    stream = animator.stream(mode="detail", detail=look, collision=False)
     streamed = np.stack([stream.push(motion.slice(t, t + 1)) for t in range(motion.num_frames)])
-    causal = animator.animate(motion, mode="detail", detail_base="residual", detail_strength=1.3, collision=False,
-                              causal=True)
+    causal = animator.animate(motion, RunSettings(mode="detail", detail=look, collision=False, causal=True))
     assert np.allclose(streamed, causal.vertices, atol=1e-5)
-    from_array = animator.animate(motion, detail_strength=np.float32(1.3), detail_base="residual", collision=False)
+    from_array = animator.animate(motion, detail=DetailLook("residual", np.float32(1.3)), collision=False)
     assert from_array.settings["detail_strength"] == pytest.approx(1.3) and isinstance(from_array.settings["detail_strength"], float)
-    for kwargs in ({"mode": "hybrid", "detail_strength": 1.0}, {"tau": 0.1, "detail_base": "regression"},
-                   {"detail_strength": 0.0}, {"detail_base": "shape"}):
+    for asked in (lambda: {"mode": "hybrid", "detail": DetailLook(strength=1.0)},
+                  lambda: {"tau": 0.1, "detail": DetailLook(base="regression")},
+                  lambda: {"detail": DetailLook(strength=0.0)}, lambda: {"detail": DetailLook(base="shape")},
+                  lambda: {"tau": float("nan")}, lambda: {"tau": -1.0}):
         with pytest.raises(ValueError):
-            animator.animate(motion, collision=False, **kwargs)
+            animator.animate(motion, collision=False, **asked())
+    with pytest.raises(TypeError, match=r"detail_strength \(now detail=DetailLook\(strength=...\)\)"):
+        animator.animate(motion, detail_strength=1.0)
 
     refused = tmp_path / "refused.h5"
     update_bundle_meta(model, {"residual": {**residual, "weight": 0.0}})

@@ -17,9 +17,9 @@ def test_hrr_eval_report_end_to_end(trained, tmp_path, capsys):
     assert main(["--model", str(root / "model"), "--dataset", str(data), "--split", "test", "--tau-sweep", "0,0.5,1,100",
                  "--detail-strength", "1.2", "-o", str(out), "--quiet"]) == 0
     report = json.loads((out / "report.json").read_text())
-    assert report["format_version"] == 8 and report["dataset"]["sequences"] == ["run_000"]
+    assert report["format_version"] == 9 and report["dataset"]["sequences"] == ["run_000"]
     base = json.loads((root / "model" / "bundle.json").read_text())["auto"]["detail_base"]
-    assert report["settings"]["detail"] == {"strength": 1.2, "base": base}  # as asked; the base as calibrated
+    assert (report["settings"]["detail_strength"], report["settings"]["detail_base"]) == (1.2, base)  # as asked; the base as calibrated
     assert f"detail mode: folds x1.2 on the {base}" in (out / "report.md").read_text()
     assert report["ensemble"] == {"members": 0}  # a synthetic dataset: no simulator settings to perturb
     modes = report["modes"]
@@ -64,7 +64,7 @@ def test_ensemble_scores_lead_the_report(trained):
 
     from hrr_garment.data.dataset import GarmentDataset
     from hrr_garment.eval.ensemble import TruthEnsemble
-    from hrr_garment.eval.evaluate import evaluate_modes
+    from hrr_garment.eval.evaluate import EvaluationSettings, evaluate_modes
     from hrr_garment.eval.report import build_report, markdown
     from hrr_garment.inference.animator import Animator
 
@@ -73,7 +73,8 @@ def test_ensemble_scores_lead_the_report(trained):
     shift = np.array([0.003, 0.0, 0.0], np.float32)  # two truths 3 mm either side of the recorded one
     members = np.stack([record.garment + shift, record.garment - shift])
     ensembles = {record.name: TruthEnsemble(record.name, members, ["+x", "-x"], {})}
-    results = evaluate_modes(animator, [record], ["regression", "retrieval"], ensembles=ensembles, progress=False)
+    results = evaluate_modes(animator, [record], EvaluationSettings(("regression", "retrieval"), progress=False),
+                             ensembles=ensembles)
     for result in results.values():
         e = result.ensemble
         assert e["floor_mm"] == pytest.approx(6.0, rel=1e-4) and e["sequences"] == 1
@@ -84,8 +85,8 @@ def test_ensemble_scores_lead_the_report(trained):
         assert 0 <= e["penetration_before_worst_pct"] <= 100 and e["acceleration_ratio"] > 0
     report = build_report(model={"folder": "m", "garment": "skirt", "hash": "h", "tau": 0.1}, dataset={
         "path": "d.h5", "split": "test", "sequences": [record.name], "frames": len(record.garment)},
-        settings={"collision": True, "exclude_own_sequence": False, "tau": 0.1}, modes=results, sweep=None, real=None,
-        seconds=1.0, ensemble={"members": 2, "perturbations": ["+x", "-x"], "sequences": 1})
+        settings={"collision": True, "exclude_own_sequence": False, "gate": "entropy", "tau": 0.1}, modes=results,
+        sweep=None, seconds=1.0, ensemble={"members": 2, "perturbations": ["+x", "-x"], "sequences": 1})
     md = markdown(report, [])
     assert md.index("ensemble ground truth") < md.index("## Modes") and "| simulation (truths) | 1.00 |" in md
 
@@ -165,7 +166,7 @@ def test_direct_baseline_trains_is_causal_and_is_evaluated(trained, tmp_path):
     head = animator.animate(motion.slice(0, 20), mode="direct", collision=False)
     assert full.vertices.shape == (motion.num_frames, 308, 3) and np.isfinite(full.vertices).all()
     assert np.abs(full.vertices[:19] - head.vertices[:19]).max() < 1e-5  # frame t never sees frames after t
-    assert full.mode.sum() == 0 and (full.source == -1).all()
+    assert full.retrieved.sum() == 0 and (full.match == -1).all()
 
     out = tmp_path / "report"
     assert eval_main(["--model", str(model), "--dataset", str(data), "--no-sweep", "-o", str(out), "--quiet"]) == 0
@@ -279,7 +280,7 @@ def test_library_protocol_in_hrr_eval(artist_model, tmp_path, monkeypatch):
     assert main(["--model", str(model), "--dataset", str(data), "--split", "test", "--ensemble", "2", "--jobs", "1",
                  "--library", "2", "--tau-sweep", "0,100", "--no-plots", "-o", str(out), "--quiet"]) == 0
     report = json.loads((out / "report.json").read_text())
-    assert report["format_version"] == 8
+    assert report["format_version"] == 9
     lib = report["library"]
     assert list(lib["plays"]) == ["play_00", "play_01"] and "->" in lib["plays"]["play_01"]
     assert lib["sequences"] == ["play_00", "play_01"] and not lib["rejected"]

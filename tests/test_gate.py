@@ -85,17 +85,17 @@ def test_a_match_gate_spans_regression_to_retrieval(animator, gate):
     motion = synthesize("walk", 1.0, seed=3)
     never = animator.animate(motion, gate=gate, tau=0.0, collision=False)
     regression = animator.animate(motion, mode="regression", collision=False)
-    assert not never.mode.any() and np.array_equal(never.vertices, regression.vertices)
+    assert not never.retrieved.any() and np.array_equal(never.vertices, regression.vertices)
     always = animator.animate(motion, gate=gate, tau=1e9, collision=False)
     retrieval = animator.animate(motion, mode="retrieval", collision=False)
-    assert always.mode.all() and np.allclose(always.vertices, retrieval.vertices, atol=1e-6)
+    assert always.retrieved.all() and np.allclose(always.vertices, retrieval.vertices, atol=1e-6)
     # a threshold between two distinct signal values near the median: the gate compares in float64,
     # Animation.doubt is float32, and a threshold on a value itself would be a rounding tie
     values = np.unique(always.doubt.astype(np.float64))
     tau = float(values[len(values) // 2 - 1] + values[len(values) // 2]) / 2
     middle = animator.animate(motion, gate=gate, tau=tau, collision=False)
-    assert 0 < middle.mode.sum() < len(middle.mode)
-    assert np.array_equal(middle.mode.astype(bool), middle.doubt < middle.settings["tau"])
+    assert 0 < middle.retrieved.sum() < len(middle.retrieved)
+    assert np.array_equal(middle.retrieved.astype(bool), middle.doubt < middle.settings["tau"])
     if gate == "similarity":
         assert (0 <= always.doubt).all() and (always.doubt <= 1).all()
 
@@ -105,7 +105,7 @@ def test_stream_with_a_match_gate_equals_offline_causal(animator, gate):
     motion = synthesize("walk_curve", 1.0, seed=5)
     tau = float(np.median(animator.animate(motion, gate=gate, tau=1e9, causal=True).doubt))
     causal = animator.animate(motion, gate=gate, tau=tau, causal=True)
-    assert 0 < causal.mode.sum() < len(causal.mode)  # both sides of the gate
+    assert 0 < causal.retrieved.sum() < len(causal.retrieved)  # both sides of the gate
     stream = animator.stream(gate=gate, tau=tau)
     pushed = np.stack([stream.push(motion.slice(t, t + 1)) for t in range(motion.num_frames)])
     assert np.abs(pushed - causal.vertices).max() <= 1e-5
@@ -123,7 +123,7 @@ def test_a_bundle_before_the_match_gates_runs_the_entropy_and_says_what_is_missi
     meta = json.loads((old / "bundle.json").read_text())
     for key in ("gate", "gates"):
         meta.pop(key)
-    meta["content_hash"] = content_hash(meta["files"])
+    meta["content_hash"], meta["format_version"] = content_hash(meta["files"]), 2  # as version 2 wrote them
     (old / "bundle.json").write_text(json.dumps(meta))
     bundle = load_bundle(old)
     assert bundle.gate == "entropy" and bundle.gate_tau("entropy") == bundle.tau

@@ -62,20 +62,22 @@ def test_residual_at_weight_zero_is_the_regression_and_otherwise_adds_the_matche
     monkeypatch.setitem(bundle.meta, "residual", {"weight": 0.0})
     regression = animator.animate(motion, mode="regression", collision=False)
     zero = animator.animate(motion, mode="residual", collision=False)
-    assert np.allclose(zero.vertices, regression.vertices, atol=1e-6) and zero.mode.all()
+    assert np.allclose(zero.vertices, regression.vertices, atol=1e-6)
+    assert not zero.retrieved.any() and (zero.match >= 0).all()  # regression plus a match, not a retrieval
     # at weight 1, each window's latents move by its match's residual times the similarity
     monkeypatch.setitem(bundle.meta, "residual", {"weight": 1.0})
     from hrr_garment.inference.gate import choose_windows
 
     windows = np.ascontiguousarray(sequence_windows(animator.features(motion), animator.window))
-    chosen = choose_windows(bundle, windows, "residual", 0.0)
+    chosen = choose_windows(bundle, windows, animator.resolve(mode="residual"))
     enc = encode_motion(bundle.codespace, bundle.motion_stats, bundle.latent_stats, windows)
     match, similarity = bundle.database.search(enc.codes)
     own = match_regression(bundle.codespace, bundle.motion_stats, bundle.latent_stats, bundle.database, match)
     expected = enc.regression + similarity[:, None, None, None] * (bundle.database.latents[match] - own)
     assert np.allclose(chosen.latents, expected, atol=1e-5)
     assert not np.allclose(chosen.latents, enc.regression, atol=1e-3)  # the detail is there
-    assert np.array_equal(chosen.source[:, 0], bundle.database.sequence[match])
+    assert np.array_equal(chosen.match[:, 0], bundle.database.sequence[match])
+    assert not chosen.retrieved.any() and chosen.follows_match.all()  # a change of match is a change of source
 
 
 def test_stream_in_the_residual_mode_equals_offline_causal(animator, monkeypatch):
