@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from hrr_garment.body.capsules import DEFAULT_BODY
-from hrr_garment.data.animation_file import read_animation_h5, write_animation_h5
+from hrr_garment.data.animation_file import AnimationArrays, read_animation_h5, write_animation_h5
 from hrr_garment.export.keyframes import interpolate, select_keyframes
 from hrr_garment.garment.templates import make_garment
 from hrr_garment.motion.synth import synthesize
@@ -29,16 +29,23 @@ def _animation_arrays(frames: int = 40, seed: int = 0) -> dict:
     sway = 0.03 * np.sin(2 * np.pi * 1.3 * t + skirt.vertices[None, :, 1:2] * 4) * np.array([1.0, 0.2, 0.5])
     vertices = skirt.vertices[None] + pelvis + sway
     a, b = DEFAULT_BODY.pose_motion(motion)
-    mode = (np.arange(motion.num_frames) // 10 % 2).astype(np.uint8)
-    return dict(vertices=vertices.astype(np.float32), faces=skirt.faces, joints=motion.joint_positions, mode=mode,
-                entropy=np.zeros(motion.num_frames), source=np.full((motion.num_frames, 2), -1),
+    retrieved = (np.arange(motion.num_frames) // 10 % 2).astype(np.uint8)
+    return dict(vertices=vertices.astype(np.float32), faces=skirt.faces, joints=motion.joint_positions,
+                retrieved=retrieved, entropy=np.zeros(motion.num_frames), match=np.full((motion.num_frames, 2), -1),
                 attrs={"fps": 30.0, "garment": "skirt", "source_motion": "walk"},
                 capsules=np.stack([a, b], 2), radii=DEFAULT_BODY.radii)
 
 
+def _write(path: Path, arrays: dict) -> Path:
+    """An out.h5 of ``arrays`` (as :func:`_animation_arrays` gives them, its ``attrs`` included)."""
+    arrays = dict(arrays)
+    attrs = arrays.pop("attrs")
+    return write_animation_h5(path, AnimationArrays(**arrays), attrs)
+
+
 @pytest.fixture
 def out_h5(tmp_path) -> Path:
-    return write_animation_h5(tmp_path / "out.h5", **_animation_arrays())
+    return _write(tmp_path / "out.h5", _animation_arrays())
 
 
 # ---------------------------------------------------------------- keyframes
@@ -215,7 +222,7 @@ def test_obj_sequence_frames_and_stale_frames_removed(out_h5, tmp_path):
     files = write_obj_sequence(anim, tmp_path / "seq", progress=False)
     assert len(files) == anim.num_frames and files[3].name == "skirt_00003.obj"
     assert np.abs(read_obj_vertices(files[25]) - anim.vertices[25]).max() < 1e-6
-    shorter = write_animation_h5(tmp_path / "short.h5", **{**_animation_arrays(12)})
+    shorter = _write(tmp_path / "short.h5", _animation_arrays(12))
     write_obj_sequence(read_animation_h5(shorter), tmp_path / "seq", progress=False)
     assert len(list((tmp_path / "seq").glob("*.obj"))) == 12
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]  # no staging folder left
@@ -241,13 +248,13 @@ def test_hrr_export_refuses_bad_input_without_output(out_h5, tmp_path, capsys):
 
     nan = _animation_arrays()
     nan["vertices"][7, 3, 1] = np.nan
-    write_animation_h5(tmp_path / "nan.h5", **nan)
+    _write(tmp_path / "nan.h5", nan)
     with h5py.File(tmp_path / "nokey.h5", "w") as f:
         f.create_dataset("vertices", data=np.zeros((2, 3, 3)))
     (tmp_path / "text.h5").write_text("not hdf5")
     # found by tools/fuzz.py: a text frame rate, bytes flipped inside the compressed vertices, NaN joints
-    write_animation_h5(tmp_path / "fps.h5", **{**_animation_arrays(), "attrs": {"fps": "{not json"}})
-    write_animation_h5(tmp_path / "chunk.h5", **_animation_arrays())
+    _write(tmp_path / "fps.h5", {**_animation_arrays(), "attrs": {"fps": "{not json"}})
+    _write(tmp_path / "chunk.h5", _animation_arrays())
     with h5py.File(tmp_path / "chunk.h5", "r") as f:
         offset = f["vertices"].id.get_chunk_info(3).byte_offset
     data = bytearray((tmp_path / "chunk.h5").read_bytes())
@@ -256,7 +263,7 @@ def test_hrr_export_refuses_bad_input_without_output(out_h5, tmp_path, capsys):
     joints = _animation_arrays()
     joints["joints"] = joints["joints"].copy()
     joints["joints"][5, 2, 0] = np.inf
-    write_animation_h5(tmp_path / "joints.h5", **joints)
+    _write(tmp_path / "joints.h5", joints)
     cases = [
         (["fps.h5", "-o", "x.glb"], "the 'fps' attribute must be a frame rate"),
         (["chunk.h5", "-o", "x.glb"], "damaged file, cannot be read"),
@@ -284,7 +291,7 @@ def test_version1_file_without_body(tmp_path):
 
     arrays = _animation_arrays(10)
     del arrays["capsules"], arrays["radii"]
-    anim = read_animation_h5(write_animation_h5(tmp_path / "v1.h5", **arrays))
+    anim = read_animation_h5(_write(tmp_path / "v1.h5", arrays))
     assert anim.capsules is None
     write_glb(anim, tmp_path / "ok.glb")
     with pytest.raises(InputError, match="no body capsules"):

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from test_export import _animation_arrays
+from test_export import _animation_arrays, _write
 
-from hrr_garment.data.animation_file import read_animation_h5, write_animation_h5
+from hrr_garment.data.animation_file import read_animation_h5
 from hrr_garment.export.preview import VIEWS, OrthoCamera
 from hrr_garment.export.raster import rasterize
 
@@ -73,7 +73,7 @@ def test_front_camera_sees_the_character_face_on():
 
 @pytest.fixture
 def out_h5(tmp_path):
-    return write_animation_h5(tmp_path / "out.h5", **_animation_arrays(24))
+    return _write(tmp_path / "out.h5", _animation_arrays(24))
 
 
 def test_hrr_preview_gif_png_and_mode_colours(out_h5, tmp_path):
@@ -116,7 +116,7 @@ def test_hrr_preview_errors(out_h5, tmp_path, capsys):
 
     arrays = _animation_arrays(6)
     del arrays["capsules"], arrays["radii"]
-    v1 = write_animation_h5(tmp_path / "v1.h5", **arrays)
+    v1 = _write(tmp_path / "v1.h5", arrays)
     assert main([str(v1), "-o", str(tmp_path / "x.gif"), "--size", "64"]) == 2
     assert "no body capsules" in capsys.readouterr().err
     assert main([str(v1), "-o", str(tmp_path / "y.gif"), "--size", "64", "--no-body"]) == 0
