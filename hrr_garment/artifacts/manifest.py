@@ -14,7 +14,7 @@ version, so that everything after it reads every field as the current version de
   fields that later arrived one by one (``gate``, ``gates``, ``residual``, ``auto`` and its detail
   look, ``folds``, the code space's motion memory and regression code).
 - 3: every calibrated field present with its value: ``gate``, ``gates`` (each other signal's
-  calibrated tau), ``auto.detail_base`` and ``auto.detail_strength`` wherever ``auto`` is, and the
+  calibrated tau), ``validation`` (the code space's: "clips" or the paper's "windows"), ``auto.detail_base`` and ``auto.detail_strength`` wherever ``auto`` is, and the
   code space's ``memory_seconds``, ``resonator_hz`` and ``regression_code``. ``auto`` is absent
   until training calibrates it (``auto`` then runs the hybrid), ``residual`` where the database
   has no motion windows, ``folds`` and ``direct`` where the bundle has no such part.
@@ -99,6 +99,8 @@ def check_manifest(folder: Path, meta: object) -> dict:
     weight = residual.get("weight") if isinstance(residual, dict) else None
     if isinstance(weight, bool) or not isinstance(weight, (int, float)) or not math.isfinite(weight) or weight < 0:
         raise BundleError(folder, f"bundle.json 'residual' must hold a finite 'weight' >= 0, got {residual!r}")
+    if meta.get("validation") not in ("clips", "windows"):
+        raise BundleError(folder, f"bundle.json 'validation' must be clips or windows, got {meta.get('validation')!r}")
     gates = meta.get("gates")
     if not isinstance(gates, dict) or not all(k in GATE_SIGNALS and isinstance(v, dict) for k, v in gates.items()):
         raise BundleError(folder, f"bundle.json 'gates' must map gate signals to their calibration, got {gates!r}")
@@ -133,7 +135,8 @@ def migrate_manifest(folder: Path, meta: object) -> dict:
 
 def _from_version_2(meta: dict) -> dict:
     """Version 2 -> 3: the values a field took where a version-2 bundle left it out."""
-    meta = {**meta, "format_version": 3, "gate": meta.get("gate", "entropy"), "gates": meta.get("gates", {})}
+    meta = {**meta, "format_version": 3, "gate": meta.get("gate", "entropy"), "gates": meta.get("gates", {}),
+            "validation": meta.get("validation", "clips")}
     if isinstance(meta.get("auto"), dict):
         meta["auto"] = {**UNCALIBRATED_AUTO, **meta["auto"]}
     codespace = meta.get("codespace")

@@ -114,7 +114,7 @@ def paper_section(folder: Path, bundle, records, settings: EvaluationSettings, e
     folder = find_model(folder)
     animator = Animator.load(folder)
     other = animator.bundle
-    if other.meta.get("validation", "clips") != "windows":
+    if other.meta["validation"] != "windows":
         raise InputError(folder, "was validated on held-out clips; the paper protocol needs a model trained with "
                                  "hrr-train --validation windows")
     if other.garment != bundle.garment or other.template.num_vertices != bundle.template.num_vertices:
