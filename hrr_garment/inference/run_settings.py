@@ -60,7 +60,7 @@ class DetailLook:
         if self.strength is not None:
             strength = _number(self.strength, "the detail mode's strength")
             if not valid_detail_strength(strength):
-                raise ValueError(f"the detail mode's strength is in (0, {MAX_DETAIL_STRENGTH:g}], got {strength!r}")
+                raise ValueError(f"the detail mode's strength must be in (0, {MAX_DETAIL_STRENGTH:g}], got {strength!r}")
             object.__setattr__(self, "strength", strength)
 
     @property
@@ -102,9 +102,9 @@ class RunSettings:
                 raise TypeError(f"{name} must be True or False, got {value!r}")
             object.__setattr__(self, name, bool(value))
         if self.mode is Mode.AUTO and self.hybrid_chosen and self.detail.chosen:
-            raise ValueError("a gate or tau sets the hybrid and a detail look the detail mode: name the mode")
+            raise ValueError("a gate or tau sets the hybrid and a detail base or strength the detail mode: name the mode")
         if self.detail.chosen and self.mode not in (Mode.AUTO, Mode.DETAIL):
-            raise ValueError(f"a detail look sets the detail mode; mode {self.mode.value} does not use it")
+            raise ValueError(f"a detail base or strength sets the detail mode; mode {self.mode.value} does not use them")
 
     @property
     def hybrid_chosen(self) -> bool:
