@@ -513,7 +513,7 @@ def test_pinning_the_workers_leaves_the_caller_free(monkeypatch):
         pytest.skip("needs the kernel and two CPUs")
     monkeypatch.delenv("OMP_PROC_BIND", raising=False)
     monkeypatch.setenv("HRR_PIN_THREADS", "1")
-    monkeypatch.setattr(native, "_pinned", {})
+    monkeypatch.setattr(native.threads, "_pinned", {})
     native.pin_workers(2)
     assert os.sched_getaffinity(0) == allowed
     me = os.getpid()
