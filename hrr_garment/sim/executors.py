@@ -19,10 +19,10 @@ from tqdm.auto import tqdm
 
 from ..garment.mesh import GarmentMesh
 from ..motion.motion import FPS
+from .config import SimConfig
 from .lead_in import lead_in_frames
 from .parts import PartResult, simulate_sequence, write_part
 from .plan import SequenceSpec
-from .simulator import SimConfig
 
 EXECUTORS = ("local", "ray")
 
