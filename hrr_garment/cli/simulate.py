@@ -97,7 +97,7 @@ def _parser() -> argparse.ArgumentParser:
 def _main(argv: Sequence[str] | None) -> int:
     args = _parser().parse_args(argv)
     from ..export.preview import write_dataset_preview
-    from ..sim.build import build_dataset
+    from ..sim.build import BuildOptions, build_dataset
     from ..sim.simulator import SimConfig
 
     preset = load_preset(args.preset)
@@ -115,8 +115,10 @@ def _main(argv: Sequence[str] | None) -> int:
     options["info"]["motions"] = list(args.motions) if args.motions else None  # None: the preset's own clips
     if args.address and args.executor != "ray":
         raise InputError("--address", "joins a Ray cluster: use it with --executor ray")
-    report = build_dataset(garment, specs, config, out, jobs=args.jobs, retry_rejected=args.retry_rejected, preview=None if args.no_preview else write_dataset_preview,
-                           progress=not args.quiet, executor=args.executor, address=args.address, **options)
+    build = BuildOptions(jobs=args.jobs, retry_rejected=args.retry_rejected,
+                         preview=None if args.no_preview else write_dataset_preview, progress=not args.quiet,
+                         executor=args.executor, address=args.address, **options)
+    report = build_dataset(garment, specs, config, out=out, options=build)
     print_report(report, garment)
     return 0
 

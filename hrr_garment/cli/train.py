@@ -110,7 +110,7 @@ def _build(factory, values: dict, source) -> object:
 def _simulate(garment: str, preset, out: Path, quiet: bool) -> None:
     from ..export.preview import write_dataset_preview
     from ..garment.templates import make_garment
-    from ..sim.build import build_dataset
+    from ..sim.build import BuildOptions, build_dataset
     from ..sim.plan import build_options, plan_sequences
     from ..sim.simulator import SimConfig
     from .simulate import print_report
@@ -119,8 +119,8 @@ def _simulate(garment: str, preset, out: Path, quiet: bool) -> None:
     specs = plan_sequences(preset)
     options = build_options(preset, specs)
     options["info"]["garment_vertices"] = mesh.num_vertices
-    report = build_dataset(mesh, specs, SimConfig.from_dict(preset.sim), out, progress=not quiet,
-                           preview=write_dataset_preview, **options)
+    report = build_dataset(mesh, specs, SimConfig.from_dict(preset.sim), out=out,
+                           options=BuildOptions(progress=not quiet, preview=write_dataset_preview, **options))
     print_report(report, mesh)
 
 

@@ -54,14 +54,14 @@ def simulated_section(animator, ds, specs, path: Path, purpose: str, modes: list
     and evaluate every mode there (the hybrid with ``gate_tau``: signal, threshold; the detail mode
     with ``detail``: base, strength): the report section, the records and their truth ensembles."""
     from ..data.dataset import GarmentDataset
-    from ..sim.build import build_dataset
+    from ..sim.build import BuildOptions, build_dataset
     from ..sim.simulator import SimConfig
     from .evaluate import evaluate_modes
 
     config = SimConfig.from_dict(ds.info.get("sim", {}))
     print(f"simulating ground truth for {len(specs)} sequence(s) (cached in {path.with_suffix('.parts')})")
-    report = build_dataset(ds.template, specs, config, path, splits={"val": 0.0, "test": 0.0},
-                           info={"purpose": purpose, "source_dataset": str(ds.path)}, progress=progress)
+    report = build_dataset(ds.template, specs, config, out=path, options=BuildOptions(
+        splits={"val": 0.0, "test": 0.0}, info={"purpose": purpose, "source_dataset": str(ds.path)}, progress=progress))
     data = GarmentDataset(report.path)
     records = [data.sequence(n) for n in report.sequences]
     ensembles = truth_ensembles_of(data, records, members, jobs, progress)
