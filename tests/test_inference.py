@@ -368,7 +368,7 @@ def test_native_push_out_equals_numpy(rng):
     from hrr_garment.garment.templates import make_garment
     from hrr_garment.inference.collision import _push_frames, mean_operator
     from hrr_garment.native import load_kernel
-    from hrr_garment.native.body import push_out_frames
+    from hrr_garment.native.body import PushSteps, push_out_frames
 
     lib = load_kernel()
     if lib is None:
@@ -384,13 +384,13 @@ def test_native_push_out_equals_numpy(rng):
     mean = mean_operator(skirt.faces, len(skirt.vertices))
     for rounds in (1, 2):
         ref = _push_frames(squeezed.copy(), a, b, DEFAULT_BODY.radii, mean, 0.002, 4, rounds, 0.005)
-        got = push_out_frames(lib, squeezed, a, b, DEFAULT_BODY.radii, mean, 0.002, 4, rounds, 0.005, threads=2)
+        got = push_out_frames(lib, squeezed, a, b, DEFAULT_BODY.radii, PushSteps(mean, 0.002, 4, rounds, 0.005), threads=2)
         assert ref[1].max() > 0.05  # the test squeezes the skirt into the body
         assert np.abs(got[0] - ref[0]).max() < 1e-6
         assert np.allclose(got[1], ref[1]) and np.allclose(got[2], ref[2])
         for t in (0, 4):  # one frame at a time (streaming): the threads share the frame
-            one = push_out_frames(lib, squeezed[t:t + 1], a[t:t + 1], b[t:t + 1], DEFAULT_BODY.radii, mean, 0.002, 4,
-                                  rounds, 0.005, threads=2)
+            one = push_out_frames(lib, squeezed[t:t + 1], a[t:t + 1], b[t:t + 1], DEFAULT_BODY.radii,
+                                  PushSteps(mean, 0.002, 4, rounds, 0.005), threads=2)
             assert np.array_equal(one[0][0], got[0][t]) and one[1][0] == got[1][t] and one[2][0] == got[2][t]
 
 
@@ -477,7 +477,7 @@ def test_the_native_strain_limit_matches_the_numpy_reference():
         _limit_frames,
     )
     from hrr_garment.native import load_kernel
-    from hrr_garment.native.body import limit_strain
+    from hrr_garment.native.body import StrainLimit, limit_strain
 
     lib = load_kernel()
     if lib is None:
@@ -491,13 +491,12 @@ def test_the_native_strain_limit_matches_the_numpy_reference():
         p[t, rng.choice(skirt.num_vertices, 5, replace=False)] += rng.normal(size=(5, 3)) * size
     limit = np.repeat(MAX_PUSH_STRAIN * limits.rest_length[None], 4, 0)
     ref = _limit_frames(p.copy(), limit, limits, 60)
-    got, torn = limit_strain(lib, p, unpushed, limits.native_arrays, MAX_PUSH_STRAIN, 60, LIMIT_TOLERANCE_M,
-                             OVER_RELAXATION, threads=2)
+    strain = StrainLimit(limits.native_arrays, MAX_PUSH_STRAIN, 60, LIMIT_TOLERANCE_M, OVER_RELAXATION)
+    got, torn = limit_strain(lib, p, unpushed, strain, threads=2)
     assert torn.tolist() == [True, True, False, True]
     assert np.abs(got - ref).max() < 1e-8  # metres: float rounding of the same passes
     assert np.array_equal(got[2], p[2]) and np.abs(got - p).max() > 0.01
-    one, _ = limit_strain(lib, p[3:], unpushed[3:], limits.native_arrays, MAX_PUSH_STRAIN, 60, LIMIT_TOLERANCE_M,
-                          OVER_RELAXATION)
+    one, _ = limit_strain(lib, p[3:], unpushed[3:], strain)
     assert np.array_equal(one[0], got[3])  # a frame's result does not depend on its batch
 
 def test_pinning_the_workers_leaves_the_caller_free(monkeypatch):
