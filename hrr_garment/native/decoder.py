@@ -47,10 +47,12 @@ def bf16_pairs(m: np.ndarray) -> np.ndarray:
 
 
 class NativeBlock:
-    """One decoder block's constants in the kernel's layout (see ``SOURCE``)."""
+    """One decoder block's constants in the kernel's layout (see ``SOURCE``); ``activation`` is the
+    block's (a, b, elu)."""
 
     def __init__(self, index: np.ndarray, mask: np.ndarray, kernel: np.ndarray, bias: np.ndarray,
-                 pool: np.ndarray | None, proj: np.ndarray | None, a: float, b: float, elu: bool):
+                 pool: np.ndarray | None, proj: np.ndarray | None, activation: tuple[float, float, bool]):
+        a, b, elu = activation
         keep = mask > 0  # (V, S): real neighbour slots
         self.offsets = np.concatenate([[0], np.cumsum(keep.sum(1))]).astype(np.int32)
         self.nbr = np.ascontiguousarray(index[keep], np.int32)

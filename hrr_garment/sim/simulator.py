@@ -118,7 +118,7 @@ def _attempt(garment: GarmentMesh, motion: Motion, body: BodyModel, config: SimC
 
 def _inside_fraction(vertices: np.ndarray, a: np.ndarray, b: np.ndarray, radii: np.ndarray) -> float:
     """The fraction of vertices inside the capsules a-b (C, 3)."""
-    return float((frames_signed_distance(vertices[None], a[None], b[None], radii)[0] < 0).mean())
+    return float((frames_signed_distance(vertices[None], a[None], b[None], radii=radii)[0] < 0).mean())
 
 
 def _arms_note(arms_off: np.ndarray) -> str:

@@ -207,7 +207,7 @@ def train_codespace(model: CodeSpace, train: WindowTensors, val: WindowTensors, 
     state = {"epoch": 0, "switched_at": None, "best": math.inf, "best_epoch": 0, "stale": 0, "elapsed_s": 0.0}
     best_weights = {k: v.clone() for k, v in model.state_dict().items()}
     checkpoint, log_path = folder / "checkpoint.pt", folder / "log.jsonl"
-    state, best_weights = load_checkpoint(checkpoint, key, state, best_weights, model=model, optimizer=optimizer,
+    state, best_weights = load_checkpoint(checkpoint, key, state, best_weights=best_weights, model=model, optimizer=optimizer,
                                           plateau=plateau)
     resume_log(log_path, state["epoch"])
     gen = torch.Generator().manual_seed(config.seed + state["epoch"])
@@ -217,7 +217,7 @@ def train_codespace(model: CodeSpace, train: WindowTensors, val: WindowTensors, 
     t0 = time.perf_counter()
 
     def run_fraction(epoch: float) -> float:
-        return run_progress(epoch, config.epochs, spent + time.perf_counter() - started, config.max_minutes)
+        return run_progress(epoch, config.epochs, spent + time.perf_counter() - started, max_minutes=config.max_minutes)
 
     epoch_s = None  # the last epoch's duration
     while state["epoch"] < config.epochs:
@@ -251,13 +251,13 @@ def train_codespace(model: CodeSpace, train: WindowTensors, val: WindowTensors, 
             state["switched_at"] = state["epoch"]
         # the best regression path (what inference uses) is kept in both stages: a budgeted run
         # on a large library can end before the plateau switch (real-quick: 17 epochs, no switch)
-        best_weights = keep_if_best(state, metrics["regress"], model, best_weights)
+        best_weights = keep_if_best(state, metrics["regress"], model, best_weights=best_weights)
         record = {"epoch": state["epoch"], "temperature": temperature, "match_weight": match_weight,
                   "learning_rate": optimizer.param_groups[0]["lr"],
                   **{f"train_{k}": v / len(order) for k, v in sums.items()}, **{f"val_{k}": v for k, v in metrics.items()}}
         with open(log_path, "a", encoding="utf-8") as fh:
             fh.write(strict_json(record) + "\n")
-        save_checkpoint(checkpoint, key, state, best_weights, model=model, optimizer=optimizer, plateau=plateau)
+        save_checkpoint(checkpoint, key, state, best_weights=best_weights, model=model, optimizer=optimizer, plateau=plateau)
         bar.set_postfix(rec=f"{metrics['rec']:.3f}", regress=f"{metrics['regress']:.3f}", agree=f"{metrics['agreement']:.2f}",
                         stage=1 if state["switched_at"] is None else 2)
         bar.update(1)
