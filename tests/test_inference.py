@@ -82,7 +82,7 @@ def test_a_source_rig_streams_like_its_file(animator, tmp_path):
     """Poses on a rig with another joint order, centimetres and a baked roll per joint (Bandai-
     Namco's kind of rig: no standing rest pose), pushed as the BVH has them, give what animating
     the file gives: the same joint map, retargeting, roll and floor."""
-    from hrr_garment.motion.bvh import read_bvh, write_bvh
+    from hrr_garment.motion.bvh import BvhStyle, read_bvh, write_bvh
     from hrr_garment.motion.io import load_motion
     from hrr_garment.motion.rotations import axis_angle_to_matrix, matrix_to_quat
     from hrr_garment.motion.skeleton import CANONICAL, JOINT_NAMES, PARENTS
@@ -98,7 +98,7 @@ def test_a_source_rig_streams_like_its_file(animator, tmp_path):
     order = [0, 3, 6, 9, 12, 15, 13, 16, 18, 20, 14, 17, 19, 21, 1, 4, 7, 10, 2, 5, 8, 11]  # spine first, then limbs
     path = tmp_path / "rig.bvh"
     write_bvh(path, [JOINT_NAMES[j] for j in order], [order.index(PARENTS[j]) if j else -1 for j in order],
-              offsets[order], local[:, order], motion.root_translation, 1 / 30, unit_scale=100.0)
+              offsets[order], local[:, order], motion.root_translation, 1 / 30, BvhStyle(unit_scale=100.0))
     expected = animator.animate(load_motion(path), causal=True).vertices
     clip = read_bvh(path)  # what an engine holds each frame: the rig's local rotations, the root in its units
     rig = StreamRig.from_bvh(path)
