@@ -101,15 +101,7 @@ def build_dataset(garment: GarmentMesh, specs: list[SequenceSpec], config: SimCo
     with exclusive_lock(out.with_suffix(".lock"), out, busy):
         extra = {"template": template_hash(garment), "sim": config.to_dict(), "part_version": PART_VERSION}
         keys = {s.name: s.key(extra) for s in specs}
-        pending, rejects, reused = [], {}, 0
-        for spec in specs:
-            part, failed = part_paths(parts, spec.name)
-            if part.exists() and read_part_key(part) == keys[spec.name]:
-                reused += 1
-            elif not o.retry_rejected and failed.exists() and json.loads(failed.read_text()).get("key") == keys[spec.name]:
-                rejects[spec.name] = json.loads(failed.read_text())["reason"]
-            else:
-                pending.append(spec)
+        pending, rejects, reused = _to_simulate(specs, parts, keys, retry_rejected=o.retry_rejected)
         if executor == "local":
             jobs = max(1, min(jobs or os.cpu_count() or 1, len(pending) or 1))
         t0 = time.perf_counter()
@@ -145,6 +137,22 @@ def build_dataset(garment: GarmentMesh, specs: list[SequenceSpec], config: SimCo
         if o.preview:
             report.preview = o.preview(records, garment, out.with_suffix(".preview.png"))
         return report
+
+
+def _to_simulate(specs: list[SequenceSpec], parts: Path, keys: dict[str, str], *,
+                 retry_rejected: bool) -> tuple[list[SequenceSpec], dict[str, str], int]:
+    """(the sequences to simulate, the rejects an earlier run recorded under the same key and
+    that stay rejected, how many finished parts are reused)."""
+    pending, rejects, reused = [], {}, 0
+    for spec in specs:
+        part, failed = part_paths(parts, spec.name)
+        if part.exists() and read_part_key(part) == keys[spec.name]:
+            reused += 1
+        elif not retry_rejected and failed.exists() and json.loads(failed.read_text()).get("key") == keys[spec.name]:
+            rejects[spec.name] = json.loads(failed.read_text())["reason"]
+        else:
+            pending.append(spec)
+    return pending, rejects, reused
 
 
 def _add_mirrored(records: list[SequenceRecord], split: dict[str, list[str]], garment: GarmentMesh,

@@ -194,6 +194,21 @@ def evaluate(model: CodeSpace, data: WindowTensors, batch: int = 256,
             "perplexity": usage.perplexity if usage else float("nan")}
 
 
+def _train_step(model: CodeSpace, optimizer: torch.optim.Optimizer, batch: tuple, config: CodeSpaceTrainConfig, *,
+                weights: tuple[float, float], latent_loss: Callable[[torch.Tensor], torch.Tensor]) -> dict:
+    """One optimiser step on a batch of windows at this epoch's (temperature, match weight);
+    returns its losses."""
+    temperature, match_weight = weights
+    out = _losses(model, *batch, temperature, latent_loss)
+    loss = out["rec"] + match_weight * out["match"] + config.diversity * out["diversity"]
+    if config.regress:
+        loss = loss + config.regress * out["regress"]
+    optimizer.zero_grad(set_to_none=True)
+    loss.backward()
+    optimizer.step()
+    return out
+
+
 def train_codespace(model: CodeSpace, train: WindowTensors, val: WindowTensors, folder: Path,
                     config: CodeSpaceTrainConfig = CodeSpaceTrainConfig(), key: str = "", progress: bool = True,
                     latent_loss: Callable[[torch.Tensor], torch.Tensor] = mean_square) -> dict:
@@ -235,13 +250,8 @@ def train_codespace(model: CodeSpace, train: WindowTensors, val: WindowTensors, 
         for i in range(0, len(order), config.batch_size):
             set_learning_rate(optimizer, config, run_fraction(epoch + i / len(order)))
             idx = order[i:i + config.batch_size]
-            out = _losses(model, *train[idx], temperature, latent_loss)
-            loss = out["rec"] + match_weight * out["match"] + config.diversity * out["diversity"]
-            if config.regress:
-                loss = loss + config.regress * out["regress"]
-            optimizer.zero_grad(set_to_none=True)
-            loss.backward()
-            optimizer.step()
+            out = _train_step(model, optimizer, train[idx], config, weights=(temperature, match_weight),
+                              latent_loss=latent_loss)
             for k in sums:
                 sums[k] += out[k].item() * len(idx)
         metrics = evaluate(model, val, latent_loss=latent_loss)
