@@ -82,7 +82,7 @@ def test_a_source_rig_streams_like_its_file(animator, tmp_path):
     """Poses on a rig with another joint order, centimetres and a baked roll per joint (Bandai-
     Namco's kind of rig: no standing rest pose), pushed as the BVH has them, give what animating
     the file gives: the same joint map, retargeting, roll and floor."""
-    from hrr_garment.motion.bvh import read_bvh, write_bvh
+    from hrr_garment.motion.bvh import BvhStyle, read_bvh, write_bvh
     from hrr_garment.motion.io import load_motion
     from hrr_garment.motion.rotations import axis_angle_to_matrix, matrix_to_quat
     from hrr_garment.motion.skeleton import CANONICAL, JOINT_NAMES, PARENTS
@@ -98,7 +98,7 @@ def test_a_source_rig_streams_like_its_file(animator, tmp_path):
     order = [0, 3, 6, 9, 12, 15, 13, 16, 18, 20, 14, 17, 19, 21, 1, 4, 7, 10, 2, 5, 8, 11]  # spine first, then limbs
     path = tmp_path / "rig.bvh"
     write_bvh(path, [JOINT_NAMES[j] for j in order], [order.index(PARENTS[j]) if j else -1 for j in order],
-              offsets[order], local[:, order], motion.root_translation, 1 / 30, unit_scale=100.0)
+              offsets[order], local[:, order], motion.root_translation, 1 / 30, BvhStyle(unit_scale=100.0))
     expected = animator.animate(load_motion(path), causal=True).vertices
     clip = read_bvh(path)  # what an engine holds each frame: the rig's local rotations, the root in its units
     rig = StreamRig.from_bvh(path)
@@ -368,7 +368,7 @@ def test_native_push_out_equals_numpy(rng):
     from hrr_garment.garment.templates import make_garment
     from hrr_garment.inference.collision import _push_frames, mean_operator
     from hrr_garment.native import load_kernel
-    from hrr_garment.native.body import push_out_frames
+    from hrr_garment.native.body import PushSteps, push_out_frames
 
     lib = load_kernel()
     if lib is None:
@@ -384,13 +384,13 @@ def test_native_push_out_equals_numpy(rng):
     mean = mean_operator(skirt.faces, len(skirt.vertices))
     for rounds in (1, 2):
         ref = _push_frames(squeezed.copy(), a, b, DEFAULT_BODY.radii, mean, 0.002, 4, rounds, 0.005)
-        got = push_out_frames(lib, squeezed, a, b, DEFAULT_BODY.radii, mean, 0.002, 4, rounds, 0.005, threads=2)
+        got = push_out_frames(lib, squeezed, a, b, DEFAULT_BODY.radii, PushSteps(mean, 0.002, 4, rounds, 0.005), threads=2)
         assert ref[1].max() > 0.05  # the test squeezes the skirt into the body
         assert np.abs(got[0] - ref[0]).max() < 1e-6
         assert np.allclose(got[1], ref[1]) and np.allclose(got[2], ref[2])
         for t in (0, 4):  # one frame at a time (streaming): the threads share the frame
-            one = push_out_frames(lib, squeezed[t:t + 1], a[t:t + 1], b[t:t + 1], DEFAULT_BODY.radii, mean, 0.002, 4,
-                                  rounds, 0.005, threads=2)
+            one = push_out_frames(lib, squeezed[t:t + 1], a[t:t + 1], b[t:t + 1], DEFAULT_BODY.radii,
+                                  PushSteps(mean, 0.002, 4, rounds, 0.005), threads=2)
             assert np.array_equal(one[0][0], got[0][t]) and one[1][0] == got[1][t] and one[2][0] == got[2][t]
 
 
@@ -477,7 +477,7 @@ def test_the_native_strain_limit_matches_the_numpy_reference():
         _limit_frames,
     )
     from hrr_garment.native import load_kernel
-    from hrr_garment.native.body import limit_strain
+    from hrr_garment.native.body import StrainLimit, limit_strain
 
     lib = load_kernel()
     if lib is None:
@@ -491,13 +491,12 @@ def test_the_native_strain_limit_matches_the_numpy_reference():
         p[t, rng.choice(skirt.num_vertices, 5, replace=False)] += rng.normal(size=(5, 3)) * size
     limit = np.repeat(MAX_PUSH_STRAIN * limits.rest_length[None], 4, 0)
     ref = _limit_frames(p.copy(), limit, limits, 60)
-    got, torn = limit_strain(lib, p, unpushed, limits.native_arrays, MAX_PUSH_STRAIN, 60, LIMIT_TOLERANCE_M,
-                             OVER_RELAXATION, threads=2)
+    strain = StrainLimit(limits.native_arrays, MAX_PUSH_STRAIN, 60, LIMIT_TOLERANCE_M, OVER_RELAXATION)
+    got, torn = limit_strain(lib, p, unpushed, strain, threads=2)
     assert torn.tolist() == [True, True, False, True]
     assert np.abs(got - ref).max() < 1e-8  # metres: float rounding of the same passes
     assert np.array_equal(got[2], p[2]) and np.abs(got - p).max() > 0.01
-    one, _ = limit_strain(lib, p[3:], unpushed[3:], limits.native_arrays, MAX_PUSH_STRAIN, 60, LIMIT_TOLERANCE_M,
-                          OVER_RELAXATION)
+    one, _ = limit_strain(lib, p[3:], unpushed[3:], strain)
     assert np.array_equal(one[0], got[3])  # a frame's result does not depend on its batch
 
 def test_pinning_the_workers_leaves_the_caller_free(monkeypatch):
@@ -513,7 +512,7 @@ def test_pinning_the_workers_leaves_the_caller_free(monkeypatch):
         pytest.skip("needs the kernel and two CPUs")
     monkeypatch.delenv("OMP_PROC_BIND", raising=False)
     monkeypatch.setenv("HRR_PIN_THREADS", "1")
-    monkeypatch.setattr(native, "_pinned", {})
+    monkeypatch.setattr(native.threads, "_pinned", {})
     native.pin_workers(2)
     assert os.sched_getaffinity(0) == allowed
     me = os.getpid()

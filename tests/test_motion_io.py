@@ -10,7 +10,7 @@ from hrr_garment import (
     save_motion,
     synthesize,
 )
-from hrr_garment.motion.bvh import read_bvh, write_bvh
+from hrr_garment.motion.bvh import BvhStyle, read_bvh, write_bvh
 from hrr_garment.motion.skeleton import CANONICAL, JOINT_NAMES, PARENTS
 
 
@@ -35,7 +35,7 @@ def test_cmu_frame_counts_follow_resampling(mocap_dir, cmu_motions):
 
 
 def _write(motion, path, **kw):
-    write_bvh(path, list(JOINT_NAMES), list(PARENTS), CANONICAL.offsets, motion.local_rotations.astype(np.float64), motion.root_translation.astype(np.float64), 1.0 / motion.fps, **kw)
+    write_bvh(path, list(JOINT_NAMES), list(PARENTS), CANONICAL.offsets, motion.local_rotations.astype(np.float64), motion.root_translation.astype(np.float64), 1.0 / motion.fps, BvhStyle(**kw))
 
 
 def test_bvh_variants_give_identical_features(tmp_path, rng):

@@ -5,13 +5,13 @@ import pytest
 import yaml
 
 from hrr_garment import load_motion, motion_features, synthesize
-from hrr_garment.motion.bvh import write_bvh
+from hrr_garment.motion.bvh import BvhStyle, write_bvh
 from hrr_garment.motion.joint_maps import NAMING_SCHEMES
 from hrr_garment.motion.skeleton import CANONICAL, JOINT_INDEX, JOINT_NAMES, PARENTS
 
 
 def write_named(motion, path, names, **kw):
-    write_bvh(path, names, list(PARENTS), CANONICAL.offsets, motion.local_rotations.astype(np.float64), motion.root_translation, 1 / 30, **kw)
+    write_bvh(path, names, list(PARENTS), CANONICAL.offsets, motion.local_rotations.astype(np.float64), motion.root_translation, 1 / 30, BvhStyle(**kw))
 
 
 @pytest.mark.parametrize("scheme,prefix", [("mixamo", "mixamorig:"), ("cmu", ""), ("cmu_max", ""), ("smpl", "")])

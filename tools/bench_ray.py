@@ -20,7 +20,7 @@ import tempfile
 from pathlib import Path
 
 from hrr_garment.garment.templates import make_garment
-from hrr_garment.sim.build import build_dataset, warm_up
+from hrr_garment.sim.build import BuildOptions, build_dataset, warm_up
 from hrr_garment.sim.plan import load_preset, plan_sequences
 from hrr_garment.sim.simulator import SimConfig
 
@@ -43,8 +43,8 @@ def main() -> None:
         ways = [("ray", n) for n in args.workers] + [("local", max(args.workers))]
         for executor, jobs in ways:
             out = Path(tmp) / f"{executor}-{jobs}.h5"
-            report = build_dataset(garment, specs, config, out, jobs=jobs, preview=None, progress=False,
-                                   executor=executor)
+            report = build_dataset(garment, specs, config, out=out,
+                                   options=BuildOptions(jobs=jobs, preview=None, progress=False, executor=executor))
             s = report.summary
             frames = sum(st.get("simulated_frames", 0) for st in report.stats.values())
             rows.append({"executor": executor, "workers": jobs, "sequences": s["sequences"],

@@ -120,7 +120,7 @@ def frames_signed_distance(points: np.ndarray, a: np.ndarray, b: np.ndarray, rad
 
     lib = load_kernel()
     if lib is not None:
-        return capsule_sdf(lib, points, a, b, radii, threads=default_threads())
+        return capsule_sdf(lib, points, a, b=b, radii=radii, threads=default_threads())
     out = [capsule_signed_distance(np.asarray(points[t], np.float64), a[t], b[t], radii)[:2] for t in range(len(points))]
     return np.stack([o[0] for o in out]), np.stack([o[1] for o in out])
 

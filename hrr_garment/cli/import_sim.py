@@ -42,12 +42,13 @@ def _parser() -> argparse.ArgumentParser:
 
 def _main(argv: Sequence[str] | None) -> int:
     args = _parser().parse_args(argv)
-    template = load_garment_obj(args.template, args.garment, args.attached, args.attached_file)
+    template = load_garment_obj(args.template, args.garment, attached_group=args.attached,
+                                attached_file=args.attached_file)
     # Keep the file's placement: the frames are in the motion's world frame.
     motion = load_motion(args.motion, unit_scale=args.unit_scale, ground=False, source_fps=args.fps)
     frames = read_frames(args.frames)
-    record = frames_to_sequence(args.name or args.motion.stem, template, motion, frames, str(args.frames),
-                                args.frames_fps, args.frames_scale)
+    record = frames_to_sequence(args.name or args.motion.stem, template, motion, frames=frames, source=str(args.frames),
+                                frames_fps=args.frames_fps, frames_scale=args.frames_scale)
     path = import_sequence(args.output, template, record)
     print(f"imported {record.name}: {len(record.garment)} frames x {template.num_vertices} vertices -> {path}")
     return 0

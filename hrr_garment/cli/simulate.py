@@ -21,7 +21,7 @@ from typing import Sequence
 
 from ..errors import InputError
 from ..garment.mesh import GarmentMesh
-from ..garment.obj import load_garment_obj
+from ..garment.obj import Placement, load_garment_obj
 from ..garment.templates import GARMENT_NAMES, make_garment
 from ..paths import workspace
 from ..sim.plan import build_options, load_preset, plan_sequences, preset_names
@@ -52,8 +52,9 @@ def resolve_garment(args: argparse.Namespace, default_vertices: int) -> GarmentM
     found, and refused when far denser than the preset's resolution unless --dense-ok)."""
     if args.template is not None:
         notes: list[str] = []
-        mesh = load_garment_obj(args.template, args.garment, args.attached, args.attached_file, fit=args.fit,
-                                up=args.up, unit=args.unit, notes=notes)
+        mesh = load_garment_obj(args.template, args.garment, attached_group=args.attached,
+                                attached_file=args.attached_file,
+                                placement=Placement(fit=args.fit, up=args.up, unit=args.unit), notes=notes)
         for note in notes:
             print(note)
         if mesh.num_vertices > DENSE_FACTOR * default_vertices and not args.dense_ok:
@@ -97,12 +98,12 @@ def _parser() -> argparse.ArgumentParser:
 def _main(argv: Sequence[str] | None) -> int:
     args = _parser().parse_args(argv)
     from ..export.preview import write_dataset_preview
-    from ..sim.build import build_dataset
+    from ..sim.build import BuildOptions, build_dataset
     from ..sim.simulator import SimConfig
 
     preset = load_preset(args.preset)
     garment = resolve_garment(args, preset.vertices)
-    specs = plan_sequences(preset, args.motions, args.seconds, args.fps)
+    specs = plan_sequences(preset, args.motions, args.seconds, source_fps=args.fps)
     overrides = {k: v for k, v in (("substeps", args.substeps), ("iterations", args.iterations),
                                    ("device", args.device)) if v is not None}
     config = SimConfig.from_dict({**preset.sim, **overrides})
@@ -115,8 +116,10 @@ def _main(argv: Sequence[str] | None) -> int:
     options["info"]["motions"] = list(args.motions) if args.motions else None  # None: the preset's own clips
     if args.address and args.executor != "ray":
         raise InputError("--address", "joins a Ray cluster: use it with --executor ray")
-    report = build_dataset(garment, specs, config, out, jobs=args.jobs, retry_rejected=args.retry_rejected, preview=None if args.no_preview else write_dataset_preview,
-                           progress=not args.quiet, executor=args.executor, address=args.address, **options)
+    build = BuildOptions(jobs=args.jobs, retry_rejected=args.retry_rejected,
+                         preview=None if args.no_preview else write_dataset_preview, progress=not args.quiet,
+                         executor=args.executor, address=args.address, **options)
+    report = build_dataset(garment, specs, config, out=out, options=build)
     print_report(report, garment)
     return 0
 

@@ -184,7 +184,8 @@ class GarmentDataset:
         if not attached_groups:
             groups["attached"] = t["attached"][()]
             attached_groups = ("attached",)
-        self.template = GarmentMesh(self.garment, t["vertices"][()], t["faces"][()], groups, attached_groups)
+        self.template = GarmentMesh(self.garment, t["vertices"][()], t["faces"][()], groups=groups,
+                                    attached_groups=attached_groups)
         try:
             check_garment(self.template)
         except GarmentError as exc:
@@ -224,7 +225,8 @@ class GarmentDataset:
                     if key not in s:
                         raise DatasetError(self.path, f"sequence {name!r} lacks {key!r}")
                 garment = s["garment"][()]
-                motion = Motion(s["local_rotations"][()], s["root_translation"][()], self.fps, str(s.attrs.get("source", name)))
+                motion = Motion(s["local_rotations"][()], s["root_translation"][()], self.fps,
+                                source=str(s.attrs.get("source", name)))
                 info = _json_attr(self.path, s.attrs, "info", {}, f"sequence {name!r}: ")
         except OSError as exc:  # a damaged chunk ("filter returned failure"), a truncated file
             raise DatasetError(self.path, f"sequence {name!r} cannot be read ({exc})") from None

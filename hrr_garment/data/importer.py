@@ -75,7 +75,7 @@ def frames_to_sequence(name: str, template: GarmentMesh, motion: Motion, frames:
     if not 0.5 < ratio < 2.0:
         raise InputError(source, f"frame 0's edges are {ratio:.2f}x the template's (median): the vertex order or "
                                  "units differ from the template (see --frames-scale)")
-    return SequenceRecord(name, frames.astype(np.float32), motion, {"kind": "import", "source": str(source)})
+    return SequenceRecord(name, frames.astype(np.float32), motion, info={"kind": "import", "source": str(source)})
 
 
 def import_sequence(out: str | Path, template: GarmentMesh, record: SequenceRecord, seed: int = 0) -> Path:
@@ -92,7 +92,7 @@ def import_sequence(out: str | Path, template: GarmentMesh, record: SequenceReco
         records = [existing.sequence(n) for n in existing.names if n != record.name]
     records.append(record)
     names = [r.name for r in records]
-    return write_dataset(out, template, records, split_names(names, 0.1, 0.1, seed), {"imported": True})
+    return write_dataset(out, template, records, splits=split_names(names, 0.1, 0.1, seed=seed), info={"imported": True})
 
 
 def export_obj_frames(folder: str | Path, vertices: np.ndarray, faces: np.ndarray) -> list[Path]:

@@ -39,4 +39,4 @@ def write_synthetic_dataset(path: str | Path, garment: GarmentMesh, seconds: flo
         yaw = yaw_of(motion.global_rotations[:, 0])
         world = np.einsum("tij,tnj->tni", rotation_about_y(yaw), local) + (motion.root_translation * [1, 0, 1])[:, None]
         records.append(SequenceRecord(name, world.astype(np.float32), motion))
-    return write_dataset(path, garment, records, SPLITS)
+    return write_dataset(path, garment, records, splits=SPLITS)

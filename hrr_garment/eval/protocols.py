@@ -75,13 +75,14 @@ def simulated_section(animator, ds, truth: SimulatedTruth, settings: EvaluationS
     """Simulate the ground truth of ``truth`` with the dataset's settings (parts cached) and
     evaluate every mode there: the report section, the records and their truth ensembles."""
     from ..data.dataset import GarmentDataset
-    from ..sim.build import build_dataset
+    from ..sim.build import BuildOptions, build_dataset
     from ..sim.simulator import SimConfig
 
     config = SimConfig.from_dict(ds.info.get("sim", {}))
     print(f"simulating ground truth for {len(truth.specs)} sequence(s) (cached in {truth.path.with_suffix('.parts')})")
-    report = build_dataset(ds.template, truth.specs, config, out=truth.path, splits={"val": 0.0, "test": 0.0},
-                           info={"purpose": truth.purpose, "source_dataset": str(ds.path)}, progress=settings.progress)
+    report = build_dataset(ds.template, truth.specs, config, out=truth.path, options=BuildOptions(
+        splits={"val": 0.0, "test": 0.0}, info={"purpose": truth.purpose, "source_dataset": str(ds.path)},
+        progress=settings.progress))
     data = GarmentDataset(report.path)
     records = [data.sequence(n) for n in report.sequences]
     ensembles = truth_ensembles_of(data, records, settings.members, settings.jobs, settings.progress)

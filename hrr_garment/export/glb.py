@@ -168,7 +168,7 @@ def _add_body(gl, anim: AnimationFile, blob: _Blob, nodes: list, meshes: list, m
     for c, radius in enumerate(anim.radii.astype(np.float64)):
         axis = caps[:, c, 1] - caps[:, c, 0]
         length = float(np.linalg.norm(axis, axis=1).mean())  # rigid: the same in every frame
-        v, f = body_mesh(np.zeros((1, 3)), np.array([[0.0, 0.0, length]]), np.array([radius]), 12, 6)
+        v, f = body_mesh(np.zeros((1, 3)), np.array([[0.0, 0.0, length]]), np.array([radius]), segments=12, rings=6)
         prim = gl.Primitive(attributes=gl.Attributes(POSITION=blob.stored(v.astype(np.float32), "VEC3", _ARRAY_BUFFER,
                                                                           bounds=True)),
                             indices=blob.stored(f.astype(np.uint32).ravel(), "SCALAR", _ELEMENT_ARRAY_BUFFER),

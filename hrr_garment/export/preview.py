@@ -119,7 +119,7 @@ def draw_meshes(image, meshes: list[PreviewMesh], camera: OrthoCamera, centre: t
         normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-12)
         shade = 0.35 + 0.65 * np.abs(normal @ light)
         screen = np.stack([centre[0] + tri[..., 0] * scale, centre[1] - tri[..., 1] * scale, tri[..., 2]], -1)
-        rasterize(pixels, depth, screen, np.clip(np.outer(shade, mesh.colour), 0, 255).astype(np.uint8))
+        rasterize(pixels, depth, screen, colours=np.clip(np.outer(shade, mesh.colour), 0, 255).astype(np.uint8))
     return Image.fromarray(pixels)
 
 
@@ -182,7 +182,7 @@ def sequence_rows(rows: list[tuple[str, np.ndarray, np.ndarray, Motion]], frames
         for t in np.linspace(0, len(vertices) - 1, frames).round().astype(int):
             garment = to_body_frame(vertices[t:t + 1].astype(np.float64), motion.slice(t, t + 1), ground=True)[0]
             ends = to_body_frame(np.stack([a[t], b[t]])[None].reshape(1, -1, 3), motion.slice(t, t + 1), ground=True)[0]
-            bv, bf = body_mesh(ends[: len(a[t])], ends[len(a[t]):], DEFAULT_BODY.radii, 12, 6)
+            bv, bf = body_mesh(ends[: len(a[t])], ends[len(a[t]):], DEFAULT_BODY.radii, segments=12, rings=6)
             cells.append([PreviewMesh(bv, bf, (205, 195, 185)), PreviewMesh(garment, faces, (70, 110, 200))])
         grid.append((f"{label} (frames {0}-{len(vertices) - 1})", cells))
     return grid
@@ -211,7 +211,7 @@ def template_meshes(garment, marker: float = 0.015) -> list[PreviewMesh]:
     from ..body.capsules import DEFAULT_BODY, body_mesh
 
     a, b = DEFAULT_BODY.rest_pose()
-    bv, bf = body_mesh(a, b, DEFAULT_BODY.radii, 12, 6)
+    bv, bf = body_mesh(a, b, DEFAULT_BODY.radii, segments=12, rings=6)
     tips = np.concatenate([np.eye(3), -np.eye(3)]) * marker
     octahedron = np.array([[0, 1, 2], [1, 3, 2], [3, 4, 2], [4, 0, 2], [1, 0, 5], [3, 1, 5], [4, 3, 5], [0, 4, 5]])
     corners = tips[[0, 1, 3, 4, 2, 5]]  # +x, +y, -x, -y around the z axis, then +z, -z

@@ -71,8 +71,8 @@ def render_scene(meshes: list[PreviewMesh], target: tuple[float, float, float], 
         camera = OrthoCamera.named(view, style.elevation, target)
         tile = Image.new("RGB", (cell, cell), (250, 250, 247))
         centre = (cell / 2, cell * 0.88)
-        draw_ground(ImageDraw.Draw(tile), camera, centre, scale, half_width=1.0, width=ss)
-        img.paste(draw_meshes(tile, meshes, camera, centre, scale), (v * cell, 0))
+        draw_ground(ImageDraw.Draw(tile), camera, centre, scale=scale, half_width=1.0, width=ss)
+        img.paste(draw_meshes(tile, meshes, camera, centre=centre, scale=scale), (v * cell, 0))
     if ss > 1:
         img = img.resize((style.size * len(style.views), style.size), Image.LANCZOS)
     if label:

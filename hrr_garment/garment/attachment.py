@@ -46,7 +46,7 @@ def bind_attached(mesh: GarmentMesh, body: BodyModel = DEFAULT_BODY, bones: int 
     a, b = body.rest_pose()
     cap_joint = np.array([JOINT_INDEX[c.joint] for c in body.capsules])
     # Distance to every capsule, then the nearest capsule per distinct joint.
-    dist = np.stack([capsule_signed_distance(verts, a[c:c + 1], b[c:c + 1], body.radii[c:c + 1])[0]
+    dist = np.stack([capsule_signed_distance(verts, a[c:c + 1], b[c:c + 1], radii=body.radii[c:c + 1])[0]
                      for c in range(len(cap_joint))], 1)
     per_joint = np.full((len(verts), len(PARENTS)), np.inf)
     allowed = {JOINT_INDEX[name] for name in joints}

@@ -136,8 +136,8 @@ def fit_garment(vertices: np.ndarray, faces: np.ndarray, body: BodyModel = DEFAU
     best = None
     for height in np.arange(lo, hi, 0.005):  # where the top band's highest point sits
         dy = height - placed[:, 1].max()
-        gap = np.abs(capsule_signed_distance(top + [shift_xz[0], dy, shift_xz[1]], a, b, radii)[0] - CLEARANCE_M).mean()
-        inside = (capsule_signed_distance(sample + [0.0, dy, 0.0], whole_a, whole_b, body.radii)[0] < -0.005).mean()
+        gap = np.abs(capsule_signed_distance(top + [shift_xz[0], dy, shift_xz[1]], a, b, radii=radii)[0] - CLEARANCE_M).mean()
+        inside = (capsule_signed_distance(sample + [0.0, dy, 0.0], whole_a, whole_b, radii=body.radii)[0] < -0.005).mean()
         score = gap + 0.5 * inside  # cloth inside the body costs as much as a 5 mm gap per 1 % of it
         if best is None or score < best[0]:
             best = (score, dy, gap)
@@ -153,7 +153,7 @@ def auto_attached(vertices: np.ndarray, body: BodyModel = DEFAULT_BODY, band: fl
     v = np.asarray(vertices, np.float64)
     a, b, radii = _torso(body)
     near_top = np.flatnonzero(v[:, 1] >= v[:, 1].max() - band)
-    on_torso = np.abs(capsule_signed_distance(v[near_top], a, b, radii)[0]) <= contact
+    on_torso = np.abs(capsule_signed_distance(v[near_top], a, b, radii=radii)[0]) <= contact
     if not on_torso.any():
         raise GarmentError(source, f"no vertex of the garment's top band ({len(near_top)} vertices within "
                                    f"{100 * band:.0f} cm of its top) lies within {100 * contact:.0f} cm of the torso: "

@@ -8,6 +8,7 @@ index file (one 0-based vertex index per line, or a .npy integer array).
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -91,15 +92,26 @@ def write_obj(path: str | Path, vertices: np.ndarray, faces: np.ndarray, groups:
     return path
 
 
-def load_garment_obj(path: str | Path, name: str | None = None, attached_group: str | None = None,
-                     attached_file: str | Path | None = None, repair: bool = True, fit: bool = False,
-                     up: str | None = None, unit: str | None = None, notes: list[str] | None = None) -> GarmentMesh:
+@dataclass(frozen=True)
+class Placement:
+    """Where a garment file's mesh goes: as it is (the canonical rest pose), or with ``fit`` placed on
+    the body from another convention (:func:`~.fit.fit_garment`; ``up`` and ``unit`` override what
+    it detects, and go only with ``fit``)."""
+
+    fit: bool = False
+    up: str | None = None
+    unit: str | None = None
+
+
+def load_garment_obj(path: str | Path, name: str | None = None, *, attached_group: str | None = None,
+                     attached_file: str | Path | None = None, repair: bool = True,
+                     placement: Placement = Placement(), notes: list[str] | None = None) -> GarmentMesh:
     """A user garment from OBJ, in the canonical rest pose (Y up, metres), checked.
 
     ``repair`` merges duplicate vertices (1 um), drops degenerate faces and makes the winding
     consistent; it never changes the vertex count of a clean mesh, so imported frames still match.
-    ``fit``: the file is in another convention; place it on the body (:func:`~.fit.fit_garment`,
-    ``up`` and ``unit`` override what it detects). ``attached_group="auto"`` (and no such group in
+    ``placement`` (:class:`Placement`): with ``fit`` the file is in another convention and is placed
+    on the body. ``attached_group="auto"`` (and no such group in
     the file): the top band on the torso (:func:`~.fit.auto_attached`). What was done is appended
     to ``notes``.
     """
@@ -108,6 +120,7 @@ def load_garment_obj(path: str | Path, name: str | None = None, attached_group: 
     path = Path(path)
     notes = [] if notes is None else notes
     v, f, face_groups = read_obj(path)
+    fit, up, unit = placement.fit, placement.up, placement.unit
     if fit:
         placed = fit_garment(v, f, up=up, unit=unit, source=str(path))
         v = placed.apply(v)
@@ -136,7 +149,7 @@ def load_garment_obj(path: str | Path, name: str | None = None, attached_group: 
         raise GarmentError(path, "no attached vertices given: name an OBJ group (--attached GROUP), an index file "
                                  "(--attached-file), or let the top band on the torso be found (--attached auto)")
     mesh = GarmentMesh(name or path.stem, v.astype(np.float32), f.astype(np.int32),
-                       {"attached": attached.astype(np.int32)}, ("attached",))
+                       groups={"attached": attached.astype(np.int32)}, attached_groups=("attached",))
     if repair:
         mesh = repair_mesh(mesh)
     try:

@@ -75,7 +75,7 @@ def body_fit_radius(theta: np.ndarray, height: np.ndarray, gap: float, body: Bod
     for start in range(0, len(theta), 256):
         sl = slice(start, start + 256)
         pts = origin[sl, None] + ts[None, :, None] * direction[sl, None]
-        sd = capsule_signed_distance(pts.reshape(-1, 3), a, b, radii)[0].reshape(pts.shape[:2])
+        sd = capsule_signed_distance(pts.reshape(-1, 3), a, b, radii=radii)[0].reshape(pts.shape[:2])
         inside = sd < gap
         hit = inside.any(1)
         first = inside.argmax(1)  # first sample (from outside) within gap of the body
@@ -84,7 +84,7 @@ def body_fit_radius(theta: np.ndarray, height: np.ndarray, gap: float, body: Bod
         for _ in range(12):
             mid = 0.5 * (lo + hi)
             p = origin[sl] + mid[:, None] * direction[sl]
-            d = capsule_signed_distance(p, a, b, radii)[0]
+            d = capsule_signed_distance(p, a, b, radii=radii)[0]
             inner = d < gap
             lo, hi = np.where(inner, mid, lo), np.where(inner, hi, mid)
         out[sl] = np.where(hit, 0.5 * (lo + hi), 0.0)
@@ -136,7 +136,7 @@ def _tube_faces(rows: int, cols: int) -> np.ndarray:
 def _push_out(points: np.ndarray, gap: float, body: BodyModel, iterations: int = 4) -> np.ndarray:
     a, b, radii = rest_body(body)
     for _ in range(iterations):
-        d, n, _ = capsule_signed_distance(points, a, b, radii)
+        d, n, _ = capsule_signed_distance(points, a, b, radii=radii)
         points = points + np.maximum(gap - d, 0.0)[:, None] * n
     return points
 
@@ -152,7 +152,7 @@ def _shoulder_top(points: np.ndarray, gap: float, body: BodyModel) -> np.ndarray
     ys = np.arange(1.8, 0.9, -0.002)
     grid = np.repeat(points[:, None], len(ys), axis=1)
     grid[..., 1] = ys[None]
-    d = capsule_signed_distance(grid.reshape(-1, 3), a, b, radii)[0].reshape(grid.shape[:2])
+    d = capsule_signed_distance(grid.reshape(-1, 3), a, b, radii=radii)[0].reshape(grid.shape[:2])
     return ys[np.argmax(d < gap, axis=1)]
 
 
@@ -244,6 +244,6 @@ def make_garment(name: str, vertices: int = DEFAULT_VERTICES, body: BodyModel = 
         groups["waistband"] = np.arange(top_rows * cols)
         attached = ("waistband",)
     groups = {k: np.asarray(v, np.int32) for k, v in groups.items()}
-    mesh = GarmentMesh(name, verts.astype(np.float32), faces.astype(np.int32), groups, attached)
+    mesh = GarmentMesh(name, verts.astype(np.float32), faces.astype(np.int32), groups=groups, attached_groups=attached)
     check_garment(mesh)
     return mesh

@@ -104,7 +104,7 @@ def push_out(vertices: np.ndarray, motion: Motion, faces: np.ndarray, *, body: B
     mean = mean_operator(faces, vertices.shape[1]) if mean is None else mean
     before, after = np.zeros(len(vertices)), np.zeros(len(vertices))
     from ..native import default_threads, load_kernel
-    from ..native.body import push_out_frames
+    from ..native.body import PushSteps, push_out_frames
 
     lib = load_kernel()
     if lib is not None:  # the same steps in C, frames in parallel: numpy's per-step overheads dominated.
@@ -112,10 +112,11 @@ def push_out(vertices: np.ndarray, motion: Motion, faces: np.ndarray, *, body: B
         # crowd spent a millisecond a frame converting and copying between the two
         unpushed = np.ascontiguousarray(vertices, np.float64)
         out = np.empty(vertices.shape, np.float64)
+        steps = PushSteps(mean=mean, margin=margin, smooth=smooth, rounds=rounds, depth=depth)
         for start in range(0, len(out), chunk):
             sl = slice(start, start + chunk)
-            _, before[sl], after[sl] = push_out_frames(lib, unpushed[sl], a[sl], b=b[sl], radii=body.radii, mean=mean, margin=margin, smooth=smooth,
-                                                       rounds=rounds, depth=depth, threads=default_threads(), out=out[sl])
+            _, before[sl], after[sl] = push_out_frames(lib, unpushed[sl], a[sl], b=b[sl], radii=body.radii, steps=steps,
+                                                       threads=default_threads(), out=out[sl])
     else:
         unpushed, out = vertices, np.empty(vertices.shape, np.float32)
         for start in range(0, len(out), chunk):
@@ -146,13 +147,14 @@ def limit_push_strain(pushed: np.ndarray, unpushed: np.ndarray, limits: EdgeLimi
     both capsules is pushed out of the nearest surface, across the limb, while its neighbours stay:
     edges ten times their length (CMU 131_03), which no simulator would produce."""
     from ..native import default_threads, load_kernel
-    from ..native.body import limit_strain
+    from ..native.body import StrainLimit, limit_strain
 
     lib = load_kernel()
     if lib is not None:  # the same in C: the limits, the torn frames and the passes, which measure only
         # the edges that can have changed
-        p, torn = limit_strain(lib, pushed, unpushed, edge_arrays=limits.native_arrays, max_strain=max_strain, iterations=iterations, tol=LIMIT_TOLERANCE_M,
-                               omega=OVER_RELAXATION, threads=default_threads(), in_place=in_place)
+        limit = StrainLimit(edge_arrays=limits.native_arrays, max_strain=max_strain, iterations=iterations,
+                            tol=LIMIT_TOLERANCE_M, omega=OVER_RELAXATION)
+        p, torn = limit_strain(lib, pushed, unpushed, limit=limit, threads=default_threads(), in_place=in_place)
         if p is pushed or not torn.any():
             return pushed, torn
         out = pushed.copy()

@@ -51,10 +51,10 @@ class FastDecoder(nn.Module):
         if native and self.lib is None:
             raise RuntimeError("the native decoder kernel could not be compiled (is a C compiler installed?)")
         self.native_blocks = [] if self.lib is None else [
-            NativeBlock(b.conv.index.numpy(), b.conv.mask.numpy(), k.numpy(), b.conv.bias.detach().numpy(),
-                        None if w is None else w.numpy(),
-                        None if b.residual.project is None else b.residual.project.weight.detach().T.numpy(),
-                        b.a, b.b, b.activation)
+            NativeBlock(b.conv.index.numpy(), b.conv.mask.numpy(), k.numpy(), bias=b.conv.bias.detach().numpy(),
+                        pool=None if w is None else w.numpy(),
+                        proj=None if b.residual.project is None else b.residual.project.weight.detach().T.numpy(),
+                        activation=(b.a, b.b, b.activation))
             for b, k, w in zip(self.blocks, self.kernels, self.weights)]
         if precision not in PRECISIONS:
             raise ValueError(f"precision must be one of {', '.join(PRECISIONS)}, not {precision!r}")
@@ -108,7 +108,8 @@ class FastDecoder(nn.Module):
         x = self.native_blocks[-1](self.lib, x, threads, padded=True)  # (V, B, width >= 3)
         # frames first and contiguous in one pass that reads the padded rows where they lie: slicing,
         # transposing and scaling one after another took 2.8 ms of a 64-character crowd's frame
-        return torch.from_numpy(rows_to_frames(self.lib, x, len(latents), self._template_np, float(self.scale), threads))
+        return torch.from_numpy(rows_to_frames(self.lib, x, len(latents), template=self._template_np, scale=float(self.scale),
+                                                threads=threads))
 
     def _forward_bf16(self, latents: torch.Tensor, threads: int) -> torch.Tensor:
         batch = len(latents)
@@ -117,7 +118,8 @@ class FastDecoder(nn.Module):
         x[:, :batch] = bf16_bits(latents.detach().to(torch.float32).transpose(0, 1).numpy())
         for i, (block, out) in enumerate(zip(self.native_blocks, outs)):
             x = block.call_bf16(self.lib, x, threads, i == len(outs) - 1, out, scratch)
-        return torch.from_numpy(rows_to_frames(self.lib, x, batch, self._template_np, float(self.scale), threads))
+        return torch.from_numpy(rows_to_frames(self.lib, x, batch, template=self._template_np, scale=float(self.scale),
+                                                threads=threads))
 
     def _buffers_bf16(self, padded: int) -> list[np.ndarray]:
         """The bfloat16 path's input, each block's output and the shared projection room, for

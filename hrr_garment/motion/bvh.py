@@ -74,70 +74,80 @@ class _Tokens:
         return out
 
 
-def read_bvh(path: str | Path) -> BvhClip:
-    """Parse a BVH file into its hierarchy and channels (no retargeting)."""
-    path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8", errors="replace")
-    except OSError as exc:
-        raise MotionError(path, f"cannot read file ({exc.strerror})") from None
-    lines = text.splitlines()
-    motion_line = next((i for i, line in enumerate(lines) if line.strip().upper().startswith("MOTION")), None)
-    if motion_line is None:
-        raise MotionError(path, "no MOTION section (not a BVH file, or truncated)")
-    tokens = _Tokens(path, lines[:motion_line])
+@dataclass
+class _Hierarchy:
+    """The HIERARCHY section as read: joints in file order, their CHANNELS lines and End Sites."""
+
+    names: list[str]
+    parents: list[int]
+    offsets: list[np.ndarray]
+    channels: list[list[str]]
+    end_sites: list[tuple[int, np.ndarray]]
+
+
+def _read_channels(tokens: _Tokens, name: str) -> list[str]:
+    """A joint's CHANNELS line: 3 or 6 channels, the three rotations once each, optionally the
+    three positions."""
+    path = tokens.path
+    tokens.expect("CHANNELS")
+    cline, count_tok = tokens.next(f"channel count of {name}")
+    if count_tok not in ("3", "6"):
+        raise MotionError(path, f"line {cline}: joint {name!r} has {count_tok} channels; 3 or 6 are supported")
+    chans = [tokens.next(f"channels of {name}")[1].lower() for _ in range(int(count_tok))]
+    unknown = [c for c in chans if c not in _ROT and c not in _POS]
+    rot = [c for c in chans if c in _ROT]
+    pos = [c for c in chans if c in _POS]
+    if unknown or len(set(rot)) != 3 or len(rot) != 3 or (pos and len(set(pos)) != 3):
+        raise MotionError(path, f"line {cline}: joint {name!r} has channels {chans}; need the three rotations "
+                                "X, Y and Z once each (and optionally the three positions)")
+    return chans
+
+
+def _parse_joint(tokens: _Tokens, tree: _Hierarchy, parent: int, depth: int) -> None:
+    """One JOINT (or the ROOT) block and, recursively, its children, appended to ``tree``."""
+    path = tokens.path
+    line, name = tokens.next("joint name")
+    if depth > MAX_BVH_DEPTH or len(tree.names) >= MAX_BVH_JOINTS:
+        raise MotionError(path, f"line {line}: joint {name!r} is {'nested ' + str(depth) + ' deep' if depth > MAX_BVH_DEPTH else 'one joint too many'}; "
+                                f"at most {MAX_BVH_DEPTH} levels and {MAX_BVH_JOINTS} joints are read")
+    index = len(tree.names)
+    tree.names.append(name)
+    tree.parents.append(parent)
+    tokens.expect("{")
+    tokens.expect("OFFSET")
+    tree.offsets.append(tokens.floats(3, f"OFFSET of {name}"))
+    tree.channels.append(_read_channels(tokens, name))
+    while True:
+        kline, kw = tokens.next(f"children of {name}")
+        if kw == "}":
+            return
+        if kw.upper() == "JOINT":
+            _parse_joint(tokens, tree, index, depth + 1)
+        elif kw.upper() == "END":
+            tokens.expect("Site")
+            tokens.expect("{")
+            tokens.expect("OFFSET")
+            tree.end_sites.append((index, tokens.floats(3, f"End Site of {name}")))
+            tokens.expect("}")
+        else:
+            raise MotionError(path, f"line {kline}: unexpected {kw!r} inside joint {name!r}")
+
+
+def _parse_hierarchy(path: Path, lines: list[str]) -> _Hierarchy:
+    """The HIERARCHY section (``lines`` up to the MOTION line): one ROOT and nothing after it."""
+    tokens = _Tokens(path, lines)
     tokens.expect("HIERARCHY")
-    names: list[str] = []
-    parents: list[int] = []
-    offsets: list[np.ndarray] = []
-    channels: list[list[str]] = []
-    end_sites: list[tuple[int, np.ndarray]] = []
-
-    def parse_joint(parent: int, depth: int) -> None:
-        line, name = tokens.next("joint name")
-        if depth > MAX_BVH_DEPTH or len(names) >= MAX_BVH_JOINTS:
-            raise MotionError(path, f"line {line}: joint {name!r} is {'nested ' + str(depth) + ' deep' if depth > MAX_BVH_DEPTH else 'one joint too many'}; "
-                                    f"at most {MAX_BVH_DEPTH} levels and {MAX_BVH_JOINTS} joints are read")
-        index = len(names)
-        names.append(name)
-        parents.append(parent)
-        tokens.expect("{")
-        tokens.expect("OFFSET")
-        offsets.append(tokens.floats(3, f"OFFSET of {name}"))
-        tokens.expect("CHANNELS")
-        cline, count_tok = tokens.next(f"channel count of {name}")
-        if count_tok not in ("3", "6"):
-            raise MotionError(path, f"line {cline}: joint {name!r} has {count_tok} channels; 3 or 6 are supported")
-        chans = [tokens.next(f"channels of {name}")[1].lower() for _ in range(int(count_tok))]
-        unknown = [c for c in chans if c not in _ROT and c not in _POS]
-        rot = [c for c in chans if c in _ROT]
-        pos = [c for c in chans if c in _POS]
-        if unknown or len(set(rot)) != 3 or len(rot) != 3 or (pos and len(set(pos)) != 3):
-            raise MotionError(path, f"line {cline}: joint {name!r} has channels {chans}; need the three rotations "
-                                    "X, Y and Z once each (and optionally the three positions)")
-        channels.append(chans)
-        while True:
-            kline, kw = tokens.next(f"children of {name}")
-            if kw == "}":
-                return
-            if kw.upper() == "JOINT":
-                parse_joint(index, depth + 1)
-            elif kw.upper() == "END":
-                tokens.expect("Site")
-                tokens.expect("{")
-                tokens.expect("OFFSET")
-                end_sites.append((index, tokens.floats(3, f"End Site of {name}")))
-                tokens.expect("}")
-            else:
-                raise MotionError(path, f"line {kline}: unexpected {kw!r} inside joint {name!r}")
-
+    tree = _Hierarchy([], [], [], [], [])
     tokens.expect("ROOT")
-    parse_joint(-1, 0)
+    _parse_joint(tokens, tree, -1, 0)
     if tokens.pos != len(tokens.items):
         line, tok = tokens.items[tokens.pos]
         raise MotionError(path, f"line {line}: unexpected {tok!r} after the hierarchy (only one ROOT is supported)")
+    return tree
 
-    body = [(n, line) for n, line in enumerate(lines[motion_line + 1 :], start=motion_line + 2) if line.strip()]
+
+def _motion_header(path: Path, body: list[tuple[int, str]]) -> tuple[int, float]:
+    """The MOTION section's frame count and frame time (``body``: its non-blank lines, numbered)."""
     if len(body) < 2 or not body[0][1].strip().lower().startswith("frames:") or not body[1][1].strip().lower().startswith("frame time:"):
         raise MotionError(path, "MOTION section must start with 'Frames:' and 'Frame Time:' lines")
     try:
@@ -151,8 +161,12 @@ def read_bvh(path: str | Path) -> BvhClip:
     if n_frames > max_frames():
         raise MotionError(path, f"line {body[0][0]}: {n_frames:,} frames, over the limit of {max_frames():,} "
                                 "(set HRR_MAX_FRAMES to raise it)")
-    rows = body[2:]
-    n_chan = sum(len(c) for c in channels)
+    return n_frames, frame_time
+
+
+def _frame_rows(path: Path, rows: list[tuple[int, str]], n_frames: int, n_chan: int) -> np.ndarray:
+    """The (T, channels) values of the frame rows, checked: as many rows as announced, one value
+    per channel, every value a finite number within the bounds."""
     if len(rows) < n_frames:
         raise MotionError(path, f"truncated: header announces {n_frames} frames but only {len(rows)} frame rows follow")
     if len(rows) > n_frames:
@@ -174,11 +188,15 @@ def read_bvh(path: str | Path) -> BvhClip:
         bad = int(np.argmax((np.abs(data) > MAX_BVH_VALUE).any(1)))
         raise MotionError(path, f"frame {bad} (line {rows[bad][0]}) has a value beyond +-{MAX_BVH_VALUE:g} "
                                 "(file units or degrees): a corrupt row")
+    return data
 
-    n_joints = len(names)
-    offsets_arr = np.array(offsets)
+
+def _local_transforms(data: np.ndarray, channels: list[list[str]], offsets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Each joint's local rotations (T, J, 3, 3) and translations (T, J, 3) from the frame values:
+    its rotation channels in its own order, its position channels where it has them, else its OFFSET."""
+    n_frames, n_joints = len(data), len(channels)
     local_rot = np.empty((n_frames, n_joints, 3, 3))
-    local_trans = np.broadcast_to(offsets_arr, (n_frames, n_joints, 3)).copy()
+    local_trans = np.broadcast_to(offsets, (n_frames, n_joints, 3)).copy()
     col = 0
     for j, chans in enumerate(channels):
         cols = {c: col + k for k, c in enumerate(chans)}
@@ -188,7 +206,40 @@ def read_bvh(path: str | Path) -> BvhClip:
         if "xposition" in cols:
             local_trans[:, j] = data[:, [cols["xposition"], cols["yposition"], cols["zposition"]]]
         col += len(chans)
-    return BvhClip(names, parents, offsets_arr, end_sites, local_rot, local_trans, frame_time)
+    return local_rot, local_trans
+
+
+def read_bvh(path: str | Path) -> BvhClip:
+    """Parse a BVH file into its hierarchy and channels (no retargeting)."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8", errors="replace")
+    except OSError as exc:
+        raise MotionError(path, f"cannot read file ({exc.strerror})") from None
+    lines = text.splitlines()
+    motion_line = next((i for i, line in enumerate(lines) if line.strip().upper().startswith("MOTION")), None)
+    if motion_line is None:
+        raise MotionError(path, "no MOTION section (not a BVH file, or truncated)")
+    tree = _parse_hierarchy(path, lines[:motion_line])
+    body = [(n, line) for n, line in enumerate(lines[motion_line + 1 :], start=motion_line + 2) if line.strip()]
+    n_frames, frame_time = _motion_header(path, body)
+    data = _frame_rows(path, body[2:], n_frames, sum(len(c) for c in tree.channels))
+    offsets_arr = np.array(tree.offsets)
+    local_rot, local_trans = _local_transforms(data, tree.channels, offsets_arr)
+    return BvhClip(tree.names, tree.parents, offsets_arr, tree.end_sites, local_rot, local_trans, frame_time)
+
+
+@dataclass(frozen=True)
+class BvhStyle:
+    """How :func:`write_bvh` lays a motion out: one Euler order for all joints or one per joint;
+    with ``positions_on_all_joints`` every joint gets six channels (its offset keyed every frame);
+    ``unit_scale`` converts metres to file units (e.g. 100 for centimetres); ``end_sites``: the End
+    Site offset of a leaf joint (metres; zero where not given)."""
+
+    orders: list[str] | str = "ZYX"
+    positions_on_all_joints: bool = False
+    unit_scale: float = 1.0
+    end_sites: dict[int, np.ndarray] | None = None
 
 
 def write_bvh(
@@ -199,18 +250,14 @@ def write_bvh(
     local_rotations: np.ndarray,
     root_translation: np.ndarray,
     frame_time: float,
-    orders: list[str] | str = "ZYX",
-    positions_on_all_joints: bool = False,
-    unit_scale: float = 1.0,
-    end_sites: dict[int, np.ndarray] | None = None,
+    style: BvhStyle = BvhStyle(),
 ) -> None:
-    """Write a BVH. ``unit_scale`` converts metres to file units (e.g. 100 for centimetres).
-
-    ``orders`` is one Euler order for all joints or one per joint. With
-    ``positions_on_all_joints`` every joint gets six channels (its offset keyed every frame).
-    """
+    """Write a BVH of a skeleton (``names``, ``parents``, ``offsets`` in metres) and its motion,
+    laid out as ``style`` says (:class:`BvhStyle`: Euler orders, channels, units, End Sites)."""
     from ..io_utils import atomic_write_text
 
+    orders, positions_on_all_joints, unit_scale = style.orders, style.positions_on_all_joints, style.unit_scale
+    end_sites = style.end_sites
     n_joints = len(names)
     orders = [orders] * n_joints if isinstance(orders, str) else list(orders)
     end_sites = end_sites or {}

@@ -39,7 +39,8 @@ def load_bvh(path: Path, unit_scale: float | None = None, joint_map: dict | None
     """A BVH file as canonical motion: retargeted, grounded and resampled."""
     src, scheme, mapping, _ = bvh_source(path, unit_scale, joint_map, fps, source_fps)
     local, root = retarget(src, mapping, ground=ground)
-    return Motion(local, root, fps, str(path), scheme, standing_height_from_legs(src.rest_positions, mapping))
+    return Motion(local, root, fps, source=str(path), source_skeleton=scheme,
+                  source_height_m=standing_height_from_legs(src.rest_positions, mapping))
 
 
 def bvh_source(path: Path, unit_scale: float | None = None, joint_map: dict | None = None, fps: float = FPS,
@@ -54,12 +55,13 @@ def bvh_source(path: Path, unit_scale: float | None = None, joint_map: dict | No
     elif not (np.isfinite(unit_scale) and unit_scale > 0):
         raise MotionError(path, f"unit scale must be a positive number of metres per file unit, got {unit_scale}")
     src_fps = source_fps or 1.0 / clip.frame_time
-    check_frame_budget(path, clip.num_frames, src_fps, fps)
+    check_frame_budget(path, clip.num_frames, src_fps, fps_out=fps)
     frames = resample_times(clip.num_frames, src_fps, fps)
     local_rot = resample_rotations(clip.local_rotations, frames)
     local_trans = resample_linear(clip.local_translations, frames) * unit_scale
     # Non-root translations: position channels hold the joint's parent-relative position.
-    g_rot, g_pos = forward_kinematics(local_rot, local_trans[:, 0], local_trans, clip.parents)
-    src = SourceMotion(clip.names, clip.parents, rest * unit_scale, g_rot, g_pos, src_fps, str(path))
+    g_rot, g_pos = forward_kinematics(local_rot, local_trans[:, 0], local_trans, parents=clip.parents)
+    src = SourceMotion(clip.names, clip.parents, rest * unit_scale, global_rotations=g_rot, global_positions=g_pos,
+                       fps=src_fps, path=str(path))
     check_source(src)
     return src, scheme, mapping, unit_scale

@@ -29,8 +29,9 @@ def retimed(motion: Motion, speed: float) -> Motion:
         return motion
     frames = resample_times(motion.num_frames, motion.fps * speed, motion.fps)
     return Motion(resample_rotations(motion.local_rotations.astype(np.float64), frames),
-                  resample_linear(motion.root_translation, frames), motion.fps, motion.source,
-                  motion.source_skeleton, motion.source_height_m, motion.skeleton)
+                  resample_linear(motion.root_translation, frames), motion.fps, source=motion.source,
+                  source_skeleton=motion.source_skeleton, source_height_m=motion.source_height_m,
+                  skeleton=motion.skeleton)
 
 
 def aligned(motion: Motion, heading: float, position: np.ndarray) -> Motion:
@@ -41,8 +42,8 @@ def aligned(motion: Motion, heading: float, position: np.ndarray) -> Motion:
     local[:, 0] = turn.astype(np.float32) @ local[:, 0]  # the root joint's rotation is global
     root = motion.root_translation
     moved = (root - root[0] * GROUND) @ turn.T + np.asarray(position, np.float64) * GROUND
-    return Motion(local, moved, motion.fps, motion.source, motion.source_skeleton, motion.source_height_m,
-                  motion.skeleton)
+    return Motion(local, moved, motion.fps, source=motion.source, source_skeleton=motion.source_skeleton,
+                  source_height_m=motion.source_height_m, skeleton=motion.skeleton)
 
 
 def smoothstep_weights(frames: int) -> np.ndarray:
@@ -78,4 +79,5 @@ def crossfade(first: Motion, second: Motion, frames: int) -> Motion:
     return Motion(np.concatenate([first.local_rotations[:start], blend_rot.astype(np.float32),
                                   second.local_rotations[frames:]]),
                   np.concatenate([first.root_translation[:start], blend_root, second.root_translation[frames:]]),
-                  first.fps, first.source, first.source_skeleton, first.source_height_m, first.skeleton)
+                  first.fps, source=first.source, source_skeleton=first.source_skeleton,
+                  source_height_m=first.source_height_m, skeleton=first.skeleton)

@@ -72,7 +72,7 @@ def causal_features(motion: Motion) -> np.ndarray:
     formulas; a stream computes them per frame), else numpy."""
     lib = native.load_kernel()
     if lib is not None:
-        return native.causal_features(lib, motion.global_rotations, motion.joint_positions, FEATURE_JOINTS, motion.fps)
+        return native.causal_features(lib, motion.global_rotations, motion.joint_positions, joints=FEATURE_JOINTS, fps=motion.fps)
     if motion.num_frames == 1:
         return motion_features(Motion.concatenate([motion, motion]))[-1:]
     feats = motion_features(motion)
@@ -97,7 +97,7 @@ def pair_features_batch(previous: list[tuple[np.ndarray, np.ndarray] | None], cu
         rot[2 * i], pos[2 * i] = (g_rot[i], g_pos[i]) if prev is None else prev
     lib = native.load_kernel()
     if lib is not None:
-        return native.causal_features(lib, rot, pos, FEATURE_JOINTS, current.fps)[1::2]
+        return native.causal_features(lib, rot, pos, joints=FEATURE_JOINTS, fps=current.fps)[1::2]
     return _features(rot, pos, current.fps)[1::2]
 
 

@@ -130,12 +130,12 @@ def resample_motion(motion: Motion, fps: float = FPS, path: str | Path | None = 
     """The motion at ``fps`` (rotations slerped, translations interpolated)."""
     if abs(motion.fps - fps) < 1e-6:
         return motion
-    check_frame_budget(path or motion.source, motion.num_frames, motion.fps, fps)
+    check_frame_budget(path or motion.source, motion.num_frames, motion.fps, fps_out=fps)
     frames = resample_times(motion.num_frames, motion.fps, fps)
     return Motion(
         resample_rotations(motion.local_rotations.astype(np.float64), frames),
         resample_linear(motion.root_translation.astype(np.float64), frames),
-        fps, motion.source, motion.source_skeleton, motion.source_height_m,
+        fps, source=motion.source, source_skeleton=motion.source_skeleton, source_height_m=motion.source_height_m,
     )
 
 
@@ -168,13 +168,13 @@ def load_amass(path: Path, data: dict[str, np.ndarray], ground: bool = True, fps
     local = axis_angle_to_matrix(poses[:, : NUM_JOINTS * 3].reshape(-1, NUM_JOINTS, 3))
     local[:, 0] = Z_UP_TO_Y_UP @ local[:, 0]
     root = trans @ Z_UP_TO_Y_UP.T
-    check_frame_budget(path, poses.shape[0], rate, fps)
+    check_frame_budget(path, poses.shape[0], rate, fps_out=fps)
     frames = resample_times(poses.shape[0], rate, fps)
     local = resample_rotations(local, frames)
     root = resample_linear(root, frames)
     if ground:
         root = ground_align(local, root)
-    return Motion(local, root, fps, str(path), AMASS_WIDTHS[poses.shape[1]])
+    return Motion(local, root, fps, source=str(path), source_skeleton=AMASS_WIDTHS[poses.shape[1]])
 
 
 def save_amass(motion: Motion, path: str | Path, width: int = 156) -> None:
@@ -240,8 +240,8 @@ def _native_from_arrays(data: dict[str, np.ndarray], path: Path) -> Motion:
     height = float(_numeric(path, data, "source_height_m", PLAUSIBLE_HEIGHT_M[1] * 2)) if "source_height_m" in data else 1.7
     if not height > 0:
         raise MotionError(path, f"source_height_m must be a positive height in metres, got {height:g}")
-    return Motion(rot, root, fps, _text(path, data, "source", str(path)), _text(path, data, "source_skeleton", "canonical"),
-                  height)
+    return Motion(rot, root, fps, source=_text(path, data, "source", str(path)),
+                  source_skeleton=_text(path, data, "source_skeleton", "canonical"), source_height_m=height)
 
 
 def _text(path: Path, data: dict[str, np.ndarray], key: str, default: str) -> str:

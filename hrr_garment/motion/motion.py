@@ -78,10 +78,11 @@ class Motion:
 
         lib = native.load_kernel()
         if lib is not None:
-            return native.forward_kinematics(lib, self.local_rotations, self.root_translation, self.skeleton.offsets,
-                                             self.skeleton.parents)
+            return native.forward_kinematics(lib, self.local_rotations, self.root_translation,
+                                             offsets=self.skeleton.offsets, parents=self.skeleton.parents)
         g_rot, g_pos = forward_kinematics(
-            self.local_rotations.astype(np.float64), self.root_translation.astype(np.float64), self.skeleton.offsets.astype(np.float64), self.skeleton.parents
+            self.local_rotations.astype(np.float64), self.root_translation.astype(np.float64),
+            self.skeleton.offsets.astype(np.float64), parents=self.skeleton.parents
         )
         return g_rot, g_pos
 

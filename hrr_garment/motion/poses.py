@@ -68,4 +68,4 @@ def poses_to_motion(rotations: np.ndarray, roots: np.ndarray, quaternion_order: 
                     source: str = "pose") -> Motion:
     """N canonical-skeleton poses -> an N-frame :class:`Motion` (22 joints, SMPL order)."""
     matrices = rotations_to_matrices(rotations, CANONICAL.num_joints, quaternion_order, source)
-    return Motion(matrices.astype(np.float32), check_roots(roots, len(matrices), source), fps, source)
+    return Motion(matrices.astype(np.float32), check_roots(roots, len(matrices), source), fps, source=source)

@@ -74,11 +74,12 @@ class StreamRig:
     def to_canonical(self, rotations: np.ndarray, roots: np.ndarray, quaternion_order: str = "xyzw") -> Motion:
         """N poses on this rig (see :mod:`.poses` for the rotation forms) -> an N-frame canonical
         :class:`Motion`, retargeted with the rig's calibration."""
-        local = rotations_to_matrices(rotations, self.num_joints, quaternion_order, self.source)
+        local = rotations_to_matrices(rotations, self.num_joints, quaternion_order, source=self.source)
         root = check_roots(roots, len(local), self.source) * self.unit_scale
-        g_rot, g_pos = forward_kinematics(local, root, self.offsets, tuple(self.parents))
-        src = SourceMotion(self.names, self.parents, self.rest_positions, g_rot, g_pos, FPS, self.source)
+        g_rot, g_pos = forward_kinematics(local, root, self.offsets, parents=tuple(self.parents))
+        src = SourceMotion(self.names, self.parents, self.rest_positions, global_rotations=g_rot, global_positions=g_pos,
+                           fps=FPS, path=self.source)
         check_source(src)
         canon_local, canon_root = retarget(src, self.mapping, ground=True, calibration=self.calibration)
-        return Motion(canon_local, canon_root, FPS, self.source, self.scheme,
-                      standing_height_from_legs(self.rest_positions, self.mapping))
+        return Motion(canon_local, canon_root, FPS, source=self.source, source_skeleton=self.scheme,
+                      source_height_m=standing_height_from_legs(self.rest_positions, self.mapping))

@@ -5,10 +5,37 @@ to it, the collision push-out and the push-out's strain limit (``kernels.c``; li
 from __future__ import annotations
 
 import ctypes
+from typing import NamedTuple
 
 import numpy as np
 
 MAX_CAPSULES = 64  # SDF_MAXC in kernels.c
+
+
+class PushSteps(NamedTuple):
+    """The push-out's steps as :func:`push_out_frames` takes them (what each does:
+    :func:`hrr_garment.inference.collision.push_out`): ``mean`` the (V, V) CSR mean operator of the
+    faces, the ``margin`` outside the body, ``smooth`` passes, ``rounds`` of pushes and the
+    ``depth`` beyond which a vertex counts as inside."""
+
+    mean: object
+    margin: float
+    smooth: int
+    rounds: int
+    depth: float
+
+
+class StrainLimit(NamedTuple):
+    """The strain limit as :func:`limit_strain` takes it: ``edge_arrays``
+    (:attr:`~hrr_garment.inference.collision.EdgeLimits.native_arrays`), the ``max_strain`` an edge
+    may reach, at most ``iterations`` passes, the tolerance ``tol`` (metres) and the over-relaxation
+    ``omega``."""
+
+    edge_arrays: tuple
+    max_strain: float
+    iterations: int
+    tol: float
+    omega: float
 
 
 def _capsule_arrays(a: np.ndarray, b: np.ndarray, radii: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -30,14 +57,15 @@ def capsule_sdf(lib: ctypes.CDLL, points: np.ndarray, a: np.ndarray, b: np.ndarr
     return dist, normal
 
 
-def push_out_frames(lib: ctypes.CDLL, points: np.ndarray, a: np.ndarray, b: np.ndarray, radii: np.ndarray, mean,
-                    margin: float, smooth: int, rounds: int, depth: float, threads: int = 1,
+def push_out_frames(lib: ctypes.CDLL, points: np.ndarray, a: np.ndarray, b: np.ndarray, radii: np.ndarray,
+                    steps: PushSteps, *, threads: int = 1,
                     out: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """:func:`hrr_garment.inference.collision.push_out`'s per-frame steps in the kernel: points
-    (T, V, 3), capsule ends a, b (T, C, 3), ``mean`` the (V, V) CSR mean operator -> (pushed
-    points float32, fraction deeper than ``depth`` before (T,), after (T,)). Frames in parallel;
+    (T, V, 3), capsule ends a, b (T, C, 3), the push's ``steps`` -> (pushed points float32, fraction
+    deeper than ``steps.depth`` before (T,), after (T,)). Frames in parallel;
     a single frame (streaming) shared by the threads. With ``out`` (C-contiguous float64, the
     points' shape) the points are copied there, pushed in place and returned in float64."""
+    mean, margin, smooth, rounds, depth = steps
     a, b, r = _capsule_arrays(a, b, radii)
     if out is not None and (out.dtype != np.float64 or out.shape != points.shape or not out.flags.c_contiguous):
         raise ValueError("out must be a C-contiguous float64 array of the points' shape")
@@ -56,14 +84,13 @@ def push_out_frames(lib: ctypes.CDLL, points: np.ndarray, a: np.ndarray, b: np.n
     return (p if out is not None else p.astype(np.float32)), before, after
 
 
-def limit_strain(lib: ctypes.CDLL, pushed: np.ndarray, unpushed: np.ndarray, edge_arrays: tuple, max_strain: float,
-                 iterations: int, tol: float, omega: float, threads: int = 1,
+def limit_strain(lib: ctypes.CDLL, pushed: np.ndarray, unpushed: np.ndarray, limit: StrainLimit, *, threads: int = 1,
                  in_place: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """:func:`hrr_garment.inference.collision.limit_push_strain` in the kernel: pushed and unpushed
-    points (T, V, 3), ``edge_arrays`` (:attr:`~hrr_garment.inference.collision.EdgeLimits.native_arrays`)
-    -> (the limited points, float64 (T, V, 3); the (T,) mask of frames that had an edge over its
-    limit). Frames in parallel; each stops on its own. ``in_place``: a C-contiguous float64
+    points (T, V, 3), the ``limit`` (:class:`StrainLimit`) -> (the limited points, float64 (T, V, 3);
+    the (T,) mask of frames that had an edge over its limit). Frames in parallel; each stops on its own. ``in_place``: a C-contiguous float64
     ``pushed`` is moved where it lies (and returned) instead of copied."""
+    edge_arrays, max_strain, iterations, tol, omega = limit
     own = in_place and pushed.dtype == np.float64 and pushed.flags.c_contiguous
     p = pushed if own else np.array(pushed, np.float64, order="C")  # moved in place
     u = np.ascontiguousarray(unpushed, np.float64)

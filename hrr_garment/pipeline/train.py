@@ -266,7 +266,7 @@ def simulate_preset(garment: str, preset: Preset, out: Path, progress: bool = Tr
     would; finished sequences are reused)."""
     from ..export.preview import write_dataset_preview
     from ..garment.templates import make_garment
-    from ..sim.build import build_dataset
+    from ..sim.build import BuildOptions, build_dataset
     from ..sim.plan import build_options, plan_sequences
     from ..sim.simulator import SimConfig
 
@@ -274,6 +274,6 @@ def simulate_preset(garment: str, preset: Preset, out: Path, progress: bool = Tr
     specs = plan_sequences(preset)
     options = build_options(preset, specs)
     options["info"]["garment_vertices"] = mesh.num_vertices
-    report = build_dataset(mesh, specs, SimConfig.from_dict(preset.sim), out=out, progress=progress,
-                           preview=write_dataset_preview, **options)
+    report = build_dataset(mesh, specs, SimConfig.from_dict(preset.sim), out=out,
+                           options=BuildOptions(progress=progress, preview=write_dataset_preview, **options))
     return SimulatedDataset(report, mesh)

@@ -55,13 +55,12 @@ def warm_up(garment: GarmentMesh, config: SimConfig) -> None:
     simulate_garment(garment, clip, replace(config, settle_s=0.0, blend_s=0.0))
 
 
-def build_dataset(garment: GarmentMesh, specs: list[SequenceSpec], config: SimConfig, out: str | Path,
-                  jobs: int | None = None, splits: dict[str, float] | None = None, seed: int = 0,
-                  info: dict | None = None, preview: PreviewWriter | None = None, progress: bool = True,
-                  groups: dict[str, str] | None = None, mirror: bool = False, executor: str = "local",
-                  address: str | None = None, retry_rejected: bool = False,
-                  kinds: dict[str, str] | None = None) -> BuildReport:
-    """Simulate what is missing, then write ``out`` (HDF5) atomically. See the module docstring.
+@dataclass(frozen=True)
+class BuildOptions:
+    """How :func:`build_dataset` builds: what goes into the dataset (``splits``, ``seed``, ``groups``,
+    ``kinds``, ``mirror``, ``info``: :func:`~hrr_garment.sim.plan.build_options` gives a preset's)
+    and how the sequences are simulated (``jobs``, ``executor``, ``address``, ``retry_rejected``,
+    ``progress``, ``preview``).
 
     ``groups`` (sequence name -> clip group) makes the split hold out whole groups; ``mirror`` adds
     every sequence reflected left-right as ``NAME_mirror`` in its source's split (a symmetric
@@ -72,6 +71,27 @@ def build_dataset(garment: GarmentMesh, specs: list[SequenceSpec], config: SimCo
     motion kind, procedural clips) holds out only clips of kinds that also train
     (:func:`~hrr_garment.data.dataset.split_names`). ``preview``: renders the dataset's preview image beside it
     (``hrr-simulate`` passes :func:`hrr_garment.export.preview.write_dataset_preview`)."""
+
+    jobs: int | None = None
+    splits: dict[str, float] | None = None
+    seed: int = 0
+    info: dict | None = None
+    preview: PreviewWriter | None = None
+    progress: bool = True
+    groups: dict[str, str] | None = None
+    mirror: bool = False
+    executor: str = "local"
+    address: str | None = None
+    retry_rejected: bool = False
+    kinds: dict[str, str] | None = None
+
+
+def build_dataset(garment: GarmentMesh, specs: list[SequenceSpec], config: SimConfig, *, out: str | Path,
+                  options: BuildOptions = BuildOptions()) -> BuildReport:
+    """Simulate what is missing, then write ``out`` (HDF5) atomically, as ``options`` say. See the
+    module docstring and :class:`BuildOptions`."""
+    o = options
+    jobs, progress, executor = o.jobs, o.progress, o.executor
     if executor not in EXECUTORS:
         raise InputError(executor, f"unknown executor; choose one of {', '.join(EXECUTORS)}")
     out = Path(out)
@@ -81,49 +101,58 @@ def build_dataset(garment: GarmentMesh, specs: list[SequenceSpec], config: SimCo
     with exclusive_lock(out.with_suffix(".lock"), out, busy):
         extra = {"template": template_hash(garment), "sim": config.to_dict(), "part_version": PART_VERSION}
         keys = {s.name: s.key(extra) for s in specs}
-        pending, rejects, reused = [], {}, 0
-        for spec in specs:
-            part, failed = part_paths(parts, spec.name)
-            if part.exists() and read_part_key(part) == keys[spec.name]:
-                reused += 1
-            elif not retry_rejected and failed.exists() and json.loads(failed.read_text()).get("key") == keys[spec.name]:
-                rejects[spec.name] = json.loads(failed.read_text())["reason"]
-            else:
-                pending.append(spec)
+        pending, rejects, reused = _to_simulate(specs, parts, keys, retry_rejected=o.retry_rejected)
         if executor == "local":
             jobs = max(1, min(jobs or os.cpu_count() or 1, len(pending) or 1))
         t0 = time.perf_counter()
         if pending:
             if progress:
-                where = f"{jobs} worker(s)" if executor == "local" else f"Ray ({address or f'local, {jobs or os.cpu_count()} CPUs'})"
+                where = f"{jobs} worker(s)" if executor == "local" else f"Ray ({o.address or f'local, {jobs or os.cpu_count()} CPUs'})"
                 print(f"simulating {len(pending)} of {len(specs)} sequences with {where}; "
                       f"{reused} already done (first run compiles kernels: about two minutes, cached after)")
             warm_up(garment, config)
             if executor == "ray":
-                rejects.update(run_ray(pending, garment, config, keys, parts, jobs, progress, address))
+                rejects.update(run_ray(pending, garment, config, keys=keys, parts=parts, jobs=jobs, progress=progress,
+                                        address=o.address))
             else:
-                rejects.update(run_local(pending, garment, config, keys, parts, jobs, progress))
+                rejects.update(run_local(pending, garment, config, keys=keys, parts=parts, jobs=jobs, progress=progress))
         sim_wall = time.perf_counter() - t0
         done = [s.name for s in specs if s.name not in rejects and part_paths(parts, s.name)[0].exists()]
         records = [load_part(part_paths(parts, n)[0], n) for n in done]
         if not records:
             raise SimulationExploded(f"every sequence failed; nothing to write to {out}: {rejects}")
-        val, test = (splits or {}).get("val", 0.1), (splits or {}).get("test", 0.1)
-        if groups:
-            split = split_groups({n: groups.get(n, n) for n in done}, val, test, seed)
+        val, test = (o.splits or {}).get("val", 0.1), (o.splits or {}).get("test", 0.1)
+        if o.groups:
+            split = split_groups({n: o.groups.get(n, n) for n in done}, val, test, seed=o.seed)
         else:
-            split = split_names(done, val, test, seed, kinds)
+            split = split_names(done, val, test, seed=o.seed, kinds=o.kinds)
         summary = summarise(records, garment, rejects, sim_wall, jobs, len(pending))
-        if mirror:
+        if o.mirror:
             records, split = _add_mirrored(records, split, garment, progress)
             summary["mirrored"] = len(records) - len(done)
-        write_dataset(out, garment, records, split, {**(info or {}), "summary": summary, "sim": config.to_dict()})
+        write_dataset(out, garment, records, splits=split, info={**(o.info or {}), "summary": summary, "sim": config.to_dict()})
         atomic_write_text(out.with_suffix(".summary.json"), strict_json(summary, indent=2))
         report = BuildReport(out, done, rejects, summary, reused, len(pending) - len(rejects),
                              stats={r.name: r.info.get("stats", {}) for r in records})
-        if preview:
-            report.preview = preview(records, garment, out.with_suffix(".preview.png"))
+        if o.preview:
+            report.preview = o.preview(records, garment, out.with_suffix(".preview.png"))
         return report
+
+
+def _to_simulate(specs: list[SequenceSpec], parts: Path, keys: dict[str, str], *,
+                 retry_rejected: bool) -> tuple[list[SequenceSpec], dict[str, str], int]:
+    """(the sequences to simulate, the rejects an earlier run recorded under the same key and
+    that stay rejected, how many finished parts are reused)."""
+    pending, rejects, reused = [], {}, 0
+    for spec in specs:
+        part, failed = part_paths(parts, spec.name)
+        if part.exists() and read_part_key(part) == keys[spec.name]:
+            reused += 1
+        elif not retry_rejected and failed.exists() and json.loads(failed.read_text()).get("key") == keys[spec.name]:
+            rejects[spec.name] = json.loads(failed.read_text())["reason"]
+        else:
+            pending.append(spec)
+    return pending, rejects, reused
 
 
 def _add_mirrored(records: list[SequenceRecord], split: dict[str, list[str]], garment: GarmentMesh,
@@ -135,7 +164,7 @@ def _add_mirrored(records: list[SequenceRecord], split: dict[str, list[str]], ga
         return records, split
     flip = np.array([-1.0, 1.0, 1.0], np.float32)
     mirrored = [SequenceRecord(f"{r.name}_mirror", r.garment[:, perm] * flip, r.motion.mirrored(),
-                               {**r.info, "mirror_of": r.name}) for r in records]
+                               info={**r.info, "mirror_of": r.name}) for r in records]
     return records + mirrored, {k: sorted(v + [f"{n}_mirror" for n in v]) for k, v in split.items()}
 
 

@@ -19,10 +19,10 @@ from tqdm.auto import tqdm
 
 from ..garment.mesh import GarmentMesh
 from ..motion.motion import FPS
+from .config import SimConfig
 from .lead_in import lead_in_frames
 from .parts import PartResult, simulate_sequence, write_part
 from .plan import SequenceSpec
-from .simulator import SimConfig
 
 EXECUTORS = ("local", "ray")
 
@@ -49,12 +49,12 @@ def _finish(result: PartResult, rejects: dict[str, str], bar: tqdm) -> None:
 def _local_worker(spec: SequenceSpec, garment: GarmentMesh, config: dict, key: str, parts: str,
                   progress_queue=None) -> PartResult:
     report = progress_queue.put if progress_queue is not None else None
-    result = simulate_sequence(spec, spec.motion(), garment, config, key, report)
+    result = simulate_sequence(spec, spec.motion(), garment, config=config, key=key, progress=report)
     write_part(result, Path(parts))
     return PartResult(result.name, key, result.frames, failure=result.failure)  # the arrays stay in the part
 
 
-def run_local(pending: list[SequenceSpec], garment: GarmentMesh, config: SimConfig, keys: dict[str, str],
+def run_local(pending: list[SequenceSpec], garment: GarmentMesh, config: SimConfig, *, keys: dict[str, str],
               parts: Path, jobs: int, progress: bool) -> dict[str, str]:
     """Simulate ``pending`` in ``jobs`` spawned processes; returns the rejected sequences' reasons."""
     bar = _progress_bar(pending, config, progress)
@@ -94,7 +94,7 @@ def _import_ray():
     return ray
 
 
-def run_ray(pending: list[SequenceSpec], garment: GarmentMesh, config: SimConfig, keys: dict[str, str],
+def run_ray(pending: list[SequenceSpec], garment: GarmentMesh, config: SimConfig, *, keys: dict[str, str],
             parts: Path, jobs: int | None, progress: bool, address: str | None = None) -> dict[str, str]:
     """Simulate ``pending`` as Ray tasks, one sequence each; parts are written here as tasks finish.
 

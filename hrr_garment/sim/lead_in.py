@@ -52,6 +52,6 @@ def with_lead_in(motion: Motion, settle_s: float, blend_s: float) -> tuple[Motio
     blend_root = rest_root[None] + ease[:, None] * (motion.root_translation[0] - rest_root)[None]
     local = np.concatenate([np.repeat(rest_local[None], settle, 0), blend_rot.astype(np.float32), motion.local_rotations])
     root = np.concatenate([np.repeat(rest_root[None], settle, 0), blend_root, motion.root_translation])
-    extended = Motion(local.astype(np.float32), root.astype(np.float64), motion.fps, motion.source,
-                      motion.source_skeleton, motion.source_height_m)
+    extended = Motion(local.astype(np.float32), root.astype(np.float64), motion.fps, source=motion.source,
+                      source_skeleton=motion.source_skeleton, source_height_m=motion.source_height_m)
     return extended, settle + blend

@@ -70,7 +70,7 @@ def simulate_sequence(spec: SequenceSpec, motion: Motion, garment: GarmentMesh, 
         result = simulate_garment(garment, motion, SimConfig.from_dict(config), progress=progress)
     except SimulationExploded as exc:
         return PartResult(spec.name, key, 0, failure=str(exc))
-    stats = sequence_stats(result.vertices, garment.vertices, garment.edges(), motion, garment.groups.get("hem"))
+    stats = sequence_stats(result.vertices, garment.vertices, garment.edges(), motion=motion, hem=garment.groups.get("hem"))
     stats.update(substeps=result.substeps, attempts=result.attempts, sim_seconds=result.seconds,
                  simulated_frames=result.simulated_frames, arms_off_frames=result.arms_off_frames)
     info = {"kind": spec.kind, "seed": spec.seed, "path": spec.path, "stats": stats}
@@ -95,5 +95,5 @@ def write_part(result: PartResult, parts: Path) -> None:
 def load_part(part: Path, name: str) -> SequenceRecord:
     """A finished part as a SequenceRecord."""
     with np.load(part, allow_pickle=False) as z:
-        motion = Motion(z["local_rotations"], z["root_translation"], float(z["fps"]), str(z["source"]))
-        return SequenceRecord(name, z["garment"], motion, json.loads(str(z["info"])))
+        motion = Motion(z["local_rotations"], z["root_translation"], float(z["fps"]), source=str(z["source"]))
+        return SequenceRecord(name, z["garment"], motion, info=json.loads(str(z["info"])))

@@ -25,7 +25,7 @@ def body_signed_distance(vertices: np.ndarray, motion: Motion, body: BodyModel =
     """(T, V) signed distance of each vertex to the posed capsule body (negative inside)."""
     a, b = body.pose_motion(motion)
     chunk = 64  # frames at a time: the normals, which are not kept, stay small
-    return np.concatenate([frames_signed_distance(vertices[t:t + chunk], a[t:t + chunk], b[t:t + chunk], body.radii)[0]
+    return np.concatenate([frames_signed_distance(vertices[t:t + chunk], a[t:t + chunk], b[t:t + chunk], radii=body.radii)[0]
                            for t in range(0, len(vertices), chunk)]) if len(vertices) else np.zeros((0, vertices.shape[1]))
 
 

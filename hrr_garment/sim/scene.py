@@ -6,17 +6,13 @@ retry; this module only talks to newton and warp (extra ``sim``).
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import numpy as np
 
 from ..body.capsules import BodyModel
 from ..garment.mesh import GarmentMesh
 from ..motion.motion import Motion
 from ..motion.rotations import matrix_to_quat, rotation_between
-
-if TYPE_CHECKING:
-    from .simulator import SimConfig
+from .config import SimConfig
 
 ARM_CAPSULES = ("upper_arm", "forearm", "hand")  # taken off the cloth in the simulator's last retries
 
@@ -70,7 +66,7 @@ class ClothScene:
     """A newton model of one garment and the capsule body, stepped frame by frame."""
 
     def __init__(self, garment: GarmentMesh, start_vertices: np.ndarray, half_lengths: np.ndarray,
-                 body: BodyModel, config: "SimConfig"):
+                 body: BodyModel, config: SimConfig):
         wp, newton = _import_newton()
         self.wp, self.config = wp, config
         self.device = resolve_device(wp, config.device)

@@ -21,7 +21,7 @@ itself (bodies, cloth, captured substeps) is :mod:`.scene`.
 from __future__ import annotations
 
 import time
-from dataclasses import asdict, dataclass, replace
+from dataclasses import dataclass, replace
 from typing import Callable
 
 import numpy as np
@@ -32,7 +32,7 @@ from ..errors import HRRError
 from ..garment.attachment import bind_attached
 from ..garment.mesh import GarmentMesh
 from ..motion.motion import Motion
-from ..settings import from_settings
+from .config import SimConfig  # defined in .config (the scene needs it too); importable from here as before
 from .lead_in import start_transform, with_lead_in
 from .scene import ClothScene, arm_capsules, capsule_transforms
 
@@ -44,39 +44,6 @@ ARMS_BACK_INSIDE = (0.005, 0.0)
 
 class SimulationExploded(HRRError):
     """The cloth blew up (non-finite, too fast, or over-stretched) at some frame."""
-
-
-@dataclass(frozen=True)
-class SimConfig:
-    """Solver and material values; configs/sim.yaml holds the project defaults."""
-
-    substeps: int = 10
-    iterations: int = 3
-    tri_ke: float = 1.0e4  # membrane stretch stiffness
-    tri_ka: float = 1.0e4  # membrane area stiffness
-    tri_kd: float = 1.0e-4  # membrane damping
-    edge_ke: float = 1.0e-3  # bending stiffness
-    edge_kd: float = 1.0e-4  # bending damping
-    density: float = 0.15  # kg per square metre
-    particle_radius: float = 0.006
-    contact_ke: float = 3.0e4  # 1e4 let running thighs push 1 % of a dress 2 cm in; 3e4: none
-    contact_kd: float = 1.0e-2
-    contact_mu: float = 0.3
-    contact_gap: float = 0.01  # contact detection distance beyond the radius
-    gravity: float = 9.81
-    settle_s: float = 0.5
-    blend_s: float = 0.8  # arms come down from the T-pose at under 3 m/s
-    max_speed: float = 30.0  # m/s: a garment point moving faster has exploded
-    max_strain: float = 2.5  # edge length / rest length beyond which the cloth has exploded
-    retries: int = 1  # extra attempts, each with twice the substeps
-    device: str = "auto"  # "auto" (a GPU when present), "cpu", "cuda:0"...
-
-    @classmethod
-    def from_dict(cls, values: dict) -> "SimConfig":
-        return from_settings(cls, values, "simulator")
-
-    def to_dict(self) -> dict:
-        return asdict(self)
 
 
 @dataclass
@@ -110,7 +77,7 @@ def _attempt(garment: GarmentMesh, motion: Motion, body: BodyModel, config: SimC
     poses = np.concatenate([centre, quat], -1)
     binding = bind_attached(garment, body)
     pins = binding.pose(extended.global_rotations.astype(np.float64), extended.joint_positions)
-    scene = ClothScene(garment, start, half, body, config)
+    scene = ClothScene(garment, start, half, body=body, config=config)
     arms = arm_capsules(body)
     arm_a, arm_b = (ends[:, arms] for ends in body.pose_motion(extended))
     edges = garment.edges()
@@ -151,7 +118,7 @@ def _attempt(garment: GarmentMesh, motion: Motion, body: BodyModel, config: SimC
 
 def _inside_fraction(vertices: np.ndarray, a: np.ndarray, b: np.ndarray, radii: np.ndarray) -> float:
     """The fraction of vertices inside the capsules a-b (C, 3)."""
-    return float((frames_signed_distance(vertices[None], a[None], b[None], radii)[0] < 0).mean())
+    return float((frames_signed_distance(vertices[None], a[None], b[None], radii=radii)[0] < 0).mean())
 
 
 def _arms_note(arms_off: np.ndarray) -> str:

@@ -137,8 +137,8 @@ def _stage_report(record: dict, folder: Path, reused: bool = False) -> StageRepo
     metrics["latent_shape"], metrics["sizes"] = tuple(metrics["latent_shape"]), tuple(metrics["sizes"])
     if reused:
         metrics["extra"] = {**metrics.get("extra", {}), "reused": True}
-    return StageReport("autoencoder", folder, int(record["epochs"]), int(record["best_epoch"]), float(record["minutes"]),
-                       reused, metrics)
+    return StageReport("autoencoder", folder, int(record["epochs"]), best_epoch=int(record["best_epoch"]),
+                       minutes=float(record["minutes"]), reused=reused, metrics=metrics)
 
 
 def _finished(folder: Path, key: str) -> dict | None:
@@ -159,7 +159,8 @@ def _fit(model: MeshAutoencoder, optimizer: torch.optim.Optimizer, frames: Train
     checkpoint = folder / "checkpoint.pt"
     state = {"epoch": 0, "best": float("inf"), "best_epoch": 0, "stale": 0, "elapsed_s": 0.0}
     best_weights = {k: v.clone() for k, v in model.state_dict().items()}
-    state, best_weights = load_checkpoint(checkpoint, training_key, state, best_weights, model=model, optimizer=optimizer)
+    state, best_weights = load_checkpoint(checkpoint, training_key, state, best_weights=best_weights, model=model,
+                                          optimizer=optimizer)
     conv0 = model.encoder[0].conv
     lap = laplacian_operator(conv0.index.cpu(), conv0.mask.cpu()).to(device)
     rng = np.random.default_rng(config.seed + state["epoch"])
@@ -169,7 +170,7 @@ def _fit(model: MeshAutoencoder, optimizer: torch.optim.Optimizer, frames: Train
     deadline = None if config.max_minutes is None else started + 60 * config.max_minutes - spent
 
     def run_fraction(epoch: float) -> float:
-        return run_progress(epoch, config.epochs, spent + time.perf_counter() - started, config.max_minutes)
+        return run_progress(epoch, config.epochs, spent + time.perf_counter() - started, max_minutes=config.max_minutes)
 
     epoch_s = None  # the last epoch's duration
     while state["epoch"] < config.epochs:
@@ -197,8 +198,8 @@ def _fit(model: MeshAutoencoder, optimizer: torch.optim.Optimizer, frames: Train
         val_err = pve_mm(model, val if len(val) else train[:256])
         state["epoch"] += 1
         state["elapsed_s"] = spent + time.perf_counter() - started
-        best_weights = keep_if_best(state, val_err, model, best_weights)
-        save_checkpoint(checkpoint, training_key, state, best_weights, model=model, optimizer=optimizer)
+        best_weights = keep_if_best(state, val_err, model, best_weights=best_weights)
+        save_checkpoint(checkpoint, training_key, state, best_weights=best_weights, model=model, optimizer=optimizer)
         bar.set_postfix(loss=f"{np.mean(losses) * 1000:.2f}mm", val=f"{val_err:.2f}mm", best=f"{state['best']:.2f}mm")
         bar.update(1)
         epoch_s = time.perf_counter() - epoch_started
@@ -224,7 +225,7 @@ def train_autoencoder(dataset: str | Path, folder: str | Path, model_config: Aut
     frames = training_frames(ds, train_config.mirror)
     hierarchy = cached_hierarchy(ds.template.faces, ds.template.num_vertices, cache_dir,
                                  **model_config.hierarchy_options(), name=str(dataset))
-    model = MeshAutoencoder(hierarchy, model_config, ds.template.vertices.astype(np.float32), frames.scale).to(device)
+    model = MeshAutoencoder(hierarchy, model_config, ds.template.vertices.astype(np.float32), scale=frames.scale).to(device)
     optimizer = torch.optim.Adam(model.parameters(), lr=train_config.learning_rate)
     training_key, key = _settings_keys(model_config, train_config, ds)
     done = _finished(folder, key)

@@ -90,7 +90,7 @@ def train_direct(model: DirectRegressor, train: tuple, val: tuple, folder: Path,
     state = {"epoch": 0, "best": math.inf, "best_epoch": 0, "stale": 0, "elapsed_s": 0.0}
     best_weights = {k: v.clone() for k, v in model.state_dict().items()}
     checkpoint, log_path = folder / "checkpoint.pt", folder / "log.jsonl"
-    state, best_weights = load_checkpoint(checkpoint, key, state, best_weights, model=model, optimizer=optimizer)
+    state, best_weights = load_checkpoint(checkpoint, key, state, best_weights=best_weights, model=model, optimizer=optimizer)
     resume_log(log_path, state["epoch"])
     started, spent = time.perf_counter(), state["elapsed_s"]
     deadline = None if config.max_minutes is None else started + 60 * config.max_minutes - spent
@@ -110,10 +110,10 @@ def train_direct(model: DirectRegressor, train: tuple, val: tuple, folder: Path,
         val_loss = _val_loss(model, *val)
         state["epoch"] += 1
         state["elapsed_s"] = spent + time.perf_counter() - started
-        best_weights = keep_if_best(state, val_loss, model, best_weights)
+        best_weights = keep_if_best(state, val_loss, model, best_weights=best_weights)
         with open(log_path, "a", encoding="utf-8") as fh:
             fh.write(strict_json({"epoch": state["epoch"], "train_l1": total / max(count, 1), "val_l1": val_loss}) + "\n")
-        save_checkpoint(checkpoint, key, state, best_weights, model=model, optimizer=optimizer)
+        save_checkpoint(checkpoint, key, state, best_weights=best_weights, model=model, optimizer=optimizer)
         bar.set_postfix(val=f"{val_loss:.3f}")
         bar.update(1)
     bar.close()
@@ -151,14 +151,14 @@ def run_baseline_stage(dataset: str | Path, folder: str | Path, config: DirectCo
     val_mm = validation_pve_mm(model, bundle, val[0], body_frames(ds, names["val"]))
     entry = {"key": key, "config": config.to_dict(), "train": asdict(train_config), "epochs": state["epoch"],
              "best_epoch": state["best_epoch"], "validation_mm": val_mm, "minutes": (time.perf_counter() - t0) / 60}
-    add_bundle_part(folder, "direct.safetensors", model.state_dict(), {"direct": entry})
+    add_bundle_part(folder, "direct.safetensors", model.state_dict(), meta={"direct": entry})
     atomic_write_text(folder / "baseline" / "report.json", strict_json(entry, indent=2))
     return _stage_report(entry, folder)
 
 
 def _stage_report(entry: dict, folder: Path, reused: bool = False) -> StageReport:
-    return StageReport("baseline", folder / "baseline", int(entry["epochs"]), int(entry["best_epoch"]),
-                       float(entry["minutes"]), reused, entry)
+    return StageReport("baseline", folder / "baseline", int(entry["epochs"]), best_epoch=int(entry["best_epoch"]),
+                       minutes=float(entry["minutes"]), reused=reused, metrics=entry)
 
 
 @torch.no_grad()

@@ -194,6 +194,21 @@ def evaluate(model: CodeSpace, data: WindowTensors, batch: int = 256,
             "perplexity": usage.perplexity if usage else float("nan")}
 
 
+def _train_step(model: CodeSpace, optimizer: torch.optim.Optimizer, batch: tuple, config: CodeSpaceTrainConfig, *,
+                weights: tuple[float, float], latent_loss: Callable[[torch.Tensor], torch.Tensor]) -> dict:
+    """One optimiser step on a batch of windows at this epoch's (temperature, match weight);
+    returns its losses."""
+    temperature, match_weight = weights
+    out = _losses(model, *batch, temperature, latent_loss)
+    loss = out["rec"] + match_weight * out["match"] + config.diversity * out["diversity"]
+    if config.regress:
+        loss = loss + config.regress * out["regress"]
+    optimizer.zero_grad(set_to_none=True)
+    loss.backward()
+    optimizer.step()
+    return out
+
+
 def train_codespace(model: CodeSpace, train: WindowTensors, val: WindowTensors, folder: Path,
                     config: CodeSpaceTrainConfig = CodeSpaceTrainConfig(), key: str = "", progress: bool = True,
                     latent_loss: Callable[[torch.Tensor], torch.Tensor] = mean_square) -> dict:
@@ -207,7 +222,7 @@ def train_codespace(model: CodeSpace, train: WindowTensors, val: WindowTensors, 
     state = {"epoch": 0, "switched_at": None, "best": math.inf, "best_epoch": 0, "stale": 0, "elapsed_s": 0.0}
     best_weights = {k: v.clone() for k, v in model.state_dict().items()}
     checkpoint, log_path = folder / "checkpoint.pt", folder / "log.jsonl"
-    state, best_weights = load_checkpoint(checkpoint, key, state, best_weights, model=model, optimizer=optimizer,
+    state, best_weights = load_checkpoint(checkpoint, key, state, best_weights=best_weights, model=model, optimizer=optimizer,
                                           plateau=plateau)
     resume_log(log_path, state["epoch"])
     gen = torch.Generator().manual_seed(config.seed + state["epoch"])
@@ -217,7 +232,7 @@ def train_codespace(model: CodeSpace, train: WindowTensors, val: WindowTensors, 
     t0 = time.perf_counter()
 
     def run_fraction(epoch: float) -> float:
-        return run_progress(epoch, config.epochs, spent + time.perf_counter() - started, config.max_minutes)
+        return run_progress(epoch, config.epochs, spent + time.perf_counter() - started, max_minutes=config.max_minutes)
 
     epoch_s = None  # the last epoch's duration
     while state["epoch"] < config.epochs:
@@ -235,13 +250,8 @@ def train_codespace(model: CodeSpace, train: WindowTensors, val: WindowTensors, 
         for i in range(0, len(order), config.batch_size):
             set_learning_rate(optimizer, config, run_fraction(epoch + i / len(order)))
             idx = order[i:i + config.batch_size]
-            out = _losses(model, *train[idx], temperature, latent_loss)
-            loss = out["rec"] + match_weight * out["match"] + config.diversity * out["diversity"]
-            if config.regress:
-                loss = loss + config.regress * out["regress"]
-            optimizer.zero_grad(set_to_none=True)
-            loss.backward()
-            optimizer.step()
+            out = _train_step(model, optimizer, train[idx], config, weights=(temperature, match_weight),
+                              latent_loss=latent_loss)
             for k in sums:
                 sums[k] += out[k].item() * len(idx)
         metrics = evaluate(model, val, latent_loss=latent_loss)
@@ -251,13 +261,13 @@ def train_codespace(model: CodeSpace, train: WindowTensors, val: WindowTensors, 
             state["switched_at"] = state["epoch"]
         # the best regression path (what inference uses) is kept in both stages: a budgeted run
         # on a large library can end before the plateau switch (real-quick: 17 epochs, no switch)
-        best_weights = keep_if_best(state, metrics["regress"], model, best_weights)
+        best_weights = keep_if_best(state, metrics["regress"], model, best_weights=best_weights)
         record = {"epoch": state["epoch"], "temperature": temperature, "match_weight": match_weight,
                   "learning_rate": optimizer.param_groups[0]["lr"],
                   **{f"train_{k}": v / len(order) for k, v in sums.items()}, **{f"val_{k}": v for k, v in metrics.items()}}
         with open(log_path, "a", encoding="utf-8") as fh:
             fh.write(strict_json(record) + "\n")
-        save_checkpoint(checkpoint, key, state, best_weights, model=model, optimizer=optimizer, plateau=plateau)
+        save_checkpoint(checkpoint, key, state, best_weights=best_weights, model=model, optimizer=optimizer, plateau=plateau)
         bar.set_postfix(rec=f"{metrics['rec']:.3f}", regress=f"{metrics['regress']:.3f}", agree=f"{metrics['agreement']:.2f}",
                         stage=1 if state["switched_at"] is None else 2)
         bar.update(1)

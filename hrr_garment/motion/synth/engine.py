@@ -249,7 +249,7 @@ def build_motion(plan: Plan, source: str) -> Motion:
         glob[:, J[f"{side}_wrist"]] = glob[:, J[f"{side}_elbow"]]
     local = global_to_local(glob, PARENTS)
     crop = slice(plan.pad, n - plan.pad)
-    return Motion(local[crop], root[crop], FPS, source)
+    return Motion(local[crop], root[crop], FPS, source=source)
 
 
 def _halfway(a: np.ndarray, b: np.ndarray) -> np.ndarray:

@@ -1,0 +1,41 @@
+"""The simulator's solver and material settings (:class:`SimConfig`), shared by the newton scene
+(:mod:`.scene`) and the simulation driver (:mod:`.simulator`, which re-exports it)."""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+from ..settings import from_settings
+
+
+@dataclass(frozen=True)
+class SimConfig:
+    """Solver and material values; configs/sim.yaml holds the project defaults."""
+
+    substeps: int = 10
+    iterations: int = 3
+    tri_ke: float = 1.0e4  # membrane stretch stiffness
+    tri_ka: float = 1.0e4  # membrane area stiffness
+    tri_kd: float = 1.0e-4  # membrane damping
+    edge_ke: float = 1.0e-3  # bending stiffness
+    edge_kd: float = 1.0e-4  # bending damping
+    density: float = 0.15  # kg per square metre
+    particle_radius: float = 0.006
+    contact_ke: float = 3.0e4  # 1e4 let running thighs push 1 % of a dress 2 cm in; 3e4: none
+    contact_kd: float = 1.0e-2
+    contact_mu: float = 0.3
+    contact_gap: float = 0.01  # contact detection distance beyond the radius
+    gravity: float = 9.81
+    settle_s: float = 0.5
+    blend_s: float = 0.8  # arms come down from the T-pose at under 3 m/s
+    max_speed: float = 30.0  # m/s: a garment point moving faster has exploded
+    max_strain: float = 2.5  # edge length / rest length beyond which the cloth has exploded
+    retries: int = 1  # extra attempts, each with twice the substeps
+    device: str = "auto"  # "auto" (a GPU when present), "cpu", "cuda:0"...
+
+    @classmethod
+    def from_dict(cls, values: dict) -> "SimConfig":
+        return from_settings(cls, values, "simulator")
+
+    def to_dict(self) -> dict:
+        return asdict(self)
