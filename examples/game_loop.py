@@ -68,8 +68,7 @@ def open_window(title: str) -> Window | None:
         return None
 
 
-def main(argv=None) -> int:
-    """Run the game loop over a clip; returns the exit status."""
+def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--model", default="dress", help="model directory or garment name (default: dress)")
     p.add_argument("--motion", type=Path, default=None, help="BVH/npz to take poses from (default: procedural dance)")
@@ -82,7 +81,12 @@ def main(argv=None) -> int:
     p.add_argument("--size", type=int, default=320, help="pixels per view")
     p.add_argument("--precision", choices=PRECISIONS, default="float32",
                    help="the mesh decoder's arithmetic: bfloat16 (AMX, recent Intel Xeons) for large crowds")
-    args = p.parse_args(argv)
+    return p
+
+
+def main(argv=None) -> int:
+    """Run the game loop over a clip; returns the exit status."""
+    args = _parser().parse_args(argv)
 
     animator = Animator.load(args.model, precision=args.precision)
     motion = load_motion(args.motion) if args.motion else synthesize("dance", args.seconds, seed=3)
