@@ -6,11 +6,11 @@ import zipfile
 
 import numpy as np
 import pytest
-from test_bad_input import expect_failure, good_bvh  # noqa: F401  (the fixture)
 
 from hrr_garment import save_amass, save_motion, synthesize
 from hrr_garment.errors import MotionError
 from hrr_garment.motion.io import load_motion
+from tests.cli.test_bad_input import expect_failure, good_bvh  # noqa: F401  (the fixture)
 
 
 def _edit_bvh(source, tmp_path, name, edit):

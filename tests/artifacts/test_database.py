@@ -122,7 +122,7 @@ def test_a_trained_bundle_stores_frames_and_one_that_stored_windows_still_loads(
     assert isinstance(old.database.latents, np.ndarray) and np.array_equal(old.database.latents, windows["latents"])
     motion = np.random.default_rng(0).normal(size=(3, *windows["motion"].shape[1:])).astype(np.float32)
     assert np.array_equal(old.database.nearest_motion(motion), bundle.database.nearest_motion(motion))
-    spec = importlib.util.spec_from_file_location("compact_database", Path(__file__).parents[1] / "tools" / "compact_database.py")
+    spec = importlib.util.spec_from_file_location("compact_database", Path(__file__).parents[2] / "tools" / "compact_database.py")
     tool = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(tool)
     before, after = tool.compact(copy)  # tools/compact_database.py: back to the frame form, checked

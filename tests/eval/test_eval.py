@@ -111,10 +111,9 @@ def test_hrr_eval_excluding_own_sequence_changes_training_retrieval(trained, tmp
 
 
 def test_hrr_eval_refuses_bad_input(trained, tmp_path, capsys):
-    from conftest import synthetic_dataset
-
     from hrr_garment.cli.eval import main
     from hrr_garment.garment.templates import make_garment
+    from tests.conftest import synthetic_dataset
 
     root, data, _ = trained
     other = synthetic_dataset(tmp_path / "dress.h5", make_garment("dress", 300))
@@ -178,7 +177,7 @@ def test_gate_analysis_oracle_bounds_both_modes(trained):
     import importlib.util
     from pathlib import Path
 
-    spec = importlib.util.spec_from_file_location("gate_analysis", Path(__file__).parents[1] / "tools" / "gate_analysis.py")
+    spec = importlib.util.spec_from_file_location("gate_analysis", Path(__file__).parents[2] / "tools" / "gate_analysis.py")
     tool = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(tool)
     root, data, _ = trained
@@ -200,12 +199,11 @@ def test_demo_says_which_dataset_its_model_was_trained_on(trained, capsys):
 
 
 def test_library_plays_are_seeded_edits_of_the_training_clips(tmp_path):
-    from conftest import synthetic_dataset
-
     from hrr_garment.data.dataset import GarmentDataset
     from hrr_garment.eval.library import MIN_ENTRY_S, library_plays, plays_digest, save_plays
     from hrr_garment.garment.templates import make_garment
     from hrr_garment.motion.io import load_motion
+    from tests.conftest import synthetic_dataset
 
     ds = GarmentDataset(synthetic_dataset(tmp_path / "skirt.h5", make_garment("skirt", 200)))
     names = ds.splits["train"]
@@ -233,11 +231,10 @@ def test_a_play_knows_its_source_frames_and_plays_their_simulation_along(tmp_pat
     """The database-simulation reference: at speed 1 a replay's reference is the clip's own simulated
     frames, and a transition's second clip, turned and moved to carry on, keeps its cloth where it
     was on the body (every vertex's distance to every joint)."""
-    from conftest import synthetic_dataset
-
     from hrr_garment.data.dataset import GarmentDataset
     from hrr_garment.eval import library
     from hrr_garment.garment.templates import make_garment
+    from tests.conftest import synthetic_dataset
 
     ds = GarmentDataset(synthetic_dataset(tmp_path / "skirt.h5", make_garment("skirt", 200)))
     monkeypatch.setattr(library, "SPEED_RANGE", (1.0, 1.0))

@@ -156,13 +156,12 @@ def test_the_detail_mode_is_its_base_plus_the_tracked_simulated_folds(trained, b
 def test_a_bundle_before_the_folds_says_how_to_add_them_and_hrr_train_does(trained, tmp_path, capsys):
     import json
 
-    from conftest import current_copy
-
     from hrr_garment.artifacts.bundle import BundleError
     from hrr_garment.artifacts.bundle_writer import update_bundle_meta
     from hrr_garment.artifacts.manifest import FOLDS_FILE, content_hash
     from hrr_garment.cli.train import main as train_main
     from hrr_garment.inference.animator import Animator
+    from tests.conftest import current_copy
 
     old, stage = current_copy(trained, tmp_path / "model")
     folds = (old / FOLDS_FILE).read_bytes()

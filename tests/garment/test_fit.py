@@ -5,12 +5,12 @@ import argparse
 
 import numpy as np
 import pytest
-from conftest import authored
 
 from hrr_garment.garment.fit import _rotation_to_y, auto_attached, fit_garment, hem_loop, hem_up_axis
 from hrr_garment.garment.mesh import GarmentError
 from hrr_garment.garment.obj import write_obj
 from hrr_garment.garment.templates import make_garment
+from tests.conftest import authored
 
 
 @pytest.mark.parametrize("name, convert, unit, up", [

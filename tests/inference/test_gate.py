@@ -2,7 +2,6 @@
 similarity, motion distance), their calibration, storage in the bundle, and streaming with them."""
 
 import json
-import math
 
 import numpy as np
 import pytest
@@ -10,15 +9,6 @@ import pytest
 from hrr_garment.artifacts.database import CodeDatabase
 from hrr_garment.artifacts.gate_signals import GATE_SIGNALS, gate_doubt
 from hrr_garment.motion.synth import synthesize
-from hrr_garment.train.calibrate import ModeErrors, sweep_tau
-
-
-@pytest.fixture(scope="module")
-def animator(trained):
-    from hrr_garment.inference.animator import Animator
-
-    root, _, _ = trained
-    return Animator.load(root / "model")
 
 
 @pytest.mark.parametrize("signal, expected", [("entropy", [0.3, 1.2]), ("similarity", [0.25, 1.0]),
@@ -42,34 +32,6 @@ def test_motion_distance_is_the_rms_of_the_standardised_windows(rng):
     query = motion[[4, 1]] + np.float32(0.5)  # every feature 0.5 away from rows 4 and 1
     assert np.allclose(db.motion_distance(query, np.array([4, 1])), 0.5, atol=1e-6)
     assert np.allclose(db.motion_distance(motion[[2]], np.array([2])), 0.0)
-
-
-def test_the_sweep_ends_at_a_finite_threshold_that_retrieves_everything():
-    doubt = np.array([0.1, 0.4, 0.9])
-    sweep = sweep_tau(doubt, np.array([1.0, 1.0, 1.0]), np.array([0.0, 0.0, 0.0]))
-    assert all(math.isfinite(t) for t in sweep.taus)
-    assert sweep.retrieval_usage[-1] == 1.0 and sweep.taus[-1] > doubt.max()
-    assert sweep.retrieval_usage[sweep.taus.index(sweep.best_tau)] == 1.0  # the smallest tau that retrieves all
-
-
-def _mode_errors(doubts: dict) -> ModeErrors:
-    reg, ret = np.array([2.0, 2.0, 2.0, 2.0]), np.array([1.0, 3.0, 3.0, 1.0])
-    return ModeErrors(reg, ret, np.zeros(4), doubts, {g: sweep_tau(d, reg, ret) for g, d in doubts.items()})
-
-
-def test_calibration_picks_the_signal_that_separates_the_good_matches():
-    """Retrieval is better on windows 0 and 3: the distance ranks them first, the entropy does not."""
-    errors = _mode_errors({"entropy": np.array([0.5, 0.1, 0.2, 0.6]), "similarity": np.array([0.3, 0.3, 0.3, 0.3]),
-                           "distance": np.array([0.1, 0.8, 0.9, 0.2])})
-    assert errors.gate == "distance" and min(errors.sweep.errors_mm) == pytest.approx(1.5)
-    assert errors.summary(errors.sweep.best_tau, "distance")["retrieval_usage"] == 0.5
-    gates = errors.gates()
-    assert set(gates) == {"entropy", "similarity", "distance"} and gates["distance"]["validation_mm"] == pytest.approx(1.5)
-
-
-def test_calibration_keeps_the_papers_entropy_on_a_tie():
-    same = np.array([0.1, 0.2, 0.3, 0.4])
-    assert _mode_errors({g: same for g in GATE_SIGNALS}).gate == "entropy"
 
 
 def test_training_calibrates_every_gate_into_the_bundle(animator):

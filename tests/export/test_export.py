@@ -17,7 +17,7 @@ from hrr_garment.export.keyframes import interpolate, select_keyframes
 from hrr_garment.garment.templates import make_garment
 from hrr_garment.motion.synth import synthesize
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def _animation_arrays(frames: int = 40, seed: int = 0) -> dict:

@@ -5,19 +5,10 @@ import json
 
 import numpy as np
 import pytest
-from conftest import current_copy
 
 from hrr_garment.artifacts.residual import RESIDUAL_WEIGHTS, residual_latents
 from hrr_garment.motion.synth import synthesize
-from hrr_garment.train.calibrate import choose_residual_weight
-
-
-@pytest.fixture(scope="module")
-def animator(trained):
-    from hrr_garment.inference.animator import Animator
-
-    root, _, _ = trained
-    return Animator.load(root / "model")
+from tests.conftest import current_copy
 
 
 def test_the_residual_adds_the_matchs_detail_scaled_by_its_similarity(rng):
@@ -31,16 +22,6 @@ def test_the_residual_adds_the_matchs_detail_scaled_by_its_similarity(rng):
     assert np.array_equal(out[2], regression[2])  # a match sharing no code group adds nothing
     # a query whose motion is the match's: at weight 1 and full similarity the result is the match
     assert np.allclose(residual_latents(own, own + detail, own, np.ones(3), 1.0), own + detail, atol=1e-6)
-
-
-def test_the_calibration_keeps_the_most_detail_within_the_accuracy_allowance():
-    regression = np.array([2.0, 2.0])
-    tried = {0.25: np.array([2.0, 2.1]), 0.5: np.array([2.06, 2.06]), 1.0: np.array([3.0, 3.0])}
-    picked = choose_residual_weight(regression, tried, allowance=1.03)
-    assert picked["weight"] == 0.5 and picked["validation_mm"] == pytest.approx(2.06)  # exactly at 1.03 x
-    assert picked["errors_mm"] == {"0.0": 2.0, "0.25": 2.05, "0.5": 2.06, "1.0": 3.0}
-    assert choose_residual_weight(regression, tried, allowance=1.0)["weight"] == 0.0  # nothing within: regression
-    assert choose_residual_weight(regression, {0.5: np.array([1.0, 1.0])}, allowance=1.0)["weight"] == 0.5
 
 
 def test_training_calibrates_the_residual_weight_into_the_bundle(animator):

@@ -4,7 +4,6 @@ one-frame-at-a-time recursion equal to the clip's closed form."""
 
 import numpy as np
 import pytest
-from test_features import transformed
 
 from hrr_garment import motion_features, synthesize
 from hrr_garment.motion.features import FEATURE_DIM
@@ -19,6 +18,7 @@ from hrr_garment.motion.memory import (
 )
 from hrr_garment.motion.rotations import rotation_about_y, yaw_of
 from hrr_garment.motion.skeleton import FEATURE_JOINTS
+from tests.motion.test_features import transformed
 
 RESONATING = MemorySpec((0.5, 1.5), (0.6, 1.0, 1.6), 0.3)
 

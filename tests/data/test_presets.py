@@ -108,10 +108,10 @@ def test_hrr_train_simulates_what_a_grown_preset_adds(tmp_path, monkeypatch, seq
 
     import h5py
     import yaml
-    from conftest import synthetic_dataset
 
     import hrr_garment.cli.train as train_cli
     from hrr_garment.garment.templates import make_garment
+    from tests.conftest import synthetic_dataset
 
     monkeypatch.setenv("HRR_HOME", str(tmp_path))
     (tmp_path / "datasets").mkdir()

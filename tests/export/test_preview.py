@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from test_export import _animation_arrays
 
 from hrr_garment.data.animation_file import read_animation_h5, write_animation_h5
 from hrr_garment.export.preview import VIEWS, OrthoCamera
 from hrr_garment.export.raster import rasterize
+from tests.export.test_export import _animation_arrays
 
 
 def _blank(h=8, w=8):
