@@ -1,5 +1,8 @@
 """The examples (examples/): each runs headless against the tiny model."""
 
+import pytest
+
+pytestmark = pytest.mark.tool
 
 
 def test_game_loop_example_runs_headless(trained, tmp_path, capsys):

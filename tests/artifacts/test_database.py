@@ -108,6 +108,7 @@ def test_a_database_of_frames_answers_as_the_one_of_windows_and_stores_them_once
         CodeDatabase.from_arrays({k: v for k, v in stored.items() if k != "first"}, names, 4, WINDOW)
 
 
+@pytest.mark.tool
 def test_a_trained_bundle_stores_frames_and_one_that_stored_windows_still_loads(trained, tmp_path):
     root, _, _ = trained
     stored = load_file(str(root / "model" / "database.safetensors"))

@@ -126,6 +126,7 @@ def built(tmp_path_factory):
     return out, done_before, resumed.stdout
 
 
+@pytest.mark.sim
 def test_killed_build_resumes_and_the_dataset_is_valid(built):
     out, done_before, stdout = built
     assert f"({done_before} reused, {3 - done_before} simulated now, 0 rejected)" in stdout
@@ -142,6 +143,7 @@ def test_killed_build_resumes_and_the_dataset_is_valid(built):
     assert "(3 reused, 0 simulated now" in again.stdout
 
 
+@pytest.mark.sim
 def test_a_ray_build_equals_the_local_build_bit_for_bit(built, tmp_path):
     """The same sequences as Ray tasks on a local 2-CPU instance: the parts come back to the driver
     and the dataset holds exactly the local build's arrays, motions and splits."""
@@ -161,6 +163,7 @@ def test_a_ray_build_equals_the_local_build_bit_for_bit(built, tmp_path):
         assert np.array_equal(a.motion.root_translation, b.motion.root_translation)
 
 
+@pytest.mark.sim
 def test_import_round_trip_of_a_simulated_sequence(built, tmp_path):
     out, _, _ = built
     ds = GarmentDataset(out)

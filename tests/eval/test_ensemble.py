@@ -78,6 +78,7 @@ def test_ensemble_metrics_rank_a_member_and_the_blurry_mean(skirt):
     assert r_member["bending_energy_ratio"] == pytest.approx(1.0, rel=0.02) and r_mean["bending_energy_ratio"] < 0.01
 
 
+@pytest.mark.sim
 def test_members_are_perturbed_cached_and_close(tmp_path):
     from hrr_garment.data.dataset import SequenceRecord
     from hrr_garment.eval.ensemble import member_config, truth_ensembles

@@ -88,6 +88,7 @@ def _validate(path: Path) -> None:
     assert run.returncode == 0 and report["errors"] == 0, report
 
 
+@pytest.mark.client
 @pytest.mark.parametrize("tolerance", [0.0, 0.002])
 def test_glb_reloads_to_the_same_vertices_and_validates(out_h5, tmp_path, tolerance):
     from hrr_garment.export.glb import read_glb_keyframes, write_glb
@@ -115,6 +116,7 @@ def test_glb_reloads_to_the_same_vertices_and_validates(out_h5, tmp_path, tolera
     _validate(report.path)
 
 
+@pytest.mark.client
 def test_glb_without_normals_is_smaller_and_has_none(out_h5, tmp_path):
     from hrr_garment.export.glb import read_glb_normals, write_glb
 
@@ -144,6 +146,7 @@ def test_vertex_normals_of_known_shapes():
     assert np.allclose(vertex_normals(np.r_[square, [[5, 5, 5]]], faces)[4], [0, 1, 0])
 
 
+@pytest.mark.client
 def test_glb_with_body_animates_one_node_per_capsule(out_h5, tmp_path):
     import pygltflib
 

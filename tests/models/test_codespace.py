@@ -50,6 +50,7 @@ def test_decoding_only_the_last_frame_equals_the_full_window():
         assert torch.allclose(cs.decode(embedding, last_frame=True), cs.decode(embedding)[:, -1:], atol=1e-6)
 
 
+@pytest.mark.native
 @pytest.mark.parametrize("window,hidden,heads,latent", [(10, 32, 2, (6, 8)), (7, 48, 3, (5, 3)), (12, 64, 4, (9, 8))])
 @pytest.mark.parametrize("regression,last_frame,code", [(True, True, "expected"), (True, False, "expected"),
                                                         (False, True, "expected"), (True, True, "argmax")])

@@ -97,6 +97,7 @@ def test_shapes_and_normalised_pooling(hierarchy, skirt):
             assert (w[block.residual.mask == 0] == 0).all()
 
 
+@pytest.mark.native
 @pytest.mark.parametrize("native", [True, False])
 @pytest.mark.parametrize("batch", [1, 5, 19])
 def test_fast_decoder_equals_training_path(hierarchy, skirt, batch, native):
@@ -122,6 +123,7 @@ def _amx_decoder(model):
     return model.fast_decoder(precision="bfloat16")
 
 
+@pytest.mark.native
 def test_bfloat16_bits_round_as_pytorch_and_pair_rows():
     x = torch.randn(1000) * torch.logspace(-6, 6, 1000)
     x[:4] = torch.tensor([1.0 + 2 ** -8, 1.0 + 3 * 2 ** -8, -0.0, 65504.0])  # ties round to even both ways
@@ -133,6 +135,7 @@ def test_bfloat16_bits_round_as_pytorch_and_pair_rows():
     assert np.array_equal(back[:, 1, 2], m[:, 2:4, 2])  # pair row p, column n: input rows 2p and 2p + 1
 
 
+@pytest.mark.native
 @pytest.mark.parametrize("batch", [6, 19, 40])
 def test_bfloat16_decoder_stays_within_its_rounding(hierarchy, skirt, batch):
     model = _model(hierarchy, skirt, seed=3)
@@ -156,6 +159,7 @@ def _bf16(a):
     return torch.from_numpy(np.ascontiguousarray(a, np.float32)).bfloat16().double().numpy()
 
 
+@pytest.mark.native
 def test_bfloat16_block_equals_its_rounded_reference(hierarchy, skirt):
     """Each AMX block against the same block in float64 from bfloat16-rounded inputs, kernels and
     residual map: what is left is float32 summation order."""
@@ -185,6 +189,7 @@ def test_bfloat16_block_equals_its_rounded_reference(hierarchy, skirt):
         x = got.astype(np.float32)
 
 
+@pytest.mark.native
 def test_bfloat16_without_amx_is_refused_clearly(hierarchy, skirt, monkeypatch):
     model = _model(hierarchy, skirt, seed=3)
     fast = model.fast_decoder()

@@ -70,6 +70,7 @@ def test_windows_and_standardisation():
     np.testing.assert_array_equal(again.mean, stats.mean)
 
 
+@pytest.mark.native
 @pytest.mark.parametrize("kind", ["walk_curve", "spin", "dance"])
 def test_native_kinematics_and_causal_features_equal_numpy(kind, monkeypatch):
     from hrr_garment import native

@@ -14,6 +14,7 @@ def test_from_body_frame_inverts_the_body_frame(rng):
     assert np.allclose(from_body_frame(to_body_frame(points, motion), motion), points, atol=1e-9)
 
 
+@pytest.mark.native
 @pytest.mark.parametrize("native", ["1", "0"])
 def test_world_vertices_are_the_body_frame_inverse_in_float32(rng, monkeypatch, native):
     """The kernel (and its fallback) rounds what from_body_frame computes in double: within one

@@ -7,6 +7,8 @@ import pytest
 from hrr_garment.motion.frame import from_body_frame, to_body_frame
 from hrr_garment.motion.synth import synthesize
 
+pytestmark = pytest.mark.native
+
 
 def test_native_capsule_distance_equals_numpy(rng):
     from hrr_garment.body.capsules import DEFAULT_BODY, capsule_signed_distance

@@ -44,6 +44,7 @@ def simulator():
     return simulate_garment, SimConfig
 
 
+@pytest.mark.sim
 @pytest.mark.parametrize("name", GARMENT_NAMES)
 def test_every_garment_survives_walk_and_spin(simulator, name):
     simulate_garment, SimConfig = simulator
@@ -65,6 +66,7 @@ def test_every_garment_survives_walk_and_spin(simulator, name):
         assert np.abs(result.vertices[:, garment.attached] - pinned).max() < 0.05
 
 
+@pytest.mark.sim
 def test_explosion_is_detected_retried_and_reported(simulator):
     simulate_garment, SimConfig = simulator
     from hrr_garment.sim.simulator import SimulationExploded
@@ -91,6 +93,7 @@ def _arms_in_the_hips(frames: int = 15, away: int = 0):
     return Motion(local, np.tile([0.0, REST_PELVIS_HEIGHT, 0.0], (frames, 1)))
 
 
+@pytest.mark.sim
 def test_limbs_through_the_body_get_last_tries_with_the_arms_off_the_cloth(simulator):
     simulate_garment, SimConfig = simulator
     from hrr_garment.body.capsules import DEFAULT_BODY

@@ -1,5 +1,8 @@
 """The benchmark tools (tools/bench_*.py): their reports keep the keys they promise."""
 
+import pytest
+
+pytestmark = pytest.mark.tool
 
 
 def test_bench_inference_reports_every_key(capsys):
