@@ -97,6 +97,7 @@ def test_mirrored_sequences_join_their_source_split():
     assert mirrored.info["mirror_of"] == "a"
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("sequences,motions,missing", [({"walk": 3, "spin": 1, "run": 1}, None, []),
                                                        ({"walk": 4, "spin": 2, "run": 1}, None, ["spin_001", "walk_003"]),
                                                        ({"walk": 4, "spin": 2, "run": 1}, ["walk", "spin"], [])])

@@ -49,6 +49,7 @@ def test_template_sits_outside_the_body_with_outward_normals(garments, name):
     assert outward.mean() > 0.97  # pleats fold a few faces back
 
 
+@pytest.mark.slow
 def test_resolution_scales_and_dress_has_straps():
     small, large = make_garment("dress", 300), make_garment("dress", 4000)
     assert large.num_vertices > 10 * small.num_vertices
@@ -154,7 +155,8 @@ def test_mirror_map_finds_left_right_symmetry(name, symmetric):
         assert np.array_equal(perm[perm], np.arange(g.num_vertices))  # mirroring twice is the identity
 
 
-@pytest.mark.parametrize("vertices", [300, 400, 1000, 4000, 12000])
+@pytest.mark.parametrize("vertices", [300, 400, 1000, pytest.param(4000, marks=pytest.mark.slow),
+                                      pytest.param(12000, marks=pytest.mark.slow)])  # seconds each
 def test_dress_straps_pass_over_the_shoulders_not_the_head(vertices):
     """At 400 and 4,000 vertices the straps once looped over the head (1.68 m high)."""
     from hrr_garment.body.capsules import DEFAULT_BODY

@@ -230,6 +230,7 @@ def overfit(hierarchy, skirt):
     return model.eval(), x
 
 
+@pytest.mark.slow
 def test_tiny_model_overfits_to_half_a_millimetre(overfit):
     model, x = overfit
     with torch.no_grad():
@@ -237,6 +238,7 @@ def test_tiny_model_overfits_to_half_a_millimetre(overfit):
     assert err.max() < 0.0005, f"per-vertex error {err.tolist()} m"
 
 
+@pytest.mark.slow
 def test_latent_interpolation_has_no_spikes(overfit, skirt):
     model, x = overfit
     edges = skirt.edges()
@@ -248,6 +250,7 @@ def test_latent_interpolation_has_no_spikes(overfit, skirt):
     assert edge_strain(mids, skirt.vertices, edges).max() <= bound
 
 
+@pytest.mark.slow
 def test_fitted_latents_beat_the_encoder_and_ignore_batching(overfit, skirt):
     model, x = overfit
     rest = torch.as_tensor(skirt.vertices, dtype=torch.float32)
@@ -265,6 +268,7 @@ def test_fitted_latents_beat_the_encoder_and_ignore_batching(overfit, skirt):
     assert torch.allclose(one_by_one, fitted, atol=1e-3)  # a frame's latent does not depend on its batch (up to rounding)
 
 
+@pytest.mark.slow
 def test_training_resumes_and_encodes_every_sequence(tmp_path, skirt, monkeypatch):
     from hrr_garment.data.dataset import SequenceRecord, write_dataset
     from hrr_garment.motion.synth import synthesize
@@ -373,6 +377,7 @@ def test_training_device_is_checked_before_anything_is_written(tmp_path):
         assert not (tmp_path / "ae").exists()
 
 
+@pytest.mark.slow
 def test_mirrored_datasets_are_not_mirrored_again_and_epochs_are_bounded(tmp_path, skirt, monkeypatch):
     from hrr_garment.data.dataset import GarmentDataset, SequenceRecord, write_dataset
     from hrr_garment.motion.synth import synthesize

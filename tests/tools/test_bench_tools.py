@@ -5,6 +5,7 @@ import pytest
 pytestmark = pytest.mark.tool
 
 
+@pytest.mark.slow
 def test_bench_inference_reports_every_key(capsys):
     """The benchmark's JSON keeps the keys the issue names (speeds are measured there, not here)."""
     import importlib.util
