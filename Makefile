@@ -1,4 +1,4 @@
-# Two entry points: `make demo` and `make test` (the layer contract, ruff, then pytest). Each creates .venv when missing and installs
+# Two entry points: `make demo` and `make test` (the layer contract, ruff, then every test). Each creates .venv when missing and installs
 # what it needs; a stamp file keeps repeated runs fast until pyproject.toml changes.
 PYTHON ?= python3
 VENV ?= .venv
@@ -10,7 +10,7 @@ GLTF_VALIDATOR ?= gltf-validator@2.0.0-dev.3.10
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.hrr-installed
 
-.PHONY: install demo test clean
+.PHONY: install demo test test-fast test-slow clean
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -33,6 +33,17 @@ test: install
 	$(BIN)/lint-imports
 	$(BIN)/ruff check .
 	$(BIN)/python -m pytest -q
+
+# The quick loop (docs/testing.md): no lint, and none of the tests that train a model or run the
+# cloth simulator (pyproject's markers); about a minute. PYTEST_ARGS adds options, e.g. -x or tests/motion.
+FAST_MARKERS ?= not slow and not sim
+PYTEST_ARGS ?=
+test-fast: install
+	$(BIN)/python -m pytest -q -m "$(FAST_MARKERS)" $(PYTEST_ARGS)
+
+# what test-fast leaves out: the tests that train or simulate
+test-slow: install
+	$(BIN)/python -m pytest -q -m "not ($(FAST_MARKERS))" $(PYTEST_ARGS)
 
 clean:
 	rm -rf $(VENV) hrr_work .pytest_cache

@@ -9,6 +9,21 @@ from hrr_garment.paths import find_mocap_dir
 
 CMU_CLIPS = ("02_01", "131_01", "131_03")
 
+# The tiers (pyproject's markers, docs/testing.md): a test that uses one of these session fixtures,
+# directly or through another fixture, is marked by what the fixture does the first time it runs
+SLOW_FIXTURES = {"trained", "paper_model", "artist_model"}  # train a tiny model: tens of seconds and more
+SIM_FIXTURES = {"artist_model"}  # runs hrr-simulate (newton/Warp)
+
+
+def pytest_collection_modifyitems(config, items):
+    """Mark the tests that use the training and simulating fixtures ``slow`` and ``sim``."""
+    for item in items:
+        used = set(getattr(item, "fixturenames", ()))
+        if used & SLOW_FIXTURES:
+            item.add_marker(pytest.mark.slow)
+        if used & SIM_FIXTURES:
+            item.add_marker(pytest.mark.sim)
+
 
 @pytest.fixture(scope="session")
 def mocap_dir() -> Path:

@@ -1,0 +1,56 @@
+"""Files written by an older hrr_garment (commit 31b4ef9: bundle.json and out.h5 format 2) load,
+upgrade in one place, and animate to the same vertices (tests/data/README.md)."""
+
+import json
+import shutil
+from pathlib import Path
+
+import numpy as np
+
+from hrr_garment import Animator, synthesize
+from hrr_garment.artifacts.bundle_writer import update_bundle_meta
+from hrr_garment.artifacts.manifest import FORMAT_VERSION
+from hrr_garment.data.animation_file import read_animation_h5
+
+DATA = Path(__file__).parents[1] / "data"
+
+
+def _walk():
+    return synthesize("walk", seconds=2, seed=3)
+
+
+def test_a_version_2_bundle_loads_and_animates_as_31b4ef9_did(tmp_path):
+    folder = shutil.copytree(DATA / "bundle-31b4ef9", tmp_path / "model")
+    animator = Animator.load(folder)
+    meta = animator.bundle.meta
+    assert json.loads((folder / "bundle.json").read_text())["format_version"] == 2
+    assert meta["format_version"] == FORMAT_VERSION == 3  # upgraded in memory, the file untouched
+    assert meta["gate"] in ("entropy", "similarity", "distance") and isinstance(meta["gates"], dict)
+    assert {"memory_seconds", "resonator_hz", "regression_code"} <= set(meta["codespace"]["config"])
+    written = read_animation_h5(DATA / "out-31b4ef9" / "auto.h5")
+    anim = animator.animate(_walk())
+    assert anim.settings["mode"] == written.attrs["mode"] == "detail"
+    assert np.abs(anim.vertices - written.vertices).max() <= 1e-6
+    causal = read_animation_h5(DATA / "out-31b4ef9" / "residual-causal.h5")
+    again = animator.animate(_walk(), mode="residual", causal=True)
+    assert np.abs(again.vertices - causal.vertices).max() <= 1e-6
+    assert np.array_equal(again.match, causal.match) and (again.match >= 0).all()
+
+
+def test_a_version_2_out_h5_reads_with_the_version_3_names():
+    residual = read_animation_h5(DATA / "out-31b4ef9" / "residual-causal.h5")
+    assert residual.attrs["format_version"] == 3
+    # version 2 marked every residual frame as retrieved; version 3 records its match only
+    assert not residual.retrieved.any() and (residual.match >= 0).all()
+    auto = read_animation_h5(DATA / "out-31b4ef9" / "auto.h5")
+    assert auto.retrieved.dtype == np.uint8 and auto.match.shape == (auto.num_frames, 2)
+
+
+def test_writing_into_a_version_2_bundle_upgrades_its_manifest(tmp_path):
+    folder = shutil.copytree(DATA / "bundle-31b4ef9", tmp_path / "model")
+    before = Animator.load(folder).animate(_walk(), mode="hybrid", collision=False).vertices
+    update_bundle_meta(folder, {})
+    on_disk = json.loads((folder / "bundle.json").read_text())
+    assert on_disk["format_version"] == 3 and "gates" in on_disk and "detail_strength" in on_disk["auto"]
+    after = Animator.load(folder).animate(_walk(), mode="hybrid", collision=False).vertices
+    assert np.array_equal(before, after)

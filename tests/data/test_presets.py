@@ -1,0 +1,129 @@
+"""Presets that name motion files: globs, folders, archives, clip groups held out whole, mirroring."""
+
+import tarfile
+
+import numpy as np
+import pytest
+
+from hrr_garment.data.dataset import split_groups
+from hrr_garment.errors import InputError
+from hrr_garment.motion.io import save_motion
+from hrr_garment.motion.skeleton import MIRROR_JOINTS
+from hrr_garment.motion.synth import synthesize
+from hrr_garment.sim.plan import build_options, load_preset, plan_sequences
+from hrr_garment.sim.sources import clip_group, resolve_motion_entries
+
+
+@pytest.fixture
+def library(tmp_path, monkeypatch):
+    """A folder of Bandai-style clip names, the same clips in a .tar.xz, and a preset beside them."""
+    monkeypatch.setenv("HRR_HOME", str(tmp_path / "work"))
+    clips = tmp_path / "lib" / "clips"
+    clips.mkdir(parents=True)
+    for i, (content, style) in enumerate([("walk", "proud"), ("walk", "sad"), ("run", "proud"), ("bow", "sad"),
+                                          ("bow", "old"), ("run", "old")]):
+        save_motion(synthesize("walk", 1.0, seed=i), clips / f"dataset-1_{content}_{style}_{i:03d}.npz")
+    with tarfile.open(tmp_path / "lib" / "clips.tar.xz", "w:xz") as tar:
+        tar.add(clips, arcname="pack")
+    return tmp_path / "lib"
+
+
+def test_entries_resolve_globs_folders_and_archives(library, tmp_path):
+    by_glob = resolve_motion_entries(["clips/*walk*.npz"], base=library)
+    assert [p.name for p in by_glob] == ["dataset-1_walk_proud_000.npz", "dataset-1_walk_sad_001.npz"]
+    by_folder = resolve_motion_entries([str(library / "clips")])
+    assert len(by_folder) == 6
+    by_archive = resolve_motion_entries(["clips.tar.xz"], base=library)
+    assert [p.name for p in by_archive] == [p.name for p in by_folder]
+    unpacked = by_archive[0].parents[1]
+    assert unpacked.is_relative_to(tmp_path / "work" / "mocap")  # into the workspace, not beside the archive
+    again = resolve_motion_entries(["clips.tar.xz"], base=library)  # unpacked once, read from there after
+    assert again == by_archive
+    with pytest.raises(InputError, match="names no file"):
+        resolve_motion_entries(["clips/*.bvh"], base=library)
+
+
+def test_groups_are_held_out_whole(library, tmp_path):
+    preset_file = library / "lib.yaml"
+    preset_file.write_text("name: lib\nvertices: 300\nseconds: 1.0\nsequences: {}\nmotions: [clips.tar.xz]\n"
+                           "split_by: style\nsplits: {val: 0.2, test: 0.3}\nspeed_warps: [1.25]\n")
+    preset = load_preset(str(preset_file))
+    specs = plan_sequences(preset)
+    assert len(specs) == 12 and sum(s.speed == 1.25 for s in specs) == 6
+    fast = next(s for s in specs if s.speed == 1.25)
+    assert fast.stop - fast.start == 24  # 30 frames played 1.25 times faster
+    options = build_options(preset, specs)
+    groups = options["groups"]
+    assert set(groups.values()) == {"style=proud", "style=sad", "style=old"}
+    assert options["info"]["split_by"] == "style"
+    split = split_groups(groups, 0.2, 0.3, seed=0)
+    assert sorted(sum(split.values(), [])) == sorted(groups)
+    held = {s: {groups[n] for n in names} for s, names in split.items()}
+    assert all(held[a].isdisjoint(held[b]) for a in held for b in held if a != b)  # no style in two splits
+    assert held["test"] and held["val"] and held["train"]
+
+
+def test_clip_group_falls_back_to_the_name():
+    assert clip_group("dataset-2_wave-left-hand_elderly_003", "style") == "style=elderly"
+    assert clip_group("dataset-2_wave-left-hand_elderly_003", "content") == "content=wave-left-hand"
+    assert clip_group("02_01", "style") == "02_01"
+
+
+def test_mirrored_motion_mirrors_every_joint():
+    motion = synthesize("dance", 1.5, seed=2)
+    mirrored = motion.mirrored()
+    flip = np.array([-1.0, 1.0, 1.0])
+    np.testing.assert_allclose(mirrored.joint_positions, motion.joint_positions[:, list(MIRROR_JOINTS)] * flip, atol=1e-5)
+    np.testing.assert_allclose(mirrored.mirrored().local_rotations, motion.local_rotations, atol=1e-6)
+
+
+def test_mirrored_sequences_join_their_source_split():
+    from hrr_garment.data.dataset import SequenceRecord
+    from hrr_garment.garment.mesh import mirror_map
+    from hrr_garment.garment.templates import make_garment
+    from hrr_garment.sim.build import _add_mirrored
+
+    garment = make_garment("dress", 300)
+    perm = mirror_map(garment.vertices)
+    assert perm is not None
+    motion = synthesize("walk", 1.0, seed=0)
+    frames = garment.vertices[None] + np.random.default_rng(0).normal(0, 0.01, (motion.num_frames, garment.num_vertices, 3))
+    records = [SequenceRecord("a", frames.astype(np.float32), motion), SequenceRecord("b", frames.astype(np.float32), motion)]
+    out, split = _add_mirrored(records, {"train": ["a"], "test": ["b"], "val": []}, garment, progress=False)
+    assert split == {"train": ["a", "a_mirror"], "test": ["b", "b_mirror"], "val": []}
+    mirrored = next(r for r in out if r.name == "a_mirror")
+    # Reflecting twice gives the frames back; each vertex lands where its mirror partner was.
+    np.testing.assert_allclose(mirrored.garment[:, perm] * [-1, 1, 1], frames, atol=1e-6)
+    assert mirrored.info["mirror_of"] == "a"
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("sequences,motions,missing", [({"walk": 3, "spin": 1, "run": 1}, None, []),
+                                                       ({"walk": 4, "spin": 2, "run": 1}, None, ["spin_001", "walk_003"]),
+                                                       ({"walk": 4, "spin": 2, "run": 1}, ["walk", "spin"], [])])
+def test_hrr_train_simulates_what_a_grown_preset_adds(tmp_path, monkeypatch, sequences, motions, missing):
+    """A workspace's dataset made with an earlier, smaller version of a preset: hrr-train simulates
+    the sequences it lacks (build_dataset reuses the finished ones) instead of training on it; a
+    dataset of the user's own clips (hrr-simulate --motions) is left as it is."""
+    import json
+
+    import h5py
+    import yaml
+
+    import hrr_garment.cli.train as train_cli
+    from hrr_garment.garment.templates import make_garment
+    from tests.conftest import synthetic_dataset
+
+    monkeypatch.setenv("HRR_HOME", str(tmp_path))
+    (tmp_path / "datasets").mkdir()
+    dataset = synthetic_dataset(tmp_path / "datasets" / "skirt-grown.h5", make_garment("skirt", 300))  # run, spin, walk x 3
+    with h5py.File(dataset, "a") as f:  # as hrr-simulate records what it simulated
+        f.attrs["info"] = json.dumps({"preset": "grown", "motions": motions})
+    preset = tmp_path / "grown.yaml"
+    preset.write_text(yaml.safe_dump({"name": "grown", "vertices": 300, "seconds": 2.0, "sequences": sequences}))
+    calls = []
+    monkeypatch.setattr(train_cli, "_simulate", lambda garment, p, out, quiet: calls.append((garment, p.name, out)))
+    assert sorted(train_cli._missing_sequences(dataset, load_preset(str(preset)))) == missing
+    assert train_cli.main(["--garment", "skirt", "--preset", str(preset), "--stage", "simulate", "--quiet"]) == 0
+    assert calls == ([("skirt", "grown", dataset)] if missing else [])
+    assert train_cli._missing_sequences(tmp_path / "nothing.h5", load_preset(str(preset))) == []

@@ -1,0 +1,65 @@
+"""Push-out (hrr_garment.inference.collision): vertices leave the body without spikes, and a push
+that would tear the cloth is undone."""
+
+import numpy as np
+
+from hrr_garment.motion.frame import from_body_frame, to_body_frame
+from hrr_garment.motion.synth import synthesize
+
+
+def test_push_out_moves_vertices_outside_without_spikes():
+    from hrr_garment.body.capsules import DEFAULT_BODY, capsule_signed_distance
+    from hrr_garment.garment.templates import make_garment
+    from hrr_garment.inference.collision import push_out
+    from hrr_garment.sim.quality import edge_strain
+
+    skirt = make_garment("skirt", 300)
+    motion = synthesize("idle", 0.2, seed=0)
+    rest = from_body_frame(to_body_frame(np.repeat(skirt.vertices[None], motion.num_frames, 0).astype(np.float64), motion), motion)
+    squeezed = rest.copy()
+    centre = np.array([0.0, 0.0, 0.0])
+    centre[[0, 2]] = rest[0, :, [0, 2]].mean(1)
+    squeezed[..., [0, 2]] = centre[[0, 2]] + 0.85 * (rest[..., [0, 2]] - centre[[0, 2]])  # 15 % narrower: into the hips
+    pushed, report = push_out(squeezed.astype(np.float32), motion, skirt.faces)
+    assert report.inside_before > 0.05 and report.inside_after == 0.0
+    a, b = DEFAULT_BODY.pose_motion(motion)
+    d, _, _ = capsule_signed_distance(pushed[0].astype(np.float64), a[0], b[0], DEFAULT_BODY.radii)
+    assert d.min() > -1e-6
+    edges = skirt.edges()
+    # no spikes: edges end at most 35 % longer than in the unsqueezed skirt
+    assert edge_strain(pushed, skirt.vertices, edges).max() <= edge_strain(rest, skirt.vertices, edges).max() + 0.35
+    # the push spreads over the 4 rings around the vertices it needs to move, and nowhere else
+    from hrr_garment.garment.smoothing import mean_operator
+
+    near = capsule_signed_distance(squeezed[0].astype(np.float64), a[0], b[0], DEFAULT_BODY.radii)[0] < 0.002
+    adjacency, ring = mean_operator(skirt.faces, len(skirt.vertices)), near.copy()
+    for _ in range(4):
+        ring |= (adjacency @ ring.astype(np.float64)) > 0
+    moved = np.abs(pushed[0] - squeezed[0].astype(np.float32)).max(1) > 0
+    assert moved[~near].any() and not moved[~ring].any()
+
+
+def test_a_push_that_would_tear_the_cloth_is_undone_as_far_as_it_tears():
+    from hrr_garment.garment.templates import make_garment
+    from hrr_garment.inference.collision import MAX_PUSH_STRAIN, EdgeLimits, limit_push_strain
+    from hrr_garment.sim.quality import edge_strain
+
+    skirt = make_garment("skirt", 300)
+    edges = skirt.edges()
+    rng = np.random.default_rng(5)
+    unpushed = np.repeat(skirt.vertices[None], 3, 0).astype(np.float32)
+    unpushed[2] *= np.float32(1.3)  # a frame the decoder stretched 1.3 x everywhere: not the push's doing
+    pushed = unpushed.copy()
+    moved = rng.choice(skirt.num_vertices, 4, replace=False)
+    pushed[1, moved] += np.float32([0.0, 0.0, 0.3])  # four vertices shoved 30 cm across a limb
+    pushed[2, moved] += np.float32([0.0, 0.0, 0.002])  # a gentle push on the stretched frame
+    limited, torn = limit_push_strain(pushed, unpushed, EdgeLimits.of(skirt.faces, skirt.vertices))
+    assert torn.tolist() == [False, True, False]
+    assert edge_strain(pushed[1:2], skirt.vertices, edges).max() > 5
+    assert edge_strain(limited[1:2], skirt.vertices, edges).max() < MAX_PUSH_STRAIN * 1.1
+    assert np.array_equal(limited[0], pushed[0]) and np.array_equal(limited[2], pushed[2])  # nothing to undo
+    # only the torn neighbourhood moves: most of the skirt keeps its position exactly, and what lies
+    # 15 cm or more from the shoved vertices moves by millimetres at most
+    change = np.linalg.norm(limited[1] - pushed[1], axis=-1)
+    far = np.linalg.norm(skirt.vertices[:, None] - skirt.vertices[moved][None], axis=-1).min(1) > 0.15
+    assert (change == 0).mean() > 0.5 and change[far].max() < 0.005

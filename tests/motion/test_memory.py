@@ -1,0 +1,146 @@
+"""The motion memory (hrr_garment.motion.memory): the averages and resonators it claims (against
+the long hand in the world and a pendulum's known response), its invariances, and the
+one-frame-at-a-time recursion equal to the clip's closed form."""
+
+import numpy as np
+import pytest
+
+from hrr_garment import motion_features, synthesize
+from hrr_garment.motion.features import FEATURE_DIM
+from hrr_garment.motion.memory import (
+    MEMORY_WIDTH,
+    MemorySpec,
+    MotionMemory,
+    check_memory_seconds,
+    feature_width,
+    resonator_step,
+    with_memory,
+)
+from hrr_garment.motion.rotations import rotation_about_y, yaw_of
+from hrr_garment.motion.skeleton import FEATURE_JOINTS
+from tests.motion.test_features import transformed
+
+RESONATING = MemorySpec((0.5, 1.5), (0.6, 1.0, 1.6), 0.3)
+
+
+def world_velocities(motion) -> np.ndarray:
+    """(T, 21, 3) world velocities of the feature joints and the root, as the offline features
+    difference them, and (T, 3, 3) each frame's heading."""
+    p = motion.joint_positions[:, [*FEATURE_JOINTS, 0]].astype(np.float64)
+    v = np.empty_like(p)
+    v[1:] = (p[1:] - p[:-1]) * motion.fps
+    v[0] = v[1]  # the offline features' first difference at frame 0
+    return v, rotation_about_y(yaw_of(motion.global_rotations[:, 0]))
+
+
+def world_average(motion, seconds: float) -> np.ndarray:
+    """The memory's 3-vector columns computed the long way: world velocities of the feature joints
+    and the root, exponentially averaged in the world, turned into each frame's body frame."""
+    v, heading = world_velocities(motion)
+    a = np.exp(-1.0 / (motion.fps * seconds))
+    avg, out = v[0], []
+    for t in range(len(v)):
+        avg = avg if t == 0 else a * avg + (1 - a) * v[t]
+        out.append(avg @ heading[t])  # world -> body frame (heading^T applied to row vectors)
+    return np.array(out).reshape(len(v), -1)
+
+
+def world_resonator(motion, hz: float, damping: float) -> tuple[np.ndarray, np.ndarray]:
+    """A resonator's 3-vector columns (w x and q) the long way: pendulums hung from the world
+    velocities, stepped in the world from rest, turned into each frame's body frame."""
+    v, heading = world_velocities(motion)
+    a, b = resonator_step(hz, damping, motion.fps)
+    x, q, out = np.zeros_like(v[0]), v[0], []
+    for t in range(len(v)):
+        if t:
+            x, q = a[0, 0] * x + a[0, 1] * q + b[0] * v[t], a[1, 0] * x + a[1, 1] * q + b[1] * v[t]
+        out.append((2 * np.pi * hz * x @ heading[t], q @ heading[t]))
+    return tuple(np.array([o[i] for o in out]).reshape(len(v), -1) for i in range(2))
+
+
+@pytest.mark.parametrize("kind", ["walk_curve", "spin", "turn_in_place"])
+def test_memory_is_the_world_velocity_average_seen_from_the_body(kind):
+    motion = synthesize(kind, seconds=3.0, seed=3)
+    got = with_memory(motion_features(motion), motion.fps, (0.5, 1.5))
+    assert got.shape == (motion.num_frames, FEATURE_DIM + 2 * MEMORY_WIDTH) == (motion.num_frames, feature_width((0.5, 1.5)))
+    for i, seconds in enumerate((0.5, 1.5)):
+        cols = slice(FEATURE_DIM + i * MEMORY_WIDTH, FEATURE_DIM + (i + 1) * MEMORY_WIDTH - 1)
+        want = world_average(motion, seconds)
+        assert np.abs(got[:, cols] - want).max() <= 1e-4 * max(1.0, np.abs(want).max())
+
+
+@pytest.mark.parametrize("kind", ["walk_curve", "spin"])
+def test_resonators_are_world_pendulums_seen_from_the_body(kind):
+    motion = synthesize(kind, seconds=3.0, seed=3)
+    got = with_memory(motion_features(motion), motion.fps, RESONATING)
+    assert got.shape == (motion.num_frames, feature_width(RESONATING)) == (motion.num_frames, FEATURE_DIM + 8 * MEMORY_WIDTH)
+    for i, hz in enumerate(RESONATING.resonator_hz):
+        for j, want in enumerate(world_resonator(motion, hz, RESONATING.damping)):
+            row = 2 + 2 * i + j  # after the two averages: w x, then q, per resonator
+            cols = slice(FEATURE_DIM + row * MEMORY_WIDTH, FEATURE_DIM + (row + 1) * MEMORY_WIDTH - 1)
+            assert np.abs(got[:, cols] - want).max() <= 1e-4 * max(1.0, np.abs(want).max())
+
+
+@pytest.mark.parametrize("drive_hz", [0.5, 1.0, 2.0])
+def test_a_resonator_answers_a_swaying_body_as_a_damped_pendulum(drive_hz):
+    """A body swaying sideways, u = sin(2 pi f t), drives the bob to the steady amplitude of
+    x'' + 2 zeta w x' + w^2 x = -u': |w x| = w s / |w^2 - s^2 + 2i zeta w s| with s = 2 pi f."""
+    fps, hz, damping = 30.0, 1.0, 0.3
+    t = np.arange(int(12 * fps)) / fps
+    f = np.zeros((len(t), FEATURE_DIM), np.float32)
+    f[:, 120] = np.sin(2 * np.pi * drive_hz * t)  # the root's sideways velocity; no turning
+    got = with_memory(f, fps, MemorySpec((), (hz,), damping))
+    w, s = 2 * np.pi * hz, 2 * np.pi * drive_hz
+    settled = got[len(t) // 2:, FEATURE_DIM + 60]  # w x of the root's sideways velocity, after 6 s
+    want = w * s / abs(w * w - s * s + 2j * damping * w * s)
+    assert abs(settled.max() - want) <= 0.03 * want
+
+
+def test_memory_of_a_steady_motion_is_its_velocity_and_the_yaw_rate_average_is_plain():
+    motion = synthesize("turn_in_place", seconds=3.0, seed=0, turn_rate=60.0)
+    f = motion_features(motion)
+    got = with_memory(f, motion.fps, (0.25,))
+    a = np.exp(-1.0 / (motion.fps * 0.25))
+    want = [f[0, -1]]
+    for w in f[1:, -1]:
+        want.append(a * want[-1] + (1 - a) * w)
+    np.testing.assert_allclose(got[:, -1], want, rtol=1e-5, atol=1e-6)
+
+
+@pytest.mark.parametrize("kind", ["walk_curve", "dance"])
+@pytest.mark.parametrize("memory", [(0.5, 1.5), RESONATING])
+def test_memory_is_invariant_to_translation_and_vertical_rotation(kind, memory):
+    motion = synthesize(kind, seconds=2.0, seed=7)
+    base = with_memory(motion_features(motion), motion.fps, memory)
+    for yaw, shift in ((2.5, [0.0, 0.0, 0.0]), (-1.1, [-12.0, 0.0, 40.0])):
+        moved = transformed(motion, yaw, shift)
+        assert np.abs(with_memory(motion_features(moved), moved.fps, memory) - base).max() <= 1e-4 * max(1.0, np.abs(base).max())
+
+
+@pytest.mark.parametrize("spec", [(0.5, 1.5), RESONATING])
+def test_stepping_frame_by_frame_equals_the_clip_and_characters_are_independent(spec):
+    clips = [motion_features(synthesize(kind, seconds=2.0, seed=5)) for kind in ("walk_curve", "spin")]
+    fps = 30.0
+    memory = MotionMemory(spec, fps)
+    state = memory.start(np.stack([c[0] for c in clips]))
+    rows = [memory.values(state)]
+    for t in range(1, len(clips[0])):
+        state = memory.step(state, np.stack([c[t] for c in clips]))
+        rows.append(memory.values(state))
+    stepped = np.stack(rows, 1)  # (2 characters, T, 64 rows)
+    for i, clip in enumerate(clips):
+        want = with_memory(clip, fps, spec)[:, FEATURE_DIM:]
+        assert np.abs(stepped[i] - want).max() <= 1e-5 * max(1.0, np.abs(want).max())
+
+
+def test_no_time_constants_leaves_the_features_and_bad_ones_are_refused():
+    f = motion_features(synthesize("walk", seconds=1.0, seed=0))
+    assert with_memory(f, 30.0, ()) is f and feature_width(()) == FEATURE_DIM
+    for bad in ((0.0,), (-1.0,), (float("nan"),)):
+        with pytest.raises(ValueError, match="positive seconds"):
+            check_memory_seconds(bad)
+        with pytest.raises(ValueError, match="resonator frequencies must be positive hertz"):
+            MemorySpec((0.5,), bad)
+    for damping in (0.0, 1.0, 2.0, float("nan")):
+        with pytest.raises(ValueError, match="damping"):
+            MemorySpec((), (1.0,), damping)

@@ -1,0 +1,31 @@
+"""The benchmark tools (tools/bench_*.py): their reports keep the keys they promise."""
+
+import pytest
+
+pytestmark = pytest.mark.tool
+
+
+@pytest.mark.slow
+def test_bench_inference_reports_every_key(capsys):
+    """The benchmark's JSON keeps the keys the issue names (speeds are measured there, not here)."""
+    import importlib.util
+    import json
+    import sys
+    from pathlib import Path
+
+    path = Path(__file__).parents[2] / "tools" / "bench_inference.py"
+    spec = importlib.util.spec_from_file_location("bench_inference", path)
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+    argv = sys.argv
+    sys.argv = [str(path), "--vertices", "300", "--database", "300", "--seconds", "1.5", "--pace", "60", "--json"]
+    try:
+        bench.main()
+    finally:
+        sys.argv = argv
+    report = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    for key in ("vertices", "fps_hybrid", "fps_regression", "fps_retrieval", "fps_detail", "stream_p50_ms", "stream_p99_ms",
+                "stream_paced_p50_ms", "stream_paced_p99_ms", "peak_rss_mb"):
+        assert report[key] > 0, key
+    assert report["stream_p50_ms"] <= report["stream_p99_ms"]
+    assert set(report["stream_stage_p50_ms"]) == {"features", "encoder", "decoder", "world", "push_out"}
