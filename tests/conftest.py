@@ -62,16 +62,30 @@ codespace:
 """
 
 
+def train_tiny(data: Path, folder: Path, config: Path, stages: tuple[str, ...] | None = None,
+               overrides: dict | None = None):
+    """Train through the library (:func:`hrr_garment.pipeline.train.train_model`) as ``hrr-train
+    --dataset DATA --config CONFIG -o FOLDER`` does: the quick preset's settings under the config's."""
+    from hrr_garment.pipeline.train import STAGES, TrainSettings, train_model
+    from hrr_garment.sim.plan import load_preset
+
+    preset = load_preset("quick")
+    settings = TrainSettings.load(preset, config, overrides)
+    return train_model(data, folder, settings, stages=stages or STAGES, preset=preset, progress=False)
+
+
 @pytest.fixture(scope="session")
 def trained(tmp_path_factory):
-    from hrr_garment.cli.train import main as train_main
+    """A tiny skirt model trained on the simulator-free dataset: (root, dataset, the hrr-train
+    arguments that train the same, for the tests of the command line)."""
     from hrr_garment.garment.templates import make_garment
 
     root = tmp_path_factory.mktemp("codespace")
     data = synthetic_dataset(root / "skirt.h5", make_garment("skirt", 300))
     (root / "cfg.yaml").write_text(TINY_TRAINING)
+    result = train_tiny(data, root / "model", root / "cfg.yaml")
+    assert set(result.reports) == {"autoencoder", "codespace"} and result.auto["mode"] in ("hybrid", "residual", "detail")
     args = ["--dataset", str(data), "--config", str(root / "cfg.yaml"), "-o", str(root / "model"), "--quiet"]
-    assert train_main(args) == 0
     return root, data, args
 
 
@@ -80,12 +94,10 @@ def current_copy(trained, folder: Path) -> tuple[Path, list[str]]:
     codespace`` re-run (other tests train the shared model on), and that re-run's arguments."""
     import shutil
 
-    from hrr_garment.cli.train import main as train_main
-
     root, data, args = trained
     shutil.copytree(root / "model", folder)
     stage = ["--dataset", str(data), "--config", args[3], "--stage", "codespace", "-o", str(folder), "--quiet"]
-    assert train_main(stage) == 0
+    train_tiny(data, folder, Path(args[3]), stages=("codespace",))
     return folder, stage
 
 
@@ -108,7 +120,6 @@ def artist_model(tmp_path_factory):
     import io
 
     from hrr_garment.cli.simulate import main as simulate_main
-    from hrr_garment.cli.train import main as train_main
     from hrr_garment.garment.obj import write_obj
     from hrr_garment.garment.templates import make_garment
 
@@ -124,7 +135,7 @@ def artist_model(tmp_path_factory):
     # as bundles written before the motion memory and the expected-code regression
     (root / "cfg.yaml").write_text(TINY_TRAINING.replace("attention_heads: 2}", "attention_heads: 2, memory_seconds: [], resonator_hz: [], "
                                                                                 "regression_code: argmax}"))
-    assert train_main(["--dataset", str(data), "--config", str(root / "cfg.yaml"), "-o", str(root / "model"), "--quiet"]) == 0
+    train_tiny(data, root / "model", root / "cfg.yaml")
     return data, root / "model", printed.getvalue()
 
 
@@ -134,11 +145,9 @@ def paper_model(trained, tmp_path_factory):
     windows): the model folder."""
     import shutil
 
-    from hrr_garment.cli.train import main as train_main
-
     root, data, _ = trained
     folder = tmp_path_factory.mktemp("paper") / "model"
     shutil.copytree(root / "model" / "autoencoder", folder / "autoencoder")
-    assert train_main(["--dataset", str(data), "--config", str(root / "cfg.yaml"), "-o", str(folder),
-                       "--stage", "codespace", "--validation", "windows", "--quiet"]) == 0
+    train_tiny(data, folder, root / "cfg.yaml", stages=("codespace",),
+               overrides={"codespace": {"train": {"validation": "windows"}}})
     return folder
