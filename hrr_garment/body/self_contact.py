@@ -22,9 +22,9 @@ from .capsules import DEFAULT_BODY, BodyModel
 
 TORSO = ("hips", "belly", "chest", "upper_chest")
 UPPER_ARM = ("upper_arm",)
-ARM_PARTS = ("forearm", "hand")
+LOWER_ARM = ("forearm", "hand")
 LEG_PARTS = ("thigh", "shin")
-LIMB_PARTS = UPPER_ARM + ARM_PARTS + LEG_PARTS  # every limb the flags look at
+LIMB_PARTS = UPPER_ARM + LOWER_ARM + LEG_PARTS  # every limb the flags look at
 AXIS_SAMPLES = 5  # points along each limb's axis
 
 
@@ -38,7 +38,7 @@ def _pairs(body: BodyModel, parts: tuple[str, ...]) -> list[tuple[int, list[int]
         targets = [index[n] for n in (*TORSO, f"{side}_thigh", f"{other}_thigh") if n in index]
         torso = [index[n] for n in TORSO if n in index]
         pairs += [(index[f"{side}_{p}"], torso, 0.25) for p in UPPER_ARM if f"{side}_{p}" in index and p in parts]
-        pairs += [(index[f"{side}_{p}"], targets, 0.0) for p in ARM_PARTS if f"{side}_{p}" in index and p in parts]
+        pairs += [(index[f"{side}_{p}"], targets, 0.0) for p in LOWER_ARM if f"{side}_{p}" in index and p in parts]
         legs = [index[f"{other}_{p}"] for p in LEG_PARTS if f"{other}_{p}" in index]
         pairs += [(index[f"{side}_{p}"], legs, 0.0) for p in LEG_PARTS if f"{side}_{p}" in index and p in parts]
     return pairs

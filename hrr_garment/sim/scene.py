@@ -14,12 +14,12 @@ from ..motion.motion import Motion
 from ..motion.rotations import matrix_to_quat, rotation_between
 from .config import SimConfig
 
-ARM_CAPSULES = ("upper_arm", "forearm", "hand")  # taken off the cloth in the simulator's last retries
+ARMS_OFF_CAPSULES = ("upper_arm", "forearm", "hand")  # taken off the cloth in the simulator's last retries
 
 
-def arm_capsules(body: BodyModel) -> list[int]:
+def arms_off_capsules(body: BodyModel) -> list[int]:
     """Indices into ``body.capsules`` of the capsules the arms-off retries take off the cloth."""
-    return [c for c, capsule in enumerate(body.capsules) if capsule.name.endswith(tuple(f"_{p}" for p in ARM_CAPSULES))]
+    return [c for c, capsule in enumerate(body.capsules) if capsule.name.endswith(tuple(f"_{p}" for p in ARMS_OFF_CAPSULES))]
 
 
 def _import_newton():
@@ -77,7 +77,7 @@ class ClothScene:
         for c, capsule in enumerate(body.capsules):
             b = builder.add_body(mass=0.0, is_kinematic=True, label=capsule.name)
             shapes.append(builder.add_shape_capsule(b, radius=capsule.radius, half_height=float(half_lengths[c]), cfg=shape_cfg))
-        self.arm_shapes = [shapes[c] for c in arm_capsules(body)]
+        self.arm_shapes = [shapes[c] for c in arms_off_capsules(body)]
         builder.add_ground_plane(cfg=newton.ModelBuilder.ShapeConfig(ke=config.contact_ke, kd=config.contact_kd,
                                                                     mu=config.contact_mu))
         builder.add_cloth_mesh(

@@ -27,14 +27,14 @@ from typing import Callable
 import numpy as np
 
 from ..body.capsules import DEFAULT_BODY, BodyModel, frames_signed_distance
-from ..body.self_contact import ARM_PARTS, self_intersecting_frames
+from ..body.self_contact import LOWER_ARM, self_intersecting_frames
 from ..errors import HRRError
 from ..garment.attachment import bind_attached
 from ..garment.mesh import GarmentMesh
 from ..motion.motion import Motion
 from .config import SimConfig  # defined in .config (the scene needs it too); importable from here as before
 from .lead_in import start_transform, with_lead_in
-from .scene import ClothScene, arm_capsules, capsule_transforms
+from .scene import ClothScene, arms_off_capsules, capsule_transforms
 
 # after an episode the arms come back on once at most this fraction of the cloth is inside them:
 # first 0.5 % (CMU 131_01 then 0.07 % outside flagged frames, where waiting for none left the
@@ -78,7 +78,7 @@ def _attempt(garment: GarmentMesh, motion: Motion, body: BodyModel, config: SimC
     binding = bind_attached(garment, body)
     pins = binding.pose(extended.global_rotations.astype(np.float64), extended.joint_positions)
     scene = ClothScene(garment, start, half, body=body, config=config)
-    arms = arm_capsules(body)
+    arms = arms_off_capsules(body)
     arm_a, arm_b = (ends[:, arms] for ends in body.pose_motion(extended))
     edges = garment.edges()
     rest_len = np.linalg.norm(garment.vertices[edges[:, 0]] - garment.vertices[edges[:, 1]], axis=1)
@@ -147,7 +147,7 @@ def simulate_garment(garment: GarmentMesh, motion: Motion, config: SimConfig = S
         except SimulationExploded as exc:
             reasons.append(str(exc))
             if number == config.retries + 1:  # every substep count failed: the arms, if they are the cause
-                episodes = self_intersecting_frames(motion, body, parts=ARM_PARTS)
+                episodes = self_intersecting_frames(motion, body, parts=LOWER_ARM)
                 if episodes.any() and not episodes.all():
                     attempts += [(config.substeps, episodes, inside) for inside in ARMS_BACK_INSIDE]
                 if episodes.any():

@@ -95,8 +95,8 @@ def test_limbs_through_the_body_are_flagged_and_ordinary_motion_is_not():
 
 def test_a_self_intersection_episode_is_flagged_whole_with_its_recovery():
     from hrr_garment.body.self_contact import (
-        ARM_PARTS,
         LEG_PARTS,
+        LOWER_ARM,
         PINCH_GAP,
         SELF_INTERSECTION_DEPTH,
         limb_intrusion,
@@ -106,7 +106,7 @@ def test_a_self_intersection_episode_is_flagged_whole_with_its_recovery():
 
     # without the upper arms: in this motion they lie along the chest throughout (their own
     # episodes are tested below)
-    parts = ARM_PARTS + LEG_PARTS
+    parts = LOWER_ARM + LEG_PARTS
     # arms swing in through the hips, about 0.9 cm a degree from -4 degrees on, and out again
     ramp = np.arange(-6.0, 6.0)
     motion = _arm_hanging(np.concatenate([np.full(5, -20.0), ramp, ramp[::-1], np.full(10, -20.0)]))
@@ -132,7 +132,7 @@ def test_a_self_intersection_episode_is_flagged_whole_with_its_recovery():
 
 def test_an_upper_arm_in_the_chest_is_its_own_episode():
     from hrr_garment.body.self_contact import (
-        ARM_PARTS,
+        LOWER_ARM,
         SELF_INTERSECTION_DEPTH,
         limb_intrusions,
         self_intersecting_frames,
@@ -149,4 +149,4 @@ def test_an_upper_arm_in_the_chest_is_its_own_episode():
     assert np.array_equal(np.flatnonzero(flagged), np.arange(10, 16 + recovery))
     # with the forearms and hands, which are deep only in the middle: the episodes join, no more
     both = self_intersecting_frames(motion)
-    assert (both == (flagged | self_intersecting_frames(motion, parts=ARM_PARTS))).all()
+    assert (both == (flagged | self_intersecting_frames(motion, parts=LOWER_ARM))).all()

@@ -98,7 +98,7 @@ def test_limbs_through_the_body_get_last_tries_with_the_arms_off_the_cloth(simul
     simulate_garment, SimConfig = simulator
     from hrr_garment.body.capsules import DEFAULT_BODY
     from hrr_garment.body.self_contact import self_intersecting_frames
-    from hrr_garment.sim.scene import ARM_CAPSULES, ClothScene, capsule_transforms
+    from hrr_garment.sim.scene import ARMS_OFF_CAPSULES, ClothScene, capsule_transforms
     from hrr_garment.sim.simulator import SimulationExploded
 
     garment = make_garment("skirt", 200)
@@ -110,7 +110,7 @@ def test_limbs_through_the_body_get_last_tries_with_the_arms_off_the_cloth(simul
     before = scene.model.shape_flags.numpy().copy()
     scene.set_arm_contact(False)
     flags = scene.model.shape_flags.numpy()
-    arms = [i for i, c in enumerate(DEFAULT_BODY.capsules) if c.name.endswith(tuple(f"_{p}" for p in ARM_CAPSULES))]
+    arms = [i for i, c in enumerate(DEFAULT_BODY.capsules) if c.name.endswith(tuple(f"_{p}" for p in ARMS_OFF_CAPSULES))]
     touches_cloth = (flags[:len(DEFAULT_BODY.capsules)] & 4) > 0  # newton.ShapeFlags.COLLIDE_PARTICLES
     assert len(arms) == 6 and not touches_cloth[arms].any() and touches_cloth[np.setdiff1d(np.arange(len(flags) - 1), arms)].all()
     scene.set_arm_contact(True)
