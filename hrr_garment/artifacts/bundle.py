@@ -39,6 +39,7 @@ from ..models.fcmae import AutoencoderConfig, MeshAutoencoder
 from ..models.hierarchy import cached_hierarchy
 from ..motion.features import FeatureStats
 from .database import CodeDatabase
+from .folds import FILE_KEYS as FOLD_FILE_KEYS
 from .folds import FoldStore
 from .gate_signals import GATE_SIGNALS
 from .manifest import FOLDS_FILE, NETWORKS, UNCALIBRATED_AUTO, BundleError, read_meta
@@ -238,9 +239,10 @@ def load_bundle(folder: str | Path, cache_dir: Path | None = None) -> Bundle:
 
 def _load_folds(folder: Path, meta: dict, template: GarmentMesh, database: CodeDatabase) -> FoldStore:
     """The fold store, checked against the template and every database window it must cover."""
-    f = _arrays(folder, FOLDS_FILE, ("detail", "scale", "offsets"))
+    levels = FOLD_FILE_KEYS["levels"]
+    f = _arrays(folder, FOLDS_FILE, (levels, "scale", "offsets"))
     try:
-        folds = FoldStore(f["detail"], f["scale"], f["offsets"], passes=meta["folds"]["passes"])
+        folds = FoldStore(f[levels], f["scale"], f["offsets"], passes=meta["folds"]["passes"])
         folds.check_fits(template.num_vertices, len(database.names), database.sequence,
                          database.start + database.latents.shape[1])
     except (KeyError, TypeError, ValueError) as exc:

@@ -20,6 +20,8 @@ from scipy.sparse import csr_matrix
 
 from ..garment.smoothing import high_frequencies
 
+#: folds.safetensors' key for each field, where it differs (the file format keeps its first name)
+FILE_KEYS = {"levels": "detail"}
 FOLD_PASSES = 1  # passes of the 1-ring mean that separate the folds from the shape (docs/history/results-log.md)
 DETAIL_STRENGTH = 0.8  # the folds' strength where a bundle's auto mode was not calibrated (.manifest)
 
@@ -28,22 +30,22 @@ DETAIL_STRENGTH = 0.8  # the folds' strength where a bundle's auto mode was not 
 class FoldStore:
     """Every database frame's folds: ``folds(rows, weights)`` gives weighted sums of them."""
 
-    detail: np.ndarray  # (N, V, 3) int8: each frame's high frequencies, in steps of its scale
+    levels: np.ndarray  # (N, V, 3) int8: each frame's high frequencies, in steps of its scale
     scale: np.ndarray  # (N,) float32: metres per step
     offsets: np.ndarray  # (S + 1,) int64: sequence s's frames are rows offsets[s] .. offsets[s + 1] - 1
     passes: int = FOLD_PASSES
 
     def __post_init__(self) -> None:
-        self.detail = np.asarray(self.detail)
+        self.levels = np.asarray(self.levels)
         self.scale = np.asarray(self.scale, np.float32)
         self.offsets = np.asarray(self.offsets, np.int64)
-        if self.detail.dtype != np.int8 or self.detail.ndim != 3 or self.detail.shape[2] != 3:
-            raise ValueError(f"fold detail must be (N, V, 3) int8, got {self.detail.shape} {self.detail.dtype}")
-        if self.scale.shape != (len(self.detail),) or not np.isfinite(self.scale).all() or (self.scale < 0).any():
-            raise ValueError(f"fold scales must be {len(self.detail)} finite numbers >= 0, got shape {self.scale.shape}")
+        if self.levels.dtype != np.int8 or self.levels.ndim != 3 or self.levels.shape[2] != 3:
+            raise ValueError(f"fold levels must be (N, V, 3) int8, got {self.levels.shape} {self.levels.dtype}")
+        if self.scale.shape != (len(self.levels),) or not np.isfinite(self.scale).all() or (self.scale < 0).any():
+            raise ValueError(f"fold scales must be {len(self.levels)} finite numbers >= 0, got shape {self.scale.shape}")
         o = self.offsets
-        if o.ndim != 1 or len(o) < 1 or o[0] != 0 or o[-1] != len(self.detail) or (np.diff(o) < 0).any():
-            raise ValueError(f"fold offsets must rise from 0 to {len(self.detail)}")
+        if o.ndim != 1 or len(o) < 1 or o[0] != 0 or o[-1] != len(self.levels) or (np.diff(o) < 0).any():
+            raise ValueError(f"fold offsets must rise from 0 to {len(self.levels)}")
         if not isinstance(self.passes, (int, np.integer)) or self.passes < 1:
             raise ValueError(f"fold passes must be a whole number >= 1, got {self.passes!r}")
         self.passes = int(self.passes)
@@ -69,7 +71,7 @@ class FoldStore:
 
     @property
     def num_vertices(self) -> int:
-        return int(self.detail.shape[1])
+        return int(self.levels.shape[1])
 
     def rows(self, sequence: np.ndarray, frame: np.ndarray) -> np.ndarray:
         """Store rows of (database sequence, frame) pairs (any matching shapes)."""
@@ -87,16 +89,16 @@ class FoldStore:
             used = weights[:, k] != 0
             if used.any():
                 r = rows[used, k]
-                out[used] += (weights[used, k] * self.scale[r])[:, None, None] * self.detail[r]
+                out[used] += (weights[used, k] * self.scale[r])[:, None, None] * self.levels[r]
         return out
 
     def arrays(self) -> dict[str, np.ndarray]:
-        return {"detail": self.detail, "scale": self.scale, "offsets": self.offsets}
+        return {FILE_KEYS["levels"]: self.levels, "scale": self.scale, "offsets": self.offsets}
 
     @property
     def meta(self) -> dict:
         """bundle.json's ``folds`` entry."""
-        return {"passes": self.passes, "frames": len(self.detail)}
+        return {"passes": self.passes, "frames": len(self.levels)}
 
     def check_fits(self, num_vertices: int, sequences: int, sequence: np.ndarray, end: np.ndarray) -> None:
         """A ValueError unless the store fits a model: ``num_vertices`` per frame, ``sequences``

@@ -43,7 +43,7 @@ def test_the_fold_store_keeps_each_frame_within_half_a_step(skirt, rng, passes):
     garment, mean = skirt
     sequences = [garment.vertices[None] + rng.normal(0, 0.004, (n, garment.num_vertices, 3)) for n in (5, 1, 7)]
     store = FoldStore.build(sequences, mean, passes)
-    assert store.detail.dtype == np.int8 and list(store.lengths) == [5, 1, 7] and store.passes == passes
+    assert store.levels.dtype == np.int8 and list(store.lengths) == [5, 1, 7] and store.passes == passes
     exact = np.concatenate([high_frequencies(s, mean, passes) for s in sequences])
     one = np.stack([np.arange(13), np.zeros(13, int)], 1)
     got = store.folds(one, np.array([[1.0, 0.0]] * 13))
@@ -206,7 +206,7 @@ def test_a_damaged_fold_store_is_refused(trained, tmp_path):
     add_bundle_part(copy, FOLDS_FILE, short, {}, numpy=True)
     with pytest.raises(BundleError, match="offsets must rise"):
         load_bundle(copy)
-    fewer = {"detail": store.detail[:, :-1], "scale": store.scale, "offsets": store.offsets}
+    fewer = {"detail": store.levels[:, :-1], "scale": store.scale, "offsets": store.offsets}
     add_bundle_part(copy, FOLDS_FILE, fewer, {}, numpy=True)
     with pytest.raises(BundleError, match="vertices"):
         load_bundle(copy)
