@@ -21,7 +21,7 @@ def test_hrr_animate_writes_out_h5_and_refuses_bad_motion(trained, tmp_path, cap
     said = capsys.readouterr().out
     auto = json.loads((root / "model" / "bundle.json").read_text())["auto"]["mode"]  # the default mode runs it
     assert f"mode auto = {auto}" in said
-    assert ("database used" if auto in ("residual", "detail") else "retrieval usage") in said
+    assert ("a database match on every frame" if auto in ("residual", "detail") else "retrieval usage") in said
     data = read_animation_h5(out)
     assert data.vertices.shape == (30, 308, 3) and data.faces.dtype == np.int32
     assert data.joints.shape == (30, 22, 3) and data.retrieved.dtype == np.uint8

@@ -111,6 +111,7 @@ def test_hrr_train_simulates_what_a_grown_preset_adds(tmp_path, monkeypatch, seq
     import yaml
 
     import hrr_garment.cli.train as train_cli
+    import hrr_garment.pipeline.train as pipeline
     from hrr_garment.garment.templates import make_garment
     from tests.conftest import synthetic_dataset
 
@@ -122,8 +123,9 @@ def test_hrr_train_simulates_what_a_grown_preset_adds(tmp_path, monkeypatch, seq
     preset = tmp_path / "grown.yaml"
     preset.write_text(yaml.safe_dump({"name": "grown", "vertices": 300, "seconds": 2.0, "sequences": sequences}))
     calls = []
-    monkeypatch.setattr(train_cli, "_simulate", lambda garment, p, out, quiet: calls.append((garment, p.name, out)))
-    assert sorted(train_cli._missing_sequences(dataset, load_preset(str(preset)))) == missing
+    monkeypatch.setattr(pipeline, "simulate_preset",
+                        lambda garment, p, out, progress=True: calls.append((garment, p.name, out)))
+    assert sorted(pipeline.missing_sequences(dataset, load_preset(str(preset)))) == missing
     assert train_cli.main(["--garment", "skirt", "--preset", str(preset), "--stage", "simulate", "--quiet"]) == 0
     assert calls == ([("skirt", "grown", dataset)] if missing else [])
-    assert train_cli._missing_sequences(tmp_path / "nothing.h5", load_preset(str(preset))) == []
+    assert pipeline.missing_sequences(tmp_path / "nothing.h5", load_preset(str(preset))) == []
