@@ -1,5 +1,5 @@
 """Files written by an older hrr_garment (commit 31b4ef9: bundle.json and out.h5 format 2) load,
-upgrade in one place, and animate to the same vertices (tests/data/README.md)."""
+upgrade in one place, and animate to the same vertices (tests/fixtures/README.md)."""
 
 import json
 import shutil
@@ -12,7 +12,7 @@ from hrr_garment.artifacts.bundle_writer import update_bundle_meta
 from hrr_garment.artifacts.manifest import FORMAT_VERSION
 from hrr_garment.data.animation_file import read_animation_h5
 
-DATA = Path(__file__).parents[1] / "data"
+DATA = Path(__file__).parents[1] / "fixtures"
 
 
 def _walk():
