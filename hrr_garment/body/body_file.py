@@ -1,0 +1,121 @@
+"""body.json: a body as a file, so that a character's body travels without its mesh library.
+
+    write_body(path, body)        # a ParametricBody or a BodyRecord
+    record = read_body(path)      # BodyRecord: skeleton, capsules, pelvis height, shape, fit report
+
+It holds what the simulator, the push-out and retargeting need (the skeleton's offsets, the
+capsules, the pelvis's height over the soles) and where the body came from (the parametric shape,
+when it has one, and how closely its capsules follow its surface). ``format_version`` moves when a
+field arrives or changes meaning; a file of a newer version is refused. Written atomically; every
+value is checked on reading, and a bad one is refused with the file and the field named.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InputError
+from ..io_utils import atomic_write_text, strict_json
+from ..motion.skeleton import JOINT_NAMES, Skeleton
+from .capsules import BodyModel, Capsule
+from .fit import FitReport
+
+FORMAT_VERSION = 1
+MAX_BONE_M = 1.5  # no bone of a human body is longer
+MAX_RADIUS_M = 0.5
+
+
+@dataclass(frozen=True)
+class BodyRecord:
+    """A body as body.json holds it."""
+
+    skeleton: Skeleton
+    body: BodyModel
+    pelvis_height: float
+    stature: float  # metres from the soles to the top of the head
+    shape: dict | None = None  # the parametric shape's values, when the body has one
+    report: FitReport | None = None
+
+
+def record_of(body) -> BodyRecord:
+    """A :class:`BodyRecord` of a :class:`~.parametric.ParametricBody` (or a record itself)."""
+    if isinstance(body, BodyRecord):
+        return body
+    fitted = body.fitted
+    return BodyRecord(fitted.skeleton, fitted.body, fitted.pelvis_height, fitted.stature, shape=body.shape.to_dict(),
+                      report=fitted.report)
+
+
+def write_body(path: str | Path, body) -> Path:
+    """Write body.json (atomically)."""
+    r = record_of(body)
+    data = {"format_version": FORMAT_VERSION, "joints": list(JOINT_NAMES),
+            "offsets": np.asarray(r.skeleton.offsets, np.float64).round(6).tolist(),
+            "pelvis_height": round(float(r.pelvis_height), 6), "stature": round(float(r.stature), 6),
+            "capsules": [{"name": c.name, "joint": c.joint, "a": list(c.a), "b": list(c.b), "radius": c.radius}
+                         for c in r.body.capsules],
+            "shape": r.shape, "fit": r.report.to_dict() if r.report else None}
+    path = Path(path)
+    atomic_write_text(path, strict_json(data, indent=2))
+    return path
+
+
+def _number(path: Path, what: str, value: object, low: float, high: float) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or not low <= value <= high:
+        raise InputError(path, f"{what} must be a number in [{low:g}, {high:g}], got {value!r}")
+    return float(value)
+
+
+def _vector(path: Path, what: str, value: object, limit: float) -> tuple[float, float, float]:
+    if not isinstance(value, list) or len(value) != 3:
+        raise InputError(path, f"{what} must be three numbers, got {value!r}")
+    return tuple(_number(path, what, v, -limit, limit) for v in value)  # type: ignore[return-value]
+
+
+def read_body(path: str | Path) -> BodyRecord:
+    """Read and check body.json; problems raise :class:`InputError` naming the file and the field."""
+    path = Path(path)
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise InputError(path, "no such body file") from None
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise InputError(path, f"not a body file ({exc})") from None
+    if not isinstance(data, dict):
+        raise InputError(path, "not a body file (not a JSON object)")
+    version = data.get("format_version")
+    if isinstance(version, bool) or not isinstance(version, int) or not 1 <= version <= FORMAT_VERSION:
+        raise InputError(path, f"body format_version {version!r}; this hrr_garment reads 1 to {FORMAT_VERSION}")
+    if data.get("joints") != list(JOINT_NAMES):
+        raise InputError(path, f"'joints' must be the canonical joints {list(JOINT_NAMES)}")
+    offsets = data.get("offsets")
+    if not isinstance(offsets, list) or len(offsets) != len(JOINT_NAMES):
+        raise InputError(path, f"'offsets' must hold {len(JOINT_NAMES)} joint offsets")
+    skeleton = Skeleton(offsets=np.array([_vector(path, f"offset of {n}", o, MAX_BONE_M)
+                                          for n, o in zip(JOINT_NAMES, offsets)], np.float32))
+    capsules = data.get("capsules")
+    if not isinstance(capsules, list) or not capsules:
+        raise InputError(path, "'capsules' must be a list of capsules")
+    body = BodyModel(tuple(_capsule(path, c) for c in capsules))
+    shape = data.get("shape")
+    if shape is not None and not (isinstance(shape, dict) and all(isinstance(v, (int, float)) for v in shape.values())):
+        raise InputError(path, f"'shape' must map phenotype names to numbers, got {shape!r}")
+    fit = data.get("fit")
+    report = FitReport(**{k: _number(path, f"fit {k}", fit.get(k), 0.0, 1e6) for k in ("mean_mm", "p95_mm", "outside_1cm",
+                                                                                  "inside_1cm")}) if fit else None
+    return BodyRecord(skeleton, body, _number(path, "pelvis_height", data.get("pelvis_height"), 0.2, 2.0),
+                      _number(path, "stature", data.get("stature"), 0.3, 3.0), shape=shape, report=report)
+
+
+def _capsule(path: Path, c: object) -> Capsule:
+    if not isinstance(c, dict) or not isinstance(c.get("name"), str) or c.get("joint") not in JOINT_NAMES:
+        raise InputError(path, f"a capsule needs a name and one of the canonical joints, got {c!r}")
+    name = c["name"]
+    return Capsule(name, c["joint"], a=_vector(path, f"capsule {name} a", c.get("a"), MAX_BONE_M),
+                   b=_vector(path, f"capsule {name} b", c.get("b"), MAX_BONE_M),
+                   radius=_number(path, f"capsule {name} radius", c.get("radius"), 1e-3, MAX_RADIUS_M))

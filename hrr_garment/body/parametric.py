@@ -1,0 +1,129 @@
+"""The parametric body: a body of any shape from a few numbers, on anny (Apache-2.0 code, CC0
+assets; the ``bodies`` extra).
+
+    shape = BodyShape(height=0.8, weight=0.7, gender=0.0)
+    body = parametric_body(shape)        # ParametricBody: its rest mesh, skeleton and capsules
+    body.fitted.body                     # a BodyModel for the simulator and the push-out
+    shape.vector                         # (6,) the conditioning vector of a model trained across bodies
+
+anny's phenotype parameters, each in [0, 1]: gender (0 female, 1 male), age, muscle, weight,
+height, proportions; 0.5 everywhere is its average adult. The mesh is anny's reduced topology
+(:data:`TOPOLOGY`, about 600 vertices: enough for capsules and previews, cheap to skin) on its
+Mixamo rig, whose joints map onto the canonical 22 through the Mixamo joint map
+(:mod:`hrr_garment.motion.joint_maps`). anny builds its blend shapes the first time (about a minute
+on two cores) and caches them under the workspace (``HRR_HOME/cache/anny``, about 1 GB); nothing is
+downloaded: anny fetches files only for its non-commercial SMPL conversions, which this module
+never asks for.
+
+anny stands Z up, its left at +X, facing -Y; the project is Y up, facing +Z
+(:mod:`hrr_garment.motion.skeleton`), so a point (x, y, z) of anny's is (x, z, -y) here, moved to
+stand on y = 0 with the pelvis over the origin.
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass, fields
+
+import numpy as np
+
+from ..motion.joint_maps import resolve_joint_map
+from ..motion.skeleton import JOINT_NAMES
+from ..paths import workspace
+from .fit import FittedBody, fit_body
+
+TOPOLOGY = "notoes_collapse5pc"  # anny's reduced body mesh (615 vertices, no toes)
+RIG = "mixamo"  # its joints carry Mixamo's names, which the joint maps know
+ANNY_TO_PROJECT = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])  # rows: x, y, z here in anny's axes
+
+
+@dataclass(frozen=True)
+class BodyShape:
+    """anny's phenotype: each value in [0, 1] (see the module docstring); 0.5 its average adult."""
+
+    gender: float = 0.5
+    age: float = 0.5
+    muscle: float = 0.5
+    weight: float = 0.5
+    height: float = 0.5
+    proportions: float = 0.5
+
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            value = getattr(self, f.name)
+            if isinstance(value, np.generic):
+                value = value.item()
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0.0 <= value <= 1.0:
+                raise ValueError(f"body shape {f.name} must be a number in [0, 1], got {value!r}")
+            object.__setattr__(self, f.name, float(value))
+
+    @property
+    def vector(self) -> np.ndarray:
+        """(6,) float32, the phenotype in field order: what a model conditions on."""
+        return np.array([getattr(self, f.name) for f in fields(self)], np.float32)
+
+    def to_dict(self) -> dict[str, float]:
+        return {f.name: getattr(self, f.name) for f in fields(self)}
+
+
+@dataclass(frozen=True)
+class RestMesh:
+    """A body's rest mesh in the project's frame and its canonical joints in the same pose."""
+
+    vertices: np.ndarray  # (V, 3) float64, metres, Y up, facing +Z, soles on y = 0
+    faces: np.ndarray  # (F, 3) int64
+    joints: np.ndarray  # (22, 3) the canonical joints (anny's rest pose: an A-pose)
+
+
+@dataclass(frozen=True)
+class ParametricBody:
+    """A parametric body: its shape, rest mesh, and the skeleton and capsules fitted to it."""
+
+    shape: BodyShape
+    mesh: RestMesh
+    fitted: FittedBody
+
+
+def _import_anny():
+    try:
+        import anny
+    except ImportError:
+        raise ImportError("the parametric body needs anny: pip install 'hrr_garment[bodies]'") from None
+    return anny
+
+
+@functools.lru_cache(maxsize=2)
+def _anny_model(topology: str = TOPOLOGY, rig: str = RIG):
+    """The anny model (built once a process; its data cached under the workspace)."""
+    anny = _import_anny()
+    import torch
+
+    cache = workspace() / "cache" / "anny"
+    cache.mkdir(parents=True, exist_ok=True)
+    from anny.paths import set_anny_cache_path
+
+    set_anny_cache_path(cache)
+    return anny.Anny(topology=topology, rig=rig).to(dtype=torch.float32)
+
+
+def anny_rest_mesh(shape: BodyShape) -> RestMesh:
+    """The rest mesh and canonical joints of ``shape``, in the project's frame."""
+    import torch
+
+    model = _anny_model()
+    pose = torch.eye(4)[None, None].repeat(1, model.bone_count, 1, 1)
+    with torch.no_grad():
+        out = model(pose_parameters=pose, phenotype_kwargs=shape.to_dict())
+    vertices = out["rest_vertices"][0].double().numpy() @ ANNY_TO_PROJECT.T
+    heads = out["rest_bone_heads"][0].double().numpy() @ ANNY_TO_PROJECT.T
+    _, mapping = resolve_joint_map(list(model.bone_labels), "anny")
+    joints = np.stack([heads[mapping[name]] for name in JOINT_NAMES])
+    shift = np.array([joints[0, 0], vertices[:, 1].min(), joints[0, 2]])
+    return RestMesh(vertices - shift, np.asarray(model.faces, np.int64), joints - shift)
+
+
+def parametric_body(shape: BodyShape | None = None) -> ParametricBody:
+    """The body of ``shape`` (default anny's average adult) with its fitted skeleton and capsules."""
+    shape = shape or BodyShape()
+    mesh = anny_rest_mesh(shape)
+    return ParametricBody(shape, mesh, fit_body(mesh.vertices, mesh.joints))
