@@ -104,3 +104,24 @@ def test_body_json_round_trips_and_refuses_bad_fields(tmp_path):
     with pytest.raises(InputError, match="not a body file"):
         read_body(tmp_path / "text.json")
     assert replace(record, shape={"height": 0.5}).shape == {"height": 0.5}
+
+
+def test_a_uniformly_larger_body_plays_the_clip_exactly_that_much_larger():
+    from hrr_garment.body.retarget import motion_on_body
+    from hrr_garment.motion.skeleton import REST_PELVIS_HEIGHT
+    from hrr_garment.motion.synth import synthesize
+
+    motion = synthesize("walk", 1.0, seed=2)
+    larger = _BodyLike(Skeleton(offsets=(REST_OFFSETS * 1.12).astype(np.float32)), REST_PELVIS_HEIGHT * 1.12)
+    played = motion_on_body(motion, larger)
+    assert np.allclose(played.joint_positions, 1.12 * motion.joint_positions, atol=1e-5)
+    assert np.array_equal(played.local_rotations, motion.local_rotations)
+    same = motion_on_body(motion, _BodyLike(Skeleton(), REST_PELVIS_HEIGHT))
+    assert np.allclose(same.joint_positions, motion.joint_positions, atol=1e-9)
+
+
+class _BodyLike:
+    """The two things motion_on_body reads of a body."""
+
+    def __init__(self, skeleton, pelvis_height):
+        self.skeleton, self.pelvis_height = skeleton, pelvis_height
