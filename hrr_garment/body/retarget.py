@@ -19,5 +19,5 @@ def motion_on_body(motion: Motion, body) -> Motion:
     """``motion`` played by ``body`` (anything with ``skeleton`` and ``pelvis_height``: a
     :class:`~.body_file.BodyRecord` or a :class:`~.fit.FittedBody`)."""
     scale = float(body.pelvis_height) / REST_PELVIS_HEIGHT
-    return Motion(motion.local_rotations, motion.root_translation * scale, motion.fps, motion.source,
+    return Motion(motion.local_rotations, motion.root_translation * scale, motion.fps, source=motion.source,
                   source_skeleton=motion.source_skeleton, source_height_m=motion.source_height_m, skeleton=body.skeleton)
