@@ -190,8 +190,10 @@ def test_centimetres_without_a_scaling_node_are_detected_or_given(tmp_path, walk
     gl = pygltflib.GLTF2().load(str(path))
     gl.nodes[0].scale = None
     gl.save_binary(str(path))
-    assert_same_motion(load_motion(path), walk_bvh_motion)
-    assert_same_motion(load_motion(path, unit_scale=0.01), walk_bvh_motion)
+    for motion in (load_motion(path), load_motion(path, unit_scale=0.01)):
+        assert motion.source_height_m == pytest.approx(walk_bvh_motion.source_height_m, rel=1e-4)  # metres, not 170
+        assert_same_motion(motion, walk_bvh_motion)
+    assert load_motion(path, unit_scale=0.02).source_height_m == pytest.approx(2 * walk_bvh_motion.source_height_m, rel=1e-4)
 
 
 def test_embedded_gltf_and_mixamo_names_without_colon(tmp_path, walk, walk_bvh_motion):
@@ -356,6 +358,7 @@ def test_command_lines_refuse_bad_glb_with_exit_2(tmp_path, walk, capsys):
 
 def test_simulate_plan_takes_glb_files(tmp_path, walk):
     """hrr-simulate --motions character.glb: a motion file (its first animation), in folders too."""
+    from hrr_garment.sim.plan import load_preset, plan_sequences
     from hrr_garment.sim.sources import resolve_motion_entries
 
     path = tmp_path / "clips" / "character.glb"
@@ -363,3 +366,32 @@ def test_simulate_plan_takes_glb_files(tmp_path, walk):
     write_character(path, {"Walk": walk})
     assert resolve_motion_entries([str(path)]) == [path.resolve()]
     assert resolve_motion_entries([str(path.parent)]) == [path.resolve()]
+    specs = plan_sequences(load_preset("tiny"), motions=[str(path)])
+    assert [(s.kind, s.name) for s in specs] == [("file", "character")]
+    assert np.abs(specs[0].motion().joint_positions - walk.joint_positions).max() < 1e-3
+
+
+def test_without_pygltflib_the_extra_is_named(tmp_path, walk, monkeypatch, capsys):
+    from hrr_garment.cli.motion import main
+
+    path = tmp_path / "character.glb"
+    write_character(path, {"Walk": walk})
+    monkeypatch.setitem(__import__("sys").modules, "pygltflib", None)  # as if the export extra were not installed
+    with pytest.raises(ImportError, match=r"pip install 'hrr_garment\[export\]'"):
+        load_motion(path)
+    assert main(["info", str(path)]) == 2
+    assert "hrr_garment[export]" in capsys.readouterr().err
+
+
+def test_hrr_animate_a_glb_animation(tmp_path, walk, spin, capsys):
+    """hrr-animate character.glb --animation Spin: the garment follows the second animation."""
+    import h5py
+
+    from hrr_garment.cli.animate import main as animate
+
+    path = tmp_path / "character.glb"
+    write_character(path, {"Walk": walk, "Spin": spin})
+    out = tmp_path / "out.h5"
+    assert animate([str(path), "--animation", "Spin", "-o", str(out), "--model", str(BUNDLE)]) == 0, capsys.readouterr().err
+    with h5py.File(out, "r") as f:
+        assert f["vertices"].shape[0] == spin.num_frames
