@@ -94,6 +94,9 @@ class _Document:
             raise MotionError(path, f"not a readable glTF 2.0 / GLB file, or cut short ({type(exc).__name__}: {exc})") from None
         if doc is None or not isinstance(doc.nodes, list):
             raise MotionError(path, "not a readable glTF 2.0 / GLB file (no JSON chunk)")
+        if "EXT_meshopt_compression" in (doc.extensionsRequired or []):
+            raise MotionError(path, "its data is compressed with EXT_meshopt_compression, which pygltflib does not "
+                                    "decode; export it without compression")
         self.doc = doc
         self._buffers: dict[int, bytes] = {}
 
@@ -111,7 +114,7 @@ class _Document:
                 elif uri.startswith("data:"):
                     data = self.doc.decode_data_uri(uri)
                 else:
-                    data = (self.path.parent / unquote(uri)).read_bytes()
+                    data = self._external(unquote(uri), buf.byteLength or 0)
             except _READ_ERRORS as exc:
                 raise self.fail(f"cannot read buffer {index} ({uri or 'the GLB binary chunk'}: {exc})") from None
             if data is None or len(data) < (buf.byteLength or 0):
@@ -120,6 +123,15 @@ class _Document:
                                 "the file is cut short")
             self._buffers[index] = bytes(data)
         return self._buffers[index]
+
+    def _external(self, uri: str, size: int) -> bytes:
+        """The first ``size`` bytes of a buffer file beside a .gltf (never a path out of its folder)."""
+        relative = Path(uri)
+        target = self.path.parent / relative
+        if relative.is_absolute() or ".." in relative.parts or not target.is_file():
+            raise self.fail(f"buffer file {uri!r} is not a file beside the .gltf")
+        with open(target, "rb") as fh:
+            return fh.read(size)
 
     def accessor(self, index: int) -> np.ndarray:
         """Accessor ``index`` as (count, width) float64, normalized integers scaled to [-1, 1]."""

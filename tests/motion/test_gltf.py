@@ -395,3 +395,19 @@ def test_hrr_animate_a_glb_animation(tmp_path, walk, spin, capsys):
     assert animate([str(path), "--animation", "Spin", "-o", str(out), "--model", str(BUNDLE)]) == 0, capsys.readouterr().err
     with h5py.File(out, "r") as f:
         assert f["vertices"].shape[0] == spin.num_frames
+
+
+def test_gltf_with_a_bin_file_beside_it(tmp_path, walk, walk_bvh_motion):
+    glb = tmp_path / "character.glb"
+    write_character(glb, {"Walk": walk})
+    gl = pygltflib.GLTF2().load(str(glb))
+    gl.buffers[0].uri = "character%20data.bin"  # URIs are percent-encoded
+    (tmp_path / "character data.bin").write_bytes(gl.binary_blob())
+    gl.set_binary_blob(b"")
+    path = tmp_path / "character.gltf"
+    gl.save_json(str(path))
+    assert_same_motion(load_motion(path), walk_bvh_motion)
+    gl.buffers[0].uri = "../elsewhere.bin"
+    gl.save_json(str(path))
+    with pytest.raises(MotionError, match="not a file beside the .gltf"):
+        load_motion(path)
