@@ -24,7 +24,7 @@ import numpy as np
 from ..errors import MotionError
 from .bvh_motion import PLAUSIBLE_HEIGHT_M, detect_unit_scale
 from .joint_maps import resolve_joint_map
-from .limits import check_frame_budget
+from .limits import MAX_BVH_JOINTS, check_frame_budget
 from .motion import FPS, Motion
 from .retarget import SourceMotion, check_source, retarget, standing_height_from_legs
 from .rotations import matrix_to_quat, quat_slerp, quat_to_matrix
@@ -173,12 +173,16 @@ def _node_parents(doc: _Document) -> list[int]:
             if not (0 <= child < len(nodes)) or parents[child] != -1 or child == i:
                 raise doc.fail(f"node {i} lists child {child}, which is missing or already has a parent")
             parents[child] = i
+    rooted = [False] * len(nodes)  # known to lead up to a root
     for i in range(len(nodes)):
-        k, steps = i, 0
-        while k >= 0:
-            k, steps = parents[k], steps + 1
-            if steps > len(nodes):
-                raise doc.fail(f"the node tree has a cycle through node {i}")
+        path, k = set(), i
+        while k >= 0 and not rooted[k]:
+            if k in path:
+                raise doc.fail(f"the node tree has a cycle through node {k}")
+            path.add(k)
+            k = parents[k]
+        for k in path:
+            rooted[k] = True
     return parents
 
 
@@ -349,6 +353,8 @@ def _pick_skin(doc: _Document, channels: list[_Channel]) -> list[int]:
     keyed = {c.node for c in channels}
     best = max(range(len(skins)), key=lambda s: (len(keyed & set(skins[s].joints or [])), -s))
     joints = list(skins[best].joints or [])
+    if len(joints) > MAX_BVH_JOINTS:
+        raise doc.fail(f"skin {best} has {len(joints)} joints, more than {MAX_BVH_JOINTS} (a human rig has under a few hundred)")
     if not joints or not all(isinstance(j, int) and 0 <= j < len(doc.doc.nodes) for j in joints):
         raise doc.fail(f"skin {best} has no joints or names nodes that are missing")
     if not keyed & set(joints):

@@ -411,3 +411,14 @@ def test_gltf_with_a_bin_file_beside_it(tmp_path, walk, walk_bvh_motion):
     gl.save_json(str(path))
     with pytest.raises(MotionError, match="not a file beside the .gltf"):
         load_motion(path)
+
+
+def test_a_node_cycle_is_refused(tmp_path, walk):
+    path = tmp_path / "cycle.glb"
+    write_character(path, {"Walk": walk})
+    gl = pygltflib.GLTF2().load(str(path))
+    gl.nodes[0].children = []  # the armature no longer holds the hips ...
+    gl.nodes[22].children = [1]  # ... the right wrist does: wrist -> hips -> ... -> wrist
+    gl.save_binary(str(path))
+    with pytest.raises(MotionError, match="cycle"):
+        load_motion(path)
