@@ -3,7 +3,7 @@
 Public API (motion side)::
 
     from hrr_garment import load_motion, synthesize, motion_features
-    motion = load_motion("walk.bvh")          # any BVH / AMASS npz / native npz -> canonical, 30 fps
+    motion = load_motion("walk.bvh")          # any BVH / glTF / AMASS npz / native npz -> canonical, 30 fps
     feats = motion_features(motion)            # (T, 124) float32
 
 Garment side::

@@ -5,7 +5,7 @@
     hrr-animate walk.bvh -o out.h5 --garment dress --causal --no-collision
     hrr-animate walk.bvh -o out.h5 --garment dress --detail-strength 1 --detail-base residual
 
-MOTION: BVH, AMASS-style npz or the native npz (resampled to 30 fps). Output: out.h5 (see
+MOTION: BVH, glTF / GLB (``--animation NAME``), AMASS-style npz or the native npz (resampled to 30 fps). Output: out.h5 (see
 docs/inference.md), written atomically. Offline (default) blends windows centred on each frame;
 ``--causal`` gives exactly what the streaming API gives (no future frames).
 """
@@ -28,7 +28,7 @@ from ._common import add_detail_options, add_fps_option, detail_look, run_cli, r
 
 def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="hrr-animate", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("motion", type=Path, help="BVH, AMASS npz or native npz")
+    p.add_argument("motion", type=Path, help="BVH, glTF / GLB, AMASS npz or native npz")
     p.add_argument("-o", "--output", type=Path, required=True, help="out.h5 to write")
     p.add_argument("--garment", default=None, help="use the workspace model of this garment")
     p.add_argument("--model", type=Path, default=None, help="model bundle directory (instead of --garment)")
@@ -51,6 +51,7 @@ def _parser() -> argparse.ArgumentParser:
                    help="the mesh decoder's arithmetic: bfloat16 runs on AMX (recent Intel Xeons), about 3x faster, "
                         "within hundredths of a millimetre on average (default: float32)")
     p.add_argument("--unit-scale", type=float, default=None, help="BVH length unit in metres (default: detected)")
+    p.add_argument("--animation", default=None, metavar="NAME", help="which animation of a glTF / GLB file, by name or index (default: the first)")
     add_fps_option(p)
     return p
 
@@ -71,7 +72,7 @@ def _main(argv: Sequence[str] | None) -> int:
     if args.model is None:
         print(f"model: {model_dir}")
     t0 = time.perf_counter()
-    motion = load_motion(args.motion, unit_scale=args.unit_scale, source_fps=args.fps)
+    motion = load_motion(args.motion, unit_scale=args.unit_scale, source_fps=args.fps, animation=args.animation)
     animator = Animator.load(model_dir, precision=args.precision)
     if args.garment is not None and animator.bundle.garment != args.garment:
         raise InputError(model_dir, f"this model animates a {animator.bundle.garment}, not a {args.garment}")

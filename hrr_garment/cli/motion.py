@@ -12,6 +12,7 @@ import numpy as np
 from ..errors import InputError
 from ..io_utils import atomic_path, strict_json
 from ..motion.features import motion_features
+from ..motion.gltf import GLTF_SUFFIXES, gltf_summary
 from ..motion.io import load_motion, save_motion
 from ..motion.synth import KINDS, kind_parameters, synthesize
 from ..motion.windows import DEFAULT_WINDOW
@@ -22,12 +23,13 @@ def _add_load_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--unit-scale", type=float, default=None, help="metres per BVH file unit (default: detect from standing height)")
     p.add_argument("--joint-map", type=Path, default=None, help="YAML mapping canonical joint names to the file's joint names")
     p.add_argument("--no-ground", action="store_true", help="keep the file's vertical placement instead of standing the feet on y=0")
+    p.add_argument("--animation", default=None, metavar="NAME", help="which animation of a glTF / GLB file, by name or index (default: the first)")
     add_fps_option(p)
 
 
 def _load(args: argparse.Namespace):
     return load_motion(args.file, unit_scale=args.unit_scale, joint_map=args.joint_map, ground=not args.no_ground,
-                       source_fps=args.fps)
+                       source_fps=args.fps, animation=args.animation)
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -73,10 +75,15 @@ def _body(argv: Sequence[str] | None) -> int:
     motion = _load(args)
     if args.command == "info":
         summary = motion.summary()
+        if args.file.suffix.lower() in GLTF_SUFFIXES:  # which animation this is, and the file's others
+            summary.update(gltf_summary(args.file, args.animation))
         if args.json:
             print(strict_json(summary, indent=2))  # a non-finite value prints as null, never NaN
         else:
             for key, value in summary.items():
+                if key == "animations":
+                    value = "".join(f"\n  {a['index']}: {a['name']!r} {a['duration_s']:g} s, {a['keyframes']} keyframes, "
+                                    f"{a['frames_30fps']} frames at 30 fps" for a in value)
                 print(f"{key:28s} {value}")
         return 0
     feats = motion_features(motion)

@@ -1,7 +1,8 @@
 """Loading any supported motion file as a canonical `Motion` at 30 fps, and saving motions.
 
-Formats: BVH (retargeted by joint names: :mod:`.bvh_motion`), AMASS-style npz (SMPL / SMPL-H / SMPL-X pose widths,
-Z up), and the project's native npz. Files are never unpickled.
+Formats: BVH (retargeted by joint names: :mod:`.bvh_motion`), glTF / GLB animations of a skinned character
+(:mod:`.gltf`, retargeted the same way), AMASS-style npz (SMPL / SMPL-H / SMPL-X pose widths, Z up), and the
+project's native npz. Files are never unpickled.
 """
 
 from __future__ import annotations
@@ -14,6 +15,7 @@ import numpy as np
 from ..errors import MotionError
 from ..io_utils import atomic_path
 from .bvh_motion import PLAUSIBLE_HEIGHT_M, load_bvh
+from .gltf import GLTF_SUFFIXES, GltfOptions, load_gltf
 from .joint_maps import load_joint_map
 from .limits import MAX_SOURCE_FPS, MIN_SOURCE_FPS, check_frame_budget, check_root_speed, max_npz_bytes
 from .motion import FPS, Motion
@@ -41,11 +43,13 @@ def load_motion(
     ground: bool = True,
     fps: float = FPS,
     source_fps: float | None = None,
+    animation: str | int | None = None,
 ) -> Motion:
-    """Load a BVH, AMASS-style npz or native npz file as a canonical motion at ``fps``.
+    """Load a BVH, glTF / GLB, AMASS-style npz or native npz file as a canonical motion at ``fps``.
 
     ``source_fps`` is the file's own frame rate, for files that carry none (or a wrong one): it
-    replaces a BVH's frame time and an npz's rate key.
+    replaces a BVH's frame time and an npz's rate key (glTF keys are in seconds: it does not apply).
+    ``animation``: which of a glTF file's animations, by name or index (default the first).
     """
     path = Path(path)
     if not path.exists():
@@ -53,9 +57,15 @@ def load_motion(
     if source_fps is not None:
         source_fps = check_source_fps(source_fps, path)
     suffix = path.suffix.lower()
+    by_name = suffix in (".bvh", *GLTF_SUFFIXES)  # the formats whose joints are matched by name
+    custom = load_joint_map(joint_map) if by_name and isinstance(joint_map, (str, Path)) else joint_map
+    if animation is not None and suffix not in GLTF_SUFFIXES:
+        raise MotionError(path, f"only glTF / GLB files hold named animations; a {suffix or 'suffix-less'} file has one motion")
     if suffix == ".bvh":
-        custom = load_joint_map(joint_map) if isinstance(joint_map, (str, Path)) else joint_map
         motion = load_bvh(path, unit_scale=unit_scale, joint_map=custom, ground=ground, fps=fps, source_fps=source_fps)
+    elif suffix in GLTF_SUFFIXES:
+        options = GltfOptions(animation=animation, unit_scale=unit_scale, joint_map=custom, fps=fps)
+        motion = load_gltf(path, options, ground=ground)
     elif suffix == ".npz":
         data = _read_npz(path)
         if "format" in data and str(data["format"]) == NATIVE_FORMAT:
@@ -66,7 +76,7 @@ def load_motion(
         else:
             motion = load_amass(path, data, ground=ground, fps=fps, source_fps=source_fps)
     else:
-        raise MotionError(path, f"unsupported motion file type {suffix!r} (expected .bvh or .npz)")
+        raise MotionError(path, f"unsupported motion file type {suffix!r} (expected .bvh, .glb, .gltf or .npz)")
     # what every format must give, whatever its values: a finite motion whose root does not teleport
     _check_finite(path, motion.local_rotations, motion.root_translation)
     check_root_speed(path, motion.root_translation, motion.fps)

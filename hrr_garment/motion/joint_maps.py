@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 from ..errors import MotionError, SkeletonMappingError
@@ -52,7 +53,7 @@ NAMING_SCHEMES: dict[str, dict[str, list[str]]] = {
         "{side}_hip": ["UpperLeg_{S}"], "{side}_knee": ["LowerLeg_{S}"], "{side}_ankle": ["Foot_{S}"], "{side}_foot": ["Toes_{S}", "Toe_{S}"],
         "{side}_collar": ["Shoulder_{S}"], "{side}_shoulder": ["UpperArm_{S}"], "{side}_elbow": ["LowerArm_{S}"], "{side}_wrist": ["Hand_{S}"],
     }),
-    # Mixamo (names carry a "mixamorig:" prefix, stripped before matching).
+    # Mixamo (names carry a "mixamorig:" prefix, or "mixamorig_" / "mixamorig" in glTF files, stripped before matching).
     "mixamo": _lr({
         "pelvis": ["Hips"], "spine1": ["Spine"], "spine2": ["Spine1"], "spine3": ["Spine2"], "neck": ["Neck"], "head": ["Head"],
         "{side}_hip": ["{Side}UpLeg"], "{side}_knee": ["{Side}Leg"], "{side}_ankle": ["{Side}Foot"], "{side}_foot": ["{Side}ToeBase"],
@@ -62,8 +63,14 @@ NAMING_SCHEMES: dict[str, dict[str, list[str]]] = {
 }
 
 
+# Mixamo's prefix as exporters write it: "mixamorig:Hips", numbered "mixamorig1:Hips", and in glTF
+# files whose exporter replaced or dropped the colon, "mixamorig_Hips" and "mixamorigHips" (three.js).
+_MIXAMO_PREFIX = re.compile(r"^mixamorig\d*[_:]?")
+
+
 def _key(name: str) -> str:
-    return name.split(":")[-1].strip().lower()
+    """A joint name as matched: case-folded, without a namespace ("ns:") or Mixamo prefix."""
+    return _MIXAMO_PREFIX.sub("", name.split(":")[-1].strip().lower())
 
 
 def resolve_joint_map(names: list[str], path: str, custom_map: dict[str, str] | None = None) -> tuple[str, dict[str, int]]:
