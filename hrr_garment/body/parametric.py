@@ -106,20 +106,91 @@ def _anny_model(topology: str = TOPOLOGY, rig: str = RIG):
     return anny.Anny(topology=topology, rig=rig).to(dtype=torch.float32)
 
 
+def _rest_tensors(phenotype: dict):
+    """anny's rest vertices and canonical joints (torch, differentiable in ``phenotype``'s values)
+    in the project's frame: soles on y = 0, the pelvis over the origin."""
+    import torch
+
+    model = _anny_model()
+    pose = torch.eye(4, dtype=torch.float32)[None, None].repeat(1, model.bone_count, 1, 1)
+    out = model(pose_parameters=pose, phenotype_kwargs=phenotype)
+    turn = torch.as_tensor(ANNY_TO_PROJECT.T, dtype=out["rest_vertices"].dtype)
+    vertices, heads = out["rest_vertices"][0] @ turn, out["rest_bone_heads"][0] @ turn
+    _, mapping = resolve_joint_map(list(model.bone_labels), "anny")
+    joints = heads[[mapping[name] for name in JOINT_NAMES]]
+    shift = torch.stack([joints[0, 0], vertices[:, 1].min(), joints[0, 2]])
+    return vertices - shift, joints - shift
+
+
 def anny_rest_mesh(shape: BodyShape) -> RestMesh:
     """The rest mesh and canonical joints of ``shape``, in the project's frame."""
     import torch
 
-    model = _anny_model()
-    pose = torch.eye(4)[None, None].repeat(1, model.bone_count, 1, 1)
     with torch.no_grad():
-        out = model(pose_parameters=pose, phenotype_kwargs=shape.to_dict())
-    vertices = out["rest_vertices"][0].double().numpy() @ ANNY_TO_PROJECT.T
-    heads = out["rest_bone_heads"][0].double().numpy() @ ANNY_TO_PROJECT.T
-    _, mapping = resolve_joint_map(list(model.bone_labels), "anny")
-    joints = np.stack([heads[mapping[name]] for name in JOINT_NAMES])
-    shift = np.array([joints[0, 0], vertices[:, 1].min(), joints[0, 2]])
-    return RestMesh(vertices - shift, np.asarray(model.faces, np.int64), joints - shift)
+        vertices, joints = _rest_tensors(shape.to_dict())
+    return RestMesh(vertices.double().numpy(), np.asarray(_anny_model().faces, np.int64), joints.double().numpy())
+
+
+@dataclass(frozen=True)
+class ShapeFit:
+    """The parametric shape nearest to a mesh and how near: surface distances both ways."""
+
+    shape: BodyShape
+    mean_mm: float  # mean over both directions: the mesh's vertices to anny's surface, and anny's to the mesh's
+    p95_mm: float  # the 95th percentile of the same distances
+    steps: int
+
+
+SHAPE_FIT_STEPS = 150  # Adam steps on the phenotype's logits (about 3 s on two cores)
+
+
+def fit_shape(vertices: np.ndarray, faces: np.ndarray, steps: int = SHAPE_FIT_STEPS) -> ShapeFit:
+    """The phenotype whose rest mesh lies nearest to the mesh (``vertices`` (V, 3) in the project's
+    frame as :func:`anny_rest_mesh` gives it, A-pose, and its ``faces``): gradient descent on the
+    symmetric nearest-vertex distance through anny (differentiable), from its average adult, then
+    the surface distances both ways. A mesh in another rest pose (a T-pose) fits its pose's
+    difference too: the report says how far it stays."""
+    import torch
+
+    target = torch.as_tensor(np.asarray(vertices, np.float64), dtype=torch.float32)
+    if target.ndim != 2 or target.shape[1] != 3 or len(target) < 50 or not torch.isfinite(target).all():
+        raise ValueError(f"a body mesh needs (V >= 50, 3) finite vertices, got {tuple(target.shape)}")
+    names = [f.name for f in fields(BodyShape)]
+    logits = torch.zeros(len(names), requires_grad=True)  # sigmoid(0) = 0.5: the average adult
+    optimiser = torch.optim.Adam([logits], lr=0.08)
+    for _ in range(steps):
+        values = torch.sigmoid(logits)
+        mesh, _ = _rest_tensors({n: values[i:i + 1] for i, n in enumerate(names)})
+        d = torch.cdist(mesh, target)
+        loss = d.min(1).values.mean() + d.min(0).values.mean()
+        optimiser.zero_grad()
+        loss.backward()
+        optimiser.step()
+    shape = BodyShape(**{n: float(v) for n, v in zip(names, torch.sigmoid(logits).detach())})
+    fitted = anny_rest_mesh(shape)
+    distances = np.concatenate([_to_surface(vertices, (fitted.vertices, fitted.faces)),
+                                _to_surface(fitted.vertices, (vertices, faces))])
+    return ShapeFit(shape, float(distances.mean() * 1000), float(np.quantile(distances, 0.95) * 1000), steps)
+
+
+SURFACE_SAMPLES = 200_000  # points spread over a surface for the distances (about 3 mm apart on a body)
+
+
+def _to_surface(points: np.ndarray, mesh: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
+    """(N,) each point's distance from the surface of the triangle mesh (vertices, faces): to the
+    nearest of :data:`SURFACE_SAMPLES` points spread evenly by area (within about 2 mm)."""
+    from scipy.spatial import cKDTree
+
+    vertices, faces = np.asarray(mesh[0], np.float64), np.asarray(mesh[1], np.int64)
+    tri = vertices[faces]
+    area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+    rng = np.random.default_rng(0)
+    face = rng.choice(len(faces), SURFACE_SAMPLES, p=area / area.sum())
+    u, v = rng.random((2, SURFACE_SAMPLES))
+    flip = u + v > 1.0
+    u[flip], v[flip] = 1.0 - u[flip], 1.0 - v[flip]
+    samples = tri[face, 0] + u[:, None] * (tri[face, 1] - tri[face, 0]) + v[:, None] * (tri[face, 2] - tri[face, 0])
+    return cKDTree(np.concatenate([samples, vertices])).query(np.asarray(points, np.float64))[0]
 
 
 def parametric_body(shape: BodyShape | None = None) -> ParametricBody:

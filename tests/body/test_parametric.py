@@ -69,3 +69,18 @@ def test_hrr_body_makes_and_reads_a_body_file(tmp_path, capsys):
     assert main(["make", "-o", str(tmp_path / "bad.json"), "--height", "1.4"]) == 2
     assert "height must be a number in [0, 1]" in capsys.readouterr().err and not (tmp_path / "bad.json").exists()
     assert main(["info", str(out), "--json"]) == 0 and '"stature_m"' in capsys.readouterr().out
+
+
+def test_the_shape_of_a_known_body_is_found_from_its_mesh():
+    """anny's mesh of a known phenotype, given without it: gradient descent through anny finds the
+    phenotype, and the surfaces lie within a centimetre of each other both ways (issue 45)."""
+    from hrr_garment.body.parametric import anny_rest_mesh, fit_shape
+
+    truth = BodyShape(height=0.3, weight=0.75, gender=0.2, muscle=0.6)
+    mesh = anny_rest_mesh(truth)
+    fit = fit_shape(mesh.vertices, mesh.faces)
+    assert fit.mean_mm < 10.0 and fit.p95_mm < 20.0
+    for name in ("height", "weight", "gender", "muscle"):
+        assert abs(getattr(fit.shape, name) - getattr(truth, name)) < 0.05, name
+    with pytest.raises(ValueError, match="finite vertices"):
+        fit_shape(mesh.vertices[:10], mesh.faces)
