@@ -101,15 +101,16 @@ def read_body(path: str | Path) -> BodyRecord:
     capsules = data.get("capsules")
     if not isinstance(capsules, list) or not capsules:
         raise InputError(path, "'capsules' must be a list of capsules")
-    body = BodyModel(tuple(_capsule(path, c) for c in capsules))
+    pelvis_height = _number(path, "pelvis_height", data.get("pelvis_height"), 0.2, 2.0)
+    body = BodyModel(tuple(_capsule(path, c) for c in capsules), skeleton=skeleton, pelvis_height=pelvis_height)
     shape = data.get("shape")
     if shape is not None and not (isinstance(shape, dict) and all(isinstance(v, (int, float)) for v in shape.values())):
         raise InputError(path, f"'shape' must map phenotype names to numbers, got {shape!r}")
     fit = data.get("fit")
     report = FitReport(**{k: _number(path, f"fit {k}", fit.get(k), 0.0, 1e6) for k in ("mean_mm", "p95_mm", "outside_1cm",
                                                                                   "inside_1cm")}) if fit else None
-    return BodyRecord(skeleton, body, _number(path, "pelvis_height", data.get("pelvis_height"), 0.2, 2.0),
-                      _number(path, "stature", data.get("stature"), 0.3, 3.0), shape=shape, report=report)
+    return BodyRecord(skeleton, body, pelvis_height, _number(path, "stature", data.get("stature"), 0.3, 3.0),
+                      shape=shape, report=report)
 
 
 def _capsule(path: Path, c: object) -> Capsule:

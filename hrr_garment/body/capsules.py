@@ -12,7 +12,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ..motion.motion import Motion
-from ..motion.skeleton import CANONICAL, JOINT_INDEX, REST_OFFSETS, REST_PELVIS_HEIGHT
+from ..motion.skeleton import CANONICAL, JOINT_INDEX, REST_OFFSETS, REST_PELVIS_HEIGHT, Skeleton
 
 
 @dataclass(frozen=True)
@@ -52,14 +52,23 @@ def _default_capsules() -> tuple[Capsule, ...]:
     return tuple(caps)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class BodyModel:
-    """A set of capsules; ``scaled(k)`` makes all radii k times larger (a fuller or slimmer body)."""
+    """A set of capsules on a skeleton; ``scaled(k)`` makes all radii k times larger (a fuller or
+    slimmer body). ``skeleton`` and ``pelvis_height`` place the body in its rest pose (the
+    mannequin's by default; a fitted body's own, :mod:`.fit`): motion carries its own skeleton."""
 
     capsules: tuple[Capsule, ...] = field(default_factory=_default_capsules)
+    skeleton: Skeleton = CANONICAL
+    pelvis_height: float = REST_PELVIS_HEIGHT  # metres from the soles to the pelvis in the rest pose
 
     def scaled(self, radius_scale: float) -> "BodyModel":
-        return BodyModel(tuple(replace(c, radius=c.radius * radius_scale) for c in self.capsules))
+        return replace(self, capsules=tuple(replace(c, radius=c.radius * radius_scale) for c in self.capsules))
+
+    @property
+    def is_mannequin_frame(self) -> bool:
+        """Whether it stands on the mannequin's skeleton at the mannequin's height."""
+        return self.skeleton is CANONICAL and self.pelvis_height == REST_PELVIS_HEIGHT
 
     @property
     def radii(self) -> np.ndarray:
@@ -77,10 +86,16 @@ class BodyModel:
         return self.pose(motion.global_rotations, motion.joint_positions)
 
     def rest_pose(self) -> tuple[np.ndarray, np.ndarray]:
-        """Capsule ends a, b (C, 3) in the canonical rest pose (feet on the ground)."""
+        """Capsule ends a, b (C, 3) in its skeleton's T-pose, standing on the ground."""
         rot = np.broadcast_to(np.eye(3), (1, len(REST_OFFSETS), 3, 3))
-        a, b = self.pose(rot, rest_joint_positions()[None])
+        a, b = self.pose(rot, self.rest_joints()[None])
         return a[0], b[0]
+
+    def rest_joints(self) -> np.ndarray:
+        """(22, 3) joint positions of its skeleton's T-pose, the pelvis over the origin."""
+        if self.is_mannequin_frame:
+            return rest_joint_positions()
+        return self.skeleton.rest_positions(np.array([0.0, self.pelvis_height, 0.0]))
 
 
 def rest_joint_positions() -> np.ndarray:

@@ -175,8 +175,9 @@ def fit_body(vertices: np.ndarray, joints: np.ndarray) -> FittedBody:
     signed = capsule_signed_distance(vertices, ends[0][0], ends[1][0], radii=body.radii)[0]
     report = FitReport(mean_mm=float(np.abs(signed).mean() * 1000), p95_mm=float(np.quantile(np.abs(signed), 0.95) * 1000),
                        outside_1cm=float((signed > 0.01).mean()), inside_1cm=float((signed < -0.01).mean()))
-    return FittedBody(skeleton, body, _pelvis_height(skeleton, joints, vertices), report,
-                      stature=float(vertices[:, 1].max() - vertices[:, 1].min()))
+    pelvis_height = _pelvis_height(skeleton, joints, vertices)
+    body = replace(body, skeleton=skeleton, pelvis_height=pelvis_height)
+    return FittedBody(skeleton, body, pelvis_height, report, stature=float(vertices[:, 1].max() - vertices[:, 1].min()))
 
 
 def _pelvis_height(skeleton: Skeleton, joints: np.ndarray, vertices: np.ndarray) -> float:

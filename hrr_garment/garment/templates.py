@@ -12,12 +12,13 @@ Angles: theta = 0 faces the front (+Z), theta = pi/2 is the character's left (+X
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from ..body.capsules import DEFAULT_BODY, BodyModel, capsule_signed_distance
 from ..errors import InputError
+from ..motion.skeleton import JOINT_INDEX
 from .mesh import GarmentMesh, check_garment
 
 
@@ -213,13 +214,44 @@ def _resolution(shape: TubeShape, vertices: int, body: BodyModel) -> tuple[int, 
     return rows, cols
 
 
+# heights of the body's landmarks in the rest pose: the ground, the knees, the pelvis, the upper
+# spine, the shoulders; a template's heights between two of them keep their place between them
+LANDMARKS = (("l_knee", "r_knee"), ("pelvis",), ("spine3",), ("l_shoulder", "r_shoulder"))
+
+
+def _landmark_heights(body: BodyModel) -> np.ndarray:
+    joints = body.rest_joints()
+    return np.array([0.0, *[np.mean([joints[JOINT_INDEX[j], 1] for j in group]) for group in LANDMARKS]])
+
+
+def shape_for_body(shape: TubeShape, body: BodyModel) -> TubeShape:
+    """``shape`` (made for the mannequin) on ``body``: each height mapped between the body's
+    landmarks (:data:`LANDMARKS`) as it lies between the mannequin's, the strap line moved with the
+    shoulders' width. The mannequin's own shape is returned as it is."""
+    if body.is_mannequin_frame:
+        return shape
+    ours, theirs = _landmark_heights(DEFAULT_BODY), _landmark_heights(body)
+
+    def height(y: float) -> float:  # piecewise linear, extended above the shoulders by the last ratio
+        if y <= ours[-1]:
+            return float(np.interp(y, ours, theirs))
+        return float(theirs[-1] + (y - ours[-1]) * (theirs[-1] - theirs[-2]) / (ours[-1] - ours[-2]))
+
+    joints, mannequin = body.rest_joints(), DEFAULT_BODY.rest_joints()
+    shoulders = abs(joints[JOINT_INDEX["l_shoulder"], 0]) / abs(mannequin[JOINT_INDEX["l_shoulder"], 0])
+    tilt = 0.5 * (height(shape.hem + shape.hem_tilt) - height(shape.hem - shape.hem_tilt))  # the hem's span, mapped
+    return replace(shape, top=height(shape.top), waist=height(shape.waist), hem=height(shape.hem), hem_tilt=tilt,
+                   strap_x=shape.strap_x * shoulders)
+
+
 def make_garment(name: str, vertices: int = DEFAULT_VERTICES, body: BodyModel = DEFAULT_BODY) -> GarmentMesh:
-    """A named template (see ``GARMENT_NAMES``) with about ``vertices`` vertices, checked."""
+    """A named template (see ``GARMENT_NAMES``) with about ``vertices`` vertices, made for ``body``
+    (default the mannequin; another body's heights through :func:`shape_for_body`), checked."""
     if name not in GARMENT_SHAPES:
         raise InputError(name, f"unknown garment; choose one of {', '.join(GARMENT_NAMES)} or give a template OBJ")
     if vertices < 60:
         raise InputError(name, f"--vertices {vertices} is too few for a garment (at least 60)")
-    shape = GARMENT_SHAPES[name]
+    shape = shape_for_body(GARMENT_SHAPES[name], body)
     rows, cols = _resolution(shape, vertices, body)
     tube = _tube(shape, rows, cols, body)
     verts = tube.reshape(-1, 3)
@@ -238,6 +270,12 @@ def make_garment(name: str, vertices: int = DEFAULT_VERTICES, body: BodyModel = 
         strap_y = verts[strap_ids, 1]
         groups["shoulders"] = strap_ids[strap_y >= strap_y.max() - shape.shoulder_band]
         waist_row = int(np.argmin(np.abs(tube[:, 0, 1] - shape.waist)))
+        above = np.flatnonzero(tube[:, 0, 1] >= shape.waist - 1e-9)
+        if not body.is_mannequin_frame and len(above):
+            # on another body the nearest row may be one below the waist, flared off the body (an
+            # attached band in the air): the lowest row that still follows the body. The mannequin's
+            # templates keep their rows, so its datasets and models stay valid.
+            waist_row = int(above.max())
         groups["waistband"] = waist_row * cols + np.arange(cols)
         attached = ("shoulders", "waistband")
     else:
