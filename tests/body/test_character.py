@@ -3,6 +3,7 @@ the mannequin's capsule surface in a centimetre, Z-up armature), read back in th
 read_character and fitted by hrr-body fit; files that cannot be read are refused naming the file."""
 
 import json
+from dataclasses import dataclass, field
 
 import numpy as np
 import pytest
@@ -61,14 +62,30 @@ def _chunks(vertices, faces, parts):
     return out
 
 
-def write_skinned(path, vertices, faces, joints, *, names=NAMES, unit=1.0, armature=(0.0, 0.0, 0.0), orient=None,
-                  posed=None, parts=1, skin=True, ibm=True):
-    """A GLB of a mesh skinned to the canonical skeleton in its bind pose. ``vertices`` and ``joints``
-    are in the world (metres, Y up); the file holds them under an armature node turned by the
-    axis-angle ``armature`` and scaled by ``unit`` (0.01: a centimetre armature), each joint's node
-    oriented by ``orient`` (J, 3, 3) in the armature's space, ``posed`` {joint: extra local rotation}
-    applied to the nodes only (not to the bind), the mesh cut in ``parts`` primitives over two meshes.
-    Each vertex is skinned fully to its nearest joint."""
+@dataclass
+class Layout:
+    """How write_skinned lays a character out: its joint names; an armature node turned by the
+    axis-angle ``armature`` and scaled by ``unit`` (0.01: a centimetre armature); each joint node's
+    orientation ``orient`` (22, 3, 3) in the armature's space; ``posed`` {joint: extra local rotation}
+    applied to the nodes only (not to the bind); the mesh cut in ``parts`` primitives over two
+    meshes; whether the mesh is skinned and the skin has inverse bind matrices."""
+
+    names: list = field(default_factory=lambda: list(NAMES))
+    unit: float = 1.0
+    armature: tuple = (0.0, 0.0, 0.0)
+    orient: np.ndarray | None = None
+    posed: dict | None = None
+    parts: int = 1
+    skin: bool = True
+    ibm: bool = True
+
+
+def write_skinned(path, vertices, faces, joints, layout: Layout = Layout()):
+    """A GLB of a mesh skinned to the canonical skeleton in its bind pose, laid out as ``layout``
+    says. ``vertices`` and ``joints`` are in the world (metres, Y up). Each vertex is skinned fully
+    to its nearest joint. Returns the faces as the file holds them (the primitives' concatenated)."""
+    names, unit, armature, orient, posed, parts, skin, ibm = (
+        layout.names, layout.unit, layout.armature, layout.orient, layout.posed, layout.parts, layout.skin, layout.ibm)
     gl = pygltflib.GLTF2()
     blob = _Blob(gl)
     turn = axis_angle_to_matrix(np.asarray(armature, np.float64))
@@ -139,7 +156,7 @@ def _orient(seed=0):
 def test_a_centimetre_z_up_armature_is_read_back_in_metres_y_up(tmp_path, capsys):
     vertices, faces, joints = _mannequin()
     path = tmp_path / "hero.glb"
-    written_faces = write_skinned(path, vertices, faces, joints, unit=0.01, armature=Z_UP, orient=_orient(), parts=3)
+    written_faces = write_skinned(path, vertices, faces, joints, Layout(unit=0.01, armature=Z_UP, orient=_orient(), parts=3))
     character = read_character(path)
     assert np.abs(character.vertices - vertices).max() < 1e-5
     assert np.abs(character.joints - joints).max() < 1e-5
@@ -158,40 +175,32 @@ def test_a_centimetre_z_up_armature_is_read_back_in_metres_y_up(tmp_path, capsys
     assert record.pelvis_height == pytest.approx(expected.pelvis_height, abs=1e-5)
 
 
-def test_joints_posed_away_from_the_bind_pose_and_z_up_without_a_turn():
+def test_joints_posed_away_from_the_bind_pose_and_z_up_without_a_turn(tmp_path):
     """Nodes posed off the bind pose: the mesh and joints still come back in the bind pose, the
     posed joints named. A file authored Z-up with no root turn is turned to stand Y up."""
     vertices, faces, joints = _mannequin(0.95)
     bend = {JOINT_INDEX["l_elbow"]: axis_angle_to_matrix(np.array([0.0, 0.0, 0.7]))}
-    import tempfile
-    from pathlib import Path
-
-    with tempfile.TemporaryDirectory() as tmp:
-        posed = Path(tmp) / "posed.glb"
-        write_skinned(posed, vertices, faces, joints, orient=_orient(1), posed=bend)
-        character = read_character(posed)
-        assert np.abs(character.vertices - vertices).max() < 1e-5 and np.abs(character.joints - joints).max() < 1e-5
-        assert set(character.posed_joints) == {"mixamorig:LeftForeArm", "mixamorig:LeftHand"}
-        lying = Path(tmp) / "lying.glb"
-        # authored Z up (the world point p written as turn.T @ p) under an identity root: read lying down
-        turn = axis_angle_to_matrix(np.asarray(Z_UP))
-        write_skinned(lying, vertices @ turn, faces, joints @ turn, orient=_orient(2))
-        character = read_character(lying)
-        assert character.turned
-        assert np.abs(character.vertices - vertices).max() < 1e-5 and np.abs(character.joints - joints).max() < 1e-5
+    posed = tmp_path / "posed.glb"
+    write_skinned(posed, vertices, faces, joints, Layout(orient=_orient(1), posed=bend))
+    character = read_character(posed)
+    assert np.abs(character.vertices - vertices).max() < 1e-5 and np.abs(character.joints - joints).max() < 1e-5
+    assert set(character.posed_joints) == {"mixamorig:LeftForeArm", "mixamorig:LeftHand"}
+    lying = tmp_path / "lying.glb"
+    # authored Z up (the world point p written as turn.T @ p) under an identity root: read lying down
+    turn = axis_angle_to_matrix(np.asarray(Z_UP))
+    write_skinned(lying, vertices @ turn, faces, joints @ turn, Layout(orient=_orient(2)))
+    character = read_character(lying)
+    assert character.turned
+    assert np.abs(character.vertices - vertices).max() < 1e-5 and np.abs(character.joints - joints).max() < 1e-5
 
 
-def test_a_centimetre_file_without_a_scaling_node_and_a_rig_missing_spine2():
+def test_a_centimetre_file_without_a_scaling_node_and_a_rig_missing_spine2(tmp_path):
     vertices, faces, joints = _mannequin()
     names = list(NAMES)
     names[JOINT_INDEX["spine2"]] = "mixamorig:Extra"  # not a Mixamo name: spine2 is left to be filled
-    import tempfile
-    from pathlib import Path
-
-    with tempfile.TemporaryDirectory() as tmp:
-        path = Path(tmp) / "cm.glb"
-        write_skinned(path, vertices * 100.0, faces, joints * 100.0, names=names)
-        character = read_character(path)
+    path = tmp_path / "cm.glb"
+    write_skinned(path, vertices * 100.0, faces, joints * 100.0, Layout(names=names))
+    character = read_character(path)
     assert character.unit_scale == pytest.approx(0.01)
     assert np.abs(character.vertices - vertices).max() < 1e-5
     assert character.filled_joints == ("spine2",)
@@ -209,7 +218,7 @@ def test_an_anny_body_on_a_mixamo_skeleton_comes_back_and_fits_the_same(tmp_path
     body = parametric_body(BodyShape(height=0.7, weight=0.3, gender=1.0))
     mesh = body.mesh
     path = tmp_path / "anny.glb"
-    written_faces = write_skinned(path, mesh.vertices, mesh.faces, mesh.joints, orient=_orient(3), parts=2)
+    written_faces = write_skinned(path, mesh.vertices, mesh.faces, mesh.joints, Layout(orient=_orient(3), parts=2))
     character = read_character(path)
     assert np.abs(character.vertices - mesh.vertices).max() < 1e-5
     assert np.abs(character.joints - mesh.joints).max() < 1e-5
@@ -237,17 +246,17 @@ def test_files_that_are_no_character_are_refused_naming_the_file(tmp_path, capsy
     good = tmp_path / "good.glb"
     write_skinned(good, vertices, faces, joints)
     no_skin = tmp_path / "no_skin.glb"
-    write_skinned(no_skin, vertices, faces, joints, skin=False)
+    write_skinned(no_skin, vertices, faces, joints, Layout(skin=False))
     assert "no skin" in _refused(tmp_path, capsys, no_skin)
     unknown = tmp_path / "unknown.glb"
-    write_skinned(unknown, vertices, faces, joints, names=[f"bone{i}" for i in range(22)])
+    write_skinned(unknown, vertices, faces, joints, Layout(names=[f"bone{i}" for i in range(22)]))
     assert "could not map canonical joints" in _refused(tmp_path, capsys, unknown)
     cut = tmp_path / "cut.glb"
     cut.write_bytes(good.read_bytes()[: len(good.read_bytes()) // 2])
     assert "cut short" in _refused(tmp_path, capsys, cut)
     assert "no skin 3" in _refused(tmp_path, capsys, good, "--skin", "3")
     no_bind = tmp_path / "no_bind.glb"
-    write_skinned(no_bind, vertices, faces, joints, ibm=False)
+    write_skinned(no_bind, vertices, faces, joints, Layout(ibm=False))
     assert "inverseBindMatrices" in _refused(tmp_path, capsys, no_bind)
     bad = vertices.copy()
     bad[7, 1] = np.nan
