@@ -208,6 +208,9 @@ def read_character(path: str | Path, skin: int | None = None, joint_map: dict | 
     world unit (default 1, detected from the legs when that gives no plausible human height)."""
     doc = open_gltf(path)
     path = doc.path
+    if "KHR_draco_mesh_compression" in (doc.doc.extensionsUsed or []):
+        raise doc.fail("its meshes are Draco-compressed (KHR_draco_mesh_compression), which pygltflib does not "
+                       "decode; export it without mesh compression")
     skin, meshes = _skinned_meshes(doc, skin)
     joint_nodes = list(doc.doc.skins[skin].joints or [])
     if not joint_nodes or not all(isinstance(j, int) and 0 <= j < len(doc.doc.nodes) for j in joint_nodes):

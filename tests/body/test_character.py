@@ -267,5 +267,9 @@ def test_files_that_are_no_character_are_refused_naming_the_file(tmp_path, capsy
     _refused(tmp_path, capsys, tmp_path / "text.glb")
     _refused(tmp_path, capsys, tmp_path / "missing.glb")
     assert "m tall" in _refused(tmp_path, capsys, good, "--unit-scale", "0.001")  # 1.8 mm tall
+    draco = pygltflib.GLTF2().load(str(good))
+    draco.extensionsUsed = ["KHR_draco_mesh_compression"]
+    draco.save_binary(str(tmp_path / "draco.glb"))
+    assert "Draco" in _refused(tmp_path, capsys, tmp_path / "draco.glb")
     with pytest.raises(InputError, match="no skin"):
         read_character(no_skin)
