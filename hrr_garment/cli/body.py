@@ -2,12 +2,15 @@
 
     hrr-body make -o tall.json --height 0.8 --weight 0.3 --gender 1     # anny's phenotype, each in [0, 1]
     hrr-body make -o average.json                                        # its average adult
+    hrr-body fit character.glb -o hero.json [--skin N] [--joint-map map.yaml] [--unit-scale S]
     hrr-body info tall.json [--json]
 
 ``make`` builds anny's body of that shape (the ``bodies`` extra; the first run builds its blend
 shapes, about a minute, cached under the workspace), fits the canonical skeleton's bone lengths and
 the collision capsules to it and writes body.json (docs/bodies.md), reporting its height and how
-closely the capsules follow its surface.
+closely the capsules follow its surface. ``fit`` does the same for your character: a skinned glTF /
+GLB's mesh in its bind pose and its skeleton's joints (Mixamo's names and the other known rigs,
+or a joint map), in metres, Y up, facing +Z.
 """
 
 from __future__ import annotations
@@ -19,7 +22,7 @@ from dataclasses import fields
 from pathlib import Path
 from typing import Sequence
 
-from ..body.body_file import read_body, write_body
+from ..body.body_file import BodyRecord, read_body, write_body
 from ..body.parametric import BodyShape
 from ..errors import InputError
 from ._common import run_cli
@@ -32,6 +35,14 @@ def _parser() -> argparse.ArgumentParser:
     for f in fields(BodyShape):
         make.add_argument(f"--{f.name}", type=float, default=0.5, help=f"anny's {f.name}, in [0, 1] (default 0.5)")
     make.add_argument("-o", "--output", type=Path, required=True, help="body.json to write")
+    fit = sub.add_parser("fit", help="a skinned glTF / GLB character's mesh -> body.json")
+    fit.add_argument("character", type=Path, help="a skinned .glb or .gltf")
+    fit.add_argument("-o", "--output", type=Path, required=True, help="body.json to write")
+    fit.add_argument("--skin", type=int, default=None, help="which skin (default: the one with the most skinned vertices)")
+    fit.add_argument("--joint-map", type=Path, default=None,
+                     help="YAML 'canonical_joint: your_joint' per line, for a rig whose names are not known")
+    fit.add_argument("--unit-scale", type=float, default=None,
+                     help="metres per unit of the file (default 1, as glTF says; detected when implausible)")
     info = sub.add_parser("info", help="what a body file holds")
     info.add_argument("body", type=Path)
     info.add_argument("--json", action="store_true")
@@ -49,6 +60,40 @@ def _summary(record) -> dict:
             "fit": record.report.to_dict() if record.report else None}
 
 
+def _fit_character(args) -> int:
+    """hrr-body fit: read the character, fit the skeleton and capsules, write body.json."""
+    from ..body.character import STATURE_RANGE_M, read_character
+    from ..body.fit import fit_body
+    from ..motion.joint_maps import load_joint_map
+
+    joint_map = load_joint_map(args.joint_map) if args.joint_map is not None else None
+    character = read_character(args.character, skin=args.skin, joint_map=joint_map, unit_scale=args.unit_scale)
+    try:
+        fitted = fit_body(character.vertices, character.joints)
+    except ValueError as exc:
+        raise InputError(args.character, f"cannot fit a body to its mesh: {exc}") from None
+    lo, hi = STATURE_RANGE_M
+    if not lo <= fitted.stature <= hi:
+        raise InputError(args.character, f"the character is {fitted.stature:.3g} m tall, not within [{lo}, {hi}] m; "
+                                         "if the file is not in metres, pass --unit-scale (metres per file unit)")
+    write_body(args.output, BodyRecord(fitted.skeleton, fitted.body, pelvis_height=fitted.pelvis_height,
+                                       stature=fitted.stature, shape=None, report=fitted.report))
+    notes = [f"skin {character.skin}, {len(character.vertices)} vertices, {character.scheme} joint names"]
+    if character.unit_scale != 1.0:
+        notes.append(f"{character.unit_scale:g} m per file unit")
+    if character.turned:
+        notes.append("turned to stand Y up, facing +Z")
+    if character.posed_joints:
+        notes.append(f"read in its bind pose; {len(character.posed_joints)} joint(s) stood posed away from it")
+    if character.filled_joints:
+        notes.append(f"placed {', '.join(character.filled_joints)}, which the skeleton lacks")
+    fit = fitted.report
+    print(f"wrote {args.output}: {fitted.stature:.3f} m tall, pelvis {fitted.pelvis_height:.3f} m over the soles; "
+          f"capsules within {fit.mean_mm:.1f} mm of the surface on average (95th percentile {fit.p95_mm:.1f} mm; "
+          f"{fit.outside_1cm:.0%} of vertices more than 1 cm outside) ({'; '.join(notes)})")
+    return 0
+
+
 def _main(argv: Sequence[str] | None) -> int:
     args = _parser().parse_args(argv)
     if args.command == "info":
@@ -57,6 +102,8 @@ def _main(argv: Sequence[str] | None) -> int:
         return 0
     if args.output.suffix.lower() != ".json":
         raise InputError(args.output, "a body file is written as .json")
+    if args.command == "fit":
+        return _fit_character(args)
     try:
         shape = BodyShape(**{f.name: getattr(args, f.name) for f in fields(BodyShape)})
     except ValueError as exc:

@@ -133,8 +133,10 @@ class _Document:
         with open(target, "rb") as fh:
             return fh.read(size)
 
-    def accessor(self, index: int) -> np.ndarray:
-        """Accessor ``index`` as (count, width) float64, normalized integers scaled to [-1, 1]."""
+    def accessor(self, index: int, raw_integers: bool = False) -> np.ndarray:
+        """Accessor ``index`` as (count, width) float64, normalized integers scaled to [-1, 1].
+        ``raw_integers``: integers not flagged ``normalized`` are kept as they are (indices, joint
+        numbers, quantized positions) instead of scaled as animation outputs' integers are."""
         try:
             acc = self.doc.accessors[index]
             view = self.doc.bufferViews[acc.bufferView] if acc.bufferView is not None else None
@@ -143,7 +145,7 @@ class _Document:
         except (IndexError, KeyError, TypeError):
             raise self.fail(f"accessor {index} is missing or of an unknown type") from None
         if acc.sparse is not None:
-            raise self.fail(f"accessor {index} is sparse, which motion reading does not support")
+            raise self.fail(f"accessor {index} is sparse, which this reader does not support")
         if view is None:
             return np.zeros((acc.count, width))  # the spec: an accessor without a buffer view holds zeros
         data = self._buffer(view.buffer)
@@ -154,7 +156,7 @@ class _Document:
         if acc.count < 0 or start + needed > min(end, len(data)):
             raise self.fail(f"accessor {index} reaches past the end of its buffer: the file is cut short or corrupt")
         values = np.ndarray((acc.count, width), dtype=dtype, buffer=data, offset=start, strides=(stride, item)).astype(np.float64)
-        if divisor is not None and (acc.normalized or dtype != "<u4"):
+        if divisor is not None and (acc.normalized or (dtype != "<u4" and not raw_integers)):
             values = np.maximum(values / divisor, -1.0)
         if not np.isfinite(values).all():
             raise self.fail(f"accessor {index} holds non-finite values (NaN or inf)")
@@ -227,6 +229,22 @@ def _world(order: list[int], parents: list[int], local: dict[int, tuple]) -> dic
             linear, t = p_lin @ linear, p_t + (p_lin @ t[..., None])[..., 0]
         world[n] = (linear, t)
     return world
+
+
+def open_gltf(path: str | Path) -> _Document:
+    """A glTF / GLB file loaded with its buffers (accessors read by ``.accessor(i)``, the pygltflib
+    document as ``.doc``); a file that cannot be read raises :class:`MotionError` naming it."""
+    return _Document(Path(path))
+
+
+def rest_world_matrices(doc: _Document) -> np.ndarray:
+    """(N, 4, 4) every node's world matrix in its rest transforms, through the whole node tree."""
+    parents = _node_parents(doc)
+    world = _rest_world(doc, _chain(parents, list(range(len(parents)))), parents)
+    out = np.tile(np.eye(4), (len(parents), 1, 1))
+    for n, (linear, t) in world.items():
+        out[n, :3, :3], out[n, :3, 3] = linear[0], t[0]
+    return out
 
 
 def _rotation_part(linear: np.ndarray) -> np.ndarray:
