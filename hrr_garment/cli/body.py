@@ -2,7 +2,8 @@
 
     hrr-body make -o tall.json --height 0.8 --weight 0.3 --gender 1     # anny's phenotype, each in [0, 1]
     hrr-body make -o average.json                                        # its average adult
-    hrr-body fit character.glb -o hero.json [--skin N] [--joint-map map.yaml] [--unit-scale S]
+    hrr-body fit character.glb -o hero.json [--skin N] [--joint-map map.yaml] [--unit-scale S] [--parametric]
+    hrr-body nearest clip.bvh -o performer.json      # the parametric body nearest to the clip's performer
     hrr-body info tall.json [--json]
 
 ``make`` builds anny's body of that shape (the ``bodies`` extra; the first run builds its blend
@@ -43,6 +44,13 @@ def _parser() -> argparse.ArgumentParser:
                      help="YAML 'canonical_joint: your_joint' per line, for a rig whose names are not known")
     fit.add_argument("--unit-scale", type=float, default=None,
                      help="metres per unit of the file (default 1, as glTF says; detected when implausible)")
+    fit.add_argument("--parametric", action="store_true",
+                     help="also find the parametric (anny) shape nearest to the mesh, report the surface distance "
+                          "both ways and record the shape (the bodies extra)")
+    nearest = sub.add_parser("nearest", help="the parametric body nearest to a clip's performer -> body.json")
+    nearest.add_argument("motion", type=Path, help="a BVH or glTF / GLB clip (its rig's proportions)")
+    nearest.add_argument("-o", "--output", type=Path, required=True, help="body.json to write")
+    nearest.add_argument("--unit-scale", type=float, default=None, help="metres per file unit (default: detected)")
     info = sub.add_parser("info", help="what a body file holds")
     info.add_argument("body", type=Path)
     info.add_argument("--json", action="store_true")
@@ -76,9 +84,17 @@ def _fit_character(args) -> int:
     if not lo <= fitted.stature <= hi:
         raise InputError(args.character, f"the character is {fitted.stature:.3g} m tall, not within [{lo}, {hi}] m; "
                                          "if the file is not in metres, pass --unit-scale (metres per file unit)")
-    write_body(args.output, BodyRecord(fitted.skeleton, fitted.body, pelvis_height=fitted.pelvis_height,
-                                       stature=fitted.stature, shape=None, report=fitted.report))
     notes = [f"skin {character.skin}, {len(character.vertices)} vertices, {character.scheme} joint names"]
+    shape = None
+    if args.parametric:
+        from ..body.parametric import fit_shape
+
+        nearest = fit_shape(character.vertices, character.faces)
+        shape = nearest.shape.to_dict()
+        notes.append(f"nearest parametric shape {_values(shape)}: surfaces {nearest.mean_mm:.1f} mm apart on average "
+                     f"(95th percentile {nearest.p95_mm:.1f} mm)")
+    write_body(args.output, BodyRecord(fitted.skeleton, fitted.body, pelvis_height=fitted.pelvis_height,
+                                       stature=fitted.stature, shape=shape, report=fitted.report))
     if character.unit_scale != 1.0:
         notes.append(f"{character.unit_scale:g} m per file unit")
     if character.turned:
@@ -94,6 +110,24 @@ def _fit_character(args) -> int:
     return 0
 
 
+def _values(shape: dict) -> str:
+    return ", ".join(f"{k} {v:.2f}" for k, v in shape.items())
+
+
+def _nearest(args) -> int:
+    """hrr-body nearest: the performer's proportions from the clip's rig, the nearest parametric body."""
+    from ..body.parametric import parametric_body
+    from ..body.proportions import nearest_body, source_proportions
+
+    found = nearest_body(source_proportions(args.motion, args.unit_scale))
+    body = parametric_body(found.shape)
+    write_body(args.output, body)
+    errors = ", ".join(f"{k} {v:+.0f}" for k, v in found.errors_mm.items())
+    print(f"wrote {args.output}: {body.fitted.stature:.3f} m tall ({_values(body.shape.to_dict())}); the performer's "
+          f"measures missed by {found.rms_mm:.1f} mm RMS ({errors} mm)")
+    return 0
+
+
 def _main(argv: Sequence[str] | None) -> int:
     args = _parser().parse_args(argv)
     if args.command == "info":
@@ -102,6 +136,8 @@ def _main(argv: Sequence[str] | None) -> int:
         return 0
     if args.output.suffix.lower() != ".json":
         raise InputError(args.output, "a body file is written as .json")
+    if args.command == "nearest":
+        return _nearest(args)
     if args.command == "fit":
         return _fit_character(args)
     try:

@@ -58,3 +58,18 @@ def test_a_cmu_performers_nearest_body_is_reported_with_its_error(mocap_dir):
     assert 0.35 < measured["upper_leg"] < 0.5 and 0.35 < measured["lower_leg"] < 0.5
     found = nearest_body(measured)
     assert set(found.errors_mm) == set(measured) and np.isfinite(found.rms_mm) and found.rms_mm < 50
+
+
+@pytest.mark.slow
+def test_hrr_body_nearest_writes_the_performers_body(mocap_dir, tmp_path, capsys):
+    pytest.importorskip("anny", reason="the bodies extra is not installed")
+    from hrr_garment.body.body_file import read_body
+    from hrr_garment.cli.body import main
+
+    out = tmp_path / "performer.json"
+    assert main(["nearest", str(mocap_dir / "cmu" / "02_01.bvh"), "-o", str(out)]) == 0
+    said = capsys.readouterr().out
+    assert "mm RMS" in said and "upper_leg" in said
+    record = read_body(out)
+    assert record.shape is not None and 1.4 < record.stature < 2.1
+    assert main(["nearest", str(tmp_path / "none.npz"), "-o", str(tmp_path / "x.json")]) == 2
