@@ -33,7 +33,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..motion.bvh_motion import PLAUSIBLE_HEIGHT_M, detect_unit_scale
-from ..motion.gltf import open_gltf, rest_world_matrices
+from ..motion.gltf_file import open_gltf, rest_world_matrices
 from ..motion.joint_maps import resolve_joint_map
 from ..motion.retarget import standing_height_from_legs
 from ..motion.skeleton import JOINT_INDEX, JOINT_NAMES, PARENTS, REST_OFFSETS

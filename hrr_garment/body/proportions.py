@@ -59,7 +59,8 @@ def proportions(joint_positions: np.ndarray) -> dict[str, float]:
 def source_proportions(path: str | Path, unit_scale: float | None = None) -> dict[str, float]:
     """The performer's measures from a BVH or glTF / GLB file's own rig (metres)."""
     from ..motion.bvh_motion import bvh_source
-    from ..motion.gltf import GLTF_SUFFIXES, GltfOptions, gltf_source
+    from ..motion.gltf import GltfOptions, gltf_source
+    from ..motion.gltf_file import GLTF_SUFFIXES
 
     path = Path(path)
     suffix = path.suffix.lower()

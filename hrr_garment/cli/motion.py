@@ -12,7 +12,8 @@ import numpy as np
 from ..errors import InputError
 from ..io_utils import atomic_path, strict_json
 from ..motion.features import motion_features
-from ..motion.gltf import GLTF_SUFFIXES, gltf_summary
+from ..motion.gltf import gltf_summary
+from ..motion.gltf_file import GLTF_SUFFIXES
 from ..motion.io import load_motion, save_motion
 from ..motion.synth import KINDS, kind_parameters, synthesize
 from ..motion.windows import DEFAULT_WINDOW

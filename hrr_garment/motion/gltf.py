@@ -12,40 +12,29 @@ through :mod:`.joint_maps`, retargeting by :mod:`.retarget`.
 
 from __future__ import annotations
 
-import json
-import struct
-import warnings
 from dataclasses import dataclass
 from pathlib import Path
-from urllib.parse import unquote
 
 import numpy as np
 
-from ..errors import MotionError
 from .bvh_motion import PLAUSIBLE_HEIGHT_M, detect_unit_scale
+from .gltf_file import (
+    GltfDocument,
+    node_chain,
+    node_parents,
+    rest_trs,
+    rest_world,
+    rotation_part,
+    world_transforms,
+)
 from .joint_maps import resolve_joint_map
 from .limits import MAX_BVH_JOINTS, check_frame_budget
 from .motion import FPS, Motion
 from .retarget import SourceMotion, check_source, retarget, standing_height_from_legs
-from .rotations import matrix_to_quat, quat_slerp, quat_to_matrix
+from .rotations import quat_slerp
 
-GLTF_SUFFIXES = (".glb", ".gltf")
-# componentType -> (little-endian dtype, divisor of a normalized integer)
-_COMPONENTS = {5120: ("<i1", 127.0), 5121: ("<u1", 255.0), 5122: ("<i2", 32767.0), 5123: ("<u2", 65535.0),
-               5125: ("<u4", None), 5126: ("<f4", None)}
-_WIDTHS = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT4": 16}
 _PATH_WIDTHS = {"translation": 3, "rotation": 4, "scale": 3}
 _INTERPOLATIONS = ("LINEAR", "STEP", "CUBICSPLINE")
-# pygltflib's failures on a file that is not glTF (or is cut short): one line each, never a traceback
-_READ_ERRORS = (OSError, ValueError, KeyError, TypeError, IndexError, AttributeError, struct.error, UnicodeDecodeError)
-
-
-def _pygltflib():
-    try:
-        import pygltflib
-    except ImportError:
-        raise ImportError("reading glTF / GLB motion needs pygltflib: pip install 'hrr_garment[export]'") from None
-    return pygltflib
 
 
 @dataclass(frozen=True)
@@ -76,193 +65,11 @@ class _Channel:
     interpolation: str
 
 
-class _Document:
-    """A loaded glTF document and its buffers' bytes, with checked access to accessors."""
-
-    def __init__(self, path: Path):
-        self.path = path
-        gltf = _pygltflib()
-        try:
-            data = path.read_bytes()
-        except OSError as exc:
-            raise MotionError(path, f"cannot read file ({exc.strerror})") from None
-        try:
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore")
-                doc = gltf.GLTF2.load_from_bytes(data) if data[:4] == b"glTF" else gltf.GLTF2.from_json(data.decode("utf-8"))
-        except (*_READ_ERRORS, json.JSONDecodeError) as exc:
-            raise MotionError(path, f"not a readable glTF 2.0 / GLB file, or cut short ({type(exc).__name__}: {exc})") from None
-        if doc is None or not isinstance(doc.nodes, list):
-            raise MotionError(path, "not a readable glTF 2.0 / GLB file (no JSON chunk)")
-        if "EXT_meshopt_compression" in (doc.extensionsRequired or []):
-            raise MotionError(path, "its data is compressed with EXT_meshopt_compression, which pygltflib does not "
-                                    "decode; export it without compression")
-        self.doc = doc
-        self._buffers: dict[int, bytes] = {}
-
-    def fail(self, problem: str) -> MotionError:
-        """A :class:`MotionError` naming this file."""
-        return MotionError(self.path, problem)
-
-    def _buffer(self, index: int) -> bytes:
-        if index not in self._buffers:
-            buf = self.doc.buffers[index]
-            uri = buf.uri
-            try:
-                if uri is None:
-                    data = self.doc.binary_blob()
-                elif uri.startswith("data:"):
-                    data = self.doc.decode_data_uri(uri)
-                else:
-                    data = self._external(unquote(uri), buf.byteLength or 0)
-            except _READ_ERRORS as exc:
-                raise self.fail(f"cannot read buffer {index} ({uri or 'the GLB binary chunk'}: {exc})") from None
-            if data is None or len(data) < (buf.byteLength or 0):
-                held = 0 if data is None else len(data)
-                raise self.fail(f"buffer {index} declares {buf.byteLength} bytes but the file holds {held}: "
-                                "the file is cut short")
-            self._buffers[index] = bytes(data)
-        return self._buffers[index]
-
-    def _external(self, uri: str, size: int) -> bytes:
-        """The first ``size`` bytes of a buffer file beside a .gltf (never a path out of its folder)."""
-        relative = Path(uri)
-        target = self.path.parent / relative
-        if relative.is_absolute() or ".." in relative.parts or not target.is_file():
-            raise self.fail(f"buffer file {uri!r} is not a file beside the .gltf")
-        with open(target, "rb") as fh:
-            return fh.read(size)
-
-    def accessor(self, index: int, raw_integers: bool = False) -> np.ndarray:
-        """Accessor ``index`` as (count, width) float64, normalized integers scaled to [-1, 1].
-        ``raw_integers``: integers not flagged ``normalized`` are kept as they are (indices, joint
-        numbers, quantized positions) instead of scaled as animation outputs' integers are."""
-        try:
-            acc = self.doc.accessors[index]
-            view = self.doc.bufferViews[acc.bufferView] if acc.bufferView is not None else None
-            dtype, divisor = _COMPONENTS[acc.componentType]
-            width = _WIDTHS[acc.type]
-        except (IndexError, KeyError, TypeError):
-            raise self.fail(f"accessor {index} is missing or of an unknown type") from None
-        if acc.sparse is not None:
-            raise self.fail(f"accessor {index} is sparse, which this reader does not support")
-        if view is None:
-            return np.zeros((acc.count, width))  # the spec: an accessor without a buffer view holds zeros
-        data = self._buffer(view.buffer)
-        item = np.dtype(dtype).itemsize
-        stride = view.byteStride or item * width
-        start, end = (view.byteOffset or 0) + (acc.byteOffset or 0), (view.byteOffset or 0) + view.byteLength
-        needed = stride * (acc.count - 1) + item * width if acc.count else 0
-        if acc.count < 0 or start + needed > min(end, len(data)):
-            raise self.fail(f"accessor {index} reaches past the end of its buffer: the file is cut short or corrupt")
-        values = np.ndarray((acc.count, width), dtype=dtype, buffer=data, offset=start, strides=(stride, item)).astype(np.float64)
-        if divisor is not None and (acc.normalized or (dtype != "<u4" and not raw_integers)):
-            values = np.maximum(values / divisor, -1.0)
-        if not np.isfinite(values).all():
-            raise self.fail(f"accessor {index} holds non-finite values (NaN or inf)")
-        return values
-
-
-# --- the node tree ---------------------------------------------------------------------------------
-
-
-def _node_parents(doc: _Document) -> list[int]:
-    """Each node's parent (-1 for roots); a node with two parents or a cycle is refused."""
-    nodes = doc.doc.nodes
-    parents = [-1] * len(nodes)
-    for i, node in enumerate(nodes):
-        for child in node.children or []:
-            if not (0 <= child < len(nodes)) or parents[child] != -1 or child == i:
-                raise doc.fail(f"node {i} lists child {child}, which is missing or already has a parent")
-            parents[child] = i
-    rooted = [False] * len(nodes)  # known to lead up to a root
-    for i in range(len(nodes)):
-        path, k = set(), i
-        while k >= 0 and not rooted[k]:
-            if k in path:
-                raise doc.fail(f"the node tree has a cycle through node {k}")
-            path.add(k)
-            k = parents[k]
-        for k in path:
-            rooted[k] = True
-    return parents
-
-
-def _rest_trs(node) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """A node's own translation, rotation (w, x, y, z) and scale; a ``matrix`` is decomposed."""
-    if node.matrix is not None and not np.allclose(node.matrix, np.eye(4).ravel()):
-        m = np.asarray(node.matrix, dtype=np.float64).reshape(4, 4).T  # glTF matrices are column-major
-        scale = np.linalg.norm(m[:3, :3], axis=0)
-        if np.linalg.det(m[:3, :3]) < 0:
-            scale[0] = -scale[0]
-        rot = m[:3, :3] / np.where(scale == 0, 1.0, scale)
-        return m[:3, 3], matrix_to_quat(rot), scale
-    t = np.asarray(node.translation if node.translation is not None else (0.0, 0.0, 0.0), dtype=np.float64)
-    q = np.asarray(node.rotation if node.rotation is not None else (0.0, 0.0, 0.0, 1.0), dtype=np.float64)[[3, 0, 1, 2]]
-    s = np.asarray(node.scale if node.scale is not None else (1.0, 1.0, 1.0), dtype=np.float64)
-    return t, q, s
-
-
-def _chain(parents: list[int], nodes: list[int]) -> list[int]:
-    """``nodes`` and all their ancestors, each after its parent."""
-    order: list[int] = []
-    seen: set[int] = set()
-    for n in nodes:
-        path = []
-        while n >= 0 and n not in seen:
-            path.append(n)
-            seen.add(n)
-            n = parents[n]
-        order.extend(reversed(path))
-    return order
-
-
-def _world(order: list[int], parents: list[int], local: dict[int, tuple]) -> dict[int, tuple[np.ndarray, np.ndarray]]:
-    """World (linear part (F, 3, 3), translation (F, 3)) of each node in ``order`` from its local
-    (translation (F, 3), rotation (F, 4), scale (F, 3))."""
-    world: dict[int, tuple[np.ndarray, np.ndarray]] = {}
-    for n in order:
-        t, q, s = local[n]
-        linear = quat_to_matrix(q) * s[..., None, :]
-        if parents[n] in world:
-            p_lin, p_t = world[parents[n]]
-            linear, t = p_lin @ linear, p_t + (p_lin @ t[..., None])[..., 0]
-        world[n] = (linear, t)
-    return world
-
-
-def open_gltf(path: str | Path) -> _Document:
-    """A glTF / GLB file loaded with its buffers (accessors read by ``.accessor(i)``, the pygltflib
-    document as ``.doc``); a file that cannot be read raises :class:`MotionError` naming it."""
-    return _Document(Path(path))
-
-
-def rest_world_matrices(doc: _Document) -> np.ndarray:
-    """(N, 4, 4) every node's world matrix in its rest transforms, through the whole node tree."""
-    parents = _node_parents(doc)
-    world = _rest_world(doc, _chain(parents, list(range(len(parents)))), parents)
-    out = np.tile(np.eye(4), (len(parents), 1, 1))
-    for n, (linear, t) in world.items():
-        out[n, :3, :3], out[n, :3, 3] = linear[0], t[0]
-    return out
-
-
-def _rotation_part(linear: np.ndarray) -> np.ndarray:
-    """The rotation of a world transform's linear part, its scale removed (polar decomposition)."""
-    u, _, vt = np.linalg.svd(linear)
-    d = np.sign(np.linalg.det(u @ vt))
-    u[..., :, 2] *= d[..., None]
-    return u @ vt
-
-
-# --- animations ------------------------------------------------------------------------------------
-
-
-def _animation_names(doc: _Document) -> list[str]:
+def _animation_names(doc: GltfDocument) -> list[str]:
     return [a.name or f"#{i}" for i, a in enumerate(doc.doc.animations or [])]
 
 
-def _pick_animation(doc: _Document, animation: str | int | None) -> int:
+def _pick_animation(doc: GltfDocument, animation: str | int | None) -> int:
     """The index of the animation asked for: by name first, then by index; the first by default."""
     names = _animation_names(doc)
     if not names:
@@ -281,7 +88,7 @@ def _pick_animation(doc: _Document, animation: str | int | None) -> int:
     return index
 
 
-def _channels(doc: _Document, index: int) -> list[_Channel]:
+def _channels(doc: GltfDocument, index: int) -> list[_Channel]:
     """The translation / rotation / scale channels of animation ``index``, read and checked (morph
     target weights and extensions' targets are left out)."""
     anim = doc.doc.animations[index]
@@ -335,7 +142,7 @@ def _sample(ch: _Channel, times: np.ndarray) -> np.ndarray:
     return (1.0 - u) * v0 + u * v1
 
 
-def _describe(doc: _Document, index: int) -> GltfAnimation:
+def _describe(doc: GltfDocument, index: int) -> GltfAnimation:
     channels = _channels(doc, index)
     if not channels:
         return GltfAnimation(_animation_names(doc)[index], index, 0.0, 0, 0)
@@ -347,13 +154,13 @@ def _describe(doc: _Document, index: int) -> GltfAnimation:
 
 def gltf_animations(path: str | Path) -> list[GltfAnimation]:
     """The animations of a glTF / GLB file: names, durations, key counts (hrr-motion info)."""
-    doc = _Document(Path(path))
+    doc = GltfDocument(Path(path))
     return [_describe(doc, i) for i in range(len(doc.doc.animations or []))]
 
 
 def gltf_summary(path: str | Path, animation: str | int | None = None) -> dict:
     """The animation :func:`load_gltf` reads for ``animation`` and all of the file's animations."""
-    doc = _Document(Path(path))
+    doc = GltfDocument(Path(path))
     index = _pick_animation(doc, animation)
     return {"animation": _animation_names(doc)[index],
             "animations": [_describe(doc, i).as_dict() for i in range(len(doc.doc.animations))]}
@@ -362,7 +169,7 @@ def gltf_summary(path: str | Path, animation: str | int | None = None) -> dict:
 # --- the skin and its motion -------------------------------------------------------------------------
 
 
-def _pick_skin(doc: _Document, channels: list[_Channel]) -> list[int]:
+def _pick_skin(doc: GltfDocument, channels: list[_Channel]) -> list[int]:
     """The joints (node indices) of the skin the channels animate most (the first of equals)."""
     skins = doc.doc.skins or []
     if not skins:
@@ -380,7 +187,7 @@ def _pick_skin(doc: _Document, channels: list[_Channel]) -> list[int]:
     return joints
 
 
-def _times(doc: _Document, channels: list[_Channel], fps: float) -> np.ndarray:
+def _times(doc: GltfDocument, channels: list[_Channel], fps: float) -> np.ndarray:
     """The output frame times: the animation's span at ``fps`` (its last partial frame left out, as
     other inputs are resampled)."""
     start = min(c.times[0] for c in channels)
@@ -390,27 +197,19 @@ def _times(doc: _Document, channels: list[_Channel], fps: float) -> np.ndarray:
     return start + np.arange(frames) / fps
 
 
-def _local_transforms(doc: _Document, order: list[int], channels: list[_Channel], times: np.ndarray) -> dict[int, tuple]:
+def _local_transforms(doc: GltfDocument, order: list[int], channels: list[_Channel], times: np.ndarray) -> dict[int, tuple]:
     """Each node's local (translation, rotation, scale) per frame: its channels where keyed, its
     rest transform elsewhere."""
     frames = len(times)
     local = {}
     for n in order:
-        t, q, s = _rest_trs(doc.doc.nodes[n])
+        t, q, s = rest_trs(doc.doc.nodes[n])
         local[n] = {"translation": np.broadcast_to(t, (frames, 3)), "rotation": np.broadcast_to(q, (frames, 4)),
                     "scale": np.broadcast_to(s, (frames, 3))}
     for ch in channels:
         if ch.node in local:
             local[ch.node][ch.path] = _sample(ch, times)
     return {n: (v["translation"], v["rotation"], v["scale"]) for n, v in local.items()}
-
-
-def _rest_world(doc: _Document, order: list[int], parents: list[int]) -> dict[int, tuple[np.ndarray, np.ndarray]]:
-    rest = {}
-    for n in order:
-        t, q, s = _rest_trs(doc.doc.nodes[n])
-        rest[n] = (t[None], q[None], s[None])
-    return _world(order, parents, rest)
 
 
 @dataclass(frozen=True)
@@ -428,11 +227,11 @@ class GltfOptions:
 def gltf_source(path: str | Path, options: GltfOptions = GltfOptions()) -> tuple[SourceMotion, str, dict[str, int], str]:
     """A glTF / GLB animation on its own skeleton, in metres, at ``options.fps``: (the motion, the
     naming scheme, canonical joint name -> source joint index, the animation's name)."""
-    doc = _Document(Path(path))
+    doc = GltfDocument(Path(path))
     index = _pick_animation(doc, options.animation)
     channels = _channels(doc, index)
     joints = _pick_skin(doc, channels)
-    parents = _node_parents(doc)
+    parents = node_parents(doc)
     names = [doc.doc.nodes[j].name or f"node_{j}" for j in joints]
     joint_parents = []
     for j in joints:
@@ -441,14 +240,14 @@ def gltf_source(path: str | Path, options: GltfOptions = GltfOptions()) -> tuple
             p = parents[p]
         joint_parents.append(joints.index(p) if p >= 0 else -1)
     scheme, mapping = resolve_joint_map(names, str(doc.path), options.joint_map)
-    order = _chain(parents, joints)
+    order = node_chain(parents, joints)
     times = _times(doc, channels, options.fps)
-    world = _world(order, parents, _local_transforms(doc, order, channels, times))
-    rest_world = _rest_world(doc, order, parents)
-    rest = np.stack([rest_world[j][1][0] for j in joints])
+    world = world_transforms(order, parents, _local_transforms(doc, order, channels, times))
+    at_rest = rest_world(doc, order, parents)
+    rest = np.stack([at_rest[j][1][0] for j in joints])
     scale = _unit_scale(doc, options.unit_scale, rest, mapping)
-    rest_rot = np.stack([_rotation_part(rest_world[j][0][0]) for j in joints])
-    g_rot = np.stack([_rotation_part(world[j][0]) for j in joints], 1) @ np.swapaxes(rest_rot, -1, -2)
+    rest_rot = np.stack([rotation_part(at_rest[j][0][0]) for j in joints])
+    g_rot = np.stack([rotation_part(world[j][0]) for j in joints], 1) @ np.swapaxes(rest_rot, -1, -2)
     g_pos = np.stack([world[j][1] for j in joints], 1) * scale
     src = SourceMotion(names, joint_parents, rest * scale, global_rotations=g_rot, global_positions=g_pos,
                        fps=options.fps, path=str(doc.path))
@@ -456,7 +255,7 @@ def gltf_source(path: str | Path, options: GltfOptions = GltfOptions()) -> tuple
     return src, scheme, mapping, _animation_names(doc)[index]
 
 
-def _unit_scale(doc: _Document, unit_scale: float | None, rest: np.ndarray, mapping: dict[str, int]) -> float:
+def _unit_scale(doc: GltfDocument, unit_scale: float | None, rest: np.ndarray, mapping: dict[str, int]) -> float:
     """Metres per unit of the composed world positions: 1 (glTF is metres) unless the standing
     height says otherwise (a file written in centimetres without a scaling node) or one is given."""
     if unit_scale is not None:

@@ -15,7 +15,8 @@ import numpy as np
 from ..errors import MotionError
 from ..io_utils import atomic_path
 from .bvh_motion import PLAUSIBLE_HEIGHT_M, load_bvh
-from .gltf import GLTF_SUFFIXES, GltfOptions, load_gltf
+from .gltf import GltfOptions, load_gltf
+from .gltf_file import GLTF_SUFFIXES
 from .joint_maps import load_joint_map
 from .limits import MAX_SOURCE_FPS, MIN_SOURCE_FPS, check_frame_budget, check_root_speed, max_npz_bytes
 from .motion import FPS, Motion
