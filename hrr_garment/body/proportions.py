@@ -28,12 +28,15 @@ from ..motion.skeleton import JOINT_INDEX
 from .parametric import BodyShape
 
 # name: the joints (left side, mirrored for the right and averaged; or a left-right pair). Only
-# joints that every rig puts at the same anatomical place: the limbs' hinges and the hips. Where a
-# rig starts its collars, spine and neck is its own convention (CMU's collars start where its spine
-# ends, 20 cm from the shoulder; Mixamo's 10 cm), so those would measure the rig, not the performer.
+# joints that every rig puts at the same anatomical place: the limbs' hinges, the hips and the
+# shoulders (the upper arms' heads). Where a rig starts its collars, spine and neck is its own
+# convention (CMU's collars start where its spine ends, 20 cm from the shoulder; Mixamo's 10 cm),
+# so those would measure the rig, not the performer. The shoulders' width moves a little with the
+# collars: its median over the clip's frames is the performer's (without it, a performer's arms
+# played on a narrower body reach across its torso: docs/bodies.md).
 MEASURES = {
     "upper_leg": ("l_hip", "l_knee"), "lower_leg": ("l_knee", "l_ankle"), "upper_arm": ("l_shoulder", "l_elbow"),
-    "forearm": ("l_elbow", "l_wrist"), "hip_width": ("l_hip", "r_hip"),
+    "forearm": ("l_elbow", "l_wrist"), "hip_width": ("l_hip", "r_hip"), "shoulder_width": ("l_shoulder", "r_shoulder"),
 }
 MIN_MEASURE_M = 0.01  # shorter: two of the rig's joints at one place, not a measure of the performer
 NEAREST_STEPS = 200  # Adam steps on the phenotype's logits (a second or two)
