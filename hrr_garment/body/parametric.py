@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import functools
 from dataclasses import dataclass, fields
+from pathlib import Path
 
 import numpy as np
 
@@ -92,13 +93,23 @@ def _import_anny():
     return anny
 
 
+def anny_cache() -> Path:
+    """Where anny's built blend shapes are kept (the workspace's cache)."""
+    return workspace() / "cache" / "anny"
+
+
+def anny_cache_ready() -> bool:
+    """Whether anny's blend shapes were built already (else the first body takes about a minute)."""
+    return anny_cache().is_dir() and any(anny_cache().rglob("*.safetensors"))
+
+
 @functools.lru_cache(maxsize=2)
 def _anny_model(topology: str = TOPOLOGY, rig: str = RIG):
     """The anny model (built once a process; its data cached under the workspace)."""
     anny = _import_anny()
     import torch
 
-    cache = workspace() / "cache" / "anny"
+    cache = anny_cache()
     cache.mkdir(parents=True, exist_ok=True)
     from anny.paths import set_anny_cache_path
 

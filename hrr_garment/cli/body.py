@@ -89,6 +89,7 @@ def _fit_character(args) -> int:
     if args.parametric:
         from ..body.parametric import fit_shape
 
+        _announce_first_build()
         nearest = fit_shape(character.vertices, character.faces)
         shape = nearest.shape.to_dict()
         notes.append(f"nearest parametric shape {_values(shape)}: surfaces {nearest.mean_mm:.1f} mm apart on average "
@@ -110,6 +111,15 @@ def _fit_character(args) -> int:
     return 0
 
 
+def _announce_first_build() -> None:
+    """Say so before anny builds its blend shapes (about a minute, once), which shows no progress."""
+    from ..body.parametric import anny_cache, anny_cache_ready
+
+    if not anny_cache_ready():
+        print(f"hrr-body: building the parametric body's blend shapes, once (about a minute on two cores; "
+              f"cached in {anny_cache()})", file=sys.stderr)
+
+
 def _values(shape: dict) -> str:
     return ", ".join(f"{k} {v:.2f}" for k, v in shape.items())
 
@@ -119,7 +129,9 @@ def _nearest(args) -> int:
     from ..body.parametric import parametric_body
     from ..body.proportions import nearest_body, source_proportions
 
-    found = nearest_body(source_proportions(args.motion, args.unit_scale))
+    measures = source_proportions(args.motion, args.unit_scale)
+    _announce_first_build()
+    found = nearest_body(measures)
     body = parametric_body(found.shape)
     write_body(args.output, body)
     errors = ", ".join(f"{k} {v:+.0f}" for k, v in found.errors_mm.items())
@@ -146,6 +158,7 @@ def _main(argv: Sequence[str] | None) -> int:
         raise InputError("hrr-body", str(exc)) from None
     from ..body.parametric import parametric_body
 
+    _announce_first_build()
     body = parametric_body(shape)
     write_body(args.output, body)
     summary = _summary(read_body(args.output))
