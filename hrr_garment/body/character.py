@@ -32,10 +32,10 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
-from ..motion.bvh_motion import PLAUSIBLE_HEIGHT_M, detect_unit_scale
+from ..motion.bvh_motion import PLAUSIBLE_HEIGHT_M
+from ..motion.gltf import world_unit_scale
 from ..motion.gltf_file import open_gltf, rest_world_matrices
 from ..motion.joint_maps import resolve_joint_map
-from ..motion.retarget import standing_height_from_legs
 from ..motion.skeleton import JOINT_INDEX, JOINT_NAMES, PARENTS, REST_OFFSETS
 from .fit import PRIMARY_CHILD
 
@@ -230,7 +230,8 @@ def read_character(path: str | Path, skin: int | None = None, joint_map: dict | 
         bind_joints = np.stack([bind @ np.linalg.inv(m) for m in ibm])[:, :3, 3]
     except np.linalg.LinAlgError:
         raise doc.fail(f"skin {skin} has an inverse bind matrix that cannot be inverted") from None
-    scale = _scale(path, bind_joints, mapping, unit_scale)
+    # a short character (a child's body) is still in metres down to half the shortest adult
+    scale = world_unit_scale(path, bind_joints, mapping, unit_scale=unit_scale, shortest_m=PLAUSIBLE_HEIGHT_M[0] / 2)
     joints, filled = _fill_optional({c: bind_joints[i] * scale for c, i in mapping.items()}, path)
     turn = _upright(joints)
     vertices, joints = vertices * scale @ turn.T, joints @ turn.T
@@ -240,16 +241,3 @@ def read_character(path: str | Path, skin: int | None = None, joint_map: dict | 
     return Character(vertices - shift, faces, joints - shift, skin, scheme, scale,
                      posed_joints=tuple(names[i] for i in np.flatnonzero(posed)), turned=not np.allclose(turn, np.eye(3)),
                      filled_joints=filled)
-
-
-def _scale(path: Path, rest: np.ndarray, mapping: dict[str, int], unit_scale: float | None) -> float:
-    """Metres per world unit: ``unit_scale`` when given; else 1 unless the legs give no plausible
-    human height in metres (a file in centimetres without a scaling node)."""
-    if unit_scale is not None:
-        if not (np.isfinite(unit_scale) and unit_scale > 0):
-            raise InputError(path, f"unit scale must be a positive number of metres per file unit, got {unit_scale}")
-        return float(unit_scale)
-    lo, hi = PLAUSIBLE_HEIGHT_M
-    if lo / 2 <= standing_height_from_legs(rest, mapping) <= hi:
-        return 1.0
-    return detect_unit_scale(rest, mapping, path)

@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
-from ..motion.skeleton import JOINT_INDEX
+from ..motion.skeleton import JOINT_INDEX, JOINT_NAMES, MIRROR_JOINTS
 from .parametric import BodyShape
 
 # name: the joints (left side, mirrored for the right and averaged; or a left-right pair). Only
@@ -42,8 +42,11 @@ MIN_MEASURE_M = 0.01  # shorter: two of the rig's joints at one place, not a mea
 NEAREST_STEPS = 200  # Adam steps on the phenotype's logits (a second or two)
 
 
-def _mirror(name: str) -> str:
-    return {"l": "r", "r": "l"}[name[0]] + name[1:] if name[:2] in ("l_", "r_") else name
+def joint_pairs(measure: str) -> list[tuple[int, int]]:
+    """The joint index pairs whose distances, averaged, make ``measure``: a left-right pair itself,
+    or a left side's joints and their mirror images (:data:`~hrr_garment.motion.skeleton.MIRROR_JOINTS`)."""
+    a, b = (JOINT_INDEX[j] for j in MEASURES[measure])
+    return [(a, b)] if MIRROR_JOINTS[a] == b else [(a, b), (MIRROR_JOINTS[a], MIRROR_JOINTS[b])]
 
 
 def proportions(joint_positions: np.ndarray) -> dict[str, float]:
@@ -51,12 +54,9 @@ def proportions(joint_positions: np.ndarray) -> dict[str, float]:
     frames, left and right sides averaged."""
     p = np.asarray(joint_positions, np.float64)
     p = p[None] if p.ndim == 2 else p
-    out = {}
-    for name, (a, b) in MEASURES.items():
-        pairs = [(a, b)] if a[:2] == "l_" and b[:2] == "r_" else [(a, b), (_mirror(a), _mirror(b))]
-        lengths = [np.linalg.norm(p[:, JOINT_INDEX[x]] - p[:, JOINT_INDEX[y]], axis=-1) for x, y in pairs]
-        out[name] = float(np.median(np.mean(lengths, axis=0)))
-    return out
+    return {name: float(np.median(np.mean([np.linalg.norm(p[:, x] - p[:, y], axis=-1) for x, y in joint_pairs(name)],
+                                          axis=0)))
+            for name in MEASURES}
 
 
 def source_proportions(path: str | Path, unit_scale: float | None = None) -> dict[str, float]:
@@ -74,7 +74,8 @@ def source_proportions(path: str | Path, unit_scale: float | None = None) -> dic
     else:
         raise InputError(path, "a performer's proportions come from a BVH or glTF / GLB rig (npz files carry none)")
     names = [n for n in JOINT_INDEX if n in mapping]
-    missing = sorted({j for pair in MEASURES.values() for j in (*pair, *map(_mirror, pair))} - set(names))
+    needed = {JOINT_NAMES[j] for m in MEASURES for pair in joint_pairs(m) for j in pair}
+    missing = sorted(needed - set(names))
     if missing:
         raise InputError(path, f"the rig has no joints for {missing}: its proportions cannot be measured")
     positions = np.zeros((len(src.global_positions), len(JOINT_INDEX), 3))
@@ -111,13 +112,8 @@ def nearest_body(measures: dict[str, float], steps: int = NEAREST_STEPS) -> Near
 
     def model_measures(values):
         _, joints = _rest_tensors({n: values[i:i + 1] for i, n in enumerate(names)})
-        out = []
-        for k in keys:
-            a, b = MEASURES[k]
-            pairs = [(a, b)] if a[:2] == "l_" and b[:2] == "r_" else [(a, b), (_mirror(a), _mirror(b))]
-            out.append(torch.stack([torch.linalg.norm(joints[JOINT_INDEX[x]] - joints[JOINT_INDEX[y]])
-                                    for x, y in pairs]).mean())
-        return torch.stack(out)
+        return torch.stack([torch.stack([torch.linalg.norm(joints[x] - joints[y]) for x, y in joint_pairs(k)]).mean()
+                            for k in keys])
 
     for _ in range(steps):
         loss = ((model_measures(torch.sigmoid(logits)) - target) ** 2).sum()

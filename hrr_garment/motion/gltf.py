@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..errors import MotionError
 from .bvh_motion import PLAUSIBLE_HEIGHT_M, detect_unit_scale
 from .gltf_file import (
     GltfDocument,
@@ -245,7 +246,7 @@ def gltf_source(path: str | Path, options: GltfOptions = GltfOptions()) -> tuple
     world = world_transforms(order, parents, _local_transforms(doc, order, channels, times))
     at_rest = rest_world(doc, order, parents)
     rest = np.stack([at_rest[j][1][0] for j in joints])
-    scale = _unit_scale(doc, options.unit_scale, rest, mapping)
+    scale = world_unit_scale(doc.path, rest, mapping, options.unit_scale)
     rest_rot = np.stack([rotation_part(at_rest[j][0][0]) for j in joints])
     g_rot = np.stack([rotation_part(world[j][0]) for j in joints], 1) @ np.swapaxes(rest_rot, -1, -2)
     g_pos = np.stack([world[j][1] for j in joints], 1) * scale
@@ -255,17 +256,19 @@ def gltf_source(path: str | Path, options: GltfOptions = GltfOptions()) -> tuple
     return src, scheme, mapping, _animation_names(doc)[index]
 
 
-def _unit_scale(doc: GltfDocument, unit_scale: float | None, rest: np.ndarray, mapping: dict[str, int]) -> float:
-    """Metres per unit of the composed world positions: 1 (glTF is metres) unless the standing
-    height says otherwise (a file written in centimetres without a scaling node) or one is given."""
+def world_unit_scale(path: Path, rest: np.ndarray, mapping: dict[str, int], unit_scale: float | None = None, *,
+                     shortest_m: float = PLAUSIBLE_HEIGHT_M[0]) -> float:
+    """Metres per unit of a glTF file's composed world positions: ``unit_scale`` when given; else 1
+    (glTF is metres) unless the standing height of the rest joints ``rest`` is below ``shortest_m``
+    or above the tallest plausible human in metres (a file written in centimetres without a scaling
+    node), then the unit that height says (:func:`~.bvh_motion.detect_unit_scale`)."""
     if unit_scale is not None:
         if not (np.isfinite(unit_scale) and unit_scale > 0):
-            raise doc.fail(f"unit scale must be a positive number of metres per file unit, got {unit_scale}")
+            raise MotionError(path, f"unit scale must be a positive number of metres per file unit, got {unit_scale}")
         return float(unit_scale)
-    lo, hi = PLAUSIBLE_HEIGHT_M
-    if lo <= standing_height_from_legs(rest, mapping) <= hi:
+    if shortest_m <= standing_height_from_legs(rest, mapping) <= PLAUSIBLE_HEIGHT_M[1]:
         return 1.0
-    return detect_unit_scale(rest, mapping, doc.path)
+    return detect_unit_scale(rest, mapping, path)
 
 
 def load_gltf(path: str | Path, options: GltfOptions = GltfOptions(), ground: bool = True) -> Motion:
