@@ -29,6 +29,8 @@ import numpy as np
 import torch
 from tqdm import tqdm
 
+from ..artifacts.bundle import Bundle
+from ..artifacts.bundle_writer import BundleParts
 from ..artifacts.database import CodeDatabase
 from ..artifacts.gate_signals import GATE_SIGNALS, gate_doubt
 from ..artifacts.residual import ACCURACY_ALLOWANCE, RESIDUAL_WEIGHTS, match_regression, residual_latents
@@ -136,26 +138,11 @@ class ModeErrors:
                     "retrieval_usage": s.retrieval_usage[s.taus.index(s.best_tau)]} for g, s in self.sweeps.items()}
 
 
-@dataclass(frozen=True)
-class WindowModel:
-    """What the window-level calibration runs: a code space with its statistics and retrieval
-    database, and the mesh autoencoder that decodes (a bundle's, or one in training)."""
-
-    codespace: CodeSpace
-    autoencoder: object
-    motion_stats: FeatureStats
-    latent_stats: FeatureStats
-    database: CodeDatabase
-
-    @classmethod
-    def of_bundle(cls, bundle) -> "WindowModel":
-        return cls(bundle.codespace, bundle.autoencoder, bundle.motion_stats, bundle.latent_stats, bundle.database)
-
-
-def window_mode_errors(model: WindowModel, motion: dict[str, np.ndarray], frames: dict[str, np.ndarray], *,
+def window_mode_errors(model: BundleParts | Bundle, motion: dict[str, np.ndarray], frames: dict[str, np.ndarray], *,
                        encoding: dict, max_windows: int | None = MAX_WINDOWS,
                        windows: list[tuple[str, int]] | None = None, progress: bool = False) -> ModeErrors:
-    """Both modes' window-level errors on windows of the sequences ``motion`` (features (T, F)) /
+    """Both modes' window-level errors of ``model`` (a bundle, or the parts of one being trained:
+    its code space, statistics, database and mesh autoencoder) on windows of the sequences ``motion`` (features (T, F)) /
     ``frames`` (heading-frame vertices (T, V, 3)), decoded with the autoencoder's fast decoder:
     ``windows`` ((sequence, first frame) pairs; default every window of every sequence), or
     ``max_windows`` of them evenly spaced. ``encoding``: the autoencoder stage's ``refine_steps``
@@ -215,7 +202,7 @@ def residual_errors(pred: WindowPredictions, decode, truth: np.ndarray,
             for w in tqdm(RESIDUAL_WEIGHTS, desc="residual weights", unit="weight", disable=not progress)}
 
 
-def calibrate_residual(model: WindowModel, motion: dict[str, np.ndarray], frames: dict[str, np.ndarray],
+def calibrate_residual(model: BundleParts | Bundle, motion: dict[str, np.ndarray], frames: dict[str, np.ndarray],
                        windows: list[tuple[str, int]] | None = None, max_windows: int | None = MAX_WINDOWS) -> dict:
     """The residual mode's calibration alone (:meth:`ModeErrors.residual_calibration`), on the
     windows :func:`window_mode_errors` uses: for a model trained before the residual mode."""
@@ -279,6 +266,6 @@ def evaluate_bundle(bundle, dataset: str | Path, split: str = "val") -> dict:
     if not names:
         raise DatasetError(dataset, f"has no {split!r} sequences")
     encoding = refine_settings(bundle.meta.get("encoding", {}))
-    modes = window_mode_errors(WindowModel.of_bundle(bundle), dataset_features(ds, names, bundle.codespace.config.memory),
+    modes = window_mode_errors(bundle, dataset_features(ds, names, bundle.codespace.config.memory),
                                {n: body_frames(ds, [n]) for n in names}, encoding=encoding)
     return modes.summary(bundle.tau, bundle.gate)

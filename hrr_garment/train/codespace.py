@@ -33,7 +33,7 @@ from ..garment.smoothing import mean_operator
 from ..io_utils import atomic_write_text, strict_json
 from ..models.codespace import CodeSpace, CodeSpaceConfig
 from .autoencoder import body_frames, load_autoencoder, refine_settings
-from .calibrate import WindowModel, calibrate_residual, window_mode_errors
+from .calibrate import calibrate_residual, window_mode_errors
 from .codespace_training import (
     PAPER_VALIDATION_FRACTION,
     CodeSpaceTrainConfig,
@@ -145,7 +145,7 @@ def _add_residual(folder: Path, report_path: Path, report: dict, ds: GarmentData
     bundle = load_bundle(folder, cache_dir)
     if bundle.database.motion is None:  # no motion windows to regress the matches from
         return report
-    residual = calibrate_residual(WindowModel.of_bundle(bundle), {n: features[n] for n in val_names},
+    residual = calibrate_residual(bundle, {n: features[n] for n in val_names},
                                   {n: body_frames(ds, [n]) for n in val_names}, windows=calibration)
     update_bundle_meta(folder, {"residual": residual})
     report = {**report, "residual": residual}
@@ -197,8 +197,9 @@ def run_codespace_stage(dataset: str | Path, folder: str | Path, config: CodeSpa
     # the database of every training window's garment code, then tau on the validation split
     database = CodeDatabase(garment_codes(model, train_t), train_w.latents, train_w.sequence, start=train_w.start,
                             names=train_w.names, classes=config.classes, motion=train_w.motion.with_frames(train_t.motion.numpy()))
-    modes = window_mode_errors(WindowModel(model, autoencoder, motion_stats, latent_stats=latent_stats, database=database),
-                               {n: features[n] for n in val_names}, {n: body_frames(ds, [n]) for n in val_names},
+    parts = BundleParts(autoencoder=autoencoder, codespace=model, motion_stats=motion_stats, latent_stats=latent_stats,
+                        database=database, template=ds.template, folds=fold_store(ds, train_w.names, progress))
+    modes = window_mode_errors(parts, {n: features[n] for n in val_names}, {n: body_frames(ds, [n]) for n in val_names},
                                encoding=encoding, windows=calibration, progress=progress)
     gate, sweep = modes.gate, modes.sweep
     usage = model.quantizer.usage(torch.from_numpy(database.codes))
@@ -210,8 +211,6 @@ def run_codespace_stage(dataset: str | Path, folder: str | Path, config: CodeSpa
               "database_codes": {"dead_classes": usage.dead, "classes": usage.total, "perplexity": usage.perplexity,
                                  "distinct_codes": int(len(np.unique(database.codes, axis=0)))},
               "entropy_histogram": final["entropy_histogram"], "minutes": (time.perf_counter() - t0) / 60}
-    parts = BundleParts(autoencoder=autoencoder, codespace=model, motion_stats=motion_stats, latent_stats=latent_stats,
-                        database=database, template=ds.template, folds=fold_store(ds, train_w.names, progress))
     write_bundle(folder, parts, tau=sweep.best_tau, gate=gate,
                  info={"dataset": str(dataset), "window": config.window, "validation_mm": report["validation_mm"],
                        "gates": report["gates"], **({"residual": report["residual"]} if report["residual"] else {}),

@@ -16,12 +16,12 @@ def test_calibration_on_a_window_sample_is_the_sample_of_the_full_errors(trained
     from hrr_garment.data.dataset import GarmentDataset
     from hrr_garment.data.windows import dataset_features
     from hrr_garment.train.autoencoder import body_frames
-    from hrr_garment.train.calibrate import WindowModel, window_mode_errors
+    from hrr_garment.train.calibrate import window_mode_errors
 
     root, data, _ = trained
     bundle, ds = load_bundle(root / "model"), GarmentDataset(data)
     names = ds.splits["val"]
-    args = (WindowModel.of_bundle(bundle), dataset_features(ds, names, bundle.codespace.config.memory),
+    args = (bundle, dataset_features(ds, names, bundle.codespace.config.memory),
             {n: body_frames(ds, [n]) for n in names})
     encoding = {"refine_steps": 0, "refine_lr": 0.0}
     full = window_mode_errors(*args, encoding=encoding, max_windows=None)
