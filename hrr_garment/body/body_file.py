@@ -51,17 +51,22 @@ def record_of(body) -> BodyRecord:
                       report=fitted.report)
 
 
-def write_body(path: str | Path, body) -> Path:
-    """Write body.json (atomically)."""
+def body_to_dict(body) -> dict:
+    """body.json's content (a dict of JSON values) for a ParametricBody or a BodyRecord; datasets
+    keep their bodies in the same form (:mod:`hrr_garment.data.dataset`)."""
     r = record_of(body)
-    data = {"format_version": FORMAT_VERSION, "joints": list(JOINT_NAMES),
+    return {"format_version": FORMAT_VERSION, "joints": list(JOINT_NAMES),
             "offsets": np.asarray(r.skeleton.offsets, np.float64).round(6).tolist(),
             "pelvis_height": round(float(r.pelvis_height), 6), "stature": round(float(r.stature), 6),
             "capsules": [{"name": c.name, "joint": c.joint, "a": list(c.a), "b": list(c.b), "radius": c.radius}
                          for c in r.body.capsules],
             "shape": r.shape, "fit": r.report.to_dict() if r.report else None}
+
+
+def write_body(path: str | Path, body) -> Path:
+    """Write body.json (atomically)."""
     path = Path(path)
-    atomic_write_text(path, strict_json(data, indent=2))
+    atomic_write_text(path, strict_json(body_to_dict(body), indent=2))
     return path
 
 
@@ -86,6 +91,12 @@ def read_body(path: str | Path) -> BodyRecord:
         raise InputError(path, "no such body file") from None
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise InputError(path, f"not a body file ({exc})") from None
+    return body_from_dict(data, path)
+
+
+def body_from_dict(data: object, path: str | Path) -> BodyRecord:
+    """Check body.json's content (``path`` names where it came from in errors) and make its record."""
+    path = Path(path)
     if not isinstance(data, dict):
         raise InputError(path, "not a body file (not a JSON object)")
     version = data.get("format_version")

@@ -7,6 +7,9 @@ Examples::
     hrr-simulate --template my_dress.obj --attached waistband --preset quick
     hrr-simulate --template artist_dress.obj --fit --attached auto --preset quick   # another convention
     hrr-simulate --garment dress --preset real-quick --executor ray --address HEAD:6379
+    hrr-simulate --garment dress --preset real-quick --body hero.json        # on your character's body
+    hrr-simulate --template hero_dress.obj --made-for hero.json --attached auto --preset real-quick
+    hrr-simulate --garment dress --preset real-quick-bodies                  # on 16 sampled bodies
 
 Re-running the same command skips sequences already simulated (kept in DATASET.parts/).
 """
@@ -40,6 +43,10 @@ def add_garment_options(p: argparse.ArgumentParser) -> None:
                    help="the OBJ is in another convention: detect its unit and up axis and place it on the body")
     p.add_argument("--up", default=None, choices=("+x", "-x", "+y", "-y", "+z", "-z"), help="with --fit: the OBJ's up axis")
     p.add_argument("--unit", default=None, choices=("m", "cm", "mm", "in"), help="with --fit: the OBJ's length unit")
+    p.add_argument("--made-for", type=Path, default=None, metavar="BODY_JSON",
+                   help="the body your --template was modelled on (body.json from hrr-body; the OBJ in that body's "
+                        "frame): the garment is carried from it onto the body simulated, which is this one unless "
+                        "--body or the preset names others")
     p.add_argument("--dense-ok", action="store_true",
                    help="simulate a template far denser than the preset's resolution anyway (slow; see --preset full)")
 
@@ -64,8 +71,8 @@ def resolve_garment(args: argparse.Namespace, default_vertices: int) -> GarmentM
                                             f"{default_vertices:,} vertices, use a denser preset (--preset full: 4,000), "
                                             "or pass --dense-ok")
         return mesh
-    if args.fit or args.up or args.unit:
-        raise InputError("--fit", "places your own garment: use it with --template OBJ")
+    if args.fit or args.up or args.unit or args.made_for:
+        raise InputError("--made-for" if args.made_for else "--fit", "places your own garment: use it with --template OBJ")
     if args.garment is None:
         raise InputError("hrr-simulate", "give --garment NAME or --template OBJ")
     return make_garment(args.garment, args.vertices or default_vertices)
@@ -87,6 +94,9 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--substeps", type=int, default=None, help="override the preset's substeps per frame")
     p.add_argument("--iterations", type=int, default=None, help="override the preset's solver iterations")
     p.add_argument("--device", default=None, help="warp device: auto (default), cpu, cuda:0")
+    p.add_argument("--body", type=Path, default=None, metavar="BODY_JSON",
+                   help="simulate every sequence on this body (hrr-body make / fit / nearest) instead of the mannequin "
+                        "or the preset's bodies")
     p.add_argument("-o", "--output", type=Path, default=None, help="dataset .h5 (default: hrr_work/datasets/GARMENT-PRESET.h5)")
     p.add_argument("--retry-rejected", action="store_true",
                    help="simulate sequences an earlier run rejected again (after upgrading the simulator)")
@@ -97,29 +107,40 @@ def _parser() -> argparse.ArgumentParser:
 
 def _main(argv: Sequence[str] | None) -> int:
     args = _parser().parse_args(argv)
+    from ..body.body_file import read_body
     from ..export.preview import write_dataset_preview
+    from ..sim.bodies import choose_bodies
     from ..sim.build import BuildOptions, build_dataset
     from ..sim.simulator import SimConfig
 
     preset = load_preset(args.preset)
+    if args.made_for and args.fit:
+        raise InputError("--fit", "moves a garment onto the mannequin; a garment declared --made-for its body is carried, not moved")
+    made_for = read_body(args.made_for) if args.made_for else None
     garment = resolve_garment(args, preset.vertices)
     specs = plan_sequences(preset, args.motions, args.seconds, source_fps=args.fps)
+    choice = choose_bodies(specs, garment, preset_bodies=preset.bodies, where=args.preset, body_file=args.body,
+                           made_for=made_for, progress=not args.quiet)
     overrides = {k: v for k, v in (("substeps", args.substeps), ("iterations", args.iterations),
                                    ("device", args.device)) if v is not None}
     config = SimConfig.from_dict({**preset.sim, **overrides})
     out = args.output
     if out is None:
         suffix = f"-{args.vertices}v" if args.vertices else ""
-        out = workspace() / "datasets" / f"{garment.name}-{preset.name}{suffix}.h5"
-    options = build_options(preset, specs)
+        on = f"-on-{Path(args.body).stem}" if args.body else ""
+        out = workspace() / "datasets" / f"{garment.name}-{preset.name}{suffix}{on}.h5"
+    options = build_options(preset, choice.specs)
     options["info"]["garment_vertices"] = garment.num_vertices
+    if choice.bodies:
+        options["info"]["bodies"] = choice.info
     options["info"]["motions"] = list(args.motions) if args.motions else None  # None: the preset's own clips
     if args.address and args.executor != "ray":
         raise InputError("--address", "joins a Ray cluster: use it with --executor ray")
     build = BuildOptions(jobs=args.jobs, retry_rejected=args.retry_rejected,
                          preview=None if args.no_preview else write_dataset_preview, progress=not args.quiet,
-                         executor=args.executor, address=args.address, **options)
-    report = build_dataset(garment, specs, config, out=out, options=build)
+                         executor=args.executor, address=args.address, bodies=choice.bodies,
+                         hold_out_bodies=choice.hold_out, **options)
+    report = build_dataset(garment, choice.specs, config, out=out, options=build)
     print_report(report, garment)
     return 0
 
@@ -135,6 +156,9 @@ def print_report(report, garment: GarmentMesh) -> None:
           f"outside them {100 * s['penetration_frame_max_clean']:.2f} %")
     if s["sim_frames_per_core_s"]:
         print(f"  {s['sim_frames_per_core_s']:.2f} simulated frames/s per core (lead-in included); wall {s['sim_wall_s']:.0f} s")
+    for name, row in s.get("by_body", {}).items():
+        print(f"  body {name} ({row['stature_m']:.2f} m): {row['sequences']} sequences, {row['frames']} frames, "
+              f"strain p99 {row['strain_p99']:.3f}")
     print("  hem swing (m) by kind: " + json.dumps({k: round(v, 3) for k, v in s["hem_swing_m_by_kind"].items()}))
     for name, reason in report.rejects.items():
         print(f"  rejected {name}: {reason}")

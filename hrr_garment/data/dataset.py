@@ -1,6 +1,6 @@
 """The garment dataset file (HDF5): one template, many simulated sequences, fixed splits.
 
-Layout (format_version 1; documented in docs/dataset.md)::
+Layout (format_version 2; documented in docs/dataset.md)::
 
     /                      attrs: format_version, fps, garment, units="m", up_axis="y", generator, info (JSON)
     /template/vertices     (V, 3) float32, rest pose
@@ -11,8 +11,16 @@ Layout (format_version 1; documented in docs/dataset.md)::
     /sequences/<name>/joints           (T, 22, 3) float32, world joint positions
     /sequences/<name>/local_rotations  (T, 22, 3, 3) float32
     /sequences/<name>/root_translation (T, 3) float64
-                      attrs: source, info (JSON: kind, seed, stats...)
+                      attrs: source, info (JSON: kind, seed, stats...), body (a name under /bodies;
+                      absent: the mannequin)
+    /bodies/<name>/rest                (V, 3) float32, the garment on this body in its rest pose
+                  attrs: body (JSON: body.json's content, hrr_garment.body.body_file)
     /splits/{train,val,test}           names of sequences (variable-length UTF-8 strings)
+
+A sequence on a body has that body's motion: the rotations drive the body's own skeleton and the
+root translation is already scaled to its legs (:func:`hrr_garment.body.retarget.motion_on_body`),
+so ``sequence(name).motion`` is what moved the cloth. Version 1 files (every sequence on the
+mannequin, no /bodies) read as before.
 """
 
 from __future__ import annotations
@@ -26,11 +34,14 @@ import h5py
 import numpy as np
 
 from .._version import __version__
+from ..body.body_file import body_from_dict, body_to_dict
 from ..errors import InputError, MotionError
 from ..garment.mesh import GarmentError, GarmentMesh, check_garment
 from ..motion.motion import FPS, Motion
+from .bodies import MANNEQUIN, DressedBody, mannequin_record
 
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2
+READABLE_VERSIONS = (1, 2)
 SPLITS = ("train", "val", "test")
 
 
@@ -46,6 +57,7 @@ class SequenceRecord:
     garment: np.ndarray
     motion: Motion
     info: dict = field(default_factory=dict)
+    body: str = MANNEQUIN  # the name of the body it was simulated on (GarmentDataset.bodies)
 
 
 MIN_TEST = 5  # sequences: a test split of one clip measures that clip, not the model
@@ -109,9 +121,21 @@ def split_groups(groups: dict[str, str], val: float, test: float, seed: int) -> 
     return {k: sorted(v) for k, v in out.items()}
 
 
+def combine_splits(first: dict[str, list[str]], second: dict[str, list[str]]) -> dict[str, list[str]]:
+    """Two splits of the same sequences held out together (for example whole styles and whole
+    bodies): a sequence tests where either split tests it, else validates where either validates
+    it, else trains. Training then sees no held-out style and no held-out body."""
+    test = set(first.get("test", [])) | set(second.get("test", []))
+    val = (set(first.get("val", [])) | set(second.get("val", []))) - test
+    names = {n for split in (first, second) for names in split.values() for n in names}
+    return {"val": sorted(val), "test": sorted(test), "train": sorted(names - test - val)}
+
+
 def write_dataset(path: str | Path, template: GarmentMesh, sequences: list[SequenceRecord],
-                  splits: dict[str, list[str]], info: dict | None = None, compression: str | None = "gzip") -> Path:
-    """Write the whole file atomically (temporary file in the same folder, then rename)."""
+                  splits: dict[str, list[str]], info: dict | None = None, compression: str | None = "gzip",
+                  bodies: dict[str, DressedBody] | None = None) -> Path:
+    """Write the whole file atomically (temporary file in the same folder, then rename). Sequences
+    on a body other than the mannequin need it in ``bodies`` (name -> the body and the garment on it)."""
     from ..io_utils import atomic_h5
 
     path = Path(path)
@@ -138,11 +162,30 @@ def write_dataset(path: str | Path, template: GarmentMesh, sequences: list[Seque
             s.create_dataset("root_translation", data=rec.motion.root_translation.astype(np.float64))
             s.attrs["source"] = rec.motion.source
             s.attrs["info"] = json.dumps(rec.info)
+            if rec.body != MANNEQUIN:
+                s.attrs["body"] = rec.body
+        _write_bodies(f, template, {rec.body for rec in sequences} - {MANNEQUIN}, bodies or {})
         sp = f.create_group("splits")
         str_type = h5py.string_dtype("utf-8")
         for split in SPLITS:
             sp.create_dataset(split, data=np.array(splits.get(split, []), dtype=object), dtype=str_type)
     return path
+
+
+def _write_bodies(f: h5py.File, template: GarmentMesh, used: set[str], bodies: dict[str, DressedBody]) -> None:
+    missing = sorted(used - set(bodies))
+    if missing:
+        raise ValueError(f"sequences name bodies that were not given: {missing}")
+    if not used:
+        return
+    group = f.create_group("bodies")
+    for name in sorted(used):
+        rest = bodies[name].garment.vertices
+        if rest.shape != template.vertices.shape or not np.array_equal(bodies[name].garment.faces, template.faces):
+            raise ValueError(f"the garment on body {name!r} does not have the template's topology")
+        b = group.create_group(name)
+        b.create_dataset("rest", data=rest.astype(np.float32))
+        b.attrs["body"] = json.dumps(body_to_dict(bodies[name].record))
 
 
 SEQUENCE_ARRAYS = ("garment", "local_rotations", "root_translation")  # what every sequence must hold
@@ -170,8 +213,8 @@ class GarmentDataset:
 
     def _read_header(self, f: h5py.File) -> None:
         version = f.attrs.get("format_version")
-        if version != FORMAT_VERSION:
-            raise DatasetError(self.path, f"format_version {version!r}; this hrr_garment reads {FORMAT_VERSION}")
+        if version not in READABLE_VERSIONS:
+            raise DatasetError(self.path, f"format_version {version!r}; this hrr_garment reads {', '.join(map(str, READABLE_VERSIONS))}")
         for key in ("template/vertices", "template/faces", "template/attached", "sequences", "splits"):
             if key not in f:
                 raise DatasetError(self.path, f"missing /{key}")
@@ -210,6 +253,29 @@ class GarmentDataset:
                 raise DatasetError(self.path, f"sequence {n!r}: arrays of mismatched shapes {shapes} "
                                               f"for a template of {self.template.num_vertices} vertices")
         self.frames = {n: int(f["sequences"][n]["garment"].shape[0]) for n in self.names}
+        self.body_of = {n: str(f["sequences"][n].attrs.get("body", MANNEQUIN)) for n in self.names}
+        self.bodies = self._read_bodies(f)
+        unknown = sorted({b for b in self.body_of.values()} - set(self.bodies))
+        if unknown:
+            raise DatasetError(self.path, f"sequences name bodies that are not in /bodies: {unknown[:5]}")
+
+    def _read_bodies(self, f: h5py.File) -> dict[str, DressedBody]:
+        """The mannequin (with the template) and every body under /bodies (with the garment on it)."""
+        bodies = {MANNEQUIN: DressedBody(MANNEQUIN, mannequin_record(), self.template)}
+        for name, b in f.get("bodies", {}).items():
+            record = body_from_dict(_json_attr(self.path, b.attrs, "body", {}, f"body {name!r}: "), f"{self.path} (body {name!r})")
+            rest = b["rest"][()]
+            if rest.shape != self.template.vertices.shape or not np.isfinite(rest).all():
+                raise DatasetError(self.path, f"body {name!r}: the garment's rest shape {rest.shape} is not finite "
+                                              f"or not the template's {self.template.vertices.shape}")
+            bodies[name] = DressedBody(name, record, GarmentMesh(self.garment, rest, self.template.faces,
+                                                                 groups=self.template.groups,
+                                                                 attached_groups=self.template.attached_groups))
+        return bodies
+
+    def rest(self, name: str) -> np.ndarray:
+        """(V, 3) the rest shape of the garment of sequence ``name`` (on its own body)."""
+        return self.bodies[self.body_of[name]].garment.vertices
 
     def __len__(self) -> int:
         return len(self.names)
@@ -225,8 +291,9 @@ class GarmentDataset:
                     if key not in s:
                         raise DatasetError(self.path, f"sequence {name!r} lacks {key!r}")
                 garment = s["garment"][()]
+                body = self.bodies[self.body_of[name]].body
                 motion = Motion(s["local_rotations"][()], s["root_translation"][()], self.fps,
-                                source=str(s.attrs.get("source", name)))
+                                source=str(s.attrs.get("source", name)), skeleton=body.skeleton)
                 info = _json_attr(self.path, s.attrs, "info", {}, f"sequence {name!r}: ")
         except OSError as exc:  # a damaged chunk ("filter returned failure"), a truncated file
             raise DatasetError(self.path, f"sequence {name!r} cannot be read ({exc})") from None
@@ -241,7 +308,7 @@ class GarmentDataset:
             if bad.any():
                 raise DatasetError(self.path, f"sequence {name!r}: non-finite {what} on {int(bad.sum())} frame(s), "
                                               f"first at frame {int(np.argmax(bad))}")
-        return SequenceRecord(name, garment, motion, info)
+        return SequenceRecord(name, garment, motion, info, body=self.body_of[name])
 
 
 def _json_attr(path: Path, attrs, key: str, default, where: str = ""):

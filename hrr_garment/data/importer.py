@@ -81,7 +81,7 @@ def frames_to_sequence(name: str, template: GarmentMesh, motion: Motion, frames:
 def import_sequence(out: str | Path, template: GarmentMesh, record: SequenceRecord, seed: int = 0) -> Path:
     """Add ``record`` to dataset ``out`` (created if missing; the template must match), atomically."""
     out = Path(out)
-    records = []
+    records, bodies = [], {}
     if out.exists():
         existing = GarmentDataset(out)
         same = (existing.template.vertices.shape == template.vertices.shape
@@ -90,9 +90,11 @@ def import_sequence(out: str | Path, template: GarmentMesh, record: SequenceReco
         if not same:
             raise InputError(out, "this dataset was made for another template; write to a new file")
         records = [existing.sequence(n) for n in existing.names if n != record.name]
+        bodies = existing.bodies
     records.append(record)
     names = [r.name for r in records]
-    return write_dataset(out, template, records, splits=split_names(names, 0.1, 0.1, seed=seed), info={"imported": True})
+    return write_dataset(out, template, records, splits=split_names(names, 0.1, 0.1, seed=seed), info={"imported": True},
+                         bodies=bodies)
 
 
 def export_obj_frames(folder: str | Path, vertices: np.ndarray, faces: np.ndarray) -> list[Path]:

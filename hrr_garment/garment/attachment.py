@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..body.capsules import DEFAULT_BODY, BodyModel, capsule_signed_distance, rest_joint_positions
+from ..body.capsules import DEFAULT_BODY, BodyModel, capsule_signed_distance
 from ..motion.skeleton import JOINT_INDEX, PARENTS
 from .mesh import GarmentMesh
 
@@ -42,7 +42,7 @@ def bind_attached(mesh: GarmentMesh, body: BodyModel = DEFAULT_BODY, bones: int 
                   joints: tuple[str, ...] = TORSO_JOINTS) -> SkinBinding:
     """Skin the mesh's attached vertices (rest pose) to the nearest capsules among ``joints``."""
     verts = mesh.vertices[mesh.attached].astype(np.float64)
-    joints_rest = rest_joint_positions()
+    joints_rest = body.rest_joints()  # the body's own rest joints (the mannequin's by default)
     a, b = body.rest_pose()
     cap_joint = np.array([JOINT_INDEX[c.joint] for c in body.capsules])
     # Distance to every capsule, then the nearest capsule per distinct joint.

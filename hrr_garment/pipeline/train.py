@@ -266,14 +266,18 @@ def simulate_preset(garment: str, preset: Preset, out: Path, progress: bool = Tr
     would; finished sequences are reused)."""
     from ..export.preview import write_dataset_preview
     from ..garment.templates import make_garment
+    from ..sim.bodies import choose_bodies
     from ..sim.build import BuildOptions, build_dataset
     from ..sim.plan import build_options, plan_sequences
     from ..sim.simulator import SimConfig
 
     mesh = make_garment(garment, preset.vertices)
-    specs = plan_sequences(preset)
-    options = build_options(preset, specs)
+    choice = choose_bodies(plan_sequences(preset), mesh, preset_bodies=preset.bodies, where=preset.name, progress=progress)
+    options = build_options(preset, choice.specs)
     options["info"]["garment_vertices"] = mesh.num_vertices
-    report = build_dataset(mesh, specs, SimConfig.from_dict(preset.sim), out=out,
-                           options=BuildOptions(progress=progress, preview=write_dataset_preview, **options))
+    if choice.bodies:
+        options["info"]["bodies"] = choice.info
+    report = build_dataset(mesh, choice.specs, SimConfig.from_dict(preset.sim), out=out,
+                           options=BuildOptions(progress=progress, preview=write_dataset_preview, bodies=choice.bodies,
+                                                hold_out_bodies=choice.hold_out, **options))
     return SimulatedDataset(report, mesh)

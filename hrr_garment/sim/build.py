@@ -18,7 +18,8 @@ from typing import Callable
 
 import numpy as np
 
-from ..data.dataset import SequenceRecord, split_groups, split_names, write_dataset
+from ..data.bodies import MANNEQUIN, MANNEQUIN_STATURE_M, DressedBody, is_symmetric, mannequin_record
+from ..data.dataset import SequenceRecord, combine_splits, split_groups, split_names, write_dataset
 from ..errors import InputError
 from ..garment.mesh import GarmentMesh, mirror_map
 from ..io_utils import atomic_write_text, exclusive_lock, strict_json
@@ -70,7 +71,11 @@ class BuildOptions:
     rejected again (after a simulator change that may save them). ``kinds`` (sequence name ->
     motion kind, procedural clips) holds out only clips of kinds that also train
     (:func:`~hrr_garment.data.dataset.split_names`). ``preview``: renders the dataset's preview image beside it
-    (``hrr-simulate`` passes :func:`hrr_garment.export.preview.write_dataset_preview`)."""
+    (``hrr-simulate`` passes :func:`hrr_garment.export.preview.write_dataset_preview`).
+
+    ``bodies`` (name -> a body and the garment on it, :mod:`.bodies`) holds every body a sequence
+    names (``SequenceSpec.body``); ``hold_out_bodies`` makes validation and test hold out whole
+    bodies as well as whole groups (a sequence tests if its group or its body does)."""
 
     jobs: int | None = None
     splits: dict[str, float] | None = None
@@ -84,6 +89,8 @@ class BuildOptions:
     address: str | None = None
     retry_rejected: bool = False
     kinds: dict[str, str] | None = None
+    bodies: dict[str, DressedBody] | None = None
+    hold_out_bodies: bool = False
 
 
 def build_dataset(garment: GarmentMesh, specs: list[SequenceSpec], config: SimConfig, *, out: str | Path,
@@ -100,7 +107,8 @@ def build_dataset(garment: GarmentMesh, specs: list[SequenceSpec], config: SimCo
     busy = "another hrr-simulate is building this dataset; wait for it, or write elsewhere with -o"
     with exclusive_lock(out.with_suffix(".lock"), out, busy):
         extra = {"template": template_hash(garment), "sim": config.to_dict(), "part_version": PART_VERSION}
-        keys = {s.name: s.key(extra) for s in specs}
+        bodies = _check_bodies(specs, o.bodies or {})
+        keys = {s.name: s.key({**extra, "body": bodies[s.body].key()} if s.body else extra) for s in specs}
         pending, rejects, reused = _to_simulate(specs, parts, keys, retry_rejected=o.retry_rejected)
         if executor == "local":
             jobs = max(1, min(jobs or os.cpu_count() or 1, len(pending) or 1))
@@ -111,11 +119,12 @@ def build_dataset(garment: GarmentMesh, specs: list[SequenceSpec], config: SimCo
                 print(f"simulating {len(pending)} of {len(specs)} sequences with {where}; "
                       f"{reused} already done (first run compiles kernels: about two minutes, cached after)")
             warm_up(garment, config)
+            everyone = {MANNEQUIN: DressedBody(MANNEQUIN, mannequin_record(), garment), **bodies}
             if executor == "ray":
-                rejects.update(run_ray(pending, garment, config, keys=keys, parts=parts, jobs=jobs, progress=progress,
-                                        address=o.address))
+                rejects.update(run_ray(pending, everyone, config, keys=keys, parts=parts, jobs=jobs, progress=progress,
+                                       address=o.address))
             else:
-                rejects.update(run_local(pending, garment, config, keys=keys, parts=parts, jobs=jobs, progress=progress))
+                rejects.update(run_local(pending, everyone, config, keys=keys, parts=parts, jobs=jobs, progress=progress))
         sim_wall = time.perf_counter() - t0
         done = [s.name for s in specs if s.name not in rejects and part_paths(parts, s.name)[0].exists()]
         records = [load_part(part_paths(parts, n)[0], n) for n in done]
@@ -126,11 +135,15 @@ def build_dataset(garment: GarmentMesh, specs: list[SequenceSpec], config: SimCo
             split = split_groups({n: o.groups.get(n, n) for n in done}, val, test, seed=o.seed)
         else:
             split = split_names(done, val, test, seed=o.seed, kinds=o.kinds)
-        summary = summarise(records, garment, rejects, sim_wall, jobs, len(pending))
+        if o.hold_out_bodies:
+            by_body = {s.name: s.body or MANNEQUIN for s in specs if s.name in done}
+            split = combine_splits(split, split_groups(by_body, val, test, seed=o.seed))
+        summary = summarise(records, garment, rejects, sim_wall, jobs, len(pending), bodies=bodies)
         if o.mirror:
-            records, split = _add_mirrored(records, split, garment, progress)
+            records, split = _add_mirrored(records, split, garment, progress, bodies)
             summary["mirrored"] = len(records) - len(done)
-        write_dataset(out, garment, records, splits=split, info={**(o.info or {}), "summary": summary, "sim": config.to_dict()})
+        write_dataset(out, garment, records, splits=split, info={**(o.info or {}), "summary": summary, "sim": config.to_dict()},
+                      bodies=bodies)
         atomic_write_text(out.with_suffix(".summary.json"), strict_json(summary, indent=2))
         report = BuildReport(out, done, rejects, summary, reused, len(pending) - len(rejects),
                              stats={r.name: r.info.get("stats", {}) for r in records})
@@ -155,25 +168,40 @@ def _to_simulate(specs: list[SequenceSpec], parts: Path, keys: dict[str, str], *
     return pending, rejects, reused
 
 
+def _check_bodies(specs: list[SequenceSpec], bodies: dict[str, DressedBody]) -> dict[str, DressedBody]:
+    missing = sorted({s.body for s in specs if s.body} - set(bodies))
+    if missing:
+        raise InputError("bodies", f"sequences name bodies that the build was not given: {missing[:5]}")
+    return bodies
+
+
 def _add_mirrored(records: list[SequenceRecord], split: dict[str, list[str]], garment: GarmentMesh,
-                  progress: bool) -> tuple[list[SequenceRecord], dict[str, list[str]]]:
+                  progress: bool, bodies: dict[str, DressedBody]) -> tuple[list[SequenceRecord], dict[str, list[str]]]:
     perm = mirror_map(garment.vertices)
     if perm is None:
         if progress:
             print(f"not mirroring: the {garment.name} template is not symmetric about x = 0")
         return records, split
+    # a body that is not its own mirror image would stand on another body in the mirror
+    asymmetric = {n for n, b in bodies.items() if not (is_symmetric(b.body) and mirror_map(b.garment.vertices) is not None)}
+    if asymmetric and progress:
+        print(f"not mirroring the sequences on {len(asymmetric)} asymmetric bod(y/ies): {sorted(asymmetric)[:3]}")
     flip = np.array([-1.0, 1.0, 1.0], np.float32)
     mirrored = [SequenceRecord(f"{r.name}_mirror", r.garment[:, perm] * flip, r.motion.mirrored(),
-                               info={**r.info, "mirror_of": r.name}) for r in records]
-    return records + mirrored, {k: sorted(v + [f"{n}_mirror" for n in v]) for k, v in split.items()}
+                               info={**r.info, "mirror_of": r.name}, body=r.body) for r in records if r.body not in asymmetric]
+    names = {r.name for r in records if r.body not in asymmetric}
+    return records + mirrored, {k: sorted(v + [f"{n}_mirror" for n in v if n in names]) for k, v in split.items()}
 
 
 def summarise(records: list[SequenceRecord], garment: GarmentMesh, rejects: dict[str, str], sim_wall: float,
-              jobs: int, simulated: int) -> dict:
-    """The dataset summary: counts, quality statistics and simulation speed."""
+              jobs: int, simulated: int, bodies: dict[str, DressedBody] | None = None) -> dict:
+    """The dataset summary: counts, quality statistics (each sequence's strain against the garment
+    on its own body) and simulation speed; with bodies, the strain and frames of each."""
     stats = [r.info.get("stats", {}) for r in records]
     edges = garment.edges()
-    pooled = np.concatenate([edge_strain(r.garment, garment.vertices, edges).ravel() for r in records])
+    rest = {MANNEQUIN: garment.vertices, **{n: b.garment.vertices for n, b in (bodies or {}).items()}}
+    strains = [edge_strain(r.garment, rest[r.body], edges).ravel() for r in records]
+    pooled = np.concatenate(strains)
     sim_frames = sum(s.get("simulated_frames", 0) for s in stats)
     sim_seconds = sum(s.get("sim_seconds", 0.0) for s in stats)
     by_kind: dict[str, list[float]] = {}
@@ -196,4 +224,17 @@ def summarise(records: list[SequenceRecord], garment: GarmentMesh, rejects: dict
         "hem_swing_m_by_kind": {k: float(np.mean(v)) for k, v in sorted(by_kind.items())},
         "sim_frames_per_core_s": float(sim_frames / sim_seconds) if sim_seconds else None,
         "sim_wall_s": float(sim_wall), "jobs": jobs, "simulated_now": simulated,
+        **({"by_body": _by_body(records, strains, bodies)} if bodies else {}),
     }
+
+
+def _by_body(records: list[SequenceRecord], strains: list[np.ndarray], bodies: dict[str, DressedBody]) -> dict:
+    """Per body: its stature, sequences, frames and strain p99."""
+    out = {}
+    for name in sorted({r.body for r in records}):
+        mine = [k for k, r in enumerate(records) if r.body == name]
+        pooled = np.concatenate([strains[k] for k in mine])
+        stature = bodies[name].record.stature if name in bodies else MANNEQUIN_STATURE_M
+        out[name] = {"stature_m": stature, "sequences": len(mine), "frames": int(sum(len(records[k].garment) for k in mine)),
+                     "strain_p99": float(np.percentile(pooled, 99))}
+    return out

@@ -17,6 +17,7 @@ from pathlib import Path
 
 from tqdm.auto import tqdm
 
+from ..data.bodies import MANNEQUIN, DressedBody
 from ..garment.mesh import GarmentMesh
 from ..motion.motion import FPS
 from .config import SimConfig
@@ -46,24 +47,35 @@ def _finish(result: PartResult, rejects: dict[str, str], bar: tqdm) -> None:
 # --- local process pool ------------------------------------------------------------------------
 
 
+def _on_body(spec: SequenceSpec, bodies: dict[str, DressedBody]) -> tuple[GarmentMesh, DressedBody | None]:
+    """The garment a sequence is simulated with, and its body where it names one."""
+    if spec.body:
+        return bodies[spec.body].garment, bodies[spec.body]
+    return bodies[MANNEQUIN].garment, None
+
+
 def _local_worker(spec: SequenceSpec, garment: GarmentMesh, config: dict, key: str, parts: str,
-                  progress_queue=None) -> PartResult:
+                  progress_queue=None, body: DressedBody | None = None) -> PartResult:
     report = progress_queue.put if progress_queue is not None else None
-    result = simulate_sequence(spec, spec.motion(), garment, config=config, key=key, progress=report)
+    result = simulate_sequence(spec, spec.motion(), garment, config=config, key=key, progress=report, body=body)
     write_part(result, Path(parts))
     return PartResult(result.name, key, result.frames, failure=result.failure)  # the arrays stay in the part
 
 
-def run_local(pending: list[SequenceSpec], garment: GarmentMesh, config: SimConfig, *, keys: dict[str, str],
+def run_local(pending: list[SequenceSpec], bodies: dict[str, DressedBody], config: SimConfig, *, keys: dict[str, str],
               parts: Path, jobs: int, progress: bool) -> dict[str, str]:
-    """Simulate ``pending`` in ``jobs`` spawned processes; returns the rejected sequences' reasons."""
+    """Simulate ``pending`` in ``jobs`` spawned processes; returns the rejected sequences' reasons.
+    ``bodies``: the mannequin (:data:`~hrr_garment.data.bodies.MANNEQUIN`, with the template) and
+    every body a sequence names (:mod:`.bodies`), each with the garment on it."""
     bar = _progress_bar(pending, config, progress)
     rejects: dict[str, str] = {}
     ctx = mp.get_context("spawn")  # Warp is not fork-safe
     with ctx.Manager() as manager, ProcessPoolExecutor(max_workers=jobs, mp_context=ctx) as pool:
         progress_queue = manager.Queue()
-        futures = {pool.submit(_local_worker, s, garment, config.to_dict(), keys[s.name], str(parts), progress_queue)
-                   for s in pending}
+        futures = set()
+        for s in pending:
+            garment, body = _on_body(s, bodies)
+            futures.add(pool.submit(_local_worker, s, garment, config.to_dict(), keys[s.name], str(parts), progress_queue, body))
         remaining = set(futures)
         while remaining:
             finished, remaining = wait(remaining, timeout=0.5, return_when=FIRST_COMPLETED)
@@ -94,7 +106,7 @@ def _import_ray():
     return ray
 
 
-def run_ray(pending: list[SequenceSpec], garment: GarmentMesh, config: SimConfig, *, keys: dict[str, str],
+def run_ray(pending: list[SequenceSpec], bodies: dict[str, DressedBody], config: SimConfig, *, keys: dict[str, str],
             parts: Path, jobs: int | None, progress: bool, address: str | None = None) -> dict[str, str]:
     """Simulate ``pending`` as Ray tasks, one sequence each; parts are written here as tasks finish.
 
@@ -113,11 +125,15 @@ def run_ray(pending: list[SequenceSpec], garment: GarmentMesh, config: SimConfig
     try:
         gpus = 1 if config.device != "cpu" and ray.cluster_resources().get("GPU", 0) >= 1 else 0
         task = ray.remote(num_cpus=1, num_gpus=gpus, max_retries=1)(simulate_sequence)
-        garment_ref, config_ref = ray.put(garment), ray.put(config.to_dict())
+        config_ref = ray.put(config.to_dict())
+        body_refs = {name: ray.put(body) for name, body in bodies.items()}
+        garment_refs = {name: ray.put(body.garment) for name, body in bodies.items()}
         bar = _progress_bar(pending, config, progress)
         rejects: dict[str, str] = {}
         frames = {s.name: _frames_to_simulate(s, config) for s in pending}
-        remaining = [task.remote(s, s.motion(), garment_ref, config_ref, keys[s.name]) for s in pending]
+        remaining = [task.remote(s, s.motion(), garment_refs[s.body or MANNEQUIN], config_ref, keys[s.name], None,
+                                 body_refs[s.body] if s.body else None)
+                     for s in pending]  # the mannequin's sequences name no body: their parts stay as before
         while remaining:
             done, remaining = ray.wait(remaining, num_returns=1)
             result: PartResult = ray.get(done[0])

@@ -17,10 +17,14 @@ from typing import Callable
 
 import numpy as np
 
+from ..body.capsules import DEFAULT_BODY
+from ..body.retarget import motion_on_body
+from ..data.bodies import MANNEQUIN, DressedBody
 from ..data.dataset import SequenceRecord
 from ..garment.mesh import GarmentMesh
 from ..io_utils import atomic_path, atomic_write_text
 from ..motion.motion import Motion
+from ..motion.skeleton import Skeleton
 from .plan import SequenceSpec
 from .quality import sequence_stats
 from .simulator import SimConfig, SimulationExploded, simulate_garment
@@ -64,16 +68,24 @@ class PartResult:
 
 
 def simulate_sequence(spec: SequenceSpec, motion: Motion, garment: GarmentMesh, config: dict, key: str,
-                      progress: Callable[[int], None] | None = None) -> PartResult:
-    """Simulate one sequence (``motion`` is ``spec.motion()``, loaded by the caller)."""
+                      progress: Callable[[int], None] | None = None, body: DressedBody | None = None) -> PartResult:
+    """Simulate one sequence (``motion`` is ``spec.motion()``, loaded by the caller) on the
+    mannequin, or on ``body`` (the sequence's, :mod:`.bodies`): the motion played by that body
+    (:func:`~hrr_garment.body.retarget.motion_on_body`) and the garment on it."""
+    collider = DEFAULT_BODY
+    if body is not None:
+        motion, garment, collider = motion_on_body(motion, body.body), body.garment, body.body
     try:
-        result = simulate_garment(garment, motion, SimConfig.from_dict(config), progress=progress)
+        result = simulate_garment(garment, motion, SimConfig.from_dict(config), body=collider, progress=progress)
     except SimulationExploded as exc:
         return PartResult(spec.name, key, 0, failure=str(exc))
-    stats = sequence_stats(result.vertices, garment.vertices, garment.edges(), motion=motion, hem=garment.groups.get("hem"))
+    stats = sequence_stats(result.vertices, garment.vertices, garment.edges(), motion=motion, hem=garment.groups.get("hem"),
+                           body=collider)
     stats.update(substeps=result.substeps, attempts=result.attempts, sim_seconds=result.seconds,
                  simulated_frames=result.simulated_frames, arms_off_frames=result.arms_off_frames)
     info = {"kind": spec.kind, "seed": spec.seed, "path": spec.path, "stats": stats}
+    if body is not None:
+        info["body"] = body.name
     return PartResult(spec.name, key, result.simulated_frames, result.vertices, motion, info)
 
 
@@ -85,15 +97,18 @@ def write_part(result: PartResult, parts: Path) -> None:
         return
     motion = result.motion
     failed.unlink(missing_ok=True)  # an earlier rejection that a retry has now saved
+    on_body = {"skeleton_offsets": np.asarray(motion.skeleton.offsets, np.float32)} if "body" in result.info else {}
     with atomic_path(part) as tmp:
         with open(tmp, "wb") as fh:
             np.savez(fh, key=np.array(result.key), garment=result.vertices, local_rotations=motion.local_rotations,
                      root_translation=motion.root_translation, fps=np.array(motion.fps),
-                     source=np.array(motion.source), info=np.array(json.dumps(result.info)))
+                     source=np.array(motion.source), info=np.array(json.dumps(result.info)), **on_body)
 
 
 def load_part(part: Path, name: str) -> SequenceRecord:
     """A finished part as a SequenceRecord."""
     with np.load(part, allow_pickle=False) as z:
-        motion = Motion(z["local_rotations"], z["root_translation"], float(z["fps"]), source=str(z["source"]))
-        return SequenceRecord(name, z["garment"], motion, info=json.loads(str(z["info"])))
+        info = json.loads(str(z["info"]))
+        on_body = {"skeleton": Skeleton(offsets=z["skeleton_offsets"])} if "skeleton_offsets" in z else {}
+        motion = Motion(z["local_rotations"], z["root_translation"], float(z["fps"]), source=str(z["source"]), **on_body)
+        return SequenceRecord(name, z["garment"], motion, info=info, body=info.get("body", MANNEQUIN))

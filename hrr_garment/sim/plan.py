@@ -48,6 +48,7 @@ class Preset:
     mirror: bool = False  # add each sequence mirrored left-right (symmetric garments; no simulation)
     speed_warps: list[float] = field(default_factory=list)  # motion files re-timed and simulated again
     base: str = ""  # the preset file's folder: relative motion entries resolve against it first
+    bodies: dict = field(default_factory=dict)  # which bodies the sequences stand on (sim/bodies.py); none: the mannequin
 
 
 def preset_names() -> list[str]:
@@ -63,7 +64,7 @@ def load_preset(name_or_path: str) -> Preset:
         if not path.is_file():
             raise InputError(name_or_path, f"unknown preset; choose one of {', '.join(preset_names())} or give a YAML file")
     try:
-        data = yaml.safe_load(path.read_text(encoding="utf-8"))
+        data = _preset_data(path)
         preset = Preset(**data, base=str(path.resolve().parent))
     except (OSError, yaml.YAMLError, TypeError) as exc:
         raise InputError(path, f"not a valid preset: {exc}") from None
@@ -74,6 +75,21 @@ def load_preset(name_or_path: str) -> Preset:
     if unknown:
         raise InputError(path, f"unknown motion kinds {unknown}; available: {', '.join(KINDS)}")
     return preset
+
+
+def _preset_data(path: Path, depth: int = 0) -> dict:
+    """A preset file's values; ``extends: NAME`` starts from another preset's (its keys replaced
+    by this file's, one level deep), so a variant names only what it changes."""
+    data = yaml.safe_load(path.read_text(encoding="utf-8"))
+    if not isinstance(data, dict):
+        raise TypeError("a preset is a mapping of keys to values")
+    parent = data.pop("extends", None)
+    if parent is None:
+        return data
+    if depth > 4 or not isinstance(parent, str):
+        raise TypeError(f"extends must name one preset (and not loop), got {parent!r}")
+    parent_path = path.parent / f"{parent}.yaml" if not Path(parent).suffix else path.parent / parent
+    return {**_preset_data(parent_path, depth + 1), **data}
 
 
 @dataclass(frozen=True)
@@ -89,6 +105,7 @@ class SequenceSpec:
     stop: int = 0
     speed: float = 1.0  # the file's motion played this much faster (a speed-warp augmentation)
     source_fps: float | None = None  # the file's frame rate where it carries none (--fps)
+    body: str = ""  # the name of the body it is simulated on (sim/bodies.py); "": the mannequin
 
     def motion(self) -> Motion:
         if self.kind == "file":
@@ -98,7 +115,8 @@ class SequenceSpec:
     def key(self, extra: dict) -> str:
         """Content hash of everything that determines the simulated result."""
         # Defaults of fields added later stay out, so earlier sequences keep their keys.
-        spec = {k: v for k, v in asdict(self).items() if not (k == "speed" and v == 1.0 or k == "source_fps" and v is None)}
+        spec = {k: v for k, v in asdict(self).items()
+                if not (k == "speed" and v == 1.0 or k == "source_fps" and v is None or k == "body" and not v)}
         payload = {"spec": spec, **extra}
         if self.kind == "file":
             payload["file_sha1"] = hashlib.sha1(Path(self.path).read_bytes()).hexdigest()

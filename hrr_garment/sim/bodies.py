@@ -1,0 +1,211 @@
+"""Which body each sequence of a build is simulated on, and the garment on each body.
+
+A preset's ``bodies`` section (configs/presets/*.yaml) chooses them; without one every sequence
+stands on the mannequin, as before::
+
+    bodies: {from: performer}                        # each motion file on its performer's nearest body
+    bodies: {from: sample, count: 16, per_clip: 1,   # bodies spread over statures, both genders,
+             statures_m: [1.50, 1.95], hold_out: true}  # slim to heavy; whole bodies held out
+
+``hrr-simulate --body body.json`` puts every sequence on one body instead. The garment on each
+body is the template carried onto it (:func:`~hrr_garment.garment.transfer.transfer_garment`:
+one topology for every body, each vertex as far off the new body as it was off the old), so one
+dataset holds one garment on many bodies. Procedural clips have no performer: under ``from:
+performer`` they stay on the mannequin.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+
+from ..body.body_file import BodyRecord
+from ..body.capsules import BodyModel
+from ..data.bodies import MANNEQUIN, DressedBody, is_symmetric, mannequin_record, symmetrized
+from ..errors import InputError
+from ..garment.mesh import GarmentMesh, mirror_map
+from ..garment.transfer import transfer_garment
+from .plan import SequenceSpec
+
+SOURCES = ("performer", "sample")
+DEFAULT_STATURES_M = (1.50, 1.95)
+STATURE_TOLERANCE_M = 0.002  # the sampled bodies' statures are solved to this
+
+
+@dataclass(frozen=True)
+class BodyPlan:
+    """A preset's ``bodies`` section, checked (see the module docstring)."""
+
+    source: str  # "performer" or "sample"
+    count: int = 16  # sampled bodies
+    per_clip: int = 1  # how many of the sampled bodies each clip is simulated on
+    statures_m: tuple[float, float] = DEFAULT_STATURES_M
+    hold_out: bool = True  # validation and test also hold out whole sampled bodies
+    seed: int = 0
+
+    @classmethod
+    def from_preset(cls, section: dict, where: str) -> "BodyPlan | None":
+        if not section:
+            return None
+        unknown = sorted(set(section) - {"from", "count", "per_clip", "statures_m", "hold_out", "seed"})
+        if unknown or section.get("from") not in SOURCES:
+            raise InputError(where, f"bodies: 'from' must be one of {', '.join(SOURCES)}; unknown keys {unknown}")
+        plan = cls(section["from"], int(section.get("count", 16)), int(section.get("per_clip", 1)),
+                   tuple(float(v) for v in section.get("statures_m", DEFAULT_STATURES_M)),
+                   bool(section.get("hold_out", section["from"] == "sample")), int(section.get("seed", 0)))
+        low, high = plan.statures_m
+        if not (2 <= plan.count <= 256 and 1 <= plan.per_clip <= plan.count and 1.0 <= low < high <= 2.2):
+            raise InputError(where, "bodies: count 2-256, per_clip 1-count, statures_m two heights in 1.0-2.2 m, low first")
+        return plan
+
+
+def dress(name: str, record: BodyRecord, garment: GarmentMesh, made_for: BodyModel) -> DressedBody:
+    """The body (left and right made exactly alike where they nearly are: its sequences can then be
+    mirrored) and ``garment`` (modelled on ``made_for``) carried onto it."""
+    body = symmetrized(record.body)
+    record = replace(record, body=body, skeleton=body.skeleton)
+    on_body, _ = transfer_garment(garment, made_for=made_for, body=body)
+    perm = mirror_map(garment.vertices) if is_symmetric(made_for) else None
+    if perm is not None and is_symmetric(body):  # exactly symmetric, as the template was
+        flip = np.array([-1.0, 1.0, 1.0], np.float32)
+        on_body = replace(on_body, vertices=0.5 * (on_body.vertices + on_body.vertices[perm] * flip))
+    return DressedBody(name, record, on_body)
+
+
+def _safe(text: str) -> str:
+    return re.sub(r"[^A-Za-z0-9_.-]+", "_", text).strip("_") or "body"
+
+
+def one_body(specs: list[SequenceSpec], name: str, body: DressedBody) -> tuple[list[SequenceSpec], dict[str, DressedBody]]:
+    """Every sequence on ``body`` (``hrr-simulate --body``)."""
+    name = _safe(name)
+    return [replace(s, body=name) for s in specs], {name: replace(body, name=name)}
+
+
+def plan_bodies(plan: BodyPlan, specs: list[SequenceSpec], garment: GarmentMesh, *, made_for: BodyModel,
+                progress: bool = True) -> tuple[list[SequenceSpec], dict[str, DressedBody]]:
+    """The sequences with their bodies named, and the bodies (each with ``garment`` on it)."""
+    if plan.source == "performer":
+        return _performer_bodies(specs, garment, made_for, progress)
+    return _sampled_bodies(plan, specs, garment, made_for)
+
+
+def _performer_bodies(specs, garment, made_for, progress):
+    from tqdm.auto import tqdm
+
+    from ..body.proportions import performer_body
+
+    bodies: dict[str, DressedBody] = {}
+    by_path: dict[str, str] = {}
+    out = []
+    for spec in tqdm(specs, desc="performers' bodies", unit="clip", disable=not progress):
+        if spec.kind != "file":
+            out.append(spec)  # a procedural clip has no performer: the mannequin
+            continue
+        if spec.path not in by_path:
+            found = performer_body(spec.path, unit_scale=None)
+            record = BodyRecord(found.body.skeleton, found.body, found.body.pelvis_height, found.stature,
+                                shape=found.shape)
+            dressed = dress(MANNEQUIN, record, garment, made_for)
+            name = f"performer-{dressed.key()[:8]}"  # clips whose rigs measure the same share one body
+            bodies.setdefault(name, replace(dressed, name=name))
+            by_path[spec.path] = name
+        out.append(replace(spec, body=by_path[spec.path]))
+    return out, bodies
+
+
+def sampled_shapes(plan: BodyPlan):
+    """``plan.count`` parametric shapes: statures evenly over ``plan.statures_m``, genders
+    alternating, weight and muscle spread over slim to heavy (a seeded Latin hypercube)."""
+    from ..body.parametric import BodyShape
+
+    rng = np.random.default_rng(plan.seed)
+    n = plan.count
+    weight = (rng.permutation(n) + rng.random(n)) / n * 0.9 + 0.05
+    muscle = (rng.permutation(n) + rng.random(n)) / n * 0.9 + 0.05
+    statures = np.linspace(*plan.statures_m, n)[rng.permutation(n)]
+    shapes = []
+    for k in range(n):
+        base = BodyShape(gender=float(k % 2), weight=float(weight[k]), muscle=float(muscle[k]))
+        shapes.append(_shape_of_stature(base, float(statures[k])))
+    return shapes
+
+
+def _shape_of_stature(base, stature: float):
+    """``base`` with the height value that gives ``stature`` (bisection; clamped to anny's range)."""
+    from ..body.parametric import anny_rest_mesh
+
+    def height_of(value: float) -> float:
+        vertices = anny_rest_mesh(replace(base, height=value)).vertices
+        return float(vertices[:, 1].max() - vertices[:, 1].min())
+
+    low, high = 0.0, 1.0
+    for _ in range(30):
+        mid = 0.5 * (low + high)
+        if height_of(mid) < stature:
+            low = mid
+        else:
+            high = mid
+        if high - low < 1e-4:
+            break
+    return replace(base, height=0.5 * (low + high))
+
+
+def _sampled_bodies(plan, specs, garment, made_for):
+    from ..body.body_file import record_of
+    from ..body.parametric import parametric_body
+
+    shapes = sampled_shapes(plan)
+    bodies = {}
+    for k, shape in enumerate(shapes):
+        name = f"body{k:02d}"
+        bodies[name] = dress(name, record_of(parametric_body(shape)), garment, made_for)
+    names = sorted(bodies)
+    rng = np.random.default_rng(plan.seed + 1)
+    out = []
+    # each clip on per_clip bodies; the bodies go round in a shuffled order so they share the clips evenly
+    order = [names[i] for i in rng.permutation(len(names))]
+    turn = 0
+    for spec in specs:
+        chosen = [order[(turn + j) % len(order)] for j in range(plan.per_clip)]
+        turn += plan.per_clip
+        for name in chosen:
+            suffix = f"__{name}" if plan.per_clip > 1 else ""
+            out.append(replace(spec, name=spec.name + suffix, body=name))
+    return out, bodies
+
+
+@dataclass(frozen=True)
+class BodyChoice:
+    """The bodies of a build as the command line and the preset chose them."""
+
+    specs: list[SequenceSpec]  # each naming its body ("" for the mannequin)
+    bodies: dict[str, DressedBody]
+    hold_out: bool  # validation and test hold out whole bodies too
+    info: dict  # what the dataset records of the choice
+
+
+def choose_bodies(specs: list[SequenceSpec], garment: GarmentMesh, *, preset_bodies: dict, where: str,
+                  body_file: str | Path | None = None, made_for: BodyRecord | None = None,
+                  progress: bool = True) -> BodyChoice:
+    """The bodies of a build: ``body_file`` (every sequence on it), else the preset's ``bodies``
+    section, else the mannequin; ``garment`` was modelled on ``made_for`` (default the mannequin)
+    and is carried onto each. A garment made for another body and no body chosen stands on its own."""
+    from ..body.body_file import read_body
+
+    source = made_for.body if made_for is not None else mannequin_record().body
+    if body_file is not None:
+        record = read_body(body_file)
+        specs, bodies = one_body(specs, Path(body_file).stem, dress(MANNEQUIN, record, garment, source))
+        return BodyChoice(specs, bodies, False, {"from": "file", "file": Path(body_file).name})
+    plan = BodyPlan.from_preset(preset_bodies, where)
+    if plan is not None:
+        specs, bodies = plan_bodies(plan, specs, garment, made_for=source, progress=progress)
+        return BodyChoice(specs, bodies, plan.hold_out and len(bodies) > 2, {"from": plan.source, "count": len(bodies)})
+    if made_for is not None:
+        specs, bodies = one_body(specs, "made_for", dress(MANNEQUIN, made_for, garment, source))
+        return BodyChoice(specs, bodies, False, {"from": "made_for"})
+    return BodyChoice(specs, {}, False, {})
