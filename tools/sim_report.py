@@ -2,7 +2,9 @@
 
 For every simulated sequence of the dataset (mirrored copies left out: they repeat their source)
 it recomputes, from the stored frames and motions, edge strain and penetration, and flags frames
-where the motion's own limbs pass through the body (hrr_garment.body.self_contact). Rows group
+where the motion's own limbs pass through the body (hrr_garment.body.self_contact), each sequence
+on the body it was simulated on (the mannequin, or the dataset's bodies), and adds a table per body
+when the dataset has bodies. Rows group
 sequences by content: the ``content`` field of the preset's file-name pattern (Bandai-Namco:
 walk, run, bow, ...), the procedural kind, or the file's name. Prints a Markdown table and, with
 --json, one JSON object.
@@ -41,14 +43,22 @@ def report(path: Path) -> dict:
     ds = GarmentDataset(path)
     edges = ds.template.edges()
     rows: dict[str, dict] = {}
+    by_body: dict[str, dict] = {}
     for name in ds.names:
         rec = ds.sequence(name)
         if "mirror_of" in rec.info:
             continue
         row = rows.setdefault(content_of(name, rec.info), _empty_row())
-        strain = edge_strain(rec.garment, ds.template.vertices, edges)
-        pen = penetration_fraction(body_signed_distance(rec.garment, rec.motion))
-        flagged = self_intersecting_frames(rec.motion)
+        body = ds.bodies[rec.body].body  # the body it was simulated on, with the garment's rest on it
+        strain = edge_strain(rec.garment, ds.rest(name), edges)
+        pen = penetration_fraction(body_signed_distance(rec.garment, rec.motion, body))
+        flagged = self_intersecting_frames(rec.motion, body)
+        per_body = by_body.setdefault(rec.body, {"clips": 0, "frames": 0, "flagged": 0, "strain": [],
+                                                 "stature_m": ds.bodies[rec.body].record.stature})
+        per_body["clips"] += 1
+        per_body["frames"] += len(rec.garment)
+        per_body["flagged"] += int(flagged.sum())
+        per_body["strain"].append(strain.ravel())
         row["clips"] += 1
         row["frames"] += len(rec.garment)
         row["strain"].append(strain.ravel())
@@ -68,8 +78,13 @@ def report(path: Path) -> dict:
     total.update(strain_p99=float(np.percentile(pooled_strain, 99)), strain_max=float(pooled_strain.max()),
                  pen_max=max(r["pen_max"] for r in table.values()),
                  pen_max_clean=max(r["pen_max_clean"] for r in table.values()),
-                 kept_fraction=total["clips"] / max(1, total["clips"] + total["rejected"]))
-    return {"dataset": str(path), "vertices": ds.template.num_vertices, "by_content": table, "total": total}
+                 kept_fraction=total["clips"] / max(1, total["clips"] + total["rejected"]),
+                 flagged_fraction=total["flagged"] / max(1, total["frames"]))
+    bodies = {name: {**{k: v for k, v in row.items() if k != "strain"},
+                     "strain_p99": float(np.percentile(np.concatenate(row["strain"]), 99))}
+              for name, row in sorted(by_body.items())}
+    return {"dataset": str(path), "vertices": ds.template.num_vertices, "by_content": table, "total": total,
+            "by_body": bodies}
 
 
 def markdown(result: dict) -> str:
@@ -78,6 +93,10 @@ def markdown(result: dict) -> str:
     for content, r in [*result["by_content"].items(), ("**all**", result["total"])]:
         lines.append(f"| {content} | {r['clips']} | {r['rejected']} | {r['frames']} | {r['strain_p99']:.3f} | "
                      f"{r['strain_max']:.2f} | {100 * r['pen_max']:.2f} % | {100 * r['pen_max_clean']:.2f} % | {r['flagged']} |")
+    if len(result["by_body"]) > 1 or set(result["by_body"]) != {"mannequin"}:
+        lines += ["", "| body | stature | clips | frames | strain p99 | flagged frames |", "|---|---:|---:|---:|---:|---:|"]
+        lines += [f"| {name} | {r['stature_m']:.2f} m | {r['clips']} | {r['frames']} | {r['strain_p99']:.3f} | "
+                  f"{100 * r['flagged'] / max(1, r['frames']):.1f} % |" for name, r in result["by_body"].items()]
     return "\n".join(lines)
 
 
@@ -90,7 +109,8 @@ def main() -> None:
     print(json.dumps(result, indent=1) if args.json else markdown(result))
     if not args.json:
         t = result["total"]
-        print(f"\n{result['dataset']}: {result['vertices']} vertices; {100 * t['kept_fraction']:.1f} % of clips kept")
+        print(f"\n{result['dataset']}: {result['vertices']} vertices; {100 * t['kept_fraction']:.1f} % of clips kept; "
+              f"{100 * t['flagged_fraction']:.1f} % of frames flagged (a limb more than 2.5 cm in the body)")
 
 
 if __name__ == "__main__":

@@ -80,7 +80,7 @@ def analyse(model: str, split: str, sequences: int | None, members: int) -> dict
     if sequences:
         names = [names[i] for i in sorted({int(round(i)) for i in np.linspace(0, len(names) - 1, min(sequences, len(names)))})]
     records = [ds.sequence(n) for n in names]
-    ensembles = truth_ensembles(ds.template, records, SimConfig.from_dict(ds.info["sim"]), members, jobs=2)
+    ensembles = truth_ensembles(ds.template, records, SimConfig.from_dict(ds.info["sim"]), members, jobs=2, bodies=ds.bodies)
     template = animator.bundle.template
     rest, topo = template.vertices.astype(np.float64), M.MeshTopology.of(template.faces, template.num_vertices)
     hem = hem_vertices(template)

@@ -37,7 +37,8 @@ def truth_ensembles_of(ds, records, members: int, jobs: int | None, progress: bo
     from ..sim.simulator import SimConfig
     from .ensemble import truth_ensembles
 
-    return truth_ensembles(ds.template, records, SimConfig.from_dict(ds.info["sim"]), members=members, jobs=jobs, progress=progress)
+    return truth_ensembles(ds.template, records, SimConfig.from_dict(ds.info["sim"]), members=members, jobs=jobs, progress=progress,
+                           bodies=ds.bodies)
 
 
 def ensemble_summary(ensembles: dict, records, members: int) -> dict:
