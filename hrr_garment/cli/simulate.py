@@ -54,14 +54,16 @@ def add_garment_options(p: argparse.ArgumentParser) -> None:
 DENSE_FACTOR = 3  # a template with more than this many times the preset's vertices is refused
 
 
-def resolve_garment(args: argparse.Namespace, default_vertices: int) -> GarmentMesh:
+def resolve_garment(args: argparse.Namespace, default_vertices: int, made_for=None) -> GarmentMesh:
     """The garment the options name: a template, or the user's OBJ (fitted, its attached vertices
     found, and refused when far denser than the preset's resolution unless --dense-ok)."""
     if args.template is not None:
         notes: list[str] = []
         mesh = load_garment_obj(args.template, args.garment, attached_group=args.attached,
                                 attached_file=args.attached_file,
-                                placement=Placement(fit=args.fit, up=args.up, unit=args.unit), notes=notes)
+                                placement=Placement(fit=args.fit, up=args.up, unit=args.unit,
+                                                    **({"body": made_for.body} if made_for is not None else {})),
+                                notes=notes)
         for note in notes:
             print(note)
         if mesh.num_vertices > DENSE_FACTOR * default_vertices and not args.dense_ok:
@@ -117,10 +119,12 @@ def _main(argv: Sequence[str] | None) -> int:
     if args.made_for and args.fit:
         raise InputError("--fit", "moves a garment onto the mannequin; a garment declared --made-for its body is carried, not moved")
     made_for = read_body(args.made_for) if args.made_for else None
-    garment = resolve_garment(args, preset.vertices)
+    garment = resolve_garment(args, preset.vertices, made_for)
     specs = plan_sequences(preset, args.motions, args.seconds, source_fps=args.fps)
     choice = choose_bodies(specs, garment, preset_bodies=preset.bodies, where=args.preset, body_file=args.body,
                            made_for=made_for, progress=not args.quiet)
+    for note in choice.notes:
+        print(note)
     overrides = {k: v for k, v in (("substeps", args.substeps), ("iterations", args.iterations),
                                    ("device", args.device)) if v is not None}
     config = SimConfig.from_dict({**preset.sim, **overrides})

@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..body.capsules import DEFAULT_BODY, BodyModel
 from ..io_utils import atomic_path
 from .mesh import GarmentError, GarmentMesh, check_garment, repair_mesh
 
@@ -96,11 +97,13 @@ def write_obj(path: str | Path, vertices: np.ndarray, faces: np.ndarray, groups:
 class Placement:
     """Where a garment file's mesh goes: as it is (the canonical rest pose), or with ``fit`` placed on
     the body from another convention (:func:`~.fit.fit_garment`; ``up`` and ``unit`` override what
-    it detects, and go only with ``fit``)."""
+    it detects, and go only with ``fit``). ``body``: the body it was modelled on (``--made-for``;
+    default the mannequin), whose torso ``--attached auto`` looks for."""
 
     fit: bool = False
     up: str | None = None
     unit: str | None = None
+    body: BodyModel = DEFAULT_BODY
 
 
 def load_garment_obj(path: str | Path, name: str | None = None, *, attached_group: str | None = None,
@@ -139,7 +142,7 @@ def load_garment_obj(path: str | Path, name: str | None = None, *, attached_grou
             raise GarmentError(attached_file, f"vertex indices must lie in [0, {len(v)})")
         attached = idx
     elif attached_group == "auto" and "auto" not in face_groups:
-        attached = auto_attached(v, source=str(path))
+        attached = auto_attached(v, placement.body, source=str(path))
         notes.append(f"attached (auto): {len(attached)} vertices of the top band that lie on the torso")
     elif attached_group is not None:
         if attached_group not in face_groups:

@@ -38,6 +38,7 @@ class TransferReport:
     inside: float  # fraction of vertices inside the new body before the last push
     pushed: float  # fraction moved by the last push
     gap_change_mean_mm: float  # mean |distance to the new body - distance to the old| after the push
+    moved_mean_mm: float  # mean distance of each vertex from where it was modelled (onto the same body: the push alone)
 
 
 def _capsule_frames(body: BodyModel) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -101,5 +102,6 @@ def transfer_garment(garment: GarmentMesh, *, made_for: BodyModel, body: BodyMod
     old = capsule_signed_distance(np.asarray(garment.vertices, np.float64), a0, b0, radii=r0)[0]
     new = capsule_signed_distance(moved, a1, b1, radii=r1)[0]
     report = TransferReport(inside=float((before < 0).mean()), pushed=float((push > 0).mean()),
-                            gap_change_mean_mm=float(np.abs(new - old).mean() * 1000))
+                            gap_change_mean_mm=float(np.abs(new - old).mean() * 1000),
+                            moved_mean_mm=float(np.linalg.norm(moved - garment.vertices, axis=-1).mean() * 1000))
     return replace(garment, vertices=moved.astype(np.float32)), report

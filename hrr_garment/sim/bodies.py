@@ -17,7 +17,7 @@ performer`` they stay on the mannequin.
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass, replace
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -27,7 +27,7 @@ from ..body.capsules import BodyModel
 from ..data.bodies import MANNEQUIN, DressedBody, is_symmetric, mannequin_record, symmetrized
 from ..errors import InputError
 from ..garment.mesh import GarmentMesh, mirror_map
-from ..garment.transfer import transfer_garment
+from ..garment.transfer import TransferReport, transfer_garment
 from .plan import SequenceSpec
 
 SOURCES = ("performer", "sample")
@@ -62,17 +62,17 @@ class BodyPlan:
         return plan
 
 
-def dress(name: str, record: BodyRecord, garment: GarmentMesh, made_for: BodyModel) -> DressedBody:
+def dress(name: str, record: BodyRecord, garment: GarmentMesh, made_for: BodyModel) -> tuple[DressedBody, TransferReport]:
     """The body (left and right made exactly alike where they nearly are: its sequences can then be
     mirrored) and ``garment`` (modelled on ``made_for``) carried onto it."""
     body = symmetrized(record.body)
     record = replace(record, body=body, skeleton=body.skeleton)
-    on_body, _ = transfer_garment(garment, made_for=made_for, body=body)
+    on_body, report = transfer_garment(garment, made_for=made_for, body=body)
     perm = mirror_map(garment.vertices) if is_symmetric(made_for) else None
     if perm is not None and is_symmetric(body):  # exactly symmetric, as the template was
         flip = np.array([-1.0, 1.0, 1.0], np.float32)
         on_body = replace(on_body, vertices=0.5 * (on_body.vertices + on_body.vertices[perm] * flip))
-    return DressedBody(name, record, on_body)
+    return DressedBody(name, record, on_body), report
 
 
 def _safe(text: str) -> str:
@@ -83,6 +83,13 @@ def one_body(specs: list[SequenceSpec], name: str, body: DressedBody) -> tuple[l
     """Every sequence on ``body`` (``hrr-simulate --body``)."""
     name = _safe(name)
     return [replace(s, body=name) for s in specs], {name: replace(body, name=name)}
+
+
+def placement_note(name: str, report: TransferReport) -> str:
+    """One line on how the garment landed on a body."""
+    return (f"the garment on body {name}: {100 * report.inside:.1f} % of its vertices were inside it and "
+            f"{100 * report.pushed:.1f} % pushed out; each vertex {report.moved_mean_mm:.1f} mm from where it was "
+            f"modelled on average, its distance from the body changed {report.gap_change_mean_mm:.1f} mm")
 
 
 def plan_bodies(plan: BodyPlan, specs: list[SequenceSpec], garment: GarmentMesh, *, made_for: BodyModel,
@@ -109,7 +116,7 @@ def _performer_bodies(specs, garment, made_for, progress):
             found = performer_body(spec.path, unit_scale=None)
             record = BodyRecord(found.body.skeleton, found.body, found.body.pelvis_height, found.stature,
                                 shape=found.shape)
-            dressed = dress(MANNEQUIN, record, garment, made_for)
+            dressed, _ = dress(MANNEQUIN, record, garment, made_for)
             name = f"performer-{dressed.key()[:8]}"  # clips whose rigs measure the same share one body
             bodies.setdefault(name, replace(dressed, name=name))
             by_path[spec.path] = name
@@ -162,7 +169,7 @@ def _sampled_bodies(plan, specs, garment, made_for):
     bodies = {}
     for k, shape in enumerate(shapes):
         name = f"body{k:02d}"
-        bodies[name] = dress(name, record_of(parametric_body(shape)), garment, made_for)
+        bodies[name], _ = dress(name, record_of(parametric_body(shape)), garment, made_for)
     names = sorted(bodies)
     rng = np.random.default_rng(plan.seed + 1)
     out = []
@@ -186,7 +193,7 @@ class BodyChoice:
     bodies: dict[str, DressedBody]
     hold_out: bool  # validation and test hold out whole bodies too
     info: dict  # what the dataset records of the choice
-
+    notes: list[str] = field(default_factory=list)  # how the garment landed on a chosen body
 
 def choose_bodies(specs: list[SequenceSpec], garment: GarmentMesh, *, preset_bodies: dict, where: str,
                   body_file: str | Path | None = None, made_for: BodyRecord | None = None,
@@ -198,14 +205,17 @@ def choose_bodies(specs: list[SequenceSpec], garment: GarmentMesh, *, preset_bod
 
     source = made_for.body if made_for is not None else mannequin_record().body
     if body_file is not None:
-        record = read_body(body_file)
-        specs, bodies = one_body(specs, Path(body_file).stem, dress(MANNEQUIN, record, garment, source))
-        return BodyChoice(specs, bodies, False, {"from": "file", "file": Path(body_file).name})
+        dressed, report = dress(MANNEQUIN, read_body(body_file), garment, source)
+        specs, bodies = one_body(specs, Path(body_file).stem, dressed)
+        return BodyChoice(specs, bodies, False, {"from": "file", "file": Path(body_file).name, "placement": asdict(report)},
+                          [placement_note(next(iter(bodies)), report)])
     plan = BodyPlan.from_preset(preset_bodies, where)
     if plan is not None:
         specs, bodies = plan_bodies(plan, specs, garment, made_for=source, progress=progress)
         return BodyChoice(specs, bodies, plan.hold_out and len(bodies) > 2, {"from": plan.source, "count": len(bodies)})
     if made_for is not None:
-        specs, bodies = one_body(specs, "made_for", dress(MANNEQUIN, made_for, garment, source))
-        return BodyChoice(specs, bodies, False, {"from": "made_for"})
+        dressed, report = dress(MANNEQUIN, made_for, garment, source)
+        specs, bodies = one_body(specs, "made_for", dressed)
+        return BodyChoice(specs, bodies, False, {"from": "made_for", "placement": asdict(report)},
+                          [placement_note("made_for", report)])
     return BodyChoice(specs, {}, False, {})
