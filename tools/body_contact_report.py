@@ -1,12 +1,12 @@
 """Limbs in the body: how many frames of real clips flag self-contact on the mannequin, and on each
-performer's nearest parametric body (issue 45's first measure, before any cloth is simulated).
+performer's body (issue 45's first measure, before any cloth is simulated).
 
-For each clip: the canonical motion on the mannequin's capsules, and the same clip played by the
-parametric body nearest to its rig's proportions (hrr_garment.body.proportions; motion_on_body)
-with that body's fitted capsules. A frame is flagged where a limb passes more than 2.5 cm into the
-body (hrr_garment.body.self_contact, the simulator's own test). Clips whose rigs measure the same
-(to the millimetre) share one body. Prints a Markdown table per folder and in total; --json one
-JSON object. Needs the bodies extra.
+For each clip: the canonical motion on the mannequin's capsules, and the same clip played by its
+performer's body (hrr_garment.body.performer.performer_body: the rig's limbs on anny's nearest
+shape; motion_on_body) with that body's capsules. A frame is flagged where a limb passes more than
+2.5 cm into the body (hrr_garment.body.self_contact, the simulator's own test). Clips whose rigs
+measure the same (to the millimetre) share one body: the first such clip's. Prints a Markdown table
+per folder and in total; --json one JSON object. Needs the bodies extra.
 
     python tools/body_contact_report.py hrr_work/mocap/bandai ../shared/data/mocap/cmu
 """
@@ -19,29 +19,28 @@ from pathlib import Path
 
 from tqdm import tqdm
 
-from hrr_garment.body.parametric import parametric_body
-from hrr_garment.body.proportions import nearest_body, source_proportions
+from hrr_garment.body.performer import performer_body
+from hrr_garment.body.proportions import source_proportions
 from hrr_garment.body.retarget import motion_on_body
 from hrr_garment.body.self_contact import self_intersecting_frames
 from hrr_garment.motion.io import load_motion
 
 
 def clip_rows(files: list[Path], progress: bool = True) -> list[dict]:
-    bodies: dict[tuple, tuple] = {}
+    """One row per clip: its frames, and how many are flagged on the mannequin and on its performer's body."""
+    bodies: dict[tuple, object] = {}
     rows = []
     for path in tqdm(files, desc="clips", unit="clip", disable=not progress):
         motion = load_motion(path)
-        measures = source_proportions(path)
-        key = tuple(round(v, 3) for v in measures.values())
+        key = tuple(sorted((k, round(v, 3)) for k, v in source_proportions(path).items()))
         if key not in bodies:
-            found = nearest_body(measures)
-            bodies[key] = (parametric_body(found.shape), found.rms_mm)
-        body, rms = bodies[key]
-        on_body = motion_on_body(motion, body.fitted)
+            bodies[key] = performer_body(path)
+        performer = bodies[key]
+        on_body = motion_on_body(motion, performer.body)
         rows.append({"clip": path.name, "folder": path.parent.name, "frames": motion.num_frames,
                      "flagged_mannequin": int(self_intersecting_frames(motion).sum()),
-                     "flagged_body": int(self_intersecting_frames(on_body, body.fitted.body).sum()),
-                     "body_stature_m": round(body.fitted.stature, 3), "body_rms_mm": round(rms, 1)})
+                     "flagged_body": int(self_intersecting_frames(on_body, performer.body).sum()),
+                     "body_stature_m": round(performer.stature, 3), "body_rms_mm": round(performer.rms_mm, 1)})
     return rows
 
 
@@ -67,12 +66,11 @@ def main() -> None:
     if args.json:
         print(json.dumps({"folders": groups, "total": total, "clips": rows}))
         return
-    print("| folder | clips | frames | flagged, mannequin | flagged, nearest body | bodies (stature m) | body fit RMS mm |")
+    print("| folder | clips | frames | flagged, mannequin | flagged, performer body | bodies (stature m) | measures' RMS mm |")
     print("|---|---:|---:|---:|---:|---|---|")
     for name, g in [*groups.items(), ("total", total)]:
         print(f"| {name} | {g['clips']} | {g['frames']} | {g['flagged_mannequin_pct']:.1f} % | {g['flagged_body_pct']:.1f} % | "
               f"{', '.join(f'{s:.2f}' for s in g['body_statures_m'])} | {', '.join(f'{s:.1f}' for s in g['body_rms_mm'])} |")
-
 
 
 if __name__ == "__main__":

@@ -34,6 +34,8 @@ from .parametric import BodyShape
 # so those would measure the rig, not the performer. The shoulders' width moves a little with the
 # collars: its median over the clip's frames is the performer's (without it, a performer's arms
 # played on a narrower body reach across its torso: docs/bodies.md).
+# Not every rig's hips and shoulders are a person's, though: the Bandai-Namco rig's are 13 and 20 cm
+# apart, so the performer's body (.performer) takes only the limbs from the rig.
 MEASURES = {
     "upper_leg": ("l_hip", "l_knee"), "lower_leg": ("l_knee", "l_ankle"), "upper_arm": ("l_shoulder", "l_elbow"),
     "forearm": ("l_elbow", "l_wrist"), "hip_width": ("l_hip", "r_hip"), "shoulder_width": ("l_shoulder", "r_shoulder"),
