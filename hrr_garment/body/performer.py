@@ -29,6 +29,7 @@ widths by as much as the rig's convention differs from anny's joints.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -69,10 +70,21 @@ def performer_body(path: str | Path, unit_scale: float | None = None) -> Perform
 
 def body_for_limbs(limbs: dict[str, float], measures: dict[str, float] | None = None) -> PerformerBody:
     """The performer's body for the limb lengths ``limbs`` (metres, every key of :data:`LIMB_BONES`);
-    ``measures``: the performer's measures the errors are taken against (default ``limbs``)."""
+    ``measures``: the performer's measures the errors are taken against (default ``limbs``). Rigs
+    of the same limbs (every clip of one library) share one body, made once a process."""
+    measures = dict(limbs) if measures is None else measures
+    body, stature, shape = _limbs_body(tuple(sorted((k, float(v)) for k, v in limbs.items())))
+    own = proportions(body.skeleton.rest_positions())
+    errors = {k: 1000.0 * (own[k] - v) for k, v in measures.items() if k in MEASURES}
+    return PerformerBody(body, stature, dict(shape), errors, _rms(errors))
+
+
+@functools.lru_cache(maxsize=64)
+def _limbs_body(limbs: tuple[tuple[str, float], ...]) -> tuple[BodyModel, float, tuple]:
+    """(body, stature, phenotype items) for the limb lengths: anny's nearest shape with these limbs."""
     from .parametric import parametric_body
 
-    measures = dict(limbs) if measures is None else measures
+    limbs = dict(limbs)
     nearest = nearest_body(limbs)
     parametric = parametric_body(nearest.shape)
     fitted = parametric.fitted
@@ -87,11 +99,9 @@ def body_for_limbs(limbs: dict[str, float], measures: dict[str, float] | None = 
     pelvis_height = _ankle_drop(skeleton) + max(float(joints[ankles, 1].mean()), 0.0)
     body = BodyModel(tuple(replace(c, radius=float(r)) for c, r in zip(capsules, radii)), skeleton=skeleton,
                      pelvis_height=float(pelvis_height))
-    own = proportions(rest)
-    errors = {k: 1000.0 * (own[k] - v) for k, v in measures.items() if k in MEASURES}
     # the head as far above the pelvis as on anny's body
-    return PerformerBody(body, float(fitted.stature + pelvis_height - joints[JOINT_INDEX["pelvis"], 1]), nearest.shape.to_dict(),
-                         errors, _rms(errors))
+    stature = float(fitted.stature + pelvis_height - joints[JOINT_INDEX["pelvis"], 1])
+    return body, stature, tuple(nearest.shape.to_dict().items())
 
 
 def performer_skeleton(skeleton: Skeleton, joints: np.ndarray, limbs: dict[str, float]) -> Skeleton:

@@ -103,7 +103,7 @@ def plan_bodies(plan: BodyPlan, specs: list[SequenceSpec], garment: GarmentMesh,
 def _performer_bodies(specs, garment, made_for, progress):
     from tqdm.auto import tqdm
 
-    from ..body.proportions import performer_body
+    from ..body.performer import performer_body
 
     bodies: dict[str, DressedBody] = {}
     by_path: dict[str, str] = {}

@@ -176,14 +176,14 @@ def _check_bodies(specs: list[SequenceSpec], bodies: dict[str, DressedBody]) -> 
 
 
 def _add_mirrored(records: list[SequenceRecord], split: dict[str, list[str]], garment: GarmentMesh,
-                  progress: bool, bodies: dict[str, DressedBody]) -> tuple[list[SequenceRecord], dict[str, list[str]]]:
+                  progress: bool, bodies: dict[str, DressedBody] | None = None) -> tuple[list[SequenceRecord], dict[str, list[str]]]:
     perm = mirror_map(garment.vertices)
     if perm is None:
         if progress:
             print(f"not mirroring: the {garment.name} template is not symmetric about x = 0")
         return records, split
     # a body that is not its own mirror image would stand on another body in the mirror
-    asymmetric = {n for n, b in bodies.items() if not (is_symmetric(b.body) and mirror_map(b.garment.vertices) is not None)}
+    asymmetric = {n for n, b in (bodies or {}).items() if not (is_symmetric(b.body) and mirror_map(b.garment.vertices) is not None)}
     if asymmetric and progress:
         print(f"not mirroring the sequences on {len(asymmetric)} asymmetric bod(y/ies): {sorted(asymmetric)[:3]}")
     flip = np.array([-1.0, 1.0, 1.0], np.float32)

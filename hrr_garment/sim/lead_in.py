@@ -32,8 +32,11 @@ def lead_in_frames(settle_s: float, blend_s: float, fps: float) -> tuple[int, in
     return int(round(settle_s * fps)), int(round(blend_s * fps))
 
 
-def with_lead_in(motion: Motion, settle_s: float, blend_s: float) -> tuple[Motion, int]:
-    """The clip preceded by ``settle_s`` of rest pose and ``blend_s`` of easing into frame 0.
+def with_lead_in(motion: Motion, settle_s: float, blend_s: float,
+                 pelvis_height: float = REST_PELVIS_HEIGHT) -> tuple[Motion, int]:
+    """The clip preceded by ``settle_s`` of rest pose and ``blend_s`` of easing into frame 0, on the
+    clip's own skeleton; ``pelvis_height``: where its body's pelvis stands in the rest pose (the
+    mannequin's by default; a body's own, :attr:`~hrr_garment.body.capsules.BodyModel.pelvis_height`).
 
     Returns (extended motion, number of lead-in frames); frame ``lead`` of the result is the
     clip's frame 0.
@@ -43,7 +46,7 @@ def with_lead_in(motion: Motion, settle_s: float, blend_s: float) -> tuple[Motio
     joints = motion.local_rotations.shape[1]
     rest_local = np.broadcast_to(np.eye(3, dtype=np.float32), (joints, 3, 3)).copy()
     rest_local[0] = rot_y
-    rest_root = shift + np.array([0.0, REST_PELVIS_HEIGHT, 0.0])
+    rest_root = shift + np.array([0.0, pelvis_height, 0.0])
     # Smoothstep easing from the rest pose (t = 0) to the first clip frame (t = 1).
     t = (np.arange(1, blend + 1) / (blend + 1)) if blend else np.zeros(0)
     ease = t * t * (3.0 - 2.0 * t)
@@ -53,5 +56,6 @@ def with_lead_in(motion: Motion, settle_s: float, blend_s: float) -> tuple[Motio
     local = np.concatenate([np.repeat(rest_local[None], settle, 0), blend_rot.astype(np.float32), motion.local_rotations])
     root = np.concatenate([np.repeat(rest_root[None], settle, 0), blend_root, motion.root_translation])
     extended = Motion(local.astype(np.float32), root.astype(np.float64), motion.fps, source=motion.source,
-                      source_skeleton=motion.source_skeleton, source_height_m=motion.source_height_m)
+                      source_skeleton=motion.source_skeleton, source_height_m=motion.source_height_m,
+                      skeleton=motion.skeleton)
     return extended, settle + blend

@@ -27,11 +27,13 @@ from typing import Callable
 import numpy as np
 
 from ..body.capsules import DEFAULT_BODY, BodyModel, frames_signed_distance
+from ..body.retarget import motion_on_body
 from ..body.self_contact import LOWER_ARM, self_intersecting_frames
 from ..errors import HRRError
 from ..garment.attachment import bind_attached
 from ..garment.mesh import GarmentMesh
 from ..motion.motion import Motion
+from ..motion.skeleton import CANONICAL
 from .config import SimConfig  # defined in .config (the scene needs it too); importable from here as before
 from .lead_in import start_transform, with_lead_in
 from .scene import ClothScene, arms_off_capsules, capsule_transforms
@@ -67,7 +69,7 @@ def _attempt(garment: GarmentMesh, motion: Motion, body: BodyModel, config: SimC
     of the cloth is inside them: switched on around cloth that an arm passed
     through, the contact throws it out at once (CMU 131_03 tore the full dress nine frames after an
     episode ended)."""
-    extended, lead = with_lead_in(motion, config.settle_s, config.blend_s)
+    extended, lead = with_lead_in(motion, config.settle_s, config.blend_s, body.pelvis_height)
     if arms_off is None:
         arms_off = np.zeros(motion.num_frames, bool)
     arms_off = np.concatenate([np.full(lead, arms_off[0]), arms_off])
@@ -127,14 +129,27 @@ def _arms_note(arms_off: np.ndarray) -> str:
     return f", arms off the cloth on {int(arms_off.sum())} frames" if arms_off.any() else ""
 
 
+def _on_body(motion: Motion, body: BodyModel) -> Motion:
+    if np.allclose(motion.skeleton.offsets, body.skeleton.offsets, atol=1e-6):
+        return motion
+    if motion.skeleton is CANONICAL:
+        return motion_on_body(motion, body)
+    raise ValueError("the motion stands on another skeleton than the body's: play it on the body (motion_on_body)")
+
+
 def simulate_garment(garment: GarmentMesh, motion: Motion, config: SimConfig = SimConfig(),
                      body: BodyModel = DEFAULT_BODY, progress: Callable[[int], None] | None = None) -> SimResult:
     """Simulate ``garment`` on ``motion`` (30 fps canonical); on explosion retries with more substeps,
     then (for a motion with self-intersecting limbs) with the arms off the cloth during those
     episodes, then over the whole clip.
 
+    On a ``body`` other than the mannequin the motion plays on that body's skeleton: a clip on the
+    canonical skeleton is played by the body (:func:`~hrr_garment.body.retarget.motion_on_body`);
+    a clip on some other skeleton is refused.
+
     Raises :class:`SimulationExploded` (with every attempt's reason) when all attempts fail.
     """
+    motion = _on_body(motion, body)
     # (substeps, clip frames with the arms off the cloth, fraction of the cloth inside the arms they come back at)
     attempts: list[tuple[int, np.ndarray | None, float]] = [(config.substeps * 2 ** k, None, 0.0)
                                                           for k in range(config.retries + 1)]

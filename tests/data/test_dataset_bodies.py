@@ -114,4 +114,5 @@ def test_hrr_simulate_on_a_body_records_it_and_mirrors_on_it(tmp_path, capsys):
     clip = synthesize("walk", 1.0, seed=0)
     assert rec.motion.joint_positions[:, 0, 1] == pytest.approx(
         clip.joint_positions[:, 0, 1] * body.pelvis_height / REST_PELVIS_HEIGHT, abs=1e-4)
-    assert json.loads(h5py.File(out, "r").attrs["info"])["bodies"] == {"from": "file", "file": "tall.json"}
+    recorded = json.loads(h5py.File(out, "r").attrs["info"])["bodies"]
+    assert (recorded["from"], recorded["file"], recorded["placement"]["inside"]) == ("file", "tall.json", 0.0)

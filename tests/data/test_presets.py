@@ -95,6 +95,19 @@ def test_mirrored_sequences_join_their_source_split():
     # Reflecting twice gives the frames back; each vertex lands where its mirror partner was.
     np.testing.assert_allclose(mirrored.garment[:, perm] * [-1, 1, 1], frames, atol=1e-6)
     assert mirrored.info["mirror_of"] == "a"
+    # a sequence on a body that is not its own mirror image is not mirrored (the mirror would stand on another body)
+    from dataclasses import replace
+
+    from hrr_garment.body.body_file import BodyRecord
+    from hrr_garment.body.capsules import DEFAULT_BODY
+    from hrr_garment.data.bodies import DressedBody
+
+    lopsided = DEFAULT_BODY.capsules[:-1] + (replace(DEFAULT_BODY.capsules[-1], radius=0.2),)
+    body = replace(DEFAULT_BODY, capsules=lopsided)
+    bodies = {"odd": DressedBody("odd", BodyRecord(body.skeleton, body, body.pelvis_height, 1.7), garment)}
+    records[1] = SequenceRecord("b", frames.astype(np.float32), motion, body="odd")
+    out, split = _add_mirrored(records, {"train": ["a"], "test": ["b"], "val": []}, garment, progress=False, bodies=bodies)
+    assert split == {"train": ["a", "a_mirror"], "test": ["b"], "val": []} and len(out) == 3
 
 
 @pytest.mark.slow
