@@ -172,46 +172,57 @@ def render_sequence_preview(rows: list[tuple[str, np.ndarray, np.ndarray, Motion
     return render_mesh_preview(sequence_rows(rows, frames), path, cell=cell)
 
 
-def sequence_rows(rows: list[tuple[str, np.ndarray, np.ndarray, Motion]], frames: int = 4) -> list:
-    """:func:`render_sequence_preview`'s rows of meshes."""
+def sequence_rows(rows: list[tuple], frames: int = 4) -> list:
+    """:func:`render_sequence_preview`'s rows of meshes: (label, vertices, faces, motion), and the
+    body it was simulated on as a fifth item where it is not the mannequin."""
     from ..body.capsules import DEFAULT_BODY, body_mesh
     grid = []
-    for label, vertices, faces, motion in rows:
-        a, b = DEFAULT_BODY.pose_motion(motion)
+    for label, vertices, faces, motion, *on in rows:
+        body = on[0] if on else DEFAULT_BODY
+        a, b = body.pose_motion(motion)
         cells = []
         for t in np.linspace(0, len(vertices) - 1, frames).round().astype(int):
             garment = to_body_frame(vertices[t:t + 1].astype(np.float64), motion.slice(t, t + 1), ground=True)[0]
             ends = to_body_frame(np.stack([a[t], b[t]])[None].reshape(1, -1, 3), motion.slice(t, t + 1), ground=True)[0]
-            bv, bf = body_mesh(ends[: len(a[t])], ends[len(a[t]):], DEFAULT_BODY.radii, segments=12, rings=6)
+            bv, bf = body_mesh(ends[: len(a[t])], ends[len(a[t]):], body.radii, segments=12, rings=6)
             cells.append([PreviewMesh(bv, bf, (205, 195, 185)), PreviewMesh(garment, faces, (70, 110, 200))])
         grid.append((f"{label} (frames {0}-{len(vertices) - 1})", cells))
     return grid
 
 
-def write_dataset_preview(records: list, garment, path: Path, frames: int = 4) -> Path | None:
+def write_dataset_preview(records: list, garment, path: Path, frames: int = 4, bodies: dict | None = None) -> Path | None:
     """Front and side views of a walk and a spin (or the first two sequences) of a built
-    dataset (``SequenceRecord``s of a ``GarmentMesh``), in the ground-level body frame.
-    None when Pillow (the ``preview`` extra) is missing."""
+    dataset (``SequenceRecord``s of a ``GarmentMesh``), in the ground-level body frame; with
+    ``bodies`` (name -> :class:`~hrr_garment.data.bodies.DressedBody`), each on its own body, and
+    the garment at rest on the shortest and the tallest of them. None when Pillow (the ``preview``
+    extra) is missing."""
+    bodies = bodies or {}
     chosen = []
     for kind in ("walk", "spin"):
         chosen += [r for r in records if r.info.get("kind") == kind][:1]
     chosen = chosen or records[:2]
+    used = sorted({r.body for r in records if r.body in bodies}, key=lambda n: bodies[n].record.stature)
+    extremes = [used[0], used[-1]] if len(used) > 1 else used
+    chosen += [next(r for r in records if r.body == name) for name in extremes
+               if not any(c.body == name for c in chosen)]
     try:
         rest = [("the template on the rest body; attached vertices (they follow the body) in orange",
-                 [template_meshes(garment)])]
-        return render_mesh_preview(rest + sequence_rows([(r.name, r.garment, garment.faces, r.motion) for r in chosen],
-                                                        frames), path)
+                 [template_meshes(garment)] + [template_meshes(bodies[n].garment, body=bodies[n].body) for n in extremes])]
+        rows = [(f"{r.name} on {r.body}" if r.body in bodies else r.name, r.garment, garment.faces, r.motion,
+                 *([bodies[r.body].body] if r.body in bodies else [])) for r in chosen]
+        return render_mesh_preview(rest + sequence_rows(rows, frames), path)
     except ImportError:
         return None
 
 
-def template_meshes(garment, marker: float = 0.015) -> list[PreviewMesh]:
-    """The body in the canonical rest pose, the garment's template and a small octahedron on every
-    attached vertex: where a fitted garment sits, and what follows the body."""
+def template_meshes(garment, marker: float = 0.015, body=None) -> list[PreviewMesh]:
+    """The body (default the mannequin) in its rest pose, the garment's template on it and a small
+    octahedron on every attached vertex: where a fitted garment sits, and what follows the body."""
     from ..body.capsules import DEFAULT_BODY, body_mesh
 
-    a, b = DEFAULT_BODY.rest_pose()
-    bv, bf = body_mesh(a, b, DEFAULT_BODY.radii, segments=12, rings=6)
+    body = body or DEFAULT_BODY
+    a, b = body.rest_pose()
+    bv, bf = body_mesh(a, b, body.radii, segments=12, rings=6)
     tips = np.concatenate([np.eye(3), -np.eye(3)]) * marker
     octahedron = np.array([[0, 1, 2], [1, 3, 2], [3, 4, 2], [4, 0, 2], [1, 0, 5], [3, 1, 5], [4, 3, 5], [0, 4, 5]])
     corners = tips[[0, 1, 3, 4, 2, 5]]  # +x, +y, -x, -y around the z axis, then +z, -z

@@ -29,9 +29,10 @@ from .plan import SequenceSpec
 from .quality import edge_strain
 from .simulator import SimConfig, SimulationExploded, simulate_garment
 
-# Renders a built dataset's preview image (records, garment, path) -> path or None; rendering lives
-# above this layer (hrr_garment.export.preview.write_dataset_preview), so the caller passes it in.
-PreviewWriter = Callable[[list[SequenceRecord], GarmentMesh, Path], "Path | None"]
+# Renders a built dataset's preview image (records, garment, path, bodies=...) -> path or None;
+# rendering lives above this layer (hrr_garment.export.preview.write_dataset_preview), so the
+# caller passes it in.
+PreviewWriter = Callable[..., "Path | None"]
 
 
 @dataclass
@@ -148,7 +149,7 @@ def build_dataset(garment: GarmentMesh, specs: list[SequenceSpec], config: SimCo
         report = BuildReport(out, done, rejects, summary, reused, len(pending) - len(rejects),
                              stats={r.name: r.info.get("stats", {}) for r in records})
         if o.preview:
-            report.preview = o.preview(records, garment, out.with_suffix(".preview.png"))
+            report.preview = o.preview(records, garment, out.with_suffix(".preview.png"), bodies=bodies)
         return report
 
 
