@@ -66,18 +66,26 @@ class ClothScene:
     """A newton model of one garment and the capsule body, stepped frame by frame."""
 
     def __init__(self, garment: GarmentMesh, start_vertices: np.ndarray, half_lengths: np.ndarray,
-                 body: BodyModel, config: SimConfig):
+                 body: BodyModel, config: SimConfig, pieces: list | None = None):
+        """``pieces``: the body's own mesh as the collider instead of its capsules, (capsule index,
+        vertices in that capsule's frame, faces) per piece (:meth:`hrr_garment.body.mesh_collider.BodyMesh.pieces`)."""
         wp, newton = _import_newton()
         self.wp, self.config = wp, config
         self.device = resolve_device(wp, config.device)
         builder = newton.ModelBuilder(up_axis=newton.Axis.Y, gravity=(0.0, -config.gravity, 0.0))
         shape_cfg = newton.ModelBuilder.ShapeConfig(ke=config.contact_ke, kd=config.contact_kd, mu=config.contact_mu,
                                                     has_shape_collision=False)
-        shapes = []
-        for c, capsule in enumerate(body.capsules):
-            b = builder.add_body(mass=0.0, is_kinematic=True, label=capsule.name)
-            shapes.append(builder.add_shape_capsule(b, radius=capsule.radius, half_height=float(half_lengths[c]), cfg=shape_cfg))
-        self.arm_shapes = [shapes[c] for c in arms_off_capsules(body)]
+        bodies = [builder.add_body(mass=0.0, is_kinematic=True, label=capsule.name) for capsule in body.capsules]
+        shapes: dict[int, list[int]] = {}
+        if pieces is None:
+            for c, capsule in enumerate(body.capsules):
+                shapes[c] = [builder.add_shape_capsule(bodies[c], radius=capsule.radius, half_height=float(half_lengths[c]),
+                                                       cfg=shape_cfg)]
+        else:
+            for c, vertices, faces in pieces:
+                mesh = newton.Mesh(np.asarray(vertices, np.float32), np.asarray(faces, np.int32).ravel())
+                shapes.setdefault(c, []).append(builder.add_shape_mesh(bodies[c], mesh=mesh, cfg=shape_cfg))
+        self.arm_shapes = [s for c in arms_off_capsules(body) for s in shapes.get(c, [])]
         builder.add_ground_plane(cfg=newton.ModelBuilder.ShapeConfig(ke=config.contact_ke, kd=config.contact_kd,
                                                                     mu=config.contact_mu))
         builder.add_cloth_mesh(

@@ -27,6 +27,7 @@ from typing import Callable
 import numpy as np
 
 from ..body.capsules import DEFAULT_BODY, BodyModel, frames_signed_distance
+from ..body.mesh_collider import BodyMesh
 from ..body.retarget import motion_on_body
 from ..body.self_contact import LOWER_ARM, self_intersecting_frames
 from ..errors import HRRError
@@ -63,7 +64,7 @@ class SimResult:
 
 def _attempt(garment: GarmentMesh, motion: Motion, body: BodyModel, config: SimConfig,
              progress: Callable[[int], None] | None, arms_off: np.ndarray | None = None,
-             back_inside: float = 0.0) -> tuple[np.ndarray, int, float, int]:
+             back_inside: float = 0.0, pieces: list | None = None) -> tuple[np.ndarray, int, float, int]:
     """One simulation; ``arms_off``: (T,) clip frames on which the arms do not touch the cloth (the
     lead-in follows the clip's first frame). The arms come back only once at most ``back_inside``
     of the cloth is inside them: switched on around cloth that an arm passed
@@ -79,7 +80,7 @@ def _attempt(garment: GarmentMesh, motion: Motion, body: BodyModel, config: SimC
     poses = np.concatenate([centre, quat], -1)
     binding = bind_attached(garment, body)
     pins = binding.pose(extended.global_rotations.astype(np.float64), extended.joint_positions)
-    scene = ClothScene(garment, start, half, body=body, config=config)
+    scene = ClothScene(garment, start, half, body=body, config=config, pieces=pieces)
     arms = arms_off_capsules(body)
     arm_a, arm_b = (ends[:, arms] for ends in body.pose_motion(extended))
     edges = garment.edges()
@@ -138,10 +139,14 @@ def _on_body(motion: Motion, body: BodyModel) -> Motion:
 
 
 def simulate_garment(garment: GarmentMesh, motion: Motion, config: SimConfig = SimConfig(),
-                     body: BodyModel = DEFAULT_BODY, progress: Callable[[int], None] | None = None) -> SimResult:
+                     body: BodyModel = DEFAULT_BODY, progress: Callable[[int], None] | None = None,
+                     collider: BodyMesh | None = None) -> SimResult:
     """Simulate ``garment`` on ``motion`` (30 fps canonical); on explosion retries with more substeps,
     then (for a motion with self-intersecting limbs) with the arms off the cloth during those
     episodes, then over the whole clip.
+
+    ``collider``: the body's own mesh in rigid pieces collides with the cloth instead of its
+    capsules (:mod:`hrr_garment.body.mesh_collider`; the study in docs/bodies.md).
 
     On a ``body`` other than the mannequin the motion plays on that body's skeleton: a clip on the
     canonical skeleton is played by the body (:func:`~hrr_garment.body.retarget.motion_on_body`);
@@ -158,7 +163,8 @@ def simulate_garment(garment: GarmentMesh, motion: Motion, config: SimConfig = S
         cfg = replace(config, substeps=substeps)
         t0 = time.perf_counter()
         try:
-            vertices, frames, stepping, off = _attempt(garment, motion, body, cfg, progress, arms_off, back_inside)
+            vertices, frames, stepping, off = _attempt(garment, motion, body, cfg, progress, arms_off, back_inside,
+                                                       collider.pieces(body) if collider is not None else None)
         except SimulationExploded as exc:
             reasons.append(str(exc))
             if number == config.retries + 1:  # every substep count failed: the arms, if they are the cause
