@@ -183,6 +183,23 @@ def _fill_optional(joints: dict[str, np.ndarray], path: Path) -> tuple[np.ndarra
     return out, tuple(filled)
 
 
+BIPED_MIN_COS = 0.5  # legs within 60 degrees of straight down the spine's line: a human standing at rest
+
+
+def _check_biped(joints: np.ndarray, path: Path) -> None:
+    """Refuse a skeleton whose legs do not hang opposite its spine (a four-legged animal's: spine
+    level, legs down), which no turn stands up as a human; its fit would be meaningless."""
+    up = joints[JOINT_INDEX["head"]] - joints[JOINT_INDEX["pelvis"]]
+    down = (joints[[JOINT_INDEX["l_ankle"], JOINT_INDEX["r_ankle"]]].mean(0)
+            - joints[[JOINT_INDEX["l_hip"], JOINT_INDEX["r_hip"]]].mean(0))
+    cos = float(-(up @ down) / max(np.linalg.norm(up) * np.linalg.norm(down), 1e-12))
+    if cos < BIPED_MIN_COS:
+        angle = float(np.degrees(np.arccos(np.clip(cos, -1.0, 1.0))))
+        raise InputError(path, f"not a human skeleton: its legs run {angle:.0f} degrees off the line of its spine "
+                               "(a human's hang straight on from it; a four-legged animal's stand across it), so no "
+                               "body can be fitted; only a two-legged human rig can be read as a character")
+
+
 def _upright(joints: np.ndarray) -> np.ndarray:
     """The quarter-turn rotation (one of 24) that best stands ``joints`` up: head above pelvis
     along +Y, its left (left hip and shoulder minus right) along +X."""
@@ -233,6 +250,7 @@ def read_character(path: str | Path, skin: int | None = None, joint_map: dict | 
     # a short character (a child's body) is still in metres down to half the shortest adult
     scale = world_unit_scale(path, bind_joints, mapping, unit_scale=unit_scale, shortest_m=PLAUSIBLE_HEIGHT_M[0] / 2)
     joints, filled = _fill_optional({c: bind_joints[i] * scale for c, i in mapping.items()}, path)
+    _check_biped(joints, path)
     turn = _upright(joints)
     vertices, joints = vertices * scale @ turn.T, joints @ turn.T
     shift = np.array([joints[0, 0], vertices[:, 1].min(), joints[0, 2]])

@@ -188,3 +188,45 @@ def _pelvis_height(skeleton: Skeleton, joints: np.ndarray, vertices: np.ndarray)
     return drop + float(max(joints[ankles, 1].mean() - vertices[:, 1].min(), 0.0))
 
 
+
+
+ARM_BONES = ("elbow", "wrist")  # the joints ending a side's upper arm and forearm
+HAND_EXTENT = 0.5  # a hand's segment runs on past the wrist by this fraction of the forearm
+
+
+def _segment_distance(points: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(N, S) each point's distance from each segment ``a[s]`` to ``b[s]``."""
+    ab = b - a
+    rel = points[:, None] - a[None]
+    s = np.clip((rel * ab[None]).sum(-1) / np.maximum((ab * ab).sum(-1), 1e-12)[None], 0.0, 1.0)
+    return np.linalg.norm(rel - s[..., None] * ab[None], axis=-1)
+
+
+def turn_arms(vertices: np.ndarray, joints: np.ndarray, directions: np.ndarray) -> np.ndarray:
+    """A rest mesh with each arm turned rigidly about its shoulder so that shoulder-to-wrist points
+    along ``directions`` ((2, 3): left, then right): a T-posed character stood in an A-pose, so that
+    a body modelled in one rest pose can be compared with one modelled in another. A vertex belongs
+    to an arm when its nearest bone (of the 22 joints' bones, and a hand running on past each wrist)
+    is that side's upper arm, forearm or hand; each arm turns by the shortest arc, so its twist and
+    the bend at its elbow are kept. ``vertices`` (V, 3) and ``joints`` (22, 3) as :func:`fit_body`
+    takes them; returns the turned (V, 3) vertices (the joints are not returned: only the arms' move)."""
+    vertices, joints = np.asarray(vertices, np.float64), np.asarray(joints, np.float64)
+    directions = np.asarray(directions, np.float64)
+    if directions.shape != (2, 3) or not np.isfinite(directions).all():
+        raise ValueError(f"turn_arms needs (2, 3) directions (left, right), got {directions.shape}")
+    children = [j for j, p in enumerate(PARENTS) if p >= 0]
+    a, b = joints[[PARENTS[j] for j in children]], joints[children]
+    labels = [JOINT_NAMES[j] for j in children]
+    hands = [JOINT_INDEX[f"{s}_wrist"] for s in "lr"]
+    forearm = joints[hands] - joints[[JOINT_INDEX[f"{s}_elbow"] for s in "lr"]]
+    a, b = np.concatenate([a, joints[hands]]), np.concatenate([b, joints[hands] + HAND_EXTENT * forearm])
+    labels += ["l_hand", "r_hand"]
+    nearest = np.argmin(_segment_distance(vertices, a, b), axis=1)
+    out = vertices.copy()
+    for side, direction in zip("lr", directions):
+        arm = [i for i, name in enumerate(labels) if name in (*(f"{side}_{n}" for n in ARM_BONES), f"{side}_hand")]
+        mask = np.isin(nearest, arm)
+        shoulder = joints[JOINT_INDEX[f"{side}_shoulder"]]
+        turn = shortest_arc(joints[JOINT_INDEX[f"{side}_wrist"]] - shoulder, direction)
+        out[mask] = shoulder + (vertices[mask] - shoulder) @ turn.T
+    return out

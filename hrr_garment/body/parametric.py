@@ -31,7 +31,7 @@ import numpy as np
 from ..motion.joint_maps import resolve_joint_map
 from ..motion.skeleton import JOINT_NAMES
 from ..paths import workspace
-from .fit import FittedBody, fit_body
+from .fit import FittedBody, fit_body, turn_arms
 
 TOPOLOGY = "notoes_collapse5pc"  # anny's reduced body mesh (615 vertices, no toes)
 RIG = "mixamo"  # its joints carry Mixamo's names, which the joint maps know
@@ -155,13 +155,20 @@ class ShapeFit:
 SHAPE_FIT_STEPS = 150  # Adam steps on the phenotype's logits (about 3 s on two cores)
 
 
-def fit_shape(vertices: np.ndarray, faces: np.ndarray, steps: int = SHAPE_FIT_STEPS) -> ShapeFit:
+def fit_shape(vertices: np.ndarray, faces: np.ndarray, steps: int = SHAPE_FIT_STEPS,
+              joints: np.ndarray | None = None) -> ShapeFit:
     """The phenotype whose rest mesh lies nearest to the mesh (``vertices`` (V, 3) in the project's
-    frame as :func:`anny_rest_mesh` gives it, A-pose, and its ``faces``): gradient descent on the
-    symmetric nearest-vertex distance through anny (differentiable), from its average adult, then
-    the surface distances both ways. A mesh in another rest pose (a T-pose) fits its pose's
-    difference too: the report says how far it stays."""
+    frame as :func:`anny_rest_mesh` gives it, and its ``faces``): gradient descent on the symmetric
+    nearest-vertex distance through anny (differentiable), from its average adult, then the surface
+    distances both ways. anny rests in an A-pose; a character is usually modelled in a T-pose, and
+    fitted as it stands the phenotype would bend to reach its arms (a Mixamo T-pose comes out at
+    weight and muscle 1, 14 to 19 cm apart). Given the mesh's canonical ``joints`` (22, 3), its arms
+    are first turned about the shoulders onto anny's rest arm directions (:func:`~.fit.turn_arms`),
+    and the fit and the distances are of that mesh. Without joints the mesh is taken as it stands."""
     import torch
+
+    if joints is not None:
+        vertices = turn_arms(vertices, joints, _anny_arm_directions())
 
     target = torch.as_tensor(np.asarray(vertices, np.float64), dtype=torch.float32)
     if target.ndim != 2 or target.shape[1] != 3 or len(target) < 50 or not torch.isfinite(target).all():
@@ -182,6 +189,13 @@ def fit_shape(vertices: np.ndarray, faces: np.ndarray, steps: int = SHAPE_FIT_ST
     distances = np.concatenate([_to_surface(vertices, (fitted.vertices, fitted.faces)),
                                 _to_surface(fitted.vertices, (vertices, faces))])
     return ShapeFit(shape, float(distances.mean() * 1000), float(np.quantile(distances, 0.95) * 1000), steps)
+
+
+def _anny_arm_directions() -> np.ndarray:
+    """(2, 3) unit shoulder-to-wrist directions (left, right) of anny's average adult at rest."""
+    joints = anny_rest_mesh(BodyShape()).joints
+    arms = np.array([joints[JOINT_NAMES.index(f"{s}_wrist")] - joints[JOINT_NAMES.index(f"{s}_shoulder")] for s in "lr"])
+    return arms / np.linalg.norm(arms, axis=1, keepdims=True)
 
 
 SURFACE_SAMPLES = 200_000  # points spread over a surface for the distances (about 3 mm apart on a body)

@@ -90,7 +90,7 @@ def _fit_character(args) -> int:
         from ..body.parametric import fit_shape
 
         _announce_first_build()
-        nearest = fit_shape(character.vertices, character.faces)
+        nearest = fit_shape(character.vertices, character.faces, joints=character.joints)
         shape = nearest.shape.to_dict()
         notes.append(f"nearest parametric shape {_values(shape)}: surfaces {nearest.mean_mm:.1f} mm apart on average "
                      f"(95th percentile {nearest.p95_mm:.1f} mm)")

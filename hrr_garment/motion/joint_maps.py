@@ -59,6 +59,14 @@ NAMING_SCHEMES: dict[str, dict[str, list[str]]] = {
         "{side}_hip": ["{Side}UpLeg"], "{side}_knee": ["{Side}Leg"], "{side}_ankle": ["{Side}Foot"], "{side}_foot": ["{Side}ToeBase"],
         "{side}_collar": ["{Side}Shoulder"], "{side}_shoulder": ["{Side}Arm"], "{side}_elbow": ["{Side}ForeArm"], "{side}_wrist": ["{Side}Hand"],
     }),
+    # Blender-style side suffixes ("UpperLeg.L", matched as "upperleg_l"), as Quaternius's and other
+    # hand-rigged game characters name them: Pelvis, Spine1, Spine2, Collar.L, UpperArm.L ...
+    "blender": _lr({
+        "pelvis": ["Pelvis", "Hips"], "spine1": ["Spine", "Spine1"], "spine3": ["Chest", "Spine2"], "neck": ["Neck"],
+        "head": ["Head"], "{side}_hip": ["UpperLeg_{S}", "Thigh_{S}"], "{side}_knee": ["LowerLeg_{S}", "Shin_{S}"],
+        "{side}_ankle": ["Foot_{S}"], "{side}_foot": ["Toes_{S}", "Toe_{S}"], "{side}_collar": ["Collar_{S}", "Shoulder_{S}"],
+        "{side}_shoulder": ["UpperArm_{S}"], "{side}_elbow": ["LowerArm_{S}", "Forearm_{S}"], "{side}_wrist": ["Hand_{S}"],
+    }),
     "canonical": {n: [n] for n in JOINT_NAMES},
 }
 
@@ -68,9 +76,15 @@ NAMING_SCHEMES: dict[str, dict[str, list[str]]] = {
 _MIXAMO_PREFIX = re.compile(r"^mixamorig\d*[_:]?")
 
 
+_DOT_SIDE = re.compile(r"\.([lr])$")  # Blender's ".L" / ".R" side suffix, matched as "_l" / "_r"
+# words in joint names that only an animal's rig has: a non-human skeleton is refused as such
+_ANIMAL_WORDS = re.compile(r"tail|paw|hoof|wing|snout|muzzle|ear_?\d", re.IGNORECASE)
+
+
 def _key(name: str) -> str:
-    """A joint name as matched: case-folded, without a namespace ("ns:") or Mixamo prefix."""
-    return _MIXAMO_PREFIX.sub("", name.split(":")[-1].strip().lower())
+    """A joint name as matched: case-folded, without a namespace ("ns:") or Mixamo prefix, with a
+    Blender side suffix (".L") written as "_l"."""
+    return _DOT_SIDE.sub(r"_\1", _MIXAMO_PREFIX.sub("", name.split(":")[-1].strip().lower()))
 
 
 def resolve_joint_map(names: list[str], path: str, custom_map: dict[str, str] | None = None) -> tuple[str, dict[str, int]]:
@@ -86,7 +100,7 @@ def resolve_joint_map(names: list[str], path: str, custom_map: dict[str, str] | 
         if missing_src:
             raise SkeletonMappingError(path, f"joint map refers to joints {missing_src} that the file does not have")
         mapping = {c: lookup[_key(s)] for c, s in custom_map.items()}
-        _check_required(mapping, path, "custom")
+        _check_required(mapping, path, "custom", names)
         return "custom", mapping
     best: tuple[int, str, dict[str, int]] | None = None
     for scheme, table in NAMING_SCHEMES.items():
@@ -100,12 +114,22 @@ def resolve_joint_map(names: list[str], path: str, custom_map: dict[str, str] | 
         if best is None or score > best[0]:
             best = (score, scheme, mapping)
     assert best is not None
-    _check_required(best[2], path, best[1])
+    _check_required(best[2], path, best[1], names)
     return best[1], best[2]
 
 
-def _check_required(mapping: dict[str, int], path: str, scheme: str) -> None:
+def _check_required(mapping: dict[str, int], path: str, scheme: str, names: list[str]) -> None:
+    """Refuse a mapping without every required joint; a rig whose names say it is an animal's (a
+    tail, paws) is refused as not human, since no joint map makes it one."""
     missing = [j for j in JOINT_NAMES if j not in mapping and j not in OPTIONAL_JOINTS]
+    animal = [n for n in names if _ANIMAL_WORDS.search(n)]
+    if missing and animal:
+        raise SkeletonMappingError(
+            path,
+            f"not a human skeleton: its joints include {animal[:3]}, an animal's, and {len(missing)} of the canonical "
+            "human joints are missing; only a two-legged human rig (hips, knees, ankles, spine, shoulders, elbows, "
+            "wrists) can be read as a character or a motion",
+        )
     if missing:
         raise SkeletonMappingError(
             path,

@@ -233,7 +233,7 @@ def test_an_anny_body_on_a_mixamo_skeleton_comes_back_and_fits_the_same(tmp_path
     # with --parametric, the nearest anny shape is found and its surface lies within 1 cm of the mesh (issue 45)
     from hrr_garment.body.parametric import fit_shape
 
-    nearest = fit_shape(character.vertices, character.faces)
+    nearest = fit_shape(character.vertices, character.faces, joints=character.joints)  # as the command fits
     assert nearest.mean_mm < 10.0 and nearest.p95_mm < 20.0
     assert main(["fit", str(path), "-o", str(out), "--parametric"]) == 0
     shape = read_body(out).shape
@@ -282,3 +282,86 @@ def test_files_that_are_no_character_are_refused_naming_the_file(tmp_path, capsy
     assert "Draco" in _refused(tmp_path, capsys, tmp_path / "draco.glb")
     with pytest.raises(InputError, match="no skin"):
         read_character(no_skin)
+
+
+def test_an_animal_rig_is_refused_as_not_human_naming_the_file(tmp_path, capsys):
+    """A fox's rig (Khronos's Fox: b_Hip_01, b_Tail01_012, ...): by its names when they do not map,
+    and by its shape when a joint map names the human joints on a four-legged body."""
+    vertices, faces, joints = _mannequin()
+    named = tmp_path / "fox.glb"
+    names = [f"b_Bone{i:02d}" for i in range(22)]
+    names[JOINT_INDEX["spine3"]] = "b_Tail01_012"
+    write_skinned(named, vertices, faces, joints, Layout(names=names))
+    assert "not a human skeleton" in _refused(tmp_path, capsys, named)
+    # spine level, legs down: the upper body turned a quarter about the pelvis
+    level = joints.copy()
+    upper = [j for j, n in enumerate(JOINT_NAMES) if j and n[2:] not in ("hip", "knee", "ankle", "foot")]
+    turn = axis_angle_to_matrix(np.radians([90.0, 0.0, 0.0]))
+    level[upper] = joints[0] + (joints[upper] - joints[0]) @ turn.T
+    four_legged = tmp_path / "four_legged.glb"
+    write_skinned(four_legged, vertices, faces, level)
+    assert "not a human skeleton" in _refused(tmp_path, capsys, four_legged)
+    with pytest.raises(InputError, match=r"legs run (89|90|91) degrees off"):
+        read_character(four_legged)
+
+
+def test_blender_side_suffixes_map_like_mixamo(tmp_path):
+    """Quaternius-style names (Pelvis, Spine1, Spine2, UpperLeg.L, LowerArm.R, ...) map onto the
+    canonical joints; Spine1/Spine2 are spine1/spine3, and spine2 and the toes are filled."""
+    vertices, faces, joints = _mannequin()
+    blender = {"pelvis": "Pelvis", "spine1": "Spine1", "spine2": "Extra", "spine3": "Spine2", "neck": "Neck",
+               "head": "Head", "hip": "UpperLeg", "knee": "LowerLeg", "ankle": "Foot", "foot": "Knob",
+               "collar": "Collar", "shoulder": "UpperArm", "elbow": "LowerArm", "wrist": "Hand"}
+    names = [f"{blender[n[2:]]}.{n[0].upper()}" if n[:2] in ("l_", "r_") else blender[n] for n in JOINT_NAMES]
+    path = tmp_path / "soldier.glb"
+    write_skinned(path, vertices, faces, joints, Layout(names=names))
+    character = read_character(path)
+    assert character.scheme == "blender"
+    assert set(character.filled_joints) == {"spine2", "l_foot", "r_foot"}
+    kept = [j for j, n in enumerate(JOINT_NAMES) if n not in character.filled_joints]
+    assert np.abs(character.joints[kept] - joints[kept]).max() < 1e-5
+
+
+def test_turn_arms_turns_only_the_arms_about_the_shoulders():
+    """A T-posed mesh's arms turned down into an A-pose: the torso, legs and head stay, each arm
+    vertex keeps its distance from its shoulder, and the wrists point along the directions given."""
+    from hrr_garment.body.fit import turn_arms
+
+    vertices, faces, joints = _mannequin()
+    down = np.array([[1.0, -1.0, 0.0], [-1.0, -1.0, 0.0]]) / np.sqrt(2.0)
+    turned = turn_arms(vertices, joints, down)
+    moved = np.linalg.norm(turned - vertices, axis=1) > 1e-9
+    assert 0.05 < moved.mean() < 0.4
+    for side, direction in zip("lr", down):
+        shoulder, wrist = joints[JOINT_INDEX[f"{side}_shoulder"]], joints[JOINT_INDEX[f"{side}_wrist"]]
+        arm = moved & ((vertices[:, 0] - shoulder[0]) * np.sign(direction[0]) > 0.05)
+        assert arm.sum() > 20
+        assert np.allclose(np.linalg.norm(turned[arm] - shoulder, axis=1), np.linalg.norm(vertices[arm] - shoulder, axis=1))
+        tip = vertices[arm][np.argmax(np.linalg.norm(vertices[arm] - shoulder, axis=1))]
+        new_tip = turned[arm][np.argmax(np.linalg.norm(vertices[arm] - shoulder, axis=1))]
+        assert abs(new_tip[1] - shoulder[1]) > 0.3 and abs(tip[1] - shoulder[1]) < 0.15  # horizontal, then down
+        assert wrist[1] > shoulder[1] - 0.1
+    assert np.allclose(turned[vertices[:, 1] < 0.8], vertices[vertices[:, 1] < 0.8])  # the legs stay
+
+
+@pytest.mark.slow
+def test_a_t_posed_body_finds_its_shape_once_its_arms_are_turned():
+    """A Mixamo character stands in a T-pose, anny in an A-pose: fitted as it stands, an anny body
+    turned into a T-pose comes out 88 mm away with the wrong gender and weight; given its joints,
+    its arms are turned back and the fit is within a few mm (issue 45, three.js's Xbot 184 -> 43 mm)."""
+    pytest.importorskip("anny")
+    from hrr_garment.body.fit import shortest_arc, turn_arms
+    from hrr_garment.body.parametric import BodyShape, anny_rest_mesh, fit_shape
+
+    mesh = anny_rest_mesh(BodyShape(height=0.7, weight=0.3, gender=1.0))
+    level = np.array([[1.0, 0.0, 0.0], [-1.0, 0.0, 0.0]])
+    vertices, joints = turn_arms(mesh.vertices, mesh.joints, level), mesh.joints.copy()
+    for side, direction in zip("lr", level):
+        shoulder = joints[JOINT_INDEX[f"{side}_shoulder"]]
+        turn = shortest_arc(joints[JOINT_INDEX[f"{side}_wrist"]] - shoulder, direction)
+        for joint in ("elbow", "wrist"):
+            joints[JOINT_INDEX[f"{side}_{joint}"]] = shoulder + turn @ (joints[JOINT_INDEX[f"{side}_{joint}"]] - shoulder)
+    nearest = fit_shape(vertices, mesh.faces, joints=joints)
+    assert nearest.mean_mm < 10.0 and nearest.p95_mm < 20.0
+    shape = nearest.shape
+    assert abs(shape.height - 0.7) < 0.05 and abs(shape.weight - 0.3) < 0.05 and shape.gender > 0.8
