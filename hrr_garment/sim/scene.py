@@ -62,33 +62,49 @@ def resolve_device(wp, device: str) -> str:
     return device
 
 
-class ClothScene:
-    """A newton model of one garment and the capsule body, stepped frame by frame."""
+def instance_builder(garment: GarmentMesh, start_vertices: np.ndarray, half_lengths: np.ndarray,
+                     body: BodyModel, config: SimConfig):
+    """A newton builder of one garment (attached vertices at zero mass) and ``body``'s capsules as
+    kinematic bodies, coloured for VBD, without the ground: a :class:`ClothScene` adds the ground
+    to it, a batch (:mod:`.batch`) adds it as one world of many. Returns (builder, the capsules'
+    shape indices in it)."""
+    wp, newton = _import_newton()
+    builder = newton.ModelBuilder(up_axis=newton.Axis.Y, gravity=(0.0, -config.gravity, 0.0))
+    shape_cfg = newton.ModelBuilder.ShapeConfig(ke=config.contact_ke, kd=config.contact_kd, mu=config.contact_mu,
+                                                has_shape_collision=False)
+    shapes = []
+    for c, capsule in enumerate(body.capsules):
+        b = builder.add_body(mass=0.0, is_kinematic=True, label=capsule.name)
+        shapes.append(builder.add_shape_capsule(b, radius=capsule.radius, half_height=float(half_lengths[c]), cfg=shape_cfg))
+    builder.add_cloth_mesh(
+        pos=wp.vec3(0.0, 0.0, 0.0), rot=wp.quat_identity(), scale=1.0, vel=wp.vec3(0.0, 0.0, 0.0),
+        vertices=[wp.vec3(*v) for v in start_vertices.astype(float)], indices=garment.faces.ravel().tolist(),
+        density=config.density, tri_ke=config.tri_ke, tri_ka=config.tri_ka, tri_kd=config.tri_kd,
+        edge_ke=config.edge_ke, edge_kd=config.edge_kd, particle_radius=config.particle_radius,
+    )
+    for i in garment.attached:
+        builder.particle_mass[int(i)] = 0.0  # zero mass: pinned, positions written each substep
+    builder.color(include_bending=True)
+    return builder, shapes
 
-    def __init__(self, garment: GarmentMesh, start_vertices: np.ndarray, half_lengths: np.ndarray,
-                 body: BodyModel, config: SimConfig):
-        wp, newton = _import_newton()
-        self.wp, self.config = wp, config
-        self.device = resolve_device(wp, config.device)
-        builder = newton.ModelBuilder(up_axis=newton.Axis.Y, gravity=(0.0, -config.gravity, 0.0))
-        shape_cfg = newton.ModelBuilder.ShapeConfig(ke=config.contact_ke, kd=config.contact_kd, mu=config.contact_mu,
-                                                    has_shape_collision=False)
-        shapes = []
-        for c, capsule in enumerate(body.capsules):
-            b = builder.add_body(mass=0.0, is_kinematic=True, label=capsule.name)
-            shapes.append(builder.add_shape_capsule(b, radius=capsule.radius, half_height=float(half_lengths[c]), cfg=shape_cfg))
-        self.arm_shapes = [shapes[c] for c in arms_off_capsules(body)]
-        builder.add_ground_plane(cfg=newton.ModelBuilder.ShapeConfig(ke=config.contact_ke, kd=config.contact_kd,
-                                                                    mu=config.contact_mu))
-        builder.add_cloth_mesh(
-            pos=wp.vec3(0.0, 0.0, 0.0), rot=wp.quat_identity(), scale=1.0, vel=wp.vec3(0.0, 0.0, 0.0),
-            vertices=[wp.vec3(*v) for v in start_vertices.astype(float)], indices=garment.faces.ravel().tolist(),
-            density=config.density, tri_ke=config.tri_ke, tri_ka=config.tri_ka, tri_kd=config.tri_kd,
-            edge_ke=config.edge_ke, edge_kd=config.edge_kd, particle_radius=config.particle_radius,
-        )
-        for i in garment.attached:
-            builder.particle_mass[int(i)] = 0.0  # zero mass: pinned, positions written each substep
-        builder.color(include_bending=True)
+
+def add_ground(builder, config: SimConfig) -> None:
+    """The ground plane (a global shape: in a batch every world's cloth meets it)."""
+    _, newton = _import_newton()
+    builder.add_ground_plane(cfg=newton.ModelBuilder.ShapeConfig(ke=config.contact_ke, kd=config.contact_kd,
+                                                                mu=config.contact_mu))
+
+
+class SteppedScene:
+    """A finalized newton model of one or more cloth instances, each with its own capsule body,
+    stepped frame by frame from captured graphs. :class:`ClothScene` holds one instance; a batch
+    (:class:`~hrr_garment.sim.batch.BatchScene`) holds many in separate worlds. The positions and
+    poses it takes and returns are the instances' concatenated: ``attached`` indexes the whole
+    model's particles, ``arm_shapes[i]`` are instance ``i``'s arm capsules."""
+
+    def _finish(self, builder, config: SimConfig, arm_shapes: list[list[int]], attached: np.ndarray) -> None:
+        """Finalize ``builder`` into the model, collision pipeline, solver and two states."""
+        newton = self.newton
         self.model = builder.finalize(device=self.device)
         self.model.soft_contact_ke = config.contact_ke
         self.model.soft_contact_kd = config.contact_kd
@@ -99,22 +115,37 @@ class ClothScene:
                                                integrate_with_external_rigid_solver=True)
         self.states = (self.model.state(), self.model.state())
         self.control = self.model.control()
-        self.attached = garment.attached
+        self.attached = attached
         self.parity = 0  # states[parity] holds the current positions
         self.graphs: list = [None, None]
-        self.arm_contact = True
+        self.arm_shapes = arm_shapes
+        self.arm_contacts = [True] * len(arm_shapes)
         self.collide_particles = int(newton.ShapeFlags.COLLIDE_PARTICLES)
 
-    def set_arm_contact(self, on: bool) -> None:
-        """Let the arm capsules touch the cloth or not. The contact kernels read the shape flags on
-        every launch (captured graphs included) and VBD's candidate tables stay valid."""
-        if on == self.arm_contact:
+    @property
+    def arm_contact(self) -> bool:
+        """Whether the (first) instance's arms touch the cloth."""
+        return self.arm_contacts[0]
+
+    def set_arm_contact(self, on: bool, instance: int = 0) -> None:
+        """Let an instance's arm capsules touch the cloth or not (see :meth:`set_arm_contacts`)."""
+        wanted = list(self.arm_contacts)
+        wanted[instance] = on
+        self.set_arm_contacts(wanted)
+
+    def set_arm_contacts(self, wanted: list[bool]) -> None:
+        """Let each instance's arm capsules touch the cloth or not, in one write of the shape flags.
+        The contact kernels read the shape flags on every launch (captured graphs included) and
+        VBD's candidate tables stay valid."""
+        changed = [i for i, on in enumerate(wanted) if on != self.arm_contacts[i]]
+        if not changed:
             return
         flags = self.model.shape_flags.numpy()
-        flags[self.arm_shapes] = flags[self.arm_shapes] | self.collide_particles if on else \
-            flags[self.arm_shapes] & ~self.collide_particles
+        for i in changed:
+            arms = self.arm_shapes[i]
+            flags[arms] = flags[arms] | self.collide_particles if wanted[i] else flags[arms] & ~self.collide_particles
+            self.arm_contacts[i] = wanted[i]
         self.model.shape_flags.assign(flags)
-        self.arm_contact = on
 
     def _substep(self, parity: int, dt: float) -> None:
         state_in, state_out = self.states[parity], self.states[1 - parity]
@@ -161,3 +192,16 @@ class ClothScene:
 
     def speeds(self) -> np.ndarray:
         return np.linalg.norm(self.states[self.parity].particle_qd.numpy(), axis=1)
+
+
+class ClothScene(SteppedScene):
+    """A newton model of one garment and the capsule body, stepped frame by frame."""
+
+    def __init__(self, garment: GarmentMesh, start_vertices: np.ndarray, half_lengths: np.ndarray,
+                 body: BodyModel, config: SimConfig):
+        wp, newton = _import_newton()
+        self.wp, self.newton, self.config = wp, newton, config
+        self.device = resolve_device(wp, config.device)
+        builder, shapes = instance_builder(garment, start_vertices, half_lengths, body, config)
+        add_ground(builder, config)
+        self._finish(builder, config, [[shapes[c] for c in arms_off_capsules(body)]], garment.attached)
