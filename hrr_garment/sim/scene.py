@@ -22,7 +22,8 @@ def arms_off_capsules(body: BodyModel) -> list[int]:
     return [c for c, capsule in enumerate(body.capsules) if capsule.name.endswith(tuple(f"_{p}" for p in ARMS_OFF_CAPSULES))]
 
 
-def _import_newton():
+def import_newton():
+    """warp and newton, quiet; a clear error when the ``sim`` extra is missing."""
     try:
         import warp as wp
 
@@ -68,7 +69,7 @@ def instance_builder(garment: GarmentMesh, start_vertices: np.ndarray, half_leng
     kinematic bodies, coloured for VBD, without the ground: a :class:`ClothScene` adds the ground
     to it, a batch (:mod:`.batch`) adds it as one world of many. Returns (builder, the capsules'
     shape indices in it)."""
-    wp, newton = _import_newton()
+    wp, newton = import_newton()
     builder = newton.ModelBuilder(up_axis=newton.Axis.Y, gravity=(0.0, -config.gravity, 0.0))
     shape_cfg = newton.ModelBuilder.ShapeConfig(ke=config.contact_ke, kd=config.contact_kd, mu=config.contact_mu,
                                                 has_shape_collision=False)
@@ -90,7 +91,7 @@ def instance_builder(garment: GarmentMesh, start_vertices: np.ndarray, half_leng
 
 def add_ground(builder, config: SimConfig) -> None:
     """The ground plane (a global shape: in a batch every world's cloth meets it)."""
-    _, newton = _import_newton()
+    _, newton = import_newton()
     builder.add_ground_plane(cfg=newton.ModelBuilder.ShapeConfig(ke=config.contact_ke, kd=config.contact_kd,
                                                                 mu=config.contact_mu))
 
@@ -199,7 +200,7 @@ class ClothScene(SteppedScene):
 
     def __init__(self, garment: GarmentMesh, start_vertices: np.ndarray, half_lengths: np.ndarray,
                  body: BodyModel, config: SimConfig):
-        wp, newton = _import_newton()
+        wp, newton = import_newton()
         self.wp, self.newton, self.config = wp, newton, config
         self.device = resolve_device(wp, config.device)
         builder, shapes = instance_builder(garment, start_vertices, half_lengths, body, config)

@@ -164,7 +164,9 @@ def _arms_note(arms_off: np.ndarray) -> str:
     return f", arms off the cloth on {int(arms_off.sum())} frames" if arms_off.any() else ""
 
 
-def _on_body(motion: Motion, body: BodyModel) -> Motion:
+def played_on_body(motion: Motion, body: BodyModel) -> Motion:
+    """``motion`` on ``body``'s skeleton: as it is when it already stands on it, played by the body
+    when it is a canonical clip; a clip on some other skeleton is refused."""
     if np.allclose(motion.skeleton.offsets, body.skeleton.offsets, atol=1e-6):
         return motion
     if motion.skeleton is CANONICAL:
@@ -184,7 +186,7 @@ def simulate_garment(garment: GarmentMesh, motion: Motion, config: SimConfig = S
 
     Raises :class:`SimulationExploded` (with every attempt's reason) when all attempts fail.
     """
-    motion = _on_body(motion, body)
+    motion = played_on_body(motion, body)
     # (substeps, clip frames with the arms off the cloth, fraction of the cloth inside the arms they come back at)
     attempts: list[tuple[int, np.ndarray | None, float]] = [(config.substeps * 2 ** k, None, 0.0)
                                                           for k in range(config.retries + 1)]
