@@ -71,7 +71,7 @@ class BatchScene(SteppedScene):
         particle_groups, body_groups, arm_shapes, attached = [], [], [], []
         particle_starts, body_starts, self.ranges = [], [], []
         for run in runs:
-            instance, shapes = instance_builder(run.garment, run.start, run.half_lengths, run.body, config)
+            instance, shapes = instance_builder(run.garment, run.start, run.half_lengths, body=run.body, config=config)
             first_particle, first_shape = builder.particle_count, builder.shape_count
             particle_starts.append(first_particle)
             body_starts.append(builder.body_count)
@@ -147,7 +147,7 @@ def simulate_batch(items: list[BatchItem], config: SimConfig = SimConfig(),
         raise ValueError("a batch steps every instance with one frame time: give it clips of one frame rate")
     t0 = time.perf_counter()
     motions = [played_on_body(item.motion, item.body) for item in items]
-    runs = [ClipRun(item.garment, motion, item.body, config) for item, motion in zip(items, motions)]
+    runs = [ClipRun(item.garment, motion, body=item.body, config=config) for item, motion in zip(items, motions)]
     dropped, stepping = step_batch(BatchScene(runs, config), runs, progress)
     wall = time.perf_counter() - t0
     total = sum(r.num_frames for r in runs)
@@ -155,8 +155,9 @@ def simulate_batch(items: list[BatchItem], config: SimConfig = SimConfig(),
     for i, (item, run) in enumerate(zip(items, runs)):
         if i not in dropped:
             share = run.num_frames / total
-            results.append(SimResult(run.recorded, config.substeps, 1, wall * share, run.num_frames, stepping * share,
-                                     run.arms_off_frames))
+            results.append(SimResult(run.recorded, substeps=config.substeps, attempts=1, seconds=wall * share,
+                                     simulated_frames=run.num_frames, step_seconds=stepping * share,
+                                     arms_off_frames=run.arms_off_frames))
             continue
         try:
             results.append(simulate_garment(item.garment, motions[i], config, body=item.body, progress=progress))

@@ -76,7 +76,7 @@ class ClipRun:
     def __init__(self, garment: GarmentMesh, motion: Motion, body: BodyModel, config: SimConfig,
                  arms_off: np.ndarray | None = None, back_inside: float = 0.0):
         self.garment, self.motion, self.body, self.config, self.back_inside = garment, motion, body, config, back_inside
-        extended, self.lead = with_lead_in(motion, config.settle_s, config.blend_s, body.pelvis_height)
+        extended, self.lead = with_lead_in(motion, config.settle_s, config.blend_s, pelvis_height=body.pelvis_height)
         self.num_frames = extended.num_frames  # simulated frames, lead-in included
         if arms_off is None:
             arms_off = np.zeros(motion.num_frames, bool)
