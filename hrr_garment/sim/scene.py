@@ -105,7 +105,10 @@ class SteppedScene:
 
     def _finish(self, builder, config: SimConfig, arm_shapes: list[list[int]], attached: np.ndarray) -> None:
         """Finalize ``builder`` into the model, collision pipeline, solver and two states."""
+        from .kernels import scatter_positions  # warp at import: only with the sim extra
+
         newton = self.newton
+        self.scatter_positions = scatter_positions
         self.model = builder.finalize(device=self.device)
         self.model.soft_contact_ke = config.contact_ke
         self.model.soft_contact_kd = config.contact_kd
@@ -117,6 +120,8 @@ class SteppedScene:
         self.states = (self.model.state(), self.model.state())
         self.control = self.model.control()
         self.attached = attached
+        self.pin_index = self.wp.array(np.asarray(attached, np.int32), dtype=self.wp.int32, device=self.device)
+        self.pin_values = self.wp.empty(len(attached), dtype=self.wp.vec3, device=self.device)
         self.parity = 0  # states[parity] holds the current positions
         self.graphs: list = [None, None]
         self.arm_shapes = arm_shapes
@@ -173,7 +178,9 @@ class SteppedScene:
 
     def step_frame(self, body_from: np.ndarray, body_to: np.ndarray, pin_from: np.ndarray, pin_to: np.ndarray,
                    dt: float, substeps: int) -> np.ndarray:
-        """Advance one frame; body_* (C, 7) [p, q(xyzw)], pin_* (A, 3). Returns positions (V, 3)."""
+        """Advance one frame; body_* (C, 7) [p, q(xyzw)] of every instance's capsules, pin_* (A, 3)
+        the positions of ``attached``, written on the device each substep. Returns every particle's
+        positions (V, 3)."""
         for k in range(substeps):
             t0, t1 = k / substeps, (k + 1) / substeps
             state_in, state_out = self.states[self.parity], self.states[1 - self.parity]
@@ -182,9 +189,10 @@ class SteppedScene:
                 pose = np.concatenate([(1 - t) * body_from[:, :3] + t * body_to[:, :3],
                                        _nlerp(body_from[:, 3:], body_to[:, 3:], t)], 1)
                 state.body_q.assign(pose.astype(np.float32))
-            q = state_in.particle_q.numpy()
-            q[self.attached] = (1 - t1) * pin_from + t1 * pin_to
-            state_in.particle_q.assign(q)
+            if len(self.attached):
+                self.pin_values.assign(((1 - t1) * pin_from + t1 * pin_to).astype(np.float32))
+                self.wp.launch(self.scatter_positions, dim=len(self.attached), inputs=[self.pin_values, self.pin_index],
+                               outputs=[state_in.particle_q], device=self.device)
             self._run_substep(dt / substeps)
         return self.states[self.parity].particle_q.numpy().copy()
 
