@@ -55,7 +55,7 @@ class BatchItem:
 def _merged_groups(groups: list[list[np.ndarray]], offsets: list[int]) -> list[np.ndarray]:
     """Colour groups of several instances merged colour by colour, each shifted by its offset."""
     colours = max((len(g) for g in groups), default=0)
-    return [np.concatenate([g[c] + offset for g, offset in zip(groups, offsets) if c < len(g)]).astype(int)
+    return [np.concatenate([np.asarray(g[c], int) + offset for g, offset in zip(groups, offsets) if c < len(g)])
             for c in range(colours)]
 
 
