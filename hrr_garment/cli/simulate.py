@@ -96,6 +96,9 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--substeps", type=int, default=None, help="override the preset's substeps per frame")
     p.add_argument("--iterations", type=int, default=None, help="override the preset's solver iterations")
     p.add_argument("--device", default=None, help="warp device: auto (default), cpu, cuda:0")
+    p.add_argument("--batch", type=int, default=0, metavar="N",
+                   help="simulate up to N sequences of similar length together in one model, each in its own world "
+                        "(one batch per worker or Ray task; for a GPU: --device cuda:0); 0 or 1: one at a time (default)")
     p.add_argument("--body", type=Path, default=None, metavar="BODY_JSON",
                    help="simulate every sequence on this body (hrr-body make / fit / nearest) instead of the mannequin "
                         "or the preset's bodies")
@@ -143,7 +146,7 @@ def _main(argv: Sequence[str] | None) -> int:
     build = BuildOptions(jobs=args.jobs, retry_rejected=args.retry_rejected,
                          preview=None if args.no_preview else write_dataset_preview, progress=not args.quiet,
                          executor=args.executor, address=args.address, bodies=choice.bodies,
-                         hold_out_bodies=choice.hold_out, **options)
+                         hold_out_bodies=choice.hold_out, batch=args.batch, **options)
     report = build_dataset(garment, choice.specs, config, out=out, options=build)
     print_report(report, garment)
     return 0

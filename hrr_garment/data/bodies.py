@@ -25,7 +25,7 @@ MANNEQUIN_STATURE_M = 1.70
 
 def mannequin_record() -> BodyRecord:
     """The mannequin as a body record (the canonical skeleton and the default capsules)."""
-    return BodyRecord(CANONICAL, DEFAULT_BODY, REST_PELVIS_HEIGHT, MANNEQUIN_STATURE_M)
+    return BodyRecord(CANONICAL, DEFAULT_BODY, pelvis_height=REST_PELVIS_HEIGHT, stature=MANNEQUIN_STATURE_M)
 
 
 @dataclass(frozen=True)

@@ -114,8 +114,8 @@ def _performer_bodies(specs, garment, made_for, progress):
             continue
         if spec.path not in by_path:
             found = performer_body(spec.path, unit_scale=None)
-            record = BodyRecord(found.body.skeleton, found.body, found.body.pelvis_height, found.stature,
-                                shape=found.shape)
+            record = BodyRecord(found.body.skeleton, found.body, pelvis_height=found.body.pelvis_height,
+                                stature=found.stature, shape=found.shape)
             dressed, _ = dress(MANNEQUIN, record, garment, made_for)
             name = f"performer-{dressed.key()[:8]}"  # clips whose rigs measure the same share one body
             bodies.setdefault(name, replace(dressed, name=name))

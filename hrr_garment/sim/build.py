@@ -23,7 +23,7 @@ from ..data.dataset import SequenceRecord, combine_splits, split_groups, split_n
 from ..errors import InputError
 from ..garment.mesh import GarmentMesh, mirror_map
 from ..io_utils import atomic_write_text, exclusive_lock, strict_json
-from .executors import EXECUTORS, run_local, run_ray
+from .executors import EXECUTORS, Execution, batches, run_local, run_ray
 from .parts import PART_VERSION, load_part, part_paths, read_part_key, template_hash
 from .plan import SequenceSpec
 from .quality import edge_strain
@@ -76,7 +76,12 @@ class BuildOptions:
 
     ``bodies`` (name -> a body and the garment on it, :mod:`.bodies`) holds every body a sequence
     names (``SequenceSpec.body``); ``hold_out_bodies`` makes validation and test hold out whole
-    bodies as well as whole groups (a sequence tests if its group or its body does)."""
+    bodies as well as whole groups (a sequence tests if its group or its body does).
+
+    ``batch`` N simulates up to N sequences of similar length together, each in its own world of
+    one newton model (:mod:`.batch`; for a GPU, ``SimConfig.device``): a worker process or Ray task
+    per batch. 0 or 1 simulates one sequence per worker, as before. Parts and their keys are the
+    same either way, so a batched build resumes an unbatched one and the other way round."""
 
     jobs: int | None = None
     splits: dict[str, float] | None = None
@@ -92,6 +97,7 @@ class BuildOptions:
     kinds: dict[str, str] | None = None
     bodies: dict[str, DressedBody] | None = None
     hold_out_bodies: bool = False
+    batch: int = 0
 
 
 def build_dataset(garment: GarmentMesh, specs: list[SequenceSpec], config: SimConfig, *, out: str | Path,
@@ -112,20 +118,19 @@ def build_dataset(garment: GarmentMesh, specs: list[SequenceSpec], config: SimCo
         keys = {s.name: s.key({**extra, "body": bodies[s.body].key()} if s.body else extra) for s in specs}
         pending, rejects, reused = _to_simulate(specs, parts, keys, retry_rejected=o.retry_rejected)
         if executor == "local":
-            jobs = max(1, min(jobs or os.cpu_count() or 1, len(pending) or 1))
+            jobs = max(1, min(jobs or os.cpu_count() or 1, len(batches(pending, config, o.batch)) or 1))
         t0 = time.perf_counter()
         if pending:
             if progress:
                 where = f"{jobs} worker(s)" if executor == "local" else f"Ray ({o.address or f'local, {jobs or os.cpu_count()} CPUs'})"
+                where += f", batches of up to {o.batch} on {config.device}" if o.batch > 1 else ""
                 print(f"simulating {len(pending)} of {len(specs)} sequences with {where}; "
                       f"{reused} already done (first run compiles kernels: about two minutes, cached after)")
             warm_up(garment, config)
             everyone = {MANNEQUIN: DressedBody(MANNEQUIN, mannequin_record(), garment), **bodies}
-            if executor == "ray":
-                rejects.update(run_ray(pending, everyone, config, keys=keys, parts=parts, jobs=jobs, progress=progress,
-                                       address=o.address))
-            else:
-                rejects.update(run_local(pending, everyone, config, keys=keys, parts=parts, jobs=jobs, progress=progress))
+            execution = Execution(keys, parts, jobs=jobs, progress=progress, batch=o.batch, address=o.address)
+            run = run_ray if executor == "ray" else run_local
+            rejects.update(run(pending, everyone, config, execution))
         sim_wall = time.perf_counter() - t0
         done = [s.name for s in specs if s.name not in rejects and part_paths(parts, s.name)[0].exists()]
         records = [load_part(part_paths(parts, n)[0], n) for n in done]

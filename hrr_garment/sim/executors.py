@@ -1,7 +1,8 @@
 """Where the pending sequences of a build are simulated: a local process pool, or a Ray cluster.
 
-Both run one sequence per worker (Warp's CPU kernels use one thread) and end with the same part
-files; the builder then assembles the dataset from the parts alone, so the dataset does not depend
+Both run one sequence per worker (Warp's CPU kernels use one thread), or with ``batch`` N one
+batch of up to N sequences of similar length per worker (:mod:`.batch`: one model on one device,
+meant for a GPU), and end with the same part files; the builder then assembles the dataset from the parts alone, so the dataset does not depend
 on which executor ran. Locally each worker writes its own part; on Ray a task returns its part's
 content to the driver, which writes it, so a cluster needs no shared filesystem (only the package,
 and the ``sim`` extra, installed on every node).
@@ -13,16 +14,17 @@ import multiprocessing as mp
 import os
 import queue as queue_mod
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import Callable
 
 from tqdm.auto import tqdm
 
 from ..data.bodies import MANNEQUIN, DressedBody
-from ..garment.mesh import GarmentMesh
-from ..motion.motion import FPS
+from ..motion.motion import FPS, Motion
 from .config import SimConfig
 from .lead_in import lead_in_frames
-from .parts import PartResult, simulate_sequence, write_part
+from .parts import PartResult, SequenceJob, simulate_sequence, simulate_sequences, write_part
 from .plan import SequenceSpec
 
 EXECUTORS = ("local", "ray")
@@ -31,6 +33,30 @@ EXECUTORS = ("local", "ray")
 def _frames_to_simulate(spec: SequenceSpec, config: SimConfig) -> int:
     lead = sum(lead_in_frames(config.settle_s, config.blend_s, FPS))
     return (int(round(spec.seconds * FPS)) if spec.kind != "file" else spec.stop - spec.start) + lead
+
+
+@dataclass(frozen=True)
+class Execution:
+    """How the pending sequences of a build run: each one's part key, the parts folder, the worker
+    processes (local) or CPUs of a local Ray instance (``jobs``), the progress bar, ``batch`` (up to
+    this many sequences simulated together in one worker; 0 or 1: one at a time) and the Ray
+    cluster to join (``address``)."""
+
+    keys: dict[str, str]
+    parts: Path
+    jobs: int | None = None
+    progress: bool = True
+    batch: int = 0
+    address: str | None = None
+
+
+def batches(pending: list[SequenceSpec], config: SimConfig, size: int) -> list[list[SequenceSpec]]:
+    """``pending`` in batches of up to ``size`` sequences of similar length (longest first, so a
+    batch's shorter instances idle little); ``size`` 0 or 1: one sequence each, in order."""
+    if size <= 1:
+        return [[s] for s in pending]
+    by_length = sorted(pending, key=lambda s: -_frames_to_simulate(s, config))
+    return [by_length[k:k + size] for k in range(0, len(by_length), size)]
 
 
 def _progress_bar(pending: list[SequenceSpec], config: SimConfig, progress: bool) -> tqdm:
@@ -44,44 +70,55 @@ def _finish(result: PartResult, rejects: dict[str, str], bar: tqdm) -> None:
         bar.write(f"rejected {result.name}: {result.failure}")
 
 
+def _job(spec: SequenceSpec, bodies: dict[str, DressedBody], key: str, motion: Motion | None = None) -> SequenceJob:
+    """A sequence's job: the template on the mannequin, and its body where it names one (the
+    motion loaded where the job runs when not given)."""
+    body = bodies[spec.body] if spec.body else None
+    return SequenceJob(spec, motion, garment=bodies[MANNEQUIN].garment, key=key, body=body)
+
+
+def simulate_jobs(jobs: list[SequenceJob], config: dict, progress: Callable[[int], None] | None = None) -> list[PartResult]:
+    """Simulate one worker's share: a single sequence as :func:`~.parts.simulate_sequence` does, or
+    a batch of several together (:func:`~.parts.simulate_sequences`); motions not yet loaded are."""
+    jobs = [job if job.motion is not None else replace(job, motion=job.spec.motion()) for job in jobs]
+    if len(jobs) == 1:
+        job = jobs[0]
+        return [simulate_sequence(job.spec, job.motion, job.garment, config=config, key=job.key, progress=progress,
+                                  body=job.body)]
+    return simulate_sequences(jobs, config, progress=progress)
+
+
 # --- local process pool ------------------------------------------------------------------------
 
 
-def _on_body(spec: SequenceSpec, bodies: dict[str, DressedBody]) -> tuple[GarmentMesh, DressedBody | None]:
-    """The garment a sequence is simulated with, and its body where it names one."""
-    if spec.body:
-        return bodies[spec.body].garment, bodies[spec.body]
-    return bodies[MANNEQUIN].garment, None
-
-
-def _local_worker(spec: SequenceSpec, garment: GarmentMesh, config: dict, key: str, parts: str,
-                  progress_queue=None, body: DressedBody | None = None) -> PartResult:
+def _local_worker(jobs: list[SequenceJob], config: dict, parts: str, progress_queue=None) -> list[PartResult]:
     report = progress_queue.put if progress_queue is not None else None
-    result = simulate_sequence(spec, spec.motion(), garment, config=config, key=key, progress=report, body=body)
-    write_part(result, Path(parts))
-    return PartResult(result.name, key, result.frames, failure=result.failure)  # the arrays stay in the part
+    results = simulate_jobs(jobs, config, progress=report)
+    for result in results:
+        write_part(result, Path(parts))
+    return [PartResult(r.name, r.key, r.frames, failure=r.failure) for r in results]  # the arrays stay in the parts
 
 
-def run_local(pending: list[SequenceSpec], bodies: dict[str, DressedBody], config: SimConfig, *, keys: dict[str, str],
-              parts: Path, jobs: int, progress: bool) -> dict[str, str]:
-    """Simulate ``pending`` in ``jobs`` spawned processes; returns the rejected sequences' reasons.
-    ``bodies``: the mannequin (:data:`~hrr_garment.data.bodies.MANNEQUIN`, with the template) and
-    every body a sequence names (:mod:`.bodies`), each with the garment on it."""
-    bar = _progress_bar(pending, config, progress)
+def run_local(pending: list[SequenceSpec], bodies: dict[str, DressedBody], config: SimConfig,
+              execution: Execution) -> dict[str, str]:
+    """Simulate ``pending`` in ``execution.jobs`` spawned processes, one sequence or batch
+    (``execution.batch``) per task; returns the rejected sequences' reasons. ``bodies``: the
+    mannequin (:data:`~hrr_garment.data.bodies.MANNEQUIN`, with the template) and every body a
+    sequence names (:mod:`.bodies`), each with the garment on it."""
+    bar = _progress_bar(pending, config, execution.progress)
     rejects: dict[str, str] = {}
     ctx = mp.get_context("spawn")  # Warp is not fork-safe
-    with ctx.Manager() as manager, ProcessPoolExecutor(max_workers=jobs, mp_context=ctx) as pool:
+    with ctx.Manager() as manager, ProcessPoolExecutor(max_workers=execution.jobs or 1, mp_context=ctx) as pool:
         progress_queue = manager.Queue()
-        futures = set()
-        for s in pending:
-            garment, body = _on_body(s, bodies)
-            futures.add(pool.submit(_local_worker, s, garment, config.to_dict(), keys[s.name], str(parts), progress_queue, body))
-        remaining = set(futures)
+        remaining = {pool.submit(_local_worker, [_job(s, bodies, execution.keys[s.name]) for s in group], config.to_dict(),
+                                 str(execution.parts), progress_queue)
+                     for group in batches(pending, config, execution.batch)}
         while remaining:
             finished, remaining = wait(remaining, timeout=0.5, return_when=FIRST_COMPLETED)
             _drain(progress_queue, bar)
             for fut in finished:
-                _finish(fut.result(), rejects, bar)  # a worker crash propagates: the finished parts are kept
+                for result in fut.result():  # a worker crash propagates: the finished parts are kept
+                    _finish(result, rejects, bar)
         _drain(progress_queue, bar)
     bar.close()
     return rejects
@@ -106,40 +143,38 @@ def _import_ray():
     return ray
 
 
-def run_ray(pending: list[SequenceSpec], bodies: dict[str, DressedBody], config: SimConfig, *, keys: dict[str, str],
-            parts: Path, jobs: int | None, progress: bool, address: str | None = None) -> dict[str, str]:
-    """Simulate ``pending`` as Ray tasks, one sequence each; parts are written here as tasks finish.
+def run_ray(pending: list[SequenceSpec], bodies: dict[str, DressedBody], config: SimConfig,
+            execution: Execution) -> dict[str, str]:
+    """Simulate ``pending`` as Ray tasks, one sequence (or one batch, ``execution.batch``) each;
+    parts are written here as tasks finish.
 
-    ``address`` joins a running cluster (``ray start --head`` prints it; "auto" finds a local one);
-    without it a Ray instance with ``jobs`` CPUs (default: all) is started in this process and shut
-    down afterwards. A task asks for one CPU, and one GPU where the cluster has GPUs and the
-    simulator's device is not "cpu". Motions are loaded here and sent with the task.
+    ``execution.address`` joins a running cluster (``ray start --head`` prints it; "auto" finds a
+    local one); without it a Ray instance with ``execution.jobs`` CPUs (default: all) is started in
+    this process and shut down afterwards. A task asks for one CPU, and one GPU where the cluster
+    has GPUs and the simulator's device is not "cpu". Motions are loaded here and sent with the task.
     """
     ray = _import_ray()
     started = not ray.is_initialized()
     if started:
-        if address:
-            ray.init(address=address, log_to_driver=False)
+        if execution.address:
+            ray.init(address=execution.address, log_to_driver=False)
         else:
-            ray.init(num_cpus=jobs or os.cpu_count(), include_dashboard=False, log_to_driver=False)
+            ray.init(num_cpus=execution.jobs or os.cpu_count(), include_dashboard=False, log_to_driver=False)
     try:
         gpus = 1 if config.device != "cpu" and ray.cluster_resources().get("GPU", 0) >= 1 else 0
-        task = ray.remote(num_cpus=1, num_gpus=gpus, max_retries=1)(simulate_sequence)
+        task = ray.remote(num_cpus=1, num_gpus=gpus, max_retries=1)(simulate_jobs)
         config_ref = ray.put(config.to_dict())
-        body_refs = {name: ray.put(body) for name, body in bodies.items()}
-        garment_refs = {name: ray.put(body.garment) for name, body in bodies.items()}
-        bar = _progress_bar(pending, config, progress)
+        bar = _progress_bar(pending, config, execution.progress)
         rejects: dict[str, str] = {}
         frames = {s.name: _frames_to_simulate(s, config) for s in pending}
-        remaining = [task.remote(s, s.motion(), garment_refs[s.body or MANNEQUIN], config_ref, keys[s.name], None,
-                                 body_refs[s.body] if s.body else None)
-                     for s in pending]  # the mannequin's sequences name no body: their parts stay as before
+        remaining = [task.remote([_job(s, bodies, execution.keys[s.name], s.motion()) for s in group], config_ref)
+                     for group in batches(pending, config, execution.batch)]  # the mannequin's sequences name no body
         while remaining:
             done, remaining = ray.wait(remaining, num_returns=1)
-            result: PartResult = ray.get(done[0])
-            write_part(result, parts)
-            bar.update(frames[result.name])
-            _finish(result, rejects, bar)
+            for result in ray.get(done[0]):
+                write_part(result, execution.parts)
+                bar.update(frames[result.name])
+                _finish(result, rejects, bar)
         bar.close()
         return rejects
     finally:

@@ -3,8 +3,10 @@
 A part is ``<sequence>.npz`` (arrays only, no pickle) or ``<sequence>.failed.json`` for a sequence
 that exploded on every attempt, each with a key that hashes the template, simulator settings and
 the sequence's spec. :func:`simulate_sequence` computes a part's content from a motion (in a local
-worker or a Ray task on another machine); :func:`write_part` writes it atomically, so the same
-bytes land whichever executor ran it.
+worker or a Ray task on another machine), :func:`simulate_sequences` the parts of a batch of
+sequences simulated together (:mod:`.batch`); :func:`write_part` writes it atomically, so the same
+bytes land whichever executor ran it. The key does not depend on batching: a batched build resumes
+an unbatched one and the other way round.
 """
 
 from __future__ import annotations
@@ -17,7 +19,7 @@ from typing import Callable
 
 import numpy as np
 
-from ..body.capsules import DEFAULT_BODY
+from ..body.capsules import DEFAULT_BODY, BodyModel
 from ..body.retarget import motion_on_body
 from ..data.bodies import MANNEQUIN, DressedBody
 from ..data.dataset import SequenceRecord
@@ -25,9 +27,10 @@ from ..garment.mesh import GarmentMesh
 from ..io_utils import atomic_path, atomic_write_text
 from ..motion.motion import Motion
 from ..motion.skeleton import Skeleton
+from .batch import BatchItem, simulate_batch
 from .plan import SequenceSpec
 from .quality import sequence_stats
-from .simulator import SimConfig, SimulationExploded, simulate_garment
+from .simulator import SimConfig, SimResult, SimulationExploded, simulate_garment
 
 PART_VERSION = 1
 
@@ -67,26 +70,66 @@ class PartResult:
     failure: str | None = None
 
 
-def simulate_sequence(spec: SequenceSpec, motion: Motion, garment: GarmentMesh, config: dict, key: str,
-                      progress: Callable[[int], None] | None = None, body: DressedBody | None = None) -> PartResult:
-    """Simulate one sequence (``motion`` is ``spec.motion()``, loaded by the caller) on the
-    mannequin, or on ``body`` (the sequence's, :mod:`.bodies`): the motion played by that body
-    (:func:`~hrr_garment.body.retarget.motion_on_body`) and the garment on it."""
-    collider = DEFAULT_BODY
-    if body is not None:
-        motion, garment, collider = motion_on_body(motion, body.body), body.garment, body.body
-    try:
-        result = simulate_garment(garment, motion, SimConfig.from_dict(config), body=collider, progress=progress)
-    except SimulationExploded as exc:
-        return PartResult(spec.name, key, 0, failure=str(exc))
+@dataclass(frozen=True)
+class SequenceJob:
+    """One sequence to simulate: its spec, its motion (``spec.motion()``; None until it is loaded
+    where the job runs), the garment (the template on the mannequin), its part's key and its body
+    (:mod:`.bodies`; None: the mannequin)."""
+
+    spec: SequenceSpec
+    motion: Motion | None
+    garment: GarmentMesh
+    key: str
+    body: DressedBody | None = None
+
+    def on_body(self) -> tuple[Motion, GarmentMesh, BodyModel]:
+        """The motion as the body plays it, the garment on the body and the body's capsules."""
+        if self.body is None:
+            return self.motion, self.garment, DEFAULT_BODY
+        return motion_on_body(self.motion, self.body.body), self.body.garment, self.body.body
+
+
+def _part(job: SequenceJob, on_body: tuple[Motion, GarmentMesh, BodyModel],
+          result: SimResult | SimulationExploded) -> PartResult:
+    """A part's content from a simulation's result (or its rejection), with the sequence's
+    statistics; ``on_body``: what :meth:`SequenceJob.on_body` gave the simulation."""
+    spec = job.spec
+    if isinstance(result, SimulationExploded):
+        return PartResult(spec.name, job.key, 0, failure=str(result))
+    motion, garment, collider = on_body
     stats = sequence_stats(result.vertices, garment.vertices, garment.edges(), motion=motion, hem=garment.groups.get("hem"),
                            body=collider)
     stats.update(substeps=result.substeps, attempts=result.attempts, sim_seconds=result.seconds,
                  simulated_frames=result.simulated_frames, arms_off_frames=result.arms_off_frames)
     info = {"kind": spec.kind, "seed": spec.seed, "path": spec.path, "stats": stats}
-    if body is not None:
-        info["body"] = body.name
-    return PartResult(spec.name, key, result.simulated_frames, result.vertices, motion, info)
+    if job.body is not None:
+        info["body"] = job.body.name
+    return PartResult(spec.name, job.key, result.simulated_frames, result.vertices, motion, info)
+
+
+def simulate_sequence(spec: SequenceSpec, motion: Motion, garment: GarmentMesh, config: dict, key: str,
+                      progress: Callable[[int], None] | None = None, body: DressedBody | None = None) -> PartResult:
+    """Simulate one sequence (``motion`` is ``spec.motion()``, loaded by the caller) on the
+    mannequin, or on ``body`` (the sequence's, :mod:`.bodies`): the motion played by that body
+    (:func:`~hrr_garment.body.retarget.motion_on_body`) and the garment on it."""
+    job = SequenceJob(spec, motion, garment, key, body)
+    played, dressed, collider = on_body = job.on_body()
+    try:
+        result = simulate_garment(dressed, played, SimConfig.from_dict(config), body=collider, progress=progress)
+    except SimulationExploded as exc:
+        result = exc
+    return _part(job, on_body, result)
+
+
+def simulate_sequences(jobs: list[SequenceJob], config: dict,
+                       progress: Callable[[int], None] | None = None) -> list[PartResult]:
+    """Simulate ``jobs`` as one batch (:func:`~.batch.simulate_batch`: one model, each sequence in
+    its own world); each part is what :func:`simulate_sequence` makes of it alone, within the
+    solver's tolerance, and one that explodes in the batch is simulated alone with every retry."""
+    on_bodies = [job.on_body() for job in jobs]
+    items = [BatchItem(garment, motion, collider) for motion, garment, collider in on_bodies]
+    results = simulate_batch(items, SimConfig.from_dict(config), progress=progress)
+    return [_part(job, on_body, result) for job, on_body, result in zip(jobs, on_bodies, results)]
 
 
 def write_part(result: PartResult, parts: Path) -> None:

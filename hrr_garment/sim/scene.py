@@ -22,7 +22,8 @@ def arms_off_capsules(body: BodyModel) -> list[int]:
     return [c for c, capsule in enumerate(body.capsules) if capsule.name.endswith(tuple(f"_{p}" for p in ARMS_OFF_CAPSULES))]
 
 
-def _import_newton():
+def import_newton():
+    """warp and newton, quiet; a clear error when the ``sim`` extra is missing."""
     try:
         import warp as wp
 
@@ -62,41 +63,60 @@ def resolve_device(wp, device: str) -> str:
     return device
 
 
-class ClothScene:
-    """A newton model of one garment and the capsule body, stepped frame by frame."""
+def instance_builder(garment: GarmentMesh, start_vertices: np.ndarray, half_lengths: np.ndarray,
+                     body: BodyModel, config: SimConfig, pieces: list | None = None):
+    """A newton builder of one garment (attached vertices at zero mass) and ``body``'s capsules as
+    kinematic bodies, coloured for VBD, without the ground: a :class:`ClothScene` adds the ground
+    to it, a batch (:mod:`.batch`) adds it as one world of many. ``pieces``: the body's own mesh
+    collides instead of its capsules, (capsule index, vertices in that capsule's frame, faces) per
+    piece riding with the capsule's body (:meth:`hrr_garment.body.mesh_collider.BodyMesh.pieces`).
+    Returns (builder, each capsule's shape indices in it)."""
+    wp, newton = import_newton()
+    builder = newton.ModelBuilder(up_axis=newton.Axis.Y, gravity=(0.0, -config.gravity, 0.0))
+    shape_cfg = newton.ModelBuilder.ShapeConfig(ke=config.contact_ke, kd=config.contact_kd, mu=config.contact_mu,
+                                                has_shape_collision=False)
+    bodies = [builder.add_body(mass=0.0, is_kinematic=True, label=capsule.name) for capsule in body.capsules]
+    shapes: list[list[int]] = [[] for _ in body.capsules]
+    if pieces is None:
+        for c, capsule in enumerate(body.capsules):
+            shapes[c].append(builder.add_shape_capsule(bodies[c], radius=capsule.radius, half_height=float(half_lengths[c]),
+                                                       cfg=shape_cfg))
+    else:
+        for c, vertices, faces in pieces:
+            mesh = newton.Mesh(np.asarray(vertices, np.float32), np.asarray(faces, np.int32).ravel())
+            shapes[c].append(builder.add_shape_mesh(bodies[c], mesh=mesh, cfg=shape_cfg))
+    builder.add_cloth_mesh(
+        pos=wp.vec3(0.0, 0.0, 0.0), rot=wp.quat_identity(), scale=1.0, vel=wp.vec3(0.0, 0.0, 0.0),
+        vertices=[wp.vec3(*v) for v in start_vertices.astype(float)], indices=garment.faces.ravel().tolist(),
+        density=config.density, tri_ke=config.tri_ke, tri_ka=config.tri_ka, tri_kd=config.tri_kd,
+        edge_ke=config.edge_ke, edge_kd=config.edge_kd, particle_radius=config.particle_radius,
+    )
+    for i in garment.attached:
+        builder.particle_mass[int(i)] = 0.0  # zero mass: pinned, positions written each substep
+    builder.color(include_bending=True)
+    return builder, shapes
 
-    def __init__(self, garment: GarmentMesh, start_vertices: np.ndarray, half_lengths: np.ndarray,
-                 body: BodyModel, config: SimConfig, pieces: list | None = None):
-        """``pieces``: the body's own mesh as the collider instead of its capsules, (capsule index,
-        vertices in that capsule's frame, faces) per piece (:meth:`hrr_garment.body.mesh_collider.BodyMesh.pieces`)."""
-        wp, newton = _import_newton()
-        self.wp, self.config = wp, config
-        self.device = resolve_device(wp, config.device)
-        builder = newton.ModelBuilder(up_axis=newton.Axis.Y, gravity=(0.0, -config.gravity, 0.0))
-        shape_cfg = newton.ModelBuilder.ShapeConfig(ke=config.contact_ke, kd=config.contact_kd, mu=config.contact_mu,
-                                                    has_shape_collision=False)
-        bodies = [builder.add_body(mass=0.0, is_kinematic=True, label=capsule.name) for capsule in body.capsules]
-        shapes: dict[int, list[int]] = {}
-        if pieces is None:
-            for c, capsule in enumerate(body.capsules):
-                shapes[c] = [builder.add_shape_capsule(bodies[c], radius=capsule.radius, half_height=float(half_lengths[c]),
-                                                       cfg=shape_cfg)]
-        else:
-            for c, vertices, faces in pieces:
-                mesh = newton.Mesh(np.asarray(vertices, np.float32), np.asarray(faces, np.int32).ravel())
-                shapes.setdefault(c, []).append(builder.add_shape_mesh(bodies[c], mesh=mesh, cfg=shape_cfg))
-        self.arm_shapes = [s for c in arms_off_capsules(body) for s in shapes.get(c, [])]
-        builder.add_ground_plane(cfg=newton.ModelBuilder.ShapeConfig(ke=config.contact_ke, kd=config.contact_kd,
-                                                                    mu=config.contact_mu))
-        builder.add_cloth_mesh(
-            pos=wp.vec3(0.0, 0.0, 0.0), rot=wp.quat_identity(), scale=1.0, vel=wp.vec3(0.0, 0.0, 0.0),
-            vertices=[wp.vec3(*v) for v in start_vertices.astype(float)], indices=garment.faces.ravel().tolist(),
-            density=config.density, tri_ke=config.tri_ke, tri_ka=config.tri_ka, tri_kd=config.tri_kd,
-            edge_ke=config.edge_ke, edge_kd=config.edge_kd, particle_radius=config.particle_radius,
-        )
-        for i in garment.attached:
-            builder.particle_mass[int(i)] = 0.0  # zero mass: pinned, positions written each substep
-        builder.color(include_bending=True)
+
+def add_ground(builder, config: SimConfig) -> None:
+    """The ground plane (a global shape: in a batch every world's cloth meets it)."""
+    _, newton = import_newton()
+    builder.add_ground_plane(cfg=newton.ModelBuilder.ShapeConfig(ke=config.contact_ke, kd=config.contact_kd,
+                                                                mu=config.contact_mu))
+
+
+class SteppedScene:
+    """A finalized newton model of one or more cloth instances, each with its own capsule body,
+    stepped frame by frame from captured graphs. :class:`ClothScene` holds one instance; a batch
+    (:class:`~hrr_garment.sim.batch.BatchScene`) holds many in separate worlds. The positions and
+    poses it takes and returns are the instances' concatenated: ``attached`` indexes the whole
+    model's particles, ``arm_shapes[i]`` are instance ``i``'s arm capsules."""
+
+    def _finish(self, builder, config: SimConfig, arm_shapes: list[list[int]], attached: np.ndarray) -> None:
+        """Finalize ``builder`` into the model, collision pipeline, solver and two states."""
+        from .kernels import scatter_positions  # warp at import: only with the sim extra
+
+        newton = self.newton
+        self.scatter_positions = scatter_positions
         self.model = builder.finalize(device=self.device)
         self.model.soft_contact_ke = config.contact_ke
         self.model.soft_contact_kd = config.contact_kd
@@ -107,22 +127,39 @@ class ClothScene:
                                                integrate_with_external_rigid_solver=True)
         self.states = (self.model.state(), self.model.state())
         self.control = self.model.control()
-        self.attached = garment.attached
+        self.attached = attached
+        self.pin_index = self.wp.array(np.asarray(attached, np.int32), dtype=self.wp.int32, device=self.device)
+        self.pin_values = self.wp.empty(len(attached), dtype=self.wp.vec3, device=self.device)
         self.parity = 0  # states[parity] holds the current positions
         self.graphs: list = [None, None]
-        self.arm_contact = True
+        self.arm_shapes = arm_shapes
+        self.arm_contacts = [True] * len(arm_shapes)
         self.collide_particles = int(newton.ShapeFlags.COLLIDE_PARTICLES)
 
-    def set_arm_contact(self, on: bool) -> None:
-        """Let the arm capsules touch the cloth or not. The contact kernels read the shape flags on
-        every launch (captured graphs included) and VBD's candidate tables stay valid."""
-        if on == self.arm_contact:
+    @property
+    def arm_contact(self) -> bool:
+        """Whether the (first) instance's arms touch the cloth."""
+        return self.arm_contacts[0]
+
+    def set_arm_contact(self, on: bool, instance: int = 0) -> None:
+        """Let an instance's arm capsules touch the cloth or not (see :meth:`set_arm_contacts`)."""
+        wanted = list(self.arm_contacts)
+        wanted[instance] = on
+        self.set_arm_contacts(wanted)
+
+    def set_arm_contacts(self, wanted: list[bool]) -> None:
+        """Let each instance's arm capsules touch the cloth or not, in one write of the shape flags.
+        The contact kernels read the shape flags on every launch (captured graphs included) and
+        VBD's candidate tables stay valid."""
+        changed = [i for i, on in enumerate(wanted) if on != self.arm_contacts[i]]
+        if not changed:
             return
         flags = self.model.shape_flags.numpy()
-        flags[self.arm_shapes] = flags[self.arm_shapes] | self.collide_particles if on else \
-            flags[self.arm_shapes] & ~self.collide_particles
+        for i in changed:
+            arms = self.arm_shapes[i]
+            flags[arms] = flags[arms] | self.collide_particles if wanted[i] else flags[arms] & ~self.collide_particles
+            self.arm_contacts[i] = wanted[i]
         self.model.shape_flags.assign(flags)
-        self.arm_contact = on
 
     def _substep(self, parity: int, dt: float) -> None:
         state_in, state_out = self.states[parity], self.states[1 - parity]
@@ -149,7 +186,9 @@ class ClothScene:
 
     def step_frame(self, body_from: np.ndarray, body_to: np.ndarray, pin_from: np.ndarray, pin_to: np.ndarray,
                    dt: float, substeps: int) -> np.ndarray:
-        """Advance one frame; body_* (C, 7) [p, q(xyzw)], pin_* (A, 3). Returns positions (V, 3)."""
+        """Advance one frame; body_* (C, 7) [p, q(xyzw)] of every instance's capsules, pin_* (A, 3)
+        the positions of ``attached``, written on the device each substep. Returns every particle's
+        positions (V, 3)."""
         for k in range(substeps):
             t0, t1 = k / substeps, (k + 1) / substeps
             state_in, state_out = self.states[self.parity], self.states[1 - self.parity]
@@ -158,9 +197,10 @@ class ClothScene:
                 pose = np.concatenate([(1 - t) * body_from[:, :3] + t * body_to[:, :3],
                                        _nlerp(body_from[:, 3:], body_to[:, 3:], t)], 1)
                 state.body_q.assign(pose.astype(np.float32))
-            q = state_in.particle_q.numpy()
-            q[self.attached] = (1 - t1) * pin_from + t1 * pin_to
-            state_in.particle_q.assign(q)
+            if len(self.attached):
+                self.pin_values.assign(((1 - t1) * pin_from + t1 * pin_to).astype(np.float32))
+                self.wp.launch(self.scatter_positions, dim=len(self.attached), inputs=[self.pin_values, self.pin_index],
+                               outputs=[state_in.particle_q], device=self.device)
             self._run_substep(dt / substeps)
         return self.states[self.parity].particle_q.numpy().copy()
 
@@ -169,3 +209,16 @@ class ClothScene:
 
     def speeds(self) -> np.ndarray:
         return np.linalg.norm(self.states[self.parity].particle_qd.numpy(), axis=1)
+
+
+class ClothScene(SteppedScene):
+    """A newton model of one garment and the capsule body, stepped frame by frame."""
+
+    def __init__(self, garment: GarmentMesh, start_vertices: np.ndarray, half_lengths: np.ndarray,
+                 body: BodyModel, config: SimConfig, pieces: list | None = None):
+        wp, newton = import_newton()
+        self.wp, self.newton, self.config = wp, newton, config
+        self.device = resolve_device(wp, config.device)
+        builder, shapes = instance_builder(garment, start_vertices, half_lengths, body, config, pieces=pieces)
+        add_ground(builder, config)
+        self._finish(builder, config, [[s for c in arms_off_capsules(body) for s in shapes[c]]], garment.attached)

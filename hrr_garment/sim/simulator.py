@@ -62,61 +62,96 @@ class SimResult:
     arms_off_frames: int = 0  # clip frames on which the arms did not touch the cloth (the last retries)
 
 
-def _attempt(garment: GarmentMesh, motion: Motion, body: BodyModel, config: SimConfig,
-             progress: Callable[[int], None] | None, arms_off: np.ndarray | None = None,
-             back_inside: float = 0.0, pieces: list | None = None) -> tuple[np.ndarray, int, float, int]:
-    """One simulation; ``arms_off``: (T,) clip frames on which the arms do not touch the cloth (the
-    lead-in follows the clip's first frame). The arms come back only once at most ``back_inside``
-    of the cloth is inside them: switched on around cloth that an arm passed
-    through, the contact throws it out at once (CMU 131_03 tore the full dress nine frames after an
-    episode ended)."""
-    extended, lead = with_lead_in(motion, config.settle_s, config.blend_s, body.pelvis_height)
-    if arms_off is None:
-        arms_off = np.zeros(motion.num_frames, bool)
-    arms_off = np.concatenate([np.full(lead, arms_off[0]), arms_off])
-    rot_y, shift = start_transform(motion)
-    start = garment.vertices.astype(np.float64) @ rot_y.T + shift
-    centre, quat, half = capsule_transforms(extended, body)
-    poses = np.concatenate([centre, quat], -1)
-    binding = bind_attached(garment, body)
-    pins = binding.pose(extended.global_rotations.astype(np.float64), extended.joint_positions)
-    scene = ClothScene(garment, start, half, body=body, config=config, pieces=pieces)
-    arms = arms_off_capsules(body)
-    arm_a, arm_b = (ends[:, arms] for ends in body.pose_motion(extended))
-    edges = garment.edges()
-    rest_len = np.linalg.norm(garment.vertices[edges[:, 0]] - garment.vertices[edges[:, 1]], axis=1)
-    dt = 1.0 / motion.fps
-    recorded = np.empty((motion.num_frames, garment.num_vertices, 3), np.float32)
-    stepping = 0.0
-    for f in range(extended.num_frames):
-        prev = max(f - 1, 0)
-        t0 = time.perf_counter()
-        if arms_off[f] or not scene.arm_contact and \
-                _inside_fraction(scene.current(), arm_a[f], arm_b[f], body.radii[arms]) > back_inside:
-            arms_off[f] = True  # kept off until the cloth is clear of them
-        scene.set_arm_contact(not arms_off[f])
-        verts = scene.step_frame(poses[prev], poses[f], pins[prev], pins[f], dt, config.substeps)
-        stepping += time.perf_counter() - t0
-        clip_frame = f - lead
-        problem = None
+class ClipRun:
+    """One sequence's frame-by-frame inputs to a scene and the checks on what comes back: the
+    lead-in and clip as capsule poses and pinned positions, the arms-off schedule, the explosion
+    checks and the recorded frames. One attempt (:func:`_attempt`) drives one of these through a
+    :class:`~.scene.ClothScene`; a batch (:mod:`.batch`) drives many through one model, so both
+    apply exactly the same rules.
+
+    ``arms_off``: (T,) clip frames on which the arms do not touch the cloth (the lead-in follows the
+    clip's first frame). The arms come back only once at most ``back_inside`` of the cloth is inside
+    them: switched on around cloth that an arm passed through, the contact throws it out at once
+    (CMU 131_03 tore the full dress nine frames after an episode ended)."""
+
+    def __init__(self, garment: GarmentMesh, motion: Motion, body: BodyModel, config: SimConfig,
+                 arms_off: np.ndarray | None = None, back_inside: float = 0.0):
+        self.garment, self.motion, self.body, self.config, self.back_inside = garment, motion, body, config, back_inside
+        extended, self.lead = with_lead_in(motion, config.settle_s, config.blend_s, pelvis_height=body.pelvis_height)
+        self.num_frames = extended.num_frames  # simulated frames, lead-in included
+        if arms_off is None:
+            arms_off = np.zeros(motion.num_frames, bool)
+        self.arms_off = np.concatenate([np.full(self.lead, arms_off[0]), arms_off])
+        rot_y, shift = start_transform(motion)
+        self.start = garment.vertices.astype(np.float64) @ rot_y.T + shift
+        centre, quat, self.half_lengths = capsule_transforms(extended, body)
+        self.poses = np.concatenate([centre, quat], -1)
+        binding = bind_attached(garment, body)
+        self.pins = binding.pose(extended.global_rotations.astype(np.float64), extended.joint_positions)
+        self.arms = arms_off_capsules(body)
+        self.arm_a, self.arm_b = (ends[:, self.arms] for ends in body.pose_motion(extended))
+        self.edges = garment.edges()
+        self.rest_len = np.linalg.norm(garment.vertices[self.edges[:, 0]] - garment.vertices[self.edges[:, 1]], axis=1)
+        self.dt = 1.0 / motion.fps
+        self.recorded = np.empty((motion.num_frames, garment.num_vertices, 3), np.float32)
+
+    def arms_touch(self, frame: int, current: Callable[[], np.ndarray], arm_contact: bool) -> bool:
+        """Whether the arms touch the cloth on ``frame``: not on a scheduled frame, nor while they are
+        off and more than ``back_inside`` of the cloth (``current()``, read only then) is inside them."""
+        if self.arms_off[frame] or not arm_contact and \
+                _inside_fraction(current(), self.arm_a[frame], self.arm_b[frame], self.body.radii[self.arms]) > self.back_inside:
+            self.arms_off[frame] = True  # kept off until the cloth is clear of them
+        return not self.arms_off[frame]
+
+    def check(self, frame: int, verts: np.ndarray, speeds: np.ndarray) -> None:
+        """Raise :class:`SimulationExploded` when ``frame``'s positions are not finite, a point moves
+        faster than ``max_speed`` or an edge is stretched beyond ``max_strain``."""
+        config, problem = self.config, None
         if not np.isfinite(verts).all():
             problem = "non-finite positions"
         else:
-            speed = scene.speeds().max()
-            strain = (np.linalg.norm(verts[edges[:, 0]] - verts[edges[:, 1]], axis=1) / rest_len).max()
+            speed = speeds.max()
+            strain = (np.linalg.norm(verts[self.edges[:, 0]] - verts[self.edges[:, 1]], axis=1) / self.rest_len).max()
             if speed > config.max_speed:
                 problem = f"speed {speed:.1f} m/s > {config.max_speed}"
             elif strain > config.max_strain:
                 problem = f"edge strain {strain:.2f} > {config.max_strain}"
         if problem:
-            where = f"clip frame {clip_frame}" if clip_frame >= 0 else f"lead-in frame {f}"
-            raise SimulationExploded(f"{garment.name} on {motion.source}: {problem} at {where} "
-                                     f"({config.substeps} substeps{_arms_note(arms_off[lead:])})")
-        if clip_frame >= 0:
-            recorded[clip_frame] = verts
+            clip_frame = frame - self.lead
+            where = f"clip frame {clip_frame}" if clip_frame >= 0 else f"lead-in frame {frame}"
+            raise SimulationExploded(f"{self.garment.name} on {self.motion.source}: {problem} at {where} "
+                                     f"({config.substeps} substeps{_arms_note(self.arms_off[self.lead:])})")
+
+    def keep(self, frame: int, verts: np.ndarray) -> None:
+        """Record ``frame``'s positions when it is one of the clip's (not the lead-in's)."""
+        if frame >= self.lead:
+            self.recorded[frame - self.lead] = verts
+
+    @property
+    def arms_off_frames(self) -> int:
+        """Clip frames on which the arms did not touch the cloth."""
+        return int(self.arms_off[self.lead:].sum())
+
+
+def _attempt(garment: GarmentMesh, motion: Motion, body: BodyModel, config: SimConfig,
+             progress: Callable[[int], None] | None, arms_off: np.ndarray | None = None,
+             back_inside: float = 0.0, pieces: list | None = None) -> tuple[np.ndarray, int, float, int]:
+    """One simulation (see :class:`ClipRun` for ``arms_off`` and ``back_inside``); returns (the
+    clip's frames, simulated frames, seconds stepping, clip frames with the arms off)."""
+    run = ClipRun(garment, motion, body, config, arms_off, back_inside)
+    scene = ClothScene(garment, run.start, run.half_lengths, body=body, config=config, pieces=pieces)
+    stepping = 0.0
+    for f in range(run.num_frames):
+        prev = max(f - 1, 0)
+        t0 = time.perf_counter()
+        scene.set_arm_contact(run.arms_touch(f, scene.current, scene.arm_contact))
+        verts = scene.step_frame(run.poses[prev], run.poses[f], run.pins[prev], run.pins[f], run.dt, config.substeps)
+        stepping += time.perf_counter() - t0
+        run.check(f, verts, scene.speeds())
+        run.keep(f, verts)
         if progress is not None:
             progress(1)
-    return recorded, extended.num_frames, stepping, int(arms_off[lead:].sum())
+    return run.recorded, run.num_frames, stepping, run.arms_off_frames
 
 
 def _inside_fraction(vertices: np.ndarray, a: np.ndarray, b: np.ndarray, radii: np.ndarray) -> float:
@@ -130,7 +165,9 @@ def _arms_note(arms_off: np.ndarray) -> str:
     return f", arms off the cloth on {int(arms_off.sum())} frames" if arms_off.any() else ""
 
 
-def _on_body(motion: Motion, body: BodyModel) -> Motion:
+def played_on_body(motion: Motion, body: BodyModel) -> Motion:
+    """``motion`` on ``body``'s skeleton: as it is when it already stands on it, played by the body
+    when it is a canonical clip; a clip on some other skeleton is refused."""
     if np.allclose(motion.skeleton.offsets, body.skeleton.offsets, atol=1e-6):
         return motion
     if motion.skeleton is CANONICAL:
@@ -154,7 +191,7 @@ def simulate_garment(garment: GarmentMesh, motion: Motion, config: SimConfig = S
 
     Raises :class:`SimulationExploded` (with every attempt's reason) when all attempts fail.
     """
-    motion = _on_body(motion, body)
+    motion = played_on_body(motion, body)
     # (substeps, clip frames with the arms off the cloth, fraction of the cloth inside the arms they come back at)
     attempts: list[tuple[int, np.ndarray | None, float]] = [(config.substeps * 2 ** k, None, 0.0)
                                                           for k in range(config.retries + 1)]

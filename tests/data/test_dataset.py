@@ -164,6 +164,28 @@ def test_a_ray_build_equals_the_local_build_bit_for_bit(built, tmp_path):
 
 
 @pytest.mark.sim
+def test_a_batched_build_equals_the_unbatched_one_and_each_resumes_the_other(built, tmp_path):
+    """--batch 3: the three sequences simulated together in one worker (one model, three worlds)
+    give the unbatched build's frames (bit-identical on the CPU) in parts of the same keys, so an
+    unbatched run resumes a batched build."""
+    out = tmp_path / "batched.h5"
+    cmd = [sys.executable, "-m", "hrr_garment.cli.simulate", *SIM_ARGS, "--batch", "3", "-o", str(out)]
+    run = subprocess.run(cmd, capture_output=True, text=True, timeout=600)
+    assert run.returncode == 0, run.stderr
+    assert "(0 reused, 3 simulated now, 0 rejected)" in run.stdout
+    single, batched = GarmentDataset(built[0]), GarmentDataset(out)
+    assert batched.names == single.names and batched.splits == single.splits
+    for name in single.names:
+        assert np.abs(batched.sequence(name).garment - single.sequence(name).garment).max() <= 1e-4
+    out.with_suffix(".parts").joinpath("walk_001.npz").unlink()
+    out.unlink()
+    unbatched = [a for a in cmd if a not in ("--batch", "3")]
+    again = subprocess.run(unbatched, capture_output=True, text=True, timeout=600)
+    assert again.returncode == 0, again.stderr
+    assert "(2 reused, 1 simulated now, 0 rejected)" in again.stdout
+
+
+@pytest.mark.sim
 def test_import_round_trip_of_a_simulated_sequence(built, tmp_path):
     out, _, _ = built
     ds = GarmentDataset(out)
