@@ -203,7 +203,9 @@ def choose_bodies(specs: list[SequenceSpec], garment: GarmentMesh, *, preset_bod
     and is carried onto each. A garment made for another body and no body chosen stands on its own."""
     from ..body.body_file import read_body
 
-    source = made_for.body if made_for is not None else mannequin_record().body
+    # the garment stays where it was modelled on its own body: that body is made symmetric as every
+    # simulated body is (dress), so the transfer onto it moves nothing but what the push must
+    source = symmetrized(made_for.body) if made_for is not None else mannequin_record().body
     if body_file is not None:
         dressed, report = dress(MANNEQUIN, read_body(body_file), garment, source)
         specs, bodies = one_body(specs, Path(body_file).stem, dressed)
