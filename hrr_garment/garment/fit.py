@@ -34,6 +34,7 @@ GARMENT_SIZE_M = (0.2, 2.2)  # largest extent of any plausible garment
 TOP_BAND_M = 0.03
 CONTACT_M = 0.02
 CLEARANCE_M = 0.012  # the built-in garments' distance from the body (templates.TubeShape.gap)
+INSIDE_WARNING = 0.01  # a fitted garment with more of its vertices inside the body is pointed to --made-for
 
 
 @dataclass(frozen=True)
@@ -46,14 +47,20 @@ class Fit:
     up: str  # the file's axis that became +Y, e.g. "+z"
     offset: np.ndarray  # (3,) metres
     top_gap_m: float  # mean difference of the top band's distance from the torso and the 12 mm clearance
+    inside: float = 0.0  # fraction of the garment's vertices more than 5 mm inside the body where it lands
 
     def apply(self, vertices: np.ndarray) -> np.ndarray:
         return (np.asarray(vertices, np.float64) @ self.rotation.T) * self.scale + self.offset
 
     def describe(self) -> str:
         moved = ", ".join(f"{v:+.3f}" for v in self.offset)
-        return (f"unit {self.unit} (x{self.scale:g}), up axis {self.up} -> +y, moved by ({moved}) m; its top band sits on "
-                f"average {1000 * self.top_gap_m:.0f} mm off a 12 mm clearance from the torso")
+        note = (f"unit {self.unit} (x{self.scale:g}), up axis {self.up} -> +y, moved by ({moved}) m; its top band sits on "
+                f"average {1000 * self.top_gap_m:.0f} mm off a 12 mm clearance from the torso; "
+                f"{100 * self.inside:.1f} % of its vertices land more than 5 mm inside the body")
+        if self.inside > INSIDE_WARNING:
+            note += (" (a garment modelled on another body: declare that body with --made-for instead of --fit, "
+                     "so the garment is carried onto the body rather than moved)")
+        return note
 
 
 def _torso(body: BodyModel) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -140,10 +147,10 @@ def fit_garment(vertices: np.ndarray, faces: np.ndarray, body: BodyModel = DEFAU
         inside = (capsule_signed_distance(sample + [0.0, dy, 0.0], whole_a, whole_b, radii=body.radii)[0] < -0.005).mean()
         score = gap + 0.5 * inside  # cloth inside the body costs as much as a 5 mm gap per 1 % of it
         if best is None or score < best[0]:
-            best = (score, dy, gap)
-    _, dy, gap = best
+            best = (score, dy, gap, inside)
+    _, dy, gap, inside = best
     offset = np.array([shift_xz[0], dy, shift_xz[1]])
-    return Fit(scale, unit, rotation, ("+" if sign > 0 else "-") + "xyz"[axis], offset, float(gap))
+    return Fit(scale, unit, rotation, ("+" if sign > 0 else "-") + "xyz"[axis], offset, float(gap), inside=float(inside))
 
 
 def auto_attached(vertices: np.ndarray, body: BodyModel = DEFAULT_BODY, band: float = TOP_BAND_M,

@@ -106,3 +106,15 @@ def test_an_artist_dress_goes_through_simulate_train_and_animate(artist_model, t
     stream = animator.stream()
     streamed = np.stack([stream.push(dance.slice(t, t + 1)) for t in range(5)])
     np.testing.assert_allclose(streamed, animator.animate(dance.slice(0, 5), causal=True).vertices, atol=1e-5)
+
+
+def test_fit_says_how_much_of_a_garment_for_another_body_lands_inside_and_points_to_made_for():
+    from tests.garment.test_templates_on_bodies import _larger_body
+
+    own = fit_garment(make_garment("dress", 400).vertices, make_garment("dress", 400).faces)
+    assert own.inside == 0.0 and "--made-for" not in own.describe()
+    slim = make_garment("dress", 400, body=_larger_body(0.95, 0.7))  # modelled on a slimmer body
+    fit = fit_garment(slim.vertices, slim.faces)
+    assert fit.inside > 0.01
+    assert f"{100 * fit.inside:.1f} % of its vertices land more than 5 mm inside" in fit.describe()
+    assert "--made-for" in fit.describe()
