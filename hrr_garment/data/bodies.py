@@ -9,11 +9,12 @@ sequence's strain, its penetration and a model's predictions are measured agains
 from __future__ import annotations
 
 import hashlib
+import json
 from dataclasses import dataclass
 
 import numpy as np
 
-from ..body.body_file import BodyRecord, body_to_dict
+from ..body.body_file import BodyRecord, body_from_dict, body_to_dict
 from ..body.capsules import DEFAULT_BODY, BodyModel
 from ..garment.mesh import GarmentMesh
 from ..io_utils import strict_json
@@ -54,23 +55,52 @@ class DressedBody:
         return h.hexdigest()[:16]
 
 
+@dataclass(frozen=True)
+class _Halves:
+    """A body beside its mirror image (x -> -x): the skeleton's offsets and each capsule's ends and
+    radius, next to those of its left-right partner reflected (a capsule across the midline is its
+    own partner, its ends swapped where that matches)."""
+
+    offsets: np.ndarray  # (22, 3)
+    mirrored_offsets: np.ndarray
+    ends: np.ndarray  # (C, 2, 3)
+    mirrored_ends: np.ndarray
+    radii: np.ndarray  # (C,)
+    mirrored_radii: np.ndarray
+
+    def gap(self) -> float:
+        """The largest left-right difference, metres."""
+        return float(max(np.abs(self.mirrored_offsets - self.offsets).max(), np.abs(self.mirrored_ends - self.ends).max(),
+                         np.abs(self.mirrored_radii - self.radii).max()))
+
+
+def _halves(body: BodyModel) -> _Halves | None:
+    """``body`` beside its mirror image, or None where a capsule has no left-right partner."""
+    flip = np.array([-1.0, 1.0, 1.0])
+    by_name = {c.name: c for c in body.capsules}
+    if any(_mirror_name(c.name) not in by_name for c in body.capsules):
+        return None
+    ends, mirrored = [], []
+    for c in body.capsules:
+        other = by_name[_mirror_name(c.name)]
+        mine, theirs = np.array([c.a, c.b]), np.array([other.a, other.b]) * flip
+        if other is c:  # a capsule across the midline mirrors onto itself with its ends swapped
+            theirs = theirs[::-1] if np.abs(theirs[::-1] - mine).max() < np.abs(theirs - mine).max() else theirs
+        ends.append(mine)
+        mirrored.append(theirs)
+    offsets = np.asarray(body.skeleton.offsets, np.float64)
+    radii = body.radii.astype(np.float64)
+    index = {c.name: i for i, c in enumerate(body.capsules)}
+    partner = [index[_mirror_name(c.name)] for c in body.capsules]
+    return _Halves(offsets, offsets[list(MIRROR_JOINTS)] * flip, np.array(ends), np.array(mirrored), radii, radii[partner])
+
+
 def is_symmetric(body: BodyModel, tolerance: float = 1e-3) -> bool:
     """Whether ``body`` is its own mirror image (x -> -x) within ``tolerance`` metres: left and right
     bones of one length, capsules in mirrored places with equal radii. A sequence on it can be
     mirrored exactly; on an asymmetric body the mirror would stand on another body."""
-    flip = np.array([-1.0, 1.0, 1.0])
-    offsets = np.asarray(body.skeleton.offsets, np.float64)
-    if np.abs(offsets[list(MIRROR_JOINTS)] * flip - offsets).max() > tolerance:
-        return False
-    by_name = {c.name: c for c in body.capsules}
-    for c in body.capsules:
-        other = by_name.get(_mirror_name(c.name))
-        if other is None or abs(other.radius - c.radius) > tolerance:
-            return False
-        ends = np.array([c.a, c.b]) * flip
-        if min(np.abs(ends - np.array([other.a, other.b])).max(), np.abs(ends[::-1] - np.array([other.a, other.b])).max()) > tolerance:
-            return False
-    return True
+    halves = _halves(body)
+    return halves is not None and halves.gap() <= tolerance
 
 
 # a body whose left and right differ by less is made exactly symmetric: anny's bodies are, but their
@@ -86,25 +116,15 @@ def symmetrized(body: BodyModel, tolerance: float = NEARLY_SYMMETRIC_M) -> BodyM
 
     from ..motion.skeleton import Skeleton
 
-    flip = np.array([-1.0, 1.0, 1.0])
-    offsets = np.asarray(body.skeleton.offsets, np.float64)
-    mirrored_offsets = offsets[list(MIRROR_JOINTS)] * flip
-    by_name = {c.name: c for c in body.capsules}
-    if np.abs(mirrored_offsets - offsets).max() > tolerance or any(_mirror_name(c.name) not in by_name for c in body.capsules):
+    halves = _halves(body)
+    if halves is None or halves.gap() > tolerance:
         return body
-    capsules = []
-    for c in body.capsules:
-        other = by_name[_mirror_name(c.name)]
-        mine, theirs = np.array([c.a, c.b]), np.array([other.a, other.b]) * flip
-        if other is c:  # a capsule across the midline mirrors onto itself with its ends swapped
-            theirs = theirs[::-1] if np.abs(theirs[::-1] - mine).max() < np.abs(theirs - mine).max() else theirs
-        if np.abs(theirs - mine).max() > tolerance or abs(other.radius - c.radius) > tolerance:
-            return body
-        ends = 0.5 * (mine + theirs)
-        capsules.append(replace(c, a=tuple(float(v) for v in ends[0]), b=tuple(float(v) for v in ends[1]),
-                                radius=0.5 * (c.radius + other.radius)))
-    skeleton = Skeleton(offsets=(0.5 * (offsets + mirrored_offsets)).astype(np.float32))
-    return replace(body, capsules=tuple(capsules), skeleton=skeleton)
+    ends = 0.5 * (halves.ends + halves.mirrored_ends)
+    radii = 0.5 * (halves.radii + halves.mirrored_radii)
+    capsules = tuple(replace(c, a=tuple(float(v) for v in e[0]), b=tuple(float(v) for v in e[1]), radius=float(r))
+                     for c, e, r in zip(body.capsules, ends, radii))
+    skeleton = Skeleton(offsets=(0.5 * (halves.offsets + halves.mirrored_offsets)).astype(np.float32))
+    return replace(body, capsules=capsules, skeleton=skeleton)
 
 
 def _mirror_name(name: str) -> str:
@@ -113,3 +133,43 @@ def _mirror_name(name: str) -> str:
     if name.startswith("r_"):
         return "l_" + name[2:]
     return name
+
+
+def write_bodies(f, template: GarmentMesh, used: set[str], bodies: dict[str, DressedBody]) -> None:
+    """Write the bodies named in ``used`` under ``/bodies`` of the open HDF5 file ``f``: each one's
+    body.json content and the garment's rest shape on it (the template's topology)."""
+    missing = sorted(used - set(bodies))
+    if missing:
+        raise ValueError(f"sequences name bodies that were not given: {missing}")
+    if not used:
+        return
+    group = f.create_group("bodies")
+    for name in sorted(used):
+        rest = bodies[name].garment.vertices
+        if rest.shape != template.vertices.shape or not np.array_equal(bodies[name].garment.faces, template.faces):
+            raise ValueError(f"the garment on body {name!r} does not have the template's topology")
+        b = group.create_group(name)
+        b.create_dataset("rest", data=rest.astype(np.float32))
+        b.attrs["body"] = json.dumps(body_to_dict(bodies[name].record))
+
+
+def read_bodies(f, template: GarmentMesh, source: str) -> dict[str, DressedBody]:
+    """The mannequin (with ``template``) and every body under ``/bodies`` of the open HDF5 file
+    ``f`` (with the garment on it); a damaged entry raises ValueError (``source`` names the file
+    for body.json's own checks)."""
+    bodies = {MANNEQUIN: DressedBody(MANNEQUIN, mannequin_record(), template)}
+    for name, b in f.get("bodies", {}).items():
+        try:
+            data = json.loads(b.attrs.get("body", "{}"))
+        except (TypeError, ValueError) as exc:
+            raise ValueError(f"body {name!r}: attribute 'body' is not valid JSON ({exc})") from None
+        if not isinstance(data, dict):
+            raise ValueError(f"body {name!r}: attribute 'body' should hold a dict, not a {type(data).__name__}")
+        record = body_from_dict(data, f"{source} (body {name!r})")
+        rest = b["rest"][()]
+        if rest.shape != template.vertices.shape or not np.isfinite(rest).all():
+            raise ValueError(f"body {name!r}: the garment's rest shape {rest.shape} is not finite "
+                             f"or not the template's {template.vertices.shape}")
+        bodies[name] = DressedBody(name, record, GarmentMesh(template.name, rest, template.faces, groups=template.groups,
+                                                             attached_groups=template.attached_groups))
+    return bodies

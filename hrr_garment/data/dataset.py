@@ -34,11 +34,10 @@ import h5py
 import numpy as np
 
 from .._version import __version__
-from ..body.body_file import body_from_dict, body_to_dict
 from ..errors import InputError, MotionError
 from ..garment.mesh import GarmentError, GarmentMesh, check_garment
 from ..motion.motion import FPS, Motion
-from .bodies import MANNEQUIN, DressedBody, mannequin_record
+from .bodies import MANNEQUIN, DressedBody, read_bodies, write_bodies
 
 FORMAT_VERSION = 2
 READABLE_VERSIONS = (1, 2)
@@ -164,28 +163,12 @@ def write_dataset(path: str | Path, template: GarmentMesh, sequences: list[Seque
             s.attrs["info"] = json.dumps(rec.info)
             if rec.body != MANNEQUIN:
                 s.attrs["body"] = rec.body
-        _write_bodies(f, template, {rec.body for rec in sequences} - {MANNEQUIN}, bodies or {})
+        write_bodies(f, template, used={rec.body for rec in sequences} - {MANNEQUIN}, bodies=bodies or {})
         sp = f.create_group("splits")
         str_type = h5py.string_dtype("utf-8")
         for split in SPLITS:
             sp.create_dataset(split, data=np.array(splits.get(split, []), dtype=object), dtype=str_type)
     return path
-
-
-def _write_bodies(f: h5py.File, template: GarmentMesh, used: set[str], bodies: dict[str, DressedBody]) -> None:
-    missing = sorted(used - set(bodies))
-    if missing:
-        raise ValueError(f"sequences name bodies that were not given: {missing}")
-    if not used:
-        return
-    group = f.create_group("bodies")
-    for name in sorted(used):
-        rest = bodies[name].garment.vertices
-        if rest.shape != template.vertices.shape or not np.array_equal(bodies[name].garment.faces, template.faces):
-            raise ValueError(f"the garment on body {name!r} does not have the template's topology")
-        b = group.create_group(name)
-        b.create_dataset("rest", data=rest.astype(np.float32))
-        b.attrs["body"] = json.dumps(body_to_dict(bodies[name].record))
 
 
 SEQUENCE_ARRAYS = ("garment", "local_rotations", "root_translation")  # what every sequence must hold
@@ -254,24 +237,13 @@ class GarmentDataset:
                                               f"for a template of {self.template.num_vertices} vertices")
         self.frames = {n: int(f["sequences"][n]["garment"].shape[0]) for n in self.names}
         self.body_of = {n: str(f["sequences"][n].attrs.get("body", MANNEQUIN)) for n in self.names}
-        self.bodies = self._read_bodies(f)
+        try:
+            self.bodies = read_bodies(f, self.template, str(self.path))
+        except ValueError as exc:
+            raise DatasetError(self.path, str(exc)) from None
         unknown = sorted({b for b in self.body_of.values()} - set(self.bodies))
         if unknown:
             raise DatasetError(self.path, f"sequences name bodies that are not in /bodies: {unknown[:5]}")
-
-    def _read_bodies(self, f: h5py.File) -> dict[str, DressedBody]:
-        """The mannequin (with the template) and every body under /bodies (with the garment on it)."""
-        bodies = {MANNEQUIN: DressedBody(MANNEQUIN, mannequin_record(), self.template)}
-        for name, b in f.get("bodies", {}).items():
-            record = body_from_dict(_json_attr(self.path, b.attrs, "body", {}, f"body {name!r}: "), f"{self.path} (body {name!r})")
-            rest = b["rest"][()]
-            if rest.shape != self.template.vertices.shape or not np.isfinite(rest).all():
-                raise DatasetError(self.path, f"body {name!r}: the garment's rest shape {rest.shape} is not finite "
-                                              f"or not the template's {self.template.vertices.shape}")
-            bodies[name] = DressedBody(name, record, GarmentMesh(self.garment, rest, self.template.faces,
-                                                                 groups=self.template.groups,
-                                                                 attached_groups=self.template.attached_groups))
-        return bodies
 
     def rest(self, name: str) -> np.ndarray:
         """(V, 3) the rest shape of the garment of sequence ``name`` (on its own body)."""
