@@ -22,6 +22,8 @@ import sys
 from pathlib import Path
 from typing import Sequence
 
+from ..body.body_file import BodyRecord, read_body
+from ..body.capsules import DEFAULT_BODY
 from ..errors import InputError
 from ..garment.mesh import GarmentMesh
 from ..garment.obj import Placement, load_garment_obj
@@ -54,7 +56,7 @@ def add_garment_options(p: argparse.ArgumentParser) -> None:
 DENSE_FACTOR = 3  # a template with more than this many times the preset's vertices is refused
 
 
-def resolve_garment(args: argparse.Namespace, default_vertices: int, made_for=None) -> GarmentMesh:
+def resolve_garment(args: argparse.Namespace, default_vertices: int, made_for: BodyRecord | None = None) -> GarmentMesh:
     """The garment the options name: a template, or the user's OBJ (fitted, its attached vertices
     found, and refused when far denser than the preset's resolution unless --dense-ok)."""
     if args.template is not None:
@@ -62,7 +64,7 @@ def resolve_garment(args: argparse.Namespace, default_vertices: int, made_for=No
         mesh = load_garment_obj(args.template, args.garment, attached_group=args.attached,
                                 attached_file=args.attached_file,
                                 placement=Placement(fit=args.fit, up=args.up, unit=args.unit,
-                                                    **({"body": made_for.body} if made_for is not None else {})),
+                                                    body=made_for.body if made_for is not None else DEFAULT_BODY),
                                 notes=notes)
         for note in notes:
             print(note)
@@ -112,7 +114,6 @@ def _parser() -> argparse.ArgumentParser:
 
 def _main(argv: Sequence[str] | None) -> int:
     args = _parser().parse_args(argv)
-    from ..body.body_file import read_body
     from ..export.preview import write_dataset_preview
     from ..sim.bodies import choose_bodies
     from ..sim.build import BuildOptions, build_dataset

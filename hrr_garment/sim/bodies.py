@@ -16,7 +16,6 @@ performer`` they stay on the mannequin.
 
 from __future__ import annotations
 
-import re
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
@@ -28,7 +27,7 @@ from ..data.bodies import MANNEQUIN, DressedBody, is_symmetric, mannequin_record
 from ..errors import InputError
 from ..garment.mesh import GarmentMesh, mirror_map
 from ..garment.transfer import TransferReport, transfer_garment
-from .plan import SequenceSpec
+from .plan import SequenceSpec, safe_name
 
 SOURCES = ("performer", "sample")
 DEFAULT_STATURES_M = (1.50, 1.95)
@@ -75,13 +74,9 @@ def dress(name: str, record: BodyRecord, garment: GarmentMesh, made_for: BodyMod
     return DressedBody(name, record, on_body), report
 
 
-def _safe(text: str) -> str:
-    return re.sub(r"[^A-Za-z0-9_.-]+", "_", text).strip("_") or "body"
-
-
 def one_body(specs: list[SequenceSpec], name: str, body: DressedBody) -> tuple[list[SequenceSpec], dict[str, DressedBody]]:
     """Every sequence on ``body`` (``hrr-simulate --body``)."""
-    name = _safe(name)
+    name = safe_name(name, empty="body")
     return [replace(s, body=name) for s in specs], {name: replace(body, name=name)}
 
 
@@ -107,6 +102,7 @@ def _performer_bodies(specs, garment, made_for, progress):
 
     bodies: dict[str, DressedBody] = {}
     by_path: dict[str, str] = {}
+    by_body: dict[BodyModel, str] = {}  # performer_body gives rigs of the same limbs one body: dressed once
     out = []
     for spec in tqdm(specs, desc="performers' bodies", unit="clip", disable=not progress):
         if spec.kind != "file":
@@ -114,12 +110,14 @@ def _performer_bodies(specs, garment, made_for, progress):
             continue
         if spec.path not in by_path:
             found = performer_body(spec.path, unit_scale=None)
-            record = BodyRecord(found.body.skeleton, found.body, pelvis_height=found.body.pelvis_height,
-                                stature=found.stature, shape=found.shape)
-            dressed, _ = dress(MANNEQUIN, record, garment, made_for)
-            name = f"performer-{dressed.key()[:8]}"  # clips whose rigs measure the same share one body
-            bodies.setdefault(name, replace(dressed, name=name))
-            by_path[spec.path] = name
+            if found.body not in by_body:
+                record = BodyRecord(found.body.skeleton, found.body, pelvis_height=found.body.pelvis_height,
+                                    stature=found.stature, shape=found.shape)
+                dressed, _ = dress(MANNEQUIN, record, garment, made_for)
+                name = f"performer-{dressed.key()[:8]}"
+                bodies.setdefault(name, replace(dressed, name=name))
+                by_body[found.body] = name
+            by_path[spec.path] = by_body[found.body]
         out.append(replace(spec, body=by_path[spec.path]))
     return out, bodies
 

@@ -136,8 +136,9 @@ def sequence_group(spec: SequenceSpec, preset: Preset) -> str:
     return clip_group(Path(spec.path).stem, preset.split_by, preset.name_pattern)
 
 
-def _safe(stem: str) -> str:
-    return re.sub(r"[^A-Za-z0-9_.-]+", "_", stem).strip("_") or "clip"
+def safe_name(text: str, empty: str = "clip") -> str:
+    """``text`` as a name for a sequence or a body (letters, digits, ``_ . -``; ``empty`` if none is left)."""
+    return re.sub(r"[^A-Za-z0-9_.-]+", "_", text).strip("_") or empty
 
 
 def plan_sequences(preset: Preset, motions: list[str] | None = None, seconds: float | None = None,
@@ -184,7 +185,7 @@ def _file_pieces(path: str, speed: float, source_fps: float | None) -> list[Sequ
     starts = list(range(0, clip.num_frames, piece))
     if len(starts) > 1 and clip.num_frames - starts[-1] < MIN_CLIP_FRAMES:
         starts.pop()
-    stem = _safe(Path(path).stem) + (f"_x{speed:g}" if speed != 1.0 else "")
+    stem = safe_name(Path(path).stem) + (f"_x{speed:g}" if speed != 1.0 else "")
     specs = []
     for k, start in enumerate(starts):
         stop = starts[k + 1] if k + 1 < len(starts) else clip.num_frames
