@@ -32,6 +32,11 @@ from safetensors import SafetensorError
 from safetensors.numpy import load_file as load_arrays
 from safetensors.torch import load_file as load_tensors
 
+from ..body.body_file import BodyRecord, body_from_dict
+from ..body.capsules import DEFAULT_BODY, BodyModel
+from ..body.measures import BodyRange, body_vector
+from ..data.bodies import mannequin_record
+from ..errors import InputError
 from ..garment.mesh import GarmentError, GarmentMesh, check_garment
 from ..models.codespace import CodeSpace, CodeSpaceConfig
 from ..models.direct import DirectConfig, DirectRegressor
@@ -135,6 +140,41 @@ class Bundle:
         mode = str(self.auto["mode"])
         runnable = {"residual": self.has_residual, "detail": self.folds is not None}.get(mode, True)
         return mode if runnable else "hybrid"
+
+    @property
+    def body_range(self) -> BodyRange:
+        """The range of the bodies the model was trained on (:mod:`hrr_garment.body.measures`):
+        the mannequin alone for a model from before bodies."""
+        bodies = self.meta.get("bodies")
+        if not bodies:
+            return BodyRange.of([body_vector(mannequin_record())])
+        try:
+            return BodyRange.from_dict(bodies["range"])
+        except (KeyError, TypeError, ValueError) as exc:
+            raise BundleError(self.folder, f"bundle.json's bodies are unreadable ({exc})") from None
+
+    @property
+    def default_body(self) -> BodyRecord:
+        """The body the model animates when given none: the one body of a model trained on one,
+        else the mannequin."""
+        bodies = self.meta.get("bodies") or {}
+        if bodies.get("default") is None:
+            return mannequin_record()
+        try:
+            return body_from_dict(bodies["default"], self.folder / "bundle.json")
+        except InputError as exc:
+            raise BundleError(self.folder, f"bundle.json's default body is unreadable ({exc})") from None
+
+    @property
+    def made_for(self) -> BodyModel:
+        """The body the garment was modelled on (``hrr-simulate --made-for``), else the mannequin's."""
+        bodies = self.meta.get("bodies") or {}
+        if bodies.get("made_for") is None:
+            return DEFAULT_BODY
+        try:
+            return body_from_dict(bodies["made_for"], self.folder / "bundle.json").body
+        except InputError as exc:
+            raise BundleError(self.folder, f"bundle.json's made-for body is unreadable ({exc})") from None
 
     @property
     def garment(self) -> str:

@@ -37,7 +37,8 @@ from ..motion.gltf import world_unit_scale
 from ..motion.gltf_file import open_gltf, rest_world_matrices
 from ..motion.joint_maps import resolve_joint_map
 from ..motion.skeleton import JOINT_INDEX, JOINT_NAMES, PARENTS, REST_OFFSETS
-from .fit import PRIMARY_CHILD
+from .body_file import BodyRecord
+from .fit import PRIMARY_CHILD, fit_body
 
 MAX_VERTICES = 2_000_000  # a game or film character has well under a million
 _TRIANGLE_MODES = (4, 5, 6)  # TRIANGLES, TRIANGLE_STRIP, TRIANGLE_FAN
@@ -259,3 +260,22 @@ def read_character(path: str | Path, skin: int | None = None, joint_map: dict | 
     return Character(vertices - shift, faces, joints - shift, skin, scheme, scale,
                      posed_joints=tuple(names[i] for i in np.flatnonzero(posed)), turned=not np.allclose(turn, np.eye(3)),
                      filled_joints=filled)
+
+
+def character_body(path: str | Path, skin: int | None = None, joint_map: dict | None = None,
+                   unit_scale: float | None = None) -> tuple[BodyRecord, Character]:
+    """The body of a skinned character file (``hrr-body fit`` writes it; ``hrr-animate --body``
+    reads it in place): :func:`read_character`, then the skeleton and capsules fitted to its mesh
+    (:func:`~.fit.fit_body`). An :class:`~hrr_garment.errors.InputError` naming the file where the
+    mesh cannot be fitted or the character is not of a human's height."""
+    character = read_character(path, skin=skin, joint_map=joint_map, unit_scale=unit_scale)
+    try:
+        fitted = fit_body(character.vertices, character.joints)
+    except ValueError as exc:
+        raise InputError(path, f"cannot fit a body to its mesh: {exc}") from None
+    lo, hi = STATURE_RANGE_M
+    if not lo <= fitted.stature <= hi:
+        raise InputError(path, f"the character is {fitted.stature:.3g} m tall, not within [{lo}, {hi}] m; "
+                               "if the file is not in metres, pass --unit-scale (metres per file unit)")
+    return BodyRecord(fitted.skeleton, fitted.body, pelvis_height=fitted.pelvis_height, stature=fitted.stature,
+                      report=fitted.report), character

@@ -4,6 +4,8 @@
     hrr-animate clip.npz -o out.h5 --model hrr_work/models/dress-quick --mode retrieval
     hrr-animate walk.bvh -o out.h5 --garment dress --causal --no-collision
     hrr-animate walk.bvh -o out.h5 --garment dress --detail-strength 1 --detail-base residual
+    hrr-animate walk.bvh -o out.h5 --model DIR --body hero.json      # on your character's body
+    hrr-animate hero.glb --animation Walk -o out.h5 --model DIR --body hero.glb
 
 MOTION: BVH, glTF / GLB (``--animation NAME``), AMASS-style npz or the native npz (resampled to 30 fps). Output: out.h5 (see
 docs/inference.md), written atomically. Offline (default) blends windows centred on each frame;
@@ -45,6 +47,11 @@ def _parser() -> argparse.ArgumentParser:
                    help="the gate's threshold (default: the model's calibrated one); --gate or --tau with the default "
                         "mode runs the hybrid, whose settings they are")
     add_detail_options(p)
+    p.add_argument("--body", default=None, metavar="BODY",
+                   help="animate on this body: body.json (hrr-body make / fit / nearest) or a skinned glTF / GLB "
+                        "character, fitted as hrr-body fit does (default: the model's own body)")
+    p.add_argument("--allow-outside-body", action="store_true",
+                   help="animate a body unlike the model's training bodies anyway (warned), rather than refuse it")
     p.add_argument("--no-collision", action="store_true", help="skip the collision push-out")
     p.add_argument("--causal", action="store_true", help="causal windows only, as the streaming API")
     p.add_argument("--precision", choices=PRECISIONS, default="float32",
@@ -79,7 +86,8 @@ def _main(argv: Sequence[str] | None) -> int:
     # --gate/--tau run the hybrid, --detail-* the detail mode; asking both, or a mode without them, is refused
     settings = run_settings_of(args, "hrr-animate", detail=detail_look(args), collision=not args.no_collision,
                                causal=args.causal)
-    anim = animator.animate(motion, settings)
+    body = animator.body(args.body, allow_outside=args.allow_outside_body) if args.body else None
+    anim = animator.animate(motion, settings, body=body)
     anim.save(args.output)
     seconds = time.perf_counter() - t0
     # the gate decides in the hybrid only; the other modes retrieve always, never, or add a match's detail
@@ -90,7 +98,7 @@ def _main(argv: Sequence[str] | None) -> int:
             f"retrieval usage {100 * anim.retrieval_usage:.1f} % of frames")
     named = f"{args.mode} = {mode}" if args.mode != mode else str(mode)
     print(f"wrote {args.output}: {anim.vertices.shape[0]} frames ({motion.duration_s:.2f} s at {anim.fps:g} fps), "
-          f"{anim.vertices.shape[1]} vertices; mode {named}{gate}, {used}; {seconds:.1f} s")
+          f"{anim.vertices.shape[1]} vertices on body {anim.body}; mode {named}{gate}, {used}; {seconds:.1f} s")
     if anim.penetration is not None:
         p = anim.penetration
         print(f"  penetration (vertices > 5 mm inside the body): before push-out {100 * p.inside_before:.2f} % "

@@ -19,11 +19,11 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-from dataclasses import fields
+from dataclasses import fields, replace
 from pathlib import Path
 from typing import Sequence
 
-from ..body.body_file import BodyRecord, read_body, write_body
+from ..body.body_file import read_body, write_body
 from ..body.parametric import BodyShape
 from ..errors import InputError
 from ._common import run_cli
@@ -70,32 +70,21 @@ def _summary(record) -> dict:
 
 def _fit_character(args) -> int:
     """hrr-body fit: read the character, fit the skeleton and capsules, write body.json."""
-    from ..body.character import STATURE_RANGE_M, read_character
-    from ..body.fit import fit_body
+    from ..body.character import character_body
     from ..motion.joint_maps import load_joint_map
 
     joint_map = load_joint_map(args.joint_map) if args.joint_map is not None else None
-    character = read_character(args.character, skin=args.skin, joint_map=joint_map, unit_scale=args.unit_scale)
-    try:
-        fitted = fit_body(character.vertices, character.joints)
-    except ValueError as exc:
-        raise InputError(args.character, f"cannot fit a body to its mesh: {exc}") from None
-    lo, hi = STATURE_RANGE_M
-    if not lo <= fitted.stature <= hi:
-        raise InputError(args.character, f"the character is {fitted.stature:.3g} m tall, not within [{lo}, {hi}] m; "
-                                         "if the file is not in metres, pass --unit-scale (metres per file unit)")
+    record, character = character_body(args.character, skin=args.skin, joint_map=joint_map, unit_scale=args.unit_scale)
     notes = [f"skin {character.skin}, {len(character.vertices)} vertices, {character.scheme} joint names"]
-    shape = None
     if args.parametric:
         from ..body.parametric import fit_shape
 
         _announce_first_build()
         nearest = fit_shape(character.vertices, character.faces, joints=character.joints)
-        shape = nearest.shape.to_dict()
-        notes.append(f"nearest parametric shape {_values(shape)}: surfaces {nearest.mean_mm:.1f} mm apart on average "
-                     f"(95th percentile {nearest.p95_mm:.1f} mm)")
-    write_body(args.output, BodyRecord(fitted.skeleton, fitted.body, pelvis_height=fitted.pelvis_height,
-                                       stature=fitted.stature, shape=shape, report=fitted.report))
+        record = replace(record, shape=nearest.shape.to_dict())
+        notes.append(f"nearest parametric shape {_values(record.shape)}: surfaces {nearest.mean_mm:.1f} mm apart on "
+                     f"average (95th percentile {nearest.p95_mm:.1f} mm)")
+    write_body(args.output, record)
     if character.unit_scale != 1.0:
         notes.append(f"{character.unit_scale:g} m per file unit")
     if character.turned:
@@ -104,8 +93,8 @@ def _fit_character(args) -> int:
         notes.append(f"read in its bind pose; {len(character.posed_joints)} joint(s) stood posed away from it")
     if character.filled_joints:
         notes.append(f"placed {', '.join(character.filled_joints)}, which the skeleton lacks")
-    fit = fitted.report
-    print(f"wrote {args.output}: {fitted.stature:.3f} m tall, pelvis {fitted.pelvis_height:.3f} m over the soles; "
+    fit = record.report
+    print(f"wrote {args.output}: {record.stature:.3f} m tall, pelvis {record.pelvis_height:.3f} m over the soles; "
           f"capsules within {fit.mean_mm:.1f} mm of the surface on average (95th percentile {fit.p95_mm:.1f} mm; "
           f"{fit.outside_1cm:.0%} of vertices more than 1 cm outside) ({'; '.join(notes)})")
     return 0

@@ -22,7 +22,7 @@ import sys
 from pathlib import Path
 from typing import Sequence
 
-from ..body.body_file import BodyRecord, read_body
+from ..body.body_file import BodyRecord, body_to_dict, read_body
 from ..body.capsules import DEFAULT_BODY
 from ..errors import InputError
 from ..garment.mesh import GarmentMesh
@@ -141,6 +141,8 @@ def _main(argv: Sequence[str] | None) -> int:
     options["info"]["garment_vertices"] = garment.num_vertices
     if choice.bodies:
         options["info"]["bodies"] = choice.info
+    if made_for is not None:  # models trained on it carry the garment from this body onto others
+        options["info"]["made_for"] = body_to_dict(made_for)
     options["info"]["motions"] = list(args.motions) if args.motions else None  # None: the preset's own clips
     if args.address and args.executor != "ray":
         raise InputError("--address", "joins a Ray cluster: use it with --executor ray")

@@ -10,13 +10,14 @@ from __future__ import annotations
 
 import hashlib
 import json
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from ..body.body_file import BodyRecord, body_from_dict, body_to_dict
 from ..body.capsules import DEFAULT_BODY, BodyModel
-from ..garment.mesh import GarmentMesh
+from ..garment.mesh import GarmentMesh, mirror_map
+from ..garment.transfer import TransferReport, transfer_garment
 from ..io_utils import strict_json
 from ..motion.skeleton import CANONICAL, MIRROR_JOINTS, REST_PELVIS_HEIGHT
 
@@ -44,6 +45,16 @@ class DressedBody:
     @property
     def is_mannequin(self) -> bool:
         return self.record.body.is_mannequin_frame and self.record.body.capsules == DEFAULT_BODY.capsules
+
+    def offset(self, template: GarmentMesh) -> np.ndarray:
+        """(V, 3) float32 where this body's garment at rest stands in the body frame
+        (:mod:`hrr_garment.motion.frame`) less where the template stands on the mannequin: zero on
+        the mannequin. Models learn each frame less its body's offset (the garment's motion
+        relative to its own body at rest) and add the offset of the body they animate; the body
+        frame's origin sits the canonical rest pelvis height under the pelvis, so a taller body's
+        garment stands higher in it."""
+        lift = np.array([0.0, self.record.pelvis_height - REST_PELVIS_HEIGHT, 0.0], np.float32)
+        return (self.garment.vertices - lift - template.vertices).astype(np.float32)
 
     def key(self) -> str:
         """A short content hash of the body (skeleton, capsules, heights) and the garment's rest
@@ -125,6 +136,19 @@ def symmetrized(body: BodyModel, tolerance: float = NEARLY_SYMMETRIC_M) -> BodyM
                      for c, e, r in zip(body.capsules, ends, radii))
     skeleton = Skeleton(offsets=(0.5 * (halves.offsets + halves.mirrored_offsets)).astype(np.float32))
     return replace(body, capsules=capsules, skeleton=skeleton)
+
+
+def dress(name: str, record: BodyRecord, garment: GarmentMesh, made_for: BodyModel) -> tuple[DressedBody, TransferReport]:
+    """The body (left and right made exactly alike where they nearly are: its sequences can then be
+    mirrored) and ``garment`` (modelled on ``made_for``) carried onto it."""
+    body = symmetrized(record.body)
+    record = replace(record, body=body, skeleton=body.skeleton)
+    on_body, report = transfer_garment(garment, made_for=made_for, body=body)
+    perm = mirror_map(garment.vertices) if is_symmetric(made_for) else None
+    if perm is not None and is_symmetric(body):  # exactly symmetric, as the template was
+        flip = np.array([-1.0, 1.0, 1.0], np.float32)
+        on_body = replace(on_body, vertices=0.5 * (on_body.vertices + on_body.vertices[perm] * flip))
+    return DressedBody(name, record, on_body), report
 
 
 def _mirror_name(name: str) -> str:

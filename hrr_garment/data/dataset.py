@@ -57,6 +57,7 @@ class SequenceRecord:
     motion: Motion
     info: dict = field(default_factory=dict)
     body: str = MANNEQUIN  # the name of the body it was simulated on (GarmentDataset.bodies)
+    dressed: DressedBody | None = None  # that body and the garment at rest on it, as read from a dataset
 
 
 MIN_TEST = 5  # sequences: a test split of one clip measures that clip, not the model
@@ -280,7 +281,7 @@ class GarmentDataset:
             if bad.any():
                 raise DatasetError(self.path, f"sequence {name!r}: non-finite {what} on {int(bad.sum())} frame(s), "
                                               f"first at frame {int(np.argmax(bad))}")
-        return SequenceRecord(name, garment, motion, info, body=self.body_of[name])
+        return SequenceRecord(name, garment, motion, info, body=self.body_of[name], dressed=self.bodies[self.body_of[name]])
 
 
 def _json_attr(path: Path, attrs, key: str, default, where: str = ""):

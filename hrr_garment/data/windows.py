@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..body.measures import body_vector, with_body
 from ..motion.features import FeatureStats, motion_features
 from ..motion.memory import MemorySpec, with_memory
 
@@ -148,13 +149,17 @@ def build_windows(features: dict[str, np.ndarray], latents: dict[str, np.ndarray
     return WindowSet(motion, lat, seq, start, list(names))
 
 
-def dataset_features(dataset, names: list[str], memory: MemorySpec | Sequence[float]) -> dict[str, np.ndarray]:
+def dataset_features(dataset, names: list[str], memory: MemorySpec | Sequence[float],
+                     body_measures: bool = False) -> dict[str, np.ndarray]:
     """Motion features (T, 124 + memory) of each named sequence of a :class:`GarmentDataset`, with
-    the motion memory ``memory`` (:mod:`hrr_garment.motion.memory`)."""
+    the motion memory ``memory`` (:mod:`hrr_garment.motion.memory`) and, with ``body_measures``,
+    the measures of the body each sequence was simulated on (:mod:`hrr_garment.body.measures`)."""
     out = {}
     for name in names:
         motion = dataset.sequence(name).motion
         out[name] = with_memory(motion_features(motion), motion.fps, memory)
+        if body_measures:
+            out[name] = with_body(out[name], body_vector(dataset.bodies[dataset.body_of[name]].record))
     return out
 
 

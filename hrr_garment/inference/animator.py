@@ -21,7 +21,9 @@ import numpy as np
 import torch
 
 from ..artifacts.bundle import Bundle, BundleError, load_bundle
-from ..body.capsules import DEFAULT_BODY
+from ..body.body_file import BodyRecord
+from ..body.measures import with_body
+from ..data.bodies import MANNEQUIN
 from ..errors import InputError, MotionError
 from ..garment.smoothing import mean_operator
 from ..models.native_codes import native_window_codes
@@ -32,6 +34,7 @@ from ..motion.motion import Motion
 from ..motion.windows import causal_windows, sequence_windows
 from ..paths import workspace
 from .blending import blend_windows, causal_latents
+from .bodies import CharacterBody, character_body
 from .collision import EdgeLimits, PushOutReport, push_out
 from .decoding import body_frame_vertices, flush_denormals
 from .detail import add_folds
@@ -62,6 +65,8 @@ class Animation:
     settings: dict = field(default_factory=dict)
     penetration: PushOutReport | None = None
     capsules: np.ndarray | None = None  # (T, C, 2, 3) collision capsule ends, for previews and exports
+    radii: np.ndarray | None = None  # (C,) the capsules' radii
+    body: str = MANNEQUIN  # the name of the body it was animated on
     doubt: np.ndarray | None = None  # (T,) the gate signal's value per frame (retrieval where below tau)
 
     @property
@@ -92,9 +97,9 @@ class Animation:
         self.check(path)
         arrays = AnimationArrays(vertices=self.vertices, faces=self.faces, joints=self.joints, retrieved=self.retrieved,
                                  entropy=self.entropy, match=self.match, capsules=self.capsules,
-                                 radii=None if self.capsules is None else DEFAULT_BODY.radii)
+                                 radii=None if self.capsules is None else self.radii)
         return write_animation_h5(path, arrays, {"fps": self.fps, "garment": self.garment, "source_motion": self.motion_file,
-                                                 "model_hash": self.model_hash, **self.settings})
+                                                 "model_hash": self.model_hash, "body": self.body, **self.settings})
 
 
 def find_model(name_or_dir: str | Path) -> Path:
@@ -123,6 +128,7 @@ class Animator:
         self.smoothing = mean_operator(bundle.template.faces, bundle.template.num_vertices)  # for the push-out
         self.edge_limits = EdgeLimits.of(bundle.template.faces, bundle.template.vertices)  # for the push-out's strain limit
         self._causal_steps: dict[bool, object] = {}
+        self._default_body: CharacterBody | None = None
 
     def causal_step(self, regression: bool):
         """The window step (:class:`~hrr_garment.models.codes.WindowCodes`' function) that causal inference runs,
@@ -159,18 +165,32 @@ class Animator:
         fields) resolved against this model: what :meth:`animate` runs with them."""
         return run_settings(settings, changes).resolve(self.bundle)
 
-    def animate(self, motion: Motion, settings: RunSettings | None = None, *, exclude_sequence: int | None = None,
-                **changes) -> Animation:
+    def body(self, body: CharacterBody | BodyRecord | str | Path | None = None, *, allow_outside: bool = False,
+             name: str | None = None) -> CharacterBody:
+        """A body to animate on (:mod:`.bodies`): a body.json or character file's path, a
+        :class:`~hrr_garment.body.body_file.BodyRecord`, or None for the model's own; refused
+        (:class:`~.bodies.BodyOutsideRange`) when it is unlike the model's training bodies, unless
+        ``allow_outside``."""
+        if body is None and name is None and not allow_outside:
+            if self._default_body is None:
+                self._default_body = character_body(self.bundle)
+            return self._default_body
+        return character_body(self.bundle, body, allow_outside=allow_outside, name=name)
+
+    def animate(self, motion: Motion, settings: RunSettings | None = None, *, body=None, allow_outside: bool = False,
+                exclude_sequence: int | None = None, **changes) -> Animation:
         """Animate a whole clip (see :mod:`hrr_garment.inference`) as ``settings`` ask
         (:class:`~.run_settings.RunSettings`; default: the model's calibrated mode, push-out on,
         offline), with keyword ``changes`` to them (``animate(motion, mode="regression",
-        collision=False)``). ``exclude_sequence`` keeps one database sequence out of retrieval
-        (evaluation)."""
+        collision=False)``), on ``body`` (:meth:`body`; default the model's own: the mannequin,
+        or the one body it was trained on). A clip on the canonical skeleton is played by the
+        body. ``exclude_sequence`` keeps one database sequence out of retrieval (evaluation)."""
         run = self.resolve(settings, **changes)
+        character = self.body(body, allow_outside=allow_outside)
         if exclude_sequence is not None:
             exclude_sequence = self._database_sequence(exclude_sequence)
         with flush_denormals():
-            return self._animate(motion, run, exclude_sequence)
+            return self._animate(character.play(motion), run, exclude_sequence, character)
 
     def _database_sequence(self, index: object) -> int:
         """``index`` as a database sequence index; a ValueError naming the range otherwise."""
@@ -181,23 +201,23 @@ class Animator:
             raise ValueError(f"exclude_sequence must be a database sequence index in 0..{count - 1}, got {index!r}")
         return index
 
-    def _animate(self, motion: Motion, run: ResolvedRun, exclude_sequence: int | None) -> Animation:
+    def _animate(self, motion: Motion, run: ResolvedRun, exclude_sequence: int | None, character: CharacterBody) -> Animation:
         t_frames, w = motion.num_frames, self.window
         if t_frames < 1:
             raise MotionError(motion.source, "the motion has no frames")
         if run.mode == Mode.DIRECT:
-            latents, proposals = self._direct_latents(motion), None
+            latents, proposals = self._direct_latents(motion, character), None
             retrieved, entropy = np.zeros(t_frames, np.uint8), np.full(t_frames, np.nan, np.float32)
             match, doubt = np.full((t_frames, 2), -1, np.int32), entropy.copy()
         else:
             if run.causal:
-                feats = causal_windows(self.features(motion, causal=True), w)
+                feats = causal_windows(self.features(motion, causal=True, body=character), w)
                 choice = self._choose(feats, run, exclude_sequence, last_frame=True)
                 latents = causal_latents(choice, self.blend)
                 proposals = causal_proposals(choice.match, w) if choice.lends_folds else None
                 per_frame = np.arange(t_frames)
             else:
-                feats = self.features(motion)
+                feats = self.features(motion, body=character)
                 if t_frames < w:  # shorter than one window: pad with the last frame, keep the first T outputs
                     feats = np.concatenate([feats, np.repeat(feats[-1:], w - t_frames, 0)])
                 windows = np.ascontiguousarray(sequence_windows(feats, w))
@@ -212,31 +232,35 @@ class Animator:
             store = self.bundle.folds
             rows, weights = track_folds(proposals, store.offsets)
             local = add_folds(local, store.folds(rows, weights), self.smoothing, passes=store.passes, strength=run.detail.strength)
-        vertices = world_vertices(local, motion)
+        vertices = world_vertices(local + character.offset, motion)  # stood on the body's own rest shape
         report = None
         if run.collision:
-            vertices, report = push_out(vertices, motion, self.bundle.template.faces, mean=self.smoothing,
+            vertices, report = push_out(vertices, motion, self.bundle.template.faces, body=character.body, mean=self.smoothing,
                                         limits=self.edge_limits)
         return Animation(vertices=vertices, faces=self.bundle.template.faces, fps=motion.fps, retrieved=retrieved,
                          entropy=entropy, match=match, joints=motion.joint_positions, garment=self.bundle.garment,
                          model_hash=self.bundle.content_hash, motion_file=motion.source, settings=run.record(),
-                         penetration=report, capsules=np.stack(DEFAULT_BODY.pose_motion(motion), 2).astype(np.float32),
-                         doubt=doubt)
+                         penetration=report, capsules=np.stack(character.body.pose_motion(motion), 2).astype(np.float32),
+                         radii=character.body.radii, body=character.name, doubt=doubt)
 
-    def _direct_latents(self, motion: Motion) -> np.ndarray:
+    def _direct_latents(self, motion: Motion, character: CharacterBody) -> np.ndarray:
         """(T, nodes, C) latents of the direct-regression baseline (causal: a GRU over the clip)."""
         if self.bundle.direct is None:
             raise InputError(self.bundle.folder, "has no direct-regression baseline: train it with hrr-train --stage baseline")
-        feats = self.features(motion)
+        feats = self.features(motion, body=character)
         with torch.no_grad():
             z = self.bundle.direct(torch.from_numpy(self.bundle.motion_stats.normalize(feats).astype(np.float32))[None])[0]
         return self.bundle.latent_stats.denormalize(z.numpy()).reshape(len(feats), *self.bundle.autoencoder.latent_shape)
 
-    def features(self, motion: Motion, causal: bool = False) -> np.ndarray:
+    def features(self, motion: Motion, causal: bool = False, body: CharacterBody | None = None) -> np.ndarray:
         """The model's per-frame motion features (T, F) of a clip: the plain ones, offline or as a
-        stream sees them (``causal``), with the motion memory the model was trained with."""
+        stream sees them (``causal``), with the motion memory the model was trained with and, for
+        a model trained across bodies, the measures of ``body`` (default: the model's own)."""
         plain = causal_features(motion) if causal or motion.num_frames < 2 else motion_features(motion)  # one frame: no velocity
-        return with_memory(plain, motion.fps, self.bundle.codespace.config.memory)
+        feats = with_memory(plain, motion.fps, self.bundle.codespace.config.memory)
+        if self.bundle.codespace.config.body_features:
+            feats = with_body(feats, (body or self.body()).vector)
+        return feats
 
     def _choose(self, windows: np.ndarray, run: ResolvedRun, exclude_sequence: int | None = None,
                 last_frame: bool = False) -> WindowChoice:
@@ -244,17 +268,21 @@ class Animator:
         step = self.causal_step(run.mode.regresses) if last_frame else None
         return choose_windows(self.bundle, windows, run, exclude=exclude, last_frame=last_frame, step=step)
 
-    def stream(self, settings: RunSettings | None = None, *, rig=None, **changes) -> AnimationStream:
+    def stream(self, settings: RunSettings | None = None, *, rig=None, body=None, allow_outside: bool = False,
+               **changes) -> AnimationStream:
         """One character, causal, one pose in and one frame out (:class:`~.stream.AnimationStream`);
         ``settings`` and keyword ``changes`` as :meth:`animate` (a stream is causal whatever they
         say; its settings hold for its life); ``rig``: a
-        :class:`~hrr_garment.motion.stream_rig.StreamRig` for poses on a source skeleton."""
-        return AnimationStream(self, self._stream_run(settings, changes), rig=rig)
+        :class:`~hrr_garment.motion.stream_rig.StreamRig` for poses on a source skeleton;
+        ``body``: the character's body, as :meth:`animate` takes it."""
+        return AnimationStream(self, self._stream_run(settings, changes), rig=rig,
+                               body=self.body(body, allow_outside=allow_outside))
 
-    def crowd(self, settings: RunSettings | None = None, *, rig=None, **changes) -> CrowdStream:
+    def crowd(self, settings: RunSettings | None = None, *, rig=None, body=None, allow_outside: bool = False,
+              **changes) -> CrowdStream:
         """Many characters, one call per frame for all of them (:class:`~.stream.CrowdStream`);
-        arguments as :meth:`stream`."""
-        return CrowdStream(self, self._stream_run(settings, changes), rig=rig)
+        arguments as :meth:`stream` (every character of the crowd has ``body``)."""
+        return CrowdStream(self, self._stream_run(settings, changes), rig=rig, body=self.body(body, allow_outside=allow_outside))
 
     def _stream_run(self, settings: RunSettings | None, changes: dict) -> ResolvedRun:
         run = self.resolve(settings, **{**changes, "causal": True})

@@ -18,7 +18,7 @@ import torch
 from ..artifacts.bundle import Bundle
 from ..artifacts.gate_signals import gate_doubt
 from ..artifacts.residual import match_regression, residual_latents
-from ..models.codes import encode_motion
+from ..models.codes import encode_motion, window_bodies
 from .modes import CODE_MODES, Mode
 from .run_settings import ResolvedRun
 
@@ -56,9 +56,10 @@ def choose_windows(bundle: Bundle, motion_windows: np.ndarray, run: ResolvedRun,
                         regression=mode.regresses, last_frame=last_frame, step=step)
     n = len(enc.entropy)
     frames = 1 if last_frame else db.latents.shape[1]
+    bodies = window_bodies(bundle.codespace, enc.standardised)
     doubt, match = enc.entropy, None
     if mode in (Mode.RESIDUAL, Mode.DETAIL):  # no gate: every window's regression and its best match
-        match, similarity = db.search(enc.codes, exclude)
+        match, similarity = db.search(enc.codes, exclude, bodies)
         matched = np.stack([db.sequence[match], db.start[match]], 1).astype(np.int32)
         latents = enc.regression
         # the detail mode adds the matches' folds (.detail) to the regression's latents or to the
@@ -72,7 +73,7 @@ def choose_windows(bundle: Bundle, motion_windows: np.ndarray, run: ResolvedRun,
         return WindowChoice(latents, np.zeros(n, bool), enc.entropy, np.asarray(doubt, np.float64), matched,
                             lends_folds=mode is Mode.DETAIL, follows_match=np.full(n, mode is Mode.RESIDUAL))
     if run.gate != "entropy" and mode is Mode.HYBRID:  # the match decides: search every window first
-        match, similarity = db.search(enc.codes, exclude)
+        match, similarity = db.search(enc.codes, exclude, bodies)
         distance = db.motion_distance(enc.standardised, match) if run.gate == "distance" else None
         doubt = gate_doubt(run.gate, enc.entropy, similarity, distance=distance)
     retrieved = {Mode.HYBRID: doubt < run.tau, Mode.REGRESSION: np.zeros(n, bool)}.get(mode, np.ones(n, bool))
@@ -86,7 +87,7 @@ def choose_windows(bundle: Bundle, motion_windows: np.ndarray, run: ResolvedRun,
         elif match is not None:
             found = match[rows]
         else:
-            found, _ = db.search(enc.codes[rows], ex)
+            found, _ = db.search(enc.codes[rows], ex, None if bodies is None else bodies[rows])
         latents[rows] = db.latents[found, -frames:]
         source[rows] = np.stack([db.sequence[found], db.start[found]], 1)
     return WindowChoice(latents, retrieved, enc.entropy, np.asarray(doubt, np.float64), source)

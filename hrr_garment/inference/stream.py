@@ -30,6 +30,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import torch
 
+from ..body.measures import with_body
 from ..errors import InputError
 from ..models.codes import traced_window_codes
 from ..motion.features import pair_features_batch
@@ -74,10 +75,13 @@ class CrowdStream:
     """Many characters streamed in one call per frame; see the module docstring. ``rig``: a
     :class:`~hrr_garment.motion.stream_rig.StreamRig` when poses come on a source skeleton."""
 
-    def __init__(self, animator, run: ResolvedRun, *, rig=None):
+    def __init__(self, animator, run: ResolvedRun, *, rig=None, body=None):
         """``run``: the settings, resolved for ``animator``'s model (:meth:`~.animator.Animator.crowd`
-        makes both); they hold for the stream's life."""
+        makes both); they hold for the stream's life. ``body``: the :class:`~.bodies.CharacterBody`
+        its characters have (default: the model's own); poses on the canonical skeleton are played
+        by it, as :meth:`~.animator.Animator.animate` plays a clip."""
         self.animator, self.run, self.rig = animator, run, rig
+        self.body = animator.body() if body is None else body
         self._characters: dict[Hashable, _Character] = {}
         self.timings = _Timings()
         regression = run.mode.regresses
@@ -168,7 +172,10 @@ class CrowdStream:
         window = self.animator.window
         blend = self.animator.blend
         chars = [self._characters.setdefault(k, _Character(deque(maxlen=window), Inertializer(blend))) for k in keys]
+        poses = self.body.play(poses)
         features = self._with_memory(chars, pair_features_batch([c.previous for c in chars], poses), poses.fps)
+        if self.animator.bundle.codespace.config.body_features:
+            features = with_body(features, self.body.vector)
         for c, feat in zip(chars, features):
             if not c.features:  # the first frame repeated before the start, as offline causal
                 c.features.extend([feat] * (window - 1))
@@ -187,10 +194,11 @@ class CrowdStream:
             local = add_folds(local, self._folds(chars, choice.match), self.animator.smoothing,
                               passes=self.animator.bundle.folds.passes, strength=self.run.detail.strength)
         t.append(time.perf_counter())
-        vertices = world_vertices(local, poses)  # as offline: the same push-out inputs
+        vertices = world_vertices(local + self.body.offset, poses)  # as offline: the same push-out inputs
         t.append(time.perf_counter())
         if self.run.collision:
-            vertices, _ = push_out(vertices, poses, self.animator.bundle.template.faces, mean=self.animator.smoothing,
+            vertices, _ = push_out(vertices, poses, self.animator.bundle.template.faces, body=self.body.body,
+                                   mean=self.animator.smoothing,
                                    limits=self.animator.edge_limits, report=False)
         t.append(time.perf_counter())
         for i, c in enumerate(chars):
@@ -205,8 +213,8 @@ class AnimationStream:
     """One character: one pose in, one garment frame out, causal (no future frames), bounded memory.
     ``push`` equals frame t of ``animator.animate(motion, causal=True)`` (tested to 1e-5)."""
 
-    def __init__(self, animator, run: ResolvedRun, *, rig=None):
-        self.crowd = CrowdStream(animator, run, rig=rig)
+    def __init__(self, animator, run: ResolvedRun, *, rig=None, body=None):
+        self.crowd = CrowdStream(animator, run, rig=rig, body=body)
 
     @property
     def mode(self) -> Mode:

@@ -39,6 +39,14 @@ def regression_embedding(codespace, logits: torch.Tensor) -> torch.Tensor:
     return q.embed(torch.nn.functional.one_hot(logits.argmax(-1), q.classes).to(logits.dtype))
 
 
+def window_bodies(codespace, standardised: np.ndarray) -> np.ndarray | None:
+    """The standardised body measures (N, b) of standardised motion windows (N, W, F) for a model
+    trained across bodies (retrieval prefers matches from near bodies:
+    :meth:`~hrr_garment.artifacts.database.CodeDatabase.search`); None for a model of one body."""
+    b = codespace.config.body_features
+    return np.asarray(standardised[:, -1, standardised.shape[-1] - b:]) if b else None
+
+
 class WindowCodes(torch.nn.Module):
     """Standardised motion windows (B, W, F) -> (entropy (B,), argmax classes (B, G), regressed
     standardised latents (B, W or 1, nodes, C), or an empty tensor without ``regression``)."""
@@ -53,7 +61,8 @@ class WindowCodes(torch.nn.Module):
         idx = logits.argmax(-1)
         if not self.regression:
             return group_entropy(logits), idx, torch.empty(0)
-        return group_entropy(logits), idx, self.codespace.decode(regression_embedding(self.codespace, logits), self.last_frame)
+        embedding = regression_embedding(self.codespace, logits)
+        return group_entropy(logits), idx, self.codespace.decode(embedding, self.last_frame, self.codespace.body_of(windows))
 
 
 def traced_window_codes(codespace, window: int, features: int, regression: bool = True) -> torch.nn.Module:

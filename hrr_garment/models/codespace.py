@@ -8,6 +8,12 @@
 - :class:`LatentDecoder` (the paper's "VQ decoder"): the quantised embedding (G x dim) -> MLP
   mirroring the garment encoder -> the W garment latents (standardised).
 - :class:`CodeSpace` holds the three and the shared :class:`~.quantizer.GumbelQuantizer`.
+
+A model trained across bodies (``body_features`` > 0) reads each body's measures
+(:mod:`hrr_garment.body.measures`) as the last ``body_features`` columns of every motion frame:
+the motion encoder sees them with the motion, and the garment encoder and the decoder take them
+from the window's last frame (:meth:`CodeSpace.body_of`) beside their own inputs, so one code
+means one movement of the cloth relative to its body, decoded for the body at hand.
 """
 
 from __future__ import annotations
@@ -43,6 +49,9 @@ class CodeSpaceConfig:
     # what the regression decodes: "expected", the embedding averaged over the motion code's
     # distribution (each group's softmax), or "argmax", the most likely class's (the paper's)
     regression_code: str = "expected"
+    # body measures appended to every motion frame (hrr_garment.body.measures): set by training
+    # when its data holds more than one body; 0, one body (the encoders and decoder read none)
+    body_features: int = 0
 
     def __post_init__(self):
         try:
@@ -52,6 +61,8 @@ class CodeSpaceConfig:
         object.__setattr__(self, "memory_seconds", spec.seconds)
         object.__setattr__(self, "resonator_hz", spec.resonator_hz)
         object.__setattr__(self, "resonator_damping", spec.damping)
+        if not isinstance(self.body_features, int) or self.body_features < 0:
+            raise SettingsError(f"code space model: body_features must be a count >= 0, got {self.body_features!r}")
         if self.regression_code not in REGRESSION_CODES:
             raise SettingsError(f"code space model: regression_code must be one of {', '.join(REGRESSION_CODES)}, "
                                 f"got {self.regression_code!r}")
@@ -63,8 +74,8 @@ class CodeSpaceConfig:
 
     @property
     def features(self) -> int:
-        """Motion features per frame: the 124 plain ones and the memory's."""
-        return feature_width(self.memory)
+        """Motion features per frame: the 124 plain ones, the memory's and the body's measures."""
+        return feature_width(self.memory) + self.body_features
 
     @classmethod
     def from_dict(cls, values: dict) -> "CodeSpaceConfig":
@@ -113,9 +124,11 @@ class GarmentEncoder(nn.Module):
         super().__init__()
         self.net = _mlp([size, hidden, hidden, logits], dropout)
 
-    def forward(self, latents: torch.Tensor) -> torch.Tensor:
-        """(B, W, N, C) or (B, W * N * C) -> (B, G * K) logits."""
-        return self.net(latents.reshape(len(latents), -1))
+    def forward(self, latents: torch.Tensor, body: torch.Tensor | None = None) -> torch.Tensor:
+        """(B, W, N, C) or (B, W * N * C), and the body's standardised measures (B, b) of a model
+        trained across bodies -> (B, G * K) logits."""
+        flat = latents.reshape(len(latents), -1)
+        return self.net(flat if body is None else torch.cat([flat, body], 1))
 
 
 class LatentDecoder(nn.Module):
@@ -140,13 +153,26 @@ class CodeSpace(nn.Module):
         size = config.window * latent_shape[0] * latent_shape[1]
         self.quantizer = GumbelQuantizer(config.groups, config.classes, config.embedding_dim)
         self.motion_encoder = MotionEncoder(features, self.quantizer.logits_size, config.motion_hidden, config.attention_heads)
-        self.garment_encoder = GarmentEncoder(size, self.quantizer.logits_size, config.hidden, config.dropout)
-        self.decoder = LatentDecoder(self.quantizer.embedding_size, size, config.hidden, config.dropout)
+        body = config.body_features
+        self.garment_encoder = GarmentEncoder(size + body, self.quantizer.logits_size, config.hidden, config.dropout)
+        self.decoder = LatentDecoder(self.quantizer.embedding_size + body, size, config.hidden, config.dropout)
 
-    def decode(self, embedding: torch.Tensor, last_frame: bool = False) -> torch.Tensor:
-        """(B, G * dim) -> (B, W, N, C) standardised latents; with ``last_frame`` only the window's
-        last frame, (B, 1, N, C), which is all causal inference uses: the output layer's other rows
-        (nine tenths of the decoder's weights) are skipped."""
+    def body_of(self, motion: torch.Tensor) -> torch.Tensor | None:
+        """The standardised body measures (B, b) of motion windows (B, W, F): their last frame's
+        last ``body_features`` columns; None for a model of one body."""
+        b = self.config.body_features
+        return motion[:, -1, motion.shape[-1] - b:] if b else None
+
+    def decode(self, embedding: torch.Tensor, last_frame: bool = False, body: torch.Tensor | None = None) -> torch.Tensor:
+        """(B, G * dim) and, for a model trained across bodies, the body (:meth:`body_of`) ->
+        (B, W, N, C) standardised latents; with ``last_frame`` only the window's last frame,
+        (B, 1, N, C), which is all causal inference uses: the output layer's other rows (nine
+        tenths of the decoder's weights) are skipped."""
+        if (body is None) != (self.config.body_features == 0):
+            raise ValueError(f"the decoder reads {self.config.body_features} body measures; "
+                             f"{'none' if body is None else body.shape[-1]} given")
+        if body is not None:
+            embedding = torch.cat([embedding, body], 1)
         if not last_frame:
             return self.decoder(embedding).reshape(len(embedding), self.config.window, *self.latent_shape)
         *hidden, out = self.decoder.net

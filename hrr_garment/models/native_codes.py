@@ -59,7 +59,7 @@ class NativeWindowCodes:
                    *linear(enc.pool.in_proj_weight[h:], enc.pool.in_proj_bias[h:]),
                    *linear(enc.pool.out_proj.weight, enc.pool.out_proj.bias), out_norm.weight, out_norm.bias,
                    *linear(out_linear.weight, out_linear.bias), q.embedding, torch.tensor([enc.norm.eps, out_norm.eps])]
-        sizes = [q.embedding_size]
+        sizes = [q.embedding_size + cfg.body_features]  # a model across bodies: its measures after the embedding
         for i, layer in enumerate(linears):
             last = i == len(linears) - 1  # causal inference needs only the last frame's rows
             weights += linear(layer.weight[-self.rows:], layer.bias[-self.rows:]) if last else linear(layer.weight, layer.bias)
@@ -68,7 +68,8 @@ class NativeWindowCodes:
                         for w in weights]  # kept alive: the kernel reads them through pointers
         self._pointers = (ctypes.c_void_p * len(self._arrays))(*[a.ctypes.data for a in self._arrays])
         self._dims = np.array([codespace.features, cfg.window, cfg.motion_hidden, cfg.attention_heads, q.groups, q.classes,
-                               q.dim, len(linears), *sizes, int(cfg.regression_code == "expected")], np.int32)
+                               q.dim, len(linears), *sizes, int(cfg.regression_code == "expected"), cfg.body_features],
+                              np.int32)
         self.groups = q.groups
 
     def __call__(self, windows: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:

@@ -101,10 +101,10 @@ static void attend(const float *q, int nq, int qs, const float *k, const float *
     }
 }
 
-/* The widest input of the decoder's layers (the embedding or a hidden layer). */
+/* The widest input of the decoder's layers (the embedding, with the body's measures, or a hidden layer). */
 static long decoder_widest(const int32_t *dims)
 {
-    long widest = (long)dims[4] * dims[6];
+    long widest = dims[8];
     for (int l = 1; l < dims[7]; ++l) widest = dims[8 + l] > widest ? dims[8 + l] : widest;
     return widest;
 }
@@ -113,9 +113,10 @@ enum { P_INP_W, P_INP_B, P_IH_W, P_IH_B, P_HH_W, P_HH_B, P_ATT_IN_W, P_ATT_IN_B,
        P_NORM_B, P_QUERY, P_POOL_Q_W, P_POOL_Q_B, P_POOL_KV_W, P_POOL_KV_B, P_POOL_OUT_W, P_POOL_OUT_B, P_OUT_NORM_W, P_OUT_NORM_B, P_OUT_W,
        P_OUT_B, P_EMBEDDING, P_EPS, P_DECODER };
 
-/* dims: F, W, H, heads, G, K, D, L, then the decoder's L + 1 layer sizes (G * D first), then 1
+/* dims: F, W, H, heads, G, K, D, L, then the decoder's L + 1 layer sizes (G * D + nb first), then 1
    where the regression decodes the expected embedding (the mean over each group's softmax), 0
-   where it decodes the argmax class's;
+   where it decodes the argmax class's, then nb: how many body measures the decoder reads beside the
+   embedding (a model trained across bodies: the last nb features of each window's last frame);
    params: the pointers in the order of the enum above, then L (weight, bias) pairs; every weight
    packed in panels (see linear_rows), the pooling's in-projection split into its query and
    key-value parts; eps holds the two layer norms' epsilons. B windows in lockstep: x (B, W, F)
@@ -133,6 +134,7 @@ static void window_codes(const float *x, int B, const int32_t *dims, const float
               L = dims[7];
     const int32_t *sizes = dims + 8;
     const int expected = dims[9 + L];  /* the regression decodes the expected embedding, else the argmax's */
+    const int nb = dims[10 + L];  /* body measures after the embedding in the decoder's input */
     const long BW = (long)B * W, widest = decoder_widest(dims);
     float *a = work, *gi = a + BW * H, *hs = gi + BW * 3 * H, *gh = hs + BW * H, *state = gh + (long)B * 3 * H,
           *qkv = state + 2L * B * H, *att = qkv + BW * 3 * H, *scores = att + BW * H, *q = scores + BW * W * heads,
@@ -194,7 +196,7 @@ static void window_codes(const float *x, int B, const int32_t *dims, const float
         group_entropy[j] = logf(sum) - weighted / sum;  /* -sum p log p, p = e / sum */
         argmax[j] = best;
         const float *embedding = p[P_EMBEDDING] + (size_t)g * K * D;
-        float *row = h0 + j * D;
+        float *row = h0 + (j / G) * sizes[0] + (long)g * D;
         if (expected) {  /* the embedding averaged over the group's softmax */
             for (int d = 0; d < D; ++d) row[d] = 0.0f;
             for (int k = 0; k < K; ++k) {
@@ -212,7 +214,12 @@ static void window_codes(const float *x, int B, const int32_t *dims, const float
         entropy[b] = total / (float)G;
     }
     if (!latents) return;
-    float *in = h0;  /* (B, G * D); h0 and spare hold B rows of the widest layer each */
+    if (nb) {  /* the body's measures after each window's embedding */
+        #pragma omp for schedule(static)
+        for (int b = 0; b < B; ++b)
+            memcpy(h0 + (long)b * sizes[0] + (long)G * D, x + ((long)b * W + W - 1) * F + F - nb, sizeof(float) * nb);
+    }
+    float *in = h0;  /* (B, G * D + nb); h0 and spare hold B rows of the widest layer each */
     for (int l = 0; l < L; ++l) {
         float *y = l == L - 1 ? latents : spare;
         linear_shared(in, B, sizes[l], p[P_DECODER + 2 * l], p[P_DECODER + 2 * l + 1], sizes[l + 1], y);

@@ -23,10 +23,10 @@ import numpy as np
 
 from ..body.body_file import BodyRecord
 from ..body.capsules import BodyModel
-from ..data.bodies import MANNEQUIN, DressedBody, is_symmetric, mannequin_record, symmetrized
+from ..data.bodies import MANNEQUIN, DressedBody, dress, mannequin_record, symmetrized
 from ..errors import InputError
-from ..garment.mesh import GarmentMesh, mirror_map
-from ..garment.transfer import TransferReport, transfer_garment
+from ..garment.mesh import GarmentMesh
+from ..garment.transfer import TransferReport
 from .plan import SequenceSpec, safe_name
 
 SOURCES = ("performer", "sample")
@@ -59,19 +59,6 @@ class BodyPlan:
         if not (2 <= plan.count <= 256 and 1 <= plan.per_clip <= plan.count and 1.0 <= low < high <= 2.2):
             raise InputError(where, "bodies: count 2-256, per_clip 1-count, statures_m two heights in 1.0-2.2 m, low first")
         return plan
-
-
-def dress(name: str, record: BodyRecord, garment: GarmentMesh, made_for: BodyModel) -> tuple[DressedBody, TransferReport]:
-    """The body (left and right made exactly alike where they nearly are: its sequences can then be
-    mirrored) and ``garment`` (modelled on ``made_for``) carried onto it."""
-    body = symmetrized(record.body)
-    record = replace(record, body=body, skeleton=body.skeleton)
-    on_body, report = transfer_garment(garment, made_for=made_for, body=body)
-    perm = mirror_map(garment.vertices) if is_symmetric(made_for) else None
-    if perm is not None and is_symmetric(body):  # exactly symmetric, as the template was
-        flip = np.array([-1.0, 1.0, 1.0], np.float32)
-        on_body = replace(on_body, vertices=0.5 * (on_body.vertices + on_body.vertices[perm] * flip))
-    return DressedBody(name, record, on_body), report
 
 
 def one_body(specs: list[SequenceSpec], name: str, body: DressedBody) -> tuple[list[SequenceSpec], dict[str, DressedBody]]:

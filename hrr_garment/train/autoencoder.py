@@ -85,11 +85,16 @@ class TrainingFrames:
 
 
 def body_frames(ds: GarmentDataset, names: list[str]) -> np.ndarray:
-    """All frames of ``names`` in each frame's body frame (:mod:`..motion.frame`), (N, V, 3) float32."""
+    """All frames of ``names`` as the models learn them, (N, V, 3) float32: in each frame's body
+    frame (:mod:`..motion.frame`), less the rest offset of the body the sequence was simulated on
+    (:meth:`~hrr_garment.data.bodies.DressedBody.offset`: nothing on the mannequin). A garment's
+    motion relative to its own body at rest carries over between bodies; its absolute position
+    does not (a 1.95 m body's dress hangs 19 cm higher in the body frame than the mannequin's)."""
     out = []
     for name in names:
         rec = ds.sequence(name)
-        out.append(to_body_frame(rec.garment.astype(np.float64), rec.motion).astype(np.float32))
+        frames = to_body_frame(rec.garment.astype(np.float64), rec.motion).astype(np.float32)
+        out.append(frames - ds.bodies[ds.body_of[name]].offset(ds.template))
     return np.concatenate(out) if out else np.zeros((0, ds.template.num_vertices, 3), np.float32)
 
 

@@ -36,7 +36,7 @@ from ..artifacts.gate_signals import GATE_SIGNALS, gate_doubt
 from ..artifacts.residual import ACCURACY_ALLOWANCE, RESIDUAL_WEIGHTS, match_regression, residual_latents
 from ..data.dataset import DatasetError, GarmentDataset
 from ..data.windows import dataset_features
-from ..models.codes import encode_motion
+from ..models.codes import encode_motion, window_bodies
 from ..models.codespace import CodeSpace
 from ..motion.features import FeatureStats
 from .autoencoder import body_frames, refine_settings
@@ -73,7 +73,7 @@ def predict_windows(model: CodeSpace, motion: np.ndarray, motion_stats: FeatureS
                     database: CodeDatabase, exclude: np.ndarray | None = None) -> WindowPredictions:
     """Both candidates for every motion window (N, W, F) (raw features)."""
     enc = encode_motion(model, motion_stats, latent_stats, motion_windows=motion)
-    match, similarity = database.search(enc.codes, exclude)
+    match, similarity = database.search(enc.codes, exclude, window_bodies(model, enc.standardised))
     distance = own = None
     if database.motion is not None:
         distance = database.motion_distance(enc.standardised, match)
@@ -266,6 +266,6 @@ def evaluate_bundle(bundle, dataset: str | Path, split: str = "val") -> dict:
     if not names:
         raise DatasetError(dataset, f"has no {split!r} sequences")
     encoding = refine_settings(bundle.meta.get("encoding", {}))
-    modes = window_mode_errors(bundle, dataset_features(ds, names, bundle.codespace.config.memory),
+    modes = window_mode_errors(bundle, dataset_features(ds, names, bundle.codespace.config.memory, bool(bundle.codespace.config.body_features)),
                                {n: body_frames(ds, [n]) for n in names}, encoding=encoding)
     return modes.summary(bundle.tau, bundle.gate)

@@ -15,7 +15,7 @@ from __future__ import annotations
 import hashlib
 import json
 import time
-from dataclasses import asdict
+from dataclasses import asdict, replace
 from pathlib import Path
 
 import numpy as np
@@ -27,6 +27,9 @@ from ..artifacts.bundle_writer import BundleParts, add_bundle_part, update_bundl
 from ..artifacts.database import CodeDatabase
 from ..artifacts.folds import FoldStore
 from ..artifacts.manifest import FOLDS_FILE
+from ..body.body_file import body_to_dict
+from ..body.measures import BODY_MEASURES, BodyRange, body_vector
+from ..data.bodies import MANNEQUIN
 from ..data.dataset import DatasetError, GarmentDataset
 from ..data.windows import build_windows, dataset_features, fit_stats, split_windows
 from ..garment.smoothing import mean_operator
@@ -60,9 +63,26 @@ def check_splits(ds: GarmentDataset) -> None:
 def garment_codes(model: CodeSpace, windows: WindowTensors, batch: int = 512) -> np.ndarray:
     """Argmax garment codes (N, G) uint8 of standardised latent windows."""
     model.eval()
-    out = [model.quantizer.split(model.garment_encoder(windows.latents[windows.frame_rows(slice(i, i + batch))])).argmax(-1)
-           for i in range(0, len(windows), batch)]  # the latent windows alone: the encoder reads no motion
+    out = []
+    for i in range(0, len(windows), batch):  # the latent windows, and the body of a model across bodies
+        motion, latents = windows[slice(i, i + batch)]
+        out.append(model.quantizer.split(model.garment_encoder(latents, model.body_of(motion))).argmax(-1))
     return torch.cat(out).numpy().astype(np.uint8)
+
+
+def training_bodies(ds: GarmentDataset) -> dict | None:
+    """bundle.json's ``bodies`` of a model trained on ``ds``: the range of the bodies its training
+    split was simulated on (:class:`~hrr_garment.body.measures.BodyRange`), the body it animates
+    when given none (the one body of a model trained on one, the mannequin otherwise) and the body
+    its garment was modelled on (``hrr-simulate --made-for``; None: the mannequin). None where the
+    data is the mannequin's alone, as before bodies."""
+    names = sorted({ds.body_of[n] for n in ds.splits["train"]})
+    made_for = ds.info.get("made_for")
+    if names == [MANNEQUIN] and ds.bodies[MANNEQUIN].is_mannequin and made_for is None:
+        return None
+    known = BodyRange.of([body_vector(ds.bodies[n].record) for n in names])
+    return {"range": known.to_dict(), "default": body_to_dict(ds.bodies[names[0]].record) if len(names) == 1 else None,
+            "made_for": made_for}
 
 
 def _autoencoder_outputs(ds: GarmentDataset, dataset, ae_folder: Path) -> tuple[dict, dict, dict[str, np.ndarray]]:
@@ -162,6 +182,8 @@ def run_codespace_stage(dataset: str | Path, folder: str | Path, config: CodeSpa
     stage = folder / STAGE_FOLDER
     ds = GarmentDataset(dataset)
     check_splits(ds)
+    bodies = training_bodies(ds)  # a model across bodies reads their measures; a model of one body does not
+    config = replace(config, body_features=len(BODY_MEASURES) if bodies and bodies["range"]["bodies"] > 1 else 0)
     ae_folder = folder / "autoencoder"
     ae_meta, ae_state, latents = _autoencoder_outputs(ds, dataset, ae_folder)
     key = _stage_key(config, train_config, ae_state, latents, ds)
@@ -174,7 +196,7 @@ def run_codespace_stage(dataset: str | Path, folder: str | Path, config: CodeSpa
     if done is not None and "residual" in meta:
         return _stage_report(done, stage, reused=True)
     splits = {k: ds.splits[k] for k in ("train", "val")}
-    features = dataset_features(ds, splits["train"] + splits["val"], config.memory)
+    features = dataset_features(ds, splits["train"] + splits["val"], config.memory, config.body_features > 0)
     train_w, val_w, motion_stats, latent_stats, calibration = _windows(features, latents, splits, config, train_config)
     encoding = refine_settings(ae_meta.get("train", {}))
     val_names = sorted({n for n, _ in calibration}) if calibration else splits["val"]
@@ -214,6 +236,7 @@ def run_codespace_stage(dataset: str | Path, folder: str | Path, config: CodeSpa
     write_bundle(folder, parts, tau=sweep.best_tau, gate=gate,
                  info={"dataset": str(dataset), "window": config.window, "validation_mm": report["validation_mm"],
                        "gates": report["gates"], **({"residual": report["residual"]} if report["residual"] else {}),
-                       "encoding": encoding, "validation": train_config.validation, **(info or {})})
+                       "encoding": encoding, "validation": train_config.validation,
+                       **({"bodies": bodies} if bodies else {}), **(info or {})})
     atomic_write_text(report_path, strict_json(report, indent=2, default=float))
     return _stage_report(report, stage)

@@ -155,16 +155,16 @@ def mean_square(error: torch.Tensor) -> torch.Tensor:
 
 def _losses(model: CodeSpace, motion: torch.Tensor, latents: torch.Tensor, temperature: float,
             latent_loss: Callable[[torch.Tensor], torch.Tensor] = mean_square) -> dict[str, torch.Tensor]:
-    q = model.quantizer
-    g_logits, m_logits = model.garment_encoder(latents), model.motion_encoder(motion)
+    q, body = model.quantizer, model.body_of(motion)
+    g_logits, m_logits = model.garment_encoder(latents, body), model.motion_encoder(motion)
     _, e_g = q(g_logits, temperature)
     _, e_m = q(m_logits, temperature)
     # the regression path as inference runs it: the code distribution's mean embedding (or the
     # sampled code's, for the paper's argmax regression)
     e_reg = regression_embedding(model, q.split(m_logits)) if model.config.regression_code == "expected" else e_m
-    return {"rec": latent_loss(model.decode(e_g) - latents), "match": (e_g - e_m).pow(2).mean(),
+    return {"rec": latent_loss(model.decode(e_g, body=body) - latents), "match": (e_g - e_m).pow(2).mean(),
             "diversity": 0.5 * (q.diversity_loss(g_logits) + q.diversity_loss(m_logits)),
-            "g_logits": g_logits.detach(), "m_logits": m_logits.detach(), "regress": latent_loss(model.decode(e_reg) - latents)}
+            "g_logits": g_logits.detach(), "m_logits": m_logits.detach(), "regress": latent_loss(model.decode(e_reg, body=body) - latents)}
 
 
 @torch.no_grad()

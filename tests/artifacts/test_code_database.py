@@ -37,3 +37,22 @@ def test_hamming_search_equals_cosine_on_one_hot_codes(database, rng):
 def test_search_can_exclude_the_query_sequence(database):
     idx, _ = database.search(database.codes[[5, 150]], exclude=np.array([0, 1]))
     assert database.sequence[idx[0]] != 0 and database.sequence[idx[1]] != 1
+
+
+def test_among_equally_near_codes_retrieval_prefers_the_nearest_body():
+    """Windows with the same code, simulated on three bodies (the last two motion columns): a query
+    on a body retrieves the window of the body nearest it; a nearer code still wins over a nearer
+    body; without bodies the lowest row wins as before."""
+    from hrr_garment.artifacts.database import CodeDatabase
+
+    codes = np.array([[0, 1, 2, 3], [0, 1, 2, 3], [0, 1, 2, 3], [0, 1, 2, 0]], np.uint8)
+    bodies = np.array([[-1.0, -1.0], [0.0, 0.0], [1.0, 1.2], [0.9, 1.0]], np.float32)
+    motion = np.concatenate([np.zeros((4, 3, 5), np.float32), np.repeat(bodies[:, None], 3, 1)], 2)  # (N, W, 7)
+    db = CodeDatabase(codes, np.zeros((4, 3, 2, 2), np.float32), np.arange(4, dtype=np.int32), np.zeros(4, np.int32),
+                      ["a", "b", "c", "d"], classes=4, motion=motion)
+    query = np.array([[0, 1, 2, 3], [0, 1, 2, 3], [0, 1, 2, 3]], np.uint8)
+    found, similarity = db.search(query, bodies=np.array([[0.1, -0.1], [0.9, 1.0], [-2.0, -2.0]]))
+    assert found.tolist() == [1, 2, 0] and np.allclose(similarity, 1.0)  # row 3 is the nearest body, not code
+    assert db.search(query)[0].tolist() == [0, 0, 0]
+    found, _ = db.search(query[:1], exclude=np.array([1]), bodies=np.array([[0.1, -0.1]]))
+    assert found.tolist() == [0]  # its own sequence excluded: the next nearest body among the equal codes

@@ -40,34 +40,44 @@ def test_usage_counts_dead_classes_and_perplexity():
     assert usage.perplexity == pytest.approx((4 + 1) / 2)
 
 
-def test_decoding_only_the_last_frame_equals_the_full_window():
+@pytest.mark.parametrize("body", [0, 3])
+def test_decoding_only_the_last_frame_equals_the_full_window(body):
     from hrr_garment.models.codespace import CodeSpace, CodeSpaceConfig
 
     torch.manual_seed(0)
-    cs = CodeSpace(CodeSpaceConfig(window=5, groups=4, classes=8, embedding_dim=3, hidden=32, motion_hidden=16), 124, (6, 8))
+    cs = CodeSpace(CodeSpaceConfig(window=5, groups=4, classes=8, embedding_dim=3, hidden=32, motion_hidden=16,
+                                   body_features=body), 124 + body, (6, 8))
     embedding = torch.randn(7, cs.quantizer.embedding_size)
+    measures = cs.body_of(torch.randn(7, 5, 124 + body))
+    assert measures is None if not body else measures.shape == (7, body)
     with torch.no_grad():
-        assert torch.allclose(cs.decode(embedding, last_frame=True), cs.decode(embedding)[:, -1:], atol=1e-6)
+        assert torch.allclose(cs.decode(embedding, True, measures), cs.decode(embedding, body=measures)[:, -1:], atol=1e-6)
+        if body:  # the decoder reads the body: another body, other latents
+            assert not torch.allclose(cs.decode(embedding, body=measures), cs.decode(embedding, body=measures + 1))
+    with pytest.raises(ValueError, match="body measures"):
+        cs.decode(embedding, body=None if body else torch.zeros(7, 2))
 
 
 @pytest.mark.native
-@pytest.mark.parametrize("window,hidden,heads,latent", [(10, 32, 2, (6, 8)), (7, 48, 3, (5, 3)), (12, 64, 4, (9, 8))])
+@pytest.mark.parametrize("window,hidden,heads,latent,body", [(10, 32, 2, (6, 8), 0), (7, 48, 3, (5, 3), 12),
+                                                             (12, 64, 4, (9, 8), 0)])
 @pytest.mark.parametrize("regression,last_frame,code", [(True, True, "expected"), (True, False, "expected"),
                                                         (False, True, "expected"), (True, True, "argmax")])
-def test_native_window_step_equals_pytorch_and_is_batch_invariant(window, hidden, heads, latent, regression, last_frame,
-                                                                    code):
+def test_native_window_step_equals_pytorch_and_is_batch_invariant(window, hidden, heads, latent, body, regression,
+                                                                    last_frame, code):
+    """``body``: a model across bodies, whose decoder reads the window's body measures too."""
     from hrr_garment.models.codes import WindowCodes
     from hrr_garment.models.codespace import CodeSpace, CodeSpaceConfig
     from hrr_garment.models.native_codes import native_window_codes
 
     torch.manual_seed(window)
     cfg = CodeSpaceConfig(window=window, groups=6, classes=5, embedding_dim=3, hidden=40, motion_hidden=hidden,
-                          attention_heads=heads, regression_code=code)
-    cs = CodeSpace(cfg, 124, latent).eval()
+                          attention_heads=heads, regression_code=code, body_features=body)
+    cs = CodeSpace(cfg, 124 + body, latent).eval()
     native = native_window_codes(cs, regression, last_frame)
     if native is None:
         pytest.skip("no C compiler: the native kernels are unavailable")
-    windows = torch.randn(9, window, 124)
+    windows = torch.randn(9, window, 124 + body)
     with torch.no_grad():
         want = WindowCodes(cs, regression, last_frame)(windows)
     got = native(windows)

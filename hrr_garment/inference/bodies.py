@@ -1,0 +1,122 @@
+"""The body a garment is animated on: the model's own, a body file, a character, checked against
+the bodies the model was trained on.
+
+    body = animator.body("hero.json")            # body.json (hrr-body make / fit / nearest)
+    body = animator.body("hero.glb")             # a skinned character, fitted as hrr-body fit does
+    anim = animator.animate(motion, body=body)   # or body="hero.json" directly
+
+A :class:`CharacterBody` holds what animating on it takes: the body (skeleton, pelvis height,
+capsules for the push-out), its measures (:mod:`hrr_garment.body.measures`: what a model trained
+across bodies reads with the motion), and the garment's rest offset on it
+(:meth:`~hrr_garment.data.bodies.DressedBody.offset`): models predict a garment relative to its
+body at rest, and the offset stands it on this one. The garment is carried onto the body as the
+simulator carried it (:func:`~hrr_garment.data.bodies.dress`), so a body the model was trained
+on gets the rest shape its training data had.
+
+A body outside the range of the model's training bodies is refused with each measure that is out
+(:class:`BodyOutsideRange`), or with ``allow_outside`` warned about: the garment then stands on
+the body, but its motion is a guess from bodies unlike it.
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..artifacts.bundle import Bundle
+from ..body.body_file import BodyRecord, read_body
+from ..body.capsules import BodyModel
+from ..body.measures import body_vector
+from ..body.retarget import motion_on_body
+from ..data.bodies import MANNEQUIN, DressedBody, dress
+from ..errors import InputError
+from ..motion.motion import Motion
+from ..motion.skeleton import CANONICAL
+
+CHARACTER_SUFFIXES = (".glb", ".gltf")
+
+
+class BodyOutsideRange(InputError):
+    """A body unlike any the model was trained on."""
+
+
+@dataclass(frozen=True)
+class CharacterBody:
+    """A body to animate on and the model's garment at rest on it."""
+
+    dressed: DressedBody
+    vector: np.ndarray  # (len(BODY_MEASURES),) its measures, metres
+    offset: np.ndarray  # (V, 3) float32 the garment's rest offset on it (zero on the mannequin)
+
+    @property
+    def record(self) -> BodyRecord:
+        return self.dressed.record
+
+    @property
+    def body(self) -> BodyModel:
+        """The collision capsules on the body's skeleton (the push-out's and the previews')."""
+        return self.dressed.body
+
+    @property
+    def name(self) -> str:
+        return self.dressed.name
+
+    def play(self, motion: Motion) -> Motion:
+        """``motion`` on this body: a clip on the canonical skeleton is played by the body (its bone
+        lengths, its stride: :func:`~hrr_garment.body.retarget.motion_on_body`); a clip already
+        on the body's skeleton is kept; a clip on another body's skeleton is refused."""
+        if np.allclose(motion.skeleton.offsets, self.record.skeleton.offsets, atol=1e-6):
+            return motion
+        if motion.skeleton is CANONICAL or np.allclose(motion.skeleton.offsets, CANONICAL.offsets, atol=1e-6):
+            return motion_on_body(motion, self.record)
+        raise InputError(motion.source or "motion", f"the motion stands on another body's skeleton than body "
+                                                    f"{self.name!r}: give the clip on the canonical skeleton")
+
+
+def read_body_argument(body: str | Path) -> tuple[str, BodyRecord]:
+    """A body file's name and record: body.json, or a skinned glTF / GLB character fitted as
+    ``hrr-body fit`` fits it."""
+    path = Path(body)
+    if path.suffix.lower() in CHARACTER_SUFFIXES:
+        from ..body.character import character_body
+
+        return path.stem, character_body(path)[0]
+    return path.stem, read_body(path)
+
+
+def character_body(bundle: Bundle, body: "CharacterBody | DressedBody | BodyRecord | str | Path | None" = None, *,
+                   allow_outside: bool = False, name: str | None = None) -> CharacterBody:
+    """``body`` (None: the model's own, :attr:`~hrr_garment.artifacts.bundle.Bundle.default_body`)
+    ready to animate ``bundle``'s garment on, checked against the model's training bodies. A
+    dataset's body (:class:`~hrr_garment.data.bodies.DressedBody`, a sequence record's ``dressed``)
+    keeps its name."""
+    if isinstance(body, CharacterBody):
+        return body
+    if isinstance(body, DressedBody):
+        body, name = body.record, name or body.name
+    if body is None:
+        record = bundle.default_body
+        label = name or (MANNEQUIN if (bundle.meta.get("bodies") or {}).get("default") is None else "the model's body")
+    elif isinstance(body, BodyRecord):
+        record, label = body, name or "body"
+    elif isinstance(body, (str, Path)):
+        label, record = read_body_argument(body)
+        label = name or label
+    else:
+        raise TypeError(f"body must be a body file's path, a BodyRecord or a CharacterBody, not {type(body).__name__}")
+    vector = body_vector(record)
+    outside = bundle.body_range.outside(vector)
+    if outside:
+        where = body if isinstance(body, (str, Path)) else label
+        count = bundle.body_range.bodies
+        message = (f"body {label!r} is unlike the {count} bod{'y' if count == 1 else 'ies'} the model was trained on: "
+                   f"{'; '.join(outside)}")
+        if not allow_outside:
+            raise BodyOutsideRange(where, message + " (train on bodies like it, or allow it and expect its motion "
+                                                    "to be a guess)")
+        warnings.warn(message + "; animating it anyway", stacklevel=2)
+    dressed, _ = dress(label, record, bundle.template, made_for=bundle.made_for)
+    return CharacterBody(dressed, vector, dressed.offset(bundle.template))

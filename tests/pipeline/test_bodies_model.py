@@ -1,0 +1,168 @@
+"""A model trained across bodies: it reads each body's measures, records the range of its training
+bodies and refuses a body outside it, stands the garment on the body it animates, and streams on
+a body as it animates offline; a model of one body keeps the networks it had before bodies."""
+
+import json
+
+import h5py
+import numpy as np
+import pytest
+
+from hrr_garment.body.body_file import BodyRecord, write_body
+from hrr_garment.body.capsules import DEFAULT_BODY
+from hrr_garment.body.measures import BODY_MEASURES, BodyRange, body_vector
+from hrr_garment.data.bodies import DressedBody, mannequin_record
+from hrr_garment.data.dataset import GarmentDataset
+from hrr_garment.garment.templates import make_garment
+from hrr_garment.garment.transfer import transfer_garment
+from hrr_garment.motion.frame import to_body_frame
+from hrr_garment.motion.synth import synthesize
+from tests.conftest import TINY_TRAINING, train_tiny
+from tests.garment.test_templates_on_bodies import _larger_body
+
+
+def _record(scale: float, fuller: float = 1.0) -> BodyRecord:
+    body = _larger_body(scale, fuller)
+    return BodyRecord(body.skeleton, body, body.pelvis_height, stature=1.7 * scale)
+
+
+def _dressed(garment, name: str, scale: float, fuller: float = 1.0) -> DressedBody:
+    record = _record(scale, fuller)
+    return DressedBody(name, record, transfer_garment(garment, made_for=DEFAULT_BODY, body=record.body)[0])
+
+
+@pytest.fixture(scope="module")
+def bodies_model(tmp_path_factory):
+    """A tiny skirt model trained on the simulator-free dataset on two bodies, 1.1 and 0.92 times
+    the mannequin: (its folder, the dataset)."""
+    from hrr_garment.data.synthetic import write_synthetic_dataset
+
+    root = tmp_path_factory.mktemp("bodies")
+    garment = make_garment("skirt", 300)
+    bodies = [_dressed(garment, "tall", 1.1, 1.1), _dressed(garment, "short", 0.92, 0.95)]
+    data = write_synthetic_dataset(root / "skirt.h5", garment, bodies=bodies)
+    (root / "cfg.yaml").write_text(TINY_TRAINING)
+    train_tiny(data, root / "model", root / "cfg.yaml")
+    return root / "model", data
+
+
+def test_a_uniformly_larger_body_measures_larger_by_the_same_factor():
+    """Every measure is a length: bones k times longer with k times the radii measure k times more."""
+    base = body_vector(_record(1.0))
+    assert np.allclose(body_vector(_record(1.2, 1.2)), 1.2 * base, rtol=0.02)
+    assert np.allclose(body_vector(mannequin_record())[:2], [1.70, 0.96])
+    known = BodyRange.of([body_vector(_record(0.95)), body_vector(_record(1.1))])
+    assert known.outside(body_vector(_record(1.0))) == []
+    outside = known.outside(body_vector(_record(1.3)))
+    assert outside and outside[0].startswith("stature 2.210 m, trained on")
+
+
+def test_models_learn_each_frame_less_its_bodys_rest_offset(bodies_model):
+    """The autoencoder's frames: the body frame less the offset of the sequence's own body, which
+    stands the garment on the mannequin's rest shape at rest."""
+    from hrr_garment.train.autoencoder import body_frames
+
+    _, data = bodies_model
+    ds = GarmentDataset(data)
+    for name in ("walk_000", "walk_001"):
+        rec = ds.sequence(name)
+        dressed = ds.bodies[ds.body_of[name]]
+        frames = to_body_frame(rec.garment.astype(np.float64), rec.motion)
+        assert np.allclose(body_frames(ds, [name]), frames - dressed.offset(ds.template), atol=1e-5)
+        assert np.abs(dressed.offset(ds.template)).max() > 0.02  # a body unlike the mannequin
+    assert np.abs(ds.bodies["mannequin"].offset(ds.template)).max() == 0.0
+
+
+def test_a_model_across_bodies_reads_their_measures_and_records_their_range(bodies_model):
+    from hrr_garment.inference.animator import Animator
+
+    folder, data = bodies_model
+    meta = json.loads((folder / "bundle.json").read_text())
+    assert meta["codespace"]["config"]["body_features"] == len(BODY_MEASURES)
+    assert meta["bodies"]["range"]["bodies"] == 2 and meta["bodies"]["default"] is None
+    animator = Animator.load(folder)
+    ds = GarmentDataset(data)
+    tall = ds.bodies["tall"].record
+    feats = animator.features(synthesize("walk", 0.5, seed=0), body=animator.body(tall))
+    assert np.allclose(feats[:, -len(BODY_MEASURES):], body_vector(tall))  # every frame carries the body
+
+
+def test_the_garment_stands_on_the_body_it_is_animated_on(bodies_model):
+    """The waist rides as much higher on the tall body than on the short one as their rest shapes
+    put it (the model predicts the garment relative to its body at rest); the push-out and the
+    exported capsules are that body's."""
+    from hrr_garment.inference.animator import Animator
+
+    folder, data = bodies_model
+    ds = GarmentDataset(data)
+    animator = Animator.load(folder)
+    motion = synthesize("idle", 1.0, seed=0)
+    waist, rest = {}, {}
+    for name in ("tall", "short"):
+        anim = animator.animate(motion, body=ds.bodies[name], mode="regression")
+        assert anim.body == name and np.allclose(anim.radii, ds.bodies[name].body.radii)
+        waist[name] = anim.vertices[:, :, 1].max(1).mean()
+        rest[name] = ds.bodies[name].garment.vertices[:, 1].max()
+        assert abs(waist[name] - rest[name]) < 0.05  # near its own rest height (the idle pelvis bobs)
+    assert rest["tall"] - rest["short"] > 0.15
+    assert abs((waist["tall"] - waist["short"]) - (rest["tall"] - rest["short"])) < 0.02
+
+
+def test_a_body_unlike_the_training_bodies_is_refused_or_warned_about(bodies_model):
+    from hrr_garment.inference.animator import Animator
+    from hrr_garment.inference.bodies import BodyOutsideRange
+
+    folder, _ = bodies_model
+    animator = Animator.load(folder)
+    giant = _record(1.4)
+    with pytest.raises(BodyOutsideRange, match="stature 2.380 m, trained on 1.564-1.870 m"):
+        animator.animate(synthesize("walk", 0.5, seed=0), body=giant)
+    with pytest.warns(UserWarning, match="animating it anyway"):
+        anim = animator.animate(synthesize("walk", 0.5, seed=0), body=giant, allow_outside=True)
+    assert np.isfinite(anim.vertices).all()
+
+
+def test_a_model_of_the_mannequin_alone_keeps_its_networks_and_refuses_other_bodies(trained):
+    from hrr_garment.inference.animator import Animator
+    from hrr_garment.inference.bodies import BodyOutsideRange
+
+    root, _, _ = trained
+    meta = json.loads((root / "model" / "bundle.json").read_text())
+    assert meta["codespace"]["config"]["body_features"] == 0 and "bodies" not in meta
+    animator = Animator.load(root / "model")
+    assert animator.bundle.body_range.bodies == 1
+    with pytest.raises(BodyOutsideRange, match="unlike the 1 body the model"):
+        animator.body(_record(1.1))
+
+
+def test_a_stream_on_a_body_equals_the_offline_causal_animation_on_it(bodies_model):
+    from hrr_garment.inference.animator import Animator
+
+    folder, data = bodies_model
+    animator = Animator.load(folder)
+    short = GarmentDataset(data).bodies["short"].record
+    motion = synthesize("walk_curve", 1.0, seed=3)
+    causal = animator.animate(motion, body=short, causal=True).vertices
+    stream = animator.stream(body=short)
+    pushed = np.stack([stream.push(motion.slice(t, t + 1)) for t in range(motion.num_frames)])
+    assert np.abs(pushed - causal).max() <= 1e-5
+
+
+def test_hrr_animate_on_a_body_file(bodies_model, tmp_path, capsys):
+    from hrr_garment.cli.animate import main
+
+    folder, data = bodies_model
+    from hrr_garment.motion.io import save_motion
+
+    save_motion(synthesize("walk", 1.0, seed=2), tmp_path / "clip.npz")
+    write_body(tmp_path / "short.json", GarmentDataset(data).bodies["short"].record)
+    assert main([str(tmp_path / "clip.npz"), "-o", str(tmp_path / "out.h5"), "--model", str(folder),
+                 "--body", str(tmp_path / "short.json")]) == 0
+    assert "on body short" in capsys.readouterr().out
+    with h5py.File(tmp_path / "out.h5") as f:
+        assert f.attrs["body"] == "short"
+    write_body(tmp_path / "giant.json", _record(1.4))
+    assert main([str(tmp_path / "clip.npz"), "-o", str(tmp_path / "giant.h5"), "--model", str(folder),
+                 "--body", str(tmp_path / "giant.json")]) != 0
+    err = capsys.readouterr().err
+    assert "giant.json" in err and "unlike the 2 bodies" in err and not (tmp_path / "giant.h5").exists()
