@@ -128,15 +128,18 @@ def capsule_signed_distance(points: np.ndarray, a: np.ndarray, b: np.ndarray, ra
 
 def frames_signed_distance(points: np.ndarray, a: np.ndarray, b: np.ndarray, radii: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """:func:`capsule_signed_distance` frame by frame: points (T, N, 3) against each frame's capsule
-    ends a, b (T, C, 3) -> distances (T, N) and normals (T, N, 3). Runs in the native kernel of
-    :mod:`hrr_garment.native` when it is compiled (equal to 1e-12, tested)."""
+    ends a, b (T, C, 3) and radii (C,), or each frame's own (T, C) -> distances (T, N) and normals
+    (T, N, 3). Runs in the native kernel of :mod:`hrr_garment.native` when it is compiled (equal to
+    1e-12, tested)."""
     from ..native import default_threads, load_kernel
     from ..native.body import capsule_sdf
 
     lib = load_kernel()
-    if lib is not None:
+    per_frame = np.ndim(radii) == 2
+    if lib is not None and not per_frame:
         return capsule_sdf(lib, points, a, b=b, radii=radii, threads=default_threads())
-    out = [capsule_signed_distance(np.asarray(points[t], np.float64), a[t], b[t], radii)[:2] for t in range(len(points))]
+    out = [capsule_signed_distance(np.asarray(points[t], np.float64), a[t], b[t], radii[t] if per_frame else radii)[:2]
+           for t in range(len(points))]
     return np.stack([o[0] for o in out]), np.stack([o[1] for o in out])
 
 

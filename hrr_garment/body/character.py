@@ -34,7 +34,7 @@ import numpy as np
 from ..errors import InputError
 from ..motion.bvh_motion import PLAUSIBLE_HEIGHT_M
 from ..motion.gltf import world_unit_scale
-from ..motion.gltf_file import open_gltf, rest_world_matrices
+from ..motion.gltf_file import node_parents, open_gltf, rest_world_matrices
 from ..motion.joint_maps import resolve_joint_map
 from ..motion.skeleton import JOINT_INDEX, JOINT_NAMES, PARENTS, REST_OFFSETS
 from .body_file import BodyRecord
@@ -59,6 +59,10 @@ class Character:
     posed_joints: tuple[str, ...] = ()  # skin joints whose nodes stood away from the bind pose
     turned: bool = False  # True when quarter turns were needed to stand it Y up, facing +Z
     filled_joints: tuple[str, ...] = ()  # optional canonical joints the skin lacks, placed between others
+    # (V, 22) float32 each vertex's skin weights gathered onto the canonical joints (a joint the
+    # canonical skeleton lacks, a finger or a twist bone, gives its weight to its nearest canonical
+    # ancestor); None where the mesh carries no weights
+    weights: np.ndarray | None = None
 
 
 def _skinned_meshes(doc, skin: int | None) -> tuple[int, list[int]]:
@@ -110,9 +114,10 @@ def _triangles(indices: np.ndarray, mode: int) -> np.ndarray:
     return np.stack([np.full(n, indices[0] if len(indices) else 0), indices[1:n + 1], indices[2:n + 2]], 1)
 
 
-def _read_mesh(doc, meshes: list[int]) -> tuple[np.ndarray, np.ndarray]:
-    """The meshes' triangle primitives as one (V, 3) vertex and (F, 3) face array, in the skin's space."""
-    vertices, faces, offset = [], [], 0
+def _read_mesh(doc, meshes: list[int]) -> tuple[np.ndarray, np.ndarray, tuple[np.ndarray, np.ndarray] | None]:
+    """The meshes' triangle primitives as one (V, 3) vertex and (F, 3) face array, in the skin's
+    space, and their skin joints and weights (V, 4) each (None unless every primitive has them)."""
+    vertices, faces, skinning, offset = [], [], [], 0
     for m in meshes:
         for p, prim in enumerate(doc.doc.meshes[m].primitives or []):
             mode = prim.mode if prim.mode is not None else 4
@@ -128,12 +133,48 @@ def _read_mesh(doc, meshes: list[int]) -> tuple[np.ndarray, np.ndarray]:
                 raise doc.fail(f"mesh {m} primitive {p}: an index reaches past its {len(v)} vertices")
             vertices.append(v)
             faces.append(_triangles(idx, mode) + offset)
+            skinning.append(_skin_weights(doc, prim.attributes, len(v)))
             offset += len(v)
             if offset > MAX_VERTICES:
                 raise doc.fail(f"the skinned meshes hold over {MAX_VERTICES} vertices; decimate the character first")
     if not vertices:
         raise doc.fail(f"the meshes skinned to the skin ({meshes}) have no triangles")
-    return np.concatenate(vertices), np.concatenate(faces)
+    weights = None
+    if all(w is not None for w in skinning):
+        weights = (np.concatenate([j for j, _ in skinning]), np.concatenate([w for _, w in skinning]))
+    return np.concatenate(vertices), np.concatenate(faces), weights
+
+
+def _skin_weights(doc, attributes, count: int) -> tuple[np.ndarray, np.ndarray] | None:
+    """A primitive's JOINTS_0 (indices into the skin's joints) and WEIGHTS_0, (V, 4) each, or None."""
+    joints, weights = getattr(attributes, "JOINTS_0", None), getattr(attributes, "WEIGHTS_0", None)
+    if joints is None or weights is None:
+        return None
+    j, w = doc.accessor(joints, raw_integers=True), doc.accessor(weights)
+    if j.shape != (count, 4) or w.shape != (count, 4):
+        raise doc.fail(f"JOINTS_0 and WEIGHTS_0 must be VEC4 for each of the {count} vertices")
+    return j.astype(np.int64), w
+
+
+def _canonical_weights(doc, skinning: tuple[np.ndarray, np.ndarray], joint_nodes: list[int],
+                       mapping: dict[str, int]) -> np.ndarray:
+    """(V, 22) each vertex's weights gathered onto the canonical joints: a skin joint that is not
+    one of them gives its weight to its nearest mapped ancestor (the pelvis where it has none)."""
+    joints, weights = skinning
+    if joints.size and (joints.min() < 0 or joints.max() >= len(joint_nodes)):
+        raise doc.fail(f"JOINTS_0 names a joint outside the skin's {len(joint_nodes)}")
+    parents = node_parents(doc)
+    canonical = {joint_nodes[i]: JOINT_INDEX[c] for c, i in mapping.items()}
+    owner = np.zeros(len(joint_nodes), np.int64)
+    for i, node in enumerate(joint_nodes):
+        while node >= 0 and node not in canonical:
+            node = parents[node]
+        owner[i] = canonical.get(node, 0)
+    out = np.zeros((len(joints), len(JOINT_NAMES)))
+    np.add.at(out, (np.repeat(np.arange(len(joints)), joints.shape[1]), owner[joints].ravel()), weights.ravel())
+    total = out.sum(1, keepdims=True)
+    out[total[:, 0] <= 0, 0], total[total <= 0] = 1.0, 1.0  # a vertex weighted to nothing follows the pelvis
+    return (out / total).astype(np.float32)
 
 
 def _bind_matrices(doc, skin: int, joints: list[int]) -> np.ndarray:
@@ -242,7 +283,7 @@ def read_character(path: str | Path, skin: int | None = None, joint_map: dict | 
     bind, posed = _skin_to_world(world, ibm)
     if abs(np.linalg.det(bind[:3, :3])) < 1e-12:
         raise doc.fail(f"skin {skin}'s bind pose is degenerate (its joints times their inverse bind matrices are singular)")
-    vertices, faces = _read_mesh(doc, meshes)
+    vertices, faces, skinning = _read_mesh(doc, meshes)
     vertices = vertices @ bind[:3, :3].T + bind[:3, 3]
     try:
         bind_joints = np.stack([bind @ np.linalg.inv(m) for m in ibm])[:, :3, 3]
@@ -257,9 +298,10 @@ def read_character(path: str | Path, skin: int | None = None, joint_map: dict | 
     shift = np.array([joints[0, 0], vertices[:, 1].min(), joints[0, 2]])
     if not np.isfinite(vertices).all():
         raise doc.fail("the skinned mesh's vertices are not finite in the world")
+    weights = None if skinning is None else _canonical_weights(doc, skinning, joint_nodes, mapping)
     return Character(vertices - shift, faces, joints - shift, skin, scheme, scale,
                      posed_joints=tuple(names[i] for i in np.flatnonzero(posed)), turned=not np.allclose(turn, np.eye(3)),
-                     filled_joints=filled)
+                     filled_joints=filled, weights=weights)
 
 
 def character_body(path: str | Path, skin: int | None = None, joint_map: dict | None = None,

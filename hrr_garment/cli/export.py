@@ -2,6 +2,7 @@
 
     hrr-export out.h5 -o dress.glb                       # morph-target animation, 1 mm keyframe bound
     hrr-export out.h5 --to glb -o dress.glb --tolerance 0 --with-body
+    hrr-export out.h5 -o hero_dress.glb --character hero.glb   # on the character's own skinned mesh
     hrr-export out.h5 -o dress.usdc                      # time-sampled points (.usda for text)
     hrr-export out.h5 -o dress.pc2                       # + dress.obj base mesh, for Blender's Mesh Cache
     hrr-export out.h5 --to obj -o frames/                # one OBJ per frame
@@ -33,6 +34,9 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--tolerance", type=float, default=1.0,
                    help="GLB keyframe reduction: max per-vertex deviation in mm from every frame (0: every frame)")
     p.add_argument("--with-body", action="store_true", help="also export the collision body (GLB, USD)")
+    p.add_argument("--character", type=Path, default=None, metavar="GLB",
+                   help="GLB: put the character's own skinned mesh in, posed by the clip (out.h5 from hrr-animate "
+                        "--body on the same character)")
     p.add_argument("--no-normals", action="store_true",
                    help="GLB: leave the vertex normals out (about half the file; engines then shade flat or recompute)")
     return p
@@ -54,16 +58,20 @@ def _main(argv: Sequence[str] | None) -> int:
         raise InputError("--tolerance", f"must be >= 0 mm, got {args.tolerance}")
     if args.no_normals and fmt != "glb":
         raise InputError(args.output, f"--no-normals is for glb, not {fmt}")
+    if args.character is not None and fmt != "glb":
+        raise InputError(args.output, f"--character is for glb, not {fmt}")
     if args.with_body and fmt in ("pc2", "obj"):
         raise InputError(args.output, f"--with-body is for glb and usd, not {fmt}")
     t0 = time.perf_counter()
     anim = read_animation_h5(args.animation)
     detail = ""
     if fmt == "glb":
+        from ..export.character import skinned_character
         from ..export.glb import write_glb
 
+        character = skinned_character(args.character) if args.character is not None else None
         report = write_glb(anim, args.output, tolerance=args.tolerance / 1000.0, with_body=args.with_body,
-                           normals=not args.no_normals)
+                           normals=not args.no_normals, character=character)
         written = [report.path]
         detail = (f"; {len(report.keyframes.frames)} keyframes of {anim.num_frames} frames, "
                   f"max deviation {1000 * report.keyframes.max_error:.2f} mm (bound {args.tolerance:g} mm)")

@@ -6,12 +6,16 @@
     /body/joints            (T, 22, 3) float32
     /body/capsules          (T, C, 2, 3) float32, the collision capsules' end points a, b
     /body/radii             (C,) float32, their radii
+    /body/rotations         (T, 22, 4) float32, the skeleton's local joint rotations, quaternions (x, y, z, w)
+    /body/root_translation  (T, 3) float32, the pelvis's position
+    /body/offsets           (22, 3) float32, the body's skeleton: each joint's offset from its parent
     /diagnostics/retrieved  (T,) uint8, 1 = the frame's window was retrieved from the database as simulated
     /diagnostics/entropy    (T,) float32, motion-code entropy (nats)
     /diagnostics/match      (T, 2) int32, the database window (sequence, start frame) that gave or lent
                             to the frame (retrieval; the residual and detail modes' match), or -1
     attributes: fps, units ("m"), up_axis ("Y"), garment, source_motion (the motion file),
-                format_version, model_hash, and the run's settings: mode (the inference mode), gate,
+                body (the name of the body animated), format_version, model_hash, and the run's
+                settings: mode (the inference mode), gate,
                 tau, causal, collision, detail_base and detail_strength (detail mode)
 
 Written to a temporary file and renamed, so a failed run leaves no half file.
@@ -20,7 +24,9 @@ Versions (``format_version``; :func:`read_animation_h5` upgrades older files as 
 1 had no body capsules (still read; only what needs the body refuses such a file); 2 added them;
 3 renamed ``diagnostics/mode`` to ``diagnostics/retrieved`` (the inference mode is the ``mode``
 attribute) and ``diagnostics/source`` to ``diagnostics/match``, and ``retrieved`` no longer marks
-the residual and detail modes' frames, whose windows are the regression's with a match's detail.
+the residual and detail modes' frames, whose windows are the regression's with a match's detail;
+4 added the skeleton's motion (``body/rotations``, ``body/root_translation``, ``body/offsets``: what
+a character's skinned mesh is posed by in an export; older files export without it).
 """
 
 from __future__ import annotations
@@ -34,7 +40,8 @@ import numpy as np
 from ..errors import InputError
 from ..io_utils import atomic_h5
 
-FORMAT_VERSION = 3
+FORMAT_VERSION = 4
+SKELETON = ("body/rotations", "body/root_translation", "body/offsets")  # version 4: the motion as a skeleton's
 PER_FRAME = ("body/joints", "diagnostics/retrieved", "diagnostics/entropy", "diagnostics/match")
 
 
@@ -62,6 +69,9 @@ class AnimationFile:
     capsules: np.ndarray | None  # (T, C, 2, 3) or None in version-1 files
     radii: np.ndarray | None  # (C,)
     attrs: dict
+    rotations: np.ndarray | None = None  # (T, 22, 4) local quaternions (x, y, z, w); None before version 4
+    root_translation: np.ndarray | None = None  # (T, 3)
+    offsets: np.ndarray | None = None  # (22, 3)
 
     @property
     def fps(self) -> float:
@@ -94,6 +104,9 @@ class AnimationArrays:
     match: np.ndarray
     capsules: np.ndarray | None = None
     radii: np.ndarray | None = None
+    rotations: np.ndarray | None = None  # (T, 22, 4) (x, y, z, w)
+    root_translation: np.ndarray | None = None
+    offsets: np.ndarray | None = None
 
 
 def write_animation_h5(path: str | Path, arrays: AnimationArrays, attrs: dict) -> Path:
@@ -110,6 +123,9 @@ def write_animation_h5(path: str | Path, arrays: AnimationArrays, attrs: dict) -
         if capsules is not None:
             f.create_dataset("body/capsules", data=np.asarray(capsules, np.float32))
             f.create_dataset("body/radii", data=np.asarray(radii, np.float32))
+        if a.rotations is not None:
+            for key, value in zip(SKELETON, (a.rotations, a.root_translation, a.offsets)):
+                f.create_dataset(key, data=np.asarray(value, np.float32))
         f.create_dataset("diagnostics/retrieved", data=np.asarray(a.retrieved, np.uint8))
         f.create_dataset("diagnostics/entropy", data=np.asarray(a.entropy, np.float32))
         f.create_dataset("diagnostics/match", data=np.asarray(a.match, np.int32).reshape(t, 2))
@@ -140,6 +156,7 @@ def read_animation_h5(path: str | Path) -> AnimationFile:
             per_frame = {k: f[names[k]][()] for k in PER_FRAME}
             capsules = f["body/capsules"][()] if "body/capsules" in f else None
             radii = f["body/radii"][()] if "body/radii" in f else None
+            skeleton = {k: f[k][()] for k in SKELETON if k in f}
     except (OSError, RuntimeError, ValueError, TypeError, KeyError) as exc:  # damaged chunks, headers, attributes
         raise InputError(path, f"damaged file, cannot be read ({type(exc).__name__}: {str(exc)[:200]})") from None
     attrs["fps"] = _fps(path, attrs)
@@ -169,10 +186,25 @@ def read_animation_h5(path: str | Path) -> AnimationFile:
                                  or radii is None or radii.shape != capsules.shape[1:2]):
         raise InputError(path, f"/body/capsules {capsules.shape} and /body/radii "
                                f"{None if radii is None else radii.shape} do not match (T, C, 2, 3) and (C,)")
+    skeleton = _checked_skeleton(path, skeleton, t)
     return AnimationFile(path=path, vertices=vertices.astype(np.float32), faces=faces.astype(np.int32),
                          joints=per_frame["body/joints"], retrieved=per_frame["diagnostics/retrieved"].astype(np.uint8),
                          entropy=per_frame["diagnostics/entropy"], match=per_frame["diagnostics/match"],
-                         capsules=capsules, radii=radii, attrs=attrs)
+                         capsules=capsules, radii=radii, attrs=attrs, **skeleton)
+
+
+def _checked_skeleton(path: Path, found: dict, frames: int) -> dict:
+    """The skeleton's motion (version 4) as AnimationFile's fields, each checked; none where absent."""
+    if not found:
+        return {}
+    shapes = {"body/rotations": (frames, 22, 4), "body/root_translation": (frames, 3), "body/offsets": (22, 3)}
+    for key, shape in shapes.items():
+        arr = found.get(key)
+        if arr is None or arr.shape != shape or arr.dtype.kind != "f" or not np.isfinite(arr).all():
+            raise InputError(path, f"/{key} must be finite numbers of shape {shape}, got "
+                                   f"{None if arr is None else (arr.shape, str(arr.dtype))}")
+    return {"rotations": found["body/rotations"], "root_translation": found["body/root_translation"],
+            "offsets": found["body/offsets"]}
 
 
 #: version 1 and 2 names of the datasets version 3 renamed

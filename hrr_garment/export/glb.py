@@ -12,8 +12,9 @@ the cloth smoothly; without them three.js shades every triangle flat. Renderers 
 blended normal, so between keyframes it is the normalised blend of the two keyframes' normals.
 They add about as many bytes as the positions.
 
-The body is a node per capsule (a rigid mesh) with animated translation and rotation. Needs the
-``export`` extra (pygltflib).
+The body is a node per capsule (a rigid mesh) with animated translation and rotation, or, for a
+character file, the character's own skinned mesh on a skeleton playing the clip (:mod:`.character`).
+Needs the ``export`` extra (pygltflib).
 """
 
 from __future__ import annotations
@@ -26,9 +27,10 @@ import numpy as np
 from ..data.animation_file import AnimationFile
 from ..garment.mesh import vertex_normals
 from ..io_utils import atomic_write_bytes
+from .character import SkinnedCharacter, add_character
 from .keyframes import Keyframes, select_keyframes
 
-_FLOAT, _UINT = 5126, 5125
+_FLOAT, _UINT, _USHORT = 5126, 5125, 5123
 _ARRAY_BUFFER, _ELEMENT_ARRAY_BUFFER = 34962, 34963
 
 
@@ -61,7 +63,7 @@ class _Blob:
     def accessor(self, view: int, array: np.ndarray, kind: str, bounds: bool = False, offset: int = 0) -> int:
         """An accessor over ``array`` (already stored in ``view`` at byte ``offset``)."""
         flat = array.reshape(len(array), -1)
-        component = _UINT if array.dtype == np.uint32 else _FLOAT
+        component = {np.dtype(np.uint32): _UINT, np.dtype(np.uint16): _USHORT}.get(array.dtype, _FLOAT)
         extra = {"min": flat.min(0).tolist(), "max": flat.max(0).tolist()} if bounds else {}
         self.accessors.append(self.gl.Accessor(bufferView=view, byteOffset=offset, componentType=component,
                                                count=len(array), type=kind, **extra))
@@ -96,9 +98,11 @@ class GlbReport:
 
 
 def write_glb(anim: AnimationFile, path: str | Path, tolerance: float = 0.001, with_body: bool = False,
-              normals: bool = True) -> GlbReport:
+              normals: bool = True, character: SkinnedCharacter | None = None) -> GlbReport:
     """Write ``anim`` as GLB. ``tolerance`` (metres) bounds the keyframe reduction; 0 keeps every
-    frame. ``normals``: vertex normals on the base and the targets (see the module docstring)."""
+    frame. ``normals``: vertex normals on the base and the targets (see the module docstring).
+    ``with_body``: the collision capsules too; ``character``: the character's own skinned mesh,
+    posed by the clip (:func:`.character.skinned_character`)."""
     gl = _gltf()
     path = Path(path)
     keys = select_keyframes(anim.vertices, tolerance)
@@ -138,13 +142,18 @@ def write_glb(anim: AnimationFile, path: str | Path, tolerance: float = 0.001, w
         samplers.append(gl.AnimationSampler(input=blob.stored(times, "SCALAR", bounds=True),
                                             output=blob.stored(weights.ravel(), "SCALAR"), interpolation="LINEAR"))
         channels.append(gl.AnimationChannel(sampler=0, target=gl.AnimationChannelTarget(node=0, path="weights")))
-    scene_nodes = [0]
+    scene_nodes, skins = [0], []
     if with_body:
         scene_nodes.append(_add_body(gl, anim, blob, nodes, meshes, materials, samplers, channels))
+    if character is not None:
+        times = blob.stored((np.arange(anim.num_frames) / anim.fps).astype(np.float32), "SCALAR", bounds=True)
+        parts = {"nodes": nodes, "meshes": meshes, "materials": materials, "samplers": samplers, "channels": channels,
+                 "skins": skins}
+        scene_nodes.extend(add_character(gl, blob, anim, character, parts, times))
     gltf = gl.GLTF2(
         asset=gl.Asset(generator="hrr_garment", version="2.0"), scene=0,
         scenes=[gl.Scene(name=str(anim.attrs.get("source_motion", "animation")), nodes=scene_nodes)],
-        nodes=nodes, meshes=meshes, materials=materials, accessors=blob.accessors, bufferViews=blob.views,
+        nodes=nodes, meshes=meshes, materials=materials, skins=skins, accessors=blob.accessors, bufferViews=blob.views,
         buffers=[gl.Buffer(byteLength=blob.size)],
         animations=[gl.Animation(name="garment", samplers=samplers, channels=channels)] if channels else [],
         extras={"fps": anim.fps, "keyframe_tolerance_m": tolerance, "keyframe_max_error_m": keys.max_error})
@@ -189,8 +198,8 @@ def _add_body(gl, anim: AnimationFile, blob: _Blob, nodes: list, meshes: list, m
 def _accessor_array(gltf, blob: bytes, index: int) -> np.ndarray:
     acc = gltf.accessors[index]
     view = gltf.bufferViews[acc.bufferView]
-    width = {"SCALAR": 1, "VEC3": 3, "VEC4": 4}[acc.type]
-    dtype = np.uint32 if acc.componentType == _UINT else np.float32
+    width = {"SCALAR": 1, "VEC3": 3, "VEC4": 4, "MAT4": 16}[acc.type]
+    dtype = {_UINT: np.uint32, _USHORT: np.uint16}.get(acc.componentType, np.float32)
     start = (view.byteOffset or 0) + (acc.byteOffset or 0)
     return np.frombuffer(blob, dtype, acc.count * width, start).reshape(acc.count, width)
 

@@ -31,6 +31,7 @@ from ..motion.features import causal_features, motion_features
 from ..motion.frame import world_vertices
 from ..motion.memory import with_memory
 from ..motion.motion import Motion
+from ..motion.rotations import matrix_to_quat
 from ..motion.windows import causal_windows, sequence_windows
 from ..paths import workspace
 from .blending import blend_windows, causal_latents
@@ -67,6 +68,7 @@ class Animation:
     capsules: np.ndarray | None = None  # (T, C, 2, 3) collision capsule ends, for previews and exports
     radii: np.ndarray | None = None  # (C,) the capsules' radii
     body: str = MANNEQUIN  # the name of the body it was animated on
+    skeleton: Motion | None = None  # the motion as the body played it (its skeleton and rotations), for exports
     doubt: np.ndarray | None = None  # (T,) the gate signal's value per frame (retrieval where below tau)
 
     @property
@@ -95,9 +97,13 @@ class Animation:
         from ..data.animation_file import AnimationArrays, write_animation_h5
 
         self.check(path)
+        played = {}
+        if self.skeleton is not None:
+            played = {"rotations": matrix_to_quat(self.skeleton.local_rotations)[..., [1, 2, 3, 0]],  # (x, y, z, w)
+                      "root_translation": self.skeleton.root_translation, "offsets": self.skeleton.skeleton.offsets}
         arrays = AnimationArrays(vertices=self.vertices, faces=self.faces, joints=self.joints, retrieved=self.retrieved,
                                  entropy=self.entropy, match=self.match, capsules=self.capsules,
-                                 radii=None if self.capsules is None else self.radii)
+                                 radii=None if self.capsules is None else self.radii, **played)
         return write_animation_h5(path, arrays, {"fps": self.fps, "garment": self.garment, "source_motion": self.motion_file,
                                                  "model_hash": self.model_hash, "body": self.body, **self.settings})
 
@@ -241,7 +247,7 @@ class Animator:
                          entropy=entropy, match=match, joints=motion.joint_positions, garment=self.bundle.garment,
                          model_hash=self.bundle.content_hash, motion_file=motion.source, settings=run.record(),
                          penetration=report, capsules=np.stack(character.body.pose_motion(motion), 2).astype(np.float32),
-                         radii=character.body.radii, body=character.name, doubt=doubt)
+                         radii=character.body.radii, body=character.name, skeleton=motion, doubt=doubt)
 
     def _direct_latents(self, motion: Motion, character: CharacterBody) -> np.ndarray:
         """(T, nodes, C) latents of the direct-regression baseline (causal: a GRU over the clip)."""

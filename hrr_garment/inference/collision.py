@@ -89,7 +89,17 @@ class PushOutSettings:
 PUSH_OUT = PushOutSettings()
 
 
-def push_out(vertices: np.ndarray, motion: Motion, faces: np.ndarray, *, body: BodyModel = DEFAULT_BODY,
+@dataclass(frozen=True)
+class PosedCapsules:
+    """Capsules posed already, frame by frame: what :func:`push_out` takes instead of a body when
+    each frame is another character's body (a crowd's)."""
+
+    a: np.ndarray  # (T, C, 3) end points
+    b: np.ndarray  # (T, C, 3)
+    radii: np.ndarray  # (T, C) each frame's radii, or (C,) shared
+
+
+def push_out(vertices: np.ndarray, motion: Motion, faces: np.ndarray, *, body: BodyModel | PosedCapsules = DEFAULT_BODY,
              settings: PushOutSettings = PUSH_OUT, mean: csr_matrix | None = None, limits: EdgeLimits | None = None,
              report: bool = True) -> tuple[np.ndarray, PushOutReport | None]:
     """(T, V, 3) world vertices -> pushed copy and a report (fractions of vertices > ``depth`` inside).
@@ -98,9 +108,12 @@ def push_out(vertices: np.ndarray, motion: Motion, faces: np.ndarray, *, body: B
     of the faces and the template's rest positions), the push stretches no edge past ``max_strain``
     times its rest length, or past its stretch before the push where that was more
     (:func:`limit_push_strain`). Without ``report`` (a stream, which discards it) the report is
-    None, and the frames the limit moved are not measured again (a quarter of a crowd's push-out)."""
+    None, and the frames the limit moved are not measured again (a quarter of a crowd's push-out).
+    ``body``: the body's capsules, posed by ``motion``, or :class:`PosedCapsules`."""
     margin, smooth, rounds, depth, chunk = settings.margin, settings.smooth, settings.rounds, settings.depth, settings.chunk
-    a, b = body.pose_motion(motion)
+    posed = body if isinstance(body, PosedCapsules) else PosedCapsules(*body.pose_motion(motion), body.radii)
+    a, b, radii = posed.a, posed.b, posed.radii
+    framed = (lambda rows: radii[rows]) if np.ndim(radii) == 2 else (lambda rows: radii)  # noqa: E731
     mean = mean_operator(faces, vertices.shape[1]) if mean is None else mean
     before, after = np.zeros(len(vertices)), np.zeros(len(vertices))
     from ..native import default_threads, load_kernel
@@ -115,18 +128,18 @@ def push_out(vertices: np.ndarray, motion: Motion, faces: np.ndarray, *, body: B
         steps = PushSteps(mean=mean, margin=margin, smooth=smooth, rounds=rounds, depth=depth)
         for start in range(0, len(out), chunk):
             sl = slice(start, start + chunk)
-            _, before[sl], after[sl] = push_out_frames(lib, unpushed[sl], a[sl], b=b[sl], radii=body.radii, steps=steps,
+            _, before[sl], after[sl] = push_out_frames(lib, unpushed[sl], a[sl], b=b[sl], radii=framed(sl), steps=steps,
                                                        threads=default_threads(), out=out[sl])
     else:
         unpushed, out = vertices, np.empty(vertices.shape, np.float32)
         for start in range(0, len(out), chunk):
             sl = slice(start, start + chunk)
-            out[sl], before[sl], after[sl] = _push_frames(vertices[sl].astype(np.float64), (a[sl], b[sl], body.radii),
+            out[sl], before[sl], after[sl] = _push_frames(vertices[sl].astype(np.float64), (a[sl], b[sl], framed(sl)),
                                                           mean, settings)
     if limits is not None:
         out, torn = limit_push_strain(out, unpushed, limits, settings.max_strain, in_place=True)
         if report and torn.any():  # only the frames the limit moved have a new "after"
-            inside = frames_signed_distance(out[torn].astype(np.float64), a[torn], b[torn], radii=body.radii)[0] < -depth
+            inside = frames_signed_distance(out[torn].astype(np.float64), a[torn], b[torn], radii=framed(torn))[0] < -depth
             after[torn] = inside.mean(1)
     out = out.astype(np.float32, copy=False)
     if not report:

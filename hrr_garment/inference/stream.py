@@ -5,6 +5,7 @@
     for frame in game:
         vertices = crowd.push(rotations, roots, keys)     # (N, J, 4) quaternions, (N, 3) -> (N, V, 3)
     crowd.leave("npc_7")                                  # a character that left the scene
+    crowd.set_body("npc_8", "tall.json")                  # a character of its own body (a model across bodies)
 
 Each character keeps its own state: its last pose, its motion memory, its last W feature frames,
 its inertialization and, in the detail mode, its fold playhead (:mod:`.fold_track`). A push runs every stage once for all the characters in it: the features, the
@@ -30,7 +31,6 @@ from dataclasses import dataclass, field
 import numpy as np
 import torch
 
-from ..body.measures import with_body
 from ..errors import InputError
 from ..models.codes import traced_window_codes
 from ..motion.features import pair_features_batch
@@ -38,9 +38,10 @@ from ..motion.frame import world_vertices
 from ..motion.memory import MEMORY_WIDTH, motion_memory
 from ..motion.motion import Motion
 from ..motion.poses import poses_to_motion
+from ..motion.skeleton import JOINT_INDEX, REST_PELVIS_HEIGHT
 from ..native import pin_workers
 from .blending import Inertializer, inertialize, latent_sources
-from .collision import push_out
+from .collision import PosedCapsules, push_out
 from .decoding import flush_denormals
 from .detail import add_folds
 from .fold_track import FoldTrack
@@ -71,6 +72,42 @@ class _Timings:
     stage_s: dict = field(default_factory=lambda: {k: deque(maxlen=1000) for k in STREAM_STAGES})
 
 
+@dataclass(frozen=True)
+class _CrowdBodies:
+    """The bodies of a push's characters: one body for all, or arrays with a row per character."""
+
+    vector: np.ndarray  # (b,) or (N, b) measures
+    offset: np.ndarray  # (V, 3) or (N, V, 3) the garment's rest offsets
+    body: object = None  # the one body's capsules (BodyModel), or None
+    skeletons: np.ndarray | None = None  # (N, 22, 3) each character's skeleton offsets
+    root_scale: np.ndarray | None = None  # (N,) each body's pelvis height over the mannequin's
+    ends: tuple | None = None  # each character's capsules: joints (C,), local a and b (N, C, 3), radii (N, C)
+
+    @classmethod
+    def of_one(cls, body) -> "_CrowdBodies":
+        return cls(body.vector, body.offset, body=body.body)
+
+    @classmethod
+    def of_many(cls, bodies: list) -> "_CrowdBodies":
+        capsules = [b.body.capsules for b in bodies]
+        joints = [c.joint for c in capsules[0]]
+        if any([c.joint for c in caps] != joints for caps in capsules):
+            raise ValueError("the crowd's bodies have capsules on different joints; give every character one body kind")
+        ends = (np.array([JOINT_INDEX[j] for j in joints]), np.array([[c.a for c in caps] for caps in capsules]),
+                np.array([[c.b for c in caps] for caps in capsules]), np.array([[c.radius for c in caps] for caps in capsules]))
+        return cls(np.stack([b.vector for b in bodies]), np.stack([b.offset for b in bodies]),
+                   skeletons=np.stack([b.record.skeleton.offsets for b in bodies]),
+                   root_scale=np.array([b.record.pelvis_height / REST_PELVIS_HEIGHT for b in bodies]), ends=ends)
+
+    def capsules(self, poses: Motion):
+        """What the push-out takes: the one body, or each character's capsules posed by its pose."""
+        if self.body is not None:
+            return self.body
+        joints, a, b, radii = self.ends
+        rot, pos = poses.global_rotations[:, joints], poses.joint_positions[:, joints]
+        return PosedCapsules(pos + np.einsum("tcij,tcj->tci", rot, a), pos + np.einsum("tcij,tcj->tci", rot, b), radii)
+
+
 class CrowdStream:
     """Many characters streamed in one call per frame; see the module docstring. ``rig``: a
     :class:`~hrr_garment.motion.stream_rig.StreamRig` when poses come on a source skeleton."""
@@ -82,6 +119,8 @@ class CrowdStream:
         by it, as :meth:`~.animator.Animator.animate` plays a clip."""
         self.animator, self.run, self.rig = animator, run, rig
         self.body = animator.body() if body is None else body
+        self._bodies: dict[Hashable, object] = {}  # characters with a body of their own (set_body)
+        self._stacked: tuple = ((), None)  # the last mixed crowd's bodies and their stacked arrays
         self._characters: dict[Hashable, _Character] = {}
         self.timings = _Timings()
         regression = run.mode.regresses
@@ -99,11 +138,19 @@ class CrowdStream:
         """The keys of the characters streamed so far and not left, in the order they joined."""
         return list(self._characters)
 
+    def set_body(self, key: Hashable, body, *, allow_outside: bool = False) -> None:
+        """Give character ``key`` a body of its own (what :meth:`~.animator.Animator.body` takes: a
+        body file, a record, a CharacterBody), before it joins or between frames: its poses are played
+        by that body, the model reads its measures, the garment stands on it and the push-out uses
+        its capsules. Characters of different bodies still go through one batched step."""
+        self._bodies[key] = self.animator.body(body, allow_outside=allow_outside)
+
     def leave(self, key: Hashable) -> None:
         """Forget a character: pushed again later, it starts afresh (as from a standstill)."""
         if key not in self._characters:
             raise KeyError(f"no character {key!r} in this stream (characters: {self.characters})")
         del self._characters[key]
+        self._bodies.pop(key, None)
 
     def push(self, rotations: np.ndarray, roots: np.ndarray, keys: Sequence[Hashable] | None = None) -> np.ndarray:
         """One frame of N characters: ``rotations`` (N, J, 4) quaternions (x, y, z, w), (N, J, 3)
@@ -166,16 +213,29 @@ class CrowdStream:
             steps.append(c.fold_track.step(sequence, start + window - 1))
         return store.folds(np.stack([r for r, _ in steps]), np.stack([w for _, w in steps]))
 
+    def _played(self, keys: list, poses: Motion) -> tuple[Motion, "_CrowdBodies"]:
+        """The pushed poses (one per character, on the canonical skeleton) each played by its
+        character's body, and those bodies as arrays (one row per character, or one body for all)."""
+        bodies = [self._bodies.get(k, self.body) for k in keys]
+        if all(b is bodies[0] for b in bodies):
+            return bodies[0].play(poses), _CrowdBodies.of_one(bodies[0])
+        ids = tuple(map(id, bodies))
+        if self._stacked[0] != ids:
+            self._stacked = (ids, _CrowdBodies.of_many(bodies))
+        stacked = self._stacked[1]
+        return poses.on_skeletons(stacked.skeletons, stacked.root_scale), stacked
+
     def _step_frame(self, keys: list, poses: Motion) -> np.ndarray:
         t = [time.perf_counter()]
         pin_workers()  # a game loop idles between frames: its next frame must not wait for workers to move
         window = self.animator.window
         blend = self.animator.blend
         chars = [self._characters.setdefault(k, _Character(deque(maxlen=window), Inertializer(blend))) for k in keys]
-        poses = self.body.play(poses)
+        poses, bodies = self._played(keys, poses)
         features = self._with_memory(chars, pair_features_batch([c.previous for c in chars], poses), poses.fps)
         if self.animator.bundle.codespace.config.body_features:
-            features = with_body(features, self.body.vector)
+            measures = np.asarray(bodies.vector, features.dtype)
+            features = np.concatenate([features, np.broadcast_to(measures, (len(features), measures.shape[-1]))], 1)
         for c, feat in zip(chars, features):
             if not c.features:  # the first frame repeated before the start, as offline causal
                 c.features.extend([feat] * (window - 1))
@@ -194,10 +254,10 @@ class CrowdStream:
             local = add_folds(local, self._folds(chars, choice.match), self.animator.smoothing,
                               passes=self.animator.bundle.folds.passes, strength=self.run.detail.strength)
         t.append(time.perf_counter())
-        vertices = world_vertices(local + self.body.offset, poses)  # as offline: the same push-out inputs
+        vertices = world_vertices(local + bodies.offset, poses)  # as offline: the same push-out inputs
         t.append(time.perf_counter())
         if self.run.collision:
-            vertices, _ = push_out(vertices, poses, self.animator.bundle.template.faces, body=self.body.body,
+            vertices, _ = push_out(vertices, poses, self.animator.bundle.template.faces, body=bodies.capsules(poses),
                                    mean=self.animator.smoothing,
                                    limits=self.animator.edge_limits, report=False)
         t.append(time.perf_counter())

@@ -120,6 +120,18 @@ class Motion:
             out.__dict__["_fk"] = tuple(np.concatenate([p._fk[i] for p in parts]) for i in range(2))
         return out
 
+    def on_skeletons(self, offsets: np.ndarray, root_scale: np.ndarray) -> "Motion":
+        """This motion with each frame played by its own skeleton, ``offsets`` (T, 22, 3), and its
+        root's position scaled by ``root_scale`` (T,): a crowd's characters of different bodies, one
+        character a frame, each as :func:`~hrr_garment.body.retarget.motion_on_body` plays it. The
+        forward kinematics use each frame's offsets; ``skeleton`` stays this motion's own."""
+        root = self.root_translation * np.asarray(root_scale, np.float64)[:, None]
+        out = Motion(self.local_rotations, root, self.fps, self.source, self.source_skeleton, self.source_height_m,
+                     self.skeleton)
+        out.__dict__["_fk"] = forward_kinematics(self.local_rotations.astype(np.float64), root,
+                                                 np.asarray(offsets, np.float64), parents=self.skeleton.parents)
+        return out
+
     def mirrored(self) -> "Motion":
         """The motion reflected left-right (x -> -x): left and right joints swap, rotations are
         conjugated by the reflection. The canonical skeleton is symmetric, so its joints land on

@@ -39,8 +39,8 @@ class StrainLimit(NamedTuple):
 
 
 def _capsule_arrays(a: np.ndarray, b: np.ndarray, radii: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    if len(radii) > MAX_CAPSULES:
-        raise ValueError(f"the native capsule kernels handle up to {MAX_CAPSULES} capsules, not {len(radii)}")
+    if np.shape(radii)[-1] > MAX_CAPSULES:
+        raise ValueError(f"the native capsule kernels handle up to {MAX_CAPSULES} capsules, not {np.shape(radii)[-1]}")
     return tuple(np.ascontiguousarray(x, np.float64) for x in (a, b, radii))
 
 
@@ -61,7 +61,7 @@ def push_out_frames(lib: ctypes.CDLL, points: np.ndarray, a: np.ndarray, b: np.n
                     steps: PushSteps, *, threads: int = 1,
                     out: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """:func:`hrr_garment.inference.collision.push_out`'s per-frame steps in the kernel: points
-    (T, V, 3), capsule ends a, b (T, C, 3), the push's ``steps`` -> (pushed points float32, fraction
+    (T, V, 3), capsule ends a, b (T, C, 3), radii (C,) or per frame (T, C), the push's ``steps`` -> (pushed points float32, fraction
     deeper than ``steps.depth`` before (T,), after (T,)). Frames in parallel;
     a single frame (streaming) shared by the threads. With ``out`` (C-contiguous float64, the
     points' shape) the points are copied there, pushed in place and returned in float64."""
@@ -76,7 +76,11 @@ def push_out_frames(lib: ctypes.CDLL, points: np.ndarray, a: np.ndarray, b: np.n
     weights = np.ascontiguousarray(mean.data, np.float64)
     t, v = p.shape[:2]
     before, after = np.empty(t), np.empty(t)
-    lib.hrr_push_out(p.ctypes.data, t, v, a.ctypes.data, b.ctypes.data, r.ctypes.data, len(r), indptr.ctypes.data,
+    if r.ndim == 2 and r.shape[0] != t:
+        raise ValueError(f"per-frame radii for {r.shape[0]} frames, points for {t}")
+    capsules = r.shape[-1]
+    lib.hrr_push_out(p.ctypes.data, t, v, a.ctypes.data, b.ctypes.data, r.ctypes.data, capsules,
+                     capsules if r.ndim == 2 else 0, indptr.ctypes.data,
                      indices.ctypes.data, weights.ctypes.data, margin, smooth, rounds, depth, threads, before.ctypes.data,
                      after.ctypes.data)
     if np.isnan(before).any():

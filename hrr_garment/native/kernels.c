@@ -358,8 +358,9 @@ static void push_frame(double *p, int V, const double *ca, const double *cb, con
 }
 
 /* T frames: one frame at a time shared by the team (a stream's single frame), or several frames
-   in parallel, each in its own one-thread team (offline). */
-void hrr_push_out(double *p, int T, int V, const double *a, const double *b, const double *radii, int C,
+   in parallel, each in its own one-thread team (offline). radii_step: 0 where every frame has the
+   same radii, C where each frame has its own (a crowd's characters of different bodies). */
+void hrr_push_out(double *p, int T, int V, const double *a, const double *b, const double *radii, int C, int radii_step,
                   const int32_t *indptr, const int32_t *indices, const double *weights, double margin, int smooth,
                   int rounds, double depth, int threads, double *before, double *after)
 {
@@ -380,14 +381,14 @@ void hrr_push_out(double *p, int T, int V, const double *a, const double *b, con
     if (shared) {
         #pragma omp parallel num_threads(threads)
         for (int t = 0; t < T; ++t)
-            push_frame(p + (size_t)t * V * 3, V, a + (size_t)t * 3 * C, b + (size_t)t * 3 * C, radii, C, indptr, indices,
+            push_frame(p + (size_t)t * V * 3, V, a + (size_t)t * 3 * C, b + (size_t)t * 3 * C, radii + (size_t)t * radii_step, C, indptr, indices,
                        weights, margin, smooth, rounds, depth, before + t, after + t, buf, list, flags);
     } else {
         #pragma omp parallel for num_threads(teams) schedule(dynamic)
         for (int t = 0; t < T; ++t) {
             const int me = omp_get_thread_num();
             #pragma omp parallel num_threads(1)  /* this frame's own one-thread team */
-            push_frame(p + (size_t)t * V * 3, V, a + (size_t)t * 3 * C, b + (size_t)t * 3 * C, radii, C, indptr, indices,
+            push_frame(p + (size_t)t * V * 3, V, a + (size_t)t * 3 * C, b + (size_t)t * 3 * C, radii + (size_t)t * radii_step, C, indptr, indices,
                        weights, margin, smooth, rounds, depth, before + t, after + t, buf + (size_t)me * V * 12,
                        list + (size_t)me * V, flags + 3 * me);
         }

@@ -28,7 +28,14 @@ def test_hrr_animate_writes_out_h5_and_refuses_bad_motion(trained, tmp_path, cap
     assert data.capsules.shape == (30, len(data.radii), 2, 3)
     attrs = data.attrs
     assert attrs["fps"] == 30 and attrs["units"] == "m" and attrs["up_axis"] == "Y" and attrs["garment"] == "skirt"
-    assert attrs["format_version"] == 3 and len(attrs["model_hash"]) == 16
+    assert attrs["format_version"] == 4 and len(attrs["model_hash"]) == 16 and attrs["body"] == "mannequin"
+    from hrr_garment.motion.motion import Motion
+    from hrr_garment.motion.rotations import quat_to_matrix
+    from hrr_garment.motion.skeleton import Skeleton
+
+    played = Motion(quat_to_matrix(data.rotations[..., [3, 0, 1, 2]].astype(np.float64)), data.root_translation, 30.0,
+                    skeleton=Skeleton(offsets=data.offsets))
+    assert np.abs(played.joint_positions - data.joints).max() < 1e-4  # the skeleton's motion gives the joints
     with np.load(clip) as z:
         arrays = dict(z)
     arrays["root_translation"] = arrays["root_translation"].copy()

@@ -166,3 +166,24 @@ def test_hrr_animate_on_a_body_file(bodies_model, tmp_path, capsys):
                  "--body", str(tmp_path / "giant.json")]) != 0
     err = capsys.readouterr().err
     assert "giant.json" in err and "unlike the 2 bodies" in err and not (tmp_path / "giant.h5").exists()
+
+
+def test_a_crowd_of_characters_on_different_bodies_equals_each_one_alone_on_its_body(bodies_model):
+    """One batched step for characters of three bodies (two set with set_body, one the crowd's own):
+    each one's frames equal its offline causal animation on its body."""
+    from hrr_garment.inference.animator import Animator
+
+    folder, data = bodies_model
+    animator = Animator.load(folder)
+    ds = GarmentDataset(data)
+    bodies = {"a": ds.bodies["tall"].record, "b": ds.bodies["short"].record, "c": None}
+    clips = {"a": synthesize("walk_curve", 0.8, seed=1), "b": synthesize("spin", 0.8, seed=2),
+             "c": synthesize("walk", 0.8, seed=3)}
+    alone = {k: animator.animate(clips[k], body=bodies[k], causal=True).vertices for k in clips}
+    crowd = animator.crowd()
+    for k in ("a", "b"):
+        crowd.set_body(k, bodies[k])
+    for frame in range(clips["a"].num_frames):
+        out = crowd.push_motions({k: m.slice(frame, frame + 1) for k, m in clips.items()})
+        for row, k in enumerate(clips):
+            assert np.abs(out[row] - alone[k][frame]).max() <= 1e-4, (k, frame)
