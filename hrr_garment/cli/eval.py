@@ -80,6 +80,10 @@ def _parser() -> argparse.ArgumentParser:
                    help="library protocol: N plays of the model's training clips re-timed, entered part-way and "
                         "blended into each other, simulated and evaluated (default 8; 0: skip)")
     p.add_argument("--library-seed", type=int, default=0, help="seed of the library plays (default 0)")
+    p.add_argument("--unseen-body", action="append", default=None, metavar="DATASET[=SPECIALIST]",
+                   help="the unseen-bodies protocol (repeat per body): the test clips of a dataset simulated on one body "
+                        "the model never saw (hrr-simulate --body), against their own truth ensembles, beside the "
+                        "specialist model trained on that dataset alone (docs/evaluation.md)")
     p.add_argument("--paper", type=Path, default=None, metavar="DIR",
                    help="the paper protocol: a model of the same dataset trained with hrr-train --validation windows, "
                         "evaluated on the same sequences, its ratios beside the paper's")
@@ -197,6 +201,12 @@ def _evaluate(job: _Job, args) -> dict:
         job.sweep = tau_sweep(animator, records, args.tau_sweep or default_taus(animator, records, settings.run), settings=settings)
     real = real_motion_section(animator, job.ds, args.motions, settings=settings, source_fps=args.fps) if args.motions else None
     paper = paper_section(args.paper, bundle, records, settings=settings, ensembles=ensembles) if args.paper else None
+    unseen = None
+    if args.unseen_body:
+        from ..eval.unseen_bodies import UnseenBody, unseen_bodies_section
+
+        unseen = unseen_bodies_section(animator, [UnseenBody.parse(t) for t in args.unseen_body], settings,
+                                       sequences=args.sequences)
     library = None
     if args.library:
         plays = LibraryPlays(args.library, args.library_seed, args.tau_sweep, sweep=not args.no_sweep)
@@ -210,7 +220,8 @@ def _evaluate(job: _Job, args) -> dict:
                  "frames": int(sum(len(r.garment) for r in records))},
         settings=evaluation_record(animator, settings),
         ensemble=ensemble_summary(ensembles, records, settings.members),
-        modes=job.results, sweep=job.sweep, protocols={"real_motion": real, "library": library, "paper": paper},
+        modes=job.results, sweep=job.sweep,
+        protocols={"real_motion": real, "library": library, "paper": paper, "unseen_bodies": unseen},
         seconds=0.0)
 
 

@@ -14,7 +14,8 @@ point; 6 the model's ``auto`` mode and its ``auto_calibration``; 7 the detail mo
 ``settings`` as the run's record writes it (out.h5's attributes: ``gate``, ``tau``, ``collision``,
 and ``detail_base`` / ``detail_strength`` where the detail mode ran, in place of
 ``settings.detail``), and ``retrieval_usage`` counts only windows retrieved as simulated (the
-residual and detail modes, which add a match's detail to the regression, report 0).
+residual and detail modes, which add a match's detail to the regression, report 0); 10
+``unseen_bodies`` (the unseen-bodies protocol, :mod:`.unseen_bodies`).
 """
 
 from __future__ import annotations
@@ -27,8 +28,9 @@ import numpy as np
 from ..io_utils import atomic_write_text, strict_json
 from .evaluate import ModeResult, TauPoint
 from .library import SOURCE_SIMULATION
+from .unseen_bodies import markdown_table
 
-REPORT_VERSION = 9  # report.json's "format_version": see the module docstring
+REPORT_VERSION = 10  # report.json's "format_version": see the module docstring
 GOALS = (  # (name, numerator mode, denominator mode, target ratio)
     ("hybrid_vs_regression", "hybrid", "regression", 0.5),
     ("hybrid_vs_retrieval", "hybrid", "retrieval", 0.85),
@@ -119,7 +121,8 @@ def build_report(*, model: dict, dataset: dict, settings: dict, modes: dict[str,
                  sweep: list[TauPoint] | None, seconds: float, ensemble: dict | None = None,
                  protocols: dict | None = None) -> dict:
     """The report.json contents (schema: docs/evaluation.md); ``protocols``: the sections of the
-    protocols beyond the split that ran (``real_motion``, ``library``, ``paper``; None where not)."""
+    protocols beyond the split that ran (``real_motion``, ``library``, ``paper``, ``unseen_bodies``;
+    None where not)."""
     protocols = protocols or {}
     return {
         "format_version": REPORT_VERSION, "model": model, "dataset": dataset, "settings": settings,
@@ -131,6 +134,7 @@ def build_report(*, model: dict, dataset: dict, settings: dict, modes: dict[str,
         "real_motion": protocols.get("real_motion"),
         "library": protocols.get("library"),
         "paper": protocols.get("paper"),
+        "unseen_bodies": protocols.get("unseen_bodies"),
         "seconds": seconds,
     }
 
@@ -228,6 +232,12 @@ def markdown(report: dict, plots: list[str]) -> str:
         out += ["", *_simulated_section(library), "", "Goals on this protocol:", "", *_goal_table(library["goals"])]
         if library["tau_sweep"]:
             out += ["", *_sweep_table(library["tau_sweep"])]
+    unseen = report.get("unseen_bodies")
+    if unseen:
+        out += ["", "## Unseen bodies (each beside a specialist trained on it alone)", "",
+                "The default mode (auto) of this model and of each body's specialist on the test clips of a dataset "
+                "simulated on that body, against its own truth ensembles; penetration against that body's capsules, "
+                "before the push-out; sharpness and hem swing over the truth's.", "", *markdown_table(unseen)]
     if plots:
         out += ["", "## Plots", ""] + [f"![{Path(p).stem}]({Path(p).name})" for p in plots]
     out += ["", "Metric definitions: docs/evaluation.md."]

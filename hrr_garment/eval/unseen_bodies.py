@@ -1,0 +1,131 @@
+"""The unseen-bodies protocol: a model trained across bodies, judged on bodies it never saw, beside
+a specialist trained on each of those bodies alone.
+
+    hrr-eval --model hrr_work/models/dress-real-quick-bodies \\
+        --unseen-body hrr_work/datasets/dress-real-quick-short-heavy.h5=hrr_work/models/dress-real-quick-short-heavy \\
+        --unseen-body hrr_work/datasets/dress-real-quick-tall-slim.h5=hrr_work/models/dress-real-quick-tall-slim ...
+
+Each ``--unseen-body`` names a dataset simulated on one body (``hrr-simulate --body``) and,
+optionally, a model trained on that dataset alone (the specialist, the reference). The protocol
+takes the dataset's test split (``--sequences N`` of it, evenly spaced), simulates each sequence's
+truth ensemble on that body (its own floor), and runs the model's default mode (``auto``, each
+model its own calibration) and the specialist's on the same clips. Per body: PVE / floor,
+penetration before the push-out (against that body's capsules), sharpness (bending energy over
+the truth's) and hem swing (over the truth's), for both, and the generalist's PVE / floor over the
+specialist's. A body the model was trained on is refused: the protocol is for bodies it never saw.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+
+from ..data.dataset import DatasetError, GarmentDataset
+from ..errors import InputError
+from ..inference.animator import Animator
+from ..inference.modes import Mode
+from .evaluate import EvaluationSettings, evaluate_modes
+from .protocols import truth_ensembles_of
+
+COLUMNS = ("pve_floor_ratio", "penetration_before_pct", "bending_energy_ratio", "hem_swing_ratio")
+
+
+@dataclass(frozen=True)
+class UnseenBody:
+    """One body of the protocol: a dataset simulated on it and, optionally, its specialist model."""
+
+    dataset: Path
+    specialist: Path | None = None
+
+    @classmethod
+    def parse(cls, text: str) -> "UnseenBody":
+        """``DATASET`` or ``DATASET=SPECIALIST_MODEL_DIR``."""
+        dataset, _, specialist = text.partition("=")
+        return cls(Path(dataset), Path(specialist) if specialist else None)
+
+
+def evenly(names: list[str], count: int | None) -> list[str]:
+    """``count`` of ``names`` evenly spaced in their order (all of them without a count)."""
+    if count is None or count >= len(names):
+        return list(names)
+    return [names[i] for i in sorted({int(round(i)) for i in np.linspace(0, len(names) - 1, count)})]
+
+
+def _records(item: UnseenBody, animator: Animator, sequences: int | None):
+    ds = GarmentDataset(item.dataset)
+    if ds.garment != animator.bundle.garment or ds.template.num_vertices != animator.bundle.template.num_vertices:
+        raise DatasetError(item.dataset, f"is a {ds.garment} dataset with {ds.template.num_vertices} vertices; the model "
+                                         f"animates a {animator.bundle.garment} with {animator.bundle.template.num_vertices}")
+    names = evenly(ds.splits.get("test", []), sequences)
+    if not names:
+        raise DatasetError(item.dataset, "has no test sequences")
+    records = [ds.sequence(n) for n in names]
+    bodies = {r.body for r in records}
+    if len(bodies) != 1:
+        raise DatasetError(item.dataset, f"its test sequences stand on {len(bodies)} bodies; the protocol takes a dataset "
+                                         "simulated on one (hrr-simulate --body)")
+    return ds, records
+
+
+def _check_unseen(animator: Animator, record, where: Path) -> None:
+    """Refuse a body that one of the model's training sequences stood on (its training dataset's
+    training split, where that dataset is still there)."""
+    from ..body.measures import body_vector
+
+    trained_on = Path(animator.bundle.meta.get("dataset", ""))
+    if not trained_on.is_file():
+        return
+    ds = GarmentDataset(trained_on)
+    mine = body_vector(record.dressed.record)
+    for name in sorted({ds.body_of[n] for n in ds.splits.get("train", [])}):
+        if np.allclose(body_vector(ds.bodies[name].record), mine, atol=1e-4):
+            raise InputError(where, f"stands on body {name!r}, which the model was trained on ({trained_on}): the "
+                                    "protocol is for bodies it never saw")
+
+
+def _row(result) -> dict:
+    e = result.ensemble
+    return {k: e.get(k) for k in COLUMNS} | {"floor_mm": e.get("floor_mm"), "pve_mm": result.metrics["pve_mm"]}
+
+
+def unseen_bodies_section(animator: Animator, bodies: list[UnseenBody], settings: EvaluationSettings,
+                          sequences: int | None = None) -> dict:
+    """report.json's ``unseen_bodies``: per body, the model's and its specialist's scores (see the
+    module docstring)."""
+    auto = replace(settings, modes=(Mode.AUTO.value,))
+    out = {}
+    for item in bodies:
+        ds, records = _records(item, animator, sequences)
+        _check_unseen(animator, records[0], item.dataset)
+        ensembles = truth_ensembles_of(ds, records, settings.members, jobs=settings.jobs, progress=settings.progress)
+        animator.body(records[0].dressed)  # outside the model's range: refused here, before any work
+        entry = {"dataset": str(item.dataset), "body": records[0].body, "sequences": [r.name for r in records],
+                 "frames": int(sum(len(r.garment) for r in records)),
+                 "model": _row(evaluate_modes(animator, records, auto, ensembles=ensembles)[Mode.AUTO.value])}
+        if item.specialist is not None:
+            specialist = Animator.load(item.specialist)
+            entry["specialist"] = {"folder": str(item.specialist),
+                                   **_row(evaluate_modes(specialist, records, auto, ensembles=ensembles)[Mode.AUTO.value])}
+            mine, theirs = entry["model"]["pve_floor_ratio"], entry["specialist"]["pve_floor_ratio"]
+            entry["pve_floor_over_specialist"] = mine / theirs if mine is not None and theirs else None
+        out[Path(item.dataset).stem] = entry
+    return out
+
+
+def markdown_table(section: dict) -> list[str]:
+    """report.md's table of the protocol: a row per body, the model beside its specialist."""
+    lines = ["| body | frames | PVE / floor | specialist | ratio | penetration before push-out % | specialist | "
+             "sharpness | specialist | hem swing | specialist |", "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
+
+    def f(value, digits=2):
+        return "-" if value is None else f"{value:.{digits}f}"
+
+    for name, e in section.items():
+        m, s = e["model"], e.get("specialist", {})
+        lines.append(f"| {name} | {e['frames']} | {f(m['pve_floor_ratio'])} | {f(s.get('pve_floor_ratio'))} | "
+                     f"{f(e.get('pve_floor_over_specialist'), 3)} | {f(m['penetration_before_pct'])} | "
+                     f"{f(s.get('penetration_before_pct'))} | {f(m['bending_energy_ratio'])} | "
+                     f"{f(s.get('bending_energy_ratio'))} | {f(m['hem_swing_ratio'])} | {f(s.get('hem_swing_ratio'))} |")
+    return lines
