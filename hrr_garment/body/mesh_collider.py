@@ -15,6 +15,7 @@ it, the body the viewer sees.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
@@ -80,3 +81,23 @@ def body_mesh(body: BodyModel, vertices: np.ndarray, faces: np.ndarray, joints: 
     rot, pos = g_rot[0], g_pos[0]
     in_joint = np.einsum("vji,vj->vi", rot[joint], vertices - pos[joint])  # R^T (v - p)
     return BodyMesh(in_joint, np.asarray(faces, np.int64), joint, nearest, rest_rotations=rot, rest_positions=pos)
+
+
+def visible_body(record) -> BodyMesh | None:
+    """The mesh a viewer sees of a body (a :class:`~.body_file.BodyRecord`): its parametric shape's
+    rest mesh cut into rigid pieces along its capsules, or None where the body has no parametric
+    shape (the mannequin, a fitted character) or anny (the ``bodies`` extra) is not installed."""
+    if not record.shape:
+        return None
+    try:
+        return _visible_body(tuple(sorted(record.shape.items())), record.body)
+    except ImportError:
+        return None
+
+
+@lru_cache(maxsize=32)
+def _visible_body(shape: tuple, body: BodyModel) -> BodyMesh:
+    from .parametric import BodyShape, anny_rest_mesh
+
+    rest = anny_rest_mesh(BodyShape(**dict(shape)))
+    return body_mesh(body, rest.vertices, rest.faces, rest.joints)

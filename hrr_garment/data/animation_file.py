@@ -14,7 +14,8 @@
     /diagnostics/match      (T, 2) int32, the database window (sequence, start frame) that gave or lent
                             to the frame (retrieval; the residual and detail modes' match), or -1
     attributes: fps, units ("m"), up_axis ("Y"), garment, source_motion (the motion file),
-                body (the name of the body animated), format_version, model_hash, and the run's
+                body (the name of the body animated), body_record (that body as body.json holds it,
+                JSON), format_version, model_hash, and the run's
                 settings: mode (the inference mode), gate,
                 tau, causal, collision, detail_base and detail_strength (detail mode)
 
@@ -31,7 +32,9 @@ a character's skinned mesh is posed by in an export; older files export without 
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 
 import h5py
@@ -81,10 +84,34 @@ class AnimationFile:
     def num_frames(self) -> int:
         return int(self.vertices.shape[0])
 
+    @cached_property
+    def _visible_body(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """The body's own mesh posed by the clip, (T, V, 3) and its faces, where the file records a
+        body with a parametric shape and the skeleton's motion (and the ``bodies`` extra is
+        installed); None otherwise."""
+        from ..body.body_file import body_from_dict
+        from ..body.mesh_collider import visible_body
+        from ..motion.motion import Motion
+        from ..motion.rotations import quat_to_matrix
+        from ..motion.skeleton import Skeleton
+
+        text = self.attrs.get("body_record")
+        if not text or self.rotations is None:
+            return None
+        mesh = visible_body(body_from_dict(json.loads(text), self.path))
+        if mesh is None:
+            return None
+        played = Motion(quat_to_matrix(self.rotations[..., [3, 0, 1, 2]].astype(np.float64)), self.root_translation,
+                        self.fps, skeleton=Skeleton(offsets=np.asarray(self.offsets, np.float32)))
+        return mesh.pose(played.global_rotations, played.joint_positions), mesh.faces
+
     def body_mesh(self, t: int, segments: int = 12, rings: int = 6) -> tuple[np.ndarray, np.ndarray]:
-        """(vertices, faces) of the capsule body at frame ``t``; raises when the file has no body."""
+        """(vertices, faces) of the body at frame ``t``: its own mesh where it has one
+        (:attr:`_visible_body`), else its capsules; raises when the file has no body."""
         from ..body.capsules import body_mesh
 
+        if self._visible_body is not None:
+            return self._visible_body[0][t], self._visible_body[1]
         if self.capsules is None:
             raise InputError(self.path, "this file has no body capsules (written by an older hrr-animate); "
                                         "re-run hrr-animate to include the body")

@@ -174,17 +174,28 @@ def render_sequence_preview(rows: list[tuple[str, np.ndarray, np.ndarray, Motion
 
 def sequence_rows(rows: list[tuple], frames: int = 4) -> list:
     """:func:`render_sequence_preview`'s rows of meshes: (label, vertices, faces, motion), and the
-    body it was simulated on as a fifth item where it is not the mannequin."""
+    body it was simulated on (a :class:`~hrr_garment.body.body_file.BodyRecord`) as a fifth item
+    where it is not the mannequin: drawn as its own mesh where it has a parametric shape (and the
+    ``bodies`` extra is installed), else as its capsules."""
     from ..body.capsules import DEFAULT_BODY, body_mesh
+    from ..body.mesh_collider import visible_body
+
     grid = []
     for label, vertices, faces, motion, *on in rows:
-        body = on[0] if on else DEFAULT_BODY
+        body = on[0].body if on else DEFAULT_BODY
+        visible = visible_body(on[0]) if on else None
         a, b = body.pose_motion(motion)
         cells = []
         for t in np.linspace(0, len(vertices) - 1, frames).round().astype(int):
-            garment = to_body_frame(vertices[t:t + 1].astype(np.float64), motion.slice(t, t + 1), ground=True)[0]
-            ends = to_body_frame(np.stack([a[t], b[t]])[None].reshape(1, -1, 3), motion.slice(t, t + 1), ground=True)[0]
-            bv, bf = body_mesh(ends[: len(a[t])], ends[len(a[t]):], body.radii, segments=12, rings=6)
+            pose = motion.slice(t, t + 1)
+            garment = to_body_frame(vertices[t:t + 1].astype(np.float64), pose, ground=True)[0]
+            if visible is not None:
+                bv = to_body_frame(visible.pose(motion.global_rotations[t:t + 1], motion.joint_positions[t:t + 1]), pose,
+                                   ground=True)[0]
+                bf = visible.faces
+            else:
+                ends = to_body_frame(np.stack([a[t], b[t]])[None].reshape(1, -1, 3), pose, ground=True)[0]
+                bv, bf = body_mesh(ends[: len(a[t])], ends[len(a[t]):], body.radii, segments=12, rings=6)
             cells.append([PreviewMesh(bv, bf, (205, 195, 185)), PreviewMesh(garment, faces, (70, 110, 200))])
         grid.append((f"{label} (frames {0}-{len(vertices) - 1})", cells))
     return grid
@@ -194,8 +205,8 @@ def write_dataset_preview(records: list, garment, path: Path, frames: int = 4, b
     """Front and side views of a walk and a spin (or the first two sequences) of a built
     dataset (``SequenceRecord``s of a ``GarmentMesh``), in the ground-level body frame; with
     ``bodies`` (name -> :class:`~hrr_garment.data.bodies.DressedBody`), each on its own body, and
-    the garment at rest on the shortest and the tallest of them. None when Pillow (the ``preview``
-    extra) is missing."""
+    the garment at rest on the shortest and the tallest of them (a parametric body drawn as its own
+    mesh). None when Pillow (the ``preview`` extra) is missing."""
     bodies = bodies or {}
     chosen = []
     for kind in ("walk", "spin"):
@@ -207,22 +218,30 @@ def write_dataset_preview(records: list, garment, path: Path, frames: int = 4, b
                if not any(c.body == name for c in chosen)]
     try:
         rest = [("the template on the rest body; attached vertices (they follow the body) in orange",
-                 [template_meshes(garment)] + [template_meshes(bodies[n].garment, body=bodies[n].body) for n in extremes])]
+                 [template_meshes(garment)] + [template_meshes(bodies[n].garment, body=bodies[n].record) for n in extremes])]
         rows = [(f"{r.name} on {r.body}" if r.body in bodies else r.name, r.garment, garment.faces, r.motion,
-                 *([bodies[r.body].body] if r.body in bodies else [])) for r in chosen]
+                 *([bodies[r.body].record] if r.body in bodies else [])) for r in chosen]
         return render_mesh_preview(rest + sequence_rows(rows, frames), path)
     except ImportError:
         return None
 
 
 def template_meshes(garment, marker: float = 0.015, body=None) -> list[PreviewMesh]:
-    """The body (default the mannequin) in its rest pose, the garment's template on it and a small
-    octahedron on every attached vertex: where a fitted garment sits, and what follows the body."""
+    """The body (a :class:`~hrr_garment.body.body_file.BodyRecord`; default the mannequin) in its
+    rest pose, as its own mesh where it has a parametric shape, else its capsules; the garment's
+    template on it and a small octahedron on every attached vertex: where a fitted garment sits,
+    and what follows the body."""
     from ..body.capsules import DEFAULT_BODY, body_mesh
+    from ..body.mesh_collider import visible_body
 
-    body = body or DEFAULT_BODY
-    a, b = body.rest_pose()
-    bv, bf = body_mesh(a, b, body.radii, segments=12, rings=6)
+    capsules = body.body if body is not None else DEFAULT_BODY
+    visible = visible_body(body) if body is not None else None
+    if visible is not None:  # T-pose: every joint's rotation the identity, the pelvis over the origin
+        rest = capsules.rest_joints()[None]
+        bv, bf = visible.pose(np.broadcast_to(np.eye(3), (1, 22, 3, 3)), rest)[0], visible.faces
+    else:
+        a, b = capsules.rest_pose()
+        bv, bf = body_mesh(a, b, capsules.radii, segments=12, rings=6)
     tips = np.concatenate([np.eye(3), -np.eye(3)]) * marker
     octahedron = np.array([[0, 1, 2], [1, 3, 2], [3, 4, 2], [4, 0, 2], [1, 0, 5], [3, 1, 5], [4, 3, 5], [0, 4, 5]])
     corners = tips[[0, 1, 3, 4, 2, 5]]  # +x, +y, -x, -y around the z axis, then +z, -z

@@ -21,11 +21,12 @@ import numpy as np
 import torch
 
 from ..artifacts.bundle import Bundle, BundleError, load_bundle
-from ..body.body_file import BodyRecord
+from ..body.body_file import BodyRecord, body_to_dict
 from ..body.measures import with_body
 from ..data.bodies import MANNEQUIN
 from ..errors import InputError, MotionError
 from ..garment.smoothing import mean_operator
+from ..io_utils import strict_json
 from ..models.native_codes import native_window_codes
 from ..motion.features import causal_features, motion_features
 from ..motion.frame import world_vertices
@@ -69,6 +70,7 @@ class Animation:
     radii: np.ndarray | None = None  # (C,) the capsules' radii
     body: str = MANNEQUIN  # the name of the body it was animated on
     skeleton: Motion | None = None  # the motion as the body played it (its skeleton and rotations), for exports
+    body_record: BodyRecord | None = None  # the body itself (previews draw its own mesh where it has a shape)
     doubt: np.ndarray | None = None  # (T,) the gate signal's value per frame (retrieval where below tau)
 
     @property
@@ -105,7 +107,9 @@ class Animation:
                                  entropy=self.entropy, match=self.match, capsules=self.capsules,
                                  radii=None if self.capsules is None else self.radii, **played)
         return write_animation_h5(path, arrays, {"fps": self.fps, "garment": self.garment, "source_motion": self.motion_file,
-                                                 "model_hash": self.model_hash, "body": self.body, **self.settings})
+                                                 "model_hash": self.model_hash, "body": self.body,
+                                                 "body_record": None if self.body_record is None else
+                                                 strict_json(body_to_dict(self.body_record)), **self.settings})
 
 
 def find_model(name_or_dir: str | Path) -> Path:
@@ -247,7 +251,8 @@ class Animator:
                          entropy=entropy, match=match, joints=motion.joint_positions, garment=self.bundle.garment,
                          model_hash=self.bundle.content_hash, motion_file=motion.source, settings=run.record(),
                          penetration=report, capsules=np.stack(character.body.pose_motion(motion), 2).astype(np.float32),
-                         radii=character.body.radii, body=character.name, skeleton=motion, doubt=doubt)
+                         radii=character.body.radii, body=character.name, skeleton=motion, body_record=character.record,
+                         doubt=doubt)
 
     def _direct_latents(self, motion: Motion, character: CharacterBody) -> np.ndarray:
         """(T, nodes, C) latents of the direct-regression baseline (causal: a GRU over the clip)."""

@@ -1,6 +1,7 @@
 """The parametric body (anny): shapes span real statures, the mesh stands in the project's frame,
 the fit follows it, nothing is downloaded, and hrr-body writes what it reads."""
 
+import numpy as np
 import pytest
 
 pytest.importorskip("anny", reason="the bodies extra is not installed")
@@ -84,3 +85,28 @@ def test_the_shape_of_a_known_body_is_found_from_its_mesh():
         assert abs(getattr(fit.shape, name) - getattr(truth, name)) < 0.05, name
     with pytest.raises(ValueError, match="finite vertices"):
         fit_shape(mesh.vertices[:10], mesh.faces)
+
+
+def test_an_animation_on_a_parametric_body_previews_its_own_mesh(trained, tmp_path):
+    """out.h5 keeps the body it was animated on; its preview poses the body's own mesh (rigid
+    pieces of anny's rest mesh) with the clip, on the body's capsules rather than beside them."""
+    from hrr_garment.body.body_file import record_of
+    from hrr_garment.body.capsules import frames_signed_distance
+    from hrr_garment.cli.preview import main as preview_main
+    from hrr_garment.data.animation_file import read_animation_h5
+    from hrr_garment.inference.animator import Animator
+    from hrr_garment.motion.synth import synthesize
+
+    root, _, _ = trained
+    body = parametric_body(BodyShape(height=0.6))
+    record = record_of(body)
+    with pytest.warns(UserWarning):  # the tiny model knows the mannequin alone
+        anim = Animator.load(root / "model").animate(synthesize("walk", 0.6, seed=0), body=record, allow_outside=True)
+    anim.save(tmp_path / "out.h5")
+    saved = read_animation_h5(tmp_path / "out.h5")
+    vertices, faces = saved.body_mesh(9)
+    assert len(vertices) == len(body.mesh.vertices) and np.array_equal(faces, body.mesh.faces)  # its mesh, not capsules
+    a, b = record.body.pose_motion(anim.skeleton)
+    gap = frames_signed_distance(vertices[None], a[9:10], b[9:10], record.body.radii)[0]
+    assert np.median(np.abs(gap)) < 0.03
+    assert preview_main([str(tmp_path / "out.h5"), "-o", str(tmp_path / "sheet.png"), "--frames", "2", "--size", "96"]) == 0
