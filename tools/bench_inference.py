@@ -15,7 +15,10 @@ push-out has more work (a dress whose bodice rests on the body) than random weig
 - a crowd (``--crowd N ...``): N characters streamed in one call per frame (``animator.crowd()``),
   each playing the clip from its own start frame and place, poses handed over as an engine does
   (quaternions and roots); p50 / p99 of the whole N-character step, back to back and paced, the
-  cost per character and character-frames/s, for each N (the scaling);
+  cost per character and character-frames/s, for each N (the scaling); with ``--crowd-bodies``,
+  each crowd also with every character on a body of its own (bones 0.9-1.1 times the mannequin's,
+  radii likewise), the two runs alternating ``--crowd-repeat`` times: the step's p99 with N bodies
+  over the p99 with one;
 - peak resident memory of the process.
 
     python tools/bench_inference.py                       # 4,000 and 12,000 vertices
@@ -23,6 +26,7 @@ push-out has more work (a dress whose bodice rests on the body) than random weig
     python tools/bench_inference.py --model hrr_work/models/dress-full --motion ../shared/data/mocap/cmu/131_03.bvh
     python tools/bench_inference.py --vertices 4266 --crowd 1 2 4 8 16 32 64   # the crowd's scaling
     python tools/bench_inference.py --vertices 4000 --crowd 32 --precision bfloat16   # decoder on AMX
+    python tools/bench_inference.py --model DIR --crowd 32 --crowd-bodies --pace 0 --json   # 32 bodies against one
 """
 
 from __future__ import annotations
@@ -31,6 +35,7 @@ import argparse
 import json
 import resource
 import time
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -102,18 +107,38 @@ def _median_entropy_tau(bundle: Bundle, motion) -> float:
     return float(np.quantile(entropy, 0.5, method="lower"))
 
 
-def bench_crowd(animator: Animator, motion, tau: float, characters: int, pace: float, frames: int = 300) -> dict:
+def crowd_bodies(count: int) -> list:
+    """``count`` bodies: the mannequin's skeleton and capsules scaled by 0.9 to 1.1, each its own."""
+    from hrr_garment.body.body_file import BodyRecord
+    from hrr_garment.body.fit import scaled_capsules
+    from hrr_garment.motion.skeleton import REST_OFFSETS, REST_PELVIS_HEIGHT, Skeleton
+
+    out = []
+    for k in np.linspace(0.9, 1.1, count):
+        skeleton = Skeleton(offsets=(REST_OFFSETS * k).astype(np.float32))
+        body = scaled_capsules(skeleton, skeleton.rest_positions(np.array([0.0, REST_PELVIS_HEIGHT * k, 0.0])))
+        out.append(BodyRecord(skeleton, body, pelvis_height=REST_PELVIS_HEIGHT * k, stature=1.7 * k))
+    return out
+
+
+def bench_crowd(animator: Animator, motion, tau: float, characters: int, pace: float, frames: int = 300,
+                bodies: list | None = None) -> dict:
     """``characters`` streamed together for ``frames`` frames: character i plays ``motion`` from frame
-    7 i (wrapping) and stands 2 i metres to the side; returns the step's latency percentiles (ms),
-    back to back and paced at ``pace`` frames/s, and the cost per character."""
+    7 i (wrapping) and stands 2 i metres to the side (on ``bodies[i]`` where given); returns the
+    step's latency percentiles (ms), back to back and paced at ``pace`` frames/s, and the cost per
+    character."""
     from hrr_garment.motion.rotations import matrix_to_quat
 
     quats = matrix_to_quat(motion.local_rotations.astype(np.float64))[..., [1, 2, 3, 0]]  # (x, y, z, w)
     offsets = np.arange(characters) * 7
     side = np.stack([2.0 * np.arange(characters), np.zeros(characters), np.zeros(characters)], 1)
     out = {}
-    for key, fps in (("", 0.0), ("paced_", pace)):
+    for key, fps in (("", 0.0), ("paced_", pace)) if pace else (("", 0.0),):
         crowd = animator.crowd(mode="hybrid", tau=tau)
+        with warnings.catch_warnings():  # bodies outside a model's range: timed all the same
+            warnings.simplefilter("ignore")
+            for i, body in enumerate(bodies or []):
+                crowd.set_body(i, body, allow_outside=True)
         start = time.perf_counter()
         for t in range(frames):
             if fps:
@@ -122,14 +147,28 @@ def bench_crowd(animator: Animator, motion, tau: float, characters: int, pace: f
             crowd.push(quats[idx], motion.root_translation[idx] + side)
         lat = 1000 * np.array(crowd.timings.latency_s)[20:]
         out[f"{key}p50_ms"], out[f"{key}p99_ms"] = (round(float(np.percentile(lat, q)), 2) for q in (50, 99))
+    out.setdefault("paced_p50_ms", None), out.setdefault("paced_p99_ms", None)
     out["per_character_us"] = round(1000 * out["p50_ms"] / characters, 1)
     out["character_frames_per_s"] = round(1000 * characters / out["p50_ms"], 1)
     return out
 
 
+def bench_crowd_bodies(animator: Animator, motion, tau: float, characters: int, frames: int, repeat: int) -> dict:
+    """The crowd with one body for all and with a body per character, alternating ``repeat`` times,
+    back to back: each run's p50 and p99 and the median ratio of the p99s (N bodies over one)."""
+    bodies = crowd_bodies(characters)
+    runs = {"one_body": [], "bodies": []}
+    for _ in range(repeat):
+        runs["one_body"].append(bench_crowd(animator, motion, tau, characters, 0.0, frames))
+        runs["bodies"].append(bench_crowd(animator, motion, tau, characters, 0.0, frames, bodies=bodies))
+    ratios = [b["p99_ms"] / o["p99_ms"] for o, b in zip(runs["one_body"], runs["bodies"])]
+    return {k: [{"p50_ms": r["p50_ms"], "p99_ms": r["p99_ms"]} for r in v] for k, v in runs.items()} | {
+        "p99_ratio_median": round(float(np.median(ratios)), 3), "p99_ratios": [round(r, 3) for r in ratios]}
+
+
 def bench(vertices: int, windows: int, seconds: float, model: str | None = None, motion_file: str | None = None,
           pace: float = 30.0, crowd: list[int] | None = None, repeat: int = 3, precision: str = "float32",
-          crowd_frames: int = 300) -> dict:
+          crowd_frames: int = 300, crowd_bodies_repeat: int = 0) -> dict:
     """``model``: a trained bundle instead of random weights (its own resolution, database and tau);
     ``motion_file``: a clip instead of the procedural curved walk; ``pace``: frames/s of the paced
     stream run (0: none); ``repeat``: timed passes per offline figure (their median); ``precision``:
@@ -160,6 +199,9 @@ def bench(vertices: int, windows: int, seconds: float, model: str | None = None,
             out["stream_stage_p50_ms"] = {k: round(1000 * float(np.median(np.array(v)[20:])), 2) for k, v in stream.stage_s.items()}
     if crowd:
         out["crowd"] = {str(n): bench_crowd(animator, motion, tau, n, pace, crowd_frames) for n in crowd}
+        if crowd_bodies_repeat:
+            out["crowd_bodies"] = {str(n): bench_crowd_bodies(animator, motion, tau, n, crowd_frames, crowd_bodies_repeat)
+                                   for n in crowd}
     out["peak_rss_mb"] = round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 1)
     out["native_decoder"] = animator.decoder.native
     return out
@@ -178,6 +220,9 @@ def main() -> None:
                         help="also stream crowds of these many characters, one call per frame (e.g. 1 8 32)")
     parser.add_argument("--crowd-frames", type=int, default=300,
                         help="steps per crowd run, the first 20 warm-up (p99 of 280: the third-worst step)")
+    parser.add_argument("--crowd-bodies", action="store_true",
+                        help="also time each crowd with a body per character against one body for all, alternating")
+    parser.add_argument("--crowd-repeat", type=int, default=3, help="alternations of the --crowd-bodies runs")
     parser.add_argument("--repeat", type=int, default=3, help="timed passes per offline figure (their median)")
     parser.add_argument("--precision", choices=PRECISIONS, default="float32",
                         help="the mesh decoder's arithmetic for batches (crowds, offline); bfloat16 needs AMX")
@@ -185,7 +230,7 @@ def main() -> None:
     args = parser.parse_args()
     for v in ([None] if args.model else args.vertices):
         r = bench(v, args.database, args.seconds, args.model, args.motion, args.pace, args.crowd, args.repeat, args.precision,
-                  args.crowd_frames)
+                  args.crowd_frames, args.crowd_repeat if args.crowd_bodies else 0)
         if args.json:
             print(json.dumps(r))
         else:
@@ -202,6 +247,9 @@ def main() -> None:
                 print(f"  crowd of {n}: step p50 {c['p50_ms']} ms, p99 {c['p99_ms']} ms (paced p50 {c['paced_p50_ms']}, "
                       f"p99 {c['paced_p99_ms']}); {c['per_character_us']} us a character, "
                       f"{c['character_frames_per_s']} character-frames/s")
+            for n, c in r.get("crowd_bodies", {}).items():
+                print(f"  crowd of {n} on {n} bodies against one body: step p99 ratio {c['p99_ratio_median']} "
+                      f"(each alternation: {c['p99_ratios']})")
 
 
 if __name__ == "__main__":

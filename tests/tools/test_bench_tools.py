@@ -18,7 +18,8 @@ def test_bench_inference_reports_every_key(capsys):
     bench = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(bench)
     argv = sys.argv
-    sys.argv = [str(path), "--vertices", "300", "--database", "300", "--seconds", "1.5", "--pace", "60", "--json"]
+    sys.argv = [str(path), "--vertices", "300", "--database", "300", "--seconds", "1.5", "--pace", "60", "--json",
+                "--crowd", "3", "--crowd-frames", "25", "--crowd-bodies", "--crowd-repeat", "1"]
     try:
         bench.main()
     finally:
@@ -29,3 +30,5 @@ def test_bench_inference_reports_every_key(capsys):
         assert report[key] > 0, key
     assert report["stream_p50_ms"] <= report["stream_p99_ms"]
     assert set(report["stream_stage_p50_ms"]) == {"features", "encoder", "decoder", "world", "push_out"}
+    bodies = report["crowd_bodies"]["3"]  # three characters on three bodies, against one body for all
+    assert bodies["p99_ratio_median"] > 0 and len(bodies["bodies"]) == len(bodies["one_body"]) == 1
