@@ -138,7 +138,7 @@ def symmetrized(body: BodyModel, tolerance: float = NEARLY_SYMMETRIC_M) -> BodyM
     return replace(body, capsules=capsules, skeleton=skeleton)
 
 
-def dress(name: str, record: BodyRecord, garment: GarmentMesh, made_for: BodyModel) -> tuple[DressedBody, TransferReport]:
+def dress(name: str, record: BodyRecord, garment: GarmentMesh, *, made_for: BodyModel) -> tuple[DressedBody, TransferReport]:
     """The body (left and right made exactly alike where they nearly are: its sequences can then be
     mirrored) and ``garment`` (modelled on ``made_for``) carried onto it."""
     body = symmetrized(record.body)

@@ -103,7 +103,7 @@ def continuous(quaternions: np.ndarray) -> np.ndarray:
     return q
 
 
-def add_character(gl, blob, anim: AnimationFile, character: SkinnedCharacter, gltf_parts: dict,
+def add_character(gl, blob, anim: AnimationFile, *, character: SkinnedCharacter, gltf_parts: dict,
                   times: int) -> list[int]:
     """The character's joint nodes (animated by ``anim``'s skeleton motion), its skinned mesh and
     its skin, appended to ``gltf_parts`` (nodes, meshes, materials, samplers, channels, skins);

@@ -149,7 +149,7 @@ def write_glb(anim: AnimationFile, path: str | Path, tolerance: float = 0.001, w
         times = blob.stored((np.arange(anim.num_frames) / anim.fps).astype(np.float32), "SCALAR", bounds=True)
         parts = {"nodes": nodes, "meshes": meshes, "materials": materials, "samplers": samplers, "channels": channels,
                  "skins": skins}
-        scene_nodes.extend(add_character(gl, blob, anim, character, parts, times))
+        scene_nodes.extend(add_character(gl, blob, anim, character=character, gltf_parts=parts, times=times))
     gltf = gl.GLTF2(
         asset=gl.Asset(generator="hrr_garment", version="2.0"), scene=0,
         scenes=[gl.Scene(name=str(anim.attrs.get("source_motion", "animation")), nodes=scene_nodes)],

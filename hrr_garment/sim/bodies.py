@@ -100,7 +100,7 @@ def _performer_bodies(specs, garment, made_for, progress):
             if found.body not in by_body:
                 record = BodyRecord(found.body.skeleton, found.body, pelvis_height=found.body.pelvis_height,
                                     stature=found.stature, shape=found.shape)
-                dressed, _ = dress(MANNEQUIN, record, garment, made_for)
+                dressed, _ = dress(MANNEQUIN, record, garment, made_for=made_for)
                 name = f"performer-{dressed.key()[:8]}"
                 bodies.setdefault(name, replace(dressed, name=name))
                 by_body[found.body] = name
@@ -154,7 +154,7 @@ def _sampled_bodies(plan, specs, garment, made_for):
     bodies = {}
     for k, shape in enumerate(shapes):
         name = f"body{k:02d}"
-        bodies[name], _ = dress(name, record_of(parametric_body(shape)), garment, made_for)
+        bodies[name], _ = dress(name, record_of(parametric_body(shape)), garment, made_for=made_for)
     names = sorted(bodies)
     rng = np.random.default_rng(plan.seed + 1)
     out = []
@@ -192,7 +192,7 @@ def choose_bodies(specs: list[SequenceSpec], garment: GarmentMesh, *, preset_bod
     # simulated body is (dress), so the transfer onto it moves nothing but what the push must
     source = symmetrized(made_for.body) if made_for is not None else mannequin_record().body
     if body_file is not None:
-        dressed, report = dress(MANNEQUIN, read_body(body_file), garment, source)
+        dressed, report = dress(MANNEQUIN, read_body(body_file), garment, made_for=source)
         specs, bodies = one_body(specs, Path(body_file).stem, dressed)
         return BodyChoice(specs, bodies, False, {"from": "file", "file": Path(body_file).name, "placement": asdict(report)},
                           [placement_note(next(iter(bodies)), report)])
@@ -201,7 +201,7 @@ def choose_bodies(specs: list[SequenceSpec], garment: GarmentMesh, *, preset_bod
         specs, bodies = plan_bodies(plan, specs, garment, made_for=source, progress=progress)
         return BodyChoice(specs, bodies, plan.hold_out and len(bodies) > 2, {"from": plan.source, "count": len(bodies)})
     if made_for is not None:
-        dressed, report = dress(MANNEQUIN, made_for, garment, source)
+        dressed, report = dress(MANNEQUIN, made_for, garment, made_for=source)
         specs, bodies = one_body(specs, "made_for", dressed)
         return BodyChoice(specs, bodies, False, {"from": "made_for", "placement": asdict(report)},
                           [placement_note("made_for", report)])

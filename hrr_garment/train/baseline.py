@@ -142,8 +142,7 @@ def run_baseline_stage(dataset: str | Path, folder: str | Path, config: DirectCo
     with np.load(folder / "autoencoder" / "latents.npz", allow_pickle=False) as f:
         latents = {name: f[name] for name in ds.names}
     names = {k: ds.splits[k] for k in ("train", "val")}
-    features = dataset_features(ds, names["train"] + names["val"], bundle.codespace.config.memory,
-                                bool(bundle.codespace.config.body_features))
+    features = dataset_features(ds, names["train"] + names["val"], bundle.codespace.config.memory,body_measures=bool(bundle.codespace.config.body_features))
     train = _sequences(features, latents, names["train"], bundle)
     val = _sequences(features, latents, names["val"], bundle)
     torch.manual_seed(train_config.seed)

@@ -266,6 +266,6 @@ def evaluate_bundle(bundle, dataset: str | Path, split: str = "val") -> dict:
     if not names:
         raise DatasetError(dataset, f"has no {split!r} sequences")
     encoding = refine_settings(bundle.meta.get("encoding", {}))
-    modes = window_mode_errors(bundle, dataset_features(ds, names, bundle.codespace.config.memory, bool(bundle.codespace.config.body_features)),
+    modes = window_mode_errors(bundle, dataset_features(ds, names, bundle.codespace.config.memory,body_measures=bool(bundle.codespace.config.body_features)),
                                {n: body_frames(ds, [n]) for n in names}, encoding=encoding)
     return modes.summary(bundle.tau, bundle.gate)

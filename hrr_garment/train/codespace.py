@@ -196,7 +196,7 @@ def run_codespace_stage(dataset: str | Path, folder: str | Path, config: CodeSpa
     if done is not None and "residual" in meta:
         return _stage_report(done, stage, reused=True)
     splits = {k: ds.splits[k] for k in ("train", "val")}
-    features = dataset_features(ds, splits["train"] + splits["val"], config.memory, config.body_features > 0)
+    features = dataset_features(ds, splits["train"] + splits["val"], config.memory, body_measures=config.body_features > 0)
     train_w, val_w, motion_stats, latent_stats, calibration = _windows(features, latents, splits, config, train_config)
     encoding = refine_settings(ae_meta.get("train", {}))
     val_names = sorted({n for n, _ in calibration}) if calibration else splits["val"]
