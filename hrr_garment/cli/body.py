@@ -24,6 +24,7 @@ from pathlib import Path
 from typing import Sequence
 
 from ..body.body_file import read_body, write_body
+from ..body.measures import BODY_MEASURES, body_vector
 from ..body.parametric import BodyShape
 from ..errors import InputError
 from ._common import run_cli
@@ -65,6 +66,7 @@ def _summary(record) -> dict:
             "shoulder_width_m": round(float(rest[16, 0] - rest[17, 0]), 4),
             "leg_length_m": round(float(rest[1, 1] - rest[7, 1]), 4),
             "capsules": len(record.body.capsules), "shape": record.shape,
+            "measures_m": {k: round(float(v), 4) for k, v in zip(BODY_MEASURES, body_vector(record))},  # what models read
             "fit": record.report.to_dict() if record.report else None}
 
 
