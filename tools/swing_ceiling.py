@@ -64,7 +64,8 @@ def ceilings(animator: Animator, records: list, hem: np.ndarray) -> dict:
             z = stored[r.name].astype(np.float32)
             outs = {"autoencoder": z, "code space": code_reconstruction(animator, z)}
             preds = {k: world_vertices(body_frame_vertices(animator.bundle, v, animator.decoder), r.motion) for k, v in outs.items()}
-            preds["regression"] = animator.animate(r.motion, mode="regression", collision=False, body=r.dressed).vertices
+            preds["regression"] = animator.animate(r.motion, mode="regression", collision=False, body=r.dressed,
+                                                 allow_outside=True).vertices
             for k, p in preds.items():
                 p = np.asarray(p, np.float64)
                 sums[k] += [M.pve_mm(p, truth) * len(truth), hem_swing(p, r.motion, hem) * len(truth)]

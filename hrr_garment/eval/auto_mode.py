@@ -116,7 +116,8 @@ def calibrate_auto_mode(animator: Animator, records: list[SequenceRecord], allow
         for r, truth in zip(records, truths):  # a clip in the database (the paper's validation) may not retrieve itself
             own = names.index(r.name) if r.name in names else None
             look = DetailLook(base, strength) if mode == "detail" else DetailLook()
-            pred = animator.animate(r.motion, mode=mode, detail=look, body=r.dressed, exclude_sequence=own).vertices.astype(np.float64)
+            pred = animator.animate(r.motion, mode=mode, detail=look, body=r.dressed, allow_outside=True,
+                                    exclude_sequence=own).vertices.astype(np.float64)
             error += M.pve_mm(pred, truth) * len(pred)
             bend += float(M.cloth_energies(pred, rest, topo)[1].sum())
             swing += hem_swing(pred, r.motion, hem) * len(pred)

@@ -196,7 +196,8 @@ def evaluate_modes(animator: Animator, records: list[SequenceRecord], settings: 
     jobs = [(m, r) for r in records for m in settings.modes]
     for mode, record in tqdm(jobs, desc="evaluate", unit="run", disable=not settings.progress):
         own = _own_sequence(names, record, settings.exclude_own_sequence)
-        anim = animator.animate(record.motion, runs[mode], body=record.dressed, exclude_sequence=own)
+        anim = animator.animate(record.motion, runs[mode], body=record.dressed, allow_outside=True,
+                                exclude_sequence=own)
         before = (anim.penetration.inside_before, anim.penetration.worst_before) if anim.penetration else None
         results[mode].sequences.append(scorer.sequence(anim.vertices, record, anim.retrieved.astype(bool),
                                                        anim.entropy.astype(np.float64), before))
@@ -240,7 +241,8 @@ def tau_sweep(animator: Animator, records: list[SequenceRecord], taus: list[floa
         errors, frames, retrieved, bending = 0.0, 0, 0, 0.0
         for record in records:
             own = _own_sequence(names, record, settings.exclude_own_sequence)
-            anim = animator.animate(record.motion, hybrid.replace(tau=tau), body=record.dressed, exclude_sequence=own)
+            anim = animator.animate(record.motion, hybrid.replace(tau=tau), body=record.dressed,
+                                    allow_outside=True, exclude_sequence=own)
             pred = anim.vertices.astype(np.float64)
             errors += M.pve_mm(pred, record.garment.astype(np.float64)) * len(anim.vertices)
             frames += len(anim.vertices)

@@ -20,7 +20,7 @@ def default_taus(animator, records, run: RunSettings) -> list[float]:
     """0, the deciles of the hybrid gate's per-frame doubts on these records (``run``'s gate, default
     the model's), and above the maximum (retrieval only)."""
     hybrid = run.replace(mode="hybrid", tau=0.0, collision=False, detail=DetailLook())
-    h = np.concatenate([animator.animate(r.motion, hybrid, body=r.dressed).doubt for r in records])
+    h = np.concatenate([animator.animate(r.motion, hybrid, body=r.dressed, allow_outside=True).doubt for r in records])
     top = float(h.max()) + 1e-3 if len(h) else 1.0
     if animator.resolve(hybrid).gate == "entropy":  # at least every entropy
         top = max(top, math.log(animator.bundle.codespace.config.classes) + 1e-3)
