@@ -189,23 +189,18 @@ def test_a_crowd_of_characters_on_different_bodies_equals_each_one_alone_on_its_
             assert np.abs(out[row] - alone[k][frame]).max() <= 1e-4, (k, frame)
 
 
-def test_the_unseen_bodies_protocol_sets_the_model_beside_a_specialist(bodies_model, tmp_path):
-    """hrr-eval --unseen-body: a dataset on a body the model never saw, with the specialist trained
-    on it alone; a dataset on a training body, or on several bodies, is refused."""
+def test_the_unseen_bodies_protocol_sets_the_model_beside_a_specialist(bodies_model, trained, tmp_path):
+    """hrr-eval --unseen-body: the mannequin, which the model across the tall and short bodies never
+    saw, with the tiny mannequin model as its specialist; a dataset on a training body is refused."""
     from hrr_garment.cli.eval import main
-    from hrr_garment.data.synthetic import write_synthetic_dataset
 
     folder, data = bodies_model
-    garment = make_garment("skirt", 300)
-    mid = write_synthetic_dataset(tmp_path / "mid.h5", garment, bodies=[_dressed(garment, "mid", 1.0, 1.02)])
-    (tmp_path / "cfg.yaml").write_text(TINY_TRAINING)
-    train_tiny(mid, tmp_path / "specialist", tmp_path / "cfg.yaml")
+    root, mannequin_data, _ = trained
     common = ["--model", str(folder), "--dataset", str(data), "--modes", "regression", "--no-sweep", "--library", "0",
               "--ensemble", "0", "--no-plots", "--quiet"]
-    assert main([*common, "--unseen-body", f"{mid}={tmp_path / 'specialist'}", "-o", str(tmp_path / "report")]) == 0
-    section = json.loads((tmp_path / "report" / "report.json").read_text())["unseen_bodies"]["mid"]
-    assert section["body"] == "mid" and section["sequences"] == ["run_000"]
+    assert main([*common, "--unseen-body", f"{mannequin_data}={root / 'model'}", "-o", str(tmp_path / "report")]) == 0
+    section = json.loads((tmp_path / "report" / "report.json").read_text())["unseen_bodies"][mannequin_data.stem]
+    assert section["body"] == "mannequin" and section["sequences"] == ["run_000"]
     assert section["model"]["pve_mm"] > 0 and section["specialist"]["pve_mm"] > 0
     assert "## Unseen bodies" in (tmp_path / "report" / "report.md").read_text()
     assert main([*common, "--unseen-body", str(data), "-o", str(tmp_path / "again")]) != 0  # tall and short: trained on
-
