@@ -77,10 +77,8 @@ class BodyModel:
     def pose(self, global_rotations: np.ndarray, joint_positions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """World capsule end points (T, C, 3) each for a and b, from FK results (T, 22, ...)."""
         idx = np.array([JOINT_INDEX[c.joint] for c in self.capsules])
-        a = np.array([c.a for c in self.capsules])
-        b = np.array([c.b for c in self.capsules])
-        rot, pos = global_rotations[:, idx], joint_positions[:, idx]
-        return pos + np.einsum("tcij,cj->tci", rot, a), pos + np.einsum("tcij,cj->tci", rot, b)
+        return pose_ends(global_rotations, joint_positions, idx, a=np.array([c.a for c in self.capsules]),
+                         b=np.array([c.b for c in self.capsules]))
 
     def pose_motion(self, motion: Motion) -> tuple[np.ndarray, np.ndarray]:
         return self.pose(motion.global_rotations, motion.joint_positions)
@@ -96,6 +94,15 @@ class BodyModel:
         if self.is_mannequin_frame:
             return rest_joint_positions()
         return self.skeleton.rest_positions(np.array([0.0, self.pelvis_height, 0.0]))
+
+
+def pose_ends(global_rotations: np.ndarray, joint_positions: np.ndarray, joints: np.ndarray, *, a: np.ndarray,
+              b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """World capsule end points (T, C, 3) each: ends ``a``, ``b`` in their ``joints``' frames, (C, 3)
+    shared by every frame or (T, C, 3) each frame's own (a crowd's characters of different bodies),
+    posed by FK results (T, 22, 3, 3) and (T, 22, 3)."""
+    rot, pos = global_rotations[:, joints], joint_positions[:, joints]
+    return pos + np.einsum("...cij,...cj->...ci", rot, a), pos + np.einsum("...cij,...cj->...ci", rot, b)
 
 
 def rest_joint_positions() -> np.ndarray:

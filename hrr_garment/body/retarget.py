@@ -11,8 +11,10 @@ the clip exactly k times larger (tested).
 
 from __future__ import annotations
 
+import numpy as np
+
 from ..motion.motion import Motion
-from ..motion.skeleton import REST_PELVIS_HEIGHT
+from ..motion.skeleton import CANONICAL, REST_PELVIS_HEIGHT
 
 
 def motion_on_body(motion: Motion, body) -> Motion:
@@ -21,3 +23,14 @@ def motion_on_body(motion: Motion, body) -> Motion:
     scale = float(body.pelvis_height) / REST_PELVIS_HEIGHT
     return Motion(motion.local_rotations, motion.root_translation * scale, motion.fps, source=motion.source,
                   source_skeleton=motion.source_skeleton, source_height_m=motion.source_height_m, skeleton=body.skeleton)
+
+
+def played_by(motion: Motion, body) -> Motion:
+    """``motion`` on ``body``'s skeleton (``body`` as :func:`motion_on_body` takes it): as it is when
+    it already stands on it, played by the body when it is a canonical clip; a ValueError for a clip
+    on some other skeleton."""
+    if np.allclose(motion.skeleton.offsets, body.skeleton.offsets, atol=1e-6):
+        return motion
+    if motion.skeleton is CANONICAL:
+        return motion_on_body(motion, body)
+    raise ValueError("the motion stands on another skeleton than the body's: give the clip on the canonical skeleton")

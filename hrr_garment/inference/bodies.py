@@ -30,11 +30,10 @@ from ..artifacts.bundle import Bundle
 from ..body.body_file import BodyRecord, read_body
 from ..body.capsules import BodyModel
 from ..body.measures import body_vector
-from ..body.retarget import motion_on_body
+from ..body.retarget import played_by
 from ..data.bodies import MANNEQUIN, DressedBody, dress
 from ..errors import InputError
 from ..motion.motion import Motion
-from ..motion.skeleton import CANONICAL
 
 CHARACTER_SUFFIXES = (".glb", ".gltf")
 
@@ -66,14 +65,12 @@ class CharacterBody:
 
     def play(self, motion: Motion) -> Motion:
         """``motion`` on this body: a clip on the canonical skeleton is played by the body (its bone
-        lengths, its stride: :func:`~hrr_garment.body.retarget.motion_on_body`); a clip already
-        on the body's skeleton is kept; a clip on another body's skeleton is refused."""
-        if np.allclose(motion.skeleton.offsets, self.record.skeleton.offsets, atol=1e-6):
-            return motion
-        if motion.skeleton is CANONICAL or np.allclose(motion.skeleton.offsets, CANONICAL.offsets, atol=1e-6):
-            return motion_on_body(motion, self.record)
-        raise InputError(motion.source or "motion", f"the motion stands on another body's skeleton than body "
-                                                    f"{self.name!r}: give the clip on the canonical skeleton")
+        lengths, its stride: :func:`~hrr_garment.body.retarget.played_by`); a clip already on the
+        body's skeleton is kept; a clip on another body's skeleton is refused."""
+        try:
+            return played_by(motion, self.record)
+        except ValueError as exc:
+            raise InputError(motion.source or "motion", f"body {self.name!r}: {exc}") from None
 
 
 def read_body_argument(body: str | Path) -> tuple[str, BodyRecord]:

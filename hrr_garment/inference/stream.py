@@ -31,6 +31,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import torch
 
+from ..body.capsules import pose_ends
 from ..errors import InputError
 from ..models.codes import traced_window_codes
 from ..motion.features import pair_features_batch
@@ -104,8 +105,7 @@ class _CrowdBodies:
         if self.body is not None:
             return self.body
         joints, a, b, radii = self.ends
-        rot, pos = poses.global_rotations[:, joints], poses.joint_positions[:, joints]
-        return PosedCapsules(pos + np.einsum("tcij,tcj->tci", rot, a), pos + np.einsum("tcij,tcj->tci", rot, b), radii)
+        return PosedCapsules(*pose_ends(poses.global_rotations, poses.joint_positions, joints, a=a, b=b), radii)
 
 
 class CrowdStream:

@@ -28,6 +28,7 @@ from typing import Callable
 import numpy as np
 
 from ..body.capsules import BodyModel
+from ..body.retarget import played_by
 from ..garment.mesh import GarmentMesh
 from ..motion.motion import Motion
 from .config import SimConfig
@@ -39,7 +40,7 @@ from .scene import (
     instance_builder,
     resolve_device,
 )
-from .simulator import ClipRun, SimResult, SimulationExploded, played_on_body, simulate_garment
+from .simulator import ClipRun, SimResult, SimulationExploded, simulate_garment
 
 
 @dataclass(frozen=True)
@@ -146,7 +147,7 @@ def simulate_batch(items: list[BatchItem], config: SimConfig = SimConfig(),
     if len({item.motion.fps for item in items}) > 1:
         raise ValueError("a batch steps every instance with one frame time: give it clips of one frame rate")
     t0 = time.perf_counter()
-    motions = [played_on_body(item.motion, item.body) for item in items]
+    motions = [played_by(item.motion, item.body) for item in items]
     runs = [ClipRun(item.garment, motion, body=item.body, config=config) for item, motion in zip(items, motions)]
     dropped, stepping = step_batch(BatchScene(runs, config), runs, progress)
     wall = time.perf_counter() - t0

@@ -28,13 +28,12 @@ import numpy as np
 
 from ..body.capsules import DEFAULT_BODY, BodyModel, frames_signed_distance
 from ..body.mesh_collider import BodyMesh
-from ..body.retarget import motion_on_body
+from ..body.retarget import played_by
 from ..body.self_contact import LOWER_ARM, self_intersecting_frames
 from ..errors import HRRError
 from ..garment.attachment import bind_attached
 from ..garment.mesh import GarmentMesh
 from ..motion.motion import Motion
-from ..motion.skeleton import CANONICAL
 from .config import SimConfig  # defined in .config (the scene needs it too); importable from here as before
 from .lead_in import start_transform, with_lead_in
 from .scene import ClothScene, arms_off_capsules, capsule_transforms
@@ -165,16 +164,6 @@ def _arms_note(arms_off: np.ndarray) -> str:
     return f", arms off the cloth on {int(arms_off.sum())} frames" if arms_off.any() else ""
 
 
-def played_on_body(motion: Motion, body: BodyModel) -> Motion:
-    """``motion`` on ``body``'s skeleton: as it is when it already stands on it, played by the body
-    when it is a canonical clip; a clip on some other skeleton is refused."""
-    if np.allclose(motion.skeleton.offsets, body.skeleton.offsets, atol=1e-6):
-        return motion
-    if motion.skeleton is CANONICAL:
-        return motion_on_body(motion, body)
-    raise ValueError("the motion stands on another skeleton than the body's: play it on the body (motion_on_body)")
-
-
 def simulate_garment(garment: GarmentMesh, motion: Motion, config: SimConfig = SimConfig(),
                      body: BodyModel = DEFAULT_BODY, progress: Callable[[int], None] | None = None,
                      collider: BodyMesh | None = None) -> SimResult:
@@ -191,7 +180,7 @@ def simulate_garment(garment: GarmentMesh, motion: Motion, config: SimConfig = S
 
     Raises :class:`SimulationExploded` (with every attempt's reason) when all attempts fail.
     """
-    motion = played_on_body(motion, body)
+    motion = played_by(motion, body)
     # (substeps, clip frames with the arms off the cloth, fraction of the cloth inside the arms they come back at)
     attempts: list[tuple[int, np.ndarray | None, float]] = [(config.substeps * 2 ** k, None, 0.0)
                                                           for k in range(config.retries + 1)]
