@@ -45,9 +45,11 @@ from .codespace_training import (
     mean_square,
     train_codespace,
 )
+from .contact import BodyContacts, ContactWindows, FrameDecoder, teach_contact
 from .report import StageReport
 from .vertex_metric import VertexMetric, sample_frames
 
+CONTACT_SETTINGS = ("contact_steps", "contact_weight")  # the contact phase's: not the main training's key
 STAGE_FOLDER = "codebook"  # under MODEL/: the name from before "code space" was the stage's name
 
 
@@ -102,16 +104,29 @@ def _autoencoder_outputs(ds: GarmentDataset, dataset, ae_folder: Path) -> tuple[
 
 def _stage_key(config: CodeSpaceConfig, train_config: CodeSpaceTrainConfig, ae_state: dict,
                latents: dict[str, np.ndarray], ds: GarmentDataset) -> str:
-    """The settings key: a finished stage with this key is reused, a checkpoint resumed."""
+    """The main training's settings key (without the contact phase's): a checkpoint with it is resumed."""
     # the latents as well as the weights: a changed encoding (refine_steps ...) re-encodes the same
     # weights, and the code space trained on the old latents must not be reused
     ae_hash = hashlib.sha256(b"".join([k.encode() + ae_state[k].numpy().tobytes() for k in sorted(ae_state)]
                                       + [n.encode() + latents[n].tobytes() for n in ds.names])).hexdigest()[:16]
-    training = asdict(train_config) | {"max_minutes": None}
+    training = {k: v for k, v in asdict(train_config).items() if k not in CONTACT_SETTINGS} | {"max_minutes": None}
     if train_config.latent_loss == "standardised":  # as before the setting existed: finished stages stay reused
         training = {k: v for k, v in training.items() if k not in ("latent_loss", "vertex_ridge")}
     return hashlib.sha1(json.dumps([config.to_dict(), training, ae_hash, ds.splits],
                                    sort_keys=True).encode()).hexdigest()[:16]
+
+
+def _stage_keys(config: CodeSpaceConfig, train_config: CodeSpaceTrainConfig, ae_state: dict,
+                latents: dict[str, np.ndarray], ds: GarmentDataset) -> tuple[str, str]:
+    """(the stage's key, the main training's key). The contact phase comes after the training and
+    does not change it: its settings are left out of the training's key (a model trained without
+    the phase resumes its finished training and only adds the phase) and, where it runs, added to
+    the stage's (without it, the stage's key is the training's, as before the phase existed)."""
+    training = _stage_key(config, train_config, ae_state, latents, ds)
+    if train_config.contact_steps == 0:
+        return training, training
+    settings = json.dumps([training, {k: getattr(train_config, k) for k in CONTACT_SETTINGS}], sort_keys=True)
+    return hashlib.sha1(settings.encode()).hexdigest()[:16], training
 
 
 def _stage_report(report: dict, folder: Path, reused: bool = False) -> StageReport:
@@ -186,7 +201,7 @@ def run_codespace_stage(dataset: str | Path, folder: str | Path, config: CodeSpa
     config = replace(config, body_features=len(BODY_MEASURES) if bodies and bodies["range"]["bodies"] > 1 else 0)
     ae_folder = folder / "autoencoder"
     ae_meta, ae_state, latents = _autoencoder_outputs(ds, dataset, ae_folder)
-    key = _stage_key(config, train_config, ae_state, latents, ds)
+    key, training_key = _stage_keys(config, train_config, ae_state, latents, ds)
     report_path = stage / "report.json"
     finished = _finished(folder, report_path, key)
     done, meta = finished if finished is not None else (None, {})
@@ -214,7 +229,13 @@ def run_codespace_stage(dataset: str | Path, folder: str | Path, config: CodeSpa
                                               latent_stats.std, train_config.vertex_ridge, progress=progress)
     torch.manual_seed(train_config.seed)
     model = CodeSpace(config, config.features, autoencoder.latent_shape)
-    summary = train_codespace(model, train_t, val_t, folder=stage, config=train_config, key=key, progress=progress, latent_loss=latent_loss)
+    summary = train_codespace(model, train_t, val_t, folder=stage, config=train_config, key=training_key, progress=progress,
+                              latent_loss=latent_loss)
+    if train_config.contact_steps:
+        summary["contact"] = teach_contact(model, FrameDecoder(autoencoder, latent_stats),
+                                           ContactWindows(train_t, BodyContacts.of(ds, train_w)),
+                                           ContactWindows(val_t, BodyContacts.of(ds, val_w)), config=train_config,
+                                           latent_loss=latent_loss, checkpoint=(stage / "contact.pt", key), progress=progress)
 
     # the database of every training window's garment code, then tau on the validation split
     database = CodeDatabase(garment_codes(model, train_t), train_w.latents, train_w.sequence, start=train_w.start,

@@ -72,6 +72,10 @@ class CodeSpaceTrainConfig:
     # of the former mixed in
     latent_loss: str = "standardised"
     vertex_ridge: float = 0.05
+    # the contact phase after training (.contact): Adam steps on the decoder with the body's capsules
+    # in the loss (0: none), and the weight of the mean depth inside them (mm) beside the latent loss
+    contact_steps: int = 0
+    contact_weight: float = 2.0
     seed: int = 0
 
     def __post_init__(self) -> None:
@@ -81,6 +85,9 @@ class CodeSpaceTrainConfig:
         if self.latent_loss not in LATENT_LOSSES:
             raise SettingsError(f"code space training: latent_loss must be one of {', '.join(LATENT_LOSSES)}, "
                                 f"got {self.latent_loss!r}")
+        if self.contact_steps < 0 or self.contact_weight < 0:
+            raise SettingsError(f"code space training: contact_steps and contact_weight must be at least 0, got "
+                                f"{self.contact_steps} and {self.contact_weight}")
         if not 0.0 <= self.vertex_ridge <= 1.0:
             raise SettingsError(f"code space training: vertex_ridge must be in [0, 1], got {self.vertex_ridge}")
 

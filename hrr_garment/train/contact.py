@@ -1,0 +1,186 @@
+"""The contact phase of the code-space stage: the decoder taught to keep the garment out of the body.
+
+The regression is a conditional mean, and where the cloth lies on the body (a bodice on the chest
+and shoulders, a skirt on the thighs mid-stride) an error of a centimetre puts it inside. The
+latent losses cannot see the body, and a heavy body's tighter fit makes it worse: the model across
+bodies put 5.0 % of the vertices more than 5 mm inside a held-out heavy body before the push-out,
+where the simulations of the same clips have 0.8 % (docs/results.md). This phase shows the decoder
+the body.
+
+After the main training, ``contact_steps`` Adam steps on the decoder alone (the encoders, and so
+the codes and the retrieval database, stay as trained), each on a batch of training windows: the
+regression path's latent loss as in training, plus ``contact_weight`` times the mean depth (in mm)
+by which decoded vertices fall inside the body's capsules grown by a 2 mm margin. One random frame
+of each window is decoded through the frozen mesh decoder: the depth needs vertices, and decoding
+whole windows would cost some twenty times more for a gradient that neighbouring frames share.
+
+The capsules are those of the body each sequence was simulated on, posed by its own motion and
+taken into its body frame (:mod:`hrr_garment.motion.frame`); decoded frames get that body's rest
+offset added, as inference adds it (:meth:`~hrr_garment.data.bodies.DressedBody.offset`).
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import torch
+from tqdm.auto import tqdm
+
+from ..data.dataset import DatasetError, GarmentDataset
+from ..data.windows import WindowSet
+from ..io_utils import atomic_path, strict_json
+from ..models.codes import regression_embedding
+from ..models.codespace import CodeSpace
+from ..models.fcmae import MeshAutoencoder
+from ..motion.frame import to_body_frame
+from .codespace_training import CodeSpaceTrainConfig, WindowTensors
+
+MARGIN_M = 0.002  # the depth is counted from this far outside the capsules: where the push-out lands a vertex
+PENETRATION_M = 0.005  # what the report counts as inside (as evaluation and hrr-animate do)
+LEARNING_RATE = 1e-4  # a tenth of training's initial rate: the phase adjusts a trained decoder
+BATCH = 64  # windows (and so decoded frames) a step
+REPORT_WINDOWS = 512  # validation windows whose middle frame the report decodes before and after
+
+
+@dataclass(frozen=True)
+class BodyContacts:
+    """Per stored frame of a :class:`~hrr_garment.data.windows.WindowSet` (row for row with its
+    motion and latent frames): the capsules of the body the frame's sequence was simulated on,
+    posed and in the body frame, and which body's rest offset its decoded garment stands on."""
+
+    a: torch.Tensor  # (frames, C, 3) capsule end points
+    b: torch.Tensor  # (frames, C, 3)
+    radii: torch.Tensor  # (frames, C)
+    body: torch.Tensor  # (frames,) int64 row of ``offsets``
+    offsets: torch.Tensor  # (bodies, V, 3) each body's rest offset from the template
+
+    @classmethod
+    def of(cls, ds: GarmentDataset, windows: WindowSet) -> "BodyContacts":
+        bodies = sorted({ds.body_of[n] for n in windows.names})
+        a, b, radii, rows = [], [], [], []
+        for name in windows.names:
+            motion, body = ds.sequence(name).motion, ds.bodies[ds.body_of[name]].body
+            if motion.num_frames < windows.motion.window:  # no window, so none of its frames stored
+                continue
+            ends = body.pose_motion(motion)
+            if a and len(body.capsules) != a[0].shape[1]:
+                raise DatasetError(ds.path, f"sequence {name!r} stands on a body of {len(body.capsules)} capsules, "
+                                            f"another on {a[0].shape[1]}: the contact phase needs one capsule set")
+            a.append(to_body_frame(ends[0], motion))
+            b.append(to_body_frame(ends[1], motion))
+            radii.append(np.broadcast_to(body.radii, (len(ends[0]), len(body.radii))))
+            rows.append(np.full(len(ends[0]), bodies.index(ds.body_of[name])))
+        frames = len(windows.motion.frames)
+        if sum(len(x) for x in a) != frames:
+            raise ValueError(f"the windows store {frames} frames, their sequences have {sum(len(x) for x in a)}")
+        offsets = np.stack([ds.bodies[n].offset(ds.template) for n in bodies])
+        return cls(*(torch.from_numpy(np.concatenate(x).astype(np.float32)) for x in (a, b, radii)),
+                   torch.from_numpy(np.concatenate(rows).astype(np.int64)), torch.from_numpy(offsets))
+
+
+def capsule_distance(points: torch.Tensor, a: torch.Tensor, b: torch.Tensor, radii: torch.Tensor) -> torch.Tensor:
+    """Signed distance (n, V) of points (n, V, 3) to each frame's union of capsules (ends a, b
+    (n, C, 3), radii (n, C)); negative inside. Differentiable; the torch twin of
+    :func:`~hrr_garment.body.capsules.capsule_signed_distance` (tested equal)."""
+    axis = b - a
+    rel = points[:, :, None] - a[:, None]  # (n, V, C, 3)
+    s = ((rel * axis[:, None]).sum(-1) / (axis * axis).sum(-1).clamp_min(1e-12)[:, None]).clamp(0.0, 1.0)
+    return ((rel - s[..., None] * axis[:, None]).norm(dim=-1) - radii[:, None]).min(-1).values
+
+
+def _regression(model: CodeSpace, motion: torch.Tensor) -> torch.Tensor:
+    """The regression path as inference runs it: (n, W, F) standardised motion -> (n, W, N, C)
+    standardised latents; the motion encoder's output is a constant here (only the decoder learns)."""
+    with torch.no_grad():
+        logits = model.quantizer.split(model.motion_encoder(motion))
+    return model.decode(regression_embedding(model, logits), body=model.body_of(motion))
+
+
+@dataclass(frozen=True)
+class ContactWindows:
+    """Windows (:class:`~.codespace_training.WindowTensors`) and their frames' bodies."""
+
+    windows: WindowTensors
+    contacts: BodyContacts
+
+
+class FrameDecoder:
+    """Standardised latents of stored frames -> their signed distance to the bodies they stand on."""
+
+    def __init__(self, autoencoder: MeshAutoencoder, latent_stats):
+        self.autoencoder = autoencoder
+        self.mean = torch.from_numpy(np.asarray(latent_stats.mean, np.float32))
+        self.std = torch.from_numpy(np.asarray(latent_stats.std, np.float32))
+
+    def distance(self, latents: torch.Tensor, contacts: BodyContacts, rows: torch.Tensor) -> torch.Tensor:
+        """(n, N, C) standardised latents of the stored frames ``rows`` -> (n, V) signed distance of
+        their decoded vertices, on their bodies' rest offsets, to their bodies' capsules."""
+        raw = latents.reshape(len(latents), -1) * self.std + self.mean
+        vertices = self.autoencoder.decode(raw.reshape(latents.shape)) + contacts.offsets[contacts.body[rows]]
+        return capsule_distance(vertices, contacts.a[rows], contacts.b[rows], contacts.radii[rows])
+
+
+@torch.no_grad()
+def inside_fraction(model: CodeSpace, decoder: FrameDecoder, data: ContactWindows, count: int = REPORT_WINDOWS) -> float:
+    """The fraction of vertices more than 5 mm inside the body in the regression's middle frame of
+    up to ``count`` of the windows, evenly spaced."""
+    windows = data.windows
+    if not len(windows):
+        return float("nan")
+    picked = torch.from_numpy(np.unique(np.linspace(0, len(windows) - 1, min(count, len(windows))).astype(np.int64)))
+    inside, total, middle = 0.0, 0, windows.window // 2
+    for chunk in picked.split(BATCH):
+        motion, _ = windows[chunk]
+        d = decoder.distance(_regression(model, motion)[:, middle], data.contacts, windows.first[chunk] + middle)
+        inside += float((d < -PENETRATION_M).sum())
+        total += d.numel()
+    return inside / total
+
+
+def teach_contact(model: CodeSpace, decoder: FrameDecoder, train: ContactWindows, val: ContactWindows | None, *,
+                  config: CodeSpaceTrainConfig, latent_loss: Callable[[torch.Tensor], torch.Tensor],
+                  checkpoint: tuple[Path, str], progress: bool = True) -> dict:
+    """Run the phase (module docstring; ``config.contact_steps`` and ``contact_weight``) on
+    ``model`` in place and return its summary, with the share of ``val``'s vertices inside the body
+    before and after. The result is kept at ``checkpoint`` (path, key): a re-run with the same key
+    loads it instead."""
+    path, key = checkpoint
+    if path.is_file():
+        saved = torch.load(path, map_location="cpu", weights_only=True)
+        if saved.get("key") == key:
+            model.load_state_dict(saved["weights"])
+            return json.loads(saved["summary"])
+    autoencoder = decoder.autoencoder
+    for p in autoencoder.parameters():
+        p.requires_grad_(False)
+    model.eval()  # the decoder as inference runs it
+    before = inside_fraction(model, decoder, val) if val is not None else float("nan")
+    optimizer = torch.optim.Adam(model.decoder.parameters(), lr=LEARNING_RATE)
+    gen = torch.Generator().manual_seed(config.seed)
+    windows, started, depth_sum = train.windows, time.perf_counter(), 0.0
+    for _ in tqdm(range(config.contact_steps), desc="contact", unit="step", disable=not progress):
+        idx = torch.randint(0, len(windows), (min(BATCH, len(windows)),), generator=gen)
+        motion, latents = windows[idx]
+        pred = _regression(model, motion)
+        frame = torch.randint(0, windows.window, (len(idx),), generator=gen)
+        distance = decoder.distance(pred[torch.arange(len(idx)), frame], train.contacts, windows.first[idx] + frame)
+        depth_mm = 1000.0 * torch.relu(MARGIN_M - distance).mean()
+        loss = latent_loss(pred - latents) + config.contact_weight * depth_mm
+        optimizer.zero_grad(set_to_none=True)
+        loss.backward()
+        optimizer.step()
+        depth_sum += float(depth_mm.detach())
+    for p in autoencoder.parameters():
+        p.requires_grad_(True)
+    after = inside_fraction(model, decoder, val) if val is not None else float("nan")
+    summary = {"steps": config.contact_steps, "weight": config.contact_weight,
+               "mean_depth_mm": depth_sum / max(config.contact_steps, 1), "val_inside_before": before,
+               "val_inside_after": after, "minutes": (time.perf_counter() - started) / 60}
+    with atomic_path(path) as tmp:
+        torch.save({"key": key, "weights": model.state_dict(), "summary": strict_json(summary)}, tmp)
+    return summary
