@@ -55,7 +55,7 @@ def synthetic_dataset(path, garment):
 TINY_TRAINING = """
 autoencoder:
   model: {channels: [8, 16]}
-  train: {epochs: 3, batch_size: 16, max_minutes: null}
+  train: {epochs: 3, batch_size: 16, max_minutes: null, target_mm: null}
 codespace:
   model: {groups: 16, classes: 4, embedding_dim: 4, hidden: 64, motion_hidden: 32, attention_heads: 2}
   train: {epochs: 4, learning_rate: 0.001, plateau_patience: 2, patience: 5, max_minutes: null}

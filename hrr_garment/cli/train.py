@@ -43,7 +43,8 @@ def _parser() -> argparse.ArgumentParser:
                    help="one stage; 'baseline' trains the direct-regression baseline for hrr-eval "
                         f"('{OLD_CODESPACE_NAME}': deprecated name of 'codespace')")
     p.add_argument("--config", type=Path, default=None, help="YAML overriding configs/train.yaml (same sections)")
-    p.add_argument("--minutes", type=float, default=None, help="wall-clock budget for the autoencoder stage")
+    p.add_argument("--minutes", type=float, default=None,
+                   help="wall-clock cap on the autoencoder stage (its budget is epochs; a run the cap cuts short warns)")
     p.add_argument("--validation", choices=("clips", "windows"), default=None,
                    help="the code space's validation: the dataset's held-out clips (default) or, as the paper did, "
                         "a random tenth of the training clips' windows (docs/evaluation.md, the paper protocol)")
@@ -60,6 +61,9 @@ class _Printer(TrainCallback):
 
     def on_message(self, text: str) -> None:
         print(f"hrr-train: {text}", file=sys.stderr if text.startswith("deprecated") else sys.stdout)
+
+    def on_warning(self, text: str) -> None:
+        print(f"hrr-train: warning: {text}", file=sys.stderr)
 
     def on_stage_end(self, stage: str, result) -> None:
         if stage == "simulate" and result is not None:
@@ -107,6 +111,8 @@ def _main(argv: Sequence[str] | None) -> int:
                          garment=args.garment, preset=preset, progress=not args.quiet, callback=printer)
     print(f"bundle: {folder}")
     print("time per stage: " + ", ".join(f"{k} {v / 60:.1f} min" for k, v in result.seconds.items()))
+    for check in result.budgets.values():
+        print(f"budget: {check.summary()}")
     return 0
 
 

@@ -21,6 +21,7 @@ messages; the command line's prints them, a library caller may ignore them.
 from __future__ import annotations
 
 import time
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -32,33 +33,34 @@ from ..models.codespace import CodeSpaceConfig
 from ..models.direct import DirectConfig
 from ..models.fcmae import AutoencoderConfig
 from ..paths import workspace
+from ..settings import deep_merge
 from ..sim.plan import CONFIG_DIR, Preset
 from ..train.autoencoder import TrainConfig
 from ..train.baseline import DirectTrainConfig
 from ..train.codespace_training import CodeSpaceTrainConfig
 from ..train.report import StageReport
+from .budget import BudgetCheck, TrainingBudgetWarning, check_budget
 
 STAGES = ("simulate", "autoencoder", "codespace")  # what "all" runs; the baseline runs only when asked for
 SECTIONS = ("autoencoder", "codespace", "baseline")  # of the training config
+BUDGETED = ("autoencoder", "codespace")  # stages checked against their epochs and target error (.budget)
 OLD_CODESPACE_NAME = "codebook"  # the old name of the code-space stage and config section (deprecated)
 
 
 class TrainCallback:
-    """Hears what training does; every method does nothing unless overridden."""
+    """Hears what training does; every method but :meth:`on_warning` does nothing unless overridden."""
 
     def on_message(self, text: str) -> None:
         """A line worth telling a person (a dataset simulated first, a deprecated setting)."""
 
+    def on_warning(self, text: str) -> None:
+        """A stage ended short of its epochs or far above its target error (:mod:`.budget`): a
+        :class:`~.budget.TrainingBudgetWarning` unless overridden."""
+        warnings.warn(text, TrainingBudgetWarning, stacklevel=3)
+
     def on_stage_end(self, stage: str, result: StageReport | dict | None) -> None:
         """A stage finished: its report (``simulate``: a :class:`SimulatedDataset`, None where the
         dataset was there; ``auto``: the calibration's dict)."""
-
-
-def _merge(base: dict, override: dict) -> dict:
-    out = dict(base)
-    for key, value in (override or {}).items():
-        out[key] = _merge(out[key], value) if isinstance(value, dict) and isinstance(out.get(key), dict) else value
-    return out
 
 
 def _sections(data, source, callback: TrainCallback) -> dict:
@@ -108,10 +110,10 @@ class TrainSettings:
         callback = callback or TrainCallback()
         values = _read_yaml(CONFIG_DIR / "train.yaml", callback)
         if preset is not None:
-            values = _merge(values, _sections(preset.train or {}, f"the {preset.name} preset's train section", callback))
+            values = deep_merge(values, _sections(preset.train or {}, f"the {preset.name} preset's train section", callback))
         if user_config is not None:
-            values = _merge(values, _read_yaml(Path(user_config), callback))
-        values = _merge(values, _sections(overrides or {}, "the overrides", callback))
+            values = deep_merge(values, _read_yaml(Path(user_config), callback))
+        values = deep_merge(values, _sections(overrides or {}, "the overrides", callback))
         source = user_config or CONFIG_DIR / "train.yaml"
         built = {}
         for section, (model_cls, train_cls) in {"autoencoder": (AutoencoderConfig, TrainConfig),
@@ -129,6 +131,7 @@ class TrainResult:
     folder: Path
     reports: dict[str, StageReport] = field(default_factory=dict)
     auto: dict | None = None  # bundle.json's "auto" after the code-space stage
+    budgets: dict[str, BudgetCheck] = field(default_factory=dict)  # the autoencoder's and code space's epochs and errors
     seconds: dict[str, float] = field(default_factory=dict)
 
 
@@ -155,6 +158,10 @@ def train_model(dataset: str | Path, folder: str | Path, settings: TrainSettings
             report = _STAGE_RUNNERS[stage](dataset, folder, settings, _Context(garment, preset, progress, callback))
             if isinstance(report, StageReport):
                 result.reports[stage] = report
+                if stage in BUDGETED:
+                    result.budgets[stage] = check_budget(report, getattr(settings, f"{stage}_train"))
+                    for text in result.budgets[stage].warnings():
+                        callback.on_warning(text)
             callback.on_stage_end(stage, report)
             if stage == "codespace":
                 result.auto = calibrate_auto(folder, dataset, progress)

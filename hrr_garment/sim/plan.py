@@ -23,6 +23,7 @@ from ..motion.edit import retimed
 from ..motion.io import load_motion
 from ..motion.motion import Motion
 from ..motion.synth import KINDS, synthesize
+from ..settings import deep_merge
 from .sources import DEFAULT_NAME_PATTERN, clip_group, resolve_motion_entries
 
 CONFIG_DIR = Path(__file__).resolve().parents[2] / "configs"
@@ -79,7 +80,8 @@ def load_preset(name_or_path: str) -> Preset:
 
 def _preset_data(path: Path, depth: int = 0) -> dict:
     """A preset file's values; ``extends: NAME`` starts from another preset's (its keys replaced
-    by this file's, one level deep), so a variant names only what it changes."""
+    by this file's, one level deep; ``train``, a training config, merged section by section), so a
+    variant names only what it changes."""
     data = yaml.safe_load(path.read_text(encoding="utf-8"))
     if not isinstance(data, dict):
         raise TypeError("a preset is a mapping of keys to values")
@@ -89,7 +91,9 @@ def _preset_data(path: Path, depth: int = 0) -> dict:
     if depth > 4 or not isinstance(parent, str):
         raise TypeError(f"extends must name one preset (and not loop), got {parent!r}")
     parent_path = path.parent / f"{parent}.yaml" if not Path(parent).suffix else path.parent / parent
-    return {**_preset_data(parent_path, depth + 1), **data}
+    base = _preset_data(parent_path, depth + 1)
+    return {**base, **data, **({"train": deep_merge(base.get("train") or {}, data["train"])} if "train" in data else {})}
+
 
 
 @dataclass(frozen=True)

@@ -36,7 +36,7 @@ from ..settings import from_settings
 from .checkpoint import keep_if_best, load_checkpoint, save_checkpoint
 from .mesh_loss import apply_laplacian, laplacian_operator, pve_mm
 from .report import StageReport
-from .schedule import early_stop, epoch_fits, run_progress, set_learning_rate, training_device
+from .schedule import cap_since_raised, run_progress, set_learning_rate, stop_reason, training_device
 
 
 @dataclass(frozen=True)
@@ -49,7 +49,8 @@ class TrainConfig:
     lr_final: float = 0.01  # the cosine schedule's last learning rate, as a fraction of the first
     laplacian: float = 0.2
     patience: int = 30  # epochs without a better validation error before stopping (see early_stop)
-    max_minutes: float | None = None  # wall-clock budget for this run
+    max_minutes: float | None = None  # a wall-clock cap on the epochs (a run it cuts short warns: pipeline.budget)
+    target_mm: float | None = None  # validation error these settings reach on an idle machine (a run far above it warns)
     seed: int = 0
     threads: int | None = None
     device: str = "cpu"  # torch device to train on ("cuda" on a GPU machine); the outputs are the same files
@@ -130,7 +131,7 @@ def _settings_keys(model_config: AutoencoderConfig, train_config: TrainConfig, d
     instead of training it again. The objective was L1 per coordinate before: those latents
     re-encode."""
     encoding = refine_settings(asdict(train_config)) | {"refine_objective": "vertex distance"}
-    training = {k: v for k, v in asdict(train_config).items() if k not in encoding}
+    training = {k: v for k, v in asdict(train_config).items() if k not in encoding and k != "target_mm"}
     training_key = _key(model_config.to_dict(), training | {"max_minutes": None, "threads": None, "device": None},
                         ds.garment, ds.template.num_vertices, ds.splits, {"frame": FRAME_VERSION})
     return training_key, _key(training_key, encoding)
@@ -143,7 +144,9 @@ def _stage_report(record: dict, folder: Path, reused: bool = False) -> StageRepo
     if reused:
         metrics["extra"] = {**metrics.get("extra", {}), "reused": True}
     return StageReport("autoencoder", folder, int(record["epochs"]), best_epoch=int(record["best_epoch"]),
-                       minutes=float(record["minutes"]), reused=reused, metrics=metrics)
+                       minutes=float(record["minutes"]), reused=reused, metrics=metrics,
+                       epochs_asked=record.get("epochs_asked"), stopped=record.get("stopped"),
+                       validation_mm=record.get("val_pve_mm"))
 
 
 def _finished(folder: Path, key: str) -> dict | None:
@@ -178,12 +181,8 @@ def _fit(model: MeshAutoencoder, optimizer: torch.optim.Optimizer, frames: Train
         return run_progress(epoch, config.epochs, spent + time.perf_counter() - started, max_minutes=config.max_minutes)
 
     epoch_s = None  # the last epoch's duration
-    while state["epoch"] < config.epochs:
-        if not epoch_fits(time.perf_counter(), deadline, epoch_s):
-            break
+    while (stopped := stop_reason(state, config, deadline, epoch_s, run_fraction(state["epoch"]))) is None:
         epoch_started = time.perf_counter()
-        if early_stop(state["stale"], config.patience, run_fraction(state["epoch"])):
-            break
         model.train()
         # a bounded epoch: one pass over the real-motion library's 114,000 frames took 18 min on
         # 2 cores, longer than its whole budget, so validation, checkpoints and the budget check
@@ -209,6 +208,7 @@ def _fit(model: MeshAutoencoder, optimizer: torch.optim.Optimizer, frames: Train
         bar.update(1)
         epoch_s = time.perf_counter() - epoch_started
     bar.close()
+    state["stopped"] = stopped
     model.load_state_dict(best_weights)
     model.eval()
     return state, not bar.disable
@@ -234,7 +234,8 @@ def train_autoencoder(dataset: str | Path, folder: str | Path, model_config: Aut
     optimizer = torch.optim.Adam(model.parameters(), lr=train_config.learning_rate)
     training_key, key = _settings_keys(model_config, train_config, ds)
     done = _finished(folder, key)
-    if done is not None:  # finished with these settings: nothing to redo
+    if done is not None and not cap_since_raised(done.get("stopped"), done.get("cap_minutes"), train_config.max_minutes):
+        # finished with these settings: nothing to redo
         return _stage_report(done, folder, reused=True)
     state, shown = _fit(model, optimizer, frames, folder, training_key, train_config, device, progress)
     # encoding (the refinement's decoder passes) runs on the training device, the rest on the CPU,
@@ -257,6 +258,7 @@ def train_autoencoder(dataset: str | Path, folder: str | Path, model_config: Aut
         return pve_mm(model, split_frames[::every], np.concatenate([latents[n] for n in names])[::every])
 
     record = {"key": key, "folder": str(folder), "epochs": state["epoch"], "best_epoch": state["best_epoch"],
+              "epochs_asked": train_config.epochs, "stopped": state["stopped"], "cap_minutes": train_config.max_minutes,
               "val_pve_mm": refined_pve("val", frames.val), "test_pve_mm": refined_pve("test", frames.test),
               "train_pve_mm": refined_pve("train", frames.train[:frames.simulated], every=4),
               "minutes": (time.perf_counter() - t_start) / 60, "latent_shape": model.latent_shape,

@@ -47,9 +47,11 @@ from .codespace_training import (
 )
 from .contact import BodyContacts, ContactWindows, FrameDecoder, teach_contact
 from .report import StageReport
+from .schedule import cap_since_raised
 from .vertex_metric import VertexMetric, sample_frames
 
 CONTACT_SETTINGS = ("contact_steps", "contact_weight")  # the contact phase's: not the main training's key
+NOT_TRAINING = (*CONTACT_SETTINGS, "target_mm")  # settings that leave the main training as it is
 STAGE_FOLDER = "codebook"  # under MODEL/: the name from before "code space" was the stage's name
 
 
@@ -109,7 +111,7 @@ def _stage_key(config: CodeSpaceConfig, train_config: CodeSpaceTrainConfig, ae_s
     # weights, and the code space trained on the old latents must not be reused
     ae_hash = hashlib.sha256(b"".join([k.encode() + ae_state[k].numpy().tobytes() for k in sorted(ae_state)]
                                       + [n.encode() + latents[n].tobytes() for n in ds.names])).hexdigest()[:16]
-    training = {k: v for k, v in asdict(train_config).items() if k not in CONTACT_SETTINGS} | {"max_minutes": None}
+    training = {k: v for k, v in asdict(train_config).items() if k not in NOT_TRAINING} | {"max_minutes": None}
     if train_config.latent_loss == "standardised":  # as before the setting existed: finished stages stay reused
         training = {k: v for k, v in training.items() if k not in ("latent_loss", "vertex_ridge")}
     return hashlib.sha1(json.dumps([config.to_dict(), training, ae_hash, ds.splits],
@@ -132,7 +134,9 @@ def _stage_keys(config: CodeSpaceConfig, train_config: CodeSpaceTrainConfig, ae_
 def _stage_report(report: dict, folder: Path, reused: bool = False) -> StageReport:
     training = report["training"]
     return StageReport("codespace", folder, int(training["epoch"]), best_epoch=int(training["best_epoch"]), minutes=float(report["minutes"]),
-                       reused=reused, metrics={**report, "reused": True} if reused else report)
+                       reused=reused, metrics={**report, "reused": True} if reused else report,
+                       epochs_asked=training.get("config", {}).get("epochs"), stopped=training.get("stopped"),
+                       validation_mm=report.get("validation_mm", {}).get("regression"))
 
 
 def _finished(folder: Path, report_path: Path, key: str) -> tuple[dict, dict] | None:
@@ -204,6 +208,9 @@ def run_codespace_stage(dataset: str | Path, folder: str | Path, config: CodeSpa
     key, training_key = _stage_keys(config, train_config, ae_state, latents, ds)
     report_path = stage / "report.json"
     finished = _finished(folder, report_path, key)
+    if finished is not None and cap_since_raised(finished[0]["training"].get("stopped"),
+                                                 finished[0]["training"]["config"].get("max_minutes"), train_config.max_minutes):
+        finished = None  # cut short by a smaller cap: its checkpoint resumes
     done, meta = finished if finished is not None else (None, {})
     if done is not None and "folds" not in meta:  # trained before the folds: add them alone, and drop
         folds = fold_store(ds, list(meta["database"]["names"]), progress)  # the auto choice made without them

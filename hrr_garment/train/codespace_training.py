@@ -38,7 +38,7 @@ from ..models.codespace import CodeSpace
 from ..models.quantizer import group_entropy
 from ..settings import SettingsError, from_settings
 from .checkpoint import keep_if_best, load_checkpoint, resume_log, save_checkpoint
-from .schedule import early_stop, epoch_fits, run_progress, set_learning_rate
+from .schedule import run_progress, set_learning_rate, stop_reason
 
 VALIDATION_PROTOCOLS = ("clips", "windows")
 LATENT_LOSSES = ("standardised", "vertex")
@@ -64,7 +64,8 @@ class CodeSpaceTrainConfig:
     plateau_patience: int = 8
     plateau_delta: float = 0.01  # relative improvement that counts as progress
     patience: int = 25  # epochs after the switch without a better validation regression loss
-    max_minutes: float | None = None
+    max_minutes: float | None = None  # a wall-clock cap on the epochs (a run it cuts short warns: pipeline.budget)
+    target_mm: float | None = None  # validation regression error (window level) these settings reach on an idle machine
     windows_per_epoch: int | None = 8192  # an epoch draws at most this many training windows (None: all)
     validation: str = "clips"  # "clips": the dataset's val split; "windows": the paper's 9:1 split of windows
     # how a latent window's error is measured: "standardised", the mean square of the standardised
@@ -242,10 +243,7 @@ def train_codespace(model: CodeSpace, train: WindowTensors, val: WindowTensors, 
         return run_progress(epoch, config.epochs, spent + time.perf_counter() - started, max_minutes=config.max_minutes)
 
     epoch_s = None  # the last epoch's duration
-    while state["epoch"] < config.epochs:
-        if not epoch_fits(time.perf_counter(), deadline, epoch_s) or \
-                early_stop(state["stale"], config.patience, run_fraction(state["epoch"])):
-            break
+    while (stopped := stop_reason(state, config, deadline, epoch_s, run_fraction(state["epoch"]))) is None:
         epoch_started, epoch = time.perf_counter(), state["epoch"]
         temperature = max(config.temperature_min, config.temperature * config.temperature_decay ** epoch)
         match_weight = config.match_weight if state["switched_at"] is None else config.match_weight_late
@@ -280,6 +278,7 @@ def train_codespace(model: CodeSpace, train: WindowTensors, val: WindowTensors, 
         bar.update(1)
         epoch_s = time.perf_counter() - epoch_started
     bar.close()
+    state["stopped"] = stopped
     model.load_state_dict(best_weights)
     model.eval()
     return {**state, "minutes": (time.perf_counter() - t0) / 60, "final": evaluate(model, val, latent_loss=latent_loss),

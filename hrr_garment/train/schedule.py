@@ -1,10 +1,11 @@
 """When and how fast a training run goes: the device, the run's progress (by epochs or by the
-wall-clock budget), whether another epoch fits the budget, early stopping and the cosine
-learning-rate schedule."""
+wall-clock cap), whether another epoch fits the cap, early stopping, why a run stopped and the
+cosine learning-rate schedule."""
 
 from __future__ import annotations
 
 import math
+import time
 
 import torch
 
@@ -36,6 +37,33 @@ def epoch_fits(now: float, deadline: float | None, epoch_s: float | None) -> boo
     if deadline is None:
         return True
     return now + (epoch_s or 0.0) <= deadline
+
+
+# why a run stopped (each stage's report.json, ``stopped``): its epochs were done, the validation error
+# stopped improving, or the wall-clock cap (``max_minutes``) came first, which a busy or slow machine
+# reaches sooner: the same command then gives a weaker model, and hrr-train says so
+STOPPED_EPOCHS, STOPPED_EARLY, STOPPED_BY_CAP = "epochs", "early stop", "minutes cap"
+
+
+def stop_reason(state: dict, config, deadline: float | None, epoch_s: float | None, progress: float) -> str | None:
+    """Why a run stops before its next epoch, or None where it goes on: its ``config.epochs`` are
+    done, another epoch as long as the last would end past the cap's ``deadline``
+    (:func:`epoch_fits`), or the validation error stopped improving (:func:`early_stop`, ``state``'s
+    stale epochs against ``config.patience`` at the run's ``progress``)."""
+    if state["epoch"] >= config.epochs:
+        return STOPPED_EPOCHS
+    if not epoch_fits(time.perf_counter(), deadline, epoch_s):
+        return STOPPED_BY_CAP
+    if early_stop(state["stale"], config.patience, progress):
+        return STOPPED_EARLY
+    return None
+
+
+def cap_since_raised(stopped: str | None, cap_then: float | None, cap_now: float | None) -> bool:
+    """Whether a finished run that its wall-clock cap (``cap_then`` minutes) cut short goes on under
+    ``cap_now``: a re-run with a larger cap, or none, resumes its checkpoint and finishes the epochs
+    it was asked for; one with the same cap keeps what it has."""
+    return stopped == STOPPED_BY_CAP and (cap_now is None or (cap_then is not None and cap_now > cap_then))
 
 
 def early_stop(stale_epochs: int, patience: int, progress: float) -> bool:

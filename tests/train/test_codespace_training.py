@@ -114,7 +114,7 @@ def test_a_new_encoding_retrains_the_code_space(trained, tmp_path):
 
     root, data, args = trained
     shutil.copytree(root / "model", tmp_path / "model")
-    config = (root / "cfg.yaml").read_text().replace("max_minutes: null}", "max_minutes: null, refine_steps: 3}", 1)
+    config = (root / "cfg.yaml").read_text().replace("target_mm: null}", "target_mm: null, refine_steps: 3}", 1)
     (tmp_path / "cfg.yaml").write_text(config)
     before = json.loads((tmp_path / "model" / "codebook" / "report.json").read_text())
     assert train_main(["--dataset", str(data), "--config", str(tmp_path / "cfg.yaml"), "-o", str(tmp_path / "model"), "--quiet"]) == 0
