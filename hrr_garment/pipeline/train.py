@@ -28,6 +28,7 @@ from pathlib import Path
 import yaml
 
 from ..errors import InputError
+from ..eval.auto_mode import AutoConfig, calibrate_auto_mode, repick
 from ..io_utils import remove_empty_folders
 from ..models.codespace import CodeSpaceConfig
 from ..models.direct import DirectConfig
@@ -42,7 +43,7 @@ from ..train.report import StageReport
 from .budget import BudgetCheck, TrainingBudgetWarning, check_budget
 
 STAGES = ("simulate", "autoencoder", "codespace")  # what "all" runs; the baseline runs only when asked for
-SECTIONS = ("autoencoder", "codespace", "baseline")  # of the training config
+SECTIONS = ("autoencoder", "codespace", "baseline", "auto")  # of the training config
 BUDGETED = ("autoencoder", "codespace")  # stages checked against their epochs and target error (.budget)
 OLD_CODESPACE_NAME = "codebook"  # the old name of the code-space stage and config section (deprecated)
 
@@ -72,7 +73,7 @@ def _sections(data, source, callback: TrainCallback) -> dict:
         data = {("codespace" if k == OLD_CODESPACE_NAME else k): v for k, v in data.items()}
     if not isinstance(data, dict) or set(data) - set(SECTIONS):
         raise InputError(source, "expected a mapping with 'autoencoder', 'codespace' and/or 'baseline' sections "
-                                 "(each with model/train)")
+                                 "(each with model/train) and/or an 'auto' section")
     return data
 
 
@@ -101,6 +102,7 @@ class TrainSettings:
     codespace_train: CodeSpaceTrainConfig = field(default_factory=CodeSpaceTrainConfig)
     baseline: DirectConfig = field(default_factory=DirectConfig)
     baseline_train: DirectTrainConfig = field(default_factory=DirectTrainConfig)
+    auto: AutoConfig = field(default_factory=AutoConfig)  # the auto mode's calibration after the code space
 
     @classmethod
     def load(cls, preset: Preset | None = None, user_config: str | Path | None = None, overrides: dict | None = None,
@@ -121,7 +123,7 @@ class TrainSettings:
                                                 "baseline": (DirectConfig, DirectTrainConfig)}.items():
             built[section] = _build(model_cls, values.get(section, {}).get("model"), source)
             built[f"{section}_train"] = _build(train_cls, values.get(section, {}).get("train"), source)
-        return cls(**built)
+        return cls(**built, auto=_build(AutoConfig, values.get("auto"), source))
 
 
 @dataclass
@@ -164,7 +166,7 @@ def train_model(dataset: str | Path, folder: str | Path, settings: TrainSettings
                         callback.on_warning(text)
             callback.on_stage_end(stage, report)
             if stage == "codespace":
-                result.auto = calibrate_auto(folder, dataset, progress)
+                result.auto = calibrate_auto(folder, dataset, progress, settings.auto)
                 callback.on_stage_end("auto", result.auto)
             result.seconds[stage] = time.perf_counter() - t0
     except BaseException:
@@ -224,21 +226,25 @@ _STAGE_RUNNERS = {"simulate": _simulate_stage, "autoencoder": _autoencoder_stage
                   "baseline": _baseline_stage}
 
 
-def calibrate_auto(folder: str | Path, dataset: str | Path, progress: bool = True) -> dict:
+def calibrate_auto(folder: str | Path, dataset: str | Path, progress: bool = True, config: AutoConfig = AutoConfig()) -> dict:
     """The mode ``auto`` runs (:mod:`hrr_garment.eval.auto_mode`), calibrated on the dataset's
-    validation clips once per bundle and recorded in bundle.json; the recorded one where it was."""
+    validation clips once per bundle and recorded in bundle.json with every candidate's numbers;
+    the recorded one where it was, picked again from its numbers where ``config``'s allowance differs
+    from the one it was picked under."""
     from ..artifacts.bundle import read_meta
     from ..artifacts.bundle_writer import update_bundle_meta
 
     auto = read_meta(folder).get("auto")  # reading it hashes every file: once
     if auto is None:
         from ..data.dataset import GarmentDataset
-        from ..eval.auto_mode import calibrate_auto_mode
         from ..inference.animator import Animator
 
         ds = GarmentDataset(dataset)
         records = [ds.sequence(n) for n in ds.splits.get("val", [])]
-        auto = calibrate_auto_mode(Animator.load(folder), records, progress=progress)
+        auto = calibrate_auto_mode(Animator.load(folder), records, allowance=config.allowance, progress=progress)
+        update_bundle_meta(folder, {"auto": auto})
+    elif auto.get("allowance") != config.allowance:
+        auto = repick(auto, config.allowance)
         update_bundle_meta(folder, {"auto": auto})
     return auto
 

@@ -33,6 +33,16 @@ def test_settings_come_from_the_defaults_then_the_preset_then_the_file_then_the_
     assert flags.codespace_train.validation == "windows"
 
 
+def test_the_auto_modes_allowance_is_a_setting_and_a_bad_one_names_its_file(tmp_path):
+    assert TrainSettings.load().auto.allowance == 1.05
+    config = tmp_path / "cfg.yaml"
+    config.write_text("auto: {allowance: 1.1}\n")
+    assert TrainSettings.load(load_preset("quick"), config).auto.allowance == 1.1
+    config.write_text("auto: {allowance: 0.9}\n")  # below the most accurate PVE: nothing could be chosen
+    with pytest.raises(InputError, match="cfg.yaml.*allowance"):
+        TrainSettings.load(None, config)
+
+
 def test_the_old_section_name_is_heard_and_bad_settings_name_their_file(tmp_path):
     old = tmp_path / "old.yaml"
     old.write_text("codebook:\n  train: {epochs: 3}\n")
