@@ -29,6 +29,7 @@ from typing import Sequence
 
 from ..artifacts.gate_signals import GATE_SIGNALS
 from ..errors import InputError
+from ..eval.bars import summary_line
 from ..eval.evaluate import EvaluationSettings, evaluate_modes, tau_sweep
 from ..inference.modes import Mode
 from ..paths import workspace
@@ -160,7 +161,9 @@ def _job(args) -> _Job:
         if args.sequences < 1:
             raise InputError("hrr-eval", f"--sequences must be at least 1, got {args.sequences}")
         names = [names[i] for i in sorted({int(round(i)) for i in np.linspace(0, len(names) - 1, min(args.sequences, len(names)))})]
-    modes = args.modes or [m for m in ALL_MODES if m != Mode.AUTO and animator.supports(m)]  # auto: one of them
+    modes = args.modes or [m for m in ALL_MODES if m != Mode.AUTO and animator.supports(m)]
+    if Mode.AUTO not in modes:  # the default output leads every protocol, held to its bars (eval/bars.py)
+        modes = [Mode.AUTO.value, *modes]
     if Mode.DIRECT in modes and not animator.has_direct:
         raise InputError(model_dir, "has no direct-regression baseline: train it with hrr-train --stage baseline")
     look = detail_look(args)
@@ -236,6 +239,8 @@ def evaluation_record(animator, settings: EvaluationSettings) -> dict:
 
 
 def _print_summary(report: dict) -> None:
+    for line in filter(None, [summary_line(report.get("default"))]):
+        print(line)
     for mode, entry in report["modes"].items():
         m = entry["metrics"]
         e = entry.get("ensemble") or {}
@@ -254,6 +259,8 @@ def _print_summary(report: dict) -> None:
     library = report.get("library")
     if library:
         print(f"library protocol ({len(library['sequences'])} plays):")
+        for line in filter(None, [summary_line(library.get("default"))]):
+            print(line)
         for mode, entry in library["modes"].items():
             e = entry.get("ensemble") or {}
             floor = f"  PVE/floor {e['pve_floor_ratio']:.2f}" if "pve_floor_ratio" in e else ""

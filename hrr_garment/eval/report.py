@@ -15,7 +15,9 @@ point; 6 the model's ``auto`` mode and its ``auto_calibration``; 7 the detail mo
 and ``detail_base`` / ``detail_strength`` where the detail mode ran, in place of
 ``settings.detail``), and ``retrieval_usage`` counts only windows retrieved as simulated (the
 residual and detail modes, which add a match's detail to the regression, report 0); 10
-``unseen_bodies`` (the unseen-bodies protocol, :mod:`.unseen_bodies`).
+``unseen_bodies`` (the unseen-bodies protocol, :mod:`.unseen_bodies`); 11 ``default`` at the top
+level and in ``real_motion`` and ``library``: the default output's (auto's) lead row and its bars
+(:mod:`.bars`), auto evaluated as a mode of its own.
 """
 
 from __future__ import annotations
@@ -26,11 +28,12 @@ from pathlib import Path
 import numpy as np
 
 from ..io_utils import atomic_write_text, strict_json
+from .bars import HELD_OUT_BARS, LIBRARY_BARS, default_output, markdown_lead
 from .evaluate import ModeResult, TauPoint
 from .library import SOURCE_SIMULATION
 from .unseen_bodies import markdown_table
 
-REPORT_VERSION = 10  # report.json's "format_version": see the module docstring
+REPORT_VERSION = 11  # report.json's "format_version": see the module docstring
 GOALS = (  # (name, numerator mode, denominator mode, target ratio)
     ("hybrid_vs_regression", "hybrid", "regression", 0.5),
     ("hybrid_vs_retrieval", "hybrid", "retrieval", 0.85),
@@ -123,11 +126,16 @@ def build_report(*, model: dict, dataset: dict, settings: dict, modes: dict[str,
     """The report.json contents (schema: docs/evaluation.md); ``protocols``: the sections of the
     protocols beyond the split that ran (``real_motion``, ``library``, ``paper``, ``unseen_bodies``;
     None where not)."""
-    protocols = protocols or {}
+    protocols = dict(protocols or {})
+    for name, bars in (("real_motion", HELD_OUT_BARS), ("library", LIBRARY_BARS)):
+        if protocols.get(name):
+            protocols[name] = {**protocols[name], "default": default_output(protocols[name]["modes"], bars)}
+    entries = {m: r.to_dict() for m, r in modes.items()}
     return {
         "format_version": REPORT_VERSION, "model": model, "dataset": dataset, "settings": settings,
         "ensemble": ensemble or {"members": 0},
-        "modes": {m: r.to_dict() for m, r in modes.items()},
+        "default": default_output(entries, HELD_OUT_BARS),
+        "modes": entries,
         "goals": goals(modes, sweep),
         "tau_sweep": [vars(p) for p in sweep] if sweep else [],
         "entropy": entropy_summary(modes),
@@ -191,6 +199,8 @@ def markdown(report: dict, plots: list[str]) -> str:
            f"{'yes' if settings['exclude_own_sequence'] else 'no'}; hybrid gate {settings['gate']} < "
            f"{settings['tau']:.3f}" + _detail_clause(settings) + ". "
            f"Run time {report['seconds']:.0f} s.", ""]
+    runs = model.get("auto", "hybrid")
+    out += [*markdown_lead(report.get("default"), runs), ""] if report.get("default") else []
     lead = _ensemble_table(report["modes"], report.get("ensemble", {}))
     if lead:
         out += ["## Against the simulator's own chaos (ensemble ground truth)", "", *lead, ""]
@@ -206,7 +216,7 @@ def markdown(report: dict, plots: list[str]) -> str:
                     f"5-95 % {q['0.05']:.3f} .. {q['0.95']:.3f}."]
     real = report.get("real_motion")
     if real:
-        out += ["", f"## Real motion ({', '.join(real['files'])})", "", *_simulated_section(real)]
+        out += ["", f"## Real motion ({', '.join(real['files'])})", "", *_lead(real, runs), *_simulated_section(real)]
     paper = report.get("paper")
     if paper:
         out += ["", "## Paper protocol (code space validated on a tenth of its training clips' windows)", "",
@@ -229,7 +239,8 @@ def markdown(report: dict, plots: list[str]) -> str:
                 "Clips of the model's database re-timed by 0.9-1.1, entered part-way and cross-faded into each other "
                 f"over 0.3-0.5 s (seed {library['seed']}), as a game's animation system plays its library:", ""]
         out += [f"- `{name}`: {description}" for name, description in library["plays"].items()]
-        out += ["", *_simulated_section(library), "", "Goals on this protocol:", "", *_goal_table(library["goals"])]
+        out += ["", *_lead(library, runs), *_simulated_section(library), "", "Goals on this protocol:", "",
+                *_goal_table(library["goals"])]
         if library["tau_sweep"]:
             out += ["", *_sweep_table(library["tau_sweep"])]
     unseen = report.get("unseen_bodies")
@@ -242,6 +253,11 @@ def markdown(report: dict, plots: list[str]) -> str:
         out += ["", "## Plots", ""] + [f"![{Path(p).stem}]({Path(p).name})" for p in plots]
     out += ["", "Metric definitions: docs/evaluation.md."]
     return "\n".join(out) + "\n"
+
+
+def _lead(section: dict, runs: str) -> list[str]:
+    lead = markdown_lead(section.get("default"), runs)
+    return [*lead, ""] if lead else []
 
 
 def _goal_table(goals: dict) -> list[str]:

@@ -17,13 +17,15 @@ def test_hrr_eval_report_end_to_end(trained, tmp_path, capsys):
     assert main(["--model", str(root / "model"), "--dataset", str(data), "--split", "test", "--tau-sweep", "0,0.5,1,100",
                  "--detail-strength", "1.2", "-o", str(out), "--quiet"]) == 0
     report = json.loads((out / "report.json").read_text())
-    assert report["format_version"] == 10 and report["dataset"]["sequences"] == ["run_000"]
+    assert report["format_version"] == 11 and report["dataset"]["sequences"] == ["run_000"]
     base = json.loads((root / "model" / "bundle.json").read_text())["auto"]["detail_base"]
     assert (report["settings"]["detail_strength"], report["settings"]["detail_base"]) == (1.2, base)  # as asked; the base as calibrated
     assert f"detail mode: folds x1.2 on the {base}" in (out / "report.md").read_text()
     assert report["ensemble"] == {"members": 0}  # a synthetic dataset: no simulator settings to perturb
     modes = report["modes"]
-    assert list(modes) == ["hybrid", "regression", "retrieval", "residual", "detail", "naive-nn"]  # residual: calibrated in training
+    # the default output first (auto), then every mode the model has (residual: calibrated in training)
+    assert list(modes) == ["auto", "hybrid", "regression", "retrieval", "residual", "detail", "naive-nn"]
+    assert report["default"] is None  # no truth ensembles, so no bars to hold it to
     for name, entry in modes.items():
         m = entry["metrics"]
         assert all(v is not None and math.isfinite(v) for v in m.values()), (name, m)
@@ -261,7 +263,7 @@ def test_library_protocol_in_hrr_eval(artist_model, tmp_path, monkeypatch):
     assert main(["--model", str(model), "--dataset", str(data), "--split", "test", "--ensemble", "2", "--jobs", "1",
                  "--library", "2", "--tau-sweep", "0,100", "--no-plots", "-o", str(out), "--quiet"]) == 0
     report = json.loads((out / "report.json").read_text())
-    assert report["format_version"] == 10
+    assert report["format_version"] == 11
     lib = report["library"]
     assert list(lib["plays"]) == ["play_00", "play_01"] and "->" in lib["plays"]["play_01"]
     assert lib["sequences"] == ["play_00", "play_01"] and not lib["rejected"]
@@ -282,6 +284,14 @@ def test_library_protocol_in_hrr_eval(artist_model, tmp_path, monkeypatch):
     assert set(reference["sequences"]) == {"play_00", "play_01"}
     md = (out / "report.md").read_text()
     assert "## Library protocol" in md and lib["plays"]["play_01"] in md and "| database simulation |" in md
+    # the default output leads the protocol, held to the library's bars
+    bars = lib["default"]["bars"]
+    assert list(bars) == ["energy score vs regression", "sharpness", "hem swing"]
+    assert bars["energy score vs regression"]["target"] == pytest.approx(scores["regression"])
+    assert bars["energy score vs regression"]["value"] == pytest.approx(modes["auto"]["ensemble"]["energy_score_mm"])
+    assert bars["sharpness"]["met"] == (modes["auto"]["ensemble"]["bending_energy_ratio"] >= 0.85)
+    assert md.index("**The default output**", md.index("## Library protocol")) < md.index("| database simulation |")
+    assert report["default"]["bars"]["PVE / floor"]["value"] == pytest.approx(report["modes"]["auto"]["ensemble"]["pve_floor_ratio"])
 
 
 def test_paper_protocol_beside_the_papers_ratios(trained, paper_model, tmp_path, capsys):
