@@ -28,12 +28,14 @@ import numpy as np
 
 from ..artifacts.bundle import Bundle
 from ..body.body_file import BodyRecord, read_body
-from ..body.capsules import BodyModel
+from ..body.capsules import BodyModel, pose_ends
 from ..body.measures import body_vector
 from ..body.retarget import played_by
 from ..data.bodies import MANNEQUIN, DressedBody, dress
 from ..errors import InputError
 from ..motion.motion import Motion
+from ..motion.skeleton import JOINT_INDEX, REST_PELVIS_HEIGHT
+from .collision import PosedCapsules
 
 CHARACTER_SUFFIXES = (".glb", ".gltf")
 
@@ -117,3 +119,38 @@ def character_body(bundle: Bundle, body: "CharacterBody | DressedBody | BodyReco
         warnings.warn(message + "; animating it anyway", stacklevel=2)
     dressed, _ = dress(label, record, bundle.template, made_for=bundle.made_for)
     return CharacterBody(dressed, vector, dressed.offset(bundle.template))
+
+
+@dataclass(frozen=True)
+class CrowdBodies:
+    """The bodies of a crowd push's characters (:class:`~.stream.CrowdStream`): one body for all, or arrays with a row per character."""
+
+    vector: np.ndarray  # (b,) or (N, b) measures
+    offset: np.ndarray  # (V, 3) or (N, V, 3) the garment's rest offsets
+    body: object = None  # the one body's capsules (BodyModel), or None
+    skeletons: np.ndarray | None = None  # (N, 22, 3) each character's skeleton offsets
+    root_scale: np.ndarray | None = None  # (N,) each body's pelvis height over the mannequin's
+    ends: tuple | None = None  # each character's capsules: joints (C,), local a and b (N, C, 3), radii (N, C)
+
+    @classmethod
+    def of_one(cls, body) -> "CrowdBodies":
+        return cls(body.vector, body.offset, body=body.body)
+
+    @classmethod
+    def of_many(cls, bodies: list) -> "CrowdBodies":
+        capsules = [b.body.capsules for b in bodies]
+        joints = [c.joint for c in capsules[0]]
+        if any([c.joint for c in caps] != joints for caps in capsules):
+            raise ValueError("the crowd's bodies have capsules on different joints; give every character one body kind")
+        ends = (np.array([JOINT_INDEX[j] for j in joints]), np.array([[c.a for c in caps] for caps in capsules]),
+                np.array([[c.b for c in caps] for caps in capsules]), np.array([[c.radius for c in caps] for caps in capsules]))
+        return cls(np.stack([b.vector for b in bodies]), np.stack([b.offset for b in bodies]),
+                   skeletons=np.stack([b.record.skeleton.offsets for b in bodies]),
+                   root_scale=np.array([b.record.pelvis_height / REST_PELVIS_HEIGHT for b in bodies]), ends=ends)
+
+    def capsules(self, poses: Motion):
+        """What the push-out takes: the one body, or each character's capsules posed by its pose."""
+        if self.body is not None:
+            return self.body
+        joints, a, b, radii = self.ends
+        return PosedCapsules(*pose_ends(poses.global_rotations, poses.joint_positions, joints, a=a, b=b), radii)

@@ -31,7 +31,6 @@ from dataclasses import dataclass, field
 import numpy as np
 import torch
 
-from ..body.capsules import pose_ends
 from ..errors import InputError
 from ..models.codes import traced_window_codes
 from ..motion.features import pair_features_batch
@@ -39,10 +38,10 @@ from ..motion.frame import world_vertices
 from ..motion.memory import MEMORY_WIDTH, motion_memory
 from ..motion.motion import Motion
 from ..motion.poses import poses_to_motion
-from ..motion.skeleton import JOINT_INDEX, REST_PELVIS_HEIGHT
 from ..native import pin_workers
 from .blending import Inertializer, inertialize, latent_sources
-from .collision import PosedCapsules, push_out
+from .bodies import CrowdBodies
+from .collision import push_out
 from .decoding import flush_denormals
 from .detail import add_folds
 from .fold_track import FoldTrack
@@ -71,41 +70,6 @@ class _Timings:
 
     latency_s: deque = field(default_factory=lambda: deque(maxlen=1000))
     stage_s: dict = field(default_factory=lambda: {k: deque(maxlen=1000) for k in STREAM_STAGES})
-
-
-@dataclass(frozen=True)
-class _CrowdBodies:
-    """The bodies of a push's characters: one body for all, or arrays with a row per character."""
-
-    vector: np.ndarray  # (b,) or (N, b) measures
-    offset: np.ndarray  # (V, 3) or (N, V, 3) the garment's rest offsets
-    body: object = None  # the one body's capsules (BodyModel), or None
-    skeletons: np.ndarray | None = None  # (N, 22, 3) each character's skeleton offsets
-    root_scale: np.ndarray | None = None  # (N,) each body's pelvis height over the mannequin's
-    ends: tuple | None = None  # each character's capsules: joints (C,), local a and b (N, C, 3), radii (N, C)
-
-    @classmethod
-    def of_one(cls, body) -> "_CrowdBodies":
-        return cls(body.vector, body.offset, body=body.body)
-
-    @classmethod
-    def of_many(cls, bodies: list) -> "_CrowdBodies":
-        capsules = [b.body.capsules for b in bodies]
-        joints = [c.joint for c in capsules[0]]
-        if any([c.joint for c in caps] != joints for caps in capsules):
-            raise ValueError("the crowd's bodies have capsules on different joints; give every character one body kind")
-        ends = (np.array([JOINT_INDEX[j] for j in joints]), np.array([[c.a for c in caps] for caps in capsules]),
-                np.array([[c.b for c in caps] for caps in capsules]), np.array([[c.radius for c in caps] for caps in capsules]))
-        return cls(np.stack([b.vector for b in bodies]), np.stack([b.offset for b in bodies]),
-                   skeletons=np.stack([b.record.skeleton.offsets for b in bodies]),
-                   root_scale=np.array([b.record.pelvis_height / REST_PELVIS_HEIGHT for b in bodies]), ends=ends)
-
-    def capsules(self, poses: Motion):
-        """What the push-out takes: the one body, or each character's capsules posed by its pose."""
-        if self.body is not None:
-            return self.body
-        joints, a, b, radii = self.ends
-        return PosedCapsules(*pose_ends(poses.global_rotations, poses.joint_positions, joints, a=a, b=b), radii)
 
 
 class CrowdStream:
@@ -213,15 +177,15 @@ class CrowdStream:
             steps.append(c.fold_track.step(sequence, start + window - 1))
         return store.folds(np.stack([r for r, _ in steps]), np.stack([w for _, w in steps]))
 
-    def _played(self, keys: list, poses: Motion) -> tuple[Motion, "_CrowdBodies"]:
+    def _played(self, keys: list, poses: Motion) -> tuple[Motion, "CrowdBodies"]:
         """The pushed poses (one per character, on the canonical skeleton) each played by its
         character's body, and those bodies as arrays (one row per character, or one body for all)."""
         bodies = [self._bodies.get(k, self.body) for k in keys]
         if all(b is bodies[0] for b in bodies):
-            return bodies[0].play(poses), _CrowdBodies.of_one(bodies[0])
+            return bodies[0].play(poses), CrowdBodies.of_one(bodies[0])
         ids = tuple(map(id, bodies))
         if self._stacked[0] != ids:
-            self._stacked = (ids, _CrowdBodies.of_many(bodies))
+            self._stacked = (ids, CrowdBodies.of_many(bodies))
         stacked = self._stacked[1]
         return poses.on_skeletons(stacked.skeletons, stacked.root_scale), stacked
 
