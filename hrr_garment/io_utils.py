@@ -29,6 +29,28 @@ def storage_error(path: str | Path, exc: OSError) -> OutputError:
     return OutputError(path, f"cannot write the output: {reason}")
 
 
+def require_suffix(path: str | Path, suffixes: tuple[str, ...], what: str) -> None:
+    """Refuse an output whose extension names another format than the one written (``suffixes``,
+    lower case, with the dot; ``""`` for a folder): a file called clip.bvh holding npz bytes
+    breaks whatever opens it next."""
+    suffix = Path(path).suffix.lower()
+    if suffix not in suffixes:
+        names = " or ".join(f"a {s} file" if s else "a folder" for s in suffixes)
+        raise OutputError(path, f"{what} is written as {names}; this output's extension ({suffix or 'none'}) names "
+                                "another format: rename the output")
+
+
+def refuse_input_as_output(output: str | Path, *inputs: str | Path | None) -> None:
+    """Refuse an output that is one of the command's inputs (the same file by any path, a link
+    included): writing it would replace what is being read."""
+    out = Path(output)
+    for source in inputs:
+        if source is None or not Path(source).exists() or not out.exists():
+            continue
+        if os.path.samefile(out, source):
+            raise OutputError(out, f"is the input {source}: writing it would destroy the input; give another output path")
+
+
 @contextlib.contextmanager
 def atomic_path(path: str | Path) -> Iterator[Path]:
     """Yield a temporary path in the target's folder; rename it onto ``path`` on success.

@@ -24,6 +24,7 @@ from typing import Sequence
 from ..artifacts.gate_signals import GATE_SIGNALS
 from ..errors import InputError
 from ..inference.modes import Mode
+from ..io_utils import refuse_input_as_output
 from ..native import PRECISIONS
 from ._common import add_detail_options, add_fps_option, detail_look, run_cli, run_settings_of
 
@@ -75,6 +76,7 @@ def _main(argv: Sequence[str] | None) -> int:
     parent = args.output.resolve().parent
     if not parent.is_dir() or not os.access(parent, os.W_OK):
         raise InputError(args.output, f"cannot write here: {parent} is not a writable directory")
+    refuse_input_as_output(args.output, args.motion, args.body)
     model_dir = find_model(args.model or args.garment)
     if args.model is None:
         print(f"model: {model_dir}")

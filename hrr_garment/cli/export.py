@@ -20,6 +20,7 @@ from pathlib import Path
 from typing import Sequence
 
 from ..errors import InputError
+from ..io_utils import refuse_input_as_output, require_suffix
 from ._common import run_cli
 
 _FORMATS = ("glb", "usd", "pc2", "obj")
@@ -62,6 +63,9 @@ def _main(argv: Sequence[str] | None) -> int:
         raise InputError(args.output, f"--character is for glb, not {fmt}")
     if args.with_body and fmt in ("pc2", "obj"):
         raise InputError(args.output, f"--with-body is for glb and usd, not {fmt}")
+    require_suffix(args.output, tuple(s for s, f in _BY_SUFFIX.items() if f == fmt), f"--to {fmt}")
+    for output in (args.output, args.output.with_suffix(".obj")) if fmt == "pc2" else (args.output,):
+        refuse_input_as_output(output, args.animation, args.character)
     t0 = time.perf_counter()
     anim = read_animation_h5(args.animation)
     detail = ""

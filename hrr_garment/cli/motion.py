@@ -10,7 +10,7 @@ from typing import Sequence
 import numpy as np
 
 from ..errors import InputError
-from ..io_utils import atomic_path, strict_json
+from ..io_utils import atomic_path, refuse_input_as_output, require_suffix, strict_json
 from ..motion.features import motion_features
 from ..motion.gltf import gltf_summary
 from ..motion.gltf_file import GLTF_SUFFIXES
@@ -49,7 +49,7 @@ def _parser() -> argparse.ArgumentParser:
     _add_load_options(p)
     p = sub.add_parser("features", help="write the (T, 124) float32 feature array")
     p.add_argument("file", type=Path)
-    p.add_argument("-o", "--output", type=Path, required=True)
+    p.add_argument("-o", "--output", type=Path, required=True, help="the features as .npy")
     p.add_argument("--window", type=int, default=DEFAULT_WINDOW, help="minimum clip length in frames (one window)")
     _add_load_options(p)
     return parser
@@ -73,6 +73,9 @@ def _body(argv: Sequence[str] | None) -> int:
         save_motion(motion, args.output)
         print(f"wrote {args.output} ({motion.num_frames} frames, {motion.duration_s:.2f} s)")
         return 0
+    if args.command == "features":  # before reading: a wrong output is refused before any work
+        require_suffix(args.output, (".npy",), "the feature array")
+        refuse_input_as_output(args.output, args.file)
     motion = _load(args)
     if args.command == "info":
         summary = motion.summary()

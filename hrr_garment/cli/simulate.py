@@ -28,6 +28,7 @@ from ..errors import InputError
 from ..garment.mesh import GarmentMesh
 from ..garment.obj import Placement, load_garment_obj
 from ..garment.templates import GARMENT_NAMES, make_garment
+from ..io_utils import refuse_input_as_output, require_suffix
 from ..paths import workspace
 from ..sim.plan import build_options, load_preset, plan_sequences, preset_names
 from ._common import add_fps_option, run_cli
@@ -137,6 +138,8 @@ def _main(argv: Sequence[str] | None) -> int:
         suffix = f"-{args.vertices}v" if args.vertices else ""
         on = f"-on-{Path(args.body).stem}" if args.body else ""
         out = workspace() / "datasets" / f"{garment.name}-{preset.name}{suffix}{on}.h5"
+    require_suffix(out, (".h5", ".hdf5"), "a dataset")
+    refuse_input_as_output(out, *(args.motions or []), args.template, args.body, args.made_for)
     options = build_options(preset, choice.specs)
     options["info"]["garment_vertices"] = garment.num_vertices
     if choice.bodies:

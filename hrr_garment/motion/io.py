@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import MotionError
-from ..io_utils import atomic_path
+from ..io_utils import atomic_path, require_suffix
 from .bvh_motion import PLAUSIBLE_HEIGHT_M, load_bvh
 from .gltf import GltfOptions, load_gltf
 from .gltf_file import GLTF_SUFFIXES
@@ -197,8 +197,9 @@ def save_amass(motion: Motion, path: str | Path, width: int = 156) -> None:
     poses = np.zeros((motion.num_frames, width))
     poses[:, : NUM_JOINTS * 3] = matrix_to_axis_angle(local).reshape(motion.num_frames, -1)
     trans = motion.root_translation.astype(np.float64) @ Z_UP_TO_Y_UP
-    with atomic_path(path) as tmp:
-        np.savez(tmp, poses=poses, trans=trans, mocap_framerate=np.float64(motion.fps), gender=np.str_("neutral"))
+    require_suffix(path, (".npz",), "an AMASS-style motion")
+    with atomic_path(path) as tmp, open(tmp, "wb") as fh:  # a handle: numpy appends .npz to a name
+        np.savez(fh, poses=poses, trans=trans, mocap_framerate=np.float64(motion.fps), gender=np.str_("neutral"))
 
 
 def _check_finite(path: Path, *arrays: np.ndarray) -> None:
@@ -213,9 +214,10 @@ def _check_finite(path: Path, *arrays: np.ndarray) -> None:
 
 def save_motion(motion: Motion, path: str | Path) -> None:
     """The native npz: canonical local rotation matrices, root translation, fps, provenance (versioned)."""
-    with atomic_path(path) as tmp:
+    require_suffix(path, (".npz",), "a native motion")
+    with atomic_path(path) as tmp, open(tmp, "wb") as fh:  # a handle: numpy appends .npz to a name
         np.savez(
-            tmp,
+            fh,
             format=np.str_(NATIVE_FORMAT),
             version=np.int64(NATIVE_VERSION),
             local_rotations=motion.local_rotations.astype(np.float32),

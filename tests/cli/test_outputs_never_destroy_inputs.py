@@ -1,0 +1,69 @@
+"""Outputs never destroy inputs: an output that is one of the command's inputs, or whose extension
+names another format than the one written, is refused before anything is written, and no hidden
+temporary file is left behind (issue 48's data-loss reproducers 10 and 11)."""
+
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from hrr_garment import synthesize
+from hrr_garment.motion.bvh import write_bvh
+from hrr_garment.motion.io import load_motion, save_motion
+from hrr_garment.motion.skeleton import CANONICAL, JOINT_NAMES, PARENTS
+
+FIXTURES = Path(__file__).parents[1] / "fixtures" / "out-31b4ef9"
+
+
+def _listing(folder: Path) -> dict[str, bytes]:
+    return {p.name: p.read_bytes() for p in folder.iterdir() if p.is_file()}
+
+
+def test_a_motion_is_written_as_npz_only_and_over_a_bvh_never(tmp_path, capsys):
+    from hrr_garment.cli.motion import main
+
+    motion = synthesize("walk", seconds=1.0, seed=0)
+    clip = tmp_path / "clip.bvh"
+    write_bvh(clip, list(JOINT_NAMES), list(PARENTS), CANONICAL.offsets, motion.local_rotations.astype(np.float64),
+              motion.root_translation, 1 / 30)
+    before = _listing(tmp_path)
+    assert main(["synth", "walk", "-o", str(clip)]) == 2
+    assert "clip.bvh" in capsys.readouterr().err
+    assert _listing(tmp_path) == before  # the BVH as it was, and nothing hidden beside it
+    assert main(["synth", "walk", "--seconds", "1", "-o", str(tmp_path / "walk.npz")]) == 0
+    again = load_motion(tmp_path / "walk.npz")  # an npz, not a renamed empty file
+    assert again.num_frames == 30 and sorted(p.name for p in tmp_path.iterdir()) == ["clip.bvh", "walk.npz"]
+    with pytest.raises(Exception, match="native motion"):
+        save_motion(again, tmp_path / "walk.bvh")
+    assert main(["features", str(clip), "-o", str(clip)]) == 2  # the features over their own input
+    assert _listing(tmp_path)["clip.bvh"] == before["clip.bvh"]
+
+
+@pytest.mark.parametrize("args", [["--to", "glb"], ["--to", "pc2"], ["--to", "usd"], ["--to", "obj"]])
+def test_an_export_over_its_own_animation_is_refused(tmp_path, capsys, args):
+    from hrr_garment.cli.export import main
+
+    anim = tmp_path / "in.h5"
+    shutil.copy(FIXTURES / "auto.h5", anim)
+    before = _listing(tmp_path)
+    assert main([str(anim), *args, "-o", str(anim)]) == 2
+    assert "in.h5" in capsys.readouterr().err and _listing(tmp_path) == before
+
+
+def test_an_output_that_is_the_input_by_another_name_is_refused(tmp_path, capsys):
+    from hrr_garment.cli.animate import main as animate
+    from hrr_garment.cli.export import main as export
+
+    anim = tmp_path / "in.h5"
+    shutil.copy(FIXTURES / "auto.h5", anim)
+    (tmp_path / "link.glb").symlink_to(anim)  # the right extension, but the input itself
+    assert export([str(anim), "-o", str(tmp_path / "link.glb")]) == 2
+    assert "is the input" in capsys.readouterr().err
+    assert (tmp_path / "link.glb").is_symlink() and (tmp_path / "in.h5").read_bytes() == (FIXTURES / "auto.h5").read_bytes()
+    clip = tmp_path / "walk.npz"
+    save_motion(synthesize("walk", seconds=1.0, seed=0), clip)
+    (tmp_path / "out.h5").symlink_to(clip)
+    before = clip.read_bytes()
+    assert animate([str(clip), "-o", str(tmp_path / "out.h5"), "--model", str(tmp_path)]) == 2
+    assert "is the input" in capsys.readouterr().err and clip.read_bytes() == before
