@@ -99,7 +99,7 @@ def markdown_lead(default: dict | None, runs: str) -> list[str]:
              "| | " + " | ".join(label for label, _, _ in ROW) + " |", "|---|" + "---:|" * len(ROW),
              f"| auto | {cells} |", "", "| bar | value | target | met |", "|---|---:|---|---|"]
     for label, c in default["bars"].items():
-        value = "n/a" if c["value"] is None else f"{c['value']:.3g}"
+        value = "n/a" if c["value"] is None else f"{c['value']:.2f}"
         met = "n/a" if c["met"] is None else ("yes" if c["met"] else "**no**")
         lines.append(f"| {label} | {value} | {c['bar']} | {met} |")
     return lines

@@ -25,7 +25,7 @@ def test_the_default_output_is_held_to_each_bar_and_to_the_regression_beside_it(
                                                              "bar": "<= 1 x the regression's", "met": False}
     assert library["values"]["energy_score_mm"] == 25.0
     lead = "\n".join(markdown_lead(library, "detail"))
-    assert "| auto | 1.42 | 25.00 | 0.90 | 0.80 | 1.05 |" in lead and "| hem swing | 0.8 | >= 0.85 | **no** |" in lead
+    assert "| auto | 1.42 | 25.00 | 0.90 | 0.80 | 1.05 |" in lead and "| hem swing | 0.80 | >= 0.85 | **no** |" in lead
     assert "energy score vs regression 25 (<= 1 x the regression's: NOT met)" in summary_line(library)
 
 
