@@ -43,11 +43,14 @@ from ..models.direct import DirectConfig, DirectRegressor
 from ..models.fcmae import AutoencoderConfig, MeshAutoencoder
 from ..models.hierarchy import cached_hierarchy
 from ..motion.features import FeatureStats
+from ..settings import require_number
 from .database import CodeDatabase
 from .folds import FILE_KEYS as FOLD_FILE_KEYS
 from .folds import FoldStore
 from .gate_signals import GATE_SIGNALS
 from .manifest import FOLDS_FILE, NETWORKS, UNCALIBRATED_AUTO, BundleError, read_meta
+
+MAX_SCALE_M = 10.0  # the autoencoder's vertex scale: the spread of a garment's training frames (centimetres)
 
 
 @dataclass
@@ -236,6 +239,8 @@ def load_bundle(folder: str | Path, cache_dir: Path | None = None) -> Bundle:
         cs_cfg = CodeSpaceConfig.from_dict(meta["codespace"]["config"])
         features = int(meta["codespace"]["features"])
         latent_shape = tuple(meta["codespace"]["latent_shape"])
+        scale = meta["autoencoder"]["scale"]
+        require_number("bundle.json autoencoder", "scale", scale, 0, MAX_SCALE_M, above=True)
     except (KeyError, TypeError, ValueError) as exc:
         raise BundleError(folder, f"bundle.json has a bad or missing entry ({exc})") from None
     if features != cs_cfg.features:
@@ -251,7 +256,7 @@ def load_bundle(folder: str | Path, cache_dir: Path | None = None) -> Bundle:
     if list(hierarchy.sizes) != list(meta["autoencoder"].get("sizes", [])):
         raise BundleError(folder, f"the template's sampling hierarchy has levels {list(hierarchy.sizes)}, the model "
                                   f"{meta['autoencoder'].get('sizes')}")
-    autoencoder = MeshAutoencoder(hierarchy, ae_cfg, template.vertices, scale=float(meta["autoencoder"]["scale"]))
+    autoencoder = MeshAutoencoder(hierarchy, ae_cfg, template.vertices, scale=float(scale))
     _load_state(autoencoder, folder / "autoencoder.safetensors", folder)
     codespace = CodeSpace(cs_cfg, features, latent_shape)
     for name in NETWORKS:

@@ -22,7 +22,15 @@ from ..motion.features import FeatureStats
 from .database import CodeDatabase
 from .folds import FoldStore
 from .gate_signals import check_gate_signal
-from .manifest import FOLDS_FILE, FORMAT_VERSION, NETWORKS, content_hash, read_meta, sha256
+from .manifest import (
+    FOLDS_FILE,
+    FORMAT_VERSION,
+    NETWORKS,
+    content_hash,
+    read_meta,
+    sha256,
+    with_manifest_hash,
+)
 
 
 def _save(path: Path, tensors: dict, numpy: bool = False) -> None:
@@ -82,7 +90,7 @@ def write_bundle(folder: str | Path, parts: BundleParts, *, tau: float, info: di
             "tau": float(tau), "gate": gate, "gates": {}, "database": {"names": database.names, "classes": database.classes, "windows": len(database)},
             "files": files, "content_hash": content_hash(files),
             **info}
-    atomic_write_text(folder / "bundle.json", strict_json(meta, indent=2))
+    atomic_write_text(folder / "bundle.json", strict_json(with_manifest_hash(meta), indent=2))
     return folder / "bundle.json"
 
 
@@ -95,12 +103,12 @@ def add_bundle_part(folder: str | Path, name: str, tensors: dict, meta: dict, nu
     current = {k: v for k, v in read_meta(folder).items() if k not in drop}
     _save(folder / name, tensors, numpy)
     files = {**current["files"], name: sha256(folder / name)}
-    atomic_write_text(folder / "bundle.json", strict_json({**current, **meta, "files": files,
-                                                          "content_hash": content_hash(files)}, indent=2))
+    atomic_write_text(folder / "bundle.json", strict_json(with_manifest_hash({**current, **meta, "files": files,
+                                                                             "content_hash": content_hash(files)}), indent=2))
 
 
 def update_bundle_meta(folder: str | Path, meta: dict) -> None:
     """Merge ``meta`` into an existing bundle's bundle.json (atomically; the files are unchanged)."""
     folder = Path(folder)
     current = read_meta(folder)
-    atomic_write_text(folder / "bundle.json", strict_json({**current, **meta}, indent=2))
+    atomic_write_text(folder / "bundle.json", strict_json(with_manifest_hash({**current, **meta}), indent=2))

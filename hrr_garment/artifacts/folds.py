@@ -22,6 +22,7 @@ from ..garment.smoothing import high_frequencies
 
 #: folds.safetensors' key for each field, where it differs (the file format keeps its first name)
 FILE_KEYS = {"levels": "detail"}
+MAX_PASSES = 16  # what a bundle may ask: each pass is a smoothing of every frame at run time (1e6 would hang)
 FOLD_PASSES = 1  # passes of the 1-ring mean that separate the folds from the shape (docs/history/results-log.md)
 DETAIL_STRENGTH = 0.8  # the folds' strength where a bundle's auto mode was not calibrated (.manifest)
 
@@ -46,8 +47,8 @@ class FoldStore:
         o = self.offsets
         if o.ndim != 1 or len(o) < 1 or o[0] != 0 or o[-1] != len(self.levels) or (np.diff(o) < 0).any():
             raise ValueError(f"fold offsets must rise from 0 to {len(self.levels)}")
-        if not isinstance(self.passes, (int, np.integer)) or self.passes < 1:
-            raise ValueError(f"fold passes must be a whole number >= 1, got {self.passes!r}")
+        if isinstance(self.passes, bool) or not isinstance(self.passes, (int, np.integer)) or not 1 <= self.passes <= MAX_PASSES:
+            raise ValueError(f"fold passes must be a whole number from 1 to {MAX_PASSES}, got {self.passes!r}")
         self.passes = int(self.passes)
 
     @classmethod

@@ -18,6 +18,9 @@ version, so that everything after it reads every field as the current version de
   code space's ``memory_seconds``, ``resonator_hz`` and ``regression_code``. ``auto`` is absent
   until training calibrates it (``auto`` then runs the hybrid), ``residual`` where the database
   has no motion windows, ``folds`` and ``direct`` where the bundle has no such part.
+- 4: ``manifest_hash``, a hash over bundle.json's own content (everything but itself): the
+  content hash covers the files, and a hand-edited garment name, tau or scale went unseen. A
+  version-3 manifest has none; it gets one when it is next written.
 """
 
 from __future__ import annotations
@@ -28,10 +31,11 @@ import math
 from pathlib import Path
 
 from ..errors import InputError
+from ..io_utils import strict_json
 from .folds import DETAIL_STRENGTH
 from .gate_signals import GATE_SIGNALS
 
-FORMAT_VERSION = 3  # see the module docstring
+FORMAT_VERSION = 4  # see the module docstring
 OLDEST_READABLE = 2  # version 1 kept garments in world coordinates: no step upgrades its networks
 NETWORKS = ("motion_encoder", "garment_encoder", "decoder", "quantizer")
 FOLDS_FILE = "folds.safetensors"  # the detail mode's simulated folds (.folds)
@@ -58,6 +62,19 @@ def sha256(path: Path) -> str:
         for chunk in iter(lambda: fh.read(1 << 20), b""):
             h.update(chunk)
     return h.hexdigest()
+
+
+def manifest_hash(meta: dict) -> str:
+    """16 hex digits over bundle.json's content but ``manifest_hash`` itself, in canonical JSON."""
+    body = {k: v for k, v in meta.items() if k != "manifest_hash"}
+    return hashlib.sha256(json.dumps(body, sort_keys=True, separators=(",", ":")).encode()).hexdigest()[:16]
+
+
+def with_manifest_hash(meta: dict) -> dict:
+    """``meta`` as bundle.json is written: at the current version, its manifest hash recorded
+    over its JSON form (what a reader will parse)."""
+    meta = json.loads(strict_json({**meta, "format_version": FORMAT_VERSION}))
+    return {**meta, "manifest_hash": manifest_hash(meta)}
 
 
 def content_hash(files: dict[str, str]) -> str:
@@ -128,8 +145,13 @@ def migrate_manifest(folder: Path, meta: object) -> dict:
         hint = "upgrade hrr_garment" if isinstance(version, int) and version > FORMAT_VERSION else "retrain with hrr-train"
         raise BundleError(folder, f"bundle format_version {version!r}; this hrr_garment reads {OLDEST_READABLE} to "
                                   f"{FORMAT_VERSION} ({hint})")
+    if version >= 4 and meta.get("manifest_hash") != manifest_hash(meta):
+        raise BundleError(folder, f"bundle.json was edited after it was written (its manifest hash "
+                                  f"{meta.get('manifest_hash')!r} does not match its content): restore it or retrain")
     if version == 2:
         meta = _from_version_2(meta)
+    if meta["format_version"] == 3:  # version 4 only added the manifest's own hash
+        meta = {**meta, "format_version": 4}
     return meta
 
 

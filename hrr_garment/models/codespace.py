@@ -25,7 +25,7 @@ import torch
 from torch import nn
 
 from ..motion.memory import MemorySpec, feature_width
-from ..settings import SettingsError, from_settings
+from ..settings import SettingsError, from_settings, require_number
 from .quantizer import GumbelQuantizer
 
 REGRESSION_CODES = ("expected", "argmax")
@@ -61,6 +61,14 @@ class CodeSpaceConfig:
         object.__setattr__(self, "memory_seconds", spec.seconds)
         object.__setattr__(self, "resonator_hz", spec.resonator_hz)
         object.__setattr__(self, "resonator_damping", spec.damping)
+        what = "code space model"
+        for name, low, high in (("window", 1, 1000), ("groups", 1, 4096), ("classes", 2, 4096), ("embedding_dim", 1, 4096),
+                                ("hidden", 1, 65536), ("motion_hidden", 1, 65536), ("attention_heads", 1, 256)):
+            require_number(what, name, getattr(self, name), low, high, whole=True)
+        require_number(what, "dropout", self.dropout, 0, 1)
+        if self.motion_hidden % self.attention_heads:
+            raise SettingsError(f"{what}: motion_hidden ({self.motion_hidden}) must divide into attention_heads "
+                                f"({self.attention_heads})")
         if not isinstance(self.body_features, int) or self.body_features < 0:
             raise SettingsError(f"code space model: body_features must be a count >= 0, got {self.body_features!r}")
         if self.regression_code not in REGRESSION_CODES:

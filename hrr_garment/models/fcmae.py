@@ -25,7 +25,7 @@ import torch
 from torch import nn
 from torch.nn import functional as F
 
-from ..settings import from_settings
+from ..settings import SettingsError, from_settings, require_number
 from .hierarchy import Hierarchy, Neighbourhoods
 
 if TYPE_CHECKING:
@@ -44,6 +44,18 @@ class AutoencoderConfig:
     min_latent_nodes: int = 4  # configs/train.yaml asks 64; 4 keeps models trained before it loading as they were
     stride: int = 2
     radius: int = 2
+
+    def __post_init__(self) -> None:
+        what = "autoencoder"
+        if not isinstance(self.channels, (tuple, list)) or not self.channels:
+            raise SettingsError(f"{what}: channels must be a list of widths, got {self.channels!r}")
+        for width in self.channels:
+            require_number(what, "channels", width, 1, 4096, whole=True)
+        for name, high in (("latent_channels", 512), ("basis", 256), ("min_latent_nodes", 100_000), ("stride", 16),
+                           ("radius", 16)):
+            require_number(what, name, getattr(self, name), 1, high, whole=True)
+        require_number(what, "residual", self.residual, 0, 1)
+        require_number(what, "latent_fraction", self.latent_fraction, 0, 1, above=True)
 
     @classmethod
     def from_dict(cls, values: dict) -> "AutoencoderConfig":

@@ -71,7 +71,7 @@ TAMPERS = {  # name: (edit of bundle.json's dict, or of the folder and dict; the
     "auto an unknown mode": (lambda f, m: m.update(auto={"mode": "retrieval"}), "'auto' must hold a 'mode' of"),
     "auto a string": (lambda f, m: m.update(auto="detail"), "'auto' must hold a 'mode' of"),
     "gates missing": (lambda f, m: m.pop("gates"), "'gates' must map gate signals"),
-    "a newer format": (lambda f, m: m.update(format_version=4), "format_version 4; .*upgrade hrr_garment"),
+    "a newer format": (lambda f, m: m.update(format_version=5), "format_version 5; .*upgrade hrr_garment"),
     "format 1": (lambda f, m: m.update(format_version=1), "format_version 1; .*retrain"),
     "detail base unknown": (lambda f, m: m.update(auto={"mode": "detail", "detail_base": "retrieval"}),
                             "'detail_base' must be one of regression, residual"),
@@ -92,6 +92,7 @@ def test_a_tampered_bundle_is_refused(trained, tmp_path, case):
     import shutil
 
     from hrr_garment.artifacts.bundle import BundleError, load_bundle
+    from hrr_garment.artifacts.manifest import manifest_hash
 
     root, _, _ = trained
     copy = tmp_path / "model"
@@ -99,6 +100,7 @@ def test_a_tampered_bundle_is_refused(trained, tmp_path, case):
     meta = json.loads((copy / "bundle.json").read_text())
     edit, message = TAMPERS[case]
     edit(copy, meta)
+    meta["manifest_hash"] = manifest_hash(meta)  # as a careful tamperer would: only the check under test can fire
     (copy / "bundle.json").write_text(json.dumps(meta))
     with pytest.raises(BundleError, match=message):
         load_bundle(copy)
