@@ -45,6 +45,19 @@ def rng() -> np.random.Generator:
     return np.random.default_rng(1234)
 
 
+def write_meta(folder: Path, meta: dict) -> None:
+    """bundle.json as hrr_garment writes it, its manifest hash over the content: a test's edit that
+    stands for an older or another bundle, not for tampering (tests/artifacts test that)."""
+    import json
+
+    from hrr_garment.artifacts.manifest import manifest_hash
+
+    version = meta.get("format_version")
+    if isinstance(version, int) and not isinstance(version, bool) and version >= 4:
+        meta = {**meta, "manifest_hash": manifest_hash(meta)}
+    (Path(folder) / "bundle.json").write_text(json.dumps(meta))
+
+
 def synthetic_dataset(path, garment):
     """The simulator-free dataset (hrr_garment.data.synthetic): its garment follows the motion."""
     from hrr_garment.data.synthetic import write_synthetic_dataset

@@ -24,6 +24,7 @@ from hrr_garment.io_utils import strict_json
 from hrr_garment.motion.bvh import write_bvh
 from hrr_garment.motion.io import check_source_fps, load_motion
 from hrr_garment.motion.skeleton import CANONICAL, JOINT_NAMES, PARENTS
+from tests.conftest import write_meta
 
 # HRR_PROPERTY_EXAMPLES raises the count for a longer search than make test's
 BOUNDED = settings(max_examples=int(os.environ.get("HRR_PROPERTY_EXAMPLES", "60")), deadline=None, derandomize=True,
@@ -145,7 +146,7 @@ def test_bundle_json_with_any_value_in_a_key_is_verified_or_refused(trained, bun
     if not folder.exists():
         shutil.copytree(root / "model", folder)
     meta = {**bundle_json, key: value}
-    (folder / "bundle.json").write_text(json.dumps(meta))
+    write_meta(folder, meta)
     try:
         read_meta(folder)
     except BundleError as exc:

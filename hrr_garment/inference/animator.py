@@ -195,6 +195,7 @@ class Animator:
         collision=False)``), on ``body`` (:meth:`body`; default the model's own: the mannequin,
         or the one body it was trained on). A clip on the canonical skeleton is played by the
         body. ``exclude_sequence`` keeps one database sequence out of retrieval (evaluation)."""
+        motion.validate()  # again: its arrays are read-only views, but the caller's own arrays under them are not
         run = self.resolve(settings, **changes)
         character = self.body(body, allow_outside=allow_outside)
         if exclude_sequence is not None:

@@ -19,7 +19,7 @@ from .gltf import GltfOptions, load_gltf
 from .gltf_file import GLTF_SUFFIXES
 from .joint_maps import load_joint_map
 from .limits import MAX_SOURCE_FPS, MIN_SOURCE_FPS, check_frame_budget, check_root_speed, max_npz_bytes
-from .motion import FPS, Motion
+from .motion import FPS, MAX_TRANSLATION_M, Motion
 from .poses import ROTATION_TOLERANCE
 from .resample import resample_linear, resample_rotations, resample_times
 from .retarget import ground_align
@@ -34,7 +34,6 @@ Z_UP_TO_Y_UP = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
 AMASS_WIDTHS = {72: "smpl", 156: "smplh", 165: "smplx"}
 NPZ_KINDS = "biufUS"  # dtype kinds an npz may hold: numbers and strings (bool only where it is read as such)
 MAX_AXIS_ANGLE = 8 * np.pi  # radians: AMASS poses stay near pi; more is a scaled or corrupt file
-MAX_TRANSLATION_M = 1.0e4
 
 
 def load_motion(

@@ -23,6 +23,17 @@ from .skeleton import (
 FPS = 30.0  # the internal frame rate
 
 
+MIN_FPS, MAX_FPS = 1.0, 1000.0  # frame rates a motion may have (capture runs 24-240)
+MAX_TRANSLATION_M = 1.0e4  # how far from the origin a pelvis may go: float32 vertices keep millimetres within it
+
+
+def _frozen(values, dtype) -> np.ndarray:
+    """A read-only, C-contiguous view (a copy where the type or layout differs) of ``values``."""
+    out = np.ascontiguousarray(values, dtype=dtype).view()
+    out.flags.writeable = False
+    return out
+
+
 @dataclass
 class Motion:
     """A motion on the canonical skeleton.
@@ -44,9 +55,11 @@ class Motion:
     skeleton: Skeleton = field(default=CANONICAL, repr=False)
 
     def __post_init__(self) -> None:
-        self.local_rotations = np.ascontiguousarray(self.local_rotations, dtype=np.float32)
+        # read-only views: a Motion changed after it was checked (and after its forward kinematics
+        # were cached) would animate whatever was put in; build a new one instead
+        self.local_rotations = _frozen(self.local_rotations, np.float32)
         # float64: world positions far from the origin keep millimetre-exact velocities.
-        self.root_translation = np.ascontiguousarray(self.root_translation, dtype=np.float64)
+        self.root_translation = _frozen(self.root_translation, np.float64)
         self.validate()
 
     def validate(self) -> None:
@@ -61,8 +74,13 @@ class Motion:
         if not (np.isfinite(self.local_rotations).all() and np.isfinite(self.root_translation).all()):
             bad = ~(np.isfinite(self.local_rotations).reshape(t, -1).all(1) & np.isfinite(self.root_translation).all(1))
             raise MotionError(name, f"non-finite values in {int(bad.sum())} frame(s), first at frame {int(np.argmax(bad))}")
-        if not (self.fps > 0 and np.isfinite(self.fps)):
-            raise MotionError(name, f"invalid frame rate {self.fps}")
+        if isinstance(self.fps, bool) or not isinstance(self.fps, (int, float, np.number)) or \
+                not MIN_FPS <= self.fps <= MAX_FPS:
+            raise MotionError(name, f"invalid frame rate {self.fps!r}: motions run at {MIN_FPS:g} to {MAX_FPS:g} frames a second")
+        reach = float(np.abs(self.root_translation).max())
+        if reach > MAX_TRANSLATION_M:
+            raise MotionError(name, f"the pelvis goes {reach:.3g} m from the origin, beyond the {MAX_TRANSLATION_M:g} m a "
+                                    "motion may (float32 vertices lose centimetres there): move the clip nearer the origin")
 
     @property
     def num_frames(self) -> int:

@@ -5,7 +5,7 @@ import json
 
 import pytest
 
-from tests.conftest import synthetic_dataset
+from tests.conftest import synthetic_dataset, write_meta
 
 
 def test_corrupt_bundle_and_wrong_garment_are_explained(trained, tmp_path):
@@ -42,5 +42,5 @@ def test_a_bundle_written_before_the_expected_code_regresses_from_the_argmax(tra
     meta = json.loads((tmp_path / "old" / "bundle.json").read_text())
     del meta["codespace"]["config"]["regression_code"]
     meta["format_version"] = 2  # version 2 left it out; version 3 writes it
-    (tmp_path / "old" / "bundle.json").write_text(json.dumps(meta))
+    write_meta(tmp_path / "old", meta)
     assert load_bundle(tmp_path / "old").codespace.config.regression_code == "argmax"

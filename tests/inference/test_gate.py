@@ -9,6 +9,7 @@ import pytest
 from hrr_garment.artifacts.database import CodeDatabase
 from hrr_garment.artifacts.gate_signals import GATE_SIGNALS, gate_doubt
 from hrr_garment.motion.synth import synthesize
+from tests.conftest import write_meta
 
 
 @pytest.mark.parametrize("signal, expected", [("entropy", [0.3, 1.2]), ("similarity", [0.25, 1.0]),
@@ -86,13 +87,13 @@ def test_a_bundle_before_the_match_gates_runs_the_entropy_and_says_what_is_missi
     for key in ("gate", "gates"):
         meta.pop(key)
     meta["content_hash"], meta["format_version"] = content_hash(meta["files"]), 2  # as version 2 wrote them
-    (old / "bundle.json").write_text(json.dumps(meta))
+    write_meta(old, meta)
     bundle = load_bundle(old)
     assert bundle.gate == "entropy" and bundle.gate_tau("entropy") == bundle.tau
     with pytest.raises(BundleError, match="not calibrated for the 'distance' gate"):
         bundle.gate_tau("distance")
     meta["gate"] = "margin"
-    (old / "bundle.json").write_text(json.dumps(meta))
+    write_meta(old, meta)
     with pytest.raises(BundleError, match="'gate' must be one of"):
         load_bundle(old)
 

@@ -8,7 +8,7 @@ import pytest
 
 from hrr_garment.artifacts.residual import RESIDUAL_WEIGHTS, residual_latents
 from hrr_garment.motion.synth import synthesize
-from tests.conftest import current_copy
+from tests.conftest import current_copy, write_meta
 
 
 def test_the_residual_adds_the_matchs_detail_scaled_by_its_similarity(rng):
@@ -78,7 +78,7 @@ def test_a_bundle_before_the_residual_mode_says_how_to_calibrate_it_and_hrr_trai
     old, stage = current_copy(trained, tmp_path / "model")
     meta = json.loads((old / "bundle.json").read_text())
     calibrated = meta.pop("residual")
-    (old / "bundle.json").write_text(json.dumps(meta))
+    write_meta(old, meta)
     animator = Animator.load(old)
     assert not animator.supports("residual") and animator.supports("hybrid")
     with pytest.raises(BundleError, match="hrr-train --stage codespace"):
@@ -91,6 +91,6 @@ def test_a_bundle_before_the_residual_mode_says_how_to_calibrate_it_and_hrr_trai
     again = load_bundle(old).meta["residual"]
     assert again["weight"] == calibrated["weight"] and again["errors_mm"] == pytest.approx(calibrated["errors_mm"])
     meta["residual"] = {"weight": -1}
-    (old / "bundle.json").write_text(json.dumps(meta))
+    write_meta(old, meta)
     with pytest.raises(BundleError, match="'residual' must hold a finite 'weight'"):
         load_bundle(old)
