@@ -184,3 +184,20 @@ def teach_contact(model: CodeSpace, decoder: FrameDecoder, train: ContactWindows
     with atomic_path(path) as tmp:
         torch.save({"key": key, "weights": model.state_dict(), "summary": strict_json(summary)}, tmp)
     return summary
+
+
+def model_contact_windows(folder: Path, ds: GarmentDataset, split: str) -> ContactWindows:
+    """A trained model's windows of ``split`` of its dataset, standardised as it was trained, with
+    their frames' bodies: what the phase takes, for a tool or a test that runs it on a finished
+    model (``folder`` holds its bundle and its autoencoder stage's latents)."""
+    from ..artifacts.bundle import load_bundle
+    from ..data.windows import build_windows, dataset_features
+
+    bundle = load_bundle(folder)
+    config = bundle.codespace.config
+    names = ds.splits[split]
+    with np.load(Path(folder) / "autoencoder" / "latents.npz", allow_pickle=False) as f:
+        latents = {n: f[n] for n in names}
+    windows = build_windows(dataset_features(ds, names, config.memory, body_measures=config.body_features > 0), latents,
+                            names, window=config.window)
+    return ContactWindows(WindowTensors.of(windows, bundle.motion_stats, bundle.latent_stats), BodyContacts.of(ds, windows))

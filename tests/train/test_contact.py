@@ -27,21 +27,11 @@ def tiny_windows(trained):
     """The tiny trained model's training and validation windows, with their frames' bodies."""
     from hrr_garment.artifacts.bundle import load_bundle
     from hrr_garment.data.dataset import GarmentDataset
-    from hrr_garment.data.windows import build_windows, dataset_features
-    from hrr_garment.train.codespace_training import WindowTensors
-    from hrr_garment.train.contact import BodyContacts, ContactWindows
+    from hrr_garment.train.contact import model_contact_windows
 
     root, data, _ = trained
-    bundle, ds = load_bundle(root / "model"), GarmentDataset(data)
-    with np.load(root / "model" / "autoencoder" / "latents.npz") as f:
-        latents = {n: f[n] for n in ds.names}
-    out = {}
-    for split in ("train", "val"):
-        names = ds.splits[split]
-        windows = build_windows(dataset_features(ds, names, bundle.codespace.config.memory), latents, names,
-                                window=bundle.codespace.config.window)
-        out[split] = ContactWindows(WindowTensors.of(windows, bundle.motion_stats, bundle.latent_stats), BodyContacts.of(ds, windows))
-    return bundle, out
+    ds = GarmentDataset(data)
+    return load_bundle(root / "model"), {split: model_contact_windows(root / "model", ds, split) for split in ("train", "val")}
 
 
 def test_the_contact_phase_takes_the_regression_out_of_a_body_it_lies_inside(tiny_windows, tmp_path):
@@ -88,3 +78,23 @@ def test_a_stage_rerun_with_the_contact_phase_resumes_the_finished_training(trai
     assert (folder / "codebook" / "log.jsonl").read_text() == log
     assert after["key"] != before["key"] and after["training"]["contact"]["steps"] == 5
     assert after["training"]["best_epoch"] == before["training"]["best_epoch"]
+
+
+@pytest.mark.tool
+def test_the_contact_sweep_tool_runs_a_weight_on_a_trained_model(trained, capsys, monkeypatch):
+    import importlib.util
+    import sys
+    from pathlib import Path
+
+    root, data, _ = trained
+    path = Path(__file__).parents[2] / "tools" / "contact_sweep.py"
+    spec = importlib.util.spec_from_file_location("contact_sweep", path)
+    tool = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(tool)
+    before = (root / "model" / "decoder.safetensors").read_bytes()
+    monkeypatch.setattr(sys, "argv", [str(path), "--model", str(root / "model"), "--eval-dataset", str(data),
+                                      "--weights", "0,2", "--steps", "3", "--sequences", "1"])
+    tool.main()
+    lines = [line for line in capsys.readouterr().out.splitlines() if line.startswith("weight")]
+    assert [line.split(",")[0] for line in lines] == ["weight 0", "weight 2"] and all("% of vertices" in line for line in lines)
+    assert (root / "model" / "decoder.safetensors").read_bytes() == before  # the model on disk untouched

@@ -1,0 +1,66 @@
+"""The contact phase's weight against what it costs: each weight run on a trained model, then its
+regression animated (push-out off) on another dataset's test clips, against their simulation.
+
+    python tools/contact_sweep.py --model hrr_work/models/dress-real-quick-bodies \\
+        --eval-dataset hrr_work/datasets/dress-real-quick-short-heavy.h5 --weights 0,0.5,1,2 --steps 300
+
+The latent loss beside the body term is the vertex metric (the real-motion presets'). Prints, per weight, the PVE (mm, against each clip's single simulation) and the share of vertices
+more than 5 mm inside the clip's body before the push-out (docs/decisions/0020-contact-phase.md).
+The model on disk is not changed: each weight starts from its trained decoder.
+"""
+
+from __future__ import annotations
+
+import argparse
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+
+def main() -> None:
+    from hrr_garment.artifacts.bundle import load_bundle
+    from hrr_garment.data.dataset import GarmentDataset
+    from hrr_garment.eval.unseen_bodies import evenly
+    from hrr_garment.inference.animator import Animator
+    from hrr_garment.sim.quality import body_signed_distance, penetration_fraction
+    from hrr_garment.train.codespace_training import CodeSpaceTrainConfig
+    from hrr_garment.train.contact import FrameDecoder, model_contact_windows, teach_contact
+    from hrr_garment.train.vertex_metric import VertexMetric, sample_frames
+
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--model", type=Path, required=True)
+    p.add_argument("--eval-dataset", type=Path, required=True, help="a dataset whose test clips are animated")
+    p.add_argument("--weights", default="0,0.5,1,2")
+    p.add_argument("--steps", type=int, default=300)
+    p.add_argument("--sequences", type=int, default=8, help="test clips animated, evenly spaced")
+    args = p.parse_args()
+    meta = load_bundle(args.model).meta
+    trained_on = GarmentDataset(meta["dataset"])
+    train = model_contact_windows(args.model, trained_on, "train")
+    evaluation = GarmentDataset(args.eval_dataset)
+    records = [evaluation.sequence(n) for n in evenly(evaluation.splits["test"], args.sequences)]
+    print(f"{args.model}: {len(train.windows)} training windows; {len(records)} test clips of {args.eval_dataset}")
+    latents = train.windows.latents  # standardised; the latent loss is the real-motion presets' vertex metric
+    raw = load_bundle(args.model).latent_stats.denormalize(latents.reshape(len(latents), -1).numpy()).reshape(latents.shape)
+    for weight in (float(w) for w in args.weights.split(",")):
+        animator = Animator.load(args.model)
+        bundle = animator.bundle
+        metric = VertexMetric.of_decoder(bundle.autoencoder, sample_frames(raw), bundle.latent_stats.std, progress=False)
+        config = CodeSpaceTrainConfig(contact_steps=args.steps, contact_weight=weight)
+        with tempfile.TemporaryDirectory() as tmp:
+            teach_contact(bundle.codespace, FrameDecoder(bundle.autoencoder, bundle.latent_stats), train, None,
+                          config=config, latent_loss=metric, checkpoint=(Path(tmp) / "contact.pt", "sweep"))
+        errors, inside, frames = 0.0, 0.0, 0
+        for r in records:
+            vertices = animator.animate(r.motion, mode="regression", body=r.dressed, allow_outside=True,
+                                        collision=False).vertices
+            errors += float(np.linalg.norm(vertices - r.garment, axis=-1).mean()) * 1000 * len(vertices)
+            inside += float(penetration_fraction(body_signed_distance(vertices, r.motion, r.dressed.body)).sum())
+            frames += len(vertices)
+        print(f"weight {weight:g}, {args.steps} steps: PVE {errors / frames:.2f} mm, "
+              f"{100 * inside / frames:.2f} % of vertices > 5 mm inside before the push-out", flush=True)
+
+
+if __name__ == "__main__":
+    main()
