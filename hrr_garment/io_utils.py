@@ -10,7 +10,7 @@ import math
 import os
 import tempfile
 from pathlib import Path
-from typing import Iterator
+from typing import Iterable, Iterator
 
 import h5py
 
@@ -40,7 +40,7 @@ def require_suffix(path: str | Path, suffixes: tuple[str, ...], what: str) -> No
                                 "another format: rename the output")
 
 
-def refuse_input_as_output(output: str | Path, *inputs: str | Path | None) -> None:
+def refuse_input_as_output(output: str | Path, inputs: Iterable[str | Path | None]) -> None:
     """Refuse an output that is one of the command's inputs (the same file by any path, a link
     included): writing it would replace what is being read."""
     out = Path(output)

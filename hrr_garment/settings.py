@@ -32,7 +32,7 @@ def deep_merge(base: dict, override: dict) -> dict:
     return out
 
 
-def require_number(what: str, name: str, value, low: float | None = None, high: float | None = None, *,
+def require_number(what: str, name: str, value, *, low: float | None = None, high: float | None = None,
                    whole: bool = False, above: bool = False) -> None:
     """Refuse a setting that is not a finite number (a whole one with ``whole``) from ``low``
     (exclusive with ``above``) to ``high``: a hand-edited file's -5 window or "x" scale fails here,

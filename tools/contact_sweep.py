@@ -49,7 +49,7 @@ def main() -> None:
         metric = VertexMetric.of_decoder(bundle.autoencoder, sample_frames(raw), bundle.latent_stats.std, progress=False)
         config = CodeSpaceTrainConfig(contact_steps=args.steps, contact_weight=weight)
         with tempfile.TemporaryDirectory() as tmp:
-            teach_contact(bundle.codespace, FrameDecoder(bundle.autoencoder, bundle.latent_stats), train, None,
+            teach_contact(bundle.codespace, FrameDecoder(bundle.autoencoder, bundle.latent_stats), train, val=None,
                           config=config, latent_loss=metric, checkpoint=(Path(tmp) / "contact.pt", "sweep"))
         errors, inside, frames = 0.0, 0.0, 0
         for r in records:

@@ -240,7 +240,7 @@ def load_bundle(folder: str | Path, cache_dir: Path | None = None) -> Bundle:
         features = int(meta["codespace"]["features"])
         latent_shape = tuple(meta["codespace"]["latent_shape"])
         scale = meta["autoencoder"]["scale"]
-        require_number("bundle.json autoencoder", "scale", scale, 0, MAX_SCALE_M, above=True)
+        require_number("bundle.json autoencoder", "scale", scale, low=0, high=MAX_SCALE_M, above=True)
     except (KeyError, TypeError, ValueError) as exc:
         raise BundleError(folder, f"bundle.json has a bad or missing entry ({exc})") from None
     if features != cs_cfg.features:

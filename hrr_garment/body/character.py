@@ -174,7 +174,7 @@ def read_character(path: str | Path, skin: int | None = None, joint_map: dict | 
     shift = np.array([joints[0, 0], vertices[:, 1].min(), joints[0, 2]])
     if not np.isfinite(vertices).all():
         raise doc.fail("the skinned mesh's vertices are not finite in the world")
-    weights = None if skinning is None else canonical_weights(doc, skinning, joint_nodes, mapping)
+    weights = None if skinning is None else canonical_weights(doc, skinning, joint_nodes, mapping=mapping)
     return Character(vertices - shift, faces, joints - shift, skin, scheme, scale,
                      posed_joints=tuple(names[i] for i in np.flatnonzero(posed)), turned=not np.allclose(turn, np.eye(3)),
                      filled_joints=filled, weights=weights)

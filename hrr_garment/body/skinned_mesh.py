@@ -105,8 +105,8 @@ def _skin_weights(doc, attributes, count: int) -> tuple[np.ndarray, np.ndarray] 
     return j.astype(np.int64), w
 
 
-def canonical_weights(doc, skinning: tuple[np.ndarray, np.ndarray], joint_nodes: list[int],
-                       mapping: dict[str, int]) -> np.ndarray:
+def canonical_weights(doc, skinning: tuple[np.ndarray, np.ndarray], joint_nodes: list[int], *,
+                      mapping: dict[str, int]) -> np.ndarray:
     """(V, 22) each vertex's weights gathered onto the canonical joints: a skin joint that is not
     one of them gives its weight to its nearest mapped ancestor (the pelvis where it has none)."""
     joints, weights = skinning

@@ -76,7 +76,7 @@ def _main(argv: Sequence[str] | None) -> int:
     parent = args.output.resolve().parent
     if not parent.is_dir() or not os.access(parent, os.W_OK):
         raise InputError(args.output, f"cannot write here: {parent} is not a writable directory")
-    refuse_input_as_output(args.output, args.motion, args.body)
+    refuse_input_as_output(args.output, [args.motion, args.body])
     model_dir = find_model(args.model or args.garment)
     if args.model is None:
         print(f"model: {model_dir}")

@@ -65,7 +65,7 @@ def _main(argv: Sequence[str] | None) -> int:
         raise InputError(args.output, f"--with-body is for glb and usd, not {fmt}")
     require_suffix(args.output, tuple(s for s, f in _BY_SUFFIX.items() if f == fmt), f"--to {fmt}")
     for output in (args.output, args.output.with_suffix(".obj")) if fmt == "pc2" else (args.output,):
-        refuse_input_as_output(output, args.animation, args.character)
+        refuse_input_as_output(output, [args.animation, args.character])
     t0 = time.perf_counter()
     anim = read_animation_h5(args.animation)
     detail = ""

@@ -75,7 +75,7 @@ def _body(argv: Sequence[str] | None) -> int:
         return 0
     if args.command == "features":  # before reading: a wrong output is refused before any work
         require_suffix(args.output, (".npy",), "the feature array")
-        refuse_input_as_output(args.output, args.file)
+        refuse_input_as_output(args.output, [args.file])
     motion = _load(args)
     if args.command == "info":
         summary = motion.summary()

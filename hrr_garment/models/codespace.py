@@ -64,8 +64,8 @@ class CodeSpaceConfig:
         what = "code space model"
         for name, low, high in (("window", 1, 1000), ("groups", 1, 4096), ("classes", 2, 4096), ("embedding_dim", 1, 4096),
                                 ("hidden", 1, 65536), ("motion_hidden", 1, 65536), ("attention_heads", 1, 256)):
-            require_number(what, name, getattr(self, name), low, high, whole=True)
-        require_number(what, "dropout", self.dropout, 0, 1)
+            require_number(what, name, getattr(self, name), low=low, high=high, whole=True)
+        require_number(what, "dropout", self.dropout, low=0, high=1)
         if self.motion_hidden % self.attention_heads:
             raise SettingsError(f"{what}: motion_hidden ({self.motion_hidden}) must divide into attention_heads "
                                 f"({self.attention_heads})")

@@ -50,12 +50,12 @@ class AutoencoderConfig:
         if not isinstance(self.channels, (tuple, list)) or not self.channels:
             raise SettingsError(f"{what}: channels must be a list of widths, got {self.channels!r}")
         for width in self.channels:
-            require_number(what, "channels", width, 1, 4096, whole=True)
+            require_number(what, "channels", width, low=1, high=4096, whole=True)
         for name, high in (("latent_channels", 512), ("basis", 256), ("min_latent_nodes", 100_000), ("stride", 16),
                            ("radius", 16)):
-            require_number(what, name, getattr(self, name), 1, high, whole=True)
-        require_number(what, "residual", self.residual, 0, 1)
-        require_number(what, "latent_fraction", self.latent_fraction, 0, 1, above=True)
+            require_number(what, name, getattr(self, name), low=1, high=high, whole=True)
+        require_number(what, "residual", self.residual, low=0, high=1)
+        require_number(what, "latent_fraction", self.latent_fraction, low=0, high=1, above=True)
 
     @classmethod
     def from_dict(cls, values: dict) -> "AutoencoderConfig":

@@ -181,7 +181,8 @@ def _fit(model: MeshAutoencoder, optimizer: torch.optim.Optimizer, frames: Train
         return run_progress(epoch, config.epochs, spent + time.perf_counter() - started, max_minutes=config.max_minutes)
 
     epoch_s = None  # the last epoch's duration
-    while (stopped := stop_reason(state, config, deadline, epoch_s, run_fraction(state["epoch"]))) is None:
+    while (stopped := stop_reason(state, config, deadline=deadline, epoch_s=epoch_s,
+                                          progress=run_fraction(state["epoch"]))) is None:
         epoch_started = time.perf_counter()
         model.train()
         # a bounded epoch: one pass over the real-motion library's 114,000 frames took 18 min on

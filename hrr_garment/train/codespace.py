@@ -241,7 +241,7 @@ def run_codespace_stage(dataset: str | Path, folder: str | Path, config: CodeSpa
     if train_config.contact_steps:
         summary["contact"] = teach_contact(model, FrameDecoder(autoencoder, latent_stats),
                                            ContactWindows(train_t, BodyContacts.of(ds, train_w)),
-                                           ContactWindows(val_t, BodyContacts.of(ds, val_w)), config=train_config,
+                                           val=ContactWindows(val_t, BodyContacts.of(ds, val_w)), config=train_config,
                                            latent_loss=latent_loss, checkpoint=(stage / "contact.pt", key), progress=progress)
 
     # the database of every training window's garment code, then tau on the validation split

@@ -243,7 +243,8 @@ def train_codespace(model: CodeSpace, train: WindowTensors, val: WindowTensors, 
         return run_progress(epoch, config.epochs, spent + time.perf_counter() - started, max_minutes=config.max_minutes)
 
     epoch_s = None  # the last epoch's duration
-    while (stopped := stop_reason(state, config, deadline, epoch_s, run_fraction(state["epoch"]))) is None:
+    while (stopped := stop_reason(state, config, deadline=deadline, epoch_s=epoch_s,
+                                          progress=run_fraction(state["epoch"]))) is None:
         epoch_started, epoch = time.perf_counter(), state["epoch"]
         temperature = max(config.temperature_min, config.temperature * config.temperature_decay ** epoch)
         match_weight = config.match_weight if state["switched_at"] is None else config.match_weight_late

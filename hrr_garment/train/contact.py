@@ -142,7 +142,7 @@ def inside_fraction(model: CodeSpace, decoder: FrameDecoder, data: ContactWindow
     return inside / total
 
 
-def teach_contact(model: CodeSpace, decoder: FrameDecoder, train: ContactWindows, val: ContactWindows | None, *,
+def teach_contact(model: CodeSpace, decoder: FrameDecoder, train: ContactWindows, *, val: ContactWindows | None,
                   config: CodeSpaceTrainConfig, latent_loss: Callable[[torch.Tensor], torch.Tensor],
                   checkpoint: tuple[Path, str], progress: bool = True) -> dict:
     """Run the phase (module docstring; ``config.contact_steps`` and ``contact_weight``) on

@@ -45,7 +45,7 @@ def epoch_fits(now: float, deadline: float | None, epoch_s: float | None) -> boo
 STOPPED_EPOCHS, STOPPED_EARLY, STOPPED_BY_CAP = "epochs", "early stop", "minutes cap"
 
 
-def stop_reason(state: dict, config, deadline: float | None, epoch_s: float | None, progress: float) -> str | None:
+def stop_reason(state: dict, config, *, deadline: float | None, epoch_s: float | None, progress: float) -> str | None:
     """Why a run stops before its next epoch, or None where it goes on: its ``config.epochs`` are
     done, another epoch as long as the last would end past the cap's ``deadline``
     (:func:`epoch_fits`), or the validation error stopped improving (:func:`early_stop`, ``state``'s

@@ -20,12 +20,12 @@ def test_a_run_stops_for_its_epochs_its_cap_or_a_stalled_error(monkeypatch):
 
     monkeypatch.setattr(schedule.time, "perf_counter", lambda: 100.0)
     config = SimpleNamespace(epochs=5, patience=3)
-    assert stop_reason({"epoch": 5, "stale": 0}, config, None, 10.0, 1.0) == STOPPED_EPOCHS
-    assert stop_reason({"epoch": 2, "stale": 0}, config, None, 10.0, 0.4) is None  # no cap
-    assert stop_reason({"epoch": 2, "stale": 0}, config, 109.0, 10.0, 0.4) == STOPPED_BY_CAP  # 100 + 10 > 109
-    assert stop_reason({"epoch": 2, "stale": 0}, config, 110.0, 10.0, 0.4) is None
-    assert stop_reason({"epoch": 4, "stale": 3}, config, None, 10.0, 0.85) == STOPPED_EARLY
-    assert stop_reason({"epoch": 4, "stale": 3}, config, None, 10.0, 0.5) is None  # not in the last fifth
+    assert stop_reason({"epoch": 5, "stale": 0}, config, deadline=None, epoch_s=10.0, progress=1.0) == STOPPED_EPOCHS
+    assert stop_reason({"epoch": 2, "stale": 0}, config, deadline=None, epoch_s=10.0, progress=0.4) is None  # no cap
+    assert stop_reason({"epoch": 2, "stale": 0}, config, deadline=109.0, epoch_s=10.0, progress=0.4) == STOPPED_BY_CAP  # 100 + 10 > 109
+    assert stop_reason({"epoch": 2, "stale": 0}, config, deadline=110.0, epoch_s=10.0, progress=0.4) is None
+    assert stop_reason({"epoch": 4, "stale": 3}, config, deadline=None, epoch_s=10.0, progress=0.85) == STOPPED_EARLY
+    assert stop_reason({"epoch": 4, "stale": 3}, config, deadline=None, epoch_s=10.0, progress=0.5) is None  # not in the last fifth
     assert cap_since_raised(STOPPED_BY_CAP, 8.0, 24.0) and cap_since_raised(STOPPED_BY_CAP, 8.0, None)
     assert not cap_since_raised(STOPPED_BY_CAP, 8.0, 8.0) and not cap_since_raised(STOPPED_EPOCHS, 8.0, 24.0)
 

@@ -47,7 +47,7 @@ def test_the_contact_phase_takes_the_regression_out_of_a_body_it_lies_inside(tin
     original = {k: v.clone() for k, v in model.state_dict().items()}
     config = CodeSpaceTrainConfig(contact_steps=250, contact_weight=2.0)
     assert inside_fraction(model, decoder, data["val"]) < 0.05  # the real body: the skirt is (nearly) outside it
-    summary = teach_contact(model, decoder, grown["train"], grown["val"], config=config, latent_loss=mean_square,
+    summary = teach_contact(model, decoder, grown["train"], val=grown["val"], config=config, latent_loss=mean_square,
                             checkpoint=(tmp_path / "contact.pt", "k1"), progress=False)
     assert summary["val_inside_before"] > 0.05
     assert summary["val_inside_after"] < 0.7 * summary["val_inside_before"]
@@ -57,7 +57,7 @@ def test_the_contact_phase_takes_the_regression_out_of_a_body_it_lies_inside(tin
     assert changed and all(k.startswith("decoder.") for k in changed)  # the decoder alone: codes and database stay
 
     model.load_state_dict(original)
-    again = teach_contact(model, decoder, grown["train"], grown["val"], config=replace(config, contact_steps=10_000),
+    again = teach_contact(model, decoder, grown["train"], val=grown["val"], config=replace(config, contact_steps=10_000),
                           latent_loss=mean_square, checkpoint=(tmp_path / "contact.pt", "k1"), progress=False)
     assert again == json.loads(json.dumps(summary))
     assert all(torch.equal(trained_weights[k], v) for k, v in model.state_dict().items())
