@@ -42,9 +42,11 @@ import numpy as np
 
 from ..errors import InputError
 from ..io_utils import atomic_h5
+from ..motion.motion import MAX_TRANSLATION_M
 
 FORMAT_VERSION = 4
 SKELETON = ("body/rotations", "body/root_translation", "body/offsets")  # version 4: the motion as a skeleton's
+MAX_REACH_M = 1.5  # metres from the nearest body joint a garment vertex may be (a long dress's hem: under 0.6)
 PER_FRAME = ("body/joints", "diagnostics/retrieved", "diagnostics/entropy", "diagnostics/match")
 
 
@@ -213,11 +215,38 @@ def read_animation_h5(path: str | Path) -> AnimationFile:
                                  or radii is None or radii.shape != capsules.shape[1:2]):
         raise InputError(path, f"/body/capsules {capsules.shape} and /body/radii "
                                f"{None if radii is None else radii.shape} do not match (T, C, 2, 3) and (C,)")
+    _check_on_body(path, vertices, per_frame["body/joints"])
     skeleton = _checked_skeleton(path, skeleton, t)
     return AnimationFile(path=path, vertices=vertices.astype(np.float32), faces=faces.astype(np.int32),
                          joints=per_frame["body/joints"], retrieved=per_frame["diagnostics/retrieved"].astype(np.uint8),
                          entropy=per_frame["diagnostics/entropy"], match=per_frame["diagnostics/match"],
                          capsules=capsules, radii=radii, attrs=attrs, **skeleton)
+
+
+def farthest_from_body(vertices: np.ndarray, joints: np.ndarray) -> tuple[float, int]:
+    """How far (m) the garment vertex farthest from its nearest body joint is, over (T, V, 3)
+    vertices and (T, J, 3) joints, and the first frame where it is more than ``MAX_REACH_M`` (-1:
+    none); a block of frames at a time."""
+    worst, first = 0.0, -1
+    for t in range(0, len(vertices), 256):
+        v, j = vertices[t:t + 256].astype(np.float64), joints[t:t + 256].astype(np.float64)
+        reach = np.sqrt(((v[:, :, None] - j[:, None]) ** 2).sum(-1).min(-1)).max(1)
+        worst = max(worst, float(reach.max()))
+        if first < 0 and (reach > MAX_REACH_M).any():
+            first = t + int(np.argmax(reach > MAX_REACH_M))
+    return worst, first
+
+
+def _check_on_body(path: Path, vertices: np.ndarray, joints: np.ndarray) -> None:
+    """What hrr-animate refuses to write is refused on reading too: exporting it would hand on an
+    absurd result (a vertex at 1e30, a body beyond any scene)."""
+    far = float(np.abs(joints).max())
+    if far > MAX_TRANSLATION_M:
+        raise InputError(path, f"/body/joints go {far:.3g} m from the origin, beyond the {MAX_TRANSLATION_M:g} m a motion may")
+    reach, frame = farthest_from_body(vertices, joints)
+    if frame >= 0:
+        raise InputError(path, f"a garment vertex is {reach:.3g} m from the body at frame {frame} (more than "
+                               f"{MAX_REACH_M:g} m): not cloth on a body (a damaged or edited file?)")
 
 
 def _checked_skeleton(path: Path, found: dict, frames: int) -> dict:

@@ -23,6 +23,7 @@ import torch
 from ..artifacts.bundle import Bundle, BundleError, load_bundle
 from ..body.body_file import BodyRecord, body_to_dict
 from ..body.measures import with_body
+from ..data.animation_file import MAX_REACH_M, farthest_from_body
 from ..data.bodies import MANNEQUIN
 from ..errors import InputError, MotionError
 from ..garment.smoothing import mean_operator
@@ -45,8 +46,6 @@ from .gate import WindowChoice, choose_windows
 from .modes import CODE_MODES, Mode
 from .run_settings import ResolvedRun, RunSettings, run_settings
 from .stream import AnimationStream, CrowdStream
-
-MAX_REACH_M = 1.5  # metres from the nearest body joint a garment vertex may be (a long dress's hem: under 0.6)
 
 
 @dataclass
@@ -86,13 +85,10 @@ class Animation:
             if bad.any():
                 raise InputError(target, f"the model produced non-finite {name} on {int(bad.sum())} frame(s), first at "
                                          f"frame {int(np.argmax(bad))}; nothing written (is the model bundle damaged?)")
-        for t in range(0, len(self.vertices), 256):  # nearest joint of every vertex, a block of frames at a time
-            v, j = self.vertices[t:t + 256], self.joints[t:t + 256]
-            reach = np.sqrt(((v[:, :, None] - j[:, None]) ** 2).sum(-1).min(-1)).max(1)
-            if (reach > MAX_REACH_M).any():
-                frame = t + int(np.argmax(reach > MAX_REACH_M))
-                raise InputError(target, f"the model put a garment vertex {reach.max():.2f} m from the body at frame {frame} "
-                                         f"(more than {MAX_REACH_M:g} m); nothing written (a damaged or mismatched model?)")
+        reach, frame = farthest_from_body(self.vertices, self.joints)
+        if frame >= 0:
+            raise InputError(target, f"the model put a garment vertex {reach:.2f} m from the body at frame {frame} "
+                                     f"(more than {MAX_REACH_M:g} m); nothing written (a damaged or mismatched model?)")
 
     def save(self, path: str | Path) -> Path:
         """Write ``out.h5`` (see :mod:`hrr_garment.data.animation_file`), atomically, after :meth:`check`."""

@@ -67,3 +67,26 @@ def test_an_output_that_is_the_input_by_another_name_is_refused(tmp_path, capsys
     before = clip.read_bytes()
     assert animate([str(clip), "-o", str(tmp_path / "out.h5"), "--model", str(tmp_path)]) == 2
     assert "is the input" in capsys.readouterr().err and clip.read_bytes() == before
+
+
+@pytest.mark.parametrize("far", [3e38, 1e30, 2.0])
+@pytest.mark.parametrize("to", ["glb", "pc2", "obj"])
+def test_an_export_of_absurd_cloth_is_refused_as_hrr_animate_would(tmp_path, capsys, far, to):
+    """Exporters apply hrr-animate's reach check (issue 48, reproducers 8 and 9): a vertex at 3e38
+    or 1e30, or 2 m from every joint, is not cloth on a body."""
+    import h5py
+
+    from hrr_garment.cli.export import main
+
+    anim = tmp_path / "in.h5"
+    shutil.copy(FIXTURES / "auto.h5", anim)
+    with h5py.File(anim, "r+") as f:
+        vertices = f["vertices"][()]
+        joints = f["body/joints"][()]
+        vertices[3, 7] = joints[3, 0] + np.array([far, 0.0, 0.0], np.float32)
+        f["vertices"][...] = vertices
+    before = _listing(tmp_path)
+    output = tmp_path / {"glb": "out.glb", "pc2": "out.pc2", "obj": "frames"}[to]
+    assert main([str(anim), "--to", to, "-o", str(output)]) == 2
+    assert "from the body at frame 3" in capsys.readouterr().err and _listing(tmp_path) == before
+    assert not output.exists()

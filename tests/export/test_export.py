@@ -25,7 +25,7 @@ def _animation_arrays(frames: int = 40, seed: int = 0) -> dict:
     motion = synthesize("walk", frames / 30.0, seed=seed)
     skirt = make_garment("skirt", 300)
     t = np.arange(motion.num_frames)[:, None, None] / 30.0
-    pelvis = motion.joint_positions[:, :1] - motion.joint_positions[:1, :1]
+    pelvis = motion.joint_positions[:, :1] * np.array([1.0, 0.0, 1.0])  # carried along by the body, around it
     sway = 0.03 * np.sin(2 * np.pi * 1.3 * t + skirt.vertices[None, :, 1:2] * 4) * np.array([1.0, 0.2, 0.5])
     vertices = skirt.vertices[None] + pelvis + sway
     a, b = DEFAULT_BODY.pose_motion(motion)
