@@ -44,10 +44,10 @@ def refuse_input_as_output(output: str | Path, inputs: Iterable[str | Path | Non
     """Refuse an output that is one of the command's inputs (the same file by any path, a link
     included): writing it would replace what is being read."""
     out = Path(output)
+    if not out.exists():
+        return
     for source in inputs:
-        if source is None or not Path(source).exists() or not out.exists():
-            continue
-        if os.path.samefile(out, source):
+        if source is not None and Path(source).exists() and os.path.samefile(out, source):
             raise OutputError(out, f"is the input {source}: writing it would destroy the input; give another output path")
 
 

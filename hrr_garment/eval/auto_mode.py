@@ -48,6 +48,7 @@ from . import metrics as M
 
 AUTO_MAX_SEQUENCES = 24  # validation clips the choice animates at most (evenly spaced): about a minute
 AUTO_ALLOWANCE = 1.05  # the default allowance: candidates within 5 % of the most accurate PVE
+DETAIL_STRENGTHS = (0.6, 0.8, 1.0)  # the folds' strengths measured (1: the simulated folds as they are)
 
 
 @dataclass(frozen=True)
@@ -63,7 +64,6 @@ class AutoConfig:
     @classmethod
     def from_dict(cls, values: dict) -> "AutoConfig":
         return from_settings(cls, values, "auto mode")
-DETAIL_STRENGTHS = (0.6, 0.8, 1.0)  # the folds' strengths measured (1: the simulated folds as they are)
 
 
 def detail_label(base: str, strength: float) -> str:

@@ -89,20 +89,25 @@ def default_output(modes: dict, bars: tuple[Bar, ...]) -> dict | None:
     return {"values": {key: entry["ensemble"].get(key) for _, key, _ in ROW}, "bars": checks}
 
 
+def cell(value, digits: int) -> str:
+    """A number as report.md's tables write it: n/a where there is none or it is not finite."""
+    return "n/a" if value is None or (isinstance(value, float) and not math.isfinite(value)) else f"{value:.{digits}f}"
+
+
 def markdown_lead(default: dict | None, runs: str) -> list[str]:
-    """report.md's lead of a protocol: the default output's row, then its bars."""
+    """report.md's lead of a protocol: the default output's row, then its bars, then a blank line
+    (nothing where there is no default output's row)."""
     if not default:
         return []
     values = default["values"]
-    cells = " | ".join("n/a" if values.get(k) is None else f"{values[k]:.{d}f}" for _, k, d in ROW)
+    cells = " | ".join(cell(values.get(k), d) for _, k, d in ROW)
     lines = [f"**The default output** (auto, which runs {runs}):", "",
              "| | " + " | ".join(label for label, _, _ in ROW) + " |", "|---|" + "---:|" * len(ROW),
              f"| auto | {cells} |", "", "| bar | value | target | met |", "|---|---:|---|---|"]
     for label, c in default["bars"].items():
-        value = "n/a" if c["value"] is None else f"{c['value']:.2f}"
         met = "n/a" if c["met"] is None else ("yes" if c["met"] else "**no**")
-        lines.append(f"| {label} | {value} | {c['bar']} | {met} |")
-    return lines
+        lines.append(f"| {label} | {cell(c['value'], 2)} | {c['bar']} | {met} |")
+    return [*lines, ""]
 
 
 def summary_line(default: dict | None) -> str | None:

@@ -37,6 +37,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
+from ..sim.quality import PENETRATION_DEPTH_M
+
 
 @dataclass(frozen=True)
 class MeshTopology:
@@ -185,4 +187,4 @@ def jitter_mm(pred: np.ndarray, truth: np.ndarray) -> dict[str, float]:
 def penetration_pct(signed_distance: np.ndarray) -> dict[str, float]:
     """From the garment's signed distances to the body (T, V), negative inside."""
     return {"penetration_pct": 100.0 * float((signed_distance < 0).mean()),
-            "penetration_5mm_pct": 100.0 * float((signed_distance < -0.005).mean())}
+            "penetration_5mm_pct": 100.0 * float((signed_distance < -PENETRATION_DEPTH_M).mean())}

@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from ..io_utils import atomic_write_text, strict_json
-from .bars import HELD_OUT_BARS, LIBRARY_BARS, default_output, markdown_lead
+from .bars import HELD_OUT_BARS, LIBRARY_BARS, cell, default_output, markdown_lead
 from .evaluate import ModeResult, TauPoint
 from .library import SOURCE_SIMULATION
 from .unseen_bodies import markdown_table
@@ -147,16 +147,12 @@ def build_report(*, model: dict, dataset: dict, settings: dict, modes: dict[str,
     }
 
 
-def _fmt(value, digits):
-    return "n/a" if value is None or (isinstance(value, float) and not math.isfinite(value)) else f"{value:.{digits}f}"
-
-
 def _mode_table(modes: dict) -> list[str]:
     lines = ["| mode | " + " | ".join(label for _, label, _ in TABLE_METRICS) + " |",
              "|---|" + "---:|" * len(TABLE_METRICS)]
     for mode, entry in modes.items():
         m = entry["metrics"]
-        lines.append(f"| {mode} | " + " | ".join(_fmt(m.get(k), d) for k, _, d in TABLE_METRICS) + " |")
+        lines.append(f"| {mode} | " + " | ".join(cell(m.get(k), d) for k, _, d in TABLE_METRICS) + " |")
     return lines
 
 
@@ -177,7 +173,7 @@ def _ensemble_table(modes: dict, ensemble: dict) -> list[str]:
              "| mode | " + " | ".join(label for _, label, _ in ENSEMBLE_METRICS) + " |",
              "|---|" + "---:|" * len(ENSEMBLE_METRICS)]
     for mode, m in [*rows.items(), ("simulation (truths)", truth)]:
-        lines.append(f"| {mode} | " + " | ".join(_fmt(m.get(k), d) for k, _, d in ENSEMBLE_METRICS) + " |")
+        lines.append(f"| {mode} | " + " | ".join(cell(m.get(k), d) for k, _, d in ENSEMBLE_METRICS) + " |")
     return lines
 
 
@@ -200,7 +196,7 @@ def markdown(report: dict, plots: list[str]) -> str:
            f"{settings['tau']:.3f}" + _detail_clause(settings) + ". "
            f"Run time {report['seconds']:.0f} s.", ""]
     runs = model.get("auto", "hybrid")
-    out += [*markdown_lead(report.get("default"), runs), ""] if report.get("default") else []
+    out += markdown_lead(report.get("default"), runs)
     lead = _ensemble_table(report["modes"], report.get("ensemble", {}))
     if lead:
         out += ["## Against the simulator's own chaos (ensemble ground truth)", "", *lead, ""]
@@ -216,7 +212,7 @@ def markdown(report: dict, plots: list[str]) -> str:
                     f"5-95 % {q['0.05']:.3f} .. {q['0.95']:.3f}."]
     real = report.get("real_motion")
     if real:
-        out += ["", f"## Real motion ({', '.join(real['files'])})", "", *_lead(real, runs), *_simulated_section(real)]
+        out += ["", f"## Real motion ({', '.join(real['files'])})", "", *markdown_lead(real.get("default"), runs), *_simulated_section(real)]
     paper = report.get("paper")
     if paper:
         out += ["", "## Paper protocol (code space validated on a tenth of its training clips' windows)", "",
@@ -239,7 +235,7 @@ def markdown(report: dict, plots: list[str]) -> str:
                 "Clips of the model's database re-timed by 0.9-1.1, entered part-way and cross-faded into each other "
                 f"over 0.3-0.5 s (seed {library['seed']}), as a game's animation system plays its library:", ""]
         out += [f"- `{name}`: {description}" for name, description in library["plays"].items()]
-        out += ["", *_lead(library, runs), *_simulated_section(library), "", "Goals on this protocol:", "",
+        out += ["", *markdown_lead(library.get("default"), runs), *_simulated_section(library), "", "Goals on this protocol:", "",
                 *_goal_table(library["goals"])]
         if library["tau_sweep"]:
             out += ["", *_sweep_table(library["tau_sweep"])]
@@ -253,11 +249,6 @@ def markdown(report: dict, plots: list[str]) -> str:
         out += ["", "## Plots", ""] + [f"![{Path(p).stem}]({Path(p).name})" for p in plots]
     out += ["", "Metric definitions: docs/evaluation.md."]
     return "\n".join(out) + "\n"
-
-
-def _lead(section: dict, runs: str) -> list[str]:
-    lead = markdown_lead(section.get("default"), runs)
-    return [*lead, ""] if lead else []
 
 
 def _goal_table(goals: dict) -> list[str]:

@@ -23,6 +23,7 @@ from ..body.capsules import DEFAULT_BODY, BodyModel, frames_signed_distance
 from ..garment.mesh import unique_edges
 from ..garment.smoothing import mean_operator
 from ..motion.motion import Motion
+from ..sim.quality import PENETRATION_DEPTH_M
 
 # edges a push may stretch to (times their rest length): the simulator's own data reach 2.1-2.5 at
 # their worst frame and 1.12-1.15 at p99; a push that needs more is across a limb, not out of the body
@@ -81,7 +82,7 @@ class PushOutSettings:
     margin: float = 0.002  # metres outside the body surface a pushed vertex lands
     smooth: int = 4  # passes spreading each push to the neighbours (never below what is needed)
     rounds: int = 1  # push-and-spread rounds before the exact projection
-    depth: float = 0.005  # metres inside the body that count as penetration in the report
+    depth: float = PENETRATION_DEPTH_M  # metres inside the body that count as penetration in the report
     max_strain: float = MAX_PUSH_STRAIN  # no edge stretched past this x its rest length by the push
     chunk: int = 64  # frames processed at once
 

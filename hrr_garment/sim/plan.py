@@ -95,7 +95,6 @@ def _preset_data(path: Path, depth: int = 0) -> dict:
     return {**base, **data, **({"train": deep_merge(base.get("train") or {}, data["train"])} if "train" in data else {})}
 
 
-
 @dataclass(frozen=True)
 class SequenceSpec:
     """One sequence to simulate: a procedural clip (kind, seed, seconds) or a piece of a file."""

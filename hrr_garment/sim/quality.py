@@ -13,6 +13,7 @@ from ..body.self_contact import self_intersecting_frames
 from ..motion.frame import to_body_frame
 from ..motion.motion import Motion
 
+PENETRATION_DEPTH_M = 0.005  # how far inside the body a vertex counts as penetrating (reports, evaluation, training)
 
 def edge_strain(vertices: np.ndarray, rest: np.ndarray, edges: np.ndarray) -> np.ndarray:
     """(T, E) edge length divided by rest length."""
@@ -29,7 +30,7 @@ def body_signed_distance(vertices: np.ndarray, motion: Motion, body: BodyModel =
                            for t in range(0, len(vertices), chunk)]) if len(vertices) else np.zeros((0, vertices.shape[1]))
 
 
-def penetration_fraction(signed_distance: np.ndarray, depth: float = 0.005) -> np.ndarray:
+def penetration_fraction(signed_distance: np.ndarray, depth: float = PENETRATION_DEPTH_M) -> np.ndarray:
     """(T,) fraction of vertices more than ``depth`` inside the body."""
     return (signed_distance < -depth).mean(axis=1)
 

@@ -38,10 +38,10 @@ from ..models.codes import regression_embedding
 from ..models.codespace import CodeSpace
 from ..models.fcmae import MeshAutoencoder
 from ..motion.frame import to_body_frame
+from ..sim.quality import PENETRATION_DEPTH_M
 from .codespace_training import CodeSpaceTrainConfig, WindowTensors
 
 MARGIN_M = 0.002  # the depth is counted from this far outside the capsules: where the push-out lands a vertex
-PENETRATION_M = 0.005  # what the report counts as inside (as evaluation and hrr-animate do)
 LEARNING_RATE = 1e-4  # a tenth of training's initial rate: the phase adjusts a trained decoder
 BATCH = 64  # windows (and so decoded frames) a step
 REPORT_WINDOWS = 512  # validation windows whose middle frame the report decodes before and after
@@ -55,14 +55,14 @@ class BodyContacts:
 
     a: torch.Tensor  # (frames, C, 3) capsule end points
     b: torch.Tensor  # (frames, C, 3)
-    radii: torch.Tensor  # (frames, C)
-    body: torch.Tensor  # (frames,) int64 row of ``offsets``
+    body: torch.Tensor  # (frames,) int64 row of ``radii`` and ``offsets``
+    radii: torch.Tensor  # (bodies, C) each body's capsule radii
     offsets: torch.Tensor  # (bodies, V, 3) each body's rest offset from the template
 
     @classmethod
     def of(cls, ds: GarmentDataset, windows: WindowSet) -> "BodyContacts":
         bodies = sorted({ds.body_of[n] for n in windows.names})
-        a, b, radii, rows = [], [], [], []
+        a, b, rows = [], [], []
         for name in windows.names:
             motion, body = ds.sequence(name).motion, ds.bodies[ds.body_of[name]].body
             if motion.num_frames < windows.motion.window:  # no window, so none of its frames stored
@@ -73,14 +73,14 @@ class BodyContacts:
                                             f"another on {a[0].shape[1]}: the contact phase needs one capsule set")
             a.append(to_body_frame(ends[0], motion))
             b.append(to_body_frame(ends[1], motion))
-            radii.append(np.broadcast_to(body.radii, (len(ends[0]), len(body.radii))))
             rows.append(np.full(len(ends[0]), bodies.index(ds.body_of[name])))
         frames = len(windows.motion.frames)
         if sum(len(x) for x in a) != frames:
             raise ValueError(f"the windows store {frames} frames, their sequences have {sum(len(x) for x in a)}")
+        radii = np.stack([ds.bodies[n].body.radii for n in bodies]).astype(np.float32)
         offsets = np.stack([ds.bodies[n].offset(ds.template) for n in bodies])
-        return cls(*(torch.from_numpy(np.concatenate(x).astype(np.float32)) for x in (a, b, radii)),
-                   torch.from_numpy(np.concatenate(rows).astype(np.int64)), torch.from_numpy(offsets))
+        return cls(*(torch.from_numpy(np.concatenate(x).astype(np.float32)) for x in (a, b)),
+                   torch.from_numpy(np.concatenate(rows).astype(np.int64)), torch.from_numpy(radii), torch.from_numpy(offsets))
 
 
 def capsule_distance(points: torch.Tensor, a: torch.Tensor, b: torch.Tensor, radii: torch.Tensor) -> torch.Tensor:
@@ -121,8 +121,9 @@ class FrameDecoder:
         """(n, N, C) standardised latents of the stored frames ``rows`` -> (n, V) signed distance of
         their decoded vertices, on their bodies' rest offsets, to their bodies' capsules."""
         raw = latents.reshape(len(latents), -1) * self.std + self.mean
-        vertices = self.autoencoder.decode(raw.reshape(latents.shape)) + contacts.offsets[contacts.body[rows]]
-        return capsule_distance(vertices, contacts.a[rows], contacts.b[rows], contacts.radii[rows])
+        body = contacts.body[rows]
+        vertices = self.autoencoder.decode(raw.reshape(latents.shape)) + contacts.offsets[body]
+        return capsule_distance(vertices, contacts.a[rows], contacts.b[rows], contacts.radii[body])
 
 
 @torch.no_grad()
@@ -137,7 +138,7 @@ def inside_fraction(model: CodeSpace, decoder: FrameDecoder, data: ContactWindow
     for chunk in picked.split(BATCH):
         motion, _ = windows[chunk]
         d = decoder.distance(_regression(model, motion)[:, middle], data.contacts, windows.first[chunk] + middle)
-        inside += float((d < -PENETRATION_M).sum())
+        inside += float((d < -PENETRATION_DEPTH_M).sum())
         total += d.numel()
     return inside / total
 
@@ -155,9 +156,7 @@ def teach_contact(model: CodeSpace, decoder: FrameDecoder, train: ContactWindows
         if saved.get("key") == key:
             model.load_state_dict(saved["weights"])
             return json.loads(saved["summary"])
-    autoencoder = decoder.autoencoder
-    for p in autoencoder.parameters():
-        p.requires_grad_(False)
+    decoder.autoencoder.requires_grad_(False)  # frozen: its weights' gradients would be computed for nothing
     model.eval()  # the decoder as inference runs it
     before = inside_fraction(model, decoder, val) if val is not None else float("nan")
     optimizer = torch.optim.Adam(model.decoder.parameters(), lr=LEARNING_RATE)
@@ -175,8 +174,7 @@ def teach_contact(model: CodeSpace, decoder: FrameDecoder, train: ContactWindows
         loss.backward()
         optimizer.step()
         depth_sum += float(depth_mm.detach())
-    for p in autoencoder.parameters():
-        p.requires_grad_(True)
+    decoder.autoencoder.requires_grad_(True)
     after = inside_fraction(model, decoder, val) if val is not None else float("nan")
     summary = {"steps": config.contact_steps, "weight": config.contact_weight,
                "mean_depth_mm": depth_sum / max(config.contact_steps, 1), "val_inside_before": before,
