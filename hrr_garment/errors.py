@@ -34,3 +34,8 @@ class SkeletonMappingError(MotionError):
 
 class UnsupportedHardware(HRRError, RuntimeError):
     """An option this machine's processor (or its build of the kernels) cannot run."""
+
+
+class TeleportWarning(UserWarning):
+    """A streamed character's pelvis jumped faster than a body moves (a respawn, a cut): its garment
+    was started afresh there rather than dragged across the jump."""

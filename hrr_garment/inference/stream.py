@@ -18,12 +18,16 @@ Poses are local joint rotations, parent-relative, as quaternions (x, y, z, w: gl
 Unreal order), axis-angle vectors or 3 x 3 matrices, on the canonical skeleton
 (:data:`~hrr_garment.motion.skeleton.JOINT_NAMES`, 22 joints) or on a source rig through the
 same joint map and retargeting as its files (:class:`~hrr_garment.motion.stream_rig.StreamRig`);
-roots are the pelvis positions in metres, Y up.
+roots are the pelvis positions in metres, Y up. A character whose pelvis jumps further in one
+frame than a body moves (over 100 m/s: a respawn, a cut to another place) starts afresh there, as
+after :meth:`CrowdStream.leave`, with a :class:`~hrr_garment.errors.TeleportWarning`: its windows and
+blend would otherwise sweep the cloth across the jump.
 """
 
 from __future__ import annotations
 
 import time
+import warnings
 from collections import deque
 from collections.abc import Hashable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -31,10 +35,11 @@ from dataclasses import dataclass, field
 import numpy as np
 import torch
 
-from ..errors import InputError
+from ..errors import InputError, TeleportWarning
 from ..models.codes import traced_window_codes
 from ..motion.features import pair_features_batch
 from ..motion.frame import world_vertices
+from ..motion.limits import MAX_ROOT_SPEED
 from ..motion.memory import MEMORY_WIDTH, motion_memory
 from ..motion.motion import Motion
 from ..motion.poses import poses_to_motion
@@ -61,6 +66,7 @@ class _Character:
     fold_track: FoldTrack | None = None  # the detail mode's playhead in the database's folds
     previous: tuple[np.ndarray, np.ndarray] | None = None  # its last pose: global rotations and joint positions
     memory: np.ndarray | None = None  # its motion memory's state (rows, 64), when the model has one
+    root: np.ndarray | None = None  # its last pushed pelvis position (teleports restart it)
     frames: int = 0
 
 
@@ -189,12 +195,28 @@ class CrowdStream:
         stacked = self._stacked[1]
         return poses.on_skeletons(stacked.skeletons, stacked.root_scale), stacked
 
+    def _restart_teleported(self, keys: list, poses: Motion) -> None:
+        """Forget the characters whose pelvis moved faster than :data:`MAX_ROOT_SPEED` since their
+        last push (they start afresh this frame), each with a :class:`TeleportWarning`."""
+        known = [i for i, k in enumerate(keys) if k in self._characters and self._characters[k].root is not None]
+        if not known:
+            return
+        last = np.stack([self._characters[keys[i]].root for i in known])
+        jump = np.linalg.norm(poses.root_translation[known] - last, axis=1)
+        for j in np.flatnonzero(jump * poses.fps > MAX_ROOT_SPEED):
+            key = keys[known[j]]
+            del self._characters[key]
+            warnings.warn(f"character {key!r}: the pelvis moved {jump[j]:.3g} m in one frame (over {MAX_ROOT_SPEED:g} m/s); "
+                          "taken as a teleport, its garment starts afresh there", TeleportWarning, stacklevel=4)
+
     def _step_frame(self, keys: list, poses: Motion) -> np.ndarray:
         t = [time.perf_counter()]
         pin_workers()  # a game loop idles between frames: its next frame must not wait for workers to move
         window = self.animator.window
         blend = self.animator.blend
+        self._restart_teleported(keys, poses)
         chars = [self._characters.setdefault(k, _Character(deque(maxlen=window), Inertializer(blend))) for k in keys]
+        roots = poses.root_translation  # as pushed, before a body plays them
         poses, bodies = self._played(keys, poses)
         features = self._with_memory(chars, pair_features_batch([c.previous for c in chars], poses), poses.fps)
         if self.animator.bundle.codespace.config.body_features:
@@ -227,6 +249,7 @@ class CrowdStream:
         t.append(time.perf_counter())
         for i, c in enumerate(chars):
             c.previous = (poses.global_rotations[i], poses.joint_positions[i])
+            c.root = roots[i]
             c.frames += 1
         for name, start, stop in zip(STREAM_STAGES, t, t[1:]):
             self.timings.stage_s[name].append(stop - start)

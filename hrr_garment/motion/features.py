@@ -24,6 +24,7 @@ import numpy as np
 from .. import native
 from ..errors import MotionError
 from .motion import Motion
+from .resample import frame_chunks
 from .rotations import matrix_to_axis_angle, rotation_about_y, yaw_of
 from .skeleton import FEATURE_JOINTS
 
@@ -46,7 +47,17 @@ def motion_features(motion: Motion) -> np.ndarray:
     """(T, 124) float32 features of a canonical motion."""
     if motion.num_frames < 2:
         raise MotionError(motion.source or "motion", f"needs at least 2 frames for velocities, has {motion.num_frames}")
-    return _features(motion.global_rotations, motion.joint_positions, motion.fps)
+    chunks = frame_chunks(motion.num_frames)
+    if len(chunks) == 1:
+        return _features(motion.global_rotations, motion.joint_positions, motion.fps)
+    # hours of motion in passes that bound the float64 temporaries; each pass starts one frame
+    # early so that its first velocity is the true difference
+    feats = np.empty((motion.num_frames, FEATURE_DIM), np.float32)
+    for start, stop in chunks:
+        first = max(0, start - 1)
+        part = motion.slice(first, stop)
+        feats[start:stop] = _features(part.global_rotations, part.joint_positions, motion.fps)[start - first:]
+    return feats
 
 
 def _features(global_rotations: np.ndarray, joint_positions: np.ndarray, fps: float) -> np.ndarray:

@@ -18,10 +18,10 @@ from .bvh_motion import PLAUSIBLE_HEIGHT_M, load_bvh
 from .gltf import GltfOptions, load_gltf
 from .gltf_file import GLTF_SUFFIXES
 from .joint_maps import load_joint_map
-from .limits import MAX_SOURCE_FPS, MIN_SOURCE_FPS, check_frame_budget, check_root_speed, max_npz_bytes
+from .limits import MAX_AXIS_ANGLE, MAX_SOURCE_FPS, MIN_SOURCE_FPS, check_frame_budget, check_root_speed, max_npz_bytes
 from .motion import FPS, MAX_TRANSLATION_M, Motion
 from .poses import ROTATION_TOLERANCE
-from .resample import resample_linear, resample_rotations, resample_times
+from .resample import frame_chunks, resample_linear, resample_rotations, resample_times
 from .retarget import ground_align
 from .rotations import axis_angle_to_matrix, matrix_to_axis_angle, rotation_matrix_error
 from .skeleton import NUM_JOINTS
@@ -33,7 +33,6 @@ NATIVE_VERSION = 1
 Z_UP_TO_Y_UP = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
 AMASS_WIDTHS = {72: "smpl", 156: "smplh", 165: "smplx"}
 NPZ_KINDS = "biufUS"  # dtype kinds an npz may hold: numbers and strings (bool only where it is read as such)
-MAX_AXIS_ANGLE = 8 * np.pi  # radians: AMASS poses stay near pi; more is a scaled or corrupt file
 
 
 def load_motion(
@@ -121,13 +120,13 @@ def _read_npz(path: Path) -> dict[str, np.ndarray]:
     return arrays
 
 
-def _numeric(path: Path, data: dict[str, np.ndarray], key: str, bound: float) -> np.ndarray:
-    """``data[key]`` as float64: real numbers (not bool, complex, dates or text), finite and within
+def _numeric(path: Path, data: dict[str, np.ndarray], key: str, bound: float, dtype: type = np.float64) -> np.ndarray:
+    """``data[key]`` as ``dtype``: real numbers (not bool, complex, dates or text), finite and within
     +-``bound``."""
     values = data[key]
     if values.dtype.kind not in "iuf":
         raise MotionError(path, f"{key} has dtype {values.dtype}; expected real numbers")
-    values = values.astype(np.float64)
+    values = values.astype(dtype, copy=False)
     if values.size and values.ndim:
         _check_finite(path, values)
     if values.size and not (np.abs(values) <= bound).all():
@@ -175,8 +174,12 @@ def load_amass(path: Path, data: dict[str, np.ndarray], ground: bool = True, fps
     if poses.shape[0] == 0:
         raise MotionError(path, "the motion has no frames")
     rate = source_fps if source_fps is not None else check_source_fps(data[rate_key], f"{path}: {rate_key}")
-    local = axis_angle_to_matrix(poses[:, : NUM_JOINTS * 3].reshape(-1, NUM_JOINTS, 3))
-    local[:, 0] = Z_UP_TO_Y_UP @ local[:, 0]
+    # float32 as the Motion keeps them, converted in passes: hours of frames stay within memory
+    local = np.empty((poses.shape[0], NUM_JOINTS, 3, 3), np.float32)
+    for a, b in frame_chunks(poses.shape[0]):
+        part = axis_angle_to_matrix(poses[a:b, : NUM_JOINTS * 3].reshape(-1, NUM_JOINTS, 3))
+        part[:, 0] = Z_UP_TO_Y_UP @ part[:, 0]
+        local[a:b] = part
     root = trans @ Z_UP_TO_Y_UP.T
     check_frame_budget(path, poses.shape[0], rate, fps_out=fps)
     frames = resample_times(poses.shape[0], rate, fps)
@@ -235,13 +238,14 @@ def _native_from_arrays(data: dict[str, np.ndarray], path: Path) -> Motion:
     missing = [k for k in ("local_rotations", "root_translation", "fps") if k not in data]
     if missing:
         raise MotionError(path, f"missing keys {missing}")
-    rot = _numeric(path, data, "local_rotations", 1.0 + ROTATION_TOLERANCE)
+    # float32, the precision a Motion keeps: hours of frames in float64 would be gigabytes
+    rot = _numeric(path, data, "local_rotations", 1.0 + ROTATION_TOLERANCE, np.float32)
     if rot.ndim != 4 or rot.shape[1:] != (NUM_JOINTS, 3, 3):
         raise MotionError(path, f"local_rotations has shape {rot.shape}; expected (T, {NUM_JOINTS}, 3, 3)")
     if rot.shape[0] == 0:
         raise MotionError(path, "the motion has no frames")
     # rotations, not any 3 x 3: orthonormal with determinant +1 (no zeros, scales or reflections)
-    error = rotation_matrix_error(rot)
+    error = np.concatenate([rotation_matrix_error(rot[a:b].astype(np.float64)) for a, b in frame_chunks(len(rot))])
     if (error > ROTATION_TOLERANCE).any():
         frame, joint = np.unravel_index(int(np.argmax(error)), error.shape)
         raise MotionError(path, f"local_rotations[{frame}, {joint}] is not a rotation matrix (off by {error.max():.3g})")

@@ -17,7 +17,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import MotionError
-from .motion import FPS, Motion
+from .limits import MAX_AXIS_ANGLE
+from .motion import FPS, MAX_TRANSLATION_M, Motion
 from .rotations import axis_angle_to_matrix, quat_to_matrix, rotation_matrix_error
 from .skeleton import CANONICAL
 
@@ -46,6 +47,11 @@ def rotations_to_matrices(rotations: np.ndarray, joints: int, quaternion_order: 
         wxyz = r[..., [3, 0, 1, 2]] if quaternion_order == "xyzw" else r
         return quat_to_matrix(wxyz)
     if r.shape[2:] == (3,):
+        angle = np.linalg.norm(r, axis=-1)
+        if (angle > MAX_AXIS_ANGLE).any():
+            bad = np.argwhere(angle > MAX_AXIS_ANGLE)[0]
+            raise MotionError(source, f"axis-angle of pose {bad[0]}, joint {bad[1]} turns {angle[tuple(bad)]:.3g} rad, "
+                                      f"beyond {MAX_AXIS_ANGLE:.3g} (degrees given as radians, or a corrupt value)")
         return axis_angle_to_matrix(r)
     error = rotation_matrix_error(r)
     if (error > ROTATION_TOLERANCE).any():
@@ -61,6 +67,11 @@ def check_roots(roots: np.ndarray, poses: int, source: str = "pose") -> np.ndarr
         raise MotionError(source, f"roots have shape {root.shape}, expected ({poses}, 3): one pelvis position per pose")
     if not np.isfinite(root).all():
         raise MotionError(source, f"root of pose {int(np.argwhere(~np.isfinite(root).all(1))[0, 0])} is not finite")
+    reach = np.abs(root).max(1) if len(root) else root[:, 0]
+    if (reach > MAX_TRANSLATION_M).any():
+        bad = int(np.argmax(reach))
+        raise MotionError(source, f"root of pose {bad} is {reach[bad]:.3g} m from the origin, beyond the "
+                                  f"{MAX_TRANSLATION_M:g} m a pose may be (float32 vertices lose centimetres there)")
     return root
 
 

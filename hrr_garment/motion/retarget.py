@@ -26,6 +26,7 @@ import numpy as np
 
 from ..errors import MotionError
 from .motion import Motion
+from .resample import frame_chunks
 from .rotations import axis_angle_to_matrix, normalize, rotation_between
 from .skeleton import CANONICAL, JOINT_INDEX, JOINT_NAMES, PARENTS, global_to_local
 
@@ -230,7 +231,8 @@ def clip_floor(local: np.ndarray, root: np.ndarray) -> float:
     """The height of the floor under a clip: the 10th percentile over its frames of the lowest sole
     point. That point is ~0 whenever a foot is planted, and the percentile is robust to jumps and
     hops (airborne frames are higher)."""
-    return float(np.percentile(Motion(local, root).lowest_foot_height(), 10))
+    heights = [Motion(local[a:b], root[a:b]).lowest_foot_height() for a, b in frame_chunks(len(local))]
+    return float(np.percentile(np.concatenate(heights), 10))
 
 
 def ground_align(local: np.ndarray, root: np.ndarray) -> np.ndarray:

@@ -1,6 +1,8 @@
 """Streaming: a stream and a crowd equal the offline causal animation, frame by frame, whatever joins
 and leaves; raw engine poses and source rigs; what a push refuses; bfloat16 crowds."""
 
+import warnings
+
 import numpy as np
 import pytest
 
@@ -105,6 +107,10 @@ def test_a_source_rig_streams_like_its_file(animator, tmp_path):
     (np.tile(np.eye(3) * 2, (1, 22, 1, 1)), np.zeros((1, 3)), "not a rotation"),
     (np.zeros((1, 22, 3)), np.zeros((2, 3)), r"roots have shape \(2, 3\), expected \(1, 3\)"),
     (np.zeros((1, 22, 3)), np.array([[0.0, np.inf, 0.0]]), "root of pose 0 is not finite"),
+    # float64 passes these, float32 vertices cannot hold them (issue 48, reproducer 5)
+    (np.zeros((1, 22, 3)), np.array([[1e39, 0.95, 0.0]]), "root of pose 0 is 1e[+]39 m from the origin"),
+    (np.zeros((1, 22, 3)), np.array([[1e30, 0.95, 0.0]]), "root of pose 0 is 1e[+]30 m from the origin"),
+    (np.full((1, 22, 3), 1e39), np.zeros((1, 3)), "axis-angle of pose 0, joint 0 turns"),
 ])
 def test_bad_raw_poses_are_refused_clearly(animator, rotations, roots, phrase):
     from hrr_garment.errors import MotionError
@@ -142,3 +148,24 @@ def test_a_bfloat16_crowd_stays_near_the_float32_one(animator):
         error.append(np.linalg.norm(rounded - exact, axis=-1))
     error = np.array(error)
     assert error.mean() <= 2e-4 and error.max() <= 2e-3  # metres
+
+
+def test_a_teleport_restarts_the_character_with_a_warning(animator):
+    """A pelvis 50 m away one frame later (1,500 m/s) is a respawn: the character's garment is
+    what a fresh stream gives for that pose, not cloth dragged across the jump (issue 48, 5)."""
+    from hrr_garment.errors import TeleportWarning
+
+    clip = synthesize("walk", 1.0, seed=2)
+    rot, root = clip.local_rotations, clip.root_translation
+    moved = root[10] + np.array([50.0, 0.0, 0.0])
+    stream = animator.crowd()
+    for t in range(10):
+        stream.push(rot[t][None], root[t][None], keys=["npc"])
+    with pytest.warns(TeleportWarning, match="'npc': the pelvis moved 50 m in one frame"):
+        jumped = stream.push(rot[10][None], moved[None], keys=["npc"])
+    fresh = animator.crowd().push(rot[10][None], moved[None], keys=["npc"])
+    np.testing.assert_allclose(jumped, fresh, atol=1e-5)
+    assert stream._characters["npc"].frames == 1
+    with warnings.catch_warnings():  # walking on from there is no teleport
+        warnings.simplefilter("error", TeleportWarning)
+        stream.push(rot[11][None], (root[11] + np.array([50.0, 0.0, 0.0]))[None], keys=["npc"])
