@@ -18,7 +18,14 @@ from .bvh_motion import PLAUSIBLE_HEIGHT_M, load_bvh
 from .gltf import GltfOptions, load_gltf
 from .gltf_file import GLTF_SUFFIXES
 from .joint_maps import load_joint_map
-from .limits import MAX_AXIS_ANGLE, MAX_SOURCE_FPS, MIN_SOURCE_FPS, check_frame_budget, check_root_speed, max_npz_bytes
+from .limits import (
+    MAX_AXIS_ANGLE,
+    MAX_SOURCE_FPS,
+    MIN_SOURCE_FPS,
+    check_frame_budget,
+    check_root_speed,
+    max_npz_bytes,
+)
 from .motion import FPS, MAX_TRANSLATION_M, Motion
 from .poses import ROTATION_TOLERANCE
 from .resample import frame_chunks, resample_linear, resample_rotations, resample_times
