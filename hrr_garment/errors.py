@@ -39,3 +39,7 @@ class UnsupportedHardware(HRRError, RuntimeError):
 class TeleportWarning(UserWarning):
     """A streamed character's pelvis jumped faster than a body moves (a respawn, a cut): its garment
     was started afresh there rather than dragged across the jump."""
+
+
+class SkeletonWarning(UserWarning):
+    """A source skeleton that does not look like its joint names (swapped or mislabelled joints)."""

@@ -22,7 +22,8 @@ def motion_on_body(motion: Motion, body) -> Motion:
     :class:`~.body_file.BodyRecord` or a :class:`~.fit.FittedBody`)."""
     scale = float(body.pelvis_height) / REST_PELVIS_HEIGHT
     return Motion(motion.local_rotations, motion.root_translation * scale, motion.fps, source=motion.source,
-                  source_skeleton=motion.source_skeleton, source_height_m=motion.source_height_m, skeleton=body.skeleton)
+                  source_skeleton=motion.source_skeleton, source_height_m=motion.source_height_m, skeleton=body.skeleton,
+                  check_rotations=False)
 
 
 def played_by(motion: Motion, body) -> Motion:

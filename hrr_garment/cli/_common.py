@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import argparse
+import signal
 import sys
+import threading
 from typing import Callable, Sequence
 
 from ..artifacts.manifest import DETAIL_BASES, MAX_DETAIL_STRENGTH
@@ -46,11 +48,25 @@ def run_settings_of(args: argparse.Namespace, prog: str, **fields) -> RunSetting
     try:
         return RunSettings(**({"mode": args.mode} if hasattr(args, "mode") else {}), gate=args.gate, tau=args.tau, **fields)
     except (TypeError, ValueError) as exc:
-        raise InputError(prog, str(exc)) from None
+        message = str(exc)
+        flag = next((f"--{name}" for name in ("tau", "gate", "mode") if message.startswith(name)), "the run settings")
+        raise InputError(flag, message) from None
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, raised where the command is: it unwinds as Ctrl-C does (temporary files removed,
+    worker pools shut down) instead of ending the process on the spot."""
+
+
+def _terminate(signum: int, frame: object) -> None:
+    raise Terminated
 
 
 def run_cli(body: Callable[[Sequence[str] | None], int], argv: Sequence[str] | None, prog: str) -> int:
-    """Run a command body; expected errors become one line on stderr and a non-zero exit."""
+    """Run a command body; expected errors become one line on stderr and a non-zero exit; SIGINT and
+    SIGTERM end it cleanly (exit 130 and 143)."""
+    main_thread = threading.current_thread() is threading.main_thread()
+    previous = signal.signal(signal.SIGTERM, _terminate) if main_thread else None
     try:
         return body(argv)
     except HRRError as exc:
@@ -59,6 +75,12 @@ def run_cli(body: Callable[[Sequence[str] | None], int], argv: Sequence[str] | N
     except ImportError as exc:  # optional extras name themselves in the message
         print(f"{prog}: error: {exc}", file=sys.stderr)
         return EXIT_ERROR
+    except Terminated:
+        print(f"{prog}: terminated", file=sys.stderr)
+        return 143
     except KeyboardInterrupt:
         print(f"{prog}: interrupted", file=sys.stderr)
         return 130
+    finally:
+        if main_thread:  # a caller's own handler back (tests and scripts call mains in-process)
+            signal.signal(signal.SIGTERM, previous)

@@ -23,6 +23,7 @@ from tqdm import tqdm
 from ..data.animation_file import AnimationFile
 from ..errors import InputError, OutputError
 from ..io_utils import atomic_path
+from ..workers import die_with_parent
 from .preview import VIEWS, OrthoCamera, PreviewMesh, _pil, draw_ground, draw_meshes
 
 GARMENT = (70, 110, 200)
@@ -96,8 +97,9 @@ def render_frame(anim: AnimationFile, style: PreviewStyle, t: int, track: np.nda
 _WORKER: tuple = ()
 
 
-def _worker_init(anim: AnimationFile, style: PreviewStyle, track: np.ndarray) -> None:
+def _worker_init(parent_pid: int, anim: AnimationFile, style: PreviewStyle, track: np.ndarray) -> None:
     global _WORKER
+    die_with_parent(parent_pid)
     _WORKER = (anim, style, track)
 
 
@@ -120,7 +122,7 @@ def render_frames(anim: AnimationFile, style: PreviewStyle, frames: np.ndarray |
             yield render_frame(anim, style, int(t), track)
             bar.update()
     else:
-        with multiprocessing.get_context().Pool(workers, _worker_init, (anim, style, track)) as pool:
+        with multiprocessing.get_context().Pool(workers, _worker_init, (os.getpid(), anim, style, track)) as pool:
             for size, data in pool.imap(_worker_render, frames.tolist(), chunksize=4):
                 yield Image.frombytes("RGB", size, data)
                 bar.update()

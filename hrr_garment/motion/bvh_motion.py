@@ -17,6 +17,7 @@ from .motion import FPS, Motion
 from .resample import resample_linear, resample_rotations, resample_times
 from .retarget import SourceMotion, check_source, retarget, standing_height_from_legs
 from .skeleton import forward_kinematics, rest_positions
+from .skeleton_doubts import doubts_sentence, skeleton_doubts, warn_doubts
 
 # Known length units (metres per file unit), tried in this order when detecting from height.
 UNIT_SCALES = {"m": 1.0, "cm": 0.01, "mm": 0.001, "inch": 0.0254, "cmu": 0.0254 / 0.45, "dm": 0.1, "ft": 0.3048}
@@ -50,8 +51,12 @@ def bvh_source(path: Path, unit_scale: float | None = None, joint_map: dict | No
     clip = read_bvh(path)
     scheme, mapping = resolve_joint_map(clip.names, str(path), joint_map)
     rest = rest_positions(clip.offsets, clip.parents)
+    doubts = skeleton_doubts(clip.names, clip.parents, rest, mapping)
     if unit_scale is None:
-        unit_scale = detect_unit_scale(rest, mapping, path)
+        try:
+            unit_scale = detect_unit_scale(rest, mapping, path)
+        except MotionError as exc:  # legs measured on the wrong joints: say which
+            raise MotionError(path, f"{exc.problem}; {doubts_sentence(doubts)}" if doubts else exc.problem) from None
     elif not (np.isfinite(unit_scale) and unit_scale > 0):
         raise MotionError(path, f"unit scale must be a positive number of metres per file unit, got {unit_scale}")
     src_fps = source_fps or 1.0 / clip.frame_time
@@ -64,4 +69,5 @@ def bvh_source(path: Path, unit_scale: float | None = None, joint_map: dict | No
     src = SourceMotion(clip.names, clip.parents, rest * unit_scale, global_rotations=g_rot, global_positions=g_pos,
                        fps=src_fps, path=str(path))
     check_source(src)
+    warn_doubts(str(path), doubts)
     return src, scheme, mapping, unit_scale

@@ -31,7 +31,7 @@ def retimed(motion: Motion, speed: float) -> Motion:
     return Motion(resample_rotations(motion.local_rotations.astype(np.float64), frames),
                   resample_linear(motion.root_translation, frames), motion.fps, source=motion.source,
                   source_skeleton=motion.source_skeleton, source_height_m=motion.source_height_m,
-                  skeleton=motion.skeleton)
+                  skeleton=motion.skeleton, check_rotations=False)  # slerped rotations
 
 
 def aligned(motion: Motion, heading: float, position: np.ndarray) -> Motion:

@@ -33,6 +33,7 @@ from .limits import MAX_BVH_JOINTS, check_frame_budget
 from .motion import FPS, Motion
 from .retarget import SourceMotion, check_source, retarget, standing_height_from_legs
 from .rotations import quat_slerp
+from .skeleton_doubts import skeleton_doubts, warn_doubts
 
 _PATH_WIDTHS = {"translation": 3, "rotation": 4, "scale": 3}
 _INTERPOLATIONS = ("LINEAR", "STEP", "CUBICSPLINE")
@@ -253,6 +254,7 @@ def gltf_source(path: str | Path, options: GltfOptions = GltfOptions()) -> tuple
     src = SourceMotion(names, joint_parents, rest * scale, global_rotations=g_rot, global_positions=g_pos,
                        fps=options.fps, path=str(doc.path))
     check_source(src)
+    warn_doubts(str(doc.path), skeleton_doubts(names, joint_parents, rest, mapping))
     return src, scheme, mapping, _animation_names(doc)[index]
 
 

@@ -22,12 +22,12 @@ from .limits import (
     MAX_AXIS_ANGLE,
     MAX_SOURCE_FPS,
     MIN_SOURCE_FPS,
+    ROTATION_TOLERANCE,
     check_frame_budget,
     check_root_speed,
     max_npz_bytes,
 )
 from .motion import FPS, MAX_TRANSLATION_M, Motion
-from .poses import ROTATION_TOLERANCE
 from .resample import frame_chunks, resample_linear, resample_rotations, resample_times
 from .retarget import ground_align
 from .rotations import axis_angle_to_matrix, matrix_to_axis_angle, rotation_matrix_error
@@ -152,6 +152,7 @@ def resample_motion(motion: Motion, fps: float = FPS, path: str | Path | None = 
         resample_rotations(motion.local_rotations.astype(np.float64), frames),
         resample_linear(motion.root_translation.astype(np.float64), frames),
         fps, source=motion.source, source_skeleton=motion.source_skeleton, source_height_m=motion.source_height_m,
+        check_rotations=False,  # slerped rotations
     )
 
 
@@ -194,7 +195,8 @@ def load_amass(path: Path, data: dict[str, np.ndarray], ground: bool = True, fps
     root = resample_linear(root, frames)
     if ground:
         root = ground_align(local, root)
-    return Motion(local, root, fps, source=str(path), source_skeleton=AMASS_WIDTHS[poses.shape[1]])
+    return Motion(local, root, fps, source=str(path), source_skeleton=AMASS_WIDTHS[poses.shape[1]],
+                  check_rotations=False)  # from axis-angles: rotations by construction
 
 
 def save_amass(motion: Motion, path: str | Path, width: int = 156) -> None:
@@ -264,7 +266,8 @@ def _native_from_arrays(data: dict[str, np.ndarray], path: Path) -> Motion:
     if not height > 0:
         raise MotionError(path, f"source_height_m must be a positive height in metres, got {height:g}")
     return Motion(rot, root, fps, source=_text(path, data, "source", str(path)),
-                  source_skeleton=_text(path, data, "source_skeleton", "canonical"), source_height_m=height)
+                  source_skeleton=_text(path, data, "source_skeleton", "canonical"), source_height_m=height,
+                  check_rotations=False)  # checked above, in passes
 
 
 def _text(path: Path, data: dict[str, np.ndarray], key: str, default: str) -> str:

@@ -24,6 +24,7 @@ MAX_BVH_DEPTH = 64  # joints nested inside one another (a human hierarchy is und
 MAX_BVH_JOINTS = 1024  # joints in a hierarchy (hands and face rigs stay in the hundreds)
 MAX_BVH_VALUE = 1.0e6  # |offset|, |position| in file units and |angle| in degrees
 MAX_AXIS_ANGLE = 8 * np.pi  # radians: poses stay near pi; more is a scaled or corrupt rotation
+ROTATION_TOLERANCE = 1e-3  # how far a given rotation matrix may be from one (rotations.rotation_matrix_error)
 MAX_ROOT_SPEED = 100.0  # m/s between two frames at the canonical rate: beyond it the root teleports
 MIN_SOURCE_FPS = 1.0  # a frame time over a second is a unit mistake (e.g. milliseconds)
 MAX_SOURCE_FPS = 1000.0  # above this a "frame rate" is a unit mistake, not a capture rate

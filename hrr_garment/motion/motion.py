@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import InitVar, dataclass, field
 from functools import cached_property
 
 import numpy as np
 
 from ..errors import MotionError
+from .limits import ROTATION_TOLERANCE
+from .resample import frame_chunks
+from .rotations import rotation_matrix_error
 from .skeleton import (
     CANONICAL,
     HEAD_TOP_ABOVE_HEAD_JOINT,
@@ -53,14 +56,33 @@ class Motion:
     source_skeleton: str = "canonical"
     source_height_m: float = REST_PELVIS_HEIGHT + 0.60 + HEAD_TOP_ABOVE_HEAD_JOINT
     skeleton: Skeleton = field(default=CANONICAL, repr=False)
+    # False only for rotations that are rotations by construction (a slice of a checked Motion, a
+    # conversion from quaternions or angles): the check costs a stream ~3 us a character a frame
+    check_rotations: InitVar[bool] = True
 
-    def __post_init__(self) -> None:
+    def __post_init__(self, check_rotations: bool = True) -> None:
+        name = self.source or "motion"
+        for label, values in (("local rotations", self.local_rotations), ("root translation", self.root_translation)):
+            kind = np.asarray(values).dtype.kind
+            if kind not in "iuf":  # complex, bool, text and objects would be cast with a warning at best
+                raise MotionError(name, f"{label} have dtype {np.asarray(values).dtype}; expected real numbers")
         # read-only views: a Motion changed after it was checked (and after its forward kinematics
         # were cached) would animate whatever was put in; build a new one instead
         self.local_rotations = _frozen(self.local_rotations, np.float32)
         # float64: world positions far from the origin keep millimetre-exact velocities.
         self.root_translation = _frozen(self.root_translation, np.float64)
         self.validate()
+        if check_rotations:
+            self._check_rotations(name)
+
+    def _check_rotations(self, name: str) -> None:
+        """Refuse a local rotation that is not one (a scale, a reflection, zeros), naming it."""
+        for start, stop in frame_chunks(self.num_frames):
+            error = rotation_matrix_error(self.local_rotations[start:stop].astype(np.float64))
+            if (error > ROTATION_TOLERANCE).any():
+                frame, joint = np.unravel_index(int(np.argmax(error)), error.shape)
+                raise MotionError(name, f"local rotation of frame {start + frame}, joint {self.skeleton.names[joint]} is not "
+                                        f"a rotation matrix (off by {error.max():.3g}: a scale, a reflection or zeros)")
 
     def validate(self) -> None:
         name = self.source or "motion"
@@ -133,7 +155,7 @@ class Motion:
         reuses it instead of computing it again (a stream pairs each new pose with the last)."""
         first = parts[0]
         out = cls(np.concatenate([p.local_rotations for p in parts]), np.concatenate([p.root_translation for p in parts]),
-                  first.fps, first.source, first.source_skeleton, first.source_height_m, first.skeleton)
+                  first.fps, first.source, first.source_skeleton, first.source_height_m, first.skeleton, check_rotations=False)
         if all("_fk" in p.__dict__ for p in parts):
             out.__dict__["_fk"] = tuple(np.concatenate([p._fk[i] for p in parts]) for i in range(2))
         return out
@@ -145,7 +167,7 @@ class Motion:
         forward kinematics use each frame's offsets; ``skeleton`` stays this motion's own."""
         root = self.root_translation * np.asarray(root_scale, np.float64)[:, None]
         out = Motion(self.local_rotations, root, self.fps, self.source, self.source_skeleton, self.source_height_m,
-                     self.skeleton)
+                     self.skeleton, check_rotations=False)
         out.__dict__["_fk"] = forward_kinematics(self.local_rotations.astype(np.float64), root,
                                                  np.asarray(offsets, np.float64), parents=self.skeleton.parents)
         return out
@@ -157,10 +179,11 @@ class Motion:
         flip = np.diag([-1.0, 1.0, 1.0]).astype(np.float32)
         local = flip @ self.local_rotations[:, list(MIRROR_JOINTS)] @ flip
         return Motion(local, self.root_translation * np.array([-1.0, 1.0, 1.0]), self.fps, f"{self.source} (mirrored)",
-                      self.source_skeleton, self.source_height_m, self.skeleton)
+                      self.source_skeleton, self.source_height_m, self.skeleton, check_rotations=False)
 
     def slice(self, start: int, stop: int) -> "Motion":
-        return Motion(self.local_rotations[start:stop], self.root_translation[start:stop], self.fps, self.source, self.source_skeleton, self.source_height_m, self.skeleton)
+        return Motion(self.local_rotations[start:stop], self.root_translation[start:stop], self.fps, self.source,
+                      self.source_skeleton, self.source_height_m, self.skeleton, check_rotations=False)
 
     def summary(self) -> dict:
         pos = self.joint_positions

@@ -17,13 +17,12 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import MotionError
-from .limits import MAX_AXIS_ANGLE
+from .limits import MAX_AXIS_ANGLE, ROTATION_TOLERANCE
 from .motion import FPS, MAX_TRANSLATION_M, Motion
 from .rotations import axis_angle_to_matrix, quat_to_matrix, rotation_matrix_error
 from .skeleton import CANONICAL
 
 QUATERNION_ORDERS = ("xyzw", "wxyz")
-ROTATION_TOLERANCE = 1e-3  # how far a given rotation matrix may be from one (rotation_matrix_error)
 
 
 def rotations_to_matrices(rotations: np.ndarray, joints: int, quaternion_order: str = "xyzw",
@@ -79,4 +78,5 @@ def poses_to_motion(rotations: np.ndarray, roots: np.ndarray, quaternion_order: 
                     source: str = "pose") -> Motion:
     """N canonical-skeleton poses -> an N-frame :class:`Motion` (22 joints, SMPL order)."""
     matrices = rotations_to_matrices(rotations, CANONICAL.num_joints, quaternion_order, source)
-    return Motion(matrices.astype(np.float32), check_roots(roots, len(matrices), source), fps, source=source)
+    # checked above (matrices) or rotations by construction (quaternions, axis-angles)
+    return Motion(matrices.astype(np.float32), check_roots(roots, len(matrices), source), fps, source=source, check_rotations=False)

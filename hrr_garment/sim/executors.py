@@ -22,6 +22,7 @@ from tqdm.auto import tqdm
 
 from ..data.bodies import MANNEQUIN, DressedBody
 from ..motion.motion import FPS, Motion
+from ..workers import die_with_parent
 from .config import SimConfig
 from .lead_in import lead_in_frames
 from .parts import PartResult, SequenceJob, simulate_sequence, simulate_sequences, write_part
@@ -91,8 +92,17 @@ def simulate_jobs(jobs: list[SequenceJob], config: dict, progress: Callable[[int
 # --- local process pool ------------------------------------------------------------------------
 
 
-def _local_worker(jobs: list[SequenceJob], config: dict, parts: str, progress_queue=None) -> list[PartResult]:
-    report = progress_queue.put if progress_queue is not None else None
+_PROGRESS = None  # in a local worker: the queue its simulated frames are counted on
+
+
+def _start_local_worker(parent_pid: int, progress_queue) -> None:
+    global _PROGRESS
+    die_with_parent(parent_pid)  # a SIGKILLed build leaves no worker behind
+    _PROGRESS = progress_queue
+
+
+def _local_worker(jobs: list[SequenceJob], config: dict, parts: str) -> list[PartResult]:
+    report = _PROGRESS.put if _PROGRESS is not None else None
     results = simulate_jobs(jobs, config, progress=report)
     for result in results:
         write_part(result, Path(parts))
@@ -108,10 +118,12 @@ def run_local(pending: list[SequenceSpec], bodies: dict[str, DressedBody], confi
     bar = _progress_bar(pending, config, execution.progress)
     rejects: dict[str, str] = {}
     ctx = mp.get_context("spawn")  # Warp is not fork-safe
-    with ctx.Manager() as manager, ProcessPoolExecutor(max_workers=execution.jobs or 1, mp_context=ctx) as pool:
-        progress_queue = manager.Queue()
+    progress_queue = ctx.Queue()  # handed to each worker as it starts: no manager process to outlive a kill
+    pool = ProcessPoolExecutor(max_workers=execution.jobs or 1, mp_context=ctx, initializer=_start_local_worker,
+                               initargs=(os.getpid(), progress_queue))
+    try:
         remaining = {pool.submit(_local_worker, [_job(s, bodies, execution.keys[s.name]) for s in group], config.to_dict(),
-                                 str(execution.parts), progress_queue)
+                                 str(execution.parts))
                      for group in batches(pending, config, execution.batch)}
         while remaining:
             finished, remaining = wait(remaining, timeout=0.5, return_when=FIRST_COMPLETED)
@@ -120,8 +132,23 @@ def run_local(pending: list[SequenceSpec], bodies: dict[str, DressedBody], confi
                 for result in fut.result():  # a worker crash propagates: the finished parts are kept
                     _finish(result, rejects, bar)
         _drain(progress_queue, bar)
+    except BaseException:  # Ctrl-C, SIGTERM, a crash: stop the other workers now; a re-run resumes from the parts
+        _stop_workers(pool)
+        raise
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)
     bar.close()
     return rejects
+
+
+def _stop_workers(pool: ProcessPoolExecutor) -> None:
+    """Kill a pool's workers mid-sequence (their unfinished parts are simply not written)."""
+    terminate = getattr(pool, "terminate_workers", None)  # Python 3.14
+    if terminate is not None:
+        terminate()
+        return
+    for process in list((pool._processes or {}).values()):  # noqa: SLF001 - the only handle before 3.14
+        process.kill()
 
 
 def _drain(progress_queue, bar) -> None:

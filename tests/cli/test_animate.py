@@ -70,6 +70,9 @@ def test_hrr_animate_explains_bad_models_and_outputs(trained, tmp_path, capsys, 
     cases = [
         ([str(clip), "-o", str(tmp_path / "out.h5"), "--model", str(model), "--garment", "dress"], "animates a skirt, not a dress"),
         ([str(clip), "-o", str(tmp_path / "missing" / "out.h5"), "--model", str(model)], "not a writable directory"),
+        # a threshold that is no threshold names its flag (issue 48, reproducer 13)
+        *(([str(clip), "-o", str(tmp_path / "out.h5"), "--model", str(model), f"--tau={tau}"], "--tau: tau must be a finite number >= 0")
+          for tau in ("nan", "-1", "inf")),
     ]
     for args, message in cases:
         assert animate_main(args) == 2

@@ -47,3 +47,28 @@ def test_a_motion_whose_arrays_its_caller_changed_is_checked_again_when_animated
     rotations[5, 3] = np.nan  # through the caller's own array, under the Motion's read-only view
     with pytest.raises(MotionError, match="non-finite values in 1 frame"):
         Animator.load(trained[0] / "model").animate(motion)
+
+
+@pytest.mark.parametrize("change, phrase", [
+    (lambda r: r * 1000, "joint pelvis is not a rotation matrix"),  # "matrices" scaled by 1000 (reproducer 13)
+    (lambda r: r * np.diag([-1.0, 1.0, 1.0]), "a scale, a reflection or zeros"),
+    (lambda r: np.zeros_like(r), "not a rotation matrix"),
+])
+def test_a_local_rotation_that_is_no_rotation_is_refused(walk, change, phrase):
+    rot = walk.local_rotations.copy()
+    rot[4, 0] = change(rot[4, 0])
+    with pytest.raises(MotionError, match=f"frame 4.*{phrase}" if "joint" not in phrase else f"frame 4, {phrase}"):
+        Motion(rot, walk.root_translation, fps=walk.fps)
+
+
+@pytest.mark.parametrize("which", ["rotations", "root"])
+@pytest.mark.parametrize("dtype", [np.complex128, np.bool_, np.str_])
+def test_values_that_are_not_real_numbers_are_refused(walk, which, dtype):
+    """Complex values were cast with a warning (the imaginary part dropped), text parsed as numbers."""
+    rot, root = walk.local_rotations, walk.root_translation
+    if which == "rotations":
+        rot = rot.astype(dtype)
+    else:
+        root = root.astype(dtype)
+    with pytest.raises(MotionError, match="expected real numbers"):
+        Motion(rot, root, fps=walk.fps)

@@ -1,0 +1,35 @@
+"""Worker processes that die with the process that started them.
+
+A build killed with SIGKILL runs no cleanup, so its pool workers would live on, finish their parts
+and idle, holding the caller's terminal and pipes (issue 48). Each worker calls
+:func:`die_with_parent` as it starts: on Linux the kernel sends it SIGKILL when its parent dies
+(``prctl(PR_SET_PDEATHSIG)``); elsewhere a daemon thread watches the parent's process id. The
+multiprocessing resource tracker then sees its last pipe close and exits on its own.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import os
+import signal
+import sys
+import threading
+import time
+
+PR_SET_PDEATHSIG = 1  # linux/prctl.h
+
+
+def die_with_parent(parent_pid: int) -> None:
+    """In a worker process started by ``parent_pid``: end this process when that parent ends (at
+    once when it already has)."""
+    asked = sys.platform.startswith("linux") and ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGKILL) == 0
+    if not asked:
+        threading.Thread(target=_watch_parent, args=(parent_pid,), daemon=True, name="die-with-parent").start()
+    if os.getppid() != parent_pid:  # the parent died before the signal was asked for
+        os._exit(1)
+
+
+def _watch_parent(parent_pid: int) -> None:
+    while os.getppid() == parent_pid:
+        time.sleep(1.0)
+    os._exit(1)

@@ -1,0 +1,77 @@
+"""A build killed with SIGKILL or SIGTERM leaves no process behind and resumes (issue 48, reproducer
+12): its pool workers die with it (:mod:`hrr_garment.workers`), and a re-run finishes the parts."""
+
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+
+import pytest
+
+from hrr_garment.data.dataset import GarmentDataset
+
+
+def session_processes(sid: int) -> list[str]:
+    """The processes of session ``sid`` still alive (zombies are dead: their parent reaps them)."""
+    out = subprocess.run(["ps", "-s", str(sid), "-o", "pid=,stat=,args="], capture_output=True, text=True).stdout
+    return [line for line in out.splitlines() if line.split()[1:2] != ["Z"]]
+
+
+def wait_for(condition, seconds: float) -> bool:
+    deadline = time.monotonic() + seconds
+    while time.monotonic() < deadline:
+        if condition():
+            return True
+        time.sleep(0.2)
+    return condition()
+
+
+def test_workers_of_a_killed_pool_die_with_it(tmp_path):
+    """The mechanism on its own: a process pool whose workers called die_with_parent, its parent
+    SIGKILLed mid-task, leaves nothing within 5 s (without it the workers sleep on)."""
+    script = tmp_path / "parent.py"
+    script.write_text(textwrap.dedent("""
+        import multiprocessing as mp, os, time
+        from concurrent.futures import ProcessPoolExecutor
+        from hrr_garment.workers import die_with_parent
+        if __name__ == "__main__":
+            ctx = mp.get_context("spawn")
+            with ProcessPoolExecutor(2, mp_context=ctx, initializer=die_with_parent, initargs=(os.getpid(),)) as pool:
+                futures = [pool.submit(time.sleep, 600) for _ in range(2)]
+                print("started", flush=True)
+                time.sleep(600)
+    """))
+    parent = subprocess.Popen([sys.executable, str(script)], stdout=subprocess.PIPE, text=True, start_new_session=True)
+    try:
+        assert parent.stdout.readline().strip() == "started"
+        assert wait_for(lambda: len(session_processes(parent.pid)) >= 3, 30)  # the parent and its two workers
+        parent.send_signal(signal.SIGKILL)
+        parent.wait()
+        assert wait_for(lambda: not session_processes(parent.pid), 5), session_processes(parent.pid)
+    finally:
+        subprocess.run(["pkill", "-9", "-s", str(parent.pid)])
+
+
+@pytest.mark.sim
+@pytest.mark.parametrize("sig", [signal.SIGKILL, signal.SIGTERM])
+def test_a_killed_build_leaves_no_process_and_resumes(tmp_path, sig):
+    """SIGKILL: the workers die with the build. SIGTERM: the build stops its workers and exits 143
+    at once (not when their sequences finish). Either way a re-run resumes."""
+    out = tmp_path / "skirt.h5"
+    cmd = [sys.executable, "-m", "hrr_garment.cli.simulate", "--garment", "skirt", "--preset", "tiny", "--jobs", "2",
+           "--motions", "walk", "spin", "--seconds", "2", "--no-preview", "-o", str(out)]
+    build = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+    try:
+        # the build, the resource tracker and two workers with a sequence each
+        assert wait_for(lambda: len(session_processes(build.pid)) >= 4, 60), session_processes(build.pid)
+        time.sleep(2.0)
+        build.send_signal(sig)
+        assert build.wait(timeout=10) == (-9 if sig == signal.SIGKILL else 143)
+        assert wait_for(lambda: not session_processes(build.pid), 5), session_processes(build.pid)
+    finally:
+        subprocess.run(["pkill", "-9", "-s", str(build.pid)])
+    assert not out.exists()
+    rerun = subprocess.run(cmd, capture_output=True, text=True)
+    assert rerun.returncode == 0, rerun.stderr[-2000:]
+    assert len(GarmentDataset(out)) == 2
