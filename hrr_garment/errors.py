@@ -16,8 +16,9 @@ class FileProblem(HRRError):
         super().__init__(f"{self.path}: {problem}")
 
 
-class InputError(FileProblem):
-    """Bad user input: names the offending file and says what is wrong with it."""
+class InputError(FileProblem, ValueError):
+    """Bad user input: names the offending file (or argument) and says what is wrong with it. A
+    ValueError too, so that an API caller's ``except ValueError`` sees every refused value."""
 
 
 class OutputError(FileProblem):

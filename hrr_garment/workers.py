@@ -21,7 +21,11 @@ PR_SET_PDEATHSIG = 1  # linux/prctl.h
 
 def die_with_parent(parent_pid: int) -> None:
     """In a worker process started by ``parent_pid``: end this process when that parent ends (at
-    once when it already has)."""
+    once when it already has). Ctrl-C is the parent's to handle (a terminal sends it to the whole
+    process group; the parent stops its workers) and SIGTERM ends a worker quietly, whatever
+    handler a forked worker inherited."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
     asked = sys.platform.startswith("linux") and ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGKILL) == 0
     if not asked:
         threading.Thread(target=_watch_parent, args=(parent_pid,), daemon=True, name="die-with-parent").start()

@@ -36,7 +36,7 @@ from ..body.body_file import BodyRecord, body_from_dict
 from ..body.capsules import DEFAULT_BODY, BodyModel
 from ..body.measures import BodyRange, body_vector
 from ..data.bodies import mannequin_record
-from ..errors import InputError
+from ..errors import HRRError, InputError
 from ..garment.mesh import GarmentError, GarmentMesh, check_garment
 from ..models.codespace import CodeSpace, CodeSpaceConfig
 from ..models.direct import DirectConfig, DirectRegressor
@@ -233,6 +233,16 @@ def _arrays(folder: Path, name: str, keys: tuple[str, ...]) -> dict[str, np.ndar
 def load_bundle(folder: str | Path, cache_dir: Path | None = None) -> Bundle:
     """Load and check a bundle written by :func:`write_bundle`."""
     folder = Path(folder)
+    try:
+        return _load_bundle(folder, cache_dir)
+    except HRRError:
+        raise
+    except (KeyError, TypeError, ValueError, AttributeError, IndexError) as exc:
+        # the last line of defence: an entry of bundle.json of a type or shape no check above foresaw
+        raise BundleError(folder, f"bundle.json has a bad entry ({type(exc).__name__}: {exc})") from None
+
+
+def _load_bundle(folder: Path, cache_dir: Path | None) -> Bundle:
     meta = read_meta(folder)
     try:
         ae_cfg = AutoencoderConfig.from_dict(meta["autoencoder"]["config"])
@@ -253,7 +263,7 @@ def load_bundle(folder: str | Path, cache_dir: Path | None = None) -> Bundle:
     except GarmentError as exc:
         raise BundleError(folder, f"template.safetensors: {exc.problem}") from None
     hierarchy = cached_hierarchy(template.faces, template.num_vertices, cache_dir, **ae_cfg.hierarchy_options(), name=str(folder))
-    if list(hierarchy.sizes) != list(meta["autoencoder"].get("sizes", [])):
+    if list(hierarchy.sizes) != meta["autoencoder"].get("sizes"):
         raise BundleError(folder, f"the template's sampling hierarchy has levels {list(hierarchy.sizes)}, the model "
                                   f"{meta['autoencoder'].get('sizes')}")
     autoencoder = MeshAutoencoder(hierarchy, ae_cfg, template.vertices, scale=float(scale))

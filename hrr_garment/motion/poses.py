@@ -25,10 +25,18 @@ from .skeleton import CANONICAL
 QUATERNION_ORDERS = ("xyzw", "wxyz")
 
 
+def _real_array(values, name: str, source: str) -> np.ndarray:
+    """``values`` as float64, refused by ``name`` when they are not real numbers (text, complex, objects)."""
+    array = np.asarray(values)
+    if array.dtype.kind not in "iuf":
+        raise MotionError(source, f"{name} must be real numbers, got an array of {array.dtype}")
+    return array.astype(np.float64, copy=False)
+
+
 def rotations_to_matrices(rotations: np.ndarray, joints: int, quaternion_order: str = "xyzw",
                           source: str = "pose") -> np.ndarray:
     """(N, J, 4 | 3 | 3 x 3) local rotations -> (N, J, 3, 3) float64 matrices, checked."""
-    r = np.asarray(rotations, np.float64)
+    r = _real_array(rotations, "rotations", source)
     if r.ndim not in (3, 4) or r.shape[1] != joints or r.shape[2:] not in ((4,), (3,), (3, 3)):
         raise MotionError(source, f"rotations have shape {r.shape}: expected (N, {joints}, 4) quaternions, "
                                   f"(N, {joints}, 3) axis-angle or (N, {joints}, 3, 3) matrices")
@@ -61,7 +69,7 @@ def rotations_to_matrices(rotations: np.ndarray, joints: int, quaternion_order: 
 
 def check_roots(roots: np.ndarray, poses: int, source: str = "pose") -> np.ndarray:
     """(N, 3) root positions, checked -> float64."""
-    root = np.asarray(roots, np.float64)
+    root = _real_array(roots, "roots", source)
     if root.shape != (poses, 3):
         raise MotionError(source, f"roots have shape {root.shape}, expected ({poses}, 3): one pelvis position per pose")
     if not np.isfinite(root).all():
