@@ -17,7 +17,7 @@ $(BIN)/python:
 
 $(STAMP): pyproject.toml | $(BIN)/python
 	$(BIN)/pip install $(PIP_FLAGS) "$(TORCH_SPEC)"
-	$(BIN)/pip install $(PIP_FLAGS) -e ".[dev,preview,video,export,eval,sim,cluster,bodies]"
+	$(BIN)/pip install $(PIP_FLAGS) -e ".[dev,preview,video,export,eval,sim,cluster,bodies,sign]"
 	@if command -v npm >/dev/null 2>&1; then \
 		mkdir -p $(VENV)/node && cd $(VENV)/node && npm install --silent --no-audit --no-fund $(GLTF_VALIDATOR); \
 	else echo "npm not found: the GLB validator test will be skipped"; fi

@@ -52,8 +52,9 @@ def refuse_input_as_output(output: str | Path, inputs: Iterable[str | Path | Non
 
 
 @contextlib.contextmanager
-def atomic_path(path: str | Path) -> Iterator[Path]:
-    """Yield a temporary path in the target's folder; rename it onto ``path`` on success.
+def atomic_path(path: str | Path, private: bool = False) -> Iterator[Path]:
+    """Yield a temporary path in the target's folder; rename it onto ``path`` on success
+    (``private``: readable by its owner only, as a key must be).
 
     A target that exists and is not a regular file (a folder, a device such as /dev/full) is refused
     before anything is written, and storage failures (disk full, read-only or missing folder, special
@@ -71,10 +72,10 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
     tmp_path = Path(tmp)
     try:
         yield tmp_path
-        # mkstemp makes the file private (0600); give it the permissions a plain open() would.
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp_path, 0o666 & ~umask)
+        if not private:  # mkstemp makes the file private (0600); give it the permissions a plain open() would
+            umask = os.umask(0)
+            os.umask(umask)
+            os.chmod(tmp_path, 0o666 & ~umask)
         os.replace(tmp_path, path)
     except OSError as exc:
         if exc.errno is not None and exc.errno not in _STORAGE_ERRNOS:

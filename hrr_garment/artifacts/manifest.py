@@ -168,16 +168,20 @@ def _from_version_2(meta: dict) -> dict:
     return meta
 
 
-def read_meta(folder: str | Path) -> dict:
-    """``bundle.json`` after the version, manifest and file-hash checks."""
+def read_meta(folder: str | Path, trust: bool = True) -> dict:
+    """``bundle.json`` after the version, manifest and file-hash checks and (``trust``) the
+    signature policy (:mod:`.signature`; hrr-sign itself checks signatures its own way)."""
     folder = Path(folder)
     path = folder / "bundle.json"
     if not folder.is_dir():
         raise BundleError(folder, "no such model directory (train one with hrr-train)")
     if not path.is_file():
         raise BundleError(folder, "no bundle.json: not a model bundle, or its training did not finish")
+    from .signature import check_signature  # signature.py raises this module's BundleError
+
     try:
-        meta = json.loads(path.read_text(encoding="utf-8"))
+        raw = path.read_bytes()
+        meta = json.loads(raw.decode("utf-8"))
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise BundleError(folder, f"bundle.json is unreadable ({exc})") from None
     meta = check_manifest(folder, migrate_manifest(folder, meta))
@@ -186,4 +190,6 @@ def read_meta(folder: str | Path) -> dict:
             raise BundleError(folder, f"{name} is missing")
         if sha256(folder / name) != digest:
             raise BundleError(folder, f"{name} does not match its recorded hash (corrupt or truncated file)")
+    if trust:
+        check_signature(folder, raw)  # the bytes just checked: a signature over what was read
     return meta
