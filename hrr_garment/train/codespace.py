@@ -50,7 +50,7 @@ from .report import StageReport
 from .schedule import cap_since_raised
 from .vertex_metric import VertexMetric, sample_frames
 
-CONTACT_SETTINGS = ("contact_steps", "contact_weight")  # the contact phase's: not the main training's key
+CONTACT_SETTINGS = ("contact_steps", "contact_weight", "contact_margin_m")  # the contact phase's: not the main training's key
 NOT_TRAINING = (*CONTACT_SETTINGS, "target_mm")  # settings that leave the main training as it is
 STAGE_FOLDER = "codebook"  # under MODEL/: the name from before "code space" was the stage's name
 

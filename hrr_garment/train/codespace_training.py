@@ -74,9 +74,12 @@ class CodeSpaceTrainConfig:
     latent_loss: str = "standardised"
     vertex_ridge: float = 0.05
     # the contact phase after training (.contact): Adam steps on the decoder with the body's capsules
-    # in the loss (0: none), and the weight of the mean depth inside them (mm) beside the latent loss
+    # in the loss (0: none), the weight of the mean depth inside them (mm) beside the latent loss, and
+    # how far outside the capsules that depth is counted from (metres: a clearance the decoded cloth
+    # learns to keep, so that a test-time error of a few millimetres does not reach inside)
     contact_steps: int = 0
     contact_weight: float = 2.0
+    contact_margin_m: float = 0.002
     seed: int = 0
 
     def __post_init__(self) -> None:
@@ -89,6 +92,8 @@ class CodeSpaceTrainConfig:
         if self.contact_steps < 0 or self.contact_weight < 0:
             raise SettingsError(f"code space training: contact_steps and contact_weight must be at least 0, got "
                                 f"{self.contact_steps} and {self.contact_weight}")
+        if not 0.0 <= self.contact_margin_m <= 0.05:
+            raise SettingsError(f"code space training: contact_margin_m must be in [0, 0.05] metres, got {self.contact_margin_m}")
         if not 0.0 <= self.vertex_ridge <= 1.0:
             raise SettingsError(f"code space training: vertex_ridge must be in [0, 1], got {self.vertex_ridge}")
 

@@ -10,7 +10,8 @@ the body.
 After the main training, ``contact_steps`` Adam steps on the decoder alone (the encoders, and so
 the codes and the retrieval database, stay as trained), each on a batch of training windows: the
 regression path's latent loss as in training, plus ``contact_weight`` times the mean depth (in mm)
-by which decoded vertices fall inside the body's capsules grown by a 2 mm margin. One random frame
+by which decoded vertices fall inside the body's capsules grown by ``contact_margin_m`` (2 mm by
+default: a clearance, so that a small error at run time stays outside). One random frame
 of each window is decoded through the frozen mesh decoder: the depth needs vertices, and decoding
 whole windows would cost some twenty times more for a gradient that neighbouring frames share.
 
@@ -41,7 +42,6 @@ from ..motion.frame import to_body_frame
 from ..sim.quality import PENETRATION_DEPTH_M
 from .codespace_training import CodeSpaceTrainConfig, WindowTensors
 
-MARGIN_M = 0.002  # the depth is counted from this far outside the capsules: where the push-out lands a vertex
 LEARNING_RATE = 1e-4  # a tenth of training's initial rate: the phase adjusts a trained decoder
 BATCH = 64  # windows (and so decoded frames) a step
 REPORT_WINDOWS = 512  # validation windows whose middle frame the report decodes before and after
@@ -168,7 +168,7 @@ def teach_contact(model: CodeSpace, decoder: FrameDecoder, train: ContactWindows
         pred = _regression(model, motion)
         frame = torch.randint(0, windows.window, (len(idx),), generator=gen)
         distance = decoder.distance(pred[torch.arange(len(idx)), frame], train.contacts, windows.first[idx] + frame)
-        depth_mm = 1000.0 * torch.relu(MARGIN_M - distance).mean()
+        depth_mm = 1000.0 * torch.relu(config.contact_margin_m - distance).mean()
         loss = latent_loss(pred - latents) + config.contact_weight * depth_mm
         optimizer.zero_grad(set_to_none=True)
         loss.backward()
@@ -176,7 +176,7 @@ def teach_contact(model: CodeSpace, decoder: FrameDecoder, train: ContactWindows
         depth_sum += float(depth_mm.detach())
     decoder.autoencoder.requires_grad_(True)
     after = inside_fraction(model, decoder, val) if val is not None else float("nan")
-    summary = {"steps": config.contact_steps, "weight": config.contact_weight,
+    summary = {"steps": config.contact_steps, "weight": config.contact_weight, "margin_m": config.contact_margin_m,
                "mean_depth_mm": depth_sum / max(config.contact_steps, 1), "val_inside_before": before,
                "val_inside_after": after, "minutes": (time.perf_counter() - started) / 60}
     with atomic_path(path) as tmp:
