@@ -238,7 +238,8 @@ class Animator:
         if proposals is not None:  # the detail mode: simulated folds on the regression's shape (or the residual's)
             store = self.bundle.folds
             rows, weights = track_folds(proposals, store.offsets)
-            local = add_folds(local, store.folds(rows, weights), self.smoothing, passes=store.passes, strength=run.detail.strength)
+            local = add_folds(local, store.folds(rows, weights), self.smoothing, passes=store.passes, strength=run.detail.strength,
+                              limits=self.edge_limits)
         vertices = world_vertices(local + character.offset, motion)  # stood on the body's own rest shape
         report = None
         if run.collision:

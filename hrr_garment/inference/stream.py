@@ -238,7 +238,8 @@ class CrowdStream:
             local = self.animator.decoder(torch.from_numpy(latents)).numpy()
         if choice.lends_folds:  # the detail mode: each character's playhead one frame on, its folds added
             local = add_folds(local, self._folds(chars, choice.match), self.animator.smoothing,
-                              passes=self.animator.bundle.folds.passes, strength=self.run.detail.strength)
+                              passes=self.animator.bundle.folds.passes, strength=self.run.detail.strength,
+                              limits=self.animator.edge_limits)
         t.append(time.perf_counter())
         vertices = world_vertices(local + bodies.offset, poses)  # as offline: the same push-out inputs
         t.append(time.perf_counter())

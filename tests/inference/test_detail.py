@@ -80,6 +80,28 @@ def test_folds_replace_the_regressions_own_and_commute_with_a_rigid_motion(skirt
     assert np.allclose(moved, add_folds(regression, folds, mean, 1).astype(np.float64) @ rot.T + shift, atol=1e-5)
 
 
+def test_folds_that_would_overstretch_an_edge_are_taken_back_and_others_kept(skirt, rng):
+    """Folds from another simulation may tear this shape; the limit takes back only what passes
+    FOLD_MAX_STRAIN x the rest length (where the regression's edge is shorter)."""
+    from hrr_garment.inference.collision import EdgeLimits
+    from hrr_garment.inference.detail import FOLD_MAX_STRAIN
+
+    garment, mean = skirt
+    limits = EdgeLimits.of(garment.faces, garment.vertices)
+    regression = np.repeat(garment.vertices[None].astype(np.float64), 2, 0)
+    gentle = high_frequencies(regression + rng.normal(0, 0.001, regression.shape), mean, 1)
+    violent = gentle.copy()
+    violent[1, 7] += [0.0, 0.3, 0.0]  # one vertex of frame 1 thrown 30 cm: its edges many times their length
+    before = limits.lengths(add_folds(regression, violent, mean, 1)) / limits.rest_length
+    assert before[1].max() > 3 and before[0].max() < FOLD_MAX_STRAIN
+    kept = add_folds(regression, gentle, mean, 1, limits=limits)
+    np.testing.assert_array_equal(kept, add_folds(regression, gentle, mean, 1))  # nothing to take back: untouched
+    limited = add_folds(regression, violent, mean, 1, limits=limits)
+    strain = limits.lengths(limited.astype(np.float64)) / limits.rest_length
+    assert strain.max() <= FOLD_MAX_STRAIN * 1.01
+    np.testing.assert_array_equal(limited[0], add_folds(regression, violent, mean, 1)[0])  # a frame within it stays
+
+
 OFFSETS = np.array([0, 100, 130, 400])  # three database sequences of 100, 30 and 270 frames
 
 
@@ -150,7 +172,7 @@ def test_the_detail_mode_is_its_base_plus_the_tracked_simulated_folds(trained, b
     rows, weights = track_folds(offline_proposals(source, motion.num_frames, animator.window), store.offsets)
     local = to_body_frame(shape.astype(np.float64), motion)
     expected = from_body_frame(add_folds(local, store.folds(rows, weights), animator.smoothing, store.passes,
-                                         strength or DETAIL_STRENGTH), motion)
+                                         strength or DETAIL_STRENGTH, limits=animator.edge_limits), motion)
     assert np.abs(detail.vertices - expected).max() < 1e-4
     assert not np.allclose(detail.vertices, shape, atol=1e-3)
     assert (base == "regression") == np.allclose(shape, regression, atol=1e-5)
