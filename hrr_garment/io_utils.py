@@ -44,11 +44,14 @@ def refuse_input_as_output(output: str | Path, inputs: Iterable[str | Path | Non
     """Refuse an output that is one of the command's inputs (the same file by any path, a link
     included): writing it would replace what is being read."""
     out = Path(output)
-    if not out.exists():
-        return
-    for source in inputs:
-        if source is not None and Path(source).exists() and os.path.samefile(out, source):
-            raise OutputError(out, f"is the input {source}: writing it would destroy the input; give another output path")
+    try:
+        if not out.exists():
+            return
+        for source in inputs:
+            if source is not None and Path(source).exists() and os.path.samefile(out, source):
+                raise OutputError(out, f"is the input {source}: writing it would destroy the input; give another output path")
+    except OSError as exc:  # a name the system cannot hold (ENAMETOOLONG) and the like: the writer will say so
+        raise storage_error(out, exc) from None
 
 
 @contextlib.contextmanager

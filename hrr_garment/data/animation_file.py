@@ -100,7 +100,11 @@ class AnimationFile:
         text = self.attrs.get("body_record")
         if not text or self.rotations is None:
             return None
-        mesh = visible_body(body_from_dict(json.loads(text), self.path))
+        try:
+            record = json.loads(text)
+        except (TypeError, ValueError) as exc:
+            raise InputError(self.path, f"the body record attribute is not JSON ({exc})") from None
+        mesh = visible_body(body_from_dict(record, self.path))
         if mesh is None:
             return None
         played = Motion(quat_to_matrix(self.rotations[..., [3, 0, 1, 2]].astype(np.float64)), self.root_translation,

@@ -47,5 +47,5 @@ def add_folds(regression: np.ndarray, folds: np.ndarray, mean: csr_matrix, passe
     detail = (regression + strength * (folds - own)).astype(np.float32)
     if limits is None:
         return detail
-    return limit_push_strain(detail, regression, limits, FOLD_MAX_STRAIN, iterations=FOLD_LIMIT_ITERATIONS,
+    return limit_push_strain(detail, regression, limits, max_strain=FOLD_MAX_STRAIN, iterations=FOLD_LIMIT_ITERATIONS,
                              in_place=True)[0].astype(np.float32, copy=False)

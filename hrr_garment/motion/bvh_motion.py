@@ -51,7 +51,7 @@ def bvh_source(path: Path, unit_scale: float | None = None, joint_map: dict | No
     clip = read_bvh(path)
     scheme, mapping = resolve_joint_map(clip.names, str(path), joint_map)
     rest = rest_positions(clip.offsets, clip.parents)
-    doubts = skeleton_doubts(clip.names, clip.parents, rest, mapping)
+    doubts = skeleton_doubts(clip.names, clip.parents, rest=rest, mapping=mapping)
     if unit_scale is None:
         try:
             unit_scale = detect_unit_scale(rest, mapping, path)

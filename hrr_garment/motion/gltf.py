@@ -254,7 +254,7 @@ def gltf_source(path: str | Path, options: GltfOptions = GltfOptions()) -> tuple
     src = SourceMotion(names, joint_parents, rest * scale, global_rotations=g_rot, global_positions=g_pos,
                        fps=options.fps, path=str(doc.path))
     check_source(src)
-    warn_doubts(str(doc.path), skeleton_doubts(names, joint_parents, rest, mapping))
+    warn_doubts(str(doc.path), skeleton_doubts(names, joint_parents, rest=rest, mapping=mapping))
     return src, scheme, mapping, _animation_names(doc)[index]
 
 
