@@ -9,6 +9,7 @@ multiprocessing resource tracker then sees its last pipe close and exits on its 
 
 from __future__ import annotations
 
+import contextlib
 import ctypes
 import os
 import signal
@@ -37,3 +38,47 @@ def _watch_parent(parent_pid: int) -> None:
     while os.getppid() == parent_pid:
         time.sleep(1.0)
     os._exit(1)
+
+
+class DeferredSignals(contextlib.AbstractContextManager):
+    """SIGINT and SIGTERM held while a pool's internals run, delivered at :meth:`check` (a point
+    between results, where nothing is half done) or on leaving, through the handlers they would
+    have met. A handler that raises at an arbitrary point inside multiprocessing can leave its
+    locks held and its clean-up waiting forever (a SIGTERM hung an MP4 preview's render pool).
+    Outside the main thread it does nothing: signals are the main thread's."""
+
+    SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+    def __init__(self) -> None:
+        self.pending: int | None = None
+        self._previous: dict = {}
+
+    def __enter__(self) -> "DeferredSignals":
+        if threading.current_thread() is threading.main_thread():
+            self._previous = {s: signal.signal(s, self._hold) for s in self.SIGNALS}
+        return self
+
+    def _hold(self, signum: int, frame: object) -> None:
+        self.pending = signum
+
+    def _restore(self) -> None:
+        for s, handler in self._previous.items():
+            signal.signal(s, handler)
+        self._previous = {}
+
+    def check(self) -> None:
+        """Deliver a held signal now (its handler raises, typically)."""
+        if self.pending is None:
+            return
+        signum, handlers = self.pending, dict(self._previous)
+        self.pending = None
+        self._restore()
+        handler = handlers.get(signum)
+        if callable(handler):
+            handler(signum, None)
+        elif handler != signal.SIG_IGN:  # the default action: end the process as the signal would
+            os.kill(os.getpid(), signum)
+
+    def __exit__(self, *exc: object) -> None:
+        self.check()  # a signal held to the end is not lost (its exception replaces one in flight)
+        self._restore()

@@ -23,7 +23,7 @@ from tqdm import tqdm
 from ..data.animation_file import AnimationFile
 from ..errors import InputError, OutputError
 from ..io_utils import atomic_path
-from ..workers import die_with_parent
+from ..workers import DeferredSignals, die_with_parent
 from .preview import VIEWS, OrthoCamera, PreviewMesh, _pil, draw_ground, draw_meshes
 
 GARMENT = (70, 110, 200)
@@ -122,8 +122,11 @@ def render_frames(anim: AnimationFile, style: PreviewStyle, frames: np.ndarray |
             yield render_frame(anim, style, int(t), track)
             bar.update()
     else:
-        with multiprocessing.get_context().Pool(workers, _worker_init, (os.getpid(), anim, style, track)) as pool:
+        # Ctrl-C and SIGTERM wait for the next frame: raised inside the pool's internals they can hang its clean-up
+        with DeferredSignals() as signals, \
+                multiprocessing.get_context().Pool(workers, _worker_init, (os.getpid(), anim, style, track)) as pool:
             for size, data in pool.imap(_worker_render, frames.tolist(), chunksize=4):
+                signals.check()
                 yield Image.frombytes("RGB", size, data)
                 bar.update()
     bar.close()
