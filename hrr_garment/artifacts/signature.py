@@ -84,8 +84,9 @@ def _read_key(path: Path, size: int = 32) -> bytes:
     return raw
 
 
-def sign_bundle(folder: Path, private_path: Path) -> Path:
-    """Sign ``folder``'s bundle.json with the private key at ``private_path``; returns bundle.sig."""
+def sign_bundle(folder: Path, private_path: Path) -> str:
+    """Sign ``folder``'s bundle.json with the private key at ``private_path`` (bundle.sig beside
+    it); returns the signing key's :func:`key_id`."""
     ed25519 = _ed25519()
     from cryptography.hazmat.primitives import serialization
 
@@ -97,7 +98,7 @@ def sign_bundle(folder: Path, private_path: Path) -> Path:
               "bundle_sha256": digest, "signature": _b64(key.sign(digest.encode("ascii")))}
     with atomic_path(folder / SIGNATURE_FILE) as tmp:
         Path(tmp).write_text(json.dumps(record, indent=1) + "\n")
-    return folder / SIGNATURE_FILE
+    return key_id(public)
 
 
 @dataclass(frozen=True)

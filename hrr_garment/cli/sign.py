@@ -51,8 +51,8 @@ def _main(argv: Sequence[str] | None) -> int:
     read_meta(args.model, trust=False)  # a bundle whose files match their hashes before anything else
     if args.command == "sign":
         refuse_input_as_output(args.model / SIGNATURE_FILE, [args.key])
-        path = sign_bundle(args.model, args.key)
-        print(f"wrote {path} (key {verify_signature(args.model, (args.model / 'bundle.json').read_bytes()).key})")
+        key = sign_bundle(args.model, args.key)
+        print(f"wrote {args.model / SIGNATURE_FILE} (key {key})")
         return 0
     check = verify_signature(args.model, (args.model / "bundle.json").read_bytes())
     if not check.signed:
