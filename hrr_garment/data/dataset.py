@@ -173,6 +173,7 @@ def write_dataset(path: str | Path, template: GarmentMesh, sequences: list[Seque
 
 
 SEQUENCE_ARRAYS = ("garment", "local_rotations", "root_translation")  # what every sequence must hold
+MAX_GARMENT_REACH_M = 3.0  # a simulated dress stays within 0.8 m of the pelvis; 3 m is another unit or frame
 
 
 class GarmentDataset:
@@ -281,6 +282,12 @@ class GarmentDataset:
             if bad.any():
                 raise DatasetError(self.path, f"sequence {name!r}: non-finite {what} on {int(bad.sum())} frame(s), "
                                               f"first at frame {int(np.argmax(bad))}")
+        reach = np.linalg.norm(garment - motion.root_translation[:, None].astype(garment.dtype), axis=-1).max(1)
+        if (reach > MAX_GARMENT_REACH_M).any():
+            frame = int(np.argmax(reach > MAX_GARMENT_REACH_M))
+            raise DatasetError(self.path, f"sequence {name!r}: a garment vertex {reach[frame]:.3g} m from the pelvis at frame "
+                                          f"{frame}, beyond {MAX_GARMENT_REACH_M:g} m: the garment is in another unit or place "
+                                          "than the body")
         return SequenceRecord(name, garment, motion, info, body=self.body_of[name], dressed=self.bodies[self.body_of[name]])
 
 

@@ -91,7 +91,8 @@ def test_split_by_kind_holds_out_only_kinds_that_also_train(seed):
 def test_dataset_file_round_trip(tmp_path):
     garment = make_garment("skirt", 200)
     clip = synthesize("walk", 1.0, seed=0)
-    verts = np.random.default_rng(0).normal(size=(clip.num_frames, garment.num_vertices, 3)).astype(np.float32)
+    noise = np.random.default_rng(0).normal(scale=0.2, size=(clip.num_frames, garment.num_vertices, 3))
+    verts = (clip.root_translation[:, None] + noise).astype(np.float32)  # around the pelvis, as a garment is
     path = write_dataset(tmp_path / "d.h5", garment, [SequenceRecord("walk_000", verts, clip, {"kind": "walk"})],
                          {"train": ["walk_000"]})
     ds = GarmentDataset(path)
@@ -320,3 +321,15 @@ def test_random_bytes_inside_a_chunk_are_a_clear_error(tmp_path):
     path.write_bytes(bytes(data))
     with pytest.raises(DatasetError, match="sequence 'a' cannot be read"):
         GarmentDataset(path).sequence("a")
+
+
+def test_a_garment_far_from_its_body_is_refused(tmp_path):
+    """A garment in another unit (scaled x1e6, fuzz #917) trained an autoencoder the bundle check
+    then refused, and left the model folder: the dataset refuses it when read."""
+    garment = make_garment("skirt", 200)
+    clip = synthesize("walk", 1.0, seed=0)
+    verts = np.repeat(garment.vertices[None], clip.num_frames, 0) + clip.root_translation[:, None] - [0, 0.95, 0]
+    path = write_dataset(tmp_path / "d.h5", garment, [SequenceRecord("walk_000", (verts * 1e6).astype(np.float32), clip,
+                                                                     {"kind": "walk"})], {"train": ["walk_000"]})
+    with pytest.raises(DatasetError, match="from the pelvis at frame 0, beyond 3 m"):
+        GarmentDataset(path).sequence("walk_000")
