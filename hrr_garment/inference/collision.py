@@ -23,6 +23,7 @@ from ..body.capsules import DEFAULT_BODY, BodyModel, frames_signed_distance
 from ..garment.mesh import unique_edges
 from ..garment.smoothing import mean_operator
 from ..motion.motion import Motion
+from ..native.body import EdgeArrays
 from ..sim.quality import PENETRATION_DEPTH_M
 
 # edges a push may stretch to (times their rest length): the simulator's own data reach 2.1-2.5 at
@@ -63,12 +64,9 @@ class EdgeLimits:
         return cls(edges, np.linalg.norm(rest[edges[:, 1]] - rest[edges[:, 0]], axis=-1), signs, degree)
 
     @cached_property
-    def native_arrays(self) -> tuple[np.ndarray, ...]:
-        """(edges int32, rest lengths, degrees, the incidence's indptr and indices int32): what the
-        kernel takes, converted once (a stream limits every frame)."""
-        return tuple(np.ascontiguousarray(x, dtype) for x, dtype in (
-            (self.edges, np.int32), (self.rest_length, np.float64), (self.degree, np.float64),
-            (self.signs.indptr, np.int32), (self.signs.indices, np.int32)))
+    def native_arrays(self) -> EdgeArrays:
+        """What the kernel takes, converted once (a stream limits every frame)."""
+        return EdgeArrays(self.edges, self.rest_length, self.degree, self.signs.indptr, self.signs.indices)
 
     def lengths(self, p: np.ndarray) -> np.ndarray:
         """(T, E) edge lengths of (T, V, 3) positions."""
@@ -171,9 +169,8 @@ def limit_push_strain(pushed: np.ndarray, unpushed: np.ndarray, limits: EdgeLimi
         p, torn = limit_strain(lib, pushed, unpushed, limit=limit, threads=default_threads(), in_place=in_place)
         if p is pushed or not torn.any():
             return pushed, torn
-        out = pushed.copy()
-        out[torn] = p[torn].astype(pushed.dtype)
-        return out, torn
+        # the frames it left are ``pushed``'s widened to float64: narrowing them back is exact
+        return p.astype(pushed.dtype, copy=False), torn
     limit = np.maximum(max_strain * limits.rest_length, limits.lengths(unpushed.astype(np.float64)))  # (T, E)
     torn = (limits.lengths(pushed.astype(np.float64)) > limit * (1 + 1e-6)).any(1)
     if not torn.any():

@@ -25,13 +25,28 @@ class PushSteps(NamedTuple):
     depth: float
 
 
-class StrainLimit(NamedTuple):
-    """The strain limit as :func:`limit_strain` takes it: ``edge_arrays``
-    (:attr:`~hrr_garment.inference.collision.EdgeLimits.native_arrays`), the ``max_strain`` an edge
-    may reach, at most ``iterations`` passes, the tolerance ``tol`` (metres) and the over-relaxation
-    ``omega``."""
+class EdgeArrays:
+    """A garment's edges as the strain limit's kernel takes them, converted once: (E, 2) vertex
+    pairs int32, rest lengths and vertex degrees float64, and each vertex's edges (CSR indptr and
+    indices int32), with their addresses (a stream limits every frame, and asking numpy for five
+    addresses cost a fifth of a one-frame limit)."""
 
-    edge_arrays: tuple
+    def __init__(self, edges: np.ndarray, rest_length: np.ndarray, degree: np.ndarray, vertex_edges_indptr: np.ndarray,
+                 vertex_edges_indices: np.ndarray) -> None:
+        self.edges = np.ascontiguousarray(edges, np.int32)
+        self.rest_length = np.ascontiguousarray(rest_length, np.float64)
+        self.degree = np.ascontiguousarray(degree, np.float64)
+        self.indptr = np.ascontiguousarray(vertex_edges_indptr, np.int32)
+        self.indices = np.ascontiguousarray(vertex_edges_indices, np.int32)
+        self.addresses = tuple(a.ctypes.data for a in (self.edges, self.rest_length, self.degree, self.indptr, self.indices))
+
+
+class StrainLimit(NamedTuple):
+    """The strain limit as :func:`limit_strain` takes it: the garment's ``edge_arrays``
+    (:class:`EdgeArrays`), the ``max_strain`` an edge may reach, at most ``iterations`` passes, the
+    tolerance ``tol`` (metres) and the over-relaxation ``omega``."""
+
+    edge_arrays: EdgeArrays
     max_strain: float
     iterations: int
     tol: float
@@ -98,10 +113,9 @@ def limit_strain(lib: ctypes.CDLL, pushed: np.ndarray, unpushed: np.ndarray, lim
     own = in_place and pushed.dtype == np.float64 and pushed.flags.c_contiguous
     p = pushed if own else np.array(pushed, np.float64, order="C")  # moved in place
     u = np.ascontiguousarray(unpushed, np.float64)
-    edges, rest, degree, ptr, idx = edge_arrays
+    edges, rest, degree, ptr, idx = edge_arrays.addresses
     torn = np.zeros(len(p), np.uint8)
-    if lib.hrr_limit_strain(p.ctypes.data, u.ctypes.data, len(p), p.shape[1], len(edges), edges.ctypes.data, rest.ctypes.data,
-                            max_strain, degree.ctypes.data, ptr.ctypes.data, idx.ctypes.data, iterations, tol, omega,
-                            threads, torn.ctypes.data) != 0:
+    if lib.hrr_limit_strain(p.ctypes.data, u.ctypes.data, len(p), p.shape[1], len(edge_arrays.edges), edges, rest,
+                            max_strain, degree, ptr, idx, iterations, tol, omega, threads, torn.ctypes.data) != 0:
         raise MemoryError("the native strain limit could not allocate its scratch memory")
     return p, torn.astype(bool)

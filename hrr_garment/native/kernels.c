@@ -408,17 +408,18 @@ void hrr_push_out(double *p, int T, int V, const double *a, const double *b, con
    order edges were measured in. A pass over a torn neighbourhood costs its size, not the mesh's
    (36 of 37 thousand edges at 12,500 vertices never move); an earlier form kept the edges in
    ascending order with a sort every pass, which cost more than the passes themselves.
+   The first pass measures the n_active edges the caller found over their limit (active[0..n_active),
+   every other edge being within it, which the caller measured already).
    vertex_edges (indptr V + 1, indices): each vertex's edges. Scratch: corr (3 E doubles), touched
    (V ints), vmark (V bytes), active (E ints), emark (E bytes: 1 listed for the next pass, 2 over
    its limit in this one). */
 static void limit_frame(double *p, int V, int E, const int32_t *edges, const double *limit, const double *degree,
                         const int32_t *ve_ptr, const int32_t *ve_idx, int iterations, double tol, double omega,
-                        double *corr, int32_t *touched, unsigned char *vmark, int32_t *active, unsigned char *emark)
+                        double *corr, int32_t *touched, unsigned char *vmark, int32_t *active, int n_active,
+                        unsigned char *emark)
 {
     memset(vmark, 0, (size_t)V);
     memset(emark, 0, (size_t)E);
-    int n_active = E;
-    for (int e = 0; e < E; ++e) active[e] = e;  /* the first pass measures every edge */
     for (int it = 0; it < iterations; ++it) {
         double worst = 0.0;
         int n_touched = 0;
@@ -483,19 +484,26 @@ int hrr_limit_strain(double *p, const double *unpushed, int T, int V, int E, con
         unsigned char *vmark = (unsigned char *)(active + E), *emark = vmark + V;
         double *pt = p + (size_t)t * V * 3;
         const double *u = unpushed + (size_t)t * V * 3;
-        int over = 0;
+        int over = 0, n_long = 0;
+        /* squared lengths: a square root only where the unpushed edge is longer than allowed (a
+           stream limits every frame, and nearly every edge is within its limit) */
         for (int e = 0; e < E; ++e) {
             const int i = edges[2 * e], j = edges[2 * e + 1];
             const double ux = u[3 * j] - u[3 * i], uy = u[3 * j + 1] - u[3 * i + 1], uz = u[3 * j + 2] - u[3 * i + 2];
-            const double before = sqrt(ux * ux + uy * uy + uz * uz), allowed = max_strain * rest[e];
-            limit[e] = before > allowed ? before : allowed;
+            const double before2 = ux * ux + uy * uy + uz * uz, allowed = max_strain * rest[e];
+            const double lim = before2 > allowed * allowed ? sqrt(before2) : allowed;
+            limit[e] = lim;
             const double dx = pt[3 * j] - pt[3 * i], dy = pt[3 * j + 1] - pt[3 * i + 1], dz = pt[3 * j + 2] - pt[3 * i + 2];
-            over |= sqrt(dx * dx + dy * dy + dz * dz) > limit[e] * (1.0 + 1e-6);
+            const double length2 = dx * dx + dy * dy + dz * dz;
+            if (length2 > lim * lim) {
+                active[n_long++] = e;
+                over |= length2 > lim * lim * ((1.0 + 1e-6) * (1.0 + 1e-6));
+            }
         }
         torn[t] = (unsigned char)over;
         if (over)
             limit_frame(pt, V, E, edges, limit, degree, ve_ptr, ve_idx, iterations, tol, omega, corr, touched, vmark,
-                        active, emark);
+                        active, n_long, emark);
     }
     free(scratch);
     return 0;
