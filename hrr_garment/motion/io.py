@@ -27,11 +27,11 @@ from .limits import (
     check_root_speed,
     max_npz_bytes,
 )
-from .motion import FPS, MAX_TRANSLATION_M, Motion
+from .motion import FPS, MAX_TRANSLATION_M, Motion, check_local_rotations
 from .resample import frame_chunks, resample_linear, resample_rotations, resample_times
 from .retarget import ground_align
-from .rotations import axis_angle_to_matrix, matrix_to_axis_angle, rotation_matrix_error
-from .skeleton import NUM_JOINTS
+from .rotations import axis_angle_to_matrix, matrix_to_axis_angle
+from .skeleton import JOINT_NAMES, NUM_JOINTS
 
 NATIVE_FORMAT = "hrr_garment.motion"
 NATIVE_VERSION = 1
@@ -253,11 +253,7 @@ def _native_from_arrays(data: dict[str, np.ndarray], path: Path) -> Motion:
         raise MotionError(path, f"local_rotations has shape {rot.shape}; expected (T, {NUM_JOINTS}, 3, 3)")
     if rot.shape[0] == 0:
         raise MotionError(path, "the motion has no frames")
-    # rotations, not any 3 x 3: orthonormal with determinant +1 (no zeros, scales or reflections)
-    error = np.concatenate([rotation_matrix_error(rot[a:b].astype(np.float64)) for a, b in frame_chunks(len(rot))])
-    if (error > ROTATION_TOLERANCE).any():
-        frame, joint = np.unravel_index(int(np.argmax(error)), error.shape)
-        raise MotionError(path, f"local_rotations[{frame}, {joint}] is not a rotation matrix (off by {error.max():.3g})")
+    check_local_rotations(rot, JOINT_NAMES, path)  # named after the file, not the clip's stored name
     root = _numeric(path, data, "root_translation", MAX_TRANSLATION_M)
     if root.shape != (rot.shape[0], 3):
         raise MotionError(path, f"root_translation has shape {root.shape}; expected ({rot.shape[0]}, 3)")

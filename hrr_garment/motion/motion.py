@@ -30,6 +30,17 @@ MIN_FPS, MAX_FPS = 1.0, 1000.0  # frame rates a motion may have (capture runs 24
 MAX_TRANSLATION_M = 1.0e4  # how far from the origin a pelvis may go: float32 vertices keep millimetres within it
 
 
+def check_local_rotations(rotations: np.ndarray, joint_names: list[str] | tuple[str, ...], source: object) -> None:
+    """Refuse a (T, J, 3, 3) local rotation that is not one (a scale, a reflection, zeros), naming
+    its frame and joint and ``source`` (a file or a clip), in passes of frames (hours of them fit)."""
+    for start, stop in frame_chunks(len(rotations)):
+        error = rotation_matrix_error(rotations[start:stop].astype(np.float64))
+        if (error > ROTATION_TOLERANCE).any():
+            frame, joint = np.unravel_index(int(np.argmax(error)), error.shape)
+            raise MotionError(source, f"local rotation of frame {start + frame}, joint {joint_names[joint]} is not "
+                                      f"a rotation matrix (off by {error.max():.3g}: a scale, a reflection or zeros)")
+
+
 def _frozen(values, dtype) -> np.ndarray:
     """A read-only, C-contiguous view (a copy where the type or layout differs) of ``values``."""
     out = np.ascontiguousarray(values, dtype=dtype).view()
@@ -76,13 +87,7 @@ class Motion:
             self._check_rotations(name)
 
     def _check_rotations(self, name: str) -> None:
-        """Refuse a local rotation that is not one (a scale, a reflection, zeros), naming it."""
-        for start, stop in frame_chunks(self.num_frames):
-            error = rotation_matrix_error(self.local_rotations[start:stop].astype(np.float64))
-            if (error > ROTATION_TOLERANCE).any():
-                frame, joint = np.unravel_index(int(np.argmax(error)), error.shape)
-                raise MotionError(name, f"local rotation of frame {start + frame}, joint {self.skeleton.names[joint]} is not "
-                                        f"a rotation matrix (off by {error.max():.3g}: a scale, a reflection or zeros)")
+        check_local_rotations(self.local_rotations, self.skeleton.names, name)
 
     def validate(self) -> None:
         name = self.source or "motion"
