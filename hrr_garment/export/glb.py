@@ -152,7 +152,10 @@ def write_glb(anim: AnimationFile, path: str | Path, tolerance: float = 0.001, w
         scene_nodes.extend(add_character(gl, blob, anim, character=character, gltf_parts=parts, times=times))
     gltf = gl.GLTF2(
         asset=gl.Asset(generator="hrr_garment", version="2.0"), scene=0,
-        scenes=[gl.Scene(name=str(anim.attrs.get("source_motion", "animation")), nodes=scene_nodes)],
+        # the clip's rate and length where an importer that reads scene extras (Blender's, into the
+        # scene's custom properties) can set its timeline from them: glTF itself has only seconds
+        scenes=[gl.Scene(name=str(anim.attrs.get("source_motion", "animation")), nodes=scene_nodes,
+                         extras={"fps": anim.fps, "frames": anim.num_frames})],
         nodes=nodes, meshes=meshes, materials=materials, skins=skins, accessors=blob.accessors, bufferViews=blob.views,
         buffers=[gl.Buffer(byteLength=blob.size)],
         animations=[gl.Animation(name="garment", samplers=samplers, channels=channels)] if channels else [],
@@ -179,7 +182,9 @@ def _add_body(gl, anim: AnimationFile, blob: _Blob, nodes: list, meshes: list, m
         length = float(np.linalg.norm(axis, axis=1).mean())  # rigid: the same in every frame
         v, f = body_mesh(np.zeros((1, 3)), np.array([[0.0, 0.0, length]]), np.array([radius]), segments=12, rings=6)
         prim = gl.Primitive(attributes=gl.Attributes(POSITION=blob.stored(v.astype(np.float32), "VEC3", _ARRAY_BUFFER,
-                                                                          bounds=True)),
+                                                                          bounds=True),
+                                                     NORMAL=blob.stored(vertex_normals(v, f).astype(np.float32), "VEC3",
+                                                                        _ARRAY_BUFFER)),  # else shaded faceted
                             indices=blob.stored(f.astype(np.uint32).ravel(), "SCALAR", _ELEMENT_ARRAY_BUFFER),
                             material=len(materials) - 1)
         meshes.append(gl.Mesh(name=f"capsule_{c}", primitives=[prim]))

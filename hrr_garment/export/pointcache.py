@@ -20,7 +20,7 @@ from tqdm import tqdm
 
 from ..data.animation_file import AnimationFile
 from ..errors import InputError
-from ..garment.obj import format_rows, write_obj
+from ..garment.obj import SMOOTH_SHADING, format_rows, write_obj
 from ..io_utils import atomic_path, storage_error
 
 _PC2_HEADER = struct.Struct("<12siiffi")
@@ -73,7 +73,7 @@ def write_obj_sequence(anim: AnimationFile, directory: str | Path, stem: str | N
     if directory.exists() and not directory.is_dir():
         raise InputError(directory, "an OBJ sequence is written into a folder, and this is a file")
     stem = stem or str(anim.attrs.get("garment", "garment"))
-    faces = "g garment\n" + format_rows("f %d %d %d", anim.faces + 1)
+    faces = SMOOTH_SHADING + "g garment\n" + format_rows("f %d %d %d", anim.faces + 1)
     names = [f"{stem}_{t:05d}.obj" for t in range(anim.num_frames)]
     try:
         directory.parent.mkdir(parents=True, exist_ok=True)

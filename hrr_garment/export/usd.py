@@ -21,15 +21,15 @@ USD_SUFFIXES = (".usd", ".usdc", ".usda")
 
 def _pxr():
     try:
-        from pxr import Tf, Usd, UsdGeom, Vt
+        from pxr import Sdf, Tf, Usd, UsdGeom, Vt
     except ImportError:
         raise ImportError("USD export needs usd-core: pip install 'hrr_garment[export]'") from None
-    return Tf, Usd, UsdGeom, Vt
+    return Sdf, Tf, Usd, UsdGeom, Vt
 
 
 def _define_mesh(stage, prim_path: str, faces: np.ndarray, frames, colour: tuple[float, float, float]) -> None:
     """A triangle mesh at ``prim_path`` whose points and extent are sampled at time codes 0, 1, ..."""
-    _, Usd, UsdGeom, Vt = _pxr()
+    _, _, Usd, UsdGeom, Vt = _pxr()
     mesh = UsdGeom.Mesh.Define(stage, prim_path)
     mesh.CreateFaceVertexCountsAttr(Vt.IntArray.FromNumpy(np.full(len(faces), 3, np.int32)))
     mesh.CreateFaceVertexIndicesAttr(Vt.IntArray.FromNumpy(np.ascontiguousarray(faces, np.int32).ravel()))
@@ -45,7 +45,7 @@ def _define_mesh(stage, prim_path: str, faces: np.ndarray, frames, colour: tuple
 
 def write_usd(anim: AnimationFile, path: str | Path, with_body: bool = False) -> Path:
     """Write an animation as USD (.usda or .usdc), with the body when asked; returns the path."""
-    Tf, Usd, UsdGeom, _ = _pxr()
+    Sdf, Tf, Usd, UsdGeom, _ = _pxr()
     path = Path(path)
     if path.suffix.lower() not in USD_SUFFIXES:
         raise InputError(path, f"a USD file must end in {', '.join(USD_SUFFIXES)}")
@@ -58,6 +58,11 @@ def write_usd(anim: AnimationFile, path: str | Path, with_body: bool = False) ->
     stage.SetEndTimeCode(anim.num_frames - 1)
     root = UsdGeom.Xform.Define(stage, "/Animation")
     stage.SetDefaultPrim(root.GetPrim())
+    # the rate again where Blender's importer reads it (userProperties become custom properties;
+    # it takes the range from the stage but not the rate): the add-on sets the scene's from them
+    for key, value, kind in (("fps", float(anim.fps), Sdf.ValueTypeNames.Double),
+                             ("frames", int(anim.num_frames), Sdf.ValueTypeNames.Int)):
+        root.GetPrim().CreateAttribute(f"userProperties:{key}", kind, custom=True).Set(value)
     name = Tf.MakeValidIdentifier(str(anim.attrs.get("garment", "garment")))
     _define_mesh(stage, f"/Animation/{name}", anim.faces, anim.vertices, (0.27, 0.43, 0.78))
     if with_body:

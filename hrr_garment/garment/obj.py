@@ -71,6 +71,10 @@ def format_rows(fmt: str, rows: np.ndarray) -> str:
     return ((fmt + "\n") * len(rows)) % tuple(rows.ravel().tolist())
 
 
+# one smoothing group for every face: importers (Blender's among them) otherwise shade cloth flat
+SMOOTH_SHADING = "s 1\n"
+
+
 def write_obj(path: str | Path, vertices: np.ndarray, faces: np.ndarray, groups: dict[str, np.ndarray] | None = None) -> Path:
     """Write atomically, faces in their order. ``groups`` maps names to *vertex* sets: the faces
     whose vertices all lie in a set are put in a ``g`` group of that name, so reading the file with
@@ -86,6 +90,7 @@ def write_obj(path: str | Path, vertices: np.ndarray, faces: np.ndarray, groups:
     with atomic_path(path) as tmp, open(tmp, "w", encoding="utf-8") as fh:
         fh.write("# hrr_garment\n")
         fh.write(format_rows("v %.6f %.6f %.6f", vertices))
+        fh.write(SMOOTH_SHADING)
         for k, start in enumerate(starts):
             stop = starts[k + 1] if k + 1 < len(starts) else len(faces)
             fh.write(f"g {names[label[start]]}\n")
