@@ -66,7 +66,8 @@ class EdgeLimits:
     @cached_property
     def native_arrays(self) -> EdgeArrays:
         """What the kernel takes, converted once (a stream limits every frame)."""
-        return EdgeArrays(self.edges, self.rest_length, self.degree, self.signs.indptr, self.signs.indices)
+        return EdgeArrays(edges=self.edges, rest_length=self.rest_length, degree=self.degree,
+                          vertex_edges_indptr=self.signs.indptr, vertex_edges_indices=self.signs.indices)
 
     def lengths(self, p: np.ndarray) -> np.ndarray:
         """(T, E) edge lengths of (T, V, 3) positions."""
