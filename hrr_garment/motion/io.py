@@ -15,6 +15,7 @@ import numpy as np
 from ..errors import MotionError
 from ..io_utils import atomic_path, require_suffix
 from .bvh_motion import PLAUSIBLE_HEIGHT_M, load_bvh
+from .fbx import FBX_SUFFIX, load_fbx
 from .gltf import GltfOptions, load_gltf
 from .gltf_file import GLTF_SUFFIXES
 from .joint_maps import load_joint_map
@@ -51,7 +52,8 @@ def load_motion(
     source_fps: float | None = None,
     animation: str | int | None = None,
 ) -> Motion:
-    """Load a BVH, glTF / GLB, AMASS-style npz or native npz file as a canonical motion at ``fps``.
+    """Load a BVH, FBX (through Blender: :mod:`.fbx`), glTF / GLB, AMASS-style npz or native npz
+    file as a canonical motion at ``fps``.
 
     ``source_fps`` is the file's own frame rate, for files that carry none (or a wrong one): it
     replaces a BVH's frame time and an npz's rate key (glTF keys are in seconds: it does not apply).
@@ -63,15 +65,15 @@ def load_motion(
     if source_fps is not None:
         source_fps = check_source_fps(source_fps, path)
     suffix = path.suffix.lower()
-    by_name = suffix in (".bvh", *GLTF_SUFFIXES)  # the formats whose joints are matched by name
+    by_name = suffix in (".bvh", FBX_SUFFIX, *GLTF_SUFFIXES)  # the formats whose joints are matched by name
     custom = load_joint_map(joint_map) if by_name and isinstance(joint_map, (str, Path)) else joint_map
     if animation is not None and suffix not in GLTF_SUFFIXES:
         raise MotionError(path, f"only glTF / GLB files hold named animations; a {suffix or 'suffix-less'} file has one motion")
     if suffix == ".bvh":
         motion = load_bvh(path, unit_scale=unit_scale, joint_map=custom, ground=ground, fps=fps, source_fps=source_fps)
-    elif suffix in GLTF_SUFFIXES:
+    elif suffix in (*GLTF_SUFFIXES, FBX_SUFFIX):
         options = GltfOptions(animation=animation, unit_scale=unit_scale, joint_map=custom, fps=fps)
-        motion = load_gltf(path, options, ground=ground)
+        motion = (load_fbx if suffix == FBX_SUFFIX else load_gltf)(path, options, ground=ground)
     elif suffix == ".npz":
         data = _read_npz(path)
         if "format" in data and str(data["format"]) == NATIVE_FORMAT:
@@ -82,7 +84,7 @@ def load_motion(
         else:
             motion = load_amass(path, data, ground=ground, fps=fps, source_fps=source_fps)
     else:
-        raise MotionError(path, f"unsupported motion file type {suffix!r} (expected .bvh, .glb, .gltf or .npz)")
+        raise MotionError(path, f"unsupported motion file type {suffix!r} (expected .bvh, .fbx, .glb, .gltf or .npz)")
     # what every format must give, whatever its values: a finite motion whose root does not teleport
     _check_finite(path, motion.local_rotations, motion.root_translation)
     check_root_speed(path, motion.root_translation, motion.fps)

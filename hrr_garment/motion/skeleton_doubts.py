@@ -29,6 +29,7 @@ from .skeleton import JOINT_INDEX, JOINT_NAMES, PARENTS
 
 SIDE_BONES = (("hip", "knee"), ("knee", "ankle"), ("shoulder", "elbow"), ("elbow", "wrist"))
 MAX_SIDE_RATIO = 1.25  # one side's bone this much longer than the other's: not the same bone
+SIDE_SLACK = 0.25  # x the hips' width: how far a left joint may stand right of its right twin (feet crossed)
 
 
 def _ancestors(parents: list[int], joint: int) -> set[int]:
@@ -77,9 +78,15 @@ def _side_doubts(names: list[str], rest: np.ndarray, mapping: dict[str, int]) ->
     left = np.cross(up, forward)  # Y up, Z forward: +X is the character's left
     if np.linalg.norm(left) < 1e-9:
         return []
+    left /= np.linalg.norm(left)
+    # a joint is on the wrong side when it is there by more than a quarter of the hips' width: feet
+    # together or crossed in a rest pose (ankles 0.18 apart beside hips 2.2 apart, CMU 02_01 through
+    # Blender's FBX and glTF) are not a swap, which puts the left joint a whole width to the right
+    hips = (rest[mapping["l_hip"]] - rest[mapping["r_hip"]]) @ left if "l_hip" in mapping and "r_hip" in mapping else 0.0
+    slack = SIDE_SLACK * abs(float(hips))
     wrong = [f"{names[mapping[f'l_{j}']]!r} (taken as l_{j})" for j in ("hip", "knee", "ankle", "shoulder", "elbow", "wrist")
              if f"l_{j}" in mapping and f"r_{j}" in mapping
-             and (rest[mapping[f"l_{j}"]] - rest[mapping[f"r_{j}"]]) @ left < 0]
+             and (rest[mapping[f"l_{j}"]] - rest[mapping[f"r_{j}"]]) @ left < -slack]
     return [f"{', '.join(wrong)} on the character's right (its feet point the other way)"] if wrong else []
 
 

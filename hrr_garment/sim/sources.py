@@ -24,7 +24,7 @@ from pathlib import Path
 from ..errors import InputError
 from ..paths import find_mocap_dir, workspace
 
-MOTION_SUFFIXES = (".bvh", ".npz", ".glb", ".gltf")  # a glTF file gives its first animation
+MOTION_SUFFIXES = (".bvh", ".npz", ".glb", ".gltf", ".fbx")  # a glTF file gives its first animation; FBX needs Blender
 ARCHIVE_SUFFIXES = (".tar", ".tar.gz", ".tgz", ".tar.xz", ".txz", ".zip")
 # <source>_<content>_<style>_<take>, as the Bandai-Namco library names its clips.
 DEFAULT_NAME_PATTERN = r"(?P<source>[^_]+)_(?P<content>[^_]+)_(?P<style>[^_]+)_(?P<take>\d+)"
