@@ -33,7 +33,7 @@ def blender_command() -> list[str] | None:
     return [given]
 
 
-def run_blender_script(script: Path, arguments: list[str], subject: str | Path, what: str) -> None:
+def run_blender_script(script: Path, arguments: list[str], *, subject: str | Path, what: str) -> None:
     """Run ``script`` in Blender with ``arguments``; an :class:`~hrr_garment.errors.InputError`
     naming ``subject`` (the file being read or written) and ``what`` was being done when Blender is
     missing, fails or reports an error."""

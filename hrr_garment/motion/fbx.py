@@ -33,7 +33,7 @@ def load_fbx(path: str | Path, options: GltfOptions = GltfOptions(), ground: boo
     with tempfile.TemporaryDirectory(prefix="hrr-fbx-") as folder:
         glb = Path(folder) / f"{path.stem}.glb"
         try:
-            run_blender_script(SCRIPT, [str(path.resolve()), str(glb)], path, "reading FBX")
+            run_blender_script(SCRIPT, [str(path.resolve()), str(glb)], subject=path, what="reading FBX")
         except InputError as exc:
             raise MotionError(path, exc.problem) from None
         with warnings.catch_warnings(record=True) as caught:
