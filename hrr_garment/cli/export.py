@@ -6,9 +6,10 @@
     hrr-export out.h5 -o dress.usdc                      # time-sampled points (.usda for text)
     hrr-export out.h5 -o dress.pc2                       # + dress.obj base mesh, for Blender's Mesh Cache
     hrr-export out.h5 --to obj -o frames/                # one OBJ per frame
+    hrr-export out.h5 -o dress.blend --with-body         # a Blender scene, written by Blender (HRR_BLENDER)
 
 The format follows --to, else the output's extension (a folder means an OBJ sequence). Everything
-is written atomically. GLB, USD need the ``export`` extra. See docs/export.md.
+is written atomically. GLB, USD need the ``export`` extra; .blend a Blender. See docs/export.md.
 """
 
 from __future__ import annotations
@@ -23,8 +24,8 @@ from ..errors import InputError
 from ..io_utils import refuse_input_as_output, require_suffix
 from ._common import run_cli
 
-_FORMATS = ("glb", "usd", "pc2", "obj")
-_BY_SUFFIX = {".glb": "glb", ".usd": "usd", ".usdc": "usd", ".usda": "usd", ".pc2": "pc2", "": "obj"}
+_FORMATS = ("glb", "usd", "pc2", "obj", "blend")
+_BY_SUFFIX = {".glb": "glb", ".usd": "usd", ".usdc": "usd", ".usda": "usd", ".pc2": "pc2", "": "obj", ".blend": "blend"}
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -33,8 +34,8 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("-o", "--output", type=Path, required=True, help="file to write (a folder for --to obj)")
     p.add_argument("--to", choices=_FORMATS, default=None, help="format (default: from the output's extension)")
     p.add_argument("--tolerance", type=float, default=1.0,
-                   help="GLB keyframe reduction: max per-vertex deviation in mm from every frame (0: every frame)")
-    p.add_argument("--with-body", action="store_true", help="also export the collision body (GLB, USD)")
+                   help="GLB (and .blend) keyframe reduction: max per-vertex deviation in mm from every frame (0: every frame)")
+    p.add_argument("--with-body", action="store_true", help="also export the collision body (GLB, USD, .blend)")
     p.add_argument("--character", type=Path, default=None, metavar="GLB",
                    help="GLB: put the character's own skinned mesh in, posed by the clip (out.h5 from hrr-animate "
                         "--body on the same character)")
@@ -62,7 +63,7 @@ def _main(argv: Sequence[str] | None) -> int:
     if args.character is not None and fmt != "glb":
         raise InputError(args.output, f"--character is for glb, not {fmt}")
     if args.with_body and fmt in ("pc2", "obj"):
-        raise InputError(args.output, f"--with-body is for glb and usd, not {fmt}")
+        raise InputError(args.output, f"--with-body is for glb, usd and blend, not {fmt}")
     require_suffix(args.output, tuple(s for s, f in _BY_SUFFIX.items() if f == fmt), f"--to {fmt}")
     for output in (args.output, args.output.with_suffix(".obj")) if fmt == "pc2" else (args.output,):
         refuse_input_as_output(output, [args.animation, args.character])
@@ -83,6 +84,10 @@ def _main(argv: Sequence[str] | None) -> int:
         from ..export.usd import write_usd
 
         written = [write_usd(anim, args.output, with_body=args.with_body)]
+    elif fmt == "blend":
+        from ..export.blend import write_blend
+
+        written = [write_blend(anim, args.output, tolerance=args.tolerance / 1000.0, with_body=args.with_body)]
     elif fmt == "pc2":
         from ..export.pointcache import write_pc2_with_obj
 

@@ -7,7 +7,6 @@ import importlib.util
 import io
 import json
 import os
-import shutil
 import subprocess
 import zipfile
 from pathlib import Path
@@ -16,6 +15,7 @@ import numpy as np
 import pytest
 import tomllib
 
+from hrr_garment.blender import blender_command
 from hrr_garment.export.blender_package import ADDON_FILES, ADDON_SOURCE, addon_zip_bytes
 from hrr_garment.garment.mesh import vertex_normals
 
@@ -99,6 +99,16 @@ def test_exports_carry_what_blender_needs(tmp_path, out_h5):
     assert root.GetAttribute("userProperties:frames").Get() == len(_animation_arrays()["vertices"])
 
 
+def test_a_blend_without_blender_is_a_clear_error_and_no_file(tmp_path, out_h5, monkeypatch, capsys):
+    from hrr_garment.cli.export import main as export
+
+    monkeypatch.delenv("HRR_BLENDER", raising=False)
+    monkeypatch.setenv("PATH", str(tmp_path))
+    assert export([str(out_h5), "-o", str(tmp_path / "a.blend")]) == 2
+    assert "a.blend: writing a .blend needs Blender" in capsys.readouterr().err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out.h5"]
+
+
 def test_vertex_normals_weigh_faces_by_their_angle():
     """One vertex between a face in z = 0 with a 90 degree corner there and a face in x = 0 with a
     45 degree corner and four times the area: the normal leans 2 : 1 toward the first (by area it
@@ -112,23 +122,13 @@ def test_vertex_normals_weigh_faces_by_their_angle():
 # ---------------------------------------------------------------- client tier: a real Blender
 
 
-def _blender() -> list[str] | None:
-    """How to run a script in Blender: HRR_BLENDER (the ``blender`` program, or a Python with the
-    bpy module), else ``blender`` on PATH; None without one."""
-    given = os.environ.get("HRR_BLENDER") or shutil.which("blender")
-    if not given:
-        return None
-    if Path(given).name.startswith("blender"):
-        return [given, "-b", "--factory-startup", "-P"]
-    return [given]
-
-
 @pytest.mark.client
 @pytest.mark.tool
 def test_blender_plays_our_exports_through_the_addon(tmp_path):
-    """Blender 4.2+ through the add-on: every frame within 0.001 mm, the clip's rate and range,
-    per-frame normals within 5 degrees (99th percentile) of the frame's own."""
-    blender = _blender()
+    """Blender 4.2+ through the add-on, and the .blend hrr-export has Blender write: every frame
+    within 0.001 mm, the clip's rate and range, per-frame normals within 5 degrees (99th
+    percentile) of the frame's own."""
+    blender = blender_command()
     if blender is None:
         pytest.skip("no Blender: set HRR_BLENDER to the blender program or to a Python with bpy (pip install bpy)")
     from hrr_garment.cli.blender_addon import main as addon
@@ -136,9 +136,9 @@ def test_blender_plays_our_exports_through_the_addon(tmp_path):
 
     arrays = _animation_arrays()
     out = _write(tmp_path / "out.h5", arrays)
-    files = [tmp_path / "a.glb", tmp_path / "a.usdc", tmp_path / "a.pc2"]
+    files = [tmp_path / "a.glb", tmp_path / "a.usdc", tmp_path / "a.pc2", tmp_path / "a.blend"]
     for f in files:
-        assert export([str(out), "-o", str(f)] + (["--tolerance", "0"] if f.suffix == ".glb" else [])) == 0
+        assert export([str(out), "-o", str(f)] + (["--tolerance", "0"] if f.suffix in (".glb", ".blend") else [])) == 0
     assert addon(["-o", str(tmp_path / "addon.zip")]) == 0
     np.savez(tmp_path / "ref.npz", vertices=arrays["vertices"], faces=arrays["faces"], fps=30.0)
     env = dict(os.environ, BLENDER_USER_RESOURCES=str(tmp_path / "blender"))  # not the user's own Blender
@@ -146,7 +146,8 @@ def test_blender_plays_our_exports_through_the_addon(tmp_path):
                                     *map(str, files), f"--addon={tmp_path / 'addon.zip'}", "--json"],
                          capture_output=True, text=True, timeout=600, env=env)
     results = [json.loads(line) for line in run.stdout.splitlines() if line.startswith("{")]
-    assert run.returncode == 0 and len(results) == 3, run.stdout[-2000:] + run.stderr[-2000:]
+    assert run.returncode == 0 and len(results) == 4, run.stdout[-2000:] + run.stderr[-2000:]
+    assert not [p.name for p in tmp_path.iterdir() if p.name.startswith(".")]  # no temporary file left
     for r in results:
         assert "error" not in r, r
         assert r["rate_ok"] and r["range_ok"] and r["smooth_faces"] == 1.0, r
