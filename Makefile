@@ -7,6 +7,8 @@ TORCH_SPEC ?= torch==2.13.0
 PIP_FLAGS ?= -q --disable-pip-version-check
 # The Khronos glTF validator (npm) for the GLB export test; installed only where npm exists.
 GLTF_VALIDATOR ?= gltf-validator@2.0.0-dev.3.10
+# three.js, whose loader and mixer tools/threejs_check.mjs runs on our GLBs (the client test tier)
+THREE_JS ?= three@0.187.0
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.hrr-installed
 
@@ -19,7 +21,7 @@ $(STAMP): pyproject.toml | $(BIN)/python
 	$(BIN)/pip install $(PIP_FLAGS) "$(TORCH_SPEC)"
 	$(BIN)/pip install $(PIP_FLAGS) -e ".[dev,preview,video,export,eval,sim,cluster,bodies,sign]"
 	@if command -v npm >/dev/null 2>&1; then \
-		mkdir -p $(VENV)/node && cd $(VENV)/node && npm install --silent --no-audit --no-fund $(GLTF_VALIDATOR); \
+		mkdir -p $(VENV)/node && cd $(VENV)/node && npm install --silent --no-audit --no-fund $(GLTF_VALIDATOR) $(THREE_JS); \
 	else echo "npm not found: the GLB validator test will be skipped"; fi
 	touch $(STAMP)
 

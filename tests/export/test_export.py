@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import os
 import shutil
+import struct
 import subprocess
 from pathlib import Path
 
@@ -74,25 +75,46 @@ def test_keyframes_of_linear_motion_are_the_two_ends():
 # ---------------------------------------------------------------- GLB
 
 
-def _validator() -> list[str] | None:
-    """The command that runs the Khronos validator, or None without node / the npm package."""
+def _node_script(package: str, script: str) -> tuple[list[str], dict]:
+    """The command that runs ``tools/<script>`` in node with the npm ``package`` found (``make
+    install`` puts it in .venv/node), and its environment; a skip without node, a failure when node
+    is there but the package is not."""
     node = shutil.which("node")
     modules = Path(os.environ.get("HRR_NODE_MODULES", ROOT / ".venv" / "node" / "node_modules"))
-    if node is None or not (modules / "gltf-validator").is_dir():
-        return None
-    return [node, str(ROOT / "tools" / "gltf_validate.js")], {**os.environ, "NODE_PATH": str(modules)}
+    if node is None:
+        pytest.skip("node is not installed")
+    if not (modules / package).is_dir():
+        pytest.fail(f"node is present but the npm package {package} is not installed: run `make install` (needs npm)")
+    return [node, str(ROOT / "tools" / script)], {**os.environ, "NODE_PATH": str(modules), "HRR_NODE_MODULES": str(modules)}
 
 
 def _validate(path: Path) -> None:
-    found = _validator()
-    if found is None:
-        if shutil.which("node"):
-            pytest.fail("node is present but gltf-validator is not installed: run `make install` (needs npm)")
-        pytest.skip("node is not installed")
-    cmd, env = found
+    cmd, env = _node_script("gltf-validator", "gltf_validate.js")
     run = subprocess.run(cmd + [str(path)], capture_output=True, text=True, env=env, timeout=120)
     report = json.loads(run.stdout.strip().splitlines()[-1])
     assert run.returncode == 0 and report["errors"] == 0, report
+
+
+@pytest.mark.client
+@pytest.mark.parametrize("tolerance", [0.0, 0.01])
+def test_threejs_plays_the_glb_as_the_animation(out_h5, tmp_path, tolerance):
+    """three.js (its GLTFLoader and AnimationMixer, in node): every frame within 0.001 mm at
+    tolerance 0 and within the tolerance otherwise, the clip's duration, keys on frames, normals
+    within 5 degrees (99th percentile) of the frame's own."""
+    from hrr_garment.cli.export import main
+
+    cmd, env = _node_script("three", "threejs_check.mjs")
+    assert main([str(out_h5), "-o", str(tmp_path / "a.glb"), "--tolerance", str(tolerance * 1000)]) == 0
+    anim = read_animation_h5(out_h5)
+    with open(tmp_path / "ref.bin", "wb") as fh:  # the layout tools/threejs_check.mjs reads
+        fh.write(struct.pack("<iiid", anim.num_frames, anim.vertices.shape[1], len(anim.faces), anim.fps))
+        fh.write(anim.vertices.astype("<f4").tobytes() + anim.faces.astype("<u4").tobytes())
+    run = subprocess.run(cmd + [str(tmp_path / "ref.bin"), str(tmp_path / "a.glb")], capture_output=True, text=True,
+                         env=env, timeout=300)
+    assert run.returncode == 0, run.stderr[-2000:]
+    r = json.loads(run.stdout.strip().splitlines()[-1])
+    assert abs(r["duration_s"] - (anim.num_frames - 1) / anim.fps) < 1e-5 and r["keys_on_frames"], r
+    assert r["max_vertex_error_mm"] < max(0.001, 1000 * tolerance + 1e-3) and r["normal_error_p99_deg"] < 5.0, r
 
 
 @pytest.mark.client
