@@ -111,7 +111,7 @@ def test_clip_shorter_than_one_window(capsys, tmp_path):
 
 def test_missing_file_and_unknown_extension(capsys, tmp_path):
     expect_failure(capsys, tmp_path, tmp_path / "nope.bvh", "not found")
-    odd = tmp_path / "clip.fbx"
+    odd = tmp_path / "clip.c3d"
     odd.write_text("x")
     expect_failure(capsys, tmp_path, odd, "unsupported motion file type")
 
