@@ -235,16 +235,18 @@ def calibrate_auto(folder: str | Path, dataset: str | Path, progress: bool = Tru
     from ..artifacts.bundle_writer import update_bundle_meta
 
     auto = read_meta(folder).get("auto")  # reading it hashes every file: once
-    if auto is None:
+    # calibrated again where it was recorded before candidates carried their cloth inside the body
+    # (the criterion counts it); picked again where only an allowance moved
+    if auto is None or any("penetration_pct" not in c for c in auto["candidates"].values()):
         from ..data.dataset import GarmentDataset
         from ..inference.animator import Animator
 
         ds = GarmentDataset(dataset)
         records = [ds.sequence(n) for n in ds.splits.get("val", [])]
-        auto = calibrate_auto_mode(Animator.load(folder), records, allowance=config.allowance, progress=progress)
+        auto = calibrate_auto_mode(Animator.load(folder), records, config, progress=progress)
         update_bundle_meta(folder, {"auto": auto})
-    elif auto.get("allowance") != config.allowance:
-        auto = repick(auto, config.allowance)
+    elif (auto.get("allowance"), auto.get("penetration_allowance")) != (config.allowance, config.penetration_allowance):
+        auto = repick(auto, config)
         update_bundle_meta(folder, {"auto": auto})
     return auto
 

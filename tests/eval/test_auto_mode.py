@@ -11,6 +11,7 @@ import pytest
 from hrr_garment.eval.auto_mode import (
     DETAIL_CANDIDATES,
     DETAIL_STRENGTHS,
+    AutoConfig,
     calibrate_auto_mode,
     detail_label,
     pick_auto_and_detail,
@@ -19,6 +20,7 @@ from hrr_garment.eval.auto_mode import (
     repick,
 )
 from hrr_garment.motion.synth import synthesize
+from hrr_garment.settings import SettingsError
 from tests.conftest import write_meta
 
 
@@ -56,9 +58,26 @@ def test_a_recorded_calibration_is_picked_again_under_another_allowance():
     candidates = {"hybrid": _c(30.0, 0.13, 0.60), "residual": _c(30.6, 0.16, 0.63), R10: _c(31.2, 0.90, 0.95)}
     auto = {"mode": "residual", "detail_base": "regression", "detail_strength": 1.0, "allowance": 1.03,
             "sequences": 3, "frames": 90, "candidates": candidates}
-    wider = repick(auto, 1.05)  # the folds' 4 % fit the default's 5 %
+    wider = repick(auto, AutoConfig(allowance=1.05))  # the folds' 4 % fit the default's 5 %
     assert (wider["mode"], wider["allowance"], wider["candidates"]) == ("detail", 1.05, candidates)
-    assert repick(wider, 1.03)["mode"] == "residual" and auto["mode"] == "residual"  # the record itself is not changed
+    assert repick(wider, AutoConfig(allowance=1.03))["mode"] == "residual" and auto["mode"] == "residual"  # the record stays
+
+
+def test_a_candidate_with_more_cloth_inside_the_body_is_not_the_default():
+    """The residual's swing is another simulation's cloth: where it puts more than the penetration
+    allowance (1.1 x) of the most accurate candidate's vertices inside the body, the folds on the
+    regression are chosen instead; a calibration recorded without the numbers is picked without them."""
+    candidates = {"hybrid": {**_c(30.0, 0.13, 0.60), "penetration_pct": 3.0},
+                  R10: {**_c(30.9, 0.90, 0.80), "penetration_pct": 3.3},
+                  RR10: {**_c(31.0, 0.90, 0.95), "penetration_pct": 3.9}}
+    assert pick_auto_mode(candidates) == R10
+    assert pick_auto_mode(candidates, penetration_allowance=1.5) == RR10
+    candidates[R10]["penetration_pct"] = 3.31  # 1.103 x: over too
+    assert pick_auto_mode(candidates) == "hybrid"
+    recorded = {k: {m: v for m, v in c.items() if m != "penetration_pct"} for k, c in candidates.items()}
+    assert pick_auto_mode(recorded) == RR10
+    with pytest.raises(SettingsError, match="penetration_allowance"):
+        AutoConfig(penetration_allowance=0.5)
 
 
 R8, R10, RR8, RR10 = (detail_label(b, s) for b, s in (("regression", 0.8), ("regression", 1.0), ("residual", 0.8),
@@ -93,8 +112,8 @@ def test_hrr_train_calibrates_auto_and_it_agrees_with_the_evaluation(trained):
     meta = json.loads((root / "model" / "bundle.json").read_text())
     auto = meta["auto"]
     assert auto["mode"] in AUTO_CHOICES and set(auto["candidates"]) <= {*AUTO_CHOICES, *DETAIL_CANDIDATES}
-    assert (auto["mode"], auto["detail_base"], auto["detail_strength"]) == pick_auto_and_detail(auto["candidates"],
-                                                                                                auto["allowance"])
+    assert (auto["mode"], auto["detail_base"], auto["detail_strength"]) == pick_auto_and_detail(
+        auto["candidates"], auto["allowance"], auto["penetration_allowance"])
     animator = Animator.load(root / "model")
     assert animator.bundle.auto_mode == auto["mode"]
     ds = GarmentDataset(data)
@@ -106,7 +125,10 @@ def test_hrr_train_calibrates_auto_and_it_agrees_with_the_evaluation(trained):
     pve = evaluate_modes(animator, records, EvaluationSettings(("hybrid",), progress=False))["hybrid"].metrics["pve_mm"]
     assert again["candidates"]["hybrid"]["pve_mm"] == pytest.approx(pve, rel=1e-6)
     for c in again["candidates"].values():
-        assert c["pve_mm"] > 0 and c["sharpness"] > 0 and c["hem_swing"] > 0
+        assert c["pve_mm"] > 0 and c["sharpness"] > 0 and c["hem_swing"] > 0 and 0 <= c["penetration_pct"] <= 100
+    inside = [animator.animate(r.motion, mode="hybrid", body=r.dressed, allow_outside=True) for r in records]
+    expected = 100 * sum(a.penetration.inside_before * len(a.vertices) for a in inside) / sum(len(a.vertices) for a in inside)
+    assert again["candidates"]["hybrid"]["penetration_pct"] == pytest.approx(expected)
     # with a residual weight the detail mode is measured on both bases at every strength, each as the mode runs it
     animator.bundle.meta["residual"] = {**animator.bundle.meta["residual"], "weight": 0.7}
     both = calibrate_auto_mode(animator, records[:1], progress=False)
@@ -130,10 +152,29 @@ def test_hrr_train_picks_auto_again_when_its_allowance_changes(trained, tmp_path
     recorded = json.loads((tmp_path / "model" / "bundle.json").read_text())["auto"]
     assert recorded == widest and widest["allowance"] == 2.0 and widest["candidates"] == before["candidates"]
     c = before["candidates"]
-    eligible = [m for m in c if c[m]["pve_mm"] <= 2.0 * min(x["pve_mm"] for x in c.values())]
+    accurate = min(c, key=lambda m: c[m]["pve_mm"])
+    eligible = [m for m in c if c[m]["pve_mm"] <= 2.0 * c[accurate]["pve_mm"]
+                and c[m]["penetration_pct"] <= 1.1 * c[accurate]["penetration_pct"] + 1e-9]
     most_plausible = min(plausibility_gap(c[m]["sharpness"], c[m]["hem_swing"]) for m in eligible)
     picked = widest["mode"] if widest["mode"] != "detail" else detail_label(widest["detail_base"], widest["detail_strength"])
     assert plausibility_gap(c[picked]["sharpness"], c[picked]["hem_swing"]) == most_plausible
+
+
+def test_a_calibration_recorded_without_penetration_is_made_again(trained, tmp_path):
+    """Bundles calibrated before the criterion counted the cloth inside the body are calibrated
+    again by hrr-train, not re-picked from numbers that lack it."""
+    from hrr_garment.artifacts.bundle_writer import update_bundle_meta
+    from hrr_garment.pipeline.train import calibrate_auto
+
+    root, data, _ = trained
+    shutil.copytree(root / "model", tmp_path / "model")
+    auto = json.loads((tmp_path / "model" / "bundle.json").read_text())["auto"]
+    old = {k: {m: v for m, v in c.items() if m != "penetration_pct"} for k, c in auto["candidates"].items()}
+    update_bundle_meta(tmp_path / "model", {"auto": {**auto, "candidates": old}})
+    again = calibrate_auto(tmp_path / "model", data, progress=False)
+    assert again["mode"] == auto["mode"] and set(again["candidates"]) == set(auto["candidates"])
+    for label, c in auto["candidates"].items():
+        assert again["candidates"][label] == pytest.approx(c)
 
 
 @pytest.mark.parametrize("chosen, base, strength", [("detail", "regression", 0.6), ("detail", "residual", 1.0),
