@@ -21,3 +21,32 @@ def test_gate_analysis_oracle_bounds_both_modes(trained):
     assert 0.0 <= r["retrieval_better_fraction"] <= 1.0 and r["windows"] > 0
     corr = [r[f"corr_advantage_low_{g}_doubt"] for g in ("entropy", "similarity", "distance")]
     assert all(-1.0 <= c <= 1.0 or c != c for c in corr)  # a correlation per gate (NaN where a signal is constant)
+
+
+def test_residual_nodes_analysis_spans_regression_to_residual(trained, tmp_path):
+    """Node weights of 1 everywhere are the residual mode as it is, of 0 the regression (through
+    the residual mode's path): the variants sit between known ends."""
+    import importlib.util
+    import json
+    import shutil
+    from pathlib import Path
+
+    from hrr_garment.artifacts.bundle_writer import update_bundle_meta
+
+    path = Path(__file__).parents[2] / "tools" / "residual_nodes_analysis.py"
+    spec = importlib.util.spec_from_file_location("residual_nodes_analysis", path)
+    tool = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(tool)
+    root, data, _ = trained
+    model = tmp_path / "model"  # with a residual weight, so that the residual mode differs from the regression
+    shutil.copytree(root / "model", model)
+    residual = json.loads((model / "bundle.json").read_text())["residual"]
+    update_bundle_meta(model, {"residual": {**residual, "weight": 0.7}})
+    rows = {r["label"]: r for r in tool.analyse(str(model), str(data), [(-2000.0, -1000.0), (1000.0, 2000.0)],
+                                                sequences=2)}
+    assert rows["residual"]["pve_mm"] != rows["regression"]["pve_mm"]
+    every, none = rows["residual, nodes -2000--1000 mm"], rows["residual, nodes 1000-2000 mm"]
+    assert every["mean_weight"] == 1.0 and none["mean_weight"] == 0.0
+    for key in ("inside_pct", "hem_swing_ratio", "pve_mm"):
+        assert every[key] == rows["residual"][key]
+        assert abs(none[key] - rows["regression"][key]) < 1e-3 * max(1.0, abs(rows["regression"][key]))
