@@ -13,9 +13,11 @@ by one documented criterion that counts both:
    that looks like cloth costs PVE; 5 % of it for folds and swing that look real is the default's
    trade (issue 49's decision; it was 3 %). And no more cloth inside the body: a candidate may put
    at most ``auto.penetration_allowance`` (1.10) times the vertices inside the body (before the
-   push-out) that the most accurate one does. A match's swing, brought by the residual mode, is
-   another simulation's cloth, on another body for a model across bodies: on the unseen short-heavy
-   body it took the vertices inside from 3.0 to 3.9 % (the folds alone to 3.3 %);
+   push-out) that the most accurate one does, or ``auto.penetration_floor_pct`` (1 %) of them where
+   that is more (below it the push-out's work is small, and detail is not given up for it). A
+   match's swing, brought by the residual mode, is another simulation's cloth, on another body for
+   a model across bodies: on the unseen short-heavy body it took the vertices inside from 3.0 to
+   3.9 % (the folds alone to 3.3 %);
 2. then plausibility: of those, the one whose cloth looks most like the simulation, i.e. the
    smallest *plausibility gap* ``hypot(ln sharpness, ln hem swing)``, sharpness being the bending
    energy over the truth's and hem swing the hem's amplitude over the truth's (0: both as in the
@@ -52,7 +54,8 @@ from . import metrics as M
 
 AUTO_MAX_SEQUENCES = 24  # validation clips the choice animates at most (evenly spaced): about a minute
 AUTO_ALLOWANCE = 1.05  # the default allowance: candidates within 5 % of the most accurate PVE
-PENETRATION_ALLOWANCE = 1.10  # and with at most 10 % more of the cloth inside the body than it
+PENETRATION_ALLOWANCE = 1.10  # and with at most 10 % more of the cloth inside the body than it,
+PENETRATION_FLOOR_PCT = 1.0  # or 1 % of the vertices where that is more
 DETAIL_STRENGTHS = (0.6, 0.8, 1.0)  # the folds' strengths measured (1: the simulated folds as they are)
 
 
@@ -64,6 +67,8 @@ class AutoConfig:
     # the vertices inside the body before the push-out a candidate may have, as a factor on the most
     # accurate one's
     penetration_allowance: float = PENETRATION_ALLOWANCE
+    # ... or this share of the vertices (%) where that is more: small amounts are the push-out's
+    penetration_floor_pct: float = PENETRATION_FLOOR_PCT
 
     def __post_init__(self) -> None:
         if not 1.0 <= self.allowance <= 2.0:
@@ -71,6 +76,8 @@ class AutoConfig:
         if not 1.0 <= self.penetration_allowance <= 10.0:
             raise SettingsError("auto: penetration_allowance is a factor on the most accurate candidate's cloth inside the "
                                 f"body, from 1 to 10, got {self.penetration_allowance}")
+        if not 0.0 <= self.penetration_floor_pct <= 100.0:
+            raise SettingsError(f"auto: penetration_floor_pct is a share of the vertices, 0 to 100, got {self.penetration_floor_pct}")
 
     @classmethod
     def from_dict(cls, values: dict) -> "AutoConfig":
@@ -94,30 +101,34 @@ def plausibility_gap(sharpness: float, swing: float) -> float:
 
 
 def pick_auto_mode(candidates: dict[str, dict[str, float]], allowance: float = AUTO_ALLOWANCE,
-                   penetration_allowance: float = PENETRATION_ALLOWANCE) -> str:
+                   penetration_allowance: float = PENETRATION_ALLOWANCE,
+                   penetration_floor_pct: float = PENETRATION_FLOOR_PCT) -> str:
     """The criterion of the module docstring on each candidate's ``pve_mm``, ``sharpness`` and
     ``hem_swing`` (ratios to the truth) and, where recorded, ``penetration_pct`` (before the
     push-out; calibrations recorded before it have none, and are picked without it); a candidate
     labelled by :data:`DETAIL_CANDIDATES` is the detail mode."""
     accurate = min(candidates, key=lambda m: candidates[m]["pve_mm"])
     best, inside = candidates[accurate]["pve_mm"], candidates[accurate].get("penetration_pct")
+    most_inside = None if inside is None else max(penetration_allowance * inside, penetration_floor_pct) + 1e-9
     eligible = [m for m, c in candidates.items() if c["pve_mm"] <= allowance * best
-                and (inside is None or c.get("penetration_pct", 0.0) <= penetration_allowance * inside + 1e-9)]
+                and (most_inside is None or c.get("penetration_pct", 0.0) <= most_inside)]
     order = {m: i for i, m in enumerate(AUTO_CHOICES)}
     return min(eligible, key=lambda m: (plausibility_gap(candidates[m]["sharpness"], candidates[m]["hem_swing"]),
                                         order.get("detail" if m in DETAIL_CANDIDATES else m, len(order)),
                                         candidates[m]["pve_mm"]))
 
 
-def pick_auto_and_detail(candidates: dict[str, dict[str, float]], allowance: float = AUTO_ALLOWANCE,
-                         penetration_allowance: float = PENETRATION_ALLOWANCE) -> tuple[str, str, float]:
+def pick_auto_and_detail(candidates: dict[str, dict[str, float]], config: "AutoConfig | None" = None) -> tuple[str, str, float]:
     """(the mode auto runs, the detail mode's base, its strength) by the criterion on candidates
-    labelled by mode, the detail mode's by :data:`DETAIL_CANDIDATES` (see the module docstring)."""
-    picked = pick_auto_mode(candidates, allowance, penetration_allowance)
-    details = {k: c for k, c in candidates.items() if k in DETAIL_CANDIDATES}
+    labelled by mode, the detail mode's by :data:`DETAIL_CANDIDATES` (see the module docstring),
+    under ``config``'s allowances (default :class:`AutoConfig`'s)."""
+    c = AutoConfig() if config is None else config
+    limits = (c.allowance, c.penetration_allowance, c.penetration_floor_pct)
+    picked = pick_auto_mode(candidates, *limits)
+    details = {k: v for k, v in candidates.items() if k in DETAIL_CANDIDATES}
     if not details:
         return picked, "regression", DETAIL_STRENGTH
-    detail = picked if picked in details else pick_auto_mode(details, allowance, penetration_allowance)
+    detail = picked if picked in details else pick_auto_mode(details, *limits)
     return ("detail" if picked in details else picked), *DETAIL_CANDIDATES[detail]
 
 
@@ -169,10 +180,10 @@ def calibrate_auto_mode(animator: Animator, records: list[SequenceRecord], confi
 def repick(auto: dict, config: AutoConfig) -> dict:
     """A recorded calibration (``bundle.json``'s ``auto``) picked again under ``config``'s
     allowances: the candidates' numbers stand, only the choice among them moves."""
-    mode, detail_base, detail_strength = pick_auto_and_detail(auto["candidates"], config.allowance,
-                                                              config.penetration_allowance)
+    mode, detail_base, detail_strength = pick_auto_and_detail(auto["candidates"], config)
     return {**auto, "mode": mode, "detail_base": detail_base, "detail_strength": detail_strength,
-            "allowance": config.allowance, "penetration_allowance": config.penetration_allowance}
+            "allowance": config.allowance, "penetration_allowance": config.penetration_allowance,
+            "penetration_floor_pct": config.penetration_floor_pct}
 
 
 def describe_auto(auto: dict) -> str:
@@ -182,7 +193,8 @@ def describe_auto(auto: dict) -> str:
     allowance = f"the most plausible within {100 * (auto['allowance'] - 1):.0f} % of the most accurate PVE" \
         if "allowance" in auto else ""
     if allowance and "penetration_allowance" in auto:
-        allowance += f" and {100 * (auto['penetration_allowance'] - 1):.0f} % of its cloth inside the body"
+        allowance += (f" and {100 * (auto['penetration_allowance'] - 1):.0f} % of its cloth inside the body "
+                      f"(or {auto.get('penetration_floor_pct', 0):g} % of the vertices)")
     allowance += "; " if allowance else ""
     return (f"auto mode: {auto['mode']} ({allowance}the detail mode's folds {detail}; on {auto['sequences']} validation clips: "
             + "; ".join(f"{m} {c['pve_mm']:.2f} mm, sharpness {c['sharpness']:.2f}, hem swing {c['hem_swing']:.2f}"

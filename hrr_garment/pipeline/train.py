@@ -245,7 +245,8 @@ def calibrate_auto(folder: str | Path, dataset: str | Path, progress: bool = Tru
         records = [ds.sequence(n) for n in ds.splits.get("val", [])]
         auto = calibrate_auto_mode(Animator.load(folder), records, config, progress=progress)
         update_bundle_meta(folder, {"auto": auto})
-    elif (auto.get("allowance"), auto.get("penetration_allowance")) != (config.allowance, config.penetration_allowance):
+    elif (auto.get("allowance"), auto.get("penetration_allowance"), auto.get("penetration_floor_pct")) != \
+            (config.allowance, config.penetration_allowance, config.penetration_floor_pct):
         auto = repick(auto, config)
         update_bundle_meta(folder, {"auto": auto})
     return auto

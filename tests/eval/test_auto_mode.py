@@ -76,6 +76,9 @@ def test_a_candidate_with_more_cloth_inside_the_body_is_not_the_default():
     assert pick_auto_mode(candidates) == "hybrid"
     recorded = {k: {m: v for m, v in c.items() if m != "penetration_pct"} for k, c in candidates.items()}
     assert pick_auto_mode(recorded) == RR10
+    small = {k: {**c, "penetration_pct": c["penetration_pct"] / 10} for k, c in candidates.items()}
+    assert pick_auto_mode(small) == RR10  # all under the 1 % floor: the push-out's to take, not a reason to lose swing
+    assert pick_auto_mode(small, penetration_floor_pct=0.0) == "hybrid"
     with pytest.raises(SettingsError, match="penetration_allowance"):
         AutoConfig(penetration_allowance=0.5)
 
@@ -94,11 +97,11 @@ def test_the_detail_modes_setting_is_chosen_by_the_same_criterion(pves, expected
     plausibility = [(0.15, 0.6), (0.2, 0.7), (0.73, 0.71), (0.95, 0.72), (0.74, 0.73), (0.96, 0.74)]
     labels = ["hybrid", "residual", R8, R10, RR8, RR10]
     candidates = {k: {"pve_mm": p, "sharpness": s, "hem_swing": w} for k, p, (s, w) in zip(labels, pves, plausibility)}
-    assert pick_auto_and_detail(candidates, 1.03) == expected
+    assert pick_auto_and_detail(candidates, AutoConfig(allowance=1.03)) == expected
     for label in (RR8, RR10):  # no residual weight: the regression's
         del candidates[label]
-    assert pick_auto_and_detail(candidates, 1.03)[1] == "regression"
-    assert pick_auto_and_detail({"hybrid": candidates["hybrid"]}, 1.03)[0] == "hybrid"  # no folds: no detail candidate
+    assert pick_auto_and_detail(candidates, AutoConfig(allowance=1.03))[1] == "regression"
+    assert pick_auto_and_detail({"hybrid": candidates["hybrid"]}, AutoConfig(allowance=1.03))[0] == "hybrid"  # no folds: no detail candidate
 
 
 def test_hrr_train_calibrates_auto_and_it_agrees_with_the_evaluation(trained):
@@ -112,8 +115,9 @@ def test_hrr_train_calibrates_auto_and_it_agrees_with_the_evaluation(trained):
     meta = json.loads((root / "model" / "bundle.json").read_text())
     auto = meta["auto"]
     assert auto["mode"] in AUTO_CHOICES and set(auto["candidates"]) <= {*AUTO_CHOICES, *DETAIL_CANDIDATES}
-    assert (auto["mode"], auto["detail_base"], auto["detail_strength"]) == pick_auto_and_detail(
-        auto["candidates"], auto["allowance"], auto["penetration_allowance"])
+    config = AutoConfig(allowance=auto["allowance"], penetration_allowance=auto["penetration_allowance"],
+                        penetration_floor_pct=auto["penetration_floor_pct"])
+    assert (auto["mode"], auto["detail_base"], auto["detail_strength"]) == pick_auto_and_detail(auto["candidates"], config)
     animator = Animator.load(root / "model")
     assert animator.bundle.auto_mode == auto["mode"]
     ds = GarmentDataset(data)
@@ -154,7 +158,7 @@ def test_hrr_train_picks_auto_again_when_its_allowance_changes(trained, tmp_path
     c = before["candidates"]
     accurate = min(c, key=lambda m: c[m]["pve_mm"])
     eligible = [m for m in c if c[m]["pve_mm"] <= 2.0 * c[accurate]["pve_mm"]
-                and c[m]["penetration_pct"] <= 1.1 * c[accurate]["penetration_pct"] + 1e-9]
+                and c[m]["penetration_pct"] <= max(1.1 * c[accurate]["penetration_pct"], 1.0) + 1e-9]
     most_plausible = min(plausibility_gap(c[m]["sharpness"], c[m]["hem_swing"]) for m in eligible)
     picked = widest["mode"] if widest["mode"] != "detail" else detail_label(widest["detail_base"], widest["detail_strength"])
     assert plausibility_gap(c[picked]["sharpness"], c[picked]["hem_swing"]) == most_plausible
