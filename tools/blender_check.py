@@ -30,8 +30,20 @@ from __future__ import annotations
 
 import json
 import sys
+from dataclasses import dataclass, field
 
 import numpy as np
+
+
+@dataclass(frozen=True)
+class ImportWay:
+    """How the files are imported: as a user of the stock importers would, told to set the scene's
+    rate first (``set_fps``) and with the glTF dialog's settings (``gltf``; its defaults unless
+    given), or through our add-on (``addon``: installed from its zip first)."""
+
+    addon: bool = False
+    set_fps: bool = False
+    gltf: dict = field(default_factory=dict)
 
 
 def _arguments() -> list[str]:
@@ -62,41 +74,30 @@ def _empty_scene(bpy, fps: float | None) -> None:
         bpy.context.scene.render.fps, bpy.context.scene.render.fps_base = round(fps), 1.0
 
 
-def _import(bpy, path: str) -> list:
+def _import(bpy, path: str, way: ImportWay) -> list:
     """Import ``path`` as a user would; returns the mesh objects it brought in."""
     lower = path.lower()
     if lower.endswith(".blend"):  # a scene already made (hrr-export --to blend): opened as it is
         bpy.ops.wm.open_mainfile(filepath=path)
-    elif ADDON:
+    elif way.addon:
         if bpy.ops.import_scene.hrr_garment(filepath=path) != {"FINISHED"}:
             raise ValueError(f"{path}: the add-on's import did not finish")
     elif lower.endswith(".glb") or lower.endswith(".gltf"):
-        bpy.ops.import_scene.gltf(filepath=path, **GLTF_IMPORT)
+        bpy.ops.import_scene.gltf(filepath=path, **way.gltf)
     elif lower.endswith((".usd", ".usdc", ".usda")):
         bpy.ops.wm.usd_import(filepath=path)
     elif lower.endswith(".pc2"):
         base = path[:-4] + ".obj"
-        # docs/export.md: File > Import > Wavefront (defaults), then a Mesh Cache modifier (PC2)
+        # docs/export.md: File > Import > Wavefront (defaults), then a Mesh Cache modifier (PC2) at its
+        # default axes (the OBJ importer has turned Y up into Z up; the cache applies in the object's frame)
         bpy.ops.wm.obj_import(filepath=base)
         obj = next(o for o in bpy.context.scene.objects if o.type == "MESH")
         cache = obj.modifiers.new("cache", "MESH_CACHE")
         cache.cache_format = "PC2"
         cache.filepath = path
-        for key, value in _MESH_CACHE_SETTINGS.items():
-            setattr(cache, key, value)
     else:
         raise ValueError(f"{path}: no importer for this extension")
     return [o for o in bpy.context.scene.objects if o.type == "MESH"]
-
-
-ADDON = False  # --addon=ZIP: every file imported through our add-on, installed from ZIP
-SET_FPS = False  # --set-fps: the scene set to the clip's rate before the import, as a user told to would
-GLTF_IMPORT: dict = {}  # the glTF importer's settings (the dialog's defaults unless --gltf-shading)
-
-# what docs/export.md tells a user to set on the Mesh Cache modifier (the OBJ importer's defaults
-# already turn the file's Y up into Blender's Z up, and the modifier then applies the cache in the
-# object's own frame)
-_MESH_CACHE_SETTINGS: dict = {}
 
 
 def _evaluated(bpy, obj) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -131,11 +132,11 @@ def _error_at(bpy, obj, frame: int, vertices: np.ndarray) -> float:
     return float(np.linalg.norm(_evaluated(bpy, obj)[0] - vertices, axis=1).max())
 
 
-def check(bpy, path: str, ref: dict) -> dict:
-    """Import ``path`` into an empty scene and compare every frame with ``ref``."""
+def check(bpy, path: str, ref: dict, way: ImportWay = ImportWay()) -> dict:
+    """Import ``path`` into an empty scene ``way``'s way and compare every frame with ``ref``."""
     vertices, faces, fps = ref["vertices"].astype(np.float64), ref["faces"], float(ref["fps"])
-    _empty_scene(bpy, fps if SET_FPS else None)
-    garments = [o for o in _import(bpy, path) if len(o.data.vertices) == vertices.shape[1]]
+    _empty_scene(bpy, fps if way.set_fps else None)
+    garments = [o for o in _import(bpy, path, way) if len(o.data.vertices) == vertices.shape[1]]
     if len(garments) != 1:
         raise ValueError(f"{path}: {len(garments)} imported meshes have the clip's {vertices.shape[1]} vertices")
     obj, scene = garments[0], bpy.context.scene
@@ -167,11 +168,10 @@ def check(bpy, path: str, ref: dict) -> dict:
 def main() -> int:
     args = _arguments()
     as_json = "--json" in args
-    for a in [a for a in args if a.startswith("--gltf-shading=")]:
-        GLTF_IMPORT["import_shading"] = a.split("=", 1)[1]  # NORMALS (the default), SMOOTH or FLAT
-    global SET_FPS, ADDON
-    SET_FPS = "--set-fps" in args
+    shading = [a.split("=", 1)[1] for a in args if a.startswith("--gltf-shading=")]  # NORMALS, SMOOTH or FLAT
     addon = [a.split("=", 1)[1] for a in args if a.startswith("--addon=")]
+    way = ImportWay(addon=bool(addon), set_fps="--set-fps" in args,
+                    gltf={"import_shading": shading[-1]} if shading else {})
     args = [a for a in args if not a.startswith("--")]
     if len(args) < 2:
         print(__doc__.split("\n\n")[0] + "\nusage: tools/blender_check.py REF.npz FILE [FILE ...] [--json]", file=sys.stderr)
@@ -181,13 +181,12 @@ def main() -> int:
     bpy.ops.wm.read_factory_settings(use_empty=True)
     if addon:  # into the user resources Blender was started with (the tests give it a temporary one)
         bpy.ops.extensions.package_install_files(filepath=addon[0], repo="user_default", enable_on_install=True)
-        ADDON = True
     with np.load(args[0]) as data:
         ref = {k: data[k] for k in ("vertices", "faces", "fps")}
     status = 0
     for path in args[1:]:
         try:
-            result = check(bpy, path, ref)
+            result = check(bpy, path, ref, way)
         except Exception as exc:  # noqa: BLE001 - one file's failure is reported, the others still run
             result, status = {"file": path, "error": f"{type(exc).__name__}: {exc}"}, 1
         if as_json:
