@@ -83,6 +83,11 @@ class AutoConfig:
     def from_dict(cls, values: dict) -> "AutoConfig":
         return from_settings(cls, values, "auto mode")
 
+    def limits(self) -> dict[str, float]:
+        """The allowances a calibration is picked under, as bundle.json's ``auto`` records them."""
+        return {"allowance": self.allowance, "penetration_allowance": self.penetration_allowance,
+                "penetration_floor_pct": self.penetration_floor_pct}
+
 
 def detail_label(base: str, strength: float) -> str:
     """A detail candidate's name in the calibration: ``detail x0.8``, ``detail on residual x1``."""
@@ -100,17 +105,16 @@ def plausibility_gap(sharpness: float, swing: float) -> float:
     return math.hypot(math.log(sharpness), math.log(swing))
 
 
-def pick_auto_mode(candidates: dict[str, dict[str, float]], allowance: float = AUTO_ALLOWANCE,
-                   penetration_allowance: float = PENETRATION_ALLOWANCE,
-                   penetration_floor_pct: float = PENETRATION_FLOOR_PCT) -> str:
-    """The criterion of the module docstring on each candidate's ``pve_mm``, ``sharpness`` and
-    ``hem_swing`` (ratios to the truth) and, where recorded, ``penetration_pct`` (before the
-    push-out; calibrations recorded before it have none, and are picked without it); a candidate
-    labelled by :data:`DETAIL_CANDIDATES` is the detail mode."""
+def pick_auto_mode(candidates: dict[str, dict[str, float]], config: AutoConfig = AutoConfig()) -> str:
+    """The criterion of the module docstring, under ``config``'s allowances, on each candidate's
+    ``pve_mm``, ``sharpness`` and ``hem_swing`` (ratios to the truth) and, where recorded,
+    ``penetration_pct`` (before the push-out; calibrations recorded before it have none, and are
+    picked without it); a candidate labelled by :data:`DETAIL_CANDIDATES` is the detail mode."""
     accurate = min(candidates, key=lambda m: candidates[m]["pve_mm"])
     best, inside = candidates[accurate]["pve_mm"], candidates[accurate].get("penetration_pct")
-    most_inside = None if inside is None else max(penetration_allowance * inside, penetration_floor_pct) + 1e-9
-    eligible = [m for m, c in candidates.items() if c["pve_mm"] <= allowance * best
+    most_inside = None if inside is None else \
+        max(config.penetration_allowance * inside, config.penetration_floor_pct) + 1e-9
+    eligible = [m for m, c in candidates.items() if c["pve_mm"] <= config.allowance * best
                 and (most_inside is None or c.get("penetration_pct", 0.0) <= most_inside)]
     order = {m: i for i, m in enumerate(AUTO_CHOICES)}
     return min(eligible, key=lambda m: (plausibility_gap(candidates[m]["sharpness"], candidates[m]["hem_swing"]),
@@ -118,17 +122,16 @@ def pick_auto_mode(candidates: dict[str, dict[str, float]], allowance: float = A
                                         candidates[m]["pve_mm"]))
 
 
-def pick_auto_and_detail(candidates: dict[str, dict[str, float]], config: "AutoConfig | None" = None) -> tuple[str, str, float]:
+def pick_auto_and_detail(candidates: dict[str, dict[str, float]],
+                         config: AutoConfig = AutoConfig()) -> tuple[str, str, float]:
     """(the mode auto runs, the detail mode's base, its strength) by the criterion on candidates
     labelled by mode, the detail mode's by :data:`DETAIL_CANDIDATES` (see the module docstring),
-    under ``config``'s allowances (default :class:`AutoConfig`'s)."""
-    c = AutoConfig() if config is None else config
-    limits = (c.allowance, c.penetration_allowance, c.penetration_floor_pct)
-    picked = pick_auto_mode(candidates, *limits)
-    details = {k: v for k, v in candidates.items() if k in DETAIL_CANDIDATES}
+    under ``config``'s allowances."""
+    picked = pick_auto_mode(candidates, config)
+    details = {k: c for k, c in candidates.items() if k in DETAIL_CANDIDATES}
     if not details:
         return picked, "regression", DETAIL_STRENGTH
-    detail = picked if picked in details else pick_auto_mode(details, *limits)
+    detail = picked if picked in details else pick_auto_mode(details, config)
     return ("detail" if picked in details else picked), *DETAIL_CANDIDATES[detail]
 
 
@@ -137,8 +140,8 @@ def calibrate_auto_mode(animator: Animator, records: list[SequenceRecord], confi
     """Each candidate's PVE (mm, against each record's simulation), sharpness, hem swing and
     vertices inside the body before the push-out (%) on ``records`` (at most ``max_sequences`` of
     them, evenly spaced), and the mode the criterion picks under ``config``: ``{"mode",
-    "detail_base", "detail_strength", "criterion", "allowance", "penetration_allowance", "sequences",
-    "frames", "candidates": {label: {...}}}``, what bundle.json keeps under ``auto``."""
+    "detail_base", "detail_strength", "criterion", the allowances (:meth:`AutoConfig.limits`),
+    "sequences", "frames", "candidates": {label: {...}}}``, what bundle.json keeps under ``auto``."""
     if not records:
         raise ValueError("the auto mode is calibrated on validation sequences, and there are none")
     if max_sequences is not None and len(records) > max_sequences:
@@ -181,9 +184,7 @@ def repick(auto: dict, config: AutoConfig) -> dict:
     """A recorded calibration (``bundle.json``'s ``auto``) picked again under ``config``'s
     allowances: the candidates' numbers stand, only the choice among them moves."""
     mode, detail_base, detail_strength = pick_auto_and_detail(auto["candidates"], config)
-    return {**auto, "mode": mode, "detail_base": detail_base, "detail_strength": detail_strength,
-            "allowance": config.allowance, "penetration_allowance": config.penetration_allowance,
-            "penetration_floor_pct": config.penetration_floor_pct}
+    return {**auto, "mode": mode, "detail_base": detail_base, "detail_strength": detail_strength, **config.limits()}
 
 
 def describe_auto(auto: dict) -> str:

@@ -245,8 +245,7 @@ def calibrate_auto(folder: str | Path, dataset: str | Path, progress: bool = Tru
         records = [ds.sequence(n) for n in ds.splits.get("val", [])]
         auto = calibrate_auto_mode(Animator.load(folder), records, config, progress=progress)
         update_bundle_meta(folder, {"auto": auto})
-    elif (auto.get("allowance"), auto.get("penetration_allowance"), auto.get("penetration_floor_pct")) != \
-            (config.allowance, config.penetration_allowance, config.penetration_floor_pct):
+    elif any(auto.get(key) != value for key, value in config.limits().items()):
         auto = repick(auto, config)
         update_bundle_meta(folder, {"auto": auto})
     return auto

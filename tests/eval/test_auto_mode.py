@@ -50,7 +50,7 @@ def test_plausibility_gap_weighs_too_smooth_and_too_sharp_alike():
 ])
 def test_the_criterion_takes_the_most_plausible_of_the_accurate(candidates, expected):
     assert pick_auto_mode(candidates) == expected
-    assert pick_auto_mode(candidates, allowance=1.0) == min(candidates, key=lambda m: (candidates[m]["pve_mm"],
+    assert pick_auto_mode(candidates, AutoConfig(allowance=1.0)) == min(candidates, key=lambda m: (candidates[m]["pve_mm"],
                                                                                         list(candidates).index(m)))
 
 
@@ -71,14 +71,14 @@ def test_a_candidate_with_more_cloth_inside_the_body_is_not_the_default():
                   R10: {**_c(30.9, 0.90, 0.80), "penetration_pct": 3.3},
                   RR10: {**_c(31.0, 0.90, 0.95), "penetration_pct": 3.9}}
     assert pick_auto_mode(candidates) == R10
-    assert pick_auto_mode(candidates, penetration_allowance=1.5) == RR10
+    assert pick_auto_mode(candidates, AutoConfig(penetration_allowance=1.5)) == RR10
     candidates[R10]["penetration_pct"] = 3.31  # 1.103 x: over too
     assert pick_auto_mode(candidates) == "hybrid"
     recorded = {k: {m: v for m, v in c.items() if m != "penetration_pct"} for k, c in candidates.items()}
     assert pick_auto_mode(recorded) == RR10
     small = {k: {**c, "penetration_pct": c["penetration_pct"] / 10} for k, c in candidates.items()}
     assert pick_auto_mode(small) == RR10  # all under the 1 % floor: the push-out's to take, not a reason to lose swing
-    assert pick_auto_mode(small, penetration_floor_pct=0.0) == "hybrid"
+    assert pick_auto_mode(small, AutoConfig(penetration_floor_pct=0.0)) == "hybrid"
     with pytest.raises(SettingsError, match="penetration_allowance"):
         AutoConfig(penetration_allowance=0.5)
 
