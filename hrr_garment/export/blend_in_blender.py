@@ -8,7 +8,7 @@ from pathlib import Path
 
 import bpy
 
-ERROR = "HRR-ERROR: "
+ERROR = "HRR-ERROR: "  # hrr_garment.blender.ERROR_PREFIX: this runs in Blender's Python, without the package
 
 
 def main() -> int:
