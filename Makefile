@@ -19,7 +19,7 @@ $(BIN)/python:
 
 $(STAMP): pyproject.toml | $(BIN)/python
 	$(BIN)/pip install $(PIP_FLAGS) "$(TORCH_SPEC)"
-	$(BIN)/pip install $(PIP_FLAGS) -e ".[dev,preview,video,export,eval,sim,cluster,bodies,sign]"
+	$(BIN)/pip install $(PIP_FLAGS) -e ".[dev,preview,video,export,eval,sim,cluster,bodies,sign,onnx]"
 	@if command -v npm >/dev/null 2>&1; then \
 		mkdir -p $(VENV)/node && cd $(VENV)/node && npm install --silent --no-audit --no-fund $(GLTF_VALIDATOR) $(THREE_JS); \
 	else echo "npm not found: the GLB validator test will be skipped"; fi

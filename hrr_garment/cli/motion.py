@@ -1,4 +1,5 @@
-"""hrr-motion: synthesize procedural motions, inspect motion files, compute features."""
+"""hrr-motion: synthesize procedural motions, inspect motion files, compute features, write a clip's poses
+as an engine hands them over."""
 
 from __future__ import annotations
 
@@ -15,6 +16,8 @@ from ..motion.features import motion_features
 from ..motion.gltf import gltf_summary
 from ..motion.gltf_file import GLTF_SUFFIXES
 from ..motion.io import load_motion, save_motion
+from ..motion.poses import motion_to_poses
+from ..motion.skeleton import JOINT_NAMES
 from ..motion.synth import KINDS, kind_parameters, synthesize
 from ..motion.windows import DEFAULT_WINDOW
 from ._common import add_fps_option, run_cli
@@ -52,6 +55,11 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("-o", "--output", type=Path, required=True, help="the features as .npy")
     p.add_argument("--window", type=int, default=DEFAULT_WINDOW, help="minimum clip length in frames (one window)")
     _add_load_options(p)
+    p = sub.add_parser("poses", help="write the clip as an engine hands poses over: local quaternions and roots (.npz)")
+    p.add_argument("file", type=Path)
+    p.add_argument("-o", "--output", type=Path, required=True,
+                   help="npz of rotations (T, 22, 4) x y z w, root (T, 3), fps and joint_names")
+    _add_load_options(p)
     return parser
 
 
@@ -73,10 +81,17 @@ def _body(argv: Sequence[str] | None) -> int:
         save_motion(motion, args.output)
         print(f"wrote {args.output} ({motion.num_frames} frames, {motion.duration_s:.2f} s)")
         return 0
-    if args.command == "features":  # before reading: a wrong output is refused before any work
-        require_suffix(args.output, (".npy",), "the feature array")
+    if args.command in ("features", "poses"):  # before reading: a wrong output is refused before any work
+        require_suffix(args.output, (".npy",) if args.command == "features" else (".npz",),
+                       "the feature array" if args.command == "features" else "the poses")
         refuse_input_as_output(args.output, [args.file])
     motion = _load(args)
+    if args.command == "poses":
+        rotations, root = motion_to_poses(motion)
+        with atomic_path(args.output) as tmp, open(tmp, "wb") as fh:  # a handle: numpy appends .npz to a name
+            np.savez(fh, rotations=rotations, root=root, fps=np.float64(motion.fps), joint_names=np.array(JOINT_NAMES))
+        print(f"wrote {args.output}: {len(rotations)} poses of {len(JOINT_NAMES)} joints at {motion.fps:g} fps")
+        return 0
     if args.command == "info":
         summary = motion.summary()
         if args.file.suffix.lower() in GLTF_SUFFIXES:  # which animation this is, and the file's others

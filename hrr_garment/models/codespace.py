@@ -121,7 +121,7 @@ class MotionEncoder(nn.Module):
         """(B, W, F) -> (B, G * K) logits."""
         h, _ = self.gru(torch.nn.functional.elu(self.inp(windows)))
         h = self.norm(h + self.attention(h, h, h, need_weights=False)[0])
-        pooled = self.pool(self.query.expand(len(h), -1, -1), h, h, need_weights=False)[0][:, 0]
+        pooled = self.pool(self.query.expand(h.shape[0], -1, -1), h, h, need_weights=False)[0][:, 0]
         return self.out(pooled)
 
 
@@ -182,10 +182,10 @@ class CodeSpace(nn.Module):
         if body is not None:
             embedding = torch.cat([embedding, body], 1)
         if not last_frame:
-            return self.decoder(embedding).reshape(len(embedding), self.config.window, *self.latent_shape)
+            return self.decoder(embedding).reshape(embedding.shape[0], self.config.window, *self.latent_shape)
         *hidden, out = self.decoder.net
         h = embedding
         for layer in hidden:
             h = layer(h)
         n = self.latent_shape[0] * self.latent_shape[1]
-        return torch.nn.functional.linear(h, out.weight[-n:], out.bias[-n:]).reshape(len(embedding), 1, *self.latent_shape)
+        return torch.nn.functional.linear(h, out.weight[-n:], out.bias[-n:]).reshape(embedding.shape[0], 1, *self.latent_shape)

@@ -19,7 +19,7 @@ import numpy as np
 from ..errors import MotionError
 from .limits import MAX_AXIS_ANGLE, ROTATION_TOLERANCE
 from .motion import FPS, MAX_TRANSLATION_M, Motion
-from .rotations import axis_angle_to_matrix, quat_to_matrix, rotation_matrix_error
+from .rotations import axis_angle_to_matrix, matrix_to_quat, quat_to_matrix, rotation_matrix_error
 from .skeleton import CANONICAL
 
 QUATERNION_ORDERS = ("xyzw", "wxyz")
@@ -88,3 +88,10 @@ def poses_to_motion(rotations: np.ndarray, roots: np.ndarray, quaternion_order: 
     matrices = rotations_to_matrices(rotations, CANONICAL.num_joints, quaternion_order, source)
     # checked above (matrices) or rotations by construction (quaternions, axis-angles)
     return Motion(matrices.astype(np.float32), check_roots(roots, len(matrices), source), fps, source=source, check_rotations=False)
+
+
+def motion_to_poses(motion: Motion) -> tuple[np.ndarray, np.ndarray]:
+    """The inverse of :func:`poses_to_motion`: a canonical motion as an engine would hand its frames
+    over, local quaternions (T, 22, 4) x y z w and pelvis positions (T, 3), both float32."""
+    wxyz = matrix_to_quat(np.asarray(motion.local_rotations, np.float64))
+    return np.ascontiguousarray(wxyz[..., [1, 2, 3, 0]], np.float32), np.asarray(motion.root_translation, np.float32)

@@ -16,6 +16,7 @@ from hrr_garment.data.dataset import GarmentDataset
 from hrr_garment.garment.templates import make_garment
 from hrr_garment.garment.transfer import transfer_garment
 from hrr_garment.motion.frame import to_body_frame
+from hrr_garment.motion.poses import motion_to_poses
 from hrr_garment.motion.synth import synthesize
 from tests.conftest import TINY_TRAINING, train_tiny
 from tests.garment.test_templates_on_bodies import _larger_body
@@ -146,6 +147,29 @@ def test_a_stream_on_a_body_equals_the_offline_causal_animation_on_it(bodies_mod
     stream = animator.stream(body=short)
     pushed = np.stack([stream.push(motion.slice(t, t + 1)) for t in range(motion.num_frames)])
     assert np.abs(pushed - causal).max() <= 1e-5
+
+
+def test_the_onnx_step_on_a_body_streams_as_the_python_stream_on_it(bodies_model, tmp_path):
+    """hrr-export-model --onnx --body: the graph reads the body's measures, plays the poses on its
+    skeleton, stands the garment on it and pushes out of its capsules, as the Python stream does."""
+    pytest.importorskip("onnxruntime")
+    from hrr_garment.cli.export_model import main
+    from hrr_garment.export.onnx_model import OnnxStream
+    from hrr_garment.inference.animator import Animator
+    from hrr_garment.motion.io import save_motion
+
+    folder, data = bodies_model
+    short = GarmentDataset(data).bodies["short"].record
+    write_body(tmp_path / "short.json", short)
+    motion = synthesize("walk_curve", 1.0, seed=3)
+    save_motion(motion, tmp_path / "clip.npz")
+    assert main(["--model", str(folder), "--onnx", "-o", str(tmp_path / "short.onnx"), "--body", str(tmp_path / "short.json"),
+                 "--check", str(tmp_path / "clip.npz")]) == 0
+    graph = OnnxStream(tmp_path / "short.onnx")
+    stream = Animator.load(folder).stream(mode="regression", body=short)
+    for t in range(motion.num_frames):
+        ours = graph.push(motion_to_poses(motion.slice(t, t + 1))[0], motion.root_translation[t:t + 1])[0]
+        assert np.abs(ours - stream.push(motion.slice(t, t + 1))).max() < 1e-5, t
 
 
 def test_hrr_animate_on_a_body_file(bodies_model, tmp_path, capsys):

@@ -1,0 +1,221 @@
+"""A trained model's streaming step as ONNX, for engines that cannot call Python (Unreal's neural
+engine, Unity's inference engine, onnxruntime): ``hrr-export-model MODEL --onnx -o dress.onnx``.
+
+    step = export_onnx(animator, "dress.onnx")                  # + dress.tensors.npz
+    gap = check_onnx(animator, "dress.onnx", motion)            # against the Python stream, mm
+
+The graph (:class:`~.onnx_graph.StreamStep`) is the regression path of a stream for N characters
+of one body: a frame of poses in, world vertices out, each character's window state as explicit
+inputs and outputs (:data:`STATE`; :func:`initial_state` gives a first frame's). What ONNX cannot
+hold, the retrieval database (a FAISS search over binary codes), travels as documented tensors in
+the companion npz (:data:`TENSORS`) beside the garment's faces, with the codes and entropies the
+graph outputs for a search of one's own (docs/export.md). Needs the ``onnx`` extra.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import time
+import warnings
+from contextlib import contextmanager
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from .._version import __version__
+from ..errors import InputError
+from ..inference.collision import PUSH_OUT
+from ..io_utils import atomic_path, require_suffix
+from ..motion.memory import MEMORY_WIDTH, motion_memory
+from ..motion.motion import FPS, Motion
+from ..motion.poses import motion_to_poses
+from ..motion.skeleton import JOINT_INDEX, JOINT_NAMES
+from .onnx_graph import PoseStage, PushOutStage, StreamStep, torch_decoder
+
+INPUTS = ("rotations", "root")
+STATE = ("started", "previous_rotations", "previous_positions", "memory", "window")
+OUTPUTS = ("vertices", "entropy", "codes") + tuple(f"next_{name}" for name in STATE)
+# what the companion npz holds (docs/export.md says how a retrieval uses them)
+TENSORS = {
+    "faces": "(F, 3) int32 the garment's triangles",
+    "joint_names": "(22,) the joints of the rotations input, in order",
+    "database_codes": "(M, G) uint8 each database window's motion code (one class of K per group)",
+    "database_latents": "(M, nodes, C) float32 the simulated garment latents of each window's last frame",
+    "database_sequence": "(M,) int32 the simulated sequence each window comes from",
+    "database_start": "(M,) int32 its first frame in that sequence",
+}
+OPSET = 18
+
+
+@dataclass(frozen=True)
+class OnnxExport:
+    """What :func:`export_onnx` wrote."""
+
+    graph: Path
+    tensors: Path
+    vertices: int
+    state: dict  # input name -> shape per character (without the leading N)
+    seconds: float
+
+
+def _require_onnx():
+    try:
+        import onnx
+        import onnxscript  # noqa: F401  (torch's ONNX exporter translates through it)
+    except ImportError:
+        raise ImportError("ONNX export needs onnx and onnxscript: pip install 'hrr_garment[onnx]'") from None
+    return onnx
+
+
+def _onnxruntime():
+    try:
+        import onnxruntime
+    except ImportError:
+        raise ImportError("running an ONNX model needs onnxruntime: pip install 'hrr_garment[onnx]'") from None
+    return onnxruntime
+
+
+def stream_step(animator, body=None, *, fps: float = FPS, push_out: bool = True, allow_outside: bool = False) -> StreamStep:
+    """The :class:`~.onnx_graph.StreamStep` of ``animator``'s model on ``body`` (None: the model's
+    own; what :meth:`~hrr_garment.inference.animator.Animator.body` takes)."""
+    bundle = animator.bundle
+    character = animator.body(body, allow_outside=allow_outside)
+    spec = bundle.codespace.config.memory
+    memory = motion_memory(spec, float(fps)) if spec else None
+    stage = None
+    if push_out:
+        capsules = character.body.capsules
+        ends = (np.array([JOINT_INDEX[c.joint] for c in capsules]), np.array([c.a for c in capsules]),
+                np.array([c.b for c in capsules]), np.array([c.radius for c in capsules]))
+        stage = PushOutStage(ends, animator.smoothing, animator.edge_limits, PUSH_OUT)
+    return StreamStep(bundle, torch_decoder(animator.decoder), character, memory, fps, push_out=stage).eval()
+
+
+def state_shapes(step: StreamStep) -> dict[str, tuple[int, ...]]:
+    """Each state input's shape per character."""
+    window = step.codes.codespace.config.window
+    return {"started": (), "previous_rotations": (22, 3, 3), "previous_positions": (22, 3),
+            "memory": (max(step.features.rows, 1), MEMORY_WIDTH), "window": (window - 1, int(step.motion_mean.shape[0]))}
+
+
+def initial_state(shapes: dict[str, tuple[int, ...]], characters: int) -> dict[str, np.ndarray]:
+    """Zeros of each state input for ``characters`` starting characters (``started`` 0)."""
+    return {name: np.zeros((characters, *shape), np.float32) for name, shape in shapes.items()}
+
+
+def export_onnx(animator, path: str | Path, body=None, *, fps: float = FPS, push_out: bool = True,
+                allow_outside: bool = False) -> OnnxExport:
+    """Write ``path`` (.onnx, one file) and its companion ``<stem>.tensors.npz``, atomically."""
+    onnx = _require_onnx()
+    path = Path(path)
+    require_suffix(path, (".onnx",), "an ONNX model")
+    t0 = time.perf_counter()
+    step = stream_step(animator, body, fps=fps, push_out=push_out, allow_outside=allow_outside)
+    shapes = state_shapes(step)
+    example = _example_inputs(shapes, 2)
+    n = torch.export.Dim("characters", min=1, max=4096)
+    dynamic = tuple({0: n} for _ in example)
+    with torch.no_grad(), _quiet():
+        program = torch.onnx.export(step, tuple(torch.from_numpy(x) for x in example.values()), dynamo=True,
+                                    input_names=list(example), output_names=list(OUTPUTS), dynamic_shapes=dynamic,
+                                    opset_version=OPSET, optimize=True, verbose=False)
+    model = program.model_proto
+    bundle = animator.bundle
+    meta = {"hrr_garment": __version__, "garment": bundle.garment, "content_hash": bundle.content_hash,
+            "fps": float(fps), "push_out": bool(push_out), "body": animator.body(body, allow_outside=allow_outside).name,
+            "vertices": int(bundle.template.num_vertices), "state": {k: list(v) for k, v in shapes.items()},
+            "path": "regression"}
+    for key, value in meta.items():
+        entry = model.metadata_props.add()
+        entry.key, entry.value = key, value if isinstance(value, str) else json.dumps(value)
+    with atomic_path(path) as tmp:
+        onnx.save_model(model, str(tmp))
+    tensors = path.with_name(f"{path.stem}.tensors.npz")
+    db = bundle.database
+    with atomic_path(tensors) as tmp, open(tmp, "wb") as fh:
+        np.savez(fh, faces=bundle.template.faces.astype(np.int32), joint_names=np.array(JOINT_NAMES),
+                 database_codes=np.asarray(db.codes, np.uint8), database_latents=np.asarray(db.latents[np.arange(len(db)), -1], np.float32),
+                 database_sequence=np.asarray(db.sequence, np.int32), database_start=np.asarray(db.start, np.int32))
+    return OnnxExport(path, tensors, int(bundle.template.num_vertices), shapes, time.perf_counter() - t0)
+
+
+@contextmanager
+def _quiet():
+    """Torch's exporter and its optimiser log and warn about their own internals (a missing
+    torchvision, deprecations, constant folding skipped) on every export: none of it is the user's."""
+    previous = logging.root.manager.disable
+    logging.disable(logging.WARNING)
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            yield
+    finally:
+        logging.disable(previous)
+
+
+def _example_inputs(shapes: dict, characters: int) -> dict[str, np.ndarray]:
+    rng = np.random.default_rng(0)
+    quats = rng.normal(size=(characters, 22, 4)).astype(np.float32)
+    inputs = {"rotations": quats / np.linalg.norm(quats, axis=-1, keepdims=True),
+              "root": np.tile(np.float32([0.0, 0.96, 0.0]), (characters, 1))}
+    return inputs | initial_state(shapes, characters)
+
+
+class OnnxStream:
+    """A graph written by :func:`export_onnx` run by onnxruntime, its state kept: one frame of N
+    characters per :meth:`push` (what examples/onnx_stream.py does without the package)."""
+
+    def __init__(self, path: str | Path, threads: int | None = None):
+        ort = _onnxruntime()
+        options = ort.SessionOptions()
+        if threads:
+            options.intra_op_num_threads = threads
+        try:
+            self.session = ort.InferenceSession(str(path), options, providers=["CPUExecutionProvider"])
+        except Exception as exc:  # onnxruntime raises its own exception types for a file it cannot read
+            raise InputError(path, f"not an ONNX model onnxruntime can load ({exc})") from None
+        meta = self.session.get_modelmeta().custom_metadata_map
+        if "state" not in meta:
+            raise InputError(path, "not a streaming step written by hrr-export-model --onnx (no state in its metadata)")
+        self.shapes = {k: tuple(v) for k, v in json.loads(meta["state"]).items()}
+        self.state: dict[str, np.ndarray] | None = None
+
+    def push(self, rotations: np.ndarray, roots: np.ndarray) -> np.ndarray:
+        """(N, 22, 4) quaternions x y z w and (N, 3) roots -> (N, V, 3) world vertices."""
+        if self.state is None:
+            self.state = initial_state(self.shapes, len(rotations))
+        out = self.session.run(list(OUTPUTS), {"rotations": np.asarray(rotations, np.float32),
+                                               "root": np.asarray(roots, np.float32), **self.state})
+        self.state = dict(zip(STATE, out[3:]))
+        return out[0]
+
+
+def check_onnx(animator, path: str | Path, motion: Motion, body=None, *, allow_outside: bool = False) -> dict:
+    """Stream ``motion`` (canonical skeleton) through the ONNX graph and through
+    :meth:`~hrr_garment.inference.animator.Animator.stream` in the regression mode (push-out as the
+    graph was written) -> the gap per frame in millimetres: max, mean, and each path's median
+    step time in milliseconds."""
+    runner = OnnxStream(path)
+    meta = runner.session.get_modelmeta().custom_metadata_map
+    python = animator.stream(mode="regression", collision=json.loads(meta["push_out"]), body=body, allow_outside=allow_outside)
+    quats, roots = motion_to_poses(motion)
+    gaps, onnx_s, python_s = [], [], []
+    for t in range(motion.num_frames):
+        t0 = time.perf_counter()
+        ours = runner.push(quats[t:t + 1], roots[t:t + 1])[0]
+        t1 = time.perf_counter()
+        theirs = python.push(rotation=quats[t], root=roots[t])
+        t2 = time.perf_counter()
+        onnx_s.append(t1 - t0)
+        python_s.append(t2 - t1)
+        gaps.append(np.linalg.norm(ours.astype(np.float64) - theirs, axis=-1).max() * 1000.0)
+    gaps = np.array(gaps)
+    return {"frames": motion.num_frames, "max_mm": float(gaps.max()), "mean_mm": float(gaps.mean()),
+            "onnx_ms": float(np.median(onnx_s) * 1000), "python_ms": float(np.median(python_s) * 1000)}
+
+
+__all__ = ["INPUTS", "STATE", "OUTPUTS", "TENSORS", "OnnxExport", "OnnxStream", "PoseStage", "export_onnx",
+           "check_onnx", "initial_state", "state_shapes", "stream_step"]

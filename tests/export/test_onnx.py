@@ -1,0 +1,132 @@
+"""The streaming step in ONNX (hrr-export-model --onnx): onnxruntime gives what the Python stream
+gives, frame by frame and character by character; its push-out equals the library's where the
+strain limit works; the example runs with numpy and onnxruntime alone; bad inputs are refused."""
+
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pytest.importorskip("onnxruntime")
+pytest.importorskip("onnxscript")
+
+from hrr_garment.cli.export_model import main as export_model_main  # noqa: E402
+from hrr_garment.cli.motion import main as motion_main  # noqa: E402
+from hrr_garment.errors import InputError  # noqa: E402
+from hrr_garment.motion.poses import motion_to_poses  # noqa: E402
+from hrr_garment.motion.synth import synthesize  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+@pytest.fixture(scope="module")
+def exported(trained, tmp_path_factory):
+    """The tiny model, its ONNX graph (push-out on) and a clip that turns and swings."""
+    from hrr_garment.export.onnx_model import export_onnx
+    from hrr_garment.inference.animator import Animator
+
+    root, _, _ = trained
+    animator = Animator.load(root / "model")
+    path = tmp_path_factory.mktemp("onnx") / "skirt.onnx"
+    written = export_onnx(animator, path)
+    return animator, written, synthesize("spin", 2.0, seed=3)
+
+
+def test_the_graph_streams_each_character_as_the_python_stream_does(exported):
+    """Two characters in one batch, each from its own frame of a spinning clip, against a Python
+    stream each: within a hundredth of a millimetre (the acceptance bar is 0.1) on every frame."""
+    from hrr_garment.export.onnx_model import OnnxStream
+
+    animator, written, clip = exported
+    rotations, roots = motion_to_poses(clip)
+    starts = np.array([0, 17])
+    graph = OnnxStream(written.graph)
+    streams = [animator.stream(mode="regression") for _ in starts]
+    worst = 0.0
+    for t in range(clip.num_frames - starts.max()):
+        both = graph.push(rotations[starts + t], roots[starts + t] + np.array([[0, 0, 0], [2.0, 0, 0]], np.float32))
+        for i, (stream, start) in enumerate(zip(streams, starts)):
+            alone = stream.push(rotation=rotations[start + t], root=roots[start + t] + [2.0 * i, 0, 0])
+            worst = max(worst, float(np.abs(both[i] - alone).max()))
+    assert both.shape == (2, animator.bundle.template.num_vertices, 3)
+    assert worst < 1e-5, f"ONNX departs from the Python stream by {worst * 1000:.4f} mm"
+
+
+def test_the_graphs_push_out_limits_the_strain_as_the_library_does(exported):
+    """Vertices dragged into the body, so that the push tears edges and the strain limit works: the
+    graph's push-out stage equals :func:`push_out` with its limit (float32 against float64)."""
+    import torch
+
+    from hrr_garment.body.capsules import DEFAULT_BODY
+    from hrr_garment.export.onnx_model import stream_step
+    from hrr_garment.inference.collision import limit_push_strain, push_out
+    from hrr_garment.motion.frame import world_vertices
+
+    animator, _, clip = exported
+    step = stream_step(animator)
+    poses = clip.slice(10, 13)
+    rest = np.broadcast_to(animator.bundle.template.vertices, (3, *animator.bundle.template.vertices.shape))
+    garment = world_vertices(rest.astype(np.float32), poses)
+    pelvis = poses.joint_positions[:, :1]
+    garment[:, ::7] = (0.3 * garment[:, ::7] + 0.7 * pelvis).astype(np.float32)  # every 7th vertex deep inside
+    ours = step.push_out(torch.from_numpy(garment), torch.from_numpy(poses.global_rotations).float(),
+                         torch.from_numpy(poses.joint_positions).float()).numpy()
+    pushed, _ = push_out(garment, poses, animator.bundle.template.faces, body=DEFAULT_BODY, mean=animator.smoothing,
+                         report=False)
+    _, torn = limit_push_strain(pushed, garment, animator.edge_limits)
+    assert torn.all(), "the case must exercise the strain limit"
+    theirs, _ = push_out(garment, poses, animator.bundle.template.faces, body=DEFAULT_BODY, mean=animator.smoothing,
+                         limits=animator.edge_limits, report=False)
+    assert np.abs(theirs - pushed).max() > 1e-3  # the limit moved vertices by millimetres ...
+    assert np.abs(ours - theirs).max() < 2e-5  # ... and the graph moved them the same
+
+
+@pytest.mark.tool
+def test_the_example_streams_with_numpy_and_onnxruntime_alone(exported, tmp_path):
+    """examples/onnx_stream.py with hrr_garment and torch made unimportable: its first character's
+    garment equals the graph run through the package."""
+    from hrr_garment.export.onnx_model import OnnxStream
+    from hrr_garment.motion.io import save_motion
+
+    _, written, clip = exported
+    save_motion(clip, tmp_path / "spin.npz")
+    assert motion_main(["poses", str(tmp_path / "spin.npz"), "-o", str(tmp_path / "spin.poses.npz")]) == 0
+    blocked = ("import runpy, sys\n"
+               "for name in ('hrr_garment', 'torch'): sys.modules[name] = None\n"
+               f"sys.argv = ['onnx_stream.py', {str(written.graph)!r}, {str(tmp_path / 'spin.poses.npz')!r}, "
+               f"'-o', {str(tmp_path / 'garment.npy')!r}, '--characters', '2']\n"
+               f"runpy.run_path({str(ROOT / 'examples' / 'onnx_stream.py')!r}, run_name='__main__')\n")
+    done = subprocess.run([sys.executable, "-c", blocked], capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    garment = np.load(tmp_path / "garment.npy")
+    rotations, roots = motion_to_poses(clip)
+    graph = OnnxStream(written.graph)
+    alone = np.stack([graph.push(rotations[t:t + 1], roots[t:t + 1])[0] for t in range(clip.num_frames)])
+    assert garment.shape == alone.shape
+    assert np.abs(garment - alone).max() < 1e-5
+
+
+def test_poses_round_trip_to_the_motion():
+    from hrr_garment.motion.poses import poses_to_motion
+
+    clip = synthesize("dance", 1.0, seed=1)
+    rotations, roots = motion_to_poses(clip)
+    assert rotations.shape == (clip.num_frames, 22, 4) and roots.dtype == np.float32
+    back = poses_to_motion(rotations, roots)
+    assert np.abs(back.local_rotations - clip.local_rotations).max() < 1e-5
+    assert np.abs(back.joint_positions - clip.joint_positions).max() < 1e-5
+
+
+def test_bad_requests_are_refused_with_the_reason(tmp_path, capsys):
+    from hrr_garment.export.onnx_model import OnnxStream
+
+    assert export_model_main(["--model", str(tmp_path), "-o", str(tmp_path / "x.onnx")]) == 2
+    assert "--onnx" in capsys.readouterr().err
+    assert export_model_main(["--model", str(tmp_path), "--onnx", "-o", str(tmp_path / "x.txt")]) == 2
+    assert ".onnx" in capsys.readouterr().err
+    (tmp_path / "junk.onnx").write_bytes(b"not a graph")
+    with pytest.raises(InputError, match="junk.onnx.*not an ONNX model"):
+        OnnxStream(tmp_path / "junk.onnx")
+    assert not (tmp_path / "x.onnx").exists()
