@@ -162,7 +162,7 @@ class PushOutStage(nn.Module):
         smoothing = smoothing.tocoo()
         _constant(self, "smooth_rows", smoothing.row, torch.int64)
         _constant(self, "smooth_cols", smoothing.col, torch.int64)
-        _constant(self, "smooth_weights", smoothing.data[:, None])
+        _constant(self, "smooth_weights", smoothing.data[:, None])  # (nnz, 1): over the characters
         # a pass moves a vertex by the sum of its edges' half excesses (+ at an edge's first end, - at
         # its second), over-relaxed over its degree: the half and the weight folded into one factor
         _constant(self, "vertex_weight", (0.5 * OVER_RELAXATION / limits.degree)[:, None])
@@ -186,42 +186,54 @@ class PushOutStage(nn.Module):
         return d, diff / torch.clamp(torch.sqrt((diff * diff).sum(-1, keepdim=True)), min=1e-12)
 
     def smooth(self, disp: torch.Tensor) -> torch.Tensor:
-        terms = torch.index_select(disp, 1, self.smooth_cols) * self.smooth_weights
-        return torch.zeros_like(disp).index_add(1, self.smooth_rows, terms)
+        """One pass of the mean over each vertex's neighbours, vertex-major (V, N, 3) (see :meth:`limit`)."""
+        terms = torch.index_select(disp, 0, self.smooth_cols) * self.smooth_weights[..., None]
+        return torch.zeros_like(disp).index_add(0, self.smooth_rows, terms)
 
     def push(self, p: torch.Tensor, a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
-        margin = self.settings.margin
         d, n = self.distance(p, a, b)
         for _ in range(self.settings.rounds):
-            need = torch.clamp(margin - d, min=0.0)
-            hit = need > 0
-            disp = need[..., None] * n
-            for _ in range(self.settings.smooth):  # spread to the neighbours, never below what is needed
-                disp = self.smooth(disp)
-                short = torch.where(hit, torch.clamp(need - (disp * n).sum(-1), min=0.0), torch.zeros_like(need))
-                disp = disp + short[..., None] * n
-            p = p + disp
-            d, n = self.distance(p, a, b)
+            p, d, n = torch.cond((d < self.settings.margin).any(), self._round, _as_is, (p, d, n, a, b))
         for _ in range(4):  # exact projection, again where a push landed in another capsule
-            p = p + torch.where(d < 0, margin - d, torch.zeros_like(d))[..., None] * n
-            d, n = self.distance(p, a, b)
+            p, d, n = torch.cond((d < 0).any(), self._project, _as_is, (p, d, n, a, b))
         return p
 
+    def _round(self, p, d, n, a, b):
+        """A push along the normals, spread to the neighbours, never below what is needed."""
+        need = torch.clamp(self.settings.margin - d, min=0.0).transpose(0, 1)  # vertex-major, as smooth takes it
+        normals = n.transpose(0, 1)
+        hit = need > 0
+        disp = need[..., None] * normals
+        for _ in range(self.settings.smooth):
+            disp = self.smooth(disp)
+            short = torch.where(hit, torch.clamp(need - (disp * normals).sum(-1), min=0.0), torch.zeros_like(need))
+            disp = disp + short[..., None] * normals
+        p = p + disp.transpose(0, 1)
+        return (p, *self.distance(p, a, b))
+
+    def _project(self, p, d, n, a, b):
+        p = p + torch.where(d < 0, self.settings.margin - d, torch.zeros_like(d))[..., None] * n
+        return (p, *self.distance(p, a, b))
+
     def _edge_vectors(self, p: torch.Tensor) -> torch.Tensor:
-        return torch.index_select(p, 1, self.edges[:, 1]) - torch.index_select(p, 1, self.edges[:, 0])
+        """(E, N, 3) of vertex-major points (V, N, 3)."""
+        return torch.index_select(p, 0, self.edges[:, 1]) - torch.index_select(p, 0, self.edges[:, 0])
 
     def limit(self, pushed: torch.Tensor, unpushed: torch.Tensor) -> torch.Tensor:
-        """Undo what of the push tears the cloth, on the characters with an edge over its limit."""
+        """Undo what of the push tears the cloth, on the characters with an edge over its limit.
+        Vertex-major, (V, N, 3): gathers and scatter-adds of whole rows (along the characters' axis
+        each exported with transposes that cost more than the arithmetic)."""
+        pushed, unpushed = pushed.transpose(0, 1), unpushed.transpose(0, 1)
         before = torch.sqrt((self._edge_vectors(unpushed) ** 2).sum(-1))
-        limit = torch.maximum(self.allowed, before)  # (N, E)
+        limit = torch.maximum(self.allowed[:, None], before)  # (E, N)
         length = torch.sqrt((self._edge_vectors(pushed) ** 2).sum(-1))
-        torn = (length > limit * (1.0 + 1e-6)).any(1)
+        torn = (length > limit * (1.0 + 1e-6)).any(0)
         active = torn
         p = pushed
         for start in range(0, self.strain_passes, STRAIN_PASSES_PER_CHECK):
             count = min(STRAIN_PASSES_PER_CHECK, self.strain_passes - start)
             p, active = torch.cond(active.any(), self._passes(count), _unchanged, (p, limit, active))
-        return p
+        return p.transpose(0, 1)
 
     def _passes(self, count: int):
         def passes(p: torch.Tensor, limit: torch.Tensor, active: torch.Tensor):
@@ -229,10 +241,10 @@ class PushOutStage(nn.Module):
                 d = self._edge_vectors(p)
                 length = torch.sqrt((d * d).sum(-1))
                 excess = torch.clamp(length - limit, min=0.0)
-                active = active & (excess.max(1).values > LIMIT_TOLERANCE_M)  # a character stops on its own
-                corr = (excess / torch.clamp(length, min=1e-12) * active[:, None].to(length.dtype))[..., None] * d  # (N, E, 3)
-                gathered = torch.zeros_like(p).index_add(1, self.edges[:, 0], corr).index_add(1, self.edges[:, 1], -corr)
-                p = p + gathered * self.vertex_weight
+                active = active & (excess.max(0).values > LIMIT_TOLERANCE_M)  # a character stops on its own
+                corr = (excess / torch.clamp(length, min=1e-12) * active.to(length.dtype))[..., None] * d  # (E, N, 3)
+                gathered = torch.zeros_like(p).index_add(0, self.edges[:, 0], corr).index_add(0, self.edges[:, 1], -corr)
+                p = p + gathered * self.vertex_weight[..., None]
             return p, active.clone()
         return passes
 
@@ -246,6 +258,11 @@ class PushOutStage(nn.Module):
 
 def _unchanged(p: torch.Tensor, limit: torch.Tensor, active: torch.Tensor):
     return p.clone(), active.clone()
+
+
+def _as_is(p: torch.Tensor, d: torch.Tensor, n: torch.Tensor, a: torch.Tensor, b: torch.Tensor):
+    """The branch of a push step with nothing to move (a conditional's outputs may not alias its inputs)."""
+    return p.clone(), d.clone(), n.clone()
 
 
 class StreamStep(nn.Module):
