@@ -67,7 +67,7 @@ def _main(argv: Sequence[str] | None) -> int:
           f"in {written.seconds:.0f} s")
     if motion is None:
         return 0
-    gap = check_onnx(animator, written.graph, motion, body)
+    gap = check_onnx(animator, written.graph, motion, body=body)
     print(f"{args.check.name}: {gap['frames']} frames, ONNX - Python stream max {gap['max_mm']:.4f} mm, mean "
           f"{gap['mean_mm']:.4f} mm; median step ONNX {gap['onnx_ms']:.2f} ms, Python {gap['python_ms']:.2f} ms")
     if gap["max_mm"] > TOLERANCE_MM:

@@ -66,7 +66,7 @@ class PoseStage(nn.Module):
 
     def forward(self, rotations: torch.Tensor, root: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         local = quat_to_matrix(rotations[..., [3, 0, 1, 2]])
-        return forward_kinematics(local, root * self.root_scale, self.offsets, self.parents)
+        return forward_kinematics(local, root * self.root_scale, self.offsets, parents=self.parents)
 
 
 class FeatureStage(nn.Module):
@@ -149,7 +149,7 @@ class PushOutStage(nn.Module):
     stretched by the push limited (:func:`~hrr_garment.inference.collision.push_out` with
     :func:`~hrr_garment.inference.collision.limit_push_strain`)."""
 
-    def __init__(self, capsules, smoothing, limits, settings: PushOutSettings, strain_passes: int = 60):
+    def __init__(self, capsules, smoothing, *, limits, settings: PushOutSettings, strain_passes: int = 60):
         super().__init__()
         joints, a, b, radii = capsules
         self.joints = [int(j) for j in joints]
@@ -274,7 +274,7 @@ class StreamStep(nn.Module):
     ``window`` (N, W - 1, F). Outputs: ``vertices`` (N, V, 3), ``entropy`` (N,), ``codes`` (N, G), and
     the next state in the same order (``started`` all ones)."""
 
-    def __init__(self, bundle, decoder, character, memory: MotionMemory | None, fps: float, *,
+    def __init__(self, bundle, decoder, *, character, memory: MotionMemory | None, fps: float,
                  push_out: PushOutStage | None):
         super().__init__()
         record = character.record

@@ -90,8 +90,9 @@ def stream_step(animator, body=None, *, fps: float = FPS, push_out: bool = True,
         capsules = character.body.capsules
         ends = (np.array([JOINT_INDEX[c.joint] for c in capsules]), np.array([c.a for c in capsules]),
                 np.array([c.b for c in capsules]), np.array([c.radius for c in capsules]))
-        stage = PushOutStage(ends, animator.smoothing, animator.edge_limits, PUSH_OUT)
-    return StreamStep(bundle, torch_decoder(animator.decoder), character, memory, fps, push_out=stage).eval()
+        stage = PushOutStage(ends, animator.smoothing, limits=animator.edge_limits, settings=PUSH_OUT)
+    return StreamStep(bundle, torch_decoder(animator.decoder), character=character, memory=memory, fps=fps,
+                      push_out=stage).eval()
 
 
 def state_shapes(step: StreamStep) -> dict[str, tuple[int, ...]]:
