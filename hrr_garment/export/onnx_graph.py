@@ -13,8 +13,10 @@ character's window state as explicit inputs and outputs. The regression path of
 4. the mesh decoder, the garment's rest offset on the body, the body frame to the world
    (:func:`~hrr_garment.motion.frame.from_body_frame`);
 5. the collision push-out against the body's capsules and its strain limit
-   (:mod:`hrr_garment.inference.collision`): fixed numbers of passes where Python stops early,
-   each a no-op once nothing is left to move, so the results are the same.
+   (:mod:`hrr_garment.inference.collision`): the push's round and projections under conditionals
+   (ONNX ``If``, skipped when nothing is inside), the strain limit's passes as a loop (ONNX
+   ``Loop``) while a character still has an over-long edge, each character stopping on its own, as
+   the package stops each frame.
 
 A character's first frame is told by ``started`` = 0: its last pose is taken to be this one (zero
 velocities), its memory starts at rest and its window is this frame repeated, as a stream starts.
@@ -27,6 +29,7 @@ from __future__ import annotations
 import numpy as np
 import torch
 from torch import nn
+from torch._higher_order_ops.while_loop import while_loop
 
 from ..inference.collision import LIMIT_TOLERANCE_M, OVER_RELAXATION, PushOutSettings
 from ..models.codes import WindowCodes
@@ -34,8 +37,6 @@ from ..motion.features import SLICE_T, SLICE_V, SLICE_W
 from ..motion.memory import MEMORY_WIDTH, VECTORS, MotionMemory
 from ..motion.rotations import matrix_to_axis_angle, quat_to_matrix
 from ..motion.skeleton import FEATURE_JOINTS, REST_PELVIS_HEIGHT, forward_kinematics
-
-STRAIN_PASSES_PER_CHECK = 4  # strain-limit passes between checks whether any character still has an over-long edge
 
 
 def _constant(module: nn.Module, name: str, value, dtype=torch.float32) -> None:
@@ -228,25 +229,22 @@ class PushOutStage(nn.Module):
         limit = torch.maximum(self.allowed[:, None], before)  # (E, N)
         length = torch.sqrt((self._edge_vectors(pushed) ** 2).sum(-1))
         torn = (length > limit * (1.0 + 1e-6)).any(0)
-        active = torn
-        p = pushed
-        for start in range(0, self.strain_passes, STRAIN_PASSES_PER_CHECK):
-            count = min(STRAIN_PASSES_PER_CHECK, self.strain_passes - start)
-            p, active = torch.cond(active.any(), self._passes(count), _unchanged, (p, limit, active))
+        passes = torch.zeros((), dtype=torch.int64)
+        _, p, _, _ = while_loop(self._limiting, self._pass, (passes, pushed, limit, torn))  # an ONNX Loop
         return p.transpose(0, 1)
 
-    def _passes(self, count: int):
-        def passes(p: torch.Tensor, limit: torch.Tensor, active: torch.Tensor):
-            for _ in range(count):
-                d = self._edge_vectors(p)
-                length = torch.sqrt((d * d).sum(-1))
-                excess = torch.clamp(length - limit, min=0.0)
-                active = active & (excess.max(0).values > LIMIT_TOLERANCE_M)  # a character stops on its own
-                corr = (excess / torch.clamp(length, min=1e-12) * active.to(length.dtype))[..., None] * d  # (E, N, 3)
-                gathered = torch.zeros_like(p).index_add(0, self.edges[:, 0], corr).index_add(0, self.edges[:, 1], -corr)
-                p = p + gathered * self.vertex_weight[..., None]
-            return p, active.clone()
-        return passes
+    def _limiting(self, passes: torch.Tensor, p: torch.Tensor, limit: torch.Tensor, active: torch.Tensor) -> torch.Tensor:
+        return (passes < self.strain_passes) & active.any()
+
+    def _pass(self, passes: torch.Tensor, p: torch.Tensor, limit: torch.Tensor, active: torch.Tensor):
+        """One Jacobi pass of edge-length projection over every edge of the characters still over a limit."""
+        d = self._edge_vectors(p)
+        length = torch.sqrt((d * d).sum(-1))
+        excess = torch.clamp(length - limit, min=0.0)
+        active = active & (excess.max(0).values > LIMIT_TOLERANCE_M)  # a character stops on its own
+        corr = (excess / torch.clamp(length, min=1e-12) * active.to(length.dtype))[..., None] * d  # (E, N, 3)
+        gathered = torch.zeros_like(p).index_add(0, self.edges[:, 0], corr).index_add(0, self.edges[:, 1], -corr)
+        return passes + 1, p + gathered * self.vertex_weight[..., None], limit.clone(), active
 
     def forward(self, vertices: torch.Tensor, rotations: torch.Tensor, positions: torch.Tensor) -> torch.Tensor:
         rot, pos = rotations[:, self.joints], positions[:, self.joints]
@@ -254,10 +252,6 @@ class PushOutStage(nn.Module):
         a = pos - centre + (rot @ self.cap_a[..., None])[..., 0]
         b = pos - centre + (rot @ self.cap_b[..., None])[..., 0]
         return self.limit(self.push(vertices - centre, a, b) + centre, vertices)
-
-
-def _unchanged(p: torch.Tensor, limit: torch.Tensor, active: torch.Tensor):
-    return p.clone(), active.clone()
 
 
 def _as_is(p: torch.Tensor, d: torch.Tensor, n: torch.Tensor, a: torch.Tensor, b: torch.Tensor):
