@@ -8,6 +8,7 @@ distance used for penetration metrics and collision push-out, and the preview me
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
+from functools import cached_property
 
 import numpy as np
 
@@ -74,11 +75,16 @@ class BodyModel:
     def radii(self) -> np.ndarray:
         return np.array([c.radius for c in self.capsules])
 
+    @cached_property
+    def ends(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Each capsule's joint index (C,) and its end points a, b (C, 3) in that joint's frame."""
+        return (np.array([JOINT_INDEX[c.joint] for c in self.capsules]), np.array([c.a for c in self.capsules]),
+                np.array([c.b for c in self.capsules]))
+
     def pose(self, global_rotations: np.ndarray, joint_positions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """World capsule end points (T, C, 3) each for a and b, from FK results (T, 22, ...)."""
-        idx = np.array([JOINT_INDEX[c.joint] for c in self.capsules])
-        return pose_ends(global_rotations, joint_positions, idx, a=np.array([c.a for c in self.capsules]),
-                         b=np.array([c.b for c in self.capsules]))
+        joints, a, b = self.ends
+        return pose_ends(global_rotations, joint_positions, joints, a=a, b=b)
 
     def pose_motion(self, motion: Motion) -> tuple[np.ndarray, np.ndarray]:
         return self.pose(motion.global_rotations, motion.joint_positions)

@@ -22,6 +22,9 @@ from ..motion.synth import KINDS, kind_parameters, synthesize
 from ..motion.windows import DEFAULT_WINDOW
 from ._common import add_fps_option, run_cli
 
+# what the commands that write a file derived from a motion file write: its suffixes, its name
+_WRITTEN = {"features": ((".npy",), "the feature array"), "poses": ((".npz",), "the poses")}
+
 
 def _add_load_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--unit-scale", type=float, default=None, help="metres per BVH file unit (default: detect from standing height)")
@@ -81,9 +84,8 @@ def _body(argv: Sequence[str] | None) -> int:
         save_motion(motion, args.output)
         print(f"wrote {args.output} ({motion.num_frames} frames, {motion.duration_s:.2f} s)")
         return 0
-    if args.command in ("features", "poses"):  # before reading: a wrong output is refused before any work
-        require_suffix(args.output, (".npy",) if args.command == "features" else (".npz",),
-                       "the feature array" if args.command == "features" else "the poses")
+    if args.command in _WRITTEN:  # before reading: a wrong output is refused before any work
+        require_suffix(args.output, *_WRITTEN[args.command])
         refuse_input_as_output(args.output, [args.file])
     motion = _load(args)
     if args.command == "poses":

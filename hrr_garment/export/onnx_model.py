@@ -32,8 +32,9 @@ from ..io_utils import atomic_path, require_suffix
 from ..motion.memory import MEMORY_WIDTH, motion_memory
 from ..motion.motion import FPS, Motion
 from ..motion.poses import motion_to_poses
-from ..motion.skeleton import JOINT_INDEX, JOINT_NAMES
-from .onnx_graph import PoseStage, PushOutStage, StreamStep, torch_decoder
+from ..motion.skeleton import JOINT_NAMES, NUM_JOINTS
+from .onnx_graph import StreamStep, TorchDecoder
+from .onnx_push_out import PushOutStage
 
 INPUTS = ("rotations", "root")
 STATE = ("started", "previous_rotations", "previous_positions", "memory", "window")
@@ -78,27 +79,25 @@ def _onnxruntime():
     return onnxruntime
 
 
-def stream_step(animator, body=None, *, fps: float = FPS, push_out: bool = True, allow_outside: bool = False) -> StreamStep:
-    """The :class:`~.onnx_graph.StreamStep` of ``animator``'s model on ``body`` (None: the model's
-    own; what :meth:`~hrr_garment.inference.animator.Animator.body` takes)."""
+def stream_step(animator, character, *, push_out: bool = True) -> StreamStep:
+    """The :class:`~.onnx_graph.StreamStep` of ``animator``'s model on ``character`` (a
+    :class:`~hrr_garment.inference.bodies.CharacterBody`, :meth:`Animator.body`'s), at the rate
+    every model streams at (:data:`~hrr_garment.motion.motion.FPS`)."""
     bundle = animator.bundle
-    character = animator.body(body, allow_outside=allow_outside)
     spec = bundle.codespace.config.memory
-    memory = motion_memory(spec, float(fps)) if spec else None
+    memory = motion_memory(spec, FPS) if spec else None
     stage = None
     if push_out:
-        capsules = character.body.capsules
-        ends = (np.array([JOINT_INDEX[c.joint] for c in capsules]), np.array([c.a for c in capsules]),
-                np.array([c.b for c in capsules]), np.array([c.radius for c in capsules]))
-        stage = PushOutStage(ends, animator.smoothing, limits=animator.edge_limits, settings=PUSH_OUT)
-    return StreamStep(bundle, torch_decoder(animator.decoder), character=character, memory=memory, fps=fps,
+        body = character.body
+        stage = PushOutStage((*body.ends, body.radii), animator.smoothing, limits=animator.edge_limits, settings=PUSH_OUT)
+    return StreamStep(bundle, TorchDecoder(animator.decoder), character=character, memory=memory, fps=FPS,
                       push_out=stage).eval()
 
 
 def state_shapes(step: StreamStep) -> dict[str, tuple[int, ...]]:
     """Each state input's shape per character."""
     window = step.codes.codespace.config.window
-    return {"started": (), "previous_rotations": (22, 3, 3), "previous_positions": (22, 3),
+    return {"started": (), "previous_rotations": (NUM_JOINTS, 3, 3), "previous_positions": (NUM_JOINTS, 3),
             "memory": (max(step.features.rows, 1), MEMORY_WIDTH), "window": (window - 1, int(step.motion_mean.shape[0]))}
 
 
@@ -107,14 +106,15 @@ def initial_state(shapes: dict[str, tuple[int, ...]], characters: int) -> dict[s
     return {name: np.zeros((characters, *shape), np.float32) for name, shape in shapes.items()}
 
 
-def export_onnx(animator, path: str | Path, body=None, *, fps: float = FPS, push_out: bool = True,
-                allow_outside: bool = False) -> OnnxExport:
-    """Write ``path`` (.onnx, one file) and its companion ``<stem>.tensors.npz``, atomically."""
+def export_onnx(animator, path: str | Path, body=None, *, push_out: bool = True, allow_outside: bool = False) -> OnnxExport:
+    """Write ``path`` (.onnx, one file) and its companion ``<stem>.tensors.npz``, atomically.
+    ``body``: what :meth:`~hrr_garment.inference.animator.Animator.body` takes (None: the model's own)."""
     onnx = _require_onnx()
     path = Path(path)
     require_suffix(path, (".onnx",), "an ONNX model")
     t0 = time.perf_counter()
-    step = stream_step(animator, body, fps=fps, push_out=push_out, allow_outside=allow_outside)
+    character = animator.body(body, allow_outside=allow_outside)
+    step = stream_step(animator, character, push_out=push_out)
     shapes = state_shapes(step)
     example = _example_inputs(shapes, 2)
     n = torch.export.Dim("characters", min=1, max=4096)
@@ -126,7 +126,7 @@ def export_onnx(animator, path: str | Path, body=None, *, fps: float = FPS, push
     model = program.model_proto
     bundle = animator.bundle
     meta = {"hrr_garment": __version__, "garment": bundle.garment, "content_hash": bundle.content_hash,
-            "fps": float(fps), "push_out": bool(push_out), "body": animator.body(body, allow_outside=allow_outside).name,
+            "fps": FPS, "push_out": bool(push_out), "body": character.name,
             "vertices": int(bundle.template.num_vertices), "state": {k: list(v) for k, v in shapes.items()},
             "path": "regression"}
     for key, value in meta.items():
@@ -159,7 +159,7 @@ def _quiet():
 
 def _example_inputs(shapes: dict, characters: int) -> dict[str, np.ndarray]:
     rng = np.random.default_rng(0)
-    quats = rng.normal(size=(characters, 22, 4)).astype(np.float32)
+    quats = rng.normal(size=(characters, NUM_JOINTS, 4)).astype(np.float32)
     inputs = {"rotations": quats / np.linalg.norm(quats, axis=-1, keepdims=True),
               "root": np.tile(np.float32([0.0, 0.96, 0.0]), (characters, 1))}
     return inputs | initial_state(shapes, characters)
@@ -218,5 +218,5 @@ def check_onnx(animator, path: str | Path, motion: Motion, body=None, *, allow_o
             "onnx_ms": float(np.median(onnx_s) * 1000), "python_ms": float(np.median(python_s) * 1000)}
 
 
-__all__ = ["INPUTS", "STATE", "OUTPUTS", "TENSORS", "OnnxExport", "OnnxStream", "PoseStage", "export_onnx",
+__all__ = ["INPUTS", "STATE", "OUTPUTS", "TENSORS", "OnnxExport", "OnnxStream", "export_onnx",
            "check_onnx", "initial_state", "state_shapes", "stream_step"]

@@ -34,7 +34,7 @@ from ..body.retarget import played_by
 from ..data.bodies import MANNEQUIN, DressedBody, dress
 from ..errors import InputError
 from ..motion.motion import Motion
-from ..motion.skeleton import JOINT_INDEX, REST_PELVIS_HEIGHT
+from ..motion.skeleton import REST_PELVIS_HEIGHT
 from .collision import PosedCapsules
 
 CHARACTER_SUFFIXES = (".glb", ".gltf")
@@ -138,12 +138,11 @@ class CrowdBodies:
 
     @classmethod
     def of_many(cls, bodies: list) -> "CrowdBodies":
-        capsules = [b.body.capsules for b in bodies]
-        joints = [c.joint for c in capsules[0]]
-        if any([c.joint for c in caps] != joints for caps in capsules):
+        each = [b.body.ends for b in bodies]
+        joints = each[0][0]
+        if any(not np.array_equal(e[0], joints) for e in each):
             raise ValueError("the crowd's bodies have capsules on different joints; give every character one body kind")
-        ends = (np.array([JOINT_INDEX[j] for j in joints]), np.array([[c.a for c in caps] for caps in capsules]),
-                np.array([[c.b for c in caps] for caps in capsules]), np.array([[c.radius for c in caps] for caps in capsules]))
+        ends = (joints, np.stack([e[1] for e in each]), np.stack([e[2] for e in each]), np.stack([b.body.radii for b in bodies]))
         return cls(np.stack([b.vector for b in bodies]), np.stack([b.offset for b in bodies]),
                    skeletons=np.stack([b.record.skeleton.offsets for b in bodies]),
                    root_scale=np.array([b.record.pelvis_height / REST_PELVIS_HEIGHT for b in bodies]), ends=ends)

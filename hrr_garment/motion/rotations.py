@@ -249,11 +249,12 @@ def rotation_matrix_error(m: np.ndarray) -> np.ndarray:
     return np.maximum(error, np.abs(det - 1.0))
 
 
-def rotation_about_y(yaw: np.ndarray) -> np.ndarray:
-    """(...,) yaw angles in radians -> (..., 3, 3) rotations about +Y."""
-    c, s = np.cos(yaw), np.sin(yaw)
-    z, o = np.zeros_like(yaw), np.ones_like(yaw)
-    return np.stack([np.stack([c, z, s], -1), np.stack([z, o, z], -1), np.stack([-s, z, c], -1)], -2)
+def rotation_about_y(yaw: Array) -> Array:
+    """(...,) yaw angles in radians -> (..., 3, 3) rotations about +Y (numpy or torch)."""
+    xp = _xp(yaw)
+    c, s = xp.cos(yaw), xp.sin(yaw)
+    z, o = xp.zeros_like(yaw), xp.ones_like(yaw)
+    return _stack([_stack([c, z, s], -1), _stack([z, o, z], -1), _stack([-s, z, c], -1)], -2)
 
 
 def rotation_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -283,7 +284,7 @@ def kabsch(src: np.ndarray, dst: np.ndarray, weights: np.ndarray | None = None) 
     return np.swapaxes(vt, -1, -2) @ (fix[..., :, None] * np.swapaxes(u, -1, -2))
 
 
-def yaw_of(m: np.ndarray) -> np.ndarray:
-    """Heading angle (radians, about +Y) of the rotated forward axis +Z."""
+def yaw_of(m: Array) -> Array:
+    """Heading angle (radians, about +Y) of the rotated forward axis +Z (numpy or torch)."""
     fwd = m[..., :, 2]
-    return np.arctan2(fwd[..., 0], fwd[..., 2])
+    return _xp(m).arctan2(fwd[..., 0], fwd[..., 2])

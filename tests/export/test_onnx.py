@@ -65,7 +65,7 @@ def test_the_graphs_push_out_limits_the_strain_as_the_library_does(exported):
     from hrr_garment.motion.frame import world_vertices
 
     animator, _, clip = exported
-    step = stream_step(animator)
+    step = stream_step(animator, animator.body())
     poses = clip.slice(10, 13)
     rest = np.broadcast_to(animator.bundle.template.vertices, (3, *animator.bundle.template.vertices.shape))
     garment = world_vertices(rest.astype(np.float32), poses)

@@ -1,0 +1,134 @@
+"""The collision push-out and its strain limit (:mod:`hrr_garment.inference.collision`) as a
+PyTorch module that ONNX can hold, the last stage of :class:`~.onnx_graph.StreamStep`: the push's
+round and projections under conditionals (ONNX ``If``, skipped when nothing is inside), the
+strain limit's passes as a loop (ONNX ``Loop``) while a character still has an over-long edge, each
+character stopping on its own, as the package stops each frame."""
+
+from __future__ import annotations
+
+import numpy as np
+import torch
+from torch import nn
+from torch._higher_order_ops.while_loop import while_loop
+
+from ..inference.collision import LIMIT_TOLERANCE_M, OVER_RELAXATION, PushOutSettings
+
+
+def constant(module: nn.Module, name: str, value, dtype=torch.float32) -> None:
+    """``value`` as a buffer of ``module`` that the exported graph holds as a constant."""
+    module.register_buffer(name, torch.as_tensor(np.asarray(value), dtype=dtype), persistent=False)
+
+
+class PushOutStage(nn.Module):
+    """World vertices (N, V, 3) pushed out of the body's capsules posed by FK, then their edges
+    stretched by the push limited (:func:`~hrr_garment.inference.collision.push_out` with
+    :func:`~hrr_garment.inference.collision.limit_push_strain`)."""
+
+    def __init__(self, capsules, smoothing, *, limits, settings: PushOutSettings, strain_passes: int = 60):
+        super().__init__()
+        joints, a, b, radii = capsules
+        self.joints = [int(j) for j in joints]
+        constant(self, "cap_a", a)
+        constant(self, "cap_b", b)
+        constant(self, "radii", radii)
+        self.settings, self.strain_passes = settings, int(strain_passes)
+        # the smoothing's row-normalised adjacency as (row, column, weight) triplets: a gather, a
+        # product and a scatter-add (ONNX has no sparse product)
+        smoothing = smoothing.tocoo()
+        constant(self, "smooth_rows", smoothing.row, torch.int64)
+        constant(self, "smooth_cols", smoothing.col, torch.int64)
+        constant(self, "smooth_weights", smoothing.data[:, None])  # (nnz, 1): over the characters
+        # a pass moves a vertex by the sum of its edges' half excesses (+ at an edge's first end, - at
+        # its second), over-relaxed over its degree: the half and the weight folded into one factor
+        constant(self, "vertex_weight", (0.5 * OVER_RELAXATION / limits.degree)[:, None])
+        constant(self, "edges", limits.edges, torch.int64)
+        constant(self, "allowed", settings.max_strain * limits.rest_length)
+
+    def distance(self, p: torch.Tensor, a: torch.Tensor, b: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """Signed distances (N, V) to the union of capsules and the nearest one's outward normals.
+        Through products of (N, V, 3) by (N, 3, C) (no (N, V, C, 3) temporaries, which cost most of
+        a step in onnxruntime); ``p``, ``a``, ``b`` relative to the pelvis keep them to metres."""
+        ab = b - a  # (N, C, 3)
+        ab_ab = (ab * ab).sum(-1)[:, None]  # (N, 1, C)
+        rel_ab = p @ ab.transpose(1, 2) - (a * ab).sum(-1)[:, None]  # (p - a) . ab: (N, V, C)
+        rel_rel = (p * p).sum(-1, keepdim=True) - 2.0 * (p @ a.transpose(1, 2)) + (a * a).sum(-1)[:, None]
+        s = torch.clamp(rel_ab / torch.clamp(ab_ab, min=1e-12), 0.0, 1.0)
+        axis2 = rel_rel - s * (2.0 * rel_ab - s * ab_ab)  # |p - a - s ab|^2
+        d, nearest = (torch.sqrt(torch.clamp(axis2, min=0.0)) - self.radii).min(-1)
+        pick = torch.nn.functional.one_hot(nearest, a.shape[1]).to(p.dtype)  # (N, V, C)
+        s_near = (pick * s).sum(-1, keepdim=True)
+        diff = p - pick @ a - s_near * (pick @ ab)
+        return d, diff / torch.clamp(torch.sqrt((diff * diff).sum(-1, keepdim=True)), min=1e-12)
+
+    def smooth(self, disp: torch.Tensor) -> torch.Tensor:
+        """One pass of the mean over each vertex's neighbours, vertex-major (V, N, 3) (see :meth:`limit`)."""
+        terms = torch.index_select(disp, 0, self.smooth_cols) * self.smooth_weights[..., None]
+        return torch.zeros_like(disp).index_add(0, self.smooth_rows, terms)
+
+    def push(self, p: torch.Tensor, a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
+        d, n = self.distance(p, a, b)
+        for _ in range(self.settings.rounds):
+            p, d, n = torch.cond((d < self.settings.margin).any(), self._round, _as_is, (p, d, n, a, b))
+        for _ in range(4):  # exact projection, again where a push landed in another capsule
+            p, d, n = torch.cond((d < 0).any(), self._project, _as_is, (p, d, n, a, b))
+        return p
+
+    def _round(self, p, d, n, a, b):
+        """A push along the normals, spread to the neighbours, never below what is needed."""
+        need = torch.clamp(self.settings.margin - d, min=0.0).transpose(0, 1)  # vertex-major, as smooth takes it
+        normals = n.transpose(0, 1)
+        hit = need > 0
+        disp = need[..., None] * normals
+        for _ in range(self.settings.smooth):
+            disp = self.smooth(disp)
+            short = torch.where(hit, torch.clamp(need - (disp * normals).sum(-1), min=0.0), torch.zeros_like(need))
+            disp = disp + short[..., None] * normals
+        p = p + disp.transpose(0, 1)
+        return (p, *self.distance(p, a, b))
+
+    def _project(self, p, d, n, a, b):
+        p = p + torch.where(d < 0, self.settings.margin - d, torch.zeros_like(d))[..., None] * n
+        return (p, *self.distance(p, a, b))
+
+    def _edge_vectors(self, p: torch.Tensor) -> torch.Tensor:
+        """(E, N, 3) of vertex-major points (V, N, 3)."""
+        return torch.index_select(p, 0, self.edges[:, 1]) - torch.index_select(p, 0, self.edges[:, 0])
+
+    def limit(self, pushed: torch.Tensor, unpushed: torch.Tensor) -> torch.Tensor:
+        """Undo what of the push tears the cloth, on the characters with an edge over its limit.
+        Vertex-major, (V, N, 3): gathers and scatter-adds of whole rows (along the characters' axis
+        each exported with transposes that cost more than the arithmetic)."""
+        pushed, unpushed = pushed.transpose(0, 1), unpushed.transpose(0, 1)
+        before = torch.sqrt((self._edge_vectors(unpushed) ** 2).sum(-1))
+        limit = torch.maximum(self.allowed[:, None], before)  # (E, N)
+        length = torch.sqrt((self._edge_vectors(pushed) ** 2).sum(-1))
+        torn = (length > limit * (1.0 + 1e-6)).any(0)
+        passes = torch.zeros((), dtype=torch.int64)
+        _, p, _, _ = while_loop(self._limiting, self._pass, (passes, pushed, limit, torn))  # an ONNX Loop
+        return p.transpose(0, 1)
+
+    def _limiting(self, passes: torch.Tensor, p: torch.Tensor, limit: torch.Tensor, active: torch.Tensor) -> torch.Tensor:
+        return (passes < self.strain_passes) & active.any()
+
+    def _pass(self, passes: torch.Tensor, p: torch.Tensor, limit: torch.Tensor, active: torch.Tensor):
+        """One Jacobi pass of edge-length projection over every edge of the characters still over a limit."""
+        d = self._edge_vectors(p)
+        length = torch.sqrt((d * d).sum(-1))
+        excess = torch.clamp(length - limit, min=0.0)
+        active = active & (excess.max(0).values > LIMIT_TOLERANCE_M)  # a character stops on its own
+        corr = (excess / torch.clamp(length, min=1e-12) * active.to(length.dtype))[..., None] * d  # (E, N, 3)
+        gathered = torch.zeros_like(p).index_add(0, self.edges[:, 0], corr).index_add(0, self.edges[:, 1], -corr)
+        return passes + 1, p + gathered * self.vertex_weight[..., None], limit.clone(), active
+
+    def forward(self, vertices: torch.Tensor, rotations: torch.Tensor, positions: torch.Tensor) -> torch.Tensor:
+        rot, pos = rotations[:, self.joints], positions[:, self.joints]
+        centre = positions[:, :1]  # (N, 1, 3): the pelvis
+        a = pos - centre + (rot @ self.cap_a[..., None])[..., 0]
+        b = pos - centre + (rot @ self.cap_b[..., None])[..., 0]
+        return self.limit(self.push(vertices - centre, a, b) + centre, vertices)
+
+
+def _as_is(p: torch.Tensor, d: torch.Tensor, n: torch.Tensor, a: torch.Tensor, b: torch.Tensor):
+    """The branch of a push step with nothing to move (a conditional's outputs may not alias its inputs)."""
+    return p.clone(), d.clone(), n.clone()
+
