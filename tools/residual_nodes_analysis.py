@@ -3,11 +3,12 @@
 The residual mode adds a database match's deviation from its own regression (docs/inference.md):
 another simulation's cloth. Where the cloth lies on the body (a bodice) that deviation puts it
 inside a body of another shape; where it hangs free (a skirt) it is the swing the regression lacks.
-This tool weighs the deviation per latent node of the mesh autoencoder (each a region of the
-garment) by how far that region hangs from the body in the clips' simulations, from 0 (within
-``lo`` mm) to 1 (beyond ``hi`` mm), and measures, offline without the push-out, the vertices more
-than 5 mm inside the body, the hem's swing over the simulation's and the PVE against each clip's
-simulation, beside the plain modes.
+The model weighs the deviation per latent node of the mesh autoencoder (each a region of the
+garment) by how far that region hangs from the body at rest, from 0 (within ``lo`` mm) to 1
+(beyond ``hi`` mm; hrr_garment/artifacts/residual.py, where the auto calibration chooses the ramp
+on validation). This tool measures ramps on a dataset's test clips, offline without the push-out:
+the vertices more than 5 mm inside the body, the hem's swing over the simulation's and the PVE
+against each clip's simulation, beside the plain modes.
 
     python tools/residual_nodes_analysis.py --model hrr_work/models/dress-real-quick-bodies-contact \\
         --dataset hrr_work/datasets/dress-real-quick-short-heavy.h5 --ranges 10-40,20-60,30-100
@@ -20,20 +21,12 @@ import argparse
 import numpy as np
 
 
-def _node_vertices(hierarchy) -> np.ndarray:
-    """The template vertex each latent node is centred on (the coarsest level's centres, traced down)."""
-    index = np.arange(hierarchy.sizes[-1])
-    for centres in reversed(hierarchy.centres):
-        index = centres[index]
-    return index
-
-
 def analyse(model: str, dataset: str, ranges: list[tuple[float, float]], sequences: int = 8) -> list[dict]:
     """One row per variant: ``label``, ``inside_pct``, ``hem_swing_ratio``, ``pve_mm`` (ranges in mm)."""
-    import hrr_garment.inference.gate as gate
-    from hrr_garment.artifacts.residual import residual_latents
+    from hrr_garment.artifacts.residual import free_cloth_weights
     from hrr_garment.data.dataset import GarmentDataset
     from hrr_garment.eval import metrics as M
+    from hrr_garment.eval.auto_mode import free_cloth
     from hrr_garment.eval.evaluate import body_of
     from hrr_garment.eval.unseen_bodies import evenly
     from hrr_garment.garment.fit import hem_vertices
@@ -44,22 +37,11 @@ def analyse(model: str, dataset: str, ranges: list[tuple[float, float]], sequenc
     animator, ds = Animator.load(model), GarmentDataset(dataset)
     records = [ds.sequence(n) for n in evenly(ds.splits["test"], sequences)]
     hem = hem_vertices(animator.bundle.template)
-    # how far each vertex hangs from the body: its median signed distance over the clips' first second
-    hang = np.median(np.concatenate([body_signed_distance(r.garment[:30].astype(np.float64), r.motion.slice(0, 30),
-                                                          body_of(r)) for r in records]), 0)
-    hang = hang[_node_vertices(animator.bundle.autoencoder.hierarchy)]
     rows = []
 
-    def measure(label: str, weights: np.ndarray | None, **settings) -> None:
-        def weighted(regression, matched, matched_regression, similarity, weight):
-            out = residual_latents(regression, matched, matched_regression, similarity=similarity, weight=weight)
-            if weights is None:
-                return out
-            return (regression + weights.reshape(1, 1, -1, 1).astype(np.float32) * (out - regression)).astype(np.float32)
-
-        gate.residual_latents = weighted  # the variant, for this measurement only
+    def measure(label: str, ramp: tuple[float, float] | None, **settings) -> None:
         inside = swing = truth_swing = error = frames = 0.0
-        try:
+        with free_cloth(animator.bundle, ramp):
             for r in records:
                 v = animator.animate(r.motion, collision=False, body=r.dressed, allow_outside=True, **settings).vertices
                 v, truth = v.astype(np.float64), r.garment.astype(np.float64)
@@ -68,10 +50,9 @@ def analyse(model: str, dataset: str, ranges: list[tuple[float, float]], sequenc
                 truth_swing += hem_swing(truth, r.motion, hem) * len(v)
                 error += M.pve_mm(v, truth) * len(v)
                 frames += len(v)
-        finally:
-            gate.residual_latents = residual_latents
+        weight = None if ramp is None else float(free_cloth_weights(animator.bundle.node_hang_m, ramp).mean())
         rows.append({"label": label, "inside_pct": 100 * inside / frames, "hem_swing_ratio": swing / truth_swing,
-                     "pve_mm": error / frames, "mean_weight": None if weights is None else float(weights.mean())})
+                     "pve_mm": error / frames, "mean_weight": weight})
 
     detail = {"mode": "detail", "detail": DetailLook("residual", 1.0)}
     measure("regression", None, mode="regression")
@@ -79,9 +60,8 @@ def analyse(model: str, dataset: str, ranges: list[tuple[float, float]], sequenc
     measure("residual", None, mode="residual")
     measure("detail on the residual x1", None, **detail)
     for lo, hi in ranges:
-        weights = np.clip((hang - lo / 1000) / ((hi - lo) / 1000), 0.0, 1.0)
-        measure(f"residual, nodes {lo:g}-{hi:g} mm", weights, mode="residual")
-        measure(f"detail on the residual x1, nodes {lo:g}-{hi:g} mm", weights, **detail)
+        measure(f"residual, nodes {lo:g}-{hi:g} mm", (lo, hi), mode="residual")
+        measure(f"detail on the residual x1, nodes {lo:g}-{hi:g} mm", (lo, hi), **detail)
     return rows
 
 

@@ -24,6 +24,7 @@ why when one is off.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 
 import numpy as np
@@ -49,6 +50,7 @@ from .folds import FILE_KEYS as FOLD_FILE_KEYS
 from .folds import FoldStore
 from .gate_signals import GATE_SIGNALS
 from .manifest import FOLDS_FILE, NETWORKS, UNCALIBRATED_AUTO, BundleError, read_meta
+from .residual import free_cloth_weights, node_hang_m
 
 MAX_SCALE_M = 10.0  # the autoencoder's vertex scale: the spread of a garment's training frames (centimetres)
 
@@ -108,6 +110,18 @@ class Bundle:
         """The residual mode's calibrated weight (:mod:`.residual`)."""
         self.require_residual()
         return float(self.meta["residual"]["weight"])
+
+    @property
+    def residual_nodes(self) -> np.ndarray | None:
+        """(nodes,) the residual's free-cloth weight per latent node, as the auto calibration chose
+        (bundle.json ``auto.residual_free_mm``), or None: the plain residual (:mod:`.residual`)."""
+        ramp = self.auto.get("residual_free_mm")
+        return None if ramp is None else free_cloth_weights(self.node_hang_m, ramp)
+
+    @cached_property
+    def node_hang_m(self) -> np.ndarray:
+        """(nodes,) how far each latent node hangs from the body the garment was modelled on, at rest."""
+        return node_hang_m(self.template.vertices, self.autoencoder.hierarchy.node_vertices(), self.made_for)
 
     def require_folds(self) -> None:
         """A BundleError, naming the model and the fix, where the detail mode cannot run."""

@@ -32,18 +32,28 @@ held-out real clips the sharpness grows with it faster than the error (docs/deci
 criterion picks among all candidates; the detail mode's setting is the picked one's, or, where auto
 is not a detail mode, the one the criterion picks among the detail candidates alone (what
 ``--mode detail`` runs).
+
+Every candidate that uses the residual is also measured on free cloth only
+(:data:`~hrr_garment.artifacts.residual.FREE_CLOTH_RAMPS_MM`, labelled ``..., free cloth 10-40
+mm``): the match's deviation weighted per region by how far it hangs from the body, so that the
+skirt takes the match's swing and the bodice keeps the regression's contact. The model keeps one
+ramp (``auto.residual_free_mm``): the picked candidate's where it uses the residual, else the
+detail setting's where that does, else the one the criterion picks among the residual mode's.
 """
 
 from __future__ import annotations
 
 import math
+from contextlib import contextmanager
 from dataclasses import dataclass
 
 import numpy as np
 from tqdm import tqdm
 
+from ..artifacts.bundle import Bundle
 from ..artifacts.folds import DETAIL_STRENGTH
 from ..artifacts.manifest import AUTO_CHOICES, DETAIL_BASES
+from ..artifacts.residual import FREE_CLOTH_RAMPS_MM
 from ..data.dataset import SequenceRecord
 from ..garment.fit import hem_vertices
 from ..inference.animator import Animator
@@ -96,6 +106,28 @@ def detail_label(base: str, strength: float) -> str:
 
 #: the detail mode's candidates: label -> (base, strength)
 DETAIL_CANDIDATES = {detail_label(b, s): (b, s) for b in DETAIL_BASES for s in DETAIL_STRENGTHS}
+FREE_CLOTH = ", free cloth "  # a label's free-cloth suffix: "residual, free cloth 10-40 mm"
+
+
+def free_cloth_label(label: str, ramp_mm: tuple[float, float]) -> str:
+    """A residual candidate's label on free cloth only: ``residual, free cloth 10-40 mm``."""
+    return f"{label}{FREE_CLOTH}{ramp_mm[0]:g}-{ramp_mm[1]:g} mm"
+
+
+def candidate_setting(label: str) -> tuple[str, str, float | None, tuple[float, float] | None]:
+    """(mode, the detail mode's base, its strength or None, the free-cloth ramp in mm or None) of a
+    candidate's label (a recorded calibration's too)."""
+    head, _, ramp = label.partition(FREE_CLOTH)
+    free = tuple(float(x) for x in ramp.removesuffix(" mm").split("-")) if ramp else None
+    if head in DETAIL_CANDIDATES:
+        return ("detail", *DETAIL_CANDIDATES[head], free)
+    return head, "regression", None, free
+
+
+def uses_residual(label: str) -> bool:
+    """Whether a candidate adds the matches' residual (the residual mode, or detail on it)."""
+    mode, base, _, _ = candidate_setting(label)
+    return mode == "residual" or base == "residual"
 
 
 def plausibility_gap(sharpness: float, swing: float) -> float:
@@ -118,8 +150,7 @@ def pick_auto_mode(candidates: dict[str, dict[str, float]], config: AutoConfig =
                 and (most_inside is None or c.get("penetration_pct", 0.0) <= most_inside)]
     order = {m: i for i, m in enumerate(AUTO_CHOICES)}
     return min(eligible, key=lambda m: (plausibility_gap(candidates[m]["sharpness"], candidates[m]["hem_swing"]),
-                                        order.get("detail" if m in DETAIL_CANDIDATES else m, len(order)),
-                                        candidates[m]["pve_mm"]))
+                                        order.get(candidate_setting(m)[0], len(order)), candidates[m]["pve_mm"]))
 
 
 def pick_auto_and_detail(candidates: dict[str, dict[str, float]],
@@ -128,11 +159,50 @@ def pick_auto_and_detail(candidates: dict[str, dict[str, float]],
     labelled by mode, the detail mode's by :data:`DETAIL_CANDIDATES` (see the module docstring),
     under ``config``'s allowances."""
     picked = pick_auto_mode(candidates, config)
-    details = {k: c for k, c in candidates.items() if k in DETAIL_CANDIDATES}
+    mode = candidate_setting(picked)[0]
+    details = {k: c for k, c in candidates.items() if candidate_setting(k)[0] == "detail"}
     if not details:
-        return picked, "regression", DETAIL_STRENGTH
+        return mode, "regression", DETAIL_STRENGTH
     detail = picked if picked in details else pick_auto_mode(details, config)
-    return ("detail" if picked in details else picked), *DETAIL_CANDIDATES[detail]
+    return mode, *candidate_setting(detail)[1:3]
+
+
+def pick_free_cloth(candidates: dict[str, dict[str, float]], config: AutoConfig = AutoConfig()) -> list[float] | None:
+    """The model's one free-cloth ramp (``[lo, hi]`` mm, None: the plain residual): the picked
+    candidate's where it uses the residual, else the detail setting's where that does, else the
+    criterion's pick among the residual mode's candidates (see the module docstring)."""
+    picked = pick_auto_mode(candidates, config)
+    details = {k: c for k, c in candidates.items() if candidate_setting(k)[0] == "detail"}
+    residuals = {k: c for k, c in candidates.items() if candidate_setting(k)[0] == "residual"}
+    for pool in ({picked: candidates[picked]}, details, residuals):
+        if pool:
+            chosen = pick_auto_mode(pool, config)
+            if uses_residual(chosen):
+                ramp = candidate_setting(chosen)[3]
+                return None if ramp is None else list(ramp)
+    return None
+
+
+def lacks_free_cloth(auto: dict, residual: dict | None) -> bool:
+    """Whether a recorded calibration measured the residual mode (of a calibrated weight,
+    bundle.json's ``residual``) but not on free cloth: recorded before those candidates."""
+    weight = (residual or {}).get("weight", 0.0)
+    return weight > 0 and "residual" in auto["candidates"] and not any(FREE_CLOTH in k for k in auto["candidates"])
+
+
+@contextmanager
+def free_cloth(bundle: Bundle, ramp_mm: tuple[float, float] | None):
+    """The bundle's residual on free cloth with ``ramp_mm`` (None: plain) while the block runs: a
+    calibration measuring its candidates (bundle.json ``auto.residual_free_mm``, in memory only)."""
+    had, before = "auto" in bundle.meta, bundle.meta.get("auto")
+    bundle.meta["auto"] = {**bundle.auto, "residual_free_mm": None if ramp_mm is None else list(ramp_mm)}
+    try:
+        yield
+    finally:
+        if had:
+            bundle.meta["auto"] = before
+        else:
+            del bundle.meta["auto"]
 
 
 def calibrate_auto_mode(animator: Animator, records: list[SequenceRecord], config: AutoConfig = AutoConfig(),
@@ -150,24 +220,27 @@ def calibrate_auto_mode(animator: Animator, records: list[SequenceRecord], confi
     rest, topo = template.vertices.astype(np.float64), M.MeshTopology.of(template.faces, template.num_vertices)
     hem = hem_vertices(template)
     bundle = animator.bundle
-    candidates_of = {m: (m, "regression", None) for m in AUTO_CHOICES if m != "detail" and animator.supports(m)}
-    if animator.supports("detail"):  # label -> (mode, the detail mode's base, its strength)
-        residual = bundle.has_residual and bundle.residual_weight > 0
-        candidates_of |= {label: ("detail", base, strength) for label, (base, strength) in DETAIL_CANDIDATES.items()
-                          if base == "regression" or residual}
+    residual = bundle.has_residual and bundle.residual_weight > 0
+    labels = [m for m in AUTO_CHOICES if m != "detail" and animator.supports(m)]
+    if animator.supports("detail"):
+        labels += [label for label, (base, _) in DETAIL_CANDIDATES.items() if base == "regression" or residual]
+    if residual:
+        labels += [free_cloth_label(label, ramp) for ramp in FREE_CLOTH_RAMPS_MM for label in labels if uses_residual(label)]
     names = list(animator.bundle.database.names)
     truths = [r.garment.astype(np.float64) for r in records]
     frames = sum(len(t) for t in truths)
     truth_bend = sum(float(M.cloth_energies(t, rest, topo)[1].sum()) for t in truths)
     truth_swing = sum(hem_swing(t, r.motion, hem) * len(t) for t, r in zip(truths, records))
     candidates = {}
-    for label, (mode, base, strength) in tqdm(candidates_of.items(), desc="auto mode", unit="mode", disable=not progress):
+    for label in tqdm(labels, desc="auto mode", unit="mode", disable=not progress):
+        mode, base, strength, ramp = candidate_setting(label)
+        look = DetailLook(base, strength) if mode == "detail" else DetailLook()
         error = bend = swing = inside = 0.0
         for r, truth in zip(records, truths):  # a clip in the database (the paper's validation) may not retrieve itself
             own = names.index(r.name) if r.name in names else None
-            look = DetailLook(base, strength) if mode == "detail" else DetailLook()
-            anim = animator.animate(r.motion, mode=mode, detail=look, body=r.dressed, allow_outside=True,
-                                    exclude_sequence=own)
+            with free_cloth(bundle, ramp):
+                anim = animator.animate(r.motion, mode=mode, detail=look, body=r.dressed, allow_outside=True,
+                                        exclude_sequence=own)
             pred = anim.vertices.astype(np.float64)
             inside += anim.penetration.inside_before * len(pred)  # the product path pushes out: what it had to
             error += M.pve_mm(pred, truth) * len(pred)
@@ -184,13 +257,16 @@ def repick(auto: dict, config: AutoConfig) -> dict:
     """A recorded calibration (``bundle.json``'s ``auto``) picked again under ``config``'s
     allowances: the candidates' numbers stand, only the choice among them moves."""
     mode, detail_base, detail_strength = pick_auto_and_detail(auto["candidates"], config)
-    return {**auto, "mode": mode, "detail_base": detail_base, "detail_strength": detail_strength, **config.limits()}
+    return {**auto, "mode": mode, "detail_base": detail_base, "detail_strength": detail_strength,
+            "residual_free_mm": pick_free_cloth(auto["candidates"], config), **config.limits()}
 
 
 def describe_auto(auto: dict) -> str:
     """One line on a calibration (``bundle.json``'s ``auto``): the choice, the detail mode's setting
     and every candidate's numbers."""
     detail = f"x{auto['detail_strength']:g} on the {auto['detail_base']}"
+    if auto.get("residual_free_mm"):
+        detail += f"; the residual on free cloth {auto['residual_free_mm'][0]:g}-{auto['residual_free_mm'][1]:g} mm"
     allowance = f"the most plausible within {100 * (auto['allowance'] - 1):.0f} % of the most accurate PVE" \
         if "allowance" in auto else ""
     if allowance and "penetration_allowance" in auto:

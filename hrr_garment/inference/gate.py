@@ -68,7 +68,8 @@ def choose_windows(bundle: Bundle, motion_windows: np.ndarray, run: ResolvedRun,
         residual = mode is Mode.RESIDUAL or run.fold_base == "residual"
         if residual:
             own = match_regression(bundle.codespace, bundle.motion_stats, bundle.latent_stats, database=db, rows=match, last_frame=last_frame, step=step)
-            latents = residual_latents(enc.regression, db.latents[match, -frames:], own, similarity=similarity, weight=bundle.residual_weight)
+            latents = residual_latents(enc.regression, db.latents[match, -frames:], own, similarity=similarity,
+                                       weight=bundle.residual_weight, nodes=bundle.residual_nodes)
         # a detail window's latents are the regression's, one continuous source whatever lends the folds
         return WindowChoice(latents, np.zeros(n, bool), enc.entropy, np.asarray(doubt, np.float64), matched,
                             lends_folds=mode is Mode.DETAIL, follows_match=np.full(n, mode is Mode.RESIDUAL))

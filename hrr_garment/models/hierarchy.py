@@ -55,6 +55,14 @@ class Hierarchy:
     def levels(self) -> int:
         return len(self.sizes)
 
+    def node_vertices(self) -> np.ndarray:
+        """(sizes[-1],) the level-0 vertex each coarsest-level node (a latent node of the
+        autoencoder) is centred on, traced down through the levels' centres."""
+        index = np.arange(self.sizes[-1])
+        for centres in reversed(self.centres):
+            index = centres[index]
+        return index
+
 
 def _adjacency(num: int, edges: np.ndarray) -> csr_matrix:
     return coo_matrix((np.ones(2 * len(edges)), (np.r_[edges[:, 0], edges[:, 1]], np.r_[edges[:, 1], edges[:, 0]])),

@@ -28,7 +28,7 @@ from pathlib import Path
 import yaml
 
 from ..errors import InputError
-from ..eval.auto_mode import AutoConfig, calibrate_auto_mode, repick
+from ..eval.auto_mode import AutoConfig, calibrate_auto_mode, lacks_free_cloth, repick
 from ..io_utils import remove_empty_folders
 from ..models.codespace import CodeSpaceConfig
 from ..models.direct import DirectConfig
@@ -234,10 +234,13 @@ def calibrate_auto(folder: str | Path, dataset: str | Path, progress: bool = Tru
     from ..artifacts.bundle import read_meta
     from ..artifacts.bundle_writer import update_bundle_meta
 
-    auto = read_meta(folder).get("auto")  # reading it hashes every file: once
+    meta = read_meta(folder)  # reading it hashes every file: once
+    auto = meta.get("auto")
     # calibrated again where it was recorded before candidates carried their cloth inside the body
-    # (the criterion counts it); picked again where only an allowance moved
-    if auto is None or any("penetration_pct" not in c for c in auto["candidates"].values()):
+    # (the criterion counts it) or before the residual's free-cloth candidates; picked again where
+    # only an allowance moved
+    if auto is None or any("penetration_pct" not in c for c in auto["candidates"].values()) \
+            or lacks_free_cloth(auto, meta.get("residual")):
         from ..data.dataset import GarmentDataset
         from ..inference.animator import Animator
 

@@ -13,9 +13,13 @@ from hrr_garment.eval.auto_mode import (
     DETAIL_STRENGTHS,
     AutoConfig,
     calibrate_auto_mode,
+    candidate_setting,
     detail_label,
+    free_cloth,
+    free_cloth_label,
     pick_auto_and_detail,
     pick_auto_mode,
+    pick_free_cloth,
     plausibility_gap,
     repick,
 )
@@ -104,6 +108,29 @@ def test_the_detail_modes_setting_is_chosen_by_the_same_criterion(pves, expected
     assert pick_auto_and_detail({"hybrid": candidates["hybrid"]}, AutoConfig(allowance=1.03))[0] == "hybrid"  # no folds: no detail candidate
 
 
+def test_free_cloth_labels_and_the_models_one_ramp():
+    label = free_cloth_label(RR8, (10.0, 40.0))
+    assert label == "detail on residual x0.8, free cloth 10-40 mm"
+    assert candidate_setting(label) == ("detail", "residual", 0.8, (10.0, 40.0))
+    assert candidate_setting("residual") == ("residual", "regression", None, None)
+    assert candidate_setting(free_cloth_label("residual", (20, 60))) == ("residual", "regression", None, (20.0, 60.0))
+    free = free_cloth_label("residual", (10, 40))
+    # the picked candidate's ramp where it uses the residual
+    candidates = {"hybrid": _c(30.0, 0.2, 0.6), "residual": _c(30.2, 0.3, 0.7), free: _c(30.3, 0.3, 0.75),
+                  R10: _c(30.4, 0.3, 0.6)}
+    assert pick_auto_mode(candidates) == free and pick_free_cloth(candidates) == [10.0, 40.0]
+    # the detail mode's on the regression: the residual mode's own pick among its candidates
+    candidates[R10] = _c(30.4, 0.9, 0.9)
+    assert pick_auto_mode(candidates) == R10 and pick_free_cloth(candidates) == [10.0, 40.0]
+    candidates["residual"] = _c(30.2, 0.3, 0.8)
+    assert pick_free_cloth(candidates) is None
+    # the detail setting's where it rides on the residual
+    candidates[free_cloth_label(RR10, (20, 60))] = _c(30.5, 0.95, 0.95)
+    assert pick_free_cloth(candidates) == [20.0, 60.0]
+    assert repick({"candidates": candidates}, AutoConfig())["residual_free_mm"] == [20.0, 60.0]
+    assert pick_free_cloth({"hybrid": _c(30.0, 0.2, 0.6)}) is None
+
+
 def test_hrr_train_calibrates_auto_and_it_agrees_with_the_evaluation(trained):
     from hrr_garment.artifacts.manifest import AUTO_CHOICES
     from hrr_garment.data.dataset import GarmentDataset
@@ -114,7 +141,7 @@ def test_hrr_train_calibrates_auto_and_it_agrees_with_the_evaluation(trained):
     root, data, _ = trained
     meta = json.loads((root / "model" / "bundle.json").read_text())
     auto = meta["auto"]
-    assert auto["mode"] in AUTO_CHOICES and set(auto["candidates"]) <= {*AUTO_CHOICES, *DETAIL_CANDIDATES}
+    assert auto["mode"] in AUTO_CHOICES and {candidate_setting(k)[0] for k in auto["candidates"]} <= set(AUTO_CHOICES)
     config = AutoConfig(allowance=auto["allowance"], penetration_allowance=auto["penetration_allowance"],
                         penetration_floor_pct=auto["penetration_floor_pct"])
     assert (auto["mode"], auto["detail_base"], auto["detail_strength"]) == pick_auto_and_detail(auto["candidates"], config)
@@ -142,6 +169,18 @@ def test_hrr_train_calibrates_auto_and_it_agrees_with_the_evaluation(trained):
         assert both["candidates"][label]["pve_mm"] == pytest.approx(float(np.linalg.norm(pred - records[0].garment, axis=-1).mean()) * 1000, rel=1e-5)
     pves = [both["candidates"][detail_label(base, s)]["pve_mm"] for base in ("regression", "residual") for s in DETAIL_STRENGTHS]
     assert len(set(pves)) == len(pves)  # each setting changes the output
+    # ... and every candidate that uses the residual again on free cloth, each ramp as the bundle runs it
+    from hrr_garment.artifacts.residual import FREE_CLOTH_RAMPS_MM
+
+    free = [k for k in both["candidates"] if candidate_setting(k)[3] is not None]
+    assert len(free) == len(FREE_CLOTH_RAMPS_MM) * (1 + len(DETAIL_STRENGTHS))
+    for label in free:
+        mode, base, strength, ramp = candidate_setting(label)
+        with free_cloth(animator.bundle, ramp):
+            look = DetailLook(base, strength) if mode == "detail" else DetailLook()
+            pred = animator.animate(records[0].motion, mode=mode, detail=look).vertices
+        assert both["candidates"][label]["pve_mm"] == pytest.approx(float(np.linalg.norm(pred - records[0].garment, axis=-1).mean()) * 1000, rel=1e-5)
+    assert animator.bundle.residual_nodes is None  # the calibration leaves the bundle as it was
 
 
 def test_hrr_train_picks_auto_again_when_its_allowance_changes(trained, tmp_path):

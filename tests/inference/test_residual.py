@@ -94,3 +94,64 @@ def test_a_bundle_before_the_residual_mode_says_how_to_calibrate_it_and_hrr_trai
     write_meta(old, meta)
     with pytest.raises(BundleError, match="'residual' must hold a finite 'weight'"):
         load_bundle(old)
+
+
+def test_free_cloth_weights_ramp_from_the_body_and_scale_the_residual_per_node(rng):
+    from hrr_garment.artifacts.residual import free_cloth_weights
+
+    hang = np.array([-0.003, 0.012, 0.025, 0.040, 0.300])
+    assert free_cloth_weights(hang, (10, 40)) == pytest.approx([0.0, 2 / 30, 0.5, 1.0, 1.0], abs=1e-6)
+    with pytest.raises(ValueError, match="lo < hi"):
+        free_cloth_weights(hang, (40, 10))
+    regression = rng.normal(size=(2, 3, 5, 2)).astype(np.float32)
+    own, detail = (rng.normal(size=regression.shape).astype(np.float32) for _ in range(2))
+    nodes = free_cloth_weights(hang, (10, 40))
+    out = residual_latents(regression, own + detail, own, np.ones(2), 0.5, nodes=nodes)
+    assert np.allclose(out, regression + 0.5 * nodes[None, None, :, None] * detail, atol=1e-6)
+    assert np.array_equal(residual_latents(regression, own + detail, own, np.ones(2), 0.5, nodes=np.zeros(5)), regression)
+    assert np.allclose(residual_latents(regression, own + detail, own, np.ones(2), 0.5, nodes=np.ones(5)),
+                       residual_latents(regression, own + detail, own, np.ones(2), 0.5), atol=1e-6)
+
+
+def test_the_residual_on_free_cloth_keeps_the_regression_where_the_cloth_lies_on_the_body(animator, monkeypatch):
+    """With the calibrated ramp, nodes on the body take no residual, free ones all of it, in every path."""
+    from hrr_garment.body.capsules import capsule_signed_distance
+    from hrr_garment.inference.gate import choose_windows
+    from hrr_garment.motion.windows import sequence_windows
+
+    bundle = animator.bundle
+    hang = bundle.node_hang_m
+    node_vertices = bundle.autoencoder.hierarchy.node_vertices()
+    assert hang.shape == (bundle.autoencoder.hierarchy.sizes[-1],) and len(set(node_vertices.tolist())) == len(hang)
+    a, b = bundle.made_for.rest_pose()  # the node's own centre vertex, at rest, against the body
+    assert hang[0] == pytest.approx(capsule_signed_distance(bundle.template.vertices[node_vertices[:1]].astype(np.float64),
+                                                            a, b, radii=bundle.made_for.radii)[0][0], abs=1e-6)
+    lo, hi = np.quantile(hang, [0.3, 0.7]) * 1000  # a ramp through the middle of this garment's hang
+    monkeypatch.setitem(bundle.meta, "residual", {"weight": 1.0})
+    windows = np.ascontiguousarray(sequence_windows(animator.features(synthesize("walk", 1.0, seed=3)), animator.window))
+    plain = choose_windows(bundle, windows, animator.resolve(mode="residual")).latents
+    regression = choose_windows(bundle, windows, animator.resolve(mode="regression")).latents
+    monkeypatch.setitem(bundle.meta, "auto", {**bundle.auto, "residual_free_mm": [float(lo), float(hi)]})
+    nodes = bundle.residual_nodes
+    assert (nodes == 0).any() and (nodes == 1).any()
+    free = choose_windows(bundle, windows, animator.resolve(mode="residual")).latents
+    assert np.allclose(free[:, :, nodes == 0], regression[:, :, nodes == 0], atol=1e-6)
+    assert np.allclose(free[:, :, nodes == 1], plain[:, :, nodes == 1], atol=1e-6)
+    motion = synthesize("walk_curve", 1.0, seed=5)  # the stream takes it as offline causal does
+    causal = animator.animate(motion, mode="residual", causal=True)
+    stream = animator.stream(mode="residual")
+    pushed = np.stack([stream.push(motion.slice(t, t + 1)) for t in range(motion.num_frames)])
+    assert np.abs(pushed - causal.vertices).max() <= 1e-5
+
+
+def test_a_free_cloth_ramp_in_bundle_json_is_checked(trained, tmp_path):
+    import shutil
+
+    from hrr_garment.artifacts.bundle import BundleError, load_bundle
+
+    root, _, _ = trained
+    shutil.copytree(root / "model", tmp_path / "model")
+    meta = json.loads((tmp_path / "model" / "bundle.json").read_text())
+    write_meta(tmp_path / "model", {**meta, "auto": {**meta["auto"], "residual_free_mm": [40, 10]}})
+    with pytest.raises(BundleError, match="residual_free_mm"):
+        load_bundle(tmp_path / "model")

@@ -24,8 +24,8 @@ def test_gate_analysis_oracle_bounds_both_modes(trained):
 
 
 def test_residual_nodes_analysis_spans_regression_to_residual(trained, tmp_path):
-    """Node weights of 1 everywhere are the residual mode as it is, of 0 the regression (through
-    the residual mode's path): the variants sit between known ends."""
+    """A ramp below every node's hang is the residual mode as it is, one above every node's the
+    regression (through the residual mode's path): the variants sit between known ends."""
     import importlib.util
     import json
     import shutil
