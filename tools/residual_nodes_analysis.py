@@ -7,8 +7,9 @@ The model weighs the deviation per latent node of the mesh autoencoder (each a r
 garment) by how far that region hangs from the body at rest, from 0 (within ``lo`` mm) to 1
 (beyond ``hi`` mm; hrr_garment/artifacts/residual.py, where the auto calibration chooses the ramp
 on validation). This tool measures ramps on a dataset's test clips, offline without the push-out:
-the vertices more than 5 mm inside the body, the hem's swing over the simulation's and the PVE
-against each clip's simulation, beside the plain modes.
+the vertices more than 5 mm inside the body (and which capsule holds them: a hand through the
+skirt, the chest under the bodice), the hem's swing over the simulation's and the PVE against each
+clip's simulation, beside the plain modes and the simulation itself.
 
     python tools/residual_nodes_analysis.py --model hrr_work/models/dress-real-quick-bodies-contact \\
         --dataset hrr_work/datasets/dress-real-quick-short-heavy.h5 --ranges 10-40,20-60,30-100
@@ -21,8 +22,22 @@ import argparse
 import numpy as np
 
 
+def inside_by_capsule(vertices: np.ndarray, motion, body) -> tuple[np.ndarray, np.ndarray]:
+    """(T, V) whether each vertex is more than 5 mm inside ``body``, and (C,) how many of those
+    lie deepest in each capsule."""
+    from hrr_garment.body.capsules import frames_signed_distance
+    from hrr_garment.sim.quality import PENETRATION_DEPTH_M
+
+    a, b = body.pose_motion(motion)
+    depth = np.stack([frames_signed_distance(vertices, a[:, c:c + 1], b[:, c:c + 1], radii=body.radii[c:c + 1])[0]
+                      for c in range(len(body.radii))], -1)  # (T, V, C)
+    inside = depth.min(-1) < -PENETRATION_DEPTH_M
+    return inside, np.bincount(depth.argmin(-1)[inside], minlength=len(body.radii))
+
+
 def analyse(model: str, dataset: str, ranges: list[tuple[float, float]], sequences: int = 8) -> list[dict]:
-    """One row per variant: ``label``, ``inside_pct``, ``hem_swing_ratio``, ``pve_mm`` (ranges in mm)."""
+    """One row per variant: ``label``, ``inside_pct``, ``inside_by_capsule_pct`` (capsule -> % of
+    the vertices), ``hem_swing_ratio``, ``pve_mm``, ``mean_weight`` (ranges in mm)."""
     from hrr_garment.artifacts.residual import free_cloth_weights
     from hrr_garment.data.dataset import GarmentDataset
     from hrr_garment.eval import metrics as M
@@ -32,7 +47,7 @@ def analyse(model: str, dataset: str, ranges: list[tuple[float, float]], sequenc
     from hrr_garment.garment.fit import hem_vertices
     from hrr_garment.inference.animator import Animator
     from hrr_garment.inference.run_settings import DetailLook
-    from hrr_garment.sim.quality import body_signed_distance, hem_swing
+    from hrr_garment.sim.quality import hem_swing
 
     animator, ds = Animator.load(model), GarmentDataset(dataset)
     records = [ds.sequence(n) for n in evenly(ds.splits["test"], sequences)]
@@ -41,20 +56,27 @@ def analyse(model: str, dataset: str, ranges: list[tuple[float, float]], sequenc
 
     def measure(label: str, ramp: tuple[float, float] | None, **settings) -> None:
         inside = swing = truth_swing = error = frames = 0.0
+        capsules = 0
         with free_cloth(animator.bundle, ramp):
             for r in records:
-                v = animator.animate(r.motion, collision=False, body=r.dressed, allow_outside=True, **settings).vertices
+                v = r.garment if label == "simulation" else \
+                    animator.animate(r.motion, collision=False, body=r.dressed, allow_outside=True, **settings).vertices
                 v, truth = v.astype(np.float64), r.garment.astype(np.float64)
-                inside += float((body_signed_distance(v, r.motion, body_of(r)) < -0.005).mean()) * len(v)
+                flags, where = inside_by_capsule(v, r.motion, body_of(r))
+                inside += float(flags.mean()) * len(v)
+                capsules = capsules + where / v.shape[1]
                 swing += hem_swing(v, r.motion, hem) * len(v)
                 truth_swing += hem_swing(truth, r.motion, hem) * len(v)
                 error += M.pve_mm(v, truth) * len(v)
                 frames += len(v)
         weight = None if ramp is None else float(free_cloth_weights(animator.bundle.node_hang_m, ramp).mean())
+        names = [c.name for c in body_of(records[0]).capsules]
         rows.append({"label": label, "inside_pct": 100 * inside / frames, "hem_swing_ratio": swing / truth_swing,
-                     "pve_mm": error / frames, "mean_weight": weight})
+                     "pve_mm": error / frames, "mean_weight": weight,
+                     "inside_by_capsule_pct": {n: 100 * float(k) / frames for n, k in zip(names, capsules) if k}})
 
     detail = {"mode": "detail", "detail": DetailLook("residual", 1.0)}
+    measure("simulation", None)
     measure("regression", None, mode="regression")
     measure("detail on the regression x1", None, mode="detail", detail=DetailLook("regression", 1.0))
     measure("residual", None, mode="residual")
@@ -75,8 +97,10 @@ def main() -> None:
     ranges = [tuple(float(x) for x in ramp.split("-")) for ramp in args.ranges.split(",")]
     for row in analyse(args.model, args.dataset, ranges, args.sequences):
         weight = "" if row["mean_weight"] is None else f" (mean weight {row['mean_weight']:.2f})"
-        print(f"{row['label'] + weight:60s} inside {row['inside_pct']:5.2f} %  hem swing / sim "
-              f"{row['hem_swing_ratio']:.3f}  PVE {row['pve_mm']:.2f} mm", flush=True)
+        where = sorted(row["inside_by_capsule_pct"].items(), key=lambda kv: -kv[1])[:4]
+        print(f"{row['label'] + weight:60s} inside {row['inside_pct']:5.2f} % ("
+              + ", ".join(f"{n} {p:.2f}" for n, p in where) + f")  hem swing / sim {row['hem_swing_ratio']:.3f}  "
+              f"PVE {row['pve_mm']:.2f} mm", flush=True)
 
 
 if __name__ == "__main__":

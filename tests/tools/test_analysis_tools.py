@@ -45,6 +45,10 @@ def test_residual_nodes_analysis_spans_regression_to_residual(trained, tmp_path)
     rows = {r["label"]: r for r in tool.analyse(str(model), str(data), [(-2000.0, -1000.0), (1000.0, 2000.0)],
                                                 sequences=2)}
     assert rows["residual"]["pve_mm"] != rows["regression"]["pve_mm"]
+    simulation = rows["simulation"]  # the clips' own simulations: no error, all their swing
+    assert simulation["pve_mm"] == 0.0 and simulation["hem_swing_ratio"] == pytest.approx(1.0)
+    for row in rows.values():  # the capsules share out the vertices inside, each counted once
+        assert sum(row["inside_by_capsule_pct"].values()) == pytest.approx(row["inside_pct"], abs=1e-9)
     every, none = rows["residual, nodes -2000--1000 mm"], rows["residual, nodes 1000-2000 mm"]
     assert every["mean_weight"] == 1.0 and none["mean_weight"] == 0.0
     for key in ("inside_pct", "hem_swing_ratio", "pve_mm"):
