@@ -4,7 +4,7 @@
     hrr-body make -o average.json                                        # its average adult
     hrr-body fit character.glb -o hero.json [--skin N] [--joint-map map.yaml] [--unit-scale S] [--parametric]
     hrr-body nearest clip.bvh -o performer.json      # the parametric body nearest to the clip's performer
-    hrr-body info tall.json [--json]
+    hrr-body info tall.json [--json] [--model DIR]      # --model: within the body range DIR was trained on?
 
 ``make`` builds anny's body of that shape (the ``bodies`` extra; the first run builds its blend
 shapes, about a minute, cached under the workspace), fits the canonical skeleton's bone lengths and
@@ -55,6 +55,8 @@ def _parser() -> argparse.ArgumentParser:
     info = sub.add_parser("info", help="what a body file holds")
     info.add_argument("body", type=Path)
     info.add_argument("--json", action="store_true")
+    info.add_argument("--model", type=Path, default=None,
+                      help="a model folder: whether the body lies within the range it was trained on (exit 1 where not)")
     return p
 
 
@@ -134,9 +136,21 @@ def _nearest(args) -> int:
 def _main(argv: Sequence[str] | None) -> int:
     args = _parser().parse_args(argv)
     if args.command == "info":
-        summary = _summary(read_body(args.body))
-        print(json.dumps(summary) if args.json else "\n".join(f"{k}: {v}" for k, v in summary.items()))
-        return 0
+        record = read_body(args.body)
+        summary = _summary(record)
+        outside = None
+        if args.model is not None:  # before a held-out body's simulation: will this model animate it?
+            from ..artifacts.bundle import load_bundle
+            from ..body.measures import body_vector
+
+            body_range = load_bundle(args.model).body_range
+            outside = body_range.outside(body_vector(record))
+            summary["model"] = {"folder": str(args.model), "training_bodies": body_range.bodies, "outside": outside}
+        print(json.dumps(summary) if args.json else "\n".join(f"{k}: {v}" for k, v in summary.items() if k != "model"))
+        if outside is not None and not args.json:
+            print(f"within the range of the {body_range.bodies} bodies {args.model} was trained on" if not outside else
+                  f"outside the range of the {body_range.bodies} bodies {args.model} was trained on: " + "; ".join(outside))
+        return 1 if outside else 0
     if args.output.suffix.lower() != ".json":
         raise InputError(args.output, "a body file is written as .json")
     if args.command == "nearest":

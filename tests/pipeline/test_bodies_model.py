@@ -192,6 +192,25 @@ def test_hrr_animate_on_a_body_file(bodies_model, tmp_path, capsys):
     assert "giant.json" in err and "unlike the 2 bodies" in err and not (tmp_path / "giant.h5").exists()
 
 
+def test_hrr_body_info_says_whether_a_body_is_within_a_models_range(bodies_model, tmp_path, capsys):
+    """The check before simulating a held-out body: within the range exits 0, outside 1 naming the measures."""
+    from hrr_garment.cli.body import main
+
+    folder, data = bodies_model
+    write_body(tmp_path / "short.json", GarmentDataset(data).bodies["short"].record)
+    write_body(tmp_path / "between.json", _record(1.0, 1.0))
+    write_body(tmp_path / "giant.json", _record(1.4))
+    for name in ("short", "between"):
+        assert main(["info", str(tmp_path / f"{name}.json"), "--model", str(folder)]) == 0
+        assert "within the range of the 2 bodies" in capsys.readouterr().out
+    assert main(["info", str(tmp_path / "giant.json"), "--model", str(folder)]) == 1
+    out = capsys.readouterr().out
+    assert "outside the range of the 2 bodies" in out and "stature 2.380 m" in out
+    assert main(["info", str(tmp_path / "giant.json"), "--model", str(folder), "--json"]) == 1
+    info = json.loads(capsys.readouterr().out)
+    assert info["model"]["training_bodies"] == 2 and any(line.startswith("stature") for line in info["model"]["outside"])
+
+
 def test_a_crowd_of_characters_on_different_bodies_equals_each_one_alone_on_its_body(bodies_model):
     """One batched step for characters of three bodies (two set with set_body, one the crowd's own):
     each one's frames equal its offline causal animation on its body."""
