@@ -158,29 +158,37 @@ def pick_auto_and_detail(candidates: dict[str, dict[str, float]],
     """(the mode auto runs, the detail mode's base, its strength) by the criterion on candidates
     labelled by mode, the detail mode's by :data:`DETAIL_CANDIDATES` (see the module docstring),
     under ``config``'s allowances."""
-    picked = pick_auto_mode(candidates, config)
-    mode = candidate_setting(picked)[0]
-    details = {k: c for k, c in candidates.items() if candidate_setting(k)[0] == "detail"}
-    if not details:
-        return mode, "regression", DETAIL_STRENGTH
-    detail = picked if picked in details else pick_auto_mode(details, config)
-    return mode, *candidate_setting(detail)[1:3]
+    picked, detail = _picked_labels(candidates, config)
+    if detail is None:
+        return candidate_setting(picked)[0], "regression", DETAIL_STRENGTH
+    return candidate_setting(picked)[0], *candidate_setting(detail)[1:3]
 
 
 def pick_free_cloth(candidates: dict[str, dict[str, float]], config: AutoConfig = AutoConfig()) -> list[float] | None:
     """The model's one free-cloth ramp (``[lo, hi]`` mm, None: the plain residual): the picked
     candidate's where it uses the residual, else the detail setting's where that does, else the
     criterion's pick among the residual mode's candidates (see the module docstring)."""
+    picked, detail = _picked_labels(candidates, config)
+    residuals = _of_mode(candidates, "residual")
+    residual = pick_auto_mode(residuals, config) if residuals else None
+    using = next((label for label in (picked, detail, residual) if label is not None and uses_residual(label)), None)
+    ramp = None if using is None else candidate_setting(using)[3]
+    return None if ramp is None else list(ramp)
+
+
+def _of_mode(candidates: dict[str, dict[str, float]], mode: str) -> dict[str, dict[str, float]]:
+    """The candidates that run ``mode`` (each detail setting is the detail mode)."""
+    return {k: c for k, c in candidates.items() if candidate_setting(k)[0] == mode}
+
+
+def _picked_labels(candidates: dict[str, dict[str, float]], config: AutoConfig) -> tuple[str, str | None]:
+    """The label auto picks, and the detail mode's setting (that label where it is a detail
+    setting, else the criterion's pick among the detail candidates alone; None: there are none)."""
     picked = pick_auto_mode(candidates, config)
-    details = {k: c for k, c in candidates.items() if candidate_setting(k)[0] == "detail"}
-    residuals = {k: c for k, c in candidates.items() if candidate_setting(k)[0] == "residual"}
-    for pool in ({picked: candidates[picked]}, details, residuals):
-        if pool:
-            chosen = pick_auto_mode(pool, config)
-            if uses_residual(chosen):
-                ramp = candidate_setting(chosen)[3]
-                return None if ramp is None else list(ramp)
-    return None
+    details = _of_mode(candidates, "detail")
+    if not details:
+        return picked, None
+    return picked, picked if picked in details else pick_auto_mode(details, config)
 
 
 def lacks_free_cloth(auto: dict, residual: dict | None) -> bool:
@@ -236,16 +244,16 @@ def calibrate_auto_mode(animator: Animator, records: list[SequenceRecord], confi
         mode, base, strength, ramp = candidate_setting(label)
         look = DetailLook(base, strength) if mode == "detail" else DetailLook()
         error = bend = swing = inside = 0.0
-        for r, truth in zip(records, truths):  # a clip in the database (the paper's validation) may not retrieve itself
-            own = names.index(r.name) if r.name in names else None
-            with free_cloth(bundle, ramp):
+        with free_cloth(bundle, ramp):
+            for r, truth in zip(records, truths):  # a clip in the database (the paper's validation) may not retrieve itself
+                own = names.index(r.name) if r.name in names else None
                 anim = animator.animate(r.motion, mode=mode, detail=look, body=r.dressed, allow_outside=True,
                                         exclude_sequence=own)
-            pred = anim.vertices.astype(np.float64)
-            inside += anim.penetration.inside_before * len(pred)  # the product path pushes out: what it had to
-            error += M.pve_mm(pred, truth) * len(pred)
-            bend += float(M.cloth_energies(pred, rest, topo)[1].sum())
-            swing += hem_swing(pred, r.motion, hem) * len(pred)
+                pred = anim.vertices.astype(np.float64)
+                inside += anim.penetration.inside_before * len(pred)  # the product path pushes out: what it had to
+                error += M.pve_mm(pred, truth) * len(pred)
+                bend += float(M.cloth_energies(pred, rest, topo)[1].sum())
+                swing += hem_swing(pred, r.motion, hem) * len(pred)
         candidates[label] = {"pve_mm": error / frames, "sharpness": bend / max(truth_bend, 1e-30),
                              "hem_swing": swing / max(truth_swing, 1e-30), "penetration_pct": 100.0 * inside / frames}
     return repick({"sequences": len(records), "frames": frames, "candidates": candidates,

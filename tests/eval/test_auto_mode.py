@@ -129,6 +129,11 @@ def test_free_cloth_labels_and_the_models_one_ramp():
     assert pick_free_cloth(candidates) == [20.0, 60.0]
     assert repick({"candidates": candidates}, AutoConfig())["residual_free_mm"] == [20.0, 60.0]
     assert pick_free_cloth({"hybrid": _c(30.0, 0.2, 0.6)}) is None
+    # the detail setting is the picked detail candidate, not the pick among the detail candidates
+    # alone (whose allowance, from their own most accurate, can admit one the model does not run)
+    candidates = {"residual": _c(30.0, 0.3, 0.7), R10: _c(31.0, 0.9, 0.8), free_cloth_label(RR10, (10, 40)): _c(32.0, 1.0, 1.0)}
+    assert pick_auto_and_detail(candidates) == ("detail", "regression", 1.0)
+    assert pick_free_cloth(candidates) is None  # so the residual mode's own pick: the plain residual
 
 
 def test_hrr_train_calibrates_auto_and_it_agrees_with_the_evaluation(trained):
