@@ -236,9 +236,8 @@ def calibrate_auto(folder: str | Path, dataset: str | Path, progress: bool = Tru
 
     meta = read_meta(folder)  # reading it hashes every file: once
     auto = meta.get("auto")
-    # calibrated again where it was recorded before candidates carried their cloth inside the body
-    # (the criterion counts it) or before the residual's free-cloth candidates; picked again where
-    # only an allowance moved
+    # calibrated again where recorded before the candidates carried their cloth inside the body (the
+    # criterion counts it) or the residual on free cloth; picked again where only an allowance moved
     if auto is None or any("penetration_pct" not in c for c in auto["candidates"].values()) \
             or lacks_free_cloth(auto, meta.get("residual")):
         from ..data.dataset import GarmentDataset
