@@ -72,6 +72,9 @@ autoencoder:
 codespace:
   model: {groups: 16, classes: 4, embedding_dim: 4, hidden: 64, motion_hidden: 32, attention_heads: 2}
   train: {epochs: 4, learning_rate: 0.001, plateau_patience: 2, patience: 5, max_minutes: null}
+subspace:
+  model: {max_components: 48, hidden: 64}
+  train: {epochs: 30, pca_frames: 4000}
 """
 
 
@@ -97,7 +100,7 @@ def trained(tmp_path_factory):
     data = synthetic_dataset(root / "skirt.h5", make_garment("skirt", 300))
     (root / "cfg.yaml").write_text(TINY_TRAINING)
     result = train_tiny(data, root / "model", root / "cfg.yaml")
-    assert set(result.reports) == {"autoencoder", "codespace"} and result.auto["mode"] in ("hybrid", "residual", "detail")
+    assert set(result.reports) == {"autoencoder", "codespace", "subspace"} and result.auto["mode"] in ("hybrid", "residual", "detail")
     args = ["--dataset", str(data), "--config", str(root / "cfg.yaml"), "-o", str(root / "model"), "--quiet"]
     return root, data, args
 

@@ -43,13 +43,14 @@ from ..models.codespace import CodeSpace, CodeSpaceConfig
 from ..models.direct import DirectConfig, DirectRegressor
 from ..models.fcmae import AutoencoderConfig, MeshAutoencoder
 from ..models.hierarchy import cached_hierarchy
+from ..models.subspace import SubspaceConfig, SubspaceDecoder
 from ..motion.features import FeatureStats
 from ..settings import require_number
 from .database import CodeDatabase
 from .folds import FILE_KEYS as FOLD_FILE_KEYS
 from .folds import FoldStore
 from .gate_signals import GATE_SIGNALS
-from .manifest import FOLDS_FILE, NETWORKS, UNCALIBRATED_AUTO, BundleError, read_meta
+from .manifest import FOLDS_FILE, NETWORKS, SUBSPACE_FILE, UNCALIBRATED_AUTO, BundleError, read_meta
 from .residual import free_cloth_weights, node_hang_m
 
 MAX_SCALE_M = 10.0  # the autoencoder's vertex scale: the spread of a garment's training frames (centimetres)
@@ -69,6 +70,7 @@ class Bundle:
     template: GarmentMesh
     direct: DirectRegressor | None = None  # the direct-regression baseline, when trained
     folds: FoldStore | None = None  # the database frames' folds, for the detail mode (where the bundle has them)
+    subspace: SubspaceDecoder | None = None  # the run-time decoder sized for games (``--decoder fast``), when trained
 
     @property
     def tau(self) -> float:
@@ -302,8 +304,20 @@ def _load_bundle(folder: Path, cache_dir: Path | None) -> Bundle:
             raise BundleError(folder, f"bundle.json has a bad 'direct' entry ({exc})") from None
         _load_state(direct, folder / "direct.safetensors", folder)
         direct.eval()
+    subspace = _load_subspace(folder, meta, latent_shape, template.num_vertices) if "subspace" in meta else None
     return Bundle(folder, meta, autoencoder.eval(), codespace.eval(), FeatureStats(s["motion_mean"], s["motion_std"]),
-                  FeatureStats(s["latent_mean"], s["latent_std"]), database, template, direct, folds)
+                  FeatureStats(s["latent_mean"], s["latent_std"]), database, template, direct, folds, subspace)
+
+
+def _load_subspace(folder: Path, meta: dict, latent_shape: tuple, num_vertices: int) -> SubspaceDecoder:
+    """The fast decoder, its size and settings from bundle.json's ``subspace`` entry."""
+    try:
+        model = SubspaceDecoder(latent_shape, num_vertices, int(meta["subspace"]["components"]),
+                                SubspaceConfig.from_dict(meta["subspace"]["config"]))
+    except (KeyError, TypeError, ValueError) as exc:
+        raise BundleError(folder, f"bundle.json has a bad 'subspace' entry ({exc})") from None
+    _load_state(model, folder / SUBSPACE_FILE, folder)
+    return model.eval()
 
 
 def _load_folds(folder: Path, meta: dict, template: GarmentMesh, database: CodeDatabase) -> FoldStore:

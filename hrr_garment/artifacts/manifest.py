@@ -17,7 +17,8 @@ version, so that everything after it reads every field as the current version de
   calibrated tau), ``validation`` (the code space's: "clips" or the paper's "windows"), ``auto.detail_base`` and ``auto.detail_strength`` wherever ``auto`` is, and the
   code space's ``memory_seconds``, ``resonator_hz`` and ``regression_code``. ``auto`` is absent
   until training calibrates it (``auto`` then runs the hybrid), ``residual`` where the database
-  has no motion windows, ``folds`` and ``direct`` where the bundle has no such part.
+  has no motion windows, ``folds``, ``direct`` and ``subspace`` (the fast decoder, which arrived later as an optional
+  part) where the bundle has no such part.
 - 4: ``manifest_hash``, a hash over bundle.json's own content (everything but itself): the
   content hash covers the files, and a hand-edited garment name, tau or scale went unseen. A
   version-3 manifest has none; it gets one when it is next written.
@@ -39,6 +40,7 @@ FORMAT_VERSION = 4  # see the module docstring
 OLDEST_READABLE = 2  # version 1 kept garments in world coordinates: no step upgrades its networks
 NETWORKS = ("motion_encoder", "garment_encoder", "decoder", "quantizer")
 FOLDS_FILE = "folds.safetensors"  # the detail mode's simulated folds (.folds)
+SUBSPACE_FILE = "subspace.safetensors"  # the run-time decoder sized for games (models/subspace.py)
 AUTO_CHOICES = ("hybrid", "residual", "detail")  # what mode ``auto`` may stand for (eval/auto_mode.py chooses)
 DETAIL_BASES = ("regression", "residual")  # what the detail mode's folds may ride on (eval/auto_mode.py chooses)
 #: what ``auto`` stands for until training calibrates it: the hybrid, with the default detail look
@@ -86,7 +88,8 @@ def required_files(meta: dict) -> set[str]:
     """Every file :func:`.bundle.load_bundle` opens for this bundle: each must be listed with its hash."""
     names = {"autoencoder.safetensors", "stats.safetensors", "database.safetensors", "template.safetensors",
              *[f"{n}.safetensors" for n in NETWORKS]}
-    return names | ({"direct.safetensors"} if "direct" in meta else set()) | ({FOLDS_FILE} if "folds" in meta else set())
+    optional = {"direct": "direct.safetensors", "folds": FOLDS_FILE, "subspace": SUBSPACE_FILE}
+    return names | {file for part, file in optional.items() if part in meta}
 
 
 def check_manifest(folder: Path, meta: object) -> dict:

@@ -10,7 +10,7 @@ from typing import Callable, Sequence
 
 from ..artifacts.manifest import DETAIL_BASES, MAX_DETAIL_STRENGTH
 from ..errors import HRRError, InputError
-from ..inference.run_settings import DetailLook, RunSettings
+from ..inference.run_settings import DECODERS, DetailLook, RunSettings
 
 EXIT_ERROR = 2
 
@@ -20,6 +20,13 @@ def add_fps_option(p: argparse.ArgumentParser) -> None:
     p.add_argument("--fps", type=float, default=None, metavar="RATE",
                    help="frame rate the motion file was captured at (for npz files without a rate key; "
                         "overrides a BVH's frame time)")
+
+
+def add_decoder_option(p: argparse.ArgumentParser) -> None:
+    """``--decoder``: the full mesh decoder or the bundle's fast (subspace) decoder."""
+    p.add_argument("--decoder", choices=DECODERS, default=None,
+                   help="mesh decoder: full (the autoencoder's; default) or fast (its distilled subspace decoder, "
+                        "several times cheaper; where the model has one: hrr-train --stage subspace)")
 
 
 def add_detail_options(p: argparse.ArgumentParser) -> None:
@@ -46,7 +53,8 @@ def run_settings_of(args: argparse.Namespace, prog: str, **fields) -> RunSetting
     """``--mode`` (where the command has it), ``--gate`` and ``--tau`` and ``fields`` as
     :class:`RunSettings`; an InputError for values or combinations they cannot take."""
     try:
-        return RunSettings(**({"mode": args.mode} if hasattr(args, "mode") else {}), gate=args.gate, tau=args.tau, **fields)
+        return RunSettings(**({"mode": args.mode} if hasattr(args, "mode") else {}), gate=args.gate, tau=args.tau,
+                           decoder=getattr(args, "decoder", None), **fields)
     except (TypeError, ValueError) as exc:
         message = str(exc)
         flag = next((f"--{name}" for name in ("tau", "gate", "mode") if message.startswith(name)), "the run settings")

@@ -26,7 +26,14 @@ from ..errors import InputError
 from ..inference.modes import Mode
 from ..io_utils import refuse_input_as_output
 from ..native import PRECISIONS
-from ._common import add_detail_options, add_fps_option, detail_look, run_cli, run_settings_of
+from ._common import (
+    add_decoder_option,
+    add_detail_options,
+    add_fps_option,
+    detail_look,
+    run_cli,
+    run_settings_of,
+)
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -54,6 +61,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--allow-outside-body", action="store_true",
                    help="animate a body unlike the model's training bodies anyway (warned), rather than refuse it")
     p.add_argument("--no-collision", action="store_true", help="skip the collision push-out")
+    add_decoder_option(p)
     p.add_argument("--causal", action="store_true", help="causal windows only, as the streaming API")
     p.add_argument("--precision", choices=PRECISIONS, default="float32",
                    help="the mesh decoder's arithmetic: bfloat16 runs on AMX (recent Intel Xeons), about 3x faster, "

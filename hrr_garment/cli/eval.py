@@ -33,7 +33,14 @@ from ..eval.bars import summary_line
 from ..eval.evaluate import EvaluationSettings, evaluate_modes, tau_sweep
 from ..inference.modes import Mode
 from ..paths import workspace
-from ._common import add_detail_options, add_fps_option, detail_look, run_cli, run_settings_of
+from ._common import (
+    add_decoder_option,
+    add_detail_options,
+    add_fps_option,
+    detail_look,
+    run_cli,
+    run_settings_of,
+)
 
 ALL_MODES = tuple(m.value for m in Mode)
 
@@ -93,6 +100,7 @@ def _parser() -> argparse.ArgumentParser:
                    help="perturbed simulations per sequence for the ensemble ground truth (default 4; 0: none)")
     p.add_argument("--jobs", type=int, default=None, help="processes simulating the ensemble (default: one per core)")
     p.add_argument("--no-collision", action="store_true", help="evaluate without the collision push-out")
+    add_decoder_option(p)
     p.add_argument("--no-plots", action="store_true")
     p.add_argument("-o", "--output", type=Path, default=None, help="report folder (default: hrr_work/eval/MODEL)")
     p.add_argument("--quiet", action="store_true", help="no progress bars")

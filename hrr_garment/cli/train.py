@@ -78,6 +78,11 @@ class _Printer(TrainCallback):
             from ..eval.auto_mode import describe_auto
 
             print(describe_auto(result))
+        elif stage == "subspace":
+            m = result.metrics
+            print(f"subspace (fast decoder): {m['components']} components, {_epochs(result)}; validation per-vertex error "
+                  f"{m['validation_mm']:.2f} mm (full decoder {m['full_validation_mm']:.2f} mm; by size: "
+                  + ", ".join(f"{k} {v:.2f}" for k, v in m["candidates_mm"].items()) + ")")
         elif stage == "baseline":
             print(f"baseline (direct regression): {_epochs(result)}; validation per-vertex error "
                   f"{result.metrics['validation_mm']:.2f} mm")

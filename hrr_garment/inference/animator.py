@@ -130,11 +130,16 @@ class Animator:
         :class:`~hrr_garment.models.fast_decoder.FastDecoder`)."""
         self.bundle = bundle
         self.blend = blend  # inertialization frames in causal mode
-        self.decoder = bundle.autoencoder.fast_decoder(precision=precision)
+        self.decoder = bundle.autoencoder.fast_decoder(precision=precision)  # the full mesh decoder
         self.smoothing = mean_operator(bundle.template.faces, bundle.template.num_vertices)  # for the push-out
         self.edge_limits = EdgeLimits.of(bundle.template.faces, bundle.template.vertices)  # for the push-out's strain limit
         self._causal_steps: dict[bool, object] = {}
         self._default_body: CharacterBody | None = None
+
+    def decoder_for(self, run: ResolvedRun):
+        """The mesh decoder ``run`` asks for: the full one (:attr:`decoder`) or the bundle's fast
+        subspace decoder (:mod:`hrr_garment.models.subspace`); both take (B, N, C) latents to (B, V, 3)."""
+        return self.bundle.subspace if run.decoder == "fast" else self.decoder
 
     def causal_step(self, regression: bool):
         """The window step (:class:`~hrr_garment.models.codes.WindowCodes`' function) that causal inference runs,
@@ -234,7 +239,7 @@ class Animator:
                 per_frame = np.clip(np.arange(t_frames) - w // 2, 0, len(windows) - 1)  # the window centred on t
             retrieved, entropy = choice.retrieved[per_frame].astype(np.uint8), choice.entropy[per_frame].astype(np.float32)
             match, doubt = choice.match[per_frame], choice.doubt[per_frame].astype(np.float32)
-        local = body_frame_vertices(self.bundle, latents, self.decoder)
+        local = body_frame_vertices(self.bundle, latents, self.decoder_for(run))
         if proposals is not None:  # the detail mode: simulated folds on the regression's shape (or the residual's)
             store = self.bundle.folds
             rows, weights = track_folds(proposals, store.offsets)

@@ -30,6 +30,8 @@ from ..artifacts.gate_signals import GATE_SIGNALS
 from ..artifacts.manifest import DETAIL_BASES, MAX_DETAIL_STRENGTH, valid_detail_strength
 from .modes import Mode
 
+DECODERS = ("full", "fast")  # the mesh autoencoder's decoder, or its distilled subspace decoder (models/subspace.py)
+
 #: keyword arguments of the API before the settings objects, and what replaced them
 RENAMED = {"detail_base": "detail=DetailLook(base=...)", "detail_strength": "detail=DetailLook(strength=...)"}
 
@@ -84,6 +86,9 @@ class RunSettings:
     detail: DetailLook = field(default_factory=DetailLook)
     collision: bool = True  # the collision push-out against the body
     causal: bool = False  # no future frames: what the streaming API gives
+    # the mesh decoder: "full" (the autoencoder's) or "fast" (its distilled subspace decoder, a few
+    # times cheaper: crowds in a game's budget; where the bundle has one). None: full
+    decoder: str | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "mode", Mode(self.mode))
@@ -94,6 +99,8 @@ class RunSettings:
             if not math.isfinite(tau) or tau < 0:
                 raise ValueError(f"tau must be a finite number >= 0 (the gate's doubt is never negative), got {tau!r}")
             object.__setattr__(self, "tau", tau)
+        if self.decoder is not None and self.decoder not in DECODERS:
+            raise ValueError(f"decoder must be one of {', '.join(DECODERS)}, got {self.decoder!r}")
         if not isinstance(self.detail, DetailLook):
             raise TypeError(f"detail must be a DetailLook, got {type(self.detail).__name__}")
         for name in ("collision", "causal"):
@@ -140,7 +147,12 @@ class RunSettings:
                                                      "the regression: run the detail mode on the regression")
         elif mode is Mode.RESIDUAL:
             bundle.require_residual()
-        return ResolvedRun(mode=mode, gate=gate, tau=tau, detail=look, collision=self.collision, causal=self.causal)
+        decoder = self.decoder or "full"
+        if decoder == "fast" and bundle.subspace is None:
+            raise BundleError(bundle.folder, "has no fast decoder: distil one with hrr-train --stage subspace "
+                                             "(or run the full decoder)")
+        return ResolvedRun(mode=mode, gate=gate, tau=tau, detail=look, collision=self.collision, causal=self.causal,
+                           decoder=decoder)
 
 
 @dataclass(frozen=True)
@@ -153,6 +165,7 @@ class ResolvedRun:
     detail: DetailLook | None  # concrete base and strength in the detail mode, else None
     collision: bool
     causal: bool
+    decoder: str = "full"  # "full" or "fast"
 
     @property
     def fold_base(self) -> str:
@@ -162,7 +175,7 @@ class ResolvedRun:
     def record(self) -> dict:
         """What out.h5's attributes and report.json's settings record of the run."""
         out = {"mode": str(self.mode), "gate": self.gate, "tau": self.tau, "causal": int(self.causal),
-               "collision": int(self.collision)}
+               "collision": int(self.collision), "decoder": self.decoder}
         if self.detail is not None:
             out.update(detail_base=self.detail.base, detail_strength=self.detail.strength)
         return out

@@ -95,6 +95,7 @@ class CrowdStream:
         self.timings = _Timings()
         regression = run.mode.regresses
         bundle = animator.bundle
+        self._decoder = animator.decoder_for(run)
         self._step = animator.causal_step(regression) or traced_window_codes(
             bundle.codespace, animator.window, bundle.codespace.features, regression=regression)
 
@@ -235,7 +236,7 @@ class CrowdStream:
             latents[i] = inertialize(c.inertializer, path_latents[i, -1], retrieved[i], source=choice.match[i], frame=c.frames)
         t.append(time.perf_counter())
         with torch.no_grad():
-            local = self.animator.decoder(torch.from_numpy(latents)).numpy()
+            local = self._decoder(torch.from_numpy(latents)).numpy()
         if choice.lends_folds:  # the detail mode: each character's playhead one frame on, its folds added
             local = add_folds(local, self._folds(chars, choice.match), self.animator.smoothing,
                               passes=self.animator.bundle.folds.passes, strength=self.run.detail.strength,

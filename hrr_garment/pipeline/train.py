@@ -12,7 +12,8 @@
 The stages, in order: ``simulate`` (only where the dataset does not exist, or lacks sequences its
 preset has gained), ``autoencoder`` (the FCMAE mesh autoencoder, then every frame encoded),
 ``codespace`` (the shared code space, the retrieval database, the gate's and the residual mode's
-calibration, the bundle), then the auto mode's calibration on the validation clips; ``baseline``
+calibration, the bundle), then the auto mode's calibration on the validation clips, ``subspace``
+(the fast decoder for games, distilled from the mesh decoder); ``baseline``
 (the direct-regression baseline) only when asked for. Each stage resumes from its checkpoint and
 is skipped when its outputs are current. A :class:`TrainCallback` hears each stage's end and
 messages; the command line's prints them, a library caller may ignore them.
@@ -33,6 +34,7 @@ from ..io_utils import remove_empty_folders
 from ..models.codespace import CodeSpaceConfig
 from ..models.direct import DirectConfig
 from ..models.fcmae import AutoencoderConfig
+from ..models.subspace import SubspaceConfig
 from ..paths import workspace
 from ..settings import deep_merge
 from ..sim.plan import CONFIG_DIR, Preset
@@ -40,10 +42,11 @@ from ..train.autoencoder import TrainConfig
 from ..train.baseline import DirectTrainConfig
 from ..train.codespace_training import CodeSpaceTrainConfig
 from ..train.report import StageReport
+from ..train.subspace import SubspaceTrainConfig
 from .budget import BudgetCheck, TrainingBudgetWarning, check_budget
 
-STAGES = ("simulate", "autoencoder", "codespace")  # what "all" runs; the baseline runs only when asked for
-SECTIONS = ("autoencoder", "codespace", "baseline", "auto")  # of the training config
+STAGES = ("simulate", "autoencoder", "codespace", "subspace")  # what "all" runs; the baseline runs only when asked for
+SECTIONS = ("autoencoder", "codespace", "subspace", "baseline", "auto")  # of the training config
 BUDGETED = ("autoencoder", "codespace")  # stages checked against their epochs and target error (.budget)
 OLD_CODESPACE_NAME = "codebook"  # the old name of the code-space stage and config section (deprecated)
 
@@ -100,6 +103,8 @@ class TrainSettings:
     autoencoder_train: TrainConfig = field(default_factory=TrainConfig)
     codespace: CodeSpaceConfig = field(default_factory=CodeSpaceConfig)
     codespace_train: CodeSpaceTrainConfig = field(default_factory=CodeSpaceTrainConfig)
+    subspace: SubspaceConfig = field(default_factory=SubspaceConfig)
+    subspace_train: SubspaceTrainConfig = field(default_factory=SubspaceTrainConfig)
     baseline: DirectConfig = field(default_factory=DirectConfig)
     baseline_train: DirectTrainConfig = field(default_factory=DirectTrainConfig)
     auto: AutoConfig = field(default_factory=AutoConfig)  # the auto mode's calibration after the code space
@@ -120,6 +125,7 @@ class TrainSettings:
         built = {}
         for section, (model_cls, train_cls) in {"autoencoder": (AutoencoderConfig, TrainConfig),
                                                 "codespace": (CodeSpaceConfig, CodeSpaceTrainConfig),
+                                                "subspace": (SubspaceConfig, SubspaceTrainConfig),
                                                 "baseline": (DirectConfig, DirectTrainConfig)}.items():
             built[section] = _build(model_cls, values.get(section, {}).get("model"), source)
             built[f"{section}_train"] = _build(train_cls, values.get(section, {}).get("train"), source)
@@ -215,6 +221,13 @@ def _codespace_stage(dataset: Path, folder: Path, settings: TrainSettings, ctx: 
                                cache_dir=workspace() / "cache", progress=ctx.progress, info=info)
 
 
+def _subspace_stage(dataset: Path, folder: Path, settings: TrainSettings, ctx: _Context) -> StageReport:
+    from ..train.subspace import run_subspace_stage
+
+    return run_subspace_stage(dataset, folder, settings.subspace, train_config=settings.subspace_train,
+                              cache_dir=workspace() / "cache", progress=ctx.progress)
+
+
 def _baseline_stage(dataset: Path, folder: Path, settings: TrainSettings, ctx: _Context) -> StageReport:
     from ..train.baseline import run_baseline_stage
 
@@ -223,7 +236,7 @@ def _baseline_stage(dataset: Path, folder: Path, settings: TrainSettings, ctx: _
 
 
 _STAGE_RUNNERS = {"simulate": _simulate_stage, "autoencoder": _autoencoder_stage, "codespace": _codespace_stage,
-                  "baseline": _baseline_stage}
+                  "subspace": _subspace_stage, "baseline": _baseline_stage}
 
 
 def calibrate_auto(folder: str | Path, dataset: str | Path, progress: bool = True, config: AutoConfig = AutoConfig()) -> dict:

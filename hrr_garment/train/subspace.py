@@ -1,0 +1,200 @@
+"""The ``subspace`` stage of ``hrr-train``: the run-time decoder sized for games
+(:class:`~hrr_garment.models.subspace.SubspaceDecoder`), distilled from the bundle's mesh decoder.
+
+1. The training frames' latents (the autoencoder stage's ``latents.npz``) are decoded by the full
+   decoder; the principal components of those outputs (a sample of at most ``pca_frames``) make the
+   basis, and every frame's coefficients on it the targets.
+2. A small network learns latents -> coefficients (standardised; the loss weighs each by its
+   variance, so it is the squared vertex error within the subspace), Adam with a cosine schedule,
+   ``epochs`` passes, the best validation epoch kept; checkpointed each epoch in ``MODEL/subspace/``.
+3. On the validation sequences, the full decoder's error against the simulation and the fast
+   decoder's at each candidate size: the fewest components whose error is at most ``tolerance``
+   times the full decoder's are kept (else the largest), recorded in bundle.json ``subspace``
+   beside every candidate's number, and the weights join the bundle as ``subspace.safetensors``.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import time
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+import torch
+from tqdm import tqdm
+
+from ..artifacts.bundle import load_bundle
+from ..artifacts.bundle_writer import add_bundle_part
+from ..artifacts.manifest import SUBSPACE_FILE
+from ..data.dataset import DatasetError, GarmentDataset
+from ..io_utils import atomic_write_text, strict_json
+from ..models.subspace import SubspaceConfig, SubspaceDecoder, principal_components
+from ..settings import from_settings, require_number
+from .autoencoder import body_frames
+from .checkpoint import keep_if_best, load_checkpoint, resume_log, save_checkpoint
+from .report import StageReport
+
+CANDIDATES = (16, 32, 64, 96, 128, 192, 256, 384, 512)  # component counts tried, up to max_components
+
+
+@dataclass(frozen=True)
+class SubspaceTrainConfig:
+    """The subspace stage's training settings (``subspace.train``)."""
+
+    epochs: int = 30
+    batch_size: int = 512
+    learning_rate: float = 1e-3
+    pca_frames: int = 20_000  # training frames sampled for the principal components
+    # kept: the fewest components whose validation error (mm, against the simulation) is at most
+    # this times the full decoder's (a few tenths of a millimetre on an autoencoder's 3 mm, against
+    # a model's 25-35 mm error from motion)
+    tolerance: float = 1.1
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        for name, high in (("epochs", 10_000), ("batch_size", 1 << 16), ("pca_frames", 10_000_000)):
+            require_number("subspace training", name, getattr(self, name), low=1, high=high, whole=True)
+        require_number("subspace training", "learning_rate", self.learning_rate, low=0, high=1, above=True)
+        require_number("subspace training", "tolerance", self.tolerance, low=1, high=10)
+
+    @classmethod
+    def from_dict(cls, values: dict) -> "SubspaceTrainConfig":
+        return from_settings(cls, values, "subspace training")
+
+
+@torch.no_grad()
+def _decode(decoder, latents: np.ndarray, batch: int = 256) -> np.ndarray:
+    """(F, N, C) latents -> (F, V, 3) vertices through ``decoder`` (either kind), ``batch`` frames at a time."""
+    return np.concatenate([decoder(torch.from_numpy(np.ascontiguousarray(latents[i:i + batch]))).numpy()
+                           for i in range(0, len(latents), batch)])
+
+
+def _coefficients(decoder, latents: np.ndarray, basis: tuple[np.ndarray, np.ndarray], progress: bool,
+                  batch: int = 1024) -> np.ndarray:
+    """(F, K) coefficients of the full decoder's outputs on ``basis`` (its mean and rows), chunk by chunk."""
+    mean, basis = basis
+    out = np.empty((len(latents), len(basis)), np.float32)
+    for i in tqdm(range(0, len(latents), batch), desc="subspace targets", unit="chunk", leave=False, disable=not progress):
+        out[i:i + batch] = (_decode(decoder, latents[i:i + batch]).reshape(-1, basis.shape[1]) - mean) @ basis.T
+    return out
+
+
+def _fit(model: SubspaceDecoder, inputs: torch.Tensor, targets: torch.Tensor, val: tuple[torch.Tensor, torch.Tensor],
+         folder: Path, config: SubspaceTrainConfig, key: str, progress: bool) -> dict:
+    """Train ``model.net`` on standardised (inputs, targets); the best validation epoch's weights are left in it."""
+    folder.mkdir(parents=True, exist_ok=True)
+    torch.manual_seed(config.seed)
+    weight = model.coeff_std ** 2 / (model.coeff_std ** 2).sum()  # the vertex error's share of each coefficient
+    optimizer = torch.optim.Adam(model.net.parameters(), lr=config.learning_rate)
+    steps = config.epochs * math.ceil(len(inputs) / config.batch_size)
+    schedule = torch.optim.lr_scheduler.CosineAnnealingLR(optimizer, T_max=steps)
+    state = {"epoch": 0, "best": math.inf, "best_epoch": 0, "stale": 0, "elapsed_s": 0.0}
+    best = {k: v.clone() for k, v in model.state_dict().items()}
+    checkpoint, log_path = folder / "checkpoint.pt", folder / "log.jsonl"
+    state, best = load_checkpoint(checkpoint, key, state, best_weights=best, model=model, optimizer=optimizer, schedule=schedule)
+    resume_log(log_path, state["epoch"])
+    started, spent = time.perf_counter(), state["elapsed_s"]
+    bar = tqdm(total=config.epochs, initial=state["epoch"], desc="subspace", unit="epoch", disable=not progress)
+    while state["epoch"] < config.epochs:
+        model.train()
+        order = torch.randperm(len(inputs), generator=torch.Generator().manual_seed(config.seed + state["epoch"]))
+        total = 0.0
+        for i in range(0, len(order), config.batch_size):
+            rows = order[i:i + config.batch_size]
+            loss = (((model.net(inputs[rows]) - targets[rows]) ** 2) * weight).sum(1).mean()
+            optimizer.zero_grad(set_to_none=True)
+            loss.backward()
+            optimizer.step()
+            schedule.step()
+            total += loss.item() * len(rows)
+        model.eval()
+        with torch.no_grad():
+            val_loss = float((((model.net(val[0]) - val[1]) ** 2) * weight).sum(1).mean())
+        state["epoch"] += 1
+        state["elapsed_s"] = spent + time.perf_counter() - started
+        best = keep_if_best(state, val_loss, model, best_weights=best)
+        with open(log_path, "a", encoding="utf-8") as fh:
+            fh.write(strict_json({"epoch": state["epoch"], "train": total / len(inputs), "val": val_loss}) + "\n")
+        save_checkpoint(checkpoint, key, state, best_weights=best, model=model, optimizer=optimizer, schedule=schedule)
+        bar.set_postfix(val=f"{val_loss:.4f}")
+        bar.update(1)
+    bar.close()
+    model.load_state_dict(best)
+    return state
+
+
+def validation_errors(model: SubspaceDecoder, latents: np.ndarray, truth: np.ndarray) -> dict[int, float]:
+    """Mean per-vertex error (mm) against ``truth`` of the first K components, for each candidate K."""
+    errors = {}
+    for k in [c for c in CANDIDATES if c < model.components] + [model.components]:
+        pred = _decode(model.truncated(k), latents)
+        errors[k] = 1000.0 * float(np.linalg.norm(pred - truth, axis=-1).mean())
+    return errors
+
+
+def pick_components(errors: dict[int, float], full_mm: float, tolerance: float) -> int:
+    """The fewest components whose error is at most ``tolerance`` x ``full_mm``; the most accurate otherwise."""
+    within = [k for k, e in sorted(errors.items()) if e <= tolerance * full_mm]
+    return within[0] if within else min(errors, key=errors.get)
+
+
+def run_subspace_stage(dataset: str | Path, folder: str | Path, config: SubspaceConfig = SubspaceConfig(),
+                       train_config: SubspaceTrainConfig = SubspaceTrainConfig(), cache_dir: Path | None = None,
+                       progress: bool = True) -> StageReport:
+    """Distil the subspace decoder for the bundle in ``folder`` (the code-space stage must have run);
+    its ``subspace`` entry in bundle.json is the report's ``metrics``."""
+    t0 = time.perf_counter()
+    folder = Path(folder)
+    bundle = load_bundle(folder, cache_dir)
+    ds = GarmentDataset(dataset)
+    if ds.garment != bundle.garment or ds.template.num_vertices != bundle.template.num_vertices:
+        raise DatasetError(dataset, f"is not the dataset of the model in {folder} ({bundle.garment}, "
+                                    f"{bundle.template.num_vertices} vertices)")
+    names = {k: ds.splits[k] for k in ("train", "val")}
+    if not names["val"]:
+        raise DatasetError(dataset, "has no validation sequences: the subspace decoder's size is chosen on them")
+    key = hashlib.sha1(json.dumps([config.to_dict(), asdict(train_config), bundle.meta["files"]["autoencoder.safetensors"],
+                                   ds.splits], sort_keys=True).encode()).hexdigest()[:16]
+    if bundle.meta.get("subspace", {}).get("key") == key:
+        return _stage_report({**bundle.meta["subspace"], "reused": True}, folder, reused=True)
+    with np.load(folder / "autoencoder" / "latents.npz", allow_pickle=False) as f:
+        latents = {split: np.concatenate([f[n] for n in split_names]).astype(np.float32) for split, split_names in names.items()}
+    full = bundle.autoencoder.fast_decoder()
+    rng = np.random.default_rng(train_config.seed)
+    sample = np.sort(rng.choice(len(latents["train"]), min(train_config.pca_frames, len(latents["train"])), replace=False))
+    mean, basis, spread = principal_components(_decode(full, latents["train"][sample]), config.max_components)
+    model = SubspaceDecoder(bundle.autoencoder.latent_shape, bundle.template.num_vertices, len(basis), config)
+    flat = latents["train"].reshape(len(latents["train"]), -1)
+    model.latent_mean.copy_(torch.from_numpy(flat.mean(0)))
+    model.latent_std.copy_(torch.from_numpy(np.maximum(flat.std(0), 1e-6)))
+    model.mean.copy_(torch.from_numpy(mean))
+    model.basis.copy_(torch.from_numpy(basis))
+    model.coeff_std.copy_(torch.from_numpy(spread))
+
+    def standardised(split: str) -> tuple[torch.Tensor, torch.Tensor]:
+        z = torch.from_numpy(latents[split])
+        x = ((z.reshape(len(z), -1) - model.latent_mean) / model.latent_std).contiguous()
+        return x, torch.from_numpy(_coefficients(full, latents[split], (mean, basis), progress) / spread)
+
+    state = _fit(model, *standardised("train"), standardised("val"), folder / "subspace", train_config, key, progress)
+    truth = body_frames(ds, names["val"])
+    full_mm = 1000.0 * float(np.linalg.norm(_decode(full, latents["val"]) - truth, axis=-1).mean())
+    errors = validation_errors(model, latents["val"], truth)
+    kept = pick_components(errors, full_mm, train_config.tolerance)
+    model = model.truncated(kept)
+    entry = {"key": key, "config": config.to_dict(), "train": asdict(train_config), "components": kept,
+             "epochs": state["epoch"], "best_epoch": state["best_epoch"], "full_validation_mm": full_mm,
+             "validation_mm": errors[kept], "candidates_mm": {str(k): v for k, v in errors.items()},
+             "minutes": (time.perf_counter() - t0) / 60}
+    add_bundle_part(folder, SUBSPACE_FILE, {k: v.contiguous() for k, v in model.state_dict().items()}, meta={"subspace": entry})
+    atomic_write_text(folder / "subspace" / "report.json", strict_json(entry, indent=2))
+    return _stage_report(entry, folder)
+
+
+def _stage_report(entry: dict, folder: Path, reused: bool = False) -> StageReport:
+    return StageReport("subspace", folder / "subspace", int(entry["epochs"]), best_epoch=int(entry["best_epoch"]),
+                       minutes=float(entry["minutes"]), reused=reused, metrics=entry,
+                       validation_mm=float(entry["validation_mm"]))
