@@ -1,14 +1,19 @@
 """Collision push-out: garment vertices found inside the posed body are moved just outside.
 
-Per frame, every vertex within ``margin`` of the capsule body (or inside it) is moved along the
-nearest capsule's outward normal to ``margin`` outside. Moving only those vertices would leave
-one-vertex spikes where a fold dips in; so the push is spread: the displacement field is smoothed
-over the mesh (``smooth`` Jacobi passes of the uniform Laplacian, each keeping the pushed vertices'
-displacement at least what they need along their normals), so neighbours follow part of the way;
-``rounds`` such pushes, then up to four exact projections onto the surface (a push can land in a
+Per frame, every vertex within ``margin`` of the capsule body (or inside it) needs to move along
+the nearest capsule's outward normal to ``margin`` outside. Moving only those vertices would leave
+one-vertex spikes where a fold dips in, and tear the edges around a deep one; so the push is spread
+in two ways. First its neighbours follow (``follow`` passes): a vertex within a few rings of a
+pushed one moves with it, by the push less ``follow_slope`` times the rest length of the path
+between them, so that neighbouring moves differ by at most that fraction of an edge (an edge
+stretches by at most about ``follow_slope`` of its length, under the strain limit's 1.5). Then the
+displacement field is smoothed over the mesh (``smooth`` Jacobi passes of the uniform Laplacian,
+each keeping every vertex that must move at least at its move along its direction). ``rounds``
+such pushes, then up to four exact projections onto the surface (a push can land in a
 neighbouring capsule, hence more than one). With a C compiler the same steps run in the kernel of
-:mod:`hrr_garment.native` (frames in parallel); this module's numpy version is the
-reference and the fallback.
+:mod:`hrr_garment.native` (frames in parallel), which measures only the vertices near a capsule
+and spreads only around the pushed ones (the same result: what it skips is exactly untouched);
+this module's numpy version is the reference and the fallback.
 """
 
 from __future__ import annotations
@@ -23,7 +28,7 @@ from ..body.capsules import DEFAULT_BODY, BodyModel, frames_signed_distance
 from ..garment.mesh import unique_edges
 from ..garment.smoothing import mean_operator
 from ..motion.motion import Motion
-from ..native.body import EdgeArrays
+from ..native.body import EdgeArrays, PushMesh
 from ..sim.quality import PENETRATION_DEPTH_M
 
 # edges a push may stretch to (times their rest length): the simulator's own data reach 2.1-2.5 at
@@ -45,14 +50,20 @@ class PushOutReport:
 
 @dataclass(frozen=True)
 class EdgeLimits:
-    """What :func:`limit_push_strain` needs of a garment, made once per template (the streaming
-    path calls the push-out every frame): its edges, their rest lengths, the (V, E) incidence that
-    moves an edge's two ends toward each other (+1 first vertex, -1 second) and each vertex's degree."""
+    """What the push-out's neighbour-follow and :func:`limit_push_strain` need of a garment, made
+    once per template (the streaming path calls the push-out every frame): its edges, their rest
+    lengths, the (V, E) incidence that moves an edge's two ends toward each other (+1 first vertex,
+    -1 second), each vertex's degree, its 1-ring as a padded table (V, D) with each neighbour's rest
+    distance (inf in the padding, which repeats the vertex itself), and the vertices in patches of
+    neighbours (the kernel measures a patch only against the capsules near it)."""
 
     edges: np.ndarray
     rest_length: np.ndarray
     signs: csr_matrix
     degree: np.ndarray
+    ring: np.ndarray  # (V, D) int32
+    ring_length: np.ndarray  # (V, D) float64, inf where padded
+    patches: tuple[np.ndarray, np.ndarray]  # (P + 1,) offsets into (V,) vertex indices, int32
 
     @classmethod
     def of(cls, faces: np.ndarray, rest: np.ndarray) -> "EdgeLimits":
@@ -61,7 +72,17 @@ class EdgeLimits:
         signs = csr_matrix((np.r_[np.ones(e), -np.ones(e)], (np.r_[edges[:, 0], edges[:, 1]], np.r_[np.arange(e), np.arange(e)])),
                            shape=(v, e))
         degree = np.maximum(np.asarray(abs(signs).sum(1)).ravel(), 1.0)
-        return cls(edges, np.linalg.norm(rest[edges[:, 1]] - rest[edges[:, 0]], axis=-1), signs, degree)
+        ring, ring_length = _ring_table(mean_operator(faces, v), rest)
+        return cls(edges, np.linalg.norm(rest[edges[:, 1]] - rest[edges[:, 0]], axis=-1), signs, degree, ring, ring_length,
+                   _patches(rest))
+
+    def push_mesh(self, settings: "PushOutSettings") -> PushMesh:
+        """What the push-out's kernel takes of this garment under ``settings``, converted once per settings."""
+        key = (settings.follow, settings.follow_slope)
+        cache = self.__dict__.setdefault("_push_meshes", {})
+        if key not in cache:
+            cache[key] = PushMesh(self.ring, self.ring_length, settings.follow_slope, settings.follow, self.patches)
+        return cache[key]
 
     @cached_property
     def native_arrays(self) -> EdgeArrays:
@@ -74,11 +95,43 @@ class EdgeLimits:
         return np.linalg.norm(p[:, self.edges[:, 1]] - p[:, self.edges[:, 0]], axis=-1)
 
 
+def _ring_table(mean: csr_matrix, rest: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Each vertex's neighbours in the mean operator's order, padded to the widest ring with the
+    vertex itself at an infinite distance, and their rest distances."""
+    counts = np.diff(mean.indptr)
+    width = max(int(counts.max(initial=0)), 1)
+    ring = np.repeat(np.arange(len(rest), dtype=np.int32)[:, None], width, 1)
+    slot = np.arange(len(mean.indices)) - np.repeat(mean.indptr[:-1], counts)
+    rows = np.repeat(np.arange(len(rest)), counts)
+    ring[rows, slot] = mean.indices
+    length = np.full(ring.shape, np.inf)
+    length[rows, slot] = np.linalg.norm(rest[mean.indices] - rest[rows], axis=-1)
+    return ring, length
+
+
+def _patches(rest: np.ndarray, size: int = 48) -> tuple[np.ndarray, np.ndarray]:
+    """The vertices split into patches of at most ``size`` by halving along the longest side:
+    (offsets (P + 1,), vertex indices (V,)), both int32."""
+    stack, groups = [np.arange(len(rest))], []
+    while stack:
+        part = stack.pop()
+        if len(part) <= size:
+            groups.append(part)
+            continue
+        axis = np.ptp(rest[part], 0).argmax()
+        order = part[np.argsort(rest[part, axis], kind="stable")]
+        stack += [order[len(order) // 2:], order[:len(order) // 2]]
+    return (np.r_[0, np.cumsum([len(g) for g in groups])].astype(np.int32),
+            np.concatenate(groups).astype(np.int32) if groups else np.zeros(0, np.int32))
+
+
 @dataclass(frozen=True)
 class PushOutSettings:
     """How the push-out moves the cloth (the defaults are the product's)."""
 
     margin: float = 0.002  # metres outside the body surface a pushed vertex lands
+    follow: int = 6  # rings around a pushed vertex that follow it (with EdgeLimits; 0: none)
+    follow_slope: float = 0.25  # a follower moves the push less this x its rest distance from the pushed vertex
     smooth: int = 4  # passes spreading each push to the neighbours (never below what is needed)
     rounds: int = 1  # push-and-spread rounds before the exact projection
     depth: float = PENETRATION_DEPTH_M  # metres inside the body that count as penetration in the report
@@ -125,7 +178,8 @@ def push_out(vertices: np.ndarray, motion: Motion, faces: np.ndarray, *, body: B
         # crowd spent a millisecond a frame converting and copying between the two
         unpushed = np.ascontiguousarray(vertices, np.float64)
         out = np.empty(vertices.shape, np.float64)
-        steps = PushSteps(mean=mean, margin=margin, smooth=smooth, rounds=rounds, depth=depth)
+        steps = PushSteps(mean=mean, margin=margin, smooth=smooth, rounds=rounds, depth=depth,
+                          mesh=None if limits is None else limits.push_mesh(settings))
         for start in range(0, len(out), chunk):
             sl = slice(start, start + chunk)
             _, before[sl], after[sl] = push_out_frames(lib, unpushed[sl], a[sl], b=b[sl], radii=framed(sl), steps=steps,
@@ -135,7 +189,7 @@ def push_out(vertices: np.ndarray, motion: Motion, faces: np.ndarray, *, body: B
         for start in range(0, len(out), chunk):
             sl = slice(start, start + chunk)
             out[sl], before[sl], after[sl] = _push_frames(vertices[sl].astype(np.float64), (a[sl], b[sl], framed(sl)),
-                                                          mean, settings)
+                                                          mean, settings, limits)
     if limits is not None:
         out, torn = limit_push_strain(out, unpushed, limits, settings.max_strain, in_place=True)
         if report and torn.any():  # only the frames the limit moved have a new "after"
@@ -205,10 +259,35 @@ def _limit_frames(p: np.ndarray, limit: np.ndarray, limits: EdgeLimits, iteratio
     return p
 
 
+def follow_pushes(need: np.ndarray, normal: np.ndarray, limits: EdgeLimits, passes: int,
+                  slope: float) -> tuple[np.ndarray, np.ndarray]:
+    """The neighbour-follow: (T, V) pushes and (T, V, 3) their directions -> the same with each
+    vertex within ``passes`` rings of a pushed one moving at least as far as that push less
+    ``slope`` times their rest distance along the path (a max-plus Jacobi pass per ring, in the
+    ring table's order; a vertex takes the direction of the neighbour that sets its push, the
+    first of equals). Vertices that need no push and follow none keep 0."""
+    req = need.copy()
+    direction = np.where((need > 0)[..., None], normal, 0.0)
+    drop = slope * limits.ring_length  # (V, D)
+    rows = np.arange(len(need))[:, None]
+    for _ in range(passes):
+        cand = req[:, limits.ring] - drop  # (T, V, D)
+        j = cand.argmax(-1)
+        best = np.take_along_axis(cand, j[..., None], -1)[..., 0]
+        better = best > req
+        if not better.any():
+            break
+        source = limits.ring[np.arange(need.shape[1])[None], j]  # (T, V): the neighbour that sets the push
+        direction = np.where(better[..., None], direction[rows, source], direction)
+        req = np.where(better, best, req)
+    return req, direction
+
+
 def _push_frames(p: np.ndarray, capsules: tuple[np.ndarray, np.ndarray, np.ndarray], mean: csr_matrix,
-                 settings: PushOutSettings) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                 settings: PushOutSettings, limits: EdgeLimits | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The reference (and the path without a C compiler): whole-mesh arrays, frames at once;
-    ``capsules``: the frames' capsule ends a, b (T, C, 3) and the radii (C,)."""
+    ``capsules``: the frames' capsule ends a, b (T, C, 3) and the radii (C,); ``limits`` for the
+    neighbour-follow (None: no follow)."""
     a, b, radii = capsules
     margin, smooth, rounds, depth = settings.margin, settings.smooth, settings.rounds, settings.depth
     t, v = p.shape[:2]
@@ -218,6 +297,8 @@ def _push_frames(p: np.ndarray, capsules: tuple[np.ndarray, np.ndarray, np.ndarr
         need = np.maximum(margin - d, 0.0)  # how far along the normal each vertex must move
         if not need.any():
             break
+        if limits is not None and settings.follow > 0:
+            need, n = follow_pushes(need, n, limits, settings.follow, settings.follow_slope)
         hit = need > 0
         disp = need[..., None] * n
         for _ in range(smooth):  # spread the push to the neighbours, never below what is needed

@@ -16,13 +16,33 @@ class PushSteps(NamedTuple):
     """The push-out's steps as :func:`push_out_frames` takes them (what each does:
     :func:`hrr_garment.inference.collision.push_out`): ``mean`` the (V, V) CSR mean operator of the
     faces, the ``margin`` outside the body, ``smooth`` passes, ``rounds`` of pushes and the
-    ``depth`` beyond which a vertex counts as inside."""
+    ``depth`` beyond which a vertex counts as inside; ``mesh`` (:class:`PushMesh`) the
+    neighbour-follow and the patches measured against the capsules near them (None: neither)."""
 
     mean: object
     margin: float
     smooth: int
     rounds: int
     depth: float
+    mesh: "PushMesh | None" = None
+
+
+class PushMesh:
+    """What the kernel's neighbour-follow and culled distances take of a garment, converted once:
+    the padded 1-ring (V, D) int32 with ``slope`` x each slot's rest distance (float64, inf in the
+    padding), ``follow`` passes, and the vertex patches (offsets (P + 1,), indices (V,) int32)."""
+
+    def __init__(self, ring: np.ndarray, ring_length: np.ndarray, slope: float, follow: int,
+                 patches: tuple[np.ndarray, np.ndarray]) -> None:
+        self.ring = np.ascontiguousarray(ring, np.int32)
+        self.ring_drop = np.ascontiguousarray(slope * np.asarray(ring_length, np.float64))
+        self.follow = int(follow)
+        self.patch_ptr, self.patch_idx = (np.ascontiguousarray(x, np.int32) for x in patches)
+
+    def arguments(self) -> tuple:
+        """hrr_push_out's ring, ring_drop, width, follow, patch_ptr, patch_idx, patches."""
+        return (self.ring.ctypes.data, self.ring_drop.ctypes.data, self.ring.shape[1], self.follow,
+                self.patch_ptr.ctypes.data, self.patch_idx.ctypes.data, len(self.patch_ptr) - 1)
 
 
 class EdgeArrays:
@@ -80,7 +100,7 @@ def push_out_frames(lib: ctypes.CDLL, points: np.ndarray, a: np.ndarray, b: np.n
     deeper than ``steps.depth`` before (T,), after (T,)). Frames in parallel;
     a single frame (streaming) shared by the threads. With ``out`` (C-contiguous float64, the
     points' shape) the points are copied there, pushed in place and returned in float64."""
-    mean, margin, smooth, rounds, depth = steps
+    mean, margin, smooth, rounds, depth, mesh = steps
     a, b, r = _capsule_arrays(a, b, radii)
     if out is not None and (out.dtype != np.float64 or out.shape != points.shape or not out.flags.c_contiguous):
         raise ValueError("out must be a C-contiguous float64 array of the points' shape")
@@ -95,9 +115,9 @@ def push_out_frames(lib: ctypes.CDLL, points: np.ndarray, a: np.ndarray, b: np.n
         raise ValueError(f"per-frame radii for {r.shape[0]} frames, points for {t}")
     capsules = r.shape[-1]
     lib.hrr_push_out(p.ctypes.data, t, v, a.ctypes.data, b.ctypes.data, r.ctypes.data, capsules,
-                     capsules if r.ndim == 2 else 0, indptr.ctypes.data,
-                     indices.ctypes.data, weights.ctypes.data, margin, smooth, rounds, depth, threads, before.ctypes.data,
-                     after.ctypes.data)
+                     capsules if r.ndim == 2 else 0, indptr.ctypes.data, indices.ctypes.data, weights.ctypes.data,
+                     *(mesh.arguments() if mesh is not None else (None, None, 1, 0, None, None, 0)),
+                     margin, smooth, rounds, depth, threads, before.ctypes.data, after.ctypes.data)
     if np.isnan(before).any():
         raise MemoryError("the native push-out could not allocate its scratch memory")
     return (p if out is not None else p.astype(np.float32)), before, after

@@ -265,22 +265,124 @@ void hrr_capsule_sdf(const double *p, int T, int N, const double *a, const doubl
     }
 }
 
-/* The collision push-out of hrr_garment/inference/collision.py for one frame, the same steps:
-   distances; `rounds` times: each vertex needing to move (within `margin` of the body or inside)
-   gets need * normal, spread by `smooth` Jacobi passes of the row-normalised adjacency (CSR
-   indptr/indices/weights) that never lower a pushed vertex's push along its normal; then up to
-   four exact projections of the vertices still inside. Only moved vertices are measured again.
-   before/after: fractions of vertices deeper than `depth`. Called by every thread of the innermost
-   parallel region, which share the distances and the smoothing passes; buf (12 V doubles), list
-   (V) and flag (3: one per purpose, so that no thread can see a later value) are the team's
-   shared scratch. */
-static void push_frame(double *p, int V, const double *ca, const double *cb, const double *radii, int C,
-                       const int32_t *indptr, const int32_t *indices, const double *weights, double margin,
-                       int smooth, int rounds, double depth, double *before, double *after, double *buf,
-                       int32_t *list, int *flag)
+/* What the push-out needs of the garment: the mean operator (CSR indptr/indices/weights) that
+   smooths a push; the padded 1-ring (V x width, padding = the vertex itself) with slope x rest
+   distance per slot (infinite in the padding) for the neighbour-follow, `follow` passes of it; the
+   vertex patches (offsets, indices) measured against only the capsules near them. ring NULL:
+   every loop runs over the whole mesh and nothing follows; patch_ptr NULL: every vertex is
+   measured against every capsule. */
+typedef struct {
+    const int32_t *indptr, *indices;
+    const double *weights;
+    const int32_t *ring;
+    const double *ring_drop;
+    int width, follow;
+    const int32_t *patch_ptr, *patch_idx;
+    int patches;
+} PushMesh;
+
+enum { MAX_REGION_RINGS = 256 };
+#define FAR_AWAY 1e30 /* the distance of a vertex whose patch no capsule comes near */
+
+/* Signed distances of every vertex, each patch against only the capsules that can come within
+   `reach` of it (by its bounding sphere); a patch with none gets FAR_AWAY. A capsule left out is
+   more than `reach` from every vertex of the patch, so wherever the distance is within reach
+   (all that the push-out reads of it) it is the distance over every capsule, the same nearest. */
+static void sdf_patches(const double *p, const PushMesh *m, const double *ca, const double *cb, const double *radii,
+                        int C, double reach, double *d, double *nrm)
 {
-    double *d = buf, *nrm = d + V, *need = nrm + 3 * (size_t)V, *disp = need + V, *tmp = disp + 3 * (size_t)V;
-    sdf_points(p, NULL, V, ca, cb, radii, C, d, nrm);
+    #pragma omp for schedule(static)
+    for (int q = 0; q < m->patches; ++q) {
+        const int i0 = m->patch_ptr[q], i1 = m->patch_ptr[q + 1];
+        double cx = 0.0, cy = 0.0, cz = 0.0, r2 = 0.0;
+        for (int i = i0; i < i1; ++i) {
+            const double *v = p + 3 * (size_t)m->patch_idx[i];
+            cx += v[0]; cy += v[1]; cz += v[2];
+        }
+        const double inv = 1.0 / (i1 - i0 > 0 ? i1 - i0 : 1);
+        cx *= inv; cy *= inv; cz *= inv;
+        for (int i = i0; i < i1; ++i) {
+            const double *v = p + 3 * (size_t)m->patch_idx[i];
+            const double dx = v[0] - cx, dy = v[1] - cy, dz = v[2] - cz, e = dx * dx + dy * dy + dz * dz;
+            r2 = e > r2 ? e : r2;
+        }
+        const double sphere = sqrt(r2) + 1e-9;  /* the slack covers rounding in the centre and radius */
+        double sa[3 * SDF_MAXC], sb[3 * SDF_MAXC], sr[SDF_MAXC];
+        int n = 0;
+        for (int c = 0; c < C; ++c) {
+            const double *a = ca + 3 * c, *b = cb + 3 * c;
+            const double ex = b[0] - a[0], ey = b[1] - a[1], ez = b[2] - a[2];
+            const double rx = cx - a[0], ry = cy - a[1], rz = cz - a[2];
+            const double den = ex * ex + ey * ey + ez * ez;
+            double s = (rx * ex + ry * ey + rz * ez) / (den > 1e-12 ? den : 1e-12);
+            s = s < 0 ? 0 : (s > 1 ? 1 : s);
+            const double dx = rx - s * ex, dy = ry - s * ey, dz = rz - s * ez;
+            if (sqrt(dx * dx + dy * dy + dz * dz) - radii[c] - sphere <= reach) {
+                memcpy(sa + 3 * n, a, 3 * sizeof(double));
+                memcpy(sb + 3 * n, b, 3 * sizeof(double));
+                sr[n++] = radii[c];
+            }
+        }
+        if (n > 0) {
+            sdf_chunk(p, m->patch_idx, i0, i1, sa, sb, sr, n, d, nrm);
+        } else {
+            for (int i = i0; i < i1; ++i) {
+                const int k = m->patch_idx[i];
+                d[k] = FAR_AWAY;
+                nrm[3 * k] = nrm[3 * k + 1] = nrm[3 * k + 2] = 0.0;
+            }
+        }
+    }
+}
+
+/* The vertices within `rings` rings of the `seeds` first entries of `list` (which it extends, in
+   ring order): ends[k] = how many lie within k rings. mark (V, zero on entry) flags the listed
+   ones; the caller clears them. Without a ring table: every vertex, all rings. */
+static int grow_region(const PushMesh *m, int V, int rings, int seeds, int32_t *list, int *mark, int *ends)
+{
+    if (!m->ring) {
+        for (int v = 0; v < V; ++v) list[v] = v;
+        for (int k = 0; k <= rings; ++k) ends[k] = V;
+        return V;
+    }
+    for (int i = 0; i < seeds; ++i) mark[list[i]] = 1;
+    int lo = 0, hi = seeds;
+    ends[0] = seeds;
+    for (int k = 1; k <= rings; ++k) {
+        int next = hi;
+        for (int i = lo; i < hi; ++i) {
+            const int32_t *r = m->ring + (size_t)list[i] * m->width;
+            for (int j = 0; j < m->width; ++j)
+                if (!mark[r[j]]) { mark[r[j]] = 1; list[next++] = r[j]; }
+        }
+        lo = hi; hi = next; ends[k] = hi;
+    }
+    return hi;
+}
+
+/* The collision push-out of hrr_garment/inference/collision.py for one frame, the same steps:
+   distances (sdf_patches); `rounds` times: each vertex needing to move (within `margin` of the
+   body or inside) gets need along its normal, the neighbour-follow (m->follow max-plus passes over
+   the ring) raises the pushes around it, `smooth` Jacobi passes of the mean operator spread them,
+   never lowering a moving vertex's push along its direction; all of it only over the region within
+   follow + smooth + 1 rings of the pushed vertices (everything outside is exactly untouched); then
+   up to four exact projections of the vertices still inside. Only moved vertices are measured
+   again. before/after: fractions of vertices deeper than `depth`. Called by every thread of the
+   innermost parallel region, which share the work; buf (20 V doubles), ints (3 V: the region, a
+   work list, the region's marks, zero between calls) and flag (4: one per purpose, so that no
+   thread can see a later value) are the team's shared scratch. */
+static void push_frame(double *p, int V, const double *ca, const double *cb, const double *radii, int C,
+                       const PushMesh *m, double margin, int smooth, int rounds, double depth, double *before,
+                       double *after, double *buf, int32_t *ints, int *flag)
+{
+    double *d = buf, *nrm = d + V, *need = nrm + 3 * (size_t)V, *req = need + V, *req2 = req + V;
+    double *dir = req2 + V, *dir2 = dir + 3 * (size_t)V, *disp = dir2 + 3 * (size_t)V, *tmp = disp + 3 * (size_t)V;
+    int32_t *region = ints, *list = ints + V;
+    int *mark = (int *)(ints + 2 * (size_t)V);
+    int ends[MAX_REGION_RINGS + 1];
+    const int follow = m->ring ? m->follow : 0, rings = follow + smooth + 1;
+    if (m->patch_ptr) sdf_patches(p, m, ca, cb, radii, C, margin, d, nrm);
+    else sdf_points(p, NULL, V, ca, cb, radii, C, d, nrm);
     #pragma omp single
     {
         int deep = 0;
@@ -288,66 +390,101 @@ static void push_frame(double *p, int V, const double *ca, const double *cb, con
         *before = (double)deep / V;
     }
     for (int r = 0; r < rounds; ++r) {
-        #pragma omp for schedule(static)
-        for (int v = 0; v < V; ++v) {
-            need[v] = margin - d[v] > 0.0 ? margin - d[v] : 0.0;
-            for (int k = 0; k < 3; ++k) disp[3 * v + k] = need[v] * nrm[3 * v + k];
-        }
-        #pragma omp single
+        #pragma omp single copyprivate(ends)  /* every thread takes the region's ring counts */
         {
-            int any = 0;
-            for (int v = 0; v < V; ++v) any |= need[v] > 0.0;
-            flag[0] = any;
-        }
-        if (!flag[0]) break;  /* read after the single's barrier; rewritten only after later barriers */
-        for (int s = 0; s < smooth; ++s) {
-            #pragma omp for schedule(static)
+            int seeds = 0;
             for (int v = 0; v < V; ++v) {
+                need[v] = margin - d[v] > 0.0 ? margin - d[v] : 0.0;
+                if (need[v] > 0.0) region[seeds++] = v;
+            }
+            flag[0] = seeds > 0 ? grow_region(m, V, rings, seeds, region, mark, ends) : 0;
+            flag[3] = flag[0];
+        }
+        const int size = flag[0];  /* read after the single's barrier; rewritten only after later barriers */
+        if (!size) break;
+        #pragma omp for schedule(static)
+        for (int i = 0; i < size; ++i) {
+            const int v = region[i];
+            const int hit = need[v] > 0.0;
+            req[v] = req2[v] = need[v];
+            for (int k = 0; k < 3; ++k) dir[3 * v + k] = dir2[3 * v + k] = hit ? nrm[3 * v + k] : 0.0;
+        }
+        for (int f = 1; f <= follow; ++f) {  /* the follow: a max-plus Jacobi pass per ring */
+            #pragma omp for schedule(static)
+            for (int i = 0; i < ends[f]; ++i) {
+                const int u = region[i];
+                const int32_t *nb = m->ring + (size_t)u * m->width;
+                const double *drop = m->ring_drop + (size_t)u * m->width;
+                double best = req[u];
+                int from = -1;
+                for (int j = 0; j < m->width; ++j) {
+                    const double cand = req[nb[j]] - drop[j];
+                    if (cand > best) { best = cand; from = nb[j]; }
+                }
+                req2[u] = best;
+                const double *src = dir + 3 * (size_t)(from >= 0 ? from : u);
+                for (int k = 0; k < 3; ++k) dir2[3 * u + k] = src[k];
+            }
+            double *swap = req; req = req2; req2 = swap;  /* each thread swaps its own pointers alike */
+            swap = dir; dir = dir2; dir2 = swap;
+        }
+        #pragma omp for schedule(static)
+        for (int i = 0; i < size; ++i) {
+            const int v = region[i];
+            for (int k = 0; k < 3; ++k) { disp[3 * v + k] = req[v] * dir[3 * v + k]; tmp[3 * v + k] = 0.0; }
+        }
+        for (int s = 1; s <= smooth; ++s) {
+            #pragma omp for schedule(static)
+            for (int i = 0; i < ends[follow + s]; ++i) {
+                const int v = region[i];
                 double x = 0.0, y = 0.0, z = 0.0;
-                for (int j = indptr[v]; j < indptr[v + 1]; ++j) {
-                    const double w = weights[j], *q = disp + 3 * (size_t)indices[j];
+                for (int j = m->indptr[v]; j < m->indptr[v + 1]; ++j) {
+                    const double w = m->weights[j], *q = disp + 3 * (size_t)m->indices[j];
                     x += w * q[0]; y += w * q[1]; z += w * q[2];
                 }
-                if (need[v] > 0.0) {
-                    const double *nv = nrm + 3 * (size_t)v;
-                    double shortfall = need[v] - (x * nv[0] + y * nv[1] + z * nv[2]);
+                if (req[v] > 0.0) {
+                    const double *nv = dir + 3 * (size_t)v;
+                    double shortfall = req[v] - (x * nv[0] + y * nv[1] + z * nv[2]);
                     shortfall = shortfall > 0.0 ? shortfall : 0.0;
                     x += shortfall * nv[0]; y += shortfall * nv[1]; z += shortfall * nv[2];
                 }
                 tmp[3 * v] = x; tmp[3 * v + 1] = y; tmp[3 * v + 2] = z;
             }
-            double *swap = disp; disp = tmp; tmp = swap;  /* each thread swaps its own pointers alike */
+            double *swap = disp; disp = tmp; tmp = swap;
         }
         #pragma omp single
         {
-            int m = 0;
-            for (int v = 0; v < V; ++v) {
+            int moved = 0;
+            for (int i = 0; i < ends[follow + smooth]; ++i) {
+                const int v = region[i];
                 const double *q = disp + 3 * (size_t)v;
                 if (q[0] != 0.0 || q[1] != 0.0 || q[2] != 0.0) {
                     p[3 * v] += q[0]; p[3 * v + 1] += q[1]; p[3 * v + 2] += q[2];
-                    list[m++] = v;
+                    list[moved++] = v;
                 }
             }
-            flag[1] = m;
+            flag[1] = moved;
+            if (m->ring)
+                for (int i = 0; i < flag[3]; ++i) mark[region[i]] = 0;
         }
         sdf_points(p, list, flag[1], ca, cb, radii, C, d, nrm);
     }
     for (int it = 0; it < 4; ++it) {
         #pragma omp single
         {
-            int m = 0;
+            int n = 0;
             for (int v = 0; v < V; ++v)
-                if (d[v] < 0.0) list[m++] = v;
-            flag[2] = m;
+                if (d[v] < 0.0) list[n++] = v;
+            flag[2] = n;
         }
-        const int m = flag[2];
-        if (m == 0) break;
+        const int n = flag[2];
+        if (n == 0) break;
         #pragma omp for schedule(static)
-        for (int i = 0; i < m; ++i) {
+        for (int i = 0; i < n; ++i) {
             const int v = list[i];
             for (int k = 0; k < 3; ++k) p[3 * v + k] += (margin - d[v]) * nrm[3 * v + k];
         }
-        sdf_points(p, list, m, ca, cb, radii, C, d, nrm);
+        sdf_points(p, list, n, ca, cb, radii, C, d, nrm);
     }
     #pragma omp single
     {
@@ -359,42 +496,48 @@ static void push_frame(double *p, int V, const double *ca, const double *cb, con
 
 /* T frames: one frame at a time shared by the team (a stream's single frame), or several frames
    in parallel, each in its own one-thread team (offline). radii_step: 0 where every frame has the
-   same radii, C where each frame has its own (a crowd's characters of different bodies). */
+   same radii, C where each frame has its own (a crowd's characters of different bodies). ring,
+   ring_drop, width, follow: the neighbour-follow (ring NULL: none); patch_ptr, patch_idx, patches:
+   the culled distances (patch_ptr NULL: none). Returns -1 (and NaN fractions) when out of memory. */
 void hrr_push_out(double *p, int T, int V, const double *a, const double *b, const double *radii, int C, int radii_step,
-                  const int32_t *indptr, const int32_t *indices, const double *weights, double margin, int smooth,
-                  int rounds, double depth, int threads, double *before, double *after)
+                  const int32_t *indptr, const int32_t *indices, const double *weights, const int32_t *ring,
+                  const double *ring_drop, int width, int follow, const int32_t *patch_ptr, const int32_t *patch_idx,
+                  int patches, double margin, int smooth, int rounds, double depth, int threads, double *before,
+                  double *after)
 {
     enum { MAX_TEAMS = 64 };
     if (T <= 0) return;
     if (threads > MAX_TEAMS) threads = MAX_TEAMS;
     if (threads < 1) threads = 1;
+    const PushMesh mesh = {indptr, indices, weights, ring, ring_drop, width, follow, patch_ptr, patch_idx, patches};
     const int teams = T < threads ? T : threads, shared = T < threads;  /* shared: one team per frame */
-    double *buf = malloc(sizeof(double) * (size_t)V * 12 * (shared ? 1 : teams));
-    int32_t *list = malloc(sizeof(int32_t) * (size_t)V * (shared ? 1 : teams));
-    int flags[3 * MAX_TEAMS];
-    if (!buf || !list) {
-        for (int t = 0; t < T; ++t) before[t] = after[t] = NAN;  /* out of memory: the caller raises */
+    const int team_count = shared ? 1 : teams;
+    double *buf = malloc(sizeof(double) * (size_t)V * 20 * team_count);
+    int32_t *ints = calloc((size_t)V * 3 * team_count, sizeof(int32_t));  /* the marks start at zero */
+    int flags[4 * MAX_TEAMS];
+    if (!buf || !ints || follow + smooth + 1 > MAX_REGION_RINGS) {
+        for (int t = 0; t < T; ++t) before[t] = after[t] = NAN;  /* the caller raises */
         free(buf);
-        free(list);
+        free(ints);
         return;
     }
     if (shared) {
         #pragma omp parallel num_threads(threads)
         for (int t = 0; t < T; ++t)
-            push_frame(p + (size_t)t * V * 3, V, a + (size_t)t * 3 * C, b + (size_t)t * 3 * C, radii + (size_t)t * radii_step, C, indptr, indices,
-                       weights, margin, smooth, rounds, depth, before + t, after + t, buf, list, flags);
+            push_frame(p + (size_t)t * V * 3, V, a + (size_t)t * 3 * C, b + (size_t)t * 3 * C, radii + (size_t)t * radii_step, C,
+                       &mesh, margin, smooth, rounds, depth, before + t, after + t, buf, ints, flags);
     } else {
         #pragma omp parallel for num_threads(teams) schedule(dynamic)
         for (int t = 0; t < T; ++t) {
             const int me = omp_get_thread_num();
             #pragma omp parallel num_threads(1)  /* this frame's own one-thread team */
-            push_frame(p + (size_t)t * V * 3, V, a + (size_t)t * 3 * C, b + (size_t)t * 3 * C, radii + (size_t)t * radii_step, C, indptr, indices,
-                       weights, margin, smooth, rounds, depth, before + t, after + t, buf + (size_t)me * V * 12,
-                       list + (size_t)me * V, flags + 3 * me);
+            push_frame(p + (size_t)t * V * 3, V, a + (size_t)t * 3 * C, b + (size_t)t * 3 * C, radii + (size_t)t * radii_step, C,
+                       &mesh, margin, smooth, rounds, depth, before + t, after + t, buf + (size_t)me * V * 20,
+                       ints + (size_t)me * V * 3, flags + 4 * me);
         }
     }
     free(buf);
-    free(list);
+    free(ints);
 }
 
 /* The push-out's strain limit (hrr_garment.inference.collision.limit_push_strain) on one frame:

@@ -27,10 +27,11 @@ def test_native_capsule_distance_equals_numpy(rng):
     assert np.allclose(d3, d2[1], atol=1e-12)  # each frame against its own capsules
 
 
-def test_native_push_out_equals_numpy(rng):
+@pytest.mark.parametrize("follow", [None, 0, 6])  # None: whole-mesh loops; 0: culled, no follow; 6: the default follow
+def test_native_push_out_equals_numpy(rng, follow):
     from hrr_garment.body.capsules import DEFAULT_BODY
     from hrr_garment.garment.templates import make_garment
-    from hrr_garment.inference.collision import PushOutSettings, _push_frames, mean_operator
+    from hrr_garment.inference.collision import EdgeLimits, PushOutSettings, _push_frames, mean_operator
     from hrr_garment.native import load_kernel
     from hrr_garment.native.body import PushSteps, push_out_frames
 
@@ -46,17 +47,22 @@ def test_native_push_out_equals_numpy(rng):
     squeezed += rng.normal(scale=0.004, size=squeezed.shape)
     a, b = DEFAULT_BODY.pose_motion(motion)
     mean = mean_operator(skirt.faces, len(skirt.vertices))
+    limits = None if follow is None else EdgeLimits.of(skirt.faces, skirt.vertices)
     for rounds in (1, 2):
-        ref = _push_frames(squeezed.copy(), (a, b, DEFAULT_BODY.radii), mean,
-                           PushOutSettings(margin=0.002, smooth=4, rounds=rounds, depth=0.005))
-        got = push_out_frames(lib, squeezed, a, b, DEFAULT_BODY.radii, PushSteps(mean, 0.002, 4, rounds, 0.005), threads=2)
+        settings = PushOutSettings(margin=0.002, smooth=4, rounds=rounds, depth=0.005, follow=follow or 0)
+        ref = _push_frames(squeezed.copy(), (a, b, DEFAULT_BODY.radii), mean, settings, limits)
+        steps = PushSteps(mean, 0.002, 4, rounds, 0.005, None if limits is None else limits.push_mesh(settings))
+        got = push_out_frames(lib, squeezed, a, b, DEFAULT_BODY.radii, steps, threads=2)
         assert ref[1].max() > 0.05  # the test squeezes the skirt into the body
         assert np.abs(got[0] - ref[0]).max() < 1e-6
         assert np.allclose(got[1], ref[1]) and np.allclose(got[2], ref[2])
         for t in (0, 4):  # one frame at a time (streaming): the threads share the frame
-            one = push_out_frames(lib, squeezed[t:t + 1], a[t:t + 1], b[t:t + 1], DEFAULT_BODY.radii,
-                                  PushSteps(mean, 0.002, 4, rounds, 0.005), threads=2)
+            one = push_out_frames(lib, squeezed[t:t + 1], a[t:t + 1], b[t:t + 1], DEFAULT_BODY.radii, steps, threads=2)
             assert np.array_equal(one[0][0], got[0][t]) and one[1][0] == got[1][t] and one[2][0] == got[2][t]
+    if follow:  # the followers moved: more of the skirt than without the follow
+        plain = _push_frames(squeezed.copy(), (a, b, DEFAULT_BODY.radii), mean, PushOutSettings(follow=0, depth=0.005), limits)
+        moved = lambda out: (np.abs(out[0] - squeezed.astype(np.float32)).max(-1) > 0).mean()  # noqa: E731
+        assert moved(ref) > moved(plain)
 
 
 def test_the_native_strain_limit_matches_the_numpy_reference():
