@@ -50,13 +50,14 @@ from hrr_garment.inference.animator import Animator
 from hrr_garment.models.codespace import CodeSpace, CodeSpaceConfig
 from hrr_garment.models.fcmae import AutoencoderConfig, MeshAutoencoder
 from hrr_garment.models.hierarchy import build_hierarchy
+from hrr_garment.models.subspace import SubspaceDecoder
 from hrr_garment.motion.features import FeatureStats
 from hrr_garment.motion.io import load_motion
 from hrr_garment.motion.synth import synthesize
 from hrr_garment.native import PRECISIONS
 
 
-def random_bundle(vertices: int, windows: int, seed: int = 0) -> Bundle:
+def random_bundle(vertices: int, windows: int, seed: int = 0, components: int = 256) -> Bundle:
     torch.manual_seed(seed)
     rng = np.random.default_rng(seed)
     garment = make_garment("dress", vertices)
@@ -78,8 +79,13 @@ def random_bundle(vertices: int, windows: int, seed: int = 0) -> Bundle:
     meta = {"tau": 1.0, "gate": "entropy", "gates": {}, "garment": "dress", "content_hash": "random"}
     folds = FoldStore(rng.integers(-127, 128, (frames, garment.num_vertices, 3), dtype=np.int8),
                       np.full(frames, 1e-4, np.float32), np.r_[0, np.cumsum(lengths)])
+    subspace = SubspaceDecoder(ae.latent_shape, garment.num_vertices, components)  # random weights: a timing stand-in
+    subspace.basis.copy_(torch.linalg.qr(torch.randn(3 * garment.num_vertices, components))[0].T)
+    subspace.mean.copy_(torch.from_numpy(garment.vertices.astype(np.float32).ravel()))
+    subspace.coeff_std.fill_(1e-3)
     return Bundle(Path("."), meta, ae, cs, FeatureStats(np.zeros(cfg.features, np.float32), np.ones(cfg.features, np.float32)),
-                  FeatureStats(np.zeros(size, np.float32), np.ones(size, np.float32)), db, garment, folds=folds)
+                  FeatureStats(np.zeros(size, np.float32), np.ones(size, np.float32)), db, garment, folds=folds,
+                  subspace=subspace.eval())
 
 
 def _fps(animator: Animator, motion, repeat: int = 3, **kwargs) -> float:
@@ -122,7 +128,7 @@ def crowd_bodies(count: int) -> list:
 
 
 def bench_crowd(animator: Animator, motion, tau: float, characters: int, pace: float, frames: int = 300,
-                bodies: list | None = None) -> dict:
+                bodies: list | None = None, decoder: str = "full") -> dict:
     """``characters`` streamed together for ``frames`` frames: character i plays ``motion`` from frame
     7 i (wrapping) and stands 2 i metres to the side (on ``bodies[i]`` where given); returns the
     step's latency percentiles (ms), back to back and paced at ``pace`` frames/s, and the cost per
@@ -134,7 +140,7 @@ def bench_crowd(animator: Animator, motion, tau: float, characters: int, pace: f
     side = np.stack([2.0 * np.arange(characters), np.zeros(characters), np.zeros(characters)], 1)
     out = {}
     for key, fps in (("", 0.0), ("paced_", pace)) if pace else (("", 0.0),):
-        crowd = animator.crowd(mode="hybrid", tau=tau)
+        crowd = animator.crowd(mode="hybrid", tau=tau, decoder=decoder)
         with warnings.catch_warnings():  # bodies outside a model's range: timed all the same
             warnings.simplefilter("ignore")
             for i, body in enumerate(bodies or []):
@@ -147,46 +153,39 @@ def bench_crowd(animator: Animator, motion, tau: float, characters: int, pace: f
             crowd.push(quats[idx], motion.root_translation[idx] + side)
         lat = 1000 * np.array(crowd.timings.latency_s)[20:]
         out[f"{key}p50_ms"], out[f"{key}p99_ms"] = (round(float(np.percentile(lat, q)), 2) for q in (50, 99))
+        if not key:  # where the step's time goes: each stage's median
+            out["stage_p50_ms"] = {k: round(1000 * float(np.median(np.array(v)[20:])), 3) for k, v in crowd.timings.stage_s.items()}
     out.setdefault("paced_p50_ms", None), out.setdefault("paced_p99_ms", None)
     out["per_character_us"] = round(1000 * out["p50_ms"] / characters, 1)
     out["character_frames_per_s"] = round(1000 * characters / out["p50_ms"], 1)
     return out
 
 
-def bench_crowd_bodies(animator: Animator, motion, tau: float, characters: int, frames: int, repeat: int) -> dict:
+def bench_crowd_bodies(animator: Animator, motion, tau: float, characters: int, frames: int, repeat: int,
+                       decoder: str = "full") -> dict:
     """The crowd with one body for all and with a body per character, alternating ``repeat`` times,
     back to back: each run's p50 and p99 and the median ratio of the p99s (N bodies over one)."""
     bodies = crowd_bodies(characters)
     runs = {"one_body": [], "bodies": []}
     for _ in range(repeat):
-        runs["one_body"].append(bench_crowd(animator, motion, tau, characters, 0.0, frames))
-        runs["bodies"].append(bench_crowd(animator, motion, tau, characters, 0.0, frames, bodies=bodies))
+        runs["one_body"].append(bench_crowd(animator, motion, tau, characters, 0.0, frames, decoder=decoder))
+        runs["bodies"].append(bench_crowd(animator, motion, tau, characters, 0.0, frames, bodies=bodies, decoder=decoder))
     ratios = [b["p99_ms"] / o["p99_ms"] for o, b in zip(runs["one_body"], runs["bodies"])]
     return {k: [{"p50_ms": r["p50_ms"], "p99_ms": r["p99_ms"]} for r in v] for k, v in runs.items()} | {
         "p99_ratio_median": round(float(np.median(ratios)), 3), "p99_ratios": [round(r, 3) for r in ratios]}
 
 
-def bench(vertices: int, windows: int, seconds: float, model: str | None = None, motion_file: str | None = None,
-          pace: float = 30.0, crowd: list[int] | None = None, repeat: int = 3, precision: str = "float32",
-          crowd_frames: int = 300, crowd_bodies_repeat: int = 0) -> dict:
-    """``model``: a trained bundle instead of random weights (its own resolution, database and tau);
-    ``motion_file``: a clip instead of the procedural curved walk; ``pace``: frames/s of the paced
-    stream run (0: none); ``repeat``: timed passes per offline figure (their median); ``precision``:
-    the mesh decoder's arithmetic for batches; ``crowd_frames``: steps per crowd run (the first 20
-    are warm-up)."""
-    animator = (Animator.load(model, precision=precision) if model
-                else Animator(random_bundle(vertices, windows), precision=precision))
-    bundle = animator.bundle
-    motion = load_motion(motion_file) if motion_file else synthesize("walk_curve", seconds, seed=0)
-    tau = bundle.tau if model else _median_entropy_tau(bundle, motion)
-    out = {"vertices": bundle.template.num_vertices, "database_windows": len(bundle.database), "clip_frames": motion.num_frames,
-           "threads": torch.get_num_threads(), "precision": precision, "model": model or "random weights", "motion": motion_file or "procedural walk_curve"}
+def _offline_and_stream(animator: Animator, motion, tau: float, repeat: int, pace: float, decoder: str) -> dict:
+    """Offline frames/s per mode (push-out off, and the hybrid's with it), and one character streamed
+    back to back, without the push-out and paced: latency percentiles and each stage's median."""
+    out = {}
     for mode in ("hybrid", "regression", "retrieval", "detail"):
-        out[f"fps_{mode}"] = round(_fps(animator, motion, repeat, mode=mode, tau=tau, collision=False), 1)
-    out["fps_hybrid_with_collision"] = round(_fps(animator, motion, repeat, mode="hybrid", tau=tau, collision=True), 1)
+        out[f"fps_{mode}"] = round(_fps(animator, motion, repeat, mode=mode, tau=tau, collision=False, decoder=decoder), 1)
+    out["fps_hybrid_with_collision"] = round(_fps(animator, motion, repeat, mode="hybrid", tau=tau, collision=True,
+                                                  decoder=decoder), 1)
     runs = [("stream", True, 0.0), ("stream_no_collision", False, 0.0)] + ([("stream_paced", True, pace)] if pace else [])
     for key, collision, fps in runs:
-        stream = animator.stream(mode="hybrid", tau=tau, collision=collision)
+        stream = animator.stream(mode="hybrid", tau=tau, collision=collision, decoder=decoder)
         start = time.perf_counter()
         for t in range(motion.num_frames):
             if fps:  # a game loop: the next pose arrives at the next frame time, the thread idles until then
@@ -197,13 +196,35 @@ def bench(vertices: int, windows: int, seconds: float, model: str | None = None,
         out[f"{key}_p99_ms"] = round(float(np.percentile(lat, 99)), 2)
         if key == "stream":  # where a streamed frame's time goes
             out["stream_stage_p50_ms"] = {k: round(1000 * float(np.median(np.array(v)[20:])), 2) for k, v in stream.stage_s.items()}
+    return out
+
+
+def bench(vertices: int, windows: int, seconds: float, model: str | None = None, motion_file: str | None = None,
+          pace: float = 30.0, crowd: list[int] | None = None, repeat: int = 3, precision: str = "float32",
+          crowd_frames: int = 300, crowd_bodies_repeat: int = 0, decoder: str = "full", offline: bool = True) -> dict:
+    """``model``: a trained bundle instead of random weights (its own resolution, database and tau);
+    ``motion_file``: a clip instead of the procedural curved walk; ``pace``: frames/s of the paced
+    stream run (0: none); ``repeat``: timed passes per offline figure (their median); ``precision``:
+    the mesh decoder's arithmetic for batches; ``crowd_frames``: steps per crowd run (the first 20
+    are warm-up); ``decoder``: the full mesh decoder or the fast subspace one (streams and crowds);
+    ``offline``: also the offline and single-stream figures."""
+    animator = (Animator.load(model, precision=precision) if model
+                else Animator(random_bundle(vertices, windows), precision=precision))
+    bundle = animator.bundle
+    motion = load_motion(motion_file) if motion_file else synthesize("walk_curve", seconds, seed=0)
+    tau = bundle.tau if model else _median_entropy_tau(bundle, motion)
+    out = {"vertices": bundle.template.num_vertices, "database_windows": len(bundle.database), "clip_frames": motion.num_frames,
+           "threads": torch.get_num_threads(), "precision": precision, "model": model or "random weights", "motion": motion_file or "procedural walk_curve",
+           "decoder": decoder}
+    if offline:
+        out.update(_offline_and_stream(animator, motion, tau, repeat, pace, decoder))
     if crowd:
-        out["crowd"] = {str(n): bench_crowd(animator, motion, tau, n, pace, crowd_frames) for n in crowd}
+        out["crowd"] = {str(n): bench_crowd(animator, motion, tau, n, pace, crowd_frames, decoder=decoder) for n in crowd}
         if crowd_bodies_repeat:
-            out["crowd_bodies"] = {str(n): bench_crowd_bodies(animator, motion, tau, n, crowd_frames, crowd_bodies_repeat)
-                                   for n in crowd}
+            out["crowd_bodies"] = {str(n): bench_crowd_bodies(animator, motion, tau, n, crowd_frames, crowd_bodies_repeat,
+                                                              decoder=decoder) for n in crowd}
     out["peak_rss_mb"] = round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 1)
-    out["native_decoder"] = animator.decoder.native
+    out["native_decoder"] = animator.decoder.native  # the full decoder's kernels
     return out
 
 
@@ -226,31 +247,36 @@ def main() -> None:
     parser.add_argument("--repeat", type=int, default=3, help="timed passes per offline figure (their median)")
     parser.add_argument("--precision", choices=PRECISIONS, default="float32",
                         help="the mesh decoder's arithmetic for batches (crowds, offline); bfloat16 needs AMX")
+    parser.add_argument("--decoder", choices=("full", "fast"), default="full",
+                        help="the mesh decoder: full, or fast (the subspace decoder; random weights get a random one)")
+    parser.add_argument("--crowd-only", action="store_true", help="only the crowds (no offline or single-stream figures)")
     parser.add_argument("--json", action="store_true", help="one JSON object per resolution, nothing else")
     args = parser.parse_args()
     for v in ([None] if args.model else args.vertices):
         r = bench(v, args.database, args.seconds, args.model, args.motion, args.pace, args.crowd, args.repeat, args.precision,
-                  args.crowd_frames, args.crowd_repeat if args.crowd_bodies else 0)
+                  args.crowd_frames, args.crowd_repeat if args.crowd_bodies else 0, decoder=args.decoder,
+                  offline=not args.crowd_only)
         if args.json:
             print(json.dumps(r))
-        else:
-            print(f"{r['model']}, {r['motion']}: "
-                  f"{r['vertices']} vertices, database {r['database_windows']} windows, {r['clip_frames']}-frame clip, "
-                  f"{r['threads']} threads, {r['precision']} decoder: offline frames/s hybrid {r['fps_hybrid']}, regression {r['fps_regression']}, "
-                  f"retrieval {r['fps_retrieval']}, detail {r['fps_detail']} (hybrid with push-out {r['fps_hybrid_with_collision']}); streaming "
-                  f"p50 {r['stream_p50_ms']} ms, p99 {r['stream_p99_ms']} ms (without push-out p50 "
+            continue
+        print(f"{r['model']}, {r['motion']}: {r['vertices']} vertices, database {r['database_windows']} windows, "
+              f"{r['threads']} threads, {r['precision']} {r['decoder']} decoder; peak RSS {r['peak_rss_mb']} MB")
+        if not args.crowd_only:
+            print(f"  {r['clip_frames']}-frame clip: offline frames/s hybrid {r['fps_hybrid']}, regression {r['fps_regression']}, "
+                  f"retrieval {r['fps_retrieval']}, detail {r['fps_detail']} (hybrid with push-out {r['fps_hybrid_with_collision']}); "
+                  f"streaming p50 {r['stream_p50_ms']} ms, p99 {r['stream_p99_ms']} ms (without push-out p50 "
                   f"{r['stream_no_collision_p50_ms']}, p99 {r['stream_no_collision_p99_ms']})"
                   + (f"; paced at {args.pace:g} frames/s p50 {r['stream_paced_p50_ms']} ms, p99 {r['stream_paced_p99_ms']} ms"
-                     if args.pace else "") + f"; peak RSS {r['peak_rss_mb']} MB")
+                     if args.pace else ""))
             print("  streamed frame, median ms per stage: " + ", ".join(f"{k} {v}" for k, v in r["stream_stage_p50_ms"].items()))
-            for n, c in r.get("crowd", {}).items():
-                print(f"  crowd of {n}: step p50 {c['p50_ms']} ms, p99 {c['p99_ms']} ms (paced p50 {c['paced_p50_ms']}, "
-                      f"p99 {c['paced_p99_ms']}); {c['per_character_us']} us a character, "
-                      f"{c['character_frames_per_s']} character-frames/s")
-            for n, c in r.get("crowd_bodies", {}).items():
-                print(f"  crowd of {n} on {n} bodies against one body: step p99 ratio {c['p99_ratio_median']} "
-                      f"(each alternation: {c['p99_ratios']})")
-
+        for n, c in r.get("crowd", {}).items():
+            print(f"  crowd of {n}: step p50 {c['p50_ms']} ms, p99 {c['p99_ms']} ms (paced p50 {c['paced_p50_ms']}, "
+                  f"p99 {c['paced_p99_ms']}); {c['per_character_us']} us a character, "
+                  f"{c['character_frames_per_s']} character-frames/s; median ms per stage: "
+                  + ", ".join(f"{k} {v}" for k, v in c["stage_p50_ms"].items()))
+        for n, c in r.get("crowd_bodies", {}).items():
+            print(f"  crowd of {n} on {n} bodies against one body: step p99 ratio {c['p99_ratio_median']} "
+                  f"(each alternation: {c['p99_ratios']})")
 
 if __name__ == "__main__":
     main()

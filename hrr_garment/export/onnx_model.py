@@ -4,7 +4,7 @@ engine, Unity's inference engine, onnxruntime): ``hrr-export-model MODEL --onnx 
     step = export_onnx(animator, "dress.onnx")                  # + dress.tensors.npz
     gap = check_onnx(animator, "dress.onnx", motion)            # against the Python stream, mm
 
-The graph (:class:`~.onnx_graph.StreamStep`) is the regression path of a stream for N characters
+The graph (:class:`~hrr_garment.inference.torch_step.StreamStep`) is the regression path of a stream for N characters
 of one body: a frame of poses in, world vertices out, each character's window state as explicit
 inputs and outputs (:data:`STATE`; :func:`initial_state` gives a first frame's). What ONNX cannot
 hold, the retrieval database (a FAISS search over binary codes), travels as documented tensors in
@@ -27,14 +27,11 @@ import torch
 
 from .._version import __version__
 from ..errors import InputError
-from ..inference.collision import PUSH_OUT
+from ..inference.torch_step import state_shapes, stream_step
 from ..io_utils import atomic_path, require_suffix
-from ..motion.memory import MEMORY_WIDTH, motion_memory
 from ..motion.motion import FPS, Motion
 from ..motion.poses import motion_to_poses
 from ..motion.skeleton import JOINT_NAMES, NUM_JOINTS
-from .onnx_graph import StreamStep, TorchDecoder
-from .onnx_push_out import PushOutStage
 
 INPUTS = ("rotations", "root")
 STATE = ("started", "previous_rotations", "previous_positions", "memory", "window")
@@ -77,28 +74,6 @@ def _onnxruntime():
     except ImportError:
         raise ImportError("running an ONNX model needs onnxruntime: pip install 'hrr_garment[onnx]'") from None
     return onnxruntime
-
-
-def stream_step(animator, character, *, push_out: bool = True) -> StreamStep:
-    """The :class:`~.onnx_graph.StreamStep` of ``animator``'s model on ``character`` (a
-    :class:`~hrr_garment.inference.bodies.CharacterBody`, :meth:`Animator.body`'s), at the rate
-    every model streams at (:data:`~hrr_garment.motion.motion.FPS`)."""
-    bundle = animator.bundle
-    spec = bundle.codespace.config.memory
-    memory = motion_memory(spec, FPS) if spec else None
-    stage = None
-    if push_out:
-        body = character.body
-        stage = PushOutStage((*body.ends, body.radii), animator.smoothing, limits=animator.edge_limits, settings=PUSH_OUT)
-    return StreamStep(bundle, TorchDecoder(animator.decoder), character=character, memory=memory, fps=FPS,
-                      push_out=stage).eval()
-
-
-def state_shapes(step: StreamStep) -> dict[str, tuple[int, ...]]:
-    """Each state input's shape per character."""
-    window = step.codes.codespace.config.window
-    return {"started": (), "previous_rotations": (NUM_JOINTS, 3, 3), "previous_positions": (NUM_JOINTS, 3),
-            "memory": (max(step.features.rows, 1), MEMORY_WIDTH), "window": (window - 1, int(step.motion_mean.shape[0]))}
 
 
 def initial_state(shapes: dict[str, tuple[int, ...]], characters: int) -> dict[str, np.ndarray]:

@@ -293,10 +293,23 @@ class Animator:
                                body=self.body(body, allow_outside=allow_outside))
 
     def crowd(self, settings: RunSettings | None = None, *, rig=None, body=None, allow_outside: bool = False,
-              **changes) -> CrowdStream:
+              device: str | None = None, **changes):
         """Many characters, one call per frame for all of them (:class:`~.stream.CrowdStream`);
-        arguments as :meth:`stream` (every character of the crowd has ``body``)."""
-        return CrowdStream(self, self._stream_run(settings, changes), rig=rig, body=self.body(body, allow_outside=allow_outside))
+        arguments as :meth:`stream` (every character of the crowd has ``body``). ``device``:
+        "native" (the CPU kernels: every mode, a body per character), a torch device such as
+        "cuda" (the regression as one torch step there: :class:`~.torch_crowd.DeviceCrowd`), or
+        None: CUDA for a regression crowd where torch sees a GPU, else native."""
+        run = self._stream_run(settings, changes)
+        if device is None:
+            device = "cuda" if run.mode is Mode.REGRESSION and rig is None and torch.cuda.is_available() else "native"
+        character = self.body(body, allow_outside=allow_outside)
+        if device == "native":
+            return CrowdStream(self, run, rig=rig, body=character)
+        if rig is not None:
+            raise ValueError("a crowd on a torch device takes poses on the canonical skeleton (no rig); use device='native'")
+        from .torch_crowd import DeviceCrowd
+
+        return DeviceCrowd(self, run, device=device, body=character)
 
     def _stream_run(self, settings: RunSettings | None, changes: dict) -> ResolvedRun:
         run = self.resolve(settings, **{**changes, "causal": True})

@@ -89,7 +89,7 @@ class SubspaceDecoder(nn.Module):
     @torch.no_grad()
     def forward(self, latents: torch.Tensor) -> torch.Tensor:
         """(B, N, C) latents -> (B, V, 3) body-frame vertices (inference: no gradients)."""
-        if self._scaled_basis is None or self.training:
+        if self._scaled_basis is None or self.training or self._scaled_basis.device != self.basis.device:
             self._scaled_basis = (self.coeff_std[:, None] * self.basis).contiguous()
         c = self.coefficients(latents.to(torch.float32))
         return torch.addmm(self.mean, c, self._scaled_basis).reshape(len(latents), self.num_vertices, 3)

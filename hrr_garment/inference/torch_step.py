@@ -1,6 +1,6 @@
-"""The streaming step of a trained model as one PyTorch module that ONNX can hold
-(:mod:`.onnx_model` exports it): a frame of poses in, the garment's world vertices out, each
-character's window state as explicit inputs and outputs. The regression path of
+"""The streaming step of a trained model as one PyTorch module: a frame of poses in, the garment's
+world vertices out, each character's window state as explicit inputs and outputs. ONNX holds it
+(:mod:`hrr_garment.export.onnx_model` exports it) and a GPU runs it (:mod:`.torch_crowd`). The regression path of
 :class:`~hrr_garment.inference.stream.CrowdStream`, stage by stage with the same formulas:
 
 1. poses: local quaternions -> matrices, forward kinematics on the body's skeleton (its bone
@@ -12,7 +12,7 @@ character's window state as explicit inputs and outputs. The regression path of
    entropy and classes, the code-space decoder's latents of the window's last frame;
 4. the mesh decoder, the garment's rest offset on the body, the body frame to the world
    (:func:`~hrr_garment.motion.frame.from_body_frame`);
-5. the collision push-out against the body's capsules and its strain limit (:mod:`.onnx_push_out`).
+5. the collision push-out against the body's capsules and its strain limit (:mod:`.torch_push_out`).
 
 A character's first frame is told by ``started`` = 0: its last pose is taken to be this one (zero
 velocities), its memory starts at rest and its window is this frame repeated, as a stream starts.
@@ -28,10 +28,12 @@ from torch import nn
 
 from ..models.codes import WindowCodes
 from ..motion.features import SLICE_T, SLICE_V, SLICE_W
-from ..motion.memory import MEMORY_WIDTH, VECTORS, MotionMemory
+from ..motion.memory import MEMORY_WIDTH, VECTORS, MotionMemory, motion_memory
+from ..motion.motion import FPS
 from ..motion.rotations import matrix_to_axis_angle, quat_to_matrix, rotation_about_y, yaw_of
-from ..motion.skeleton import FEATURE_JOINTS, REST_PELVIS_HEIGHT, forward_kinematics
-from .onnx_push_out import PushOutStage, constant
+from ..motion.skeleton import FEATURE_JOINTS, NUM_JOINTS, REST_PELVIS_HEIGHT, forward_kinematics
+from .collision import PUSH_OUT
+from .torch_push_out import PushOutStage, constant
 
 
 def _turn_y(points: torch.Tensor, cos: torch.Tensor, sin: torch.Tensor) -> torch.Tensor:
@@ -147,6 +149,7 @@ class StreamStep(nn.Module):
         constant(self, "latent_mean", bundle.latent_stats.mean)
         constant(self, "latent_std", bundle.latent_stats.std)
         constant(self, "garment_offset", character.offset)
+        constant(self, "rest_pelvis", [0.0, REST_PELVIS_HEIGHT, 0.0])
         self.decoder, self.push_out = decoder, push_out
         self.latent_shape = tuple(bundle.codespace.latent_shape)
 
@@ -162,7 +165,7 @@ class StreamStep(nn.Module):
         latents = (latents.reshape(n, -1) * self.latent_std + self.latent_mean).reshape(n, *self.latent_shape)
         local = self.decoder(latents) + self.garment_offset
         yaw = yaw_of(rot[:, 0])
-        origin = root * self.pose.root_scale - torch.tensor([0.0, REST_PELVIS_HEIGHT, 0.0])
+        origin = root * self.pose.root_scale - self.rest_pelvis
         world = _turn_y(local, torch.cos(yaw), torch.sin(yaw)) + origin[:, None]
         if self.push_out is not None:
             world = self.push_out(world, rot, pos)
@@ -181,3 +184,45 @@ class TorchDecoder(nn.Module):
     def forward(self, latents: torch.Tensor) -> torch.Tensor:
         return self.fast._torch_forward(latents)
 
+
+
+class AutoencoderDecoder(nn.Module):
+    """The mesh autoencoder's own decoder as a module that moves to a device with its weights (a
+    :class:`~hrr_garment.models.fast_decoder.FastDecoder` keeps its folded kernels beside the
+    module, on the CPU): what a step on a GPU decodes with where it runs the full decoder."""
+
+    def __init__(self, autoencoder):
+        super().__init__()
+        self.autoencoder = autoencoder
+
+    def forward(self, latents: torch.Tensor) -> torch.Tensor:
+        return self.autoencoder.decode(latents)
+
+
+def stream_step(animator, character, *, push_out: bool = True, decoder: str = "full", movable: bool = False) -> StreamStep:
+    """The :class:`StreamStep` of ``animator``'s model on ``character`` (a
+    :class:`~hrr_garment.inference.bodies.CharacterBody`, :meth:`Animator.body`'s), at the rate
+    every model streams at (:data:`~hrr_garment.motion.motion.FPS`). ``decoder``: "full" (the
+    mesh decoder's folded blocks; with ``movable``, the autoencoder's own, which moves to a GPU)
+    or "fast" (the bundle's subspace decoder)."""
+    bundle = animator.bundle
+    spec = bundle.codespace.config.memory
+    memory = motion_memory(spec, FPS) if spec else None
+    stage = None
+    if push_out:
+        body = character.body
+        stage = PushOutStage((*body.ends, body.radii), animator.smoothing, limits=animator.edge_limits, settings=PUSH_OUT)
+    if decoder == "fast":
+        if bundle.subspace is None:
+            raise ValueError(f"{bundle.folder} has no fast decoder (hrr-train --stage subspace)")
+        module = bundle.subspace
+    else:
+        module = AutoencoderDecoder(bundle.autoencoder) if movable else TorchDecoder(animator.decoder)
+    return StreamStep(bundle, module, character=character, memory=memory, fps=FPS, push_out=stage).eval()
+
+
+def state_shapes(step: StreamStep) -> dict[str, tuple[int, ...]]:
+    """Each state input's shape per character."""
+    window = step.codes.codespace.config.window
+    return {"started": (), "previous_rotations": (NUM_JOINTS, 3, 3), "previous_positions": (NUM_JOINTS, 3),
+            "memory": (max(step.features.rows, 1), MEMORY_WIDTH), "window": (window - 1, int(step.motion_mean.shape[0]))}

@@ -1,5 +1,5 @@
 """The collision push-out and its strain limit (:mod:`hrr_garment.inference.collision`) as a
-PyTorch module that ONNX can hold, the last stage of :class:`~.onnx_graph.StreamStep`: the push's
+PyTorch module that ONNX can hold, the last stage of :class:`~.torch_step.StreamStep`: the push's
 round and projections under conditionals (ONNX ``If``, skipped when nothing is inside), the
 strain limit's passes as a loop (ONNX ``Loop``) while a character still has an over-long edge, each
 character stopping on its own, as the package stops each frame."""
@@ -11,7 +11,7 @@ import torch
 from torch import nn
 from torch._higher_order_ops.while_loop import while_loop
 
-from ..inference.collision import LIMIT_TOLERANCE_M, OVER_RELAXATION, PushOutSettings
+from .collision import LIMIT_TOLERANCE_M, OVER_RELAXATION, PushOutSettings
 
 
 def constant(module: nn.Module, name: str, value, dtype=torch.float32) -> None:
@@ -38,6 +38,10 @@ class PushOutStage(nn.Module):
         constant(self, "smooth_rows", smoothing.row, torch.int64)
         constant(self, "smooth_cols", smoothing.col, torch.int64)
         constant(self, "smooth_weights", smoothing.data[:, None])  # (nnz, 1): over the characters
+        # the neighbour-follow's padded 1-ring and each slot's drop (slope x rest distance); the
+        # padding's infinite drop as a large finite one, which never wins either
+        constant(self, "ring", limits.ring, torch.int64)
+        constant(self, "ring_drop", np.minimum(settings.follow_slope * limits.ring_length, 1e6)[..., None])  # (V, D, 1)
         # a pass moves a vertex by the sum of its edges' half excesses (+ at an edge's first end, - at
         # its second), over-relaxed over its degree: the half and the weight folded into one factor
         constant(self, "vertex_weight", (0.5 * OVER_RELAXATION / limits.degree)[:, None])
@@ -68,15 +72,17 @@ class PushOutStage(nn.Module):
     def push(self, p: torch.Tensor, a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
         d, n = self.distance(p, a, b)
         for _ in range(self.settings.rounds):
-            p, d, n = torch.cond((d < self.settings.margin).any(), self._round, _as_is, (p, d, n, a, b))
+            p, d, n = _when((d < self.settings.margin).any(), self._round, (p, d, n, a, b))
         for _ in range(4):  # exact projection, again where a push landed in another capsule
-            p, d, n = torch.cond((d < 0).any(), self._project, _as_is, (p, d, n, a, b))
+            p, d, n = _when((d < 0).any(), self._project, (p, d, n, a, b))
         return p
 
     def _round(self, p, d, n, a, b):
         """A push along the normals, spread to the neighbours, never below what is needed."""
         need = torch.clamp(self.settings.margin - d, min=0.0).transpose(0, 1)  # vertex-major, as smooth takes it
         normals = n.transpose(0, 1)
+        for _ in range(self.settings.follow):
+            need, normals = self._follow(need, normals)
         hit = need > 0
         disp = need[..., None] * normals
         for _ in range(self.settings.smooth):
@@ -85,6 +91,18 @@ class PushOutStage(nn.Module):
             disp = disp + short[..., None] * normals
         p = p + disp.transpose(0, 1)
         return (p, *self.distance(p, a, b))
+
+    def _follow(self, need: torch.Tensor, normals: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """One pass of the neighbour-follow (:func:`~hrr_garment.inference.collision.follow_pushes`),
+        vertex-major: each vertex at least its neighbours' push less the drop, in the direction of the
+        neighbour that sets it (the first of equals; the first pass starts from the normals of the
+        vertices that need a push, zero elsewhere, which nothing reads where the push is 0)."""
+        cand = need[self.ring] - self.ring_drop  # (V, D, N)
+        best, slot = cand.max(1)
+        better = best > need
+        source = torch.gather(self.ring, 1, slot)  # (V, N): the neighbour that sets the push
+        characters = torch.arange(need.shape[1], device=need.device)[None].expand_as(source)
+        return torch.where(better, best, need), torch.where(better[..., None], normals[source, characters], normals)
 
     def _project(self, p, d, n, a, b):
         p = p + torch.where(d < 0, self.settings.margin - d, torch.zeros_like(d))[..., None] * n
@@ -103,8 +121,14 @@ class PushOutStage(nn.Module):
         limit = torch.maximum(self.allowed[:, None], before)  # (E, N)
         length = torch.sqrt((self._edge_vectors(pushed) ** 2).sum(-1))
         torn = (length > limit * (1.0 + 1e-6)).any(0)
-        passes = torch.zeros((), dtype=torch.int64)
-        _, p, _, _ = while_loop(self._limiting, self._pass, (passes, pushed, limit, torn))  # an ONNX Loop
+        passes = torch.zeros((), dtype=torch.int64, device=pushed.device)
+        state = (passes, pushed, limit, torn)
+        if torch.compiler.is_compiling():  # exporting: an ONNX Loop
+            _, p, _, _ = while_loop(self._limiting, self._pass, state)
+        else:  # running (a GPU crowd): the same passes in Python, without a compile per batch shape
+            while bool(self._limiting(*state)):
+                state = self._pass(*state)
+            p = state[1]
         return p.transpose(0, 1)
 
     def _limiting(self, passes: torch.Tensor, p: torch.Tensor, limit: torch.Tensor, active: torch.Tensor) -> torch.Tensor:
@@ -126,6 +150,14 @@ class PushOutStage(nn.Module):
         a = pos - centre + (rot @ self.cap_a[..., None])[..., 0]
         b = pos - centre + (rot @ self.cap_b[..., None])[..., 0]
         return self.limit(self.push(vertices - centre, a, b) + centre, vertices)
+
+
+def _when(predicate: torch.Tensor, step, operands: tuple):
+    """``step(*operands)`` where ``predicate`` holds, else the points as they are: an ONNX ``If``
+    when exporting, a Python branch when running (torch.cond would compile every batch shape)."""
+    if torch.compiler.is_compiling():
+        return torch.cond(predicate, step, _as_is, operands)
+    return step(*operands) if bool(predicate) else operands[:3]
 
 
 def _as_is(p: torch.Tensor, d: torch.Tensor, n: torch.Tensor, a: torch.Tensor, b: torch.Tensor):

@@ -1,0 +1,102 @@
+"""A crowd on a torch device (a CUDA GPU): :class:`DeviceCrowd`, the regression path of
+:class:`~.stream.CrowdStream` as one torch step (:class:`~.torch_step.StreamStep`: poses, features,
+window step, mesh decoder, push-out and strain limit, every character in one batch), the
+characters' state kept on the device between frames.
+
+    crowd = animator.crowd(mode="regression", decoder="fast")      # on CUDA where torch sees one
+    vertices = crowd.push(rotations, roots, keys)                  # (N, 22, 4) quaternions x y z w, (N, 3)
+    tensor = crowd.push(rotations, roots, keys, as_tensor=True)    # (N, V, 3) left on the device
+
+What it runs: the regression (the window step's own latents, no database: a retrieval is a search
+the GPU step does not hold), one body for every character, poses as local quaternions on the
+canonical skeleton. On the CPU (``device="cpu"``) it gives what the native crowd gives within float
+rounding (tested); a character's first frame starts it as a stream starts (zero velocities, its
+window that frame repeated); a pelvis that jumps is not taken as a teleport here (call
+:meth:`leave` first).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Hashable, Sequence
+
+import numpy as np
+import torch
+
+from ..errors import InputError
+from ..motion.skeleton import NUM_JOINTS
+from .modes import Mode
+from .run_settings import ResolvedRun
+from .torch_step import state_shapes, stream_step
+
+STATE = ("started", "previous_rotations", "previous_positions", "memory", "window")
+
+
+class DeviceCrowd:
+    """Many characters of one body streamed on ``device`` in one call per frame; see the module docstring."""
+
+    def __init__(self, animator, run: ResolvedRun, *, device: str | torch.device, body=None):
+        if run.mode is not Mode.REGRESSION:
+            raise ValueError(f"a crowd on a torch device runs the regression (mode='regression'), not {run.mode.value!r}: "
+                             "the database's retrieval, residual and folds run in the native crowd (device='native')")
+        self.device = torch.device(device)
+        self.run = run
+        self.body = animator.body() if body is None else body
+        self.step = stream_step(animator, self.body, push_out=run.collision, decoder=run.decoder, movable=True).to(self.device)
+        self._shapes = state_shapes(self.step)
+        self._state = {name: torch.zeros((0, *shape), device=self.device) for name, shape in self._shapes.items()}
+        self._slots: dict[Hashable, int] = {}
+        self._free: list[int] = []
+
+    @property
+    def mode(self) -> Mode:
+        return self.run.mode
+
+    @property
+    def characters(self) -> list:
+        """The keys of the characters streamed so far and not left, in the order they joined."""
+        return list(self._slots)
+
+    def leave(self, key: Hashable) -> None:
+        """Forget a character: pushed again later, it starts afresh."""
+        if key not in self._slots:
+            raise KeyError(f"no character {key!r} in this crowd (characters: {self.characters})")
+        self._free.append(self._slots.pop(key))
+
+    def _slots_of(self, keys: list) -> torch.Tensor:
+        """Each key's row of the state (new keys get a free row, zeroed: ``started`` 0)."""
+        fresh = [k for k in keys if k not in self._slots]
+        grow = len(fresh) - len(self._free)
+        if grow > 0:  # room for the newcomers: the state's rows doubled at least
+            extra = max(grow, len(next(iter(self._state.values()))))
+            start = len(next(iter(self._state.values())))
+            self._state = {name: torch.cat([t, torch.zeros((extra, *t.shape[1:]), device=self.device)])
+                           for name, t in self._state.items()}
+            self._free += list(range(start + extra - 1, start - 1, -1))
+        for key in fresh:
+            slot = self._free.pop()
+            self._slots[key] = slot
+            for t in self._state.values():
+                t[slot] = 0.0
+        return torch.tensor([self._slots[k] for k in keys], device=self.device)
+
+    @torch.no_grad()
+    def push(self, rotations: np.ndarray, roots: np.ndarray, keys: Sequence[Hashable] | None = None, *,
+             as_tensor: bool = False) -> np.ndarray | torch.Tensor:
+        """One frame of N characters: ``rotations`` (N, 22, 4) local quaternions (x, y, z, w), ``roots``
+        (N, 3) pelvis positions (metres, Y up), ``keys`` one id per character (default 0 .. N-1) ->
+        (N, V, 3) world vertices, float32 (a tensor on the device with ``as_tensor``)."""
+        rotations, roots = torch.as_tensor(rotations, dtype=torch.float32), torch.as_tensor(roots, dtype=torch.float32)
+        keys = list(range(len(rotations))) if keys is None else list(keys)
+        if rotations.shape[1:] != (NUM_JOINTS, 4) or roots.shape != (len(rotations), 3) or len(keys) != len(rotations):
+            raise InputError("push", f"a device crowd takes (N, {NUM_JOINTS}, 4) quaternions, (N, 3) roots and N keys; got "
+                                     f"{tuple(rotations.shape)}, {tuple(roots.shape)} and {len(keys)} keys")
+        if len(set(keys)) != len(keys):
+            raise InputError("push", f"{len(keys)} keys, {len(set(keys))} distinct: one pose per character")
+        if not (torch.isfinite(rotations).all() and torch.isfinite(roots).all()):
+            raise InputError("push", "non-finite rotations or roots")
+        rows = self._slots_of(keys)
+        state = [self._state[name][rows] for name in STATE]
+        out = self.step(rotations.to(self.device), roots.to(self.device), *state)
+        for name, value in zip(STATE, out[3:]):
+            self._state[name][rows] = value
+        return out[0] if as_tensor else out[0].cpu().numpy()

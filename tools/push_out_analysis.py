@@ -1,0 +1,116 @@
+"""Analysis: does the collision push-out tear the cloth, and what does a character's push-out cost?
+
+The push-out (hrr_garment/inference/collision.py) moves garment vertices out of the body; where it
+moves one vertex far and its neighbours little, edges stretch and the strain limit has to undo
+part of the push. This tool runs a trained model on a dataset's clips (its default mode, offline,
+the push-out off), then the push-out under each setting asked for, and reports per setting:
+
+- ``limited_frames_pct``: the frames on which the strain limit moved an edge (the issue's bar: at
+  most 5 %), and ``torn_before_limit_pct``: the frames with an edge over its limit after the push
+  alone (what the limit had to repair);
+- ``strain_max`` / ``strain_p99``: edge length over rest length of the output (worst frame; p99
+  over every edge of every frame), beside the unpushed output's and the simulation's;
+- ``inside_after_pct``: vertices more than 5 mm inside the body after the push-out;
+- ``us_per_character``: the push-out's median seconds per character-frame, frames pushed ``crowd``
+  at a time as a crowd's step pushes its characters (report off, as a stream runs it), over
+  ``repeat`` passes.
+
+    python tools/push_out_analysis.py --model hrr_work/models/dress-real-quick \\
+        --dataset hrr_work/datasets/dress-real-quick.h5 --split test --follow 0 6 --sequences 12
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import time
+
+import numpy as np
+
+
+def _timed_us(vertices: np.ndarray, motion, faces, animator, settings, crowd: int, repeat: int) -> float:
+    """Median microseconds per frame of the push-out, ``crowd`` frames a call (report off)."""
+    from hrr_garment.inference.collision import push_out
+
+    per_frame = []
+    for _ in range(repeat):
+        for start in range(0, len(vertices) - crowd + 1, crowd):
+            sl = slice(start, start + crowd)
+            t0 = time.perf_counter()
+            push_out(vertices[sl], motion.slice(start, start + crowd), faces, body=animator.body().body,
+                     settings=settings, mean=animator.smoothing, limits=animator.edge_limits, report=False)
+            per_frame.append((time.perf_counter() - t0) / crowd)
+    return 1e6 * float(np.median(per_frame)) if per_frame else float("nan")
+
+
+def analyse(model: str, dataset: str, split: str, follows: list[int], slope: float, sequences: int, crowd: int,
+            repeat: int) -> dict:
+    from hrr_garment.data.dataset import GarmentDataset
+    from hrr_garment.inference.animator import Animator
+    from hrr_garment.inference.collision import PUSH_OUT, limit_push_strain, push_out
+    from hrr_garment.sim.quality import body_signed_distance, edge_strain
+
+    animator = Animator.load(model)
+    ds = GarmentDataset(dataset)
+    names = ds.splits[split][:sequences]
+    faces, rest, edges = ds.template.faces, ds.template.vertices, ds.template.edges()
+    rows = {f"follow {f}": dataclasses.replace(PUSH_OUT, follow=f, follow_slope=slope) for f in follows}
+    found = {k: {"limited": [], "torn": [], "strain": [], "inside": [], "us": []} for k in rows}
+    plain = {"unpushed": [], "simulation": []}
+    for name in names:
+        record = ds.sequence(name)
+        anim = animator.animate(record.motion, collision=False)
+        plain["unpushed"].append(edge_strain(anim.vertices, rest, edges))
+        plain["simulation"].append(edge_strain(record.garment, rest, edges))
+        for label, settings in rows.items():
+            bare, _ = push_out(anim.vertices, record.motion, faces, body=animator.body().body, settings=settings,
+                               mean=animator.smoothing, report=False)
+            _, torn = limit_push_strain(bare, anim.vertices, animator.edge_limits, settings.max_strain)
+            out, _ = push_out(anim.vertices, record.motion, faces, body=animator.body().body, settings=settings,
+                              mean=animator.smoothing, limits=animator.edge_limits, report=False)
+            found[label]["torn"].append(torn)
+            found[label]["limited"].append(np.abs(out - bare).max((1, 2)) > 0)
+            found[label]["strain"].append(edge_strain(out, rest, edges))
+            found[label]["inside"].append((body_signed_distance(out, record.motion, animator.body().body) < -0.005).mean(1))
+            found[label]["us"].append(_timed_us(anim.vertices, record.motion, faces, animator, settings, crowd, repeat))
+    report = {"model": model, "dataset": dataset, "split": split, "sequences": names, "crowd": crowd,
+              "follow_slope": slope, "rows": {}}
+    for label, f in found.items():
+        strain = np.concatenate(f["strain"])
+        report["rows"][label] = {
+            "limited_frames_pct": round(100 * float(np.concatenate(f["limited"]).mean()), 2),
+            "torn_before_limit_pct": round(100 * float(np.concatenate(f["torn"]).mean()), 2),
+            "strain_max": round(float(strain.max()), 3), "strain_p99": round(float(np.percentile(strain, 99)), 4),
+            "inside_after_pct": round(100 * float(np.concatenate(f["inside"]).mean()), 3),
+            "us_per_character": round(float(np.median(f["us"])), 1)}
+    for label, strains in plain.items():
+        strain = np.concatenate(strains)
+        report["rows"][label] = {"strain_max": round(float(strain.max()), 3),
+                                 "strain_p99": round(float(np.percentile(strain, 99)), 4)}
+    return report
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--model", required=True)
+    parser.add_argument("--dataset", required=True)
+    parser.add_argument("--split", default="test")
+    parser.add_argument("--follow", type=int, nargs="+", default=[0, 6], help="neighbour-follow passes to compare")
+    parser.add_argument("--slope", type=float, default=0.25, help="the follow's slope (of the rest distance)")
+    parser.add_argument("--sequences", type=int, default=12, help="the split's first N clips")
+    parser.add_argument("--crowd", type=int, default=32, help="frames per timed push-out call (a crowd's characters)")
+    parser.add_argument("--repeat", type=int, default=2)
+    parser.add_argument("--json", action="store_true")
+    args = parser.parse_args()
+    report = analyse(args.model, args.dataset, args.split, args.follow, args.slope, args.sequences, args.crowd, args.repeat)
+    if args.json:
+        print(json.dumps(report))
+        return
+    print(f"{args.model} on {len(report['sequences'])} {args.split} clips of {args.dataset} (default mode, offline):")
+    for label, row in report["rows"].items():
+        print(f"  {label}: " + ", ".join(f"{k} {v}" for k, v in row.items()))
+
+
+if __name__ == "__main__":
+    main()
