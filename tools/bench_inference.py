@@ -12,7 +12,9 @@ push-out has more work (a dress whose bodice rests on the body) than random weig
   latency percentiles and the median time of each stage, pushed back to back, and paced like a
   game loop (``--pace`` frames/s: the thread idles until the next frame's time, so caches cool and
   idle worker threads must be woken);
-- a crowd (``--crowd N ...``): N characters streamed in one call per frame (``animator.crowd()``),
+- a crowd (``--crowd N ...``): N characters streamed in one call per frame (``animator.crowd()``;
+  with ``--device cuda`` the regression as one torch step on the GPU; ``--decoder fast`` the
+  subspace decoder, random for random weights),
   each playing the clip from its own start frame and place, poses handed over as an engine does
   (quaternions and roots); p50 / p99 of the whole N-character step, back to back and paced, the
   cost per character and character-frames/s, for each N (the scaling); with ``--crowd-bodies``,
@@ -27,6 +29,8 @@ push-out has more work (a dress whose bodice rests on the body) than random weig
     python tools/bench_inference.py --vertices 4266 --crowd 1 2 4 8 16 32 64   # the crowd's scaling
     python tools/bench_inference.py --vertices 4000 --crowd 32 --precision bfloat16   # decoder on AMX
     python tools/bench_inference.py --model DIR --crowd 32 --crowd-bodies --pace 0 --json   # 32 bodies against one
+    python tools/bench_inference.py --vertices 4156 --crowd 1 8 32 64 128 --decoder fast --crowd-only --pace 0
+    python tools/bench_inference.py --vertices 4156 --crowd 1000 --decoder fast --device cuda --crowd-only --pace 0
 """
 
 from __future__ import annotations
@@ -128,32 +132,42 @@ def crowd_bodies(count: int) -> list:
 
 
 def bench_crowd(animator: Animator, motion, tau: float, characters: int, pace: float, frames: int = 300,
-                bodies: list | None = None, decoder: str = "full") -> dict:
+                bodies: list | None = None, decoder: str = "full", device: str = "native") -> dict:
     """``characters`` streamed together for ``frames`` frames: character i plays ``motion`` from frame
     7 i (wrapping) and stands 2 i metres to the side (on ``bodies[i]`` where given); returns the
     step's latency percentiles (ms), back to back and paced at ``pace`` frames/s, and the cost per
-    character."""
+    character. ``device``: "native" (the hybrid on the CPU kernels) or a torch device (the
+    regression as one torch step there, its output left on the device, the step synchronised)."""
     from hrr_garment.motion.rotations import matrix_to_quat
 
-    quats = matrix_to_quat(motion.local_rotations.astype(np.float64))[..., [1, 2, 3, 0]]  # (x, y, z, w)
+    quats = matrix_to_quat(motion.local_rotations.astype(np.float64))[..., [1, 2, 3, 0]].astype(np.float32)  # (x, y, z, w)
     offsets = np.arange(characters) * 7
     side = np.stack([2.0 * np.arange(characters), np.zeros(characters), np.zeros(characters)], 1)
+    native = device == "native"
+    sync = torch.cuda.synchronize if device.startswith("cuda") else (lambda: None)
     out = {}
     for key, fps in (("", 0.0), ("paced_", pace)) if pace else (("", 0.0),):
-        crowd = animator.crowd(mode="hybrid", tau=tau, decoder=decoder)
+        crowd = (animator.crowd(mode="hybrid", tau=tau, decoder=decoder, device="native") if native
+                 else animator.crowd(mode="regression", decoder=decoder, device=device))
         with warnings.catch_warnings():  # bodies outside a model's range: timed all the same
             warnings.simplefilter("ignore")
             for i, body in enumerate(bodies or []):
                 crowd.set_body(i, body, allow_outside=True)
-        start = time.perf_counter()
+        start, lat = time.perf_counter(), []
         for t in range(frames):
             if fps:
                 time.sleep(max(0.0, start + t / fps - time.perf_counter()))
             idx = (t + offsets) % motion.num_frames
-            crowd.push(quats[idx], motion.root_translation[idx] + side)
-        lat = 1000 * np.array(crowd.timings.latency_s)[20:]
+            t0 = time.perf_counter()
+            if native:
+                crowd.push(quats[idx], motion.root_translation[idx] + side)
+            else:
+                crowd.push(quats[idx], (motion.root_translation[idx] + side).astype(np.float32), as_tensor=True)
+                sync()
+            lat.append(time.perf_counter() - t0)
+        lat = 1000 * np.array(lat)[20:]
         out[f"{key}p50_ms"], out[f"{key}p99_ms"] = (round(float(np.percentile(lat, q)), 2) for q in (50, 99))
-        if not key:  # where the step's time goes: each stage's median
+        if not key and native:  # where the step's time goes: each stage's median
             out["stage_p50_ms"] = {k: round(1000 * float(np.median(np.array(v)[20:])), 3) for k, v in crowd.timings.stage_s.items()}
     out.setdefault("paced_p50_ms", None), out.setdefault("paced_p99_ms", None)
     out["per_character_us"] = round(1000 * out["p50_ms"] / characters, 1)
@@ -201,13 +215,15 @@ def _offline_and_stream(animator: Animator, motion, tau: float, repeat: int, pac
 
 def bench(vertices: int, windows: int, seconds: float, model: str | None = None, motion_file: str | None = None,
           pace: float = 30.0, crowd: list[int] | None = None, repeat: int = 3, precision: str = "float32",
-          crowd_frames: int = 300, crowd_bodies_repeat: int = 0, decoder: str = "full", offline: bool = True) -> dict:
+          crowd_frames: int = 300, crowd_bodies_repeat: int = 0, decoder: str = "full", offline: bool = True,
+          device: str = "native") -> dict:
     """``model``: a trained bundle instead of random weights (its own resolution, database and tau);
     ``motion_file``: a clip instead of the procedural curved walk; ``pace``: frames/s of the paced
     stream run (0: none); ``repeat``: timed passes per offline figure (their median); ``precision``:
     the mesh decoder's arithmetic for batches; ``crowd_frames``: steps per crowd run (the first 20
     are warm-up); ``decoder``: the full mesh decoder or the fast subspace one (streams and crowds);
-    ``offline``: also the offline and single-stream figures."""
+    ``offline``: also the offline and single-stream figures; ``device``: where the crowds run
+    ("native": the CPU kernels; a torch device: the regression as one torch step, e.g. cuda)."""
     animator = (Animator.load(model, precision=precision) if model
                 else Animator(random_bundle(vertices, windows), precision=precision))
     bundle = animator.bundle
@@ -215,11 +231,12 @@ def bench(vertices: int, windows: int, seconds: float, model: str | None = None,
     tau = bundle.tau if model else _median_entropy_tau(bundle, motion)
     out = {"vertices": bundle.template.num_vertices, "database_windows": len(bundle.database), "clip_frames": motion.num_frames,
            "threads": torch.get_num_threads(), "precision": precision, "model": model or "random weights", "motion": motion_file or "procedural walk_curve",
-           "decoder": decoder}
+           "decoder": decoder, "crowd_device": device}
     if offline:
         out.update(_offline_and_stream(animator, motion, tau, repeat, pace, decoder))
     if crowd:
-        out["crowd"] = {str(n): bench_crowd(animator, motion, tau, n, pace, crowd_frames, decoder=decoder) for n in crowd}
+        out["crowd"] = {str(n): bench_crowd(animator, motion, tau, n, pace, crowd_frames, decoder=decoder, device=device)
+                        for n in crowd}
         if crowd_bodies_repeat:
             out["crowd_bodies"] = {str(n): bench_crowd_bodies(animator, motion, tau, n, crowd_frames, crowd_bodies_repeat,
                                                               decoder=decoder) for n in crowd}
@@ -249,13 +266,16 @@ def main() -> None:
                         help="the mesh decoder's arithmetic for batches (crowds, offline); bfloat16 needs AMX")
     parser.add_argument("--decoder", choices=("full", "fast"), default="full",
                         help="the mesh decoder: full, or fast (the subspace decoder; random weights get a random one)")
+    parser.add_argument("--device", default="native",
+                        help="where crowds run: native (the CPU kernels, the hybrid) or a torch device such as cuda "
+                             "(the regression as one torch step)")
     parser.add_argument("--crowd-only", action="store_true", help="only the crowds (no offline or single-stream figures)")
     parser.add_argument("--json", action="store_true", help="one JSON object per resolution, nothing else")
     args = parser.parse_args()
     for v in ([None] if args.model else args.vertices):
         r = bench(v, args.database, args.seconds, args.model, args.motion, args.pace, args.crowd, args.repeat, args.precision,
                   args.crowd_frames, args.crowd_repeat if args.crowd_bodies else 0, decoder=args.decoder,
-                  offline=not args.crowd_only)
+                  offline=not args.crowd_only, device=args.device)
         if args.json:
             print(json.dumps(r))
             continue
@@ -270,10 +290,11 @@ def main() -> None:
                      if args.pace else ""))
             print("  streamed frame, median ms per stage: " + ", ".join(f"{k} {v}" for k, v in r["stream_stage_p50_ms"].items()))
         for n, c in r.get("crowd", {}).items():
-            print(f"  crowd of {n}: step p50 {c['p50_ms']} ms, p99 {c['p99_ms']} ms (paced p50 {c['paced_p50_ms']}, "
+            print(f"  crowd of {n} ({r['crowd_device']}): step p50 {c['p50_ms']} ms, p99 {c['p99_ms']} ms (paced p50 {c['paced_p50_ms']}, "
                   f"p99 {c['paced_p99_ms']}); {c['per_character_us']} us a character, "
-                  f"{c['character_frames_per_s']} character-frames/s; median ms per stage: "
-                  + ", ".join(f"{k} {v}" for k, v in c["stage_p50_ms"].items()))
+                  f"{c['character_frames_per_s']} character-frames/s"
+                  + ("; median ms per stage: " + ", ".join(f"{k} {v}" for k, v in c["stage_p50_ms"].items())
+                     if "stage_p50_ms" in c else ""))
         for n, c in r.get("crowd_bodies", {}).items():
             print(f"  crowd of {n} on {n} bodies against one body: step p99 ratio {c['p99_ratio_median']} "
                   f"(each alternation: {c['p99_ratios']})")

@@ -21,7 +21,7 @@ from typing import Sequence
 
 from ..errors import InputError
 from ..io_utils import refuse_input_as_output, require_suffix
-from ._common import run_cli
+from ._common import add_decoder_option, run_cli
 
 TOLERANCE_MM = 0.1  # the ONNX stream's largest gap from the Python stream that --check accepts
 
@@ -38,6 +38,7 @@ def _parser() -> argparse.ArgumentParser:
                    help="export for a body unlike the model's training bodies anyway (warned)")
     p.add_argument("--no-collision", action="store_true",
                    help="leave the push-out out of the graph (an engine with its own collision)")
+    add_decoder_option(p)
     p.add_argument("--check", type=Path, default=None, metavar="CLIP",
                    help="stream this motion file through the graph and the Python stream and compare")
     return p
@@ -61,7 +62,9 @@ def _main(argv: Sequence[str] | None) -> int:
     if args.garment is not None and animator.bundle.garment != args.garment:
         raise InputError(model_dir, f"this model animates a {animator.bundle.garment}, not a {args.garment}")
     body = animator.body(args.body, allow_outside=args.allow_outside_body) if args.body else None
-    written = export_onnx(animator, args.output, body, push_out=not args.no_collision)
+    if args.decoder == "fast":
+        animator.resolve(decoder="fast")  # a model without the fast decoder is refused before the export's minute
+    written = export_onnx(animator, args.output, body, push_out=not args.no_collision, decoder=args.decoder or "full")
     size = written.graph.stat().st_size / 2**20
     print(f"wrote {written.graph} ({size:.1f} MiB, {written.vertices} vertices) and {written.tensors.name} "
           f"in {written.seconds:.0f} s")

@@ -81,15 +81,18 @@ def initial_state(shapes: dict[str, tuple[int, ...]], characters: int) -> dict[s
     return {name: np.zeros((characters, *shape), np.float32) for name, shape in shapes.items()}
 
 
-def export_onnx(animator, path: str | Path, body=None, *, push_out: bool = True, allow_outside: bool = False) -> OnnxExport:
+def export_onnx(animator, path: str | Path, body=None, *, push_out: bool = True, allow_outside: bool = False,
+                decoder: str = "full") -> OnnxExport:
     """Write ``path`` (.onnx, one file) and its companion ``<stem>.tensors.npz``, atomically.
-    ``body``: what :meth:`~hrr_garment.inference.animator.Animator.body` takes (None: the model's own)."""
+    ``body``: what :meth:`~hrr_garment.inference.animator.Animator.body` takes (None: the model's own);
+    ``decoder``: "full" (the mesh decoder's folded kernels) or "fast" (the subspace decoder: a graph
+    a fraction of the size and a step a fraction of the time)."""
     onnx = _require_onnx()
     path = Path(path)
     require_suffix(path, (".onnx",), "an ONNX model")
     t0 = time.perf_counter()
     character = animator.body(body, allow_outside=allow_outside)
-    step = stream_step(animator, character, push_out=push_out)
+    step = stream_step(animator, character, push_out=push_out, decoder=decoder)
     shapes = state_shapes(step)
     example = _example_inputs(shapes, 2)
     n = torch.export.Dim("characters", min=1, max=4096)
@@ -101,7 +104,7 @@ def export_onnx(animator, path: str | Path, body=None, *, push_out: bool = True,
     model = program.model_proto
     bundle = animator.bundle
     meta = {"hrr_garment": __version__, "garment": bundle.garment, "content_hash": bundle.content_hash,
-            "fps": FPS, "push_out": bool(push_out), "body": character.name,
+            "fps": FPS, "push_out": bool(push_out), "body": character.name, "decoder": decoder,
             "vertices": int(bundle.template.num_vertices), "state": {k: list(v) for k, v in shapes.items()},
             "path": "regression"}
     for key, value in meta.items():
@@ -176,7 +179,8 @@ def check_onnx(animator, path: str | Path, motion: Motion, body=None, *, allow_o
     step time in milliseconds."""
     runner = OnnxStream(path)
     meta = runner.session.get_modelmeta().custom_metadata_map
-    python = animator.stream(mode="regression", collision=json.loads(meta["push_out"]), body=body, allow_outside=allow_outside)
+    python = animator.stream(mode="regression", collision=json.loads(meta["push_out"]), body=body, allow_outside=allow_outside,
+                             decoder=meta.get("decoder", "full"))
     quats, roots = motion_to_poses(motion)
     gaps, onnx_s, python_s = [], [], []
     for t in range(motion.num_frames):

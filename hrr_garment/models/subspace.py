@@ -79,12 +79,12 @@ class SubspaceDecoder(nn.Module):
 
     def coefficients(self, latents: torch.Tensor) -> torch.Tensor:
         """(B, N, C) -> (B, K) standardised coefficients (the network's raw output)."""
-        x = (latents.reshape(len(latents), -1) - self.latent_mean) / self.latent_std
+        x = (latents.flatten(1) - self.latent_mean) / self.latent_std
         return self.net(x)
 
     def vertices(self, coefficients: torch.Tensor) -> torch.Tensor:
         """(B, K) standardised coefficients -> (B, V, 3) vertices."""
-        return (self.mean + (coefficients * self.coeff_std) @ self.basis).reshape(len(coefficients), self.num_vertices, 3)
+        return (self.mean + (coefficients * self.coeff_std) @ self.basis).reshape(-1, self.num_vertices, 3)
 
     @torch.no_grad()
     def forward(self, latents: torch.Tensor) -> torch.Tensor:
@@ -92,7 +92,7 @@ class SubspaceDecoder(nn.Module):
         if self._scaled_basis is None or self.training or self._scaled_basis.device != self.basis.device:
             self._scaled_basis = (self.coeff_std[:, None] * self.basis).contiguous()
         c = self.coefficients(latents.to(torch.float32))
-        return torch.addmm(self.mean, c, self._scaled_basis).reshape(len(latents), self.num_vertices, 3)
+        return torch.addmm(self.mean, c, self._scaled_basis).reshape(-1, self.num_vertices, 3)
 
     def truncated(self, components: int) -> "SubspaceDecoder":
         """The same decoder through its first ``components`` components (a new module)."""

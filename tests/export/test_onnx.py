@@ -83,6 +83,18 @@ def test_the_graphs_push_out_limits_the_strain_as_the_library_does(exported):
     assert np.abs(ours - theirs).max() < 2e-5  # ... and the graph moved them the same
 
 
+def test_the_fast_decoders_graph_streams_as_the_python_stream_does(exported, tmp_path):
+    """The graph with the subspace decoder (hrr-export-model --decoder fast): smaller, and what the
+    Python stream with the same decoder gives."""
+    from hrr_garment.export.onnx_model import check_onnx, export_onnx
+
+    animator, full, clip = exported
+    written = export_onnx(animator, tmp_path / "fast.onnx", decoder="fast")
+    assert written.graph.stat().st_size < full.graph.stat().st_size
+    gap = check_onnx(animator, written.graph, clip.slice(0, 20))
+    assert gap["max_mm"] < 0.01
+
+
 @pytest.mark.tool
 def test_the_example_streams_with_numpy_and_onnxruntime_alone(exported, tmp_path):
     """examples/onnx_stream.py with hrr_garment and torch made unimportable: its first character's
