@@ -13,12 +13,14 @@ Files (all arrays as safetensors, nothing pickled)::
                                  bundles, every window in full: :class:`.database.CodeDatabase` reads both)
     template.safetensors         template vertices, faces, attached vertex indices, vertex groups (group/NAME)
     folds.safetensors            every database frame's simulated folds, for the detail mode (:mod:`.folds`)
+    direct.safetensors           the direct-regression baseline (hrr-train --stage baseline), where trained
+    subspace.safetensors         the fast decoder for games (hrr_garment/models/subspace.py), where trained
 
 ``bundle.json`` is written last (:mod:`.bundle_writer`): a directory without it (or whose files do
 not match its hashes) is not a bundle, so an interrupted write never looks like a model.
 :func:`load_bundle` checks the version (older manifests are upgraded by
-:func:`~.manifest.migrate_manifest`), every file's hash and every tensor's shape, and says which and
-why when one is off.
+:func:`~.manifest.migrate_manifest`), every file's hash and every tensor's shape (:mod:`.bundle_parts`),
+and says which and why when one is off.
 """
 
 from __future__ import annotations
@@ -28,10 +30,6 @@ from functools import cached_property
 from pathlib import Path
 
 import numpy as np
-import torch
-from safetensors import SafetensorError
-from safetensors.numpy import load_file as load_arrays
-from safetensors.torch import load_file as load_tensors
 
 from ..body.body_file import BodyRecord, body_from_dict
 from ..body.capsules import DEFAULT_BODY, BodyModel
@@ -43,14 +41,14 @@ from ..models.codespace import CodeSpace, CodeSpaceConfig
 from ..models.direct import DirectConfig, DirectRegressor
 from ..models.fcmae import AutoencoderConfig, MeshAutoencoder
 from ..models.hierarchy import cached_hierarchy
-from ..models.subspace import SubspaceConfig, SubspaceDecoder
+from ..models.subspace import SubspaceDecoder
 from ..motion.features import FeatureStats
 from ..settings import require_number
+from .bundle_parts import load_arrays, load_folds, load_state, load_subspace
 from .database import CodeDatabase
-from .folds import FILE_KEYS as FOLD_FILE_KEYS
 from .folds import FoldStore
 from .gate_signals import GATE_SIGNALS
-from .manifest import FOLDS_FILE, NETWORKS, SUBSPACE_FILE, UNCALIBRATED_AUTO, BundleError, read_meta
+from .manifest import NETWORKS, UNCALIBRATED_AUTO, BundleError, read_meta
 from .residual import free_cloth_weights, node_hang_m
 
 MAX_SCALE_M = 10.0  # the autoencoder's vertex scale: the spread of a garment's training frames (centimetres)
@@ -204,48 +202,6 @@ class Bundle:
         return str(self.meta["content_hash"])
 
 
-def _load_state(module: torch.nn.Module, path: Path, folder: Path) -> None:
-    try:
-        state = load_tensors(str(path))
-    except (SafetensorError, OSError) as exc:
-        raise BundleError(folder, f"{path.name} is unreadable ({exc})") from None
-    expected = module.state_dict()
-    missing, extra = sorted(set(expected) - set(state)), sorted(set(state) - set(expected))
-    if missing or extra:
-        raise BundleError(folder, f"{path.name} does not fit the configured network (missing {missing[:3]}, unexpected {extra[:3]})")
-    for key, value in state.items():
-        if tuple(value.shape) != tuple(expected[key].shape):
-            raise BundleError(folder, f"{path.name}: {key} has shape {tuple(value.shape)}, the configuration needs "
-                                      f"{tuple(expected[key].shape)}")
-    bad = [key for key, value in state.items() if value.is_floating_point() and not torch.isfinite(value).all()]
-    if bad:
-        raise BundleError(folder, f"{path.name}: non-finite weights in {bad[:3]}")
-    # Weight decay leaves some never-used weights (e.g. attention projections) at denormal
-    # magnitudes (< 1.2e-38); CPUs take a slow path for each product with one, which doubled the
-    # motion encoder's time on a trained model. As weights they are zeros.
-    module.load_state_dict({key: _flush_denormals(value) for key, value in state.items()})
-
-
-def _flush_denormals(t: torch.Tensor) -> torch.Tensor:
-    if not t.is_floating_point():
-        return t
-    return torch.where(t.abs() < torch.finfo(t.dtype).tiny, torch.zeros((), dtype=t.dtype), t)
-
-
-def _arrays(folder: Path, name: str, keys: tuple[str, ...]) -> dict[str, np.ndarray]:
-    try:
-        arrays = load_arrays(str(folder / name))
-    except (SafetensorError, OSError) as exc:
-        raise BundleError(folder, f"{name} is unreadable ({exc})") from None
-    missing = [k for k in keys if k not in arrays]
-    if missing:
-        raise BundleError(folder, f"{name} lacks {missing}")
-    bad = [k for k, v in arrays.items() if np.issubdtype(v.dtype, np.floating) and not np.isfinite(v).all()]
-    if bad:
-        raise BundleError(folder, f"{name}: non-finite values in {bad[:3]}")
-    return arrays
-
-
 def load_bundle(folder: str | Path, cache_dir: Path | None = None) -> Bundle:
     """Load and check a bundle written by :func:`write_bundle`."""
     folder = Path(folder)
@@ -271,7 +227,7 @@ def _load_bundle(folder: Path, cache_dir: Path | None) -> Bundle:
         raise BundleError(folder, f"bundle.json has a bad or missing entry ({exc})") from None
     if features != cs_cfg.features:
         raise BundleError(folder, f"the model was trained on {features} motion features; its settings give {cs_cfg.features}")
-    t = _arrays(folder, "template.safetensors", ("vertices", "faces", "attached"))
+    t = load_arrays(folder, "template.safetensors", ("vertices", "faces", "attached"))
     groups = {k.split("/", 1)[1]: v for k, v in t.items() if k.startswith("group/")}  # the template's vertex groups, if any
     template = GarmentMesh(str(meta["garment"]), t["vertices"], t["faces"], groups={**groups, "attached": t["attached"]}, attached_groups=("attached",))
     try:
@@ -283,51 +239,27 @@ def _load_bundle(folder: Path, cache_dir: Path | None) -> Bundle:
         raise BundleError(folder, f"the template's sampling hierarchy has levels {list(hierarchy.sizes)}, the model "
                                   f"{meta['autoencoder'].get('sizes')}")
     autoencoder = MeshAutoencoder(hierarchy, ae_cfg, template.vertices, scale=float(scale))
-    _load_state(autoencoder, folder / "autoencoder.safetensors", folder)
+    load_state(autoencoder, folder / "autoencoder.safetensors", folder)
     codespace = CodeSpace(cs_cfg, features, latent_shape)
     for name in NETWORKS:
-        _load_state(getattr(codespace, name), folder / f"{name}.safetensors", folder)
-    s = _arrays(folder, "stats.safetensors", ("motion_mean", "motion_std", "latent_mean", "latent_std"))
-    d = _arrays(folder, "database.safetensors", ("codes", "sequence", "start"))
+        load_state(getattr(codespace, name), folder / f"{name}.safetensors", folder)
+    s = load_arrays(folder, "stats.safetensors", ("motion_mean", "motion_std", "latent_mean", "latent_std"))
+    d = load_arrays(folder, "database.safetensors", ("codes", "sequence", "start"))
     try:
         database = CodeDatabase.from_arrays(d, list(meta["database"]["names"]), int(meta["database"]["classes"]), cs_cfg.window)
     except (KeyError, TypeError, ValueError) as exc:
         raise BundleError(folder, f"database: {exc}") from None
     if database.latents.shape[1:] != (cs_cfg.window, *latent_shape) or database.codes.shape[1:] != (cs_cfg.groups,):
         raise BundleError(folder, f"database shapes {database.codes.shape} / {database.latents.shape} do not fit the configuration")
-    folds = _load_folds(folder, meta, template, database) if "folds" in meta else None
+    folds = load_folds(folder, meta, template, database) if "folds" in meta else None
     direct = None
     if "direct" in meta:  # the optional baseline (hrr-train --stage baseline)
         try:
             direct = DirectRegressor(DirectConfig.from_dict(meta["direct"]["config"]), features, latent_shape)
         except (KeyError, TypeError, ValueError) as exc:
             raise BundleError(folder, f"bundle.json has a bad 'direct' entry ({exc})") from None
-        _load_state(direct, folder / "direct.safetensors", folder)
+        load_state(direct, folder / "direct.safetensors", folder)
         direct.eval()
-    subspace = _load_subspace(folder, meta, latent_shape, template.num_vertices) if "subspace" in meta else None
+    subspace = load_subspace(folder, meta, latent_shape, template.num_vertices) if "subspace" in meta else None
     return Bundle(folder, meta, autoencoder.eval(), codespace.eval(), FeatureStats(s["motion_mean"], s["motion_std"]),
                   FeatureStats(s["latent_mean"], s["latent_std"]), database, template, direct, folds, subspace)
-
-
-def _load_subspace(folder: Path, meta: dict, latent_shape: tuple, num_vertices: int) -> SubspaceDecoder:
-    """The fast decoder, its size and settings from bundle.json's ``subspace`` entry."""
-    try:
-        model = SubspaceDecoder(latent_shape, num_vertices, int(meta["subspace"]["components"]),
-                                SubspaceConfig.from_dict(meta["subspace"]["config"]))
-    except (KeyError, TypeError, ValueError) as exc:
-        raise BundleError(folder, f"bundle.json has a bad 'subspace' entry ({exc})") from None
-    _load_state(model, folder / SUBSPACE_FILE, folder)
-    return model.eval()
-
-
-def _load_folds(folder: Path, meta: dict, template: GarmentMesh, database: CodeDatabase) -> FoldStore:
-    """The fold store, checked against the template and every database window it must cover."""
-    levels = FOLD_FILE_KEYS["levels"]
-    f = _arrays(folder, FOLDS_FILE, (levels, "scale", "offsets"))
-    try:
-        folds = FoldStore(f[levels], f["scale"], f["offsets"], passes=meta["folds"]["passes"])
-        folds.check_fits(template.num_vertices, len(database.names), database.sequence,
-                         database.start + database.latents.shape[1])
-    except (KeyError, TypeError, ValueError) as exc:
-        raise BundleError(folder, f"{FOLDS_FILE}: {exc}") from None
-    return folds

@@ -19,17 +19,15 @@ this module's numpy version is the reference and the fallback.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import cached_property
 
 import numpy as np
 from scipy.sparse import csr_matrix
 
 from ..body.capsules import DEFAULT_BODY, BodyModel, frames_signed_distance
-from ..garment.mesh import unique_edges
 from ..garment.smoothing import mean_operator
 from ..motion.motion import Motion
-from ..native.body import EdgeArrays, PushMesh
 from ..sim.quality import PENETRATION_DEPTH_M
+from .edge_limits import EdgeLimits
 
 # edges a push may stretch to (times their rest length): the simulator's own data reach 2.1-2.5 at
 # their worst frame and 1.12-1.15 at p99; a push that needs more is across a limb, not out of the body
@@ -46,83 +44,6 @@ class PushOutReport:
     inside_after: float
     worst_before: float  # worst frame
     worst_after: float
-
-
-@dataclass(frozen=True)
-class EdgeLimits:
-    """What the push-out's neighbour-follow and :func:`limit_push_strain` need of a garment, made
-    once per template (the streaming path calls the push-out every frame): its edges, their rest
-    lengths, the (V, E) incidence that moves an edge's two ends toward each other (+1 first vertex,
-    -1 second), each vertex's degree, its 1-ring as a padded table (V, D) with each neighbour's rest
-    distance (inf in the padding, which repeats the vertex itself), and the vertices in patches of
-    neighbours (the kernel measures a patch only against the capsules near it)."""
-
-    edges: np.ndarray
-    rest_length: np.ndarray
-    signs: csr_matrix
-    degree: np.ndarray
-    ring: np.ndarray  # (V, D) int32
-    ring_length: np.ndarray  # (V, D) float64, inf where padded
-    patches: tuple[np.ndarray, np.ndarray]  # (P + 1,) offsets into (V,) vertex indices, int32
-
-    @classmethod
-    def of(cls, faces: np.ndarray, rest: np.ndarray) -> "EdgeLimits":
-        edges = unique_edges(faces)
-        v, e = len(rest), len(edges)
-        signs = csr_matrix((np.r_[np.ones(e), -np.ones(e)], (np.r_[edges[:, 0], edges[:, 1]], np.r_[np.arange(e), np.arange(e)])),
-                           shape=(v, e))
-        degree = np.maximum(np.asarray(abs(signs).sum(1)).ravel(), 1.0)
-        ring, ring_length = _ring_table(mean_operator(faces, v), rest)
-        return cls(edges, np.linalg.norm(rest[edges[:, 1]] - rest[edges[:, 0]], axis=-1), signs, degree, ring, ring_length,
-                   _patches(rest))
-
-    def push_mesh(self, settings: "PushOutSettings") -> PushMesh:
-        """What the push-out's kernel takes of this garment under ``settings``, converted once per settings."""
-        key = (settings.follow, settings.follow_slope)
-        cache = self.__dict__.setdefault("_push_meshes", {})
-        if key not in cache:
-            cache[key] = PushMesh(self.ring, self.ring_length, settings.follow_slope, settings.follow, self.patches)
-        return cache[key]
-
-    @cached_property
-    def native_arrays(self) -> EdgeArrays:
-        """What the kernel takes, converted once (a stream limits every frame)."""
-        return EdgeArrays(edges=self.edges, rest_length=self.rest_length, degree=self.degree,
-                          vertex_edges_indptr=self.signs.indptr, vertex_edges_indices=self.signs.indices)
-
-    def lengths(self, p: np.ndarray) -> np.ndarray:
-        """(T, E) edge lengths of (T, V, 3) positions."""
-        return np.linalg.norm(p[:, self.edges[:, 1]] - p[:, self.edges[:, 0]], axis=-1)
-
-
-def _ring_table(mean: csr_matrix, rest: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Each vertex's neighbours in the mean operator's order, padded to the widest ring with the
-    vertex itself at an infinite distance, and their rest distances."""
-    counts = np.diff(mean.indptr)
-    width = max(int(counts.max(initial=0)), 1)
-    ring = np.repeat(np.arange(len(rest), dtype=np.int32)[:, None], width, 1)
-    slot = np.arange(len(mean.indices)) - np.repeat(mean.indptr[:-1], counts)
-    rows = np.repeat(np.arange(len(rest)), counts)
-    ring[rows, slot] = mean.indices
-    length = np.full(ring.shape, np.inf)
-    length[rows, slot] = np.linalg.norm(rest[mean.indices] - rest[rows], axis=-1)
-    return ring, length
-
-
-def _patches(rest: np.ndarray, size: int = 48) -> tuple[np.ndarray, np.ndarray]:
-    """The vertices split into patches of at most ``size`` by halving along the longest side:
-    (offsets (P + 1,), vertex indices (V,)), both int32."""
-    stack, groups = [np.arange(len(rest))], []
-    while stack:
-        part = stack.pop()
-        if len(part) <= size:
-            groups.append(part)
-            continue
-        axis = np.ptp(rest[part], 0).argmax()
-        order = part[np.argsort(rest[part, axis], kind="stable")]
-        stack += [order[len(order) // 2:], order[:len(order) // 2]]
-    return (np.r_[0, np.cumsum([len(g) for g in groups])].astype(np.int32),
-            np.concatenate(groups).astype(np.int32) if groups else np.zeros(0, np.int32))
 
 
 @dataclass(frozen=True)

@@ -29,7 +29,8 @@ from scipy.sparse import csr_matrix
 
 from ..artifacts.folds import DETAIL_STRENGTH
 from ..garment.smoothing import high_frequencies
-from .collision import EdgeLimits, limit_push_strain
+from .collision import limit_push_strain
+from .edge_limits import EdgeLimits
 
 FOLD_MAX_STRAIN = 1.5  # x rest length: the push-out's own limit (collision.MAX_PUSH_STRAIN)
 # projection passes: on folds out of place ten take the strain max where sixty do, in a quarter of
