@@ -51,6 +51,7 @@ from .decoding import flush_denormals
 from .detail import add_folds
 from .fold_track import FoldTrack
 from .gate import choose_windows
+from .lod import LodState, crowd_decode, crowd_latents, decoder_of, levels
 from .modes import Mode
 from .run_settings import ResolvedRun
 
@@ -68,6 +69,7 @@ class _Character:
     memory: np.ndarray | None = None  # its motion memory's state (rows, 64), when the model has one
     root: np.ndarray | None = None  # its last pushed pelvis position (teleports restart it)
     frames: int = 0
+    lod: LodState = field(default_factory=LodState)  # its level of detail's held step and decoder fade
 
 
 @dataclass
@@ -123,36 +125,39 @@ class CrowdStream:
         del self._characters[key]
         self._bodies.pop(key, None)
 
-    def push(self, rotations: np.ndarray, roots: np.ndarray, keys: Sequence[Hashable] | None = None) -> np.ndarray:
+    def push(self, rotations: np.ndarray, roots: np.ndarray, keys: Sequence[Hashable] | None = None, *,
+             lod=None) -> np.ndarray:
         """One frame of N characters: ``rotations`` (N, J, 4) quaternions (x, y, z, w), (N, J, 3)
         axis-angle or (N, J, 3, 3) matrices, local; ``roots`` (N, 3) pelvis positions, metres; ``keys``
-        one id per character (default 0 .. N-1; a new id joins). -> (N, V, 3) world vertices, float32."""
+        one id per character (default 0 .. N-1; a new id joins); ``lod``: each character's level of
+        detail (:mod:`.lod`; None: all at 0). -> (N, V, 3) world vertices, float32."""
         rotations, roots = np.asarray(rotations), np.asarray(roots)
         keys = list(range(len(rotations))) if keys is None else list(keys)
         if self.rig is not None:
             poses = self.rig.to_canonical(rotations, roots)
         else:
             poses = poses_to_motion(rotations, roots)
-        return self._push(keys, poses)
+        return self._push(keys, poses, lod)
 
-    def push_motions(self, poses: Mapping[Hashable, Motion]) -> np.ndarray:
+    def push_motions(self, poses: Mapping[Hashable, Motion], *, lod=None) -> np.ndarray:
         """One frame of each character as a one-frame :class:`Motion` on the canonical skeleton ->
-        (N, V, 3), rows in the mapping's order."""
+        (N, V, 3), rows in the mapping's order; ``lod`` as :meth:`push`."""
         for key, pose in poses.items():
             if pose.num_frames != 1:
                 raise InputError(pose.source or str(key), f"push one frame at a time (got {pose.num_frames})")
         motions = list(poses.values())
         stacked = motions[0] if len(motions) == 1 else Motion.concatenate(motions)
-        return self._push(list(poses), stacked)
+        return self._push(list(poses), stacked, lod)
 
-    def _push(self, keys: list, poses: Motion) -> np.ndarray:
+    def _push(self, keys: list, poses: Motion, lod=None) -> np.ndarray:
         """``poses``: one frame per key, as an N-frame motion (frames are characters here)."""
         t0 = time.perf_counter()
         if len(keys) != poses.num_frames or len(set(keys)) != len(keys):
             raise InputError("push", f"{poses.num_frames} poses need as many distinct keys, got {len(keys)} keys "
                                      f"({len(set(keys))} distinct)")
+        lv = None if lod is None else levels(lod, len(keys))
         with flush_denormals():
-            vertices = self._step_frame(keys, poses)
+            vertices = self._step_frame(keys, poses, lv)
         self.timings.latency_s.append(time.perf_counter() - t0)
         return vertices
 
@@ -196,6 +201,26 @@ class CrowdStream:
         stacked = self._stacked[1]
         return poses.on_skeletons(stacked.skeletons, stacked.root_scale), stacked
 
+    def _latents(self, chars: list[_Character], windows: np.ndarray, lv: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, bool]:
+        """The window step (motion encoder, gate, code-space decoder) of every character, or with
+        levels of detail of those whose level runs it now: (N, nodes, C) inertialized latents, (N, 2)
+        database matches, whether the mode lends folds."""
+        def choose(rows):
+            return choose_windows(self.animator.bundle, rows, self.run, last_frame=True, step=self._step)
+
+        def one(c, latent, retrieved, source):
+            return inertialize(c.inertializer, latent, retrieved, source=source, frame=c.frames)
+
+        if lv is not None:
+            latents = crowd_latents(chars, windows, lv, choose, one)
+            return latents, np.stack([c.lod.match for c in chars]), self.run.mode is Mode.DETAIL
+        choice = choose(windows)
+        path_latents, retrieved = latent_sources(choice)
+        latents = np.empty((len(chars), *choice.latents.shape[2:]), np.float32)
+        for i, c in enumerate(chars):
+            latents[i] = one(c, path_latents[i, -1], retrieved[i], choice.match[i])
+        return latents, choice.match, choice.lends_folds
+
     def _restart_teleported(self, keys: list, poses: Motion) -> None:
         """Forget the characters whose pelvis moved faster than :data:`MAX_ROOT_SPEED` since their
         last push (they start afresh this frame), each with a :class:`TeleportWarning`."""
@@ -210,7 +235,7 @@ class CrowdStream:
             warnings.warn(f"character {key!r}: the pelvis moved {jump[j]:.3g} m in one frame (over {MAX_ROOT_SPEED:g} m/s); "
                           "taken as a teleport, its garment starts afresh there", TeleportWarning, stacklevel=4)
 
-    def _step_frame(self, keys: list, poses: Motion) -> np.ndarray:
+    def _step_frame(self, keys: list, poses: Motion, lv: np.ndarray | None) -> np.ndarray:
         t = [time.perf_counter()]
         pin_workers()  # a game loop idles between frames: its next frame must not wait for workers to move
         window = self.animator.window
@@ -229,16 +254,19 @@ class CrowdStream:
             c.features.append(feat)
         windows = np.stack([np.stack(c.features) for c in chars])  # (N, W, F)
         t.append(time.perf_counter())
-        choice = choose_windows(self.animator.bundle, windows, self.run, last_frame=True, step=self._step)
-        path_latents, retrieved = latent_sources(choice)
-        latents = np.empty((len(chars), *choice.latents.shape[2:]), np.float32)
-        for i, c in enumerate(chars):
-            latents[i] = inertialize(c.inertializer, path_latents[i, -1], retrieved[i], source=choice.match[i], frame=c.frames)
+        if lv is None and any(c.lod.decoder is not None for c in chars):  # after levels of detail: all at 0, faded
+            lv = np.zeros(len(chars), np.int64)
+        latents, match, lends_folds = self._latents(chars, windows, lv)
         t.append(time.perf_counter())
-        with torch.no_grad():
-            local = self._decoder(torch.from_numpy(latents)).numpy()
-        if choice.lends_folds:  # the detail mode: each character's playhead one frame on, its folds added
-            local = add_folds(local, self._folds(chars, choice.match), self.animator.smoothing,
+        if lv is None:
+            with torch.no_grad():
+                local = self._decoder(torch.from_numpy(latents)).numpy()
+        else:
+            has_fast = self.animator.bundle.subspace is not None
+            names = [decoder_of(int(level), self.run.decoder, has_fast) for level in lv]
+            local = crowd_decode(chars, latents, names, {"full": self.animator.decoder, "fast": self.animator.bundle.subspace})
+        if lends_folds:  # the detail mode: each character's playhead one frame on, its folds added
+            local = add_folds(local, self._folds(chars, match), self.animator.smoothing,
                               passes=self.animator.bundle.folds.passes, strength=self.run.detail.strength,
                               limits=self.animator.edge_limits)
         t.append(time.perf_counter())

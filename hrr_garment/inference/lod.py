@@ -1,0 +1,139 @@
+"""Level of detail for a crowd's characters (``crowd.push(..., lod=...)``): what each character's
+step runs, chosen per character per frame, and the cross-fade that hides a change.
+
+    crowd.push(rotations, roots, keys, lod=[0, 0, 1, 4])   # near, near, mid, far
+
+- level 0: the crowd's own decoder (its run settings' ``decoder``), the window step every frame;
+- level 1: the fast (subspace) decoder every frame, where the model has one;
+- level k >= 2: the fast decoder, and the window step (motion encoder, gate, code-space decoder)
+  only every k-th of the character's frames; in between its latent is held. The features and the
+  motion memory still advance every frame, so the window is current when the step runs again.
+
+No pop: a change of decoder is cross-faded in the body frame: on the frame of the change both
+decoders decode the character's latent, and their difference is added to the new decoder's output,
+fading to nothing over ``fade`` frames (smoothstep), so a frame moves at most about 1.5 / ``fade``
+of the difference more than the cloth itself moves. A held latent goes through the character's
+inertialization like a change of source, so the latent that arrives when the step runs again is
+blended in, not jumped to (:class:`~.blending.Inertializer`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+FADE_FRAMES = 8  # frames a decoder change fades over
+
+
+def levels(lod, count: int) -> np.ndarray:
+    """``lod`` (None, an int for all, or one per character) as (count,) non-negative ints; a
+    ValueError naming what is wrong otherwise."""
+    if lod is None:
+        return np.zeros(count, np.int64)
+    values = np.asarray(lod)
+    if values.ndim == 0:
+        values = np.full(count, values)
+    if values.shape != (count,) or not np.issubdtype(values.dtype, np.integer) or (values < 0).any():
+        raise ValueError(f"lod takes a level >= 0 per character (or one for all), got {lod!r} for {count} characters")
+    return values.astype(np.int64)
+
+
+def decoder_of(level: int, run_decoder: str, has_fast: bool) -> str:
+    """The decoder a character at ``level`` runs: the crowd's at level 0, the fast one above (where there is one)."""
+    return "fast" if level >= 1 and has_fast else run_decoder
+
+
+def steps_now(level: int, frame: int) -> bool:
+    """Whether a character at ``level`` runs the window step on its ``frame``-th frame (its first always)."""
+    return level < 2 or frame % level == 0
+
+
+@dataclass
+class DecoderFade:
+    """What is left of a decoder change: the old decoder's output minus the new one's on the frame
+    of the change, and the frames the fade has run."""
+
+    difference: np.ndarray  # (V, 3)
+    frame: int = 0
+    frames: int = FADE_FRAMES
+
+    def weight(self) -> float:
+        """The difference's weight this frame: 1 at the change, down to 0 (smoothstep)."""
+        x = min(self.frame / self.frames, 1.0)
+        return 1.0 - x * x * (3.0 - 2.0 * x)
+
+    def apply(self, local: np.ndarray) -> np.ndarray:
+        """This frame's body-frame vertices with the fading difference added; advances the fade."""
+        out = local + np.float32(self.weight()) * self.difference
+        self.frame += 1
+        return out
+
+    @property
+    def done(self) -> bool:
+        return self.frame > self.frames
+
+
+@dataclass
+class LodState:
+    """A character's level-of-detail state: its last window step's latent and match (held between
+    steps), the decoder it last ran and the fade of a change of decoder."""
+
+    latent: np.ndarray | None = None  # (nodes, C) the last window step's latent, before inertialization
+    match: np.ndarray | None = None  # (2,) that step's database match (sequence, start) or -1
+    since: int = 0  # the character's frame of that step
+    decoder: str | None = None
+    fade: DecoderFade | None = None
+
+
+def crowd_latents(chars: list, windows: np.ndarray, lv: np.ndarray, choose, inertialize_one) -> np.ndarray:
+    """The window step for the characters whose level runs it this frame, their held latents for
+    the others: -> (N, nodes, C) inertialized latents (each character's ``lod`` holds its match).
+    ``choose``: windows (n, W, F) -> :class:`~.gate.WindowChoice`; ``inertialize_one``:
+    (character, latent, retrieved, match) -> its inertialized latent."""
+    stepping = np.array([steps_now(int(level), c.frames) or c.lod.latent is None for level, c in zip(lv, chars)])
+    rows = np.flatnonzero(stepping)
+    held = next((c.lod.latent for c in chars if c.lod.latent is not None), None)
+    if rows.size:
+        choice = choose(windows[rows])
+        shape = choice.latents.shape[2:]
+    else:
+        choice, shape = None, held.shape
+    latents = np.empty((len(chars), *shape), np.float32)
+    for j, i in enumerate(rows):
+        c = chars[i]
+        c.lod.latent, c.lod.match, c.lod.since = choice.latents[j, -1], choice.match[j], c.frames
+        latents[i] = inertialize_one(c, choice.latents[j, -1], choice.follows_match[j], choice.match[j])
+    for i in np.flatnonzero(~stepping):  # held: a source of its own, so the next step's latent is blended in
+        c = chars[i]
+        latents[i] = c.inertializer.step(c.lod.latent.astype(np.float64), ("held", c.lod.since))
+    return latents
+
+
+def crowd_decode(chars: list, latents: np.ndarray, names: list[str], decoders: dict) -> np.ndarray:
+    """(N, V, 3) body-frame vertices: each character through the decoder ``names[i]`` (a key of
+    ``decoders``), those of one decoder in one batch; a character whose decoder changed since its
+    last frame gets the change's difference cross-faded (:class:`DecoderFade`)."""
+    import torch
+
+    out = None
+    for name in dict.fromkeys(names):
+        rows = [i for i, n in enumerate(names) if n == name]
+        with torch.no_grad():
+            decoded = decoders[name](torch.from_numpy(np.ascontiguousarray(latents[rows]))).numpy()
+        if out is None:
+            out = np.empty((len(chars), *decoded.shape[1:]), np.float32)
+        out[rows] = decoded
+    for i, c in enumerate(chars):
+        state = c.lod
+        if state.decoder is not None and state.decoder != names[i]:
+            with torch.no_grad():
+                before = decoders[state.decoder](torch.from_numpy(latents[i:i + 1])).numpy()[0]
+            previous = state.fade.apply(before) if state.fade is not None and not state.fade.done else before
+            state.fade = DecoderFade(previous - out[i])
+        state.decoder = names[i]
+        if state.fade is not None:
+            out[i] = state.fade.apply(out[i])
+            if state.fade.done:
+                state.fade = None
+    return out
