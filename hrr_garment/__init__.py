@@ -33,7 +33,7 @@ from .motion.synth import synthesize
 from .motion.windows import windows
 from .sim.simulator import SimConfig, SimResult, SimulationExploded, simulate_garment
 
-_LAZY = {"Animation": "inference.animation", "AnimationStream": "inference.stream", "CrowdStream": "inference.stream", "Animator": "inference.animator",
+_LAZY = {"Animation": "inference.animation", "AnimationStream": "inference.character_stream", "CrowdStream": "inference.stream", "Animator": "inference.animator",
          "Bundle": "artifacts.bundle", "BundleError": "artifacts.bundle", "load_bundle": "artifacts.bundle"}
 
 

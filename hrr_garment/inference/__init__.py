@@ -1,11 +1,12 @@
 """Hybrid inference: a motion in, an animated garment out (paper 3.5, DESIGN 7).
 
 Modules: :mod:`.animator` (the API: Animator), :mod:`.animation` (its result), :mod:`.stream`
-(AnimationStream, and CrowdStream for many characters in one call), :mod:`.torch_crowd` (a crowd
-as one torch step on a GPU: :mod:`.torch_step`, :mod:`.torch_push_out`), :mod:`.modes`,
-:mod:`.gate` (retrieval or regression per window), :mod:`.blending` (windows to frames,
-inertialization), :mod:`.decoding` (the mesh decoder, the denormal switch), :mod:`.collision`
-(push-out and strain limit; :mod:`.edge_limits` what they need of a garment). The code-space step itself is :mod:`hrr_garment.models.codes`.
+(CrowdStream: many characters in one call; :mod:`.character_stream` one character; :mod:`.lod`
+levels of detail), :mod:`.torch_crowd` (a crowd as one torch step on a GPU: :mod:`.torch_step`,
+:mod:`.torch_push_out`), :mod:`.modes`, :mod:`.gate` (retrieval or regression per window),
+:mod:`.blending` (windows to frames, inertialization), :mod:`.decoding` (the mesh decoder, the
+denormal switch), :mod:`.collision` (push-out and strain limit; :mod:`.edge_limits` what they need
+of a garment). The code-space step itself is :mod:`hrr_garment.models.codes`.
 
 Offline (default): features of the whole clip -> every window (stride 1, W frames, centred
 coverage) -> motion encoder -> code distribution -> per window, retrieval from the database when

@@ -34,6 +34,7 @@ from ..paths import workspace
 from .animation import Animation
 from .blending import blend_windows, causal_latents
 from .bodies import CharacterBody, character_body
+from .character_stream import AnimationStream
 from .collision import push_out
 from .decoding import body_frame_vertices, flush_denormals
 from .detail import add_folds
@@ -42,7 +43,7 @@ from .fold_track import causal_proposals, offline_proposals, track_folds
 from .gate import WindowChoice, choose_windows
 from .modes import CODE_MODES, Mode
 from .run_settings import ResolvedRun, RunSettings, run_settings
-from .stream import AnimationStream, CrowdStream
+from .stream import CrowdStream
 
 
 def find_model(name_or_dir: str | Path) -> Path:
@@ -221,7 +222,7 @@ class Animator:
 
     def stream(self, settings: RunSettings | None = None, *, rig=None, body=None, allow_outside: bool = False,
                **changes) -> AnimationStream:
-        """One character, causal, one pose in and one frame out (:class:`~.stream.AnimationStream`);
+        """One character, causal, one pose in and one frame out (:class:`~.character_stream.AnimationStream`);
         ``settings`` and keyword ``changes`` as :meth:`animate` (a stream is causal whatever they
         say; its settings hold for its life); ``rig``: a
         :class:`~hrr_garment.motion.stream_rig.StreamRig` for poses on a source skeleton;
