@@ -21,14 +21,13 @@ import numpy as np
 import torch
 from tqdm import tqdm
 
-from ..artifacts.bundle import load_bundle
 from ..artifacts.bundle_writer import add_bundle_part
-from ..data.dataset import DatasetError, GarmentDataset
 from ..data.windows import dataset_features
 from ..io_utils import atomic_write_text, strict_json
 from ..models.direct import DirectConfig, DirectRegressor
 from ..settings import from_settings
 from .autoencoder import body_frames
+from .bundle_stage import bundle_and_dataset
 from .checkpoint import keep_if_best, load_checkpoint, resume_log, save_checkpoint
 from .report import StageReport
 
@@ -129,11 +128,7 @@ def run_baseline_stage(dataset: str | Path, folder: str | Path, config: DirectCo
     ``metrics`` is its ``direct`` entry in bundle.json."""
     t0 = time.perf_counter()
     folder = Path(folder)
-    bundle = load_bundle(folder, cache_dir)
-    ds = GarmentDataset(dataset)
-    if ds.garment != bundle.garment or ds.template.num_vertices != bundle.template.num_vertices:
-        raise DatasetError(dataset, f"is not the dataset of the model in {folder} ({bundle.garment}, "
-                                    f"{bundle.template.num_vertices} vertices)")
+    bundle, ds = bundle_and_dataset(folder, dataset, cache_dir)
     base_files = {k: v for k, v in bundle.meta["files"].items() if k != "direct.safetensors"}
     key = hashlib.sha1(json.dumps([config.to_dict(), asdict(train_config) | {"max_minutes": None}, base_files, ds.splits],
                                   sort_keys=True).encode()).hexdigest()[:16]

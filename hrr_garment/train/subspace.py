@@ -26,14 +26,14 @@ import numpy as np
 import torch
 from tqdm import tqdm
 
-from ..artifacts.bundle import load_bundle
 from ..artifacts.bundle_writer import add_bundle_part
 from ..artifacts.manifest import SUBSPACE_FILE
-from ..data.dataset import DatasetError, GarmentDataset
+from ..data.dataset import DatasetError
 from ..io_utils import atomic_write_text, strict_json
 from ..models.subspace import SubspaceConfig, SubspaceDecoder, principal_components
 from ..settings import from_settings, require_number
 from .autoencoder import body_frames
+from .bundle_stage import bundle_and_dataset
 from .checkpoint import keep_if_best, load_checkpoint, resume_log, save_checkpoint
 from .report import StageReport
 
@@ -148,11 +148,7 @@ def run_subspace_stage(dataset: str | Path, folder: str | Path, config: Subspace
     its ``subspace`` entry in bundle.json is the report's ``metrics``."""
     t0 = time.perf_counter()
     folder = Path(folder)
-    bundle = load_bundle(folder, cache_dir)
-    ds = GarmentDataset(dataset)
-    if ds.garment != bundle.garment or ds.template.num_vertices != bundle.template.num_vertices:
-        raise DatasetError(dataset, f"is not the dataset of the model in {folder} ({bundle.garment}, "
-                                    f"{bundle.template.num_vertices} vertices)")
+    bundle, ds = bundle_and_dataset(folder, dataset, cache_dir)
     names = {k: ds.splits[k] for k in ("train", "val")}
     if not names["val"]:
         raise DatasetError(dataset, "has no validation sequences: the subspace decoder's size is chosen on them")
