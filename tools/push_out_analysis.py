@@ -63,9 +63,10 @@ def analyse(model: str, dataset: str, split: str, follows: list[int], slope: flo
         anim = animator.animate(record.motion, collision=False)
         plain["unpushed"].append(edge_strain(anim.vertices, rest, edges))
         plain["simulation"].append(edge_strain(record.garment, rest, edges))
-        for label, settings in rows.items():
-            bare, _ = push_out(anim.vertices, record.motion, faces, body=animator.body().body, settings=settings,
-                               mean=animator.smoothing, report=False)
+        for label, settings in rows.items():  # the push alone (its follow included), then with its strain limit
+            bare, _ = push_out(anim.vertices, record.motion, faces, body=animator.body().body,
+                               settings=dataclasses.replace(settings, max_strain=np.inf), mean=animator.smoothing,
+                               limits=animator.edge_limits, report=False)
             _, torn = limit_push_strain(bare, anim.vertices, animator.edge_limits, settings.max_strain)
             out, _ = push_out(anim.vertices, record.motion, faces, body=animator.body().body, settings=settings,
                               mean=animator.smoothing, limits=animator.edge_limits, report=False)

@@ -31,8 +31,11 @@ from ..settings import SettingsError, from_settings, require_number
 class SubspaceConfig:
     """The subspace decoder's sizes (``subspace.model`` in the training configuration)."""
 
-    max_components: int = 256  # basis vectors fitted; training keeps the fewest that meet the tolerance
-    hidden: int = 512  # width of each hidden layer of the network from latents to coefficients
+    # basis vectors fitted; training keeps the fewest that meet the tolerance. On real-quick's dress
+    # (1,046 vertices) the components alone reproduce the full decoder to 2.4 mm at 256, 0.9 at 384,
+    # 0.5 at 512 (the full decoder's own error: 3.0 mm)
+    max_components: int = 512
+    hidden: int = 1024  # width of each hidden layer of the network from latents to coefficients
     layers: int = 2  # hidden layers (ELU)
 
     def __post_init__(self) -> None:

@@ -9,7 +9,7 @@
    ``epochs`` passes, the best validation epoch kept; checkpointed each epoch in ``MODEL/subspace/``.
 3. On the validation sequences, the full decoder's error against the simulation and the fast
    decoder's at each candidate size: the fewest components whose error is at most ``tolerance``
-   times the full decoder's are kept (else the largest), recorded in bundle.json ``subspace``
+   times the full decoder's are kept (else the fewest within 1 % of the most accurate), recorded in bundle.json ``subspace``
    beside every candidate's number, and the weights join the bundle as ``subspace.safetensors``.
 """
 
@@ -38,13 +38,14 @@ from .checkpoint import keep_if_best, load_checkpoint, resume_log, save_checkpoi
 from .report import StageReport
 
 CANDIDATES = (16, 32, 64, 96, 128, 192, 256, 384, 512)  # component counts tried, up to max_components
+STAGE_VERSION = 2  # moves when the stage would give another result from the same inputs (2: the size's fallback)
 
 
 @dataclass(frozen=True)
 class SubspaceTrainConfig:
     """The subspace stage's training settings (``subspace.train``)."""
 
-    epochs: int = 30
+    epochs: int = 60
     batch_size: int = 512
     learning_rate: float = 1e-3
     pca_frames: int = 20_000  # training frames sampled for the principal components
@@ -136,9 +137,10 @@ def validation_errors(model: SubspaceDecoder, latents: np.ndarray, truth: np.nda
 
 
 def pick_components(errors: dict[int, float], full_mm: float, tolerance: float) -> int:
-    """The fewest components whose error is at most ``tolerance`` x ``full_mm``; the most accurate otherwise."""
-    within = [k for k, e in sorted(errors.items()) if e <= tolerance * full_mm]
-    return within[0] if within else min(errors, key=errors.get)
+    """The fewest components whose error is at most ``tolerance`` x ``full_mm``; where none is,
+    the fewest within 1 % of the most accurate (more components would cost more for nothing)."""
+    bound = tolerance * full_mm if min(errors.values()) <= tolerance * full_mm else 1.01 * min(errors.values())
+    return min(k for k, e in errors.items() if e <= bound)
 
 
 def run_subspace_stage(dataset: str | Path, folder: str | Path, config: SubspaceConfig = SubspaceConfig(),
@@ -152,7 +154,7 @@ def run_subspace_stage(dataset: str | Path, folder: str | Path, config: Subspace
     names = {k: ds.splits[k] for k in ("train", "val")}
     if not names["val"]:
         raise DatasetError(dataset, "has no validation sequences: the subspace decoder's size is chosen on them")
-    key = hashlib.sha1(json.dumps([config.to_dict(), asdict(train_config), bundle.meta["files"]["autoencoder.safetensors"],
+    key = hashlib.sha1(json.dumps([STAGE_VERSION, config.to_dict(), asdict(train_config), bundle.meta["files"]["autoencoder.safetensors"],
                                    ds.splits], sort_keys=True).encode()).hexdigest()[:16]
     if bundle.meta.get("subspace", {}).get("key") == key:
         return _stage_report({**bundle.meta["subspace"], "reused": True}, folder, reused=True)

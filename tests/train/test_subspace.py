@@ -30,6 +30,12 @@ def test_the_fast_decoder_is_distilled_from_the_full_one(trained):
     full, fast = bundle.autoencoder.fast_decoder()(z).numpy(), bundle.subspace(z).numpy()
     spread = np.linalg.norm(full - full.mean(0), axis=-1).mean()  # what the mean frame alone would miss
     assert np.linalg.norm(fast - full, axis=-1).mean() < 0.35 * spread
+    from hrr_garment.models.subspace import SubspaceConfig
+    from hrr_garment.train.subspace import SubspaceTrainConfig, run_subspace_stage
+
+    again = run_subspace_stage(data, root / "model", SubspaceConfig(**entry["config"]), SubspaceTrainConfig(**entry["train"]),
+                               progress=False)
+    assert again.reused and again.metrics["components"] == kept  # a finished stage is not redone
 
 
 def test_runs_take_the_fast_decoder_and_record_it(trained, tmp_path):
