@@ -16,7 +16,7 @@ the push-out off), then the push-out under each setting asked for, and reports p
   ``repeat`` passes.
 
     python tools/push_out_analysis.py --model hrr_work/models/dress-real-quick \\
-        --dataset hrr_work/datasets/dress-real-quick.h5 --split test --follow 0 6 --sequences 12
+        --dataset hrr_work/datasets/dress-real-quick.h5 --split test --follow 0 6 --slack 0 0.1 --sequences 12
 """
 
 from __future__ import annotations
@@ -44,18 +44,25 @@ def _timed_us(vertices: np.ndarray, motion, faces, animator, settings, crowd: in
     return 1e6 * float(np.median(per_frame)) if per_frame else float("nan")
 
 
-def analyse(model: str, dataset: str, split: str, follows: list[int], slope: float, sequences: int, crowd: int,
-            repeat: int) -> dict:
+def push_out_rows(follows: list[int], slope: float, slacks: list[float]) -> dict:
+    """The push-out settings compared, by label: each follow with each slack."""
+    from hrr_garment.inference.collision import PUSH_OUT
+
+    return {f"follow {f}, slack {k:g}": dataclasses.replace(PUSH_OUT, follow=f, follow_slope=slope, stretch_slack=k)
+            for f in follows for k in slacks}
+
+
+def analyse(model: str, dataset: str, split: str, rows: dict, sequences: int, crowd: int, repeat: int) -> dict:
+    """``rows``: label -> :class:`~hrr_garment.inference.collision.PushOutSettings` (:func:`push_out_rows`)."""
     from hrr_garment.data.dataset import GarmentDataset
     from hrr_garment.inference.animator import Animator
-    from hrr_garment.inference.collision import PUSH_OUT, limit_push_strain, push_out
+    from hrr_garment.inference.collision import limit_push_strain, push_out
     from hrr_garment.sim.quality import body_signed_distance, edge_strain
 
     animator = Animator.load(model)
     ds = GarmentDataset(dataset)
     names = ds.splits[split][:sequences]
     faces, rest, edges = ds.template.faces, ds.template.vertices, ds.template.edges()
-    rows = {f"follow {f}": dataclasses.replace(PUSH_OUT, follow=f, follow_slope=slope) for f in follows}
     found = {k: {"limited": [], "torn": [], "strain": [], "inside": [], "us": []} for k in rows}
     plain = {"unpushed": [], "simulation": []}
     for name in names:
@@ -67,7 +74,8 @@ def analyse(model: str, dataset: str, split: str, follows: list[int], slope: flo
             bare, _ = push_out(anim.vertices, record.motion, faces, body=animator.body().body,
                                settings=dataclasses.replace(settings, max_strain=np.inf), mean=animator.smoothing,
                                limits=animator.edge_limits, report=False)
-            _, torn = limit_push_strain(bare, anim.vertices, animator.edge_limits, settings.max_strain)
+            _, torn = limit_push_strain(bare, anim.vertices, animator.edge_limits, settings.max_strain,
+                                        slack=settings.stretch_slack)
             out, _ = push_out(anim.vertices, record.motion, faces, body=animator.body().body, settings=settings,
                               mean=animator.smoothing, limits=animator.edge_limits, report=False)
             found[label]["torn"].append(torn)
@@ -75,8 +83,7 @@ def analyse(model: str, dataset: str, split: str, follows: list[int], slope: flo
             found[label]["strain"].append(edge_strain(out, rest, edges))
             found[label]["inside"].append((body_signed_distance(out, record.motion, animator.body().body) < -0.005).mean(1))
             found[label]["us"].append(_timed_us(anim.vertices, record.motion, faces, animator, settings, crowd, repeat))
-    report = {"model": model, "dataset": dataset, "split": split, "sequences": names, "crowd": crowd,
-              "follow_slope": slope, "rows": {}}
+    report = {"model": model, "dataset": dataset, "split": split, "sequences": names, "crowd": crowd, "rows": {}}
     for label, f in found.items():
         strain = np.concatenate(f["strain"])
         report["rows"][label] = {
@@ -99,12 +106,15 @@ def main() -> None:
     parser.add_argument("--split", default="test")
     parser.add_argument("--follow", type=int, nargs="+", default=[0, 6], help="neighbour-follow passes to compare")
     parser.add_argument("--slope", type=float, default=0.25, help="the follow's slope (of the rest distance)")
+    parser.add_argument("--slack", type=float, nargs="+", default=[0.1],
+                        help="the strain limit's slack over an edge the decoder stretched (of the rest length)")
     parser.add_argument("--sequences", type=int, default=12, help="the split's first N clips")
     parser.add_argument("--crowd", type=int, default=32, help="frames per timed push-out call (a crowd's characters)")
     parser.add_argument("--repeat", type=int, default=2)
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args()
-    report = analyse(args.model, args.dataset, args.split, args.follow, args.slope, args.sequences, args.crowd, args.repeat)
+    report = analyse(args.model, args.dataset, args.split, push_out_rows(args.follow, args.slope, args.slack),
+                     args.sequences, args.crowd, args.repeat)
     if args.json:
         print(json.dumps(report))
         return

@@ -2,15 +2,14 @@
 
 Per frame, every vertex within ``margin`` of the capsule body (or inside it) needs to move along
 the nearest capsule's outward normal to ``margin`` outside. Moving only those vertices would leave
-one-vertex spikes where a fold dips in, and tear the edges around a deep one; so the push is spread
-in two ways. First its neighbours follow (``follow`` passes): a vertex within a few rings of a
+one-vertex spikes where a fold dips in; so the push is spread. Optionally its neighbours follow
+first (``follow`` passes, off by default: docs/decisions/0023): a vertex within a few rings of a
 pushed one moves with it, by the push less ``follow_slope`` times the rest length of the path
-between them, so that neighbouring moves differ by at most that fraction of an edge (an edge
-stretches by at most about ``follow_slope`` of its length, under the strain limit's 1.5). Then the
-displacement field is smoothed over the mesh (``smooth`` Jacobi passes of the uniform Laplacian,
-each keeping every vertex that must move at least at its move along its direction). ``rounds``
-such pushes, then up to four exact projections onto the surface (a push can land in a
-neighbouring capsule, hence more than one). With a C compiler the same steps run in the kernel of
+between them. The displacement field is smoothed over the mesh (``smooth`` Jacobi passes of the
+uniform Laplacian, each keeping every vertex that must move at least at its move along its
+direction). ``rounds`` such pushes, then up to four exact projections onto the surface (a push can
+land in a neighbouring capsule, hence more than one). Last the strain limit undoes what of the push
+tears the cloth (:func:`limit_push_strain`). With a C compiler the same steps run in the kernel of
 :mod:`hrr_garment.native` (frames in parallel), which measures only the vertices near a capsule
 and spreads only around the pushed ones (the same result: what it skips is exactly untouched);
 this module's numpy version is the reference and the fallback.
@@ -33,6 +32,7 @@ from .edge_limits import EdgeLimits
 # their worst frame and 1.12-1.15 at p99; a push that needs more is across a limb, not out of the body
 MAX_PUSH_STRAIN = 1.5
 LIMIT_TOLERANCE_M = 1e-5  # an edge this little over its limit counts as within it (the limiter stops)
+STRETCH_SLACK = 0.1  # (PushOutSettings.stretch_slack)
 OVER_RELAXATION = 3.0  # of the strain limiter's Jacobi steps (each divided by a vertex's degree, about 6)
 
 
@@ -51,12 +51,17 @@ class PushOutSettings:
     """How the push-out moves the cloth (the defaults are the product's)."""
 
     margin: float = 0.002  # metres outside the body surface a pushed vertex lands
-    follow: int = 6  # rings around a pushed vertex that follow it (with EdgeLimits; 0: none)
+    # rings around a pushed vertex that follow it (with EdgeLimits; 0: none): measured not to pay on
+    # a trained model (docs/decisions/0023), so off
+    follow: int = 0
     follow_slope: float = 0.25  # a follower moves the push less this x its rest distance from the pushed vertex
     smooth: int = 4  # passes spreading each push to the neighbours (never below what is needed)
     rounds: int = 1  # push-and-spread rounds before the exact projection
     depth: float = PENETRATION_DEPTH_M  # metres inside the body that count as penetration in the report
-    max_strain: float = MAX_PUSH_STRAIN  # no edge stretched past this x its rest length by the push
+    max_strain: float = MAX_PUSH_STRAIN  # no edge stretched past this x its rest length by the push ...
+    # ... nor one the decoder stretched further by more than this x its rest length: the limit
+    # repairs tears, not a push that lengthens an already long edge by a hair
+    stretch_slack: float = STRETCH_SLACK
     chunk: int = 64  # frames processed at once
 
 
@@ -112,7 +117,7 @@ def push_out(vertices: np.ndarray, motion: Motion, faces: np.ndarray, *, body: B
             out[sl], before[sl], after[sl] = _push_frames(vertices[sl].astype(np.float64), (a[sl], b[sl], framed(sl)),
                                                           mean, settings, limits)
     if limits is not None:
-        out, torn = limit_push_strain(out, unpushed, limits, settings.max_strain, in_place=True)
+        out, torn = limit_push_strain(out, unpushed, limits, settings.max_strain, in_place=True, slack=settings.stretch_slack)
         if report and torn.any():  # only the frames the limit moved have a new "after"
             inside = frames_signed_distance(out[torn].astype(np.float64), a[torn], b[torn], radii=framed(torn))[0] < -depth
             after[torn] = inside.mean(1)
@@ -124,12 +129,13 @@ def push_out(vertices: np.ndarray, motion: Motion, faces: np.ndarray, *, body: B
 
 def limit_push_strain(pushed: np.ndarray, unpushed: np.ndarray, limits: EdgeLimits,
                       max_strain: float = MAX_PUSH_STRAIN, iterations: int = 60,
-                      in_place: bool = False) -> tuple[np.ndarray, np.ndarray]:
+                      in_place: bool = False, slack: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
     """Undo as much of a push as tears the cloth: ``iterations`` Jacobi passes of edge-length
     projection (each over-long edge's two ends move toward each other, a vertex by the sum of its
     corrections over its degree, over-relaxed) on the frames where an edge of ``pushed`` is longer
-    than ``max_strain`` times its rest length and longer than it was ``unpushed``; every other edge
-    and frame is left as it is. Returns the vertices and the (T,) mask of the frames it changed.
+    than ``max_strain`` times its rest length and longer than it was ``unpushed`` plus ``slack``
+    times its rest length; every other edge and frame is left as it is. Returns the vertices and the
+    (T,) mask of the frames it changed.
 
     Why: where the capture drives a limb through the body (a hand in the belly), a vertex caught in
     both capsules is pushed out of the nearest surface, across the limb, while its neighbours stay:
@@ -141,13 +147,13 @@ def limit_push_strain(pushed: np.ndarray, unpushed: np.ndarray, limits: EdgeLimi
     if lib is not None:  # the same in C: the limits, the torn frames and the passes, which measure only
         # the edges that can have changed
         limit = StrainLimit(edge_arrays=limits.native_arrays, max_strain=max_strain, iterations=iterations,
-                            tol=LIMIT_TOLERANCE_M, omega=OVER_RELAXATION)
+                            tol=LIMIT_TOLERANCE_M, omega=OVER_RELAXATION, slack=slack)
         p, torn = limit_strain(lib, pushed, unpushed, limit=limit, threads=default_threads(), in_place=in_place)
         if p is pushed or not torn.any():
             return pushed, torn
         # the frames it left are ``pushed``'s widened to float64: narrowing them back is exact
         return p.astype(pushed.dtype, copy=False), torn
-    limit = np.maximum(max_strain * limits.rest_length, limits.lengths(unpushed.astype(np.float64)))  # (T, E)
+    limit = np.maximum(max_strain * limits.rest_length, limits.lengths(unpushed.astype(np.float64)) + slack * limits.rest_length)
     torn = (limits.lengths(pushed.astype(np.float64)) > limit * (1 + 1e-6)).any(1)
     if not torn.any():
         return pushed, torn

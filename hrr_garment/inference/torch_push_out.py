@@ -47,6 +47,7 @@ class PushOutStage(nn.Module):
         constant(self, "vertex_weight", (0.5 * OVER_RELAXATION / limits.degree)[:, None])
         constant(self, "edges", limits.edges, torch.int64)
         constant(self, "allowed", settings.max_strain * limits.rest_length)
+        constant(self, "slack", settings.stretch_slack * limits.rest_length)
 
     def distance(self, p: torch.Tensor, a: torch.Tensor, b: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """Signed distances (N, V) to the union of capsules and the nearest one's outward normals.
@@ -118,7 +119,7 @@ class PushOutStage(nn.Module):
         each exported with transposes that cost more than the arithmetic)."""
         pushed, unpushed = pushed.transpose(0, 1), unpushed.transpose(0, 1)
         before = torch.sqrt((self._edge_vectors(unpushed) ** 2).sum(-1))
-        limit = torch.maximum(self.allowed[:, None], before)  # (E, N)
+        limit = torch.maximum(self.allowed[:, None], before + self.slack[:, None])  # (E, N)
         length = torch.sqrt((self._edge_vectors(pushed) ** 2).sum(-1))
         torn = (length > limit * (1.0 + 1e-6)).any(0)
         passes = torch.zeros((), dtype=torch.int64, device=pushed.device)

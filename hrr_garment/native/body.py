@@ -71,6 +71,7 @@ class StrainLimit(NamedTuple):
     iterations: int
     tol: float
     omega: float
+    slack: float = 0.0
 
 
 def _capsule_arrays(a: np.ndarray, b: np.ndarray, radii: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -129,13 +130,13 @@ def limit_strain(lib: ctypes.CDLL, pushed: np.ndarray, unpushed: np.ndarray, lim
     points (T, V, 3), the ``limit`` (:class:`StrainLimit`) -> (the limited points, float64 (T, V, 3);
     the (T,) mask of frames that had an edge over its limit). Frames in parallel; each stops on its own. ``in_place``: a C-contiguous float64
     ``pushed`` is moved where it lies (and returned) instead of copied."""
-    edge_arrays, max_strain, iterations, tol, omega = limit
+    edge_arrays, max_strain, iterations, tol, omega, slack = limit
     own = in_place and pushed.dtype == np.float64 and pushed.flags.c_contiguous
     p = pushed if own else np.array(pushed, np.float64, order="C")  # moved in place
     u = np.ascontiguousarray(unpushed, np.float64)
     edges, rest, degree, ptr, idx = edge_arrays.addresses
     torn = np.zeros(len(p), np.uint8)
     if lib.hrr_limit_strain(p.ctypes.data, u.ctypes.data, len(p), p.shape[1], len(edge_arrays.edges), edges, rest,
-                            max_strain, degree, ptr, idx, iterations, tol, omega, threads, torn.ctypes.data) != 0:
+                            max_strain, slack, degree, ptr, idx, iterations, tol, omega, threads, torn.ctypes.data) != 0:
         raise MemoryError("the native strain limit could not allocate its scratch memory")
     return p, torn.astype(bool)

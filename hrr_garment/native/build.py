@@ -78,7 +78,7 @@ def _declare(lib: ctypes.CDLL) -> None:
     lib.hrr_push_out.argtypes = [d, c_int, c_int, d, d, d, c_int, c_int, d, d, d, d, d, c_int, c_int, d, d, c_int,
                                  c_double, c_int, c_int, c_double, c_int, d, d]
     lib.hrr_push_out.restype = None
-    lib.hrr_limit_strain.argtypes = [d, d, c_int, c_int, c_int, d, d, c_double, d, d, d, c_int, c_double, c_double,
+    lib.hrr_limit_strain.argtypes = [d, d, c_int, c_int, c_int, d, d, c_double, c_double, d, d, d, c_int, c_double, c_double,
                                      c_int, d]
     lib.hrr_limit_strain.restype = c_int
     lib.hrr_factor_block.argtypes = [d, c_int, c_int, d, d, d, c_int, c_int, c_int, c_int, d, d, d, d, d,

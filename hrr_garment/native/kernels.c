@@ -604,12 +604,13 @@ static void limit_frame(double *p, int V, int E, const int32_t *edges, const dou
 }
 
 /* T frames of pushed points p (T, V, 3), limited in place. Each edge's limit is max_strain times
-   its rest length, or its length in the unpushed frame (T, V, 3) where that is longer (the push
-   never has to undo a stretch it did not make). torn[t]: whether frame t had an edge over its limit
+   its rest length, or its length in the unpushed frame (T, V, 3) plus slack times its rest length
+   where that is longer (the push never has to undo a stretch it did not make, and may lengthen an
+   edge the decoder stretched by a little). torn[t]: whether frame t had an edge over its limit
    (by more than a millionth of it) before. Frames in parallel. Returns 0, or -1 when the scratch
    memory could not be had (nothing changed). */
 int hrr_limit_strain(double *p, const double *unpushed, int T, int V, int E, const int32_t *edges, const double *rest,
-                     double max_strain, const double *degree, const int32_t *ve_ptr, const int32_t *ve_idx,
+                     double max_strain, double slack, const double *degree, const int32_t *ve_ptr, const int32_t *ve_idx,
                      int iterations, double tol, double omega, int threads, unsigned char *torn)
 {
     if (T <= 0) return 0;
@@ -633,8 +634,10 @@ int hrr_limit_strain(double *p, const double *unpushed, int T, int V, int E, con
         for (int e = 0; e < E; ++e) {
             const int i = edges[2 * e], j = edges[2 * e + 1];
             const double ux = u[3 * j] - u[3 * i], uy = u[3 * j + 1] - u[3 * i + 1], uz = u[3 * j + 2] - u[3 * i + 2];
-            const double before2 = ux * ux + uy * uy + uz * uz, allowed = max_strain * rest[e];
-            const double lim = before2 > allowed * allowed ? sqrt(before2) : allowed;
+            const double before2 = ux * ux + uy * uy + uz * uz, allowed = max_strain * rest[e], extra = slack * rest[e];
+            const double unslacked = allowed - extra;  /* an unpushed edge longer than this sets its own limit */
+            const double lim = unslacked > 0.0 && before2 <= unslacked * unslacked ? allowed
+                               : (sqrt(before2) + extra > allowed ? sqrt(before2) + extra : allowed);
             limit[e] = lim;
             const double dx = pt[3 * j] - pt[3 * i], dy = pt[3 * j + 1] - pt[3 * i + 1], dz = pt[3 * j + 2] - pt[3 * i + 2];
             const double length2 = dx * dx + dy * dy + dz * dz;

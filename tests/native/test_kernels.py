@@ -27,7 +27,7 @@ def test_native_capsule_distance_equals_numpy(rng):
     assert np.allclose(d3, d2[1], atol=1e-12)  # each frame against its own capsules
 
 
-@pytest.mark.parametrize("follow", [None, 0, 6])  # None: whole-mesh loops; 0: culled, no follow; 6: the default follow
+@pytest.mark.parametrize("follow", [None, 0, 6])  # None: whole-mesh loops; 0: culled, no follow (the default); 6: a follow
 def test_native_push_out_equals_numpy(rng, follow):
     from hrr_garment.body.capsules import DEFAULT_BODY
     from hrr_garment.garment.templates import make_garment
@@ -98,6 +98,13 @@ def test_the_native_strain_limit_matches_the_numpy_reference():
     assert np.array_equal(got[2], p[2]) and np.abs(got - p).max() > 0.01
     one, _ = limit_strain(lib, p[3:], unpushed[3:], strain)
     assert np.array_equal(one[0], got[3])  # a frame's result does not depend on its batch
+    # an unpushed frame stretched 1.45 x everywhere: with a slack of 0.1 its edges may reach 1.55 x
+    stretched = unpushed * 1.45
+    moved = stretched + (p - unpushed)
+    slack_limit = np.maximum(MAX_PUSH_STRAIN, 1.45 + 0.1) * np.repeat(limits.rest_length[None], 4, 0)
+    ref = _limit_frames(moved.copy(), slack_limit, limits, 60)
+    got, torn = limit_strain(lib, moved, stretched, strain._replace(slack=0.1), threads=2)
+    assert torn.tolist() == [True, True, False, True] and np.abs(got - ref).max() < 1e-8
 
 
 def test_pinning_the_workers_leaves_the_caller_free(monkeypatch):
