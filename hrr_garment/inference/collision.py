@@ -79,7 +79,7 @@ class PosedCapsules:
 
 
 def push_out(vertices: np.ndarray, motion: Motion, faces: np.ndarray, *, body: BodyModel | PosedCapsules = DEFAULT_BODY,
-             settings: PushOutSettings = PUSH_OUT, mean: csr_matrix | None = None, limits: EdgeLimits | None = None,
+             settings: PushOutSettings | None = None, mean: csr_matrix | None = None, limits: EdgeLimits | None = None,
              report: bool = True) -> tuple[np.ndarray, PushOutReport | None]:
     """(T, V, 3) world vertices -> pushed copy and a report (fractions of vertices > ``depth`` inside).
     ``mean``: :func:`mean_operator` of the faces, when the caller keeps one (streaming). Frames are
@@ -89,6 +89,7 @@ def push_out(vertices: np.ndarray, motion: Motion, faces: np.ndarray, *, body: B
     (:func:`limit_push_strain`). Without ``report`` (a stream, which discards it) the report is
     None, and the frames the limit moved are not measured again (a quarter of a crowd's push-out).
     ``body``: the body's capsules, posed by ``motion``, or :class:`PosedCapsules`."""
+    settings = PUSH_OUT if settings is None else settings  # read here, so that the product's settings are one object
     margin, smooth, rounds, depth, chunk = settings.margin, settings.smooth, settings.rounds, settings.depth, settings.chunk
     posed = body if isinstance(body, PosedCapsules) else PosedCapsules(*body.pose_motion(motion), body.radii)
     a, b, radii = posed.a, posed.b, posed.radii
