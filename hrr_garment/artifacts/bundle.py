@@ -251,7 +251,7 @@ def _load_bundle(folder: Path, cache_dir: Path | None) -> Bundle:
         raise BundleError(folder, f"database: {exc}") from None
     if database.latents.shape[1:] != (cs_cfg.window, *latent_shape) or database.codes.shape[1:] != (cs_cfg.groups,):
         raise BundleError(folder, f"database shapes {database.codes.shape} / {database.latents.shape} do not fit the configuration")
-    folds = load_folds(folder, meta, template, database) if "folds" in meta else None
+    folds = load_folds(folder, meta, template, database=database) if "folds" in meta else None
     direct = None
     if "direct" in meta:  # the optional baseline (hrr-train --stage baseline)
         try:
@@ -260,6 +260,6 @@ def _load_bundle(folder: Path, cache_dir: Path | None) -> Bundle:
             raise BundleError(folder, f"bundle.json has a bad 'direct' entry ({exc})") from None
         load_state(direct, folder / "direct.safetensors", folder)
         direct.eval()
-    subspace = load_subspace(folder, meta, latent_shape, template.num_vertices) if "subspace" in meta else None
+    subspace = load_subspace(folder, meta, latent_shape, num_vertices=template.num_vertices) if "subspace" in meta else None
     return Bundle(folder, meta, autoencoder.eval(), codespace.eval(), FeatureStats(s["motion_mean"], s["motion_std"]),
                   FeatureStats(s["latent_mean"], s["latent_std"]), database, template, direct, folds, subspace)

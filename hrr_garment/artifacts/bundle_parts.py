@@ -69,7 +69,7 @@ def load_subspace(folder: Path, meta: dict, latent_shape: tuple, num_vertices: i
     """The fast decoder, its size and settings from bundle.json's ``subspace`` entry."""
     try:
         model = SubspaceDecoder(latent_shape, num_vertices, int(meta["subspace"]["components"]),
-                                SubspaceConfig.from_dict(meta["subspace"]["config"]))
+                                config=SubspaceConfig.from_dict(meta["subspace"]["config"]))
     except (KeyError, TypeError, ValueError) as exc:
         raise BundleError(folder, f"bundle.json has a bad 'subspace' entry ({exc})") from None
     load_state(model, folder / SUBSPACE_FILE, folder)

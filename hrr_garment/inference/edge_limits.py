@@ -53,7 +53,7 @@ class EdgeLimits:
         key = (settings.follow, settings.follow_slope)
         cache = self.__dict__.setdefault("_push_meshes", {})
         if key not in cache:
-            cache[key] = PushMesh(self.ring, self.ring_length, settings.follow_slope, settings.follow, self.patches)
+            cache[key] = PushMesh(self.ring, self.ring_length, settings.follow_slope, follow=settings.follow, patches=self.patches)
         return cache[key]
 
     @cached_property

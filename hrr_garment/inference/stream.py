@@ -213,7 +213,7 @@ class CrowdStream:
             return inertialize(c.inertializer, latent, retrieved, source=source, frame=c.frames)
 
         if lv is not None:
-            latents = crowd_latents(chars, windows, lv, choose, one)
+            latents = crowd_latents(chars, windows, lv, choose=choose, inertialize_one=one)
             return latents, np.stack([c.lod.match for c in chars]), self.run.mode is Mode.DETAIL
         choice = choose(windows)
         path_latents, retrieved = latent_sources(choice)
@@ -265,7 +265,7 @@ class CrowdStream:
         else:
             has_fast = self.animator.bundle.subspace is not None
             names = [decoder_of(int(level), self.run.decoder, has_fast) for level in lv]
-            local = crowd_decode(chars, latents, names, {"full": self.animator.decoder, "fast": self.animator.bundle.subspace})
+            local = crowd_decode(chars, latents, names, decoders={"full": self.animator.decoder, "fast": self.animator.bundle.subspace})
         if lends_folds:  # the detail mode: each character's playhead one frame on, its folds added
             local = add_folds(local, self._folds(chars, match), self.animator.smoothing,
                               passes=self.animator.bundle.folds.passes, strength=self.run.detail.strength,

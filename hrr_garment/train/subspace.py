@@ -164,7 +164,7 @@ def run_subspace_stage(dataset: str | Path, folder: str | Path, config: Subspace
     rng = np.random.default_rng(train_config.seed)
     sample = np.sort(rng.choice(len(latents["train"]), min(train_config.pca_frames, len(latents["train"])), replace=False))
     mean, basis, spread = principal_components(_decode(full, latents["train"][sample]), config.max_components)
-    model = SubspaceDecoder(bundle.autoencoder.latent_shape, bundle.template.num_vertices, len(basis), config)
+    model = SubspaceDecoder(bundle.autoencoder.latent_shape, bundle.template.num_vertices, len(basis), config=config)
     flat = latents["train"].reshape(len(latents["train"]), -1)
     model.latent_mean.copy_(torch.from_numpy(flat.mean(0)))
     model.latent_std.copy_(torch.from_numpy(np.maximum(flat.std(0), 1e-6)))
