@@ -42,8 +42,10 @@ from ..train.autoencoder import TrainConfig
 from ..train.baseline import DirectTrainConfig
 from ..train.codespace_training import CodeSpaceTrainConfig
 from ..train.report import StageReport
-from ..train.subspace import SubspaceTrainConfig
+from ..train.subspace import SubspaceTrainConfig, subspace_warning
+from . import simulate as simulation
 from .budget import BudgetCheck, TrainingBudgetWarning, check_budget
+from .simulate import SimulatedDataset
 
 STAGES = ("simulate", "autoencoder", "codespace", "subspace")  # what "all" runs; the baseline runs only when asked for
 SECTIONS = ("autoencoder", "codespace", "subspace", "baseline", "auto")  # of the training config
@@ -166,6 +168,8 @@ def train_model(dataset: str | Path, folder: str | Path, settings: TrainSettings
             report = _STAGE_RUNNERS[stage](dataset, folder, settings, _Context(garment, preset, progress, callback))
             if isinstance(report, StageReport):
                 result.reports[stage] = report
+                if stage == "subspace" and (text := subspace_warning(report.metrics)):
+                    callback.on_warning(text)
                 if stage in BUDGETED:
                     result.budgets[stage] = check_budget(report, getattr(settings, f"{stage}_train"))
                     for text in result.budgets[stage].warnings():
@@ -190,7 +194,7 @@ class _Context:
 
 
 def _simulate_stage(dataset: Path, folder: Path, settings: TrainSettings, ctx: _Context) -> SimulatedDataset | None:
-    missing = missing_sequences(dataset, ctx.preset) if ctx.garment is not None and ctx.preset is not None else []
+    missing = simulation.missing_sequences(dataset, ctx.preset) if ctx.garment is not None and ctx.preset is not None else []
     if dataset.exists() and not missing:
         return None
     if ctx.garment is None or ctx.preset is None:
@@ -200,7 +204,7 @@ def _simulate_stage(dataset: Path, folder: Path, settings: TrainSettings, ctx: _
                                 f"(e.g. {missing[0]}); simulating them (its own are reused)")
     else:
         ctx.callback.on_message(f"simulate: no dataset at {dataset}; simulating the {ctx.preset.name} preset first")
-    return simulate_preset(ctx.garment, ctx.preset, dataset, progress=ctx.progress)
+    return simulation.simulate_preset(ctx.garment, ctx.preset, dataset, progress=ctx.progress)
 
 
 def _autoencoder_stage(dataset: Path, folder: Path, settings: TrainSettings, ctx: _Context) -> StageReport:
@@ -264,50 +268,3 @@ def calibrate_auto(folder: str | Path, dataset: str | Path, progress: bool = Tru
         auto = repick(auto, config)
         update_bundle_meta(folder, {"auto": auto})
     return auto
-
-
-def missing_sequences(dataset: Path, preset: Preset) -> list[str]:
-    """The preset's sequences that an existing dataset of its own clips does not hold: a workspace
-    made with an earlier, smaller version of the preset. None where there is no dataset yet, or
-    where it holds other clips (``hrr-simulate --motions``, or a different preset): that one is the
-    user's choice."""
-    if not dataset.exists():
-        return []
-    from ..data.dataset import GarmentDataset
-    from ..sim.plan import plan_sequences
-
-    ds = GarmentDataset(dataset)
-    planned = [spec.name for spec in plan_sequences(preset)]
-    if ds.info.get("preset") != preset.name or ds.info.get("motions") or not set(ds.names) <= set(planned):
-        return []
-    return [name for name in planned if name not in set(ds.names)]
-
-
-@dataclass(frozen=True)
-class SimulatedDataset:
-    """What the ``simulate`` stage built: the build's report and the garment simulated."""
-
-    report: object  # :class:`~hrr_garment.sim.build.BuildReport`
-    mesh: object  # :class:`~hrr_garment.garment.mesh.GarmentMesh`
-
-
-def simulate_preset(garment: str, preset: Preset, out: Path, progress: bool = True) -> SimulatedDataset:
-    """Simulate ``preset``'s sequences of ``garment`` into the dataset ``out`` (as hrr-simulate
-    would; finished sequences are reused)."""
-    from ..export.preview import write_dataset_preview
-    from ..garment.templates import make_garment
-    from ..sim.bodies import choose_bodies
-    from ..sim.build import BuildOptions, build_dataset
-    from ..sim.plan import build_options, plan_sequences
-    from ..sim.simulator import SimConfig
-
-    mesh = make_garment(garment, preset.vertices)
-    choice = choose_bodies(plan_sequences(preset), mesh, preset_bodies=preset.bodies, where=preset.name, progress=progress)
-    options = build_options(preset, choice.specs)
-    options["info"]["garment_vertices"] = mesh.num_vertices
-    if choice.bodies:
-        options["info"]["bodies"] = choice.info
-    report = build_dataset(mesh, choice.specs, SimConfig.from_dict(preset.sim), out=out,
-                           options=BuildOptions(progress=progress, preview=write_dataset_preview, bodies=choice.bodies,
-                                                hold_out_bodies=choice.hold_out, **options))
-    return SimulatedDataset(report, mesh)

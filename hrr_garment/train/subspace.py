@@ -143,6 +143,20 @@ def pick_components(errors: dict[int, float], full_mm: float, tolerance: float) 
     return min(k for k, e in errors.items() if e <= bound)
 
 
+FAR_FROM_FULL = 1.5  # a fast decoder above this x the full decoder's validation error is worth a warning
+
+
+def subspace_warning(entry: dict) -> str | None:
+    """A warning where the distilled decoder kept (bundle.json ``subspace``) is far from the full
+    one on validation (too few training frames, for one), else None."""
+    ratio = entry["validation_mm"] / max(entry["full_validation_mm"], 1e-9)
+    if ratio <= FAR_FROM_FULL:
+        return None
+    return (f"the fast decoder's validation error is {entry['validation_mm']:.2f} mm, {ratio:.1f} x the full decoder's "
+            f"{entry['full_validation_mm']:.2f} mm: run this model with decoder='full' (more training frames, or "
+            "subspace.model.hidden, bring it closer)")
+
+
 def run_subspace_stage(dataset: str | Path, folder: str | Path, config: SubspaceConfig = SubspaceConfig(),
                        train_config: SubspaceTrainConfig = SubspaceTrainConfig(), cache_dir: Path | None = None,
                        progress: bool = True) -> StageReport:

@@ -124,7 +124,7 @@ def test_hrr_train_simulates_what_a_grown_preset_adds(tmp_path, monkeypatch, seq
     import yaml
 
     import hrr_garment.cli.train as train_cli
-    import hrr_garment.pipeline.train as pipeline
+    import hrr_garment.pipeline.simulate as pipeline
     from hrr_garment.garment.templates import make_garment
     from tests.conftest import synthetic_dataset
 

@@ -7,7 +7,7 @@ import torch
 
 from hrr_garment.models.subspace import SubspaceConfig, SubspaceDecoder, principal_components
 from hrr_garment.settings import SettingsError
-from hrr_garment.train.subspace import pick_components
+from hrr_garment.train.subspace import pick_components, subspace_warning
 
 
 def test_principal_components_recover_a_planted_subspace(rng):
@@ -54,3 +54,9 @@ def test_bad_sizes_are_refused():
         SubspaceConfig(hidden=0)
     with pytest.raises(SettingsError, match="components"):
         SubspaceDecoder((4, 2), 10, 31)
+
+
+def test_a_fast_decoder_far_from_the_full_one_is_warned_about():
+    assert subspace_warning({"validation_mm": 3.47, "full_validation_mm": 3.01}) is None
+    text = subspace_warning({"validation_mm": 22.75, "full_validation_mm": 6.56})
+    assert "3.5 x" in text and "decoder='full'" in text

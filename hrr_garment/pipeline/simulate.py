@@ -1,0 +1,56 @@
+"""The ``simulate`` stage of training (:func:`~.train.train_model`): a preset's dataset built, or
+completed where the preset has grown since it was made."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+from ..sim.plan import Preset
+
+
+def missing_sequences(dataset: Path, preset: Preset) -> list[str]:
+    """The preset's sequences that an existing dataset of its own clips does not hold: a workspace
+    made with an earlier, smaller version of the preset. None where there is no dataset yet, or
+    where it holds other clips (``hrr-simulate --motions``, or a different preset): that one is the
+    user's choice."""
+    if not dataset.exists():
+        return []
+    from ..data.dataset import GarmentDataset
+    from ..sim.plan import plan_sequences
+
+    ds = GarmentDataset(dataset)
+    planned = [spec.name for spec in plan_sequences(preset)]
+    if ds.info.get("preset") != preset.name or ds.info.get("motions") or not set(ds.names) <= set(planned):
+        return []
+    return [name for name in planned if name not in set(ds.names)]
+
+
+@dataclass(frozen=True)
+class SimulatedDataset:
+    """What the ``simulate`` stage built: the build's report and the garment simulated."""
+
+    report: object  # :class:`~hrr_garment.sim.build.BuildReport`
+    mesh: object  # :class:`~hrr_garment.garment.mesh.GarmentMesh`
+
+
+def simulate_preset(garment: str, preset: Preset, out: Path, progress: bool = True) -> SimulatedDataset:
+    """Simulate ``preset``'s sequences of ``garment`` into the dataset ``out`` (as hrr-simulate
+    would; finished sequences are reused)."""
+    from ..export.preview import write_dataset_preview
+    from ..garment.templates import make_garment
+    from ..sim.bodies import choose_bodies
+    from ..sim.build import BuildOptions, build_dataset
+    from ..sim.plan import build_options, plan_sequences
+    from ..sim.simulator import SimConfig
+
+    mesh = make_garment(garment, preset.vertices)
+    choice = choose_bodies(plan_sequences(preset), mesh, preset_bodies=preset.bodies, where=preset.name, progress=progress)
+    options = build_options(preset, choice.specs)
+    options["info"]["garment_vertices"] = mesh.num_vertices
+    if choice.bodies:
+        options["info"]["bodies"] = choice.info
+    report = build_dataset(mesh, choice.specs, SimConfig.from_dict(preset.sim), out=out,
+                           options=BuildOptions(progress=progress, preview=write_dataset_preview, bodies=choice.bodies,
+                                                hold_out_bodies=choice.hold_out, **options))
+    return SimulatedDataset(report, mesh)
