@@ -22,7 +22,8 @@ FAR_ABOVE_TARGET = 1.25  # a validation error this many times the target is far 
 
 
 class TrainingBudgetWarning(UserWarning):
-    """A stage ended short of its epochs or far above its target error."""
+    """A stage ended short of its epochs or far above its target error (or, the subspace stage, its
+    fast decoder far from the full one's validation error)."""
 
 
 @dataclass(frozen=True)

@@ -60,7 +60,8 @@ class TrainCallback:
         """A line worth telling a person (a dataset simulated first, a deprecated setting)."""
 
     def on_warning(self, text: str) -> None:
-        """A stage ended short of its epochs or far above its target error (:mod:`.budget`): a
+        """A stage ended short of what its settings aim for: its epochs or its target error
+        (:mod:`.budget`), or the fast decoder far from the full one: a
         :class:`~.budget.TrainingBudgetWarning` unless overridden."""
         warnings.warn(text, TrainingBudgetWarning, stacklevel=3)
 
