@@ -73,13 +73,19 @@ def _decode(decoder, latents: np.ndarray, batch: int = 256) -> np.ndarray:
                            for i in range(0, len(latents), batch)])
 
 
+def _project(frames: np.ndarray, basis: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
+    """(F, V, 3) frames -> (F, K) their coefficients on ``basis`` (its mean and rows)."""
+    mean, rows = basis
+    return (frames.reshape(len(frames), -1) - mean) @ rows.T
+
+
 def _coefficients(decoder, latents: np.ndarray, basis: tuple[np.ndarray, np.ndarray], progress: bool,
                   batch: int = 1024) -> np.ndarray:
-    """(F, K) coefficients of the full decoder's outputs on ``basis`` (its mean and rows), chunk by chunk."""
-    mean, basis = basis
-    out = np.empty((len(latents), len(basis)), np.float32)
+    """(F, K) coefficients of the full decoder's outputs on ``basis`` (its mean and rows), chunk by
+    chunk: the training frames' outputs are never all held at once."""
+    out = np.empty((len(latents), len(basis[1])), np.float32)
     for i in tqdm(range(0, len(latents), batch), desc="subspace targets", unit="chunk", leave=False, disable=not progress):
-        out[i:i + batch] = (_decode(decoder, latents[i:i + batch]).reshape(-1, basis.shape[1]) - mean) @ basis.T
+        out[i:i + batch] = _project(_decode(decoder, latents[i:i + batch]), basis)
     return out
 
 
@@ -127,13 +133,18 @@ def _fit(model: SubspaceDecoder, inputs: torch.Tensor, targets: torch.Tensor, va
     return state
 
 
-def validation_errors(model: SubspaceDecoder, latents: np.ndarray, truth: np.ndarray) -> dict[int, float]:
-    """Mean per-vertex error (mm) against ``truth`` of the first K components, for each candidate K."""
-    errors = {}
-    for k in [c for c in CANDIDATES if c < model.components] + [model.components]:
-        pred = _decode(model.truncated(k), latents)
-        errors[k] = 1000.0 * float(np.linalg.norm(pred - truth, axis=-1).mean())
-    return errors
+@torch.no_grad()
+def validation_errors(model: SubspaceDecoder, latents: np.ndarray, truth: np.ndarray, batch: int = 256) -> dict[int, float]:
+    """Mean per-vertex error (mm) against ``truth`` of the first K components, for each candidate K:
+    the network runs once a frame, each size keeping a prefix of its coefficients."""
+    sizes = [c for c in CANDIDATES if c < model.components] + [model.components]
+    totals = dict.fromkeys(sizes, 0.0)
+    for i in range(0, len(latents), batch):
+        coefficients = model.coefficients(torch.from_numpy(np.ascontiguousarray(latents[i:i + batch])))
+        for k in sizes:
+            pred = model.vertices(coefficients[:, :k]).numpy()
+            totals[k] += float(np.linalg.norm(pred - truth[i:i + batch], axis=-1).sum())
+    return {k: 1000.0 * total / (truth.shape[0] * truth.shape[1]) for k, total in totals.items()}
 
 
 def pick_components(errors: dict[int, float], full_mm: float, tolerance: float) -> int:
@@ -186,14 +197,16 @@ def run_subspace_stage(dataset: str | Path, folder: str | Path, config: Subspace
     model.basis.copy_(torch.from_numpy(basis))
     model.coeff_std.copy_(torch.from_numpy(spread))
 
-    def standardised(split: str) -> tuple[torch.Tensor, torch.Tensor]:
+    def standardised(split: str, coefficients: np.ndarray) -> tuple[torch.Tensor, torch.Tensor]:
         z = torch.from_numpy(latents[split])
         x = ((z.reshape(len(z), -1) - model.latent_mean) / model.latent_std).contiguous()
-        return x, torch.from_numpy(_coefficients(full, latents[split], (mean, basis), progress) / spread)
+        return x, torch.from_numpy(coefficients / spread)
 
-    state = _fit(model, *standardised("train"), standardised("val"), folder / "subspace", train_config, key, progress)
+    val_frames = _decode(full, latents["val"])  # the targets on validation and the full decoder's own error
+    state = _fit(model, *standardised("train", _coefficients(full, latents["train"], (mean, basis), progress)),
+                 standardised("val", _project(val_frames, (mean, basis))), folder / "subspace", train_config, key, progress)
     truth = body_frames(ds, names["val"])
-    full_mm = 1000.0 * float(np.linalg.norm(_decode(full, latents["val"]) - truth, axis=-1).mean())
+    full_mm = 1000.0 * float(np.linalg.norm(val_frames - truth, axis=-1).mean())
     errors = validation_errors(model, latents["val"], truth)
     kept = pick_components(errors, full_mm, train_config.tolerance)
     model = model.truncated(kept)

@@ -36,6 +36,7 @@ def test_a_truncated_decoder_is_the_prefix_of_the_coefficients(rng):
     c[:, 4:] = 0.0
     expected = model.vertices(c).detach()
     assert torch.allclose(model.truncated(4)(z), expected, atol=1e-5)
+    assert torch.allclose(model.vertices(c[:, :4]), expected, atol=1e-5)  # a prefix of the coefficients alone
     assert model(z).shape == (5, 10, 3)
     with pytest.raises(ValueError, match="1..6"):
         model.truncated(7)
