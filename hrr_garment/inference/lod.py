@@ -93,12 +93,11 @@ def crowd_latents(chars: list, windows: np.ndarray, lv: np.ndarray, choose, iner
     (character, latent, retrieved, match) -> its inertialized latent."""
     stepping = np.array([steps_now(int(level), c.frames) or c.lod.latent is None for level, c in zip(lv, chars)])
     rows = np.flatnonzero(stepping)
-    held = next((c.lod.latent for c in chars if c.lod.latent is not None), None)
     if rows.size:
-        choice = choose(windows[rows])
+        choice = choose(windows if stepping.all() else windows[rows])
         shape = choice.latents.shape[2:]
     else:
-        choice, shape = None, held.shape
+        shape = chars[0].lod.latent.shape
     latents = np.empty((len(chars), *shape), np.float32)
     for j, i in enumerate(rows):
         c = chars[i]
@@ -116,14 +115,19 @@ def crowd_decode(chars: list, latents: np.ndarray, names: list[str], decoders: d
     last frame gets the change's difference cross-faded (:class:`DecoderFade`)."""
     import torch
 
-    out = None
-    for name in dict.fromkeys(names):
-        rows = [i for i, n in enumerate(names) if n == name]
+    kinds = list(dict.fromkeys(names))
+    if len(kinds) == 1:  # one decoder for all (every crowd without levels of detail): one batch, no copies
         with torch.no_grad():
-            decoded = decoders[name](torch.from_numpy(np.ascontiguousarray(latents[rows]))).numpy()
-        if out is None:
-            out = np.empty((len(chars), *decoded.shape[1:]), np.float32)
-        out[rows] = decoded
+            out = decoders[kinds[0]](torch.from_numpy(latents)).numpy()
+    else:
+        out = None
+        for name in kinds:
+            rows = [i for i, n in enumerate(names) if n == name]
+            with torch.no_grad():
+                decoded = decoders[name](torch.from_numpy(np.ascontiguousarray(latents[rows]))).numpy()
+            if out is None:
+                out = np.empty((len(chars), *decoded.shape[1:]), np.float32)
+            out[rows] = decoded
     for i, c in enumerate(chars):
         state = c.lod
         if state.decoder is not None and state.decoder != names[i]:

@@ -34,7 +34,6 @@ from collections.abc import Hashable, Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
-import torch
 
 from ..errors import InputError, TeleportWarning
 from ..models.codes import traced_window_codes
@@ -45,7 +44,7 @@ from ..motion.memory import MEMORY_WIDTH, motion_memory
 from ..motion.motion import Motion
 from ..motion.poses import poses_to_motion
 from ..native import pin_workers
-from .blending import Inertializer, inertialize, latent_sources
+from .blending import Inertializer, inertialize
 from .bodies import CrowdBodies
 from .collision import push_out
 from .decoding import flush_denormals
@@ -98,7 +97,7 @@ class CrowdStream:
         self.timings = _Timings()
         regression = run.mode.regresses
         bundle = animator.bundle
-        self._decoder = animator.decoder_for(run)
+        self._decoders = {"full": animator.decoder, "fast": bundle.subspace}  # by name, as levels of detail pick them
         self._step = animator.causal_step(regression) or traced_window_codes(
             bundle.codespace, animator.window, bundle.codespace.features, regression=regression)
 
@@ -156,7 +155,7 @@ class CrowdStream:
         if len(keys) != poses.num_frames or len(set(keys)) != len(keys):
             raise InputError("push", f"{poses.num_frames} poses need as many distinct keys, got {len(keys)} keys "
                                      f"({len(set(keys))} distinct)")
-        lv = None if lod is None else levels(lod, len(keys))
+        lv = levels(lod, len(keys))
         with flush_denormals():
             vertices = self._step_frame(keys, poses, lv)
         self.timings.latency_s.append(time.perf_counter() - t0)
@@ -202,25 +201,17 @@ class CrowdStream:
         stacked = self._stacked[1]
         return poses.on_skeletons(stacked.skeletons, stacked.root_scale), stacked
 
-    def _latents(self, chars: list[_Character], windows: np.ndarray, lv: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, bool]:
-        """The window step (motion encoder, gate, code-space decoder) of every character, or with
-        levels of detail of those whose level runs it now: (N, nodes, C) inertialized latents, (N, 2)
-        database matches, whether the mode lends folds."""
+    def _latents(self, chars: list[_Character], windows: np.ndarray, lv: np.ndarray) -> np.ndarray:
+        """The window step (motion encoder, gate, code-space decoder) of the characters whose level
+        of detail runs it now (all, at level 0), the others' held: (N, nodes, C) inertialized
+        latents; each character's ``lod`` keeps its database match."""
         def choose(rows):
             return choose_windows(self.animator.bundle, rows, self.run, last_frame=True, step=self._step)
 
         def one(c, latent, retrieved, source):
             return inertialize(c.inertializer, latent, retrieved, source=source, frame=c.frames)
 
-        if lv is not None:
-            latents = crowd_latents(chars, windows, lv, choose=choose, inertialize_one=one)
-            return latents, np.stack([c.lod.match for c in chars]), self.run.mode is Mode.DETAIL
-        choice = choose(windows)
-        path_latents, retrieved = latent_sources(choice)
-        latents = np.empty((len(chars), *choice.latents.shape[2:]), np.float32)
-        for i, c in enumerate(chars):
-            latents[i] = one(c, path_latents[i, -1], retrieved[i], choice.match[i])
-        return latents, choice.match, choice.lends_folds
+        return crowd_latents(chars, windows, lv, choose=choose, inertialize_one=one)
 
     def _restart_teleported(self, keys: list, poses: Motion) -> None:
         """Forget the characters whose pelvis moved faster than :data:`MAX_ROOT_SPEED` since their
@@ -236,7 +227,7 @@ class CrowdStream:
             warnings.warn(f"character {key!r}: the pelvis moved {jump[j]:.3g} m in one frame (over {MAX_ROOT_SPEED:g} m/s); "
                           "taken as a teleport, its garment starts afresh there", TeleportWarning, stacklevel=4)
 
-    def _step_frame(self, keys: list, poses: Motion, lv: np.ndarray | None) -> np.ndarray:
+    def _step_frame(self, keys: list, poses: Motion, lv: np.ndarray) -> np.ndarray:
         t = [time.perf_counter()]
         pin_workers()  # a game loop idles between frames: its next frame must not wait for workers to move
         window = self.animator.window
@@ -255,19 +246,13 @@ class CrowdStream:
             c.features.append(feat)
         windows = np.stack([np.stack(c.features) for c in chars])  # (N, W, F)
         t.append(time.perf_counter())
-        if lv is None and any(c.lod.decoder is not None for c in chars):  # after levels of detail: all at 0, faded
-            lv = np.zeros(len(chars), np.int64)
-        latents, match, lends_folds = self._latents(chars, windows, lv)
+        latents = self._latents(chars, windows, lv)
         t.append(time.perf_counter())
-        if lv is None:
-            with torch.no_grad():
-                local = self._decoder(torch.from_numpy(latents)).numpy()
-        else:
-            has_fast = self.animator.bundle.subspace is not None
-            names = [decoder_of(int(level), self.run.decoder, has_fast) for level in lv]
-            local = crowd_decode(chars, latents, names, decoders={"full": self.animator.decoder, "fast": self.animator.bundle.subspace})
-        if lends_folds:  # the detail mode: each character's playhead one frame on, its folds added
-            local = add_folds(local, self._folds(chars, match), self.animator.smoothing,
+        has_fast = self._decoders["fast"] is not None
+        names = [decoder_of(int(level), self.run.decoder, has_fast) for level in lv]
+        local = crowd_decode(chars, latents, names, decoders=self._decoders)
+        if self.run.mode is Mode.DETAIL:  # the detail mode: each character's playhead one frame on, its folds added
+            local = add_folds(local, self._folds(chars, np.stack([c.lod.match for c in chars])), self.animator.smoothing,
                               passes=self.animator.bundle.folds.passes, strength=self.run.detail.strength,
                               limits=self.animator.edge_limits)
         t.append(time.perf_counter())
