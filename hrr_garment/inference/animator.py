@@ -70,7 +70,7 @@ class Animator:
         self.blend = blend  # inertialization frames in causal mode
         self.decoder = bundle.autoencoder.fast_decoder(precision=precision)  # the full mesh decoder
         self.smoothing = mean_operator(bundle.template.faces, bundle.template.num_vertices)  # for the push-out
-        self.edge_limits = EdgeLimits.of(bundle.template.faces, bundle.template.vertices)  # for the push-out's strain limit
+        self.edge_limits = EdgeLimits.of(bundle.template.faces, bundle.template.vertices, mean=self.smoothing)  # the push-out's
         self._causal_steps: dict[bool, object] = {}
         self._default_body: CharacterBody | None = None
 

@@ -38,23 +38,28 @@ class EdgeLimits:
     patches: tuple[np.ndarray, np.ndarray]  # (P + 1,) offsets into (V,) vertex indices, int32
 
     @classmethod
-    def of(cls, faces: np.ndarray, rest: np.ndarray) -> "EdgeLimits":
+    def of(cls, faces: np.ndarray, rest: np.ndarray, mean: csr_matrix | None = None) -> "EdgeLimits":
+        """``mean``: the faces' :func:`mean_operator`, where the caller has it already (its order is the ring's)."""
         edges = unique_edges(faces)
         v, e = len(rest), len(edges)
         signs = csr_matrix((np.r_[np.ones(e), -np.ones(e)], (np.r_[edges[:, 0], edges[:, 1]], np.r_[np.arange(e), np.arange(e)])),
                            shape=(v, e))
         degree = np.maximum(np.asarray(abs(signs).sum(1)).ravel(), 1.0)
-        ring, ring_length = _ring_table(mean_operator(faces, v), rest)
+        ring, ring_length = _ring_table(mean_operator(faces, v) if mean is None else mean, rest)
         return cls(edges, np.linalg.norm(rest[edges[:, 1]] - rest[edges[:, 0]], axis=-1), signs, degree, ring, ring_length,
                    _patches(rest))
+
+    @cached_property
+    def _push_meshes(self) -> dict:
+        return {}
 
     def push_mesh(self, settings: "PushOutSettings") -> PushMesh:
         """What the push-out's kernel takes of this garment under ``settings``, converted once per settings."""
         key = (settings.follow, settings.follow_slope)
-        cache = self.__dict__.setdefault("_push_meshes", {})
-        if key not in cache:
-            cache[key] = PushMesh(self.ring, self.ring_length, settings.follow_slope, follow=settings.follow, patches=self.patches)
-        return cache[key]
+        if key not in self._push_meshes:
+            self._push_meshes[key] = PushMesh(self.ring, self.ring_length, settings.follow_slope, follow=settings.follow,
+                                              patches=self.patches)
+        return self._push_meshes[key]
 
     @cached_property
     def native_arrays(self) -> EdgeArrays:

@@ -72,6 +72,12 @@ class _Character:
     lod: LodState = field(default_factory=LodState)  # its level of detail's held step and decoder fade
 
 
+def check_keys(keys: list, count: int) -> None:
+    """An InputError unless ``keys`` are ``count`` distinct ids, one per pushed pose."""
+    if len(keys) != count or len(set(keys)) != len(keys):
+        raise InputError("push", f"{count} poses need as many distinct keys, got {len(keys)} keys ({len(set(keys))} distinct)")
+
+
 @dataclass
 class _Timings:
     """Per push: its latency and each stage's seconds (the last 1,000 pushes)."""
@@ -152,9 +158,7 @@ class CrowdStream:
     def _push(self, keys: list, poses: Motion, lod=None) -> np.ndarray:
         """``poses``: one frame per key, as an N-frame motion (frames are characters here)."""
         t0 = time.perf_counter()
-        if len(keys) != poses.num_frames or len(set(keys)) != len(keys):
-            raise InputError("push", f"{poses.num_frames} poses need as many distinct keys, got {len(keys)} keys "
-                                     f"({len(set(keys))} distinct)")
+        check_keys(keys, poses.num_frames)
         lv = levels(lod, len(keys))
         with flush_denormals():
             vertices = self._step_frame(keys, poses, lv)

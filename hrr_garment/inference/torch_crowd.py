@@ -26,6 +26,7 @@ from ..errors import InputError
 from ..motion.skeleton import NUM_JOINTS
 from .modes import Mode
 from .run_settings import ResolvedRun
+from .stream import check_keys
 from .torch_step import state_shapes, stream_step
 
 STATE = ("started", "previous_rotations", "previous_positions", "memory", "window")
@@ -67,8 +68,8 @@ class DeviceCrowd:
         fresh = [k for k in keys if k not in self._slots]
         grow = len(fresh) - len(self._free)
         if grow > 0:  # room for the newcomers: the state's rows doubled at least
-            extra = max(grow, len(next(iter(self._state.values()))))
-            start = len(next(iter(self._state.values())))
+            start = len(self._state["started"])
+            extra = max(grow, start)
             self._state = {name: torch.cat([t, torch.zeros((extra, *t.shape[1:]), device=self.device)])
                            for name, t in self._state.items()}
             self._free += list(range(start + extra - 1, start - 1, -1))
@@ -87,11 +88,10 @@ class DeviceCrowd:
         (N, V, 3) world vertices, float32 (a tensor on the device with ``as_tensor``)."""
         rotations, roots = torch.as_tensor(rotations, dtype=torch.float32), torch.as_tensor(roots, dtype=torch.float32)
         keys = list(range(len(rotations))) if keys is None else list(keys)
-        if rotations.shape[1:] != (NUM_JOINTS, 4) or roots.shape != (len(rotations), 3) or len(keys) != len(rotations):
-            raise InputError("push", f"a device crowd takes (N, {NUM_JOINTS}, 4) quaternions, (N, 3) roots and N keys; got "
-                                     f"{tuple(rotations.shape)}, {tuple(roots.shape)} and {len(keys)} keys")
-        if len(set(keys)) != len(keys):
-            raise InputError("push", f"{len(keys)} keys, {len(set(keys))} distinct: one pose per character")
+        if rotations.shape[1:] != (NUM_JOINTS, 4) or roots.shape != (len(rotations), 3):
+            raise InputError("push", f"a device crowd takes (N, {NUM_JOINTS}, 4) quaternions and (N, 3) roots; got "
+                                     f"{tuple(rotations.shape)} and {tuple(roots.shape)}")
+        check_keys(keys, len(rotations))
         if not (torch.isfinite(rotations).all() and torch.isfinite(roots).all()):
             raise InputError("push", "non-finite rotations or roots")
         rows = self._slots_of(keys)

@@ -369,7 +369,7 @@ static int grow_region(const PushMesh *m, int V, int rings, int seeds, int32_t *
    up to four exact projections of the vertices still inside. Only moved vertices are measured
    again. before/after: fractions of vertices deeper than `depth`. Called by every thread of the
    innermost parallel region, which share the work; buf (20 V doubles), ints (3 V: the region, a
-   work list, the region's marks, zero between calls) and flag (4: one per purpose, so that no
+   work list, the region's marks, zero between calls) and flag (3: one per purpose, so that no
    thread can see a later value) are the team's shared scratch. */
 static void push_frame(double *p, int V, const double *ca, const double *cb, const double *radii, int C,
                        const PushMesh *m, double margin, int smooth, int rounds, double depth, double *before,
@@ -398,7 +398,6 @@ static void push_frame(double *p, int V, const double *ca, const double *cb, con
                 if (need[v] > 0.0) region[seeds++] = v;
             }
             flag[0] = seeds > 0 ? grow_region(m, V, rings, seeds, region, mark, ends) : 0;
-            flag[3] = flag[0];
         }
         const int size = flag[0];  /* read after the single's barrier; rewritten only after later barriers */
         if (!size) break;
@@ -465,7 +464,7 @@ static void push_frame(double *p, int V, const double *ca, const double *cb, con
             }
             flag[1] = moved;
             if (m->ring)
-                for (int i = 0; i < flag[3]; ++i) mark[region[i]] = 0;
+                for (int i = 0; i < size; ++i) mark[region[i]] = 0;
         }
         sdf_points(p, list, flag[1], ca, cb, radii, C, d, nrm);
     }
@@ -514,7 +513,7 @@ void hrr_push_out(double *p, int T, int V, const double *a, const double *b, con
     const int team_count = shared ? 1 : teams;
     double *buf = malloc(sizeof(double) * (size_t)V * 20 * team_count);
     int32_t *ints = calloc((size_t)V * 3 * team_count, sizeof(int32_t));  /* the marks start at zero */
-    int flags[4 * MAX_TEAMS];
+    int flags[3 * MAX_TEAMS];
     if (!buf || !ints || follow + smooth + 1 > MAX_REGION_RINGS) {
         for (int t = 0; t < T; ++t) before[t] = after[t] = NAN;  /* the caller raises */
         free(buf);
@@ -533,7 +532,7 @@ void hrr_push_out(double *p, int T, int V, const double *a, const double *b, con
             #pragma omp parallel num_threads(1)  /* this frame's own one-thread team */
             push_frame(p + (size_t)t * V * 3, V, a + (size_t)t * 3 * C, b + (size_t)t * 3 * C, radii + (size_t)t * radii_step, C,
                        &mesh, margin, smooth, rounds, depth, before + t, after + t, buf + (size_t)me * V * 20,
-                       ints + (size_t)me * V * 3, flags + 4 * me);
+                       ints + (size_t)me * V * 3, flags + 3 * me);
         }
     }
     free(buf);
