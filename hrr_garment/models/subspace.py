@@ -76,6 +76,10 @@ class SubspaceDecoder(nn.Module):
         self.net = nn.Sequential(*layers, nn.Linear(widths[-1], components))
         self._scaled_basis: torch.Tensor | None = None  # basis rows times their spread (inference, made once)
 
+    def _load_from_state_dict(self, *args, **kwargs) -> None:
+        self._scaled_basis = None  # made again from the weights loaded
+        super()._load_from_state_dict(*args, **kwargs)
+
     @property
     def components(self) -> int:
         return len(self.basis)

@@ -61,3 +61,14 @@ def test_a_fast_decoder_far_from_the_full_one_is_warned_about():
     assert subspace_warning({"validation_mm": 3.47, "full_validation_mm": 3.01}) is None
     text = subspace_warning({"validation_mm": 22.75, "full_validation_mm": 6.56})
     assert "3.5 x" in text and "decoder='full'" in text
+
+
+def test_weights_loaded_after_a_forward_are_the_ones_it_decodes_with():
+    torch.manual_seed(1)
+    model = SubspaceDecoder((4, 2), 10, 6, SubspaceConfig(max_components=6, hidden=8, layers=1)).eval()
+    z = torch.randn(3, 4, 2)
+    model(z)  # the scaled basis made once
+    state = {k: v.clone() for k, v in model.state_dict().items()}
+    state["basis"], state["coeff_std"] = torch.randn(6, 30), state["coeff_std"] * 2.0
+    model.load_state_dict(state)
+    assert torch.allclose(model(z), model.vertices(model.coefficients(z)), atol=1e-5)
