@@ -57,6 +57,7 @@ from ..artifacts.residual import FREE_CLOTH_RAMPS_MM
 from ..data.dataset import SequenceRecord
 from ..garment.fit import hem_vertices
 from ..inference.animator import Animator
+from ..inference.fold_track import FOLD_FOLLOW
 from ..inference.run_settings import DetailLook
 from ..settings import SettingsError, from_settings
 from ..sim.quality import hem_swing
@@ -191,6 +192,12 @@ def _picked_labels(candidates: dict[str, dict[str, float]], config: AutoConfig) 
     return picked, picked if picked in details else pick_auto_mode(details, config)
 
 
+def followed_otherwise(auto: dict) -> bool:
+    """Whether a recorded calibration's detail candidates ran with folds followed in time otherwise
+    than this version's (recorded before the following: as they came, 1)."""
+    return float(auto.get("fold_follow", 1.0)) != FOLD_FOLLOW
+
+
 def lacks_free_cloth(auto: dict, residual: dict | None) -> bool:
     """Whether a recorded calibration measured the residual mode (of a calibrated weight,
     bundle.json's ``residual``) but not on free cloth: recorded before those candidates."""
@@ -219,7 +226,9 @@ def calibrate_auto_mode(animator: Animator, records: list[SequenceRecord], confi
     vertices inside the body before the push-out (%) on ``records`` (at most ``max_sequences`` of
     them, evenly spaced), and the mode the criterion picks under ``config``: ``{"mode",
     "detail_base", "detail_strength", "criterion", the allowances (:meth:`AutoConfig.limits`),
-    "sequences", "frames", "candidates": {label: {...}}}``, what bundle.json keeps under ``auto``."""
+    "sequences", "frames", "fold_follow", "candidates": {label: {...}}}``, what bundle.json keeps
+    under ``auto`` (``fold_follow``: the folds' following in time the candidates ran with,
+    :data:`~hrr_garment.inference.fold_track.FOLD_FOLLOW`)."""
     if not records:
         raise ValueError("the auto mode is calibrated on validation sequences, and there are none")
     if max_sequences is not None and len(records) > max_sequences:
@@ -256,7 +265,7 @@ def calibrate_auto_mode(animator: Animator, records: list[SequenceRecord], confi
                 swing += hem_swing(pred, r.motion, hem) * len(pred)
         candidates[label] = {"pve_mm": error / frames, "sharpness": bend / max(truth_bend, 1e-30),
                              "hem_swing": swing / max(truth_swing, 1e-30), "penetration_pct": 100.0 * inside / frames}
-    return repick({"sequences": len(records), "frames": frames, "candidates": candidates,
+    return repick({"sequences": len(records), "frames": frames, "fold_follow": FOLD_FOLLOW, "candidates": candidates,
                    "criterion": "the most plausible (hypot(ln sharpness, ln hem swing)) within the allowance x the most "
                                 "accurate PVE and the penetration allowance x its cloth inside the body"}, config)
 

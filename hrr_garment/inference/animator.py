@@ -14,6 +14,7 @@
 
 from __future__ import annotations
 
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -39,7 +40,7 @@ from .collision import push_out
 from .decoding import body_frame_vertices, flush_denormals
 from .detail import add_folds
 from .edge_limits import EdgeLimits
-from .fold_track import causal_proposals, offline_proposals, track_folds
+from .fold_track import causal_proposals, follow_over_time, offline_proposals, track_folds
 from .gate import WindowChoice, choose_windows
 from .modes import CODE_MODES, Mode
 from .run_settings import ResolvedRun, RunSettings, run_settings
@@ -182,7 +183,7 @@ class Animator:
             store = self.bundle.folds
             rows, weights = track_folds(proposals, store.offsets)
             local = add_folds(local, store.folds(rows, weights), self.smoothing, passes=store.passes, strength=run.detail.strength,
-                              limits=self.edge_limits)
+                              limits=self.edge_limits, follow=partial(follow_over_time, mean=self.smoothing))
         vertices = world_vertices(local + character.offset, motion)  # stood on the body's own rest shape
         report = None
         if run.collision:

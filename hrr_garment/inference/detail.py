@@ -7,12 +7,14 @@ dress is) and the simulated frames' high ones (their folds and wrinkles, from th
 :class:`~hrr_garment.artifacts.folds.FoldStore`, chosen by the :mod:`.fold_track`). With H the
 high-pass of the store (:func:`~hrr_garment.garment.smoothing.high_frequencies`),
 
-    detail = regression + strength * (folds - H(regression))
+    detail = regression + strength * follow(folds - H(regression))
 
 which swaps the regression's own high frequencies for ``strength`` x the simulated ones (the
 strength is calibrated per model with the auto mode: :mod:`hrr_garment.eval.auto_mode`). H removes
 anything constant over the mesh and commutes with rotations, so this holds in the body frame and in
-the world alike. Measured on held-out real clips: docs/results.md.
+the world alike. ``follow`` is the fold term's smoothing in time (:func:`~.fold_track.follow_folds`,
+the identity where none is given): the term, not the folds alone, so that the regression's own high
+frequencies, which it replaces, are smoothed alike. Measured on held-out real clips: docs/results.md.
 
 Folds from another simulation can stretch an edge of this shape far past what any simulation does
 (2.3 x its rest length on held-out clips). Where they would take an edge past
@@ -23,6 +25,8 @@ with PVE, sharpness and jitter unchanged (0.84 to 0.83 bending energy ratio).
 """
 
 from __future__ import annotations
+
+from collections.abc import Callable
 
 import numpy as np
 from scipy.sparse import csr_matrix
@@ -39,13 +43,16 @@ FOLD_LIMIT_ITERATIONS = 10
 
 
 def add_folds(regression: np.ndarray, folds: np.ndarray, mean: csr_matrix, passes: int,
-              strength: float = DETAIL_STRENGTH, limits: EdgeLimits | None = None) -> np.ndarray:
+              strength: float = DETAIL_STRENGTH, limits: EdgeLimits | None = None,
+              follow: Callable[[np.ndarray], np.ndarray] | None = None) -> np.ndarray:
     """(T, V, 3) regression vertices and (T, V, 3) folds (high frequencies at ``passes`` passes of
     ``mean``, the mesh's :func:`~hrr_garment.garment.smoothing.mean_operator`; same frame, body or
     world) -> (T, V, 3) float32; with the template's ``limits``, no edge stretched by the folds past
-    :data:`FOLD_MAX_STRAIN` (module docstring)."""
-    own = high_frequencies(regression, mean, passes)
-    detail = (regression + strength * (folds - own)).astype(np.float32)
+    :data:`FOLD_MAX_STRAIN`; ``follow``: the fold term's smoothing in time (module docstring)."""
+    term = folds - high_frequencies(regression, mean, passes)
+    if follow is not None:
+        term = follow(term)
+    detail = (regression + strength * term).astype(np.float32)
     if limits is None:
         return detail
     return limit_push_strain(detail, regression, limits, max_strain=FOLD_MAX_STRAIN, iterations=FOLD_LIMIT_ITERATIONS,

@@ -49,7 +49,7 @@ from .bodies import CrowdBodies
 from .collision import push_out
 from .decoding import flush_denormals
 from .detail import add_folds
-from .fold_track import FoldTrack
+from .fold_track import FoldTrack, FollowedFolds, follow_folds
 from .gate import choose_windows
 from .lod import LodState, crowd_decode, crowd_latents, decoder_of, levels
 from .modes import Mode
@@ -65,6 +65,7 @@ class _Character:
     features: deque
     inertializer: Inertializer
     fold_track: FoldTrack | None = None  # the detail mode's playhead in the database's folds
+    followed: FollowedFolds | None = None  # its folds as followed in time (fold_track.follow_folds)
     previous: tuple[np.ndarray, np.ndarray] | None = None  # its last pose: global rotations and joint positions
     memory: np.ndarray | None = None  # its motion memory's state (rows, 64), when the model has one
     root: np.ndarray | None = None  # its last pushed pelvis position (teleports restart it)
@@ -193,6 +194,17 @@ class CrowdStream:
             steps.append(c.fold_track.step(sequence, start + window - 1))
         return store.folds(np.stack([r for r, _ in steps]), np.stack([w for _, w in steps]))
 
+    def _follow(self, chars: list[_Character]):
+        """The detail mode's fold term -> as each character's folds follow in time
+        (:func:`~.fold_track.follow_folds`, its state kept on the character)."""
+        def follow(term: np.ndarray) -> np.ndarray:
+            states = [c.followed for c in chars]
+            followed = follow_folds(term, states, self.animator.smoothing)
+            for c, state in zip(chars, states):
+                c.followed = state
+            return followed
+        return follow
+
     def _played(self, keys: list, poses: Motion) -> tuple[Motion, "CrowdBodies"]:
         """The pushed poses (one per character, on the canonical skeleton) each played by its
         character's body, and those bodies as arrays (one row per character, or one body for all)."""
@@ -258,7 +270,7 @@ class CrowdStream:
         if self.run.mode is Mode.DETAIL:  # the detail mode: each character's playhead one frame on, its folds added
             local = add_folds(local, self._folds(chars, np.stack([c.lod.match for c in chars])), self.animator.smoothing,
                               passes=self.animator.bundle.folds.passes, strength=self.run.detail.strength,
-                              limits=self.animator.edge_limits)
+                              limits=self.animator.edge_limits, follow=self._follow(chars))
         t.append(time.perf_counter())
         vertices = world_vertices(local + bodies.offset, poses)  # as offline: the same push-out inputs
         t.append(time.perf_counter())

@@ -20,12 +20,12 @@ def _walk():
 
 
 def test_a_version_2_bundle_loads_and_animates_as_31b4ef9_did(tmp_path, monkeypatch):
-    """The detail mode as 31b4ef9 ran it, before its folds were strain-limited and before the push-out's
+    """The detail mode as 31b4ef9 ran it, before its folds were strain-limited and followed in time, and before the push-out's
     strain limit had its slack; with the limits, the same frames with no edge past them
     (tests/inference/test_detail.py and test_collision.py test the limits themselves)."""
     import dataclasses
 
-    from hrr_garment.inference import collision, detail
+    from hrr_garment.inference import collision, detail, fold_track
 
     folder = shutil.copytree(DATA / "bundle-31b4ef9", tmp_path / "model")
     animator = Animator.load(folder)
@@ -35,6 +35,7 @@ def test_a_version_2_bundle_loads_and_animates_as_31b4ef9_did(tmp_path, monkeypa
     assert meta["gate"] in ("entropy", "similarity", "distance") and isinstance(meta["gates"], dict)
     assert {"memory_seconds", "resonator_hz", "regression_code"} <= set(meta["codespace"]["config"])
     written = read_animation_h5(DATA / "out-31b4ef9" / "auto.h5")
+    monkeypatch.setattr(fold_track, "FOLD_FOLLOW", 1.0)  # its folds as the playhead gave them
     limited = animator.animate(_walk())
     monkeypatch.setattr(detail, "FOLD_MAX_STRAIN", np.inf)
     monkeypatch.setattr(collision, "PUSH_OUT", dataclasses.replace(collision.PUSH_OUT, stretch_slack=0.0))

@@ -208,18 +208,28 @@ def test_hrr_train_picks_auto_again_when_its_allowance_changes(trained, tmp_path
     assert plausibility_gap(c[picked]["sharpness"], c[picked]["hem_swing"]) == most_plausible
 
 
-def test_a_calibration_recorded_without_penetration_is_made_again(trained, tmp_path):
-    """Bundles calibrated before the criterion counted the cloth inside the body are calibrated
-    again by hrr-train, not re-picked from numbers that lack it."""
+@pytest.mark.parametrize("before", ["penetration", "fold_follow"])
+def test_a_calibration_recorded_before_is_made_again(trained, tmp_path, before):
+    """Bundles calibrated before the criterion counted the cloth inside the body, or before the
+    detail mode's folds followed in time, are calibrated again by hrr-train, not re-picked from
+    numbers that lack it or measured another detail mode."""
     from hrr_garment.artifacts.bundle_writer import update_bundle_meta
+    from hrr_garment.inference.fold_track import FOLD_FOLLOW
     from hrr_garment.pipeline.train import calibrate_auto
 
     root, data, _ = trained
     shutil.copytree(root / "model", tmp_path / "model")
     auto = json.loads((tmp_path / "model" / "bundle.json").read_text())["auto"]
-    old = {k: {m: v for m, v in c.items() if m != "penetration_pct"} for k, c in auto["candidates"].items()}
-    update_bundle_meta(tmp_path / "model", {"auto": {**auto, "candidates": old}})
+    assert auto["fold_follow"] == FOLD_FOLLOW
+    if before == "penetration":
+        old = {k: {m: v for m, v in c.items() if m != "penetration_pct"} for k, c in auto["candidates"].items()}
+        update_bundle_meta(tmp_path / "model", {"auto": {**auto, "candidates": old}})
+    else:  # numbers of another detail mode (here: made up), recorded without the following
+        old = {k: {**c, "pve_mm": 999.0} for k, c in auto["candidates"].items()}
+        update_bundle_meta(tmp_path / "model", {"auto": {**{k: v for k, v in auto.items() if k != "fold_follow"},
+                                                          "candidates": old}})
     again = calibrate_auto(tmp_path / "model", data, progress=False)
+    assert again["fold_follow"] == FOLD_FOLLOW
     assert again["mode"] == auto["mode"] and set(again["candidates"]) == set(auto["candidates"])
     for label, c in auto["candidates"].items():
         assert again["candidates"][label] == pytest.approx(c)

@@ -1,6 +1,8 @@
 """The detail mode: the regression's shape plus simulated folds, the high spatial frequencies of
 the database's frames (the fold store), chosen frame by frame by a playhead (the fold track)."""
 
+from functools import partial
+
 import numpy as np
 import pytest
 
@@ -9,7 +11,14 @@ from hrr_garment.artifacts.manifest import migrate_manifest
 from hrr_garment.garment.smoothing import high_frequencies, mean_operator
 from hrr_garment.garment.templates import make_garment
 from hrr_garment.inference.detail import add_folds
-from hrr_garment.inference.fold_track import FoldTrack, causal_proposals, offline_proposals, track_folds
+from hrr_garment.inference.fold_track import (
+    FoldTrack,
+    causal_proposals,
+    follow_folds,
+    follow_over_time,
+    offline_proposals,
+    track_folds,
+)
 from hrr_garment.inference.run_settings import DetailLook, RunSettings
 from hrr_garment.motion.frame import from_body_frame, to_body_frame
 from hrr_garment.motion.synth import synthesize
@@ -171,8 +180,9 @@ def test_the_detail_mode_is_its_base_plus_the_tracked_simulated_folds(trained, b
     source = animator._choose(windows, animator.resolve(mode="detail")).match
     rows, weights = track_folds(offline_proposals(source, motion.num_frames, animator.window), store.offsets)
     local = to_body_frame(shape.astype(np.float64), motion)
+    follow = partial(follow_over_time, mean=animator.smoothing)
     expected = from_body_frame(add_folds(local, store.folds(rows, weights), animator.smoothing, store.passes,
-                                         strength or DETAIL_STRENGTH, limits=animator.edge_limits), motion)
+                                         strength or DETAIL_STRENGTH, limits=animator.edge_limits, follow=follow), motion)
     assert np.abs(detail.vertices - expected).max() < 1e-4
     assert not np.allclose(detail.vertices, shape, atol=1e-3)
     assert (base == "regression") == np.allclose(shape, regression, atol=1e-5)
@@ -294,3 +304,38 @@ def test_hrr_animate_runs_the_detail_mode_as_it_is_told(trained, tmp_path, capsy
         assert animate_main([str(clip), "-o", str(refused), "--model", str(model), "--no-collision", *extra]) == 2
         assert phrase in capsys.readouterr().err, extra
         assert not refused.exists()
+
+
+def _curvature(folds, mean):
+    return np.sqrt((high_frequencies(folds, mean, 1) ** 2).sum(-1).mean(-1))
+
+
+def test_followed_folds_keep_a_still_pattern_and_calm_a_flickering_one(skirt, rng):
+    garment, mean = skirt
+    still = np.repeat(high_frequencies(rng.normal(0, 0.003, (1, garment.num_vertices, 3)), mean, 1), 20, 0)
+    np.testing.assert_allclose(follow_over_time(still, mean), still, atol=1e-12)  # nothing moves: as they are
+    flicker = high_frequencies(rng.normal(0, 0.003, (40, garment.num_vertices, 3)), mean, 1)  # new folds every frame
+    followed = follow_over_time(flicker, mean)
+    np.testing.assert_array_equal(followed[0], flicker[0])  # the first frame as it comes
+    np.testing.assert_array_equal(follow_over_time(flicker, mean, follow=1.0), flicker)  # 1: no smoothing
+    acceleration = [np.linalg.norm(np.diff(x, 2, axis=0), axis=-1).mean() for x in (flicker, followed)]
+    assert acceleration[1] < 0.6 * acceleration[0]
+    # scaled back to the folds' curvature (the followed ratio: within a few percent once settled)
+    ratio = _curvature(followed[10:], mean) / _curvature(flicker[10:], mean)
+    assert np.all(np.abs(ratio - 1.0) < 0.15) and abs(ratio.mean() - 1.0) < 0.05
+
+
+def test_followed_folds_of_a_crowd_are_each_animation_alone(skirt, rng):
+    garment, mean = skirt
+    a, b = (high_frequencies(rng.normal(0, 0.003, (12, garment.num_vertices, 3)), mean, 1) for _ in range(2))
+    alone = [follow_over_time(x, mean) for x in (a, b)]
+    states = [None, None]
+    together = []
+    for t in range(12):
+        if t == 5:  # b restarts (a teleport): its state is forgotten, a's kept
+            states[1] = None
+            alone[1][5:] = follow_over_time(b[5:], mean)
+        together.append(follow_folds(np.stack([a[t], b[t]]), states, mean))
+    together = np.stack(together, 1)
+    np.testing.assert_allclose(together[0], alone[0], atol=1e-12)
+    np.testing.assert_allclose(together[1], alone[1], atol=1e-12)
