@@ -70,9 +70,11 @@ def choose_windows(bundle: Bundle, motion_windows: np.ndarray, run: ResolvedRun,
             own = match_regression(bundle.codespace, bundle.motion_stats, bundle.latent_stats, database=db, rows=match, last_frame=last_frame, step=step)
             latents = residual_latents(enc.regression, db.latents[match, -frames:], own, similarity=similarity,
                                        weight=bundle.residual_weight, nodes=bundle.residual_nodes)
-        # a detail window's latents are the regression's, one continuous source whatever lends the folds
+        # on the regression, a detail window's latents are one continuous source whatever lends the
+        # folds; on the residual they change with the match, which causal inference inertializes
+        # (without it a stream of the default look jumped at every change of match: 2 x the jitter)
         return WindowChoice(latents, np.zeros(n, bool), enc.entropy, np.asarray(doubt, np.float64), matched,
-                            lends_folds=mode is Mode.DETAIL, follows_match=np.full(n, mode is Mode.RESIDUAL))
+                            lends_folds=mode is Mode.DETAIL, follows_match=np.full(n, residual))
     if run.gate != "entropy" and mode is Mode.HYBRID:  # the match decides: search every window first
         match, similarity = db.search(enc.codes, exclude, bodies)
         distance = db.motion_distance(enc.standardised, match) if run.gate == "distance" else None

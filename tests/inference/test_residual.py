@@ -61,6 +61,28 @@ def test_residual_at_weight_zero_is_the_regression_and_otherwise_adds_the_matche
     assert not chosen.retrieved.any() and chosen.follows_match.all()  # a change of match is a change of source
 
 
+def test_the_detail_mode_on_the_residual_inertializes_its_latents_as_the_residual_mode(animator, monkeypatch):
+    """Its latents are the residual mode's, changing with the match: a causal path must smooth
+    each change of match as the residual mode does (they once went through raw: jumps every frame)."""
+    from hrr_garment.inference.blending import causal_latents
+    from hrr_garment.inference.gate import choose_windows
+    from hrr_garment.inference.run_settings import DetailLook
+    from hrr_garment.motion.windows import causal_windows
+
+    monkeypatch.setitem(animator.bundle.meta, "residual", {"weight": 1.0})
+    motion = synthesize("walk_curve", 1.5, seed=5)
+    windows = causal_windows(animator.features(motion, causal=True), animator.window)
+    chosen = {mode: choose_windows(animator.bundle, windows, animator.resolve(mode=mode, detail=look), last_frame=True)
+              for mode, look in (("residual", DetailLook()), ("detail", DetailLook("residual", 1.0)))}
+    assert np.array_equal(chosen["detail"].latents, chosen["residual"].latents)
+    assert len(np.unique(chosen["detail"].match, axis=0)) > 1  # the match changes along the clip
+    assert chosen["detail"].follows_match.all()
+    np.testing.assert_array_equal(causal_latents(chosen["detail"], animator.blend), causal_latents(chosen["residual"], animator.blend))
+    regression = choose_windows(animator.bundle, windows, animator.resolve(mode="detail", detail=DetailLook("regression", 1.0)),
+                                last_frame=True)
+    assert not regression.follows_match.any()  # on the regression: one continuous source
+
+
 def test_stream_in_the_residual_mode_equals_offline_causal(animator, monkeypatch):
     monkeypatch.setitem(animator.bundle.meta, "residual", {"weight": 0.5})
     motion = synthesize("walk_curve", 1.0, seed=5)
