@@ -5,7 +5,8 @@ frames (the bundle's fold store) to the regression, frame by frame from a playhe
 the matches forward (the fold track). This tool measures, on held-out clips of a trained model
 (offline, no push-out, against each clip's single simulation), the mode as shipped and variants of
 its settings: the folds' strength, the track's hold and fade, no track at all (each frame's own
-proposal), and a swing gain (the regression's body-frame departure from the training frames' mean
+proposal), the folds' following in time (:func:`~hrr_garment.inference.fold_track.follow_folds`: 1 is
+none), the default output itself offline and causal (``auto``, as a game streams it), and a swing gain (the regression's body-frame departure from the training frames' mean
 shape, or from its own causal running mean, scaled up: the hem swing the mean lacks, at a price in
 PVE).
 
@@ -19,6 +20,7 @@ from __future__ import annotations
 
 import argparse
 import json
+from functools import partial
 
 import numpy as np
 
@@ -27,17 +29,24 @@ from hrr_garment.eval import metrics as M
 from hrr_garment.garment.fit import hem_vertices
 from hrr_garment.inference.animator import Animator
 from hrr_garment.inference.detail import add_folds
-from hrr_garment.inference.fold_track import causal_proposals, offline_proposals, track_folds
+from hrr_garment.inference.fold_track import (
+    causal_proposals,
+    follow_over_time,
+    offline_proposals,
+    track_folds,
+)
 from hrr_garment.inference.run_settings import DetailLook
 from hrr_garment.motion.frame import from_body_frame, to_body_frame
 from hrr_garment.motion.windows import causal_windows, sequence_windows
 from hrr_garment.sim.quality import hem_swing
 
-# (label, strength, hold, fade): strength None is the model's calibrated one; hold 1 and fade 0
-# take each frame's own proposal
-TRACKS = [("shipped", None, None, None), ("strength 0.6", 0.6, None, None), ("strength 1.0", 1.0, None, None),
-          ("no track (each frame's proposal)", None, 1, 0), ("hold 4, fade 3", None, 4, 3),
-          ("hold 16, fade 6", None, 16, 6), ("hold 8, fade 12", None, 8, 12)]
+# (label, strength, hold, fade, follow): strength None is the model's calibrated one, follow None
+# the shipped FOLD_FOLLOW; hold 1 and fade 0 take each frame's own proposal
+TRACKS = [("shipped", None, None, None, None), ("strength 0.6", 0.6, None, None, None), ("strength 1.0", 1.0, None, None, None),
+          ("no track (each frame's proposal)", None, 1, 0, None), ("hold 4, fade 3", None, 4, 3, None),
+          ("hold 16, fade 6", None, 16, 6, None), ("hold 8, fade 12", None, 8, 12, None),
+          ("folds not followed (follow 1)", None, None, None, 1.0), ("follow 0.5", None, None, None, 0.5),
+          ("follow 0.6", None, None, None, 0.6)]
 SWING_GAINS = (1.25, 1.5)
 RUNNING_MEAN_S = 1.0  # time constant of the causal running mean a swing gain may scale from instead
 
@@ -91,12 +100,14 @@ def analyse(model: str, split: str, sequences: int | None) -> dict:
             local = to_body_frame(regression, motion)
             proposals = _proposals(animator, motion, causal)
             outputs[f"regression ({kind})"] = regression
-            for label, strength, hold, fade in TRACKS if not causal else TRACKS[:1]:
+            outputs[f"auto, the default output ({kind})"] = animator.animate(motion, collision=False, causal=causal).vertices
+            for label, strength, hold, fade, follow in TRACKS if not causal else TRACKS[:1]:
                 rows, weights = track_folds(proposals, store.offsets, **{k: v for k, v in (("hold", hold), ("fade", fade)) if v is not None})
                 folds = store.folds(rows, weights)
                 strength = animator.bundle.detail_strength if strength is None else strength
+                followed = partial(follow_over_time, mean=animator.smoothing, follow=follow)
                 outputs[f"detail, {label} ({kind})"] = from_body_frame(
-                    add_folds(local, folds, animator.smoothing, store.passes, strength), motion)
+                    add_folds(local, folds, animator.smoothing, store.passes, strength, follow=followed), motion)
                 if label == "shipped" and not causal:
                     running = _running_mean(local, motion.fps)
                     for gain in SWING_GAINS:
@@ -104,7 +115,7 @@ def analyse(model: str, split: str, sequences: int | None) -> dict:
                             swung = centre + gain * (local - centre)
                             outputs[f"regression, swing gain {gain:g} ({ref})"] = from_body_frame(swung, motion)
                             outputs[f"detail, swing gain {gain:g} ({ref})"] = from_body_frame(
-                                add_folds(swung, folds, animator.smoothing, store.passes, strength), motion)
+                                add_folds(swung, folds, animator.smoothing, store.passes, strength, follow=followed), motion)
         truth_sums += [M.cloth_energies(truth, rest, topo)[1].sum(), hem_swing(truth, motion, hem) * len(truth)]
         frames += len(truth)
         for key, pred in outputs.items():

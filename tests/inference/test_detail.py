@@ -306,7 +306,7 @@ def test_hrr_animate_runs_the_detail_mode_as_it_is_told(trained, tmp_path, capsy
         assert not refused.exists()
 
 
-def _curvature(folds, mean):
+def _curvature(folds, mean):  # the size of the folds' 1-ring Laplacian
     return np.sqrt((high_frequencies(folds, mean, 1) ** 2).sum(-1).mean(-1))
 
 
