@@ -191,6 +191,7 @@ def _job(args) -> _Job:
 
 def _evaluate(job: _Job, args) -> dict:
     """Every protocol asked for, into report.json's dictionary."""
+    from ..eval.holdouts import holdout_of
     from ..eval.protocols import (
         LibraryPlays,
         default_taus,
@@ -228,7 +229,8 @@ def _evaluate(job: _Job, args) -> dict:
                "auto_calibration": bundle.meta.get("auto"),
                "vertices": bundle.template.num_vertices, "preset": bundle.meta.get("preset")},
         dataset={"path": str(job.ds.path), "split": args.split, "sequences": job.names,
-                 "frames": int(sum(len(r.garment) for r in records))},
+                 "frames": int(sum(len(r.garment) for r in records)),
+                 "holdouts": holdout_of(job.ds.info, job.ds.splits, job.names) if args.split != "train" else None},
         settings=evaluation_record(animator, settings),
         ensemble=ensemble_summary(ensembles, records, settings.members),
         modes=job.results, sweep=job.sweep,

@@ -30,10 +30,11 @@ import numpy as np
 from ..io_utils import atomic_write_text, strict_json
 from .bars import HELD_OUT_BARS, LIBRARY_BARS, cell, default_output, markdown_lead
 from .evaluate import ModeResult, TauPoint
+from .holdouts import holdout_section, markdown_holdouts
 from .library import SOURCE_SIMULATION
 from .unseen_bodies import markdown_table
 
-REPORT_VERSION = 11  # report.json's "format_version": see the module docstring
+REPORT_VERSION = 12  # report.json's "format_version": see the module docstring
 GOALS = (  # (name, numerator mode, denominator mode, target ratio)
     ("hybrid_vs_regression", "hybrid", "regression", 0.5),
     ("hybrid_vs_retrieval", "hybrid", "retrieval", 0.85),
@@ -125,7 +126,8 @@ def build_report(*, model: dict, dataset: dict, settings: dict, modes: dict[str,
                  protocols: dict | None = None) -> dict:
     """The report.json contents (schema: docs/evaluation.md); ``protocols``: the sections of the
     protocols beyond the split that ran (``real_motion``, ``library``, ``paper``, ``unseen_bodies``;
-    None where not)."""
+    None where not); ``dataset["holdouts"]``, where given: each sequence's hold-out
+    (:func:`~.holdouts.holdout_of`), which the ``holdouts`` section pools by."""
     protocols = dict(protocols or {})
     for name, bars in (("real_motion", HELD_OUT_BARS), ("library", LIBRARY_BARS)):
         if protocols.get(name):
@@ -139,6 +141,7 @@ def build_report(*, model: dict, dataset: dict, settings: dict, modes: dict[str,
         "goals": goals(modes, sweep),
         "tau_sweep": [vars(p) for p in sweep] if sweep else [],
         "entropy": entropy_summary(modes),
+        "holdouts": holdout_section(entries, dataset["holdouts"]) if dataset.get("holdouts") else None,
         "real_motion": protocols.get("real_motion"),
         "library": protocols.get("library"),
         "paper": protocols.get("paper"),
@@ -200,6 +203,7 @@ def markdown(report: dict, plots: list[str]) -> str:
     lead = _ensemble_table(report["modes"], report.get("ensemble", {}))
     if lead:
         out += ["## Against the simulator's own chaos (ensemble ground truth)", "", *lead, ""]
+    out += markdown_holdouts(report.get("holdouts"))
     out += ["## Modes (against the dataset's single simulation)", ""]
     out += _mode_table(report["modes"])
     out += ["", "## Goals (the paper's shape; PVE ratios)", "", *_goal_table(report["goals"])]

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import time
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -74,6 +75,10 @@ class BuildOptions:
     (:func:`~hrr_garment.data.dataset.split_names`). ``preview``: renders the dataset's preview image beside it
     (``hrr-simulate`` passes :func:`hrr_garment.export.preview.write_dataset_preview`).
 
+    ``also_hold_out`` (field -> ``{"groups": {sequence name: group}, "val": v, "test": t}``) holds out
+    whole groups of more fields beside ``groups`` (a sequence tests if any field's split tests it;
+    sequences a field does not group train as far as that field goes).
+
     ``bodies`` (name -> a body and the garment on it, :mod:`.bodies`) holds every body a sequence
     names (``SequenceSpec.body``); ``hold_out_bodies`` makes validation and test hold out whole
     bodies as well as whole groups (a sequence tests if its group or its body does).
@@ -98,6 +103,7 @@ class BuildOptions:
     bodies: dict[str, DressedBody] | None = None
     hold_out_bodies: bool = False
     batch: int = 0
+    also_hold_out: dict[str, dict] | None = None
 
 
 def build_dataset(garment: GarmentMesh, specs: list[SequenceSpec], config: SimConfig, *, out: str | Path,
@@ -136,14 +142,7 @@ def build_dataset(garment: GarmentMesh, specs: list[SequenceSpec], config: SimCo
         records = [load_part(part_paths(parts, n)[0], n) for n in done]
         if not records:
             raise SimulationExploded(f"every sequence failed; nothing to write to {out}: {rejects}")
-        val, test = (o.splits or {}).get("val", 0.1), (o.splits or {}).get("test", 0.1)
-        if o.groups:
-            split = split_groups({n: o.groups.get(n, n) for n in done}, val, test, seed=o.seed)
-        else:
-            split = split_names(done, val, test, seed=o.seed, kinds=o.kinds)
-        if o.hold_out_bodies:
-            by_body = {s.name: s.body or MANNEQUIN for s in specs if s.name in done}
-            split = combine_splits(split, split_groups(by_body, val, test, seed=o.seed))
+        split = _split(done, specs, o)
         summary = summarise(records, garment, rejects, sim_wall, jobs, len(pending), bodies=bodies)
         if o.mirror:
             records, split = _add_mirrored(records, split, garment, progress, bodies)
@@ -165,6 +164,8 @@ def _to_simulate(specs: list[SequenceSpec], parts: Path, keys: dict[str, str], *
     pending, rejects, reused = [], {}, 0
     for spec in specs:
         part, failed = part_paths(parts, spec.name)
+        if not (part.exists() and read_part_key(part) == keys[spec.name]):
+            _borrow_part(part, keys[spec.name])
         if part.exists() and read_part_key(part) == keys[spec.name]:
             reused += 1
         elif not retry_rejected and failed.exists() and json.loads(failed.read_text()).get("key") == keys[spec.name]:
@@ -172,6 +173,43 @@ def _to_simulate(specs: list[SequenceSpec], parts: Path, keys: dict[str, str], *
         else:
             pending.append(spec)
     return pending, rejects, reused
+
+
+def _split(done: list[str], specs: list[SequenceSpec], o: BuildOptions) -> dict[str, list[str]]:
+    """The finished sequences split as ``o`` asks: by name, or by whole groups, with the more fields
+    of ``also_hold_out`` and the bodies held out beside (:class:`BuildOptions`)."""
+    val, test = (o.splits or {}).get("val", 0.1), (o.splits or {}).get("test", 0.1)
+    if o.groups:
+        split = split_groups({n: o.groups.get(n, n) for n in done}, val, test, seed=o.seed)
+    else:
+        split = split_names(done, val, test, seed=o.seed, kinds=o.kinds)
+    for held in (o.also_hold_out or {}).values():  # only the sequences the field groups take part
+        grouped = {n: held["groups"][n] for n in done if n in held["groups"]}
+        more = split_groups(grouped, held["val"], held["test"], seed=o.seed) if grouped else {"val": [], "test": []}
+        split = combine_splits(split, {**more, "train": sorted(set(done) - set(more["val"]) - set(more["test"]))})
+    if o.hold_out_bodies:
+        by_body = {s.name: s.body or MANNEQUIN for s in specs if s.name in done}
+        split = combine_splits(split, split_groups(by_body, val, test, seed=o.seed))
+    return split
+
+
+def _borrow_part(part: Path, key: str) -> None:
+    """Reuse the same sequence's part from another dataset in the same folder (``*.parts``) when it
+    was simulated under the same key (template, settings, motion): a preset that only splits the
+    same clips otherwise (``also_hold_out``) simulates nothing again. Hard-linked where the file
+    system allows, else copied (atomically: a temporary name, then a rename)."""
+    for sibling in sorted(part.parent.parent.glob("*.parts")):
+        other = sibling / part.name
+        if sibling == part.parent or not other.exists() or read_part_key(other) != key:
+            continue
+        temporary = part.with_name(f".{part.name}.borrowed")
+        temporary.unlink(missing_ok=True)
+        try:
+            os.link(other, temporary)
+        except OSError:
+            shutil.copyfile(other, temporary)
+        os.replace(temporary, part)
+        return
 
 
 def _check_bodies(specs: list[SequenceSpec], bodies: dict[str, DressedBody]) -> dict[str, DressedBody]:

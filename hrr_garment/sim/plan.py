@@ -45,6 +45,9 @@ class Preset:
     train: dict = field(default_factory=dict)  # hrr-train overrides, shaped like configs/train.yaml
     motions: list[str] = field(default_factory=list)  # motion files, globs, folders, archives
     split_by: str | None = None  # a field of name_pattern whose groups are held out whole
+    # more fields held out whole beside it, each with its own fractions ({content: {test: 0.08}}):
+    # a sequence tests where any field's split tests it; files whose names lack the field train
+    also_hold_out: dict = field(default_factory=dict)
     name_pattern: str = DEFAULT_NAME_PATTERN
     mirror: bool = False  # add each sequence mirrored left-right (symmetric garments; no simulation)
     speed_warps: list[float] = field(default_factory=list)  # motion files re-timed and simulated again
@@ -72,10 +75,22 @@ def load_preset(name_or_path: str) -> Preset:
     bad_warps = [w for w in preset.speed_warps if not (isinstance(w, (int, float)) and 0.25 <= w <= 4.0)]
     if bad_warps:
         raise InputError(path, f"speed_warps must be factors between 0.25 and 4, got {bad_warps}")
+    _check_also_hold_out(path, preset)
     unknown = sorted(set(preset.sequences) - set(KINDS))
     if unknown:
         raise InputError(path, f"unknown motion kinds {unknown}; available: {', '.join(KINDS)}")
     return preset
+
+
+def _check_also_hold_out(path: Path, preset: Preset) -> None:
+    """An InputError unless ``also_hold_out`` maps fields of the name pattern to val / test fractions."""
+    fields = set(re.compile(preset.name_pattern).groupindex)
+    for name, fractions in preset.also_hold_out.items():
+        if name not in fields:
+            raise InputError(path, f"also_hold_out: {name!r} is not a field of the name pattern ({', '.join(sorted(fields))})")
+        if not isinstance(fractions, dict) or set(fractions) - {"val", "test"} or not all(
+                isinstance(v, (int, float)) and 0.0 <= v < 0.5 for v in fractions.values()):
+            raise InputError(path, f"also_hold_out: {name!r} takes val and test fractions from 0 to 0.5, got {fractions!r}")
 
 
 def _preset_data(path: Path, depth: int = 0) -> dict:
@@ -207,6 +222,13 @@ def build_options(preset: Preset, specs: list[SequenceSpec]) -> dict:
         info.update(split_by=preset.split_by, groups=groups)
     if preset.speed_warps or preset.mirror:
         info["augmentation"] = {"mirror": preset.mirror, "speed_warps": list(preset.speed_warps)}
+    also = {}
+    for name, fractions in preset.also_hold_out.items():  # only the files whose names have the field
+        by = {s.name: clip_group(Path(s.path).stem, name, preset.name_pattern) for s in specs if s.kind == "file"}
+        by = {n: g for n, g in by.items() if g.startswith(f"{name}=")}
+        also[name] = {"groups": by, "val": float(fractions.get("val", 0.0)), "test": float(fractions.get("test", 0.0))}
+    if also:
+        info["also_hold_out"] = also
     kinds = {s.name: s.kind for s in specs if s.kind != "file"}  # procedural clips: held out in distribution
     return {"splits": preset.splits, "seed": preset.seed, "groups": groups, "mirror": preset.mirror, "info": info,
-            "kinds": kinds or None}
+            "kinds": kinds or None, "also_hold_out": also or None}

@@ -142,3 +142,42 @@ def test_hrr_train_simulates_what_a_grown_preset_adds(tmp_path, monkeypatch, seq
     assert train_cli.main(["--garment", "skirt", "--preset", str(preset), "--stage", "simulate", "--quiet"]) == 0
     assert calls == ([("skirt", "grown", dataset)] if missing else [])
     assert pipeline.missing_sequences(tmp_path / "nothing.h5", load_preset(str(preset))) == []
+
+
+def test_more_fields_held_out_whole_beside_the_split(library, tmp_path):
+    """``also_hold_out``: whole contents held out beside whole styles; a content tests in none of
+    its takes' styles, and the hold-out each test clip stands for is the one it belongs to."""
+    from hrr_garment.eval.holdouts import holdout_of
+    from hrr_garment.sim.build import BuildOptions, _split
+
+    preset_file = library / "lib.yaml"
+    preset_file.write_text("name: lib\nvertices: 300\nseconds: 1.0\nsequences: {walk: 1}\nmotions: [clips.tar.xz]\n"
+                           "split_by: style\nsplits: {val: 0.2, test: 0.2}\nalso_hold_out: {content: {test: 0.3}}\n")
+    preset = load_preset(str(preset_file))
+    specs = plan_sequences(preset)
+    options = build_options(preset, specs)
+    content = options["also_hold_out"]["content"]
+    assert set(content["groups"].values()) == {"content=walk", "content=run", "content=bow"}
+    assert "walk_000" not in content["groups"]  # a procedural clip has no content field: it is not held out by it
+    names = [s.name for s in specs]
+    split = _split(names, specs, BuildOptions(**options))
+    assert sorted(sum(split.values(), [])) == sorted(names)
+    trained = {content["groups"][n] for n in split["train"] if n in content["groups"]}
+    tested = {content["groups"][n] for n in split["test"] if n in content["groups"]}
+    unseen = tested - trained
+    assert unseen  # at least one content tests in every take
+    style_only = _split(names, specs, BuildOptions(**{**options, "also_hold_out": None}))
+    assert set(style_only["test"]) <= set(split["test"])  # the styles held out as before, and more
+    kinds = holdout_of(options["info"], split, split["test"])
+    assert {n for n, k in kinds.items() if k == "content"} == {n for n in split["test"] if content["groups"].get(n) in unseen}
+    assert all(kinds[n] == "style" for n in split["test"] if content["groups"].get(n) not in unseen and n in options["groups"]
+               and options["groups"][n].startswith("style="))
+
+
+@pytest.mark.parametrize("text, problem", [("{mood: {test: 0.1}}", "not a field"), ("{content: {test: 0.7}}", "fractions"),
+                                           ("{content: {train: 0.1}}", "fractions")])
+def test_a_bad_also_hold_out_is_refused(library, text, problem):
+    preset_file = library / "bad.yaml"
+    preset_file.write_text(f"name: bad\nvertices: 300\nseconds: 1.0\nsequences: {{}}\nalso_hold_out: {text}\n")
+    with pytest.raises(InputError, match=problem):
+        load_preset(str(preset_file))
