@@ -77,6 +77,19 @@ def test_explosion_is_detected_retried_and_reported(simulator):
         simulate_garment(garment, clip, SimConfig(max_strain=1.0 + 1e-4, retries=1, settle_s=0.1, blend_s=0.1))
     message = str(info.value)
     assert "edge strain" in message and "(10 substeps)" in message and "(20 substeps)" in message
+    assert "(40 substeps)" in message  # the last doubling, once every attempt has failed
+
+
+@pytest.mark.sim
+def test_a_spin_too_fast_for_the_substeps_holds_at_one_more_doubling(simulator):
+    """A pirouette at 4 turns a second tears the cloth at the schedule's substeps (an edge past the
+    gate); rather than dropping the clip, the simulator doubles the substeps once more and keeps it."""
+    simulate_garment, SimConfig = simulator
+    garment = make_garment("dress", 300)
+    clip = synthesize("spin", 1.5, seed=1, revolutions_per_s=4.0, arm_raise=1.3)
+    result = simulate_garment(garment, clip, SimConfig(substeps=8, iterations=1, retries=0, settle_s=0.1, blend_s=0.3))
+    assert (result.attempts, result.substeps) == (2, 16)
+    assert np.isfinite(result.vertices).all() and len(result.vertices) == clip.num_frames
 
 
 def _arms_in_the_hips(frames: int = 15, away: int = 0):
@@ -119,14 +132,15 @@ def test_limbs_through_the_body_get_last_tries_with_the_arms_off_the_cloth(simul
     # frame, so the episode is the whole clip and the last attempt has the arms off throughout
     with pytest.raises(SimulationExploded) as info:
         simulate_garment(garment, motion, SimConfig(max_strain=1.0 + 1e-4, retries=1, settle_s=0.1, blend_s=0.1))
-    assert str(info.value).count("substeps") == 3 and "(10 substeps, arms off the cloth)" in str(info.value)
+    assert str(info.value).count("substeps") == 4 and "(10 substeps, arms off the cloth)" in str(info.value)
+    assert str(info.value).endswith("(40 substeps, arms off the cloth)")  # then one more doubling, arms as they were
     # arms that reach the hips part-way through: first off during that episode only, then throughout
     late = _arms_in_the_hips(15, away=8)
     assert not self_intersecting_frames(late)[:8].any() and self_intersecting_frames(late)[8:].all()
     with pytest.raises(SimulationExploded) as info:
         simulate_garment(garment, late, SimConfig(max_strain=1.0 + 1e-4, retries=1, settle_s=0.1, blend_s=0.1))
     reasons = str(info.value).split("; ")
-    assert len(reasons) == 5 and all("(10 substeps, arms off the cloth on 7 frames)" in r for r in reasons[2:4])
-    assert reasons[4].endswith("(10 substeps, arms off the cloth)")
+    assert len(reasons) == 6 and all("(10 substeps, arms off the cloth on 7 frames)" in r for r in reasons[2:4])
+    assert reasons[4].endswith("(10 substeps, arms off the cloth)") and reasons[5].endswith("(40 substeps, arms off the cloth)")
     result = simulate_garment(garment, motion, SimConfig(settle_s=0.1, blend_s=0.1))
     assert result.arms_off_frames == 0 and result.attempts == 1  # a motion that holds keeps its arms on the cloth
