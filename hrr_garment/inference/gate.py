@@ -36,6 +36,9 @@ class WindowChoice:
     # (N,) bool: the latents change with the match (retrieved windows, and every residual window's),
     # so a change of match is a change of source for causal inertialization (None: ``retrieved``)
     follows_match: np.ndarray | None = None
+    # (N, W or 1, nodes, C) the part of ``latents`` that is one source whatever the match (the
+    # regression under a residual): causal paths inertialize only the rest (None: all of it)
+    continuous: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         if self.follows_match is None:
@@ -72,9 +75,12 @@ def choose_windows(bundle: Bundle, motion_windows: np.ndarray, run: ResolvedRun,
                                        weight=bundle.residual_weight, nodes=bundle.residual_nodes)
         # on the regression, a detail window's latents are one continuous source whatever lends the
         # folds; on the residual they change with the match, which causal inference inertializes
-        # (without it a stream of the default look jumped at every change of match: 2 x the jitter)
+        # (without it a stream of the default look jumped at every change of match: 2 x the jitter),
+        # the match's departure only: the regression under it is continuous, and extrapolated at
+        # every change it lagged (causal PVE 33.8 against the regression's 31.7 mm at weight 0)
         return WindowChoice(latents, np.zeros(n, bool), enc.entropy, np.asarray(doubt, np.float64), matched,
-                            lends_folds=mode is Mode.DETAIL, follows_match=np.full(n, residual))
+                            lends_folds=mode is Mode.DETAIL, follows_match=np.full(n, residual),
+                            continuous=enc.regression if residual else None)
     if run.gate != "entropy" and mode is Mode.HYBRID:  # the match decides: search every window first
         match, similarity = db.search(enc.codes, exclude, bodies)
         distance = db.motion_distance(enc.standardised, match) if run.gate == "distance" else None

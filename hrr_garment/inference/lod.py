@@ -90,7 +90,8 @@ def crowd_latents(chars: list, windows: np.ndarray, lv: np.ndarray, choose, iner
     """The window step for the characters whose level runs it this frame, their held latents for
     the others: -> (N, nodes, C) inertialized latents (each character's ``lod`` holds its match).
     ``choose``: windows (n, W, F) -> :class:`~.gate.WindowChoice`; ``inertialize_one``:
-    (character, latent, retrieved, match) -> its inertialized latent."""
+    (character, latent, retrieved, match, continuous=) -> its inertialized latent (``continuous``:
+    the latent's part that is one source whatever the match, :attr:`~.gate.WindowChoice.continuous`)."""
     stepping = np.array([steps_now(int(level), c.frames) or c.lod.latent is None for level, c in zip(lv, chars)])
     rows = np.flatnonzero(stepping)
     if rows.size:
@@ -102,8 +103,9 @@ def crowd_latents(chars: list, windows: np.ndarray, lv: np.ndarray, choose, iner
     for j, i in enumerate(rows):
         c = chars[i]
         c.lod.latent, c.lod.match, c.lod.since = choice.latents[j, -1], choice.match[j], c.frames
-        latents[i] = inertialize_one(c, choice.latents[j, -1], choice.follows_match[j], choice.match[j])
-    for i in np.flatnonzero(~stepping):  # held: a source of its own, so the next step's latent is blended in
+        latents[i] = inertialize_one(c, choice.latents[j, -1], choice.follows_match[j], choice.match[j],
+                                     continuous=None if choice.continuous is None else choice.continuous[j, -1])
+    for i in np.flatnonzero(~stepping):  # held: a source of its own (all of it), so the next step's latent is blended in
         c = chars[i]
         latents[i] = c.inertializer.step(c.lod.latent.astype(np.float64), ("held", c.lod.since))
     return latents

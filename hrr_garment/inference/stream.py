@@ -224,8 +224,8 @@ class CrowdStream:
         def choose(rows):
             return choose_windows(self.animator.bundle, rows, self.run, last_frame=True, step=self._step)
 
-        def one(c, latent, retrieved, source):
-            return inertialize(c.inertializer, latent, retrieved, source=source, frame=c.frames)
+        def one(c, latent, retrieved, source, continuous=None):
+            return inertialize(c.inertializer, latent, retrieved, source=source, frame=c.frames, continuous=continuous)
 
         return crowd_latents(chars, windows, lv, choose=choose, inertialize_one=one)
 

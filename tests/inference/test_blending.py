@@ -36,3 +36,31 @@ def test_inertialization_of_a_source_that_changes_every_frame_stays_with_the_sou
     out = np.array([inert.step(np.array([x]), ("clip", i))[0] for i, x in enumerate(sources)])
     assert np.abs(out - truth).max() < 0.75 and np.abs(out - truth)[100:].mean() < 0.2
     assert np.abs(np.diff(out)).mean() < np.abs(np.diff(sources)).mean()  # smoother than the sources
+
+
+def test_a_continuous_part_is_followed_as_it_is_and_only_the_rest_jumps():
+    """The regression under a residual is one source whatever the match: at a change of match only
+    the match's departure is inertialized, and the output is the continuous part plus what an
+    inertializer of the departure alone gives."""
+    t = np.arange(30, dtype=np.float64)
+    base = np.stack([0.05 * t, np.sin(0.3 * t)], 1)  # the regression: moving, never switching
+    part = np.where(t[:, None] < 12, 0.0, 1.0) * np.array([1.0, -2.0])  # the departure jumps at a change of match
+    sources = [("retrieval", 0 if i < 12 else 1, 0) for i in range(30)]
+    split, alone = Inertializer(frames=6), Inertializer(frames=6)
+    out = np.stack([split.step(base[i] + part[i], sources[i], continuous=base[i]) for i in range(30)])
+    np.testing.assert_allclose(out - base, np.stack([alone.step(part[i], sources[i]) for i in range(30)]), atol=1e-12)
+    assert np.abs(np.diff(out - base, axis=0)).max() <= 0.3 * 2.0  # the jump of 2 spread over frames
+    # a match that changes every frame with no departure at all (a residual of weight 0): the output
+    # is the regression itself, where inertializing the whole latent extrapolated it at every change
+    every = [("retrieval", i, 0) for i in range(30)]
+    split, whole = Inertializer(frames=6), Inertializer(frames=6)
+    np.testing.assert_allclose([split.step(b, s, continuous=b) for b, s in zip(base, every)], base, atol=1e-12)
+    assert np.abs(np.stack([whole.step(b, s) for b, s in zip(base, every)]) - base).max() > 0.02
+
+
+def test_a_change_between_the_whole_latent_and_its_part_does_not_jump():
+    inert = Inertializer(frames=6)
+    base, part = np.array([1.0, 2.0]), np.array([0.1, -0.1])
+    first = inert.step(base + part, ("retrieval", 3, 0), continuous=base)
+    second = inert.step(base + part, ("held", 0))  # the same latent, now whole (a held level of detail)
+    np.testing.assert_allclose(second, first, atol=1e-12)
