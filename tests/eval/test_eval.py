@@ -8,6 +8,8 @@ import math
 import numpy as np
 import pytest
 
+from hrr_garment.eval.report import REPORT_VERSION
+
 
 def test_hrr_eval_report_end_to_end(trained, tmp_path, capsys):
     from hrr_garment.cli.eval import main
@@ -17,7 +19,8 @@ def test_hrr_eval_report_end_to_end(trained, tmp_path, capsys):
     assert main(["--model", str(root / "model"), "--dataset", str(data), "--split", "test", "--tau-sweep", "0,0.5,1,100",
                  "--detail-strength", "1.2", "-o", str(out), "--quiet"]) == 0
     report = json.loads((out / "report.json").read_text())
-    assert report["format_version"] == 11 and report["dataset"]["sequences"] == ["run_000"]
+    assert report["format_version"] == REPORT_VERSION == 12 and report["dataset"]["sequences"] == ["run_000"]
+    assert report["dataset"]["holdouts"] == {"run_000": "clip"} and report["holdouts"] is None  # one hold-out: no table
     base = json.loads((root / "model" / "bundle.json").read_text())["auto"]["detail_base"]
     assert (report["settings"]["detail_strength"], report["settings"]["detail_base"]) == (1.2, base)  # as asked; the base as calibrated
     assert f"detail mode: folds x1.2 on the {base}" in (out / "report.md").read_text()
@@ -263,7 +266,7 @@ def test_library_protocol_in_hrr_eval(artist_model, tmp_path, monkeypatch):
     assert main(["--model", str(model), "--dataset", str(data), "--split", "test", "--ensemble", "2", "--jobs", "1",
                  "--library", "2", "--tau-sweep", "0,100", "--no-plots", "-o", str(out), "--quiet"]) == 0
     report = json.loads((out / "report.json").read_text())
-    assert report["format_version"] == 11
+    assert report["format_version"] == REPORT_VERSION == 12
     lib = report["library"]
     assert list(lib["plays"]) == ["play_00", "play_01"] and "->" in lib["plays"]["play_01"]
     assert lib["sequences"] == ["play_00", "play_01"] and not lib["rejected"]
