@@ -98,6 +98,11 @@ def source_id(retrieved: bool, source: np.ndarray) -> tuple:
     return ("regression",) if not retrieved else ("retrieval", int(source[0]), int(source[1]))
 
 
+# causal paths inertialize only a residual's departure at a change of match (decision 0024); False:
+# the whole latent, as hrr_garment did before 2026-11-27 (tests reproduce its files with it)
+DEPARTURE_ONLY = True
+
+
 def inertialize(inert: Inertializer, latent: np.ndarray, retrieved: bool, source: np.ndarray, frame: int,
                 continuous: np.ndarray | None = None) -> np.ndarray:
     """One causal frame of one latent path: ``latent`` (nodes, C), the last frame of the window
@@ -108,7 +113,7 @@ def inertialize(inert: Inertializer, latent: np.ndarray, retrieved: bool, source
     inertialized (:class:`Inertializer`)."""
     src = source - np.array([0, frame]) if retrieved else source
     return inert.step(latent.astype(np.float64), source_id(bool(retrieved), src),
-                      continuous=None if continuous is None else continuous.astype(np.float64))
+                      continuous=None if continuous is None or not DEPARTURE_ONLY else continuous.astype(np.float64))
 
 
 def latent_sources(choice: WindowChoice) -> tuple[np.ndarray, np.ndarray]:

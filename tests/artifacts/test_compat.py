@@ -21,11 +21,11 @@ def _walk():
 
 def test_a_version_2_bundle_loads_and_animates_as_31b4ef9_did(tmp_path, monkeypatch):
     """The detail mode as 31b4ef9 ran it, before its folds were strain-limited and followed in time, and before the push-out's
-    strain limit had its slack; with the limits, the same frames with no edge past them
+    strain limit had its slack (and the causal residual before only its departure was inertialized); with the limits, the same frames with no edge past them
     (tests/inference/test_detail.py and test_collision.py test the limits themselves)."""
     import dataclasses
 
-    from hrr_garment.inference import collision, detail, fold_track
+    from hrr_garment.inference import blending, collision, detail, fold_track
 
     folder = shutil.copytree(DATA / "bundle-31b4ef9", tmp_path / "model")
     animator = Animator.load(folder)
@@ -44,6 +44,7 @@ def test_a_version_2_bundle_loads_and_animates_as_31b4ef9_did(tmp_path, monkeypa
     assert np.abs(anim.vertices - written.vertices).max() <= 1e-6
     strain = [animator.edge_limits.lengths(v.astype(np.float64)) / animator.edge_limits.rest_length for v in (anim.vertices, limited.vertices)]
     assert strain[1].max() <= max(strain[0].max(), 1.0) + 0.1 and np.abs(limited.vertices - anim.vertices).max() < 0.02
+    monkeypatch.setattr(blending, "DEPARTURE_ONLY", False)  # the whole latent inertialized, as then
     causal = read_animation_h5(DATA / "out-31b4ef9" / "residual-causal.h5")
     again = animator.animate(_walk(), mode="residual", causal=True)
     assert np.abs(again.vertices - causal.vertices).max() <= 1e-6
