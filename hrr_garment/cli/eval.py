@@ -100,6 +100,8 @@ def _parser() -> argparse.ArgumentParser:
                    help="perturbed simulations per sequence for the ensemble ground truth (default 4; 0: none)")
     p.add_argument("--jobs", type=int, default=None, help="processes simulating the ensemble (default: one per core)")
     p.add_argument("--no-collision", action="store_true", help="evaluate without the collision push-out")
+    p.add_argument("--causal", action="store_true",
+                   help="run every mode causally, as a stream or a crowd does (no future frames): what a game shows")
     add_decoder_option(p)
     p.add_argument("--no-plots", action="store_true")
     p.add_argument("-o", "--output", type=Path, default=None, help="report folder (default: hrr_work/eval/MODEL)")
@@ -181,7 +183,7 @@ def _job(args) -> _Job:
         raise InputError("hrr-eval", f"--library takes 0 (none) or a number of plays, got {args.library}")
     if args.ensemble == 1 or args.ensemble < 0:
         raise InputError("hrr-eval", f"--ensemble takes 0 (none) or at least 2 members, got {args.ensemble}")
-    run = run_settings_of(args, "hrr-eval", collision=not args.no_collision, detail=look)
+    run = run_settings_of(args, "hrr-eval", collision=not args.no_collision, detail=look, causal=args.causal)
     settings = EvaluationSettings(tuple(modes), run, exclude_own_sequence=args.exclude_own_sequence,
                                   members=args.ensemble, jobs=args.jobs, progress=not args.quiet)
     for mode in modes:  # each mode's settings against the model (a residual without its calibration...), now
@@ -241,7 +243,7 @@ def _evaluate(job: _Job, args) -> dict:
 def evaluation_record(animator, settings: EvaluationSettings) -> dict:
     """report.json's ``settings``: the modes, the hybrid's resolved run (gate, tau, push-out) and,
     where the detail mode runs, its resolved look, as out.h5 records them."""
-    record = {k: v for k, v in animator.resolve(settings.run_for(Mode.HYBRID)).record().items() if k not in ("mode", "causal")}
+    record = {k: v for k, v in animator.resolve(settings.run_for(Mode.HYBRID)).record().items() if k != "mode"}
     if Mode.DETAIL in settings.modes:
         detail = animator.resolve(settings.run_for(Mode.DETAIL)).record()
         record.update(detail_base=detail["detail_base"], detail_strength=detail["detail_strength"])

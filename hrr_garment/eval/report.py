@@ -181,10 +181,12 @@ def _ensemble_table(modes: dict, ensemble: dict) -> list[str]:
 
 
 def _detail_clause(settings: dict) -> str:
-    """"; detail mode: folds x0.8 on the regression" where the detail mode ran."""
+    """"; detail mode: folds x0.8 on the regression" where the detail mode ran; "; causal (as
+    streamed)" where the modes ran causally."""
+    causal = "; causal (as streamed: no future frames)" if settings.get("causal") else ""
     if "detail_strength" not in settings:
-        return ""
-    return f"; detail mode: folds x{settings['detail_strength']:g} on the {settings['detail_base']}"
+        return causal
+    return f"; detail mode: folds x{settings['detail_strength']:g} on the {settings['detail_base']}" + causal
 
 
 def markdown(report: dict, plots: list[str]) -> str:
