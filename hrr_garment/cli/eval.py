@@ -193,6 +193,7 @@ def _job(args) -> _Job:
 
 def _evaluate(job: _Job, args) -> dict:
     """Every protocol asked for, into report.json's dictionary."""
+    from ..eval.evaluate import evaluate_vertices
     from ..eval.holdouts import holdout_of
     from ..eval.protocols import (
         LibraryPlays,
@@ -203,7 +204,7 @@ def _evaluate(job: _Job, args) -> dict:
         real_motion_section,
         truth_ensembles_of,
     )
-    from ..eval.report import build_report
+    from ..eval.report import DATASET_SIMULATION, build_report
 
     animator, records, settings = job.animator, job.records, job.settings
     bundle = animator.bundle
@@ -211,6 +212,10 @@ def _evaluate(job: _Job, args) -> dict:
     print(f"evaluating {job.model_dir} on {len(records)} {args.split} sequences of {job.ds.path} "
           f"({sum(len(r.garment) for r in records)} frames): {', '.join(settings.modes)}")
     job.results = evaluate_modes(animator, records, settings, ensembles=ensembles)
+    # the dataset's own frames scored as a prediction: a member like the others, or not (mirrored
+    # clips were not: docs/dataset.md)
+    reference = evaluate_vertices(DATASET_SIMULATION, {r.name: r.garment for r in records}, records, bundle.template,
+                                  ensembles=ensembles).to_dict() if ensembles else None
     if not args.no_sweep:
         job.sweep = tau_sweep(animator, records, args.tau_sweep or default_taus(animator, records, settings.run), settings=settings)
     real = real_motion_section(animator, job.ds, args.motions, settings=settings, source_fps=args.fps) if args.motions else None
@@ -236,7 +241,8 @@ def _evaluate(job: _Job, args) -> dict:
         settings=evaluation_record(animator, settings),
         ensemble=ensemble_summary(ensembles, records, settings.members),
         modes=job.results, sweep=job.sweep,
-        protocols={"real_motion": real, "library": library, "paper": paper, "unseen_bodies": unseen},
+        protocols={"real_motion": real, "library": library, "paper": paper, "unseen_bodies": unseen,
+                   "dataset_simulation": reference},
         seconds=0.0)
 
 

@@ -34,6 +34,7 @@ from .holdouts import holdout_section, markdown_holdouts
 from .library import SOURCE_SIMULATION
 from .unseen_bodies import markdown_table
 
+DATASET_SIMULATION = "dataset simulation"  # the reference row: the dataset's own frames against the ensemble
 REPORT_VERSION = 12  # report.json's "format_version": see the module docstring
 GOALS = (  # (name, numerator mode, denominator mode, target ratio)
     ("hybrid_vs_regression", "hybrid", "regression", 0.5),
@@ -146,6 +147,7 @@ def build_report(*, model: dict, dataset: dict, settings: dict, modes: dict[str,
         "library": protocols.get("library"),
         "paper": protocols.get("paper"),
         "unseen_bodies": protocols.get("unseen_bodies"),
+        "dataset_simulation": protocols.get("dataset_simulation"),
         "seconds": seconds,
     }
 
@@ -202,9 +204,14 @@ def markdown(report: dict, plots: list[str]) -> str:
            f"Run time {report['seconds']:.0f} s.", ""]
     runs = model.get("auto", "hybrid")
     out += markdown_lead(report.get("default"), runs)
-    lead = _ensemble_table(report["modes"], report.get("ensemble", {}))
+    reference = report.get("dataset_simulation")
+    lead = _ensemble_table({**report["modes"], **({DATASET_SIMULATION: reference} if reference else {})},
+                           report.get("ensemble", {}))
     if lead:
         out += ["## Against the simulator's own chaos (ensemble ground truth)", "", *lead, ""]
+        if reference:
+            out += [f"*{DATASET_SIMULATION}*: the dataset's own frames of each clip (what the model trained or was validated "
+                    "on) scored as a prediction: about 1 x the floor where they are a simulation like the members.", ""]
     out += markdown_holdouts(report.get("holdouts"))
     out += ["## Modes (against the dataset's single simulation)", ""]
     out += _mode_table(report["modes"])

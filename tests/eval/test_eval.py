@@ -288,6 +288,10 @@ def test_library_protocol_in_hrr_eval(artist_model, tmp_path, monkeypatch):
                  "--library", "2", "--tau-sweep", "0,100", "--no-plots", "-o", str(out), "--quiet"]) == 0
     report = json.loads((out / "report.json").read_text())
     assert report["format_version"] == REPORT_VERSION == 12
+    # the dataset's own frames against the ensemble: a simulation like the members, about 1 x the floor
+    own = report["dataset_simulation"]["ensemble"]
+    assert 0.5 < own["pve_floor_ratio"] < 2.0 and set(report["dataset_simulation"]["sequences"]) == set(report["dataset"]["sequences"])
+    assert "| dataset simulation |" in (out / "report.md").read_text()
     lib = report["library"]
     assert list(lib["plays"]) == ["play_00", "play_01"] and "->" in lib["plays"]["play_01"]
     assert lib["sequences"] == ["play_00", "play_01"] and not lib["rejected"]
