@@ -214,7 +214,7 @@ def _evaluate(job: _Job, args) -> dict:
     job.results = evaluate_modes(animator, records, settings, ensembles=ensembles)
     # the dataset's own frames scored as a prediction: a member like the others, or not (mirrored
     # clips were not: docs/dataset.md)
-    reference = evaluate_vertices(DATASET_SIMULATION, {r.name: r.garment for r in records}, records, bundle.template,
+    reference = evaluate_vertices(DATASET_SIMULATION, {r.name: r.garment for r in records}, records, template=bundle.template,
                                   ensembles=ensembles).to_dict() if ensembles else None
     if not args.no_sweep:
         job.sweep = tau_sweep(animator, records, args.tau_sweep or default_taus(animator, records, settings.run), settings=settings)
