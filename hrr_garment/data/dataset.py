@@ -42,6 +42,7 @@ from .bodies import MANNEQUIN, DressedBody, read_bodies, write_bodies
 FORMAT_VERSION = 2
 READABLE_VERSIONS = (1, 2)
 SPLITS = ("train", "val", "test")
+MIRROR_SUFFIX = "_mirror"  # a mirrored sequence's name: its source's and this (sim.build adds them)
 
 
 class DatasetError(InputError):

@@ -12,10 +12,10 @@ held out on its own). Mirrored copies belong with their source.
 
 from __future__ import annotations
 
+from ..data.dataset import MIRROR_SUFFIX
 from .ensemble_metrics import ensemble_ratios
 from .evaluate import combine
 
-MIRROR_SUFFIX = "_mirror"
 ONE_CLIP = "clip"  # the hold-out of clips held out on their own (no group field in their name)
 
 
@@ -64,7 +64,7 @@ def holdout_section(modes: dict, holdouts: dict[str, str]) -> dict | None:
             combined = combine([s["ensemble"] for _, s in rows], [s["frames"] for _, s in rows])
             worst = max(rows, key=lambda r: r[1]["ensemble"]["pve_floor_ratio"])
             summary.setdefault(kind, {})[mode] = {
-                **{k: v for k, v in ensemble_ratios(combined).items()}, "sequences": len(rows),
+                **ensemble_ratios(combined), "sequences": len(rows),
                 "frames": int(sum(s["frames"] for _, s in rows)),
                 "worst": {"sequence": worst[0], "pve_floor_ratio": worst[1]["ensemble"]["pve_floor_ratio"]}}
             for n, s in rows:

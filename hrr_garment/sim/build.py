@@ -20,7 +20,14 @@ from typing import Callable
 import numpy as np
 
 from ..data.bodies import MANNEQUIN, MANNEQUIN_STATURE_M, DressedBody, is_symmetric, mannequin_record
-from ..data.dataset import SequenceRecord, combine_splits, split_groups, split_names, write_dataset
+from ..data.dataset import (
+    MIRROR_SUFFIX,
+    SequenceRecord,
+    combine_splits,
+    split_groups,
+    split_names,
+    write_dataset,
+)
 from ..errors import InputError
 from ..garment.mesh import GarmentMesh, mirror_map
 from ..io_utils import atomic_write_text, exclusive_lock, strict_json
@@ -162,10 +169,11 @@ def _to_simulate(specs: list[SequenceSpec], parts: Path, keys: dict[str, str], *
     """(the sequences to simulate, the rejects an earlier run recorded under the same key and
     that stay rejected, how many finished parts are reused)."""
     pending, rejects, reused = [], {}, 0
+    siblings = [p for p in sorted(parts.parent.glob("*.parts")) if p != parts]
     for spec in specs:
         part, failed = part_paths(parts, spec.name)
-        if not (part.exists() and read_part_key(part) == keys[spec.name]):
-            _borrow_part(part, keys[spec.name])
+        if siblings and not (part.exists() and read_part_key(part) == keys[spec.name]):
+            _borrow_part(part, keys[spec.name], siblings)
         if part.exists() and read_part_key(part) == keys[spec.name]:
             reused += 1
         elif not retry_rejected and failed.exists() and json.loads(failed.read_text()).get("key") == keys[spec.name]:
@@ -193,14 +201,14 @@ def _split(done: list[str], specs: list[SequenceSpec], o: BuildOptions) -> dict[
     return split
 
 
-def _borrow_part(part: Path, key: str) -> None:
-    """Reuse the same sequence's part from another dataset in the same folder (``*.parts``) when it
-    was simulated under the same key (template, settings, motion): a preset that only splits the
-    same clips otherwise (``also_hold_out``) simulates nothing again. Hard-linked where the file
+def _borrow_part(part: Path, key: str, siblings: list[Path]) -> None:
+    """Reuse the same sequence's part from another dataset in the same folder (``siblings``: their
+    ``*.parts`` folders) when it was simulated under the same key (template, settings, motion): a
+    preset that only splits the same clips otherwise (``also_hold_out``) simulates nothing again. Hard-linked where the file
     system allows, else copied (atomically: a temporary name, then a rename)."""
-    for sibling in sorted(part.parent.parent.glob("*.parts")):
+    for sibling in siblings:
         other = sibling / part.name
-        if sibling == part.parent or not other.exists() or read_part_key(other) != key:
+        if not other.exists() or read_part_key(other) != key:
             continue
         temporary = part.with_name(f".{part.name}.borrowed")
         temporary.unlink(missing_ok=True)
@@ -231,10 +239,10 @@ def _add_mirrored(records: list[SequenceRecord], split: dict[str, list[str]], ga
     if asymmetric and progress:
         print(f"not mirroring the sequences on {len(asymmetric)} asymmetric bod(y/ies): {sorted(asymmetric)[:3]}")
     flip = np.array([-1.0, 1.0, 1.0], np.float32)
-    mirrored = [SequenceRecord(f"{r.name}_mirror", r.garment[:, perm] * flip, r.motion.mirrored(),
+    mirrored = [SequenceRecord(f"{r.name}{MIRROR_SUFFIX}", r.garment[:, perm] * flip, r.motion.mirrored(),
                                info={**r.info, "mirror_of": r.name}, body=r.body) for r in records if r.body not in asymmetric]
     names = {r.name for r in records if r.body not in asymmetric}
-    return records + mirrored, {k: sorted(v + [f"{n}_mirror" for n in v if n in names]) for k, v in split.items()}
+    return records + mirrored, {k: sorted(v + [f"{n}{MIRROR_SUFFIX}" for n in v if n in names]) for k, v in split.items()}
 
 
 def summarise(records: list[SequenceRecord], garment: GarmentMesh, rejects: dict[str, str], sim_wall: float,
