@@ -111,7 +111,7 @@ def paper_section(folder: Path, bundle, records, settings: EvaluationSettings, e
     training clips' windows, on the same sequences, with its goals beside the paper's ratios (its
     own calibrated gate and tau)."""
     from ..inference.animator import Animator, find_model
-    from .report import PAPER_RATIOS, goals
+    from .goals import PAPER_RATIOS, goals
 
     folder = find_model(folder)
     animator = Animator.load(folder)
@@ -137,8 +137,8 @@ def library_section(animator, ds, plays_asked: LibraryPlays, settings: Evaluatio
     database, simulated and evaluated, with their own tau sweep and goals."""
     from ..paths import workspace
     from ..sim.plan import SequenceSpec
+    from .goals import library_goals
     from .library import SOURCE_SIMULATION, library_plays, plays_digest, save_plays, source_simulation
-    from .report import library_goals
 
     if "sim" not in ds.info:
         print(f"{ds.path} records no simulator settings (not built by hrr-simulate): no library protocol")

@@ -1,9 +1,6 @@
 """hrr-eval's outputs: report.json (schema in docs/evaluation.md), report.md, and PNG plots.
 
-The comparative goals come from the paper's shape (DESIGN section 10): hybrid <= 0.5 x
-regression-only and <= 0.85 x retrieval-only in PVE, learned retrieval <= 0.8 x naive NN, and an
-interior optimum of tau. Each is reported with its ratio and whether it is met; a goal whose modes
-were not evaluated is left out.
+The comparative goals it reports are :mod:`.goals`'.
 
 report.json's ``format_version`` moves whenever a field arrives or changes meaning. Nothing in the
 package reads a report back; the versions, for readers of old reports: 2 truth ensembles
@@ -17,7 +14,8 @@ and ``detail_base`` / ``detail_strength`` where the detail mode ran, in place of
 residual and detail modes, which add a match's detail to the regression, report 0); 10
 ``unseen_bodies`` (the unseen-bodies protocol, :mod:`.unseen_bodies`); 11 ``default`` at the top
 level and in ``real_motion`` and ``library``: the default output's (auto's) lead row and its bars
-(:mod:`.bars`), auto evaluated as a mode of its own.
+(:mod:`.bars`), auto evaluated as a mode of its own; 12 ``holdouts`` and ``dataset.holdouts``
+(:mod:`.holdouts`), ``settings.causal`` and the ``dataset_simulation`` reference row.
 """
 
 from __future__ import annotations
@@ -30,20 +28,13 @@ import numpy as np
 from ..io_utils import atomic_write_text, strict_json
 from .bars import HELD_OUT_BARS, LIBRARY_BARS, cell, default_output, markdown_lead
 from .evaluate import ModeResult, TauPoint
+from .goals import goals
 from .holdouts import holdout_section, markdown_holdouts
 from .library import SOURCE_SIMULATION
 from .unseen_bodies import markdown_table
 
 DATASET_SIMULATION = "dataset simulation"  # the reference row: the dataset's own frames against the ensemble
 REPORT_VERSION = 12  # report.json's "format_version": see the module docstring
-GOALS = (  # (name, numerator mode, denominator mode, target ratio)
-    ("hybrid_vs_regression", "hybrid", "regression", 0.5),
-    ("hybrid_vs_retrieval", "hybrid", "retrieval", 0.85),
-    ("retrieval_vs_naive_nn", "retrieval", "naive-nn", 0.8),
-    ("hybrid_vs_direct", "hybrid", "direct", None),
-    ("residual_vs_regression", "residual", "regression", None),  # what the borrowed detail costs or gains
-    ("detail_vs_regression", "detail", "regression", None),
-)
 TABLE_METRICS = (("pve_mm", "PVE mm", 2), ("rmse_mm", "RMSE mm", 2), ("sted", "STED", 4), ("chamfer_cm", "CD cm", 3),
                  ("penetration_pct", "pen. %", 2), ("curvature_error_cm", "E_curv cm", 1), ("strain_p99", "strain p99", 3),
                  ("stretch_energy_ratio", "stretch E ratio", 2), ("bending_energy_ratio", "bend E ratio", 2),
@@ -54,54 +45,6 @@ ENSEMBLE_METRICS = (("pve_floor_ratio", "PVE / floor", 2), ("pve_members_mm", "P
                     ("strain_p99", "strain p99", 3), ("strain_max", "strain max", 2), ("jitter_ratio", "jitter ratio", 2),
                     ("acceleration_ratio", "accel. ratio", 2), ("bending_energy_ratio", "sharpness (bend E ratio)", 2),
                     ("hem_swing_ratio", "hem swing ratio", 2))
-
-
-def goals(modes: dict[str, ModeResult], sweep: list[TauPoint] | None) -> dict:
-    """Each goal of GOALS (one mode's error over another's, against a target), and whether the tau
-    sweep's optimum is interior."""
-    out = {}
-    for name, num, den, target in GOALS:
-        if num in modes and den in modes:
-            ratio = modes[num].metrics["pve_mm"] / max(modes[den].metrics["pve_mm"], 1e-12)
-            out[name] = {"ratio": ratio, "target": target, "met": None if target is None else bool(ratio <= target)}
-    if sweep:
-        out["interior_tau_optimum"] = _best_tau(sweep)
-    return out
-
-
-# The paper's own ratios of per-vertex error (its Table 3: pleated and asymmetric skirts; Table 5:
-# VB Dress03 and VB Skirt02, ground truth excluded from retrieval), lowest and highest
-PAPER_RATIOS = {"hybrid_vs_regression": (0.366, 0.488), "hybrid_vs_retrieval": (0.797, 0.808),
-                "retrieval_vs_naive_nn": (0.834, 0.902)}
-LIBRARY_TARGET = 0.7  # hybrid PVE over regression-only's on the library protocol
-
-
-def _best_tau(sweep: list[TauPoint]) -> dict:
-    """The sweep's lowest-error tau, and whether it is interior (neither never nor always retrieval)."""
-    errors = [p.pve_mm for p in sweep]
-    best = int(np.argmin(errors))
-    interior = 0 < best < len(sweep) - 1 and 0 < sweep[best].retrieval_usage < 1
-    return {"best_tau": sweep[best].tau, "best_pve_mm": errors[best], "retrieval_usage": sweep[best].retrieval_usage,
-            "met": bool(interior)}
-
-
-def library_goals(modes: dict[str, dict], sweep: list[TauPoint] | None) -> dict:
-    """The library protocol's goals (report.json's mode entries): hybrid at most LIBRARY_TARGET x
-    regression-only in PVE, a better energy score than both single modes (against the truth
-    ensemble), and an interior tau optimum."""
-    out = {}
-    if "hybrid" in modes and "regression" in modes:
-        ratio = modes["hybrid"]["metrics"]["pve_mm"] / max(modes["regression"]["metrics"]["pve_mm"], 1e-12)
-        out["hybrid_vs_regression"] = {"ratio": ratio, "target": LIBRARY_TARGET, "met": bool(ratio <= LIBRARY_TARGET)}
-    scores = {m: modes[m].get("ensemble", {}).get("energy_score_mm") for m in ("hybrid", "regression", "retrieval")
-              if m in modes}
-    if len(scores) == 3 and None not in scores.values():
-        rival = min(scores["regression"], scores["retrieval"])
-        out["energy_score_vs_single_modes"] = {"ratio": scores["hybrid"] / max(rival, 1e-12), "target": 1.0,
-                                               "met": bool(scores["hybrid"] < rival)}
-    if sweep:
-        out["interior_tau_optimum"] = _best_tau(sweep)
-    return out
 
 
 def frame_entropies(modes: dict[str, ModeResult]) -> np.ndarray:

@@ -324,7 +324,7 @@ def test_library_protocol_in_hrr_eval(artist_model, tmp_path, monkeypatch):
 
 def test_paper_protocol_beside_the_papers_ratios(trained, paper_model, tmp_path, capsys):
     from hrr_garment.cli.eval import main
-    from hrr_garment.eval.report import PAPER_RATIOS
+    from hrr_garment.eval.goals import PAPER_RATIOS
 
     root, data, _ = trained
     out = tmp_path / "report"
