@@ -72,7 +72,7 @@ def make_samples(folder: Path) -> Samples:
     from hrr_garment.cli.train import main as train_main
     from hrr_garment.data.synthetic import write_synthetic_dataset
     from hrr_garment.garment.templates import make_garment
-    from hrr_garment.motion.bvh import write_bvh
+    from hrr_garment.motion.bvh_write import write_bvh
     from hrr_garment.motion.io import save_amass, save_motion
     from hrr_garment.motion.skeleton import CANONICAL, JOINT_NAMES, PARENTS
     from hrr_garment.motion.synth import synthesize

@@ -29,8 +29,8 @@ from typing import Sequence
 
 from ..artifacts.gate_signals import GATE_SIGNALS
 from ..errors import InputError
-from ..eval.bars import summary_line
 from ..eval.evaluate import EvaluationSettings, evaluate_modes, tau_sweep
+from ..eval.terminal import report_lines
 from ..inference.modes import Mode
 from ..paths import workspace
 from ._common import (
@@ -122,7 +122,7 @@ def _main(argv: Sequence[str] | None) -> int:
                                                  gate=report["settings"]["gate"])
     report["seconds"] = time.perf_counter() - t0
     json_path, md_path = write_report(out, report, plots)
-    _print_summary(report)
+    print("\n".join(report_lines(report)))
     print(f"wrote {json_path}, {md_path}" + (f" and {len(plots)} plots" if plots else "") + f" in {report['seconds']:.0f} s")
     return 0
 
@@ -254,50 +254,6 @@ def evaluation_record(animator, settings: EvaluationSettings) -> dict:
         detail = animator.resolve(settings.run_for(Mode.DETAIL)).record()
         record.update(detail_base=detail["detail_base"], detail_strength=detail["detail_strength"])
     return {"modes": list(settings.modes), "exclude_own_sequence": settings.exclude_own_sequence, **record}
-
-
-def _print_summary(report: dict) -> None:
-    for line in filter(None, [summary_line(report.get("default"))]):
-        print(line)
-    for mode, entry in report["modes"].items():
-        m = entry["metrics"]
-        e = entry.get("ensemble") or {}
-        floor = f"  PVE/floor {e['pve_floor_ratio']:.2f} (floor {e['floor_mm']:.1f} mm)" if "pve_floor_ratio" in e else ""
-        print(f"  {mode:10s} PVE {m['pve_mm']:7.2f} mm  RMSE {m['rmse_mm']:7.2f} mm  STED {m['sted']:.4f}  "
-              f"CD {m['chamfer_cm']:.3f} cm  pen. {m['penetration_pct']:.2f} %  retrieval {100 * m['retrieval_usage']:.0f} %"
-              + floor)
-    for kind, by_mode in ((report.get("holdouts") or {}).get("by_holdout") or {}).items():
-        print(f"  {kind} hold-out: " + "; ".join(
-            f"{mode} PVE/floor {row['pve_floor_ratio']:.2f} over {row['sequences']} clips (worst {row['worst']['sequence']} "
-            f"{row['worst']['pve_floor_ratio']:.2f})" for mode, row in by_mode.items()))
-    _print_goals(report["goals"])
-    paper = report.get("paper")
-    if paper:
-        print(f"paper protocol ({paper['model']}, tau {paper['tau']:.3f}):")
-        for name, g in paper["goals"].items():
-            low, high = paper["paper_ratios"].get(name, (None, None))
-            beside = f" (paper {low:.2f}-{high:.2f})" if low is not None else ""
-            print(f"  {name}: {g['ratio']:.3f}{beside}")
-    library = report.get("library")
-    if library:
-        print(f"library protocol ({len(library['sequences'])} plays):")
-        for line in filter(None, [summary_line(library.get("default"))]):
-            print(line)
-        for mode, entry in library["modes"].items():
-            e = entry.get("ensemble") or {}
-            floor = f"  PVE/floor {e['pve_floor_ratio']:.2f}" if "pve_floor_ratio" in e else ""
-            print(f"  {mode:10s} PVE {entry['metrics']['pve_mm']:7.2f} mm  retrieval "
-                  f"{100 * entry['metrics']['retrieval_usage']:.0f} %" + floor)
-        _print_goals(library["goals"])
-
-
-def _print_goals(goals: dict) -> None:
-    for name, g in goals.items():
-        if "ratio" in g:
-            status = "" if g["met"] is None else (" met" if g["met"] else " NOT met")
-            print(f"  {name}: {g['ratio']:.3f}" + (f" (target <= {g['target']}){status}" if g["target"] else ""))
-        else:
-            print(f"  tau optimum at {g['best_tau']:.3f}: {'interior' if g['met'] else 'NOT interior'}")
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -18,7 +18,8 @@ from ..garment.mesh import GarmentMesh
 from ..garment.obj import read_obj_vertices, write_obj
 from ..motion.motion import FPS, Motion
 from ..motion.resample import resample_linear, resample_times
-from .dataset import GarmentDataset, SequenceRecord, split_names, write_dataset
+from .dataset import GarmentDataset, SequenceRecord, write_dataset
+from .splits import split_names
 
 
 def _frame_number(path: Path) -> tuple[int, str]:

@@ -12,21 +12,17 @@ held out on its own). Mirrored copies belong with their source.
 
 from __future__ import annotations
 
-from ..data.dataset import MIRROR_SUFFIX
+from ..data.splits import mirror_source
 from .ensemble_metrics import ensemble_ratios
 from .evaluate import combine
 
 ONE_CLIP = "clip"  # the hold-out of clips held out on their own (no group field in their name)
 
 
-def _source(name: str) -> str:
-    return name[: -len(MIRROR_SUFFIX)] if name.endswith(MIRROR_SUFFIX) else name
-
-
 def holdout_of(info: dict, splits: dict[str, list[str]], names: list[str]) -> dict[str, str]:
     """Test sequence ``names`` -> the hold-out each belongs to (module docstring), from a dataset's
     ``info`` (its ``split_by``, ``groups`` and ``also_hold_out``) and its ``splits``."""
-    trained = {_source(n) for n in splits.get("train", [])}
+    trained = {mirror_source(n) for n in splits.get("train", [])}
     also = info.get("also_hold_out") or {}
     unseen = {}
     for field, held in also.items():  # the groups of this field that never train
@@ -36,7 +32,7 @@ def holdout_of(info: dict, splits: dict[str, list[str]], names: list[str]) -> di
     primary, groups = info.get("split_by"), info.get("groups") or {}
     out = {}
     for name in names:
-        source = _source(name)
+        source = mirror_source(name)
         field = next((f for f in also if source in unseen[f]), None)
         if field is None:
             group = groups.get(source, source)

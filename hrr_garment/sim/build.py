@@ -20,20 +20,14 @@ from typing import Callable
 import numpy as np
 
 from ..data.bodies import MANNEQUIN, MANNEQUIN_STATURE_M, DressedBody, is_symmetric, mannequin_record
-from ..data.dataset import (
-    MIRROR_SUFFIX,
-    SequenceRecord,
-    combine_splits,
-    split_groups,
-    split_names,
-    write_dataset,
-)
+from ..data.dataset import SequenceRecord, write_dataset
+from ..data.splits import MIRROR_SUFFIX, combine_splits, mirror_source, split_groups, split_names
 from ..errors import InputError
 from ..garment.mesh import GarmentMesh, mirror_map
 from ..io_utils import atomic_write_text, exclusive_lock, strict_json
 from .executors import EXECUTORS, Execution, batches, run_local, run_ray
 from .parts import PART_VERSION, load_part, part_paths, read_part_key, template_hash
-from .plan import SequenceSpec
+from .plan import MIRROR_MODES, SequenceSpec, mirror_mode
 from .quality import edge_strain
 from .simulator import SimConfig, SimulationExploded, simulate_garment
 
@@ -73,13 +67,15 @@ class BuildOptions:
     ``progress``, ``preview``).
 
     ``groups`` (sequence name -> clip group) makes the split hold out whole groups; ``mirror`` adds
-    every sequence reflected left-right as ``NAME_mirror`` in its source's split (a symmetric
-    garment's exact mirror simulation, no solver time; skipped with a note otherwise). ``executor``
+    every sequence mirrored left-right as ``NAME_mirror`` in its source's split: "simulate" simulates
+    the mirrored motion (on the same body), "reflect" reflects the source's simulation (no solver
+    time; a symmetric garment and body only, skipped with a note otherwise; not the mirrored
+    motion's simulation where the solver has not converged, docs/dataset.md). ``executor``
     "ray" runs the pending sequences as Ray tasks (on the cluster at ``address``, or a local
     instance with ``jobs`` CPUs). ``retry_rejected`` simulates sequences that an earlier run
     rejected again (after a simulator change that may save them). ``kinds`` (sequence name ->
     motion kind, procedural clips) holds out only clips of kinds that also train
-    (:func:`~hrr_garment.data.dataset.split_names`). ``preview``: renders the dataset's preview image beside it
+    (:func:`~hrr_garment.data.splits.split_names`). ``preview``: renders the dataset's preview image beside it
     (``hrr-simulate`` passes :func:`hrr_garment.export.preview.write_dataset_preview`).
 
     ``also_hold_out`` (field -> ``{"groups": {sequence name: group}, "val": v, "test": t}``) holds out
@@ -102,7 +98,7 @@ class BuildOptions:
     preview: PreviewWriter | None = None
     progress: bool = True
     groups: dict[str, str] | None = None
-    mirror: bool = False
+    mirror: str = ""  # "", "simulate" or "reflect" (sim.plan.mirror_mode reads a preset's)
     executor: str = "local"
     address: str | None = None
     retry_rejected: bool = False
@@ -121,6 +117,11 @@ def build_dataset(garment: GarmentMesh, specs: list[SequenceSpec], config: SimCo
     jobs, progress, executor = o.jobs, o.progress, o.executor
     if executor not in EXECUTORS:
         raise InputError(executor, f"unknown executor; choose one of {', '.join(EXECUTORS)}")
+    mirror = mirror_mode(o.mirror)
+    if mirror is None:
+        raise InputError("mirror", f"{o.mirror!r} is not one of {', '.join(MIRROR_MODES)}")
+    if mirror == "simulate":  # on the source's body, so that they split together
+        specs = specs + [replace(s, name=f"{s.name}{MIRROR_SUFFIX}", mirrored=True) for s in specs if not s.mirrored]
     out = Path(out)
     parts = out.with_suffix(".parts")
     parts.mkdir(parents=True, exist_ok=True)
@@ -151,9 +152,11 @@ def build_dataset(garment: GarmentMesh, specs: list[SequenceSpec], config: SimCo
             raise SimulationExploded(f"every sequence failed; nothing to write to {out}: {rejects}")
         split = _split(done, specs, o)
         summary = summarise(records, garment, rejects, sim_wall, jobs, len(pending), bodies=bodies)
-        if o.mirror:
+        if mirror == "reflect":
             records, split = _add_mirrored(records, split, garment, progress, bodies)
             summary["mirrored"] = len(records) - len(done)
+        elif mirror == "simulate":
+            summary["mirrored"] = sum(n.endswith(MIRROR_SUFFIX) for n in done)
         write_dataset(out, garment, records, splits=split, info={**(o.info or {}), "summary": summary, "sim": config.to_dict()},
                       bodies=bodies)
         atomic_write_text(out.with_suffix(".summary.json"), strict_json(summary, indent=2))
@@ -185,7 +188,18 @@ def _to_simulate(specs: list[SequenceSpec], parts: Path, keys: dict[str, str], *
 
 def _split(done: list[str], specs: list[SequenceSpec], o: BuildOptions) -> dict[str, list[str]]:
     """The finished sequences split as ``o`` asks: by name, or by whole groups, with the more fields
-    of ``also_hold_out`` and the bodies held out beside (:class:`BuildOptions`)."""
+    of ``also_hold_out`` and the bodies held out beside (:class:`BuildOptions`). A simulated mirror
+    goes where its source goes (the split is drawn over the sources, so it is the split the
+    sources alone would get)."""
+    finished = set(done)
+    by_source: dict[str, list[str]] = {}
+    for n in done:
+        by_source.setdefault(mirror_source(n) if mirror_mode(o.mirror) == "simulate" else n, []).append(n)
+    split = _split_sources(sorted(by_source), specs, o)
+    return {k: sorted(n for source in v for n in by_source.get(source, []) if n in finished) for k, v in split.items()}
+
+
+def _split_sources(done: list[str], specs: list[SequenceSpec], o: BuildOptions) -> dict[str, list[str]]:
     val, test = (o.splits or {}).get("val", 0.1), (o.splits or {}).get("test", 0.1)
     if o.groups:
         split = split_groups({n: o.groups.get(n, n) for n in done}, val, test, seed=o.seed)

@@ -49,7 +49,10 @@ class Preset:
     # a sequence tests where any field's split tests it; files whose names lack the field train
     also_hold_out: dict = field(default_factory=dict)
     name_pattern: str = DEFAULT_NAME_PATTERN
-    mirror: bool = False  # add each sequence mirrored left-right (symmetric garments; no simulation)
+    # add each sequence mirrored left-right: "simulate" (true) simulates the mirrored motion, "reflect"
+    # reflects the source's simulation (no solver time, but not the mirrored motion's simulation under
+    # an unconverged solver and an asymmetric triangulation: docs/dataset.md), false adds none
+    mirror: bool | str = False
     speed_warps: list[float] = field(default_factory=list)  # motion files re-timed and simulated again
     base: str = ""  # the preset file's folder: relative motion entries resolve against it first
     bodies: dict = field(default_factory=dict)  # which bodies the sequences stand on (sim/bodies.py); none: the mannequin
@@ -76,10 +79,25 @@ def load_preset(name_or_path: str) -> Preset:
     if bad_warps:
         raise InputError(path, f"speed_warps must be factors between 0.25 and 4, got {bad_warps}")
     _check_also_hold_out(path, preset)
+    if mirror_mode(preset.mirror) is None:
+        raise InputError(path, f"mirror: {preset.mirror!r} is not one of {', '.join(repr(m) for m in MIRROR_MODES)} (or true / false)")
     unknown = sorted(set(preset.sequences) - set(KINDS))
     if unknown:
         raise InputError(path, f"unknown motion kinds {unknown}; available: {', '.join(KINDS)}")
     return preset
+
+
+MIRROR_MODES = ("simulate", "reflect")
+
+
+def mirror_mode(value: bool | str | None) -> str | None:
+    """A preset's ``mirror`` as a mode: "simulate" (``true`` too), "reflect", "" (``false``, absent);
+    None where it is none of these."""
+    if value is True:
+        return "simulate"
+    if value in (False, None, ""):
+        return ""
+    return value if value in MIRROR_MODES else None
 
 
 def _check_also_hold_out(path: Path, preset: Preset) -> None:
@@ -124,17 +142,20 @@ class SequenceSpec:
     speed: float = 1.0  # the file's motion played this much faster (a speed-warp augmentation)
     source_fps: float | None = None  # the file's frame rate where it carries none (--fps)
     body: str = ""  # the name of the body it is simulated on (sim/bodies.py); "": the mannequin
+    mirrored: bool = False  # the motion reflected left-right (a preset's ``mirror: simulate``)
 
     def motion(self) -> Motion:
         if self.kind == "file":
-            return load_file_motion(self.path, self.speed, self.source_fps).slice(self.start, self.stop)
-        return synthesize(self.kind, self.seconds, seed=self.seed)
+            clip = load_file_motion(self.path, self.speed, self.source_fps).slice(self.start, self.stop)
+        else:
+            clip = synthesize(self.kind, self.seconds, seed=self.seed)
+        return clip.mirrored() if self.mirrored else clip
 
     def key(self, extra: dict) -> str:
         """Content hash of everything that determines the simulated result."""
         # Defaults of fields added later stay out, so earlier sequences keep their keys.
         spec = {k: v for k, v in asdict(self).items()
-                if not (k == "speed" and v == 1.0 or k == "source_fps" and v is None or k == "body" and not v)}
+                if not (k == "speed" and v == 1.0 or k == "source_fps" and v is None or k in ("body", "mirrored") and not v)}
         payload = {"spec": spec, **extra}
         if self.kind == "file":
             payload["file_sha1"] = hashlib.sha1(Path(self.path).read_bytes()).hexdigest()
@@ -220,8 +241,9 @@ def build_options(preset: Preset, specs: list[SequenceSpec]) -> dict:
     info: dict = {"preset": preset.name}
     if groups:  # recorded in the file: which groups were held out whole
         info.update(split_by=preset.split_by, groups=groups)
-    if preset.speed_warps or preset.mirror:
-        info["augmentation"] = {"mirror": preset.mirror, "speed_warps": list(preset.speed_warps)}
+    mirror = mirror_mode(preset.mirror)
+    if preset.speed_warps or mirror:
+        info["augmentation"] = {"mirror": mirror, "speed_warps": list(preset.speed_warps)}
     also = {}
     for name, fractions in preset.also_hold_out.items():  # only the files whose names have the field
         by = {s.name: clip_group(Path(s.path).stem, name, preset.name_pattern) for s in specs if s.kind == "file"}
@@ -230,5 +252,5 @@ def build_options(preset: Preset, specs: list[SequenceSpec]) -> dict:
     if also:
         info["also_hold_out"] = also
     kinds = {s.name: s.kind for s in specs if s.kind != "file"}  # procedural clips: held out in distribution
-    return {"splits": preset.splits, "seed": preset.seed, "groups": groups, "mirror": preset.mirror, "info": info,
+    return {"splits": preset.splits, "seed": preset.seed, "groups": groups, "mirror": mirror, "info": info,
             "kinds": kinds or None, "also_hold_out": also or None}

@@ -26,7 +26,7 @@ def test_the_limbs_take_the_given_lengths_along_the_canonical_directions_and_the
 
 def _rig_file(tmp_path, offsets: np.ndarray):
     """A BVH in centimetres of a walk on a rig with ``offsets`` (22, 3) metres."""
-    from hrr_garment.motion.bvh import BvhStyle, write_bvh
+    from hrr_garment.motion.bvh_write import BvhStyle, write_bvh
     from hrr_garment.motion.synth import synthesize
 
     motion = synthesize("walk", 1.0, seed=1)

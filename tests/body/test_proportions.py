@@ -19,7 +19,7 @@ def test_the_measures_of_the_mannequin_are_its_bone_lengths():
 def test_a_rigs_proportions_come_from_the_file_whatever_it_does(tmp_path):
     """A BVH of a body 1.2 times the mannequin's, in centimetres, walking: the measures are 1.2
     times the mannequin's, though retargeting gives every clip the mannequin's bones."""
-    from hrr_garment.motion.bvh import BvhStyle, write_bvh
+    from hrr_garment.motion.bvh_write import BvhStyle, write_bvh
     from hrr_garment.motion.synth import synthesize
 
     motion = synthesize("walk", 1.0, seed=1)

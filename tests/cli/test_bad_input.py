@@ -8,7 +8,7 @@ import pytest
 
 from hrr_garment import save_amass, synthesize
 from hrr_garment.cli.motion import main
-from hrr_garment.motion.bvh import write_bvh
+from hrr_garment.motion.bvh_write import write_bvh
 from hrr_garment.motion.skeleton import CANONICAL, JOINT_NAMES, PARENTS
 
 

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from hrr_garment import synthesize
-from hrr_garment.motion.bvh import write_bvh
+from hrr_garment.motion.bvh_write import write_bvh
 from hrr_garment.motion.io import load_motion, save_motion
 from hrr_garment.motion.skeleton import CANONICAL, JOINT_NAMES, PARENTS
 

@@ -18,10 +18,10 @@ from hrr_garment.data.dataset import (
     DatasetError,
     GarmentDataset,
     SequenceRecord,
-    split_names,
     write_dataset,
 )
 from hrr_garment.data.importer import export_obj_frames
+from hrr_garment.data.splits import split_names
 from hrr_garment.garment.obj import write_obj
 from hrr_garment.garment.templates import make_garment
 from hrr_garment.motion.io import save_motion
@@ -49,7 +49,7 @@ def test_presets_plan_named_seeded_sequences():
 
 
 def test_test_split_holds_five_sequences_where_the_data_allows():
-    from hrr_garment.data.dataset import split_groups, test_size
+    from hrr_garment.data.splits import split_groups, test_size
 
     assert [test_size(n, 0.1) for n in (2, 5, 13, 18, 100)] == [0, 1, 4, 5, 10]
     quick = split_names([f"s{i}" for i in range(18)], 0.1, 0.1, seed=0)

@@ -17,13 +17,14 @@ from hrr_garment.data.dataset import (
     DatasetError,
     GarmentDataset,
     SequenceRecord,
-    combine_splits,
     write_dataset,
 )
+from hrr_garment.data.splits import combine_splits
 from hrr_garment.garment.templates import make_garment
 from hrr_garment.garment.transfer import transfer_garment
 from hrr_garment.motion.skeleton import REST_PELVIS_HEIGHT
 from hrr_garment.motion.synth import synthesize
+from hrr_garment.sim.parts import part_paths
 from hrr_garment.sim.plan import CONFIG_DIR
 from tests.garment.test_templates_on_bodies import _larger_body
 
@@ -112,6 +113,11 @@ def test_hrr_simulate_on_a_body_records_it_and_mirrors_on_it(tmp_path, capsys):
     ds = GarmentDataset(out)
     assert ds.body_of == {"walk_000": "tall", "walk_000_mirror": "tall"}
     rec = ds.sequence("walk_000")
+    # ``mirror: true`` simulates the mirrored motion on the same body (not a reflection of the source's frames)
+    mirror = ds.sequence("walk_000_mirror")
+    np.testing.assert_allclose(mirror.motion.joint_positions, rec.motion.mirrored().joint_positions, atol=1e-4)
+    assert part_paths(out.with_suffix(".parts"), "walk_000_mirror")[0].exists()  # simulated: a part of its own
+    assert ds.info["summary"]["mirrored"] == 1
     assert rec.info["stats"]["penetration_max"] < 0.02 and rec.info["stats"]["strain_p99"] < 1.15
     # the clip played by this body: its pelvis higher by the legs' ratio, not the mannequin's
     clip = synthesize("walk", 1.0, seed=0)

@@ -5,7 +5,7 @@ import tarfile
 import numpy as np
 import pytest
 
-from hrr_garment.data.dataset import split_groups
+from hrr_garment.data.splits import split_groups
 from hrr_garment.errors import InputError
 from hrr_garment.motion.io import save_motion
 from hrr_garment.motion.skeleton import MIRROR_JOINTS
@@ -108,6 +108,47 @@ def test_mirrored_sequences_join_their_source_split():
     records[1] = SequenceRecord("b", frames.astype(np.float32), motion, body="odd")
     out, split = _add_mirrored(records, {"train": ["a"], "test": ["b"], "val": []}, garment, progress=False, bodies=bodies)
     assert split == {"train": ["a", "a_mirror"], "test": ["b"], "val": []} and len(out) == 3
+
+
+def test_mirror_modes_of_a_preset(tmp_path):
+    from hrr_garment.sim.plan import SequenceSpec, mirror_mode
+
+    assert [mirror_mode(v) for v in (True, False, None, "simulate", "reflect", "sideways")] == [
+        "simulate", "", "", "simulate", "reflect", None]
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("name: bad\nvertices: 300\nseconds: 1.0\nsequences: {walk: 1}\nmirror: sideways\n")
+    with pytest.raises(InputError, match="mirror: 'sideways'"):
+        load_preset(str(bad))
+    good = tmp_path / "good.yaml"
+    good.write_text("name: good\nvertices: 300\nseconds: 1.0\nsequences: {walk: 1}\nmirror: true\n")
+    preset = load_preset(str(good))
+    options = build_options(preset, plan_sequences(preset))
+    assert options["mirror"] == "simulate" and options["info"]["augmentation"]["mirror"] == "simulate"
+    # a mirrored spec plays the reflected motion under a key of its own; its source's key is the
+    # key it had before the field existed (finished parts stay reusable)
+    spec = SequenceSpec("walk_000", "walk", seed=3, seconds=1.0)
+    mirrored = SequenceSpec("walk_000_mirror", "walk", seed=3, seconds=1.0, mirrored=True)
+    np.testing.assert_allclose(mirrored.motion().joint_positions, spec.motion().mirrored().joint_positions, atol=1e-9)
+    assert spec.key({}) == "a42fdcd307411965" and mirrored.key({}) != spec.key({})
+
+
+def test_simulated_mirrors_join_their_source_split():
+    """With ``mirror: simulate`` the split is drawn over the sources (the split they get alone) and
+    each mirror goes where its source goes, also when the source itself failed."""
+    from dataclasses import replace
+
+    from hrr_garment.sim.build import BuildOptions, _split
+    from hrr_garment.sim.plan import SequenceSpec
+
+    sources = [SequenceSpec(f"walk_{i:03d}", "walk", seed=i, seconds=1.0) for i in range(10)]
+    options = BuildOptions(splits={"val": 0.2, "test": 0.2}, seed=1, kinds={s.name: "walk" for s in sources})
+    alone = _split([s.name for s in sources], sources, options)
+    done = [s.name for s in sources] + [f"{s.name}_mirror" for s in sources if s.name != "walk_004"]
+    done.remove("walk_007")  # its mirror simulated, the source did not
+    split = _split(done, sources, replace(options, mirror="simulate"))
+    for part, names in alone.items():
+        expected = {n for n in names if n != "walk_007"} | {f"{n}_mirror" for n in names if n != "walk_004"}
+        assert set(split[part]) == expected
 
 
 @pytest.mark.slow

@@ -72,7 +72,8 @@ def test_a_source_rig_streams_like_its_file(animator, tmp_path):
     """Poses on a rig with another joint order, centimetres and a baked roll per joint (Bandai-
     Namco's kind of rig: no standing rest pose), pushed as the BVH has them, give what animating
     the file gives: the same joint map, retargeting, roll and floor."""
-    from hrr_garment.motion.bvh import BvhStyle, read_bvh, write_bvh
+    from hrr_garment.motion.bvh import read_bvh
+    from hrr_garment.motion.bvh_write import BvhStyle, write_bvh
     from hrr_garment.motion.io import load_motion
     from hrr_garment.motion.rotations import axis_angle_to_matrix, matrix_to_quat
     from hrr_garment.motion.skeleton import CANONICAL, JOINT_NAMES, PARENTS

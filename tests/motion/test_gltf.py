@@ -9,7 +9,7 @@ import pytest
 
 from hrr_garment import load_motion, synthesize
 from hrr_garment.errors import MotionError
-from hrr_garment.motion.bvh import write_bvh
+from hrr_garment.motion.bvh_write import write_bvh
 from hrr_garment.motion.gltf import _Channel, _sample, gltf_animations
 from hrr_garment.motion.motion import Motion
 from hrr_garment.motion.rotations import axis_angle_to_matrix, matrix_to_quat

@@ -10,7 +10,8 @@ from hrr_garment import (
     save_motion,
     synthesize,
 )
-from hrr_garment.motion.bvh import BvhStyle, read_bvh, write_bvh
+from hrr_garment.motion.bvh import read_bvh
+from hrr_garment.motion.bvh_write import BvhStyle, write_bvh
 from hrr_garment.motion.skeleton import CANONICAL, JOINT_NAMES, PARENTS
 
 

@@ -5,7 +5,7 @@ import pytest
 import yaml
 
 from hrr_garment import load_motion, motion_features, synthesize
-from hrr_garment.motion.bvh import BvhStyle, write_bvh
+from hrr_garment.motion.bvh_write import BvhStyle, write_bvh
 from hrr_garment.motion.joint_maps import NAMING_SCHEMES
 from hrr_garment.motion.skeleton import CANONICAL, JOINT_INDEX, JOINT_NAMES, PARENTS
 
