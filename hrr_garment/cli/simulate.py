@@ -169,6 +169,10 @@ def print_report(report, garment: GarmentMesh) -> None:
           f"outside them {100 * s['penetration_frame_max_clean']:.2f} %")
     if s["sim_frames_per_core_s"]:
         print(f"  {s['sim_frames_per_core_s']:.2f} simulated frames/s per core (lead-in included); wall {s['sim_wall_s']:.0f} s")
+    if "splices" in s:
+        sp = s["splices"]
+        print(f"  splices: {sp['made']} of {sp['asked']} (legs of one training clip, upper body of another; "
+              f"{sp['refused_self_intersection']} of {sp['drawn']} drawn refused for limbs through the body)")
     for name, row in s.get("by_body", {}).items():
         print(f"  body {name} ({row['stature_m']:.2f} m): {row['sequences']} sequences, {row['frames']} frames, "
               f"strain p99 {row['strain_p99']:.3f}")

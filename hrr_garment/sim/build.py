@@ -25,6 +25,7 @@ from ..data.splits import MIRROR_SUFFIX, combine_splits, mirror_source, split_gr
 from ..errors import InputError
 from ..garment.mesh import GarmentMesh, mirror_map
 from ..io_utils import atomic_write_text, exclusive_lock, strict_json
+from .augment import SpliceOptions, plan_splices, splice_candidates
 from .executors import EXECUTORS, Execution, batches, run_local, run_ray
 from .parts import PART_VERSION, load_part, part_paths, read_part_key, template_hash
 from .plan import MIRROR_MODES, SequenceSpec, mirror_mode
@@ -89,7 +90,10 @@ class BuildOptions:
     ``batch`` N simulates up to N sequences of similar length together, each in its own world of
     one newton model (:mod:`.batch`; for a GPU, ``SimConfig.device``): a worker process or Ray task
     per batch. 0 or 1 simulates one sequence per worker, as before. Parts and their keys are the
-    same either way, so a batched build resumes an unbatched one and the other way round."""
+    same either way, so a batched build resumes an unbatched one and the other way round.
+
+    ``splices`` (:mod:`.augment`) adds that many splices of the training clips (one's legs, another's
+    upper body), drawn once the split is known, each checked for limbs through the body, all training."""
 
     jobs: int | None = None
     splits: dict[str, float] | None = None
@@ -107,6 +111,7 @@ class BuildOptions:
     hold_out_bodies: bool = False
     batch: int = 0
     also_hold_out: dict[str, dict] | None = None
+    splices: SpliceOptions | None = None
 
 
 def build_dataset(garment: GarmentMesh, specs: list[SequenceSpec], config: SimConfig, *, out: str | Path,
@@ -114,7 +119,7 @@ def build_dataset(garment: GarmentMesh, specs: list[SequenceSpec], config: SimCo
     """Simulate what is missing, then write ``out`` (HDF5) atomically, as ``options`` say. See the
     module docstring and :class:`BuildOptions`."""
     o = options
-    jobs, progress, executor = o.jobs, o.progress, o.executor
+    progress, executor = o.progress, o.executor
     if executor not in EXECUTORS:
         raise InputError(executor, f"unknown executor; choose one of {', '.join(EXECUTORS)}")
     mirror = mirror_mode(o.mirror)
@@ -127,31 +132,27 @@ def build_dataset(garment: GarmentMesh, specs: list[SequenceSpec], config: SimCo
     parts.mkdir(parents=True, exist_ok=True)
     busy = "another hrr-simulate is building this dataset; wait for it, or write elsewhere with -o"
     with exclusive_lock(out.with_suffix(".lock"), out, busy):
-        extra = {"template": template_hash(garment), "sim": config.to_dict(), "part_version": PART_VERSION}
         bodies = _check_bodies(specs, o.bodies or {})
-        keys = {s.name: s.key({**extra, "body": bodies[s.body].key()} if s.body else extra) for s in specs}
-        pending, rejects, reused = _to_simulate(specs, parts, keys, retry_rejected=o.retry_rejected)
-        if executor == "local":
-            jobs = max(1, min(jobs or os.cpu_count() or 1, len(batches(pending, config, o.batch)) or 1))
         t0 = time.perf_counter()
-        if pending:
-            if progress:
-                where = f"{jobs} worker(s)" if executor == "local" else f"Ray ({o.address or f'local, {jobs or os.cpu_count()} CPUs'})"
-                where += f", batches of up to {o.batch} on {config.device}" if o.batch > 1 else ""
-                print(f"simulating {len(pending)} of {len(specs)} sequences with {where}; "
-                      f"{reused} already done (first run compiles kernels: about two minutes, cached after)")
-            warm_up(garment, config)
-            everyone = {MANNEQUIN: DressedBody(MANNEQUIN, mannequin_record(), garment), **bodies}
-            execution = Execution(keys, parts, jobs=jobs, progress=progress, batch=o.batch, address=o.address)
-            run = run_ray if executor == "ray" else run_local
-            rejects.update(run(pending, everyone, config, execution))
-        sim_wall = time.perf_counter() - t0
-        done = [s.name for s in specs if s.name not in rejects and part_paths(parts, s.name)[0].exists()]
-        records = [load_part(part_paths(parts, n)[0], n) for n in done]
-        if not records:
-            raise SimulationExploded(f"every sequence failed; nothing to write to {out}: {rejects}")
+        run = _simulate_missing(specs, garment, config, parts=parts, bodies=bodies, options=o)
+        done = [s.name for s in specs if s.name not in run.rejects and part_paths(parts, s.name)[0].exists()]
+        if not done:
+            raise SimulationExploded(f"every sequence failed; nothing to write to {out}: {run.rejects}")
         split = _split(done, specs, o)
-        summary = summarise(records, garment, rejects, sim_wall, jobs, len(pending), bodies=bodies)
+        splices, made = None, []
+        if o.splices and o.splices.count:  # drawn from the training clips once the split is known
+            splices = plan_splices(splice_candidates(specs, set(split["train"]), o.splices), o.splices)
+            spliced = _simulate_missing(splices.specs, garment, config, parts=parts, bodies=bodies, options=o)
+            run = run.merged(spliced)
+            made = [s.name for s in splices.specs if s.name not in spliced.rejects and part_paths(parts, s.name)[0].exists()]
+            done += made
+            split["train"] = sorted(split["train"] + made)
+        sim_wall = time.perf_counter() - t0
+        records = [load_part(part_paths(parts, n)[0], n) for n in done]
+        summary = summarise(records, garment, run.rejects, sim_wall, run.jobs, run.simulated, bodies=bodies)
+        if splices is not None:
+            summary["splices"] = {"asked": o.splices.count, "made": len(made),
+                                  "drawn": splices.drawn, "refused_self_intersection": splices.refused}
         if mirror == "reflect":
             records, split = _add_mirrored(records, split, garment, progress, bodies)
             summary["mirrored"] = len(records) - len(done)
@@ -160,11 +161,50 @@ def build_dataset(garment: GarmentMesh, specs: list[SequenceSpec], config: SimCo
         write_dataset(out, garment, records, splits=split, info={**(o.info or {}), "summary": summary, "sim": config.to_dict()},
                       bodies=bodies)
         atomic_write_text(out.with_suffix(".summary.json"), strict_json(summary, indent=2))
-        report = BuildReport(out, done, rejects, summary, reused, len(pending) - len(rejects),
+        report = BuildReport(out, done, run.rejects, summary, run.reused, run.simulated - len(run.rejects),
                              stats={r.name: r.info.get("stats", {}) for r in records})
         if o.preview:
             report.preview = o.preview(records, garment, out.with_suffix(".preview.png"), bodies=bodies)
         return report
+
+
+@dataclass
+class _Simulated:
+    """What one pass of :func:`_simulate_missing` did."""
+
+    rejects: dict[str, str]
+    reused: int
+    simulated: int  # sequences it ran the simulator on (rejects included)
+    jobs: int | None
+
+    def merged(self, other: "_Simulated") -> "_Simulated":
+        return _Simulated({**self.rejects, **other.rejects}, self.reused + other.reused,
+                          self.simulated + other.simulated, other.jobs if other.simulated else self.jobs)
+
+
+def _simulate_missing(specs: list[SequenceSpec], garment: GarmentMesh, config: SimConfig, *, parts: Path,
+                      bodies: dict[str, DressedBody], options: BuildOptions) -> _Simulated:
+    """Simulate the ``specs`` that have no finished part under their key (parts of sibling datasets
+    borrowed first), as ``options`` say (workers, Ray, batches, progress)."""
+    o = options
+    extra = {"template": template_hash(garment), "sim": config.to_dict(), "part_version": PART_VERSION}
+    keys = {s.name: s.key({**extra, "body": bodies[s.body].key()} if s.body else extra) for s in specs}
+    pending, rejects, reused = _to_simulate(specs, parts, keys, retry_rejected=o.retry_rejected)
+    jobs = o.jobs
+    if o.executor == "local":
+        jobs = max(1, min(jobs or os.cpu_count() or 1, len(batches(pending, config, o.batch)) or 1))
+    if pending:
+        if o.progress:
+            where = f"{jobs} worker(s)" if o.executor == "local" else f"Ray ({o.address or f'local, {jobs or os.cpu_count()} CPUs'})"
+            where += f", batches of up to {o.batch} on {config.device}" if o.batch > 1 else ""
+            print(f"simulating {len(pending)} of {len(specs)} sequences with {where}; "
+                  f"{reused} already done (first run compiles kernels: about two minutes, cached after)")
+        warm_up(garment, config)
+        everyone = {MANNEQUIN: DressedBody(MANNEQUIN, mannequin_record(), garment), **bodies}
+        execution = Execution(keys, parts, jobs=jobs, progress=o.progress, batch=o.batch, address=o.address)
+        run = run_ray if o.executor == "ray" else run_local
+        rejects.update(run(pending, everyone, config, execution))
+    return _Simulated(rejects, reused, len(pending), jobs)
 
 
 def _to_simulate(specs: list[SequenceSpec], parts: Path, keys: dict[str, str], *,

@@ -19,11 +19,13 @@ from pathlib import Path
 import yaml
 
 from ..errors import HRRError, InputError, MotionError
+from ..motion.compose import arm_delayed, spliced
 from ..motion.edit import retimed
 from ..motion.io import load_motion
 from ..motion.motion import Motion
 from ..motion.synth import KINDS, synthesize
 from ..settings import deep_merge
+from .augment import SpliceOptions
 from .sources import DEFAULT_NAME_PATTERN, clip_group, resolve_motion_entries
 
 CONFIG_DIR = Path(__file__).resolve().parents[2] / "configs"
@@ -56,6 +58,8 @@ class Preset:
     speed_warps: list[float] = field(default_factory=list)  # motion files re-timed and simulated again
     base: str = ""  # the preset file's folder: relative motion entries resolve against it first
     bodies: dict = field(default_factory=dict)  # which bodies the sequences stand on (sim/bodies.py); none: the mannequin
+    # more training motion from the training clips' parts (sim/augment.py): {count, seconds, arm_delay_s, field}
+    splices: dict = field(default_factory=dict)
 
 
 def preset_names() -> list[str]:
@@ -79,6 +83,7 @@ def load_preset(name_or_path: str) -> Preset:
     if bad_warps:
         raise InputError(path, f"speed_warps must be factors between 0.25 and 4, got {bad_warps}")
     _check_also_hold_out(path, preset)
+    _check_splices(path, preset)
     if mirror_mode(preset.mirror) is None:
         raise InputError(path, f"mirror: {preset.mirror!r} is not one of {', '.join(repr(m) for m in MIRROR_MODES)} (or true / false)")
     unknown = sorted(set(preset.sequences) - set(KINDS))
@@ -98,6 +103,20 @@ def mirror_mode(value: bool | str | None) -> str | None:
     if value in (False, None, ""):
         return ""
     return value if value in MIRROR_MODES else None
+
+
+SPLICE_KEYS = {"count": int, "seconds": (int, float), "arm_delay_s": (int, float), "field": str}
+
+
+def _check_splices(path: Path, preset: Preset) -> None:
+    """An InputError unless ``splices`` holds only known keys of the right types and a field of the name pattern."""
+    bad = {k: v for k, v in preset.splices.items() if k not in SPLICE_KEYS or not isinstance(v, SPLICE_KEYS[k])
+           or isinstance(v, bool) or (k != "field" and v < 0)}
+    if bad:
+        raise InputError(path, f"splices: {bad!r} not understood; it takes {', '.join(SPLICE_KEYS)} (numbers >= 0, a field name)")
+    name_field = preset.splices.get("field", "content")
+    if preset.splices.get("count") and name_field not in re.compile(preset.name_pattern).groupindex:
+        raise InputError(path, f"splices: field {name_field!r} is not a field of the name pattern")
 
 
 def _check_also_hold_out(path: Path, preset: Preset) -> None:
@@ -128,6 +147,12 @@ def _preset_data(path: Path, depth: int = 0) -> dict:
     return {**base, **data, **({"train": deep_merge(base.get("train") or {}, data["train"])} if "train" in data else {})}
 
 
+# SequenceSpec fields added after parts were first keyed, with their defaults: a spec at the default
+# hashes as before the field existed
+LATER_FIELDS = {"speed": 1.0, "source_fps": None, "body": "", "mirrored": False, "upper_path": "", "upper_start": 0,
+                "arm_delay": 0}
+
+
 @dataclass(frozen=True)
 class SequenceSpec:
     """One sequence to simulate: a procedural clip (kind, seed, seconds) or a piece of a file."""
@@ -143,22 +168,32 @@ class SequenceSpec:
     source_fps: float | None = None  # the file's frame rate where it carries none (--fps)
     body: str = ""  # the name of the body it is simulated on (sim/bodies.py); "": the mannequin
     mirrored: bool = False  # the motion reflected left-right (a preset's ``mirror: simulate``)
+    # a splice (sim/augment.py): the spine, head and arms from this file's frames from upper_start on
+    upper_path: str = ""
+    upper_start: int = 0
+    arm_delay: int = 0  # frames the left arm (> 0) or the right arm (< 0) plays late
 
     def motion(self) -> Motion:
         if self.kind == "file":
             clip = load_file_motion(self.path, self.speed, self.source_fps).slice(self.start, self.stop)
+            if self.upper_path:
+                upper = load_file_motion(self.upper_path, self.speed, self.source_fps)
+                clip = spliced(clip, upper.slice(self.upper_start, self.upper_start + self.stop - self.start))
         else:
             clip = synthesize(self.kind, self.seconds, seed=self.seed)
+        if self.arm_delay:
+            clip = arm_delayed(clip, "l" if self.arm_delay > 0 else "r", abs(self.arm_delay))
         return clip.mirrored() if self.mirrored else clip
 
     def key(self, extra: dict) -> str:
         """Content hash of everything that determines the simulated result."""
         # Defaults of fields added later stay out, so earlier sequences keep their keys.
-        spec = {k: v for k, v in asdict(self).items()
-                if not (k == "speed" and v == 1.0 or k == "source_fps" and v is None or k in ("body", "mirrored") and not v)}
+        spec = {k: v for k, v in asdict(self).items() if not (k in LATER_FIELDS and v == LATER_FIELDS[k])}
         payload = {"spec": spec, **extra}
         if self.kind == "file":
             payload["file_sha1"] = hashlib.sha1(Path(self.path).read_bytes()).hexdigest()
+        if self.upper_path:
+            payload["upper_sha1"] = hashlib.sha1(Path(self.upper_path).read_bytes()).hexdigest()
         return hashlib.sha256(json.dumps(payload, sort_keys=True, default=str).encode()).hexdigest()[:16]
 
 
@@ -252,5 +287,9 @@ def build_options(preset: Preset, specs: list[SequenceSpec]) -> dict:
     if also:
         info["also_hold_out"] = also
     kinds = {s.name: s.kind for s in specs if s.kind != "file"}  # procedural clips: held out in distribution
+    splices = None
+    if preset.splices.get("count"):
+        splices = SpliceOptions(**preset.splices, name_pattern=preset.name_pattern, seed=preset.seed)
+        info.setdefault("augmentation", {"mirror": mirror, "speed_warps": list(preset.speed_warps)})["splices"] = preset.splices
     return {"splits": preset.splits, "seed": preset.seed, "groups": groups, "mirror": mirror, "info": info,
-            "kinds": kinds or None, "also_hold_out": also or None}
+            "kinds": kinds or None, "also_hold_out": also or None, "splices": splices}

@@ -1,0 +1,93 @@
+"""Splices: new training motion made of the training clips' parts (issue 50, augmentation toward new
+contents).
+
+A splice puts the upper body of one motion file (spine, head, arms) on the root and legs of
+another of a different content, over a window of the preset's clip length, optionally with one arm
+played late against the other (:mod:`hrr_garment.motion.compose`). Each is drawn from the
+**training** clips only, once the split is known, so no held-out style or content reaches training
+through a splice; splices always train. A drawn splice whose limbs pass through the body (a hand
+through the hips where a bow's arms meet a run's legs: :mod:`hrr_garment.body.self_contact`) is
+refused before it is simulated and another is drawn. The draw is seeded and depends only on the
+training clips, so a re-run plans the same splices and finds them simulated.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from ..body.self_contact import self_intersecting_frames
+from ..motion.motion import FPS
+from .sources import DEFAULT_NAME_PATTERN, clip_group
+
+if TYPE_CHECKING:  # the plan builds its options from a preset (sim.plan imports this module)
+    from .plan import SequenceSpec
+
+SPLICE_PREFIX = "splice_"
+DRAWS_PER_SPLICE = 20  # tries before the plan settles for fewer splices than asked
+
+
+@dataclass(frozen=True)
+class SpliceOptions:
+    """How many splices a build adds and how they are drawn (a preset's ``splices:`` section)."""
+
+    count: int = 0  # splices to add (0: none)
+    seconds: float = 4.0  # each splice's length
+    arm_delay_s: float = 0.0  # one arm up to this late against the other, drawn per splice (0: never)
+    field: str = "content"  # the name field whose values must differ between legs and upper body
+    name_pattern: str = DEFAULT_NAME_PATTERN
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        if self.count < 0 or self.seconds <= 0 or self.arm_delay_s < 0:
+            raise ValueError(f"splices need count >= 0, seconds > 0 and arm_delay_s >= 0, got {self}")
+
+
+@dataclass
+class SplicePlan:
+    """The splices to simulate, and how the draw went."""
+
+    specs: list[SequenceSpec]
+    drawn: int  # candidates drawn
+    refused: int  # of them, refused for limbs through the body
+
+
+def splice_candidates(specs: list[SequenceSpec], training: set[str], options: SpliceOptions) -> list[SequenceSpec]:
+    """The motion-file sequences a splice may take its parts from: training ones, played at their
+    own speed, not mirrored, whose names give the field the parts must differ in, long enough."""
+    frames = int(round(options.seconds * FPS))
+    return [s for s in specs if s.name in training and s.kind == "file" and s.speed == 1.0 and not s.mirrored
+            and not s.upper_path and s.stop - s.start >= frames
+            and clip_group(Path(s.path).stem, options.field, options.name_pattern).startswith(f"{options.field}=")]
+
+
+def plan_splices(candidates: list[SequenceSpec], options: SpliceOptions) -> SplicePlan:
+    """``options.count`` splices of ``candidates`` (:func:`splice_candidates`): the legs of one, the
+    upper body of another whose ``options.field`` differs, windows drawn inside each, every one
+    checked for limbs through the body (the mannequin's capsules)."""
+    frames = int(round(options.seconds * FPS))
+    group = {s.name: clip_group(Path(s.path).stem, options.field, options.name_pattern) for s in candidates}
+    rng = np.random.default_rng(options.seed)
+    specs: list[SequenceSpec] = []
+    drawn = refused = 0
+    if len(set(group.values())) < 2:
+        return SplicePlan(specs, drawn, refused)
+    while len(specs) < options.count and drawn < options.count * DRAWS_PER_SPLICE:
+        drawn += 1
+        # each part drawn on its own (the same content twice is drawn again below)
+        legs, arms = candidates[int(rng.integers(len(candidates)))], candidates[int(rng.integers(len(candidates)))]
+        start = legs.start + int(rng.integers(0, legs.stop - legs.start - frames + 1))
+        upper_start = arms.start + int(rng.integers(0, arms.stop - arms.start - frames + 1))
+        delay = int(rng.integers(1, int(options.arm_delay_s * FPS) + 1)) * int(rng.choice([-1, 1])) if options.arm_delay_s >= 1 / FPS else 0
+        if group[legs.name] == group[arms.name]:
+            continue
+        spec = replace(legs, name=f"{SPLICE_PREFIX}{len(specs):03d}", start=start, stop=start + frames,
+                       upper_path=arms.path, upper_start=upper_start, arm_delay=delay)
+        if self_intersecting_frames(spec.motion()).any():
+            refused += 1
+            continue
+        specs.append(spec)
+    return SplicePlan(specs, drawn, refused)

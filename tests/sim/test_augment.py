@@ -1,0 +1,100 @@
+"""Splices: the legs of one training clip under the upper body of another, checked before simulation."""
+
+import numpy as np
+import pytest
+
+from hrr_garment.body.self_contact import self_intersecting_frames
+from hrr_garment.motion.io import save_motion
+from hrr_garment.motion.motion import Motion
+from hrr_garment.motion.rotations import rotation_about_y
+from hrr_garment.motion.skeleton import JOINT_INDEX
+from hrr_garment.motion.synth import synthesize
+from hrr_garment.sim.augment import SpliceOptions, plan_splices, splice_candidates
+from hrr_garment.sim.plan import SequenceSpec, _file_pieces
+from hrr_garment.sim.sources import clip_group
+
+
+def _arms_through_the_chest(seconds: float) -> Motion:
+    """A stand whose upper arms point across the chest (each turned 160 degrees about the vertical)."""
+    clip = synthesize("idle", seconds, seed=0)
+    local = np.array(clip.local_rotations)
+    for side, sign in (("l", 1.0), ("r", -1.0)):
+        local[:, JOINT_INDEX[f"{side}_shoulder"]] = rotation_about_y(np.asarray(sign * np.radians(160.0))).astype(np.float32)
+    return Motion(local, clip.root_translation, clip.fps, "arms through the chest")
+
+
+@pytest.fixture
+def library(tmp_path):
+    """Bandai-style names: three contents in two styles, and a fourth whose arms pass through the body."""
+    kinds = {"walk": "walk", "run": "run", "wave": "dance"}
+    for i, (content, kind) in enumerate(kinds.items()):
+        for style in ("proud", "sad"):
+            save_motion(synthesize(kind, 3.0, seed=i), tmp_path / f"dataset-1_{content}_{style}_001.npz")
+    save_motion(_arms_through_the_chest(3.0), tmp_path / "dataset-1_hug_proud_001.npz")
+    return [spec for path in sorted(tmp_path.glob("*.npz")) for spec in _file_pieces(str(path), 1.0, None)]
+
+
+def test_splices_mix_contents_and_refuse_limbs_through_the_body(library):
+    assert self_intersecting_frames(_arms_through_the_chest(1.0)).any()  # the fixture's premise
+    training = {s.name for s in library if "sad" not in s.name}  # the sad style held out
+    options = SpliceOptions(count=10, seconds=2.0, arm_delay_s=0.2, seed=3)
+    candidates = splice_candidates(library, training, options)
+    assert {s.name for s in candidates} == training
+    plan = plan_splices(candidates, options)
+    assert len(plan.specs) == 10 and plan.refused > 0  # every draw with the hug's upper body is refused
+    content = {s.path: clip_group(s.path.rsplit("/", 1)[-1][:-4], "content") for s in library}
+    for spec in plan.specs:
+        assert spec.name.startswith("splice_") and spec.stop - spec.start == 60
+        assert content[spec.path] != content[spec.upper_path]  # a combination of two contents
+        assert "sad" not in spec.path and "sad" not in spec.upper_path  # only training clips
+        assert "hug" not in spec.upper_path
+        assert not self_intersecting_frames(spec.motion()).any()
+        assert abs(spec.arm_delay) <= 6
+    assert any(s.arm_delay for s in plan.specs)
+    # seeded: the same plan again (a re-run finds its splices simulated), and keys of their own
+    assert plan_splices(candidates, options).specs == plan.specs
+    assert len({s.key({}) for s in plan.specs}) == 10
+
+
+def test_no_splice_without_two_contents(library):
+    walks = [s for s in library if "_walk_" in s.name]
+    assert plan_splices(walks, SpliceOptions(count=3, seconds=2.0)).specs == []
+    assert splice_candidates(library, {s.name for s in library}, SpliceOptions(count=3, seconds=4.0)) == []  # too short
+    with pytest.raises(ValueError):
+        SpliceOptions(count=-1)
+    assert isinstance(library[0], SequenceSpec)
+
+
+@pytest.mark.sim
+def test_a_build_adds_splices_of_training_clips_that_always_train(tmp_path, capsys):
+    """hrr-simulate with a preset's ``splices``: the splices are simulated and train, their parts come
+    from training clips only (no held-out style reaches training), and a re-run simulates nothing."""
+    pytest.importorskip("newton", reason="the sim extra is not installed")
+    from hrr_garment.cli.simulate import main as simulate_main
+    from hrr_garment.data.dataset import GarmentDataset
+
+    clips = tmp_path / "clips"
+    clips.mkdir()
+    for i, (content, kind) in enumerate({"walk": "walk", "run": "run", "wave": "dance"}.items()):
+        for style in ("proud", "sad", "old"):
+            save_motion(synthesize(kind, 1.2, seed=i), clips / f"dataset-1_{content}_{style}_001.npz")
+    preset = tmp_path / "p.yaml"
+    preset.write_text("name: spliced\nvertices: 300\nseconds: 1.0\nsequences: {}\nmotions: [clips]\nsplit_by: style\n"
+                      "splits: {val: 0.2, test: 0.2}\nsim: {substeps: 10, iterations: 3, settle_s: 0.1}\n"
+                      "splices: {count: 2, seconds: 1.0, arm_delay_s: 0.1}\n")
+    out = tmp_path / "d.h5"
+    args = ["--garment", "skirt", "--preset", str(preset), "--jobs", "1", "--no-preview", "--quiet", "-o", str(out)]
+    assert simulate_main(args) == 0
+    ds = GarmentDataset(out)
+    splices = sorted(n for n in ds.names if n.startswith("splice_"))
+    assert splices == ["splice_000", "splice_001"] and set(splices) <= set(ds.splits["train"])
+    held = {n.split("_")[2] for n in ds.splits["test"] + ds.splits["val"]}  # the held-out styles
+    assert held and not held & {n.split("_")[2] for n in ds.splits["train"] if not n.startswith("splice_")}
+    for name in splices:
+        record = ds.sequence(name)
+        assert record.motion.num_frames == 30 and record.garment.shape[0] == 30
+        assert not any(style in record.motion.source for style in held)  # both parts from training styles
+    assert ds.info["summary"]["splices"]["made"] == 2
+    capsys.readouterr()
+    assert simulate_main(args) == 0  # resumes: the same splices planned again, found simulated
+    assert "11 reused, 0 simulated now" in capsys.readouterr().out
