@@ -9,9 +9,7 @@ and simulates the rest, so a killed build resumes where it stopped.
 
 from __future__ import annotations
 
-import json
 import os
-import shutil
 import time
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -19,7 +17,7 @@ from typing import Callable
 
 import numpy as np
 
-from ..data.bodies import MANNEQUIN, MANNEQUIN_STATURE_M, DressedBody, is_symmetric, mannequin_record
+from ..data.bodies import MANNEQUIN, DressedBody, is_symmetric, mannequin_record
 from ..data.dataset import SequenceRecord, write_dataset
 from ..data.splits import MIRROR_SUFFIX, combine_splits, mirror_source, split_groups, split_names
 from ..errors import InputError
@@ -27,10 +25,10 @@ from ..garment.mesh import GarmentMesh, mirror_map
 from ..io_utils import atomic_write_text, exclusive_lock, strict_json
 from .augment import SpliceOptions, plan_splices, splice_candidates
 from .executors import EXECUTORS, Execution, batches, run_local, run_ray
-from .parts import PART_VERSION, load_part, part_paths, read_part_key, template_hash
+from .parts import PART_VERSION, load_part, part_paths, parts_to_simulate, template_hash
 from .plan import MIRROR_MODES, SequenceSpec, mirror_mode
-from .quality import edge_strain
 from .simulator import SimConfig, SimulationExploded, simulate_garment
+from .summary import summarise
 
 # Renders a built dataset's preview image (records, garment, path, bodies=...) -> path or None;
 # rendering lives above this layer (hrr_garment.export.preview.write_dataset_preview), so the
@@ -189,7 +187,7 @@ def _simulate_missing(specs: list[SequenceSpec], garment: GarmentMesh, config: S
     o = options
     extra = {"template": template_hash(garment), "sim": config.to_dict(), "part_version": PART_VERSION}
     keys = {s.name: s.key({**extra, "body": bodies[s.body].key()} if s.body else extra) for s in specs}
-    pending, rejects, reused = _to_simulate(specs, parts, keys, retry_rejected=o.retry_rejected)
+    pending, rejects, reused = parts_to_simulate(specs, parts, keys, retry_rejected=o.retry_rejected)
     jobs = o.jobs
     if o.executor == "local":
         jobs = max(1, min(jobs or os.cpu_count() or 1, len(batches(pending, config, o.batch)) or 1))
@@ -205,25 +203,6 @@ def _simulate_missing(specs: list[SequenceSpec], garment: GarmentMesh, config: S
         run = run_ray if o.executor == "ray" else run_local
         rejects.update(run(pending, everyone, config, execution))
     return _Simulated(rejects, reused, len(pending), jobs)
-
-
-def _to_simulate(specs: list[SequenceSpec], parts: Path, keys: dict[str, str], *,
-                 retry_rejected: bool) -> tuple[list[SequenceSpec], dict[str, str], int]:
-    """(the sequences to simulate, the rejects an earlier run recorded under the same key and
-    that stay rejected, how many finished parts are reused)."""
-    pending, rejects, reused = [], {}, 0
-    siblings = [p for p in sorted(parts.parent.glob("*.parts")) if p != parts]
-    for spec in specs:
-        part, failed = part_paths(parts, spec.name)
-        if siblings and not (part.exists() and read_part_key(part) == keys[spec.name]):
-            _borrow_part(part, keys[spec.name], siblings)
-        if part.exists() and read_part_key(part) == keys[spec.name]:
-            reused += 1
-        elif not retry_rejected and failed.exists() and json.loads(failed.read_text()).get("key") == keys[spec.name]:
-            rejects[spec.name] = json.loads(failed.read_text())["reason"]
-        else:
-            pending.append(spec)
-    return pending, rejects, reused
 
 
 def _split(done: list[str], specs: list[SequenceSpec], o: BuildOptions) -> dict[str, list[str]]:
@@ -255,25 +234,6 @@ def _split_sources(done: list[str], specs: list[SequenceSpec], o: BuildOptions) 
     return split
 
 
-def _borrow_part(part: Path, key: str, siblings: list[Path]) -> None:
-    """Reuse the same sequence's part from another dataset in the same folder (``siblings``: their
-    ``*.parts`` folders) when it was simulated under the same key (template, settings, motion): a
-    preset that only splits the same clips otherwise (``also_hold_out``) simulates nothing again. Hard-linked where the file
-    system allows, else copied (atomically: a temporary name, then a rename)."""
-    for sibling in siblings:
-        other = sibling / part.name
-        if not other.exists() or read_part_key(other) != key:
-            continue
-        temporary = part.with_name(f".{part.name}.borrowed")
-        temporary.unlink(missing_ok=True)
-        try:
-            os.link(other, temporary)
-        except OSError:
-            shutil.copyfile(other, temporary)
-        os.replace(temporary, part)
-        return
-
-
 def _check_bodies(specs: list[SequenceSpec], bodies: dict[str, DressedBody]) -> dict[str, DressedBody]:
     missing = sorted({s.body for s in specs if s.body} - set(bodies))
     if missing:
@@ -297,50 +257,3 @@ def _add_mirrored(records: list[SequenceRecord], split: dict[str, list[str]], ga
                                info={**r.info, "mirror_of": r.name}, body=r.body) for r in records if r.body not in asymmetric]
     names = {r.name for r in records if r.body not in asymmetric}
     return records + mirrored, {k: sorted(v + [f"{n}{MIRROR_SUFFIX}" for n in v if n in names]) for k, v in split.items()}
-
-
-def summarise(records: list[SequenceRecord], garment: GarmentMesh, rejects: dict[str, str], sim_wall: float,
-              jobs: int, simulated: int, bodies: dict[str, DressedBody] | None = None) -> dict:
-    """The dataset summary: counts, quality statistics (each sequence's strain against the garment
-    on its own body) and simulation speed; with bodies, the strain and frames of each."""
-    stats = [r.info.get("stats", {}) for r in records]
-    edges = garment.edges()
-    rest = {MANNEQUIN: garment.vertices, **{n: b.garment.vertices for n, b in (bodies or {}).items()}}
-    strains = [edge_strain(r.garment, rest[r.body], edges).ravel() for r in records]
-    pooled = np.concatenate(strains)
-    sim_frames = sum(s.get("simulated_frames", 0) for s in stats)
-    sim_seconds = sum(s.get("sim_seconds", 0.0) for s in stats)
-    by_kind: dict[str, list[float]] = {}
-    for r, s in zip(records, stats):
-        if "hem_swing_m" in s:
-            by_kind.setdefault(r.info.get("kind", "?"), []).append(s["hem_swing_m"])
-    return {
-        "garment": garment.name, "vertices": garment.num_vertices,
-        "sequences": len(records), "frames": int(sum(len(r.garment) for r in records)),
-        "rejects": rejects,
-        "finite": bool(all(np.isfinite(r.garment).all() for r in records)),
-        "strain_p99": float(np.percentile(pooled, 99)), "strain_max": float(pooled.max()),
-        "penetration_frame_max": float(max(s.get("penetration_max", 0.0) for s in stats)),
-        # outside frames where the motion's limbs pass through the body (body/self_contact.py)
-        "penetration_frame_max_clean": float(max(s.get("penetration_max_clean", s.get("penetration_max", 0.0))
-                                                 for s in stats)),
-        "self_intersection_frames": int(sum(s.get("self_intersection_frames", 0) for s in stats)),
-        "penetration_mean": float(np.mean([s.get("penetration_mean", 0.0) for s in stats])),
-        "deepest_mm": float(max(s.get("deepest_mm", 0.0) for s in stats)),
-        "hem_swing_m_by_kind": {k: float(np.mean(v)) for k, v in sorted(by_kind.items())},
-        "sim_frames_per_core_s": float(sim_frames / sim_seconds) if sim_seconds else None,
-        "sim_wall_s": float(sim_wall), "jobs": jobs, "simulated_now": simulated,
-        **({"by_body": _by_body(records, strains, bodies)} if bodies else {}),
-    }
-
-
-def _by_body(records: list[SequenceRecord], strains: list[np.ndarray], bodies: dict[str, DressedBody]) -> dict:
-    """Per body: its stature, sequences, frames and strain p99."""
-    out = {}
-    for name in sorted({r.body for r in records}):
-        mine = [k for k, r in enumerate(records) if r.body == name]
-        pooled = np.concatenate([strains[k] for k in mine])
-        stature = bodies[name].record.stature if name in bodies else MANNEQUIN_STATURE_M
-        out[name] = {"stature_m": stature, "sequences": len(mine), "frames": int(sum(len(records[k].garment) for k in mine)),
-                     "strain_p99": float(np.percentile(pooled, 99))}
-    return out

@@ -6,13 +6,17 @@ the sequence's spec. :func:`simulate_sequence` computes a part's content from a 
 worker or a Ray task on another machine), :func:`simulate_sequences` the parts of a batch of
 sequences simulated together (:mod:`.batch`); :func:`write_part` writes it atomically, so the same
 bytes land whichever executor ran it. The key does not depend on batching: a batched build resumes
-an unbatched one and the other way round.
+an unbatched one and the other way round. :func:`parts_to_simulate` says which sequences of a build
+still need the simulator, after :func:`borrow_part` has taken what a sibling dataset in the same
+folder simulated under the same key.
 """
 
 from __future__ import annotations
 
 import hashlib
 import json
+import os
+import shutil
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
@@ -155,3 +159,41 @@ def load_part(part: Path, name: str) -> SequenceRecord:
         on_body = {"skeleton": Skeleton(offsets=z["skeleton_offsets"])} if "skeleton_offsets" in z else {}
         motion = Motion(z["local_rotations"], z["root_translation"], float(z["fps"]), source=str(z["source"]), **on_body)
         return SequenceRecord(name, z["garment"], motion, info=info, body=info.get("body", MANNEQUIN))
+
+
+def parts_to_simulate(specs: list[SequenceSpec], parts: Path, keys: dict[str, str], *,
+                 retry_rejected: bool) -> tuple[list[SequenceSpec], dict[str, str], int]:
+    """(the sequences to simulate, the rejects an earlier run recorded under the same key and
+    that stay rejected, how many finished parts are reused)."""
+    pending, rejects, reused = [], {}, 0
+    siblings = [p for p in sorted(parts.parent.glob("*.parts")) if p != parts]
+    for spec in specs:
+        part, failed = part_paths(parts, spec.name)
+        if siblings and not (part.exists() and read_part_key(part) == keys[spec.name]):
+            borrow_part(part, keys[spec.name], siblings)
+        if part.exists() and read_part_key(part) == keys[spec.name]:
+            reused += 1
+        elif not retry_rejected and failed.exists() and json.loads(failed.read_text()).get("key") == keys[spec.name]:
+            rejects[spec.name] = json.loads(failed.read_text())["reason"]
+        else:
+            pending.append(spec)
+    return pending, rejects, reused
+
+
+def borrow_part(part: Path, key: str, siblings: list[Path]) -> None:
+    """Reuse the same sequence's part from another dataset in the same folder (``siblings``: their
+    ``*.parts`` folders) when it was simulated under the same key (template, settings, motion): a
+    preset that only splits the same clips otherwise (``also_hold_out``) simulates nothing again. Hard-linked where the file
+    system allows, else copied (atomically: a temporary name, then a rename)."""
+    for sibling in siblings:
+        other = sibling / part.name
+        if not other.exists() or read_part_key(other) != key:
+            continue
+        temporary = part.with_name(f".{part.name}.borrowed")
+        temporary.unlink(missing_ok=True)
+        try:
+            os.link(other, temporary)
+        except OSError:
+            shutil.copyfile(other, temporary)
+        os.replace(temporary, part)
+        return

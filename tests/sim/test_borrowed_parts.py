@@ -3,8 +3,7 @@
 
 import numpy as np
 
-from hrr_garment.sim.build import _to_simulate
-from hrr_garment.sim.parts import part_paths, read_part_key
+from hrr_garment.sim.parts import part_paths, parts_to_simulate, read_part_key
 from hrr_garment.sim.plan import SequenceSpec
 
 
@@ -22,7 +21,7 @@ def test_parts_of_a_sibling_dataset_are_reused_under_the_same_key_only(tmp_path)
              SequenceSpec("new", "walk", seed=2, seconds=1.0)]
     parts = tmp_path / "second.parts"
     parts.mkdir()
-    pending, rejects, reused = _to_simulate(specs, parts, {"same": "k1", "changed": "k2", "new": "k3"}, retry_rejected=False)
+    pending, rejects, reused = parts_to_simulate(specs, parts, {"same": "k1", "changed": "k2", "new": "k3"}, retry_rejected=False)
     assert reused == 1 and [s.name for s in pending] == ["changed", "new"] and not rejects
     borrowed = part_paths(parts, "same")[0]
     assert read_part_key(borrowed) == "k1" and np.load(borrowed)["frames"].tolist() == [0, 1, 2]
