@@ -11,19 +11,28 @@ from ..sim.plan import Preset
 
 def missing_sequences(dataset: Path, preset: Preset) -> list[str]:
     """The preset's sequences that an existing dataset of its own clips does not hold: a workspace
-    made with an earlier, smaller version of the preset. None where there is no dataset yet, or
-    where it holds other clips (``hrr-simulate --motions``, or a different preset): that one is the
-    user's choice."""
+    made with an earlier, smaller version of the preset, or one whose mirrors are reflections where
+    the preset now simulates them (docs/dataset.md: a reflection is not the mirrored motion's
+    simulation). None where there is no dataset yet, or where it holds other clips (``hrr-simulate
+    --motions``, or a different preset): that one is the user's choice."""
     if not dataset.exists():
         return []
     from ..data.dataset import GarmentDataset
-    from ..sim.plan import plan_sequences
+    from ..data.splits import MIRROR_SUFFIX
+    from ..sim.augment import SPLICE_PREFIX
+    from ..sim.plan import mirror_mode, plan_sequences
 
     ds = GarmentDataset(dataset)
     planned = [spec.name for spec in plan_sequences(preset)]
-    if ds.info.get("preset") != preset.name or ds.info.get("motions") or not set(ds.names) <= set(planned):
+    mirror = mirror_mode(preset.mirror)
+    mirrors = [f"{name}{MIRROR_SUFFIX}" for name in planned] if mirror else []
+    held = {n for n in ds.names if not n.startswith(SPLICE_PREFIX)}  # splices are planned by the build
+    if ds.info.get("preset") != preset.name or ds.info.get("motions") or not held <= set(planned + mirrors):
         return []
-    return [name for name in planned if name not in set(ds.names)]
+    # files written before mirrors were simulated record ``true`` for their reflections
+    made = ds.info.get("augmentation", {}).get("mirror")
+    reflected = made is True or made == "reflect"
+    return [name for name in planned + mirrors if name not in held or (reflected and mirror == "simulate" and name in mirrors)]
 
 
 @dataclass(frozen=True)

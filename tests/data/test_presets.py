@@ -222,3 +222,32 @@ def test_a_bad_also_hold_out_is_refused(library, text, problem):
     preset_file.write_text(f"name: bad\nvertices: 300\nseconds: 1.0\nsequences: {{}}\nalso_hold_out: {text}\n")
     with pytest.raises(InputError, match=problem):
         load_preset(str(preset_file))
+
+
+@pytest.mark.parametrize("recorded,expected", [(True, ["run_000_mirror", "walk_000_mirror"]), ("reflect", ["run_000_mirror", "walk_000_mirror"]),
+                                               ("simulate", [])])
+def test_a_dataset_of_reflections_gets_its_mirrors_simulated(tmp_path, recorded, expected):
+    """A workspace dataset whose mirrors are reflections (files written before mirrors were
+    simulated record ``true``): hrr-train's simulate stage simulates the mirrors of a preset that now
+    simulates them; a dataset whose mirrors were simulated (and its splices) is complete."""
+    import json
+
+    import h5py
+    import yaml
+
+    import hrr_garment.pipeline.simulate as pipeline
+    from hrr_garment.data.dataset import SequenceRecord, write_dataset
+    from hrr_garment.garment.templates import make_garment
+
+    garment = make_garment("skirt", 200)
+    clip = synthesize("walk", 1.0, seed=0)
+    frames = np.repeat(garment.vertices[None], clip.num_frames, axis=0) + clip.root_translation[:, None].astype(np.float32)
+    names = ["run_000", "walk_000", "run_000_mirror", "walk_000_mirror", "splice_000"]
+    dataset = write_dataset(tmp_path / "d.h5", garment, [SequenceRecord(n, frames, clip) for n in names],
+                            {"train": names})
+    with h5py.File(dataset, "a") as f:
+        f.attrs["info"] = json.dumps({"preset": "mirrored", "augmentation": {"mirror": recorded}})
+    preset = tmp_path / "mirrored.yaml"
+    preset.write_text(yaml.safe_dump({"name": "mirrored", "vertices": 200, "seconds": 1.0, "sequences": {"walk": 1, "run": 1},
+                                      "mirror": True}))
+    assert sorted(pipeline.missing_sequences(dataset, load_preset(str(preset)))) == expected
