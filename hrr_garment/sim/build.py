@@ -139,6 +139,8 @@ def build_dataset(garment: GarmentMesh, specs: list[SequenceSpec], config: SimCo
         split = _split(done, specs, o)
         splices, made = None, []
         if o.splices and o.splices.count:  # drawn from the training clips once the split is known
+            if progress:
+                print(f"planning {o.splices.count} splices of the training clips (each checked for limbs through the body)")
             splices = plan_splices(splice_candidates(specs, set(split["train"]), o.splices), o.splices)
             spliced = _simulate_missing(splices.specs, garment, config, parts=parts, bodies=bodies, options=o)
             run = run.merged(spliced)
