@@ -43,8 +43,9 @@ def spliced(lower: Motion, upper: Motion) -> Motion:
     local = np.array(lower.local_rotations)
     joints = list(UPPER_BODY)
     local[:, joints] = upper.local_rotations[: lower.num_frames, joints]
-    return Motion(local, lower.root_translation, lower.fps, f"{lower.source} + upper body of {upper.source}",
-                  lower.source_skeleton, lower.source_height_m, lower.skeleton, check_rotations=False)
+    return Motion(local, lower.root_translation, lower.fps, source=f"{lower.source} + upper body of {upper.source}",
+                  source_skeleton=lower.source_skeleton, source_height_m=lower.source_height_m, skeleton=lower.skeleton,
+                  check_rotations=False)
 
 
 def arm_delayed(motion: Motion, side: str, frames: int) -> Motion:
@@ -58,5 +59,6 @@ def arm_delayed(motion: Motion, side: str, frames: int) -> Motion:
     joints = list(ARM_JOINTS[side])
     source = np.clip(np.arange(motion.num_frames) - frames, 0, None)
     local[:, joints] = motion.local_rotations[source][:, joints]
-    return Motion(local, motion.root_translation, motion.fps, f"{motion.source} ({side} arm {frames} frames late)",
-                  motion.source_skeleton, motion.source_height_m, motion.skeleton, check_rotations=False)
+    return Motion(local, motion.root_translation, motion.fps, source=f"{motion.source} ({side} arm {frames} frames late)",
+                  source_skeleton=motion.source_skeleton, source_height_m=motion.source_height_m, skeleton=motion.skeleton,
+                  check_rotations=False)

@@ -149,7 +149,8 @@ def build_dataset(garment: GarmentMesh, specs: list[SequenceSpec], config: SimCo
             split["train"] = sorted(split["train"] + made)
         sim_wall = time.perf_counter() - t0
         records = [load_part(part_paths(parts, n)[0], n) for n in done]
-        summary = summarise(records, garment, run.rejects, sim_wall, run.jobs, run.simulated, bodies=bodies)
+        summary = summarise(records, garment, rejects=run.rejects, sim_wall=sim_wall, jobs=run.jobs, simulated=run.simulated,
+                            bodies=bodies)
         if splices is not None:
             summary["splices"] = {"asked": o.splices.count, "made": len(made),
                                   "drawn": splices.drawn, "refused_self_intersection": splices.refused}

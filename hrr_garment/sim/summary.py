@@ -12,8 +12,8 @@ from ..garment.mesh import GarmentMesh
 from .quality import edge_strain
 
 
-def summarise(records: list[SequenceRecord], garment: GarmentMesh, rejects: dict[str, str], sim_wall: float,
-              jobs: int, simulated: int, bodies: dict[str, DressedBody] | None = None) -> dict:
+def summarise(records: list[SequenceRecord], garment: GarmentMesh, *, rejects: dict[str, str], sim_wall: float,
+              jobs: int | None, simulated: int, bodies: dict[str, DressedBody] | None = None) -> dict:
     """The dataset summary: counts, quality statistics (each sequence's strain against the garment
     on its own body) and simulation speed; with bodies, the strain and frames of each."""
     stats = [r.info.get("stats", {}) for r in records]
