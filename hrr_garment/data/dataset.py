@@ -41,6 +41,8 @@ from .bodies import MANNEQUIN, DressedBody, read_bodies, write_bodies
 FORMAT_VERSION = 2
 READABLE_VERSIONS = (1, 2)
 SPLITS = ("train", "val", "test")
+
+
 class DatasetError(InputError):
     """A dataset file that is missing, of another format, or inconsistent."""
 

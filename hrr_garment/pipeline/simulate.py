@@ -32,7 +32,8 @@ def missing_sequences(dataset: Path, preset: Preset) -> list[str]:
     # files written before mirrors were simulated record ``true`` for their reflections
     made = ds.info.get("augmentation", {}).get("mirror")
     reflected = made is True or made == "reflect"
-    return [name for name in planned + mirrors if name not in held or (reflected and mirror == "simulate" and name in mirrors)]
+    stale = set(mirrors) if reflected and mirror == "simulate" else set()
+    return [name for name in planned + mirrors if name not in held or name in stale]
 
 
 @dataclass(frozen=True)

@@ -133,7 +133,7 @@ def build_dataset(garment: GarmentMesh, specs: list[SequenceSpec], config: SimCo
         bodies = _check_bodies(specs, o.bodies or {})
         t0 = time.perf_counter()
         run = _simulate_missing(specs, garment, config, parts=parts, bodies=bodies, options=o)
-        done = [s.name for s in specs if s.name not in run.rejects and part_paths(parts, s.name)[0].exists()]
+        done = _finished(specs, run.rejects, parts)
         if not done:
             raise SimulationExploded(f"every sequence failed; nothing to write to {out}: {run.rejects}")
         split = _split(done, specs, o)
@@ -144,7 +144,7 @@ def build_dataset(garment: GarmentMesh, specs: list[SequenceSpec], config: SimCo
             splices = plan_splices(splice_candidates(specs, set(split["train"]), o.splices), o.splices)
             spliced = _simulate_missing(splices.specs, garment, config, parts=parts, bodies=bodies, options=o)
             run = run.merged(spliced)
-            made = [s.name for s in splices.specs if s.name not in spliced.rejects and part_paths(parts, s.name)[0].exists()]
+            made = _finished(splices.specs, spliced.rejects, parts)
             done += made
             split["train"] = sorted(split["train"] + made)
         sim_wall = time.perf_counter() - t0
@@ -208,15 +208,21 @@ def _simulate_missing(specs: list[SequenceSpec], garment: GarmentMesh, config: S
     return _Simulated(rejects, reused, len(pending), jobs)
 
 
+def _finished(specs: list[SequenceSpec], rejects: dict[str, str], parts: Path) -> list[str]:
+    """The names of ``specs`` with a finished part (in their order), rejects left out."""
+    return [s.name for s in specs if s.name not in rejects and part_paths(parts, s.name)[0].exists()]
+
+
 def _split(done: list[str], specs: list[SequenceSpec], o: BuildOptions) -> dict[str, list[str]]:
     """The finished sequences split as ``o`` asks: by name, or by whole groups, with the more fields
     of ``also_hold_out`` and the bodies held out beside (:class:`BuildOptions`). A simulated mirror
     goes where its source goes (the split is drawn over the sources, so it is the split the
     sources alone would get)."""
     finished = set(done)
+    simulated_mirrors = mirror_mode(o.mirror) == "simulate"
     by_source: dict[str, list[str]] = {}
     for n in done:
-        by_source.setdefault(mirror_source(n) if mirror_mode(o.mirror) == "simulate" else n, []).append(n)
+        by_source.setdefault(mirror_source(n) if simulated_mirrors else n, []).append(n)
     split = _split_sources(sorted(by_source), specs, o)
     return {k: sorted(n for source in v for n in by_source.get(source, []) if n in finished) for k, v in split.items()}
 

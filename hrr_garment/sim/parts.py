@@ -162,7 +162,7 @@ def load_part(part: Path, name: str) -> SequenceRecord:
 
 
 def parts_to_simulate(specs: list[SequenceSpec], parts: Path, keys: dict[str, str], *,
-                 retry_rejected: bool) -> tuple[list[SequenceSpec], dict[str, str], int]:
+                      retry_rejected: bool) -> tuple[list[SequenceSpec], dict[str, str], int]:
     """(the sequences to simulate, the rejects an earlier run recorded under the same key and
     that stay rejected, how many finished parts are reused)."""
     pending, rejects, reused = [], {}, 0
