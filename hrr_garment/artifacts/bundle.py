@@ -145,6 +145,12 @@ class Bundle:
         return float(self.auto["detail_strength"])
 
     @property
+    def swing_gain(self) -> float:
+        """The gain on the free cloth's swing the auto calibration chose (bundle.json
+        ``auto.swing_gain``; 1, the swing as predicted, before it: :mod:`hrr_garment.inference.swing`)."""
+        return float(self.auto.get("swing_gain", 1.0))
+
+    @property
     def auto(self) -> dict:
         """bundle.json's ``auto``: what the auto calibration chose, or, before it ran, the hybrid
         with the default detail look."""

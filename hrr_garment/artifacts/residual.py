@@ -72,12 +72,19 @@ def match_regression(codespace, motion_stats, latent_stats, database: CodeDataba
                          step=step).regression
 
 
+def residual_scale(similarity: np.ndarray, weight: float, nodes: np.ndarray | None = None) -> np.ndarray:
+    """(N, 1, nodes or 1, 1) weight x similarity x nodes: how much of each window's match departure
+    the residual adds (``nodes``: the free-cloth weights, :func:`free_cloth_weights`; None: 1)."""
+    scale = (float(weight) * np.asarray(similarity, np.float32)).reshape(-1, 1, 1, 1)
+    if nodes is not None:
+        scale = scale * np.asarray(nodes, np.float32).reshape(1, 1, -1, 1)
+    return scale
+
+
 def residual_latents(regression: np.ndarray, matched: np.ndarray, matched_regression: np.ndarray,
                      similarity: np.ndarray, weight: float, nodes: np.ndarray | None = None) -> np.ndarray:
     """regression + weight x similarity x nodes x (matched - matched_regression), per window:
     latents (N, W, nodes, C) each, similarity (N,) in [0, 1], ``nodes`` (nodes,) the free-cloth
     weights (:func:`free_cloth_weights`; None: 1 everywhere)."""
-    scale = (float(weight) * np.asarray(similarity, np.float32)).reshape(-1, *[1] * (regression.ndim - 1))
-    if nodes is not None:
-        scale = scale * np.asarray(nodes, np.float32).reshape(1, 1, -1, 1)
+    scale = residual_scale(similarity, weight, nodes)
     return (regression + scale * (matched - matched_regression)).astype(np.float32)

@@ -38,6 +38,9 @@ def add_detail_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--detail-base", choices=DETAIL_BASES, default=None,
                    help="what the detail mode's folds ride on: the regression's shape or the residual mode's, which "
                         "brings the matched window's swing (default: the model's calibrated choice)")
+    p.add_argument("--swing", type=float, default=None, metavar="GAIN",
+                   help="the free cloth's swing restored: GAIN on the latents' departure from their recent course "
+                        "(1: as predicted; default: the model's calibrated gain in the auto mode, 1 in a mode named)")
 
 
 def detail_look(args: argparse.Namespace) -> DetailLook:
@@ -54,10 +57,10 @@ def run_settings_of(args: argparse.Namespace, prog: str, **fields) -> RunSetting
     :class:`RunSettings`; an InputError for values or combinations they cannot take."""
     try:
         return RunSettings(**({"mode": args.mode} if hasattr(args, "mode") else {}), gate=args.gate, tau=args.tau,
-                           decoder=getattr(args, "decoder", None), **fields)
+                           decoder=getattr(args, "decoder", None), swing=getattr(args, "swing", None), **fields)
     except (TypeError, ValueError) as exc:
         message = str(exc)
-        flag = next((f"--{name}" for name in ("tau", "gate", "mode") if message.startswith(name)), "the run settings")
+        flag = next((f"--{name}" for name in ("tau", "gate", "mode", "swing") if message.startswith(name)), "the run settings")
         raise InputError(flag, message) from None
 
 

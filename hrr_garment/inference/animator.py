@@ -45,6 +45,7 @@ from .gate import WindowChoice, choose_windows
 from .modes import CODE_MODES, Mode
 from .run_settings import ResolvedRun, RunSettings, run_settings
 from .stream import CrowdStream
+from .swing import SwingGain
 
 
 def find_model(name_or_dir: str | Path) -> Path:
@@ -156,6 +157,7 @@ class Animator:
         t_frames, w = motion.num_frames, self.window
         if t_frames < 1:
             raise MotionError(motion.source, "the motion has no frames")
+        regression = None  # the latents' share that swings as the regression (gate.WindowChoice.regression_part)
         if run.mode == Mode.DIRECT:
             latents, proposals = self._direct_latents(motion, character), None
             retrieved, entropy = np.zeros(t_frames, np.uint8), np.full(t_frames, np.nan, np.float32)
@@ -165,6 +167,7 @@ class Animator:
                 feats = causal_windows(self.features(motion, causal=True, body=character), w)
                 choice = self._choose(feats, run, exclude_sequence, last_frame=True)
                 latents = causal_latents(choice, self.blend)
+                regression = None if choice.regression_part is None else choice.regression_part[:, -1]
                 proposals = causal_proposals(choice.match, w) if choice.lends_folds else None
                 per_frame = np.arange(t_frames)
             else:
@@ -174,10 +177,13 @@ class Animator:
                 windows = np.ascontiguousarray(sequence_windows(feats, w))
                 choice = self._choose(windows, run, exclude_sequence)
                 latents = blend_windows(choice.latents, len(feats))[:t_frames]
+                regression = None if choice.regression_part is None else blend_windows(choice.regression_part, len(feats))[:t_frames]
                 proposals = offline_proposals(choice.match, t_frames, w) if choice.lends_folds else None
                 per_frame = np.clip(np.arange(t_frames) - w // 2, 0, len(windows) - 1)  # the window centred on t
             retrieved, entropy = choice.retrieved[per_frame].astype(np.uint8), choice.entropy[per_frame].astype(np.float32)
             match, doubt = choice.match[per_frame], choice.doubt[per_frame].astype(np.float32)
+        if run.swing != 1.0:  # the free cloth's swing restored (causal: offline, streams and crowds alike)
+            latents = SwingGain.of(run.swing, self.bundle.node_hang_m, motion.fps).apply(latents, regression)
         local = body_frame_vertices(self.bundle, latents, self.decoder_for(run))
         if proposals is not None:  # the detail mode: simulated folds on the regression's shape (or the residual's)
             store = self.bundle.folds

@@ -17,7 +17,7 @@ import torch
 
 from ..artifacts.bundle import Bundle
 from ..artifacts.gate_signals import gate_doubt
-from ..artifacts.residual import match_regression, residual_latents
+from ..artifacts.residual import match_regression, residual_latents, residual_scale
 from ..models.codes import encode_motion, window_bodies
 from .modes import CODE_MODES, Mode
 from .run_settings import ResolvedRun
@@ -39,6 +39,10 @@ class WindowChoice:
     # (N, W or 1, nodes, C) the part of ``latents`` that is one source whatever the match (the
     # regression under a residual): causal paths inertialize only the rest (None: all of it)
     continuous: np.ndarray | None = None
+    # (N, W or 1, nodes, C) the share of ``latents`` that swings as the regression does: the
+    # regression less the share of it the residual's match replaced (inference/swing.py scales its
+    # departure). None: all of ``latents``
+    regression_part: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         if self.follows_match is None:
@@ -69,10 +73,14 @@ def choose_windows(bundle: Bundle, motion_windows: np.ndarray, run: ResolvedRun,
         # residual mode's (the match's own departure from the regression carries the hem's swing,
         # the folds its sharpness)
         residual = mode is Mode.RESIDUAL or run.fold_base == "residual"
+        part = None
         if residual:
             own = match_regression(bundle.codespace, bundle.motion_stats, bundle.latent_stats, database=db, rows=match, last_frame=last_frame, step=step)
             latents = residual_latents(enc.regression, db.latents[match, -frames:], own, similarity=similarity,
                                        weight=bundle.residual_weight, nodes=bundle.residual_nodes)
+            # where the match's motion is the query's (the game's own clips) the residual replaces
+            # that share of the regression, damped swing included, by the match's simulation
+            part = (1.0 - residual_scale(similarity, bundle.residual_weight, bundle.residual_nodes)) * enc.regression
         # on the regression, a detail window's latents are one continuous source whatever lends the
         # folds; on the residual they change with the match, which causal inference inertializes
         # (without it a stream of the default look jumped at every change of match: 2 x the jitter),
@@ -80,7 +88,7 @@ def choose_windows(bundle: Bundle, motion_windows: np.ndarray, run: ResolvedRun,
         # every change it lagged (causal PVE 33.8 against the regression's 31.7 mm at weight 0)
         return WindowChoice(latents, np.zeros(n, bool), enc.entropy, np.asarray(doubt, np.float64), matched,
                             lends_folds=mode is Mode.DETAIL, follows_match=np.full(n, residual),
-                            continuous=enc.regression if residual else None)
+                            continuous=enc.regression if residual else None, regression_part=part)
     if run.gate != "entropy" and mode is Mode.HYBRID:  # the match decides: search every window first
         match, similarity = db.search(enc.codes, exclude, bodies)
         distance = db.motion_distance(enc.standardised, match) if run.gate == "distance" else None

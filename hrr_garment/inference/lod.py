@@ -81,6 +81,8 @@ class LodState:
 
     latent: np.ndarray | None = None  # (nodes, C) the last window step's latent, before inertialization
     match: np.ndarray | None = None  # (2,) that step's database match (sequence, start) or -1
+    # (nodes, C) that step's share that swings as the regression (gate.WindowChoice.regression_part, or None)
+    regression: np.ndarray | None = None
     since: int = 0  # the character's frame of that step
     decoder: str | None = None
     fade: DecoderFade | None = None
@@ -103,6 +105,7 @@ def crowd_latents(chars: list, windows: np.ndarray, lv: np.ndarray, choose, iner
     for j, i in enumerate(rows):
         c = chars[i]
         c.lod.latent, c.lod.match, c.lod.since = choice.latents[j, -1], choice.match[j], c.frames
+        c.lod.regression = None if choice.regression_part is None else choice.regression_part[j, -1]
         latents[i] = inertialize_one(c, choice.latents[j, -1], choice.follows_match[j], choice.match[j],
                                      continuous=None if choice.continuous is None else choice.continuous[j, -1])
     for i in np.flatnonzero(~stepping):  # held: a source of its own (all of it), so the next step's latent is blended in

@@ -29,6 +29,7 @@ from ..artifacts.bundle import Bundle, BundleError
 from ..artifacts.gate_signals import GATE_SIGNALS
 from ..artifacts.manifest import DETAIL_BASES, MAX_DETAIL_STRENGTH, valid_detail_strength
 from .modes import Mode
+from .swing import MAX_GAIN, valid_gain
 
 DECODERS = ("full", "fast")  # the mesh autoencoder's decoder, or its distilled subspace decoder (models/subspace.py)
 
@@ -89,9 +90,18 @@ class RunSettings:
     # the mesh decoder: "full" (the autoencoder's) or "fast" (its distilled subspace decoder, a few
     # times cheaper: crowds in a game's budget; where the bundle has one). None: full
     decoder: str | None = None
+    # the hem's swing restored on free cloth (inference/swing.py): the gain on the latents' departure
+    # from their recent course, 1: as predicted. None: the model's calibrated gain in the mode auto
+    # picks, 1 in a mode named
+    swing: float | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "mode", Mode(self.mode))
+        if self.swing is not None:
+            swing = _number(self.swing, "swing")
+            if not valid_gain(swing):
+                raise ValueError(f"swing is a gain in (0, {MAX_GAIN:g}] (1: the swing as predicted), got {self.swing!r}")
+            object.__setattr__(self, "swing", swing)
         if self.gate is not None and self.gate not in GATE_SIGNALS:
             raise ValueError(f"gate must be one of {', '.join(GATE_SIGNALS)}, got {self.gate!r}")
         if self.tau is not None:
@@ -130,8 +140,9 @@ class RunSettings:
 
     def resolve(self, bundle: Bundle) -> ResolvedRun:
         """These settings with the model's calibrated values filled in, checked against ``bundle``."""
-        mode = self.mode
+        mode, calibrated = self.mode, False
         if mode is Mode.AUTO:
+            calibrated = not (self.hybrid_chosen or self.detail.chosen)
             mode = Mode.HYBRID if self.hybrid_chosen else Mode.DETAIL if self.detail.chosen else Mode(bundle.auto_mode)
         gate = bundle.gate if self.gate is None else self.gate
         tau = bundle.gate_tau(gate) if self.tau is None else self.tau
@@ -151,8 +162,9 @@ class RunSettings:
         if decoder == "fast" and bundle.subspace is None:
             raise BundleError(bundle.folder, "has no fast decoder: distil one with hrr-train --stage subspace "
                                              "(or run the full decoder)")
+        swing = self.swing if self.swing is not None else bundle.swing_gain if calibrated else 1.0
         return ResolvedRun(mode=mode, gate=gate, tau=tau, detail=look, collision=self.collision, causal=self.causal,
-                           decoder=decoder)
+                           decoder=decoder, swing=swing)
 
 
 @dataclass(frozen=True)
@@ -166,6 +178,7 @@ class ResolvedRun:
     collision: bool
     causal: bool
     decoder: str = "full"  # "full" or "fast"
+    swing: float = 1.0  # the gain on the free cloth's swing (inference/swing.py), 1: as predicted
 
     @property
     def fold_base(self) -> str:
@@ -175,7 +188,7 @@ class ResolvedRun:
     def record(self) -> dict:
         """What out.h5's attributes and report.json's settings record of the run."""
         out = {"mode": str(self.mode), "gate": self.gate, "tau": self.tau, "causal": int(self.causal),
-               "collision": int(self.collision), "decoder": self.decoder}
+               "collision": int(self.collision), "decoder": self.decoder, "swing": self.swing}
         if self.detail is not None:
             out.update(detail_base=self.detail.base, detail_strength=self.detail.strength)
         return out

@@ -39,6 +39,9 @@ class DeviceCrowd:
         if run.mode is not Mode.REGRESSION:
             raise ValueError(f"a crowd on a torch device runs the regression (mode='regression'), not {run.mode.value!r}: "
                              "the database's retrieval, residual and folds run in the native crowd (device='native')")
+        if run.swing != 1.0:
+            raise ValueError(f"a crowd on a torch device runs the swing as predicted (swing=1), not {run.swing:g}: "
+                             "the restored swing runs in the native crowd (device='native')")
         self.device = torch.device(device)
         self.run = run
         self.body = animator.body() if body is None else body

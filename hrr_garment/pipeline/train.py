@@ -29,7 +29,14 @@ from pathlib import Path
 import yaml
 
 from ..errors import InputError
-from ..eval.auto_mode import AutoConfig, calibrate_auto_mode, followed_otherwise, lacks_free_cloth, repick
+from ..eval.auto_mode import (
+    AutoConfig,
+    calibrate_auto_mode,
+    followed_otherwise,
+    lacks_free_cloth,
+    lacks_swing,
+    repick,
+)
 from ..io_utils import remove_empty_folders
 from ..models.codespace import CodeSpaceConfig
 from ..models.direct import DirectConfig
@@ -255,9 +262,9 @@ def calibrate_auto(folder: str | Path, dataset: str | Path, progress: bool = Tru
     meta = read_meta(folder)  # reading it hashes every file: once
     auto = meta.get("auto")
     # calibrated again where recorded before the candidates carried their cloth inside the body (the
-    # criterion counts it), the residual on free cloth or the folds followed in time (as the detail
-    # mode now runs); picked again where only an allowance moved
-    if auto is None or any("penetration_pct" not in c for c in auto["candidates"].values()) \
+    # criterion counts it), the residual on free cloth, the folds followed in time (as the detail
+    # mode now runs) or the swing's gain; picked again where only an allowance moved
+    if auto is None or any("penetration_pct" not in c for c in auto["candidates"].values()) or lacks_swing(auto) \
             or lacks_free_cloth(auto, meta.get("residual")) or (meta.get("folds") and followed_otherwise(auto)):
         from ..data.dataset import GarmentDataset
         from ..inference.animator import Animator

@@ -22,6 +22,8 @@ from hrr_garment.eval.auto_mode import (
     pick_free_cloth,
     plausibility_gap,
     repick,
+    swing_label,
+    swing_of,
 )
 from hrr_garment.motion.synth import synthesize
 from hrr_garment.settings import SettingsError
@@ -136,6 +138,20 @@ def test_free_cloth_labels_and_the_models_one_ramp():
     assert pick_free_cloth(candidates) is None  # so the residual mode's own pick: the plain residual
 
 
+def test_swing_labels_and_the_models_one_gain():
+    label = swing_label(free_cloth_label(RR8, (10.0, 40.0)), 1.2)
+    assert label == "detail on residual x0.8, free cloth 10-40 mm, swing x1.2"
+    assert candidate_setting(label) == ("detail", "residual", 0.8, (10.0, 40.0)) and swing_of(label) == 1.2
+    assert swing_of("residual") == 1.0
+    candidates = {"residual": _c(30.0, 0.3, 0.7), RR10: _c(30.5, 0.9, 0.75),
+                  swing_label(RR10, 1.1): _c(31.0, 0.9, 0.82), swing_label(RR10, 1.3): _c(32.0, 0.9, 0.95)}
+    picked = repick({"candidates": candidates}, AutoConfig())  # 1.3's swing is nearest the truth's, but over 5 %
+    assert (picked["mode"], picked["detail_base"], picked["detail_strength"], picked["swing_gain"]) == ("detail", "residual", 1.0, 1.1)
+    assert repick({"candidates": candidates}, AutoConfig(allowance=1.1))["swing_gain"] == 1.3
+    candidates[swing_label(RR10, 1.1)] = _c(31.0, 0.9, 1.6)  # a gain that overshoots the truth's swing is less plausible
+    assert repick({"candidates": candidates}, AutoConfig())["swing_gain"] == 1.0
+
+
 def test_hrr_train_calibrates_auto_and_it_agrees_with_the_evaluation(trained):
     from hrr_garment.artifacts.manifest import AUTO_CHOICES
     from hrr_garment.data.dataset import GarmentDataset
@@ -205,6 +221,10 @@ def test_hrr_train_picks_auto_again_when_its_allowance_changes(trained, tmp_path
                 and c[m]["penetration_pct"] <= max(1.1 * c[accurate]["penetration_pct"], 1.0) + 1e-9]
     most_plausible = min(plausibility_gap(c[m]["sharpness"], c[m]["hem_swing"]) for m in eligible)
     picked = widest["mode"] if widest["mode"] != "detail" else detail_label(widest["detail_base"], widest["detail_strength"])
+    if widest["residual_free_mm"] and (widest["mode"] == "residual" or widest["detail_base"] == "residual"):
+        picked = free_cloth_label(picked, widest["residual_free_mm"])
+    if widest["swing_gain"] != 1.0:
+        picked = swing_label(picked, widest["swing_gain"])
     assert plausibility_gap(c[picked]["sharpness"], c[picked]["hem_swing"]) == most_plausible
 
 
