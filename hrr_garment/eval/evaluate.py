@@ -48,6 +48,7 @@ class ModeResult:
     tau: float
     sequences: list[SequenceResult] = field(default_factory=list)
     gate: str = "entropy"  # the hybrid's gate signal, which tau thresholds
+    swing: float = 1.0  # the swing gain the mode ran with (inference/swing.py; auto: the calibrated one)
 
     @property
     def metrics(self) -> dict[str, float]:
@@ -63,7 +64,8 @@ class ModeResult:
         return {**combined, **ensemble_ratios(combined), "sequences": len(rows)}
 
     def to_dict(self) -> dict:
-        return {"mode": self.mode, "gate": self.gate, "tau": self.tau, "metrics": self.metrics, "ensemble": self.ensemble,
+        return {"mode": self.mode, "gate": self.gate, "tau": self.tau, "swing": self.swing, "metrics": self.metrics,
+                "ensemble": self.ensemble,
                 "sequences": {s.name: {"frames": s.frames, **s.metrics, **({"ensemble": {**s.ensemble, **ensemble_ratios(s.ensemble)}}
                                                                             if s.ensemble else {})}
                               for s in self.sequences}}
@@ -192,7 +194,7 @@ def evaluate_modes(animator: Animator, records: list[SequenceRecord], settings: 
     names = list(bundle.database.names)
     runs = {m: settings.run_for(m) for m in settings.modes}
     hybrid = animator.resolve(settings.run_for(Mode.HYBRID))  # each mode's result records the hybrid's gate and tau
-    results = {m: ModeResult(m, hybrid.tau, gate=hybrid.gate) for m in settings.modes}
+    results = {m: ModeResult(m, hybrid.tau, gate=hybrid.gate, swing=animator.resolve(runs[m]).swing) for m in settings.modes}
     jobs = [(m, r) for r in records for m in settings.modes]
     for mode, record in tqdm(jobs, desc="evaluate", unit="run", disable=not settings.progress):
         own = _own_sequence(names, record, settings.exclude_own_sequence)

@@ -119,3 +119,15 @@ def test_hrr_animate_takes_a_swing_gain_and_refuses_a_bad_one(trained, tmp_path,
     refused = tmp_path / "refused.h5"
     assert animate_main([str(clip), "-o", str(refused), "--model", str(root / "model"), "--swing", "0"]) == 2
     assert "--swing" in capsys.readouterr().err and not refused.exists()
+
+
+def test_an_evaluation_records_the_gain_each_mode_ran_with(animator, trained, monkeypatch):
+    from hrr_garment.data.dataset import GarmentDataset
+    from hrr_garment.eval.evaluate import EvaluationSettings, evaluate_modes
+
+    _, data, _ = trained
+    ds = GarmentDataset(data)
+    records = [ds.sequence(ds.splits["val"][0])]
+    monkeypatch.setitem(animator.bundle.meta, "auto", {**animator.bundle.auto, "swing_gain": 1.2})
+    results = evaluate_modes(animator, records, EvaluationSettings(("auto", "regression"), progress=False))
+    assert results["auto"].to_dict()["swing"] == 1.2 and results["regression"].to_dict()["swing"] == 1.0
