@@ -104,6 +104,8 @@ def _main(argv: Sequence[str] | None) -> int:
     mode = Mode(anim.settings["mode"])
     gate = (f", gate {anim.settings['gate']} < {anim.settings['tau']:.3f}" if mode == Mode.HYBRID else
             f", folds x{anim.settings['detail_strength']:g} on the {anim.settings['detail_base']}" if mode == Mode.DETAIL else "")
+    if anim.settings.get("swing", 1.0) != 1.0:
+        gate += f", swing x{anim.settings['swing']:g}"
     used = ("a database match on every frame" if mode in (Mode.RESIDUAL, Mode.DETAIL) else
             f"retrieval usage {100 * anim.retrieval_usage:.1f} % of frames")
     named = f"{args.mode} = {mode}" if args.mode != mode else str(mode)

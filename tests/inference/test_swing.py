@@ -112,6 +112,7 @@ def test_hrr_animate_takes_a_swing_gain_and_refuses_a_bad_one(trained, tmp_path,
     out = tmp_path / "out.h5"
     assert animate_main([str(clip), "-o", str(out), "--model", str(root / "model"), "--mode", "regression",
                          "--swing", "1.4", "--no-collision"]) == 0
+    assert "mode regression, swing x1.4" in capsys.readouterr().out
     written = read_animation_h5(out)
     assert written.attrs["swing"] == 1.4
     expected = Animator.load(root / "model").animate(motion, mode="regression", swing=1.4, collision=False)
