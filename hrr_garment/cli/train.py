@@ -75,7 +75,7 @@ class _Printer(TrainCallback):
         elif stage == "codespace":
             _print_codespace(result)
         elif stage == "auto":
-            from ..eval.auto_mode import describe_auto
+            from ..eval.auto_criterion import describe_auto
 
             print(describe_auto(result))
         elif stage == "subspace":

@@ -29,14 +29,8 @@ from pathlib import Path
 import yaml
 
 from ..errors import InputError
-from ..eval.auto_mode import (
-    AutoConfig,
-    calibrate_auto_mode,
-    followed_otherwise,
-    lacks_free_cloth,
-    lacks_swing,
-    repick,
-)
+from ..eval.auto_criterion import AutoConfig, repick
+from ..eval.auto_mode import calibrate_auto_mode, followed_otherwise, lacks_free_cloth, lacks_swing
 from ..io_utils import remove_empty_folders
 from ..models.codespace import CodeSpaceConfig
 from ..models.direct import DirectConfig

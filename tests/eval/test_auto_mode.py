@@ -8,14 +8,12 @@ import shutil
 import numpy as np
 import pytest
 
-from hrr_garment.eval.auto_mode import (
+from hrr_garment.eval.auto_criterion import (
     DETAIL_CANDIDATES,
     DETAIL_STRENGTHS,
     AutoConfig,
-    calibrate_auto_mode,
     candidate_setting,
     detail_label,
-    free_cloth,
     free_cloth_label,
     pick_auto_and_detail,
     pick_auto_mode,
@@ -25,6 +23,7 @@ from hrr_garment.eval.auto_mode import (
     swing_label,
     swing_of,
 )
+from hrr_garment.eval.auto_mode import calibrate_auto_mode, free_cloth
 from hrr_garment.motion.synth import synthesize
 from hrr_garment.settings import SettingsError
 from tests.conftest import write_meta
@@ -206,7 +205,7 @@ def test_hrr_train_calibrates_auto_and_it_agrees_with_the_evaluation(trained):
 
 def test_hrr_train_picks_auto_again_when_its_allowance_changes(trained, tmp_path):
     """The candidates' numbers stand: another allowance re-picks from them, without animating again."""
-    from hrr_garment.eval.auto_mode import AutoConfig
+    from hrr_garment.eval.auto_criterion import AutoConfig
     from hrr_garment.pipeline.train import calibrate_auto
 
     root, data, _ = trained
