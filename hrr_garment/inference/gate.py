@@ -41,7 +41,7 @@ class WindowChoice:
     continuous: np.ndarray | None = None
     # (N, W or 1, nodes, C) the share of ``latents`` that swings as the regression does: the
     # regression less the share of it the residual's match replaced (inference/swing.py scales its
-    # departure). None: all of ``latents``
+    # departure). None: all of ``latents``, or a run without the swing's gain
     regression_part: np.ndarray | None = None
 
     def __post_init__(self) -> None:
@@ -78,9 +78,10 @@ def choose_windows(bundle: Bundle, motion_windows: np.ndarray, run: ResolvedRun,
             own = match_regression(bundle.codespace, bundle.motion_stats, bundle.latent_stats, database=db, rows=match, last_frame=last_frame, step=step)
             latents = residual_latents(enc.regression, db.latents[match, -frames:], own, similarity=similarity,
                                        weight=bundle.residual_weight, nodes=bundle.residual_nodes)
-            # where the match's motion is the query's (the game's own clips) the residual replaces
-            # that share of the regression, damped swing included, by the match's simulation
-            part = (1.0 - residual_scale(similarity, bundle.residual_weight, bundle.residual_nodes)) * enc.regression
+            if run.swing != 1.0:  # only the swing's gain reads it (inference/swing.py)
+                # where the match's motion is the query's (the game's own clips) the residual replaces
+                # that share of the regression, damped swing included, by the match's simulation
+                part = (1.0 - residual_scale(similarity, bundle.residual_weight, bundle.residual_nodes)) * enc.regression
         # on the regression, a detail window's latents are one continuous source whatever lends the
         # folds; on the residual they change with the match, which causal inference inertializes
         # (without it a stream of the default look jumped at every change of match: 2 x the jitter),
