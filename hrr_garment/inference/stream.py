@@ -54,7 +54,7 @@ from .gate import choose_windows
 from .lod import LodState, crowd_decode, crowd_latents, decoder_of, levels
 from .modes import Mode
 from .run_settings import ResolvedRun
-from .swing import SwingGain
+from .swing import SwingGain, step_crowd
 
 STREAM_STAGES = ("features", "encoder", "decoder", "world", "push_out")
 
@@ -232,20 +232,6 @@ class CrowdStream:
 
         return crowd_latents(chars, windows, lv, choose=choose, inertialize_one=one)
 
-    def _swung(self, chars: list[_Character], latents: np.ndarray, fps: float) -> np.ndarray:
-        """(N, nodes, C) the latents with the free cloth's swing restored: each character's regression
-        part (its last window step's, :attr:`~.lod.LodState.regression`, else the whole latent) and
-        that part's recent course, kept on the character (as :meth:`~.swing.SwingGain.apply` offline)."""
-        if fps not in self._swing:
-            self._swing[fps] = SwingGain.of(self.run.swing, self.animator.bundle.node_hang_m, fps)
-        fresh = np.array([c.swing_mean is None for c in chars])
-        regression = np.stack([latents[i] if c.lod.regression is None else c.lod.regression for i, c in enumerate(chars)])
-        means = np.stack([regression[i].astype(np.float64) if c.swing_mean is None else c.swing_mean for i, c in enumerate(chars)])
-        out, means = self._swing[fps].step(latents, regression, means, fresh)
-        for c, mean in zip(chars, means):
-            c.swing_mean = mean
-        return out
-
     def _restart_teleported(self, keys: list, poses: Motion) -> None:
         """Forget the characters whose pelvis moved faster than :data:`MAX_ROOT_SPEED` since their
         last push (they start afresh this frame), each with a :class:`TeleportWarning`."""
@@ -280,8 +266,10 @@ class CrowdStream:
         windows = np.stack([np.stack(c.features) for c in chars])  # (N, W, F)
         t.append(time.perf_counter())
         latents = self._latents(chars, windows, lv)
-        if self.run.swing != 1.0:
-            latents = self._swung(chars, latents, poses.fps)
+        if self.run.swing != 1.0:  # the free cloth's swing restored, each character's course kept on it
+            if poses.fps not in self._swing:
+                self._swing[poses.fps] = SwingGain.of(self.run.swing, self.animator.bundle.node_hang_m, poses.fps)
+            latents = step_crowd(self._swing[poses.fps], chars, latents)
         t.append(time.perf_counter())
         has_fast = self._decoders["fast"] is not None
         names = [decoder_of(int(level), self.run.decoder, has_fast) for level in lv]

@@ -88,3 +88,17 @@ class SwingGain:
         for t in range(len(latents)):
             out[t], mean = self.step(latents[t], regression[t], mean)
         return out
+
+
+def step_crowd(gain: SwingGain, chars: list, latents: np.ndarray) -> np.ndarray:
+    """(N, nodes, C) a crowd's latents this frame with the swing restored, as :meth:`SwingGain.apply`
+    does a clip: each character's regression part (``c.lod.regression``, its last window step's,
+    else its whole latent) and that part's course, kept on the character (``c.swing_mean``, None
+    before its first frame)."""
+    fresh = np.array([c.swing_mean is None for c in chars])
+    regression = np.stack([latents[i] if c.lod.regression is None else c.lod.regression for i, c in enumerate(chars)])
+    means = np.stack([regression[i].astype(np.float64) if c.swing_mean is None else c.swing_mean for i, c in enumerate(chars)])
+    out, means = gain.step(latents, regression, means, fresh)
+    for c, mean in zip(chars, means):
+        c.swing_mean = mean
+    return out
