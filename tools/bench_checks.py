@@ -1,5 +1,5 @@
 """Benchmark: what the checks where poses enter cost a crowd's step, and what the detail mode's fold
-strain limit costs it, each as a share of the step, measured in one run.
+strain limit and fold reads cost it, each as a share of the step, measured in one run.
 
     python tools/bench_checks.py --model hrr_work/models/dress-real-quick-bodies-contact --crowd 32
 
@@ -8,7 +8,8 @@ them over; the model's default mode), and the step's median is the denominator. 
 are timed on the same poses: the conversion to a Motion with every check (``poses_to_motion``:
 shapes, real and finite values, unit quaternions, roots within 10 km) and the teleport test.
 The fold limit is timed as ``add_folds`` with the template's edge limits against without, on N
-frames of the model's regression with N database frames' folds. Medians of ``--repeat`` timings
+frames of the model's regression with N database frames' folds; the fold read as N characters'
+reads of two rows each (a cross-fade: the most the fold track reads). Medians of ``--repeat`` timings
 each; the shares are of the step median measured in between, so a busy machine inflates both.
 """
 
@@ -73,8 +74,12 @@ def main() -> None:
         plain = _median_us(lambda: add_folds(local, folds, animator.smoothing, store.passes), args.repeat // 4)
         limited = _median_us(lambda: add_folds(local, folds, animator.smoothing, store.passes, limits=animator.edge_limits),
                              args.repeat // 4)
+        # each character's fold read at a cross-fade (two rows), the most the fold track reads in a step
+        fading = np.stack([rows[:, 0], (rows[:, 0] + 1) % len(store.levels)], 1)
+        read = _median_us(lambda: store.folds(fading, np.full((n, 2), 0.5)), args.repeat)
         result.update(add_folds_us=round(plain, 1), add_folds_limited_us=round(limited, 1),
-                      fold_limit_share=round((limited - plain) / step_us, 4))
+                      fold_limit_share=round((limited - plain) / step_us, 4), fold_encoding=store.encoding,
+                      fold_read_us=round(read, 1), fold_read_share=round(read / step_us, 4))
     result.update(entry_share=round((entry_us + teleport_us) / step_us, 4))
     if args.json:
         print(json.dumps(result))

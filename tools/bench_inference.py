@@ -45,6 +45,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from hrr_garment.artifacts import fold_codec
 from hrr_garment.artifacts.bundle import Bundle
 from hrr_garment.artifacts.database import CodeDatabase
 from hrr_garment.artifacts.folds import FoldStore
@@ -81,8 +82,10 @@ def random_bundle(vertices: int, windows: int, seed: int = 0, components: int = 
     db = CodeDatabase(rng.integers(0, cfg.classes, (windows, cfg.groups)), random_frames(*ae.latent_shape), sequence, start,
                       [f"s{i}" for i in range(len(lengths))], cfg.classes, random_frames(cfg.features))
     meta = {"tau": 1.0, "gate": "entropy", "gates": {}, "garment": "dress", "content_hash": "random"}
-    folds = FoldStore(rng.integers(-127, 128, (frames, garment.num_vertices, 3), dtype=np.int8),
-                      np.full(frames, 1e-4, np.float32), np.r_[0, np.cumsum(lengths)])
+    blocks = fold_codec.blocks_of(3 * garment.num_vertices)  # as new bundles store them: nf4
+    folds = FoldStore(rng.integers(0, 256, (frames, blocks, fold_codec.BLOCK // 2), dtype=np.uint8),
+                      np.full((frames, blocks), 1e-3, np.float16), np.r_[0, np.cumsum(lengths)], encoding="nf4",
+                      vertices=garment.num_vertices)
     subspace = SubspaceDecoder(ae.latent_shape, garment.num_vertices, components)  # random weights: a timing stand-in
     subspace.basis.copy_(torch.linalg.qr(torch.randn(3 * garment.num_vertices, components))[0].T)
     subspace.mean.copy_(torch.from_numpy(garment.vertices.astype(np.float32).ravel()))

@@ -81,7 +81,9 @@ def load_folds(folder: Path, meta: dict, template: GarmentMesh, database: CodeDa
     levels = FOLD_FILE_KEYS["levels"]
     f = load_arrays(folder, FOLDS_FILE, (levels, "scale", "offsets"))
     try:
-        folds = FoldStore(f[levels], f["scale"], f["offsets"], passes=meta["folds"]["passes"])
+        entry = meta["folds"]
+        folds = FoldStore(f[levels], f["scale"], f["offsets"], passes=entry["passes"], encoding=entry["encoding"],
+                          vertices=entry.get("vertices"))
         folds.check_fits(template.num_vertices, len(database.names), database.sequence,
                          database.start + database.latents.shape[1])
     except (KeyError, TypeError, ValueError) as exc:

@@ -22,6 +22,8 @@ version, so that everything after it reads every field as the current version de
 - 4: ``manifest_hash``, a hash over bundle.json's own content (everything but itself): the
   content hash covers the files, and a hand-edited garment name, tau or scale went unseen. A
   version-3 manifest has none; it gets one when it is next written.
+- 5: ``folds.encoding``, how the fold store holds its frames (``"nf4"`` for new stores, with
+  ``folds.vertices``); a version-4 store is ``"int8"``.
 """
 
 from __future__ import annotations
@@ -36,7 +38,7 @@ from ..io_utils import strict_json
 from .folds import DETAIL_STRENGTH
 from .gate_signals import GATE_SIGNALS
 
-FORMAT_VERSION = 4  # see the module docstring
+FORMAT_VERSION = 5  # see the module docstring
 OLDEST_READABLE = 2  # version 1 kept garments in world coordinates: no step upgrades its networks
 NETWORKS = ("motion_encoder", "garment_encoder", "decoder", "quantizer")
 FOLDS_FILE = "folds.safetensors"  # the detail mode's simulated folds (.folds)
@@ -161,6 +163,10 @@ def migrate_manifest(folder: Path, meta: object) -> dict:
         meta = _from_version_2(meta)
     if meta["format_version"] == 3:  # version 4 only added the manifest's own hash
         meta = {**meta, "format_version": 4}
+    if meta["format_version"] == 4:  # version 5 named the fold store's encoding; before, always int8
+        meta = {**meta, "format_version": 5}
+        if isinstance(meta.get("folds"), dict):
+            meta["folds"] = {"encoding": "int8", **meta["folds"]}
     return meta
 
 

@@ -25,7 +25,7 @@ from tqdm import tqdm
 from ..artifacts.bundle import BundleError, load_bundle, read_meta
 from ..artifacts.bundle_writer import BundleParts, add_bundle_part, update_bundle_meta, write_bundle
 from ..artifacts.database import CodeDatabase
-from ..artifacts.folds import FoldStore
+from ..artifacts.folds import FOLD_ENCODING, FoldStore
 from ..artifacts.manifest import FOLDS_FILE
 from ..body.body_file import body_to_dict
 from ..body.measures import BODY_MEASURES, BodyRange, body_vector
@@ -212,8 +212,10 @@ def run_codespace_stage(dataset: str | Path, folder: str | Path, config: CodeSpa
                                                  finished[0]["training"]["config"].get("max_minutes"), train_config.max_minutes):
         finished = None  # cut short by a smaller cap: its checkpoint resumes
     done, meta = finished if finished is not None else (None, {})
-    if done is not None and "folds" not in meta:  # trained before the folds: add them alone, and drop
-        folds = fold_store(ds, list(meta["database"]["names"]), progress)  # the auto choice made without them
+    # trained before the folds, or stored in an older encoding (int8, twice the size): (re)build them
+    # alone, and drop the auto choice made without them
+    if done is not None and meta.get("folds", {}).get("encoding") != FOLD_ENCODING:
+        folds = fold_store(ds, list(meta["database"]["names"]), progress)
         add_bundle_part(folder, FOLDS_FILE, folds.arrays(), meta={"folds": folds.meta}, numpy=True, drop=("auto",))
     if done is not None and "residual" in meta:
         return _stage_report(done, stage, reused=True)

@@ -31,7 +31,7 @@ def test_a_version_2_bundle_loads_and_animates_as_31b4ef9_did(tmp_path, monkeypa
     animator = Animator.load(folder)
     meta = animator.bundle.meta
     assert json.loads((folder / "bundle.json").read_text())["format_version"] == 2
-    assert meta["format_version"] == FORMAT_VERSION == 4  # upgraded in memory, the file untouched
+    assert meta["format_version"] == FORMAT_VERSION == 5  # upgraded in memory, the file untouched
     assert meta["gate"] in ("entropy", "similarity", "distance") and isinstance(meta["gates"], dict)
     assert {"memory_seconds", "resonator_hz", "regression_code"} <= set(meta["codespace"]["config"])
     written = read_animation_h5(DATA / "out-31b4ef9" / "auto.h5")
@@ -65,7 +65,8 @@ def test_writing_into_a_version_2_bundle_upgrades_its_manifest(tmp_path):
     before = Animator.load(folder).animate(_walk(), mode="hybrid", collision=False).vertices
     update_bundle_meta(folder, {})
     on_disk = json.loads((folder / "bundle.json").read_text())
-    assert on_disk["format_version"] == 4 and "gates" in on_disk and "detail_strength" in on_disk["auto"]
+    assert on_disk["format_version"] == 5 and "gates" in on_disk and "detail_strength" in on_disk["auto"]
+    assert on_disk["folds"]["encoding"] == "int8"  # the store as it was written
     assert "manifest_hash" in on_disk
     after = Animator.load(folder).animate(_walk(), mode="hybrid", collision=False).vertices
     assert np.array_equal(before, after)

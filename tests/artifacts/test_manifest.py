@@ -6,6 +6,8 @@ import json
 import numpy as np
 import pytest
 
+from hrr_garment.artifacts.manifest import FORMAT_VERSION
+
 
 def _retamper_hashes(folder, meta, names):
     """Re-hash ``names`` in ``meta`` as a careful tamperer would (so only the check under test can fire)."""
@@ -71,7 +73,7 @@ TAMPERS = {  # name: (edit of bundle.json's dict, or of the folder and dict; the
     "auto an unknown mode": (lambda f, m: m.update(auto={"mode": "retrieval"}), "'auto' must hold a 'mode' of"),
     "auto a string": (lambda f, m: m.update(auto="detail"), "'auto' must hold a 'mode' of"),
     "gates missing": (lambda f, m: m.pop("gates"), "'gates' must map gate signals"),
-    "a newer format": (lambda f, m: m.update(format_version=5), "format_version 5; .*upgrade hrr_garment"),
+    "a newer format": (lambda f, m: m.update(format_version=FORMAT_VERSION + 1), f"format_version {FORMAT_VERSION + 1}; .*upgrade hrr_garment"),
     "format 1": (lambda f, m: m.update(format_version=1), "format_version 1; .*retrain"),
     "detail base unknown": (lambda f, m: m.update(auto={"mode": "detail", "detail_base": "retrieval"}),
                             "'detail_base' must be one of regression, residual"),

@@ -21,7 +21,7 @@ def bundle(tmp_path) -> Path:
     folder = shutil.copytree(FIXTURE, tmp_path / "model")
     update_bundle_meta(folder, {})
     meta = json.loads((folder / "bundle.json").read_text())
-    assert meta["format_version"] == 4 and meta["manifest_hash"] == manifest_hash(meta)
+    assert meta["format_version"] == 5 and meta["manifest_hash"] == manifest_hash(meta)
     return folder
 
 
@@ -64,4 +64,4 @@ def test_a_manifest_written_again_stays_valid_and_a_version_3_one_still_loads(bu
     assert read_meta(bundle)["note"] == "calibrated again"
     old = shutil.copytree(bundle, tmp_path / "v3")
     _edit(old, lambda m: (m.update(format_version=3), m.pop("manifest_hash")))
-    assert read_meta(old)["format_version"] == 4  # before the manifest hash: read as it was
+    assert read_meta(old)["format_version"] == 5  # before the manifest hash: read as it was
