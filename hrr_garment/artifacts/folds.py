@@ -54,23 +54,10 @@ class FoldStore:
         if self.encoding not in ENCODINGS:
             raise ValueError(f"fold encoding must be one of {', '.join(ENCODINGS)}, got {self.encoding!r}")
         if self.encoding == "int8":
-            self.scale = np.asarray(self.scale, np.float32)
-            if self.levels.dtype != np.int8 or self.levels.ndim != 3 or self.levels.shape[2] != 3:
-                raise ValueError(f"fold levels must be (N, V, 3) int8, got {self.levels.shape} {self.levels.dtype}")
-            if self.vertices is not None and self.vertices != self.levels.shape[1]:
-                raise ValueError(f"fold levels hold {self.levels.shape[1]} vertices, not {self.vertices}")
-            self.vertices = int(self.levels.shape[1])
+            self._check_int8()
         else:
-            self.scale = np.asarray(self.scale, np.float16)
-            if not isinstance(self.vertices, (int, np.integer)) or self.vertices < 1:
-                raise ValueError(f"nf4 folds need their number of vertices, got {self.vertices!r}")
-            blocks = fold_codec.blocks_of(3 * self.vertices)
-            if self.levels.dtype != np.uint8 or self.levels.shape[1:] != (blocks, fold_codec.BLOCK // 2):
-                raise ValueError(f"nf4 fold codes of {self.vertices} vertices must be (N, {blocks}, "
-                                 f"{fold_codec.BLOCK // 2}) uint8, got {self.levels.shape} {self.levels.dtype}")
-            self.vertices = int(self.vertices)
-        if self.scale.shape != self.levels.shape[:self.scale.ndim] or self.scale.ndim != (1 if self.encoding == "int8" else 2) \
-                or not np.isfinite(self.scale).all() or (self.scale < 0).any():
+            self._check_nf4()
+        if self.scale.shape != self.levels.shape[:self.scale.ndim] or not np.isfinite(self.scale).all() or (self.scale < 0).any():
             raise ValueError(f"fold scales must be finite numbers >= 0, one per frame (int8) or per block (nf4), "
                              f"got shape {self.scale.shape}")
         o = self.offsets
@@ -79,6 +66,29 @@ class FoldStore:
         if isinstance(self.passes, bool) or not isinstance(self.passes, (int, np.integer)) or not 1 <= self.passes <= MAX_PASSES:
             raise ValueError(f"fold passes must be a whole number from 1 to {MAX_PASSES}, got {self.passes!r}")
         self.passes = int(self.passes)
+
+    def _check_int8(self) -> None:
+        self.scale = np.asarray(self.scale, np.float32)
+        if self.levels.dtype != np.int8 or self.levels.ndim != 3 or self.levels.shape[2] != 3:
+            raise ValueError(f"fold levels must be (N, V, 3) int8, got {self.levels.shape} {self.levels.dtype}")
+        if self.vertices is not None and self.vertices != self.levels.shape[1]:
+            raise ValueError(f"fold levels hold {self.levels.shape[1]} vertices, not {self.vertices}")
+        if self.scale.ndim != 1:
+            raise ValueError(f"int8 fold scales must be one per frame, got shape {self.scale.shape}")
+        self.vertices = int(self.levels.shape[1])
+
+    def _check_nf4(self) -> None:
+        self.scale = np.asarray(self.scale, np.float16)
+        v = self.vertices
+        if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 1:
+            raise ValueError(f"nf4 folds need their number of vertices, got {v!r}")
+        blocks = fold_codec.blocks_of(3 * v)
+        if self.levels.dtype != np.uint8 or self.levels.shape[1:] != (blocks, fold_codec.BLOCK // 2):
+            raise ValueError(f"nf4 fold codes of {v} vertices must be (N, {blocks}, {fold_codec.BLOCK // 2}) uint8, "
+                             f"got {self.levels.shape} {self.levels.dtype}")
+        if self.scale.ndim != 2:
+            raise ValueError(f"nf4 fold scales must be one per block, got shape {self.scale.shape}")
+        self.vertices = int(v)
 
     @classmethod
     def build(cls, sequences: Iterable[np.ndarray], mean: csr_matrix, passes: int = FOLD_PASSES,
