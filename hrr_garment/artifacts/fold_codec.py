@@ -14,6 +14,8 @@ frame 0.52 of its int8 size (docs/decisions/0027-four-bit-folds.md).
 
 from __future__ import annotations
 
+from statistics import NormalDist
+
 import numpy as np
 
 BLOCK = 96  # values sharing a scale: 32 vertices x 3 coordinates
@@ -22,9 +24,8 @@ BLOCK = 96  # values sharing a scale: 32 vertices x 3 coordinates
 def _normal_levels() -> np.ndarray:
     """15 levels in [-1, 1], symmetric, with 0: the normal distribution's quantiles at the middles
     of 7 equal slices of each half, scaled so that the outermost is 1."""
-    from scipy.stats import norm
-
-    half = norm.ppf(np.linspace(0.5 / 8, 0.5, 8))[:-1]  # 7 negative quantiles, the farthest first
+    # the standard library's inverse normal: scipy.stats would add 0.4 s to every bundle load
+    half = np.array([NormalDist().inv_cdf(p) for p in np.linspace(0.5 / 8, 0.5, 8)[:-1]])  # 7 negative quantiles
     levels = np.sort(np.concatenate([half, [0.0], -half]))
     return (levels / np.abs(levels).max()).astype(np.float32)
 
