@@ -173,6 +173,8 @@ def print_report(report, garment: GarmentMesh) -> None:
         sp = s["splices"]
         print(f"  splices: {sp['made']} of {sp['asked']} (legs of one training clip, upper body of another; "
               f"{sp['refused_self_intersection']} of {sp['drawn']} drawn refused for limbs through the body)")
+        if sp.get("backward_asked"):
+            print(f"  played backward: {sp['backward_made']} of {sp['backward_asked']} windows of training clips")
     for name, row in s.get("by_body", {}).items():
         print(f"  body {name} ({row['stature_m']:.2f} m): {row['sequences']} sequences, {row['frames']} frames, "
               f"strain p99 {row['strain_p99']:.3f}")

@@ -1,12 +1,13 @@
-"""New motion from the parts of captured motion: one clip's upper body on another's legs, and one
-arm played late against the rest.
+"""New motion from the parts of captured motion: one clip's upper body on another's legs, one arm
+played late against the rest, and a clip played backward.
 
 A library of a few hundred clips covers a few dozen contents (walk, wave, bow, ...); a game combines
 them: a character waves while it walks, carries something while it turns. The cloth of a dress
 answers mostly to the legs and the hips, but the arms swing and lift it at the sides, so a model
 that saw every upper body only over its own legs meets a new combination as motion it has never
 seen. :func:`spliced` makes such combinations for the simulator (issue 50: augmentation toward new
-contents, not only new speeds). Both edits keep the root and the legs of one clip whole, so the
+contents, not only new speeds). A clip played backward is a content of its own: a walk becomes a
+walk backward, a sit-down a stand-up (:func:`played_backward`). The first two edits keep the root and the legs of one clip whole, so the
 feet stay where the capture put them; the caller checks the result for limbs through the body
 (:mod:`hrr_garment.body.self_contact`) before it is simulated.
 """
@@ -62,3 +63,13 @@ def arm_delayed(motion: Motion, side: str, frames: int) -> Motion:
     return Motion(local, motion.root_translation, motion.fps, source=f"{motion.source} ({side} arm {frames} frames late)",
                   source_skeleton=motion.source_skeleton, source_height_m=motion.source_height_m, skeleton=motion.skeleton,
                   check_rotations=False)
+
+
+def played_backward(motion: Motion) -> Motion:
+    """``motion`` with its frames in reverse order: every pose is the capture's own (so no limb passes
+    through the body that did not in the capture), the root travels the same path the other way.
+    The garment is simulated forward on it, so its cloth answers to the reversed motion as cloth
+    does, not as the capture's cloth played back."""
+    return Motion(motion.local_rotations[::-1].copy(), motion.root_translation[::-1].copy(), motion.fps,
+                  source=f"{motion.source} (played backward)", source_skeleton=motion.source_skeleton,
+                  source_height_m=motion.source_height_m, skeleton=motion.skeleton, check_rotations=False)

@@ -19,14 +19,14 @@ def missing_sequences(dataset: Path, preset: Preset) -> list[str]:
         return []
     from ..data.dataset import GarmentDataset
     from ..data.splits import MIRROR_SUFFIX
-    from ..sim.augment import SPLICE_PREFIX
+    from ..sim.augment import AUGMENT_PREFIXES
     from ..sim.plan import mirror_mode, plan_sequences
 
     ds = GarmentDataset(dataset)
     planned = [spec.name for spec in plan_sequences(preset)]
     mirror = mirror_mode(preset.mirror)
     mirrors = [f"{name}{MIRROR_SUFFIX}" for name in planned] if mirror else []
-    held = {n for n in ds.names if not n.startswith(SPLICE_PREFIX)}  # splices are planned by the build
+    held = {n for n in ds.names if not n.startswith(AUGMENT_PREFIXES)}  # splices and the like are planned by the build
     if ds.info.get("preset") != preset.name or ds.info.get("motions") or not held <= set(planned + mirrors):
         return []
     # files written before mirrors were simulated record ``true`` for their reflections

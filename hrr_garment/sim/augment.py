@@ -1,5 +1,5 @@
-"""Splices: new training motion made of the training clips' parts (issue 50, augmentation toward new
-contents).
+"""Splices and clips played backward: new training motion made of the training clips (issue 50,
+augmentation toward new contents).
 
 A splice puts the upper body of one motion file (spine, head, arms) on the root and legs of
 another of a different content, over a window of the preset's clip length, optionally with one arm
@@ -9,6 +9,11 @@ through a splice; splices always train. A drawn splice whose limbs pass through 
 through the hips where a bow's arms meet a run's legs: :mod:`hrr_garment.body.self_contact`) is
 refused before it is simulated and another is drawn. The draw is seeded and depends only on the
 training clips, so a re-run plans the same splices and finds them simulated.
+
+``backward`` adds windows of training clips played backward (:func:`~hrr_garment.motion.compose.played_backward`):
+a walk becomes a walk backward, a sit-down a stand-up, contents a library of forward captures
+lacks. Their poses are the capture's own, so they need no check for limbs through the body. They
+are drawn by a generator of their own, so adding them leaves the splices' draw as it was.
 """
 
 from __future__ import annotations
@@ -27,6 +32,8 @@ if TYPE_CHECKING:  # the plan builds its options from a preset (sim.plan imports
     from .plan import SequenceSpec
 
 SPLICE_PREFIX = "splice_"
+BACKWARD_PREFIX = "backward_"
+AUGMENT_PREFIXES = (SPLICE_PREFIX, BACKWARD_PREFIX)  # the sequences a build plans once the split is known
 DRAWS_PER_SPLICE = 20  # tries before the plan settles for fewer splices than asked
 
 
@@ -38,12 +45,13 @@ class SpliceOptions:
     seconds: float = 4.0  # each splice's length
     arm_delay_s: float = 0.0  # one arm up to this late against the other, drawn per splice (0: never)
     field: str = "content"  # the name field whose values must differ between legs and upper body
+    backward: int = 0  # windows of training clips (``seconds`` long) played backward to add (0: none)
     name_pattern: str = DEFAULT_NAME_PATTERN
     seed: int = 0
 
     def __post_init__(self) -> None:
-        if self.count < 0 or self.seconds <= 0 or self.arm_delay_s < 0:
-            raise ValueError(f"splices need count >= 0, seconds > 0 and arm_delay_s >= 0, got {self}")
+        if self.count < 0 or self.seconds <= 0 or self.arm_delay_s < 0 or self.backward < 0:
+            raise ValueError(f"splices need count >= 0, seconds > 0, arm_delay_s >= 0 and backward >= 0, got {self}")
 
 
 @dataclass
@@ -91,3 +99,16 @@ def plan_splices(candidates: list[SequenceSpec], options: SpliceOptions) -> Spli
             continue
         specs.append(spec)
     return SplicePlan(specs, drawn, refused)
+
+
+def plan_backward(candidates: list[SequenceSpec], options: SpliceOptions) -> list[SequenceSpec]:
+    """``options.backward`` windows of ``candidates`` (:func:`splice_candidates`) played backward,
+    each of ``options.seconds``, clip and window drawn at random (seeded)."""
+    frames = int(round(options.seconds * FPS))
+    rng = np.random.default_rng([options.seed, 1])  # not the splices' generator: their draw stays as it was
+    specs = []
+    for i in range(options.backward if candidates else 0):
+        clip = candidates[int(rng.integers(len(candidates)))]
+        start = clip.start + int(rng.integers(0, clip.stop - clip.start - frames + 1))
+        specs.append(replace(clip, name=f"{BACKWARD_PREFIX}{i:03d}", start=start, stop=start + frames, backward=True))
+    return specs

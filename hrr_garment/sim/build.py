@@ -23,7 +23,7 @@ from ..data.splits import MIRROR_SUFFIX, combine_splits, mirror_source, split_gr
 from ..errors import InputError
 from ..garment.mesh import GarmentMesh, mirror_map
 from ..io_utils import atomic_write_text, exclusive_lock, strict_json
-from .augment import SpliceOptions, plan_splices, splice_candidates
+from .augment import BACKWARD_PREFIX, SpliceOptions, plan_backward, plan_splices, splice_candidates
 from .executors import EXECUTORS, Execution, batches, run_local, run_ray
 from .parts import PART_VERSION, load_part, part_paths, parts_to_simulate, template_hash
 from .plan import MIRROR_MODES, SequenceSpec, mirror_mode
@@ -91,7 +91,8 @@ class BuildOptions:
     same either way, so a batched build resumes an unbatched one and the other way round.
 
     ``splices`` (:mod:`.augment`) adds that many splices of the training clips (one's legs, another's
-    upper body), drawn once the split is known, each checked for limbs through the body, all training."""
+    upper body), drawn once the split is known, each checked for limbs through the body, and windows
+    of training clips played backward, all training."""
 
     jobs: int | None = None
     splits: dict[str, float] | None = None
@@ -138,13 +139,16 @@ def build_dataset(garment: GarmentMesh, specs: list[SequenceSpec], config: SimCo
             raise SimulationExploded(f"every sequence failed; nothing to write to {out}: {run.rejects}")
         split = _split(done, specs, o)
         splices, made = None, []
-        if o.splices and o.splices.count:  # drawn from the training clips once the split is known
+        if o.splices and (o.splices.count or o.splices.backward):  # drawn from the training clips once the split is known
             if progress:
-                print(f"planning {o.splices.count} splices of the training clips (each checked for limbs through the body)")
-            splices = plan_splices(splice_candidates(specs, set(split["train"]), o.splices), o.splices)
-            spliced = _simulate_missing(splices.specs, garment, config, parts=parts, bodies=bodies, options=o)
+                print(f"planning {o.splices.count} splices of the training clips (each checked for limbs through the body) "
+                      f"and {o.splices.backward} windows played backward")
+            candidates = splice_candidates(specs, set(split["train"]), o.splices)
+            splices = plan_splices(candidates, o.splices)
+            added = splices.specs + plan_backward(candidates, o.splices)
+            spliced = _simulate_missing(added, garment, config, parts=parts, bodies=bodies, options=o)
             run = run.merged(spliced)
-            made = _finished(splices.specs, spliced.rejects, parts)
+            made = _finished(added, spliced.rejects, parts)
             done += made
             split["train"] = sorted(split["train"] + made)
         sim_wall = time.perf_counter() - t0
@@ -152,8 +156,10 @@ def build_dataset(garment: GarmentMesh, specs: list[SequenceSpec], config: SimCo
         summary = summarise(records, garment, rejects=run.rejects, sim_wall=sim_wall, jobs=run.jobs, simulated=run.simulated,
                             bodies=bodies)
         if splices is not None:
-            summary["splices"] = {"asked": o.splices.count, "made": len(made),
-                                  "drawn": splices.drawn, "refused_self_intersection": splices.refused}
+            summary["splices"] = {"asked": o.splices.count, "made": sum(not n.startswith(BACKWARD_PREFIX) for n in made),
+                                  "drawn": splices.drawn, "refused_self_intersection": splices.refused,
+                                  "backward_asked": o.splices.backward,
+                                  "backward_made": sum(n.startswith(BACKWARD_PREFIX) for n in made)}
         if mirror == "reflect":
             records, split = _add_mirrored(records, split, garment, progress, bodies)
             summary["mirrored"] = len(records) - len(done)

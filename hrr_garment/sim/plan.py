@@ -19,7 +19,7 @@ from pathlib import Path
 import yaml
 
 from ..errors import HRRError, InputError, MotionError
-from ..motion.compose import arm_delayed, spliced
+from ..motion.compose import arm_delayed, played_backward, spliced
 from ..motion.edit import retimed
 from ..motion.io import load_motion
 from ..motion.motion import Motion
@@ -105,7 +105,7 @@ def mirror_mode(value: bool | str | None) -> str | None:
     return value if value in MIRROR_MODES else None
 
 
-SPLICE_KEYS = {"count": int, "seconds": (int, float), "arm_delay_s": (int, float), "field": str}
+SPLICE_KEYS = {"count": int, "seconds": (int, float), "arm_delay_s": (int, float), "field": str, "backward": int}
 
 
 def _check_splices(path: Path, preset: Preset) -> None:
@@ -115,7 +115,7 @@ def _check_splices(path: Path, preset: Preset) -> None:
     if bad:
         raise InputError(path, f"splices: {bad!r} not understood; it takes {', '.join(SPLICE_KEYS)} (numbers >= 0, a field name)")
     name_field = preset.splices.get("field", "content")
-    if preset.splices.get("count") and name_field not in re.compile(preset.name_pattern).groupindex:
+    if (preset.splices.get("count") or preset.splices.get("backward")) and name_field not in re.compile(preset.name_pattern).groupindex:
         raise InputError(path, f"splices: field {name_field!r} is not a field of the name pattern")
 
 
@@ -150,7 +150,7 @@ def _preset_data(path: Path, depth: int = 0) -> dict:
 # SequenceSpec fields added after parts were first keyed, with their defaults: a spec at the default
 # hashes as before the field existed
 LATER_FIELDS = {"speed": 1.0, "source_fps": None, "body": "", "mirrored": False, "upper_path": "", "upper_start": 0,
-                "arm_delay": 0}
+                "arm_delay": 0, "backward": False}
 
 
 @dataclass(frozen=True)
@@ -172,6 +172,7 @@ class SequenceSpec:
     upper_path: str = ""
     upper_start: int = 0
     arm_delay: int = 0  # frames the left arm (> 0) or the right arm (< 0) plays late
+    backward: bool = False  # the frames played in reverse order (sim/augment.py)
 
     def motion(self) -> Motion:
         if self.kind == "file":
@@ -183,6 +184,8 @@ class SequenceSpec:
             clip = synthesize(self.kind, self.seconds, seed=self.seed)
         if self.arm_delay:
             clip = arm_delayed(clip, "l" if self.arm_delay > 0 else "r", abs(self.arm_delay))
+        if self.backward:
+            clip = played_backward(clip)
         return clip.mirrored() if self.mirrored else clip
 
     def key(self, extra: dict) -> str:
@@ -288,7 +291,7 @@ def build_options(preset: Preset, specs: list[SequenceSpec]) -> dict:
         info["also_hold_out"] = also
     kinds = {s.name: s.kind for s in specs if s.kind != "file"}  # procedural clips: held out in distribution
     splices = None
-    if preset.splices.get("count"):
+    if preset.splices.get("count") or preset.splices.get("backward"):
         splices = SpliceOptions(**preset.splices, name_pattern=preset.name_pattern, seed=preset.seed)
         info.setdefault("augmentation", {"mirror": mirror, "speed_warps": list(preset.speed_warps)})["splices"] = preset.splices
     return {"splits": preset.splits, "seed": preset.seed, "groups": groups, "mirror": mirror, "info": info,

@@ -1,9 +1,16 @@
-"""Motion composed from parts of clips: one clip's upper body on another's legs, one arm late."""
+"""Motion composed from parts of clips: one clip's upper body on another's legs, one arm late, a clip backward."""
 
 import numpy as np
 import pytest
 
-from hrr_garment.motion.compose import ARM_JOINTS, UPPER_BODY, arm_delayed, descendants, spliced
+from hrr_garment.motion.compose import (
+    ARM_JOINTS,
+    UPPER_BODY,
+    arm_delayed,
+    descendants,
+    played_backward,
+    spliced,
+)
 from hrr_garment.motion.skeleton import JOINT_INDEX, JOINT_NAMES
 from hrr_garment.motion.synth import synthesize
 
@@ -48,3 +55,18 @@ def test_an_arm_played_late():
     np.testing.assert_array_equal(arm_delayed(clip, "l", 0).local_rotations, clip.local_rotations)
     with pytest.raises(ValueError):
         arm_delayed(clip, "left", 3)
+
+
+def test_a_walk_played_backward_walks_backward():
+    walk = synthesize("walk", 2.0, seed=0)
+    back = played_backward(walk)
+    assert back.num_frames == walk.num_frames and back.fps == walk.fps
+    # every pose is the capture's own, in reverse order, so the joints retrace their path
+    np.testing.assert_allclose(back.joint_positions, walk.joint_positions[::-1], atol=1e-6)
+    # the pelvis travels the other way: against the direction the body faces (its root's forward axis, +z)
+    def forward_share(motion):
+        step = np.diff(motion.root_translation, axis=0)
+        return (np.einsum("ti,ti->t", step, motion.global_rotations[1:, JOINT_INDEX["pelvis"], :, 2]) > 0).mean()
+
+    assert forward_share(walk) > 0.9 and forward_share(back) < 0.1
+    np.testing.assert_array_equal(played_backward(back).local_rotations, walk.local_rotations)  # twice: the clip

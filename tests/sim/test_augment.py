@@ -1,4 +1,5 @@
-"""Splices: the legs of one training clip under the upper body of another, checked before simulation."""
+"""Splices (the legs of one training clip under the upper body of another, checked before simulation)
+and windows of training clips played backward."""
 
 import numpy as np
 import pytest
@@ -9,7 +10,7 @@ from hrr_garment.motion.motion import Motion
 from hrr_garment.motion.rotations import rotation_about_y
 from hrr_garment.motion.skeleton import JOINT_INDEX
 from hrr_garment.motion.synth import synthesize
-from hrr_garment.sim.augment import SpliceOptions, plan_splices, splice_candidates
+from hrr_garment.sim.augment import SpliceOptions, plan_backward, plan_splices, splice_candidates
 from hrr_garment.sim.plan import SequenceSpec, _file_pieces
 from hrr_garment.sim.sources import clip_group
 
@@ -56,6 +57,25 @@ def test_splices_mix_contents_and_refuse_limbs_through_the_body(library):
     assert len({s.key({}) for s in plan.specs}) == 10
 
 
+def test_backward_windows_come_from_training_clips_and_leave_the_splices_as_they_were(library):
+    training = {s.name for s in library if "sad" not in s.name}
+    options = SpliceOptions(count=4, seconds=2.0, seed=3, backward=5)
+    candidates = splice_candidates(library, training, options)
+    backward = plan_backward(candidates, options)
+    assert [s.name for s in backward] == [f"backward_{i:03d}" for i in range(5)]
+    for spec in backward:
+        assert spec.backward and spec.name not in training and spec.stop - spec.start == 60 and "sad" not in spec.path
+        forward = SequenceSpec(spec.name, "file", path=spec.path, start=spec.start, stop=spec.stop)
+        np.testing.assert_array_equal(spec.motion().local_rotations, forward.motion().local_rotations[::-1])
+        assert spec.key({}) != forward.key({})  # simulated apart from the forward window
+    assert plan_backward(candidates, options) == backward  # seeded
+    # the splices' draw does not depend on whether backward windows are asked for
+    assert plan_splices(candidates, options).specs == plan_splices(candidates, SpliceOptions(count=4, seconds=2.0, seed=3)).specs
+    assert plan_backward([], options) == []
+    with pytest.raises(ValueError):
+        SpliceOptions(backward=-1)
+
+
 def test_no_splice_without_two_contents(library):
     walks = [s for s in library if "_walk_" in s.name]
     assert plan_splices(walks, SpliceOptions(count=3, seconds=2.0)).specs == []
@@ -81,20 +101,24 @@ def test_a_build_adds_splices_of_training_clips_that_always_train(tmp_path, caps
     preset = tmp_path / "p.yaml"
     preset.write_text("name: spliced\nvertices: 300\nseconds: 1.0\nsequences: {}\nmotions: [clips]\nsplit_by: style\n"
                       "splits: {val: 0.2, test: 0.2}\nsim: {substeps: 10, iterations: 3, settle_s: 0.1}\n"
-                      "splices: {count: 2, seconds: 1.0, arm_delay_s: 0.1}\n")
+                      "splices: {count: 2, seconds: 1.0, arm_delay_s: 0.1, backward: 1}\n")
     out = tmp_path / "d.h5"
     args = ["--garment", "skirt", "--preset", str(preset), "--jobs", "1", "--no-preview", "--quiet", "-o", str(out)]
     assert simulate_main(args) == 0
     ds = GarmentDataset(out)
     splices = sorted(n for n in ds.names if n.startswith("splice_"))
     assert splices == ["splice_000", "splice_001"] and set(splices) <= set(ds.splits["train"])
+    assert "backward_000" in ds.splits["train"] and "backward_000" not in ds.splits["test"] + ds.splits["val"]
     held = {n.split("_")[2] for n in ds.splits["test"] + ds.splits["val"]}  # the held-out styles
-    assert held and not held & {n.split("_")[2] for n in ds.splits["train"] if not n.startswith("splice_")}
+    assert held and not held & {n.split("_")[2] for n in ds.splits["train"] if not n.startswith(("splice_", "backward_"))}
     for name in splices:
         record = ds.sequence(name)
         assert record.motion.num_frames == 30 and record.garment.shape[0] == 30
         assert not any(style in record.motion.source for style in held)  # both parts from training styles
-    assert ds.info["summary"]["splices"]["made"] == 2
+    backward = ds.sequence("backward_000").motion
+    assert backward.num_frames == 30 and "played backward" in backward.source
+    assert not any(style in backward.source for style in held)
+    assert ds.info["summary"]["splices"]["made"] == 2 and ds.info["summary"]["splices"]["backward_made"] == 1
     capsys.readouterr()
     assert simulate_main(args) == 0  # resumes: the same splices planned again, found simulated
-    assert "11 reused, 0 simulated now" in capsys.readouterr().out
+    assert "12 reused, 0 simulated now" in capsys.readouterr().out
