@@ -6,12 +6,18 @@ stands on the mannequin, as before::
     bodies: {from: performer}                        # each motion file on its performer's nearest body
     bodies: {from: sample, count: 16, per_clip: 1,   # bodies spread over statures, both genders,
              statures_m: [1.50, 1.95], hold_out: true}  # slim to heavy; whole bodies held out
+    bodies: {from: sample, ..., mannequin: true}     # every clip on the mannequin as well
 
 ``hrr-simulate --body body.json`` puts every sequence on one body instead. The garment on each
 body is the template carried onto it (:func:`~hrr_garment.garment.transfer.transfer_garment`:
 one topology for every body, each vertex as far off the new body as it was off the old), so one
 dataset holds one garment on many bodies. Procedural clips have no performer: under ``from:
 performer`` they stay on the mannequin.
+
+``mannequin: true`` keeps every clip on the mannequin too, under its own name (so a build beside
+a dataset of the mannequin alone reuses those parts): the default body of every command is then
+one the model across bodies has trained on. The mannequin is never held out as a body (its
+sequences split by their clip groups alone), so the sampled bodies held out stay the same.
 """
 
 from __future__ import annotations
@@ -44,20 +50,25 @@ class BodyPlan:
     statures_m: tuple[float, float] = DEFAULT_STATURES_M
     hold_out: bool = True  # validation and test also hold out whole sampled bodies
     seed: int = 0
+    mannequin: bool = False  # every clip on the mannequin as well (sample only)
 
     @classmethod
     def from_preset(cls, section: dict, where: str) -> "BodyPlan | None":
         if not section:
             return None
-        unknown = sorted(set(section) - {"from", "count", "per_clip", "statures_m", "hold_out", "seed"})
+        unknown = sorted(set(section) - {"from", "count", "per_clip", "statures_m", "hold_out", "seed", "mannequin"})
         if unknown or section.get("from") not in SOURCES:
             raise InputError(where, f"bodies: 'from' must be one of {', '.join(SOURCES)}; unknown keys {unknown}")
         plan = cls(section["from"], int(section.get("count", 16)), int(section.get("per_clip", 1)),
                    tuple(float(v) for v in section.get("statures_m", DEFAULT_STATURES_M)),
-                   bool(section.get("hold_out", section["from"] == "sample")), int(section.get("seed", 0)))
+                   bool(section.get("hold_out", section["from"] == "sample")), int(section.get("seed", 0)),
+                   bool(section.get("mannequin", False)))
         low, high = plan.statures_m
         if not (2 <= plan.count <= 256 and 1 <= plan.per_clip <= plan.count and 1.0 <= low < high <= 2.2):
             raise InputError(where, "bodies: count 2-256, per_clip 1-count, statures_m two heights in 1.0-2.2 m, low first")
+        if plan.mannequin and plan.source != "sample":
+            raise InputError(where, "bodies: mannequin: true goes with from: sample (under from: performer only "
+                                    "procedural clips stand on the mannequin)")
         return plan
 
 
@@ -164,8 +175,10 @@ def _sampled_bodies(plan, specs, garment, made_for):
     for spec in specs:
         chosen = [order[(turn + j) % len(order)] for j in range(plan.per_clip)]
         turn += plan.per_clip
+        if plan.mannequin:  # under its own name: a dataset of the mannequin alone holds its part
+            out.append(spec)
         for name in chosen:
-            suffix = f"__{name}" if plan.per_clip > 1 else ""
+            suffix = f"__{name}" if plan.per_clip > 1 or plan.mannequin else ""
             out.append(replace(spec, name=spec.name + suffix, body=name))
     return out, bodies
 

@@ -244,7 +244,9 @@ def _split_sources(done: list[str], specs: list[SequenceSpec], o: BuildOptions) 
         more = split_groups(grouped, held["val"], held["test"], seed=o.seed) if grouped else {"val": [], "test": []}
         split = combine_splits(split, {**more, "train": sorted(set(done) - set(more["val"]) - set(more["test"]))})
     if o.hold_out_bodies:
-        by_body = {s.name: s.body or MANNEQUIN for s in specs if s.name in done}
+        # the mannequin is never held out as a body: it is the default body, and a preset that keeps
+        # every clip on it too (bodies: {mannequin: true}) holds out the same sampled bodies as without
+        by_body = {s.name: s.body for s in specs if s.name in done and s.body}
         split = combine_splits(split, split_groups(by_body, val, test, seed=o.seed))
     return split
 

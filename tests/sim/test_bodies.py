@@ -44,3 +44,48 @@ def test_a_preset_extends_another_and_replaces_only_what_it_names():
     assert bodies.name == "real-quick-bodies" and bodies.bodies["from"] == "sample"
     assert (bodies.motions, bodies.sim, bodies.sequences, bodies.mirror) == (base.motions, base.sim, base.sequences, base.mirror)
     assert load_preset("real-quick-performers").bodies == {"from": "performer"}
+
+
+def test_every_clip_on_the_mannequin_as_well_holds_out_the_same_bodies():
+    """``mannequin: true``: each clip also on the mannequin under its own name (a dataset of the mannequin
+    alone holds its part), the mannequin never held out as a body, the sampled bodies held out as without it."""
+    pytest.importorskip("anny", reason="the bodies extra is not installed")
+    from hrr_garment.data.splits import split_groups
+    from hrr_garment.sim.build import BuildOptions, _split_sources
+
+    assert BodyPlan.from_preset({"from": "sample", "mannequin": True}, "p").mannequin
+    with pytest.raises(InputError, match="from: sample"):
+        BodyPlan.from_preset({"from": "performer", "mannequin": True}, "p")
+    specs = [SequenceSpec(f"walk_{i:03d}", "walk", seed=i, seconds=1.0) for i in range(8)]
+    garment = make_garment("skirt", 200)
+    held_out_bodies = {}
+    for mannequin in (False, True):
+        plan = BodyPlan("sample", count=4, per_clip=2, statures_m=(1.5, 1.9), mannequin=mannequin)
+        planned, bodies = plan_bodies(plan, specs, garment, made_for=DEFAULT_BODY, progress=False)
+        groups = {s.name: s.name.split("__")[0] for s in planned}  # a clip's sequences share its group
+        options = BuildOptions(splits={"val": 0.25, "test": 0.25}, groups=groups, hold_out_bodies=True)
+        split = _split_sources([s.name for s in planned], planned, options)
+        trained = {s.body for s in planned if s.name in split["train"]}
+        held_out_bodies[mannequin] = set(bodies) - trained
+        assert len(planned) == len(specs) * (3 if mannequin else 2) and len(bodies) == 4
+    assert held_out_bodies[True] == held_out_bodies[False] and held_out_bodies[True]
+    on_mannequin = sorted(s.name for s in planned if not s.body)
+    assert on_mannequin == [s.name for s in specs]  # every clip, under its own name
+    by_clip = split_groups(groups, 0.25, 0.25, seed=0)  # the mannequin's sequences follow their clips alone
+    for k in ("train", "val", "test"):
+        assert sorted(set(split[k]) & set(on_mannequin)) == sorted(set(by_clip[k]) & set(on_mannequin))
+    assert set(split["train"]) & set(on_mannequin)
+
+
+def test_a_procedural_clip_on_several_bodies_is_one_split_group():
+    """Its copies on bodies (``clip__body``) and on the mannequin split together, so the clips a preset
+    holds out do not depend on how many bodies each clip stands on."""
+    from dataclasses import replace
+
+    from hrr_garment.sim.plan import sequence_group
+
+    preset = load_preset("real-quick-bodies")
+    spec = SequenceSpec("walk_000", "walk", seed=0, seconds=1.0)
+    copies = [spec] + [replace(spec, name=f"walk_000__{b}", body=b) for b in ("body03", "body07")]
+    assert {sequence_group(s, preset) for s in copies} == {"walk_000"}
+    assert sequence_group(replace(spec, name="walk_000__x", body="body03"), preset) == "walk_000__x"  # not a body's suffix
