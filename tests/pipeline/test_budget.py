@@ -35,10 +35,13 @@ def test_presets_that_extend_another_merge_its_training_settings():
     from hrr_garment.sim.plan import load_preset
 
     base, bodies = (TrainSettings.load(load_preset(n)) for n in ("real-quick", "real-quick-bodies"))
-    assert bodies.codespace_train.target_mm != base.codespace_train.target_mm  # its own target ...
+    assert bodies.codespace_train.target_mm != base.codespace_train.target_mm  # its own target and epochs ...
+    assert bodies.autoencoder_train.epochs != base.autoencoder_train.epochs
     for section in ("autoencoder_train", "codespace_train"):  # ... over everything else of real-quick's
         a, b = getattr(base, section), getattr(bodies, section)
-        assert (a.epochs, a.max_minutes) == (b.epochs, b.max_minutes) and a.epochs < 100 and a.max_minutes
+        assert a.max_minutes == b.max_minutes and a.epochs < 100 and a.max_minutes
+    assert bodies.codespace_train.contact_steps == base.codespace_train.contact_steps > 0
+    assert bodies.autoencoder_train.refine_steps == base.autoencoder_train.refine_steps
 
 
 @pytest.fixture
