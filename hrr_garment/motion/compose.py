@@ -7,9 +7,9 @@ answers mostly to the legs and the hips, but the arms swing and lift it at the s
 that saw every upper body only over its own legs meets a new combination as motion it has never
 seen. :func:`spliced` makes such combinations for the simulator (issue 50: augmentation toward new
 contents, not only new speeds). A clip played backward is a content of its own: a walk becomes a
-walk backward, a sit-down a stand-up (:func:`played_backward`). The first two edits keep the root and the legs of one clip whole, so the
-feet stay where the capture put them; the caller checks the result for limbs through the body
-(:mod:`hrr_garment.body.self_contact`) before it is simulated.
+walk backward, a sit-down a stand-up (:func:`played_backward`). The first two edits keep the root
+and the legs of one clip whole, so the feet stay where the capture put them; the caller checks the
+result for limbs through the body (:mod:`hrr_garment.body.self_contact`) before it is simulated.
 """
 
 from __future__ import annotations
