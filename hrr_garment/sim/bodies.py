@@ -33,7 +33,7 @@ from ..data.bodies import MANNEQUIN, DressedBody, dress, mannequin_record, symme
 from ..errors import InputError
 from ..garment.mesh import GarmentMesh
 from ..garment.transfer import TransferReport
-from .plan import SequenceSpec, safe_name
+from .plan import SequenceSpec, on_body, safe_name
 
 SOURCES = ("performer", "sample")
 DEFAULT_STATURES_M = (1.50, 1.95)
@@ -178,8 +178,8 @@ def _sampled_bodies(plan, specs, garment, made_for):
         if plan.mannequin:  # under its own name: a dataset of the mannequin alone holds its part
             out.append(spec)
         for name in chosen:
-            suffix = f"__{name}" if plan.per_clip > 1 or plan.mannequin else ""
-            out.append(replace(spec, name=spec.name + suffix, body=name))
+            several = plan.per_clip > 1 or plan.mannequin
+            out.append(replace(spec, name=on_body(spec.name, name) if several else spec.name, body=name))
     return out, bodies
 
 

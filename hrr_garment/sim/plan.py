@@ -205,13 +205,18 @@ def load_file_motion(path: str, speed: float = 1.0, source_fps: float | None = N
     return retimed(load_motion(path, source_fps=source_fps), speed)
 
 
+def on_body(name: str, body: str) -> str:
+    """The name of a clip's sequence on one of the several bodies it is simulated on (sim/bodies.py)."""
+    return f"{name}__{body}"
+
+
 def sequence_group(spec: SequenceSpec, preset: Preset) -> str:
     """The split group of a sequence: a procedural clip is its own, on every body it stands on (its
-    copies on several bodies are named ``clip__body``: sim/bodies.py), so that a preset's held-out
-    clips do not depend on how many bodies each clip has; a file's comes from its name (every
-    piece and speed warp of a file shares it)."""
+    copies on several bodies are named by :func:`on_body`), so that a preset's held-out clips do not
+    depend on how many bodies each clip has; a file's comes from its name (every piece and speed
+    warp of a file shares it)."""
     if spec.kind != "file":
-        return spec.name.removesuffix(f"__{spec.body}") if spec.body else spec.name
+        return spec.name.removesuffix(on_body("", spec.body)) if spec.body else spec.name
     return clip_group(Path(spec.path).stem, preset.split_by, preset.name_pattern)
 
 
