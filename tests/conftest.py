@@ -83,7 +83,7 @@ def train_tiny(data: Path, folder: Path, config: Path, stages: tuple[str, ...] |
     """Train through the library (:func:`hrr_garment.pipeline.train.train_model`) as ``hrr-train
     --dataset DATA --config CONFIG -o FOLDER`` does: the quick preset's settings under the config's."""
     from hrr_garment.pipeline.train import STAGES, TrainSettings, train_model
-    from hrr_garment.sim.plan import load_preset
+    from hrr_garment.sim.preset import load_preset
 
     preset = load_preset("quick")
     settings = TrainSettings.load(preset, config, overrides)

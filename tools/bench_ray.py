@@ -21,7 +21,8 @@ from pathlib import Path
 
 from hrr_garment.garment.templates import make_garment
 from hrr_garment.sim.build import BuildOptions, build_dataset, warm_up
-from hrr_garment.sim.plan import load_preset, plan_sequences
+from hrr_garment.sim.plan import plan_sequences
+from hrr_garment.sim.preset import load_preset
 from hrr_garment.sim.simulator import SimConfig
 
 KINDS = ("walk", "run", "spin", "dance", "side_step", "jump", "hop", "walk_curve")

@@ -52,7 +52,7 @@ def run_one(job: tuple[str, dict, str, str, int]) -> dict:
     from hrr_garment.motion.io import load_motion
     from hrr_garment.sim.bodies import dress
     from hrr_garment.sim.config import SimConfig
-    from hrr_garment.sim.plan import load_preset
+    from hrr_garment.sim.preset import load_preset
     from hrr_garment.sim.quality import body_signed_distance, edge_strain, penetration_fraction
     from hrr_garment.sim.simulator import SimulationExploded, simulate_garment
 

@@ -30,7 +30,8 @@ from ..garment.obj import Placement, load_garment_obj
 from ..garment.templates import GARMENT_NAMES, make_garment
 from ..io_utils import refuse_input_as_output, require_suffix
 from ..paths import workspace
-from ..sim.plan import build_options, load_preset, plan_sequences, preset_names
+from ..sim.plan import build_options, plan_sequences
+from ..sim.preset import load_preset, preset_names
 from ._common import add_fps_option, run_cli
 
 
@@ -169,14 +170,16 @@ def print_report(report, garment: GarmentMesh) -> None:
           f"outside them {100 * s['penetration_frame_max_clean']:.2f} %")
     if s["sim_frames_per_core_s"]:
         print(f"  {s['sim_frames_per_core_s']:.2f} simulated frames/s per core (lead-in included); wall {s['sim_wall_s']:.0f} s")
-    if "splices" in s:
-        sp = s["splices"]
+    sp = s.get("splices", {})
+    if sp.get("asked"):
         print(f"  splices: {sp['made']} of {sp['asked']} (legs of one training clip, upper body of another; "
               f"{sp['refused_self_intersection']} of {sp['drawn']} drawn refused for limbs through the body)")
-        if sp.get("backward_asked"):
-            print(f"  played backward: {sp['backward_made']} of {sp['backward_asked']} windows of training clips")
+    if sp.get("backward_asked"):
+        short = "" if sp["backward_made"] == sp["backward_asked"] else \
+            " (fewer than asked: no training clip from a motion file is that long, or some failed to simulate)"
+        print(f"  played backward: {sp['backward_made']} of {sp['backward_asked']} windows of training clips{short}")
     for name, row in s.get("by_body", {}).items():
-        print(f"  body {name} ({row['stature_m']:.2f} m): {row['sequences']} sequences, {row['frames']} frames, "
+        print(f"  body {name or 'mannequin'} ({row['stature_m']:.2f} m): {row['sequences']} sequences, {row['frames']} frames, "
               f"strain p99 {row['strain_p99']:.3f}")
     print("  hem swing (m) by kind: " + json.dumps({k: round(v, 3) for k, v in s["hem_swing_m_by_kind"].items()}))
     for name, reason in report.rejects.items():

@@ -29,7 +29,7 @@ from typing import Sequence
 from ..errors import InputError
 from ..paths import workspace
 from ..pipeline.train import OLD_CODESPACE_NAME, STAGES, TrainCallback, TrainSettings, train_model
-from ..sim.plan import load_preset
+from ..sim.preset import load_preset
 from ..train.report import StageReport
 from ._common import run_cli
 

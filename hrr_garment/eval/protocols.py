@@ -98,7 +98,8 @@ def real_motion_section(animator, ds, files: list[str], settings: EvaluationSett
                         source_fps: float | None = None) -> dict:
     """The real motion files' section: their ground truth simulated with the dataset's settings."""
     from ..paths import workspace
-    from ..sim.plan import load_preset, plan_sequences
+    from ..sim.plan import plan_sequences
+    from ..sim.preset import load_preset
 
     specs = plan_sequences(load_preset(str(ds.info.get("preset", "quick"))), motions=list(files), source_fps=source_fps)
     truth = SimulatedTruth(specs, workspace() / "eval" / f"{ds.path.stem}-real-motion.h5", "hrr-eval real motion")

@@ -1,12 +1,39 @@
 """The ``simulate`` stage of training (:func:`~.train.train_model`): a preset's dataset built, or
-completed where the preset has grown since it was made."""
+made again where the preset has changed since (finished sequences are reused)."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..sim.plan import Preset
+from ..sim.preset import Preset
+
+
+def dataset_out_of_date(dataset: Path, preset: Preset) -> str | None:
+    """Why an existing dataset of the preset's own clips is not what the preset makes now, or None:
+    none yet, a dataset of other clips (``hrr-simulate --motions``, another preset: the user's
+    choice), or one made as the preset stands. A dataset records the preset's settings that decide
+    its sequences (:func:`~hrr_garment.sim.preset.plan_record`); one made before it did is compared
+    by its sequences' names (:func:`missing_sequences`), and, where the preset places clips on bodies
+    or adds splices (neither shows in the planned names), taken as out of date."""
+    if not dataset.exists():
+        return None
+    from ..data.dataset import GarmentDataset
+    from ..sim.preset import plan_record
+
+    info = GarmentDataset(dataset).info
+    if info.get("preset") != preset.name or info.get("motions"):
+        return None
+    if "plan" in info:
+        now = plan_record(preset)
+        changed = [k for k in now if info["plan"].get(k) != now[k]]
+        return f"was made with other {', '.join(changed)} settings than the {preset.name} preset's" if changed else None
+    missing = missing_sequences(dataset, preset)
+    if missing:
+        return f"lacks {len(missing)} of the {preset.name} preset's sequences (e.g. {missing[0]})"
+    if preset.bodies or preset.splices:
+        return f"predates the record of the {preset.name} preset's bodies and splices it was made with"
+    return None
 
 
 def missing_sequences(dataset: Path, preset: Preset) -> list[str]:
@@ -20,7 +47,8 @@ def missing_sequences(dataset: Path, preset: Preset) -> list[str]:
     from ..data.dataset import GarmentDataset
     from ..data.splits import MIRROR_SUFFIX
     from ..sim.augment import AUGMENT_PREFIXES
-    from ..sim.plan import mirror_mode, plan_sequences
+    from ..sim.plan import plan_sequences
+    from ..sim.preset import mirror_mode
 
     ds = GarmentDataset(dataset)
     planned = [spec.name for spec in plan_sequences(preset)]

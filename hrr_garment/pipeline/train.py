@@ -1,7 +1,7 @@
 """Training a garment model end to end: :class:`TrainSettings` and :func:`train_model`.
 
     from hrr_garment.pipeline.train import TrainSettings, train_model
-    from hrr_garment.sim.plan import load_preset
+    from hrr_garment.sim.preset import load_preset
 
     preset = load_preset("tiny")
     settings = TrainSettings.load(preset)                       # configs/train.yaml, then the preset's
@@ -38,7 +38,7 @@ from ..models.fcmae import AutoencoderConfig
 from ..models.subspace import SubspaceConfig
 from ..paths import workspace
 from ..settings import deep_merge
-from ..sim.plan import CONFIG_DIR, Preset
+from ..sim.preset import CONFIG_DIR, Preset
 from ..train.autoencoder import TrainConfig
 from ..train.baseline import DirectTrainConfig
 from ..train.codespace_training import CodeSpaceTrainConfig
@@ -196,14 +196,13 @@ class _Context:
 
 
 def _simulate_stage(dataset: Path, folder: Path, settings: TrainSettings, ctx: _Context) -> SimulatedDataset | None:
-    missing = simulation.missing_sequences(dataset, ctx.preset) if ctx.garment is not None and ctx.preset is not None else []
-    if dataset.exists() and not missing:
+    stale = simulation.dataset_out_of_date(dataset, ctx.preset) if ctx.garment is not None and ctx.preset is not None else None
+    if dataset.exists() and stale is None:
         return None
     if ctx.garment is None or ctx.preset is None:
         raise InputError(dataset, "no such dataset")
-    if dataset.exists():  # the preset grew since this dataset was made: add what it lacks
-        ctx.callback.on_message(f"simulate: {dataset} lacks {len(missing)} of the {ctx.preset.name} preset's sequences "
-                                f"(e.g. {missing[0]}); simulating them (its own are reused)")
+    if dataset.exists():  # the preset changed since this dataset was made: make what it lacks
+        ctx.callback.on_message(f"simulate: {dataset} {stale}; making it again (its finished sequences are reused)")
     else:
         ctx.callback.on_message(f"simulate: no dataset at {dataset}; simulating the {ctx.preset.name} preset first")
     return simulation.simulate_preset(ctx.garment, ctx.preset, dataset, progress=ctx.progress)

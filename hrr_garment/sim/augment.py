@@ -63,13 +63,19 @@ class SplicePlan:
     refused: int  # of them, refused for limbs through the body
 
 
-def splice_candidates(specs: list[SequenceSpec], training: set[str], options: SpliceOptions) -> list[SequenceSpec]:
-    """The motion-file sequences a splice may take its parts from: training ones, played at their
-    own speed, not mirrored, whose names give the field the parts must differ in, long enough."""
-    frames = int(round(options.seconds * FPS))
+def window_candidates(specs: list[SequenceSpec], training: set[str], seconds: float) -> list[SequenceSpec]:
+    """The motion-file sequences a window of ``seconds`` may be taken from: training ones, played at
+    their own speed, not mirrored, not themselves spliced, long enough (a clip played backward's)."""
+    frames = int(round(seconds * FPS))
     return [s for s in specs if s.name in training and s.kind == "file" and s.speed == 1.0 and not s.mirrored
-            and not s.upper_path and s.stop - s.start >= frames
-            and clip_group(Path(s.path).stem, options.field, options.name_pattern).startswith(f"{options.field}=")]
+            and not s.upper_path and s.stop - s.start >= frames]
+
+
+def splice_candidates(specs: list[SequenceSpec], training: set[str], options: SpliceOptions) -> list[SequenceSpec]:
+    """The :func:`window_candidates` a splice may take its parts from: those whose names give the
+    field the parts must differ in."""
+    return [s for s in window_candidates(specs, training, options.seconds)
+            if clip_group(Path(s.path).stem, options.field, options.name_pattern).startswith(f"{options.field}=")]
 
 
 def plan_splices(candidates: list[SequenceSpec], options: SpliceOptions) -> SplicePlan:
@@ -102,7 +108,7 @@ def plan_splices(candidates: list[SequenceSpec], options: SpliceOptions) -> Spli
 
 
 def plan_backward(candidates: list[SequenceSpec], options: SpliceOptions) -> list[SequenceSpec]:
-    """``options.backward`` windows of ``candidates`` (:func:`splice_candidates`) played backward,
+    """``options.backward`` windows of ``candidates`` (:func:`window_candidates`) played backward,
     each of ``options.seconds``, clip and window drawn at random (seeded)."""
     frames = int(round(options.seconds * FPS))
     rng = np.random.default_rng([options.seed, 1])  # not the splices' generator: their draw stays as it was

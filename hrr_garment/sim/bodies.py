@@ -59,6 +59,9 @@ class BodyPlan:
         unknown = sorted(set(section) - {"from", "count", "per_clip", "statures_m", "hold_out", "seed", "mannequin"})
         if unknown or section.get("from") not in SOURCES:
             raise InputError(where, f"bodies: 'from' must be one of {', '.join(SOURCES)}; unknown keys {unknown}")
+        flags = {k: section[k] for k in ("hold_out", "mannequin") if k in section and not isinstance(section[k], bool)}
+        if flags:  # YAML's "false" in quotes is a string, which bool() would take as true
+            raise InputError(where, f"bodies: {', '.join(flags)} must be true or false, got {flags}")
         plan = cls(section["from"], int(section.get("count", 16)), int(section.get("per_clip", 1)),
                    tuple(float(v) for v in section.get("statures_m", DEFAULT_STATURES_M)),
                    bool(section.get("hold_out", section["from"] == "sample")), int(section.get("seed", 0)),

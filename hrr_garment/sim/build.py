@@ -23,10 +23,18 @@ from ..data.splits import MIRROR_SUFFIX, combine_splits, mirror_source, split_gr
 from ..errors import InputError
 from ..garment.mesh import GarmentMesh, mirror_map
 from ..io_utils import atomic_write_text, exclusive_lock, strict_json
-from .augment import BACKWARD_PREFIX, SpliceOptions, plan_backward, plan_splices, splice_candidates
+from .augment import (
+    BACKWARD_PREFIX,
+    SpliceOptions,
+    plan_backward,
+    plan_splices,
+    splice_candidates,
+    window_candidates,
+)
 from .executors import EXECUTORS, Execution, batches, run_local, run_ray
 from .parts import PART_VERSION, load_part, part_paths, parts_to_simulate, template_hash
-from .plan import MIRROR_MODES, SequenceSpec, mirror_mode
+from .plan import SequenceSpec, clip_name
+from .preset import MIRROR_MODES, mirror_mode
 from .simulator import SimConfig, SimulationExploded, simulate_garment
 from .summary import summarise
 
@@ -101,7 +109,7 @@ class BuildOptions:
     preview: PreviewWriter | None = None
     progress: bool = True
     groups: dict[str, str] | None = None
-    mirror: str = ""  # "", "simulate" or "reflect" (sim.plan.mirror_mode reads a preset's)
+    mirror: str = ""  # "", "simulate" or "reflect" (sim.preset.mirror_mode reads a preset's)
     executor: str = "local"
     address: str | None = None
     retry_rejected: bool = False
@@ -143,9 +151,9 @@ def build_dataset(garment: GarmentMesh, specs: list[SequenceSpec], config: SimCo
             if progress:
                 print(f"planning {o.splices.count} splices of the training clips (each checked for limbs through the body) "
                       f"and {o.splices.backward} windows played backward")
-            candidates = splice_candidates(specs, set(split["train"]), o.splices)
-            splices = plan_splices(candidates, o.splices)
-            added = splices.specs + plan_backward(candidates, o.splices)
+            training = set(split["train"])
+            splices = plan_splices(splice_candidates(specs, training, o.splices), o.splices)
+            added = splices.specs + plan_backward(window_candidates(specs, training, o.splices.seconds), o.splices)
             spliced = _simulate_missing(added, garment, config, parts=parts, bodies=bodies, options=o)
             run = run.merged(spliced)
             made = _finished(added, spliced.rejects, parts)
@@ -237,8 +245,12 @@ def _split_sources(done: list[str], specs: list[SequenceSpec], o: BuildOptions) 
     val, test = (o.splits or {}).get("val", 0.1), (o.splits or {}).get("test", 0.1)
     if o.groups:
         split = split_groups({n: o.groups.get(n, n) for n in done}, val, test, seed=o.seed)
-    else:
-        split = split_names(done, val, test, seed=o.seed, kinds=o.kinds)
+    else:  # drawn over clips: a clip's copies on several bodies go where the clip goes
+        clip_of = {s.name: clip_name(s) for s in specs}
+        kinds = {clip_of.get(n, n): kind for n, kind in o.kinds.items()} if o.kinds else None
+        by_clip = split_names(sorted({clip_of.get(n, n) for n in done}), val, test, seed=o.seed, kinds=kinds)
+        part_of = {clip: part for part, clips in by_clip.items() for clip in clips}
+        split = {part: sorted(n for n in done if part_of[clip_of.get(n, n)] == part) for part in by_clip}
     for held in (o.also_hold_out or {}).values():  # only the sequences the field groups take part
         grouped = {n: held["groups"][n] for n in done if n in held["groups"]}
         more = split_groups(grouped, held["val"], held["test"], seed=o.seed) if grouped else {"val": [], "test": []}

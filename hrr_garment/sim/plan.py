@@ -1,8 +1,6 @@
-"""What a dataset build simulates: presets (configs/presets/*.yaml) and the list of sequences.
+"""What a dataset build simulates: the list of sequences a preset (:mod:`.preset`) asks for.
 
-A preset gives the garment resolution, clip length, how many procedural clips of each kind, motion
-files (paths, globs, folders, archives: see :mod:`.sources`), split fractions and the clip groups
-they hold out whole, augmentation, a seed and simulator overrides. ``plan_sequences`` turns it
+``plan_sequences`` turns a preset
 (plus any motion files or kinds given on the command line) into named, seeded
 :class:`SequenceSpec` items, the same on every run, so a re-run finds the sequences it already
 finished.
@@ -13,10 +11,8 @@ from __future__ import annotations
 import hashlib
 import json
 import re
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass
 from pathlib import Path
-
-import yaml
 
 from ..errors import HRRError, InputError, MotionError
 from ..motion.compose import arm_delayed, played_backward, spliced
@@ -24,127 +20,12 @@ from ..motion.edit import retimed
 from ..motion.io import load_motion
 from ..motion.motion import Motion
 from ..motion.synth import KINDS, synthesize
-from ..settings import deep_merge
-from .augment import SpliceOptions
-from .sources import DEFAULT_NAME_PATTERN, clip_group, resolve_motion_entries
+from .augment import AUGMENT_PREFIXES, SpliceOptions
+from .preset import Preset, mirror_mode, plan_record
+from .sources import clip_group, resolve_motion_entries
 
-CONFIG_DIR = Path(__file__).resolve().parents[2] / "configs"
 MIN_CLIP_FRAMES = 15  # half a second: shorter clips are mostly lead-in
 FILE_PIECE_S = 12.0  # longer motion files are simulated in pieces of at most this length
-
-
-@dataclass(frozen=True)
-class Preset:
-    """A dataset and training preset (configs/presets/NAME.yaml)."""
-
-    name: str
-    vertices: int
-    seconds: float
-    sequences: dict[str, int]
-    splits: dict[str, float] = field(default_factory=lambda: {"val": 0.1, "test": 0.1})
-    seed: int = 0
-    sim: dict = field(default_factory=dict)
-    train: dict = field(default_factory=dict)  # hrr-train overrides, shaped like configs/train.yaml
-    motions: list[str] = field(default_factory=list)  # motion files, globs, folders, archives
-    split_by: str | None = None  # a field of name_pattern whose groups are held out whole
-    # more fields held out whole beside it, each with its own fractions ({content: {test: 0.08}}):
-    # a sequence tests where any field's split tests it; files whose names lack the field train
-    also_hold_out: dict = field(default_factory=dict)
-    name_pattern: str = DEFAULT_NAME_PATTERN
-    # add each sequence mirrored left-right: "simulate" (true) simulates the mirrored motion, "reflect"
-    # reflects the source's simulation (no solver time, but not the mirrored motion's simulation under
-    # an unconverged solver and an asymmetric triangulation: docs/dataset.md), false adds none
-    mirror: bool | str = False
-    speed_warps: list[float] = field(default_factory=list)  # motion files re-timed and simulated again
-    base: str = ""  # the preset file's folder: relative motion entries resolve against it first
-    bodies: dict = field(default_factory=dict)  # which bodies the sequences stand on (sim/bodies.py); none: the mannequin
-    # more training motion from the training clips' parts (sim/augment.py): {count, seconds, arm_delay_s, field}
-    splices: dict = field(default_factory=dict)
-
-
-def preset_names() -> list[str]:
-    """The presets in configs/presets."""
-    return sorted(p.stem for p in (CONFIG_DIR / "presets").glob("*.yaml"))
-
-
-def load_preset(name_or_path: str) -> Preset:
-    """A preset by name (configs/presets/NAME.yaml) or by path to a YAML file."""
-    path = Path(name_or_path)
-    if not path.suffix:
-        path = CONFIG_DIR / "presets" / f"{name_or_path}.yaml"
-        if not path.is_file():
-            raise InputError(name_or_path, f"unknown preset; choose one of {', '.join(preset_names())} or give a YAML file")
-    try:
-        data = _preset_data(path)
-        preset = Preset(**data, base=str(path.resolve().parent))
-    except (OSError, yaml.YAMLError, TypeError) as exc:
-        raise InputError(path, f"not a valid preset: {exc}") from None
-    bad_warps = [w for w in preset.speed_warps if not (isinstance(w, (int, float)) and 0.25 <= w <= 4.0)]
-    if bad_warps:
-        raise InputError(path, f"speed_warps must be factors between 0.25 and 4, got {bad_warps}")
-    _check_also_hold_out(path, preset)
-    _check_splices(path, preset)
-    if mirror_mode(preset.mirror) is None:
-        raise InputError(path, f"mirror: {preset.mirror!r} is not one of {', '.join(repr(m) for m in MIRROR_MODES)} (or true / false)")
-    unknown = sorted(set(preset.sequences) - set(KINDS))
-    if unknown:
-        raise InputError(path, f"unknown motion kinds {unknown}; available: {', '.join(KINDS)}")
-    return preset
-
-
-MIRROR_MODES = ("simulate", "reflect")
-
-
-def mirror_mode(value: bool | str | None) -> str | None:
-    """A preset's ``mirror`` as a mode: "simulate" (``true`` too), "reflect", "" (``false``, absent);
-    None where it is none of these."""
-    if value is True:
-        return "simulate"
-    if value in (False, None, ""):
-        return ""
-    return value if value in MIRROR_MODES else None
-
-
-SPLICE_KEYS = {"count": int, "seconds": (int, float), "arm_delay_s": (int, float), "field": str, "backward": int}
-
-
-def _check_splices(path: Path, preset: Preset) -> None:
-    """An InputError unless ``splices`` holds only known keys of the right types and a field of the name pattern."""
-    bad = {k: v for k, v in preset.splices.items() if k not in SPLICE_KEYS or not isinstance(v, SPLICE_KEYS[k])
-           or isinstance(v, bool) or (k != "field" and v < 0)}
-    if bad:
-        raise InputError(path, f"splices: {bad!r} not understood; it takes {', '.join(SPLICE_KEYS)} (numbers >= 0, a field name)")
-    name_field = preset.splices.get("field", "content")
-    if (preset.splices.get("count") or preset.splices.get("backward")) and name_field not in re.compile(preset.name_pattern).groupindex:
-        raise InputError(path, f"splices: field {name_field!r} is not a field of the name pattern")
-
-
-def _check_also_hold_out(path: Path, preset: Preset) -> None:
-    """An InputError unless ``also_hold_out`` maps fields of the name pattern to val / test fractions."""
-    fields = set(re.compile(preset.name_pattern).groupindex)
-    for name, fractions in preset.also_hold_out.items():
-        if name not in fields:
-            raise InputError(path, f"also_hold_out: {name!r} is not a field of the name pattern ({', '.join(sorted(fields))})")
-        if not isinstance(fractions, dict) or set(fractions) - {"val", "test"} or not all(
-                isinstance(v, (int, float)) and 0.0 <= v < 0.5 for v in fractions.values()):
-            raise InputError(path, f"also_hold_out: {name!r} takes val and test fractions from 0 to 0.5, got {fractions!r}")
-
-
-def _preset_data(path: Path, depth: int = 0) -> dict:
-    """A preset file's values; ``extends: NAME`` starts from another preset's (its keys replaced
-    by this file's, one level deep; ``train``, a training config, merged section by section), so a
-    variant names only what it changes."""
-    data = yaml.safe_load(path.read_text(encoding="utf-8"))
-    if not isinstance(data, dict):
-        raise TypeError("a preset is a mapping of keys to values")
-    parent = data.pop("extends", None)
-    if parent is None:
-        return data
-    if depth > 4 or not isinstance(parent, str):
-        raise TypeError(f"extends must name one preset (and not loop), got {parent!r}")
-    parent_path = path.parent / f"{parent}.yaml" if not Path(parent).suffix else path.parent / parent
-    base = _preset_data(parent_path, depth + 1)
-    return {**base, **data, **({"train": deep_merge(base.get("train") or {}, data["train"])} if "train" in data else {})}
 
 
 # SequenceSpec fields added after parts were first keyed, with their defaults: a spec at the default
@@ -210,13 +91,18 @@ def on_body(name: str, body: str) -> str:
     return f"{name}__{body}"
 
 
+def clip_name(spec: SequenceSpec) -> str:
+    """The name of the clip a sequence plays: its own, less the body's suffix of a clip simulated on
+    several bodies (:func:`on_body`)."""
+    return spec.name.removesuffix(on_body("", spec.body)) if spec.body else spec.name
+
+
 def sequence_group(spec: SequenceSpec, preset: Preset) -> str:
-    """The split group of a sequence: a procedural clip is its own, on every body it stands on (its
-    copies on several bodies are named by :func:`on_body`), so that a preset's held-out clips do not
-    depend on how many bodies each clip has; a file's comes from its name (every piece and speed
-    warp of a file shares it)."""
+    """The split group of a sequence: a procedural clip is its own, on every body it stands on, so
+    that a preset's held-out clips do not depend on how many bodies each clip has; a file's comes
+    from its name (every piece and speed warp of a file shares it)."""
     if spec.kind != "file":
-        return spec.name.removesuffix(on_body("", spec.body)) if spec.body else spec.name
+        return clip_name(spec)
     return clip_group(Path(spec.path).stem, preset.split_by, preset.name_pattern)
 
 
@@ -251,6 +137,10 @@ def plan_sequences(preset: Preset, motions: list[str] | None = None, seconds: fl
     for path in files:
         for speed in (1.0, *preset.speed_warps):
             specs += _file_pieces(str(path), speed, source_fps)
+    taken = sorted(s.path for s in specs if s.name.startswith(AUGMENT_PREFIXES))
+    if taken:  # their parts would be the added sequences' parts
+        raise InputError(taken[0], f"a motion file's name may not begin with {' or '.join(AUGMENT_PREFIXES)}, which name the "
+                                   "sequences a build adds; rename the file")
     names = [s.name for s in specs]
     if len(set(names)) != len(names):
         raise HRRError(f"two motions would get the same sequence name: {sorted({n for n in names if names.count(n) > 1})}")
@@ -283,7 +173,7 @@ def build_options(preset: Preset, specs: list[SequenceSpec]) -> dict:
     """The preset's keyword arguments for :class:`~hrr_garment.sim.build.BuildOptions`: splits (by clip group when it names
     one), seed, mirroring and the provenance recorded in the file."""
     groups = {s.name: sequence_group(s, preset) for s in specs} if preset.split_by else None
-    info: dict = {"preset": preset.name}
+    info: dict = {"preset": preset.name, "plan": plan_record(preset)}
     if groups:  # recorded in the file: which groups were held out whole
         info.update(split_by=preset.split_by, groups=groups)
     mirror = mirror_mode(preset.mirror)

@@ -26,7 +26,8 @@ from hrr_garment.garment.obj import write_obj
 from hrr_garment.garment.templates import make_garment
 from hrr_garment.motion.io import save_motion
 from hrr_garment.motion.synth import synthesize
-from hrr_garment.sim.plan import load_preset, plan_sequences
+from hrr_garment.sim.plan import plan_sequences
+from hrr_garment.sim.preset import load_preset
 
 SIM_ARGS = ["--garment", "skirt", "--preset", "tiny", "--motions", "walk", "spin", "walk", "--seconds", "1.0",
             "--jobs", "1", "--no-preview", "--quiet"]
@@ -74,7 +75,8 @@ def test_split_is_by_sequence_seeded_and_complete():
 def test_split_by_kind_holds_out_only_kinds_that_also_train(seed):
     """The quick preset's procedural clips: every held-out clip's kind keeps a training clip, and
     the split still has its sizes (a tenth each of 72 clips); single-clip kinds all train."""
-    from hrr_garment.sim.plan import build_options, load_preset, plan_sequences
+    from hrr_garment.sim.plan import build_options, plan_sequences
+    from hrr_garment.sim.preset import load_preset
 
     preset = load_preset("quick")
     specs = plan_sequences(preset)

@@ -25,7 +25,7 @@ from hrr_garment.garment.transfer import transfer_garment
 from hrr_garment.motion.skeleton import REST_PELVIS_HEIGHT
 from hrr_garment.motion.synth import synthesize
 from hrr_garment.sim.parts import part_paths
-from hrr_garment.sim.plan import CONFIG_DIR
+from hrr_garment.sim.preset import CONFIG_DIR
 from tests.garment.test_templates_on_bodies import _larger_body
 
 

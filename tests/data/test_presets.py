@@ -10,7 +10,8 @@ from hrr_garment.errors import InputError
 from hrr_garment.motion.io import save_motion
 from hrr_garment.motion.skeleton import MIRROR_JOINTS
 from hrr_garment.motion.synth import synthesize
-from hrr_garment.sim.plan import build_options, load_preset, plan_sequences
+from hrr_garment.sim.plan import build_options, plan_sequences
+from hrr_garment.sim.preset import load_preset
 from hrr_garment.sim.sources import clip_group, resolve_motion_entries
 
 
@@ -111,7 +112,8 @@ def test_mirrored_sequences_join_their_source_split():
 
 
 def test_mirror_modes_of_a_preset(tmp_path):
-    from hrr_garment.sim.plan import SequenceSpec, mirror_mode
+    from hrr_garment.sim.plan import SequenceSpec
+    from hrr_garment.sim.preset import mirror_mode
 
     assert [mirror_mode(v) for v in (True, False, None, "simulate", "reflect", "sideways")] == [
         "simulate", "", "", "simulate", "reflect", None]
@@ -251,3 +253,57 @@ def test_a_dataset_of_reflections_gets_its_mirrors_simulated(tmp_path, recorded,
     preset.write_text(yaml.safe_dump({"name": "mirrored", "vertices": 200, "seconds": 1.0, "sequences": {"walk": 1, "run": 1},
                                       "mirror": True}))
     assert sorted(pipeline.missing_sequences(dataset, load_preset(str(preset)))) == expected
+
+
+def test_a_dataset_made_before_its_preset_changed_is_made_again(tmp_path):
+    """A dataset records the preset's settings that decide its sequences (``info.plan``): the same
+    preset finds it complete; one whose bodies or splices changed (which the names do not show)
+    finds it out of date and says which settings changed; a file written before the record is out of
+    date only where names are missing or the preset has bodies or splices."""
+    import json
+
+    import h5py
+    import yaml
+
+    from hrr_garment.data.dataset import SequenceRecord, write_dataset
+    from hrr_garment.garment.templates import make_garment
+    from hrr_garment.pipeline.simulate import dataset_out_of_date
+    from hrr_garment.sim.preset import plan_record
+
+    garment = make_garment("skirt", 200)
+    clip = synthesize("walk", 1.0, seed=0)
+    frames = np.repeat(garment.vertices[None], clip.num_frames, axis=0)
+    dataset = write_dataset(tmp_path / "d.h5", garment, [SequenceRecord("walk_000", frames, clip)], {"train": ["walk_000"]})
+    settings = {"name": "p", "vertices": 200, "seconds": 1.0, "sequences": {"walk": 1}}
+    preset_file = tmp_path / "p.yaml"
+
+    def out_of_date(recorded: dict | None, now: dict) -> str | None:
+        preset_file.write_text(yaml.safe_dump(now))
+        with h5py.File(dataset, "a") as f:
+            info = {"preset": "p"}
+            if recorded is not None:
+                preset_file.write_text(yaml.safe_dump(recorded))
+                info["plan"] = plan_record(load_preset(str(preset_file)))
+                preset_file.write_text(yaml.safe_dump(now))
+            f.attrs["info"] = json.dumps(info)
+        return dataset_out_of_date(dataset, load_preset(str(preset_file)))
+
+    assert out_of_date(settings, settings) is None
+    assert out_of_date(settings, {**settings, "train": {"codespace": {"train": {"epochs": 3}}}}) is None  # training only
+    bodies = {**settings, "bodies": {"from": "sample", "per_clip": 2}}
+    assert out_of_date(bodies, bodies) is None
+    assert out_of_date(bodies, {**settings, "bodies": {"from": "sample", "per_clip": 2, "mannequin": True}}) == \
+        "was made with other bodies settings than the p preset's"
+    assert "splices" in out_of_date(settings, {**settings, "splices": {"backward": 3}})
+    assert out_of_date(None, settings) is None  # before the record: the names are the preset's
+    assert "lacks 1" in out_of_date(None, {**settings, "sequences": {"walk": 2}})
+    assert "predates the record" in out_of_date(None, bodies)
+    assert dataset_out_of_date(tmp_path / "none.h5", load_preset(str(preset_file))) is None
+
+
+def test_a_motion_file_may_not_take_an_added_sequences_name(tmp_path):
+    save_motion(synthesize("walk", 1.0, seed=0), tmp_path / "backward_000.npz")
+    preset_file = tmp_path / "p.yaml"
+    preset_file.write_text("name: p\nvertices: 200\nseconds: 1.0\nsequences: {}\nmotions: [backward_000.npz]\n")
+    with pytest.raises(InputError, match="backward_000.npz.*rename the file"):
+        plan_sequences(load_preset(str(preset_file)))

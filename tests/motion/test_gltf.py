@@ -358,7 +358,8 @@ def test_command_lines_refuse_bad_glb_with_exit_2(tmp_path, walk, capsys):
 
 def test_simulate_plan_takes_glb_files(tmp_path, walk):
     """hrr-simulate --motions character.glb: a motion file (its first animation), in folders too."""
-    from hrr_garment.sim.plan import load_preset, plan_sequences
+    from hrr_garment.sim.plan import plan_sequences
+    from hrr_garment.sim.preset import load_preset
     from hrr_garment.sim.sources import resolve_motion_entries
 
     path = tmp_path / "clips" / "character.glb"

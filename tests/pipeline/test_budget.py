@@ -32,7 +32,7 @@ def test_a_run_stops_for_its_epochs_its_cap_or_a_stalled_error(monkeypatch):
 
 def test_presets_that_extend_another_merge_its_training_settings():
     from hrr_garment.pipeline.train import TrainSettings
-    from hrr_garment.sim.plan import load_preset
+    from hrr_garment.sim.preset import load_preset
 
     base, bodies = (TrainSettings.load(load_preset(n)) for n in ("real-quick", "real-quick-bodies"))
     assert bodies.codespace_train.target_mm != base.codespace_train.target_mm  # its own target and epochs ...

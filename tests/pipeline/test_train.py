@@ -4,7 +4,7 @@ import pytest
 
 from hrr_garment.errors import InputError
 from hrr_garment.pipeline.train import TrainCallback, TrainSettings, train_model
-from hrr_garment.sim.plan import load_preset
+from hrr_garment.sim.preset import load_preset
 
 
 class _Heard(TrainCallback):

@@ -10,7 +10,13 @@ from hrr_garment.motion.motion import Motion
 from hrr_garment.motion.rotations import rotation_about_y
 from hrr_garment.motion.skeleton import JOINT_INDEX
 from hrr_garment.motion.synth import synthesize
-from hrr_garment.sim.augment import SpliceOptions, plan_backward, plan_splices, splice_candidates
+from hrr_garment.sim.augment import (
+    SpliceOptions,
+    plan_backward,
+    plan_splices,
+    splice_candidates,
+    window_candidates,
+)
 from hrr_garment.sim.plan import SequenceSpec, _file_pieces
 from hrr_garment.sim.sources import clip_group
 
@@ -57,21 +63,27 @@ def test_splices_mix_contents_and_refuse_limbs_through_the_body(library):
     assert len({s.key({}) for s in plan.specs}) == 10
 
 
-def test_backward_windows_come_from_training_clips_and_leave_the_splices_as_they_were(library):
-    training = {s.name for s in library if "sad" not in s.name}
-    options = SpliceOptions(count=4, seconds=2.0, seed=3, backward=5)
-    candidates = splice_candidates(library, training, options)
+def test_backward_windows_come_from_training_clips_whatever_their_names(library, tmp_path):
+    """Windows played backward: from training clips only, the frames reversed, keys of their own,
+    seeded; a file whose name lacks the splices' field (CMU's ``131_03``) is a clip like any other."""
+    save_motion(synthesize("walk", 3.0, seed=9), tmp_path / "131_03.npz")
+    cmu = _file_pieces(str(tmp_path / "131_03.npz"), 1.0, None)
+    specs = library + cmu
+    training = {s.name for s in specs if "sad" not in s.name}
+    options = SpliceOptions(count=4, seconds=2.0, seed=3, backward=40)
+    assert cmu[0] not in splice_candidates(specs, training, options)
+    candidates = window_candidates(specs, training, options.seconds)
+    assert {s.name for s in candidates} == training
     backward = plan_backward(candidates, options)
-    assert [s.name for s in backward] == [f"backward_{i:03d}" for i in range(5)]
+    assert [s.name for s in backward] == [f"backward_{i:03d}" for i in range(40)]
+    assert any(s.path == cmu[0].path for s in backward)
     for spec in backward:
-        assert spec.backward and spec.name not in training and spec.stop - spec.start == 60 and "sad" not in spec.path
+        assert spec.backward and spec.stop - spec.start == 60 and "sad" not in spec.path
         forward = SequenceSpec(spec.name, "file", path=spec.path, start=spec.start, stop=spec.stop)
         np.testing.assert_array_equal(spec.motion().local_rotations, forward.motion().local_rotations[::-1])
         assert spec.key({}) != forward.key({})  # simulated apart from the forward window
     assert plan_backward(candidates, options) == backward  # seeded
-    # the splices' draw does not depend on whether backward windows are asked for
-    assert plan_splices(candidates, options).specs == plan_splices(candidates, SpliceOptions(count=4, seconds=2.0, seed=3)).specs
-    assert plan_backward([], options) == []
+    assert window_candidates(specs, training, 4.0) == [] and plan_backward([], options) == []  # too short: none
     with pytest.raises(ValueError):
         SpliceOptions(backward=-1)
 

@@ -7,7 +7,8 @@ from hrr_garment.body.capsules import DEFAULT_BODY
 from hrr_garment.errors import InputError
 from hrr_garment.garment.templates import make_garment
 from hrr_garment.sim.bodies import BodyPlan, plan_bodies
-from hrr_garment.sim.plan import SequenceSpec, load_preset
+from hrr_garment.sim.plan import SequenceSpec
+from hrr_garment.sim.preset import load_preset
 
 
 @pytest.mark.parametrize("section, phrase", [({"from": "nowhere"}, "'from' must be"), ({"from": "sample", "colour": 1}, "colour"),
@@ -52,6 +53,7 @@ def test_every_clip_on_the_mannequin_as_well_holds_out_the_same_bodies():
     pytest.importorskip("anny", reason="the bodies extra is not installed")
     from hrr_garment.data.splits import split_groups
     from hrr_garment.sim.build import BuildOptions, _split_sources
+    from hrr_garment.sim.plan import clip_name
 
     assert BodyPlan.from_preset({"from": "sample", "mannequin": True}, "p").mannequin
     with pytest.raises(InputError, match="from: sample"):
@@ -62,7 +64,7 @@ def test_every_clip_on_the_mannequin_as_well_holds_out_the_same_bodies():
     for mannequin in (False, True):
         plan = BodyPlan("sample", count=4, per_clip=2, statures_m=(1.5, 1.9), mannequin=mannequin)
         planned, bodies = plan_bodies(plan, specs, garment, made_for=DEFAULT_BODY, progress=False)
-        groups = {s.name: s.name.split("__")[0] for s in planned}  # a clip's sequences share its group
+        groups = {s.name: clip_name(s) for s in planned}  # a clip's sequences share its group
         options = BuildOptions(splits={"val": 0.25, "test": 0.25}, groups=groups, hold_out_bodies=True)
         split = _split_sources([s.name for s in planned], planned, options)
         trained = {s.body for s in planned if s.name in split["train"]}
@@ -89,3 +91,27 @@ def test_a_procedural_clip_on_several_bodies_is_one_split_group():
     copies = [spec] + [replace(spec, name=f"walk_000__{b}", body=b) for b in ("body03", "body07")]
     assert {sequence_group(s, preset) for s in copies} == {"walk_000"}
     assert sequence_group(replace(spec, name="walk_000__x", body="body03"), preset) == "walk_000__x"  # not a body's suffix
+
+
+def test_without_split_by_a_clip_on_several_bodies_splits_as_the_clip_alone():
+    """No ``split_by`` (procedural presets): the split is drawn over clips, in distribution over their
+    kinds, and every copy of a clip on a body goes where the clip goes."""
+    from dataclasses import replace
+
+    from hrr_garment.sim.build import BuildOptions, _split_sources
+    from hrr_garment.sim.plan import on_body
+
+    clips = [SequenceSpec(f"{k}_{i:03d}", k, seed=i, seconds=1.0) for k in ("walk", "run", "spin") for i in range(4)]
+    kinds = {s.name: s.kind for s in clips}
+    alone = _split_sources(sorted(kinds), clips, BuildOptions(splits={"val": 0.2, "test": 0.2}, seed=2, kinds=kinds))
+    copies = [replace(s, name=on_body(s.name, b), body=b) for s in clips for b in ("body01", "body04")] + clips
+    options = BuildOptions(splits={"val": 0.2, "test": 0.2}, seed=2, kinds={s.name: s.kind for s in copies})
+    split = _split_sources(sorted(s.name for s in copies), copies, options)
+    for part, names in alone.items():
+        assert split[part] == sorted(c for n in names for c in (n, on_body(n, "body01"), on_body(n, "body04")))
+
+
+@pytest.mark.parametrize("key", ["mannequin", "hold_out"])
+def test_a_bodies_flag_is_true_or_false(key):
+    with pytest.raises(InputError, match=f"{key} must be true or false"):
+        BodyPlan.from_preset({"from": "sample", key: "false"}, "p.yaml")
