@@ -16,19 +16,16 @@ def dataset_out_of_date(dataset: Path, preset: Preset) -> str | None:
     its sequences (:func:`~hrr_garment.sim.preset.plan_record`); one made before it did is compared
     by its sequences' names (:func:`missing_sequences`), and, where the preset places clips on bodies
     or adds splices (neither shows in the planned names), taken as out of date."""
-    if not dataset.exists():
-        return None
-    from ..data.dataset import GarmentDataset
     from ..sim.preset import plan_record
 
-    info = GarmentDataset(dataset).info
-    if info.get("preset") != preset.name or info.get("motions"):
+    ds = _own_dataset(dataset, preset)
+    if ds is None:
         return None
-    if "plan" in info:
+    if "plan" in ds.info:
         now = plan_record(preset)
-        changed = [k for k in now if info["plan"].get(k) != now[k]]
+        changed = [k for k in now if ds.info["plan"].get(k) != now[k]]
         return f"was made with other {', '.join(changed)} settings than the {preset.name} preset's" if changed else None
-    missing = missing_sequences(dataset, preset)
+    missing = _missing_names(ds, preset)
     if missing:
         return f"lacks {len(missing)} of the {preset.name} preset's sequences (e.g. {missing[0]})"
     if preset.bodies or preset.splices:
@@ -42,20 +39,33 @@ def missing_sequences(dataset: Path, preset: Preset) -> list[str]:
     the preset now simulates them (docs/dataset.md: a reflection is not the mirrored motion's
     simulation). None where there is no dataset yet, or where it holds other clips (``hrr-simulate
     --motions``, or a different preset): that one is the user's choice."""
+    ds = _own_dataset(dataset, preset)
+    return [] if ds is None else _missing_names(ds, preset)
+
+
+def _own_dataset(dataset: Path, preset: Preset):
+    """The dataset at ``dataset`` (a :class:`~hrr_garment.data.dataset.GarmentDataset`) where it was
+    made by ``preset`` from the preset's own clips; None where there is none, or it holds other clips."""
     if not dataset.exists():
-        return []
+        return None
     from ..data.dataset import GarmentDataset
+
+    ds = GarmentDataset(dataset)
+    return None if ds.info.get("preset") != preset.name or ds.info.get("motions") else ds
+
+
+def _missing_names(ds, preset: Preset) -> list[str]:
+    """:func:`missing_sequences` of an open dataset of the preset's own clips."""
     from ..data.splits import MIRROR_SUFFIX
     from ..sim.augment import AUGMENT_PREFIXES
     from ..sim.plan import plan_sequences
     from ..sim.preset import mirror_mode
 
-    ds = GarmentDataset(dataset)
     planned = [spec.name for spec in plan_sequences(preset)]
     mirror = mirror_mode(preset.mirror)
     mirrors = [f"{name}{MIRROR_SUFFIX}" for name in planned] if mirror else []
     held = {n for n in ds.names if not n.startswith(AUGMENT_PREFIXES)}  # splices and the like are planned by the build
-    if ds.info.get("preset") != preset.name or ds.info.get("motions") or not held <= set(planned + mirrors):
+    if not held <= set(planned + mirrors):  # other clips under the preset's name: the user's choice
         return []
     # files written before mirrors were simulated record ``true`` for their reflections
     made = ds.info.get("augmentation", {}).get("mirror")
