@@ -118,6 +118,19 @@ class Bundle:
         ramp = self.auto.get("residual_free_mm")
         return None if ramp is None else free_cloth_weights(self.node_hang_m, ramp)
 
+    @property
+    def fold_weights(self) -> np.ndarray | None:
+        """(V, 1) the detail mode's folds' weight per vertex on free cloth, as the auto calibration
+        chose (bundle.json ``auto.folds_free_mm``), or None: the folds everywhere
+        (:mod:`hrr_garment.inference.detail`)."""
+        ramp = self.auto.get("folds_free_mm")
+        return None if ramp is None else free_cloth_weights(self.vertex_hang_m, ramp)[:, None]
+
+    @cached_property
+    def vertex_hang_m(self) -> np.ndarray:
+        """(V,) how far each vertex hangs from the body the garment was modelled on, at rest."""
+        return node_hang_m(self.template.vertices, np.arange(self.template.num_vertices), self.made_for)
+
     @cached_property
     def node_hang_m(self) -> np.ndarray:
         """(nodes,) how far each latent node hangs from the body the garment was modelled on, at rest."""

@@ -136,12 +136,12 @@ def check_manifest(folder: Path, meta: object) -> dict:
     if not valid_detail_strength(strength):
         raise BundleError(folder, f"bundle.json 'auto' 'detail_strength' must be a number in (0, {MAX_DETAIL_STRENGTH:g}], "
                                   f"got {strength!r}")
-    ramp = auto.get("residual_free_mm")
-    if ramp is not None and not (isinstance(ramp, list) and len(ramp) == 2
-                                 and all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in ramp)
-                                 and math.isfinite(ramp[0]) and math.isfinite(ramp[1]) and ramp[0] < ramp[1]):
-        raise BundleError(folder, f"bundle.json 'auto' 'residual_free_mm' must be null or [lo, hi] mm with lo < hi, "
-                                  f"got {ramp!r}")
+    for key in ("residual_free_mm", "folds_free_mm"):  # the residual's and the folds' free-cloth ramps
+        ramp = auto.get(key)
+        if ramp is not None and not (isinstance(ramp, list) and len(ramp) == 2
+                                     and all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in ramp)
+                                     and math.isfinite(ramp[0]) and math.isfinite(ramp[1]) and ramp[0] < ramp[1]):
+            raise BundleError(folder, f"bundle.json 'auto' {key!r} must be null or [lo, hi] mm with lo < hi, got {ramp!r}")
     for section in ("autoencoder", "codespace", "database"):
         if not isinstance(meta.get(section), dict):
             raise BundleError(folder, f"bundle.json lacks its {section!r} section")

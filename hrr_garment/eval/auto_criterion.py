@@ -92,6 +92,12 @@ def uses_residual(label: str) -> bool:
     return mode == "residual" or base == "residual"
 
 
+def borrows(label: str) -> bool:
+    """Whether a candidate adds something of the matches' (their residual or their folds): what a
+    free-cloth ramp weights."""
+    return uses_residual(label) or candidate_setting(label)[0] == "detail"
+
+
 def plausibility_gap(sharpness: float, swing: float) -> float:
     """``hypot(ln sharpness, ln hem swing)``: 0 where both ratios are 1 (inf where one is 0)."""
     if sharpness <= 0 or swing <= 0:
@@ -138,6 +144,14 @@ def pick_free_cloth(candidates: dict[str, dict[str, float]], config: AutoConfig 
     return None if ramp is None else list(ramp)
 
 
+def pick_fold_ramp(candidates: dict[str, dict[str, float]], config: AutoConfig = AutoConfig()) -> list[float] | None:
+    """The folds' free-cloth ramp (``[lo, hi]`` mm, None: the folds everywhere): the detail
+    setting's, as it was measured (see the module docstring)."""
+    detail = _picked_labels(candidates, config)[1]
+    ramp = None if detail is None else candidate_setting(detail)[3]
+    return None if ramp is None else list(ramp)
+
+
 def _of_mode(candidates: dict[str, dict[str, float]], mode: str) -> dict[str, dict[str, float]]:
     """The candidates that run ``mode`` (each detail setting is the detail mode)."""
     return {k: c for k, c in candidates.items() if candidate_setting(k)[0] == mode}
@@ -157,7 +171,10 @@ def repick(auto: dict, config: AutoConfig) -> dict:
     """A recorded calibration (``bundle.json``'s ``auto``) picked again under ``config``'s
     allowances: the candidates' numbers stand, only the choice among them moves."""
     mode, detail_base, detail_strength = pick_auto_and_detail(auto["candidates"], config)
-    return {**auto, "mode": mode, "detail_base": detail_base, "detail_strength": detail_strength,
+    # the folds' ramp only where the candidates were measured with it (calibrations recorded before
+    # ran a ramp on the residual alone, and their folds run everywhere as they were measured)
+    folds = {"folds_free_mm": pick_fold_ramp(auto["candidates"], config)} if auto.get("folds_free_cloth") else {}
+    return {**auto, "mode": mode, "detail_base": detail_base, "detail_strength": detail_strength, **folds,
             "residual_free_mm": pick_free_cloth(auto["candidates"], config),
             "swing_gain": swing_of(pick_auto_mode(auto["candidates"], config)), **config.limits()}
 
@@ -170,6 +187,8 @@ def describe_auto(auto: dict) -> str:
         detail += f"; the free cloth's swing x{auto['swing_gain']:g}"
     if auto.get("residual_free_mm"):
         detail += f"; the residual on free cloth {auto['residual_free_mm'][0]:g}-{auto['residual_free_mm'][1]:g} mm"
+    if auto.get("folds_free_mm"):
+        detail += f"; the folds on free cloth {auto['folds_free_mm'][0]:g}-{auto['folds_free_mm'][1]:g} mm"
     allowance = f"the most plausible within {100 * (auto['allowance'] - 1):.0f} % of the most accurate PVE" \
         if "allowance" in auto else ""
     if allowance and "penetration_allowance" in auto:

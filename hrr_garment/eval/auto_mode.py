@@ -33,12 +33,15 @@ criterion picks among all candidates; the detail mode's setting is the picked on
 is not a detail mode, the one the criterion picks among the detail candidates alone (what
 ``--mode detail`` runs).
 
-Every candidate that uses the residual is also measured on free cloth only
-(:data:`~hrr_garment.artifacts.residual.FREE_CLOTH_RAMPS_MM`, labelled ``..., free cloth 10-40
-mm``): the match's deviation weighted per region by how far it hangs from the body, so that the
-skirt takes the match's swing and the bodice keeps the regression's contact. The model keeps one
-ramp (``auto.residual_free_mm``): the picked candidate's where it uses the residual, else the
-detail setting's where that does, else the one the criterion picks among the residual mode's.
+Every candidate that borrows from the matches (their residual, their folds) is also measured on
+free cloth only (:data:`~hrr_garment.artifacts.residual.FREE_CLOTH_RAMPS_MM`, labelled ``..., free
+cloth 10-40 mm``): what it borrows weighted per region by how far it hangs from the body, so that
+the skirt takes the match's swing and folds and the bodice keeps the regression's contact (a
+match's are another simulation's, on another body for a model across bodies: on the unseen
+tall-slim body the folds put 0.3 points more of the cloth inside). The model keeps one ramp for the
+residual (``auto.residual_free_mm``): the picked candidate's where it uses the residual, else the
+detail setting's where that does, else the one the criterion picks among the residual mode's; and
+the detail setting's for the folds (``auto.folds_free_mm``).
 
 Last, the first pick is measured again with the free cloth's swing restored at each of
 :data:`~.auto_criterion.SWING_GAINS` (:mod:`hrr_garment.inference.swing`, labelled ``..., swing x1.2``) and the
@@ -75,6 +78,7 @@ from .auto_criterion import (
     SWING,
     SWING_GAINS,
     AutoConfig,
+    borrows,
     candidate_setting,
     free_cloth_label,
     pick_auto_mode,
@@ -99,6 +103,12 @@ def lacks_swing(auto: dict) -> bool:
     return not any(SWING in k for k in auto["candidates"]) or auto.get("swing_half_life_s") != HALF_LIFE_S
 
 
+def lacks_free_folds(auto: dict) -> bool:
+    """Whether a recorded calibration measured the detail mode before its folds were measured on
+    free cloth as well (``auto.folds_free_cloth``)."""
+    return not auto.get("folds_free_cloth") and any(candidate_setting(k)[0] == "detail" for k in auto["candidates"])
+
+
 def lacks_free_cloth(auto: dict, residual: dict | None) -> bool:
     """Whether a recorded calibration measured the residual mode (of a calibrated weight,
     bundle.json's ``residual``) but not on free cloth: recorded before those candidates."""
@@ -108,10 +118,12 @@ def lacks_free_cloth(auto: dict, residual: dict | None) -> bool:
 
 @contextmanager
 def free_cloth(bundle: Bundle, ramp_mm: tuple[float, float] | None):
-    """The bundle's residual on free cloth with ``ramp_mm`` (None: plain) while the block runs: a
-    calibration measuring its candidates (bundle.json ``auto.residual_free_mm``, in memory only)."""
+    """The bundle's residual and folds on free cloth with ``ramp_mm`` (None: everywhere) while the
+    block runs: a calibration measuring its candidates (bundle.json ``auto.residual_free_mm`` and
+    ``auto.folds_free_mm``, in memory only)."""
     had, before = "auto" in bundle.meta, bundle.meta.get("auto")
-    bundle.meta["auto"] = {**bundle.auto, "residual_free_mm": None if ramp_mm is None else list(ramp_mm)}
+    ramp = None if ramp_mm is None else list(ramp_mm)
+    bundle.meta["auto"] = {**bundle.auto, "residual_free_mm": ramp, "folds_free_mm": ramp}
     try:
         yield
     finally:
@@ -142,8 +154,8 @@ def calibrate_auto_mode(animator: Animator, records: list[SequenceRecord], confi
     labels = [m for m in AUTO_CHOICES if m != "detail" and animator.supports(m)]
     if animator.supports("detail"):
         labels += [label for label, (base, _) in DETAIL_CANDIDATES.items() if base == "regression" or residual]
-    if residual:
-        labels += [free_cloth_label(label, ramp) for ramp in FREE_CLOTH_RAMPS_MM for label in labels if uses_residual(label)]
+    labels += [free_cloth_label(label, ramp) for ramp in FREE_CLOTH_RAMPS_MM for label in labels
+               if borrows(label) and (residual or not uses_residual(label))]
     names = list(animator.bundle.database.names)
     truths = [r.garment.astype(np.float64) for r in records]
     frames = sum(len(t) for t in truths)
@@ -173,7 +185,7 @@ def calibrate_auto_mode(animator: Animator, records: list[SequenceRecord], confi
     first = pick_auto_mode(candidates, config)
     for gain in tqdm(SWING_GAINS, desc="swing gain", unit="gain", disable=not progress):
         candidates[swing_label(first, gain)] = measure(swing_label(first, gain))
-    return repick({"sequences": len(records), "frames": frames, "fold_follow": FOLD_FOLLOW,
+    return repick({"sequences": len(records), "frames": frames, "fold_follow": FOLD_FOLLOW, "folds_free_cloth": True,
                    "swing_half_life_s": HALF_LIFE_S, "candidates": candidates,
                    "criterion": "the most plausible (hypot(ln sharpness, ln hem swing)) within the allowance x the most "
                                 "accurate PVE and the penetration allowance x its cloth inside the body"}, config)

@@ -189,7 +189,8 @@ class Animator:
             store = self.bundle.folds
             rows, weights = track_folds(proposals, store.offsets)
             local = add_folds(local, store.folds(rows, weights), self.smoothing, passes=store.passes, strength=run.detail.strength,
-                              limits=self.edge_limits, follow=partial(follow_over_time, mean=self.smoothing))
+                              limits=self.edge_limits, follow=partial(follow_over_time, mean=self.smoothing),
+                              weights=self.bundle.fold_weights)
         vertices = world_vertices(local + character.offset, motion)  # stood on the body's own rest shape
         report = None
         if run.collision:

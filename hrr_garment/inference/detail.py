@@ -16,6 +16,15 @@ the world alike. ``follow`` is the fold term's smoothing in time (:func:`~.fold_
 the identity where none is given): the term, not the folds alone, so that the regression's own high
 frequencies, which it replaces, are smoothed alike. Measured on held-out real clips: docs/results.md.
 
+*Free cloth.* Where the cloth lies on the body (a bodice), a matched frame's folds are its contact
+with another pose, on another body for a model across bodies, and they put cloth inside this one.
+The auto calibration may weight the term per vertex by how far the vertex hangs from the body at
+rest (0 within ``lo`` mm, 1 beyond ``hi``: bundle.json ``auto.folds_free_mm``, the same ramps as the
+residual's, :data:`~hrr_garment.artifacts.residual.FREE_CLOTH_RAMPS_MM`): the skirt takes the
+simulated folds, the bodice keeps the regression's shape. On the unseen tall-slim body this took the
+folds' share of the cloth inside before the push-out from 0.34 to 0.06 points
+(docs/decisions/0028-folds-on-free-cloth.md).
+
 Folds from another simulation can stretch an edge of this shape far past what any simulation does
 (2.3 x its rest length on held-out clips). Where they would take an edge past
 :data:`FOLD_MAX_STRAIN` and longer than the regression has it, the edge-length projection of the
@@ -44,12 +53,15 @@ FOLD_LIMIT_ITERATIONS = 10
 
 def add_folds(regression: np.ndarray, folds: np.ndarray, mean: csr_matrix, passes: int,
               strength: float = DETAIL_STRENGTH, limits: EdgeLimits | None = None,
-              follow: Callable[[np.ndarray], np.ndarray] | None = None) -> np.ndarray:
+              follow: Callable[[np.ndarray], np.ndarray] | None = None, weights: np.ndarray | None = None) -> np.ndarray:
     """(T, V, 3) regression vertices and (T, V, 3) folds (high frequencies at ``passes`` passes of
     ``mean``, the mesh's :func:`~hrr_garment.garment.smoothing.mean_operator`; same frame, body or
     world) -> (T, V, 3) float32; with the template's ``limits``, no edge stretched by the folds past
-    :data:`FOLD_MAX_STRAIN`; ``follow``: the fold term's smoothing in time (module docstring)."""
+    :data:`FOLD_MAX_STRAIN`; ``follow``: the fold term's smoothing in time (module docstring);
+    ``weights``: (V, 1) the term's weight per vertex (the bundle's folds on free cloth), None: 1."""
     term = folds - high_frequencies(regression, mean, passes)
+    if weights is not None:
+        term = term * weights
     if follow is not None:
         term = follow(term)
     detail = (regression + strength * term).astype(np.float32)

@@ -277,7 +277,8 @@ class CrowdStream:
         if self.run.mode is Mode.DETAIL:  # the detail mode: each character's playhead one frame on, its folds added
             local = add_folds(local, self._folds(chars, np.stack([c.lod.match for c in chars])), self.animator.smoothing,
                               passes=self.animator.bundle.folds.passes, strength=self.run.detail.strength,
-                              limits=self.animator.edge_limits, follow=self._follow(chars))
+                              limits=self.animator.edge_limits, follow=self._follow(chars),
+                              weights=self.animator.bundle.fold_weights)
         t.append(time.perf_counter())
         vertices = world_vertices(local + bodies.offset, poses)  # as offline: the same push-out inputs
         t.append(time.perf_counter())

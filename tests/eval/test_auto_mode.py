@@ -189,18 +189,19 @@ def test_hrr_train_calibrates_auto_and_it_agrees_with_the_evaluation(trained):
         assert both["candidates"][label]["pve_mm"] == pytest.approx(float(np.linalg.norm(pred - records[0].garment, axis=-1).mean()) * 1000, rel=1e-5)
     pves = [both["candidates"][detail_label(base, s)]["pve_mm"] for base in ("regression", "residual") for s in DETAIL_STRENGTHS]
     assert len(set(pves)) == len(pves)  # each setting changes the output
-    # ... and every candidate that uses the residual again on free cloth, each ramp as the bundle runs it
+    # ... and every candidate that borrows from the matches (the residual, the folds) again on free
+    # cloth, each ramp as the bundle runs it
     from hrr_garment.artifacts.residual import FREE_CLOTH_RAMPS_MM
 
     free = [k for k in both["candidates"] if candidate_setting(k)[3] is not None]
-    assert len(free) == len(FREE_CLOTH_RAMPS_MM) * (1 + len(DETAIL_STRENGTHS))
+    assert len(free) == len(FREE_CLOTH_RAMPS_MM) * (1 + 2 * len(DETAIL_STRENGTHS)) and both["folds_free_cloth"]
     for label in free:
         mode, base, strength, ramp = candidate_setting(label)
         with free_cloth(animator.bundle, ramp):
             look = DetailLook(base, strength) if mode == "detail" else DetailLook()
             pred = animator.animate(records[0].motion, mode=mode, detail=look).vertices
         assert both["candidates"][label]["pve_mm"] == pytest.approx(float(np.linalg.norm(pred - records[0].garment, axis=-1).mean()) * 1000, rel=1e-5)
-    assert animator.bundle.residual_nodes is None  # the calibration leaves the bundle as it was
+    assert animator.bundle.residual_nodes is None and animator.bundle.fold_weights is None  # left as it was
 
 
 def test_hrr_train_picks_auto_again_when_its_allowance_changes(trained, tmp_path):
@@ -222,16 +223,19 @@ def test_hrr_train_picks_auto_again_when_its_allowance_changes(trained, tmp_path
     picked = widest["mode"] if widest["mode"] != "detail" else detail_label(widest["detail_base"], widest["detail_strength"])
     if widest["residual_free_mm"] and (widest["mode"] == "residual" or widest["detail_base"] == "residual"):
         picked = free_cloth_label(picked, widest["residual_free_mm"])
+    elif widest["mode"] == "detail" and widest["folds_free_mm"]:  # the folds alone on free cloth
+        picked = free_cloth_label(picked, widest["folds_free_mm"])
     if widest["swing_gain"] != 1.0:
         picked = swing_label(picked, widest["swing_gain"])
     assert plausibility_gap(c[picked]["sharpness"], c[picked]["hem_swing"]) == most_plausible
 
 
-@pytest.mark.parametrize("before", ["penetration", "fold_follow"])
+@pytest.mark.parametrize("before", ["penetration", "fold_follow", "folds_free_cloth"])
 def test_a_calibration_recorded_before_is_made_again(trained, tmp_path, before):
-    """Bundles calibrated before the criterion counted the cloth inside the body, or before the
-    detail mode's folds followed in time, are calibrated again by hrr-train, not re-picked from
-    numbers that lack it or measured another detail mode."""
+    """Bundles calibrated before the criterion counted the cloth inside the body, before the
+    detail mode's folds followed in time or before the folds were measured on free cloth, are
+    calibrated again by hrr-train, not re-picked from numbers that lack it or measured another
+    detail mode."""
     from hrr_garment.artifacts.bundle_writer import update_bundle_meta
     from hrr_garment.inference.fold_track import FOLD_FOLLOW
     from hrr_garment.pipeline.train import calibrate_auto
@@ -243,15 +247,39 @@ def test_a_calibration_recorded_before_is_made_again(trained, tmp_path, before):
     if before == "penetration":
         old = {k: {m: v for m, v in c.items() if m != "penetration_pct"} for k, c in auto["candidates"].items()}
         update_bundle_meta(tmp_path / "model", {"auto": {**auto, "candidates": old}})
-    else:  # numbers of another detail mode (here: made up), recorded without the following
+    else:  # numbers of another detail mode (here: made up), recorded without the following (or the folds' ramps)
         old = {k: {**c, "pve_mm": 999.0} for k, c in auto["candidates"].items()}
-        update_bundle_meta(tmp_path / "model", {"auto": {**{k: v for k, v in auto.items() if k != "fold_follow"},
+        update_bundle_meta(tmp_path / "model", {"auto": {**{k: v for k, v in auto.items() if k != before},
                                                           "candidates": old}})
     again = calibrate_auto(tmp_path / "model", data, progress=False)
-    assert again["fold_follow"] == FOLD_FOLLOW
+    assert again["fold_follow"] == FOLD_FOLLOW and again["folds_free_cloth"]
     assert again["mode"] == auto["mode"] and set(again["candidates"]) == set(auto["candidates"])
     for label, c in auto["candidates"].items():
         assert again["candidates"][label] == pytest.approx(c)
+
+
+def test_the_folds_on_free_cloth_run_as_the_bundle_records_them(trained, tmp_path):
+    """bundle.json ``auto.folds_free_mm``: a ramp beyond every vertex's hang leaves the regression's
+    shape (no folds), one below all of them the folds everywhere, as without a ramp."""
+    from hrr_garment.artifacts.bundle_writer import update_bundle_meta
+    from hrr_garment.inference.animator import Animator
+    from hrr_garment.inference.run_settings import DetailLook
+
+    root, _, _ = trained
+    copy = tmp_path / "model"
+    shutil.copytree(root / "model", copy)
+    motion = synthesize("walk", 1.0, seed=5)
+    look = DetailLook("regression", 1.0)
+    runs = {}
+    for ramp in (None, [5000.0, 6000.0], [-6000.0, -5000.0]):
+        update_bundle_meta(copy, {"auto": {"mode": "detail", "detail_base": "regression", "detail_strength": 1.0,
+                                           "folds_free_mm": ramp}})
+        animator = Animator.load(copy)
+        runs[None if ramp is None else ramp[0]] = animator.animate(motion, mode="detail", detail=look, collision=False).vertices
+    regression = animator.animate(motion, mode="regression", collision=False).vertices
+    assert np.abs(runs[None] - regression).max() > 1e-4  # the folds change the shape ...
+    assert np.allclose(runs[5000.0], regression, atol=1e-6)  # ... not on cloth that is nowhere free
+    assert np.array_equal(runs[-6000.0], runs[None])
 
 
 @pytest.mark.parametrize("chosen, base, strength", [("detail", "regression", 0.6), ("detail", "residual", 1.0),

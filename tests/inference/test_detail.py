@@ -127,6 +127,21 @@ def test_folds_replace_the_regressions_own_and_commute_with_a_rigid_motion(skirt
     assert np.allclose(moved, add_folds(regression, folds, mean, 1).astype(np.float64) @ rot.T + shift, atol=1e-5)
 
 
+def test_folds_on_free_cloth_are_weighted_per_vertex(skirt, rng):
+    """The free-cloth weights scale each vertex's fold term: 0 keeps the regression's shape there,
+    1 the folds as they come, and the term is linear in them."""
+    garment, mean = skirt
+    regression = garment.vertices[None].astype(np.float64) + rng.normal(0, 0.01, (2, garment.num_vertices, 3))
+    folds = high_frequencies(regression + rng.normal(0, 0.003, regression.shape), mean, 1)
+    full = add_folds(regression, folds, mean, 1) - regression
+    weights = rng.uniform(0, 1, (garment.num_vertices, 1)).astype(np.float32)
+    weights[::3] = 0.0
+    weighted = add_folds(regression, folds, mean, 1, weights=weights) - regression
+    assert np.allclose(weighted, weights * full, atol=1e-6)
+    assert np.allclose(weighted[:, ::3], 0.0, atol=1e-6) and np.abs(full[:, ::3]).max() > 1e-4
+    assert np.allclose(add_folds(regression, folds, mean, 1, weights=np.ones_like(weights)) - regression, full, atol=1e-6)
+
+
 def test_folds_that_would_overstretch_an_edge_are_taken_back_and_others_kept(skirt, rng):
     """Folds from another simulation may tear this shape; the limit takes back only what passes
     FOLD_MAX_STRAIN x the rest length (where the regression's edge is shorter)."""
