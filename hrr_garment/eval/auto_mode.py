@@ -48,7 +48,8 @@ Last, the first pick is measured again with the free cloth's swing restored at e
 criterion picks again among all candidates: a regression swings less than the cloth, so a gain
 wins where it brings the swing closer to the truth's within the allowance. The model keeps the
 picked candidate's gain (``auto.swing_gain``, 1 where the pick has none); it runs in the mode auto
-picks, not in a mode named.
+picks, not in a mode named. A recorded calibration picked again under another allowance first
+measures the gains of its new first pick where they were not (:func:`measure_swing_again`).
 
 The criterion itself, on recorded numbers (:func:`~.auto_criterion.pick_auto_mode`,
 :func:`~.auto_criterion.repick`), and the candidates' labels: :mod:`.auto_criterion`.
@@ -56,6 +57,7 @@ The criterion itself, on recorded numbers (:func:`~.auto_criterion.pick_auto_mod
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from contextlib import contextmanager
 
 import numpy as np
@@ -142,13 +144,8 @@ def calibrate_auto_mode(animator: Animator, records: list[SequenceRecord], confi
     "sequences", "frames", "fold_follow", "candidates": {label: {...}}}``, what bundle.json keeps
     under ``auto`` (``fold_follow``: the folds' following in time the candidates ran with,
     :data:`~hrr_garment.inference.fold_track.FOLD_FOLLOW`)."""
-    if not records:
-        raise ValueError("the auto mode is calibrated on validation sequences, and there are none")
-    if max_sequences is not None and len(records) > max_sequences:
-        records = [records[i] for i in np.linspace(0, len(records) - 1, max_sequences).round().astype(int)]
-    template = animator.bundle.template
-    rest, topo = template.vertices.astype(np.float64), M.MeshTopology.of(template.faces, template.num_vertices)
-    hem = hem_vertices(template)
+    records = _evenly(records, max_sequences)
+    measure = _measurer(animator, records)
     bundle = animator.bundle
     residual = bundle.has_residual and bundle.residual_weight > 0
     labels = [m for m in AUTO_CHOICES if m != "detail" and animator.supports(m)]
@@ -156,7 +153,62 @@ def calibrate_auto_mode(animator: Animator, records: list[SequenceRecord], confi
         labels += [label for label, (base, _) in DETAIL_CANDIDATES.items() if base == "regression" or residual]
     labels += [free_cloth_label(label, ramp) for ramp in FREE_CLOTH_RAMPS_MM for label in labels
                if borrows(label) and (residual or not uses_residual(label))]
-    names = list(animator.bundle.database.names)
+    candidates = {label: measure(label) for label in tqdm(labels, desc="auto mode", unit="mode", disable=not progress)}
+    _measure_swing(candidates, measure, config, progress)
+    frames = sum(len(r.garment) for r in records)
+    return repick({"sequences": len(records), "frames": frames, "fold_follow": FOLD_FOLLOW, "folds_free_cloth": True,
+                   "swing_half_life_s": HALF_LIFE_S, "candidates": candidates,
+                   "criterion": "the most plausible (hypot(ln sharpness, ln hem swing)) within the allowance x the most "
+                                "accurate PVE and the penetration allowance x its cloth inside the body"}, config)
+
+
+def swing_unmeasured(auto: dict, config: AutoConfig) -> bool:
+    """Whether a recorded calibration's first pick under ``config`` (its pick without a swing gain)
+    has swing gains not yet measured: an allowance that moves the pick needs them measured before
+    picking again."""
+    first = pick_auto_mode(_without_swing(auto["candidates"]), config)
+    return any(swing_label(first, gain) not in auto["candidates"] for gain in SWING_GAINS)
+
+
+def measure_swing_again(animator: Animator, records: list[SequenceRecord], auto: dict, config: AutoConfig,
+                        max_sequences: int | None = AUTO_MAX_SEQUENCES, progress: bool = True) -> dict:
+    """A recorded calibration picked again under ``config``, the swing gains of its new first pick
+    measured on the same validation clips where they were not (the other candidates' numbers stand)."""
+    candidates = dict(auto["candidates"])
+    _measure_swing(candidates, _measurer(animator, _evenly(records, max_sequences)), config, progress)
+    return repick({**auto, "candidates": candidates}, config)
+
+
+def _evenly(records: list[SequenceRecord], max_sequences: int | None) -> list[SequenceRecord]:
+    if not records:
+        raise ValueError("the auto mode is calibrated on validation sequences, and there are none")
+    if max_sequences is not None and len(records) > max_sequences:
+        records = [records[i] for i in np.linspace(0, len(records) - 1, max_sequences).round().astype(int)]
+    return records
+
+
+def _without_swing(candidates: dict[str, dict[str, float]]) -> dict[str, dict[str, float]]:
+    return {k: c for k, c in candidates.items() if SWING not in k}
+
+
+def _measure_swing(candidates: dict[str, dict[str, float]], measure: Callable[[str], dict[str, float]],
+                   config: AutoConfig, progress: bool) -> None:
+    """The first pick (among the candidates without a gain) with its swing restored, each gain a
+    candidate of its own, added to ``candidates`` where not there (the criterion then picks again
+    among all: a gain wins where its swing closes the gap within the allowance)."""
+    first = pick_auto_mode(_without_swing(candidates), config)
+    for gain in tqdm(SWING_GAINS, desc="swing gain", unit="gain", disable=not progress):
+        if swing_label(first, gain) not in candidates:
+            candidates[swing_label(first, gain)] = measure(swing_label(first, gain))
+
+
+def _measurer(animator: Animator, records: list[SequenceRecord]) -> Callable[[str], dict[str, float]]:
+    """A candidate's numbers on ``records`` by its label, animated through the product path."""
+    bundle = animator.bundle
+    template = bundle.template
+    rest, topo = template.vertices.astype(np.float64), M.MeshTopology.of(template.faces, template.num_vertices)
+    hem = hem_vertices(template)
+    names = list(bundle.database.names)
     truths = [r.garment.astype(np.float64) for r in records]
     frames = sum(len(t) for t in truths)
     truth_bend = sum(float(M.cloth_energies(t, rest, topo)[1].sum()) for t in truths)
@@ -179,13 +231,4 @@ def calibrate_auto_mode(animator: Animator, records: list[SequenceRecord], confi
         return {"pve_mm": error / frames, "sharpness": bend / max(truth_bend, 1e-30),
                 "hem_swing": swing / max(truth_swing, 1e-30), "penetration_pct": 100.0 * inside / frames}
 
-    candidates = {label: measure(label) for label in tqdm(labels, desc="auto mode", unit="mode", disable=not progress)}
-    # then the first pick with its swing restored, each gain a candidate of its own (the criterion
-    # picks again among all: a gain wins where its swing closes the gap within the allowance)
-    first = pick_auto_mode(candidates, config)
-    for gain in tqdm(SWING_GAINS, desc="swing gain", unit="gain", disable=not progress):
-        candidates[swing_label(first, gain)] = measure(swing_label(first, gain))
-    return repick({"sequences": len(records), "frames": frames, "fold_follow": FOLD_FOLLOW, "folds_free_cloth": True,
-                   "swing_half_life_s": HALF_LIFE_S, "candidates": candidates,
-                   "criterion": "the most plausible (hypot(ln sharpness, ln hem swing)) within the allowance x the most "
-                                "accurate PVE and the penetration allowance x its cloth inside the body"}, config)
+    return measure

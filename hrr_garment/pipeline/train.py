@@ -36,6 +36,8 @@ from ..eval.auto_mode import (
     lacks_free_cloth,
     lacks_free_folds,
     lacks_swing,
+    measure_swing_again,
+    swing_unmeasured,
 )
 from ..io_utils import remove_empty_folders
 from ..models.codespace import CodeSpaceConfig
@@ -254,9 +256,10 @@ def calibrate_auto(folder: str | Path, dataset: str | Path, progress: bool = Tru
     """The mode ``auto`` runs (:mod:`hrr_garment.eval.auto_mode`), calibrated on the dataset's
     validation clips once per bundle and recorded in bundle.json with every candidate's numbers;
     the recorded one where it was, picked again from its numbers where ``config``'s allowance differs
-    from the one it was picked under."""
+    from the one it was picked under (the swing gains of a first pick that moved measured first)."""
     from ..artifacts.bundle import read_meta
     from ..artifacts.bundle_writer import update_bundle_meta
+    from ..inference.animator import Animator
 
     meta = read_meta(folder)  # reading it hashes every file: once
     auto = meta.get("auto")
@@ -266,14 +269,18 @@ def calibrate_auto(folder: str | Path, dataset: str | Path, progress: bool = Tru
     if auto is None or any("penetration_pct" not in c for c in auto["candidates"].values()) or lacks_swing(auto) \
             or lacks_free_cloth(auto, meta.get("residual")) \
             or (meta.get("folds") and (followed_otherwise(auto) or lacks_free_folds(auto))):
-        from ..data.dataset import GarmentDataset
-        from ..inference.animator import Animator
-
-        ds = GarmentDataset(dataset)
-        records = [ds.sequence(n) for n in ds.splits.get("val", [])]
-        auto = calibrate_auto_mode(Animator.load(folder), records, config, progress=progress)
+        auto = calibrate_auto_mode(Animator.load(folder), _validation_records(dataset), config, progress=progress)
         update_bundle_meta(folder, {"auto": auto})
     elif any(auto.get(key) != value for key, value in config.limits().items()):
-        auto = repick(auto, config)
+        auto = measure_swing_again(Animator.load(folder), _validation_records(dataset), auto, config, progress=progress) \
+            if swing_unmeasured(auto, config) else repick(auto, config)
         update_bundle_meta(folder, {"auto": auto})
     return auto
+
+
+def _validation_records(dataset: str | Path) -> list:
+    """The dataset's validation sequences (what the auto mode is calibrated on)."""
+    from ..data.dataset import GarmentDataset
+
+    ds = GarmentDataset(dataset)
+    return [ds.sequence(n) for n in ds.splits.get("val", [])]

@@ -11,6 +11,7 @@ import pytest
 from hrr_garment.eval.auto_criterion import (
     DETAIL_CANDIDATES,
     DETAIL_STRENGTHS,
+    SWING_GAINS,
     AutoConfig,
     candidate_setting,
     detail_label,
@@ -23,7 +24,7 @@ from hrr_garment.eval.auto_criterion import (
     swing_label,
     swing_of,
 )
-from hrr_garment.eval.auto_mode import calibrate_auto_mode, free_cloth
+from hrr_garment.eval.auto_mode import calibrate_auto_mode, free_cloth, swing_unmeasured
 from hrr_garment.motion.synth import synthesize
 from hrr_garment.settings import SettingsError
 from tests.conftest import write_meta
@@ -204,6 +205,18 @@ def test_hrr_train_calibrates_auto_and_it_agrees_with_the_evaluation(trained):
     assert animator.bundle.residual_nodes is None and animator.bundle.fold_weights is None  # left as it was
 
 
+def test_a_wider_allowance_that_moves_the_first_pick_asks_for_its_swing_gains():
+    """The swing gains were measured on the first pick only: a pick that moves has none recorded."""
+    accurate, sharp = _c(30.0, 0.2, 0.6), _c(32.0, 0.9, 0.7)
+    candidates = {"hybrid": accurate, RR10: sharp}
+    candidates |= {swing_label("hybrid", g): _c(30.0 + g / 10, 0.2, 0.6 * g) for g in SWING_GAINS}
+    auto = {"candidates": candidates}
+    assert not swing_unmeasured(auto, AutoConfig())  # 5 %: the detail mode is over, hybrid's gains are there
+    assert swing_unmeasured(auto, AutoConfig(allowance=1.1))  # 10 %: the detail mode is the first pick
+    candidates |= {swing_label(RR10, g): _c(32.0, 0.9, 0.7 * g) for g in SWING_GAINS}
+    assert not swing_unmeasured(auto, AutoConfig(allowance=1.1))
+
+
 def test_hrr_train_picks_auto_again_when_its_allowance_changes(trained, tmp_path):
     """The candidates' numbers stand: another allowance re-picks from them, without animating again."""
     from hrr_garment.eval.auto_criterion import AutoConfig
@@ -214,8 +227,12 @@ def test_hrr_train_picks_auto_again_when_its_allowance_changes(trained, tmp_path
     before = json.loads((tmp_path / "model" / "bundle.json").read_text())["auto"]
     widest = calibrate_auto(tmp_path / "model", data, progress=False, config=AutoConfig(allowance=2.0))
     recorded = json.loads((tmp_path / "model" / "bundle.json").read_text())["auto"]
-    assert recorded == widest and widest["allowance"] == 2.0 and widest["candidates"] == before["candidates"]
-    c = before["candidates"]
+    assert recorded == widest and widest["allowance"] == 2.0
+    assert all(widest["candidates"][k] == c for k, c in before["candidates"].items())
+    # what was added: the swing gains of the new first pick (the pick without a gain), where it moved
+    first = pick_auto_mode({k: c for k, c in before["candidates"].items() if swing_of(k) == 1.0}, AutoConfig(allowance=2.0))
+    assert set(widest["candidates"]) == set(before["candidates"]) | {swing_label(first, g) for g in SWING_GAINS}
+    c = widest["candidates"]
     accurate = min(c, key=lambda m: c[m]["pve_mm"])
     eligible = [m for m in c if c[m]["pve_mm"] <= 2.0 * c[accurate]["pve_mm"]
                 and c[m]["penetration_pct"] <= max(1.1 * c[accurate]["penetration_pct"], 1.0) + 1e-9]
