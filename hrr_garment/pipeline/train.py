@@ -272,7 +272,7 @@ def calibrate_auto(folder: str | Path, dataset: str | Path, progress: bool = Tru
         auto = calibrate_auto_mode(Animator.load(folder), _validation_records(dataset), config, progress=progress)
         update_bundle_meta(folder, {"auto": auto})
     elif any(auto.get(key) != value for key, value in config.limits().items()):
-        auto = measure_swing_again(Animator.load(folder), _validation_records(dataset), auto, config, progress=progress) \
+        auto = measure_swing_again(Animator.load(folder), _validation_records(dataset), auto=auto, config=config, progress=progress) \
             if swing_unmeasured(auto, config) else repick(auto, config)
         update_bundle_meta(folder, {"auto": auto})
     return auto
