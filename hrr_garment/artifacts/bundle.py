@@ -133,8 +133,9 @@ class Bundle:
 
     @cached_property
     def node_hang_m(self) -> np.ndarray:
-        """(nodes,) how far each latent node hangs from the body the garment was modelled on, at rest."""
-        return node_hang_m(self.template.vertices, self.autoencoder.hierarchy.node_vertices(), self.made_for)
+        """(nodes,) how far each latent node hangs from the body the garment was modelled on, at rest
+        (its centre vertex's)."""
+        return self.vertex_hang_m[np.asarray(self.autoencoder.hierarchy.node_vertices())]
 
     def require_folds(self) -> None:
         """A BundleError, naming the model and the fix, where the detail mode cannot run."""
