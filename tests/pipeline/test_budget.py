@@ -40,7 +40,8 @@ def test_presets_that_extend_another_merge_its_training_settings():
     for section in ("autoencoder_train", "codespace_train"):  # ... over everything else of real-quick's
         a, b = getattr(base, section), getattr(bodies, section)
         assert a.max_minutes == b.max_minutes and a.epochs < 100 and a.max_minutes
-    assert bodies.codespace_train.contact_steps == base.codespace_train.contact_steps > 0
+    assert bodies.codespace_train.latent_loss == base.codespace_train.latent_loss == "vertex"
+    assert bodies.codespace_train.contact_steps > base.codespace_train.contact_steps > 0  # its own contact phase
     assert bodies.autoencoder_train.refine_steps == base.autoencoder_train.refine_steps
 
 
