@@ -49,7 +49,7 @@ from .database import CodeDatabase
 from .folds import FoldStore
 from .gate_signals import GATE_SIGNALS
 from .manifest import NETWORKS, UNCALIBRATED_AUTO, BundleError, read_meta
-from .residual import free_cloth_weights, node_hang_m
+from .residual import free_cloth_weights, rest_hang_m
 
 MAX_SCALE_M = 10.0  # the autoencoder's vertex scale: the spread of a garment's training frames (centimetres)
 
@@ -129,7 +129,7 @@ class Bundle:
     @cached_property
     def vertex_hang_m(self) -> np.ndarray:
         """(V,) how far each vertex hangs from the body the garment was modelled on, at rest."""
-        return node_hang_m(self.template.vertices, np.arange(self.template.num_vertices), self.made_for)
+        return rest_hang_m(self.template.vertices, self.made_for)
 
     @cached_property
     def node_hang_m(self) -> np.ndarray:

@@ -43,12 +43,11 @@ ACCURACY_ALLOWANCE = 1.03
 FREE_CLOTH_RAMPS_MM = ((10.0, 40.0), (20.0, 60.0))
 
 
-def node_hang_m(rest_vertices: np.ndarray, node_vertices: np.ndarray, body: BodyModel) -> np.ndarray:
-    """(nodes,) how far each latent node's centre vertex hangs from ``body`` at rest (metres,
-    signed: negative inside), the garment at rest on it (``rest_vertices`` (V, 3))."""
+def rest_hang_m(rest_vertices: np.ndarray, body: BodyModel) -> np.ndarray:
+    """(V,) how far each vertex of the garment at rest on ``body`` (``rest_vertices`` (V, 3)) hangs
+    from it (metres, signed: negative inside)."""
     a, b = body.rest_pose()
-    points = np.asarray(rest_vertices, np.float64)[np.asarray(node_vertices)]
-    return capsule_signed_distance(points, a, b, radii=body.radii)[0].astype(np.float32)
+    return capsule_signed_distance(np.asarray(rest_vertices, np.float64), a, b, radii=body.radii)[0].astype(np.float32)
 
 
 def free_cloth_weights(hang_m: np.ndarray, ramp_mm: tuple[float, float]) -> np.ndarray:
