@@ -134,10 +134,18 @@ def crowd_bodies(count: int) -> list:
     return out
 
 
+def _ping_pong(frame: np.ndarray, frames: int) -> np.ndarray:
+    """Frame indices of a clip of ``frames`` frames played forward, then backward, and so on."""
+    period = max(2 * frames - 2, 1)
+    phase = frame % period
+    return np.where(phase < frames, phase, period - phase)
+
+
 def bench_crowd(animator: Animator, motion, tau: float, characters: int, pace: float, frames: int = 300,
                 bodies: list | None = None, decoder: str = "full", device: str = "native") -> dict:
     """``characters`` streamed together for ``frames`` frames: character i plays ``motion`` from frame
-    7 i (wrapping) and stands 2 i metres to the side (on ``bodies[i]`` where given); returns the
+    7 i, forward then backward at its ends (a wrap would jump the pelvis back, which the stream takes
+    as a teleport and restarts the character) and stands 2 i metres to the side (on ``bodies[i]`` where given); returns the
     step's latency percentiles (ms), back to back and paced at ``pace`` frames/s, and the cost per
     character. ``device``: "native" (the hybrid on the CPU kernels) or a torch device (the
     regression as one torch step there, its output left on the device, the step synchronised)."""
@@ -160,7 +168,7 @@ def bench_crowd(animator: Animator, motion, tau: float, characters: int, pace: f
         for t in range(frames):
             if fps:
                 time.sleep(max(0.0, start + t / fps - time.perf_counter()))
-            idx = (t + offsets) % motion.num_frames
+            idx = _ping_pong(t + offsets, motion.num_frames)
             t0 = time.perf_counter()
             if native:
                 crowd.push(quats[idx], motion.root_translation[idx] + side)

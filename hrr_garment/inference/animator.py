@@ -41,7 +41,7 @@ from .decoding import body_frame_vertices, flush_denormals
 from .detail import add_folds
 from .edge_limits import EdgeLimits
 from .fold_track import causal_proposals, follow_over_time, offline_proposals, track_folds
-from .gate import WindowChoice, choose_windows
+from .gate import WindowChoice, choose_windows, frame_gates
 from .modes import CODE_MODES, Mode
 from .run_settings import ResolvedRun, RunSettings, run_settings
 from .stream import CrowdStream
@@ -164,8 +164,11 @@ class Animator:
             match, doubt = np.full((t_frames, 2), -1, np.int32), entropy.copy()
         else:
             if run.causal:
-                feats = causal_windows(self.features(motion, causal=True, body=character), w)
-                choice = self._choose(feats, run, exclude_sequence, last_frame=True)
+                frames = self.features(motion, causal=True, body=character)
+                gates = frame_gates(self.bundle, self.causal_step(run.mode.regresses), frames)
+                if gates is not None:  # each frame's once, not in each of the W windows that hold it (a view)
+                    gates = sequence_windows(np.concatenate([np.repeat(gates[:1], w - 1, 0), gates]), w)
+                choice = self._choose(causal_windows(frames, w), run, exclude_sequence, last_frame=True, gates=gates)
                 latents = causal_latents(choice, self.blend)
                 regression = None if choice.regression_part is None else choice.regression_part[:, -1]
                 proposals = causal_proposals(choice.match, w) if choice.lends_folds else None
@@ -223,10 +226,10 @@ class Animator:
         return feats
 
     def _choose(self, windows: np.ndarray, run: ResolvedRun, exclude_sequence: int | None = None,
-                last_frame: bool = False) -> WindowChoice:
+                last_frame: bool = False, gates: np.ndarray | None = None) -> WindowChoice:
         exclude = None if exclude_sequence is None else np.full(len(windows), exclude_sequence)
         step = self.causal_step(run.mode.regresses) if last_frame else None
-        return choose_windows(self.bundle, windows, run, exclude=exclude, last_frame=last_frame, step=step)
+        return choose_windows(self.bundle, windows, run, exclude=exclude, last_frame=last_frame, step=step, gates=gates)
 
     def stream(self, settings: RunSettings | None = None, *, rig=None, body=None, allow_outside: bool = False,
                **changes) -> AnimationStream:

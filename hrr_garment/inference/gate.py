@@ -50,17 +50,18 @@ class WindowChoice:
 
 
 def choose_windows(bundle: Bundle, motion_windows: np.ndarray, run: ResolvedRun, *, exclude: np.ndarray | None = None,
-                   last_frame: bool = False, step: torch.nn.Module | None = None) -> WindowChoice:
+                   last_frame: bool = False, step: torch.nn.Module | None = None,
+                   gates: np.ndarray | None = None) -> WindowChoice:
     """Run the motion encoder on raw feature windows (N, W, F) and pick each window's latents as
     ``run`` asks (its mode, gate and tau, the detail mode's base; with ``last_frame``, only the
     last frame's latents: all that causal inference blends). ``exclude``: (N,) a database sequence
-    each window may not retrieve from; ``step``: see :func:`encode_motion`."""
+    each window may not retrieve from; ``step`` and ``gates``: see :func:`encode_motion`."""
     mode = run.mode
     if mode not in CODE_MODES:
         raise ValueError(f"unknown mode {str(mode)!r}; choose one of {', '.join(CODE_MODES)}")
     db = bundle.database
     enc = encode_motion(bundle.codespace, bundle.motion_stats, bundle.latent_stats, motion_windows=motion_windows,
-                        regression=mode.regresses, last_frame=last_frame, step=step)
+                        regression=mode.regresses, last_frame=last_frame, step=step, gates=gates)
     n = len(enc.entropy)
     frames = 1 if last_frame else db.latents.shape[1]
     bodies = window_bodies(bundle.codespace, enc.standardised)
@@ -109,3 +110,13 @@ def choose_windows(bundle: Bundle, motion_windows: np.ndarray, run: ResolvedRun,
         latents[rows] = db.latents[found, -frames:]
         source[rows] = np.stack([db.sequence[found], db.start[found]], 1)
     return WindowChoice(latents, retrieved, enc.entropy, np.asarray(doubt, np.float64), source)
+
+
+def frame_gates(bundle: Bundle, step, frames: np.ndarray) -> np.ndarray | None:
+    """Raw per-frame features (n, F) -> their GRU input gates (n, 3H) for a native causal ``step``
+    (:meth:`~hrr_garment.models.native_codes.NativeWindowCodes.frame_gates`), or None where the step
+    is PyTorch's. Causal windows slide by one frame, so the frames' gates are computed once and
+    each window's passed to :func:`choose_windows` (``gates``)."""
+    if not hasattr(step, "frame_gates"):
+        return None
+    return step.frame_gates(bundle.motion_stats.normalize(frames))

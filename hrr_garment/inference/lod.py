@@ -88,16 +88,17 @@ class LodState:
     fade: DecoderFade | None = None
 
 
-def crowd_latents(chars: list, windows: np.ndarray, lv: np.ndarray, choose, inertialize_one) -> np.ndarray:
+def crowd_latents(chars: list, lv: np.ndarray, choose, inertialize_one) -> np.ndarray:
     """The window step for the characters whose level runs it this frame, their held latents for
     the others: -> (N, nodes, C) inertialized latents (each character's ``lod`` holds its match).
-    ``choose``: windows (n, W, F) -> :class:`~.gate.WindowChoice`; ``inertialize_one``:
+    ``choose``: the rows of the characters stepping (None: all) -> their windows'
+    :class:`~.gate.WindowChoice`; ``inertialize_one``:
     (character, latent, retrieved, match, continuous=) -> its inertialized latent (``continuous``:
     the latent's part that is one source whatever the match, :attr:`~.gate.WindowChoice.continuous`)."""
     stepping = np.array([steps_now(int(level), c.frames) or c.lod.latent is None for level, c in zip(lv, chars)])
     rows = np.flatnonzero(stepping)
     if rows.size:
-        choice = choose(windows if stepping.all() else windows[rows])
+        choice = choose(None if stepping.all() else rows)
         shape = choice.latents.shape[2:]
     else:
         shape = chars[0].lod.latent.shape

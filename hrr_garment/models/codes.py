@@ -80,19 +80,26 @@ def traced_window_codes(codespace, window: int, features: int, regression: bool 
         return step
 
 
+ENCODE_BATCH = 512  # windows per call of the step: bounds the memory of a long clip
+
+
 @torch.no_grad()
 def encode_motion(codespace, motion_stats, latent_stats, motion_windows: np.ndarray, regression: bool = True,
-                  batch: int = 512, last_frame: bool = False, step: torch.nn.Module | None = None) -> MotionCodes:
+                  last_frame: bool = False, step: torch.nn.Module | None = None,
+                  gates: np.ndarray | None = None) -> MotionCodes:
     """Raw feature windows (N, W, F) -> codes, entropies and (optionally) regressed latents, of
     every frame of each window or, with ``last_frame``, of its last frame only (N, 1, nodes, C).
-    ``step``: a prepared :class:`WindowCodes` with the same settings (streaming)."""
+    ``step``: a prepared :class:`WindowCodes` with the same settings (streaming); ``gates``: (N, W,
+    3H) the windows' frames' GRU input gates, kept by the caller as the frames came (a view is
+    fine), for a native ``step`` (:meth:`~.native_codes.NativeWindowCodes.frame_gates`)."""
     if codespace.training:
         codespace.eval()
     step = WindowCodes(codespace, regression, last_frame) if step is None else step
     std = motion_stats.normalize(motion_windows)
     entropy, codes, reg = [], [], []
-    for i in range(0, len(std), batch):
-        h, idx, r = step(torch.from_numpy(std[i:i + batch]))
+    for i in range(0, len(std), ENCODE_BATCH):
+        x = torch.from_numpy(std[i:i + ENCODE_BATCH])
+        h, idx, r = step(x) if gates is None else step(x, gates[i:i + ENCODE_BATCH])
         entropy.append(h.numpy())
         codes.append(idx.numpy().astype(np.uint8))
         reg.append(r.numpy())

@@ -72,12 +72,36 @@ class NativeWindowCodes:
                               np.int32)
         self.groups = q.groups
 
-    def __call__(self, windows: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    @property
+    def gate_width(self) -> int:
+        """Floats of one frame's GRU input gates (3 x the motion encoder's width)."""
+        return 3 * int(self._dims[2])
+
+    def frame_gates(self, frames: np.ndarray) -> np.ndarray:
+        """Standardised frames (n, F) -> their GRU input gates (n, :attr:`gate_width`): the motion
+        encoder's input layer and the GRU's input side, a function of each frame alone. A stream keeps
+        them per frame and passes each window's to :meth:`__call__`, which then skips them (about a
+        quarter of the window step's arithmetic); the bits are those the step computes itself."""
+        x = np.ascontiguousarray(frames, np.float32)
+        gates = np.empty((len(x), self.gate_width), np.float32)
+        if self.lib.hrr_frame_gates(x.ctypes.data, len(x), self._dims.ctypes.data, ctypes.addressof(self._pointers),
+                                    torch.get_num_threads(), gates.ctypes.data):
+            raise MemoryError("the native window step could not allocate its scratch memory")
+        return gates
+
+    def __call__(self, windows: torch.Tensor, gates: np.ndarray | None = None) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """``gates``: (B, W, :attr:`gate_width`) the windows' frames' :meth:`frame_gates`, where kept."""
         x = np.ascontiguousarray(windows.detach().numpy(), np.float32)
         b = len(x)
+        if gates is not None:
+            gates = np.ascontiguousarray(gates, np.float32)
+            if gates.shape != (b, x.shape[1], self.gate_width):
+                raise ValueError(f"gates of shape {gates.shape} for {b} windows of {x.shape[1]} frames "
+                                 f"(expected {(b, x.shape[1], self.gate_width)})")
         entropy, argmax = np.empty(b, np.float32), np.empty((b, self.groups), np.int64)
         latents = np.empty((b, self.rows), np.float32) if self.regression else None
-        failed = self.lib.hrr_window_codes(x.ctypes.data, b, self._dims.ctypes.data, ctypes.addressof(self._pointers),
+        failed = self.lib.hrr_window_codes(x.ctypes.data, None if gates is None else gates.ctypes.data, b,
+                                           self._dims.ctypes.data, ctypes.addressof(self._pointers),
                                            torch.get_num_threads(), entropy.ctypes.data, argmax.ctypes.data,
                                            None if latents is None else latents.ctypes.data)
         if failed:

@@ -101,6 +101,20 @@ static void attend(const float *q, int nq, int qs, const float *k, const float *
     }
 }
 
+enum { P_INP_W, P_INP_B, P_IH_W, P_IH_B, P_HH_W, P_HH_B, P_ATT_IN_W, P_ATT_IN_B, P_ATT_OUT_W, P_ATT_OUT_B, P_NORM_W,
+       P_NORM_B, P_QUERY, P_POOL_Q_W, P_POOL_Q_B, P_POOL_KV_W, P_POOL_KV_B, P_POOL_OUT_W, P_POOL_OUT_B, P_OUT_NORM_W, P_OUT_NORM_B, P_OUT_W,
+       P_OUT_B, P_EMBEDDING, P_EPS, P_DECODER };
+
+/* The GRU's input side of n frames (n, F) -> gates (n, 3H): its input gates ih(elu(inp(x))), a
+   function of the frame alone, so a window sliding by one frame needs only its new frame's
+   (hrr_frame_gates). a: n x H scratch. A row's bits do not depend on the other rows. */
+static void frame_gates(const float *x, int n, int F, int H, const float *const *p, float *a, float *gates)
+{
+    linear_shared(x, n, F, p[P_INP_W], p[P_INP_B], H, a);
+    elu_shared(a, n * H);
+    linear_shared(a, n, H, p[P_IH_W], p[P_IH_B], 3 * H, gates);
+}
+
 /* The widest input of the decoder's layers (the embedding, with the body's measures, or a hidden layer). */
 static long decoder_widest(const int32_t *dims)
 {
@@ -108,10 +122,6 @@ static long decoder_widest(const int32_t *dims)
     for (int l = 1; l < dims[7]; ++l) widest = dims[8 + l] > widest ? dims[8 + l] : widest;
     return widest;
 }
-
-enum { P_INP_W, P_INP_B, P_IH_W, P_IH_B, P_HH_W, P_HH_B, P_ATT_IN_W, P_ATT_IN_B, P_ATT_OUT_W, P_ATT_OUT_B, P_NORM_W,
-       P_NORM_B, P_QUERY, P_POOL_Q_W, P_POOL_Q_B, P_POOL_KV_W, P_POOL_KV_B, P_POOL_OUT_W, P_POOL_OUT_B, P_OUT_NORM_W, P_OUT_NORM_B, P_OUT_W,
-       P_OUT_B, P_EMBEDDING, P_EPS, P_DECODER };
 
 /* dims: F, W, H, heads, G, K, D, L, then the decoder's L + 1 layer sizes (G * D + nb first), then 1
    where the regression decodes the expected embedding (the mean over each group's softmax), 0
@@ -125,10 +135,13 @@ enum { P_INP_W, P_INP_B, P_IH_W, P_IH_B, P_HH_W, P_HH_B, P_ATT_IN_W, P_ATT_IN_B,
    (the GRU one step for all of them at a time), so each weight panel is read once per five rows
    rather than once per window: a crowd's 32 windows read the 7 MB of weights about seven times,
    not 32. A row's value does not depend on the other rows (the tiles keep one accumulator chain
-   per row), so a window gives the same bits alone or in a batch. Called by every thread of the
-   innermost parallel region, with the same (shared) arguments; work: window_codes_work floats. */
-static void window_codes(const float *x, int B, const int32_t *dims, const float *const *p, float *work, float *entropy,
-                         int64_t *argmax, float *latents)
+   per row), so a window gives the same bits alone or in a batch. gates (B, W, 3H), or NULL: the
+   frames' input gates (frame_gates) where the caller kept them, so that only the GRU's recurrent
+   side and what follows run here; x then gives only the last frames' body measures. Called by
+   every thread of the innermost parallel region, with the same (shared) arguments; work:
+   window_codes_work floats. */
+static void window_codes(const float *x, const float *gates, int B, const int32_t *dims, const float *const *p, float *work,
+                         float *entropy, int64_t *argmax, float *latents)
 {
     const int F = dims[0], W = dims[1], H = dims[2], heads = dims[3], G = dims[4], K = dims[5], D = dims[6],
               L = dims[7];
@@ -141,9 +154,8 @@ static void window_codes(const float *x, int B, const int32_t *dims, const float
           *pooled = q + H, *logits = pooled + (long)B * H, *group_entropy = logits + (long)B * G * K,
           *h0 = group_entropy + (long)B * G, *spare = h0 + B * widest;
 
-    linear_shared(x, (int)BW, F, p[P_INP_W], p[P_INP_B], H, a);
-    elu_shared(a, (int)(BW * H));
-    linear_shared(a, (int)BW, H, p[P_IH_W], p[P_IH_B], 3 * H, gi);  /* input side of every step at once */
+    if (gates) gi = (float *)gates;  /* the frames' input gates, computed as they came (read only below) */
+    else frame_gates(x, (int)BW, F, H, p, a, gi);  /* input side of every step at once */
     for (int t = 0; t < W; ++t) {  /* one GRU step for every window; rows of hs: window-major */
         const float *prev = t ? state + (long)((t - 1) % 2) * B * H : NULL;
         float *cur = state + (long)(t % 2) * B * H;
@@ -243,13 +255,31 @@ static long window_codes_work(const int32_t *dims, long B)
 /* Scratch floats hrr_window_codes allocates for one pass (diagnostics). */
 long hrr_window_codes_work(const int32_t *dims) { return window_codes_work(dims, LOCKSTEP); }
 
-/* B windows (B, W, F) -> entropy (B), argmax (B, G), latents (B, last layer size) or NULL, in
+/* n standardised frames (n, F) -> their GRU input gates (n, 3H), the bits window_codes computes for
+   them inside any window. Returns 0, or -1 where scratch memory could not be allocated. */
+int hrr_frame_gates(const float *x, int n, const int32_t *dims, const float *const *params, int threads, float *gates)
+{
+    const int F = dims[0], H = dims[2];
+    if (n <= 0) return 0;
+    float *scratch = malloc(sizeof(float) * (size_t)n * H);
+    if (!scratch) return -1;
+    #pragma omp parallel num_threads(threads)
+    {
+        const unsigned csr = denormals_off();
+        frame_gates(x, n, F, H, params, scratch, gates);
+        denormals_restore(csr);
+    }
+    free(scratch);
+    return 0;
+}
+
+/* B windows (B, W, F) (and their frames' gates (B, W, 3H), or NULL) -> entropy (B), argmax (B, G), latents (B, last layer size) or NULL, in
    lockstep passes of up to LOCKSTEP windows, the team sharing each pass. Returns 0, or -1 where
    scratch memory could not be allocated. */
-int hrr_window_codes(const float *x, int B, const int32_t *dims, const float *const *params, int threads,
-                     float *entropy, int64_t *argmax, float *latents)
+int hrr_window_codes(const float *x, const float *gates, int B, const int32_t *dims, const float *const *params,
+                     int threads, float *entropy, int64_t *argmax, float *latents)
 {
-    const int F = dims[0], W = dims[1], G = dims[4], L = dims[7];
+    const int F = dims[0], W = dims[1], H = dims[2], G = dims[4], L = dims[7];
     const long out = dims[8 + L];
     if (B <= 0) return 0;
     float *scratch = malloc(sizeof(float) * (size_t)window_codes_work(dims, B < LOCKSTEP ? B : LOCKSTEP));
@@ -259,8 +289,8 @@ int hrr_window_codes(const float *x, int B, const int32_t *dims, const float *co
         const unsigned csr = denormals_off();
         for (int b = 0; b < B; b += LOCKSTEP) {  /* every thread takes every pass; the layers share out the work */
             const int n = B - b < LOCKSTEP ? B - b : LOCKSTEP;
-            window_codes(x + (size_t)b * W * F, n, dims, params, scratch, entropy + b, argmax + (size_t)b * G,
-                         latents ? latents + (size_t)b * out : NULL);
+            window_codes(x + (size_t)b * W * F, gates ? gates + (size_t)b * W * 3 * H : NULL, n, dims, params, scratch,
+                         entropy + b, argmax + (size_t)b * G, latents ? latents + (size_t)b * out : NULL);
             #pragma omp barrier
         }
         denormals_restore(csr);

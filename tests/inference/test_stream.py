@@ -24,8 +24,9 @@ def test_stream_equals_offline_causal(animator, mode):
 
 @pytest.mark.parametrize("mode", ["hybrid", "detail"])  # detail: a fold playhead per character
 def test_a_crowd_streamed_together_equals_each_character_streamed_alone(animator, mode):
-    """Characters join and leave between frames; each one's frames equal its own offline causal
-    animation (which the single stream equals), whatever the others in the same push."""
+    """Characters join and leave between frames and come in another order every third frame; each
+    one's frames equal its own offline causal animation (which the single stream equals), whatever
+    the others in the same push (the crowd's windows slide in place while its keys stay)."""
     clips = {"a": synthesize("walk_curve", 1.0, seed=1), "b": synthesize("spin", 1.0, seed=2),
              "c": synthesize("dance", 1.0, seed=3)}
     alone = {k: animator.animate(m, mode=mode, causal=True).vertices for k, m in clips.items()}
@@ -33,7 +34,7 @@ def test_a_crowd_streamed_together_equals_each_character_streamed_alone(animator
     leaves = {"a": 20, "b": 30, "c": 25}
     crowd = animator.crowd(mode=mode)
     for frame in range(30):
-        present = [k for k in clips if joins[k] <= frame < leaves[k]]
+        present = [k for k in clips if joins[k] <= frame < leaves[k]][::1 if frame % 3 else -1]
         for k in set(crowd.characters) - set(present):
             crowd.leave(k)
         poses = {k: clips[k].slice(frame - joins[k], frame - joins[k] + 1) for k in present}
@@ -42,6 +43,8 @@ def test_a_crowd_streamed_together_equals_each_character_streamed_alone(animator
         for row, k in enumerate(present):
             assert np.abs(out[row] - alone[k][frame - joins[k]]).max() <= 1e-5, (k, frame)
     assert crowd.characters == ["b"]
+    step = crowd._step  # the native window step takes each frame's gates once, as the frame came
+    assert (crowd._windows.gates is not None) == hasattr(step, "frame_gates")
     crowd.leave("b")
     with pytest.raises(KeyError, match="no character 'a'"):
         crowd.leave("a")

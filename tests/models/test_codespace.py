@@ -2,6 +2,7 @@
 
 import math
 
+import numpy as np
 import pytest
 import torch
 
@@ -86,6 +87,16 @@ def test_native_window_step_equals_pytorch_and_is_batch_invariant(window, hidden
     one = native(windows[4:5])  # a stream's single window: the same bits as inside a batch
     assert all(torch.equal(a, b[4:5]) for a, b in zip(one[:2], got[:2]))
     assert not regression or torch.equal(one[2], got[2][4:5])
+    # a stream's gates: each frame's computed as it came (one row, then all of one frame's rows
+    # together), the windows' own bits; gates that are not these frames' change the result
+    frames = windows.numpy()
+    gates = np.stack([np.concatenate([native.frame_gates(frames[:1, t]), native.frame_gates(frames[1:, t])])
+                      for t in range(window)], 1)
+    kept = native(windows, gates)
+    assert all(torch.equal(a, b) for a, b in zip(kept, got))
+    assert not torch.equal(native(windows, np.roll(gates, 1, axis=1))[0], got[0])
+    with pytest.raises(ValueError, match="gates of shape"):
+        native(windows, gates[:, 1:])
 
 
 def test_the_expected_code_is_the_mean_embedding_under_each_groups_softmax():
