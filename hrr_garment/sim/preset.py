@@ -122,7 +122,8 @@ def _check_also_hold_out(path: Path, preset: Preset) -> None:
 
 
 def _preset_data(path: Path, depth: int = 0) -> dict:
-    """A preset file's values; ``extends: NAME`` starts from another preset's (its keys replaced
+    """A preset file's values; ``extends: NAME`` starts from another preset's (NAME.yaml beside the
+    file, else the built-in preset NAME; its keys replaced
     by this file's, one level deep; ``train``, a training config, merged section by section), so a
     variant names only what it changes."""
     data = yaml.safe_load(path.read_text(encoding="utf-8"))
@@ -134,6 +135,8 @@ def _preset_data(path: Path, depth: int = 0) -> dict:
     if depth > 4 or not isinstance(parent, str):
         raise TypeError(f"extends must name one preset (and not loop), got {parent!r}")
     parent_path = path.parent / f"{parent}.yaml" if not Path(parent).suffix else path.parent / parent
+    if not Path(parent).suffix and not parent_path.is_file():  # a user's own file extends a built-in by its name
+        parent_path = CONFIG_DIR / "presets" / f"{parent}.yaml"
     base = _preset_data(parent_path, depth + 1)
     return {**base, **data, **({"train": deep_merge(base.get("train") or {}, data["train"])} if "train" in data else {})}
 

@@ -47,6 +47,20 @@ def test_a_preset_extends_another_and_replaces_only_what_it_names():
     assert load_preset("real-quick-performers").bodies == {"from": "performer"}
 
 
+def test_a_users_preset_file_extends_a_built_in_preset_by_its_name(tmp_path):
+    """A file outside configs/presets names a built-in as its parent; a sibling file of that name wins."""
+    (tmp_path / "mine.yaml").write_text("extends: real-quick\nname: mine\nmirror: false\ntrain: {codespace: {train: {epochs: 3}}}\n")
+    mine, base = load_preset(str(tmp_path / "mine.yaml")), load_preset("real-quick")
+    assert (mine.name, mine.mirror, mine.motions, mine.sim) == ("mine", False, base.motions, base.sim)
+    assert mine.train["codespace"]["train"]["epochs"] == 3
+    assert mine.train["codespace"]["train"]["latent_loss"] == base.train["codespace"]["train"]["latent_loss"]
+    (tmp_path / "real-quick.yaml").write_text("name: local\nvertices: 300\nseconds: 2.0\nsequences: {walk: 1}\n")
+    assert load_preset(str(tmp_path / "mine.yaml")).vertices == 300
+    (tmp_path / "orphan.yaml").write_text("extends: no-such-preset\nname: orphan\n")
+    with pytest.raises(InputError, match="not a valid preset"):
+        load_preset(str(tmp_path / "orphan.yaml"))
+
+
 def test_every_clip_on_the_mannequin_as_well_holds_out_the_same_bodies():
     """``mannequin: true``: each clip also on the mannequin under its own name (a dataset of the mannequin
     alone holds its part), the mannequin never held out as a body, the sampled bodies held out as without it."""
