@@ -5,8 +5,10 @@ argmax -> the regression's embedding -> the code-space decoder), from the same w
 
 Used for causal inference, streaming and offline alike, so both run the same arithmetic: a stream
 pushes one window per frame, where PyTorch's per-operator overhead is most of the time (1.5-3 ms
-per window against about 0.5 ms here, where the threads share the window's work). Offline, each
-thread takes its own windows. The offline non-causal engine keeps PyTorch, whose batched matrix
+per window against about 0.5 ms here, where the threads share the window's work). Offline, the
+windows run in lockstep passes of up to 64, each layer once for all of them. Causal paths pass each
+frame's GRU input gates, computed once as the frame came (:meth:`NativeWindowCodes.frame_gates`).
+The offline non-causal engine keeps PyTorch, whose batched matrix
 products are faster over many windows. Results equal PyTorch's up to float32 rounding (tested); an
 argmax can only differ where two logits tie to rounding.
 """
