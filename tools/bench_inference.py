@@ -145,8 +145,8 @@ def bench_crowd(animator: Animator, motion, tau: float, characters: int, pace: f
                 bodies: list | None = None, decoder: str = "full", device: str = "native") -> dict:
     """``characters`` streamed together for ``frames`` frames: character i plays ``motion`` from frame
     7 i, forward then backward at its ends (a wrap would jump the pelvis back, which the stream takes
-    as a teleport and restarts the character) and stands 2 i metres to the side (on ``bodies[i]`` where given); returns the
-    step's latency percentiles (ms), back to back and paced at ``pace`` frames/s, and the cost per
+    as a teleport and restarts the character), and stands 2 i metres to the side (on ``bodies[i]``
+    where given); returns the step's latency percentiles (ms), back to back and paced at ``pace`` frames/s, and the cost per
     character. ``device``: "native" (the hybrid on the CPU kernels) or a torch device (the
     regression as one torch step there, its output left on the device, the step synchronised)."""
     from hrr_garment.motion.rotations import matrix_to_quat

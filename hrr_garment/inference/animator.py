@@ -166,8 +166,8 @@ class Animator:
             if run.causal:
                 frames = self.features(motion, causal=True, body=character)
                 gates = frame_gates(self.bundle, self.causal_step(run.mode.regresses), frames)
-                if gates is not None:  # each frame's once, not in each of the W windows that hold it (a view)
-                    gates = sequence_windows(np.concatenate([np.repeat(gates[:1], w - 1, 0), gates]), w)
+                if gates is not None:  # each frame's once, not in each of the W windows that hold it
+                    gates = causal_windows(gates, w, view=True)
                 choice = self._choose(causal_windows(frames, w), run, exclude_sequence, last_frame=True, gates=gates)
                 latents = causal_latents(choice, self.blend)
                 regression = None if choice.regression_part is None else choice.regression_part[:, -1]

@@ -47,6 +47,7 @@ from ..native import pin_workers
 from .blending import Inertializer, inertialize
 from .bodies import CrowdBodies
 from .collision import push_out
+from .crowd_windows import CrowdWindows
 from .decoding import flush_denormals
 from .detail import add_folds
 from .fold_track import FoldTrack, FollowedFolds, follow_folds
@@ -63,9 +64,9 @@ STREAM_STAGES = ("features", "encoder", "decoder", "world", "push_out")
 class _Character:
     """One character's streaming state."""
 
-    features: deque  # its window's W frames' raw features
-    inertializer: Inertializer
+    features: deque  # its window's W frames' raw features (crowd_windows.CrowdWindows)
     gates: deque  # those frames' GRU input gates, where the window step is native (gate.frame_gates)
+    inertializer: Inertializer
     fold_track: FoldTrack | None = None  # the detail mode's playhead in the database's folds
     followed: FollowedFolds | None = None  # its folds as followed in time (fold_track.follow_folds)
     previous: tuple[np.ndarray, np.ndarray] | None = None  # its last pose: global rotations and joint positions
@@ -80,33 +81,6 @@ def check_keys(keys: list, count: int) -> None:
     """An InputError unless ``keys`` are ``count`` distinct ids, one per pushed pose."""
     if len(keys) != count or len(set(keys)) != len(keys):
         raise InputError("push", f"{count} poses need as many distinct keys, got {len(keys)} keys ({len(set(keys))} distinct)")
-
-
-class _CrowdWindows:
-    """The crowd's windows (N, W, F) and their frames' gates (N, W, 3H) as one array each, slid by
-    one frame in place while the same characters are pushed in the same order (a game's every
-    frame), built again from the characters' own frames when the crowd changes: stacking each
-    character's frames took a millisecond of a 64-character step."""
-
-    def __init__(self):
-        self.keys: tuple | None = None
-        self.features: np.ndarray | None = None
-        self.gates: np.ndarray | None = None
-
-    def slide(self, keys: tuple, chars: list[_Character], joined: np.ndarray, features: np.ndarray,
-              gates: np.ndarray | None) -> tuple[np.ndarray, np.ndarray | None]:
-        """``joined``: the characters whose window started this frame; ``features`` and ``gates``:
-        this frame's rows (already appended to each character's own)."""
-        if keys == self.keys and not joined.any() and (gates is None) == (self.gates is None):
-            for kept, new in ((self.features, features), (self.gates, gates)):
-                if kept is not None:
-                    kept[:, :-1] = kept[:, 1:]  # overlapping: numpy copies through a buffer
-                    kept[:, -1] = new
-        else:
-            self.keys = keys
-            self.features = np.stack([np.stack(c.features) for c in chars])
-            self.gates = None if gates is None else np.stack([np.stack(c.gates) for c in chars])
-        return self.features, self.gates
 
 
 @dataclass
@@ -131,7 +105,7 @@ class CrowdStream:
         self._bodies: dict[Hashable, object] = {}  # characters with a body of their own (set_body)
         self._stacked: tuple = ((), None)  # the last mixed crowd's bodies and their stacked arrays
         self._characters: dict[Hashable, _Character] = {}
-        self._windows = _CrowdWindows()
+        self._windows = CrowdWindows(animator.window)
         self.timings = _Timings()
         regression = run.mode.regresses
         bundle = animator.bundle
@@ -255,11 +229,9 @@ class CrowdStream:
         latents; each character's ``lod`` keeps its database match. ``gates``: the windows' frames'
         GRU input gates (None: the step computes them)."""
         def choose(rows):
-            if rows is not None:
-                windows_, gates_ = windows[rows], None if gates is None else gates[rows]
-            else:
-                windows_, gates_ = windows, gates
-            return choose_windows(self.animator.bundle, windows_, self.run, last_frame=True, step=self._step, gates=gates_)
+            pick = slice(None) if rows is None else rows  # all: the arrays themselves
+            return choose_windows(self.animator.bundle, windows[pick], self.run, last_frame=True, step=self._step,
+                                  gates=None if gates is None else gates[pick])
 
         def one(c, latent, retrieved, source, continuous=None):
             return inertialize(c.inertializer, latent, retrieved, source=source, frame=c.frames, continuous=continuous)
@@ -283,14 +255,11 @@ class CrowdStream:
     def _step_frame(self, keys: list, poses: Motion, lv: np.ndarray) -> np.ndarray:
         t = [time.perf_counter()]
         pin_workers()  # a game loop idles between frames: its next frame must not wait for workers to move
-        window = self.animator.window
-        blend = self.animator.blend
         self._restart_teleported(keys, poses)
-        known = self._characters
         for k in keys:
-            if k not in known:  # not setdefault: that built a new character's state for every key every frame
-                known[k] = _Character(deque(maxlen=window), Inertializer(blend), deque(maxlen=window))
-        chars = [known[k] for k in keys]
+            if k not in self._characters:  # not setdefault: that built a new character's state for every key every frame
+                self._characters[k] = _Character(*self._windows.start(), Inertializer(self.animator.blend))
+        chars = [self._characters[k] for k in keys]
         roots = poses.root_translation  # as pushed, before a body plays them
         poses, bodies = self._played(keys, poses)
         features = self._with_memory(chars, pair_features_batch([c.previous for c in chars], poses), poses.fps)
@@ -298,15 +267,7 @@ class CrowdStream:
             measures = np.asarray(bodies.vector, features.dtype)
             features = np.concatenate([features, np.broadcast_to(measures, (len(features), measures.shape[-1]))], 1)
         gates = frame_gates(self.animator.bundle, self._step, features)  # each frame's once, as it comes
-        joined = np.array([not c.features for c in chars])
-        for i, (c, feat) in enumerate(zip(chars, features)):
-            for kept, row in ((c.features, feat), (c.gates, None if gates is None else gates[i])):
-                if row is None:
-                    continue
-                if joined[i]:  # the first frame repeated before the start, as offline causal
-                    kept.extend([row] * (window - 1))
-                kept.append(row)
-        windows, window_gates = self._windows.slide(tuple(keys), chars, joined, features, gates)  # (N, W, F), (N, W, 3H)
+        windows, window_gates = self._windows.push(tuple(keys), chars, features, gates)  # (N, W, F), (N, W, 3H)
         t.append(time.perf_counter())
         latents = self._latents(chars, windows, window_gates, lv)
         if self.run.swing != 1.0:  # the free cloth's swing restored, each character's course kept on it

@@ -27,7 +27,9 @@ def windows(features: np.ndarray, size: int = DEFAULT_WINDOW, stride: int = 1, s
     return sequence_windows(features, size)[::stride]
 
 
-def causal_windows(features: np.ndarray, size: int) -> np.ndarray:
-    """(T, F) -> (T, W, F): window t holds frames t-W+1 .. t, frame 0 repeated before the start."""
+def causal_windows(features: np.ndarray, size: int, view: bool = False) -> np.ndarray:
+    """(T, F) -> (T, W, F): window t holds frames t-W+1 .. t, frame 0 repeated before the start;
+    contiguous, or with ``view`` a view of the padded frames (W times less memory)."""
     padded = np.concatenate([np.repeat(features[:1], size - 1, 0), features])
-    return np.ascontiguousarray(sequence_windows(padded, size))
+    windows = sequence_windows(padded, size)
+    return windows if view else np.ascontiguousarray(windows)

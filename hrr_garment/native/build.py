@@ -85,9 +85,9 @@ def _declare(lib: ctypes.CDLL) -> None:
                                      c_float, c_float, c_int, c_int, d]
     lib.hrr_factor_block.restype = None
     lib.hrr_window_codes.argtypes = [d, d, c_int, d, d, c_int, d, d, d]
+    lib.hrr_window_codes.restype = c_int
     lib.hrr_frame_gates.argtypes = [d, c_int, d, d, c_int, d]
     lib.hrr_frame_gates.restype = c_int
-    lib.hrr_window_codes.restype = c_int
     lib.hrr_window_codes_work.argtypes = [d]
     lib.hrr_window_codes_work.restype = ctypes.c_long
     lib.hrr_forward_kinematics.argtypes = [d, d, c_int, c_int, d, d, d, d]

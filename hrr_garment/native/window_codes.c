@@ -273,9 +273,9 @@ int hrr_frame_gates(const float *x, int n, const int32_t *dims, const float *con
     return 0;
 }
 
-/* B windows (B, W, F) (and their frames' gates (B, W, 3H), or NULL) -> entropy (B), argmax (B, G), latents (B, last layer size) or NULL, in
-   lockstep passes of up to LOCKSTEP windows, the team sharing each pass. Returns 0, or -1 where
-   scratch memory could not be allocated. */
+/* B windows (B, W, F) and their frames' gates (B, W, 3H) or NULL -> entropy (B), argmax (B, G),
+   latents (B, last layer size) or NULL, in lockstep passes of up to LOCKSTEP windows, the team
+   sharing each pass. Returns 0, or -1 where scratch memory could not be allocated. */
 int hrr_window_codes(const float *x, const float *gates, int B, const int32_t *dims, const float *const *params,
                      int threads, float *entropy, int64_t *argmax, float *latents)
 {
