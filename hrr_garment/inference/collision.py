@@ -34,6 +34,7 @@ MAX_PUSH_STRAIN = 1.5
 LIMIT_TOLERANCE_M = 1e-5  # an edge this little over its limit counts as within it (the limiter stops)
 STRETCH_SLACK = 0.1  # (PushOutSettings.stretch_slack)
 OVER_RELAXATION = 3.0  # of the strain limiter's Jacobi steps (each divided by a vertex's degree, about 6)
+LIMIT_ITERATIONS = 60  # the strain limiter's passes at most (a frame stops once within its limits)
 
 
 @dataclass
@@ -101,27 +102,30 @@ def push_out(vertices: np.ndarray, motion: Motion, faces: np.ndarray, *, body: B
 
     lib = load_kernel()
     if lib is not None:  # the same steps in C, frames in parallel: numpy's per-step overheads dominated.
-        # In float64 from the push through the strain limit, converted once each way: a 32-character
-        # crowd spent a millisecond a frame converting and copying between the two
-        unpushed = np.ascontiguousarray(vertices, np.float64)
-        out = np.empty(vertices.shape, np.float64)
+        # Each frame converted to float64, pushed, limited and converted back while it is in cache
+        # (the limit measuring only the edges of the vertices the push moved): a 32-character crowd
+        # spent a millisecond a frame converting and copying whole batches
+        out = np.empty(vertices.shape, np.float32)
+        torn = np.zeros(len(out), bool)
         steps = PushSteps(mean=mean, margin=margin, smooth=smooth, rounds=rounds, depth=depth,
-                          mesh=None if limits is None else limits.push_mesh(settings))
+                          mesh=None if limits is None else limits.push_mesh(settings),
+                          limit=None if limits is None else _native_limit(limits, settings.max_strain, settings.stretch_slack))
         for start in range(0, len(out), chunk):
             sl = slice(start, start + chunk)
-            _, before[sl], after[sl] = push_out_frames(lib, unpushed[sl], a[sl], b=b[sl], radii=framed(sl), steps=steps,
-                                                       threads=default_threads(), out=out[sl])
+            _, before[sl], after[sl], torn[sl] = push_out_frames(lib, vertices[sl], a[sl], b=b[sl], radii=framed(sl), steps=steps,
+                                                                 threads=default_threads(), out=out[sl])
     else:
-        unpushed, out = vertices, np.empty(vertices.shape, np.float32)
+        out = np.empty(vertices.shape, np.float32)
         for start in range(0, len(out), chunk):
             sl = slice(start, start + chunk)
             out[sl], before[sl], after[sl] = _push_frames(vertices[sl].astype(np.float64), (a[sl], b[sl], framed(sl)),
                                                           mean, settings, limits)
-    if limits is not None:
-        out, torn = limit_push_strain(out, unpushed, limits, settings.max_strain, in_place=True, slack=settings.stretch_slack)
-        if report and torn.any():  # only the frames the limit moved have a new "after"
-            inside = frames_signed_distance(out[torn].astype(np.float64), a[torn], b[torn], radii=framed(torn))[0] < -depth
-            after[torn] = inside.mean(1)
+        if limits is not None:
+            out, torn = limit_push_strain(out, vertices, limits, settings.max_strain, in_place=True,
+                                          slack=settings.stretch_slack)
+    if limits is not None and report and torn.any():  # only the frames the limit moved have a new "after"
+        inside = frames_signed_distance(out[torn].astype(np.float64), a[torn], b[torn], radii=framed(torn))[0] < -depth
+        after[torn] = inside.mean(1)
     out = out.astype(np.float32, copy=False)
     if not report:
         return out, None
@@ -129,7 +133,7 @@ def push_out(vertices: np.ndarray, motion: Motion, faces: np.ndarray, *, body: B
 
 
 def limit_push_strain(pushed: np.ndarray, unpushed: np.ndarray, limits: EdgeLimits,
-                      max_strain: float = MAX_PUSH_STRAIN, iterations: int = 60,
+                      max_strain: float = MAX_PUSH_STRAIN, iterations: int = LIMIT_ITERATIONS,
                       in_place: bool = False, slack: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
     """Undo as much of a push as tears the cloth: ``iterations`` Jacobi passes of edge-length
     projection (each over-long edge's two ends move toward each other, a vertex by the sum of its
@@ -142,13 +146,12 @@ def limit_push_strain(pushed: np.ndarray, unpushed: np.ndarray, limits: EdgeLimi
     both capsules is pushed out of the nearest surface, across the limb, while its neighbours stay:
     edges ten times their length (CMU 131_03), which no simulator would produce."""
     from ..native import default_threads, load_kernel
-    from ..native.body import StrainLimit, limit_strain
+    from ..native.body import limit_strain
 
     lib = load_kernel()
     if lib is not None:  # the same in C: the limits, the torn frames and the passes, which measure only
         # the edges that can have changed
-        limit = StrainLimit(edge_arrays=limits.native_arrays, max_strain=max_strain, iterations=iterations,
-                            tol=LIMIT_TOLERANCE_M, omega=OVER_RELAXATION, slack=slack)
+        limit = _native_limit(limits, max_strain, slack, iterations)
         p, torn = limit_strain(lib, pushed, unpushed, limit=limit, threads=default_threads(), in_place=in_place)
         if p is pushed or not torn.any():
             return pushed, torn
@@ -161,6 +164,14 @@ def limit_push_strain(pushed: np.ndarray, unpushed: np.ndarray, limits: EdgeLimi
     out = pushed.copy()
     out[torn] = _limit_frames(pushed[torn].astype(np.float64), limit[torn], limits, iterations).astype(pushed.dtype)
     return out, torn
+
+
+def _native_limit(limits: EdgeLimits, max_strain: float, slack: float, iterations: int = LIMIT_ITERATIONS):
+    """The strain limit as the kernel takes it (:class:`~hrr_garment.native.body.StrainLimit`)."""
+    from ..native.body import StrainLimit
+
+    return StrainLimit(edge_arrays=limits.native_arrays, max_strain=max_strain, iterations=iterations,
+                       tol=LIMIT_TOLERANCE_M, omega=OVER_RELAXATION, slack=slack)
 
 
 def _limit_frames(p: np.ndarray, limit: np.ndarray, limits: EdgeLimits, iterations: int) -> np.ndarray:

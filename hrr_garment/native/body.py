@@ -17,7 +17,8 @@ class PushSteps(NamedTuple):
     :func:`hrr_garment.inference.collision.push_out`): ``mean`` the (V, V) CSR mean operator of the
     faces, the ``margin`` outside the body, ``smooth`` passes, ``rounds`` of pushes and the
     ``depth`` beyond which a vertex counts as inside; ``mesh`` (:class:`PushMesh`) the
-    neighbour-follow and the patches measured against the capsules near them (None: neither)."""
+    neighbour-follow and the patches measured against the capsules near them (None: neither);
+    ``limit`` (:class:`StrainLimit`) the strain limit each frame gets right after its push (None: none)."""
 
     mean: object
     margin: float
@@ -25,6 +26,27 @@ class PushSteps(NamedTuple):
     rounds: int
     depth: float
     mesh: "PushMesh | None" = None
+    limit: "StrainLimit | None" = None
+
+    def arguments(self) -> "_PushArgs":
+        """The kernel's PushArgs of these steps."""
+        return _PushArgs(self.margin, self.smooth, self.rounds, self.depth)
+
+
+class _PushArgs(ctypes.Structure):
+    """kernels.c's PushArgs."""
+
+    _fields_ = [("margin", ctypes.c_double), ("smooth", ctypes.c_int), ("rounds", ctypes.c_int),
+                ("depth", ctypes.c_double)]
+
+
+class _StrainArgs(ctypes.Structure):
+    """kernels.c's StrainArgs."""
+
+    _fields_ = [("edges", ctypes.c_void_p), ("rest", ctypes.c_void_p), ("degree", ctypes.c_void_p),
+                ("ve_ptr", ctypes.c_void_p), ("ve_idx", ctypes.c_void_p), ("E", ctypes.c_int), ("iterations", ctypes.c_int),
+                ("max_strain", ctypes.c_double), ("slack", ctypes.c_double), ("tol", ctypes.c_double),
+                ("omega", ctypes.c_double)]
 
 
 class PushMesh:
@@ -73,6 +95,12 @@ class StrainLimit(NamedTuple):
     omega: float
     slack: float = 0.0
 
+    def arguments(self) -> _StrainArgs:
+        """The kernel's StrainArgs of this limit (the edge arrays' addresses: keep them alive)."""
+        edges, rest, degree, ptr, idx = self.edge_arrays.addresses
+        return _StrainArgs(edges, rest, degree, ptr, idx, len(self.edge_arrays.edges), self.iterations, self.max_strain,
+                           self.slack, self.tol, self.omega)
+
 
 def _capsule_arrays(a: np.ndarray, b: np.ndarray, radii: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     if np.shape(radii)[-1] > MAX_CAPSULES:
@@ -94,34 +122,39 @@ def capsule_sdf(lib: ctypes.CDLL, points: np.ndarray, a: np.ndarray, b: np.ndarr
 
 
 def push_out_frames(lib: ctypes.CDLL, points: np.ndarray, a: np.ndarray, b: np.ndarray, radii: np.ndarray,
-                    steps: PushSteps, *, threads: int = 1,
-                    out: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                    steps: PushSteps, *, threads: int = 1, out: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """:func:`hrr_garment.inference.collision.push_out`'s per-frame steps in the kernel: points
-    (T, V, 3), capsule ends a, b (T, C, 3), radii (C,) or per frame (T, C), the push's ``steps`` -> (pushed points float32, fraction
-    deeper than ``steps.depth`` before (T,), after (T,)). Frames in parallel;
-    a single frame (streaming) shared by the threads. With ``out`` (C-contiguous float64, the
-    points' shape) the points are copied there, pushed in place and returned in float64."""
-    mean, margin, smooth, rounds, depth, mesh = steps
+    (T, V, 3) float32 (others are converted), capsule ends a, b (T, C, 3), radii (C,) or per frame
+    (T, C), the push's ``steps`` -> (pushed points float32, fraction deeper than ``steps.depth``
+    before (T,), after (T,), the (T,) mask of frames the strain limit moved). The push and the
+    limit work in float64, a frame at a time. With ``steps.limit``, each frame is limited right after its
+    push (as :func:`limit_strain` on the pushed and unpushed frames would, measuring only the edges
+    of the vertices the push moved); ``after`` is the push's, before the limit. Frames in parallel;
+    a single frame (streaming) shared by the threads. ``out``: a C-contiguous float32 array of the
+    points' shape the pushed points are written to (and returned)."""
+    mean, *_, mesh, limit = steps
     a, b, r = _capsule_arrays(a, b, radii)
-    if out is not None and (out.dtype != np.float64 or out.shape != points.shape or not out.flags.c_contiguous):
-        raise ValueError("out must be a C-contiguous float64 array of the points' shape")
-    p = np.array(points, np.float64, order="C") if out is None else out  # pushed in place
-    if out is not None:
-        np.copyto(out, points)
+    p = np.ascontiguousarray(points, np.float32)
+    if out is None:
+        out = np.empty(p.shape, np.float32)
+    elif out.dtype != np.float32 or out.shape != p.shape or not out.flags.c_contiguous:
+        raise ValueError("out must be a C-contiguous float32 array of the points' shape")
     indptr, indices = (np.ascontiguousarray(x, np.int32) for x in (mean.indptr, mean.indices))
     weights = np.ascontiguousarray(mean.data, np.float64)
     t, v = p.shape[:2]
-    before, after = np.empty(t), np.empty(t)
+    before, after, torn = np.empty(t), np.empty(t), np.zeros(t, np.uint8)
     if r.ndim == 2 and r.shape[0] != t:
         raise ValueError(f"per-frame radii for {r.shape[0]} frames, points for {t}")
     capsules = r.shape[-1]
-    lib.hrr_push_out(p.ctypes.data, t, v, a.ctypes.data, b.ctypes.data, r.ctypes.data, capsules,
+    push_args, strain_args = steps.arguments(), None if limit is None else limit.arguments()
+    lib.hrr_push_out(p.ctypes.data, out.ctypes.data, t, v, a.ctypes.data, b.ctypes.data, r.ctypes.data, capsules,
                      capsules if r.ndim == 2 else 0, indptr.ctypes.data, indices.ctypes.data, weights.ctypes.data,
                      *(mesh.arguments() if mesh is not None else (None, None, 1, 0, None, None, 0)),
-                     margin, smooth, rounds, depth, threads, before.ctypes.data, after.ctypes.data)
+                     ctypes.byref(push_args), None if strain_args is None else ctypes.byref(strain_args), threads,
+                     before.ctypes.data, after.ctypes.data, torn.ctypes.data)
     if np.isnan(before).any():
         raise MemoryError("the native push-out could not allocate its scratch memory")
-    return (p if out is not None else p.astype(np.float32)), before, after
+    return out, before, after, torn.astype(bool)
 
 
 def limit_strain(lib: ctypes.CDLL, pushed: np.ndarray, unpushed: np.ndarray, limit: StrainLimit, *, threads: int = 1,
@@ -130,13 +163,11 @@ def limit_strain(lib: ctypes.CDLL, pushed: np.ndarray, unpushed: np.ndarray, lim
     points (T, V, 3), the ``limit`` (:class:`StrainLimit`) -> (the limited points, float64 (T, V, 3);
     the (T,) mask of frames that had an edge over its limit). Frames in parallel; each stops on its own. ``in_place``: a C-contiguous float64
     ``pushed`` is moved where it lies (and returned) instead of copied."""
-    edge_arrays, max_strain, iterations, tol, omega, slack = limit
     own = in_place and pushed.dtype == np.float64 and pushed.flags.c_contiguous
     p = pushed if own else np.array(pushed, np.float64, order="C")  # moved in place
     u = np.ascontiguousarray(unpushed, np.float64)
-    edges, rest, degree, ptr, idx = edge_arrays.addresses
     torn = np.zeros(len(p), np.uint8)
-    if lib.hrr_limit_strain(p.ctypes.data, u.ctypes.data, len(p), p.shape[1], len(edge_arrays.edges), edges, rest,
-                            max_strain, slack, degree, ptr, idx, iterations, tol, omega, threads, torn.ctypes.data) != 0:
+    if lib.hrr_limit_strain(p.ctypes.data, u.ctypes.data, len(p), p.shape[1], ctypes.byref(limit.arguments()), threads,
+                            torn.ctypes.data) != 0:
         raise MemoryError("the native strain limit could not allocate its scratch memory")
     return p, torn.astype(bool)

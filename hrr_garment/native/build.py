@@ -75,11 +75,10 @@ def _declare(lib: ctypes.CDLL) -> None:
     d = ctypes.c_void_p  # addresses from ndarray.ctypes.data: per-frame calls, so the cheapest conversion
     lib.hrr_capsule_sdf.argtypes = [d, c_int, c_int, d, d, d, c_int, c_int, d, d]
     lib.hrr_capsule_sdf.restype = None
-    lib.hrr_push_out.argtypes = [d, c_int, c_int, d, d, d, c_int, c_int, d, d, d, d, d, c_int, c_int, d, d, c_int,
-                                 c_double, c_int, c_int, c_double, c_int, d, d]
+    lib.hrr_push_out.argtypes = [d, d, c_int, c_int, d, d, d, c_int, c_int, d, d, d, d, d, c_int, c_int, d, d, c_int,
+                                 d, d, c_int, d, d, d]  # PushArgs and StrainArgs by reference
     lib.hrr_push_out.restype = None
-    lib.hrr_limit_strain.argtypes = [d, d, c_int, c_int, c_int, d, d, c_double, c_double, d, d, d, c_int, c_double, c_double,
-                                     c_int, d]
+    lib.hrr_limit_strain.argtypes = [d, d, c_int, c_int, d, c_int, d]
     lib.hrr_limit_strain.restype = c_int
     lib.hrr_factor_block.argtypes = [d, c_int, c_int, d, d, d, c_int, c_int, c_int, c_int, d, d, d, d, d,
                                      c_float, c_float, c_int, c_int, d]

@@ -281,6 +281,15 @@ typedef struct {
     int patches;
 } PushMesh;
 
+/* The push's settings (hrr_garment.native.body.PushSteps): the margin outside the body a pushed
+   vertex lands, the smoothing passes, the push-and-smooth rounds, and the depth past which a vertex
+   counts as inside in the before and after fractions. */
+typedef struct {
+    double margin;
+    int smooth, rounds;
+    double depth;
+} PushArgs;
+
 enum { MAX_REGION_RINGS = 256 };
 #define FAR_AWAY 1e30 /* the distance of a vertex whose patch no capsule comes near */
 
@@ -291,6 +300,13 @@ enum { MAX_REGION_RINGS = 256 };
 static void sdf_patches(const double *p, const PushMesh *m, const double *ca, const double *cb, const double *radii,
                         int C, double reach, double *d, double *nrm)
 {
+    double ex[SDF_MAXC], ey[SDF_MAXC], ez[SDF_MAXC], inv_den[SDF_MAXC];  /* each capsule's axis, once a frame */
+    for (int c = 0; c < C; ++c) {
+        const double *a = ca + 3 * c, *b = cb + 3 * c;
+        ex[c] = b[0] - a[0]; ey[c] = b[1] - a[1]; ez[c] = b[2] - a[2];
+        const double den = ex[c] * ex[c] + ey[c] * ey[c] + ez[c] * ez[c];
+        inv_den[c] = 1.0 / (den > 1e-12 ? den : 1e-12);
+    }
     #pragma omp for schedule(static)
     for (int q = 0; q < m->patches; ++q) {
         const int i0 = m->patch_ptr[q], i1 = m->patch_ptr[q + 1];
@@ -309,15 +325,13 @@ static void sdf_patches(const double *p, const PushMesh *m, const double *ca, co
         const double sphere = sqrt(r2) + 1e-9;  /* the slack covers rounding in the centre and radius */
         double sa[3 * SDF_MAXC], sb[3 * SDF_MAXC], sr[SDF_MAXC];
         int n = 0;
-        for (int c = 0; c < C; ++c) {
+        for (int c = 0; c < C; ++c) {  /* near: the centre's distance to the axis at most reach + radius + sphere */
             const double *a = ca + 3 * c, *b = cb + 3 * c;
-            const double ex = b[0] - a[0], ey = b[1] - a[1], ez = b[2] - a[2];
             const double rx = cx - a[0], ry = cy - a[1], rz = cz - a[2];
-            const double den = ex * ex + ey * ey + ez * ez;
-            double s = (rx * ex + ry * ey + rz * ez) / (den > 1e-12 ? den : 1e-12);
+            double s = (rx * ex[c] + ry * ey[c] + rz * ez[c]) * inv_den[c];
             s = s < 0 ? 0 : (s > 1 ? 1 : s);
-            const double dx = rx - s * ex, dy = ry - s * ey, dz = rz - s * ez;
-            if (sqrt(dx * dx + dy * dy + dz * dz) - radii[c] - sphere <= reach) {
+            const double dx = rx - s * ex[c], dy = ry - s * ey[c], dz = rz - s * ez[c], near = reach + radii[c] + sphere;
+            if (dx * dx + dy * dy + dz * dz <= near * near) {
                 memcpy(sa + 3 * n, a, 3 * sizeof(double));
                 memcpy(sb + 3 * n, b, 3 * sizeof(double));
                 sr[n++] = radii[c];
@@ -493,165 +507,289 @@ static void push_frame(double *p, int V, const double *ca, const double *cb, con
     }
 }
 
-/* T frames: one frame at a time shared by the team (a stream's single frame), or several frames
-   in parallel, each in its own one-thread team (offline). radii_step: 0 where every frame has the
-   same radii, C where each frame has its own (a crowd's characters of different bodies). ring,
-   ring_drop, width, follow: the neighbour-follow (ring NULL: none); patch_ptr, patch_idx, patches:
-   the culled distances (patch_ptr NULL: none). Returns -1 (and NaN fractions) when out of memory. */
-void hrr_push_out(double *p, int T, int V, const double *a, const double *b, const double *radii, int C, int radii_step,
-                  const int32_t *indptr, const int32_t *indices, const double *weights, const int32_t *ring,
-                  const double *ring_drop, int width, int follow, const int32_t *patch_ptr, const int32_t *patch_idx,
-                  int patches, double margin, int smooth, int rounds, double depth, int threads, double *before,
-                  double *after)
+/* The push-out's strain limit as the kernel takes it (hrr_garment.native.body.StrainLimit): the
+   garment's E edges (vertex pairs), rest lengths, vertex degrees and each vertex's edges (CSR
+   ve_ptr, ve_idx); the strain an edge may reach, the slack over a stretch the push did not make, at
+   most `iterations` passes, which stop once no edge is more than tol over its limit, over-relaxed
+   by omega. */
+typedef struct {
+    const int32_t *edges;
+    const double *rest, *degree;
+    const int32_t *ve_ptr, *ve_idx;
+    int E, iterations;
+    double max_strain, slack, tol, omega;
+} StrainArgs;
+
+/* Edge e's limit: max_strain times its rest length, or its length in the unpushed frame u plus
+   slack times its rest length where that is longer (the push never has to undo a stretch it did
+   not make, and may lengthen an edge the decoder stretched by a little). Squared lengths: a square
+   root only where the unpushed edge is longer than allowed, which nearly no edge is. */
+static inline double edge_limit(const StrainArgs *s, const double *u, int e)
 {
-    enum { MAX_TEAMS = 64 };
+    const int i = s->edges[2 * e], j = s->edges[2 * e + 1];
+    const double ux = u[3 * j] - u[3 * i], uy = u[3 * j + 1] - u[3 * i + 1], uz = u[3 * j + 2] - u[3 * i + 2];
+    const double before2 = ux * ux + uy * uy + uz * uz, allowed = s->max_strain * s->rest[e], extra = s->slack * s->rest[e];
+    const double unslacked = allowed - extra;  /* an unpushed edge longer than this sets its own limit */
+    return unslacked > 0.0 && before2 <= unslacked * unslacked ? allowed
+           : (sqrt(before2) + extra > allowed ? sqrt(before2) + extra : allowed);
+}
+
+/* One frame's scratch for the strain limit: corr (3 E doubles), the limits of the edges measured
+   (E doubles; known where lmark is set), touched (V ints), active (E ints), vmark (V bytes), emark
+   (E bytes: 1 listed, 2 over its limit in this pass), lmark (E bytes), carved from one block. */
+typedef struct {
+    double *corr, *limit;
+    int32_t *touched, *active;
+    unsigned char *vmark, *emark, *lmark;
+} LimitScratch;
+
+static size_t limit_scratch_bytes(int V, int E)
+{
+    return sizeof(double) * 4 * (size_t)E + (sizeof(int32_t) + 1) * ((size_t)V + (size_t)E) + (size_t)E + 64;
+}
+
+static LimitScratch limit_scratch(unsigned char *block, int V, int E)
+{
+    LimitScratch w;
+    w.corr = (double *)block;
+    w.limit = w.corr + 3 * (size_t)E;
+    w.touched = (int32_t *)(w.limit + E);
+    w.active = w.touched + V;
+    w.vmark = (unsigned char *)(w.active + E);
+    w.emark = w.vmark + V;
+    w.lmark = w.emark + E;
+    memset(w.vmark, 0, (size_t)V + (size_t)E);  /* both marks start clear and are left clear */
+    return w;
+}
+
+/* The strain limit's passes on one frame p (V, 3), its unpushed frame u: Jacobi passes of
+   edge-length projection. Every edge longer than its limit moves its two ends toward each other by
+   half the excess each; a vertex moves by its corrections summed, times omega over its degree.
+   Only edges that can be over their limit are measured: after the first pass, those with an end
+   that moved in the last one (an edge whose ends stayed keeps its length), in any order: each
+   over-long edge keeps its correction, and a moved vertex gathers its edges' corrections in its
+   own fixed edge order (ve), so the sums, and the result, do not depend on the order edges were
+   measured in. A pass over a torn neighbourhood costs its size, not the mesh's. The first pass
+   measures the n_active edges the caller found over their limit (w->active), every other edge
+   being within it. Leaves the marks clear. */
+static void limit_frame(double *p, const double *u, int V, const StrainArgs *s, LimitScratch *w, int n_active)
+{
+    const int32_t *edges = s->edges;
+    (void)V;
+    memset(w->lmark, 0, (size_t)s->E);  /* the limits known: those of the edges listed (measure_edge) */
+    for (int k = 0; k < n_active; ++k) w->lmark[w->active[k]] = 1;
+    for (int it = 0; it < s->iterations; ++it) {
+        double worst = 0.0;
+        int n_touched = 0;
+        for (int k = 0; k < n_active; ++k) {
+            const int e = w->active[k];
+            const int i = edges[2 * e], j = edges[2 * e + 1];
+            const double dx = p[3 * j] - p[3 * i], dy = p[3 * j + 1] - p[3 * i + 1], dz = p[3 * j + 2] - p[3 * i + 2];
+            const double length = sqrt(dx * dx + dy * dy + dz * dz), excess = length - w->limit[e];
+            if (excess <= 0.0) continue;  /* its mark stays 1 (or 0): the gather skips it */
+            if (excess > worst) worst = excess;
+            const double c = 0.5 * excess / (length > 1e-12 ? length : 1e-12);
+            w->corr[3 * e] = c * dx; w->corr[3 * e + 1] = c * dy; w->corr[3 * e + 2] = c * dz;
+            w->emark[e] = 2;
+            if (!w->vmark[i]) { w->vmark[i] = 1; w->touched[n_touched++] = i; }
+            if (!w->vmark[j]) { w->vmark[j] = 1; w->touched[n_touched++] = j; }
+        }
+        if (worst <= s->tol) {
+            for (int k = 0; k < n_active; ++k) w->emark[w->active[k]] = 0;
+            for (int k = 0; k < n_touched; ++k) w->vmark[w->touched[k]] = 0;
+            return;
+        }
+        for (int k = 0; k < n_touched; ++k) {  /* gather: corrections are fixed, so moving at once is Jacobi */
+            const int v = w->touched[k];
+            double x = 0.0, y = 0.0, z = 0.0;
+            for (int q = s->ve_ptr[v]; q < s->ve_ptr[v + 1]; ++q) {
+                const int e = s->ve_idx[q];
+                if (w->emark[e] != 2) continue;
+                const double sign = edges[2 * e] == v ? 1.0 : -1.0;  /* the first end moves along the edge */
+                x += sign * w->corr[3 * e]; y += sign * w->corr[3 * e + 1]; z += sign * w->corr[3 * e + 2];
+            }
+            const double step = s->omega / s->degree[v];
+            p[3 * v] += step * x; p[3 * v + 1] += step * y; p[3 * v + 2] += step * z;
+        }
+        for (int k = 0; k < n_active; ++k) w->emark[w->active[k]] = 0;
+        n_active = 0;
+        for (int k = 0; k < n_touched; ++k) {  /* the edges the next pass measures */
+            const int v = w->touched[k];
+            w->vmark[v] = 0;
+            for (int q = s->ve_ptr[v]; q < s->ve_ptr[v + 1]; ++q) {
+                const int e = s->ve_idx[q];
+                if (w->emark[e]) continue;
+                w->emark[e] = 1;
+                w->active[n_active++] = e;
+                if (!w->lmark[e]) { w->limit[e] = edge_limit(s, u, e); w->lmark[e] = 1; }
+            }
+        }
+    }
+    for (int k = 0; k < n_active; ++k) w->emark[w->active[k]] = 0;
+}
+
+/* Lists edge e in w->active when it is longer than its limit; *over when by more than a millionth. */
+static inline void measure_edge(const double *p, const double *u, const StrainArgs *s, int e, LimitScratch *w,
+                                int *n_long, int *over)
+{
+    const double lim = w->limit[e] = edge_limit(s, u, e);
+    const int i = s->edges[2 * e], j = s->edges[2 * e + 1];
+    const double dx = p[3 * j] - p[3 * i], dy = p[3 * j + 1] - p[3 * i + 1], dz = p[3 * j + 2] - p[3 * i + 2];
+    const double length2 = dx * dx + dy * dy + dz * dz;
+    if (length2 > lim * lim) {
+        w->active[(*n_long)++] = e;
+        *over |= length2 > lim * lim * ((1.0 + 1e-6) * (1.0 + 1e-6));
+    }
+}
+
+/* The strain limit on one frame p against its unpushed frame u: the edges over their limit found,
+   then the passes where one is over by more than a millionth. moved (NULL: every edge is
+   measured): the n_moved vertices the push moved, whose edges are the only ones that can be over
+   (an edge with both ends where they were unpushed is within its limit, which is at least its
+   unpushed length): the same edges found, the same result. Returns whether the frame was torn. */
+static int limit_one(double *p, const double *u, int V, const StrainArgs *s, const int32_t *moved, int n_moved,
+                     LimitScratch *w)
+{
+    int over = 0, n_long = 0;
+    if (!moved) {
+        for (int e = 0; e < s->E; ++e) measure_edge(p, u, s, e, w, &n_long, &over);
+    } else {
+        for (int k = 0; k < n_moved; ++k)
+            for (int q = s->ve_ptr[moved[k]]; q < s->ve_ptr[moved[k] + 1]; ++q) {
+                const int e = s->ve_idx[q];
+                if (w->emark[e]) continue;  /* an edge of two moved vertices, measured already */
+                w->emark[e] = 1;
+                measure_edge(p, u, s, e, w, &n_long, &over);
+            }
+        for (int k = 0; k < n_moved; ++k)
+            for (int q = s->ve_ptr[moved[k]]; q < s->ve_ptr[moved[k] + 1]; ++q) w->emark[s->ve_idx[q]] = 0;
+    }
+    if (over) limit_frame(p, u, V, s, w, n_long);
+    return over;
+}
+
+/* T frames of pushed points p (T, V, 3), limited in place against the unpushed frames (T, V, 3).
+   torn[t]: whether frame t had an edge over its limit (by more than a millionth of it) before.
+   Frames in parallel. Returns 0, or -1 when the scratch memory could not be had (nothing changed). */
+int hrr_limit_strain(double *p, const double *unpushed, int T, int V, const StrainArgs *s, int threads,
+                     unsigned char *torn)
+{
+    if (T <= 0) return 0;
+    if (threads < 1) threads = 1;
+    if (threads > T) threads = T;
+    const size_t per = limit_scratch_bytes(V, s->E);
+    unsigned char *scratch = malloc(per * threads);
+    if (!scratch) return -1;
+    #pragma omp parallel num_threads(threads)
+    {
+        LimitScratch w = limit_scratch(scratch + per * (size_t)omp_get_thread_num(), V, s->E);
+        #pragma omp for schedule(dynamic)
+        for (int t = 0; t < T; ++t)
+            torn[t] = (unsigned char)limit_one(p + (size_t)t * V * 3, unpushed + (size_t)t * V * 3, V, s, NULL, 0, &w);
+    }
+    free(scratch);
+    return 0;
+}
+
+/* A team's scratch for push_and_limit: buf (20 V doubles) and ints (3 V ints, zero between calls)
+   and flag (3 ints) as push_frame takes them, the frame in float64 (p, 3 V doubles) and as it came
+   (u, 3 V; with a limit), the vertices the push moved (moved, V ints) and the limit's scratch. */
+typedef struct {
+    double *buf, *p, *u;
+    int32_t *ints, *moved;
+    int *flag;
+    LimitScratch limit;
+} PushTeam;
+
+/* One frame, in (V, 3) float32 -> out: pushed as push_frame does, in float64, then with a strain
+   limit s, limited against the frame as it came, measuring only the edges of the vertices the push
+   moved, while the frame is in cache. Called by every thread of the innermost parallel region,
+   which share the conversions and the push; the limit runs on one of them. */
+static void push_and_limit(const float *in, float *out, int V, const double *ca, const double *cb, const double *radii,
+                           int C, const PushMesh *m, const PushArgs *args, const StrainArgs *s, double *before,
+                           double *after, unsigned char *torn, PushTeam *team)
+{
+    double *p = team->p, *u = team->u;
+    #pragma omp for schedule(static)
+    for (int k = 0; k < 3 * V; ++k) {
+        p[k] = in[k];
+        if (s) u[k] = in[k];
+    }
+    push_frame(p, V, ca, cb, radii, C, m, args->margin, args->smooth, args->rounds, args->depth, before, after, team->buf,
+               team->ints, team->flag);
+    if (s) {  /* push_frame ends at a barrier: the frame is pushed */
+        #pragma omp single
+        {
+            int n = 0;
+            for (int v = 0; v < V; ++v) {  /* without branches: most vertices stay */
+                team->moved[n] = v;
+                n += (p[3 * v] != u[3 * v]) | (p[3 * v + 1] != u[3 * v + 1]) | (p[3 * v + 2] != u[3 * v + 2]);
+            }
+            *torn = (unsigned char)limit_one(p, u, V, s, team->moved, n, &team->limit);
+        }
+    }
+    #pragma omp for schedule(static)
+    for (int k = 0; k < 3 * V; ++k) out[k] = (float)p[k];
+}
+
+/* T frames in (T, V, 3) float32 -> pushed out (T, V, 3) float32, in float64 between: one frame at
+   a time shared by the team (a stream's single frame), or several frames in parallel, each in its
+   own one-thread team (offline). radii_step: 0 where every frame has the same radii, C where each
+   frame has its own (a crowd's characters of different bodies). ring, ring_drop, width, follow:
+   the neighbour-follow (ring NULL: none); patch_ptr, patch_idx, patches: the culled distances
+   (patch_ptr NULL: none). limit (NULL: none): the strain limit, each frame limited right after its
+   push (torn[t]: whether frame t was; before and after are the push's). NaN fractions when out of
+   memory. */
+void hrr_push_out(const float *in, float *out, int T, int V, const double *a, const double *b, const double *radii, int C,
+                  int radii_step, const int32_t *indptr, const int32_t *indices, const double *weights,
+                  const int32_t *ring, const double *ring_drop, int width, int follow, const int32_t *patch_ptr,
+                  const int32_t *patch_idx, int patches, const PushArgs *args, const StrainArgs *limit, int threads,
+                  double *before, double *after, unsigned char *torn)
+{
+    enum { MAX_TEAMS = 64, BUF = 26 };  /* BUF: push_frame's 20 V doubles, then p and u */
     if (T <= 0) return;
     if (threads > MAX_TEAMS) threads = MAX_TEAMS;
     if (threads < 1) threads = 1;
     const PushMesh mesh = {indptr, indices, weights, ring, ring_drop, width, follow, patch_ptr, patch_idx, patches};
     const int teams = T < threads ? T : threads, shared = T < threads;  /* shared: one team per frame */
     const int team_count = shared ? 1 : teams;
-    double *buf = malloc(sizeof(double) * (size_t)V * 20 * team_count);
-    int32_t *ints = calloc((size_t)V * 3 * team_count, sizeof(int32_t));  /* the marks start at zero */
+    const size_t per_limit = limit ? limit_scratch_bytes(V, limit->E) : 0;
+    double *buf = malloc(sizeof(double) * (size_t)V * BUF * team_count);
+    int32_t *ints = calloc((size_t)V * 4 * team_count, sizeof(int32_t));  /* the marks start at zero */
+    unsigned char *limit_block = limit ? malloc(per_limit * team_count) : NULL;
     int flags[3 * MAX_TEAMS];
-    if (!buf || !ints || follow + smooth + 1 > MAX_REGION_RINGS) {
+    PushTeam team[MAX_TEAMS];
+    if (!buf || !ints || (limit && !limit_block) || follow + args->smooth + 1 > MAX_REGION_RINGS) {
         for (int t = 0; t < T; ++t) before[t] = after[t] = NAN;  /* the caller raises */
         free(buf);
         free(ints);
+        free(limit_block);
         return;
     }
+    for (int k = 0; k < team_count; ++k) {
+        double *mine = buf + (size_t)V * BUF * k;
+        team[k] = (PushTeam){mine, mine + (size_t)V * 20, mine + (size_t)V * 23, ints + (size_t)V * 4 * k,
+                             ints + (size_t)V * 4 * k + 3 * (size_t)V, flags + 3 * k, {0}};
+        if (limit) team[k].limit = limit_scratch(limit_block + per_limit * k, V, limit->E);
+    }
+    const size_t step = (size_t)V * 3;
     if (shared) {
         #pragma omp parallel num_threads(threads)
         for (int t = 0; t < T; ++t)
-            push_frame(p + (size_t)t * V * 3, V, a + (size_t)t * 3 * C, b + (size_t)t * 3 * C, radii + (size_t)t * radii_step, C,
-                       &mesh, margin, smooth, rounds, depth, before + t, after + t, buf, ints, flags);
+            push_and_limit(in + t * step, out + t * step, V, a + (size_t)t * 3 * C, b + (size_t)t * 3 * C,
+                           radii + (size_t)t * radii_step, C, &mesh, args, limit, before + t, after + t, torn + t, team);
     } else {
         #pragma omp parallel for num_threads(teams) schedule(dynamic)
         for (int t = 0; t < T; ++t) {
-            const int me = omp_get_thread_num();
+            PushTeam *mine = team + omp_get_thread_num();
             #pragma omp parallel num_threads(1)  /* this frame's own one-thread team */
-            push_frame(p + (size_t)t * V * 3, V, a + (size_t)t * 3 * C, b + (size_t)t * 3 * C, radii + (size_t)t * radii_step, C,
-                       &mesh, margin, smooth, rounds, depth, before + t, after + t, buf + (size_t)me * V * 20,
-                       ints + (size_t)me * V * 3, flags + 3 * me);
+            push_and_limit(in + t * step, out + t * step, V, a + (size_t)t * 3 * C, b + (size_t)t * 3 * C,
+                           radii + (size_t)t * radii_step, C, &mesh, args, limit, before + t, after + t, torn + t, mine);
         }
     }
     free(buf);
     free(ints);
-}
-
-/* The push-out's strain limit (hrr_garment.inference.collision.limit_push_strain) on one frame:
-   Jacobi passes of edge-length projection. Every edge longer than its limit moves its two ends
-   toward each other by half the excess each; a vertex moves by its corrections summed, times omega
-   over its degree. Stops once no edge is more than tol over its limit.
-   Only edges that can be over their limit are measured: after the first pass, those with an end
-   that moved in the last one (an edge whose ends stayed keeps its length), in any order: each
-   over-long edge keeps its correction (corr, 3 doubles), and a moved vertex gathers its edges'
-   corrections in its own fixed edge order (ve), so the sums, and the result, do not depend on the
-   order edges were measured in. A pass over a torn neighbourhood costs its size, not the mesh's
-   (36 of 37 thousand edges at 12,500 vertices never move); an earlier form kept the edges in
-   ascending order with a sort every pass, which cost more than the passes themselves.
-   The first pass measures the n_active edges the caller found over their limit (active[0..n_active),
-   every other edge being within it, which the caller measured already).
-   vertex_edges (indptr V + 1, indices): each vertex's edges. Scratch: corr (3 E doubles), touched
-   (V ints), vmark (V bytes), active (E ints), emark (E bytes: 1 listed for the next pass, 2 over
-   its limit in this one). */
-static void limit_frame(double *p, int V, int E, const int32_t *edges, const double *limit, const double *degree,
-                        const int32_t *ve_ptr, const int32_t *ve_idx, int iterations, double tol, double omega,
-                        double *corr, int32_t *touched, unsigned char *vmark, int32_t *active, int n_active,
-                        unsigned char *emark)
-{
-    memset(vmark, 0, (size_t)V);
-    memset(emark, 0, (size_t)E);
-    for (int it = 0; it < iterations; ++it) {
-        double worst = 0.0;
-        int n_touched = 0;
-        for (int k = 0; k < n_active; ++k) {
-            const int e = active[k];
-            const int i = edges[2 * e], j = edges[2 * e + 1];
-            const double dx = p[3 * j] - p[3 * i], dy = p[3 * j + 1] - p[3 * i + 1], dz = p[3 * j + 2] - p[3 * i + 2];
-            const double length = sqrt(dx * dx + dy * dy + dz * dz), excess = length - limit[e];
-            if (excess <= 0.0) continue;  /* its mark stays 1 (or 0): the gather skips it */
-            if (excess > worst) worst = excess;
-            const double c = 0.5 * excess / (length > 1e-12 ? length : 1e-12);
-            corr[3 * e] = c * dx; corr[3 * e + 1] = c * dy; corr[3 * e + 2] = c * dz;
-            emark[e] = 2;
-            if (!vmark[i]) { vmark[i] = 1; touched[n_touched++] = i; }
-            if (!vmark[j]) { vmark[j] = 1; touched[n_touched++] = j; }
-        }
-        if (worst <= tol) break;
-        for (int k = 0; k < n_touched; ++k) {  /* gather: corrections are fixed, so moving at once is Jacobi */
-            const int v = touched[k];
-            double x = 0.0, y = 0.0, z = 0.0;
-            for (int q = ve_ptr[v]; q < ve_ptr[v + 1]; ++q) {
-                const int e = ve_idx[q];
-                if (emark[e] != 2) continue;
-                const double s = edges[2 * e] == v ? 1.0 : -1.0;  /* the first end moves along the edge */
-                x += s * corr[3 * e]; y += s * corr[3 * e + 1]; z += s * corr[3 * e + 2];
-            }
-            const double w = omega / degree[v];
-            p[3 * v] += w * x; p[3 * v + 1] += w * y; p[3 * v + 2] += w * z;
-        }
-        for (int k = 0; k < n_active; ++k) emark[active[k]] = 0;
-        n_active = 0;
-        for (int k = 0; k < n_touched; ++k) {  /* the edges the next pass measures */
-            const int v = touched[k];
-            vmark[v] = 0;
-            for (int q = ve_ptr[v]; q < ve_ptr[v + 1]; ++q)
-                if (!emark[ve_idx[q]]) { emark[ve_idx[q]] = 1; active[n_active++] = ve_idx[q]; }
-        }
-    }
-}
-
-/* T frames of pushed points p (T, V, 3), limited in place. Each edge's limit is max_strain times
-   its rest length, or its length in the unpushed frame (T, V, 3) plus slack times its rest length
-   where that is longer (the push never has to undo a stretch it did not make, and may lengthen an
-   edge the decoder stretched by a little). torn[t]: whether frame t had an edge over its limit
-   (by more than a millionth of it) before. Frames in parallel. Returns 0, or -1 when the scratch
-   memory could not be had (nothing changed). */
-int hrr_limit_strain(double *p, const double *unpushed, int T, int V, int E, const int32_t *edges, const double *rest,
-                     double max_strain, double slack, const double *degree, const int32_t *ve_ptr, const int32_t *ve_idx,
-                     int iterations, double tol, double omega, int threads, unsigned char *torn)
-{
-    if (T <= 0) return 0;
-    if (threads < 1) threads = 1;
-    if (threads > T) threads = T;
-    const size_t per = sizeof(double) * 4 * (size_t)E + (sizeof(int32_t) + 1) * ((size_t)V + (size_t)E) + 64;
-    unsigned char *scratch = malloc(per * threads);
-    if (!scratch) return -1;
-    #pragma omp parallel for num_threads(threads) schedule(dynamic)
-    for (int t = 0; t < T; ++t) {
-        unsigned char *mine = scratch + per * (size_t)omp_get_thread_num();
-        double *corr = (double *)mine, *limit = corr + 3 * (size_t)E;
-        int32_t *touched = (int32_t *)(limit + E);
-        int32_t *active = touched + V;
-        unsigned char *vmark = (unsigned char *)(active + E), *emark = vmark + V;
-        double *pt = p + (size_t)t * V * 3;
-        const double *u = unpushed + (size_t)t * V * 3;
-        int over = 0, n_long = 0;
-        /* squared lengths: a square root only where the unpushed edge is longer than allowed (a
-           stream limits every frame, and nearly every edge is within its limit) */
-        for (int e = 0; e < E; ++e) {
-            const int i = edges[2 * e], j = edges[2 * e + 1];
-            const double ux = u[3 * j] - u[3 * i], uy = u[3 * j + 1] - u[3 * i + 1], uz = u[3 * j + 2] - u[3 * i + 2];
-            const double before2 = ux * ux + uy * uy + uz * uz, allowed = max_strain * rest[e], extra = slack * rest[e];
-            const double unslacked = allowed - extra;  /* an unpushed edge longer than this sets its own limit */
-            const double lim = unslacked > 0.0 && before2 <= unslacked * unslacked ? allowed
-                               : (sqrt(before2) + extra > allowed ? sqrt(before2) + extra : allowed);
-            limit[e] = lim;
-            const double dx = pt[3 * j] - pt[3 * i], dy = pt[3 * j + 1] - pt[3 * i + 1], dz = pt[3 * j + 2] - pt[3 * i + 2];
-            const double length2 = dx * dx + dy * dy + dz * dz;
-            if (length2 > lim * lim) {
-                active[n_long++] = e;
-                over |= length2 > lim * lim * ((1.0 + 1e-6) * (1.0 + 1e-6));
-            }
-        }
-        torn[t] = (unsigned char)over;
-        if (over)
-            limit_frame(pt, V, E, edges, limit, degree, ve_ptr, ve_idx, iterations, tol, omega, corr, touched, vmark,
-                        active, n_long, emark);
-    }
-    free(scratch);
-    return 0;
+    free(limit_block);
 }
 
 /* Y (n, out) = X (n, in) W^T + b, with W^T (in, out) packed in panels of PANEL columns: panel k

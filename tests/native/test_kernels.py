@@ -45,12 +45,13 @@ def test_native_push_out_equals_numpy(rng, follow):
     squeezed = rest.copy()
     squeezed[..., [0, 2]] = centre + 0.85 * (rest[..., [0, 2]] - centre)  # into the hips
     squeezed += rng.normal(scale=0.004, size=squeezed.shape)
+    squeezed = squeezed.astype(np.float32)  # as decoders give them, and the kernel takes them
     a, b = DEFAULT_BODY.pose_motion(motion)
     mean = mean_operator(skirt.faces, len(skirt.vertices))
     limits = None if follow is None else EdgeLimits.of(skirt.faces, skirt.vertices)
     for rounds in (1, 2):
         settings = PushOutSettings(margin=0.002, smooth=4, rounds=rounds, depth=0.005, follow=follow or 0)
-        ref = _push_frames(squeezed.copy(), (a, b, DEFAULT_BODY.radii), mean, settings, limits)
+        ref = _push_frames(squeezed.astype(np.float64), (a, b, DEFAULT_BODY.radii), mean, settings, limits)
         steps = PushSteps(mean, 0.002, 4, rounds, 0.005, None if limits is None else limits.push_mesh(settings))
         got = push_out_frames(lib, squeezed, a, b, DEFAULT_BODY.radii, steps, threads=2)
         assert ref[1].max() > 0.05  # the test squeezes the skirt into the body
@@ -60,9 +61,48 @@ def test_native_push_out_equals_numpy(rng, follow):
             one = push_out_frames(lib, squeezed[t:t + 1], a[t:t + 1], b[t:t + 1], DEFAULT_BODY.radii, steps, threads=2)
             assert np.array_equal(one[0][0], got[0][t]) and one[1][0] == got[1][t] and one[2][0] == got[2][t]
     if follow:  # the followers moved: more of the skirt than without the follow
-        plain = _push_frames(squeezed.copy(), (a, b, DEFAULT_BODY.radii), mean, PushOutSettings(follow=0, depth=0.005), limits)
-        moved = lambda out: (np.abs(out[0] - squeezed.astype(np.float32)).max(-1) > 0).mean()  # noqa: E731
+        plain = _push_frames(squeezed.astype(np.float64), (a, b, DEFAULT_BODY.radii), mean, PushOutSettings(follow=0, depth=0.005), limits)
+        moved = lambda out: (np.abs(out[0] - squeezed).max(-1) > 0).mean()  # noqa: E731
         assert moved(ref) > moved(plain)
+
+
+def test_the_push_limits_each_frame_as_the_strain_limit_does_after_it():
+    """With a strain limit, the native push-out limits each frame right after its push, measuring
+    only the edges of the vertices the push moved: what the strain limit run afterwards over every
+    edge gives (within the float32 rounding of the pushed frames it then starts from), the same torn
+    frames, and the same bits batched or a frame at a time."""
+    from hrr_garment.body.capsules import DEFAULT_BODY
+    from hrr_garment.garment.templates import make_garment
+    from hrr_garment.inference.collision import PUSH_OUT, EdgeLimits, _native_limit, mean_operator
+    from hrr_garment.native import load_kernel
+    from hrr_garment.native.body import PushSteps, limit_strain, push_out_frames
+
+    lib = load_kernel()
+    if lib is None:
+        pytest.skip("no C compiler")
+    skirt = make_garment("skirt", 300)
+    motion = synthesize("dance", 0.3, seed=4)
+    rest = from_body_frame(to_body_frame(np.repeat(skirt.vertices[None], motion.num_frames, 0).astype(np.float64), motion), motion)
+    centre = rest[:, :, [0, 2]].mean(1, keepdims=True)
+    squeezed = rest.copy()
+    squeezed[..., [0, 2]] = centre + 0.7 * (rest[..., [0, 2]] - centre)  # deep into the hips: pushes that tear
+    squeezed = (squeezed + np.random.default_rng(3).normal(scale=0.004, size=squeezed.shape)).astype(np.float32)
+    squeezed[::3, :, 0] += 1.0  # and frames a metre clear of the body
+    a, b = DEFAULT_BODY.pose_motion(motion)
+    limits = EdgeLimits.of(skirt.faces, skirt.vertices)
+    steps = PushSteps(mean_operator(skirt.faces, len(skirt.vertices)), 0.002, 4, 1, 0.005, limits.push_mesh(PUSH_OUT))
+    strain = _native_limit(limits, PUSH_OUT.max_strain, PUSH_OUT.stretch_slack)
+    pushed, before, after, untouched = push_out_frames(lib, squeezed, a, b, DEFAULT_BODY.radii, steps, threads=2)
+    assert not untouched.any()  # no limit asked for
+    want, torn = limit_strain(lib, pushed, squeezed, strain, threads=2)
+    assert 0 < torn.sum() < len(torn), torn
+    limited = steps._replace(limit=strain)
+    got, before2, after2, torn2 = push_out_frames(lib, squeezed, a, b, DEFAULT_BODY.radii, limited, threads=2)
+    assert np.array_equal(torn2, torn) and np.abs(got - want).max() < 1e-6 and np.abs(got - pushed).max() > 1e-3
+    assert np.array_equal(before2, before) and np.array_equal(after2, after)  # the push's own fractions
+    for t in np.r_[np.nonzero(torn)[0][:2], np.nonzero(~torn)[0][:1]]:  # one frame at a time (streaming)
+        one = push_out_frames(lib, squeezed[t:t + 1], a[t:t + 1], b[t:t + 1], DEFAULT_BODY.radii, limited, threads=2)
+        assert np.array_equal(one[0][0], got[t]) and one[3][0] == torn[t]
 
 
 def test_the_native_strain_limit_matches_the_numpy_reference():
