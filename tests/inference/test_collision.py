@@ -63,3 +63,33 @@ def test_a_push_that_would_tear_the_cloth_is_undone_as_far_as_it_tears():
     change = np.linalg.norm(limited[1] - pushed[1], axis=-1)
     far = np.linalg.norm(skirt.vertices[:, None] - skirt.vertices[moved][None], axis=-1).min(1) > 0.15
     assert (change == 0).mean() > 0.5 and change[far].max() < 0.005
+
+
+def test_the_push_out_with_its_limit_is_the_same_without_the_kernel(monkeypatch):
+    """push_out with the strain limit: the kernel's path (each frame limited right after its push)
+    and the numpy reference (every frame pushed, then limited) agree on the frames and the report."""
+    from hrr_garment import native
+    from hrr_garment.garment.templates import make_garment
+    from hrr_garment.inference.collision import EdgeLimits, push_out
+
+    if native.load_kernel() is None:
+        import pytest
+
+        pytest.skip("no C compiler")
+    skirt = make_garment("skirt", 300)
+    motion = synthesize("dance", 0.3, seed=4)
+    rest = from_body_frame(to_body_frame(np.repeat(skirt.vertices[None], motion.num_frames, 0).astype(np.float64), motion), motion)
+    centre = rest[:, :, [0, 2]].mean(1, keepdims=True)
+    squeezed = rest.copy()
+    squeezed[..., [0, 2]] = centre + 0.7 * (rest[..., [0, 2]] - centre)  # deep into the hips: the push tears
+    squeezed = squeezed.astype(np.float32)
+    limits = EdgeLimits.of(skirt.faces, skirt.vertices)
+    native_out, native_report = push_out(squeezed, motion, skirt.faces, limits=limits)
+    monkeypatch.setattr(native, "load_kernel", lambda *args, **kwargs: None)
+    numpy_out, numpy_report = push_out(squeezed, motion, skirt.faces, limits=limits)
+    assert np.abs(native_out - squeezed).max() > 0.01 and native_report.inside_before > 0.05
+    unlimited, _ = push_out(squeezed, motion, skirt.faces)
+    assert np.abs(unlimited - numpy_out).max() > 1e-3  # the limit undid part of the push
+    assert np.abs(native_out - numpy_out).max() < 1e-5
+    assert np.allclose([native_report.inside_after, native_report.worst_after],
+                       [numpy_report.inside_after, numpy_report.worst_after], atol=0.01)
