@@ -10,10 +10,16 @@ the push-out off), then the push-out under each setting asked for, and reports p
   alone (what the limit had to repair);
 - ``strain_max`` / ``strain_p99``: edge length over rest length of the output (worst frame; p99
   over every edge of every frame), beside the unpushed output's and the simulation's;
-- ``inside_after_pct``: vertices more than 5 mm inside the body after the push-out;
+- ``inside_after_pct``: vertices more than 5 mm inside the body after the push-out, and
+  ``inside_before_pct`` before it (after the subspace push, in its rows);
+- ``pve_mm``: the mean vertex error against the dataset's one simulation of each clip (one chaotic
+  truth: it compares settings on the same frames, it does not rank models; hrr-eval does);
 - ``us_per_character``: the push-out's median seconds per character-frame, frames pushed ``crowd``
   at a time as a crowd's step pushes its characters (report off, as a stream runs it), over
   ``repeat`` passes.
+
+With ``--subspace-push`` every setting is also run after the push in the fast decoder's subspace
+(:mod:`hrr_garment.inference.subspace_push`), its ``us_per_character`` the two together.
 
     python tools/push_out_analysis.py --model hrr_work/models/dress-real-quick \\
         --dataset hrr_work/datasets/dress-real-quick.h5 --split test --follow 0 6 --slack 0 0.1 --sequences 12
@@ -29,17 +35,22 @@ import time
 import numpy as np
 
 
-def _timed_us(vertices: np.ndarray, motion, faces, animator, settings, crowd: int, repeat: int) -> float:
-    """Median microseconds per frame of the push-out, ``crowd`` frames a call (report off)."""
+def _timed_us(vertices: np.ndarray, motion, faces, animator, settings, crowd: int, repeat: int, subspace=None) -> float:
+    """Median microseconds per frame of the push-out (after the ``subspace`` push where given),
+    ``crowd`` frames a call (report off)."""
     from hrr_garment.inference.collision import push_out
 
     per_frame = []
+    body = animator.body().body
     for _ in range(repeat):
         for start in range(0, len(vertices) - crowd + 1, crowd):
-            sl = slice(start, start + crowd)
+            sl, part = slice(start, start + crowd), motion.slice(start, start + crowd)
             t0 = time.perf_counter()
-            push_out(vertices[sl], motion.slice(start, start + crowd), faces, body=animator.body().body,
-                     settings=settings, mean=animator.smoothing, limits=animator.edge_limits, report=False)
+            frames = vertices[sl]
+            if subspace is not None:
+                frames = subspace(frames, part, (*body.pose_motion(part), body.radii), settings.margin)
+            push_out(frames, part, faces, body=body, settings=settings, mean=animator.smoothing, limits=animator.edge_limits,
+                     report=False)
             per_frame.append((time.perf_counter() - t0) / crowd)
     return 1e6 * float(np.median(per_frame)) if per_frame else float("nan")
 
@@ -52,37 +63,53 @@ def push_out_rows(follows: list[int], slope: float, slacks: list[float]) -> dict
             for f in follows for k in slacks}
 
 
-def analyse(model: str, dataset: str, split: str, rows: dict, sequences: int, crowd: int, repeat: int) -> dict:
-    """``rows``: label -> :class:`~hrr_garment.inference.collision.PushOutSettings` (:func:`push_out_rows`)."""
+def analyse(model: str, dataset: str, split: str, rows: dict, sequences: int, crowd: int, repeat: int,
+            subspace_push: bool = False) -> dict:
+    """``rows``: label -> :class:`~hrr_garment.inference.collision.PushOutSettings` (:func:`push_out_rows`);
+    ``subspace_push``: each also after the push in the fast decoder's subspace."""
     from hrr_garment.data.dataset import GarmentDataset
     from hrr_garment.inference.animator import Animator
     from hrr_garment.inference.collision import limit_push_strain, push_out
+    from hrr_garment.inference.subspace_push import SubspacePush
     from hrr_garment.sim.quality import body_signed_distance, edge_strain
 
     animator = Animator.load(model)
     ds = GarmentDataset(dataset)
     names = ds.splits[split][:sequences]
     faces, rest, edges = ds.template.faces, ds.template.vertices, ds.template.edges()
-    found = {k: {"limited": [], "torn": [], "strain": [], "inside": [], "us": []} for k in rows}
+    body = animator.body().body
+    subspace = None
+    if subspace_push:
+        if animator.bundle.subspace is None:
+            raise SystemExit(f"{model}: no fast decoder (subspace) to push in")
+        subspace = SubspacePush.of(animator.bundle.subspace.basis.numpy(), rest, edges)
+    variants = [(label, settings, None) for label, settings in rows.items()]
+    variants += [(f"{label}, subspace push", settings, subspace) for label, settings in rows.items()] if subspace else []
+    found = {k: {"limited": [], "torn": [], "strain": [], "inside": [], "before": [], "pve": [], "us": []}
+             for k, _, _ in variants}
     plain = {"unpushed": [], "simulation": []}
+    unpushed_pve = []
     for name in names:
         record = ds.sequence(name)
         anim = animator.animate(record.motion, collision=False)
         plain["unpushed"].append(edge_strain(anim.vertices, rest, edges))
         plain["simulation"].append(edge_strain(record.garment, rest, edges))
-        for label, settings in rows.items():  # the push alone (its follow included), then with its strain limit
-            bare, _ = push_out(anim.vertices, record.motion, faces, body=animator.body().body,
-                               settings=dataclasses.replace(settings, max_strain=np.inf), mean=animator.smoothing,
-                               limits=animator.edge_limits, report=False)
-            _, torn = limit_push_strain(bare, anim.vertices, animator.edge_limits, settings.max_strain,
-                                        slack=settings.stretch_slack)
-            out, _ = push_out(anim.vertices, record.motion, faces, body=animator.body().body, settings=settings,
-                              mean=animator.smoothing, limits=animator.edge_limits, report=False)
+        unpushed_pve.append(np.linalg.norm(anim.vertices - record.garment, axis=-1).mean(1))
+        capsules = (*body.pose_motion(record.motion), body.radii)
+        for label, settings, push in variants:  # the push alone (its follow included), then with its strain limit
+            frames = anim.vertices if push is None else push(anim.vertices, record.motion, capsules, settings.margin)
+            bare, _ = push_out(frames, record.motion, faces, body=body, settings=dataclasses.replace(settings, max_strain=np.inf),
+                               mean=animator.smoothing, limits=animator.edge_limits, report=False)
+            _, torn = limit_push_strain(bare, frames, animator.edge_limits, settings.max_strain, slack=settings.stretch_slack)
+            out, _ = push_out(frames, record.motion, faces, body=body, settings=settings, mean=animator.smoothing,
+                              limits=animator.edge_limits, report=False)
             found[label]["torn"].append(torn)
             found[label]["limited"].append(np.abs(out - bare).max((1, 2)) > 0)
             found[label]["strain"].append(edge_strain(out, rest, edges))
-            found[label]["inside"].append((body_signed_distance(out, record.motion, animator.body().body) < -0.005).mean(1))
-            found[label]["us"].append(_timed_us(anim.vertices, record.motion, faces, animator, settings, crowd, repeat))
+            found[label]["before"].append((body_signed_distance(frames, record.motion, body) < -0.005).mean(1))
+            found[label]["inside"].append((body_signed_distance(out, record.motion, body) < -0.005).mean(1))
+            found[label]["pve"].append(np.linalg.norm(out - record.garment, axis=-1).mean(1))
+            found[label]["us"].append(_timed_us(anim.vertices, record.motion, faces, animator, settings, crowd, repeat, push))
     report = {"model": model, "dataset": dataset, "split": split, "sequences": names, "crowd": crowd, "rows": {}}
     for label, f in found.items():
         strain = np.concatenate(f["strain"])
@@ -90,12 +117,15 @@ def analyse(model: str, dataset: str, split: str, rows: dict, sequences: int, cr
             "limited_frames_pct": round(100 * float(np.concatenate(f["limited"]).mean()), 2),
             "torn_before_limit_pct": round(100 * float(np.concatenate(f["torn"]).mean()), 2),
             "strain_max": round(float(strain.max()), 3), "strain_p99": round(float(np.percentile(strain, 99)), 4),
+            "inside_before_pct": round(100 * float(np.concatenate(f["before"]).mean()), 3),
             "inside_after_pct": round(100 * float(np.concatenate(f["inside"]).mean()), 3),
+            "pve_mm": round(1000 * float(np.concatenate(f["pve"]).mean()), 2),
             "us_per_character": round(float(np.median(f["us"])), 1)}
     for label, strains in plain.items():
         strain = np.concatenate(strains)
         report["rows"][label] = {"strain_max": round(float(strain.max()), 3),
                                  "strain_p99": round(float(np.percentile(strain, 99)), 4)}
+    report["rows"]["unpushed"]["pve_mm"] = round(1000 * float(np.concatenate(unpushed_pve).mean()), 2)
     return report
 
 
@@ -111,10 +141,12 @@ def main() -> None:
     parser.add_argument("--sequences", type=int, default=12, help="the split's first N clips")
     parser.add_argument("--crowd", type=int, default=32, help="frames per timed push-out call (a crowd's characters)")
     parser.add_argument("--repeat", type=int, default=2)
+    parser.add_argument("--subspace-push", action="store_true",
+                        help="each setting also after the push in the fast decoder's subspace")
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args()
     report = analyse(args.model, args.dataset, args.split, push_out_rows(args.follow, args.slope, args.slack),
-                     args.sequences, args.crowd, args.repeat)
+                     args.sequences, args.crowd, args.repeat, args.subspace_push)
     if args.json:
         print(json.dumps(report))
         return

@@ -32,3 +32,25 @@ def test_bench_inference_reports_every_key(capsys):
     assert set(report["stream_stage_p50_ms"]) == {"features", "encoder", "decoder", "world", "push_out"}
     bodies = report["crowd_bodies"]["3"]  # three characters on three bodies, against one body for all
     assert bodies["p99_ratio_median"] > 0 and len(bodies["bodies"]) == len(bodies["one_body"]) == 1
+
+
+def test_the_push_out_analysis_reports_each_setting_with_and_without_the_subspace_push(trained):
+    """tools/push_out_analysis.py on the tiny trained model: every row keeps its keys, and the push
+    in the fast decoder's subspace leaves no more of the cloth inside the body than the decoder did."""
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).parents[2] / "tools" / "push_out_analysis.py"
+    spec = importlib.util.spec_from_file_location("push_out_analysis", path)
+    tool = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(tool)
+    root, data, _ = trained
+    report = tool.analyse(str(root / "model"), str(data), "test", tool.push_out_rows([0], 0.25, [0.1]), sequences=1,
+                          crowd=8, repeat=1, subspace_push=True)
+    plain, pushed = report["rows"]["follow 0, slack 0.1"], report["rows"]["follow 0, slack 0.1, subspace push"]
+    for row in (plain, pushed):
+        assert set(row) >= {"limited_frames_pct", "torn_before_limit_pct", "strain_max", "inside_before_pct",
+                            "inside_after_pct", "pve_mm", "us_per_character"}
+        assert row["pve_mm"] > 0 and row["us_per_character"] > 0
+    assert pushed["inside_before_pct"] <= plain["inside_before_pct"]
+    assert report["rows"]["unpushed"]["pve_mm"] > 0

@@ -1,0 +1,79 @@
+"""The push in the garment's own subspace: a decoded frame whose cloth lies inside the body is
+moved, before the mesh push-out, by the combination of the fast decoder's principal components
+(:mod:`hrr_garment.models.subspace`) that best takes the cloth out.
+
+Why: the mesh push-out (:mod:`.collision`) moves each vertex to the nearest surface; where a trained
+model decodes a patch centimetres inside a curved limb, its vertices leave along normals that
+diverge and the cloth tears, which the strain limit then undoes (docs/decisions/0023: 58.5 % of
+frames on the trained 4,156-vertex subset model). The principal components are the ways the
+garment moves as a whole; moving along them a region comes out together, and the mesh push-out
+has millimetres left to do.
+
+Per frame, ``iterations`` times: the vertices within the push-out's margin of the body (S), each
+with the depth it must rise along the nearest capsule's normal (plus ``clearance``), give one row
+each of J (|S| x k): the normal (in the body frame) against each component at that vertex. The
+coefficients s solve (J^T J + w G + r |S| I) s = J^T depth, where G (k x k, made once) is the
+first-order stretch of the garment's edges (along their rest directions) per pair of components:
+a move that would stretch the cloth costs ``strain_weight`` per square metre of stretch, as a
+missed millimetre of depth does. The frame moves by s over the components, turned into the world.
+A frame with no vertex near the body is left exactly as it is.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..body.capsules import frames_signed_distance
+from ..motion.frame import body_heading
+from ..motion.motion import Motion
+
+
+@dataclass(frozen=True)
+class SubspacePush:
+    """The subspace push of one garment and basis (:meth:`of`), run on frames by calling it."""
+
+    basis: np.ndarray  # (k, V, 3) float64, orthonormal components in the body frame
+    stretch: np.ndarray  # (k, k) G: the edges' first-order stretch per pair of components
+    strain_weight: float = 10.0  # w: what a square metre of edge stretch costs against one of missed depth
+    ridge: float = 1e-6  # r: per vertex in S, keeps the solve well posed where few components reach it
+    clearance: float = 0.003  # metres past the push-out's margin the subspace aims for (the mesh push-out does the rest)
+    iterations: int = 2  # solves a frame (a move can bring other vertices near the body)
+
+    @classmethod
+    def of(cls, basis: np.ndarray, rest: np.ndarray, edges: np.ndarray, components: int | None = None,
+           **settings) -> "SubspacePush":
+        """``basis`` (K, 3V) orthonormal rows (:class:`~hrr_garment.models.subspace.SubspaceDecoder`'s),
+        the template's ``rest`` vertices (V, 3) and ``edges`` (E, 2); the first ``components`` (all: None)."""
+        k = len(basis) if components is None else int(components)
+        if not 1 <= k <= len(basis):
+            raise ValueError(f"components must be in 1..{len(basis)}, got {components}")
+        b3 = np.asarray(basis[:k], np.float64).reshape(k, len(rest), 3)
+        direction = rest[edges[:, 1]].astype(np.float64) - rest[edges[:, 0]]
+        direction /= np.maximum(np.linalg.norm(direction, axis=1, keepdims=True), 1e-12)
+        rows = np.einsum("ei,kei->ek", direction, b3[:, edges[:, 1]] - b3[:, edges[:, 0]])  # (E, k)
+        return cls(b3, rows.T @ rows, **settings)
+
+    def __call__(self, vertices: np.ndarray, motion: Motion, capsules: tuple[np.ndarray, np.ndarray, np.ndarray],
+                 margin: float) -> np.ndarray:
+        """(T, V, 3) world vertices, their frames' ``motion`` (the body frame's heading) and posed
+        ``capsules`` (a, b (T, C, 3), radii (C,) or (T, C)) -> the moved copy, float32."""
+        a, b, radii = capsules
+        _, turn = body_heading(motion)  # (T, 3, 3) body frame -> world: local rows = world rows @ turn
+        out = np.array(vertices, np.float64)
+        k, v = self.basis.shape[:2]
+        flat = self.basis.reshape(k, -1)
+        for t in range(len(out)):
+            frame_radii = radii[t] if np.ndim(radii) == 2 else radii
+            for _ in range(self.iterations):
+                d, n = frames_signed_distance(out[t:t + 1], a[t:t + 1], b[t:t + 1], radii=frame_radii)
+                near = np.nonzero(d[0] < margin)[0]
+                if not len(near):
+                    break
+                depth = margin + self.clearance - d[0, near]
+                jac = np.einsum("si,ksi->sk", n[0, near] @ turn[t], self.basis[:, near])  # (|S|, k)
+                system = jac.T @ jac + self.strain_weight * self.stretch + self.ridge * len(near) * np.eye(k)
+                s = np.linalg.solve(system, jac.T @ depth)
+                out[t] += (s @ flat).reshape(v, 3) @ turn[t].T
+        return out.astype(np.float32)

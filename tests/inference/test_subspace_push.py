@@ -1,0 +1,81 @@
+"""The push in the garment's subspace (hrr_garment.inference.subspace_push): cloth inside the body
+comes out by a move of the basis alone, and a frame clear of the body is left as it is."""
+
+import numpy as np
+
+from hrr_garment.motion.frame import from_body_frame, to_body_frame
+from hrr_garment.motion.synth import synthesize
+
+
+def _skirt_and_basis():
+    """A tiny skirt and an orthonormal basis of its body-frame moves: the principal components of
+    frames widened and narrowed about its axis, shifted and bent at random (a decoder's outputs)."""
+    from hrr_garment.garment.templates import make_garment
+    from hrr_garment.models.subspace import principal_components
+
+    skirt = make_garment("skirt", 300)
+    rng = np.random.default_rng(7)
+    rest = skirt.vertices.astype(np.float64)
+    axis = rest.mean(0)
+    radial = rest - axis
+    radial[:, 1] = 0.0
+    frames = []
+    for _ in range(96):
+        height = (rest[:, 1] - rest[:, 1].min())[:, None]
+        bend = rng.normal(scale=0.05, size=3) * height  # the hem swung further than the waist
+        frames.append(rest + rng.normal(scale=0.15) * radial + rng.normal(scale=0.02, size=3) + bend)
+    _, basis, _ = principal_components(np.stack(frames).astype(np.float32), 8)
+    return skirt, basis
+
+
+def test_the_subspace_push_takes_the_cloth_out_along_the_basis_alone():
+    from hrr_garment.body.capsules import DEFAULT_BODY, frames_signed_distance
+    from hrr_garment.inference.subspace_push import SubspacePush
+
+    skirt, basis = _skirt_and_basis()
+    motion = synthesize("walk", 0.3, seed=2)
+    rest = from_body_frame(np.repeat(skirt.vertices[None], motion.num_frames, 0).astype(np.float64), motion)  # on the body
+    centre = rest[:, :, [0, 2]].mean(1, keepdims=True)
+    squeezed = rest.copy()
+    squeezed[..., [0, 2]] = centre + 0.8 * (rest[..., [0, 2]] - centre)  # 20 % narrower: into the hips
+    squeezed = squeezed.astype(np.float32)
+    squeezed[-1, :, 0] += 1.0  # the last frame a metre clear of the body
+    a, b = DEFAULT_BODY.pose_motion(motion)
+    push = SubspacePush.of(basis, skirt.vertices, skirt.edges())
+    moved = push(squeezed, motion, (a, b, DEFAULT_BODY.radii), margin=0.002)
+    assert moved.dtype == np.float32 and moved.shape == squeezed.shape
+    before = frames_signed_distance(squeezed[:-1].astype(np.float64), a[:-1], b[:-1], DEFAULT_BODY.radii)[0]
+    after = frames_signed_distance(moved[:-1].astype(np.float64), a[:-1], b[:-1], DEFAULT_BODY.radii)[0]
+    depth = lambda d: np.maximum(-d, 0.0).sum()  # noqa: E731
+    assert (before < -0.005).mean() > 0.05 and (after < -0.005).mean() < 0.7 * (before < -0.005).mean()
+    assert depth(after) < 0.5 * depth(before)  # what of the cloth is still inside, the basis cannot reach
+    assert np.array_equal(moved[-1], squeezed[-1])  # nothing near the body: untouched
+    # the move, in the body frame, lies in the basis's span (float32 rounding aside)
+    step = (to_body_frame(moved.astype(np.float64), motion) - to_body_frame(squeezed.astype(np.float64), motion))
+    flat = step.reshape(len(step), -1)
+    residual = flat - (flat @ basis.T.astype(np.float64)) @ basis.astype(np.float64)
+    assert np.abs(flat).max() > 0.01 and np.abs(residual).max() < 1e-5
+    # a frame's move does not depend on the others it is pushed with
+    one = push(squeezed[2:3], motion.slice(2, 3), (a[2:3], b[2:3], DEFAULT_BODY.radii), margin=0.002)
+    assert np.array_equal(one[0], moved[2])
+
+
+def test_the_stretch_weight_keeps_the_cloth_from_stretching():
+    """Weighting the edges' stretch trades depth for a move that keeps the cloth's edge lengths."""
+    from hrr_garment.body.capsules import DEFAULT_BODY
+    from hrr_garment.inference.subspace_push import SubspacePush
+    from hrr_garment.sim.quality import edge_strain
+
+    skirt, basis = _skirt_and_basis()
+    motion = synthesize("walk", 0.2, seed=2)
+    rest = from_body_frame(np.repeat(skirt.vertices[None], motion.num_frames, 0).astype(np.float64), motion)  # on the body
+    centre = rest[:, :, [0, 2]].mean(1, keepdims=True)
+    squeezed = rest.copy()
+    squeezed[..., [0, 2]] = centre + 0.8 * (rest[..., [0, 2]] - centre)
+    squeezed = squeezed.astype(np.float32)
+    capsules = (*DEFAULT_BODY.pose_motion(motion), DEFAULT_BODY.radii)
+    loose = SubspacePush.of(basis, skirt.vertices, skirt.edges(), strain_weight=0.0)(squeezed, motion, capsules, 0.002)
+    stiff = SubspacePush.of(basis, skirt.vertices, skirt.edges(), strain_weight=100.0)(squeezed, motion, capsules, 0.002)
+    edges = skirt.edges()
+    stretch = lambda v: np.abs(edge_strain(v, skirt.vertices, edges) - edge_strain(squeezed, skirt.vertices, edges)).mean()  # noqa: E731
+    assert stretch(stiff) < stretch(loose)
