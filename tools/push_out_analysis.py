@@ -35,22 +35,18 @@ import time
 import numpy as np
 
 
-def _timed_us(vertices: np.ndarray, motion, faces, animator, settings, crowd: int, repeat: int, subspace=None) -> float:
-    """Median microseconds per frame of the push-out (after the ``subspace`` push where given),
-    ``crowd`` frames a call (report off)."""
+def _timed_us(vertices: np.ndarray, motion, faces, animator, settings, crowd: int, repeat: int) -> float:
+    """Median microseconds per frame of the push-out (its subspace push included where
+    ``settings`` has one), ``crowd`` frames a call (report off)."""
     from hrr_garment.inference.collision import push_out
 
     per_frame = []
-    body = animator.body().body
     for _ in range(repeat):
         for start in range(0, len(vertices) - crowd + 1, crowd):
-            sl, part = slice(start, start + crowd), motion.slice(start, start + crowd)
+            sl = slice(start, start + crowd)
             t0 = time.perf_counter()
-            frames = vertices[sl]
-            if subspace is not None:
-                frames = subspace(frames, part, (*body.pose_motion(part), body.radii), settings.margin)
-            push_out(frames, part, faces, body=body, settings=settings, mean=animator.smoothing, limits=animator.edge_limits,
-                     report=False)
+            push_out(vertices[sl], motion.slice(start, start + crowd), faces, body=animator.body().body, settings=settings,
+                     mean=animator.smoothing, limits=animator.edge_limits, report=False)
             per_frame.append((time.perf_counter() - t0) / crowd)
     return 1e6 * float(np.median(per_frame)) if per_frame else float("nan")
 
@@ -109,7 +105,8 @@ def analyse(model: str, dataset: str, split: str, rows: dict, sequences: int, cr
             found[label]["before"].append((body_signed_distance(frames, record.motion, body) < -0.005).mean(1))
             found[label]["inside"].append((body_signed_distance(out, record.motion, body) < -0.005).mean(1))
             found[label]["pve"].append(np.linalg.norm(out - record.garment, axis=-1).mean(1))
-            found[label]["us"].append(_timed_us(anim.vertices, record.motion, faces, animator, settings, crowd, repeat, push))
+            timed = settings if push is None else dataclasses.replace(settings, subspace=push)
+            found[label]["us"].append(_timed_us(anim.vertices, record.motion, faces, animator, timed, crowd, repeat))
     report = {"model": model, "dataset": dataset, "split": split, "sequences": names, "crowd": crowd, "rows": {}}
     for label, f in found.items():
         strain = np.concatenate(f["strain"])

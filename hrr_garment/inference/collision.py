@@ -18,15 +18,20 @@ this module's numpy version is the reference and the fallback.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from scipy.sparse import csr_matrix
 
 from ..body.capsules import DEFAULT_BODY, BodyModel, frames_signed_distance
 from ..garment.smoothing import mean_operator
+from ..motion.frame import body_heading
 from ..motion.motion import Motion
 from ..sim.quality import PENETRATION_DEPTH_M
 from .edge_limits import EdgeLimits
+
+if TYPE_CHECKING:
+    from .subspace_push import SubspacePush
 
 # edges a push may stretch to (times their rest length): the simulator's own data reach 2.1-2.5 at
 # their worst frame and 1.12-1.15 at p99; a push that needs more is across a limb, not out of the body
@@ -64,6 +69,9 @@ class PushOutSettings:
     # repairs tears, not a push that lengthens an already long edge by a hair
     stretch_slack: float = STRETCH_SLACK
     chunk: int = 64  # frames processed at once
+    # the push in the garment's subspace before the mesh push (.subspace_push; None: none), made
+    # per bundle (Animator.push_settings)
+    subspace: "SubspacePush | None" = None
 
 
 PUSH_OUT = PushOutSettings()
@@ -101,6 +109,7 @@ def push_out(vertices: np.ndarray, motion: Motion, faces: np.ndarray, *, body: B
     from ..native.body import PushSteps, push_out_frames
 
     lib = load_kernel()
+    turn = None if settings.subspace is None else body_heading(motion)[1]
     if lib is not None:  # the same steps in C, frames in parallel: numpy's per-step overheads dominated.
         # Each frame converted to float64, pushed, limited and converted back while it is in cache
         # (the limit measuring only the edges of the vertices the push moved): a 32-character crowd
@@ -109,12 +118,16 @@ def push_out(vertices: np.ndarray, motion: Motion, faces: np.ndarray, *, body: B
         torn = np.zeros(len(out), bool)
         steps = PushSteps(mean=mean, margin=margin, smooth=smooth, rounds=rounds, depth=depth,
                           mesh=None if limits is None else limits.push_mesh(settings),
-                          limit=None if limits is None else _native_limit(limits, settings.max_strain, settings.stretch_slack))
+                          limit=None if limits is None else _native_limit(limits, settings.max_strain, settings.stretch_slack),
+                          subspace=None if settings.subspace is None else settings.subspace.native)
         for start in range(0, len(out), chunk):
             sl = slice(start, start + chunk)
-            _, before[sl], after[sl], torn[sl] = push_out_frames(lib, vertices[sl], a[sl], b=b[sl], radii=framed(sl), steps=steps,
+            _, before[sl], after[sl], torn[sl] = push_out_frames(lib, vertices[sl], (a[sl], b[sl], framed(sl)), steps,
+                                                                 turn=None if turn is None else turn[sl],
                                                                  threads=default_threads(), out=out[sl])
     else:
+        if settings.subspace is not None:
+            vertices = settings.subspace(vertices, motion, (a, b, radii), margin)
         out = np.empty(vertices.shape, np.float32)
         for start in range(0, len(out), chunk):
             sl = slice(start, start + chunk)

@@ -18,7 +18,8 @@ class PushSteps(NamedTuple):
     faces, the ``margin`` outside the body, ``smooth`` passes, ``rounds`` of pushes and the
     ``depth`` beyond which a vertex counts as inside; ``mesh`` (:class:`PushMesh`) the
     neighbour-follow and the patches measured against the capsules near them (None: neither);
-    ``limit`` (:class:`StrainLimit`) the strain limit each frame gets right after its push (None: none)."""
+    ``limit`` (:class:`StrainLimit`) the strain limit each frame gets right after its push (None: none);
+    ``subspace`` (:class:`SubspaceMove`) the push in the garment's subspace before it (None: none)."""
 
     mean: object
     margin: float
@@ -27,6 +28,7 @@ class PushSteps(NamedTuple):
     depth: float
     mesh: "PushMesh | None" = None
     limit: "StrainLimit | None" = None
+    subspace: "SubspaceMove | None" = None
 
     def arguments(self) -> "_PushArgs":
         """The kernel's PushArgs of these steps."""
@@ -38,6 +40,27 @@ class _PushArgs(ctypes.Structure):
 
     _fields_ = [("margin", ctypes.c_double), ("smooth", ctypes.c_int), ("rounds", ctypes.c_int),
                 ("depth", ctypes.c_double)]
+
+
+class _SubspaceArgs(ctypes.Structure):
+    """kernels.c's SubspaceArgs."""
+
+    _fields_ = [("basis", ctypes.c_void_p), ("stretch", ctypes.c_void_p), ("k", ctypes.c_int), ("iterations", ctypes.c_int),
+                ("strain_weight", ctypes.c_double), ("ridge", ctypes.c_double), ("clearance", ctypes.c_double)]
+
+
+class SubspaceMove:
+    """The push in the garment's subspace as the kernel takes it, converted once
+    (:class:`hrr_garment.inference.subspace_push.SubspacePush` holds the reference): the components
+    (k, V, 3), stored vertex-major (V, 3, k) so that a vertex's rows are contiguous, the stretch
+    (k, k), and the push's settings."""
+
+    def __init__(self, basis: np.ndarray, stretch: np.ndarray, strain_weight: float, ridge: float, clearance: float,
+                 iterations: int) -> None:
+        self.basis = np.ascontiguousarray(np.asarray(basis, np.float64).transpose(1, 2, 0))
+        self.stretch = np.ascontiguousarray(stretch, np.float64)
+        self.struct = _SubspaceArgs(self.basis.ctypes.data, self.stretch.ctypes.data, len(self.stretch), int(iterations),
+                                    float(strain_weight), float(ridge), float(clearance))
 
 
 class _StrainArgs(ctypes.Structure):
@@ -121,36 +144,47 @@ def capsule_sdf(lib: ctypes.CDLL, points: np.ndarray, a: np.ndarray, b: np.ndarr
     return dist, normal
 
 
-def push_out_frames(lib: ctypes.CDLL, points: np.ndarray, a: np.ndarray, b: np.ndarray, radii: np.ndarray,
-                    steps: PushSteps, *, threads: int = 1, out: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def push_out_frames(lib: ctypes.CDLL, points: np.ndarray, capsules: tuple, steps: PushSteps, *,
+                    turn: np.ndarray | None = None, threads: int = 1,
+                    out: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """:func:`hrr_garment.inference.collision.push_out`'s per-frame steps in the kernel: points
-    (T, V, 3) float32 (others are converted), capsule ends a, b (T, C, 3), radii (C,) or per frame
-    (T, C), the push's ``steps`` -> (pushed points float32, fraction deeper than ``steps.depth``
-    before (T,), after (T,), the (T,) mask of frames the strain limit moved). The push and the
-    limit work in float64, a frame at a time. With ``steps.limit``, each frame is limited right after its
-    push (as :func:`limit_strain` on the pushed and unpushed frames would, measuring only the edges
-    of the vertices the push moved); ``after`` is the push's, before the limit. Frames in parallel;
-    a single frame (streaming) shared by the threads. ``out``: a C-contiguous float32 array of the
-    points' shape the pushed points are written to (and returned)."""
-    mean, *_, mesh, limit = steps
-    a, b, r = _capsule_arrays(a, b, radii)
+    (T, V, 3) float32 (others are converted), ``capsules`` (ends a, b (T, C, 3), radii (C,) or per
+    frame (T, C)), the push's ``steps`` -> (pushed points float32, fraction deeper than
+    ``steps.depth`` before (T,), after (T,), the (T,) mask of frames the strain limit moved). The
+    push and the limit work in float64, a frame at a time. With ``steps.subspace``, each frame is
+    first moved in the garment's subspace, its body frame turned by ``turn`` (T, 3, 3, body ->
+    world), and ``before`` is the mesh push's. With ``steps.limit``, each frame is limited right
+    after its push (as :func:`limit_strain` on the pushed and unpushed frames would, measuring only
+    the edges of the vertices the push moved); ``after`` is the push's, before the limit. Frames in
+    parallel; a single frame (streaming) shared by the threads. ``out``: a C-contiguous float32
+    array of the points' shape the pushed points are written to (and returned)."""
+    mean, *_, mesh, limit, subspace = steps
+    a, b, r = _capsule_arrays(*capsules)
     p = np.ascontiguousarray(points, np.float32)
     if out is None:
         out = np.empty(p.shape, np.float32)
     elif out.dtype != np.float32 or out.shape != p.shape or not out.flags.c_contiguous:
         raise ValueError("out must be a C-contiguous float32 array of the points' shape")
+    t, v = p.shape[:2]
+    if subspace is not None:
+        if turn is None or np.shape(turn) != (t, 3, 3):
+            raise ValueError(f"the subspace push needs each frame's body turn (T, 3, 3), got {np.shape(turn)}")
+        if subspace.basis.shape[0] != v:
+            raise ValueError(f"a subspace of {subspace.basis.shape[0]} vertices for frames of {v}")
+        turn = np.ascontiguousarray(turn, np.float64)
     indptr, indices = (np.ascontiguousarray(x, np.int32) for x in (mean.indptr, mean.indices))
     weights = np.ascontiguousarray(mean.data, np.float64)
-    t, v = p.shape[:2]
     before, after, torn = np.empty(t), np.empty(t), np.zeros(t, np.uint8)
     if r.ndim == 2 and r.shape[0] != t:
         raise ValueError(f"per-frame radii for {r.shape[0]} frames, points for {t}")
-    capsules = r.shape[-1]
+    count = r.shape[-1]
     push_args, strain_args = steps.arguments(), None if limit is None else limit.arguments()
-    lib.hrr_push_out(p.ctypes.data, out.ctypes.data, t, v, a.ctypes.data, b.ctypes.data, r.ctypes.data, capsules,
-                     capsules if r.ndim == 2 else 0, indptr.ctypes.data, indices.ctypes.data, weights.ctypes.data,
+    lib.hrr_push_out(p.ctypes.data, out.ctypes.data, t, v, a.ctypes.data, b.ctypes.data, r.ctypes.data, count,
+                     count if r.ndim == 2 else 0, indptr.ctypes.data, indices.ctypes.data, weights.ctypes.data,
                      *(mesh.arguments() if mesh is not None else (None, None, 1, 0, None, None, 0)),
-                     ctypes.byref(push_args), None if strain_args is None else ctypes.byref(strain_args), threads,
+                     ctypes.byref(push_args), None if strain_args is None else ctypes.byref(strain_args),
+                     None if subspace is None else ctypes.byref(subspace.struct),
+                     None if subspace is None else turn.ctypes.data, threads,
                      before.ctypes.data, after.ctypes.data, torn.ctypes.data)
     if np.isnan(before).any():
         raise MemoryError("the native push-out could not allocate its scratch memory")

@@ -691,29 +691,126 @@ int hrr_limit_strain(double *p, const double *unpushed, int T, int V, const Stra
     return 0;
 }
 
+/* The push in the garment's subspace (hrr_garment.inference.subspace_push, its reference): the
+   first k principal components of the fast decoder, vertex-major (V, 3, k), the first-order edge
+   stretch per pair of them (k, k), the stretch's weight, the ridge per vertex near the body, the
+   clearance past the margin aimed for, and the solves a frame. */
+typedef struct {
+    const double *basis, *stretch;
+    int k, iterations;
+    double strain_weight, ridge, clearance;
+} SubspaceArgs;
+
+/* In place: A (k, k) symmetric positive definite -> its Cholesky factor (lower), then x = A^-1 b
+   in b. Returns 0, or -1 where A is not positive definite (b left as it is). */
+static int cholesky_solve(double *A, double *b, int k)
+{
+    for (int j = 0; j < k; ++j) {
+        double diag = A[j * k + j];
+        for (int q = 0; q < j; ++q) diag -= A[j * k + q] * A[j * k + q];
+        if (!(diag > 0.0)) return -1;
+        diag = sqrt(diag);
+        A[j * k + j] = diag;
+        for (int i = j + 1; i < k; ++i) {
+            double x = A[i * k + j];
+            for (int q = 0; q < j; ++q) x -= A[i * k + q] * A[j * k + q];
+            A[i * k + j] = x / diag;
+        }
+    }
+    for (int i = 0; i < k; ++i) {  /* L y = b */
+        double x = b[i];
+        for (int q = 0; q < i; ++q) x -= A[i * k + q] * b[q];
+        b[i] = x / A[i * k + i];
+    }
+    for (int i = k - 1; i >= 0; --i) {  /* L^T x = y */
+        double x = b[i];
+        for (int q = i + 1; q < k; ++q) x -= A[q * k + i] * b[q];
+        b[i] = x / A[i * k + i];
+    }
+    return 0;
+}
+
 /* A team's scratch for push_and_limit: buf (20 V doubles) and ints (3 V ints, zero between calls)
    and flag (3 ints) as push_frame takes them, the frame in float64 (p, 3 V doubles) and as it came
    (u, 3 V; with a limit), the vertices the push moved (moved, V ints) and the limit's scratch. */
 typedef struct {
-    double *buf, *p, *u;
+    double *buf, *p, *u, *solve;  /* solve: the subspace push's k (k + 2) doubles */
     int32_t *ints, *moved;
     int *flag;
     LimitScratch limit;
 } PushTeam;
 
-/* One frame, in (V, 3) float32 -> out: pushed as push_frame does, in float64, then with a strain
-   limit s, limited against the frame as it came, measuring only the edges of the vertices the push
-   moved, while the frame is in cache. Called by every thread of the innermost parallel region,
+/* The subspace push on frame p (V, 3), its body frame turned by turn (3 x 3, body -> world):
+   `iterations` times the vertices within margin of the body (team->moved) give the normal
+   equations of the coefficients that take them to margin + clearance along their normals, with
+   the stretch and the ridge added; the frame moves by the solution over the components. Called by
+   every thread of the innermost parallel region (the distances and the move shared, the solve on
+   one); d and nrm are push_frame's scratch, which it overwrites after. */
+static void subspace_push(double *p, int V, const double *ca, const double *cb, const double *radii, int C,
+                          const PushMesh *m, double margin, const SubspaceArgs *sp, const double *turn, PushTeam *team)
+{
+    const int k = sp->k;
+    double *d = team->buf, *nrm = d + V, *A = team->solve, *coef = A + (size_t)k * k, *row = coef + k;
+    for (int it = 0; it < sp->iterations; ++it) {
+        if (m->patch_ptr) sdf_patches(p, m, ca, cb, radii, C, margin, d, nrm);
+        else sdf_points(p, NULL, V, ca, cb, radii, C, d, nrm);
+        #pragma omp single
+        {
+            int n = 0;
+            for (int v = 0; v < V; ++v)
+                if (d[v] < margin) team->moved[n++] = v;
+            team->flag[2] = 0;
+            if (n > 0) {
+                for (int i = 0; i < k * k; ++i) A[i] = sp->strain_weight * sp->stretch[i];
+                for (int i = 0; i < k; ++i) { A[i * k + i] += sp->ridge * n; coef[i] = 0.0; }
+                for (int q = 0; q < n; ++q) {
+                    const int v = team->moved[q];
+                    const double *nv = nrm + 3 * (size_t)v, *bv = sp->basis + (size_t)v * 3 * k;
+                    double local[3];
+                    for (int j = 0; j < 3; ++j) local[j] = nv[0] * turn[j] + nv[1] * turn[3 + j] + nv[2] * turn[6 + j];
+                    const double depth = margin + sp->clearance - d[v];
+                    for (int c = 0; c < k; ++c) row[c] = local[0] * bv[c] + local[1] * bv[k + c] + local[2] * bv[2 * k + c];
+                    for (int i = 0; i < k; ++i) {  /* the lower triangle: the solve reads no other */
+                        const double ri = row[i];
+                        for (int j = 0; j <= i; ++j) A[i * k + j] += ri * row[j];
+                        coef[i] += ri * depth;
+                    }
+                }
+                team->flag[2] = cholesky_solve(A, coef, k) == 0;
+            }
+        }
+        if (!team->flag[2]) break;
+        #pragma omp for schedule(static)
+        for (int v = 0; v < V; ++v) {
+            const double *bv = sp->basis + (size_t)v * 3 * k;
+            double local[3];
+            for (int j = 0; j < 3; ++j) {
+                double x = 0.0;
+                #pragma omp simd reduction(+:x)  /* a sum in lanes: the order is fixed, the same for every frame */
+                for (int c = 0; c < k; ++c) x += coef[c] * bv[j * k + c];
+                local[j] = x;
+            }
+            for (int i = 0; i < 3; ++i) p[3 * v + i] += turn[3 * i] * local[0] + turn[3 * i + 1] * local[1] + turn[3 * i + 2] * local[2];
+        }
+    }
+}
+
+/* One frame, in (V, 3) float32 -> out: with sp, moved in the garment's subspace first
+   (subspace_push, its body frame turned by turn); pushed as push_frame does, in float64, then with
+   a strain limit s, limited against the frame as the push got it, measuring only the edges of the
+   vertices the push moved, while the frame is in cache. Called by every thread of the innermost parallel region,
    which share the conversions and the push; the limit runs on one of them. */
 static void push_and_limit(const float *in, float *out, int V, const double *ca, const double *cb, const double *radii,
-                           int C, const PushMesh *m, const PushArgs *args, const StrainArgs *s, double *before,
-                           double *after, unsigned char *torn, PushTeam *team)
+                           int C, const PushMesh *m, const PushArgs *args, const StrainArgs *s, const SubspaceArgs *sp,
+                           const double *turn, double *before, double *after, unsigned char *torn, PushTeam *team)
 {
     double *p = team->p, *u = team->u;
     #pragma omp for schedule(static)
-    for (int k = 0; k < 3 * V; ++k) {
-        p[k] = in[k];
-        if (s) u[k] = in[k];
+    for (int k = 0; k < 3 * V; ++k) p[k] = in[k];
+    if (sp) subspace_push(p, V, ca, cb, radii, C, m, args->margin, sp, turn, team);
+    if (s) {  /* the limit's reference: the frame as the mesh push gets it */
+        #pragma omp for schedule(static)
+        for (int k = 0; k < 3 * V; ++k) u[k] = p[k];
     }
     push_frame(p, V, ca, cb, radii, C, m, args->margin, args->smooth, args->rounds, args->depth, before, after, team->buf,
                team->ints, team->flag);
@@ -738,15 +835,17 @@ static void push_and_limit(const float *in, float *out, int V, const double *ca,
    frame has its own (a crowd's characters of different bodies). ring, ring_drop, width, follow:
    the neighbour-follow (ring NULL: none); patch_ptr, patch_idx, patches: the culled distances
    (patch_ptr NULL: none). limit (NULL: none): the strain limit, each frame limited right after its
-   push (torn[t]: whether frame t was; before and after are the push's). NaN fractions when out of
-   memory. */
+   push (torn[t]: whether frame t was; before and after are the push's). subspace (NULL: none): the
+   subspace push before the mesh push, each frame's body frame turned by turn (T, 3, 3). NaN
+   fractions when out of memory or where k > SUBSPACE_MAXK. */
 void hrr_push_out(const float *in, float *out, int T, int V, const double *a, const double *b, const double *radii, int C,
                   int radii_step, const int32_t *indptr, const int32_t *indices, const double *weights,
                   const int32_t *ring, const double *ring_drop, int width, int follow, const int32_t *patch_ptr,
-                  const int32_t *patch_idx, int patches, const PushArgs *args, const StrainArgs *limit, int threads,
-                  double *before, double *after, unsigned char *torn)
+                  const int32_t *patch_idx, int patches, const PushArgs *args, const StrainArgs *limit,
+                  const SubspaceArgs *subspace, const double *turn, int threads, double *before, double *after,
+                  unsigned char *torn)
 {
-    enum { MAX_TEAMS = 64, BUF = 26 };  /* BUF: push_frame's 20 V doubles, then p and u */
+    enum { MAX_TEAMS = 64, BUF = 26, SUBSPACE_MAXK = 512 };  /* BUF: push_frame's 20 V doubles, then p and u */
     if (T <= 0) return;
     if (threads > MAX_TEAMS) threads = MAX_TEAMS;
     if (threads < 1) threads = 1;
@@ -754,12 +853,14 @@ void hrr_push_out(const float *in, float *out, int T, int V, const double *a, co
     const int teams = T < threads ? T : threads, shared = T < threads;  /* shared: one team per frame */
     const int team_count = shared ? 1 : teams;
     const size_t per_limit = limit ? limit_scratch_bytes(V, limit->E) : 0;
-    double *buf = malloc(sizeof(double) * (size_t)V * BUF * team_count);
+    const size_t solve = subspace ? (size_t)subspace->k * (subspace->k + 2) : 0;
+    double *buf = malloc(sizeof(double) * ((size_t)V * BUF + solve) * team_count);
     int32_t *ints = calloc((size_t)V * 4 * team_count, sizeof(int32_t));  /* the marks start at zero */
     unsigned char *limit_block = limit ? malloc(per_limit * team_count) : NULL;
     int flags[3 * MAX_TEAMS];
     PushTeam team[MAX_TEAMS];
-    if (!buf || !ints || (limit && !limit_block) || follow + args->smooth + 1 > MAX_REGION_RINGS) {
+    if (!buf || !ints || (limit && !limit_block) || follow + args->smooth + 1 > MAX_REGION_RINGS ||
+        (subspace && (subspace->k < 1 || subspace->k > SUBSPACE_MAXK))) {
         for (int t = 0; t < T; ++t) before[t] = after[t] = NAN;  /* the caller raises */
         free(buf);
         free(ints);
@@ -767,9 +868,9 @@ void hrr_push_out(const float *in, float *out, int T, int V, const double *a, co
         return;
     }
     for (int k = 0; k < team_count; ++k) {
-        double *mine = buf + (size_t)V * BUF * k;
-        team[k] = (PushTeam){mine, mine + (size_t)V * 20, mine + (size_t)V * 23, ints + (size_t)V * 4 * k,
-                             ints + (size_t)V * 4 * k + 3 * (size_t)V, flags + 3 * k, {0}};
+        double *mine = buf + ((size_t)V * BUF + solve) * k;
+        team[k] = (PushTeam){mine, mine + (size_t)V * 20, mine + (size_t)V * 23, mine + (size_t)V * BUF,
+                             ints + (size_t)V * 4 * k, ints + (size_t)V * 4 * k + 3 * (size_t)V, flags + 3 * k, {0}};
         if (limit) team[k].limit = limit_scratch(limit_block + per_limit * k, V, limit->E);
     }
     const size_t step = (size_t)V * 3;
@@ -777,14 +878,16 @@ void hrr_push_out(const float *in, float *out, int T, int V, const double *a, co
         #pragma omp parallel num_threads(threads)
         for (int t = 0; t < T; ++t)
             push_and_limit(in + t * step, out + t * step, V, a + (size_t)t * 3 * C, b + (size_t)t * 3 * C,
-                           radii + (size_t)t * radii_step, C, &mesh, args, limit, before + t, after + t, torn + t, team);
+                           radii + (size_t)t * radii_step, C, &mesh, args, limit, subspace, turn ? turn + 9 * t : NULL,
+                           before + t, after + t, torn + t, team);
     } else {
         #pragma omp parallel for num_threads(teams) schedule(dynamic)
         for (int t = 0; t < T; ++t) {
             PushTeam *mine = team + omp_get_thread_num();
             #pragma omp parallel num_threads(1)  /* this frame's own one-thread team */
             push_and_limit(in + t * step, out + t * step, V, a + (size_t)t * 3 * C, b + (size_t)t * 3 * C,
-                           radii + (size_t)t * radii_step, C, &mesh, args, limit, before + t, after + t, torn + t, mine);
+                           radii + (size_t)t * radii_step, C, &mesh, args, limit, subspace, turn ? turn + 9 * t : NULL,
+                           before + t, after + t, torn + t, mine);
         }
     }
     free(buf);

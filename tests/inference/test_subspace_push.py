@@ -79,3 +79,35 @@ def test_the_stretch_weight_keeps_the_cloth_from_stretching():
     edges = skirt.edges()
     stretch = lambda v: np.abs(edge_strain(v, skirt.vertices, edges) - edge_strain(squeezed, skirt.vertices, edges)).mean()  # noqa: E731
     assert stretch(stiff) < stretch(loose)
+
+
+def test_the_push_out_runs_the_subspace_push_the_same_in_the_kernel_and_in_numpy(monkeypatch):
+    """push_out with the subspace push: the kernel (each frame moved, pushed and limited in turn)
+    and the numpy reference agree, and a frame streamed alone is the same bits as in a batch."""
+    import dataclasses
+
+    import pytest
+
+    from hrr_garment import native
+    from hrr_garment.inference.collision import PUSH_OUT, EdgeLimits, push_out
+    from hrr_garment.inference.subspace_push import SubspacePush
+
+    if native.load_kernel() is None:
+        pytest.skip("no C compiler")
+    skirt, basis = _skirt_and_basis()
+    motion = synthesize("walk", 0.3, seed=2)
+    rest = from_body_frame(np.repeat(skirt.vertices[None], motion.num_frames, 0).astype(np.float64), motion)
+    centre = rest[:, :, [0, 2]].mean(1, keepdims=True)
+    squeezed = rest.copy()
+    squeezed[..., [0, 2]] = centre + 0.8 * (rest[..., [0, 2]] - centre)
+    squeezed = squeezed.astype(np.float32)
+    settings = dataclasses.replace(PUSH_OUT, subspace=SubspacePush.of(basis, skirt.vertices, skirt.edges()))
+    limits = EdgeLimits.of(skirt.faces, skirt.vertices)
+    plain, _ = push_out(squeezed, motion, skirt.faces, limits=limits)
+    got, report = push_out(squeezed, motion, skirt.faces, limits=limits, settings=settings)
+    assert np.abs(got - plain).max() > 0.005 and report.inside_after < 0.01
+    one, _ = push_out(squeezed[3:4], motion.slice(3, 4), skirt.faces, limits=limits, settings=settings, report=False)
+    assert np.array_equal(one[0], got[3])
+    monkeypatch.setattr(native, "load_kernel", lambda *args, **kwargs: None)
+    reference, _ = push_out(squeezed, motion, skirt.faces, limits=limits, settings=settings)
+    assert np.abs(got - reference).max() < 1e-5
