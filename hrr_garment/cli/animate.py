@@ -30,6 +30,7 @@ from ._common import (
     add_decoder_option,
     add_detail_options,
     add_fps_option,
+    add_push_option,
     detail_look,
     run_cli,
     run_settings_of,
@@ -62,6 +63,7 @@ def _parser() -> argparse.ArgumentParser:
                    help="animate a body unlike the model's training bodies anyway (warned), rather than refuse it")
     p.add_argument("--no-collision", action="store_true", help="skip the collision push-out")
     add_decoder_option(p)
+    add_push_option(p)
     p.add_argument("--causal", action="store_true", help="causal windows only, as the streaming API")
     p.add_argument("--precision", choices=PRECISIONS, default="float32",
                    help="the mesh decoder's arithmetic: bfloat16 runs on AMX (recent Intel Xeons), about 3x faster, "

@@ -37,6 +37,7 @@ from ._common import (
     add_decoder_option,
     add_detail_options,
     add_fps_option,
+    add_push_option,
     detail_look,
     run_cli,
     run_settings_of,
@@ -103,6 +104,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--causal", action="store_true",
                    help="run every mode causally, as a stream or a crowd does (no future frames): what a game shows")
     add_decoder_option(p)
+    add_push_option(p)
     p.add_argument("--no-plots", action="store_true")
     p.add_argument("-o", "--output", type=Path, default=None, help="report folder (default: hrr_work/eval/MODEL)")
     p.add_argument("--quiet", action="store_true", help="no progress bars")

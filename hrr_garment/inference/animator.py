@@ -14,6 +14,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from functools import partial
 from pathlib import Path
 
@@ -36,7 +37,7 @@ from .animation import Animation
 from .blending import blend_windows, causal_latents
 from .bodies import CharacterBody, character_body
 from .character_stream import AnimationStream
-from .collision import push_out
+from .collision import PUSH_OUT, PushOutSettings, push_out
 from .decoding import body_frame_vertices, flush_denormals
 from .detail import add_folds
 from .edge_limits import EdgeLimits
@@ -45,6 +46,7 @@ from .gate import WindowChoice, choose_windows, frame_gates
 from .modes import CODE_MODES, Mode
 from .run_settings import ResolvedRun, RunSettings, run_settings
 from .stream import CrowdStream
+from .subspace_push import SubspacePush
 from .swing import SwingGain
 
 
@@ -75,6 +77,17 @@ class Animator:
         self.edge_limits = EdgeLimits.of(bundle.template.faces, bundle.template.vertices, mean=self.smoothing)  # the push-out's
         self._causal_steps: dict[bool, object] = {}
         self._default_body: CharacterBody | None = None
+        self._subspace_push: SubspacePush | None = None
+
+    def push_settings(self, run: ResolvedRun) -> PushOutSettings:
+        """The push-out's settings for ``run``: the product's, with the push in the bundle's subspace
+        (:mod:`.subspace_push`, made once) where ``run.push`` asks for it."""
+        if run.push != "subspace":
+            return PUSH_OUT
+        if self._subspace_push is None:
+            template = self.bundle.template
+            self._subspace_push = SubspacePush.of(self.bundle.subspace.basis.numpy(), template.vertices, template.edges())
+        return dataclasses.replace(PUSH_OUT, subspace=self._subspace_push)
 
     def decoder_for(self, run: ResolvedRun):
         """The mesh decoder ``run`` asks for: the full one (:attr:`decoder`) or the bundle's fast
@@ -198,7 +211,7 @@ class Animator:
         report = None
         if run.collision:
             vertices, report = push_out(vertices, motion, self.bundle.template.faces, body=character.body, mean=self.smoothing,
-                                        limits=self.edge_limits)
+                                        limits=self.edge_limits, settings=self.push_settings(run))
         return Animation(vertices=vertices, faces=self.bundle.template.faces, fps=motion.fps, retrieved=retrieved,
                          entropy=entropy, match=match, joints=motion.joint_positions, garment=self.bundle.garment,
                          model_hash=self.bundle.content_hash, motion_file=motion.source, settings=run.record(),

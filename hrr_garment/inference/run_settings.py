@@ -32,6 +32,7 @@ from .modes import Mode
 from .swing import MAX_GAIN, valid_gain
 
 DECODERS = ("full", "fast")  # the mesh autoencoder's decoder, or its distilled subspace decoder (models/subspace.py)
+PUSHES = ("mesh", "subspace")  # the collision push-out alone, or after the push in the garment's subspace (subspace_push.py)
 
 #: keyword arguments of the API before the settings objects, and what replaced them
 RENAMED = {"detail_base": "detail=DetailLook(base=...)", "detail_strength": "detail=DetailLook(strength=...)"}
@@ -90,6 +91,11 @@ class RunSettings:
     # the mesh decoder: "full" (the autoencoder's) or "fast" (its distilled subspace decoder, a few
     # times cheaper: crowds in a game's budget; where the bundle has one). None: full
     decoder: str | None = None
+    # how the push-out takes the cloth out of the body: "mesh" (each vertex to the nearest surface,
+    # its tears limited) or "subspace" (first the whole garment along its fast decoder's principal
+    # components, then the mesh push: fewer tears, about 3 x the push-out's cost; where the bundle
+    # has a fast decoder; docs/decisions/0032). None: mesh
+    push: str | None = None
     # the hem's swing restored on free cloth (inference/swing.py): the gain on the latents' departure
     # from their recent course, 1: as predicted. None: the model's calibrated gain in the mode auto
     # picks, 1 in a mode named
@@ -111,6 +117,8 @@ class RunSettings:
             object.__setattr__(self, "tau", tau)
         if self.decoder is not None and self.decoder not in DECODERS:
             raise ValueError(f"decoder must be one of {', '.join(DECODERS)}, got {self.decoder!r}")
+        if self.push is not None and self.push not in PUSHES:
+            raise ValueError(f"push must be one of {', '.join(PUSHES)}, got {self.push!r}")
         if not isinstance(self.detail, DetailLook):
             raise TypeError(f"detail must be a DetailLook, got {type(self.detail).__name__}")
         for name in ("collision", "causal"):
@@ -162,9 +170,13 @@ class RunSettings:
         if decoder == "fast" and bundle.subspace is None:
             raise BundleError(bundle.folder, "has no fast decoder: distil one with hrr-train --stage subspace "
                                              "(or run the full decoder)")
+        push = self.push or "mesh"
+        if push == "subspace" and bundle.subspace is None:
+            raise BundleError(bundle.folder, "has no fast decoder, whose components the subspace push moves the cloth "
+                                             "along: distil one with hrr-train --stage subspace (or push with the mesh)")
         swing = self.swing if self.swing is not None else bundle.swing_gain if calibrated else 1.0
         return ResolvedRun(mode=mode, gate=gate, tau=tau, detail=look, collision=self.collision, causal=self.causal,
-                           decoder=decoder, swing=swing)
+                           decoder=decoder, swing=swing, push=push)
 
 
 @dataclass(frozen=True)
@@ -179,6 +191,7 @@ class ResolvedRun:
     causal: bool
     decoder: str = "full"  # "full" or "fast"
     swing: float = 1.0  # the gain on the free cloth's swing (inference/swing.py), 1: as predicted
+    push: str = "mesh"  # "mesh" or "subspace" (the push in the garment's subspace first)
 
     @property
     def fold_base(self) -> str:
@@ -188,7 +201,7 @@ class ResolvedRun:
     def record(self) -> dict:
         """What out.h5's attributes and report.json's settings record of the run."""
         out = {"mode": str(self.mode), "gate": self.gate, "tau": self.tau, "causal": int(self.causal),
-               "collision": int(self.collision), "decoder": self.decoder, "swing": self.swing}
+               "collision": int(self.collision), "decoder": self.decoder, "swing": self.swing, "push": self.push}
         if self.detail is not None:
             out.update(detail_base=self.detail.base, detail_strength=self.detail.strength)
         return out

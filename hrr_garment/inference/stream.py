@@ -288,8 +288,8 @@ class CrowdStream:
         t.append(time.perf_counter())
         if self.run.collision:
             vertices, _ = push_out(vertices, poses, self.animator.bundle.template.faces, body=bodies.capsules(poses),
-                                   mean=self.animator.smoothing,
-                                   limits=self.animator.edge_limits, report=False)
+                                   mean=self.animator.smoothing, limits=self.animator.edge_limits,
+                                   settings=self.animator.push_settings(self.run), report=False)
         t.append(time.perf_counter())
         for i, c in enumerate(chars):
             c.previous = (poses.global_rotations[i], poses.joint_positions[i])

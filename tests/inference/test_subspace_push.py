@@ -111,3 +111,26 @@ def test_the_push_out_runs_the_subspace_push_the_same_in_the_kernel_and_in_numpy
     monkeypatch.setattr(native, "load_kernel", lambda *args, **kwargs: None)
     reference, _ = push_out(squeezed, motion, skirt.faces, limits=limits, settings=settings)
     assert np.abs(got - reference).max() < 1e-5
+
+
+def test_a_stream_with_the_subspace_push_equals_the_offline_animation_and_changes_it(animator):
+    """``push="subspace"`` runs the same in a stream, a crowd and offline, and is not the mesh push;
+    a push that is neither is refused."""
+    import pytest
+
+    from hrr_garment.inference.run_settings import RunSettings
+
+    motion = synthesize("dance", 1.0, seed=3)
+    offline = animator.animate(motion, mode="regression", causal=True, push="subspace")
+    assert offline.settings["push"] == "subspace"
+    stream = animator.stream(mode="regression", push="subspace")
+    streamed = np.stack([stream.push(motion.slice(t, t + 1)) for t in range(motion.num_frames)])
+    assert np.abs(streamed - offline.vertices).max() <= 1e-5
+    crowd = animator.crowd(mode="regression", push="subspace", device="native")
+    crowded = np.stack([crowd.push_motions({"a": motion.slice(t, t + 1), "b": motion.slice(t, t + 1)})[0]
+                        for t in range(motion.num_frames)])
+    assert np.abs(crowded - offline.vertices).max() <= 1e-5
+    mesh = animator.animate(motion, mode="regression", causal=True)
+    assert np.abs(mesh.vertices - offline.vertices).max() > 0  # the subspace moved the cloth first
+    with pytest.raises(ValueError, match="push must be one of"):
+        RunSettings(push="sideways")
