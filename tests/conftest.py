@@ -167,3 +167,21 @@ def paper_model(trained, tmp_path_factory):
     train_tiny(data, folder, root / "cfg.yaml", stages=("codespace",),
                overrides={"codespace": {"train": {"validation": "windows"}}})
     return folder
+
+
+def squeezed_skirt(motion, narrower: float, on_body: bool = False):
+    """The tiny skirt (300 vertices) in each frame of ``motion``, narrowed about its axis to
+    ``narrower`` of its width, into the hips: (the skirt, the frames float64). ``on_body``: worn in
+    the body frame (it moves with the pelvis); else where its template lies, for a body that stays
+    near the origin (dance, idle)."""
+    from hrr_garment.garment.templates import make_garment
+    from hrr_garment.motion.frame import from_body_frame
+
+    skirt = make_garment("skirt", 300)
+    rest = np.repeat(skirt.vertices[None], motion.num_frames, 0).astype(np.float64)
+    if on_body:
+        rest = from_body_frame(rest, motion)
+    centre = rest[:, :, [0, 2]].mean(1, keepdims=True)
+    squeezed = rest.copy()
+    squeezed[..., [0, 2]] = centre + narrower * (rest[..., [0, 2]] - centre)
+    return skirt, squeezed

@@ -5,6 +5,7 @@ import numpy as np
 
 from hrr_garment.motion.frame import from_body_frame, to_body_frame
 from hrr_garment.motion.synth import synthesize
+from tests.conftest import squeezed_skirt
 
 
 def test_push_out_moves_vertices_outside_without_spikes():
@@ -69,19 +70,14 @@ def test_the_push_out_with_its_limit_is_the_same_without_the_kernel(monkeypatch)
     """push_out with the strain limit: the kernel's path (each frame limited right after its push)
     and the numpy reference (every frame pushed, then limited) agree on the frames and the report."""
     from hrr_garment import native
-    from hrr_garment.garment.templates import make_garment
     from hrr_garment.inference.collision import EdgeLimits, push_out
 
     if native.load_kernel() is None:
         import pytest
 
         pytest.skip("no C compiler")
-    skirt = make_garment("skirt", 300)
     motion = synthesize("dance", 0.3, seed=4)
-    rest = from_body_frame(to_body_frame(np.repeat(skirt.vertices[None], motion.num_frames, 0).astype(np.float64), motion), motion)
-    centre = rest[:, :, [0, 2]].mean(1, keepdims=True)
-    squeezed = rest.copy()
-    squeezed[..., [0, 2]] = centre + 0.7 * (rest[..., [0, 2]] - centre)  # deep into the hips: the push tears
+    skirt, squeezed = squeezed_skirt(motion, 0.7)  # deep into the hips: the push tears
     squeezed = squeezed.astype(np.float32)
     limits = EdgeLimits.of(skirt.faces, skirt.vertices)
     native_out, native_report = push_out(squeezed, motion, skirt.faces, limits=limits)

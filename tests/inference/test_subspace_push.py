@@ -3,8 +3,9 @@ comes out by a move of the basis alone, and a frame clear of the body is left as
 
 import numpy as np
 
-from hrr_garment.motion.frame import from_body_frame, to_body_frame
+from hrr_garment.motion.frame import to_body_frame
 from hrr_garment.motion.synth import synthesize
+from tests.conftest import squeezed_skirt
 
 
 def _skirt_and_basis():
@@ -34,10 +35,7 @@ def test_the_subspace_push_takes_the_cloth_out_along_the_basis_alone():
 
     skirt, basis = _skirt_and_basis()
     motion = synthesize("walk", 0.3, seed=2)
-    rest = from_body_frame(np.repeat(skirt.vertices[None], motion.num_frames, 0).astype(np.float64), motion)  # on the body
-    centre = rest[:, :, [0, 2]].mean(1, keepdims=True)
-    squeezed = rest.copy()
-    squeezed[..., [0, 2]] = centre + 0.8 * (rest[..., [0, 2]] - centre)  # 20 % narrower: into the hips
+    _, squeezed = squeezed_skirt(motion, 0.8, on_body=True)  # 20 % narrower: into the hips
     squeezed = squeezed.astype(np.float32)
     squeezed[-1, :, 0] += 1.0  # the last frame a metre clear of the body
     a, b = DEFAULT_BODY.pose_motion(motion)
@@ -68,10 +66,7 @@ def test_the_stretch_weight_keeps_the_cloth_from_stretching():
 
     skirt, basis = _skirt_and_basis()
     motion = synthesize("walk", 0.2, seed=2)
-    rest = from_body_frame(np.repeat(skirt.vertices[None], motion.num_frames, 0).astype(np.float64), motion)  # on the body
-    centre = rest[:, :, [0, 2]].mean(1, keepdims=True)
-    squeezed = rest.copy()
-    squeezed[..., [0, 2]] = centre + 0.8 * (rest[..., [0, 2]] - centre)
+    _, squeezed = squeezed_skirt(motion, 0.8, on_body=True)
     squeezed = squeezed.astype(np.float32)
     capsules = (*DEFAULT_BODY.pose_motion(motion), DEFAULT_BODY.radii)
     loose = SubspacePush.of(basis, skirt.vertices, skirt.edges(), strain_weight=0.0)(squeezed, motion, capsules, 0.002)
@@ -96,10 +91,7 @@ def test_the_push_out_runs_the_subspace_push_the_same_in_the_kernel_and_in_numpy
         pytest.skip("no C compiler")
     skirt, basis = _skirt_and_basis()
     motion = synthesize("walk", 0.3, seed=2)
-    rest = from_body_frame(np.repeat(skirt.vertices[None], motion.num_frames, 0).astype(np.float64), motion)
-    centre = rest[:, :, [0, 2]].mean(1, keepdims=True)
-    squeezed = rest.copy()
-    squeezed[..., [0, 2]] = centre + 0.8 * (rest[..., [0, 2]] - centre)
+    _, squeezed = squeezed_skirt(motion, 0.8, on_body=True)
     squeezed = squeezed.astype(np.float32)
     settings = dataclasses.replace(PUSH_OUT, subspace=SubspacePush.of(basis, skirt.vertices, skirt.edges()))
     limits = EdgeLimits.of(skirt.faces, skirt.vertices)

@@ -4,8 +4,8 @@ the strain limit, and the pinning of the OpenMP workers."""
 import numpy as np
 import pytest
 
-from hrr_garment.motion.frame import from_body_frame, to_body_frame
 from hrr_garment.motion.synth import synthesize
+from tests.conftest import squeezed_skirt
 
 pytestmark = pytest.mark.native
 
@@ -30,7 +30,6 @@ def test_native_capsule_distance_equals_numpy(rng):
 @pytest.mark.parametrize("follow", [None, 0, 6])  # None: whole-mesh loops; 0: culled, no follow (the default); 6: a follow
 def test_native_push_out_equals_numpy(rng, follow):
     from hrr_garment.body.capsules import DEFAULT_BODY
-    from hrr_garment.garment.templates import make_garment
     from hrr_garment.inference.collision import EdgeLimits, PushOutSettings, _push_frames, mean_operator
     from hrr_garment.native import load_kernel
     from hrr_garment.native.body import PushSteps, push_out_frames
@@ -38,12 +37,8 @@ def test_native_push_out_equals_numpy(rng, follow):
     lib = load_kernel()
     if lib is None:
         pytest.skip("no C compiler")
-    skirt = make_garment("skirt", 300)
     motion = synthesize("dance", 0.3, seed=4)
-    rest = from_body_frame(to_body_frame(np.repeat(skirt.vertices[None], motion.num_frames, 0).astype(np.float64), motion), motion)
-    centre = rest[:, :, [0, 2]].mean(1, keepdims=True)
-    squeezed = rest.copy()
-    squeezed[..., [0, 2]] = centre + 0.85 * (rest[..., [0, 2]] - centre)  # into the hips
+    skirt, squeezed = squeezed_skirt(motion, 0.85)  # into the hips
     squeezed += rng.normal(scale=0.004, size=squeezed.shape)
     squeezed = squeezed.astype(np.float32)  # as decoders give them, and the kernel takes them
     a, b = DEFAULT_BODY.pose_motion(motion)
@@ -72,7 +67,6 @@ def test_the_push_limits_each_frame_as_the_strain_limit_does_after_it():
     edge gives (within the float32 rounding of the pushed frames it then starts from), the same torn
     frames, and the same bits batched or a frame at a time."""
     from hrr_garment.body.capsules import DEFAULT_BODY
-    from hrr_garment.garment.templates import make_garment
     from hrr_garment.inference.collision import PUSH_OUT, EdgeLimits, _native_limit, mean_operator
     from hrr_garment.native import load_kernel
     from hrr_garment.native.body import PushSteps, limit_strain, push_out_frames
@@ -80,12 +74,8 @@ def test_the_push_limits_each_frame_as_the_strain_limit_does_after_it():
     lib = load_kernel()
     if lib is None:
         pytest.skip("no C compiler")
-    skirt = make_garment("skirt", 300)
     motion = synthesize("dance", 0.3, seed=4)
-    rest = from_body_frame(to_body_frame(np.repeat(skirt.vertices[None], motion.num_frames, 0).astype(np.float64), motion), motion)
-    centre = rest[:, :, [0, 2]].mean(1, keepdims=True)
-    squeezed = rest.copy()
-    squeezed[..., [0, 2]] = centre + 0.7 * (rest[..., [0, 2]] - centre)  # deep into the hips: pushes that tear
+    skirt, squeezed = squeezed_skirt(motion, 0.7)  # deep into the hips: pushes that tear
     squeezed = (squeezed + np.random.default_rng(3).normal(scale=0.004, size=squeezed.shape)).astype(np.float32)
     squeezed[::3, :, 0] += 1.0  # and frames a metre clear of the body
     a, b = DEFAULT_BODY.pose_motion(motion)
