@@ -33,11 +33,12 @@ from ..motion.memory import with_memory
 from ..motion.motion import Motion
 from ..motion.windows import causal_windows, sequence_windows
 from ..paths import workspace
+from . import collision
 from .animation import Animation
 from .blending import blend_windows, causal_latents
 from .bodies import CharacterBody, character_body
 from .character_stream import AnimationStream
-from .collision import PUSH_OUT, PushOutSettings, push_out
+from .collision import PushOutSettings, push_out
 from .decoding import body_frame_vertices, flush_denormals
 from .detail import add_folds
 from .edge_limits import EdgeLimits
@@ -79,15 +80,15 @@ class Animator:
         self._default_body: CharacterBody | None = None
         self._subspace_push: SubspacePush | None = None
 
-    def push_settings(self, run: ResolvedRun) -> PushOutSettings:
-        """The push-out's settings for ``run``: the product's, with the push in the bundle's subspace
-        (:mod:`.subspace_push`, made once) where ``run.push`` asks for it."""
+    def push_settings(self, run: ResolvedRun) -> PushOutSettings | None:
+        """The push-out's settings for ``run``: None (the product's, which push_out reads) or, where
+        ``run.push`` asks for it, the product's with the push in the bundle's subspace (:mod:`.subspace_push`, made once)."""
         if run.push != "subspace":
-            return PUSH_OUT
+            return None
         if self._subspace_push is None:
             template = self.bundle.template
             self._subspace_push = SubspacePush.of(self.bundle.subspace.basis.numpy(), template.vertices, template.edges())
-        return dataclasses.replace(PUSH_OUT, subspace=self._subspace_push)
+        return dataclasses.replace(collision.PUSH_OUT, subspace=self._subspace_push)
 
     def decoder_for(self, run: ResolvedRun):
         """The mesh decoder ``run`` asks for: the full one (:attr:`decoder`) or the bundle's fast

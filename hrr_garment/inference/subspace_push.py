@@ -9,14 +9,17 @@ frames on the trained 4,156-vertex subset model). The principal components are t
 garment moves as a whole; moving along them a region comes out together, and the mesh push-out
 has millimetres left to do.
 
-Per frame, ``iterations`` times: the vertices within the push-out's margin of the body (S), each
-with the depth it must rise along the nearest capsule's normal (plus ``clearance``), give one row
-each of J (|S| x k): the normal (in the body frame) against each component at that vertex. The
-coefficients s solve (J^T J + w G + r |S| I) s = J^T depth, where G (k x k, made once) is the
-first-order stretch of the garment's edges (along their rest directions) per pair of components:
-a move that would stretch the cloth costs ``strain_weight`` per square metre of stretch, as a
-missed millimetre of depth does. The frame moves by s over the components, turned into the world.
-A frame with no vertex near the body is left exactly as it is.
+Per frame, ``iterations`` times: the vertices within the push-out's margin plus ``clearance`` of the
+body (S), each with the depth it must rise along the nearest capsule's normal to be that far out,
+give one row each of J (|S| x k): the normal (in the body frame) against each component at that
+vertex. A row weighs from 0 where its vertex enters S to 1 at the margin and inside (W), so that the
+move grows from nothing as cloth nears the body instead of starting at once (streams and offline
+alike: no jitter from a vertex crossing the margin). The coefficients s solve
+(J^T W J + w G + r tr(W) I) s = J^T W depth, where G (k x k, made once) is the first-order stretch
+of the garment's edges (along their rest directions) per pair of components: a move that would
+stretch the cloth costs ``strain_weight`` per square metre of stretch, as a missed metre of depth
+does. The frame moves by s over the components, turned into the world. A frame with no vertex near
+the body is left exactly as it is.
 """
 
 from __future__ import annotations
@@ -44,6 +47,7 @@ class SubspacePush:
     strain_weight: float = 10.0  # w: what a square metre of edge stretch costs against one of missed depth
     ridge: float = 1e-6  # r: per vertex in S, keeps the solve well posed where few components reach it
     clearance: float = 0.003  # metres past the push-out's margin the subspace aims for (the mesh push-out does the rest)
+    # (and the band over which a vertex's weight grows from 0 to 1 as it nears the body)
     iterations: int = 2  # solves a frame (a move can bring other vertices near the body)
     _native: list = field(default_factory=list, repr=False, compare=False)  # the kernel's arrays, made on first use
 
@@ -55,6 +59,8 @@ class SubspacePush:
         if components < 1:
             raise ValueError(f"components must be at least 1, got {components}")
         k = min(int(components), len(basis))
+        if not settings.get("clearance", cls.clearance) > 0:
+            raise ValueError(f"clearance must be > 0 metres (the band a vertex's weight grows over), got {settings['clearance']!r}")
         b3 = np.asarray(basis[:k], np.float64).reshape(k, len(rest), 3)
         direction = rest[edges[:, 1]].astype(np.float64) - rest[edges[:, 0]]
         direction /= np.maximum(np.linalg.norm(direction, axis=1, keepdims=True), 1e-12)
@@ -82,12 +88,14 @@ class SubspacePush:
             frame_radii = radii[t] if np.ndim(radii) == 2 else radii
             for _ in range(self.iterations):
                 d, n = frames_signed_distance(out[t:t + 1], a[t:t + 1], b[t:t + 1], radii=frame_radii)
-                near = np.nonzero(d[0] < margin)[0]
+                near = np.nonzero(d[0] < margin + self.clearance)[0]
                 if not len(near):
                     break
                 depth = margin + self.clearance - d[0, near]
+                weight = np.minimum(depth / self.clearance, 1.0)
                 jac = np.einsum("si,ksi->sk", n[0, near] @ turn[t], self.basis[:, near])  # (|S|, k)
-                system = jac.T @ jac + self.strain_weight * self.stretch + self.ridge * len(near) * np.eye(k)
-                s = np.linalg.solve(system, jac.T @ depth)
+                weighted = jac * weight[:, None]
+                system = weighted.T @ jac + self.strain_weight * self.stretch + self.ridge * weight.sum() * np.eye(k)
+                s = np.linalg.solve(system, weighted.T @ depth)
                 out[t] += (s @ flat).reshape(v, 3) @ turn[t].T
         return out.astype(np.float32)

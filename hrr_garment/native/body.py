@@ -148,7 +148,7 @@ def push_out_frames(lib: ctypes.CDLL, points: np.ndarray, capsules: tuple, steps
                     turn: np.ndarray | None = None, threads: int = 1,
                     out: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """:func:`hrr_garment.inference.collision.push_out`'s per-frame steps in the kernel: points
-    (T, V, 3) float32 (others are converted), ``capsules`` (ends a, b (T, C, 3), radii (C,) or per
+    (T, V, 3) float32 or float64 (others are converted to float32), ``capsules`` (ends a, b (T, C, 3), radii (C,) or per
     frame (T, C)), the push's ``steps`` -> (pushed points float32, fraction deeper than
     ``steps.depth`` before (T,), after (T,), the (T,) mask of frames the strain limit moved). The
     push and the limit work in float64, a frame at a time. With ``steps.subspace``, each frame is
@@ -160,7 +160,7 @@ def push_out_frames(lib: ctypes.CDLL, points: np.ndarray, capsules: tuple, steps
     array of the points' shape the pushed points are written to (and returned)."""
     mean, *_, mesh, limit, subspace = steps
     a, b, r = _capsule_arrays(*capsules)
-    p = np.ascontiguousarray(points, np.float32)
+    p = np.ascontiguousarray(points, np.float64 if np.asarray(points).dtype == np.float64 else np.float32)
     if out is None:
         out = np.empty(p.shape, np.float32)
     elif out.dtype != np.float32 or out.shape != p.shape or not out.flags.c_contiguous:
@@ -179,7 +179,7 @@ def push_out_frames(lib: ctypes.CDLL, points: np.ndarray, capsules: tuple, steps
         raise ValueError(f"per-frame radii for {r.shape[0]} frames, points for {t}")
     count = r.shape[-1]
     push_args, strain_args = steps.arguments(), None if limit is None else limit.arguments()
-    lib.hrr_push_out(p.ctypes.data, out.ctypes.data, t, v, a.ctypes.data, b.ctypes.data, r.ctypes.data, count,
+    lib.hrr_push_out(p.ctypes.data, int(p.dtype == np.float64), out.ctypes.data, t, v, a.ctypes.data, b.ctypes.data, r.ctypes.data, count,
                      count if r.ndim == 2 else 0, indptr.ctypes.data, indices.ctypes.data, weights.ctypes.data,
                      *(mesh.arguments() if mesh is not None else (None, None, 1, 0, None, None, 0)),
                      ctypes.byref(push_args), None if strain_args is None else ctypes.byref(strain_args),

@@ -75,7 +75,7 @@ def _declare(lib: ctypes.CDLL) -> None:
     d = ctypes.c_void_p  # addresses from ndarray.ctypes.data: per-frame calls, so the cheapest conversion
     lib.hrr_capsule_sdf.argtypes = [d, c_int, c_int, d, d, d, c_int, c_int, d, d]
     lib.hrr_capsule_sdf.restype = None
-    lib.hrr_push_out.argtypes = [d, d, c_int, c_int, d, d, d, c_int, c_int, d, d, d, d, d, c_int, c_int, d, d, c_int,
+    lib.hrr_push_out.argtypes = [d, c_int, d, c_int, c_int, d, d, d, c_int, c_int, d, d, d, d, d, c_int, c_int, d, d, c_int,
                                  d, d, d, d, c_int, d, d, d]  # PushArgs, StrainArgs, SubspaceArgs by reference
     lib.hrr_push_out.restype = None
     lib.hrr_limit_strain.argtypes = [d, d, c_int, c_int, d, c_int, d]

@@ -741,41 +741,45 @@ typedef struct {
 } PushTeam;
 
 /* The subspace push on frame p (V, 3), its body frame turned by turn (3 x 3, body -> world):
-   `iterations` times the vertices within margin of the body (team->moved) give the normal
-   equations of the coefficients that take them to margin + clearance along their normals, with
-   the stretch and the ridge added; the frame moves by the solution over the components. Called by
+   `iterations` times the vertices within margin + clearance of the body (team->moved) give the
+   normal equations of the coefficients that take them to margin + clearance along their normals,
+   each weighted from 0 where it enters to 1 at the margin, with the stretch and the ridge added; the frame moves by the solution over the components. Called by
    every thread of the innermost parallel region (the distances and the move shared, the solve on
    one); d and nrm are push_frame's scratch, which it overwrites after. */
 static void subspace_push(double *p, int V, const double *ca, const double *cb, const double *radii, int C,
                           const PushMesh *m, double margin, const SubspaceArgs *sp, const double *turn, PushTeam *team)
 {
     const int k = sp->k;
+    const double reach = margin + sp->clearance;
     double *d = team->buf, *nrm = d + V, *A = team->solve, *coef = A + (size_t)k * k, *row = coef + k;
     for (int it = 0; it < sp->iterations; ++it) {
-        if (m->patch_ptr) sdf_patches(p, m, ca, cb, radii, C, margin, d, nrm);
+        if (m->patch_ptr) sdf_patches(p, m, ca, cb, radii, C, reach, d, nrm);
         else sdf_points(p, NULL, V, ca, cb, radii, C, d, nrm);
         #pragma omp single
         {
             int n = 0;
             for (int v = 0; v < V; ++v)
-                if (d[v] < margin) team->moved[n++] = v;
+                if (d[v] < reach) team->moved[n++] = v;
             team->flag[2] = 0;
             if (n > 0) {
+                double total = 0.0;
                 for (int i = 0; i < k * k; ++i) A[i] = sp->strain_weight * sp->stretch[i];
-                for (int i = 0; i < k; ++i) { A[i * k + i] += sp->ridge * n; coef[i] = 0.0; }
+                for (int i = 0; i < k; ++i) coef[i] = 0.0;
                 for (int q = 0; q < n; ++q) {
                     const int v = team->moved[q];
                     const double *nv = nrm + 3 * (size_t)v, *bv = sp->basis + (size_t)v * 3 * k;
                     double local[3];
                     for (int j = 0; j < 3; ++j) local[j] = nv[0] * turn[j] + nv[1] * turn[3 + j] + nv[2] * turn[6 + j];
-                    const double depth = margin + sp->clearance - d[v];
+                    const double depth = reach - d[v], weight = depth < sp->clearance ? depth / sp->clearance : 1.0;
+                    total += weight;
                     for (int c = 0; c < k; ++c) row[c] = local[0] * bv[c] + local[1] * bv[k + c] + local[2] * bv[2 * k + c];
                     for (int i = 0; i < k; ++i) {  /* the lower triangle: the solve reads no other */
-                        const double ri = row[i];
+                        const double ri = weight * row[i];
                         for (int j = 0; j <= i; ++j) A[i * k + j] += ri * row[j];
                         coef[i] += ri * depth;
                     }
                 }
+                for (int i = 0; i < k; ++i) A[i * k + i] += sp->ridge * total;
                 team->flag[2] = cholesky_solve(A, coef, k) == 0;
             }
         }
@@ -795,18 +799,24 @@ static void subspace_push(double *p, int V, const double *ca, const double *cb, 
     }
 }
 
-/* One frame, in (V, 3) float32 -> out: with sp, moved in the garment's subspace first
+/* One frame, in (V, 3) float32, or float64 with in_double -> out float32: with sp, moved in the garment's subspace first
    (subspace_push, its body frame turned by turn); pushed as push_frame does, in float64, then with
    a strain limit s, limited against the frame as the push got it, measuring only the edges of the
    vertices the push moved, while the frame is in cache. Called by every thread of the innermost parallel region,
    which share the conversions and the push; the limit runs on one of them. */
-static void push_and_limit(const float *in, float *out, int V, const double *ca, const double *cb, const double *radii,
+static void push_and_limit(const void *in, int in_double, float *out, int V, const double *ca, const double *cb,
+                           const double *radii,
                            int C, const PushMesh *m, const PushArgs *args, const StrainArgs *s, const SubspaceArgs *sp,
                            const double *turn, double *before, double *after, unsigned char *torn, PushTeam *team)
 {
     double *p = team->p, *u = team->u;
-    #pragma omp for schedule(static)
-    for (int k = 0; k < 3 * V; ++k) p[k] = in[k];
+    if (in_double) {
+        #pragma omp for schedule(static)
+        for (int k = 0; k < 3 * V; ++k) p[k] = ((const double *)in)[k];
+    } else {
+        #pragma omp for schedule(static)
+        for (int k = 0; k < 3 * V; ++k) p[k] = ((const float *)in)[k];
+    }
     if (sp) subspace_push(p, V, ca, cb, radii, C, m, args->margin, sp, turn, team);
     if (s) {  /* the limit's reference: the frame as the mesh push gets it */
         #pragma omp for schedule(static)
@@ -829,7 +839,8 @@ static void push_and_limit(const float *in, float *out, int V, const double *ca,
     for (int k = 0; k < 3 * V; ++k) out[k] = (float)p[k];
 }
 
-/* T frames in (T, V, 3) float32 -> pushed out (T, V, 3) float32, in float64 between: one frame at
+/* T frames in (T, V, 3) float32, or float64 with in_double -> pushed out (T, V, 3) float32, in
+   float64 between: one frame at
    a time shared by the team (a stream's single frame), or several frames in parallel, each in its
    own one-thread team (offline). radii_step: 0 where every frame has the same radii, C where each
    frame has its own (a crowd's characters of different bodies). ring, ring_drop, width, follow:
@@ -838,7 +849,7 @@ static void push_and_limit(const float *in, float *out, int V, const double *ca,
    push (torn[t]: whether frame t was; before and after are the push's). subspace (NULL: none): the
    subspace push before the mesh push, each frame's body frame turned by turn (T, 3, 3). NaN
    fractions when out of memory or where k > SUBSPACE_MAXK. */
-void hrr_push_out(const float *in, float *out, int T, int V, const double *a, const double *b, const double *radii, int C,
+void hrr_push_out(const void *in, int in_double, float *out, int T, int V, const double *a, const double *b, const double *radii, int C,
                   int radii_step, const int32_t *indptr, const int32_t *indices, const double *weights,
                   const int32_t *ring, const double *ring_drop, int width, int follow, const int32_t *patch_ptr,
                   const int32_t *patch_idx, int patches, const PushArgs *args, const StrainArgs *limit,
@@ -877,7 +888,8 @@ void hrr_push_out(const float *in, float *out, int T, int V, const double *a, co
     if (shared) {
         #pragma omp parallel num_threads(threads)
         for (int t = 0; t < T; ++t)
-            push_and_limit(in + t * step, out + t * step, V, a + (size_t)t * 3 * C, b + (size_t)t * 3 * C,
+            push_and_limit(in_double ? (const void *)((const double *)in + t * step) : (const void *)((const float *)in + t * step),
+                           in_double, out + t * step, V, a + (size_t)t * 3 * C, b + (size_t)t * 3 * C,
                            radii + (size_t)t * radii_step, C, &mesh, args, limit, subspace, turn ? turn + 9 * t : NULL,
                            before + t, after + t, torn + t, team);
     } else {
@@ -885,7 +897,8 @@ void hrr_push_out(const float *in, float *out, int T, int V, const double *a, co
         for (int t = 0; t < T; ++t) {
             PushTeam *mine = team + omp_get_thread_num();
             #pragma omp parallel num_threads(1)  /* this frame's own one-thread team */
-            push_and_limit(in + t * step, out + t * step, V, a + (size_t)t * 3 * C, b + (size_t)t * 3 * C,
+            push_and_limit(in_double ? (const void *)((const double *)in + t * step) : (const void *)((const float *)in + t * step),
+                           in_double, out + t * step, V, a + (size_t)t * 3 * C, b + (size_t)t * 3 * C,
                            radii + (size_t)t * radii_step, C, &mesh, args, limit, subspace, turn ? turn + 9 * t : NULL,
                            before + t, after + t, torn + t, mine);
         }
