@@ -122,7 +122,7 @@ def push_out(vertices: np.ndarray, motion: Motion, faces: np.ndarray, *, body: B
                           subspace=None if settings.subspace is None else settings.subspace.native)
         for start in range(0, len(out), chunk):
             sl = slice(start, start + chunk)
-            _, before[sl], after[sl], torn[sl] = push_out_frames(lib, vertices[sl], (a[sl], b[sl], framed(sl)), steps,
+            _, before[sl], after[sl], torn[sl] = push_out_frames(lib, vertices[sl], (a[sl], b[sl], framed(sl)), steps=steps,
                                                                  turn=None if turn is None else turn[sl],
                                                                  threads=default_threads(), out=out[sl])
     else:

@@ -71,8 +71,8 @@ class SubspacePush:
     def native(self) -> SubspaceMove:
         """What the push-out's kernel takes of this push (:class:`~hrr_garment.native.body.SubspaceMove`), converted once."""
         if not self._native:
-            self._native.append(SubspaceMove(self.basis, self.stretch, self.strain_weight, self.ridge, self.clearance,
-                                             self.iterations))
+            self._native.append(SubspaceMove(self.basis, self.stretch, strain_weight=self.strain_weight, ridge=self.ridge,
+                                             clearance=self.clearance, iterations=self.iterations))
         return self._native[0]
 
     def __call__(self, vertices: np.ndarray, motion: Motion, capsules: tuple[np.ndarray, np.ndarray, np.ndarray],

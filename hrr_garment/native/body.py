@@ -52,12 +52,12 @@ class _SubspaceArgs(ctypes.Structure):
 class SubspaceMove:
     """The push in the garment's subspace as the kernel takes it, converted once
     (:class:`hrr_garment.inference.subspace_push.SubspacePush` holds the reference): the components
-    (k, V, 3), stored vertex-major (V, 3, k) so that a vertex's rows are contiguous, the stretch
-    (k, k), and the push's settings."""
+    (k, V, 3), stored vertex-major (V, 3, k) so that a vertex's rows are contiguous, in float32 (the
+    decoder's own values: exact), the stretch (k, k), and the push's settings."""
 
     def __init__(self, basis: np.ndarray, stretch: np.ndarray, strain_weight: float, ridge: float, clearance: float,
                  iterations: int) -> None:
-        self.basis = np.ascontiguousarray(np.asarray(basis, np.float64).transpose(1, 2, 0))
+        self.basis = np.ascontiguousarray(np.asarray(basis).transpose(1, 2, 0), np.float32)
         self.stretch = np.ascontiguousarray(stretch, np.float64)
         self.struct = _SubspaceArgs(self.basis.ctypes.data, self.stretch.ctypes.data, len(self.stretch), int(iterations),
                                     float(strain_weight), float(ridge), float(clearance))

@@ -692,11 +692,13 @@ int hrr_limit_strain(double *p, const double *unpushed, int T, int V, const Stra
 }
 
 /* The push in the garment's subspace (hrr_garment.inference.subspace_push, its reference): the
-   first k principal components of the fast decoder, vertex-major (V, 3, k), the first-order edge
+   first k principal components of the fast decoder, vertex-major (V, 3, k) in float32 as the
+   decoder stores them (half the memory a frame streams; sums in float64), the first-order edge
    stretch per pair of them (k, k), the stretch's weight, the ridge per vertex near the body, the
    clearance past the margin aimed for, and the solves a frame. */
 typedef struct {
-    const double *basis, *stretch;
+    const float *basis;
+    const double *stretch;
     int k, iterations;
     double strain_weight, ridge, clearance;
 } SubspaceArgs;
@@ -767,7 +769,8 @@ static void subspace_push(double *p, int V, const double *ca, const double *cb, 
                 for (int i = 0; i < k; ++i) coef[i] = 0.0;
                 for (int q = 0; q < n; ++q) {
                     const int v = team->moved[q];
-                    const double *nv = nrm + 3 * (size_t)v, *bv = sp->basis + (size_t)v * 3 * k;
+                    const double *nv = nrm + 3 * (size_t)v;
+                    const float *bv = sp->basis + (size_t)v * 3 * k;
                     double local[3];
                     for (int j = 0; j < 3; ++j) local[j] = nv[0] * turn[j] + nv[1] * turn[3 + j] + nv[2] * turn[6 + j];
                     const double depth = reach - d[v], weight = depth < sp->clearance ? depth / sp->clearance : 1.0;
@@ -786,7 +789,7 @@ static void subspace_push(double *p, int V, const double *ca, const double *cb, 
         if (!team->flag[2]) break;
         #pragma omp for schedule(static)
         for (int v = 0; v < V; ++v) {
-            const double *bv = sp->basis + (size_t)v * 3 * k;
+            const float *bv = sp->basis + (size_t)v * 3 * k;
             double local[3];
             for (int j = 0; j < 3; ++j) {
                 double x = 0.0;
