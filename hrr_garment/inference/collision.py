@@ -109,7 +109,7 @@ def push_out(vertices: np.ndarray, motion: Motion, faces: np.ndarray, *, body: B
     from ..native.body import PushSteps, push_out_frames
 
     lib = load_kernel()
-    turn = None if settings.subspace is None else body_heading(motion)[1]
+    original, turn = vertices, None if settings.subspace is None else body_heading(motion)[1]
     if lib is not None:  # the same steps in C, frames in parallel: numpy's per-step overheads dominated.
         # Each frame converted to float64, pushed, limited and converted back while it is in cache
         # (the limit measuring only the edges of the vertices the push moved): a 32-character crowd
@@ -136,6 +136,8 @@ def push_out(vertices: np.ndarray, motion: Motion, faces: np.ndarray, *, body: B
         if limits is not None:
             out, torn = limit_push_strain(out, vertices, limits, settings.max_strain, in_place=True,
                                           slack=settings.stretch_slack)
+    if report and settings.subspace is not None:  # "before": as decoded, not after the subspace push
+        before = (frames_signed_distance(np.asarray(original, np.float64), a, b, radii=radii)[0] < -depth).mean(1)
     if limits is not None and report and torn.any():  # only the frames the limit moved have a new "after"
         inside = frames_signed_distance(out[torn].astype(np.float64), a[torn], b[torn], radii=framed(torn))[0] < -depth
         after[torn] = inside.mean(1)

@@ -126,3 +126,19 @@ def test_a_stream_with_the_subspace_push_equals_the_offline_animation_and_change
     assert np.abs(mesh.vertices - offline.vertices).max() > 0  # the subspace moved the cloth first
     with pytest.raises(ValueError, match="push must be one of"):
         RunSettings(push="sideways")
+
+
+def test_the_report_counts_the_cloth_inside_as_decoded_before_the_subspace_push():
+    import dataclasses
+
+    from hrr_garment.inference.collision import PUSH_OUT, push_out
+    from hrr_garment.inference.subspace_push import SubspacePush
+
+    skirt, basis = _skirt_and_basis()
+    motion = synthesize("walk", 0.2, seed=2)
+    _, squeezed = squeezed_skirt(motion, 0.8, on_body=True)
+    squeezed = squeezed.astype(np.float32)
+    _, mesh = push_out(squeezed, motion, skirt.faces)
+    settings = dataclasses.replace(PUSH_OUT, subspace=SubspacePush.of(basis, skirt.vertices, skirt.edges()))
+    _, both = push_out(squeezed, motion, skirt.faces, settings=settings)
+    assert both.inside_before == mesh.inside_before > 0.05 and both.worst_before == mesh.worst_before
