@@ -12,7 +12,8 @@ land in a neighbouring capsule, hence more than one). Last the strain limit undo
 tears the cloth (:func:`limit_push_strain`). With a C compiler the same steps run in the kernel of
 :mod:`hrr_garment.native` (frames in parallel), which measures only the vertices near a capsule
 and spreads only around the pushed ones (the same result: what it skips is exactly untouched);
-this module's numpy version is the reference and the fallback.
+this module's numpy version is the reference and the fallback. Before all of it, an option moves
+the whole garment in its fast decoder's subspace (:mod:`.subspace_push`, docs/decisions/0032).
 """
 
 from __future__ import annotations
@@ -97,7 +98,10 @@ def push_out(vertices: np.ndarray, motion: Motion, faces: np.ndarray, *, body: B
     times its rest length, or past its stretch before the push where that was more
     (:func:`limit_push_strain`). Without ``report`` (a stream, which discards it) the report is
     None, and the frames the limit moved are not measured again (a quarter of a crowd's push-out).
-    ``body``: the body's capsules, posed by ``motion``, or :class:`PosedCapsules`."""
+    ``body``: the body's capsules, posed by ``motion``, or :class:`PosedCapsules`. With
+    ``settings.subspace`` (:class:`~.subspace_push.SubspacePush`) each frame is first moved in the
+    garment's subspace, and the limit measures the push against the moved frame; the report's
+    "before" is the cloth as it came."""
     settings = PUSH_OUT if settings is None else settings  # read here, so that the product's settings are one object
     margin, smooth, rounds, depth, chunk = settings.margin, settings.smooth, settings.rounds, settings.depth, settings.chunk
     posed = body if isinstance(body, PosedCapsules) else PosedCapsules(*body.pose_motion(motion), body.radii)
@@ -111,7 +115,7 @@ def push_out(vertices: np.ndarray, motion: Motion, faces: np.ndarray, *, body: B
     lib = load_kernel()
     original, turn = vertices, None if settings.subspace is None else body_heading(motion)[1]
     if lib is not None:  # the same steps in C, frames in parallel: numpy's per-step overheads dominated.
-        # Each frame converted to float64, pushed, limited and converted back while it is in cache
+        # Each frame taken into float64 as it comes, pushed, limited and converted back while it is in cache
         # (the limit measuring only the edges of the vertices the push moved): a 32-character crowd
         # spent a millisecond a frame converting and copying whole batches
         out = np.empty(vertices.shape, np.float32)

@@ -10,6 +10,7 @@ from typing import NamedTuple
 import numpy as np
 
 MAX_CAPSULES = 64  # SDF_MAXC in kernels.c
+MAX_SUBSPACE_COMPONENTS = 512  # SUBSPACE_MAXK in kernels.c
 
 
 class PushSteps(NamedTuple):
@@ -57,6 +58,8 @@ class SubspaceMove:
 
     def __init__(self, basis: np.ndarray, stretch: np.ndarray, strain_weight: float, ridge: float, clearance: float,
                  iterations: int) -> None:
+        if not 1 <= len(basis) <= MAX_SUBSPACE_COMPONENTS:
+            raise ValueError(f"the native subspace push takes 1 to {MAX_SUBSPACE_COMPONENTS} components, not {len(basis)}")
         self.basis = np.ascontiguousarray(np.asarray(basis).transpose(1, 2, 0), np.float32)
         self.stretch = np.ascontiguousarray(stretch, np.float64)
         self.struct = _SubspaceArgs(self.basis.ctypes.data, self.stretch.ctypes.data, len(self.stretch), int(iterations),
