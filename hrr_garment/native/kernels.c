@@ -737,68 +737,91 @@ static int cholesky_solve(double *A, double *b, int k)
    (u, 3 V; with a limit), the vertices the push moved (moved, V ints) and the limit's scratch. */
 typedef struct {
     double *buf, *p, *u, *solve;  /* solve: the subspace push's k (k + 2) doubles */
+    double *frames;  /* team[0]'s: the batched subspace push's moved frames (batched_subspace) */
     int32_t *ints, *moved;
     int *flag;
     LimitScratch limit;
 } PushTeam;
 
-/* The subspace push on frame p (V, 3), its body frame turned by turn (3 x 3, body -> world):
-   `iterations` times the vertices within margin + clearance of the body (team->moved) give the
-   normal equations of the coefficients that take them to margin + clearance along their normals,
-   each weighted from 0 where it enters to 1 at the margin, with the stretch and the ridge added; the frame moves by the solution over the components. Called by
-   every thread of the innermost parallel region (the distances and the move shared, the solve on
-   one); d and nrm are push_frame's scratch, which it overwrites after. */
-static void subspace_push(double *p, int V, const double *ca, const double *cb, const double *radii, int C,
-                          const PushMesh *m, double margin, const SubspaceArgs *sp, const double *turn, PushTeam *team)
+enum { MOVE_BLOCK = 64 };  /* vertices a block of the subspace move: its rows of the basis stay in cache */
+
+/* The subspace move of vertices v0 .. v1 of frame p: each by coef over the components (k) of the
+   basis (V, 3, k), turned into the world by turn. One function, never inlined, for the frame-by-
+   frame and the batched paths alike: the same machine code, so the same bits. */
+static __attribute__((noinline)) void subspace_move(double *p, int v0, int v1, const float *basis, int k,
+                                                    const double *coef, const double *turn)
+{
+    for (int v = v0; v < v1; ++v) {
+        const float *bv = basis + (size_t)v * 3 * k;
+        double local[3];
+        for (int j = 0; j < 3; ++j) {
+            double x = 0.0;
+            #pragma omp simd reduction(+:x)  /* a sum in lanes, its order fixed by this code */
+            for (int c = 0; c < k; ++c) x += coef[c] * bv[j * k + c];
+            local[j] = x;
+        }
+        for (int i = 0; i < 3; ++i) p[3 * v + i] += turn[3 * i] * local[0] + turn[3 * i + 1] * local[1] + turn[3 * i + 2] * local[2];
+    }
+}
+
+/* One solve of the subspace push on frame p (V, 3), its body frame turned by turn (3 x 3, body ->
+   world): the vertices within margin + clearance of the body (team->moved) give the normal
+   equations of the coefficients (k, into coef) that take them to margin + clearance along their
+   normals, each weighted from 0 where it enters to 1 at the margin, with the stretch and the ridge
+   added. Returns whether there was a move to make. Called by every thread of the innermost parallel
+   region (the distances shared, the solve on one); d and nrm are push_frame's scratch. */
+static int subspace_solve(const double *p, int V, const double *ca, const double *cb, const double *radii, int C,
+                          const PushMesh *m, double margin, const SubspaceArgs *sp, const double *turn, PushTeam *team,
+                          double *coef)
 {
     const int k = sp->k;
     const double reach = margin + sp->clearance;
-    double *d = team->buf, *nrm = d + V, *A = team->solve, *coef = A + (size_t)k * k, *row = coef + k;
-    for (int it = 0; it < sp->iterations; ++it) {
-        if (m->patch_ptr) sdf_patches(p, m, ca, cb, radii, C, reach, d, nrm);
-        else sdf_points(p, NULL, V, ca, cb, radii, C, d, nrm);
-        #pragma omp single
-        {
-            int n = 0;
-            for (int v = 0; v < V; ++v)
-                if (d[v] < reach) team->moved[n++] = v;
-            team->flag[2] = 0;
-            if (n > 0) {
-                double total = 0.0;
-                for (int i = 0; i < k * k; ++i) A[i] = sp->strain_weight * sp->stretch[i];
-                for (int i = 0; i < k; ++i) coef[i] = 0.0;
-                for (int q = 0; q < n; ++q) {
-                    const int v = team->moved[q];
-                    const double *nv = nrm + 3 * (size_t)v;
-                    const float *bv = sp->basis + (size_t)v * 3 * k;
-                    double local[3];
-                    for (int j = 0; j < 3; ++j) local[j] = nv[0] * turn[j] + nv[1] * turn[3 + j] + nv[2] * turn[6 + j];
-                    const double depth = reach - d[v], weight = depth < sp->clearance ? depth / sp->clearance : 1.0;
-                    total += weight;
-                    for (int c = 0; c < k; ++c) row[c] = local[0] * bv[c] + local[1] * bv[k + c] + local[2] * bv[2 * k + c];
-                    for (int i = 0; i < k; ++i) {  /* the lower triangle: the solve reads no other */
-                        const double ri = weight * row[i];
-                        for (int j = 0; j <= i; ++j) A[i * k + j] += ri * row[j];
-                        coef[i] += ri * depth;
-                    }
+    double *d = team->buf, *nrm = d + V, *A = team->solve, *row = A + (size_t)k * k;
+    if (m->patch_ptr) sdf_patches(p, m, ca, cb, radii, C, reach, d, nrm);
+    else sdf_points(p, NULL, V, ca, cb, radii, C, d, nrm);
+    #pragma omp single
+    {
+        int n = 0;
+        for (int v = 0; v < V; ++v)
+            if (d[v] < reach) team->moved[n++] = v;
+        team->flag[2] = 0;
+        if (n > 0) {
+            double total = 0.0;
+            for (int i = 0; i < k * k; ++i) A[i] = sp->strain_weight * sp->stretch[i];
+            for (int i = 0; i < k; ++i) coef[i] = 0.0;
+            for (int q = 0; q < n; ++q) {
+                const int v = team->moved[q];
+                const double *nv = nrm + 3 * (size_t)v;
+                const float *bv = sp->basis + (size_t)v * 3 * k;
+                double local[3];
+                for (int j = 0; j < 3; ++j) local[j] = nv[0] * turn[j] + nv[1] * turn[3 + j] + nv[2] * turn[6 + j];
+                const double depth = reach - d[v], weight = depth < sp->clearance ? depth / sp->clearance : 1.0;
+                total += weight;
+                for (int c = 0; c < k; ++c) row[c] = local[0] * bv[c] + local[1] * bv[k + c] + local[2] * bv[2 * k + c];
+                for (int i = 0; i < k; ++i) {  /* the lower triangle: the solve reads no other */
+                    const double ri = weight * row[i];
+                    for (int j = 0; j <= i; ++j) A[i * k + j] += ri * row[j];
+                    coef[i] += ri * depth;
                 }
-                for (int i = 0; i < k; ++i) A[i * k + i] += sp->ridge * total;
-                team->flag[2] = cholesky_solve(A, coef, k) == 0;
             }
+            for (int i = 0; i < k; ++i) A[i * k + i] += sp->ridge * total;
+            team->flag[2] = cholesky_solve(A, coef, k) == 0;
         }
-        if (!team->flag[2]) break;
+    }
+    return team->flag[2];
+}
+
+/* The subspace push on one frame p, `iterations` solves and moves (stopping where one has nothing
+   to move), shared by the threads of the innermost parallel region. */
+static void subspace_push(double *p, int V, const double *ca, const double *cb, const double *radii, int C,
+                          const PushMesh *m, double margin, const SubspaceArgs *sp, const double *turn, PushTeam *team)
+{
+    double *coef = team->solve + (size_t)sp->k * (sp->k + 1);
+    for (int it = 0; it < sp->iterations; ++it) {
+        if (!subspace_solve(p, V, ca, cb, radii, C, m, margin, sp, turn, team, coef)) break;
         #pragma omp for schedule(static)
-        for (int v = 0; v < V; ++v) {
-            const float *bv = sp->basis + (size_t)v * 3 * k;
-            double local[3];
-            for (int j = 0; j < 3; ++j) {
-                double x = 0.0;
-                #pragma omp simd reduction(+:x)  /* a sum in lanes: the order is fixed, the same for every frame */
-                for (int c = 0; c < k; ++c) x += coef[c] * bv[j * k + c];
-                local[j] = x;
-            }
-            for (int i = 0; i < 3; ++i) p[3 * v + i] += turn[3 * i] * local[0] + turn[3 * i + 1] * local[1] + turn[3 * i + 2] * local[2];
-        }
+        for (int v0 = 0; v0 < V; v0 += MOVE_BLOCK)
+            subspace_move(p, v0, v0 + MOVE_BLOCK < V ? v0 + MOVE_BLOCK : V, sp->basis, sp->k, coef, turn);
     }
 }
 
@@ -842,6 +865,58 @@ static void push_and_limit(const void *in, int in_double, float *out, int V, con
     for (int k = 0; k < 3 * V; ++k) out[k] = (float)p[k];
 }
 
+/* The subspace push of T frames at once (several teams, a frame each): the frames taken into
+   float64 (team[0].frames, T x 3V, which the caller frees), then `iterations` times every frame's
+   solve (frames in parallel) and every frame's move (vertex blocks in parallel, each block's rows of
+   the basis read once for all the frames): the same arithmetic as subspace_push frame by frame
+   (subspace_move is one function), the same bits. Returns 0 (nothing done) when out of memory. */
+static int batched_subspace(const void *in, int in_double, int T, int V, const double *a, const double *b,
+                            const double *radii, int C, int radii_step, const PushMesh *m, const PushArgs *args,
+                            const SubspaceArgs *sp, const double *turn, int teams, PushTeam *team)
+{
+    const int k = sp->k;
+    const size_t step = (size_t)V * 3;
+    double *frames = malloc(sizeof(double) * step * T), *coefs = malloc(sizeof(double) * (size_t)k * T);
+    unsigned char *active = malloc((size_t)T);
+    if (!frames || !coefs || !active) {
+        free(frames);
+        free(coefs);
+        free(active);
+        return 0;
+    }
+    memset(active, 1, (size_t)T);
+    #pragma omp parallel num_threads(teams)
+    {
+        PushTeam *mine = team + omp_get_thread_num();
+        #pragma omp for schedule(static)
+        for (int t = 0; t < T; ++t)
+            for (size_t q = 0; q < step; ++q)
+                frames[t * step + q] = in_double ? ((const double *)in)[t * step + q] : ((const float *)in)[t * step + q];
+        for (int it = 0; it < sp->iterations; ++it) {
+            #pragma omp for schedule(dynamic)
+            for (int t = 0; t < T; ++t) {
+                if (!active[t]) continue;
+                int solved = 0;
+                #pragma omp parallel num_threads(1)  /* this frame's own one-thread team */
+                solved = subspace_solve(frames + t * step, V, a + (size_t)t * 3 * C, b + (size_t)t * 3 * C,
+                                        radii + (size_t)t * radii_step, C, m, args->margin, sp, turn + 9 * t, mine,
+                                        coefs + (size_t)k * t);
+                active[t] = (unsigned char)solved;
+            }
+            #pragma omp for schedule(static)
+            for (int v0 = 0; v0 < V; v0 += MOVE_BLOCK)
+                for (int t = 0; t < T; ++t)
+                    if (active[t])
+                        subspace_move(frames + t * step, v0, v0 + MOVE_BLOCK < V ? v0 + MOVE_BLOCK : V, sp->basis, k,
+                                      coefs + (size_t)k * t, turn + 9 * t);
+        }
+    }
+    free(coefs);
+    free(active);
+    team[0].frames = frames;
+    return 1;
+}
+
 /* T frames in (T, V, 3) float32, or float64 with in_double -> pushed out (T, V, 3) float32, in
    float64 between: one frame at
    a time shared by the team (a stream's single frame), or several frames in parallel, each in its
@@ -883,7 +958,7 @@ void hrr_push_out(const void *in, int in_double, float *out, int T, int V, const
     }
     for (int k = 0; k < team_count; ++k) {
         double *mine = buf + ((size_t)V * BUF + solve) * k;
-        team[k] = (PushTeam){mine, mine + (size_t)V * 20, mine + (size_t)V * 23, mine + (size_t)V * BUF,
+        team[k] = (PushTeam){mine, mine + (size_t)V * 20, mine + (size_t)V * 23, mine + (size_t)V * BUF, NULL,
                              ints + (size_t)V * 4 * k, ints + (size_t)V * 4 * k + 3 * (size_t)V, flags + 3 * k, {0}};
         if (limit) team[k].limit = limit_scratch(limit_block + per_limit * k, V, limit->E);
     }
@@ -895,7 +970,8 @@ void hrr_push_out(const void *in, int in_double, float *out, int T, int V, const
                            in_double, out + t * step, V, a + (size_t)t * 3 * C, b + (size_t)t * 3 * C,
                            radii + (size_t)t * radii_step, C, &mesh, args, limit, subspace, turn ? turn + 9 * t : NULL,
                            before + t, after + t, torn + t, team);
-    } else {
+    } else if (!subspace || !batched_subspace(in, in_double, T, V, a, b, radii, C, radii_step, &mesh, args, subspace, turn,
+                                              teams, team)) {
         #pragma omp parallel for num_threads(teams) schedule(dynamic)
         for (int t = 0; t < T; ++t) {
             PushTeam *mine = team + omp_get_thread_num();
@@ -905,6 +981,17 @@ void hrr_push_out(const void *in, int in_double, float *out, int T, int V, const
                            radii + (size_t)t * radii_step, C, &mesh, args, limit, subspace, turn ? turn + 9 * t : NULL,
                            before + t, after + t, torn + t, mine);
         }
+    } else {  /* the frames moved in the subspace already (team[0].frames): the mesh push and the limit */
+        const double *moved = team[0].frames;
+        #pragma omp parallel for num_threads(teams) schedule(dynamic)
+        for (int t = 0; t < T; ++t) {
+            PushTeam *mine = team + omp_get_thread_num();
+            #pragma omp parallel num_threads(1)
+            push_and_limit(moved + t * step, 1, out + t * step, V, a + (size_t)t * 3 * C, b + (size_t)t * 3 * C,
+                           radii + (size_t)t * radii_step, C, &mesh, args, limit, NULL, NULL, before + t, after + t, torn + t,
+                           mine);
+        }
+        free(team[0].frames);
     }
     free(buf);
     free(ints);
