@@ -33,7 +33,7 @@ def add_push_option(p: argparse.ArgumentParser) -> None:
     """``--push``: how the push-out takes the cloth out of the body."""
     p.add_argument("--push", choices=PUSHES, default=None,
                    help="the collision push-out: mesh (each vertex to the nearest surface; default) or subspace (first "
-                        "the whole garment along the fast decoder's components: fewer tears, about 3 x the push-out's "
+                        "the whole garment along the fast decoder's components: fewer tears, about 2.5 x the push-out's "
                         "cost; where the model has a fast decoder)")
 
 

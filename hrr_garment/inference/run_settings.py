@@ -93,7 +93,7 @@ class RunSettings:
     decoder: str | None = None
     # how the push-out takes the cloth out of the body: "mesh" (each vertex to the nearest surface,
     # its tears limited) or "subspace" (first the whole garment along its fast decoder's principal
-    # components, then the mesh push: fewer tears, about 3 x the push-out's cost; where the bundle
+    # components, then the mesh push: fewer tears, about 2.5 x the push-out's cost; where the bundle
     # has a fast decoder; docs/decisions/0032). None: mesh
     push: str | None = None
     # the hem's swing restored on free cloth (inference/swing.py): the gain on the latents' departure
