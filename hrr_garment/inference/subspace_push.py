@@ -45,7 +45,10 @@ class SubspacePush:
     basis: np.ndarray  # (k, V, 3) float64, orthonormal components in the body frame
     stretch: np.ndarray  # (k, k) G: the edges' first-order stretch per pair of components
     strain_weight: float = 10.0  # w: what a square metre of edge stretch costs against one of missed depth
-    ridge: float = 1e-6  # r: per vertex in S, keeps the solve well posed where few components reach it
+    # r: per unit of weight in S: keeps the solve well posed and the move small where it buys little
+    # depth; on the subset model 1e-4 tore 25.4 % of frames with jitter 1.11 x the truth's, 1e-6
+    # 23.6 % with 1.18, 1e-3 33.8 % with 1.09 (the mesh push alone: 58.5 %, 1.09; docs/decisions/0032)
+    ridge: float = 1e-4
     clearance: float = 0.003  # metres past the push-out's margin the subspace aims for (the mesh push-out does the rest)
     # (and the band over which a vertex's weight grows from 0 to 1 as it nears the body)
     iterations: int = 2  # solves a frame (a move can bring other vertices near the body)
