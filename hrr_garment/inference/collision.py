@@ -145,7 +145,6 @@ def push_out(vertices: np.ndarray, motion: Motion, faces: np.ndarray, *, body: B
     if limits is not None and report and torn.any():  # only the frames the limit moved have a new "after"
         inside = frames_signed_distance(out[torn].astype(np.float64), a[torn], b[torn], radii=framed(torn))[0] < -depth
         after[torn] = inside.mean(1)
-    out = out.astype(np.float32, copy=False)
     if not report:
         return out, None
     return out, PushOutReport(float(before.mean()), float(after.mean()), float(before.max(initial=0)), float(after.max(initial=0)))

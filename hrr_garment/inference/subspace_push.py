@@ -24,7 +24,8 @@ the body is left exactly as it is.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -52,7 +53,10 @@ class SubspacePush:
     clearance: float = 0.003  # metres past the push-out's margin the subspace aims for (the mesh push-out does the rest)
     # (and the band over which a vertex's weight grows from 0 to 1 as it nears the body)
     iterations: int = 2  # solves a frame (a move can bring other vertices near the body)
-    _native: list = field(default_factory=list, repr=False, compare=False)  # the kernel's arrays, made on first use
+
+    def __post_init__(self) -> None:
+        if not self.clearance > 0:
+            raise ValueError(f"clearance must be > 0 metres (the band a vertex's weight grows over), got {self.clearance!r}")
 
     @classmethod
     def of(cls, basis: np.ndarray, rest: np.ndarray, edges: np.ndarray, components: int = COMPONENTS,
@@ -62,21 +66,17 @@ class SubspacePush:
         if components < 1:
             raise ValueError(f"components must be at least 1, got {components}")
         k = min(int(components), len(basis))
-        if not settings.get("clearance", cls.clearance) > 0:
-            raise ValueError(f"clearance must be > 0 metres (the band a vertex's weight grows over), got {settings['clearance']!r}")
         b3 = np.asarray(basis[:k], np.float64).reshape(k, len(rest), 3)
         direction = rest[edges[:, 1]].astype(np.float64) - rest[edges[:, 0]]
         direction /= np.maximum(np.linalg.norm(direction, axis=1, keepdims=True), 1e-12)
         rows = np.einsum("ei,kei->ek", direction, b3[:, edges[:, 1]] - b3[:, edges[:, 0]])  # (E, k)
         return cls(b3, rows.T @ rows, **settings)
 
-    @property
+    @cached_property
     def native(self) -> SubspaceMove:
         """What the push-out's kernel takes of this push (:class:`~hrr_garment.native.body.SubspaceMove`), converted once."""
-        if not self._native:
-            self._native.append(SubspaceMove(self.basis, self.stretch, strain_weight=self.strain_weight, ridge=self.ridge,
-                                             clearance=self.clearance, iterations=self.iterations))
-        return self._native[0]
+        return SubspaceMove(self.basis, self.stretch, strain_weight=self.strain_weight, ridge=self.ridge,
+                            clearance=self.clearance, iterations=self.iterations)
 
     def __call__(self, vertices: np.ndarray, motion: Motion, capsules: tuple[np.ndarray, np.ndarray, np.ndarray],
                  margin: float) -> np.ndarray:

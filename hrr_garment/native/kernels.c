@@ -572,10 +572,9 @@ static LimitScratch limit_scratch(unsigned char *block, int V, int E)
    measured in. A pass over a torn neighbourhood costs its size, not the mesh's. The first pass
    measures the n_active edges the caller found over their limit (w->active), every other edge
    being within it. Leaves the marks clear. */
-static void limit_frame(double *p, const double *u, int V, const StrainArgs *s, LimitScratch *w, int n_active)
+static void limit_frame(double *p, const double *u, const StrainArgs *s, LimitScratch *w, int n_active)
 {
     const int32_t *edges = s->edges;
-    (void)V;
     memset(w->lmark, 0, (size_t)s->E);  /* the limits known: those of the edges listed (measure_edge) */
     for (int k = 0; k < n_active; ++k) w->lmark[w->active[k]] = 1;
     for (int it = 0; it < s->iterations; ++it) {
@@ -664,7 +663,7 @@ static int limit_one(double *p, const double *u, int V, const StrainArgs *s, con
         for (int k = 0; k < n_moved; ++k)
             for (int q = s->ve_ptr[moved[k]]; q < s->ve_ptr[moved[k] + 1]; ++q) w->emark[s->ve_idx[q]] = 0;
     }
-    if (over) limit_frame(p, u, V, s, w, n_long);
+    if (over) limit_frame(p, u, s, w, n_long);
     return over;
 }
 
@@ -737,7 +736,6 @@ static int cholesky_solve(double *A, double *b, int k)
    (u, 3 V; with a limit), the vertices the push moved (moved, V ints) and the limit's scratch. */
 typedef struct {
     double *buf, *p, *u, *solve;  /* solve: the subspace push's k (k + 2) doubles */
-    double *frames;  /* team[0]'s: the batched subspace push's moved frames (batched_subspace) */
     int32_t *ints, *moved;
     int *flag;
     LimitScratch limit;
@@ -866,11 +864,11 @@ static void push_and_limit(const void *in, int in_double, float *out, int V, con
 }
 
 /* The subspace push of T frames at once (several teams, a frame each): the frames taken into
-   float64 (team[0].frames, T x 3V, which the caller frees), then `iterations` times every frame's
-   solve (frames in parallel) and every frame's move (vertex blocks in parallel, each block's rows of
-   the basis read once for all the frames): the same arithmetic as subspace_push frame by frame
-   (subspace_move is one function), the same bits. Returns 0 (nothing done) when out of memory. */
-static int batched_subspace(const void *in, int in_double, int T, int V, const double *a, const double *b,
+   float64, then `iterations` times every frame's solve (frames in parallel) and every frame's move
+   (vertex blocks in parallel, each block's rows of the basis read once for all the frames): the
+   same arithmetic as subspace_push frame by frame (subspace_move is one function), the same bits.
+   Returns the moved frames (T x 3V doubles, the caller frees them), or NULL when out of memory. */
+static double *batched_subspace(const void *in, int in_double, int T, int V, const double *a, const double *b,
                             const double *radii, int C, int radii_step, const PushMesh *m, const PushArgs *args,
                             const SubspaceArgs *sp, const double *turn, int teams, PushTeam *team)
 {
@@ -882,7 +880,7 @@ static int batched_subspace(const void *in, int in_double, int T, int V, const d
         free(frames);
         free(coefs);
         free(active);
-        return 0;
+        return NULL;
     }
     memset(active, 1, (size_t)T);
     #pragma omp parallel num_threads(teams)
@@ -913,8 +911,7 @@ static int batched_subspace(const void *in, int in_double, int T, int V, const d
     }
     free(coefs);
     free(active);
-    team[0].frames = frames;
-    return 1;
+    return frames;
 }
 
 /* T frames in (T, V, 3) float32, or float64 with in_double -> pushed out (T, V, 3) float32, in
@@ -958,41 +955,38 @@ void hrr_push_out(const void *in, int in_double, float *out, int T, int V, const
     }
     for (int k = 0; k < team_count; ++k) {
         double *mine = buf + ((size_t)V * BUF + solve) * k;
-        team[k] = (PushTeam){mine, mine + (size_t)V * 20, mine + (size_t)V * 23, mine + (size_t)V * BUF, NULL,
+        team[k] = (PushTeam){mine, mine + (size_t)V * 20, mine + (size_t)V * 23, mine + (size_t)V * BUF,
                              ints + (size_t)V * 4 * k, ints + (size_t)V * 4 * k + 3 * (size_t)V, flags + 3 * k, {0}};
         if (limit) team[k].limit = limit_scratch(limit_block + per_limit * k, V, limit->E);
     }
     const size_t step = (size_t)V * 3;
+    /* several frames: their subspace push batched first, where there is one (and the memory) */
+    double *moved = !shared && subspace
+        ? batched_subspace(in, in_double, T, V, a, b, radii, C, radii_step, &mesh, args, subspace, turn, teams, team) : NULL;
+    if (moved) {
+        in = moved;
+        in_double = 1;
+        subspace = NULL;
+    }
+    #define FRAME_IN(t) (in_double ? (const void *)((const double *)in + (t) * step) : (const void *)((const float *)in + (t) * step))
     if (shared) {
         #pragma omp parallel num_threads(threads)
         for (int t = 0; t < T; ++t)
-            push_and_limit(in_double ? (const void *)((const double *)in + t * step) : (const void *)((const float *)in + t * step),
-                           in_double, out + t * step, V, a + (size_t)t * 3 * C, b + (size_t)t * 3 * C,
+            push_and_limit(FRAME_IN(t), in_double, out + t * step, V, a + (size_t)t * 3 * C, b + (size_t)t * 3 * C,
                            radii + (size_t)t * radii_step, C, &mesh, args, limit, subspace, turn ? turn + 9 * t : NULL,
                            before + t, after + t, torn + t, team);
-    } else if (!subspace || !batched_subspace(in, in_double, T, V, a, b, radii, C, radii_step, &mesh, args, subspace, turn,
-                                              teams, team)) {
+    } else {
         #pragma omp parallel for num_threads(teams) schedule(dynamic)
         for (int t = 0; t < T; ++t) {
             PushTeam *mine = team + omp_get_thread_num();
             #pragma omp parallel num_threads(1)  /* this frame's own one-thread team */
-            push_and_limit(in_double ? (const void *)((const double *)in + t * step) : (const void *)((const float *)in + t * step),
-                           in_double, out + t * step, V, a + (size_t)t * 3 * C, b + (size_t)t * 3 * C,
+            push_and_limit(FRAME_IN(t), in_double, out + t * step, V, a + (size_t)t * 3 * C, b + (size_t)t * 3 * C,
                            radii + (size_t)t * radii_step, C, &mesh, args, limit, subspace, turn ? turn + 9 * t : NULL,
                            before + t, after + t, torn + t, mine);
         }
-    } else {  /* the frames moved in the subspace already (team[0].frames): the mesh push and the limit */
-        const double *moved = team[0].frames;
-        #pragma omp parallel for num_threads(teams) schedule(dynamic)
-        for (int t = 0; t < T; ++t) {
-            PushTeam *mine = team + omp_get_thread_num();
-            #pragma omp parallel num_threads(1)
-            push_and_limit(moved + t * step, 1, out + t * step, V, a + (size_t)t * 3 * C, b + (size_t)t * 3 * C,
-                           radii + (size_t)t * radii_step, C, &mesh, args, limit, NULL, NULL, before + t, after + t, torn + t,
-                           mine);
-        }
-        free(team[0].frames);
     }
+    #undef FRAME_IN
+    free(moved);
     free(buf);
     free(ints);
     free(limit_block);
