@@ -66,7 +66,6 @@ def analyse(model: str, dataset: str, split: str, rows: dict, sequences: int, cr
     from hrr_garment.data.dataset import GarmentDataset
     from hrr_garment.inference.animator import Animator
     from hrr_garment.inference.collision import limit_push_strain, push_out
-    from hrr_garment.inference.subspace_push import SubspacePush
     from hrr_garment.sim.quality import body_signed_distance, edge_strain
 
     animator = Animator.load(model)
@@ -74,11 +73,9 @@ def analyse(model: str, dataset: str, split: str, rows: dict, sequences: int, cr
     names = ds.splits[split][:sequences]
     faces, rest, edges = ds.template.faces, ds.template.vertices, ds.template.edges()
     body = animator.body().body
-    subspace = None
-    if subspace_push:
-        if animator.bundle.subspace is None:
-            raise SystemExit(f"{model}: no fast decoder (subspace) to push in")
-        subspace = SubspacePush.of(animator.bundle.subspace.basis.numpy(), rest, edges)
+    subspace = animator.subspace_push if subspace_push else None
+    if subspace_push and subspace is None:
+        raise SystemExit(f"{model}: no fast decoder (subspace) to push in")
     variants = [(label, settings, None) for label, settings in rows.items()]
     variants += [(f"{label}, subspace push", settings, subspace) for label, settings in rows.items()] if subspace else []
     found = {k: {"limited": [], "torn": [], "strain": [], "inside": [], "before": [], "pve": [], "us": []}

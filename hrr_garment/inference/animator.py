@@ -80,15 +80,20 @@ class Animator:
         self._default_body: CharacterBody | None = None
         self._subspace_push: SubspacePush | None = None
 
-    def push_settings(self, run: ResolvedRun) -> PushOutSettings | None:
-        """The push-out's settings for ``run``: None (the product's, which push_out reads) or, where
-        ``run.push`` asks for it, the product's with the push in the bundle's subspace (:mod:`.subspace_push`, made once)."""
-        if run.push != "subspace":
-            return None
-        if self._subspace_push is None:
+    @property
+    def subspace_push(self) -> SubspacePush | None:
+        """The push in the bundle's fast-decoder subspace (:mod:`.subspace_push`), made once; None without a fast decoder."""
+        if self._subspace_push is None and self.bundle.subspace is not None:
             template = self.bundle.template
             self._subspace_push = SubspacePush.of(self.bundle.subspace.basis.numpy(), template.vertices, template.edges())
-        return dataclasses.replace(collision.PUSH_OUT, subspace=self._subspace_push)
+        return self._subspace_push
+
+    def push_settings(self, run: ResolvedRun) -> PushOutSettings | None:
+        """The push-out's settings for ``run``: None (the product's, which push_out reads) or, where
+        ``run.push`` asks for it, the product's with :attr:`subspace_push`."""
+        if run.push != "subspace":
+            return None
+        return dataclasses.replace(collision.PUSH_OUT, subspace=self.subspace_push)
 
     def decoder_for(self, run: ResolvedRun):
         """The mesh decoder ``run`` asks for: the full one (:attr:`decoder`) or the bundle's fast
