@@ -64,7 +64,7 @@ def choose_windows(bundle: Bundle, motion_windows: np.ndarray, run: ResolvedRun,
                         regression=mode.regresses, last_frame=last_frame, step=step, gates=gates)
     n = len(enc.entropy)
     frames = 1 if last_frame else db.latents.shape[1]
-    bodies = window_bodies(bundle.codespace, enc.standardised)
+    bodies = window_bodies(bundle.codespace, enc)
     doubt, match = enc.entropy, None
     if mode in (Mode.RESIDUAL, Mode.DETAIL):  # no gate: every window's regression and its best match
         match, similarity = db.search(enc.codes, exclude, bodies)

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import warnings
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 import torch
@@ -25,7 +26,14 @@ class MotionCodes:
     entropy: np.ndarray  # (N,) mean per-group entropy of the code distribution (nats)
     codes: np.ndarray  # (N, G) uint8 argmax classes
     regression: np.ndarray | None  # (N, W, nodes, C) decoder latents (not standardised), when asked
-    standardised: np.ndarray  # (N, W, F) the standardised motion windows
+    windows: np.ndarray  # (N, W, F) the raw motion windows
+    motion_stats: object  # their standardisation (FeatureStats)
+
+    @cached_property
+    def standardised(self) -> np.ndarray:
+        """(N, W, F) the standardised motion windows, made when first read: a crowd's step with its
+        frames' gates reads none of them (half a millisecond of 64 characters' step)."""
+        return self.motion_stats.normalize(self.windows)
 
 
 def regression_embedding(codespace, logits: torch.Tensor) -> torch.Tensor:
@@ -39,12 +47,15 @@ def regression_embedding(codespace, logits: torch.Tensor) -> torch.Tensor:
     return q.embed(torch.nn.functional.one_hot(logits.argmax(-1), q.classes).to(logits.dtype))
 
 
-def window_bodies(codespace, standardised: np.ndarray) -> np.ndarray | None:
-    """The standardised body measures (N, b) of standardised motion windows (N, W, F) for a model
+def window_bodies(codespace, codes: MotionCodes) -> np.ndarray | None:
+    """The standardised body measures (N, b) of the windows ``codes`` were made of, for a model
     trained across bodies (retrieval prefers matches from near bodies:
     :meth:`~hrr_garment.artifacts.database.CodeDatabase.search`); None for a model of one body."""
     b = codespace.config.body_features
-    return np.asarray(standardised[:, -1, standardised.shape[-1] - b:]) if b else None
+    if not b:
+        return None
+    last = codes.windows[:, -1, codes.windows.shape[-1] - b:]
+    return ((last - codes.motion_stats.mean[-b:]) / codes.motion_stats.std[-b:]).astype(np.float32)  # as normalize
 
 
 class WindowCodes(torch.nn.Module):
@@ -95,7 +106,9 @@ def encode_motion(codespace, motion_stats, latent_stats, motion_windows: np.ndar
     if codespace.training:
         codespace.eval()
     step = WindowCodes(codespace, regression, last_frame) if step is None else step
-    std = motion_stats.normalize(motion_windows)
+    codes_of = MotionCodes(None, None, None, motion_windows, motion_stats)
+    # with the frames' gates the step reads only each window's last frame (its body measures)
+    std = codes_of.standardised if gates is None else motion_stats.normalize(motion_windows[:, -1:])
     entropy, codes, reg = [], [], []
     for i in range(0, len(std), ENCODE_BATCH):
         x = torch.from_numpy(std[i:i + ENCODE_BATCH])
@@ -107,4 +120,5 @@ def encode_motion(codespace, motion_stats, latent_stats, motion_windows: np.ndar
     if regression:
         r = np.concatenate(reg)
         latents = latent_stats.denormalize(r.reshape(*r.shape[:2], -1)).reshape(r.shape)
-    return MotionCodes(np.concatenate(entropy), np.concatenate(codes), latents, std)
+    codes_of.entropy, codes_of.codes, codes_of.regression = np.concatenate(entropy), np.concatenate(codes), latents
+    return codes_of

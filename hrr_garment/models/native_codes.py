@@ -92,14 +92,18 @@ class NativeWindowCodes:
         return gates
 
     def __call__(self, windows: torch.Tensor, gates: np.ndarray | None = None) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-        """``gates``: (B, W, :attr:`gate_width`) the windows' frames' :meth:`frame_gates`, where kept."""
-        x = np.ascontiguousarray(windows.detach().numpy(), np.float32)
-        b = len(x)
+        """``windows``: (B, W, F) standardised; ``gates``: (B, W, :attr:`gate_width`) the windows'
+        frames' :meth:`frame_gates`, where kept; with them only each window's last frame is read
+        (``windows`` may be that frame alone, (B, 1, F))."""
+        x = windows.detach().numpy()
+        b, window = len(x), int(self._dims[1])
         if gates is not None:
+            x = x[:, -1:]
             gates = np.ascontiguousarray(gates, np.float32)
-            if gates.shape != (b, x.shape[1], self.gate_width):
-                raise ValueError(f"gates of shape {gates.shape} for {b} windows of {x.shape[1]} frames "
-                                 f"(expected {(b, x.shape[1], self.gate_width)})")
+            if gates.shape != (b, window, self.gate_width):
+                raise ValueError(f"gates of shape {gates.shape} for {b} windows of {window} frames "
+                                 f"(expected {(b, window, self.gate_width)})")
+        x = np.ascontiguousarray(x, np.float32)
         entropy, argmax = np.empty(b, np.float32), np.empty((b, self.groups), np.int64)
         latents = np.empty((b, self.rows), np.float32) if self.regression else None
         failed = self.lib.hrr_window_codes(x.ctypes.data, None if gates is None else gates.ctypes.data, b,

@@ -137,7 +137,8 @@ static long decoder_widest(const int32_t *dims)
    not 32. A row's value does not depend on the other rows (the tiles keep one accumulator chain
    per row), so a window gives the same bits alone or in a batch. gates (B, W, 3H), or NULL: the
    frames' input gates (frame_gates) where the caller kept them, so that only the GRU's recurrent
-   side and what follows run here; x then gives only the last frames' body measures. Called by
+   side and what follows run here; x is then (B, 1, F), each window's last frame only (all that is
+   read of it: the body's measures). Called by
    every thread of the innermost parallel region, with the same (shared) arguments; work:
    window_codes_work floats. */
 static void window_codes(const float *x, const float *gates, int B, const int32_t *dims, const float *const *p, float *work,
@@ -149,6 +150,7 @@ static void window_codes(const float *x, const float *gates, int B, const int32_
     const int expected = dims[9 + L];  /* the regression decodes the expected embedding, else the argmax's */
     const int nb = dims[10 + L];  /* body measures after the embedding in the decoder's input */
     const long BW = (long)B * W, widest = decoder_widest(dims);
+    const int x_frames = gates ? 1 : W;  /* frames of x per window: with the gates, its last only */
     float *a = work, *gi = a + BW * H, *hs = gi + BW * 3 * H, *gh = hs + BW * H, *state = gh + (long)B * 3 * H,
           *qkv = state + 2L * B * H, *att = qkv + BW * 3 * H, *scores = att + BW * H, *q = scores + BW * W * heads,
           *pooled = q + H, *logits = pooled + (long)B * H, *group_entropy = logits + (long)B * G * K,
@@ -229,7 +231,8 @@ static void window_codes(const float *x, const float *gates, int B, const int32_
     if (nb) {  /* the body's measures after each window's embedding */
         #pragma omp for schedule(static)
         for (int b = 0; b < B; ++b)
-            memcpy(h0 + (long)b * sizes[0] + (long)G * D, x + ((long)b * W + W - 1) * F + F - nb, sizeof(float) * nb);
+            memcpy(h0 + (long)b * sizes[0] + (long)G * D, x + ((long)b * x_frames + x_frames - 1) * F + F - nb,
+                   sizeof(float) * nb);
     }
     float *in = h0;  /* (B, G * D + nb); h0 and spare hold B rows of the widest layer each */
     for (int l = 0; l < L; ++l) {
@@ -273,13 +276,14 @@ int hrr_frame_gates(const float *x, int n, const int32_t *dims, const float *con
     return 0;
 }
 
-/* B windows (B, W, F) and their frames' gates (B, W, 3H) or NULL -> entropy (B), argmax (B, G),
+/* B windows (B, W, F) and their frames' gates (B, W, 3H) or NULL (with gates, x is each window's
+   last frame only: (B, 1, F)) -> entropy (B), argmax (B, G),
    latents (B, last layer size) or NULL, in lockstep passes of up to LOCKSTEP windows, the team
    sharing each pass. Returns 0, or -1 where scratch memory could not be allocated. */
 int hrr_window_codes(const float *x, const float *gates, int B, const int32_t *dims, const float *const *params,
                      int threads, float *entropy, int64_t *argmax, float *latents)
 {
-    const int F = dims[0], W = dims[1], H = dims[2], G = dims[4], L = dims[7];
+    const int F = dims[0], W = dims[1], H = dims[2], G = dims[4], L = dims[7], x_frames = gates ? 1 : W;
     const long out = dims[8 + L];
     if (B <= 0) return 0;
     float *scratch = malloc(sizeof(float) * (size_t)window_codes_work(dims, B < LOCKSTEP ? B : LOCKSTEP));
@@ -289,7 +293,7 @@ int hrr_window_codes(const float *x, const float *gates, int B, const int32_t *d
         const unsigned csr = denormals_off();
         for (int b = 0; b < B; b += LOCKSTEP) {  /* every thread takes every pass; the layers share out the work */
             const int n = B - b < LOCKSTEP ? B - b : LOCKSTEP;
-            window_codes(x + (size_t)b * W * F, gates ? gates + (size_t)b * W * 3 * H : NULL, n, dims, params, scratch,
+            window_codes(x + (size_t)b * x_frames * F, gates ? gates + (size_t)b * W * 3 * H : NULL, n, dims, params, scratch,
                          entropy + b, argmax + (size_t)b * G, latents ? latents + (size_t)b * out : NULL);
             #pragma omp barrier
         }

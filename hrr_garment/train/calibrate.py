@@ -73,7 +73,7 @@ def predict_windows(model: CodeSpace, motion: np.ndarray, motion_stats: FeatureS
                     database: CodeDatabase, exclude: np.ndarray | None = None) -> WindowPredictions:
     """Both candidates for every motion window (N, W, F) (raw features)."""
     enc = encode_motion(model, motion_stats, latent_stats, motion_windows=motion)
-    match, similarity = database.search(enc.codes, exclude, window_bodies(model, enc.standardised))
+    match, similarity = database.search(enc.codes, exclude, window_bodies(model, enc))
     distance = own = None
     if database.motion is not None:
         distance = database.motion_distance(enc.standardised, match)
