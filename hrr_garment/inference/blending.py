@@ -70,48 +70,27 @@ class Inertializer:
     def step(self, target: np.ndarray, source: tuple, continuous: np.ndarray | None = None) -> np.ndarray:
         """target: this frame's latent from ``source`` (a hashable id of where it came from);
         ``continuous``: its part that does not change with the source (see the class docstring)."""
-        return Inertializer.step_many([self], target[None], [source], None if continuous is None else continuous[None])[0]
-
-    @staticmethod
-    def step_many(inerts: list["Inertializer"], targets: np.ndarray, sources: list, continuous: np.ndarray | None = None) -> np.ndarray:
-        """:meth:`step` of several inertializers at once (a crowd's characters, each its own state):
-        row i is ``inerts[i].step(targets[i], sources[i], continuous[i])``, the same bits (the spring
-        is elementwise), in a few array operations for all the rows instead of a dozen per row."""
         split = continuous is not None
-        parts = targets - continuous if split else targets
-        offset, offset_vel = np.empty_like(targets), np.empty_like(targets)
-        same = np.zeros(len(inerts), bool)
-        for i, s in enumerate(inerts):
-            same[i] = s._prev_target is not None and sources[i] == s._source and split == s._prev_split
-            offset[i] = 0.0 if s._offset is None else s._offset
-            offset_vel[i] = 0.0 if s._offset_vel is None else s._offset_vel
-            if s._prev_target is not None and not same[i]:
-                # the old source one frame on (moving as it last did) against the new one (velocity unknown: 0)
-                if split == s._prev_split:
-                    before, velocity, now = s._prev_part, s._prev_part_vel, parts[i]
-                else:
-                    before, velocity, now = s._prev_target, s._prev_target_vel, targets[i]
-                velocity = velocity if velocity is not None else np.zeros_like(now)
-                offset[i] = offset[i] + before + velocity - now
-                offset_vel[i] = offset_vel[i] + velocity
-        shape = (-1,) + (1,) * (targets.ndim - 1)
-        damping = np.array([s._damping for s in inerts]).reshape(shape)
-        decay = np.array([s._decay for s in inerts]).reshape(shape)
-        j1 = offset_vel + offset * damping
-        offset, offset_vel = decay * (offset + j1), decay * (offset_vel - j1 * damping)
-        rows = np.flatnonzero(same)
-        target_vel = part_vel = None
-        if rows.size:
-            target_vel = targets[rows] - np.stack([inerts[i]._prev_target for i in rows])
-            part_vel = target_vel if not split else parts[rows] - np.stack([inerts[i]._prev_part for i in rows])
-        at = {int(i): j for j, i in enumerate(rows)}
-        for i, s in enumerate(inerts):
-            j = at.get(i)
-            s._offset, s._offset_vel = offset[i], offset_vel[i]
-            s._prev_target_vel = None if j is None else target_vel[j]
-            s._prev_part_vel = None if j is None else part_vel[j]
-            s._prev_target, s._prev_part, s._prev_split, s._source = targets[i], parts[i], split, sources[i]
-        return targets + offset
+        part = target - continuous if split else target
+        if self._offset is None:
+            self._offset, self._offset_vel = np.zeros_like(target), np.zeros_like(target)
+        same = self._prev_target is not None and source == self._source and split == self._prev_split
+        if self._prev_target is not None and not same:
+            # the old source one frame on (moving as it last did) against the new one (velocity unknown: 0)
+            if split == self._prev_split:
+                before, velocity, now = self._prev_part, self._prev_part_vel, part
+            else:
+                before, velocity, now = self._prev_target, self._prev_target_vel, target
+            velocity = velocity if velocity is not None else np.zeros_like(target)
+            self._offset = self._offset + before + velocity - now
+            self._offset_vel = self._offset_vel + velocity
+        damping, decay = self._damping, self._decay
+        j1 = self._offset_vel + self._offset * damping
+        self._offset, self._offset_vel = decay * (self._offset + j1), decay * (self._offset_vel - j1 * damping)
+        self._prev_target_vel = target - self._prev_target if same else None
+        self._prev_part_vel = part - self._prev_part if same else None
+        self._prev_target, self._prev_part, self._prev_split, self._source = target, part, split, source
+        return target + self._offset
 
 
 def source_id(retrieved: bool, source: np.ndarray) -> tuple:
@@ -132,17 +111,9 @@ def inertialize(inert: Inertializer, latent: np.ndarray, retrieved: bool, source
     ``continuous``: the part of ``latent`` that does not change with the source (the regression
     under a residual, :attr:`~.gate.WindowChoice.continuous`): followed as it is, only the rest
     inertialized (:class:`Inertializer`)."""
-    return inertialize_many([inert], latent[None], np.array([retrieved]), source[None], [frame],
-                            continuous=None if continuous is None else continuous[None])[0]
-
-
-def inertialize_many(inerts: list[Inertializer], latents: np.ndarray, retrieved: np.ndarray, sources: np.ndarray,
-                     frames: list[int], continuous: np.ndarray | None = None) -> np.ndarray:
-    """:func:`inertialize` for several paths at once (a crowd's characters, row i on ``inerts[i]``,
-    at its clip frame ``frames[i]``): (n, nodes, C) float64, row i what :func:`inertialize` gives."""
-    ids = [source_id(bool(r), s - np.array([0, f]) if r else s) for r, s, f in zip(retrieved, sources, frames)]
-    return Inertializer.step_many(inerts, latents.astype(np.float64), ids,
-                                  continuous=None if continuous is None or not DEPARTURE_ONLY else continuous.astype(np.float64))
+    src = source - np.array([0, frame]) if retrieved else source
+    return inert.step(latent.astype(np.float64), source_id(bool(retrieved), src),
+                      continuous=None if continuous is None or not DEPARTURE_ONLY else continuous.astype(np.float64))
 
 
 def latent_sources(choice: WindowChoice) -> tuple[np.ndarray, np.ndarray]:

@@ -23,8 +23,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .blending import Inertializer
-
 FADE_FRAMES = 8  # frames a decoder change fades over
 
 
@@ -90,13 +88,13 @@ class LodState:
     fade: DecoderFade | None = None
 
 
-def crowd_latents(chars: list, lv: np.ndarray, choose, inertialize_rows) -> np.ndarray:
+def crowd_latents(chars: list, lv: np.ndarray, choose, inertialize_one) -> np.ndarray:
     """The window step for the characters whose level runs it this frame, their held latents for
     the others: -> (N, nodes, C) inertialized latents (each character's ``lod`` holds its match).
     ``choose``: the rows of the characters stepping (None: all) -> their windows'
-    :class:`~.gate.WindowChoice`; ``inertialize_rows``: (characters, latents, retrieved, matches,
-    continuous) -> their inertialized latents, all rows at once (``continuous``: the latents' part
-    that is one source whatever the match, :attr:`~.gate.WindowChoice.continuous`, or None)."""
+    :class:`~.gate.WindowChoice`; ``inertialize_one``:
+    (character, latent, retrieved, match, continuous=) -> its inertialized latent (``continuous``:
+    the latent's part that is one source whatever the match, :attr:`~.gate.WindowChoice.continuous`)."""
     stepping = np.array([steps_now(int(level), c.frames) or c.lod.latent is None for level, c in zip(lv, chars)])
     rows = np.flatnonzero(stepping)
     if rows.size:
@@ -105,18 +103,15 @@ def crowd_latents(chars: list, lv: np.ndarray, choose, inertialize_rows) -> np.n
     else:
         shape = chars[0].lod.latent.shape
     latents = np.empty((len(chars), *shape), np.float32)
-    if rows.size:
-        for j, i in enumerate(rows):
-            c = chars[i]
-            c.lod.latent, c.lod.match, c.lod.since = choice.latents[j, -1], choice.match[j], c.frames
-            c.lod.regression = None if choice.regression_part is None else choice.regression_part[j, -1]
-        latents[rows] = inertialize_rows([chars[i] for i in rows], choice.latents[:, -1], choice.follows_match, choice.match,
-                                         None if choice.continuous is None else choice.continuous[:, -1])
-    held = np.flatnonzero(~stepping)
-    if held.size:  # held: a source of its own (all of it), so the next step's latent is blended in
-        latents[held] = Inertializer.step_many([chars[i].inertializer for i in held],
-                                               np.stack([chars[i].lod.latent for i in held]).astype(np.float64),
-                                               [("held", chars[i].lod.since) for i in held])
+    for j, i in enumerate(rows):
+        c = chars[i]
+        c.lod.latent, c.lod.match, c.lod.since = choice.latents[j, -1], choice.match[j], c.frames
+        c.lod.regression = None if choice.regression_part is None else choice.regression_part[j, -1]
+        latents[i] = inertialize_one(c, choice.latents[j, -1], choice.follows_match[j], choice.match[j],
+                                     continuous=None if choice.continuous is None else choice.continuous[j, -1])
+    for i in np.flatnonzero(~stepping):  # held: a source of its own (all of it), so the next step's latent is blended in
+        c = chars[i]
+        latents[i] = c.inertializer.step(c.lod.latent.astype(np.float64), ("held", c.lod.since))
     return latents
 
 

@@ -44,7 +44,7 @@ from ..motion.memory import MEMORY_WIDTH, motion_memory
 from ..motion.motion import Motion
 from ..motion.poses import poses_to_motion
 from ..native import pin_workers
-from .blending import Inertializer, inertialize_many
+from .blending import Inertializer, inertialize
 from .bodies import CrowdBodies
 from .collision import push_out
 from .crowd_windows import CrowdWindows
@@ -233,11 +233,10 @@ class CrowdStream:
             return choose_windows(self.animator.bundle, windows[pick], self.run, last_frame=True, step=self._step,
                                   gates=None if gates is None else gates[pick])
 
-        def inertialize_rows(rows, latents, retrieved, sources, continuous):
-            return inertialize_many([c.inertializer for c in rows], latents, retrieved, sources, [c.frames for c in rows],
-                                    continuous=continuous)
+        def one(c, latent, retrieved, source, continuous=None):
+            return inertialize(c.inertializer, latent, retrieved, source=source, frame=c.frames, continuous=continuous)
 
-        return crowd_latents(chars, lv, choose=choose, inertialize_rows=inertialize_rows)
+        return crowd_latents(chars, lv, choose=choose, inertialize_one=one)
 
     def _restart_teleported(self, keys: list, poses: Motion) -> None:
         """Forget the characters whose pelvis moved faster than :data:`MAX_ROOT_SPEED` since their

@@ -64,22 +64,3 @@ def test_a_change_between_the_whole_latent_and_its_part_does_not_jump():
     first = inert.step(base + part, ("retrieval", 3, 0), continuous=base)
     second = inert.step(base + part, ("held", 0))  # the same latent, now whole (a held level of detail)
     np.testing.assert_allclose(second, first, atol=1e-12)
-
-
-def test_many_inertializers_stepped_at_once_give_each_ones_own_bits(rng):
-    """A crowd steps its characters' inertializers together (Inertializer.step_many): each row must
-    be what that inertializer gives stepped alone, through source switches, a continuous part that
-    comes and goes, and characters that join late."""
-    n, frames = 5, 40
-    alone = [Inertializer(frames=6) for _ in range(n)]
-    together = [Inertializer(frames=6) for _ in range(n)]
-    for t in range(frames):
-        targets = rng.normal(size=(n, 3, 2)) + 0.1 * t
-        sources = [("s", int(rng.integers(0, 2 if i % 2 else 5))) for i in range(n)]
-        continuous = 0.5 * targets if t % 7 < 4 else None
-        rows = [i for i in range(n) if t >= 3 * i]  # character i joins at frame 3 i
-        got = Inertializer.step_many([together[i] for i in rows], targets[rows], [sources[i] for i in rows],
-                                     None if continuous is None else continuous[rows])
-        for j, i in enumerate(rows):
-            want = alone[i].step(targets[i], sources[i], None if continuous is None else continuous[i])
-            assert np.array_equal(got[j], want)
