@@ -147,6 +147,11 @@ class CrowdBodies:
                    skeletons=np.stack([b.record.skeleton.offsets for b in bodies]),
                    root_scale=np.array([b.record.pelvis_height / REST_PELVIS_HEIGHT for b in bodies]), ends=ends)
 
+    def stand(self, local: np.ndarray) -> np.ndarray:
+        """Body-frame garment vertices (N, V, 3) stood on these bodies: plus their rest offsets
+        (nothing to add on the mannequin, whose offset is zero: no 3 MB copy of a 64-character frame)."""
+        return local + self.offset if self.offset.any() else local
+
     def capsules(self, poses: Motion):
         """What the push-out takes: the one body, or each character's capsules posed by its pose."""
         if self.body is not None:

@@ -284,7 +284,7 @@ class CrowdStream:
                               limits=self.animator.edge_limits, follow=self._follow(chars),
                               weights=self.animator.bundle.fold_weights)
         t.append(time.perf_counter())
-        vertices = world_vertices(local + bodies.offset, poses)  # as offline: the same push-out inputs
+        vertices = world_vertices(bodies.stand(local), poses)  # as offline: the same push-out inputs
         t.append(time.perf_counter())
         if self.run.collision:
             vertices, _ = push_out(vertices, poses, self.animator.bundle.template.faces, body=bodies.capsules(poses),
