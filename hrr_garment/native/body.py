@@ -46,7 +46,8 @@ class _PushArgs(ctypes.Structure):
 class _SubspaceArgs(ctypes.Structure):
     """kernels.c's SubspaceArgs."""
 
-    _fields_ = [("basis", ctypes.c_void_p), ("stretch", ctypes.c_void_p), ("k", ctypes.c_int), ("iterations", ctypes.c_int),
+    _fields_ = [("basis", ctypes.c_void_p), ("blocks", ctypes.c_void_p), ("stretch", ctypes.c_void_p), ("k", ctypes.c_int),
+                ("iterations", ctypes.c_int),
                 ("strain_weight", ctypes.c_double), ("ridge", ctypes.c_double), ("clearance", ctypes.c_double)]
 
 
@@ -54,16 +55,26 @@ class SubspaceMove:
     """The push in the garment's subspace as the kernel takes it, converted once
     (:class:`hrr_garment.inference.subspace_push.SubspacePush` holds the reference): the components
     (k, V, 3), stored vertex-major (V, 3, k) so that a vertex's rows are contiguous, in float32 (the
-    decoder's own values: exact), the stretch (k, k), and the push's settings."""
+    decoder's own values: exact), and again for the move by blocks of :attr:`BLOCK` vertices, each
+    component-major (blocks, k, 3 BLOCK), zero past the last vertex; the stretch (k, k), and the
+    push's settings."""
+
+    BLOCK = 64  # kernels.c's MOVE_BLOCK
 
     def __init__(self, basis: np.ndarray, stretch: np.ndarray, strain_weight: float, ridge: float, clearance: float,
                  iterations: int) -> None:
         if not 1 <= len(basis) <= MAX_SUBSPACE_COMPONENTS:
             raise ValueError(f"the native subspace push takes 1 to {MAX_SUBSPACE_COMPONENTS} components, not {len(basis)}")
-        self.basis = np.ascontiguousarray(np.asarray(basis).transpose(1, 2, 0), np.float32)
+        basis = np.asarray(basis, np.float32)
+        k, v = basis.shape[:2]
+        self.basis = np.ascontiguousarray(basis.transpose(1, 2, 0))
+        count = -(-v // self.BLOCK)
+        padded = np.zeros((k, count * self.BLOCK, 3), np.float32)
+        padded[:, :v] = basis
+        self.blocks = np.ascontiguousarray(padded.reshape(k, count, 3 * self.BLOCK).transpose(1, 0, 2))
         self.stretch = np.ascontiguousarray(stretch, np.float64)
-        self.struct = _SubspaceArgs(self.basis.ctypes.data, self.stretch.ctypes.data, len(self.stretch), int(iterations),
-                                    float(strain_weight), float(ridge), float(clearance))
+        self.struct = _SubspaceArgs(self.basis.ctypes.data, self.blocks.ctypes.data, self.stretch.ctypes.data,
+                                    len(self.stretch), int(iterations), float(strain_weight), float(ridge), float(clearance))
 
 
 class _StrainArgs(ctypes.Structure):

@@ -694,9 +694,12 @@ int hrr_limit_strain(double *p, const double *unpushed, int T, int V, const Stra
    first k principal components of the fast decoder, vertex-major (V, 3, k) in float32 as the
    decoder stores them (half the memory a frame streams; sums in float64), the first-order edge
    stretch per pair of them (k, k), the stretch's weight, the ridge per vertex near the body, the
-   clearance past the margin aimed for, and the solves a frame. */
+   clearance past the margin aimed for, and the solves a frame. blocks: the same basis for the move,
+   component-major by blocks of MOVE_BLOCK vertices (block b's (k, 3 MOVE_BLOCK) floats, the
+   coordinates of its vertices in order, zero past the last vertex), so that the move runs down the
+   components with a vector of coordinates at a time instead of summing each coordinate across them. */
 typedef struct {
-    const float *basis;
+    const float *basis, *blocks;
     const double *stretch;
     int k, iterations;
     double strain_weight, ridge, clearance;
@@ -741,24 +744,33 @@ typedef struct {
     LimitScratch limit;
 } PushTeam;
 
-enum { MOVE_BLOCK = 64 };  /* vertices a block of the subspace move: its rows of the basis stay in cache */
+/* vertices a block of the subspace move (its rows of the basis stay in cache); SubspaceMove.BLOCK
+   in hrr_garment/native/body.py lays the blocks out */
+enum { MOVE_BLOCK = 64, MOVE_LANES = 8 };
 
-/* The subspace move of vertices v0 .. v1 of frame p: each by coef over the components (k) of the
-   basis (V, 3, k), turned into the world by turn. One function, never inlined, for the frame-by-
-   frame and the batched paths alike: the same machine code, so the same bits. */
-static __attribute__((noinline)) void subspace_move(double *p, int v0, int v1, const float *basis, int k,
+/* The subspace move of block b's vertices (v0 = b MOVE_BLOCK up to v1) of frame p: each by coef
+   over the k components (blocks, see SubspaceArgs), turned into the world by turn. Each coordinate's
+   sum runs over the components in order, MOVE_LANES coordinates at a time. One function, never
+   inlined, for the frame-by-frame and the batched paths alike: the same machine code, so the same
+   bits. */
+static __attribute__((noinline)) void subspace_move(double *p, int v0, int v1, const float *blocks, int k,
                                                     const double *coef, const double *turn)
 {
-    for (int v = v0; v < v1; ++v) {
-        const float *bv = basis + (size_t)v * 3 * k;
-        double local[3];
-        for (int j = 0; j < 3; ++j) {
-            double x = 0.0;
-            #pragma omp simd reduction(+:x)  /* a sum in lanes, its order fixed by this code */
-            for (int c = 0; c < k; ++c) x += coef[c] * bv[j * k + c];
-            local[j] = x;
+    const float *block = blocks + (size_t)(v0 / MOVE_BLOCK) * k * 3 * MOVE_BLOCK;
+    double local[3 * MOVE_BLOCK];
+    for (int i0 = 0; i0 < 3 * (v1 - v0); i0 += MOVE_LANES) {
+        double acc[MOVE_LANES] = {0.0};
+        for (int c = 0; c < k; ++c) {
+            const float *row = block + (size_t)c * 3 * MOVE_BLOCK + i0;
+            const double w = coef[c];
+            #pragma omp simd
+            for (int l = 0; l < MOVE_LANES; ++l) acc[l] += w * row[l];
         }
-        for (int i = 0; i < 3; ++i) p[3 * v + i] += turn[3 * i] * local[0] + turn[3 * i + 1] * local[1] + turn[3 * i + 2] * local[2];
+        memcpy(local + i0, acc, sizeof acc);  /* past v1's coordinates: the padding's zeros, unused */
+    }
+    for (int v = v0; v < v1; ++v) {
+        const double *q = local + 3 * (v - v0);
+        for (int i = 0; i < 3; ++i) p[3 * v + i] += turn[3 * i] * q[0] + turn[3 * i + 1] * q[1] + turn[3 * i + 2] * q[2];
     }
 }
 
@@ -819,7 +831,7 @@ static void subspace_push(double *p, int V, const double *ca, const double *cb, 
         if (!subspace_solve(p, V, ca, cb, radii, C, m, margin, sp, turn, team, coef)) break;
         #pragma omp for schedule(static)
         for (int v0 = 0; v0 < V; v0 += MOVE_BLOCK)
-            subspace_move(p, v0, v0 + MOVE_BLOCK < V ? v0 + MOVE_BLOCK : V, sp->basis, sp->k, coef, turn);
+            subspace_move(p, v0, v0 + MOVE_BLOCK < V ? v0 + MOVE_BLOCK : V, sp->blocks, sp->k, coef, turn);
     }
 }
 
@@ -905,7 +917,7 @@ static double *batched_subspace(const void *in, int in_double, int T, int V, con
             for (int v0 = 0; v0 < V; v0 += MOVE_BLOCK)
                 for (int t = 0; t < T; ++t)
                     if (active[t])
-                        subspace_move(frames + t * step, v0, v0 + MOVE_BLOCK < V ? v0 + MOVE_BLOCK : V, sp->basis, k,
+                        subspace_move(frames + t * step, v0, v0 + MOVE_BLOCK < V ? v0 + MOVE_BLOCK : V, sp->blocks, k,
                                       coefs + (size_t)k * t, turn + 9 * t);
         }
     }
