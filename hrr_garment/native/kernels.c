@@ -746,7 +746,7 @@ typedef struct {
 
 /* vertices a block of the subspace move (its rows of the basis stay in cache); SubspaceMove.BLOCK
    in hrr_garment/native/body.py lays the blocks out */
-enum { MOVE_BLOCK = 64, MOVE_LANES = 8 };
+enum { MOVE_BLOCK = 64, MOVE_LANES = 32 };  /* 32 coordinates: independent sums enough to hide the multiply-adds' latency */
 
 /* The subspace move of block b's vertices (v0 = b MOVE_BLOCK up to v1) of frame p: each by coef
    over the k components (blocks, see SubspaceArgs), turned into the world by turn. Each coordinate's
