@@ -45,9 +45,8 @@ class DeviceCrowd:
         self.device = torch.device(device)
         self.run = run
         self.body = animator.body() if body is None else body
-        if run.collision and run.push != "mesh":
-            raise ValueError(f"the {run.push} push runs on the native crowd (device='native'); the torch step pushes with the mesh")
-        self.step = stream_step(animator, self.body, push_out=run.collision, decoder=run.decoder, movable=True).to(self.device)
+        self.step = stream_step(animator, self.body, push_out=run.collision, decoder=run.decoder, movable=True,
+                                push=run.push).to(self.device)
         self._shapes = state_shapes(self.step)
         self._state = {name: torch.zeros((0, *shape), device=self.device) for name, shape in self._shapes.items()}
         self._slots: dict[Hashable, int] = {}

@@ -2,7 +2,9 @@
 PyTorch module that ONNX can hold, the last stage of :class:`~.torch_step.StreamStep`: the push's
 round and projections under conditionals (ONNX ``If``, skipped when nothing is inside), the
 strain limit's passes as a loop (ONNX ``Loop``) while a character still has an over-long edge, each
-character stopping on its own, as the package stops each frame."""
+character stopping on its own, as the package stops each frame. With the push in the garment's
+subspace first (:class:`SubspacePushStage`, a GPU crowd's; its batched solve is not an ONNX
+operator, so an exported step pushes with the mesh alone)."""
 
 from __future__ import annotations
 
@@ -12,11 +14,52 @@ from torch import nn
 from torch._higher_order_ops.while_loop import while_loop
 
 from .collision import LIMIT_TOLERANCE_M, OVER_RELAXATION, PushOutSettings
+from .subspace_push import SubspacePush
 
 
 def constant(module: nn.Module, name: str, value, dtype=torch.float32) -> None:
     """``value`` as a buffer of ``module`` that the exported graph holds as a constant."""
     module.register_buffer(name, torch.as_tensor(np.asarray(value), dtype=dtype), persistent=False)
+
+
+def turn_y(points: torch.Tensor, cos: torch.Tensor, sin: torch.Tensor) -> torch.Tensor:
+    """(N, ..., 3) points turned about +Y by angles given as (N,) cosines and sines."""
+    shape = (-1,) + (1,) * (points.dim() - 2)
+    c, s = cos.reshape(shape), sin.reshape(shape)
+    x, y, z = points[..., 0], points[..., 1], points[..., 2]
+    return torch.stack([c * x + s * z, y, c * z - s * x], -1)
+
+
+class SubspacePushStage(nn.Module):
+    """:class:`~.subspace_push.SubspacePush` (its reference, float64, frame by frame) for a batch of
+    frames in one graph: every vertex's row of the normal equations, weighted zero outside the band
+    near the body (the reference keeps only the rows inside it: the same sums), one batched solve."""
+
+    def __init__(self, push: SubspacePush, margin: float):
+        super().__init__()
+        constant(self, "basis", push.basis)  # (k, V, 3)
+        constant(self, "regulariser", push.strain_weight * push.stretch)  # (k, k)
+        self.ridge, self.clearance, self.iterations = float(push.ridge), float(push.clearance), int(push.iterations)
+        self.reach = float(margin) + self.clearance
+
+    def forward(self, p: torch.Tensor, a: torch.Tensor, b: torch.Tensor, heading: tuple[torch.Tensor, torch.Tensor],
+                distance) -> torch.Tensor:
+        """``p`` (N, V, 3) world points and capsule ends ``a``, ``b`` (relative to the pelvis), each
+        frame's body-frame ``heading`` (cosines, sines of its yaw), ``distance`` (:meth:`PushOutStage.distance`)."""
+        cos, sin = heading
+        eye = torch.eye(self.basis.shape[0], dtype=p.dtype, device=p.device)
+        for _ in range(self.iterations):
+            d, n = distance(p, a, b)
+            depth = self.reach - d
+            weight = torch.where(depth > 0, torch.clamp(depth / self.clearance, max=1.0), torch.zeros_like(depth))
+            jac = torch.einsum("nvi,kvi->nvk", turn_y(n, cos, -sin), self.basis)  # the normals in the body frame
+            weighted = jac * weight[..., None]
+            near = (weight > 0).any(1)[:, None, None]
+            system = weighted.transpose(1, 2) @ jac + self.regulariser + self.ridge * weight.sum(1)[:, None, None] * eye
+            system = torch.where(near, system, eye)  # a frame with nothing near stays as it is
+            coef = torch.linalg.solve(system, (weighted * depth[..., None]).sum(1)) * near[:, :, 0]
+            p = p + turn_y(torch.einsum("nk,kvi->nvi", coef, self.basis), cos, sin)
+        return p
 
 
 class PushOutStage(nn.Module):
@@ -32,6 +75,7 @@ class PushOutStage(nn.Module):
         constant(self, "cap_b", b)
         constant(self, "radii", radii)
         self.settings, self.strain_passes = settings, int(strain_passes)
+        self.subspace = None if settings.subspace is None else SubspacePushStage(settings.subspace, settings.margin)
         # the smoothing's row-normalised adjacency as (row, column, weight) triplets: a gather, a
         # product and a scatter-add (ONNX has no sparse product)
         smoothing = smoothing.tocoo()
@@ -145,12 +189,20 @@ class PushOutStage(nn.Module):
         gathered = torch.zeros_like(p).index_add(0, self.edges[:, 0], corr).index_add(0, self.edges[:, 1], -corr)
         return passes + 1, p + gathered * self.vertex_weight[..., None], limit.clone(), active
 
-    def forward(self, vertices: torch.Tensor, rotations: torch.Tensor, positions: torch.Tensor) -> torch.Tensor:
+    def forward(self, vertices: torch.Tensor, rotations: torch.Tensor, positions: torch.Tensor,
+                heading: tuple[torch.Tensor, torch.Tensor] | None = None) -> torch.Tensor:
+        """``heading``: each frame's body-frame yaw as (cosines, sines), which the subspace push needs."""
         rot, pos = rotations[:, self.joints], positions[:, self.joints]
         centre = positions[:, :1]  # (N, 1, 3): the pelvis
         a = pos - centre + (rot @ self.cap_a[..., None])[..., 0]
         b = pos - centre + (rot @ self.cap_b[..., None])[..., 0]
-        return self.limit(self.push(vertices - centre, a, b) + centre, vertices)
+        p = vertices - centre
+        if self.subspace is not None:
+            if heading is None:
+                raise ValueError("the subspace push needs each frame's heading (the body frame's yaw)")
+            p = self.subspace(p, a, b, heading, self.distance)
+            vertices = p + centre  # the limit's reference: the frame as the mesh push gets it, as the kernel's
+        return self.limit(self.push(p, a, b) + centre, vertices)
 
 
 def _when(predicate: torch.Tensor, step, operands: tuple):

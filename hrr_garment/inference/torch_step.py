@@ -22,6 +22,8 @@ of a millimetre of it over a real clip (tests/export/test_onnx.py).
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import torch
 from torch import nn
@@ -33,15 +35,7 @@ from ..motion.motion import FPS
 from ..motion.rotations import matrix_to_axis_angle, quat_to_matrix, rotation_about_y, yaw_of
 from ..motion.skeleton import FEATURE_JOINTS, NUM_JOINTS, REST_PELVIS_HEIGHT, forward_kinematics
 from .collision import PUSH_OUT
-from .torch_push_out import PushOutStage, constant
-
-
-def _turn_y(points: torch.Tensor, cos: torch.Tensor, sin: torch.Tensor) -> torch.Tensor:
-    """(N, ..., 3) points turned about +Y by angles given as (N,) cosines and sines."""
-    shape = (-1,) + (1,) * (points.dim() - 2)
-    c, s = cos.reshape(shape), sin.reshape(shape)
-    x, y, z = points[..., 0], points[..., 1], points[..., 2]
-    return torch.stack([c * x + s * z, y, c * z - s * x], -1)
+from .torch_push_out import PushOutStage, constant, turn_y
 
 
 class PoseStage(nn.Module):
@@ -84,8 +78,8 @@ class FeatureStage(nn.Module):
         c, s = torch.cos(yaw1), torch.sin(yaw1)
         heading_t = rotation_about_y(yaw1).transpose(-1, -2)  # world -> body frame
         r = matrix_to_axis_angle(heading_t[:, None] @ rot1[:, self.joints]).reshape(n, -1)
-        v = _turn_y((pos1[:, self.joints] - pos0[:, self.joints]) * self.fps, c, -s).reshape(n, -1)
-        t = _turn_y((pos1[:, 0] - pos0[:, 0]) * self.fps, c, -s)
+        v = turn_y((pos1[:, self.joints] - pos0[:, self.joints]) * self.fps, c, -s).reshape(n, -1)
+        t = turn_y((pos1[:, 0] - pos0[:, 0]) * self.fps, c, -s)
         step = yaw1 - yaw0
         w = torch.atan2(torch.sin(step), torch.cos(step))[:, None] * self.fps
         return torch.cat([r, v, t, w], 1)
@@ -100,7 +94,7 @@ class FeatureStage(nn.Module):
         fresh = torch.cat([u.expand(n, self.averages, MEMORY_WIDTH), bob.repeat(1, (self.rows - self.averages) // 2, 1)], 1)
         # the last body frame's vectors seen from this one: turned by minus this frame's yaw step
         angle = -features[:, SLICE_W][:, 0] / self.fps
-        turned = _turn_y(state[..., :-1].reshape(n, self.rows, VECTORS, 3), torch.cos(angle), torch.sin(angle))
+        turned = turn_y(state[..., :-1].reshape(n, self.rows, VECTORS, 3), torch.cos(angle), torch.sin(angle))
         carried = torch.cat([turned.reshape(n, self.rows, -1), state[..., -1:]], -1)
         averages = self.decay * carried[:, :self.averages] + (1.0 - self.decay) * u
         bobs = carried[:, self.averages:].reshape(n, -1, 2, MEMORY_WIDTH)
@@ -165,10 +159,11 @@ class StreamStep(nn.Module):
         latents = (latents.reshape(n, -1) * self.latent_std + self.latent_mean).reshape(n, *self.latent_shape)
         local = self.decoder(latents) + self.garment_offset
         yaw = yaw_of(rot[:, 0])
+        heading = (torch.cos(yaw), torch.sin(yaw))
         origin = root * self.pose.root_scale - self.rest_pelvis
-        world = _turn_y(local, torch.cos(yaw), torch.sin(yaw)) + origin[:, None]
+        world = turn_y(local, *heading) + origin[:, None]
         if self.push_out is not None:
-            world = self.push_out(world, rot, pos)
+            world = self.push_out(world, rot, pos, heading)
         return (world, entropy, codes, torch.ones_like(started), rot, pos, memory, frames[:, 1:])
 
 
@@ -199,19 +194,26 @@ class AutoencoderDecoder(nn.Module):
         return self.autoencoder.decode(latents)
 
 
-def stream_step(animator, character, *, push_out: bool = True, decoder: str = "full", movable: bool = False) -> StreamStep:
+def stream_step(animator, character, *, push_out: bool = True, decoder: str = "full", movable: bool = False,
+                push: str = "mesh") -> StreamStep:
     """The :class:`StreamStep` of ``animator``'s model on ``character`` (a
     :class:`~hrr_garment.inference.bodies.CharacterBody`, :meth:`Animator.body`'s), at the rate
     every model streams at (:data:`~hrr_garment.motion.motion.FPS`). ``decoder``: "full" (the
     mesh decoder's folded blocks; with ``movable``, the autoencoder's own, which moves to a GPU)
-    or "fast" (the bundle's subspace decoder)."""
+    or "fast" (the bundle's subspace decoder); ``push``: "mesh", or "subspace" (the push in the
+    fast decoder's subspace first: not exportable to ONNX)."""
     bundle = animator.bundle
     spec = bundle.codespace.config.memory
     memory = motion_memory(spec, FPS) if spec else None
     stage = None
     if push_out:
         body = character.body
-        stage = PushOutStage((*body.ends, body.radii), animator.smoothing, limits=animator.edge_limits, settings=PUSH_OUT)
+        settings = PUSH_OUT
+        if push == "subspace":
+            if animator.subspace_push is None:
+                raise ValueError(f"{bundle.folder} has no fast decoder, whose subspace the push moves in (hrr-train --stage subspace)")
+            settings = dataclasses.replace(PUSH_OUT, subspace=animator.subspace_push)
+        stage = PushOutStage((*body.ends, body.radii), animator.smoothing, limits=animator.edge_limits, settings=settings)
     if decoder == "fast":
         if bundle.subspace is None:
             raise ValueError(f"{bundle.folder} has no fast decoder (hrr-train --stage subspace)")

@@ -142,3 +142,35 @@ def test_the_report_counts_the_cloth_inside_as_decoded_before_the_subspace_push(
     settings = dataclasses.replace(PUSH_OUT, subspace=SubspacePush.of(basis, skirt.vertices, skirt.edges()))
     _, both = push_out(squeezed, motion, skirt.faces, settings=settings)
     assert both.inside_before == mesh.inside_before > 0.05 and both.worst_before == mesh.worst_before
+
+
+def test_the_torch_stage_moves_as_the_reference_does():
+    """The subspace push as a GPU crowd runs it (torch_push_out.SubspacePushStage: every vertex's
+    row weighted, one batched solve, float32) against the numpy reference (the rows near the body,
+    frame by frame, float64), the frames relative to the pelvis as the stage takes them."""
+    import torch
+
+    from hrr_garment.body.capsules import DEFAULT_BODY
+    from hrr_garment.inference.subspace_push import SubspacePush
+    from hrr_garment.inference.torch_push_out import PushOutStage, SubspacePushStage
+    from hrr_garment.motion.frame import body_heading
+
+    skirt, basis = _skirt_and_basis()
+    motion = synthesize("walk_curve", 0.3, seed=4)
+    _, squeezed = squeezed_skirt(motion, 0.8, on_body=True)
+    squeezed = squeezed.astype(np.float32)
+    squeezed[-1, :, 0] += 1.0  # a frame clear of the body
+    a, b = DEFAULT_BODY.pose_motion(motion)
+    push = SubspacePush.of(basis, skirt.vertices, skirt.edges())
+    theirs = push(squeezed, motion, (a, b, DEFAULT_BODY.radii), margin=0.002)
+    yaw, _ = body_heading(motion)
+    centre = motion.joint_positions[:, :1]
+    stage = SubspacePushStage(push, margin=0.002)
+    distance = PushOutStage.distance.__get__(type("Radii", (), {"radii": torch.tensor(DEFAULT_BODY.radii, dtype=torch.float32)})())
+    f32 = lambda x: torch.from_numpy(np.asarray(x, np.float32))  # noqa: E731
+    relative = f32(squeezed - centre)
+    with torch.no_grad():
+        moved = stage(relative, f32(a - centre), f32(b - centre), (f32(np.cos(yaw)), f32(np.sin(yaw))), distance)
+    assert np.abs(theirs - squeezed).max() > 0.01  # the reference moved the cloth ...
+    assert np.abs(moved.numpy() + centre - theirs).max() < 2e-5  # ... and the stage moved it the same
+    assert torch.equal(moved[-1], relative[-1])  # nothing near the body: untouched

@@ -8,13 +8,14 @@ from hrr_garment.motion.poses import motion_to_poses
 from hrr_garment.motion.synth import synthesize
 
 
-@pytest.mark.parametrize("decoder", ["full", "fast"])
-def test_the_device_crowd_equals_the_native_crowd(animator, decoder):
+@pytest.mark.parametrize("decoder, push", [("full", "mesh"), ("fast", "mesh"), ("fast", "subspace")])
+def test_the_device_crowd_equals_the_native_crowd(animator, decoder, push):
     clips = [synthesize("walk_curve", 1.0, seed=1), synthesize("spin", 1.0, seed=2)]
     poses = [motion_to_poses(c) for c in clips]
-    native = animator.crowd(mode="regression", decoder=decoder, device="native")
-    device = animator.crowd(mode="regression", decoder=decoder, device="cpu")
-    worst = 0.0
+    native = animator.crowd(mode="regression", decoder=decoder, device="native", push=push)
+    device = animator.crowd(mode="regression", decoder=decoder, device="cpu", push=push)
+    mesh = animator.crowd(mode="regression", decoder=decoder, device="native")
+    worst, moved = 0.0, 0.0
     for t in range(16):
         keys = ["a", "b"] if t >= 5 else ["a"]  # b joins at frame 5
         rotations = np.stack([poses[i][0][t - (5 if k == "b" else 0)] for i, k in enumerate(keys)])
@@ -22,7 +23,9 @@ def test_the_device_crowd_equals_the_native_crowd(animator, decoder):
         ours, theirs = device.push(rotations, roots, keys), native.push(rotations, roots, keys)
         assert ours.shape == theirs.shape == (len(keys), animator.bundle.template.num_vertices, 3)
         worst = max(worst, float(np.abs(ours - theirs).max()))
+        moved = max(moved, float(np.abs(theirs - mesh.push(rotations, roots, keys)).max()))
     assert worst < 1e-4, f"{worst * 1000:.3f} mm from the native crowd"
+    assert (moved > 1e-3) == (push == "subspace"), f"the subspace push moved the cloth {moved * 1000:.3f} mm"
     device.leave("a")
     assert device.characters == ["b"]
     with pytest.raises(KeyError, match="no character 'a'"):
