@@ -142,13 +142,14 @@ def _ping_pong(frame: np.ndarray, frames: int) -> np.ndarray:
 
 
 def bench_crowd(animator: Animator, motion, tau: float, characters: int, pace: float, frames: int = 300,
-                bodies: list | None = None, decoder: str = "full", device: str = "native") -> dict:
+                bodies: list | None = None, decoder: str = "full", device: str = "native", push: str = "mesh") -> dict:
     """``characters`` streamed together for ``frames`` frames: character i plays ``motion`` from frame
     7 i, forward then backward at its ends (a wrap would jump the pelvis back, which the stream takes
     as a teleport and restarts the character), and stands 2 i metres to the side (on ``bodies[i]``
     where given); returns the step's latency percentiles (ms), back to back and paced at ``pace`` frames/s, and the cost per
     character. ``device``: "native" (the hybrid on the CPU kernels) or a torch device (the
-    regression as one torch step there, its output left on the device, the step synchronised)."""
+    regression as one torch step there, its output left on the device, the step synchronised);
+    ``push``: the push-out's "mesh" or "subspace" push."""
     from hrr_garment.motion.rotations import matrix_to_quat
 
     quats = matrix_to_quat(motion.local_rotations.astype(np.float64))[..., [1, 2, 3, 0]].astype(np.float32)  # (x, y, z, w)
@@ -158,8 +159,8 @@ def bench_crowd(animator: Animator, motion, tau: float, characters: int, pace: f
     sync = torch.cuda.synchronize if device.startswith("cuda") else (lambda: None)
     out = {}
     for key, fps in (("", 0.0), ("paced_", pace)) if pace else (("", 0.0),):
-        crowd = (animator.crowd(mode="hybrid", tau=tau, decoder=decoder, device="native") if native
-                 else animator.crowd(mode="regression", decoder=decoder, device=device))
+        crowd = (animator.crowd(mode="hybrid", tau=tau, decoder=decoder, device="native", push=push) if native
+                 else animator.crowd(mode="regression", decoder=decoder, device=device, push=push))
         with warnings.catch_warnings():  # bodies outside a model's range: timed all the same
             warnings.simplefilter("ignore")
             for i, body in enumerate(bodies or []):
@@ -227,14 +228,15 @@ def _offline_and_stream(animator: Animator, motion, tau: float, repeat: int, pac
 def bench(vertices: int, windows: int, seconds: float, model: str | None = None, motion_file: str | None = None,
           pace: float = 30.0, crowd: list[int] | None = None, repeat: int = 3, precision: str = "float32",
           crowd_frames: int = 300, crowd_bodies_repeat: int = 0, decoder: str = "full", offline: bool = True,
-          device: str = "native") -> dict:
+          device: str = "native", push: str = "mesh") -> dict:
     """``model``: a trained bundle instead of random weights (its own resolution, database and tau);
     ``motion_file``: a clip instead of the procedural curved walk; ``pace``: frames/s of the paced
     stream run (0: none); ``repeat``: timed passes per offline figure (their median); ``precision``:
     the mesh decoder's arithmetic for batches; ``crowd_frames``: steps per crowd run (the first 20
     are warm-up); ``decoder``: the full mesh decoder or the fast subspace one (streams and crowds);
     ``offline``: also the offline and single-stream figures; ``device``: where the crowds run
-    ("native": the CPU kernels; a torch device: the regression as one torch step, e.g. cuda)."""
+    ("native": the CPU kernels; a torch device: the regression as one torch step, e.g. cuda);
+    ``push``: the crowds' push-out, "mesh" or "subspace" (the push in the fast decoder's subspace first)."""
     animator = (Animator.load(model, precision=precision) if model
                 else Animator(random_bundle(vertices, windows), precision=precision))
     bundle = animator.bundle
@@ -242,11 +244,12 @@ def bench(vertices: int, windows: int, seconds: float, model: str | None = None,
     tau = bundle.tau if model else _median_entropy_tau(bundle, motion)
     out = {"vertices": bundle.template.num_vertices, "database_windows": len(bundle.database), "clip_frames": motion.num_frames,
            "threads": torch.get_num_threads(), "precision": precision, "model": model or "random weights", "motion": motion_file or "procedural walk_curve",
-           "decoder": decoder, "crowd_device": device}
+           "decoder": decoder, "crowd_device": device, "crowd_push": push}
     if offline:
         out.update(_offline_and_stream(animator, motion, tau, repeat, pace, decoder))
     if crowd:
-        out["crowd"] = {str(n): bench_crowd(animator, motion, tau, n, pace, crowd_frames, decoder=decoder, device=device)
+        out["crowd"] = {str(n): bench_crowd(animator, motion, tau, n, pace, crowd_frames, decoder=decoder, device=device,
+                                            push=push)
                         for n in crowd}
         if crowd_bodies_repeat:
             out["crowd_bodies"] = {str(n): bench_crowd_bodies(animator, motion, tau, n, crowd_frames, crowd_bodies_repeat,
@@ -275,6 +278,8 @@ def main() -> None:
     parser.add_argument("--repeat", type=int, default=3, help="timed passes per offline figure (their median)")
     parser.add_argument("--precision", choices=PRECISIONS, default="float32",
                         help="the mesh decoder's arithmetic for batches (crowds, offline); bfloat16 needs AMX")
+    parser.add_argument("--push", choices=("mesh", "subspace"), default="mesh",
+                        help="the crowds' push-out: mesh, or subspace (the push in the fast decoder's subspace first)")
     parser.add_argument("--decoder", choices=("full", "fast"), default="full",
                         help="the mesh decoder: full, or fast (the subspace decoder; random weights get a random one)")
     parser.add_argument("--device", default="native",
@@ -286,7 +291,7 @@ def main() -> None:
     for v in ([None] if args.model else args.vertices):
         r = bench(v, args.database, args.seconds, args.model, args.motion, args.pace, args.crowd, args.repeat, args.precision,
                   args.crowd_frames, args.crowd_repeat if args.crowd_bodies else 0, decoder=args.decoder,
-                  offline=not args.crowd_only, device=args.device)
+                  offline=not args.crowd_only, device=args.device, push=args.push)
         if args.json:
             print(json.dumps(r))
             continue
