@@ -46,7 +46,7 @@ class DeviceCrowd:
         self.run = run
         self.body = animator.body() if body is None else body
         self.step = stream_step(animator, self.body, push_out=run.collision, decoder=run.decoder, movable=True,
-                                push=run.push).to(self.device)
+                                push_settings=animator.push_settings(run)).to(self.device)
         self._shapes = state_shapes(self.step)
         self._state = {name: torch.zeros((0, *shape), device=self.device) for name, shape in self._shapes.items()}
         self._slots: dict[Hashable, int] = {}

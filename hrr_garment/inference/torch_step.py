@@ -22,8 +22,6 @@ of a millimetre of it over a real clip (tests/export/test_onnx.py).
 
 from __future__ import annotations
 
-import dataclasses
-
 import numpy as np
 import torch
 from torch import nn
@@ -34,7 +32,7 @@ from ..motion.memory import MEMORY_WIDTH, VECTORS, MotionMemory, motion_memory
 from ..motion.motion import FPS
 from ..motion.rotations import matrix_to_axis_angle, quat_to_matrix, rotation_about_y, yaw_of
 from ..motion.skeleton import FEATURE_JOINTS, NUM_JOINTS, REST_PELVIS_HEIGHT, forward_kinematics
-from .collision import PUSH_OUT
+from .collision import PUSH_OUT, PushOutSettings
 from .torch_push_out import PushOutStage, constant, turn_y
 
 
@@ -195,25 +193,21 @@ class AutoencoderDecoder(nn.Module):
 
 
 def stream_step(animator, character, *, push_out: bool = True, decoder: str = "full", movable: bool = False,
-                push: str = "mesh") -> StreamStep:
+                push_settings: PushOutSettings | None = None) -> StreamStep:
     """The :class:`StreamStep` of ``animator``'s model on ``character`` (a
     :class:`~hrr_garment.inference.bodies.CharacterBody`, :meth:`Animator.body`'s), at the rate
     every model streams at (:data:`~hrr_garment.motion.motion.FPS`). ``decoder``: "full" (the
     mesh decoder's folded blocks; with ``movable``, the autoencoder's own, which moves to a GPU)
-    or "fast" (the bundle's subspace decoder); ``push``: "mesh", or "subspace" (the push in the
-    fast decoder's subspace first: not exportable to ONNX)."""
+    or "fast" (the bundle's subspace decoder); ``push_settings``: the push-out's
+    (:meth:`Animator.push_settings`; None: the product's), whose subspace push an ONNX export cannot hold."""
     bundle = animator.bundle
     spec = bundle.codespace.config.memory
     memory = motion_memory(spec, FPS) if spec else None
     stage = None
     if push_out:
         body = character.body
-        settings = PUSH_OUT
-        if push == "subspace":
-            if animator.subspace_push is None:
-                raise ValueError(f"{bundle.folder} has no fast decoder, whose subspace the push moves in (hrr-train --stage subspace)")
-            settings = dataclasses.replace(PUSH_OUT, subspace=animator.subspace_push)
-        stage = PushOutStage((*body.ends, body.radii), animator.smoothing, limits=animator.edge_limits, settings=settings)
+        stage = PushOutStage((*body.ends, body.radii), animator.smoothing, limits=animator.edge_limits,
+                             settings=push_settings or PUSH_OUT)
     if decoder == "fast":
         if bundle.subspace is None:
             raise ValueError(f"{bundle.folder} has no fast decoder (hrr-train --stage subspace)")

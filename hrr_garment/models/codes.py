@@ -54,8 +54,7 @@ def window_bodies(codespace, codes: MotionCodes) -> np.ndarray | None:
     b = codespace.config.body_features
     if not b:
         return None
-    last = codes.windows[:, -1, codes.windows.shape[-1] - b:]
-    return ((last - codes.motion_stats.mean[-b:]) / codes.motion_stats.std[-b:]).astype(np.float32)  # as normalize
+    return codes.motion_stats.normalize(codes.windows[:, -1])[:, -b:]  # the last frame's: not every window's
 
 
 class WindowCodes(torch.nn.Module):
