@@ -3,6 +3,7 @@
     hrr-export-model --model hrr_work/models/dress-real-quick --onnx -o dress.onnx
     hrr-export-model --garment dress --onnx -o hero_dress.onnx --body hero.json
     hrr-export-model --model DIR --onnx -o dress.onnx --check walk.bvh   # against the Python stream
+    hrr-export-model --model DIR --onnx -o dress.onnx --decoder fast --push subspace   # the game's step
 
 Writes dress.onnx (one graph: a frame of N characters' poses in, their garments' world vertices
 out at 30 frames a second, the window state as explicit inputs and outputs; the regression path
@@ -21,7 +22,7 @@ from typing import Sequence
 
 from ..errors import InputError
 from ..io_utils import refuse_input_as_output, require_suffix
-from ._common import add_decoder_option, run_cli
+from ._common import add_decoder_option, add_push_option, run_cli
 
 TOLERANCE_MM = 0.1  # the ONNX stream's largest gap from the Python stream that --check accepts
 
@@ -39,6 +40,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--no-collision", action="store_true",
                    help="leave the push-out out of the graph (an engine with its own collision)")
     add_decoder_option(p)
+    add_push_option(p)
     p.add_argument("--check", type=Path, default=None, metavar="CLIP",
                    help="stream this motion file through the graph and the Python stream and compare")
     return p
@@ -62,9 +64,10 @@ def _main(argv: Sequence[str] | None) -> int:
     if args.garment is not None and animator.bundle.garment != args.garment:
         raise InputError(model_dir, f"this model animates a {animator.bundle.garment}, not a {args.garment}")
     body = animator.body(args.body, allow_outside=args.allow_outside_body) if args.body else None
-    if args.decoder == "fast":
-        animator.resolve(decoder="fast")  # a model without the fast decoder is refused before the export's minute
-    written = export_onnx(animator, args.output, body, push_out=not args.no_collision, decoder=args.decoder or "full")
+    if args.decoder == "fast" or args.push == "subspace":
+        animator.resolve(decoder=args.decoder, push=args.push)  # a model without the fast decoder is refused before the export's minute
+    written = export_onnx(animator, args.output, body, push_out=not args.no_collision, decoder=args.decoder or "full",
+                          push=args.push or "mesh")
     size = written.graph.stat().st_size / 2**20
     print(f"wrote {written.graph} ({size:.1f} MiB, {written.vertices} vertices) and {written.tensors.name} "
           f"in {written.seconds:.0f} s")

@@ -82,17 +82,20 @@ def initial_state(shapes: dict[str, tuple[int, ...]], characters: int) -> dict[s
 
 
 def export_onnx(animator, path: str | Path, body=None, *, push_out: bool = True, allow_outside: bool = False,
-                decoder: str = "full") -> OnnxExport:
+                decoder: str = "full", push: str = "mesh") -> OnnxExport:
     """Write ``path`` (.onnx, one file) and its companion ``<stem>.tensors.npz``, atomically.
     ``body``: what :meth:`~hrr_garment.inference.animator.Animator.body` takes (None: the model's own);
     ``decoder``: "full" (the mesh decoder's folded kernels) or "fast" (the subspace decoder: a graph
-    a fraction of the size and a step a fraction of the time)."""
+    a fraction of the size and a step a fraction of the time); ``push``: how the push-out takes the
+    cloth out of the body, as :class:`~hrr_garment.inference.run_settings.RunSettings` says ("mesh",
+    or "subspace": the push along the fast decoder's components first, fewer tears)."""
     onnx = _require_onnx()
     path = Path(path)
     require_suffix(path, (".onnx",), "an ONNX model")
     t0 = time.perf_counter()
     character = animator.body(body, allow_outside=allow_outside)
-    step = stream_step(animator, character, push_out=push_out, decoder=decoder)
+    run = animator.resolve(mode="regression", decoder=decoder, push=push)  # refuses a subspace push without a fast decoder
+    step = stream_step(animator, character, push_out=push_out, decoder=decoder, push_settings=animator.push_settings(run))
     shapes = state_shapes(step)
     example = _example_inputs(shapes, 2)
     n = torch.export.Dim("characters", min=1, max=4096)
@@ -104,7 +107,7 @@ def export_onnx(animator, path: str | Path, body=None, *, push_out: bool = True,
     model = program.model_proto
     bundle = animator.bundle
     meta = {"hrr_garment": __version__, "garment": bundle.garment, "content_hash": bundle.content_hash,
-            "fps": FPS, "push_out": bool(push_out), "body": character.name, "decoder": decoder,
+            "fps": FPS, "push_out": bool(push_out), "push": run.push, "body": character.name, "decoder": decoder,
             "vertices": int(bundle.template.num_vertices), "state": {k: list(v) for k, v in shapes.items()},
             "path": "regression"}
     for key, value in meta.items():
@@ -180,7 +183,7 @@ def check_onnx(animator, path: str | Path, motion: Motion, body=None, *, allow_o
     runner = OnnxStream(path)
     meta = runner.session.get_modelmeta().custom_metadata_map
     python = animator.stream(mode="regression", collision=json.loads(meta["push_out"]), body=body, allow_outside=allow_outside,
-                             decoder=meta.get("decoder", "full"))
+                             decoder=meta.get("decoder", "full"), push=meta.get("push", "mesh"))
     quats, roots = motion_to_poses(motion)
     gaps, onnx_s, python_s = [], [], []
     for t in range(motion.num_frames):

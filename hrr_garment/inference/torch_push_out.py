@@ -3,8 +3,9 @@ PyTorch module that ONNX can hold, the last stage of :class:`~.torch_step.Stream
 round and projections under conditionals (ONNX ``If``, skipped when nothing is inside), the
 strain limit's passes as a loop (ONNX ``Loop``) while a character still has an over-long edge, each
 character stopping on its own, as the package stops each frame. With the push in the garment's
-subspace first (:class:`SubspacePushStage`, a GPU crowd's; its batched solve is not an ONNX
-operator, so an exported step pushes with the mesh alone)."""
+subspace first where the run asks for it (:class:`SubspacePushStage`: a batched solve when
+running, a GPU crowd's; unrolled into products and square roots when exporting, since ONNX has
+no solve)."""
 
 from __future__ import annotations
 
@@ -20,6 +21,32 @@ from .subspace_push import SubspacePush
 def constant(module: nn.Module, name: str, value, dtype=torch.float32) -> None:
     """``value`` as a buffer of ``module`` that the exported graph holds as a constant."""
     module.register_buffer(name, torch.as_tensor(np.asarray(value), dtype=dtype), persistent=False)
+
+
+def spd_solve(system: torch.Tensor, rhs: torch.Tensor) -> torch.Tensor:
+    """x with ``system`` @ x = ``rhs`` for a batch of symmetric positive definite systems (N, k, k)
+    and right-hand sides (N, k), by Cholesky factors built column by column and two substitutions,
+    unrolled over the k columns: the operators ONNX has (products, square roots, divisions), about
+    ten nodes a column, where ``torch.linalg.solve`` has no ONNX form."""
+    k = system.shape[-1]
+    below = torch.tril(torch.ones(k, k, dtype=system.dtype, device=system.device))  # column j's rows j ..
+    columns: list[torch.Tensor] = []
+    for j in range(k):
+        column = system[:, :, j]
+        if columns:
+            done = torch.stack(columns, -1)  # (N, k, j)
+            column = column - (done @ done[:, j, :, None])[..., 0]
+        columns.append(column / torch.sqrt(column[:, j:j + 1]) * below[:, j])
+    factor = torch.stack(columns, -1)  # lower triangular
+    y: list[torch.Tensor] = []  # factor y = rhs
+    for i in range(k):
+        known = rhs[:, i] - ((factor[:, i, :i] * torch.stack(y, -1)).sum(-1) if y else 0.0)
+        y.append(known / factor[:, i, i])
+    x: list[torch.Tensor] = []  # factor^T x = y, from the last unknown up (x holds i + 1 .. k - 1)
+    for i in reversed(range(k)):
+        known = y[i] - ((factor[:, i + 1:, i] * torch.stack(x[::-1], -1)).sum(-1) if x else 0.0)
+        x.append(known / factor[:, i, i])
+    return torch.stack(x[::-1], -1)
 
 
 def turn_y(points: torch.Tensor, cos: torch.Tensor, sin: torch.Tensor) -> torch.Tensor:
@@ -57,7 +84,9 @@ class SubspacePushStage(nn.Module):
             near = (weight > 0).any(1)[:, None, None]
             system = weighted.transpose(1, 2) @ jac + self.regulariser + self.ridge * weight.sum(1)[:, None, None] * eye
             system = torch.where(near, system, eye)  # a frame with nothing near stays as it is
-            coef = torch.linalg.solve(system, (weighted * depth[..., None]).sum(1)) * near[:, :, 0]
+            rhs = (weighted * depth[..., None]).sum(1)
+            solve = spd_solve if torch.compiler.is_compiling() else torch.linalg.solve  # exporting: no ONNX solve
+            coef = solve(system, rhs) * near[:, :, 0]
             p = p + turn_y(torch.einsum("nk,kvi->nvi", coef, self.basis), cos, sin)
         return p
 

@@ -199,7 +199,7 @@ def stream_step(animator, character, *, push_out: bool = True, decoder: str = "f
     every model streams at (:data:`~hrr_garment.motion.motion.FPS`). ``decoder``: "full" (the
     mesh decoder's folded blocks; with ``movable``, the autoencoder's own, which moves to a GPU)
     or "fast" (the bundle's subspace decoder); ``push_settings``: the push-out's
-    (:meth:`Animator.push_settings`; None: the product's), whose subspace push an ONNX export cannot hold."""
+    (:meth:`Animator.push_settings`; None: the product's)."""
     bundle = animator.bundle
     spec = bundle.codespace.config.memory
     memory = motion_memory(spec, FPS) if spec else None

@@ -146,8 +146,9 @@ def test_the_report_counts_the_cloth_inside_as_decoded_before_the_subspace_push(
 
 def test_the_torch_stage_moves_as_the_reference_does():
     """The subspace push as a GPU crowd runs it (torch_push_out.SubspacePushStage: every vertex's
-    row weighted, one batched solve, float32) against the numpy reference (the rows near the body,
-    frame by frame, float64), the frames relative to the pelvis as the stage takes them."""
+    row weighted, one batched solve, float32) and as an ONNX export holds it (traced by
+    torch.export, the solve unrolled into Cholesky columns) against the numpy reference (the rows
+    near the body, frame by frame, float64), the frames relative to the pelvis as the stage takes them."""
     import torch
 
     from hrr_garment.body.capsules import DEFAULT_BODY
@@ -174,3 +175,16 @@ def test_the_torch_stage_moves_as_the_reference_does():
     assert np.abs(theirs - squeezed).max() > 0.01  # the reference moved the cloth ...
     assert np.abs(moved.numpy() + centre - theirs).max() < 2e-5  # ... and the stage moved it the same
     assert torch.equal(moved[-1], relative[-1])  # nothing near the body: untouched
+
+    class Traced(torch.nn.Module):  # the stage with its distance, as the exported step holds it
+        def __init__(self):
+            super().__init__()
+            self.stage = stage
+
+        def forward(self, p, a, b, cos, sin):
+            return self.stage(p, a, b, (cos, sin), distance)
+
+    inputs = (relative, f32(a - centre), f32(b - centre), f32(np.cos(yaw)), f32(np.sin(yaw)))
+    with torch.no_grad():
+        traced = torch.export.export(Traced(), inputs).module()(*inputs)
+    assert np.abs(traced.numpy() + centre - theirs).max() < 2e-5
