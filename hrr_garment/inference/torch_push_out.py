@@ -4,7 +4,7 @@ round and projections under conditionals (ONNX ``If``, skipped when nothing is i
 strain limit's passes as a loop (ONNX ``Loop``) while a character still has an over-long edge, each
 character stopping on its own, as the package stops each frame. With the push in the garment's
 subspace first where the run asks for it (:class:`SubspacePushStage`: a batched solve when
-running, a GPU crowd's; unrolled into products and square roots when exporting, since ONNX has
+running, a GPU crowd's; a Cholesky factorisation in ONNX loops when exporting, since ONNX has
 no solve)."""
 
 from __future__ import annotations
@@ -25,28 +25,37 @@ def constant(module: nn.Module, name: str, value, dtype=torch.float32) -> None:
 
 def spd_solve(system: torch.Tensor, rhs: torch.Tensor) -> torch.Tensor:
     """x with ``system`` @ x = ``rhs`` for a batch of symmetric positive definite systems (N, k, k)
-    and right-hand sides (N, k), by Cholesky factors built column by column and two substitutions,
-    unrolled over the k columns: the operators ONNX has (products, square roots, divisions), about
-    ten nodes a column, where ``torch.linalg.solve`` has no ONNX form."""
-    k = system.shape[-1]
-    below = torch.tril(torch.ones(k, k, dtype=system.dtype, device=system.device))  # column j's rows j ..
-    columns: list[torch.Tensor] = []
-    for j in range(k):
-        column = system[:, :, j]
-        if columns:
-            done = torch.stack(columns, -1)  # (N, k, j)
-            column = column - (done @ done[:, j, :, None])[..., 0]
-        columns.append(column / torch.sqrt(column[:, j:j + 1]) * below[:, j])
-    factor = torch.stack(columns, -1)  # lower triangular
-    y: list[torch.Tensor] = []  # factor y = rhs
-    for i in range(k):
-        known = rhs[:, i] - ((factor[:, i, :i] * torch.stack(y, -1)).sum(-1) if y else 0.0)
-        y.append(known / factor[:, i, i])
-    x: list[torch.Tensor] = []  # factor^T x = y, from the last unknown up (x holds i + 1 .. k - 1)
-    for i in reversed(range(k)):
-        known = y[i] - ((factor[:, i + 1:, i] * torch.stack(x[::-1], -1)).sum(-1) if x else 0.0)
-        x.append(known / factor[:, i, i])
-    return torch.stack(x[::-1], -1)
+    and right-hand sides (N, k), in the operators ONNX has (``torch.linalg.solve`` has no ONNX
+    form): the Cholesky factor built a column at a time, then the two triangular substitutions, each
+    an ONNX ``Loop`` over the k columns. Each step works on whole rows, the entries not yet found
+    being zero, so that its one-hot picks need no slice of a size that changes."""
+    k = rhs.shape[-1]
+    index = torch.arange(k, device=rhs.device)
+    start = torch.zeros((), dtype=torch.int64, device=rhs.device)
+
+    def pick(j):
+        return (index == j).to(rhs.dtype)  # e_j
+
+    def factor(j, lower):  # column j of the factor: (A e_j - L L_j.) / sqrt(its diagonal), from row j down
+        e = pick(j)
+        column = system @ e - (lower @ (e @ lower)[..., None])[..., 0]
+        column = column / torch.sqrt((column * e).sum(-1, keepdim=True)) * (index >= j).to(rhs.dtype)
+        return j + 1, lower + column[:, :, None] * e
+
+    def forward(i, y):  # y_i = (b_i - L_i. y) / L_ii, the later entries of y still zero
+        e = pick(i)
+        row = e @ lower
+        return i + 1, y + e * (((rhs * e).sum(-1) - (row * y).sum(-1)) / (row * e).sum(-1))[:, None]
+
+    def backward(i, x):  # x_j = (y_j - L_.j x) / L_jj, from the last unknown up (j = k - 1 - i)
+        e = pick(k - 1 - i)
+        column = (lower @ e[:, None])[..., 0]
+        return i + 1, x + e * (((y * e).sum(-1) - (column * x).sum(-1)) / (column * e).sum(-1))[:, None]
+
+    _, lower = while_loop(lambda j, lower: j < k, factor, (start, torch.zeros_like(system)))
+    _, y = while_loop(lambda i, y: i < k, forward, (start, torch.zeros_like(rhs)))
+    _, x = while_loop(lambda i, x: i < k, backward, (start, torch.zeros_like(rhs)))
+    return x
 
 
 def turn_y(points: torch.Tensor, cos: torch.Tensor, sin: torch.Tensor) -> torch.Tensor:

@@ -85,7 +85,7 @@ def test_the_graphs_push_out_limits_the_strain_as_the_library_does(exported):
 
 def test_the_fast_decoders_graph_with_the_subspace_push_streams_as_the_python_stream_does(exported, tmp_path):
     """The graph with the subspace decoder and the push along its components first (hrr-export-model
-    --decoder fast --push subspace; its solve unrolled, ONNX having none): smaller, and what the
+    --decoder fast --push subspace; its solve in ONNX loops, ONNX having none): smaller, and what the
     Python stream with the same settings gives, where that push moves the cloth."""
     from hrr_garment.export.onnx_model import check_onnx, export_onnx
 

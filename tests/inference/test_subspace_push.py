@@ -147,7 +147,7 @@ def test_the_report_counts_the_cloth_inside_as_decoded_before_the_subspace_push(
 def test_the_torch_stage_moves_as_the_reference_does():
     """The subspace push as a GPU crowd runs it (torch_push_out.SubspacePushStage: every vertex's
     row weighted, one batched solve, float32) and as an ONNX export holds it (traced by
-    torch.export, the solve unrolled into Cholesky columns) against the numpy reference (the rows
+    torch.export, the solve a Cholesky factorisation in loops) against the numpy reference (the rows
     near the body, frame by frame, float64), the frames relative to the pelvis as the stage takes them."""
     import torch
 
