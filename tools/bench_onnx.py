@@ -56,15 +56,13 @@ def main() -> None:
         graph = Path(tempfile.mkdtemp()) / "step.onnx"
         export_onnx(animator, graph)
     rotations, roots = motion_to_poses(load_motion(args.motion))
-    meta = OnnxStream(graph).session.get_modelmeta().custom_metadata_map
-    # the package runs what the graph holds: its push-out, decoder and push (graphs before those two keys: full, mesh)
-    collision, decoder, push = json.loads(meta["push_out"]), meta.get("decoder", "full"), meta.get("push", "mesh")
+    settings = OnnxStream(graph).settings  # the package runs what the graph holds: its push-out, decoder and push
     rows = []
     for n in args.crowds:
         starts = np.arange(n) * 7 % len(rotations)
         offsets = np.stack([np.arange(n) * 1.5, np.zeros(n), np.zeros(n)], 1).astype(np.float32)
         onnx_ms = _timed(OnnxStream(graph).push, rotations, roots, starts, offsets, args.steps)
-        crowd = animator.crowd(mode="regression", collision=collision, decoder=decoder, push=push)
+        crowd = animator.crowd(mode="regression", **settings)
         package_ms = _timed(crowd.push, rotations, roots, starts, offsets, args.steps)
         row = {"characters": n, "onnx_p50_ms": float(np.median(onnx_ms)), "onnx_p99_ms": float(np.percentile(onnx_ms, 99)),
                "package_p50_ms": float(np.median(package_ms)), "package_p99_ms": float(np.percentile(package_ms, 99))}
@@ -77,7 +75,8 @@ def main() -> None:
                   f"us a character, {row['ratio_p50']:.2f} x the package")
     if args.json:
         print(json.dumps({"model": args.model, "vertices": int(animator.bundle.template.num_vertices),
-                          "push_out": collision, "decoder": decoder, "push": push, "crowds": rows}, indent=2))
+                          "push_out": settings["collision"], "decoder": settings["decoder"], "push": settings["push"],
+                          "crowds": rows}, indent=2))
 
 
 if __name__ == "__main__":

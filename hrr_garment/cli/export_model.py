@@ -64,8 +64,6 @@ def _main(argv: Sequence[str] | None) -> int:
     if args.garment is not None and animator.bundle.garment != args.garment:
         raise InputError(model_dir, f"this model animates a {animator.bundle.garment}, not a {args.garment}")
     body = animator.body(args.body, allow_outside=args.allow_outside_body) if args.body else None
-    if args.decoder == "fast" or args.push == "subspace":
-        animator.resolve(decoder=args.decoder, push=args.push)  # a model without the fast decoder is refused before the export's minute
     written = export_onnx(animator, args.output, body, push_out=not args.no_collision, decoder=args.decoder or "full",
                           push=args.push or "mesh")
     size = written.graph.stat().st_size / 2**20

@@ -94,7 +94,8 @@ def export_onnx(animator, path: str | Path, body=None, *, push_out: bool = True,
     require_suffix(path, (".onnx",), "an ONNX model")
     t0 = time.perf_counter()
     character = animator.body(body, allow_outside=allow_outside)
-    run = animator.resolve(mode="regression", decoder=decoder, push=push)  # refuses a subspace push without a fast decoder
+    # refuses a fast decoder or a subspace push without the bundle's fast decoder, before the export's minute
+    run = animator.resolve(mode="regression", decoder=decoder, push=push)
     step = stream_step(animator, character, push_out=push_out, decoder=decoder, push_settings=animator.push_settings(run))
     shapes = state_shapes(step)
     example = _example_inputs(shapes, 2)
@@ -163,6 +164,10 @@ class OnnxStream:
         if "state" not in meta:
             raise InputError(path, "not a streaming step written by hrr-export-model --onnx (no state in its metadata)")
         self.shapes = {k: tuple(v) for k, v in json.loads(meta["state"]).items()}
+        # the run the graph holds, as Animator.stream and crowd take it (graphs written before the
+        # decoder and push were recorded: the full decoder, the mesh push)
+        self.settings = {"collision": json.loads(meta["push_out"]), "decoder": meta.get("decoder", "full"),
+                         "push": meta.get("push", "mesh")}
         self.state: dict[str, np.ndarray] | None = None
 
     def push(self, rotations: np.ndarray, roots: np.ndarray) -> np.ndarray:
@@ -181,9 +186,7 @@ def check_onnx(animator, path: str | Path, motion: Motion, body=None, *, allow_o
     graph was written) -> the gap per frame in millimetres: max, mean, and each path's median
     step time in milliseconds."""
     runner = OnnxStream(path)
-    meta = runner.session.get_modelmeta().custom_metadata_map
-    python = animator.stream(mode="regression", collision=json.loads(meta["push_out"]), body=body, allow_outside=allow_outside,
-                             decoder=meta.get("decoder", "full"), push=meta.get("push", "mesh"))
+    python = animator.stream(mode="regression", body=body, allow_outside=allow_outside, **runner.settings)
     quats, roots = motion_to_poses(motion)
     gaps, onnx_s, python_s = [], [], []
     for t in range(motion.num_frames):
