@@ -40,7 +40,7 @@ class CodeSpaceConfig:
     classes: int = 8  # K
     embedding_dim: int = 8  # values per (group, class) embedding
     hidden: int = 512  # garment encoder / decoder MLP width
-    motion_hidden: int = 256  # GRU and attention width
+    motion_hidden: int = 128  # GRU and attention width (docs/decisions/0033-motion-encoder-128.md)
     attention_heads: int = 4
     dropout: float = 0.0  # after each hidden layer of the garment encoder and the decoder
     memory_seconds: tuple[float, ...] = (0.5, 1.5)  # motion memory's averages' time constants (motion.memory); () for none
