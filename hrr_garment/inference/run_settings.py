@@ -167,13 +167,11 @@ class RunSettings:
         elif mode is Mode.RESIDUAL:
             bundle.require_residual()
         decoder = self.decoder or "full"
-        if decoder == "fast" and bundle.subspace is None:
-            raise BundleError(bundle.folder, "has no fast decoder: distil one with hrr-train --stage subspace "
-                                             "(or run the full decoder)")
+        if decoder == "fast":
+            bundle.require_subspace()
         push = self.push or "mesh"
-        if push == "subspace" and bundle.subspace is None:
-            raise BundleError(bundle.folder, "has no fast decoder, whose components the subspace push moves the cloth "
-                                             "along: distil one with hrr-train --stage subspace (or push with the mesh)")
+        if push == "subspace":
+            bundle.require_subspace("the subspace push")
         swing = self.swing if self.swing is not None else bundle.swing_gain if calibrated else 1.0
         return ResolvedRun(mode=mode, gate=gate, tau=tau, detail=look, collision=self.collision, causal=self.causal,
                            decoder=decoder, swing=swing, push=push)

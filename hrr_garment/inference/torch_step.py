@@ -209,8 +209,7 @@ def stream_step(animator, character, *, push_out: bool = True, decoder: str = "f
         stage = PushOutStage((*body.ends, body.radii), animator.smoothing, limits=animator.edge_limits,
                              settings=push_settings or PUSH_OUT)
     if decoder == "fast":
-        if bundle.subspace is None:
-            raise ValueError(f"{bundle.folder} has no fast decoder (hrr-train --stage subspace)")
+        bundle.require_subspace()
         module = bundle.subspace
     else:
         module = AutoencoderDecoder(bundle.autoencoder) if movable else TorchDecoder(animator.decoder)

@@ -79,3 +79,9 @@ def test_a_bundle_without_a_fast_decoder_refuses_it_by_name(trained, tmp_path):
     assert animator.bundle.subspace is None
     with pytest.raises(BundleError, match="hrr-train --stage subspace"):
         animator.animate(synthesize("walk", 0.5, seed=1), decoder="fast")
+    with pytest.raises(BundleError, match="the subspace push runs on"):
+        animator.animate(synthesize("walk", 0.5, seed=1), push="subspace")
+    # the torch step (ONNX export, a GPU crowd) is public too and says the same
+    from hrr_garment.inference.torch_step import stream_step
+    with pytest.raises(BundleError, match="hrr-train --stage subspace"):
+        stream_step(animator, animator.body(), decoder="fast")
