@@ -19,7 +19,7 @@ push-out has more work (a dress whose bodice rests on the body) than random weig
   (quaternions and roots); p50 / p99 of the whole N-character step, back to back and paced, the
   cost per character and character-frames/s, for each N (the scaling); with ``--crowd-bodies``,
   each crowd also with every character on a body of its own (bones 0.9-1.1 times the mannequin's,
-  radii likewise), the two runs alternating ``--crowd-repeat`` times: the step's p99 with N bodies
+  radii likewise; ``--crowd-bodies anny``: anny bodies sampled as the bodies preset does), the two runs alternating ``--crowd-repeat`` times: the step's p99 with N bodies
   over the p99 with one;
 - peak resident memory of the process.
 
@@ -29,6 +29,7 @@ push-out has more work (a dress whose bodice rests on the body) than random weig
     python tools/bench_inference.py --vertices 4266 --crowd 1 2 4 8 16 32 64   # the crowd's scaling
     python tools/bench_inference.py --vertices 4000 --crowd 32 --precision bfloat16   # decoder on AMX
     python tools/bench_inference.py --model DIR --crowd 32 --crowd-bodies --pace 0 --json   # 32 bodies against one
+    python tools/bench_inference.py --model DIR --crowd 32 --crowd-bodies anny --crowd-only --pace 0   # anny's bodies
     python tools/bench_inference.py --vertices 4156 --crowd 1 8 32 64 128 --decoder fast --crowd-only --pace 0
     python tools/bench_inference.py --vertices 4156 --crowd 1000 --decoder fast --device cuda --crowd-only --pace 0
 """
@@ -120,8 +121,20 @@ def _median_entropy_tau(bundle: Bundle, motion) -> float:
     return float(np.quantile(entropy, 0.5, method="lower"))
 
 
-def crowd_bodies(count: int) -> list:
-    """``count`` bodies: the mannequin's skeleton and capsules scaled by 0.9 to 1.1, each its own."""
+def crowd_bodies(count: int, source: str = "scaled") -> list:
+    """``count`` bodies, each its own. ``source`` "scaled": the mannequin's skeleton and capsules
+    scaled by 0.9 to 1.1 (no extra needed); "anny": parametric bodies as the bodies preset samples
+    them (statures 1.50-1.95 m, genders alternating, weight and muscle slim to heavy; another seed
+    than the preset's, so none is a training body; the bodies extra and its cached assets)."""
+    if source == "anny":
+        from tqdm import tqdm
+
+        from hrr_garment.body.body_file import record_of
+        from hrr_garment.body.parametric import parametric_body
+        from hrr_garment.sim.bodies import BodyPlan, sampled_shapes
+
+        shapes = sampled_shapes(BodyPlan("sample", count=count, seed=7))
+        return [record_of(parametric_body(shape)) for shape in tqdm(shapes, desc="bodies", disable=None)]
     from hrr_garment.body.body_file import BodyRecord
     from hrr_garment.body.fit import scaled_capsules
     from hrr_garment.motion.skeleton import REST_OFFSETS, REST_PELVIS_HEIGHT, Skeleton
@@ -188,16 +201,18 @@ def bench_crowd(animator: Animator, motion, tau: float, characters: int, pace: f
 
 
 def bench_crowd_bodies(animator: Animator, motion, tau: float, characters: int, frames: int, repeat: int,
-                       decoder: str = "full") -> dict:
-    """The crowd with one body for all and with a body per character, alternating ``repeat`` times,
-    back to back: each run's p50 and p99 and the median ratio of the p99s (N bodies over one)."""
-    bodies = crowd_bodies(characters)
+                       decoder: str = "full", source: str = "scaled") -> dict:
+    """The crowd with one body for all (the model's own) and with a body per character
+    (:func:`crowd_bodies` of ``source``), alternating ``repeat`` times, back to back: each run's p50
+    and p99, push-out stage median, and the median ratio of the p99s (N bodies over one)."""
+    bodies = crowd_bodies(characters, source)
     runs = {"one_body": [], "bodies": []}
     for _ in range(repeat):
         runs["one_body"].append(bench_crowd(animator, motion, tau, characters, 0.0, frames, decoder=decoder))
         runs["bodies"].append(bench_crowd(animator, motion, tau, characters, 0.0, frames, bodies=bodies, decoder=decoder))
     ratios = [b["p99_ms"] / o["p99_ms"] for o, b in zip(runs["one_body"], runs["bodies"])]
-    return {k: [{"p50_ms": r["p50_ms"], "p99_ms": r["p99_ms"]} for r in v] for k, v in runs.items()} | {
+    return {k: [{"p50_ms": r["p50_ms"], "p99_ms": r["p99_ms"], "push_out_p50_ms": r["stage_p50_ms"]["push_out"]}
+                for r in v] for k, v in runs.items()} | {"bodies_from": source,
         "p99_ratio_median": round(float(np.median(ratios)), 3), "p99_ratios": [round(r, 3) for r in ratios]}
 
 
@@ -228,7 +243,7 @@ def _offline_and_stream(animator: Animator, motion, tau: float, repeat: int, pac
 def bench(vertices: int, windows: int, seconds: float, model: str | None = None, motion_file: str | None = None,
           pace: float = 30.0, crowd: list[int] | None = None, repeat: int = 3, precision: str = "float32",
           crowd_frames: int = 300, crowd_bodies_repeat: int = 0, decoder: str = "full", offline: bool = True,
-          device: str = "native", push: str = "mesh") -> dict:
+          device: str = "native", push: str = "mesh", crowd_bodies_from: str = "scaled") -> dict:
     """``model``: a trained bundle instead of random weights (its own resolution, database and tau);
     ``motion_file``: a clip instead of the procedural curved walk; ``pace``: frames/s of the paced
     stream run (0: none); ``repeat``: timed passes per offline figure (their median); ``precision``:
@@ -236,7 +251,8 @@ def bench(vertices: int, windows: int, seconds: float, model: str | None = None,
     are warm-up); ``decoder``: the full mesh decoder or the fast subspace one (streams and crowds);
     ``offline``: also the offline and single-stream figures; ``device``: where the crowds run
     ("native": the CPU kernels; a torch device: the regression as one torch step, e.g. cuda);
-    ``push``: the crowds' push-out, "mesh" or "subspace" (the push in the fast decoder's subspace first)."""
+    ``push``: the crowds' push-out, "mesh" or "subspace" (the push in the fast decoder's subspace first);
+    ``crowd_bodies_from``: the bodies of the crowds on a body each (:func:`crowd_bodies`)."""
     animator = (Animator.load(model, precision=precision) if model
                 else Animator(random_bundle(vertices, windows), precision=precision))
     bundle = animator.bundle
@@ -253,7 +269,7 @@ def bench(vertices: int, windows: int, seconds: float, model: str | None = None,
                         for n in crowd}
         if crowd_bodies_repeat:
             out["crowd_bodies"] = {str(n): bench_crowd_bodies(animator, motion, tau, n, crowd_frames, crowd_bodies_repeat,
-                                                              decoder=decoder) for n in crowd}
+                                                              decoder=decoder, source=crowd_bodies_from) for n in crowd}
     out["peak_rss_mb"] = round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 1)
     out["native_decoder"] = animator.decoder.native  # the full decoder's kernels
     return out
@@ -272,8 +288,10 @@ def main() -> None:
                         help="also stream crowds of these many characters, one call per frame (e.g. 1 8 32)")
     parser.add_argument("--crowd-frames", type=int, default=300,
                         help="steps per crowd run, the first 20 warm-up (p99 of 280: the third-worst step)")
-    parser.add_argument("--crowd-bodies", action="store_true",
-                        help="also time each crowd with a body per character against one body for all, alternating")
+    parser.add_argument("--crowd-bodies", nargs="?", const="scaled", choices=("scaled", "anny"),
+                        help="also time each crowd with a body per character against one body for all, alternating: "
+                             "the mannequin scaled 0.9-1.1 (scaled, the default) or anny bodies sampled as the "
+                             "bodies preset does (anny: the bodies extra)")
     parser.add_argument("--crowd-repeat", type=int, default=3, help="alternations of the --crowd-bodies runs")
     parser.add_argument("--repeat", type=int, default=3, help="timed passes per offline figure (their median)")
     parser.add_argument("--precision", choices=PRECISIONS, default="float32",
@@ -291,7 +309,8 @@ def main() -> None:
     for v in ([None] if args.model else args.vertices):
         r = bench(v, args.database, args.seconds, args.model, args.motion, args.pace, args.crowd, args.repeat, args.precision,
                   args.crowd_frames, args.crowd_repeat if args.crowd_bodies else 0, decoder=args.decoder,
-                  offline=not args.crowd_only, device=args.device, push=args.push)
+                  offline=not args.crowd_only, device=args.device, push=args.push,
+                  crowd_bodies_from=args.crowd_bodies or "scaled")
         if args.json:
             print(json.dumps(r))
             continue

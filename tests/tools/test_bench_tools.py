@@ -32,6 +32,7 @@ def test_bench_inference_reports_every_key(capsys):
     assert set(report["stream_stage_p50_ms"]) == {"features", "encoder", "decoder", "world", "push_out"}
     bodies = report["crowd_bodies"]["3"]  # three characters on three bodies, against one body for all
     assert bodies["p99_ratio_median"] > 0 and len(bodies["bodies"]) == len(bodies["one_body"]) == 1
+    assert bodies["bodies_from"] == "scaled" and bodies["bodies"][0]["push_out_p50_ms"] > 0
 
 
 def test_the_push_out_analysis_reports_each_setting_with_and_without_the_subspace_push(trained):
