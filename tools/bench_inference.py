@@ -19,8 +19,8 @@ push-out has more work (a dress whose bodice rests on the body) than random weig
   (quaternions and roots); p50 / p99 of the whole N-character step, back to back and paced, the
   cost per character and character-frames/s, for each N (the scaling); with ``--crowd-bodies``,
   each crowd also with every character on a body of its own (bones 0.9-1.1 times the mannequin's,
-  radii likewise; ``--crowd-bodies anny``: anny bodies sampled as the bodies preset does), the two runs alternating ``--crowd-repeat`` times: the step's p99 with N bodies
-  over the p99 with one;
+  radii likewise; ``--crowd-bodies anny``: anny bodies sampled as the bodies preset does), the two
+  runs alternating ``--crowd-repeat`` times: the step's p99 with N bodies over the p99 with one;
 - peak resident memory of the process.
 
     python tools/bench_inference.py                       # 4,000 and 12,000 vertices

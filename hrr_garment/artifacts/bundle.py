@@ -105,12 +105,13 @@ class Bundle:
                                            f"hrr-train --stage codespace -o {self.folder} on its dataset again (the "
                                            "trained weights are kept; only the weight is calibrated)")
 
-    def require_subspace(self, needed_by: str = "the fast decoder") -> None:
-        """A BundleError, naming the model and the fix, where ``needed_by`` (the fast decoder, the
-        subspace push: both run on the distilled subspace) has no subspace to run on."""
+    def require_subspace(self, needed_by: str | None = None) -> None:
+        """A BundleError, naming the model and the fix, where the bundle has no fast decoder (its
+        distilled subspace): the fast decoder itself, or ``needed_by`` (the subspace push) runs on it."""
         if self.subspace is None:
-            raise BundleError(self.folder, f"has no fast decoder, which {needed_by} runs on: distil one with "
-                                           "hrr-train --stage subspace (or run the full decoder and the mesh push)")
+            user = f", which {needed_by} runs on" if needed_by else ""
+            raise BundleError(self.folder, f"has no fast decoder{user}: distil one with hrr-train --stage subspace "
+                                           "(or run the full decoder and the mesh push)")
 
     @property
     def residual_weight(self) -> float:
