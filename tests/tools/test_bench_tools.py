@@ -55,3 +55,35 @@ def test_the_push_out_analysis_reports_each_setting_with_and_without_the_subspac
         assert row["pve_mm"] > 0 and row["us_per_character"] > 0
     assert pushed["inside_before_pct"] <= plain["inside_before_pct"]
     assert report["rows"]["unpushed"]["pve_mm"] > 0
+
+
+def test_bodies_inside_counts_the_cloth_inside_each_body_before_the_push_out(trained, tmp_path, monkeypatch):
+    """tools/bodies_inside.py on the tiny trained model: a body file holding the model's own body
+    gives what animating on the default body and measuring directly gives; scaled mannequins away
+    from the one training body are listed with the measures out of its range."""
+    import importlib.util
+    from pathlib import Path
+
+    from hrr_garment.body.body_file import write_body
+    from hrr_garment.inference.animator import Animator
+    from hrr_garment.motion.synth import synthesize
+    from hrr_garment.sim.quality import body_signed_distance, penetration_fraction
+
+    tools = Path(__file__).parents[2] / "tools"
+    monkeypatch.syspath_prepend(str(tools))  # the tool imports bench_inference's bodies, as when run from tools/
+    spec = importlib.util.spec_from_file_location("bodies_inside", tools / "bodies_inside.py")
+    tool = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(tool)
+    root, _, _ = trained
+    animator = Animator.load(root / "model")
+    own = write_body(tmp_path / "own.json", animator.bundle.default_body)
+    report = tool.analyse(str(root / "model"), ["scaled", str(own)], [], count=3, seconds=1.5)
+    rows = report["rows"]
+    assert [r["body"].split(" (")[0] for r in rows] == ["scaled 0", "scaled 1", "scaled 2", "own"]
+    motion = synthesize("walk_curve", 1.5, seed=0)
+    distance = body_signed_distance(animator.animate(motion, collision=False).vertices, motion, animator.body().body)
+    assert rows[3]["inside_pct"] == pytest.approx(100 * penetration_fraction(distance).mean(), abs=1e-9)
+    assert rows[3]["inside_any_pct"] == pytest.approx(100 * (distance < 0).mean(), abs=1e-9)
+    assert rows[3]["outside_range"] == [] and rows[0]["outside_range"] and rows[2]["outside_range"]
+    for r in rows:
+        assert 0 <= r["inside_pct"] <= r["inside_worst_pct"] <= 100 and r["inside_pct"] <= r["inside_any_pct"]
