@@ -2,7 +2,8 @@
 
 A model across bodies reads each body's twelve measures (docs/bodies.md); ``hrr-body info --model``
 says whether each measure lies within the training bodies' range. This tool asks the model itself:
-it animates clips on each body (the model's default mode, offline, the push-out off) and reports,
+it animates clips on each body (the model's default mode, offline, the push-out off:
+:mod:`hrr_garment.eval.inside_body`, which ``hrr-body info --model DIR --inside`` runs) and reports,
 body by body and clip by clip, the vertices more than 5 mm inside the body (mean over frames and the
 worst frame) and those inside at all, as ``hrr-eval``'s "inside before the push-out" counts them.
 What it shows: bodies off the training bodies' shapes can lie inside every measure's range and
@@ -21,16 +22,14 @@ from __future__ import annotations
 
 import argparse
 import json
-import warnings
 from pathlib import Path
 
 from bench_inference import crowd_bodies
 
+from hrr_garment.eval.inside_body import check_motion, cloth_inside
 from hrr_garment.inference.animator import Animator
 from hrr_garment.inference.bodies import read_body_argument
 from hrr_garment.motion.io import load_motion
-from hrr_garment.motion.synth import synthesize
-from hrr_garment.sim.quality import body_signed_distance, penetration_fraction
 
 SOURCES = ("scaled", "anny")
 
@@ -47,25 +46,12 @@ def named_bodies(sources: list[str], count: int) -> list[tuple[str, object]]:
     return out
 
 
-def inside(animator: Animator, motion, body) -> dict:
-    """The cloth inside ``body`` before the push-out on ``motion`` (percent of the vertices: more
-    than 5 mm inside, mean and worst frame; inside at all), and the measures outside the model's range."""
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # the measures out of range are reported below
-        character = animator.body(body, allow_outside=True)
-        animation = animator.animate(motion, body=character, collision=False)
-    distance = body_signed_distance(animation.vertices, character.play(motion), character.body)
-    deep = penetration_fraction(distance)
-    return {"inside_pct": 100.0 * float(deep.mean()), "inside_worst_pct": 100.0 * float(deep.max()),
-            "inside_any_pct": 100.0 * float((distance < 0).mean()), "stature_m": float(character.record.stature),
-            "outside_range": animator.bundle.body_range.outside(character.vector)}
-
-
-def analyse(model: str, sources: list[str], motions: list[str], count: int = 9, seconds: float = 6.0) -> dict:
-    """Each body's and clip's :func:`inside` (the procedural curved walk when ``motions`` is empty)."""
+def analyse(model: str, sources: list[str], motions: list[str], count: int = 9) -> dict:
+    """Each body's and clip's :func:`~hrr_garment.eval.inside_body.cloth_inside` (the procedural
+    curved walk when ``motions`` is empty)."""
     animator = Animator.load(model)
-    clips = {Path(path).name: load_motion(path) for path in motions} or {"procedural walk_curve": synthesize("walk_curve", seconds, seed=0)}
-    rows = [{"body": name, "clip": clip, **inside(animator, motion, record)}
+    clips = {Path(path).name: load_motion(path) for path in motions} or {"procedural walk_curve": check_motion()}
+    rows = [{**cloth_inside(animator, motion, record, name).to_dict(), "clip": clip}
             for name, record in named_bodies(sources, count) for clip, motion in clips.items()]
     return {"model": model, "rows": rows}
 

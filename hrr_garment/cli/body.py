@@ -5,6 +5,7 @@
     hrr-body fit character.glb -o hero.json [--skin N] [--joint-map map.yaml] [--unit-scale S] [--parametric]
     hrr-body nearest clip.bvh -o performer.json      # the parametric body nearest to the clip's performer
     hrr-body info tall.json [--json] [--model DIR]      # --model: within the body range DIR was trained on?
+    hrr-body info hero.json --model DIR --inside        # and how much cloth it puts inside the body
 
 ``make`` builds anny's body of that shape (the ``bodies`` extra; the first run builds its blend
 shapes, about a minute, cached under the workspace), fits the canonical skeleton's bone lengths and
@@ -57,6 +58,10 @@ def _parser() -> argparse.ArgumentParser:
     info.add_argument("--json", action="store_true")
     info.add_argument("--model", type=Path, default=None,
                       help="a model folder: whether the body lies within the range it was trained on (exit 1 where not)")
+    info.add_argument("--inside", action="store_true",
+                      help="with --model: animate a procedural walk on the body and on the model's own, and say how "
+                           "much of the cloth lies inside each before the push-out (the measures' range is each on its "
+                           "own; this asks the model)")
     return p
 
 
@@ -133,9 +138,22 @@ def _nearest(args) -> int:
     return 0
 
 
+def _inside(model: Path, record, name: str) -> dict:
+    """The cloth inside the body and inside the model's own before the push-out, on the check's walk."""
+    from ..eval.inside_body import CHECK_SECONDS, check_motion, cloth_inside
+    from ..inference.animator import Animator
+
+    animator, motion = Animator.load(model), check_motion()
+    clip = {"clip": f"procedural walk of {CHECK_SECONDS:g} s"}
+    return {f"body {name!r}": {**cloth_inside(animator, motion, record, name).to_dict(), **clip},
+            "the model's own body": {**cloth_inside(animator, motion).to_dict(), **clip}}
+
+
 def _main(argv: Sequence[str] | None) -> int:
     args = _parser().parse_args(argv)
     if args.command == "info":
+        if args.inside and args.model is None:
+            raise InputError("hrr-body info", "--inside asks a model: give it with --model DIR")
         record = read_body(args.body)
         summary = _summary(record)
         outside = None
@@ -146,10 +164,15 @@ def _main(argv: Sequence[str] | None) -> int:
             body_range = load_bundle(args.model).body_range
             outside = body_range.outside(body_vector(record))
             summary["model"] = {"folder": str(args.model), "training_bodies": body_range.bodies, "outside": outside}
+            if args.inside:
+                summary["model"]["inside_before_push_out"] = _inside(args.model, record, args.body.stem)
         print(json.dumps(summary) if args.json else "\n".join(f"{k}: {v}" for k, v in summary.items() if k != "model"))
         if outside is not None and not args.json:
             print(f"within the range of the {body_range.bodies} bodies {args.model} was trained on" if not outside else
                   f"outside the range of the {body_range.bodies} bodies {args.model} was trained on: " + "; ".join(outside))
+            for who, r in summary["model"].get("inside_before_push_out", {}).items():
+                print(f"inside {who} before the push-out, on a {r['clip']}: {r['inside_pct']:.2f} % of the cloth more than "
+                      f"5 mm in (worst frame {r['inside_worst_pct']:.2f} %)")
         return 1 if outside else 0
     if args.output.suffix.lower() != ".json":
         raise InputError(args.output, "a body file is written as .json")

@@ -211,6 +211,29 @@ def test_hrr_body_info_says_whether_a_body_is_within_a_models_range(bodies_model
     assert info["model"]["training_bodies"] == 2 and any(line.startswith("stature") for line in info["model"]["outside"])
 
 
+def test_hrr_body_info_inside_asks_the_model_how_much_cloth_goes_inside_the_body(bodies_model, tmp_path, capsys):
+    """``--inside``: the cloth inside the body and inside the model's own before the push-out, on the
+    check's walk, as :func:`cloth_inside` measures it; without ``--model`` a clear refusal."""
+    from hrr_garment.cli.body import main
+    from hrr_garment.eval.inside_body import check_motion, cloth_inside
+    from hrr_garment.inference.animator import Animator
+
+    folder, data = bodies_model
+    record = GarmentDataset(data).bodies["short"].record
+    write_body(tmp_path / "short.json", record)
+    assert main(["info", str(tmp_path / "short.json"), "--model", str(folder), "--inside", "--json"]) == 0
+    inside = json.loads(capsys.readouterr().out)["model"]["inside_before_push_out"]
+    animator = Animator.load(folder)
+    own, short = cloth_inside(animator, check_motion()), cloth_inside(animator, check_motion(), record)
+    assert inside["the model's own body"]["inside_pct"] == pytest.approx(own.inside_pct)
+    assert inside["body 'short'"]["inside_any_pct"] == pytest.approx(short.inside_any_pct)
+    assert inside["body 'short'"]["stature_m"] == pytest.approx(record.stature) != pytest.approx(own.stature_m)
+    assert main(["info", str(tmp_path / "short.json"), "--model", str(folder), "--inside"]) == 0
+    assert "inside body 'short' before the push-out" in capsys.readouterr().out
+    assert main(["info", str(tmp_path / "short.json"), "--inside"]) != 0
+    assert "--inside asks a model" in capsys.readouterr().err
+
+
 def test_a_crowd_of_characters_on_different_bodies_equals_each_one_alone_on_its_body(bodies_model):
     """One batched step for characters of three bodies (two set with set_body, one the crowd's own):
     each one's frames equal its offline causal animation on its body."""
