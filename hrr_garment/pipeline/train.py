@@ -33,6 +33,7 @@ from ..eval.auto_criterion import AutoConfig, repick
 from ..eval.auto_mode import (
     calibrate_auto_mode,
     followed_otherwise,
+    lacks_default_body,
     lacks_free_cloth,
     lacks_free_folds,
     lacks_swing,
@@ -264,10 +265,11 @@ def calibrate_auto(folder: str | Path, dataset: str | Path, progress: bool = Tru
     meta = read_meta(folder)  # reading it hashes every file: once
     auto = meta.get("auto")
     # calibrated again where recorded before the candidates carried their cloth inside the body (the
-    # criterion counts it), the residual or the folds on free cloth, the folds followed in time (as the
-    # detail mode now runs) or the swing's gain; picked again where only an allowance moved
+    # criterion counts it), the residual or the folds on free cloth, the default body's clips apart,
+    # the folds followed in time (as the detail mode now runs) or the swing's gain; picked again
+    # where only an allowance moved
     if auto is None or any("penetration_pct" not in c for c in auto["candidates"].values()) or lacks_swing(auto) \
-            or lacks_free_cloth(auto, meta.get("residual")) \
+            or lacks_free_cloth(auto, meta.get("residual")) or lacks_default_body(auto, meta.get("bodies")) \
             or (meta.get("folds") and (followed_otherwise(auto) or lacks_free_folds(auto))):
         auto = calibrate_auto_mode(Animator.load(folder), _validation_records(dataset), config, progress=progress)
         update_bundle_meta(folder, {"auto": auto})

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from hrr_garment.eval.auto_criterion import (
+    DEFAULT_BODY_PVE,
     DETAIL_CANDIDATES,
     DETAIL_STRENGTHS,
     SWING_GAINS,
@@ -24,7 +25,7 @@ from hrr_garment.eval.auto_criterion import (
     swing_label,
     swing_of,
 )
-from hrr_garment.eval.auto_mode import calibrate_auto_mode, free_cloth, swing_unmeasured
+from hrr_garment.eval.auto_mode import calibrate_auto_mode, free_cloth, lacks_default_body, swing_unmeasured
 from hrr_garment.motion.synth import synthesize
 from hrr_garment.settings import SettingsError
 from tests.conftest import write_meta
@@ -87,6 +88,23 @@ def test_a_candidate_with_more_cloth_inside_the_body_is_not_the_default():
     assert pick_auto_mode(small, AutoConfig(penetration_floor_pct=0.0)) == "hybrid"
     with pytest.raises(SettingsError, match="penetration_allowance"):
         AutoConfig(penetration_allowance=0.5)
+
+
+def test_the_allowance_holds_on_the_default_bodys_clips_as_well():
+    """A model across bodies: a candidate within the allowance on all the validation clips but not on
+    the default body's alone is not the default; numbers recorded without them pick as before."""
+    candidates = {"hybrid": {**_c(30.0, 0.13, 0.60), DEFAULT_BODY_PVE: 30.0},
+                  R10: {**_c(31.2, 0.90, 0.90), DEFAULT_BODY_PVE: 31.8},  # 4 % on all, 6 % on the default body
+                  RR8: {**_c(31.0, 0.70, 0.80), DEFAULT_BODY_PVE: 31.2}}
+    assert pick_auto_mode(candidates) == RR8
+    assert pick_auto_mode(candidates, AutoConfig(allowance=1.06)) == R10
+    recorded = {k: {m: v for m, v in c.items() if m != DEFAULT_BODY_PVE} for k, c in candidates.items()}
+    assert pick_auto_mode(recorded) == R10
+    bodies = {"range": {"bodies": 12}, "default": None}
+    assert lacks_default_body({"candidates": recorded}, bodies)
+    assert not lacks_default_body({"candidates": recorded, "default_body_sequences": 0}, bodies)
+    assert not lacks_default_body({"candidates": recorded}, None)  # a model of the mannequin alone
+    assert not lacks_default_body({"candidates": recorded}, {**bodies, "default": {"name": "hero"}})  # of one body
 
 
 R8, R10, RR8, RR10 = (detail_label(b, s) for b, s in (("regression", 0.8), ("regression", 1.0), ("residual", 0.8),

@@ -270,3 +270,28 @@ def test_the_unseen_bodies_protocol_sets_the_model_beside_a_specialist(bodies_mo
     assert section["model"]["pve_mm"] > 0 and section["specialist"]["pve_mm"] > 0
     assert "## Unseen bodies" in (tmp_path / "report" / "report.md").read_text()
     assert main([*common, "--unseen-body", str(data), "-o", str(tmp_path / "again")]) != 0  # tall and short: trained on
+
+
+def test_the_auto_calibration_measures_the_default_bodys_clips_apart(bodies_model, tmp_path):
+    """Validation clips on the mannequin (the default body) and on another body: every candidate
+    also carries its PVE on the mannequin's clips alone, what calibrating on those alone measures;
+    a validation on one body carries none."""
+    from hrr_garment.data.synthetic import write_synthetic_dataset
+    from hrr_garment.eval.auto_criterion import DEFAULT_BODY_PVE
+    from hrr_garment.eval.auto_mode import calibrate_auto_mode
+    from hrr_garment.inference.animator import Animator
+
+    folder, data = bodies_model
+    animator = Animator.load(folder)
+    on_body = GarmentDataset(data).sequence("walk_002")
+    on_mannequin = GarmentDataset(write_synthetic_dataset(tmp_path / "m.h5", make_garment("skirt", 300))).sequence("run_000")
+    assert on_body.body != on_mannequin.body == "mannequin"
+    mixed = calibrate_auto_mode(animator, [on_body, on_mannequin], progress=False)
+    alone = calibrate_auto_mode(animator, [on_mannequin], progress=False)
+    assert mixed["default_body_sequences"] == 1 and alone["default_body_sequences"] == 0
+    for label, c in alone["candidates"].items():
+        assert DEFAULT_BODY_PVE not in c
+        if label in mixed["candidates"]:
+            assert mixed["candidates"][label][DEFAULT_BODY_PVE] == pytest.approx(c["pve_mm"])
+    assert all(DEFAULT_BODY_PVE in c for c in mixed["candidates"].values())
+    assert mixed["candidates"]["hybrid"]["pve_mm"] != pytest.approx(alone["candidates"]["hybrid"]["pve_mm"])
