@@ -252,9 +252,9 @@ def _measurer(animator: Animator, records: list[SequenceRecord]) -> Callable[[st
                                         allow_outside=True, exclude_sequence=own)
                 pred = anim.vertices.astype(np.float64)
                 inside += anim.penetration.inside_before * len(pred)  # the product path pushes out: what it had to
-                error += M.pve_mm(pred, truth) * len(pred)
-                if on_default and on_default[i]:
-                    default_error += M.pve_mm(pred, truth) * len(pred)
+                clip_error = M.pve_mm(pred, truth) * len(pred)
+                error += clip_error
+                default_error += clip_error if on_default and on_default[i] else 0.0
                 bend += float(M.cloth_energies(pred, rest, topo)[1].sum())
                 swing += hem_swing(pred, r.motion, hem) * len(pred)
         numbers = {"pve_mm": error / frames, "sharpness": bend / max(truth_bend, 1e-30),
