@@ -11,7 +11,7 @@ CMU_CLIPS = ("02_01", "131_01", "131_03")
 
 # The tiers (pyproject's markers, docs/testing.md): a test that uses one of these session fixtures,
 # directly or through another fixture, is marked by what the fixture does the first time it runs
-SLOW_FIXTURES = {"trained", "paper_model", "artist_model"}  # train a tiny model: tens of seconds and more
+SLOW_FIXTURES = {"trained", "paper_model", "artist_model", "bodies_model"}  # train a tiny model: tens of seconds and more
 SIM_FIXTURES = {"artist_model"}  # runs hrr-simulate (newton/Warp)
 
 
