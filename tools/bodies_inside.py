@@ -51,7 +51,7 @@ def analyse(model: str, sources: list[str], motions: list[str], count: int = 9) 
     curved walk when ``motions`` is empty)."""
     animator = Animator.load(model)
     clips = {Path(path).name: load_motion(path) for path in motions} or {"procedural walk_curve": check_motion()}
-    rows = [{**cloth_inside(animator, motion, record, name).to_dict(), "clip": clip}
+    rows = [{**cloth_inside(animator, motion, record, name=name).to_dict(), "clip": clip}
             for name, record in named_bodies(sources, count) for clip, motion in clips.items()]
     return {"model": model, "rows": rows}
 

@@ -145,7 +145,7 @@ def _inside(model: Path, record, name: str) -> dict:
 
     animator, motion = Animator.load(model), check_motion()
     clip = {"clip": f"procedural walk of {CHECK_SECONDS:g} s"}
-    return {f"body {name!r}": {**cloth_inside(animator, motion, record, name).to_dict(), **clip},
+    return {f"body {name!r}": {**cloth_inside(animator, motion, record, name=name).to_dict(), **clip},
             "the model's own body": {**cloth_inside(animator, motion).to_dict(), **clip}}
 
 

@@ -46,7 +46,7 @@ def check_motion() -> Motion:
     return synthesize("walk_curve", CHECK_SECONDS, seed=0)
 
 
-def cloth_inside(animator: Animator, motion: Motion, body=None, name: str | None = None) -> InsideReport:
+def cloth_inside(animator: Animator, motion: Motion, body=None, *, name: str | None = None) -> InsideReport:
     """The model's garment on ``body`` (anything :meth:`Animator.body` takes; None: the model's own)
     playing ``motion`` in its default mode, offline, the push-out off, measured against the body's
     capsules (``name``: the body's name in the report). A body outside the model's range is animated
