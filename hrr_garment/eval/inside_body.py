@@ -14,7 +14,7 @@ again; what it has to move is what tears (docs/inference.md).
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 
 from ..inference.animator import Animator
 from ..motion.motion import Motion
@@ -36,9 +36,7 @@ class InsideReport:
     outside_range: list[str] = field(default_factory=list)  # the measures outside the model's training range
 
     def to_dict(self) -> dict:
-        return {"body": self.body, "stature_m": self.stature_m, "inside_pct": self.inside_pct,
-                "inside_worst_pct": self.inside_worst_pct, "inside_any_pct": self.inside_any_pct,
-                "outside_range": list(self.outside_range)}
+        return asdict(self)
 
 
 def check_motion() -> Motion:
@@ -55,7 +53,7 @@ def cloth_inside(animator: Animator, motion: Motion, body=None, *, name: str | N
         warnings.simplefilter("ignore")  # the measures out of range are reported instead
         character = animator.body(body, allow_outside=True, name=name)
         animation = animator.animate(motion, body=character, collision=False)
-    distance = body_signed_distance(animation.vertices, character.play(motion), character.body)
+    distance = body_signed_distance(animation.vertices, animation.skeleton, character.body)  # the clip as the body played it
     deep = penetration_fraction(distance)
     return InsideReport(body=character.name, stature_m=float(character.record.stature), inside_pct=100.0 * float(deep.mean()),
                         inside_worst_pct=100.0 * float(deep.max()), inside_any_pct=100.0 * float((distance < 0).mean()),
