@@ -30,11 +30,12 @@ install: $(STAMP)
 demo: install
 	$(BIN)/hrr-demo
 
-# layers (import-linter, pyproject's contract), lint (ruff), then the tests
+# layers (import-linter, pyproject's contract), lint (ruff), then the tests; the slowest 15 are listed
+# at the end so that the ten-minute budget (docs/testing.md) is watched on every run, CI's included
 test: install
 	$(BIN)/lint-imports
 	$(BIN)/ruff check .
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q --durations=15
 
 # The quick loop (docs/testing.md): no lint, and none of the tests that train a model or run the
 # cloth simulator (pyproject's markers); about a minute. PYTEST_ARGS adds options, e.g. -x or tests/motion.
