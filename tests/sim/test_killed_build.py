@@ -6,6 +6,7 @@ import subprocess
 import sys
 import textwrap
 import time
+from pathlib import Path
 
 import pytest
 
@@ -16,6 +17,24 @@ def session_processes(sid: int) -> list[str]:
     """The processes of session ``sid`` still alive (zombies are dead: their parent reaps them)."""
     out = subprocess.run(["ps", "-s", str(sid), "-o", "pid=,stat=,args="], capture_output=True, text=True).stdout
     return [line for line in out.splitlines() if line.split()[1:2] != ["Z"]]
+
+
+def workers_asked_to_die(sid: int, count: int) -> bool:
+    """Whether ``count`` pool workers of session ``sid`` have run :func:`die_with_parent`: it sets
+    their SIGINT to ignored, which ``/proc/<pid>/status`` shows (a worker still importing the
+    simulator has not, and would outlive a parent killed then until its import ends)."""
+    ready = 0
+    for line in session_processes(sid):
+        pid, _stat, args = line.split(maxsplit=2)
+        if "multiprocessing.spawn" not in args:
+            continue
+        try:
+            status = Path(f"/proc/{pid}/status").read_text()
+        except OSError:  # it ended meanwhile
+            continue
+        ignored = int(next(f.split()[1] for f in status.splitlines() if f.startswith("SigIgn:")), 16)
+        ready += bool(ignored & (1 << (signal.SIGINT - 1)))
+    return ready >= count
 
 
 def wait_for(condition, seconds: float) -> bool:
@@ -63,8 +82,8 @@ def test_a_killed_build_leaves_no_process_and_resumes(tmp_path, sig):
            "--motions", "walk", "spin", "--seconds", "2", "--no-preview", "-o", str(out)]
     build = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
     try:
-        # the build, the resource tracker and two workers with a sequence each
-        assert wait_for(lambda: len(session_processes(build.pid)) >= 4, 60), session_processes(build.pid)
+        # two workers started and asked to die with the build, a sequence each under way
+        assert wait_for(lambda: workers_asked_to_die(build.pid, 2), 120), session_processes(build.pid)
         time.sleep(2.0)
         build.send_signal(sig)
         assert build.wait(timeout=10) == (-9 if sig == signal.SIGKILL else 143)
