@@ -1,7 +1,7 @@
 """What the push-out and its strain limit need of a garment, made once per template
-(:class:`EdgeLimits`): its edges and rest lengths, the incidence the strain limit moves them by, the
-1-ring table the neighbour-follow walks, and the vertex patches the kernel measures against the
-capsules near them (:mod:`.collision` runs them)."""
+(:class:`EdgeLimits`): its edges and rest lengths, the incidence, the edges' colours the strain
+limit projects them by, the 1-ring table the neighbour-follow walks, and the vertex patches the
+kernel measures against the capsules near them (:mod:`.collision` runs them)."""
 
 from __future__ import annotations
 
@@ -24,15 +24,16 @@ if TYPE_CHECKING:
 class EdgeLimits:
     """What the push-out's neighbour-follow and :func:`limit_push_strain` need of a garment, made
     once per template (the streaming path calls the push-out every frame): its edges, their rest
-    lengths, the (V, E) incidence that moves an edge's two ends toward each other (+1 first vertex,
-    -1 second), each vertex's degree, its 1-ring as a padded table (V, D) with each neighbour's rest
-    distance (inf in the padding, which repeats the vertex itself), and the vertices in patches of
-    neighbours (the kernel measures a patch only against the capsules near it)."""
+    lengths, the (V, E) incidence (+1 first vertex, -1 second; its rows list each vertex's edges),
+    the edges' colours (no two edges of a colour share a vertex: the strain limit projects a colour's
+    edges at once, colour after colour), each vertex's 1-ring as a padded table (V, D) with each
+    neighbour's rest distance (inf in the padding, which repeats the vertex itself), and the vertices
+    in patches of neighbours (the kernel measures a patch only against the capsules near it)."""
 
     edges: np.ndarray
     rest_length: np.ndarray
     signs: csr_matrix
-    degree: np.ndarray
+    colour: np.ndarray  # (E,) uint8
     ring: np.ndarray  # (V, D) int32
     ring_length: np.ndarray  # (V, D) float64, inf where padded
     patches: tuple[np.ndarray, np.ndarray]  # (P + 1,) offsets into (V,) vertex indices, int32
@@ -44,10 +45,14 @@ class EdgeLimits:
         v, e = len(rest), len(edges)
         signs = csr_matrix((np.r_[np.ones(e), -np.ones(e)], (np.r_[edges[:, 0], edges[:, 1]], np.r_[np.arange(e), np.arange(e)])),
                            shape=(v, e))
-        degree = np.maximum(np.asarray(abs(signs).sum(1)).ravel(), 1.0)
         ring, ring_length = _ring_table(mean_operator(faces, v) if mean is None else mean, rest)
-        return cls(edges, np.linalg.norm(rest[edges[:, 1]] - rest[edges[:, 0]], axis=-1), signs, degree, ring, ring_length,
-                   _patches(rest))
+        return cls(edges, np.linalg.norm(rest[edges[:, 1]] - rest[edges[:, 0]], axis=-1), signs, _edge_colours(edges, v),
+                   ring, ring_length, _patches(rest))
+
+    @cached_property
+    def colour_groups(self) -> tuple[np.ndarray, ...]:
+        """The edge indices of each colour, in colour order."""
+        return tuple(np.flatnonzero(self.colour == c) for c in range(int(self.colour.max()) + 1 if len(self.colour) else 0))
 
     @cached_property
     def _push_meshes(self) -> dict:
@@ -64,12 +69,29 @@ class EdgeLimits:
     @cached_property
     def native_arrays(self) -> EdgeArrays:
         """What the kernel takes, converted once (a stream limits every frame)."""
-        return EdgeArrays(edges=self.edges, rest_length=self.rest_length, degree=self.degree,
+        return EdgeArrays(edges=self.edges, rest_length=self.rest_length, colour=self.colour,
                           vertex_edges_indptr=self.signs.indptr, vertex_edges_indices=self.signs.indices)
 
     def lengths(self, p: np.ndarray) -> np.ndarray:
         """(T, E) edge lengths of (T, V, 3) positions."""
         return np.linalg.norm(p[:, self.edges[:, 1]] - p[:, self.edges[:, 0]], axis=-1)
+
+
+def _edge_colours(edges: np.ndarray, num_vertices: int) -> np.ndarray:
+    """Greedy edge colouring in edge order: each edge the smallest colour neither of its vertices'
+    edges has yet, (E,) uint8 (a triangle mesh needs about its largest vertex degree, 7 on the
+    dress). Each vertex's colours are a bit mask."""
+    taken = [0] * num_vertices
+    colour = np.empty(len(edges), np.uint8)
+    for e, (i, j) in enumerate(edges.tolist()):
+        free = ~(taken[i] | taken[j])
+        c = (free & -free).bit_length() - 1  # the lowest free colour
+        if c > 255:
+            raise ValueError(f"a vertex of more than 128 edges (edge {e}: {i}-{j}): not a garment mesh")
+        colour[e] = c
+        taken[i] |= 1 << c
+        taken[j] |= 1 << c
+    return colour
 
 
 def _ring_table(mean: csr_matrix, rest: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

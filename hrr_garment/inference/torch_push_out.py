@@ -124,12 +124,14 @@ class PushOutStage(nn.Module):
         # padding's infinite drop as a large finite one, which never wins either
         constant(self, "ring", limits.ring, torch.int64)
         constant(self, "ring_drop", np.minimum(settings.follow_slope * limits.ring_length, 1e6)[..., None])  # (V, D, 1)
-        # a pass moves a vertex by the sum of its edges' half excesses (+ at an edge's first end, - at
-        # its second), over-relaxed over its degree: the half and the weight folded into one factor
-        constant(self, "vertex_weight", (0.5 * OVER_RELAXATION / limits.degree)[:, None])
         constant(self, "edges", limits.edges, torch.int64)
         constant(self, "allowed", settings.max_strain * limits.rest_length)
         constant(self, "slack", settings.stretch_slack * limits.rest_length)
+        # a pass projects the edges a colour at a time (no two of a colour share a vertex): each
+        # colour's edge indices
+        self.colours = len(limits.colour_groups)
+        for c, group in enumerate(limits.colour_groups):
+            constant(self, f"colour_{c}", group, torch.int64)
 
     def distance(self, p: torch.Tensor, a: torch.Tensor, b: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """Signed distances (N, V) to the union of capsules and the nearest one's outward normals.
@@ -205,7 +207,7 @@ class PushOutStage(nn.Module):
         length = torch.sqrt((self._edge_vectors(pushed) ** 2).sum(-1))
         torn = (length > limit * (1.0 + 1e-6)).any(0)
         passes = torch.zeros((), dtype=torch.int64, device=pushed.device)
-        state = (passes, pushed, limit, torn)
+        state = (passes, pushed.contiguous(), limit, torn)  # as a pass's scatter-adds leave it (an ONNX Loop's carried layout)
         if torch.compiler.is_compiling():  # exporting: an ONNX Loop
             _, p, _, _ = while_loop(self._limiting, self._pass, state)
         else:  # running (a GPU crowd): the same passes in Python, without a compile per batch shape
@@ -218,14 +220,20 @@ class PushOutStage(nn.Module):
         return (passes < self.strain_passes) & active.any()
 
     def _pass(self, passes: torch.Tensor, p: torch.Tensor, limit: torch.Tensor, active: torch.Tensor):
-        """One Jacobi pass of edge-length projection over every edge of the characters still over a limit."""
-        d = self._edge_vectors(p)
-        length = torch.sqrt((d * d).sum(-1))
-        excess = torch.clamp(length - limit, min=0.0)
-        active = active & (excess.max(0).values > LIMIT_TOLERANCE_M)  # a character stops on its own
-        corr = (excess / torch.clamp(length, min=1e-12) * active.to(length.dtype))[..., None] * d  # (E, N, 3)
-        gathered = torch.zeros_like(p).index_add(0, self.edges[:, 0], corr).index_add(0, self.edges[:, 1], -corr)
-        return passes + 1, p + gathered * self.vertex_weight[..., None], limit.clone(), active
+        """One Gauss-Seidel pass of edge-length projection, a colour of edges after another, on the
+        characters still over a limit (:func:`~hrr_garment.inference.collision.limit_push_strain`)."""
+        worst = torch.zeros_like(active, dtype=p.dtype)
+        weight = active.to(p.dtype)
+        for c in range(self.colours):
+            group = getattr(self, f"colour_{c}")
+            first, second = self.edges[group, 0], self.edges[group, 1]
+            d = torch.index_select(p, 0, second) - torch.index_select(p, 0, first)  # (e, N, 3)
+            length = torch.sqrt((d * d).sum(-1))
+            excess = torch.clamp(length - limit[group], min=0.0) * weight
+            worst = torch.maximum(worst, excess.max(0).values)
+            corr = (0.5 * OVER_RELAXATION * excess / torch.clamp(length, min=1e-12))[..., None] * d
+            p = p.index_add(0, first, corr).index_add(0, second, -corr)
+        return passes + 1, p, limit.clone(), active & (worst > LIMIT_TOLERANCE_M)  # a character stops on its own
 
     def forward(self, vertices: torch.Tensor, rotations: torch.Tensor, positions: torch.Tensor,
                 heading: tuple[torch.Tensor, torch.Tensor] | None = None) -> torch.Tensor:

@@ -80,8 +80,9 @@ class SubspaceMove:
 class _StrainArgs(ctypes.Structure):
     """kernels.c's StrainArgs."""
 
-    _fields_ = [("edges", ctypes.c_void_p), ("rest", ctypes.c_void_p), ("degree", ctypes.c_void_p),
-                ("ve_ptr", ctypes.c_void_p), ("ve_idx", ctypes.c_void_p), ("E", ctypes.c_int), ("iterations", ctypes.c_int),
+    _fields_ = [("edges", ctypes.c_void_p), ("rest", ctypes.c_void_p), ("colour", ctypes.c_void_p),
+                ("colour_ptr", ctypes.c_void_p), ("ve_ptr", ctypes.c_void_p), ("ve_idx", ctypes.c_void_p),
+                ("E", ctypes.c_int), ("colours", ctypes.c_int), ("iterations", ctypes.c_int),
                 ("max_strain", ctypes.c_double), ("slack", ctypes.c_double), ("tol", ctypes.c_double),
                 ("omega", ctypes.c_double)]
 
@@ -106,18 +107,22 @@ class PushMesh:
 
 class EdgeArrays:
     """A garment's edges as the strain limit's kernel takes them, converted once: (E, 2) vertex
-    pairs int32, rest lengths and vertex degrees float64, and each vertex's edges (CSR indptr and
-    indices int32), with their addresses (a stream limits every frame, and asking numpy for five
-    addresses cost a fifth of a one-frame limit)."""
+    pairs int32, rest lengths float64, colours uint8 (no two edges of a colour share a vertex) with
+    each colour's offset in an E-long array, and each vertex's edges (CSR indptr and indices int32),
+    with their addresses (a stream limits every frame, and asking numpy for five addresses cost a
+    fifth of a one-frame limit)."""
 
-    def __init__(self, edges: np.ndarray, rest_length: np.ndarray, degree: np.ndarray, vertex_edges_indptr: np.ndarray,
+    def __init__(self, edges: np.ndarray, rest_length: np.ndarray, colour: np.ndarray, vertex_edges_indptr: np.ndarray,
                  vertex_edges_indices: np.ndarray) -> None:
         self.edges = np.ascontiguousarray(edges, np.int32)
         self.rest_length = np.ascontiguousarray(rest_length, np.float64)
-        self.degree = np.ascontiguousarray(degree, np.float64)
+        self.colour = np.ascontiguousarray(colour, np.uint8)
+        self.colours = int(self.colour.max()) + 1 if len(self.colour) else 0
+        self.colour_ptr = np.r_[0, np.cumsum(np.bincount(self.colour, minlength=self.colours))].astype(np.int32)
         self.indptr = np.ascontiguousarray(vertex_edges_indptr, np.int32)
         self.indices = np.ascontiguousarray(vertex_edges_indices, np.int32)
-        self.addresses = tuple(a.ctypes.data for a in (self.edges, self.rest_length, self.degree, self.indptr, self.indices))
+        self.addresses = tuple(a.ctypes.data for a in (self.edges, self.rest_length, self.colour, self.colour_ptr,
+                                                       self.indptr, self.indices))
 
 
 class StrainLimit(NamedTuple):
@@ -134,8 +139,8 @@ class StrainLimit(NamedTuple):
 
     def arguments(self) -> _StrainArgs:
         """The kernel's StrainArgs of this limit (the edge arrays' addresses: keep them alive)."""
-        edges, rest, degree, ptr, idx = self.edge_arrays.addresses
-        return _StrainArgs(edges, rest, degree, ptr, idx, len(self.edge_arrays.edges), self.iterations, self.max_strain,
+        arrays = self.edge_arrays
+        return _StrainArgs(*arrays.addresses, len(arrays.edges), arrays.colours, self.iterations, self.max_strain,
                            self.slack, self.tol, self.omega)
 
 

@@ -508,17 +508,21 @@ static void push_frame(double *p, int V, const double *ca, const double *cb, con
 }
 
 /* The push-out's strain limit as the kernel takes it (hrr_garment.native.body.StrainLimit): the
-   garment's E edges (vertex pairs), rest lengths, vertex degrees and each vertex's edges (CSR
-   ve_ptr, ve_idx); the strain an edge may reach, the slack over a stretch the push did not make, at
-   most `iterations` passes, which stop once no edge is more than tol over its limit, over-relaxed
-   by omega. */
+   garment's E edges (vertex pairs), rest lengths, colours (no two edges of a colour share a vertex)
+   with each colour's offset in an E-long array (colour_ptr, colours + 1 entries) and each vertex's
+   edges (CSR ve_ptr, ve_idx); the strain an edge may reach, the slack over a stretch the push did
+   not make, at most `iterations` passes, which stop once no edge is more than tol over its limit,
+   over-relaxed by omega. */
 typedef struct {
     const int32_t *edges;
-    const double *rest, *degree;
-    const int32_t *ve_ptr, *ve_idx;
-    int E, iterations;
+    const double *rest;
+    const uint8_t *colour;
+    const int32_t *colour_ptr, *ve_ptr, *ve_idx;
+    int E, colours, iterations;
     double max_strain, slack, tol, omega;
 } StrainArgs;
+
+enum { MAX_EDGE_COLOURS = 256 };
 
 /* Edge e's limit: max_strain times its rest length, or its length in the unpushed frame u plus
    slack times its rest length where that is longer (the push never has to undo a stretch it did
@@ -534,107 +538,105 @@ static inline double edge_limit(const StrainArgs *s, const double *u, int e)
            : (sqrt(before2) + extra > allowed ? sqrt(before2) + extra : allowed);
 }
 
-/* One frame's scratch for the strain limit: corr (3 E doubles), the limits of the edges measured
-   (E doubles; known where lmark is set), touched (V ints), active (E ints), vmark (V bytes), emark
-   (E bytes: 1 listed, 2 over its limit in this pass), lmark (E bytes), carved from one block. */
+/* One frame's scratch for the strain limit: the limits of the edges measured (E doubles; known
+   where lmark is set), the edges found over their limit (active, E ints), each colour's edges to
+   measure (bucket: E ints, colour c's from colour_ptr[c], count[c] of them), emark (E bytes: listed
+   in a bucket), lmark (E bytes), carved from one block. */
 typedef struct {
-    double *corr, *limit;
-    int32_t *touched, *active;
-    unsigned char *vmark, *emark, *lmark;
+    double *limit;
+    int32_t *active, *bucket, *count;
+    unsigned char *emark, *lmark;
 } LimitScratch;
 
 static size_t limit_scratch_bytes(int V, int E)
 {
-    return sizeof(double) * 4 * (size_t)E + (sizeof(int32_t) + 1) * ((size_t)V + (size_t)E) + (size_t)E + 64;
+    (void)V;
+    return sizeof(double) * (size_t)E + sizeof(int32_t) * (2 * (size_t)E + MAX_EDGE_COLOURS) + 2 * (size_t)E + 64;
 }
 
 static LimitScratch limit_scratch(unsigned char *block, int V, int E)
 {
+    (void)V;
     LimitScratch w;
-    w.corr = (double *)block;
-    w.limit = w.corr + 3 * (size_t)E;
-    w.touched = (int32_t *)(w.limit + E);
-    w.active = w.touched + V;
-    w.vmark = (unsigned char *)(w.active + E);
-    w.emark = w.vmark + V;
+    w.limit = (double *)block;
+    w.active = (int32_t *)(w.limit + E);
+    w.bucket = w.active + E;
+    w.count = w.bucket + E;
+    w.emark = (unsigned char *)(w.count + MAX_EDGE_COLOURS);
     w.lmark = w.emark + E;
-    memset(w.vmark, 0, (size_t)V + (size_t)E);  /* both marks start clear and are left clear */
+    memset(w.emark, 0, (size_t)E);  /* the mark starts clear and is left clear */
     return w;
 }
 
-/* The strain limit's passes on one frame p (V, 3), its unpushed frame u: Jacobi passes of
-   edge-length projection. Every edge longer than its limit moves its two ends toward each other by
-   half the excess each; a vertex moves by its corrections summed, times omega over its degree.
-   Only edges that can be over their limit are measured: after the first pass, those with an end
-   that moved in the last one (an edge whose ends stayed keeps its length), in any order: each
-   over-long edge keeps its correction, and a moved vertex gathers its edges' corrections in its
-   own fixed edge order (ve), so the sums, and the result, do not depend on the order edges were
-   measured in. A pass over a torn neighbourhood costs its size, not the mesh's. The first pass
-   measures the n_active edges the caller found over their limit (w->active), every other edge
-   being within it. Leaves the marks clear. */
+/* Lists edge f in its colour's bucket (once), its limit known. */
+static inline void list_edge(const double *u, const StrainArgs *s, LimitScratch *w, int f)
+{
+    if (w->emark[f]) return;
+    w->emark[f] = 1;
+    const int c = s->colour[f];
+    w->bucket[s->colour_ptr[c] + w->count[c]++] = f;
+    if (!w->lmark[f]) { w->limit[f] = edge_limit(s, u, f); w->lmark[f] = 1; }
+}
+
+/* The strain limit's passes on one frame p (V, 3), its unpushed frame u: Gauss-Seidel passes of
+   edge-length projection, a colour of edges after another (no two edges of a colour share a
+   vertex, so within a colour the order does not matter: the result is the reference's, which
+   projects each colour's edges at once). An edge longer than its limit moves its two ends toward
+   each other by omega times half its excess each. Only edges that can be over their limit are
+   measured: those listed by the caller (the n_active edges of w->active it found over, every
+   other edge being within its limit) and the edges of every vertex a projection moved since the
+   edge was last measured: listed for this pass where their colour comes later, for the next one
+   otherwise (an edge whose ends stayed keeps its length, within its limit). A pass over a torn
+   neighbourhood costs its size, not the mesh's. Stops after a pass whose worst excess is at most
+   tol. Leaves the marks clear. */
 static void limit_frame(double *p, const double *u, const StrainArgs *s, LimitScratch *w, int n_active)
 {
     const int32_t *edges = s->edges;
     memset(w->lmark, 0, (size_t)s->E);  /* the limits known: those of the edges listed (measure_edge) */
+    memset(w->count, 0, sizeof(int32_t) * (size_t)s->colours);
     for (int k = 0; k < n_active; ++k) w->lmark[w->active[k]] = 1;
+    for (int k = 0; k < n_active; ++k) list_edge(u, s, w, w->active[k]);
     for (int it = 0; it < s->iterations; ++it) {
         double worst = 0.0;
-        int n_touched = 0;
-        for (int k = 0; k < n_active; ++k) {
-            const int e = w->active[k];
-            const int i = edges[2 * e], j = edges[2 * e + 1];
-            const double dx = p[3 * j] - p[3 * i], dy = p[3 * j + 1] - p[3 * i + 1], dz = p[3 * j + 2] - p[3 * i + 2];
-            const double length = sqrt(dx * dx + dy * dy + dz * dz), excess = length - w->limit[e];
-            if (excess <= 0.0) continue;  /* its mark stays 1 (or 0): the gather skips it */
-            if (excess > worst) worst = excess;
-            const double c = 0.5 * excess / (length > 1e-12 ? length : 1e-12);
-            w->corr[3 * e] = c * dx; w->corr[3 * e + 1] = c * dy; w->corr[3 * e + 2] = c * dz;
-            w->emark[e] = 2;
-            if (!w->vmark[i]) { w->vmark[i] = 1; w->touched[n_touched++] = i; }
-            if (!w->vmark[j]) { w->vmark[j] = 1; w->touched[n_touched++] = j; }
-        }
-        if (worst <= s->tol) {
-            for (int k = 0; k < n_active; ++k) w->emark[w->active[k]] = 0;
-            for (int k = 0; k < n_touched; ++k) w->vmark[w->touched[k]] = 0;
-            return;
-        }
-        for (int k = 0; k < n_touched; ++k) {  /* gather: corrections are fixed, so moving at once is Jacobi */
-            const int v = w->touched[k];
-            double x = 0.0, y = 0.0, z = 0.0;
-            for (int q = s->ve_ptr[v]; q < s->ve_ptr[v + 1]; ++q) {
-                const int e = s->ve_idx[q];
-                if (w->emark[e] != 2) continue;
-                const double sign = edges[2 * e] == v ? 1.0 : -1.0;  /* the first end moves along the edge */
-                x += sign * w->corr[3 * e]; y += sign * w->corr[3 * e + 1]; z += sign * w->corr[3 * e + 2];
-            }
-            const double step = s->omega / s->degree[v];
-            p[3 * v] += step * x; p[3 * v + 1] += step * y; p[3 * v + 2] += step * z;
-        }
-        for (int k = 0; k < n_active; ++k) w->emark[w->active[k]] = 0;
-        n_active = 0;
-        for (int k = 0; k < n_touched; ++k) {  /* the edges the next pass measures */
-            const int v = w->touched[k];
-            w->vmark[v] = 0;
-            for (int q = s->ve_ptr[v]; q < s->ve_ptr[v + 1]; ++q) {
-                const int e = s->ve_idx[q];
-                if (w->emark[e]) continue;
-                w->emark[e] = 1;
-                w->active[n_active++] = e;
-                if (!w->lmark[e]) { w->limit[e] = edge_limit(s, u, e); w->lmark[e] = 1; }
+        for (int c = 0; c < s->colours; ++c) {
+            const int32_t *mine = w->bucket + s->colour_ptr[c];
+            const int n = w->count[c];
+            w->count[c] = 0;  /* edges of this colour listed from here on are for the next pass */
+            for (int k = 0; k < n; ++k) {
+                const int e = mine[k];
+                w->emark[e] = 0;
+                const int i = edges[2 * e], j = edges[2 * e + 1];
+                const double dx = p[3 * j] - p[3 * i], dy = p[3 * j + 1] - p[3 * i + 1], dz = p[3 * j + 2] - p[3 * i + 2];
+                const double length = sqrt(dx * dx + dy * dy + dz * dz), excess = length - w->limit[e];
+                if (excess <= 0.0) continue;
+                if (excess > worst) worst = excess;
+                const double f = s->omega * 0.5 * excess / (length > 1e-12 ? length : 1e-12);
+                p[3 * i] += f * dx; p[3 * i + 1] += f * dy; p[3 * i + 2] += f * dz;
+                p[3 * j] -= f * dx; p[3 * j + 1] -= f * dy; p[3 * j + 2] -= f * dz;
+                for (int end = 0; end < 2; ++end) {  /* their other edges (none of this colour but e) */
+                    const int v = end ? j : i;
+                    for (int q = s->ve_ptr[v]; q < s->ve_ptr[v + 1]; ++q)
+                        if (s->ve_idx[q] != e) list_edge(u, s, w, s->ve_idx[q]);
+                }
             }
         }
+        if (worst <= s->tol) break;
     }
-    for (int k = 0; k < n_active; ++k) w->emark[w->active[k]] = 0;
+    for (int c = 0; c < s->colours; ++c)
+        for (int k = 0; k < w->count[c]; ++k) w->emark[w->bucket[s->colour_ptr[c] + k]] = 0;
 }
 
-/* Lists edge e in w->active when it is longer than its limit; *over when by more than a millionth. */
+/* Lists edge e in w->active when it is longer than its limit (which it then knows); *over when by
+   more than a millionth. An edge within max_strain of its rest length is within its limit, which is
+   at least that: its unpushed length is not read. */
 static inline void measure_edge(const double *p, const double *u, const StrainArgs *s, int e, LimitScratch *w,
                                 int *n_long, int *over)
 {
-    const double lim = w->limit[e] = edge_limit(s, u, e);
     const int i = s->edges[2 * e], j = s->edges[2 * e + 1];
     const double dx = p[3 * j] - p[3 * i], dy = p[3 * j + 1] - p[3 * i + 1], dz = p[3 * j + 2] - p[3 * i + 2];
-    const double length2 = dx * dx + dy * dy + dz * dz;
+    const double length2 = dx * dx + dy * dy + dz * dz, allowed = s->max_strain * s->rest[e];
+    if (length2 <= allowed * allowed) return;
+    const double lim = w->limit[e] = edge_limit(s, u, e);
     if (length2 > lim * lim) {
         w->active[(*n_long)++] = e;
         *over |= length2 > lim * lim * ((1.0 + 1e-6) * (1.0 + 1e-6));

@@ -59,11 +59,12 @@ def test_a_push_that_would_tear_the_cloth_is_undone_as_far_as_it_tears():
     assert edge_strain(pushed[1:2], skirt.vertices, edges).max() > 5
     assert edge_strain(limited[1:2], skirt.vertices, edges).max() < MAX_PUSH_STRAIN * 1.1
     assert np.array_equal(limited[0], pushed[0]) and np.array_equal(limited[2], pushed[2])  # nothing to undo
-    # only the torn neighbourhood moves: most of the skirt keeps its position exactly, and what lies
-    # 15 cm or more from the shoved vertices moves by millimetres at most
+    # only the torn neighbourhood moves: the shoved vertices come back most of the way, most of the
+    # skirt keeps its position exactly, and what lies 20 cm (four edges) or more from the shoved
+    # vertices moves by millimetres at most
     change = np.linalg.norm(limited[1] - pushed[1], axis=-1)
-    far = np.linalg.norm(skirt.vertices[:, None] - skirt.vertices[moved][None], axis=-1).min(1) > 0.15
-    assert (change == 0).mean() > 0.5 and change[far].max() < 0.005
+    far = np.linalg.norm(skirt.vertices[:, None] - skirt.vertices[moved][None], axis=-1).min(1) > 0.2
+    assert change[moved].min() > 0.2 and (change == 0).mean() > 0.5 and change[far].max() < 0.01
 
 
 def test_the_push_out_with_its_limit_is_the_same_without_the_kernel(monkeypatch):

@@ -96,8 +96,9 @@ def test_the_push_limits_each_frame_as_the_strain_limit_does_after_it():
 
 
 def test_the_native_strain_limit_matches_the_numpy_reference():
-    """The kernel's limits, torn frames and Jacobi passes are the reference's: same edges, weights
-    and per-frame stop (the kernel measures only edges whose ends moved: the same result)."""
+    """The kernel's limits, torn frames and Gauss-Seidel passes are the reference's: same edges,
+    colours and per-frame stop (the kernel measures only edges whose ends moved: the same result);
+    both end with every edge within its limit."""
     from hrr_garment.garment.templates import make_garment
     from hrr_garment.inference.collision import (
         LIMIT_TOLERANCE_M,
@@ -126,6 +127,7 @@ def test_the_native_strain_limit_matches_the_numpy_reference():
     assert torn.tolist() == [True, True, False, True]
     assert np.abs(got - ref).max() < 1e-8  # metres: float rounding of the same passes
     assert np.array_equal(got[2], p[2]) and np.abs(got - p).max() > 0.01
+    assert (limits.lengths(got) - limit).max() < LIMIT_TOLERANCE_M * (1 + OVER_RELAXATION)  # converged
     one, _ = limit_strain(lib, p[3:], unpushed[3:], strain)
     assert np.array_equal(one[0], got[3])  # a frame's result does not depend on its batch
     # an unpushed frame stretched 1.45 x everywhere: with a slack of 0.1 its edges may reach 1.55 x
