@@ -268,9 +268,9 @@ void hrr_capsule_sdf(const double *p, int T, int N, const double *a, const doubl
 /* What the push-out needs of the garment: the mean operator (CSR indptr/indices/weights) that
    smooths a push; the padded 1-ring (V x width, padding = the vertex itself) with slope x rest
    distance per slot (infinite in the padding) for the neighbour-follow, `follow` passes of it; the
-   vertex patches (offsets, indices) measured against only the capsules near them. ring NULL:
-   every loop runs over the whole mesh and nothing follows; patch_ptr NULL: every vertex is
-   measured against every capsule. */
+   vertex patches (offsets, indices, and each vertex's patch) measured against only the capsules
+   near them. ring NULL: every loop runs over the whole mesh and nothing follows; patch_ptr NULL:
+   every vertex is measured against every capsule. */
 typedef struct {
     const int32_t *indptr, *indices;
     const double *weights;
@@ -279,6 +279,7 @@ typedef struct {
     int width, follow;
     const int32_t *patch_ptr, *patch_idx;
     int patches;
+    const int32_t *vertex_patch;
 } PushMesh;
 
 /* The push's settings (hrr_garment.native.body.PushSteps): the margin outside the body a pushed
@@ -296,9 +297,10 @@ enum { MAX_REGION_RINGS = 256 };
 /* Signed distances of every vertex, each patch against only the capsules that can come within
    `reach` of it (by its bounding sphere); a patch with none gets FAR_AWAY. A capsule left out is
    more than `reach` from every vertex of the patch, so wherever the distance is within reach
-   (all that the push-out reads of it) it is the distance over every capsule, the same nearest. */
-static void sdf_patches(const double *p, const PushMesh *m, const double *ca, const double *cb, const double *radii,
-                        int C, double reach, double *d, double *nrm)
+   (all that the push-out reads of it) it is the distance over every capsule, the same nearest.
+   list (NULL: every patch): the `count` patches measured again, the others' distances left. */
+static void sdf_patch_list(const double *p, const PushMesh *m, const int32_t *list, int count, const double *ca,
+                           const double *cb, const double *radii, int C, double reach, double *d, double *nrm)
 {
     double ex[SDF_MAXC], ey[SDF_MAXC], ez[SDF_MAXC], inv_den[SDF_MAXC];  /* each capsule's axis, once a frame */
     for (int c = 0; c < C; ++c) {
@@ -308,7 +310,8 @@ static void sdf_patches(const double *p, const PushMesh *m, const double *ca, co
         inv_den[c] = 1.0 / (den > 1e-12 ? den : 1e-12);
     }
     #pragma omp for schedule(static)
-    for (int q = 0; q < m->patches; ++q) {
+    for (int k = 0; k < count; ++k) {
+        const int q = list ? list[k] : k;
         const int i0 = m->patch_ptr[q], i1 = m->patch_ptr[q + 1];
         double cx = 0.0, cy = 0.0, cz = 0.0, r2 = 0.0;
         for (int i = i0; i < i1; ++i) {
@@ -349,6 +352,12 @@ static void sdf_patches(const double *p, const PushMesh *m, const double *ca, co
     }
 }
 
+static void sdf_patches(const double *p, const PushMesh *m, const double *ca, const double *cb, const double *radii,
+                        int C, double reach, double *d, double *nrm)
+{
+    sdf_patch_list(p, m, NULL, m->patches, ca, cb, radii, C, reach, d, nrm);
+}
+
 /* The vertices within `rings` rings of the `seeds` first entries of `list` (which it extends, in
    ring order): ends[k] = how many lie within k rings. mark (V, zero on entry) flags the listed
    ones; the caller clears them. Without a ring table: every vertex, all rings. */
@@ -380,10 +389,12 @@ static int grow_region(const PushMesh *m, int V, int rings, int seeds, int32_t *
    the ring) raises the pushes around it, `smooth` Jacobi passes of the mean operator spread them,
    never lowering a moving vertex's push along its direction; all of it only over the region within
    follow + smooth + 1 rings of the pushed vertices (everything outside is exactly untouched); then
-   up to four exact projections of the vertices still inside. Only moved vertices are measured
-   again. before/after: fractions of vertices deeper than `depth`. Called by every thread of the
-   innermost parallel region, which share the work; buf (20 V doubles), ints (3 V: the region, a
-   work list, the region's marks, zero between calls) and flag (3: one per purpose, so that no
+   up to four exact projections of the vertices still inside. Only the patches of moved vertices
+   are measured again. before/after: fractions of vertices deeper than `depth`. The vertices it
+   moved: ints + 3 V, flag[3] of them (what the strain limit measures). Called by every thread of
+   the innermost parallel region, which share the work; buf (20 V doubles), ints (7 V: the region,
+   a work list, the region's marks, the moved vertices, a list of patches, the patches' and the
+   moved vertices' marks; the marks zero between calls) and flag (5: one per purpose, so that no
    thread can see a later value) are the team's shared scratch. */
 static void push_frame(double *p, int V, const double *ca, const double *cb, const double *radii, int C,
                        const PushMesh *m, double margin, int smooth, int rounds, double depth, double *before,
@@ -391,8 +402,8 @@ static void push_frame(double *p, int V, const double *ca, const double *cb, con
 {
     double *d = buf, *nrm = d + V, *need = nrm + 3 * (size_t)V, *req = need + V, *req2 = req + V;
     double *dir = req2 + V, *dir2 = dir + 3 * (size_t)V, *disp = dir2 + 3 * (size_t)V, *tmp = disp + 3 * (size_t)V;
-    int32_t *region = ints, *list = ints + V;
-    int *mark = (int *)(ints + 2 * (size_t)V);
+    int32_t *region = ints, *list = ints + V, *moved = ints + 3 * (size_t)V, *plist = ints + 4 * (size_t)V;
+    int *mark = (int *)(ints + 2 * (size_t)V), *pmark = (int *)(ints + 5 * (size_t)V), *vmark = (int *)(ints + 6 * (size_t)V);
     int ends[MAX_REGION_RINGS + 1];
     const int follow = m->ring ? m->follow : 0, rings = follow + smooth + 1;
     if (m->patch_ptr) sdf_patches(p, m, ca, cb, radii, C, margin, d, nrm);
@@ -402,6 +413,7 @@ static void push_frame(double *p, int V, const double *ca, const double *cb, con
         int deep = 0;
         for (int v = 0; v < V; ++v) deep += d[v] < -depth;
         *before = (double)deep / V;
+        flag[3] = 0;
     }
     for (int r = 0; r < rounds; ++r) {
         #pragma omp single copyprivate(ends)  /* every thread takes the region's ring counts */
@@ -467,28 +479,44 @@ static void push_frame(double *p, int V, const double *ca, const double *cb, con
         }
         #pragma omp single
         {
-            int moved = 0;
+            int n = 0, total = flag[3], patches = 0;
             for (int i = 0; i < ends[follow + smooth]; ++i) {
                 const int v = region[i];
                 const double *q = disp + 3 * (size_t)v;
                 if (q[0] != 0.0 || q[1] != 0.0 || q[2] != 0.0) {
                     p[3 * v] += q[0]; p[3 * v + 1] += q[1]; p[3 * v + 2] += q[2];
-                    list[moved++] = v;
+                    list[n++] = v;
+                    if (!vmark[v]) { vmark[v] = 1; moved[total++] = v; }
+                    if (m->patch_ptr && !pmark[m->vertex_patch[v]]) {
+                        pmark[m->vertex_patch[v]] = 1;
+                        plist[patches++] = m->vertex_patch[v];
+                    }
                 }
             }
-            flag[1] = moved;
+            for (int k = 0; k < patches; ++k) pmark[plist[k]] = 0;
+            flag[1] = n;
+            flag[3] = total;
+            flag[4] = patches;
             if (m->ring)
                 for (int i = 0; i < size; ++i) mark[region[i]] = 0;
         }
-        sdf_points(p, list, flag[1], ca, cb, radii, C, d, nrm);
+        /* the moved patches measured again, culled as at first (a capsule left out is more than the
+           margin from every vertex of the patch where it lies now): a push moves a few hundred vertices,
+           each measured against every capsule it was twice the first measurement's work */
+        if (m->patch_ptr) sdf_patch_list(p, m, plist, flag[4], ca, cb, radii, C, margin, d, nrm);
+        else sdf_points(p, list, flag[1], ca, cb, radii, C, d, nrm);
     }
     for (int it = 0; it < 4; ++it) {
         #pragma omp single
         {
-            int n = 0;
+            int n = 0, total = flag[3];
             for (int v = 0; v < V; ++v)
-                if (d[v] < 0.0) list[n++] = v;
+                if (d[v] < 0.0) {
+                    list[n++] = v;
+                    if (!vmark[v]) { vmark[v] = 1; moved[total++] = v; }
+                }
             flag[2] = n;
+            flag[3] = total;
         }
         const int n = flag[2];
         if (n == 0) break;
@@ -504,6 +532,7 @@ static void push_frame(double *p, int V, const double *ca, const double *cb, con
         int deep = 0;
         for (int v = 0; v < V; ++v) deep += d[v] < -depth;
         *after = (double)deep / V;
+        for (int k = 0; k < flag[3]; ++k) vmark[moved[k]] = 0;
     }
 }
 
@@ -862,16 +891,9 @@ static void push_and_limit(const void *in, int in_double, float *out, int V, con
     }
     push_frame(p, V, ca, cb, radii, C, m, args->margin, args->smooth, args->rounds, args->depth, before, after, team->buf,
                team->ints, team->flag);
-    if (s) {  /* push_frame ends at a barrier: the frame is pushed */
+    if (s) {  /* push_frame ends at a barrier: the frame is pushed, team->moved lists what it moved */
         #pragma omp single
-        {
-            int n = 0;
-            for (int v = 0; v < V; ++v) {  /* without branches: most vertices stay */
-                team->moved[n] = v;
-                n += (p[3 * v] != u[3 * v]) | (p[3 * v + 1] != u[3 * v + 1]) | (p[3 * v + 2] != u[3 * v + 2]);
-            }
-            *torn = (unsigned char)limit_one(p, u, V, s, team->moved, n, &team->limit);
-        }
+        *torn = (unsigned char)limit_one(p, u, V, s, team->moved, team->flag[3], &team->limit);
     }
     #pragma omp for schedule(static)
     for (int k = 0; k < 3 * V; ++k) out[k] = (float)p[k];
@@ -949,28 +971,33 @@ void hrr_push_out(const void *in, int in_double, float *out, int T, int V, const
     if (T <= 0) return;
     if (threads > MAX_TEAMS) threads = MAX_TEAMS;
     if (threads < 1) threads = 1;
-    const PushMesh mesh = {indptr, indices, weights, ring, ring_drop, width, follow, patch_ptr, patch_idx, patches};
     const int teams = T < threads ? T : threads, shared = T < threads;  /* shared: one team per frame */
     const int team_count = shared ? 1 : teams;
     const size_t per_limit = limit ? limit_scratch_bytes(V, limit->E) : 0;
     const size_t solve = subspace ? (size_t)subspace->k * (subspace->k + 2) : 0;
     double *buf = malloc(sizeof(double) * ((size_t)V * BUF + solve) * team_count);
-    int32_t *ints = calloc((size_t)V * 4 * team_count, sizeof(int32_t));  /* the marks start at zero */
+    int32_t *ints = calloc((size_t)V * 7 * team_count, sizeof(int32_t));  /* the marks start at zero */
+    int32_t *vertex_patch = patch_ptr ? malloc(sizeof(int32_t) * (size_t)V) : NULL;
     unsigned char *limit_block = limit ? malloc(per_limit * team_count) : NULL;
-    int flags[3 * MAX_TEAMS];
+    int flags[5 * MAX_TEAMS];
     PushTeam team[MAX_TEAMS];
-    if (!buf || !ints || (limit && !limit_block) || follow + args->smooth + 1 > MAX_REGION_RINGS ||
-        (subspace && (subspace->k < 1 || subspace->k > SUBSPACE_MAXK))) {
+    if (!buf || !ints || (patch_ptr && !vertex_patch) || (limit && !limit_block) ||
+        follow + args->smooth + 1 > MAX_REGION_RINGS || (subspace && (subspace->k < 1 || subspace->k > SUBSPACE_MAXK))) {
         for (int t = 0; t < T; ++t) before[t] = after[t] = NAN;  /* the caller raises */
         free(buf);
         free(ints);
+        free(vertex_patch);
         free(limit_block);
         return;
     }
+    for (int q = 0; patch_ptr && q < patches; ++q)
+        for (int i = patch_ptr[q]; i < patch_ptr[q + 1]; ++i) vertex_patch[patch_idx[i]] = q;
+    const PushMesh mesh = {indptr, indices, weights, ring, ring_drop, width, follow, patch_ptr, patch_idx, patches,
+                           vertex_patch};
     for (int k = 0; k < team_count; ++k) {
         double *mine = buf + ((size_t)V * BUF + solve) * k;
         team[k] = (PushTeam){mine, mine + (size_t)V * 20, mine + (size_t)V * 23, mine + (size_t)V * BUF,
-                             ints + (size_t)V * 4 * k, ints + (size_t)V * 4 * k + 3 * (size_t)V, flags + 3 * k, {0}};
+                             ints + (size_t)V * 7 * k, ints + (size_t)V * 7 * k + 3 * (size_t)V, flags + 5 * k, {0}};
         if (limit) team[k].limit = limit_scratch(limit_block + per_limit * k, V, limit->E);
     }
     const size_t step = (size_t)V * 3;
@@ -1003,6 +1030,7 @@ void hrr_push_out(const void *in, int in_double, float *out, int T, int V, const
     free(moved);
     free(buf);
     free(ints);
+    free(vertex_patch);
     free(limit_block);
 }
 
