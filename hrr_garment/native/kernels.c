@@ -487,10 +487,8 @@ static void push_frame(double *p, int V, const double *ca, const double *cb, con
                     p[3 * v] += q[0]; p[3 * v + 1] += q[1]; p[3 * v + 2] += q[2];
                     list[n++] = v;
                     if (!vmark[v]) { vmark[v] = 1; moved[total++] = v; }
-                    if (m->patch_ptr && !pmark[m->vertex_patch[v]]) {
-                        pmark[m->vertex_patch[v]] = 1;
-                        plist[patches++] = m->vertex_patch[v];
-                    }
+                    const int patch_of_v = m->patch_ptr ? m->vertex_patch[v] : -1;
+                    if (patch_of_v >= 0 && !pmark[patch_of_v]) { pmark[patch_of_v] = 1; plist[patches++] = patch_of_v; }
                 }
             }
             for (int k = 0; k < patches; ++k) pmark[plist[k]] = 0;
@@ -577,15 +575,13 @@ typedef struct {
     unsigned char *emark, *lmark;
 } LimitScratch;
 
-static size_t limit_scratch_bytes(int V, int E)
+static size_t limit_scratch_bytes(int E)
 {
-    (void)V;
     return sizeof(double) * (size_t)E + sizeof(int32_t) * (2 * (size_t)E + MAX_EDGE_COLOURS) + 2 * (size_t)E + 64;
 }
 
-static LimitScratch limit_scratch(unsigned char *block, int V, int E)
+static LimitScratch limit_scratch(unsigned char *block, int E)
 {
-    (void)V;
     LimitScratch w;
     w.limit = (double *)block;
     w.active = (int32_t *)(w.limit + E);
@@ -707,12 +703,12 @@ int hrr_limit_strain(double *p, const double *unpushed, int T, int V, const Stra
     if (T <= 0) return 0;
     if (threads < 1) threads = 1;
     if (threads > T) threads = T;
-    const size_t per = limit_scratch_bytes(V, s->E);
+    const size_t per = limit_scratch_bytes(s->E);
     unsigned char *scratch = malloc(per * threads);
     if (!scratch) return -1;
     #pragma omp parallel num_threads(threads)
     {
-        LimitScratch w = limit_scratch(scratch + per * (size_t)omp_get_thread_num(), V, s->E);
+        LimitScratch w = limit_scratch(scratch + per * (size_t)omp_get_thread_num(), s->E);
         #pragma omp for schedule(dynamic)
         for (int t = 0; t < T; ++t)
             torn[t] = (unsigned char)limit_one(p + (size_t)t * V * 3, unpushed + (size_t)t * V * 3, V, s, NULL, 0, &w);
@@ -973,7 +969,7 @@ void hrr_push_out(const void *in, int in_double, float *out, int T, int V, const
     if (threads < 1) threads = 1;
     const int teams = T < threads ? T : threads, shared = T < threads;  /* shared: one team per frame */
     const int team_count = shared ? 1 : teams;
-    const size_t per_limit = limit ? limit_scratch_bytes(V, limit->E) : 0;
+    const size_t per_limit = limit ? limit_scratch_bytes(limit->E) : 0;
     const size_t solve = subspace ? (size_t)subspace->k * (subspace->k + 2) : 0;
     double *buf = malloc(sizeof(double) * ((size_t)V * BUF + solve) * team_count);
     int32_t *ints = calloc((size_t)V * 7 * team_count, sizeof(int32_t));  /* the marks start at zero */
@@ -998,7 +994,7 @@ void hrr_push_out(const void *in, int in_double, float *out, int T, int V, const
         double *mine = buf + ((size_t)V * BUF + solve) * k;
         team[k] = (PushTeam){mine, mine + (size_t)V * 20, mine + (size_t)V * 23, mine + (size_t)V * BUF,
                              ints + (size_t)V * 7 * k, ints + (size_t)V * 7 * k + 3 * (size_t)V, flags + 5 * k, {0}};
-        if (limit) team[k].limit = limit_scratch(limit_block + per_limit * k, V, limit->E);
+        if (limit) team[k].limit = limit_scratch(limit_block + per_limit * k, limit->E);
     }
     const size_t step = (size_t)V * 3;
     /* several frames: their subspace push batched first, where there is one (and the memory) */
