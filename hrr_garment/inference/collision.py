@@ -201,18 +201,17 @@ def _limit_frames(p: np.ndarray, limit: np.ndarray, limits: EdgeLimits, iteratio
     (T, V, 3) float64 positions with their (T, E) limits, moved in place."""
     active = np.arange(len(p))  # frames still over the limit: each stops on its own, so a frame's result
     for _ in range(iterations):  # does not depend on the others it is batched with (streaming = offline)
-        worst = np.zeros(len(active))
+        q, lim, worst = p[active], limit[active], np.zeros(len(active))  # this pass's frames, moved in q
         for group in limits.colour_groups:  # no two edges of a colour share a vertex: projected at once
             i, j = limits.edges[group, 0], limits.edges[group, 1]
-            q = p[active]
             d = q[:, j] - q[:, i]  # (a, e, 3)
             length = np.sqrt((d * d).sum(-1))
-            excess = np.maximum(length - limit[active][:, group], 0.0)
+            excess = np.maximum(length - lim[:, group], 0.0)
             worst = np.maximum(worst, excess.max(1, initial=0.0))
             corr = (OVER_RELAXATION * 0.5 * excess / np.maximum(length, 1e-12))[..., None] * d
             q[:, i] += corr
             q[:, j] -= corr
-            p[active] = q
+        p[active] = q
         active = active[worst > LIMIT_TOLERANCE_M]
         if not len(active):
             break
