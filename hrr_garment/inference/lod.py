@@ -23,6 +23,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .blending import causal_source
+
 FADE_FRAMES = 8  # frames a decoder change fades over
 
 
@@ -88,31 +90,34 @@ class LodState:
     fade: DecoderFade | None = None
 
 
-def crowd_latents(chars: list, lv: np.ndarray, choose, inertialize_one) -> np.ndarray:
+def crowd_latents(chars: list, lv: np.ndarray, choose, inertialize_rows) -> np.ndarray:
     """The window step for the characters whose level runs it this frame, their held latents for
     the others: -> (N, nodes, C) inertialized latents (each character's ``lod`` holds its match).
     ``choose``: the rows of the characters stepping (None: all) -> their windows'
-    :class:`~.gate.WindowChoice`; ``inertialize_one``:
-    (character, latent, retrieved, match, continuous=) -> its inertialized latent (``continuous``:
-    the latent's part that is one source whatever the match, :attr:`~.gate.WindowChoice.continuous`)."""
+    :class:`~.gate.WindowChoice`; ``inertialize_rows``: (targets (N, nodes, C) float64, their
+    source ids, continuous parts (N, nodes, C) or None, which rows have one (N,)) -> the characters'
+    inertialized latents, all in one call (:meth:`~.blending.Inertializer.step_rows`)."""
     stepping = np.array([steps_now(int(level), c.frames) or c.lod.latent is None for level, c in zip(lv, chars)])
     rows = np.flatnonzero(stepping)
-    if rows.size:
-        choice = choose(None if stepping.all() else rows)
-        shape = choice.latents.shape[2:]
-    else:
-        shape = chars[0].lod.latent.shape
-    latents = np.empty((len(chars), *shape), np.float32)
-    for j, i in enumerate(rows):
-        c = chars[i]
-        c.lod.latent, c.lod.match, c.lod.since = choice.latents[j, -1], choice.match[j], c.frames
-        c.lod.regression = None if choice.regression_part is None else choice.regression_part[j, -1]
-        latents[i] = inertialize_one(c, choice.latents[j, -1], choice.follows_match[j], choice.match[j],
-                                     continuous=None if choice.continuous is None else choice.continuous[j, -1])
+    choice = choose(None if stepping.all() else rows) if rows.size else None
+    shape = choice.latents.shape[2:] if choice is not None else chars[0].lod.latent.shape
+    targets = np.empty((len(chars), *shape), np.float64)
+    sources: list = [None] * len(chars)
+    continuous, split = None, np.zeros(len(chars), bool)
+    if choice is not None:
+        targets[rows] = choice.latents[:, -1]
+        for j, i in enumerate(rows):
+            c = chars[i]
+            c.lod.latent, c.lod.match, c.lod.since = choice.latents[j, -1], choice.match[j], c.frames
+            c.lod.regression = None if choice.regression_part is None else choice.regression_part[j, -1]
+            sources[i] = causal_source(choice.follows_match[j], choice.match[j], c.frames)
+        if choice.continuous is not None:
+            continuous = np.zeros_like(targets)
+            continuous[rows], split[rows] = choice.continuous[:, -1], True
     for i in np.flatnonzero(~stepping):  # held: a source of its own (all of it), so the next step's latent is blended in
         c = chars[i]
-        latents[i] = c.inertializer.step(c.lod.latent.astype(np.float64), ("held", c.lod.since))
-    return latents
+        targets[i], sources[i] = c.lod.latent, ("held", c.lod.since)
+    return inertialize_rows(targets, sources, continuous, split).astype(np.float32)
 
 
 def crowd_decode(chars: list, latents: np.ndarray, names: list[str], decoders: dict) -> np.ndarray:

@@ -44,7 +44,8 @@ from ..motion.memory import MEMORY_WIDTH, motion_memory
 from ..motion.motion import Motion
 from ..motion.poses import poses_to_motion
 from ..native import pin_workers
-from .blending import Inertializer, inertialize
+from . import blending
+from .blending import Inertializer
 from .bodies import CrowdBodies
 from .collision import push_out
 from .crowd_windows import CrowdWindows
@@ -66,7 +67,7 @@ class _Character:
 
     features: deque  # its window's W frames' raw features (crowd_windows.CrowdWindows)
     gates: deque  # those frames' GRU input gates, where the window step is native (gate.frame_gates)
-    inertializer: Inertializer
+    inertia: int  # its row in the crowd's Inertializer
     fold_track: FoldTrack | None = None  # the detail mode's playhead in the database's folds
     followed: FollowedFolds | None = None  # its folds as followed in time (fold_track.follow_folds)
     previous: tuple[np.ndarray, np.ndarray] | None = None  # its last pose: global rotations and joint positions
@@ -106,6 +107,7 @@ class CrowdStream:
         self._stacked: tuple = ((), None)  # the last mixed crowd's bodies and their stacked arrays
         self._characters: dict[Hashable, _Character] = {}
         self._windows = CrowdWindows(animator.window)
+        self._inertia = Inertializer(animator.blend, paths=0)  # every character's latent path, a row each
         self.timings = _Timings()
         regression = run.mode.regresses
         bundle = animator.bundle
@@ -135,8 +137,12 @@ class CrowdStream:
         """Forget a character: pushed again later, it starts afresh (as from a standstill)."""
         if key not in self._characters:
             raise KeyError(f"no character {key!r} in this stream (characters: {self.characters})")
-        del self._characters[key]
+        self._forget(key)
         self._bodies.pop(key, None)
+
+    def _forget(self, key: Hashable) -> None:
+        """Drop a character's state (it starts afresh if pushed again), its inertialization's row freed."""
+        self._inertia.remove_path(self._characters.pop(key).inertia)
 
     def push(self, rotations: np.ndarray, roots: np.ndarray, keys: Sequence[Hashable] | None = None, *,
              lod=None) -> np.ndarray:
@@ -233,10 +239,12 @@ class CrowdStream:
             return choose_windows(self.animator.bundle, windows[pick], self.run, last_frame=True, step=self._step,
                                   gates=None if gates is None else gates[pick])
 
-        def one(c, latent, retrieved, source, continuous=None):
-            return inertialize(c.inertializer, latent, retrieved, source=source, frame=c.frames, continuous=continuous)
+        def inertialize_rows(targets, sources, continuous, split):
+            if not blending.DEPARTURE_ONLY:
+                continuous = None
+            return self._inertia.step_rows(targets, sources, continuous, split, rows=np.array([c.inertia for c in chars]))
 
-        return crowd_latents(chars, lv, choose=choose, inertialize_one=one)
+        return crowd_latents(chars, lv, choose=choose, inertialize_rows=inertialize_rows)
 
     def _restart_teleported(self, keys: list, poses: Motion) -> None:
         """Forget the characters whose pelvis moved faster than :data:`MAX_ROOT_SPEED` since their
@@ -248,7 +256,7 @@ class CrowdStream:
         jump = np.linalg.norm(poses.root_translation[known] - last, axis=1)
         for j in np.flatnonzero(jump * poses.fps > MAX_ROOT_SPEED):
             key = keys[known[j]]
-            del self._characters[key]
+            self._forget(key)
             warnings.warn(f"character {key!r}: the pelvis moved {jump[j]:.3g} m in one frame (over {MAX_ROOT_SPEED:g} m/s); "
                           "taken as a teleport, its garment starts afresh there", TeleportWarning, stacklevel=4)
 
@@ -258,7 +266,7 @@ class CrowdStream:
         self._restart_teleported(keys, poses)
         for k in keys:
             if k not in self._characters:  # not setdefault: that built a new character's state for every key every frame
-                self._characters[k] = _Character(*self._windows.start(), Inertializer(self.animator.blend))
+                self._characters[k] = _Character(*self._windows.start(), self._inertia.add_path())
         chars = [self._characters[k] for k in keys]
         roots = poses.root_translation  # as pushed, before a body plays them
         poses, bodies = self._played(keys, poses)

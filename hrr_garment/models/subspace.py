@@ -35,7 +35,10 @@ class SubspaceConfig:
     # (1,046 vertices) the components alone reproduce the full decoder to 2.4 mm at 256, 0.9 at 384,
     # 0.5 at 512 (the full decoder's own error: 3.0 mm)
     max_components: int = 512
-    hidden: int = 1024  # width of each hidden layer of the network from latents to coefficients
+    # width of each hidden layer of the network from latents to coefficients: 512 against 1024 on
+    # a 4,156-vertex model, held-out PVE the same, 7.10 against 6.78 mm on validation frames, a
+    # 64-character step 0.9 ms shorter (decision 0037)
+    hidden: int = 512
     layers: int = 2  # hidden layers (ELU)
 
     def __post_init__(self) -> None:

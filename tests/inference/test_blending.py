@@ -64,3 +64,27 @@ def test_a_change_between_the_whole_latent_and_its_part_does_not_jump():
     first = inert.step(base + part, ("retrieval", 3, 0), continuous=base)
     second = inert.step(base + part, ("held", 0))  # the same latent, now whole (a held level of detail)
     np.testing.assert_allclose(second, first, atol=1e-12)
+
+
+def test_paths_stepped_together_give_each_path_alone_bit_for_bit(rng):
+    """A crowd steps its characters' paths in one call (Inertializer.step_rows), some of them on
+    some frames only, with switches, continuous parts on some rows and a path removed and another
+    added: each row's output is what its own one-path Inertializer gives, to the bit."""
+    crowd, alone = Inertializer(frames=6, paths=0), {}
+    rows = {name: crowd.add_path() for name in "abcd"}
+    alone = {name: Inertializer(frames=6) for name in rows}
+    for t in range(40):
+        if t == 20:  # "b" leaves, "e" joins in its row
+            crowd.remove_path(rows.pop("b"))
+            rows["e"], alone["e"] = crowd.add_path(), Inertializer(frames=6)
+            assert rows["e"] == 1
+        names = [n for n in rows if t % 3 or n != "c"]  # "c" skips every third frame
+        targets = rng.normal(size=(len(names), 3, 2))
+        sources = [("clip", (t // 4 + i) % 3) for i, _ in enumerate(names)]
+        split = np.array([(t + i) % 5 < 2 for i, _ in enumerate(names)])
+        continuous = rng.normal(size=targets.shape)
+        out = crowd.step_rows(targets, sources, continuous, split, rows=np.array([rows[n] for n in names]))
+        for i, n in enumerate(names):
+            one = alone[n].step(targets[i], sources[i], continuous=continuous[i] if split[i] else None)
+            assert np.array_equal(out[i], one), (t, n)
+    assert not np.array_equal(out, targets)  # the switches left offsets to decay
