@@ -240,8 +240,8 @@ class CrowdStream:
                                   gates=None if gates is None else gates[pick])
 
         def inertialize_rows(targets, sources, continuous, split):
-            if not blending.DEPARTURE_ONLY:
-                continuous = None
+            if not blending.DEPARTURE_ONLY:  # the whole latent inertialized (blending.DEPARTURE_ONLY)
+                continuous, split = None, None
             return self._inertia.step_rows(targets, sources, continuous, split, rows=np.array([c.inertia for c in chars]))
 
         return crowd_latents(chars, lv, choose=choose, inertialize_rows=inertialize_rows)
