@@ -193,14 +193,14 @@ void hrr_block(const float *x, int B, int cin, int cout, int V, const int32_t *o
 }
 
 /* Signed distance of points to the union of C capsules (one frame's capsule ends ca, cb (C, 3),
-   radii (C)): for entries i0 .. i1 (at most SDF_CHUNK) of the point list idx (NULL: 0, 1, ...),
-   point k = idx[i], writes dist[k] (negative inside) and the nearest capsule's outward unit
-   normal normal[k]. Capsules outer, points inner in structure-of-arrays form, so the inner loop
-   has no division and vectorises across points. */
+   radii (C)): for n points (px, py, pz; at most SDF_CHUNK), entries i0 .. i0 + n - 1 of the point
+   list idx (NULL: 0, 1, ...), point k = idx[i], writes dist[k] (negative inside) and the nearest
+   capsule's outward unit normal normal[k]. Capsules outer, points inner in structure-of-arrays
+   form, so the inner loop has no division and vectorises across points. */
 enum { SDF_CHUNK = 256, SDF_MAXC = 64 };
 
-static void sdf_chunk(const double *p, const int32_t *idx, int i0, int i1, const double *ca, const double *cb,
-                      const double *radii, int C, double *dist, double *normal)
+static void sdf_soa(const double *px, const double *py, const double *pz, const int32_t *idx, int i0, int n,
+                    const double *ca, const double *cb, const double *radii, int C, double *dist, double *normal)
 {
     double cax[SDF_MAXC], cay[SDF_MAXC], caz[SDF_MAXC], cex[SDF_MAXC], cey[SDF_MAXC], cez[SDF_MAXC], cinv[SDF_MAXC];
     for (int c = 0; c < C; ++c) {
@@ -209,12 +209,8 @@ static void sdf_chunk(const double *p, const int32_t *idx, int i0, int i1, const
         const double den = cex[c] * cex[c] + cey[c] * cey[c] + cez[c] * cez[c];
         cinv[c] = 1.0 / (den > 1e-12 ? den : 1e-12);
     }
-    double px[SDF_CHUNK], py[SDF_CHUNK], pz[SDF_CHUNK], best[SDF_CHUNK], bx[SDF_CHUNK], by[SDF_CHUNK], bz[SDF_CHUNK],
-           baxis[SDF_CHUNK];
-    const int n = i1 - i0;
+    double best[SDF_CHUNK], bx[SDF_CHUNK], by[SDF_CHUNK], bz[SDF_CHUNK], baxis[SDF_CHUNK];
     for (int i = 0; i < n; ++i) {
-        const int k = idx ? idx[i0 + i] : i0 + i;
-        px[i] = p[3 * k]; py[i] = p[3 * k + 1]; pz[i] = p[3 * k + 2];
         best[i] = 1e300; bx[i] = 0; by[i] = 0; bz[i] = 0; baxis[i] = 1;
     }
     for (int c = 0; c < C; ++c) {
@@ -240,6 +236,24 @@ static void sdf_chunk(const double *p, const int32_t *idx, int i0, int i1, const
         dist[k] = best[i];
         normal[3 * k] = bx[i] * inv; normal[3 * k + 1] = by[i] * inv; normal[3 * k + 2] = bz[i] * inv;
     }
+}
+
+/* Points i0 .. i1 - 1 (at most SDF_CHUNK) of the list idx (NULL: i0 .. i1 - 1) gathered into
+   structure-of-arrays form (px, py, pz), as sdf_soa takes them. */
+static void gather_points(const double *p, const int32_t *idx, int i0, int i1, double *px, double *py, double *pz)
+{
+    for (int i = 0; i < i1 - i0; ++i) {
+        const int k = idx ? idx[i0 + i] : i0 + i;
+        px[i] = p[3 * k]; py[i] = p[3 * k + 1]; pz[i] = p[3 * k + 2];
+    }
+}
+
+static void sdf_chunk(const double *p, const int32_t *idx, int i0, int i1, const double *ca, const double *cb,
+                      const double *radii, int C, double *dist, double *normal)
+{
+    double px[SDF_CHUNK], py[SDF_CHUNK], pz[SDF_CHUNK];
+    gather_points(p, idx, i0, i1, px, py, pz);
+    sdf_soa(px, py, pz, idx, i0, i1 - i0, ca, cb, radii, C, dist, normal);
 }
 
 /* sdf_chunk over n entries of the point list idx (NULL: 0 .. n-1), chunks shared among the team
@@ -312,17 +326,21 @@ static void sdf_patch_list(const double *p, const PushMesh *m, const int32_t *li
     #pragma omp for schedule(static)
     for (int k = 0; k < count; ++k) {
         const int q = list ? list[k] : k;
-        const int i0 = m->patch_ptr[q], i1 = m->patch_ptr[q + 1];
-        double cx = 0.0, cy = 0.0, cz = 0.0, r2 = 0.0;
-        for (int i = i0; i < i1; ++i) {
-            const double *v = p + 3 * (size_t)m->patch_idx[i];
-            cx += v[0]; cy += v[1]; cz += v[2];
+        const int i0 = m->patch_ptr[q], i1 = m->patch_ptr[q + 1], size = i1 - i0;
+        if (size > SDF_CHUNK) {  /* a patch larger than a chunk (not the garment's own): every capsule */
+            for (int j = i0; j < i1; j += SDF_CHUNK)
+                sdf_chunk(p, m->patch_idx, j, j + SDF_CHUNK < i1 ? j + SDF_CHUNK : i1, ca, cb, radii, C, d, nrm);
+            continue;
         }
-        const double inv = 1.0 / (i1 - i0 > 0 ? i1 - i0 : 1);
+        /* the patch's points gathered once: its bounding sphere and its distances read them there */
+        double px[SDF_CHUNK], py[SDF_CHUNK], pz[SDF_CHUNK];
+        gather_points(p, m->patch_idx, i0, i1, px, py, pz);
+        double cx = 0.0, cy = 0.0, cz = 0.0, r2 = 0.0;
+        for (int i = 0; i < size; ++i) { cx += px[i]; cy += py[i]; cz += pz[i]; }
+        const double inv = 1.0 / (size > 0 ? size : 1);
         cx *= inv; cy *= inv; cz *= inv;
-        for (int i = i0; i < i1; ++i) {
-            const double *v = p + 3 * (size_t)m->patch_idx[i];
-            const double dx = v[0] - cx, dy = v[1] - cy, dz = v[2] - cz, e = dx * dx + dy * dy + dz * dz;
+        for (int i = 0; i < size; ++i) {
+            const double dx = px[i] - cx, dy = py[i] - cy, dz = pz[i] - cz, e = dx * dx + dy * dy + dz * dz;
             r2 = e > r2 ? e : r2;
         }
         const double sphere = sqrt(r2) + 1e-9;  /* the slack covers rounding in the centre and radius */
@@ -341,7 +359,7 @@ static void sdf_patch_list(const double *p, const PushMesh *m, const int32_t *li
             }
         }
         if (n > 0) {
-            sdf_chunk(p, m->patch_idx, i0, i1, sa, sb, sr, n, d, nrm);
+            sdf_soa(px, py, pz, m->patch_idx, i0, size, sa, sb, sr, n, d, nrm);
         } else {
             for (int i = i0; i < i1; ++i) {
                 const int k = m->patch_idx[i];
@@ -413,7 +431,7 @@ static void push_frame(double *p, int V, const double *ca, const double *cb, con
         int deep = 0;
         for (int v = 0; v < V; ++v) deep += d[v] < -depth;
         *before = (double)deep / V;
-        flag[3] = 0;
+        flag[1] = flag[3] = flag[4] = 0;
     }
     for (int r = 0; r < rounds; ++r) {
         #pragma omp single copyprivate(ends)  /* every thread takes the region's ring counts */
@@ -507,12 +525,21 @@ static void push_frame(double *p, int V, const double *ca, const double *cb, con
     for (int it = 0; it < 4; ++it) {
         #pragma omp single
         {
+            /* only a vertex measured again since its distance was at least the margin can be inside:
+               at first those of the last round's moved patches (its moved vertices, list, without
+               patches), then those the projection before moved (list, filtered in place) */
             int n = 0, total = flag[3];
-            for (int v = 0; v < V; ++v)
-                if (d[v] < 0.0) {
-                    list[n++] = v;
-                    if (!vmark[v]) { vmark[v] = 1; moved[total++] = v; }
+            const int by_patch = it == 0 && m->patch_ptr, count = by_patch ? flag[4] : (it == 0 ? flag[1] : flag[2]);
+            for (int k = 0; k < count; ++k) {
+                const int i0 = by_patch ? m->patch_ptr[plist[k]] : 0, i1 = by_patch ? m->patch_ptr[plist[k] + 1] : 1;
+                for (int i = i0; i < i1; ++i) {
+                    const int v = by_patch ? m->patch_idx[i] : list[k];
+                    if (d[v] < 0.0) {
+                        list[n++] = v;
+                        if (!vmark[v]) { vmark[v] = 1; moved[total++] = v; }
+                    }
                 }
+            }
             flag[2] = n;
             flag[3] = total;
         }
