@@ -401,6 +401,15 @@ static int grow_region(const PushMesh *m, int V, int rings, int seeds, int32_t *
     return hi;
 }
 
+/* push_frame's projection list: vertex v appended to list (at *n) when inside, and to the moved
+   vertices (at *total) the first time. */
+static inline void take_if_inside(int v, const double *d, int32_t *list, int *n, int *vmark, int32_t *moved, int *total)
+{
+    if (!(d[v] < 0.0)) return;  /* as the comparison the push reads: a NaN is not inside */
+    list[(*n)++] = v;
+    if (!vmark[v]) { vmark[v] = 1; moved[(*total)++] = v; }
+}
+
 /* The collision push-out of hrr_garment/inference/collision.py for one frame, the same steps:
    distances (sdf_patches); `rounds` times: each vertex needing to move (within `margin` of the
    body or inside) gets need along its normal, the neighbour-follow (m->follow max-plus passes over
@@ -529,16 +538,13 @@ static void push_frame(double *p, int V, const double *ca, const double *cb, con
                at first those of the last round's moved patches (its moved vertices, list, without
                patches), then those the projection before moved (list, filtered in place) */
             int n = 0, total = flag[3];
-            const int by_patch = it == 0 && m->patch_ptr, count = by_patch ? flag[4] : (it == 0 ? flag[1] : flag[2]);
-            for (int k = 0; k < count; ++k) {
-                const int i0 = by_patch ? m->patch_ptr[plist[k]] : 0, i1 = by_patch ? m->patch_ptr[plist[k] + 1] : 1;
-                for (int i = i0; i < i1; ++i) {
-                    const int v = by_patch ? m->patch_idx[i] : list[k];
-                    if (d[v] < 0.0) {
-                        list[n++] = v;
-                        if (!vmark[v]) { vmark[v] = 1; moved[total++] = v; }
-                    }
-                }
+            if (it == 0 && m->patch_ptr) {
+                for (int k = 0; k < flag[4]; ++k)
+                    for (int i = m->patch_ptr[plist[k]]; i < m->patch_ptr[plist[k] + 1]; ++i)
+                        take_if_inside(m->patch_idx[i], d, list, &n, vmark, moved, &total);
+            } else {
+                const int count = it == 0 ? flag[1] : flag[2];
+                for (int k = 0; k < count; ++k) take_if_inside(list[k], d, list, &n, vmark, moved, &total);
             }
             flag[2] = n;
             flag[3] = total;
