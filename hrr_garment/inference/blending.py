@@ -64,9 +64,8 @@ class Inertializer:
         self._decay = float(np.exp(-self._damping))
         self._paths = paths
         self._state: dict[str, np.ndarray] | None = None  # each of _STATE (paths, ...) float64, made at the first step
-        self._started = np.zeros(paths, bool)  # whether a path has a previous target
         self._split = np.zeros(paths, bool)  # whether its previous target had a continuous part
-        self._sources: list = [None] * paths
+        self._sources: list = [None] * paths  # each path's last source (None: no previous target)
         self._free: list[int] = []  # rows of removed paths, given to the next added
 
     def add_path(self) -> int:
@@ -74,7 +73,7 @@ class Inertializer:
         if self._free:
             return self._free.pop()
         self._paths += 1
-        self._started, self._split = np.append(self._started, False), np.append(self._split, False)
+        self._split = np.append(self._split, False)
         self._sources.append(None)
         if self._state is not None:
             self._state = {k: np.concatenate([v, np.zeros_like(v[:1])]) for k, v in self._state.items()}
@@ -82,7 +81,7 @@ class Inertializer:
 
     def remove_path(self, row: int) -> None:
         """Forget the path in ``row``; its row goes to the next :meth:`add_path`."""
-        self._started[row], self._sources[row] = False, None
+        self._sources[row] = None
         if self._state is not None:
             for v in self._state.values():
                 v[row] = 0.0
@@ -112,8 +111,9 @@ class Inertializer:
         every = rows is None
         idx = slice(None) if every else rows
         state = self._state if every else {k: v[idx] for k, v in self._state.items()}
-        started, was_split = self._started[idx], self._split[idx]
+        was_split = self._split[idx]
         old_sources = self._sources if every else [self._sources[i] for i in rows]
+        started = np.array([o is not None for o in old_sources], bool)
         part = targets if continuous is None else np.where(_rows(split, targets), targets - continuous, targets)
         same = started & (split == was_split) & np.array([s == o for s, o in zip(sources, old_sources)], bool)
         offset, offset_vel = state["offset"], state["offset_vel"]
@@ -139,11 +139,11 @@ class Inertializer:
                "prev_part_vel": np.where(continuing, part - state["prev_part"], 0.0)}
         if every:
             self._state = new
-            self._started, self._split, self._sources = np.ones(count, bool), split.copy(), list(sources)
+            self._split, self._sources = split.copy(), list(sources)
         else:
             for k, v in new.items():
                 self._state[k][rows] = v
-            self._started[rows], self._split[rows] = True, split
+            self._split[rows] = split
             for i, s in zip(rows, sources):
                 self._sources[i] = s
         return targets + offset

@@ -23,6 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import blending
 from .blending import causal_source
 
 FADE_FRAMES = 8  # frames a decoder change fades over
@@ -111,7 +112,7 @@ def crowd_latents(chars: list, lv: np.ndarray, choose, inertialize_rows) -> np.n
             c.lod.latent, c.lod.match, c.lod.since = choice.latents[j, -1], choice.match[j], c.frames
             c.lod.regression = None if choice.regression_part is None else choice.regression_part[j, -1]
             sources[i] = causal_source(choice.follows_match[j], choice.match[j], c.frames)
-        if choice.continuous is not None:
+        if choice.continuous is not None and blending.DEPARTURE_ONLY:  # else the whole latent inertialized
             continuous = np.zeros_like(targets)
             continuous[rows], split[rows] = choice.continuous[:, -1], True
     for i in np.flatnonzero(~stepping):  # held: a source of its own (all of it), so the next step's latent is blended in

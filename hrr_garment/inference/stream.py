@@ -32,6 +32,7 @@ import warnings
 from collections import deque
 from collections.abc import Hashable, Mapping, Sequence
 from dataclasses import dataclass, field
+from functools import partial
 
 import numpy as np
 
@@ -40,11 +41,10 @@ from ..models.codes import traced_window_codes
 from ..motion.features import pair_features_batch
 from ..motion.frame import world_vertices
 from ..motion.limits import MAX_ROOT_SPEED
-from ..motion.memory import MEMORY_WIDTH, motion_memory
+from ..motion.memory import motion_memory
 from ..motion.motion import Motion
 from ..motion.poses import poses_to_motion
 from ..native import pin_workers
-from . import blending
 from .blending import Inertializer
 from .bodies import CrowdBodies
 from .collision import push_out
@@ -185,12 +185,7 @@ class CrowdStream:
         if not spec:
             return features
         memory = motion_memory(spec, float(fps))
-        fresh = np.array([c.memory is None for c in chars])
-        state = np.empty((len(chars), spec.rows, MEMORY_WIDTH))
-        if fresh.any():
-            state[fresh] = memory.start(features[fresh])
-        if not fresh.all():
-            state[~fresh] = memory.step(np.stack([c.memory for c in chars if c.memory is not None]), features[~fresh])
+        state = memory.advance([c.memory for c in chars], features)
         for c, s in zip(chars, state):
             c.memory = s
         return np.concatenate([features, memory.values(state)], 1)
@@ -239,12 +234,8 @@ class CrowdStream:
             return choose_windows(self.animator.bundle, windows[pick], self.run, last_frame=True, step=self._step,
                                   gates=None if gates is None else gates[pick])
 
-        def inertialize_rows(targets, sources, continuous, split):
-            if not blending.DEPARTURE_ONLY:  # the whole latent inertialized (blending.DEPARTURE_ONLY)
-                continuous, split = None, None
-            return self._inertia.step_rows(targets, sources, continuous, split, rows=np.array([c.inertia for c in chars]))
-
-        return crowd_latents(chars, lv, choose=choose, inertialize_rows=inertialize_rows)
+        rows = np.array([c.inertia for c in chars])
+        return crowd_latents(chars, lv, choose=choose, inertialize_rows=partial(self._inertia.step_rows, rows=rows))
 
     def _restart_teleported(self, keys: list, poses: Motion) -> None:
         """Forget the characters whose pelvis moved faster than :data:`MAX_ROOT_SPEED` since their

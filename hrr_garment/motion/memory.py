@@ -136,6 +136,17 @@ class MotionMemory:
         bobs = self.resonator_a @ bobs + self.resonator_b[..., None] * u[:, None]
         return np.concatenate([averages, bobs.reshape(n, -1, MEMORY_WIDTH)], 1)
 
+    def advance(self, states: Sequence[np.ndarray | None], features: np.ndarray) -> np.ndarray:
+        """N motions one frame on, each from its last state (rows, 64), or from its start where it
+        has none (None: its first frame), with this frame's features (N, 124) -> (N, rows, 64)."""
+        fresh = np.array([s is None for s in states], bool)
+        out = np.empty((len(states), self.spec.rows, MEMORY_WIDTH))
+        if fresh.any():
+            out[fresh] = self.start(features[fresh])
+        if not fresh.all():
+            out[~fresh] = self.step(np.stack([s for s in states if s is not None]), features[~fresh])
+        return out
+
     def values(self, state: np.ndarray) -> np.ndarray:
         """The state as feature columns (N, rows x 64), float32: the averages, w x and q."""
         k = len(self.spec.seconds)
