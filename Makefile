@@ -35,18 +35,22 @@ demo: install
 test: install
 	$(BIN)/lint-imports
 	$(BIN)/ruff check .
-	$(BIN)/python -m pytest -q --durations=15
+	$(BIN)/python -m pytest -q --durations=15 $(PARALLEL)
+
+# pytest-xdist: a worker per core, each test file on one worker (its module fixtures built once),
+# each worker's torch and kernels on its share of the cores (tests/conftest.py); PARALLEL= runs serially
+PARALLEL ?= -n auto --dist loadfile
 
 # The quick loop (docs/testing.md): no lint, and none of the tests that train a model or run the
 # cloth simulator (pyproject's markers); about a minute. PYTEST_ARGS adds options, e.g. -x or tests/motion.
 FAST_MARKERS ?= not slow and not sim
 PYTEST_ARGS ?=
 test-fast: install
-	$(BIN)/python -m pytest -q -m "$(FAST_MARKERS)" $(PYTEST_ARGS)
+	$(BIN)/python -m pytest -q -m "$(FAST_MARKERS)" $(PARALLEL) $(PYTEST_ARGS)
 
 # what test-fast leaves out: the tests that train or simulate
 test-slow: install
-	$(BIN)/python -m pytest -q -m "not ($(FAST_MARKERS))" $(PYTEST_ARGS)
+	$(BIN)/python -m pytest -q -m "not ($(FAST_MARKERS))" $(PARALLEL) $(PYTEST_ARGS)
 
 clean:
 	rm -rf $(VENV) hrr_work .pytest_cache

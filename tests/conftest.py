@@ -1,5 +1,6 @@
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import numpy as np
@@ -13,6 +14,18 @@ CMU_CLIPS = ("02_01", "131_01", "131_03")
 # directly or through another fixture, is marked by what the fixture does the first time it runs
 SLOW_FIXTURES = {"trained", "paper_model", "artist_model", "bodies_model"}  # train a tiny model: tens of seconds and more
 SIM_FIXTURES = {"artist_model"}  # runs hrr-simulate (newton/Warp)
+
+
+def pytest_configure(config):
+    """Under pytest-xdist (``make test`` runs ``-n auto``), each worker takes its share of the
+    cores for torch and the kernels: two workers of two threads each on two cores ran every test
+    1.3-1.7 x slower than alone, for a suite only 17 % faster."""
+    workers = int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "1"))
+    if workers > 1:
+        import torch
+
+        cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+        torch.set_num_threads(max(1, cores // workers))
 
 
 def pytest_collection_modifyitems(config, items):

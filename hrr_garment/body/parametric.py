@@ -109,12 +109,16 @@ def _anny_model(topology: str = TOPOLOGY, rig: str = RIG):
     anny = _import_anny()
     import torch
 
+    from anny.paths import set_anny_cache_path
+    from filelock import FileLock
+
     cache = anny_cache()
     cache.mkdir(parents=True, exist_ok=True)
-    from anny.paths import set_anny_cache_path
-
     set_anny_cache_path(cache)
-    return anny.Anny(topology=topology, rig=rig).to(dtype=torch.float32)
+    # anny writes its cache files in place: a second process (a Ray worker, a parallel test run)
+    # building at the same time would read one half written, so the build is one process's at a time
+    with FileLock(cache / ".build.lock"):
+        return anny.Anny(topology=topology, rig=rig).to(dtype=torch.float32)
 
 
 def _rest_tensors(phenotype: dict):
