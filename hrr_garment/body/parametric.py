@@ -108,7 +108,6 @@ def _anny_model(topology: str = TOPOLOGY, rig: str = RIG):
     """The anny model (built once a process; its data cached under the workspace)."""
     anny = _import_anny()
     import torch
-
     from anny.paths import set_anny_cache_path
     from filelock import FileLock
 
