@@ -30,16 +30,16 @@ install: $(STAMP)
 demo: install
 	$(BIN)/hrr-demo
 
+# pytest-xdist: a worker per core, each test file on one worker (its module fixtures built once),
+# each worker's torch and kernels on its share of the cores (tests/conftest.py); PARALLEL= runs serially
+PARALLEL ?= -n auto --dist loadfile
+
 # layers (import-linter, pyproject's contract), lint (ruff), then the tests; the slowest 15 are listed
 # at the end so that the ten-minute budget (docs/testing.md) is watched on every run, CI's included
 test: install
 	$(BIN)/lint-imports
 	$(BIN)/ruff check .
 	$(BIN)/python -m pytest -q --durations=15 $(PARALLEL)
-
-# pytest-xdist: a worker per core, each test file on one worker (its module fixtures built once),
-# each worker's torch and kernels on its share of the cores (tests/conftest.py); PARALLEL= runs serially
-PARALLEL ?= -n auto --dist loadfile
 
 # The quick loop (docs/testing.md): no lint, and none of the tests that train a model or run the
 # cloth simulator (pyproject's markers); about a minute. PYTEST_ARGS adds options, e.g. -x or tests/motion.
