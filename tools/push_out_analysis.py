@@ -14,8 +14,6 @@ the push-out off), then the push-out under each setting asked for, and reports p
   ``inside_before_pct`` before it (after the subspace push, in its rows);
 - ``pve_mm``: the mean vertex error against the dataset's one simulation of each clip (one chaotic
   truth: it compares settings on the same frames, it does not rank models; hrr-eval does);
-- with ``--wrap``, each setting also (or only) with its pushes wrapped onto the limbs
-  (:mod:`hrr_garment.inference.limb_wrap`);
 - ``us_per_character``: the push-out's median seconds per character-frame, frames pushed ``crowd``
   at a time as a crowd's step pushes its characters (report off, as a stream runs it), over
   ``repeat`` passes.
@@ -53,13 +51,12 @@ def _timed_us(vertices: np.ndarray, motion, faces, animator, settings, crowd: in
     return 1e6 * float(np.median(per_frame)) if per_frame else float("nan")
 
 
-def push_out_rows(follows: list[int], slope: float, slacks: list[float], wraps: tuple[bool, ...] = (False,)) -> dict:
-    """The push-out settings compared, by label: each follow with each slack, straight out or wrapped."""
+def push_out_rows(follows: list[int], slope: float, slacks: list[float]) -> dict:
+    """The push-out settings compared, by label: each follow with each slack."""
     from hrr_garment.inference.collision import PUSH_OUT
 
-    return {f"follow {f}, slack {k:g}" + (", wrapped" if w else ""):
-            dataclasses.replace(PUSH_OUT, follow=f, follow_slope=slope, stretch_slack=k, wrap=w)
-            for w in wraps for f in follows for k in slacks}
+    return {f"follow {f}, slack {k:g}": dataclasses.replace(PUSH_OUT, follow=f, follow_slope=slope, stretch_slack=k)
+            for f in follows for k in slacks}
 
 
 def analyse(model: str, dataset: str, split: str, rows: dict, sequences: int, crowd: int, repeat: int,
@@ -140,12 +137,9 @@ def main() -> None:
     parser.add_argument("--repeat", type=int, default=2)
     parser.add_argument("--subspace-push", action="store_true",
                         help="each setting also after the push in the fast decoder's subspace")
-    parser.add_argument("--wrap", choices=("off", "on", "both"), default="both",
-                        help="the pushes straight out, wrapped onto the limbs (docs/decisions/0038), or both")
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args()
-    wraps = {"off": (False,), "on": (True,), "both": (False, True)}[args.wrap]
-    report = analyse(args.model, args.dataset, args.split, push_out_rows(args.follow, args.slope, args.slack, wraps),
+    report = analyse(args.model, args.dataset, args.split, push_out_rows(args.follow, args.slope, args.slack),
                      args.sequences, args.crowd, args.repeat, args.subspace_push)
     if args.json:
         print(json.dumps(report))

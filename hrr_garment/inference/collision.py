@@ -30,7 +30,6 @@ from ..motion.frame import body_heading
 from ..motion.motion import Motion
 from ..sim.quality import PENETRATION_DEPTH_M
 from .edge_limits import EdgeLimits
-from .limb_wrap import wrap_displacements
 
 if TYPE_CHECKING:
     from .subspace_push import SubspacePush
@@ -74,9 +73,6 @@ class PushOutSettings:
     # repairs tears, not a push that lengthens an already long edge by a hair
     stretch_slack: float = STRETCH_SLACK
     chunk: int = 64  # frames processed at once
-    # each push of a vertex within the margin wrapped onto its limb around its patch's centre, not
-    # straight out (.limb_wrap, docs/decisions/0038; needs the garment's EdgeLimits)
-    wrap: bool = False
     # the push in the garment's subspace before the mesh push (.subspace_push; None: none), made
     # per bundle (Animator.push_settings)
     subspace: "SubspacePush | None" = None
@@ -127,7 +123,7 @@ def push_out(vertices: np.ndarray, motion: Motion, faces: np.ndarray, *, body: B
         # spent a millisecond a frame converting and copying whole batches
         out = np.empty(vertices.shape, np.float32)
         torn = np.zeros(len(out), bool)
-        steps = PushSteps(mean=mean, margin=margin, smooth=smooth, rounds=rounds, depth=depth, wrap=settings.wrap,
+        steps = PushSteps(mean=mean, margin=margin, smooth=smooth, rounds=rounds, depth=depth,
                           mesh=None if limits is None else limits.push_mesh(settings),
                           limit=None if limits is None else _native_limit(limits, settings.max_strain, settings.stretch_slack),
                           subspace=None if settings.subspace is None else settings.subspace.native)
@@ -260,11 +256,6 @@ def _push_frames(p: np.ndarray, capsules: tuple[np.ndarray, np.ndarray, np.ndarr
         need = np.maximum(margin - d, 0.0)  # how far along the normal each vertex must move
         if not need.any():
             break
-        if limits is not None and settings.wrap:  # the moves to the wrapped places instead
-            move = np.stack([wrap_displacements(p[k], a[k], b[k], radii[k] if np.ndim(radii) == 2 else radii, d[k], margin,
-                                                limits.edges) for k in range(t)])
-            need = np.linalg.norm(move, axis=-1)
-            n = np.where((need > 0)[..., None], move / np.maximum(need, 1e-300)[..., None], n)
         if limits is not None and settings.follow > 0:
             need, n = follow_pushes(need, n, limits, settings.follow, settings.follow_slope)
         hit = need > 0

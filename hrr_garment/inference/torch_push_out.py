@@ -163,14 +163,8 @@ class PushOutStage(nn.Module):
         return p
 
     def _round(self, p, d, n, a, b):
-        """A push along the normals (or to the wrapped places), spread to the neighbours, never below what is needed."""
-        if self.settings.wrap:
-            move = self._wrap(p, d, a, b)
-            need = torch.sqrt((move * move).sum(-1))
-            n = torch.where((need > 0)[..., None], move / torch.clamp(need, min=1e-30)[..., None], n)
-            need = need.transpose(0, 1)
-        else:
-            need = torch.clamp(self.settings.margin - d, min=0.0).transpose(0, 1)  # vertex-major, as smooth takes it
+        """A push along the normals, spread to the neighbours, never below what is needed."""
+        need = torch.clamp(self.settings.margin - d, min=0.0).transpose(0, 1)  # vertex-major, as smooth takes it
         normals = n.transpose(0, 1)
         for _ in range(self.settings.follow):
             need, normals = self._follow(need, normals)
@@ -182,63 +176,6 @@ class PushOutStage(nn.Module):
             disp = disp + short[..., None] * normals
         p = p + disp.transpose(0, 1)
         return (p, *self.distance(p, a, b))
-
-    def _wrap(self, p: torch.Tensor, d: torch.Tensor, a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
-        """(N, V, 3) each vertex's move to its wrapped place (:func:`~.limb_wrap.wrap_displacements`,
-        batched; 0 where it is more than the margin out). The patches by label propagation: each hit
-        vertex takes the least index among its ring's hit vertices of the same capsule until none
-        changes (an ONNX ``Loop`` when exporting)."""
-        margin = self.settings.margin
-        ab = b - a
-        ab_ab = torch.clamp((ab * ab).sum(-1), min=1e-12)  # (N, C)
-        s_all = torch.clamp(((p[:, :, None] - a[:, None]) * ab[:, None]).sum(-1) / ab_ab[:, None], 0.0, 1.0)  # (N, V, C)
-        rel = p[:, :, None] - a[:, None] - s_all[..., None] * ab[:, None]  # (N, V, C, 3)
-        cap = (torch.sqrt((rel * rel).sum(-1)) - self.radii).argmin(-1)  # (N, V)
-        pick = torch.nn.functional.one_hot(cap, a.shape[1]).to(p.dtype)
-        s = (pick * s_all).sum(-1)
-        u = (pick[..., None] * rel).sum(2)
-        rho = torch.sqrt((u * u).sum(-1))
-        uhat = u / torch.clamp(rho, min=1e-12)[..., None]
-        r = pick @ self.radii
-        hit = d < margin
-        count = p.shape[1]
-        index = torch.arange(count, device=p.device)
-        label = torch.where(hit, index[None], torch.full_like(cap, count))
-        joined = hit[:, self.ring] & (cap[:, self.ring] == cap[..., None]) & hit[..., None]  # (N, V, D)
-
-        def spread(changed, label):
-            new = torch.minimum(label, torch.where(joined, label[:, self.ring], torch.full_like(joined, count, dtype=label.dtype)).min(-1).values)
-            return (new != label).any(), new
-
-        state = (torch.ones((), dtype=torch.bool, device=p.device), label)
-        if torch.compiler.is_compiling():
-            _, label = while_loop(lambda changed, label: changed, spread, state)
-        else:
-            while bool(state[0]):
-                state = spread(*state)
-            label = state[1]
-        weight = torch.clamp(margin - d, min=0.0)[..., None] * uhat * hit[..., None]
-        centre = torch.zeros((p.shape[0], count + 1, 3), dtype=p.dtype, device=p.device)
-        centre = centre.scatter_add(1, label[..., None].expand(-1, -1, 3), weight)
-        u0 = torch.gather(centre, 1, label[..., None].expand(-1, -1, 3))
-        axis = (pick @ ab) / torch.sqrt(pick @ ab_ab[..., None])
-        cylinder = ((s > 0.0) & (s < 1.0))[..., None]
-        u0 = torch.where(cylinder, u0 - (u0 * axis).sum(-1, keepdim=True) * axis, u0)
-        norm = torch.sqrt((u0 * u0).sum(-1, keepdim=True))
-        least = torch.nn.functional.one_hot(axis.abs().argmin(-1), 3).to(p.dtype)
-        square = torch.linalg.cross(axis, least)
-        square = square / torch.clamp(torch.sqrt((square * square).sum(-1, keepdim=True)), min=1e-12)
-        fallback = torch.where((rho > 1e-12)[..., None], uhat, square)
-        u0 = torch.where(norm > 1e-9, u0 / torch.clamp(norm, min=1e-12), fallback)
-        cos = torch.clamp((uhat * u0).sum(-1), -1.0, 1.0)
-        perp = uhat - cos[..., None] * u0
-        pn = torch.sqrt((perp * perp).sum(-1, keepdim=True))
-        perp = torch.where(pn > 1e-9, perp / torch.clamp(pn, min=1e-12), torch.linalg.cross(axis, u0))
-        angle = torch.atan2(pn[..., 0], cos) * torch.clamp(rho / r, max=1.0)
-        direction = torch.cos(angle)[..., None] * u0 + torch.sin(angle)[..., None] * perp
-        direction = direction / torch.clamp(torch.sqrt((direction * direction).sum(-1, keepdim=True)), min=1e-12)
-        move = (p - u) + (r + margin)[..., None] * direction - p
-        return torch.where(hit[..., None], move, torch.zeros_like(move))
 
     def _follow(self, need: torch.Tensor, normals: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """One pass of the neighbour-follow (:func:`~hrr_garment.inference.collision.follow_pushes`),

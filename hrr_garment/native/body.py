@@ -20,8 +20,7 @@ class PushSteps(NamedTuple):
     ``depth`` beyond which a vertex counts as inside; ``mesh`` (:class:`PushMesh`) the
     neighbour-follow and the patches measured against the capsules near them (None: neither);
     ``limit`` (:class:`StrainLimit`) the strain limit each frame gets right after its push (None: none);
-    ``subspace`` (:class:`SubspaceMove`) the push in the garment's subspace before it (None: none);
-    ``wrap``: the pushes wrapped onto the limbs (:mod:`hrr_garment.inference.limb_wrap`; needs ``mesh``)."""
+    ``subspace`` (:class:`SubspaceMove`) the push in the garment's subspace before it (None: none)."""
 
     mean: object
     margin: float
@@ -31,18 +30,17 @@ class PushSteps(NamedTuple):
     mesh: "PushMesh | None" = None
     limit: "StrainLimit | None" = None
     subspace: "SubspaceMove | None" = None
-    wrap: bool = False
 
     def arguments(self) -> "_PushArgs":
         """The kernel's PushArgs of these steps."""
-        return _PushArgs(self.margin, self.smooth, self.rounds, self.depth, int(self.wrap))
+        return _PushArgs(self.margin, self.smooth, self.rounds, self.depth)
 
 
 class _PushArgs(ctypes.Structure):
     """kernels.c's PushArgs."""
 
     _fields_ = [("margin", ctypes.c_double), ("smooth", ctypes.c_int), ("rounds", ctypes.c_int),
-                ("depth", ctypes.c_double), ("wrap", ctypes.c_int)]
+                ("depth", ctypes.c_double)]
 
 
 class _SubspaceArgs(ctypes.Structure):
@@ -179,7 +177,7 @@ def push_out_frames(lib: ctypes.CDLL, points: np.ndarray, capsules: tuple, steps
     the edges of the vertices the push moved); ``after`` is the push's, before the limit. Frames in
     parallel; a single frame (streaming) shared by the threads. ``out``: a C-contiguous float32
     array of the points' shape the pushed points are written to (and returned)."""
-    mean, mesh, limit, subspace = steps.mean, steps.mesh, steps.limit, steps.subspace
+    mean, *_, mesh, limit, subspace = steps
     a, b, r = _capsule_arrays(*capsules)
     p = np.ascontiguousarray(points, np.float64 if np.asarray(points).dtype == np.float64 else np.float32)
     if out is None:

@@ -298,13 +298,11 @@ typedef struct {
 
 /* The push's settings (hrr_garment.native.body.PushSteps): the margin outside the body a pushed
    vertex lands, the smoothing passes, the push-and-smooth rounds, and the depth past which a vertex
-   counts as inside in the before and after fractions; wrap (0 or 1): the pushes of the vertices
-   within the margin wrapped onto their capsule (wrap_pushes). */
+   counts as inside in the before and after fractions. */
 typedef struct {
     double margin;
     int smooth, rounds;
     double depth;
-    int wrap;
 } PushArgs;
 
 enum { MAX_REGION_RINGS = 256 };
@@ -412,128 +410,6 @@ static inline void take_if_inside(int v, const double *d, int32_t *list, int *n,
     if (!vmark[v]) { vmark[v] = 1; moved[(*total)++] = v; }
 }
 
-/* The wrap of hrr_garment/inference/limb_wrap.py, its reference: the `seeds` vertices listed first
-   in `region` (those within the margin, in vertex order) get, in need and nrm, the move to their
-   wrapped place (a patch's vertex at distance rho from its capsule's axis and angle phi from the
-   patch's centre direction onto the surface at angle phi rho / r). Patches: the seeds of one
-   capsule joined by the ring (m->ring, its padding the vertex itself). pmark: zero on entry and on
-   return. Run by one thread; the arithmetic and its order as the reference's (the same to 1e-12). */
-static int wrap_pushes(const double *p, const double *ca, const double *cb, const double *radii, int C,
-                       const PushMesh *m, double margin, const double *d, double *need, double *nrm,
-                       const int32_t *region, int seeds, int *pmark)
-{
-    int32_t *ints = malloc(sizeof(int32_t) * 3 * (size_t)seeds);
-    double *centre = malloc(sizeof(double) * 3 * (size_t)seeds);
-    if (!ints || !centre) { free(ints); free(centre); return -1; }
-    int32_t *cap = ints, *patch = ints + seeds, *queue = ints + 2 * (size_t)seeds;
-    for (int i = 0; i < seeds; ++i) {  /* the nearest capsule (the first of equals, as argmin) */
-        const double *q = p + 3 * (size_t)region[i];
-        double best = 0.0;
-        for (int c = 0; c < C; ++c) {
-            const double *a = ca + 3 * c, *b = cb + 3 * c;
-            const double ab[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
-            double l2 = ab[0] * ab[0] + ab[1] * ab[1] + ab[2] * ab[2];
-            l2 = l2 > 1e-12 ? l2 : 1e-12;
-            double s = ((q[0] - a[0]) * ab[0] + (q[1] - a[1]) * ab[1] + (q[2] - a[2]) * ab[2]) / l2;
-            s = s < 0.0 ? 0.0 : s > 1.0 ? 1.0 : s;
-            const double r0 = q[0] - a[0] - s * ab[0], r1 = q[1] - a[1] - s * ab[1], r2 = q[2] - a[2] - s * ab[2];
-            const double sd = sqrt(r0 * r0 + r1 * r1 + r2 * r2) - radii[c];
-            if (c == 0 || sd < best) { best = sd; cap[i] = c; }
-        }
-        pmark[region[i]] = i + 1;
-        patch[i] = -1;
-    }
-    int patches = 0;
-    for (int i = 0; i < seeds; ++i) {  /* the patches, breadth first over the ring */
-        if (patch[i] >= 0) continue;
-        int head = 0, tail = 0;
-        patch[i] = patches;
-        queue[tail++] = i;
-        while (head < tail) {
-            const int j = queue[head++];
-            const int32_t *nb = m->ring + (size_t)region[j] * m->width;
-            for (int k = 0; k < m->width; ++k) {
-                const int l = pmark[nb[k]] - 1;
-                if (l >= 0 && patch[l] < 0 && cap[l] == cap[j]) { patch[l] = patches; queue[tail++] = l; }
-            }
-        }
-        ++patches;
-    }
-    for (int k = 0; k < 3 * patches; ++k) centre[k] = 0.0;
-    for (int i = 0; i < seeds; ++i) {  /* each patch's need-weighted outward direction, in vertex order */
-        const int v = region[i], c = cap[i];
-        const double *q = p + 3 * (size_t)v, *a = ca + 3 * c, *b = cb + 3 * c;
-        const double ab[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
-        double l2 = ab[0] * ab[0] + ab[1] * ab[1] + ab[2] * ab[2];
-        l2 = l2 > 1e-12 ? l2 : 1e-12;
-        double s = ((q[0] - a[0]) * ab[0] + (q[1] - a[1]) * ab[1] + (q[2] - a[2]) * ab[2]) / l2;
-        s = s < 0.0 ? 0.0 : s > 1.0 ? 1.0 : s;
-        double u[3] = {q[0] - a[0] - s * ab[0], q[1] - a[1] - s * ab[1], q[2] - a[2] - s * ab[2]};
-        double rho = sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2]);
-        const double inv = 1.0 / (rho > 1e-12 ? rho : 1e-12), w = margin - d[v];
-        for (int k = 0; k < 3; ++k) centre[3 * patch[i] + k] += w * (u[k] * inv);
-    }
-    for (int i = 0; i < seeds; ++i) {
-        const int v = region[i], c = cap[i];
-        const double *q = p + 3 * (size_t)v, *a = ca + 3 * c, *b = cb + 3 * c, r = radii[c];
-        const double ab[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
-        double l2 = ab[0] * ab[0] + ab[1] * ab[1] + ab[2] * ab[2];
-        l2 = l2 > 1e-12 ? l2 : 1e-12;
-        double s = ((q[0] - a[0]) * ab[0] + (q[1] - a[1]) * ab[1] + (q[2] - a[2]) * ab[2]) / l2;
-        s = s < 0.0 ? 0.0 : s > 1.0 ? 1.0 : s;
-        const double u[3] = {q[0] - a[0] - s * ab[0], q[1] - a[1] - s * ab[1], q[2] - a[2] - s * ab[2]};
-        const double rho = sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2]);
-        const double inv = 1.0 / (rho > 1e-12 ? rho : 1e-12);
-        const double uh[3] = {u[0] * inv, u[1] * inv, u[2] * inv};
-        const double len = sqrt(l2), axis[3] = {ab[0] / len, ab[1] / len, ab[2] / len};
-        double u0[3] = {centre[3 * patch[i]], centre[3 * patch[i] + 1], centre[3 * patch[i] + 2]};
-        if (s > 0.0 && s < 1.0) {  /* on the cylinder: square to the axis */
-            const double along = u0[0] * axis[0] + u0[1] * axis[1] + u0[2] * axis[2];
-            for (int k = 0; k < 3; ++k) u0[k] -= along * axis[k];
-        }
-        const double norm = sqrt(u0[0] * u0[0] + u0[1] * u0[1] + u0[2] * u0[2]);
-        if (norm > 1e-9) {
-            for (int k = 0; k < 3; ++k) u0[k] /= norm > 1e-12 ? norm : 1e-12;
-        } else if (rho > 1e-12) {
-            for (int k = 0; k < 3; ++k) u0[k] = uh[k];
-        } else {  /* no side of its own: a fixed direction square to the axis */
-            const double ax0 = fabs(axis[0]), ax1 = fabs(axis[1]), ax2 = fabs(axis[2]);
-            const int least = ax0 <= ax1 && ax0 <= ax2 ? 0 : ax1 <= ax2 ? 1 : 2;
-            const double e[3] = {least == 0, least == 1, least == 2};
-            double sq[3] = {axis[1] * e[2] - axis[2] * e[1], axis[2] * e[0] - axis[0] * e[2], axis[0] * e[1] - axis[1] * e[0]};
-            const double sn = sqrt(sq[0] * sq[0] + sq[1] * sq[1] + sq[2] * sq[2]);
-            for (int k = 0; k < 3; ++k) u0[k] = sq[k] / sn;
-        }
-        double cosine = uh[0] * u0[0] + uh[1] * u0[1] + uh[2] * u0[2];
-        cosine = cosine < -1.0 ? -1.0 : cosine > 1.0 ? 1.0 : cosine;
-        double perp[3] = {uh[0] - cosine * u0[0], uh[1] - cosine * u0[1], uh[2] - cosine * u0[2]};
-        const double pn = sqrt(perp[0] * perp[0] + perp[1] * perp[1] + perp[2] * perp[2]);
-        if (pn > 1e-9) {
-            for (int k = 0; k < 3; ++k) perp[k] /= pn > 1e-12 ? pn : 1e-12;
-        } else {  /* opposite the centre, or on the axis: about the axis */
-            perp[0] = axis[1] * u0[2] - axis[2] * u0[1];
-            perp[1] = axis[2] * u0[0] - axis[0] * u0[2];
-            perp[2] = axis[0] * u0[1] - axis[1] * u0[0];
-        }
-        const double angle = atan2(pn, cosine) * (rho / r < 1.0 ? rho / r : 1.0), ct = cos(angle), st = sin(angle);
-        double dir[3] = {ct * u0[0] + st * perp[0], ct * u0[1] + st * perp[1], ct * u0[2] + st * perp[2]};
-        double dn = sqrt(dir[0] * dir[0] + dir[1] * dir[1] + dir[2] * dir[2]);
-        dn = dn > 1e-12 ? dn : 1e-12;
-        double move[3], size = 0.0;
-        for (int k = 0; k < 3; ++k) {
-            move[k] = (q[k] - u[k]) + (r + margin) * (dir[k] / dn) - q[k];
-            size += move[k] * move[k];
-        }
-        size = sqrt(size);
-        need[v] = size;
-        for (int k = 0; k < 3; ++k) nrm[3 * (size_t)v + k] = size > 0.0 ? move[k] / size : 0.0;
-    }
-    for (int i = 0; i < seeds; ++i) pmark[region[i]] = 0;
-    free(ints);
-    free(centre);
-    return 0;
-}
-
 /* The collision push-out of hrr_garment/inference/collision.py for one frame, the same steps:
    distances (sdf_patches); `rounds` times: each vertex needing to move (within `margin` of the
    body or inside) gets need along its normal, the neighbour-follow (m->follow max-plus passes over
@@ -548,7 +424,7 @@ static int wrap_pushes(const double *p, const double *ca, const double *cb, cons
    moved vertices' marks; the marks zero between calls) and flag (5: one per purpose, so that no
    thread can see a later value) are the team's shared scratch. */
 static void push_frame(double *p, int V, const double *ca, const double *cb, const double *radii, int C,
-                       const PushMesh *m, double margin, int smooth, int rounds, double depth, int wrap, double *before,
+                       const PushMesh *m, double margin, int smooth, int rounds, double depth, double *before,
                        double *after, double *buf, int32_t *ints, int *flag)
 {
     double *d = buf, *nrm = d + V, *need = nrm + 3 * (size_t)V, *req = need + V, *req2 = req + V;
@@ -573,10 +449,6 @@ static void push_frame(double *p, int V, const double *ca, const double *cb, con
             for (int v = 0; v < V; ++v) {
                 need[v] = margin - d[v] > 0.0 ? margin - d[v] : 0.0;
                 if (need[v] > 0.0) region[seeds++] = v;
-            }
-            if (wrap && m->ring && seeds > 0 && wrap_pushes(p, ca, cb, radii, C, m, margin, d, need, nrm, region, seeds, pmark)) {
-                seeds = 0;  /* out of memory: no push, and a NaN fraction the caller raises on */
-                *before = NAN;
             }
             flag[0] = seeds > 0 ? grow_region(m, V, rings, seeds, region, mark, ends) : 0;
         }
@@ -1046,7 +918,7 @@ static void push_and_limit(const void *in, int in_double, float *out, int V, con
         #pragma omp for schedule(static)
         for (int k = 0; k < 3 * V; ++k) u[k] = p[k];
     }
-    push_frame(p, V, ca, cb, radii, C, m, args->margin, args->smooth, args->rounds, args->depth, args->wrap, before, after, team->buf,
+    push_frame(p, V, ca, cb, radii, C, m, args->margin, args->smooth, args->rounds, args->depth, before, after, team->buf,
                team->ints, team->flag);
     if (s) {  /* push_frame ends at a barrier: the frame is pushed, team->moved lists what it moved */
         #pragma omp single
