@@ -80,7 +80,12 @@ def test_a_killed_build_leaves_no_process_and_resumes(tmp_path, sig):
     out = tmp_path / "skirt.h5"
     cmd = [sys.executable, "-m", "hrr_garment.cli.simulate", "--garment", "skirt", "--preset", "tiny", "--jobs", "2",
            "--motions", "walk", "spin", "--seconds", "2", "--no-preview", "-o", str(out)]
-    build = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+    # SIGINT at its default in the build (and so in its workers until die_with_parent ignores it):
+    # a runner started in the background of a shell without job control (nohup, a CI script) ignores
+    # it, every child inherited that, and the workers read as ready while still importing the
+    # simulator, outliving the killed build by the rest of their import (past 5 s on a loaded 2-core machine)
+    build = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True,
+                             preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     try:
         # two workers started and asked to die with the build, a sequence each under way
         assert wait_for(lambda: workers_asked_to_die(build.pid, 2), 120), session_processes(build.pid)
