@@ -34,11 +34,12 @@ demo: install
 # each worker's torch and kernels on its share of the cores (tests/conftest.py); PARALLEL= runs serially
 PARALLEL ?= -n auto --dist loadfile
 
-# layers (import-linter, pyproject's contract), lint (ruff), then the tests; the slowest 15 are listed
+# layers (import-linter, pyproject's contract), lint and format (ruff, 110 wide), then the tests; the slowest 15 are listed
 # at the end so that the ten-minute budget (docs/testing.md) is watched on every run, CI's included
 test: install
 	$(BIN)/lint-imports
 	$(BIN)/ruff check .
+	$(BIN)/ruff format --check .
 	$(BIN)/python -m pytest -q --durations=15 $(PARALLEL)
 
 # The quick loop (docs/testing.md): no lint, and none of the tests that train a model or run the

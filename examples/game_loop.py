@@ -59,7 +59,9 @@ class Window:
 
 def open_window(title: str) -> Window | None:
     """A window when a display and Tk are available, else None (headless)."""
-    if not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY") or sys.platform in ("win32", "darwin")):
+    if not (
+        os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY") or sys.platform in ("win32", "darwin")
+    ):
         return None
     try:
         return Window(title)
@@ -71,16 +73,24 @@ def open_window(title: str) -> Window | None:
 def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--model", default="dress", help="model directory or garment name (default: dress)")
-    p.add_argument("--motion", type=Path, default=None, help="BVH/npz to take poses from (default: procedural dance)")
+    p.add_argument(
+        "--motion", type=Path, default=None, help="BVH/npz to take poses from (default: procedural dance)"
+    )
     p.add_argument("--seconds", type=float, default=6.0, help="length of the procedural clip")
     p.add_argument("--characters", type=int, default=3, help="dancers streamed together (default 3)")
     p.add_argument("--headless", action="store_true", help="never open a window")
-    p.add_argument("--frames-dir", type=Path, default=Path("hrr_work/game_frames"), help="PNG frames when headless")
+    p.add_argument(
+        "--frames-dir", type=Path, default=Path("hrr_work/game_frames"), help="PNG frames when headless"
+    )
     p.add_argument("--save-every", type=int, default=10, help="headless: save every N-th frame")
     p.add_argument("--realtime", action="store_true", help="wait so frames are shown at the clip's rate")
     p.add_argument("--size", type=int, default=320, help="pixels per view")
-    p.add_argument("--precision", choices=PRECISIONS, default="float32",
-                   help="the mesh decoder's arithmetic: bfloat16 (AMX, recent Intel Xeons) for large crowds")
+    p.add_argument(
+        "--precision",
+        choices=PRECISIONS,
+        default="float32",
+        help="the mesh decoder's arithmetic: bfloat16 (AMX, recent Intel Xeons) for large crowds",
+    )
     return p
 
 
@@ -107,7 +117,9 @@ def main(argv=None) -> int:
     for t in range(motion.num_frames):
         frame = (start_frame + t) % motion.num_frames  # each character's frame of the clip this tick
         t0 = time.perf_counter()
-        vertices = crowd.push(quats[frame], motion.root_translation[frame] + place, keys=range(n))  # (n, V, 3)
+        vertices = crowd.push(
+            quats[frame], motion.root_translation[frame] + place, keys=range(n)
+        )  # (n, V, 3)
         push_ms.append(1000 * (time.perf_counter() - t0))
         if window is None and t % args.save_every:
             continue
@@ -115,9 +127,14 @@ def main(argv=None) -> int:
         meshes = []
         for i, f in enumerate(frame):
             body_v, body_f = body_mesh(ends_a[f] + place[i], ends_b[f] + place[i], DEFAULT_BODY.radii, 12, 6)
-            meshes += [PreviewMesh(body_v, body_f, BODY), PreviewMesh(vertices[i].astype(np.float64), faces, GARMENT)]
+            meshes += [
+                PreviewMesh(body_v, body_f, BODY),
+                PreviewMesh(vertices[i].astype(np.float64), faces, GARMENT),
+            ]
         centre = motion.root_translation[frame].mean(0) + place.mean(0)
-        image = render_scene(meshes, (centre[0], 0.0, centre[2]), style, f"frame {t}  push {push_ms[-1]:.1f} ms")
+        image = render_scene(
+            meshes, (centre[0], 0.0, centre[2]), style, f"frame {t}  push {push_ms[-1]:.1f} ms"
+        )
         if window is not None:
             window.show(image)
             if window.closed:
@@ -128,9 +145,11 @@ def main(argv=None) -> int:
         if args.realtime:
             time.sleep(max(0.0, start + (t + 1) / motion.fps - time.perf_counter()))
     p50, p99 = np.percentile(push_ms, [50, 99])
-    print(f"{len(push_ms)} frames of {n} x {animator.bundle.garment} ({vertices.shape[1]} vertices): crowd.push p50 "
-          f"{p50:.1f} ms, p99 {p99:.1f} ms for all {n}; drawing {np.mean(draw_ms):.0f} ms per shown frame"
-          + ("" if window else f"; frames in {args.frames_dir}"))
+    print(
+        f"{len(push_ms)} frames of {n} x {animator.bundle.garment} ({vertices.shape[1]} vertices): crowd.push p50 "
+        f"{p50:.1f} ms, p99 {p99:.1f} ms for all {n}; drawing {np.mean(draw_ms):.0f} ms per shown frame"
+        + ("" if window else f"; frames in {args.frames_dir}")
+    )
     return 0
 
 

@@ -28,8 +28,12 @@ import onnxruntime
 def _args() -> argparse.Namespace:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("graph", type=Path, help="the .onnx file written by hrr-export-model --onnx")
-    p.add_argument("poses", type=Path, help="npz of rotations (T, 22, 4) and root (T, 3), as hrr-motion poses writes")
-    p.add_argument("-o", "--output", type=Path, default=None, help="save the first character's garment as (T, V, 3) .npy")
+    p.add_argument(
+        "poses", type=Path, help="npz of rotations (T, 22, 4) and root (T, 3), as hrr-motion poses writes"
+    )
+    p.add_argument(
+        "-o", "--output", type=Path, default=None, help="save the first character's garment as (T, V, 3) .npy"
+    )
     p.add_argument("--characters", type=int, default=1, help="characters stepped together (default 1)")
     p.add_argument("--spacing", type=float, default=1.5, help="metres between the characters (default 1.5)")
     return p.parse_args()
@@ -66,8 +70,10 @@ def main() -> int:
         garment.append(result["vertices"][0] - offset[0])
     garment = np.stack(garment)
     ms = 1000 * np.array(seconds[10:] or seconds)  # the first frames warm onnxruntime up
-    print(f"{frames} frames of {n} character(s), {garment.shape[1]} vertices each: step median {np.median(ms):.2f} ms, "
-          f"p99 {np.percentile(ms, 99):.2f} ms ({meta.get('garment', '?')} model, body {meta.get('body', '?')})")
+    print(
+        f"{frames} frames of {n} character(s), {garment.shape[1]} vertices each: step median {np.median(ms):.2f} ms, "
+        f"p99 {np.percentile(ms, 99):.2f} ms ({meta.get('garment', '?')} model, body {meta.get('body', '?')})"
+    )
     if args.output is not None:
         partial = args.output.with_name(f".{args.output.name}.partial")
         with open(partial, "wb") as fh:  # written whole, then renamed: never a half-written file

@@ -33,8 +33,15 @@ from .motion.synth import synthesize
 from .motion.windows import windows
 from .sim.simulator import SimConfig, SimResult, SimulationExploded, simulate_garment
 
-_LAZY = {"Animation": "inference.animation", "AnimationStream": "inference.character_stream", "CrowdStream": "inference.stream", "Animator": "inference.animator",
-         "Bundle": "artifacts.bundle", "BundleError": "artifacts.bundle", "load_bundle": "artifacts.bundle"}
+_LAZY = {
+    "Animation": "inference.animation",
+    "AnimationStream": "inference.character_stream",
+    "CrowdStream": "inference.stream",
+    "Animator": "inference.animator",
+    "Bundle": "artifacts.bundle",
+    "BundleError": "artifacts.bundle",
+    "load_bundle": "artifacts.bundle",
+}
 
 
 def __getattr__(name: str):
@@ -45,6 +52,7 @@ def __getattr__(name: str):
 
         return getattr(importlib.import_module(f".{_LAZY[name]}", __name__), name)
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
 
 __all__ = [
     "__version__", "CANONICAL", "FEATURE_DIM", "FeatureStats", "HRRError", "InputError", "JOINT_NAMES", "MOTION_KINDS", "Motion",

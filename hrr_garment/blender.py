@@ -17,8 +17,10 @@ from pathlib import Path
 from .errors import InputError
 
 BLENDER_TIMEOUT_S = 600
-MISSING = ("needs Blender (4.2 or later): put `blender` on PATH or set HRR_BLENDER to it "
-           "(or to a Python 3.11 with `pip install bpy`)")
+MISSING = (
+    "needs Blender (4.2 or later): put `blender` on PATH or set HRR_BLENDER to it "
+    "(or to a Python 3.11 with `pip install bpy`)"
+)
 ERROR_PREFIX = "HRR-ERROR: "  # how a script run in Blender names what went wrong, on stdout
 
 
@@ -41,13 +43,20 @@ def run_blender_script(script: Path, arguments: list[str], *, subject: str | Pat
     if command is None:
         raise InputError(subject, f"{what} {MISSING}")
     try:
-        done = subprocess.run([*command, str(script), "--", *arguments], capture_output=True, text=True,
-                              timeout=BLENDER_TIMEOUT_S, stdin=subprocess.DEVNULL)
+        done = subprocess.run(
+            [*command, str(script), "--", *arguments],
+            capture_output=True,
+            text=True,
+            timeout=BLENDER_TIMEOUT_S,
+            stdin=subprocess.DEVNULL,
+        )
     except FileNotFoundError:
         raise InputError(subject, f"{what} {MISSING} ({command[0]} is not there)") from None
     except subprocess.TimeoutExpired:
         raise InputError(subject, f"{what}: Blender did not finish in {BLENDER_TIMEOUT_S} s") from None
-    reported = [line[len(ERROR_PREFIX):] for line in done.stdout.splitlines() if line.startswith(ERROR_PREFIX)]
+    reported = [
+        line[len(ERROR_PREFIX) :] for line in done.stdout.splitlines() if line.startswith(ERROR_PREFIX)
+    ]
     if reported:
         raise InputError(subject, reported[0])
     if done.returncode != 0:

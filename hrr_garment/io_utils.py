@@ -19,8 +19,20 @@ from .errors import InputError, OutputError
 # Errors of the storage itself (full, over quota, read-only, no permission, failing), as opposed to a
 # bug or bad input inside the writing code: these become one-line OutputErrors naming the target. An
 # OSError without an errno counts too: writers such as numpy's zip report a short write that way.
-_STORAGE_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EFBIG, errno.EACCES, errno.EPERM, errno.EIO,
-                   errno.ENOENT, errno.ENOTDIR, errno.EISDIR, errno.EXDEV, errno.ENAMETOOLONG}
+_STORAGE_ERRNOS = {
+    errno.ENOSPC,
+    errno.EDQUOT,
+    errno.EROFS,
+    errno.EFBIG,
+    errno.EACCES,
+    errno.EPERM,
+    errno.EIO,
+    errno.ENOENT,
+    errno.ENOTDIR,
+    errno.EISDIR,
+    errno.EXDEV,
+    errno.ENAMETOOLONG,
+}
 
 
 def storage_error(path: str | Path, exc: OSError) -> OutputError:
@@ -36,8 +48,11 @@ def require_suffix(path: str | Path, suffixes: tuple[str, ...], what: str) -> No
     suffix = Path(path).suffix.lower()
     if suffix not in suffixes:
         names = " or ".join(f"a {s} file" if s else "a folder" for s in suffixes)
-        raise OutputError(path, f"{what} is written as {names}; this output's extension ({suffix or 'none'}) names "
-                                "another format: rename the output")
+        raise OutputError(
+            path,
+            f"{what} is written as {names}; this output's extension ({suffix or 'none'}) names "
+            "another format: rename the output",
+        )
 
 
 def refuse_input_as_output(output: str | Path, inputs: Iterable[str | Path | None]) -> None:
@@ -49,8 +64,13 @@ def refuse_input_as_output(output: str | Path, inputs: Iterable[str | Path | Non
             return
         for source in inputs:
             if source is not None and Path(source).exists() and os.path.samefile(out, source):
-                raise OutputError(out, f"is the input {source}: writing it would destroy the input; give another output path")
-    except OSError as exc:  # a name the system cannot hold (ENAMETOOLONG) and the like: the writer will say so
+                raise OutputError(
+                    out,
+                    f"is the input {source}: writing it would destroy the input; give another output path",
+                )
+    except (
+        OSError
+    ) as exc:  # a name the system cannot hold (ENAMETOOLONG) and the like: the writer will say so
         raise storage_error(out, exc) from None
 
 
@@ -66,7 +86,9 @@ def atomic_path(path: str | Path, private: bool = False) -> Iterator[Path]:
     path = Path(path)
     try:
         if path.exists() and not path.is_file():
-            raise OutputError(path, "exists and is not a regular file (a folder or a device); give a file path")
+            raise OutputError(
+                path, "exists and is not a regular file (a folder or a device); give a file path"
+            )
         path.parent.mkdir(parents=True, exist_ok=True)
         fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp" + path.suffix, dir=path.parent)
         os.close(fd)
@@ -207,7 +229,9 @@ def exclusive_lock(path: str | Path, resource: object, busy: str) -> Iterator[Pa
             fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
             fh.seek(0)
-            raise InputError(resource, f"{busy} (process {fh.read().strip() or 'unknown'} holds {path})") from None
+            raise InputError(
+                resource, f"{busy} (process {fh.read().strip() or 'unknown'} holds {path})"
+            ) from None
         fh.seek(0)
         fh.truncate()
         fh.write(str(os.getpid()))

@@ -28,12 +28,24 @@ def deep_merge(base: dict, override: dict) -> dict:
     file over the defaults: it names only what it changes)."""
     out = dict(base)
     for key, value in (override or {}).items():
-        out[key] = deep_merge(out[key], value) if isinstance(value, dict) and isinstance(out.get(key), dict) else value
+        out[key] = (
+            deep_merge(out[key], value)
+            if isinstance(value, dict) and isinstance(out.get(key), dict)
+            else value
+        )
     return out
 
 
-def require_number(what: str, name: str, value, *, low: float | None = None, high: float | None = None,
-                   whole: bool = False, above: bool = False) -> None:
+def require_number(
+    what: str,
+    name: str,
+    value,
+    *,
+    low: float | None = None,
+    high: float | None = None,
+    whole: bool = False,
+    above: bool = False,
+) -> None:
     """Refuse a setting that is not a finite number (a whole one with ``whole``) from ``low``
     (exclusive with ``above``) to ``high``: a hand-edited file's -5 window or "x" scale fails here,
     named, instead of deep in the model."""
@@ -41,8 +53,17 @@ def require_number(what: str, name: str, value, *, low: float | None = None, hig
     ok = ok and (not whole or float(value).is_integer())
     ok = ok and (low is None or (value > low if above else value >= low)) and (high is None or value <= high)
     if not ok:
-        bounds = [f"above {low:g}" if above else (f"from {low:g}" if high is not None else f"at least {low:g}")] \
-            if low is not None else []
-        bounds += [f"{'and at most' if above else 'to'} {high:g}" if bounds else f"at most {high:g}"] if high is not None else []
+        bounds = (
+            [f"above {low:g}" if above else (f"from {low:g}" if high is not None else f"at least {low:g}")]
+            if low is not None
+            else []
+        )
+        bounds += (
+            [f"{'and at most' if above else 'to'} {high:g}" if bounds else f"at most {high:g}"]
+            if high is not None
+            else []
+        )
         span = " ".join(bounds)
-        raise SettingsError(f"{what}: {name} must be a {'whole ' if whole else ''}number {span}, got {value!r}")
+        raise SettingsError(
+            f"{what}: {name} must be a {'whole ' if whole else ''}number {span}, got {value!r}"
+        )

@@ -27,9 +27,14 @@ def die_with_parent(parent_pid: int) -> None:
     handler a forked worker inherited."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
-    asked = sys.platform.startswith("linux") and ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGKILL) == 0
+    asked = (
+        sys.platform.startswith("linux")
+        and ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGKILL) == 0
+    )
     if not asked:
-        threading.Thread(target=_watch_parent, args=(parent_pid,), daemon=True, name="die-with-parent").start()
+        threading.Thread(
+            target=_watch_parent, args=(parent_pid,), daemon=True, name="die-with-parent"
+        ).start()
     if os.getppid() != parent_pid:  # the parent died before the signal was asked for
         os._exit(1)
 

@@ -12,7 +12,12 @@ CMU_CLIPS = ("02_01", "131_01", "131_03")
 
 # The tiers (pyproject's markers, docs/testing.md): a test that uses one of these session fixtures,
 # directly or through another fixture, is marked by what the fixture does the first time it runs
-SLOW_FIXTURES = {"trained", "paper_model", "artist_model", "bodies_model"}  # train a tiny model: tens of seconds and more
+SLOW_FIXTURES = {
+    "trained",
+    "paper_model",
+    "artist_model",
+    "bodies_model",
+}  # train a tiny model: tens of seconds and more
 SIM_FIXTURES = {"artist_model"}  # runs hrr-simulate (newton/Warp)
 
 
@@ -91,8 +96,13 @@ subspace:
 """
 
 
-def train_tiny(data: Path, folder: Path, config: Path, stages: tuple[str, ...] | None = None,
-               overrides: dict | None = None):
+def train_tiny(
+    data: Path,
+    folder: Path,
+    config: Path,
+    stages: tuple[str, ...] | None = None,
+    overrides: dict | None = None,
+):
     """Train through the library (:func:`hrr_garment.pipeline.train.train_model`) as ``hrr-train
     --dataset DATA --config CONFIG -o FOLDER`` does: the quick preset's settings under the config's."""
     from hrr_garment.pipeline.train import STAGES, TrainSettings, train_model
@@ -113,7 +123,11 @@ def trained(tmp_path_factory):
     data = synthetic_dataset(root / "skirt.h5", make_garment("skirt", 300))
     (root / "cfg.yaml").write_text(TINY_TRAINING)
     result = train_tiny(data, root / "model", root / "cfg.yaml")
-    assert set(result.reports) == {"autoencoder", "codespace", "subspace"} and result.auto["mode"] in ("hybrid", "residual", "detail")
+    assert set(result.reports) == {"autoencoder", "codespace", "subspace"} and result.auto["mode"] in (
+        "hybrid",
+        "residual",
+        "detail",
+    )
     args = ["--dataset", str(data), "--config", str(root / "cfg.yaml"), "-o", str(root / "model"), "--quiet"]
     return root, data, args
 
@@ -125,7 +139,17 @@ def current_copy(trained, folder: Path) -> tuple[Path, list[str]]:
 
     root, data, args = trained
     shutil.copytree(root / "model", folder)
-    stage = ["--dataset", str(data), "--config", args[3], "--stage", "codespace", "-o", str(folder), "--quiet"]
+    stage = [
+        "--dataset",
+        str(data),
+        "--config",
+        args[3],
+        "--stage",
+        "codespace",
+        "-o",
+        str(folder),
+        "--quiet",
+    ]
     train_tiny(data, folder, Path(args[3]), stages=("codespace",))
     return folder, stage
 
@@ -159,11 +183,38 @@ def artist_model(tmp_path_factory):
     data = root / "artist.h5"
     printed = io.StringIO()
     with contextlib.redirect_stdout(printed):
-        assert simulate_main(["--template", str(obj), "--fit", "--attached", "auto", "--preset", "tiny", "--motions",
-                              "walk", "spin", "walk", "--seconds", "1.0", "--jobs", "1", "--quiet", "-o", str(data)]) == 0
+        assert (
+            simulate_main(
+                [
+                    "--template",
+                    str(obj),
+                    "--fit",
+                    "--attached",
+                    "auto",
+                    "--preset",
+                    "tiny",
+                    "--motions",
+                    "walk",
+                    "spin",
+                    "walk",
+                    "--seconds",
+                    "1.0",
+                    "--jobs",
+                    "1",
+                    "--quiet",
+                    "-o",
+                    str(data),
+                ]
+            )
+            == 0
+        )
     # as bundles written before the motion memory and the expected-code regression
-    (root / "cfg.yaml").write_text(TINY_TRAINING.replace("attention_heads: 2}", "attention_heads: 2, memory_seconds: [], resonator_hz: [], "
-                                                                                "regression_code: argmax}"))
+    (root / "cfg.yaml").write_text(
+        TINY_TRAINING.replace(
+            "attention_heads: 2}",
+            "attention_heads: 2, memory_seconds: [], resonator_hz: [], regression_code: argmax}",
+        )
+    )
     train_tiny(data, root / "model", root / "cfg.yaml")
     return data, root / "model", printed.getvalue()
 
@@ -177,8 +228,13 @@ def paper_model(trained, tmp_path_factory):
     root, data, _ = trained
     folder = tmp_path_factory.mktemp("paper") / "model"
     shutil.copytree(root / "model" / "autoencoder", folder / "autoencoder")
-    train_tiny(data, folder, root / "cfg.yaml", stages=("codespace",),
-               overrides={"codespace": {"train": {"validation": "windows"}}})
+    train_tiny(
+        data,
+        folder,
+        root / "cfg.yaml",
+        stages=("codespace",),
+        overrides={"codespace": {"train": {"validation": "windows"}}},
+    )
     return folder
 
 

@@ -27,10 +27,16 @@ from hrr_garment.motion.skeleton import CANONICAL, JOINT_NAMES, PARENTS
 from tests.conftest import write_meta
 
 # HRR_PROPERTY_EXAMPLES raises the count for a longer search than make test's
-BOUNDED = settings(max_examples=int(os.environ.get("HRR_PROPERTY_EXAMPLES", "60")), deadline=None, derandomize=True,
-                   suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
+BOUNDED = settings(
+    max_examples=int(os.environ.get("HRR_PROPERTY_EXAMPLES", "60")),
+    deadline=None,
+    derandomize=True,
+    suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow],
+)
 
-ODD_NUMBERS = st.sampled_from(["nan", "inf", "-inf", "1e308", "-1e308", "0", "-0", "1e-320", "1e6", "x", "", "1e999"])
+ODD_NUMBERS = st.sampled_from(
+    ["nan", "inf", "-inf", "1e308", "-1e308", "0", "-0", "1e-320", "1e6", "x", "", "1e999"]
+)
 
 
 @pytest.fixture(scope="module")
@@ -38,8 +44,15 @@ def seeds(tmp_path_factory) -> dict[str, Path]:
     """A valid BVH, native npz and AMASS npz of a short walk, for the mutations below."""
     folder = tmp_path_factory.mktemp("seeds")
     motion = synthesize("walk", 0.5, seed=3)
-    write_bvh(folder / "walk.bvh", list(JOINT_NAMES), list(PARENTS), CANONICAL.offsets,
-              motion.local_rotations.astype(np.float64), motion.root_translation, 1 / 30)
+    write_bvh(
+        folder / "walk.bvh",
+        list(JOINT_NAMES),
+        list(PARENTS),
+        CANONICAL.offsets,
+        motion.local_rotations.astype(np.float64),
+        motion.root_translation,
+        1 / 30,
+    )
     save_motion(motion, folder / "walk.npz")
     save_amass(motion, folder / "amass.npz")
     return {"bvh": folder / "walk.bvh", "native": folder / "walk.npz", "amass": folder / "amass.npz"}
@@ -70,26 +83,36 @@ def test_bvh_with_numbers_replaced_loads_or_is_refused(seeds, tmp_path, edits):
 
 
 @BOUNDED
-@given(cut=st.integers(0, 10**6), drop=st.lists(st.integers(0, 10**6), max_size=4),
-       junk=st.binary(max_size=64))
+@given(
+    cut=st.integers(0, 10**6), drop=st.lists(st.integers(0, 10**6), max_size=4), junk=st.binary(max_size=64)
+)
 def test_bvh_truncated_or_with_lines_dropped_loads_or_is_refused(seeds, tmp_path, cut, drop, junk):
     lines = seeds["bvh"].read_bytes().split(b"\n")
     for d in drop:
         lines.pop(d % len(lines))
     data = b"\n".join(lines)
     path = tmp_path / "cut.bvh"
-    path.write_bytes(data[:cut % (len(data) + 1)] + junk)
+    path.write_bytes(data[: cut % (len(data) + 1)] + junk)
     _loads_or_refuses(path)
 
 
-_DTYPES = st.sampled_from(["float64", "float32", "float16", "int64", "int8", "uint8", "bool", "complex64", "U4", "S4"])
+_DTYPES = st.sampled_from(
+    ["float64", "float32", "float16", "int64", "int8", "uint8", "bool", "complex64", "U4", "S4"]
+)
 
 
 @BOUNDED
-@given(which=st.sampled_from(["native", "amass"]), key_index=st.integers(0, 100), dtype=_DTYPES,
-       scale=st.sampled_from([1.0, 0.0, -1.0, 1e3, 1e300, math.nan, math.inf]), frames=st.integers(0, 3),
-       drop=st.booleans())
-def test_npz_with_a_changed_array_loads_or_is_refused(seeds, tmp_path, which, key_index, dtype, scale, frames, drop):
+@given(
+    which=st.sampled_from(["native", "amass"]),
+    key_index=st.integers(0, 100),
+    dtype=_DTYPES,
+    scale=st.sampled_from([1.0, 0.0, -1.0, 1e3, 1e300, math.nan, math.inf]),
+    frames=st.integers(0, 3),
+    drop=st.booleans(),
+)
+def test_npz_with_a_changed_array_loads_or_is_refused(
+    seeds, tmp_path, which, key_index, dtype, scale, frames, drop
+):
     with np.load(seeds[which]) as z:
         arrays = dict(z)
     key = sorted(arrays)[key_index % len(arrays)]
@@ -114,7 +137,7 @@ def test_npz_with_a_changed_array_loads_or_is_refused(seeds, tmp_path, which, ke
 
 
 @BOUNDED
-@given(rate=st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.integers(-10**12, 10**12)))
+@given(rate=st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.integers(-(10**12), 10**12)))
 def test_frame_rates_are_plausible_or_refused(rate):
     try:
         got = check_source_fps(rate, "clip.bvh")
@@ -124,9 +147,11 @@ def test_frame_rates_are_plausible_or_refused(rate):
     assert math.isfinite(got) and 1 <= got <= 1000
 
 
-JSON = st.recursive(st.none() | st.booleans() | st.floats() | st.integers() | st.text(max_size=8),
-                    lambda inner: st.lists(inner, max_size=4) | st.dictionaries(st.text(max_size=8), inner, max_size=4),
-                    max_leaves=12)
+JSON = st.recursive(
+    st.none() | st.booleans() | st.floats() | st.integers() | st.text(max_size=8),
+    lambda inner: st.lists(inner, max_size=4) | st.dictionaries(st.text(max_size=8), inner, max_size=4),
+    max_leaves=12,
+)
 
 
 @pytest.fixture(scope="module")
@@ -136,9 +161,15 @@ def bundle_json(trained) -> dict:
 
 
 @BOUNDED
-@given(key=st.sampled_from(["files", "content_hash", "garment", "tau", "autoencoder", "codespace", "database",
-                            "format_version"]), value=JSON)
-def test_bundle_json_with_any_value_in_a_key_is_verified_or_refused(trained, bundle_json, tmp_path, key, value):
+@given(
+    key=st.sampled_from(
+        ["files", "content_hash", "garment", "tau", "autoencoder", "codespace", "database", "format_version"]
+    ),
+    value=JSON,
+)
+def test_bundle_json_with_any_value_in_a_key_is_verified_or_refused(
+    trained, bundle_json, tmp_path, key, value
+):
     import shutil
 
     root, _, _ = trained

@@ -60,18 +60,37 @@ def _rate(decode, z: torch.Tensor, seconds: float) -> float:
 
 def bench(vertices: int, batch: int, seconds: float, compiled: bool, torch_path: bool) -> dict:
     garment = make_garment("dress", vertices)
-    model = MeshAutoencoder(build_hierarchy(garment.faces, garment.num_vertices), AutoencoderConfig(), garment.vertices).eval()
+    model = MeshAutoencoder(
+        build_hierarchy(garment.faces, garment.num_vertices), AutoencoderConfig(), garment.vertices
+    ).eval()
     fast = model.fast_decoder()
     z = torch.randn(batch, *model.latent_shape)
     with torch.no_grad():
-        max_diff = float((fast(z) - model.decode(z)).abs().max())  # the fast path must equal the training path
+        max_diff = float(
+            (fast(z) - model.decode(z)).abs().max()
+        )  # the fast path must equal the training path
     fps = _rate(fast, z, seconds)
-    extra = {"torch_frames_per_s": round(_rate(model.fast_decoder(native=False), z, seconds), 1)} if torch_path else {}
+    extra = (
+        {"torch_frames_per_s": round(_rate(model.fast_decoder(native=False), z, seconds), 1)}
+        if torch_path
+        else {}
+    )
     flops = decoder_flops(model)
-    return {"vertices": garment.num_vertices, "levels": list(model.hierarchy.sizes), "latent": list(model.latent_shape),
-            "backend": "native" if fast.native else "torch", "max_abs_diff_vs_training_path": max_diff, **extra, "batch": batch, "threads": torch.get_num_threads(), "frames_per_s": round(fps, 1),
-            "ms_per_frame": round(1000 / fps, 3), "mflop_per_frame": round(flops / 1e6, 2), "gflops": round(flops * fps / 1e9, 2),
-            **(_compiled(fast, z, seconds) if compiled else {})}
+    return {
+        "vertices": garment.num_vertices,
+        "levels": list(model.hierarchy.sizes),
+        "latent": list(model.latent_shape),
+        "backend": "native" if fast.native else "torch",
+        "max_abs_diff_vs_training_path": max_diff,
+        **extra,
+        "batch": batch,
+        "threads": torch.get_num_threads(),
+        "frames_per_s": round(fps, 1),
+        "ms_per_frame": round(1000 / fps, 3),
+        "mflop_per_frame": round(flops / 1e6, 2),
+        "gflops": round(flops * fps / 1e9, 2),
+        **(_compiled(fast, z, seconds) if compiled else {}),
+    }
 
 
 def _compiled(fast, z: torch.Tensor, seconds: float) -> dict:
@@ -86,8 +105,14 @@ def main() -> None:
     parser.add_argument("--batch", type=int, default=64)
     parser.add_argument("--seconds", type=float, default=5.0, help="timing window per resolution")
     parser.add_argument("--json", action="store_true", help="one JSON object per resolution, nothing else")
-    parser.add_argument("--compile", action="store_true", help="also time the torch.compile'd PyTorch path (compiles ~1 min)")
-    parser.add_argument("--torch", action="store_true", help="also time the plain PyTorch path (what runs without a C compiler)")
+    parser.add_argument(
+        "--compile", action="store_true", help="also time the torch.compile'd PyTorch path (compiles ~1 min)"
+    )
+    parser.add_argument(
+        "--torch",
+        action="store_true",
+        help="also time the plain PyTorch path (what runs without a C compiler)",
+    )
     args = parser.parse_args()
     peak = matmul_peak()
     for v in args.vertices:
@@ -97,13 +122,19 @@ def main() -> None:
         if args.json:
             print(json.dumps(result))
         else:
-            print(f"{result['vertices']} vertices (levels {result['levels']}), {result['backend']} decoder: {result['frames_per_s']} frames/s "
-                  f"({result['ms_per_frame']} ms/frame, batch {args.batch}, {result['threads']} threads); "
-                  f"{result['mflop_per_frame']} MFLOP/frame -> {result['gflops']} GFLOP/s = "
-                  f"{100 * result['fraction_of_peak']:.1f} % of the {peak:.0f} GFLOP/s matmul peak"
-                  + (f"; PyTorch path: {result['torch_frames_per_s']} frames/s" if args.torch else "")
-                  + (f"; compiled PyTorch path: {result['compiled_frames_per_s']} frames/s" if args.compile else "")
-                  + f"; max |fast - training path| {result['max_abs_diff_vs_training_path']:.1e}")
+            print(
+                f"{result['vertices']} vertices (levels {result['levels']}), {result['backend']} decoder: {result['frames_per_s']} frames/s "
+                f"({result['ms_per_frame']} ms/frame, batch {args.batch}, {result['threads']} threads); "
+                f"{result['mflop_per_frame']} MFLOP/frame -> {result['gflops']} GFLOP/s = "
+                f"{100 * result['fraction_of_peak']:.1f} % of the {peak:.0f} GFLOP/s matmul peak"
+                + (f"; PyTorch path: {result['torch_frames_per_s']} frames/s" if args.torch else "")
+                + (
+                    f"; compiled PyTorch path: {result['compiled_frames_per_s']} frames/s"
+                    if args.compile
+                    else ""
+                )
+                + f"; max |fast - training path| {result['max_abs_diff_vs_training_path']:.1e}"
+            )
 
 
 if __name__ == "__main__":

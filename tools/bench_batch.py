@@ -40,21 +40,33 @@ def run_point(items: list[BatchItem], config: SimConfig, alone: np.ndarray) -> d
     kept = [r for r in results if isinstance(r, SimResult)]
     frames = sum(r.simulated_frames for r in kept)
     stepping = sum(r.step_seconds for r in kept)
-    return {"batch": len(items), "exploded": len(items) - len(kept), "frames": frames,
-            "frames_per_s": round(frames / stepping, 2), "ms_per_batch_frame": round(1000 * stepping / max(r.simulated_frames for r in kept), 2),
-            "wall_s": round(wall, 2),
-            "first_vs_alone_max_mm": round(1000 * float(np.abs(results[0].vertices - alone).max()), 4)
-            if isinstance(results[0], SimResult) else None}
+    return {
+        "batch": len(items),
+        "exploded": len(items) - len(kept),
+        "frames": frames,
+        "frames_per_s": round(frames / stepping, 2),
+        "ms_per_batch_frame": round(1000 * stepping / max(r.simulated_frames for r in kept), 2),
+        "wall_s": round(wall, 2),
+        "first_vs_alone_max_mm": round(1000 * float(np.abs(results[0].vertices - alone).max()), 4)
+        if isinstance(results[0], SimResult)
+        else None,
+    }
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--device", default="auto", help="warp device: auto, cpu, cuda:0")
-    parser.add_argument("--max-batch", type=int, default=8, help="the largest batch (sizes 1, 2, 4, ... up to it)")
+    parser.add_argument(
+        "--max-batch", type=int, default=8, help="the largest batch (sizes 1, 2, 4, ... up to it)"
+    )
     parser.add_argument("--garment", default="dress")
     parser.add_argument("--vertices", type=int, default=300)
-    parser.add_argument("--seconds", type=float, default=1.0, help="each clip's length (a 1.3 s lead-in precedes it)")
-    parser.add_argument("--schedule", default="10x3", help="substeps x iterations (real-quick: 15x1, real-full: 25x1)")
+    parser.add_argument(
+        "--seconds", type=float, default=1.0, help="each clip's length (a 1.3 s lead-in precedes it)"
+    )
+    parser.add_argument(
+        "--schedule", default="10x3", help="substeps x iterations (real-quick: 15x1, real-full: 25x1)"
+    )
     args = parser.parse_args()
     substeps, iterations = (int(x) for x in args.schedule.lower().split("x"))
     config = SimConfig(device=args.device, substeps=substeps, iterations=iterations, retries=0)
@@ -62,22 +74,44 @@ def main() -> None:
     sizes = [1]
     while sizes[-1] * 2 <= args.max_batch:
         sizes.append(sizes[-1] * 2)
-    items = [BatchItem(garment, synthesize("walk", args.seconds, seed=k), DEFAULT_BODY) for k in range(sizes[-1])]
-    print(json.dumps({"machine": platform.processor() or platform.machine(), "python": platform.python_version(),
-                      "device": args.device, "garment": args.garment, "vertices": garment.num_vertices,
-                      "seconds": args.seconds, "schedule": args.schedule}), flush=True)
+    items = [
+        BatchItem(garment, synthesize("walk", args.seconds, seed=k), DEFAULT_BODY) for k in range(sizes[-1])
+    ]
+    print(
+        json.dumps(
+            {
+                "machine": platform.processor() or platform.machine(),
+                "python": platform.python_version(),
+                "device": args.device,
+                "garment": args.garment,
+                "vertices": garment.num_vertices,
+                "seconds": args.seconds,
+                "schedule": args.schedule,
+            }
+        ),
+        flush=True,
+    )
     simulate_batch(items[:2], replace(config, settle_s=0.0, blend_s=0.0))  # load the kernels
     alone = simulate_garment(garment, items[0].motion, config)
-    alone_point = {"batch": "alone", "frames_per_s": round(alone.simulated_frames / alone.step_seconds, 2),
-                   "wall_s": round(alone.seconds, 2)}
+    alone_point = {
+        "batch": "alone",
+        "frames_per_s": round(alone.simulated_frames / alone.step_seconds, 2),
+        "wall_s": round(alone.seconds, 2),
+    }
     print(json.dumps(alone_point), flush=True)
     points = []
     for size in sizes:
         points.append(run_point(items[:size], config, alone.vertices))
         print(json.dumps(points[-1]), flush=True)
     base = points[0]["frames_per_s"]
-    print(json.dumps({"frames_per_s_vs_batch_1": {p["batch"]: round(p["frames_per_s"] / base, 2) for p in points},
-                      "batch_1_vs_alone": round(base / alone_point["frames_per_s"], 2)}))
+    print(
+        json.dumps(
+            {
+                "frames_per_s_vs_batch_1": {p["batch"]: round(p["frames_per_s"] / base, 2) for p in points},
+                "batch_1_vs_alone": round(base / alone_point["frames_per_s"], 2),
+            }
+        )
+    )
 
 
 if __name__ == "__main__":

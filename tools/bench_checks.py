@@ -65,21 +65,38 @@ def main() -> None:
     keys = list(range(n))
     teleport_us = _median_us(lambda: crowd._restart_teleported(keys, poses), args.repeat)  # noqa: SLF001 - the check alone
     store = animator.bundle.folds
-    result = {"model": args.model, "crowd": n, "mode": str(crowd.mode), "step_median_us": round(step_us, 1),
-              "entry_checks_us": round(entry_us, 1), "teleport_check_us": round(teleport_us, 1)}
+    result = {
+        "model": args.model,
+        "crowd": n,
+        "mode": str(crowd.mode),
+        "step_median_us": round(step_us, 1),
+        "entry_checks_us": round(entry_us, 1),
+        "teleport_check_us": round(teleport_us, 1),
+    }
     if store is not None:
-        local = animator.animate(clip.slice(0, n), mode="regression", collision=False).vertices.astype(np.float64)
+        local = animator.animate(clip.slice(0, n), mode="regression", collision=False).vertices.astype(
+            np.float64
+        )
         rows = np.stack([np.arange(n) * 97 % len(store.levels), np.zeros(n, np.int64)], 1)
         folds = store.folds(rows, np.stack([np.ones(n), np.zeros(n)], 1))
-        plain = _median_us(lambda: add_folds(local, folds, animator.smoothing, store.passes), args.repeat // 4)
-        limited = _median_us(lambda: add_folds(local, folds, animator.smoothing, store.passes, limits=animator.edge_limits),
-                             args.repeat // 4)
+        plain = _median_us(
+            lambda: add_folds(local, folds, animator.smoothing, store.passes), args.repeat // 4
+        )
+        limited = _median_us(
+            lambda: add_folds(local, folds, animator.smoothing, store.passes, limits=animator.edge_limits),
+            args.repeat // 4,
+        )
         # each character's fold read at a cross-fade (two rows), the most the fold track reads in a step
         fading = np.stack([rows[:, 0], (rows[:, 0] + 1) % len(store.levels)], 1)
         read = _median_us(lambda: store.folds(fading, np.full((n, 2), 0.5)), args.repeat)
-        result.update(add_folds_us=round(plain, 1), add_folds_limited_us=round(limited, 1),
-                      fold_limit_share=round((limited - plain) / step_us, 4), fold_encoding=store.encoding,
-                      fold_read_us=round(read, 1), fold_read_share=round(read / step_us, 4))
+        result.update(
+            add_folds_us=round(plain, 1),
+            add_folds_limited_us=round(limited, 1),
+            fold_limit_share=round((limited - plain) / step_us, 4),
+            fold_encoding=store.encoding,
+            fold_read_us=round(read, 1),
+            fold_read_share=round(read / step_us, 4),
+        )
     result.update(entry_share=round((entry_us + teleport_us) / step_us, 4))
     if args.json:
         print(json.dumps(result))

@@ -56,9 +56,16 @@ def build_animation(path: Path, frames: int, vertices: int) -> Path:
     swing = 0.08 * below_hips * np.sin(2 * np.pi * 0.9 * t + rest[None, :, 0:1] * 3 + rest[None, :, 2:3] * 2)
     local = rest[None] + swing * np.array([1.0, 0.15, 0.6])
     a, b = DEFAULT_BODY.pose_motion(motion)
-    arrays = AnimationArrays(vertices=from_body_frame(local, motion), faces=dress.faces, joints=motion.joint_positions,
-                             retrieved=np.zeros(frames, np.uint8), entropy=np.zeros(frames), match=np.full((frames, 2), -1),
-                             capsules=np.stack([a, b], 2), radii=DEFAULT_BODY.radii)
+    arrays = AnimationArrays(
+        vertices=from_body_frame(local, motion),
+        faces=dress.faces,
+        joints=motion.joint_positions,
+        retrieved=np.zeros(frames, np.uint8),
+        entropy=np.zeros(frames),
+        match=np.full((frames, 2), -1),
+        capsules=np.stack([a, b], 2),
+        radii=DEFAULT_BODY.radii,
+    )
     return write_animation_h5(path, arrays, {"fps": 30.0, "garment": "dress", "source_motion": "bench"})
 
 
@@ -78,18 +85,36 @@ def main() -> None:
         source = build_animation(root / "out.h5", args.frames, args.vertices)
         anim = read_animation_h5(source)
         jobs = {
-            "glb (1 mm keyframes)": (root / "a.glb", lambda o: write_glb(read_animation_h5(source), o, 0.001)),
+            "glb (1 mm keyframes)": (
+                root / "a.glb",
+                lambda o: write_glb(read_animation_h5(source), o, 0.001),
+            ),
             "glb (every frame)": (root / "b.glb", lambda o: write_glb(read_animation_h5(source), o, 0.0)),
-            "glb + body": (root / "c.glb", lambda o: write_glb(read_animation_h5(source), o, 0.001, with_body=True)),
+            "glb + body": (
+                root / "c.glb",
+                lambda o: write_glb(read_animation_h5(source), o, 0.001, with_body=True),
+            ),
             "usd (usdc)": (root / "a.usdc", lambda o: write_usd(read_animation_h5(source), o)),
             "pc2 + obj": (root / "a.pc2", lambda o: write_pc2_with_obj(read_animation_h5(source), o)),
-            "obj sequence": (root / "seq", lambda o: write_obj_sequence(read_animation_h5(source), o, progress=False)),
+            "obj sequence": (
+                root / "seq",
+                lambda o: write_obj_sequence(read_animation_h5(source), o, progress=False),
+            ),
         }
         if not args.no_preview:
-            jobs["gif preview (every 2nd frame)"] = (root / "p.gif", lambda o: write_preview(
-                read_animation_h5(source), o, PreviewStyle(), every=2, progress=False))
-        results = {"frames": anim.num_frames, "vertices": int(anim.vertices.shape[1]), "faces": int(len(anim.faces)),
-                   "out_h5_bytes": source.stat().st_size, "formats": {}}
+            jobs["gif preview (every 2nd frame)"] = (
+                root / "p.gif",
+                lambda o: write_preview(
+                    read_animation_h5(source), o, PreviewStyle(), every=2, progress=False
+                ),
+            )
+        results = {
+            "frames": anim.num_frames,
+            "vertices": int(anim.vertices.shape[1]),
+            "faces": int(len(anim.faces)),
+            "out_h5_bytes": source.stat().st_size,
+            "formats": {},
+        }
         for name, (out, job) in jobs.items():
             t0 = time.perf_counter()
             value = job(out)
@@ -101,12 +126,18 @@ def main() -> None:
                 row["max_error_mm"] = round(1000 * value.keyframes.max_error, 3)
             results["formats"][name] = row
             if not args.json:
-                extra = f", {row['keyframes']} keyframes (max error {row['max_error_mm']} mm)" if "keyframes" in row else ""
+                extra = (
+                    f", {row['keyframes']} keyframes (max error {row['max_error_mm']} mm)"
+                    if "keyframes" in row
+                    else ""
+                )
                 print(f"{name:32s} {seconds:6.2f} s  {size / 2**20:8.1f} MiB{extra}")
     if args.json:
         print(json.dumps(results, indent=1))
     else:
-        print(f"({results['frames']} frames x {results['vertices']} vertices; out.h5 {results['out_h5_bytes'] / 2**20:.1f} MiB)")
+        print(
+            f"({results['frames']} frames x {results['vertices']} vertices; out.h5 {results['out_h5_bytes'] / 2**20:.1f} MiB)"
+        )
 
 
 if __name__ == "__main__":

@@ -67,33 +67,59 @@ def random_bundle(vertices: int, windows: int, seed: int = 0, components: int = 
     torch.manual_seed(seed)
     rng = np.random.default_rng(seed)
     garment = make_garment("dress", vertices)
-    ae = MeshAutoencoder(build_hierarchy(garment.faces, garment.num_vertices), AutoencoderConfig(), garment.vertices,
-                         0.02).eval()
+    ae = MeshAutoencoder(
+        build_hierarchy(garment.faces, garment.num_vertices), AutoencoderConfig(), garment.vertices, 0.02
+    ).eval()
     cfg = CodeSpaceConfig()
     cs = CodeSpace(cfg, cfg.features, ae.latent_shape).eval()
     size = ae.latent_shape[0] * ae.latent_shape[1]
     sequence, start = np.arange(windows) // 111, np.arange(windows) % 111
-    lengths = np.full(int(sequence[-1]) + 1, 111 + cfg.window - 1)  # every sequence's frames, as many as its windows cover
+    lengths = np.full(
+        int(sequence[-1]) + 1, 111 + cfg.window - 1
+    )  # every sequence's frames, as many as its windows cover
     frames = int(lengths.sum())
 
     def random_frames(*shape: int) -> WindowFrames:
-        return WindowFrames.of_sequences([rng.normal(size=(n, *shape)).astype(np.float32) for n in lengths], sequence, start,
-                                         cfg.window)
+        return WindowFrames.of_sequences(
+            [rng.normal(size=(n, *shape)).astype(np.float32) for n in lengths], sequence, start, cfg.window
+        )
 
-    db = CodeDatabase(rng.integers(0, cfg.classes, (windows, cfg.groups)), random_frames(*ae.latent_shape), sequence, start,
-                      [f"s{i}" for i in range(len(lengths))], cfg.classes, random_frames(cfg.features))
+    db = CodeDatabase(
+        rng.integers(0, cfg.classes, (windows, cfg.groups)),
+        random_frames(*ae.latent_shape),
+        sequence,
+        start,
+        [f"s{i}" for i in range(len(lengths))],
+        cfg.classes,
+        random_frames(cfg.features),
+    )
     meta = {"tau": 1.0, "gate": "entropy", "gates": {}, "garment": "dress", "content_hash": "random"}
     blocks = fold_codec.blocks_of(3 * garment.num_vertices)  # as new bundles store them: nf4
-    folds = FoldStore(rng.integers(0, 256, (frames, blocks, fold_codec.BLOCK // 2), dtype=np.uint8),
-                      np.full((frames, blocks), 1e-3, np.float16), np.r_[0, np.cumsum(lengths)], encoding="nf4",
-                      vertices=garment.num_vertices)
-    subspace = SubspaceDecoder(ae.latent_shape, garment.num_vertices, components)  # random weights: a timing stand-in
+    folds = FoldStore(
+        rng.integers(0, 256, (frames, blocks, fold_codec.BLOCK // 2), dtype=np.uint8),
+        np.full((frames, blocks), 1e-3, np.float16),
+        np.r_[0, np.cumsum(lengths)],
+        encoding="nf4",
+        vertices=garment.num_vertices,
+    )
+    subspace = SubspaceDecoder(
+        ae.latent_shape, garment.num_vertices, components
+    )  # random weights: a timing stand-in
     subspace.basis.copy_(torch.linalg.qr(torch.randn(3 * garment.num_vertices, components))[0].T)
     subspace.mean.copy_(torch.from_numpy(garment.vertices.astype(np.float32).ravel()))
     subspace.coeff_std.fill_(1e-3)
-    return Bundle(Path("."), meta, ae, cs, FeatureStats(np.zeros(cfg.features, np.float32), np.ones(cfg.features, np.float32)),
-                  FeatureStats(np.zeros(size, np.float32), np.ones(size, np.float32)), db, garment, folds=folds,
-                  subspace=subspace.eval())
+    return Bundle(
+        Path("."),
+        meta,
+        ae,
+        cs,
+        FeatureStats(np.zeros(cfg.features, np.float32), np.ones(cfg.features, np.float32)),
+        FeatureStats(np.zeros(size, np.float32), np.ones(size, np.float32)),
+        db,
+        garment,
+        folds=folds,
+        subspace=subspace.eval(),
+    )
 
 
 def _fps(animator: Animator, motion, repeat: int = 3, **kwargs) -> float:
@@ -117,7 +143,9 @@ def _median_entropy_tau(bundle: Bundle, motion) -> float:
 
     feats = with_memory(motion_features(motion), motion.fps, bundle.codespace.config.memory)
     windows = np.ascontiguousarray(feature_windows(feats, bundle.codespace.config.window))
-    entropy = encode_motion(bundle.codespace, bundle.motion_stats, bundle.latent_stats, windows, regression=False).entropy
+    entropy = encode_motion(
+        bundle.codespace, bundle.motion_stats, bundle.latent_stats, windows, regression=False
+    ).entropy
     return float(np.quantile(entropy, 0.5, method="lower"))
 
 
@@ -142,7 +170,9 @@ def crowd_bodies(count: int, source: str = "scaled") -> list:
     out = []
     for k in np.linspace(0.9, 1.1, count):
         skeleton = Skeleton(offsets=(REST_OFFSETS * k).astype(np.float32))
-        body = scaled_capsules(skeleton, skeleton.rest_positions(np.array([0.0, REST_PELVIS_HEIGHT * k, 0.0])))
+        body = scaled_capsules(
+            skeleton, skeleton.rest_positions(np.array([0.0, REST_PELVIS_HEIGHT * k, 0.0]))
+        )
         out.append(BodyRecord(skeleton, body, pelvis_height=REST_PELVIS_HEIGHT * k, stature=1.7 * k))
     return out
 
@@ -154,8 +184,18 @@ def _ping_pong(frame: np.ndarray, frames: int) -> np.ndarray:
     return np.where(phase < frames, phase, period - phase)
 
 
-def bench_crowd(animator: Animator, motion, tau: float, characters: int, pace: float, frames: int = 300,
-                bodies: list | None = None, decoder: str = "full", device: str = "native", push: str = "mesh") -> dict:
+def bench_crowd(
+    animator: Animator,
+    motion,
+    tau: float,
+    characters: int,
+    pace: float,
+    frames: int = 300,
+    bodies: list | None = None,
+    decoder: str = "full",
+    device: str = "native",
+    push: str = "mesh",
+) -> dict:
     """``characters`` streamed together for ``frames`` frames: character i plays ``motion`` from frame
     7 i, forward then backward at its ends (a wrap would jump the pelvis back, which the stream takes
     as a teleport and restarts the character), and stands 2 i metres to the side (on ``bodies[i]``
@@ -165,15 +205,20 @@ def bench_crowd(animator: Animator, motion, tau: float, characters: int, pace: f
     ``push``: the push-out's "mesh" or "subspace" push."""
     from hrr_garment.motion.rotations import matrix_to_quat
 
-    quats = matrix_to_quat(motion.local_rotations.astype(np.float64))[..., [1, 2, 3, 0]].astype(np.float32)  # (x, y, z, w)
+    quats = matrix_to_quat(motion.local_rotations.astype(np.float64))[..., [1, 2, 3, 0]].astype(
+        np.float32
+    )  # (x, y, z, w)
     offsets = np.arange(characters) * 7
     side = np.stack([2.0 * np.arange(characters), np.zeros(characters), np.zeros(characters)], 1)
     native = device == "native"
     sync = torch.cuda.synchronize if device.startswith("cuda") else (lambda: None)
     out = {}
     for key, fps in (("", 0.0), ("paced_", pace)) if pace else (("", 0.0),):
-        crowd = (animator.crowd(mode="hybrid", tau=tau, decoder=decoder, device="native", push=push) if native
-                 else animator.crowd(mode="regression", decoder=decoder, device=device, push=push))
+        crowd = (
+            animator.crowd(mode="hybrid", tau=tau, decoder=decoder, device="native", push=push)
+            if native
+            else animator.crowd(mode="regression", decoder=decoder, device=device, push=push)
+        )
         with warnings.catch_warnings():  # bodies outside a model's range: timed all the same
             warnings.simplefilter("ignore")
             for i, body in enumerate(bodies or []):
@@ -187,21 +232,34 @@ def bench_crowd(animator: Animator, motion, tau: float, characters: int, pace: f
             if native:
                 crowd.push(quats[idx], motion.root_translation[idx] + side)
             else:
-                crowd.push(quats[idx], (motion.root_translation[idx] + side).astype(np.float32), as_tensor=True)
+                crowd.push(
+                    quats[idx], (motion.root_translation[idx] + side).astype(np.float32), as_tensor=True
+                )
                 sync()
             lat.append(time.perf_counter() - t0)
         lat = 1000 * np.array(lat)[20:]
         out[f"{key}p50_ms"], out[f"{key}p99_ms"] = (round(float(np.percentile(lat, q)), 2) for q in (50, 99))
         if not key and native:  # where the step's time goes: each stage's median
-            out["stage_p50_ms"] = {k: round(1000 * float(np.median(np.array(v)[20:])), 3) for k, v in crowd.timings.stage_s.items()}
+            out["stage_p50_ms"] = {
+                k: round(1000 * float(np.median(np.array(v)[20:])), 3)
+                for k, v in crowd.timings.stage_s.items()
+            }
     out.setdefault("paced_p50_ms", None), out.setdefault("paced_p99_ms", None)
     out["per_character_us"] = round(1000 * out["p50_ms"] / characters, 1)
     out["character_frames_per_s"] = round(1000 * characters / out["p50_ms"], 1)
     return out
 
 
-def bench_crowd_bodies(animator: Animator, motion, tau: float, characters: int, frames: int, repeat: int,
-                       decoder: str = "full", source: str = "scaled") -> dict:
+def bench_crowd_bodies(
+    animator: Animator,
+    motion,
+    tau: float,
+    characters: int,
+    frames: int,
+    repeat: int,
+    decoder: str = "full",
+    source: str = "scaled",
+) -> dict:
     """The crowd with one body for all (the model's own) and with a body per character
     (:func:`crowd_bodies` of ``source``), alternating ``repeat`` times, back to back: each run's p50
     and p99, push-out stage median, and the median ratio of the p99s (N bodies over one)."""
@@ -209,22 +267,39 @@ def bench_crowd_bodies(animator: Animator, motion, tau: float, characters: int, 
     runs = {"one_body": [], "bodies": []}
     for _ in range(repeat):
         runs["one_body"].append(bench_crowd(animator, motion, tau, characters, 0.0, frames, decoder=decoder))
-        runs["bodies"].append(bench_crowd(animator, motion, tau, characters, 0.0, frames, bodies=bodies, decoder=decoder))
+        runs["bodies"].append(
+            bench_crowd(animator, motion, tau, characters, 0.0, frames, bodies=bodies, decoder=decoder)
+        )
     ratios = [b["p99_ms"] / o["p99_ms"] for o, b in zip(runs["one_body"], runs["bodies"])]
-    return {k: [{"p50_ms": r["p50_ms"], "p99_ms": r["p99_ms"], "push_out_p50_ms": r["stage_p50_ms"]["push_out"]}
-                for r in v] for k, v in runs.items()} | {"bodies_from": source,
-        "p99_ratio_median": round(float(np.median(ratios)), 3), "p99_ratios": [round(r, 3) for r in ratios]}
+    return {
+        k: [
+            {"p50_ms": r["p50_ms"], "p99_ms": r["p99_ms"], "push_out_p50_ms": r["stage_p50_ms"]["push_out"]}
+            for r in v
+        ]
+        for k, v in runs.items()
+    } | {
+        "bodies_from": source,
+        "p99_ratio_median": round(float(np.median(ratios)), 3),
+        "p99_ratios": [round(r, 3) for r in ratios],
+    }
 
 
-def _offline_and_stream(animator: Animator, motion, tau: float, repeat: int, pace: float, decoder: str) -> dict:
+def _offline_and_stream(
+    animator: Animator, motion, tau: float, repeat: int, pace: float, decoder: str
+) -> dict:
     """Offline frames/s per mode (push-out off, and the hybrid's with it), and one character streamed
     back to back, without the push-out and paced: latency percentiles and each stage's median."""
     out = {}
     for mode in ("hybrid", "regression", "retrieval", "detail"):
-        out[f"fps_{mode}"] = round(_fps(animator, motion, repeat, mode=mode, tau=tau, collision=False, decoder=decoder), 1)
-    out["fps_hybrid_with_collision"] = round(_fps(animator, motion, repeat, mode="hybrid", tau=tau, collision=True,
-                                                  decoder=decoder), 1)
-    runs = [("stream", True, 0.0), ("stream_no_collision", False, 0.0)] + ([("stream_paced", True, pace)] if pace else [])
+        out[f"fps_{mode}"] = round(
+            _fps(animator, motion, repeat, mode=mode, tau=tau, collision=False, decoder=decoder), 1
+        )
+    out["fps_hybrid_with_collision"] = round(
+        _fps(animator, motion, repeat, mode="hybrid", tau=tau, collision=True, decoder=decoder), 1
+    )
+    runs = [("stream", True, 0.0), ("stream_no_collision", False, 0.0)] + (
+        [("stream_paced", True, pace)] if pace else []
+    )
     for key, collision, fps in runs:
         stream = animator.stream(mode="hybrid", tau=tau, collision=collision, decoder=decoder)
         start = time.perf_counter()
@@ -236,14 +311,30 @@ def _offline_and_stream(animator: Animator, motion, tau: float, repeat: int, pac
         out[f"{key}_p50_ms"] = round(float(np.percentile(lat, 50)), 2)
         out[f"{key}_p99_ms"] = round(float(np.percentile(lat, 99)), 2)
         if key == "stream":  # where a streamed frame's time goes
-            out["stream_stage_p50_ms"] = {k: round(1000 * float(np.median(np.array(v)[20:])), 2) for k, v in stream.stage_s.items()}
+            out["stream_stage_p50_ms"] = {
+                k: round(1000 * float(np.median(np.array(v)[20:])), 2) for k, v in stream.stage_s.items()
+            }
     return out
 
 
-def bench(vertices: int, windows: int, seconds: float, model: str | None = None, motion_file: str | None = None,
-          pace: float = 30.0, crowd: list[int] | None = None, repeat: int = 3, precision: str = "float32",
-          crowd_frames: int = 300, crowd_bodies_repeat: int = 0, decoder: str = "full", offline: bool = True,
-          device: str = "native", push: str = "mesh", crowd_bodies_from: str = "scaled") -> dict:
+def bench(
+    vertices: int,
+    windows: int,
+    seconds: float,
+    model: str | None = None,
+    motion_file: str | None = None,
+    pace: float = 30.0,
+    crowd: list[int] | None = None,
+    repeat: int = 3,
+    precision: str = "float32",
+    crowd_frames: int = 300,
+    crowd_bodies_repeat: int = 0,
+    decoder: str = "full",
+    offline: bool = True,
+    device: str = "native",
+    push: str = "mesh",
+    crowd_bodies_from: str = "scaled",
+) -> dict:
     """``model``: a trained bundle instead of random weights (its own resolution, database and tau);
     ``motion_file``: a clip instead of the procedural curved walk; ``pace``: frames/s of the paced
     stream run (0: none); ``repeat``: timed passes per offline figure (their median); ``precision``:
@@ -253,23 +344,49 @@ def bench(vertices: int, windows: int, seconds: float, model: str | None = None,
     ("native": the CPU kernels; a torch device: the regression as one torch step, e.g. cuda);
     ``push``: the crowds' push-out, "mesh" or "subspace" (the push in the fast decoder's subspace first);
     ``crowd_bodies_from``: the bodies of the crowds on a body each (:func:`crowd_bodies`)."""
-    animator = (Animator.load(model, precision=precision) if model
-                else Animator(random_bundle(vertices, windows), precision=precision))
+    animator = (
+        Animator.load(model, precision=precision)
+        if model
+        else Animator(random_bundle(vertices, windows), precision=precision)
+    )
     bundle = animator.bundle
     motion = load_motion(motion_file) if motion_file else synthesize("walk_curve", seconds, seed=0)
     tau = bundle.tau if model else _median_entropy_tau(bundle, motion)
-    out = {"vertices": bundle.template.num_vertices, "database_windows": len(bundle.database), "clip_frames": motion.num_frames,
-           "threads": torch.get_num_threads(), "precision": precision, "model": model or "random weights", "motion": motion_file or "procedural walk_curve",
-           "decoder": decoder, "crowd_device": device, "crowd_push": push}
+    out = {
+        "vertices": bundle.template.num_vertices,
+        "database_windows": len(bundle.database),
+        "clip_frames": motion.num_frames,
+        "threads": torch.get_num_threads(),
+        "precision": precision,
+        "model": model or "random weights",
+        "motion": motion_file or "procedural walk_curve",
+        "decoder": decoder,
+        "crowd_device": device,
+        "crowd_push": push,
+    }
     if offline:
         out.update(_offline_and_stream(animator, motion, tau, repeat, pace, decoder))
     if crowd:
-        out["crowd"] = {str(n): bench_crowd(animator, motion, tau, n, pace, crowd_frames, decoder=decoder, device=device,
-                                            push=push)
-                        for n in crowd}
+        out["crowd"] = {
+            str(n): bench_crowd(
+                animator, motion, tau, n, pace, crowd_frames, decoder=decoder, device=device, push=push
+            )
+            for n in crowd
+        }
         if crowd_bodies_repeat:
-            out["crowd_bodies"] = {str(n): bench_crowd_bodies(animator, motion, tau, n, crowd_frames, crowd_bodies_repeat,
-                                                              decoder=decoder, source=crowd_bodies_from) for n in crowd}
+            out["crowd_bodies"] = {
+                str(n): bench_crowd_bodies(
+                    animator,
+                    motion,
+                    tau,
+                    n,
+                    crowd_frames,
+                    crowd_bodies_repeat,
+                    decoder=decoder,
+                    source=crowd_bodies_from,
+                )
+                for n in crowd
+            }
     out["peak_rss_mb"] = round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 1)
     out["native_decoder"] = animator.decoder.native  # the full decoder's kernels
     return out
@@ -278,61 +395,136 @@ def bench(vertices: int, windows: int, seconds: float, model: str | None = None,
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--vertices", type=int, nargs="+", default=[4000, 12000])
-    parser.add_argument("--database", type=int, default=5700, help="database windows (the full preset has ~5,700)")
+    parser.add_argument(
+        "--database", type=int, default=5700, help="database windows (the full preset has ~5,700)"
+    )
     parser.add_argument("--seconds", type=float, default=20.0, help="clip length")
-    parser.add_argument("--model", default=None, help="a trained model (directory or garment name) instead of random weights")
-    parser.add_argument("--motion", default=None, help="a motion file (BVH / npz) instead of the procedural clip")
-    parser.add_argument("--pace", type=float, default=30.0,
-                        help="also stream paced at this many frames/s, idle between pushes as in a game (0: skip)")
-    parser.add_argument("--crowd", type=int, nargs="*", default=[],
-                        help="also stream crowds of these many characters, one call per frame (e.g. 1 8 32)")
-    parser.add_argument("--crowd-frames", type=int, default=300,
-                        help="steps per crowd run, the first 20 warm-up (p99 of 280: the third-worst step)")
-    parser.add_argument("--crowd-bodies", nargs="?", const="scaled", choices=("scaled", "anny"),
-                        help="also time each crowd with a body per character against one body for all, alternating: "
-                             "the mannequin scaled 0.9-1.1 (scaled, the default) or anny bodies sampled as the "
-                             "bodies preset does (anny: the bodies extra)")
+    parser.add_argument(
+        "--model", default=None, help="a trained model (directory or garment name) instead of random weights"
+    )
+    parser.add_argument(
+        "--motion", default=None, help="a motion file (BVH / npz) instead of the procedural clip"
+    )
+    parser.add_argument(
+        "--pace",
+        type=float,
+        default=30.0,
+        help="also stream paced at this many frames/s, idle between pushes as in a game (0: skip)",
+    )
+    parser.add_argument(
+        "--crowd",
+        type=int,
+        nargs="*",
+        default=[],
+        help="also stream crowds of these many characters, one call per frame (e.g. 1 8 32)",
+    )
+    parser.add_argument(
+        "--crowd-frames",
+        type=int,
+        default=300,
+        help="steps per crowd run, the first 20 warm-up (p99 of 280: the third-worst step)",
+    )
+    parser.add_argument(
+        "--crowd-bodies",
+        nargs="?",
+        const="scaled",
+        choices=("scaled", "anny"),
+        help="also time each crowd with a body per character against one body for all, alternating: "
+        "the mannequin scaled 0.9-1.1 (scaled, the default) or anny bodies sampled as the "
+        "bodies preset does (anny: the bodies extra)",
+    )
     parser.add_argument("--crowd-repeat", type=int, default=3, help="alternations of the --crowd-bodies runs")
-    parser.add_argument("--repeat", type=int, default=3, help="timed passes per offline figure (their median)")
-    parser.add_argument("--precision", choices=PRECISIONS, default="float32",
-                        help="the mesh decoder's arithmetic for batches (crowds, offline); bfloat16 needs AMX")
-    parser.add_argument("--push", choices=("mesh", "subspace"), default="mesh",
-                        help="the crowds' push-out: mesh, or subspace (the push in the fast decoder's subspace first)")
-    parser.add_argument("--decoder", choices=("full", "fast"), default="full",
-                        help="the mesh decoder: full, or fast (the subspace decoder; random weights get a random one)")
-    parser.add_argument("--device", default="native",
-                        help="where crowds run: native (the CPU kernels, the hybrid) or a torch device such as cuda "
-                             "(the regression as one torch step)")
-    parser.add_argument("--crowd-only", action="store_true", help="only the crowds (no offline or single-stream figures)")
+    parser.add_argument(
+        "--repeat", type=int, default=3, help="timed passes per offline figure (their median)"
+    )
+    parser.add_argument(
+        "--precision",
+        choices=PRECISIONS,
+        default="float32",
+        help="the mesh decoder's arithmetic for batches (crowds, offline); bfloat16 needs AMX",
+    )
+    parser.add_argument(
+        "--push",
+        choices=("mesh", "subspace"),
+        default="mesh",
+        help="the crowds' push-out: mesh, or subspace (the push in the fast decoder's subspace first)",
+    )
+    parser.add_argument(
+        "--decoder",
+        choices=("full", "fast"),
+        default="full",
+        help="the mesh decoder: full, or fast (the subspace decoder; random weights get a random one)",
+    )
+    parser.add_argument(
+        "--device",
+        default="native",
+        help="where crowds run: native (the CPU kernels, the hybrid) or a torch device such as cuda "
+        "(the regression as one torch step)",
+    )
+    parser.add_argument(
+        "--crowd-only", action="store_true", help="only the crowds (no offline or single-stream figures)"
+    )
     parser.add_argument("--json", action="store_true", help="one JSON object per resolution, nothing else")
     args = parser.parse_args()
-    for v in ([None] if args.model else args.vertices):
-        r = bench(v, args.database, args.seconds, args.model, args.motion, args.pace, args.crowd, args.repeat, args.precision,
-                  args.crowd_frames, args.crowd_repeat if args.crowd_bodies else 0, decoder=args.decoder,
-                  offline=not args.crowd_only, device=args.device, push=args.push,
-                  crowd_bodies_from=args.crowd_bodies or "scaled")
+    for v in [None] if args.model else args.vertices:
+        r = bench(
+            v,
+            args.database,
+            args.seconds,
+            args.model,
+            args.motion,
+            args.pace,
+            args.crowd,
+            args.repeat,
+            args.precision,
+            args.crowd_frames,
+            args.crowd_repeat if args.crowd_bodies else 0,
+            decoder=args.decoder,
+            offline=not args.crowd_only,
+            device=args.device,
+            push=args.push,
+            crowd_bodies_from=args.crowd_bodies or "scaled",
+        )
         if args.json:
             print(json.dumps(r))
             continue
-        print(f"{r['model']}, {r['motion']}: {r['vertices']} vertices, database {r['database_windows']} windows, "
-              f"{r['threads']} threads, {r['precision']} {r['decoder']} decoder; peak RSS {r['peak_rss_mb']} MB")
+        print(
+            f"{r['model']}, {r['motion']}: {r['vertices']} vertices, database {r['database_windows']} windows, "
+            f"{r['threads']} threads, {r['precision']} {r['decoder']} decoder; peak RSS {r['peak_rss_mb']} MB"
+        )
         if not args.crowd_only:
-            print(f"  {r['clip_frames']}-frame clip: offline frames/s hybrid {r['fps_hybrid']}, regression {r['fps_regression']}, "
-                  f"retrieval {r['fps_retrieval']}, detail {r['fps_detail']} (hybrid with push-out {r['fps_hybrid_with_collision']}); "
-                  f"streaming p50 {r['stream_p50_ms']} ms, p99 {r['stream_p99_ms']} ms (without push-out p50 "
-                  f"{r['stream_no_collision_p50_ms']}, p99 {r['stream_no_collision_p99_ms']})"
-                  + (f"; paced at {args.pace:g} frames/s p50 {r['stream_paced_p50_ms']} ms, p99 {r['stream_paced_p99_ms']} ms"
-                     if args.pace else ""))
-            print("  streamed frame, median ms per stage: " + ", ".join(f"{k} {v}" for k, v in r["stream_stage_p50_ms"].items()))
+            print(
+                f"  {r['clip_frames']}-frame clip: offline frames/s hybrid {r['fps_hybrid']}, regression {r['fps_regression']}, "
+                f"retrieval {r['fps_retrieval']}, detail {r['fps_detail']} (hybrid with push-out {r['fps_hybrid_with_collision']}); "
+                f"streaming p50 {r['stream_p50_ms']} ms, p99 {r['stream_p99_ms']} ms (without push-out p50 "
+                f"{r['stream_no_collision_p50_ms']}, p99 {r['stream_no_collision_p99_ms']})"
+                + (
+                    f"; paced at {args.pace:g} frames/s p50 {r['stream_paced_p50_ms']} ms, p99 {r['stream_paced_p99_ms']} ms"
+                    if args.pace
+                    else ""
+                )
+            )
+            print(
+                "  streamed frame, median ms per stage: "
+                + ", ".join(f"{k} {v}" for k, v in r["stream_stage_p50_ms"].items())
+            )
         for n, c in r.get("crowd", {}).items():
-            print(f"  crowd of {n} ({r['crowd_device']}): step p50 {c['p50_ms']} ms, p99 {c['p99_ms']} ms (paced p50 {c['paced_p50_ms']}, "
-                  f"p99 {c['paced_p99_ms']}); {c['per_character_us']} us a character, "
-                  f"{c['character_frames_per_s']} character-frames/s"
-                  + ("; median ms per stage: " + ", ".join(f"{k} {v}" for k, v in c["stage_p50_ms"].items())
-                     if "stage_p50_ms" in c else ""))
+            print(
+                f"  crowd of {n} ({r['crowd_device']}): step p50 {c['p50_ms']} ms, p99 {c['p99_ms']} ms (paced p50 {c['paced_p50_ms']}, "
+                f"p99 {c['paced_p99_ms']}); {c['per_character_us']} us a character, "
+                f"{c['character_frames_per_s']} character-frames/s"
+                + (
+                    "; median ms per stage: " + ", ".join(f"{k} {v}" for k, v in c["stage_p50_ms"].items())
+                    if "stage_p50_ms" in c
+                    else ""
+                )
+            )
         for n, c in r.get("crowd_bodies", {}).items():
-            print(f"  crowd of {n} on {n} bodies against one body: step p99 ratio {c['p99_ratio_median']} "
-                  f"(each alternation: {c['p99_ratios']})")
+            print(
+                f"  crowd of {n} on {n} bodies against one body: step p99 ratio {c['p99_ratio_median']} "
+                f"(each alternation: {c['p99_ratios']})"
+            )
+
 
 if __name__ == "__main__":
     main()

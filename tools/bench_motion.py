@@ -49,17 +49,22 @@ def main() -> None:
         stages["features"].append(t3 - t2)
         stages["total"].append(t3 - t1)
     med = {k: float(np.median(v)) for k, v in stages.items()}
-    print(json.dumps({
-        "clip": clip.name,
-        "source_frames": source_frames,
-        "frames_30fps": int(feats.shape[0]),
-        "seconds_file_to_features": round(med["total"], 4),
-        "seconds_parse_only": round(med["parse"], 4),
-        "seconds_load_retarget": round(med["load_total"], 4),
-        "seconds_features": round(med["features"], 4),
-        "source_frames_per_s": round(source_frames / med["total"], 1),
-        "machine": f"{platform.processor() or platform.machine()}, {__import__('os').cpu_count()} cores, Python {platform.python_version()}",
-    }, indent=2))
+    print(
+        json.dumps(
+            {
+                "clip": clip.name,
+                "source_frames": source_frames,
+                "frames_30fps": int(feats.shape[0]),
+                "seconds_file_to_features": round(med["total"], 4),
+                "seconds_parse_only": round(med["parse"], 4),
+                "seconds_load_retarget": round(med["load_total"], 4),
+                "seconds_features": round(med["features"], 4),
+                "source_frames_per_s": round(source_frames / med["total"], 1),
+                "machine": f"{platform.processor() or platform.machine()}, {__import__('os').cpu_count()} cores, Python {platform.python_version()}",
+            },
+            indent=2,
+        )
+    )
 
 
 if __name__ == "__main__":

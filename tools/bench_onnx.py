@@ -24,8 +24,9 @@ from pathlib import Path
 import numpy as np
 
 
-def _timed(push, rotations: np.ndarray, roots: np.ndarray, starts: np.ndarray, offsets: np.ndarray,
-           steps: int) -> np.ndarray:
+def _timed(
+    push, rotations: np.ndarray, roots: np.ndarray, starts: np.ndarray, offsets: np.ndarray, steps: int
+) -> np.ndarray:
     seconds = []
     cycle = np.r_[np.arange(len(rotations)), np.arange(len(rotations) - 2, 0, -1)]  # forth and back: no jump
     for t in range(steps):
@@ -45,7 +46,9 @@ def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--model", required=True)
     p.add_argument("--motion", type=Path, required=True, help="the clip the characters play")
-    p.add_argument("--graph", type=Path, default=None, help="an exported graph of --model (default: export one)")
+    p.add_argument(
+        "--graph", type=Path, default=None, help="an exported graph of --model (default: export one)"
+    )
     p.add_argument("--crowds", type=int, nargs="+", default=[1, 8, 32])
     p.add_argument("--steps", type=int, default=100, help="frames pushed per crowd and side")
     p.add_argument("--json", action="store_true")
@@ -56,7 +59,9 @@ def main() -> None:
         graph = Path(tempfile.mkdtemp()) / "step.onnx"
         export_onnx(animator, graph)
     rotations, roots = motion_to_poses(load_motion(args.motion))
-    settings = OnnxStream(graph).settings  # the package runs what the graph holds: its push-out, decoder and push
+    settings = OnnxStream(
+        graph
+    ).settings  # the package runs what the graph holds: its push-out, decoder and push
     rows = []
     for n in args.crowds:
         starts = np.arange(n) * 7 % len(rotations)
@@ -64,19 +69,36 @@ def main() -> None:
         onnx_ms = _timed(OnnxStream(graph).push, rotations, roots, starts, offsets, args.steps)
         crowd = animator.crowd(mode="regression", **settings)
         package_ms = _timed(crowd.push, rotations, roots, starts, offsets, args.steps)
-        row = {"characters": n, "onnx_p50_ms": float(np.median(onnx_ms)), "onnx_p99_ms": float(np.percentile(onnx_ms, 99)),
-               "package_p50_ms": float(np.median(package_ms)), "package_p99_ms": float(np.percentile(package_ms, 99))}
+        row = {
+            "characters": n,
+            "onnx_p50_ms": float(np.median(onnx_ms)),
+            "onnx_p99_ms": float(np.percentile(onnx_ms, 99)),
+            "package_p50_ms": float(np.median(package_ms)),
+            "package_p99_ms": float(np.percentile(package_ms, 99)),
+        }
         row["onnx_per_character_us"] = 1000.0 * row["onnx_p50_ms"] / n
         row["ratio_p50"] = row["onnx_p50_ms"] / row["package_p50_ms"]
         rows.append(row)
         if not args.json:
-            print(f"{n:4d} characters: ONNX p50 {row['onnx_p50_ms']:7.2f} ms p99 {row['onnx_p99_ms']:7.2f} | package p50 "
-                  f"{row['package_p50_ms']:7.2f} ms p99 {row['package_p99_ms']:7.2f} | ONNX {row['onnx_per_character_us']:.0f} "
-                  f"us a character, {row['ratio_p50']:.2f} x the package")
+            print(
+                f"{n:4d} characters: ONNX p50 {row['onnx_p50_ms']:7.2f} ms p99 {row['onnx_p99_ms']:7.2f} | package p50 "
+                f"{row['package_p50_ms']:7.2f} ms p99 {row['package_p99_ms']:7.2f} | ONNX {row['onnx_per_character_us']:.0f} "
+                f"us a character, {row['ratio_p50']:.2f} x the package"
+            )
     if args.json:
-        print(json.dumps({"model": args.model, "vertices": int(animator.bundle.template.num_vertices),
-                          "push_out": settings["collision"], "decoder": settings["decoder"], "push": settings["push"],
-                          "crowds": rows}, indent=2))
+        print(
+            json.dumps(
+                {
+                    "model": args.model,
+                    "vertices": int(animator.bundle.template.num_vertices),
+                    "push_out": settings["collision"],
+                    "decoder": settings["decoder"],
+                    "push": settings["push"],
+                    "crowds": rows,
+                },
+                indent=2,
+            )
+        )
 
 
 if __name__ == "__main__":

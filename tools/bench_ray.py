@@ -29,7 +29,9 @@ KINDS = ("walk", "run", "spin", "dance", "side_step", "jump", "hop", "walk_curve
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     parser.add_argument("--clips", type=int, default=4)
     parser.add_argument("--seconds", type=float, default=3.0)
     parser.add_argument("--vertices", type=int, default=1000)
@@ -37,26 +39,51 @@ def main() -> None:
     args = parser.parse_args()
     garment = make_garment("dress", args.vertices)
     config = SimConfig.from_dict(load_preset("quick").sim)
-    specs = plan_sequences(load_preset("quick"), [KINDS[i % len(KINDS)] for i in range(args.clips)], args.seconds)
+    specs = plan_sequences(
+        load_preset("quick"), [KINDS[i % len(KINDS)] for i in range(args.clips)], args.seconds
+    )
     warm_up(garment, config)
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         ways = [("ray", n) for n in args.workers] + [("local", max(args.workers))]
         for executor, jobs in ways:
             out = Path(tmp) / f"{executor}-{jobs}.h5"
-            report = build_dataset(garment, specs, config, out=out,
-                                   options=BuildOptions(jobs=jobs, preview=None, progress=False, executor=executor))
+            report = build_dataset(
+                garment,
+                specs,
+                config,
+                out=out,
+                options=BuildOptions(jobs=jobs, preview=None, progress=False, executor=executor),
+            )
             s = report.summary
             frames = sum(st.get("simulated_frames", 0) for st in report.stats.values())
-            rows.append({"executor": executor, "workers": jobs, "sequences": s["sequences"],
-                         "simulated_frames": frames, "wall_s": round(s["sim_wall_s"], 1),
-                         "frames_per_s": round(frames / s["sim_wall_s"], 2)})
-    base = next(r["frames_per_s"] for r in rows if r["executor"] == "ray" and r["workers"] == min(args.workers))
+            rows.append(
+                {
+                    "executor": executor,
+                    "workers": jobs,
+                    "sequences": s["sequences"],
+                    "simulated_frames": frames,
+                    "wall_s": round(s["sim_wall_s"], 1),
+                    "frames_per_s": round(frames / s["sim_wall_s"], 2),
+                }
+            )
+    base = next(
+        r["frames_per_s"] for r in rows if r["executor"] == "ray" and r["workers"] == min(args.workers)
+    )
     for r in rows:
         r["scaling_efficiency"] = round(r["frames_per_s"] / (base * r["workers"] / min(args.workers)), 3)
         print(json.dumps(r))
-    print(json.dumps({"machine": platform.processor() or platform.machine(), "cores": os.cpu_count(),
-                      "vertices": garment.num_vertices, "clips": args.clips, "seconds": args.seconds}))
+    print(
+        json.dumps(
+            {
+                "machine": platform.processor() or platform.machine(),
+                "cores": os.cpu_count(),
+                "vertices": garment.num_vertices,
+                "clips": args.clips,
+                "seconds": args.seconds,
+            }
+        )
+    )
 
 
 if __name__ == "__main__":

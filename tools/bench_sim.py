@@ -35,28 +35,51 @@ def run_point(vertices: int, substeps: int, iterations: int, seconds: float, kin
         try:
             result = simulate_garment(garment, clip, config)
         except SimulationExploded as exc:
-            return {"vertices": garment.num_vertices, "substeps": substeps, "iterations": iterations, "exploded": str(exc)}
+            return {
+                "vertices": garment.num_vertices,
+                "substeps": substeps,
+                "iterations": iterations,
+                "exploded": str(exc),
+            }
         frames += result.simulated_frames
         stepping += result.step_seconds
-        stats = sequence_stats(result.vertices, garment.vertices, garment.edges(), clip, garment.groups["hem"])
+        stats = sequence_stats(
+            result.vertices, garment.vertices, garment.edges(), clip, garment.groups["hem"]
+        )
         worst = {k: max(worst[k], stats[k]) for k in worst}
         swing[kind] = round(stats["hem_swing_m"], 4)
-    return {"vertices": garment.num_vertices, "substeps": substeps, "iterations": iterations,
-            "ms_per_frame": round(1000 * stepping / frames, 1), "frames_per_s_per_core": round(frames / stepping, 2),
-            "strain_p99": round(worst["strain_p99"], 4), "penetration_max_pct": round(100 * worst["penetration_max"], 3),
-            "hem_swing_m": swing}
+    return {
+        "vertices": garment.num_vertices,
+        "substeps": substeps,
+        "iterations": iterations,
+        "ms_per_frame": round(1000 * stepping / frames, 1),
+        "frames_per_s_per_core": round(frames / stepping, 2),
+        "strain_p99": round(worst["strain_p99"], 4),
+        "penetration_max_pct": round(100 * worst["penetration_max"], 3),
+        "hem_swing_m": swing,
+    }
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--vertices", type=int, nargs="+", default=[1000, 2000, 4000])
-    parser.add_argument("--schedules", nargs="+", default=["5x3", "15x2", "20x2"],
-                        help="substeps x iterations tried at the largest vertex count (10x3, the default, always)")
+    parser.add_argument(
+        "--schedules",
+        nargs="+",
+        default=["5x3", "15x2", "20x2"],
+        help="substeps x iterations tried at the largest vertex count (10x3, the default, always)",
+    )
     parser.add_argument("--seconds", type=float, default=2.0)
     parser.add_argument("--kinds", nargs="+", default=["walk", "spin"])
     args = parser.parse_args()
-    print(json.dumps({"machine": platform.processor() or platform.machine(), "python": platform.python_version()}))
-    simulate_garment(make_garment("skirt", 100), synthesize("idle", 0.2), SimConfig(settle_s=0, blend_s=0))  # load kernels
+    print(
+        json.dumps(
+            {"machine": platform.processor() or platform.machine(), "python": platform.python_version()}
+        )
+    )
+    simulate_garment(
+        make_garment("skirt", 100), synthesize("idle", 0.2), SimConfig(settle_s=0, blend_s=0)
+    )  # load kernels
     base = []
     for v in args.vertices:
         base.append(run_point(v, 10, 3, args.seconds, args.kinds))
@@ -70,11 +93,20 @@ def main() -> None:
             print(json.dumps(at_top[-1]), flush=True)
     first = base[0]
     ratios = {
-        "ms_per_frame_vs_vertices": {f"{p['vertices']}v/{first['vertices']}v": round(p["ms_per_frame"] / first["ms_per_frame"], 2)
-                                     for p in base[1:] if "ms_per_frame" in p and "ms_per_frame" in first},
-        "vertex_ratio": {f"{p['vertices']}v/{first['vertices']}v": round(p["vertices"] / first["vertices"], 2) for p in base[1:]},
-        "ms_per_frame_vs_10x3": {f"{p['substeps']}x{p['iterations']}": round(p["ms_per_frame"] / base[-1]["ms_per_frame"], 2)
-                                 for p in at_top[1:] if "ms_per_frame" in p and "ms_per_frame" in base[-1]},
+        "ms_per_frame_vs_vertices": {
+            f"{p['vertices']}v/{first['vertices']}v": round(p["ms_per_frame"] / first["ms_per_frame"], 2)
+            for p in base[1:]
+            if "ms_per_frame" in p and "ms_per_frame" in first
+        },
+        "vertex_ratio": {
+            f"{p['vertices']}v/{first['vertices']}v": round(p["vertices"] / first["vertices"], 2)
+            for p in base[1:]
+        },
+        "ms_per_frame_vs_10x3": {
+            f"{p['substeps']}x{p['iterations']}": round(p["ms_per_frame"] / base[-1]["ms_per_frame"], 2)
+            for p in at_top[1:]
+            if "ms_per_frame" in p and "ms_per_frame" in base[-1]
+        },
     }
     print(json.dumps(ratios))
 

@@ -48,7 +48,7 @@ class ImportWay:
 
 def _arguments() -> list[str]:
     argv = sys.argv
-    return argv[argv.index("--") + 1:] if "--" in argv else argv[1:]
+    return argv[argv.index("--") + 1 :] if "--" in argv else argv[1:]
 
 
 def vertex_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
@@ -138,16 +138,27 @@ def check(bpy, path: str, ref: dict, way: ImportWay = ImportWay()) -> dict:
     _empty_scene(bpy, fps if way.set_fps else None)
     garments = [o for o in _import(bpy, path, way) if len(o.data.vertices) == vertices.shape[1]]
     if len(garments) != 1:
-        raise ValueError(f"{path}: {len(garments)} imported meshes have the clip's {vertices.shape[1]} vertices")
+        raise ValueError(
+            f"{path}: {len(garments)} imported meshes have the clip's {vertices.shape[1]} vertices"
+        )
     obj, scene = garments[0], bpy.context.scene
     frames = len(vertices)
-    result = {"file": path, "scene_fps": scene.render.fps / scene.render.fps_base, "clip_fps": fps,
-              "frame_start": scene.frame_start, "frame_end": scene.frame_end, "clip_frames": frames}
+    result = {
+        "file": path,
+        "scene_fps": scene.render.fps / scene.render.fps_base,
+        "clip_fps": fps,
+        "frame_start": scene.frame_start,
+        "frame_end": scene.frame_end,
+        "clip_frames": frames,
+    }
     # where the importer put clip frame 0 (scene frame 0 or 1, whatever the scene's range says):
     # geometry is compared there, and the range is judged against it
     first = min({0, 1, scene.frame_start}, key=lambda s: _error_at(bpy, obj, s, vertices[0]))
-    result.update(clip_frame_0_at=first, range_ok=bool(scene.frame_start == first and scene.frame_end == first + frames - 1),
-                  rate_ok=bool(abs(result["scene_fps"] - fps) < 1e-6))
+    result.update(
+        clip_frame_0_at=first,
+        range_ok=bool(scene.frame_start == first and scene.frame_end == first + frames - 1),
+        rate_ok=bool(abs(result["scene_fps"] - fps) < 1e-6),
+    )
     scene.frame_set(first)
     smooth = _evaluated(bpy, obj)[3]
     result["smooth_faces"] = float(smooth.mean()) if len(smooth) else 0.0
@@ -160,8 +171,11 @@ def check(bpy, path: str, ref: dict, way: ImportWay = ImportWay()) -> dict:
         cos = np.clip((normals * expected).sum(1), -1.0, 1.0)
         angles.append(np.degrees(np.arccos(cos)))
     angles = np.concatenate(angles)
-    result.update(max_vertex_error_mm=1000 * worst, normal_error_p99_deg=float(np.percentile(angles, 99)),
-                  normal_error_max_deg=float(angles.max()))
+    result.update(
+        max_vertex_error_mm=1000 * worst,
+        normal_error_p99_deg=float(np.percentile(angles, 99)),
+        normal_error_max_deg=float(angles.max()),
+    )
     return result
 
 
@@ -170,17 +184,25 @@ def main() -> int:
     as_json = "--json" in args
     shading = [a.split("=", 1)[1] for a in args if a.startswith("--gltf-shading=")]  # NORMALS, SMOOTH or FLAT
     addon = [a.split("=", 1)[1] for a in args if a.startswith("--addon=")]
-    way = ImportWay(addon=bool(addon), set_fps="--set-fps" in args,
-                    gltf={"import_shading": shading[-1]} if shading else {})
+    way = ImportWay(
+        addon=bool(addon),
+        set_fps="--set-fps" in args,
+        gltf={"import_shading": shading[-1]} if shading else {},
+    )
     args = [a for a in args if not a.startswith("--")]
     if len(args) < 2:
-        print(__doc__.split("\n\n")[0] + "\nusage: tools/blender_check.py REF.npz FILE [FILE ...] [--json]", file=sys.stderr)
+        print(
+            __doc__.split("\n\n")[0] + "\nusage: tools/blender_check.py REF.npz FILE [FILE ...] [--json]",
+            file=sys.stderr,
+        )
         return 2
     import bpy
 
     bpy.ops.wm.read_factory_settings(use_empty=True)
     if addon:  # into the user resources Blender was started with (the tests give it a temporary one)
-        bpy.ops.extensions.package_install_files(filepath=addon[0], repo="user_default", enable_on_install=True)
+        bpy.ops.extensions.package_install_files(
+            filepath=addon[0], repo="user_default", enable_on_install=True
+        )
     with np.load(args[0]) as data:
         ref = {k: data[k] for k in ("vertices", "faces", "fps")}
     status = 0
@@ -192,7 +214,9 @@ def main() -> int:
         if as_json:
             print(json.dumps(result))
         else:
-            print("  ".join(f"{k}={v:.4g}" if isinstance(v, float) else f"{k}={v}" for k, v in result.items()))
+            print(
+                "  ".join(f"{k}={v:.4g}" if isinstance(v, float) else f"{k}={v}" for k, v in result.items())
+            )
     return status
 
 

@@ -50,19 +50,30 @@ def analyse(model: str, sources: list[str], motions: list[str], count: int = 9) 
     """Each body's and clip's :func:`~hrr_garment.eval.inside_body.cloth_inside` (the procedural
     curved walk when ``motions`` is empty)."""
     animator = Animator.load(model)
-    clips = {Path(path).name: load_motion(path) for path in motions} or {"procedural walk_curve": check_motion()}
-    rows = [{**cloth_inside(animator, motion, record, name=name).to_dict(), "clip": clip}
-            for name, record in named_bodies(sources, count) for clip, motion in clips.items()]
+    clips = {Path(path).name: load_motion(path) for path in motions} or {
+        "procedural walk_curve": check_motion()
+    }
+    rows = [
+        {**cloth_inside(animator, motion, record, name=name).to_dict(), "clip": clip}
+        for name, record in named_bodies(sources, count)
+        for clip, motion in clips.items()
+    ]
     return {"model": model, "rows": rows}
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--model", required=True, help="a trained model's folder")
-    parser.add_argument("--bodies", nargs="+", default=["scaled"],
-                        help="scaled, anny, or body files (body.json, a character's .glb)")
+    parser.add_argument(
+        "--bodies",
+        nargs="+",
+        default=["scaled"],
+        help="scaled, anny, or body files (body.json, a character's .glb)",
+    )
     parser.add_argument("--count", type=int, default=9, help="bodies of each of scaled and anny")
-    parser.add_argument("--motion", nargs="*", default=[], help="clips (BVH / npz); default a procedural walk")
+    parser.add_argument(
+        "--motion", nargs="*", default=[], help="clips (BVH / npz); default a procedural walk"
+    )
     parser.add_argument("--json", action="store_true", help="print the report as JSON")
     args = parser.parse_args()
     if args.count < 1:
@@ -74,8 +85,10 @@ def main() -> None:
     print("| body | clip | inside > 5 mm % | worst frame % | inside at all % | out of range |")
     print("|---|---|---:|---:|---:|---|")
     for r in report["rows"]:
-        print(f"| {r['body']} | {r['clip']} | {r['inside_pct']:.2f} | {r['inside_worst_pct']:.2f} | "
-              f"{r['inside_any_pct']:.2f} | {'; '.join(r['outside_range']) or '-'} |")
+        print(
+            f"| {r['body']} | {r['clip']} | {r['inside_pct']:.2f} | {r['inside_worst_pct']:.2f} | "
+            f"{r['inside_any_pct']:.2f} | {'; '.join(r['outside_range']) or '-'} |"
+        )
 
 
 if __name__ == "__main__":

@@ -37,20 +37,30 @@ def clip_rows(files: list[Path], progress: bool = True) -> list[dict]:
             bodies[key] = performer_body(path)
         performer = bodies[key]
         on_body = motion_on_body(motion, performer.body)
-        rows.append({"clip": path.name, "folder": path.parent.name, "frames": motion.num_frames,
-                     "flagged_mannequin": int(self_intersecting_frames(motion).sum()),
-                     "flagged_body": int(self_intersecting_frames(on_body, performer.body).sum()),
-                     "body_stature_m": round(performer.stature, 3), "body_rms_mm": round(performer.rms_mm, 1)})
+        rows.append(
+            {
+                "clip": path.name,
+                "folder": path.parent.name,
+                "frames": motion.num_frames,
+                "flagged_mannequin": int(self_intersecting_frames(motion).sum()),
+                "flagged_body": int(self_intersecting_frames(on_body, performer.body).sum()),
+                "body_stature_m": round(performer.stature, 3),
+                "body_rms_mm": round(performer.rms_mm, 1),
+            }
+        )
     return rows
 
 
 def summarise(rows: list[dict]) -> dict:
     frames = sum(r["frames"] for r in rows)
-    return {"clips": len(rows), "frames": frames,
-            "flagged_mannequin_pct": 100.0 * sum(r["flagged_mannequin"] for r in rows) / max(frames, 1),
-            "flagged_body_pct": 100.0 * sum(r["flagged_body"] for r in rows) / max(frames, 1),
-            "body_statures_m": sorted({r["body_stature_m"] for r in rows}),
-            "body_rms_mm": sorted({r["body_rms_mm"] for r in rows})}
+    return {
+        "clips": len(rows),
+        "frames": frames,
+        "flagged_mannequin_pct": 100.0 * sum(r["flagged_mannequin"] for r in rows) / max(frames, 1),
+        "flagged_body_pct": 100.0 * sum(r["flagged_body"] for r in rows) / max(frames, 1),
+        "body_statures_m": sorted({r["body_stature_m"] for r in rows}),
+        "body_rms_mm": sorted({r["body_rms_mm"] for r in rows}),
+    }
 
 
 def main() -> None:
@@ -58,19 +68,29 @@ def main() -> None:
     p.add_argument("paths", nargs="+", type=Path, help="BVH / glTF files or folders of them")
     p.add_argument("--json", action="store_true")
     args = p.parse_args()
-    files = sorted(f for path in args.paths for f in ([path] if path.is_file() else
-                                                      [*path.rglob("*.bvh"), *path.rglob("*.glb")]))
+    files = sorted(
+        f
+        for path in args.paths
+        for f in ([path] if path.is_file() else [*path.rglob("*.bvh"), *path.rglob("*.glb")])
+    )
     rows = clip_rows(files, progress=not args.json)
-    groups = {folder: summarise([r for r in rows if r["folder"] == folder]) for folder in sorted({r["folder"] for r in rows})}
+    groups = {
+        folder: summarise([r for r in rows if r["folder"] == folder])
+        for folder in sorted({r["folder"] for r in rows})
+    }
     total = summarise(rows)
     if args.json:
         print(json.dumps({"folders": groups, "total": total, "clips": rows}))
         return
-    print("| folder | clips | frames | flagged, mannequin | flagged, performer body | bodies (stature m) | measures' RMS mm |")
+    print(
+        "| folder | clips | frames | flagged, mannequin | flagged, performer body | bodies (stature m) | measures' RMS mm |"
+    )
     print("|---|---:|---:|---:|---:|---|---|")
     for name, g in [*groups.items(), ("total", total)]:
-        print(f"| {name} | {g['clips']} | {g['frames']} | {g['flagged_mannequin_pct']:.1f} % | {g['flagged_body_pct']:.1f} % | "
-              f"{', '.join(f'{s:.2f}' for s in g['body_statures_m'])} | {', '.join(f'{s:.1f}' for s in g['body_rms_mm'])} |")
+        print(
+            f"| {name} | {g['clips']} | {g['frames']} | {g['flagged_mannequin_pct']:.1f} % | {g['flagged_body_pct']:.1f} % | "
+            f"{', '.join(f'{s:.2f}' for s in g['body_statures_m'])} | {', '.join(f'{s:.1f}' for s in g['body_rms_mm'])} |"
+        )
 
 
 if __name__ == "__main__":

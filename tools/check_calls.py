@@ -69,7 +69,9 @@ def long_calls(path: Path, root: Path, limit: int) -> list[str]:
         func = node.func
         if isinstance(func, ast.Name) and func.id in names:
             callee = func.id
-        elif isinstance(func, ast.Attribute) and isinstance(func.value, ast.Name) and func.value.id in modules:
+        elif (
+            isinstance(func, ast.Attribute) and isinstance(func.value, ast.Name) and func.value.id in modules
+        ):
             callee = f"{func.value.id}.{func.attr}"
         else:
             continue
@@ -88,7 +90,11 @@ def main(argv: list[str] | None = None) -> int:
         files = sorted(top.rglob("*.py")) if top.is_dir() else [top]
         for path in files:
             found += long_calls(path.resolve(), root, args.max)
-    print("\n".join(found) if found else f"no call passes more than {args.max} positional arguments across modules")
+    print(
+        "\n".join(found)
+        if found
+        else f"no call passes more than {args.max} positional arguments across modules"
+    )
     return 1 if found else 0
 
 

@@ -22,7 +22,11 @@ from pathlib import Path
 import numpy as np
 
 FRAME_STRIDE = 5  # frames measured against the mesh
-SHAPES = {"average": {}, "heavy": {"weight": 0.9, "gender": 0.0}, "tall-slim": {"height": 0.85, "weight": 0.15, "gender": 1.0}}
+SHAPES = {
+    "average": {},
+    "heavy": {"weight": 0.9, "gender": 0.0},
+    "tall-slim": {"height": 0.85, "weight": 0.15, "gender": 1.0},
+}
 
 
 def inside_mesh(points: np.ndarray, vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
@@ -31,13 +35,13 @@ def inside_mesh(points: np.ndarray, vertices: np.ndarray, faces: np.ndarray) -> 
     tri = vertices[faces]  # (F, 3, 3)
     inside = np.empty(len(points), bool)
     for start in range(0, len(points), 256):
-        p = points[start:start + 256, None, None, :]
+        p = points[start : start + 256, None, None, :]
         r = tri[None] - p  # (n, F, 3, 3)
         a, b, c = r[..., 0, :], r[..., 1, :], r[..., 2, :]
         la, lb, lc = (np.linalg.norm(x, axis=-1) for x in (a, b, c))
         det = (a * np.cross(b, c)).sum(-1)
         den = la * lb * lc + (a * b).sum(-1) * lc + (a * c).sum(-1) * lb + (b * c).sum(-1) * la
-        inside[start:start + 256] = np.abs(2.0 * np.arctan2(det, den).sum(-1) / (4.0 * np.pi)) > 0.5
+        inside[start : start + 256] = np.abs(2.0 * np.arctan2(det, den).sum(-1) / (4.0 * np.pi)) > 0.5
     return inside
 
 
@@ -58,7 +62,9 @@ def run_one(job: tuple[str, dict, str, str, int]) -> dict:
 
     body_name, shape, clip, collider, max_frames = job
     parametric = parametric_body(BodyShape(**shape))
-    dressed: DressedBody = dress(body_name, record_of(parametric), make_garment("dress", 1000), made_for=DEFAULT_BODY)[0]
+    dressed: DressedBody = dress(
+        body_name, record_of(parametric), make_garment("dress", 1000), made_for=DEFAULT_BODY
+    )[0]
     body = dressed.body
     mesh = body_mesh(body, parametric.mesh.vertices, parametric.mesh.faces, parametric.mesh.joints)
     motion = motion_on_body(load_motion(clip), body)
@@ -67,19 +73,30 @@ def run_one(job: tuple[str, dict, str, str, int]) -> dict:
     row = {"body": body_name, "clip": Path(clip).stem, "collider": collider, "frames": motion.num_frames}
     t0 = time.perf_counter()
     try:
-        result = simulate_garment(dressed.garment, motion, config, body=body, collider=mesh if collider == "mesh" else None)
+        result = simulate_garment(
+            dressed.garment, motion, config, body=body, collider=mesh if collider == "mesh" else None
+        )
     except SimulationExploded as exc:
         return {**row, "rejected": str(exc)[:200]}
     verts = result.vertices
     posed = mesh.pose(motion.global_rotations, motion.joint_positions)
     frames = range(0, len(verts), FRAME_STRIDE)
-    in_mesh = np.array([inside_mesh(verts[t].astype(np.float64), posed[t], mesh.faces).mean() for t in frames])
+    in_mesh = np.array(
+        [inside_mesh(verts[t].astype(np.float64), posed[t], mesh.faces).mean() for t in frames]
+    )
     in_capsules = penetration_fraction(body_signed_distance(verts, motion, body), depth=0.0)
     strain = edge_strain(verts, dressed.garment.vertices, dressed.garment.edges())
-    return {**row, "rejected": None, "inside_mesh_mean": float(in_mesh.mean()), "inside_mesh_max": float(in_mesh.max()),
-            "inside_capsules_mean": float(in_capsules.mean()), "strain_p99": float(np.percentile(strain, 99)),
-            "seconds_per_frame": result.step_seconds / result.simulated_frames, "attempts": result.attempts,
-            "wall_s": time.perf_counter() - t0}
+    return {
+        **row,
+        "rejected": None,
+        "inside_mesh_mean": float(in_mesh.mean()),
+        "inside_mesh_max": float(in_mesh.max()),
+        "inside_capsules_mean": float(in_capsules.mean()),
+        "strain_p99": float(np.percentile(strain, 99)),
+        "seconds_per_frame": result.step_seconds / result.simulated_frames,
+        "attempts": result.attempts,
+        "wall_s": time.perf_counter() - t0,
+    }
 
 
 def pick_clips(folder: Path, count: int) -> list[str]:
@@ -98,10 +115,20 @@ def summarise(rows: list[dict]) -> dict:
     for collider in ("capsules", "mesh"):
         mine = [r for r in rows if r["collider"] == collider]
         kept = [r for r in mine if not r["rejected"]]
-        out[collider] = {"runs": len(mine), "rejected": len(mine) - len(kept),
-                         **{k: float(np.mean([r[k] for r in kept])) if kept else None
-                            for k in ("inside_mesh_mean", "inside_mesh_max", "inside_capsules_mean", "strain_p99",
-                                      "seconds_per_frame")}}
+        out[collider] = {
+            "runs": len(mine),
+            "rejected": len(mine) - len(kept),
+            **{
+                k: float(np.mean([r[k] for r in kept])) if kept else None
+                for k in (
+                    "inside_mesh_mean",
+                    "inside_mesh_max",
+                    "inside_capsules_mean",
+                    "strain_p99",
+                    "seconds_per_frame",
+                )
+            },
+        }
     return out
 
 
@@ -111,11 +138,17 @@ def main() -> None:
     p.add_argument("--clips", type=int, default=8)
     p.add_argument("--bodies", nargs="+", default=list(SHAPES), choices=list(SHAPES))
     p.add_argument("--jobs", type=int, default=2)
-    p.add_argument("--max-frames", type=int, default=360, help="simulate at most this many frames of each clip (12 s)")
+    p.add_argument(
+        "--max-frames", type=int, default=360, help="simulate at most this many frames of each clip (12 s)"
+    )
     p.add_argument("--json", type=Path, default=None, help="also write every run's row here")
     args = p.parse_args()
-    jobs = [(b, SHAPES[b], clip, collider, args.max_frames) for b in args.bodies for clip in pick_clips(args.folder, args.clips)
-            for collider in ("capsules", "mesh")]
+    jobs = [
+        (b, SHAPES[b], clip, collider, args.max_frames)
+        for b in args.bodies
+        for clip in pick_clips(args.folder, args.clips)
+        for collider in ("capsules", "mesh")
+    ]
     from tqdm import tqdm
 
     with ProcessPoolExecutor(args.jobs) as pool:
@@ -123,14 +156,18 @@ def main() -> None:
     summary = summarise(rows)
     if args.json:
         args.json.write_text(json.dumps({"rows": rows, "summary": summary}, indent=1))
-    print("| collider | runs | rejected | cloth inside the mesh, mean / worst frame | inside the capsules | strain p99 | solver s/frame |")
+    print(
+        "| collider | runs | rejected | cloth inside the mesh, mean / worst frame | inside the capsules | strain p99 | solver s/frame |"
+    )
     print("|---|---:|---:|---:|---:|---:|---:|")
     for name, s in summary.items():
         if s["inside_mesh_mean"] is None:
             print(f"| {name} | {s['runs']} | {s['rejected']} | - | - | - | - |")
             continue
-        print(f"| {name} | {s['runs']} | {s['rejected']} | {100 * s['inside_mesh_mean']:.2f} % / {100 * s['inside_mesh_max']:.1f} % | "
-              f"{100 * s['inside_capsules_mean']:.2f} % | {s['strain_p99']:.3f} | {1000 * s['seconds_per_frame']:.1f} ms |")
+        print(
+            f"| {name} | {s['runs']} | {s['rejected']} | {100 * s['inside_mesh_mean']:.2f} % / {100 * s['inside_mesh_max']:.1f} % | "
+            f"{100 * s['inside_capsules_mean']:.2f} % | {s['strain_p99']:.3f} | {1000 * s['seconds_per_frame']:.1f} ms |"
+        )
 
 
 if __name__ == "__main__":

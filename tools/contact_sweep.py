@@ -42,27 +42,50 @@ def main() -> None:
     train = model_contact_windows(args.model, trained_on, "train")
     evaluation = GarmentDataset(args.eval_dataset)
     records = [evaluation.sequence(n) for n in evenly(evaluation.splits["test"], args.sequences)]
-    print(f"{args.model}: {len(train.windows)} training windows; {len(records)} test clips of {args.eval_dataset}")
+    print(
+        f"{args.model}: {len(train.windows)} training windows; {len(records)} test clips of {args.eval_dataset}"
+    )
     latents = train.windows.latents  # standardised; the latent loss is the real-motion presets' vertex metric
-    raw = load_bundle(args.model).latent_stats.denormalize(latents.reshape(len(latents), -1).numpy()).reshape(latents.shape)
+    raw = (
+        load_bundle(args.model)
+        .latent_stats.denormalize(latents.reshape(len(latents), -1).numpy())
+        .reshape(latents.shape)
+    )
     pairs = [(float(w), float(m)) for w in args.weights.split(",") for m in args.margins.split(",")]
     for weight, margin in pairs:
         animator = Animator.load(args.model)
         bundle = animator.bundle
-        metric = VertexMetric.of_decoder(bundle.autoencoder, sample_frames(raw), bundle.latent_stats.std, progress=False)
-        config = CodeSpaceTrainConfig(contact_steps=args.steps, contact_weight=weight, contact_margin_m=margin)
+        metric = VertexMetric.of_decoder(
+            bundle.autoencoder, sample_frames(raw), bundle.latent_stats.std, progress=False
+        )
+        config = CodeSpaceTrainConfig(
+            contact_steps=args.steps, contact_weight=weight, contact_margin_m=margin
+        )
         with tempfile.TemporaryDirectory() as tmp:
-            teach_contact(bundle.codespace, FrameDecoder(bundle.autoencoder, bundle.latent_stats), train, val=None,
-                          config=config, latent_loss=metric, checkpoint=(Path(tmp) / "contact.pt", "sweep"))
+            teach_contact(
+                bundle.codespace,
+                FrameDecoder(bundle.autoencoder, bundle.latent_stats),
+                train,
+                val=None,
+                config=config,
+                latent_loss=metric,
+                checkpoint=(Path(tmp) / "contact.pt", "sweep"),
+            )
         errors, inside, frames = 0.0, 0.0, 0
         for r in records:
-            vertices = animator.animate(r.motion, mode="regression", body=r.dressed, allow_outside=True,
-                                        collision=False).vertices
+            vertices = animator.animate(
+                r.motion, mode="regression", body=r.dressed, allow_outside=True, collision=False
+            ).vertices
             errors += float(np.linalg.norm(vertices - r.garment, axis=-1).mean()) * 1000 * len(vertices)
-            inside += float(penetration_fraction(body_signed_distance(vertices, r.motion, r.dressed.body)).sum())
+            inside += float(
+                penetration_fraction(body_signed_distance(vertices, r.motion, r.dressed.body)).sum()
+            )
             frames += len(vertices)
-        print(f"weight {weight:g}, margin {1000 * margin:g} mm, {args.steps} steps: PVE {errors / frames:.2f} mm, "
-              f"{100 * inside / frames:.2f} % of vertices > 5 mm inside before the push-out", flush=True)
+        print(
+            f"weight {weight:g}, margin {1000 * margin:g} mm, {args.steps} steps: PVE {errors / frames:.2f} mm, "
+            f"{100 * inside / frames:.2f} % of vertices > 5 mm inside before the push-out",
+            flush=True,
+        )
 
 
 if __name__ == "__main__":

@@ -42,11 +42,18 @@ from hrr_garment.sim.quality import hem_swing
 
 # (label, strength, hold, fade, follow): strength None is the model's calibrated one, follow None
 # the shipped FOLD_FOLLOW; hold 1 and fade 0 take each frame's own proposal
-TRACKS = [("shipped", None, None, None, None), ("strength 0.6", 0.6, None, None, None), ("strength 1.0", 1.0, None, None, None),
-          ("no track (each frame's proposal)", None, 1, 0, None), ("hold 4, fade 3", None, 4, 3, None),
-          ("hold 16, fade 6", None, 16, 6, None), ("hold 8, fade 12", None, 8, 12, None),
-          ("folds not followed (follow 1)", None, None, None, 1.0), ("follow 0.5", None, None, None, 0.5),
-          ("follow 0.6", None, None, None, 0.6)]
+TRACKS = [
+    ("shipped", None, None, None, None),
+    ("strength 0.6", 0.6, None, None, None),
+    ("strength 1.0", 1.0, None, None, None),
+    ("no track (each frame's proposal)", None, 1, 0, None),
+    ("hold 4, fade 3", None, 4, 3, None),
+    ("hold 16, fade 6", None, 16, 6, None),
+    ("hold 8, fade 12", None, 8, 12, None),
+    ("folds not followed (follow 1)", None, None, None, 1.0),
+    ("follow 0.5", None, None, None, 0.5),
+    ("follow 0.6", None, None, None, 0.6),
+]
 SWING_GAINS = (1.25, 1.5)
 RUNNING_MEAN_S = 1.0  # time constant of the causal running mean a swing gain may scale from instead
 
@@ -81,12 +88,25 @@ def analyse(model: str, split: str, sequences: int | None) -> dict:
     if not names:
         raise SystemExit(f"{ds.path} has no {split!r} sequences")
     if sequences:
-        names = [names[i] for i in sorted({int(round(i)) for i in np.linspace(0, len(names) - 1, min(sequences, len(names)))})]
+        names = [
+            names[i]
+            for i in sorted(
+                {int(round(i)) for i in np.linspace(0, len(names) - 1, min(sequences, len(names)))}
+            )
+        ]
     template = animator.bundle.template
-    rest, topo = template.vertices.astype(np.float64), M.MeshTopology.of(template.faces, template.num_vertices)
+    rest, topo = (
+        template.vertices.astype(np.float64),
+        M.MeshTopology.of(template.faces, template.num_vertices),
+    )
     hem = hem_vertices(template)
-    mean_shape = np.mean([to_body_frame(ds.sequence(n).garment.astype(np.float64), ds.sequence(n).motion).mean(0)
-                          for n in ds.splits["train"][::4]], axis=0)  # the body-frame mean the swing gain scales from
+    mean_shape = np.mean(
+        [
+            to_body_frame(ds.sequence(n).garment.astype(np.float64), ds.sequence(n).motion).mean(0)
+            for n in ds.splits["train"][::4]
+        ],
+        axis=0,
+    )  # the body-frame mean the swing gain scales from
     sums: dict[str, np.ndarray] = {}
     truth_sums = np.zeros(2)
     frames = 0
@@ -96,38 +116,70 @@ def analyse(model: str, split: str, sequences: int | None) -> dict:
         outputs = {}
         for causal in (False, True):
             kind = "causal" if causal else "offline"
-            regression = animator.animate(motion, mode="regression", collision=False, causal=causal).vertices.astype(np.float64)
+            regression = animator.animate(
+                motion, mode="regression", collision=False, causal=causal
+            ).vertices.astype(np.float64)
             local = to_body_frame(regression, motion)
             proposals = _proposals(animator, motion, causal)
             outputs[f"regression ({kind})"] = regression
-            outputs[f"auto, the default output ({kind})"] = animator.animate(motion, collision=False, causal=causal).vertices
+            outputs[f"auto, the default output ({kind})"] = animator.animate(
+                motion, collision=False, causal=causal
+            ).vertices
             for label, strength, hold, fade, follow in TRACKS if not causal else TRACKS[:1]:
-                rows, weights = track_folds(proposals, store.offsets, **{k: v for k, v in (("hold", hold), ("fade", fade)) if v is not None})
+                rows, weights = track_folds(
+                    proposals,
+                    store.offsets,
+                    **{k: v for k, v in (("hold", hold), ("fade", fade)) if v is not None},
+                )
                 folds = store.folds(rows, weights)
                 strength = animator.bundle.detail_strength if strength is None else strength
                 followed = partial(follow_over_time, mean=animator.smoothing, follow=follow)
                 outputs[f"detail, {label} ({kind})"] = from_body_frame(
-                    add_folds(local, folds, animator.smoothing, store.passes, strength, follow=followed), motion)
+                    add_folds(local, folds, animator.smoothing, store.passes, strength, follow=followed),
+                    motion,
+                )
                 if label == "shipped" and not causal:
                     running = _running_mean(local, motion.fps)
                     for gain in SWING_GAINS:
-                        for ref, centre in (("mean shape", mean_shape), (f"{RUNNING_MEAN_S:g} s running mean", running)):
+                        for ref, centre in (
+                            ("mean shape", mean_shape),
+                            (f"{RUNNING_MEAN_S:g} s running mean", running),
+                        ):
                             swung = centre + gain * (local - centre)
-                            outputs[f"regression, swing gain {gain:g} ({ref})"] = from_body_frame(swung, motion)
+                            outputs[f"regression, swing gain {gain:g} ({ref})"] = from_body_frame(
+                                swung, motion
+                            )
                             outputs[f"detail, swing gain {gain:g} ({ref})"] = from_body_frame(
-                                add_folds(swung, folds, animator.smoothing, store.passes, strength, follow=followed), motion)
-        truth_sums += [M.cloth_energies(truth, rest, topo)[1].sum(), hem_swing(truth, motion, hem) * len(truth)]
+                                add_folds(
+                                    swung, folds, animator.smoothing, store.passes, strength, follow=followed
+                                ),
+                                motion,
+                            )
+        truth_sums += [
+            M.cloth_energies(truth, rest, topo)[1].sum(),
+            hem_swing(truth, motion, hem) * len(truth),
+        ]
         frames += len(truth)
         for key, pred in outputs.items():
             pred = np.asarray(pred, np.float64)
             sums.setdefault(key, np.zeros(4))
-            sums[key] += [M.pve_mm(pred, truth) * len(truth), M.cloth_energies(pred, rest, topo)[1].sum(),
-                          hem_swing(pred, motion, hem) * len(truth), M.jitter_mm(pred, truth)["jitter_mm"] * len(truth)]
+            sums[key] += [
+                M.pve_mm(pred, truth) * len(truth),
+                M.cloth_energies(pred, rest, topo)[1].sum(),
+                hem_swing(pred, motion, hem) * len(truth),
+                M.jitter_mm(pred, truth)["jitter_mm"] * len(truth),
+            ]
     regression_pve = {k: sums[f"regression ({k})"][0] / frames for k in ("offline", "causal")}
-    rows = {k: {"pve_mm": s[0] / frames,
-                "pve_vs_regression": s[0] / frames / regression_pve["causal" if "causal" in k else "offline"],
-                "sharpness": s[1] / truth_sums[0], "hem_swing": s[2] / truth_sums[1], "jitter_mm": s[3] / frames}
-            for k, s in sums.items()}
+    rows = {
+        k: {
+            "pve_mm": s[0] / frames,
+            "pve_vs_regression": s[0] / frames / regression_pve["causal" if "causal" in k else "offline"],
+            "sharpness": s[1] / truth_sums[0],
+            "hem_swing": s[2] / truth_sums[1],
+            "jitter_mm": s[3] / frames,
+        }
+        for k, s in sums.items()
+    }
     return {"model": model, "split": split, "sequences": names, "frames": frames, "modes": rows}
 
 
@@ -135,7 +187,9 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--model", required=True, help="a trained model directory")
     parser.add_argument("--split", default="test", help="dataset split of held-out clips (default test)")
-    parser.add_argument("--sequences", type=int, default=None, help="at most this many of them, evenly spaced")
+    parser.add_argument(
+        "--sequences", type=int, default=None, help="at most this many of them, evenly spaced"
+    )
     parser.add_argument("--json", action="store_true", help="print JSON instead of the table")
     args = parser.parse_args()
     result = analyse(args.model, args.split, args.sequences)
@@ -145,8 +199,10 @@ def main() -> None:
     print(f"{args.model}, {args.split}: {len(result['sequences'])} clips, {result['frames']} frames")
     print(f"{'':52s} {'PVE mm':>8s} {'x reg':>6s} {'sharp':>6s} {'hem':>6s} {'jitter':>7s}")
     for key, r in result["modes"].items():
-        print(f"{key:52s} {r['pve_mm']:8.2f} {r['pve_vs_regression']:6.3f} {r['sharpness']:6.2f} {r['hem_swing']:6.2f} "
-              f"{r['jitter_mm']:7.2f}")
+        print(
+            f"{key:52s} {r['pve_mm']:8.2f} {r['pve_vs_regression']:6.3f} {r['sharpness']:6.2f} {r['hem_swing']:6.2f} "
+            f"{r['jitter_mm']:7.2f}"
+        )
 
 
 if __name__ == "__main__":

@@ -43,13 +43,28 @@ def main() -> None:
             v = animator.animate(r.motion, body=r.dressed, allow_outside=True).vertices.astype(np.float64)
             g = r.garment.astype(np.float64)
             out, truth = (edge_strain_percentiles(x, template.vertices, topo) for x in (v, g))
-            acceleration = (np.linalg.norm(np.diff(v, 2, 0), axis=-1).mean() / np.linalg.norm(np.diff(g, 2, 0), axis=-1).mean())
-            rows.append((pve_mm(v, g), out["strain_p99"], out["strain_max"], truth["strain_p99"], truth["strain_max"],
-                         energy_ratios(v, g, template.vertices, topo)["bending_energy_ratio"], acceleration))
+            acceleration = (
+                np.linalg.norm(np.diff(v, 2, 0), axis=-1).mean()
+                / np.linalg.norm(np.diff(g, 2, 0), axis=-1).mean()
+            )
+            rows.append(
+                (
+                    pve_mm(v, g),
+                    out["strain_p99"],
+                    out["strain_max"],
+                    truth["strain_p99"],
+                    truth["strain_max"],
+                    energy_ratios(v, g, template.vertices, topo)["bending_energy_ratio"],
+                    acceleration,
+                )
+            )
         a = np.array(rows)
-        print(f"limit {text.strip()}: PVE {a[:, 0].mean():.2f} mm, strain p99 {a[:, 1].mean():.3f} (truth {a[:, 3].mean():.3f}), "
-              f"max {a[:, 2].max():.2f} (truth {a[:, 4].max():.2f}), bending energy ratio {a[:, 5].mean():.2f}, "
-              f"acceleration ratio {a[:, 6].mean():.2f} ({time.perf_counter() - started:.0f} s)", flush=True)
+        print(
+            f"limit {text.strip()}: PVE {a[:, 0].mean():.2f} mm, strain p99 {a[:, 1].mean():.3f} (truth {a[:, 3].mean():.3f}), "
+            f"max {a[:, 2].max():.2f} (truth {a[:, 4].max():.2f}), bending energy ratio {a[:, 5].mean():.2f}, "
+            f"acceleration ratio {a[:, 6].mean():.2f} ({time.perf_counter() - started:.0f} s)",
+            flush=True,
+        )
 
 
 if __name__ == "__main__":

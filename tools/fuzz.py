@@ -77,19 +77,36 @@ def make_samples(folder: Path) -> Samples:
     from hrr_garment.motion.skeleton import CANONICAL, JOINT_NAMES, PARENTS
     from hrr_garment.motion.synth import synthesize
 
-    s = Samples(folder / "model", folder / "skirt.h5", folder / "tiny.yaml", folder / "walk.bvh", folder / "walk.npz",
-                folder / "walk_amass.npz", folder / "out.h5")
+    s = Samples(
+        folder / "model",
+        folder / "skirt.h5",
+        folder / "tiny.yaml",
+        folder / "walk.bvh",
+        folder / "walk.npz",
+        folder / "walk_amass.npz",
+        folder / "out.h5",
+    )
     if all(p.exists() for p in asdict(s).values()):
         return s
     folder.mkdir(parents=True, exist_ok=True)
     motion = synthesize("walk", 2.0, seed=7)
     save_motion(motion, s.native)
     save_amass(motion, s.amass)
-    write_bvh(s.bvh, list(JOINT_NAMES), list(PARENTS), CANONICAL.offsets, motion.local_rotations.astype(np.float64),
-              motion.root_translation, 1 / 30)
+    write_bvh(
+        s.bvh,
+        list(JOINT_NAMES),
+        list(PARENTS),
+        CANONICAL.offsets,
+        motion.local_rotations.astype(np.float64),
+        motion.root_translation,
+        1 / 30,
+    )
     write_synthetic_dataset(s.dataset, make_garment("skirt", 300))
     s.config.write_text(TINY_CONFIG)
-    if train_main(["--dataset", str(s.dataset), "--config", str(s.config), "-o", str(s.model), "--quiet"]) != 0:
+    if (
+        train_main(["--dataset", str(s.dataset), "--config", str(s.config), "-o", str(s.model), "--quiet"])
+        != 0
+    ):
         raise SystemExit("fuzz: could not train the sample model")
     if animate_main([str(s.native), "--model", str(s.model), "-o", str(s.animation)]) != 0:
         raise SystemExit("fuzz: could not animate the sample motion")
@@ -98,8 +115,21 @@ def make_samples(folder: Path) -> Samples:
 
 # ----------------------------------------------------------------------------- mutations
 
-EXTREMES = ["1e308", "-1e308", "nan", "inf", "-inf", "0", "-0", "1e6", "-1e6", "1e-300", "99999999999999999999",
-            "1e20", "-1"]
+EXTREMES = [
+    "1e308",
+    "-1e308",
+    "nan",
+    "inf",
+    "-inf",
+    "0",
+    "-0",
+    "1e6",
+    "-1e6",
+    "1e-300",
+    "99999999999999999999",
+    "1e20",
+    "-1",
+]
 
 
 def _numbers(text: str) -> list[re.Match]:
@@ -117,28 +147,54 @@ def _is_number(token: str) -> bool:
 def mutate_text(text: str, rng: np.random.Generator) -> tuple[str, str]:
     """One mutation of a BVH's text: (mutated text, what was done)."""
     lines = text.split("\n")
-    kind = rng.choice(["number", "numbers", "delete line", "duplicate line", "truncate", "channels", "frame time",
-                       "frames", "nesting", "brace", "offsets", "keyword", "swap lines"])
+    kind = rng.choice(
+        [
+            "number",
+            "numbers",
+            "delete line",
+            "duplicate line",
+            "truncate",
+            "channels",
+            "frame time",
+            "frames",
+            "nesting",
+            "brace",
+            "offsets",
+            "keyword",
+            "swap lines",
+        ]
+    )
     if kind in ("number", "numbers"):
         found = _numbers(text)
-        for m in sorted(rng.choice(found, size=min(len(found), 1 if kind == "number" else 50), replace=False),
-                        key=lambda m: -m.start()):
-            text = text[:m.start()] + str(rng.choice(EXTREMES)) + text[m.end():]
+        for m in sorted(
+            rng.choice(found, size=min(len(found), 1 if kind == "number" else 50), replace=False),
+            key=lambda m: -m.start(),
+        ):
+            text = text[: m.start()] + str(rng.choice(EXTREMES)) + text[m.end() :]
         return text, kind
     if kind == "delete line":
         i = int(rng.integers(len(lines)))
-        return "\n".join(lines[:i] + lines[i + 1:]), f"{kind} {i}"
+        return "\n".join(lines[:i] + lines[i + 1 :]), f"{kind} {i}"
     if kind == "duplicate line":
         i = int(rng.integers(len(lines)))
-        return "\n".join(lines[:i + 1] + lines[i:]), f"{kind} {i}"
+        return "\n".join(lines[: i + 1] + lines[i:]), f"{kind} {i}"
     if kind == "swap lines":
         i, j = rng.integers(len(lines), size=2)
         lines[i], lines[j] = lines[j], lines[i]
         return "\n".join(lines), f"{kind} {i} {j}"
     if kind == "truncate":
-        return text[:int(rng.integers(len(text)))], kind
+        return text[: int(rng.integers(len(text)))], kind
     if kind == "channels":
-        names = ["Xrotation", "Yrotation", "Zrotation", "Xposition", "Yposition", "Zposition", "Wrotation", "x"]
+        names = [
+            "Xrotation",
+            "Yrotation",
+            "Zrotation",
+            "Xposition",
+            "Yposition",
+            "Zposition",
+            "Wrotation",
+            "x",
+        ]
         idx = [i for i, ln in enumerate(lines) if "CHANNELS" in ln]
         i = int(rng.choice(idx))
         parts = lines[i].split()
@@ -156,13 +212,15 @@ def mutate_text(text: str, rng: np.random.Generator) -> tuple[str, str]:
         return re.sub(r"Frames:.*", f"Frames: {value}", text), f"{kind} {value}"
     if kind == "nesting":
         depth = int(rng.choice([65, 300, 5000]))
-        chain = "".join(f"JOINT j{k}\n{{\nOFFSET 0 1 0\nCHANNELS 3 Zrotation Xrotation Yrotation\n" for k in range(depth))
+        chain = "".join(
+            f"JOINT j{k}\n{{\nOFFSET 0 1 0\nCHANNELS 3 Zrotation Xrotation Yrotation\n" for k in range(depth)
+        )
         at = text.index("JOINT")
         return text[:at] + chain + "}\n" * depth + text[at:], f"{kind} {depth}"
     if kind == "brace":
         idx = [i for i, ln in enumerate(lines) if ln.strip() in ("{", "}")]
         i = int(rng.choice(idx))
-        return "\n".join(lines[:i] + lines[i + 1:]), kind
+        return "\n".join(lines[:i] + lines[i + 1 :]), kind
     if kind == "offsets":
         factor = float(rng.choice([-1.0, 0.0, 1e6, 1e-6, 1e308]))
         out = []
@@ -188,7 +246,7 @@ def mutate_bytes(data: bytes, rng: np.random.Generator) -> tuple[bytes, str]:
             buf[i] = int(rng.integers(256))
         return bytes(buf), f"flip {n} bytes"
     if kind == "truncate":
-        return data[:int(rng.integers(len(data)))], kind
+        return data[: int(rng.integers(len(data)))], kind
     if kind == "empty":
         return b"", kind
     return rng.bytes(int(rng.integers(1, 4096))), kind
@@ -211,9 +269,11 @@ def mutate_arrays(arrays: dict, rng: np.random.Generator) -> tuple[dict, str]:
     elif kind == "zero":
         arrays[key] = np.zeros_like(a)
     elif kind == "shape" and a.ndim:
-        arrays[key] = a.reshape(-1)[: max(0, a.size - int(rng.integers(1, 4)))] if rng.random() < 0.5 else a[..., None]
+        arrays[key] = (
+            a.reshape(-1)[: max(0, a.size - int(rng.integers(1, 4)))] if rng.random() < 0.5 else a[..., None]
+        )
     elif kind == "empty" and a.ndim:
-        arrays[key] = a[:int(rng.integers(0, 2))]
+        arrays[key] = a[: int(rng.integers(0, 2))]
     elif kind == "dtype":
         dtype = rng.choice(["bool", "complex64", "int8", "U8", "S4", "datetime64[s]", "float16"])
         try:
@@ -249,12 +309,27 @@ def mutate_bundle(src: Path, dst: Path, rng: np.random.Generator) -> str:
 
     def rehash(name: str) -> None:  # what a forger does: every hash recomputed (a hash is not a signature)
         meta["files"][name] = hashlib.sha256((dst / name).read_bytes()).hexdigest()
-        meta["content_hash"] = hashlib.sha256(json.dumps(meta["files"], sort_keys=True).encode()).hexdigest()[:16]
+        meta["content_hash"] = hashlib.sha256(json.dumps(meta["files"], sort_keys=True).encode()).hexdigest()[
+            :16
+        ]
         meta["manifest_hash"] = manifest_hash(meta)
 
     # (hostile values in its fields, re-hashed: mutate_manifest)
-    kind = rng.choice(["drop key", "drop files", "drop entry", "edit hash", "escape", "json bytes",
-                       "file bytes", "file bytes rehashed", "nan weights", "delete file", "list"])
+    kind = rng.choice(
+        [
+            "drop key",
+            "drop files",
+            "drop entry",
+            "edit hash",
+            "escape",
+            "json bytes",
+            "file bytes",
+            "file bytes rehashed",
+            "nan weights",
+            "delete file",
+            "list",
+        ]
+    )
     if kind == "drop key":
         key = str(rng.choice(sorted(meta)))
         del meta[key]
@@ -266,8 +341,11 @@ def mutate_bundle(src: Path, dst: Path, rng: np.random.Generator) -> str:
     elif kind == "edit hash":
         meta["content_hash"] = "0" * 16
     elif kind == "escape":
-        meta["files"]["../../../../etc/hostname"] = hashlib.sha256(Path("/etc/hostname").read_bytes()).hexdigest() \
-            if Path("/etc/hostname").exists() else "0" * 64
+        meta["files"]["../../../../etc/hostname"] = (
+            hashlib.sha256(Path("/etc/hostname").read_bytes()).hexdigest()
+            if Path("/etc/hostname").exists()
+            else "0" * 64
+        )
     elif kind == "list":
         meta = [meta]
     if kind in ("json bytes",):
@@ -307,7 +385,11 @@ def mutate_h5(src: Path, dst: Path, rng: np.random.Generator, arrays: tuple[str,
     shutil.copy(src, dst)
     with h5py.File(dst, "r+") as f:
         names: list[str] = []
-        f.visit(lambda n: names.append(n) if isinstance(f[n], h5py.Dataset) and n.split("/")[-1] in arrays else None)
+        f.visit(
+            lambda n: (
+                names.append(n) if isinstance(f[n], h5py.Dataset) and n.split("/")[-1] in arrays else None
+            )
+        )
         name = str(rng.choice(names))
         d = f[name]
         if kind == "nan" and d.dtype.kind == "f":
@@ -332,8 +414,26 @@ def mutate_h5(src: Path, dst: Path, rng: np.random.Generator, arrays: tuple[str,
 
 # bundle.json leaves a forger may change (every hash recomputed) and what it may put there
 MANIFEST_SKIP = {"files", "content_hash", "manifest_hash"}
-HOSTILE_VALUES = [1e6, -5, 0, 1e308, -1e308, float("nan"), float("inf"), "x", "", None, [1, 2], {"a": 1}, True,
-                  "dress", "skirt", 2**63, 0.5, 1e-300]
+HOSTILE_VALUES = [
+    1e6,
+    -5,
+    0,
+    1e308,
+    -1e308,
+    float("nan"),
+    float("inf"),
+    "x",
+    "",
+    None,
+    [1, 2],
+    {"a": 1},
+    True,
+    "dress",
+    "skirt",
+    2**63,
+    0.5,
+    1e-300,
+]
 
 
 def _leaves(meta: dict, prefix: tuple = ()) -> list[tuple]:
@@ -385,29 +485,71 @@ except (ValueError, TypeError, KeyError) as exc:
     sys.exit(2)
 """
 API_CALLS = {
-    "stream root": ("v = animator.stream().push(rotation=R[0], root=V); save(v[None], V)", ["root"],
-                    ["[1e39, 0.95, 0]", "[1e30, 0.95, 0]", "[np.nan, 0.9, 0]", "[1, 2]", "'abc'", "[[0, 0.9, 0]] * 2",
-                     "np.array([0, 0.9, 0], complex)", "[1e4 - 1, 0.9, 0]"]),
-    "stream rotation": ("v = animator.stream().push(rotation=V, root=T[0]); save(v[None], T[0])",
-                        ["rotation", "quaternion", "axis-angle", "matrix"],
-                        ["R[0] * 1000", "np.full((22, 4), 1e39)", "np.zeros((22, 4))", "np.full((22, 3), 1e39)",
-                         "R[0].astype(complex)", "np.ones((21, 4))", "np.full((22, 3), np.nan)", "-R[0]",
-                         "np.random.default_rng(0).normal(size=(22, 3, 3))"]),
-    "teleport": ("s = animator.stream()\n    for t in range(5): s.push(rotation=R[t], root=T[t])\n"
-                 "    root = T[5] + np.array(V, float)\n    v = s.push(rotation=R[5], root=root); save(v[None], root)",
-                 ["root"], ["[50, 0, 0]", "[1e38, 0, 0]", "[0, 3, 0]", "[9000, 0, 0]", "[0.01, 0, 0]"]),
-    "motion fps": ("m = Motion(R, T, fps=V); a = animator.animate(m); save(a.vertices, a.joints[:, 0])", ["frame rate"],
-                   ["1e-300", "1e300", "0", "-30", "np.nan", "'30'", "True", "None", "complex(30, 1)"]),
-    "motion root": ("r = T.copy(); r[3] = V; a = animator.animate(Motion(R, r, fps=clip.fps)); save(a.vertices, a.joints[:, 0])",
-                    ["pelvis", "non-finite", "root"], ["1e39", "1e30", "np.nan", "[1e5, 0, 0]", "-np.inf"]),
-    "motion rotation": ("q = R.copy(); q[3, 5] = V; a = animator.animate(Motion(q, T, fps=clip.fps)); save(a.vertices, a.joints[:, 0])",
-                        ["rotation", "non-finite"], ["q[3, 5] * 1000", "0", "np.nan", "-q[3, 5]", "np.diag([1, 1, -1])"]),
-    "motion edited": ("clip.local_rotations[3, 5] = V\n    a = animator.animate(clip); save(a.vertices, a.joints[:, 0])",
-                      ["read-only"], ["np.nan", "0", "R[3, 5] * 1000"]),
-    "tau": ("a = animator.animate(clip, tau=V); save(a.vertices, a.joints[:, 0])", ["tau"],
-            ["np.nan", "-1", "np.inf", "'x'", "None", "1e308", "0.0", "True"]),
-    "exclude_sequence": ("a = animator.animate(clip, mode='retrieval', exclude_sequence=V); save(a.vertices, a.joints[:, 0])",
-                         ["exclude_sequence"], ["999", "-1", "1.5", "'x'", "True", "0", "np.int64(1)", "2**63"]),
+    "stream root": (
+        "v = animator.stream().push(rotation=R[0], root=V); save(v[None], V)",
+        ["root"],
+        [
+            "[1e39, 0.95, 0]",
+            "[1e30, 0.95, 0]",
+            "[np.nan, 0.9, 0]",
+            "[1, 2]",
+            "'abc'",
+            "[[0, 0.9, 0]] * 2",
+            "np.array([0, 0.9, 0], complex)",
+            "[1e4 - 1, 0.9, 0]",
+        ],
+    ),
+    "stream rotation": (
+        "v = animator.stream().push(rotation=V, root=T[0]); save(v[None], T[0])",
+        ["rotation", "quaternion", "axis-angle", "matrix"],
+        [
+            "R[0] * 1000",
+            "np.full((22, 4), 1e39)",
+            "np.zeros((22, 4))",
+            "np.full((22, 3), 1e39)",
+            "R[0].astype(complex)",
+            "np.ones((21, 4))",
+            "np.full((22, 3), np.nan)",
+            "-R[0]",
+            "np.random.default_rng(0).normal(size=(22, 3, 3))",
+        ],
+    ),
+    "teleport": (
+        "s = animator.stream()\n    for t in range(5): s.push(rotation=R[t], root=T[t])\n"
+        "    root = T[5] + np.array(V, float)\n    v = s.push(rotation=R[5], root=root); save(v[None], root)",
+        ["root"],
+        ["[50, 0, 0]", "[1e38, 0, 0]", "[0, 3, 0]", "[9000, 0, 0]", "[0.01, 0, 0]"],
+    ),
+    "motion fps": (
+        "m = Motion(R, T, fps=V); a = animator.animate(m); save(a.vertices, a.joints[:, 0])",
+        ["frame rate"],
+        ["1e-300", "1e300", "0", "-30", "np.nan", "'30'", "True", "None", "complex(30, 1)"],
+    ),
+    "motion root": (
+        "r = T.copy(); r[3] = V; a = animator.animate(Motion(R, r, fps=clip.fps)); save(a.vertices, a.joints[:, 0])",
+        ["pelvis", "non-finite", "root"],
+        ["1e39", "1e30", "np.nan", "[1e5, 0, 0]", "-np.inf"],
+    ),
+    "motion rotation": (
+        "q = R.copy(); q[3, 5] = V; a = animator.animate(Motion(q, T, fps=clip.fps)); save(a.vertices, a.joints[:, 0])",
+        ["rotation", "non-finite"],
+        ["q[3, 5] * 1000", "0", "np.nan", "-q[3, 5]", "np.diag([1, 1, -1])"],
+    ),
+    "motion edited": (
+        "clip.local_rotations[3, 5] = V\n    a = animator.animate(clip); save(a.vertices, a.joints[:, 0])",
+        ["read-only"],
+        ["np.nan", "0", "R[3, 5] * 1000"],
+    ),
+    "tau": (
+        "a = animator.animate(clip, tau=V); save(a.vertices, a.joints[:, 0])",
+        ["tau"],
+        ["np.nan", "-1", "np.inf", "'x'", "None", "1e308", "0.0", "True"],
+    ),
+    "exclude_sequence": (
+        "a = animator.animate(clip, mode='retrieval', exclude_sequence=V); save(a.vertices, a.joints[:, 0])",
+        ["exclude_sequence"],
+        ["999", "-1", "1.5", "'x'", "True", "0", "np.int64(1)", "2**63"],
+    ),
 }
 
 
@@ -416,8 +558,14 @@ def _api_case(number: int, samples: Samples, out: Path, rng: np.random.Generator
     call, words, values = API_CALLS[name]
     value = values[int(rng.integers(len(values)))]
     code = API_PRELUDE.format(call="    " + call.replace("V", f"({value})"))
-    return Case(number, "api", f"{name}: {value}", [sys.executable, "-c", code, str(samples.model), str(samples.native),
-                                                     str(out / "api.npy")], out / "api.npy", words)
+    return Case(
+        number,
+        "api",
+        f"{name}: {value}",
+        [sys.executable, "-c", code, str(samples.model), str(samples.native), str(out / "api.npy")],
+        out / "api.npy",
+        words,
+    )
 
 
 def _output_is_input_case(number: int, samples: Samples, folder: Path, rng: np.random.Generator) -> Case:
@@ -430,13 +578,18 @@ def _output_is_input_case(number: int, samples: Samples, folder: Path, rng: np.r
     choices = {
         "export onto its input": (_cli("export", anim, "--to", "glb", "-o", anim), anim),
         "export pc2 onto its input": (_cli("export", anim, "--to", "pc2", "-o", anim), anim),
-        "export through a link to its input": (_cli("export", anim, "-o", folder / "link.glb"), folder / "link.glb"),
+        "export through a link to its input": (
+            _cli("export", anim, "-o", folder / "link.glb"),
+            folder / "link.glb",
+        ),
         "preview onto its input": (_cli("preview", anim, "-o", anim, "--size", 64, "--frames", 2), anim),
         "animate onto its motion": (_cli("animate", clip, "--model", samples.model, "-o", clip), clip),
         "features onto its motion": (_cli("motion", "features", bvh, "-o", bvh), bvh),
         "synth over a bvh": (_cli("motion", "synth", "walk", "-o", bvh), bvh),
-        "animate onto the model": (_cli("animate", clip, "--model", samples.model, "-o", samples.model / "bundle.json"),
-                                   samples.model / "bundle.json"),
+        "animate onto the model": (
+            _cli("animate", clip, "--model", samples.model, "-o", samples.model / "bundle.json"),
+            samples.model / "bundle.json",
+        ),
     }
     what = str(rng.choice(sorted(choices)))
     command, target = choices[what]
@@ -455,12 +608,21 @@ def _interrupt_case(number: int, samples: Samples, out: Path, rng: np.random.Gen
     """Ctrl-C or SIGTERM while a command works: exit 130 / 143, nothing at the output, no temporary file."""
     sig = int(rng.choice([signal.SIGINT, signal.SIGTERM]))
     if rng.random() < 0.6:
-        command, target = _cli("animate", samples.native, "--model", samples.model, "-o", out / "out.h5"), out / "out.h5"
+        command, target = (
+            _cli("animate", samples.native, "--model", samples.model, "-o", out / "out.h5"),
+            out / "out.h5",
+        )
     else:
         command, target = _cli("preview", samples.animation, "-o", out / "a.mp4", "--size", 96), out / "a.mp4"
     delay = float(rng.uniform(0.0, 1.5))
-    case = Case(number, "interrupt", f"{signal.Signals(sig).name} {delay:.2f} s into {command[3]}", command, target,
-                [target.name])
+    case = Case(
+        number,
+        "interrupt",
+        f"{signal.Signals(sig).name} {delay:.2f} s into {command[3]}",
+        command,
+        target,
+        [target.name],
+    )
     case.interrupt = (sig, delay)
     return case
 
@@ -483,12 +645,27 @@ class Case:
 
 
 def _cli(module: str, *args: object) -> list[str]:
-    return [sys.executable, "-c", f"import sys; from hrr_garment.cli.{module} import main; sys.exit(main())",
-            *map(str, args)]
+    return [
+        sys.executable,
+        "-c",
+        f"import sys; from hrr_garment.cli.{module} import main; sys.exit(main())",
+        *map(str, args),
+    ]
 
 
-KINDS = {"bvh": 0.22, "native npz": 0.08, "amass npz": 0.08, "bundle": 0.1, "manifest": 0.08, "dataset": 0.08,
-         "animation": 0.08, "api": 0.12, "output path": 0.05, "output = input": 0.06, "interrupt": 0.05}
+KINDS = {
+    "bvh": 0.22,
+    "native npz": 0.08,
+    "amass npz": 0.08,
+    "bundle": 0.1,
+    "manifest": 0.08,
+    "dataset": 0.08,
+    "animation": 0.08,
+    "api": 0.12,
+    "output path": 0.05,
+    "output = input": 0.06,
+    "interrupt": 0.05,
+}
 
 
 def make_case(number: int, samples: Samples, work: Path, rng: np.random.Generator) -> Case:
@@ -517,22 +694,71 @@ def make_case(number: int, samples: Samples, work: Path, rng: np.random.Generato
         return _motion_case(number, kind, what, src, samples, out, rng)
     if kind == "bundle":
         what = mutate_bundle(samples.model, folder / "model", rng)
-        return Case(number, kind, what, _cli("animate", samples.native, "--model", folder / "model", "-o", out / "out.h5"),
-                    out / "out.h5", ["model"])
+        return Case(
+            number,
+            kind,
+            what,
+            _cli("animate", samples.native, "--model", folder / "model", "-o", out / "out.h5"),
+            out / "out.h5",
+            ["model"],
+        )
     if kind == "dataset":
         src = folder / "skirt.h5"
-        what = mutate_h5(samples.dataset, src, rng, ("garment", "joints", "local_rotations", "root_translation",
-                                                      "vertices", "faces", "attached", "test", "train", "val"))
+        what = mutate_h5(
+            samples.dataset,
+            src,
+            rng,
+            (
+                "garment",
+                "joints",
+                "local_rotations",
+                "root_translation",
+                "vertices",
+                "faces",
+                "attached",
+                "test",
+                "train",
+                "val",
+            ),
+        )
         if rng.random() < 0.3:
-            return Case(number, kind, what, _cli("train", "--dataset", src, "--config", samples.config, "-o",
-                                                 out / "model", "--quiet"), out / "model", [src.name])
-        return Case(number, kind, what, _cli("eval", "--model", samples.model, "--dataset", src, "--ensemble", 0,
-                                             "--no-sweep", "--no-plots", "--quiet", "-o", out / "report"),
-                    out / "report", [src.name])
+            return Case(
+                number,
+                kind,
+                what,
+                _cli("train", "--dataset", src, "--config", samples.config, "-o", out / "model", "--quiet"),
+                out / "model",
+                [src.name],
+            )
+        return Case(
+            number,
+            kind,
+            what,
+            _cli(
+                "eval",
+                "--model",
+                samples.model,
+                "--dataset",
+                src,
+                "--ensemble",
+                0,
+                "--no-sweep",
+                "--no-plots",
+                "--quiet",
+                "-o",
+                out / "report",
+            ),
+            out / "report",
+            [src.name],
+        )
     if kind == "animation":
         src = folder / "out.h5"
-        what = mutate_h5(samples.animation, src, rng, ("vertices", "faces", "joints", "capsules", "radii", "retrieved",
-                                                        "entropy", "match"))
+        what = mutate_h5(
+            samples.animation,
+            src,
+            rng,
+            ("vertices", "faces", "joints", "capsules", "radii", "retrieved", "entropy", "match"),
+        )
         target = rng.choice(["a.glb", "a.pc2", "a.usda", "a.png"])
         if target == "a.png":
             command = _cli("preview", src, "-o", out / target, "--size", 64, "--frames", 2)
@@ -541,8 +767,14 @@ def make_case(number: int, samples: Samples, work: Path, rng: np.random.Generato
         return Case(number, kind, what, command, out / target, [src.name])
     if kind == "manifest":
         what = mutate_manifest(samples.model, folder / "model", rng)
-        return Case(number, kind, what, _cli("animate", samples.native, "--model", folder / "model", "-o", out / "out.h5"),
-                    out / "out.h5", ["model", "bundle.json"])
+        return Case(
+            number,
+            kind,
+            what,
+            _cli("animate", samples.native, "--model", folder / "model", "-o", out / "out.h5"),
+            out / "out.h5",
+            ["model", "bundle.json"],
+        )
     if kind == "api":
         return _api_case(number, samples, out, rng)
     if kind == "output = input":
@@ -572,22 +804,41 @@ def _bvh_case(number: int, samples: Samples, folder: Path, rng: np.random.Genera
     return _motion_case(number, "bvh", "; ".join(done), src, samples, folder / "out", rng)
 
 
-def _motion_case(number: int, kind: str, what: str, src: Path, samples: Samples, out: Path,
-                 rng: np.random.Generator) -> Case:
+def _motion_case(
+    number: int, kind: str, what: str, src: Path, samples: Samples, out: Path, rng: np.random.Generator
+) -> Case:
     """A mutated motion through ``hrr-motion features`` (parsing, retargeting) or ``hrr-animate``."""
     if rng.random() < 0.6:
-        return Case(number, kind, what, _cli("motion", "features", src, "-o", out / "f.npy"), out / "f.npy", [src.name])
-    return Case(number, kind, what, _cli("animate", src, "--model", samples.model, "-o", out / "out.h5"),
-                out / "out.h5", [src.name])
+        return Case(
+            number,
+            kind,
+            what,
+            _cli("motion", "features", src, "-o", out / "f.npy"),
+            out / "f.npy",
+            [src.name],
+        )
+    return Case(
+        number,
+        kind,
+        what,
+        _cli("animate", src, "--model", samples.model, "-o", out / "out.h5"),
+        out / "out.h5",
+        [src.name],
+    )
 
 
 def _output_case(number: int, samples: Samples, folder: Path, rng: np.random.Generator) -> Case:
     """Outputs that cannot be written: special files, folders in the way, paths under a file, long names."""
     (folder / "a_file").write_text("x")
     (folder / "a_folder.glb").mkdir()
-    targets = {"proc": Path("/proc/hrr-fuzz.h5"), "device": Path("/dev/full"), "folder": folder / "a_folder.glb",
-               "under a file": folder / "a_file" / "out.h5", "long name": folder / ("n" * 300 + ".h5"),
-               "sys": Path("/sys/hrr-fuzz.glb")}
+    targets = {
+        "proc": Path("/proc/hrr-fuzz.h5"),
+        "device": Path("/dev/full"),
+        "folder": folder / "a_folder.glb",
+        "under a file": folder / "a_file" / "out.h5",
+        "long name": folder / ("n" * 300 + ".h5"),
+        "sys": Path("/sys/hrr-fuzz.glb"),
+    }
     what = str(rng.choice(sorted(targets)))
     target = targets[what]
     if rng.random() < 0.5 or target.suffix == ".glb":
@@ -605,16 +856,27 @@ def _limits(memory_gib: float):
         os.setsid()
         limit = int(memory_gib * 2**30)
         resource.setrlimit(resource.RLIMIT_AS, (limit, limit))
+
     return apply
 
 
 def run_case(case: Case, timeout: float, memory_gib: float) -> dict:
     env = {**os.environ, "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
     start = time.perf_counter()
-    proc = subprocess.Popen(case.command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
-                            stdin=subprocess.DEVNULL, preexec_fn=_limits(memory_gib), errors="replace")
+    proc = subprocess.Popen(
+        case.command,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=env,
+        stdin=subprocess.DEVNULL,
+        preexec_fn=_limits(memory_gib),
+        errors="replace",
+    )
     err_parts: list[str] = []
-    reader = threading.Thread(target=lambda: err_parts.extend(iter(lambda: proc.stderr.read(256), "")), daemon=True)
+    reader = threading.Thread(
+        target=lambda: err_parts.extend(iter(lambda: proc.stderr.read(256), "")), daemon=True
+    )
     reader.start()
     if case.interrupt is not None:  # once it works (its first progress bar), the signal, then the wait
         sig, delay = case.interrupt
@@ -635,8 +897,16 @@ def run_case(case: Case, timeout: float, memory_gib: float) -> dict:
     err = "".join(err_parts)
     seconds = time.perf_counter() - start
     outcome, detail = judge(case, proc.returncode, err, hung)
-    return {**asdict(case), "output": str(case.output), "command": case.command, "rc": proc.returncode,
-            "seconds": round(seconds, 2), "outcome": outcome, "detail": detail, "stderr": err[-2000:]}
+    return {
+        **asdict(case),
+        "output": str(case.output),
+        "command": case.command,
+        "rc": proc.returncode,
+        "seconds": round(seconds, 2),
+        "outcome": outcome,
+        "detail": detail,
+        "stderr": err[-2000:],
+    }
 
 
 def _exists(path: Path) -> bool:
@@ -648,16 +918,25 @@ def _exists(path: Path) -> bool:
 
 def judge(case: Case, rc: int, err: str, hung: bool) -> tuple[str, str]:
     special = str(case.output).startswith(("/proc", "/sys", "/dev"))
-    leftovers = [p.name for p in case.output.parent.glob(f".{case.output.name[:40]}*")] \
-        if not special and _exists(case.output.parent) else []
+    leftovers = (
+        [p.name for p in case.output.parent.glob(f".{case.output.name[:40]}*")]
+        if not special and _exists(case.output.parent)
+        else []
+    )
     if hung:
         return "hang", "past the time limit"
-    changed = [Path(p).name for p, digest in case.keep.items() if not Path(p).exists() or _digest(Path(p)) != digest]
+    changed = [
+        Path(p).name for p, digest in case.keep.items() if not Path(p).exists() or _digest(Path(p)) != digest
+    ]
     if changed:
         return "lost input", f"changed or removed: {', '.join(changed)}"
     # interrupted (130, 143) or, in the instant after the command restored the default handlers, ended
     # by the signal itself: its output either complete or absent, no temporary file
-    if case.interrupt is not None and rc in (130, 143, -signal.SIGINT, -signal.SIGTERM) and "Traceback" not in err:
+    if (
+        case.interrupt is not None
+        and rc in (130, 143, -signal.SIGINT, -signal.SIGTERM)
+        and "Traceback" not in err
+    ):
         problem = check_output(case.output) if _exists(case.output) else ""
         if leftovers or problem:
             return "partial file", f"left {leftovers or problem} after the signal"
@@ -668,7 +947,9 @@ def judge(case: Case, rc: int, err: str, hung: bool) -> tuple[str, str]:
         last = err.strip().splitlines()[-1] if err.strip() else f"exit {rc}"
         return "traceback", last[-300:]
     if rc == 2:
-        if leftovers or (not special and _exists(case.output) and case.kind not in ("output path", "output = input")):
+        if leftovers or (
+            not special and _exists(case.output) and case.kind not in ("output path", "output = input")
+        ):
             return "partial file", f"left {leftovers or case.output.name}"
         lines = [ln for ln in err.splitlines() if "error:" in ln]
         if not lines:
@@ -676,7 +957,9 @@ def judge(case: Case, rc: int, err: str, hung: bool) -> tuple[str, str]:
         if case.names and not any(n in lines[-1] for n in case.names) and "usage:" not in err:
             return "vague error", lines[-1][-300:]
         if "Warning" in err:  # warnings printed before the one line bury it
-            return "vague error", "warnings before the error: " + next(ln for ln in err.splitlines() if "Warning" in ln)[-200:]
+            return "vague error", "warnings before the error: " + next(
+                ln for ln in err.splitlines() if "Warning" in ln
+            )[-200:]
         return "clean error", lines[-1][-200:]
     if leftovers:
         return "partial file", f"left {leftovers}"
@@ -697,11 +980,17 @@ def check_output(path: Path) -> str:
                 return "non-finite vertices or joints"
             reach = np.linalg.norm(anim.vertices[:, :, None] - anim.joints[:, None], axis=-1).min(-1).max()
             return f"a garment vertex {reach:.2f} m from every joint" if reach > 1.5 else ""
-        if path.suffix == ".npy" and path.name == "api.npy":  # an API case: garment vertices relative to the pelvis
+        if (
+            path.suffix == ".npy" and path.name == "api.npy"
+        ):  # an API case: garment vertices relative to the pelvis
             rel = np.load(path, allow_pickle=False)
             if not np.isfinite(rel).all():
                 return "non-finite vertices"
-            return f"a garment vertex {np.abs(rel).max():.3g} m from the pelvis" if np.abs(rel).max() > 2.5 else ""
+            return (
+                f"a garment vertex {np.abs(rel).max():.3g} m from the pelvis"
+                if np.abs(rel).max() > 2.5
+                else ""
+            )
         if path.suffix in (".npz", ".npy"):
             loaded = np.load(path, allow_pickle=False)
             arrays = [loaded] if isinstance(loaded, np.ndarray) else [loaded[k] for k in loaded.files]
@@ -720,7 +1009,10 @@ def check_output(path: Path) -> str:
 
             load_bundle(path)
         elif path.is_dir() and (path / "report.json").exists():
-            json.loads((path / "report.json").read_text(), parse_constant=lambda c: (_ for _ in ()).throw(ValueError(c)))
+            json.loads(
+                (path / "report.json").read_text(),
+                parse_constant=lambda c: (_ for _ in ()).throw(ValueError(c)),
+            )
         return "" if path.is_dir() or path.stat().st_size > 0 else "empty output"
     except Exception as exc:  # noqa: BLE001 - anything that fails to read back is a bad output
         return f"output does not read back: {type(exc).__name__}: {str(exc)[:200]}"
@@ -732,14 +1024,19 @@ def write_report(results: list[dict], work: Path, seconds: float) -> str:
     counts = Counter((r["kind"], r["outcome"]) for r in results)
     rows = ["| input kind | cases | " + " | ".join(outcomes) + " |", "|---|---:|" + "---:|" * len(outcomes)]
     for k in kinds:
-        rows.append(f"| {k} | {sum(counts[k, o] for o in outcomes)} | " + " | ".join(str(counts[k, o]) for o in outcomes) + " |")
+        rows.append(
+            f"| {k} | {sum(counts[k, o] for o in outcomes)} | "
+            + " | ".join(str(counts[k, o]) for o in outcomes)
+            + " |"
+        )
     total = Counter(r["outcome"] for r in results)
     rows.append(f"| all | {len(results)} | " + " | ".join(str(total[o]) for o in outcomes) + " |")
     failures = [r for r in results if r["outcome"] in FAILURES]
     lines = [f"{len(results)} cases in {seconds / 60:.1f} min; failures: {len(failures)}", "", *rows]
     if failures:
-        lines += ["", "Failures:"] + [f"- #{r['number']} {r['kind']} ({r['mutation']}): {r['outcome']}: {r['detail']}"
-                                     for r in failures]
+        lines += ["", "Failures:"] + [
+            f"- #{r['number']} {r['kind']} ({r['mutation']}): {r['outcome']}: {r['detail']}" for r in failures
+        ]
     text = "\n".join(lines) + "\n"
     (work / "report.md").write_text(text)
     (work / "report.json").write_text(json.dumps({"seconds": seconds, "results": results}, indent=1))
@@ -747,7 +1044,9 @@ def write_report(results: list[dict], work: Path, seconds: float) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0], formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = argparse.ArgumentParser(
+        description=__doc__.split("\n\n")[0], formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     p.add_argument("--cases", type=int, default=1000)
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--jobs", type=int, default=os.cpu_count() or 1)
@@ -770,10 +1069,18 @@ def main(argv: list[str] | None = None) -> int:
                 case = make_case(n, samples, args.work, rng)
             r = run_case(case, args.timeout, args.memory_gib)
         except Exception as exc:  # noqa: BLE001 - a fuzzer bug must not hide the other cases; it counts as a failure
-            r = {"number": n, "kind": case.kind if case else "fuzzer", "mutation": case.mutation if case else "",
-                 "command": case.command if case else [], "output": str(case.output) if case else "", "rc": None,
-                 "seconds": 0.0, "outcome": "traceback", "detail": f"fuzzer error: {type(exc).__name__}: {exc}",
-                 "stderr": ""}
+            r = {
+                "number": n,
+                "kind": case.kind if case else "fuzzer",
+                "mutation": case.mutation if case else "",
+                "command": case.command if case else [],
+                "output": str(case.output) if case else "",
+                "rc": None,
+                "seconds": 0.0,
+                "outcome": "traceback",
+                "detail": f"fuzzer error: {type(exc).__name__}: {exc}",
+                "stderr": "",
+            }
         if r["outcome"] in FAILURES:
             kept = args.work / "failures" / folder.name
             shutil.copytree(folder, kept, dirs_exist_ok=True)
@@ -784,7 +1091,9 @@ def main(argv: list[str] | None = None) -> int:
     start = time.perf_counter()
     with ThreadPoolExecutor(args.jobs) as pool:
         futures = [pool.submit(one, n) for n in range(args.cases)]
-        results = [f.result() for f in tqdm(as_completed(futures), total=len(futures), desc="fuzz", unit="case")]
+        results = [
+            f.result() for f in tqdm(as_completed(futures), total=len(futures), desc="fuzz", unit="case")
+        ]
     results.sort(key=lambda r: r["number"])
     print(write_report(results, args.work, time.perf_counter() - start))
     return 1 if any(r["outcome"] in FAILURES for r in results) else 0

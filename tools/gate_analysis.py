@@ -41,11 +41,15 @@ def analyse(model: str, dataset: str | None, split: str) -> dict:
     if not names:
         raise SystemExit(f"{path} has no {split!r} sequences")
     w = bundle.codespace.config.window
-    features = dataset_features(ds, names, bundle.codespace.config.memory,body_measures=bool(bundle.codespace.config.body_features))
+    features = dataset_features(
+        ds, names, bundle.codespace.config.memory, body_measures=bool(bundle.codespace.config.body_features)
+    )
     names = [n for n in names if len(features[n]) >= w]
     motion = np.concatenate([sequence_windows(features[n], w) for n in names])
     truth = np.concatenate([sequence_windows(body_frames(ds, [n]), w) for n in names])
-    pred = predict_windows(bundle.codespace, motion, bundle.motion_stats, bundle.latent_stats, bundle.database)
+    pred = predict_windows(
+        bundle.codespace, motion, bundle.motion_stats, bundle.latent_stats, bundle.database
+    )
     naive = bundle.database.nearest_motion(bundle.motion_stats.normalize(motion))
     decode = bundle.autoencoder.fast_decoder()
     with torch.no_grad():
@@ -53,12 +57,21 @@ def analyse(model: str, dataset: str | None, split: str) -> dict:
         ret = window_errors_mm(decode, pred.retrieval, truth)
         nn = window_errors_mm(decode, bundle.database.latents[naive], truth)
     advantage = reg - ret  # > 0 where retrieval is the better candidate
-    return {"model": model, "split": split, "windows": len(reg),
-            "regression_mm": float(reg.mean()), "retrieval_mm": float(ret.mean()), "naive_nn_mm": float(nn.mean()),
-            "oracle_hybrid_mm": float(np.minimum(reg, ret).mean()),
-            "oracle_hybrid_naive_mm": float(np.minimum(reg, nn).mean()),
-            "retrieval_better_fraction": float((advantage > 0).mean()),
-            **{f"corr_advantage_low_{g}_doubt": float(np.corrcoef(advantage, -d)[0, 1]) for g, d in pred.doubts().items()}}
+    return {
+        "model": model,
+        "split": split,
+        "windows": len(reg),
+        "regression_mm": float(reg.mean()),
+        "retrieval_mm": float(ret.mean()),
+        "naive_nn_mm": float(nn.mean()),
+        "oracle_hybrid_mm": float(np.minimum(reg, ret).mean()),
+        "oracle_hybrid_naive_mm": float(np.minimum(reg, nn).mean()),
+        "retrieval_better_fraction": float((advantage > 0).mean()),
+        **{
+            f"corr_advantage_low_{g}_doubt": float(np.corrcoef(advantage, -d)[0, 1])
+            for g, d in pred.doubts().items()
+        },
+    }
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -72,13 +85,23 @@ def main(argv: list[str] | None = None) -> None:
     if args.json:
         print(json.dumps(r))
         return
-    print(f"{r['model']} {r['split']}: {r['windows']} windows; regression {r['regression_mm']:.2f} mm, retrieval "
-          f"{r['retrieval_mm']:.2f} mm, naive NN {r['naive_nn_mm']:.2f} mm")
-    print(f"oracle hybrid (better candidate per window) {r['oracle_hybrid_mm']:.2f} mm = "
-          f"{r['oracle_hybrid_mm'] / r['regression_mm']:.3f} x regression; with naive NN {r['oracle_hybrid_naive_mm']:.2f} mm")
-    corr = ", ".join(f"{k.split('_low_')[1].removesuffix('_doubt')} {v:+.3f}" for k, v in r.items() if k.startswith("corr_"))
-    print(f"retrieval better in {100 * r['retrieval_better_fraction']:.1f} % of windows; correlation of its advantage "
-          f"with each gate's confidence (low doubt): {corr}")
+    print(
+        f"{r['model']} {r['split']}: {r['windows']} windows; regression {r['regression_mm']:.2f} mm, retrieval "
+        f"{r['retrieval_mm']:.2f} mm, naive NN {r['naive_nn_mm']:.2f} mm"
+    )
+    print(
+        f"oracle hybrid (better candidate per window) {r['oracle_hybrid_mm']:.2f} mm = "
+        f"{r['oracle_hybrid_mm'] / r['regression_mm']:.3f} x regression; with naive NN {r['oracle_hybrid_naive_mm']:.2f} mm"
+    )
+    corr = ", ".join(
+        f"{k.split('_low_')[1].removesuffix('_doubt')} {v:+.3f}"
+        for k, v in r.items()
+        if k.startswith("corr_")
+    )
+    print(
+        f"retrieval better in {100 * r['retrieval_better_fraction']:.1f} % of windows; correlation of its advantage "
+        f"with each gate's confidence (low doubt): {corr}"
+    )
 
 
 if __name__ == "__main__":

@@ -47,10 +47,14 @@ def main() -> None:
         d, i = tree.query(v)
         near = d < ON_BODY_M
         v[near] = skin[i[near]] + (v[near] - skin[i[near]]) / np.maximum(d[near], 1e-9)[:, None] * SKIN_GAP_M
-    write_obj(args.output / "hero_dress.obj", v.astype(np.float32), dress.faces, groups={"band": dress.attached})
+    write_obj(
+        args.output / "hero_dress.obj", v.astype(np.float32), dress.faces, groups={"band": dress.attached}
+    )
     moved = np.linalg.norm(v - dress.vertices, axis=1)
-    print(f"hero.json: {hero.fitted.stature:.2f} m; hero_dress.obj: {len(v)} vertices, {100 * (moved > 1e-6).mean():.0f} % "
-          f"moved onto the mesh ({1000 * moved.mean():.1f} mm on average)")
+    print(
+        f"hero.json: {hero.fitted.stature:.2f} m; hero_dress.obj: {len(v)} vertices, {100 * (moved > 1e-6).mean():.0f} % "
+        f"moved onto the mesh ({1000 * moved.mean():.1f} mm on average)"
+    )
 
 
 if __name__ == "__main__":

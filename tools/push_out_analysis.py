@@ -45,8 +45,16 @@ def _timed_us(vertices: np.ndarray, motion, faces, animator, settings, crowd: in
         for start in range(0, len(vertices) - crowd + 1, crowd):
             sl = slice(start, start + crowd)
             t0 = time.perf_counter()
-            push_out(vertices[sl], motion.slice(start, start + crowd), faces, body=animator.body().body, settings=settings,
-                     mean=animator.smoothing, limits=animator.edge_limits, report=False)
+            push_out(
+                vertices[sl],
+                motion.slice(start, start + crowd),
+                faces,
+                body=animator.body().body,
+                settings=settings,
+                mean=animator.smoothing,
+                limits=animator.edge_limits,
+                report=False,
+            )
             per_frame.append((time.perf_counter() - t0) / crowd)
     return 1e6 * float(np.median(per_frame)) if per_frame else float("nan")
 
@@ -55,12 +63,25 @@ def push_out_rows(follows: list[int], slope: float, slacks: list[float]) -> dict
     """The push-out settings compared, by label: each follow with each slack."""
     from hrr_garment.inference.collision import PUSH_OUT
 
-    return {f"follow {f}, slack {k:g}": dataclasses.replace(PUSH_OUT, follow=f, follow_slope=slope, stretch_slack=k)
-            for f in follows for k in slacks}
+    return {
+        f"follow {f}, slack {k:g}": dataclasses.replace(
+            PUSH_OUT, follow=f, follow_slope=slope, stretch_slack=k
+        )
+        for f in follows
+        for k in slacks
+    }
 
 
-def analyse(model: str, dataset: str, split: str, rows: dict, sequences: int, crowd: int, repeat: int,
-            subspace_push: bool = False) -> dict:
+def analyse(
+    model: str,
+    dataset: str,
+    split: str,
+    rows: dict,
+    sequences: int,
+    crowd: int,
+    repeat: int,
+    subspace_push: bool = False,
+) -> dict:
     """``rows``: label -> :class:`~hrr_garment.inference.collision.PushOutSettings` (:func:`push_out_rows`);
     ``subspace_push``: each also after the push in the fast decoder's subspace."""
     from hrr_garment.data.dataset import GarmentDataset
@@ -77,9 +98,15 @@ def analyse(model: str, dataset: str, split: str, rows: dict, sequences: int, cr
     if subspace_push and subspace is None:
         raise SystemExit(f"{model}: no fast decoder (subspace) to push in")
     variants = [(label, settings, None) for label, settings in rows.items()]
-    variants += [(f"{label}, subspace push", settings, subspace) for label, settings in rows.items()] if subspace else []
-    found = {k: {"limited": [], "torn": [], "strain": [], "inside": [], "before": [], "pve": [], "us": []}
-             for k, _, _ in variants}
+    variants += (
+        [(f"{label}, subspace push", settings, subspace) for label, settings in rows.items()]
+        if subspace
+        else []
+    )
+    found = {
+        k: {"limited": [], "torn": [], "strain": [], "inside": [], "before": [], "pve": [], "us": []}
+        for k, _, _ in variants
+    }
     plain = {"unpushed": [], "simulation": []}
     unpushed_pve = []
     for name in names:
@@ -89,36 +116,77 @@ def analyse(model: str, dataset: str, split: str, rows: dict, sequences: int, cr
         plain["simulation"].append(edge_strain(record.garment, rest, edges))
         unpushed_pve.append(np.linalg.norm(anim.vertices - record.garment, axis=-1).mean(1))
         capsules = (*body.pose_motion(record.motion), body.radii)
-        for label, settings, push in variants:  # the push alone (its follow included), then with its strain limit
-            frames = anim.vertices if push is None else push(anim.vertices, record.motion, capsules, settings.margin)
-            bare, _ = push_out(frames, record.motion, faces, body=body, settings=dataclasses.replace(settings, max_strain=np.inf),
-                               mean=animator.smoothing, limits=animator.edge_limits, report=False)
-            _, torn = limit_push_strain(bare, frames, animator.edge_limits, settings.max_strain, slack=settings.stretch_slack)
-            out, _ = push_out(frames, record.motion, faces, body=body, settings=settings, mean=animator.smoothing,
-                              limits=animator.edge_limits, report=False)
+        for (
+            label,
+            settings,
+            push,
+        ) in variants:  # the push alone (its follow included), then with its strain limit
+            frames = (
+                anim.vertices
+                if push is None
+                else push(anim.vertices, record.motion, capsules, settings.margin)
+            )
+            bare, _ = push_out(
+                frames,
+                record.motion,
+                faces,
+                body=body,
+                settings=dataclasses.replace(settings, max_strain=np.inf),
+                mean=animator.smoothing,
+                limits=animator.edge_limits,
+                report=False,
+            )
+            _, torn = limit_push_strain(
+                bare, frames, animator.edge_limits, settings.max_strain, slack=settings.stretch_slack
+            )
+            out, _ = push_out(
+                frames,
+                record.motion,
+                faces,
+                body=body,
+                settings=settings,
+                mean=animator.smoothing,
+                limits=animator.edge_limits,
+                report=False,
+            )
             found[label]["torn"].append(torn)
             found[label]["limited"].append(np.abs(out - bare).max((1, 2)) > 0)
             found[label]["strain"].append(edge_strain(out, rest, edges))
-            found[label]["before"].append((body_signed_distance(frames, record.motion, body) < -0.005).mean(1))
+            found[label]["before"].append(
+                (body_signed_distance(frames, record.motion, body) < -0.005).mean(1)
+            )
             found[label]["inside"].append((body_signed_distance(out, record.motion, body) < -0.005).mean(1))
             found[label]["pve"].append(np.linalg.norm(out - record.garment, axis=-1).mean(1))
             timed = settings if push is None else dataclasses.replace(settings, subspace=push)
-            found[label]["us"].append(_timed_us(anim.vertices, record.motion, faces, animator, timed, crowd, repeat))
-    report = {"model": model, "dataset": dataset, "split": split, "sequences": names, "crowd": crowd, "rows": {}}
+            found[label]["us"].append(
+                _timed_us(anim.vertices, record.motion, faces, animator, timed, crowd, repeat)
+            )
+    report = {
+        "model": model,
+        "dataset": dataset,
+        "split": split,
+        "sequences": names,
+        "crowd": crowd,
+        "rows": {},
+    }
     for label, f in found.items():
         strain = np.concatenate(f["strain"])
         report["rows"][label] = {
             "limited_frames_pct": round(100 * float(np.concatenate(f["limited"]).mean()), 2),
             "torn_before_limit_pct": round(100 * float(np.concatenate(f["torn"]).mean()), 2),
-            "strain_max": round(float(strain.max()), 3), "strain_p99": round(float(np.percentile(strain, 99)), 4),
+            "strain_max": round(float(strain.max()), 3),
+            "strain_p99": round(float(np.percentile(strain, 99)), 4),
             "inside_before_pct": round(100 * float(np.concatenate(f["before"]).mean()), 3),
             "inside_after_pct": round(100 * float(np.concatenate(f["inside"]).mean()), 3),
             "pve_mm": round(1000 * float(np.concatenate(f["pve"]).mean()), 2),
-            "us_per_character": round(float(np.median(f["us"])), 1)}
+            "us_per_character": round(float(np.median(f["us"])), 1),
+        }
     for label, strains in plain.items():
         strain = np.concatenate(strains)
-        report["rows"][label] = {"strain_max": round(float(strain.max()), 3),
-                                 "strain_p99": round(float(np.percentile(strain, 99)), 4)}
+        report["rows"][label] = {
+            "strain_max": round(float(strain.max()), 3),
+            "strain_p99": round(float(np.percentile(strain, 99)), 4),
+        }
     report["rows"]["unpushed"]["pve_mm"] = round(1000 * float(np.concatenate(unpushed_pve).mean()), 2)
     return report
 
@@ -128,23 +196,45 @@ def main() -> None:
     parser.add_argument("--model", required=True)
     parser.add_argument("--dataset", required=True)
     parser.add_argument("--split", default="test")
-    parser.add_argument("--follow", type=int, nargs="+", default=[0, 6], help="neighbour-follow passes to compare")
+    parser.add_argument(
+        "--follow", type=int, nargs="+", default=[0, 6], help="neighbour-follow passes to compare"
+    )
     parser.add_argument("--slope", type=float, default=0.25, help="the follow's slope (of the rest distance)")
-    parser.add_argument("--slack", type=float, nargs="+", default=[0.1],
-                        help="the strain limit's slack over an edge the decoder stretched (of the rest length)")
+    parser.add_argument(
+        "--slack",
+        type=float,
+        nargs="+",
+        default=[0.1],
+        help="the strain limit's slack over an edge the decoder stretched (of the rest length)",
+    )
     parser.add_argument("--sequences", type=int, default=12, help="the split's first N clips")
-    parser.add_argument("--crowd", type=int, default=32, help="frames per timed push-out call (a crowd's characters)")
+    parser.add_argument(
+        "--crowd", type=int, default=32, help="frames per timed push-out call (a crowd's characters)"
+    )
     parser.add_argument("--repeat", type=int, default=2)
-    parser.add_argument("--subspace-push", action="store_true",
-                        help="each setting also after the push in the fast decoder's subspace")
+    parser.add_argument(
+        "--subspace-push",
+        action="store_true",
+        help="each setting also after the push in the fast decoder's subspace",
+    )
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args()
-    report = analyse(args.model, args.dataset, args.split, push_out_rows(args.follow, args.slope, args.slack),
-                     args.sequences, args.crowd, args.repeat, args.subspace_push)
+    report = analyse(
+        args.model,
+        args.dataset,
+        args.split,
+        push_out_rows(args.follow, args.slope, args.slack),
+        args.sequences,
+        args.crowd,
+        args.repeat,
+        args.subspace_push,
+    )
     if args.json:
         print(json.dumps(report))
         return
-    print(f"{args.model} on {len(report['sequences'])} {args.split} clips of {args.dataset} (default mode, offline):")
+    print(
+        f"{args.model} on {len(report['sequences'])} {args.split} clips of {args.dataset} (default mode, offline):"
+    )
     for label, row in report["rows"].items():
         print(f"  {label}: " + ", ".join(f"{k} {v}" for k, v in row.items()))
 

@@ -29,8 +29,13 @@ def inside_by_capsule(vertices: np.ndarray, motion, body) -> tuple[np.ndarray, n
     from hrr_garment.sim.quality import PENETRATION_DEPTH_M
 
     a, b = body.pose_motion(motion)
-    depth = np.stack([frames_signed_distance(vertices, a[:, c:c + 1], b[:, c:c + 1], radii=body.radii[c:c + 1])[0]
-                      for c in range(len(body.radii))], -1)  # (T, V, C)
+    depth = np.stack(
+        [
+            frames_signed_distance(vertices, a[:, c : c + 1], b[:, c : c + 1], radii=body.radii[c : c + 1])[0]
+            for c in range(len(body.radii))
+        ],
+        -1,
+    )  # (T, V, C)
     inside = depth.min(-1) < -PENETRATION_DEPTH_M
     return inside, np.bincount(depth.argmin(-1)[inside], minlength=len(body.radii))
 
@@ -59,8 +64,13 @@ def analyse(model: str, dataset: str, ranges: list[tuple[float, float]], sequenc
         capsules = 0
         with free_cloth(animator.bundle, ramp):
             for r in records:
-                v = r.garment if label == "simulation" else \
-                    animator.animate(r.motion, collision=False, body=r.dressed, allow_outside=True, **settings).vertices
+                v = (
+                    r.garment
+                    if label == "simulation"
+                    else animator.animate(
+                        r.motion, collision=False, body=r.dressed, allow_outside=True, **settings
+                    ).vertices
+                )
                 v, truth = v.astype(np.float64), r.garment.astype(np.float64)
                 flags, where = inside_by_capsule(v, r.motion, body_of(r))
                 inside += float(flags.mean()) * len(v)
@@ -71,9 +81,16 @@ def analyse(model: str, dataset: str, ranges: list[tuple[float, float]], sequenc
                 frames += len(v)
         weight = None if ramp is None else float(free_cloth_weights(animator.bundle.node_hang_m, ramp).mean())
         names = [c.name for c in body_of(records[0]).capsules]
-        rows.append({"label": label, "inside_pct": 100 * inside / frames, "hem_swing_ratio": swing / truth_swing,
-                     "pve_mm": error / frames, "mean_weight": weight,
-                     "inside_by_capsule_pct": {n: 100 * float(k) / frames for n, k in zip(names, capsules) if k}})
+        rows.append(
+            {
+                "label": label,
+                "inside_pct": 100 * inside / frames,
+                "hem_swing_ratio": swing / truth_swing,
+                "pve_mm": error / frames,
+                "mean_weight": weight,
+                "inside_by_capsule_pct": {n: 100 * float(k) / frames for n, k in zip(names, capsules) if k},
+            }
+        )
 
     detail = {"mode": "detail", "detail": DetailLook("residual", 1.0)}
     measure("simulation", None)
@@ -98,9 +115,13 @@ def main() -> None:
     for row in analyse(args.model, args.dataset, ranges, args.sequences):
         weight = "" if row["mean_weight"] is None else f" (mean weight {row['mean_weight']:.2f})"
         where = sorted(row["inside_by_capsule_pct"].items(), key=lambda kv: -kv[1])[:4]
-        print(f"{row['label'] + weight:60s} inside {row['inside_pct']:5.2f} % ("
-              + ", ".join(f"{n} {p:.2f}" for n, p in where) + f")  hem swing / sim {row['hem_swing_ratio']:.3f}  "
-              f"PVE {row['pve_mm']:.2f} mm", flush=True)
+        print(
+            f"{row['label'] + weight:60s} inside {row['inside_pct']:5.2f} % ("
+            + ", ".join(f"{n} {p:.2f}" for n, p in where)
+            + f")  hem swing / sim {row['hem_swing_ratio']:.3f}  "
+            f"PVE {row['pve_mm']:.2f} mm",
+            flush=True,
+        )
 
 
 if __name__ == "__main__":

@@ -63,9 +63,13 @@ def ceilings(animator: Animator, records: list, hem: np.ndarray) -> dict:
             truth = r.garment.astype(np.float64)
             z = stored[r.name].astype(np.float32)
             outs = {"autoencoder": z, "code space": code_reconstruction(animator, z)}
-            preds = {k: world_vertices(body_frame_vertices(animator.bundle, v, animator.decoder), r.motion) for k, v in outs.items()}
-            preds["regression"] = animator.animate(r.motion, mode="regression", collision=False, body=r.dressed,
-                                                 allow_outside=True).vertices
+            preds = {
+                k: world_vertices(body_frame_vertices(animator.bundle, v, animator.decoder), r.motion)
+                for k, v in outs.items()
+            }
+            preds["regression"] = animator.animate(
+                r.motion, mode="regression", collision=False, body=r.dressed, allow_outside=True
+            ).vertices
             for k, p in preds.items():
                 p = np.asarray(p, np.float64)
                 sums[k] += [M.pve_mm(p, truth) * len(truth), hem_swing(p, r.motion, hem) * len(truth)]
@@ -79,13 +83,25 @@ def analyse(model: str, split: str, sequences: int | None, members: int) -> dict
     ds = GarmentDataset(animator.bundle.meta["dataset"])
     names = ds.splits.get(split, [])
     if sequences:
-        names = [names[i] for i in sorted({int(round(i)) for i in np.linspace(0, len(names) - 1, min(sequences, len(names)))})]
+        names = [
+            names[i]
+            for i in sorted(
+                {int(round(i)) for i in np.linspace(0, len(names) - 1, min(sequences, len(names)))}
+            )
+        ]
     records = [ds.sequence(n) for n in names]
-    ensembles = truth_ensembles(ds.template, records, SimConfig.from_dict(ds.info["sim"]), members, jobs=2, bodies=ds.bodies)
+    ensembles = truth_ensembles(
+        ds.template, records, SimConfig.from_dict(ds.info["sim"]), members, jobs=2, bodies=ds.bodies
+    )
     template = animator.bundle.template
-    rest, topo = template.vertices.astype(np.float64), M.MeshTopology.of(template.faces, template.num_vertices)
+    rest, topo = (
+        template.vertices.astype(np.float64),
+        M.MeshTopology.of(template.faces, template.num_vertices),
+    )
     hem = hem_vertices(template)
-    sums = np.zeros(8)  # frames x: floor, PVE of the mean; bending of the mean, of the members; swing ditto; sqrt V_c, sqrt var_1
+    sums = np.zeros(
+        8
+    )  # frames x: floor, PVE of the mean; bending of the mean, of the members; swing ditto; sqrt V_c, sqrt var_1
     for record in records:
         if record.name not in ensembles:
             continue
@@ -97,32 +113,54 @@ def analyse(model: str, split: str, sequences: int | None, members: int) -> dict
         var_one = local.var(axis=1).sum(-1).mean(0)  # (H,) a member's temporal variance, mean over members
         var_mean = local.mean(0).var(axis=0).sum(-1)  # the mean's
         chaos = np.maximum(var_one - var_mean, 0.0) * k / (k - 1)
-        sums += t * np.array([floor, np.mean([M.pve_mm(mean, x) for x in m]),
-                              M.cloth_energies(mean, rest, topo)[1].mean(), np.mean([M.cloth_energies(x, rest, topo)[1].mean() for x in m]),
-                              hem_swing(mean, record.motion, hem), np.mean([hem_swing(x, record.motion, hem) for x in m]),
-                              np.sqrt(np.maximum(var_one - chaos, 0.0)).mean(), np.sqrt(var_one).mean()])
+        sums += t * np.array(
+            [
+                floor,
+                np.mean([M.pve_mm(mean, x) for x in m]),
+                M.cloth_energies(mean, rest, topo)[1].mean(),
+                np.mean([M.cloth_energies(x, rest, topo)[1].mean() for x in m]),
+                hem_swing(mean, record.motion, hem),
+                np.mean([hem_swing(x, record.motion, hem) for x in m]),
+                np.sqrt(np.maximum(var_one - chaos, 0.0)).mean(),
+                np.sqrt(var_one).mean(),
+            ]
+        )
     own = ceilings(animator, records, hem)
     frames = sum(len(r.garment) for r in records if r.name in ensembles)
-    return {"clips": len(ensembles), "members": members, "floor_mm": sums[0] / max(frames, 1),
-            "mean_pve_over_floor": sums[1] / sums[0], "mean_sharpness": sums[2] / sums[3],
-            "mean_hem_swing": sums[4] / sums[5],
-            "conditional_mean_hem_swing": sums[6] / sums[7], "reconstructions": own}
+    return {
+        "clips": len(ensembles),
+        "members": members,
+        "floor_mm": sums[0] / max(frames, 1),
+        "mean_pve_over_floor": sums[1] / sums[0],
+        "mean_sharpness": sums[2] / sums[3],
+        "mean_hem_swing": sums[4] / sums[5],
+        "conditional_mean_hem_swing": sums[6] / sums[7],
+        "reconstructions": own,
+    }
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--model", required=True, help="a trained model directory (its dataset and template)")
     parser.add_argument("--split", default="test", help="dataset split of held-out clips (default test)")
-    parser.add_argument("--sequences", type=int, default=None, help="at most this many of them, evenly spaced")
-    parser.add_argument("--ensemble", type=int, default=4, help="members per clip, as hrr-eval ran them (default 4)")
+    parser.add_argument(
+        "--sequences", type=int, default=None, help="at most this many of them, evenly spaced"
+    )
+    parser.add_argument(
+        "--ensemble", type=int, default=4, help="members per clip, as hrr-eval ran them (default 4)"
+    )
     args = parser.parse_args()
     r = analyse(args.model, args.split, args.sequences, args.ensemble)
     print(f"{r['clips']} clips, {r['members']} members each, floor {r['floor_mm']:.2f} mm")
-    print(f"the members' mean: PVE / floor {r['mean_pve_over_floor']:.3f}, sharpness {r['mean_sharpness']:.2f}, "
-          f"hem swing {r['mean_hem_swing']:.2f}")
+    print(
+        f"the members' mean: PVE / floor {r['mean_pve_over_floor']:.3f}, sharpness {r['mean_sharpness']:.2f}, "
+        f"hem swing {r['mean_hem_swing']:.2f}"
+    )
     print(f"the conditional mean (infinitely many members): hem swing {r['conditional_mean_hem_swing']:.2f}")
     for k, c in r["reconstructions"].items():
-        print(f"{k + (' reconstruction' if k != 'regression' else ''):28s} PVE {c['pve_mm']:6.2f} mm, hem swing {c['hem_swing']:.2f}")
+        print(
+            f"{k + (' reconstruction' if k != 'regression' else ''):28s} PVE {c['pve_mm']:6.2f} mm, hem swing {c['hem_swing']:.2f}"
+        )
 
 
 if __name__ == "__main__":

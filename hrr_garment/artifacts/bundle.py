@@ -67,8 +67,12 @@ class Bundle:
     database: CodeDatabase
     template: GarmentMesh
     direct: DirectRegressor | None = None  # the direct-regression baseline, when trained
-    folds: FoldStore | None = None  # the database frames' folds, for the detail mode (where the bundle has them)
-    subspace: SubspaceDecoder | None = None  # the run-time decoder sized for games (``--decoder fast``), when trained
+    folds: FoldStore | None = (
+        None  # the database frames' folds, for the detail mode (where the bundle has them)
+    )
+    subspace: SubspaceDecoder | None = (
+        None  # the run-time decoder sized for games (``--decoder fast``), when trained
+    )
 
     @property
     def tau(self) -> float:
@@ -89,8 +93,11 @@ class Bundle:
             raise BundleError(self.folder, f"has no gate {signal!r}; the gates are {', '.join(GATE_SIGNALS)}")
         calibrated = self.meta["gates"].get(signal)
         if not calibrated:
-            raise BundleError(self.folder, f"was not calibrated for the {signal!r} gate (trained before it, or "
-                                           "hrr-train --stage codespace again); give its threshold with --tau")
+            raise BundleError(
+                self.folder,
+                f"was not calibrated for the {signal!r} gate (trained before it, or "
+                "hrr-train --stage codespace again); give its threshold with --tau",
+            )
         return float(calibrated["tau"])
 
     @property
@@ -101,17 +108,23 @@ class Bundle:
     def require_residual(self) -> None:
         """A BundleError, naming the model and the fix, where the residual mode cannot run."""
         if not self.has_residual:
-            raise BundleError(self.folder, "has no calibrated residual weight (trained before the residual mode): run "
-                                           f"hrr-train --stage codespace -o {self.folder} on its dataset again (the "
-                                           "trained weights are kept; only the weight is calibrated)")
+            raise BundleError(
+                self.folder,
+                "has no calibrated residual weight (trained before the residual mode): run "
+                f"hrr-train --stage codespace -o {self.folder} on its dataset again (the "
+                "trained weights are kept; only the weight is calibrated)",
+            )
 
     def require_subspace(self, needed_by: str | None = None) -> None:
         """A BundleError, naming the model and the fix, where the bundle has no fast decoder (its
         distilled subspace): the fast decoder itself, or ``needed_by`` (the subspace push) runs on it."""
         if self.subspace is None:
             user = f", which {needed_by} runs on" if needed_by else ""
-            raise BundleError(self.folder, f"has no fast decoder{user}: distil one with hrr-train --stage subspace "
-                                           "(or run the full decoder and the mesh push)")
+            raise BundleError(
+                self.folder,
+                f"has no fast decoder{user}: distil one with hrr-train --stage subspace "
+                "(or run the full decoder and the mesh push)",
+            )
 
     @property
     def residual_weight(self) -> float:
@@ -148,9 +161,12 @@ class Bundle:
     def require_folds(self) -> None:
         """A BundleError, naming the model and the fix, where the detail mode cannot run."""
         if self.folds is None:
-            raise BundleError(self.folder, "has no simulated folds for the detail mode (trained before them): run "
-                                           f"hrr-train --stage codespace -o {self.folder} on its dataset again (the "
-                                           "trained weights are kept; only the folds are added)")
+            raise BundleError(
+                self.folder,
+                "has no simulated folds for the detail mode (trained before them): run "
+                f"hrr-train --stage codespace -o {self.folder} on its dataset again (the "
+                "trained weights are kept; only the folds are added)",
+            )
 
     @property
     def detail_base(self) -> str:
@@ -158,7 +174,11 @@ class Bundle:
         (:mod:`hrr_garment.eval.auto_mode`): "residual", the residual mode's, or "regression" (also
         before the calibration, and where the residual cannot run)."""
         base = self.auto["detail_base"]
-        return "residual" if base == "residual" and self.has_residual and self.residual_weight > 0 else "regression"
+        return (
+            "residual"
+            if base == "residual" and self.has_residual and self.residual_weight > 0
+            else "regression"
+        )
 
     @property
     def detail_strength(self) -> float:
@@ -254,18 +274,34 @@ def _load_bundle(folder: Path, cache_dir: Path | None) -> Bundle:
     except (KeyError, TypeError, ValueError) as exc:
         raise BundleError(folder, f"bundle.json has a bad or missing entry ({exc})") from None
     if features != cs_cfg.features:
-        raise BundleError(folder, f"the model was trained on {features} motion features; its settings give {cs_cfg.features}")
+        raise BundleError(
+            folder,
+            f"the model was trained on {features} motion features; its settings give {cs_cfg.features}",
+        )
     t = load_arrays(folder, "template.safetensors", ("vertices", "faces", "attached"))
-    groups = {k.split("/", 1)[1]: v for k, v in t.items() if k.startswith("group/")}  # the template's vertex groups, if any
-    template = GarmentMesh(str(meta["garment"]), t["vertices"], t["faces"], groups={**groups, "attached": t["attached"]}, attached_groups=("attached",))
+    groups = {
+        k.split("/", 1)[1]: v for k, v in t.items() if k.startswith("group/")
+    }  # the template's vertex groups, if any
+    template = GarmentMesh(
+        str(meta["garment"]),
+        t["vertices"],
+        t["faces"],
+        groups={**groups, "attached": t["attached"]},
+        attached_groups=("attached",),
+    )
     try:
         check_garment(template)
     except GarmentError as exc:
         raise BundleError(folder, f"template.safetensors: {exc.problem}") from None
-    hierarchy = cached_hierarchy(template.faces, template.num_vertices, cache_dir, **ae_cfg.hierarchy_options(), name=str(folder))
+    hierarchy = cached_hierarchy(
+        template.faces, template.num_vertices, cache_dir, **ae_cfg.hierarchy_options(), name=str(folder)
+    )
     if list(hierarchy.sizes) != meta["autoencoder"].get("sizes"):
-        raise BundleError(folder, f"the template's sampling hierarchy has levels {list(hierarchy.sizes)}, the model "
-                                  f"{meta['autoencoder'].get('sizes')}")
+        raise BundleError(
+            folder,
+            f"the template's sampling hierarchy has levels {list(hierarchy.sizes)}, the model "
+            f"{meta['autoencoder'].get('sizes')}",
+        )
     autoencoder = MeshAutoencoder(hierarchy, ae_cfg, template.vertices, scale=float(scale))
     load_state(autoencoder, folder / "autoencoder.safetensors", folder)
     codespace = CodeSpace(cs_cfg, features, latent_shape)
@@ -274,11 +310,18 @@ def _load_bundle(folder: Path, cache_dir: Path | None) -> Bundle:
     s = load_arrays(folder, "stats.safetensors", ("motion_mean", "motion_std", "latent_mean", "latent_std"))
     d = load_arrays(folder, "database.safetensors", ("codes", "sequence", "start"))
     try:
-        database = CodeDatabase.from_arrays(d, list(meta["database"]["names"]), int(meta["database"]["classes"]), cs_cfg.window)
+        database = CodeDatabase.from_arrays(
+            d, list(meta["database"]["names"]), int(meta["database"]["classes"]), cs_cfg.window
+        )
     except (KeyError, TypeError, ValueError) as exc:
         raise BundleError(folder, f"database: {exc}") from None
-    if database.latents.shape[1:] != (cs_cfg.window, *latent_shape) or database.codes.shape[1:] != (cs_cfg.groups,):
-        raise BundleError(folder, f"database shapes {database.codes.shape} / {database.latents.shape} do not fit the configuration")
+    if database.latents.shape[1:] != (cs_cfg.window, *latent_shape) or database.codes.shape[1:] != (
+        cs_cfg.groups,
+    ):
+        raise BundleError(
+            folder,
+            f"database shapes {database.codes.shape} / {database.latents.shape} do not fit the configuration",
+        )
     folds = load_folds(folder, meta, template, database=database) if "folds" in meta else None
     direct = None
     if "direct" in meta:  # the optional baseline (hrr-train --stage baseline)
@@ -288,6 +331,21 @@ def _load_bundle(folder: Path, cache_dir: Path | None) -> Bundle:
             raise BundleError(folder, f"bundle.json has a bad 'direct' entry ({exc})") from None
         load_state(direct, folder / "direct.safetensors", folder)
         direct.eval()
-    subspace = load_subspace(folder, meta, latent_shape, num_vertices=template.num_vertices) if "subspace" in meta else None
-    return Bundle(folder, meta, autoencoder.eval(), codespace.eval(), FeatureStats(s["motion_mean"], s["motion_std"]),
-                  FeatureStats(s["latent_mean"], s["latent_std"]), database, template, direct, folds, subspace)
+    subspace = (
+        load_subspace(folder, meta, latent_shape, num_vertices=template.num_vertices)
+        if "subspace" in meta
+        else None
+    )
+    return Bundle(
+        folder,
+        meta,
+        autoencoder.eval(),
+        codespace.eval(),
+        FeatureStats(s["motion_mean"], s["motion_std"]),
+        FeatureStats(s["latent_mean"], s["latent_std"]),
+        database,
+        template,
+        direct,
+        folds,
+        subspace,
+    )

@@ -29,12 +29,20 @@ def load_state(module: torch.nn.Module, path: Path, folder: Path) -> None:
     expected = module.state_dict()
     missing, extra = sorted(set(expected) - set(state)), sorted(set(state) - set(expected))
     if missing or extra:
-        raise BundleError(folder, f"{path.name} does not fit the configured network (missing {missing[:3]}, unexpected {extra[:3]})")
+        raise BundleError(
+            folder,
+            f"{path.name} does not fit the configured network (missing {missing[:3]}, unexpected {extra[:3]})",
+        )
     for key, value in state.items():
         if tuple(value.shape) != tuple(expected[key].shape):
-            raise BundleError(folder, f"{path.name}: {key} has shape {tuple(value.shape)}, the configuration needs "
-                                      f"{tuple(expected[key].shape)}")
-    bad = [key for key, value in state.items() if value.is_floating_point() and not torch.isfinite(value).all()]
+            raise BundleError(
+                folder,
+                f"{path.name}: {key} has shape {tuple(value.shape)}, the configuration needs "
+                f"{tuple(expected[key].shape)}",
+            )
+    bad = [
+        key for key, value in state.items() if value.is_floating_point() and not torch.isfinite(value).all()
+    ]
     if bad:
         raise BundleError(folder, f"{path.name}: non-finite weights in {bad[:3]}")
     # Weight decay leaves some never-used weights (e.g. attention projections) at denormal
@@ -68,8 +76,12 @@ def load_arrays(folder: Path, name: str, keys: tuple[str, ...]) -> dict[str, np.
 def load_subspace(folder: Path, meta: dict, latent_shape: tuple, num_vertices: int) -> SubspaceDecoder:
     """The fast decoder, its size and settings from bundle.json's ``subspace`` entry."""
     try:
-        model = SubspaceDecoder(latent_shape, num_vertices, int(meta["subspace"]["components"]),
-                                config=SubspaceConfig.from_dict(meta["subspace"]["config"]))
+        model = SubspaceDecoder(
+            latent_shape,
+            num_vertices,
+            int(meta["subspace"]["components"]),
+            config=SubspaceConfig.from_dict(meta["subspace"]["config"]),
+        )
     except (KeyError, TypeError, ValueError) as exc:
         raise BundleError(folder, f"bundle.json has a bad 'subspace' entry ({exc})") from None
     load_state(model, folder / SUBSPACE_FILE, folder)
@@ -82,10 +94,20 @@ def load_folds(folder: Path, meta: dict, template: GarmentMesh, database: CodeDa
     f = load_arrays(folder, FOLDS_FILE, (levels, "scale", "offsets"))
     try:
         entry = meta["folds"]
-        folds = FoldStore(f[levels], f["scale"], f["offsets"], passes=entry["passes"], encoding=entry["encoding"],
-                          vertices=entry.get("vertices"))
-        folds.check_fits(template.num_vertices, len(database.names), database.sequence,
-                         database.start + database.latents.shape[1])
+        folds = FoldStore(
+            f[levels],
+            f["scale"],
+            f["offsets"],
+            passes=entry["passes"],
+            encoding=entry["encoding"],
+            vertices=entry.get("vertices"),
+        )
+        folds.check_fits(
+            template.num_vertices,
+            len(database.names),
+            database.sequence,
+            database.start + database.latents.shape[1],
+        )
     except (KeyError, TypeError, ValueError) as exc:
         raise BundleError(folder, f"{FOLDS_FILE}: {exc}") from None
     return folds

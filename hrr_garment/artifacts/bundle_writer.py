@@ -55,7 +55,9 @@ class BundleParts:
     folds: FoldStore | None = None
 
 
-def write_bundle(folder: str | Path, parts: BundleParts, *, tau: float, info: dict, gate: str = "entropy") -> Path:
+def write_bundle(
+    folder: str | Path, parts: BundleParts, *, tau: float, info: dict, gate: str = "entropy"
+) -> Path:
     """Write (or replace) the bundle in ``folder``; returns the path of ``bundle.json``. ``tau``:
     the threshold of the hybrid's ``gate`` signal; ``info``: more of bundle.json's fields."""
     check_gate_signal(gate)
@@ -67,35 +69,69 @@ def write_bundle(folder: str | Path, parts: BundleParts, *, tau: float, info: di
     _save(folder / "autoencoder.safetensors", autoencoder.state_dict())
     for name in NETWORKS:
         _save(folder / f"{name}.safetensors", getattr(codespace, name).state_dict())
-    _save(folder / "stats.safetensors", {"motion_mean": motion_stats.mean, "motion_std": motion_stats.std,
-                                         "latent_mean": latent_stats.mean, "latent_std": latent_stats.std}, numpy=True)
+    _save(
+        folder / "stats.safetensors",
+        {
+            "motion_mean": motion_stats.mean,
+            "motion_std": motion_stats.std,
+            "latent_mean": latent_stats.mean,
+            "latent_std": latent_stats.std,
+        },
+        numpy=True,
+    )
     _save(folder / "database.safetensors", database.arrays(), numpy=True)
     # the template's vertex groups too (``group/NAME``): evaluation measures the hem's swing
-    _save(folder / "template.safetensors", {"vertices": template.vertices.astype(np.float32),
-                                            "faces": template.faces.astype(np.int32), "attached": template.attached,
-                                            **{f"group/{k}": np.asarray(v, np.int32) for k, v in template.groups.items()
-                                               if k != "attached"}}, numpy=True)
-    parts = ["autoencoder.safetensors", "stats.safetensors", "database.safetensors", "template.safetensors",
-             *[f"{n}.safetensors" for n in NETWORKS]]
+    _save(
+        folder / "template.safetensors",
+        {
+            "vertices": template.vertices.astype(np.float32),
+            "faces": template.faces.astype(np.int32),
+            "attached": template.attached,
+            **{f"group/{k}": np.asarray(v, np.int32) for k, v in template.groups.items() if k != "attached"},
+        },
+        numpy=True,
+    )
+    parts = [
+        "autoencoder.safetensors",
+        "stats.safetensors",
+        "database.safetensors",
+        "template.safetensors",
+        *[f"{n}.safetensors" for n in NETWORKS],
+    ]
     if folds is not None:
         _save(folder / FOLDS_FILE, folds.arrays(), numpy=True)
         parts.append(FOLDS_FILE)
         info = {**info, "folds": folds.meta}
     files = {p: sha256(folder / p) for p in sorted(parts)}
-    meta = {"format_version": FORMAT_VERSION, "garment": template.name, "created": time.strftime("%Y-%m-%dT%H:%M:%S"),
-            "autoencoder": {"config": autoencoder.config.to_dict(), "scale": float(autoencoder.scale),
-                            "sizes": list(autoencoder.hierarchy.sizes)},
-            "codespace": {"config": codespace.config.to_dict(), "features": codespace.features,
-                          "latent_shape": list(codespace.latent_shape)},
-            "tau": float(tau), "gate": gate, "gates": {}, "database": {"names": database.names, "classes": database.classes, "windows": len(database)},
-            "files": files, "content_hash": content_hash(files),
-            **info}
+    meta = {
+        "format_version": FORMAT_VERSION,
+        "garment": template.name,
+        "created": time.strftime("%Y-%m-%dT%H:%M:%S"),
+        "autoencoder": {
+            "config": autoencoder.config.to_dict(),
+            "scale": float(autoencoder.scale),
+            "sizes": list(autoencoder.hierarchy.sizes),
+        },
+        "codespace": {
+            "config": codespace.config.to_dict(),
+            "features": codespace.features,
+            "latent_shape": list(codespace.latent_shape),
+        },
+        "tau": float(tau),
+        "gate": gate,
+        "gates": {},
+        "database": {"names": database.names, "classes": database.classes, "windows": len(database)},
+        "files": files,
+        "content_hash": content_hash(files),
+        **info,
+    }
     atomic_write_text(folder / "bundle.json", strict_json(with_manifest_hash(meta), indent=2))
     return folder / "bundle.json"
 
 
-def add_bundle_part(folder: str | Path, name: str, tensors: dict, meta: dict, numpy: bool = False,
-                    drop: tuple[str, ...] = ()) -> None:
+def add_bundle_part(
+    folder: str | Path, name: str, tensors: dict, meta: dict, numpy: bool = False, drop: tuple[str, ...] = ()
+) -> None:
     """Add (or replace) one file of an existing bundle (torch tensors, or ``numpy`` arrays) and
     merge ``meta`` into bundle.json without the keys ``drop``; the file list and content hash are
     updated, bundle.json last (atomically)."""
@@ -103,8 +139,13 @@ def add_bundle_part(folder: str | Path, name: str, tensors: dict, meta: dict, nu
     current = {k: v for k, v in read_meta(folder).items() if k not in drop}
     _save(folder / name, tensors, numpy)
     files = {**current["files"], name: sha256(folder / name)}
-    atomic_write_text(folder / "bundle.json", strict_json(with_manifest_hash({**current, **meta, "files": files,
-                                                                             "content_hash": content_hash(files)}), indent=2))
+    atomic_write_text(
+        folder / "bundle.json",
+        strict_json(
+            with_manifest_hash({**current, **meta, "files": files, "content_hash": content_hash(files)}),
+            indent=2,
+        ),
+    )
 
 
 def update_bundle_meta(folder: str | Path, meta: dict) -> None:

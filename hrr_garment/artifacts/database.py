@@ -33,7 +33,9 @@ def _faiss():
     try:
         import faiss
     except ImportError:
-        raise ImportError("the retrieval database needs FAISS, a core dependency: pip install faiss-cpu") from None
+        raise ImportError(
+            "the retrieval database needs FAISS, a core dependency: pip install faiss-cpu"
+        ) from None
     return faiss
 
 
@@ -61,17 +63,24 @@ class CodeDatabase:
     start: np.ndarray  # (N,) int32 first frame of the window
     names: list[str]
     classes: int
-    motion: np.ndarray | WindowFrames | None = None  # (N, W, F) standardised motion windows (naive NN, gate signals)
+    motion: np.ndarray | WindowFrames | None = (
+        None  # (N, W, F) standardised motion windows (naive NN, gate signals)
+    )
 
     def __post_init__(self):
         self.codes = np.ascontiguousarray(self.codes, np.uint8)
         n, groups = self.codes.shape
-        if not (len(self.latents) == len(self.sequence) == len(self.start) == n) or \
-                (self.motion is not None and len(self.motion) != n):
-            raise ValueError(f"database arrays disagree in length: codes {n}, latents {len(self.latents)}, "
-                             f"sequence {len(self.sequence)}, start {len(self.start)}")
+        if not (len(self.latents) == len(self.sequence) == len(self.start) == n) or (
+            self.motion is not None and len(self.motion) != n
+        ):
+            raise ValueError(
+                f"database arrays disagree in length: codes {n}, latents {len(self.latents)}, "
+                f"sequence {len(self.sequence)}, start {len(self.start)}"
+            )
         if n and int(self.codes.max()) >= self.classes:
-            raise ValueError(f"database codes use class {int(self.codes.max())} but there are {self.classes} classes")
+            raise ValueError(
+                f"database codes use class {int(self.codes.max())} but there are {self.classes} classes"
+            )
         self.groups = groups
         packed = pack_codes(self.codes, self.classes)
         self.index = _faiss().IndexBinaryFlat(packed.shape[1] * 8)
@@ -80,8 +89,9 @@ class CodeDatabase:
     def __len__(self) -> int:
         return len(self.codes)
 
-    def search(self, codes: np.ndarray, exclude: np.ndarray | None = None,
-               bodies: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    def search(
+        self, codes: np.ndarray, exclude: np.ndarray | None = None, bodies: np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
         """Best match per query code (Q, G): (indices (Q,), cosine similarity (Q,)).
         ``exclude`` (Q,): a sequence index per query whose windows may not be returned (-1: none).
         ``bodies`` (Q, b): each query's standardised body measures, for a model trained across
@@ -92,15 +102,16 @@ class CodeDatabase:
             return idx[:, 0], 1.0 - dist[:, 0] / (2.0 * self.groups)
         dist, idx, allowed = self._search(self.index, pack_codes(codes, self.classes), exclude, RERANK)
         bodies = np.asarray(bodies, np.float64)
-        theirs = self.motion[idx.reshape(-1), -1:][:, 0, -bodies.shape[1]:].reshape(*idx.shape, -1)
+        theirs = self.motion[idx.reshape(-1), -1:][:, 0, -bodies.shape[1] :].reshape(*idx.shape, -1)
         apart = ((theirs - bodies[:, None]) ** 2).sum(-1)
         apart[~allowed | (dist != dist[:, :1])] = np.inf  # only the nearest codes compete
         rows = np.arange(len(idx))
         best = np.lexsort((idx, apart), axis=-1)[:, 0]
         return idx[rows, best], 1.0 - dist[rows, best] / (2.0 * self.groups)
 
-    def _search(self, index, queries: np.ndarray, exclude: np.ndarray | None,
-                n: int = 1) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def _search(
+        self, index, queries: np.ndarray, exclude: np.ndarray | None, n: int = 1
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The ``n`` nearest rows per query in ``index`` (distances, rows, allowed; each (Q, n), in
         order of distance), skipping rows of the query's ``exclude`` sequence: enough neighbours are
         fetched that ``n`` lie outside the largest. Where fewer are allowed, the rest are marked
@@ -108,10 +119,15 @@ class CodeDatabase:
         excluding = exclude is not None and np.any(np.asarray(exclude) >= 0)
         k = min(len(self), n + (int(np.bincount(self.sequence).max()) if excluding else 0))
         dist, idx = index.search(queries, k)
-        allowed = self.sequence[idx] != np.asarray(exclude)[:, None] if excluding else np.ones(idx.shape, bool)
+        allowed = (
+            self.sequence[idx] != np.asarray(exclude)[:, None] if excluding else np.ones(idx.shape, bool)
+        )
         if not allowed.any(1).all():
             raise ValueError("excluding the query's sequence leaves nothing to retrieve")
-        rows, first = np.arange(len(idx))[:, None], np.argsort(~allowed, axis=1, kind="stable")[:, :n]  # allowed first, in order
+        rows, first = (
+            np.arange(len(idx))[:, None],
+            np.argsort(~allowed, axis=1, kind="stable")[:, :n],
+        )  # allowed first, in order
         return dist[rows, first], idx[rows, first].astype(np.int64), allowed[rows, first]
 
     def nearest_motion(self, motion: np.ndarray, exclude: np.ndarray | None = None) -> np.ndarray:
@@ -124,7 +140,9 @@ class CodeDatabase:
         the lowest row: the same answer for a query alone or in a batch."""
         if self.motion is None:
             raise ValueError("this database has no motion windows (naive-NN needs them)")
-        if not hasattr(self, "_motion_index"):  # every window in full: the baseline's memory, built on first use
+        if not hasattr(
+            self, "_motion_index"
+        ):  # every window in full: the baseline's memory, built on first use
             windows = self.motion.windows() if isinstance(self.motion, WindowFrames) else self.motion
             self._motion_index = _faiss().IndexFlatL2(int(np.prod(windows.shape[1:])))
             self._motion_index.add(np.ascontiguousarray(windows.reshape(len(windows), -1), np.float32))
@@ -140,7 +158,9 @@ class CodeDatabase:
         and the database windows ``rows`` (Q,): how close a retrieved window's motion is to the query's."""
         if self.motion is None:
             raise ValueError("this database has no motion windows (the distance gate needs them)")
-        diff = np.asarray(motion, np.float32).reshape(len(rows), -1) - self.motion[rows].reshape(len(rows), -1)
+        diff = np.asarray(motion, np.float32).reshape(len(rows), -1) - self.motion[rows].reshape(
+            len(rows), -1
+        )
         return np.sqrt(np.mean(diff.astype(np.float64) ** 2, axis=1))
 
     def arrays(self) -> dict[str, np.ndarray]:
@@ -155,8 +175,11 @@ class CodeDatabase:
         return out
 
     @classmethod
-    def from_arrays(cls, arrays: dict[str, np.ndarray], names: list[str], classes: int, window: int) -> "CodeDatabase":
+    def from_arrays(
+        cls, arrays: dict[str, np.ndarray], names: list[str], classes: int, window: int
+    ) -> "CodeDatabase":
         """The database :meth:`arrays` stored (either form); ValueError when they do not fit."""
+
         def read(name: str):
             frames = FRAMES_KEY[name]
             if frames in arrays:
@@ -168,4 +191,6 @@ class CodeDatabase:
         latents = read("latents")
         if latents is None:
             raise ValueError("no garment latents (latent_frames or latents)")
-        return cls(arrays["codes"], latents, arrays["sequence"], arrays["start"], names, classes, read("motion"))
+        return cls(
+            arrays["codes"], latents, arrays["sequence"], arrays["start"], names, classes, read("motion")
+        )

@@ -25,7 +25,9 @@ def _normal_levels() -> np.ndarray:
     """15 levels in [-1, 1], symmetric, with 0: the normal distribution's quantiles at the middles
     of 7 equal slices of each half, scaled so that the outermost is 1."""
     # the standard library's inverse normal: scipy.stats would add 0.4 s to every bundle load
-    half = np.array([NormalDist().inv_cdf(p) for p in np.linspace(0.5 / 8, 0.5, 8)[:-1]])  # 7 negative quantiles
+    half = np.array(
+        [NormalDist().inv_cdf(p) for p in np.linspace(0.5 / 8, 0.5, 8)[:-1]]
+    )  # 7 negative quantiles
     levels = np.sort(np.concatenate([half, [0.0], -half]))
     return (levels / np.abs(levels).max()).astype(np.float32)
 

@@ -29,7 +29,9 @@ from . import fold_codec
 #: folds.safetensors' key for each field, where it differs (the file format keeps its first name)
 FILE_KEYS = {"levels": "detail"}
 MAX_PASSES = 16  # what a bundle may ask: each pass is a smoothing of every frame at run time (1e6 would hang)
-FOLD_PASSES = 1  # passes of the 1-ring mean that separate the folds from the shape (docs/history/results-log.md)
+FOLD_PASSES = (
+    1  # passes of the 1-ring mean that separate the folds from the shape (docs/history/results-log.md)
+)
 DETAIL_STRENGTH = 0.8  # the folds' strength where a bundle's auto mode was not calibrated (.manifest)
 ENCODINGS = ("int8", "nf4")
 FOLD_ENCODING = "nf4"  # what new stores are written in (the module docstring)
@@ -57,20 +59,34 @@ class FoldStore:
             self._check_int8()
         else:
             self._check_nf4()
-        if self.scale.shape != self.levels.shape[:self.scale.ndim] or not np.isfinite(self.scale).all() or (self.scale < 0).any():
-            raise ValueError(f"fold scales must be finite numbers >= 0, one per frame (int8) or per block (nf4), "
-                             f"got shape {self.scale.shape}")
+        if (
+            self.scale.shape != self.levels.shape[: self.scale.ndim]
+            or not np.isfinite(self.scale).all()
+            or (self.scale < 0).any()
+        ):
+            raise ValueError(
+                f"fold scales must be finite numbers >= 0, one per frame (int8) or per block (nf4), "
+                f"got shape {self.scale.shape}"
+            )
         o = self.offsets
         if o.ndim != 1 or len(o) < 1 or o[0] != 0 or o[-1] != len(self.levels) or (np.diff(o) < 0).any():
             raise ValueError(f"fold offsets must rise from 0 to {len(self.levels)}")
-        if isinstance(self.passes, bool) or not isinstance(self.passes, (int, np.integer)) or not 1 <= self.passes <= MAX_PASSES:
-            raise ValueError(f"fold passes must be a whole number from 1 to {MAX_PASSES}, got {self.passes!r}")
+        if (
+            isinstance(self.passes, bool)
+            or not isinstance(self.passes, (int, np.integer))
+            or not 1 <= self.passes <= MAX_PASSES
+        ):
+            raise ValueError(
+                f"fold passes must be a whole number from 1 to {MAX_PASSES}, got {self.passes!r}"
+            )
         self.passes = int(self.passes)
 
     def _check_int8(self) -> None:
         self.scale = np.asarray(self.scale, np.float32)
         if self.levels.dtype != np.int8 or self.levels.ndim != 3 or self.levels.shape[2] != 3:
-            raise ValueError(f"fold levels must be (N, V, 3) int8, got {self.levels.shape} {self.levels.dtype}")
+            raise ValueError(
+                f"fold levels must be (N, V, 3) int8, got {self.levels.shape} {self.levels.dtype}"
+            )
         if self.vertices is not None and self.vertices != self.levels.shape[1]:
             raise ValueError(f"fold levels hold {self.levels.shape[1]} vertices, not {self.vertices}")
         if self.scale.ndim != 1:
@@ -84,15 +100,22 @@ class FoldStore:
             raise ValueError(f"nf4 folds need their number of vertices, got {v!r}")
         blocks = fold_codec.blocks_of(3 * v)
         if self.levels.dtype != np.uint8 or self.levels.shape[1:] != (blocks, fold_codec.BLOCK // 2):
-            raise ValueError(f"nf4 fold codes of {v} vertices must be (N, {blocks}, {fold_codec.BLOCK // 2}) uint8, "
-                             f"got {self.levels.shape} {self.levels.dtype}")
+            raise ValueError(
+                f"nf4 fold codes of {v} vertices must be (N, {blocks}, {fold_codec.BLOCK // 2}) uint8, "
+                f"got {self.levels.shape} {self.levels.dtype}"
+            )
         if self.scale.ndim != 2:
             raise ValueError(f"nf4 fold scales must be one per block, got shape {self.scale.shape}")
         self.vertices = int(v)
 
     @classmethod
-    def build(cls, sequences: Iterable[np.ndarray], mean: csr_matrix, passes: int = FOLD_PASSES,
-              encoding: str = FOLD_ENCODING) -> "FoldStore":
+    def build(
+        cls,
+        sequences: Iterable[np.ndarray],
+        mean: csr_matrix,
+        passes: int = FOLD_PASSES,
+        encoding: str = FOLD_ENCODING,
+    ) -> "FoldStore":
         """From each database sequence's body-frame vertices (T_s, V, 3), in the database's order."""
         detail, scale, lengths, vertices = [], [], [0], None
         for frames in sequences:
@@ -109,7 +132,9 @@ class FoldStore:
             lengths.append(len(frames))
         if len(detail) == 0:
             raise ValueError("a fold store needs at least one sequence")
-        return cls(np.concatenate(detail), np.concatenate(scale), np.cumsum(lengths), passes, encoding, vertices)
+        return cls(
+            np.concatenate(detail), np.concatenate(scale), np.cumsum(lengths), passes, encoding, vertices
+        )
 
     @property
     def lengths(self) -> np.ndarray:
@@ -160,13 +185,20 @@ class FoldStore:
     @property
     def meta(self) -> dict:
         """bundle.json's ``folds`` entry."""
-        return {"passes": self.passes, "frames": len(self.levels), "encoding": self.encoding, "vertices": self.num_vertices}
+        return {
+            "passes": self.passes,
+            "frames": len(self.levels),
+            "encoding": self.encoding,
+            "vertices": self.num_vertices,
+        }
 
     def check_fits(self, num_vertices: int, sequences: int, sequence: np.ndarray, end: np.ndarray) -> None:
         """A ValueError unless the store fits a model: ``num_vertices`` per frame, ``sequences``
         database sequences, and frames up to ``end`` (exclusive) of each database window's ``sequence``."""
         if self.num_vertices != num_vertices or len(self.lengths) != sequences:
-            raise ValueError(f"it holds {len(self.lengths)} sequences of {self.num_vertices} vertices; the model has "
-                             f"{sequences} of {num_vertices}")
+            raise ValueError(
+                f"it holds {len(self.lengths)} sequences of {self.num_vertices} vertices; the model has "
+                f"{sequences} of {num_vertices}"
+            )
         if len(sequence) and (end > self.lengths[sequence]).any():
             raise ValueError("it is shorter than the database windows it must cover")

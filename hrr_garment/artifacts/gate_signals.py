@@ -26,8 +26,9 @@ def check_gate_signal(signal: str) -> str:
     return signal
 
 
-def gate_doubt(signal: str, entropy: np.ndarray, similarity: np.ndarray | None = None,
-               distance: np.ndarray | None = None) -> np.ndarray:
+def gate_doubt(
+    signal: str, entropy: np.ndarray, similarity: np.ndarray | None = None, distance: np.ndarray | None = None
+) -> np.ndarray:
     """Per-window doubt about retrieving (lower: retrieve) from the gate ``signal``'s inputs: the
     motion-code entropy (N,), the match's code similarity (N,) or its motion distance (N,)."""
     if signal == "entropy":

@@ -43,16 +43,27 @@ OLDEST_READABLE = 2  # version 1 kept garments in world coordinates: no step upg
 NETWORKS = ("motion_encoder", "garment_encoder", "decoder", "quantizer")
 FOLDS_FILE = "folds.safetensors"  # the detail mode's simulated folds (.folds)
 SUBSPACE_FILE = "subspace.safetensors"  # the run-time decoder sized for games (models/subspace.py)
-AUTO_CHOICES = ("hybrid", "residual", "detail")  # what mode ``auto`` may stand for (eval/auto_mode.py chooses)
-DETAIL_BASES = ("regression", "residual")  # what the detail mode's folds may ride on (eval/auto_mode.py chooses)
+AUTO_CHOICES = (
+    "hybrid",
+    "residual",
+    "detail",
+)  # what mode ``auto`` may stand for (eval/auto_mode.py chooses)
+DETAIL_BASES = (
+    "regression",
+    "residual",
+)  # what the detail mode's folds may ride on (eval/auto_mode.py chooses)
 #: what ``auto`` stands for until training calibrates it: the hybrid, with the default detail look
 UNCALIBRATED_AUTO = {"mode": "hybrid", "detail_base": "regression", "detail_strength": DETAIL_STRENGTH}
-MAX_DETAIL_STRENGTH = 2.0  # the detail mode's folds at most twice the simulated ones (eval/auto_mode.py chooses)
+MAX_DETAIL_STRENGTH = (
+    2.0  # the detail mode's folds at most twice the simulated ones (eval/auto_mode.py chooses)
+)
 
 
 def valid_detail_strength(value: object) -> bool:
     """Whether ``value`` is a strength the detail mode's folds may run at: a number in (0, max]."""
-    return not isinstance(value, bool) and isinstance(value, (int, float)) and 0 < value <= MAX_DETAIL_STRENGTH
+    return (
+        not isinstance(value, bool) and isinstance(value, (int, float)) and 0 < value <= MAX_DETAIL_STRENGTH
+    )
 
 
 class BundleError(InputError):
@@ -88,8 +99,13 @@ def content_hash(files: dict[str, str]) -> str:
 
 def required_files(meta: dict) -> set[str]:
     """Every file :func:`.bundle.load_bundle` opens for this bundle: each must be listed with its hash."""
-    names = {"autoencoder.safetensors", "stats.safetensors", "database.safetensors", "template.safetensors",
-             *[f"{n}.safetensors" for n in NETWORKS]}
+    names = {
+        "autoencoder.safetensors",
+        "stats.safetensors",
+        "database.safetensors",
+        "template.safetensors",
+        *[f"{n}.safetensors" for n in NETWORKS],
+    }
     optional = {"direct": "direct.safetensors", "folds": FOLDS_FILE, "subspace": SUBSPACE_FILE}
     return names | {file for part, file in optional.items() if part in meta}
 
@@ -99,49 +115,91 @@ def check_manifest(folder: Path, meta: object) -> dict:
     if not isinstance(meta, dict):
         raise BundleError(folder, f"bundle.json holds a {type(meta).__name__}, not an object")
     files = meta.get("files")
-    if not isinstance(files, dict) or not all(isinstance(k, str) and isinstance(v, str) for k, v in files.items()):
-        raise BundleError(folder, "bundle.json has no valid 'files' list (file name -> sha256): refusing an unverifiable model")
+    if not isinstance(files, dict) or not all(
+        isinstance(k, str) and isinstance(v, str) for k, v in files.items()
+    ):
+        raise BundleError(
+            folder,
+            "bundle.json has no valid 'files' list (file name -> sha256): refusing an unverifiable model",
+        )
     unlisted = sorted(required_files(meta) - set(files))
     if unlisted:
-        raise BundleError(folder, f"bundle.json does not list {unlisted} with their hashes: refusing an unverifiable model")
+        raise BundleError(
+            folder, f"bundle.json does not list {unlisted} with their hashes: refusing an unverifiable model"
+        )
     for name in files:
         if name != Path(name).name or name in ("", ".", "..") or "\\" in name:
-            raise BundleError(folder, f"bundle.json lists {name!r}: bundle files must lie directly in the bundle folder")
+            raise BundleError(
+                folder, f"bundle.json lists {name!r}: bundle files must lie directly in the bundle folder"
+            )
     if meta.get("content_hash") != content_hash(files):
-        raise BundleError(folder, f"content_hash {meta.get('content_hash')!r} does not match the file list "
-                                  f"({content_hash(files)}): bundle.json was edited")
+        raise BundleError(
+            folder,
+            f"content_hash {meta.get('content_hash')!r} does not match the file list "
+            f"({content_hash(files)}): bundle.json was edited",
+        )
     garment, tau = meta.get("garment"), meta.get("tau")
     if not isinstance(garment, str) or not garment:
         raise BundleError(folder, f"bundle.json 'garment' must be a name, got {garment!r}")
     if isinstance(tau, bool) or not isinstance(tau, (int, float)) or not math.isfinite(tau) or tau < 0:
         raise BundleError(folder, f"bundle.json 'tau' must be a finite number >= 0, got {tau!r}")
     if meta.get("gate") not in GATE_SIGNALS:
-        raise BundleError(folder, f"bundle.json 'gate' must be one of {', '.join(GATE_SIGNALS)}, got {meta.get('gate')!r}")
+        raise BundleError(
+            folder, f"bundle.json 'gate' must be one of {', '.join(GATE_SIGNALS)}, got {meta.get('gate')!r}"
+        )
     residual = meta.get("residual", {"weight": 0.0})
     weight = residual.get("weight") if isinstance(residual, dict) else None
-    if isinstance(weight, bool) or not isinstance(weight, (int, float)) or not math.isfinite(weight) or weight < 0:
-        raise BundleError(folder, f"bundle.json 'residual' must hold a finite 'weight' >= 0, got {residual!r}")
+    if (
+        isinstance(weight, bool)
+        or not isinstance(weight, (int, float))
+        or not math.isfinite(weight)
+        or weight < 0
+    ):
+        raise BundleError(
+            folder, f"bundle.json 'residual' must hold a finite 'weight' >= 0, got {residual!r}"
+        )
     if meta.get("validation") not in ("clips", "windows"):
-        raise BundleError(folder, f"bundle.json 'validation' must be clips or windows, got {meta.get('validation')!r}")
+        raise BundleError(
+            folder, f"bundle.json 'validation' must be clips or windows, got {meta.get('validation')!r}"
+        )
     gates = meta.get("gates")
-    if not isinstance(gates, dict) or not all(k in GATE_SIGNALS and isinstance(v, dict) for k, v in gates.items()):
-        raise BundleError(folder, f"bundle.json 'gates' must map gate signals to their calibration, got {gates!r}")
+    if not isinstance(gates, dict) or not all(
+        k in GATE_SIGNALS and isinstance(v, dict) for k, v in gates.items()
+    ):
+        raise BundleError(
+            folder, f"bundle.json 'gates' must map gate signals to their calibration, got {gates!r}"
+        )
     auto = meta.get("auto", UNCALIBRATED_AUTO)
     if not isinstance(auto, dict) or auto.get("mode") not in AUTO_CHOICES:
-        raise BundleError(folder, f"bundle.json 'auto' must hold a 'mode' of {', '.join(AUTO_CHOICES)}, got {auto!r}")
+        raise BundleError(
+            folder, f"bundle.json 'auto' must hold a 'mode' of {', '.join(AUTO_CHOICES)}, got {auto!r}"
+        )
     if auto.get("detail_base") not in DETAIL_BASES:
-        raise BundleError(folder, f"bundle.json 'auto' 'detail_base' must be one of {', '.join(DETAIL_BASES)}, "
-                                  f"got {auto.get('detail_base')!r}")
+        raise BundleError(
+            folder,
+            f"bundle.json 'auto' 'detail_base' must be one of {', '.join(DETAIL_BASES)}, "
+            f"got {auto.get('detail_base')!r}",
+        )
     strength = auto.get("detail_strength")
     if not valid_detail_strength(strength):
-        raise BundleError(folder, f"bundle.json 'auto' 'detail_strength' must be a number in (0, {MAX_DETAIL_STRENGTH:g}], "
-                                  f"got {strength!r}")
+        raise BundleError(
+            folder,
+            f"bundle.json 'auto' 'detail_strength' must be a number in (0, {MAX_DETAIL_STRENGTH:g}], "
+            f"got {strength!r}",
+        )
     for key in ("residual_free_mm", "folds_free_mm"):  # the residual's and the folds' free-cloth ramps
         ramp = auto.get(key)
-        if ramp is not None and not (isinstance(ramp, list) and len(ramp) == 2
-                                     and all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in ramp)
-                                     and math.isfinite(ramp[0]) and math.isfinite(ramp[1]) and ramp[0] < ramp[1]):
-            raise BundleError(folder, f"bundle.json 'auto' {key!r} must be null or [lo, hi] mm with lo < hi, got {ramp!r}")
+        if ramp is not None and not (
+            isinstance(ramp, list)
+            and len(ramp) == 2
+            and all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in ramp)
+            and math.isfinite(ramp[0])
+            and math.isfinite(ramp[1])
+            and ramp[0] < ramp[1]
+        ):
+            raise BundleError(
+                folder, f"bundle.json 'auto' {key!r} must be null or [lo, hi] mm with lo < hi, got {ramp!r}"
+            )
     for section in ("autoencoder", "codespace", "database"):
         if not isinstance(meta.get(section), dict):
             raise BundleError(folder, f"bundle.json lacks its {section!r} section")
@@ -152,13 +210,27 @@ def migrate_manifest(folder: Path, meta: object) -> dict:
     """``meta`` upgraded to :data:`FORMAT_VERSION`, one step per version (the module docstring
     says what each brought); a BundleError for a version this hrr_garment cannot read."""
     version = meta.get("format_version") if isinstance(meta, dict) else None
-    if isinstance(version, bool) or not isinstance(version, int) or not OLDEST_READABLE <= version <= FORMAT_VERSION:
-        hint = "upgrade hrr_garment" if isinstance(version, int) and version > FORMAT_VERSION else "retrain with hrr-train"
-        raise BundleError(folder, f"bundle format_version {version!r}; this hrr_garment reads {OLDEST_READABLE} to "
-                                  f"{FORMAT_VERSION} ({hint})")
+    if (
+        isinstance(version, bool)
+        or not isinstance(version, int)
+        or not OLDEST_READABLE <= version <= FORMAT_VERSION
+    ):
+        hint = (
+            "upgrade hrr_garment"
+            if isinstance(version, int) and version > FORMAT_VERSION
+            else "retrain with hrr-train"
+        )
+        raise BundleError(
+            folder,
+            f"bundle format_version {version!r}; this hrr_garment reads {OLDEST_READABLE} to "
+            f"{FORMAT_VERSION} ({hint})",
+        )
     if version >= 4 and meta.get("manifest_hash") != manifest_hash(meta):
-        raise BundleError(folder, f"bundle.json was edited after it was written (its manifest hash "
-                                  f"{meta.get('manifest_hash')!r} does not match its content): restore it or retrain")
+        raise BundleError(
+            folder,
+            f"bundle.json was edited after it was written (its manifest hash "
+            f"{meta.get('manifest_hash')!r} does not match its content): restore it or retrain",
+        )
     if version == 2:
         meta = _from_version_2(meta)
     if meta["format_version"] == 3:  # version 4 only added the manifest's own hash
@@ -172,13 +244,23 @@ def migrate_manifest(folder: Path, meta: object) -> dict:
 
 def _from_version_2(meta: dict) -> dict:
     """Version 2 -> 3: the values a field took where a version-2 bundle left it out."""
-    meta = {**meta, "format_version": 3, "gate": meta.get("gate", "entropy"), "gates": meta.get("gates", {}),
-            "validation": meta.get("validation", "clips")}
+    meta = {
+        **meta,
+        "format_version": 3,
+        "gate": meta.get("gate", "entropy"),
+        "gates": meta.get("gates", {}),
+        "validation": meta.get("validation", "clips"),
+    }
     if isinstance(meta.get("auto"), dict):
         meta["auto"] = {**UNCALIBRATED_AUTO, **meta["auto"]}
     codespace = meta.get("codespace")
     if isinstance(codespace, dict) and isinstance(codespace.get("config"), dict):
-        config = {"memory_seconds": [], "resonator_hz": [], "regression_code": "argmax", **codespace["config"]}
+        config = {
+            "memory_seconds": [],
+            "resonator_hz": [],
+            "regression_code": "argmax",
+            **codespace["config"],
+        }
         meta["codespace"] = {**codespace, "config": config}
     return meta
 

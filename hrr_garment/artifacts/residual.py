@@ -47,7 +47,9 @@ def rest_hang_m(rest_vertices: np.ndarray, body: BodyModel) -> np.ndarray:
     """(V,) how far each vertex of the garment at rest on ``body`` (``rest_vertices`` (V, 3)) hangs
     from it (metres, signed: negative inside)."""
     a, b = body.rest_pose()
-    return capsule_signed_distance(np.asarray(rest_vertices, np.float64), a, b, radii=body.radii)[0].astype(np.float32)
+    return capsule_signed_distance(np.asarray(rest_vertices, np.float64), a, b, radii=body.radii)[0].astype(
+        np.float32
+    )
 
 
 def free_cloth_weights(hang_m: np.ndarray, ramp_mm: tuple[float, float]) -> np.ndarray:
@@ -59,16 +61,30 @@ def free_cloth_weights(hang_m: np.ndarray, ramp_mm: tuple[float, float]) -> np.n
     return np.clip((np.asarray(hang_m, np.float64) - lo) / (hi - lo), 0.0, 1.0).astype(np.float32)
 
 
-def match_regression(codespace, motion_stats, latent_stats, database: CodeDatabase, rows: np.ndarray,
-                     last_frame: bool = False, step: torch.nn.Module | None = None) -> np.ndarray:
+def match_regression(
+    codespace,
+    motion_stats,
+    latent_stats,
+    database: CodeDatabase,
+    rows: np.ndarray,
+    last_frame: bool = False,
+    step: torch.nn.Module | None = None,
+) -> np.ndarray:
     """What the regression predicts for the database windows ``rows`` (Q,) from their own motion:
     (Q, W or 1, nodes, C) latents, not standardised (``step``, ``last_frame``: as
     :func:`~hrr_garment.models.codes.encode_motion`, so causal inference repeats its own bits)."""
     if database.motion is None:
         raise ValueError("this database has no motion windows (residual retrieval needs them)")
     raw = motion_stats.denormalize(database.motion[rows])
-    return encode_motion(codespace, motion_stats, latent_stats, motion_windows=raw, regression=True, last_frame=last_frame,
-                         step=step).regression
+    return encode_motion(
+        codespace,
+        motion_stats,
+        latent_stats,
+        motion_windows=raw,
+        regression=True,
+        last_frame=last_frame,
+        step=step,
+    ).regression
 
 
 def residual_scale(similarity: np.ndarray, weight: float, nodes: np.ndarray | None = None) -> np.ndarray:
@@ -80,8 +96,14 @@ def residual_scale(similarity: np.ndarray, weight: float, nodes: np.ndarray | No
     return scale
 
 
-def residual_latents(regression: np.ndarray, matched: np.ndarray, matched_regression: np.ndarray,
-                     similarity: np.ndarray, weight: float, nodes: np.ndarray | None = None) -> np.ndarray:
+def residual_latents(
+    regression: np.ndarray,
+    matched: np.ndarray,
+    matched_regression: np.ndarray,
+    similarity: np.ndarray,
+    weight: float,
+    nodes: np.ndarray | None = None,
+) -> np.ndarray:
     """regression + weight x similarity x nodes x (matched - matched_regression), per window:
     latents (N, W, nodes, C) each, similarity (N,) in [0, 1], ``nodes`` (nodes,) the free-cloth
     weights (:func:`free_cloth_weights`; None: 1 everywhere)."""

@@ -43,7 +43,9 @@ def _ed25519():
     try:
         from cryptography.hazmat.primitives.asymmetric import ed25519
     except ImportError:
-        raise ImportError("signed bundles need the cryptography library: pip install 'hrr_garment[sign]'") from None
+        raise ImportError(
+            "signed bundles need the cryptography library: pip install 'hrr_garment[sign]'"
+        ) from None
     return ed25519
 
 
@@ -63,7 +65,9 @@ def generate_key(private_path: Path) -> Path:
     from cryptography.hazmat.primitives import serialization
 
     key = ed25519.Ed25519PrivateKey.generate()
-    raw = key.private_bytes(serialization.Encoding.Raw, serialization.PrivateFormat.Raw, serialization.NoEncryption())
+    raw = key.private_bytes(
+        serialization.Encoding.Raw, serialization.PrivateFormat.Raw, serialization.NoEncryption()
+    )
     public = key.public_key().public_bytes(serialization.Encoding.Raw, serialization.PublicFormat.Raw)
     private_path = Path(private_path)
     with atomic_path(private_path, private=True) as tmp:
@@ -94,8 +98,14 @@ def sign_bundle(folder: Path, private_path: Path) -> str:
     key = ed25519.Ed25519PrivateKey.from_private_bytes(_read_key(private_path))
     digest = hashlib.sha256((folder / "bundle.json").read_bytes()).hexdigest()
     public = key.public_key().public_bytes(serialization.Encoding.Raw, serialization.PublicFormat.Raw)
-    record = {"format": SIGNATURE_FORMAT, "version": SIGNATURE_VERSION, "algorithm": "ed25519", "key": _b64(public),
-              "bundle_sha256": digest, "signature": _b64(key.sign(digest.encode("ascii")))}
+    record = {
+        "format": SIGNATURE_FORMAT,
+        "version": SIGNATURE_VERSION,
+        "algorithm": "ed25519",
+        "key": _b64(public),
+        "bundle_sha256": digest,
+        "signature": _b64(key.sign(digest.encode("ascii"))),
+    }
     with atomic_path(folder / SIGNATURE_FILE) as tmp:
         Path(tmp).write_text(json.dumps(record, indent=1) + "\n")
     return key_id(public)
@@ -119,8 +129,12 @@ def verify_signature(folder: Path, bundle_json: bytes) -> SignatureCheck:
         raise BundleError(folder, f"{SIGNATURE_FILE} is not a signature file")
     try:
         record = json.loads(path.read_text(encoding="utf-8"))
-        ok = (isinstance(record, dict) and record.get("format") == SIGNATURE_FORMAT
-              and record.get("version") == SIGNATURE_VERSION and record.get("algorithm") == "ed25519")
+        ok = (
+            isinstance(record, dict)
+            and record.get("format") == SIGNATURE_FORMAT
+            and record.get("version") == SIGNATURE_VERSION
+            and record.get("algorithm") == "ed25519"
+        )
         public = base64.b64decode(record["key"], validate=True) if ok else b""
         signature = base64.b64decode(record["signature"], validate=True) if ok else b""
         digest = str(record["bundle_sha256"]) if ok else ""
@@ -129,13 +143,18 @@ def verify_signature(folder: Path, bundle_json: bytes) -> SignatureCheck:
     if not ok or len(public) != 32:
         raise BundleError(folder, f"{SIGNATURE_FILE} is not an Ed25519 bundle signature of this version")
     if digest != hashlib.sha256(bundle_json).hexdigest():
-        raise BundleError(folder, f"{SIGNATURE_FILE} was made for another bundle.json: the bundle changed after it was signed")
+        raise BundleError(
+            folder,
+            f"{SIGNATURE_FILE} was made for another bundle.json: the bundle changed after it was signed",
+        )
     from cryptography.exceptions import InvalidSignature
 
     try:
         _ed25519().Ed25519PublicKey.from_public_bytes(public).verify(signature, digest.encode("ascii"))
     except InvalidSignature:
-        raise BundleError(folder, f"{SIGNATURE_FILE} does not verify: forged, or the bundle changed after it was signed") from None
+        raise BundleError(
+            folder, f"{SIGNATURE_FILE} does not verify: forged, or the bundle changed after it was signed"
+        ) from None
     return SignatureCheck(signed=True, key=key_id(public))
 
 
@@ -155,10 +174,16 @@ def check_signature(folder: Path, bundle_json: bytes) -> SignatureCheck:
         return SignatureCheck(signed=False)
     check = verify_signature(folder, bundle_json)
     if trusted and check.key not in trusted:
-        problem = (f"signed by key {check.key}, which is not in HRR_TRUSTED_KEYS" if check.signed
-                   else "not signed (HRR_TRUSTED_KEYS asks for signed bundles)")
+        problem = (
+            f"signed by key {check.key}, which is not in HRR_TRUSTED_KEYS"
+            if check.signed
+            else "not signed (HRR_TRUSTED_KEYS asks for signed bundles)"
+        )
         if require:
             raise BundleError(folder, problem)
-        warnings.warn(f"{folder}: {problem}; loading it anyway (HRR_REQUIRE_SIGNATURE=1 refuses it)", SignatureWarning,
-                      stacklevel=4)
+        warnings.warn(
+            f"{folder}: {problem}; loading it anyway (HRR_REQUIRE_SIGNATURE=1 refuses it)",
+            SignatureWarning,
+            stacklevel=4,
+        )
     return check

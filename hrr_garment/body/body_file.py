@@ -47,20 +47,33 @@ def record_of(body) -> BodyRecord:
     if isinstance(body, BodyRecord):
         return body
     fitted = body.fitted
-    return BodyRecord(fitted.skeleton, fitted.body, fitted.pelvis_height, fitted.stature, shape=body.shape.to_dict(),
-                      report=fitted.report)
+    return BodyRecord(
+        fitted.skeleton,
+        fitted.body,
+        fitted.pelvis_height,
+        fitted.stature,
+        shape=body.shape.to_dict(),
+        report=fitted.report,
+    )
 
 
 def body_to_dict(body) -> dict:
     """body.json's content (a dict of JSON values) for a ParametricBody or a BodyRecord; datasets
     keep their bodies in the same form (:mod:`hrr_garment.data.dataset`)."""
     r = record_of(body)
-    return {"format_version": FORMAT_VERSION, "joints": list(JOINT_NAMES),
-            "offsets": np.asarray(r.skeleton.offsets, np.float64).round(6).tolist(),
-            "pelvis_height": round(float(r.pelvis_height), 6), "stature": round(float(r.stature), 6),
-            "capsules": [{"name": c.name, "joint": c.joint, "a": list(c.a), "b": list(c.b), "radius": c.radius}
-                         for c in r.body.capsules],
-            "shape": r.shape, "fit": r.report.to_dict() if r.report else None}
+    return {
+        "format_version": FORMAT_VERSION,
+        "joints": list(JOINT_NAMES),
+        "offsets": np.asarray(r.skeleton.offsets, np.float64).round(6).tolist(),
+        "pelvis_height": round(float(r.pelvis_height), 6),
+        "stature": round(float(r.stature), 6),
+        "capsules": [
+            {"name": c.name, "joint": c.joint, "a": list(c.a), "b": list(c.b), "radius": c.radius}
+            for c in r.body.capsules
+        ],
+        "shape": r.shape,
+        "fit": r.report.to_dict() if r.report else None,
+    }
 
 
 def write_body(path: str | Path, body) -> Path:
@@ -71,7 +84,12 @@ def write_body(path: str | Path, body) -> Path:
 
 
 def _number(path: Path, what: str, value: object, low: float, high: float) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or not low <= value <= high:
+    if (
+        isinstance(value, bool)
+        or not isinstance(value, (int, float))
+        or not math.isfinite(value)
+        or not low <= value <= high
+    ):
         raise InputError(path, f"{what} must be a number in [{low:g}, {high:g}], got {value!r}")
     return float(value)
 
@@ -101,33 +119,60 @@ def body_from_dict(data: object, path: str | Path) -> BodyRecord:
         raise InputError(path, "not a body file (not a JSON object)")
     version = data.get("format_version")
     if isinstance(version, bool) or not isinstance(version, int) or not 1 <= version <= FORMAT_VERSION:
-        raise InputError(path, f"body format_version {version!r}; this hrr_garment reads 1 to {FORMAT_VERSION}")
+        raise InputError(
+            path, f"body format_version {version!r}; this hrr_garment reads 1 to {FORMAT_VERSION}"
+        )
     if data.get("joints") != list(JOINT_NAMES):
         raise InputError(path, f"'joints' must be the canonical joints {list(JOINT_NAMES)}")
     offsets = data.get("offsets")
     if not isinstance(offsets, list) or len(offsets) != len(JOINT_NAMES):
         raise InputError(path, f"'offsets' must hold {len(JOINT_NAMES)} joint offsets")
-    skeleton = Skeleton(offsets=np.array([_vector(path, f"offset of {n}", o, MAX_BONE_M)
-                                          for n, o in zip(JOINT_NAMES, offsets)], np.float32))
+    skeleton = Skeleton(
+        offsets=np.array(
+            [_vector(path, f"offset of {n}", o, MAX_BONE_M) for n, o in zip(JOINT_NAMES, offsets)], np.float32
+        )
+    )
     capsules = data.get("capsules")
     if not isinstance(capsules, list) or not capsules:
         raise InputError(path, "'capsules' must be a list of capsules")
     pelvis_height = _number(path, "pelvis_height", data.get("pelvis_height"), 0.2, 2.0)
-    body = BodyModel(tuple(_capsule(path, c) for c in capsules), skeleton=skeleton, pelvis_height=pelvis_height)
+    body = BodyModel(
+        tuple(_capsule(path, c) for c in capsules), skeleton=skeleton, pelvis_height=pelvis_height
+    )
     shape = data.get("shape")
-    if shape is not None and not (isinstance(shape, dict) and all(isinstance(v, (int, float)) for v in shape.values())):
+    if shape is not None and not (
+        isinstance(shape, dict) and all(isinstance(v, (int, float)) for v in shape.values())
+    ):
         raise InputError(path, f"'shape' must map phenotype names to numbers, got {shape!r}")
     fit = data.get("fit")
-    report = FitReport(**{k: _number(path, f"fit {k}", fit.get(k), 0.0, 1e6) for k in ("mean_mm", "p95_mm", "outside_1cm",
-                                                                                  "inside_1cm")}) if fit else None
-    return BodyRecord(skeleton, body, pelvis_height, _number(path, "stature", data.get("stature"), 0.3, 3.0),
-                      shape=shape, report=report)
+    report = (
+        FitReport(
+            **{
+                k: _number(path, f"fit {k}", fit.get(k), 0.0, 1e6)
+                for k in ("mean_mm", "p95_mm", "outside_1cm", "inside_1cm")
+            }
+        )
+        if fit
+        else None
+    )
+    return BodyRecord(
+        skeleton,
+        body,
+        pelvis_height,
+        _number(path, "stature", data.get("stature"), 0.3, 3.0),
+        shape=shape,
+        report=report,
+    )
 
 
 def _capsule(path: Path, c: object) -> Capsule:
     if not isinstance(c, dict) or not isinstance(c.get("name"), str) or c.get("joint") not in JOINT_NAMES:
         raise InputError(path, f"a capsule needs a name and one of the canonical joints, got {c!r}")
     name = c["name"]
-    return Capsule(name, c["joint"], a=_vector(path, f"capsule {name} a", c.get("a"), MAX_BONE_M),
-                   b=_vector(path, f"capsule {name} b", c.get("b"), MAX_BONE_M),
-                   radius=_number(path, f"capsule {name} radius", c.get("radius"), 1e-3, MAX_RADIUS_M))
+    return Capsule(
+        name,
+        c["joint"],
+        a=_vector(path, f"capsule {name} a", c.get("a"), MAX_BONE_M),
+        b=_vector(path, f"capsule {name} b", c.get("b"), MAX_BONE_M),
+        radius=_number(path, f"capsule {name} radius", c.get("radius"), 1e-3, MAX_RADIUS_M),
+    )

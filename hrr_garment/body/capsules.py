@@ -64,7 +64,9 @@ class BodyModel:
     pelvis_height: float = REST_PELVIS_HEIGHT  # metres from the soles to the pelvis in the rest pose
 
     def scaled(self, radius_scale: float) -> "BodyModel":
-        return replace(self, capsules=tuple(replace(c, radius=c.radius * radius_scale) for c in self.capsules))
+        return replace(
+            self, capsules=tuple(replace(c, radius=c.radius * radius_scale) for c in self.capsules)
+        )
 
     @property
     def is_mannequin_frame(self) -> bool:
@@ -78,10 +80,15 @@ class BodyModel:
     @cached_property
     def ends(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Each capsule's joint index (C,) and its end points a, b (C, 3) in that joint's frame."""
-        return (np.array([JOINT_INDEX[c.joint] for c in self.capsules]), np.array([c.a for c in self.capsules]),
-                np.array([c.b for c in self.capsules]))
+        return (
+            np.array([JOINT_INDEX[c.joint] for c in self.capsules]),
+            np.array([c.a for c in self.capsules]),
+            np.array([c.b for c in self.capsules]),
+        )
 
-    def pose(self, global_rotations: np.ndarray, joint_positions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def pose(
+        self, global_rotations: np.ndarray, joint_positions: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
         """World capsule end points (T, C, 3) each for a and b, from FK results (T, 22, ...)."""
         joints, a, b = self.ends
         return pose_ends(global_rotations, joint_positions, joints, a=a, b=b)
@@ -102,8 +109,14 @@ class BodyModel:
         return self.skeleton.rest_positions(np.array([0.0, self.pelvis_height, 0.0]))
 
 
-def pose_ends(global_rotations: np.ndarray, joint_positions: np.ndarray, joints: np.ndarray, *, a: np.ndarray,
-              b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def pose_ends(
+    global_rotations: np.ndarray,
+    joint_positions: np.ndarray,
+    joints: np.ndarray,
+    *,
+    a: np.ndarray,
+    b: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
     """World capsule end points (T, C, 3) each: ends ``a``, ``b`` in their ``joints``' frames, (C, 3)
     shared by every frame or (T, C, 3) each frame's own (a crowd's characters of different bodies),
     posed by FK results (T, 22, 3, 3) and (T, 22, 3)."""
@@ -119,7 +132,9 @@ def rest_joint_positions() -> np.ndarray:
 DEFAULT_BODY = BodyModel()
 
 
-def capsule_signed_distance(points: np.ndarray, a: np.ndarray, b: np.ndarray, radii: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def capsule_signed_distance(
+    points: np.ndarray, a: np.ndarray, b: np.ndarray, radii: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Signed distance from points (N, 3) to the union of capsules (C) with ends a, b (C, 3).
 
     Returns (distance (N,), outward unit normal of the nearest capsule (N, 3), its index (N,)).
@@ -139,7 +154,9 @@ def capsule_signed_distance(points: np.ndarray, a: np.ndarray, b: np.ndarray, ra
     return sd[rows, nearest], n, nearest
 
 
-def frames_signed_distance(points: np.ndarray, a: np.ndarray, b: np.ndarray, radii: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def frames_signed_distance(
+    points: np.ndarray, a: np.ndarray, b: np.ndarray, radii: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """:func:`capsule_signed_distance` frame by frame: points (T, N, 3) against each frame's capsule
     ends a, b (T, C, 3) and radii (C,), or each frame's own (T, C) -> distances (T, N) and normals
     (T, N, 3). Runs in the native kernel of :mod:`hrr_garment.native` when it is compiled (equal to
@@ -151,8 +168,12 @@ def frames_signed_distance(points: np.ndarray, a: np.ndarray, b: np.ndarray, rad
     per_frame = np.ndim(radii) == 2
     if lib is not None and not per_frame:
         return capsule_sdf(lib, points, a, b=b, radii=radii, threads=default_threads())
-    out = [capsule_signed_distance(np.asarray(points[t], np.float64), a[t], b[t], radii[t] if per_frame else radii)[:2]
-           for t in range(len(points))]
+    out = [
+        capsule_signed_distance(
+            np.asarray(points[t], np.float64), a[t], b[t], radii[t] if per_frame else radii
+        )[:2]
+        for t in range(len(points))
+    ]
     return np.stack([o[0] for o in out]), np.stack([o[1] for o in out])
 
 
@@ -179,7 +200,9 @@ def _unit_capsule(segments: int = 16, rings: int = 8) -> tuple[np.ndarray, np.nd
     return verts, faces_arr[area > 1e-9], end
 
 
-def body_mesh(a: np.ndarray, b: np.ndarray, radii: np.ndarray, segments: int = 16, rings: int = 8) -> tuple[np.ndarray, np.ndarray]:
+def body_mesh(
+    a: np.ndarray, b: np.ndarray, radii: np.ndarray, segments: int = 16, rings: int = 8
+) -> tuple[np.ndarray, np.ndarray]:
     """Triangle mesh (vertices, faces) of the capsules of one frame (a, b: (C, 3)); for previews."""
     unit, faces, end = _unit_capsule(segments, rings)
     all_v, all_f = [], []

@@ -70,8 +70,10 @@ def _skin_to_world(world: np.ndarray, ibm: np.ndarray) -> tuple[np.ndarray, np.n
     b = world @ ibm
     size = max(float(np.abs(b[:, :3, :3]).max()), 1e-12)
     reach = max(float(np.abs(world[:, :3, 3]).max()), size)
-    gap = (np.abs(b[:, None, :3, :3] - b[None, :, :3, :3]).max((-1, -2)) / size
-           + np.abs(b[:, None, :3, 3] - b[None, :, :3, 3]).max(-1) / reach)
+    gap = (
+        np.abs(b[:, None, :3, :3] - b[None, :, :3, :3]).max((-1, -2)) / size
+        + np.abs(b[:, None, :3, 3] - b[None, :, :3, 3]).max(-1) / reach
+    )
     agree = gap <= _BIND_TOLERANCE
     best = int(np.argmax(agree.sum(1)))
     return b[best], ~agree[best]
@@ -108,14 +110,18 @@ def _check_biped(joints: np.ndarray, path: Path) -> None:
     """Refuse a skeleton whose legs do not hang opposite its spine (a four-legged animal's: spine
     level, legs down), which no turn stands up as a human; its fit would be meaningless."""
     up = joints[JOINT_INDEX["head"]] - joints[JOINT_INDEX["pelvis"]]
-    down = (joints[[JOINT_INDEX["l_ankle"], JOINT_INDEX["r_ankle"]]].mean(0)
-            - joints[[JOINT_INDEX["l_hip"], JOINT_INDEX["r_hip"]]].mean(0))
+    down = joints[[JOINT_INDEX["l_ankle"], JOINT_INDEX["r_ankle"]]].mean(0) - joints[
+        [JOINT_INDEX["l_hip"], JOINT_INDEX["r_hip"]]
+    ].mean(0)
     cos = float(-(up @ down) / max(np.linalg.norm(up) * np.linalg.norm(down), 1e-12))
     if cos < BIPED_MIN_COS:
         angle = float(np.degrees(np.arccos(np.clip(cos, -1.0, 1.0))))
-        raise InputError(path, f"not a human skeleton: its legs run {angle:.0f} degrees off the line of its spine "
-                               "(a human's hang straight on from it; a four-legged animal's stand across it), so no "
-                               "body can be fitted; only a two-legged human rig can be read as a character")
+        raise InputError(
+            path,
+            f"not a human skeleton: its legs run {angle:.0f} degrees off the line of its spine "
+            "(a human's hang straight on from it; a four-legged animal's stand across it), so no "
+            "body can be fitted; only a two-legged human rig can be read as a character",
+        )
 
 
 def _upright(joints: np.ndarray) -> np.ndarray:
@@ -129,14 +135,17 @@ def _upright(joints: np.ndarray) -> np.ndarray:
             r = np.zeros((3, 3))
             r[range(3), perm] = signs
             if np.linalg.det(r) > 0:
-                s = (r @ up)[1] / (np.linalg.norm(up) + 1e-12) + (r @ left)[0] / (np.linalg.norm(left) + 1e-12)
+                s = (r @ up)[1] / (np.linalg.norm(up) + 1e-12) + (r @ left)[0] / (
+                    np.linalg.norm(left) + 1e-12
+                )
                 if s > score + 1e-9:
                     best, score = r, s
     return best
 
 
-def read_character(path: str | Path, skin: int | None = None, joint_map: dict | None = None,
-                   unit_scale: float | None = None) -> Character:
+def read_character(
+    path: str | Path, skin: int | None = None, joint_map: dict | None = None, unit_scale: float | None = None
+) -> Character:
     """A skinned glTF / GLB's mesh in its bind pose and its canonical joints, in the project's frame
     (the module docstring says how). ``skin``: which skin (default: the one with the most skinned
     vertices); ``joint_map``: canonical joint -> the file's joint name; ``unit_scale``: metres per
@@ -144,8 +153,10 @@ def read_character(path: str | Path, skin: int | None = None, joint_map: dict | 
     doc = open_gltf(path)
     path = doc.path
     if "KHR_draco_mesh_compression" in (doc.doc.extensionsUsed or []):
-        raise doc.fail("its meshes are Draco-compressed (KHR_draco_mesh_compression), which pygltflib does not "
-                       "decode; export it without mesh compression")
+        raise doc.fail(
+            "its meshes are Draco-compressed (KHR_draco_mesh_compression), which pygltflib does not "
+            "decode; export it without mesh compression"
+        )
     skin, meshes = skinned_meshes(doc, skin)
     joint_nodes = list(doc.doc.skins[skin].joints or [])
     if not joint_nodes or not all(isinstance(j, int) and 0 <= j < len(doc.doc.nodes) for j in joint_nodes):
@@ -158,7 +169,9 @@ def read_character(path: str | Path, skin: int | None = None, joint_map: dict | 
         raise doc.fail("the node transforms or inverse bind matrices are not finite")
     bind, posed = _skin_to_world(world, ibm)
     if abs(np.linalg.det(bind[:3, :3])) < 1e-12:
-        raise doc.fail(f"skin {skin}'s bind pose is degenerate (its joints times their inverse bind matrices are singular)")
+        raise doc.fail(
+            f"skin {skin}'s bind pose is degenerate (its joints times their inverse bind matrices are singular)"
+        )
     vertices, faces, skinning = read_mesh(doc, meshes)
     vertices = vertices @ bind[:3, :3].T + bind[:3, 3]
     try:
@@ -166,7 +179,9 @@ def read_character(path: str | Path, skin: int | None = None, joint_map: dict | 
     except np.linalg.LinAlgError:
         raise doc.fail(f"skin {skin} has an inverse bind matrix that cannot be inverted") from None
     # a short character (a child's body) is still in metres down to half the shortest adult
-    scale = world_unit_scale(path, bind_joints, mapping, unit_scale=unit_scale, shortest_m=PLAUSIBLE_HEIGHT_M[0] / 2)
+    scale = world_unit_scale(
+        path, bind_joints, mapping, unit_scale=unit_scale, shortest_m=PLAUSIBLE_HEIGHT_M[0] / 2
+    )
     joints, filled = _fill_optional({c: bind_joints[i] * scale for c, i in mapping.items()}, path)
     _check_biped(joints, path)
     turn = _upright(joints)
@@ -175,13 +190,23 @@ def read_character(path: str | Path, skin: int | None = None, joint_map: dict | 
     if not np.isfinite(vertices).all():
         raise doc.fail("the skinned mesh's vertices are not finite in the world")
     weights = None if skinning is None else canonical_weights(doc, skinning, joint_nodes, mapping=mapping)
-    return Character(vertices - shift, faces, joints - shift, skin, scheme, scale,
-                     posed_joints=tuple(names[i] for i in np.flatnonzero(posed)), turned=not np.allclose(turn, np.eye(3)),
-                     filled_joints=filled, weights=weights)
+    return Character(
+        vertices - shift,
+        faces,
+        joints - shift,
+        skin,
+        scheme,
+        scale,
+        posed_joints=tuple(names[i] for i in np.flatnonzero(posed)),
+        turned=not np.allclose(turn, np.eye(3)),
+        filled_joints=filled,
+        weights=weights,
+    )
 
 
-def character_body(path: str | Path, skin: int | None = None, joint_map: dict | None = None,
-                   unit_scale: float | None = None) -> tuple[BodyRecord, Character]:
+def character_body(
+    path: str | Path, skin: int | None = None, joint_map: dict | None = None, unit_scale: float | None = None
+) -> tuple[BodyRecord, Character]:
     """The body of a skinned character file (``hrr-body fit`` writes it; ``hrr-animate --body``
     reads it in place): :func:`read_character`, then the skeleton and capsules fitted to its mesh
     (:func:`~.fit.fit_body`). An :class:`~hrr_garment.errors.InputError` naming the file where the
@@ -193,7 +218,15 @@ def character_body(path: str | Path, skin: int | None = None, joint_map: dict | 
         raise InputError(path, f"cannot fit a body to its mesh: {exc}") from None
     lo, hi = STATURE_RANGE_M
     if not lo <= fitted.stature <= hi:
-        raise InputError(path, f"the character is {fitted.stature:.3g} m tall, not within [{lo}, {hi}] m; "
-                               "if the file is not in metres, pass --unit-scale (metres per file unit)")
-    return BodyRecord(fitted.skeleton, fitted.body, pelvis_height=fitted.pelvis_height, stature=fitted.stature,
-                      report=fitted.report), character
+        raise InputError(
+            path,
+            f"the character is {fitted.stature:.3g} m tall, not within [{lo}, {hi}] m; "
+            "if the file is not in metres, pass --unit-scale (metres per file unit)",
+        )
+    return BodyRecord(
+        fitted.skeleton,
+        fitted.body,
+        pelvis_height=fitted.pelvis_height,
+        stature=fitted.stature,
+        report=fitted.report,
+    ), character

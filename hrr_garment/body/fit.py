@@ -35,10 +35,25 @@ from ..motion.skeleton import (
 from .capsules import DEFAULT_BODY, BodyModel, capsule_signed_distance
 
 # each joint's child along its bone (the one its global rotation is aligned to); leaves keep their parent's
-PRIMARY_CHILD = {"pelvis": "spine1", "spine1": "spine2", "spine2": "spine3", "spine3": "neck", "neck": "head",
-                 **{f"{s}_{a}": f"{s}_{b}" for s in "lr" for a, b in (("hip", "knee"), ("knee", "ankle"), ("ankle", "foot"),
-                                                                      ("collar", "shoulder"), ("shoulder", "elbow"),
-                                                                      ("elbow", "wrist"))}}
+PRIMARY_CHILD = {
+    "pelvis": "spine1",
+    "spine1": "spine2",
+    "spine2": "spine3",
+    "spine3": "neck",
+    "neck": "head",
+    **{
+        f"{s}_{a}": f"{s}_{b}"
+        for s in "lr"
+        for a, b in (
+            ("hip", "knee"),
+            ("knee", "ankle"),
+            ("ankle", "foot"),
+            ("collar", "shoulder"),
+            ("shoulder", "elbow"),
+            ("elbow", "wrist"),
+        )
+    },
+}
 FIT_PASSES = 2  # assign vertices to capsules, fit the radii; again with the fitted radii
 
 
@@ -52,8 +67,12 @@ class FitReport:
     inside_1cm: float  # fraction of vertices more than 1 cm inside
 
     def to_dict(self) -> dict:
-        return {"mean_mm": self.mean_mm, "p95_mm": self.p95_mm, "outside_1cm": self.outside_1cm,
-                "inside_1cm": self.inside_1cm}
+        return {
+            "mean_mm": self.mean_mm,
+            "p95_mm": self.p95_mm,
+            "outside_1cm": self.outside_1cm,
+            "inside_1cm": self.inside_1cm,
+        }
 
 
 @dataclass(frozen=True)
@@ -122,17 +141,34 @@ def scaled_capsules(skeleton: Skeleton, joints: np.ndarray) -> BodyModel:
     shoulders = _width(joints, "l_shoulder", "r_shoulder") / _width(mannequin, "l_shoulder", "r_shoulder")
     torso = skeleton.bone_length("spine2") / canonical.bone_length("spine2")
     # what scales each capsule's ends: (x, y, z) factors in its joint's frame
-    scale = {"hips": (hips, torso, torso), "belly": (1.0, ratio["spine2"], 1.0), "chest": (shoulders, torso, torso),
-             "upper_chest": (shoulders, torso, torso), "neck": (1.0, ratio["head"], ratio["head"]),
-             "head": (ratio["head"],) * 3}
+    scale = {
+        "hips": (hips, torso, torso),
+        "belly": (1.0, ratio["spine2"], 1.0),
+        "chest": (shoulders, torso, torso),
+        "upper_chest": (shoulders, torso, torso),
+        "neck": (1.0, ratio["head"], ratio["head"]),
+        "head": (ratio["head"],) * 3,
+    }
     for side in "lr":
-        scale |= {f"{side}_thigh": (1.0, ratio[f"{side}_knee"], 1.0), f"{side}_shin": (1.0, ratio[f"{side}_ankle"], 1.0),
-                  f"{side}_foot": (ratio[f"{side}_foot"],) * 3, f"{side}_shoulder": (ratio[f"{side}_shoulder"],) * 3,
-                  f"{side}_upper_arm": (ratio[f"{side}_elbow"], 1.0, 1.0), f"{side}_forearm": (ratio[f"{side}_wrist"], 1.0, 1.0),
-                  f"{side}_hand": (ratio[f"{side}_wrist"],) * 3}
-    return BodyModel(tuple(replace(c, a=tuple(float(v) for v in np.multiply(c.a, scale[c.name])),
-                                   b=tuple(float(v) for v in np.multiply(c.b, scale[c.name])))
-                           for c in DEFAULT_BODY.capsules))
+        scale |= {
+            f"{side}_thigh": (1.0, ratio[f"{side}_knee"], 1.0),
+            f"{side}_shin": (1.0, ratio[f"{side}_ankle"], 1.0),
+            f"{side}_foot": (ratio[f"{side}_foot"],) * 3,
+            f"{side}_shoulder": (ratio[f"{side}_shoulder"],) * 3,
+            f"{side}_upper_arm": (ratio[f"{side}_elbow"], 1.0, 1.0),
+            f"{side}_forearm": (ratio[f"{side}_wrist"], 1.0, 1.0),
+            f"{side}_hand": (ratio[f"{side}_wrist"],) * 3,
+        }
+    return BodyModel(
+        tuple(
+            replace(
+                c,
+                a=tuple(float(v) for v in np.multiply(c.a, scale[c.name])),
+                b=tuple(float(v) for v in np.multiply(c.b, scale[c.name])),
+            )
+            for c in DEFAULT_BODY.capsules
+        )
+    )
 
 
 def fit_radii(body: BodyModel, ends: tuple[np.ndarray, np.ndarray], vertices: np.ndarray) -> BodyModel:
@@ -144,12 +180,18 @@ def fit_radii(body: BodyModel, ends: tuple[np.ndarray, np.ndarray], vertices: np
     for _ in range(FIT_PASSES):
         _, _, nearest = capsule_signed_distance(vertices, a, b, radii=radii)
         own = _own_axis_distance(vertices, ends, nearest)
-        radii = np.array([float(np.median(own[nearest == c])) if (nearest == c).sum() >= 3 else radii[c]
-                          for c in range(len(radii))])
+        radii = np.array(
+            [
+                float(np.median(own[nearest == c])) if (nearest == c).sum() >= 3 else radii[c]
+                for c in range(len(radii))
+            ]
+        )
     return BodyModel(tuple(replace(c, radius=float(r)) for c, r in zip(body.capsules, radii)))
 
 
-def _own_axis_distance(vertices: np.ndarray, ends: tuple[np.ndarray, np.ndarray], capsule: np.ndarray) -> np.ndarray:
+def _own_axis_distance(
+    vertices: np.ndarray, ends: tuple[np.ndarray, np.ndarray], capsule: np.ndarray
+) -> np.ndarray:
     """(N,) each vertex's distance from the axis of its own capsule ``capsule`` (N,)."""
     a, b = ends[0][capsule], ends[1][capsule]
     ab = b - a
@@ -164,20 +206,30 @@ def fit_body(vertices: np.ndarray, joints: np.ndarray) -> FittedBody:
     if vertices.ndim != 2 or vertices.shape[1] != 3 or len(vertices) < 50 or not np.isfinite(vertices).all():
         raise ValueError(f"a body mesh needs (V >= 50, 3) finite vertices, got {vertices.shape}")
     if joints.shape != (len(JOINT_NAMES), 3) or not np.isfinite(joints).all():
-        raise ValueError(f"a body needs its {len(JOINT_NAMES)} canonical joints as (22, 3) finite positions, got {joints.shape}")
+        raise ValueError(
+            f"a body needs its {len(JOINT_NAMES)} canonical joints as (22, 3) finite positions, got {joints.shape}"
+        )
     skeleton = body_skeleton(joints)
     rotations = rest_pose_rotations(skeleton, joints)
     local = global_to_local(rotations[None], PARENTS)
-    g_rot, g_pos = forward_kinematics(local, joints[None, 0], skeleton.offsets.astype(np.float64), parents=PARENTS)
+    g_rot, g_pos = forward_kinematics(
+        local, joints[None, 0], skeleton.offsets.astype(np.float64), parents=PARENTS
+    )
     body = scaled_capsules(skeleton, joints)
     ends = body.pose(g_rot, g_pos)
     body = fit_radii(body, (ends[0][0], ends[1][0]), vertices)
     signed = capsule_signed_distance(vertices, ends[0][0], ends[1][0], radii=body.radii)[0]
-    report = FitReport(mean_mm=float(np.abs(signed).mean() * 1000), p95_mm=float(np.quantile(np.abs(signed), 0.95) * 1000),
-                       outside_1cm=float((signed > 0.01).mean()), inside_1cm=float((signed < -0.01).mean()))
+    report = FitReport(
+        mean_mm=float(np.abs(signed).mean() * 1000),
+        p95_mm=float(np.quantile(np.abs(signed), 0.95) * 1000),
+        outside_1cm=float((signed > 0.01).mean()),
+        inside_1cm=float((signed < -0.01).mean()),
+    )
     pelvis_height = _pelvis_height(skeleton, joints, vertices)
     body = replace(body, skeleton=skeleton, pelvis_height=pelvis_height)
-    return FittedBody(skeleton, body, pelvis_height, report, stature=float(vertices[:, 1].max() - vertices[:, 1].min()))
+    return FittedBody(
+        skeleton, body, pelvis_height, report, stature=float(vertices[:, 1].max() - vertices[:, 1].min())
+    )
 
 
 def _pelvis_height(skeleton: Skeleton, joints: np.ndarray, vertices: np.ndarray) -> float:
@@ -186,8 +238,6 @@ def _pelvis_height(skeleton: Skeleton, joints: np.ndarray, vertices: np.ndarray)
     ankles = [JOINT_INDEX["l_ankle"], JOINT_INDEX["r_ankle"]]
     drop = float(skeleton.rest_positions()[0, 1] - skeleton.rest_positions()[ankles, 1].mean())
     return drop + float(max(joints[ankles, 1].mean() - vertices[:, 1].min(), 0.0))
-
-
 
 
 ARM_BONES = ("elbow", "wrist")  # the joints ending a side's upper arm and forearm
@@ -224,7 +274,11 @@ def turn_arms(vertices: np.ndarray, joints: np.ndarray, directions: np.ndarray) 
     nearest = np.argmin(_segment_distance(vertices, a, b), axis=1)
     out = vertices.copy()
     for side, direction in zip("lr", directions):
-        arm = [i for i, name in enumerate(labels) if name in (*(f"{side}_{n}" for n in ARM_BONES), f"{side}_hand")]
+        arm = [
+            i
+            for i, name in enumerate(labels)
+            if name in (*(f"{side}_{n}" for n in ARM_BONES), f"{side}_hand")
+        ]
         mask = np.isin(nearest, arm)
         shoulder = joints[JOINT_INDEX[f"{side}_shoulder"]]
         turn = shortest_arc(joints[JOINT_INDEX[f"{side}_wrist"]] - shoulder, direction)

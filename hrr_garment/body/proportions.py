@@ -37,8 +37,12 @@ from .parametric import BodyShape
 # Not every rig's hips and shoulders are a person's, though: the Bandai-Namco rig's are 13 and 20 cm
 # apart, so the performer's body (.performer) takes only the limbs from the rig.
 MEASURES = {
-    "upper_leg": ("l_hip", "l_knee"), "lower_leg": ("l_knee", "l_ankle"), "upper_arm": ("l_shoulder", "l_elbow"),
-    "forearm": ("l_elbow", "l_wrist"), "hip_width": ("l_hip", "r_hip"), "shoulder_width": ("l_shoulder", "r_shoulder"),
+    "upper_leg": ("l_hip", "l_knee"),
+    "lower_leg": ("l_knee", "l_ankle"),
+    "upper_arm": ("l_shoulder", "l_elbow"),
+    "forearm": ("l_elbow", "l_wrist"),
+    "hip_width": ("l_hip", "r_hip"),
+    "shoulder_width": ("l_shoulder", "r_shoulder"),
 }
 MIN_MEASURE_M = 0.01  # shorter: two of the rig's joints at one place, not a measure of the performer
 NEAREST_STEPS = 200  # Adam steps on the phenotype's logits (a second or two)
@@ -56,9 +60,14 @@ def proportions(joint_positions: np.ndarray) -> dict[str, float]:
     frames, left and right sides averaged."""
     p = np.asarray(joint_positions, np.float64)
     p = p[None] if p.ndim == 2 else p
-    return {name: float(np.median(np.mean([np.linalg.norm(p[:, x] - p[:, y], axis=-1) for x, y in joint_pairs(name)],
-                                          axis=0)))
-            for name in MEASURES}
+    return {
+        name: float(
+            np.median(
+                np.mean([np.linalg.norm(p[:, x] - p[:, y], axis=-1) for x, y in joint_pairs(name)], axis=0)
+            )
+        )
+        for name in MEASURES
+    }
 
 
 def source_proportions(path: str | Path, unit_scale: float | None = None) -> dict[str, float]:
@@ -74,7 +83,9 @@ def source_proportions(path: str | Path, unit_scale: float | None = None) -> dic
     elif suffix in GLTF_SUFFIXES:
         src, _, mapping, _ = gltf_source(path, GltfOptions(unit_scale=unit_scale))
     else:
-        raise InputError(path, "a performer's proportions come from a BVH or glTF / GLB rig (npz files carry none)")
+        raise InputError(
+            path, "a performer's proportions come from a BVH or glTF / GLB rig (npz files carry none)"
+        )
     names = [n for n in JOINT_INDEX if n in mapping]
     needed = {JOINT_NAMES[j] for m in MEASURES for pair in joint_pairs(m) for j in pair}
     missing = sorted(needed - set(names))
@@ -103,9 +114,15 @@ def nearest_body(measures: dict[str, float], steps: int = NEAREST_STEPS) -> Near
     from .parametric import _rest_tensors
 
     unknown = sorted(set(measures) - set(MEASURES))
-    bad = [k for k, v in measures.items() if not (isinstance(v, (int, float)) and np.isfinite(v) and 0.01 < v < 2.0)]
+    bad = [
+        k
+        for k, v in measures.items()
+        if not (isinstance(v, (int, float)) and np.isfinite(v) and 0.01 < v < 2.0)
+    ]
     if unknown or bad or not measures:
-        raise ValueError(f"measures must be some of {list(MEASURES)} in metres (0.01-2 m); unknown {unknown}, bad {bad}")
+        raise ValueError(
+            f"measures must be some of {list(MEASURES)} in metres (0.01-2 m); unknown {unknown}, bad {bad}"
+        )
     names = [f.name for f in fields(BodyShape)]
     keys = list(measures)
     target = torch.tensor([measures[k] for k in keys], dtype=torch.float32)
@@ -113,9 +130,13 @@ def nearest_body(measures: dict[str, float], steps: int = NEAREST_STEPS) -> Near
     optimiser = torch.optim.Adam([logits], lr=0.08)
 
     def model_measures(values):
-        _, joints = _rest_tensors({n: values[i:i + 1] for i, n in enumerate(names)})
-        return torch.stack([torch.stack([torch.linalg.norm(joints[x] - joints[y]) for x, y in joint_pairs(k)]).mean()
-                            for k in keys])
+        _, joints = _rest_tensors({n: values[i : i + 1] for i, n in enumerate(names)})
+        return torch.stack(
+            [
+                torch.stack([torch.linalg.norm(joints[x] - joints[y]) for x, y in joint_pairs(k)]).mean()
+                for k in keys
+            ]
+        )
 
     for _ in range(steps):
         loss = ((model_measures(torch.sigmoid(logits)) - target) ** 2).sum()
@@ -126,4 +147,4 @@ def nearest_body(measures: dict[str, float], steps: int = NEAREST_STEPS) -> Near
     with torch.no_grad():
         errors = (model_measures(values) - target).numpy() * 1000
     shape = BodyShape(**{n: float(v) for n, v in zip(names, values)})
-    return NearestBody(shape, {k: float(e) for k, e in zip(keys, errors)}, float(np.sqrt(np.mean(errors ** 2))))
+    return NearestBody(shape, {k: float(e) for k, e in zip(keys, errors)}, float(np.sqrt(np.mean(errors**2))))

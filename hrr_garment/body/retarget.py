@@ -21,9 +21,16 @@ def motion_on_body(motion: Motion, body) -> Motion:
     """``motion`` played by ``body`` (anything with ``skeleton`` and ``pelvis_height``: a
     :class:`~.body_file.BodyRecord` or a :class:`~.fit.FittedBody`)."""
     scale = float(body.pelvis_height) / REST_PELVIS_HEIGHT
-    return Motion(motion.local_rotations, motion.root_translation * scale, motion.fps, source=motion.source,
-                  source_skeleton=motion.source_skeleton, source_height_m=motion.source_height_m, skeleton=body.skeleton,
-                  check_rotations=False)
+    return Motion(
+        motion.local_rotations,
+        motion.root_translation * scale,
+        motion.fps,
+        source=motion.source,
+        source_skeleton=motion.source_skeleton,
+        source_height_m=motion.source_height_m,
+        skeleton=body.skeleton,
+        check_rotations=False,
+    )
 
 
 def played_by(motion: Motion, body) -> Motion:
@@ -34,4 +41,6 @@ def played_by(motion: Motion, body) -> Motion:
         return motion
     if motion.skeleton is CANONICAL:
         return motion_on_body(motion, body)
-    raise ValueError("the motion stands on another skeleton than the body's: give the clip on the canonical skeleton")
+    raise ValueError(
+        "the motion stands on another skeleton than the body's: give the clip on the canonical skeleton"
+    )

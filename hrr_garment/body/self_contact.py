@@ -37,14 +37,22 @@ def _pairs(body: BodyModel, parts: tuple[str, ...]) -> list[tuple[int, list[int]
     for side, other in (("l", "r"), ("r", "l")):
         targets = [index[n] for n in (*TORSO, f"{side}_thigh", f"{other}_thigh") if n in index]
         torso = [index[n] for n in TORSO if n in index]
-        pairs += [(index[f"{side}_{p}"], torso, 0.25) for p in UPPER_ARM if f"{side}_{p}" in index and p in parts]
-        pairs += [(index[f"{side}_{p}"], targets, 0.0) for p in LOWER_ARM if f"{side}_{p}" in index and p in parts]
+        pairs += [
+            (index[f"{side}_{p}"], torso, 0.25) for p in UPPER_ARM if f"{side}_{p}" in index and p in parts
+        ]
+        pairs += [
+            (index[f"{side}_{p}"], targets, 0.0) for p in LOWER_ARM if f"{side}_{p}" in index and p in parts
+        ]
         legs = [index[f"{other}_{p}"] for p in LEG_PARTS if f"{other}_{p}" in index]
-        pairs += [(index[f"{side}_{p}"], legs, 0.0) for p in LEG_PARTS if f"{side}_{p}" in index and p in parts]
+        pairs += [
+            (index[f"{side}_{p}"], legs, 0.0) for p in LEG_PARTS if f"{side}_{p}" in index and p in parts
+        ]
     return pairs
 
 
-def limb_intrusions(motion: Motion, body: BodyModel = DEFAULT_BODY, parts: tuple[str, ...] = LIMB_PARTS) -> np.ndarray:
+def limb_intrusions(
+    motion: Motion, body: BodyModel = DEFAULT_BODY, parts: tuple[str, ...] = LIMB_PARTS
+) -> np.ndarray:
     """(L, T) metres by which each limb's surface sinks deepest into a capsule it should stay out
     of, negative for the gap between their surfaces where they do not overlap: sampled along the
     limb's axis. One row per limb named in ``parts`` (left and right)."""
@@ -63,7 +71,9 @@ def limb_intrusions(motion: Motion, body: BodyModel = DEFAULT_BODY, parts: tuple
     return np.array(rows).reshape(len(rows), motion.num_frames)
 
 
-def limb_intrusion(motion: Motion, body: BodyModel = DEFAULT_BODY, parts: tuple[str, ...] = LIMB_PARTS) -> np.ndarray:
+def limb_intrusion(
+    motion: Motion, body: BodyModel = DEFAULT_BODY, parts: tuple[str, ...] = LIMB_PARTS
+) -> np.ndarray:
     """(T,) the deepest of :func:`limb_intrusions` on each frame."""
     rows = limb_intrusions(motion, body, parts)
     return rows.max(axis=0) if len(rows) else np.full(motion.num_frames, -np.inf)
@@ -76,10 +86,14 @@ PINCH_GAP = 0.012
 RECOVERY_S = 0.1  # seconds after an episode during which the cloth it trapped is pushed back out
 
 
-def self_intersection_episodes(motion: Motion, body: BodyModel = DEFAULT_BODY,
-                               depth: float = SELF_INTERSECTION_DEPTH, gap: float = PINCH_GAP,
-                               recovery_s: float = RECOVERY_S,
-                               parts: tuple[str, ...] = LIMB_PARTS) -> list[tuple[int, int]]:
+def self_intersection_episodes(
+    motion: Motion,
+    body: BodyModel = DEFAULT_BODY,
+    depth: float = SELF_INTERSECTION_DEPTH,
+    gap: float = PINCH_GAP,
+    recovery_s: float = RECOVERY_S,
+    parts: tuple[str, ...] = LIMB_PARTS,
+) -> list[tuple[int, int]]:
     """(start, stop) frame ranges of the episodes in which a limb sinks more than ``depth`` metres
     into the body (a flaw of the capture), ``stop`` one past the last frame.
 
@@ -101,8 +115,11 @@ def self_intersection_episodes(motion: Motion, body: BodyModel = DEFAULT_BODY,
         near = np.concatenate([[False], intrusion > -gap, [False]])
         starts = np.flatnonzero(~near[:-1] & near[1:])
         stops = np.flatnonzero(near[:-1] & ~near[1:])  # one past each episode's last frame
-        found += [(int(start), min(int(stop) + recovery, len(intrusion))) for start, stop in zip(starts, stops)
-                  if intrusion[start:stop].max() > depth]
+        found += [
+            (int(start), min(int(stop) + recovery, len(intrusion)))
+            for start, stop in zip(starts, stops)
+            if intrusion[start:stop].max() > depth
+        ]
     episodes: list[tuple[int, int]] = []
     for start, stop in sorted(found):
         if episodes and start <= episodes[-1][1]:
@@ -112,10 +129,14 @@ def self_intersection_episodes(motion: Motion, body: BodyModel = DEFAULT_BODY,
     return episodes
 
 
-def self_intersecting_frames(motion: Motion, body: BodyModel = DEFAULT_BODY,
-                             depth: float = SELF_INTERSECTION_DEPTH, gap: float = PINCH_GAP,
-                             recovery_s: float = RECOVERY_S,
-                             parts: tuple[str, ...] = LIMB_PARTS) -> np.ndarray:
+def self_intersecting_frames(
+    motion: Motion,
+    body: BodyModel = DEFAULT_BODY,
+    depth: float = SELF_INTERSECTION_DEPTH,
+    gap: float = PINCH_GAP,
+    recovery_s: float = RECOVERY_S,
+    parts: tuple[str, ...] = LIMB_PARTS,
+) -> np.ndarray:
     """(T,) True on the frames of :func:`self_intersection_episodes`."""
     flagged = np.zeros(motion.num_frames, bool)
     for start, stop in self_intersection_episodes(motion, body, depth, gap, recovery_s, parts):

@@ -57,10 +57,12 @@ def _triangles(indices: np.ndarray, mode: int) -> np.ndarray:
         return indices[: len(indices) // 3 * 3].reshape(-1, 3)
     n = max(len(indices) - 2, 0)
     if mode == 5:  # strip: every other triangle turned back to keep the winding
-        tri = np.stack([indices[:n], indices[1:n + 1], indices[2:n + 2]], 1)
+        tri = np.stack([indices[:n], indices[1 : n + 1], indices[2 : n + 2]], 1)
         tri[1::2] = tri[1::2][:, [1, 0, 2]]
         return tri
-    return np.stack([np.full(n, indices[0] if len(indices) else 0), indices[1:n + 1], indices[2:n + 2]], 1)
+    return np.stack(
+        [np.full(n, indices[0] if len(indices) else 0), indices[1 : n + 1], indices[2 : n + 2]], 1
+    )
 
 
 def read_mesh(doc, meshes: list[int]) -> tuple[np.ndarray, np.ndarray, tuple[np.ndarray, np.ndarray] | None]:
@@ -76,8 +78,11 @@ def read_mesh(doc, meshes: list[int]) -> tuple[np.ndarray, np.ndarray, tuple[np.
             v = doc.accessor(position, raw_integers=True)
             if v.shape[1] != 3:
                 raise doc.fail(f"mesh {m} primitive {p}: POSITION must be VEC3")
-            idx = (np.arange(len(v)) if prim.indices is None
-                   else doc.accessor(prim.indices, raw_integers=True)[:, 0].astype(np.int64))
+            idx = (
+                np.arange(len(v))
+                if prim.indices is None
+                else doc.accessor(prim.indices, raw_integers=True)[:, 0].astype(np.int64)
+            )
             if len(idx) and (idx.min() < 0 or idx.max() >= len(v)):
                 raise doc.fail(f"mesh {m} primitive {p}: an index reaches past its {len(v)} vertices")
             vertices.append(v)
@@ -85,7 +90,9 @@ def read_mesh(doc, meshes: list[int]) -> tuple[np.ndarray, np.ndarray, tuple[np.
             skinning.append(_skin_weights(doc, prim.attributes, len(v)))
             offset += len(v)
             if offset > MAX_VERTICES:
-                raise doc.fail(f"the skinned meshes hold over {MAX_VERTICES} vertices; decimate the character first")
+                raise doc.fail(
+                    f"the skinned meshes hold over {MAX_VERTICES} vertices; decimate the character first"
+                )
     if not vertices:
         raise doc.fail(f"the meshes skinned to the skin ({meshes}) have no triangles")
     weights = None
@@ -105,8 +112,9 @@ def _skin_weights(doc, attributes, count: int) -> tuple[np.ndarray, np.ndarray] 
     return j.astype(np.int64), w
 
 
-def canonical_weights(doc, skinning: tuple[np.ndarray, np.ndarray], joint_nodes: list[int], *,
-                      mapping: dict[str, int]) -> np.ndarray:
+def canonical_weights(
+    doc, skinning: tuple[np.ndarray, np.ndarray], joint_nodes: list[int], *, mapping: dict[str, int]
+) -> np.ndarray:
     """(V, 22) each vertex's weights gathered onto the canonical joints: a skin joint that is not
     one of them gives its weight to its nearest mapped ancestor (the pelvis where it has none)."""
     joints, weights = skinning
@@ -120,7 +128,9 @@ def canonical_weights(doc, skinning: tuple[np.ndarray, np.ndarray], joint_nodes:
             node = parents[node]
         owner[i] = canonical.get(node, 0)
     out = np.zeros((len(joints), len(JOINT_NAMES)))
-    np.add.at(out, (np.repeat(np.arange(len(joints)), joints.shape[1]), owner[joints].ravel()), weights.ravel())
+    np.add.at(
+        out, (np.repeat(np.arange(len(joints)), joints.shape[1]), owner[joints].ravel()), weights.ravel()
+    )
     total = out.sum(1, keepdims=True)
     out[total[:, 0] <= 0, 0], total[total <= 0] = 1.0, 1.0  # a vertex weighted to nothing follows the pelvis
     return (out / total).astype(np.float32)

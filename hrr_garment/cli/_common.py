@@ -17,38 +17,65 @@ EXIT_ERROR = 2
 
 def add_fps_option(p: argparse.ArgumentParser) -> None:
     """``--fps``: the motion file's own frame rate, for files that carry none (or a wrong one)."""
-    p.add_argument("--fps", type=float, default=None, metavar="RATE",
-                   help="frame rate the motion file was captured at (for npz files without a rate key; "
-                        "overrides a BVH's frame time)")
+    p.add_argument(
+        "--fps",
+        type=float,
+        default=None,
+        metavar="RATE",
+        help="frame rate the motion file was captured at (for npz files without a rate key; "
+        "overrides a BVH's frame time)",
+    )
 
 
 def add_decoder_option(p: argparse.ArgumentParser) -> None:
     """``--decoder``: the full mesh decoder or the bundle's fast (subspace) decoder."""
-    p.add_argument("--decoder", choices=DECODERS, default=None,
-                   help="mesh decoder: full (the autoencoder's; default) or fast (its distilled subspace decoder, "
-                        "several times cheaper; where the model has one: hrr-train --stage subspace)")
+    p.add_argument(
+        "--decoder",
+        choices=DECODERS,
+        default=None,
+        help="mesh decoder: full (the autoencoder's; default) or fast (its distilled subspace decoder, "
+        "several times cheaper; where the model has one: hrr-train --stage subspace)",
+    )
 
 
 def add_push_option(p: argparse.ArgumentParser) -> None:
     """``--push``: how the push-out takes the cloth out of the body."""
-    p.add_argument("--push", choices=PUSHES, default=None,
-                   help="the collision push-out: mesh (each vertex to the nearest surface; default) or subspace (first "
-                        "the whole garment along the fast decoder's components: fewer tears, about 2.5 x the push-out's "
-                        "cost; where the model has a fast decoder)")
+    p.add_argument(
+        "--push",
+        choices=PUSHES,
+        default=None,
+        help="the collision push-out: mesh (each vertex to the nearest surface; default) or subspace (first "
+        "the whole garment along the fast decoder's components: fewer tears, about 2.5 x the push-out's "
+        "cost; where the model has a fast decoder)",
+    )
 
 
 def add_detail_options(p: argparse.ArgumentParser) -> None:
     """``--detail-strength`` and ``--detail-base``: the detail mode's look, instead of the model's
     calibrated one (bundle.json ``auto``)."""
-    p.add_argument("--detail-strength", type=float, default=None, metavar="S",
-                   help=f"the detail mode's simulated folds at S x their simulated size, in (0, {MAX_DETAIL_STRENGTH:g}] "
-                        "(default: the strength the model was calibrated to; 1: the folds as simulated)")
-    p.add_argument("--detail-base", choices=DETAIL_BASES, default=None,
-                   help="what the detail mode's folds ride on: the regression's shape or the residual mode's, which "
-                        "brings the matched window's swing (default: the model's calibrated choice)")
-    p.add_argument("--swing", type=float, default=None, metavar="GAIN",
-                   help="the free cloth's swing restored: GAIN on the latents' departure from their recent course "
-                        "(1: as predicted; default: the model's calibrated gain in the auto mode, 1 in a mode named)")
+    p.add_argument(
+        "--detail-strength",
+        type=float,
+        default=None,
+        metavar="S",
+        help=f"the detail mode's simulated folds at S x their simulated size, in (0, {MAX_DETAIL_STRENGTH:g}] "
+        "(default: the strength the model was calibrated to; 1: the folds as simulated)",
+    )
+    p.add_argument(
+        "--detail-base",
+        choices=DETAIL_BASES,
+        default=None,
+        help="what the detail mode's folds ride on: the regression's shape or the residual mode's, which "
+        "brings the matched window's swing (default: the model's calibrated choice)",
+    )
+    p.add_argument(
+        "--swing",
+        type=float,
+        default=None,
+        metavar="GAIN",
+        help="the free cloth's swing restored: GAIN on the latents' departure from their recent course "
+        "(1: as predicted; default: the model's calibrated gain in the auto mode, 1 in a mode named)",
+    )
 
 
 def detail_look(args: argparse.Namespace) -> DetailLook:
@@ -64,12 +91,21 @@ def run_settings_of(args: argparse.Namespace, prog: str, **fields) -> RunSetting
     """``--mode`` (where the command has it), ``--gate`` and ``--tau`` and ``fields`` as
     :class:`RunSettings`; an InputError for values or combinations they cannot take."""
     try:
-        return RunSettings(**({"mode": args.mode} if hasattr(args, "mode") else {}), gate=args.gate, tau=args.tau,
-                           decoder=getattr(args, "decoder", None), swing=getattr(args, "swing", None),
-                           push=getattr(args, "push", None), **fields)
+        return RunSettings(
+            **({"mode": args.mode} if hasattr(args, "mode") else {}),
+            gate=args.gate,
+            tau=args.tau,
+            decoder=getattr(args, "decoder", None),
+            swing=getattr(args, "swing", None),
+            push=getattr(args, "push", None),
+            **fields,
+        )
     except (TypeError, ValueError) as exc:
         message = str(exc)
-        flag = next((f"--{name}" for name in ("tau", "gate", "mode", "swing") if message.startswith(name)), "the run settings")
+        flag = next(
+            (f"--{name}" for name in ("tau", "gate", "mode", "swing") if message.startswith(name)),
+            "the run settings",
+        )
         raise InputError(flag, message) from None
 
 

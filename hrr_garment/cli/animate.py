@@ -38,38 +38,70 @@ from ._common import (
 
 
 def _parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="hrr-animate", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = argparse.ArgumentParser(
+        prog="hrr-animate", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     p.add_argument("motion", type=Path, help="BVH, glTF / GLB, AMASS npz or native npz")
     p.add_argument("-o", "--output", type=Path, required=True, help="out.h5 to write")
     p.add_argument("--garment", default=None, help="use the workspace model of this garment")
     p.add_argument("--model", type=Path, default=None, help="model bundle directory (instead of --garment)")
-    p.add_argument("--mode", default=Mode.AUTO.value, choices=[m.value for m in Mode],
-                   help="auto (default): the mode this model was calibrated to run, the most plausible cloth within "
-                        "3 %% of the most accurate (bundle.json 'auto'); hybrid: the calibrated gate between retrieval "
-                        "and regression; residual: regression plus the matched window's detail; detail: the "
-                        "regression's shape with simulated folds from the database; direct: the baseline, when the model "
-                        "has it (hrr-train --stage baseline)")
-    p.add_argument("--gate", default=None, choices=GATE_SIGNALS,
-                   help="what the hybrid thresholds: the motion code's entropy (the paper's), the match's code "
-                        "similarity or its motion distance (default: the model's calibrated choice)")
-    p.add_argument("--tau", type=float, default=None,
-                   help="the gate's threshold (default: the model's calibrated one); --gate or --tau with the default "
-                        "mode runs the hybrid, whose settings they are")
+    p.add_argument(
+        "--mode",
+        default=Mode.AUTO.value,
+        choices=[m.value for m in Mode],
+        help="auto (default): the mode this model was calibrated to run, the most plausible cloth within "
+        "3 %% of the most accurate (bundle.json 'auto'); hybrid: the calibrated gate between retrieval "
+        "and regression; residual: regression plus the matched window's detail; detail: the "
+        "regression's shape with simulated folds from the database; direct: the baseline, when the model "
+        "has it (hrr-train --stage baseline)",
+    )
+    p.add_argument(
+        "--gate",
+        default=None,
+        choices=GATE_SIGNALS,
+        help="what the hybrid thresholds: the motion code's entropy (the paper's), the match's code "
+        "similarity or its motion distance (default: the model's calibrated choice)",
+    )
+    p.add_argument(
+        "--tau",
+        type=float,
+        default=None,
+        help="the gate's threshold (default: the model's calibrated one); --gate or --tau with the default "
+        "mode runs the hybrid, whose settings they are",
+    )
     add_detail_options(p)
-    p.add_argument("--body", default=None, metavar="BODY",
-                   help="animate on this body: body.json (hrr-body make / fit / nearest) or a skinned glTF / GLB "
-                        "character, fitted as hrr-body fit does (default: the model's own body)")
-    p.add_argument("--allow-outside-body", action="store_true",
-                   help="animate a body unlike the model's training bodies anyway (warned), rather than refuse it")
+    p.add_argument(
+        "--body",
+        default=None,
+        metavar="BODY",
+        help="animate on this body: body.json (hrr-body make / fit / nearest) or a skinned glTF / GLB "
+        "character, fitted as hrr-body fit does (default: the model's own body)",
+    )
+    p.add_argument(
+        "--allow-outside-body",
+        action="store_true",
+        help="animate a body unlike the model's training bodies anyway (warned), rather than refuse it",
+    )
     p.add_argument("--no-collision", action="store_true", help="skip the collision push-out")
     add_decoder_option(p)
     add_push_option(p)
     p.add_argument("--causal", action="store_true", help="causal windows only, as the streaming API")
-    p.add_argument("--precision", choices=PRECISIONS, default="float32",
-                   help="the mesh decoder's arithmetic: bfloat16 runs on AMX (recent Intel Xeons), about 3x faster, "
-                        "within hundredths of a millimetre on average (default: float32)")
-    p.add_argument("--unit-scale", type=float, default=None, help="BVH length unit in metres (default: detected)")
-    p.add_argument("--animation", default=None, metavar="NAME", help="which animation of a glTF / GLB file, by name or index (default: the first)")
+    p.add_argument(
+        "--precision",
+        choices=PRECISIONS,
+        default="float32",
+        help="the mesh decoder's arithmetic: bfloat16 runs on AMX (recent Intel Xeons), about 3x faster, "
+        "within hundredths of a millimetre on average (default: float32)",
+    )
+    p.add_argument(
+        "--unit-scale", type=float, default=None, help="BVH length unit in metres (default: detected)"
+    )
+    p.add_argument(
+        "--animation",
+        default=None,
+        metavar="NAME",
+        help="which animation of a glTF / GLB file, by name or index (default: the first)",
+    )
     add_fps_option(p)
     return p
 
@@ -91,32 +123,47 @@ def _main(argv: Sequence[str] | None) -> int:
     if args.model is None:
         print(f"model: {model_dir}")
     t0 = time.perf_counter()
-    motion = load_motion(args.motion, unit_scale=args.unit_scale, source_fps=args.fps, animation=args.animation)
+    motion = load_motion(
+        args.motion, unit_scale=args.unit_scale, source_fps=args.fps, animation=args.animation
+    )
     animator = Animator.load(model_dir, precision=args.precision)
     if args.garment is not None and animator.bundle.garment != args.garment:
         raise InputError(model_dir, f"this model animates a {animator.bundle.garment}, not a {args.garment}")
     # --gate/--tau run the hybrid, --detail-* the detail mode; asking both, or a mode without them, is refused
-    settings = run_settings_of(args, "hrr-animate", detail=detail_look(args), collision=not args.no_collision,
-                               causal=args.causal)
+    settings = run_settings_of(
+        args, "hrr-animate", detail=detail_look(args), collision=not args.no_collision, causal=args.causal
+    )
     body = animator.body(args.body, allow_outside=args.allow_outside_body) if args.body else None
     anim = animator.animate(motion, settings, body=body)
     anim.save(args.output)
     seconds = time.perf_counter() - t0
     # the gate decides in the hybrid only; the other modes retrieve always, never, or add a match's detail
     mode = Mode(anim.settings["mode"])
-    gate = (f", gate {anim.settings['gate']} < {anim.settings['tau']:.3f}" if mode == Mode.HYBRID else
-            f", folds x{anim.settings['detail_strength']:g} on the {anim.settings['detail_base']}" if mode == Mode.DETAIL else "")
+    gate = (
+        f", gate {anim.settings['gate']} < {anim.settings['tau']:.3f}"
+        if mode == Mode.HYBRID
+        else f", folds x{anim.settings['detail_strength']:g} on the {anim.settings['detail_base']}"
+        if mode == Mode.DETAIL
+        else ""
+    )
     if anim.settings.get("swing", 1.0) != 1.0:
         gate += f", swing x{anim.settings['swing']:g}"
-    used = ("a database match on every frame" if mode in (Mode.RESIDUAL, Mode.DETAIL) else
-            f"retrieval usage {100 * anim.retrieval_usage:.1f} % of frames")
+    used = (
+        "a database match on every frame"
+        if mode in (Mode.RESIDUAL, Mode.DETAIL)
+        else f"retrieval usage {100 * anim.retrieval_usage:.1f} % of frames"
+    )
     named = f"{args.mode} = {mode}" if args.mode != mode else str(mode)
-    print(f"wrote {args.output}: {anim.vertices.shape[0]} frames ({motion.duration_s:.2f} s at {anim.fps:g} fps), "
-          f"{anim.vertices.shape[1]} vertices on body {anim.body}; mode {named}{gate}, {used}; {seconds:.1f} s")
+    print(
+        f"wrote {args.output}: {anim.vertices.shape[0]} frames ({motion.duration_s:.2f} s at {anim.fps:g} fps), "
+        f"{anim.vertices.shape[1]} vertices on body {anim.body}; mode {named}{gate}, {used}; {seconds:.1f} s"
+    )
     if anim.penetration is not None:
         p = anim.penetration
-        print(f"  penetration (vertices > 5 mm inside the body): before push-out {100 * p.inside_before:.2f} % "
-              f"(worst frame {100 * p.worst_before:.2f} %), after {100 * p.inside_after:.2f} % (worst {100 * p.worst_after:.2f} %)")
+        print(
+            f"  penetration (vertices > 5 mm inside the body): before push-out {100 * p.inside_before:.2f} % "
+            f"(worst frame {100 * p.worst_before:.2f} %), after {100 * p.inside_after:.2f} % (worst {100 * p.worst_after:.2f} %)"
+        )
     return 0
 
 

@@ -18,15 +18,20 @@ from ._common import run_cli
 
 
 def _main(argv: Sequence[str] | None) -> int:
-    p = argparse.ArgumentParser(prog="hrr-blender-addon", description=__doc__,
-                                formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("-o", "--output", type=Path, default=Path("hrr_garment_blender.zip"), help="the zip to write")
+    p = argparse.ArgumentParser(
+        prog="hrr-blender-addon", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    p.add_argument(
+        "-o", "--output", type=Path, default=Path("hrr_garment_blender.zip"), help="the zip to write"
+    )
     args = p.parse_args(argv)
     from ..export.blender_package import write_addon_zip
 
     require_suffix(args.output, (".zip",), "the add-on")
     path = write_addon_zip(args.output)
-    print(f"wrote {path}: install it in Blender 4.2+ (Edit > Preferences > Get Extensions > Install from Disk)")
+    print(
+        f"wrote {path}: install it in Blender 4.2+ (Edit > Preferences > Get Extensions > Install from Disk)"
+    )
     return 0
 
 

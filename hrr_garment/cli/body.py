@@ -32,49 +32,80 @@ from ._common import run_cli
 
 
 def _parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="hrr-body", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = argparse.ArgumentParser(
+        prog="hrr-body", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     sub = p.add_subparsers(dest="command", required=True)
     make = sub.add_parser("make", help="a body of the parametric model's shape -> body.json")
     for f in fields(BodyShape):
-        make.add_argument(f"--{f.name}", type=float, default=0.5, help=f"anny's {f.name}, in [0, 1] (default 0.5)")
+        make.add_argument(
+            f"--{f.name}", type=float, default=0.5, help=f"anny's {f.name}, in [0, 1] (default 0.5)"
+        )
     make.add_argument("-o", "--output", type=Path, required=True, help="body.json to write")
     fit = sub.add_parser("fit", help="a skinned glTF / GLB character's mesh -> body.json")
     fit.add_argument("character", type=Path, help="a skinned .glb or .gltf")
     fit.add_argument("-o", "--output", type=Path, required=True, help="body.json to write")
-    fit.add_argument("--skin", type=int, default=None, help="which skin (default: the one with the most skinned vertices)")
-    fit.add_argument("--joint-map", type=Path, default=None,
-                     help="YAML 'canonical_joint: your_joint' per line, for a rig whose names are not known")
-    fit.add_argument("--unit-scale", type=float, default=None,
-                     help="metres per unit of the file (default 1, as glTF says; detected when implausible)")
-    fit.add_argument("--parametric", action="store_true",
-                     help="also find the parametric (anny) shape nearest to the mesh, report the surface distance "
-                          "both ways and record the shape (the bodies extra)")
+    fit.add_argument(
+        "--skin", type=int, default=None, help="which skin (default: the one with the most skinned vertices)"
+    )
+    fit.add_argument(
+        "--joint-map",
+        type=Path,
+        default=None,
+        help="YAML 'canonical_joint: your_joint' per line, for a rig whose names are not known",
+    )
+    fit.add_argument(
+        "--unit-scale",
+        type=float,
+        default=None,
+        help="metres per unit of the file (default 1, as glTF says; detected when implausible)",
+    )
+    fit.add_argument(
+        "--parametric",
+        action="store_true",
+        help="also find the parametric (anny) shape nearest to the mesh, report the surface distance "
+        "both ways and record the shape (the bodies extra)",
+    )
     nearest = sub.add_parser("nearest", help="the parametric body nearest to a clip's performer -> body.json")
     nearest.add_argument("motion", type=Path, help="a BVH or glTF / GLB clip (its rig's proportions)")
     nearest.add_argument("-o", "--output", type=Path, required=True, help="body.json to write")
-    nearest.add_argument("--unit-scale", type=float, default=None, help="metres per file unit (default: detected)")
+    nearest.add_argument(
+        "--unit-scale", type=float, default=None, help="metres per file unit (default: detected)"
+    )
     info = sub.add_parser("info", help="what a body file holds")
     info.add_argument("body", type=Path)
     info.add_argument("--json", action="store_true")
-    info.add_argument("--model", type=Path, default=None,
-                      help="a model folder: whether the body lies within the range it was trained on (exit 1 where not)")
-    info.add_argument("--inside", action="store_true",
-                      help="with --model: animate a procedural walk on the body and on the model's own, and say how "
-                           "much of the cloth lies inside each before the push-out (the measures' range is each on its "
-                           "own; this asks the model)")
+    info.add_argument(
+        "--model",
+        type=Path,
+        default=None,
+        help="a model folder: whether the body lies within the range it was trained on (exit 1 where not)",
+    )
+    info.add_argument(
+        "--inside",
+        action="store_true",
+        help="with --model: animate a procedural walk on the body and on the model's own, and say how "
+        "much of the cloth lies inside each before the push-out (the measures' range is each on its "
+        "own; this asks the model)",
+    )
     return p
 
 
 def _summary(record) -> dict:
     rest = record.skeleton.rest_positions()
-    return {"pelvis_height_m": round(record.pelvis_height, 4),
-            "stature_m": round(record.stature, 4),
-            "hip_width_m": round(float(rest[1, 0] - rest[2, 0]), 4),
-            "shoulder_width_m": round(float(rest[16, 0] - rest[17, 0]), 4),
-            "leg_length_m": round(float(rest[1, 1] - rest[7, 1]), 4),
-            "capsules": len(record.body.capsules), "shape": record.shape,
-            "measures_m": {k: round(float(v), 4) for k, v in zip(BODY_MEASURES, body_vector(record))},  # what models read
-            "fit": record.report.to_dict() if record.report else None}
+    return {
+        "pelvis_height_m": round(record.pelvis_height, 4),
+        "stature_m": round(record.stature, 4),
+        "hip_width_m": round(float(rest[1, 0] - rest[2, 0]), 4),
+        "shoulder_width_m": round(float(rest[16, 0] - rest[17, 0]), 4),
+        "leg_length_m": round(float(rest[1, 1] - rest[7, 1]), 4),
+        "capsules": len(record.body.capsules),
+        "shape": record.shape,
+        "measures_m": {
+            k: round(float(v), 4) for k, v in zip(BODY_MEASURES, body_vector(record))
+        },  # what models read
+        "fit": record.report.to_dict() if record.report else None,
+    }
 
 
 def _fit_character(args) -> int:
@@ -83,7 +114,9 @@ def _fit_character(args) -> int:
     from ..motion.joint_maps import load_joint_map
 
     joint_map = load_joint_map(args.joint_map) if args.joint_map is not None else None
-    record, character = character_body(args.character, skin=args.skin, joint_map=joint_map, unit_scale=args.unit_scale)
+    record, character = character_body(
+        args.character, skin=args.skin, joint_map=joint_map, unit_scale=args.unit_scale
+    )
     notes = [f"skin {character.skin}, {len(character.vertices)} vertices, {character.scheme} joint names"]
     if args.parametric:
         from ..body.parametric import fit_shape
@@ -91,21 +124,27 @@ def _fit_character(args) -> int:
         _announce_first_build()
         nearest = fit_shape(character.vertices, character.faces, joints=character.joints)
         record = replace(record, shape=nearest.shape.to_dict())
-        notes.append(f"nearest parametric shape {_values(record.shape)}: surfaces {nearest.mean_mm:.1f} mm apart on "
-                     f"average (95th percentile {nearest.p95_mm:.1f} mm)")
+        notes.append(
+            f"nearest parametric shape {_values(record.shape)}: surfaces {nearest.mean_mm:.1f} mm apart on "
+            f"average (95th percentile {nearest.p95_mm:.1f} mm)"
+        )
     write_body(args.output, record)
     if character.unit_scale != 1.0:
         notes.append(f"{character.unit_scale:g} m per file unit")
     if character.turned:
         notes.append("turned to stand Y up, facing +Z")
     if character.posed_joints:
-        notes.append(f"read in its bind pose; {len(character.posed_joints)} joint(s) stood posed away from it")
+        notes.append(
+            f"read in its bind pose; {len(character.posed_joints)} joint(s) stood posed away from it"
+        )
     if character.filled_joints:
         notes.append(f"placed {', '.join(character.filled_joints)}, which the skeleton lacks")
     fit = record.report
-    print(f"wrote {args.output}: {record.stature:.3f} m tall, pelvis {record.pelvis_height:.3f} m over the soles; "
-          f"capsules within {fit.mean_mm:.1f} mm of the surface on average (95th percentile {fit.p95_mm:.1f} mm; "
-          f"{fit.outside_1cm:.0%} of vertices more than 1 cm outside) ({'; '.join(notes)})")
+    print(
+        f"wrote {args.output}: {record.stature:.3f} m tall, pelvis {record.pelvis_height:.3f} m over the soles; "
+        f"capsules within {fit.mean_mm:.1f} mm of the surface on average (95th percentile {fit.p95_mm:.1f} mm; "
+        f"{fit.outside_1cm:.0%} of vertices more than 1 cm outside) ({'; '.join(notes)})"
+    )
     return 0
 
 
@@ -114,8 +153,11 @@ def _announce_first_build() -> None:
     from ..body.parametric import anny_cache, anny_cache_ready
 
     if not anny_cache_ready():
-        print(f"hrr-body: building the parametric body's blend shapes, once (about a minute on two cores; "
-              f"cached in {anny_cache()})", file=sys.stderr)
+        print(
+            f"hrr-body: building the parametric body's blend shapes, once (about a minute on two cores; "
+            f"cached in {anny_cache()})",
+            file=sys.stderr,
+        )
 
 
 def _values(shape: dict) -> str:
@@ -133,8 +175,10 @@ def _nearest(args) -> int:
     body = parametric_body(found.shape)
     write_body(args.output, body)
     errors = ", ".join(f"{k} {v:+.0f}" for k, v in found.errors_mm.items())
-    print(f"wrote {args.output}: {body.fitted.stature:.3f} m tall ({_values(body.shape.to_dict())}); the performer's "
-          f"measures missed by {found.rms_mm:.1f} mm RMS ({errors} mm)")
+    print(
+        f"wrote {args.output}: {body.fitted.stature:.3f} m tall ({_values(body.shape.to_dict())}); the performer's "
+        f"measures missed by {found.rms_mm:.1f} mm RMS ({errors} mm)"
+    )
     return 0
 
 
@@ -145,8 +189,10 @@ def _inside(model: Path, record, name: str) -> dict:
 
     animator, motion = Animator.load(model), check_motion()
     clip = {"clip": f"procedural walk of {CHECK_SECONDS:g} s"}
-    return {f"body {name!r}": {**cloth_inside(animator, motion, record, name=name).to_dict(), **clip},
-            "the model's own body": {**cloth_inside(animator, motion).to_dict(), **clip}}
+    return {
+        f"body {name!r}": {**cloth_inside(animator, motion, record, name=name).to_dict(), **clip},
+        "the model's own body": {**cloth_inside(animator, motion).to_dict(), **clip},
+    }
 
 
 def _main(argv: Sequence[str] | None) -> int:
@@ -163,16 +209,30 @@ def _main(argv: Sequence[str] | None) -> int:
 
             body_range = load_bundle(args.model).body_range
             outside = body_range.outside(body_vector(record))
-            summary["model"] = {"folder": str(args.model), "training_bodies": body_range.bodies, "outside": outside}
+            summary["model"] = {
+                "folder": str(args.model),
+                "training_bodies": body_range.bodies,
+                "outside": outside,
+            }
             if args.inside:
                 summary["model"]["inside_before_push_out"] = _inside(args.model, record, args.body.stem)
-        print(json.dumps(summary) if args.json else "\n".join(f"{k}: {v}" for k, v in summary.items() if k != "model"))
+        print(
+            json.dumps(summary)
+            if args.json
+            else "\n".join(f"{k}: {v}" for k, v in summary.items() if k != "model")
+        )
         if outside is not None and not args.json:
-            print(f"within the range of the {body_range.bodies} bodies {args.model} was trained on" if not outside else
-                  f"outside the range of the {body_range.bodies} bodies {args.model} was trained on: " + "; ".join(outside))
+            print(
+                f"within the range of the {body_range.bodies} bodies {args.model} was trained on"
+                if not outside
+                else f"outside the range of the {body_range.bodies} bodies {args.model} was trained on: "
+                + "; ".join(outside)
+            )
             for who, r in summary["model"].get("inside_before_push_out", {}).items():
-                print(f"inside {who} before the push-out, on a {r['clip']}: {r['inside_pct']:.2f} % of the cloth more than "
-                      f"5 mm in (worst frame {r['inside_worst_pct']:.2f} %)")
+                print(
+                    f"inside {who} before the push-out, on a {r['clip']}: {r['inside_pct']:.2f} % of the cloth more than "
+                    f"5 mm in (worst frame {r['inside_worst_pct']:.2f} %)"
+                )
         return 1 if outside else 0
     if args.output.suffix.lower() != ".json":
         raise InputError(args.output, "a body file is written as .json")
@@ -191,8 +251,10 @@ def _main(argv: Sequence[str] | None) -> int:
     write_body(args.output, body)
     summary = _summary(read_body(args.output))
     fit = body.fitted.report
-    print(f"wrote {args.output}: {summary['stature_m']:.3f} m tall, pelvis {summary['pelvis_height_m']:.3f} m over the soles; capsules within {fit.mean_mm:.1f} mm of the surface on average "
-          f"(95th percentile {fit.p95_mm:.1f} mm)")
+    print(
+        f"wrote {args.output}: {summary['stature_m']:.3f} m tall, pelvis {summary['pelvis_height_m']:.3f} m over the soles; capsules within {fit.mean_mm:.1f} mm of the surface on average "
+        f"(95th percentile {fit.p95_mm:.1f} mm)"
+    )
     return 0
 
 

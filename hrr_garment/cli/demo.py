@@ -26,7 +26,9 @@ from ._common import run_cli
 def _body(argv: Sequence[str] | None) -> int:
     parser = argparse.ArgumentParser(prog="hrr-demo", description=__doc__)
     parser.add_argument("--out", default=None, help="output folder (default: <workspace>/demo)")
-    parser.add_argument("--preset", default="quick", help="training preset of the demo model (tiny: a few minutes)")
+    parser.add_argument(
+        "--preset", default="quick", help="training preset of the demo model (tiny: a few minutes)"
+    )
     parser.add_argument("--no-train", action="store_true", help="stop after the motion part")
     args = parser.parse_args(argv)
     out = workspace() / "demo" if args.out is None else Path(args.out)
@@ -39,13 +41,17 @@ def _body(argv: Sequence[str] | None) -> int:
     if clip is not None and clip.exists():
         rows.append((f"CMU {clip.name}", load_motion(clip)))
     else:
-        print("CMU sample clips not found (looked for shared/data/mocap; set HRR_MOCAP_DIR); skipping the real clip")
+        print(
+            "CMU sample clips not found (looked for shared/data/mocap; set HRR_MOCAP_DIR); skipping the real clip"
+        )
     for label, motion in rows:
         feats = motion_features(motion)
         s = motion.summary()
         print(f"== {label}")
-        print(f"   skeleton={s['source_skeleton']} frames={s['frames']} fps={s['fps']:.0f} duration={s['duration_s']:.2f}s "
-              f"height={s['height_m']:.2f}m root travel={s['root_displacement_m']:.2f}m mean lowest foot={100 * s['mean_lowest_foot_height_m']:.1f}cm")
+        print(
+            f"   skeleton={s['source_skeleton']} frames={s['frames']} fps={s['fps']:.0f} duration={s['duration_s']:.2f}s "
+            f"height={s['height_m']:.2f}m root travel={s['root_displacement_m']:.2f}m mean lowest foot={100 * s['mean_lowest_foot_height_m']:.1f}cm"
+        )
         print(f"   features {feats.shape}, windows {windows(feats).shape}")
     try:
         from ..export.preview import render_skeleton_preview
@@ -90,8 +96,10 @@ def _say_dataset(model: Path) -> None:
         print(f"   trained on {dataset} (no longer there)")
         return
     ds = GarmentDataset(dataset)
-    print(f"   trained on {dataset}: preset {ds.info.get('preset', '?')}, {len(ds.names)} sequences, "
-          f"{sum(ds.frames.values())} frames")
+    print(
+        f"   trained on {dataset}: preset {ds.info.get('preset', '?')}, {len(ds.names)} sequences, "
+        f"{sum(ds.frames.values())} frames"
+    )
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -25,22 +25,48 @@ from ..io_utils import refuse_input_as_output, require_suffix
 from ._common import run_cli
 
 _FORMATS = ("glb", "usd", "pc2", "obj", "blend")
-_BY_SUFFIX = {".glb": "glb", ".usd": "usd", ".usdc": "usd", ".usda": "usd", ".pc2": "pc2", "": "obj", ".blend": "blend"}
+_BY_SUFFIX = {
+    ".glb": "glb",
+    ".usd": "usd",
+    ".usdc": "usd",
+    ".usda": "usd",
+    ".pc2": "pc2",
+    "": "obj",
+    ".blend": "blend",
+}
 
 
 def _parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="hrr-export", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = argparse.ArgumentParser(
+        prog="hrr-export", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     p.add_argument("animation", type=Path, help="out.h5 written by hrr-animate")
     p.add_argument("-o", "--output", type=Path, required=True, help="file to write (a folder for --to obj)")
-    p.add_argument("--to", choices=_FORMATS, default=None, help="format (default: from the output's extension)")
-    p.add_argument("--tolerance", type=float, default=1.0,
-                   help="GLB (and .blend) keyframe reduction: max per-vertex deviation in mm from every frame (0: every frame)")
-    p.add_argument("--with-body", action="store_true", help="also export the collision body (GLB, USD, .blend)")
-    p.add_argument("--character", type=Path, default=None, metavar="GLB",
-                   help="GLB: put the character's own skinned mesh in, posed by the clip (out.h5 from hrr-animate "
-                        "--body on the same character)")
-    p.add_argument("--no-normals", action="store_true",
-                   help="GLB: leave the vertex normals out (about half the file; engines then shade flat or recompute)")
+    p.add_argument(
+        "--to", choices=_FORMATS, default=None, help="format (default: from the output's extension)"
+    )
+    p.add_argument(
+        "--tolerance",
+        type=float,
+        default=1.0,
+        help="GLB (and .blend) keyframe reduction: max per-vertex deviation in mm from every frame (0: every frame)",
+    )
+    p.add_argument(
+        "--with-body", action="store_true", help="also export the collision body (GLB, USD, .blend)"
+    )
+    p.add_argument(
+        "--character",
+        type=Path,
+        default=None,
+        metavar="GLB",
+        help="GLB: put the character's own skinned mesh in, posed by the clip (out.h5 from hrr-animate "
+        "--body on the same character)",
+    )
+    p.add_argument(
+        "--no-normals",
+        action="store_true",
+        help="GLB: leave the vertex normals out (about half the file; engines then shade flat or recompute)",
+    )
     return p
 
 
@@ -55,7 +81,9 @@ def _main(argv: Sequence[str] | None) -> int:
 
     fmt = args.to or _BY_SUFFIX.get(args.output.suffix.lower())
     if fmt is None:
-        raise InputError(args.output, f"cannot tell the format from the extension; give --to {'|'.join(_FORMATS)}")
+        raise InputError(
+            args.output, f"cannot tell the format from the extension; give --to {'|'.join(_FORMATS)}"
+        )
     if args.tolerance < 0:
         raise InputError("--tolerance", f"must be >= 0 mm, got {args.tolerance}")
     if args.no_normals and fmt != "glb":
@@ -75,11 +103,19 @@ def _main(argv: Sequence[str] | None) -> int:
         from ..export.glb import write_glb
 
         character = skinned_character(args.character) if args.character is not None else None
-        report = write_glb(anim, args.output, tolerance=args.tolerance / 1000.0, with_body=args.with_body,
-                           normals=not args.no_normals, character=character)
+        report = write_glb(
+            anim,
+            args.output,
+            tolerance=args.tolerance / 1000.0,
+            with_body=args.with_body,
+            normals=not args.no_normals,
+            character=character,
+        )
         written = [report.path]
-        detail = (f"; {len(report.keyframes.frames)} keyframes of {anim.num_frames} frames, "
-                  f"max deviation {1000 * report.keyframes.max_error:.2f} mm (bound {args.tolerance:g} mm)")
+        detail = (
+            f"; {len(report.keyframes.frames)} keyframes of {anim.num_frames} frames, "
+            f"max deviation {1000 * report.keyframes.max_error:.2f} mm (bound {args.tolerance:g} mm)"
+        )
     elif fmt == "usd":
         from ..export.usd import write_usd
 
@@ -87,7 +123,9 @@ def _main(argv: Sequence[str] | None) -> int:
     elif fmt == "blend":
         from ..export.blend import write_blend
 
-        written = [write_blend(anim, args.output, tolerance=args.tolerance / 1000.0, with_body=args.with_body)]
+        written = [
+            write_blend(anim, args.output, tolerance=args.tolerance / 1000.0, with_body=args.with_body)
+        ]
     elif fmt == "pc2":
         from ..export.pointcache import write_pc2_with_obj
 
@@ -99,8 +137,10 @@ def _main(argv: Sequence[str] | None) -> int:
     names = str(written[0]) if len(written) <= 2 else f"{len(written)} files in {written[0].parent}"
     if len(written) == 2:
         names += f" + {written[1]}"
-    print(f"wrote {names} ({fmt}, {_size(written)}): {anim.num_frames} frames of {anim.vertices.shape[1]} vertices "
-          f"at {anim.fps:g} fps{detail}; {time.perf_counter() - t0:.1f} s")
+    print(
+        f"wrote {names} ({fmt}, {_size(written)}): {anim.num_frames} frames of {anim.vertices.shape[1]} vertices "
+        f"at {anim.fps:g} fps{detail}; {time.perf_counter() - t0:.1f} s"
+    )
     return 0
 
 

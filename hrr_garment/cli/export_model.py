@@ -28,21 +28,42 @@ TOLERANCE_MM = 0.1  # the ONNX stream's largest gap from the Python stream that 
 
 
 def _parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="hrr-export-model", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = argparse.ArgumentParser(
+        prog="hrr-export-model", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     p.add_argument("--model", type=Path, default=None, help="trained model directory")
     p.add_argument("--garment", default=None, help="the newest model of this garment in the workspace")
-    p.add_argument("--onnx", action="store_true", help="write the streaming step as ONNX (the one format so far)")
-    p.add_argument("-o", "--output", type=Path, required=True, help="the .onnx file (its tensors go beside it)")
-    p.add_argument("--body", default=None, metavar="BODY",
-                   help="the characters' body: body.json or a skinned glTF / GLB character (default: the model's own)")
-    p.add_argument("--allow-outside-body", action="store_true",
-                   help="export for a body unlike the model's training bodies anyway (warned)")
-    p.add_argument("--no-collision", action="store_true",
-                   help="leave the push-out out of the graph (an engine with its own collision)")
+    p.add_argument(
+        "--onnx", action="store_true", help="write the streaming step as ONNX (the one format so far)"
+    )
+    p.add_argument(
+        "-o", "--output", type=Path, required=True, help="the .onnx file (its tensors go beside it)"
+    )
+    p.add_argument(
+        "--body",
+        default=None,
+        metavar="BODY",
+        help="the characters' body: body.json or a skinned glTF / GLB character (default: the model's own)",
+    )
+    p.add_argument(
+        "--allow-outside-body",
+        action="store_true",
+        help="export for a body unlike the model's training bodies anyway (warned)",
+    )
+    p.add_argument(
+        "--no-collision",
+        action="store_true",
+        help="leave the push-out out of the graph (an engine with its own collision)",
+    )
     add_decoder_option(p)
     add_push_option(p)
-    p.add_argument("--check", type=Path, default=None, metavar="CLIP",
-                   help="stream this motion file through the graph and the Python stream and compare")
+    p.add_argument(
+        "--check",
+        type=Path,
+        default=None,
+        metavar="CLIP",
+        help="stream this motion file through the graph and the Python stream and compare",
+    )
     return p
 
 
@@ -58,24 +79,38 @@ def _main(argv: Sequence[str] | None) -> int:
     from ..inference.animator import Animator, find_model
     from ..motion.io import load_motion
 
-    motion = load_motion(args.check) if args.check else None  # a bad clip is refused before the export's minute
+    motion = (
+        load_motion(args.check) if args.check else None
+    )  # a bad clip is refused before the export's minute
     model_dir = find_model(args.model or args.garment)
     animator = Animator.load(model_dir)
     if args.garment is not None and animator.bundle.garment != args.garment:
         raise InputError(model_dir, f"this model animates a {animator.bundle.garment}, not a {args.garment}")
     body = animator.body(args.body, allow_outside=args.allow_outside_body) if args.body else None
-    written = export_onnx(animator, args.output, body, push_out=not args.no_collision, decoder=args.decoder or "full",
-                          push=args.push or "mesh")
+    written = export_onnx(
+        animator,
+        args.output,
+        body,
+        push_out=not args.no_collision,
+        decoder=args.decoder or "full",
+        push=args.push or "mesh",
+    )
     size = written.graph.stat().st_size / 2**20
-    print(f"wrote {written.graph} ({size:.1f} MiB, {written.vertices} vertices) and {written.tensors.name} "
-          f"in {written.seconds:.0f} s")
+    print(
+        f"wrote {written.graph} ({size:.1f} MiB, {written.vertices} vertices) and {written.tensors.name} "
+        f"in {written.seconds:.0f} s"
+    )
     if motion is None:
         return 0
     gap = check_onnx(animator, written.graph, motion, body=body)
-    print(f"{args.check.name}: {gap['frames']} frames, ONNX - Python stream max {gap['max_mm']:.4f} mm, mean "
-          f"{gap['mean_mm']:.4f} mm; median step ONNX {gap['onnx_ms']:.2f} ms, Python {gap['python_ms']:.2f} ms")
+    print(
+        f"{args.check.name}: {gap['frames']} frames, ONNX - Python stream max {gap['max_mm']:.4f} mm, mean "
+        f"{gap['mean_mm']:.4f} mm; median step ONNX {gap['onnx_ms']:.2f} ms, Python {gap['python_ms']:.2f} ms"
+    )
     if gap["max_mm"] > TOLERANCE_MM:
-        print(f"error: the graph departs from the Python stream by more than {TOLERANCE_MM} mm", file=sys.stderr)
+        print(
+            f"error: the graph departs from the Python stream by more than {TOLERANCE_MM} mm", file=sys.stderr
+        )
         return 1
     return 0
 

@@ -24,13 +24,24 @@ from ._common import add_fps_option, run_cli
 
 
 def _parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="hrr-import", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = argparse.ArgumentParser(
+        prog="hrr-import", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     p.add_argument("--garment", required=True, help="garment name stored in the dataset")
     p.add_argument("--template", type=Path, required=True, help="garment OBJ in the rest pose")
-    p.add_argument("--attached", default=None, metavar="GROUP", help="OBJ group whose vertices follow the body")
+    p.add_argument(
+        "--attached", default=None, metavar="GROUP", help="OBJ group whose vertices follow the body"
+    )
     p.add_argument("--attached-file", type=Path, default=None, help="file of 0-based attached vertex indices")
-    p.add_argument("--motion", type=Path, required=True, help="the motion that drove the simulation (BVH, AMASS or native npz)")
-    p.add_argument("--frames", type=Path, required=True, help="folder of per-frame OBJ files, or npz with 'vertices'")
+    p.add_argument(
+        "--motion",
+        type=Path,
+        required=True,
+        help="the motion that drove the simulation (BVH, AMASS or native npz)",
+    )
+    p.add_argument(
+        "--frames", type=Path, required=True, help="folder of per-frame OBJ files, or npz with 'vertices'"
+    )
     p.add_argument("--frames-fps", type=float, default=30.0, help="rate of the frames (default 30)")
     p.add_argument("--frames-scale", type=float, default=1.0, help="metres per frame unit (default 1)")
     p.add_argument("--name", default=None, help="sequence name (default: the motion file's name)")
@@ -42,15 +53,25 @@ def _parser() -> argparse.ArgumentParser:
 
 def _main(argv: Sequence[str] | None) -> int:
     args = _parser().parse_args(argv)
-    template = load_garment_obj(args.template, args.garment, attached_group=args.attached,
-                                attached_file=args.attached_file)
+    template = load_garment_obj(
+        args.template, args.garment, attached_group=args.attached, attached_file=args.attached_file
+    )
     # Keep the file's placement: the frames are in the motion's world frame.
     motion = load_motion(args.motion, unit_scale=args.unit_scale, ground=False, source_fps=args.fps)
     frames = read_frames(args.frames)
-    record = frames_to_sequence(args.name or args.motion.stem, template, motion, frames=frames, source=str(args.frames),
-                                frames_fps=args.frames_fps, frames_scale=args.frames_scale)
+    record = frames_to_sequence(
+        args.name or args.motion.stem,
+        template,
+        motion,
+        frames=frames,
+        source=str(args.frames),
+        frames_fps=args.frames_fps,
+        frames_scale=args.frames_scale,
+    )
     path = import_sequence(args.output, template, record)
-    print(f"imported {record.name}: {len(record.garment)} frames x {template.num_vertices} vertices -> {path}")
+    print(
+        f"imported {record.name}: {len(record.garment)} frames x {template.num_vertices} vertices -> {path}"
+    )
     return 0
 
 

@@ -27,16 +27,41 @@ _WRITTEN = {"features": ((".npy",), "the feature array"), "poses": ((".npz",), "
 
 
 def _add_load_options(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--unit-scale", type=float, default=None, help="metres per BVH file unit (default: detect from standing height)")
-    p.add_argument("--joint-map", type=Path, default=None, help="YAML mapping canonical joint names to the file's joint names")
-    p.add_argument("--no-ground", action="store_true", help="keep the file's vertical placement instead of standing the feet on y=0")
-    p.add_argument("--animation", default=None, metavar="NAME", help="which animation of a glTF / GLB file, by name or index (default: the first)")
+    p.add_argument(
+        "--unit-scale",
+        type=float,
+        default=None,
+        help="metres per BVH file unit (default: detect from standing height)",
+    )
+    p.add_argument(
+        "--joint-map",
+        type=Path,
+        default=None,
+        help="YAML mapping canonical joint names to the file's joint names",
+    )
+    p.add_argument(
+        "--no-ground",
+        action="store_true",
+        help="keep the file's vertical placement instead of standing the feet on y=0",
+    )
+    p.add_argument(
+        "--animation",
+        default=None,
+        metavar="NAME",
+        help="which animation of a glTF / GLB file, by name or index (default: the first)",
+    )
     add_fps_option(p)
 
 
 def _load(args: argparse.Namespace):
-    return load_motion(args.file, unit_scale=args.unit_scale, joint_map=args.joint_map, ground=not args.no_ground,
-                       source_fps=args.fps, animation=args.animation)
+    return load_motion(
+        args.file,
+        unit_scale=args.unit_scale,
+        joint_map=args.joint_map,
+        ground=not args.no_ground,
+        source_fps=args.fps,
+        animation=args.animation,
+    )
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -46,7 +71,13 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("kind", choices=sorted(KINDS))
     p.add_argument("--seconds", type=float, default=6.0)
     p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--param", action="append", default=[], metavar="NAME=VALUE", help="pin a kind parameter (see 'hrr-motion kinds')")
+    p.add_argument(
+        "--param",
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help="pin a kind parameter (see 'hrr-motion kinds')",
+    )
     p.add_argument("-o", "--output", type=Path, required=True, help="native motion .npz")
     sub.add_parser("kinds", help="list procedural kinds and their parameters")
     p = sub.add_parser("info", help="summary of a motion file after retargeting and resampling")
@@ -56,12 +87,21 @@ def _parser() -> argparse.ArgumentParser:
     p = sub.add_parser("features", help="write the (T, 124) float32 feature array")
     p.add_argument("file", type=Path)
     p.add_argument("-o", "--output", type=Path, required=True, help="the features as .npy")
-    p.add_argument("--window", type=int, default=DEFAULT_WINDOW, help="minimum clip length in frames (one window)")
+    p.add_argument(
+        "--window", type=int, default=DEFAULT_WINDOW, help="minimum clip length in frames (one window)"
+    )
     _add_load_options(p)
-    p = sub.add_parser("poses", help="write the clip as an engine hands poses over: local quaternions and roots (.npz)")
+    p = sub.add_parser(
+        "poses", help="write the clip as an engine hands poses over: local quaternions and roots (.npz)"
+    )
     p.add_argument("file", type=Path)
-    p.add_argument("-o", "--output", type=Path, required=True,
-                   help="npz of rotations (T, 22, 4) x y z w, root (T, 3), fps and joint_names")
+    p.add_argument(
+        "-o",
+        "--output",
+        type=Path,
+        required=True,
+        help="npz of rotations (T, 22, 4) x y z w, root (T, 3), fps and joint_names",
+    )
     _add_load_options(p)
     return parser
 
@@ -91,8 +131,16 @@ def _body(argv: Sequence[str] | None) -> int:
     if args.command == "poses":
         rotations, root = motion_to_poses(motion)
         with atomic_path(args.output) as tmp, open(tmp, "wb") as fh:  # a handle: numpy appends .npz to a name
-            np.savez(fh, rotations=rotations, root=root, fps=np.float64(motion.fps), joint_names=np.array(JOINT_NAMES))
-        print(f"wrote {args.output}: {len(rotations)} poses of {len(JOINT_NAMES)} joints at {motion.fps:g} fps")
+            np.savez(
+                fh,
+                rotations=rotations,
+                root=root,
+                fps=np.float64(motion.fps),
+                joint_names=np.array(JOINT_NAMES),
+            )
+        print(
+            f"wrote {args.output}: {len(rotations)} poses of {len(JOINT_NAMES)} joints at {motion.fps:g} fps"
+        )
         return 0
     if args.command == "info":
         summary = motion.summary()
@@ -103,13 +151,19 @@ def _body(argv: Sequence[str] | None) -> int:
         else:
             for key, value in summary.items():
                 if key == "animations":
-                    value = "".join(f"\n  {a['index']}: {a['name']!r} {a['duration_s']:g} s, {a['keyframes']} keyframes, "
-                                    f"{a['frames_30fps']} frames at 30 fps" for a in value)
+                    value = "".join(
+                        f"\n  {a['index']}: {a['name']!r} {a['duration_s']:g} s, {a['keyframes']} keyframes, "
+                        f"{a['frames_30fps']} frames at 30 fps"
+                        for a in value
+                    )
                 print(f"{key:28s} {value}")
         return 0
     feats = motion_features(motion)
     if feats.shape[0] < args.window:
-        raise InputError(args.file, f"clip has {feats.shape[0]} frames at 30 fps, shorter than one window of {args.window} frames")
+        raise InputError(
+            args.file,
+            f"clip has {feats.shape[0]} frames at 30 fps, shorter than one window of {args.window} frames",
+        )
     with atomic_path(args.output) as tmp:
         with open(tmp, "wb") as fh:
             np.save(fh, feats)

@@ -23,13 +23,21 @@ from ._common import run_cli
 def _parser() -> argparse.ArgumentParser:
     from ..export.preview import VIEWS
 
-    p = argparse.ArgumentParser(prog="hrr-preview", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = argparse.ArgumentParser(
+        prog="hrr-preview", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     p.add_argument("animation", type=Path, help="out.h5 written by hrr-animate")
     p.add_argument("-o", "--output", type=Path, required=True, help=".gif, .mp4 or .png (contact sheet)")
-    p.add_argument("--views", nargs="+", default=["front", "left"], choices=list(VIEWS), help="cameras, side by side")
-    p.add_argument("--with-body", dest="with_body", action="store_true", default=True, help="draw the body (default)")
+    p.add_argument(
+        "--views", nargs="+", default=["front", "left"], choices=list(VIEWS), help="cameras, side by side"
+    )
+    p.add_argument(
+        "--with-body", dest="with_body", action="store_true", default=True, help="draw the body (default)"
+    )
     p.add_argument("--no-body", dest="with_body", action="store_false", help="garment only")
-    p.add_argument("--color-mode", action="store_true", help="colour retrieved frames orange, regressed ones blue")
+    p.add_argument(
+        "--color-mode", action="store_true", help="colour retrieved frames orange, regressed ones blue"
+    )
     p.add_argument("--size", type=int, default=360, help="pixels per view (default 360)")
     p.add_argument("--elevation", type=float, default=12.0, help="camera elevation in degrees (default 12)")
     p.add_argument("--every", type=int, default=1, help="render every N-th frame (GIF/MP4)")
@@ -43,12 +51,19 @@ def _main(argv: Sequence[str] | None) -> int:
     from ..export.video import PreviewStyle, write_preview
 
     t0 = time.perf_counter()
-    style = PreviewStyle(views=tuple(args.views), size=args.size, elevation=args.elevation, with_body=args.with_body,
-                         color_mode=args.color_mode)
+    style = PreviewStyle(
+        views=tuple(args.views),
+        size=args.size,
+        elevation=args.elevation,
+        with_body=args.with_body,
+        color_mode=args.color_mode,
+    )
     anim = read_animation_h5(args.animation)
     path = write_preview(anim, args.output, style, every=args.every, sheet_frames=args.frames)
-    print(f"wrote {path} ({path.stat().st_size / 2**20:.1f} MiB) from {anim.num_frames} frames; "
-          f"{time.perf_counter() - t0:.1f} s")
+    print(
+        f"wrote {path} ({path.stat().st_size / 2**20:.1f} MiB) from {anim.num_frames} frames; "
+        f"{time.perf_counter() - t0:.1f} s"
+    )
     return 0
 
 

@@ -26,10 +26,18 @@ from ._common import run_cli
 
 
 def _parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="hrr-sign", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = argparse.ArgumentParser(
+        prog="hrr-sign", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     sub = p.add_subparsers(dest="command", required=True)
     k = sub.add_parser("keygen", help="a new key pair: PRIVATE and PRIVATE with the suffix .pub")
-    k.add_argument("-o", "--output", type=Path, required=True, help="the private key's file (the public key goes beside it)")
+    k.add_argument(
+        "-o",
+        "--output",
+        type=Path,
+        required=True,
+        help="the private key's file (the public key goes beside it)",
+    )
     s = sub.add_parser("sign", help="sign a model bundle (writes bundle.sig into it)")
     s.add_argument("model", type=Path)
     s.add_argument("--key", type=Path, required=True, help="the private key from hrr-sign keygen")
@@ -46,7 +54,9 @@ def _main(argv: Sequence[str] | None) -> int:
             if path.exists():
                 raise InputError(path, "already exists: a key is never overwritten (choose another name)")
         generate_key(args.output)
-        print(f"wrote {args.output} (private: keep it to yourself) and {public} (public: give it to those who load your models)")
+        print(
+            f"wrote {args.output} (private: keep it to yourself) and {public} (public: give it to those who load your models)"
+        )
         return 0
     read_meta(args.model, trust=False)  # a bundle whose files match their hashes before anything else
     if args.command == "sign":

@@ -35,23 +35,48 @@ from ._common import run_cli
 
 
 def _parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="hrr-train", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = argparse.ArgumentParser(
+        prog="hrr-train", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     p.add_argument("--garment", default=None, help="garment name: uses hrr_work/datasets/GARMENT-PRESET.h5")
     p.add_argument("--preset", default="quick", help="dataset and training preset (default quick)")
     p.add_argument("--dataset", type=Path, default=None, help="dataset .h5 (instead of --garment/--preset)")
-    p.add_argument("--stage", choices=(*STAGES, "baseline", "all", OLD_CODESPACE_NAME), default="all",
-                   help="one stage; 'baseline' trains the direct-regression baseline for hrr-eval "
-                        f"('{OLD_CODESPACE_NAME}': deprecated name of 'codespace')")
-    p.add_argument("--config", type=Path, default=None, help="YAML overriding configs/train.yaml (same sections)")
-    p.add_argument("--minutes", type=float, default=None,
-                   help="wall-clock cap on the autoencoder stage (its budget is epochs; a run the cap cuts short warns)")
-    p.add_argument("--validation", choices=("clips", "windows"), default=None,
-                   help="the code space's validation: the dataset's held-out clips (default) or, as the paper did, "
-                        "a random tenth of the training clips' windows (docs/evaluation.md, the paper protocol)")
+    p.add_argument(
+        "--stage",
+        choices=(*STAGES, "baseline", "all", OLD_CODESPACE_NAME),
+        default="all",
+        help="one stage; 'baseline' trains the direct-regression baseline for hrr-eval "
+        f"('{OLD_CODESPACE_NAME}': deprecated name of 'codespace')",
+    )
+    p.add_argument(
+        "--config", type=Path, default=None, help="YAML overriding configs/train.yaml (same sections)"
+    )
+    p.add_argument(
+        "--minutes",
+        type=float,
+        default=None,
+        help="wall-clock cap on the autoencoder stage (its budget is epochs; a run the cap cuts short warns)",
+    )
+    p.add_argument(
+        "--validation",
+        choices=("clips", "windows"),
+        default=None,
+        help="the code space's validation: the dataset's held-out clips (default) or, as the paper did, "
+        "a random tenth of the training clips' windows (docs/evaluation.md, the paper protocol)",
+    )
     p.add_argument("--threads", type=int, default=None, help="torch CPU threads (default: torch's choice)")
-    p.add_argument("--device", default=None,
-                   help="torch device for the autoencoder stage, e.g. cuda (default cpu; other stages run on the CPU)")
-    p.add_argument("-o", "--output", type=Path, default=None, help="model folder (default hrr_work/models/GARMENT-PRESET)")
+    p.add_argument(
+        "--device",
+        default=None,
+        help="torch device for the autoencoder stage, e.g. cuda (default cpu; other stages run on the CPU)",
+    )
+    p.add_argument(
+        "-o",
+        "--output",
+        type=Path,
+        default=None,
+        help="model folder (default hrr_work/models/GARMENT-PRESET)",
+    )
     p.add_argument("--quiet", action="store_true")
     return p
 
@@ -80,17 +105,26 @@ class _Printer(TrainCallback):
             print(describe_auto(result))
         elif stage == "subspace":
             m = result.metrics
-            print(f"subspace (fast decoder): {m['components']} components, {_epochs(result)}; validation per-vertex error "
-                  f"{m['validation_mm']:.2f} mm (full decoder {m['full_validation_mm']:.2f} mm; by size: "
-                  + ", ".join(f"{k} {v:.2f}" for k, v in m["candidates_mm"].items()) + ")")
+            print(
+                f"subspace (fast decoder): {m['components']} components, {_epochs(result)}; validation per-vertex error "
+                f"{m['validation_mm']:.2f} mm (full decoder {m['full_validation_mm']:.2f} mm; by size: "
+                + ", ".join(f"{k} {v:.2f}" for k, v in m["candidates_mm"].items())
+                + ")"
+            )
         elif stage == "baseline":
-            print(f"baseline (direct regression): {_epochs(result)}; validation per-vertex error "
-                  f"{result.metrics['validation_mm']:.2f} mm")
+            print(
+                f"baseline (direct regression): {_epochs(result)}; validation per-vertex error "
+                f"{result.metrics['validation_mm']:.2f} mm"
+            )
 
 
 def _overrides(args) -> dict:
     """The flags that override the training config's values, in its sections' shape."""
-    ae = {k: v for k, v in (("max_minutes", args.minutes), ("threads", args.threads), ("device", args.device)) if v is not None}
+    ae = {
+        k: v
+        for k, v in (("max_minutes", args.minutes), ("threads", args.threads), ("device", args.device))
+        if v is not None
+    }
     cs = {"validation": args.validation} if args.validation is not None else {}
     return {"autoencoder": {"train": ae}, "codespace": {"train": cs}}
 
@@ -112,8 +146,16 @@ def _main(argv: Sequence[str] | None) -> int:
         import torch
 
         torch.set_num_threads(args.threads)
-    result = train_model(args.dataset, folder, settings, stages=STAGES if args.stage == "all" else (args.stage,),
-                         garment=args.garment, preset=preset, progress=not args.quiet, callback=printer)
+    result = train_model(
+        args.dataset,
+        folder,
+        settings,
+        stages=STAGES if args.stage == "all" else (args.stage,),
+        garment=args.garment,
+        preset=preset,
+        progress=not args.quiet,
+        callback=printer,
+    )
     print(f"bundle: {folder}")
     print("time per stage: " + ", ".join(f"{k} {v / 60:.1f} min" for k, v in result.seconds.items()))
     for check in result.budgets.values():
@@ -127,9 +169,11 @@ def _epochs(r: StageReport) -> str:
 
 def _print_autoencoder(r: StageReport) -> None:
     m = r.metrics
-    print(f"autoencoder: {_epochs(r)}; per-vertex error val {m['val_pve_mm']:.2f} mm, test {m['test_pve_mm']:.2f} mm, "
-          f"train {m['train_pve_mm']:.2f} mm; latent {m['latent_shape'][0]} x {m['latent_shape'][1]} "
-          f"(levels {' > '.join(str(s) for s in m['sizes'])})")
+    print(
+        f"autoencoder: {_epochs(r)}; per-vertex error val {m['val_pve_mm']:.2f} mm, test {m['test_pve_mm']:.2f} mm, "
+        f"train {m['train_pve_mm']:.2f} mm; latent {m['latent_shape'][0]} x {m['latent_shape'][1]} "
+        f"(levels {' > '.join(str(s) for s in m['sizes'])})"
+    )
 
 
 def _print_codespace(report: StageReport) -> None:
@@ -137,21 +181,32 @@ def _print_codespace(report: StageReport) -> None:
     v = r["validation_mm"]
     folder = report.folder.parent
     size = sum(p.stat().st_size for p in folder.glob("*.safetensors")) / 1e6
-    print(f"code space: {report.epochs} epochs (curriculum switch at "
-          f"{r['training']['switched_at']}){' (reused)' if report.reused else ''}; code agreement {r['code_agreement']:.2f} "
-          f"(chance {r['chance_agreement']:.2f}); database {r['windows']['train']} windows, "
-          f"{r['database_codes']['distinct_codes']} distinct codes, {r['database_codes']['dead_classes']} of "
-          f"{r['database_codes']['classes']} classes dead, perplexity {r['database_codes']['perplexity']:.2f}")
-    print(f"validation per-vertex error (window level): hybrid {v['hybrid']:.2f} mm, regression-only "
-          f"{v['regression']:.2f} mm, retrieval-only {v['retrieval']:.2f} mm (autoencoder floor {v['autoencoder']:.2f} mm); "
-          f"gate {r.get('gate', 'entropy')} < tau {r['tau']:.3f}, retrieval usage {100 * v['retrieval_usage']:.0f} %")
+    print(
+        f"code space: {report.epochs} epochs (curriculum switch at "
+        f"{r['training']['switched_at']}){' (reused)' if report.reused else ''}; code agreement {r['code_agreement']:.2f} "
+        f"(chance {r['chance_agreement']:.2f}); database {r['windows']['train']} windows, "
+        f"{r['database_codes']['distinct_codes']} distinct codes, {r['database_codes']['dead_classes']} of "
+        f"{r['database_codes']['classes']} classes dead, perplexity {r['database_codes']['perplexity']:.2f}"
+    )
+    print(
+        f"validation per-vertex error (window level): hybrid {v['hybrid']:.2f} mm, regression-only "
+        f"{v['regression']:.2f} mm, retrieval-only {v['retrieval']:.2f} mm (autoencoder floor {v['autoencoder']:.2f} mm); "
+        f"gate {r.get('gate', 'entropy')} < tau {r['tau']:.3f}, retrieval usage {100 * v['retrieval_usage']:.0f} %"
+    )
     if "gates" in r:  # reports from before the match gates have only the entropy's
-        print("gates calibrated on validation: " + "; ".join(
-            f"{g} < {c['tau']:.3f}: {c['validation_mm']:.2f} mm, {100 * c['retrieval_usage']:.0f} % retrieval"
-            for g, c in r["gates"].items()))
+        print(
+            "gates calibrated on validation: "
+            + "; ".join(
+                f"{g} < {c['tau']:.3f}: {c['validation_mm']:.2f} mm, {100 * c['retrieval_usage']:.0f} % retrieval"
+                for g, c in r["gates"].items()
+            )
+        )
     if r.get("residual"):  # the residual mode's weight (reports before it, or databases without motion: none)
-        print(f"residual mode: weight {r['residual']['weight']:g}, {r['residual']['validation_mm']:.2f} mm ("
-              + ", ".join(f"{w}: {e:.2f}" for w, e in r["residual"]["errors_mm"].items()) + ")")
+        print(
+            f"residual mode: weight {r['residual']['weight']:g}, {r['residual']['validation_mm']:.2f} mm ("
+            + ", ".join(f"{w}: {e:.2f}" for w, e in r["residual"]["errors_mm"].items())
+            + ")"
+        )
     print(f"bundle files: {size:.1f} MB")
 
 

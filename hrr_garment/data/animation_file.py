@@ -45,8 +45,14 @@ from ..io_utils import atomic_h5
 from ..motion.motion import MAX_TRANSLATION_M
 
 FORMAT_VERSION = 4
-SKELETON = ("body/rotations", "body/root_translation", "body/offsets")  # version 4: the motion as a skeleton's
-MAX_REACH_M = 1.5  # metres from the nearest body joint a garment vertex may be (a long dress's hem: under 0.6)
+SKELETON = (
+    "body/rotations",
+    "body/root_translation",
+    "body/offsets",
+)  # version 4: the motion as a skeleton's
+MAX_REACH_M = (
+    1.5  # metres from the nearest body joint a garment vertex may be (a long dress's hem: under 0.6)
+)
 PER_FRAME = ("body/joints", "diagnostics/retrieved", "diagnostics/entropy", "diagnostics/match")
 
 
@@ -56,7 +62,9 @@ def _fps(path: Path, attrs: dict) -> float:
         raise InputError(path, "missing the 'fps' attribute")
     value = np.asarray(attrs["fps"])
     if value.size != 1 or value.dtype.kind not in "iuf" or not 1 <= float(value.item()) <= 1000:
-        raise InputError(path, f"the 'fps' attribute must be a frame rate in [1, 1000], got {str(attrs['fps'])[:40]!r}")
+        raise InputError(
+            path, f"the 'fps' attribute must be a frame rate in [1, 1000], got {str(attrs['fps'])[:40]!r}"
+        )
     return float(value.item())
 
 
@@ -107,8 +115,12 @@ class AnimationFile:
         mesh = visible_body(body_from_dict(record, self.path))
         if mesh is None:
             return None
-        played = Motion(quat_to_matrix(self.rotations[..., [3, 0, 1, 2]].astype(np.float64)), self.root_translation,
-                        self.fps, skeleton=Skeleton(offsets=np.asarray(self.offsets, np.float32)))
+        played = Motion(
+            quat_to_matrix(self.rotations[..., [3, 0, 1, 2]].astype(np.float64)),
+            self.root_translation,
+            self.fps,
+            skeleton=Skeleton(offsets=np.asarray(self.offsets, np.float32)),
+        )
         return mesh.pose(played.global_rotations, played.joint_positions), mesh.faces
 
     def body_mesh(self, t: int, segments: int = 12, rings: int = 6) -> tuple[np.ndarray, np.ndarray]:
@@ -119,10 +131,15 @@ class AnimationFile:
         if self._visible_body is not None:
             return self._visible_body[0][t], self._visible_body[1]
         if self.capsules is None:
-            raise InputError(self.path, "this file has no body capsules (written by an older hrr-animate); "
-                                        "re-run hrr-animate to include the body")
+            raise InputError(
+                self.path,
+                "this file has no body capsules (written by an older hrr-animate); "
+                "re-run hrr-animate to include the body",
+            )
         caps = self.capsules[t].astype(np.float64)
-        return body_mesh(caps[:, 0], caps[:, 1], self.radii.astype(np.float64), segments=segments, rings=rings)
+        return body_mesh(
+            caps[:, 0], caps[:, 1], self.radii.astype(np.float64), segments=segments, rings=rings
+        )
 
 
 @dataclass(frozen=True)
@@ -150,8 +167,14 @@ def write_animation_h5(path: str | Path, arrays: AnimationArrays, attrs: dict) -
     t, v = vertices.shape[:2]
     with atomic_h5(path) as f:
         f.create_dataset("faces", data=np.asarray(faces, np.int32))
-        f.create_dataset("vertices", data=np.asarray(vertices, np.float32), chunks=(1, v, 3), compression="gzip",
-                         compression_opts=4, shuffle=True)
+        f.create_dataset(
+            "vertices",
+            data=np.asarray(vertices, np.float32),
+            chunks=(1, v, 3),
+            compression="gzip",
+            compression_opts=4,
+            shuffle=True,
+        )
         f.create_dataset("body/joints", data=np.asarray(joints, np.float32))
         if capsules is not None:
             f.create_dataset("body/capsules", data=np.asarray(capsules, np.float32))
@@ -181,7 +204,9 @@ def read_animation_h5(path: str | Path) -> AnimationFile:
             attrs = dict(f.attrs)
             version = _version(path, attrs)
             names = {**{k: k for k in PER_FRAME}, **(OLD_NAMES if version < 3 else {})}
-            missing = [k for k in ("faces", "vertices") if k not in f] + [names[k] for k in PER_FRAME if names[k] not in f]
+            missing = [k for k in ("faces", "vertices") if k not in f] + [
+                names[k] for k in PER_FRAME if names[k] not in f
+            ]
             if missing:
                 raise InputError(path, f"not an hrr-animate file: missing {', '.join(missing)}")
             vertices = f["vertices"][()]
@@ -190,8 +215,16 @@ def read_animation_h5(path: str | Path) -> AnimationFile:
             capsules = f["body/capsules"][()] if "body/capsules" in f else None
             radii = f["body/radii"][()] if "body/radii" in f else None
             skeleton = {k: f[k][()] for k in SKELETON if k in f}
-    except (OSError, RuntimeError, ValueError, TypeError, KeyError) as exc:  # damaged chunks, headers, attributes
-        raise InputError(path, f"damaged file, cannot be read ({type(exc).__name__}: {str(exc)[:200]})") from None
+    except (
+        OSError,
+        RuntimeError,
+        ValueError,
+        TypeError,
+        KeyError,
+    ) as exc:  # damaged chunks, headers, attributes
+        raise InputError(
+            path, f"damaged file, cannot be read ({type(exc).__name__}: {str(exc)[:200]})"
+        ) from None
     attrs["fps"] = _fps(path, attrs)
     if version < 3:
         per_frame, attrs = _from_version_2(per_frame, attrs)
@@ -204,27 +237,49 @@ def read_animation_h5(path: str | Path) -> AnimationFile:
         raise InputError(path, f"/faces must be (F, 3), got {faces.shape}")
     if faces.min() < 0 or faces.max() >= vertices.shape[1]:
         raise InputError(path, f"/faces index vertices outside 0..{vertices.shape[1] - 1}")
-    for key, arr in (("vertices", vertices), ("body/joints", per_frame["body/joints"]), ("body/capsules", capsules),
-                     ("body/radii", radii)):
+    for key, arr in (
+        ("vertices", vertices),
+        ("body/joints", per_frame["body/joints"]),
+        ("body/capsules", capsules),
+        ("body/radii", radii),
+    ):
         if arr is not None and arr.dtype.kind == "f" and not np.isfinite(arr).all():
             frames = np.flatnonzero(~np.isfinite(arr.reshape(len(arr), -1)).all(1))
-            raise InputError(path, f"/{key} has non-finite values at frame {frames[0]} ({len(frames)} frames)")
+            raise InputError(
+                path, f"/{key} has non-finite values at frame {frames[0]} ({len(frames)} frames)"
+            )
     t = vertices.shape[0]
     for key, arr in per_frame.items():
         if arr.ndim == 0 or arr.shape[0] != t:
             raise InputError(path, f"/{key} has {arr.shape[:1]} rows, /vertices has {t} frames")
     if per_frame["body/joints"].shape[1:] != (22, 3):
         raise InputError(path, f"/body/joints must be (T, 22, 3), got {per_frame['body/joints'].shape}")
-    if capsules is not None and (capsules.shape[:1] != (t,) or capsules.shape[2:] != (2, 3)
-                                 or radii is None or radii.shape != capsules.shape[1:2]):
-        raise InputError(path, f"/body/capsules {capsules.shape} and /body/radii "
-                               f"{None if radii is None else radii.shape} do not match (T, C, 2, 3) and (C,)")
+    if capsules is not None and (
+        capsules.shape[:1] != (t,)
+        or capsules.shape[2:] != (2, 3)
+        or radii is None
+        or radii.shape != capsules.shape[1:2]
+    ):
+        raise InputError(
+            path,
+            f"/body/capsules {capsules.shape} and /body/radii "
+            f"{None if radii is None else radii.shape} do not match (T, C, 2, 3) and (C,)",
+        )
     _check_on_body(path, vertices, per_frame["body/joints"])
     skeleton = _checked_skeleton(path, skeleton, t)
-    return AnimationFile(path=path, vertices=vertices.astype(np.float32), faces=faces.astype(np.int32),
-                         joints=per_frame["body/joints"], retrieved=per_frame["diagnostics/retrieved"].astype(np.uint8),
-                         entropy=per_frame["diagnostics/entropy"], match=per_frame["diagnostics/match"],
-                         capsules=capsules, radii=radii, attrs=attrs, **skeleton)
+    return AnimationFile(
+        path=path,
+        vertices=vertices.astype(np.float32),
+        faces=faces.astype(np.int32),
+        joints=per_frame["body/joints"],
+        retrieved=per_frame["diagnostics/retrieved"].astype(np.uint8),
+        entropy=per_frame["diagnostics/entropy"],
+        match=per_frame["diagnostics/match"],
+        capsules=capsules,
+        radii=radii,
+        attrs=attrs,
+        **skeleton,
+    )
 
 
 def farthest_from_body(vertices: np.ndarray, joints: np.ndarray) -> tuple[float, int]:
@@ -233,7 +288,7 @@ def farthest_from_body(vertices: np.ndarray, joints: np.ndarray) -> tuple[float,
     none); a block of frames at a time."""
     worst, first = 0.0, -1
     for t in range(0, len(vertices), 256):
-        v, j = vertices[t:t + 256].astype(np.float64), joints[t:t + 256].astype(np.float64)
+        v, j = vertices[t : t + 256].astype(np.float64), joints[t : t + 256].astype(np.float64)
         reach = np.sqrt(((v[:, :, None] - j[:, None]) ** 2).sum(-1).min(-1)).max(1)
         worst = max(worst, float(reach.max()))
         if first < 0 and (reach > MAX_REACH_M).any():
@@ -246,25 +301,41 @@ def _check_on_body(path: Path, vertices: np.ndarray, joints: np.ndarray) -> None
     absurd result (a vertex at 1e30, a body beyond any scene)."""
     far = float(np.abs(joints).max())
     if far > MAX_TRANSLATION_M:
-        raise InputError(path, f"/body/joints go {far:.3g} m from the origin, beyond the {MAX_TRANSLATION_M:g} m a motion may")
+        raise InputError(
+            path,
+            f"/body/joints go {far:.3g} m from the origin, beyond the {MAX_TRANSLATION_M:g} m a motion may",
+        )
     reach, frame = farthest_from_body(vertices, joints)
     if frame >= 0:
-        raise InputError(path, f"a garment vertex is {reach:.3g} m from the body at frame {frame} (more than "
-                               f"{MAX_REACH_M:g} m): not cloth on a body (a damaged or edited file?)")
+        raise InputError(
+            path,
+            f"a garment vertex is {reach:.3g} m from the body at frame {frame} (more than "
+            f"{MAX_REACH_M:g} m): not cloth on a body (a damaged or edited file?)",
+        )
 
 
 def _checked_skeleton(path: Path, found: dict, frames: int) -> dict:
     """The skeleton's motion (version 4) as AnimationFile's fields, each checked; none where absent."""
     if not found:
         return {}
-    shapes = {"body/rotations": (frames, 22, 4), "body/root_translation": (frames, 3), "body/offsets": (22, 3)}
+    shapes = {
+        "body/rotations": (frames, 22, 4),
+        "body/root_translation": (frames, 3),
+        "body/offsets": (22, 3),
+    }
     for key, shape in shapes.items():
         arr = found.get(key)
         if arr is None or arr.shape != shape or arr.dtype.kind != "f" or not np.isfinite(arr).all():
-            raise InputError(path, f"/{key} must be finite numbers of shape {shape}, got "
-                                   f"{None if arr is None else (arr.shape, str(arr.dtype))}")
-    return {"rotations": found["body/rotations"], "root_translation": found["body/root_translation"],
-            "offsets": found["body/offsets"]}
+            raise InputError(
+                path,
+                f"/{key} must be finite numbers of shape {shape}, got "
+                f"{None if arr is None else (arr.shape, str(arr.dtype))}",
+            )
+    return {
+        "rotations": found["body/rotations"],
+        "root_translation": found["body/root_translation"],
+        "offsets": found["body/offsets"],
+    }
 
 
 #: version 1 and 2 names of the datasets version 3 renamed
@@ -277,8 +348,11 @@ def _version(path: Path, attrs: dict) -> int:
     if isinstance(version, (bool, np.bool_)) or not isinstance(version, (int, np.integer)) or version < 1:
         raise InputError(path, f"format_version must be a positive integer, got {version!r}")
     if version > FORMAT_VERSION:
-        raise InputError(path, f"format version {version} is newer than this hrr_garment reads ({FORMAT_VERSION}); "
-                               "upgrade hrr_garment")
+        raise InputError(
+            path,
+            f"format version {version} is newer than this hrr_garment reads ({FORMAT_VERSION}); "
+            "upgrade hrr_garment",
+        )
     return int(version)
 
 

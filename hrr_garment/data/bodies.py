@@ -81,8 +81,13 @@ class _Halves:
 
     def gap(self) -> float:
         """The largest left-right difference, metres."""
-        return float(max(np.abs(self.mirrored_offsets - self.offsets).max(), np.abs(self.mirrored_ends - self.ends).max(),
-                         np.abs(self.mirrored_radii - self.radii).max()))
+        return float(
+            max(
+                np.abs(self.mirrored_offsets - self.offsets).max(),
+                np.abs(self.mirrored_ends - self.ends).max(),
+                np.abs(self.mirrored_radii - self.radii).max(),
+            )
+        )
 
 
 def _halves(body: BodyModel) -> _Halves | None:
@@ -96,14 +101,23 @@ def _halves(body: BodyModel) -> _Halves | None:
         other = by_name[_mirror_name(c.name)]
         mine, theirs = np.array([c.a, c.b]), np.array([other.a, other.b]) * flip
         if other is c:  # a capsule across the midline mirrors onto itself with its ends swapped
-            theirs = theirs[::-1] if np.abs(theirs[::-1] - mine).max() < np.abs(theirs - mine).max() else theirs
+            theirs = (
+                theirs[::-1] if np.abs(theirs[::-1] - mine).max() < np.abs(theirs - mine).max() else theirs
+            )
         ends.append(mine)
         mirrored.append(theirs)
     offsets = np.asarray(body.skeleton.offsets, np.float64)
     radii = body.radii.astype(np.float64)
     index = {c.name: i for i, c in enumerate(body.capsules)}
     partner = [index[_mirror_name(c.name)] for c in body.capsules]
-    return _Halves(offsets, offsets[list(MIRROR_JOINTS)] * flip, np.array(ends), np.array(mirrored), radii, radii[partner])
+    return _Halves(
+        offsets,
+        offsets[list(MIRROR_JOINTS)] * flip,
+        np.array(ends),
+        np.array(mirrored),
+        radii,
+        radii[partner],
+    )
 
 
 def is_symmetric(body: BodyModel, tolerance: float = 1e-3) -> bool:
@@ -132,13 +146,17 @@ def symmetrized(body: BodyModel, tolerance: float = NEARLY_SYMMETRIC_M) -> BodyM
         return body
     ends = 0.5 * (halves.ends + halves.mirrored_ends)
     radii = 0.5 * (halves.radii + halves.mirrored_radii)
-    capsules = tuple(replace(c, a=tuple(float(v) for v in e[0]), b=tuple(float(v) for v in e[1]), radius=float(r))
-                     for c, e, r in zip(body.capsules, ends, radii))
+    capsules = tuple(
+        replace(c, a=tuple(float(v) for v in e[0]), b=tuple(float(v) for v in e[1]), radius=float(r))
+        for c, e, r in zip(body.capsules, ends, radii)
+    )
     skeleton = Skeleton(offsets=(0.5 * (halves.offsets + halves.mirrored_offsets)).astype(np.float32))
     return replace(body, capsules=capsules, skeleton=skeleton)
 
 
-def dress(name: str, record: BodyRecord, garment: GarmentMesh, *, made_for: BodyModel) -> tuple[DressedBody, TransferReport]:
+def dress(
+    name: str, record: BodyRecord, garment: GarmentMesh, *, made_for: BodyModel
+) -> tuple[DressedBody, TransferReport]:
     """The body (left and right made exactly alike where they nearly are: its sequences can then be
     mirrored) and ``garment`` (modelled on ``made_for``) carried onto it."""
     body = symmetrized(record.body)
@@ -170,7 +188,9 @@ def write_bodies(f, template: GarmentMesh, used: set[str], bodies: dict[str, Dre
     group = f.create_group("bodies")
     for name in sorted(used):
         rest = bodies[name].garment.vertices
-        if rest.shape != template.vertices.shape or not np.array_equal(bodies[name].garment.faces, template.faces):
+        if rest.shape != template.vertices.shape or not np.array_equal(
+            bodies[name].garment.faces, template.faces
+        ):
             raise ValueError(f"the garment on body {name!r} does not have the template's topology")
         b = group.create_group(name)
         b.create_dataset("rest", data=rest.astype(np.float32))
@@ -188,12 +208,25 @@ def read_bodies(f, template: GarmentMesh, source: str) -> dict[str, DressedBody]
         except (TypeError, ValueError) as exc:
             raise ValueError(f"body {name!r}: attribute 'body' is not valid JSON ({exc})") from None
         if not isinstance(data, dict):
-            raise ValueError(f"body {name!r}: attribute 'body' should hold a dict, not a {type(data).__name__}")
+            raise ValueError(
+                f"body {name!r}: attribute 'body' should hold a dict, not a {type(data).__name__}"
+            )
         record = body_from_dict(data, f"{source} (body {name!r})")
         rest = b["rest"][()]
         if rest.shape != template.vertices.shape or not np.isfinite(rest).all():
-            raise ValueError(f"body {name!r}: the garment's rest shape {rest.shape} is not finite "
-                             f"or not the template's {template.vertices.shape}")
-        bodies[name] = DressedBody(name, record, GarmentMesh(template.name, rest, template.faces, groups=template.groups,
-                                                             attached_groups=template.attached_groups))
+            raise ValueError(
+                f"body {name!r}: the garment's rest shape {rest.shape} is not finite "
+                f"or not the template's {template.vertices.shape}"
+            )
+        bodies[name] = DressedBody(
+            name,
+            record,
+            GarmentMesh(
+                template.name,
+                rest,
+                template.faces,
+                groups=template.groups,
+                attached_groups=template.attached_groups,
+            ),
+        )
     return bodies

@@ -59,18 +59,30 @@ class SequenceRecord:
     dressed: DressedBody | None = None  # that body and the garment at rest on it, as read from a dataset
 
 
-def write_dataset(path: str | Path, template: GarmentMesh, sequences: list[SequenceRecord],
-                  splits: dict[str, list[str]], info: dict | None = None, compression: str | None = "gzip",
-                  bodies: dict[str, DressedBody] | None = None) -> Path:
+def write_dataset(
+    path: str | Path,
+    template: GarmentMesh,
+    sequences: list[SequenceRecord],
+    splits: dict[str, list[str]],
+    info: dict | None = None,
+    compression: str | None = "gzip",
+    bodies: dict[str, DressedBody] | None = None,
+) -> Path:
     """Write the whole file atomically (temporary file in the same folder, then rename). Sequences
     on a body other than the mannequin need it in ``bodies`` (name -> the body and the garment on it)."""
     from ..io_utils import atomic_h5
 
     path = Path(path)
     with atomic_h5(path) as f:
-        f.attrs.update(format_version=FORMAT_VERSION, fps=float(sequences[0].motion.fps if sequences else FPS),
-                       garment=template.name, units="m", up_axis="y", generator=f"hrr_garment {__version__}",
-                       info=json.dumps(info or {}))
+        f.attrs.update(
+            format_version=FORMAT_VERSION,
+            fps=float(sequences[0].motion.fps if sequences else FPS),
+            garment=template.name,
+            units="m",
+            up_axis="y",
+            generator=f"hrr_garment {__version__}",
+            info=json.dumps(info or {}),
+        )
         t = f.create_group("template")
         t.create_dataset("vertices", data=template.vertices.astype(np.float32))
         t.create_dataset("faces", data=template.faces.astype(np.int32))
@@ -127,7 +139,10 @@ class GarmentDataset:
     def _read_header(self, f: h5py.File) -> None:
         version = f.attrs.get("format_version")
         if version not in READABLE_VERSIONS:
-            raise DatasetError(self.path, f"format_version {version!r}; this hrr_garment reads {', '.join(map(str, READABLE_VERSIONS))}")
+            raise DatasetError(
+                self.path,
+                f"format_version {version!r}; this hrr_garment reads {', '.join(map(str, READABLE_VERSIONS))}",
+            )
         for key in ("template/vertices", "template/faces", "template/attached", "sequences", "splits"):
             if key not in f:
                 raise DatasetError(self.path, f"missing /{key}")
@@ -140,31 +155,44 @@ class GarmentDataset:
         if not attached_groups:
             groups["attached"] = t["attached"][()]
             attached_groups = ("attached",)
-        self.template = GarmentMesh(self.garment, t["vertices"][()], t["faces"][()], groups=groups,
-                                    attached_groups=attached_groups)
+        self.template = GarmentMesh(
+            self.garment, t["vertices"][()], t["faces"][()], groups=groups, attached_groups=attached_groups
+        )
         try:
             check_garment(self.template)
         except GarmentError as exc:
             raise DatasetError(self.path, f"its template garment: {exc.problem}") from None
         self.names = sorted(f["sequences"].keys())
-        self.splits = {s: [n.decode() if isinstance(n, bytes) else str(n) for n in f["splits"][s][()]]
-                       for s in SPLITS if s in f["splits"]}
+        self.splits = {
+            s: [n.decode() if isinstance(n, bytes) else str(n) for n in f["splits"][s][()]]
+            for s in SPLITS
+            if s in f["splits"]
+        }
         missing = sorted({n for names in self.splits.values() for n in names} - set(self.names))
         if missing:
             raise DatasetError(self.path, f"splits name sequences that are not in the file: {missing[:5]}")
         for key in SEQUENCE_ARRAYS:
             lacking = [n for n in self.names if key not in f["sequences"][n]]
             if lacking:
-                raise DatasetError(self.path, f"sequence {lacking[0]!r} lacks {key!r}"
-                                              + (f" (and {len(lacking) - 1} more)" if len(lacking) > 1 else ""))
+                raise DatasetError(
+                    self.path,
+                    f"sequence {lacking[0]!r} lacks {key!r}"
+                    + (f" (and {len(lacking) - 1} more)" if len(lacking) > 1 else ""),
+                )
         for n in self.names:  # shapes from the headers only: cheap, and a bad file fails before any training
             s = f["sequences"][n]
             frames = s["garment"].shape[0]
             shapes = {k: s[k].shape for k in SEQUENCE_ARRAYS}
-            if (shapes["garment"][1:] != self.template.vertices.shape or shapes["local_rotations"][0] != frames
-                    or shapes["root_translation"] != (frames, 3)):
-                raise DatasetError(self.path, f"sequence {n!r}: arrays of mismatched shapes {shapes} "
-                                              f"for a template of {self.template.num_vertices} vertices")
+            if (
+                shapes["garment"][1:] != self.template.vertices.shape
+                or shapes["local_rotations"][0] != frames
+                or shapes["root_translation"] != (frames, 3)
+            ):
+                raise DatasetError(
+                    self.path,
+                    f"sequence {n!r}: arrays of mismatched shapes {shapes} "
+                    f"for a template of {self.template.num_vertices} vertices",
+                )
         self.frames = {n: int(f["sequences"][n]["garment"].shape[0]) for n in self.names}
         self.body_of = {n: str(f["sequences"][n].attrs.get("body", MANNEQUIN)) for n in self.names}
         try:
@@ -187,36 +215,59 @@ class GarmentDataset:
         try:
             with h5py.File(self.path, "r") as f:
                 if name not in f["sequences"]:
-                    raise DatasetError(self.path, f"no sequence {name!r} (has {len(self.names)}: {self.names[:5]}...)")
+                    raise DatasetError(
+                        self.path, f"no sequence {name!r} (has {len(self.names)}: {self.names[:5]}...)"
+                    )
                 s = f["sequences"][name]
                 for key in SEQUENCE_ARRAYS:
                     if key not in s:
                         raise DatasetError(self.path, f"sequence {name!r} lacks {key!r}")
                 garment = s["garment"][()]
                 body = self.bodies[self.body_of[name]].body
-                motion = Motion(s["local_rotations"][()], s["root_translation"][()], self.fps,
-                                source=str(s.attrs.get("source", name)), skeleton=body.skeleton)
+                motion = Motion(
+                    s["local_rotations"][()],
+                    s["root_translation"][()],
+                    self.fps,
+                    source=str(s.attrs.get("source", name)),
+                    skeleton=body.skeleton,
+                )
                 info = _json_attr(self.path, s.attrs, "info", {}, f"sequence {name!r}: ")
         except OSError as exc:  # a damaged chunk ("filter returned failure"), a truncated file
             raise DatasetError(self.path, f"sequence {name!r} cannot be read ({exc})") from None
         except MotionError as exc:  # the motion's own checks (shapes, frames)
             raise DatasetError(self.path, f"sequence {name!r}: {exc.problem}") from None
         if garment.shape[1:] != self.template.vertices.shape or garment.shape[0] != motion.num_frames:
-            raise DatasetError(self.path, f"sequence {name!r}: garment {garment.shape} does not match "
-                                          f"{motion.num_frames} frames x {self.template.num_vertices} vertices")
-        for what, values in (("garment vertices", garment), ("rotations", motion.local_rotations),
-                             ("root translations", motion.root_translation)):
+            raise DatasetError(
+                self.path,
+                f"sequence {name!r}: garment {garment.shape} does not match "
+                f"{motion.num_frames} frames x {self.template.num_vertices} vertices",
+            )
+        for what, values in (
+            ("garment vertices", garment),
+            ("rotations", motion.local_rotations),
+            ("root translations", motion.root_translation),
+        ):
             bad = ~np.isfinite(values.reshape(len(values), -1)).all(1)
             if bad.any():
-                raise DatasetError(self.path, f"sequence {name!r}: non-finite {what} on {int(bad.sum())} frame(s), "
-                                              f"first at frame {int(np.argmax(bad))}")
-        reach = np.linalg.norm(garment - motion.root_translation[:, None].astype(garment.dtype), axis=-1).max(1)
+                raise DatasetError(
+                    self.path,
+                    f"sequence {name!r}: non-finite {what} on {int(bad.sum())} frame(s), "
+                    f"first at frame {int(np.argmax(bad))}",
+                )
+        reach = np.linalg.norm(garment - motion.root_translation[:, None].astype(garment.dtype), axis=-1).max(
+            1
+        )
         if (reach > MAX_GARMENT_REACH_M).any():
             frame = int(np.argmax(reach > MAX_GARMENT_REACH_M))
-            raise DatasetError(self.path, f"sequence {name!r}: a garment vertex {reach[frame]:.3g} m from the pelvis at frame "
-                                          f"{frame}, beyond {MAX_GARMENT_REACH_M:g} m: the garment is in another unit or place "
-                                          "than the body")
-        return SequenceRecord(name, garment, motion, info, body=self.body_of[name], dressed=self.bodies[self.body_of[name]])
+            raise DatasetError(
+                self.path,
+                f"sequence {name!r}: a garment vertex {reach[frame]:.3g} m from the pelvis at frame "
+                f"{frame}, beyond {MAX_GARMENT_REACH_M:g} m: the garment is in another unit or place "
+                "than the body",
+            )
+        return SequenceRecord(
+            name, garment, motion, info, body=self.body_of[name], dressed=self.bodies[self.body_of[name]]
+        )
 
 
 def _json_attr(path: Path, attrs, key: str, default, where: str = ""):
@@ -229,5 +280,8 @@ def _json_attr(path: Path, attrs, key: str, default, where: str = ""):
     except (TypeError, ValueError) as exc:
         raise DatasetError(path, f"{where}attribute {key!r} is not valid JSON ({exc})") from None
     if not isinstance(value, type(default)):
-        raise DatasetError(path, f"{where}attribute {key!r} should hold a {type(default).__name__}, not a {type(value).__name__}")
+        raise DatasetError(
+            path,
+            f"{where}attribute {key!r} should hold a {type(default).__name__}, not a {type(value).__name__}",
+        )
     return value

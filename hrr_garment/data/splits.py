@@ -27,8 +27,9 @@ def test_size(total: int, fraction: float, minimum: int = MIN_TEST) -> int:
     return max(1, int(round(fraction * total)), min(minimum, total // 3))
 
 
-def split_names(names: list[str], val: float, test: float, seed: int,
-                kinds: dict[str, str] | None = None) -> dict[str, list[str]]:
+def split_names(
+    names: list[str], val: float, test: float, seed: int, kinds: dict[str, str] | None = None
+) -> dict[str, list[str]]:
     """Seeded split by sequence; with three or more sequences val and test get at least one each,
     and test at least :data:`MIN_TEST` where the data allows (:func:`test_size`).
 
@@ -50,8 +51,11 @@ def split_names(names: list[str], val: float, test: float, seed: int,
                 held.append(name)
                 training[kinds.get(name, name)] -= 1
         order = held + [name for name in order if name not in held]
-    return {"val": sorted(order[:n_val]), "test": sorted(order[n_val:n_val + n_test]),
-            "train": sorted(order[n_val + n_test:])}
+    return {
+        "val": sorted(order[:n_val]),
+        "test": sorted(order[n_val : n_val + n_test]),
+        "train": sorted(order[n_val + n_test :]),
+    }
 
 
 def split_groups(groups: dict[str, str], val: float, test: float, seed: int) -> dict[str, list[str]]:
@@ -70,7 +74,9 @@ def split_groups(groups: dict[str, str], val: float, test: float, seed: int) -> 
     out: dict[str, list[str]] = {"val": [], "test": [], "train": []}
     wanted = {"test": max(test * total, test_size(total, test)), "val": val * total}
     for split, fraction in (("test", test), ("val", val)):
-        while order and fraction > 0 and len(order) >= 2 and (not out[split] or len(out[split]) < wanted[split]):
+        while (
+            order and fraction > 0 and len(order) >= 2 and (not out[split] or len(out[split]) < wanted[split])
+        ):
             out[split] += members[order.pop(0)]
     for group in order:
         out["train"] += members[group]

@@ -20,13 +20,19 @@ from .bodies import MANNEQUIN, DressedBody
 from .dataset import SequenceRecord, write_dataset
 
 # (sequence name, procedural kind, seed): three training clips, one for validation, one for test
-SEQUENCES = (("walk_000", "walk", 0), ("walk_001", "walk", 1), ("spin_000", "spin", 0),
-             ("walk_002", "walk", 2), ("run_000", "run", 0))
+SEQUENCES = (
+    ("walk_000", "walk", 0),
+    ("walk_001", "walk", 1),
+    ("spin_000", "spin", 0),
+    ("walk_002", "walk", 2),
+    ("run_000", "run", 0),
+)
 SPLITS = {"train": ["walk_000", "walk_001", "spin_000"], "val": ["walk_002"], "test": ["run_000"]}
 
 
-def write_synthetic_dataset(path: str | Path, garment: GarmentMesh, seconds: float = 1.5,
-                            bodies: list[DressedBody] | None = None) -> Path:
+def write_synthetic_dataset(
+    path: str | Path, garment: GarmentMesh, seconds: float = 1.5, bodies: list[DressedBody] | None = None
+) -> Path:
     """Write the five sequences of ``garment`` to ``path`` (an .h5 dataset); returns the path.
     ``bodies``: the sequences in turn on each of these bodies (:class:`~.bodies.DressedBody`, the
     garment on it), each played by its body, the garment hanging from the body's own rest shape
@@ -36,7 +42,11 @@ def write_synthetic_dataset(path: str | Path, garment: GarmentMesh, seconds: flo
         motion, v, body = synthesize(kind, seconds, seed=seed), garment.vertices.astype(np.float32), MANNEQUIN
         if bodies:
             dressed = bodies[i % len(bodies)]
-            motion, v, body = motion_on_body(motion, dressed.record), dressed.garment.vertices.astype(np.float32), dressed.name
+            motion, v, body = (
+                motion_on_body(motion, dressed.record),
+                dressed.garment.vertices.astype(np.float32),
+                dressed.name,
+            )
         # how far down the garment a vertex hangs, 0 at the waist to 1 at the hem, squared: hems swing most
         depth = np.clip((v[:, 1].max() - v[:, 1]) / np.ptp(v[:, 1]), 0, 1)[None, :] ** 2
         f = motion_features(motion)
@@ -45,6 +55,9 @@ def write_synthetic_dataset(path: str | Path, garment: GarmentMesh, seconds: flo
         local[..., 2] -= 0.1 * depth * speed
         local[..., 0] += 0.1 * depth * turn
         yaw = yaw_of(motion.global_rotations[:, 0])
-        world = np.einsum("tij,tnj->tni", rotation_about_y(yaw), local) + (motion.root_translation * [1, 0, 1])[:, None]
+        world = (
+            np.einsum("tij,tnj->tni", rotation_about_y(yaw), local)
+            + (motion.root_translation * [1, 0, 1])[:, None]
+        )
         records.append(SequenceRecord(name, world.astype(np.float32), motion, body=body))
     return write_dataset(path, garment, records, splits=SPLITS, bodies={b.name: b for b in bodies or []})

@@ -27,14 +27,20 @@ class WindowFrames:
     def __init__(self, frames: np.ndarray, first: np.ndarray, window: int):
         self.frames, self.first, self.window = frames, np.asarray(first, np.int64), int(window)
         if self.window < 1 or self.first.ndim != 1:
-            raise ValueError(f"a window needs at least one frame and one first frame per window, got window {window} "
-                             f"and first frames of shape {self.first.shape}")
+            raise ValueError(
+                f"a window needs at least one frame and one first frame per window, got window {window} "
+                f"and first frames of shape {self.first.shape}"
+            )
         if len(self.first) and (self.first.min() < 0 or self.first.max() + self.window > len(frames)):
-            raise ValueError(f"windows of {self.window} frames from frames {int(self.first.min())}-{int(self.first.max())} "
-                             f"run past the {len(frames)} frames stored")
+            raise ValueError(
+                f"windows of {self.window} frames from frames {int(self.first.min())}-{int(self.first.max())} "
+                f"run past the {len(frames)} frames stored"
+            )
 
     @classmethod
-    def of_windows(cls, windows: np.ndarray, sequence: np.ndarray, start: np.ndarray, chunk: int = 4096) -> "WindowFrames":
+    def of_windows(
+        cls, windows: np.ndarray, sequence: np.ndarray, start: np.ndarray, chunk: int = 4096
+    ) -> "WindowFrames":
         """Stride-1 windows (N, W, ...) cut from sequences (each one's ``sequence`` and ``start``)
         back into their frames; ValueError where two windows disagree about a frame they share."""
         n, window = windows.shape[:2]
@@ -47,14 +53,20 @@ class WindowFrames:
         frames[rows.reshape(-1)] = windows.reshape(n * window, *windows.shape[2:])
         covered = np.zeros(len(frames), bool)
         covered[rows.reshape(-1)] = True
-        out = cls(frames[covered], (np.cumsum(covered) - 1)[rows[:, 0]], window)  # frames no window holds dropped
+        out = cls(
+            frames[covered], (np.cumsum(covered) - 1)[rows[:, 0]], window
+        )  # frames no window holds dropped
         for i in range(0, n, chunk):
-            if not np.array_equal(out[np.arange(i, min(n, i + chunk))], windows[i:i + chunk]):
-                raise ValueError("the windows are not stride-1 crops of sequences: two disagree about a frame they share")
+            if not np.array_equal(out[np.arange(i, min(n, i + chunk))], windows[i : i + chunk]):
+                raise ValueError(
+                    "the windows are not stride-1 crops of sequences: two disagree about a frame they share"
+                )
         return out
 
     @classmethod
-    def of_sequences(cls, frames: list[np.ndarray], sequence: np.ndarray, start: np.ndarray, window: int) -> "WindowFrames":
+    def of_sequences(
+        cls, frames: list[np.ndarray], sequence: np.ndarray, start: np.ndarray, window: int
+    ) -> "WindowFrames":
         """Windows (``sequence``, ``start`` each) of the per-frame arrays ``frames`` of sequences
         (T_s, ...), stored one after another."""
         offsets = np.concatenate([[0], np.cumsum([len(f) for f in frames])])
@@ -108,7 +120,13 @@ class WindowSet:
 
     def subset(self, rows: np.ndarray) -> "WindowSet":
         """The windows ``rows`` (indices or a mask), their frames shared and ``names`` kept whole."""
-        return WindowSet(self.motion.subset(rows), self.latents.subset(rows), self.sequence[rows], self.start[rows], self.names)
+        return WindowSet(
+            self.motion.subset(rows),
+            self.latents.subset(rows),
+            self.sequence[rows],
+            self.start[rows],
+            self.names,
+        )
 
 
 def split_windows(windows: WindowSet, fraction: float, seed: int = 0) -> tuple[WindowSet, WindowSet]:
@@ -125,7 +143,9 @@ def split_windows(windows: WindowSet, fraction: float, seed: int = 0) -> tuple[W
     return windows.subset(np.sort(order[cut:])), windows.subset(np.sort(order[:cut]))
 
 
-def build_windows(features: dict[str, np.ndarray], latents: dict[str, np.ndarray], names: list[str], window: int) -> WindowSet:
+def build_windows(
+    features: dict[str, np.ndarray], latents: dict[str, np.ndarray], names: list[str], window: int
+) -> WindowSet:
     """Windows of the sequences ``names``; ``features[name]`` (T, F), ``latents[name]`` (T, nodes, C).
     Sequences shorter than one window contribute none."""
     kept, seq, start = [], [], []
@@ -144,13 +164,18 @@ def build_windows(features: dict[str, np.ndarray], latents: dict[str, np.ndarray
     seq, start = np.concatenate(seq), np.concatenate(start)
     # the frames of the sequences with windows, one after another; ``rank`` numbers those sequences
     rank = np.cumsum([name in kept for name in names]) - 1
-    motion = WindowFrames.of_sequences([np.asarray(features[n], np.float32) for n in kept], rank[seq], start, window)
-    lat = WindowFrames.of_sequences([np.asarray(latents[n], np.float32) for n in kept], rank[seq], start, window)
+    motion = WindowFrames.of_sequences(
+        [np.asarray(features[n], np.float32) for n in kept], rank[seq], start, window
+    )
+    lat = WindowFrames.of_sequences(
+        [np.asarray(latents[n], np.float32) for n in kept], rank[seq], start, window
+    )
     return WindowSet(motion, lat, seq, start, list(names))
 
 
-def dataset_features(dataset, names: list[str], memory: MemorySpec | Sequence[float],
-                     body_measures: bool = False) -> dict[str, np.ndarray]:
+def dataset_features(
+    dataset, names: list[str], memory: MemorySpec | Sequence[float], body_measures: bool = False
+) -> dict[str, np.ndarray]:
     """Motion features (T, 124 + memory) of each named sequence of a :class:`GarmentDataset`, with
     the motion memory ``memory`` (:mod:`hrr_garment.motion.memory`) and, with ``body_measures``,
     the measures of the body each sequence was simulated on (:mod:`hrr_garment.body.measures`)."""
@@ -163,7 +188,9 @@ def dataset_features(dataset, names: list[str], memory: MemorySpec | Sequence[fl
     return out
 
 
-def fit_stats(features: dict[str, np.ndarray], latents: dict[str, np.ndarray], names: list[str]) -> tuple[FeatureStats, FeatureStats]:
+def fit_stats(
+    features: dict[str, np.ndarray], latents: dict[str, np.ndarray], names: list[str]
+) -> tuple[FeatureStats, FeatureStats]:
     """Per-feature motion statistics and per-(node, channel) latent statistics over ``names``' frames."""
     motion = FeatureStats.fit([features[n] for n in names])
     lat = FeatureStats.fit([latents[n].reshape(len(latents[n]), -1) for n in names])

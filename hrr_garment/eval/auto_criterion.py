@@ -30,12 +30,18 @@ class AutoConfig:
 
     def __post_init__(self) -> None:
         if not 1.0 <= self.allowance <= 2.0:
-            raise SettingsError(f"auto: allowance is a factor on the most accurate PVE, from 1 to 2, got {self.allowance}")
+            raise SettingsError(
+                f"auto: allowance is a factor on the most accurate PVE, from 1 to 2, got {self.allowance}"
+            )
         if not 1.0 <= self.penetration_allowance <= 10.0:
-            raise SettingsError("auto: penetration_allowance is a factor on the most accurate candidate's cloth inside the "
-                                f"body, from 1 to 10, got {self.penetration_allowance}")
+            raise SettingsError(
+                "auto: penetration_allowance is a factor on the most accurate candidate's cloth inside the "
+                f"body, from 1 to 10, got {self.penetration_allowance}"
+            )
         if not 0.0 <= self.penetration_floor_pct <= 100.0:
-            raise SettingsError(f"auto: penetration_floor_pct is a share of the vertices, 0 to 100, got {self.penetration_floor_pct}")
+            raise SettingsError(
+                f"auto: penetration_floor_pct is a share of the vertices, 0 to 100, got {self.penetration_floor_pct}"
+            )
 
     @classmethod
     def from_dict(cls, values: dict) -> "AutoConfig":
@@ -43,8 +49,11 @@ class AutoConfig:
 
     def limits(self) -> dict[str, float]:
         """The allowances a calibration is picked under, as bundle.json's ``auto`` records them."""
-        return {"allowance": self.allowance, "penetration_allowance": self.penetration_allowance,
-                "penetration_floor_pct": self.penetration_floor_pct}
+        return {
+            "allowance": self.allowance,
+            "penetration_allowance": self.penetration_allowance,
+            "penetration_floor_pct": self.penetration_floor_pct,
+        }
 
 
 def detail_label(base: str, strength: float) -> str:
@@ -115,22 +124,36 @@ def pick_auto_mode(candidates: dict[str, dict[str, float]], config: AutoConfig =
     the detail mode."""
     accurate = min(candidates, key=lambda m: candidates[m]["pve_mm"])
     best, inside = candidates[accurate]["pve_mm"], candidates[accurate].get("penetration_pct")
-    most_inside = None if inside is None else \
-        max(config.penetration_allowance * inside, config.penetration_floor_pct) + 1e-9
+    most_inside = (
+        None
+        if inside is None
+        else max(config.penetration_allowance * inside, config.penetration_floor_pct) + 1e-9
+    )
     # the allowance on the default body's clips alone as well, where they were measured apart (a model
     # across bodies): a trade averaged over the bodies may cost the body every command uses more
     on_default = [c[DEFAULT_BODY_PVE] for c in candidates.values() if DEFAULT_BODY_PVE in c]
     default_best = min(on_default) if len(on_default) == len(candidates) else None
-    eligible = [m for m, c in candidates.items() if c["pve_mm"] <= config.allowance * best
-                and (most_inside is None or c.get("penetration_pct", 0.0) <= most_inside)
-                and (default_best is None or c[DEFAULT_BODY_PVE] <= config.allowance * default_best)]
+    eligible = [
+        m
+        for m, c in candidates.items()
+        if c["pve_mm"] <= config.allowance * best
+        and (most_inside is None or c.get("penetration_pct", 0.0) <= most_inside)
+        and (default_best is None or c[DEFAULT_BODY_PVE] <= config.allowance * default_best)
+    ]
     order = {m: i for i, m in enumerate(AUTO_CHOICES)}
-    return min(eligible, key=lambda m: (plausibility_gap(candidates[m]["sharpness"], candidates[m]["hem_swing"]),
-                                        order.get(candidate_setting(m)[0], len(order)), candidates[m]["pve_mm"]))
+    return min(
+        eligible,
+        key=lambda m: (
+            plausibility_gap(candidates[m]["sharpness"], candidates[m]["hem_swing"]),
+            order.get(candidate_setting(m)[0], len(order)),
+            candidates[m]["pve_mm"],
+        ),
+    )
 
 
-def pick_auto_and_detail(candidates: dict[str, dict[str, float]],
-                         config: AutoConfig = AutoConfig()) -> tuple[str, str, float]:
+def pick_auto_and_detail(
+    candidates: dict[str, dict[str, float]], config: AutoConfig = AutoConfig()
+) -> tuple[str, str, float]:
     """(the mode auto runs, the detail mode's base, its strength) by the criterion on candidates
     labelled by mode, the detail mode's by :data:`DETAIL_CANDIDATES` (see the module docstring),
     under ``config``'s allowances."""
@@ -140,19 +163,25 @@ def pick_auto_and_detail(candidates: dict[str, dict[str, float]],
     return candidate_setting(picked)[0], *candidate_setting(detail)[1:3]
 
 
-def pick_free_cloth(candidates: dict[str, dict[str, float]], config: AutoConfig = AutoConfig()) -> list[float] | None:
+def pick_free_cloth(
+    candidates: dict[str, dict[str, float]], config: AutoConfig = AutoConfig()
+) -> list[float] | None:
     """The model's one free-cloth ramp (``[lo, hi]`` mm, None: the plain residual): the picked
     candidate's where it uses the residual, else the detail setting's where that does, else the
     criterion's pick among the residual mode's candidates (see the module docstring)."""
     picked, detail = _picked_labels(candidates, config)
     residuals = _of_mode(candidates, "residual")
     residual = pick_auto_mode(residuals, config) if residuals else None
-    using = next((label for label in (picked, detail, residual) if label is not None and uses_residual(label)), None)
+    using = next(
+        (label for label in (picked, detail, residual) if label is not None and uses_residual(label)), None
+    )
     ramp = None if using is None else candidate_setting(using)[3]
     return None if ramp is None else list(ramp)
 
 
-def pick_fold_ramp(candidates: dict[str, dict[str, float]], config: AutoConfig = AutoConfig()) -> list[float] | None:
+def pick_fold_ramp(
+    candidates: dict[str, dict[str, float]], config: AutoConfig = AutoConfig()
+) -> list[float] | None:
     """The folds' free-cloth ramp (``[lo, hi]`` mm, None: the folds everywhere): the detail
     setting's, as it was measured (see the module docstring)."""
     detail = _picked_labels(candidates, config)[1]
@@ -181,10 +210,19 @@ def repick(auto: dict, config: AutoConfig) -> dict:
     mode, detail_base, detail_strength = pick_auto_and_detail(auto["candidates"], config)
     # the folds' ramp only where the candidates were measured with it (calibrations recorded before
     # ran a ramp on the residual alone, and their folds run everywhere as they were measured)
-    folds = {"folds_free_mm": pick_fold_ramp(auto["candidates"], config)} if auto.get("folds_free_cloth") else {}
-    return {**auto, "mode": mode, "detail_base": detail_base, "detail_strength": detail_strength, **folds,
-            "residual_free_mm": pick_free_cloth(auto["candidates"], config),
-            "swing_gain": swing_of(pick_auto_mode(auto["candidates"], config)), **config.limits()}
+    folds = (
+        {"folds_free_mm": pick_fold_ramp(auto["candidates"], config)} if auto.get("folds_free_cloth") else {}
+    )
+    return {
+        **auto,
+        "mode": mode,
+        "detail_base": detail_base,
+        "detail_strength": detail_strength,
+        **folds,
+        "residual_free_mm": pick_free_cloth(auto["candidates"], config),
+        "swing_gain": swing_of(pick_auto_mode(auto["candidates"], config)),
+        **config.limits(),
+    }
 
 
 def describe_auto(auto: dict) -> str:
@@ -194,18 +232,30 @@ def describe_auto(auto: dict) -> str:
     if auto.get("swing_gain", 1.0) != 1.0:
         detail += f"; the free cloth's swing x{auto['swing_gain']:g}"
     if auto.get("residual_free_mm"):
-        detail += f"; the residual on free cloth {auto['residual_free_mm'][0]:g}-{auto['residual_free_mm'][1]:g} mm"
+        detail += (
+            f"; the residual on free cloth {auto['residual_free_mm'][0]:g}-{auto['residual_free_mm'][1]:g} mm"
+        )
     if auto.get("folds_free_mm"):
         detail += f"; the folds on free cloth {auto['folds_free_mm'][0]:g}-{auto['folds_free_mm'][1]:g} mm"
-    allowance = f"the most plausible within {100 * (auto['allowance'] - 1):.3g} % of the most accurate PVE" \
-        if "allowance" in auto else ""
+    allowance = (
+        f"the most plausible within {100 * (auto['allowance'] - 1):.3g} % of the most accurate PVE"
+        if "allowance" in auto
+        else ""
+    )
     if allowance and auto.get("default_body_sequences"):
         allowance += f" (on the default body's {auto['default_body_sequences']} clips too)"
     if allowance and "penetration_allowance" in auto:
-        allowance += (f" and {100 * (auto['penetration_allowance'] - 1):.0f} % of its cloth inside the body "
-                      f"(or {auto.get('penetration_floor_pct', 0):g} % of the vertices)")
+        allowance += (
+            f" and {100 * (auto['penetration_allowance'] - 1):.0f} % of its cloth inside the body "
+            f"(or {auto.get('penetration_floor_pct', 0):g} % of the vertices)"
+        )
     allowance += "; " if allowance else ""
-    return (f"auto mode: {auto['mode']} ({allowance}the detail mode's folds {detail}; on {auto['sequences']} validation clips: "
-            + "; ".join(f"{m} {c['pve_mm']:.2f} mm, sharpness {c['sharpness']:.2f}, hem swing {c['hem_swing']:.2f}"
-                        + (f", {c['penetration_pct']:.2f} % inside" if "penetration_pct" in c else "")
-                        for m, c in auto["candidates"].items()) + ")")
+    return (
+        f"auto mode: {auto['mode']} ({allowance}the detail mode's folds {detail}; on {auto['sequences']} validation clips: "
+        + "; ".join(
+            f"{m} {c['pve_mm']:.2f} mm, sharpness {c['sharpness']:.2f}, hem swing {c['hem_swing']:.2f}"
+            + (f", {c['penetration_pct']:.2f} % inside" if "penetration_pct" in c else "")
+            for m, c in auto["candidates"].items()
+        )
+        + ")"
+    )

@@ -114,22 +114,31 @@ def lacks_swing(auto: dict) -> bool:
 def lacks_free_folds(auto: dict) -> bool:
     """Whether a recorded calibration measured the detail mode before its folds were measured on
     free cloth as well (``auto.folds_free_cloth``)."""
-    return not auto.get("folds_free_cloth") and any(candidate_setting(k)[0] == "detail" for k in auto["candidates"])
+    return not auto.get("folds_free_cloth") and any(
+        candidate_setting(k)[0] == "detail" for k in auto["candidates"]
+    )
 
 
 def lacks_default_body(auto: dict, bodies: dict | None) -> bool:
     """Whether a recorded calibration of a model across bodies whose default is the mannequin
     (bundle.json's ``bodies``) was measured before the default body's clips were measured apart."""
     bodies = bodies or {}
-    return bodies.get("default") is None and (bodies.get("range") or {}).get("bodies", 1) > 1 \
+    return (
+        bodies.get("default") is None
+        and (bodies.get("range") or {}).get("bodies", 1) > 1
         and "default_body_sequences" not in auto
+    )
 
 
 def lacks_free_cloth(auto: dict, residual: dict | None) -> bool:
     """Whether a recorded calibration measured the residual mode (of a calibrated weight,
     bundle.json's ``residual``) but not on free cloth: recorded before those candidates."""
     weight = (residual or {}).get("weight", 0.0)
-    return weight > 0 and "residual" in auto["candidates"] and not any(FREE_CLOTH in k for k in auto["candidates"])
+    return (
+        weight > 0
+        and "residual" in auto["candidates"]
+        and not any(FREE_CLOTH in k for k in auto["candidates"])
+    )
 
 
 @contextmanager
@@ -149,8 +158,13 @@ def free_cloth(bundle: Bundle, ramp_mm: tuple[float, float] | None):
             del bundle.meta["auto"]
 
 
-def calibrate_auto_mode(animator: Animator, records: list[SequenceRecord], config: AutoConfig = AutoConfig(),
-                        max_sequences: int | None = AUTO_MAX_SEQUENCES, progress: bool = True) -> dict:
+def calibrate_auto_mode(
+    animator: Animator,
+    records: list[SequenceRecord],
+    config: AutoConfig = AutoConfig(),
+    max_sequences: int | None = AUTO_MAX_SEQUENCES,
+    progress: bool = True,
+) -> dict:
     """Each candidate's PVE (mm, against each record's simulation), sharpness, hem swing and
     vertices inside the body before the push-out (%) on ``records`` (at most ``max_sequences`` of
     them, evenly spaced), and the mode the criterion picks under ``config``: ``{"mode",
@@ -164,17 +178,34 @@ def calibrate_auto_mode(animator: Animator, records: list[SequenceRecord], confi
     residual = bundle.has_residual and bundle.residual_weight > 0
     labels = [m for m in AUTO_CHOICES if m != "detail" and animator.supports(m)]
     if animator.supports("detail"):
-        labels += [label for label, (base, _) in DETAIL_CANDIDATES.items() if base == "regression" or residual]
-    labels += [free_cloth_label(label, ramp) for ramp in FREE_CLOTH_RAMPS_MM for label in labels
-               if borrows(label) and (residual or not uses_residual(label))]
-    candidates = {label: measure(label) for label in tqdm(labels, desc="auto mode", unit="mode", disable=not progress)}
+        labels += [
+            label for label, (base, _) in DETAIL_CANDIDATES.items() if base == "regression" or residual
+        ]
+    labels += [
+        free_cloth_label(label, ramp)
+        for ramp in FREE_CLOTH_RAMPS_MM
+        for label in labels
+        if borrows(label) and (residual or not uses_residual(label))
+    ]
+    candidates = {
+        label: measure(label) for label in tqdm(labels, desc="auto mode", unit="mode", disable=not progress)
+    }
     _measure_swing(candidates, measure, config, progress)
     frames = sum(len(r.garment) for r in records)
-    return repick({"sequences": len(records), "frames": frames, "fold_follow": FOLD_FOLLOW, "folds_free_cloth": True,
-                   "default_body_sequences": sum(_on_default_body(bundle, records) or []),
-                   "swing_half_life_s": HALF_LIFE_S, "candidates": candidates,
-                   "criterion": "the most plausible (hypot(ln sharpness, ln hem swing)) within the allowance x the most "
-                                "accurate PVE and the penetration allowance x its cloth inside the body"}, config)
+    return repick(
+        {
+            "sequences": len(records),
+            "frames": frames,
+            "fold_follow": FOLD_FOLLOW,
+            "folds_free_cloth": True,
+            "default_body_sequences": sum(_on_default_body(bundle, records) or []),
+            "swing_half_life_s": HALF_LIFE_S,
+            "candidates": candidates,
+            "criterion": "the most plausible (hypot(ln sharpness, ln hem swing)) within the allowance x the most "
+            "accurate PVE and the penetration allowance x its cloth inside the body",
+        },
+        config,
+    )
 
 
 def swing_unmeasured(auto: dict, config: AutoConfig) -> bool:
@@ -185,8 +216,14 @@ def swing_unmeasured(auto: dict, config: AutoConfig) -> bool:
     return any(swing_label(first, gain) not in auto["candidates"] for gain in SWING_GAINS)
 
 
-def measure_swing_again(animator: Animator, records: list[SequenceRecord], auto: dict, config: AutoConfig,
-                        max_sequences: int | None = AUTO_MAX_SEQUENCES, progress: bool = True) -> dict:
+def measure_swing_again(
+    animator: Animator,
+    records: list[SequenceRecord],
+    auto: dict,
+    config: AutoConfig,
+    max_sequences: int | None = AUTO_MAX_SEQUENCES,
+    progress: bool = True,
+) -> dict:
     """A recorded calibration picked again under ``config``, the swing gains of its new first pick
     measured on the same validation clips where they were not (the other candidates' numbers stand)."""
     candidates = dict(auto["candidates"])
@@ -206,8 +243,12 @@ def _without_swing(candidates: dict[str, dict[str, float]]) -> dict[str, dict[st
     return {k: c for k, c in candidates.items() if SWING not in k}
 
 
-def _measure_swing(candidates: dict[str, dict[str, float]], measure: Callable[[str], dict[str, float]],
-                   config: AutoConfig, progress: bool) -> None:
+def _measure_swing(
+    candidates: dict[str, dict[str, float]],
+    measure: Callable[[str], dict[str, float]],
+    config: AutoConfig,
+    progress: bool,
+) -> None:
     """The first pick (among the candidates without a gain) with its swing restored, each gain a
     candidate of its own, added to ``candidates`` where not there (the criterion then picks again
     among all: a gain wins where its swing closes the gap within the allowance)."""
@@ -232,7 +273,10 @@ def _measurer(animator: Animator, records: list[SequenceRecord]) -> Callable[[st
     bundle = animator.bundle
     on_default = _on_default_body(bundle, records)
     template = bundle.template
-    rest, topo = template.vertices.astype(np.float64), M.MeshTopology.of(template.faces, template.num_vertices)
+    rest, topo = (
+        template.vertices.astype(np.float64),
+        M.MeshTopology.of(template.faces, template.num_vertices),
+    )
     hem = hem_vertices(template)
     names = list(bundle.database.names)
     truths = [r.garment.astype(np.float64) for r in records]
@@ -246,19 +290,34 @@ def _measurer(animator: Animator, records: list[SequenceRecord]) -> Callable[[st
         look = DetailLook(base, strength) if mode == "detail" else DetailLook()
         error = bend = swing = inside = default_error = 0.0
         with free_cloth(bundle, ramp):
-            for i, (r, truth) in enumerate(zip(records, truths)):  # a clip in the database (the paper's validation) may not retrieve itself
+            for i, (r, truth) in enumerate(
+                zip(records, truths)
+            ):  # a clip in the database (the paper's validation) may not retrieve itself
                 own = names.index(r.name) if r.name in names else None
-                anim = animator.animate(r.motion, mode=mode, detail=look, swing=swing_of(label), body=r.dressed,
-                                        allow_outside=True, exclude_sequence=own)
+                anim = animator.animate(
+                    r.motion,
+                    mode=mode,
+                    detail=look,
+                    swing=swing_of(label),
+                    body=r.dressed,
+                    allow_outside=True,
+                    exclude_sequence=own,
+                )
                 pred = anim.vertices.astype(np.float64)
-                inside += anim.penetration.inside_before * len(pred)  # the product path pushes out: what it had to
+                inside += anim.penetration.inside_before * len(
+                    pred
+                )  # the product path pushes out: what it had to
                 clip_error = M.pve_mm(pred, truth) * len(pred)
                 error += clip_error
                 default_error += clip_error if on_default and on_default[i] else 0.0
                 bend += float(M.cloth_energies(pred, rest, topo)[1].sum())
                 swing += hem_swing(pred, r.motion, hem) * len(pred)
-        numbers = {"pve_mm": error / frames, "sharpness": bend / max(truth_bend, 1e-30),
-                   "hem_swing": swing / max(truth_swing, 1e-30), "penetration_pct": 100.0 * inside / frames}
+        numbers = {
+            "pve_mm": error / frames,
+            "sharpness": bend / max(truth_bend, 1e-30),
+            "hem_swing": swing / max(truth_swing, 1e-30),
+            "penetration_pct": 100.0 * inside / frames,
+        }
         if on_default:
             numbers[DEFAULT_BODY_PVE] = default_error / default_frames
         return numbers

@@ -64,8 +64,13 @@ LIBRARY_BARS = (
     Bar("hem swing", "hem_swing_ratio", 0.85, at_most=False),
 )
 # the lead row's columns: (label, key of the ensemble values, digits)
-ROW = (("PVE / floor", "pve_floor_ratio", 2), ("energy score mm", "energy_score_mm", 2),
-       ("sharpness", "bending_energy_ratio", 2), ("hem swing", "hem_swing_ratio", 2), ("jitter ratio", "jitter_ratio", 2))
+ROW = (
+    ("PVE / floor", "pve_floor_ratio", 2),
+    ("energy score mm", "energy_score_mm", 2),
+    ("sharpness", "bending_energy_ratio", 2),
+    ("hem swing", "hem_swing_ratio", 2),
+    ("jitter ratio", "jitter_ratio", 2),
+)
 
 
 def _value(entry: dict, bar: Bar) -> float | None:
@@ -84,14 +89,22 @@ def default_output(modes: dict, bars: tuple[Bar, ...]) -> dict | None:
     checks = {}
     for bar in bars:
         value, target = _value(entry, bar), bar.target(regression)
-        met = None if value is None or target is None else bool(value <= target if bar.at_most else value >= target)
+        met = (
+            None
+            if value is None or target is None
+            else bool(value <= target if bar.at_most else value >= target)
+        )
         checks[bar.label] = {"value": value, "target": target, "bar": bar.describe(), "met": met}
     return {"values": {key: entry["ensemble"].get(key) for _, key, _ in ROW}, "bars": checks}
 
 
 def cell(value, digits: int) -> str:
     """A number as report.md's tables write it: n/a where there is none or it is not finite."""
-    return "n/a" if value is None or (isinstance(value, float) and not math.isfinite(value)) else f"{value:.{digits}f}"
+    return (
+        "n/a"
+        if value is None or (isinstance(value, float) and not math.isfinite(value))
+        else f"{value:.{digits}f}"
+    )
 
 
 def markdown_lead(default: dict | None, runs: str) -> list[str]:
@@ -101,9 +114,16 @@ def markdown_lead(default: dict | None, runs: str) -> list[str]:
         return []
     values = default["values"]
     cells = " | ".join(cell(values.get(k), d) for _, k, d in ROW)
-    lines = [f"**The default output** (auto, which runs {runs}):", "",
-             "| | " + " | ".join(label for label, _, _ in ROW) + " |", "|---|" + "---:|" * len(ROW),
-             f"| auto | {cells} |", "", "| bar | value | target | met |", "|---|---:|---|---|"]
+    lines = [
+        f"**The default output** (auto, which runs {runs}):",
+        "",
+        "| | " + " | ".join(label for label, _, _ in ROW) + " |",
+        "|---|" + "---:|" * len(ROW),
+        f"| auto | {cells} |",
+        "",
+        "| bar | value | target | met |",
+        "|---|---:|---|---|",
+    ]
     for label, c in default["bars"].items():
         met = "n/a" if c["met"] is None else ("yes" if c["met"] else "**no**")
         lines.append(f"| {label} | {cell(c['value'], 2)} | {c['bar']} | {met} |")
@@ -117,4 +137,5 @@ def summary_line(default: dict | None) -> str | None:
     marks = {True: "met", False: "NOT met", None: "n/a"}
     return "  default output (auto): " + "; ".join(
         f"{label} {'n/a' if c['value'] is None else format(c['value'], '.3g')} ({c['bar']}: {marks[c['met']]})"
-        for label, c in default["bars"].items())
+        for label, c in default["bars"].items()
+    )

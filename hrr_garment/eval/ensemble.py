@@ -65,11 +65,19 @@ class TruthEnsemble:
     failed: dict[str, str]  # perturbation -> why its simulation was rejected
 
 
-def _member_key(garment: GarmentMesh, record: SequenceRecord, config: SimConfig, body: BodyModel | None = None) -> str:
+def _member_key(
+    garment: GarmentMesh, record: SequenceRecord, config: SimConfig, body: BodyModel | None = None
+) -> str:
     h = hashlib.sha256()
-    h.update(json.dumps({"version": ENSEMBLE_VERSION, "template": template_hash(garment), "config": config.to_dict()},
-                        sort_keys=True).encode())
-    if body is not None:  # on another body: its bones and capsules too (the mannequin's keys stay as they were)
+    h.update(
+        json.dumps(
+            {"version": ENSEMBLE_VERSION, "template": template_hash(garment), "config": config.to_dict()},
+            sort_keys=True,
+        ).encode()
+    )
+    if (
+        body is not None
+    ):  # on another body: its bones and capsules too (the mannequin's keys stay as they were)
         h.update(np.ascontiguousarray(body.skeleton.offsets, np.float64).tobytes())
         h.update(json.dumps([[c.name, c.joint, c.a, c.b, c.radius] for c in body.capsules]).encode())
     for array in (record.motion.local_rotations, record.motion.root_translation):
@@ -78,8 +86,9 @@ def _member_key(garment: GarmentMesh, record: SequenceRecord, config: SimConfig,
     return h.hexdigest()[:20]
 
 
-def _simulate_member(garment: GarmentMesh, record: SequenceRecord, config: dict, path: str,
-                     body: BodyModel = DEFAULT_BODY) -> str | None:
+def _simulate_member(
+    garment: GarmentMesh, record: SequenceRecord, config: dict, path: str, body: BodyModel = DEFAULT_BODY
+) -> str | None:
     """Simulate one member into ``path`` (atomically); returns why it failed, or None."""
     try:
         result = simulate_garment(garment, record.motion, SimConfig.from_dict(config), body=body)
@@ -112,14 +121,23 @@ def _cached(path: Path) -> tuple[np.ndarray | None, str | None]:
     return None, None
 
 
-def truth_ensembles(garment: GarmentMesh, records: list[SequenceRecord], config: SimConfig, members: int = 4,
-                    jobs: int | None = None, cache: str | Path | None = None,
-                    progress: bool = True, bodies: dict[str, DressedBody] | None = None) -> dict[str, TruthEnsemble]:
+def truth_ensembles(
+    garment: GarmentMesh,
+    records: list[SequenceRecord],
+    config: SimConfig,
+    members: int = 4,
+    jobs: int | None = None,
+    cache: str | Path | None = None,
+    progress: bool = True,
+    bodies: dict[str, DressedBody] | None = None,
+) -> dict[str, TruthEnsemble]:
     """``members`` perturbed simulations of each record (cached; missing ones run in ``jobs``
     processes). A record on a body other than the mannequin is simulated on it, with the garment on
     it, from ``bodies`` (a dataset's :attr:`~hrr_garment.data.dataset.GarmentDataset.bodies`)."""
-    dressed = {r.name: (bodies[r.body].garment, bodies[r.body].body) if r.body != MANNEQUIN else (garment, None)
-               for r in records}
+    dressed = {
+        r.name: (bodies[r.body].garment, bodies[r.body].body) if r.body != MANNEQUIN else (garment, None)
+        for r in records
+    }
     if members < 2:
         raise ValueError(f"an ensemble needs at least 2 members, got {members}")
     cache = Path(cache) if cache is not None else workspace() / "cache" / "ensemble"
@@ -130,19 +148,34 @@ def truth_ensembles(garment: GarmentMesh, records: list[SequenceRecord], config:
             cfg, label = member_config(config, k, record.motion.fps)
             on, body = dressed[record.name]
             plan[record.name, k] = (cache / f"{_member_key(on, record, cfg, body)}.npy", cfg, label)
-    missing = [(name, k) for (name, k), (path, _, _) in plan.items()
-               if not path.with_suffix(".failed.json").is_file() and not _readable(path)]
+    missing = [
+        (name, k)
+        for (name, k), (path, _, _) in plan.items()
+        if not path.with_suffix(".failed.json").is_file() and not _readable(path)
+    ]
     if missing:
         by_name = {r.name: r for r in records}
         frames = sum(by_name[name].motion.num_frames for name, _ in missing)
-        print(f"simulating {len(missing)} ensemble member(s) of {len(records)} sequence(s) ({frames} frames; "
-              f"cached in {cache})")
+        print(
+            f"simulating {len(missing)} ensemble member(s) of {len(records)} sequence(s) ({frames} frames; "
+            f"cached in {cache})"
+        )
         ctx = mp.get_context("spawn")  # Warp is not fork-safe
-        with ProcessPoolExecutor(max_workers=jobs or os.cpu_count() or 1, mp_context=ctx) as pool, \
-                tqdm(total=frames, unit="frame", desc="ensemble truth", disable=not progress) as bar:
-            futures = {pool.submit(_simulate_member, dressed[name][0], by_name[name], plan[name, k][1].to_dict(),
-                                   str(plan[name, k][0]), dressed[name][1] or DEFAULT_BODY): (name, k)
-                       for name, k in missing}
+        with (
+            ProcessPoolExecutor(max_workers=jobs or os.cpu_count() or 1, mp_context=ctx) as pool,
+            tqdm(total=frames, unit="frame", desc="ensemble truth", disable=not progress) as bar,
+        ):
+            futures = {
+                pool.submit(
+                    _simulate_member,
+                    dressed[name][0],
+                    by_name[name],
+                    plan[name, k][1].to_dict(),
+                    str(plan[name, k][0]),
+                    dressed[name][1] or DEFAULT_BODY,
+                ): (name, k)
+                for name, k in missing
+            }
             for fut in as_completed(futures):
                 name, k = futures[fut]
                 reason = fut.result()

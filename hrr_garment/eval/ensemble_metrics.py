@@ -35,7 +35,9 @@ from .metrics import MeshTopology, cloth_energies
 
 
 def _pve_mm(a: np.ndarray, b: np.ndarray) -> float:
-    return 1000.0 * float(np.linalg.norm(np.asarray(a, np.float64) - np.asarray(b, np.float64), axis=-1).mean())
+    return 1000.0 * float(
+        np.linalg.norm(np.asarray(a, np.float64) - np.asarray(b, np.float64), axis=-1).mean()
+    )
 
 
 def _samples(pred: np.ndarray) -> np.ndarray:
@@ -67,8 +69,9 @@ def _mean_norm_mm(a: np.ndarray) -> float:
     return 1000.0 * float(np.linalg.norm(a, axis=-1).mean()) if a.size else 0.0
 
 
-def truth_metrics(members: np.ndarray, motion: Motion, rest: np.ndarray, topo: MeshTopology,
-                  hem: np.ndarray | None = None) -> dict[str, float]:
+def truth_metrics(
+    members: np.ndarray, motion: Motion, rest: np.ndarray, topo: MeshTopology, hem: np.ndarray | None = None
+) -> dict[str, float]:
     """The members' own values (the floor and every ``truth_*`` key): one computation per sequence,
     shared by every mode scored against it."""
     out = {"floor_mm": mean_pairwise_mm(members)}
@@ -78,8 +81,9 @@ def truth_metrics(members: np.ndarray, motion: Motion, rest: np.ndarray, topo: M
     return out
 
 
-def _cloth_values(samples: np.ndarray, motion: Motion, rest: np.ndarray, topo: MeshTopology,
-                  hem: np.ndarray | None) -> dict[str, float]:
+def _cloth_values(
+    samples: np.ndarray, motion: Motion, rest: np.ndarray, topo: MeshTopology, hem: np.ndarray | None
+) -> dict[str, float]:
     """Mean acceleration, stretch and bending energy and hem swing of samples (S, T, V, 3): the
     same quantities for a prediction and (as ``truth_*``) for the members."""
     out = {}
@@ -92,8 +96,15 @@ def _cloth_values(samples: np.ndarray, motion: Motion, rest: np.ndarray, topo: M
     return out
 
 
-def ensemble_metrics(pred: np.ndarray, members: np.ndarray, motion: Motion, rest: np.ndarray, topo: MeshTopology,
-                     hem: np.ndarray | None = None, truth: dict[str, float] | None = None) -> dict[str, float]:
+def ensemble_metrics(
+    pred: np.ndarray,
+    members: np.ndarray,
+    motion: Motion,
+    rest: np.ndarray,
+    topo: MeshTopology,
+    hem: np.ndarray | None = None,
+    truth: dict[str, float] | None = None,
+) -> dict[str, float]:
     """Accuracy and plausibility of one sequence's prediction against its truth ensemble.
 
     Absolute values (``*_mm``, energies, swing) are returned for the prediction and, prefixed
@@ -127,5 +138,8 @@ RATIOS = (  # (name, prediction key, truth key)
 
 def ensemble_ratios(values: dict[str, float]) -> dict[str, float]:
     """The ratios of RATIOS from (combined) absolute values; a ratio whose parts are missing is left out."""
-    return {name: values[num] / values[den] for name, num, den in RATIOS
-            if num in values and den in values and values[den] > 0}
+    return {
+        name: values[num] / values[den]
+        for name, num, den in RATIOS
+        if num in values and den in values and values[den] > 0
+    }

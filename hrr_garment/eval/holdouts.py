@@ -46,7 +46,9 @@ def holdout_section(modes: dict, holdouts: dict[str, str]) -> dict | None:
     pooled ensemble ratios, the clip count and frames, and the worst clip by PVE / floor; and each
     clip's hold-out and PVE / floor per mode. None without truth ensembles or with one hold-out."""
     order = ("style", "content", "source")  # the split's own hold-out first, the clips alone last
-    kinds = sorted(set(holdouts.values()), key=lambda k: (k == ONE_CLIP, order.index(k) if k in order else len(order), k))
+    kinds = sorted(
+        set(holdouts.values()), key=lambda k: (k == ONE_CLIP, order.index(k) if k in order else len(order), k)
+    )
     if len(kinds) < 2:
         return None
     summary: dict[str, dict] = {}
@@ -60,9 +62,11 @@ def holdout_section(modes: dict, holdouts: dict[str, str]) -> dict | None:
             combined = combine([s["ensemble"] for _, s in rows], [s["frames"] for _, s in rows])
             worst = max(rows, key=lambda r: r[1]["ensemble"]["pve_floor_ratio"])
             summary.setdefault(kind, {})[mode] = {
-                **ensemble_ratios(combined), "sequences": len(rows),
+                **ensemble_ratios(combined),
+                "sequences": len(rows),
                 "frames": int(sum(s["frames"] for _, s in rows)),
-                "worst": {"sequence": worst[0], "pve_floor_ratio": worst[1]["ensemble"]["pve_floor_ratio"]}}
+                "worst": {"sequence": worst[0], "pve_floor_ratio": worst[1]["ensemble"]["pve_floor_ratio"]},
+            }
             for n, s in rows:
                 clips[n][mode] = s["ensemble"]["pve_floor_ratio"]
     if not summary:
@@ -75,13 +79,21 @@ def markdown_holdouts(section: dict | None, field_label: dict[str, str] | None =
     styles' (the split's own hold-out), the worst clip, then every clip."""
     if not section:
         return []
-    labels = {"style": "held-out styles", "content": "held-out contents", "source": "held-out sources",
-              ONE_CLIP: "clips held out alone", **(field_label or {})}
+    labels = {
+        "style": "held-out styles",
+        "content": "held-out contents",
+        "source": "held-out sources",
+        ONE_CLIP: "clips held out alone",
+        **(field_label or {}),
+    }
     summary = section["by_holdout"]
     modes = sorted({m for kind in summary.values() for m in kind}, key=lambda m: (m != "auto", m))
-    lines = ["## Hold-outs (the test split by what each clip holds out)", "",
-             "| hold-out | mode | clips | frames | PVE / floor | x the held-out styles' | worst clip (PVE / floor) |",
-             "|---|---|---:|---:|---:|---:|---|"]
+    lines = [
+        "## Hold-outs (the test split by what each clip holds out)",
+        "",
+        "| hold-out | mode | clips | frames | PVE / floor | x the held-out styles' | worst clip (PVE / floor) |",
+        "|---|---|---:|---:|---:|---:|---|",
+    ]
     for kind, by_mode in summary.items():
         for mode in modes:
             row = by_mode.get(mode)
@@ -89,11 +101,16 @@ def markdown_holdouts(section: dict | None, field_label: dict[str, str] | None =
                 continue
             base = summary.get("style", {}).get(mode, {}).get("pve_floor_ratio")
             against = f"{row['pve_floor_ratio'] / base:.3f}" if base else "n/a"
-            lines.append(f"| {labels.get(kind, kind)} | {mode} | {row['sequences']} | {row['frames']} | "
-                         f"{row['pve_floor_ratio']:.2f} | {against} | {row['worst']['sequence']} "
-                         f"({row['worst']['pve_floor_ratio']:.2f}) |")
-    lines += ["", "| clip | hold-out | " + " | ".join(f"{m} PVE / floor" for m in modes) + " |",
-              "|---|---|" + "---:|" * len(modes)]
+            lines.append(
+                f"| {labels.get(kind, kind)} | {mode} | {row['sequences']} | {row['frames']} | "
+                f"{row['pve_floor_ratio']:.2f} | {against} | {row['worst']['sequence']} "
+                f"({row['worst']['pve_floor_ratio']:.2f}) |"
+            )
+    lines += [
+        "",
+        "| clip | hold-out | " + " | ".join(f"{m} PVE / floor" for m in modes) + " |",
+        "|---|---|" + "---:|" * len(modes),
+    ]
     for name, clip in sorted(section["sequences"].items(), key=lambda kv: (kv[1]["holdout"], kv[0])):
         cells = " | ".join("n/a" if m not in clip else f"{clip[m]:.2f}" for m in modes)
         lines.append(f"| {name} | {labels.get(clip['holdout'], clip['holdout'])} | {cells} |")

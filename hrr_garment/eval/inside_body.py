@@ -53,8 +53,15 @@ def cloth_inside(animator: Animator, motion: Motion, body=None, *, name: str | N
         warnings.simplefilter("ignore")  # the measures out of range are reported instead
         character = animator.body(body, allow_outside=True, name=name)
         animation = animator.animate(motion, body=character, collision=False)
-    distance = body_signed_distance(animation.vertices, animation.skeleton, character.body)  # the clip as the body played it
+    distance = body_signed_distance(
+        animation.vertices, animation.skeleton, character.body
+    )  # the clip as the body played it
     deep = penetration_fraction(distance)
-    return InsideReport(body=character.name, stature_m=float(character.record.stature), inside_pct=100.0 * float(deep.mean()),
-                        inside_worst_pct=100.0 * float(deep.max()), inside_any_pct=100.0 * float((distance < 0).mean()),
-                        outside_range=animator.bundle.body_range.outside(character.vector))
+    return InsideReport(
+        body=character.name,
+        stature_m=float(character.record.stature),
+        inside_pct=100.0 * float(deep.mean()),
+        inside_worst_pct=100.0 * float(deep.max()),
+        inside_any_pct=100.0 * float((distance < 0).mean()),
+        outside_range=animator.bundle.body_range.outside(character.vector),
+    )

@@ -65,7 +65,9 @@ class LibraryPlay:
     blend: int = 0
 
 
-def _entered(motion: Motion, rng: np.random.Generator, frames: int, clip: str) -> tuple[Motion, str, PlaySource]:
+def _entered(
+    motion: Motion, rng: np.random.Generator, frames: int, clip: str
+) -> tuple[Motion, str, PlaySource]:
     """``motion`` re-timed and entered at a random later frame, at most ``frames`` long."""
     speed = float(rng.uniform(*SPEED_RANGE))
     played = retimed(motion, speed)
@@ -73,12 +75,15 @@ def _entered(motion: Motion, rng: np.random.Generator, frames: int, clip: str) -
     latest = max(played.num_frames - frames, earliest)  # the last start that still leaves ``frames`` frames
     start = int(rng.integers(earliest, latest + 1))
     stop = min(start + frames, played.num_frames)
-    shown = resample_times(motion.num_frames, motion.fps * speed, motion.fps)[start:stop]  # as retimed() samples the clip
+    shown = resample_times(motion.num_frames, motion.fps * speed, motion.fps)[
+        start:stop
+    ]  # as retimed() samples the clip
     return played.slice(start, stop), f"x{speed:.2f} from {start / motion.fps:.2f} s", PlaySource(clip, shown)
 
 
-def library_plays(ds: GarmentDataset, names: list[str], count: int, seconds: float = 4.0,
-                  seed: int = 0) -> list[LibraryPlay]:
+def library_plays(
+    ds: GarmentDataset, names: list[str], count: int, seconds: float = 4.0, seed: int = 0
+) -> list[LibraryPlay]:
     """``count`` plays of the sequences ``names`` (the training split), each about ``seconds``
     long: even-numbered plays are replays, odd-numbered ones transitions."""
     if count < 1:
@@ -93,7 +98,9 @@ def library_plays(ds: GarmentDataset, names: list[str], count: int, seconds: flo
     fps = ds.fps
     usable = [n for n in names if ds.frames.get(n, 0) >= MIN_CLIP_S * fps]
     if not usable:
-        raise DatasetError(ds.path, f"no sequence of the model's database is at least {MIN_CLIP_S:g} s long: nothing to play")
+        raise DatasetError(
+            ds.path, f"no sequence of the model's database is at least {MIN_CLIP_S:g} s long: nothing to play"
+        )
     rng = np.random.default_rng(seed)
     frames = int(round(seconds * fps))
     plays = []
@@ -109,8 +116,15 @@ def library_plays(ds: GarmentDataset, names: list[str], count: int, seconds: flo
         first, how_a, source_a = _entered(motion(a), rng, frames // 2 + blend, a)
         second, how_b, source_b = _entered(motion(b), rng, frames - frames // 2, b)
         blend = min(blend, first.num_frames, second.num_frames)
-        plays.append(LibraryPlay(f"play_{i:02d}", f"{a} {how_a} -> {b} {how_b}, {blend / fps:.2f} s blend",
-                                 crossfade(first, second, blend), (source_a, source_b), blend))
+        plays.append(
+            LibraryPlay(
+                f"play_{i:02d}",
+                f"{a} {how_a} -> {b} {how_b}, {blend / fps:.2f} s blend",
+                crossfade(first, second, blend),
+                (source_a, source_b),
+                blend,
+            )
+        )
     return plays
 
 
@@ -124,14 +138,20 @@ def source_simulation(ds: GarmentDataset, play: LibraryPlay) -> np.ndarray:
     parts = []
     for source in play.sources:
         record = ds.sequence(source.clip)
-        parts.append(resample_linear(to_body_frame(record.garment.astype(np.float64), record.motion), source.frames))
+        parts.append(
+            resample_linear(to_body_frame(record.garment.astype(np.float64), record.motion), source.frames)
+        )
     local = parts[0]
     if len(parts) == 2:
         first, second, n = parts[0], parts[1], play.blend
         w = smoothstep_weights(n)[:, None, None]
-        local = np.concatenate([first[:len(first) - n], (1 - w) * first[len(first) - n:] + w * second[:n], second[n:]])
+        local = np.concatenate(
+            [first[: len(first) - n], (1 - w) * first[len(first) - n :] + w * second[:n], second[n:]]
+        )
     if len(local) != play.motion.num_frames:
-        raise ValueError(f"{play.name}: its sources give {len(local)} frames for {play.motion.num_frames} of motion")
+        raise ValueError(
+            f"{play.name}: its sources give {len(local)} frames for {play.motion.num_frames} of motion"
+        )
     return from_body_frame(local, play.motion).astype(np.float32)
 
 
@@ -154,8 +174,15 @@ def save_plays(plays: list[LibraryPlay], folder: str | Path) -> list[Path]:
     for p in plays:
         path = folder / f"{p.name}.npz"
         if not path.is_file():
-            save_motion(Motion(p.motion.local_rotations, p.motion.root_translation, p.motion.fps,
-                               source=f"library play: {p.description}"), path)
+            save_motion(
+                Motion(
+                    p.motion.local_rotations,
+                    p.motion.root_translation,
+                    p.motion.fps,
+                    source=f"library play: {p.description}",
+                ),
+                path,
+            )
         paths.append(path)
     atomic_write_text(folder / "plays.json", json.dumps({p.name: p.description for p in plays}, indent=1))
     return paths

@@ -64,8 +64,14 @@ class MeshTopology:
         starts = np.r_[0, np.cumsum(counts)[:-1]]
         interior = np.flatnonzero(counts == 2)
         first, second = order[starts[interior]], order[starts[interior] + 1]
-        return cls(faces, edges, interior, np.stack([face_of[first], face_of[second]], 1),
-                   np.stack([opp[first], opp[second]], 1), num_vertices)
+        return cls(
+            faces,
+            edges,
+            interior,
+            np.stack([face_of[first], face_of[second]], 1),
+            np.stack([opp[first], opp[second]], 1),
+            num_vertices,
+        )
 
 
 def _edge_lengths(v: np.ndarray, edges: np.ndarray) -> np.ndarray:
@@ -114,7 +120,7 @@ def sted(pred: np.ndarray, truth: np.ndarray, topo: MeshTopology) -> dict[str, f
         np.add.at(arr, (slice(None), ends), val)
     used = wsum[0] > 0
     mean = m1[:, used] / wsum[:, used]
-    spatial = float(np.sqrt(np.maximum(m2[:, used] / wsum[:, used] - mean ** 2, 0.0)).mean())
+    spatial = float(np.sqrt(np.maximum(m2[:, used] / wsum[:, used] - mean**2, 0.0)).mean())
     temporal = float((np.abs(np.diff(lp, axis=0) - np.diff(lg, axis=0)) / lg[:-1]).mean()) if t > 1 else 0.0
     return {"sted": float(np.hypot(spatial, temporal)), "sted_spatial": spatial, "sted_temporal": temporal}
 
@@ -141,7 +147,12 @@ def edge_strain_percentiles(pred: np.ndarray, rest: np.ndarray, topo: MeshTopolo
     """Percentiles and maximum of edge length over rest length."""
     strain = _edge_lengths(pred, topo.edges) / np.maximum(_edge_lengths(rest, topo.edges), 1e-12)
     p50, p95, p99 = np.percentile(strain, [50, 95, 99])
-    return {"strain_p50": float(p50), "strain_p95": float(p95), "strain_p99": float(p99), "strain_max": float(strain.max())}
+    return {
+        "strain_p50": float(p50),
+        "strain_p95": float(p95),
+        "strain_p99": float(p99),
+        "strain_max": float(strain.max()),
+    }
 
 
 def _rest_hinge_heights(rest: np.ndarray, topo: MeshTopology) -> np.ndarray:
@@ -162,16 +173,22 @@ def cloth_energies(v: np.ndarray, rest: np.ndarray, topo: MeshTopology) -> tuple
     stretch = (l0 * (_edge_lengths(v, topo.edges) / l0 - 1.0) ** 2).sum(-1)
     e0 = l0[topo.interior]
     theta0 = dihedral_angles(rest, topo)
-    bend = ((dihedral_angles(v, topo) - theta0) ** 2 * e0 / np.maximum(_rest_hinge_heights(rest, topo), 1e-12)).sum(-1)
+    bend = (
+        (dihedral_angles(v, topo) - theta0) ** 2 * e0 / np.maximum(_rest_hinge_heights(rest, topo), 1e-12)
+    ).sum(-1)
     return stretch, bend
 
 
-def energy_ratios(pred: np.ndarray, truth: np.ndarray, rest: np.ndarray, topo: MeshTopology) -> dict[str, float]:
+def energy_ratios(
+    pred: np.ndarray, truth: np.ndarray, rest: np.ndarray, topo: MeshTopology
+) -> dict[str, float]:
     """Predicted over true mean stretching and bending energies."""
     sp, bp = cloth_energies(pred, rest, topo)
     sg, bg = cloth_energies(truth, rest, topo)
-    return {"stretch_energy_ratio": float(sp.mean() / max(sg.mean(), 1e-30)),
-            "bending_energy_ratio": float(bp.mean() / max(bg.mean(), 1e-30))}
+    return {
+        "stretch_energy_ratio": float(sp.mean() / max(sg.mean(), 1e-30)),
+        "bending_energy_ratio": float(bp.mean() / max(bg.mean(), 1e-30)),
+    }
 
 
 def jitter_mm(pred: np.ndarray, truth: np.ndarray) -> dict[str, float]:
@@ -180,11 +197,15 @@ def jitter_mm(pred: np.ndarray, truth: np.ndarray) -> dict[str, float]:
     if len(pred) < 3:
         return {"jitter_mm": 0.0, "acceleration_mm": 0.0}
     ap, ag = np.diff(pred, 2, axis=0), np.diff(truth, 2, axis=0)
-    return {"jitter_mm": 1000.0 * float(np.linalg.norm(ap - ag, axis=-1).mean()),
-            "acceleration_mm": 1000.0 * float(np.linalg.norm(ap, axis=-1).mean())}
+    return {
+        "jitter_mm": 1000.0 * float(np.linalg.norm(ap - ag, axis=-1).mean()),
+        "acceleration_mm": 1000.0 * float(np.linalg.norm(ap, axis=-1).mean()),
+    }
 
 
 def penetration_pct(signed_distance: np.ndarray) -> dict[str, float]:
     """From the garment's signed distances to the body (T, V), negative inside."""
-    return {"penetration_pct": 100.0 * float((signed_distance < 0).mean()),
-            "penetration_5mm_pct": 100.0 * float((signed_distance < -PENETRATION_DEPTH_M).mean())}
+    return {
+        "penetration_pct": 100.0 * float((signed_distance < 0).mean()),
+        "penetration_5mm_pct": 100.0 * float((signed_distance < -PENETRATION_DEPTH_M).mean()),
+    }

@@ -13,8 +13,13 @@ from .evaluate import ModeResult, TauPoint
 from .report import frame_entropies
 
 
-def write_plots(folder: Path, modes: dict[str, ModeResult], sweep: list[TauPoint] | None, tau: float,
-                gate: str = "entropy") -> list[str]:
+def write_plots(
+    folder: Path,
+    modes: dict[str, ModeResult],
+    sweep: list[TauPoint] | None,
+    tau: float,
+    gate: str = "entropy",
+) -> list[str]:
     """error_over_time.png, entropy_histogram.png, tau_curve.png (with the ``eval`` extra); tau
     thresholds ``gate``'s signal (marked on the entropy histogram when that is the entropy)."""
     try:
@@ -23,7 +28,9 @@ def write_plots(folder: Path, modes: dict[str, ModeResult], sweep: list[TauPoint
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
     except ImportError:
-        raise ImportError("hrr-eval plots need matplotlib: pip install 'hrr_garment[eval]' (or pass --no-plots)") from None
+        raise ImportError(
+            "hrr-eval plots need matplotlib: pip install 'hrr_garment[eval]' (or pass --no-plots)"
+        ) from None
     written = []
 
     def save(fig, name):
@@ -38,7 +45,9 @@ def write_plots(folder: Path, modes: dict[str, ModeResult], sweep: list[TauPoint
     bounds = np.cumsum([s.frames for s in next(iter(modes.values())).sequences])[:-1]
     for b in bounds:
         ax.axvline(b, color="0.85", lw=0.8)
-    ax.set(xlabel="frame (sequences one after another)", ylabel="per-vertex error (mm)", title="Error over time")
+    ax.set(
+        xlabel="frame (sequences one after another)", ylabel="per-vertex error (mm)", title="Error over time"
+    )
     ax.legend(ncol=len(modes), fontsize=8)
     save(fig, "error_over_time.png")
 
@@ -55,13 +64,30 @@ def write_plots(folder: Path, modes: dict[str, ModeResult], sweep: list[TauPoint
         finite = [p for p in sweep if math.isfinite(p.tau)]
         fig, ax = plt.subplots(figsize=(5, 3.4))
         ax.plot([p.tau for p in finite], [p.pve_mm for p in finite], "o-", color="#4a6fc4")
-        ax.set(xlabel={"entropy": "tau (nats)", "similarity": "tau (1 - code similarity)",
-                       "distance": "tau (motion distance)"}.get(gate, "tau"), ylabel="hybrid PVE (mm)", title="Tau sweep")
+        ax.set(
+            xlabel={
+                "entropy": "tau (nats)",
+                "similarity": "tau (1 - code similarity)",
+                "distance": "tau (motion distance)",
+            }.get(gate, "tau"),
+            ylabel="hybrid PVE (mm)",
+            title="Tau sweep",
+        )
         ax2 = ax.twinx()  # plausibility beside accuracy: how much retrieval, and how sharp the result
-        ax2.plot([p.tau for p in finite], [100 * p.retrieval_usage for p in finite], "s--", color="#e0862d",
-                 label="retrieval usage")
-        ax2.plot([p.tau for p in finite], [100 * p.sharpness for p in finite], "^:", color="#3a9b5c",
-                 label="sharpness (bending energy, % of the truth's)")
+        ax2.plot(
+            [p.tau for p in finite],
+            [100 * p.retrieval_usage for p in finite],
+            "s--",
+            color="#e0862d",
+            label="retrieval usage",
+        )
+        ax2.plot(
+            [p.tau for p in finite],
+            [100 * p.sharpness for p in finite],
+            "^:",
+            color="#3a9b5c",
+            label="sharpness (bending energy, % of the truth's)",
+        )
         ax2.set_ylabel("%")
         ax2.legend(fontsize=7)
         save(fig, "tau_curve.png")

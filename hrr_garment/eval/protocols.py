@@ -20,11 +20,15 @@ def default_taus(animator, records, run: RunSettings) -> list[float]:
     """0, the deciles of the hybrid gate's per-frame doubts on these records (``run``'s gate, default
     the model's), and above the maximum (retrieval only)."""
     hybrid = run.replace(mode="hybrid", tau=0.0, collision=False, detail=DetailLook())
-    h = np.concatenate([animator.animate(r.motion, hybrid, body=r.dressed, allow_outside=True).doubt for r in records])
+    h = np.concatenate(
+        [animator.animate(r.motion, hybrid, body=r.dressed, allow_outside=True).doubt for r in records]
+    )
     top = float(h.max()) + 1e-3 if len(h) else 1.0
     if animator.resolve(hybrid).gate == "entropy":  # at least every entropy
         top = max(top, math.log(animator.bundle.codespace.config.classes) + 1e-3)
-    return sorted({0.0, *[round(float(q), 4) for q in np.quantile(h, np.linspace(0.1, 0.9, 9))], round(top + 5e-5, 4)})
+    return sorted(
+        {0.0, *[round(float(q), 4) for q in np.quantile(h, np.linspace(0.1, 0.9, 9))], round(top + 5e-5, 4)}
+    )
 
 
 def truth_ensembles_of(ds, records, members: int, jobs: int | None, progress: bool) -> dict:
@@ -32,13 +36,22 @@ def truth_ensembles_of(ds, records, members: int, jobs: int | None, progress: bo
     if not members:
         return {}
     if "sim" not in ds.info:
-        print(f"{ds.path} records no simulator settings (not built by hrr-simulate): no ensemble ground truth")
+        print(
+            f"{ds.path} records no simulator settings (not built by hrr-simulate): no ensemble ground truth"
+        )
         return {}
     from ..sim.simulator import SimConfig
     from .ensemble import truth_ensembles
 
-    return truth_ensembles(ds.template, records, SimConfig.from_dict(ds.info["sim"]), members=members, jobs=jobs, progress=progress,
-                           bodies=ds.bodies)
+    return truth_ensembles(
+        ds.template,
+        records,
+        SimConfig.from_dict(ds.info["sim"]),
+        members=members,
+        jobs=jobs,
+        progress=progress,
+        bodies=ds.bodies,
+    )
 
 
 def ensemble_summary(ensembles: dict, records, members: int) -> dict:
@@ -46,9 +59,13 @@ def ensemble_summary(ensembles: dict, records, members: int) -> dict:
     if not ensembles:
         return {"members": 0}
     first = next(iter(ensembles.values()))
-    return {"members": members, "perturbations": first.perturbations, "sequences": len(ensembles),
-            "without_ensemble": [r.name for r in records if r.name not in ensembles],
-            "failed_members": {name: e.failed for name, e in ensembles.items() if e.failed}}
+    return {
+        "members": members,
+        "perturbations": first.perturbations,
+        "sequences": len(ensembles),
+        "without_ensemble": [r.name for r in records if r.name not in ensembles],
+        "failed_members": {name: e.failed for name, e in ensembles.items() if e.failed},
+    }
 
 
 @dataclass(frozen=True)
@@ -72,7 +89,9 @@ class LibraryPlays:
     sweep: bool = True
 
 
-def simulated_section(animator, ds, truth: SimulatedTruth, settings: EvaluationSettings) -> tuple[dict, list, dict]:
+def simulated_section(
+    animator, ds, truth: SimulatedTruth, settings: EvaluationSettings
+) -> tuple[dict, list, dict]:
     """Simulate the ground truth of ``truth`` with the dataset's settings (parts cached) and
     evaluate every mode there: the report section, the records and their truth ensembles."""
     from ..data.dataset import GarmentDataset
@@ -80,29 +99,52 @@ def simulated_section(animator, ds, truth: SimulatedTruth, settings: EvaluationS
     from ..sim.simulator import SimConfig
 
     config = SimConfig.from_dict(ds.info.get("sim", {}))
-    print(f"simulating ground truth for {len(truth.specs)} sequence(s) (cached in {truth.path.with_suffix('.parts')})")
-    report = build_dataset(ds.template, truth.specs, config, out=truth.path, options=BuildOptions(
-        splits={"val": 0.0, "test": 0.0}, info={"purpose": truth.purpose, "source_dataset": str(ds.path)},
-        progress=settings.progress))
+    print(
+        f"simulating ground truth for {len(truth.specs)} sequence(s) (cached in {truth.path.with_suffix('.parts')})"
+    )
+    report = build_dataset(
+        ds.template,
+        truth.specs,
+        config,
+        out=truth.path,
+        options=BuildOptions(
+            splits={"val": 0.0, "test": 0.0},
+            info={"purpose": truth.purpose, "source_dataset": str(ds.path)},
+            progress=settings.progress,
+        ),
+    )
     data = GarmentDataset(report.path)
     records = [data.sequence(n) for n in report.sequences]
     ensembles = truth_ensembles_of(data, records, settings.members, settings.jobs, settings.progress)
     results = evaluate_modes(animator, records, settings, ensembles=ensembles)
-    return {"dataset": str(report.path), "sequences": report.sequences,
-            "frames": int(sum(len(r.garment) for r in records)), "rejected": report.rejects,
+    return (
+        {
+            "dataset": str(report.path),
+            "sequences": report.sequences,
+            "frames": int(sum(len(r.garment) for r in records)),
+            "rejected": report.rejects,
             "ensemble": ensemble_summary(ensembles, records, settings.members),
-            "modes": {m: r.to_dict() for m, r in results.items()}}, records, ensembles
+            "modes": {m: r.to_dict() for m, r in results.items()},
+        },
+        records,
+        ensembles,
+    )
 
 
-def real_motion_section(animator, ds, files: list[str], settings: EvaluationSettings,
-                        source_fps: float | None = None) -> dict:
+def real_motion_section(
+    animator, ds, files: list[str], settings: EvaluationSettings, source_fps: float | None = None
+) -> dict:
     """The real motion files' section: their ground truth simulated with the dataset's settings."""
     from ..paths import workspace
     from ..sim.plan import plan_sequences
     from ..sim.preset import load_preset
 
-    specs = plan_sequences(load_preset(str(ds.info.get("preset", "quick"))), motions=list(files), source_fps=source_fps)
-    truth = SimulatedTruth(specs, workspace() / "eval" / f"{ds.path.stem}-real-motion.h5", "hrr-eval real motion")
+    specs = plan_sequences(
+        load_preset(str(ds.info.get("preset", "quick"))), motions=list(files), source_fps=source_fps
+    )
+    truth = SimulatedTruth(
+        specs, workspace() / "eval" / f"{ds.path.stem}-real-motion.h5", "hrr-eval real motion"
+    )
     section, _, _ = simulated_section(animator, ds, truth, settings)
     return {"files": [str(f) for f in files], **section}
 
@@ -118,19 +160,34 @@ def paper_section(folder: Path, bundle, records, settings: EvaluationSettings, e
     animator = Animator.load(folder)
     other = animator.bundle
     if other.meta["validation"] != "windows":
-        raise InputError(folder, "was validated on held-out clips; the paper protocol needs a model trained with "
-                                 "hrr-train --validation windows")
+        raise InputError(
+            folder,
+            "was validated on held-out clips; the paper protocol needs a model trained with "
+            "hrr-train --validation windows",
+        )
     if other.garment != bundle.garment or other.template.num_vertices != bundle.template.num_vertices:
-        raise InputError(folder, f"is a {other.garment} model with {other.template.num_vertices} vertices; the evaluated "
-                                 f"one is {bundle.garment} with {bundle.template.num_vertices}")
+        raise InputError(
+            folder,
+            f"is a {other.garment} model with {other.template.num_vertices} vertices; the evaluated "
+            f"one is {bundle.garment} with {bundle.template.num_vertices}",
+        )
     modes = tuple(m for m in settings.modes if animator.supports(m))
-    print(f"paper protocol: {folder} (calibrated gate {other.gate} < {other.tau:.3f}) on the same {len(records)} sequences")
-    own = replace(settings, modes=modes, exclude_own_sequence=False,
-                  run=RunSettings(collision=settings.run.collision))  # its own calibrated gate, tau and look
+    print(
+        f"paper protocol: {folder} (calibrated gate {other.gate} < {other.tau:.3f}) on the same {len(records)} sequences"
+    )
+    own = replace(
+        settings, modes=modes, exclude_own_sequence=False, run=RunSettings(collision=settings.run.collision)
+    )  # its own calibrated gate, tau and look
     results = evaluate_modes(animator, records, own, ensembles=ensembles)
-    return {"model": str(folder), "hash": other.content_hash, "gate": other.gate, "tau": other.tau,
-            "modes": {m: r.to_dict() for m, r in results.items()}, "goals": goals(results, None),
-            "paper_ratios": PAPER_RATIOS}
+    return {
+        "model": str(folder),
+        "hash": other.content_hash,
+        "gate": other.gate,
+        "tau": other.tau,
+        "modes": {m: r.to_dict() for m, r in results.items()},
+        "goals": goals(results, None),
+        "paper_ratios": PAPER_RATIOS,
+    }
 
 
 def library_section(animator, ds, plays_asked: LibraryPlays, settings: EvaluationSettings) -> dict | None:
@@ -149,16 +206,35 @@ def library_section(animator, ds, plays_asked: LibraryPlays, settings: Evaluatio
     folder = workspace() / "eval" / "library" / f"{ds.path.stem}-{plays_digest(plays)}"
     files = save_plays(plays, folder)
     print(f"library protocol: {plays_asked.count} plays of the database's clips (motions in {folder})")
-    specs = [SequenceSpec(p.name, "file", path=str(f), start=0, stop=p.motion.num_frames) for p, f in zip(plays, files)]
+    specs = [
+        SequenceSpec(p.name, "file", path=str(f), start=0, stop=p.motion.num_frames)
+        for p, f in zip(plays, files)
+    ]
     settings = replace(settings, exclude_own_sequence=False)
     section, records, ensembles = simulated_section(
-        animator, ds, SimulatedTruth(specs, folder / "truth.h5", "hrr-eval library protocol"), settings)
+        animator, ds, SimulatedTruth(specs, folder / "truth.h5", "hrr-eval library protocol"), settings
+    )
     by_name = {p.name: p for p in plays}
-    reference = evaluate_vertices(SOURCE_SIMULATION, {r.name: source_simulation(ds, by_name[r.name]) for r in records},
-                                  records, template=animator.bundle.template, ensembles=ensembles)
+    reference = evaluate_vertices(
+        SOURCE_SIMULATION,
+        {r.name: source_simulation(ds, by_name[r.name]) for r in records},
+        records,
+        template=animator.bundle.template,
+        ensembles=ensembles,
+    )
     points = None
     if plays_asked.sweep and records:
-        points = tau_sweep(animator, records, plays_asked.taus or default_taus(animator, records, settings.run), settings=settings)
-    section.update(plays={p.name: p.description for p in plays}, seed=plays_asked.seed, source_simulation=reference.to_dict(),
-                   tau_sweep=[vars(p) for p in points or []], goals=library_goals(section["modes"], points))
+        points = tau_sweep(
+            animator,
+            records,
+            plays_asked.taus or default_taus(animator, records, settings.run),
+            settings=settings,
+        )
+    section.update(
+        plays={p.name: p.description for p in plays},
+        seed=plays_asked.seed,
+        source_simulation=reference.to_dict(),
+        tau_sweep=[vars(p) for p in points or []],
+        goals=library_goals(section["modes"], points),
+    )
     return section

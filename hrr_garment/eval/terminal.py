@@ -12,14 +12,25 @@ def report_lines(report: dict) -> list[str]:
     for mode, entry in report["modes"].items():
         m = entry["metrics"]
         e = entry.get("ensemble") or {}
-        floor = f"  PVE/floor {e['pve_floor_ratio']:.2f} (floor {e['floor_mm']:.1f} mm)" if "pve_floor_ratio" in e else ""
-        out.append(f"  {mode:10s} PVE {m['pve_mm']:7.2f} mm  RMSE {m['rmse_mm']:7.2f} mm  STED {m['sted']:.4f}  "
-                   f"CD {m['chamfer_cm']:.3f} cm  pen. {m['penetration_pct']:.2f} %  retrieval {100 * m['retrieval_usage']:.0f} %"
-                   + floor)
+        floor = (
+            f"  PVE/floor {e['pve_floor_ratio']:.2f} (floor {e['floor_mm']:.1f} mm)"
+            if "pve_floor_ratio" in e
+            else ""
+        )
+        out.append(
+            f"  {mode:10s} PVE {m['pve_mm']:7.2f} mm  RMSE {m['rmse_mm']:7.2f} mm  STED {m['sted']:.4f}  "
+            f"CD {m['chamfer_cm']:.3f} cm  pen. {m['penetration_pct']:.2f} %  retrieval {100 * m['retrieval_usage']:.0f} %"
+            + floor
+        )
     for kind, by_mode in ((report.get("holdouts") or {}).get("by_holdout") or {}).items():
-        out.append(f"  {kind} hold-out: " + "; ".join(
-            f"{mode} PVE/floor {row['pve_floor_ratio']:.2f} over {row['sequences']} clips (worst {row['worst']['sequence']} "
-            f"{row['worst']['pve_floor_ratio']:.2f})" for mode, row in by_mode.items()))
+        out.append(
+            f"  {kind} hold-out: "
+            + "; ".join(
+                f"{mode} PVE/floor {row['pve_floor_ratio']:.2f} over {row['sequences']} clips (worst {row['worst']['sequence']} "
+                f"{row['worst']['pve_floor_ratio']:.2f})"
+                for mode, row in by_mode.items()
+            )
+        )
     out += _goal_lines(report["goals"])
     paper = report.get("paper")
     if paper:
@@ -35,8 +46,10 @@ def report_lines(report: dict) -> list[str]:
         for mode, entry in library["modes"].items():
             e = entry.get("ensemble") or {}
             floor = f"  PVE/floor {e['pve_floor_ratio']:.2f}" if "pve_floor_ratio" in e else ""
-            out.append(f"  {mode:10s} PVE {entry['metrics']['pve_mm']:7.2f} mm  retrieval "
-                       f"{100 * entry['metrics']['retrieval_usage']:.0f} %" + floor)
+            out.append(
+                f"  {mode:10s} PVE {entry['metrics']['pve_mm']:7.2f} mm  retrieval "
+                f"{100 * entry['metrics']['retrieval_usage']:.0f} %" + floor
+            )
         out += _goal_lines(library["goals"])
     return out
 
@@ -46,7 +59,9 @@ def _goal_lines(goals: dict) -> list[str]:
     for name, g in goals.items():
         if "ratio" in g:
             status = "" if g["met"] is None else (" met" if g["met"] else " NOT met")
-            out.append(f"  {name}: {g['ratio']:.3f}" + (f" (target <= {g['target']}){status}" if g["target"] else ""))
+            out.append(
+                f"  {name}: {g['ratio']:.3f}" + (f" (target <= {g['target']}){status}" if g["target"] else "")
+            )
         else:
             out.append(f"  tau optimum at {g['best_tau']:.3f}: {'interior' if g['met'] else 'NOT interior'}")
     return out

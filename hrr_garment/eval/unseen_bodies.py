@@ -55,17 +55,26 @@ def evenly(names: list[str], count: int | None) -> list[str]:
 
 def _records(item: UnseenBody, animator: Animator, sequences: int | None):
     ds = GarmentDataset(item.dataset)
-    if ds.garment != animator.bundle.garment or ds.template.num_vertices != animator.bundle.template.num_vertices:
-        raise DatasetError(item.dataset, f"is a {ds.garment} dataset with {ds.template.num_vertices} vertices; the model "
-                                         f"animates a {animator.bundle.garment} with {animator.bundle.template.num_vertices}")
+    if (
+        ds.garment != animator.bundle.garment
+        or ds.template.num_vertices != animator.bundle.template.num_vertices
+    ):
+        raise DatasetError(
+            item.dataset,
+            f"is a {ds.garment} dataset with {ds.template.num_vertices} vertices; the model "
+            f"animates a {animator.bundle.garment} with {animator.bundle.template.num_vertices}",
+        )
     names = evenly(ds.splits.get("test", []), sequences)
     if not names:
         raise DatasetError(item.dataset, "has no test sequences")
     records = [ds.sequence(n) for n in names]
     bodies = {r.body for r in records}
     if len(bodies) != 1:
-        raise DatasetError(item.dataset, f"its test sequences stand on {len(bodies)} bodies; the protocol takes a dataset "
-                                         "simulated on one (hrr-simulate --body)")
+        raise DatasetError(
+            item.dataset,
+            f"its test sequences stand on {len(bodies)} bodies; the protocol takes a dataset "
+            "simulated on one (hrr-simulate --body)",
+        )
     return ds, records
 
 
@@ -81,17 +90,24 @@ def _check_unseen(animator: Animator, record, where: Path) -> None:
     mine = body_vector(record.dressed.record)
     for name in sorted({ds.body_of[n] for n in ds.splits.get("train", [])}):
         if np.allclose(body_vector(ds.bodies[name].record), mine, atol=1e-4):
-            raise InputError(where, f"stands on body {name!r}, which the model was trained on ({trained_on}): the "
-                                    "protocol is for bodies it never saw")
+            raise InputError(
+                where,
+                f"stands on body {name!r}, which the model was trained on ({trained_on}): the "
+                "protocol is for bodies it never saw",
+            )
 
 
 def _row(result) -> dict:
     e = result.ensemble
-    return {k: e.get(k) for k in COLUMNS} | {"floor_mm": e.get("floor_mm"), "pve_mm": result.metrics["pve_mm"]}
+    return {k: e.get(k) for k in COLUMNS} | {
+        "floor_mm": e.get("floor_mm"),
+        "pve_mm": result.metrics["pve_mm"],
+    }
 
 
-def unseen_bodies_section(animator: Animator, bodies: list[UnseenBody], settings: EvaluationSettings,
-                          sequences: int | None = None) -> dict:
+def unseen_bodies_section(
+    animator: Animator, bodies: list[UnseenBody], settings: EvaluationSettings, sequences: int | None = None
+) -> dict:
     """report.json's ``unseen_bodies``: per body, the model's and its specialist's scores (see the
     module docstring)."""
     auto = replace(settings, modes=(Mode.AUTO.value,))
@@ -99,15 +115,23 @@ def unseen_bodies_section(animator: Animator, bodies: list[UnseenBody], settings
     for item in bodies:
         ds, records = _records(item, animator, sequences)
         _check_unseen(animator, records[0], item.dataset)
-        ensembles = truth_ensembles_of(ds, records, settings.members, jobs=settings.jobs, progress=settings.progress)
+        ensembles = truth_ensembles_of(
+            ds, records, settings.members, jobs=settings.jobs, progress=settings.progress
+        )
         animator.body(records[0].dressed)  # outside the model's range: refused here, before any work
-        entry = {"dataset": str(item.dataset), "body": records[0].body, "sequences": [r.name for r in records],
-                 "frames": int(sum(len(r.garment) for r in records)),
-                 "model": _row(evaluate_modes(animator, records, auto, ensembles=ensembles)[Mode.AUTO.value])}
+        entry = {
+            "dataset": str(item.dataset),
+            "body": records[0].body,
+            "sequences": [r.name for r in records],
+            "frames": int(sum(len(r.garment) for r in records)),
+            "model": _row(evaluate_modes(animator, records, auto, ensembles=ensembles)[Mode.AUTO.value]),
+        }
         if item.specialist is not None:
             specialist = Animator.load(item.specialist)
-            entry["specialist"] = {"folder": str(item.specialist),
-                                   **_row(evaluate_modes(specialist, records, auto, ensembles=ensembles)[Mode.AUTO.value])}
+            entry["specialist"] = {
+                "folder": str(item.specialist),
+                **_row(evaluate_modes(specialist, records, auto, ensembles=ensembles)[Mode.AUTO.value]),
+            }
             mine, theirs = entry["model"]["pve_floor_ratio"], entry["specialist"]["pve_floor_ratio"]
             entry["pve_floor_over_specialist"] = mine / theirs if mine is not None and theirs else None
         out[Path(item.dataset).stem] = entry
@@ -116,16 +140,21 @@ def unseen_bodies_section(animator: Animator, bodies: list[UnseenBody], settings
 
 def markdown_table(section: dict) -> list[str]:
     """report.md's table of the protocol: a row per body, the model beside its specialist."""
-    lines = ["| body | frames | PVE / floor | specialist | ratio | penetration before push-out % | specialist | "
-             "sharpness | specialist | hem swing | specialist |", "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
+    lines = [
+        "| body | frames | PVE / floor | specialist | ratio | penetration before push-out % | specialist | "
+        "sharpness | specialist | hem swing | specialist |",
+        "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
+    ]
 
     def f(value, digits=2):
         return "-" if value is None else f"{value:.{digits}f}"
 
     for name, e in section.items():
         m, s = e["model"], e.get("specialist", {})
-        lines.append(f"| {name} | {e['frames']} | {f(m['pve_floor_ratio'])} | {f(s.get('pve_floor_ratio'))} | "
-                     f"{f(e.get('pve_floor_over_specialist'), 3)} | {f(m['penetration_before_pct'])} | "
-                     f"{f(s.get('penetration_before_pct'))} | {f(m['bending_energy_ratio'])} | "
-                     f"{f(s.get('bending_energy_ratio'))} | {f(m['hem_swing_ratio'])} | {f(s.get('hem_swing_ratio'))} |")
+        lines.append(
+            f"| {name} | {e['frames']} | {f(m['pve_floor_ratio'])} | {f(s.get('pve_floor_ratio'))} | "
+            f"{f(e.get('pve_floor_over_specialist'), 3)} | {f(m['penetration_before_pct'])} | "
+            f"{f(s.get('penetration_before_pct'))} | {f(m['bending_energy_ratio'])} | "
+            f"{f(s.get('bending_energy_ratio'))} | {f(m['hem_swing_ratio'])} | {f(s.get('hem_swing_ratio'))} |"
+        )
     return lines

@@ -22,14 +22,20 @@ from .glb import write_glb
 SCRIPT = Path(__file__).with_name("blend_in_blender.py")
 
 
-def write_blend(anim: AnimationFile, path: str | Path, tolerance: float = 0.001, with_body: bool = False) -> Path:
+def write_blend(
+    anim: AnimationFile, path: str | Path, tolerance: float = 0.001, with_body: bool = False
+) -> Path:
     """Write ``anim`` as a .blend (``tolerance`` and ``with_body`` as for :func:`.glb.write_glb`)."""
     path = Path(path)
     with tempfile.TemporaryDirectory(prefix="hrr-blend-") as folder:
-        glb = write_glb(anim, Path(folder) / f"{path.stem}.glb", tolerance=tolerance, with_body=with_body).path
+        glb = write_glb(
+            anim, Path(folder) / f"{path.stem}.glb", tolerance=tolerance, with_body=with_body
+        ).path
         # Blender saves into the private folder (over an existing file it would leave a .blend1 backup)
         saved = Path(folder) / "saved.blend"
-        run_blender_script(SCRIPT, [str(ADDON_SOURCE), str(glb), str(saved)], subject=path, what="writing a .blend")
+        run_blender_script(
+            SCRIPT, [str(ADDON_SOURCE), str(glb), str(saved)], subject=path, what="writing a .blend"
+        )
         with atomic_path(path) as tmp:
             try:
                 shutil.copyfile(saved, tmp)

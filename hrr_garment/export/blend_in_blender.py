@@ -13,10 +13,11 @@ ERROR = "HRR-ERROR: "  # hrr_garment.blender.ERROR_PREFIX: this runs in Blender'
 
 def main() -> int:
     """Import and save; 0, or 1 with an HRR-ERROR line."""
-    addon, source, target = sys.argv[sys.argv.index("--") + 1:][:3]
+    addon, source, target = sys.argv[sys.argv.index("--") + 1 :][:3]
     bpy.ops.wm.read_factory_settings(use_empty=True)
-    spec = importlib.util.spec_from_file_location("hrr_garment_import", Path(addon) / "__init__.py",
-                                                  submodule_search_locations=[addon])
+    spec = importlib.util.spec_from_file_location(
+        "hrr_garment_import", Path(addon) / "__init__.py", submodule_search_locations=[addon]
+    )
     module = importlib.util.module_from_spec(spec)
     sys.modules[spec.name] = module
     spec.loader.exec_module(module)

@@ -85,13 +85,19 @@ def top_influences(weights: np.ndarray, count: int = INFLUENCES) -> tuple[np.nda
 def check_played_on(anim: AnimationFile, character: SkinnedCharacter) -> None:
     """Refuse an animation that carries no skeleton, or was played on another body than the character's."""
     if anim.rotations is None:
-        raise InputError(anim.path, "carries no skeleton motion (written before out.h5 format 4): animate it again "
-                                    "with hrr-animate --body CHARACTER to export the character with it")
+        raise InputError(
+            anim.path,
+            "carries no skeleton motion (written before out.h5 format 4): animate it again "
+            "with hrr-animate --body CHARACTER to export the character with it",
+        )
     apart = float(np.abs(np.asarray(anim.offsets, np.float64) - character.record.skeleton.offsets).max())
     if apart > SKELETON_TOLERANCE_M:
-        raise InputError(anim.path, f"was animated on another body than {character.path.name}'s (their bones differ "
-                                    f"by up to {1000 * apart:.0f} mm): animate it with hrr-animate --body "
-                                    f"{character.path.name}")
+        raise InputError(
+            anim.path,
+            f"was animated on another body than {character.path.name}'s (their bones differ "
+            f"by up to {1000 * apart:.0f} mm): animate it with hrr-animate --body "
+            f"{character.path.name}",
+        )
 
 
 def continuous(quaternions: np.ndarray) -> np.ndarray:
@@ -103,8 +109,9 @@ def continuous(quaternions: np.ndarray) -> np.ndarray:
     return q
 
 
-def add_character(gl, blob, anim: AnimationFile, *, character: SkinnedCharacter, gltf_parts: dict,
-                  times: int) -> list[int]:
+def add_character(
+    gl, blob, anim: AnimationFile, *, character: SkinnedCharacter, gltf_parts: dict, times: int
+) -> list[int]:
     """The character's joint nodes (animated by ``anim``'s skeleton motion), its skinned mesh and
     its skin, appended to ``gltf_parts`` (nodes, meshes, materials, samplers, channels, skins);
     ``times``: the accessor of the frame times. Returns the scene's new root nodes (the skeleton's
@@ -117,28 +124,70 @@ def add_character(gl, blob, anim: AnimationFile, *, character: SkinnedCharacter,
     for j, name in enumerate(JOINT_NAMES):
         children = [first + c for c, p in enumerate(PARENTS) if p == j] or None
         translation = anim.root_translation[0] if j == 0 else anim.offsets[j]
-        nodes.append(gl.Node(name=name, translation=np.asarray(translation, float).tolist(),
-                             rotation=rotations[0, j].astype(float).tolist(), children=children))
-        keyed = (("rotation", rotations[:, j], "VEC4"),) + ((("translation", anim.root_translation, "VEC3"),) if j == 0 else ())
+        nodes.append(
+            gl.Node(
+                name=name,
+                translation=np.asarray(translation, float).tolist(),
+                rotation=rotations[0, j].astype(float).tolist(),
+                children=children,
+            )
+        )
+        keyed = (("rotation", rotations[:, j], "VEC4"),) + (
+            (("translation", anim.root_translation, "VEC3"),) if j == 0 else ()
+        )
         for path, values, kind in keyed:
-            samplers.append(gl.AnimationSampler(input=times, output=blob.stored(np.asarray(values, np.float32), kind),
-                                                interpolation="LINEAR"))
-            channels.append(gl.AnimationChannel(sampler=len(samplers) - 1,
-                                                target=gl.AnimationChannelTarget(node=first + j, path=path)))
+            samplers.append(
+                gl.AnimationSampler(
+                    input=times,
+                    output=blob.stored(np.asarray(values, np.float32), kind),
+                    interpolation="LINEAR",
+                )
+            )
+            channels.append(
+                gl.AnimationChannel(
+                    sampler=len(samplers) - 1, target=gl.AnimationChannelTarget(node=first + j, path=path)
+                )
+            )
     joints, weights = top_influences(character.weights)
     vertices = character.vertices.astype(np.float32)
-    attributes = gl.Attributes(POSITION=blob.stored(vertices, "VEC3", _FLOAT_BUFFER, bounds=True),
-                               NORMAL=blob.stored(vertex_normals(vertices[None], character.faces)[0].astype(np.float32),
-                                                  "VEC3", _FLOAT_BUFFER),
-                               JOINTS_0=blob.stored(joints, "VEC4", _FLOAT_BUFFER),
-                               WEIGHTS_0=blob.stored(weights, "VEC4", _FLOAT_BUFFER))
-    materials.append(gl.Material(name="character", pbrMetallicRoughness=gl.PbrMetallicRoughness(
-        baseColorFactor=[0.8, 0.76, 0.72, 1.0], metallicFactor=0.0, roughnessFactor=0.8)))
-    meshes.append(gl.Mesh(name="character", primitives=[gl.Primitive(
-        attributes=attributes, material=len(materials) - 1,
-        indices=blob.stored(character.faces.astype(np.uint32).ravel(), "SCALAR", _INDEX_BUFFER))]))
-    inverse = np.swapaxes(character.inverse_bind, 1, 2).reshape(len(JOINT_NAMES), 16).astype(np.float32)  # column-major
-    skins.append(gl.Skin(name="character", joints=list(range(first, first + len(JOINT_NAMES))), skeleton=first,
-                         inverseBindMatrices=blob.stored(inverse, "MAT4")))
+    attributes = gl.Attributes(
+        POSITION=blob.stored(vertices, "VEC3", _FLOAT_BUFFER, bounds=True),
+        NORMAL=blob.stored(
+            vertex_normals(vertices[None], character.faces)[0].astype(np.float32), "VEC3", _FLOAT_BUFFER
+        ),
+        JOINTS_0=blob.stored(joints, "VEC4", _FLOAT_BUFFER),
+        WEIGHTS_0=blob.stored(weights, "VEC4", _FLOAT_BUFFER),
+    )
+    materials.append(
+        gl.Material(
+            name="character",
+            pbrMetallicRoughness=gl.PbrMetallicRoughness(
+                baseColorFactor=[0.8, 0.76, 0.72, 1.0], metallicFactor=0.0, roughnessFactor=0.8
+            ),
+        )
+    )
+    meshes.append(
+        gl.Mesh(
+            name="character",
+            primitives=[
+                gl.Primitive(
+                    attributes=attributes,
+                    material=len(materials) - 1,
+                    indices=blob.stored(character.faces.astype(np.uint32).ravel(), "SCALAR", _INDEX_BUFFER),
+                )
+            ],
+        )
+    )
+    inverse = (
+        np.swapaxes(character.inverse_bind, 1, 2).reshape(len(JOINT_NAMES), 16).astype(np.float32)
+    )  # column-major
+    skins.append(
+        gl.Skin(
+            name="character",
+            joints=list(range(first, first + len(JOINT_NAMES))),
+            skeleton=first,
+            inverseBindMatrices=blob.stored(inverse, "MAT4"),
+        )
+    )
     nodes.append(gl.Node(name=character.path.stem, mesh=len(meshes) - 1, skin=len(skins) - 1))
     return [first, len(nodes) - 1]

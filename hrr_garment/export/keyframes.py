@@ -38,7 +38,7 @@ def _segment_error(vertices: np.ndarray, start: int, end: int) -> float:
         return 0.0
     s = (np.arange(1, end - start) / (end - start))[:, None, None]
     lerp = (1 - s) * vertices[start] + s * vertices[end]
-    return float(np.sqrt(((vertices[start + 1:end] - lerp) ** 2).sum(-1)).max())
+    return float(np.sqrt(((vertices[start + 1 : end] - lerp) ** 2).sum(-1)).max())
 
 
 def select_keyframes(vertices: np.ndarray, tolerance: float, max_span: int = 60) -> Keyframes:

@@ -72,7 +72,9 @@ def _onnxruntime():
     try:
         import onnxruntime
     except ImportError:
-        raise ImportError("running an ONNX model needs onnxruntime: pip install 'hrr_garment[onnx]'") from None
+        raise ImportError(
+            "running an ONNX model needs onnxruntime: pip install 'hrr_garment[onnx]'"
+        ) from None
     return onnxruntime
 
 
@@ -81,8 +83,16 @@ def initial_state(shapes: dict[str, tuple[int, ...]], characters: int) -> dict[s
     return {name: np.zeros((characters, *shape), np.float32) for name, shape in shapes.items()}
 
 
-def export_onnx(animator, path: str | Path, body=None, *, push_out: bool = True, allow_outside: bool = False,
-                decoder: str = "full", push: str = "mesh") -> OnnxExport:
+def export_onnx(
+    animator,
+    path: str | Path,
+    body=None,
+    *,
+    push_out: bool = True,
+    allow_outside: bool = False,
+    decoder: str = "full",
+    push: str = "mesh",
+) -> OnnxExport:
     """Write ``path`` (.onnx, one file) and its companion ``<stem>.tensors.npz``, atomically.
     ``body``: what :meth:`~hrr_garment.inference.animator.Animator.body` takes (None: the model's own);
     ``decoder``: "full" (the mesh decoder's folded kernels) or "fast" (the subspace decoder: a graph
@@ -96,21 +106,40 @@ def export_onnx(animator, path: str | Path, body=None, *, push_out: bool = True,
     character = animator.body(body, allow_outside=allow_outside)
     # refuses a fast decoder or a subspace push without the bundle's fast decoder, before the export's minute
     run = animator.resolve(mode="regression", decoder=decoder, push=push)
-    step = stream_step(animator, character, push_out=push_out, decoder=decoder, push_settings=animator.push_settings(run))
+    step = stream_step(
+        animator, character, push_out=push_out, decoder=decoder, push_settings=animator.push_settings(run)
+    )
     shapes = state_shapes(step)
     example = _example_inputs(shapes, 2)
     n = torch.export.Dim("characters", min=1, max=4096)
     dynamic = tuple({0: n} for _ in example)
     with torch.no_grad(), _quiet():
-        program = torch.onnx.export(step, tuple(torch.from_numpy(x) for x in example.values()), dynamo=True,
-                                    input_names=list(example), output_names=list(OUTPUTS), dynamic_shapes=dynamic,
-                                    opset_version=OPSET, optimize=True, verbose=False)
+        program = torch.onnx.export(
+            step,
+            tuple(torch.from_numpy(x) for x in example.values()),
+            dynamo=True,
+            input_names=list(example),
+            output_names=list(OUTPUTS),
+            dynamic_shapes=dynamic,
+            opset_version=OPSET,
+            optimize=True,
+            verbose=False,
+        )
     model = program.model_proto
     bundle = animator.bundle
-    meta = {"hrr_garment": __version__, "garment": bundle.garment, "content_hash": bundle.content_hash,
-            "fps": FPS, "push_out": bool(push_out), "push": run.push, "body": character.name, "decoder": decoder,
-            "vertices": int(bundle.template.num_vertices), "state": {k: list(v) for k, v in shapes.items()},
-            "path": "regression"}
+    meta = {
+        "hrr_garment": __version__,
+        "garment": bundle.garment,
+        "content_hash": bundle.content_hash,
+        "fps": FPS,
+        "push_out": bool(push_out),
+        "push": run.push,
+        "body": character.name,
+        "decoder": decoder,
+        "vertices": int(bundle.template.num_vertices),
+        "state": {k: list(v) for k, v in shapes.items()},
+        "path": "regression",
+    }
     for key, value in meta.items():
         entry = model.metadata_props.add()
         entry.key, entry.value = key, value if isinstance(value, str) else json.dumps(value)
@@ -119,9 +148,15 @@ def export_onnx(animator, path: str | Path, body=None, *, push_out: bool = True,
     tensors = path.with_name(f"{path.stem}.tensors.npz")
     db = bundle.database
     with atomic_path(tensors) as tmp, open(tmp, "wb") as fh:
-        np.savez(fh, faces=bundle.template.faces.astype(np.int32), joint_names=np.array(JOINT_NAMES),
-                 database_codes=np.asarray(db.codes, np.uint8), database_latents=np.asarray(db.latents[np.arange(len(db)), -1], np.float32),
-                 database_sequence=np.asarray(db.sequence, np.int32), database_start=np.asarray(db.start, np.int32))
+        np.savez(
+            fh,
+            faces=bundle.template.faces.astype(np.int32),
+            joint_names=np.array(JOINT_NAMES),
+            database_codes=np.asarray(db.codes, np.uint8),
+            database_latents=np.asarray(db.latents[np.arange(len(db)), -1], np.float32),
+            database_sequence=np.asarray(db.sequence, np.int32),
+            database_start=np.asarray(db.start, np.int32),
+        )
     return OnnxExport(path, tensors, int(bundle.template.num_vertices), shapes, time.perf_counter() - t0)
 
 
@@ -142,8 +177,10 @@ def _quiet():
 def _example_inputs(shapes: dict, characters: int) -> dict[str, np.ndarray]:
     rng = np.random.default_rng(0)
     quats = rng.normal(size=(characters, NUM_JOINTS, 4)).astype(np.float32)
-    inputs = {"rotations": quats / np.linalg.norm(quats, axis=-1, keepdims=True),
-              "root": np.tile(np.float32([0.0, 0.96, 0.0]), (characters, 1))}
+    inputs = {
+        "rotations": quats / np.linalg.norm(quats, axis=-1, keepdims=True),
+        "root": np.tile(np.float32([0.0, 0.96, 0.0]), (characters, 1)),
+    }
     return inputs | initial_state(shapes, characters)
 
 
@@ -162,20 +199,31 @@ class OnnxStream:
             raise InputError(path, f"not an ONNX model onnxruntime can load ({exc})") from None
         meta = self.session.get_modelmeta().custom_metadata_map
         if "state" not in meta:
-            raise InputError(path, "not a streaming step written by hrr-export-model --onnx (no state in its metadata)")
+            raise InputError(
+                path, "not a streaming step written by hrr-export-model --onnx (no state in its metadata)"
+            )
         self.shapes = {k: tuple(v) for k, v in json.loads(meta["state"]).items()}
         # the run the graph holds, as Animator.stream and crowd take it (graphs written before the
         # decoder and push were recorded: the full decoder, the mesh push)
-        self.settings = {"collision": json.loads(meta["push_out"]), "decoder": meta.get("decoder", "full"),
-                         "push": meta.get("push", "mesh")}
+        self.settings = {
+            "collision": json.loads(meta["push_out"]),
+            "decoder": meta.get("decoder", "full"),
+            "push": meta.get("push", "mesh"),
+        }
         self.state: dict[str, np.ndarray] | None = None
 
     def push(self, rotations: np.ndarray, roots: np.ndarray) -> np.ndarray:
         """(N, 22, 4) quaternions x y z w and (N, 3) roots -> (N, V, 3) world vertices."""
         if self.state is None:
             self.state = initial_state(self.shapes, len(rotations))
-        out = self.session.run(list(OUTPUTS), {"rotations": np.asarray(rotations, np.float32),
-                                               "root": np.asarray(roots, np.float32), **self.state})
+        out = self.session.run(
+            list(OUTPUTS),
+            {
+                "rotations": np.asarray(rotations, np.float32),
+                "root": np.asarray(roots, np.float32),
+                **self.state,
+            },
+        )
         self.state = dict(zip(STATE, out[3:]))
         return out[0]
 
@@ -191,7 +239,7 @@ def check_onnx(animator, path: str | Path, motion: Motion, body=None, *, allow_o
     gaps, onnx_s, python_s = [], [], []
     for t in range(motion.num_frames):
         t0 = time.perf_counter()
-        ours = runner.push(quats[t:t + 1], roots[t:t + 1])[0]
+        ours = runner.push(quats[t : t + 1], roots[t : t + 1])[0]
         t1 = time.perf_counter()
         theirs = python.push(rotation=quats[t], root=roots[t])
         t2 = time.perf_counter()
@@ -199,9 +247,25 @@ def check_onnx(animator, path: str | Path, motion: Motion, body=None, *, allow_o
         python_s.append(t2 - t1)
         gaps.append(np.linalg.norm(ours.astype(np.float64) - theirs, axis=-1).max() * 1000.0)
     gaps = np.array(gaps)
-    return {"frames": motion.num_frames, "max_mm": float(gaps.max()), "mean_mm": float(gaps.mean()),
-            "onnx_ms": float(np.median(onnx_s) * 1000), "python_ms": float(np.median(python_s) * 1000)}
+    return {
+        "frames": motion.num_frames,
+        "max_mm": float(gaps.max()),
+        "mean_mm": float(gaps.mean()),
+        "onnx_ms": float(np.median(onnx_s) * 1000),
+        "python_ms": float(np.median(python_s) * 1000),
+    }
 
 
-__all__ = ["INPUTS", "STATE", "OUTPUTS", "TENSORS", "OnnxExport", "OnnxStream", "export_onnx",
-           "check_onnx", "initial_state", "state_shapes", "stream_step"]
+__all__ = [
+    "INPUTS",
+    "STATE",
+    "OUTPUTS",
+    "TENSORS",
+    "OnnxExport",
+    "OnnxStream",
+    "export_onnx",
+    "check_onnx",
+    "initial_state",
+    "state_shapes",
+    "stream_step",
+]

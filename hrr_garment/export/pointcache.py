@@ -48,7 +48,9 @@ def read_pc2(path: str | Path) -> tuple[np.ndarray, float, float]:
         raise InputError(path, f"not a PC2 file (magic {magic!r}, version {version})")
     expected = _PC2_HEADER.size + 12 * points * samples
     if len(data) != expected:
-        raise InputError(path, f"{len(data)} bytes, but the header ({samples} samples of {points} points) needs {expected}")
+        raise InputError(
+            path, f"{len(data)} bytes, but the header ({samples} samples of {points} points) needs {expected}"
+        )
     return np.frombuffer(data, "<f4", offset=_PC2_HEADER.size).reshape(samples, points, 3), start, rate
 
 
@@ -64,8 +66,9 @@ def write_pc2_with_obj(anim: AnimationFile, path: str | Path) -> tuple[Path, Pat
     return path, base
 
 
-def write_obj_sequence(anim: AnimationFile, directory: str | Path, stem: str | None = None,
-                       progress: bool = True) -> list[Path]:
+def write_obj_sequence(
+    anim: AnimationFile, directory: str | Path, stem: str | None = None, progress: bool = True
+) -> list[Path]:
     """One OBJ per frame, ``STEM_00000.obj`` ..., into ``directory``. The frames are written into a
     temporary folder beside it and moved in only when all are done, so a failed export leaves no
     partial sequence; the frames of an earlier export with the same stem are replaced (extra ones removed)."""
@@ -87,7 +90,9 @@ def write_obj_sequence(anim: AnimationFile, directory: str | Path, stem: str | N
                 fh.write(format_rows("v %.6f %.6f %.6f", vertices))
                 fh.write(faces)
         directory.mkdir(exist_ok=True)
-        for stale in set(p.name for p in directory.glob(f"{stem}_[0-9][0-9][0-9][0-9][0-9].obj")) - set(names):
+        for stale in set(p.name for p in directory.glob(f"{stem}_[0-9][0-9][0-9][0-9][0-9].obj")) - set(
+            names
+        ):
             (directory / stale).unlink()
         for name in names:
             os.replace(staging / name, directory / name)

@@ -32,7 +32,9 @@ def _colour(j: int) -> tuple[int, int, int]:
     return _LEFT if name.startswith("l_") else _RIGHT if name.startswith("r_") else _CENTRE
 
 
-def render_skeleton_preview(rows: list[tuple[str, Motion]], path: str | Path, frames: int = 6, cell: int = 180) -> Path:
+def render_skeleton_preview(
+    rows: list[tuple[str, Motion]], path: str | Path, frames: int = 6, cell: int = 180
+) -> Path:
     """One row per motion: ``frames`` evenly spaced frames, each as a front and a side view.
 
     Views are in the character's ground-level body frame at that frame (front: looking at its face; side:
@@ -49,7 +51,9 @@ def render_skeleton_preview(rows: list[tuple[str, Motion]], path: str | Path, fr
         joints = to_body_frame(motion.joint_positions, motion, ground=True)
         for k, t in enumerate(np.linspace(0, motion.num_frames - 1, frames).round().astype(int)):
             local = joints[t]
-            for v, (axis, sign) in enumerate(((0, 1.0), (2, -1.0))):  # front: its left on our right; side: from its left
+            for v, (axis, sign) in enumerate(
+                ((0, 1.0), (2, -1.0))
+            ):  # front: its left on our right; side: from its left
                 ox = (2 * k + v) * cell + cell / 2
                 oy = top + 20 + cell * 0.95
                 screen = np.stack([ox + sign * local[:, axis] * scale, oy - local[:, 1] * scale], 1)
@@ -57,7 +61,9 @@ def render_skeleton_preview(rows: list[tuple[str, Motion]], path: str | Path, fr
                 for j, p in enumerate(PARENTS):
                     if p >= 0:
                         draw.line([tuple(screen[p]), tuple(screen[j])], fill=_colour(j), width=3)
-                draw.text((ox - cell / 2 + 3, top + 20), f"f{t} {'front' if v == 0 else 'side'}", fill=(90, 90, 90))
+                draw.text(
+                    (ox - cell / 2 + 3, top + 20), f"f{t} {'front' if v == 0 else 'side'}", fill=(90, 90, 90)
+                )
     path = Path(path)
     with atomic_path(path) as tmp:
         img.save(tmp, format="PNG")
@@ -95,16 +101,22 @@ class OrthoCamera:
     def axes(self) -> np.ndarray:
         """Rows: screen right, screen up, towards the camera (an orthonormal, right-handed basis)."""
         th, ph = np.radians(self.azimuth), np.radians(self.elevation)
-        return np.array([[np.cos(th), 0.0, -np.sin(th)],
-                         [-np.sin(th) * np.sin(ph), np.cos(ph), -np.cos(th) * np.sin(ph)],
-                         [np.sin(th) * np.cos(ph), np.sin(ph), np.cos(th) * np.cos(ph)]])
+        return np.array(
+            [
+                [np.cos(th), 0.0, -np.sin(th)],
+                [-np.sin(th) * np.sin(ph), np.cos(ph), -np.cos(th) * np.sin(ph)],
+                [np.sin(th) * np.cos(ph), np.sin(ph), np.cos(th) * np.cos(ph)],
+            ]
+        )
 
     def project(self, points: np.ndarray) -> np.ndarray:
         """(..., 3) world -> (..., 3) camera coordinates (right, up, towards the camera)."""
         return (points - np.asarray(self.target)) @ self.axes().T
 
 
-def draw_meshes(image, meshes: list[PreviewMesh], camera: OrthoCamera, centre: tuple[float, float], scale: float):
+def draw_meshes(
+    image, meshes: list[PreviewMesh], camera: OrthoCamera, centre: tuple[float, float], scale: float
+):
     """Flat-shaded, two-sided, z-buffered triangles drawn over the PIL ``image``; returns the new image.
     The light comes from the camera and above."""
     from .raster import rasterize
@@ -119,27 +131,47 @@ def draw_meshes(image, meshes: list[PreviewMesh], camera: OrthoCamera, centre: t
         normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-12)
         shade = 0.35 + 0.65 * np.abs(normal @ light)
         screen = np.stack([centre[0] + tri[..., 0] * scale, centre[1] - tri[..., 1] * scale, tri[..., 2]], -1)
-        rasterize(pixels, depth, screen, colours=np.clip(np.outer(shade, mesh.colour), 0, 255).astype(np.uint8))
+        rasterize(
+            pixels, depth, screen, colours=np.clip(np.outer(shade, mesh.colour), 0, 255).astype(np.uint8)
+        )
     return Image.fromarray(pixels)
 
 
-def draw_ground(draw, camera: OrthoCamera, centre: tuple[float, float], scale: float, half_width: float,
-                spacing: float = 0.5, width: int = 1) -> None:
+def draw_ground(
+    draw,
+    camera: OrthoCamera,
+    centre: tuple[float, float],
+    scale: float,
+    half_width: float,
+    spacing: float = 0.5,
+    width: int = 1,
+) -> None:
     """Grid lines on y = 0 around the camera target, so translation over the ground shows."""
     tx, _, tz = camera.target
 
     def grid(c: float) -> np.ndarray:
-        return np.arange(np.ceil((c - half_width) / spacing), np.floor((c + half_width) / spacing) + 1) * spacing
+        return (
+            np.arange(np.ceil((c - half_width) / spacing), np.floor((c + half_width) / spacing) + 1) * spacing
+        )
 
     lines = [((x, 0.0, tz - half_width), (x, 0.0, tz + half_width)) for x in grid(tx)]
     lines += [((tx - half_width, 0.0, z), (tx + half_width, 0.0, z)) for z in grid(tz)]
     for a, b in lines:
         ends = camera.project(np.array([a, b]))
-        draw.line([(centre[0] + e[0] * scale, centre[1] - e[1] * scale) for e in ends], fill=(205, 205, 200), width=width)
+        draw.line(
+            [(centre[0] + e[0] * scale, centre[1] - e[1] * scale) for e in ends],
+            fill=(205, 205, 200),
+            width=width,
+        )
 
 
-def render_mesh_preview(rows: list[tuple[str, list[list[PreviewMesh]]]], path: str | Path, cell: int = 220,
-                        views: tuple[str, ...] = ("front", "side"), metres: float = 2.0) -> Path:
+def render_mesh_preview(
+    rows: list[tuple[str, list[list[PreviewMesh]]]],
+    path: str | Path,
+    cell: int = 220,
+    views: tuple[str, ...] = ("front", "side"),
+    metres: float = 2.0,
+) -> Path:
     """A grid of flat-shaded orthographic renders: one row per label, each frame in every view.
 
     ``metres`` is the height of world space a cell shows (feet at the bottom).
@@ -155,8 +187,13 @@ def render_mesh_preview(rows: list[tuple[str, list[list[PreviewMesh]]]], path: s
         for k, meshes in enumerate(frames):
             for v, view in enumerate(views):
                 left = (k * len(views) + v) * cell
-                tile = draw_meshes(Image.new("RGB", (cell, cell), (250, 250, 247)), meshes, OrthoCamera.named(view),
-                                   (cell / 2, cell * 0.97), scale)
+                tile = draw_meshes(
+                    Image.new("RGB", (cell, cell), (250, 250, 247)),
+                    meshes,
+                    OrthoCamera.named(view),
+                    (cell / 2, cell * 0.97),
+                    scale,
+                )
                 img.paste(tile, (left, top + 20))
                 draw.text((left + 3, top + cell + 4), view, fill=(120, 120, 120))
     path = Path(path)
@@ -165,8 +202,9 @@ def render_mesh_preview(rows: list[tuple[str, list[list[PreviewMesh]]]], path: s
     return path
 
 
-def render_sequence_preview(rows: list[tuple[str, np.ndarray, np.ndarray, Motion]], path: str | Path,
-                            frames: int = 4, cell: int = 220) -> Path:
+def render_sequence_preview(
+    rows: list[tuple[str, np.ndarray, np.ndarray, Motion]], path: str | Path, frames: int = 4, cell: int = 220
+) -> Path:
     """Garment over body for a few evenly spaced frames of each (label, vertices (T, V, 3), faces,
     motion) row, shown in the ground-level body frame (front and side views)."""
     return render_mesh_preview(sequence_rows(rows, frames), path, cell=cell)
@@ -188,20 +226,25 @@ def sequence_rows(rows: list[tuple], frames: int = 4) -> list:
         cells = []
         for t in np.linspace(0, len(vertices) - 1, frames).round().astype(int):
             pose = motion.slice(t, t + 1)
-            garment = to_body_frame(vertices[t:t + 1].astype(np.float64), pose, ground=True)[0]
+            garment = to_body_frame(vertices[t : t + 1].astype(np.float64), pose, ground=True)[0]
             if visible is not None:
-                bv = to_body_frame(visible.pose(motion.global_rotations[t:t + 1], motion.joint_positions[t:t + 1]), pose,
-                                   ground=True)[0]
+                bv = to_body_frame(
+                    visible.pose(motion.global_rotations[t : t + 1], motion.joint_positions[t : t + 1]),
+                    pose,
+                    ground=True,
+                )[0]
                 bf = visible.faces
             else:
                 ends = to_body_frame(np.stack([a[t], b[t]])[None].reshape(1, -1, 3), pose, ground=True)[0]
-                bv, bf = body_mesh(ends[: len(a[t])], ends[len(a[t]):], body.radii, segments=12, rings=6)
+                bv, bf = body_mesh(ends[: len(a[t])], ends[len(a[t]) :], body.radii, segments=12, rings=6)
             cells.append([PreviewMesh(bv, bf, (205, 195, 185)), PreviewMesh(garment, faces, (70, 110, 200))])
         grid.append((f"{label} (frames {0}-{len(vertices) - 1})", cells))
     return grid
 
 
-def write_dataset_preview(records: list, garment, path: Path, frames: int = 4, bodies: dict | None = None) -> Path | None:
+def write_dataset_preview(
+    records: list, garment, path: Path, frames: int = 4, bodies: dict | None = None
+) -> Path | None:
     """Front and side views of a walk and a spin (or the first two sequences) of a built
     dataset (``SequenceRecord``s of a ``GarmentMesh``), in the ground-level body frame; with
     ``bodies`` (name -> :class:`~hrr_garment.data.bodies.DressedBody`), each on its own body, and
@@ -214,13 +257,29 @@ def write_dataset_preview(records: list, garment, path: Path, frames: int = 4, b
     chosen = chosen or records[:2]
     used = sorted({r.body for r in records if r.body in bodies}, key=lambda n: bodies[n].record.stature)
     extremes = [used[0], used[-1]] if len(used) > 1 else used
-    chosen += [next(r for r in records if r.body == name) for name in extremes
-               if not any(c.body == name for c in chosen)]
+    chosen += [
+        next(r for r in records if r.body == name)
+        for name in extremes
+        if not any(c.body == name for c in chosen)
+    ]
     try:
-        rest = [("the template on the rest body; attached vertices (they follow the body) in orange",
-                 [template_meshes(garment)] + [template_meshes(bodies[n].garment, body=bodies[n].record) for n in extremes])]
-        rows = [(f"{r.name} on {r.body}" if r.body in bodies else r.name, r.garment, garment.faces, r.motion,
-                 *([bodies[r.body].record] if r.body in bodies else [])) for r in chosen]
+        rest = [
+            (
+                "the template on the rest body; attached vertices (they follow the body) in orange",
+                [template_meshes(garment)]
+                + [template_meshes(bodies[n].garment, body=bodies[n].record) for n in extremes],
+            )
+        ]
+        rows = [
+            (
+                f"{r.name} on {r.body}" if r.body in bodies else r.name,
+                r.garment,
+                garment.faces,
+                r.motion,
+                *([bodies[r.body].record] if r.body in bodies else []),
+            )
+            for r in chosen
+        ]
         return render_mesh_preview(rest + sequence_rows(rows, frames), path)
     except ImportError:
         return None
@@ -243,10 +302,15 @@ def template_meshes(garment, marker: float = 0.015, body=None) -> list[PreviewMe
         a, b = capsules.rest_pose()
         bv, bf = body_mesh(a, b, capsules.radii, segments=12, rings=6)
     tips = np.concatenate([np.eye(3), -np.eye(3)]) * marker
-    octahedron = np.array([[0, 1, 2], [1, 3, 2], [3, 4, 2], [4, 0, 2], [1, 0, 5], [3, 1, 5], [4, 3, 5], [0, 4, 5]])
+    octahedron = np.array(
+        [[0, 1, 2], [1, 3, 2], [3, 4, 2], [4, 0, 2], [1, 0, 5], [3, 1, 5], [4, 3, 5], [0, 4, 5]]
+    )
     corners = tips[[0, 1, 3, 4, 2, 5]]  # +x, +y, -x, -y around the z axis, then +z, -z
     attached = garment.vertices[garment.attached].astype(np.float64)
     mv = (attached[:, None] + corners[None]).reshape(-1, 3)
     mf = (octahedron[None] + 6 * np.arange(len(attached))[:, None, None]).reshape(-1, 3)
-    return [PreviewMesh(bv, bf, (205, 195, 185)), PreviewMesh(garment.vertices.astype(np.float64), garment.faces, (70, 110, 200)),
-            PreviewMesh(mv, mf, (235, 130, 30))]
+    return [
+        PreviewMesh(bv, bf, (205, 195, 185)),
+        PreviewMesh(garment.vertices.astype(np.float64), garment.faces, (70, 110, 200)),
+        PreviewMesh(mv, mf, (235, 130, 30)),
+    ]

@@ -35,7 +35,9 @@ def rasterize(image: np.ndarray, depth: np.ndarray, triangles: np.ndarray, colou
     while start < len(keep):  # batches of triangles whose candidate pixels fit in _CHUNK
         stop = start + max(1, int(np.searchsorted(np.cumsum(counts[start:]), _CHUNK)))
         ids, n = keep[start:stop], counts[start:stop]
-        _rasterize_batch(image, depth, planes, np.asarray(colours), (ids, n, x0[ids], (x1 - x0 + 1)[ids], y0[ids]))
+        _rasterize_batch(
+            image, depth, planes, np.asarray(colours), (ids, n, x0[ids], (x1 - x0 + 1)[ids], y0[ids])
+        )
         start = stop
 
 
@@ -61,7 +63,9 @@ def _rasterize_batch(image, depth, planes, colours, boxes: tuple) -> None:
     ids, counts, x0, bw, y0 = boxes
     # Candidates are grouped by triangle, so per-triangle values spread with np.repeat (about 2.5x
     # faster than fancy indexing); int32 division is the cheapest way to a box's column and row.
-    offset = (np.arange(counts.sum(), dtype=np.int64) - np.repeat(np.cumsum(counts) - counts, counts)).astype(np.int32)
+    offset = (np.arange(counts.sum(), dtype=np.int64) - np.repeat(np.cumsum(counts) - counts, counts)).astype(
+        np.int32
+    )
     w_box = np.repeat(bw.astype(np.int32), counts)
     row = offset // w_box
     col = offset - row * w_box

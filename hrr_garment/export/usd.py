@@ -27,7 +27,9 @@ def _pxr():
     return Sdf, Tf, Usd, UsdGeom, Vt
 
 
-def _define_mesh(stage, prim_path: str, faces: np.ndarray, frames, colour: tuple[float, float, float]) -> None:
+def _define_mesh(
+    stage, prim_path: str, faces: np.ndarray, frames, colour: tuple[float, float, float]
+) -> None:
     """A triangle mesh at ``prim_path`` whose points and extent are sampled at time codes 0, 1, ..."""
     _, _, Usd, UsdGeom, Vt = _pxr()
     mesh = UsdGeom.Mesh.Define(stage, prim_path)
@@ -60,21 +62,32 @@ def write_usd(anim: AnimationFile, path: str | Path, with_body: bool = False) ->
     stage.SetDefaultPrim(root.GetPrim())
     # the rate again where Blender's importer reads it (userProperties become custom properties;
     # it takes the range from the stage but not the rate): the add-on sets the scene's from them
-    for key, value, kind in (("fps", float(anim.fps), Sdf.ValueTypeNames.Double),
-                             ("frames", int(anim.num_frames), Sdf.ValueTypeNames.Int)):
+    for key, value, kind in (
+        ("fps", float(anim.fps), Sdf.ValueTypeNames.Double),
+        ("frames", int(anim.num_frames), Sdf.ValueTypeNames.Int),
+    ):
         root.GetPrim().CreateAttribute(f"userProperties:{key}", kind, custom=True).Set(value)
     name = Tf.MakeValidIdentifier(str(anim.attrs.get("garment", "garment")))
     _define_mesh(stage, f"/Animation/{name}", anim.faces, anim.vertices, (0.27, 0.43, 0.78))
     if with_body:
         faces = anim.body_mesh(0)[1]
-        _define_mesh(stage, "/Animation/body", faces, (anim.body_mesh(t)[0] for t in range(anim.num_frames)),
-                     (0.8, 0.76, 0.72))
+        _define_mesh(
+            stage,
+            "/Animation/body",
+            faces,
+            (anim.body_mesh(t)[0] for t in range(anim.num_frames)),
+            (0.8, 0.76, 0.72),
+        )
     with atomic_path(path) as tmp:
         try:
-            written = stage.GetRootLayer().Export(str(tmp), args={"format": "usda" if path.suffix.lower() == ".usda" else "usdc"})
+            written = stage.GetRootLayer().Export(
+                str(tmp), args={"format": "usda" if path.suffix.lower() == ".usda" else "usdc"}
+            )
         except Tf.ErrorException as exc:  # USD reports a full disk as a list of its own errors
             first = str(exc).strip().splitlines()[0] if str(exc).strip() else "USD could not write it"
-            raise OutputError(path, f"cannot write the output: {first.split(': ', 1)[-1].strip(chr(39))}") from None
+            raise OutputError(
+                path, f"cannot write the output: {first.split(': ', 1)[-1].strip(chr(39))}"
+            ) from None
         if not written:
             raise OutputError(path, "cannot write the output: USD export failed")
     return path

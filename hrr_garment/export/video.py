@@ -47,7 +47,9 @@ class PreviewStyle:
     def __post_init__(self):
         unknown = [v for v in self.views if v not in VIEWS]
         if unknown or not self.views:
-            raise InputError("--views", f"unknown view(s) {', '.join(unknown) or '(none)'}; choose from {', '.join(VIEWS)}")
+            raise InputError(
+                "--views", f"unknown view(s) {', '.join(unknown) or '(none)'}; choose from {', '.join(VIEWS)}"
+            )
         if self.size < 64:
             raise InputError("--size", f"at least 64 pixels, got {self.size}")
 
@@ -60,7 +62,9 @@ def _smooth_track(points: np.ndarray, fps: float) -> np.ndarray:
     return np.stack([np.convolve(pad[:, i], kernel / k, mode="valid") for i in range(points.shape[1])], 1)
 
 
-def render_scene(meshes: list[PreviewMesh], target: tuple[float, float, float], style: PreviewStyle, label: str = ""):
+def render_scene(
+    meshes: list[PreviewMesh], target: tuple[float, float, float], style: PreviewStyle, label: str = ""
+):
     """One PIL image of ``meshes``: the style's views side by side, cameras aimed at ``target``
     (on the ground below the pelvis), with a ground grid and ``label`` in the corner."""
     Image, ImageDraw = _pil()
@@ -84,8 +88,13 @@ def render_scene(meshes: list[PreviewMesh], target: tuple[float, float, float], 
 def render_frame(anim: AnimationFile, style: PreviewStyle, t: int, track: np.ndarray):
     """Frame ``t`` of ``anim``; ``track`` (T, 3) is where the cameras aim (see :func:`_smooth_track`)."""
     retrieved = bool(anim.retrieved[t])
-    meshes = [PreviewMesh(anim.vertices[t].astype(np.float64), anim.faces,
-                          RETRIEVED if style.color_mode and retrieved else GARMENT)]
+    meshes = [
+        PreviewMesh(
+            anim.vertices[t].astype(np.float64),
+            anim.faces,
+            RETRIEVED if style.color_mode and retrieved else GARMENT,
+        )
+    ]
     if style.with_body:
         meshes.insert(0, PreviewMesh(*anim.body_mesh(t), BODY))
     label = f"frame {t}  {t / anim.fps:5.2f} s"
@@ -108,8 +117,13 @@ def _worker_render(t: int) -> tuple[tuple[int, int], bytes]:
     return image.size, image.tobytes()
 
 
-def render_frames(anim: AnimationFile, style: PreviewStyle, frames: np.ndarray | None = None,
-                  progress: bool = True, workers: int | None = None) -> Iterator:
+def render_frames(
+    anim: AnimationFile,
+    style: PreviewStyle,
+    frames: np.ndarray | None = None,
+    progress: bool = True,
+    workers: int | None = None,
+) -> Iterator:
     """PIL images, in order, one per frame index in ``frames`` (default: all), views side by side.
     Frames are rendered by ``workers`` processes (default: one per CPU) when there are many."""
     Image, _ = _pil()
@@ -123,8 +137,12 @@ def render_frames(anim: AnimationFile, style: PreviewStyle, frames: np.ndarray |
             bar.update()
     else:
         # Ctrl-C and SIGTERM wait for the next frame: raised inside the pool's internals they can hang its clean-up
-        with DeferredSignals() as signals, \
-                multiprocessing.get_context().Pool(workers, _worker_init, (os.getpid(), anim, style, track)) as pool:
+        with (
+            DeferredSignals() as signals,
+            multiprocessing.get_context().Pool(
+                workers, _worker_init, (os.getpid(), anim, style, track)
+            ) as pool,
+        ):
             for size, data in pool.imap(_worker_render, frames.tolist(), chunksize=4):
                 signals.check()
                 yield Image.frombytes("RGB", size, data)
@@ -142,12 +160,20 @@ def ffmpeg_executable() -> str:
         pass
     found = shutil.which("ffmpeg")
     if found is None:
-        raise ImportError("MP4 previews need ffmpeg: pip install 'hrr_garment[video]' (or put ffmpeg on PATH)")
+        raise ImportError(
+            "MP4 previews need ffmpeg: pip install 'hrr_garment[video]' (or put ffmpeg on PATH)"
+        )
     return found
 
 
-def write_preview(anim: AnimationFile, path: str | Path, style: PreviewStyle = PreviewStyle(), every: int = 1,
-                  sheet_frames: int = 6, progress: bool = True) -> Path:
+def write_preview(
+    anim: AnimationFile,
+    path: str | Path,
+    style: PreviewStyle = PreviewStyle(),
+    every: int = 1,
+    sheet_frames: int = 6,
+    progress: bool = True,
+) -> Path:
     """GIF or MP4 of every ``every``-th frame, or (.png) a contact sheet of ``sheet_frames`` evenly
     spaced frames one under the other (just the middle frame when 1). Written atomically."""
     path = Path(path)
@@ -158,8 +184,11 @@ def write_preview(anim: AnimationFile, path: str | Path, style: PreviewStyle = P
         raise InputError("--every", f"must be >= 1, got {every}")
     if suffix == ".png":
         n = min(sheet_frames, anim.num_frames)
-        chosen = np.unique(np.linspace(0, anim.num_frames - 1, n).round().astype(int)) if n > 1 \
-            else np.array([anim.num_frames // 2])  # one frame: the middle one
+        chosen = (
+            np.unique(np.linspace(0, anim.num_frames - 1, n).round().astype(int))
+            if n > 1
+            else np.array([anim.num_frames // 2])
+        )  # one frame: the middle one
         images = list(render_frames(anim, style, chosen, progress))
         Image, _ = _pil()
         sheet = Image.new("RGB", (images[0].width, sum(i.height for i in images)))
@@ -175,8 +204,15 @@ def write_preview(anim: AnimationFile, path: str | Path, style: PreviewStyle = P
         if suffix == ".gif":
             first = next(images)
             # GIF delays are whole centiseconds; 30 fps plays at 33.3 fps-ish (3 cs) rather than drifting.
-            first.save(tmp, format="GIF", save_all=True, append_images=list(images), loop=0,
-                       duration=max(20, int(round(100 / fps)) * 10), optimize=False)
+            first.save(
+                tmp,
+                format="GIF",
+                save_all=True,
+                append_images=list(images),
+                loop=0,
+                duration=max(20, int(round(100 / fps)) * 10),
+                optimize=False,
+            )
         else:
             _encode_mp4(images, tmp, fps, style.size * len(style.views), style.size, target=path)
     return path
@@ -186,9 +222,34 @@ def _encode_mp4(images: Iterator, path: Path, fps: float, width: int, height: in
     """H.264 (yuv420p, even dimensions) through an ffmpeg subprocess fed raw RGB frames, into
     ``path``; a failure (a full disk, say) is an :class:`OutputError` naming ``target``."""
     w, h = width + width % 2, height + height % 2
-    cmd = [ffmpeg_executable(), "-y", "-loglevel", "error", "-f", "rawvideo", "-pix_fmt", "rgb24", "-s", f"{w}x{h}",
-           "-r", f"{fps:g}", "-i", "-", "-an", "-c:v", "libx264", "-pix_fmt", "yuv420p", "-crf", "20",
-           "-movflags", "+faststart", "-f", "mp4", str(path)]
+    cmd = [
+        ffmpeg_executable(),
+        "-y",
+        "-loglevel",
+        "error",
+        "-f",
+        "rawvideo",
+        "-pix_fmt",
+        "rgb24",
+        "-s",
+        f"{w}x{h}",
+        "-r",
+        f"{fps:g}",
+        "-i",
+        "-",
+        "-an",
+        "-c:v",
+        "libx264",
+        "-pix_fmt",
+        "yuv420p",
+        "-crf",
+        "20",
+        "-movflags",
+        "+faststart",
+        "-f",
+        "mp4",
+        str(path),
+    ]
     proc = subprocess.Popen(cmd, stdin=subprocess.PIPE, stderr=subprocess.PIPE)
     try:
         for im in images:

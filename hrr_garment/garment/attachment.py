@@ -38,16 +38,22 @@ class SkinBinding:
         return np.einsum("taki,ak->tai", per_joint, self.weights)
 
 
-def bind_attached(mesh: GarmentMesh, body: BodyModel = DEFAULT_BODY, bones: int = 2,
-                  joints: tuple[str, ...] = TORSO_JOINTS) -> SkinBinding:
+def bind_attached(
+    mesh: GarmentMesh, body: BodyModel = DEFAULT_BODY, bones: int = 2, joints: tuple[str, ...] = TORSO_JOINTS
+) -> SkinBinding:
     """Skin the mesh's attached vertices (rest pose) to the nearest capsules among ``joints``."""
     verts = mesh.vertices[mesh.attached].astype(np.float64)
     joints_rest = body.rest_joints()  # the body's own rest joints (the mannequin's by default)
     a, b = body.rest_pose()
     cap_joint = np.array([JOINT_INDEX[c.joint] for c in body.capsules])
     # Distance to every capsule, then the nearest capsule per distinct joint.
-    dist = np.stack([capsule_signed_distance(verts, a[c:c + 1], b[c:c + 1], radii=body.radii[c:c + 1])[0]
-                     for c in range(len(cap_joint))], 1)
+    dist = np.stack(
+        [
+            capsule_signed_distance(verts, a[c : c + 1], b[c : c + 1], radii=body.radii[c : c + 1])[0]
+            for c in range(len(cap_joint))
+        ],
+        1,
+    )
     per_joint = np.full((len(verts), len(PARENTS)), np.inf)
     allowed = {JOINT_INDEX[name] for name in joints}
     for c, j in enumerate(cap_joint):

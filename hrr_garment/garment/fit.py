@@ -54,12 +54,16 @@ class Fit:
 
     def describe(self) -> str:
         moved = ", ".join(f"{v:+.3f}" for v in self.offset)
-        note = (f"unit {self.unit} (x{self.scale:g}), up axis {self.up} -> +y, moved by ({moved}) m; its top band sits on "
-                f"average {1000 * self.top_gap_m:.0f} mm off a 12 mm clearance from the torso; "
-                f"{100 * self.inside:.1f} % of its vertices land more than 5 mm inside the body")
+        note = (
+            f"unit {self.unit} (x{self.scale:g}), up axis {self.up} -> +y, moved by ({moved}) m; its top band sits on "
+            f"average {1000 * self.top_gap_m:.0f} mm off a 12 mm clearance from the torso; "
+            f"{100 * self.inside:.1f} % of its vertices land more than 5 mm inside the body"
+        )
         if self.inside > INSIDE_WARNING:
-            note += (" (a garment modelled on another body: declare that body with --made-for instead of --fit, "
-                     "so the garment is carried onto the body rather than moved)")
+            note += (
+                " (a garment modelled on another body: declare that body with --made-for instead of --fit, "
+                "so the garment is carried onto the body rather than moved)"
+            )
         return note
 
 
@@ -108,8 +112,14 @@ def hem_up_axis(vertices: np.ndarray, faces: np.ndarray, source: str = "garment"
     return axis, sign
 
 
-def fit_garment(vertices: np.ndarray, faces: np.ndarray, body: BodyModel = DEFAULT_BODY, up: str | None = None,
-                unit: str | None = None, source: str = "garment") -> Fit:
+def fit_garment(
+    vertices: np.ndarray,
+    faces: np.ndarray,
+    body: BodyModel = DEFAULT_BODY,
+    up: str | None = None,
+    unit: str | None = None,
+    source: str = "garment",
+) -> Fit:
     """Where the garment (``vertices`` (V, 3) in its file's units and axes, ``faces``) goes on the
     canonical body."""
     v = np.asarray(vertices, np.float64)
@@ -117,8 +127,11 @@ def fit_garment(vertices: np.ndarray, faces: np.ndarray, body: BodyModel = DEFAU
     if unit is None:
         fits = [u for u, s in UNITS.items() if GARMENT_SIZE_M[0] <= extent.max() * s <= GARMENT_SIZE_M[1]]
         if not fits:
-            raise GarmentError(source, f"cannot tell the unit: the largest extent is {extent.max():.4g} file units, no "
-                                       f"garment's size in {', '.join(UNITS)}; give --unit")
+            raise GarmentError(
+                source,
+                f"cannot tell the unit: the largest extent is {extent.max():.4g} file units, no "
+                f"garment's size in {', '.join(UNITS)}; give --unit",
+            )
         unit = fits[0]
     if unit not in UNITS:
         raise GarmentError(source, f"unknown unit {unit!r}; one of {', '.join(UNITS)}")
@@ -137,24 +150,41 @@ def fit_garment(vertices: np.ndarray, faces: np.ndarray, body: BodyModel = DEFAU
     shift_xz = centre - top[:, [0, 2]].mean(0)
     placed[:, [0, 2]] += shift_xz
     whole_a, whole_b = body.rest_pose()
-    sample = placed[::max(1, len(placed) // 2000)]
+    sample = placed[:: max(1, len(placed) // 2000)]
     # a garment hangs from the waist or the shoulders: its top lies between the hips and the neck
     lo, hi = float(np.concatenate([a, b])[:, 1].min()), float(np.concatenate([a, b])[:, 1].max()) + 0.05
     best = None
     for height in np.arange(lo, hi, 0.005):  # where the top band's highest point sits
         dy = height - placed[:, 1].max()
-        gap = np.abs(capsule_signed_distance(top + [shift_xz[0], dy, shift_xz[1]], a, b, radii=radii)[0] - CLEARANCE_M).mean()
-        inside = (capsule_signed_distance(sample + [0.0, dy, 0.0], whole_a, whole_b, radii=body.radii)[0] < -0.005).mean()
+        gap = np.abs(
+            capsule_signed_distance(top + [shift_xz[0], dy, shift_xz[1]], a, b, radii=radii)[0] - CLEARANCE_M
+        ).mean()
+        inside = (
+            capsule_signed_distance(sample + [0.0, dy, 0.0], whole_a, whole_b, radii=body.radii)[0] < -0.005
+        ).mean()
         score = gap + 0.5 * inside  # cloth inside the body costs as much as a 5 mm gap per 1 % of it
         if best is None or score < best[0]:
             best = (score, dy, gap, inside)
     _, dy, gap, inside = best
     offset = np.array([shift_xz[0], dy, shift_xz[1]])
-    return Fit(scale, unit, rotation, ("+" if sign > 0 else "-") + "xyz"[axis], offset, float(gap), inside=float(inside))
+    return Fit(
+        scale,
+        unit,
+        rotation,
+        ("+" if sign > 0 else "-") + "xyz"[axis],
+        offset,
+        float(gap),
+        inside=float(inside),
+    )
 
 
-def auto_attached(vertices: np.ndarray, body: BodyModel = DEFAULT_BODY, band: float = TOP_BAND_M,
-                  contact: float = CONTACT_M, source: str = "garment") -> np.ndarray:
+def auto_attached(
+    vertices: np.ndarray,
+    body: BodyModel = DEFAULT_BODY,
+    band: float = TOP_BAND_M,
+    contact: float = CONTACT_M,
+    source: str = "garment",
+) -> np.ndarray:
     """Indices of the top band's vertices (within ``band`` of the highest) that lie within
     ``contact`` of the torso, for a garment in the canonical rest pose (metres, Y up)."""
     v = np.asarray(vertices, np.float64)
@@ -162,7 +192,10 @@ def auto_attached(vertices: np.ndarray, body: BodyModel = DEFAULT_BODY, band: fl
     near_top = np.flatnonzero(v[:, 1] >= v[:, 1].max() - band)
     on_torso = np.abs(capsule_signed_distance(v[near_top], a, b, radii=radii)[0]) <= contact
     if not on_torso.any():
-        raise GarmentError(source, f"no vertex of the garment's top band ({len(near_top)} vertices within "
-                                   f"{100 * band:.0f} cm of its top) lies within {100 * contact:.0f} cm of the torso: "
-                                   "place it on the body (--fit) or name the attached vertices (--attached GROUP)")
+        raise GarmentError(
+            source,
+            f"no vertex of the garment's top band ({len(near_top)} vertices within "
+            f"{100 * band:.0f} cm of its top) lies within {100 * contact:.0f} cm of the torso: "
+            "place it on the body (--fit) or name the attached vertices (--attached GROUP)",
+        )
     return near_top[on_torso]

@@ -80,7 +80,9 @@ def vertex_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     for k in range(3):  # each corner: the angle between its two edges, atan2 being exact near 0 and pi
         u, w = tri[..., (k + 1) % 3, :] - tri[..., k, :], tri[..., (k + 2) % 3, :] - tri[..., k, :]
         angle = np.arctan2(np.linalg.norm(np.cross(u, w), axis=-1), (u * w).sum(-1))  # (..., F)
-        corner = csr_matrix((np.ones(len(faces)), (faces[:, k], np.arange(len(faces)))), shape=(num, len(faces)))
+        corner = csr_matrix(
+            (np.ones(len(faces)), (faces[:, k], np.arange(len(faces)))), shape=(num, len(faces))
+        )
         weighted = np.moveaxis(unit * angle[..., None], -2, 0).reshape(len(faces), -1)  # (F, ... x 3)
         normals += (corner @ weighted).reshape(normals.shape)
     normals = np.moveaxis(normals, 0, -2)
@@ -131,36 +133,50 @@ def check_garment(mesh: GarmentMesh, min_area: float = 1e-10) -> None:
     tiny = face_areas(v, f) <= min_area
     if (repeated | tiny).any():
         bad = np.flatnonzero(repeated | tiny)
-        raise GarmentError(who, f"{len(bad)} degenerate faces (zero area), first: {bad[:5].tolist()}; "
-                                "repair with repair_mesh(drop_degenerate=True)")
+        raise GarmentError(
+            who,
+            f"{len(bad)} degenerate faces (zero area), first: {bad[:5].tolist()}; "
+            "repair with repair_mesh(drop_degenerate=True)",
+        )
     unused = np.setdiff1d(np.arange(len(v)), f.ravel())
     if len(unused):
         raise GarmentError(who, f"{len(unused)} vertices belong to no face, first: {unused[:5].tolist()}")
     edges, counts, fwd = _directed_edge_counts(f)
     if (counts > 2).any():
         bad = edges[counts > 2]
-        raise GarmentError(who, f"{len(bad)} non-manifold edges (shared by more than two faces), "
-                                f"first: {bad[:3].tolist()}")
+        raise GarmentError(
+            who, f"{len(bad)} non-manifold edges (shared by more than two faces), first: {bad[:3].tolist()}"
+        )
     flipped = (counts == 2) & (fwd != 1)
     if flipped.any():
-        raise GarmentError(who, f"inconsistent winding across {int(flipped.sum())} edges, first: "
-                                f"{edges[flipped][:3].tolist()}; repair with repair_mesh(fix_winding=True)")
+        raise GarmentError(
+            who,
+            f"inconsistent winding across {int(flipped.sum())} edges, first: "
+            f"{edges[flipped][:3].tolist()}; repair with repair_mesh(fix_winding=True)",
+        )
     labels = components(len(v), f)
     n_comp = int(labels.max()) + 1
     if n_comp > 1:
         sizes = np.bincount(labels)
-        raise GarmentError(who, f"mesh has {n_comp} connected components (vertex counts "
-                                f"{sorted(sizes.tolist(), reverse=True)[:5]}); a garment must be one piece")
+        raise GarmentError(
+            who,
+            f"mesh has {n_comp} connected components (vertex counts "
+            f"{sorted(sizes.tolist(), reverse=True)[:5]}); a garment must be one piece",
+        )
     for name, idx in mesh.groups.items():
         if len(idx) and (idx.min() < 0 or idx.max() >= len(v)):
             raise GarmentError(who, f"vertex group {name!r} has indices outside [0, {len(v)})")
     if len(mesh.attached) == 0:
-        raise GarmentError(who, "no attached vertices: name a vertex group (e.g. 'waistband') or an "
-                                "index file whose vertices follow the body")
+        raise GarmentError(
+            who,
+            "no attached vertices: name a vertex group (e.g. 'waistband') or an "
+            "index file whose vertices follow the body",
+        )
 
 
-def repair_mesh(mesh: GarmentMesh, merge_tolerance: float = 1e-6, drop_degenerate: bool = True,
-                fix_winding: bool = True) -> GarmentMesh:
+def repair_mesh(
+    mesh: GarmentMesh, merge_tolerance: float = 1e-6, drop_degenerate: bool = True, fix_winding: bool = True
+) -> GarmentMesh:
     """Merge duplicate vertices, drop degenerate faces and unused vertices, make winding consistent.
 
     Vertex groups are remapped onto the merged vertices. Winding is propagated from face 0 across
@@ -204,13 +220,16 @@ def _orient_faces(faces: np.ndarray) -> np.ndarray:
     inv_sorted = inverse[order]
     pair = np.flatnonzero(inv_sorted[1:] == inv_sorted[:-1])  # manifold edges: consecutive entries
     a, b = order[pair], order[pair + 1]
-    adj = coo_matrix((np.ones(len(a) * 2), (np.r_[owner[a], owner[b]], np.r_[owner[b], owner[a]])), shape=(n, n)).tocsr()
+    adj = coo_matrix(
+        (np.ones(len(a) * 2), (np.r_[owner[a], owner[b]], np.r_[owner[b], owner[a]])), shape=(n, n)
+    ).tocsr()
     flip = np.zeros(n, bool)
     visited = np.zeros(n, bool)
     same_dir = {}
     for ea, eb in zip(a, b):
         same_dir[(owner[ea], owner[eb])] = same_dir[(owner[eb], owner[ea])] = bool(
-            (directed[ea] == directed[eb]).all())
+            (directed[ea] == directed[eb]).all()
+        )
     for seed in range(n):
         if visited[seed]:
             continue

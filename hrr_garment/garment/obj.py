@@ -75,7 +75,9 @@ def format_rows(fmt: str, rows: np.ndarray) -> str:
 SMOOTH_SHADING = "s 1\n"
 
 
-def write_obj(path: str | Path, vertices: np.ndarray, faces: np.ndarray, groups: dict[str, np.ndarray] | None = None) -> Path:
+def write_obj(
+    path: str | Path, vertices: np.ndarray, faces: np.ndarray, groups: dict[str, np.ndarray] | None = None
+) -> Path:
     """Write atomically, faces in their order. ``groups`` maps names to *vertex* sets: the faces
     whose vertices all lie in a set are put in a ``g`` group of that name, so reading the file with
     ``--attached NAME`` recovers the set (a set that spans no whole face needs an index file)."""
@@ -111,9 +113,16 @@ class Placement:
     body: BodyModel = DEFAULT_BODY
 
 
-def load_garment_obj(path: str | Path, name: str | None = None, *, attached_group: str | None = None,
-                     attached_file: str | Path | None = None, repair: bool = True,
-                     placement: Placement = Placement(), notes: list[str] | None = None) -> GarmentMesh:
+def load_garment_obj(
+    path: str | Path,
+    name: str | None = None,
+    *,
+    attached_group: str | None = None,
+    attached_file: str | Path | None = None,
+    repair: bool = True,
+    placement: Placement = Placement(),
+    notes: list[str] | None = None,
+) -> GarmentMesh:
     """A user garment from OBJ, in the canonical rest pose (Y up, metres), checked.
 
     ``repair`` merges duplicate vertices (1 um), drops degenerate faces and makes the winding
@@ -138,8 +147,11 @@ def load_garment_obj(path: str | Path, name: str | None = None, *, attached_grou
     if attached_file is not None:
         attached_file = Path(attached_file)
         try:
-            idx = np.load(attached_file, allow_pickle=False) if attached_file.suffix == ".npy" else \
-                np.loadtxt(attached_file, dtype=np.int64, ndmin=1)
+            idx = (
+                np.load(attached_file, allow_pickle=False)
+                if attached_file.suffix == ".npy"
+                else np.loadtxt(attached_file, dtype=np.int64, ndmin=1)
+            )
         except (OSError, ValueError) as exc:
             raise GarmentError(attached_file, f"not a list of vertex indices ({exc})") from None
         idx = np.asarray(idx, np.int64).ravel()
@@ -151,13 +163,23 @@ def load_garment_obj(path: str | Path, name: str | None = None, *, attached_grou
         notes.append(f"attached (auto): {len(attached)} vertices of the top band that lie on the torso")
     elif attached_group is not None:
         if attached_group not in face_groups:
-            raise GarmentError(path, f"no group {attached_group!r}; groups in the file: {sorted(face_groups) or 'none'}")
+            raise GarmentError(
+                path, f"no group {attached_group!r}; groups in the file: {sorted(face_groups) or 'none'}"
+            )
         attached = np.unique(f[face_groups[attached_group]].ravel())
     else:
-        raise GarmentError(path, "no attached vertices given: name an OBJ group (--attached GROUP), an index file "
-                                 "(--attached-file), or let the top band on the torso be found (--attached auto)")
-    mesh = GarmentMesh(name or path.stem, v.astype(np.float32), f.astype(np.int32),
-                       groups={"attached": attached.astype(np.int32)}, attached_groups=("attached",))
+        raise GarmentError(
+            path,
+            "no attached vertices given: name an OBJ group (--attached GROUP), an index file "
+            "(--attached-file), or let the top band on the torso be found (--attached auto)",
+        )
+    mesh = GarmentMesh(
+        name or path.stem,
+        v.astype(np.float32),
+        f.astype(np.int32),
+        groups={"attached": attached.astype(np.int32)},
+        attached_groups=("attached",),
+    )
     if repair:
         mesh = repair_mesh(mesh)
     try:

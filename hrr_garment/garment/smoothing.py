@@ -16,7 +16,10 @@ from .mesh import unique_edges
 def mean_operator(faces: np.ndarray, num_vertices: int) -> csr_matrix:
     """(V, V) row-normalised adjacency: each vertex -> mean of its 1-ring."""
     e = unique_edges(faces)
-    a = coo_matrix((np.ones(2 * len(e)), (np.r_[e[:, 0], e[:, 1]], np.r_[e[:, 1], e[:, 0]])), (num_vertices, num_vertices)).tocsr()
+    a = coo_matrix(
+        (np.ones(2 * len(e)), (np.r_[e[:, 0], e[:, 1]], np.r_[e[:, 1], e[:, 0]])),
+        (num_vertices, num_vertices),
+    ).tocsr()
     return diags(1.0 / np.maximum(np.asarray(a.sum(1)).ravel(), 1)) @ a
 
 

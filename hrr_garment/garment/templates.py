@@ -46,8 +46,9 @@ GARMENT_SHAPES: dict[str, TubeShape] = {
     "dress": TubeShape(top=1.30, waist=1.10, hem=0.50, flare=0.42, straps=True, attach_band=0.0),
     "skirt": TubeShape(top=1.05, waist=1.05, hem=0.56, flare=0.38),
     "pleated_skirt": TubeShape(top=1.04, waist=1.04, hem=0.60, flare=0.30, pleats=16, pleat_depth=0.03),
-    "asymmetric_skirt": TubeShape(top=1.05, waist=1.05, hem=0.58, flare=0.40, hem_tilt=0.16,
-                                  hem_tilt_angle=np.pi * 0.75),
+    "asymmetric_skirt": TubeShape(
+        top=1.05, waist=1.05, hem=0.58, flare=0.40, hem_tilt=0.16, hem_tilt_angle=np.pi * 0.75
+    ),
 }
 GARMENT_NAMES: tuple[str, ...] = tuple(GARMENT_SHAPES)
 
@@ -61,8 +62,14 @@ def rest_body(body: BodyModel = DEFAULT_BODY) -> tuple[np.ndarray, np.ndarray, n
     return a, b, body.radii
 
 
-def body_fit_radius(theta: np.ndarray, height: np.ndarray, gap: float, body: BodyModel = DEFAULT_BODY,
-                    max_radius: float = 0.6, step: float = 0.004) -> np.ndarray:
+def body_fit_radius(
+    theta: np.ndarray,
+    height: np.ndarray,
+    gap: float,
+    body: BodyModel = DEFAULT_BODY,
+    max_radius: float = 0.6,
+    step: float = 0.004,
+) -> np.ndarray:
     """Distance from the vertical body axis, along angle ``theta`` at ``height``, to ``gap`` outside
     the body's outer surface (0 where the ray misses the body). Marches inwards, then bisects."""
     a, b, radii = rest_body(body)
@@ -157,8 +164,9 @@ def _shoulder_top(points: np.ndarray, gap: float, body: BodyModel) -> np.ndarray
     return ys[np.argmax(d < gap, axis=1)]
 
 
-def _add_straps(tube: np.ndarray, shape: TubeShape, body: BodyModel, spacing: float
-                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _add_straps(
+    tube: np.ndarray, shape: TubeShape, body: BodyModel, spacing: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Two straps from the top ring's front over each shoulder to its back.
 
     Returns (new vertices (S, 3), faces (K, 3) indexing tube-then-strap vertices, strap vertex ids).
@@ -180,7 +188,13 @@ def _add_straps(tube: np.ndarray, shape: TubeShape, body: BodyModel, spacing: fl
         back_cols = [(cols // 2 - c) % cols for c in front_cols]
         p_front, p_back = top[front_cols], top[back_cols]
         crest = _shoulder_top(0.5 * (p_front + p_back), shape.gap, body)
-        length = np.pi / 2 * np.sqrt(0.5 * (np.mean(crest - shape.top) ** 2 + np.mean(p_front[:, 2] - p_back[:, 2]) ** 2 / 4))
+        length = (
+            np.pi
+            / 2
+            * np.sqrt(
+                0.5 * (np.mean(crest - shape.top) ** 2 + np.mean(p_front[:, 2] - p_back[:, 2]) ** 2 / 4)
+            )
+        )
         segments = max(3, int(round(2 * length / spacing)))
         s = np.linspace(0.0, 1.0, segments + 1)[1:-1]
         # Half-ellipse in the y-z plane from the front edge over the shoulder to the back edge.
@@ -197,7 +211,9 @@ def _add_straps(tube: np.ndarray, shape: TubeShape, body: BodyModel, spacing: fl
         grid[-1] = back_cols
         grid[1:-1] = base + np.arange(len(pts)).reshape(segments - 1, width_cols + 1)
         g00, g01, g10, g11 = grid[:-1, :-1], grid[:-1, 1:], grid[1:, :-1], grid[1:, 1:]
-        faces.append(np.stack([np.stack([g00, g01, g10], -1), np.stack([g01, g11, g10], -1)], 2).reshape(-1, 3))
+        faces.append(
+            np.stack([np.stack([g00, g01, g10], -1), np.stack([g01, g11, g10], -1)], 2).reshape(-1, 3)
+        )
         new_vertices.append(pts)
         ids.append(grid.ravel())
     return np.concatenate(new_vertices), np.concatenate(faces), np.unique(np.concatenate(ids))
@@ -239,16 +255,26 @@ def shape_for_body(shape: TubeShape, body: BodyModel) -> TubeShape:
 
     joints, mannequin = body.rest_joints(), DEFAULT_BODY.rest_joints()
     shoulders = abs(joints[JOINT_INDEX["l_shoulder"], 0]) / abs(mannequin[JOINT_INDEX["l_shoulder"], 0])
-    tilt = 0.5 * (height(shape.hem + shape.hem_tilt) - height(shape.hem - shape.hem_tilt))  # the hem's span, mapped
-    return replace(shape, top=height(shape.top), waist=height(shape.waist), hem=height(shape.hem), hem_tilt=tilt,
-                   strap_x=shape.strap_x * shoulders)
+    tilt = 0.5 * (
+        height(shape.hem + shape.hem_tilt) - height(shape.hem - shape.hem_tilt)
+    )  # the hem's span, mapped
+    return replace(
+        shape,
+        top=height(shape.top),
+        waist=height(shape.waist),
+        hem=height(shape.hem),
+        hem_tilt=tilt,
+        strap_x=shape.strap_x * shoulders,
+    )
 
 
 def make_garment(name: str, vertices: int = DEFAULT_VERTICES, body: BodyModel = DEFAULT_BODY) -> GarmentMesh:
     """A named template (see ``GARMENT_NAMES``) with about ``vertices`` vertices, made for ``body``
     (default the mannequin; another body's heights through :func:`shape_for_body`), checked."""
     if name not in GARMENT_SHAPES:
-        raise InputError(name, f"unknown garment; choose one of {', '.join(GARMENT_NAMES)} or give a template OBJ")
+        raise InputError(
+            name, f"unknown garment; choose one of {', '.join(GARMENT_NAMES)} or give a template OBJ"
+        )
     if vertices < 60:
         raise InputError(name, f"--vertices {vertices} is too few for a garment (at least 60)")
     shape = shape_for_body(GARMENT_SHAPES[name], body)
@@ -282,6 +308,8 @@ def make_garment(name: str, vertices: int = DEFAULT_VERTICES, body: BodyModel = 
         groups["waistband"] = np.arange(top_rows * cols)
         attached = ("waistband",)
     groups = {k: np.asarray(v, np.int32) for k, v in groups.items()}
-    mesh = GarmentMesh(name, verts.astype(np.float32), faces.astype(np.int32), groups=groups, attached_groups=attached)
+    mesh = GarmentMesh(
+        name, verts.astype(np.float32), faces.astype(np.int32), groups=groups, attached_groups=attached
+    )
     check_garment(mesh)
     return mesh

@@ -26,7 +26,9 @@ import numpy as np
 from ..body.capsules import BodyModel, capsule_signed_distance
 from .mesh import GarmentMesh
 
-BLEND_M = 0.02  # a capsule's weight falls by e for each 2 cm a vertex lies farther from it than from the nearest
+BLEND_M = (
+    0.02  # a capsule's weight falls by e for each 2 cm a vertex lies farther from it than from the nearest
+)
 MIN_GAP_M = 0.004  # no vertex closer to the new body than this after the transfer
 PUSH_PASSES = 4
 
@@ -38,7 +40,9 @@ class TransferReport:
     inside: float  # fraction of vertices inside the new body before the last push
     pushed: float  # fraction moved by the last push
     gap_change_mean_mm: float  # mean |distance to the new body - distance to the old| after the push
-    moved_mean_mm: float  # mean distance of each vertex from where it was modelled (onto the same body: the push alone)
+    moved_mean_mm: (
+        float  # mean distance of each vertex from where it was modelled (onto the same body: the push alone)
+    )
 
 
 def _capsule_frames(body: BodyModel) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -79,15 +83,19 @@ def transfer_points(points: np.ndarray, made_for: BodyModel, body: BodyModel) ->
     # the same place on each capsule of the new body: along its axis, turned with the bone, as far
     # outside its surface (the radial length grows or shrinks by the change of radius)
     stretch = np.maximum(distance + (r1 - r0)[None], 0.0) / np.maximum(distance, 1e-9)
-    moved = (a1[None] + t[..., None] * _unit(axis1)[None] * length1[None, :, None]
-             + np.einsum("cij,ncj->nci", turn, radial) * stretch[..., None])
+    moved = (
+        a1[None]
+        + t[..., None] * _unit(axis1)[None] * length1[None, :, None]
+        + np.einsum("cij,ncj->nci", turn, radial) * stretch[..., None]
+    )
     weight = np.exp(-(surface - surface.min(1, keepdims=True)) / BLEND_M)
     weight /= weight.sum(1, keepdims=True)
     return (weight[..., None] * moved).sum(1)
 
 
-def transfer_garment(garment: GarmentMesh, *, made_for: BodyModel, body: BodyModel,
-                     min_gap: float = MIN_GAP_M) -> tuple[GarmentMesh, TransferReport]:
+def transfer_garment(
+    garment: GarmentMesh, *, made_for: BodyModel, body: BodyModel, min_gap: float = MIN_GAP_M
+) -> tuple[GarmentMesh, TransferReport]:
     """``garment`` (in ``made_for``'s rest pose) on ``body``: the same topology and groups, each
     vertex as far outside the new body as it was outside the old (see the module docstring)."""
     moved = transfer_points(garment.vertices, made_for, body)
@@ -101,7 +109,10 @@ def transfer_garment(garment: GarmentMesh, *, made_for: BodyModel, body: BodyMod
     a0, b0, r0 = _capsule_frames(made_for)
     old = capsule_signed_distance(np.asarray(garment.vertices, np.float64), a0, b0, radii=r0)[0]
     new = capsule_signed_distance(moved, a1, b1, radii=r1)[0]
-    report = TransferReport(inside=float((before < 0).mean()), pushed=float((push > 0).mean()),
-                            gap_change_mean_mm=float(np.abs(new - old).mean() * 1000),
-                            moved_mean_mm=float(np.linalg.norm(moved - garment.vertices, axis=-1).mean() * 1000))
+    report = TransferReport(
+        inside=float((before < 0).mean()),
+        pushed=float((push > 0).mean()),
+        gap_change_mean_mm=float(np.abs(new - old).mean() * 1000),
+        moved_mean_mm=float(np.linalg.norm(moved - garment.vertices, axis=-1).mean() * 1000),
+    )
     return replace(garment, vertices=moved.astype(np.float32)), report

@@ -26,9 +26,13 @@ class Animation:
     vertices: np.ndarray
     faces: np.ndarray
     fps: float
-    retrieved: np.ndarray  # (T,) uint8, 1 = the frame's window is a database window as simulated (never in residual/detail)
+    retrieved: (
+        np.ndarray
+    )  # (T,) uint8, 1 = the frame's window is a database window as simulated (never in residual/detail)
     entropy: np.ndarray  # (T,) float32 motion-code entropy
-    match: np.ndarray  # (T, 2) int32 the database window (sequence, start frame) that gave or lent to the frame, or -1
+    match: (
+        np.ndarray
+    )  # (T, 2) int32 the database window (sequence, start frame) that gave or lent to the frame, or -1
     joints: np.ndarray  # (T, 22, 3) body joint positions
     garment: str
     model_hash: str
@@ -38,7 +42,9 @@ class Animation:
     capsules: np.ndarray | None = None  # (T, C, 2, 3) collision capsule ends, for previews and exports
     radii: np.ndarray | None = None  # (C,) the capsules' radii
     body: str = MANNEQUIN  # the name of the body it was animated on
-    skeleton: Motion | None = None  # the motion as the body played it (its skeleton and rotations), for exports
+    skeleton: Motion | None = (
+        None  # the motion as the body played it (its skeleton and rotations), for exports
+    )
     body_record: BodyRecord | None = None  # the body itself (previews draw its own mesh where it has a shape)
     doubt: np.ndarray | None = None  # (T,) the gate signal's value per frame (retrieval where below tau)
 
@@ -53,12 +59,18 @@ class Animation:
         for name, values in (("vertices", self.vertices), ("joints", self.joints)):
             bad = ~np.isfinite(values.reshape(len(values), -1)).all(1)
             if bad.any():
-                raise InputError(target, f"the model produced non-finite {name} on {int(bad.sum())} frame(s), first at "
-                                         f"frame {int(np.argmax(bad))}; nothing written (is the model bundle damaged?)")
+                raise InputError(
+                    target,
+                    f"the model produced non-finite {name} on {int(bad.sum())} frame(s), first at "
+                    f"frame {int(np.argmax(bad))}; nothing written (is the model bundle damaged?)",
+                )
         reach, frame = farthest_from_body(self.vertices, self.joints)
         if frame >= 0:
-            raise InputError(target, f"the model put a garment vertex {reach:.2f} m from the body at frame {frame} "
-                                     f"(more than {MAX_REACH_M:g} m); nothing written (a damaged or mismatched model?)")
+            raise InputError(
+                target,
+                f"the model put a garment vertex {reach:.2f} m from the body at frame {frame} "
+                f"(more than {MAX_REACH_M:g} m); nothing written (a damaged or mismatched model?)",
+            )
 
     def save(self, path: str | Path) -> Path:
         """Write ``out.h5`` (see :mod:`hrr_garment.data.animation_file`), atomically, after :meth:`check`."""
@@ -67,12 +79,34 @@ class Animation:
         self.check(path)
         played = {}
         if self.skeleton is not None:
-            played = {"rotations": matrix_to_quat(self.skeleton.local_rotations)[..., [1, 2, 3, 0]],  # (x, y, z, w)
-                      "root_translation": self.skeleton.root_translation, "offsets": self.skeleton.skeleton.offsets}
-        arrays = AnimationArrays(vertices=self.vertices, faces=self.faces, joints=self.joints, retrieved=self.retrieved,
-                                 entropy=self.entropy, match=self.match, capsules=self.capsules,
-                                 radii=None if self.capsules is None else self.radii, **played)
-        return write_animation_h5(path, arrays, {"fps": self.fps, "garment": self.garment, "source_motion": self.motion_file,
-                                                 "model_hash": self.model_hash, "body": self.body,
-                                                 "body_record": None if self.body_record is None else
-                                                 strict_json(body_to_dict(self.body_record)), **self.settings})
+            played = {
+                "rotations": matrix_to_quat(self.skeleton.local_rotations)[..., [1, 2, 3, 0]],  # (x, y, z, w)
+                "root_translation": self.skeleton.root_translation,
+                "offsets": self.skeleton.skeleton.offsets,
+            }
+        arrays = AnimationArrays(
+            vertices=self.vertices,
+            faces=self.faces,
+            joints=self.joints,
+            retrieved=self.retrieved,
+            entropy=self.entropy,
+            match=self.match,
+            capsules=self.capsules,
+            radii=None if self.capsules is None else self.radii,
+            **played,
+        )
+        return write_animation_h5(
+            path,
+            arrays,
+            {
+                "fps": self.fps,
+                "garment": self.garment,
+                "source_motion": self.motion_file,
+                "model_hash": self.model_hash,
+                "body": self.body,
+                "body_record": None
+                if self.body_record is None
+                else strict_json(body_to_dict(self.body_record)),
+                **self.settings,
+            },
+        )

@@ -1,15 +1,15 @@
 """The Python API for animating a garment: :class:`Animator` and :class:`Animation` (streams: :mod:`.stream`).
 
-    from hrr_garment import Animator, load_motion
-    animator = Animator.load("dress")                 # hrr_work/models/dress-full, else dress-quick
-    anim = animator.animate(load_motion("walk.bvh"))  # offline, hybrid, collision push-out
-    anim.save("out.h5")
+from hrr_garment import Animator, load_motion
+animator = Animator.load("dress")                 # hrr_work/models/dress-full, else dress-quick
+anim = animator.animate(load_motion("walk.bvh"))  # offline, hybrid, collision push-out
+anim.save("out.h5")
 
-    stream = animator.stream()                        # causal, one frame in, one frame out
-    for t in range(motion.num_frames):
-        vertices = stream.push(motion.slice(t, t + 1))
-    crowd = animator.crowd()                          # many characters, one call a frame
-    vertices = crowd.push(rotations, roots, keys)     # (N, 22, 4) quaternions, (N, 3) -> (N, V, 3)
+stream = animator.stream()                        # causal, one frame in, one frame out
+for t in range(motion.num_frames):
+    vertices = stream.push(motion.slice(t, t + 1))
+crowd = animator.crowd()                          # many characters, one call a frame
+vertices = crowd.push(rotations, roots, keys)     # (N, 22, 4) quaternions, (N, 3) -> (N, V, 3)
 """
 
 from __future__ import annotations
@@ -60,8 +60,12 @@ def find_model(name_or_dir: str | Path) -> Path:
     for candidate in tried:
         if (candidate / "bundle.json").is_file():
             return candidate
-    raise BundleError(name_or_dir, "no trained model: looked for " + ", ".join(str(t) for t in tried)
-                      + f" (train one with: hrr-train --garment {name_or_dir})")
+    raise BundleError(
+        name_or_dir,
+        "no trained model: looked for "
+        + ", ".join(str(t) for t in tried)
+        + f" (train one with: hrr-train --garment {name_or_dir})",
+    )
 
 
 class Animator:
@@ -74,8 +78,12 @@ class Animator:
         self.bundle = bundle
         self.blend = blend  # inertialization frames in causal mode
         self.decoder = bundle.autoencoder.fast_decoder(precision=precision)  # the full mesh decoder
-        self.smoothing = mean_operator(bundle.template.faces, bundle.template.num_vertices)  # for the push-out
-        self.edge_limits = EdgeLimits.of(bundle.template.faces, bundle.template.vertices, mean=self.smoothing)  # the push-out's
+        self.smoothing = mean_operator(
+            bundle.template.faces, bundle.template.num_vertices
+        )  # for the push-out
+        self.edge_limits = EdgeLimits.of(
+            bundle.template.faces, bundle.template.vertices, mean=self.smoothing
+        )  # the push-out's
         self._causal_steps: dict[bool, object] = {}
         self._default_body: CharacterBody | None = None
         self._subspace_push: SubspacePush | None = None
@@ -85,7 +93,9 @@ class Animator:
         """The push in the bundle's fast-decoder subspace (:mod:`.subspace_push`), made once; None without a fast decoder."""
         if self._subspace_push is None and self.bundle.subspace is not None:
             template = self.bundle.template
-            self._subspace_push = SubspacePush.of(self.bundle.subspace.basis.numpy(), template.vertices, template.edges())
+            self._subspace_push = SubspacePush.of(
+                self.bundle.subspace.basis.numpy(), template.vertices, template.edges()
+            )
         return self._subspace_push
 
     def push_settings(self, run: ResolvedRun) -> PushOutSettings | None:
@@ -106,7 +116,9 @@ class Animator:
         (:mod:`hrr_garment.models.native_codes`), or None where it is unavailable (each path then
         uses its PyTorch form)."""
         if regression not in self._causal_steps:
-            self._causal_steps[regression] = native_window_codes(self.bundle.codespace, regression, last_frame=True)
+            self._causal_steps[regression] = native_window_codes(
+                self.bundle.codespace, regression, last_frame=True
+            )
         return self._causal_steps[regression]
 
     @classmethod
@@ -123,8 +135,11 @@ class Animator:
         detail the simulated folds (auto: the mode it was calibrated to run)."""
         mode = Mode(mode)
         mode = Mode(self.bundle.auto_mode) if mode is Mode.AUTO else mode
-        return {Mode.DIRECT: self.has_direct, Mode.RESIDUAL: self.bundle.has_residual,
-                Mode.DETAIL: self.bundle.folds is not None}.get(mode, True)
+        return {
+            Mode.DIRECT: self.has_direct,
+            Mode.RESIDUAL: self.bundle.has_residual,
+            Mode.DETAIL: self.bundle.folds is not None,
+        }.get(mode, True)
 
     @property
     def window(self) -> int:
@@ -135,8 +150,13 @@ class Animator:
         fields) resolved against this model: what :meth:`animate` runs with them."""
         return run_settings(settings, changes).resolve(self.bundle)
 
-    def body(self, body: CharacterBody | BodyRecord | str | Path | None = None, *, allow_outside: bool = False,
-             name: str | None = None) -> CharacterBody:
+    def body(
+        self,
+        body: CharacterBody | BodyRecord | str | Path | None = None,
+        *,
+        allow_outside: bool = False,
+        name: str | None = None,
+    ) -> CharacterBody:
         """A body to animate on (:mod:`.bodies`): a body.json or character file's path, a
         :class:`~hrr_garment.body.body_file.BodyRecord`, or None for the model's own; refused
         (:class:`~.bodies.BodyOutsideRange`) when it is unlike the model's training bodies, unless
@@ -147,8 +167,16 @@ class Animator:
             return self._default_body
         return character_body(self.bundle, body, allow_outside=allow_outside, name=name)
 
-    def animate(self, motion: Motion, settings: RunSettings | None = None, *, body=None, allow_outside: bool = False,
-                exclude_sequence: int | None = None, **changes) -> Animation:
+    def animate(
+        self,
+        motion: Motion,
+        settings: RunSettings | None = None,
+        *,
+        body=None,
+        allow_outside: bool = False,
+        exclude_sequence: int | None = None,
+        **changes,
+    ) -> Animation:
         """Animate a whole clip (see :mod:`hrr_garment.inference`) as ``settings`` ask
         (:class:`~.run_settings.RunSettings`; default: the model's calibrated mode, push-out on,
         offline), with keyword ``changes`` to them (``animate(motion, mode="regression",
@@ -169,14 +197,20 @@ class Animator:
             index = int(index)
         count = len(self.bundle.database.names)
         if isinstance(index, bool) or not isinstance(index, int) or not 0 <= index < count:
-            raise ValueError(f"exclude_sequence must be a database sequence index in 0..{count - 1}, got {index!r}")
+            raise ValueError(
+                f"exclude_sequence must be a database sequence index in 0..{count - 1}, got {index!r}"
+            )
         return index
 
-    def _animate(self, motion: Motion, run: ResolvedRun, exclude_sequence: int | None, character: CharacterBody) -> Animation:
+    def _animate(
+        self, motion: Motion, run: ResolvedRun, exclude_sequence: int | None, character: CharacterBody
+    ) -> Animation:
         t_frames, w = motion.num_frames, self.window
         if t_frames < 1:
             raise MotionError(motion.source, "the motion has no frames")
-        regression = None  # the latents' share that swings as the regression (gate.WindowChoice.regression_part)
+        regression = (
+            None  # the latents' share that swings as the regression (gate.WindowChoice.regression_part)
+        )
         if run.mode == Mode.DIRECT:
             latents, proposals = self._direct_latents(motion, character), None
             retrieved, entropy = np.zeros(t_frames, np.uint8), np.full(t_frames, np.nan, np.float32)
@@ -187,7 +221,9 @@ class Animator:
                 gates = frame_gates(self.bundle, self.causal_step(run.mode.regresses), frames)
                 if gates is not None:  # each frame's once, not in each of the W windows that hold it
                     gates = causal_windows(gates, w, view=True)
-                choice = self._choose(causal_windows(frames, w), run, exclude_sequence, last_frame=True, gates=gates)
+                choice = self._choose(
+                    causal_windows(frames, w), run, exclude_sequence, last_frame=True, gates=gates
+                )
                 latents = causal_latents(choice, self.blend)
                 regression = None if choice.regression_part is None else choice.regression_part[:, -1]
                 proposals = causal_proposals(choice.match, w) if choice.lends_folds else None
@@ -199,69 +235,144 @@ class Animator:
                 windows = np.ascontiguousarray(sequence_windows(feats, w))
                 choice = self._choose(windows, run, exclude_sequence)
                 latents = blend_windows(choice.latents, len(feats))[:t_frames]
-                regression = None if choice.regression_part is None else blend_windows(choice.regression_part, len(feats))[:t_frames]
+                regression = (
+                    None
+                    if choice.regression_part is None
+                    else blend_windows(choice.regression_part, len(feats))[:t_frames]
+                )
                 proposals = offline_proposals(choice.match, t_frames, w) if choice.lends_folds else None
-                per_frame = np.clip(np.arange(t_frames) - w // 2, 0, len(windows) - 1)  # the window centred on t
-            retrieved, entropy = choice.retrieved[per_frame].astype(np.uint8), choice.entropy[per_frame].astype(np.float32)
+                per_frame = np.clip(
+                    np.arange(t_frames) - w // 2, 0, len(windows) - 1
+                )  # the window centred on t
+            retrieved, entropy = (
+                choice.retrieved[per_frame].astype(np.uint8),
+                choice.entropy[per_frame].astype(np.float32),
+            )
             match, doubt = choice.match[per_frame], choice.doubt[per_frame].astype(np.float32)
         if run.swing != 1.0:  # the free cloth's swing restored (causal: offline, streams and crowds alike)
             latents = SwingGain.of(run.swing, self.bundle.node_hang_m, motion.fps).apply(latents, regression)
         local = body_frame_vertices(self.bundle, latents, self.decoder_for(run))
-        if proposals is not None:  # the detail mode: simulated folds on the regression's shape (or the residual's)
+        if (
+            proposals is not None
+        ):  # the detail mode: simulated folds on the regression's shape (or the residual's)
             store = self.bundle.folds
             rows, weights = track_folds(proposals, store.offsets)
-            local = add_folds(local, store.folds(rows, weights), self.smoothing, passes=store.passes, strength=run.detail.strength,
-                              limits=self.edge_limits, follow=partial(follow_over_time, mean=self.smoothing),
-                              weights=self.bundle.fold_weights)
+            local = add_folds(
+                local,
+                store.folds(rows, weights),
+                self.smoothing,
+                passes=store.passes,
+                strength=run.detail.strength,
+                limits=self.edge_limits,
+                follow=partial(follow_over_time, mean=self.smoothing),
+                weights=self.bundle.fold_weights,
+            )
         vertices = world_vertices(local + character.offset, motion)  # stood on the body's own rest shape
         report = None
         if run.collision:
-            vertices, report = push_out(vertices, motion, self.bundle.template.faces, body=character.body, mean=self.smoothing,
-                                        limits=self.edge_limits, settings=self.push_settings(run))
-        return Animation(vertices=vertices, faces=self.bundle.template.faces, fps=motion.fps, retrieved=retrieved,
-                         entropy=entropy, match=match, joints=motion.joint_positions, garment=self.bundle.garment,
-                         model_hash=self.bundle.content_hash, motion_file=motion.source, settings=run.record(),
-                         penetration=report, capsules=np.stack(character.body.pose_motion(motion), 2).astype(np.float32),
-                         radii=character.body.radii, body=character.name, skeleton=motion, body_record=character.record,
-                         doubt=doubt)
+            vertices, report = push_out(
+                vertices,
+                motion,
+                self.bundle.template.faces,
+                body=character.body,
+                mean=self.smoothing,
+                limits=self.edge_limits,
+                settings=self.push_settings(run),
+            )
+        return Animation(
+            vertices=vertices,
+            faces=self.bundle.template.faces,
+            fps=motion.fps,
+            retrieved=retrieved,
+            entropy=entropy,
+            match=match,
+            joints=motion.joint_positions,
+            garment=self.bundle.garment,
+            model_hash=self.bundle.content_hash,
+            motion_file=motion.source,
+            settings=run.record(),
+            penetration=report,
+            capsules=np.stack(character.body.pose_motion(motion), 2).astype(np.float32),
+            radii=character.body.radii,
+            body=character.name,
+            skeleton=motion,
+            body_record=character.record,
+            doubt=doubt,
+        )
 
     def _direct_latents(self, motion: Motion, character: CharacterBody) -> np.ndarray:
         """(T, nodes, C) latents of the direct-regression baseline (causal: a GRU over the clip)."""
         if self.bundle.direct is None:
-            raise InputError(self.bundle.folder, "has no direct-regression baseline: train it with hrr-train --stage baseline")
+            raise InputError(
+                self.bundle.folder,
+                "has no direct-regression baseline: train it with hrr-train --stage baseline",
+            )
         feats = self.features(motion, body=character)
         with torch.no_grad():
-            z = self.bundle.direct(torch.from_numpy(self.bundle.motion_stats.normalize(feats).astype(np.float32))[None])[0]
-        return self.bundle.latent_stats.denormalize(z.numpy()).reshape(len(feats), *self.bundle.autoencoder.latent_shape)
+            z = self.bundle.direct(
+                torch.from_numpy(self.bundle.motion_stats.normalize(feats).astype(np.float32))[None]
+            )[0]
+        return self.bundle.latent_stats.denormalize(z.numpy()).reshape(
+            len(feats), *self.bundle.autoencoder.latent_shape
+        )
 
     def features(self, motion: Motion, causal: bool = False, body: CharacterBody | None = None) -> np.ndarray:
         """The model's per-frame motion features (T, F) of a clip: the plain ones, offline or as a
         stream sees them (``causal``), with the motion memory the model was trained with and, for
         a model trained across bodies, the measures of ``body`` (default: the model's own)."""
-        plain = causal_features(motion) if causal or motion.num_frames < 2 else motion_features(motion)  # one frame: no velocity
+        plain = (
+            causal_features(motion) if causal or motion.num_frames < 2 else motion_features(motion)
+        )  # one frame: no velocity
         feats = with_memory(plain, motion.fps, self.bundle.codespace.config.memory)
         if self.bundle.codespace.config.body_features:
             feats = with_body(feats, (body or self.body()).vector)
         return feats
 
-    def _choose(self, windows: np.ndarray, run: ResolvedRun, exclude_sequence: int | None = None,
-                last_frame: bool = False, gates: np.ndarray | None = None) -> WindowChoice:
+    def _choose(
+        self,
+        windows: np.ndarray,
+        run: ResolvedRun,
+        exclude_sequence: int | None = None,
+        last_frame: bool = False,
+        gates: np.ndarray | None = None,
+    ) -> WindowChoice:
         exclude = None if exclude_sequence is None else np.full(len(windows), exclude_sequence)
         step = self.causal_step(run.mode.regresses) if last_frame else None
-        return choose_windows(self.bundle, windows, run, exclude=exclude, last_frame=last_frame, step=step, gates=gates)
+        return choose_windows(
+            self.bundle, windows, run, exclude=exclude, last_frame=last_frame, step=step, gates=gates
+        )
 
-    def stream(self, settings: RunSettings | None = None, *, rig=None, body=None, allow_outside: bool = False,
-               **changes) -> AnimationStream:
+    def stream(
+        self,
+        settings: RunSettings | None = None,
+        *,
+        rig=None,
+        body=None,
+        allow_outside: bool = False,
+        **changes,
+    ) -> AnimationStream:
         """One character, causal, one pose in and one frame out (:class:`~.character_stream.AnimationStream`);
         ``settings`` and keyword ``changes`` as :meth:`animate` (a stream is causal whatever they
         say; its settings hold for its life); ``rig``: a
         :class:`~hrr_garment.motion.stream_rig.StreamRig` for poses on a source skeleton;
         ``body``: the character's body, as :meth:`animate` takes it."""
-        return AnimationStream(self, self._stream_run(settings, changes), rig=rig,
-                               body=self.body(body, allow_outside=allow_outside))
+        return AnimationStream(
+            self,
+            self._stream_run(settings, changes),
+            rig=rig,
+            body=self.body(body, allow_outside=allow_outside),
+        )
 
-    def crowd(self, settings: RunSettings | None = None, *, rig=None, body=None, allow_outside: bool = False,
-              device: str | None = None, **changes):
+    def crowd(
+        self,
+        settings: RunSettings | None = None,
+        *,
+        rig=None,
+        body=None,
+        allow_outside: bool = False,
+        device: str | None = None,
+        **changes,
+    ):
         """Many characters, one call per frame for all of them (:class:`~.stream.CrowdStream`);
         arguments as :meth:`stream` (every character of the crowd has ``body``). ``device``:
         "native" (the CPU kernels: every mode, a body per character), a torch device such as
@@ -269,12 +380,18 @@ class Animator:
         None: CUDA for a regression crowd where torch sees a GPU, else native."""
         run = self._stream_run(settings, changes)
         if device is None:
-            device = "cuda" if run.mode is Mode.REGRESSION and rig is None and torch.cuda.is_available() else "native"
+            device = (
+                "cuda"
+                if run.mode is Mode.REGRESSION and rig is None and torch.cuda.is_available()
+                else "native"
+            )
         character = self.body(body, allow_outside=allow_outside)
         if device == "native":
             return CrowdStream(self, run, rig=rig, body=character)
         if rig is not None:
-            raise ValueError("a crowd on a torch device takes poses on the canonical skeleton (no rig); use device='native'")
+            raise ValueError(
+                "a crowd on a torch device takes poses on the canonical skeleton (no rig); use device='native'"
+            )
         from .torch_crowd import DeviceCrowd
 
         return DeviceCrowd(self, run, device=device, body=character)

@@ -28,8 +28,8 @@ def blend_windows(latents: np.ndarray, frames: int) -> np.ndarray:
     total = np.zeros((frames, *latents.shape[2:]), np.float64)
     norm = np.zeros(frames)
     for k in range(w):
-        total[k:k + n] += weights[k] * latents[:, k]
-        norm[k:k + n] += weights[k]
+        total[k : k + n] += weights[k] * latents[:, k]
+        norm[k : k + n] += weights[k]
     return (total / norm.reshape(-1, *([1] * (latents.ndim - 2)))).astype(np.float32)
 
 
@@ -63,7 +63,9 @@ class Inertializer:
         self._damping = 2.0 * np.log(2.0) / max(frames / 3.0, 1e-6)
         self._decay = float(np.exp(-self._damping))
         self._paths = paths
-        self._state: dict[str, np.ndarray] | None = None  # each of _STATE (paths, ...) float64, made at the first step
+        self._state: dict[str, np.ndarray] | None = (
+            None  # each of _STATE (paths, ...) float64, made at the first step
+        )
         self._split = np.zeros(paths, bool)  # whether its previous target had a continuous part
         self._sources: list = [None] * paths  # each path's last source (None: no previous target)
         self._free: list[int] = []  # rows of removed paths, given to the next added
@@ -92,10 +94,18 @@ class Inertializer:
         ``continuous``: its part that does not change with the source (see the class docstring).
         The path in row 0."""
         rows = np.zeros(1, np.int64) if self._paths > 1 else None
-        return self.step_rows(target[None], [source], None if continuous is None else continuous[None], rows=rows)[0]
+        return self.step_rows(
+            target[None], [source], None if continuous is None else continuous[None], rows=rows
+        )[0]
 
-    def step_rows(self, targets: np.ndarray, sources: list, continuous: np.ndarray | None = None,
-                  split: np.ndarray | None = None, rows: np.ndarray | None = None) -> np.ndarray:
+    def step_rows(
+        self,
+        targets: np.ndarray,
+        sources: list,
+        continuous: np.ndarray | None = None,
+        split: np.ndarray | None = None,
+        rows: np.ndarray | None = None,
+    ) -> np.ndarray:
         """:meth:`step` of many paths: ``targets`` (R, ...), one source each; ``continuous`` (R, ...)
         and ``split`` (R,) which rows have one (default: all where ``continuous`` is given);
         ``rows``: the paths stepped (None: all, in order)."""
@@ -114,7 +124,9 @@ class Inertializer:
         was_split = self._split[idx]
         old_sources = self._sources if every else [self._sources[i] for i in rows]
         started = np.array([o is not None for o in old_sources], bool)
-        part = targets if continuous is None else np.where(_rows(split, targets), targets - continuous, targets)
+        part = (
+            targets if continuous is None else np.where(_rows(split, targets), targets - continuous, targets)
+        )
         same = started & (split == was_split) & np.array([s == o for s, o in zip(sources, old_sources)], bool)
         offset, offset_vel = state["offset"], state["offset_vel"]
         switch = started & ~same
@@ -133,10 +145,14 @@ class Inertializer:
         j1 = offset_vel + offset * damping
         offset, offset_vel = decay * (offset + j1), decay * (offset_vel - j1 * damping)
         continuing = _rows(same, targets)
-        new = {"offset": offset, "offset_vel": offset_vel, "prev_target": targets,
-               "prev_part": part if continuous is not None else targets.copy(),  # rows of its own, written apart
-               "prev_target_vel": np.where(continuing, targets - state["prev_target"], 0.0),
-               "prev_part_vel": np.where(continuing, part - state["prev_part"], 0.0)}
+        new = {
+            "offset": offset,
+            "offset_vel": offset_vel,
+            "prev_target": targets,
+            "prev_part": part if continuous is not None else targets.copy(),  # rows of its own, written apart
+            "prev_target_vel": np.where(continuing, targets - state["prev_target"], 0.0),
+            "prev_part_vel": np.where(continuing, part - state["prev_part"], 0.0),
+        }
         if every:
             self._state = new
             self._split, self._sources = split.copy(), list(sources)
@@ -171,15 +187,24 @@ def causal_source(retrieved: bool, source: np.ndarray, frame: int) -> tuple:
     return source_id(bool(retrieved), source - np.array([0, frame]) if retrieved else source)
 
 
-def inertialize(inert: Inertializer, latent: np.ndarray, retrieved: bool, source: np.ndarray, frame: int,
-                continuous: np.ndarray | None = None) -> np.ndarray:
+def inertialize(
+    inert: Inertializer,
+    latent: np.ndarray,
+    retrieved: bool,
+    source: np.ndarray,
+    frame: int,
+    continuous: np.ndarray | None = None,
+) -> np.ndarray:
     """One causal frame of one latent path: ``latent`` (nodes, C), the last frame of the window
     ending at clip frame ``frame`` from ``source`` (:func:`causal_source`). ``continuous``: the part
     of ``latent`` that does not change with the source (the regression under a residual,
     :attr:`~.gate.WindowChoice.continuous`): followed as it is, only the rest inertialized
     (:class:`Inertializer`)."""
-    return inert.step(latent.astype(np.float64), causal_source(retrieved, source, frame),
-                      continuous=None if continuous is None or not DEPARTURE_ONLY else continuous.astype(np.float64))
+    return inert.step(
+        latent.astype(np.float64),
+        causal_source(retrieved, source, frame),
+        continuous=None if continuous is None or not DEPARTURE_ONLY else continuous.astype(np.float64),
+    )
 
 
 def latent_sources(choice: WindowChoice) -> tuple[np.ndarray, np.ndarray]:
@@ -195,6 +220,12 @@ def causal_latents(choice: WindowChoice, blend: int = 6) -> np.ndarray:
     inert = Inertializer(blend)
     out = np.empty((len(latents), *latents.shape[2:]), np.float32)
     for t in range(len(out)):
-        out[t] = inertialize(inert, latents[t, -1], retrieved[t], choice.match[t], t,
-                             continuous=None if choice.continuous is None else choice.continuous[t, -1])
+        out[t] = inertialize(
+            inert,
+            latents[t, -1],
+            retrieved[t],
+            choice.match[t],
+            t,
+            continuous=None if choice.continuous is None else choice.continuous[t, -1],
+        )
     return out

@@ -86,8 +86,13 @@ def read_body_argument(body: str | Path) -> tuple[str, BodyRecord]:
     return path.stem, read_body(path)
 
 
-def character_body(bundle: Bundle, body: "CharacterBody | DressedBody | BodyRecord | str | Path | None" = None, *,
-                   allow_outside: bool = False, name: str | None = None) -> CharacterBody:
+def character_body(
+    bundle: Bundle,
+    body: "CharacterBody | DressedBody | BodyRecord | str | Path | None" = None,
+    *,
+    allow_outside: bool = False,
+    name: str | None = None,
+) -> CharacterBody:
     """``body`` (None: the model's own, :attr:`~hrr_garment.artifacts.bundle.Bundle.default_body`)
     ready to animate ``bundle``'s garment on, checked against the model's training bodies. A
     dataset's body (:class:`~hrr_garment.data.bodies.DressedBody`, a sequence record's ``dressed``)
@@ -98,24 +103,31 @@ def character_body(bundle: Bundle, body: "CharacterBody | DressedBody | BodyReco
         body, name = body.record, name or body.name
     if body is None:
         record = bundle.default_body
-        label = name or (MANNEQUIN if (bundle.meta.get("bodies") or {}).get("default") is None else "the model's body")
+        label = name or (
+            MANNEQUIN if (bundle.meta.get("bodies") or {}).get("default") is None else "the model's body"
+        )
     elif isinstance(body, BodyRecord):
         record, label = body, name or "body"
     elif isinstance(body, (str, Path)):
         label, record = read_body_argument(body)
         label = name or label
     else:
-        raise TypeError(f"body must be a body file's path, a BodyRecord or a CharacterBody, not {type(body).__name__}")
+        raise TypeError(
+            f"body must be a body file's path, a BodyRecord or a CharacterBody, not {type(body).__name__}"
+        )
     vector = body_vector(record)
     outside = bundle.body_range.outside(vector)
     if outside:
         where = body if isinstance(body, (str, Path)) else label
         count = bundle.body_range.bodies
-        message = (f"body {label!r} is unlike the {count} bod{'y' if count == 1 else 'ies'} the model was trained on: "
-                   f"{'; '.join(outside)}")
+        message = (
+            f"body {label!r} is unlike the {count} bod{'y' if count == 1 else 'ies'} the model was trained on: "
+            f"{'; '.join(outside)}"
+        )
         if not allow_outside:
-            raise BodyOutsideRange(where, message + " (train on bodies like it, or allow it and expect its motion "
-                                                    "to be a guess)")
+            raise BodyOutsideRange(
+                where, message + " (train on bodies like it, or allow it and expect its motion to be a guess)"
+            )
         warnings.warn(message + "; animating it anyway", stacklevel=2)
     dressed, _ = dress(label, record, bundle.template, made_for=bundle.made_for)
     return CharacterBody(dressed, vector, dressed.offset(bundle.template))
@@ -144,11 +156,22 @@ class CrowdBodies:
         each = [b.body.ends for b in bodies]
         joints = each[0][0]
         if any(not np.array_equal(e[0], joints) for e in each):
-            raise ValueError("the crowd's bodies have capsules on different joints; give every character one body kind")
-        ends = (joints, np.stack([e[1] for e in each]), np.stack([e[2] for e in each]), np.stack([b.body.radii for b in bodies]))
-        return cls(np.stack([b.vector for b in bodies]), np.stack([b.offset for b in bodies]),
-                   skeletons=np.stack([b.record.skeleton.offsets for b in bodies]),
-                   root_scale=np.array([b.record.pelvis_height / REST_PELVIS_HEIGHT for b in bodies]), ends=ends)
+            raise ValueError(
+                "the crowd's bodies have capsules on different joints; give every character one body kind"
+            )
+        ends = (
+            joints,
+            np.stack([e[1] for e in each]),
+            np.stack([e[2] for e in each]),
+            np.stack([b.body.radii for b in bodies]),
+        )
+        return cls(
+            np.stack([b.vector for b in bodies]),
+            np.stack([b.offset for b in bodies]),
+            skeletons=np.stack([b.record.skeleton.offsets for b in bodies]),
+            root_scale=np.array([b.record.pelvis_height / REST_PELVIS_HEIGHT for b in bodies]),
+            ends=ends,
+        )
 
     def stand(self, local: np.ndarray) -> np.ndarray:
         """Body-frame garment vertices (N, V, 3) stood on these bodies: plus their rest offsets.
@@ -161,4 +184,6 @@ class CrowdBodies:
         if self.body is not None:
             return self.body
         joints, a, b, radii = self.ends
-        return PosedCapsules(*pose_ends(poses.global_rotations, poses.joint_positions, joints, a=a, b=b), radii)
+        return PosedCapsules(
+            *pose_ends(poses.global_rotations, poses.joint_positions, joints, a=a, b=b), radii
+        )

@@ -40,8 +40,13 @@ class AnimationStream:
         decoder: mesh decoder, world, push_out): where a frame's time goes."""
         return self.crowd.timings.stage_s
 
-    def push(self, pose: Motion | None = None, *, rotation: np.ndarray | None = None,
-             root: np.ndarray | None = None) -> np.ndarray:
+    def push(
+        self,
+        pose: Motion | None = None,
+        *,
+        rotation: np.ndarray | None = None,
+        root: np.ndarray | None = None,
+    ) -> np.ndarray:
         """A one-frame :class:`Motion` on the canonical skeleton, or raw arrays: ``rotation`` (J, 4)
         quaternions (x, y, z, w), (J, 3) axis-angle or (J, 3, 3) matrices and ``root`` (3,) ->
         (V, 3) world vertices."""

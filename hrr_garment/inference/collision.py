@@ -64,7 +64,9 @@ class PushOutSettings:
     # rings around a pushed vertex that follow it (with EdgeLimits; 0: none): measured not to pay on
     # a trained model (docs/decisions/0023), so off
     follow: int = 0
-    follow_slope: float = 0.25  # a follower moves the push less this x its rest distance from the pushed vertex
+    follow_slope: float = (
+        0.25  # a follower moves the push less this x its rest distance from the pushed vertex
+    )
     smooth: int = 4  # passes spreading each push to the neighbours (never below what is needed)
     rounds: int = 1  # push-and-spread rounds before the exact projection
     depth: float = PENETRATION_DEPTH_M  # metres inside the body that count as penetration in the report
@@ -91,9 +93,17 @@ class PosedCapsules:
     radii: np.ndarray  # (T, C) each frame's radii, or (C,) shared
 
 
-def push_out(vertices: np.ndarray, motion: Motion, faces: np.ndarray, *, body: BodyModel | PosedCapsules = DEFAULT_BODY,
-             settings: PushOutSettings | None = None, mean: csr_matrix | None = None, limits: EdgeLimits | None = None,
-             report: bool = True) -> tuple[np.ndarray, PushOutReport | None]:
+def push_out(
+    vertices: np.ndarray,
+    motion: Motion,
+    faces: np.ndarray,
+    *,
+    body: BodyModel | PosedCapsules = DEFAULT_BODY,
+    settings: PushOutSettings | None = None,
+    mean: csr_matrix | None = None,
+    limits: EdgeLimits | None = None,
+    report: bool = True,
+) -> tuple[np.ndarray, PushOutReport | None]:
     """(T, V, 3) world vertices -> pushed copy and a report (fractions of vertices > ``depth`` inside).
     ``mean``: :func:`mean_operator` of the faces, when the caller keeps one (streaming). Frames are
     processed ``chunk`` at a time, all at once within a chunk. With ``limits`` (:class:`EdgeLimits`
@@ -105,8 +115,16 @@ def push_out(vertices: np.ndarray, motion: Motion, faces: np.ndarray, *, body: B
     ``settings.subspace`` (:class:`~.subspace_push.SubspacePush`) each frame is first moved in the
     garment's subspace, and the limit measures the push against the moved frame; the report's
     "before" is the cloth as it came."""
-    settings = PUSH_OUT if settings is None else settings  # read here, so that the product's settings are one object
-    margin, smooth, rounds, depth, chunk = settings.margin, settings.smooth, settings.rounds, settings.depth, settings.chunk
+    settings = (
+        PUSH_OUT if settings is None else settings
+    )  # read here, so that the product's settings are one object
+    margin, smooth, rounds, depth, chunk = (
+        settings.margin,
+        settings.smooth,
+        settings.rounds,
+        settings.depth,
+        settings.chunk,
+    )
     posed = body if isinstance(body, PosedCapsules) else PosedCapsules(*body.pose_motion(motion), body.radii)
     a, b, radii = posed.a, posed.b, posed.radii
     framed = (lambda rows: radii[rows]) if np.ndim(radii) == 2 else (lambda rows: radii)  # noqa: E731
@@ -123,39 +141,68 @@ def push_out(vertices: np.ndarray, motion: Motion, faces: np.ndarray, *, body: B
         # spent a millisecond a frame converting and copying whole batches
         out = np.empty(vertices.shape, np.float32)
         torn = np.zeros(len(out), bool)
-        steps = PushSteps(mean=mean, margin=margin, smooth=smooth, rounds=rounds, depth=depth,
-                          mesh=None if limits is None else limits.push_mesh(settings),
-                          limit=None if limits is None else _native_limit(limits, settings.max_strain, settings.stretch_slack),
-                          subspace=None if settings.subspace is None else settings.subspace.native)
+        steps = PushSteps(
+            mean=mean,
+            margin=margin,
+            smooth=smooth,
+            rounds=rounds,
+            depth=depth,
+            mesh=None if limits is None else limits.push_mesh(settings),
+            limit=None
+            if limits is None
+            else _native_limit(limits, settings.max_strain, settings.stretch_slack),
+            subspace=None if settings.subspace is None else settings.subspace.native,
+        )
         for start in range(0, len(out), chunk):
             sl = slice(start, start + chunk)
-            _, before[sl], after[sl], torn[sl] = push_out_frames(lib, vertices[sl], (a[sl], b[sl], framed(sl)), steps=steps,
-                                                                 turn=None if turn is None else turn[sl],
-                                                                 threads=default_threads(), out=out[sl])
+            _, before[sl], after[sl], torn[sl] = push_out_frames(
+                lib,
+                vertices[sl],
+                (a[sl], b[sl], framed(sl)),
+                steps=steps,
+                turn=None if turn is None else turn[sl],
+                threads=default_threads(),
+                out=out[sl],
+            )
     else:
         if settings.subspace is not None:
             vertices = settings.subspace(vertices, motion, (a, b, radii), margin)
         out = np.empty(vertices.shape, np.float32)
         for start in range(0, len(out), chunk):
             sl = slice(start, start + chunk)
-            out[sl], before[sl], after[sl] = _push_frames(vertices[sl].astype(np.float64), (a[sl], b[sl], framed(sl)),
-                                                          mean, settings, limits)
+            out[sl], before[sl], after[sl] = _push_frames(
+                vertices[sl].astype(np.float64), (a[sl], b[sl], framed(sl)), mean, settings, limits
+            )
         if limits is not None:
-            out, torn = limit_push_strain(out, vertices, limits, settings.max_strain, in_place=True,
-                                          slack=settings.stretch_slack)
+            out, torn = limit_push_strain(
+                out, vertices, limits, settings.max_strain, in_place=True, slack=settings.stretch_slack
+            )
     if report and settings.subspace is not None:  # "before": as decoded, not after the subspace push
-        before = (frames_signed_distance(np.asarray(original, np.float64), a, b, radii=radii)[0] < -depth).mean(1)
+        before = (
+            frames_signed_distance(np.asarray(original, np.float64), a, b, radii=radii)[0] < -depth
+        ).mean(1)
     if limits is not None and report and torn.any():  # only the frames the limit moved have a new "after"
-        inside = frames_signed_distance(out[torn].astype(np.float64), a[torn], b[torn], radii=framed(torn))[0] < -depth
+        inside = (
+            frames_signed_distance(out[torn].astype(np.float64), a[torn], b[torn], radii=framed(torn))[0]
+            < -depth
+        )
         after[torn] = inside.mean(1)
     if not report:
         return out, None
-    return out, PushOutReport(float(before.mean()), float(after.mean()), float(before.max(initial=0)), float(after.max(initial=0)))
+    return out, PushOutReport(
+        float(before.mean()), float(after.mean()), float(before.max(initial=0)), float(after.max(initial=0))
+    )
 
 
-def limit_push_strain(pushed: np.ndarray, unpushed: np.ndarray, limits: EdgeLimits,
-                      max_strain: float = MAX_PUSH_STRAIN, iterations: int = LIMIT_ITERATIONS,
-                      in_place: bool = False, slack: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+def limit_push_strain(
+    pushed: np.ndarray,
+    unpushed: np.ndarray,
+    limits: EdgeLimits,
+    max_strain: float = MAX_PUSH_STRAIN,
+    iterations: int = LIMIT_ITERATIONS,
+    in_place: bool = False,
+    slack: float = 0.0,
+) -> tuple[np.ndarray, np.ndarray]:
     """Undo as much of a push as tears the cloth: at most ``iterations`` Gauss-Seidel passes of
     edge-length projection (an over-long edge's two ends move toward each other by half its excess
     each, over-relaxed; the edges a colour at a time, :attr:`EdgeLimits.colour`) on the frames where
@@ -174,17 +221,24 @@ def limit_push_strain(pushed: np.ndarray, unpushed: np.ndarray, limits: EdgeLimi
     if lib is not None:  # the same in C: the limits, the torn frames and the passes, which measure only
         # the edges that can have changed
         limit = _native_limit(limits, max_strain, slack, iterations)
-        p, torn = limit_strain(lib, pushed, unpushed, limit=limit, threads=default_threads(), in_place=in_place)
+        p, torn = limit_strain(
+            lib, pushed, unpushed, limit=limit, threads=default_threads(), in_place=in_place
+        )
         if p is pushed or not torn.any():
             return pushed, torn
         # the frames it left are ``pushed``'s widened to float64: narrowing them back is exact
         return p.astype(pushed.dtype, copy=False), torn
-    limit = np.maximum(max_strain * limits.rest_length, limits.lengths(unpushed.astype(np.float64)) + slack * limits.rest_length)
+    limit = np.maximum(
+        max_strain * limits.rest_length,
+        limits.lengths(unpushed.astype(np.float64)) + slack * limits.rest_length,
+    )
     torn = (limits.lengths(pushed.astype(np.float64)) > limit * (1 + 1e-6)).any(1)
     if not torn.any():
         return pushed, torn
     out = pushed.copy()
-    out[torn] = _limit_frames(pushed[torn].astype(np.float64), limit[torn], limits, iterations).astype(pushed.dtype)
+    out[torn] = _limit_frames(pushed[torn].astype(np.float64), limit[torn], limits, iterations).astype(
+        pushed.dtype
+    )
     return out, torn
 
 
@@ -192,8 +246,14 @@ def _native_limit(limits: EdgeLimits, max_strain: float, slack: float, iteration
     """The strain limit as the kernel takes it (:class:`~hrr_garment.native.body.StrainLimit`)."""
     from ..native.body import StrainLimit
 
-    return StrainLimit(edge_arrays=limits.native_arrays, max_strain=max_strain, iterations=iterations,
-                       tol=LIMIT_TOLERANCE_M, omega=OVER_RELAXATION, slack=slack)
+    return StrainLimit(
+        edge_arrays=limits.native_arrays,
+        max_strain=max_strain,
+        iterations=iterations,
+        tol=LIMIT_TOLERANCE_M,
+        omega=OVER_RELAXATION,
+        slack=slack,
+    )
 
 
 def _limit_frames(p: np.ndarray, limit: np.ndarray, limits: EdgeLimits, iterations: int) -> np.ndarray:
@@ -218,8 +278,9 @@ def _limit_frames(p: np.ndarray, limit: np.ndarray, limits: EdgeLimits, iteratio
     return p
 
 
-def follow_pushes(need: np.ndarray, normal: np.ndarray, limits: EdgeLimits, passes: int,
-                  slope: float) -> tuple[np.ndarray, np.ndarray]:
+def follow_pushes(
+    need: np.ndarray, normal: np.ndarray, limits: EdgeLimits, passes: int, slope: float
+) -> tuple[np.ndarray, np.ndarray]:
     """The neighbour-follow: (T, V) pushes and (T, V, 3) their directions -> the same with each
     vertex within ``passes`` rings of a pushed one moving at least as far as that push less
     ``slope`` times their rest distance along the path (a max-plus Jacobi pass per ring, in the
@@ -242,8 +303,13 @@ def follow_pushes(need: np.ndarray, normal: np.ndarray, limits: EdgeLimits, pass
     return req, direction
 
 
-def _push_frames(p: np.ndarray, capsules: tuple[np.ndarray, np.ndarray, np.ndarray], mean: csr_matrix,
-                 settings: PushOutSettings, limits: EdgeLimits | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _push_frames(
+    p: np.ndarray,
+    capsules: tuple[np.ndarray, np.ndarray, np.ndarray],
+    mean: csr_matrix,
+    settings: PushOutSettings,
+    limits: EdgeLimits | None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The reference (and the path without a C compiler): whole-mesh arrays, frames at once;
     ``capsules``: the frames' capsule ends a, b (T, C, 3) and the radii (C,); ``limits`` for the
     neighbour-follow (None: no follow)."""

@@ -31,7 +31,9 @@ class CrowdWindows:
         """A new character's own frames: its features and its gates."""
         return deque(maxlen=self.window), deque(maxlen=self.window)
 
-    def push(self, keys: tuple, chars: list, features: np.ndarray, gates: np.ndarray | None) -> tuple[np.ndarray, np.ndarray | None]:
+    def push(
+        self, keys: tuple, chars: list, features: np.ndarray, gates: np.ndarray | None
+    ) -> tuple[np.ndarray, np.ndarray | None]:
         """This frame's rows (``features`` (N, F), ``gates`` (N, 3H) or None) appended to each
         character's own (``chars[i].features``, ``.gates``; a character's first frame repeated
         before its start, as offline causal) -> the crowd's windows and their gates."""

@@ -30,5 +30,5 @@ def body_frame_vertices(bundle: Bundle, latents: np.ndarray, decoder, batch: int
     them to the world)."""
     out = np.empty((len(latents), bundle.template.num_vertices, 3), np.float32)
     for i in range(0, len(latents), batch):
-        out[i:i + batch] = decoder(torch.from_numpy(np.ascontiguousarray(latents[i:i + batch]))).numpy()
+        out[i : i + batch] = decoder(torch.from_numpy(np.ascontiguousarray(latents[i : i + batch]))).numpy()
     return out

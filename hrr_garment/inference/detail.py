@@ -51,9 +51,16 @@ FOLD_MAX_STRAIN = 1.5  # x rest length: the push-out's own limit (collision.MAX_
 FOLD_LIMIT_ITERATIONS = 10
 
 
-def add_folds(regression: np.ndarray, folds: np.ndarray, mean: csr_matrix, passes: int,
-              strength: float = DETAIL_STRENGTH, limits: EdgeLimits | None = None,
-              follow: Callable[[np.ndarray], np.ndarray] | None = None, weights: np.ndarray | None = None) -> np.ndarray:
+def add_folds(
+    regression: np.ndarray,
+    folds: np.ndarray,
+    mean: csr_matrix,
+    passes: int,
+    strength: float = DETAIL_STRENGTH,
+    limits: EdgeLimits | None = None,
+    follow: Callable[[np.ndarray], np.ndarray] | None = None,
+    weights: np.ndarray | None = None,
+) -> np.ndarray:
     """(T, V, 3) regression vertices and (T, V, 3) folds (high frequencies at ``passes`` passes of
     ``mean``, the mesh's :func:`~hrr_garment.garment.smoothing.mean_operator`; same frame, body or
     world) -> (T, V, 3) float32; with the template's ``limits``, no edge stretched by the folds past
@@ -67,5 +74,11 @@ def add_folds(regression: np.ndarray, folds: np.ndarray, mean: csr_matrix, passe
     detail = (regression + strength * term).astype(np.float32)
     if limits is None:
         return detail
-    return limit_push_strain(detail, regression, limits, max_strain=FOLD_MAX_STRAIN, iterations=FOLD_LIMIT_ITERATIONS,
-                             in_place=True)[0].astype(np.float32, copy=False)
+    return limit_push_strain(
+        detail,
+        regression,
+        limits,
+        max_strain=FOLD_MAX_STRAIN,
+        iterations=FOLD_LIMIT_ITERATIONS,
+        in_place=True,
+    )[0].astype(np.float32, copy=False)

@@ -43,16 +43,31 @@ class EdgeLimits:
         """``mean``: the faces' :func:`mean_operator`, where the caller has it already (its order is the ring's)."""
         edges = unique_edges(faces)
         v, e = len(rest), len(edges)
-        signs = csr_matrix((np.r_[np.ones(e), -np.ones(e)], (np.r_[edges[:, 0], edges[:, 1]], np.r_[np.arange(e), np.arange(e)])),
-                           shape=(v, e))
+        signs = csr_matrix(
+            (
+                np.r_[np.ones(e), -np.ones(e)],
+                (np.r_[edges[:, 0], edges[:, 1]], np.r_[np.arange(e), np.arange(e)]),
+            ),
+            shape=(v, e),
+        )
         ring, ring_length = _ring_table(mean_operator(faces, v) if mean is None else mean, rest)
-        return cls(edges, np.linalg.norm(rest[edges[:, 1]] - rest[edges[:, 0]], axis=-1), signs, _edge_colours(edges, v),
-                   ring, ring_length, _patches(rest))
+        return cls(
+            edges,
+            np.linalg.norm(rest[edges[:, 1]] - rest[edges[:, 0]], axis=-1),
+            signs,
+            _edge_colours(edges, v),
+            ring,
+            ring_length,
+            _patches(rest),
+        )
 
     @cached_property
     def colour_groups(self) -> tuple[np.ndarray, ...]:
         """The edge indices of each colour, in colour order."""
-        return tuple(np.flatnonzero(self.colour == c) for c in range(int(self.colour.max()) + 1 if len(self.colour) else 0))
+        return tuple(
+            np.flatnonzero(self.colour == c)
+            for c in range(int(self.colour.max()) + 1 if len(self.colour) else 0)
+        )
 
     @cached_property
     def _push_meshes(self) -> dict:
@@ -62,15 +77,25 @@ class EdgeLimits:
         """What the push-out's kernel takes of this garment under ``settings``, converted once per settings."""
         key = (settings.follow, settings.follow_slope)
         if key not in self._push_meshes:
-            self._push_meshes[key] = PushMesh(self.ring, self.ring_length, settings.follow_slope, follow=settings.follow,
-                                              patches=self.patches)
+            self._push_meshes[key] = PushMesh(
+                self.ring,
+                self.ring_length,
+                settings.follow_slope,
+                follow=settings.follow,
+                patches=self.patches,
+            )
         return self._push_meshes[key]
 
     @cached_property
     def native_arrays(self) -> EdgeArrays:
         """What the kernel takes, converted once (a stream limits every frame)."""
-        return EdgeArrays(edges=self.edges, rest_length=self.rest_length, colour=self.colour,
-                          vertex_edges_indptr=self.signs.indptr, vertex_edges_indices=self.signs.indices)
+        return EdgeArrays(
+            edges=self.edges,
+            rest_length=self.rest_length,
+            colour=self.colour,
+            vertex_edges_indptr=self.signs.indptr,
+            vertex_edges_indices=self.signs.indices,
+        )
 
     def lengths(self, p: np.ndarray) -> np.ndarray:
         """(T, E) edge lengths of (T, V, 3) positions."""
@@ -119,6 +144,8 @@ def _patches(rest: np.ndarray, size: int = 48) -> tuple[np.ndarray, np.ndarray]:
             continue
         axis = np.ptp(rest[part], 0).argmax()
         order = part[np.argsort(rest[part, axis], kind="stable")]
-        stack += [order[len(order) // 2:], order[:len(order) // 2]]
-    return (np.r_[0, np.cumsum([len(g) for g in groups])].astype(np.int32),
-            np.concatenate(groups).astype(np.int32) if groups else np.zeros(0, np.int32))
+        stack += [order[len(order) // 2 :], order[: len(order) // 2]]
+    return (
+        np.r_[0, np.cumsum([len(g) for g in groups])].astype(np.int32),
+        np.concatenate(groups).astype(np.int32) if groups else np.zeros(0, np.int32),
+    )

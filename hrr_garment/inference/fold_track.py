@@ -44,7 +44,9 @@ FOLD_FOLLOW = 0.4
 class FoldTrack:
     """One animation's playhead; :meth:`step` once per output frame."""
 
-    offsets: np.ndarray  # (S + 1,) the fold store's: sequence s's frames are rows offsets[s] .. offsets[s + 1] - 1
+    offsets: (
+        np.ndarray
+    )  # (S + 1,) the fold store's: sequence s's frames are rows offsets[s] .. offsets[s + 1] - 1
     hold: int = FOLD_HOLD
     fade: int = FOLD_FADE
     slack: int = FOLD_SLACK
@@ -66,15 +68,22 @@ class FoldTrack:
             self.sequence, self.frame = sequence, frame
         else:
             self.frame += 1
-            self.old_frame = min(self.old_frame + 1, int(self.lengths[self.old_sequence]) - 1) if self.fading else 0
+            self.old_frame = (
+                min(self.old_frame + 1, int(self.lengths[self.old_sequence]) - 1) if self.fading else 0
+            )
             agrees = sequence == self.sequence and abs(frame - self.frame) <= self.slack
             self.disagreed = 0 if agrees else self.disagreed + 1
             if self.frame >= self.lengths[self.sequence] or self.disagreed >= self.hold:
-                self.old_sequence, self.old_frame = self.sequence, min(self.frame, int(self.lengths[self.sequence]) - 1)
+                self.old_sequence, self.old_frame = (
+                    self.sequence,
+                    min(self.frame, int(self.lengths[self.sequence]) - 1),
+                )
                 self.sequence, self.frame, self.disagreed, self.fading = sequence, frame, 0, self.fade
         old = self.fading / (self.fade + 1.0)
         here = self.offsets[self.sequence] + self.frame
-        rows = np.array([here, self.offsets[self.old_sequence] + self.old_frame if self.fading else here], np.int64)
+        rows = np.array(
+            [here, self.offsets[self.old_sequence] + self.old_frame if self.fading else here], np.int64
+        )
         self.fading = max(self.fading - 1, 0)
         return rows, np.array([1.0 - old, old])
 
@@ -96,7 +105,9 @@ def track_folds(proposals: np.ndarray, offsets: np.ndarray, **settings: int) -> 
     over them (``offsets``: the store's; ``settings``: its hold, fade or slack, for analysis)."""
     track = FoldTrack(offsets, **settings)
     steps = [track.step(sequence, frame) for sequence, frame in proposals]
-    return np.array([r for r, _ in steps], np.int64).reshape(-1, 2), np.array([w for _, w in steps]).reshape(-1, 2)
+    return np.array([r for r, _ in steps], np.int64).reshape(-1, 2), np.array([w for _, w in steps]).reshape(
+        -1, 2
+    )
 
 
 @dataclass
@@ -118,8 +129,9 @@ def _size(laplacian: np.ndarray) -> np.ndarray:
     return np.sqrt(np.einsum("nvc,nvc->n", laplacian, laplacian) / laplacian.shape[1])
 
 
-def follow_folds(folds: np.ndarray, states: list[FollowedFolds | None], mean: csr_matrix,
-                 follow: float | None = None) -> np.ndarray:
+def follow_folds(
+    folds: np.ndarray, states: list[FollowedFolds | None], mean: csr_matrix, follow: float | None = None
+) -> np.ndarray:
     """One frame of N animations: their fold terms (N, V, 3) -> as they are shown (N, V, 3) float64;
     ``states`` (N,) their :class:`FollowedFolds`, updated in place (None: the animation's first
     frame, shown as it is). ``mean``: the mesh's 1-ring mean operator; ``follow``: the share of the
@@ -134,7 +146,9 @@ def follow_folds(folds: np.ndarray, states: list[FollowedFolds | None], mean: cs
     scale_before = np.array([1.0 if s is None else s.scale for s in states])
     followed = before + follow * (folds - before)
     followed_laplacian = laplacian_before + follow * (laplacian - laplacian_before)
-    scale = scale_before + follow * (_size(laplacian) / np.maximum(_size(followed_laplacian), 1e-12) - scale_before)
+    scale = scale_before + follow * (
+        _size(laplacian) / np.maximum(_size(followed_laplacian), 1e-12) - scale_before
+    )
     for i in range(len(states)):
         states[i] = FollowedFolds(followed[i], followed_laplacian[i], float(scale[i]))
     return scale[:, None, None] * followed

@@ -31,7 +31,9 @@ class WindowChoice:
     retrieved: np.ndarray  # (N,) bool: the latents are the database window's, as simulated
     entropy: np.ndarray  # (N,) motion-code entropy
     doubt: np.ndarray  # (N,) the gate signal's value (retrieval where below tau; the entropy by default)
-    match: np.ndarray  # (N, 2) int32 (database sequence index, start frame) of the window that gave or lent, else -1
+    match: (
+        np.ndarray
+    )  # (N, 2) int32 (database sequence index, start frame) of the window that gave or lent, else -1
     lends_folds: bool = False  # the detail mode: ``match`` lends its simulated folds to ``latents``
     # (N,) bool: the latents change with the match (retrieved windows, and every residual window's),
     # so a change of match is a change of source for causal inertialization (None: ``retrieved``)
@@ -49,9 +51,16 @@ class WindowChoice:
             self.follows_match = self.retrieved
 
 
-def choose_windows(bundle: Bundle, motion_windows: np.ndarray, run: ResolvedRun, *, exclude: np.ndarray | None = None,
-                   last_frame: bool = False, step: torch.nn.Module | None = None,
-                   gates: np.ndarray | None = None) -> WindowChoice:
+def choose_windows(
+    bundle: Bundle,
+    motion_windows: np.ndarray,
+    run: ResolvedRun,
+    *,
+    exclude: np.ndarray | None = None,
+    last_frame: bool = False,
+    step: torch.nn.Module | None = None,
+    gates: np.ndarray | None = None,
+) -> WindowChoice:
     """Run the motion encoder on raw feature windows (N, W, F) and pick each window's latents as
     ``run`` asks (its mode, gate and tau, the detail mode's base; with ``last_frame``, only the
     last frame's latents: all that causal inference blends). ``exclude``: (N,) a database sequence
@@ -60,8 +69,16 @@ def choose_windows(bundle: Bundle, motion_windows: np.ndarray, run: ResolvedRun,
     if mode not in CODE_MODES:
         raise ValueError(f"unknown mode {str(mode)!r}; choose one of {', '.join(CODE_MODES)}")
     db = bundle.database
-    enc = encode_motion(bundle.codespace, bundle.motion_stats, bundle.latent_stats, motion_windows=motion_windows,
-                        regression=mode.regresses, last_frame=last_frame, step=step, gates=gates)
+    enc = encode_motion(
+        bundle.codespace,
+        bundle.motion_stats,
+        bundle.latent_stats,
+        motion_windows=motion_windows,
+        regression=mode.regresses,
+        last_frame=last_frame,
+        step=step,
+        gates=gates,
+    )
     n = len(enc.entropy)
     frames = 1 if last_frame else db.latents.shape[1]
     bodies = window_bodies(bundle.codespace, enc)
@@ -76,27 +93,55 @@ def choose_windows(bundle: Bundle, motion_windows: np.ndarray, run: ResolvedRun,
         residual = mode is Mode.RESIDUAL or run.fold_base == "residual"
         part = None
         if residual:
-            own = match_regression(bundle.codespace, bundle.motion_stats, bundle.latent_stats, database=db, rows=match, last_frame=last_frame, step=step)
-            latents = residual_latents(enc.regression, db.latents[match, -frames:], own, similarity=similarity,
-                                       weight=bundle.residual_weight, nodes=bundle.residual_nodes)
+            own = match_regression(
+                bundle.codespace,
+                bundle.motion_stats,
+                bundle.latent_stats,
+                database=db,
+                rows=match,
+                last_frame=last_frame,
+                step=step,
+            )
+            latents = residual_latents(
+                enc.regression,
+                db.latents[match, -frames:],
+                own,
+                similarity=similarity,
+                weight=bundle.residual_weight,
+                nodes=bundle.residual_nodes,
+            )
             if run.swing != 1.0:  # only the swing's gain reads it (inference/swing.py)
                 # where the match's motion is the query's (the game's own clips) the residual replaces
                 # that share of the regression, damped swing included, by the match's simulation
-                part = (1.0 - residual_scale(similarity, bundle.residual_weight, bundle.residual_nodes)) * enc.regression
+                part = (
+                    1.0 - residual_scale(similarity, bundle.residual_weight, bundle.residual_nodes)
+                ) * enc.regression
         # on the regression, a detail window's latents are one continuous source whatever lends the
         # folds; on the residual they change with the match, which causal inference inertializes
         # (without it a stream of the default look jumped at every change of match: 2 x the jitter),
         # the match's departure only: the regression under it is continuous, and extrapolated at
         # every change it lagged (causal PVE 33.8 against the regression's 31.7 mm at weight 0)
-        return WindowChoice(latents, np.zeros(n, bool), enc.entropy, np.asarray(doubt, np.float64), matched,
-                            lends_folds=mode is Mode.DETAIL, follows_match=np.full(n, residual),
-                            continuous=enc.regression if residual else None, regression_part=part)
+        return WindowChoice(
+            latents,
+            np.zeros(n, bool),
+            enc.entropy,
+            np.asarray(doubt, np.float64),
+            matched,
+            lends_folds=mode is Mode.DETAIL,
+            follows_match=np.full(n, residual),
+            continuous=enc.regression if residual else None,
+            regression_part=part,
+        )
     if run.gate != "entropy" and mode is Mode.HYBRID:  # the match decides: search every window first
         match, similarity = db.search(enc.codes, exclude, bodies)
         distance = db.motion_distance(enc.standardised, match) if run.gate == "distance" else None
         doubt = gate_doubt(run.gate, enc.entropy, similarity, distance=distance)
     retrieved = {Mode.HYBRID: doubt < run.tau, Mode.REGRESSION: np.zeros(n, bool)}.get(mode, np.ones(n, bool))
-    latents = enc.regression.copy() if enc.regression is not None else np.empty((n, frames, *db.latents.shape[2:]), np.float32)
+    latents = (
+        enc.regression.copy()
+        if enc.regression is not None
+        else np.empty((n, frames, *db.latents.shape[2:]), np.float32)
+    )
     source = np.full((n, 2), -1, np.int32)
     if retrieved.any():
         rows = np.flatnonzero(retrieved)

@@ -38,7 +38,9 @@ def levels(lod, count: int) -> np.ndarray:
     if values.ndim == 0:
         values = np.full(count, values)
     if values.shape != (count,) or not np.issubdtype(values.dtype, np.integer) or (values < 0).any():
-        raise ValueError(f"lod takes a level >= 0 per character (or one for all), got {lod!r} for {count} characters")
+        raise ValueError(
+            f"lod takes a level >= 0 per character (or one for all), got {lod!r} for {count} characters"
+        )
     return values.astype(np.int64)
 
 
@@ -98,7 +100,9 @@ def crowd_latents(chars: list, lv: np.ndarray, choose, inertialize_rows) -> np.n
     :class:`~.gate.WindowChoice`; ``inertialize_rows``: (targets (N, nodes, C) float64, their
     source ids, continuous parts (N, nodes, C) or None, which rows have one (N,)) -> the characters'
     inertialized latents, all in one call (:meth:`~.blending.Inertializer.step_rows`)."""
-    stepping = np.array([steps_now(int(level), c.frames) or c.lod.latent is None for level, c in zip(lv, chars)])
+    stepping = np.array(
+        [steps_now(int(level), c.frames) or c.lod.latent is None for level, c in zip(lv, chars)]
+    )
     rows = np.flatnonzero(stepping)
     choice = choose(None if stepping.all() else rows) if rows.size else None
     shape = choice.latents.shape[2:] if choice is not None else chars[0].lod.latent.shape
@@ -115,7 +119,9 @@ def crowd_latents(chars: list, lv: np.ndarray, choose, inertialize_rows) -> np.n
         if choice.continuous is not None and blending.DEPARTURE_ONLY:  # else the whole latent inertialized
             continuous = np.zeros_like(targets)
             continuous[rows], split[rows] = choice.continuous[:, -1], True
-    for i in np.flatnonzero(~stepping):  # held: a source of its own (all of it), so the next step's latent is blended in
+    for i in np.flatnonzero(
+        ~stepping
+    ):  # held: a source of its own (all of it), so the next step's latent is blended in
         c = chars[i]
         targets[i], sources[i] = c.lod.latent, ("held", c.lod.since)
     return inertialize_rows(targets, sources, continuous, split).astype(np.float32)
@@ -144,7 +150,7 @@ def crowd_decode(chars: list, latents: np.ndarray, names: list[str], decoders: d
         state = c.lod
         if state.decoder is not None and state.decoder != names[i]:
             with torch.no_grad():
-                before = decoders[state.decoder](torch.from_numpy(latents[i:i + 1])).numpy()[0]
+                before = decoders[state.decoder](torch.from_numpy(latents[i : i + 1])).numpy()[0]
             previous = state.fade.apply(before) if state.fade is not None and not state.fade.done else before
             state.fade = DecoderFade(previous - out[i])
         state.decoder = names[i]

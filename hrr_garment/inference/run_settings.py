@@ -31,8 +31,14 @@ from ..artifacts.manifest import DETAIL_BASES, MAX_DETAIL_STRENGTH, valid_detail
 from .modes import Mode
 from .swing import MAX_GAIN, valid_gain
 
-DECODERS = ("full", "fast")  # the mesh autoencoder's decoder, or its distilled subspace decoder (models/subspace.py)
-PUSHES = ("mesh", "subspace")  # the collision push-out alone, or after the push in the garment's subspace (subspace_push.py)
+DECODERS = (
+    "full",
+    "fast",
+)  # the mesh autoencoder's decoder, or its distilled subspace decoder (models/subspace.py)
+PUSHES = (
+    "mesh",
+    "subspace",
+)  # the collision push-out alone, or after the push in the garment's subspace (subspace_push.py)
 
 #: keyword arguments of the API before the settings objects, and what replaced them
 RENAMED = {"detail_base": "detail=DetailLook(base=...)", "detail_strength": "detail=DetailLook(strength=...)"}
@@ -64,7 +70,9 @@ class DetailLook:
         if self.strength is not None:
             strength = _number(self.strength, "the detail mode's strength")
             if not valid_detail_strength(strength):
-                raise ValueError(f"the detail mode's strength must be in (0, {MAX_DETAIL_STRENGTH:g}], got {strength!r}")
+                raise ValueError(
+                    f"the detail mode's strength must be in (0, {MAX_DETAIL_STRENGTH:g}], got {strength!r}"
+                )
             object.__setattr__(self, "strength", strength)
 
     @property
@@ -106,14 +114,18 @@ class RunSettings:
         if self.swing is not None:
             swing = _number(self.swing, "swing")
             if not valid_gain(swing):
-                raise ValueError(f"swing is a gain in (0, {MAX_GAIN:g}] (1: the swing as predicted), got {self.swing!r}")
+                raise ValueError(
+                    f"swing is a gain in (0, {MAX_GAIN:g}] (1: the swing as predicted), got {self.swing!r}"
+                )
             object.__setattr__(self, "swing", swing)
         if self.gate is not None and self.gate not in GATE_SIGNALS:
             raise ValueError(f"gate must be one of {', '.join(GATE_SIGNALS)}, got {self.gate!r}")
         if self.tau is not None:
             tau = _number(self.tau, "tau")
             if not math.isfinite(tau) or tau < 0:
-                raise ValueError(f"tau must be a finite number >= 0 (the gate's doubt is never negative), got {tau!r}")
+                raise ValueError(
+                    f"tau must be a finite number >= 0 (the gate's doubt is never negative), got {tau!r}"
+                )
             object.__setattr__(self, "tau", tau)
         if self.decoder is not None and self.decoder not in DECODERS:
             raise ValueError(f"decoder must be one of {', '.join(DECODERS)}, got {self.decoder!r}")
@@ -127,9 +139,13 @@ class RunSettings:
                 raise TypeError(f"{name} must be True or False, got {value!r}")
             object.__setattr__(self, name, bool(value))
         if self.mode is Mode.AUTO and self.hybrid_chosen and self.detail.chosen:
-            raise ValueError("a gate or tau sets the hybrid and a detail base or strength the detail mode: name the mode")
+            raise ValueError(
+                "a gate or tau sets the hybrid and a detail base or strength the detail mode: name the mode"
+            )
         if self.detail.chosen and self.mode not in (Mode.AUTO, Mode.DETAIL):
-            raise ValueError(f"a detail base or strength sets the detail mode; mode {self.mode.value} does not use them")
+            raise ValueError(
+                f"a detail base or strength sets the detail mode; mode {self.mode.value} does not use them"
+            )
 
     @property
     def hybrid_chosen(self) -> bool:
@@ -141,9 +157,11 @@ class RunSettings:
         unknown = sorted(set(changes) - {f.name for f in dataclasses.fields(self)})
         if unknown:
             hints = [f"{k} (now {RENAMED[k]})" for k in unknown if k in RENAMED]
-            raise TypeError(f"unknown run setting(s) {', '.join(unknown)}; the settings are "
-                            f"{', '.join(f.name for f in dataclasses.fields(self))}"
-                            + (f": {'; '.join(hints)}" if hints else ""))
+            raise TypeError(
+                f"unknown run setting(s) {', '.join(unknown)}; the settings are "
+                f"{', '.join(f.name for f in dataclasses.fields(self))}"
+                + (f": {'; '.join(hints)}" if hints else "")
+            )
         return dataclasses.replace(self, **changes) if changes else self
 
     def resolve(self, bundle: Bundle) -> ResolvedRun:
@@ -151,19 +169,30 @@ class RunSettings:
         mode, calibrated = self.mode, False
         if mode is Mode.AUTO:
             calibrated = not (self.hybrid_chosen or self.detail.chosen)
-            mode = Mode.HYBRID if self.hybrid_chosen else Mode.DETAIL if self.detail.chosen else Mode(bundle.auto_mode)
+            mode = (
+                Mode.HYBRID
+                if self.hybrid_chosen
+                else Mode.DETAIL
+                if self.detail.chosen
+                else Mode(bundle.auto_mode)
+            )
         gate = bundle.gate if self.gate is None else self.gate
         tau = bundle.gate_tau(gate) if self.tau is None else self.tau
         look = None
         if mode is Mode.DETAIL:
             bundle.require_folds()
-            look = DetailLook(bundle.detail_base if self.detail.base is None else self.detail.base,
-                              bundle.detail_strength if self.detail.strength is None else self.detail.strength)
+            look = DetailLook(
+                bundle.detail_base if self.detail.base is None else self.detail.base,
+                bundle.detail_strength if self.detail.strength is None else self.detail.strength,
+            )
             if look.base == "residual":
                 bundle.require_residual()
                 if bundle.residual_weight <= 0:
-                    raise BundleError(bundle.folder, "its residual weight is calibrated to 0, so the residual mode is "
-                                                     "the regression: run the detail mode on the regression")
+                    raise BundleError(
+                        bundle.folder,
+                        "its residual weight is calibrated to 0, so the residual mode is "
+                        "the regression: run the detail mode on the regression",
+                    )
         elif mode is Mode.RESIDUAL:
             bundle.require_residual()
         decoder = self.decoder or "full"
@@ -173,8 +202,17 @@ class RunSettings:
         if push == "subspace":
             bundle.require_subspace("the subspace push")
         swing = self.swing if self.swing is not None else bundle.swing_gain if calibrated else 1.0
-        return ResolvedRun(mode=mode, gate=gate, tau=tau, detail=look, collision=self.collision, causal=self.causal,
-                           decoder=decoder, swing=swing, push=push)
+        return ResolvedRun(
+            mode=mode,
+            gate=gate,
+            tau=tau,
+            detail=look,
+            collision=self.collision,
+            causal=self.causal,
+            decoder=decoder,
+            swing=swing,
+            push=push,
+        )
 
 
 @dataclass(frozen=True)
@@ -198,8 +236,16 @@ class ResolvedRun:
 
     def record(self) -> dict:
         """What out.h5's attributes and report.json's settings record of the run."""
-        out = {"mode": str(self.mode), "gate": self.gate, "tau": self.tau, "causal": int(self.causal),
-               "collision": int(self.collision), "decoder": self.decoder, "swing": self.swing, "push": self.push}
+        out = {
+            "mode": str(self.mode),
+            "gate": self.gate,
+            "tau": self.tau,
+            "causal": int(self.causal),
+            "collision": int(self.collision),
+            "decoder": self.decoder,
+            "swing": self.swing,
+            "push": self.push,
+        }
         if self.detail is not None:
             out.update(detail_base=self.detail.base, detail_strength=self.detail.strength)
         return out
@@ -208,5 +254,7 @@ class ResolvedRun:
 def run_settings(settings: RunSettings | None, changes: dict) -> RunSettings:
     """``settings`` (default :class:`RunSettings`) with the API call's keyword ``changes``."""
     if settings is not None and not isinstance(settings, RunSettings):
-        raise TypeError(f"settings must be a RunSettings, got {type(settings).__name__} (modes go as mode=...)")
+        raise TypeError(
+            f"settings must be a RunSettings, got {type(settings).__name__} (modes go as mode=...)"
+        )
     return (settings or RunSettings()).replace(**changes)

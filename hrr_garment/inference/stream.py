@@ -70,7 +70,9 @@ class _Character:
     inertia: int  # its row in the crowd's Inertializer
     fold_track: FoldTrack | None = None  # the detail mode's playhead in the database's folds
     followed: FollowedFolds | None = None  # its folds as followed in time (fold_track.follow_folds)
-    previous: tuple[np.ndarray, np.ndarray] | None = None  # its last pose: global rotations and joint positions
+    previous: tuple[np.ndarray, np.ndarray] | None = (
+        None  # its last pose: global rotations and joint positions
+    )
     memory: np.ndarray | None = None  # its motion memory's state (rows, 64), when the model has one
     root: np.ndarray | None = None  # its last pushed pelvis position (teleports restart it)
     frames: int = 0
@@ -81,7 +83,10 @@ class _Character:
 def check_keys(keys: list, count: int) -> None:
     """An InputError unless ``keys`` are ``count`` distinct ids, one per pushed pose."""
     if len(keys) != count or len(set(keys)) != len(keys):
-        raise InputError("push", f"{count} poses need as many distinct keys, got {len(keys)} keys ({len(set(keys))} distinct)")
+        raise InputError(
+            "push",
+            f"{count} poses need as many distinct keys, got {len(keys)} keys ({len(set(keys))} distinct)",
+        )
 
 
 @dataclass
@@ -111,10 +116,14 @@ class CrowdStream:
         self.timings = _Timings()
         regression = run.mode.regresses
         bundle = animator.bundle
-        self._decoders = {"full": animator.decoder, "fast": bundle.subspace}  # by name, as levels of detail pick them
+        self._decoders = {
+            "full": animator.decoder,
+            "fast": bundle.subspace,
+        }  # by name, as levels of detail pick them
         self._swing: dict[float, SwingGain] = {}  # the swing's gain per frame rate pushed
         self._step = animator.causal_step(regression) or traced_window_codes(
-            bundle.codespace, animator.window, bundle.codespace.features, regression=regression)
+            bundle.codespace, animator.window, bundle.codespace.features, regression=regression
+        )
 
     @property
     def mode(self) -> Mode:
@@ -144,8 +153,9 @@ class CrowdStream:
         """Drop a character's state (it starts afresh if pushed again), its inertialization's row freed."""
         self._inertia.remove_path(self._characters.pop(key).inertia)
 
-    def push(self, rotations: np.ndarray, roots: np.ndarray, keys: Sequence[Hashable] | None = None, *,
-             lod=None) -> np.ndarray:
+    def push(
+        self, rotations: np.ndarray, roots: np.ndarray, keys: Sequence[Hashable] | None = None, *, lod=None
+    ) -> np.ndarray:
         """One frame of N characters: ``rotations`` (N, J, 4) quaternions (x, y, z, w), (N, J, 3)
         axis-angle or (N, J, 3, 3) matrices, local; ``roots`` (N, 3) pelvis positions, metres; ``keys``
         one id per character (default 0 .. N-1; a new id joins); ``lod``: each character's level of
@@ -204,12 +214,14 @@ class CrowdStream:
     def _follow(self, chars: list[_Character]):
         """The detail mode's fold term -> as each character's folds follow in time
         (:func:`~.fold_track.follow_folds`, its state kept on the character)."""
+
         def follow(term: np.ndarray) -> np.ndarray:
             states = [c.followed for c in chars]
             followed = follow_folds(term, states, self.animator.smoothing)
             for c, state in zip(chars, states):
                 c.followed = state
             return followed
+
         return follow
 
     def _played(self, keys: list, poses: Motion) -> tuple[Motion, "CrowdBodies"]:
@@ -224,23 +236,36 @@ class CrowdStream:
         stacked = self._stacked[1]
         return poses.on_skeletons(stacked.skeletons, stacked.root_scale), stacked
 
-    def _latents(self, chars: list[_Character], windows: np.ndarray, gates: np.ndarray | None, lv: np.ndarray) -> np.ndarray:
+    def _latents(
+        self, chars: list[_Character], windows: np.ndarray, gates: np.ndarray | None, lv: np.ndarray
+    ) -> np.ndarray:
         """The window step (motion encoder, gate, code-space decoder) of the characters whose level
         of detail runs it now (all, at level 0), the others' held: (N, nodes, C) inertialized
         latents; each character's ``lod`` keeps its database match. ``gates``: the windows' frames'
         GRU input gates (None: the step computes them)."""
+
         def choose(rows):
             pick = slice(None) if rows is None else rows  # all: the arrays themselves
-            return choose_windows(self.animator.bundle, windows[pick], self.run, last_frame=True, step=self._step,
-                                  gates=None if gates is None else gates[pick])
+            return choose_windows(
+                self.animator.bundle,
+                windows[pick],
+                self.run,
+                last_frame=True,
+                step=self._step,
+                gates=None if gates is None else gates[pick],
+            )
 
         rows = np.array([c.inertia for c in chars])
-        return crowd_latents(chars, lv, choose=choose, inertialize_rows=partial(self._inertia.step_rows, rows=rows))
+        return crowd_latents(
+            chars, lv, choose=choose, inertialize_rows=partial(self._inertia.step_rows, rows=rows)
+        )
 
     def _restart_teleported(self, keys: list, poses: Motion) -> None:
         """Forget the characters whose pelvis moved faster than :data:`MAX_ROOT_SPEED` since their
         last push (they start afresh this frame), each with a :class:`TeleportWarning`."""
-        known = [i for i, k in enumerate(keys) if k in self._characters and self._characters[k].root is not None]
+        known = [
+            i for i, k in enumerate(keys) if k in self._characters and self._characters[k].root is not None
+        ]
         if not known:
             return
         last = np.stack([self._characters[keys[i]].root for i in known])
@@ -248,47 +273,76 @@ class CrowdStream:
         for j in np.flatnonzero(jump * poses.fps > MAX_ROOT_SPEED):
             key = keys[known[j]]
             self._forget(key)
-            warnings.warn(f"character {key!r}: the pelvis moved {jump[j]:.3g} m in one frame (over {MAX_ROOT_SPEED:g} m/s); "
-                          "taken as a teleport, its garment starts afresh there", TeleportWarning, stacklevel=4)
+            warnings.warn(
+                f"character {key!r}: the pelvis moved {jump[j]:.3g} m in one frame (over {MAX_ROOT_SPEED:g} m/s); "
+                "taken as a teleport, its garment starts afresh there",
+                TeleportWarning,
+                stacklevel=4,
+            )
 
     def _step_frame(self, keys: list, poses: Motion, lv: np.ndarray) -> np.ndarray:
         t = [time.perf_counter()]
         pin_workers()  # a game loop idles between frames: its next frame must not wait for workers to move
         self._restart_teleported(keys, poses)
         for k in keys:
-            if k not in self._characters:  # not setdefault: that built a new character's state for every key every frame
+            if (
+                k not in self._characters
+            ):  # not setdefault: that built a new character's state for every key every frame
                 self._characters[k] = _Character(*self._windows.start(), self._inertia.add_path())
         chars = [self._characters[k] for k in keys]
         roots = poses.root_translation  # as pushed, before a body plays them
         poses, bodies = self._played(keys, poses)
-        features = self._with_memory(chars, pair_features_batch([c.previous for c in chars], poses), poses.fps)
+        features = self._with_memory(
+            chars, pair_features_batch([c.previous for c in chars], poses), poses.fps
+        )
         if self.animator.bundle.codespace.config.body_features:
             measures = np.asarray(bodies.vector, features.dtype)
-            features = np.concatenate([features, np.broadcast_to(measures, (len(features), measures.shape[-1]))], 1)
+            features = np.concatenate(
+                [features, np.broadcast_to(measures, (len(features), measures.shape[-1]))], 1
+            )
         gates = frame_gates(self.animator.bundle, self._step, features)  # each frame's once, as it comes
-        windows, window_gates = self._windows.push(tuple(keys), chars, features, gates)  # (N, W, F), (N, W, 3H)
+        windows, window_gates = self._windows.push(
+            tuple(keys), chars, features, gates
+        )  # (N, W, F), (N, W, 3H)
         t.append(time.perf_counter())
         latents = self._latents(chars, windows, window_gates, lv)
         if self.run.swing != 1.0:  # the free cloth's swing restored, each character's course kept on it
             if poses.fps not in self._swing:
-                self._swing[poses.fps] = SwingGain.of(self.run.swing, self.animator.bundle.node_hang_m, poses.fps)
+                self._swing[poses.fps] = SwingGain.of(
+                    self.run.swing, self.animator.bundle.node_hang_m, poses.fps
+                )
             latents = step_crowd(self._swing[poses.fps], chars, latents)
         t.append(time.perf_counter())
         has_fast = self._decoders["fast"] is not None
         names = [decoder_of(int(level), self.run.decoder, has_fast) for level in lv]
         local = crowd_decode(chars, latents, names, decoders=self._decoders)
-        if self.run.mode is Mode.DETAIL:  # the detail mode: each character's playhead one frame on, its folds added
-            local = add_folds(local, self._folds(chars, np.stack([c.lod.match for c in chars])), self.animator.smoothing,
-                              passes=self.animator.bundle.folds.passes, strength=self.run.detail.strength,
-                              limits=self.animator.edge_limits, follow=self._follow(chars),
-                              weights=self.animator.bundle.fold_weights)
+        if (
+            self.run.mode is Mode.DETAIL
+        ):  # the detail mode: each character's playhead one frame on, its folds added
+            local = add_folds(
+                local,
+                self._folds(chars, np.stack([c.lod.match for c in chars])),
+                self.animator.smoothing,
+                passes=self.animator.bundle.folds.passes,
+                strength=self.run.detail.strength,
+                limits=self.animator.edge_limits,
+                follow=self._follow(chars),
+                weights=self.animator.bundle.fold_weights,
+            )
         t.append(time.perf_counter())
         vertices = world_vertices(bodies.stand(local), poses)  # as offline: the same push-out inputs
         t.append(time.perf_counter())
         if self.run.collision:
-            vertices, _ = push_out(vertices, poses, self.animator.bundle.template.faces, body=bodies.capsules(poses),
-                                   mean=self.animator.smoothing, limits=self.animator.edge_limits,
-                                   settings=self.animator.push_settings(self.run), report=False)
+            vertices, _ = push_out(
+                vertices,
+                poses,
+                self.animator.bundle.template.faces,
+                body=bodies.capsules(poses),
+                mean=self.animator.smoothing,
+                limits=self.animator.edge_limits,
+                settings=self.animator.push_settings(self.run),
+                report=False,
+            )
         t.append(time.perf_counter())
         for i, c in enumerate(chars):
             c.previous = (poses.global_rotations[i], poses.joint_positions[i])

@@ -50,17 +50,22 @@ class SubspacePush:
     # depth; on the subset model 1e-4 tore 25.4 % of frames with jitter 1.11 x the truth's, 1e-6
     # 23.6 % with 1.18, 1e-3 33.8 % with 1.09 (the mesh push alone: 58.5 %, 1.09; docs/decisions/0032)
     ridge: float = 1e-4
-    clearance: float = 0.003  # metres past the push-out's margin the subspace aims for (the mesh push-out does the rest)
+    clearance: float = (
+        0.003  # metres past the push-out's margin the subspace aims for (the mesh push-out does the rest)
+    )
     # (and the band over which a vertex's weight grows from 0 to 1 as it nears the body)
     iterations: int = 2  # solves a frame (a move can bring other vertices near the body)
 
     def __post_init__(self) -> None:
         if not self.clearance > 0:
-            raise ValueError(f"clearance must be > 0 metres (the band a vertex's weight grows over), got {self.clearance!r}")
+            raise ValueError(
+                f"clearance must be > 0 metres (the band a vertex's weight grows over), got {self.clearance!r}"
+            )
 
     @classmethod
-    def of(cls, basis: np.ndarray, rest: np.ndarray, edges: np.ndarray, components: int = COMPONENTS,
-           **settings) -> "SubspacePush":
+    def of(
+        cls, basis: np.ndarray, rest: np.ndarray, edges: np.ndarray, components: int = COMPONENTS, **settings
+    ) -> "SubspacePush":
         """``basis`` (K, 3V) orthonormal rows (:class:`~hrr_garment.models.subspace.SubspaceDecoder`'s),
         the template's ``rest`` vertices (V, 3) and ``edges`` (E, 2); the first ``components`` (at most K)."""
         if components < 1:
@@ -75,11 +80,22 @@ class SubspacePush:
     @cached_property
     def native(self) -> SubspaceMove:
         """What the push-out's kernel takes of this push (:class:`~hrr_garment.native.body.SubspaceMove`), converted once."""
-        return SubspaceMove(self.basis, self.stretch, strain_weight=self.strain_weight, ridge=self.ridge,
-                            clearance=self.clearance, iterations=self.iterations)
+        return SubspaceMove(
+            self.basis,
+            self.stretch,
+            strain_weight=self.strain_weight,
+            ridge=self.ridge,
+            clearance=self.clearance,
+            iterations=self.iterations,
+        )
 
-    def __call__(self, vertices: np.ndarray, motion: Motion, capsules: tuple[np.ndarray, np.ndarray, np.ndarray],
-                 margin: float) -> np.ndarray:
+    def __call__(
+        self,
+        vertices: np.ndarray,
+        motion: Motion,
+        capsules: tuple[np.ndarray, np.ndarray, np.ndarray],
+        margin: float,
+    ) -> np.ndarray:
         """(T, V, 3) world vertices, their frames' ``motion`` (the body frame's heading) and posed
         ``capsules`` (a, b (T, C, 3), radii (C,) or (T, C)) -> the moved copy, float32."""
         a, b, radii = capsules
@@ -90,7 +106,7 @@ class SubspacePush:
         for t in range(len(out)):
             frame_radii = radii[t] if np.ndim(radii) == 2 else radii
             for _ in range(self.iterations):
-                d, n = frames_signed_distance(out[t:t + 1], a[t:t + 1], b[t:t + 1], radii=frame_radii)
+                d, n = frames_signed_distance(out[t : t + 1], a[t : t + 1], b[t : t + 1], radii=frame_radii)
                 near = np.nonzero(d[0] < margin + self.clearance)[0]
                 if not len(near):
                     break
@@ -98,7 +114,11 @@ class SubspacePush:
                 weight = np.minimum(depth / self.clearance, 1.0)
                 jac = np.einsum("si,ksi->sk", n[0, near] @ turn[t], self.basis[:, near])  # (|S|, k)
                 weighted = jac * weight[:, None]
-                system = weighted.T @ jac + self.strain_weight * self.stretch + self.ridge * weight.sum() * np.eye(k)
+                system = (
+                    weighted.T @ jac
+                    + self.strain_weight * self.stretch
+                    + self.ridge * weight.sum() * np.eye(k)
+                )
                 s = np.linalg.solve(system, weighted.T @ depth)
                 out[t] += (s @ flat).reshape(v, 3) @ turn[t].T
         return out.astype(np.float32)

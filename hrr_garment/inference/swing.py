@@ -47,7 +47,11 @@ MAX_GAIN = 3.0
 
 def valid_gain(value: object) -> bool:
     """Whether ``value`` is a swing gain: a number in (0, :data:`MAX_GAIN`]."""
-    return isinstance(value, (int, float, np.number)) and not isinstance(value, bool) and 0.0 < float(value) <= MAX_GAIN
+    return (
+        isinstance(value, (int, float, np.number))
+        and not isinstance(value, bool)
+        and 0.0 < float(value) <= MAX_GAIN
+    )
 
 
 @dataclass(frozen=True)
@@ -64,8 +68,13 @@ class SwingGain:
         decay = float(np.exp(-np.log(2.0) / (HALF_LIFE_S * float(fps))))
         return cls((1.0 + (float(gain) - 1.0) * free).astype(np.float32), decay)
 
-    def step(self, latent: np.ndarray, regression: np.ndarray, mean: np.ndarray | None,
-             fresh: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    def step(
+        self,
+        latent: np.ndarray,
+        regression: np.ndarray,
+        mean: np.ndarray | None,
+        fresh: np.ndarray | None = None,
+    ) -> tuple[np.ndarray, np.ndarray]:
         """One frame: ``latent`` (..., nodes, C), the ``regression``'s part of it (the same array
         where all of it is the regression's) and the regression's moving average so far (None: the
         first frame; ``fresh`` (N,) bool: the rows of a crowd that start here, whatever ``mean``
@@ -96,8 +105,15 @@ def step_crowd(gain: SwingGain, chars: list, latents: np.ndarray) -> np.ndarray:
     else its whole latent) and that part's course, kept on the character (``c.swing_mean``, None
     before its first frame)."""
     fresh = np.array([c.swing_mean is None for c in chars])
-    regression = np.stack([latents[i] if c.lod.regression is None else c.lod.regression for i, c in enumerate(chars)])
-    means = np.stack([regression[i].astype(np.float64) if c.swing_mean is None else c.swing_mean for i, c in enumerate(chars)])
+    regression = np.stack(
+        [latents[i] if c.lod.regression is None else c.lod.regression for i, c in enumerate(chars)]
+    )
+    means = np.stack(
+        [
+            regression[i].astype(np.float64) if c.swing_mean is None else c.swing_mean
+            for i, c in enumerate(chars)
+        ]
+    )
     out, means = gain.step(latents, regression, means, fresh)
     for c, mean in zip(chars, means):
         c.swing_mean = mean

@@ -37,18 +37,30 @@ class DeviceCrowd:
 
     def __init__(self, animator, run: ResolvedRun, *, device: str | torch.device, body=None):
         if run.mode is not Mode.REGRESSION:
-            raise ValueError(f"a crowd on a torch device runs the regression (mode='regression'), not {run.mode.value!r}: "
-                             "the database's retrieval, residual and folds run in the native crowd (device='native')")
+            raise ValueError(
+                f"a crowd on a torch device runs the regression (mode='regression'), not {run.mode.value!r}: "
+                "the database's retrieval, residual and folds run in the native crowd (device='native')"
+            )
         if run.swing != 1.0:
-            raise ValueError(f"a crowd on a torch device runs the swing as predicted (swing=1), not {run.swing:g}: "
-                             "the restored swing runs in the native crowd (device='native')")
+            raise ValueError(
+                f"a crowd on a torch device runs the swing as predicted (swing=1), not {run.swing:g}: "
+                "the restored swing runs in the native crowd (device='native')"
+            )
         self.device = torch.device(device)
         self.run = run
         self.body = animator.body() if body is None else body
-        self.step = stream_step(animator, self.body, push_out=run.collision, decoder=run.decoder, movable=True,
-                                push_settings=animator.push_settings(run)).to(self.device)
+        self.step = stream_step(
+            animator,
+            self.body,
+            push_out=run.collision,
+            decoder=run.decoder,
+            movable=True,
+            push_settings=animator.push_settings(run),
+        ).to(self.device)
         self._shapes = state_shapes(self.step)
-        self._state = {name: torch.zeros((0, *shape), device=self.device) for name, shape in self._shapes.items()}
+        self._state = {
+            name: torch.zeros((0, *shape), device=self.device) for name, shape in self._shapes.items()
+        }
         self._slots: dict[Hashable, int] = {}
         self._free: list[int] = []
 
@@ -74,8 +86,10 @@ class DeviceCrowd:
         if grow > 0:  # room for the newcomers: the state's rows doubled at least
             start = len(self._state["started"])
             extra = max(grow, start)
-            self._state = {name: torch.cat([t, torch.zeros((extra, *t.shape[1:]), device=self.device)])
-                           for name, t in self._state.items()}
+            self._state = {
+                name: torch.cat([t, torch.zeros((extra, *t.shape[1:]), device=self.device)])
+                for name, t in self._state.items()
+            }
             self._free += list(range(start + extra - 1, start - 1, -1))
         for key in fresh:
             slot = self._free.pop()
@@ -85,16 +99,28 @@ class DeviceCrowd:
         return torch.tensor([self._slots[k] for k in keys], device=self.device)
 
     @torch.no_grad()
-    def push(self, rotations: np.ndarray, roots: np.ndarray, keys: Sequence[Hashable] | None = None, *,
-             as_tensor: bool = False) -> np.ndarray | torch.Tensor:
+    def push(
+        self,
+        rotations: np.ndarray,
+        roots: np.ndarray,
+        keys: Sequence[Hashable] | None = None,
+        *,
+        as_tensor: bool = False,
+    ) -> np.ndarray | torch.Tensor:
         """One frame of N characters: ``rotations`` (N, 22, 4) local quaternions (x, y, z, w), ``roots``
         (N, 3) pelvis positions (metres, Y up), ``keys`` one id per character (default 0 .. N-1) ->
         (N, V, 3) world vertices, float32 (a tensor on the device with ``as_tensor``)."""
-        rotations, roots = torch.as_tensor(rotations, dtype=torch.float32), torch.as_tensor(roots, dtype=torch.float32)
+        rotations, roots = (
+            torch.as_tensor(rotations, dtype=torch.float32),
+            torch.as_tensor(roots, dtype=torch.float32),
+        )
         keys = list(range(len(rotations))) if keys is None else list(keys)
         if rotations.shape[1:] != (NUM_JOINTS, 4) or roots.shape != (len(rotations), 3):
-            raise InputError("push", f"a device crowd takes (N, {NUM_JOINTS}, 4) quaternions and (N, 3) roots; got "
-                                     f"{tuple(rotations.shape)} and {tuple(roots.shape)}")
+            raise InputError(
+                "push",
+                f"a device crowd takes (N, {NUM_JOINTS}, 4) quaternions and (N, 3) roots; got "
+                f"{tuple(rotations.shape)} and {tuple(roots.shape)}",
+            )
         check_keys(keys, len(rotations))
         if not (torch.isfinite(rotations).all() and torch.isfinite(roots).all()):
             raise InputError("push", "non-finite rotations or roots")

@@ -75,11 +75,21 @@ class SubspacePushStage(nn.Module):
         super().__init__()
         constant(self, "basis", push.basis)  # (k, V, 3)
         constant(self, "regulariser", push.strain_weight * push.stretch)  # (k, k)
-        self.ridge, self.clearance, self.iterations = float(push.ridge), float(push.clearance), int(push.iterations)
+        self.ridge, self.clearance, self.iterations = (
+            float(push.ridge),
+            float(push.clearance),
+            int(push.iterations),
+        )
         self.reach = float(margin) + self.clearance
 
-    def forward(self, p: torch.Tensor, a: torch.Tensor, b: torch.Tensor, heading: tuple[torch.Tensor, torch.Tensor],
-                distance) -> torch.Tensor:
+    def forward(
+        self,
+        p: torch.Tensor,
+        a: torch.Tensor,
+        b: torch.Tensor,
+        heading: tuple[torch.Tensor, torch.Tensor],
+        distance,
+    ) -> torch.Tensor:
         """``p`` (N, V, 3) world points and capsule ends ``a``, ``b`` (relative to the pelvis), each
         frame's body-frame ``heading`` (cosines, sines of its yaw), ``distance`` (:meth:`PushOutStage.distance`)."""
         cos, sin = heading
@@ -87,14 +97,24 @@ class SubspacePushStage(nn.Module):
         for _ in range(self.iterations):
             d, n = distance(p, a, b)
             depth = self.reach - d
-            weight = torch.where(depth > 0, torch.clamp(depth / self.clearance, max=1.0), torch.zeros_like(depth))
-            jac = torch.einsum("nvi,kvi->nvk", turn_y(n, cos, -sin), self.basis)  # the normals in the body frame
+            weight = torch.where(
+                depth > 0, torch.clamp(depth / self.clearance, max=1.0), torch.zeros_like(depth)
+            )
+            jac = torch.einsum(
+                "nvi,kvi->nvk", turn_y(n, cos, -sin), self.basis
+            )  # the normals in the body frame
             weighted = jac * weight[..., None]
             near = (weight > 0).any(1)[:, None, None]
-            system = weighted.transpose(1, 2) @ jac + self.regulariser + self.ridge * weight.sum(1)[:, None, None] * eye
+            system = (
+                weighted.transpose(1, 2) @ jac
+                + self.regulariser
+                + self.ridge * weight.sum(1)[:, None, None] * eye
+            )
             system = torch.where(near, system, eye)  # a frame with nothing near stays as it is
             rhs = (weighted * depth[..., None]).sum(1)
-            solve = spd_solve if torch.compiler.is_compiling() else torch.linalg.solve  # exporting: no ONNX solve
+            solve = (
+                spd_solve if torch.compiler.is_compiling() else torch.linalg.solve
+            )  # exporting: no ONNX solve
             coef = solve(system, rhs) * near[:, :, 0]
             p = p + turn_y(torch.einsum("nk,kvi->nvi", coef, self.basis), cos, sin)
         return p
@@ -113,7 +133,9 @@ class PushOutStage(nn.Module):
         constant(self, "cap_b", b)
         constant(self, "radii", radii)
         self.settings, self.strain_passes = settings, int(strain_passes)
-        self.subspace = None if settings.subspace is None else SubspacePushStage(settings.subspace, settings.margin)
+        self.subspace = (
+            None if settings.subspace is None else SubspacePushStage(settings.subspace, settings.margin)
+        )
         # the smoothing's row-normalised adjacency as (row, column, weight) triplets: a gather, a
         # product and a scatter-add (ONNX has no sparse product)
         smoothing = smoothing.tocoo()
@@ -123,7 +145,9 @@ class PushOutStage(nn.Module):
         # the neighbour-follow's padded 1-ring and each slot's drop (slope x rest distance); the
         # padding's infinite drop as a large finite one, which never wins either
         constant(self, "ring", limits.ring, torch.int64)
-        constant(self, "ring_drop", np.minimum(settings.follow_slope * limits.ring_length, 1e6)[..., None])  # (V, D, 1)
+        constant(
+            self, "ring_drop", np.minimum(settings.follow_slope * limits.ring_length, 1e6)[..., None]
+        )  # (V, D, 1)
         constant(self, "edges", limits.edges, torch.int64)
         constant(self, "allowed", settings.max_strain * limits.rest_length)
         constant(self, "slack", settings.stretch_slack * limits.rest_length)
@@ -133,7 +157,9 @@ class PushOutStage(nn.Module):
         for c, group in enumerate(limits.colour_groups):
             constant(self, f"colour_{c}", group, torch.int64)
 
-    def distance(self, p: torch.Tensor, a: torch.Tensor, b: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    def distance(
+        self, p: torch.Tensor, a: torch.Tensor, b: torch.Tensor
+    ) -> tuple[torch.Tensor, torch.Tensor]:
         """Signed distances (N, V) to the union of capsules and the nearest one's outward normals.
         Through products of (N, V, 3) by (N, 3, C) (no (N, V, C, 3) temporaries, which cost most of
         a step in onnxruntime); ``p``, ``a``, ``b`` relative to the pelvis keep them to metres."""
@@ -164,7 +190,9 @@ class PushOutStage(nn.Module):
 
     def _round(self, p, d, n, a, b):
         """A push along the normals, spread to the neighbours, never below what is needed."""
-        need = torch.clamp(self.settings.margin - d, min=0.0).transpose(0, 1)  # vertex-major, as smooth takes it
+        need = torch.clamp(self.settings.margin - d, min=0.0).transpose(
+            0, 1
+        )  # vertex-major, as smooth takes it
         normals = n.transpose(0, 1)
         for _ in range(self.settings.follow):
             need, normals = self._follow(need, normals)
@@ -172,7 +200,9 @@ class PushOutStage(nn.Module):
         disp = need[..., None] * normals
         for _ in range(self.settings.smooth):
             disp = self.smooth(disp)
-            short = torch.where(hit, torch.clamp(need - (disp * normals).sum(-1), min=0.0), torch.zeros_like(need))
+            short = torch.where(
+                hit, torch.clamp(need - (disp * normals).sum(-1), min=0.0), torch.zeros_like(need)
+            )
             disp = disp + short[..., None] * normals
         p = p + disp.transpose(0, 1)
         return (p, *self.distance(p, a, b))
@@ -187,7 +217,9 @@ class PushOutStage(nn.Module):
         better = best > need
         source = torch.gather(self.ring, 1, slot)  # (V, N): the neighbour that sets the push
         characters = torch.arange(need.shape[1], device=need.device)[None].expand_as(source)
-        return torch.where(better, best, need), torch.where(better[..., None], normals[source, characters], normals)
+        return torch.where(better, best, need), torch.where(
+            better[..., None], normals[source, characters], normals
+        )
 
     def _project(self, p, d, n, a, b):
         p = p + torch.where(d < 0, self.settings.margin - d, torch.zeros_like(d))[..., None] * n
@@ -207,7 +239,12 @@ class PushOutStage(nn.Module):
         length = torch.sqrt((self._edge_vectors(pushed) ** 2).sum(-1))
         torn = (length > limit * (1.0 + 1e-6)).any(0)
         passes = torch.zeros((), dtype=torch.int64, device=pushed.device)
-        state = (passes, pushed.contiguous(), limit, torn)  # as a pass's scatter-adds leave it (an ONNX Loop's carried layout)
+        state = (
+            passes,
+            pushed.contiguous(),
+            limit,
+            torn,
+        )  # as a pass's scatter-adds leave it (an ONNX Loop's carried layout)
         if torch.compiler.is_compiling():  # exporting: an ONNX Loop
             _, p, _, _ = while_loop(self._limiting, self._pass, state)
         else:  # running (a GPU crowd): the same passes in Python, without a compile per batch shape
@@ -216,7 +253,9 @@ class PushOutStage(nn.Module):
             p = state[1]
         return p.transpose(0, 1)
 
-    def _limiting(self, passes: torch.Tensor, p: torch.Tensor, limit: torch.Tensor, active: torch.Tensor) -> torch.Tensor:
+    def _limiting(
+        self, passes: torch.Tensor, p: torch.Tensor, limit: torch.Tensor, active: torch.Tensor
+    ) -> torch.Tensor:
         return (passes < self.strain_passes) & active.any()
 
     def _pass(self, passes: torch.Tensor, p: torch.Tensor, limit: torch.Tensor, active: torch.Tensor):
@@ -233,10 +272,20 @@ class PushOutStage(nn.Module):
             worst = torch.maximum(worst, excess.max(0).values)
             corr = (0.5 * OVER_RELAXATION * excess / torch.clamp(length, min=1e-12))[..., None] * d
             p = p.index_add(0, first, corr).index_add(0, second, -corr)
-        return passes + 1, p, limit.clone(), active & (worst > LIMIT_TOLERANCE_M)  # a character stops on its own
+        return (
+            passes + 1,
+            p,
+            limit.clone(),
+            active & (worst > LIMIT_TOLERANCE_M),
+        )  # a character stops on its own
 
-    def forward(self, vertices: torch.Tensor, rotations: torch.Tensor, positions: torch.Tensor,
-                heading: tuple[torch.Tensor, torch.Tensor] | None = None) -> torch.Tensor:
+    def forward(
+        self,
+        vertices: torch.Tensor,
+        rotations: torch.Tensor,
+        positions: torch.Tensor,
+        heading: tuple[torch.Tensor, torch.Tensor] | None = None,
+    ) -> torch.Tensor:
         """``heading``: each frame's body-frame yaw as (cosines, sines), which the subspace push needs."""
         rot, pos = rotations[:, self.joints], positions[:, self.joints]
         centre = positions[:, :1]  # (N, 1, 3): the pelvis
@@ -247,7 +296,9 @@ class PushOutStage(nn.Module):
             if heading is None:
                 raise ValueError("the subspace push needs each frame's heading (the body frame's yaw)")
             p = self.subspace(p, a, b, heading, self.distance)
-            vertices = p + centre  # the limit's reference: the frame as the mesh push gets it, as the kernel's
+            vertices = (
+                p + centre
+            )  # the limit's reference: the frame as the mesh push gets it, as the kernel's
         return self.limit(self.push(p, a, b) + centre, vertices)
 
 
@@ -262,4 +313,3 @@ def _when(predicate: torch.Tensor, step, operands: tuple):
 def _as_is(p: torch.Tensor, d: torch.Tensor, n: torch.Tensor, a: torch.Tensor, b: torch.Tensor):
     """The branch of a push step with nothing to move (a conditional's outputs may not alias its inputs)."""
     return p.clone(), d.clone(), n.clone()
-

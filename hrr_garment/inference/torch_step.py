@@ -68,7 +68,9 @@ class FeatureStage(nn.Module):
         if self.has_body:
             constant(self, "body_vector", body_vector)
 
-    def pair(self, previous: tuple[torch.Tensor, torch.Tensor], current: tuple[torch.Tensor, torch.Tensor]) -> torch.Tensor:
+    def pair(
+        self, previous: tuple[torch.Tensor, torch.Tensor], current: tuple[torch.Tensor, torch.Tensor]
+    ) -> torch.Tensor:
         """(N, 124) features of the current frame given the previous one (global rotations, positions)."""
         (rot0, pos0), (rot1, pos1) = previous, current
         n = rot1.shape[0]
@@ -85,17 +87,21 @@ class FeatureStage(nn.Module):
     def memory(self, state: torch.Tensor, features: torch.Tensor, started: torch.Tensor) -> torch.Tensor:
         """The memory state (N, rows, 64) one frame on (at its start where ``started`` is 0)."""
         n = features.shape[0]
-        u = torch.cat([features[:, SLICE_V], features[:, SLICE_T], features[:, SLICE_W]], 1)[:, None]  # (N, 1, 64)
+        u = torch.cat([features[:, SLICE_V], features[:, SLICE_T], features[:, SLICE_W]], 1)[
+            :, None
+        ]  # (N, 1, 64)
         # at a start (MotionMemory.start): every average at the first velocities, every bob at rest
         # (x 0, q the first velocities)
         bob = torch.stack([torch.zeros_like(u[:, 0]), u[:, 0]], 1)  # (N, 2, 64)
-        fresh = torch.cat([u.expand(n, self.averages, MEMORY_WIDTH), bob.repeat(1, (self.rows - self.averages) // 2, 1)], 1)
+        fresh = torch.cat(
+            [u.expand(n, self.averages, MEMORY_WIDTH), bob.repeat(1, (self.rows - self.averages) // 2, 1)], 1
+        )
         # the last body frame's vectors seen from this one: turned by minus this frame's yaw step
         angle = -features[:, SLICE_W][:, 0] / self.fps
         turned = turn_y(state[..., :-1].reshape(n, self.rows, VECTORS, 3), torch.cos(angle), torch.sin(angle))
         carried = torch.cat([turned.reshape(n, self.rows, -1), state[..., -1:]], -1)
-        averages = self.decay * carried[:, :self.averages] + (1.0 - self.decay) * u
-        bobs = carried[:, self.averages:].reshape(n, -1, 2, MEMORY_WIDTH)
+        averages = self.decay * carried[:, : self.averages] + (1.0 - self.decay) * u
+        bobs = carried[:, self.averages :].reshape(n, -1, 2, MEMORY_WIDTH)
         bobs = self.resonator_a @ bobs + self.resonator_b[..., None] * u[:, None]
         stepped = torch.cat([averages, bobs.reshape(n, -1, MEMORY_WIDTH)], 1)
         return torch.where(started.reshape(-1, 1, 1) > 0, stepped, fresh)
@@ -103,9 +109,9 @@ class FeatureStage(nn.Module):
     def memory_values(self, state: torch.Tensor) -> torch.Tensor:
         """(N, rows x 64): the averages, each resonator's w x and q (:meth:`MotionMemory.values`)."""
         n = state.shape[0]
-        bobs = state[:, self.averages:].reshape(n, -1, 2, MEMORY_WIDTH)
+        bobs = state[:, self.averages :].reshape(n, -1, 2, MEMORY_WIDTH)
         scaled = torch.stack([bobs[:, :, 0] * self.omega[None, :, None], bobs[:, :, 1]], 2)
-        return torch.cat([state[:, :self.averages], scaled.reshape(n, -1, MEMORY_WIDTH)], 1).reshape(n, -1)
+        return torch.cat([state[:, : self.averages], scaled.reshape(n, -1, MEMORY_WIDTH)], 1).reshape(n, -1)
 
     def forward(self, previous, current, memory: torch.Tensor, started: torch.Tensor):
         """-> the frame's full features (N, F) and the next memory state."""
@@ -128,8 +134,16 @@ class StreamStep(nn.Module):
     ``window`` (N, W - 1, F). Outputs: ``vertices`` (N, V, 3), ``entropy`` (N,), ``codes`` (N, G), and
     the next state in the same order (``started`` all ones)."""
 
-    def __init__(self, bundle, decoder, *, character, memory: MotionMemory | None, fps: float,
-                 push_out: PushOutStage | None):
+    def __init__(
+        self,
+        bundle,
+        decoder,
+        *,
+        character,
+        memory: MotionMemory | None,
+        fps: float,
+        push_out: PushOutStage | None,
+    ):
         super().__init__()
         record = character.record
         self.pose = PoseStage(record.skeleton.offsets, record.skeleton.parents, record.pelvis_height)
@@ -148,7 +162,10 @@ class StreamStep(nn.Module):
     def forward(self, rotations, root, started, previous_rotations, previous_positions, memory, window):
         rot, pos = self.pose(rotations, root)
         first = started.reshape(-1, 1, 1) <= 0
-        previous = (torch.where(first[..., None], rot, previous_rotations), torch.where(first, pos, previous_positions))
+        previous = (
+            torch.where(first[..., None], rot, previous_rotations),
+            torch.where(first, pos, previous_positions),
+        )
         features, memory = self.features(previous, (rot, pos), memory, started)
         past = torch.where(first, features[:, None].expand_as(window), window)
         frames = torch.cat([past, features[:, None]], 1)  # (N, W, F)
@@ -178,7 +195,6 @@ class TorchDecoder(nn.Module):
         return self.fast._torch_forward(latents)
 
 
-
 class AutoencoderDecoder(nn.Module):
     """The mesh autoencoder's own decoder as a module that moves to a device with its weights (a
     :class:`~hrr_garment.models.fast_decoder.FastDecoder` keeps its folded kernels beside the
@@ -192,8 +208,15 @@ class AutoencoderDecoder(nn.Module):
         return self.autoencoder.decode(latents)
 
 
-def stream_step(animator, character, *, push_out: bool = True, decoder: str = "full", movable: bool = False,
-                push_settings: PushOutSettings | None = None) -> StreamStep:
+def stream_step(
+    animator,
+    character,
+    *,
+    push_out: bool = True,
+    decoder: str = "full",
+    movable: bool = False,
+    push_settings: PushOutSettings | None = None,
+) -> StreamStep:
     """The :class:`StreamStep` of ``animator``'s model on ``character`` (a
     :class:`~hrr_garment.inference.bodies.CharacterBody`, :meth:`Animator.body`'s), at the rate
     every model streams at (:data:`~hrr_garment.motion.motion.FPS`). ``decoder``: "full" (the
@@ -206,8 +229,12 @@ def stream_step(animator, character, *, push_out: bool = True, decoder: str = "f
     stage = None
     if push_out:
         body = character.body
-        stage = PushOutStage((*body.ends, body.radii), animator.smoothing, limits=animator.edge_limits,
-                             settings=push_settings or PUSH_OUT)
+        stage = PushOutStage(
+            (*body.ends, body.radii),
+            animator.smoothing,
+            limits=animator.edge_limits,
+            settings=push_settings or PUSH_OUT,
+        )
     if decoder == "fast":
         bundle.require_subspace()
         module = bundle.subspace
@@ -219,5 +246,10 @@ def stream_step(animator, character, *, push_out: bool = True, decoder: str = "f
 def state_shapes(step: StreamStep) -> dict[str, tuple[int, ...]]:
     """Each state input's shape per character."""
     window = step.codes.codespace.config.window
-    return {"started": (), "previous_rotations": (NUM_JOINTS, 3, 3), "previous_positions": (NUM_JOINTS, 3),
-            "memory": (max(step.features.rows, 1), MEMORY_WIDTH), "window": (window - 1, int(step.motion_mean.shape[0]))}
+    return {
+        "started": (),
+        "previous_rotations": (NUM_JOINTS, 3, 3),
+        "previous_positions": (NUM_JOINTS, 3),
+        "memory": (max(step.features.rows, 1), MEMORY_WIDTH),
+        "window": (window - 1, int(step.motion_mean.shape[0])),
+    }

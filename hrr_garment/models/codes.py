@@ -72,7 +72,11 @@ class WindowCodes(torch.nn.Module):
         if not self.regression:
             return group_entropy(logits), idx, torch.empty(0)
         embedding = regression_embedding(self.codespace, logits)
-        return group_entropy(logits), idx, self.codespace.decode(embedding, self.last_frame, self.codespace.body_of(windows))
+        return (
+            group_entropy(logits),
+            idx,
+            self.codespace.decode(embedding, self.last_frame, self.codespace.body_of(windows)),
+        )
 
 
 def traced_window_codes(codespace, window: int, features: int, regression: bool = True) -> torch.nn.Module:
@@ -94,9 +98,16 @@ ENCODE_BATCH = 512  # windows per call of the step: bounds the memory of a long 
 
 
 @torch.no_grad()
-def encode_motion(codespace, motion_stats, latent_stats, motion_windows: np.ndarray, regression: bool = True,
-                  last_frame: bool = False, step: torch.nn.Module | None = None,
-                  gates: np.ndarray | None = None) -> MotionCodes:
+def encode_motion(
+    codespace,
+    motion_stats,
+    latent_stats,
+    motion_windows: np.ndarray,
+    regression: bool = True,
+    last_frame: bool = False,
+    step: torch.nn.Module | None = None,
+    gates: np.ndarray | None = None,
+) -> MotionCodes:
     """Raw feature windows (N, W, F) -> codes, entropies and (optionally) regressed latents, of
     every frame of each window or, with ``last_frame``, of its last frame only (N, 1, nodes, C).
     ``step``: a prepared :class:`WindowCodes` with the same settings (streaming); ``gates``: (N, W,
@@ -110,8 +121,8 @@ def encode_motion(codespace, motion_stats, latent_stats, motion_windows: np.ndar
     std = codes_of.standardised if gates is None else motion_stats.normalize(motion_windows[:, -1:])
     entropy, codes, reg = [], [], []
     for i in range(0, len(std), ENCODE_BATCH):
-        x = torch.from_numpy(std[i:i + ENCODE_BATCH])
-        h, idx, r = step(x) if gates is None else step(x, gates[i:i + ENCODE_BATCH])
+        x = torch.from_numpy(std[i : i + ENCODE_BATCH])
+        h, idx, r = step(x) if gates is None else step(x, gates[i : i + ENCODE_BATCH])
         entropy.append(h.numpy())
         codes.append(idx.numpy().astype(np.uint8))
         reg.append(r.numpy())
@@ -119,5 +130,9 @@ def encode_motion(codespace, motion_stats, latent_stats, motion_windows: np.ndar
     if regression:
         r = np.concatenate(reg)
         latents = latent_stats.denormalize(r.reshape(*r.shape[:2], -1)).reshape(r.shape)
-    codes_of.entropy, codes_of.codes, codes_of.regression = np.concatenate(entropy), np.concatenate(codes), latents
+    codes_of.entropy, codes_of.codes, codes_of.regression = (
+        np.concatenate(entropy),
+        np.concatenate(codes),
+        latents,
+    )
     return codes_of

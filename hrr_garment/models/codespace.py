@@ -43,8 +43,15 @@ class CodeSpaceConfig:
     motion_hidden: int = 128  # GRU and attention width (docs/decisions/0033-motion-encoder-128.md)
     attention_heads: int = 4
     dropout: float = 0.0  # after each hidden layer of the garment encoder and the decoder
-    memory_seconds: tuple[float, ...] = (0.5, 1.5)  # motion memory's averages' time constants (motion.memory); () for none
-    resonator_hz: tuple[float, ...] = (0.6, 1.0, 1.6)  # the motion memory's resonators' frequencies; () for none
+    memory_seconds: tuple[float, ...] = (
+        0.5,
+        1.5,
+    )  # motion memory's averages' time constants (motion.memory); () for none
+    resonator_hz: tuple[float, ...] = (
+        0.6,
+        1.0,
+        1.6,
+    )  # the motion memory's resonators' frequencies; () for none
     resonator_damping: float = 0.3  # their damping ratio
     # what the regression decodes: "expected", the embedding averaged over the motion code's
     # distribution (each group's softmax), or "argmax", the most likely class's (the paper's)
@@ -55,25 +62,40 @@ class CodeSpaceConfig:
 
     def __post_init__(self):
         try:
-            spec = MemorySpec(tuple(self.memory_seconds), tuple(self.resonator_hz), float(self.resonator_damping))
+            spec = MemorySpec(
+                tuple(self.memory_seconds), tuple(self.resonator_hz), float(self.resonator_damping)
+            )
         except (TypeError, ValueError) as exc:
             raise SettingsError(f"code space model: {exc}") from None
         object.__setattr__(self, "memory_seconds", spec.seconds)
         object.__setattr__(self, "resonator_hz", spec.resonator_hz)
         object.__setattr__(self, "resonator_damping", spec.damping)
         what = "code space model"
-        for name, low, high in (("window", 1, 1000), ("groups", 1, 4096), ("classes", 2, 4096), ("embedding_dim", 1, 4096),
-                                ("hidden", 1, 65536), ("motion_hidden", 1, 65536), ("attention_heads", 1, 256)):
+        for name, low, high in (
+            ("window", 1, 1000),
+            ("groups", 1, 4096),
+            ("classes", 2, 4096),
+            ("embedding_dim", 1, 4096),
+            ("hidden", 1, 65536),
+            ("motion_hidden", 1, 65536),
+            ("attention_heads", 1, 256),
+        ):
             require_number(what, name, getattr(self, name), low=low, high=high, whole=True)
         require_number(what, "dropout", self.dropout, low=0, high=1)
         if self.motion_hidden % self.attention_heads:
-            raise SettingsError(f"{what}: motion_hidden ({self.motion_hidden}) must divide into attention_heads "
-                                f"({self.attention_heads})")
+            raise SettingsError(
+                f"{what}: motion_hidden ({self.motion_hidden}) must divide into attention_heads "
+                f"({self.attention_heads})"
+            )
         if not isinstance(self.body_features, int) or self.body_features < 0:
-            raise SettingsError(f"code space model: body_features must be a count >= 0, got {self.body_features!r}")
+            raise SettingsError(
+                f"code space model: body_features must be a count >= 0, got {self.body_features!r}"
+            )
         if self.regression_code not in REGRESSION_CODES:
-            raise SettingsError(f"code space model: regression_code must be one of {', '.join(REGRESSION_CODES)}, "
-                                f"got {self.regression_code!r}")
+            raise SettingsError(
+                f"code space model: regression_code must be one of {', '.join(REGRESSION_CODES)}, "
+                f"got {self.regression_code!r}"
+            )
 
     @property
     def memory(self) -> MemorySpec:
@@ -160,25 +182,35 @@ class CodeSpace(nn.Module):
         self.config, self.features, self.latent_shape = config, features, tuple(latent_shape)
         size = config.window * latent_shape[0] * latent_shape[1]
         self.quantizer = GumbelQuantizer(config.groups, config.classes, config.embedding_dim)
-        self.motion_encoder = MotionEncoder(features, self.quantizer.logits_size, config.motion_hidden, config.attention_heads)
+        self.motion_encoder = MotionEncoder(
+            features, self.quantizer.logits_size, config.motion_hidden, config.attention_heads
+        )
         body = config.body_features
-        self.garment_encoder = GarmentEncoder(size + body, self.quantizer.logits_size, config.hidden, config.dropout)
-        self.decoder = LatentDecoder(self.quantizer.embedding_size + body, size, config.hidden, config.dropout)
+        self.garment_encoder = GarmentEncoder(
+            size + body, self.quantizer.logits_size, config.hidden, config.dropout
+        )
+        self.decoder = LatentDecoder(
+            self.quantizer.embedding_size + body, size, config.hidden, config.dropout
+        )
 
     def body_of(self, motion: torch.Tensor) -> torch.Tensor | None:
         """The standardised body measures (B, b) of motion windows (B, W, F): their last frame's
         last ``body_features`` columns; None for a model of one body."""
         b = self.config.body_features
-        return motion[:, -1, motion.shape[-1] - b:] if b else None
+        return motion[:, -1, motion.shape[-1] - b :] if b else None
 
-    def decode(self, embedding: torch.Tensor, last_frame: bool = False, body: torch.Tensor | None = None) -> torch.Tensor:
+    def decode(
+        self, embedding: torch.Tensor, last_frame: bool = False, body: torch.Tensor | None = None
+    ) -> torch.Tensor:
         """(B, G * dim) and, for a model trained across bodies, the body (:meth:`body_of`) ->
         (B, W, N, C) standardised latents; with ``last_frame`` only the window's last frame,
         (B, 1, N, C), which is all causal inference uses: the output layer's other rows (nine
         tenths of the decoder's weights) are skipped."""
         if (body is None) != (self.config.body_features == 0):
-            raise ValueError(f"the decoder reads {self.config.body_features} body measures; "
-                             f"{'none' if body is None else body.shape[-1]} given")
+            raise ValueError(
+                f"the decoder reads {self.config.body_features} body measures; "
+                f"{'none' if body is None else body.shape[-1]} given"
+            )
         if body is not None:
             embedding = torch.cat([embedding, body], 1)
         if not last_frame:
@@ -188,4 +220,6 @@ class CodeSpace(nn.Module):
         for layer in hidden:
             h = layer(h)
         n = self.latent_shape[0] * self.latent_shape[1]
-        return torch.nn.functional.linear(h, out.weight[-n:], out.bias[-n:]).reshape(embedding.shape[0], 1, *self.latent_shape)
+        return torch.nn.functional.linear(h, out.weight[-n:], out.bias[-n:]).reshape(
+            embedding.shape[0], 1, *self.latent_shape
+        )

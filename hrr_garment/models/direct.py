@@ -39,10 +39,18 @@ class DirectRegressor(nn.Module):
     def __init__(self, config: DirectConfig, features: int, latent_shape: tuple[int, int]):
         super().__init__()
         self.config, self.features, self.latent_shape = config, features, tuple(latent_shape)
-        self.gru = nn.GRU(features, config.hidden, config.layers, batch_first=True,
-                          dropout=config.dropout if config.layers > 1 else 0.0)
-        self.head = nn.Sequential(nn.Linear(config.hidden, config.hidden), nn.ELU(),
-                                  nn.Linear(config.hidden, latent_shape[0] * latent_shape[1]))
+        self.gru = nn.GRU(
+            features,
+            config.hidden,
+            config.layers,
+            batch_first=True,
+            dropout=config.dropout if config.layers > 1 else 0.0,
+        )
+        self.head = nn.Sequential(
+            nn.Linear(config.hidden, config.hidden),
+            nn.ELU(),
+            nn.Linear(config.hidden, latent_shape[0] * latent_shape[1]),
+        )
 
     def forward(self, motion: torch.Tensor) -> torch.Tensor:
         """(B, T, F) standardised features -> (B, T, nodes * C) standardised latents."""

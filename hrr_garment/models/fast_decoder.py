@@ -42,7 +42,9 @@ class FastDecoder(nn.Module):
         self.blocks = model.decoder
         with torch.no_grad():
             self.kernels = [b.conv.effective_kernel().detach().contiguous() for b in self.blocks]
-            self.weights = [b.residual.weights().detach() if b.residual.neighbours else None for b in self.blocks]
+            self.weights = [
+                b.residual.weights().detach() if b.residual.neighbours else None for b in self.blocks
+            ]
         self.template, self.scale = model.template, model.scale
         self.latent_nodes = model.latent_shape[0]
         self._template_np = model.template.detach().numpy().astype(np.float32)  # the single-frame path's
@@ -50,27 +52,42 @@ class FastDecoder(nn.Module):
         self.lib = native_kernel.load_kernel(cache_dir) if native is not False else None
         if native and self.lib is None:
             raise RuntimeError("the native decoder kernel could not be compiled (is a C compiler installed?)")
-        self.native_blocks = [] if self.lib is None else [
-            NativeBlock(b.conv.index.numpy(), b.conv.mask.numpy(), k.numpy(), bias=b.conv.bias.detach().numpy(),
-                        pool=None if w is None else w.numpy(),
-                        proj=None if b.residual.project is None else b.residual.project.weight.detach().T.numpy(),
-                        activation=(b.a, b.b, b.activation))
-            for b, k, w in zip(self.blocks, self.kernels, self.weights)]
+        self.native_blocks = (
+            []
+            if self.lib is None
+            else [
+                NativeBlock(
+                    b.conv.index.numpy(),
+                    b.conv.mask.numpy(),
+                    k.numpy(),
+                    bias=b.conv.bias.detach().numpy(),
+                    pool=None if w is None else w.numpy(),
+                    proj=None if b.residual.project is None else b.residual.project.weight.detach().T.numpy(),
+                    activation=(b.a, b.b, b.activation),
+                )
+                for b, k, w in zip(self.blocks, self.kernels, self.weights)
+            ]
+        )
         if precision not in PRECISIONS:
             raise ValueError(f"precision must be one of {', '.join(PRECISIONS)}, not {precision!r}")
         self.precision = precision
         if precision == "bfloat16":
             if self.lib is None or not self.lib.hrr_amx_ready():
-                raise UnsupportedHardware("precision='bfloat16' needs the native kernel on a CPU with AMX (an Intel Xeon "
-                                          "of Sapphire Rapids or newer, on Linux); this machine decodes in float32 only")
+                raise UnsupportedHardware(
+                    "precision='bfloat16' needs the native kernel on a CPU with AMX (an Intel Xeon "
+                    "of Sapphire Rapids or newer, on Linux); this machine decodes in float32 only"
+                )
             for nb in self.native_blocks:
                 nb.set_bf16()
         self._bf16_buffers: tuple[int, list[np.ndarray]] | None = None
         with torch.no_grad():
             for nb, b in zip(self.native_blocks, self.blocks):
-                nb.set_factored((b.conv.coeff * b.conv.mask.unsqueeze(-1)).numpy(), b.conv.weight.detach().numpy(),
-                                b.conv.mask.numpy(),
-                                None if b.residual.project is None else b.residual.project.weight.detach().T.numpy())
+                nb.set_factored(
+                    (b.conv.coeff * b.conv.mask.unsqueeze(-1)).numpy(),
+                    b.conv.weight.detach().numpy(),
+                    b.conv.mask.numpy(),
+                    None if b.residual.project is None else b.residual.project.weight.detach().T.numpy(),
+                )
 
     @property
     def native(self) -> bool:
@@ -91,12 +108,16 @@ class FastDecoder(nn.Module):
         if self.precision == "bfloat16" and len(latents) >= BF16_BATCH_FROM:
             return self._forward_bf16(latents, threads)
         if 1 < len(latents) < SINGLE_FRAME_BELOW:  # a few frames (a small crowd): one at a time is faster
-            return torch.cat([self.forward(latents[i:i + 1]) for i in range(len(latents))])  # each a fresh array
+            return torch.cat(
+                [self.forward(latents[i : i + 1]) for i in range(len(latents))]
+            )  # each a fresh array
         if len(latents) == 1:  # one frame (streaming): the factored form reads far less memory
             x = np.ascontiguousarray(latents.detach()[0].to(torch.float32).numpy())
             if self._scratch is None:  # the largest transform product of any block, shared
                 sizes = [len(x)] + [b.vertices for b in self.native_blocks[:-1]]
-                self._scratch = np.empty(max(n * b.factored[0] for n, b in zip(sizes, self.native_blocks)), np.float32)
+                self._scratch = np.empty(
+                    max(n * b.factored[0] for n, b in zip(sizes, self.native_blocks)), np.float32
+                )
             for block in self.native_blocks:
                 x = block.one(self.lib, x, threads, self._scratch)
             # numpy, not torch, for the last step: PyTorch's per-operator overhead is a tenth of a
@@ -108,8 +129,16 @@ class FastDecoder(nn.Module):
         x = self.native_blocks[-1](self.lib, x, threads, padded=True)  # (V, B, width >= 3)
         # frames first and contiguous in one pass that reads the padded rows where they lie: slicing,
         # transposing and scaling one after another took 2.8 ms of a 64-character crowd's frame
-        return torch.from_numpy(rows_to_frames(self.lib, x, len(latents), template=self._template_np, scale=float(self.scale),
-                                                threads=threads))
+        return torch.from_numpy(
+            rows_to_frames(
+                self.lib,
+                x,
+                len(latents),
+                template=self._template_np,
+                scale=float(self.scale),
+                threads=threads,
+            )
+        )
 
     def _forward_bf16(self, latents: torch.Tensor, threads: int) -> torch.Tensor:
         batch = len(latents)
@@ -118,8 +147,11 @@ class FastDecoder(nn.Module):
         x[:, :batch] = bf16_bits(latents.detach().to(torch.float32).transpose(0, 1).numpy())
         for i, (block, out) in enumerate(zip(self.native_blocks, outs)):
             x = block.call_bf16(self.lib, x, threads, i == len(outs) - 1, out, scratch)
-        return torch.from_numpy(rows_to_frames(self.lib, x, batch, template=self._template_np, scale=float(self.scale),
-                                                threads=threads))
+        return torch.from_numpy(
+            rows_to_frames(
+                self.lib, x, batch, template=self._template_np, scale=float(self.scale), threads=threads
+            )
+        )
 
     def _buffers_bf16(self, padded: int) -> list[np.ndarray]:
         """The bfloat16 path's input, each block's output and the shared projection room, for
@@ -127,8 +159,10 @@ class FastDecoder(nn.Module):
         if self._bf16_buffers is None or self._bf16_buffers[0] != padded:
             blocks = self.native_blocks
             x = np.zeros((self.latent_nodes, padded, blocks[0].cin), np.uint16)
-            outs = [np.zeros((b.vertices, padded, b.bf16[0]), np.float32 if i == len(blocks) - 1 else np.uint16)
-                    for i, b in enumerate(blocks)]
+            outs = [
+                np.zeros((b.vertices, padded, b.bf16[0]), np.float32 if i == len(blocks) - 1 else np.uint16)
+                for i, b in enumerate(blocks)
+            ]
             inputs = [len(x)] + [b.vertices for b in blocks[:-1]]
             scratch = np.zeros(max(n * padded * b.bf16[0] for n, b in zip(inputs, blocks)), np.float32)
             self._bf16_buffers = (padded, [x, *outs, scratch])

@@ -41,7 +41,9 @@ class AutoencoderConfig:
     basis: int = 17
     residual: float = 0.5
     latent_fraction: float = 0.01
-    min_latent_nodes: int = 4  # configs/train.yaml asks 64; 4 keeps models trained before it loading as they were
+    min_latent_nodes: int = (
+        4  # configs/train.yaml asks 64; 4 keeps models trained before it loading as they were
+    )
     stride: int = 2
     radius: int = 2
 
@@ -51,8 +53,13 @@ class AutoencoderConfig:
             raise SettingsError(f"{what}: channels must be a list of widths, got {self.channels!r}")
         for width in self.channels:
             require_number(what, "channels", width, low=1, high=4096, whole=True)
-        for name, high in (("latent_channels", 512), ("basis", 256), ("min_latent_nodes", 100_000), ("stride", 16),
-                           ("radius", 16)):
+        for name, high in (
+            ("latent_channels", 512),
+            ("basis", 256),
+            ("min_latent_nodes", 100_000),
+            ("stride", 16),
+            ("radius", 16),
+        ):
             require_number(what, name, getattr(self, name), low=1, high=high, whole=True)
         require_number(what, "residual", self.residual, low=0, high=1)
         require_number(what, "latent_fraction", self.latent_fraction, low=0, high=1, above=True)
@@ -70,8 +77,12 @@ class AutoencoderConfig:
 
     def hierarchy_options(self) -> dict:
         """The keyword arguments of :func:`~hrr_garment.models.hierarchy.build_hierarchy` this model uses."""
-        return {"latent_fraction": self.latent_fraction, "min_latent_nodes": self.min_latent_nodes,
-                "stride": self.stride, "radius": self.radius}
+        return {
+            "latent_fraction": self.latent_fraction,
+            "min_latent_nodes": self.min_latent_nodes,
+            "stride": self.stride,
+            "radius": self.radius,
+        }
 
     def channel(self, level: int) -> int:
         return self.channels[min(level, len(self.channels) - 1)]
@@ -98,13 +109,17 @@ class VcConv(nn.Module):
         self.register_buffer("mask", torch.as_tensor(neighbours.mask, dtype=torch.float32), persistent=False)
         slots = self.mask.sum(1).clamp(min=1).unsqueeze(1)  # neighbours per output vertex
         self.weight = nn.Parameter(torch.randn(basis, in_channels, out_channels) / math.sqrt(in_channels))
-        self.coeff = nn.Parameter(torch.randn(*neighbours.index.shape, basis) / math.sqrt(basis) / slots.sqrt().unsqueeze(-1))
+        self.coeff = nn.Parameter(
+            torch.randn(*neighbours.index.shape, basis) / math.sqrt(basis) / slots.sqrt().unsqueeze(-1)
+        )
         self.bias = nn.Parameter(torch.zeros(out_channels))
 
     def gather(self, x: torch.Tensor) -> torch.Tensor:
         return gather_rows(x, self.index)
 
-    def forward(self, x: torch.Tensor, kernel: torch.Tensor | None = None, gathered: torch.Tensor | None = None) -> torch.Tensor:
+    def forward(
+        self, x: torch.Tensor, kernel: torch.Tensor | None = None, gathered: torch.Tensor | None = None
+    ) -> torch.Tensor:
         """x (V_in, B, C_in) vertex-major -> (V_out, B, C_out). ``kernel``: a precomputed
         ``effective_kernel()`` (inference); training folds the basis in on every call.
         ``gathered``: ``gather(x)`` when the caller has it already."""
@@ -128,17 +143,25 @@ class ResidualPool(nn.Module):
         super().__init__()
         self.neighbours = neighbours is not None
         if self.neighbours:
-            self.register_buffer("index", torch.as_tensor(neighbours.index, dtype=torch.long), persistent=False)
-            self.register_buffer("mask", torch.as_tensor(neighbours.mask, dtype=torch.float32), persistent=False)
+            self.register_buffer(
+                "index", torch.as_tensor(neighbours.index, dtype=torch.long), persistent=False
+            )
+            self.register_buffer(
+                "mask", torch.as_tensor(neighbours.mask, dtype=torch.float32), persistent=False
+            )
             self.logits = nn.Parameter(torch.zeros(neighbours.index.shape))
-        self.project = nn.Linear(in_channels, out_channels, bias=False) if in_channels != out_channels else None
+        self.project = (
+            nn.Linear(in_channels, out_channels, bias=False) if in_channels != out_channels else None
+        )
 
     def weights(self) -> torch.Tensor:
         """(V_out, S), non-negative, each row summing to 1 over the real neighbours."""
         w = torch.exp(self.logits) * self.mask
         return w / w.sum(1, keepdim=True)
 
-    def forward(self, x: torch.Tensor, weights: torch.Tensor | None = None, gathered: torch.Tensor | None = None) -> torch.Tensor:
+    def forward(
+        self, x: torch.Tensor, weights: torch.Tensor | None = None, gathered: torch.Tensor | None = None
+    ) -> torch.Tensor:
         """x (V_in, B, C_in) -> (V_out, B, C_out). ``gathered``: x's rows at ``index``,
         (V_out, S, B, C_in), when the caller has them already."""
         if self.neighbours:
@@ -153,8 +176,16 @@ class ResidualPool(nn.Module):
 class Block(nn.Module):
     """One FCMAE block: a spatially varying convolution with a residual path, then pooling or unpooling."""
 
-    def __init__(self, conv_nb: Neighbourhoods, pool_nb: Neighbourhoods | None, cin: int, cout: int, basis: int,
-                 residual: float, activation: bool = True):
+    def __init__(
+        self,
+        conv_nb: Neighbourhoods,
+        pool_nb: Neighbourhoods | None,
+        cin: int,
+        cout: int,
+        basis: int,
+        residual: float,
+        activation: bool = True,
+    ):
         super().__init__()
         self.conv = VcConv(conv_nb, cin, cout, basis)
         self.residual = ResidualPool(pool_nb, cin, cout)
@@ -162,10 +193,15 @@ class Block(nn.Module):
         self.a, self.b = math.sqrt(1.0 - residual), math.sqrt(residual)
         # down and up blocks average over the conv's own neighbourhoods: gather once for both
         # (the second gather and its backward scatter: about 4 % of a quick-dress training step)
-        self.shared_gather = pool_nb is not None and np.array_equal(pool_nb.index, conv_nb.index) \
+        self.shared_gather = (
+            pool_nb is not None
+            and np.array_equal(pool_nb.index, conv_nb.index)
             and np.array_equal(pool_nb.mask, conv_nb.mask)
+        )
 
-    def forward(self, x: torch.Tensor, kernel: torch.Tensor | None = None, weights: torch.Tensor | None = None) -> torch.Tensor:
+    def forward(
+        self, x: torch.Tensor, kernel: torch.Tensor | None = None, weights: torch.Tensor | None = None
+    ) -> torch.Tensor:
         gathered = self.conv.gather(x) if self.shared_gather else None
         y = self.conv(x, kernel, gathered)
         if self.activation:
@@ -176,23 +212,52 @@ class Block(nn.Module):
 class MeshAutoencoder(nn.Module):
     """FCMAE for one template. ``template`` (V, 3) and the data scale define the input normalisation."""
 
-    def __init__(self, hierarchy: Hierarchy, config: AutoencoderConfig = AutoencoderConfig(),
-                 template: np.ndarray | None = None, scale: float = 0.1):
+    def __init__(
+        self,
+        hierarchy: Hierarchy,
+        config: AutoencoderConfig = AutoencoderConfig(),
+        template: np.ndarray | None = None,
+        scale: float = 0.1,
+    ):
         super().__init__()
         self.config, self.hierarchy = config, hierarchy
         levels, c = hierarchy.levels, config
-        self.register_buffer("template", torch.as_tensor(np.zeros((hierarchy.sizes[0], 3)) if template is None else template,
-                                                         dtype=torch.float32))
+        self.register_buffer(
+            "template",
+            torch.as_tensor(
+                np.zeros((hierarchy.sizes[0], 3)) if template is None else template, dtype=torch.float32
+            ),
+        )
         self.register_buffer("scale", torch.tensor(float(scale)))
         enc = [Block(hierarchy.conv[0], None, 3, c.channel(0), c.basis, c.residual)]
         for level in range(levels - 1):
-            enc.append(Block(hierarchy.down[level], hierarchy.down[level], c.channel(level), c.channel(level + 1),
-                             c.basis, c.residual))
-        enc.append(Block(hierarchy.conv[-1], None, c.channel(levels - 1), c.latent_channels, c.basis, c.residual, False))
+            enc.append(
+                Block(
+                    hierarchy.down[level],
+                    hierarchy.down[level],
+                    c.channel(level),
+                    c.channel(level + 1),
+                    c.basis,
+                    c.residual,
+                )
+            )
+        enc.append(
+            Block(
+                hierarchy.conv[-1], None, c.channel(levels - 1), c.latent_channels, c.basis, c.residual, False
+            )
+        )
         dec = [Block(hierarchy.conv[-1], None, c.latent_channels, c.channel(levels - 1), c.basis, c.residual)]
         for level in reversed(range(levels - 1)):
-            dec.append(Block(hierarchy.up[level], hierarchy.up[level], c.channel(level + 1), c.channel(level),
-                             c.basis, c.residual))
+            dec.append(
+                Block(
+                    hierarchy.up[level],
+                    hierarchy.up[level],
+                    c.channel(level + 1),
+                    c.channel(level),
+                    c.basis,
+                    c.residual,
+                )
+            )
         dec.append(Block(hierarchy.conv[0], None, c.channel(0), 3, c.basis, c.residual, False))
         self.encoder, self.decoder = nn.Sequential(*enc), nn.Sequential(*dec)
 
@@ -212,7 +277,9 @@ class MeshAutoencoder(nn.Module):
     def forward(self, vertices: torch.Tensor) -> torch.Tensor:
         return self.decode(self.encode(vertices))
 
-    def fit_latents(self, vertices: torch.Tensor, steps: int = 10, lr: float = 0.03, batch: int = 32) -> torch.Tensor:
+    def fit_latents(
+        self, vertices: torch.Tensor, steps: int = 10, lr: float = 0.03, batch: int = 32
+    ) -> torch.Tensor:
         """(B, V, 3) -> (B, N, 8): the encoder's latents refined by ``steps`` Adam steps on each
         frame's mean per-vertex distance through the decoder (the weights stay fixed). That is
         the error metric itself: on the quick dress it ends 0.1 mm lower than the training loss's
@@ -225,7 +292,7 @@ class MeshAutoencoder(nn.Module):
         frame gets the same latent whatever batch it is in."""
         out = []
         for i in range(0, len(vertices), batch):
-            x = vertices[i:i + batch]
+            x = vertices[i : i + batch]
             with torch.no_grad():
                 z = self.encode(x)
             if steps > 0:
@@ -234,7 +301,7 @@ class MeshAutoencoder(nn.Module):
                 with torch.enable_grad():
                     for _ in range(steps):
                         loss = vertex_distance(self.decode(z), x).mean(1).sum()
-                        z.grad, = torch.autograd.grad(loss, z)  # latents only: no weight gradients
+                        (z.grad,) = torch.autograd.grad(loss, z)  # latents only: no weight gradients
                         optimizer.step()
             out.append(z.detach())
         return torch.cat(out) if out else torch.zeros(0, *self.latent_shape)

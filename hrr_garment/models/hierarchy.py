@@ -65,8 +65,10 @@ class Hierarchy:
 
 
 def _adjacency(num: int, edges: np.ndarray) -> csr_matrix:
-    return coo_matrix((np.ones(2 * len(edges)), (np.r_[edges[:, 0], edges[:, 1]], np.r_[edges[:, 1], edges[:, 0]])),
-                      shape=(num, num)).tocsr()
+    return coo_matrix(
+        (np.ones(2 * len(edges)), (np.r_[edges[:, 0], edges[:, 1]], np.r_[edges[:, 1], edges[:, 0]])),
+        shape=(num, num),
+    ).tocsr()
 
 
 def _within_hops(adj: csr_matrix, start: int, hops: int) -> list[int]:
@@ -76,7 +78,7 @@ def _within_hops(adj: csr_matrix, start: int, hops: int) -> list[int]:
         v = queue.popleft()
         if seen[v] == hops:
             continue
-        for w in adj.indices[adj.indptr[v]:adj.indptr[v + 1]]:
+        for w in adj.indices[adj.indptr[v] : adj.indptr[v + 1]]:
             if w not in seen:
                 seen[w] = seen[v] + 1
                 queue.append(int(w))
@@ -90,7 +92,7 @@ def _bfs_order(adj: csr_matrix) -> list[int]:
     while queue:
         v = queue.popleft()
         order.append(v)
-        for w in adj.indices[adj.indptr[v]:adj.indptr[v + 1]]:
+        for w in adj.indices[adj.indptr[v] : adj.indptr[v + 1]]:
             if not seen[w]:
                 seen[w] = True
                 queue.append(int(w))
@@ -116,7 +118,9 @@ def _coarsen(adj: csr_matrix, stride: int, radius: int) -> tuple[np.ndarray, lis
     member = coo_matrix((np.ones(len(rows)), (rows, np.concatenate(cells))), shape=(len(centres), n)).tocsr()
     touch = (member @ (adj + _identity(n)) @ member.T).tocoo()
     keep = touch.row != touch.col
-    coarse = coo_matrix((np.ones(keep.sum()), (touch.row[keep], touch.col[keep])), shape=(len(centres),) * 2).tocsr()
+    coarse = coo_matrix(
+        (np.ones(keep.sum()), (touch.row[keep], touch.col[keep])), shape=(len(centres),) * 2
+    ).tocsr()
     return np.array(centres, np.int64), pools, coarse
 
 
@@ -125,20 +129,39 @@ def _identity(n: int) -> csr_matrix:
 
 
 def _ring_lists(adj: csr_matrix) -> list[list[int]]:
-    return [[v] + sorted(int(w) for w in adj.indices[adj.indptr[v]:adj.indptr[v + 1]]) for v in range(adj.shape[0])]
+    return [
+        [v] + sorted(int(w) for w in adj.indices[adj.indptr[v] : adj.indptr[v + 1]])
+        for v in range(adj.shape[0])
+    ]
 
 
-def build_hierarchy(faces: np.ndarray, num_vertices: int, latent_fraction: float = 0.01, stride: int = 2,
-                    radius: int = 2, max_levels: int = 8, name: str = "template", min_latent_nodes: int = 4) -> Hierarchy:
+def build_hierarchy(
+    faces: np.ndarray,
+    num_vertices: int,
+    latent_fraction: float = 0.01,
+    stride: int = 2,
+    radius: int = 2,
+    max_levels: int = 8,
+    name: str = "template",
+    min_latent_nodes: int = 4,
+) -> Hierarchy:
     """Coarsen towards ``latent_fraction`` of the vertices but not below ``min_latent_nodes``: the
     coarsest level is the one nearest that target (the paper's garments have 78-160 latent nodes; a
     1,000-vertex dress at 1 % would keep 18, too few to hold its folds)."""
     if components(num_vertices, faces).max() > 0:
-        raise GarmentError(name, "the autoencoder needs one connected mesh; this template has several components")
+        raise GarmentError(
+            name, "the autoencoder needs one connected mesh; this template has several components"
+        )
     if radius < stride - 1:
         raise ValueError("radius must be at least stride - 1 so that every vertex is pooled")
     adj = _adjacency(num_vertices, unique_edges(faces))
-    sizes, conv, down, up, centres_all = [num_vertices], [Neighbourhoods.from_lists(_ring_lists(adj))], [], [], []
+    sizes, conv, down, up, centres_all = (
+        [num_vertices],
+        [Neighbourhoods.from_lists(_ring_lists(adj))],
+        [],
+        [],
+        [],
+    )
     target = max(min_latent_nodes, 4, int(round(latent_fraction * num_vertices)))
     while sizes[-1] > target and len(sizes) < max_levels:
         centres, pools, coarse = _coarsen(adj, stride, radius)
@@ -165,7 +188,9 @@ def template_key(faces: np.ndarray, num_vertices: int, **options) -> str:
     return h.hexdigest()[:16]
 
 
-def cached_hierarchy(faces: np.ndarray, num_vertices: int, cache_dir: Path | None = None, **options) -> Hierarchy:
+def cached_hierarchy(
+    faces: np.ndarray, num_vertices: int, cache_dir: Path | None = None, **options
+) -> Hierarchy:
     """``build_hierarchy`` with an npz cache (arrays only) keyed by the mesh and options."""
     if cache_dir is None:
         return build_hierarchy(faces, num_vertices, **options)
@@ -175,9 +200,13 @@ def cached_hierarchy(faces: np.ndarray, num_vertices: int, cache_dir: Path | Non
         with np.load(path, allow_pickle=False) as z:
             levels = int(z["levels"])
             nb = lambda k: Neighbourhoods(z[f"{k}_index"], z[f"{k}_mask"])  # noqa: E731
-            return Hierarchy(tuple(int(s) for s in z["sizes"]), tuple(nb(f"conv{i}") for i in range(levels)),
-                             tuple(nb(f"down{i}") for i in range(levels - 1)), tuple(nb(f"up{i}") for i in range(levels - 1)),
-                             tuple(z[f"centres{i}"] for i in range(levels - 1)))
+            return Hierarchy(
+                tuple(int(s) for s in z["sizes"]),
+                tuple(nb(f"conv{i}") for i in range(levels)),
+                tuple(nb(f"down{i}") for i in range(levels - 1)),
+                tuple(nb(f"up{i}") for i in range(levels - 1)),
+                tuple(z[f"centres{i}"] for i in range(levels - 1)),
+            )
     h = build_hierarchy(faces, num_vertices, **options)
     arrays = {"levels": np.array(h.levels), "sizes": np.array(h.sizes)}
     for kind, items in (("conv", h.conv), ("down", h.down), ("up", h.up)):

@@ -61,10 +61,18 @@ class SubspaceDecoder(nn.Module):
     (3V) and ``basis`` (K, 3V, orthonormal rows) are the subspace; ``coeff_std`` (K) scales the
     network's outputs, each of which is trained at unit spread."""
 
-    def __init__(self, latent_shape: tuple[int, int], num_vertices: int, components: int, config: SubspaceConfig = SubspaceConfig()):
+    def __init__(
+        self,
+        latent_shape: tuple[int, int],
+        num_vertices: int,
+        components: int,
+        config: SubspaceConfig = SubspaceConfig(),
+    ):
         super().__init__()
         if components < 1 or components > 3 * num_vertices:
-            raise SettingsError(f"subspace: {components} components for {num_vertices} vertices (1 .. {3 * num_vertices})")
+            raise SettingsError(
+                f"subspace: {components} components for {num_vertices} vertices (1 .. {3 * num_vertices})"
+            )
         self.config, self.latent_shape, self.num_vertices = config, tuple(latent_shape), num_vertices
         size = int(np.prod(latent_shape))
         self.register_buffer("latent_mean", torch.zeros(size))
@@ -95,7 +103,9 @@ class SubspaceDecoder(nn.Module):
     def vertices(self, coefficients: torch.Tensor) -> torch.Tensor:
         """(B, k) standardised coefficients, the first k <= K -> (B, V, 3) vertices through the first k components."""
         k = coefficients.shape[1]
-        return (self.mean + (coefficients * self.coeff_std[:k]) @ self.basis[:k]).reshape(-1, self.num_vertices, 3)
+        return (self.mean + (coefficients * self.coeff_std[:k]) @ self.basis[:k]).reshape(
+            -1, self.num_vertices, 3
+        )
 
     @torch.no_grad()
     def forward(self, latents: torch.Tensor) -> torch.Tensor:
@@ -118,7 +128,9 @@ class SubspaceDecoder(nn.Module):
         return out.eval()
 
 
-def principal_components(frames: np.ndarray, count: int, chunk: int = 2048) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def principal_components(
+    frames: np.ndarray, count: int, chunk: int = 2048
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(F, V, 3) frames -> their mean (3V), the leading ``count`` principal directions (count, 3V,
     orthonormal rows, by decreasing variance) and each one's standard deviation (count). The
     covariance is summed in float64 chunk by chunk, so memory stays at (3V)^2 whatever F is."""
@@ -128,9 +140,12 @@ def principal_components(frames: np.ndarray, count: int, chunk: int = 2048) -> t
     mean = x.mean(0, dtype=np.float64)
     cov = np.zeros((x.shape[1], x.shape[1]))
     for i in range(0, len(x), chunk):
-        d = x[i:i + chunk].astype(np.float64) - mean
+        d = x[i : i + chunk].astype(np.float64) - mean
         cov += d.T @ d
     values, vectors = np.linalg.eigh(cov / (len(x) - 1))
-    order = np.argsort(values)[::-1][:min(count, x.shape[1])]
-    return mean.astype(np.float32), np.ascontiguousarray(vectors[:, order].T, np.float32), \
-        np.sqrt(np.maximum(values[order], 1e-20)).astype(np.float32)
+    order = np.argsort(values)[::-1][: min(count, x.shape[1])]
+    return (
+        mean.astype(np.float32),
+        np.ascontiguousarray(vectors[:, order].T, np.float32),
+        np.sqrt(np.maximum(values[order], 1e-20)).astype(np.float32),
+    )

@@ -43,12 +43,16 @@ class BvhClip:
 class _Tokens:
     def __init__(self, path: Path, lines: list[str]):
         self.path = path
-        self.items: list[tuple[int, str]] = [(n + 1, tok) for n, line in enumerate(lines) for tok in line.split()]
+        self.items: list[tuple[int, str]] = [
+            (n + 1, tok) for n, line in enumerate(lines) for tok in line.split()
+        ]
         self.pos = 0
 
     def next(self, what: str) -> tuple[int, str]:
         if self.pos >= len(self.items):
-            raise MotionError(self.path, f"unexpected end of file while reading {what} (truncated HIERARCHY?)")
+            raise MotionError(
+                self.path, f"unexpected end of file while reading {what} (truncated HIERARCHY?)"
+            )
         item = self.items[self.pos]
         self.pos += 1
         return item
@@ -66,11 +70,16 @@ class _Tokens:
             try:
                 vals.append(float(tok))
             except ValueError:
-                raise MotionError(self.path, f"line {line}: expected a number in {what}, found {tok!r}") from None
+                raise MotionError(
+                    self.path, f"line {line}: expected a number in {what}, found {tok!r}"
+                ) from None
         out = np.array(vals, dtype=np.float64)
         if not (np.abs(out) <= MAX_BVH_VALUE).all():
-            raise MotionError(self.path, f"line {line}: {what} has {out.tolist()}; values must be finite and within "
-                                         f"+-{MAX_BVH_VALUE:g} file units")
+            raise MotionError(
+                self.path,
+                f"line {line}: {what} has {out.tolist()}; values must be finite and within "
+                f"+-{MAX_BVH_VALUE:g} file units",
+            )
         return out
 
 
@@ -92,14 +101,19 @@ def _read_channels(tokens: _Tokens, name: str) -> list[str]:
     tokens.expect("CHANNELS")
     cline, count_tok = tokens.next(f"channel count of {name}")
     if count_tok not in ("3", "6"):
-        raise MotionError(path, f"line {cline}: joint {name!r} has {count_tok} channels; 3 or 6 are supported")
+        raise MotionError(
+            path, f"line {cline}: joint {name!r} has {count_tok} channels; 3 or 6 are supported"
+        )
     chans = [tokens.next(f"channels of {name}")[1].lower() for _ in range(int(count_tok))]
     unknown = [c for c in chans if c not in _ROT and c not in _POS]
     rot = [c for c in chans if c in _ROT]
     pos = [c for c in chans if c in _POS]
     if unknown or len(set(rot)) != 3 or len(rot) != 3 or (pos and len(set(pos)) != 3):
-        raise MotionError(path, f"line {cline}: joint {name!r} has channels {chans}; need the three rotations "
-                                "X, Y and Z once each (and optionally the three positions)")
+        raise MotionError(
+            path,
+            f"line {cline}: joint {name!r} has channels {chans}; need the three rotations "
+            "X, Y and Z once each (and optionally the three positions)",
+        )
     return chans
 
 
@@ -108,8 +122,11 @@ def _parse_joint(tokens: _Tokens, tree: _Hierarchy, parent: int, depth: int) -> 
     path = tokens.path
     line, name = tokens.next("joint name")
     if depth > MAX_BVH_DEPTH or len(tree.names) >= MAX_BVH_JOINTS:
-        raise MotionError(path, f"line {line}: joint {name!r} is {'nested ' + str(depth) + ' deep' if depth > MAX_BVH_DEPTH else 'one joint too many'}; "
-                                f"at most {MAX_BVH_DEPTH} levels and {MAX_BVH_JOINTS} joints are read")
+        raise MotionError(
+            path,
+            f"line {line}: joint {name!r} is {'nested ' + str(depth) + ' deep' if depth > MAX_BVH_DEPTH else 'one joint too many'}; "
+            f"at most {MAX_BVH_DEPTH} levels and {MAX_BVH_JOINTS} joints are read",
+        )
     index = len(tree.names)
     tree.names.append(name)
     tree.parents.append(parent)
@@ -142,13 +159,19 @@ def _parse_hierarchy(path: Path, lines: list[str]) -> _Hierarchy:
     _parse_joint(tokens, tree, -1, 0)
     if tokens.pos != len(tokens.items):
         line, tok = tokens.items[tokens.pos]
-        raise MotionError(path, f"line {line}: unexpected {tok!r} after the hierarchy (only one ROOT is supported)")
+        raise MotionError(
+            path, f"line {line}: unexpected {tok!r} after the hierarchy (only one ROOT is supported)"
+        )
     return tree
 
 
 def _motion_header(path: Path, body: list[tuple[int, str]]) -> tuple[int, float]:
     """The MOTION section's frame count and frame time (``body``: its non-blank lines, numbered)."""
-    if len(body) < 2 or not body[0][1].strip().lower().startswith("frames:") or not body[1][1].strip().lower().startswith("frame time:"):
+    if (
+        len(body) < 2
+        or not body[0][1].strip().lower().startswith("frames:")
+        or not body[1][1].strip().lower().startswith("frame time:")
+    ):
         raise MotionError(path, "MOTION section must start with 'Frames:' and 'Frame Time:' lines")
     try:
         n_frames = int(body[0][1].split(":", 1)[1])
@@ -156,11 +179,17 @@ def _motion_header(path: Path, body: list[tuple[int, str]]) -> tuple[int, float]
     except ValueError:
         raise MotionError(path, f"line {body[0][0]}: cannot read the frame count or frame time") from None
     if not (np.isfinite(frame_time) and 0 < frame_time <= 1.0 / MIN_SOURCE_FPS):
-        raise MotionError(path, f"line {body[1][0]}: frame time must be a positive number of seconds up to "
-                                f"{1.0 / MIN_SOURCE_FPS:g}, got {frame_time:g} (give the capture rate with --fps)")
+        raise MotionError(
+            path,
+            f"line {body[1][0]}: frame time must be a positive number of seconds up to "
+            f"{1.0 / MIN_SOURCE_FPS:g}, got {frame_time:g} (give the capture rate with --fps)",
+        )
     if n_frames > max_frames():
-        raise MotionError(path, f"line {body[0][0]}: {n_frames:,} frames, over the limit of {max_frames():,} "
-                                "(set HRR_MAX_FRAMES to raise it)")
+        raise MotionError(
+            path,
+            f"line {body[0][0]}: {n_frames:,} frames, over the limit of {max_frames():,} "
+            "(set HRR_MAX_FRAMES to raise it)",
+        )
     return n_frames, frame_time
 
 
@@ -168,7 +197,9 @@ def _frame_rows(path: Path, rows: list[tuple[int, str]], n_frames: int, n_chan: 
     """The (T, channels) values of the frame rows, checked: as many rows as announced, one value
     per channel, every value a finite number within the bounds."""
     if len(rows) < n_frames:
-        raise MotionError(path, f"truncated: header announces {n_frames} frames but only {len(rows)} frame rows follow")
+        raise MotionError(
+            path, f"truncated: header announces {n_frames} frames but only {len(rows)} frame rows follow"
+        )
     if len(rows) > n_frames:
         raise MotionError(path, f"header announces {n_frames} frames but {len(rows)} frame rows follow")
     if n_frames == 0:
@@ -176,7 +207,9 @@ def _frame_rows(path: Path, rows: list[tuple[int, str]], n_frames: int, n_chan: 
     split = [r.split() for _, r in rows]
     for (line_no, _), vals in zip(rows, split):
         if len(vals) != n_chan:
-            raise MotionError(path, f"line {line_no}: expected {n_chan} values (one per channel), found {len(vals)}")
+            raise MotionError(
+                path, f"line {line_no}: expected {n_chan} values (one per channel), found {len(vals)}"
+            )
     try:
         data = np.array(split, dtype=np.float64)
     except ValueError:
@@ -186,12 +219,17 @@ def _frame_rows(path: Path, rows: list[tuple[int, str]], n_frames: int, n_chan: 
         raise MotionError(path, f"non-finite value (NaN or inf) in frame {bad} (line {rows[bad][0]})")
     if not (np.abs(data) <= MAX_BVH_VALUE).all():
         bad = int(np.argmax((np.abs(data) > MAX_BVH_VALUE).any(1)))
-        raise MotionError(path, f"frame {bad} (line {rows[bad][0]}) has a value beyond +-{MAX_BVH_VALUE:g} "
-                                "(file units or degrees): a corrupt row")
+        raise MotionError(
+            path,
+            f"frame {bad} (line {rows[bad][0]}) has a value beyond +-{MAX_BVH_VALUE:g} "
+            "(file units or degrees): a corrupt row",
+        )
     return data
 
 
-def _local_transforms(data: np.ndarray, channels: list[list[str]], offsets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _local_transforms(
+    data: np.ndarray, channels: list[list[str]], offsets: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """Each joint's local rotations (T, J, 3, 3) and translations (T, J, 3) from the frame values:
     its rotation channels in its own order, its position channels where it has them, else its OFFSET."""
     n_frames, n_joints = len(data), len(channels)
@@ -221,7 +259,9 @@ def read_bvh(path: str | Path) -> BvhClip:
     if motion_line is None:
         raise MotionError(path, "no MOTION section (not a BVH file, or truncated)")
     tree = _parse_hierarchy(path, lines[:motion_line])
-    body = [(n, line) for n, line in enumerate(lines[motion_line + 1 :], start=motion_line + 2) if line.strip()]
+    body = [
+        (n, line) for n, line in enumerate(lines[motion_line + 1 :], start=motion_line + 2) if line.strip()
+    ]
     n_frames, frame_time = _motion_header(path, body)
     data = _frame_rows(path, body[2:], n_frames, sum(len(c) for c in tree.channels))
     offsets_arr = np.array(tree.offsets)

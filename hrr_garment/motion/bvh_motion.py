@@ -20,32 +20,61 @@ from .skeleton import forward_kinematics, rest_positions
 from .skeleton_doubts import doubts_sentence, skeleton_doubts, warn_doubts
 
 # Known length units (metres per file unit), tried in this order when detecting from height.
-UNIT_SCALES = {"m": 1.0, "cm": 0.01, "mm": 0.001, "inch": 0.0254, "cmu": 0.0254 / 0.45, "dm": 0.1, "ft": 0.3048}
+UNIT_SCALES = {
+    "m": 1.0,
+    "cm": 0.01,
+    "mm": 0.001,
+    "inch": 0.0254,
+    "cmu": 0.0254 / 0.45,
+    "dm": 0.1,
+    "ft": 0.3048,
+}
 PLAUSIBLE_HEIGHT_M = (1.2, 2.3)
-
 
 
 def detect_unit_scale(rest: np.ndarray, mapping: dict[str, int], path: Path) -> float:
     """Metres per file unit, from the standing height of the rest pose ``rest`` (file units)."""
     height_units = standing_height_from_legs(rest, mapping)
     lo, hi = PLAUSIBLE_HEIGHT_M
-    fits = [(abs(np.log(height_units * s / 1.7)), s) for s in UNIT_SCALES.values() if lo <= height_units * s <= hi]
+    fits = [
+        (abs(np.log(height_units * s / 1.7)), s) for s in UNIT_SCALES.values() if lo <= height_units * s <= hi
+    ]
     if not fits:
-        raise MotionError(path, f"cannot detect the length unit: standing height is {height_units:.4g} file units, which is no plausible human height in {', '.join(UNIT_SCALES)}; pass --unit-scale (metres per file unit)")
+        raise MotionError(
+            path,
+            f"cannot detect the length unit: standing height is {height_units:.4g} file units, which is no plausible human height in {', '.join(UNIT_SCALES)}; pass --unit-scale (metres per file unit)",
+        )
     return min(fits)[1]
 
 
-def load_bvh(path: Path, unit_scale: float | None = None, joint_map: dict | None = None, ground: bool = True, fps: float = FPS,
-             source_fps: float | None = None) -> Motion:
+def load_bvh(
+    path: Path,
+    unit_scale: float | None = None,
+    joint_map: dict | None = None,
+    ground: bool = True,
+    fps: float = FPS,
+    source_fps: float | None = None,
+) -> Motion:
     """A BVH file as canonical motion: retargeted, grounded and resampled."""
     src, scheme, mapping, _ = bvh_source(path, unit_scale, joint_map, fps, source_fps)
     local, root = retarget(src, mapping, ground=ground)
-    return Motion(local, root, fps, source=str(path), source_skeleton=scheme,
-                  source_height_m=standing_height_from_legs(src.rest_positions, mapping))
+    return Motion(
+        local,
+        root,
+        fps,
+        source=str(path),
+        source_skeleton=scheme,
+        source_height_m=standing_height_from_legs(src.rest_positions, mapping),
+    )
 
 
-def bvh_source(path: Path, unit_scale: float | None = None, joint_map: dict | None = None, fps: float = FPS,
-               source_fps: float | None = None) -> tuple[SourceMotion, str, dict[str, int], float]:
+def bvh_source(
+    path: Path,
+    unit_scale: float | None = None,
+    joint_map: dict | None = None,
+    fps: float = FPS,
+    source_fps: float | None = None,
+) -> tuple[SourceMotion, str, dict[str, int], float]:
     """A BVH file on its own skeleton, in metres, resampled to ``fps``: (the motion, the naming
     scheme, canonical joint name -> source joint index, metres per file unit)."""
     clip = read_bvh(path)
@@ -56,9 +85,13 @@ def bvh_source(path: Path, unit_scale: float | None = None, joint_map: dict | No
         try:
             unit_scale = detect_unit_scale(rest, mapping, path)
         except MotionError as exc:  # legs measured on the wrong joints: say which
-            raise MotionError(path, f"{exc.problem}; {doubts_sentence(doubts)}" if doubts else exc.problem) from None
+            raise MotionError(
+                path, f"{exc.problem}; {doubts_sentence(doubts)}" if doubts else exc.problem
+            ) from None
     elif not (np.isfinite(unit_scale) and unit_scale > 0):
-        raise MotionError(path, f"unit scale must be a positive number of metres per file unit, got {unit_scale}")
+        raise MotionError(
+            path, f"unit scale must be a positive number of metres per file unit, got {unit_scale}"
+        )
     src_fps = source_fps or 1.0 / clip.frame_time
     check_frame_budget(path, clip.num_frames, src_fps, fps_out=fps)
     frames = resample_times(clip.num_frames, src_fps, fps)
@@ -66,8 +99,15 @@ def bvh_source(path: Path, unit_scale: float | None = None, joint_map: dict | No
     local_trans = resample_linear(clip.local_translations, frames) * unit_scale
     # Non-root translations: position channels hold the joint's parent-relative position.
     g_rot, g_pos = forward_kinematics(local_rot, local_trans[:, 0], local_trans, parents=clip.parents)
-    src = SourceMotion(clip.names, clip.parents, rest * unit_scale, global_rotations=g_rot, global_positions=g_pos,
-                       fps=src_fps, path=str(path))
+    src = SourceMotion(
+        clip.names,
+        clip.parents,
+        rest * unit_scale,
+        global_rotations=g_rot,
+        global_positions=g_pos,
+        fps=src_fps,
+        path=str(path),
+    )
     check_source(src)
     warn_doubts(str(path), doubts)
     return src, scheme, mapping, unit_scale

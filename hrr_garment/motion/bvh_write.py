@@ -37,7 +37,11 @@ def write_bvh(
 ) -> None:
     """Write a BVH of a skeleton (``names``, ``parents``, ``offsets`` in metres) and its motion,
     laid out as ``style`` says (:class:`BvhStyle`: Euler orders, channels, units, End Sites)."""
-    orders, positions_on_all_joints, unit_scale = style.orders, style.positions_on_all_joints, style.unit_scale
+    orders, positions_on_all_joints, unit_scale = (
+        style.orders,
+        style.positions_on_all_joints,
+        style.unit_scale,
+    )
     end_sites = style.end_sites
     n_joints = len(names)
     orders = [orders] * n_joints if isinstance(orders, str) else list(orders)
@@ -61,7 +65,14 @@ def write_bvh(
             emit(c, depth + 1)
         if not children[j]:
             site = end_sites.get(j, np.zeros(3)) * unit_scale
-            out.extend([f"{ind}\tEnd Site", f"{ind}\t{{", f"{ind}\t\tOFFSET {site[0]:.6f} {site[1]:.6f} {site[2]:.6f}", f"{ind}\t}}"])
+            out.extend(
+                [
+                    f"{ind}\tEnd Site",
+                    f"{ind}\t{{",
+                    f"{ind}\t\tOFFSET {site[0]:.6f} {site[1]:.6f} {site[2]:.6f}",
+                    f"{ind}\t}}",
+                ]
+            )
         out.append(f"{ind}}}")
 
     emit(parents.index(-1), 0)

@@ -40,13 +40,22 @@ def spliced(lower: Motion, upper: Motion) -> Motion:
     if lower.fps != upper.fps:
         raise ValueError(f"the clips' frame rates differ: {lower.fps:g} and {upper.fps:g} frames/s")
     if upper.num_frames < lower.num_frames:
-        raise ValueError(f"the upper body's clip is shorter ({upper.num_frames} frames) than the legs' ({lower.num_frames})")
+        raise ValueError(
+            f"the upper body's clip is shorter ({upper.num_frames} frames) than the legs' ({lower.num_frames})"
+        )
     local = np.array(lower.local_rotations)
     joints = list(UPPER_BODY)
     local[:, joints] = upper.local_rotations[: lower.num_frames, joints]
-    return Motion(local, lower.root_translation, lower.fps, source=f"{lower.source} + upper body of {upper.source}",
-                  source_skeleton=lower.source_skeleton, source_height_m=lower.source_height_m, skeleton=lower.skeleton,
-                  check_rotations=False)
+    return Motion(
+        local,
+        lower.root_translation,
+        lower.fps,
+        source=f"{lower.source} + upper body of {upper.source}",
+        source_skeleton=lower.source_skeleton,
+        source_height_m=lower.source_height_m,
+        skeleton=lower.skeleton,
+        check_rotations=False,
+    )
 
 
 def arm_delayed(motion: Motion, side: str, frames: int) -> Motion:
@@ -60,9 +69,16 @@ def arm_delayed(motion: Motion, side: str, frames: int) -> Motion:
     joints = list(ARM_JOINTS[side])
     source = np.clip(np.arange(motion.num_frames) - frames, 0, None)
     local[:, joints] = motion.local_rotations[source][:, joints]
-    return Motion(local, motion.root_translation, motion.fps, source=f"{motion.source} ({side} arm {frames} frames late)",
-                  source_skeleton=motion.source_skeleton, source_height_m=motion.source_height_m, skeleton=motion.skeleton,
-                  check_rotations=False)
+    return Motion(
+        local,
+        motion.root_translation,
+        motion.fps,
+        source=f"{motion.source} ({side} arm {frames} frames late)",
+        source_skeleton=motion.source_skeleton,
+        source_height_m=motion.source_height_m,
+        skeleton=motion.skeleton,
+        check_rotations=False,
+    )
 
 
 def played_backward(motion: Motion) -> Motion:
@@ -70,6 +86,13 @@ def played_backward(motion: Motion) -> Motion:
     through the body that did not in the capture), the root travels the same path the other way.
     The garment is simulated forward on it, so its cloth answers to the reversed motion as cloth
     does, not as the capture's cloth played back."""
-    return Motion(motion.local_rotations[::-1].copy(), motion.root_translation[::-1].copy(), motion.fps,
-                  source=f"{motion.source} (played backward)", source_skeleton=motion.source_skeleton,
-                  source_height_m=motion.source_height_m, skeleton=motion.skeleton, check_rotations=False)
+    return Motion(
+        motion.local_rotations[::-1].copy(),
+        motion.root_translation[::-1].copy(),
+        motion.fps,
+        source=f"{motion.source} (played backward)",
+        source_skeleton=motion.source_skeleton,
+        source_height_m=motion.source_height_m,
+        skeleton=motion.skeleton,
+        check_rotations=False,
+    )

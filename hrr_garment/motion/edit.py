@@ -28,10 +28,16 @@ def retimed(motion: Motion, speed: float) -> Motion:
     if speed == 1.0:
         return motion
     frames = resample_times(motion.num_frames, motion.fps * speed, motion.fps)
-    return Motion(resample_rotations(motion.local_rotations.astype(np.float64), frames),
-                  resample_linear(motion.root_translation, frames), motion.fps, source=motion.source,
-                  source_skeleton=motion.source_skeleton, source_height_m=motion.source_height_m,
-                  skeleton=motion.skeleton, check_rotations=False)  # slerped rotations
+    return Motion(
+        resample_rotations(motion.local_rotations.astype(np.float64), frames),
+        resample_linear(motion.root_translation, frames),
+        motion.fps,
+        source=motion.source,
+        source_skeleton=motion.source_skeleton,
+        source_height_m=motion.source_height_m,
+        skeleton=motion.skeleton,
+        check_rotations=False,
+    )  # slerped rotations
 
 
 def aligned(motion: Motion, heading: float, position: np.ndarray) -> Motion:
@@ -42,8 +48,15 @@ def aligned(motion: Motion, heading: float, position: np.ndarray) -> Motion:
     local[:, 0] = turn.astype(np.float32) @ local[:, 0]  # the root joint's rotation is global
     root = motion.root_translation
     moved = (root - root[0] * GROUND) @ turn.T + np.asarray(position, np.float64) * GROUND
-    return Motion(local, moved, motion.fps, source=motion.source, source_skeleton=motion.source_skeleton,
-                  source_height_m=motion.source_height_m, skeleton=motion.skeleton)
+    return Motion(
+        local,
+        moved,
+        motion.fps,
+        source=motion.source,
+        source_skeleton=motion.source_skeleton,
+        source_height_m=motion.source_height_m,
+        skeleton=motion.skeleton,
+    )
 
 
 def smoothstep_weights(frames: int) -> np.ndarray:
@@ -67,17 +80,27 @@ def crossfade(first: Motion, second: Motion, frames: int) -> Motion:
     if first.skeleton is not second.skeleton and first.skeleton != second.skeleton:
         raise ValueError("cannot blend motions on different skeletons")
     if not 1 <= frames <= min(first.num_frames, second.num_frames):
-        raise ValueError(f"a blend of {frames} frames needs both motions at least that long "
-                         f"({first.num_frames} and {second.num_frames} frames)")
+        raise ValueError(
+            f"a blend of {frames} frames needs both motions at least that long "
+            f"({first.num_frames} and {second.num_frames} frames)"
+        )
     start = first.num_frames - frames
     second = aligned(second, float(yaw_of(first.global_rotations[start, 0])), first.root_translation[start])
     w = smoothstep_weights(frames)
     qa = matrix_to_quat(first.local_rotations[start:].astype(np.float64))
     qb = matrix_to_quat(second.local_rotations[:frames].astype(np.float64))
     blend_rot = quat_to_matrix(quat_slerp(qa, qb, np.broadcast_to(w[:, None], qa.shape[:-1])))
-    blend_root = (1.0 - w[:, None]) * first.root_translation[start:] + w[:, None] * second.root_translation[:frames]
-    return Motion(np.concatenate([first.local_rotations[:start], blend_rot.astype(np.float32),
-                                  second.local_rotations[frames:]]),
-                  np.concatenate([first.root_translation[:start], blend_root, second.root_translation[frames:]]),
-                  first.fps, source=first.source, source_skeleton=first.source_skeleton,
-                  source_height_m=first.source_height_m, skeleton=first.skeleton)
+    blend_root = (1.0 - w[:, None]) * first.root_translation[start:] + w[:, None] * second.root_translation[
+        :frames
+    ]
+    return Motion(
+        np.concatenate(
+            [first.local_rotations[:start], blend_rot.astype(np.float32), second.local_rotations[frames:]]
+        ),
+        np.concatenate([first.root_translation[:start], blend_root, second.root_translation[frames:]]),
+        first.fps,
+        source=first.source,
+        source_skeleton=first.source_skeleton,
+        source_height_m=first.source_height_m,
+        skeleton=first.skeleton,
+    )

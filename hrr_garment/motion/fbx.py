@@ -29,7 +29,9 @@ def load_fbx(path: str | Path, options: GltfOptions = GltfOptions(), ground: boo
     beyond the first are not read: ``options.animation`` must be None)."""
     path = Path(path)
     if options.animation is not None:
-        raise MotionError(path, "an FBX file is read for its current take only; choose a glTF file for named animations")
+        raise MotionError(
+            path, "an FBX file is read for its current take only; choose a glTF file for named animations"
+        )
     with tempfile.TemporaryDirectory(prefix="hrr-fbx-") as folder:
         glb = Path(folder) / f"{path.stem}.glb"
         try:

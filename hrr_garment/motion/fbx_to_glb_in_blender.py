@@ -16,7 +16,7 @@ ERROR = "HRR-ERROR: "  # hrr_garment.blender.ERROR_PREFIX: this runs in Blender'
 
 def main() -> int:
     """Convert; 0, or 1 with an HRR-ERROR line naming what the file lacks."""
-    source, target = sys.argv[sys.argv.index("--") + 1:][:2]
+    source, target = sys.argv[sys.argv.index("--") + 1 :][:2]
     bpy.ops.wm.read_factory_settings(use_empty=True)
     try:
         bpy.ops.import_scene.fbx(filepath=source)
@@ -34,8 +34,15 @@ def main() -> int:
     if len(animated) > 1:
         print(f"{ERROR}{len(animated)} animated skeletons in the FBX file; export the character's alone")
         return 1
-    bpy.ops.export_scene.gltf(filepath=target, export_format="GLB", export_animations=True, export_skins=True,
-                              export_materials="NONE", export_force_sampling=True, export_anim_single_armature=True)
+    bpy.ops.export_scene.gltf(
+        filepath=target,
+        export_format="GLB",
+        export_animations=True,
+        export_skins=True,
+        export_materials="NONE",
+        export_force_sampling=True,
+        export_anim_single_armature=True,
+    )
     return 0
 
 

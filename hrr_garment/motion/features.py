@@ -46,7 +46,9 @@ def _first_difference(x: np.ndarray, fps: float) -> np.ndarray:
 def motion_features(motion: Motion) -> np.ndarray:
     """(T, 124) float32 features of a canonical motion."""
     if motion.num_frames < 2:
-        raise MotionError(motion.source or "motion", f"needs at least 2 frames for velocities, has {motion.num_frames}")
+        raise MotionError(
+            motion.source or "motion", f"needs at least 2 frames for velocities, has {motion.num_frames}"
+        )
     chunks = frame_chunks(motion.num_frames)
     if len(chunks) == 1:
         return _features(motion.global_rotations, motion.joint_positions, motion.fps)
@@ -56,7 +58,9 @@ def motion_features(motion: Motion) -> np.ndarray:
     for start, stop in chunks:
         first = max(0, start - 1)
         part = motion.slice(first, stop)
-        feats[start:stop] = _features(part.global_rotations, part.joint_positions, motion.fps)[start - first:]
+        feats[start:stop] = _features(part.global_rotations, part.joint_positions, motion.fps)[
+            start - first :
+        ]
     return feats
 
 
@@ -64,7 +68,9 @@ def _features(global_rotations: np.ndarray, joint_positions: np.ndarray, fps: fl
     """:func:`motion_features` of (T >= 2) frames' global rotations (T, 22, 3, 3) and joint positions (T, 22, 3)."""
     frames = len(global_rotations)
     yaw = yaw_of(global_rotations[:, 0])
-    h_t = np.swapaxes(rotation_about_y(yaw), -1, -2)  # world -> body frame (rotation only; frame.body_heading)
+    h_t = np.swapaxes(
+        rotation_about_y(yaw), -1, -2
+    )  # world -> body frame (rotation only; frame.body_heading)
     joints = list(FEATURE_JOINTS)
     r = matrix_to_axis_angle(h_t[:, None] @ global_rotations[:, joints]).reshape(frames, -1)
     vel = _first_difference(joint_positions[:, joints], fps)
@@ -83,7 +89,9 @@ def causal_features(motion: Motion) -> np.ndarray:
     formulas; a stream computes them per frame), else numpy."""
     lib = native.load_kernel()
     if lib is not None:
-        return native.causal_features(lib, motion.global_rotations, motion.joint_positions, joints=FEATURE_JOINTS, fps=motion.fps)
+        return native.causal_features(
+            lib, motion.global_rotations, motion.joint_positions, joints=FEATURE_JOINTS, fps=motion.fps
+        )
     if motion.num_frames == 1:
         return motion_features(Motion.concatenate([motion, motion]))[-1:]
     feats = motion_features(motion)
@@ -121,7 +129,11 @@ class FeatureStats:
 
     @classmethod
     def fit(cls, features: list[np.ndarray] | np.ndarray, min_std: float = 1e-3) -> "FeatureStats":
-        stacked = np.concatenate(features, axis=0) if isinstance(features, list) else features.reshape(-1, features.shape[-1])
+        stacked = (
+            np.concatenate(features, axis=0)
+            if isinstance(features, list)
+            else features.reshape(-1, features.shape[-1])
+        )
         mean = stacked.mean(0, dtype=np.float64)
         std = np.maximum(stacked.std(0, dtype=np.float64), min_std)
         return cls(mean.astype(np.float32), std.astype(np.float32))

@@ -70,5 +70,10 @@ def world_vertices(points: np.ndarray, motion: Motion) -> np.ndarray:
     lib = native.load_kernel()
     if lib is None:
         return from_body_frame(points, motion).astype(np.float32)
-    return native.body_to_world(lib, points, yaw_of(motion.global_rotations[:, 0]), origin=body_frame_origin(motion),
-                                threads=native.default_threads())
+    return native.body_to_world(
+        lib,
+        points,
+        yaw_of(motion.global_rotations[:, 0]),
+        origin=body_frame_origin(motion),
+        threads=native.default_threads(),
+    )

@@ -51,9 +51,14 @@ class GltfAnimation:
 
     def as_dict(self) -> dict:
         """The animation as hrr-motion info prints it."""
-        return {"name": self.name, "index": self.index, "duration_s": round(self.duration_s, 4),
-                "keyframes": self.keyframes, "frames_30fps": int(np.floor(self.duration_s * FPS + 1e-4)) + 1,
-                "channels": self.channels}
+        return {
+            "name": self.name,
+            "index": self.index,
+            "duration_s": round(self.duration_s, 4),
+            "keyframes": self.keyframes,
+            "frames_30fps": int(np.floor(self.duration_s * FPS + 1e-4)) + 1,
+            "channels": self.channels,
+        }
 
 
 @dataclass
@@ -75,7 +80,9 @@ def _pick_animation(doc: GltfDocument, animation: str | int | None) -> int:
     """The index of the animation asked for: by name first, then by index; the first by default."""
     names = _animation_names(doc)
     if not names:
-        raise doc.fail("the file has no animations (a glTF motion is read from an animation of a skinned character)")
+        raise doc.fail(
+            "the file has no animations (a glTF motion is read from an animation of a skinned character)"
+        )
     listing = ", ".join(f"{i}: {n!r}" for i, n in enumerate(names))
     if animation is None:
         return 0
@@ -102,7 +109,9 @@ def _channels(doc: GltfDocument, index: int) -> list[_Channel]:
         try:
             sampler = anim.samplers[channel.sampler]
         except (IndexError, TypeError):
-            raise doc.fail(f"animation {index} channel {c} names sampler {channel.sampler}, which is missing") from None
+            raise doc.fail(
+                f"animation {index} channel {c} names sampler {channel.sampler}, which is missing"
+            ) from None
         interpolation = sampler.interpolation or "LINEAR"
         if interpolation not in _INTERPOLATIONS:
             raise doc.fail(f"animation {index} channel {c}: unknown interpolation {interpolation!r}")
@@ -110,9 +119,15 @@ def _channels(doc: GltfDocument, index: int) -> list[_Channel]:
         values = doc.accessor(sampler.output)
         width = _PATH_WIDTHS[target.path]
         per_key = 3 if interpolation == "CUBICSPLINE" else 1
-        if len(times) == 0 or values.shape != (len(times) * per_key, width) or not (np.diff(times) >= 0).all():
-            raise doc.fail(f"animation {index} channel {c} ({target.path} of node {target.node}): "
-                           f"{len(times)} key times (must increase) for {values.shape[0]} values of width {values.shape[1]}")
+        if (
+            len(times) == 0
+            or values.shape != (len(times) * per_key, width)
+            or not (np.diff(times) >= 0).all()
+        ):
+            raise doc.fail(
+                f"animation {index} channel {c} ({target.path} of node {target.node}): "
+                f"{len(times)} key times (must increase) for {values.shape[0]} values of width {values.shape[1]}"
+            )
         if target.path == "rotation":
             values = values[:, [3, 0, 1, 2]]  # glTF quaternions are x, y, z, w
         if per_key == 3:
@@ -135,8 +150,12 @@ def _sample(ch: _Channel, times: np.ndarray) -> np.ndarray:
     if ch.interpolation == "CUBICSPLINE":  # Hermite: values and tangents (per second) of the two keys
         v0, b0, a1, v1 = ch.values[i, 1], ch.values[i, 2], ch.values[i + 1, 0], ch.values[i + 1, 1]
         d = dt[:, None]
-        out = ((2 * u**3 - 3 * u**2 + 1) * v0 + (u**3 - 2 * u**2 + u) * d * b0
-               + (-2 * u**3 + 3 * u**2) * v1 + (u**3 - u**2) * d * a1)
+        out = (
+            (2 * u**3 - 3 * u**2 + 1) * v0
+            + (u**3 - 2 * u**2 + u) * d * b0
+            + (-2 * u**3 + 3 * u**2) * v1
+            + (u**3 - u**2) * d * a1
+        )
         return out / np.linalg.norm(out, axis=-1, keepdims=True) if ch.path == "rotation" else out
     v0, v1 = ch.values[i], ch.values[i + 1]
     if ch.path == "rotation":
@@ -150,8 +169,13 @@ def _describe(doc: GltfDocument, index: int) -> GltfAnimation:
         return GltfAnimation(_animation_names(doc)[index], index, 0.0, 0, 0)
     start = min(c.times[0] for c in channels)
     end = max(c.times[-1] for c in channels)
-    return GltfAnimation(_animation_names(doc)[index], index, float(end - start), max(len(c.times) for c in channels),
-                         len(channels))
+    return GltfAnimation(
+        _animation_names(doc)[index],
+        index,
+        float(end - start),
+        max(len(c.times) for c in channels),
+        len(channels),
+    )
 
 
 def gltf_animations(path: str | Path) -> list[GltfAnimation]:
@@ -164,8 +188,10 @@ def gltf_summary(path: str | Path, animation: str | int | None = None) -> dict:
     """The animation :func:`load_gltf` reads for ``animation`` and all of the file's animations."""
     doc = GltfDocument(Path(path))
     index = _pick_animation(doc, animation)
-    return {"animation": _animation_names(doc)[index],
-            "animations": [_describe(doc, i).as_dict() for i in range(len(doc.doc.animations))]}
+    return {
+        "animation": _animation_names(doc)[index],
+        "animations": [_describe(doc, i).as_dict() for i in range(len(doc.doc.animations))],
+    }
 
 
 # --- the skin and its motion -------------------------------------------------------------------------
@@ -175,13 +201,17 @@ def _pick_skin(doc: GltfDocument, channels: list[_Channel]) -> list[int]:
     """The joints (node indices) of the skin the channels animate most (the first of equals)."""
     skins = doc.doc.skins or []
     if not skins:
-        raise doc.fail("the file has no skin: motion is read from a skinned character's joints "
-                       "(animated nodes without a skin are not read)")
+        raise doc.fail(
+            "the file has no skin: motion is read from a skinned character's joints "
+            "(animated nodes without a skin are not read)"
+        )
     keyed = {c.node for c in channels}
     best = max(range(len(skins)), key=lambda s: (len(keyed & set(skins[s].joints or [])), -s))
     joints = list(skins[best].joints or [])
     if len(joints) > MAX_BVH_JOINTS:
-        raise doc.fail(f"skin {best} has {len(joints)} joints, more than {MAX_BVH_JOINTS} (a human rig has under a few hundred)")
+        raise doc.fail(
+            f"skin {best} has {len(joints)} joints, more than {MAX_BVH_JOINTS} (a human rig has under a few hundred)"
+        )
     if not joints or not all(isinstance(j, int) and 0 <= j < len(doc.doc.nodes) for j in joints):
         raise doc.fail(f"skin {best} has no joints or names nodes that are missing")
     if not keyed & set(joints):
@@ -199,15 +229,20 @@ def _times(doc: GltfDocument, channels: list[_Channel], fps: float) -> np.ndarra
     return start + np.arange(frames) / fps
 
 
-def _local_transforms(doc: GltfDocument, order: list[int], channels: list[_Channel], times: np.ndarray) -> dict[int, tuple]:
+def _local_transforms(
+    doc: GltfDocument, order: list[int], channels: list[_Channel], times: np.ndarray
+) -> dict[int, tuple]:
     """Each node's local (translation, rotation, scale) per frame: its channels where keyed, its
     rest transform elsewhere."""
     frames = len(times)
     local = {}
     for n in order:
         t, q, s = rest_trs(doc.doc.nodes[n])
-        local[n] = {"translation": np.broadcast_to(t, (frames, 3)), "rotation": np.broadcast_to(q, (frames, 4)),
-                    "scale": np.broadcast_to(s, (frames, 3))}
+        local[n] = {
+            "translation": np.broadcast_to(t, (frames, 3)),
+            "rotation": np.broadcast_to(q, (frames, 4)),
+            "scale": np.broadcast_to(s, (frames, 3)),
+        }
     for ch in channels:
         if ch.node in local:
             local[ch.node][ch.path] = _sample(ch, times)
@@ -226,7 +261,9 @@ class GltfOptions:
     fps: float = FPS
 
 
-def gltf_source(path: str | Path, options: GltfOptions = GltfOptions()) -> tuple[SourceMotion, str, dict[str, int], str]:
+def gltf_source(
+    path: str | Path, options: GltfOptions = GltfOptions()
+) -> tuple[SourceMotion, str, dict[str, int], str]:
     """A glTF / GLB animation on its own skeleton, in metres, at ``options.fps``: (the motion, the
     naming scheme, canonical joint name -> source joint index, the animation's name)."""
     doc = GltfDocument(Path(path))
@@ -251,22 +288,37 @@ def gltf_source(path: str | Path, options: GltfOptions = GltfOptions()) -> tuple
     rest_rot = np.stack([rotation_part(at_rest[j][0][0]) for j in joints])
     g_rot = np.stack([rotation_part(world[j][0]) for j in joints], 1) @ np.swapaxes(rest_rot, -1, -2)
     g_pos = np.stack([world[j][1] for j in joints], 1) * scale
-    src = SourceMotion(names, joint_parents, rest * scale, global_rotations=g_rot, global_positions=g_pos,
-                       fps=options.fps, path=str(doc.path))
+    src = SourceMotion(
+        names,
+        joint_parents,
+        rest * scale,
+        global_rotations=g_rot,
+        global_positions=g_pos,
+        fps=options.fps,
+        path=str(doc.path),
+    )
     check_source(src)
     warn_doubts(str(doc.path), skeleton_doubts(names, joint_parents, rest=rest, mapping=mapping))
     return src, scheme, mapping, _animation_names(doc)[index]
 
 
-def world_unit_scale(path: Path, rest: np.ndarray, mapping: dict[str, int], unit_scale: float | None = None, *,
-                     shortest_m: float = PLAUSIBLE_HEIGHT_M[0]) -> float:
+def world_unit_scale(
+    path: Path,
+    rest: np.ndarray,
+    mapping: dict[str, int],
+    unit_scale: float | None = None,
+    *,
+    shortest_m: float = PLAUSIBLE_HEIGHT_M[0],
+) -> float:
     """Metres per unit of a glTF file's composed world positions: ``unit_scale`` when given; else 1
     (glTF is metres) unless the standing height of the rest joints ``rest`` is below ``shortest_m``
     or above the tallest plausible human in metres (a file written in centimetres without a scaling
     node), then the unit that height says (:func:`~.bvh_motion.detect_unit_scale`)."""
     if unit_scale is not None:
         if not (np.isfinite(unit_scale) and unit_scale > 0):
-            raise MotionError(path, f"unit scale must be a positive number of metres per file unit, got {unit_scale}")
+            raise MotionError(
+                path, f"unit scale must be a positive number of metres per file unit, got {unit_scale}"
+            )
         return float(unit_scale)
     if shortest_m <= standing_height_from_legs(rest, mapping) <= PLAUSIBLE_HEIGHT_M[1]:
         return 1.0
@@ -277,5 +329,11 @@ def load_gltf(path: str | Path, options: GltfOptions = GltfOptions(), ground: bo
     """A glTF / GLB animation as canonical motion: retargeted, grounded, at ``options.fps``."""
     src, scheme, mapping, _ = gltf_source(path, options)
     local, root = retarget(src, mapping, ground=ground)
-    return Motion(local, root, options.fps, source=str(path), source_skeleton=scheme,
-                  source_height_m=standing_height_from_legs(src.rest_positions, mapping))
+    return Motion(
+        local,
+        root,
+        options.fps,
+        source=str(path),
+        source_skeleton=scheme,
+        source_height_m=standing_height_from_legs(src.rest_positions, mapping),
+    )

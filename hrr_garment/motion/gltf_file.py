@@ -18,13 +18,26 @@ from .rotations import matrix_to_quat, quat_to_matrix
 
 GLTF_SUFFIXES = (".glb", ".gltf")
 # componentType -> (little-endian dtype, divisor of a normalized integer)
-_COMPONENTS = {5120: ("<i1", 127.0), 5121: ("<u1", 255.0), 5122: ("<i2", 32767.0), 5123: ("<u2", 65535.0),
-               5125: ("<u4", None), 5126: ("<f4", None)}
+_COMPONENTS = {
+    5120: ("<i1", 127.0),
+    5121: ("<u1", 255.0),
+    5122: ("<i2", 32767.0),
+    5123: ("<u2", 65535.0),
+    5125: ("<u4", None),
+    5126: ("<f4", None),
+}
 _WIDTHS = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT4": 16}
 # pygltflib's failures on a file that is not glTF (or is cut short): one line each, never a traceback
-READ_ERRORS = (OSError, ValueError, KeyError, TypeError, IndexError, AttributeError, struct.error, UnicodeDecodeError)
-
-
+READ_ERRORS = (
+    OSError,
+    ValueError,
+    KeyError,
+    TypeError,
+    IndexError,
+    AttributeError,
+    struct.error,
+    UnicodeDecodeError,
+)
 
 
 def pygltflib_module():
@@ -32,7 +45,9 @@ def pygltflib_module():
     try:
         import pygltflib
     except ImportError:
-        raise ImportError("reading glTF / GLB motion needs pygltflib: pip install 'hrr_garment[export]'") from None
+        raise ImportError(
+            "reading glTF / GLB motion needs pygltflib: pip install 'hrr_garment[export]'"
+        ) from None
     return pygltflib
 
 
@@ -49,14 +64,23 @@ class GltfDocument:
         try:
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
-                doc = gltf.GLTF2.load_from_bytes(data) if data[:4] == b"glTF" else gltf.GLTF2.from_json(data.decode("utf-8"))
+                doc = (
+                    gltf.GLTF2.load_from_bytes(data)
+                    if data[:4] == b"glTF"
+                    else gltf.GLTF2.from_json(data.decode("utf-8"))
+                )
         except (*READ_ERRORS, json.JSONDecodeError) as exc:
-            raise MotionError(path, f"not a readable glTF 2.0 / GLB file, or cut short ({type(exc).__name__}: {exc})") from None
+            raise MotionError(
+                path, f"not a readable glTF 2.0 / GLB file, or cut short ({type(exc).__name__}: {exc})"
+            ) from None
         if doc is None or not isinstance(doc.nodes, list):
             raise MotionError(path, "not a readable glTF 2.0 / GLB file (no JSON chunk)")
         if "EXT_meshopt_compression" in (doc.extensionsRequired or []):
-            raise MotionError(path, "its data is compressed with EXT_meshopt_compression, which pygltflib does not "
-                                    "decode; export it without compression")
+            raise MotionError(
+                path,
+                "its data is compressed with EXT_meshopt_compression, which pygltflib does not "
+                "decode; export it without compression",
+            )
         self.doc = doc
         self._buffers: dict[int, bytes] = {}
 
@@ -76,11 +100,15 @@ class GltfDocument:
                 else:
                     data = self._external(unquote(uri), buf.byteLength or 0)
             except READ_ERRORS as exc:
-                raise self.fail(f"cannot read buffer {index} ({uri or 'the GLB binary chunk'}: {exc})") from None
+                raise self.fail(
+                    f"cannot read buffer {index} ({uri or 'the GLB binary chunk'}: {exc})"
+                ) from None
             if data is None or len(data) < (buf.byteLength or 0):
                 held = 0 if data is None else len(data)
-                raise self.fail(f"buffer {index} declares {buf.byteLength} bytes but the file holds {held}: "
-                                "the file is cut short")
+                raise self.fail(
+                    f"buffer {index} declares {buf.byteLength} bytes but the file holds {held}: "
+                    "the file is cut short"
+                )
             self._buffers[index] = bytes(data)
         return self._buffers[index]
 
@@ -114,8 +142,12 @@ class GltfDocument:
         start, end = (view.byteOffset or 0) + (acc.byteOffset or 0), (view.byteOffset or 0) + view.byteLength
         needed = stride * (acc.count - 1) + item * width if acc.count else 0
         if acc.count < 0 or start + needed > min(end, len(data)):
-            raise self.fail(f"accessor {index} reaches past the end of its buffer: the file is cut short or corrupt")
-        values = np.ndarray((acc.count, width), dtype=dtype, buffer=data, offset=start, strides=(stride, item)).astype(np.float64)
+            raise self.fail(
+                f"accessor {index} reaches past the end of its buffer: the file is cut short or corrupt"
+            )
+        values = np.ndarray(
+            (acc.count, width), dtype=dtype, buffer=data, offset=start, strides=(stride, item)
+        ).astype(np.float64)
         if divisor is not None and (acc.normalized or (dtype != "<u4" and not raw_integers)):
             values = np.maximum(values / divisor, -1.0)
         if not np.isfinite(values).all():
@@ -158,7 +190,9 @@ def rest_trs(node) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         rot = m[:3, :3] / np.where(scale == 0, 1.0, scale)
         return m[:3, 3], matrix_to_quat(rot), scale
     t = np.asarray(node.translation if node.translation is not None else (0.0, 0.0, 0.0), dtype=np.float64)
-    q = np.asarray(node.rotation if node.rotation is not None else (0.0, 0.0, 0.0, 1.0), dtype=np.float64)[[3, 0, 1, 2]]
+    q = np.asarray(node.rotation if node.rotation is not None else (0.0, 0.0, 0.0, 1.0), dtype=np.float64)[
+        [3, 0, 1, 2]
+    ]
     s = np.asarray(node.scale if node.scale is not None else (1.0, 1.0, 1.0), dtype=np.float64)
     return t, q, s
 
@@ -177,7 +211,9 @@ def node_chain(parents: list[int], nodes: list[int]) -> list[int]:
     return order
 
 
-def world_transforms(order: list[int], parents: list[int], local: dict[int, tuple]) -> dict[int, tuple[np.ndarray, np.ndarray]]:
+def world_transforms(
+    order: list[int], parents: list[int], local: dict[int, tuple]
+) -> dict[int, tuple[np.ndarray, np.ndarray]]:
     """World (linear part (F, 3, 3), translation (F, 3)) of each node in ``order`` from its local
     (translation (F, 3), rotation (F, 4), scale (F, 3))."""
     world: dict[int, tuple[np.ndarray, np.ndarray]] = {}
@@ -197,7 +233,9 @@ def open_gltf(path: str | Path) -> GltfDocument:
     return GltfDocument(Path(path))
 
 
-def rest_world(doc: GltfDocument, order: list[int], parents: list[int]) -> dict[int, tuple[np.ndarray, np.ndarray]]:
+def rest_world(
+    doc: GltfDocument, order: list[int], parents: list[int]
+) -> dict[int, tuple[np.ndarray, np.ndarray]]:
     """The world transforms (linear part, translation) of the nodes ``order`` in their rest transforms."""
     rest = {}
     for n in order:

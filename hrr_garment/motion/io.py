@@ -68,9 +68,14 @@ def load_motion(
     by_name = suffix in (".bvh", FBX_SUFFIX, *GLTF_SUFFIXES)  # the formats whose joints are matched by name
     custom = load_joint_map(joint_map) if by_name and isinstance(joint_map, (str, Path)) else joint_map
     if animation is not None and suffix not in GLTF_SUFFIXES:
-        raise MotionError(path, f"only glTF / GLB files hold named animations; a {suffix or 'suffix-less'} file has one motion")
+        raise MotionError(
+            path,
+            f"only glTF / GLB files hold named animations; a {suffix or 'suffix-less'} file has one motion",
+        )
     if suffix == ".bvh":
-        motion = load_bvh(path, unit_scale=unit_scale, joint_map=custom, ground=ground, fps=fps, source_fps=source_fps)
+        motion = load_bvh(
+            path, unit_scale=unit_scale, joint_map=custom, ground=ground, fps=fps, source_fps=source_fps
+        )
     elif suffix in (*GLTF_SUFFIXES, FBX_SUFFIX):
         options = GltfOptions(animation=animation, unit_scale=unit_scale, joint_map=custom, fps=fps)
         motion = (load_fbx if suffix == FBX_SUFFIX else load_gltf)(path, options, ground=ground)
@@ -84,7 +89,9 @@ def load_motion(
         else:
             motion = load_amass(path, data, ground=ground, fps=fps, source_fps=source_fps)
     else:
-        raise MotionError(path, f"unsupported motion file type {suffix!r} (expected .bvh, .fbx, .glb, .gltf or .npz)")
+        raise MotionError(
+            path, f"unsupported motion file type {suffix!r} (expected .bvh, .fbx, .glb, .gltf or .npz)"
+        )
     # what every format must give, whatever its values: a finite motion whose root does not teleport
     _check_finite(path, motion.local_rotations, motion.root_translation)
     check_root_speed(path, motion.root_translation, motion.fps)
@@ -98,8 +105,11 @@ def check_source_fps(value: float, path: str | Path) -> float:
         raise MotionError(path, f"frame rate must be one real number, got {str(value)[:40]!r}")
     rate = float(arr.item())
     if not (np.isfinite(rate) and MIN_SOURCE_FPS <= rate <= MAX_SOURCE_FPS):
-        raise MotionError(path, f"frame rate must be a finite number of frames per second in [{MIN_SOURCE_FPS:g}, "
-                                f"{MAX_SOURCE_FPS:g}], got {rate:g}")
+        raise MotionError(
+            path,
+            f"frame rate must be a finite number of frames per second in [{MIN_SOURCE_FPS:g}, "
+            f"{MAX_SOURCE_FPS:g}], got {rate:g}",
+        )
     return rate
 
 
@@ -114,14 +124,23 @@ def _read_npz(path: Path) -> dict[str, np.ndarray]:
                 name = member.filename[:-4] if member.filename.endswith(".npy") else member.filename
                 with archive.open(member) as fh:
                     version = np.lib.format.read_magic(fh)
-                    read_header = np.lib.format.read_array_header_1_0 if version == (1, 0) else np.lib.format.read_array_header_2_0
+                    read_header = (
+                        np.lib.format.read_array_header_1_0
+                        if version == (1, 0)
+                        else np.lib.format.read_array_header_2_0
+                    )
                     shape, _, dtype = read_header(fh)
                 if dtype.hasobject or dtype.kind not in NPZ_KINDS:
-                    raise MotionError(path, f"array {name!r} has dtype {dtype}; motion files hold numbers and strings only")
+                    raise MotionError(
+                        path, f"array {name!r} has dtype {dtype}; motion files hold numbers and strings only"
+                    )
                 total += max(int(np.prod(shape, dtype=np.float64)) * dtype.itemsize, member.file_size)
                 if total > limit:
-                    raise MotionError(path, f"its arrays take over {limit:,} bytes uncompressed (array {name!r} has shape "
-                                            f"{shape}); set HRR_MAX_NPZ_BYTES to raise the limit")
+                    raise MotionError(
+                        path,
+                        f"its arrays take over {limit:,} bytes uncompressed (array {name!r} has shape "
+                        f"{shape}); set HRR_MAX_NPZ_BYTES to raise the limit",
+                    )
             with np.load(path, allow_pickle=False) as npz:
                 arrays = {k: npz[k] for k in npz.files}
     except (OSError, ValueError, zipfile.BadZipFile, EOFError, KeyError) as exc:
@@ -129,7 +148,9 @@ def _read_npz(path: Path) -> dict[str, np.ndarray]:
     return arrays
 
 
-def _numeric(path: Path, data: dict[str, np.ndarray], key: str, bound: float, dtype: type = np.float64) -> np.ndarray:
+def _numeric(
+    path: Path, data: dict[str, np.ndarray], key: str, bound: float, dtype: type = np.float64
+) -> np.ndarray:
     """``data[key]`` as ``dtype``: real numbers (not bool, complex, dates or text), finite and within
     +-``bound``."""
     values = data[key]
@@ -139,8 +160,13 @@ def _numeric(path: Path, data: dict[str, np.ndarray], key: str, bound: float, dt
     if values.size and values.ndim:
         _check_finite(path, values)
     if values.size and not (np.abs(values) <= bound).all():
-        frame = int(np.argmax(~(np.abs(values.reshape(len(values), -1)) <= bound).all(1))) if values.ndim else 0
-        raise MotionError(path, f"{key} has a value beyond +-{bound:g} (first at frame {frame}): a wrong unit or a corrupt file")
+        frame = (
+            int(np.argmax(~(np.abs(values.reshape(len(values), -1)) <= bound).all(1))) if values.ndim else 0
+        )
+        raise MotionError(
+            path,
+            f"{key} has a value beyond +-{bound:g} (first at frame {frame}): a wrong unit or a corrupt file",
+        )
     return values
 
 
@@ -153,7 +179,10 @@ def resample_motion(motion: Motion, fps: float = FPS, path: str | Path | None = 
     return Motion(
         resample_rotations(motion.local_rotations.astype(np.float64), frames),
         resample_linear(motion.root_translation.astype(np.float64), frames),
-        fps, source=motion.source, source_skeleton=motion.source_skeleton, source_height_m=motion.source_height_m,
+        fps,
+        source=motion.source,
+        source_skeleton=motion.source_skeleton,
+        source_height_m=motion.source_height_m,
         check_rotations=False,  # slerped rotations
     )
 
@@ -161,26 +190,42 @@ def resample_motion(motion: Motion, fps: float = FPS, path: str | Path | None = 
 # --- AMASS -----------------------------------------------------------------------------------------
 
 
-def load_amass(path: Path, data: dict[str, np.ndarray], ground: bool = True, fps: float = FPS,
-               source_fps: float | None = None) -> Motion:
+def load_amass(
+    path: Path,
+    data: dict[str, np.ndarray],
+    ground: bool = True,
+    fps: float = FPS,
+    source_fps: float | None = None,
+) -> Motion:
     """AMASS-style npz: the first 22 joints of ``poses`` are SMPL body joints, Z up. ``poses`` is
     (T, 72|156|165) or per joint (T, 24|52|55, 3); ``source_fps`` stands in for a missing rate key."""
     missing = [k for k in ("poses", "trans") if k not in data]
     rate_key = next((k for k in ("mocap_framerate", "mocap_frame_rate") if k in data), None)
     if missing:
-        raise MotionError(path, f"missing keys {missing} (AMASS-style npz needs poses, trans and the frame rate; native npz files carry format={NATIVE_FORMAT!r})")
+        raise MotionError(
+            path,
+            f"missing keys {missing} (AMASS-style npz needs poses, trans and the frame rate; native npz files carry format={NATIVE_FORMAT!r})",
+        )
     if rate_key is None and source_fps is None:
-        raise MotionError(path, "no frame rate: the file has no mocap_framerate (or mocap_frame_rate) key; "
-                                "give the rate it was captured at with --fps (e.g. --fps 120)")
+        raise MotionError(
+            path,
+            "no frame rate: the file has no mocap_framerate (or mocap_frame_rate) key; "
+            "give the rate it was captured at with --fps (e.g. --fps 120)",
+        )
     poses = _numeric(path, data, "poses", MAX_AXIS_ANGLE)
     trans = _numeric(path, data, "trans", MAX_TRANSLATION_M)
     if poses.ndim == 3 and poses.shape[2] == 3 and poses.shape[1] * 3 in AMASS_WIDTHS:
         poses = poses.reshape(poses.shape[0], poses.shape[1] * 3)  # per-joint axis-angle
     if poses.ndim != 2 or poses.shape[1] not in AMASS_WIDTHS:
-        raise MotionError(path, f"poses has shape {poses.shape}; expected (T, 72|156|165) or (T, 24|52|55, 3) "
-                                "for SMPL, SMPL-H or SMPL-X")
+        raise MotionError(
+            path,
+            f"poses has shape {poses.shape}; expected (T, 72|156|165) or (T, 24|52|55, 3) "
+            "for SMPL, SMPL-H or SMPL-X",
+        )
     if trans.shape != (poses.shape[0], 3):
-        raise MotionError(path, f"trans has shape {trans.shape}; expected ({poses.shape[0]}, 3) to match poses")
+        raise MotionError(
+            path, f"trans has shape {trans.shape}; expected ({poses.shape[0]}, 3) to match poses"
+        )
     if poses.shape[0] == 0:
         raise MotionError(path, "the motion has no frames")
     rate = source_fps if source_fps is not None else check_source_fps(data[rate_key], f"{path}: {rate_key}")
@@ -197,8 +242,14 @@ def load_amass(path: Path, data: dict[str, np.ndarray], ground: bool = True, fps
     root = resample_linear(root, frames)
     if ground:
         root = ground_align(local, root)
-    return Motion(local, root, fps, source=str(path), source_skeleton=AMASS_WIDTHS[poses.shape[1]],
-                  check_rotations=False)  # from axis-angles: rotations by construction
+    return Motion(
+        local,
+        root,
+        fps,
+        source=str(path),
+        source_skeleton=AMASS_WIDTHS[poses.shape[1]],
+        check_rotations=False,
+    )  # from axis-angles: rotations by construction
 
 
 def save_amass(motion: Motion, path: str | Path, width: int = 156) -> None:
@@ -212,14 +263,19 @@ def save_amass(motion: Motion, path: str | Path, width: int = 156) -> None:
     trans = motion.root_translation.astype(np.float64) @ Z_UP_TO_Y_UP
     require_suffix(path, (".npz",), "an AMASS-style motion")
     with atomic_path(path) as tmp, open(tmp, "wb") as fh:  # a handle: numpy appends .npz to a name
-        np.savez(fh, poses=poses, trans=trans, mocap_framerate=np.float64(motion.fps), gender=np.str_("neutral"))
+        np.savez(
+            fh, poses=poses, trans=trans, mocap_framerate=np.float64(motion.fps), gender=np.str_("neutral")
+        )
 
 
 def _check_finite(path: Path, *arrays: np.ndarray) -> None:
     for a in arrays:
         ok = np.isfinite(a.reshape(a.shape[0], -1)).all(1)
         if not ok.all():
-            raise MotionError(path, f"non-finite values (NaN or inf) in {int((~ok).sum())} frame(s), first at frame {int(np.argmin(ok))}")
+            raise MotionError(
+                path,
+                f"non-finite values (NaN or inf) in {int((~ok).sum())} frame(s), first at frame {int(np.argmin(ok))}",
+            )
 
 
 # --- native ----------------------------------------------------------------------------------------
@@ -245,7 +301,10 @@ def save_motion(motion: Motion, path: str | Path) -> None:
 def _native_from_arrays(data: dict[str, np.ndarray], path: Path) -> Motion:
     version = data.get("version", np.int64(-1))
     if version.dtype.kind not in "iu" or version.size != 1 or int(version) != NATIVE_VERSION:
-        raise MotionError(path, f"native motion format version {str(version)[:20]} is not supported (this build reads version {NATIVE_VERSION})")
+        raise MotionError(
+            path,
+            f"native motion format version {str(version)[:20]} is not supported (this build reads version {NATIVE_VERSION})",
+        )
     missing = [k for k in ("local_rotations", "root_translation", "fps") if k not in data]
     if missing:
         raise MotionError(path, f"missing keys {missing}")
@@ -260,12 +319,22 @@ def _native_from_arrays(data: dict[str, np.ndarray], path: Path) -> Motion:
     if root.shape != (rot.shape[0], 3):
         raise MotionError(path, f"root_translation has shape {root.shape}; expected ({rot.shape[0]}, 3)")
     fps = check_source_fps(data["fps"], path)
-    height = float(_numeric(path, data, "source_height_m", PLAUSIBLE_HEIGHT_M[1] * 2)) if "source_height_m" in data else 1.7
+    height = (
+        float(_numeric(path, data, "source_height_m", PLAUSIBLE_HEIGHT_M[1] * 2))
+        if "source_height_m" in data
+        else 1.7
+    )
     if not height > 0:
         raise MotionError(path, f"source_height_m must be a positive height in metres, got {height:g}")
-    return Motion(rot, root, fps, source=_text(path, data, "source", str(path)),
-                  source_skeleton=_text(path, data, "source_skeleton", "canonical"), source_height_m=height,
-                  check_rotations=False)  # checked above, in passes
+    return Motion(
+        rot,
+        root,
+        fps,
+        source=_text(path, data, "source", str(path)),
+        source_skeleton=_text(path, data, "source_skeleton", "canonical"),
+        source_height_m=height,
+        check_rotations=False,
+    )  # checked above, in passes
 
 
 def _text(path: Path, data: dict[str, np.ndarray], key: str, default: str) -> str:

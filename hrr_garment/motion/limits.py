@@ -58,8 +58,11 @@ def check_frame_budget(path: str | Path, num_frames: int, fps_in: float, fps_out
     out = int((num_frames - 1) / fps_in * fps_out) + 1
     limit = max_frames()
     if out > limit:
-        raise MotionError(path, f"{num_frames} frames at {fps_in:g} fps resample to {out:,} frames at {fps_out:g} fps, "
-                                f"over the limit of {limit:,} (set HRR_MAX_FRAMES to raise it)")
+        raise MotionError(
+            path,
+            f"{num_frames} frames at {fps_in:g} fps resample to {out:,} frames at {fps_out:g} fps, "
+            f"over the limit of {limit:,} (set HRR_MAX_FRAMES to raise it)",
+        )
 
 
 def check_root_speed(path: str | Path, root: np.ndarray, fps: float) -> None:
@@ -69,5 +72,8 @@ def check_root_speed(path: str | Path, root: np.ndarray, fps: float) -> None:
     speed = np.linalg.norm(np.diff(root, axis=0), axis=1) * fps
     worst = int(np.argmax(speed))
     if speed[worst] > MAX_ROOT_SPEED:
-        raise MotionError(path, f"the root moves {speed[worst]:.3g} m/s between frames {worst} and {worst + 1} "
-                                f"(more than {MAX_ROOT_SPEED:g} m/s: a wrong unit or a corrupt frame)")
+        raise MotionError(
+            path,
+            f"the root moves {speed[worst]:.3g} m/s between frames {worst} and {worst + 1} "
+            f"(more than {MAX_ROOT_SPEED:g} m/s: a wrong unit or a corrupt frame)",
+        )

@@ -38,12 +38,17 @@ from scipy.signal import lfilter, lfilter_zi, ss2tf
 from .features import FEATURE_DIM, SLICE_T, SLICE_V, SLICE_W
 from .rotations import rotation_about_y
 
-VECTORS = (SLICE_V.stop - SLICE_V.start + SLICE_T.stop - SLICE_T.start) // 3  # 21: 20 joint velocities, the root's
-MEMORY_WIDTH = 3 * VECTORS + 1  # values per average (and per resonator output): the 3-vectors and the yaw rate
+VECTORS = (
+    SLICE_V.stop - SLICE_V.start + SLICE_T.stop - SLICE_T.start
+) // 3  # 21: 20 joint velocities, the root's
+MEMORY_WIDTH = (
+    3 * VECTORS + 1
+)  # values per average (and per resonator output): the 3-vectors and the yaw rate
 
 
-def check_memory_seconds(memory_seconds: Sequence[float], what: str = "memory time constants",
-                         unit: str = "seconds") -> tuple[float, ...]:
+def check_memory_seconds(
+    memory_seconds: Sequence[float], what: str = "memory time constants", unit: str = "seconds"
+) -> tuple[float, ...]:
     """The values as a tuple of positive numbers, or a ValueError."""
     values = tuple(float(s) for s in memory_seconds)
     if any(not np.isfinite(s) or s <= 0 for s in values):
@@ -62,10 +67,14 @@ class MemorySpec:
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "seconds", check_memory_seconds(self.seconds))
-        object.__setattr__(self, "resonator_hz", check_memory_seconds(self.resonator_hz, "resonator frequencies", "hertz"))
+        object.__setattr__(
+            self, "resonator_hz", check_memory_seconds(self.resonator_hz, "resonator frequencies", "hertz")
+        )
         object.__setattr__(self, "damping", float(self.damping))
         if not (np.isfinite(self.damping) and 0.0 < self.damping < 1.0):
-            raise ValueError(f"resonator damping must be a ratio between 0 and 1 (underdamped), got {self.damping}")
+            raise ValueError(
+                f"resonator damping must be a ratio between 0 and 1 (underdamped), got {self.damping}"
+            )
 
     @classmethod
     def of(cls, value: "MemorySpec | Sequence[float]") -> "MemorySpec":
@@ -101,7 +110,9 @@ class MotionMemory:
 
     def __init__(self, memory: MemorySpec | Sequence[float], fps: float):
         self.spec, self.fps = MemorySpec.of(memory), float(fps)
-        self.decay = np.exp(-1.0 / (fps * np.array(self.spec.seconds)))[:, None]  # (k, 1): broadcast over (N, k, 64)
+        self.decay = np.exp(-1.0 / (fps * np.array(self.spec.seconds)))[
+            :, None
+        ]  # (k, 1): broadcast over (N, k, 64)
         steps = [resonator_step(f, self.spec.damping, fps) for f in self.spec.resonator_hz]
         self.resonator_a = np.array([a for a, _ in steps]).reshape(-1, 2, 2)  # (r, 2, 2)
         self.resonator_b = np.array([b for _, b in steps]).reshape(-1, 2)  # (r, 2)
@@ -112,7 +123,7 @@ class MotionMemory:
         for a, b, w in zip(self.resonator_a, self.resonator_b, self.omega):
             c = np.diag([w, 1.0])
             for row in range(2):
-                num, den = ss2tf(a, b[:, None], (c @ a)[row:row + 1], (c @ b)[row:row + 1, None])
+                num, den = ss2tf(a, b[:, None], (c @ a)[row : row + 1], (c @ b)[row : row + 1, None])
                 self.resonator_filters.append((num[0], den, lfilter_zi(num[0], den)))
 
     def start(self, features: np.ndarray) -> np.ndarray:
@@ -127,7 +138,9 @@ class MotionMemory:
     def step(self, state: np.ndarray, features: np.ndarray) -> np.ndarray:
         """The state (N, rows, 64) one frame on, from the last state and this frame's features (N, 124)."""
         n, rows, k = len(state), state.shape[1], len(self.spec.seconds)
-        turn = rotation_about_y(-features[:, SLICE_W][:, 0].astype(np.float64) / self.fps)  # (N, 3, 3): last body frame -> this
+        turn = rotation_about_y(
+            -features[:, SLICE_W][:, 0].astype(np.float64) / self.fps
+        )  # (N, 3, 3): last body frame -> this
         vectors = state[..., :-1].reshape(n, rows, VECTORS, 3) @ np.swapaxes(turn, -1, -2)[:, None]
         carried = np.concatenate([vectors.reshape(n, rows, -1), state[..., -1:]], -1)
         u = _velocities(features)[:, None]
@@ -163,7 +176,9 @@ def motion_memory(memory: MemorySpec, fps: float) -> MotionMemory:
 
 def _velocities(features: np.ndarray) -> np.ndarray:
     """The remembered columns (N, 64) of features (N, 124): joint and root velocities, yaw rate."""
-    return np.concatenate([features[:, SLICE_V], features[:, SLICE_T], features[:, SLICE_W]], 1).astype(np.float64)
+    return np.concatenate([features[:, SLICE_V], features[:, SLICE_T], features[:, SLICE_W]], 1).astype(
+        np.float64
+    )
 
 
 def with_memory(features: np.ndarray, fps: float, memory: MemorySpec | Sequence[float]) -> np.ndarray:
@@ -181,7 +196,10 @@ def with_memory(features: np.ndarray, fps: float, memory: MemorySpec | Sequence[
     vectors = u[:, :-1].reshape(len(u), VECTORS, 3) @ np.swapaxes(to_first, -1, -2)
     first = np.concatenate([vectors.reshape(len(u), -1), u[:, -1:]], 1)
     filtered = [lfilter([1.0 - a], [1.0, -a], first, axis=0, zi=a * first[:1])[0] for a in memory.decay[:, 0]]
-    filtered += [lfilter(num, den, first, axis=0, zi=zi[:, None] * first[:1])[0] for num, den, zi in memory.resonator_filters]
+    filtered += [
+        lfilter(num, den, first, axis=0, zi=zi[:, None] * first[:1])[0]
+        for num, den, zi in memory.resonator_filters
+    ]
     out = np.empty((len(features), feature_width(memory.spec)), np.float32)
     out[:, :FEATURE_DIM] = features
     for i, smoothed in enumerate(filtered):

@@ -27,18 +27,25 @@ FPS = 30.0  # the internal frame rate
 
 
 MIN_FPS, MAX_FPS = 1.0, 1000.0  # frame rates a motion may have (capture runs 24-240)
-MAX_TRANSLATION_M = 1.0e4  # how far from the origin a pelvis may go: float32 vertices keep millimetres within it
+MAX_TRANSLATION_M = (
+    1.0e4  # how far from the origin a pelvis may go: float32 vertices keep millimetres within it
+)
 
 
-def check_local_rotations(rotations: np.ndarray, joint_names: list[str] | tuple[str, ...], source: object) -> None:
+def check_local_rotations(
+    rotations: np.ndarray, joint_names: list[str] | tuple[str, ...], source: object
+) -> None:
     """Refuse a (T, J, 3, 3) local rotation that is not one (a scale, a reflection, zeros), naming
     its frame and joint and ``source`` (a file or a clip), in passes of frames (hours of them fit)."""
     for start, stop in frame_chunks(len(rotations)):
         error = rotation_matrix_error(rotations[start:stop].astype(np.float64))
         if (error > ROTATION_TOLERANCE).any():
             frame, joint = np.unravel_index(int(np.argmax(error)), error.shape)
-            raise MotionError(source, f"local rotation of frame {start + frame}, joint {joint_names[joint]} is not "
-                                      f"a rotation matrix (off by {error.max():.3g}: a scale, a reflection or zeros)")
+            raise MotionError(
+                source,
+                f"local rotation of frame {start + frame}, joint {joint_names[joint]} is not "
+                f"a rotation matrix (off by {error.max():.3g}: a scale, a reflection or zeros)",
+            )
 
 
 def _frozen(values, dtype) -> np.ndarray:
@@ -73,10 +80,15 @@ class Motion:
 
     def __post_init__(self, check_rotations: bool = True) -> None:
         name = self.source or "motion"
-        for label, values in (("local rotations", self.local_rotations), ("root translation", self.root_translation)):
+        for label, values in (
+            ("local rotations", self.local_rotations),
+            ("root translation", self.root_translation),
+        ):
             kind = np.asarray(values).dtype.kind
             if kind not in "iuf":  # complex, bool, text and objects would be cast with a warning at best
-                raise MotionError(name, f"{label} have dtype {np.asarray(values).dtype}; expected real numbers")
+                raise MotionError(
+                    name, f"{label} have dtype {np.asarray(values).dtype}; expected real numbers"
+                )
         # read-only views: a Motion changed after it was checked (and after its forward kinematics
         # were cached) would animate whatever was put in; build a new one instead
         self.local_rotations = _frozen(self.local_rotations, np.float32)
@@ -93,21 +105,40 @@ class Motion:
         name = self.source or "motion"
         t = self.local_rotations.shape[0] if self.local_rotations.ndim else 0
         if self.local_rotations.shape[1:] != (self.skeleton.num_joints, 3, 3):
-            raise MotionError(name, f"local rotations have shape {self.local_rotations.shape}, expected (T, {self.skeleton.num_joints}, 3, 3)")
+            raise MotionError(
+                name,
+                f"local rotations have shape {self.local_rotations.shape}, expected (T, {self.skeleton.num_joints}, 3, 3)",
+            )
         if self.root_translation.shape != (t, 3):
-            raise MotionError(name, f"root translation has shape {self.root_translation.shape}, expected ({t}, 3)")
+            raise MotionError(
+                name, f"root translation has shape {self.root_translation.shape}, expected ({t}, 3)"
+            )
         if t == 0:
             raise MotionError(name, "the motion has no frames")
         if not (np.isfinite(self.local_rotations).all() and np.isfinite(self.root_translation).all()):
-            bad = ~(np.isfinite(self.local_rotations).reshape(t, -1).all(1) & np.isfinite(self.root_translation).all(1))
-            raise MotionError(name, f"non-finite values in {int(bad.sum())} frame(s), first at frame {int(np.argmax(bad))}")
-        if isinstance(self.fps, bool) or not isinstance(self.fps, (int, float, np.number)) or \
-                not MIN_FPS <= self.fps <= MAX_FPS:
-            raise MotionError(name, f"invalid frame rate {self.fps!r}: motions run at {MIN_FPS:g} to {MAX_FPS:g} frames a second")
+            bad = ~(
+                np.isfinite(self.local_rotations).reshape(t, -1).all(1)
+                & np.isfinite(self.root_translation).all(1)
+            )
+            raise MotionError(
+                name, f"non-finite values in {int(bad.sum())} frame(s), first at frame {int(np.argmax(bad))}"
+            )
+        if (
+            isinstance(self.fps, bool)
+            or not isinstance(self.fps, (int, float, np.number))
+            or not MIN_FPS <= self.fps <= MAX_FPS
+        ):
+            raise MotionError(
+                name,
+                f"invalid frame rate {self.fps!r}: motions run at {MIN_FPS:g} to {MAX_FPS:g} frames a second",
+            )
         reach = float(np.abs(self.root_translation).max())
         if reach > MAX_TRANSLATION_M:
-            raise MotionError(name, f"the pelvis goes {reach:.3g} m from the origin, beyond the {MAX_TRANSLATION_M:g} m a "
-                                    "motion may (float32 vertices lose centimetres there): move the clip nearer the origin")
+            raise MotionError(
+                name,
+                f"the pelvis goes {reach:.3g} m from the origin, beyond the {MAX_TRANSLATION_M:g} m a "
+                "motion may (float32 vertices lose centimetres there): move the clip nearer the origin",
+            )
 
     @property
     def num_frames(self) -> int:
@@ -123,11 +154,18 @@ class Motion:
 
         lib = native.load_kernel()
         if lib is not None:
-            return native.forward_kinematics(lib, self.local_rotations, self.root_translation,
-                                             offsets=self.skeleton.offsets, parents=self.skeleton.parents)
+            return native.forward_kinematics(
+                lib,
+                self.local_rotations,
+                self.root_translation,
+                offsets=self.skeleton.offsets,
+                parents=self.skeleton.parents,
+            )
         g_rot, g_pos = forward_kinematics(
-            self.local_rotations.astype(np.float64), self.root_translation.astype(np.float64),
-            self.skeleton.offsets.astype(np.float64), parents=self.skeleton.parents
+            self.local_rotations.astype(np.float64),
+            self.root_translation.astype(np.float64),
+            self.skeleton.offsets.astype(np.float64),
+            parents=self.skeleton.parents,
         )
         return g_rot, g_pos
 
@@ -159,8 +197,16 @@ class Motion:
         Forward kinematics is per frame, so where every part has already computed it the result
         reuses it instead of computing it again (a stream pairs each new pose with the last)."""
         first = parts[0]
-        out = cls(np.concatenate([p.local_rotations for p in parts]), np.concatenate([p.root_translation for p in parts]),
-                  first.fps, first.source, first.source_skeleton, first.source_height_m, first.skeleton, check_rotations=False)
+        out = cls(
+            np.concatenate([p.local_rotations for p in parts]),
+            np.concatenate([p.root_translation for p in parts]),
+            first.fps,
+            first.source,
+            first.source_skeleton,
+            first.source_height_m,
+            first.skeleton,
+            check_rotations=False,
+        )
         if all("_fk" in p.__dict__ for p in parts):
             out.__dict__["_fk"] = tuple(np.concatenate([p._fk[i] for p in parts]) for i in range(2))
         return out
@@ -171,10 +217,22 @@ class Motion:
         character a frame, each as :func:`~hrr_garment.body.retarget.motion_on_body` plays it. The
         forward kinematics use each frame's offsets; ``skeleton`` stays this motion's own."""
         root = self.root_translation * np.asarray(root_scale, np.float64)[:, None]
-        out = Motion(self.local_rotations, root, self.fps, self.source, self.source_skeleton, self.source_height_m,
-                     self.skeleton, check_rotations=False)
-        out.__dict__["_fk"] = forward_kinematics(self.local_rotations.astype(np.float64), root,
-                                                 np.asarray(offsets, np.float64), parents=self.skeleton.parents)
+        out = Motion(
+            self.local_rotations,
+            root,
+            self.fps,
+            self.source,
+            self.source_skeleton,
+            self.source_height_m,
+            self.skeleton,
+            check_rotations=False,
+        )
+        out.__dict__["_fk"] = forward_kinematics(
+            self.local_rotations.astype(np.float64),
+            root,
+            np.asarray(offsets, np.float64),
+            parents=self.skeleton.parents,
+        )
         return out
 
     def mirrored(self) -> "Motion":
@@ -183,12 +241,28 @@ class Motion:
         the reflected joints of this motion exactly."""
         flip = np.diag([-1.0, 1.0, 1.0]).astype(np.float32)
         local = flip @ self.local_rotations[:, list(MIRROR_JOINTS)] @ flip
-        return Motion(local, self.root_translation * np.array([-1.0, 1.0, 1.0]), self.fps, f"{self.source} (mirrored)",
-                      self.source_skeleton, self.source_height_m, self.skeleton, check_rotations=False)
+        return Motion(
+            local,
+            self.root_translation * np.array([-1.0, 1.0, 1.0]),
+            self.fps,
+            f"{self.source} (mirrored)",
+            self.source_skeleton,
+            self.source_height_m,
+            self.skeleton,
+            check_rotations=False,
+        )
 
     def slice(self, start: int, stop: int) -> "Motion":
-        return Motion(self.local_rotations[start:stop], self.root_translation[start:stop], self.fps, self.source,
-                      self.source_skeleton, self.source_height_m, self.skeleton, check_rotations=False)
+        return Motion(
+            self.local_rotations[start:stop],
+            self.root_translation[start:stop],
+            self.fps,
+            self.source,
+            self.source_skeleton,
+            self.source_height_m,
+            self.skeleton,
+            check_rotations=False,
+        )
 
     def summary(self) -> dict:
         pos = self.joint_positions

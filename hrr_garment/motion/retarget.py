@@ -46,7 +46,10 @@ class SourceMotion:
 
 def leg_length(rest_positions: np.ndarray, hip: int, knee: int, ankle: int) -> float:
     """Hip to knee plus knee to ankle, in the rest pose."""
-    return float(np.linalg.norm(rest_positions[knee] - rest_positions[hip]) + np.linalg.norm(rest_positions[ankle] - rest_positions[knee]))
+    return float(
+        np.linalg.norm(rest_positions[knee] - rest_positions[hip])
+        + np.linalg.norm(rest_positions[ankle] - rest_positions[knee])
+    )
 
 
 def _canonical_leg_length() -> float:
@@ -55,7 +58,10 @@ def _canonical_leg_length() -> float:
 
 def mean_leg_length(rest_positions: np.ndarray, mapping: dict[str, int]) -> float:
     """Hip-knee-ankle length averaged over both legs; ``mapping`` is canonical name -> index."""
-    return 0.5 * sum(leg_length(rest_positions, mapping[f"{s}_hip"], mapping[f"{s}_knee"], mapping[f"{s}_ankle"]) for s in "lr")
+    return 0.5 * sum(
+        leg_length(rest_positions, mapping[f"{s}_hip"], mapping[f"{s}_knee"], mapping[f"{s}_ankle"])
+        for s in "lr"
+    )
 
 
 def standing_height_from_legs(rest_positions: np.ndarray, mapping: dict[str, int]) -> float:
@@ -74,7 +80,9 @@ def _frame(up: np.ndarray, lateral: np.ndarray) -> np.ndarray:
     return np.stack([x, y, z], -1)
 
 
-def _reference(c: int, mapping: dict[int, int], src_rest: np.ndarray, child: int, min_len: float) -> int | None:
+def _reference(
+    c: int, mapping: dict[int, int], src_rest: np.ndarray, child: int, min_len: float
+) -> int | None:
     """First mapped canonical descendant along ``child``'s chain at a non-zero source distance from c."""
     k: int | None = child
     while k is not None:
@@ -104,8 +112,14 @@ def _mean_rotation(rotations: np.ndarray) -> np.ndarray:
     return u @ np.diag([1.0, 1.0, np.linalg.det(u @ vt)]) @ vt
 
 
-def remove_rig_roll(glob: np.ndarray, g_src: np.ndarray, mapping: dict[int, int], bones: dict[int, np.ndarray],
-                    leaves: list[int], roll: dict | None = None) -> dict:
+def remove_rig_roll(
+    glob: np.ndarray,
+    g_src: np.ndarray,
+    mapping: dict[int, int],
+    bones: dict[int, np.ndarray],
+    leaves: list[int],
+    roll: dict | None = None,
+) -> dict:
     """Take each joint's constant twist offset (the rig's roll) out of ``glob`` in place; returns
     the offsets it took out (``roll``: take out these instead of measuring them on this clip).
 
@@ -123,8 +137,10 @@ def remove_rig_roll(glob: np.ndarray, g_src: np.ndarray, mapping: dict[int, int]
                 d = glob[:, c] @ v  # the bone direction in the world, exact
                 swing = rotation_between(glob[:, parent] @ v, d) @ glob[:, parent]  # twist of the parent
                 twist = np.swapaxes(swing, -1, -2) @ glob[:, c]  # a rotation about v
-                angle = np.arctan2(twist[:, [2, 0, 1], [1, 2, 0]] @ v - twist[:, [1, 2, 0], [2, 0, 1]] @ v,
-                                   np.trace(twist, axis1=1, axis2=2) - 1.0)
+                angle = np.arctan2(
+                    twist[:, [2, 0, 1], [1, 2, 0]] @ v - twist[:, [1, 2, 0], [2, 0, 1]] @ v,
+                    np.trace(twist, axis1=1, axis2=2) - 1.0,
+                )
                 used[c] = float(np.arctan2(np.sin(angle).mean(), np.cos(angle).mean()))
             else:
                 used[c] = roll[c]
@@ -135,7 +151,10 @@ def remove_rig_roll(glob: np.ndarray, g_src: np.ndarray, mapping: dict[int, int]
                 continue
             relative = np.swapaxes(g_src[:, p], -1, -2) @ g_src[:, s]  # in the source parent's axes
             if roll is None:
-                used[c] = (_mean_rotation(np.swapaxes(g_src[:, p], -1, -2) @ glob[:, parent]), _mean_rotation(relative))
+                used[c] = (
+                    _mean_rotation(np.swapaxes(g_src[:, p], -1, -2) @ glob[:, parent]),
+                    _mean_rotation(relative),
+                )
             else:
                 used[c] = roll[c]
             to_canon, neutral = used[c]
@@ -155,8 +174,12 @@ class RetargetCalibration:
     floor: float
 
 
-def retarget(src: SourceMotion, mapping_by_name: dict[str, int], ground: bool = True,
-             calibration: RetargetCalibration | None = None) -> tuple[np.ndarray, np.ndarray]:
+def retarget(
+    src: SourceMotion,
+    mapping_by_name: dict[str, int],
+    ground: bool = True,
+    calibration: RetargetCalibration | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
     """Return canonical (local rotations (T,22,3,3), root translation (T,3)). The rig roll and the
     floor are measured on this clip, or taken from ``calibration`` (a stream's poses one by one)."""
     local, root, _ = _retarget(src, mapping_by_name, None if calibration is None else calibration.roll)
@@ -172,7 +195,9 @@ def calibrate_retarget(src: SourceMotion, mapping_by_name: dict[str, int]) -> Re
     return RetargetCalibration(roll, clip_floor(local, root))
 
 
-def _retarget(src: SourceMotion, mapping_by_name: dict[str, int], roll: dict | None) -> tuple[np.ndarray, np.ndarray, dict | None]:
+def _retarget(
+    src: SourceMotion, mapping_by_name: dict[str, int], roll: dict | None
+) -> tuple[np.ndarray, np.ndarray, dict | None]:
     """Canonical local rotations, the root before grounding, and the rig roll taken out (None: none)."""
     mapping = {JOINT_INDEX[c]: s for c, s in mapping_by_name.items()}
     n_frames = src.global_rotations.shape[0]
@@ -192,15 +217,23 @@ def _retarget(src: SourceMotion, mapping_by_name: dict[str, int], roll: dict | N
             align[c] = align.get(parent, np.eye(3))
             continue
         s = mapping[c]
-        refs = [r for r in (_reference(c, mapping, src_rest, k, min_len) for k in children[c]) if r is not None]
+        refs = [
+            r for r in (_reference(c, mapping, src_rest, k, min_len) for k in children[c]) if r is not None
+        ]
         if len(children[c]) == 3 and len(refs) == 3:
             # pelvis / upper spine: up = centre child, lateral = left child minus right child.
             lefts = [r for r in refs if JOINT_NAMES[r].startswith("l_")]
             rights = [r for r in refs if JOINT_NAMES[r].startswith("r_")]
             centre = next(r for r in refs if r not in lefts + rights)
             v_frame = _frame(canon_rest[centre] - canon_rest[c], canon_rest[lefts[0]] - canon_rest[rights[0]])
-            u_frame = _frame(p_src[:, mapping[centre]] - p_src[:, s], p_src[:, mapping[lefts[0]]] - p_src[:, mapping[rights[0]]])
-            rest_frame = _frame(src_rest[mapping[centre]] - src_rest[s], src_rest[mapping[lefts[0]]] - src_rest[mapping[rights[0]]])
+            u_frame = _frame(
+                p_src[:, mapping[centre]] - p_src[:, s],
+                p_src[:, mapping[lefts[0]]] - p_src[:, mapping[rights[0]]],
+            )
+            rest_frame = _frame(
+                src_rest[mapping[centre]] - src_rest[s],
+                src_rest[mapping[lefts[0]]] - src_rest[mapping[rights[0]]],
+            )
             glob[:, c] = u_frame @ v_frame.T
             align[c] = rest_frame @ v_frame.T
         elif refs:
@@ -220,7 +253,11 @@ def _retarget(src: SourceMotion, mapping_by_name: dict[str, int], roll: dict | N
             glob[:, c] = g_src[:, s] @ a
             align[c] = a
             leaves.append(c)
-    used = None if rest_is_standing(src_rest, mapping) else remove_rig_roll(glob, g_src, mapping, bones, leaves, roll)
+    used = (
+        None
+        if rest_is_standing(src_rest, mapping)
+        else remove_rig_roll(glob, g_src, mapping, bones, leaves, roll)
+    )
     local = global_to_local(glob, PARENTS)
     pelvis = mapping[JOINT_INDEX["pelvis"]]
     root = p_src[:, pelvis] * (_canonical_leg_length() / mean_leg_length(src_rest, mapping_by_name))

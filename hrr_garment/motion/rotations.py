@@ -114,9 +114,7 @@ def matrix_to_quat(m: Array) -> Array:
     m00, m01, m02 = m[..., 0, 0], m[..., 0, 1], m[..., 0, 2]
     m10, m11, m12 = m[..., 1, 0], m[..., 1, 1], m[..., 1, 2]
     m20, m21, m22 = m[..., 2, 0], m[..., 2, 1], m[..., 2, 2]
-    four = _stack(
-        [1 + m00 + m11 + m22, 1 + m00 - m11 - m22, 1 - m00 + m11 - m22, 1 - m00 - m11 + m22], -1
-    )
+    four = _stack([1 + m00 + m11 + m22, 1 + m00 - m11 - m22, 1 - m00 + m11 - m22, 1 - m00 - m11 + m22], -1)
     q_abs = xp.sqrt(xp.clip(four, 1e-12, None))
     candidates = _stack(
         [
@@ -156,7 +154,9 @@ def quat_to_axis_angle(q: Array) -> Array:
     w = q[..., :1]
     angle = 2.0 * (np.arctan2(s, w) if xp is np else xp.atan2(s, w))
     small = s < 1e-6
-    ratio = xp.where(small, 2.0 / xp.where(small, w, xp.ones_like(w)), angle / xp.where(small, xp.ones_like(s), s))
+    ratio = xp.where(
+        small, 2.0 / xp.where(small, w, xp.ones_like(w)), angle / xp.where(small, xp.ones_like(s), s)
+    )
     return v * ratio
 
 
@@ -243,9 +243,11 @@ def rotation_matrix_error(m: np.ndarray) -> np.ndarray:
     |det M - 1| (0 for a rotation; zeros, scales and reflections score high), shape (...)."""
     error = np.abs(np.einsum("...ji,...jk->...ik", m, m) - np.eye(3)).max(axis=(-2, -1))
     # the determinant by cofactors: np.linalg.det's per-matrix LU is several times slower on 3 x 3
-    det = (m[..., 0, 0] * (m[..., 1, 1] * m[..., 2, 2] - m[..., 1, 2] * m[..., 2, 1])
-           - m[..., 0, 1] * (m[..., 1, 0] * m[..., 2, 2] - m[..., 1, 2] * m[..., 2, 0])
-           + m[..., 0, 2] * (m[..., 1, 0] * m[..., 2, 1] - m[..., 1, 1] * m[..., 2, 0]))
+    det = (
+        m[..., 0, 0] * (m[..., 1, 1] * m[..., 2, 2] - m[..., 1, 2] * m[..., 2, 1])
+        - m[..., 0, 1] * (m[..., 1, 0] * m[..., 2, 2] - m[..., 1, 2] * m[..., 2, 0])
+        + m[..., 0, 2] * (m[..., 1, 0] * m[..., 2, 1] - m[..., 1, 1] * m[..., 2, 0])
+    )
     return np.maximum(error, np.abs(det - 1.0))
 
 
@@ -267,7 +269,11 @@ def rotation_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     angle = np.arctan2(s, c)
     # Opposite vectors: rotate by pi about any axis perpendicular to a.
     fallback = np.cross(a, np.array([1.0, 0.0, 0.0], dtype=a.dtype))
-    fallback = np.where(np.linalg.norm(fallback, axis=-1, keepdims=True) < 1e-6, np.cross(a, np.array([0.0, 0.0, 1.0], dtype=a.dtype)), fallback)
+    fallback = np.where(
+        np.linalg.norm(fallback, axis=-1, keepdims=True) < 1e-6,
+        np.cross(a, np.array([0.0, 0.0, 1.0], dtype=a.dtype)),
+        fallback,
+    )
     axis = np.where(s > 1e-9, axis, np.where(c < 0, fallback, axis))
     return axis_angle_to_matrix(normalize(axis) * angle)
 

@@ -24,7 +24,8 @@ JOINT_INDEX = {name: i for i, name in enumerate(JOINT_NAMES)}
 PARENTS: tuple[int, ...] = (-1, 0, 0, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 9, 9, 12, 13, 14, 16, 17, 18, 19)
 # Each joint's left-right counterpart (centre joints are their own).
 MIRROR_JOINTS: tuple[int, ...] = tuple(
-    JOINT_INDEX[{"l": "r", "r": "l"}[n[0]] + n[1:]] if n[:2] in ("l_", "r_") else i for i, n in enumerate(JOINT_NAMES)
+    JOINT_INDEX[{"l": "r", "r": "l"}[n[0]] + n[1:]] if n[:2] in ("l_", "r_") else i
+    for i, n in enumerate(JOINT_NAMES)
 )
 
 # The 20 joints used by motion features: all but the two toe joints (paper 3.3).
@@ -136,7 +137,11 @@ def global_to_local(global_rot: np.ndarray, parents: tuple[int, ...]) -> np.ndar
     """Inverse of the rotation part of FK: local_j = global_parent^T @ global_j."""
     local = np.empty_like(global_rot)
     for j, p in enumerate(parents):
-        local[..., j, :, :] = global_rot[..., j, :, :] if p < 0 else np.swapaxes(global_rot[..., p, :, :], -1, -2) @ global_rot[..., j, :, :]
+        local[..., j, :, :] = (
+            global_rot[..., j, :, :]
+            if p < 0
+            else np.swapaxes(global_rot[..., p, :, :], -1, -2) @ global_rot[..., j, :, :]
+        )
     return local
 
 
@@ -145,7 +150,9 @@ def sole_points(global_rot: np.ndarray, global_pos: np.ndarray) -> np.ndarray:
     cols = []
     for joint, offset in SOLE_POINTS:
         j = JOINT_INDEX[joint]
-        cols.append(global_pos[..., j, :] + global_rot[..., j, :, :] @ np.asarray(offset, dtype=global_rot.dtype))
+        cols.append(
+            global_pos[..., j, :] + global_rot[..., j, :, :] @ np.asarray(offset, dtype=global_rot.dtype)
+        )
     return np.stack(cols, -2)
 
 

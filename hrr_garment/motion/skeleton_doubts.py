@@ -47,8 +47,10 @@ def _hierarchy_doubts(names: list[str], parents: list[int], mapping: dict[str, i
             continue
         src, src_parent = mapping[joint], mapping[JOINT_NAMES[parent]]
         if src != src_parent and src_parent not in _ancestors(parents, src):
-            doubts.append(f"{names[src]!r} (taken as {joint}) is not below {names[src_parent]!r} (taken as "
-                          f"{JOINT_NAMES[parent]}) in the hierarchy")
+            doubts.append(
+                f"{names[src]!r} (taken as {joint}) is not below {names[src_parent]!r} (taken as "
+                f"{JOINT_NAMES[parent]}) in the hierarchy"
+            )
     return doubts
 
 
@@ -60,9 +62,11 @@ def _length_doubts(names: list[str], rest: np.ndarray, mapping: dict[str, int]) 
             continue
         lengths = [float(np.linalg.norm(rest[mapping[tip]] - rest[mapping[base]])) for base, tip in keys]
         if min(lengths) <= 0 or max(lengths) / min(lengths) > MAX_SIDE_RATIO:
-            doubts.append(f"the left {a}-{b} bone ({names[mapping[keys[0][0]]]!r} to {names[mapping[keys[0][1]]]!r}, "
-                          f"{lengths[0]:.3g}) and the right one ({names[mapping[keys[1][0]]]!r} to "
-                          f"{names[mapping[keys[1][1]]]!r}, {lengths[1]:.3g}) differ by more than {MAX_SIDE_RATIO - 1:.0%}")
+            doubts.append(
+                f"the left {a}-{b} bone ({names[mapping[keys[0][0]]]!r} to {names[mapping[keys[0][1]]]!r}, "
+                f"{lengths[0]:.3g}) and the right one ({names[mapping[keys[1][0]]]!r} to "
+                f"{names[mapping[keys[1][1]]]!r}, {lengths[1]:.3g}) differ by more than {MAX_SIDE_RATIO - 1:.0%}"
+            )
     return doubts
 
 
@@ -82,15 +86,25 @@ def _side_doubts(names: list[str], rest: np.ndarray, mapping: dict[str, int]) ->
     # a joint is on the wrong side when it is there by more than a quarter of the hips' width: feet
     # together or crossed in a rest pose (ankles 0.18 apart beside hips 2.2 apart, CMU 02_01 through
     # Blender's FBX and glTF) are not a swap, which puts the left joint a whole width to the right
-    hips = (rest[mapping["l_hip"]] - rest[mapping["r_hip"]]) @ left if "l_hip" in mapping and "r_hip" in mapping else 0.0
+    hips = (
+        (rest[mapping["l_hip"]] - rest[mapping["r_hip"]]) @ left
+        if "l_hip" in mapping and "r_hip" in mapping
+        else 0.0
+    )
     slack = SIDE_SLACK * abs(float(hips))
-    wrong = [f"{names[mapping[f'l_{j}']]!r} (taken as l_{j})" for j in ("hip", "knee", "ankle", "shoulder", "elbow", "wrist")
-             if f"l_{j}" in mapping and f"r_{j}" in mapping
-             and (rest[mapping[f"l_{j}"]] - rest[mapping[f"r_{j}"]]) @ left < -slack]
+    wrong = [
+        f"{names[mapping[f'l_{j}']]!r} (taken as l_{j})"
+        for j in ("hip", "knee", "ankle", "shoulder", "elbow", "wrist")
+        if f"l_{j}" in mapping
+        and f"r_{j}" in mapping
+        and (rest[mapping[f"l_{j}"]] - rest[mapping[f"r_{j}"]]) @ left < -slack
+    ]
     return [f"{', '.join(wrong)} on the character's right (its feet point the other way)"] if wrong else []
 
 
-def skeleton_doubts(names: list[str], parents: list[int], rest: np.ndarray, mapping: dict[str, int]) -> list[str]:
+def skeleton_doubts(
+    names: list[str], parents: list[int], rest: np.ndarray, mapping: dict[str, int]
+) -> list[str]:
     """Why a skeleton (joint ``names``, ``parents``, ``rest`` positions, any unit) does not look like
     what ``mapping`` (canonical name -> joint index) takes its joints for; empty when it does."""
     doubts = _hierarchy_doubts(names, parents, mapping) + _length_doubts(names, rest, mapping)
@@ -100,8 +114,10 @@ def skeleton_doubts(names: list[str], parents: list[int], rest: np.ndarray, mapp
 
 def doubts_sentence(doubts: list[str]) -> str:
     """The doubts as one clause of a message, with the way out."""
-    return (f"the skeleton does not look like its joint names: {'; '.join(doubts)} (a joint map, --joint-map, "
-            "says which joint is which)")
+    return (
+        f"the skeleton does not look like its joint names: {'; '.join(doubts)} (a joint map, --joint-map, "
+        "says which joint is which)"
+    )
 
 
 def warn_doubts(path: str, doubts: list[str]) -> None:

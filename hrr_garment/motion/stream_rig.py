@@ -53,33 +53,68 @@ class StreamRig:
     source: str
 
     @classmethod
-    def from_bvh(cls, path: str | Path, unit_scale: float | None = None, joint_map: dict | None = None,
-                 calibration_clip: str | Path | None = None) -> "StreamRig":
+    def from_bvh(
+        cls,
+        path: str | Path,
+        unit_scale: float | None = None,
+        joint_map: dict | None = None,
+        calibration_clip: str | Path | None = None,
+    ) -> "StreamRig":
         """The rig of a BVH file (its joint names resolved as :func:`~.io.load_motion` does, the
         unit detected unless given), calibrated on ``calibration_clip`` (default: the same file)."""
         path = Path(path)
-        rig, scheme, mapping, scale = bvh_source(path, unit_scale, joint_map)  # the skeleton and unit, read once
-        calibration = rig if calibration_clip is None else bvh_source(Path(calibration_clip), scale, joint_map)[0]
+        rig, scheme, mapping, scale = bvh_source(
+            path, unit_scale, joint_map
+        )  # the skeleton and unit, read once
+        calibration = (
+            rig if calibration_clip is None else bvh_source(Path(calibration_clip), scale, joint_map)[0]
+        )
         if list(calibration.names) != list(rig.names) or list(calibration.parents) != list(rig.parents):
             raise MotionError(calibration_clip, f"is not on the rig of {path}: its joints differ")
-        rest = rig.rest_positions  # metres; a joint's offset is its rest position less its parent's (the root's is unused)
+        rest = (
+            rig.rest_positions
+        )  # metres; a joint's offset is its rest position less its parent's (the root's is unused)
         offsets = rest - rest[[max(p, 0) for p in rig.parents]]
-        return cls(list(rig.names), list(rig.parents), offsets, rest, mapping, scheme, scale,
-                   calibrate_retarget(calibration, mapping), str(path))
+        return cls(
+            list(rig.names),
+            list(rig.parents),
+            offsets,
+            rest,
+            mapping,
+            scheme,
+            scale,
+            calibrate_retarget(calibration, mapping),
+            str(path),
+        )
 
     @property
     def num_joints(self) -> int:
         return len(self.names)
 
-    def to_canonical(self, rotations: np.ndarray, roots: np.ndarray, quaternion_order: str = "xyzw") -> Motion:
+    def to_canonical(
+        self, rotations: np.ndarray, roots: np.ndarray, quaternion_order: str = "xyzw"
+    ) -> Motion:
         """N poses on this rig (see :mod:`.poses` for the rotation forms) -> an N-frame canonical
         :class:`Motion`, retargeted with the rig's calibration."""
         local = rotations_to_matrices(rotations, self.num_joints, quaternion_order, source=self.source)
         root = check_roots(roots, len(local), self.source) * self.unit_scale
         g_rot, g_pos = forward_kinematics(local, root, self.offsets, parents=tuple(self.parents))
-        src = SourceMotion(self.names, self.parents, self.rest_positions, global_rotations=g_rot, global_positions=g_pos,
-                           fps=FPS, path=self.source)
+        src = SourceMotion(
+            self.names,
+            self.parents,
+            self.rest_positions,
+            global_rotations=g_rot,
+            global_positions=g_pos,
+            fps=FPS,
+            path=self.source,
+        )
         check_source(src)
         canon_local, canon_root = retarget(src, self.mapping, ground=True, calibration=self.calibration)
-        return Motion(canon_local, canon_root, FPS, source=self.source, source_skeleton=self.scheme,
-                      source_height_m=standing_height_from_legs(self.rest_positions, self.mapping))
+        return Motion(
+            canon_local,
+            canon_root,
+            FPS,
+            source=self.source,
+            source_skeleton=self.scheme,
+            source_height_m=standing_height_from_legs(self.rest_positions, self.mapping),
+        )

@@ -19,11 +19,15 @@ def sequence_windows(frames: np.ndarray, window: int) -> np.ndarray:
     return np.moveaxis(np.lib.stride_tricks.sliding_window_view(frames, window, axis=0), -1, 1)
 
 
-def windows(features: np.ndarray, size: int = DEFAULT_WINDOW, stride: int = 1, source: str = "motion") -> np.ndarray:
+def windows(
+    features: np.ndarray, size: int = DEFAULT_WINDOW, stride: int = 1, source: str = "motion"
+) -> np.ndarray:
     """(N, size, D) overlapping windows, N = (T - size) // stride + 1 (a view, no copy); a clip
     shorter than one window is an error that names ``source``."""
     if features.shape[0] < size:
-        raise MotionError(source, f"clip has {features.shape[0]} frames, shorter than one window of {size} frames")
+        raise MotionError(
+            source, f"clip has {features.shape[0]} frames, shorter than one window of {size} frames"
+        )
     return sequence_windows(features, size)[::stride]
 
 

@@ -27,5 +27,18 @@ from .motion import body_to_world, causal_features, forward_kinematics
 from .panels import PANEL, pack_panels
 from .threads import default_threads, pin_workers
 
-__all__ = ["FLAGS", "HEADER", "PANEL", "PRECISIONS", "SOURCE", "SOURCES", "body_to_world", "causal_features",
-           "default_threads", "forward_kinematics", "load_kernel", "pack_panels", "pin_workers"]
+__all__ = [
+    "FLAGS",
+    "HEADER",
+    "PANEL",
+    "PRECISIONS",
+    "SOURCE",
+    "SOURCES",
+    "body_to_world",
+    "causal_features",
+    "default_threads",
+    "forward_kinematics",
+    "load_kernel",
+    "pack_panels",
+    "pin_workers",
+]

@@ -39,16 +39,27 @@ class PushSteps(NamedTuple):
 class _PushArgs(ctypes.Structure):
     """kernels.c's PushArgs."""
 
-    _fields_ = [("margin", ctypes.c_double), ("smooth", ctypes.c_int), ("rounds", ctypes.c_int),
-                ("depth", ctypes.c_double)]
+    _fields_ = [
+        ("margin", ctypes.c_double),
+        ("smooth", ctypes.c_int),
+        ("rounds", ctypes.c_int),
+        ("depth", ctypes.c_double),
+    ]
 
 
 class _SubspaceArgs(ctypes.Structure):
     """kernels.c's SubspaceArgs."""
 
-    _fields_ = [("basis", ctypes.c_void_p), ("blocks", ctypes.c_void_p), ("stretch", ctypes.c_void_p), ("k", ctypes.c_int),
-                ("iterations", ctypes.c_int),
-                ("strain_weight", ctypes.c_double), ("ridge", ctypes.c_double), ("clearance", ctypes.c_double)]
+    _fields_ = [
+        ("basis", ctypes.c_void_p),
+        ("blocks", ctypes.c_void_p),
+        ("stretch", ctypes.c_void_p),
+        ("k", ctypes.c_int),
+        ("iterations", ctypes.c_int),
+        ("strain_weight", ctypes.c_double),
+        ("ridge", ctypes.c_double),
+        ("clearance", ctypes.c_double),
+    ]
 
 
 class SubspaceMove:
@@ -61,10 +72,19 @@ class SubspaceMove:
 
     BLOCK = 64  # kernels.c's MOVE_BLOCK
 
-    def __init__(self, basis: np.ndarray, stretch: np.ndarray, strain_weight: float, ridge: float, clearance: float,
-                 iterations: int) -> None:
+    def __init__(
+        self,
+        basis: np.ndarray,
+        stretch: np.ndarray,
+        strain_weight: float,
+        ridge: float,
+        clearance: float,
+        iterations: int,
+    ) -> None:
         if not 1 <= len(basis) <= MAX_SUBSPACE_COMPONENTS:
-            raise ValueError(f"the native subspace push takes 1 to {MAX_SUBSPACE_COMPONENTS} components, not {len(basis)}")
+            raise ValueError(
+                f"the native subspace push takes 1 to {MAX_SUBSPACE_COMPONENTS} components, not {len(basis)}"
+            )
         basis = np.asarray(basis, np.float32)
         k, v = basis.shape[:2]
         self.basis = np.ascontiguousarray(basis.transpose(1, 2, 0))
@@ -73,18 +93,36 @@ class SubspaceMove:
         padded[:, :v] = basis
         self.blocks = np.ascontiguousarray(padded.reshape(k, count, 3 * self.BLOCK).transpose(1, 0, 2))
         self.stretch = np.ascontiguousarray(stretch, np.float64)
-        self.struct = _SubspaceArgs(self.basis.ctypes.data, self.blocks.ctypes.data, self.stretch.ctypes.data,
-                                    len(self.stretch), int(iterations), float(strain_weight), float(ridge), float(clearance))
+        self.struct = _SubspaceArgs(
+            self.basis.ctypes.data,
+            self.blocks.ctypes.data,
+            self.stretch.ctypes.data,
+            len(self.stretch),
+            int(iterations),
+            float(strain_weight),
+            float(ridge),
+            float(clearance),
+        )
 
 
 class _StrainArgs(ctypes.Structure):
     """kernels.c's StrainArgs."""
 
-    _fields_ = [("edges", ctypes.c_void_p), ("rest", ctypes.c_void_p), ("colour", ctypes.c_void_p),
-                ("colour_ptr", ctypes.c_void_p), ("ve_ptr", ctypes.c_void_p), ("ve_idx", ctypes.c_void_p),
-                ("E", ctypes.c_int), ("colours", ctypes.c_int), ("iterations", ctypes.c_int),
-                ("max_strain", ctypes.c_double), ("slack", ctypes.c_double), ("tol", ctypes.c_double),
-                ("omega", ctypes.c_double)]
+    _fields_ = [
+        ("edges", ctypes.c_void_p),
+        ("rest", ctypes.c_void_p),
+        ("colour", ctypes.c_void_p),
+        ("colour_ptr", ctypes.c_void_p),
+        ("ve_ptr", ctypes.c_void_p),
+        ("ve_idx", ctypes.c_void_p),
+        ("E", ctypes.c_int),
+        ("colours", ctypes.c_int),
+        ("iterations", ctypes.c_int),
+        ("max_strain", ctypes.c_double),
+        ("slack", ctypes.c_double),
+        ("tol", ctypes.c_double),
+        ("omega", ctypes.c_double),
+    ]
 
 
 class PushMesh:
@@ -92,8 +130,14 @@ class PushMesh:
     the padded 1-ring (V, D) int32 with ``slope`` x each slot's rest distance (float64, inf in the
     padding), ``follow`` passes, and the vertex patches (offsets (P + 1,), indices (V,) int32)."""
 
-    def __init__(self, ring: np.ndarray, ring_length: np.ndarray, slope: float, follow: int,
-                 patches: tuple[np.ndarray, np.ndarray]) -> None:
+    def __init__(
+        self,
+        ring: np.ndarray,
+        ring_length: np.ndarray,
+        slope: float,
+        follow: int,
+        patches: tuple[np.ndarray, np.ndarray],
+    ) -> None:
         self.ring = np.ascontiguousarray(ring, np.int32)
         self.ring_drop = np.ascontiguousarray(slope * np.asarray(ring_length, np.float64))
         self.follow = int(follow)
@@ -101,8 +145,15 @@ class PushMesh:
 
     def arguments(self) -> tuple:
         """hrr_push_out's ring, ring_drop, width, follow, patch_ptr, patch_idx, patches."""
-        return (self.ring.ctypes.data, self.ring_drop.ctypes.data, self.ring.shape[1], self.follow,
-                self.patch_ptr.ctypes.data, self.patch_idx.ctypes.data, len(self.patch_ptr) - 1)
+        return (
+            self.ring.ctypes.data,
+            self.ring_drop.ctypes.data,
+            self.ring.shape[1],
+            self.follow,
+            self.patch_ptr.ctypes.data,
+            self.patch_idx.ctypes.data,
+            len(self.patch_ptr) - 1,
+        )
 
 
 class EdgeArrays:
@@ -112,17 +163,27 @@ class EdgeArrays:
     with their addresses (a stream limits every frame, and asking numpy for five addresses cost a
     fifth of a one-frame limit)."""
 
-    def __init__(self, edges: np.ndarray, rest_length: np.ndarray, colour: np.ndarray, vertex_edges_indptr: np.ndarray,
-                 vertex_edges_indices: np.ndarray) -> None:
+    def __init__(
+        self,
+        edges: np.ndarray,
+        rest_length: np.ndarray,
+        colour: np.ndarray,
+        vertex_edges_indptr: np.ndarray,
+        vertex_edges_indices: np.ndarray,
+    ) -> None:
         self.edges = np.ascontiguousarray(edges, np.int32)
         self.rest_length = np.ascontiguousarray(rest_length, np.float64)
         self.colour = np.ascontiguousarray(colour, np.uint8)
         self.colours = int(self.colour.max()) + 1 if len(self.colour) else 0
-        self.colour_ptr = np.r_[0, np.cumsum(np.bincount(self.colour, minlength=self.colours))].astype(np.int32)
+        self.colour_ptr = np.r_[0, np.cumsum(np.bincount(self.colour, minlength=self.colours))].astype(
+            np.int32
+        )
         self.indptr = np.ascontiguousarray(vertex_edges_indptr, np.int32)
         self.indices = np.ascontiguousarray(vertex_edges_indices, np.int32)
-        self.addresses = tuple(a.ctypes.data for a in (self.edges, self.rest_length, self.colour, self.colour_ptr,
-                                                       self.indptr, self.indices))
+        self.addresses = tuple(
+            a.ctypes.data
+            for a in (self.edges, self.rest_length, self.colour, self.colour_ptr, self.indptr, self.indices)
+        )
 
 
 class StrainLimit(NamedTuple):
@@ -140,32 +201,62 @@ class StrainLimit(NamedTuple):
     def arguments(self) -> _StrainArgs:
         """The kernel's StrainArgs of this limit (the edge arrays' addresses: keep them alive)."""
         arrays = self.edge_arrays
-        return _StrainArgs(*arrays.addresses, len(arrays.edges), arrays.colours, self.iterations, self.max_strain,
-                           self.slack, self.tol, self.omega)
+        return _StrainArgs(
+            *arrays.addresses,
+            len(arrays.edges),
+            arrays.colours,
+            self.iterations,
+            self.max_strain,
+            self.slack,
+            self.tol,
+            self.omega,
+        )
 
 
-def _capsule_arrays(a: np.ndarray, b: np.ndarray, radii: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _capsule_arrays(
+    a: np.ndarray, b: np.ndarray, radii: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     if np.shape(radii)[-1] > MAX_CAPSULES:
-        raise ValueError(f"the native capsule kernels handle up to {MAX_CAPSULES} capsules, not {np.shape(radii)[-1]}")
+        raise ValueError(
+            f"the native capsule kernels handle up to {MAX_CAPSULES} capsules, not {np.shape(radii)[-1]}"
+        )
     return tuple(np.ascontiguousarray(x, np.float64) for x in (a, b, radii))
 
 
-def capsule_sdf(lib: ctypes.CDLL, points: np.ndarray, a: np.ndarray, b: np.ndarray, radii: np.ndarray,
-                threads: int = 1) -> tuple[np.ndarray, np.ndarray]:
+def capsule_sdf(
+    lib: ctypes.CDLL, points: np.ndarray, a: np.ndarray, b: np.ndarray, radii: np.ndarray, threads: int = 1
+) -> tuple[np.ndarray, np.ndarray]:
     """:func:`hrr_garment.body.capsules.capsule_signed_distance` (distance, normal) in the kernel,
     for points (T, N, 3) against per-frame capsules a, b (T, C, 3)."""
     a, b, r = _capsule_arrays(a, b, radii)
     p = np.ascontiguousarray(points, np.float64)
     t, n = p.shape[:2]
     dist, normal = np.empty((t, n)), np.empty((t, n, 3))
-    lib.hrr_capsule_sdf(p.ctypes.data, t, n, a.ctypes.data, b.ctypes.data, r.ctypes.data, len(r), threads, dist.ctypes.data,
-                        normal.ctypes.data)
+    lib.hrr_capsule_sdf(
+        p.ctypes.data,
+        t,
+        n,
+        a.ctypes.data,
+        b.ctypes.data,
+        r.ctypes.data,
+        len(r),
+        threads,
+        dist.ctypes.data,
+        normal.ctypes.data,
+    )
     return dist, normal
 
 
-def push_out_frames(lib: ctypes.CDLL, points: np.ndarray, capsules: tuple, steps: PushSteps, *,
-                    turn: np.ndarray | None = None, threads: int = 1,
-                    out: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def push_out_frames(
+    lib: ctypes.CDLL,
+    points: np.ndarray,
+    capsules: tuple,
+    steps: PushSteps,
+    *,
+    turn: np.ndarray | None = None,
+    threads: int = 1,
+    out: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """:func:`hrr_garment.inference.collision.push_out`'s per-frame steps in the kernel: points
     (T, V, 3) float32 or float64 (others are converted to float32), ``capsules`` (ends a, b (T, C, 3), radii (C,) or per
     frame (T, C)), the push's ``steps`` -> (pushed points float32, fraction deeper than
@@ -187,7 +278,9 @@ def push_out_frames(lib: ctypes.CDLL, points: np.ndarray, capsules: tuple, steps
     t, v = p.shape[:2]
     if subspace is not None:
         if turn is None or np.shape(turn) != (t, 3, 3):
-            raise ValueError(f"the subspace push needs each frame's body turn (T, 3, 3), got {np.shape(turn)}")
+            raise ValueError(
+                f"the subspace push needs each frame's body turn (T, 3, 3), got {np.shape(turn)}"
+            )
         if subspace.basis.shape[0] != v:
             raise ValueError(f"a subspace of {subspace.basis.shape[0]} vertices for frames of {v}")
         turn = np.ascontiguousarray(turn, np.float64)
@@ -198,20 +291,44 @@ def push_out_frames(lib: ctypes.CDLL, points: np.ndarray, capsules: tuple, steps
         raise ValueError(f"per-frame radii for {r.shape[0]} frames, points for {t}")
     count = r.shape[-1]
     push_args, strain_args = steps.arguments(), None if limit is None else limit.arguments()
-    lib.hrr_push_out(p.ctypes.data, int(p.dtype == np.float64), out.ctypes.data, t, v, a.ctypes.data, b.ctypes.data, r.ctypes.data, count,
-                     count if r.ndim == 2 else 0, indptr.ctypes.data, indices.ctypes.data, weights.ctypes.data,
-                     *(mesh.arguments() if mesh is not None else (None, None, 1, 0, None, None, 0)),
-                     ctypes.byref(push_args), None if strain_args is None else ctypes.byref(strain_args),
-                     None if subspace is None else ctypes.byref(subspace.struct),
-                     None if subspace is None else turn.ctypes.data, threads,
-                     before.ctypes.data, after.ctypes.data, torn.ctypes.data)
+    lib.hrr_push_out(
+        p.ctypes.data,
+        int(p.dtype == np.float64),
+        out.ctypes.data,
+        t,
+        v,
+        a.ctypes.data,
+        b.ctypes.data,
+        r.ctypes.data,
+        count,
+        count if r.ndim == 2 else 0,
+        indptr.ctypes.data,
+        indices.ctypes.data,
+        weights.ctypes.data,
+        *(mesh.arguments() if mesh is not None else (None, None, 1, 0, None, None, 0)),
+        ctypes.byref(push_args),
+        None if strain_args is None else ctypes.byref(strain_args),
+        None if subspace is None else ctypes.byref(subspace.struct),
+        None if subspace is None else turn.ctypes.data,
+        threads,
+        before.ctypes.data,
+        after.ctypes.data,
+        torn.ctypes.data,
+    )
     if np.isnan(before).any():
         raise MemoryError("the native push-out could not allocate its scratch memory")
     return out, before, after, torn.astype(bool)
 
 
-def limit_strain(lib: ctypes.CDLL, pushed: np.ndarray, unpushed: np.ndarray, limit: StrainLimit, *, threads: int = 1,
-                 in_place: bool = False) -> tuple[np.ndarray, np.ndarray]:
+def limit_strain(
+    lib: ctypes.CDLL,
+    pushed: np.ndarray,
+    unpushed: np.ndarray,
+    limit: StrainLimit,
+    *,
+    threads: int = 1,
+    in_place: bool = False,
+) -> tuple[np.ndarray, np.ndarray]:
     """:func:`hrr_garment.inference.collision.limit_push_strain` in the kernel: pushed and unpushed
     points (T, V, 3), the ``limit`` (:class:`StrainLimit`) -> (the limited points, float64 (T, V, 3);
     the (T,) mask of frames that had an edge over its limit). Frames in parallel; each stops on its own. ``in_place``: a C-contiguous float64
@@ -220,7 +337,17 @@ def limit_strain(lib: ctypes.CDLL, pushed: np.ndarray, unpushed: np.ndarray, lim
     p = pushed if own else np.array(pushed, np.float64, order="C")  # moved in place
     u = np.ascontiguousarray(unpushed, np.float64)
     torn = np.zeros(len(p), np.uint8)
-    if lib.hrr_limit_strain(p.ctypes.data, u.ctypes.data, len(p), p.shape[1], ctypes.byref(limit.arguments()), threads,
-                            torn.ctypes.data) != 0:
+    if (
+        lib.hrr_limit_strain(
+            p.ctypes.data,
+            u.ctypes.data,
+            len(p),
+            p.shape[1],
+            ctypes.byref(limit.arguments()),
+            threads,
+            torn.ctypes.data,
+        )
+        != 0
+    ):
         raise MemoryError("the native strain limit could not allocate its scratch memory")
     return p, torn.astype(bool)

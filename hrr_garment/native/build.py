@@ -29,9 +29,17 @@ SOURCES = ("kernels.c", "amx_block.c", "window_codes.c", "features.c")
 SOURCE = "\n".join((_HERE / name).read_text() for name in SOURCES)
 _HEADER_TEXT = (_HERE / HEADER).read_text()
 
-FLAGS = ["-O3", "-march=native", "-mprefer-vector-width=512", "-fno-math-errno", "-fno-trapping-math", "-fopenmp",
-         "-Werror=implicit-function-declaration",
-         "-shared", "-fPIC"]
+FLAGS = [
+    "-O3",
+    "-march=native",
+    "-mprefer-vector-width=512",
+    "-fno-math-errno",
+    "-fno-trapping-math",
+    "-fopenmp",
+    "-Werror=implicit-function-declaration",
+    "-shared",
+    "-fPIC",
+]
 _lock = threading.Lock()
 _loaded: dict[str, ctypes.CDLL | None] = {}
 _requests: dict[tuple, ctypes.CDLL | None] = {}
@@ -40,7 +48,9 @@ _requests: dict[tuple, ctypes.CDLL | None] = {}
 @functools.lru_cache(maxsize=1)
 def _cpu_signature() -> str:
     try:
-        flags = next(line for line in Path("/proc/cpuinfo").read_text().splitlines() if line.startswith("flags"))
+        flags = next(
+            line for line in Path("/proc/cpuinfo").read_text().splitlines() if line.startswith("flags")
+        )
     except (OSError, StopIteration):
         flags = ""
     return f"{platform.machine()} {platform.processor()} {flags}"
@@ -59,8 +69,12 @@ def _compile(target: Path) -> None:
     with tempfile.TemporaryDirectory(dir=target.parent) as tmp:
         src, lib = Path(tmp) / "kernel.c", Path(tmp) / "kernel.so"
         src.write_text(SOURCE)
-        subprocess.run([compiler, *FLAGS, f"-I{_HERE}", str(src), "-o", str(lib), "-lm"], check=True, capture_output=True,
-                       text=True)
+        subprocess.run(
+            [compiler, *FLAGS, f"-I{_HERE}", str(src), "-o", str(lib), "-lm"],
+            check=True,
+            capture_output=True,
+            text=True,
+        )
         os.replace(lib, target)  # atomic: a concurrent process sees the whole library or none
 
 
@@ -69,19 +83,83 @@ def _declare(lib: ctypes.CDLL) -> None:
     f = ctypes.POINTER(ctypes.c_float)
     i32 = ctypes.POINTER(ctypes.c_int32)
     c_int, c_float, c_double = ctypes.c_int, ctypes.c_float, ctypes.c_double
-    lib.hrr_block.argtypes = [f, c_int, c_int, c_int, c_int, i32, i32, f, f, f, f, c_float, c_float, c_int,
-                              c_int, f]
+    lib.hrr_block.argtypes = [
+        f,
+        c_int,
+        c_int,
+        c_int,
+        c_int,
+        i32,
+        i32,
+        f,
+        f,
+        f,
+        f,
+        c_float,
+        c_float,
+        c_int,
+        c_int,
+        f,
+    ]
     lib.hrr_block.restype = None
     d = ctypes.c_void_p  # addresses from ndarray.ctypes.data: per-frame calls, so the cheapest conversion
     lib.hrr_capsule_sdf.argtypes = [d, c_int, c_int, d, d, d, c_int, c_int, d, d]
     lib.hrr_capsule_sdf.restype = None
-    lib.hrr_push_out.argtypes = [d, c_int, d, c_int, c_int, d, d, d, c_int, c_int, d, d, d, d, d, c_int, c_int, d, d, c_int,
-                                 d, d, d, d, c_int, d, d, d]  # PushArgs, StrainArgs, SubspaceArgs by reference
+    lib.hrr_push_out.argtypes = [
+        d,
+        c_int,
+        d,
+        c_int,
+        c_int,
+        d,
+        d,
+        d,
+        c_int,
+        c_int,
+        d,
+        d,
+        d,
+        d,
+        d,
+        c_int,
+        c_int,
+        d,
+        d,
+        c_int,
+        d,
+        d,
+        d,
+        d,
+        c_int,
+        d,
+        d,
+        d,
+    ]  # PushArgs, StrainArgs, SubspaceArgs by reference
     lib.hrr_push_out.restype = None
     lib.hrr_limit_strain.argtypes = [d, d, c_int, c_int, d, c_int, d]
     lib.hrr_limit_strain.restype = c_int
-    lib.hrr_factor_block.argtypes = [d, c_int, c_int, d, d, d, c_int, c_int, c_int, c_int, d, d, d, d, d,
-                                     c_float, c_float, c_int, c_int, d]
+    lib.hrr_factor_block.argtypes = [
+        d,
+        c_int,
+        c_int,
+        d,
+        d,
+        d,
+        c_int,
+        c_int,
+        c_int,
+        c_int,
+        d,
+        d,
+        d,
+        d,
+        d,
+        c_float,
+        c_float,
+        c_int,
+        c_int,
+        d,
+    ]
     lib.hrr_factor_block.restype = None
     lib.hrr_window_codes.argtypes = [d, d, c_int, d, d, c_int, d, d, d]
     lib.hrr_window_codes.restype = c_int
@@ -95,8 +173,27 @@ def _declare(lib: ctypes.CDLL) -> None:
     lib.hrr_causal_features.restype = None
     lib.hrr_body_to_world.argtypes = [d, c_int, c_int, d, d, c_int, d]
     lib.hrr_body_to_world.restype = None
-    lib.hrr_block_bf16.argtypes = [d, c_int, c_int, c_int, c_int, c_int, d, d, d, d, d, d, c_float, c_float,
-                                   c_int, c_int, d, d, d]
+    lib.hrr_block_bf16.argtypes = [
+        d,
+        c_int,
+        c_int,
+        c_int,
+        c_int,
+        c_int,
+        d,
+        d,
+        d,
+        d,
+        d,
+        d,
+        c_float,
+        c_float,
+        c_int,
+        c_int,
+        d,
+        d,
+        d,
+    ]
     lib.hrr_block_bf16.restype = c_int
     lib.hrr_rows_to_frames.argtypes = [d, c_int, c_int, c_int, c_int, c_int, d, c_float, c_int, d]
     lib.hrr_rows_to_frames.restype = None
@@ -130,7 +227,10 @@ def load_kernel(cache_dir: str | Path | None = None) -> ctypes.CDLL | None:
                 _loaded[str(target)] = lib
             except (OSError, subprocess.CalledProcessError) as exc:
                 detail = getattr(exc, "stderr", "") or str(exc)
-                warnings.warn(f"native decoder kernel unavailable, using the PyTorch path: {detail[:500]}", RuntimeWarning)
+                warnings.warn(
+                    f"native decoder kernel unavailable, using the PyTorch path: {detail[:500]}",
+                    RuntimeWarning,
+                )
                 _loaded[str(target)] = None
         _requests[request] = _loaded[str(target)]
         return _loaded[str(target)]

@@ -50,8 +50,16 @@ class NativeBlock:
     """One decoder block's constants in the kernel's layout (see ``SOURCE``); ``activation`` is the
     block's (a, b, elu)."""
 
-    def __init__(self, index: np.ndarray, mask: np.ndarray, kernel: np.ndarray, bias: np.ndarray,
-                 pool: np.ndarray | None, proj: np.ndarray | None, activation: tuple[float, float, bool]):
+    def __init__(
+        self,
+        index: np.ndarray,
+        mask: np.ndarray,
+        kernel: np.ndarray,
+        bias: np.ndarray,
+        pool: np.ndarray | None,
+        proj: np.ndarray | None,
+        activation: tuple[float, float, bool],
+    ):
         a, b, elu = activation
         keep = mask > 0  # (V, S): real neighbour slots
         self.offsets = np.concatenate([[0], np.cumsum(keep.sum(1))]).astype(np.int32)
@@ -62,17 +70,25 @@ class NativeBlock:
         if width is None:
             raise ValueError(f"the native kernel handles up to {WIDTHS[-1]} output channels, not {cout}")
         pad = [(0, 0)] * 2 + [(0, width - cout)]  # zero columns: the kernel's widths are fixed
-        self.kernel = np.ascontiguousarray(np.pad(kernel.reshape(v, s, cin, cout)[keep], pad), np.float32)  # (nnz, cin, width)
+        self.kernel = np.ascontiguousarray(
+            np.pad(kernel.reshape(v, s, cin, cout)[keep], pad), np.float32
+        )  # (nnz, cin, width)
         self.bias = np.ascontiguousarray(np.pad(bias, (0, width - cout)), np.float32)
         self.pool = None if pool is None else np.ascontiguousarray(pool[keep], np.float32)
         if proj is None and width != cout:
             proj = np.eye(cin, cout, dtype=np.float32)
-        self.proj = None if proj is None else np.ascontiguousarray(np.pad(proj, [(0, 0), (0, width - cout)]), np.float32)
+        self.proj = (
+            None
+            if proj is None
+            else np.ascontiguousarray(np.pad(proj, [(0, 0), (0, width - cout)]), np.float32)
+        )
         self.cin, self.cout, self.width, self.vertices = cin, cout, width, v
         self.a, self.b, self.elu = float(a), float(b), bool(elu)
         self.factored = None  # (transform (cin, (M + 1) * width), kernel arguments, arrays) via set_factored
 
-    def set_factored(self, coeff: np.ndarray, basis: np.ndarray, mask: np.ndarray, proj: np.ndarray | None) -> None:
+    def set_factored(
+        self, coeff: np.ndarray, basis: np.ndarray, mask: np.ndarray, proj: np.ndarray | None
+    ) -> None:
         """Basis coefficients (V, S, M) and basis (M, cin, cout) for single frames (``one``)."""
         keep = mask > 0
         m, cin, cout = basis.shape
@@ -80,18 +96,37 @@ class NativeBlock:
         proj = np.eye(cin, cout, dtype=np.float32) if proj is None else proj  # identity residual: cin == cout
         # x (Vin, cin) @ transform = [x W_0 | ... | x W_{M-1} | x proj], each block padded to width
         blocks = np.concatenate([basis, proj[None]], 0)  # (M + 1, cin, cout)
-        blocks = np.pad(blocks, [(0, 0), (0, 0), (0, width - cout)]).transpose(1, 0, 2).reshape(cin, (m + 1) * width)
+        blocks = (
+            np.pad(blocks, [(0, 0), (0, 0), (0, width - cout)])
+            .transpose(1, 0, 2)
+            .reshape(cin, (m + 1) * width)
+        )
         coeff = np.ascontiguousarray(coeff[keep], np.float32)
         bias = np.ascontiguousarray(np.pad(self.bias[:cout], (0, width - cout)), np.float32)
         transform = pack_panels(blocks)
         zeros = np.zeros(transform.shape[0] * PANEL, np.float32)  # the product's (absent) bias
         # the constant arguments, converted once: ctypes conversions cost microseconds each, per frame
-        constants = (transform.ctypes.data, zeros.ctypes.data, m, self.cout, width, self.vertices, self.offsets.ctypes.data,
-                     self.nbr.ctypes.data, coeff.ctypes.data, None if self.pool is None else self.pool.ctypes.data,
-                     bias.ctypes.data, ctypes.c_float(self.a), ctypes.c_float(self.b), int(self.elu))
+        constants = (
+            transform.ctypes.data,
+            zeros.ctypes.data,
+            m,
+            self.cout,
+            width,
+            self.vertices,
+            self.offsets.ctypes.data,
+            self.nbr.ctypes.data,
+            coeff.ctypes.data,
+            None if self.pool is None else self.pool.ctypes.data,
+            bias.ctypes.data,
+            ctypes.c_float(self.a),
+            ctypes.c_float(self.b),
+            int(self.elu),
+        )
         self.factored = ((m + 1) * width, constants, (transform, zeros, coeff, bias))
 
-    def one(self, lib: ctypes.CDLL, x: np.ndarray, threads: int, scratch: np.ndarray | None = None) -> np.ndarray:
+    def one(
+        self, lib: ctypes.CDLL, x: np.ndarray, threads: int, scratch: np.ndarray | None = None
+    ) -> np.ndarray:
         """One frame: x (V_in, C_in) float32 C-contiguous -> (V, C_out), the same function as
         ``__call__``, in one kernel call (the transform, then the apply). ``scratch``: float32
         room for the transform's V_in x (M + 1) x width product, which a decoder shares among its
@@ -104,8 +139,17 @@ class NativeBlock:
             scratch = np.empty(len(x) * row, np.float32)
         if getattr(self, "_out", None) is None:
             self._out = np.empty((self.vertices, self.cout), np.float32)
-        lib.hrr_factor_block(x.ctypes.data, len(x), self.cin, constants[0], constants[1], scratch.ctypes.data,
-                             *constants[2:], threads, self._out.ctypes.data)
+        lib.hrr_factor_block(
+            x.ctypes.data,
+            len(x),
+            self.cin,
+            constants[0],
+            constants[1],
+            scratch.ctypes.data,
+            *constants[2:],
+            threads,
+            self._out.ctypes.data,
+        )
         return self._out
 
     def set_bf16(self) -> None:
@@ -120,8 +164,15 @@ class NativeBlock:
         bias = np.ascontiguousarray(np.pad(self.bias[:cout], (0, width - cout)), np.float32)
         self.bf16 = (width, kernel, bf16_pairs(np.pad(proj, pad[1:])), bias)
 
-    def call_bf16(self, lib: ctypes.CDLL, x: np.ndarray, threads: int, last: bool, out: np.ndarray | None = None,
-                  scratch: np.ndarray | None = None) -> np.ndarray:
+    def call_bf16(
+        self,
+        lib: ctypes.CDLL,
+        x: np.ndarray,
+        threads: int,
+        last: bool,
+        out: np.ndarray | None = None,
+        scratch: np.ndarray | None = None,
+    ) -> np.ndarray:
         """x (V_in, Bp, C_in) bfloat16 bits (uint16), Bp a multiple of 16 -> ``out`` (V, Bp, width): the
         next block's bfloat16 input, or float32 for the ``last`` block (``set_bf16`` first).
         ``scratch``: float32 room for V_in x Bp x width (the residual's projection). A decoder
@@ -132,13 +183,31 @@ class NativeBlock:
         scratch = np.empty(need, np.float32) if scratch is None or scratch.size < need else scratch
         if out is None:
             out = np.empty((self.vertices, batch, width), np.float32 if last else np.uint16)
-        status = lib.hrr_block_bf16(x.ctypes.data, batch, self.cin, width, x.shape[0], self.vertices,
-                                    self.offsets.ctypes.data, self.nbr.ctypes.data, kernel.ctypes.data, bias.ctypes.data,
-                                    None if self.pool is None else self.pool.ctypes.data, proj.ctypes.data,
-                                    self.a, self.b, int(self.elu), threads, scratch.ctypes.data,
-                                    None if last else out.ctypes.data, out.ctypes.data if last else None)
+        status = lib.hrr_block_bf16(
+            x.ctypes.data,
+            batch,
+            self.cin,
+            width,
+            x.shape[0],
+            self.vertices,
+            self.offsets.ctypes.data,
+            self.nbr.ctypes.data,
+            kernel.ctypes.data,
+            bias.ctypes.data,
+            None if self.pool is None else self.pool.ctypes.data,
+            proj.ctypes.data,
+            self.a,
+            self.b,
+            int(self.elu),
+            threads,
+            scratch.ctypes.data,
+            None if last else out.ctypes.data,
+            out.ctypes.data if last else None,
+        )
         if status:
-            raise RuntimeError("bfloat16 decoding needs AMX (an Intel Xeon of Sapphire Rapids or newer, on Linux)")
+            raise RuntimeError(
+                "bfloat16 decoding needs AMX (an Intel Xeon of Sapphire Rapids or newer, on Linux)"
+            )
         return out
 
     def __call__(self, lib: ctypes.CDLL, x: np.ndarray, threads: int, padded: bool = False) -> np.ndarray:
@@ -147,18 +216,44 @@ class NativeBlock:
         slices them itself)."""
         batch = x.shape[1]
         out = np.empty((self.vertices, batch, self.width), np.float32)
-        lib.hrr_block(_ptr(x), batch, self.cin, self.width, self.vertices, _ptr(self.offsets, ctypes.c_int32),
-                      _ptr(self.nbr, ctypes.c_int32), _ptr(self.kernel), _ptr(self.bias),
-                      _ptr(self.pool), _ptr(self.proj), self.a, self.b, int(self.elu), threads, _ptr(out))
-        return out if padded or self.width == self.cout else np.ascontiguousarray(out[..., :self.cout])
+        lib.hrr_block(
+            _ptr(x),
+            batch,
+            self.cin,
+            self.width,
+            self.vertices,
+            _ptr(self.offsets, ctypes.c_int32),
+            _ptr(self.nbr, ctypes.c_int32),
+            _ptr(self.kernel),
+            _ptr(self.bias),
+            _ptr(self.pool),
+            _ptr(self.proj),
+            self.a,
+            self.b,
+            int(self.elu),
+            threads,
+            _ptr(out),
+        )
+        return out if padded or self.width == self.cout else np.ascontiguousarray(out[..., : self.cout])
 
 
-def rows_to_frames(lib: ctypes.CDLL, rows: np.ndarray, frames: int, template: np.ndarray, scale: float,
-                   threads: int) -> np.ndarray:
+def rows_to_frames(
+    lib: ctypes.CDLL, rows: np.ndarray, frames: int, template: np.ndarray, scale: float, threads: int
+) -> np.ndarray:
     """A decoder's last block rows (V, Bp, width) float32, C-contiguous -> (frames, V, C) float32
     ``template + scale * rows[:, :frames, :C]`` with C the template's columns."""
     v, padded, width = rows.shape
     out = np.empty((frames, v, template.shape[1]), np.float32)
-    lib.hrr_rows_to_frames(rows.ctypes.data, v, padded, width, frames, template.shape[1], template.ctypes.data,
-                           ctypes.c_float(scale), threads, out.ctypes.data)
+    lib.hrr_rows_to_frames(
+        rows.ctypes.data,
+        v,
+        padded,
+        width,
+        frames,
+        template.shape[1],
+        template.ctypes.data,
+        ctypes.c_float(scale),
+        threads,
+        out.ctypes.data,
+    )
     return out

@@ -54,26 +54,39 @@ class BudgetCheck:
         asked = f" of {self.epochs_asked}" if self.epochs_asked is not None else ""
         why = f", stopped by {self.stopped}" if self.stopped else ""
         ratio = self.target_ratio
-        target = f"; validation {self.validation_mm:.2f} mm against a target of {self.target_mm:.2f} mm ({ratio:.2f} x)" \
-            if ratio is not None else ""
+        target = (
+            f"; validation {self.validation_mm:.2f} mm against a target of {self.target_mm:.2f} mm ({ratio:.2f} x)"
+            if ratio is not None
+            else ""
+        )
         return f"{self.stage}: {self.epochs}{asked} epochs{why}{target}"
 
     def warnings(self) -> list[str]:
         out = []
         if self.cut_short:
-            out.append(f"{self.stage}: its {self.cap_minutes:g}-minute cap stopped training after {self.epochs} of "
-                       f"{self.epochs_asked} epochs (a busy or slow machine): the model is weaker than these settings make. "
-                       "Re-run the same command with a larger max_minutes (--config; --minutes for the autoencoder) "
-                       "to finish the epochs from where it stopped")
+            out.append(
+                f"{self.stage}: its {self.cap_minutes:g}-minute cap stopped training after {self.epochs} of "
+                f"{self.epochs_asked} epochs (a busy or slow machine): the model is weaker than these settings make. "
+                "Re-run the same command with a larger max_minutes (--config; --minutes for the autoencoder) "
+                "to finish the epochs from where it stopped"
+            )
         ratio = self.target_ratio
         if ratio is not None and ratio > FAR_ABOVE_TARGET:
-            out.append(f"{self.stage}: validation error {self.validation_mm:.2f} mm is {ratio:.2f} x the "
-                       f"{self.target_mm:.2f} mm these settings reach on an idle machine")
+            out.append(
+                f"{self.stage}: validation error {self.validation_mm:.2f} mm is {ratio:.2f} x the "
+                f"{self.target_mm:.2f} mm these settings reach on an idle machine"
+            )
         return out
 
 
 def check_budget(report: StageReport, train_config) -> BudgetCheck:
     """``report`` against the stage's training config (``max_minutes``, ``target_mm``)."""
-    return BudgetCheck(report.stage, report.epochs, report.epochs_asked, report.stopped,
-                       getattr(train_config, "max_minutes", None), report.validation_mm,
-                       getattr(train_config, "target_mm", None))
+    return BudgetCheck(
+        report.stage,
+        report.epochs,
+        report.epochs_asked,
+        report.stopped,
+        getattr(train_config, "max_minutes", None),
+        report.validation_mm,
+        getattr(train_config, "target_mm", None),
+    )

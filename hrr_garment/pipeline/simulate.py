@@ -24,7 +24,11 @@ def dataset_out_of_date(dataset: Path, preset: Preset) -> str | None:
     if "plan" in ds.info:
         now = plan_record(preset)
         changed = [k for k in now if ds.info["plan"].get(k) != now[k]]
-        return f"was made with other {', '.join(changed)} settings than the {preset.name} preset's" if changed else None
+        return (
+            f"was made with other {', '.join(changed)} settings than the {preset.name} preset's"
+            if changed
+            else None
+        )
     missing = _missing_names(ds, preset)
     if missing:
         return f"lacks {len(missing)} of the {preset.name} preset's sequences (e.g. {missing[0]})"
@@ -64,7 +68,9 @@ def _missing_names(ds, preset: Preset) -> list[str]:
     planned = [spec.name for spec in plan_sequences(preset)]
     mirror = mirror_mode(preset.mirror)
     mirrors = [f"{name}{MIRROR_SUFFIX}" for name in planned] if mirror else []
-    held = {n for n in ds.names if not n.startswith(AUGMENT_PREFIXES)}  # splices and the like are planned by the build
+    held = {
+        n for n in ds.names if not n.startswith(AUGMENT_PREFIXES)
+    }  # splices and the like are planned by the build
     if not held <= set(planned + mirrors):  # other clips under the preset's name: the user's choice
         return []
     # files written before mirrors were simulated record ``true`` for their reflections
@@ -93,12 +99,24 @@ def simulate_preset(garment: str, preset: Preset, out: Path, progress: bool = Tr
     from ..sim.simulator import SimConfig
 
     mesh = make_garment(garment, preset.vertices)
-    choice = choose_bodies(plan_sequences(preset), mesh, preset_bodies=preset.bodies, where=preset.name, progress=progress)
+    choice = choose_bodies(
+        plan_sequences(preset), mesh, preset_bodies=preset.bodies, where=preset.name, progress=progress
+    )
     options = build_options(preset, choice.specs)
     options["info"]["garment_vertices"] = mesh.num_vertices
     if choice.bodies:
         options["info"]["bodies"] = choice.info
-    report = build_dataset(mesh, choice.specs, SimConfig.from_dict(preset.sim), out=out,
-                           options=BuildOptions(progress=progress, preview=write_dataset_preview, bodies=choice.bodies,
-                                                hold_out_bodies=choice.hold_out, **options))
+    report = build_dataset(
+        mesh,
+        choice.specs,
+        SimConfig.from_dict(preset.sim),
+        out=out,
+        options=BuildOptions(
+            progress=progress,
+            preview=write_dataset_preview,
+            bodies=choice.bodies,
+            hold_out_bodies=choice.hold_out,
+            **options,
+        ),
+    )
     return SimulatedDataset(report, mesh)

@@ -57,7 +57,12 @@ from . import simulate as simulation
 from .budget import BudgetCheck, TrainingBudgetWarning, check_budget
 from .simulate import SimulatedDataset
 
-STAGES = ("simulate", "autoencoder", "codespace", "subspace")  # what "all" runs; the baseline runs only when asked for
+STAGES = (
+    "simulate",
+    "autoencoder",
+    "codespace",
+    "subspace",
+)  # what "all" runs; the baseline runs only when asked for
 SECTIONS = ("autoencoder", "codespace", "subspace", "baseline", "auto")  # of the training config
 BUDGETED = ("autoencoder", "codespace")  # stages checked against their epochs and target error (.budget)
 OLD_CODESPACE_NAME = "codebook"  # the old name of the code-space stage and config section (deprecated)
@@ -83,13 +88,20 @@ class TrainCallback:
 def _sections(data, source, callback: TrainCallback) -> dict:
     """A training config's sections, checked, the code space's old section name renamed."""
     if isinstance(data, dict) and OLD_CODESPACE_NAME in data:
-        callback.on_message(f"deprecated: {source}: the config section '{OLD_CODESPACE_NAME}' is now called 'codespace'")
+        callback.on_message(
+            f"deprecated: {source}: the config section '{OLD_CODESPACE_NAME}' is now called 'codespace'"
+        )
         if "codespace" in data:
-            raise InputError(source, f"has both a '{OLD_CODESPACE_NAME}' and a 'codespace' section; keep 'codespace'")
+            raise InputError(
+                source, f"has both a '{OLD_CODESPACE_NAME}' and a 'codespace' section; keep 'codespace'"
+            )
         data = {("codespace" if k == OLD_CODESPACE_NAME else k): v for k, v in data.items()}
     if not isinstance(data, dict) or set(data) - set(SECTIONS):
-        raise InputError(source, "expected a mapping with 'autoencoder', 'codespace' and/or 'baseline' sections "
-                                 "(each with model/train) and/or an 'auto' section")
+        raise InputError(
+            source,
+            "expected a mapping with 'autoencoder', 'codespace' and/or 'baseline' sections "
+            "(each with model/train) and/or an 'auto' section",
+        )
     return data
 
 
@@ -123,23 +135,32 @@ class TrainSettings:
     auto: AutoConfig = field(default_factory=AutoConfig)  # the auto mode's calibration after the code space
 
     @classmethod
-    def load(cls, preset: Preset | None = None, user_config: str | Path | None = None, overrides: dict | None = None,
-             callback: TrainCallback | None = None) -> "TrainSettings":
+    def load(
+        cls,
+        preset: Preset | None = None,
+        user_config: str | Path | None = None,
+        overrides: dict | None = None,
+        callback: TrainCallback | None = None,
+    ) -> "TrainSettings":
         """configs/train.yaml, then the preset's ``train:`` section, then ``user_config`` (a YAML of
         the same sections), then ``overrides`` (``{"autoencoder": {"train": {"max_minutes": 5}}}``)."""
         callback = callback or TrainCallback()
         values = _read_yaml(CONFIG_DIR / "train.yaml", callback)
         if preset is not None:
-            values = deep_merge(values, _sections(preset.train or {}, f"the {preset.name} preset's train section", callback))
+            values = deep_merge(
+                values, _sections(preset.train or {}, f"the {preset.name} preset's train section", callback)
+            )
         if user_config is not None:
             values = deep_merge(values, _read_yaml(Path(user_config), callback))
         values = deep_merge(values, _sections(overrides or {}, "the overrides", callback))
         source = user_config or CONFIG_DIR / "train.yaml"
         built = {}
-        for section, (model_cls, train_cls) in {"autoencoder": (AutoencoderConfig, TrainConfig),
-                                                "codespace": (CodeSpaceConfig, CodeSpaceTrainConfig),
-                                                "subspace": (SubspaceConfig, SubspaceTrainConfig),
-                                                "baseline": (DirectConfig, DirectTrainConfig)}.items():
+        for section, (model_cls, train_cls) in {
+            "autoencoder": (AutoencoderConfig, TrainConfig),
+            "codespace": (CodeSpaceConfig, CodeSpaceTrainConfig),
+            "subspace": (SubspaceConfig, SubspaceTrainConfig),
+            "baseline": (DirectConfig, DirectTrainConfig),
+        }.items():
             built[section] = _build(model_cls, values.get(section, {}).get("model"), source)
             built[f"{section}_train"] = _build(train_cls, values.get(section, {}).get("train"), source)
         return cls(**built, auto=_build(AutoConfig, values.get("auto"), source))
@@ -152,13 +173,23 @@ class TrainResult:
     folder: Path
     reports: dict[str, StageReport] = field(default_factory=dict)
     auto: dict | None = None  # bundle.json's "auto" after the code-space stage
-    budgets: dict[str, BudgetCheck] = field(default_factory=dict)  # the autoencoder's and code space's epochs and errors
+    budgets: dict[str, BudgetCheck] = field(
+        default_factory=dict
+    )  # the autoencoder's and code space's epochs and errors
     seconds: dict[str, float] = field(default_factory=dict)
 
 
-def train_model(dataset: str | Path, folder: str | Path, settings: TrainSettings, *, stages: tuple[str, ...] = STAGES,
-                garment: str | None = None, preset: Preset | None = None, progress: bool = True,
-                callback: TrainCallback | None = None) -> TrainResult:
+def train_model(
+    dataset: str | Path,
+    folder: str | Path,
+    settings: TrainSettings,
+    *,
+    stages: tuple[str, ...] = STAGES,
+    garment: str | None = None,
+    preset: Preset | None = None,
+    progress: bool = True,
+    callback: TrainCallback | None = None,
+) -> TrainResult:
     """Run ``stages`` (see the module docstring) on ``dataset`` into the bundle folder ``folder``.
     ``garment`` and ``preset``: what the ``simulate`` stage builds where the dataset is missing
     (without a garment it is the user's dataset, and must exist)."""
@@ -173,10 +204,14 @@ def train_model(dataset: str | Path, folder: str | Path, settings: TrainSettings
             from ..data.dataset import GarmentDataset
             from ..train.codespace import check_splits
 
-            check_splits(GarmentDataset(dataset))  # a dataset the code space cannot use fails before any training
+            check_splits(
+                GarmentDataset(dataset)
+            )  # a dataset the code space cannot use fails before any training
         for stage in stages:
             t0 = time.perf_counter()
-            report = _STAGE_RUNNERS[stage](dataset, folder, settings, _Context(garment, preset, progress, callback))
+            report = _STAGE_RUNNERS[stage](
+                dataset, folder, settings, _Context(garment, preset, progress, callback)
+            )
             if isinstance(report, StageReport):
                 result.reports[stage] = report
                 if stage == "subspace" and (text := subspace_warning(report.metrics)):
@@ -191,7 +226,9 @@ def train_model(dataset: str | Path, folder: str | Path, settings: TrainSettings
                 callback.on_stage_end("auto", result.auto)
             result.seconds[stage] = time.perf_counter() - t0
     except BaseException:
-        remove_empty_folders(folder)  # what a failed run made and never filled; finished stages stay for resuming
+        remove_empty_folders(
+            folder
+        )  # what a failed run made and never filled; finished stages stay for resuming
         raise
     return result
 
@@ -204,16 +241,26 @@ class _Context:
     callback: TrainCallback
 
 
-def _simulate_stage(dataset: Path, folder: Path, settings: TrainSettings, ctx: _Context) -> SimulatedDataset | None:
-    stale = simulation.dataset_out_of_date(dataset, ctx.preset) if ctx.garment is not None and ctx.preset is not None else None
+def _simulate_stage(
+    dataset: Path, folder: Path, settings: TrainSettings, ctx: _Context
+) -> SimulatedDataset | None:
+    stale = (
+        simulation.dataset_out_of_date(dataset, ctx.preset)
+        if ctx.garment is not None and ctx.preset is not None
+        else None
+    )
     if dataset.exists() and stale is None:
         return None
     if ctx.garment is None or ctx.preset is None:
         raise InputError(dataset, "no such dataset")
     if dataset.exists():  # the preset changed since this dataset was made: make what it lacks
-        ctx.callback.on_message(f"simulate: {dataset} {stale}; making it again (its finished sequences are reused)")
+        ctx.callback.on_message(
+            f"simulate: {dataset} {stale}; making it again (its finished sequences are reused)"
+        )
     else:
-        ctx.callback.on_message(f"simulate: no dataset at {dataset}; simulating the {ctx.preset.name} preset first")
+        ctx.callback.on_message(
+            f"simulate: no dataset at {dataset}; simulating the {ctx.preset.name} preset first"
+        )
     return simulation.simulate_preset(ctx.garment, ctx.preset, dataset, progress=ctx.progress)
 
 
@@ -221,39 +268,75 @@ def _autoencoder_stage(dataset: Path, folder: Path, settings: TrainSettings, ctx
     from ..train.autoencoder import train_autoencoder
 
     if not dataset.exists():
-        hint = f"hrr-simulate --garment {ctx.garment} --preset {ctx.preset.name}" if ctx.garment and ctx.preset else "hrr-simulate"
+        hint = (
+            f"hrr-simulate --garment {ctx.garment} --preset {ctx.preset.name}"
+            if ctx.garment and ctx.preset
+            else "hrr-simulate"
+        )
         raise InputError(dataset, f"no dataset; make it with: {hint} (or run hrr-train without --stage)")
-    return train_autoencoder(dataset, folder / "autoencoder", settings.autoencoder, train_config=settings.autoencoder_train,
-                             cache_dir=workspace() / "cache", progress=ctx.progress)
+    return train_autoencoder(
+        dataset,
+        folder / "autoencoder",
+        settings.autoencoder,
+        train_config=settings.autoencoder_train,
+        cache_dir=workspace() / "cache",
+        progress=ctx.progress,
+    )
 
 
 def _codespace_stage(dataset: Path, folder: Path, settings: TrainSettings, ctx: _Context) -> StageReport:
     from ..train.codespace import run_codespace_stage
 
     info = {"preset": ctx.preset.name} if ctx.preset is not None else None
-    return run_codespace_stage(dataset, folder, settings.codespace, train_config=settings.codespace_train,
-                               cache_dir=workspace() / "cache", progress=ctx.progress, info=info)
+    return run_codespace_stage(
+        dataset,
+        folder,
+        settings.codespace,
+        train_config=settings.codespace_train,
+        cache_dir=workspace() / "cache",
+        progress=ctx.progress,
+        info=info,
+    )
 
 
 def _subspace_stage(dataset: Path, folder: Path, settings: TrainSettings, ctx: _Context) -> StageReport:
     from ..train.subspace import run_subspace_stage
 
-    return run_subspace_stage(dataset, folder, settings.subspace, train_config=settings.subspace_train,
-                              cache_dir=workspace() / "cache", progress=ctx.progress)
+    return run_subspace_stage(
+        dataset,
+        folder,
+        settings.subspace,
+        train_config=settings.subspace_train,
+        cache_dir=workspace() / "cache",
+        progress=ctx.progress,
+    )
 
 
 def _baseline_stage(dataset: Path, folder: Path, settings: TrainSettings, ctx: _Context) -> StageReport:
     from ..train.baseline import run_baseline_stage
 
-    return run_baseline_stage(dataset, folder, settings.baseline, train_config=settings.baseline_train,
-                              cache_dir=workspace() / "cache", progress=ctx.progress)
+    return run_baseline_stage(
+        dataset,
+        folder,
+        settings.baseline,
+        train_config=settings.baseline_train,
+        cache_dir=workspace() / "cache",
+        progress=ctx.progress,
+    )
 
 
-_STAGE_RUNNERS = {"simulate": _simulate_stage, "autoencoder": _autoencoder_stage, "codespace": _codespace_stage,
-                  "subspace": _subspace_stage, "baseline": _baseline_stage}
+_STAGE_RUNNERS = {
+    "simulate": _simulate_stage,
+    "autoencoder": _autoencoder_stage,
+    "codespace": _codespace_stage,
+    "subspace": _subspace_stage,
+    "baseline": _baseline_stage,
+}
 
 
-def calibrate_auto(folder: str | Path, dataset: str | Path, progress: bool = True, config: AutoConfig = AutoConfig()) -> dict:
+def calibrate_auto(
+    folder: str | Path, dataset: str | Path, progress: bool = True, config: AutoConfig = AutoConfig()
+) -> dict:
     """The mode ``auto`` runs (:mod:`hrr_garment.eval.auto_mode`), calibrated on the dataset's
     validation clips once per bundle and recorded in bundle.json with every candidate's numbers;
     the recorded one where it was, picked again from its numbers where ``config``'s allowance differs
@@ -268,14 +351,30 @@ def calibrate_auto(folder: str | Path, dataset: str | Path, progress: bool = Tru
     # criterion counts it), the residual or the folds on free cloth, the default body's clips apart,
     # the folds followed in time (as the detail mode now runs) or the swing's gain; picked again
     # where only an allowance moved
-    if auto is None or any("penetration_pct" not in c for c in auto["candidates"].values()) or lacks_swing(auto) \
-            or lacks_free_cloth(auto, meta.get("residual")) or lacks_default_body(auto, meta.get("bodies")) \
-            or (meta.get("folds") and (followed_otherwise(auto) or lacks_free_folds(auto))):
-        auto = calibrate_auto_mode(Animator.load(folder), _validation_records(dataset), config, progress=progress)
+    if (
+        auto is None
+        or any("penetration_pct" not in c for c in auto["candidates"].values())
+        or lacks_swing(auto)
+        or lacks_free_cloth(auto, meta.get("residual"))
+        or lacks_default_body(auto, meta.get("bodies"))
+        or (meta.get("folds") and (followed_otherwise(auto) or lacks_free_folds(auto)))
+    ):
+        auto = calibrate_auto_mode(
+            Animator.load(folder), _validation_records(dataset), config, progress=progress
+        )
         update_bundle_meta(folder, {"auto": auto})
     elif any(auto.get(key) != value for key, value in config.limits().items()):
-        auto = measure_swing_again(Animator.load(folder), _validation_records(dataset), auto=auto, config=config, progress=progress) \
-            if swing_unmeasured(auto, config) else repick(auto, config)
+        auto = (
+            measure_swing_again(
+                Animator.load(folder),
+                _validation_records(dataset),
+                auto=auto,
+                config=config,
+                progress=progress,
+            )
+            if swing_unmeasured(auto, config)
+            else repick(auto, config)
+        )
         update_bundle_meta(folder, {"auto": auto})
     return auto
 

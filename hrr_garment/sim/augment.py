@@ -51,7 +51,9 @@ class SpliceOptions:
 
     def __post_init__(self) -> None:
         if self.count < 0 or self.seconds <= 0 or self.arm_delay_s < 0 or self.backward < 0:
-            raise ValueError(f"splices need count >= 0, seconds > 0, arm_delay_s >= 0 and backward >= 0, got {self}")
+            raise ValueError(
+                f"splices need count >= 0, seconds > 0, arm_delay_s >= 0 and backward >= 0, got {self}"
+            )
 
 
 @dataclass
@@ -67,15 +69,28 @@ def window_candidates(specs: list[SequenceSpec], training: set[str], seconds: fl
     """The motion-file sequences a window of ``seconds`` may be taken from: training ones, played at
     their own speed, not mirrored, not themselves spliced, long enough (a clip played backward's)."""
     frames = int(round(seconds * FPS))
-    return [s for s in specs if s.name in training and s.kind == "file" and s.speed == 1.0 and not s.mirrored
-            and not s.upper_path and s.stop - s.start >= frames]
+    return [
+        s
+        for s in specs
+        if s.name in training
+        and s.kind == "file"
+        and s.speed == 1.0
+        and not s.mirrored
+        and not s.upper_path
+        and s.stop - s.start >= frames
+    ]
 
 
-def splice_candidates(specs: list[SequenceSpec], training: set[str], options: SpliceOptions) -> list[SequenceSpec]:
+def splice_candidates(
+    specs: list[SequenceSpec], training: set[str], options: SpliceOptions
+) -> list[SequenceSpec]:
     """The :func:`window_candidates` a splice may take its parts from: those whose names give the
     field the parts must differ in."""
-    return [s for s in window_candidates(specs, training, options.seconds)
-            if clip_group(Path(s.path).stem, options.field, options.name_pattern).startswith(f"{options.field}=")]
+    return [
+        s
+        for s in window_candidates(specs, training, options.seconds)
+        if clip_group(Path(s.path).stem, options.field, options.name_pattern).startswith(f"{options.field}=")
+    ]
 
 
 def plan_splices(candidates: list[SequenceSpec], options: SpliceOptions) -> SplicePlan:
@@ -92,14 +107,28 @@ def plan_splices(candidates: list[SequenceSpec], options: SpliceOptions) -> Spli
     while len(specs) < options.count and drawn < options.count * DRAWS_PER_SPLICE:
         drawn += 1
         # each part drawn on its own (the same content twice is drawn again below)
-        legs, arms = candidates[int(rng.integers(len(candidates)))], candidates[int(rng.integers(len(candidates)))]
+        legs, arms = (
+            candidates[int(rng.integers(len(candidates)))],
+            candidates[int(rng.integers(len(candidates)))],
+        )
         start = legs.start + int(rng.integers(0, legs.stop - legs.start - frames + 1))
         upper_start = arms.start + int(rng.integers(0, arms.stop - arms.start - frames + 1))
-        delay = int(rng.integers(1, int(options.arm_delay_s * FPS) + 1)) * int(rng.choice([-1, 1])) if options.arm_delay_s >= 1 / FPS else 0
+        delay = (
+            int(rng.integers(1, int(options.arm_delay_s * FPS) + 1)) * int(rng.choice([-1, 1]))
+            if options.arm_delay_s >= 1 / FPS
+            else 0
+        )
         if group[legs.name] == group[arms.name]:
             continue
-        spec = replace(legs, name=f"{SPLICE_PREFIX}{len(specs):03d}", start=start, stop=start + frames,
-                       upper_path=arms.path, upper_start=upper_start, arm_delay=delay)
+        spec = replace(
+            legs,
+            name=f"{SPLICE_PREFIX}{len(specs):03d}",
+            start=start,
+            stop=start + frames,
+            upper_path=arms.path,
+            upper_start=upper_start,
+            arm_delay=delay,
+        )
         if self_intersecting_frames(spec.motion()).any():
             refused += 1
             continue
@@ -116,5 +145,7 @@ def plan_backward(candidates: list[SequenceSpec], options: SpliceOptions) -> lis
     for i in range(options.backward if candidates else 0):
         clip = candidates[int(rng.integers(len(candidates)))]
         start = clip.start + int(rng.integers(0, clip.stop - clip.start - frames + 1))
-        specs.append(replace(clip, name=f"{BACKWARD_PREFIX}{i:03d}", start=start, stop=start + frames, backward=True))
+        specs.append(
+            replace(clip, name=f"{BACKWARD_PREFIX}{i:03d}", start=start, stop=start + frames, backward=True)
+        )
     return specs

@@ -56,8 +56,10 @@ class BatchItem:
 def _merged_groups(groups: list[list[np.ndarray]], offsets: list[int]) -> list[np.ndarray]:
     """Colour groups of several instances merged colour by colour, each shifted by its offset."""
     colours = max((len(g) for g in groups), default=0)
-    return [np.concatenate([np.asarray(g[c], int) + offset for g, offset in zip(groups, offsets) if c < len(g)])
-            for c in range(colours)]
+    return [
+        np.concatenate([np.asarray(g[c], int) + offset for g, offset in zip(groups, offsets) if c < len(g)])
+        for c in range(colours)
+    ]
 
 
 class BatchScene(SteppedScene):
@@ -72,7 +74,9 @@ class BatchScene(SteppedScene):
         particle_groups, body_groups, arm_shapes, attached = [], [], [], []
         particle_starts, body_starts, self.ranges = [], [], []
         for run in runs:
-            instance, shapes = instance_builder(run.garment, run.start, run.half_lengths, body=run.body, config=config)
+            instance, shapes = instance_builder(
+                run.garment, run.start, run.half_lengths, body=run.body, config=config
+            )
             first_particle, first_shape = builder.particle_count, builder.shape_count
             particle_starts.append(first_particle)
             body_starts.append(builder.body_count)
@@ -103,11 +107,17 @@ def _frame_inputs(runs: list[ClipRun], frame: int) -> tuple[np.ndarray, ...]:
     concatenated; a finished instance holds its last frame."""
     last = [min(frame, r.num_frames - 1) for r in runs]
     prev = [max(min(frame - 1, r.num_frames - 1), 0) for r in runs]
-    return (np.concatenate([r.poses[p] for r, p in zip(runs, prev)]), np.concatenate([r.poses[f] for r, f in zip(runs, last)]),
-            np.concatenate([r.pins[p] for r, p in zip(runs, prev)]), np.concatenate([r.pins[f] for r, f in zip(runs, last)]))
+    return (
+        np.concatenate([r.poses[p] for r, p in zip(runs, prev)]),
+        np.concatenate([r.poses[f] for r, f in zip(runs, last)]),
+        np.concatenate([r.pins[p] for r, p in zip(runs, prev)]),
+        np.concatenate([r.pins[f] for r, f in zip(runs, last)]),
+    )
 
 
-def step_batch(scene: BatchScene, runs: list[ClipRun], progress: Callable[[int], None] | None = None) -> tuple[dict[int, str], float]:
+def step_batch(
+    scene: BatchScene, runs: list[ClipRun], progress: Callable[[int], None] | None = None
+) -> tuple[dict[int, str], float]:
     """Advance every instance through its frames (the longest sets the count); returns (why each
     exploded instance was dropped, by instance, and the seconds spent stepping)."""
     config = scene.config
@@ -137,8 +147,9 @@ def step_batch(scene: BatchScene, runs: list[ClipRun], progress: Callable[[int],
     return dropped, stepping
 
 
-def simulate_batch(items: list[BatchItem], config: SimConfig = SimConfig(),
-                   progress: Callable[[int], None] | None = None) -> list[SimResult | SimulationExploded]:
+def simulate_batch(
+    items: list[BatchItem], config: SimConfig = SimConfig(), progress: Callable[[int], None] | None = None
+) -> list[SimResult | SimulationExploded]:
     """Simulate ``items`` together (one model, one solver, ``config``'s substeps and iterations for
     all); each gets what :func:`~.simulator.simulate_garment` gives it: its result, or the
     :class:`SimulationExploded` that rejects it. An instance that explodes in the batch is
@@ -148,7 +159,9 @@ def simulate_batch(items: list[BatchItem], config: SimConfig = SimConfig(),
         raise ValueError("a batch steps every instance with one frame time: give it clips of one frame rate")
     t0 = time.perf_counter()
     motions = [played_by(item.motion, item.body) for item in items]
-    runs = [ClipRun(item.garment, motion, body=item.body, config=config) for item, motion in zip(items, motions)]
+    runs = [
+        ClipRun(item.garment, motion, body=item.body, config=config) for item, motion in zip(items, motions)
+    ]
     dropped, stepping = step_batch(BatchScene(runs, config), runs, progress)
     wall = time.perf_counter() - t0
     total = sum(r.num_frames for r in runs)
@@ -156,12 +169,22 @@ def simulate_batch(items: list[BatchItem], config: SimConfig = SimConfig(),
     for i, (item, run) in enumerate(zip(items, runs)):
         if i not in dropped:
             share = run.num_frames / total
-            results.append(SimResult(run.recorded, substeps=config.substeps, attempts=1, seconds=wall * share,
-                                     simulated_frames=run.num_frames, step_seconds=stepping * share,
-                                     arms_off_frames=run.arms_off_frames))
+            results.append(
+                SimResult(
+                    run.recorded,
+                    substeps=config.substeps,
+                    attempts=1,
+                    seconds=wall * share,
+                    simulated_frames=run.num_frames,
+                    step_seconds=stepping * share,
+                    arms_off_frames=run.arms_off_frames,
+                )
+            )
             continue
         try:
-            results.append(simulate_garment(item.garment, motions[i], config, body=item.body, progress=progress))
+            results.append(
+                simulate_garment(item.garment, motions[i], config, body=item.body, progress=progress)
+            )
         except SimulationExploded as exc:
             results.append(exc)
     return results

@@ -56,26 +56,46 @@ class BodyPlan:
     def from_preset(cls, section: dict, where: str) -> "BodyPlan | None":
         if not section:
             return None
-        unknown = sorted(set(section) - {"from", "count", "per_clip", "statures_m", "hold_out", "seed", "mannequin"})
+        unknown = sorted(
+            set(section) - {"from", "count", "per_clip", "statures_m", "hold_out", "seed", "mannequin"}
+        )
         if unknown or section.get("from") not in SOURCES:
-            raise InputError(where, f"bodies: 'from' must be one of {', '.join(SOURCES)}; unknown keys {unknown}")
-        flags = {k: section[k] for k in ("hold_out", "mannequin") if k in section and not isinstance(section[k], bool)}
+            raise InputError(
+                where, f"bodies: 'from' must be one of {', '.join(SOURCES)}; unknown keys {unknown}"
+            )
+        flags = {
+            k: section[k]
+            for k in ("hold_out", "mannequin")
+            if k in section and not isinstance(section[k], bool)
+        }
         if flags:  # YAML's "false" in quotes is a string, which bool() would take as true
             raise InputError(where, f"bodies: {', '.join(flags)} must be true or false, got {flags}")
-        plan = cls(section["from"], int(section.get("count", 16)), int(section.get("per_clip", 1)),
-                   tuple(float(v) for v in section.get("statures_m", DEFAULT_STATURES_M)),
-                   bool(section.get("hold_out", section["from"] == "sample")), int(section.get("seed", 0)),
-                   bool(section.get("mannequin", False)))
+        plan = cls(
+            section["from"],
+            int(section.get("count", 16)),
+            int(section.get("per_clip", 1)),
+            tuple(float(v) for v in section.get("statures_m", DEFAULT_STATURES_M)),
+            bool(section.get("hold_out", section["from"] == "sample")),
+            int(section.get("seed", 0)),
+            bool(section.get("mannequin", False)),
+        )
         low, high = plan.statures_m
         if not (2 <= plan.count <= 256 and 1 <= plan.per_clip <= plan.count and 1.0 <= low < high <= 2.2):
-            raise InputError(where, "bodies: count 2-256, per_clip 1-count, statures_m two heights in 1.0-2.2 m, low first")
+            raise InputError(
+                where, "bodies: count 2-256, per_clip 1-count, statures_m two heights in 1.0-2.2 m, low first"
+            )
         if plan.mannequin and plan.source != "sample":
-            raise InputError(where, "bodies: mannequin: true goes with from: sample (under from: performer only "
-                                    "procedural clips stand on the mannequin)")
+            raise InputError(
+                where,
+                "bodies: mannequin: true goes with from: sample (under from: performer only "
+                "procedural clips stand on the mannequin)",
+            )
         return plan
 
 
-def one_body(specs: list[SequenceSpec], name: str, body: DressedBody) -> tuple[list[SequenceSpec], dict[str, DressedBody]]:
+def one_body(
+    specs: list[SequenceSpec], name: str, body: DressedBody
+) -> tuple[list[SequenceSpec], dict[str, DressedBody]]:
     """Every sequence on ``body`` (``hrr-simulate --body``)."""
     name = safe_name(name, empty="body")
     return [replace(s, body=name) for s in specs], {name: replace(body, name=name)}
@@ -83,13 +103,21 @@ def one_body(specs: list[SequenceSpec], name: str, body: DressedBody) -> tuple[l
 
 def placement_note(name: str, report: TransferReport) -> str:
     """One line on how the garment landed on a body."""
-    return (f"the garment on body {name}: {100 * report.inside:.1f} % of its vertices were inside it and "
-            f"{100 * report.pushed:.1f} % pushed out; each vertex {report.moved_mean_mm:.1f} mm from where it was "
-            f"modelled on average, its distance from the body changed {report.gap_change_mean_mm:.1f} mm")
+    return (
+        f"the garment on body {name}: {100 * report.inside:.1f} % of its vertices were inside it and "
+        f"{100 * report.pushed:.1f} % pushed out; each vertex {report.moved_mean_mm:.1f} mm from where it was "
+        f"modelled on average, its distance from the body changed {report.gap_change_mean_mm:.1f} mm"
+    )
 
 
-def plan_bodies(plan: BodyPlan, specs: list[SequenceSpec], garment: GarmentMesh, *, made_for: BodyModel,
-                progress: bool = True) -> tuple[list[SequenceSpec], dict[str, DressedBody]]:
+def plan_bodies(
+    plan: BodyPlan,
+    specs: list[SequenceSpec],
+    garment: GarmentMesh,
+    *,
+    made_for: BodyModel,
+    progress: bool = True,
+) -> tuple[list[SequenceSpec], dict[str, DressedBody]]:
     """The sequences with their bodies named, and the bodies (each with ``garment`` on it)."""
     if plan.source == "performer":
         return _performer_bodies(specs, garment, made_for, progress)
@@ -112,8 +140,13 @@ def _performer_bodies(specs, garment, made_for, progress):
         if spec.path not in by_path:
             found = performer_body(spec.path, unit_scale=None)
             if found.body not in by_body:
-                record = BodyRecord(found.body.skeleton, found.body, pelvis_height=found.body.pelvis_height,
-                                    stature=found.stature, shape=found.shape)
+                record = BodyRecord(
+                    found.body.skeleton,
+                    found.body,
+                    pelvis_height=found.body.pelvis_height,
+                    stature=found.stature,
+                    shape=found.shape,
+                )
                 dressed, _ = dress(MANNEQUIN, record, garment, made_for=made_for)
                 name = f"performer-{dressed.key()[:8]}"
                 bodies.setdefault(name, replace(dressed, name=name))
@@ -196,9 +229,17 @@ class BodyChoice:
     info: dict  # what the dataset records of the choice
     notes: list[str] = field(default_factory=list)  # how the garment landed on a chosen body
 
-def choose_bodies(specs: list[SequenceSpec], garment: GarmentMesh, *, preset_bodies: dict, where: str,
-                  body_file: str | Path | None = None, made_for: BodyRecord | None = None,
-                  progress: bool = True) -> BodyChoice:
+
+def choose_bodies(
+    specs: list[SequenceSpec],
+    garment: GarmentMesh,
+    *,
+    preset_bodies: dict,
+    where: str,
+    body_file: str | Path | None = None,
+    made_for: BodyRecord | None = None,
+    progress: bool = True,
+) -> BodyChoice:
     """The bodies of a build: ``body_file`` (every sequence on it), else the preset's ``bodies``
     section, else the mannequin; ``garment`` was modelled on ``made_for`` (default the mannequin)
     and is carried onto each. A garment made for another body and no body chosen stands on its own."""
@@ -210,15 +251,27 @@ def choose_bodies(specs: list[SequenceSpec], garment: GarmentMesh, *, preset_bod
     if body_file is not None:
         dressed, report = dress(MANNEQUIN, read_body(body_file), garment, made_for=source)
         specs, bodies = one_body(specs, Path(body_file).stem, dressed)
-        return BodyChoice(specs, bodies, False, {"from": "file", "file": Path(body_file).name, "placement": asdict(report)},
-                          [placement_note(next(iter(bodies)), report)])
+        return BodyChoice(
+            specs,
+            bodies,
+            False,
+            {"from": "file", "file": Path(body_file).name, "placement": asdict(report)},
+            [placement_note(next(iter(bodies)), report)],
+        )
     plan = BodyPlan.from_preset(preset_bodies, where)
     if plan is not None:
         specs, bodies = plan_bodies(plan, specs, garment, made_for=source, progress=progress)
-        return BodyChoice(specs, bodies, plan.hold_out and len(bodies) > 2, {"from": plan.source, "count": len(bodies)})
+        return BodyChoice(
+            specs, bodies, plan.hold_out and len(bodies) > 2, {"from": plan.source, "count": len(bodies)}
+        )
     if made_for is not None:
         dressed, report = dress(MANNEQUIN, made_for, garment, made_for=source)
         specs, bodies = one_body(specs, "made_for", dressed)
-        return BodyChoice(specs, bodies, False, {"from": "made_for", "placement": asdict(report)},
-                          [placement_note("made_for", report)])
+        return BodyChoice(
+            specs,
+            bodies,
+            False,
+            {"from": "made_for", "placement": asdict(report)},
+            [placement_note("made_for", report)],
+        )
     return BodyChoice(specs, {}, False, {})

@@ -121,8 +121,14 @@ class BuildOptions:
     splices: SpliceOptions | None = None
 
 
-def build_dataset(garment: GarmentMesh, specs: list[SequenceSpec], config: SimConfig, *, out: str | Path,
-                  options: BuildOptions = BuildOptions()) -> BuildReport:
+def build_dataset(
+    garment: GarmentMesh,
+    specs: list[SequenceSpec],
+    config: SimConfig,
+    *,
+    out: str | Path,
+    options: BuildOptions = BuildOptions(),
+) -> BuildReport:
     """Simulate what is missing, then write ``out`` (HDF5) atomically, as ``options`` say. See the
     module docstring and :class:`BuildOptions`."""
     o = options
@@ -133,7 +139,9 @@ def build_dataset(garment: GarmentMesh, specs: list[SequenceSpec], config: SimCo
     if mirror is None:
         raise InputError("mirror", f"{o.mirror!r} is not one of {', '.join(MIRROR_MODES)}")
     if mirror == "simulate":  # on the source's body, so that they split together
-        specs = specs + [replace(s, name=f"{s.name}{MIRROR_SUFFIX}", mirrored=True) for s in specs if not s.mirrored]
+        specs = specs + [
+            replace(s, name=f"{s.name}{MIRROR_SUFFIX}", mirrored=True) for s in specs if not s.mirrored
+        ]
     out = Path(out)
     parts = out.with_suffix(".parts")
     parts.mkdir(parents=True, exist_ok=True)
@@ -147,13 +155,19 @@ def build_dataset(garment: GarmentMesh, specs: list[SequenceSpec], config: SimCo
             raise SimulationExploded(f"every sequence failed; nothing to write to {out}: {run.rejects}")
         split = _split(done, specs, o)
         splices, made = None, []
-        if o.splices and (o.splices.count or o.splices.backward):  # drawn from the training clips once the split is known
+        if o.splices and (
+            o.splices.count or o.splices.backward
+        ):  # drawn from the training clips once the split is known
             if progress:
-                print(f"planning {o.splices.count} splices of the training clips (each checked for limbs through the body) "
-                      f"and {o.splices.backward} windows played backward")
+                print(
+                    f"planning {o.splices.count} splices of the training clips (each checked for limbs through the body) "
+                    f"and {o.splices.backward} windows played backward"
+                )
             training = set(split["train"])
             splices = plan_splices(splice_candidates(specs, training, o.splices), o.splices)
-            added = splices.specs + plan_backward(window_candidates(specs, training, o.splices.seconds), o.splices)
+            added = splices.specs + plan_backward(
+                window_candidates(specs, training, o.splices.seconds), o.splices
+            )
             spliced = _simulate_missing(added, garment, config, parts=parts, bodies=bodies, options=o)
             run = run.merged(spliced)
             made = _finished(added, spliced.rejects, parts)
@@ -161,23 +175,47 @@ def build_dataset(garment: GarmentMesh, specs: list[SequenceSpec], config: SimCo
             split["train"] = sorted(split["train"] + made)
         sim_wall = time.perf_counter() - t0
         records = [load_part(part_paths(parts, n)[0], n) for n in done]
-        summary = summarise(records, garment, rejects=run.rejects, sim_wall=sim_wall, jobs=run.jobs, simulated=run.simulated,
-                            bodies=bodies)
+        summary = summarise(
+            records,
+            garment,
+            rejects=run.rejects,
+            sim_wall=sim_wall,
+            jobs=run.jobs,
+            simulated=run.simulated,
+            bodies=bodies,
+        )
         if splices is not None:
-            summary["splices"] = {"asked": o.splices.count, "made": sum(not n.startswith(BACKWARD_PREFIX) for n in made),
-                                  "drawn": splices.drawn, "refused_self_intersection": splices.refused,
-                                  "backward_asked": o.splices.backward,
-                                  "backward_made": sum(n.startswith(BACKWARD_PREFIX) for n in made)}
+            summary["splices"] = {
+                "asked": o.splices.count,
+                "made": sum(not n.startswith(BACKWARD_PREFIX) for n in made),
+                "drawn": splices.drawn,
+                "refused_self_intersection": splices.refused,
+                "backward_asked": o.splices.backward,
+                "backward_made": sum(n.startswith(BACKWARD_PREFIX) for n in made),
+            }
         if mirror == "reflect":
             records, split = _add_mirrored(records, split, garment, progress, bodies)
             summary["mirrored"] = len(records) - len(done)
         elif mirror == "simulate":
             summary["mirrored"] = sum(n.endswith(MIRROR_SUFFIX) for n in done)
-        write_dataset(out, garment, records, splits=split, info={**(o.info or {}), "summary": summary, "sim": config.to_dict()},
-                      bodies=bodies)
+        write_dataset(
+            out,
+            garment,
+            records,
+            splits=split,
+            info={**(o.info or {}), "summary": summary, "sim": config.to_dict()},
+            bodies=bodies,
+        )
         atomic_write_text(out.with_suffix(".summary.json"), strict_json(summary, indent=2))
-        report = BuildReport(out, done, run.rejects, summary, run.reused, run.simulated - len(run.rejects),
-                             stats={r.name: r.info.get("stats", {}) for r in records})
+        report = BuildReport(
+            out,
+            done,
+            run.rejects,
+            summary,
+            run.reused,
+            run.simulated - len(run.rejects),
+            stats={r.name: r.info.get("stats", {}) for r in records},
+        )
         if o.preview:
             report.preview = o.preview(records, garment, out.with_suffix(".preview.png"), bodies=bodies)
         return report
@@ -193,12 +231,23 @@ class _Simulated:
     jobs: int | None
 
     def merged(self, other: "_Simulated") -> "_Simulated":
-        return _Simulated({**self.rejects, **other.rejects}, self.reused + other.reused,
-                          self.simulated + other.simulated, other.jobs if other.simulated else self.jobs)
+        return _Simulated(
+            {**self.rejects, **other.rejects},
+            self.reused + other.reused,
+            self.simulated + other.simulated,
+            other.jobs if other.simulated else self.jobs,
+        )
 
 
-def _simulate_missing(specs: list[SequenceSpec], garment: GarmentMesh, config: SimConfig, *, parts: Path,
-                      bodies: dict[str, DressedBody], options: BuildOptions) -> _Simulated:
+def _simulate_missing(
+    specs: list[SequenceSpec],
+    garment: GarmentMesh,
+    config: SimConfig,
+    *,
+    parts: Path,
+    bodies: dict[str, DressedBody],
+    options: BuildOptions,
+) -> _Simulated:
     """Simulate the ``specs`` that have no finished part under their key (parts of sibling datasets
     borrowed first), as ``options`` say (workers, Ray, batches, progress)."""
     o = options
@@ -210,10 +259,16 @@ def _simulate_missing(specs: list[SequenceSpec], garment: GarmentMesh, config: S
         jobs = max(1, min(jobs or os.cpu_count() or 1, len(batches(pending, config, o.batch)) or 1))
     if pending:
         if o.progress:
-            where = f"{jobs} worker(s)" if o.executor == "local" else f"Ray ({o.address or f'local, {jobs or os.cpu_count()} CPUs'})"
+            where = (
+                f"{jobs} worker(s)"
+                if o.executor == "local"
+                else f"Ray ({o.address or f'local, {jobs or os.cpu_count()} CPUs'})"
+            )
             where += f", batches of up to {o.batch} on {config.device}" if o.batch > 1 else ""
-            print(f"simulating {len(pending)} of {len(specs)} sequences with {where}; "
-                  f"{reused} already done (first run compiles kernels: about two minutes, cached after)")
+            print(
+                f"simulating {len(pending)} of {len(specs)} sequences with {where}; "
+                f"{reused} already done (first run compiles kernels: about two minutes, cached after)"
+            )
         warm_up(garment, config)
         everyone = {MANNEQUIN: DressedBody(MANNEQUIN, mannequin_record(), garment), **bodies}
         execution = Execution(keys, parts, jobs=jobs, progress=o.progress, batch=o.batch, address=o.address)
@@ -238,7 +293,10 @@ def _split(done: list[str], specs: list[SequenceSpec], o: BuildOptions) -> dict[
     for n in done:
         by_source.setdefault(mirror_source(n) if simulated_mirrors else n, []).append(n)
     split = _split_sources(sorted(by_source), specs, o)
-    return {k: sorted(n for source in v for n in by_source.get(source, []) if n in finished) for k, v in split.items()}
+    return {
+        k: sorted(n for source in v for n in by_source.get(source, []) if n in finished)
+        for k, v in split.items()
+    }
 
 
 def _split_sources(done: list[str], specs: list[SequenceSpec], o: BuildOptions) -> dict[str, list[str]]:
@@ -253,8 +311,14 @@ def _split_sources(done: list[str], specs: list[SequenceSpec], o: BuildOptions) 
         split = {part: sorted(n for n in done if part_of[clip_of.get(n, n)] == part) for part in by_clip}
     for held in (o.also_hold_out or {}).values():  # only the sequences the field groups take part
         grouped = {n: held["groups"][n] for n in done if n in held["groups"]}
-        more = split_groups(grouped, held["val"], held["test"], seed=o.seed) if grouped else {"val": [], "test": []}
-        split = combine_splits(split, {**more, "train": sorted(set(done) - set(more["val"]) - set(more["test"]))})
+        more = (
+            split_groups(grouped, held["val"], held["test"], seed=o.seed)
+            if grouped
+            else {"val": [], "test": []}
+        )
+        split = combine_splits(
+            split, {**more, "train": sorted(set(done) - set(more["val"]) - set(more["test"]))}
+        )
     if o.hold_out_bodies:
         # the mannequin is never held out as a body: it is the default body, and a preset that keeps
         # every clip on it too (bodies: {mannequin: true}) holds out the same sampled bodies as without
@@ -270,19 +334,41 @@ def _check_bodies(specs: list[SequenceSpec], bodies: dict[str, DressedBody]) -> 
     return bodies
 
 
-def _add_mirrored(records: list[SequenceRecord], split: dict[str, list[str]], garment: GarmentMesh,
-                  progress: bool, bodies: dict[str, DressedBody] | None = None) -> tuple[list[SequenceRecord], dict[str, list[str]]]:
+def _add_mirrored(
+    records: list[SequenceRecord],
+    split: dict[str, list[str]],
+    garment: GarmentMesh,
+    progress: bool,
+    bodies: dict[str, DressedBody] | None = None,
+) -> tuple[list[SequenceRecord], dict[str, list[str]]]:
     perm = mirror_map(garment.vertices)
     if perm is None:
         if progress:
             print(f"not mirroring: the {garment.name} template is not symmetric about x = 0")
         return records, split
     # a body that is not its own mirror image would stand on another body in the mirror
-    asymmetric = {n for n, b in (bodies or {}).items() if not (is_symmetric(b.body) and mirror_map(b.garment.vertices) is not None)}
+    asymmetric = {
+        n
+        for n, b in (bodies or {}).items()
+        if not (is_symmetric(b.body) and mirror_map(b.garment.vertices) is not None)
+    }
     if asymmetric and progress:
-        print(f"not mirroring the sequences on {len(asymmetric)} asymmetric bod(y/ies): {sorted(asymmetric)[:3]}")
+        print(
+            f"not mirroring the sequences on {len(asymmetric)} asymmetric bod(y/ies): {sorted(asymmetric)[:3]}"
+        )
     flip = np.array([-1.0, 1.0, 1.0], np.float32)
-    mirrored = [SequenceRecord(f"{r.name}{MIRROR_SUFFIX}", r.garment[:, perm] * flip, r.motion.mirrored(),
-                               info={**r.info, "mirror_of": r.name}, body=r.body) for r in records if r.body not in asymmetric]
+    mirrored = [
+        SequenceRecord(
+            f"{r.name}{MIRROR_SUFFIX}",
+            r.garment[:, perm] * flip,
+            r.motion.mirrored(),
+            info={**r.info, "mirror_of": r.name},
+            body=r.body,
+        )
+        for r in records
+        if r.body not in asymmetric
+    ]
     names = {r.name for r in records if r.body not in asymmetric}
-    return records + mirrored, {k: sorted(v + [f"{n}{MIRROR_SUFFIX}" for n in v if n in names]) for k, v in split.items()}
+    return records + mirrored, {
+        k: sorted(v + [f"{n}{MIRROR_SUFFIX}" for n in v if n in names]) for k, v in split.items()
+    }

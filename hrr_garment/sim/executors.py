@@ -57,7 +57,7 @@ def batches(pending: list[SequenceSpec], config: SimConfig, size: int) -> list[l
     if size <= 1:
         return [[s] for s in pending]
     by_length = sorted(pending, key=lambda s: -_frames_to_simulate(s, config))
-    return [by_length[k:k + size] for k in range(0, len(by_length), size)]
+    return [by_length[k : k + size] for k in range(0, len(by_length), size)]
 
 
 def _progress_bar(pending: list[SequenceSpec], config: SimConfig, progress: bool) -> tqdm:
@@ -71,21 +71,34 @@ def _finish(result: PartResult, rejects: dict[str, str], bar: tqdm) -> None:
         bar.write(f"rejected {result.name}: {result.failure}")
 
 
-def _job(spec: SequenceSpec, bodies: dict[str, DressedBody], key: str, motion: Motion | None = None) -> SequenceJob:
+def _job(
+    spec: SequenceSpec, bodies: dict[str, DressedBody], key: str, motion: Motion | None = None
+) -> SequenceJob:
     """A sequence's job: the template on the mannequin, and its body where it names one (the
     motion loaded where the job runs when not given)."""
     body = bodies[spec.body] if spec.body else None
     return SequenceJob(spec, motion, garment=bodies[MANNEQUIN].garment, key=key, body=body)
 
 
-def simulate_jobs(jobs: list[SequenceJob], config: dict, progress: Callable[[int], None] | None = None) -> list[PartResult]:
+def simulate_jobs(
+    jobs: list[SequenceJob], config: dict, progress: Callable[[int], None] | None = None
+) -> list[PartResult]:
     """Simulate one worker's share: a single sequence as :func:`~.parts.simulate_sequence` does, or
     a batch of several together (:func:`~.parts.simulate_sequences`); motions not yet loaded are."""
     jobs = [job if job.motion is not None else replace(job, motion=job.spec.motion()) for job in jobs]
     if len(jobs) == 1:
         job = jobs[0]
-        return [simulate_sequence(job.spec, job.motion, job.garment, config=config, key=job.key, progress=progress,
-                                  body=job.body)]
+        return [
+            simulate_sequence(
+                job.spec,
+                job.motion,
+                job.garment,
+                config=config,
+                key=job.key,
+                progress=progress,
+                body=job.body,
+            )
+        ]
     return simulate_sequences(jobs, config, progress=progress)
 
 
@@ -106,11 +119,14 @@ def _local_worker(jobs: list[SequenceJob], config: dict, parts: str) -> list[Par
     results = simulate_jobs(jobs, config, progress=report)
     for result in results:
         write_part(result, Path(parts))
-    return [PartResult(r.name, r.key, r.frames, failure=r.failure) for r in results]  # the arrays stay in the parts
+    return [
+        PartResult(r.name, r.key, r.frames, failure=r.failure) for r in results
+    ]  # the arrays stay in the parts
 
 
-def run_local(pending: list[SequenceSpec], bodies: dict[str, DressedBody], config: SimConfig,
-              execution: Execution) -> dict[str, str]:
+def run_local(
+    pending: list[SequenceSpec], bodies: dict[str, DressedBody], config: SimConfig, execution: Execution
+) -> dict[str, str]:
     """Simulate ``pending`` in ``execution.jobs`` spawned processes, one sequence or batch
     (``execution.batch``) per task; returns the rejected sequences' reasons. ``bodies``: the
     mannequin (:data:`~hrr_garment.data.bodies.MANNEQUIN`, with the template) and every body a
@@ -119,12 +135,22 @@ def run_local(pending: list[SequenceSpec], bodies: dict[str, DressedBody], confi
     rejects: dict[str, str] = {}
     ctx = mp.get_context("spawn")  # Warp is not fork-safe
     progress_queue = ctx.Queue()  # handed to each worker as it starts: no manager process to outlive a kill
-    pool = ProcessPoolExecutor(max_workers=execution.jobs or 1, mp_context=ctx, initializer=_start_local_worker,
-                               initargs=(os.getpid(), progress_queue))
+    pool = ProcessPoolExecutor(
+        max_workers=execution.jobs or 1,
+        mp_context=ctx,
+        initializer=_start_local_worker,
+        initargs=(os.getpid(), progress_queue),
+    )
     try:
-        remaining = {pool.submit(_local_worker, [_job(s, bodies, execution.keys[s.name]) for s in group], config.to_dict(),
-                                 str(execution.parts))
-                     for group in batches(pending, config, execution.batch)}
+        remaining = {
+            pool.submit(
+                _local_worker,
+                [_job(s, bodies, execution.keys[s.name]) for s in group],
+                config.to_dict(),
+                str(execution.parts),
+            )
+            for group in batches(pending, config, execution.batch)
+        }
         while remaining:
             finished, remaining = wait(remaining, timeout=0.5, return_when=FIRST_COMPLETED)
             _drain(progress_queue, bar)
@@ -132,7 +158,9 @@ def run_local(pending: list[SequenceSpec], bodies: dict[str, DressedBody], confi
                 for result in fut.result():  # a worker crash propagates: the finished parts are kept
                     _finish(result, rejects, bar)
         _drain(progress_queue, bar)
-    except BaseException:  # Ctrl-C, SIGTERM, a crash: stop the other workers now; a re-run resumes from the parts
+    except (
+        BaseException
+    ):  # Ctrl-C, SIGTERM, a crash: stop the other workers now; a re-run resumes from the parts
         _stop_workers(pool)
         raise
     finally:
@@ -170,8 +198,9 @@ def _import_ray():
     return ray
 
 
-def run_ray(pending: list[SequenceSpec], bodies: dict[str, DressedBody], config: SimConfig,
-            execution: Execution) -> dict[str, str]:
+def run_ray(
+    pending: list[SequenceSpec], bodies: dict[str, DressedBody], config: SimConfig, execution: Execution
+) -> dict[str, str]:
     """Simulate ``pending`` as Ray tasks, one sequence (or one batch, ``execution.batch``) each;
     parts are written here as tasks finish.
 
@@ -194,8 +223,10 @@ def run_ray(pending: list[SequenceSpec], bodies: dict[str, DressedBody], config:
         bar = _progress_bar(pending, config, execution.progress)
         rejects: dict[str, str] = {}
         frames = {s.name: _frames_to_simulate(s, config) for s in pending}
-        remaining = [task.remote([_job(s, bodies, execution.keys[s.name], s.motion()) for s in group], config_ref)
-                     for group in batches(pending, config, execution.batch)]  # the mannequin's sequences name no body
+        remaining = [
+            task.remote([_job(s, bodies, execution.keys[s.name], s.motion()) for s in group], config_ref)
+            for group in batches(pending, config, execution.batch)
+        ]  # the mannequin's sequences name no body
         while remaining:
             done, remaining = ray.wait(remaining, num_returns=1)
             for result in ray.get(done[0]):

@@ -32,8 +32,9 @@ def lead_in_frames(settle_s: float, blend_s: float, fps: float) -> tuple[int, in
     return int(round(settle_s * fps)), int(round(blend_s * fps))
 
 
-def with_lead_in(motion: Motion, settle_s: float, blend_s: float,
-                 pelvis_height: float = REST_PELVIS_HEIGHT) -> tuple[Motion, int]:
+def with_lead_in(
+    motion: Motion, settle_s: float, blend_s: float, pelvis_height: float = REST_PELVIS_HEIGHT
+) -> tuple[Motion, int]:
     """The clip preceded by ``settle_s`` of rest pose and ``blend_s`` of easing into frame 0, on the
     clip's own skeleton; ``pelvis_height``: where its body's pelvis stands in the rest pose (the
     mannequin's by default; a body's own, :attr:`~hrr_garment.body.capsules.BodyModel.pelvis_height`).
@@ -51,11 +52,21 @@ def with_lead_in(motion: Motion, settle_s: float, blend_s: float,
     t = (np.arange(1, blend + 1) / (blend + 1)) if blend else np.zeros(0)
     ease = t * t * (3.0 - 2.0 * t)
     q0, q1 = matrix_to_quat(rest_local), matrix_to_quat(motion.local_rotations[0])
-    blend_rot = quat_to_matrix(quat_slerp(q0[None], q1[None], np.broadcast_to(ease[:, None], (blend, joints))))
+    blend_rot = quat_to_matrix(
+        quat_slerp(q0[None], q1[None], np.broadcast_to(ease[:, None], (blend, joints)))
+    )
     blend_root = rest_root[None] + ease[:, None] * (motion.root_translation[0] - rest_root)[None]
-    local = np.concatenate([np.repeat(rest_local[None], settle, 0), blend_rot.astype(np.float32), motion.local_rotations])
+    local = np.concatenate(
+        [np.repeat(rest_local[None], settle, 0), blend_rot.astype(np.float32), motion.local_rotations]
+    )
     root = np.concatenate([np.repeat(rest_root[None], settle, 0), blend_root, motion.root_translation])
-    extended = Motion(local.astype(np.float32), root.astype(np.float64), motion.fps, source=motion.source,
-                      source_skeleton=motion.source_skeleton, source_height_m=motion.source_height_m,
-                      skeleton=motion.skeleton)
+    extended = Motion(
+        local.astype(np.float32),
+        root.astype(np.float64),
+        motion.fps,
+        source=motion.source,
+        source_skeleton=motion.source_skeleton,
+        source_height_m=motion.source_height_m,
+        skeleton=motion.skeleton,
+    )
     return extended, settle + blend

@@ -93,40 +93,62 @@ class SequenceJob:
         return motion_on_body(self.motion, self.body.body), self.body.garment, self.body.body
 
 
-def _part(job: SequenceJob, on_body: tuple[Motion, GarmentMesh, BodyModel],
-          result: SimResult | SimulationExploded) -> PartResult:
+def _part(
+    job: SequenceJob, on_body: tuple[Motion, GarmentMesh, BodyModel], result: SimResult | SimulationExploded
+) -> PartResult:
     """A part's content from a simulation's result (or its rejection), with the sequence's
     statistics; ``on_body``: what :meth:`SequenceJob.on_body` gave the simulation."""
     spec = job.spec
     if isinstance(result, SimulationExploded):
         return PartResult(spec.name, job.key, 0, failure=str(result))
     motion, garment, collider = on_body
-    stats = sequence_stats(result.vertices, garment.vertices, garment.edges(), motion=motion, hem=garment.groups.get("hem"),
-                           body=collider)
-    stats.update(substeps=result.substeps, attempts=result.attempts, sim_seconds=result.seconds,
-                 simulated_frames=result.simulated_frames, arms_off_frames=result.arms_off_frames)
+    stats = sequence_stats(
+        result.vertices,
+        garment.vertices,
+        garment.edges(),
+        motion=motion,
+        hem=garment.groups.get("hem"),
+        body=collider,
+    )
+    stats.update(
+        substeps=result.substeps,
+        attempts=result.attempts,
+        sim_seconds=result.seconds,
+        simulated_frames=result.simulated_frames,
+        arms_off_frames=result.arms_off_frames,
+    )
     info = {"kind": spec.kind, "seed": spec.seed, "path": spec.path, "stats": stats}
     if job.body is not None:
         info["body"] = job.body.name
     return PartResult(spec.name, job.key, result.simulated_frames, result.vertices, motion, info)
 
 
-def simulate_sequence(spec: SequenceSpec, motion: Motion, garment: GarmentMesh, config: dict, key: str,
-                      progress: Callable[[int], None] | None = None, body: DressedBody | None = None) -> PartResult:
+def simulate_sequence(
+    spec: SequenceSpec,
+    motion: Motion,
+    garment: GarmentMesh,
+    config: dict,
+    key: str,
+    progress: Callable[[int], None] | None = None,
+    body: DressedBody | None = None,
+) -> PartResult:
     """Simulate one sequence (``motion`` is ``spec.motion()``, loaded by the caller) on the
     mannequin, or on ``body`` (the sequence's, :mod:`.bodies`): the motion played by that body
     (:func:`~hrr_garment.body.retarget.motion_on_body`) and the garment on it."""
     job = SequenceJob(spec, motion, garment, key, body)
     played, dressed, collider = on_body = job.on_body()
     try:
-        result = simulate_garment(dressed, played, SimConfig.from_dict(config), body=collider, progress=progress)
+        result = simulate_garment(
+            dressed, played, SimConfig.from_dict(config), body=collider, progress=progress
+        )
     except SimulationExploded as exc:
         result = exc
     return _part(job, on_body, result)
 
 
-def simulate_sequences(jobs: list[SequenceJob], config: dict,
-                       progress: Callable[[int], None] | None = None) -> list[PartResult]:
+def simulate_sequences(
+    jobs: list[SequenceJob], config: dict, progress: Callable[[int], None] | None = None
+) -> list[PartResult]:
     """Simulate ``jobs`` as one batch (:func:`~.batch.simulate_batch`: one model, each sequence in
     its own world); each part is what :func:`simulate_sequence` makes of it alone, within the
     solver's tolerance, and one that explodes in the batch is simulated alone with every retry."""
@@ -140,16 +162,28 @@ def write_part(result: PartResult, parts: Path) -> None:
     """Write a part (or its failure record) atomically into ``parts``."""
     part, failed = part_paths(parts, result.name)
     if result.failure is not None:
-        atomic_write_text(failed, json.dumps({"key": result.key, "name": result.name, "reason": result.failure}))
+        atomic_write_text(
+            failed, json.dumps({"key": result.key, "name": result.name, "reason": result.failure})
+        )
         return
     motion = result.motion
     failed.unlink(missing_ok=True)  # an earlier rejection that a retry has now saved
-    on_body = {"skeleton_offsets": np.asarray(motion.skeleton.offsets, np.float32)} if "body" in result.info else {}
+    on_body = (
+        {"skeleton_offsets": np.asarray(motion.skeleton.offsets, np.float32)} if "body" in result.info else {}
+    )
     with atomic_path(part) as tmp:
         with open(tmp, "wb") as fh:
-            np.savez(fh, key=np.array(result.key), garment=result.vertices, local_rotations=motion.local_rotations,
-                     root_translation=motion.root_translation, fps=np.array(motion.fps),
-                     source=np.array(motion.source), info=np.array(json.dumps(result.info)), **on_body)
+            np.savez(
+                fh,
+                key=np.array(result.key),
+                garment=result.vertices,
+                local_rotations=motion.local_rotations,
+                root_translation=motion.root_translation,
+                fps=np.array(motion.fps),
+                source=np.array(motion.source),
+                info=np.array(json.dumps(result.info)),
+                **on_body,
+            )
 
 
 def load_part(part: Path, name: str) -> SequenceRecord:
@@ -157,12 +191,15 @@ def load_part(part: Path, name: str) -> SequenceRecord:
     with np.load(part, allow_pickle=False) as z:
         info = json.loads(str(z["info"]))
         on_body = {"skeleton": Skeleton(offsets=z["skeleton_offsets"])} if "skeleton_offsets" in z else {}
-        motion = Motion(z["local_rotations"], z["root_translation"], float(z["fps"]), source=str(z["source"]), **on_body)
+        motion = Motion(
+            z["local_rotations"], z["root_translation"], float(z["fps"]), source=str(z["source"]), **on_body
+        )
         return SequenceRecord(name, z["garment"], motion, info=info, body=info.get("body", MANNEQUIN))
 
 
-def parts_to_simulate(specs: list[SequenceSpec], parts: Path, keys: dict[str, str], *,
-                      retry_rejected: bool) -> tuple[list[SequenceSpec], dict[str, str], int]:
+def parts_to_simulate(
+    specs: list[SequenceSpec], parts: Path, keys: dict[str, str], *, retry_rejected: bool
+) -> tuple[list[SequenceSpec], dict[str, str], int]:
     """(the sequences to simulate, the rejects an earlier run recorded under the same key and
     that stay rejected, how many finished parts are reused)."""
     pending, rejects, reused = [], {}, 0
@@ -173,7 +210,11 @@ def parts_to_simulate(specs: list[SequenceSpec], parts: Path, keys: dict[str, st
             borrow_part(part, keys[spec.name], siblings)
         if part.exists() and read_part_key(part) == keys[spec.name]:
             reused += 1
-        elif not retry_rejected and failed.exists() and json.loads(failed.read_text()).get("key") == keys[spec.name]:
+        elif (
+            not retry_rejected
+            and failed.exists()
+            and json.loads(failed.read_text()).get("key") == keys[spec.name]
+        ):
             rejects[spec.name] = json.loads(failed.read_text())["reason"]
         else:
             pending.append(spec)

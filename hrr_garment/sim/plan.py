@@ -30,8 +30,16 @@ FILE_PIECE_S = 12.0  # longer motion files are simulated in pieces of at most th
 
 # SequenceSpec fields added after parts were first keyed, with their defaults: a spec at the default
 # hashes as before the field existed
-LATER_FIELDS = {"speed": 1.0, "source_fps": None, "body": "", "mirrored": False, "upper_path": "", "upper_start": 0,
-                "arm_delay": 0, "backward": False}
+LATER_FIELDS = {
+    "speed": 1.0,
+    "source_fps": None,
+    "body": "",
+    "mirrored": False,
+    "upper_path": "",
+    "upper_start": 0,
+    "arm_delay": 0,
+    "backward": False,
+}
 
 
 @dataclass(frozen=True)
@@ -111,8 +119,12 @@ def safe_name(text: str, empty: str = "clip") -> str:
     return re.sub(r"[^A-Za-z0-9_.-]+", "_", text).strip("_") or empty
 
 
-def plan_sequences(preset: Preset, motions: list[str] | None = None, seconds: float | None = None,
-                   source_fps: float | None = None) -> list[SequenceSpec]:
+def plan_sequences(
+    preset: Preset,
+    motions: list[str] | None = None,
+    seconds: float | None = None,
+    source_fps: float | None = None,
+) -> list[SequenceSpec]:
     """The preset's procedural clips and motion files, or, when ``motions`` is given, one clip per
     kind named there (repeat a kind for more) and every motion file named there (long files in
     pieces). The preset's speed warps apply to motion files either way; ``source_fps`` is the
@@ -124,26 +136,41 @@ def plan_sequences(preset: Preset, motions: list[str] | None = None, seconds: fl
         for item in motions:
             if item in KINDS:
                 counts[item] = counts.get(item, 0) + 1
-            elif Path(item).suffix or Path(item).exists() or any(c in item for c in "*?[") or item.startswith("mocap:"):
+            elif (
+                Path(item).suffix
+                or Path(item).exists()
+                or any(c in item for c in "*?[")
+                or item.startswith("mocap:")
+            ):
                 entries.append(item)
             else:
-                raise InputError(item, f"neither a motion kind ({', '.join(KINDS)}) nor a motion file, folder or glob")
+                raise InputError(
+                    item, f"neither a motion kind ({', '.join(KINDS)}) nor a motion file, folder or glob"
+                )
     else:
         counts = dict(preset.sequences)
         entries = list(preset.motions)
-    specs = [SequenceSpec(f"{kind}_{i:03d}", kind, seed=preset.seed * 1000 + i, seconds=seconds)
-             for kind, n in counts.items() for i in range(n)]
+    specs = [
+        SequenceSpec(f"{kind}_{i:03d}", kind, seed=preset.seed * 1000 + i, seconds=seconds)
+        for kind, n in counts.items()
+        for i in range(n)
+    ]
     files = resolve_motion_entries(entries, Path(preset.base) if preset.base and not motions else None)
     for path in files:
         for speed in (1.0, *preset.speed_warps):
             specs += _file_pieces(str(path), speed, source_fps)
     taken = sorted(s.path for s in specs if s.name.startswith(AUGMENT_PREFIXES))
     if taken:  # their parts would be the added sequences' parts
-        raise InputError(taken[0], f"a motion file's name may not begin with {' or '.join(AUGMENT_PREFIXES)}, which name the "
-                                   "sequences a build adds; rename the file")
+        raise InputError(
+            taken[0],
+            f"a motion file's name may not begin with {' or '.join(AUGMENT_PREFIXES)}, which name the "
+            "sequences a build adds; rename the file",
+        )
     names = [s.name for s in specs]
     if len(set(names)) != len(names):
-        raise HRRError(f"two motions would get the same sequence name: {sorted({n for n in names if names.count(n) > 1})}")
+        raise HRRError(
+            f"two motions would get the same sequence name: {sorted({n for n in names if names.count(n) > 1})}"
+        )
     if not specs:
         raise HRRError("nothing to simulate: the preset lists no sequences and no --motions were given")
     return specs
@@ -153,8 +180,11 @@ def _file_pieces(path: str, speed: float, source_fps: float | None) -> list[Sequ
     """A motion file as sequences of at most FILE_PIECE_S (a short tail folds into the last)."""
     clip = load_file_motion(path, speed, source_fps)
     if clip.num_frames < MIN_CLIP_FRAMES:
-        raise MotionError(path, f"motion too short to simulate: {clip.num_frames} frames at {clip.fps:g} fps "
-                                f"(at least {MIN_CLIP_FRAMES})")
+        raise MotionError(
+            path,
+            f"motion too short to simulate: {clip.num_frames} frames at {clip.fps:g} fps "
+            f"(at least {MIN_CLIP_FRAMES})",
+        )
     piece = int(FILE_PIECE_S * clip.fps)
     starts = list(range(0, clip.num_frames, piece))
     if len(starts) > 1 and clip.num_frames - starts[-1] < MIN_CLIP_FRAMES:
@@ -164,8 +194,17 @@ def _file_pieces(path: str, speed: float, source_fps: float | None) -> list[Sequ
     for k, start in enumerate(starts):
         stop = starts[k + 1] if k + 1 < len(starts) else clip.num_frames
         suffix = f"_p{k}" if len(starts) > 1 else ""
-        specs.append(SequenceSpec(f"{stem}{suffix}", "file", path=path, start=start, stop=stop, speed=speed,
-                                  source_fps=source_fps))
+        specs.append(
+            SequenceSpec(
+                f"{stem}{suffix}",
+                "file",
+                path=path,
+                start=start,
+                stop=stop,
+                speed=speed,
+                source_fps=source_fps,
+            )
+        )
     return specs
 
 
@@ -181,15 +220,33 @@ def build_options(preset: Preset, specs: list[SequenceSpec]) -> dict:
         info["augmentation"] = {"mirror": mirror, "speed_warps": list(preset.speed_warps)}
     also = {}
     for name, fractions in preset.also_hold_out.items():  # only the files whose names have the field
-        by = {s.name: clip_group(Path(s.path).stem, name, preset.name_pattern) for s in specs if s.kind == "file"}
+        by = {
+            s.name: clip_group(Path(s.path).stem, name, preset.name_pattern)
+            for s in specs
+            if s.kind == "file"
+        }
         by = {n: g for n, g in by.items() if g.startswith(f"{name}=")}
-        also[name] = {"groups": by, "val": float(fractions.get("val", 0.0)), "test": float(fractions.get("test", 0.0))}
+        also[name] = {
+            "groups": by,
+            "val": float(fractions.get("val", 0.0)),
+            "test": float(fractions.get("test", 0.0)),
+        }
     if also:
         info["also_hold_out"] = also
     kinds = {s.name: s.kind for s in specs if s.kind != "file"}  # procedural clips: held out in distribution
     splices = None
     if preset.splices.get("count") or preset.splices.get("backward"):
         splices = SpliceOptions(**preset.splices, name_pattern=preset.name_pattern, seed=preset.seed)
-        info.setdefault("augmentation", {"mirror": mirror, "speed_warps": list(preset.speed_warps)})["splices"] = preset.splices
-    return {"splits": preset.splits, "seed": preset.seed, "groups": groups, "mirror": mirror, "info": info,
-            "kinds": kinds or None, "also_hold_out": also or None, "splices": splices}
+        info.setdefault("augmentation", {"mirror": mirror, "speed_warps": list(preset.speed_warps)})[
+            "splices"
+        ] = preset.splices
+    return {
+        "splits": preset.splits,
+        "seed": preset.seed,
+        "groups": groups,
+        "mirror": mirror,
+        "info": info,
+        "kinds": kinds or None,
+        "also_hold_out": also or None,
+        "splices": splices,
+    }

@@ -48,7 +48,9 @@ class Preset:
     mirror: bool | str = False
     speed_warps: list[float] = field(default_factory=list)  # motion files re-timed and simulated again
     base: str = ""  # the preset file's folder: relative motion entries resolve against it first
-    bodies: dict = field(default_factory=dict)  # which bodies the sequences stand on (sim/bodies.py); none: the mannequin
+    bodies: dict = field(
+        default_factory=dict
+    )  # which bodies the sequences stand on (sim/bodies.py); none: the mannequin
     # more training motion from the training clips' parts (sim/augment.py): {count, seconds, arm_delay_s, field}
     splices: dict = field(default_factory=dict)
 
@@ -64,7 +66,9 @@ def load_preset(name_or_path: str) -> Preset:
     if not path.suffix:
         path = CONFIG_DIR / "presets" / f"{name_or_path}.yaml"
         if not path.is_file():
-            raise InputError(name_or_path, f"unknown preset; choose one of {', '.join(preset_names())} or give a YAML file")
+            raise InputError(
+                name_or_path, f"unknown preset; choose one of {', '.join(preset_names())} or give a YAML file"
+            )
     try:
         data = _preset_data(path)
         preset = Preset(**data, base=str(path.resolve().parent))
@@ -76,7 +80,10 @@ def load_preset(name_or_path: str) -> Preset:
     _check_also_hold_out(path, preset)
     _check_splices(path, preset)
     if mirror_mode(preset.mirror) is None:
-        raise InputError(path, f"mirror: {preset.mirror!r} is not one of {', '.join(repr(m) for m in MIRROR_MODES)} (or true / false)")
+        raise InputError(
+            path,
+            f"mirror: {preset.mirror!r} is not one of {', '.join(repr(m) for m in MIRROR_MODES)} (or true / false)",
+        )
     unknown = sorted(set(preset.sequences) - set(KINDS))
     if unknown:
         raise InputError(path, f"unknown motion kinds {unknown}; available: {', '.join(KINDS)}")
@@ -96,15 +103,30 @@ def mirror_mode(value: bool | str | None) -> str | None:
     return value if value in MIRROR_MODES else None
 
 
-SPLICE_KEYS = {"count": int, "seconds": (int, float), "arm_delay_s": (int, float), "field": str, "backward": int}
+SPLICE_KEYS = {
+    "count": int,
+    "seconds": (int, float),
+    "arm_delay_s": (int, float),
+    "field": str,
+    "backward": int,
+}
 
 
 def _check_splices(path: Path, preset: Preset) -> None:
     """An InputError unless ``splices`` holds only known keys of the right types and a field of the name pattern."""
-    bad = {k: v for k, v in preset.splices.items() if k not in SPLICE_KEYS or not isinstance(v, SPLICE_KEYS[k])
-           or isinstance(v, bool) or (k != "field" and v < 0)}
+    bad = {
+        k: v
+        for k, v in preset.splices.items()
+        if k not in SPLICE_KEYS
+        or not isinstance(v, SPLICE_KEYS[k])
+        or isinstance(v, bool)
+        or (k != "field" and v < 0)
+    }
     if bad:
-        raise InputError(path, f"splices: {bad!r} not understood; it takes {', '.join(SPLICE_KEYS)} (numbers >= 0, a field name)")
+        raise InputError(
+            path,
+            f"splices: {bad!r} not understood; it takes {', '.join(SPLICE_KEYS)} (numbers >= 0, a field name)",
+        )
     name_field = preset.splices.get("field", "content")
     if preset.splices.get("count") and name_field not in re.compile(preset.name_pattern).groupindex:
         raise InputError(path, f"splices: field {name_field!r} is not a field of the name pattern")
@@ -115,10 +137,18 @@ def _check_also_hold_out(path: Path, preset: Preset) -> None:
     fields = set(re.compile(preset.name_pattern).groupindex)
     for name, fractions in preset.also_hold_out.items():
         if name not in fields:
-            raise InputError(path, f"also_hold_out: {name!r} is not a field of the name pattern ({', '.join(sorted(fields))})")
-        if not isinstance(fractions, dict) or set(fractions) - {"val", "test"} or not all(
-                isinstance(v, (int, float)) and 0.0 <= v < 0.5 for v in fractions.values()):
-            raise InputError(path, f"also_hold_out: {name!r} takes val and test fractions from 0 to 0.5, got {fractions!r}")
+            raise InputError(
+                path,
+                f"also_hold_out: {name!r} is not a field of the name pattern ({', '.join(sorted(fields))})",
+            )
+        if (
+            not isinstance(fractions, dict)
+            or set(fractions) - {"val", "test"}
+            or not all(isinstance(v, (int, float)) and 0.0 <= v < 0.5 for v in fractions.values())
+        ):
+            raise InputError(
+                path, f"also_hold_out: {name!r} takes val and test fractions from 0 to 0.5, got {fractions!r}"
+            )
 
 
 def _preset_data(path: Path, depth: int = 0) -> dict:
@@ -135,15 +165,34 @@ def _preset_data(path: Path, depth: int = 0) -> dict:
     if depth > 4 or not isinstance(parent, str):
         raise TypeError(f"extends must name one preset (and not loop), got {parent!r}")
     parent_path = path.parent / f"{parent}.yaml" if not Path(parent).suffix else path.parent / parent
-    if not Path(parent).suffix and not parent_path.is_file():  # a user's own file extends a built-in by its name
+    if (
+        not Path(parent).suffix and not parent_path.is_file()
+    ):  # a user's own file extends a built-in by its name
         parent_path = CONFIG_DIR / "presets" / f"{parent}.yaml"
     base = _preset_data(parent_path, depth + 1)
-    return {**base, **data, **({"train": deep_merge(base.get("train") or {}, data["train"])} if "train" in data else {})}
+    return {
+        **base,
+        **data,
+        **({"train": deep_merge(base.get("train") or {}, data["train"])} if "train" in data else {}),
+    }
 
 
 #: the preset's settings that decide which sequences a dataset holds and how they split
-PLAN_FIELDS = ("vertices", "seconds", "sequences", "motions", "name_pattern", "split_by", "splits", "also_hold_out",
-               "mirror", "speed_warps", "bodies", "splices", "seed")
+PLAN_FIELDS = (
+    "vertices",
+    "seconds",
+    "sequences",
+    "motions",
+    "name_pattern",
+    "split_by",
+    "splits",
+    "also_hold_out",
+    "mirror",
+    "speed_warps",
+    "bodies",
+    "splices",
+    "seed",
+)
 
 
 def plan_record(preset: Preset) -> dict:

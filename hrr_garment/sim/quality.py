@@ -13,7 +13,10 @@ from ..body.self_contact import self_intersecting_frames
 from ..motion.frame import to_body_frame
 from ..motion.motion import Motion
 
-PENETRATION_DEPTH_M = 0.005  # how far inside the body a vertex counts as penetrating (reports, evaluation, training)
+PENETRATION_DEPTH_M = (
+    0.005  # how far inside the body a vertex counts as penetrating (reports, evaluation, training)
+)
+
 
 def edge_strain(vertices: np.ndarray, rest: np.ndarray, edges: np.ndarray) -> np.ndarray:
     """(T, E) edge length divided by rest length."""
@@ -26,8 +29,18 @@ def body_signed_distance(vertices: np.ndarray, motion: Motion, body: BodyModel =
     """(T, V) signed distance of each vertex to the posed capsule body (negative inside)."""
     a, b = body.pose_motion(motion)
     chunk = 64  # frames at a time: the normals, which are not kept, stay small
-    return np.concatenate([frames_signed_distance(vertices[t:t + chunk], a[t:t + chunk], b[t:t + chunk], radii=body.radii)[0]
-                           for t in range(0, len(vertices), chunk)]) if len(vertices) else np.zeros((0, vertices.shape[1]))
+    return (
+        np.concatenate(
+            [
+                frames_signed_distance(
+                    vertices[t : t + chunk], a[t : t + chunk], b[t : t + chunk], radii=body.radii
+                )[0]
+                for t in range(0, len(vertices), chunk)
+            ]
+        )
+        if len(vertices)
+        else np.zeros((0, vertices.shape[1]))
+    )
 
 
 def penetration_fraction(signed_distance: np.ndarray, depth: float = PENETRATION_DEPTH_M) -> np.ndarray:
@@ -45,8 +58,14 @@ def hem_swing(vertices: np.ndarray, motion: Motion, hem: np.ndarray) -> float:
     return float(np.sqrt(local.var(axis=0).sum(-1)).mean())
 
 
-def sequence_stats(vertices: np.ndarray, rest: np.ndarray, edges: np.ndarray, motion: Motion,
-                   hem: np.ndarray | None = None, body: BodyModel = DEFAULT_BODY) -> dict[str, float]:
+def sequence_stats(
+    vertices: np.ndarray,
+    rest: np.ndarray,
+    edges: np.ndarray,
+    motion: Motion,
+    hem: np.ndarray | None = None,
+    body: BodyModel = DEFAULT_BODY,
+) -> dict[str, float]:
     """Summary numbers for one sequence (see docs/dataset.md)."""
     strain = edge_strain(vertices, rest, edges)
     sd = body_signed_distance(vertices, motion, body)

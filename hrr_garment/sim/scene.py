@@ -19,7 +19,11 @@ ARMS_OFF_CAPSULES = ("upper_arm", "forearm", "hand")  # taken off the cloth in t
 
 def arms_off_capsules(body: BodyModel) -> list[int]:
     """Indices into ``body.capsules`` of the capsules the arms-off retries take off the cloth."""
-    return [c for c, capsule in enumerate(body.capsules) if capsule.name.endswith(tuple(f"_{p}" for p in ARMS_OFF_CAPSULES))]
+    return [
+        c
+        for c, capsule in enumerate(body.capsules)
+        if capsule.name.endswith(tuple(f"_{p}" for p in ARMS_OFF_CAPSULES))
+    ]
 
 
 def import_newton():
@@ -31,7 +35,9 @@ def import_newton():
         wp.config.log_level = wp.LOG_WARNING  # no per-module load timings
         import newton
     except ImportError:
-        raise ImportError("the cloth simulator needs newton and warp: pip install 'hrr_garment[sim]'") from None
+        raise ImportError(
+            "the cloth simulator needs newton and warp: pip install 'hrr_garment[sim]'"
+        ) from None
     return wp, newton
 
 
@@ -45,7 +51,9 @@ def capsule_transforms(motion: Motion, body: BodyModel) -> tuple[np.ndarray, np.
     half = 0.5 * np.linalg.norm(axis, axis=1)
     align = rotation_between(np.broadcast_to([0.0, 0.0, 1.0], axis.shape), axis)  # (C, 3, 3) in joint frame
     rot = motion.global_rotations[:, joint_idx].astype(np.float64) @ align[None]
-    centre = motion.joint_positions[:, joint_idx] + np.einsum("tcij,cj->tci", motion.global_rotations[:, joint_idx], 0.5 * (a_loc + b_loc))
+    centre = motion.joint_positions[:, joint_idx] + np.einsum(
+        "tcij,cj->tci", motion.global_rotations[:, joint_idx], 0.5 * (a_loc + b_loc)
+    )
     q = matrix_to_quat(rot)  # w, x, y, z
     return centre, np.concatenate([q[..., 1:], q[..., :1]], -1), half
 
@@ -63,8 +71,14 @@ def resolve_device(wp, device: str) -> str:
     return device
 
 
-def instance_builder(garment: GarmentMesh, start_vertices: np.ndarray, half_lengths: np.ndarray,
-                     body: BodyModel, config: SimConfig, pieces: list | None = None):
+def instance_builder(
+    garment: GarmentMesh,
+    start_vertices: np.ndarray,
+    half_lengths: np.ndarray,
+    body: BodyModel,
+    config: SimConfig,
+    pieces: list | None = None,
+):
     """A newton builder of one garment (attached vertices at zero mass) and ``body``'s capsules as
     kinematic bodies, coloured for VBD, without the ground: a :class:`ClothScene` adds the ground
     to it, a batch (:mod:`.batch`) adds it as one world of many. ``pieces``: the body's own mesh
@@ -73,23 +87,36 @@ def instance_builder(garment: GarmentMesh, start_vertices: np.ndarray, half_leng
     Returns (builder, each capsule's shape indices in it)."""
     wp, newton = import_newton()
     builder = newton.ModelBuilder(up_axis=newton.Axis.Y, gravity=(0.0, -config.gravity, 0.0))
-    shape_cfg = newton.ModelBuilder.ShapeConfig(ke=config.contact_ke, kd=config.contact_kd, mu=config.contact_mu,
-                                                has_shape_collision=False)
+    shape_cfg = newton.ModelBuilder.ShapeConfig(
+        ke=config.contact_ke, kd=config.contact_kd, mu=config.contact_mu, has_shape_collision=False
+    )
     bodies = [builder.add_body(mass=0.0, is_kinematic=True, label=capsule.name) for capsule in body.capsules]
     shapes: list[list[int]] = [[] for _ in body.capsules]
     if pieces is None:
         for c, capsule in enumerate(body.capsules):
-            shapes[c].append(builder.add_shape_capsule(bodies[c], radius=capsule.radius, half_height=float(half_lengths[c]),
-                                                       cfg=shape_cfg))
+            shapes[c].append(
+                builder.add_shape_capsule(
+                    bodies[c], radius=capsule.radius, half_height=float(half_lengths[c]), cfg=shape_cfg
+                )
+            )
     else:
         for c, vertices, faces in pieces:
             mesh = newton.Mesh(np.asarray(vertices, np.float32), np.asarray(faces, np.int32).ravel())
             shapes[c].append(builder.add_shape_mesh(bodies[c], mesh=mesh, cfg=shape_cfg))
     builder.add_cloth_mesh(
-        pos=wp.vec3(0.0, 0.0, 0.0), rot=wp.quat_identity(), scale=1.0, vel=wp.vec3(0.0, 0.0, 0.0),
-        vertices=[wp.vec3(*v) for v in start_vertices.astype(float)], indices=garment.faces.ravel().tolist(),
-        density=config.density, tri_ke=config.tri_ke, tri_ka=config.tri_ka, tri_kd=config.tri_kd,
-        edge_ke=config.edge_ke, edge_kd=config.edge_kd, particle_radius=config.particle_radius,
+        pos=wp.vec3(0.0, 0.0, 0.0),
+        rot=wp.quat_identity(),
+        scale=1.0,
+        vel=wp.vec3(0.0, 0.0, 0.0),
+        vertices=[wp.vec3(*v) for v in start_vertices.astype(float)],
+        indices=garment.faces.ravel().tolist(),
+        density=config.density,
+        tri_ke=config.tri_ke,
+        tri_ka=config.tri_ka,
+        tri_kd=config.tri_kd,
+        edge_ke=config.edge_ke,
+        edge_kd=config.edge_kd,
+        particle_radius=config.particle_radius,
     )
     for i in garment.attached:
         builder.particle_mass[int(i)] = 0.0  # zero mass: pinned, positions written each substep
@@ -100,8 +127,9 @@ def instance_builder(garment: GarmentMesh, start_vertices: np.ndarray, half_leng
 def add_ground(builder, config: SimConfig) -> None:
     """The ground plane (a global shape: in a batch every world's cloth meets it)."""
     _, newton = import_newton()
-    builder.add_ground_plane(cfg=newton.ModelBuilder.ShapeConfig(ke=config.contact_ke, kd=config.contact_kd,
-                                                                mu=config.contact_mu))
+    builder.add_ground_plane(
+        cfg=newton.ModelBuilder.ShapeConfig(ke=config.contact_ke, kd=config.contact_kd, mu=config.contact_mu)
+    )
 
 
 class SteppedScene:
@@ -123,12 +151,15 @@ class SteppedScene:
         self.model.soft_contact_mu = config.contact_mu
         self.pipeline = newton.CollisionPipeline(self.model, soft_contact_gap=config.contact_gap)
         self.contacts = self.pipeline.contacts()
-        self.solver = newton.solvers.SolverVBD(self.model, iterations=config.iterations,
-                                               integrate_with_external_rigid_solver=True)
+        self.solver = newton.solvers.SolverVBD(
+            self.model, iterations=config.iterations, integrate_with_external_rigid_solver=True
+        )
         self.states = (self.model.state(), self.model.state())
         self.control = self.model.control()
         self.attached = attached
-        self.pin_index = self.wp.array(np.asarray(attached, np.int32), dtype=self.wp.int32, device=self.device)
+        self.pin_index = self.wp.array(
+            np.asarray(attached, np.int32), dtype=self.wp.int32, device=self.device
+        )
         self.pin_values = self.wp.empty(len(attached), dtype=self.wp.vec3, device=self.device)
         self.parity = 0  # states[parity] holds the current positions
         self.graphs: list = [None, None]
@@ -157,7 +188,9 @@ class SteppedScene:
         flags = self.model.shape_flags.numpy()
         for i in changed:
             arms = self.arm_shapes[i]
-            flags[arms] = flags[arms] | self.collide_particles if wanted[i] else flags[arms] & ~self.collide_particles
+            flags[arms] = (
+                flags[arms] | self.collide_particles if wanted[i] else flags[arms] & ~self.collide_particles
+            )
             self.arm_contacts[i] = wanted[i]
         self.model.shape_flags.assign(flags)
 
@@ -184,8 +217,15 @@ class SteppedScene:
             wp.capture_launch(self.graphs[p])
         self.parity = 1 - p
 
-    def step_frame(self, body_from: np.ndarray, body_to: np.ndarray, pin_from: np.ndarray, pin_to: np.ndarray,
-                   dt: float, substeps: int) -> np.ndarray:
+    def step_frame(
+        self,
+        body_from: np.ndarray,
+        body_to: np.ndarray,
+        pin_from: np.ndarray,
+        pin_to: np.ndarray,
+        dt: float,
+        substeps: int,
+    ) -> np.ndarray:
         """Advance one frame; body_* (C, 7) [p, q(xyzw)] of every instance's capsules, pin_* (A, 3)
         the positions of ``attached``, written on the device each substep. Returns every particle's
         positions (V, 3)."""
@@ -194,13 +234,23 @@ class SteppedScene:
             state_in, state_out = self.states[self.parity], self.states[1 - self.parity]
             # The solver derives body contact velocities from the old (input) and new (output) poses.
             for state, t in ((state_in, t0), (state_out, t1)):
-                pose = np.concatenate([(1 - t) * body_from[:, :3] + t * body_to[:, :3],
-                                       _nlerp(body_from[:, 3:], body_to[:, 3:], t)], 1)
+                pose = np.concatenate(
+                    [
+                        (1 - t) * body_from[:, :3] + t * body_to[:, :3],
+                        _nlerp(body_from[:, 3:], body_to[:, 3:], t),
+                    ],
+                    1,
+                )
                 state.body_q.assign(pose.astype(np.float32))
             if len(self.attached):
                 self.pin_values.assign(((1 - t1) * pin_from + t1 * pin_to).astype(np.float32))
-                self.wp.launch(self.scatter_positions, dim=len(self.attached), inputs=[self.pin_values, self.pin_index],
-                               outputs=[state_in.particle_q], device=self.device)
+                self.wp.launch(
+                    self.scatter_positions,
+                    dim=len(self.attached),
+                    inputs=[self.pin_values, self.pin_index],
+                    outputs=[state_in.particle_q],
+                    device=self.device,
+                )
             self._run_substep(dt / substeps)
         return self.states[self.parity].particle_q.numpy().copy()
 
@@ -214,11 +264,20 @@ class SteppedScene:
 class ClothScene(SteppedScene):
     """A newton model of one garment and the capsule body, stepped frame by frame."""
 
-    def __init__(self, garment: GarmentMesh, start_vertices: np.ndarray, half_lengths: np.ndarray,
-                 body: BodyModel, config: SimConfig, pieces: list | None = None):
+    def __init__(
+        self,
+        garment: GarmentMesh,
+        start_vertices: np.ndarray,
+        half_lengths: np.ndarray,
+        body: BodyModel,
+        config: SimConfig,
+        pieces: list | None = None,
+    ):
         wp, newton = import_newton()
         self.wp, self.newton, self.config = wp, newton, config
         self.device = resolve_device(wp, config.device)
         builder, shapes = instance_builder(garment, start_vertices, half_lengths, body, config, pieces=pieces)
         add_ground(builder, config)
-        self._finish(builder, config, [[s for c in arms_off_capsules(body) for s in shapes[c]]], garment.attached)
+        self._finish(
+            builder, config, [[s for c in arms_off_capsules(body) for s in shapes[c]]], garment.attached
+        )

@@ -75,10 +75,25 @@ class ClipRun:
     them: switched on around cloth that an arm passed through, the contact throws it out at once
     (CMU 131_03 tore the full dress nine frames after an episode ended)."""
 
-    def __init__(self, garment: GarmentMesh, motion: Motion, body: BodyModel, config: SimConfig,
-                 arms_off: np.ndarray | None = None, back_inside: float = 0.0):
-        self.garment, self.motion, self.body, self.config, self.back_inside = garment, motion, body, config, back_inside
-        extended, self.lead = with_lead_in(motion, config.settle_s, config.blend_s, pelvis_height=body.pelvis_height)
+    def __init__(
+        self,
+        garment: GarmentMesh,
+        motion: Motion,
+        body: BodyModel,
+        config: SimConfig,
+        arms_off: np.ndarray | None = None,
+        back_inside: float = 0.0,
+    ):
+        self.garment, self.motion, self.body, self.config, self.back_inside = (
+            garment,
+            motion,
+            body,
+            config,
+            back_inside,
+        )
+        extended, self.lead = with_lead_in(
+            motion, config.settle_s, config.blend_s, pelvis_height=body.pelvis_height
+        )
         self.num_frames = extended.num_frames  # simulated frames, lead-in included
         if arms_off is None:
             arms_off = np.zeros(motion.num_frames, bool)
@@ -92,15 +107,21 @@ class ClipRun:
         self.arms = arms_off_capsules(body)
         self.arm_a, self.arm_b = (ends[:, self.arms] for ends in body.pose_motion(extended))
         self.edges = garment.edges()
-        self.rest_len = np.linalg.norm(garment.vertices[self.edges[:, 0]] - garment.vertices[self.edges[:, 1]], axis=1)
+        self.rest_len = np.linalg.norm(
+            garment.vertices[self.edges[:, 0]] - garment.vertices[self.edges[:, 1]], axis=1
+        )
         self.dt = 1.0 / motion.fps
         self.recorded = np.empty((motion.num_frames, garment.num_vertices, 3), np.float32)
 
     def arms_touch(self, frame: int, current: Callable[[], np.ndarray], arm_contact: bool) -> bool:
         """Whether the arms touch the cloth on ``frame``: not on a scheduled frame, nor while they are
         off and more than ``back_inside`` of the cloth (``current()``, read only then) is inside them."""
-        if self.arms_off[frame] or not arm_contact and \
-                _inside_fraction(current(), self.arm_a[frame], self.arm_b[frame], self.body.radii[self.arms]) > self.back_inside:
+        if (
+            self.arms_off[frame]
+            or not arm_contact
+            and _inside_fraction(current(), self.arm_a[frame], self.arm_b[frame], self.body.radii[self.arms])
+            > self.back_inside
+        ):
             self.arms_off[frame] = True  # kept off until the cloth is clear of them
         return not self.arms_off[frame]
 
@@ -112,7 +133,9 @@ class ClipRun:
             problem = "non-finite positions"
         else:
             speed = speeds.max()
-            strain = (np.linalg.norm(verts[self.edges[:, 0]] - verts[self.edges[:, 1]], axis=1) / self.rest_len).max()
+            strain = (
+                np.linalg.norm(verts[self.edges[:, 0]] - verts[self.edges[:, 1]], axis=1) / self.rest_len
+            ).max()
             if speed > config.max_speed:
                 problem = f"speed {speed:.1f} m/s > {config.max_speed}"
             elif strain > config.max_strain:
@@ -120,8 +143,10 @@ class ClipRun:
         if problem:
             clip_frame = frame - self.lead
             where = f"clip frame {clip_frame}" if clip_frame >= 0 else f"lead-in frame {frame}"
-            raise SimulationExploded(f"{self.garment.name} on {self.motion.source}: {problem} at {where} "
-                                     f"({config.substeps} substeps{_arms_note(self.arms_off[self.lead:])})")
+            raise SimulationExploded(
+                f"{self.garment.name} on {self.motion.source}: {problem} at {where} "
+                f"({config.substeps} substeps{_arms_note(self.arms_off[self.lead :])})"
+            )
 
     def keep(self, frame: int, verts: np.ndarray) -> None:
         """Record ``frame``'s positions when it is one of the clip's (not the lead-in's)."""
@@ -131,12 +156,19 @@ class ClipRun:
     @property
     def arms_off_frames(self) -> int:
         """Clip frames on which the arms did not touch the cloth."""
-        return int(self.arms_off[self.lead:].sum())
+        return int(self.arms_off[self.lead :].sum())
 
 
-def _attempt(garment: GarmentMesh, motion: Motion, body: BodyModel, config: SimConfig,
-             progress: Callable[[int], None] | None, arms_off: np.ndarray | None = None,
-             back_inside: float = 0.0, pieces: list | None = None) -> tuple[np.ndarray, int, float, int]:
+def _attempt(
+    garment: GarmentMesh,
+    motion: Motion,
+    body: BodyModel,
+    config: SimConfig,
+    progress: Callable[[int], None] | None,
+    arms_off: np.ndarray | None = None,
+    back_inside: float = 0.0,
+    pieces: list | None = None,
+) -> tuple[np.ndarray, int, float, int]:
     """One simulation (see :class:`ClipRun` for ``arms_off`` and ``back_inside``); returns (the
     clip's frames, simulated frames, seconds stepping, clip frames with the arms off)."""
     run = ClipRun(garment, motion, body, config, arms_off, back_inside)
@@ -146,7 +178,9 @@ def _attempt(garment: GarmentMesh, motion: Motion, body: BodyModel, config: SimC
         prev = max(f - 1, 0)
         t0 = time.perf_counter()
         scene.set_arm_contact(run.arms_touch(f, scene.current, scene.arm_contact))
-        verts = scene.step_frame(run.poses[prev], run.poses[f], run.pins[prev], run.pins[f], run.dt, config.substeps)
+        verts = scene.step_frame(
+            run.poses[prev], run.poses[f], run.pins[prev], run.pins[f], run.dt, config.substeps
+        )
         stepping += time.perf_counter() - t0
         run.check(f, verts, scene.speeds())
         run.keep(f, verts)
@@ -166,9 +200,14 @@ def _arms_note(arms_off: np.ndarray) -> str:
     return f", arms off the cloth on {int(arms_off.sum())} frames" if arms_off.any() else ""
 
 
-def simulate_garment(garment: GarmentMesh, motion: Motion, config: SimConfig = SimConfig(),
-                     body: BodyModel = DEFAULT_BODY, progress: Callable[[int], None] | None = None,
-                     collider: BodyMesh | None = None) -> SimResult:
+def simulate_garment(
+    garment: GarmentMesh,
+    motion: Motion,
+    config: SimConfig = SimConfig(),
+    body: BodyModel = DEFAULT_BODY,
+    progress: Callable[[int], None] | None = None,
+    collider: BodyMesh | None = None,
+) -> SimResult:
     """Simulate ``garment`` on ``motion`` (30 fps canonical); on explosion retries with more substeps,
     then (for a motion with self-intersecting limbs) with the arms off the cloth during those
     episodes, then over the whole clip.
@@ -184,15 +223,24 @@ def simulate_garment(garment: GarmentMesh, motion: Motion, config: SimConfig = S
     """
     motion = played_by(motion, body)
     # (substeps, clip frames with the arms off the cloth, fraction of the cloth inside the arms they come back at)
-    attempts: list[tuple[int, np.ndarray | None, float]] = [(config.substeps * 2 ** k, None, 0.0)
-                                                          for k in range(config.retries + 1)]
+    attempts: list[tuple[int, np.ndarray | None, float]] = [
+        (config.substeps * 2**k, None, 0.0) for k in range(config.retries + 1)
+    ]
     reasons = []
     for number, (substeps, arms_off, back_inside) in enumerate(attempts, 1):
         cfg = replace(config, substeps=substeps)
         t0 = time.perf_counter()
         try:
-            vertices, frames, stepping, off = _attempt(garment, motion, body, cfg, progress, arms_off, back_inside,
-                                                       collider.pieces(body) if collider is not None else None)
+            vertices, frames, stepping, off = _attempt(
+                garment,
+                motion,
+                body,
+                cfg,
+                progress,
+                arms_off,
+                back_inside,
+                collider.pieces(body) if collider is not None else None,
+            )
         except SimulationExploded as exc:
             reasons.append(str(exc))
             if number == config.retries + 1:  # every substep count failed: the arms, if they are the cause

@@ -24,7 +24,13 @@ from pathlib import Path
 from ..errors import InputError
 from ..paths import find_mocap_dir, workspace
 
-MOTION_SUFFIXES = (".bvh", ".npz", ".glb", ".gltf", ".fbx")  # a glTF file gives its first animation; FBX needs Blender
+MOTION_SUFFIXES = (
+    ".bvh",
+    ".npz",
+    ".glb",
+    ".gltf",
+    ".fbx",
+)  # a glTF file gives its first animation; FBX needs Blender
 ARCHIVE_SUFFIXES = (".tar", ".tar.gz", ".tgz", ".tar.xz", ".txz", ".zip")
 # <source>_<content>_<style>_<take>, as the Bandai-Namco library names its clips.
 DEFAULT_NAME_PATTERN = r"(?P<source>[^_]+)_(?P<content>[^_]+)_(?P<style>[^_]+)_(?P<take>\d+)"
@@ -86,7 +92,7 @@ def _anchor(entry: str, base: Path | None) -> str:
         mocap = find_mocap_dir()
         if mocap is None:
             raise InputError(entry, "the shared mocap folder was not found; set HRR_MOCAP_DIR")
-        return str(mocap / entry[len("mocap:"):])
+        return str(mocap / entry[len("mocap:") :])
     path = Path(entry).expanduser()
     if path.is_absolute():
         return str(path)
@@ -101,8 +107,11 @@ def resolve_motion_entries(entries: list[str], base: Path | None = None) -> list
     for entry in entries:
         matches = sorted(Path(p) for p in globlib.glob(_anchor(entry, base), recursive=True))
         if not matches:
-            raise InputError(entry, "names no file or folder (paths resolve against the preset's folder, "
-                                    "then the working directory; mocap:PATH against the shared mocap folder)")
+            raise InputError(
+                entry,
+                "names no file or folder (paths resolve against the preset's folder, "
+                "then the working directory; mocap:PATH against the shared mocap folder)",
+            )
         for match in matches:
             if match.is_dir():
                 found = _motion_files_below(match)

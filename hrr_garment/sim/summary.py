@@ -12,8 +12,16 @@ from ..garment.mesh import GarmentMesh
 from .quality import edge_strain
 
 
-def summarise(records: list[SequenceRecord], garment: GarmentMesh, *, rejects: dict[str, str], sim_wall: float,
-              jobs: int | None, simulated: int, bodies: dict[str, DressedBody] | None = None) -> dict:
+def summarise(
+    records: list[SequenceRecord],
+    garment: GarmentMesh,
+    *,
+    rejects: dict[str, str],
+    sim_wall: float,
+    jobs: int | None,
+    simulated: int,
+    bodies: dict[str, DressedBody] | None = None,
+) -> dict:
     """The dataset summary: counts, quality statistics (each sequence's strain against the garment
     on its own body) and simulation speed; with bodies, the strain and frames of each."""
     stats = [r.info.get("stats", {}) for r in records]
@@ -28,32 +36,44 @@ def summarise(records: list[SequenceRecord], garment: GarmentMesh, *, rejects: d
         if "hem_swing_m" in s:
             by_kind.setdefault(r.info.get("kind", "?"), []).append(s["hem_swing_m"])
     return {
-        "garment": garment.name, "vertices": garment.num_vertices,
-        "sequences": len(records), "frames": int(sum(len(r.garment) for r in records)),
+        "garment": garment.name,
+        "vertices": garment.num_vertices,
+        "sequences": len(records),
+        "frames": int(sum(len(r.garment) for r in records)),
         "rejects": rejects,
         "finite": bool(all(np.isfinite(r.garment).all() for r in records)),
-        "strain_p99": float(np.percentile(pooled, 99)), "strain_max": float(pooled.max()),
+        "strain_p99": float(np.percentile(pooled, 99)),
+        "strain_max": float(pooled.max()),
         "penetration_frame_max": float(max(s.get("penetration_max", 0.0) for s in stats)),
         # outside frames where the motion's limbs pass through the body (body/self_contact.py)
-        "penetration_frame_max_clean": float(max(s.get("penetration_max_clean", s.get("penetration_max", 0.0))
-                                                 for s in stats)),
+        "penetration_frame_max_clean": float(
+            max(s.get("penetration_max_clean", s.get("penetration_max", 0.0)) for s in stats)
+        ),
         "self_intersection_frames": int(sum(s.get("self_intersection_frames", 0) for s in stats)),
         "penetration_mean": float(np.mean([s.get("penetration_mean", 0.0) for s in stats])),
         "deepest_mm": float(max(s.get("deepest_mm", 0.0) for s in stats)),
         "hem_swing_m_by_kind": {k: float(np.mean(v)) for k, v in sorted(by_kind.items())},
         "sim_frames_per_core_s": float(sim_frames / sim_seconds) if sim_seconds else None,
-        "sim_wall_s": float(sim_wall), "jobs": jobs, "simulated_now": simulated,
+        "sim_wall_s": float(sim_wall),
+        "jobs": jobs,
+        "simulated_now": simulated,
         **({"by_body": _by_body(records, strains, bodies)} if bodies else {}),
     }
 
 
-def _by_body(records: list[SequenceRecord], strains: list[np.ndarray], bodies: dict[str, DressedBody]) -> dict:
+def _by_body(
+    records: list[SequenceRecord], strains: list[np.ndarray], bodies: dict[str, DressedBody]
+) -> dict:
     """Per body: its stature, sequences, frames and strain p99."""
     out = {}
     for name in sorted({r.body for r in records}):
         mine = [k for k, r in enumerate(records) if r.body == name]
         pooled = np.concatenate([strains[k] for k in mine])
         stature = bodies[name].record.stature if name in bodies else MANNEQUIN_STATURE_M
-        out[name] = {"stature_m": stature, "sequences": len(mine), "frames": int(sum(len(records[k].garment) for k in mine)),
-                     "strain_p99": float(np.percentile(pooled, 99))}
+        out[name] = {
+            "stature_m": stature,
+            "sequences": len(mine),
+            "frames": int(sum(len(records[k].garment) for k in mine)),
+            "strain_p99": float(np.percentile(pooled, 99)),
+        }
     return out

@@ -49,8 +49,12 @@ class TrainConfig:
     lr_final: float = 0.01  # the cosine schedule's last learning rate, as a fraction of the first
     laplacian: float = 0.2
     patience: int = 30  # epochs without a better validation error before stopping (see early_stop)
-    max_minutes: float | None = None  # a wall-clock cap on the epochs (a run it cuts short warns: pipeline.budget)
-    target_mm: float | None = None  # validation error these settings reach on an idle machine (a run far above it warns)
+    max_minutes: float | None = (
+        None  # a wall-clock cap on the epochs (a run it cuts short warns: pipeline.budget)
+    )
+    target_mm: float | None = (
+        None  # validation error these settings reach on an idle machine (a run far above it warns)
+    )
     seed: int = 0
     threads: int | None = None
     device: str = "cpu"  # torch device to train on ("cuda" on a GPU machine); the outputs are the same files
@@ -70,8 +74,10 @@ def refine_settings(values: dict) -> dict:
     run's own, its saved config.json, or a bundle's record. Missing ones (files from before they
     were recorded) are the defaults."""
     default = TrainConfig()
-    return {"refine_steps": int(values.get("refine_steps", default.refine_steps)),
-            "refine_lr": float(values.get("refine_lr", default.refine_lr))}
+    return {
+        "refine_steps": int(values.get("refine_steps", default.refine_steps)),
+        "refine_lr": float(values.get("refine_lr", default.refine_lr)),
+    }
 
 
 @dataclass
@@ -125,28 +131,46 @@ def _key(*parts) -> str:
     return hashlib.sha1(json.dumps(parts, sort_keys=True, default=str).encode()).hexdigest()[:16]
 
 
-def _settings_keys(model_config: AutoencoderConfig, train_config: TrainConfig, ds: GarmentDataset) -> tuple[str, str]:
+def _settings_keys(
+    model_config: AutoencoderConfig, train_config: TrainConfig, ds: GarmentDataset
+) -> tuple[str, str]:
     """(training key, stage key). The checkpoint's key leaves out what only the encoding uses:
     changing the refinement re-encodes a finished run (its checkpoint is at the end of training)
     instead of training it again. The objective was L1 per coordinate before: those latents
     re-encode."""
     encoding = refine_settings(asdict(train_config)) | {"refine_objective": "vertex distance"}
     training = {k: v for k, v in asdict(train_config).items() if k not in encoding and k != "target_mm"}
-    training_key = _key(model_config.to_dict(), training | {"max_minutes": None, "threads": None, "device": None},
-                        ds.garment, ds.template.num_vertices, ds.splits, {"frame": FRAME_VERSION})
+    training_key = _key(
+        model_config.to_dict(),
+        training | {"max_minutes": None, "threads": None, "device": None},
+        ds.garment,
+        ds.template.num_vertices,
+        ds.splits,
+        {"frame": FRAME_VERSION},
+    )
     return training_key, _key(training_key, encoding)
 
 
 def _stage_report(record: dict, folder: Path, reused: bool = False) -> StageReport:
     """The StageReport of a report.json record (``key`` left out)."""
-    metrics = {k: v for k, v in record.items() if k not in ("key", "folder", "epochs", "best_epoch", "minutes")}
+    metrics = {
+        k: v for k, v in record.items() if k not in ("key", "folder", "epochs", "best_epoch", "minutes")
+    }
     metrics["latent_shape"], metrics["sizes"] = tuple(metrics["latent_shape"]), tuple(metrics["sizes"])
     if reused:
         metrics["extra"] = {**metrics.get("extra", {}), "reused": True}
-    return StageReport("autoencoder", folder, int(record["epochs"]), best_epoch=int(record["best_epoch"]),
-                       minutes=float(record["minutes"]), reused=reused, metrics=metrics,
-                       epochs_asked=record.get("epochs_asked"), stopped=record.get("stopped"),
-                       validation_mm=record.get("val_pve_mm"))
+    return StageReport(
+        "autoencoder",
+        folder,
+        int(record["epochs"]),
+        best_epoch=int(record["best_epoch"]),
+        minutes=float(record["minutes"]),
+        reused=reused,
+        metrics=metrics,
+        epochs_asked=record.get("epochs_asked"),
+        stopped=record.get("stopped"),
+        validation_mm=record.get("val_pve_mm"),
+    )
 
 
 def _finished(folder: Path, key: str) -> dict | None:
@@ -159,40 +183,56 @@ def _finished(folder: Path, key: str) -> dict | None:
     return None
 
 
-def _fit(model: MeshAutoencoder, optimizer: torch.optim.Optimizer, frames: TrainingFrames, folder: Path,
-         training_key: str, config: TrainConfig, device: torch.device, progress: bool) -> tuple[dict, bool]:
+def _fit(
+    model: MeshAutoencoder,
+    optimizer: torch.optim.Optimizer,
+    frames: TrainingFrames,
+    folder: Path,
+    training_key: str,
+    config: TrainConfig,
+    device: torch.device,
+    progress: bool,
+) -> tuple[dict, bool]:
     """The epochs, resumed from the checkpoint; leaves the best weights in ``model`` (eval mode).
     Returns the loop's state and whether the progress bar was shown."""
     train, val = frames.train, frames.val
     checkpoint = folder / "checkpoint.pt"
     state = {"epoch": 0, "best": float("inf"), "best_epoch": 0, "stale": 0, "elapsed_s": 0.0}
     best_weights = {k: v.clone() for k, v in model.state_dict().items()}
-    state, best_weights = load_checkpoint(checkpoint, training_key, state, best_weights=best_weights, model=model,
-                                          optimizer=optimizer)
+    state, best_weights = load_checkpoint(
+        checkpoint, training_key, state, best_weights=best_weights, model=model, optimizer=optimizer
+    )
     conv0 = model.encoder[0].conv
     lap = laplacian_operator(conv0.index.cpu(), conv0.mask.cpu()).to(device)
     rng = np.random.default_rng(config.seed + state["epoch"])
-    bar = tqdm(total=config.epochs, initial=state["epoch"], desc="autoencoder", unit="epoch", disable=not progress)
+    bar = tqdm(
+        total=config.epochs, initial=state["epoch"], desc="autoencoder", unit="epoch", disable=not progress
+    )
     # the wall-clock budget counts the time of earlier (interrupted) runs too
     started, spent = time.perf_counter(), state["elapsed_s"]
     deadline = None if config.max_minutes is None else started + 60 * config.max_minutes - spent
 
     def run_fraction(epoch: float) -> float:
-        return run_progress(epoch, config.epochs, spent + time.perf_counter() - started, max_minutes=config.max_minutes)
+        return run_progress(
+            epoch, config.epochs, spent + time.perf_counter() - started, max_minutes=config.max_minutes
+        )
 
     epoch_s = None  # the last epoch's duration
-    while (stopped := stop_reason(state, config, deadline=deadline, epoch_s=epoch_s,
-                                          progress=run_fraction(state["epoch"]))) is None:
+    while (
+        stopped := stop_reason(
+            state, config, deadline=deadline, epoch_s=epoch_s, progress=run_fraction(state["epoch"])
+        )
+    ) is None:
         epoch_started = time.perf_counter()
         model.train()
         # a bounded epoch: one pass over the real-motion library's 114,000 frames took 18 min on
         # 2 cores, longer than its whole budget, so validation, checkpoints and the budget check
         # would wait for it; each epoch draws a fresh sample instead
-        order = rng.permutation(len(train))[:config.frames_per_epoch]
+        order = rng.permutation(len(train))[: config.frames_per_epoch]
         losses = []
         for i in range(0, len(order), config.batch_size):
             set_learning_rate(optimizer, config, run_fraction(state["epoch"] + i / len(order)))
-            x = torch.from_numpy(train[order[i:i + config.batch_size]]).to(device)
+            x = torch.from_numpy(train[order[i : i + config.batch_size]]).to(device)
             y = model(x)
             loss = (y - x).abs().mean() + config.laplacian * (apply_laplacian(lap, y - x)).abs().mean()
             optimizer.zero_grad(set_to_none=True)
@@ -204,8 +244,12 @@ def _fit(model: MeshAutoencoder, optimizer: torch.optim.Optimizer, frames: Train
         state["epoch"] += 1
         state["elapsed_s"] = spent + time.perf_counter() - started
         best_weights = keep_if_best(state, val_err, model, best_weights=best_weights)
-        save_checkpoint(checkpoint, training_key, state, best_weights=best_weights, model=model, optimizer=optimizer)
-        bar.set_postfix(loss=f"{np.mean(losses) * 1000:.2f}mm", val=f"{val_err:.2f}mm", best=f"{state['best']:.2f}mm")
+        save_checkpoint(
+            checkpoint, training_key, state, best_weights=best_weights, model=model, optimizer=optimizer
+        )
+        bar.set_postfix(
+            loss=f"{np.mean(losses) * 1000:.2f}mm", val=f"{val_err:.2f}mm", best=f"{state['best']:.2f}mm"
+        )
         bar.update(1)
         epoch_s = time.perf_counter() - epoch_started
     bar.close()
@@ -215,9 +259,14 @@ def _fit(model: MeshAutoencoder, optimizer: torch.optim.Optimizer, frames: Train
     return state, not bar.disable
 
 
-def train_autoencoder(dataset: str | Path, folder: str | Path, model_config: AutoencoderConfig = AutoencoderConfig(),
-                      train_config: TrainConfig = TrainConfig(), cache_dir: Path | None = None,
-                      progress: bool = True) -> StageReport:
+def train_autoencoder(
+    dataset: str | Path,
+    folder: str | Path,
+    model_config: AutoencoderConfig = AutoencoderConfig(),
+    train_config: TrainConfig = TrainConfig(),
+    cache_dir: Path | None = None,
+    progress: bool = True,
+) -> StageReport:
     """Train (or resume), keep the best weights, encode every sequence. See the module docstring.
     ``metrics``: the per-vertex errors (val, test, train; mm), latent shape, levels and ``extra``."""
     t_start = time.perf_counter()
@@ -229,27 +278,48 @@ def train_autoencoder(dataset: str | Path, folder: str | Path, model_config: Aut
         torch.set_num_threads(train_config.threads)
     ds = GarmentDataset(dataset)
     frames = training_frames(ds, train_config.mirror)
-    hierarchy = cached_hierarchy(ds.template.faces, ds.template.num_vertices, cache_dir,
-                                 **model_config.hierarchy_options(), name=str(dataset))
-    model = MeshAutoencoder(hierarchy, model_config, ds.template.vertices.astype(np.float32), scale=frames.scale).to(device)
+    hierarchy = cached_hierarchy(
+        ds.template.faces,
+        ds.template.num_vertices,
+        cache_dir,
+        **model_config.hierarchy_options(),
+        name=str(dataset),
+    )
+    model = MeshAutoencoder(
+        hierarchy, model_config, ds.template.vertices.astype(np.float32), scale=frames.scale
+    ).to(device)
     optimizer = torch.optim.Adam(model.parameters(), lr=train_config.learning_rate)
     training_key, key = _settings_keys(model_config, train_config, ds)
     done = _finished(folder, key)
-    if done is not None and not cap_since_raised(done.get("stopped"), done.get("cap_minutes"), train_config.max_minutes):
+    if done is not None and not cap_since_raised(
+        done.get("stopped"), done.get("cap_minutes"), train_config.max_minutes
+    ):
         # finished with these settings: nothing to redo
         return _stage_report(done, folder, reused=True)
     state, shown = _fit(model, optimizer, frames, folder, training_key, train_config, device, progress)
     # encoding (the refinement's decoder passes) runs on the training device, the rest on the CPU,
     # where inference will
-    latents = encode_dataset(model, ds, folder / "latents.npz", train_config.refine_steps, train_config.refine_lr,
-                             progress=shown)
+    latents = encode_dataset(
+        model, ds, folder / "latents.npz", train_config.refine_steps, train_config.refine_lr, progress=shown
+    )
     model.cpu()
     with atomic_path(folder / "model.pt") as tmp:
         torch.save(model.state_dict(), tmp)
-    atomic_write_text(folder / "config.json", json.dumps({"model": model_config.to_dict(), "train": asdict(train_config),
-                                                          "dataset": str(dataset), "garment": ds.garment,
-                                                          "vertices": ds.template.num_vertices, "scale": frames.scale,
-                                                          "sizes": list(hierarchy.sizes)}, indent=2))
+    atomic_write_text(
+        folder / "config.json",
+        json.dumps(
+            {
+                "model": model_config.to_dict(),
+                "train": asdict(train_config),
+                "dataset": str(dataset),
+                "garment": ds.garment,
+                "vertices": ds.template.num_vertices,
+                "scale": frames.scale,
+                "sizes": list(hierarchy.sizes),
+            },
+            indent=2,
+        ),
+    )
 
     def refined_pve(split: str, split_frames: np.ndarray, every: int = 1) -> float:
         """``split_frames``: the split's frames in ``ds.splits`` order, as ``latents`` holds them."""
@@ -258,20 +328,37 @@ def train_autoencoder(dataset: str | Path, folder: str | Path, model_config: Aut
             return float("nan")
         return pve_mm(model, split_frames[::every], np.concatenate([latents[n] for n in names])[::every])
 
-    record = {"key": key, "folder": str(folder), "epochs": state["epoch"], "best_epoch": state["best_epoch"],
-              "epochs_asked": train_config.epochs, "stopped": state["stopped"], "cap_minutes": train_config.max_minutes,
-              "val_pve_mm": refined_pve("val", frames.val), "test_pve_mm": refined_pve("test", frames.test),
-              "train_pve_mm": refined_pve("train", frames.train[:frames.simulated], every=4),
-              "minutes": (time.perf_counter() - t_start) / 60, "latent_shape": model.latent_shape,
-              "sizes": hierarchy.sizes,
-              "extra": {"refine_steps": train_config.refine_steps,
-                        "encoder_only_mm": {"val": state["best"], "test": pve_mm(model, frames.test)}}}
+    record = {
+        "key": key,
+        "folder": str(folder),
+        "epochs": state["epoch"],
+        "best_epoch": state["best_epoch"],
+        "epochs_asked": train_config.epochs,
+        "stopped": state["stopped"],
+        "cap_minutes": train_config.max_minutes,
+        "val_pve_mm": refined_pve("val", frames.val),
+        "test_pve_mm": refined_pve("test", frames.test),
+        "train_pve_mm": refined_pve("train", frames.train[: frames.simulated], every=4),
+        "minutes": (time.perf_counter() - t_start) / 60,
+        "latent_shape": model.latent_shape,
+        "sizes": hierarchy.sizes,
+        "extra": {
+            "refine_steps": train_config.refine_steps,
+            "encoder_only_mm": {"val": state["best"], "test": pve_mm(model, frames.test)},
+        },
+    }
     atomic_write_text(folder / "report.json", strict_json(record, indent=2))
     return _stage_report(record, folder)
 
 
-def encode_dataset(model: MeshAutoencoder, ds: GarmentDataset, path: Path, refine_steps: int = 10,
-                   refine_lr: float = 0.03, progress: bool = True) -> dict[str, np.ndarray]:
+def encode_dataset(
+    model: MeshAutoencoder,
+    ds: GarmentDataset,
+    path: Path,
+    refine_steps: int = 10,
+    refine_lr: float = 0.03,
+    progress: bool = True,
+) -> dict[str, np.ndarray]:
     """Latents (T, N, 8) float32 of every sequence (``fit_latents``), written to ``path`` as one
     npz entry per sequence name, and returned."""
     latents = {}

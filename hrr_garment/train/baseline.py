@@ -50,25 +50,33 @@ class DirectTrainConfig:
         return from_settings(cls, values, "baseline training")
 
 
-def _sequences(features: dict, latents: dict, names: list[str], bundle) -> tuple[list[torch.Tensor], list[torch.Tensor]]:
+def _sequences(
+    features: dict, latents: dict, names: list[str], bundle
+) -> tuple[list[torch.Tensor], list[torch.Tensor]]:
     motion = [torch.from_numpy(bundle.motion_stats.normalize(features[n]).astype(np.float32)) for n in names]
-    lat = [torch.from_numpy(bundle.latent_stats.normalize(latents[n].reshape(len(latents[n]), -1)).astype(np.float32))
-           for n in names]
+    lat = [
+        torch.from_numpy(
+            bundle.latent_stats.normalize(latents[n].reshape(len(latents[n]), -1)).astype(np.float32)
+        )
+        for n in names
+    ]
     return motion, lat
 
 
-def _crops(motion: list[torch.Tensor], latents: list[torch.Tensor], crop: int, batch: int, gen: torch.Generator):
+def _crops(
+    motion: list[torch.Tensor], latents: list[torch.Tensor], crop: int, batch: int, gen: torch.Generator
+):
     """Batches of random crops: about one crop per ``crop`` frames of training data per epoch."""
     lengths = torch.tensor([len(m) for m in motion])
     picks = max(1, int(lengths.sum()) // crop)
     seq = torch.multinomial(lengths.float(), picks, replacement=True, generator=gen)
     for i in range(0, picks, batch):
-        size = min(crop, int(lengths[seq[i:i + batch]].min()))
+        size = min(crop, int(lengths[seq[i : i + batch]].min()))
         xs, ys = [], []
-        for s in seq[i:i + batch].tolist():
+        for s in seq[i : i + batch].tolist():
             start = int(torch.randint(0, len(motion[s]) - size + 1, (1,), generator=gen))
-            xs.append(motion[s][start:start + size])
-            ys.append(latents[s][start:start + size])
+            xs.append(motion[s][start : start + size])
+            ys.append(latents[s][start : start + size])
         yield torch.stack(xs), torch.stack(ys)
 
 
@@ -79,21 +87,34 @@ def _val_loss(model: DirectRegressor, motion: list[torch.Tensor], latents: list[
     return total / sum(y.numel() for y in latents)
 
 
-def train_direct(model: DirectRegressor, train: tuple, val: tuple, folder: Path, config: DirectTrainConfig, key: str,
-                 progress: bool = True) -> dict:
+def train_direct(
+    model: DirectRegressor,
+    train: tuple,
+    val: tuple,
+    folder: Path,
+    config: DirectTrainConfig,
+    key: str,
+    progress: bool = True,
+) -> dict:
     """Train (or resume) the baseline in ``folder``; leaves the best weights in ``model``, returns the
     loop's state."""
     folder.mkdir(parents=True, exist_ok=True)
     torch.manual_seed(config.seed)
-    optimizer = torch.optim.Adam(model.parameters(), lr=config.learning_rate, weight_decay=config.weight_decay)
+    optimizer = torch.optim.Adam(
+        model.parameters(), lr=config.learning_rate, weight_decay=config.weight_decay
+    )
     state = {"epoch": 0, "best": math.inf, "best_epoch": 0, "stale": 0, "elapsed_s": 0.0}
     best_weights = {k: v.clone() for k, v in model.state_dict().items()}
     checkpoint, log_path = folder / "checkpoint.pt", folder / "log.jsonl"
-    state, best_weights = load_checkpoint(checkpoint, key, state, best_weights=best_weights, model=model, optimizer=optimizer)
+    state, best_weights = load_checkpoint(
+        checkpoint, key, state, best_weights=best_weights, model=model, optimizer=optimizer
+    )
     resume_log(log_path, state["epoch"])
     started, spent = time.perf_counter(), state["elapsed_s"]
     deadline = None if config.max_minutes is None else started + 60 * config.max_minutes - spent
-    bar = tqdm(total=config.epochs, initial=state["epoch"], desc="baseline", unit="epoch", disable=not progress)
+    bar = tqdm(
+        total=config.epochs, initial=state["epoch"], desc="baseline", unit="epoch", disable=not progress
+    )
     while state["epoch"] < config.epochs and state["stale"] < config.patience:
         if deadline is not None and time.perf_counter() > deadline:
             break
@@ -111,7 +132,10 @@ def train_direct(model: DirectRegressor, train: tuple, val: tuple, folder: Path,
         state["elapsed_s"] = spent + time.perf_counter() - started
         best_weights = keep_if_best(state, val_loss, model, best_weights=best_weights)
         with open(log_path, "a", encoding="utf-8") as fh:
-            fh.write(strict_json({"epoch": state["epoch"], "train_l1": total / max(count, 1), "val_l1": val_loss}) + "\n")
+            fh.write(
+                strict_json({"epoch": state["epoch"], "train_l1": total / max(count, 1), "val_l1": val_loss})
+                + "\n"
+            )
         save_checkpoint(checkpoint, key, state, best_weights=best_weights, model=model, optimizer=optimizer)
         bar.set_postfix(val=f"{val_loss:.3f}")
         bar.update(1)
@@ -121,39 +145,67 @@ def train_direct(model: DirectRegressor, train: tuple, val: tuple, folder: Path,
     return state
 
 
-def run_baseline_stage(dataset: str | Path, folder: str | Path, config: DirectConfig = DirectConfig(),
-                       train_config: DirectTrainConfig = DirectTrainConfig(), cache_dir: Path | None = None,
-                       progress: bool = True) -> StageReport:
+def run_baseline_stage(
+    dataset: str | Path,
+    folder: str | Path,
+    config: DirectConfig = DirectConfig(),
+    train_config: DirectTrainConfig = DirectTrainConfig(),
+    cache_dir: Path | None = None,
+    progress: bool = True,
+) -> StageReport:
     """Train the baseline for the bundle in ``folder`` (the code-space stage must have run);
     ``metrics`` is its ``direct`` entry in bundle.json."""
     t0 = time.perf_counter()
     folder = Path(folder)
     bundle, ds = bundle_and_dataset(folder, dataset, cache_dir)
     base_files = {k: v for k, v in bundle.meta["files"].items() if k != "direct.safetensors"}
-    key = hashlib.sha1(json.dumps([config.to_dict(), asdict(train_config) | {"max_minutes": None}, base_files, ds.splits],
-                                  sort_keys=True).encode()).hexdigest()[:16]
+    key = hashlib.sha1(
+        json.dumps(
+            [config.to_dict(), asdict(train_config) | {"max_minutes": None}, base_files, ds.splits],
+            sort_keys=True,
+        ).encode()
+    ).hexdigest()[:16]
     if bundle.meta.get("direct", {}).get("key") == key:
         return _stage_report({**bundle.meta["direct"], "reused": True}, folder, reused=True)
     with np.load(folder / "autoencoder" / "latents.npz", allow_pickle=False) as f:
         latents = {name: f[name] for name in ds.names}
     names = {k: ds.splits[k] for k in ("train", "val")}
-    features = dataset_features(ds, names["train"] + names["val"], bundle.codespace.config.memory,body_measures=bool(bundle.codespace.config.body_features))
+    features = dataset_features(
+        ds,
+        names["train"] + names["val"],
+        bundle.codespace.config.memory,
+        body_measures=bool(bundle.codespace.config.body_features),
+    )
     train = _sequences(features, latents, names["train"], bundle)
     val = _sequences(features, latents, names["val"], bundle)
     torch.manual_seed(train_config.seed)
     model = DirectRegressor(config, bundle.codespace.features, bundle.autoencoder.latent_shape)
     state = train_direct(model, train, val, folder / "baseline", train_config, key, progress)
     val_mm = validation_pve_mm(model, bundle, val[0], body_frames(ds, names["val"]))
-    entry = {"key": key, "config": config.to_dict(), "train": asdict(train_config), "epochs": state["epoch"],
-             "best_epoch": state["best_epoch"], "validation_mm": val_mm, "minutes": (time.perf_counter() - t0) / 60}
+    entry = {
+        "key": key,
+        "config": config.to_dict(),
+        "train": asdict(train_config),
+        "epochs": state["epoch"],
+        "best_epoch": state["best_epoch"],
+        "validation_mm": val_mm,
+        "minutes": (time.perf_counter() - t0) / 60,
+    }
     add_bundle_part(folder, "direct.safetensors", model.state_dict(), meta={"direct": entry})
     atomic_write_text(folder / "baseline" / "report.json", strict_json(entry, indent=2))
     return _stage_report(entry, folder)
 
 
 def _stage_report(entry: dict, folder: Path, reused: bool = False) -> StageReport:
-    return StageReport("baseline", folder / "baseline", int(entry["epochs"]), best_epoch=int(entry["best_epoch"]),
-                       minutes=float(entry["minutes"]), reused=reused, metrics=entry)
+    return StageReport(
+        "baseline",
+        folder / "baseline",
+        int(entry["epochs"]),
+        best_epoch=int(entry["best_epoch"]),
+        minutes=float(entry["minutes"]),
+        reused=reused,
+        metrics=entry,
+    )
 
 
 @torch.no_grad()
@@ -163,5 +215,9 @@ def validation_pve_mm(model: DirectRegressor, bundle, motion: list[torch.Tensor]
     pred = []
     for m in motion:
         z = bundle.latent_stats.denormalize(model(m[None])[0].numpy())
-        pred.append(decode(torch.from_numpy(z.reshape(len(z), *bundle.autoencoder.latent_shape).astype(np.float32))).numpy())
+        pred.append(
+            decode(
+                torch.from_numpy(z.reshape(len(z), *bundle.autoencoder.latent_shape).astype(np.float32))
+            ).numpy()
+        )
     return 1000.0 * float(np.linalg.norm(np.concatenate(pred) - truth, axis=-1).mean())

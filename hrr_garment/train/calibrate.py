@@ -61,16 +61,27 @@ class WindowPredictions:
 
     def residual(self, weight: float) -> np.ndarray:
         """The residual mode's latents at ``weight``."""
-        return residual_latents(self.regression, self.retrieval, self.match_regression, similarity=self.similarity, weight=weight)
+        return residual_latents(
+            self.regression, self.retrieval, self.match_regression, similarity=self.similarity, weight=weight
+        )
 
     def doubts(self) -> dict[str, np.ndarray]:
         """Each gate signal's doubt per window (the signals this database supports)."""
-        return {g: gate_doubt(g, self.entropy, self.similarity, distance=self.distance) for g in GATE_SIGNALS
-                if g != "distance" or self.distance is not None}
+        return {
+            g: gate_doubt(g, self.entropy, self.similarity, distance=self.distance)
+            for g in GATE_SIGNALS
+            if g != "distance" or self.distance is not None
+        }
 
 
-def predict_windows(model: CodeSpace, motion: np.ndarray, motion_stats: FeatureStats, latent_stats: FeatureStats,
-                    database: CodeDatabase, exclude: np.ndarray | None = None) -> WindowPredictions:
+def predict_windows(
+    model: CodeSpace,
+    motion: np.ndarray,
+    motion_stats: FeatureStats,
+    latent_stats: FeatureStats,
+    database: CodeDatabase,
+    exclude: np.ndarray | None = None,
+) -> WindowPredictions:
     """Both candidates for every motion window (N, W, F) (raw features)."""
     enc = encode_motion(model, motion_stats, latent_stats, motion_windows=motion)
     match, similarity = database.search(enc.codes, exclude, window_bodies(model, enc))
@@ -88,8 +99,10 @@ def window_errors_mm(decode, latents: np.ndarray, truth: np.ndarray, batch: int 
     flat = torch.from_numpy(np.ascontiguousarray(latents.reshape(n * w, *latents.shape[2:])))
     out = np.empty(n * w, np.float64)
     for i in range(0, n * w, batch):
-        pred = decode(flat[i:i + batch]).numpy()
-        out[i:i + batch] = np.linalg.norm(pred - truth.reshape(n * w, *truth.shape[2:])[i:i + batch], axis=-1).mean(-1)
+        pred = decode(flat[i : i + batch]).numpy()
+        out[i : i + batch] = np.linalg.norm(
+            pred - truth.reshape(n * w, *truth.shape[2:])[i : i + batch], axis=-1
+        ).mean(-1)
     return 1000.0 * out.reshape(n, w).mean(1)
 
 
@@ -122,10 +135,15 @@ class ModeErrors:
 
     def summary(self, tau: float, gate: str = "entropy") -> dict:
         retrieve = self.doubts[gate] < tau
-        return {"hybrid": float(np.where(retrieve, self.retrieval, self.regression).mean()),
-                "regression": float(self.regression.mean()), "retrieval": float(self.retrieval.mean()),
-                "autoencoder": float(self.autoencoder.mean()), "retrieval_usage": float(retrieve.mean()), "tau": tau,
-                "gate": gate}
+        return {
+            "hybrid": float(np.where(retrieve, self.retrieval, self.regression).mean()),
+            "regression": float(self.regression.mean()),
+            "retrieval": float(self.retrieval.mean()),
+            "autoencoder": float(self.autoencoder.mean()),
+            "retrieval_usage": float(retrieve.mean()),
+            "tau": tau,
+            "gate": gate,
+        }
 
     def residual_calibration(self) -> dict | None:
         """The residual mode's weight (:func:`choose_residual_weight`), its error and every
@@ -134,13 +152,26 @@ class ModeErrors:
 
     def gates(self) -> dict[str, dict]:
         """Each signal's calibration: its best tau, the hybrid's error there and its retrieval usage."""
-        return {g: {"tau": s.best_tau, "validation_mm": min(s.errors_mm),
-                    "retrieval_usage": s.retrieval_usage[s.taus.index(s.best_tau)]} for g, s in self.sweeps.items()}
+        return {
+            g: {
+                "tau": s.best_tau,
+                "validation_mm": min(s.errors_mm),
+                "retrieval_usage": s.retrieval_usage[s.taus.index(s.best_tau)],
+            }
+            for g, s in self.sweeps.items()
+        }
 
 
-def window_mode_errors(model: BundleParts | Bundle, motion: dict[str, np.ndarray], frames: dict[str, np.ndarray], *,
-                       encoding: dict, max_windows: int | None = MAX_WINDOWS,
-                       windows: list[tuple[str, int]] | None = None, progress: bool = False) -> ModeErrors:
+def window_mode_errors(
+    model: BundleParts | Bundle,
+    motion: dict[str, np.ndarray],
+    frames: dict[str, np.ndarray],
+    *,
+    encoding: dict,
+    max_windows: int | None = MAX_WINDOWS,
+    windows: list[tuple[str, int]] | None = None,
+    progress: bool = False,
+) -> ModeErrors:
     """Both modes' window-level errors of ``model`` (a bundle, or the parts of one being trained:
     its code space, statistics, database and mesh autoencoder) on windows of the sequences ``motion`` (features (T, F)) /
     ``frames`` (heading-frame vertices (T, V, 3)), decoded with the autoencoder's fast decoder:
@@ -161,23 +192,35 @@ def window_mode_errors(model: BundleParts | Bundle, motion: dict[str, np.ndarray
     own_frames = {}
     for n, rows in tqdm(needed.items(), desc="calibration floor", unit="sequence", disable=not progress):
         rows_sorted = np.array(sorted(rows))
-        fitted = autoencoder.fit_latents(torch.from_numpy(frames[n][rows_sorted]), refine_steps, refine_lr).numpy()
+        fitted = autoencoder.fit_latents(
+            torch.from_numpy(frames[n][rows_sorted]), refine_steps, refine_lr
+        ).numpy()
         own_frames[n] = np.zeros((len(frames[n]), *fitted.shape[1:]), fitted.dtype)
         own_frames[n][rows_sorted] = fitted
-    own = np.stack([own_frames[n][s:s + w] for n, s in windows])
+    own = np.stack([own_frames[n][s : s + w] for n, s in windows])
     pred = predict_windows(codespace, m, motion_stats, latent_stats, database)
     decode = autoencoder.fast_decoder()
     err_reg = window_errors_mm(decode, pred.regression, truth)
     err_ret = window_errors_mm(decode, pred.retrieval, truth)
     err_ae = window_errors_mm(decode, own, truth)
     doubts = pred.doubts()
-    return ModeErrors(err_reg, err_ret, err_ae, doubts, {g: sweep_tau(d, err_reg, err_ret) for g, d in doubts.items()},
-                      residual_errors(pred, decode, truth, progress))
+    return ModeErrors(
+        err_reg,
+        err_ret,
+        err_ae,
+        doubts,
+        {g: sweep_tau(d, err_reg, err_ret) for g, d in doubts.items()},
+        residual_errors(pred, decode, truth, progress),
+    )
 
 
-def calibration_windows(motion: dict[str, np.ndarray], frames: dict[str, np.ndarray], window: int,
-                        windows: list[tuple[str, int]] | None = None,
-                        max_windows: int | None = MAX_WINDOWS) -> tuple[list[tuple[str, int]], np.ndarray, np.ndarray]:
+def calibration_windows(
+    motion: dict[str, np.ndarray],
+    frames: dict[str, np.ndarray],
+    window: int,
+    windows: list[tuple[str, int]] | None = None,
+    max_windows: int | None = MAX_WINDOWS,
+) -> tuple[list[tuple[str, int]], np.ndarray, np.ndarray]:
     """The (sequence, first frame) pairs calibration decodes (``windows``, default every window of
     every sequence; at most ``max_windows`` of them, evenly spaced) and their motion (N, W, F) and
     true frames (N, W, V, 3)."""
@@ -187,23 +230,31 @@ def calibration_windows(motion: dict[str, np.ndarray], frames: dict[str, np.ndar
         windows = [windows[i] for i in np.linspace(0, len(windows) - 1, max_windows).round().astype(int)]
     if not windows:
         raise ValueError(f"no validation sequence has {window} frames or more")
-    m = np.stack([motion[n][s:s + window] for n, s in windows])
-    truth = np.stack([frames[n][s:s + window] for n, s in windows])
+    m = np.stack([motion[n][s : s + window] for n, s in windows])
+    truth = np.stack([frames[n][s : s + window] for n, s in windows])
     return windows, np.ascontiguousarray(m), truth
 
 
-def residual_errors(pred: WindowPredictions, decode, truth: np.ndarray,
-                    progress: bool = False) -> dict[float, np.ndarray] | None:
+def residual_errors(
+    pred: WindowPredictions, decode, truth: np.ndarray, progress: bool = False
+) -> dict[float, np.ndarray] | None:
     """Per-window errors (mm) of the residual mode at each of :data:`RESIDUAL_WEIGHTS` (None where
     the database has no motion windows to regress the matches from)."""
     if pred.match_regression is None:
         return None
-    return {w: window_errors_mm(decode, pred.residual(w), truth)
-            for w in tqdm(RESIDUAL_WEIGHTS, desc="residual weights", unit="weight", disable=not progress)}
+    return {
+        w: window_errors_mm(decode, pred.residual(w), truth)
+        for w in tqdm(RESIDUAL_WEIGHTS, desc="residual weights", unit="weight", disable=not progress)
+    }
 
 
-def calibrate_residual(model: BundleParts | Bundle, motion: dict[str, np.ndarray], frames: dict[str, np.ndarray],
-                       windows: list[tuple[str, int]] | None = None, max_windows: int | None = MAX_WINDOWS) -> dict:
+def calibrate_residual(
+    model: BundleParts | Bundle,
+    motion: dict[str, np.ndarray],
+    frames: dict[str, np.ndarray],
+    windows: list[tuple[str, int]] | None = None,
+    max_windows: int | None = MAX_WINDOWS,
+) -> dict:
     """The residual mode's calibration alone (:meth:`ModeErrors.residual_calibration`), on the
     windows :func:`window_mode_errors` uses: for a model trained before the residual mode."""
     _, m, truth = calibration_windows(motion, frames, model.codespace.config.window, windows, max_windows)
@@ -211,17 +262,24 @@ def calibrate_residual(model: BundleParts | Bundle, motion: dict[str, np.ndarray
     if pred.match_regression is None:
         raise ValueError("the database has no motion windows: the residual mode cannot run on this model")
     decode = model.autoencoder.fast_decoder()
-    return choose_residual_weight(window_errors_mm(decode, pred.regression, truth), residual_errors(pred, decode, truth))
+    return choose_residual_weight(
+        window_errors_mm(decode, pred.regression, truth), residual_errors(pred, decode, truth)
+    )
 
 
-def choose_residual_weight(regression_err: np.ndarray, residual_err: dict[float, np.ndarray],
-                           allowance: float = ACCURACY_ALLOWANCE) -> dict:
+def choose_residual_weight(
+    regression_err: np.ndarray, residual_err: dict[float, np.ndarray], allowance: float = ACCURACY_ALLOWANCE
+) -> dict:
     """The largest weight (0: regression) whose mean error is at most ``allowance`` x the
     regression's, its error, and every weight's."""
     errors = {0.0: float(np.mean(regression_err)), **{w: float(np.mean(e)) for w, e in residual_err.items()}}
     weight = max(w for w, e in errors.items() if w == 0.0 or e <= allowance * errors[0.0])
-    return {"weight": weight, "validation_mm": errors[weight], "allowance": allowance,
-            "errors_mm": {str(w): e for w, e in errors.items()}}
+    return {
+        "weight": weight,
+        "validation_mm": errors[weight],
+        "allowance": allowance,
+        "errors_mm": {str(w): e for w, e in errors.items()},
+    }
 
 
 @dataclass
@@ -234,11 +292,17 @@ class TauSweep:
     best_tau: float
 
     def to_dict(self) -> dict:
-        return {"taus": [t if math.isfinite(t) else "inf" for t in self.taus], "errors_mm": self.errors_mm,
-                "retrieval_usage": self.retrieval_usage, "best_tau": self.best_tau}
+        return {
+            "taus": [t if math.isfinite(t) else "inf" for t in self.taus],
+            "errors_mm": self.errors_mm,
+            "retrieval_usage": self.retrieval_usage,
+            "best_tau": self.best_tau,
+        }
 
 
-def sweep_tau(doubt: np.ndarray, regression_err: np.ndarray, retrieval_err: np.ndarray, steps: int = 20) -> TauSweep:
+def sweep_tau(
+    doubt: np.ndarray, regression_err: np.ndarray, retrieval_err: np.ndarray, steps: int = 20
+) -> TauSweep:
     """Hybrid error for tau at 0, the doubt's quantiles and above its maximum (retrieval only, and a
     finite threshold a bundle can store: a window more doubtful than any seen regresses); picks the
     lowest."""
@@ -258,14 +322,29 @@ def evaluate_bundle(bundle, dataset: str | Path, split: str = "val") -> dict:
     """Recompute a bundle's per-mode window errors on a dataset split (the numbers ``hrr-train``
     reports for ``val``); the dataset must be of the bundle's garment and template."""
     ds = GarmentDataset(dataset)
-    if ds.garment != bundle.garment or ds.template.num_vertices != bundle.template.num_vertices \
-            or not np.array_equal(ds.template.faces, bundle.template.faces):
-        raise DatasetError(dataset, f"is a {ds.garment} dataset with {ds.template.num_vertices} vertices; the model in "
-                                    f"{bundle.folder} is for {bundle.garment} with {bundle.template.num_vertices}")
+    if (
+        ds.garment != bundle.garment
+        or ds.template.num_vertices != bundle.template.num_vertices
+        or not np.array_equal(ds.template.faces, bundle.template.faces)
+    ):
+        raise DatasetError(
+            dataset,
+            f"is a {ds.garment} dataset with {ds.template.num_vertices} vertices; the model in "
+            f"{bundle.folder} is for {bundle.garment} with {bundle.template.num_vertices}",
+        )
     names = ds.splits.get(split, [])
     if not names:
         raise DatasetError(dataset, f"has no {split!r} sequences")
     encoding = refine_settings(bundle.meta.get("encoding", {}))
-    modes = window_mode_errors(bundle, dataset_features(ds, names, bundle.codespace.config.memory,body_measures=bool(bundle.codespace.config.body_features)),
-                               {n: body_frames(ds, [n]) for n in names}, encoding=encoding)
+    modes = window_mode_errors(
+        bundle,
+        dataset_features(
+            ds,
+            names,
+            bundle.codespace.config.memory,
+            body_measures=bool(bundle.codespace.config.body_features),
+        ),
+        {n: body_frames(ds, [n]) for n in names},
+        encoding=encoding,
+    )
     return modes.summary(bundle.tau, bundle.gate)

@@ -19,8 +19,16 @@ from ..io_utils import atomic_path
 def save_checkpoint(path: Path, key: str, state: dict, best_weights: dict, **stateful) -> None:
     """Write the loop's state, best weights, RNG and the ``stateful`` objects atomically."""
     with atomic_path(path) as tmp:
-        torch.save({"key": key, "state": json.dumps(state), "best_weights": best_weights, "rng": torch.get_rng_state(),
-                    **{name: obj.state_dict() for name, obj in stateful.items()}}, tmp)
+        torch.save(
+            {
+                "key": key,
+                "state": json.dumps(state),
+                "best_weights": best_weights,
+                "rng": torch.get_rng_state(),
+                **{name: obj.state_dict() for name, obj in stateful.items()},
+            },
+            tmp,
+        )
 
 
 def load_checkpoint(path: Path, key: str, state: dict, best_weights: dict, **stateful) -> tuple[dict, dict]:

@@ -64,8 +64,12 @@ class CodeSpaceTrainConfig:
     plateau_patience: int = 8
     plateau_delta: float = 0.01  # relative improvement that counts as progress
     patience: int = 25  # epochs after the switch without a better validation regression loss
-    max_minutes: float | None = None  # a wall-clock cap on the epochs (a run it cuts short warns: pipeline.budget)
-    target_mm: float | None = None  # validation regression error (window level) these settings reach on an idle machine
+    max_minutes: float | None = (
+        None  # a wall-clock cap on the epochs (a run it cuts short warns: pipeline.budget)
+    )
+    target_mm: float | None = (
+        None  # validation regression error (window level) these settings reach on an idle machine
+    )
     windows_per_epoch: int | None = 8192  # an epoch draws at most this many training windows (None: all)
     validation: str = "clips"  # "clips": the dataset's val split; "windows": the paper's 9:1 split of windows
     # how a latent window's error is measured: "standardised", the mean square of the standardised
@@ -84,18 +88,28 @@ class CodeSpaceTrainConfig:
 
     def __post_init__(self) -> None:
         if self.validation not in VALIDATION_PROTOCOLS:
-            raise SettingsError(f"code space training: validation must be one of {', '.join(VALIDATION_PROTOCOLS)}, "
-                                f"got {self.validation!r}")
+            raise SettingsError(
+                f"code space training: validation must be one of {', '.join(VALIDATION_PROTOCOLS)}, "
+                f"got {self.validation!r}"
+            )
         if self.latent_loss not in LATENT_LOSSES:
-            raise SettingsError(f"code space training: latent_loss must be one of {', '.join(LATENT_LOSSES)}, "
-                                f"got {self.latent_loss!r}")
+            raise SettingsError(
+                f"code space training: latent_loss must be one of {', '.join(LATENT_LOSSES)}, "
+                f"got {self.latent_loss!r}"
+            )
         if self.contact_steps < 0 or self.contact_weight < 0:
-            raise SettingsError(f"code space training: contact_steps and contact_weight must be at least 0, got "
-                                f"{self.contact_steps} and {self.contact_weight}")
+            raise SettingsError(
+                f"code space training: contact_steps and contact_weight must be at least 0, got "
+                f"{self.contact_steps} and {self.contact_weight}"
+            )
         if not 0.0 <= self.contact_margin_m <= 0.05:
-            raise SettingsError(f"code space training: contact_margin_m must be in [0, 0.05] metres, got {self.contact_margin_m}")
+            raise SettingsError(
+                f"code space training: contact_margin_m must be in [0, 0.05] metres, got {self.contact_margin_m}"
+            )
         if not 0.0 <= self.vertex_ridge <= 1.0:
-            raise SettingsError(f"code space training: vertex_ridge must be in [0, 1], got {self.vertex_ridge}")
+            raise SettingsError(
+                f"code space training: vertex_ridge must be in [0, 1], got {self.vertex_ridge}"
+            )
 
     @classmethod
     def from_dict(cls, values: dict) -> "CodeSpaceTrainConfig":
@@ -145,8 +159,12 @@ class WindowTensors:
             raise ValueError("the motion and latent windows are not read from the same frames")
         lat = windows.latents.frames
         lat = latent_stats.normalize(lat.reshape(len(lat), -1)).reshape(lat.shape)
-        return cls(torch.from_numpy(motion_stats.normalize(windows.motion.frames)), torch.from_numpy(lat),
-                   torch.from_numpy(windows.motion.first), windows.motion.window)
+        return cls(
+            torch.from_numpy(motion_stats.normalize(windows.motion.frames)),
+            torch.from_numpy(lat),
+            torch.from_numpy(windows.motion.first),
+            windows.motion.window,
+        )
 
     def __len__(self) -> int:
         return len(self.first)
@@ -166,30 +184,46 @@ def mean_square(error: torch.Tensor) -> torch.Tensor:
     return error.pow(2).mean()
 
 
-def _losses(model: CodeSpace, motion: torch.Tensor, latents: torch.Tensor, temperature: float,
-            latent_loss: Callable[[torch.Tensor], torch.Tensor] = mean_square) -> dict[str, torch.Tensor]:
+def _losses(
+    model: CodeSpace,
+    motion: torch.Tensor,
+    latents: torch.Tensor,
+    temperature: float,
+    latent_loss: Callable[[torch.Tensor], torch.Tensor] = mean_square,
+) -> dict[str, torch.Tensor]:
     q, body = model.quantizer, model.body_of(motion)
     g_logits, m_logits = model.garment_encoder(latents, body), model.motion_encoder(motion)
     _, e_g = q(g_logits, temperature)
     _, e_m = q(m_logits, temperature)
     # the regression path as inference runs it: the code distribution's mean embedding (or the
     # sampled code's, for the paper's argmax regression)
-    e_reg = regression_embedding(model, q.split(m_logits)) if model.config.regression_code == "expected" else e_m
-    return {"rec": latent_loss(model.decode(e_g, body=body) - latents), "match": (e_g - e_m).pow(2).mean(),
-            "diversity": 0.5 * (q.diversity_loss(g_logits) + q.diversity_loss(m_logits)),
-            "g_logits": g_logits.detach(), "m_logits": m_logits.detach(), "regress": latent_loss(model.decode(e_reg, body=body) - latents)}
+    e_reg = (
+        regression_embedding(model, q.split(m_logits)) if model.config.regression_code == "expected" else e_m
+    )
+    return {
+        "rec": latent_loss(model.decode(e_g, body=body) - latents),
+        "match": (e_g - e_m).pow(2).mean(),
+        "diversity": 0.5 * (q.diversity_loss(g_logits) + q.diversity_loss(m_logits)),
+        "g_logits": g_logits.detach(),
+        "m_logits": m_logits.detach(),
+        "regress": latent_loss(model.decode(e_reg, body=body) - latents),
+    }
 
 
 @torch.no_grad()
-def evaluate(model: CodeSpace, data: WindowTensors, batch: int = 256,
-             latent_loss: Callable[[torch.Tensor], torch.Tensor] = mean_square) -> dict:
+def evaluate(
+    model: CodeSpace,
+    data: WindowTensors,
+    batch: int = 256,
+    latent_loss: Callable[[torch.Tensor], torch.Tensor] = mean_square,
+) -> dict:
     """Validation losses (the latent errors measured by ``latent_loss``) and code statistics (eval
     mode: argmax codes)."""
     model.eval()
     sums = {"rec": 0.0, "match": 0.0, "regress": 0.0}
     agree, entropies, g_idx = 0.0, [], []
     for i in range(0, len(data), batch):
-        out = _losses(model, *data[i:i + batch], 1.0, latent_loss)
+        out = _losses(model, *data[i : i + batch], 1.0, latent_loss)
         n = len(out["g_logits"])
         for k in sums:
             sums[k] += float(out[k]) * n
@@ -202,13 +236,25 @@ def evaluate(model: CodeSpace, data: WindowTensors, batch: int = 256,
     ent = torch.cat(entropies) if entropies else torch.zeros(0)
     usage = model.quantizer.usage(torch.cat(g_idx)) if g_idx else None
     hist = np.histogram(ent.numpy(), bins=10, range=(0.0, math.log(model.quantizer.classes)))[0].tolist()
-    return {**{k: v / n for k, v in sums.items()}, "agreement": agree / n, "entropy_mean": float(ent.mean()) if len(ent) else float("nan"),
-            "entropy_histogram": hist, "dead_classes": usage.dead if usage else 0,
-            "perplexity": usage.perplexity if usage else float("nan")}
+    return {
+        **{k: v / n for k, v in sums.items()},
+        "agreement": agree / n,
+        "entropy_mean": float(ent.mean()) if len(ent) else float("nan"),
+        "entropy_histogram": hist,
+        "dead_classes": usage.dead if usage else 0,
+        "perplexity": usage.perplexity if usage else float("nan"),
+    }
 
 
-def _train_step(model: CodeSpace, optimizer: torch.optim.Optimizer, batch: tuple, config: CodeSpaceTrainConfig, *,
-                weights: tuple[float, float], latent_loss: Callable[[torch.Tensor], torch.Tensor]) -> dict:
+def _train_step(
+    model: CodeSpace,
+    optimizer: torch.optim.Optimizer,
+    batch: tuple,
+    config: CodeSpaceTrainConfig,
+    *,
+    weights: tuple[float, float],
+    latent_loss: Callable[[torch.Tensor], torch.Tensor],
+) -> dict:
     """One optimiser step on a batch of windows at this epoch's (temperature, match weight);
     returns its losses."""
     temperature, match_weight = weights
@@ -222,47 +268,70 @@ def _train_step(model: CodeSpace, optimizer: torch.optim.Optimizer, batch: tuple
     return out
 
 
-def train_codespace(model: CodeSpace, train: WindowTensors, val: WindowTensors, folder: Path,
-                    config: CodeSpaceTrainConfig = CodeSpaceTrainConfig(), key: str = "", progress: bool = True,
-                    latent_loss: Callable[[torch.Tensor], torch.Tensor] = mean_square) -> dict:
+def train_codespace(
+    model: CodeSpace,
+    train: WindowTensors,
+    val: WindowTensors,
+    folder: Path,
+    config: CodeSpaceTrainConfig = CodeSpaceTrainConfig(),
+    key: str = "",
+    progress: bool = True,
+    latent_loss: Callable[[torch.Tensor], torch.Tensor] = mean_square,
+) -> dict:
     """Train (or resume) in ``folder``; leaves the best weights in ``model`` and returns a summary.
     ``latent_loss`` measures the latent windows' errors (:class:`.vertex_metric.VertexMetric` for
     ``config.latent_loss`` "vertex")."""
     folder.mkdir(parents=True, exist_ok=True)
     torch.manual_seed(config.seed)
-    optimizer = torch.optim.Adam(model.parameters(), lr=config.learning_rate, weight_decay=config.weight_decay)
+    optimizer = torch.optim.Adam(
+        model.parameters(), lr=config.learning_rate, weight_decay=config.weight_decay
+    )
     plateau = PlateauDetector(config.plateau_patience, config.plateau_delta)
     state = {"epoch": 0, "switched_at": None, "best": math.inf, "best_epoch": 0, "stale": 0, "elapsed_s": 0.0}
     best_weights = {k: v.clone() for k, v in model.state_dict().items()}
     checkpoint, log_path = folder / "checkpoint.pt", folder / "log.jsonl"
-    state, best_weights = load_checkpoint(checkpoint, key, state, best_weights=best_weights, model=model, optimizer=optimizer,
-                                          plateau=plateau)
+    state, best_weights = load_checkpoint(
+        checkpoint, key, state, best_weights=best_weights, model=model, optimizer=optimizer, plateau=plateau
+    )
     resume_log(log_path, state["epoch"])
     gen = torch.Generator().manual_seed(config.seed + state["epoch"])
     started, spent = time.perf_counter(), state["elapsed_s"]  # the budget counts interrupted runs too
     deadline = None if config.max_minutes is None else started + 60 * config.max_minutes - spent
-    bar = tqdm(total=config.epochs, initial=state["epoch"], desc="code space", unit="epoch", disable=not progress)
+    bar = tqdm(
+        total=config.epochs, initial=state["epoch"], desc="code space", unit="epoch", disable=not progress
+    )
     t0 = time.perf_counter()
 
     def run_fraction(epoch: float) -> float:
-        return run_progress(epoch, config.epochs, spent + time.perf_counter() - started, max_minutes=config.max_minutes)
+        return run_progress(
+            epoch, config.epochs, spent + time.perf_counter() - started, max_minutes=config.max_minutes
+        )
 
     epoch_s = None  # the last epoch's duration
-    while (stopped := stop_reason(state, config, deadline=deadline, epoch_s=epoch_s,
-                                          progress=run_fraction(state["epoch"]))) is None:
+    while (
+        stopped := stop_reason(
+            state, config, deadline=deadline, epoch_s=epoch_s, progress=run_fraction(state["epoch"])
+        )
+    ) is None:
         epoch_started, epoch = time.perf_counter(), state["epoch"]
-        temperature = max(config.temperature_min, config.temperature * config.temperature_decay ** epoch)
+        temperature = max(config.temperature_min, config.temperature * config.temperature_decay**epoch)
         match_weight = config.match_weight if state["switched_at"] is None else config.match_weight_late
         model.train()
         # bounded epochs: the temperature, the plateau switch and the patience count epochs, and
         # the real-motion library has some 100,000 windows; each epoch draws a fresh sample
-        order = torch.randperm(len(train), generator=gen)[:config.windows_per_epoch]
+        order = torch.randperm(len(train), generator=gen)[: config.windows_per_epoch]
         sums = {"rec": 0.0, "match": 0.0, "diversity": 0.0}
         for i in range(0, len(order), config.batch_size):
             set_learning_rate(optimizer, config, run_fraction(epoch + i / len(order)))
-            idx = order[i:i + config.batch_size]
-            out = _train_step(model, optimizer, train[idx], config, weights=(temperature, match_weight),
-                              latent_loss=latent_loss)
+            idx = order[i : i + config.batch_size]
+            out = _train_step(
+                model,
+                optimizer,
+                train[idx],
+                config,
+                weights=(temperature, match_weight),
+                latent_loss=latent_loss,
+            )
             for k in sums:
                 sums[k] += out[k].item() * len(idx)
         metrics = evaluate(model, val, latent_loss=latent_loss)
@@ -273,19 +342,40 @@ def train_codespace(model: CodeSpace, train: WindowTensors, val: WindowTensors, 
         # the best regression path (what inference uses) is kept in both stages: a budgeted run
         # on a large library can end before the plateau switch (real-quick: 17 epochs, no switch)
         best_weights = keep_if_best(state, metrics["regress"], model, best_weights=best_weights)
-        record = {"epoch": state["epoch"], "temperature": temperature, "match_weight": match_weight,
-                  "learning_rate": optimizer.param_groups[0]["lr"],
-                  **{f"train_{k}": v / len(order) for k, v in sums.items()}, **{f"val_{k}": v for k, v in metrics.items()}}
+        record = {
+            "epoch": state["epoch"],
+            "temperature": temperature,
+            "match_weight": match_weight,
+            "learning_rate": optimizer.param_groups[0]["lr"],
+            **{f"train_{k}": v / len(order) for k, v in sums.items()},
+            **{f"val_{k}": v for k, v in metrics.items()},
+        }
         with open(log_path, "a", encoding="utf-8") as fh:
             fh.write(strict_json(record) + "\n")
-        save_checkpoint(checkpoint, key, state, best_weights=best_weights, model=model, optimizer=optimizer, plateau=plateau)
-        bar.set_postfix(rec=f"{metrics['rec']:.3f}", regress=f"{metrics['regress']:.3f}", agree=f"{metrics['agreement']:.2f}",
-                        stage=1 if state["switched_at"] is None else 2)
+        save_checkpoint(
+            checkpoint,
+            key,
+            state,
+            best_weights=best_weights,
+            model=model,
+            optimizer=optimizer,
+            plateau=plateau,
+        )
+        bar.set_postfix(
+            rec=f"{metrics['rec']:.3f}",
+            regress=f"{metrics['regress']:.3f}",
+            agree=f"{metrics['agreement']:.2f}",
+            stage=1 if state["switched_at"] is None else 2,
+        )
         bar.update(1)
         epoch_s = time.perf_counter() - epoch_started
     bar.close()
     state["stopped"] = stopped
     model.load_state_dict(best_weights)
     model.eval()
-    return {**state, "minutes": (time.perf_counter() - t0) / 60, "final": evaluate(model, val, latent_loss=latent_loss),
-            "config": asdict(config)}
+    return {
+        **state,
+        "minutes": (time.perf_counter() - t0) / 60,
+        "final": evaluate(model, val, latent_loss=latent_loss),
+        "config": asdict(config),
+    }

@@ -69,21 +69,32 @@ class BodyContacts:
                 continue
             ends = body.pose_motion(motion)
             if a and len(body.capsules) != a[0].shape[1]:
-                raise DatasetError(ds.path, f"sequence {name!r} stands on a body of {len(body.capsules)} capsules, "
-                                            f"another on {a[0].shape[1]}: the contact phase needs one capsule set")
+                raise DatasetError(
+                    ds.path,
+                    f"sequence {name!r} stands on a body of {len(body.capsules)} capsules, "
+                    f"another on {a[0].shape[1]}: the contact phase needs one capsule set",
+                )
             a.append(to_body_frame(ends[0], motion))
             b.append(to_body_frame(ends[1], motion))
             rows.append(np.full(len(ends[0]), bodies.index(ds.body_of[name])))
         frames = len(windows.motion.frames)
         if sum(len(x) for x in a) != frames:
-            raise ValueError(f"the windows store {frames} frames, their sequences have {sum(len(x) for x in a)}")
+            raise ValueError(
+                f"the windows store {frames} frames, their sequences have {sum(len(x) for x in a)}"
+            )
         radii = np.stack([ds.bodies[n].body.radii for n in bodies]).astype(np.float32)
         offsets = np.stack([ds.bodies[n].offset(ds.template) for n in bodies])
-        return cls(*(torch.from_numpy(np.concatenate(x).astype(np.float32)) for x in (a, b)),
-                   torch.from_numpy(np.concatenate(rows).astype(np.int64)), torch.from_numpy(radii), torch.from_numpy(offsets))
+        return cls(
+            *(torch.from_numpy(np.concatenate(x).astype(np.float32)) for x in (a, b)),
+            torch.from_numpy(np.concatenate(rows).astype(np.int64)),
+            torch.from_numpy(radii),
+            torch.from_numpy(offsets),
+        )
 
 
-def capsule_distance(points: torch.Tensor, a: torch.Tensor, b: torch.Tensor, radii: torch.Tensor) -> torch.Tensor:
+def capsule_distance(
+    points: torch.Tensor, a: torch.Tensor, b: torch.Tensor, radii: torch.Tensor
+) -> torch.Tensor:
     """Signed distance (n, V) of points (n, V, 3) to each frame's union of capsules (ends a, b
     (n, C, 3), radii (n, C)); negative inside. Differentiable; the torch twin of
     :func:`~hrr_garment.body.capsules.capsule_signed_distance` (tested equal)."""
@@ -127,25 +138,39 @@ class FrameDecoder:
 
 
 @torch.no_grad()
-def inside_fraction(model: CodeSpace, decoder: FrameDecoder, data: ContactWindows, count: int = REPORT_WINDOWS) -> float:
+def inside_fraction(
+    model: CodeSpace, decoder: FrameDecoder, data: ContactWindows, count: int = REPORT_WINDOWS
+) -> float:
     """The fraction of vertices more than 5 mm inside the body in the regression's middle frame of
     up to ``count`` of the windows, evenly spaced."""
     windows = data.windows
     if not len(windows):
         return float("nan")
-    picked = torch.from_numpy(np.unique(np.linspace(0, len(windows) - 1, min(count, len(windows))).astype(np.int64)))
+    picked = torch.from_numpy(
+        np.unique(np.linspace(0, len(windows) - 1, min(count, len(windows))).astype(np.int64))
+    )
     inside, total, middle = 0.0, 0, windows.window // 2
     for chunk in picked.split(BATCH):
         motion, _ = windows[chunk]
-        d = decoder.distance(_regression(model, motion)[:, middle], data.contacts, windows.first[chunk] + middle)
+        d = decoder.distance(
+            _regression(model, motion)[:, middle], data.contacts, windows.first[chunk] + middle
+        )
         inside += float((d < -PENETRATION_DEPTH_M).sum())
         total += d.numel()
     return inside / total
 
 
-def teach_contact(model: CodeSpace, decoder: FrameDecoder, train: ContactWindows, *, val: ContactWindows | None,
-                  config: CodeSpaceTrainConfig, latent_loss: Callable[[torch.Tensor], torch.Tensor],
-                  checkpoint: tuple[Path, str], progress: bool = True) -> dict:
+def teach_contact(
+    model: CodeSpace,
+    decoder: FrameDecoder,
+    train: ContactWindows,
+    *,
+    val: ContactWindows | None,
+    config: CodeSpaceTrainConfig,
+    latent_loss: Callable[[torch.Tensor], torch.Tensor],
+    checkpoint: tuple[Path, str],
+    progress: bool = True,
+) -> dict:
     """Run the phase (module docstring; ``config.contact_steps`` and ``contact_weight``) on
     ``model`` in place and return its summary, with the share of ``val``'s vertices inside the body
     before and after. The result is kept at ``checkpoint`` (path, key): a re-run with the same key
@@ -167,7 +192,9 @@ def teach_contact(model: CodeSpace, decoder: FrameDecoder, train: ContactWindows
         motion, latents = windows[idx]
         pred = _regression(model, motion)
         frame = torch.randint(0, windows.window, (len(idx),), generator=gen)
-        distance = decoder.distance(pred[torch.arange(len(idx)), frame], train.contacts, windows.first[idx] + frame)
+        distance = decoder.distance(
+            pred[torch.arange(len(idx)), frame], train.contacts, windows.first[idx] + frame
+        )
         depth_mm = 1000.0 * torch.relu(config.contact_margin_m - distance).mean()
         loss = latent_loss(pred - latents) + config.contact_weight * depth_mm
         optimizer.zero_grad(set_to_none=True)
@@ -176,9 +203,15 @@ def teach_contact(model: CodeSpace, decoder: FrameDecoder, train: ContactWindows
         depth_sum += float(depth_mm.detach())
     decoder.autoencoder.requires_grad_(True)
     after = inside_fraction(model, decoder, val) if val is not None else float("nan")
-    summary = {"steps": config.contact_steps, "weight": config.contact_weight, "margin_m": config.contact_margin_m,
-               "mean_depth_mm": depth_sum / max(config.contact_steps, 1), "val_inside_before": before,
-               "val_inside_after": after, "minutes": (time.perf_counter() - started) / 60}
+    summary = {
+        "steps": config.contact_steps,
+        "weight": config.contact_weight,
+        "margin_m": config.contact_margin_m,
+        "mean_depth_mm": depth_sum / max(config.contact_steps, 1),
+        "val_inside_before": before,
+        "val_inside_after": after,
+        "minutes": (time.perf_counter() - started) / 60,
+    }
     with atomic_path(path) as tmp:
         torch.save({"key": key, "weights": model.state_dict(), "summary": strict_json(summary)}, tmp)
     return summary
@@ -196,6 +229,12 @@ def model_contact_windows(folder: Path, ds: GarmentDataset, split: str) -> Conta
     names = ds.splits[split]
     with np.load(Path(folder) / "autoencoder" / "latents.npz", allow_pickle=False) as f:
         latents = {n: f[n] for n in names}
-    windows = build_windows(dataset_features(ds, names, config.memory, body_measures=config.body_features > 0), latents,
-                            names, window=config.window)
-    return ContactWindows(WindowTensors.of(windows, bundle.motion_stats, bundle.latent_stats), BodyContacts.of(ds, windows))
+    windows = build_windows(
+        dataset_features(ds, names, config.memory, body_measures=config.body_features > 0),
+        latents,
+        names,
+        window=config.window,
+    )
+    return ContactWindows(
+        WindowTensors.of(windows, bundle.motion_stats, bundle.latent_stats), BodyContacts.of(ds, windows)
+    )

@@ -18,7 +18,9 @@ def laplacian_operator(index: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
     cols = index[:, 1:][mask[:, 1:] > 0]
     vals = -(1.0 / count).unsqueeze(1).expand_as(index[:, 1:])[mask[:, 1:] > 0]
     i = torch.cat([torch.stack([rows, cols]), torch.arange(v).repeat(2, 1)], 1)
-    return torch.sparse_coo_tensor(i, torch.cat([vals, torch.ones(v)]), (v, v), check_invariants=True).coalesce()
+    return torch.sparse_coo_tensor(
+        i, torch.cat([vals, torch.ones(v)]), (v, v), check_invariants=True
+    ).coalesce()
 
 
 def apply_laplacian(op: torch.Tensor, x: torch.Tensor) -> torch.Tensor:
@@ -26,7 +28,9 @@ def apply_laplacian(op: torch.Tensor, x: torch.Tensor) -> torch.Tensor:
     return torch.sparse.mm(op, x.transpose(0, 1).reshape(x.shape[1], -1))
 
 
-def pve_mm(model: MeshAutoencoder, frames: np.ndarray, latents: np.ndarray | None = None, batch: int = 64) -> float:
+def pve_mm(
+    model: MeshAutoencoder, frames: np.ndarray, latents: np.ndarray | None = None, batch: int = 64
+) -> float:
     """Mean per-vertex Euclidean error (mm) of reconstructing ``frames``: through the encoder, or
     by decoding the given ``latents`` (one per frame)."""
     if len(frames) == 0:
@@ -35,7 +39,11 @@ def pve_mm(model: MeshAutoencoder, frames: np.ndarray, latents: np.ndarray | Non
     device = model.template.device
     with torch.no_grad():
         for i in range(0, len(frames), batch):
-            x = torch.from_numpy(frames[i:i + batch]).to(device)
-            y = model(x) if latents is None else model.decode(torch.from_numpy(latents[i:i + batch]).to(device))
+            x = torch.from_numpy(frames[i : i + batch]).to(device)
+            y = (
+                model(x)
+                if latents is None
+                else model.decode(torch.from_numpy(latents[i : i + batch]).to(device))
+            )
             total += float((y - x).norm(dim=-1).mean(1).sum())
     return 1000.0 * total / len(frames)

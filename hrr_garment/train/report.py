@@ -22,6 +22,10 @@ class StageReport:
     minutes: float  # wall time of the run that made the outputs
     reused: bool = False  # the outputs were current: nothing was trained or written
     metrics: dict = field(default_factory=dict)
-    epochs_asked: int | None = None  # the epochs its settings asked for (None: a report from before they were kept)
-    stopped: str | None = None  # why training stopped (train.schedule: "epochs", "early stop", "minutes cap"); None: unknown
+    epochs_asked: int | None = (
+        None  # the epochs its settings asked for (None: a report from before they were kept)
+    )
+    stopped: str | None = (
+        None  # why training stopped (train.schedule: "epochs", "early stop", "minutes cap"); None: unknown
+    )
     validation_mm: float | None = None  # the validation error its settings' ``target_mm`` is compared with

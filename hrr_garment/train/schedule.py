@@ -45,7 +45,9 @@ def epoch_fits(now: float, deadline: float | None, epoch_s: float | None) -> boo
 STOPPED_EPOCHS, STOPPED_EARLY, STOPPED_BY_CAP = "epochs", "early stop", "minutes cap"
 
 
-def stop_reason(state: dict, config, *, deadline: float | None, epoch_s: float | None, progress: float) -> str | None:
+def stop_reason(
+    state: dict, config, *, deadline: float | None, epoch_s: float | None, progress: float
+) -> str | None:
     """Why a run stops before its next epoch, or None where it goes on: its ``config.epochs`` are
     done, another epoch as long as the last would end past the cap's ``deadline``
     (:func:`epoch_fits`), or the validation error stopped improving (:func:`early_stop`, ``state``'s
@@ -82,7 +84,9 @@ def set_learning_rate(optimizer: torch.optim.Optimizer, config, progress: float)
     weights still noisy, and a long run froze long before its end. ``config``: a train config with
     ``learning_rate`` and ``lr_final``."""
     lo = config.learning_rate * config.lr_final
-    lr = lo + 0.5 * (config.learning_rate - lo) * (1.0 + math.cos(math.pi * progress))  # a float: the checkpoint holds it
+    lr = lo + 0.5 * (config.learning_rate - lo) * (
+        1.0 + math.cos(math.pi * progress)
+    )  # a float: the checkpoint holds it
     for group in optimizer.param_groups:
         group["lr"] = lr
     return lr

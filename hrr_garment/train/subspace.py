@@ -38,7 +38,9 @@ from .checkpoint import keep_if_best, load_checkpoint, resume_log, save_checkpoi
 from .report import StageReport
 
 CANDIDATES = (16, 32, 64, 96, 128, 192, 256, 384, 512)  # component counts tried, up to max_components
-STAGE_VERSION = 2  # moves when the stage would give another result from the same inputs (2: the size's fallback)
+STAGE_VERSION = (
+    2  # moves when the stage would give another result from the same inputs (2: the size's fallback)
+)
 
 
 @dataclass(frozen=True)
@@ -69,8 +71,12 @@ class SubspaceTrainConfig:
 @torch.no_grad()
 def _decode(decoder, latents: np.ndarray, batch: int = 256) -> np.ndarray:
     """(F, N, C) latents -> (F, V, 3) vertices through ``decoder`` (either kind), ``batch`` frames at a time."""
-    return np.concatenate([decoder(torch.from_numpy(np.ascontiguousarray(latents[i:i + batch]))).numpy()
-                           for i in range(0, len(latents), batch)])
+    return np.concatenate(
+        [
+            decoder(torch.from_numpy(np.ascontiguousarray(latents[i : i + batch]))).numpy()
+            for i in range(0, len(latents), batch)
+        ]
+    )
 
 
 def _project(frames: np.ndarray, basis: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
@@ -79,38 +85,59 @@ def _project(frames: np.ndarray, basis: tuple[np.ndarray, np.ndarray]) -> np.nda
     return (frames.reshape(len(frames), -1) - mean) @ rows.T
 
 
-def _coefficients(decoder, latents: np.ndarray, basis: tuple[np.ndarray, np.ndarray], progress: bool,
-                  batch: int = 1024) -> np.ndarray:
+def _coefficients(
+    decoder, latents: np.ndarray, basis: tuple[np.ndarray, np.ndarray], progress: bool, batch: int = 1024
+) -> np.ndarray:
     """(F, K) coefficients of the full decoder's outputs on ``basis`` (its mean and rows), chunk by
     chunk: the training frames' outputs are never all held at once."""
     out = np.empty((len(latents), len(basis[1])), np.float32)
-    for i in tqdm(range(0, len(latents), batch), desc="subspace targets", unit="chunk", leave=False, disable=not progress):
-        out[i:i + batch] = _project(_decode(decoder, latents[i:i + batch]), basis)
+    for i in tqdm(
+        range(0, len(latents), batch),
+        desc="subspace targets",
+        unit="chunk",
+        leave=False,
+        disable=not progress,
+    ):
+        out[i : i + batch] = _project(_decode(decoder, latents[i : i + batch]), basis)
     return out
 
 
-def _fit(model: SubspaceDecoder, inputs: torch.Tensor, targets: torch.Tensor, val: tuple[torch.Tensor, torch.Tensor],
-         folder: Path, config: SubspaceTrainConfig, key: str, progress: bool) -> dict:
+def _fit(
+    model: SubspaceDecoder,
+    inputs: torch.Tensor,
+    targets: torch.Tensor,
+    val: tuple[torch.Tensor, torch.Tensor],
+    folder: Path,
+    config: SubspaceTrainConfig,
+    key: str,
+    progress: bool,
+) -> dict:
     """Train ``model.net`` on standardised (inputs, targets); the best validation epoch's weights are left in it."""
     folder.mkdir(parents=True, exist_ok=True)
     torch.manual_seed(config.seed)
-    weight = model.coeff_std ** 2 / (model.coeff_std ** 2).sum()  # the vertex error's share of each coefficient
+    weight = model.coeff_std**2 / (model.coeff_std**2).sum()  # the vertex error's share of each coefficient
     optimizer = torch.optim.Adam(model.net.parameters(), lr=config.learning_rate)
     steps = config.epochs * math.ceil(len(inputs) / config.batch_size)
     schedule = torch.optim.lr_scheduler.CosineAnnealingLR(optimizer, T_max=steps)
     state = {"epoch": 0, "best": math.inf, "best_epoch": 0, "stale": 0, "elapsed_s": 0.0}
     best = {k: v.clone() for k, v in model.state_dict().items()}
     checkpoint, log_path = folder / "checkpoint.pt", folder / "log.jsonl"
-    state, best = load_checkpoint(checkpoint, key, state, best_weights=best, model=model, optimizer=optimizer, schedule=schedule)
+    state, best = load_checkpoint(
+        checkpoint, key, state, best_weights=best, model=model, optimizer=optimizer, schedule=schedule
+    )
     resume_log(log_path, state["epoch"])
     started, spent = time.perf_counter(), state["elapsed_s"]
-    bar = tqdm(total=config.epochs, initial=state["epoch"], desc="subspace", unit="epoch", disable=not progress)
+    bar = tqdm(
+        total=config.epochs, initial=state["epoch"], desc="subspace", unit="epoch", disable=not progress
+    )
     while state["epoch"] < config.epochs:
         model.train()
-        order = torch.randperm(len(inputs), generator=torch.Generator().manual_seed(config.seed + state["epoch"]))
+        order = torch.randperm(
+            len(inputs), generator=torch.Generator().manual_seed(config.seed + state["epoch"])
+        )
         total = 0.0
         for i in range(0, len(order), config.batch_size):
-            rows = order[i:i + config.batch_size]
+            rows = order[i : i + config.batch_size]
             loss = (((model.net(inputs[rows]) - targets[rows]) ** 2) * weight).sum(1).mean()
             optimizer.zero_grad(set_to_none=True)
             loss.backward()
@@ -124,8 +151,12 @@ def _fit(model: SubspaceDecoder, inputs: torch.Tensor, targets: torch.Tensor, va
         state["elapsed_s"] = spent + time.perf_counter() - started
         best = keep_if_best(state, val_loss, model, best_weights=best)
         with open(log_path, "a", encoding="utf-8") as fh:
-            fh.write(strict_json({"epoch": state["epoch"], "train": total / len(inputs), "val": val_loss}) + "\n")
-        save_checkpoint(checkpoint, key, state, best_weights=best, model=model, optimizer=optimizer, schedule=schedule)
+            fh.write(
+                strict_json({"epoch": state["epoch"], "train": total / len(inputs), "val": val_loss}) + "\n"
+            )
+        save_checkpoint(
+            checkpoint, key, state, best_weights=best, model=model, optimizer=optimizer, schedule=schedule
+        )
         bar.set_postfix(val=f"{val_loss:.4f}")
         bar.update(1)
     bar.close()
@@ -134,23 +165,27 @@ def _fit(model: SubspaceDecoder, inputs: torch.Tensor, targets: torch.Tensor, va
 
 
 @torch.no_grad()
-def validation_errors(model: SubspaceDecoder, latents: np.ndarray, truth: np.ndarray, batch: int = 256) -> dict[int, float]:
+def validation_errors(
+    model: SubspaceDecoder, latents: np.ndarray, truth: np.ndarray, batch: int = 256
+) -> dict[int, float]:
     """Mean per-vertex error (mm) against ``truth`` of the first K components, for each candidate K:
     the network runs once a frame, each size keeping a prefix of its coefficients."""
     sizes = [c for c in CANDIDATES if c < model.components] + [model.components]
     totals = dict.fromkeys(sizes, 0.0)
     for i in range(0, len(latents), batch):
-        coefficients = model.coefficients(torch.from_numpy(np.ascontiguousarray(latents[i:i + batch])))
+        coefficients = model.coefficients(torch.from_numpy(np.ascontiguousarray(latents[i : i + batch])))
         for k in sizes:
             pred = model.vertices(coefficients[:, :k]).numpy()
-            totals[k] += float(np.linalg.norm(pred - truth[i:i + batch], axis=-1).sum())
+            totals[k] += float(np.linalg.norm(pred - truth[i : i + batch], axis=-1).sum())
     return {k: 1000.0 * total / (truth.shape[0] * truth.shape[1]) for k, total in totals.items()}
 
 
 def pick_components(errors: dict[int, float], full_mm: float, tolerance: float) -> int:
     """The fewest components whose error is at most ``tolerance`` x ``full_mm``; where none is,
     the fewest within 1 % of the most accurate (more components would cost more for nothing)."""
-    bound = tolerance * full_mm if min(errors.values()) <= tolerance * full_mm else 1.01 * min(errors.values())
+    bound = (
+        tolerance * full_mm if min(errors.values()) <= tolerance * full_mm else 1.01 * min(errors.values())
+    )
     return min(k for k, e in errors.items() if e <= bound)
 
 
@@ -163,14 +198,21 @@ def subspace_warning(entry: dict) -> str | None:
     ratio = entry["validation_mm"] / max(entry["full_validation_mm"], 1e-9)
     if ratio <= FAR_FROM_FULL:
         return None
-    return (f"the fast decoder's validation error is {entry['validation_mm']:.2f} mm, {ratio:.1f} x the full decoder's "
-            f"{entry['full_validation_mm']:.2f} mm: run this model with decoder='full' (more training frames, or "
-            "subspace.model.hidden, bring it closer)")
+    return (
+        f"the fast decoder's validation error is {entry['validation_mm']:.2f} mm, {ratio:.1f} x the full decoder's "
+        f"{entry['full_validation_mm']:.2f} mm: run this model with decoder='full' (more training frames, or "
+        "subspace.model.hidden, bring it closer)"
+    )
 
 
-def run_subspace_stage(dataset: str | Path, folder: str | Path, config: SubspaceConfig = SubspaceConfig(),
-                       train_config: SubspaceTrainConfig = SubspaceTrainConfig(), cache_dir: Path | None = None,
-                       progress: bool = True) -> StageReport:
+def run_subspace_stage(
+    dataset: str | Path,
+    folder: str | Path,
+    config: SubspaceConfig = SubspaceConfig(),
+    train_config: SubspaceTrainConfig = SubspaceTrainConfig(),
+    cache_dir: Path | None = None,
+    progress: bool = True,
+) -> StageReport:
     """Distil the subspace decoder for the bundle in ``folder`` (the code-space stage must have run);
     its ``subspace`` entry in bundle.json is the report's ``metrics``."""
     t0 = time.perf_counter()
@@ -178,18 +220,37 @@ def run_subspace_stage(dataset: str | Path, folder: str | Path, config: Subspace
     bundle, ds = bundle_and_dataset(folder, dataset, cache_dir)
     names = {k: ds.splits[k] for k in ("train", "val")}
     if not names["val"]:
-        raise DatasetError(dataset, "has no validation sequences: the subspace decoder's size is chosen on them")
-    key = hashlib.sha1(json.dumps([STAGE_VERSION, config.to_dict(), asdict(train_config), bundle.meta["files"]["autoencoder.safetensors"],
-                                   ds.splits], sort_keys=True).encode()).hexdigest()[:16]
+        raise DatasetError(
+            dataset, "has no validation sequences: the subspace decoder's size is chosen on them"
+        )
+    key = hashlib.sha1(
+        json.dumps(
+            [
+                STAGE_VERSION,
+                config.to_dict(),
+                asdict(train_config),
+                bundle.meta["files"]["autoencoder.safetensors"],
+                ds.splits,
+            ],
+            sort_keys=True,
+        ).encode()
+    ).hexdigest()[:16]
     if bundle.meta.get("subspace", {}).get("key") == key:
         return _stage_report({**bundle.meta["subspace"], "reused": True}, folder, reused=True)
     with np.load(folder / "autoencoder" / "latents.npz", allow_pickle=False) as f:
-        latents = {split: np.concatenate([f[n] for n in split_names]).astype(np.float32) for split, split_names in names.items()}
+        latents = {
+            split: np.concatenate([f[n] for n in split_names]).astype(np.float32)
+            for split, split_names in names.items()
+        }
     full = bundle.autoencoder.fast_decoder()
     rng = np.random.default_rng(train_config.seed)
-    sample = np.sort(rng.choice(len(latents["train"]), min(train_config.pca_frames, len(latents["train"])), replace=False))
+    sample = np.sort(
+        rng.choice(len(latents["train"]), min(train_config.pca_frames, len(latents["train"])), replace=False)
+    )
     mean, basis, spread = principal_components(_decode(full, latents["train"][sample]), config.max_components)
-    model = SubspaceDecoder(bundle.autoencoder.latent_shape, bundle.template.num_vertices, len(basis), config=config)
+    model = SubspaceDecoder(
+        bundle.autoencoder.latent_shape, bundle.template.num_vertices, len(basis), config=config
+    )
     flat = latents["train"].reshape(len(latents["train"]), -1)
     model.latent_mean.copy_(torch.from_numpy(flat.mean(0)))
     model.latent_std.copy_(torch.from_numpy(np.maximum(flat.std(0), 1e-6)))
@@ -203,23 +264,50 @@ def run_subspace_stage(dataset: str | Path, folder: str | Path, config: Subspace
         return x, torch.from_numpy(coefficients / spread)
 
     val_frames = _decode(full, latents["val"])  # the targets on validation and the full decoder's own error
-    state = _fit(model, *standardised("train", _coefficients(full, latents["train"], (mean, basis), progress)),
-                 standardised("val", _project(val_frames, (mean, basis))), folder / "subspace", train_config, key, progress)
+    state = _fit(
+        model,
+        *standardised("train", _coefficients(full, latents["train"], (mean, basis), progress)),
+        standardised("val", _project(val_frames, (mean, basis))),
+        folder / "subspace",
+        train_config,
+        key,
+        progress,
+    )
     truth = body_frames(ds, names["val"])
     full_mm = 1000.0 * float(np.linalg.norm(val_frames - truth, axis=-1).mean())
     errors = validation_errors(model, latents["val"], truth)
     kept = pick_components(errors, full_mm, train_config.tolerance)
     model = model.truncated(kept)
-    entry = {"key": key, "config": config.to_dict(), "train": asdict(train_config), "components": kept,
-             "epochs": state["epoch"], "best_epoch": state["best_epoch"], "full_validation_mm": full_mm,
-             "validation_mm": errors[kept], "candidates_mm": {str(k): v for k, v in errors.items()},
-             "minutes": (time.perf_counter() - t0) / 60}
-    add_bundle_part(folder, SUBSPACE_FILE, {k: v.contiguous() for k, v in model.state_dict().items()}, meta={"subspace": entry})
+    entry = {
+        "key": key,
+        "config": config.to_dict(),
+        "train": asdict(train_config),
+        "components": kept,
+        "epochs": state["epoch"],
+        "best_epoch": state["best_epoch"],
+        "full_validation_mm": full_mm,
+        "validation_mm": errors[kept],
+        "candidates_mm": {str(k): v for k, v in errors.items()},
+        "minutes": (time.perf_counter() - t0) / 60,
+    }
+    add_bundle_part(
+        folder,
+        SUBSPACE_FILE,
+        {k: v.contiguous() for k, v in model.state_dict().items()},
+        meta={"subspace": entry},
+    )
     atomic_write_text(folder / "subspace" / "report.json", strict_json(entry, indent=2))
     return _stage_report(entry, folder)
 
 
 def _stage_report(entry: dict, folder: Path, reused: bool = False) -> StageReport:
-    return StageReport("subspace", folder / "subspace", int(entry["epochs"]), best_epoch=int(entry["best_epoch"]),
-                       minutes=float(entry["minutes"]), reused=reused, metrics=entry,
-                       validation_mm=float(entry["validation_mm"]))
+    return StageReport(
+        "subspace",
+        folder / "subspace",
+        int(entry["epochs"]),
+        best_epoch=int(entry["best_epoch"]),
+        minutes=float(entry["minutes"]),
+        reused=reused,
+        metrics=entry,
+        validation_mm=float(entry["validation_mm"]),
+    )

@@ -47,24 +47,39 @@ class VertexMetric:
         self.factor, self.ridge = factor.float(), float(ridge)
 
     @classmethod
-    def of_decoder(cls, autoencoder: MeshAutoencoder, frames: np.ndarray, std: np.ndarray, ridge: float = 0.05,
-                   step: float = 1e-2, progress: bool = True) -> "VertexMetric":
+    def of_decoder(
+        cls,
+        autoencoder: MeshAutoencoder,
+        frames: np.ndarray,
+        std: np.ndarray,
+        ridge: float = 0.05,
+        step: float = 1e-2,
+        progress: bool = True,
+    ) -> "VertexMetric":
         """From ``frames`` (n, nodes, C) raw latents of training frames and the latents' per-value
         standard deviations ``std`` (nodes x C,) that standardise them; ``step`` is the central
         differences' step in standardised units (the decoder is smooth on that scale, and float32
         rounding stays far below it)."""
         nodes, channels = frames.shape[1:]
         size = nodes * channels
-        scale = torch.as_tensor(np.asarray(std, np.float32).reshape(size)) * step  # a standardised step, in raw units
+        scale = (
+            torch.as_tensor(np.asarray(std, np.float32).reshape(size)) * step
+        )  # a standardised step, in raw units
         directions = torch.diag(scale).reshape(size, nodes, channels)
         metric = torch.zeros(size, size, dtype=torch.float64)
         with torch.no_grad():
-            for z in tqdm(torch.as_tensor(np.asarray(frames, np.float32)), desc="vertex metric", unit="frame",
-                          disable=not progress):
+            for z in tqdm(
+                torch.as_tensor(np.asarray(frames, np.float32)),
+                desc="vertex metric",
+                unit="frame",
+                disable=not progress,
+            ):
                 jacobian = []
                 for chunk in directions.split(128):
                     moved = autoencoder.decode(torch.cat([z + chunk, z - chunk])).double()
-                    jacobian.append(((moved[:len(chunk)] - moved[len(chunk):]) / (2 * step)).reshape(len(chunk), -1))
+                    jacobian.append(
+                        ((moved[: len(chunk)] - moved[len(chunk) :]) / (2 * step)).reshape(len(chunk), -1)
+                    )
                 jacobian = torch.cat(jacobian)  # (D, 3V): row d is the vertices' motion per unit of latent d
                 metric += jacobian @ jacobian.T
         metric = metric * (size / torch.trace(metric))

@@ -13,8 +13,14 @@ from hrr_garment.artifacts.database import CodeDatabase, code_similarity, pack_c
 def database(rng):
     n, groups, classes = 300, 32, 8
     codes = rng.integers(0, classes, (n, groups))
-    return CodeDatabase(codes, rng.normal(size=(n, 4, 3, 2)).astype(np.float32), np.arange(n) // 100,
-                        np.arange(n) % 100, ["s0", "s1", "s2"], classes)
+    return CodeDatabase(
+        codes,
+        rng.normal(size=(n, 4, 3, 2)).astype(np.float32),
+        np.arange(n) // 100,
+        np.arange(n) % 100,
+        ["s0", "s1", "s2"],
+        classes,
+    )
 
 
 def test_database_returns_the_exact_match_for_a_training_window(database):
@@ -47,9 +53,18 @@ def test_among_equally_near_codes_retrieval_prefers_the_nearest_body():
 
     codes = np.array([[0, 1, 2, 3], [0, 1, 2, 3], [0, 1, 2, 3], [0, 1, 2, 0]], np.uint8)
     bodies = np.array([[-1.0, -1.0], [0.0, 0.0], [1.0, 1.2], [0.9, 1.0]], np.float32)
-    motion = np.concatenate([np.zeros((4, 3, 5), np.float32), np.repeat(bodies[:, None], 3, 1)], 2)  # (N, W, 7)
-    db = CodeDatabase(codes, np.zeros((4, 3, 2, 2), np.float32), np.arange(4, dtype=np.int32), np.zeros(4, np.int32),
-                      ["a", "b", "c", "d"], classes=4, motion=motion)
+    motion = np.concatenate(
+        [np.zeros((4, 3, 5), np.float32), np.repeat(bodies[:, None], 3, 1)], 2
+    )  # (N, W, 7)
+    db = CodeDatabase(
+        codes,
+        np.zeros((4, 3, 2, 2), np.float32),
+        np.arange(4, dtype=np.int32),
+        np.zeros(4, np.int32),
+        ["a", "b", "c", "d"],
+        classes=4,
+        motion=motion,
+    )
     query = np.array([[0, 1, 2, 3], [0, 1, 2, 3], [0, 1, 2, 3]], np.uint8)
     found, similarity = db.search(query, bodies=np.array([[0.1, -0.1], [0.9, 1.0], [-2.0, -2.0]]))
     assert found.tolist() == [1, 2, 0] and np.allclose(similarity, 1.0)  # row 3 is the nearest body, not code

@@ -49,13 +49,21 @@ def test_a_version_2_bundle_loads_and_animates_as_31b4ef9_did(tmp_path, monkeypa
         monkeypatch.setattr(collision, "PUSH_OUT", unslacked)
         anim = animator.animate(_walk(), **run)
         assert left.mean() > 0.6 and np.abs(anim.vertices - old.vertices)[left].max() <= 1e-5
-        assert np.abs(anim.vertices - old.vertices).max() < 0.03  # the repair: undone as far as it tears, either way
+        assert (
+            np.abs(anim.vertices - old.vertices).max() < 0.03
+        )  # the repair: undone as far as it tears, either way
         return anim, old
 
     anim, written = as_written("auto.h5")
     assert anim.settings["mode"] == written.attrs["mode"] == "detail"
-    strain = [animator.edge_limits.lengths(v.astype(np.float64)) / animator.edge_limits.rest_length for v in (anim.vertices, limited.vertices)]
-    assert strain[1].max() <= max(strain[0].max(), 1.0) + 0.1 and np.abs(limited.vertices - anim.vertices).max() < 0.02
+    strain = [
+        animator.edge_limits.lengths(v.astype(np.float64)) / animator.edge_limits.rest_length
+        for v in (anim.vertices, limited.vertices)
+    ]
+    assert (
+        strain[1].max() <= max(strain[0].max(), 1.0) + 0.1
+        and np.abs(limited.vertices - anim.vertices).max() < 0.02
+    )
     monkeypatch.setattr(blending, "DEPARTURE_ONLY", False)  # the whole latent inertialized, as then
     again, causal = as_written("residual-causal.h5", mode="residual", causal=True)
     assert np.array_equal(again.match, causal.match) and (again.match >= 0).all()

@@ -33,15 +33,23 @@ def test_frames_read_as_the_windows_they_hold():
     motion, latents, names = sequences()
     w = build_windows(motion, latents, names, WINDOW)
     frames = w.latents
-    assert len(frames) == len(w) == 6 + 4 and frames.shape == (10, WINDOW, 3, 2) and w.motion.shape == (10, WINDOW, 5)
-    assert len(frames.frames) == len(w.motion.frames) == 9 + 7  # each frame once; the short sequence has no window
-    by_hand = np.stack([latents[names[q]][s:s + WINDOW] for q, s in zip(w.sequence, w.start)])
+    assert (
+        len(frames) == len(w) == 6 + 4
+        and frames.shape == (10, WINDOW, 3, 2)
+        and w.motion.shape == (10, WINDOW, 5)
+    )
+    assert (
+        len(frames.frames) == len(w.motion.frames) == 9 + 7
+    )  # each frame once; the short sequence has no window
+    by_hand = np.stack([latents[names[q]][s : s + WINDOW] for q, s in zip(w.sequence, w.start)])
     rows = np.array([7, 0, 7, 3])
     assert np.array_equal(frames[rows], by_hand[rows])
     assert np.array_equal(frames[rows, -1:], by_hand[rows, -1:])
-    assert np.array_equal(frames[5], by_hand[5]) and np.array_equal(frames[w.sequence == 2], by_hand[w.sequence == 2])
+    assert np.array_equal(frames[5], by_hand[5]) and np.array_equal(
+        frames[w.sequence == 2], by_hand[w.sequence == 2]
+    )
     assert np.array_equal(frames.windows(), by_hand)
-    assert np.array_equal(w.motion[8], motion["b"][2:2 + WINDOW])
+    assert np.array_equal(w.motion[8], motion["b"][2 : 2 + WINDOW])
     part = w.subset(np.array([9, 1]))  # a subset shares the frames
     assert part.latents.frames is frames.frames and np.array_equal(part.latents.windows(), by_hand[[9, 1]])
     doubled = frames.with_frames(2 * frames.frames)
@@ -78,28 +86,43 @@ def test_a_database_of_frames_answers_as_the_one_of_windows_and_stores_them_once
     motion, latents, names = sequences(1)
     w = build_windows(motion, latents, names, WINDOW)
     codes = np.random.default_rng(2).integers(0, 4, (len(w), 6))
-    w_latents, w_motion = w.latents.windows(), w.motion.windows()  # every window in full, as bundles stored them
+    w_latents, w_motion = (
+        w.latents.windows(),
+        w.motion.windows(),
+    )  # every window in full, as bundles stored them
     whole = CodeDatabase(codes, w_latents, w.sequence, w.start, names, 4, w_motion)
     framed = CodeDatabase(codes, w.latents, w.sequence, w.start, names, 4, w.motion)
     query = w.motion[[1, 8, 4]] + 0.01
     assert np.array_equal(framed.nearest_motion(query), whole.nearest_motion(query))
-    assert np.array_equal(framed.nearest_motion(query, np.array([0, 2, -1])), whole.nearest_motion(query, np.array([0, 2, -1])))
+    assert np.array_equal(
+        framed.nearest_motion(query, np.array([0, 2, -1])), whole.nearest_motion(query, np.array([0, 2, -1]))
+    )
     batch = framed.nearest_motion(query)
     assert [int(framed.nearest_motion(q[None])[0]) for q in query] == batch.tolist()  # alone = in a batch
-    twins = CodeDatabase(codes[:4], w_latents[:4], np.zeros(4, np.int32), np.arange(4), names, 4, w_motion[[2, 1, 2, 3]])
+    twins = CodeDatabase(
+        codes[:4], w_latents[:4], np.zeros(4, np.int32), np.arange(4), names, 4, w_motion[[2, 1, 2, 3]]
+    )
     assert twins.nearest_motion(w.motion[[2]])[0] == 0  # an exact tie goes to the lowest row
     rows = np.array([2, 9, 0])
-    np.testing.assert_allclose(framed.motion_distance(query, rows), whole.motion_distance(query, rows), rtol=1e-6)
+    np.testing.assert_allclose(
+        framed.motion_distance(query, rows), whole.motion_distance(query, rows), rtol=1e-6
+    )
     stored = framed.arrays()
     assert "latents" not in stored and "motion" not in stored
     assert stored["latent_frames"].size * WINDOW > w_latents.size  # fewer values than the windows ...
     assert stored["latent_frames"].size < w_latents.size  # ... by about the window's length
     again = CodeDatabase.from_arrays(stored, names, 4, WINDOW)
-    assert np.array_equal(again.latents[np.arange(len(w))], w_latents) and np.array_equal(again.motion.windows(), w_motion)
-    old = CodeDatabase.from_arrays(whole.arrays(), names, 4, WINDOW)  # the windows themselves, as bundles stored them
+    assert np.array_equal(again.latents[np.arange(len(w))], w_latents) and np.array_equal(
+        again.motion.windows(), w_motion
+    )
+    old = CodeDatabase.from_arrays(
+        whole.arrays(), names, 4, WINDOW
+    )  # the windows themselves, as bundles stored them
     assert np.array_equal(old.latents, w_latents)
     back = WindowFrames.of_windows(w_latents, w.sequence, w.start)  # the windows back into frames
-    assert np.array_equal(back.windows(), w_latents) and len(back.frames) == 9 + 7  # the short sequence has no window
+    assert (
+        np.array_equal(back.windows(), w_latents) and len(back.frames) == 9 + 7
+    )  # the short sequence has no window
     bad = w_latents.copy()
     bad[1, 0] += 1.0  # window 1's first frame is window 0's second
     with pytest.raises(ValueError, match="not stride-1 crops"):
@@ -114,22 +137,33 @@ def test_a_trained_bundle_stores_frames_and_one_that_stored_windows_still_loads(
     stored = load_file(str(root / "model" / "database.safetensors"))
     assert {"latent_frames", "motion_frames", "first"} <= set(stored) and "latents" not in stored
     bundle = load_bundle(root / "model")
-    windows = {"codes": stored["codes"], "sequence": stored["sequence"], "start": stored["start"],
-               "latents": bundle.database.latents.windows(), "motion": bundle.database.motion.windows()}
+    windows = {
+        "codes": stored["codes"],
+        "sequence": stored["sequence"],
+        "start": stored["start"],
+        "latents": bundle.database.latents.windows(),
+        "motion": bundle.database.motion.windows(),
+    }
     copy = tmp_path / "model"
     shutil.copytree(root / "model", copy)
     add_bundle_part(copy, "database.safetensors", windows, {}, numpy=True)
     old = load_bundle(copy)
-    assert isinstance(old.database.latents, np.ndarray) and np.array_equal(old.database.latents, windows["latents"])
+    assert isinstance(old.database.latents, np.ndarray) and np.array_equal(
+        old.database.latents, windows["latents"]
+    )
     motion = np.random.default_rng(0).normal(size=(3, *windows["motion"].shape[1:])).astype(np.float32)
     assert np.array_equal(old.database.nearest_motion(motion), bundle.database.nearest_motion(motion))
-    spec = importlib.util.spec_from_file_location("compact_database", Path(__file__).parents[2] / "tools" / "compact_database.py")
+    spec = importlib.util.spec_from_file_location(
+        "compact_database", Path(__file__).parents[2] / "tools" / "compact_database.py"
+    )
     tool = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(tool)
     before, after = tool.compact(copy)  # tools/compact_database.py: back to the frame form, checked
     assert after < before and load_file(str(copy / "database.safetensors")).keys() == stored.keys()
     again = load_bundle(copy).database
-    assert np.array_equal(again.latents.windows(), windows["latents"]) and np.array_equal(again.motion.frames, stored["motion_frames"])
+    assert np.array_equal(again.latents.windows(), windows["latents"]) and np.array_equal(
+        again.motion.frames, stored["motion_frames"]
+    )
 
 
 def test_everything_before_a_database_runs_without_faiss():

@@ -61,7 +61,10 @@ def _bad_template_faces(folder, meta):
 
 TAMPERS = {  # name: (edit of bundle.json's dict, or of the folder and dict; the error it must raise)
     "files deleted": (lambda f, m: m.pop("files"), "no valid 'files'"),
-    "one file unlisted": (lambda f, m: m["files"].pop("decoder.safetensors"), r"does not list \['decoder.safetensors'\]"),
+    "one file unlisted": (
+        lambda f, m: m["files"].pop("decoder.safetensors"),
+        r"does not list \['decoder.safetensors'\]",
+    ),
     "files as a list": (lambda f, m: m.update(files=list(m["files"])), "no valid 'files'"),
     "path escape": (_escape, "directly in the bundle folder"),
     "content_hash edited": (lambda f, m: m.update(content_hash="0" * 16), "content_hash .* was edited"),
@@ -70,22 +73,37 @@ TAMPERS = {  # name: (edit of bundle.json's dict, or of the folder and dict; the
     "tau negative": (lambda f, m: m.update(tau=-1.0), "'tau' must be a finite number"),
     "garment a list": (lambda f, m: m.update(garment=["skirt"]), "'garment' must be a name"),
     "database missing": (lambda f, m: m.pop("database"), "lacks its 'database' section"),
-    "auto an unknown mode": (lambda f, m: m.update(auto={"mode": "retrieval"}), "'auto' must hold a 'mode' of"),
+    "auto an unknown mode": (
+        lambda f, m: m.update(auto={"mode": "retrieval"}),
+        "'auto' must hold a 'mode' of",
+    ),
     "auto a string": (lambda f, m: m.update(auto="detail"), "'auto' must hold a 'mode' of"),
     "gates missing": (lambda f, m: m.pop("gates"), "'gates' must map gate signals"),
-    "a newer format": (lambda f, m: m.update(format_version=FORMAT_VERSION + 1), f"format_version {FORMAT_VERSION + 1}; .*upgrade hrr_garment"),
+    "a newer format": (
+        lambda f, m: m.update(format_version=FORMAT_VERSION + 1),
+        f"format_version {FORMAT_VERSION + 1}; .*upgrade hrr_garment",
+    ),
     "format 1": (lambda f, m: m.update(format_version=1), "format_version 1; .*retrain"),
-    "detail base unknown": (lambda f, m: m.update(auto={"mode": "detail", "detail_base": "retrieval"}),
-                            "'detail_base' must be one of regression, residual"),
-    "detail strength negative": (lambda f, m: m.update(auto={"mode": "detail", "detail_base": "regression",
-                                                             "detail_strength": -0.5}),
-                                 "'detail_strength' must be a number in"),
-    "detail strength NaN": (lambda f, m: m.update(auto={"mode": "detail", "detail_base": "regression",
-                                                        "detail_strength": float("nan")}),
-                            "'detail_strength' must be a number in"),
+    "detail base unknown": (
+        lambda f, m: m.update(auto={"mode": "detail", "detail_base": "retrieval"}),
+        "'detail_base' must be one of regression, residual",
+    ),
+    "detail strength negative": (
+        lambda f, m: m.update(auto={"mode": "detail", "detail_base": "regression", "detail_strength": -0.5}),
+        "'detail_strength' must be a number in",
+    ),
+    "detail strength NaN": (
+        lambda f, m: m.update(
+            auto={"mode": "detail", "detail_base": "regression", "detail_strength": float("nan")}
+        ),
+        "'detail_strength' must be a number in",
+    ),
     "NaN weights, hashes redone": (_nan_weights, "decoder.safetensors: non-finite weights"),
     "NaN statistics, hashes redone": (_nan_stats, "stats.safetensors: non-finite values"),
-    "template faces out of range, hashes redone": (_bad_template_faces, "template.safetensors: face indices must lie"),
+    "template faces out of range, hashes redone": (
+        _bad_template_faces,
+        "template.safetensors: face indices must lie",
+    ),
 }
 
 
@@ -102,7 +120,9 @@ def test_a_tampered_bundle_is_refused(trained, tmp_path, case):
     meta = json.loads((copy / "bundle.json").read_text())
     edit, message = TAMPERS[case]
     edit(copy, meta)
-    meta["manifest_hash"] = manifest_hash(meta)  # as a careful tamperer would: only the check under test can fire
+    meta["manifest_hash"] = manifest_hash(
+        meta
+    )  # as a careful tamperer would: only the check under test can fire
     (copy / "bundle.json").write_text(json.dumps(meta))
     with pytest.raises(BundleError, match=message):
         load_bundle(copy)

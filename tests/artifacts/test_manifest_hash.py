@@ -33,26 +33,38 @@ def _edit(folder: Path, change, rehash: bool = False) -> None:
     (folder / "bundle.json").write_text(json.dumps(meta))
 
 
-@pytest.mark.parametrize("change", [
-    lambda m: m.update(garment="dress"),  # a skirt model passed off as a dress model
-    lambda m: m.update(tau=1e308),
-    lambda m: m["autoencoder"].update(scale=1000.0),
-    lambda m: m["folds"].update(passes=1_000_000),  # a hang at run time
-    lambda m: m["codespace"]["config"].update(window=-5),
-])
+@pytest.mark.parametrize(
+    "change",
+    [
+        lambda m: m.update(garment="dress"),  # a skirt model passed off as a dress model
+        lambda m: m.update(tau=1e308),
+        lambda m: m["autoencoder"].update(scale=1000.0),
+        lambda m: m["folds"].update(passes=1_000_000),  # a hang at run time
+        lambda m: m["codespace"]["config"].update(window=-5),
+    ],
+)
 def test_an_edited_manifest_is_refused(bundle, change):
     _edit(bundle, change)
     with pytest.raises(BundleError, match="was edited after it was written"):
         read_meta(bundle)
 
 
-@pytest.mark.parametrize("change, message", [
-    (lambda m: m["autoencoder"].update(scale="x"), "scale must be a number"),
-    (lambda m: m["autoencoder"].update(scale=1000.0), "scale must be a number above 0 and at most 10"),
-    (lambda m: m["folds"].update(passes=1_000_000), "fold passes must be a whole number from 1 to 16"),
-    (lambda m: m["codespace"]["config"].update(window=-5), "window must be a whole number from 1 to 1000"),
-    (lambda m: m["autoencoder"]["config"].update(latent_fraction=-1), "latent_fraction must be a number above 0"),
-])
+@pytest.mark.parametrize(
+    "change, message",
+    [
+        (lambda m: m["autoencoder"].update(scale="x"), "scale must be a number"),
+        (lambda m: m["autoencoder"].update(scale=1000.0), "scale must be a number above 0 and at most 10"),
+        (lambda m: m["folds"].update(passes=1_000_000), "fold passes must be a whole number from 1 to 16"),
+        (
+            lambda m: m["codespace"]["config"].update(window=-5),
+            "window must be a whole number from 1 to 1000",
+        ),
+        (
+            lambda m: m["autoencoder"]["config"].update(latent_fraction=-1),
+            "latent_fraction must be a number above 0",
+        ),
+    ],
+)
 def test_a_re_hashed_manifest_still_has_its_values_checked(bundle, change, message):
     _edit(bundle, change, rehash=True)
     with pytest.raises(BundleError, match=message):

@@ -71,7 +71,9 @@ def test_a_forged_signature_is_refused(bundle, keys, tmp_path):
         read_meta(bundle)
 
 
-def test_trusted_keys_warn_about_unsigned_bundles_and_require_refuses_them(bundle, keys, tmp_path, monkeypatch):
+def test_trusted_keys_warn_about_unsigned_bundles_and_require_refuses_them(
+    bundle, keys, tmp_path, monkeypatch
+):
     monkeypatch.setenv("HRR_TRUSTED_KEYS", str(keys[1]))
     with pytest.warns(SignatureWarning, match="not signed"):
         read_meta(bundle)

@@ -24,7 +24,9 @@ def test_union_takes_the_nearest_capsule(rng):
     r = rng.uniform(0.05, 0.2, size=4)
     pts = rng.normal(size=(200, 3))
     d, _, idx = capsule_signed_distance(pts, a, b, r)
-    singles = np.stack([capsule_signed_distance(pts, a[i : i + 1], b[i : i + 1], r[i : i + 1])[0] for i in range(4)], 1)
+    singles = np.stack(
+        [capsule_signed_distance(pts, a[i : i + 1], b[i : i + 1], r[i : i + 1])[0] for i in range(4)], 1
+    )
     np.testing.assert_allclose(d, singles.min(1), atol=1e-12)
     np.testing.assert_array_equal(idx, singles.argmin(1))
 
@@ -53,7 +55,9 @@ def test_body_dimensions_are_plausible():
     height = verts[:, 1].max() - min(verts[:, 1].min(), 0.0)
     assert 1.6 < height < 1.8
     hips = [c.name for c in DEFAULT_BODY.capsules].index("hips")
-    hip_verts, _ = body_mesh(a[0, hips : hips + 1], b[0, hips : hips + 1], DEFAULT_BODY.radii[hips : hips + 1])
+    hip_verts, _ = body_mesh(
+        a[0, hips : hips + 1], b[0, hips : hips + 1], DEFAULT_BODY.radii[hips : hips + 1]
+    )
     width = np.ptp(hip_verts @ motion.global_rotations[0, 0][:, 0])  # along the pelvis' left-right axis
     assert 0.3 < width < 0.5  # hip width of an adult
     fuller = DEFAULT_BODY.scaled(1.2)
@@ -67,7 +71,9 @@ def _arm_hanging(adduction_deg):
     from hrr_garment.motion.rotations import axis_angle_to_matrix
     from hrr_garment.motion.skeleton import JOINT_INDEX, REST_PELVIS_HEIGHT
 
-    angles = np.broadcast_to(np.asarray(adduction_deg, float), (10,) if np.ndim(adduction_deg) == 0 else np.shape(adduction_deg))
+    angles = np.broadcast_to(
+        np.asarray(adduction_deg, float), (10,) if np.ndim(adduction_deg) == 0 else np.shape(adduction_deg)
+    )
     local = np.broadcast_to(np.eye(3, dtype=np.float32), (len(angles), 22, 3, 3)).copy()
     for side, sign in (("l", 1.0), ("r", -1.0)):
         angle = np.radians(-90.0 - angles) * sign  # about +z: the left arm swings down and in
@@ -121,7 +127,7 @@ def test_a_self_intersection_episode_is_flagged_whole_with_its_recovery():
     assert np.array_equal(np.flatnonzero(flagged), np.arange(start, stop + recovery))
     assert self_intersection_episodes(motion, parts=parts) == [(start, stop + recovery)]
     # a wider gap (the simulator's arms-off window) starts the same episode earlier, ends it later
-    (wide_start, wide_stop), = self_intersection_episodes(motion, gap=0.032, parts=parts)
+    ((wide_start, wide_stop),) = self_intersection_episodes(motion, gap=0.032, parts=parts)
     assert wide_start < start and wide_stop > stop + recovery
     assert not self_intersecting_frames(motion, recovery_s=0.0, parts=parts)[stop:].any()
     # an episode that never passes the depth flags nothing

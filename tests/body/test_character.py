@@ -19,11 +19,27 @@ from hrr_garment.motion.skeleton import JOINT_INDEX, JOINT_NAMES, PARENTS
 
 pygltflib = pytest.importorskip("pygltflib")
 
-MIXAMO = {"pelvis": "Hips", "spine1": "Spine", "spine2": "Spine1", "spine3": "Spine2", "neck": "Neck", "head": "Head",
-          "hip": "UpLeg", "knee": "Leg", "ankle": "Foot", "foot": "ToeBase", "collar": "Shoulder", "shoulder": "Arm",
-          "elbow": "ForeArm", "wrist": "Hand"}
-NAMES = ["mixamorig:" + (("Left" if n[0] == "l" else "Right") + MIXAMO[n[2:]] if n[:2] in ("l_", "r_") else MIXAMO[n])
-         for n in JOINT_NAMES]
+MIXAMO = {
+    "pelvis": "Hips",
+    "spine1": "Spine",
+    "spine2": "Spine1",
+    "spine3": "Spine2",
+    "neck": "Neck",
+    "head": "Head",
+    "hip": "UpLeg",
+    "knee": "Leg",
+    "ankle": "Foot",
+    "foot": "ToeBase",
+    "collar": "Shoulder",
+    "shoulder": "Arm",
+    "elbow": "ForeArm",
+    "wrist": "Hand",
+}
+NAMES = [
+    "mixamorig:"
+    + (("Left" if n[0] == "l" else "Right") + MIXAMO[n[2:]] if n[:2] in ("l_", "r_") else MIXAMO[n])
+    for n in JOINT_NAMES
+]
 Z_UP = np.radians([-90.0, 0.0, 0.0])  # an armature turned from Z-up authoring to glTF's Y up
 
 
@@ -37,9 +53,13 @@ class _Blob:
         array = np.ascontiguousarray(array, dtype=dtype)
         while len(self.data) % 4:
             self.data += b"\0"
-        self.gl.bufferViews.append(pygltflib.BufferView(buffer=0, byteOffset=len(self.data), byteLength=array.nbytes))
+        self.gl.bufferViews.append(
+            pygltflib.BufferView(buffer=0, byteOffset=len(self.data), byteLength=array.nbytes)
+        )
         self.data += array.tobytes()
-        acc = pygltflib.Accessor(bufferView=len(self.gl.bufferViews) - 1, componentType=component, count=len(array), type=kind)
+        acc = pygltflib.Accessor(
+            bufferView=len(self.gl.bufferViews) - 1, componentType=component, count=len(array), type=kind
+        )
         if kind == "VEC3" and np.isfinite(array).all():
             acc.min, acc.max = array.min(0).tolist(), array.max(0).tolist()
         self.gl.accessors.append(acc)
@@ -85,7 +105,15 @@ def write_skinned(path, vertices, faces, joints, layout: Layout = Layout()):
     says. ``vertices`` and ``joints`` are in the world (metres, Y up). Each vertex is skinned fully
     to its nearest joint. Returns the faces as the file holds them (the primitives' concatenated)."""
     names, unit, armature, orient, posed, parts, skin, ibm = (
-        layout.names, layout.unit, layout.armature, layout.orient, layout.posed, layout.parts, layout.skin, layout.ibm)
+        layout.names,
+        layout.unit,
+        layout.armature,
+        layout.orient,
+        layout.posed,
+        layout.parts,
+        layout.skin,
+        layout.ibm,
+    )
     gl = pygltflib.GLTF2()
     blob = _Blob(gl)
     turn = axis_angle_to_matrix(np.asarray(armature, np.float64))
@@ -95,13 +123,21 @@ def write_skinned(path, vertices, faces, joints, layout: Layout = Layout()):
     chunks = _chunks(authored(vertices), np.asarray(faces, np.int64), parts)
     meshes = [[c for c in range(parts) if c < max(parts - 1, 1)], [parts - 1] if parts > 1 else []]
     mesh_nodes = [23 + m for m, chunk in enumerate(meshes) if chunk]
-    nodes = [pygltflib.Node(name="Armature", children=[1] + mesh_nodes, rotation=_xyzw(turn), scale=[unit] * 3)]
+    nodes = [
+        pygltflib.Node(name="Armature", children=[1] + mesh_nodes, rotation=_xyzw(turn), scale=[unit] * 3)
+    ]
     for j, p in enumerate(PARENTS):
         t, r = (pos[j], orient[j]) if p < 0 else (orient[p].T @ (pos[j] - pos[p]), orient[p].T @ orient[j])
         if posed and j in posed:
             r = r @ posed[j]
-        nodes.append(pygltflib.Node(name=names[j], translation=t.tolist(), rotation=_xyzw(r),
-                                    children=[c + 1 for c, q in enumerate(PARENTS) if q == j] or None))
+        nodes.append(
+            pygltflib.Node(
+                name=names[j],
+                translation=t.tolist(),
+                rotation=_xyzw(r),
+                children=[c + 1 for c, q in enumerate(PARENTS) if q == j] or None,
+            )
+        )
     gl.meshes = []
     for m, chunk_ids in enumerate(meshes):
         if not chunk_ids:
@@ -112,10 +148,19 @@ def write_skinned(path, vertices, faces, joints, layout: Layout = Layout()):
             nearest = np.linalg.norm(v[:, None] - pos[None], axis=-1).argmin(1)
             attrs = pygltflib.Attributes(
                 POSITION=blob.add(v, "VEC3"),
-                JOINTS_0=blob.add(np.stack([nearest, 0 * nearest, 0 * nearest, 0 * nearest], 1), "VEC4",
-                                  pygltflib.UNSIGNED_SHORT, "<u2"),
-                WEIGHTS_0=blob.add(np.tile([1.0, 0.0, 0.0, 0.0], (len(v), 1)), "VEC4"))
-            prims.append(pygltflib.Primitive(attributes=attrs, indices=blob.add(f.ravel(), "SCALAR", pygltflib.UNSIGNED_INT, "<u4")))
+                JOINTS_0=blob.add(
+                    np.stack([nearest, 0 * nearest, 0 * nearest, 0 * nearest], 1),
+                    "VEC4",
+                    pygltflib.UNSIGNED_SHORT,
+                    "<u2",
+                ),
+                WEIGHTS_0=blob.add(np.tile([1.0, 0.0, 0.0, 0.0], (len(v), 1)), "VEC4"),
+            )
+            prims.append(
+                pygltflib.Primitive(
+                    attributes=attrs, indices=blob.add(f.ravel(), "SCALAR", pygltflib.UNSIGNED_INT, "<u4")
+                )
+            )
         gl.meshes.append(pygltflib.Mesh(name=f"body{m}", primitives=prims))
         nodes.append(pygltflib.Node(name=f"body{m}", mesh=len(gl.meshes) - 1, skin=0 if skin else None))
     gl.nodes = nodes
@@ -125,8 +170,15 @@ def write_skinned(path, vertices, faces, joints, layout: Layout = Layout()):
         bind = np.tile(np.eye(4), (22, 1, 1))
         bind[:, :3, :3], bind[:, :3, 3] = orient, pos
         inverse = np.linalg.inv(bind)
-        gl.skins = [pygltflib.Skin(joints=list(range(1, 23)), skeleton=1,
-                                   inverseBindMatrices=blob.add(np.swapaxes(inverse, 1, 2).reshape(22, 16), "MAT4") if ibm else None)]
+        gl.skins = [
+            pygltflib.Skin(
+                joints=list(range(1, 23)),
+                skeleton=1,
+                inverseBindMatrices=blob.add(np.swapaxes(inverse, 1, 2).reshape(22, 16), "MAT4")
+                if ibm
+                else None,
+            )
+        ]
     gl.buffers = [pygltflib.Buffer(byteLength=len(blob.data))]
     gl.set_binary_blob(bytes(blob.data))
     gl.save_binary(str(path))
@@ -156,7 +208,9 @@ def _orient(seed=0):
 def test_a_centimetre_z_up_armature_is_read_back_in_metres_y_up(tmp_path, capsys):
     vertices, faces, joints = _mannequin()
     path = tmp_path / "hero.glb"
-    written_faces = write_skinned(path, vertices, faces, joints, Layout(unit=0.01, armature=Z_UP, orient=_orient(), parts=3))
+    written_faces = write_skinned(
+        path, vertices, faces, joints, Layout(unit=0.01, armature=Z_UP, orient=_orient(), parts=3)
+    )
     character = read_character(path)
     assert np.abs(character.vertices - vertices).max() < 1e-5
     assert np.abs(character.joints - joints).max() < 1e-5
@@ -169,7 +223,10 @@ def test_a_centimetre_z_up_armature_is_read_back_in_metres_y_up(tmp_path, capsys
     expected = fit_body(vertices, joints)
     record = read_body(out)
     assert record.shape is None and record.report.mean_mm == pytest.approx(expected.report.mean_mm, abs=1e-3)
-    assert f"capsules within {expected.report.mean_mm:.1f} mm" in printed and f"{expected.stature:.3f} m tall" in printed
+    assert (
+        f"capsules within {expected.report.mean_mm:.1f} mm" in printed
+        and f"{expected.stature:.3f} m tall" in printed
+    )
     assert np.allclose(record.skeleton.offsets, expected.skeleton.offsets, atol=1e-5)
     assert np.allclose(record.body.radii, expected.body.radii, atol=1e-5)
     assert record.pelvis_height == pytest.approx(expected.pelvis_height, abs=1e-5)
@@ -183,7 +240,9 @@ def test_joints_posed_away_from_the_bind_pose_and_z_up_without_a_turn(tmp_path):
     posed = tmp_path / "posed.glb"
     write_skinned(posed, vertices, faces, joints, Layout(orient=_orient(1), posed=bend))
     character = read_character(posed)
-    assert np.abs(character.vertices - vertices).max() < 1e-5 and np.abs(character.joints - joints).max() < 1e-5
+    assert (
+        np.abs(character.vertices - vertices).max() < 1e-5 and np.abs(character.joints - joints).max() < 1e-5
+    )
     assert set(character.posed_joints) == {"mixamorig:LeftForeArm", "mixamorig:LeftHand"}
     lying = tmp_path / "lying.glb"
     # authored Z up (the world point p written as turn.T @ p) under an identity root: read lying down
@@ -191,7 +250,9 @@ def test_joints_posed_away_from_the_bind_pose_and_z_up_without_a_turn(tmp_path):
     write_skinned(lying, vertices @ turn, faces, joints @ turn, Layout(orient=_orient(2)))
     character = read_character(lying)
     assert character.turned
-    assert np.abs(character.vertices - vertices).max() < 1e-5 and np.abs(character.joints - joints).max() < 1e-5
+    assert (
+        np.abs(character.vertices - vertices).max() < 1e-5 and np.abs(character.joints - joints).max() < 1e-5
+    )
 
 
 def test_a_centimetre_file_without_a_scaling_node_and_a_rig_missing_spine2(tmp_path):
@@ -218,7 +279,9 @@ def test_an_anny_body_on_a_mixamo_skeleton_comes_back_and_fits_the_same(tmp_path
     body = parametric_body(BodyShape(height=0.7, weight=0.3, gender=1.0))
     mesh = body.mesh
     path = tmp_path / "anny.glb"
-    written_faces = write_skinned(path, mesh.vertices, mesh.faces, mesh.joints, Layout(orient=_orient(3), parts=2))
+    written_faces = write_skinned(
+        path, mesh.vertices, mesh.faces, mesh.joints, Layout(orient=_orient(3), parts=2)
+    )
     character = read_character(path)
     assert np.abs(character.vertices - mesh.vertices).max() < 1e-5
     assert np.abs(character.joints - mesh.joints).max() < 1e-5
@@ -309,9 +372,22 @@ def test_blender_side_suffixes_map_like_mixamo(tmp_path):
     """Quaternius-style names (Pelvis, Spine1, Spine2, UpperLeg.L, LowerArm.R, ...) map onto the
     canonical joints; Spine1/Spine2 are spine1/spine3, and spine2 and the toes are filled."""
     vertices, faces, joints = _mannequin()
-    blender = {"pelvis": "Pelvis", "spine1": "Spine1", "spine2": "Extra", "spine3": "Spine2", "neck": "Neck",
-               "head": "Head", "hip": "UpperLeg", "knee": "LowerLeg", "ankle": "Foot", "foot": "Knob",
-               "collar": "Collar", "shoulder": "UpperArm", "elbow": "LowerArm", "wrist": "Hand"}
+    blender = {
+        "pelvis": "Pelvis",
+        "spine1": "Spine1",
+        "spine2": "Extra",
+        "spine3": "Spine2",
+        "neck": "Neck",
+        "head": "Head",
+        "hip": "UpperLeg",
+        "knee": "LowerLeg",
+        "ankle": "Foot",
+        "foot": "Knob",
+        "collar": "Collar",
+        "shoulder": "UpperArm",
+        "elbow": "LowerArm",
+        "wrist": "Hand",
+    }
     names = [f"{blender[n[2:]]}.{n[0].upper()}" if n[:2] in ("l_", "r_") else blender[n] for n in JOINT_NAMES]
     path = tmp_path / "soldier.glb"
     write_skinned(path, vertices, faces, joints, Layout(names=names))
@@ -336,10 +412,14 @@ def test_turn_arms_turns_only_the_arms_about_the_shoulders():
         shoulder, wrist = joints[JOINT_INDEX[f"{side}_shoulder"]], joints[JOINT_INDEX[f"{side}_wrist"]]
         arm = moved & ((vertices[:, 0] - shoulder[0]) * np.sign(direction[0]) > 0.05)
         assert arm.sum() > 20
-        assert np.allclose(np.linalg.norm(turned[arm] - shoulder, axis=1), np.linalg.norm(vertices[arm] - shoulder, axis=1))
+        assert np.allclose(
+            np.linalg.norm(turned[arm] - shoulder, axis=1), np.linalg.norm(vertices[arm] - shoulder, axis=1)
+        )
         tip = vertices[arm][np.argmax(np.linalg.norm(vertices[arm] - shoulder, axis=1))]
         new_tip = turned[arm][np.argmax(np.linalg.norm(vertices[arm] - shoulder, axis=1))]
-        assert abs(new_tip[1] - shoulder[1]) > 0.3 and abs(tip[1] - shoulder[1]) < 0.15  # horizontal, then down
+        assert (
+            abs(new_tip[1] - shoulder[1]) > 0.3 and abs(tip[1] - shoulder[1]) < 0.15
+        )  # horizontal, then down
         assert wrist[1] > shoulder[1] - 0.1
     assert np.allclose(turned[vertices[:, 1] < 0.8], vertices[vertices[:, 1] < 0.8])  # the legs stay
 
@@ -360,7 +440,9 @@ def test_a_t_posed_body_finds_its_shape_once_its_arms_are_turned():
         shoulder = joints[JOINT_INDEX[f"{side}_shoulder"]]
         turn = shortest_arc(joints[JOINT_INDEX[f"{side}_wrist"]] - shoulder, direction)
         for joint in ("elbow", "wrist"):
-            joints[JOINT_INDEX[f"{side}_{joint}"]] = shoulder + turn @ (joints[JOINT_INDEX[f"{side}_{joint}"]] - shoulder)
+            joints[JOINT_INDEX[f"{side}_{joint}"]] = shoulder + turn @ (
+                joints[JOINT_INDEX[f"{side}_{joint}"]] - shoulder
+            )
     nearest = fit_shape(vertices, mesh.faces, joints=joints)
     assert nearest.mean_mm < 10.0 and nearest.p95_mm < 20.0
     shape = nearest.shape

@@ -34,7 +34,9 @@ def test_the_mannequins_own_surface_fits_back_to_the_mannequin():
     assert np.allclose(fitted.skeleton.offsets, REST_OFFSETS, atol=1e-6)
     assert np.allclose(fitted.body.radii, DEFAULT_BODY.radii, atol=1e-6)
     assert fitted.report.mean_mm < 1e-6 and fitted.report.outside_1cm == 0 and fitted.report.inside_1cm == 0
-    assert fitted.pelvis_height == pytest.approx(0.965, abs=1e-3)  # the foot capsules reach 8.5 cm below the ankles
+    assert fitted.pelvis_height == pytest.approx(
+        0.965, abs=1e-3
+    )  # the foot capsules reach 8.5 cm below the ankles
 
 
 def test_a_longer_fuller_body_is_recovered():
@@ -54,11 +56,20 @@ def test_the_skeleton_keeps_canonical_directions_with_the_meshs_lengths():
     skeleton = body_skeleton(joints)
     canonical = REST_OFFSETS[18] / np.linalg.norm(REST_OFFSETS[18])
     assert np.allclose(skeleton.offsets[18] / np.linalg.norm(skeleton.offsets[18]), canonical, atol=1e-6)
-    assert np.linalg.norm(skeleton.offsets[18]) == pytest.approx(np.linalg.norm(joints[18] - joints[16]), rel=1e-6)
+    assert np.linalg.norm(skeleton.offsets[18]) == pytest.approx(
+        np.linalg.norm(joints[18] - joints[16]), rel=1e-6
+    )
 
 
-@pytest.mark.parametrize("a, b", [((1, 0, 0), (0, 1, 0)), ((0, 0, 1), (0, 0, 1)), ((1, 0, 0), (-1, 0, 0)),
-                                  ((0.3, -0.8, 0.2), (0.9, 0.1, -0.4))])
+@pytest.mark.parametrize(
+    "a, b",
+    [
+        ((1, 0, 0), (0, 1, 0)),
+        ((0, 0, 1), (0, 0, 1)),
+        ((1, 0, 0), (-1, 0, 0)),
+        ((0.3, -0.8, 0.2), (0.9, 0.1, -0.4)),
+    ],
+)
 def test_shortest_arc_is_a_rotation_taking_a_to_b(a, b):
     r = shortest_arc(np.array(a, float), np.array(b, float))
     assert np.allclose(r @ r.T, np.eye(3), atol=1e-9) and np.linalg.det(r) == pytest.approx(1.0)
@@ -70,7 +81,13 @@ def test_bad_meshes_and_shapes_are_refused():
         fit_body(np.full((100, 3), np.nan), rest_joint_positions())
     with pytest.raises(ValueError, match="22, 3"):
         fit_body(np.zeros((100, 3)), np.zeros((21, 3)))
-    for bad in ({"height": 1.5}, {"weight": -0.1}, {"gender": "female"}, {"age": float("nan")}, {"muscle": True}):
+    for bad in (
+        {"height": 1.5},
+        {"weight": -0.1},
+        {"gender": "female"},
+        {"age": float("nan")},
+        {"muscle": True},
+    ):
         with pytest.raises(ValueError, match="must be a number in"):
             BodyShape(**bad)
     assert BodyShape(height=np.float32(0.25)).vector.tolist() == [0.5, 0.5, 0.5, 0.5, 0.25, 0.5]
@@ -81,20 +98,26 @@ def test_body_json_round_trips_and_refuses_bad_fields(tmp_path):
 
     joints = rest_joint_positions()
     fitted = fit_body(_surface(DEFAULT_BODY, joints), joints)
-    record = BodyRecord(fitted.skeleton, fitted.body, fitted.pelvis_height, fitted.stature, report=fitted.report)
+    record = BodyRecord(
+        fitted.skeleton, fitted.body, fitted.pelvis_height, fitted.stature, report=fitted.report
+    )
     path = write_body(tmp_path / "body.json", record)
     back = read_body(path)
     assert np.allclose(back.skeleton.offsets, fitted.skeleton.offsets, atol=1e-6)
     assert [c.name for c in back.body.capsules] == [c.name for c in fitted.body.capsules]
-    assert np.allclose(back.body.radii, fitted.body.radii) and back.pelvis_height == pytest.approx(fitted.pelvis_height)
+    assert np.allclose(back.body.radii, fitted.body.radii) and back.pelvis_height == pytest.approx(
+        fitted.pelvis_height
+    )
     data = json.loads(path.read_text())
-    for edit, message in ((lambda d: d.update(format_version=2), "format_version 2"),
-                          (lambda d: d.update(joints=d["joints"][::-1]), "canonical joints"),
-                          (lambda d: d["offsets"][3].__setitem__(1, 9.0), "offset of spine1"),
-                          (lambda d: d["capsules"][0].update(radius=-0.1), "capsule hips radius"),
-                          (lambda d: d["capsules"][0].update(joint="tail"), "canonical joints"),
-                          (lambda d: d.update(pelvis_height="tall"), "pelvis_height"),
-                          (lambda d: d.pop("stature"), "stature")):
+    for edit, message in (
+        (lambda d: d.update(format_version=2), "format_version 2"),
+        (lambda d: d.update(joints=d["joints"][::-1]), "canonical joints"),
+        (lambda d: d["offsets"][3].__setitem__(1, 9.0), "offset of spine1"),
+        (lambda d: d["capsules"][0].update(radius=-0.1), "capsule hips radius"),
+        (lambda d: d["capsules"][0].update(joint="tail"), "canonical joints"),
+        (lambda d: d.update(pelvis_height="tall"), "pelvis_height"),
+        (lambda d: d.pop("stature"), "stature"),
+    ):
         bad = json.loads(json.dumps(data))
         edit(bad)
         (tmp_path / "bad.json").write_text(json.dumps(bad))

@@ -31,7 +31,9 @@ def test_at_rest_the_pieces_are_the_mesh_and_posed_they_ride_with_the_bones():
     for c, local, piece_faces in pieces:
         world = centre[0, c] + local @ turn[c].T
         assert np.linalg.norm(world[:, None] - vertices[None], axis=-1).min(1).max() < 1e-6
-    assert sum(len(f) for _, _, f in pieces) >= len(faces)  # every face in a piece; neighbours overlap by a ring
+    assert sum(len(f) for _, _, f in pieces) >= len(
+        faces
+    )  # every face in a piece; neighbours overlap by a ring
     # posed, each vertex keeps its distance from its own joint (it rides with one bone)
     walk = synthesize("walk", 0.5, seed=0)
     posed = mesh.pose(walk.global_rotations, walk.joint_positions)

@@ -8,7 +8,9 @@ import pytest
 
 pytest.importorskip("anny", reason="the bodies extra is not installed")
 
-pytestmark = pytest.mark.slow  # anny builds its blend shapes once (about a minute), cached under the workspace
+pytestmark = (
+    pytest.mark.slow
+)  # anny builds its blend shapes once (about a minute), cached under the workspace
 
 from hrr_garment.body.parametric import BodyShape, parametric_body  # noqa: E402
 from hrr_garment.motion.skeleton import JOINT_INDEX  # noqa: E402
@@ -22,8 +24,11 @@ def bodies(monkeypatch_module):
         raise AssertionError("anny tried to download its non-commercial data")
 
     monkeypatch_module.setattr(anny.paths, "download_noncommercial_data", refuse)
-    shapes = {"short_heavy": BodyShape(height=0.25, weight=0.9, gender=0.0), "average": BodyShape(),
-              "tall_slim": BodyShape(height=0.85, weight=0.15, gender=1.0)}
+    shapes = {
+        "short_heavy": BodyShape(height=0.25, weight=0.9, gender=0.0),
+        "average": BodyShape(),
+        "tall_slim": BodyShape(height=0.85, weight=0.15, gender=1.0),
+    }
     return {name: parametric_body(shape) for name, shape in shapes.items()}
 
 
@@ -70,10 +75,15 @@ def test_hrr_body_makes_and_reads_a_body_file(tmp_path, capsys):
     record = read_body(out)
     assert record.shape["height"] == 0.85 and record.report.mean_mm < 30
     assert main(["make", "-o", str(tmp_path / "bad.json"), "--height", "1.4"]) == 2
-    assert "height must be a number in [0, 1]" in capsys.readouterr().err and not (tmp_path / "bad.json").exists()
+    assert (
+        "height must be a number in [0, 1]" in capsys.readouterr().err
+        and not (tmp_path / "bad.json").exists()
+    )
     assert main(["info", str(out), "--json"]) == 0
     info = json.loads(capsys.readouterr().out)
-    assert info["stature_m"] == pytest.approx(info["measures_m"]["stature"], abs=1e-3)  # the measures models read
+    assert info["stature_m"] == pytest.approx(
+        info["measures_m"]["stature"], abs=1e-3
+    )  # the measures models read
 
 
 def test_the_shape_of_a_known_body_is_found_from_its_mesh():
@@ -105,12 +115,21 @@ def test_an_animation_on_a_parametric_body_previews_its_own_mesh(trained, tmp_pa
     body = parametric_body(BodyShape(height=0.6))
     record = record_of(body)
     with pytest.warns(UserWarning):  # the tiny model knows the mannequin alone
-        anim = Animator.load(root / "model").animate(synthesize("walk", 0.6, seed=0), body=record, allow_outside=True)
+        anim = Animator.load(root / "model").animate(
+            synthesize("walk", 0.6, seed=0), body=record, allow_outside=True
+        )
     anim.save(tmp_path / "out.h5")
     saved = read_animation_h5(tmp_path / "out.h5")
     vertices, faces = saved.body_mesh(9)
-    assert len(vertices) == len(body.mesh.vertices) and np.array_equal(faces, body.mesh.faces)  # its mesh, not capsules
+    assert len(vertices) == len(body.mesh.vertices) and np.array_equal(
+        faces, body.mesh.faces
+    )  # its mesh, not capsules
     a, b = record.body.pose_motion(anim.skeleton)
     gap = frames_signed_distance(vertices[None], a[9:10], b[9:10], record.body.radii)[0]
     assert np.median(np.abs(gap)) < 0.03
-    assert preview_main([str(tmp_path / "out.h5"), "-o", str(tmp_path / "sheet.png"), "--frames", "2", "--size", "96"]) == 0
+    assert (
+        preview_main(
+            [str(tmp_path / "out.h5"), "-o", str(tmp_path / "sheet.png"), "--frames", "2", "--size", "96"]
+        )
+        == 0
+    )

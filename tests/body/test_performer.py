@@ -21,7 +21,9 @@ def test_the_limbs_take_the_given_lengths_along_the_canonical_directions_and_the
         direction = skeleton.offsets[end] / np.linalg.norm(skeleton.offsets[end])
         assert direction == pytest.approx(REST_OFFSETS[end] / np.linalg.norm(REST_OFFSETS[end]), abs=1e-6)
     assert skeleton.offsets[JOINT_INDEX["l_hip"]] == pytest.approx([0.11, -0.07, 0.0], abs=1e-6)
-    assert skeleton.offsets[JOINT_INDEX["spine3"]] == pytest.approx(REST_OFFSETS[JOINT_INDEX["spine3"]])  # the torso as given
+    assert skeleton.offsets[JOINT_INDEX["spine3"]] == pytest.approx(
+        REST_OFFSETS[JOINT_INDEX["spine3"]]
+    )  # the torso as given
 
 
 def _rig_file(tmp_path, offsets: np.ndarray):
@@ -31,8 +33,16 @@ def _rig_file(tmp_path, offsets: np.ndarray):
 
     motion = synthesize("walk", 1.0, seed=1)
     path = tmp_path / "rig.bvh"
-    write_bvh(path, list(JOINT_NAMES), list(PARENTS), offsets * 100, motion.local_rotations.astype(np.float64),
-              motion.root_translation * 100, 1 / 30, BvhStyle(unit_scale=0.01))
+    write_bvh(
+        path,
+        list(JOINT_NAMES),
+        list(PARENTS),
+        offsets * 100,
+        motion.local_rotations.astype(np.float64),
+        motion.root_translation * 100,
+        1 / 30,
+        BvhStyle(unit_scale=0.01),
+    )
     return path
 
 
@@ -53,11 +63,16 @@ def test_a_rig_made_from_an_anny_body_comes_back_with_its_bone_lengths(tmp_path)
     assert body["hip_width"] == pytest.approx(proportions(truth.mesh.joints)["hip_width"], abs=0.02)
     assert abs(found.shape["height"] - 0.7) < 0.1 and set(found.shape) == set(BodyShape().to_dict())
     assert abs(found.stature - truth.fitted.stature) < 0.03
-    assert found.body.pelvis_height == pytest.approx(truth.mesh.joints[0, 1], abs=0.015)  # anny's pelvis joint
+    assert found.body.pelvis_height == pytest.approx(
+        truth.mesh.joints[0, 1], abs=0.015
+    )  # anny's pelvis joint
     assert max(c.radius for c in found.body.capsules if c.name.endswith("_hand")) <= HAND_RADIUS_MAX
     again = performer_body(path)  # the same file, the same body, bit for bit
     assert np.array_equal(again.body.skeleton.offsets, found.body.skeleton.offsets)
-    assert np.array_equal(again.body.radii, found.body.radii) and again.body.pelvis_height == found.body.pelvis_height
+    assert (
+        np.array_equal(again.body.radii, found.body.radii)
+        and again.body.pelvis_height == found.body.pelvis_height
+    )
 
 
 @pytest.mark.slow

@@ -24,8 +24,16 @@ def test_a_rigs_proportions_come_from_the_file_whatever_it_does(tmp_path):
 
     motion = synthesize("walk", 1.0, seed=1)
     path = tmp_path / "tall.bvh"
-    write_bvh(path, list(JOINT_NAMES), list(PARENTS), REST_OFFSETS * 1.2 * 100, motion.local_rotations.astype(np.float64),
-              motion.root_translation * 1.2 * 100, 1 / 30, BvhStyle(unit_scale=0.01))
+    write_bvh(
+        path,
+        list(JOINT_NAMES),
+        list(PARENTS),
+        REST_OFFSETS * 1.2 * 100,
+        motion.local_rotations.astype(np.float64),
+        motion.root_translation * 1.2 * 100,
+        1 / 30,
+        BvhStyle(unit_scale=0.01),
+    )
     measured = source_proportions(path)
     mannequin = proportions(Skeleton().rest_positions())
     for name, value in measured.items():

@@ -19,22 +19,35 @@ def test_hrr_animate_writes_out_h5_and_refuses_bad_motion(trained, tmp_path, cap
     out = tmp_path / "out.h5"
     assert animate_main([str(clip), "-o", str(out), "--model", str(root / "model")]) == 0
     said = capsys.readouterr().out
-    auto = json.loads((root / "model" / "bundle.json").read_text())["auto"]["mode"]  # the default mode runs it
+    auto = json.loads((root / "model" / "bundle.json").read_text())["auto"][
+        "mode"
+    ]  # the default mode runs it
     assert f"mode auto = {auto}" in said
-    assert ("a database match on every frame" if auto in ("residual", "detail") else "retrieval usage") in said
+    assert (
+        "a database match on every frame" if auto in ("residual", "detail") else "retrieval usage"
+    ) in said
     data = read_animation_h5(out)
     assert data.vertices.shape == (30, 308, 3) and data.faces.dtype == np.int32
     assert data.joints.shape == (30, 22, 3) and data.retrieved.dtype == np.uint8
     assert data.capsules.shape == (30, len(data.radii), 2, 3)
     attrs = data.attrs
-    assert attrs["fps"] == 30 and attrs["units"] == "m" and attrs["up_axis"] == "Y" and attrs["garment"] == "skirt"
+    assert (
+        attrs["fps"] == 30
+        and attrs["units"] == "m"
+        and attrs["up_axis"] == "Y"
+        and attrs["garment"] == "skirt"
+    )
     assert attrs["format_version"] == 4 and len(attrs["model_hash"]) == 16 and attrs["body"] == "mannequin"
     from hrr_garment.motion.motion import Motion
     from hrr_garment.motion.rotations import quat_to_matrix
     from hrr_garment.motion.skeleton import Skeleton
 
-    played = Motion(quat_to_matrix(data.rotations[..., [3, 0, 1, 2]].astype(np.float64)), data.root_translation, 30.0,
-                    skeleton=Skeleton(offsets=data.offsets))
+    played = Motion(
+        quat_to_matrix(data.rotations[..., [3, 0, 1, 2]].astype(np.float64)),
+        data.root_translation,
+        30.0,
+        skeleton=Skeleton(offsets=data.offsets),
+    )
     assert np.abs(played.joint_positions - data.joints).max() < 1e-4  # the skeleton's motion gives the joints
     with np.load(clip) as z:
         arrays = dict(z)
@@ -68,11 +81,22 @@ def test_hrr_animate_explains_bad_models_and_outputs(trained, tmp_path, capsys, 
     model = tmp_path / "model"
     shutil.copytree(root / "model", model)
     cases = [
-        ([str(clip), "-o", str(tmp_path / "out.h5"), "--model", str(model), "--garment", "dress"], "animates a skirt, not a dress"),
-        ([str(clip), "-o", str(tmp_path / "missing" / "out.h5"), "--model", str(model)], "not a writable directory"),
+        (
+            [str(clip), "-o", str(tmp_path / "out.h5"), "--model", str(model), "--garment", "dress"],
+            "animates a skirt, not a dress",
+        ),
+        (
+            [str(clip), "-o", str(tmp_path / "missing" / "out.h5"), "--model", str(model)],
+            "not a writable directory",
+        ),
         # a threshold that is no threshold names its flag (issue 48, reproducer 13)
-        *(([str(clip), "-o", str(tmp_path / "out.h5"), "--model", str(model), f"--tau={tau}"], "--tau: tau must be a finite number >= 0")
-          for tau in ("nan", "-1", "inf")),
+        *(
+            (
+                [str(clip), "-o", str(tmp_path / "out.h5"), "--model", str(model), f"--tau={tau}"],
+                "--tau: tau must be a finite number >= 0",
+            )
+            for tau in ("nan", "-1", "inf")
+        ),
     ]
     for args, message in cases:
         assert animate_main(args) == 2

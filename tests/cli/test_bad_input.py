@@ -16,7 +16,15 @@ from hrr_garment.motion.skeleton import CANONICAL, JOINT_NAMES, PARENTS
 def good_bvh(tmp_path):
     motion = synthesize("walk", seconds=1.0, seed=0)
     path = tmp_path / "good.bvh"
-    write_bvh(path, list(JOINT_NAMES), list(PARENTS), CANONICAL.offsets, motion.local_rotations.astype(np.float64), motion.root_translation, 1 / 30)
+    write_bvh(
+        path,
+        list(JOINT_NAMES),
+        list(PARENTS),
+        CANONICAL.offsets,
+        motion.local_rotations.astype(np.float64),
+        motion.root_translation,
+        1 / 30,
+    )
     return path
 
 
@@ -119,7 +127,9 @@ def test_missing_file_and_unknown_extension(capsys, tmp_path):
 def test_console_script_exit_code(tmp_path):
     bad = tmp_path / "bad.bvh"
     bad.write_text("HIERARCHY\nROOT Hips\n{\n")
-    proc = subprocess.run([sys.executable, "-m", "hrr_garment.cli.motion", "info", str(bad)], capture_output=True, text=True)
+    proc = subprocess.run(
+        [sys.executable, "-m", "hrr_garment.cli.motion", "info", str(bad)], capture_output=True, text=True
+    )
     assert proc.returncode != 0 and str(bad) in proc.stderr and "Traceback" not in proc.stderr
 
 

@@ -28,25 +28,42 @@ _MARK = "--- left in the folder ---"
 def _can_mount_tmpfs() -> bool:
     if shutil.which("unshare") is None:
         return False
-    probe = subprocess.run(["unshare", "-rm", "sh", "-c", "mount -t tmpfs -o size=64k tmpfs /mnt"],
-                           capture_output=True, timeout=30)
+    probe = subprocess.run(
+        ["unshare", "-rm", "sh", "-c", "mount -t tmpfs -o size=64k tmpfs /mnt"],
+        capture_output=True,
+        timeout=30,
+    )
     return probe.returncode == 0
 
 
 def _cli(module: str, *args: str) -> list[str]:
-    return [sys.executable, "-c", f"import sys; from hrr_garment.cli.{module} import main; sys.exit(main())", *args]
+    return [
+        sys.executable,
+        "-c",
+        f"import sys; from hrr_garment.cli.{module} import main; sys.exit(main())",
+        *args,
+    ]
 
 
-def _run_on_small_disk(command: list[str], folder: Path, read_only: bool = False) -> tuple[int, str, list[str]]:
+def _run_on_small_disk(
+    command: list[str], folder: Path, read_only: bool = False
+) -> tuple[int, str, list[str]]:
     """Run ``command`` with ``folder`` on a full (or read-only) disk; (exit status, stderr, what the
     folder holds afterwards, seen from inside)."""
     folder.mkdir(parents=True, exist_ok=True)
     if _can_mount_tmpfs():
         ro = f' && mount -o remount,ro "{folder}"' if read_only else ""
-        script = (f'mount -t tmpfs -o size={LIMIT_BYTES} tmpfs "{folder}"{ro} || exit 99; '
-                  f'"$@"; rc=$?; echo {_MARK}; ls -A "{folder}"; exit $rc')
-        done = subprocess.run(["unshare", "-rm", "sh", "-c", script, "sh", *command], capture_output=True,
-                              text=True, timeout=300, stdin=subprocess.DEVNULL)
+        script = (
+            f'mount -t tmpfs -o size={LIMIT_BYTES} tmpfs "{folder}"{ro} || exit 99; '
+            f'"$@"; rc=$?; echo {_MARK}; ls -A "{folder}"; exit $rc'
+        )
+        done = subprocess.run(
+            ["unshare", "-rm", "sh", "-c", script, "sh", *command],
+            capture_output=True,
+            text=True,
+            timeout=300,
+            stdin=subprocess.DEVNULL,
+        )
         assert done.returncode != 99, done.stderr
         return done.returncode, done.stderr, done.stdout.split(_MARK)[-1].split()
     if read_only:
@@ -56,8 +73,9 @@ def _run_on_small_disk(command: list[str], folder: Path, read_only: bool = False
         # per file, and one OBJ frame is about 16 KB: 8 KiB makes every output's first file fail
         resource.setrlimit(resource.RLIMIT_FSIZE, (8 * 1024, 8 * 1024))
 
-    done = subprocess.run(command, capture_output=True, text=True, timeout=300, preexec_fn=limit,
-                          stdin=subprocess.DEVNULL)
+    done = subprocess.run(
+        command, capture_output=True, text=True, timeout=300, preexec_fn=limit, stdin=subprocess.DEVNULL
+    )
     return done.returncode, done.stderr, sorted(p.name for p in folder.iterdir())
 
 
@@ -123,5 +141,7 @@ def test_special_paths_are_refused(animation, tmp_path, capsys):
     (tmp_path / "taken.glb").mkdir()
     assert export_main([str(h5), "-o", str(tmp_path / "taken.glb")]) == 2
     assert "not a regular file" in capsys.readouterr().err and (tmp_path / "taken.glb").is_dir()
-    assert export_main([str(h5), "-o", "/dev/null", "--to", "pc2"]) == 2  # a device, and no .pc2 name: refused
+    assert (
+        export_main([str(h5), "-o", "/dev/null", "--to", "pc2"]) == 2
+    )  # a device, and no .pc2 name: refused
     assert "/dev/null: " in capsys.readouterr().err

@@ -23,7 +23,10 @@ def _edit_bvh(source, tmp_path, name, edit):
 
 def _frame_time(value):
     def edit(lines):
-        lines[next(i for i, line in enumerate(lines) if line.startswith("Frame Time"))] = f"Frame Time: {value}"
+        lines[next(i for i, line in enumerate(lines) if line.startswith("Frame Time"))] = (
+            f"Frame Time: {value}"
+        )
+
     return edit
 
 
@@ -33,6 +36,7 @@ def _first_row(value):
         row = lines[i].split()
         row[4] = value
         lines[i] = " ".join(row)
+
     return edit
 
 
@@ -40,31 +44,60 @@ def _first_channels(text):
     def edit(lines):
         i = next(i for i, line in enumerate(lines) if "CHANNELS 3" in line)
         lines[i] = lines[i].split("CHANNELS")[0] + text
+
     return edit
 
 
-@pytest.mark.parametrize("name, edit, phrase", [
-    ("frame-time-huge.bvh", _frame_time("1e300"), "frame time"),
-    ("frame-time-100.bvh", _frame_time("100"), "frame time"),
-    ("frame-time-zero.bvh", _frame_time("0"), "frame time"),
-    ("value-huge.bvh", _first_row("1e308"), "beyond"),
-    ("axis-twice.bvh", _first_channels("CHANNELS 3 Zrotation Xrotation Xrotation"), "X, Y and Z once each"),
-    ("position-twice.bvh", lambda lines: lines.__setitem__(
-        next(i for i, line in enumerate(lines) if "CHANNELS 6" in line),
-        "CHANNELS 6 Xposition Xposition Zposition Zrotation Yrotation Xrotation"), "X, Y and Z once each"),
-    ("offset-huge.bvh", lambda lines: lines.__setitem__(
-        next(i for i, line in enumerate(lines) if "OFFSET" in line), "OFFSET 1e308 0 0"), "within"),
-])
+@pytest.mark.parametrize(
+    "name, edit, phrase",
+    [
+        ("frame-time-huge.bvh", _frame_time("1e300"), "frame time"),
+        ("frame-time-100.bvh", _frame_time("100"), "frame time"),
+        ("frame-time-zero.bvh", _frame_time("0"), "frame time"),
+        ("value-huge.bvh", _first_row("1e308"), "beyond"),
+        (
+            "axis-twice.bvh",
+            _first_channels("CHANNELS 3 Zrotation Xrotation Xrotation"),
+            "X, Y and Z once each",
+        ),
+        (
+            "position-twice.bvh",
+            lambda lines: lines.__setitem__(
+                next(i for i, line in enumerate(lines) if "CHANNELS 6" in line),
+                "CHANNELS 6 Xposition Xposition Zposition Zrotation Yrotation Xrotation",
+            ),
+            "X, Y and Z once each",
+        ),
+        (
+            "offset-huge.bvh",
+            lambda lines: lines.__setitem__(
+                next(i for i, line in enumerate(lines) if "OFFSET" in line), "OFFSET 1e308 0 0"
+            ),
+            "within",
+        ),
+    ],
+)
 def test_hostile_bvh_values_are_refused(capsys, tmp_path, good_bvh, name, edit, phrase):  # noqa: F811
     expect_failure(capsys, tmp_path, _edit_bvh(good_bvh, tmp_path, name, edit), phrase)
 
 
 def test_a_bvh_nested_thousands_deep_is_refused_without_recursion(capsys, tmp_path):
     depth = 5000
-    text = ["HIERARCHY", "ROOT j0", "{", "OFFSET 0 0 0", "CHANNELS 6 Xposition Yposition Zposition Zrotation Xrotation Yrotation"]
+    text = [
+        "HIERARCHY",
+        "ROOT j0",
+        "{",
+        "OFFSET 0 0 0",
+        "CHANNELS 6 Xposition Yposition Zposition Zrotation Xrotation Yrotation",
+    ]
     for i in range(1, depth):
         text += [f"JOINT j{i}", "{", "OFFSET 0 1 0", "CHANNELS 3 Zrotation Xrotation Yrotation"]
-    text += ["}"] * depth + ["MOTION", "Frames: 1", "Frame Time: 0.033333", " ".join(["0"] * (6 + 3 * (depth - 1)))]
+    text += ["}"] * depth + [
+        "MOTION",
+        "Frames: 1",
+        "Frame Time: 0.033333",
+        " ".join(["0"] * (6 + 3 * (depth - 1))),
+    ]
     path = tmp_path / "deep.bvh"
     path.write_text("\n".join(text) + "\n")
     expect_failure(capsys, tmp_path, path, "at most 64 levels")
@@ -103,42 +136,54 @@ def _native(tmp_path, name, **overrides):
     return _npz(tmp_path, name, save_motion, **overrides)
 
 
-@pytest.mark.parametrize("name, overrides, phrase", [
-    ("no-frames.npz", {"poses": np.zeros((0, 52, 3)), "trans": np.zeros((0, 3))}, "no frames"),
-    ("rate-inf.npz", {"mocap_framerate": np.float64(np.inf)}, "frame rate"),
-    ("rate-tiny.npz", {"mocap_framerate": np.float64(1e-6)}, "frame rate"),
-    ("rate-text.npz", {"mocap_framerate": np.str_("sixty")}, "frame rate"),
-    ("rate-array.npz", {"mocap_framerate": np.array([30.0, 60.0])}, "frame rate"),
-    ("poses-complex.npz", {"poses": np.zeros((30, 156), np.complex128)}, "dtype complex128"),
-    ("poses-bool.npz", {"poses": np.zeros((30, 156), bool)}, "real numbers"),
-    ("poses-text.npz", {"poses": np.array(["a"] * 30)}, "real numbers"),
-    ("poses-scaled.npz", {"poses": np.full((30, 156), 1000.0)}, "beyond"),
-    ("trans-huge.npz", {"trans": np.full((30, 3), 1e300)}, "beyond"),
-    ("poses-dates.npz", {"poses": np.zeros((30, 156), "datetime64[s]")}, "dtype"),
-])
+@pytest.mark.parametrize(
+    "name, overrides, phrase",
+    [
+        ("no-frames.npz", {"poses": np.zeros((0, 52, 3)), "trans": np.zeros((0, 3))}, "no frames"),
+        ("rate-inf.npz", {"mocap_framerate": np.float64(np.inf)}, "frame rate"),
+        ("rate-tiny.npz", {"mocap_framerate": np.float64(1e-6)}, "frame rate"),
+        ("rate-text.npz", {"mocap_framerate": np.str_("sixty")}, "frame rate"),
+        ("rate-array.npz", {"mocap_framerate": np.array([30.0, 60.0])}, "frame rate"),
+        ("poses-complex.npz", {"poses": np.zeros((30, 156), np.complex128)}, "dtype complex128"),
+        ("poses-bool.npz", {"poses": np.zeros((30, 156), bool)}, "real numbers"),
+        ("poses-text.npz", {"poses": np.array(["a"] * 30)}, "real numbers"),
+        ("poses-scaled.npz", {"poses": np.full((30, 156), 1000.0)}, "beyond"),
+        ("trans-huge.npz", {"trans": np.full((30, 3), 1e300)}, "beyond"),
+        ("poses-dates.npz", {"poses": np.zeros((30, 156), "datetime64[s]")}, "dtype"),
+    ],
+)
 def test_hostile_amass_files_are_refused(capsys, tmp_path, name, overrides, phrase):
     expect_failure(capsys, tmp_path, _amass(tmp_path, name, **overrides), phrase)
 
 
-@pytest.mark.parametrize("name, change, phrase", [
-    ("scaled.npz", lambda r: r * 1000, "beyond"),
-    ("zeros.npz", lambda r: r * 0, "not a rotation"),
-    ("reflected.npz", lambda r: r * np.array([-1.0, 1.0, 1.0])[:, None], "not a rotation"),
-])
+@pytest.mark.parametrize(
+    "name, change, phrase",
+    [
+        ("scaled.npz", lambda r: r * 1000, "beyond"),
+        ("zeros.npz", lambda r: r * 0, "not a rotation"),
+        ("reflected.npz", lambda r: r * np.array([-1.0, 1.0, 1.0])[:, None], "not a rotation"),
+    ],
+)
 def test_native_rotations_must_be_rotations(capsys, tmp_path, name, change, phrase):
     rot = synthesize("walk", seconds=1.0, seed=0).local_rotations.astype(np.float32)
     expect_failure(capsys, tmp_path, _native(tmp_path, name, local_rotations=change(rot)), phrase)
 
 
-@pytest.mark.parametrize("name, overrides, phrase", [
-    ("fps-zero.npz", {"fps": np.float64(0.0)}, "frame rate"),
-    ("fps-nan.npz", {"fps": np.float64(np.nan)}, "frame rate"),
-    ("version-text.npz", {"version": np.str_("one")}, "version"),
-    ("height-negative.npz", {"source_height_m": np.float64(-1.7)}, "height"),
-    ("source-number.npz", {"source": np.arange(4)}, "must be a string"),
-    ("root-teleports.npz", {"root_translation": np.where(np.arange(30)[:, None] == 10, 50.0, 0.0) + np.array([0, 0.9, 0])},
-     "m/s"),
-])
+@pytest.mark.parametrize(
+    "name, overrides, phrase",
+    [
+        ("fps-zero.npz", {"fps": np.float64(0.0)}, "frame rate"),
+        ("fps-nan.npz", {"fps": np.float64(np.nan)}, "frame rate"),
+        ("version-text.npz", {"version": np.str_("one")}, "version"),
+        ("height-negative.npz", {"source_height_m": np.float64(-1.7)}, "height"),
+        ("source-number.npz", {"source": np.arange(4)}, "must be a string"),
+        (
+            "root-teleports.npz",
+            {"root_translation": np.where(np.arange(30)[:, None] == 10, 50.0, 0.0) + np.array([0, 0.9, 0])},
+            "m/s",
+        ),
+    ],
+)
 def test_hostile_native_files_are_refused(capsys, tmp_path, name, overrides, phrase):
     expect_failure(capsys, tmp_path, _native(tmp_path, name, **overrides), phrase)
 
@@ -149,7 +194,9 @@ def _npy_header(shape, dtype="<f8") -> bytes:
     return out.getvalue()  # magic string included
 
 
-def test_huge_declared_shapes_and_compression_bombs_are_refused_before_allocation(capsys, tmp_path, monkeypatch):
+def test_huge_declared_shapes_and_compression_bombs_are_refused_before_allocation(
+    capsys, tmp_path, monkeypatch
+):
     claims = tmp_path / "claims.npz"  # a header declaring 26 GiB, with no data behind it
     with zipfile.ZipFile(claims, "w") as archive:
         archive.writestr("poses.npy", _npy_header((3_000_000, 156, 7)))

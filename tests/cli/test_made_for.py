@@ -33,14 +33,33 @@ def modelled(tmp_path_factory):
     body = _larger_body(1.12, 1.25)
     dress = make_garment("dress", 300, body=body)
     obj = write_obj(folder / "hero_dress.obj", dress.vertices, dress.faces, groups={"band": dress.attached})
-    body_file = write_body(folder / "hero.json", BodyRecord(body.skeleton, body, body.pelvis_height, stature=1.9))
+    body_file = write_body(
+        folder / "hero.json", BodyRecord(body.skeleton, body, body.pelvis_height, stature=1.9)
+    )
     return folder, body, dress, obj, body_file
 
 
 def _simulate(folder, obj, *extra):
     out = folder / f"{len(list(folder.glob('*.h5')))}.h5"
-    args = ["--template", str(obj), "--attached", "band", "--preset", "tiny", "--motions", "walk", "--seconds", "1.0",
-            "--jobs", "1", "--no-preview", "--quiet", "-o", str(out), *extra]
+    args = [
+        "--template",
+        str(obj),
+        "--attached",
+        "band",
+        "--preset",
+        "tiny",
+        "--motions",
+        "walk",
+        "--seconds",
+        "1.0",
+        "--jobs",
+        "1",
+        "--no-preview",
+        "--quiet",
+        "-o",
+        str(out),
+        *extra,
+    ]
     assert simulate_main(args) == 0
     return GarmentDataset(out)
 
@@ -49,14 +68,19 @@ def test_declared_with_its_body_the_garment_keeps_its_shape_and_simulates(modell
     folder, body, dress, obj, body_file = modelled
     # on the mannequin as it stands, it would not fit: its band floats off the mannequin's body
     band = dress.attached
-    assert np.median(_distance(dress.vertices[band], DEFAULT_BODY) - _distance(dress.vertices[band], body)) > 0.01
+    assert (
+        np.median(_distance(dress.vertices[band], DEFAULT_BODY) - _distance(dress.vertices[band], body))
+        > 0.01
+    )
     ds = _simulate(folder, obj, "--made-for", str(body_file))
     assert "the garment on body made_for" in capsys.readouterr().out
     (name,) = ds.names
     rest = ds.rest(name)
     on = ds.bodies[ds.body_of[name]].body
     assert _inside(rest, on) <= 0.01
-    assert np.linalg.norm(rest - dress.vertices, axis=-1).mean() <= 0.003  # its authored shape, within 3 mm on average
+    assert (
+        np.linalg.norm(rest - dress.vertices, axis=-1).mean() <= 0.003
+    )  # its authored shape, within 3 mm on average
     stats = ds.sequence(name).info["stats"]
     # a 300-vertex dress at the tiny preset's settings (its bar on real clips is tools/sim_report.py's 1.15)
     assert stats["strain_p99"] < 1.2 and stats["penetration_max"] < 0.02
@@ -65,7 +89,9 @@ def test_declared_with_its_body_the_garment_keeps_its_shape_and_simulates(modell
 def test_carried_onto_another_body_it_keeps_its_distance(modelled):
     folder, body, dress, obj, body_file = modelled
     other = _larger_body(0.95, 0.9)
-    other_file = write_body(folder / "small.json", BodyRecord(other.skeleton, other, other.pelvis_height, stature=1.6))
+    other_file = write_body(
+        folder / "small.json", BodyRecord(other.skeleton, other, other.pelvis_height, stature=1.6)
+    )
     ds = _simulate(folder, obj, "--made-for", str(body_file), "--body", str(other_file))
     (name,) = ds.names
     assert ds.body_of[name] == "small"
@@ -80,9 +106,39 @@ def test_carried_onto_another_body_it_keeps_its_distance(modelled):
 
 def test_made_for_goes_with_a_template_of_your_own_and_not_with_fit(modelled, capsys):
     folder, _, _, obj, body_file = modelled
-    assert simulate_main(["--garment", "dress", "--made-for", str(body_file), "--preset", "tiny", "-o", str(folder / "x.h5")]) == 2
+    assert (
+        simulate_main(
+            [
+                "--garment",
+                "dress",
+                "--made-for",
+                str(body_file),
+                "--preset",
+                "tiny",
+                "-o",
+                str(folder / "x.h5"),
+            ]
+        )
+        == 2
+    )
     assert "--template" in capsys.readouterr().err
-    assert simulate_main(["--template", str(obj), "--attached", "band", "--fit", "--made-for", str(body_file),
-                          "--preset", "tiny", "-o", str(folder / "y.h5")]) == 2
+    assert (
+        simulate_main(
+            [
+                "--template",
+                str(obj),
+                "--attached",
+                "band",
+                "--fit",
+                "--made-for",
+                str(body_file),
+                "--preset",
+                "tiny",
+                "-o",
+                str(folder / "y.h5"),
+            ]
+        )
+        == 2
+    )
     assert "carried, not moved" in capsys.readouterr().err
     assert not (folder / "x.h5").exists() and not (folder / "y.h5").exists()

@@ -25,8 +25,15 @@ def test_a_motion_is_written_as_npz_only_and_over_a_bvh_never(tmp_path, capsys):
 
     motion = synthesize("walk", seconds=1.0, seed=0)
     clip = tmp_path / "clip.bvh"
-    write_bvh(clip, list(JOINT_NAMES), list(PARENTS), CANONICAL.offsets, motion.local_rotations.astype(np.float64),
-              motion.root_translation, 1 / 30)
+    write_bvh(
+        clip,
+        list(JOINT_NAMES),
+        list(PARENTS),
+        CANONICAL.offsets,
+        motion.local_rotations.astype(np.float64),
+        motion.root_translation,
+        1 / 30,
+    )
     before = _listing(tmp_path)
     assert main(["synth", "walk", "-o", str(clip)]) == 2
     assert "clip.bvh" in capsys.readouterr().err
@@ -60,7 +67,9 @@ def test_an_output_that_is_the_input_by_another_name_is_refused(tmp_path, capsys
     (tmp_path / "link.glb").symlink_to(anim)  # the right extension, but the input itself
     assert export([str(anim), "-o", str(tmp_path / "link.glb")]) == 2
     assert "is the input" in capsys.readouterr().err
-    assert (tmp_path / "link.glb").is_symlink() and (tmp_path / "in.h5").read_bytes() == (FIXTURES / "auto.h5").read_bytes()
+    assert (tmp_path / "link.glb").is_symlink() and (tmp_path / "in.h5").read_bytes() == (
+        FIXTURES / "auto.h5"
+    ).read_bytes()
     clip = tmp_path / "walk.npz"
     save_motion(synthesize("walk", seconds=1.0, seed=0), clip)
     (tmp_path / "out.h5").symlink_to(clip)

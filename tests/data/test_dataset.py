@@ -29,8 +29,22 @@ from hrr_garment.motion.synth import synthesize
 from hrr_garment.sim.plan import plan_sequences
 from hrr_garment.sim.preset import load_preset
 
-SIM_ARGS = ["--garment", "skirt", "--preset", "tiny", "--motions", "walk", "spin", "walk", "--seconds", "1.0",
-            "--jobs", "1", "--no-preview", "--quiet"]
+SIM_ARGS = [
+    "--garment",
+    "skirt",
+    "--preset",
+    "tiny",
+    "--motions",
+    "walk",
+    "spin",
+    "walk",
+    "--seconds",
+    "1.0",
+    "--jobs",
+    "1",
+    "--no-preview",
+    "--quiet",
+]
 
 
 def test_presets_plan_named_seeded_sequences():
@@ -66,9 +80,10 @@ def test_split_is_by_sequence_seeded_and_complete():
     names = [f"s{i}" for i in range(20)]
     a, b = split_names(names, 0.1, 0.1, seed=0), split_names(names[::-1], 0.1, 0.1, seed=0)
     assert a == b
-    assert sorted(sum(a.values(), [])) == sorted(names) and len(a["val"]) == 2 and len(a["test"]) == 5  # MIN_TEST
+    assert (
+        sorted(sum(a.values(), [])) == sorted(names) and len(a["val"]) == 2 and len(a["test"]) == 5
+    )  # MIN_TEST
     assert split_names(names, 0.1, 0.1, seed=1) != a
-
 
 
 @pytest.mark.parametrize("seed", range(6))
@@ -82,7 +97,10 @@ def test_split_by_kind_holds_out_only_kinds_that_also_train(seed):
     specs = plan_sequences(preset)
     kinds = build_options(preset, specs)["kinds"]
     split = split_names(list(kinds), 0.1, 0.1, seed, kinds)
-    assert sorted(sum(split.values(), [])) == sorted(kinds) and (len(split["val"]), len(split["test"])) == (7, 7)
+    assert sorted(sum(split.values(), [])) == sorted(kinds) and (len(split["val"]), len(split["test"])) == (
+        7,
+        7,
+    )
     trained = {kinds[n] for n in split["train"]}
     assert {kinds[n] for n in split["test"] + split["val"]} <= trained
     assert {k for k, n in preset.sequences.items() if n == 1} <= trained
@@ -90,18 +108,25 @@ def test_split_by_kind_holds_out_only_kinds_that_also_train(seed):
     few = {"a_0": "a", "a_1": "a", "b_0": "b", "c_0": "c", "d_0": "d", "e_0": "e", "f_0": "f"}
     assert len(split_names(list(few), 0.1, 0.3, seed, few)["test"]) == 2
 
+
 def test_dataset_file_round_trip(tmp_path):
     garment = make_garment("skirt", 200)
     clip = synthesize("walk", 1.0, seed=0)
     noise = np.random.default_rng(0).normal(scale=0.2, size=(clip.num_frames, garment.num_vertices, 3))
     verts = (clip.root_translation[:, None] + noise).astype(np.float32)  # around the pelvis, as a garment is
-    path = write_dataset(tmp_path / "d.h5", garment, [SequenceRecord("walk_000", verts, clip, {"kind": "walk"})],
-                         {"train": ["walk_000"]})
+    path = write_dataset(
+        tmp_path / "d.h5",
+        garment,
+        [SequenceRecord("walk_000", verts, clip, {"kind": "walk"})],
+        {"train": ["walk_000"]},
+    )
     ds = GarmentDataset(path)
     rec = ds.sequence("walk_000")
     assert np.array_equal(rec.garment, verts)
     assert np.allclose(rec.motion.joint_positions, clip.joint_positions, atol=1e-5)
-    assert np.array_equal(ds.template.attached, garment.attached) and np.array_equal(ds.template.faces, garment.faces)
+    assert np.array_equal(ds.template.attached, garment.attached) and np.array_equal(
+        ds.template.faces, garment.faces
+    )
     assert ds.splits["train"] == ["walk_000"] and ds.splits["val"] == []
 
 
@@ -141,8 +166,12 @@ def test_killed_build_resumes_and_the_dataset_is_valid(built):
         assert rec.garment.shape == (30, ds.template.num_vertices, 3) and np.isfinite(rec.garment).all()
         assert rec.info["stats"]["strain_p99"] < 1.15
     # Running again reuses everything and rewrites the same data.
-    again = subprocess.run([sys.executable, "-m", "hrr_garment.cli.simulate", *SIM_ARGS, "-o", str(out)],
-                           capture_output=True, text=True, timeout=300)
+    again = subprocess.run(
+        [sys.executable, "-m", "hrr_garment.cli.simulate", *SIM_ARGS, "-o", str(out)],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert "(3 reused, 0 simulated now" in again.stdout
 
 
@@ -153,7 +182,18 @@ def test_a_ray_build_equals_the_local_build_bit_for_bit(built, tmp_path):
     pytest.importorskip("ray", reason="the cluster extra is not installed")
     local_path = built[0]
     out = tmp_path / "ray.h5"
-    cmd = [sys.executable, "-m", "hrr_garment.cli.simulate", *SIM_ARGS, "--jobs", "2", "--executor", "ray", "-o", str(out)]
+    cmd = [
+        sys.executable,
+        "-m",
+        "hrr_garment.cli.simulate",
+        *SIM_ARGS,
+        "--jobs",
+        "2",
+        "--executor",
+        "ray",
+        "-o",
+        str(out),
+    ]
     run = subprocess.run(cmd, capture_output=True, text=True, timeout=600)
     assert run.returncode == 0, run.stderr
     assert "(0 reused, 3 simulated now, 0 rejected)" in run.stdout
@@ -200,8 +240,24 @@ def test_import_round_trip_of_a_simulated_sequence(built, tmp_path):
     save_motion(rec.motion, motion)
     export_obj_frames(tmp_path / "frames", rec.garment, ds.template.faces)
     target = tmp_path / "imported.h5"
-    code = import_main(["--garment", "skirt", "--template", str(template), "--attached-file", str(attached),
-                        "--motion", str(motion), "--frames", str(tmp_path / "frames"), "--name", "walk_000", "-o", str(target)])
+    code = import_main(
+        [
+            "--garment",
+            "skirt",
+            "--template",
+            str(template),
+            "--attached-file",
+            str(attached),
+            "--motion",
+            str(motion),
+            "--frames",
+            str(tmp_path / "frames"),
+            "--name",
+            "walk_000",
+            "-o",
+            str(target),
+        ]
+    )
     assert code == 0
     back = GarmentDataset(target).sequence("walk_000")
     assert np.abs(back.garment - rec.garment).max() <= 1e-6  # OBJ keeps micrometres
@@ -220,20 +276,47 @@ def _expect_failure(capsys, main, args, out, *phrases):
 
 def test_bad_inputs_exit_nonzero_and_write_nothing(tmp_path, capsys):
     out = tmp_path / "never.h5"
-    _expect_failure(capsys, simulate_main, ["--garment", "kimono", "-o", str(out)], out, "kimono", "unknown garment")
+    _expect_failure(
+        capsys, simulate_main, ["--garment", "kimono", "-o", str(out)], out, "kimono", "unknown garment"
+    )
     v = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [5, 0, 0], [6, 0, 0], [5, 1, 0]], float)
     two = tmp_path / "two.obj"
     write_obj(two, v, np.array([[0, 1, 2], [3, 4, 5]]), {"band": np.array([0, 1, 2])})
-    _expect_failure(capsys, simulate_main, ["--template", str(two), "--attached", "band", "-o", str(out)], out,
-                    "two.obj", "2 connected components")
+    _expect_failure(
+        capsys,
+        simulate_main,
+        ["--template", str(two), "--attached", "band", "-o", str(out)],
+        out,
+        "two.obj",
+        "2 connected components",
+    )
     one = tmp_path / "one.obj"
     write_obj(one, v[:3], np.array([[0, 1, 2]]))
-    _expect_failure(capsys, simulate_main, ["--template", str(one), "-o", str(out)], out, "one.obj", "no attached vertices")
+    _expect_failure(
+        capsys,
+        simulate_main,
+        ["--template", str(one), "-o", str(out)],
+        out,
+        "one.obj",
+        "no attached vertices",
+    )
     short = tmp_path / "short.npz"
     save_motion(synthesize("walk", 1.0, seed=0).slice(0, 5), short)
-    _expect_failure(capsys, simulate_main, ["--garment", "skirt", "--motions", str(short), "-o", str(out)], out,
-                    "short.npz", "too short")
-    _expect_failure(capsys, simulate_main, ["--garment", "skirt", "--preset", "huge", "-o", str(out)], out, "unknown preset")
+    _expect_failure(
+        capsys,
+        simulate_main,
+        ["--garment", "skirt", "--motions", str(short), "-o", str(out)],
+        out,
+        "short.npz",
+        "too short",
+    )
+    _expect_failure(
+        capsys,
+        simulate_main,
+        ["--garment", "skirt", "--preset", "huge", "-o", str(out)],
+        out,
+        "unknown preset",
+    )
 
 
 def test_train_without_a_dataset_says_how_to_make_one(tmp_path, capsys, monkeypatch):
@@ -255,10 +338,14 @@ def test_a_dataset_being_built_is_locked_against_a_second_build(tmp_path):
     out = tmp_path / "d.h5"
     with exclusive_lock(out.with_suffix(".lock"), out, "busy"):  # as the first build holds it
         with pytest.raises(InputError, match=r"another hrr-simulate is building this dataset.*process \d+"):
-            build_dataset(make_garment("skirt", 200), [], SimConfig(), out=out, options=BuildOptions(progress=False))
+            build_dataset(
+                make_garment("skirt", 200), [], SimConfig(), out=out, options=BuildOptions(progress=False)
+            )
     # released with its holder: the next build gets past the lock (and finds nothing to simulate)
     with pytest.raises(Exception, match="every sequence failed; nothing to write"):
-        build_dataset(make_garment("skirt", 200), [], SimConfig(), out=out, options=BuildOptions(progress=False))
+        build_dataset(
+            make_garment("skirt", 200), [], SimConfig(), out=out, options=BuildOptions(progress=False)
+        )
     assert not out.exists()
 
 
@@ -268,8 +355,13 @@ def _damaged(path, damage):
     skirt = make_garment("skirt", 200)
     motion = synthesize("idle", 0.3, seed=0)
     frames = np.repeat(skirt.vertices[None], motion.num_frames, 0).astype(np.float32)
-    write_dataset(path, skirt, [SequenceRecord("a", frames, motion)], {"train": ["a"], "val": [], "test": []},
-                  compression=None)
+    write_dataset(
+        path,
+        skirt,
+        [SequenceRecord("a", frames, motion)],
+        {"train": ["a"], "val": [], "test": []},
+        compression=None,
+    )
     with h5py.File(path, "r+") as f:
         damage(f)
     return path
@@ -278,29 +370,38 @@ def _damaged(path, damage):
 def _set(key, value):
     def damage(f):
         f[key][...] = value
+
     return damage
 
 
 def _attr(key, value):
     def damage(f):
         (f[key] if key else f).attrs["info"] = value
+
     return damage
 
 
-@pytest.mark.parametrize("damage, phrase", [
-    (lambda f: f.__delitem__("sequences/a/garment"), "sequence 'a' lacks 'garment'"),
-    (_set("sequences/a/garment", np.nan), "non-finite garment vertices on 9 frame(s), first at frame 0"),
-    (_set("sequences/a/root_translation", np.inf), "sequence 'a': non-finite values in 9 frame(s)"),
-    (_attr("sequences/a", "{not json"), "attribute 'info' is not valid JSON"),
-    (_attr("", "[1, 2]"), "attribute 'info' should hold a dict"),
-    # found by tools/fuzz.py: a damaged template, an array of the wrong shape, a missing motion array
-    (_set("template/vertices", np.nan), "its template garment: vertex positions contain NaN"),
-    (_set("template/faces", 10**6), "its template garment: face indices must lie in"),
-    (lambda f: f.__delitem__("sequences/a/root_translation"), "sequence 'a' lacks 'root_translation'"),
-    (lambda f: (f.__delitem__("sequences/a/garment"),
-                f.create_dataset("sequences/a/garment", data=np.zeros((9, 201, 3), np.float32))),
-     "sequence 'a': arrays of mismatched shapes"),
-])
+@pytest.mark.parametrize(
+    "damage, phrase",
+    [
+        (lambda f: f.__delitem__("sequences/a/garment"), "sequence 'a' lacks 'garment'"),
+        (_set("sequences/a/garment", np.nan), "non-finite garment vertices on 9 frame(s), first at frame 0"),
+        (_set("sequences/a/root_translation", np.inf), "sequence 'a': non-finite values in 9 frame(s)"),
+        (_attr("sequences/a", "{not json"), "attribute 'info' is not valid JSON"),
+        (_attr("", "[1, 2]"), "attribute 'info' should hold a dict"),
+        # found by tools/fuzz.py: a damaged template, an array of the wrong shape, a missing motion array
+        (_set("template/vertices", np.nan), "its template garment: vertex positions contain NaN"),
+        (_set("template/faces", 10**6), "its template garment: face indices must lie in"),
+        (lambda f: f.__delitem__("sequences/a/root_translation"), "sequence 'a' lacks 'root_translation'"),
+        (
+            lambda f: (
+                f.__delitem__("sequences/a/garment"),
+                f.create_dataset("sequences/a/garment", data=np.zeros((9, 201, 3), np.float32)),
+            ),
+            "sequence 'a': arrays of mismatched shapes",
+        ),
+    ],
+)
 def test_damaged_datasets_are_refused_naming_the_file_and_sequence(tmp_path, damage, phrase):
     path = _damaged(tmp_path / "d.h5", damage)
     with pytest.raises(DatasetError, match=phrase.replace("(", r"\(").replace(")", r"\)")) as info:
@@ -312,14 +413,18 @@ def test_random_bytes_inside_a_chunk_are_a_clear_error(tmp_path):
     path = tmp_path / "d.h5"
     skirt = make_garment("skirt", 200)
     motion = synthesize("idle", 1.0, seed=0)
-    frames = np.random.default_rng(0).normal(size=(motion.num_frames, skirt.num_vertices, 3)).astype(np.float32)
+    frames = (
+        np.random.default_rng(0).normal(size=(motion.num_frames, skirt.num_vertices, 3)).astype(np.float32)
+    )
     write_dataset(path, skirt, [SequenceRecord("a", frames, motion)], {"train": ["a"], "val": [], "test": []})
     import h5py
 
     with h5py.File(path, "r") as f:  # where the compressed garment array's first chunk lies in the file
         offset = f["sequences/a/garment"].id.get_chunk_info(0).byte_offset
     data = bytearray(path.read_bytes())
-    data[offset + 16:offset + 4096] = np.random.default_rng(1).integers(0, 256, 4080, dtype=np.uint8).tobytes()
+    data[offset + 16 : offset + 4096] = (
+        np.random.default_rng(1).integers(0, 256, 4080, dtype=np.uint8).tobytes()
+    )
     path.write_bytes(bytes(data))
     with pytest.raises(DatasetError, match="sequence 'a' cannot be read"):
         GarmentDataset(path).sequence("a")
@@ -330,8 +435,14 @@ def test_a_garment_far_from_its_body_is_refused(tmp_path):
     then refused, and left the model folder: the dataset refuses it when read."""
     garment = make_garment("skirt", 200)
     clip = synthesize("walk", 1.0, seed=0)
-    verts = np.repeat(garment.vertices[None], clip.num_frames, 0) + clip.root_translation[:, None] - [0, 0.95, 0]
-    path = write_dataset(tmp_path / "d.h5", garment, [SequenceRecord("walk_000", (verts * 1e6).astype(np.float32), clip,
-                                                                     {"kind": "walk"})], {"train": ["walk_000"]})
+    verts = (
+        np.repeat(garment.vertices[None], clip.num_frames, 0) + clip.root_translation[:, None] - [0, 0.95, 0]
+    )
+    path = write_dataset(
+        tmp_path / "d.h5",
+        garment,
+        [SequenceRecord("walk_000", (verts * 1e6).astype(np.float32), clip, {"kind": "walk"})],
+        {"train": ["walk_000"]},
+    )
     with pytest.raises(DatasetError, match="from the pelvis at frame 0, beyond 3 m"):
         GarmentDataset(path).sequence("walk_000")

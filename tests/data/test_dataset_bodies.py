@@ -40,14 +40,20 @@ def test_a_dataset_keeps_each_sequences_body_and_the_garment_on_it(tmp_path):
     tall = _dressed(garment)
     clip = synthesize("walk", 1.0, seed=0)
     on_body = motion_on_body(clip, tall.body)
+
     def carried(rest, motion):  # the rest shape carried along with the pelvis, as a garment goes
-        return (rest[None] + (motion.root_translation - motion.root_translation[:1])[:, None]).astype(np.float32)
+        return (rest[None] + (motion.root_translation - motion.root_translation[:1])[:, None]).astype(
+            np.float32
+        )
 
     frames = carried(tall.garment.vertices, on_body)
-    records = [SequenceRecord("walk_tall", frames, on_body, {"kind": "walk"}, body="tall"),
-               SequenceRecord("walk_mannequin", carried(garment.vertices, clip), clip)]
-    path = write_dataset(tmp_path / "d.h5", garment, records, {"train": ["walk_tall", "walk_mannequin"]},
-                         bodies={"tall": tall})
+    records = [
+        SequenceRecord("walk_tall", frames, on_body, {"kind": "walk"}, body="tall"),
+        SequenceRecord("walk_mannequin", carried(garment.vertices, clip), clip),
+    ]
+    path = write_dataset(
+        tmp_path / "d.h5", garment, records, {"train": ["walk_tall", "walk_mannequin"]}, bodies={"tall": tall}
+    )
     ds = GarmentDataset(path)
     assert ds.body_of == {"walk_tall": "tall", "walk_mannequin": MANNEQUIN}
     rec = ds.sequence("walk_tall")
@@ -58,7 +64,9 @@ def test_a_dataset_keeps_each_sequences_body_and_the_garment_on_it(tmp_path):
     assert np.array_equal(ds.rest("walk_tall"), tall.garment.vertices)
     assert np.array_equal(ds.rest("walk_mannequin"), garment.vertices)
     kept = ds.bodies["tall"].body
-    assert np.allclose(kept.radii, tall.body.radii, atol=1e-9) and kept.pelvis_height == pytest.approx(tall.body.pelvis_height)
+    assert np.allclose(kept.radii, tall.body.radii, atol=1e-9) and kept.pelvis_height == pytest.approx(
+        tall.body.pelvis_height
+    )
     assert np.allclose(ds.sequence("walk_mannequin").motion.joint_positions, clip.joint_positions, atol=1e-5)
 
 
@@ -67,7 +75,9 @@ def test_a_sequence_on_a_body_the_file_does_not_hold_is_refused(tmp_path):
     clip = synthesize("walk", 1.0, seed=0)
     frames = np.repeat(garment.vertices[None], clip.num_frames, 0)
     with pytest.raises(ValueError, match="bodies that were not given"):
-        write_dataset(tmp_path / "d.h5", garment, [SequenceRecord("w", frames, clip, body="ghost")], {"train": ["w"]})
+        write_dataset(
+            tmp_path / "d.h5", garment, [SequenceRecord("w", frames, clip, body="ghost")], {"train": ["w"]}
+        )
     path = write_dataset(tmp_path / "d.h5", garment, [SequenceRecord("w", frames, clip)], {"train": ["w"]})
     with h5py.File(path, "a") as f:
         f["sequences/w"].attrs["body"] = "ghost"
@@ -103,25 +113,53 @@ def test_held_out_bodies_and_styles_combine():
 def test_hrr_simulate_on_a_body_records_it_and_mirrors_on_it(tmp_path, capsys):
     pytest.importorskip("newton", reason="the sim extra is not installed")
     body = _larger_body(1.1, 1.15)
-    body_file = write_body(tmp_path / "tall.json", BodyRecord(body.skeleton, body, body.pelvis_height, stature=1.87))
+    body_file = write_body(
+        tmp_path / "tall.json", BodyRecord(body.skeleton, body, body.pelvis_height, stature=1.87)
+    )
     preset = tmp_path / "p.yaml"
     preset.write_text(f"extends: {CONFIG_DIR / 'presets' / 'tiny.yaml'}\nname: tiny-mirror\nmirror: true\n")
     out = tmp_path / "on-body.h5"
-    assert simulate_main(["--garment", "skirt", "--preset", str(preset), "--motions", "walk", "--seconds", "1.0",
-                          "--body", str(body_file), "--jobs", "1", "--no-preview", "--quiet", "-o", str(out)]) == 0
+    assert (
+        simulate_main(
+            [
+                "--garment",
+                "skirt",
+                "--preset",
+                str(preset),
+                "--motions",
+                "walk",
+                "--seconds",
+                "1.0",
+                "--body",
+                str(body_file),
+                "--jobs",
+                "1",
+                "--no-preview",
+                "--quiet",
+                "-o",
+                str(out),
+            ]
+        )
+        == 0
+    )
     assert "body tall (1.87 m)" in capsys.readouterr().out
     ds = GarmentDataset(out)
     assert ds.body_of == {"walk_000": "tall", "walk_000_mirror": "tall"}
     rec = ds.sequence("walk_000")
     # ``mirror: true`` simulates the mirrored motion on the same body (not a reflection of the source's frames)
     mirror = ds.sequence("walk_000_mirror")
-    np.testing.assert_allclose(mirror.motion.joint_positions, rec.motion.mirrored().joint_positions, atol=1e-4)
-    assert part_paths(out.with_suffix(".parts"), "walk_000_mirror")[0].exists()  # simulated: a part of its own
+    np.testing.assert_allclose(
+        mirror.motion.joint_positions, rec.motion.mirrored().joint_positions, atol=1e-4
+    )
+    assert part_paths(out.with_suffix(".parts"), "walk_000_mirror")[
+        0
+    ].exists()  # simulated: a part of its own
     assert ds.info["summary"]["mirrored"] == 1
     assert rec.info["stats"]["penetration_max"] < 0.02 and rec.info["stats"]["strain_p99"] < 1.15
     # the clip played by this body: its pelvis higher by the legs' ratio, not the mannequin's
     clip = synthesize("walk", 1.0, seed=0)
     assert rec.motion.joint_positions[:, 0, 1] == pytest.approx(
-        clip.joint_positions[:, 0, 1] * body.pelvis_height / REST_PELVIS_HEIGHT, abs=1e-4)
+        clip.joint_positions[:, 0, 1] * body.pelvis_height / REST_PELVIS_HEIGHT, abs=1e-4
+    )
     recorded = json.loads(h5py.File(out, "r").attrs["info"])["bodies"]
     assert (recorded["from"], recorded["file"], recorded["placement"]["inside"]) == ("file", "tall.json", 0.0)

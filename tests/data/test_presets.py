@@ -21,8 +21,9 @@ def library(tmp_path, monkeypatch):
     monkeypatch.setenv("HRR_HOME", str(tmp_path / "work"))
     clips = tmp_path / "lib" / "clips"
     clips.mkdir(parents=True)
-    for i, (content, style) in enumerate([("walk", "proud"), ("walk", "sad"), ("run", "proud"), ("bow", "sad"),
-                                          ("bow", "old"), ("run", "old")]):
+    for i, (content, style) in enumerate(
+        [("walk", "proud"), ("walk", "sad"), ("run", "proud"), ("bow", "sad"), ("bow", "old"), ("run", "old")]
+    ):
         save_motion(synthesize("walk", 1.0, seed=i), clips / f"dataset-1_{content}_{style}_{i:03d}.npz")
     with tarfile.open(tmp_path / "lib" / "clips.tar.xz", "w:xz") as tar:
         tar.add(clips, arcname="pack")
@@ -46,8 +47,10 @@ def test_entries_resolve_globs_folders_and_archives(library, tmp_path):
 
 def test_groups_are_held_out_whole(library, tmp_path):
     preset_file = library / "lib.yaml"
-    preset_file.write_text("name: lib\nvertices: 300\nseconds: 1.0\nsequences: {}\nmotions: [clips.tar.xz]\n"
-                           "split_by: style\nsplits: {val: 0.2, test: 0.3}\nspeed_warps: [1.25]\n")
+    preset_file.write_text(
+        "name: lib\nvertices: 300\nseconds: 1.0\nsequences: {}\nmotions: [clips.tar.xz]\n"
+        "split_by: style\nsplits: {val: 0.2, test: 0.3}\nspeed_warps: [1.25]\n"
+    )
     preset = load_preset(str(preset_file))
     specs = plan_sequences(preset)
     assert len(specs) == 12 and sum(s.speed == 1.25 for s in specs) == 6
@@ -74,7 +77,9 @@ def test_mirrored_motion_mirrors_every_joint():
     motion = synthesize("dance", 1.5, seed=2)
     mirrored = motion.mirrored()
     flip = np.array([-1.0, 1.0, 1.0])
-    np.testing.assert_allclose(mirrored.joint_positions, motion.joint_positions[:, list(MIRROR_JOINTS)] * flip, atol=1e-5)
+    np.testing.assert_allclose(
+        mirrored.joint_positions, motion.joint_positions[:, list(MIRROR_JOINTS)] * flip, atol=1e-5
+    )
     np.testing.assert_allclose(mirrored.mirrored().local_rotations, motion.local_rotations, atol=1e-6)
 
 
@@ -88,8 +93,13 @@ def test_mirrored_sequences_join_their_source_split():
     perm = mirror_map(garment.vertices)
     assert perm is not None
     motion = synthesize("walk", 1.0, seed=0)
-    frames = garment.vertices[None] + np.random.default_rng(0).normal(0, 0.01, (motion.num_frames, garment.num_vertices, 3))
-    records = [SequenceRecord("a", frames.astype(np.float32), motion), SequenceRecord("b", frames.astype(np.float32), motion)]
+    frames = garment.vertices[None] + np.random.default_rng(0).normal(
+        0, 0.01, (motion.num_frames, garment.num_vertices, 3)
+    )
+    records = [
+        SequenceRecord("a", frames.astype(np.float32), motion),
+        SequenceRecord("b", frames.astype(np.float32), motion),
+    ]
     out, split = _add_mirrored(records, {"train": ["a"], "test": ["b"], "val": []}, garment, progress=False)
     assert split == {"train": ["a", "a_mirror"], "test": ["b", "b_mirror"], "val": []}
     mirrored = next(r for r in out if r.name == "a_mirror")
@@ -107,7 +117,9 @@ def test_mirrored_sequences_join_their_source_split():
     body = replace(DEFAULT_BODY, capsules=lopsided)
     bodies = {"odd": DressedBody("odd", BodyRecord(body.skeleton, body, body.pelvis_height, 1.7), garment)}
     records[1] = SequenceRecord("b", frames.astype(np.float32), motion, body="odd")
-    out, split = _add_mirrored(records, {"train": ["a"], "test": ["b"], "val": []}, garment, progress=False, bodies=bodies)
+    out, split = _add_mirrored(
+        records, {"train": ["a"], "test": ["b"], "val": []}, garment, progress=False, bodies=bodies
+    )
     assert split == {"train": ["a", "a_mirror"], "test": ["b"], "val": []} and len(out) == 3
 
 
@@ -116,7 +128,13 @@ def test_mirror_modes_of_a_preset(tmp_path):
     from hrr_garment.sim.preset import mirror_mode
 
     assert [mirror_mode(v) for v in (True, False, None, "simulate", "reflect", "sideways")] == [
-        "simulate", "", "", "simulate", "reflect", None]
+        "simulate",
+        "",
+        "",
+        "simulate",
+        "reflect",
+        None,
+    ]
     bad = tmp_path / "bad.yaml"
     bad.write_text("name: bad\nvertices: 300\nseconds: 1.0\nsequences: {walk: 1}\nmirror: sideways\n")
     with pytest.raises(InputError, match="mirror: 'sideways'"):
@@ -130,7 +148,9 @@ def test_mirror_modes_of_a_preset(tmp_path):
     # key it had before the field existed (finished parts stay reusable)
     spec = SequenceSpec("walk_000", "walk", seed=3, seconds=1.0)
     mirrored = SequenceSpec("walk_000_mirror", "walk", seed=3, seconds=1.0, mirrored=True)
-    np.testing.assert_allclose(mirrored.motion().joint_positions, spec.motion().mirrored().joint_positions, atol=1e-9)
+    np.testing.assert_allclose(
+        mirrored.motion().joint_positions, spec.motion().mirrored().joint_positions, atol=1e-9
+    )
     assert spec.key({}) == "a42fdcd307411965" and mirrored.key({}) != spec.key({})
 
 
@@ -154,9 +174,14 @@ def test_simulated_mirrors_join_their_source_split():
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("sequences,motions,missing", [({"walk": 3, "spin": 1, "run": 1}, None, []),
-                                                       ({"walk": 4, "spin": 2, "run": 1}, None, ["spin_001", "walk_003"]),
-                                                       ({"walk": 4, "spin": 2, "run": 1}, ["walk", "spin"], [])])
+@pytest.mark.parametrize(
+    "sequences,motions,missing",
+    [
+        ({"walk": 3, "spin": 1, "run": 1}, None, []),
+        ({"walk": 4, "spin": 2, "run": 1}, None, ["spin_001", "walk_003"]),
+        ({"walk": 4, "spin": 2, "run": 1}, ["walk", "spin"], []),
+    ],
+)
 def test_hrr_train_simulates_what_a_grown_preset_adds(tmp_path, monkeypatch, sequences, motions, missing):
     """A workspace's dataset made with an earlier, smaller version of a preset: hrr-train simulates
     the sequences it lacks (build_dataset reuses the finished ones) instead of training on it; a
@@ -173,16 +198,25 @@ def test_hrr_train_simulates_what_a_grown_preset_adds(tmp_path, monkeypatch, seq
 
     monkeypatch.setenv("HRR_HOME", str(tmp_path))
     (tmp_path / "datasets").mkdir()
-    dataset = synthetic_dataset(tmp_path / "datasets" / "skirt-grown.h5", make_garment("skirt", 300))  # run, spin, walk x 3
+    dataset = synthetic_dataset(
+        tmp_path / "datasets" / "skirt-grown.h5", make_garment("skirt", 300)
+    )  # run, spin, walk x 3
     with h5py.File(dataset, "a") as f:  # as hrr-simulate records what it simulated
         f.attrs["info"] = json.dumps({"preset": "grown", "motions": motions})
     preset = tmp_path / "grown.yaml"
-    preset.write_text(yaml.safe_dump({"name": "grown", "vertices": 300, "seconds": 2.0, "sequences": sequences}))
+    preset.write_text(
+        yaml.safe_dump({"name": "grown", "vertices": 300, "seconds": 2.0, "sequences": sequences})
+    )
     calls = []
-    monkeypatch.setattr(pipeline, "simulate_preset",
-                        lambda garment, p, out, progress=True: calls.append((garment, p.name, out)))
+    monkeypatch.setattr(
+        pipeline,
+        "simulate_preset",
+        lambda garment, p, out, progress=True: calls.append((garment, p.name, out)),
+    )
     assert sorted(pipeline.missing_sequences(dataset, load_preset(str(preset)))) == missing
-    assert train_cli.main(["--garment", "skirt", "--preset", str(preset), "--stage", "simulate", "--quiet"]) == 0
+    assert (
+        train_cli.main(["--garment", "skirt", "--preset", str(preset), "--stage", "simulate", "--quiet"]) == 0
+    )
     assert calls == ([("skirt", "grown", dataset)] if missing else [])
     assert pipeline.missing_sequences(tmp_path / "nothing.h5", load_preset(str(preset))) == []
 
@@ -194,14 +228,18 @@ def test_more_fields_held_out_whole_beside_the_split(library, tmp_path):
     from hrr_garment.sim.build import BuildOptions, _split
 
     preset_file = library / "lib.yaml"
-    preset_file.write_text("name: lib\nvertices: 300\nseconds: 1.0\nsequences: {walk: 1}\nmotions: [clips.tar.xz]\n"
-                           "split_by: style\nsplits: {val: 0.2, test: 0.2}\nalso_hold_out: {content: {test: 0.3}}\n")
+    preset_file.write_text(
+        "name: lib\nvertices: 300\nseconds: 1.0\nsequences: {walk: 1}\nmotions: [clips.tar.xz]\n"
+        "split_by: style\nsplits: {val: 0.2, test: 0.2}\nalso_hold_out: {content: {test: 0.3}}\n"
+    )
     preset = load_preset(str(preset_file))
     specs = plan_sequences(preset)
     options = build_options(preset, specs)
     content = options["also_hold_out"]["content"]
     assert set(content["groups"].values()) == {"content=walk", "content=run", "content=bow"}
-    assert "walk_000" not in content["groups"]  # a procedural clip has no content field: it is not held out by it
+    assert (
+        "walk_000" not in content["groups"]
+    )  # a procedural clip has no content field: it is not held out by it
     names = [s.name for s in specs]
     split = _split(names, specs, BuildOptions(**options))
     assert sorted(sum(split.values(), [])) == sorted(names)
@@ -212,22 +250,43 @@ def test_more_fields_held_out_whole_beside_the_split(library, tmp_path):
     style_only = _split(names, specs, BuildOptions(**{**options, "also_hold_out": None}))
     assert set(style_only["test"]) <= set(split["test"])  # the styles held out as before, and more
     kinds = holdout_of(options["info"], split, split["test"])
-    assert {n for n, k in kinds.items() if k == "content"} == {n for n in split["test"] if content["groups"].get(n) in unseen}
-    assert all(kinds[n] == "style" for n in split["test"] if content["groups"].get(n) not in unseen and n in options["groups"]
-               and options["groups"][n].startswith("style="))
+    assert {n for n, k in kinds.items() if k == "content"} == {
+        n for n in split["test"] if content["groups"].get(n) in unseen
+    }
+    assert all(
+        kinds[n] == "style"
+        for n in split["test"]
+        if content["groups"].get(n) not in unseen
+        and n in options["groups"]
+        and options["groups"][n].startswith("style=")
+    )
 
 
-@pytest.mark.parametrize("text, problem", [("{mood: {test: 0.1}}", "not a field"), ("{content: {test: 0.7}}", "fractions"),
-                                           ("{content: {train: 0.1}}", "fractions")])
+@pytest.mark.parametrize(
+    "text, problem",
+    [
+        ("{mood: {test: 0.1}}", "not a field"),
+        ("{content: {test: 0.7}}", "fractions"),
+        ("{content: {train: 0.1}}", "fractions"),
+    ],
+)
 def test_a_bad_also_hold_out_is_refused(library, text, problem):
     preset_file = library / "bad.yaml"
-    preset_file.write_text(f"name: bad\nvertices: 300\nseconds: 1.0\nsequences: {{}}\nalso_hold_out: {text}\n")
+    preset_file.write_text(
+        f"name: bad\nvertices: 300\nseconds: 1.0\nsequences: {{}}\nalso_hold_out: {text}\n"
+    )
     with pytest.raises(InputError, match=problem):
         load_preset(str(preset_file))
 
 
-@pytest.mark.parametrize("recorded,expected", [(True, ["run_000_mirror", "walk_000_mirror"]), ("reflect", ["run_000_mirror", "walk_000_mirror"]),
-                                               ("simulate", [])])
+@pytest.mark.parametrize(
+    "recorded,expected",
+    [
+        (True, ["run_000_mirror", "walk_000_mirror"]),
+        ("reflect", ["run_000_mirror", "walk_000_mirror"]),
+        ("simulate", []),
+    ],
+)
 def test_a_dataset_of_reflections_gets_its_mirrors_simulated(tmp_path, recorded, expected):
     """A workspace dataset whose mirrors are reflections (files written before mirrors were
     simulated record ``true``): hrr-train's simulate stage simulates the mirrors of a preset that now
@@ -243,15 +302,27 @@ def test_a_dataset_of_reflections_gets_its_mirrors_simulated(tmp_path, recorded,
 
     garment = make_garment("skirt", 200)
     clip = synthesize("walk", 1.0, seed=0)
-    frames = np.repeat(garment.vertices[None], clip.num_frames, axis=0) + clip.root_translation[:, None].astype(np.float32)
+    frames = np.repeat(garment.vertices[None], clip.num_frames, axis=0) + clip.root_translation[
+        :, None
+    ].astype(np.float32)
     names = ["run_000", "walk_000", "run_000_mirror", "walk_000_mirror", "splice_000"]
-    dataset = write_dataset(tmp_path / "d.h5", garment, [SequenceRecord(n, frames, clip) for n in names],
-                            {"train": names})
+    dataset = write_dataset(
+        tmp_path / "d.h5", garment, [SequenceRecord(n, frames, clip) for n in names], {"train": names}
+    )
     with h5py.File(dataset, "a") as f:
         f.attrs["info"] = json.dumps({"preset": "mirrored", "augmentation": {"mirror": recorded}})
     preset = tmp_path / "mirrored.yaml"
-    preset.write_text(yaml.safe_dump({"name": "mirrored", "vertices": 200, "seconds": 1.0, "sequences": {"walk": 1, "run": 1},
-                                      "mirror": True}))
+    preset.write_text(
+        yaml.safe_dump(
+            {
+                "name": "mirrored",
+                "vertices": 200,
+                "seconds": 1.0,
+                "sequences": {"walk": 1, "run": 1},
+                "mirror": True,
+            }
+        )
+    )
     assert sorted(pipeline.missing_sequences(dataset, load_preset(str(preset)))) == expected
 
 
@@ -273,7 +344,9 @@ def test_a_dataset_made_before_its_preset_changed_is_made_again(tmp_path):
     garment = make_garment("skirt", 200)
     clip = synthesize("walk", 1.0, seed=0)
     frames = np.repeat(garment.vertices[None], clip.num_frames, axis=0)
-    dataset = write_dataset(tmp_path / "d.h5", garment, [SequenceRecord("walk_000", frames, clip)], {"train": ["walk_000"]})
+    dataset = write_dataset(
+        tmp_path / "d.h5", garment, [SequenceRecord("walk_000", frames, clip)], {"train": ["walk_000"]}
+    )
     settings = {"name": "p", "vertices": 200, "seconds": 1.0, "sequences": {"walk": 1}}
     preset_file = tmp_path / "p.yaml"
 
@@ -289,11 +362,15 @@ def test_a_dataset_made_before_its_preset_changed_is_made_again(tmp_path):
         return dataset_out_of_date(dataset, load_preset(str(preset_file)))
 
     assert out_of_date(settings, settings) is None
-    assert out_of_date(settings, {**settings, "train": {"codespace": {"train": {"epochs": 3}}}}) is None  # training only
+    assert (
+        out_of_date(settings, {**settings, "train": {"codespace": {"train": {"epochs": 3}}}}) is None
+    )  # training only
     bodies = {**settings, "bodies": {"from": "sample", "per_clip": 2}}
     assert out_of_date(bodies, bodies) is None
-    assert out_of_date(bodies, {**settings, "bodies": {"from": "sample", "per_clip": 2, "mannequin": True}}) == \
-        "was made with other bodies settings than the p preset's"
+    assert (
+        out_of_date(bodies, {**settings, "bodies": {"from": "sample", "per_clip": 2, "mannequin": True}})
+        == "was made with other bodies settings than the p preset's"
+    )
     assert "splices" in out_of_date(settings, {**settings, "splices": {"backward": 3}})
     assert out_of_date(None, settings) is None  # before the record: the names are the preset's
     assert "lacks 1" in out_of_date(None, {**settings, "sequences": {"walk": 2}})
@@ -304,6 +381,8 @@ def test_a_dataset_made_before_its_preset_changed_is_made_again(tmp_path):
 def test_a_motion_file_may_not_take_an_added_sequences_name(tmp_path):
     save_motion(synthesize("walk", 1.0, seed=0), tmp_path / "backward_000.npz")
     preset_file = tmp_path / "p.yaml"
-    preset_file.write_text("name: p\nvertices: 200\nseconds: 1.0\nsequences: {}\nmotions: [backward_000.npz]\n")
+    preset_file.write_text(
+        "name: p\nvertices: 200\nseconds: 1.0\nsequences: {}\nmotions: [backward_000.npz]\n"
+    )
     with pytest.raises(InputError, match="backward_000.npz.*rename the file"):
         plan_sequences(load_preset(str(preset_file)))

@@ -37,46 +37,86 @@ def _c(pve, sharpness, swing):
 
 def test_plausibility_gap_weighs_too_smooth_and_too_sharp_alike():
     assert plausibility_gap(1.0, 1.0) == 0.0
-    assert plausibility_gap(0.5, 1.0) == pytest.approx(plausibility_gap(2.0, 1.0)) == pytest.approx(math.log(2))
+    assert (
+        plausibility_gap(0.5, 1.0) == pytest.approx(plausibility_gap(2.0, 1.0)) == pytest.approx(math.log(2))
+    )
     assert plausibility_gap(0.9, 0.25) == pytest.approx(math.hypot(math.log(0.9), math.log(4)))  # both count
-    assert plausibility_gap(0.8, 0.7) < plausibility_gap(0.6, 0.7)  # a gain in one counts while the other lags
+    assert plausibility_gap(0.8, 0.7) < plausibility_gap(
+        0.6, 0.7
+    )  # a gain in one counts while the other lags
     assert plausibility_gap(0.0, 1.0) == math.inf
 
 
-@pytest.mark.parametrize("candidates, expected", [
-    # the sharper mode is within 5 % (the default allowance) of the most accurate: it is chosen
-    ({"hybrid": _c(30.0, 0.13, 0.60), "residual": _c(30.3, 0.16, 0.63), "detail": _c(30.8, 0.40, 0.63)}, "detail"),
-    # 6 % worse is too much, however sharp: the most plausible of the rest
-    ({"hybrid": _c(30.0, 0.13, 0.60), "residual": _c(30.6, 0.16, 0.63), "detail": _c(31.8, 0.90, 0.95)}, "residual"),
-    # the most accurate need not be the hybrid, and the allowance is measured from it
-    ({"hybrid": _c(30.5, 0.13, 0.60), "residual": _c(30.0, 0.16, 0.63), "detail": _c(30.8, 0.40, 0.63)}, "detail"),
-    # equally plausible: the cheaper mode
-    ({"hybrid": _c(30.0, 0.50, 0.60), "detail": _c(30.0, 2.0, 0.60)}, "hybrid"),
-    # too sharp counts against a mode as much as too smooth
-    ({"hybrid": _c(30.0, 0.50, 0.90), "detail": _c(30.5, 3.0, 0.95)}, "hybrid"),
-])
+@pytest.mark.parametrize(
+    "candidates, expected",
+    [
+        # the sharper mode is within 5 % (the default allowance) of the most accurate: it is chosen
+        (
+            {
+                "hybrid": _c(30.0, 0.13, 0.60),
+                "residual": _c(30.3, 0.16, 0.63),
+                "detail": _c(30.8, 0.40, 0.63),
+            },
+            "detail",
+        ),
+        # 6 % worse is too much, however sharp: the most plausible of the rest
+        (
+            {
+                "hybrid": _c(30.0, 0.13, 0.60),
+                "residual": _c(30.6, 0.16, 0.63),
+                "detail": _c(31.8, 0.90, 0.95),
+            },
+            "residual",
+        ),
+        # the most accurate need not be the hybrid, and the allowance is measured from it
+        (
+            {
+                "hybrid": _c(30.5, 0.13, 0.60),
+                "residual": _c(30.0, 0.16, 0.63),
+                "detail": _c(30.8, 0.40, 0.63),
+            },
+            "detail",
+        ),
+        # equally plausible: the cheaper mode
+        ({"hybrid": _c(30.0, 0.50, 0.60), "detail": _c(30.0, 2.0, 0.60)}, "hybrid"),
+        # too sharp counts against a mode as much as too smooth
+        ({"hybrid": _c(30.0, 0.50, 0.90), "detail": _c(30.5, 3.0, 0.95)}, "hybrid"),
+    ],
+)
 def test_the_criterion_takes_the_most_plausible_of_the_accurate(candidates, expected):
     assert pick_auto_mode(candidates) == expected
-    assert pick_auto_mode(candidates, AutoConfig(allowance=1.0)) == min(candidates, key=lambda m: (candidates[m]["pve_mm"],
-                                                                                        list(candidates).index(m)))
+    assert pick_auto_mode(candidates, AutoConfig(allowance=1.0)) == min(
+        candidates, key=lambda m: (candidates[m]["pve_mm"], list(candidates).index(m))
+    )
 
 
 def test_a_recorded_calibration_is_picked_again_under_another_allowance():
     candidates = {"hybrid": _c(30.0, 0.13, 0.60), "residual": _c(30.6, 0.16, 0.63), R10: _c(31.2, 0.90, 0.95)}
-    auto = {"mode": "residual", "detail_base": "regression", "detail_strength": 1.0, "allowance": 1.03,
-            "sequences": 3, "frames": 90, "candidates": candidates}
+    auto = {
+        "mode": "residual",
+        "detail_base": "regression",
+        "detail_strength": 1.0,
+        "allowance": 1.03,
+        "sequences": 3,
+        "frames": 90,
+        "candidates": candidates,
+    }
     wider = repick(auto, AutoConfig(allowance=1.05))  # the folds' 4 % fit the default's 5 %
     assert (wider["mode"], wider["allowance"], wider["candidates"]) == ("detail", 1.05, candidates)
-    assert repick(wider, AutoConfig(allowance=1.03))["mode"] == "residual" and auto["mode"] == "residual"  # the record stays
+    assert (
+        repick(wider, AutoConfig(allowance=1.03))["mode"] == "residual" and auto["mode"] == "residual"
+    )  # the record stays
 
 
 def test_a_candidate_with_more_cloth_inside_the_body_is_not_the_default():
     """The residual's swing is another simulation's cloth: where it puts more than the penetration
     allowance (1.1 x) of the most accurate candidate's vertices inside the body, the folds on the
     regression are chosen instead; a calibration recorded without the numbers is picked without them."""
-    candidates = {"hybrid": {**_c(30.0, 0.13, 0.60), "penetration_pct": 3.0},
-                  R10: {**_c(30.9, 0.90, 0.80), "penetration_pct": 3.3},
-                  RR10: {**_c(31.0, 0.90, 0.95), "penetration_pct": 3.9}}
+    candidates = {
+        "hybrid": {**_c(30.0, 0.13, 0.60), "penetration_pct": 3.0},
+        R10: {**_c(30.9, 0.90, 0.80), "penetration_pct": 3.3},
+        RR10: {**_c(31.0, 0.90, 0.95), "penetration_pct": 3.9},
+    }
     assert pick_auto_mode(candidates) == R10
     assert pick_auto_mode(candidates, AutoConfig(penetration_allowance=1.5)) == RR10
     candidates[R10]["penetration_pct"] = 3.31  # 1.103 x: over too
@@ -84,7 +124,9 @@ def test_a_candidate_with_more_cloth_inside_the_body_is_not_the_default():
     recorded = {k: {m: v for m, v in c.items() if m != "penetration_pct"} for k, c in candidates.items()}
     assert pick_auto_mode(recorded) == RR10
     small = {k: {**c, "penetration_pct": c["penetration_pct"] / 10} for k, c in candidates.items()}
-    assert pick_auto_mode(small) == RR10  # all under the 1 % floor: the push-out's to take, not a reason to lose swing
+    assert (
+        pick_auto_mode(small) == RR10
+    )  # all under the 1 % floor: the push-out's to take, not a reason to lose swing
     assert pick_auto_mode(small, AutoConfig(penetration_floor_pct=0.0)) == "hybrid"
     with pytest.raises(SettingsError, match="penetration_allowance"):
         AutoConfig(penetration_allowance=0.5)
@@ -93,9 +135,11 @@ def test_a_candidate_with_more_cloth_inside_the_body_is_not_the_default():
 def test_the_allowance_holds_on_the_default_bodys_clips_as_well():
     """A model across bodies: a candidate within the allowance on all the validation clips but not on
     the default body's alone is not the default; numbers recorded without them pick as before."""
-    candidates = {"hybrid": {**_c(30.0, 0.13, 0.60), DEFAULT_BODY_PVE: 30.0},
-                  R10: {**_c(31.2, 0.90, 0.90), DEFAULT_BODY_PVE: 31.8},  # 4 % on all, 6 % on the default body
-                  RR8: {**_c(31.0, 0.70, 0.80), DEFAULT_BODY_PVE: 31.2}}
+    candidates = {
+        "hybrid": {**_c(30.0, 0.13, 0.60), DEFAULT_BODY_PVE: 30.0},
+        R10: {**_c(31.2, 0.90, 0.90), DEFAULT_BODY_PVE: 31.8},  # 4 % on all, 6 % on the default body
+        RR8: {**_c(31.0, 0.70, 0.80), DEFAULT_BODY_PVE: 31.2},
+    }
     assert pick_auto_mode(candidates) == RR8
     assert pick_auto_mode(candidates, AutoConfig(allowance=1.06)) == R10
     recorded = {k: {m: v for m, v in c.items() if m != DEFAULT_BODY_PVE} for k, c in candidates.items()}
@@ -104,28 +148,48 @@ def test_the_allowance_holds_on_the_default_bodys_clips_as_well():
     assert lacks_default_body({"candidates": recorded}, bodies)
     assert not lacks_default_body({"candidates": recorded, "default_body_sequences": 0}, bodies)
     assert not lacks_default_body({"candidates": recorded}, None)  # a model of the mannequin alone
-    assert not lacks_default_body({"candidates": recorded}, {**bodies, "default": {"name": "hero"}})  # of one body
+    assert not lacks_default_body(
+        {"candidates": recorded}, {**bodies, "default": {"name": "hero"}}
+    )  # of one body
 
 
-R8, R10, RR8, RR10 = (detail_label(b, s) for b, s in (("regression", 0.8), ("regression", 1.0), ("residual", 0.8),
-                                                         ("residual", 1.0)))
+R8, R10, RR8, RR10 = (
+    detail_label(b, s)
+    for b, s in (("regression", 0.8), ("regression", 1.0), ("residual", 0.8), ("residual", 1.0))
+)
 
 
-@pytest.mark.parametrize("pves, expected", [
-    ((27.0, 27.2, 27.7, 27.8, 27.9, 28.2), ("detail", "regression", 1.0)),  # x1 on the regression within; on the residual not
-    ((27.0, 27.2, 27.7, 28.0, 27.6, 27.8), ("detail", "residual", 1.0)),  # all within: the most plausible
-    ((27.0, 27.2, 27.7, 28.0, 27.6, 28.2), ("detail", "residual", 0.8)),  # the strongest folds cost too much
-    ((27.0, 27.2, 28.5, 28.6, 28.7, 28.9), ("residual", "residual", 1.0)),  # none within: auto elsewhere, the
-])  # detail mode's setting by the criterion among the detail candidates alone
+@pytest.mark.parametrize(
+    "pves, expected",
+    [
+        (
+            (27.0, 27.2, 27.7, 27.8, 27.9, 28.2),
+            ("detail", "regression", 1.0),
+        ),  # x1 on the regression within; on the residual not
+        ((27.0, 27.2, 27.7, 28.0, 27.6, 27.8), ("detail", "residual", 1.0)),  # all within: the most plausible
+        (
+            (27.0, 27.2, 27.7, 28.0, 27.6, 28.2),
+            ("detail", "residual", 0.8),
+        ),  # the strongest folds cost too much
+        (
+            (27.0, 27.2, 28.5, 28.6, 28.7, 28.9),
+            ("residual", "residual", 1.0),
+        ),  # none within: auto elsewhere, the
+    ],
+)  # detail mode's setting by the criterion among the detail candidates alone
 def test_the_detail_modes_setting_is_chosen_by_the_same_criterion(pves, expected):
     plausibility = [(0.15, 0.6), (0.2, 0.7), (0.73, 0.71), (0.95, 0.72), (0.74, 0.73), (0.96, 0.74)]
     labels = ["hybrid", "residual", R8, R10, RR8, RR10]
-    candidates = {k: {"pve_mm": p, "sharpness": s, "hem_swing": w} for k, p, (s, w) in zip(labels, pves, plausibility)}
+    candidates = {
+        k: {"pve_mm": p, "sharpness": s, "hem_swing": w} for k, p, (s, w) in zip(labels, pves, plausibility)
+    }
     assert pick_auto_and_detail(candidates, AutoConfig(allowance=1.03)) == expected
     for label in (RR8, RR10):  # no residual weight: the regression's
         del candidates[label]
     assert pick_auto_and_detail(candidates, AutoConfig(allowance=1.03))[1] == "regression"
-    assert pick_auto_and_detail({"hybrid": candidates["hybrid"]}, AutoConfig(allowance=1.03))[0] == "hybrid"  # no folds: no detail candidate
+    assert (
+        pick_auto_and_detail({"hybrid": candidates["hybrid"]}, AutoConfig(allowance=1.03))[0] == "hybrid"
+    )  # no folds: no detail candidate
 
 
 def test_free_cloth_labels_and_the_models_one_ramp():
@@ -133,11 +197,20 @@ def test_free_cloth_labels_and_the_models_one_ramp():
     assert label == "detail on residual x0.8, free cloth 10-40 mm"
     assert candidate_setting(label) == ("detail", "residual", 0.8, (10.0, 40.0))
     assert candidate_setting("residual") == ("residual", "regression", None, None)
-    assert candidate_setting(free_cloth_label("residual", (20, 60))) == ("residual", "regression", None, (20.0, 60.0))
+    assert candidate_setting(free_cloth_label("residual", (20, 60))) == (
+        "residual",
+        "regression",
+        None,
+        (20.0, 60.0),
+    )
     free = free_cloth_label("residual", (10, 40))
     # the picked candidate's ramp where it uses the residual
-    candidates = {"hybrid": _c(30.0, 0.2, 0.6), "residual": _c(30.2, 0.3, 0.7), free: _c(30.3, 0.3, 0.75),
-                  R10: _c(30.4, 0.3, 0.6)}
+    candidates = {
+        "hybrid": _c(30.0, 0.2, 0.6),
+        "residual": _c(30.2, 0.3, 0.7),
+        free: _c(30.3, 0.3, 0.75),
+        R10: _c(30.4, 0.3, 0.6),
+    }
     assert pick_auto_mode(candidates) == free and pick_free_cloth(candidates) == [10.0, 40.0]
     # the detail mode's on the regression: the residual mode's own pick among its candidates
     candidates[R10] = _c(30.4, 0.9, 0.9)
@@ -151,7 +224,11 @@ def test_free_cloth_labels_and_the_models_one_ramp():
     assert pick_free_cloth({"hybrid": _c(30.0, 0.2, 0.6)}) is None
     # the detail setting is the picked detail candidate, not the pick among the detail candidates
     # alone (whose allowance, from their own most accurate, can admit one the model does not run)
-    candidates = {"residual": _c(30.0, 0.3, 0.7), R10: _c(31.0, 0.9, 0.8), free_cloth_label(RR10, (10, 40)): _c(32.0, 1.0, 1.0)}
+    candidates = {
+        "residual": _c(30.0, 0.3, 0.7),
+        R10: _c(31.0, 0.9, 0.8),
+        free_cloth_label(RR10, (10, 40)): _c(32.0, 1.0, 1.0),
+    }
     assert pick_auto_and_detail(candidates) == ("detail", "regression", 1.0)
     assert pick_free_cloth(candidates) is None  # so the residual mode's own pick: the plain residual
 
@@ -161,12 +238,25 @@ def test_swing_labels_and_the_models_one_gain():
     assert label == "detail on residual x0.8, free cloth 10-40 mm, swing x1.2"
     assert candidate_setting(label) == ("detail", "residual", 0.8, (10.0, 40.0)) and swing_of(label) == 1.2
     assert swing_of("residual") == 1.0
-    candidates = {"residual": _c(30.0, 0.3, 0.7), RR10: _c(30.5, 0.9, 0.75),
-                  swing_label(RR10, 1.1): _c(31.0, 0.9, 0.82), swing_label(RR10, 1.3): _c(32.0, 0.9, 0.95)}
-    picked = repick({"candidates": candidates}, AutoConfig())  # 1.3's swing is nearest the truth's, but over 5 %
-    assert (picked["mode"], picked["detail_base"], picked["detail_strength"], picked["swing_gain"]) == ("detail", "residual", 1.0, 1.1)
+    candidates = {
+        "residual": _c(30.0, 0.3, 0.7),
+        RR10: _c(30.5, 0.9, 0.75),
+        swing_label(RR10, 1.1): _c(31.0, 0.9, 0.82),
+        swing_label(RR10, 1.3): _c(32.0, 0.9, 0.95),
+    }
+    picked = repick(
+        {"candidates": candidates}, AutoConfig()
+    )  # 1.3's swing is nearest the truth's, but over 5 %
+    assert (picked["mode"], picked["detail_base"], picked["detail_strength"], picked["swing_gain"]) == (
+        "detail",
+        "residual",
+        1.0,
+        1.1,
+    )
     assert repick({"candidates": candidates}, AutoConfig(allowance=1.1))["swing_gain"] == 1.3
-    candidates[swing_label(RR10, 1.1)] = _c(31.0, 0.9, 1.6)  # a gain that overshoots the truth's swing is less plausible
+    candidates[swing_label(RR10, 1.1)] = _c(
+        31.0, 0.9, 1.6
+    )  # a gain that overshoots the truth's swing is less plausible
     assert repick({"candidates": candidates}, AutoConfig())["swing_gain"] == 1.0
 
 
@@ -180,10 +270,17 @@ def test_hrr_train_calibrates_auto_and_it_agrees_with_the_evaluation(trained):
     root, data, _ = trained
     meta = json.loads((root / "model" / "bundle.json").read_text())
     auto = meta["auto"]
-    assert auto["mode"] in AUTO_CHOICES and {candidate_setting(k)[0] for k in auto["candidates"]} <= set(AUTO_CHOICES)
-    config = AutoConfig(allowance=auto["allowance"], penetration_allowance=auto["penetration_allowance"],
-                        penetration_floor_pct=auto["penetration_floor_pct"])
-    assert (auto["mode"], auto["detail_base"], auto["detail_strength"]) == pick_auto_and_detail(auto["candidates"], config)
+    assert auto["mode"] in AUTO_CHOICES and {candidate_setting(k)[0] for k in auto["candidates"]} <= set(
+        AUTO_CHOICES
+    )
+    config = AutoConfig(
+        allowance=auto["allowance"],
+        penetration_allowance=auto["penetration_allowance"],
+        penetration_floor_pct=auto["penetration_floor_pct"],
+    )
+    assert (auto["mode"], auto["detail_base"], auto["detail_strength"]) == pick_auto_and_detail(
+        auto["candidates"], config
+    )
     animator = Animator.load(root / "model")
     assert animator.bundle.auto_mode == auto["mode"]
     ds = GarmentDataset(data)
@@ -192,12 +289,20 @@ def test_hrr_train_calibrates_auto_and_it_agrees_with_the_evaluation(trained):
     for mode, c in auto["candidates"].items():  # deterministic
         assert again["candidates"][mode] == pytest.approx(c)
     # the same PVE as hrr-eval's on these clips (its own path: every metric, the single simulation)
-    pve = evaluate_modes(animator, records, EvaluationSettings(("hybrid",), progress=False))["hybrid"].metrics["pve_mm"]
+    pve = evaluate_modes(animator, records, EvaluationSettings(("hybrid",), progress=False))[
+        "hybrid"
+    ].metrics["pve_mm"]
     assert again["candidates"]["hybrid"]["pve_mm"] == pytest.approx(pve, rel=1e-6)
     for c in again["candidates"].values():
-        assert c["pve_mm"] > 0 and c["sharpness"] > 0 and c["hem_swing"] > 0 and 0 <= c["penetration_pct"] <= 100
+        assert (
+            c["pve_mm"] > 0 and c["sharpness"] > 0 and c["hem_swing"] > 0 and 0 <= c["penetration_pct"] <= 100
+        )
     inside = [animator.animate(r.motion, mode="hybrid", body=r.dressed, allow_outside=True) for r in records]
-    expected = 100 * sum(a.penetration.inside_before * len(a.vertices) for a in inside) / sum(len(a.vertices) for a in inside)
+    expected = (
+        100
+        * sum(a.penetration.inside_before * len(a.vertices) for a in inside)
+        / sum(len(a.vertices) for a in inside)
+    )
     assert again["candidates"]["hybrid"]["penetration_pct"] == pytest.approx(expected)
     # with a residual weight the detail mode is measured on both bases at every strength, each as the mode runs it
     animator.bundle.meta["residual"] = {**animator.bundle.meta["residual"], "weight": 0.7}
@@ -205,21 +310,31 @@ def test_hrr_train_calibrates_auto_and_it_agrees_with_the_evaluation(trained):
     assert set(both["candidates"]) >= set(DETAIL_CANDIDATES)
     for label, (base, strength) in DETAIL_CANDIDATES.items():
         pred = animator.animate(records[0].motion, mode="detail", detail=DetailLook(base, strength)).vertices
-        assert both["candidates"][label]["pve_mm"] == pytest.approx(float(np.linalg.norm(pred - records[0].garment, axis=-1).mean()) * 1000, rel=1e-5)
-    pves = [both["candidates"][detail_label(base, s)]["pve_mm"] for base in ("regression", "residual") for s in DETAIL_STRENGTHS]
+        assert both["candidates"][label]["pve_mm"] == pytest.approx(
+            float(np.linalg.norm(pred - records[0].garment, axis=-1).mean()) * 1000, rel=1e-5
+        )
+    pves = [
+        both["candidates"][detail_label(base, s)]["pve_mm"]
+        for base in ("regression", "residual")
+        for s in DETAIL_STRENGTHS
+    ]
     assert len(set(pves)) == len(pves)  # each setting changes the output
     # ... and every candidate that borrows from the matches (the residual, the folds) again on free
     # cloth, each ramp as the bundle runs it
     from hrr_garment.artifacts.residual import FREE_CLOTH_RAMPS_MM
 
     free = [k for k in both["candidates"] if candidate_setting(k)[3] is not None]
-    assert len(free) == len(FREE_CLOTH_RAMPS_MM) * (1 + 2 * len(DETAIL_STRENGTHS)) and both["folds_free_cloth"]
+    assert (
+        len(free) == len(FREE_CLOTH_RAMPS_MM) * (1 + 2 * len(DETAIL_STRENGTHS)) and both["folds_free_cloth"]
+    )
     for label in free:
         mode, base, strength, ramp = candidate_setting(label)
         with free_cloth(animator.bundle, ramp):
             look = DetailLook(base, strength) if mode == "detail" else DetailLook()
             pred = animator.animate(records[0].motion, mode=mode, detail=look).vertices
-        assert both["candidates"][label]["pve_mm"] == pytest.approx(float(np.linalg.norm(pred - records[0].garment, axis=-1).mean()) * 1000, rel=1e-5)
+        assert both["candidates"][label]["pve_mm"] == pytest.approx(
+            float(np.linalg.norm(pred - records[0].garment, axis=-1).mean()) * 1000, rel=1e-5
+        )
     assert animator.bundle.residual_nodes is None and animator.bundle.fold_weights is None  # left as it was
 
 
@@ -248,14 +363,26 @@ def test_hrr_train_picks_auto_again_when_its_allowance_changes(trained, tmp_path
     assert recorded == widest and widest["allowance"] == 2.0
     assert all(widest["candidates"][k] == c for k, c in before["candidates"].items())
     # what was added: the swing gains of the new first pick (the pick without a gain), where it moved
-    first = pick_auto_mode({k: c for k, c in before["candidates"].items() if swing_of(k) == 1.0}, AutoConfig(allowance=2.0))
-    assert set(widest["candidates"]) == set(before["candidates"]) | {swing_label(first, g) for g in SWING_GAINS}
+    first = pick_auto_mode(
+        {k: c for k, c in before["candidates"].items() if swing_of(k) == 1.0}, AutoConfig(allowance=2.0)
+    )
+    assert set(widest["candidates"]) == set(before["candidates"]) | {
+        swing_label(first, g) for g in SWING_GAINS
+    }
     c = widest["candidates"]
     accurate = min(c, key=lambda m: c[m]["pve_mm"])
-    eligible = [m for m in c if c[m]["pve_mm"] <= 2.0 * c[accurate]["pve_mm"]
-                and c[m]["penetration_pct"] <= max(1.1 * c[accurate]["penetration_pct"], 1.0) + 1e-9]
+    eligible = [
+        m
+        for m in c
+        if c[m]["pve_mm"] <= 2.0 * c[accurate]["pve_mm"]
+        and c[m]["penetration_pct"] <= max(1.1 * c[accurate]["penetration_pct"], 1.0) + 1e-9
+    ]
     most_plausible = min(plausibility_gap(c[m]["sharpness"], c[m]["hem_swing"]) for m in eligible)
-    picked = widest["mode"] if widest["mode"] != "detail" else detail_label(widest["detail_base"], widest["detail_strength"])
+    picked = (
+        widest["mode"]
+        if widest["mode"] != "detail"
+        else detail_label(widest["detail_base"], widest["detail_strength"])
+    )
     if widest["residual_free_mm"] and (widest["mode"] == "residual" or widest["detail_base"] == "residual"):
         picked = free_cloth_label(picked, widest["residual_free_mm"])
     elif widest["mode"] == "detail" and widest["folds_free_mm"]:  # the folds alone on free cloth
@@ -280,12 +407,16 @@ def test_a_calibration_recorded_before_is_made_again(trained, tmp_path, before):
     auto = json.loads((tmp_path / "model" / "bundle.json").read_text())["auto"]
     assert auto["fold_follow"] == FOLD_FOLLOW
     if before == "penetration":
-        old = {k: {m: v for m, v in c.items() if m != "penetration_pct"} for k, c in auto["candidates"].items()}
+        old = {
+            k: {m: v for m, v in c.items() if m != "penetration_pct"} for k, c in auto["candidates"].items()
+        }
         update_bundle_meta(tmp_path / "model", {"auto": {**auto, "candidates": old}})
     else:  # numbers of another detail mode (here: made up), recorded without the following (or the folds' ramps)
         old = {k: {**c, "pve_mm": 999.0} for k, c in auto["candidates"].items()}
-        update_bundle_meta(tmp_path / "model", {"auto": {**{k: v for k, v in auto.items() if k != before},
-                                                          "candidates": old}})
+        update_bundle_meta(
+            tmp_path / "model",
+            {"auto": {**{k: v for k, v in auto.items() if k != before}, "candidates": old}},
+        )
     again = calibrate_auto(tmp_path / "model", data, progress=False)
     assert again["fold_follow"] == FOLD_FOLLOW and again["folds_free_cloth"]
     assert again["mode"] == auto["mode"] and set(again["candidates"]) == set(auto["candidates"])
@@ -307,18 +438,31 @@ def test_the_folds_on_free_cloth_run_as_the_bundle_records_them(trained, tmp_pat
     look = DetailLook("regression", 1.0)
     runs = {}
     for ramp in (None, [5000.0, 6000.0], [-6000.0, -5000.0]):
-        update_bundle_meta(copy, {"auto": {"mode": "detail", "detail_base": "regression", "detail_strength": 1.0,
-                                           "folds_free_mm": ramp}})
+        update_bundle_meta(
+            copy,
+            {
+                "auto": {
+                    "mode": "detail",
+                    "detail_base": "regression",
+                    "detail_strength": 1.0,
+                    "folds_free_mm": ramp,
+                }
+            },
+        )
         animator = Animator.load(copy)
-        runs[None if ramp is None else ramp[0]] = animator.animate(motion, mode="detail", detail=look, collision=False).vertices
+        runs[None if ramp is None else ramp[0]] = animator.animate(
+            motion, mode="detail", detail=look, collision=False
+        ).vertices
     regression = animator.animate(motion, mode="regression", collision=False).vertices
     assert np.abs(runs[None] - regression).max() > 1e-4  # the folds change the shape ...
     assert np.allclose(runs[5000.0], regression, atol=1e-6)  # ... not on cloth that is nowhere free
     assert np.array_equal(runs[-6000.0], runs[None])
 
 
-@pytest.mark.parametrize("chosen, base, strength", [("detail", "regression", 0.6), ("detail", "residual", 1.0),
-                                                    ("hybrid", "regression", 0.8)])
+@pytest.mark.parametrize(
+    "chosen, base, strength",
+    [("detail", "regression", 0.6), ("detail", "residual", 1.0), ("hybrid", "regression", 0.8)],
+)
 def test_auto_runs_the_calibrated_mode_everywhere(trained, tmp_path, chosen, base, strength):
     from hrr_garment.artifacts.bundle_writer import update_bundle_meta
     from hrr_garment.inference.animator import Animator
@@ -327,8 +471,13 @@ def test_auto_runs_the_calibrated_mode_everywhere(trained, tmp_path, chosen, bas
     copy = tmp_path / "model"
     shutil.copytree(root / "model", copy)
     residual = json.loads((copy / "bundle.json").read_text())["residual"]
-    update_bundle_meta(copy, {"auto": {"mode": chosen, "detail_base": base, "detail_strength": strength},
-                              "residual": {**residual, "weight": 0.7}})
+    update_bundle_meta(
+        copy,
+        {
+            "auto": {"mode": chosen, "detail_base": base, "detail_strength": strength},
+            "residual": {**residual, "weight": 0.7},
+        },
+    )
     animator = Animator.load(copy)
     assert animator.bundle.detail_base == base and animator.bundle.detail_strength == strength
     motion = synthesize("walk", 1.0, seed=5)
@@ -355,5 +504,7 @@ def test_a_model_without_auto_runs_the_hybrid(trained, tmp_path):
     animator = Animator.load(copy)
     assert animator.resolve().mode == "hybrid"
     motion = synthesize("walk", 0.5, seed=6)
-    assert np.array_equal(animator.animate(motion, collision=False).vertices,
-                          animator.animate(motion, mode="hybrid", collision=False).vertices)
+    assert np.array_equal(
+        animator.animate(motion, collision=False).vertices,
+        animator.animate(motion, mode="hybrid", collision=False).vertices,
+    )

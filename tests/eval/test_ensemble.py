@@ -29,8 +29,10 @@ def skirt():
     from hrr_garment.motion.skeleton import REST_PELVIS_HEIGHT
 
     garment = make_garment("skirt", 200)
-    motion = Motion(np.broadcast_to(np.eye(3, dtype=np.float32), (30, 22, 3, 3)).copy(),
-                    np.tile([0.0, REST_PELVIS_HEIGHT, 0.0], (30, 1)))
+    motion = Motion(
+        np.broadcast_to(np.eye(3, dtype=np.float32), (30, 22, 3, 3)).copy(),
+        np.tile([0.0, REST_PELVIS_HEIGHT, 0.0], (30, 1)),
+    )
     base = np.broadcast_to(garment.vertices, (motion.num_frames, *garment.vertices.shape)).astype(np.float64)
     return garment, motion, base, MeshTopology.of(garment.faces, garment.num_vertices)
 
@@ -75,7 +77,10 @@ def test_ensemble_metrics_rank_a_member_and_the_blurry_mean(skirt):
     assert r_member["jitter_ratio"] == pytest.approx(0.5)  # like its PVE: 0 to itself, the floor to the other
     # sharpness: the member bends as much as the truths (their mean, up to the skirt's asymmetry);
     # the mean is the flat rest shape
-    assert r_member["bending_energy_ratio"] == pytest.approx(1.0, rel=0.02) and r_mean["bending_energy_ratio"] < 0.01
+    assert (
+        r_member["bending_energy_ratio"] == pytest.approx(1.0, rel=0.02)
+        and r_mean["bending_energy_ratio"] < 0.01
+    )
 
 
 @pytest.mark.sim
@@ -93,13 +98,19 @@ def test_members_are_perturbed_cached_and_close(tmp_path):
 
     garment = make_garment("skirt", 200)
     motion = synthesize("walk", 0.5, seed=3)
-    record = SequenceRecord("walk_000", np.zeros((motion.num_frames, garment.num_vertices, 3), np.float32), motion, {})
+    record = SequenceRecord(
+        "walk_000", np.zeros((motion.num_frames, garment.num_vertices, 3), np.float32), motion, {}
+    )
     cache = tmp_path / "cache"
-    first = truth_ensembles(garment, [record], config, members=2, jobs=1, cache=cache, progress=False)["walk_000"]
+    first = truth_ensembles(garment, [record], config, members=2, jobs=1, cache=cache, progress=False)[
+        "walk_000"
+    ]
     assert first.members.shape == (2, motion.num_frames, garment.num_vertices, 3) and not first.failed
     floor = mean_pairwise_mm(first.members)
     assert 0.0 < floor < 20.0  # different, yet the same cloth on the same motion
     files = sorted(cache.glob("*.npy"))
     stamps = [f.stat().st_mtime_ns for f in files]
-    again = truth_ensembles(garment, [record], config, members=2, jobs=1, cache=cache, progress=False)["walk_000"]
+    again = truth_ensembles(garment, [record], config, members=2, jobs=1, cache=cache, progress=False)[
+        "walk_000"
+    ]
     assert np.array_equal(again.members, first.members) and [f.stat().st_mtime_ns for f in files] == stamps

@@ -20,15 +20,40 @@ def test_hrr_eval_causal_scores_what_a_stream_shows(trained, tmp_path):
 
     root, data, _ = trained
     out = tmp_path / "causal"
-    assert main(["--model", str(root / "model"), "--dataset", str(data), "--split", "test", "--modes", "regression,residual",
-                 "--no-sweep", "--library", "0", "--no-plots", "--causal", "-o", str(out), "--quiet"]) == 0
+    assert (
+        main(
+            [
+                "--model",
+                str(root / "model"),
+                "--dataset",
+                str(data),
+                "--split",
+                "test",
+                "--modes",
+                "regression,residual",
+                "--no-sweep",
+                "--library",
+                "0",
+                "--no-plots",
+                "--causal",
+                "-o",
+                str(out),
+                "--quiet",
+            ]
+        )
+        == 0
+    )
     report = json.loads((out / "report.json").read_text())
     assert report["settings"]["causal"] and "causal (as streamed" in (out / "report.md").read_text()
     record = GarmentDataset(data).sequence("run_000")
     animator = Animator.load(root / "model")
     for mode in ("regression", "residual"):
-        causal, offline = (animator.animate(record.motion, mode=mode, causal=c).vertices for c in (True, False))
-        assert report["modes"][mode]["metrics"]["pve_mm"] == pytest.approx(pve_mm(causal, record.garment), rel=1e-6)
+        causal, offline = (
+            animator.animate(record.motion, mode=mode, causal=c).vertices for c in (True, False)
+        )
+        assert report["modes"][mode]["metrics"]["pve_mm"] == pytest.approx(
+            pve_mm(causal, record.garment), rel=1e-6
+        )
         assert not np.allclose(causal, offline, atol=1e-4)  # and they are not the offline numbers
 
 
@@ -37,13 +62,36 @@ def test_hrr_eval_report_end_to_end(trained, tmp_path, capsys):
 
     root, data, _ = trained
     out = tmp_path / "report"
-    assert main(["--model", str(root / "model"), "--dataset", str(data), "--split", "test", "--tau-sweep", "0,0.5,1,100",
-                 "--detail-strength", "1.2", "-o", str(out), "--quiet"]) == 0
+    assert (
+        main(
+            [
+                "--model",
+                str(root / "model"),
+                "--dataset",
+                str(data),
+                "--split",
+                "test",
+                "--tau-sweep",
+                "0,0.5,1,100",
+                "--detail-strength",
+                "1.2",
+                "-o",
+                str(out),
+                "--quiet",
+            ]
+        )
+        == 0
+    )
     report = json.loads((out / "report.json").read_text())
     assert report["format_version"] == REPORT_VERSION == 12 and report["dataset"]["sequences"] == ["run_000"]
-    assert report["dataset"]["holdouts"] == {"run_000": "clip"} and report["holdouts"] is None  # one hold-out: no table
+    assert (
+        report["dataset"]["holdouts"] == {"run_000": "clip"} and report["holdouts"] is None
+    )  # one hold-out: no table
     base = json.loads((root / "model" / "bundle.json").read_text())["auto"]["detail_base"]
-    assert (report["settings"]["detail_strength"], report["settings"]["detail_base"]) == (1.2, base)  # as asked; the base as calibrated
+    assert (report["settings"]["detail_strength"], report["settings"]["detail_base"]) == (
+        1.2,
+        base,
+    )  # as asked; the base as calibrated
     assert f"detail mode: folds x1.2 on the {base}" in (out / "report.md").read_text()
     assert report["ensemble"] == {"members": 0}  # a synthetic dataset: no simulator settings to perturb
     modes = report["modes"]
@@ -55,22 +103,31 @@ def test_hrr_eval_report_end_to_end(trained, tmp_path, capsys):
         assert all(v is not None and math.isfinite(v) for v in m.values()), (name, m)
         assert m["pve_mm"] > 0 and m["rmse_mm"] >= m["pve_mm"] and 0 <= m["penetration_pct"] <= 100
         assert set(entry["sequences"]) == {"run_000"}
-    assert modes["regression"]["metrics"]["retrieval_usage"] == 0 and modes["retrieval"]["metrics"]["retrieval_usage"] == 1
+    assert (
+        modes["regression"]["metrics"]["retrieval_usage"] == 0
+        and modes["retrieval"]["metrics"]["retrieval_usage"] == 1
+    )
     # the sweep's ends are the single modes: tau 0 never retrieves, tau 100 always does
     sweep = {p["tau"]: p for p in report["tau_sweep"]}
     assert sweep[0.0]["retrieval_usage"] == 0 and sweep[100.0]["retrieval_usage"] == 1
     assert sweep[0.0]["pve_mm"] == pytest.approx(modes["regression"]["metrics"]["pve_mm"], rel=1e-9)
     assert sweep[100.0]["pve_mm"] == pytest.approx(modes["retrieval"]["metrics"]["pve_mm"], rel=1e-9)
     for tau, mode in ((0.0, "regression"), (100.0, "retrieval")):  # plausibility beside accuracy, per tau
-        assert sweep[tau]["sharpness"] == pytest.approx(modes[mode]["metrics"]["bending_energy_ratio"], rel=1e-9)
+        assert sweep[tau]["sharpness"] == pytest.approx(
+            modes[mode]["metrics"]["bending_energy_ratio"], rel=1e-9
+        )
     goals = report["goals"]
     assert goals["hybrid_vs_regression"]["ratio"] == pytest.approx(
-        modes["hybrid"]["metrics"]["pve_mm"] / modes["regression"]["metrics"]["pve_mm"])
+        modes["hybrid"]["metrics"]["pve_mm"] / modes["regression"]["metrics"]["pve_mm"]
+    )
     assert goals["interior_tau_optimum"]["best_tau"] in sweep
     assert goals["residual_vs_regression"]["ratio"] == pytest.approx(
-        modes["residual"]["metrics"]["pve_mm"] / modes["regression"]["metrics"]["pve_mm"])
+        modes["residual"]["metrics"]["pve_mm"] / modes["regression"]["metrics"]["pve_mm"]
+    )
     hist = report["entropy"]["histogram"]
-    assert sum(hist["counts"]) == report["dataset"]["frames"] and len(hist["edges"]) == len(hist["counts"]) + 1
+    assert (
+        sum(hist["counts"]) == report["dataset"]["frames"] and len(hist["edges"]) == len(hist["counts"]) + 1
+    )
     md = (out / "report.md").read_text()
     assert "| hybrid |" in md and "## Tau sweep" in md
     for plot in ("error_over_time.png", "entropy_histogram.png", "tau_curve.png"):
@@ -80,9 +137,17 @@ def test_hrr_eval_report_end_to_end(trained, tmp_path, capsys):
     # a real-motion clip whose simulation was rejected is named in report.md, not silently dropped
     from hrr_garment.eval.report import markdown
 
-    real = {"files": ["a.bvh", "b.bvh"], "dataset": "real.h5", "sequences": ["a"], "frames": 10,
-            "rejected": {"b": "edge strain 2.7 > 2.5"}, "modes": report["modes"]}
-    assert "Not evaluated: `b`, its simulation was rejected (edge strain 2.7 > 2.5)" in markdown({**report, "real_motion": real}, [])
+    real = {
+        "files": ["a.bvh", "b.bvh"],
+        "dataset": "real.h5",
+        "sequences": ["a"],
+        "frames": 10,
+        "rejected": {"b": "edge strain 2.7 > 2.5"},
+        "modes": report["modes"],
+    }
+    assert "Not evaluated: `b`, its simulation was rejected (edge strain 2.7 > 2.5)" in markdown(
+        {**report, "real_motion": real}, []
+    )
 
 
 def test_ensemble_scores_lead_the_report(trained):
@@ -99,8 +164,12 @@ def test_ensemble_scores_lead_the_report(trained):
     shift = np.array([0.003, 0.0, 0.0], np.float32)  # two truths 3 mm either side of the recorded one
     members = np.stack([record.garment + shift, record.garment - shift])
     ensembles = {record.name: TruthEnsemble(record.name, members, ["+x", "-x"], {})}
-    results = evaluate_modes(animator, [record], EvaluationSettings(("regression", "retrieval"), progress=False),
-                             ensembles=ensembles)
+    results = evaluate_modes(
+        animator,
+        [record],
+        EvaluationSettings(("regression", "retrieval"), progress=False),
+        ensembles=ensembles,
+    )
     for result in results.values():
         e = result.ensemble
         assert e["floor_mm"] == pytest.approx(6.0, rel=1e-4) and e["sequences"] == 1
@@ -109,10 +178,15 @@ def test_ensemble_scores_lead_the_report(trained):
         assert e["pve_ensemble_mean_mm"] == pytest.approx(result.metrics["pve_mm"], rel=1e-4)
         assert e["pve_members_mm"] >= e["pve_ensemble_mean_mm"] and e["energy_score_mm"] >= 0
         assert 0 <= e["penetration_before_worst_pct"] <= 100 and e["acceleration_ratio"] > 0
-    report = build_report(model={"folder": "m", "garment": "skirt", "hash": "h", "tau": 0.1}, dataset={
-        "path": "d.h5", "split": "test", "sequences": [record.name], "frames": len(record.garment)},
-        settings={"collision": True, "exclude_own_sequence": False, "gate": "entropy", "tau": 0.1}, modes=results,
-        sweep=None, seconds=1.0, ensemble={"members": 2, "perturbations": ["+x", "-x"], "sequences": 1})
+    report = build_report(
+        model={"folder": "m", "garment": "skirt", "hash": "h", "tau": 0.1},
+        dataset={"path": "d.h5", "split": "test", "sequences": [record.name], "frames": len(record.garment)},
+        settings={"collision": True, "exclude_own_sequence": False, "gate": "entropy", "tau": 0.1},
+        modes=results,
+        sweep=None,
+        seconds=1.0,
+        ensemble={"members": 2, "perturbations": ["+x", "-x"], "sequences": 1},
+    )
     md = markdown(report, [])
     assert md.index("ensemble ground truth") < md.index("## Modes") and "| simulation (truths) | 1.00 |" in md
 
@@ -124,14 +198,53 @@ def test_hrr_eval_excluding_own_sequence_changes_training_retrieval(trained, tmp
     reports = []
     for flag in ([], ["--exclude-own-sequence"]):
         out = tmp_path / f"r{len(flag)}"
-        assert main(["--model", str(root / "model"), "--dataset", str(data), "--split", "train", "--modes", "retrieval",
-                     "--no-sweep", "--no-plots", "-o", str(out), "--quiet", *flag]) == 0
+        assert (
+            main(
+                [
+                    "--model",
+                    str(root / "model"),
+                    "--dataset",
+                    str(data),
+                    "--split",
+                    "train",
+                    "--modes",
+                    "retrieval",
+                    "--no-sweep",
+                    "--no-plots",
+                    "-o",
+                    str(out),
+                    "--quiet",
+                    *flag,
+                ]
+            )
+            == 0
+        )
         reports.append(json.loads((out / "report.json").read_text()))
     own, excluded = (r["modes"]["retrieval"]["metrics"]["pve_mm"] for r in reports)
     train = reports[0]["dataset"]["sequences"]
     out = tmp_path / "two"
-    assert main(["--model", str(root / "model"), "--dataset", str(data), "--split", "train", "--modes", "retrieval",
-                 "--sequences", "2", "--no-sweep", "--no-plots", "-o", str(out), "--quiet"]) == 0
+    assert (
+        main(
+            [
+                "--model",
+                str(root / "model"),
+                "--dataset",
+                str(data),
+                "--split",
+                "train",
+                "--modes",
+                "retrieval",
+                "--sequences",
+                "2",
+                "--no-sweep",
+                "--no-plots",
+                "-o",
+                str(out),
+                "--quiet",
+            ]
+        )
+        == 0
+    )
     assert json.loads((out / "report.json").read_text())["dataset"]["sequences"] == [train[0], train[-1]]
     # with its own windows available retrieval finds the sequence itself: far closer than without
     assert own < excluded
@@ -147,13 +260,40 @@ def test_hrr_eval_refuses_bad_input(trained, tmp_path, capsys):
     assert main(["--model", str(root / "model"), "--dataset", str(other), "-o", str(tmp_path / "x")]) == 2
     assert "dress.h5" in capsys.readouterr().err
     assert main(["--model", str(tmp_path / "nothing"), "-o", str(tmp_path / "x")]) == 2
-    assert main(["--model", str(root / "model"), "--dataset", str(data), "--modes", "direct", "-o", str(tmp_path / "x")]) == 2
+    assert (
+        main(
+            [
+                "--model",
+                str(root / "model"),
+                "--dataset",
+                str(data),
+                "--modes",
+                "direct",
+                "-o",
+                str(tmp_path / "x"),
+            ]
+        )
+        == 2
+    )
     assert "baseline" in capsys.readouterr().err
     with pytest.raises(SystemExit):
         main(["--model", str(root / "model"), "--modes", "bogus"])
     # a motion pattern the shell left unexpanded fails at once, not after the evaluation
-    assert main(["--model", str(root / "model"), "--dataset", str(data), "--motions", str(tmp_path / "*.bvh"),
-                 "-o", str(tmp_path / "x")]) == 2
+    assert (
+        main(
+            [
+                "--model",
+                str(root / "model"),
+                "--dataset",
+                str(data),
+                "--motions",
+                str(tmp_path / "*.bvh"),
+                "-o",
+                str(tmp_path / "x"),
+            ]
+        )
+        == 2
+    )
     captured = capsys.readouterr()
     assert "*.bvh" in captured.err and "unquoted" in captured.err and "evaluating" not in captured.out
     assert not (tmp_path / "x").exists()
@@ -173,8 +313,10 @@ def test_direct_baseline_trains_is_causal_and_is_evaluated(trained, tmp_path):
     model = tmp_path / "model"
     shutil.copytree(root / "model", model)  # the shared fixture's bundle stays without a baseline
     cfg = tmp_path / "cfg.yaml"
-    cfg.write_text((root / "cfg.yaml").read_text() + "baseline:\n  model: {hidden: 32, layers: 1}\n"
-                   "  train: {epochs: 6, crop: 20, batch_size: 4}\n")
+    cfg.write_text(
+        (root / "cfg.yaml").read_text() + "baseline:\n  model: {hidden: 32, layers: 1}\n"
+        "  train: {epochs: 6, crop: 20, batch_size: 4}\n"
+    )
     base = ["--dataset", str(data), "--config", str(cfg), "-o", str(model), "--quiet", "--stage", "baseline"]
     assert train_main(base) == 0
     log = [json.loads(line) for line in (model / "baseline" / "log.jsonl").read_text().splitlines()]
@@ -194,7 +336,10 @@ def test_direct_baseline_trains_is_causal_and_is_evaluated(trained, tmp_path):
     assert full.retrieved.sum() == 0 and (full.match == -1).all()
 
     out = tmp_path / "report"
-    assert eval_main(["--model", str(model), "--dataset", str(data), "--no-sweep", "-o", str(out), "--quiet"]) == 0
+    assert (
+        eval_main(["--model", str(model), "--dataset", str(data), "--no-sweep", "-o", str(out), "--quiet"])
+        == 0
+    )
     report = json.loads((out / "report.json").read_text())
     assert "direct" in report["modes"] and "hybrid_vs_direct" in report["goals"]
     assert math.isfinite(report["modes"]["direct"]["metrics"]["pve_mm"])
@@ -229,7 +374,9 @@ def test_library_plays_are_seeded_edits_of_the_training_clips(tmp_path):
         clips = [part.split(" x")[0] for part in p.description.split(" -> ")]
         assert all(c in names for c in clips), p.description
         entries = [float(part.split(" from ")[1].split(" s")[0]) for part in p.description.split(" -> ")]
-        assert all(e >= MIN_ENTRY_S - 1e-9 for e in entries), p.description  # never where the database's clip began
+        assert all(e >= MIN_ENTRY_S - 1e-9 for e in entries), (
+            p.description
+        )  # never where the database's clip began
     files = save_plays(plays, tmp_path / "plays")
     again = load_motion(files[1])
     np.testing.assert_allclose(again.root_translation, plays[1].motion.root_translation)
@@ -261,16 +408,21 @@ def test_a_play_knows_its_source_frames_and_plays_their_simulation_along(tmp_pat
         first = play.sources[0]
         clip = ds.sequence(first.clip)
         shown = first.frames.astype(int)
-        assert np.array_equal(shown, first.frames) and shown[0] >= 1  # entered part-way, whole frames at speed 1
+        assert (
+            np.array_equal(shown, first.frames) and shown[0] >= 1
+        )  # entered part-way, whole frames at speed 1
         head = len(shown) - play.blend
         np.testing.assert_allclose(sim[:head], clip.garment[shown[:head]], atol=1e-5)
         if len(play.sources) == 2:
             second = play.sources[1]
             other = ds.sequence(second.clip)
-            tail = second.frames.astype(int)[play.blend:]
-            joints = play.motion.joint_positions[head + play.blend:]
-            np.testing.assert_allclose(distances(sim[head + play.blend:], joints),
-                                       distances(other.garment[tail], other.motion.joint_positions[tail]), atol=1e-4)
+            tail = second.frames.astype(int)[play.blend :]
+            joints = play.motion.joint_positions[head + play.blend :]
+            np.testing.assert_allclose(
+                distances(sim[head + play.blend :], joints),
+                distances(other.garment[tail], other.motion.joint_positions[tail]),
+                atol=1e-4,
+            )
     assert any(len(p.sources) == 2 for p in plays)
     with pytest.raises(ValueError, match="sources"):
         library.source_simulation(ds, library.LibraryPlay("bare", "", plays[0].motion))
@@ -284,31 +436,64 @@ def test_library_protocol_in_hrr_eval(artist_model, tmp_path, monkeypatch):
     monkeypatch.setenv("HRR_HOME", str(tmp_path / "work"))
     data, model, _ = artist_model
     out = tmp_path / "report"
-    assert main(["--model", str(model), "--dataset", str(data), "--split", "test", "--ensemble", "2", "--jobs", "1",
-                 "--library", "2", "--tau-sweep", "0,100", "--no-plots", "-o", str(out), "--quiet"]) == 0
+    assert (
+        main(
+            [
+                "--model",
+                str(model),
+                "--dataset",
+                str(data),
+                "--split",
+                "test",
+                "--ensemble",
+                "2",
+                "--jobs",
+                "1",
+                "--library",
+                "2",
+                "--tau-sweep",
+                "0,100",
+                "--no-plots",
+                "-o",
+                str(out),
+                "--quiet",
+            ]
+        )
+        == 0
+    )
     report = json.loads((out / "report.json").read_text())
     assert report["format_version"] == REPORT_VERSION == 12
     # the dataset's own frames against the ensemble: a simulation like the members, about 1 x the floor
     own = report["dataset_simulation"]["ensemble"]
-    assert 0.5 < own["pve_floor_ratio"] < 2.0 and set(report["dataset_simulation"]["sequences"]) == set(report["dataset"]["sequences"])
+    assert 0.5 < own["pve_floor_ratio"] < 2.0 and set(report["dataset_simulation"]["sequences"]) == set(
+        report["dataset"]["sequences"]
+    )
     assert "| dataset simulation |" in (out / "report.md").read_text()
     lib = report["library"]
     assert list(lib["plays"]) == ["play_00", "play_01"] and "->" in lib["plays"]["play_01"]
     assert lib["sequences"] == ["play_00", "play_01"] and not lib["rejected"]
     assert lib["ensemble"]["members"] == 2 and lib["ensemble"]["sequences"] == 2
     modes = lib["modes"]
-    assert modes["regression"]["metrics"]["retrieval_usage"] == 0 and modes["retrieval"]["metrics"]["retrieval_usage"] == 1
+    assert (
+        modes["regression"]["metrics"]["retrieval_usage"] == 0
+        and modes["retrieval"]["metrics"]["retrieval_usage"] == 1
+    )
     assert all(math.isfinite(modes[m]["ensemble"]["pve_floor_ratio"]) for m in modes)
     sweep = {p["tau"]: p for p in lib["tau_sweep"]}
     assert sweep[0.0]["pve_mm"] == pytest.approx(modes["regression"]["metrics"]["pve_mm"], rel=1e-9)
     assert sweep[100.0]["pve_mm"] == pytest.approx(modes["retrieval"]["metrics"]["pve_mm"], rel=1e-9)
     goals = lib["goals"]
     assert goals["hybrid_vs_regression"]["ratio"] == pytest.approx(
-        modes["hybrid"]["metrics"]["pve_mm"] / modes["regression"]["metrics"]["pve_mm"])
+        modes["hybrid"]["metrics"]["pve_mm"] / modes["regression"]["metrics"]["pve_mm"]
+    )
     scores = {m: modes[m]["ensemble"]["energy_score_mm"] for m in ("hybrid", "regression", "retrieval")}
-    assert goals["energy_score_vs_single_modes"]["met"] == (scores["hybrid"] < min(scores["regression"], scores["retrieval"]))
+    assert goals["energy_score_vs_single_modes"]["met"] == (
+        scores["hybrid"] < min(scores["regression"], scores["retrieval"])
+    )
     reference = lib["source_simulation"]  # the database's own simulation of the played frames
-    assert reference["metrics"]["retrieval_usage"] == 1 and math.isfinite(reference["ensemble"]["pve_floor_ratio"])
+    assert reference["metrics"]["retrieval_usage"] == 1 and math.isfinite(
+        reference["ensemble"]["pve_floor_ratio"]
+    )
     assert set(reference["sequences"]) == {"play_00", "play_01"}
     md = (out / "report.md").read_text()
     assert "## Library protocol" in md and lib["plays"]["play_01"] in md and "| database simulation |" in md
@@ -316,10 +501,16 @@ def test_library_protocol_in_hrr_eval(artist_model, tmp_path, monkeypatch):
     bars = lib["default"]["bars"]
     assert list(bars) == ["energy score vs regression", "sharpness", "hem swing"]
     assert bars["energy score vs regression"]["target"] == pytest.approx(scores["regression"])
-    assert bars["energy score vs regression"]["value"] == pytest.approx(modes["auto"]["ensemble"]["energy_score_mm"])
+    assert bars["energy score vs regression"]["value"] == pytest.approx(
+        modes["auto"]["ensemble"]["energy_score_mm"]
+    )
     assert bars["sharpness"]["met"] == (modes["auto"]["ensemble"]["bending_energy_ratio"] >= 0.85)
-    assert md.index("**The default output**", md.index("## Library protocol")) < md.index("| database simulation |")
-    assert report["default"]["bars"]["PVE / floor"]["value"] == pytest.approx(report["modes"]["auto"]["ensemble"]["pve_floor_ratio"])
+    assert md.index("**The default output**", md.index("## Library protocol")) < md.index(
+        "| database simulation |"
+    )
+    assert report["default"]["bars"]["PVE / floor"]["value"] == pytest.approx(
+        report["modes"]["auto"]["ensemble"]["pve_floor_ratio"]
+    )
 
 
 def test_paper_protocol_beside_the_papers_ratios(trained, paper_model, tmp_path, capsys):
@@ -328,19 +519,56 @@ def test_paper_protocol_beside_the_papers_ratios(trained, paper_model, tmp_path,
 
     root, data, _ = trained
     out = tmp_path / "report"
-    assert main(["--model", str(root / "model"), "--dataset", str(data), "--paper", str(paper_model), "--no-sweep",
-                 "--no-plots", "-o", str(out), "--quiet"]) == 0
+    assert (
+        main(
+            [
+                "--model",
+                str(root / "model"),
+                "--dataset",
+                str(data),
+                "--paper",
+                str(paper_model),
+                "--no-sweep",
+                "--no-plots",
+                "-o",
+                str(out),
+                "--quiet",
+            ]
+        )
+        == 0
+    )
     report = json.loads((out / "report.json").read_text())
     paper = report["paper"]
-    assert paper["model"] == str(paper_model) and paper["paper_ratios"] == {k: list(v) for k, v in PAPER_RATIOS.items()}
+    assert paper["model"] == str(paper_model) and paper["paper_ratios"] == {
+        k: list(v) for k, v in PAPER_RATIOS.items()
+    }
     modes = paper["modes"]
-    assert set(modes) == set(report["modes"]) and all(set(m["sequences"]) == {"run_000"} for m in modes.values())
+    assert set(modes) == set(report["modes"]) and all(
+        set(m["sequences"]) == {"run_000"} for m in modes.values()
+    )
     assert paper["goals"]["hybrid_vs_regression"]["ratio"] == pytest.approx(
-        modes["hybrid"]["metrics"]["pve_mm"] / modes["regression"]["metrics"]["pve_mm"])
+        modes["hybrid"]["metrics"]["pve_mm"] / modes["regression"]["metrics"]["pve_mm"]
+    )
     md = (out / "report.md").read_text()
     assert "## Paper protocol" in md and "| hybrid vs regression |" in md and "0.37-0.49" in md
     # a model validated on held-out clips is not the paper's protocol
     capsys.readouterr()
-    assert main(["--model", str(root / "model"), "--dataset", str(data), "--paper", str(root / "model"), "--no-sweep",
-                 "--no-plots", "-o", str(tmp_path / "x"), "--quiet"]) == 2
+    assert (
+        main(
+            [
+                "--model",
+                str(root / "model"),
+                "--dataset",
+                str(data),
+                "--paper",
+                str(root / "model"),
+                "--no-sweep",
+                "--no-plots",
+                "-o",
+                str(tmp_path / "x"),
+                "--quiet",
+            ]
+        )
+        == 2
+    )
     assert "--validation windows" in capsys.readouterr().err

@@ -8,28 +8,44 @@ from hrr_garment.eval.holdouts import holdout_section, markdown_holdouts
 
 
 def _entry(rows):
-    return {"sequences": {n: {"frames": f, "ensemble": {"pve_members_mm": p, "floor_mm": fl, "pve_floor_ratio": p / fl}}
-                          for n, f, p, fl in rows}}
+    return {
+        "sequences": {
+            n: {"frames": f, "ensemble": {"pve_members_mm": p, "floor_mm": fl, "pve_floor_ratio": p / fl}}
+            for n, f, p, fl in rows
+        }
+    }
 
 
 def test_each_holdout_is_pooled_as_the_split_is_and_names_its_worst_clip():
-    rows = [("a_style", 100, 30.0, 20.0), ("b_style", 50, 50.0, 20.0), ("c_content", 80, 44.0, 22.0),
-            ("d_content", 20, 60.0, 20.0)]
+    rows = [
+        ("a_style", 100, 30.0, 20.0),
+        ("b_style", 50, 50.0, 20.0),
+        ("c_content", 80, 44.0, 22.0),
+        ("d_content", 20, 60.0, 20.0),
+    ]
     holdouts = {"a_style": "style", "b_style": "style", "c_content": "content", "d_content": "content"}
     section = holdout_section({"auto": _entry(rows), "regression": _entry(rows[:2])}, holdouts)
     content = section["by_holdout"]["content"]["auto"]
-    pooled = ensemble_ratios(combine([{"pve_members_mm": 44.0, "floor_mm": 22.0}, {"pve_members_mm": 60.0, "floor_mm": 20.0}],
-                                     [80, 20]))
+    pooled = ensemble_ratios(
+        combine(
+            [{"pve_members_mm": 44.0, "floor_mm": 22.0}, {"pve_members_mm": 60.0, "floor_mm": 20.0}], [80, 20]
+        )
+    )
     assert content["pve_floor_ratio"] == pytest.approx(pooled["pve_floor_ratio"])
     assert content["pve_floor_ratio"] == pytest.approx((0.8 * 44 + 0.2 * 60) / (0.8 * 22 + 0.2 * 20))
     assert content["worst"] == {"sequence": "d_content", "pve_floor_ratio": 3.0}
     assert content["sequences"] == 2 and content["frames"] == 100
-    assert "content" not in {k for k, v in section["by_holdout"].items() if "regression" in v}  # no content clip ran
+    assert "content" not in {
+        k for k, v in section["by_holdout"].items() if "regression" in v
+    }  # no content clip ran
     assert section["sequences"]["b_style"] == {"holdout": "style", "auto": 2.5, "regression": 2.5}
     assert list(section["by_holdout"]) == ["style", "content"]  # the split's own hold-out first
     table = "\n".join(markdown_holdouts(section))
     style = section["by_holdout"]["style"]["auto"]["pve_floor_ratio"]
-    assert f"| held-out contents | auto | 2 | 100 | {content['pve_floor_ratio']:.2f} | {content['pve_floor_ratio'] / style:.3f} |" in table
+    assert (
+        f"| held-out contents | auto | 2 | 100 | {content['pve_floor_ratio']:.2f} | {content['pve_floor_ratio'] / style:.3f} |"
+        in table
+    )
 
 
 def test_one_holdout_or_no_ensembles_leave_no_section():

@@ -130,7 +130,9 @@ def test_blender_plays_our_exports_through_the_addon(tmp_path):
     percentile) of the frame's own."""
     blender = blender_command()
     if blender is None:
-        pytest.skip("no Blender: set HRR_BLENDER to the blender program or to a Python with bpy (pip install bpy)")
+        pytest.skip(
+            "no Blender: set HRR_BLENDER to the blender program or to a Python with bpy (pip install bpy)"
+        )
     from hrr_garment.cli.blender_addon import main as addon
     from hrr_garment.cli.export import main as export
 
@@ -138,13 +140,30 @@ def test_blender_plays_our_exports_through_the_addon(tmp_path):
     out = _write(tmp_path / "out.h5", arrays)
     files = [tmp_path / "a.glb", tmp_path / "a.usdc", tmp_path / "a.pc2", tmp_path / "a.blend"]
     for f in files:
-        assert export([str(out), "-o", str(f)] + (["--tolerance", "0"] if f.suffix in (".glb", ".blend") else [])) == 0
+        assert (
+            export(
+                [str(out), "-o", str(f)] + (["--tolerance", "0"] if f.suffix in (".glb", ".blend") else [])
+            )
+            == 0
+        )
     assert addon(["-o", str(tmp_path / "addon.zip")]) == 0
     np.savez(tmp_path / "ref.npz", vertices=arrays["vertices"], faces=arrays["faces"], fps=30.0)
     env = dict(os.environ, BLENDER_USER_RESOURCES=str(tmp_path / "blender"))  # not the user's own Blender
-    run = subprocess.run(blender + [str(ROOT / "tools" / "blender_check.py"), "--", str(tmp_path / "ref.npz"),
-                                    *map(str, files), f"--addon={tmp_path / 'addon.zip'}", "--json"],
-                         capture_output=True, text=True, timeout=600, env=env)
+    run = subprocess.run(
+        blender
+        + [
+            str(ROOT / "tools" / "blender_check.py"),
+            "--",
+            str(tmp_path / "ref.npz"),
+            *map(str, files),
+            f"--addon={tmp_path / 'addon.zip'}",
+            "--json",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=600,
+        env=env,
+    )
     results = [json.loads(line) for line in run.stdout.splitlines() if line.startswith("{")]
     assert run.returncode == 0 and len(results) == 4, run.stdout[-2000:] + run.stderr[-2000:]
     assert not [p.name for p in tmp_path.iterdir() if p.name.startswith(".")]  # no temporary file left

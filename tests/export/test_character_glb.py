@@ -28,10 +28,16 @@ def _skinned_frames(path) -> tuple[np.ndarray, np.ndarray]:
     blob = gltf.binary_blob()
     skin = gltf.skins[0]
     read = lambda i: _accessor_array(gltf, blob, i)  # noqa: E731
-    keys = {(c.target.node, c.target.path): read(gltf.animations[0].samplers[c.sampler].output)
-            for c in gltf.animations[0].channels}
+    keys = {
+        (c.target.node, c.target.path): read(gltf.animations[0].samplers[c.sampler].output)
+        for c in gltf.animations[0].channels
+    }
     prim = gltf.meshes[[n.mesh for n in gltf.nodes if n.skin is not None][0]].primitives[0]
-    vertices, joints, weights = read(prim.attributes.POSITION), read(prim.attributes.JOINTS_0), read(prim.attributes.WEIGHTS_0)
+    vertices, joints, weights = (
+        read(prim.attributes.POSITION),
+        read(prim.attributes.JOINTS_0),
+        read(prim.attributes.WEIGHTS_0),
+    )
     inverse = np.swapaxes(read(skin.inverseBindMatrices).reshape(-1, 4, 4), 1, 2)
     frames = len(keys[(skin.joints[0], "rotation")])
     world_joints, skinned = [], []
@@ -41,7 +47,11 @@ def _skinned_frames(path) -> tuple[np.ndarray, np.ndarray]:
             local = np.eye(4)
             q = keys[(node, "rotation")][t]
             local[:3, :3] = quat_to_matrix(np.array([q[3], q[0], q[1], q[2]], np.float64))
-            local[:3, 3] = keys[(node, "translation")][t] if (node, "translation") in keys else gltf.nodes[node].translation
+            local[:3, 3] = (
+                keys[(node, "translation")][t]
+                if (node, "translation") in keys
+                else gltf.nodes[node].translation
+            )
             world[j] = local if PARENTS[j] < 0 else world[PARENTS[j]] @ local
         m = world @ inverse  # (22, 4, 4)
         blend = np.einsum("vk,vkij->vij", weights, m[joints.astype(int)])
@@ -76,15 +86,29 @@ def test_the_character_plays_the_clip_in_the_glb_on_its_own_mesh(trained, charac
     with pytest.warns(UserWarning, match="animating it anyway"):  # the tiny model knows the mannequin alone
         anim = animator.animate(synthesize("walk_curve", 1.0, seed=5), body=character_glb, allow_outside=True)
     anim.save(tmp_path / "out.h5")
-    assert export_main([str(tmp_path / "out.h5"), "-o", str(tmp_path / "hero_dress.glb"), "--tolerance", "0",
-                        "--character", str(character_glb)]) == 0
+    assert (
+        export_main(
+            [
+                str(tmp_path / "out.h5"),
+                "-o",
+                str(tmp_path / "hero_dress.glb"),
+                "--tolerance",
+                "0",
+                "--character",
+                str(character_glb),
+            ]
+        )
+        == 0
+    )
     saved = read_animation_h5(tmp_path / "out.h5")
     joints, skinned = _skinned_frames(tmp_path / "hero_dress.glb")
     assert np.abs(joints - saved.joints).max() < 1e-4  # the GLB's skeleton is the animation's
     character = skinned_character(character_glb)
     a, b = character.record.body.pose_motion(anim.skeleton)
     gap = np.abs(frames_signed_distance(skinned, a, b, character.record.body.radii)[0])
-    assert np.median(gap) < 0.01 and np.quantile(gap, 0.95) < 0.04  # the mesh stays on the body it was fitted to
+    assert (
+        np.median(gap) < 0.01 and np.quantile(gap, 0.95) < 0.04
+    )  # the mesh stays on the body it was fitted to
     _validate(tmp_path / "hero_dress.glb")
 
 
@@ -97,18 +121,28 @@ def test_a_t_pose_frame_gives_back_the_files_own_mesh(trained, character_glb, tm
 
     root, _, _ = trained
     animator = Animator.load(root / "model")
-    still = Motion(np.broadcast_to(np.eye(3), (8, 22, 3, 3)).copy(), np.tile([0.0, REST_PELVIS_HEIGHT, 0.3], (8, 1)), 30.0,
-                   skeleton=CANONICAL)
+    still = Motion(
+        np.broadcast_to(np.eye(3), (8, 22, 3, 3)).copy(),
+        np.tile([0.0, REST_PELVIS_HEIGHT, 0.3], (8, 1)),
+        30.0,
+        skeleton=CANONICAL,
+    )
     with pytest.warns(UserWarning):
         animator.animate(still, body=character_glb, allow_outside=True).save(tmp_path / "still.h5")
     character = skinned_character(character_glb)
-    write_glb(read_animation_h5(tmp_path / "still.h5"), tmp_path / "still.glb", tolerance=0, character=character)
+    write_glb(
+        read_animation_h5(tmp_path / "still.h5"), tmp_path / "still.glb", tolerance=0, character=character
+    )
     _, skinned = _skinned_frames(tmp_path / "still.glb")
     moved = skinned[3] - character.vertices
-    assert np.abs(moved - moved.mean(0)).max() < 1e-4 and np.linalg.norm(moved.mean(0) - [0.0, 0.0, 0.3]) < 0.05
+    assert (
+        np.abs(moved - moved.mean(0)).max() < 1e-4 and np.linalg.norm(moved.mean(0) - [0.0, 0.0, 0.3]) < 0.05
+    )
 
 
-def test_an_animation_on_another_body_or_without_a_skeleton_is_refused(trained, out_h5, character_glb, tmp_path, capsys):
+def test_an_animation_on_another_body_or_without_a_skeleton_is_refused(
+    trained, out_h5, character_glb, tmp_path, capsys
+):
     """An out.h5 animated on the mannequin: the character's bones differ, and the export says how to
     fix it; one without the skeleton's motion (before format 4) cannot pose the character."""
     from hrr_garment.cli.export import main as export_main
@@ -116,9 +150,18 @@ def test_an_animation_on_another_body_or_without_a_skeleton_is_refused(trained, 
 
     root, _, _ = trained
     Animator.load(root / "model").animate(synthesize("walk", 0.5, seed=1)).save(tmp_path / "mannequin.h5")
-    assert export_main([str(tmp_path / "mannequin.h5"), "-o", str(tmp_path / "x.glb"), "--character", str(character_glb)]) != 0
+    assert (
+        export_main(
+            [str(tmp_path / "mannequin.h5"), "-o", str(tmp_path / "x.glb"), "--character", str(character_glb)]
+        )
+        != 0
+    )
     err = capsys.readouterr().err
-    assert "another body than hero.glb's" in err and "--body hero.glb" in err and not (tmp_path / "x.glb").exists()
+    assert (
+        "another body than hero.glb's" in err
+        and "--body hero.glb" in err
+        and not (tmp_path / "x.glb").exists()
+    )
     assert export_main([str(out_h5), "-o", str(tmp_path / "x.glb"), "--character", str(character_glb)]) != 0
     assert "carries no skeleton motion" in capsys.readouterr().err
     assert export_main([str(out_h5), "-o", str(tmp_path / "x.usda"), "--character", str(character_glb)]) != 0

@@ -31,10 +31,17 @@ def _animation_arrays(frames: int = 40, seed: int = 0) -> dict:
     vertices = skirt.vertices[None] + pelvis + sway
     a, b = DEFAULT_BODY.pose_motion(motion)
     retrieved = (np.arange(motion.num_frames) // 10 % 2).astype(np.uint8)
-    return dict(vertices=vertices.astype(np.float32), faces=skirt.faces, joints=motion.joint_positions,
-                retrieved=retrieved, entropy=np.zeros(motion.num_frames), match=np.full((motion.num_frames, 2), -1),
-                attrs={"fps": 30.0, "garment": "skirt", "source_motion": "walk"},
-                capsules=np.stack([a, b], 2), radii=DEFAULT_BODY.radii)
+    return dict(
+        vertices=vertices.astype(np.float32),
+        faces=skirt.faces,
+        joints=motion.joint_positions,
+        retrieved=retrieved,
+        entropy=np.zeros(motion.num_frames),
+        match=np.full((motion.num_frames, 2), -1),
+        attrs={"fps": 30.0, "garment": "skirt", "source_motion": "walk"},
+        capsules=np.stack([a, b], 2),
+        radii=DEFAULT_BODY.radii,
+    )
 
 
 def _write(path: Path, arrays: dict) -> Path:
@@ -84,8 +91,14 @@ def _node_script(package: str, script: str) -> tuple[list[str], dict]:
     if node is None:
         pytest.skip("node is not installed")
     if not (modules / package).is_dir():
-        pytest.fail(f"node is present but the npm package {package} is not installed: run `make install` (needs npm)")
-    return [node, str(ROOT / "tools" / script)], {**os.environ, "NODE_PATH": str(modules), "HRR_NODE_MODULES": str(modules)}
+        pytest.fail(
+            f"node is present but the npm package {package} is not installed: run `make install` (needs npm)"
+        )
+    return [node, str(ROOT / "tools" / script)], {
+        **os.environ,
+        "NODE_PATH": str(modules),
+        "HRR_NODE_MODULES": str(modules),
+    }
 
 
 def _validate(path: Path) -> None:
@@ -109,12 +122,19 @@ def test_threejs_plays_the_glb_as_the_animation(out_h5, tmp_path, tolerance):
     with open(tmp_path / "ref.bin", "wb") as fh:  # the layout tools/threejs_check.mjs reads
         fh.write(struct.pack("<iiid", anim.num_frames, anim.vertices.shape[1], len(anim.faces), anim.fps))
         fh.write(anim.vertices.astype("<f4").tobytes() + anim.faces.astype("<u4").tobytes())
-    run = subprocess.run(cmd + [str(tmp_path / "ref.bin"), str(tmp_path / "a.glb")], capture_output=True, text=True,
-                         env=env, timeout=300)
+    run = subprocess.run(
+        cmd + [str(tmp_path / "ref.bin"), str(tmp_path / "a.glb")],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=300,
+    )
     assert run.returncode == 0, run.stderr[-2000:]
     r = json.loads(run.stdout.strip().splitlines()[-1])
     assert abs(r["duration_s"] - (anim.num_frames - 1) / anim.fps) < 1e-5 and r["keys_on_frames"], r
-    assert r["max_vertex_error_mm"] < max(0.001, 1000 * tolerance + 1e-3) and r["normal_error_p99_deg"] < 5.0, r
+    assert (
+        r["max_vertex_error_mm"] < max(0.001, 1000 * tolerance + 1e-3) and r["normal_error_p99_deg"] < 5.0
+    ), r
 
 
 @pytest.mark.client
@@ -218,7 +238,10 @@ def test_usd_reloads_with_rate_frames_and_points(out_h5, tmp_path, suffix):
     for t in (0, 17, anim.num_frames - 1):
         assert np.abs(np.array(points.Get(t)) - anim.vertices[t]).max() == 0
     assert np.array(mesh.GetFaceVertexIndicesAttr().Get()).reshape(-1, 3).tolist() == anim.faces.tolist()
-    assert len(UsdGeom.Mesh(stage.GetPrimAtPath("/Animation/body")).GetPointsAttr().GetTimeSamples()) == anim.num_frames
+    assert (
+        len(UsdGeom.Mesh(stage.GetPrimAtPath("/Animation/body")).GetPointsAttr().GetTimeSamples())
+        == anim.num_frames
+    )
 
 
 def test_pc2_round_trip_and_base_obj(out_h5, tmp_path):
@@ -283,7 +306,7 @@ def test_hrr_export_refuses_bad_input_without_output(out_h5, tmp_path, capsys):
     with h5py.File(tmp_path / "chunk.h5", "r") as f:
         offset = f["vertices"].id.get_chunk_info(3).byte_offset
     data = bytearray((tmp_path / "chunk.h5").read_bytes())
-    data[offset + 8:offset + 200] = bytes(range(192))
+    data[offset + 8 : offset + 200] = bytes(range(192))
     (tmp_path / "chunk.h5").write_bytes(bytes(data))
     joints = _animation_arrays()
     joints["joints"] = joints["joints"].copy()

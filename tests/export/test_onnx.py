@@ -46,7 +46,9 @@ def test_the_graph_streams_each_character_as_the_python_stream_does(exported):
     streams = [animator.stream(mode="regression") for _ in starts]
     worst = 0.0
     for t in range(clip.num_frames - starts.max()):
-        both = graph.push(rotations[starts + t], roots[starts + t] + np.array([[0, 0, 0], [2.0, 0, 0]], np.float32))
+        both = graph.push(
+            rotations[starts + t], roots[starts + t] + np.array([[0, 0, 0], [2.0, 0, 0]], np.float32)
+        )
         for i, (stream, start) in enumerate(zip(streams, starts)):
             alone = stream.push(rotation=rotations[start + t], root=roots[start + t] + [2.0 * i, 0, 0])
             worst = max(worst, float(np.abs(both[i] - alone).max()))
@@ -70,15 +72,33 @@ def test_the_graphs_push_out_limits_the_strain_as_the_library_does(exported):
     rest = np.broadcast_to(animator.bundle.template.vertices, (3, *animator.bundle.template.vertices.shape))
     garment = world_vertices(rest.astype(np.float32), poses)
     pelvis = poses.joint_positions[:, :1]
-    garment[:, ::7] = (0.3 * garment[:, ::7] + 0.7 * pelvis).astype(np.float32)  # every 7th vertex deep inside
-    ours = step.push_out(torch.from_numpy(garment), torch.from_numpy(poses.global_rotations).float(),
-                         torch.from_numpy(poses.joint_positions).float()).numpy()
-    pushed, _ = push_out(garment, poses, animator.bundle.template.faces, body=DEFAULT_BODY, mean=animator.smoothing,
-                         report=False)
+    garment[:, ::7] = (0.3 * garment[:, ::7] + 0.7 * pelvis).astype(
+        np.float32
+    )  # every 7th vertex deep inside
+    ours = step.push_out(
+        torch.from_numpy(garment),
+        torch.from_numpy(poses.global_rotations).float(),
+        torch.from_numpy(poses.joint_positions).float(),
+    ).numpy()
+    pushed, _ = push_out(
+        garment,
+        poses,
+        animator.bundle.template.faces,
+        body=DEFAULT_BODY,
+        mean=animator.smoothing,
+        report=False,
+    )
     _, torn = limit_push_strain(pushed, garment, animator.edge_limits)
     assert torn.all(), "the case must exercise the strain limit"
-    theirs, _ = push_out(garment, poses, animator.bundle.template.faces, body=DEFAULT_BODY, mean=animator.smoothing,
-                         limits=animator.edge_limits, report=False)
+    theirs, _ = push_out(
+        garment,
+        poses,
+        animator.bundle.template.faces,
+        body=DEFAULT_BODY,
+        mean=animator.smoothing,
+        limits=animator.edge_limits,
+        report=False,
+    )
     assert np.abs(theirs - pushed).max() > 1e-3  # the limit moved vertices by millimetres ...
     assert np.abs(ours - theirs).max() < 2e-5  # ... and the graph moved them the same
 
@@ -98,7 +118,9 @@ def test_the_fast_decoders_graph_with_the_subspace_push_streams_as_the_python_st
     streams = [animator.stream(mode="regression", decoder="fast", push=push) for push in ("mesh", "subspace")]
     frames = [[s.push(rotation=r, root=x) for r, x in zip(rotations, roots)] for s in streams]
     acted_mm = 1000.0 * np.abs(np.array(frames[0]) - np.array(frames[1])).max()
-    assert acted_mm > 0.01  # the subspace push moved this tiny skirt (by little: its cloth keeps off the body) ...
+    assert (
+        acted_mm > 0.01
+    )  # the subspace push moved this tiny skirt (by little: its cloth keeps off the body) ...
     assert gap["max_mm"] < min(0.01, acted_mm / 10)  # ... and the graph moved it as the stream did
 
 
@@ -112,17 +134,19 @@ def test_the_example_streams_with_numpy_and_onnxruntime_alone(exported, tmp_path
     _, written, clip = exported
     save_motion(clip, tmp_path / "spin.npz")
     assert motion_main(["poses", str(tmp_path / "spin.npz"), "-o", str(tmp_path / "spin.poses.npz")]) == 0
-    blocked = ("import runpy, sys\n"
-               "for name in ('hrr_garment', 'torch'): sys.modules[name] = None\n"
-               f"sys.argv = ['onnx_stream.py', {str(written.graph)!r}, {str(tmp_path / 'spin.poses.npz')!r}, "
-               f"'-o', {str(tmp_path / 'garment.npy')!r}, '--characters', '2']\n"
-               f"runpy.run_path({str(ROOT / 'examples' / 'onnx_stream.py')!r}, run_name='__main__')\n")
+    blocked = (
+        "import runpy, sys\n"
+        "for name in ('hrr_garment', 'torch'): sys.modules[name] = None\n"
+        f"sys.argv = ['onnx_stream.py', {str(written.graph)!r}, {str(tmp_path / 'spin.poses.npz')!r}, "
+        f"'-o', {str(tmp_path / 'garment.npy')!r}, '--characters', '2']\n"
+        f"runpy.run_path({str(ROOT / 'examples' / 'onnx_stream.py')!r}, run_name='__main__')\n"
+    )
     done = subprocess.run([sys.executable, "-c", blocked], capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stderr
     garment = np.load(tmp_path / "garment.npy")
     rotations, roots = motion_to_poses(clip)
     graph = OnnxStream(written.graph)
-    alone = np.stack([graph.push(rotations[t:t + 1], roots[t:t + 1])[0] for t in range(clip.num_frames)])
+    alone = np.stack([graph.push(rotations[t : t + 1], roots[t : t + 1])[0] for t in range(clip.num_frames)])
     assert garment.shape == alone.shape
     assert np.abs(garment - alone).max() < 1e-5
 

@@ -30,7 +30,9 @@ def test_rasterize_covers_pixel_centres_inside_any_winding(reverse):
 
 def test_rasterize_keeps_the_nearest_fragment_in_any_order():
     def square(x0, z):
-        return np.array([[[x0, 0, z], [x0 + 6, 0, z], [x0, 6, z]], [[x0 + 6, 0, z], [x0 + 6, 6, z], [x0, 6, z]]], float)
+        return np.array(
+            [[[x0, 0, z], [x0 + 6, 0, z], [x0, 6, z]], [[x0 + 6, 0, z], [x0 + 6, 6, z], [x0, 6, z]]], float
+        )
 
     near, far = square(0, 1.0), square(2, -1.0)
     colours = np.array([[10, 0, 0]] * 2 + [[0, 20, 0]] * 2, np.uint8)
@@ -82,15 +84,19 @@ def test_hrr_preview_gif_png_and_mode_colours(out_h5, tmp_path):
     from hrr_garment.cli.preview import main
 
     gif, png = tmp_path / "a.gif", tmp_path / "a.png"
-    assert main([str(out_h5), "-o", str(gif), "--size", "96", "--every", "2", "--views", "front", "back"]) == 0
+    assert (
+        main([str(out_h5), "-o", str(gif), "--size", "96", "--every", "2", "--views", "front", "back"]) == 0
+    )
     with Image.open(gif) as im:
         assert im.n_frames == 12 and im.size == (192, 96)
-    assert main([str(out_h5), "-o", str(png), "--size", "96", "--frames", "3", "--color-mode", "--no-body"]) == 0
+    assert (
+        main([str(out_h5), "-o", str(png), "--size", "96", "--frames", "3", "--color-mode", "--no-body"]) == 0
+    )
     with Image.open(png) as im:
         sheet = np.asarray(im.convert("RGB")).astype(int)
     assert sheet.shape == (3 * 96, 2 * 96, 3)
     # frames 0, 12, 23 of the mode pattern (10 frames per mode): regression, retrieval, regression
-    orange = (sheet[..., 0] > sheet[..., 2] + 60)
+    orange = sheet[..., 0] > sheet[..., 2] + 60
     per_row = orange.reshape(3, 96, -1).sum((1, 2))
     assert per_row[1] > 200 and per_row[0] == 0 and per_row[2] == 0
 

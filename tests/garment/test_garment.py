@@ -73,14 +73,23 @@ def _quad_strip(offset=0.0):
 def test_check_rejects_two_components_nonmanifold_flipped_and_unattached():
     v1, f1 = _quad_strip()
     v2, f2 = _quad_strip(5.0)
-    two = GarmentMesh("two", np.concatenate([v1, v2]), np.concatenate([f1, f2 + 4]), {"a": np.array([0])}, ("a",))
+    two = GarmentMesh(
+        "two", np.concatenate([v1, v2]), np.concatenate([f1, f2 + 4]), {"a": np.array([0])}, ("a",)
+    )
     with pytest.raises(GarmentError, match="2 connected components"):
         check_garment(two)
-    fin = GarmentMesh("fin", np.concatenate([v1, [[0.5, 0.5, 1.0]]]).astype(np.float32),
-                      np.concatenate([f1, [[1, 2, 4]]]).astype(np.int32), {"a": np.array([0])}, ("a",))
+    fin = GarmentMesh(
+        "fin",
+        np.concatenate([v1, [[0.5, 0.5, 1.0]]]).astype(np.float32),
+        np.concatenate([f1, [[1, 2, 4]]]).astype(np.int32),
+        {"a": np.array([0])},
+        ("a",),
+    )
     with pytest.raises(GarmentError, match="non-manifold"):
         check_garment(fin)
-    flipped = GarmentMesh("flip", v1, np.array([[0, 1, 2], [1, 2, 3]], np.int32), {"a": np.array([0])}, ("a",))
+    flipped = GarmentMesh(
+        "flip", v1, np.array([[0, 1, 2], [1, 2, 3]], np.int32), {"a": np.array([0])}, ("a",)
+    )
     with pytest.raises(GarmentError, match="inconsistent winding"):
         check_garment(flipped)
     with pytest.raises(GarmentError, match="no attached vertices"):
@@ -93,7 +102,9 @@ def test_repair_merges_duplicates_and_fixes_winding():
     v = mesh.vertices[mesh.faces].reshape(-1, 3)
     f = np.arange(len(v)).reshape(-1, 3)
     f[::2] = f[::2, ::-1]
-    groups = {"waistband": np.flatnonzero(np.isin(mesh.faces.ravel(), mesh.groups["waistband"])).astype(np.int32)}
+    groups = {
+        "waistband": np.flatnonzero(np.isin(mesh.faces.ravel(), mesh.groups["waistband"])).astype(np.int32)
+    }
     broken = GarmentMesh("broken", v, f.astype(np.int32), groups, ("waistband",))
     with pytest.raises(GarmentError):
         check_garment(broken)
@@ -106,8 +117,10 @@ def test_repair_merges_duplicates_and_fixes_winding():
 
 def test_obj_round_trip_with_polygons_and_groups(tmp_path):
     path = tmp_path / "quad.obj"
-    path.write_text("v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 2 0 0\nv 2 1 0\n"
-                    "g band\nf 1/1/1 2/2/2 3/3/3 4/4/4\ng body\nf 2 5 6 3\n")
+    path.write_text(
+        "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 2 0 0\nv 2 1 0\n"
+        "g band\nf 1/1/1 2/2/2 3/3/3 4/4/4\ng body\nf 2 5 6 3\n"
+    )
     v, f, groups = read_obj(path)
     assert v.shape == (6, 3) and f.shape == (4, 3)
     mesh = load_garment_obj(path, attached_group="band")
@@ -135,15 +148,27 @@ def test_skinning_reproduces_rest_pose_and_follows_rigid_motion():
     rest = rest_positions(REST_OFFSETS, PARENTS)[None] + [0, REST_PELVIS_HEIGHT, 0]
     assert np.allclose(binding.pose(rot, rest)[0], mesh.vertices[mesh.attached], atol=1e-6)
     shifted = binding.pose(motion.global_rotations, motion.joint_positions + [3.0, 0.0, -2.0])
-    assert np.allclose(shifted - binding.pose(motion.global_rotations, motion.joint_positions), [3.0, 0.0, -2.0])
+    assert np.allclose(
+        shifted - binding.pose(motion.global_rotations, motion.joint_positions), [3.0, 0.0, -2.0]
+    )
     # Only torso joints drive attachments (an arm swing must not stretch a strap).
     from hrr_garment.motion.skeleton import JOINT_NAMES
 
-    assert {JOINT_NAMES[j] for j in np.unique(binding.joints)} <= {"pelvis", "spine1", "spine2", "spine3", "neck",
-                                                                   "l_collar", "r_collar"}
+    assert {JOINT_NAMES[j] for j in np.unique(binding.joints)} <= {
+        "pelvis",
+        "spine1",
+        "spine2",
+        "spine3",
+        "neck",
+        "l_collar",
+        "r_collar",
+    }
 
 
-@pytest.mark.parametrize("name,symmetric", [("dress", True), ("skirt", True), ("pleated_skirt", False), ("asymmetric_skirt", False)])
+@pytest.mark.parametrize(
+    "name,symmetric",
+    [("dress", True), ("skirt", True), ("pleated_skirt", False), ("asymmetric_skirt", False)],
+)
 def test_mirror_map_finds_left_right_symmetry(name, symmetric):
     from hrr_garment.garment.mesh import mirror_map
 
@@ -155,8 +180,10 @@ def test_mirror_map_finds_left_right_symmetry(name, symmetric):
         assert np.array_equal(perm[perm], np.arange(g.num_vertices))  # mirroring twice is the identity
 
 
-@pytest.mark.parametrize("vertices", [300, 400, 1000, pytest.param(4000, marks=pytest.mark.slow),
-                                      pytest.param(12000, marks=pytest.mark.slow)])  # seconds each
+@pytest.mark.parametrize(
+    "vertices",
+    [300, 400, 1000, pytest.param(4000, marks=pytest.mark.slow), pytest.param(12000, marks=pytest.mark.slow)],
+)  # seconds each
 def test_dress_straps_pass_over_the_shoulders_not_the_head(vertices):
     """At 400 and 4,000 vertices the straps once looped over the head (1.68 m high)."""
     from hrr_garment.body.capsules import DEFAULT_BODY

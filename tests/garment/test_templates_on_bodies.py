@@ -25,9 +25,16 @@ def _larger_body(scale: float, fuller: float):
 
 def test_the_mannequins_templates_are_those_it_was_trained_on():
     """The templates of every dataset and model so far: vertices and attached groups as 31b4ef9 made them."""
-    digest = {name: hashlib.sha1(make_garment(name, 1000).vertices.tobytes()).hexdigest()[:10] for name in GARMENT_NAMES}
-    assert digest == {"dress": "9504728f1e", "skirt": "f5a1670a57", "pleated_skirt": "f0011f344a",
-                      "asymmetric_skirt": "2a8a7490de"}
+    digest = {
+        name: hashlib.sha1(make_garment(name, 1000).vertices.tobytes()).hexdigest()[:10]
+        for name in GARMENT_NAMES
+    }
+    assert digest == {
+        "dress": "9504728f1e",
+        "skirt": "f5a1670a57",
+        "pleated_skirt": "f0011f344a",
+        "asymmetric_skirt": "2a8a7490de",
+    }
     band = make_garment("dress", 4000).groups["waistband"]
     assert hashlib.sha1(band.tobytes()).hexdigest()[:10] == "ac8c9fb768"
 
@@ -39,7 +46,9 @@ def test_a_template_made_for_a_larger_body_fits_that_body(name):
     garment = make_garment(name, 400, body=body)
     d = capsule_signed_distance(garment.vertices.astype(np.float64), a, b, radii=body.radii)[0]
     assert d.min() > 0.005  # nothing inside the body
-    assert np.median(d[garment.groups["waistband"]]) == pytest.approx(0.012, abs=0.001)  # the band on it, at the gap
+    assert np.median(d[garment.groups["waistband"]]) == pytest.approx(
+        0.012, abs=0.001
+    )  # the band on it, at the gap
     mannequin = make_garment(name, 400)
     grown = garment.vertices[:, 1].max() / mannequin.vertices[:, 1].max()
     assert grown == pytest.approx(body.pelvis_height / 0.96, rel=0.06)  # its top rises with the body

@@ -37,7 +37,9 @@ def test_on_another_body_each_vertex_keeps_its_distance_from_the_body(scale, ful
     assert moved.vertices[hem, 1].mean() == pytest.approx(garment.vertices[hem, 1].mean() * scale, rel=0.05)
     # and the cloth does not tear between capsules: no edge more than doubles or halves
     e = garment.edges()
-    ratio = np.linalg.norm(np.diff(moved.vertices[e], axis=1), axis=-1) / np.linalg.norm(np.diff(garment.vertices[e], axis=1), axis=-1)
+    ratio = np.linalg.norm(np.diff(moved.vertices[e], axis=1), axis=-1) / np.linalg.norm(
+        np.diff(garment.vertices[e], axis=1), axis=-1
+    )
     assert 0.5 < ratio.min() and ratio.max() < 2.0
 
 

@@ -15,7 +15,10 @@ def test_every_mode_animates_every_frame(animator, mode):
     anim = animator.animate(motion, mode=mode)
     assert anim.vertices.shape == (motion.num_frames, animator.bundle.template.num_vertices, 3)
     assert np.isfinite(anim.vertices).all() and anim.joints.shape == (motion.num_frames, 22, 3)
-    assert 0 <= anim.entropy.min() and anim.entropy.max() <= math.log(animator.bundle.codespace.config.classes) + 1e-5
+    assert (
+        0 <= anim.entropy.min()
+        and anim.entropy.max() <= math.log(animator.bundle.codespace.config.classes) + 1e-5
+    )
     if mode == "regression":
         assert anim.retrieved.sum() == 0 and (anim.match == -1).all()
     if mode in ("retrieval", "naive-nn"):
@@ -36,10 +39,16 @@ def test_clip_shorter_than_a_window_is_padded(animator):
     assert animator.animate(synthesize("walk", 0.2, seed=1).slice(0, 1)).vertices.shape[0] == 1
 
 
-@pytest.mark.parametrize("damage, phrase", [
-    (lambda v: v.__setitem__((3, 5, 0), np.nan), r"non-finite vertices on 1 frame\(s\), first at frame 3"),
-    (lambda v: v.__setitem__((2, 0, 1), 7.0), "m from the body at frame 2"),
-])
+@pytest.mark.parametrize(
+    "damage, phrase",
+    [
+        (
+            lambda v: v.__setitem__((3, 5, 0), np.nan),
+            r"non-finite vertices on 1 frame\(s\), first at frame 3",
+        ),
+        (lambda v: v.__setitem__((2, 0, 1), 7.0), "m from the body at frame 2"),
+    ],
+)
 def test_an_absurd_animation_is_refused_and_nothing_is_written(tmp_path, damage, phrase):
     from hrr_garment.errors import InputError
     from hrr_garment.inference.animator import Animation
@@ -47,8 +56,18 @@ def test_an_absurd_animation_is_refused_and_nothing_is_written(tmp_path, damage,
     motion = synthesize("walk", 0.2, seed=0)
     joints = motion.joint_positions.astype(np.float32)
     vertices = joints[:, :1] + np.zeros((1, 10, 3), np.float32)  # every vertex at the pelvis
-    anim = Animation(vertices, np.array([[0, 1, 2]]), 30.0, np.zeros(len(joints), np.uint8), np.zeros(len(joints), np.float32),
-                     -np.ones((len(joints), 2), np.int32), joints, "skirt", "hash", "walk")
+    anim = Animation(
+        vertices,
+        np.array([[0, 1, 2]]),
+        30.0,
+        np.zeros(len(joints), np.uint8),
+        np.zeros(len(joints), np.float32),
+        -np.ones((len(joints), 2), np.int32),
+        joints,
+        "skirt",
+        "hash",
+        "walk",
+    )
     anim.check(tmp_path / "ok.h5")  # a plausible one passes
     damage(anim.vertices)
     with pytest.raises(InputError, match=phrase):

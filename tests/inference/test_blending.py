@@ -11,14 +11,18 @@ def test_blending_keeps_a_constant_and_favours_centres():
     windows = np.full((7, 10, 3, 2), 2.5, np.float32)
     assert np.allclose(blend_windows(windows, 16), 2.5)
     ramp = np.arange(16, dtype=np.float32)
-    windows = np.stack([ramp[i:i + 10] for i in range(7)])[..., None]
+    windows = np.stack([ramp[i : i + 10] for i in range(7)])[..., None]
     assert np.allclose(blend_windows(windows, 16)[:, 0], ramp)  # consistent windows blend to themselves
 
 
 def test_inertialization_is_continuous_in_position_and_velocity():
     inert = Inertializer(frames=6)
-    out = np.array([inert.step(np.array([0.01 * t if t < 10 else 1.0 + 0.01 * t]), ("a",) if t < 10 else ("b",))[0]
-                    for t in range(30)])
+    out = np.array(
+        [
+            inert.step(np.array([0.01 * t if t < 10 else 1.0 + 0.01 * t]), ("a",) if t < 10 else ("b",))[0]
+            for t in range(30)
+        ]
+    )
     step = np.diff(out)
     assert abs(step[9] - 0.01) < 0.2  # across the 1.0 jump at frame 10 most of the jump is hidden ...
     assert np.abs(np.diff(step)).max() < 6.0 / 6**2  # ... and absorbed with bounded acceleration
@@ -44,17 +48,23 @@ def test_a_continuous_part_is_followed_as_it_is_and_only_the_rest_jumps():
     inertializer of the departure alone gives."""
     t = np.arange(30, dtype=np.float64)
     base = np.stack([0.05 * t, np.sin(0.3 * t)], 1)  # the regression: moving, never switching
-    part = np.where(t[:, None] < 12, 0.0, 1.0) * np.array([1.0, -2.0])  # the departure jumps at a change of match
+    part = np.where(t[:, None] < 12, 0.0, 1.0) * np.array(
+        [1.0, -2.0]
+    )  # the departure jumps at a change of match
     sources = [("retrieval", 0 if i < 12 else 1, 0) for i in range(30)]
     split, alone = Inertializer(frames=6), Inertializer(frames=6)
     out = np.stack([split.step(base[i] + part[i], sources[i], continuous=base[i]) for i in range(30)])
-    np.testing.assert_allclose(out - base, np.stack([alone.step(part[i], sources[i]) for i in range(30)]), atol=1e-12)
+    np.testing.assert_allclose(
+        out - base, np.stack([alone.step(part[i], sources[i]) for i in range(30)]), atol=1e-12
+    )
     assert np.abs(np.diff(out - base, axis=0)).max() <= 0.3 * 2.0  # the jump of 2 spread over frames
     # a match that changes every frame with no departure at all (a residual of weight 0): the output
     # is the regression itself, where inertializing the whole latent extrapolated it at every change
     every = [("retrieval", i, 0) for i in range(30)]
     split, whole = Inertializer(frames=6), Inertializer(frames=6)
-    np.testing.assert_allclose([split.step(b, s, continuous=b) for b, s in zip(base, every)], base, atol=1e-12)
+    np.testing.assert_allclose(
+        [split.step(b, s, continuous=b) for b, s in zip(base, every)], base, atol=1e-12
+    )
     assert np.abs(np.stack([whole.step(b, s) for b, s in zip(base, every)]) - base).max() > 0.02
 
 

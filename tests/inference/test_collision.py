@@ -16,11 +16,16 @@ def test_push_out_moves_vertices_outside_without_spikes():
 
     skirt = make_garment("skirt", 300)
     motion = synthesize("idle", 0.2, seed=0)
-    rest = from_body_frame(to_body_frame(np.repeat(skirt.vertices[None], motion.num_frames, 0).astype(np.float64), motion), motion)
+    rest = from_body_frame(
+        to_body_frame(np.repeat(skirt.vertices[None], motion.num_frames, 0).astype(np.float64), motion),
+        motion,
+    )
     squeezed = rest.copy()
     centre = np.array([0.0, 0.0, 0.0])
     centre[[0, 2]] = rest[0, :, [0, 2]].mean(1)
-    squeezed[..., [0, 2]] = centre[[0, 2]] + 0.85 * (rest[..., [0, 2]] - centre[[0, 2]])  # 15 % narrower: into the hips
+    squeezed[..., [0, 2]] = centre[[0, 2]] + 0.85 * (
+        rest[..., [0, 2]] - centre[[0, 2]]
+    )  # 15 % narrower: into the hips
     pushed, report = push_out(squeezed.astype(np.float32), motion, skirt.faces)
     assert report.inside_before > 0.05 and report.inside_after == 0.0
     a, b = DEFAULT_BODY.pose_motion(motion)
@@ -28,7 +33,10 @@ def test_push_out_moves_vertices_outside_without_spikes():
     assert d.min() > -1e-6
     edges = skirt.edges()
     # no spikes: edges end at most 35 % longer than in the unsqueezed skirt
-    assert edge_strain(pushed, skirt.vertices, edges).max() <= edge_strain(rest, skirt.vertices, edges).max() + 0.35
+    assert (
+        edge_strain(pushed, skirt.vertices, edges).max()
+        <= edge_strain(rest, skirt.vertices, edges).max() + 0.35
+    )
     # the push spreads over the 4 rings around the vertices it needs to move, and nowhere else
     from hrr_garment.garment.smoothing import mean_operator
 
@@ -88,5 +96,8 @@ def test_the_push_out_with_its_limit_is_the_same_without_the_kernel(monkeypatch)
     unlimited, _ = push_out(squeezed, motion, skirt.faces)
     assert np.abs(unlimited - numpy_out).max() > 1e-3  # the limit undid part of the push
     assert np.abs(native_out - numpy_out).max() < 1e-5
-    assert np.allclose([native_report.inside_after, native_report.worst_after],
-                       [numpy_report.inside_after, numpy_report.worst_after], atol=0.01)
+    assert np.allclose(
+        [native_report.inside_after, native_report.worst_after],
+        [numpy_report.inside_after, numpy_report.worst_after],
+        atol=0.01,
+    )

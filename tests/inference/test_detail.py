@@ -40,7 +40,9 @@ def _rotation(angle: float) -> np.ndarray:
 def test_high_frequencies_keep_folds_and_drop_shape(skirt, rng):
     garment, mean = skirt
     frames = np.repeat(garment.vertices[None], 2, 0).astype(np.float64)
-    assert np.allclose(high_frequencies(frames + [0.05, -0.02, 0.01], mean, 1), high_frequencies(frames, mean, 1))
+    assert np.allclose(
+        high_frequencies(frames + [0.05, -0.02, 0.01], mean, 1), high_frequencies(frames, mean, 1)
+    )
     folds = rng.normal(0.0, 0.003, frames.shape)  # per-vertex noise: the highest frequency, mostly kept
     kept = np.sum(high_frequencies(folds, mean, 3) * folds) / np.sum(folds * folds)
     assert 0.6 < kept < 1.1
@@ -51,7 +53,9 @@ def test_high_frequencies_keep_folds_and_drop_shape(skirt, rng):
 @pytest.mark.parametrize("passes", [1, 3])
 def test_the_int8_fold_store_keeps_each_frame_within_half_a_step(skirt, rng, passes):
     garment, mean = skirt
-    sequences = [garment.vertices[None] + rng.normal(0, 0.004, (n, garment.num_vertices, 3)) for n in (5, 1, 7)]
+    sequences = [
+        garment.vertices[None] + rng.normal(0, 0.004, (n, garment.num_vertices, 3)) for n in (5, 1, 7)
+    ]
     store = FoldStore.build(sequences, mean, passes, encoding="int8")
     assert store.levels.dtype == np.int8 and list(store.lengths) == [5, 1, 7] and store.passes == passes
     exact = np.concatenate([high_frequencies(s, mean, passes) for s in sequences])
@@ -70,7 +74,9 @@ def test_the_nf4_fold_store_rounds_each_value_to_its_nearest_level(skirt, rng):
     """Four bits a value: every value within half the gap between the two levels around it (times
     its block's scale), each block's largest value exact, 0 kept exact, at about half int8's bytes."""
     garment, mean = skirt
-    sequences = [garment.vertices[None] + rng.normal(0, 0.004, (n, garment.num_vertices, 3)) for n in (5, 1, 7)]
+    sequences = [
+        garment.vertices[None] + rng.normal(0, 0.004, (n, garment.num_vertices, 3)) for n in (5, 1, 7)
+    ]
     store = FoldStore.build(sequences, mean, 1)
     int8 = FoldStore.build(sequences, mean, 1, encoding="int8")
     assert store.encoding == FOLD_ENCODING == "nf4" and store.num_vertices == garment.num_vertices
@@ -79,18 +85,20 @@ def test_the_nf4_fold_store_rounds_each_value_to_its_nearest_level(skirt, rng):
     got = store.frames(np.arange(13)).reshape(13, -1)
     blocks = fold_codec.blocks_of(exact.shape[1])
     padded = np.zeros((13, blocks * fold_codec.BLOCK))
-    padded[:, :exact.shape[1]] = exact
+    padded[:, : exact.shape[1]] = exact
     scale = np.abs(padded.reshape(13, blocks, -1)).max(axis=2)
-    per_value = np.repeat(scale, fold_codec.BLOCK, axis=1)[:, :exact.shape[1]]
+    per_value = np.repeat(scale, fold_codec.BLOCK, axis=1)[:, : exact.shape[1]]
     widest_gap = np.diff(fold_codec.CODEBOOK).max()
     assert np.all(np.abs(got - exact) <= per_value * (widest_gap / 2 + 1e-3))  # float16 scales: 1e-3
     biggest = np.abs(exact).argmax(axis=1)
     assert np.allclose(got[np.arange(13), biggest], exact[np.arange(13), biggest], rtol=1e-3)
     # on normal values the levels round better than even ones would: RMS error under a tenth
-    assert np.sqrt(np.mean((got - exact) ** 2)) < 0.1 * np.sqrt(np.mean(exact ** 2))
+    assert np.sqrt(np.mean((got - exact) ** 2)) < 0.1 * np.sqrt(np.mean(exact**2))
     codes, zero_scale = fold_codec.encode(np.zeros((2, 7)))
     assert np.array_equal(fold_codec.decode(codes, zero_scale, 7), np.zeros((2, 7)))
-    assert np.allclose(store.folds(np.array([[2, 4]]), np.array([[0.5, 2.0]]))[0].ravel(), 0.5 * got[2] + 2.0 * got[4])
+    assert np.allclose(
+        store.folds(np.array([[2, 4]]), np.array([[0.5, 2.0]]))[0].ravel(), 0.5 * got[2] + 2.0 * got[4]
+    )
 
 
 def test_the_fold_store_refuses_inconsistent_arrays():
@@ -119,12 +127,18 @@ def test_folds_replace_the_regressions_own_and_commute_with_a_rigid_motion(skirt
     folds = high_frequencies(regression + rng.normal(0, 0.003, regression.shape), mean, 1)
     assert np.allclose(add_folds(regression, folds, mean, 1, strength=0.0), regression, atol=1e-6)
     # the regression's own high frequencies in, nothing changes; strength scales the change linearly
-    assert np.allclose(add_folds(regression, high_frequencies(regression, mean, 1), mean, 1), regression, atol=1e-6)
+    assert np.allclose(
+        add_folds(regression, high_frequencies(regression, mean, 1), mean, 1), regression, atol=1e-6
+    )
     full = add_folds(regression, folds, mean, 1, strength=1.0) - regression
-    assert np.allclose(add_folds(regression, folds, mean, 1, strength=0.5) - regression, 0.5 * full, atol=1e-6)
+    assert np.allclose(
+        add_folds(regression, folds, mean, 1, strength=0.5) - regression, 0.5 * full, atol=1e-6
+    )
     rot, shift = _rotation(0.7), np.array([1.0, 0.0, 2.0])
     moved = add_folds(regression @ rot.T + shift, folds @ rot.T, mean, 1)
-    assert np.allclose(moved, add_folds(regression, folds, mean, 1).astype(np.float64) @ rot.T + shift, atol=1e-5)
+    assert np.allclose(
+        moved, add_folds(regression, folds, mean, 1).astype(np.float64) @ rot.T + shift, atol=1e-5
+    )
 
 
 def test_folds_on_free_cloth_are_weighted_per_vertex(skirt, rng):
@@ -139,7 +153,9 @@ def test_folds_on_free_cloth_are_weighted_per_vertex(skirt, rng):
     weighted = add_folds(regression, folds, mean, 1, weights=weights) - regression
     assert np.allclose(weighted, weights * full, atol=1e-6)
     assert np.allclose(weighted[:, ::3], 0.0, atol=1e-6) and np.abs(full[:, ::3]).max() > 1e-4
-    assert np.allclose(add_folds(regression, folds, mean, 1, weights=np.ones_like(weights)) - regression, full, atol=1e-6)
+    assert np.allclose(
+        add_folds(regression, folds, mean, 1, weights=np.ones_like(weights)) - regression, full, atol=1e-6
+    )
 
 
 def test_folds_that_would_overstretch_an_edge_are_taken_back_and_others_kept(skirt, rng):
@@ -157,11 +173,15 @@ def test_folds_that_would_overstretch_an_edge_are_taken_back_and_others_kept(ski
     before = limits.lengths(add_folds(regression, violent, mean, 1)) / limits.rest_length
     assert before[1].max() > 3 and before[0].max() < FOLD_MAX_STRAIN
     kept = add_folds(regression, gentle, mean, 1, limits=limits)
-    np.testing.assert_array_equal(kept, add_folds(regression, gentle, mean, 1))  # nothing to take back: untouched
+    np.testing.assert_array_equal(
+        kept, add_folds(regression, gentle, mean, 1)
+    )  # nothing to take back: untouched
     limited = add_folds(regression, violent, mean, 1, limits=limits)
     strain = limits.lengths(limited.astype(np.float64)) / limits.rest_length
     assert strain.max() <= FOLD_MAX_STRAIN * 1.01
-    np.testing.assert_array_equal(limited[0], add_folds(regression, violent, mean, 1)[0])  # a frame within it stays
+    np.testing.assert_array_equal(
+        limited[0], add_folds(regression, violent, mean, 1)[0]
+    )  # a frame within it stays
 
 
 OFFSETS = np.array([0, 100, 130, 400])  # three database sequences of 100, 30 and 270 frames
@@ -170,7 +190,9 @@ OFFSETS = np.array([0, 100, 130, 400])  # three database sequences of 100, 30 an
 def test_the_track_follows_agreeing_proposals_forward_without_a_switch():
     proposals = np.array([[2, 50 + t + (t % 3) - 1] for t in range(40)])  # sequence 2, wobbling by a frame
     rows, weights = track_folds(proposals, OFFSETS)
-    assert np.array_equal(rows[:, 0], OFFSETS[2] + 49 + np.arange(40))  # from the first proposal, a frame on per frame
+    assert np.array_equal(
+        rows[:, 0], OFFSETS[2] + 49 + np.arange(40)
+    )  # from the first proposal, a frame on per frame
     assert np.array_equal(weights[:, 0], np.ones(40))
 
 
@@ -184,8 +206,10 @@ def test_the_track_jumps_after_hold_frames_of_disagreement_and_fades_the_old_fol
     jump = 5 + 4 - 1  # the fourth disagreeing frame
     assert np.array_equal(rows[:jump, 0], np.arange(10, 10 + jump))  # played forward until then
     assert rows[jump, 0] == OFFSETS[1] + 5 and rows[jump, 1] == 10 + jump  # then the proposal, the old fading
-    assert np.allclose(weights[jump:jump + 4, 1], [3 / 4, 2 / 4, 1 / 4, 0.0])
-    assert np.array_equal(rows[jump + 1:jump + 3, 1], [11 + jump, 12 + jump])  # the old plays on as it fades
+    assert np.allclose(weights[jump : jump + 4, 1], [3 / 4, 2 / 4, 1 / 4, 0.0])
+    assert np.array_equal(
+        rows[jump + 1 : jump + 3, 1], [11 + jump, 12 + jump]
+    )  # the old plays on as it fades
 
 
 def test_the_track_jumps_where_its_sequence_ends():
@@ -196,8 +220,16 @@ def test_the_track_jumps_where_its_sequence_ends():
 
 def test_proposals_are_each_frames_frame_in_its_match():
     source = np.array([[0, 10], [1, 40], [2, 7], [0, 60]])  # 4 windows of 5 frames: 8 frames
-    assert offline_proposals(source, 8, 5).tolist() == [[0, 10], [0, 11], [0, 12], [1, 42], [2, 9], [0, 62], [0, 63],
-                                                        [0, 64]]
+    assert offline_proposals(source, 8, 5).tolist() == [
+        [0, 10],
+        [0, 11],
+        [0, 12],
+        [1, 42],
+        [2, 9],
+        [0, 62],
+        [0, 63],
+        [0, 64],
+    ]
     assert causal_proposals(source, 5).tolist() == [[0, 14], [1, 44], [2, 11], [0, 64]]
 
 
@@ -219,7 +251,9 @@ def test_the_detail_mode_is_its_base_plus_the_tracked_simulated_folds(trained, b
     if base == "regression":  # as version-2 bundles calibrated before the choice read, upgraded
         old = {**meta, "format_version": 2, "auto": {"mode": meta["auto"]["mode"]}}
         meta["auto"] = migrate_manifest(animator.bundle.folder, old)["auto"]
-        assert animator.bundle.detail_base == "regression" and animator.bundle.detail_strength == DETAIL_STRENGTH
+        assert (
+            animator.bundle.detail_base == "regression" and animator.bundle.detail_strength == DETAIL_STRENGTH
+        )
     store = animator.bundle.folds
     assert store is not None and len(store.lengths) == len(animator.bundle.database.names)
     motion = synthesize("walk", 1.0, seed=3)
@@ -234,8 +268,18 @@ def test_the_detail_mode_is_its_base_plus_the_tracked_simulated_folds(trained, b
     rows, weights = track_folds(offline_proposals(source, motion.num_frames, animator.window), store.offsets)
     local = to_body_frame(shape.astype(np.float64), motion)
     follow = partial(follow_over_time, mean=animator.smoothing)
-    expected = from_body_frame(add_folds(local, store.folds(rows, weights), animator.smoothing, store.passes,
-                                         strength or DETAIL_STRENGTH, limits=animator.edge_limits, follow=follow), motion)
+    expected = from_body_frame(
+        add_folds(
+            local,
+            store.folds(rows, weights),
+            animator.smoothing,
+            store.passes,
+            strength or DETAIL_STRENGTH,
+            limits=animator.edge_limits,
+            follow=follow,
+        ),
+        motion,
+    )
     assert np.abs(detail.vertices - expected).max() < 1e-4
     assert not np.allclose(detail.vertices, shape, atol=1e-3)
     assert (base == "regression") == np.allclose(shape, regression, atol=1e-5)
@@ -270,7 +314,9 @@ def test_a_bundle_before_the_folds_says_how_to_add_them_and_hrr_train_does(train
     weights = (old / "motion_encoder.safetensors").read_bytes()
     capsys.readouterr()
     assert train_main(stage) == 0
-    assert "(reused)" in capsys.readouterr().out and (old / "motion_encoder.safetensors").read_bytes() == weights
+    assert (
+        "(reused)" in capsys.readouterr().out and (old / "motion_encoder.safetensors").read_bytes() == weights
+    )
     assert (old / FOLDS_FILE).read_bytes() == folds
     animator = Animator.load(old)
     assert animator.supports("detail") and "detail x0.8" in animator.bundle.meta["auto"]["candidates"]
@@ -291,7 +337,11 @@ def test_a_damaged_fold_store_is_refused(trained, tmp_path):
     add_bundle_part(copy, FOLDS_FILE, short, {}, numpy=True)
     with pytest.raises(BundleError, match="offsets must rise"):
         load_bundle(copy)
-    fewer = {"detail": store.levels[:, :-1], "scale": store.scale[:, :-1], "offsets": store.offsets}  # a block short
+    fewer = {
+        "detail": store.levels[:, :-1],
+        "scale": store.scale[:, :-1],
+        "offsets": store.offsets,
+    }  # a block short
     add_bundle_part(copy, FOLDS_FILE, fewer, {}, numpy=True)
     with pytest.raises(BundleError, match="vertices"):
         load_bundle(copy)
@@ -319,8 +369,23 @@ def test_hrr_animate_runs_the_detail_mode_as_it_is_told(trained, tmp_path, capsy
     clip = tmp_path / "walk.npz"
     save_motion(motion, clip)
     out = tmp_path / "out.h5"
-    assert animate_main([str(clip), "-o", str(out), "--model", str(model), "--detail-strength", "1.3",
-                         "--detail-base", "residual", "--no-collision"]) == 0
+    assert (
+        animate_main(
+            [
+                str(clip),
+                "-o",
+                str(out),
+                "--model",
+                str(model),
+                "--detail-strength",
+                "1.3",
+                "--detail-base",
+                "residual",
+                "--no-collision",
+            ]
+        )
+        == 0
+    )
     assert "mode auto = detail, folds x1.3 on the residual" in capsys.readouterr().out
     written = read_animation_h5(out)
     assert written.attrs["detail_strength"] == 1.3 and written.attrs["detail_base"] == "residual"
@@ -337,11 +402,17 @@ def test_hrr_animate_runs_the_detail_mode_as_it_is_told(trained, tmp_path, capsy
     causal = animator.animate(motion, RunSettings(mode="detail", detail=look, collision=False, causal=True))
     assert np.allclose(streamed, causal.vertices, atol=1e-5)
     from_array = animator.animate(motion, detail=DetailLook("residual", np.float32(1.3)), collision=False)
-    assert from_array.settings["detail_strength"] == pytest.approx(1.3) and isinstance(from_array.settings["detail_strength"], float)
-    for asked in (lambda: {"mode": "hybrid", "detail": DetailLook(strength=1.0)},
-                  lambda: {"tau": 0.1, "detail": DetailLook(base="regression")},
-                  lambda: {"detail": DetailLook(strength=0.0)}, lambda: {"detail": DetailLook(base="shape")},
-                  lambda: {"tau": float("nan")}, lambda: {"tau": -1.0}):
+    assert from_array.settings["detail_strength"] == pytest.approx(1.3) and isinstance(
+        from_array.settings["detail_strength"], float
+    )
+    for asked in (
+        lambda: {"mode": "hybrid", "detail": DetailLook(strength=1.0)},
+        lambda: {"tau": 0.1, "detail": DetailLook(base="regression")},
+        lambda: {"detail": DetailLook(strength=0.0)},
+        lambda: {"detail": DetailLook(base="shape")},
+        lambda: {"tau": float("nan")},
+        lambda: {"tau": -1.0},
+    ):
         with pytest.raises(ValueError):
             animator.animate(motion, collision=False, **asked())
     with pytest.raises(TypeError, match=r"detail_strength \(now detail=DetailLook\(strength=...\)\)"):
@@ -349,12 +420,17 @@ def test_hrr_animate_runs_the_detail_mode_as_it_is_told(trained, tmp_path, capsy
 
     refused = tmp_path / "refused.h5"
     update_bundle_meta(model, {"residual": {**residual, "weight": 0.0}})
-    for extra, phrase in ((["--detail-strength", "0"], "must be in (0, 2]"),
-                          (["--detail-strength", "2.5"], "must be in (0, 2]"),
-                          (["--detail-strength", "1", "--mode", "hybrid"], "mode hybrid does not use them"),
-                          (["--detail-base", "regression", "--tau", "0.1"], "name the mode"),
-                          (["--detail-base", "residual"], "residual weight is calibrated to 0")):
-        assert animate_main([str(clip), "-o", str(refused), "--model", str(model), "--no-collision", *extra]) == 2
+    for extra, phrase in (
+        (["--detail-strength", "0"], "must be in (0, 2]"),
+        (["--detail-strength", "2.5"], "must be in (0, 2]"),
+        (["--detail-strength", "1", "--mode", "hybrid"], "mode hybrid does not use them"),
+        (["--detail-base", "regression", "--tau", "0.1"], "name the mode"),
+        (["--detail-base", "residual"], "residual weight is calibrated to 0"),
+    ):
+        assert (
+            animate_main([str(clip), "-o", str(refused), "--model", str(model), "--no-collision", *extra])
+            == 2
+        )
         assert phrase in capsys.readouterr().err, extra
         assert not refused.exists()
 
@@ -367,7 +443,9 @@ def test_followed_folds_keep_a_still_pattern_and_calm_a_flickering_one(skirt, rn
     garment, mean = skirt
     still = np.repeat(high_frequencies(rng.normal(0, 0.003, (1, garment.num_vertices, 3)), mean, 1), 20, 0)
     np.testing.assert_allclose(follow_over_time(still, mean), still, atol=1e-12)  # nothing moves: as they are
-    flicker = high_frequencies(rng.normal(0, 0.003, (40, garment.num_vertices, 3)), mean, 1)  # new folds every frame
+    flicker = high_frequencies(
+        rng.normal(0, 0.003, (40, garment.num_vertices, 3)), mean, 1
+    )  # new folds every frame
     followed = follow_over_time(flicker, mean)
     np.testing.assert_array_equal(followed[0], flicker[0])  # the first frame as it comes
     np.testing.assert_array_equal(follow_over_time(flicker, mean, follow=1.0), flicker)  # 1: no smoothing

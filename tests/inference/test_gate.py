@@ -12,10 +12,13 @@ from hrr_garment.motion.synth import synthesize
 from tests.conftest import write_meta
 
 
-@pytest.mark.parametrize("signal, expected", [("entropy", [0.3, 1.2]), ("similarity", [0.25, 1.0]),
-                                              ("distance", [2.0, 0.5])])
+@pytest.mark.parametrize(
+    "signal, expected", [("entropy", [0.3, 1.2]), ("similarity", [0.25, 1.0]), ("distance", [2.0, 0.5])]
+)
 def test_each_signal_is_a_doubt_lower_where_retrieval_should_win(signal, expected):
-    doubt = gate_doubt(signal, np.array([0.3, 1.2]), similarity=np.array([0.75, 0.0]), distance=np.array([2.0, 0.5]))
+    doubt = gate_doubt(
+        signal, np.array([0.3, 1.2]), similarity=np.array([0.75, 0.0]), distance=np.array([2.0, 0.5])
+    )
     assert np.allclose(doubt, expected)
 
 
@@ -28,8 +31,15 @@ def test_a_gate_without_its_input_or_unknown_is_refused():
 
 def test_motion_distance_is_the_rms_of_the_standardised_windows(rng):
     motion = rng.normal(size=(5, 3, 4)).astype(np.float32)
-    db = CodeDatabase(np.zeros((5, 2), np.uint8), np.zeros((5, 3, 2, 1), np.float32), np.zeros(5, np.int32),
-                      np.arange(5, dtype=np.int32), ["a"], 2, motion)
+    db = CodeDatabase(
+        np.zeros((5, 2), np.uint8),
+        np.zeros((5, 3, 2, 1), np.float32),
+        np.zeros(5, np.int32),
+        np.arange(5, dtype=np.int32),
+        ["a"],
+        2,
+        motion,
+    )
     query = motion[[4, 1]] + np.float32(0.5)  # every feature 0.5 away from rows 4 and 1
     assert np.allclose(db.motion_distance(query, np.array([4, 1])), 0.5, atol=1e-6)
     assert np.allclose(db.motion_distance(motion[[2]], np.array([2])), 0.0)
@@ -106,7 +116,22 @@ def test_hrr_animate_runs_the_gate_it_is_given(trained, tmp_path, capsys):
     clip = tmp_path / "walk.npz"
     save_motion(synthesize("walk", 1.0, seed=1), clip)
     out = tmp_path / "out.h5"
-    assert animate_main([str(clip), "-o", str(out), "--model", str(root / "model"), "--gate", "distance",
-                         "--tau", "1e9", "--no-collision"]) == 0
+    assert (
+        animate_main(
+            [
+                str(clip),
+                "-o",
+                str(out),
+                "--model",
+                str(root / "model"),
+                "--gate",
+                "distance",
+                "--tau",
+                "1e9",
+                "--no-collision",
+            ]
+        )
+        == 0
+    )
     text = capsys.readouterr().out
     assert "gate distance <" in text and "retrieval usage 100.0 %" in text

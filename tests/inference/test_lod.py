@@ -18,8 +18,10 @@ def test_level_zero_is_the_crowd_itself(animator):
     rotations, roots = _clip(12)
     plain, leveled = animator.crowd(mode="hybrid"), animator.crowd(mode="hybrid")
     for t in range(12):
-        assert np.array_equal(plain.push(rotations[t:t + 1], roots[t:t + 1]),
-                              leveled.push(rotations[t:t + 1], roots[t:t + 1], lod=0))
+        assert np.array_equal(
+            plain.push(rotations[t : t + 1], roots[t : t + 1]),
+            leveled.push(rotations[t : t + 1], roots[t : t + 1], lod=0),
+        )
 
 
 def test_a_change_of_decoder_fades_in_without_a_pop(animator):
@@ -31,17 +33,19 @@ def test_a_change_of_decoder_fades_in_without_a_pop(animator):
     full, fast, both = (animator.crowd(mode="regression", collision=False) for _ in range(3))
     out = {"full": [], "fast": [], "both": []}
     for t in range(frames):
-        r, p = rotations[t:t + 1], roots[t:t + 1]
+        r, p = rotations[t : t + 1], roots[t : t + 1]
         out["full"].append(full.push(r, p)[0])
         out["fast"].append(fast.push(r, p, lod=1)[0])
         out["both"].append(both.push(r, p, lod=0 if t < switch else 1)[0])
     full_v, fast_v, both_v = (np.array(v) for v in (out["full"], out["fast"], out["both"]))
-    assert np.abs(both_v[:switch + 1] - full_v[:switch + 1]).max() < 1e-5  # no jump on the frame of the change
-    assert np.abs(both_v[switch + FADE_FRAMES + 1:] - fast_v[switch + FADE_FRAMES + 1:]).max() < 1e-5
+    assert (
+        np.abs(both_v[: switch + 1] - full_v[: switch + 1]).max() < 1e-5
+    )  # no jump on the frame of the change
+    assert np.abs(both_v[switch + FADE_FRAMES + 1 :] - fast_v[switch + FADE_FRAMES + 1 :]).max() < 1e-5
     gap = np.abs(full_v - fast_v).max()
     assert gap > 1e-4, "the two decoders must differ for the test to mean anything"
     residual = both_v - fast_v  # the fading difference
-    steps = np.linalg.norm(np.diff(residual[switch:switch + FADE_FRAMES + 2], axis=0), axis=-1).max()
+    steps = np.linalg.norm(np.diff(residual[switch : switch + FADE_FRAMES + 2], axis=0), axis=-1).max()
     assert steps <= 1.6 / FADE_FRAMES * np.linalg.norm(full_v - fast_v, axis=-1).max() + 1e-5
 
 
@@ -50,13 +54,20 @@ def test_a_far_character_runs_the_window_step_every_kth_frame(animator, monkeypa
 
     calls = []
     real = stream_module.choose_windows
-    monkeypatch.setattr(stream_module, "choose_windows", lambda bundle, windows, *a, **k: calls.append(len(windows))
-                        or real(bundle, windows, *a, **k))
+    monkeypatch.setattr(
+        stream_module,
+        "choose_windows",
+        lambda bundle, windows, *a, **k: calls.append(len(windows)) or real(bundle, windows, *a, **k),
+    )
     rotations, roots = _clip(9)
     crowd = animator.crowd(mode="regression")
     for t in range(9):
-        out = crowd.push(np.repeat(rotations[t:t + 1], 2, 0), np.stack([roots[t], roots[t] + [2.0, 0, 0]]),
-                         ["near", "far"], lod=[0, 4])
+        out = crowd.push(
+            np.repeat(rotations[t : t + 1], 2, 0),
+            np.stack([roots[t], roots[t] + [2.0, 0, 0]]),
+            ["near", "far"],
+            lod=[0, 4],
+        )
         assert np.isfinite(out).all()
     assert calls == [2, 1, 1, 1, 2, 1, 1, 1, 2]  # the far one steps on its frames 0, 4 and 8
 

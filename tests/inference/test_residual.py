@@ -28,7 +28,10 @@ def test_training_calibrates_the_residual_weight_into_the_bundle(animator):
     residual = animator.bundle.meta["residual"]
     assert animator.bundle.has_residual and animator.supports("residual")
     errors = residual["errors_mm"]
-    assert set(errors) == {"0.0", *map(str, RESIDUAL_WEIGHTS)} and residual["validation_mm"] == errors[str(residual["weight"])]
+    assert (
+        set(errors) == {"0.0", *map(str, RESIDUAL_WEIGHTS)}
+        and residual["validation_mm"] == errors[str(residual["weight"])]
+    )
     allowed = [float(w) for w, e in errors.items() if e <= residual["allowance"] * errors["0.0"]]
     assert residual["weight"] == max([0.0, *allowed])
 
@@ -58,7 +61,9 @@ def test_residual_at_weight_zero_is_the_regression_and_otherwise_adds_the_matche
     assert np.allclose(chosen.latents, expected, atol=1e-5)
     assert not np.allclose(chosen.latents, enc.regression, atol=1e-3)  # the detail is there
     assert np.array_equal(chosen.match[:, 0], bundle.database.sequence[match])
-    assert not chosen.retrieved.any() and chosen.follows_match.all()  # a change of match is a change of source
+    assert (
+        not chosen.retrieved.any() and chosen.follows_match.all()
+    )  # a change of match is a change of source
 
 
 def test_the_detail_mode_on_the_residual_inertializes_its_latents_as_the_residual_mode(animator, monkeypatch):
@@ -72,14 +77,24 @@ def test_the_detail_mode_on_the_residual_inertializes_its_latents_as_the_residua
     monkeypatch.setitem(animator.bundle.meta, "residual", {"weight": 1.0})
     motion = synthesize("walk_curve", 1.5, seed=5)
     windows = causal_windows(animator.features(motion, causal=True), animator.window)
-    chosen = {mode: choose_windows(animator.bundle, windows, animator.resolve(mode=mode, detail=look), last_frame=True)
-              for mode, look in (("residual", DetailLook()), ("detail", DetailLook("residual", 1.0)))}
+    chosen = {
+        mode: choose_windows(
+            animator.bundle, windows, animator.resolve(mode=mode, detail=look), last_frame=True
+        )
+        for mode, look in (("residual", DetailLook()), ("detail", DetailLook("residual", 1.0)))
+    }
     assert np.array_equal(chosen["detail"].latents, chosen["residual"].latents)
     assert len(np.unique(chosen["detail"].match, axis=0)) > 1  # the match changes along the clip
     assert chosen["detail"].follows_match.all()
-    np.testing.assert_array_equal(causal_latents(chosen["detail"], animator.blend), causal_latents(chosen["residual"], animator.blend))
-    regression = choose_windows(animator.bundle, windows, animator.resolve(mode="detail", detail=DetailLook("regression", 1.0)),
-                                last_frame=True)
+    np.testing.assert_array_equal(
+        causal_latents(chosen["detail"], animator.blend), causal_latents(chosen["residual"], animator.blend)
+    )
+    regression = choose_windows(
+        animator.bundle,
+        windows,
+        animator.resolve(mode="detail", detail=DetailLook("regression", 1.0)),
+        last_frame=True,
+    )
     assert not regression.follows_match.any()  # on the regression: one continuous source
 
 
@@ -92,7 +107,9 @@ def test_stream_in_the_residual_mode_equals_offline_causal(animator, monkeypatch
     assert np.abs(pushed - causal.vertices).max() <= 1e-5
 
 
-def test_a_bundle_before_the_residual_mode_says_how_to_calibrate_it_and_hrr_train_does(trained, tmp_path, capsys):
+def test_a_bundle_before_the_residual_mode_says_how_to_calibrate_it_and_hrr_train_does(
+    trained, tmp_path, capsys
+):
     from hrr_garment.artifacts.bundle import BundleError, load_bundle
     from hrr_garment.cli.train import main as train_main
     from hrr_garment.inference.animator import Animator
@@ -109,9 +126,13 @@ def test_a_bundle_before_the_residual_mode_says_how_to_calibrate_it_and_hrr_trai
     weights = (old / "motion_encoder.safetensors").read_bytes()
     capsys.readouterr()
     assert train_main(stage) == 0
-    assert "(reused)" in capsys.readouterr().out and (old / "motion_encoder.safetensors").read_bytes() == weights
+    assert (
+        "(reused)" in capsys.readouterr().out and (old / "motion_encoder.safetensors").read_bytes() == weights
+    )
     again = load_bundle(old).meta["residual"]
-    assert again["weight"] == calibrated["weight"] and again["errors_mm"] == pytest.approx(calibrated["errors_mm"])
+    assert again["weight"] == calibrated["weight"] and again["errors_mm"] == pytest.approx(
+        calibrated["errors_mm"]
+    )
     meta["residual"] = {"weight": -1}
     write_meta(old, meta)
     with pytest.raises(BundleError, match="'residual' must hold a finite 'weight'"):
@@ -130,12 +151,19 @@ def test_free_cloth_weights_ramp_from_the_body_and_scale_the_residual_per_node(r
     nodes = free_cloth_weights(hang, (10, 40))
     out = residual_latents(regression, own + detail, own, np.ones(2), 0.5, nodes=nodes)
     assert np.allclose(out, regression + 0.5 * nodes[None, None, :, None] * detail, atol=1e-6)
-    assert np.array_equal(residual_latents(regression, own + detail, own, np.ones(2), 0.5, nodes=np.zeros(5)), regression)
-    assert np.allclose(residual_latents(regression, own + detail, own, np.ones(2), 0.5, nodes=np.ones(5)),
-                       residual_latents(regression, own + detail, own, np.ones(2), 0.5), atol=1e-6)
+    assert np.array_equal(
+        residual_latents(regression, own + detail, own, np.ones(2), 0.5, nodes=np.zeros(5)), regression
+    )
+    assert np.allclose(
+        residual_latents(regression, own + detail, own, np.ones(2), 0.5, nodes=np.ones(5)),
+        residual_latents(regression, own + detail, own, np.ones(2), 0.5),
+        atol=1e-6,
+    )
 
 
-def test_the_residual_on_free_cloth_keeps_the_regression_where_the_cloth_lies_on_the_body(animator, monkeypatch):
+def test_the_residual_on_free_cloth_keeps_the_regression_where_the_cloth_lies_on_the_body(
+    animator, monkeypatch
+):
     """With the calibrated ramp, nodes on the body take no residual, free ones all of it, in every path."""
     from hrr_garment.body.capsules import capsule_signed_distance
     from hrr_garment.inference.gate import choose_windows
@@ -144,13 +172,21 @@ def test_the_residual_on_free_cloth_keeps_the_regression_where_the_cloth_lies_on
     bundle = animator.bundle
     hang = bundle.node_hang_m
     node_vertices = bundle.autoencoder.hierarchy.node_vertices()
-    assert hang.shape == (bundle.autoencoder.hierarchy.sizes[-1],) and len(set(node_vertices.tolist())) == len(hang)
+    assert hang.shape == (bundle.autoencoder.hierarchy.sizes[-1],) and len(
+        set(node_vertices.tolist())
+    ) == len(hang)
     a, b = bundle.made_for.rest_pose()  # the node's own centre vertex, at rest, against the body
-    assert hang[0] == pytest.approx(capsule_signed_distance(bundle.template.vertices[node_vertices[:1]].astype(np.float64),
-                                                            a, b, radii=bundle.made_for.radii)[0][0], abs=1e-6)
+    assert hang[0] == pytest.approx(
+        capsule_signed_distance(
+            bundle.template.vertices[node_vertices[:1]].astype(np.float64), a, b, radii=bundle.made_for.radii
+        )[0][0],
+        abs=1e-6,
+    )
     lo, hi = np.quantile(hang, [0.3, 0.7]) * 1000  # a ramp through the middle of this garment's hang
     monkeypatch.setitem(bundle.meta, "residual", {"weight": 1.0})
-    windows = np.ascontiguousarray(sequence_windows(animator.features(synthesize("walk", 1.0, seed=3)), animator.window))
+    windows = np.ascontiguousarray(
+        sequence_windows(animator.features(synthesize("walk", 1.0, seed=3)), animator.window)
+    )
     plain = choose_windows(bundle, windows, animator.resolve(mode="residual")).latents
     regression = choose_windows(bundle, windows, animator.resolve(mode="regression")).latents
     monkeypatch.setitem(bundle.meta, "auto", {**bundle.auto, "residual_free_mm": [float(lo), float(hi)]})

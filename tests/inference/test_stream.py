@@ -27,14 +27,17 @@ def test_a_crowd_streamed_together_equals_each_character_streamed_alone(animator
     """Characters join and leave between frames and come in another order every third frame; each
     one's frames equal its own offline causal animation (which the single stream equals), whatever
     the others in the same push (the crowd's windows slide in place while its keys stay)."""
-    clips = {"a": synthesize("walk_curve", 1.0, seed=1), "b": synthesize("spin", 1.0, seed=2),
-             "c": synthesize("dance", 1.0, seed=3)}
+    clips = {
+        "a": synthesize("walk_curve", 1.0, seed=1),
+        "b": synthesize("spin", 1.0, seed=2),
+        "c": synthesize("dance", 1.0, seed=3),
+    }
     alone = {k: animator.animate(m, mode=mode, causal=True).vertices for k, m in clips.items()}
     joins = {"a": 0, "b": 4, "c": 9}  # b joins at frame 4; a leaves after frame 19, c after 24
     leaves = {"a": 20, "b": 30, "c": 25}
     crowd = animator.crowd(mode=mode)
     for frame in range(30):
-        present = [k for k in clips if joins[k] <= frame < leaves[k]][::1 if frame % 3 else -1]
+        present = [k for k in clips if joins[k] <= frame < leaves[k]][:: 1 if frame % 3 else -1]
         for k in set(crowd.characters) - set(present):
             crowd.leave(k)
         poses = {k: clips[k].slice(frame - joins[k], frame - joins[k] + 1) for k in present}
@@ -60,15 +63,24 @@ def test_raw_poses_stream_like_the_same_clip_from_its_file(animator, tmp_path, f
     motion = load_motion(tmp_path / "clip.npz")
     expected = animator.animate(motion, causal=True).vertices
     local = motion.local_rotations.astype(np.float64)
-    rotations = {"quaternion": matrix_to_quat(local)[..., [1, 2, 3, 0]],  # (x, y, z, w), as engines hand them
-                 "axis-angle": matrix_to_axis_angle(local), "matrix": local}[form]
+    rotations = {
+        "quaternion": matrix_to_quat(local)[..., [1, 2, 3, 0]],  # (x, y, z, w), as engines hand them
+        "axis-angle": matrix_to_axis_angle(local),
+        "matrix": local,
+    }[form]
     crowd = animator.crowd()
-    two = np.stack([rotations, rotations], 1), np.stack([motion.root_translation, motion.root_translation + 3.0], 1)
+    two = (
+        np.stack([rotations, rotations], 1),
+        np.stack([motion.root_translation, motion.root_translation + 3.0], 1),
+    )
     for t in range(motion.num_frames):  # two characters: the clip, and the clip 3 m away
         out = crowd.push(two[0][t], two[1][t], keys=["here", "there"])
         assert np.abs(out[0] - expected[t]).max() <= 1e-4 and np.abs(out[1] - 3.0 - expected[t]).max() <= 1e-4
     single = animator.stream()
-    assert np.abs(single.push(rotation=rotations[0], root=motion.root_translation[0]) - expected[0]).max() <= 1e-4
+    assert (
+        np.abs(single.push(rotation=rotations[0], root=motion.root_translation[0]) - expected[0]).max()
+        <= 1e-4
+    )
 
 
 def test_a_source_rig_streams_like_its_file(animator, tmp_path):
@@ -88,11 +100,44 @@ def test_a_source_rig_streams_like_its_file(animator, tmp_path):
     local[:, 0] = motion.global_rotations[:, 0] @ roll[0]
     for j in range(1, 22):
         local[:, j] = roll[PARENTS[j]].T @ motion.local_rotations[:, j].astype(np.float64) @ roll[j]
-    offsets = np.stack([roll[PARENTS[j]].T @ CANONICAL.offsets[j] if j else CANONICAL.offsets[j] for j in range(22)])
-    order = [0, 3, 6, 9, 12, 15, 13, 16, 18, 20, 14, 17, 19, 21, 1, 4, 7, 10, 2, 5, 8, 11]  # spine first, then limbs
+    offsets = np.stack(
+        [roll[PARENTS[j]].T @ CANONICAL.offsets[j] if j else CANONICAL.offsets[j] for j in range(22)]
+    )
+    order = [
+        0,
+        3,
+        6,
+        9,
+        12,
+        15,
+        13,
+        16,
+        18,
+        20,
+        14,
+        17,
+        19,
+        21,
+        1,
+        4,
+        7,
+        10,
+        2,
+        5,
+        8,
+        11,
+    ]  # spine first, then limbs
     path = tmp_path / "rig.bvh"
-    write_bvh(path, [JOINT_NAMES[j] for j in order], [order.index(PARENTS[j]) if j else -1 for j in order],
-              offsets[order], local[:, order], motion.root_translation, 1 / 30, BvhStyle(unit_scale=100.0))
+    write_bvh(
+        path,
+        [JOINT_NAMES[j] for j in order],
+        [order.index(PARENTS[j]) if j else -1 for j in order],
+        offsets[order],
+        local[:, order],
+        motion.root_translation,
+        1 / 30,
+        BvhStyle(unit_scale=100.0),
+    )
     expected = animator.animate(load_motion(path), causal=True).vertices
     clip = read_bvh(path)  # what an engine holds each frame: the rig's local rotations, the root in its units
     rig = StreamRig.from_bvh(path)
@@ -104,18 +149,21 @@ def test_a_source_rig_streams_like_its_file(animator, tmp_path):
         assert np.abs(out[0] - expected[t]).max() <= 1e-4, t
 
 
-@pytest.mark.parametrize("rotations, roots, phrase", [
-    (np.zeros((2, 21, 4)), np.zeros((2, 3)), r"expected \(N, 22, 4\) quaternions"),
-    (np.full((1, 22, 3), np.nan), np.zeros((1, 3)), "rotations are not finite"),
-    (np.zeros((1, 22, 4)), np.zeros((1, 3)), "not a rotation"),
-    (np.tile(np.eye(3) * 2, (1, 22, 1, 1)), np.zeros((1, 3)), "not a rotation"),
-    (np.zeros((1, 22, 3)), np.zeros((2, 3)), r"roots have shape \(2, 3\), expected \(1, 3\)"),
-    (np.zeros((1, 22, 3)), np.array([[0.0, np.inf, 0.0]]), "root of pose 0 is not finite"),
-    # float64 passes these, float32 vertices cannot hold them (issue 48, reproducer 5)
-    (np.zeros((1, 22, 3)), np.array([[1e39, 0.95, 0.0]]), "root of pose 0 is 1e[+]39 m from the origin"),
-    (np.zeros((1, 22, 3)), np.array([[1e30, 0.95, 0.0]]), "root of pose 0 is 1e[+]30 m from the origin"),
-    (np.full((1, 22, 3), 1e39), np.zeros((1, 3)), "axis-angle of pose 0, joint 0 turns"),
-])
+@pytest.mark.parametrize(
+    "rotations, roots, phrase",
+    [
+        (np.zeros((2, 21, 4)), np.zeros((2, 3)), r"expected \(N, 22, 4\) quaternions"),
+        (np.full((1, 22, 3), np.nan), np.zeros((1, 3)), "rotations are not finite"),
+        (np.zeros((1, 22, 4)), np.zeros((1, 3)), "not a rotation"),
+        (np.tile(np.eye(3) * 2, (1, 22, 1, 1)), np.zeros((1, 3)), "not a rotation"),
+        (np.zeros((1, 22, 3)), np.zeros((2, 3)), r"roots have shape \(2, 3\), expected \(1, 3\)"),
+        (np.zeros((1, 22, 3)), np.array([[0.0, np.inf, 0.0]]), "root of pose 0 is not finite"),
+        # float64 passes these, float32 vertices cannot hold them (issue 48, reproducer 5)
+        (np.zeros((1, 22, 3)), np.array([[1e39, 0.95, 0.0]]), "root of pose 0 is 1e[+]39 m from the origin"),
+        (np.zeros((1, 22, 3)), np.array([[1e30, 0.95, 0.0]]), "root of pose 0 is 1e[+]30 m from the origin"),
+        (np.full((1, 22, 3), 1e39), np.zeros((1, 3)), "axis-angle of pose 0, joint 0 turns"),
+    ],
+)
 def test_bad_raw_poses_are_refused_clearly(animator, rotations, roots, phrase):
     from hrr_garment.errors import MotionError
 
@@ -143,7 +191,9 @@ def test_a_bfloat16_crowd_stays_near_the_float32_one(animator):
     if not animator.decoder.native or not animator.decoder.lib.hrr_amx_ready():
         pytest.skip("no AMX (bfloat16 decoding) on this CPU")
     half = Animator(animator.bundle, precision="bfloat16")
-    clips = [synthesize(kind, 1.0, seed=i) for i, kind in enumerate(["walk_curve", "spin", "dance", "idle"] * 2)]
+    clips = [
+        synthesize(kind, 1.0, seed=i) for i, kind in enumerate(["walk_curve", "spin", "dance", "idle"] * 2)
+    ]
     crowds = [a.crowd(collision=False) for a in (animator, half)]
     error = []
     for t in range(clips[0].num_frames):

@@ -49,7 +49,9 @@ def test_the_subspace_push_takes_the_cloth_out_along_the_basis_alone():
     assert depth(after) < 0.5 * depth(before)  # what of the cloth is still inside, the basis cannot reach
     assert np.array_equal(moved[-1], squeezed[-1])  # nothing near the body: untouched
     # the move, in the body frame, lies in the basis's span (float32 rounding aside)
-    step = (to_body_frame(moved.astype(np.float64), motion) - to_body_frame(squeezed.astype(np.float64), motion))
+    step = to_body_frame(moved.astype(np.float64), motion) - to_body_frame(
+        squeezed.astype(np.float64), motion
+    )
     flat = step.reshape(len(step), -1)
     residual = flat - (flat @ basis.T.astype(np.float64)) @ basis.astype(np.float64)
     assert np.abs(flat).max() > 0.01 and np.abs(residual).max() < 1e-5
@@ -69,10 +71,19 @@ def test_the_stretch_weight_keeps_the_cloth_from_stretching():
     _, squeezed = squeezed_skirt(motion, 0.8, on_body=True)
     squeezed = squeezed.astype(np.float32)
     capsules = (*DEFAULT_BODY.pose_motion(motion), DEFAULT_BODY.radii)
-    loose = SubspacePush.of(basis, skirt.vertices, skirt.edges(), strain_weight=0.0)(squeezed, motion, capsules, 0.002)
-    stiff = SubspacePush.of(basis, skirt.vertices, skirt.edges(), strain_weight=100.0)(squeezed, motion, capsules, 0.002)
+    loose = SubspacePush.of(basis, skirt.vertices, skirt.edges(), strain_weight=0.0)(
+        squeezed, motion, capsules, 0.002
+    )
+    stiff = SubspacePush.of(basis, skirt.vertices, skirt.edges(), strain_weight=100.0)(
+        squeezed, motion, capsules, 0.002
+    )
     edges = skirt.edges()
-    stretch = lambda v: np.abs(edge_strain(v, skirt.vertices, edges) - edge_strain(squeezed, skirt.vertices, edges)).mean()  # noqa: E731
+
+    def stretch(v):
+        return np.abs(
+            edge_strain(v, skirt.vertices, edges) - edge_strain(squeezed, skirt.vertices, edges)
+        ).mean()
+
     assert stretch(stiff) < stretch(loose)
 
 
@@ -98,7 +109,9 @@ def test_the_push_out_runs_the_subspace_push_the_same_in_the_kernel_and_in_numpy
     plain, _ = push_out(squeezed, motion, skirt.faces, limits=limits)
     got, report = push_out(squeezed, motion, skirt.faces, limits=limits, settings=settings)
     assert np.abs(got - plain).max() > 0.005 and report.inside_after < 0.01
-    one, _ = push_out(squeezed[3:4], motion.slice(3, 4), skirt.faces, limits=limits, settings=settings, report=False)
+    one, _ = push_out(
+        squeezed[3:4], motion.slice(3, 4), skirt.faces, limits=limits, settings=settings, report=False
+    )
     assert np.array_equal(one[0], got[3])
     monkeypatch.setattr(native, "load_kernel", lambda *args, **kwargs: None)
     reference, _ = push_out(squeezed, motion, skirt.faces, limits=limits, settings=settings)
@@ -119,8 +132,12 @@ def test_a_stream_with_the_subspace_push_equals_the_offline_animation_and_change
     streamed = np.stack([stream.push(motion.slice(t, t + 1)) for t in range(motion.num_frames)])
     assert np.abs(streamed - offline.vertices).max() <= 1e-5
     crowd = animator.crowd(mode="regression", push="subspace", device="native")
-    crowded = np.stack([crowd.push_motions({"a": motion.slice(t, t + 1), "b": motion.slice(t, t + 1)})[0]
-                        for t in range(motion.num_frames)])
+    crowded = np.stack(
+        [
+            crowd.push_motions({"a": motion.slice(t, t + 1), "b": motion.slice(t, t + 1)})[0]
+            for t in range(motion.num_frames)
+        ]
+    )
     assert np.abs(crowded - offline.vertices).max() <= 1e-5
     mesh = animator.animate(motion, mode="regression", causal=True)
     assert np.abs(mesh.vertices - offline.vertices).max() > 0  # the subspace moved the cloth first
@@ -167,11 +184,15 @@ def test_the_torch_stage_moves_as_the_reference_does():
     yaw, _ = body_heading(motion)
     centre = motion.joint_positions[:, :1]
     stage = SubspacePushStage(push, margin=0.002)
-    distance = PushOutStage.distance.__get__(type("Radii", (), {"radii": torch.tensor(DEFAULT_BODY.radii, dtype=torch.float32)})())
+    distance = PushOutStage.distance.__get__(
+        type("Radii", (), {"radii": torch.tensor(DEFAULT_BODY.radii, dtype=torch.float32)})()
+    )
     f32 = lambda x: torch.from_numpy(np.asarray(x, np.float32))  # noqa: E731
     relative = f32(squeezed - centre)
     with torch.no_grad():
-        moved = stage(relative, f32(a - centre), f32(b - centre), (f32(np.cos(yaw)), f32(np.sin(yaw))), distance)
+        moved = stage(
+            relative, f32(a - centre), f32(b - centre), (f32(np.cos(yaw)), f32(np.sin(yaw))), distance
+        )
     assert np.abs(theirs - squeezed).max() > 0.01  # the reference moved the cloth ...
     assert np.abs(moved.numpy() + centre - theirs).max() < 2e-5  # ... and the stage moved it the same
     assert torch.equal(moved[-1], relative[-1])  # nothing near the body: untouched

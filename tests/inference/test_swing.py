@@ -8,7 +8,9 @@ from hrr_garment.inference.swing import FREE_CLOTH_MM, HALF_LIFE_S, SwingGain
 from hrr_garment.motion.synth import synthesize
 
 LO, HI = (x / 1000.0 for x in FREE_CLOTH_MM)
-HANG = np.array([0.0, 0.012, (LO + HI) / 2, HI + 0.05], np.float32)  # on the body, the bodice's clearance, the ramp's middle, free
+HANG = np.array(
+    [0.0, 0.012, (LO + HI) / 2, HI + 0.05], np.float32
+)  # on the body, the bodice's clearance, the ramp's middle, free
 
 
 def test_the_gain_scales_the_departure_on_free_cloth_only():
@@ -17,7 +19,9 @@ def test_the_gain_scales_the_departure_on_free_cloth_only():
     assert gain.decay == pytest.approx(0.5 ** (1.0 / (30.0 * HALF_LIFE_S)))
     t = np.arange(600)
     rest = np.array([0.1, -0.2, 0.3, 0.4])
-    swing = 0.05 * np.sin(2 * np.pi * t / 30.0)  # a 1 s swing about a fixed rest: the moving average keeps the rest
+    swing = 0.05 * np.sin(
+        2 * np.pi * t / 30.0
+    )  # a 1 s swing about a fixed rest: the moving average keeps the rest
     latents = (rest[None, :, None] + swing[:, None, None] * np.ones((1, 4, 2))).astype(np.float32)
     out = gain.apply(latents)
     late = slice(300, None)  # once the average has settled on the rest
@@ -53,7 +57,9 @@ def test_only_the_regressions_departure_is_scaled():
     regression = rng.normal(size=(60, 4, 3)).astype(np.float32)
     added = rng.normal(size=(60, 4, 3)).astype(np.float32)
     gain = SwingGain.of(1.5, HANG, fps=30.0)
-    np.testing.assert_allclose(gain.apply(regression + added, regression), gain.apply(regression) + added, atol=1e-5)
+    np.testing.assert_allclose(
+        gain.apply(regression + added, regression), gain.apply(regression) + added, atol=1e-5
+    )
 
 
 @pytest.mark.parametrize("mode", ["regression", "residual", "detail"])
@@ -70,7 +76,9 @@ def test_swing_streams_as_it_animates_offline(animator, mode, monkeypatch):
     stream = animator.stream(mode=mode, swing=1.4, **look)
     pushed = np.stack([stream.push(motion.slice(t, t + 1)) for t in range(motion.num_frames)])
     assert np.abs(pushed - swung.vertices).max() <= 1e-5
-    offline = animator.animate(motion, mode=mode, swing=1.4, **look)  # offline too, from the blended regression
+    offline = animator.animate(
+        motion, mode=mode, swing=1.4, **look
+    )  # offline too, from the blended regression
     assert np.abs(offline.vertices - animator.animate(motion, mode=mode, **look).vertices).max() > 1e-4
 
 
@@ -110,8 +118,23 @@ def test_hrr_animate_takes_a_swing_gain_and_refuses_a_bad_one(trained, tmp_path,
     clip = tmp_path / "walk.npz"
     save_motion(motion, clip)
     out = tmp_path / "out.h5"
-    assert animate_main([str(clip), "-o", str(out), "--model", str(root / "model"), "--mode", "regression",
-                         "--swing", "1.4", "--no-collision"]) == 0
+    assert (
+        animate_main(
+            [
+                str(clip),
+                "-o",
+                str(out),
+                "--model",
+                str(root / "model"),
+                "--mode",
+                "regression",
+                "--swing",
+                "1.4",
+                "--no-collision",
+            ]
+        )
+        == 0
+    )
     assert "mode regression, swing x1.4" in capsys.readouterr().out
     written = read_animation_h5(out)
     assert written.attrs["swing"] == 1.4

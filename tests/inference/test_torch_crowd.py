@@ -19,7 +19,9 @@ def test_the_device_crowd_equals_the_native_crowd(animator, decoder, push):
     for t in range(16):
         keys = ["a", "b"] if t >= 5 else ["a"]  # b joins at frame 5
         rotations = np.stack([poses[i][0][t - (5 if k == "b" else 0)] for i, k in enumerate(keys)])
-        roots = np.stack([poses[i][1][t - (5 if k == "b" else 0)] + [2.0 * i, 0, 0] for i, k in enumerate(keys)])
+        roots = np.stack(
+            [poses[i][1][t - (5 if k == "b" else 0)] + [2.0 * i, 0, 0] for i, k in enumerate(keys)]
+        )
         ours, theirs = device.push(rotations, roots, keys), native.push(rotations, roots, keys)
         assert ours.shape == theirs.shape == (len(keys), animator.bundle.template.num_vertices, 3)
         worst = max(worst, float(np.abs(ours - theirs).max()))
@@ -62,12 +64,32 @@ def test_the_torch_push_out_follows_and_limits_as_the_library_does(animator):
     garment[:, ::7] = (0.3 * garment[:, ::7] + 0.7 * poses.joint_positions[:, :1]).astype(np.float32)
     settings = dataclasses.replace(PUSH_OUT, follow=6)
     body = animator.body().body
-    stage = PushOutStage((*body.ends, body.radii), animator.smoothing, limits=animator.edge_limits, settings=settings)
-    ours = stage(torch.from_numpy(garment), torch.from_numpy(poses.global_rotations).float(),
-                 torch.from_numpy(poses.joint_positions).float()).numpy()
-    theirs, _ = push_out(garment, poses, animator.bundle.template.faces, body=body, settings=settings,
-                         mean=animator.smoothing, limits=animator.edge_limits, report=False)
-    plain, _ = push_out(garment, poses, animator.bundle.template.faces, body=body, mean=animator.smoothing,
-                        limits=animator.edge_limits, report=False)
+    stage = PushOutStage(
+        (*body.ends, body.radii), animator.smoothing, limits=animator.edge_limits, settings=settings
+    )
+    ours = stage(
+        torch.from_numpy(garment),
+        torch.from_numpy(poses.global_rotations).float(),
+        torch.from_numpy(poses.joint_positions).float(),
+    ).numpy()
+    theirs, _ = push_out(
+        garment,
+        poses,
+        animator.bundle.template.faces,
+        body=body,
+        settings=settings,
+        mean=animator.smoothing,
+        limits=animator.edge_limits,
+        report=False,
+    )
+    plain, _ = push_out(
+        garment,
+        poses,
+        animator.bundle.template.faces,
+        body=body,
+        mean=animator.smoothing,
+        limits=animator.edge_limits,
+        report=False,
+    )
     assert np.abs(theirs - plain).max() > 1e-3  # the follow moved the cloth ...
     assert np.abs(ours - theirs).max() < 2e-5  # ... and the torch stage moved it the same

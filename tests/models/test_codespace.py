@@ -31,7 +31,9 @@ def test_entropy_of_one_hot_is_zero_and_of_uniform_is_log_k(classes):
     one_hot = torch.full((3, 5, classes), -1e4)
     one_hot[..., 1] = 0.0
     assert torch.allclose(group_entropy(one_hot), torch.zeros(3), atol=1e-6)
-    assert torch.allclose(group_entropy(torch.zeros(3, 5, classes)), torch.full((3,), math.log(classes)), atol=1e-6)
+    assert torch.allclose(
+        group_entropy(torch.zeros(3, 5, classes)), torch.full((3,), math.log(classes)), atol=1e-6
+    )
 
 
 def test_usage_counts_dead_classes_and_perplexity():
@@ -46,34 +48,57 @@ def test_decoding_only_the_last_frame_equals_the_full_window(body):
     from hrr_garment.models.codespace import CodeSpace, CodeSpaceConfig
 
     torch.manual_seed(0)
-    cs = CodeSpace(CodeSpaceConfig(window=5, groups=4, classes=8, embedding_dim=3, hidden=32, motion_hidden=16,
-                                   body_features=body), 124 + body, (6, 8))
+    cs = CodeSpace(
+        CodeSpaceConfig(
+            window=5, groups=4, classes=8, embedding_dim=3, hidden=32, motion_hidden=16, body_features=body
+        ),
+        124 + body,
+        (6, 8),
+    )
     embedding = torch.randn(7, cs.quantizer.embedding_size)
     measures = cs.body_of(torch.randn(7, 5, 124 + body))
     assert measures is None if not body else measures.shape == (7, body)
     with torch.no_grad():
-        assert torch.allclose(cs.decode(embedding, True, measures), cs.decode(embedding, body=measures)[:, -1:], atol=1e-6)
+        assert torch.allclose(
+            cs.decode(embedding, True, measures), cs.decode(embedding, body=measures)[:, -1:], atol=1e-6
+        )
         if body:  # the decoder reads the body: another body, other latents
-            assert not torch.allclose(cs.decode(embedding, body=measures), cs.decode(embedding, body=measures + 1))
+            assert not torch.allclose(
+                cs.decode(embedding, body=measures), cs.decode(embedding, body=measures + 1)
+            )
     with pytest.raises(ValueError, match="body measures"):
         cs.decode(embedding, body=None if body else torch.zeros(7, 2))
 
 
 @pytest.mark.native
-@pytest.mark.parametrize("window,hidden,heads,latent,body", [(10, 32, 2, (6, 8), 0), (7, 48, 3, (5, 3), 12),
-                                                             (12, 64, 4, (9, 8), 0)])
-@pytest.mark.parametrize("regression,last_frame,code", [(True, True, "expected"), (True, False, "expected"),
-                                                        (False, True, "expected"), (True, True, "argmax")])
-def test_native_window_step_equals_pytorch_and_is_batch_invariant(window, hidden, heads, latent, body, regression,
-                                                                    last_frame, code):
+@pytest.mark.parametrize(
+    "window,hidden,heads,latent,body",
+    [(10, 32, 2, (6, 8), 0), (7, 48, 3, (5, 3), 12), (12, 64, 4, (9, 8), 0)],
+)
+@pytest.mark.parametrize(
+    "regression,last_frame,code",
+    [(True, True, "expected"), (True, False, "expected"), (False, True, "expected"), (True, True, "argmax")],
+)
+def test_native_window_step_equals_pytorch_and_is_batch_invariant(
+    window, hidden, heads, latent, body, regression, last_frame, code
+):
     """``body``: a model across bodies, whose decoder reads the window's body measures too."""
     from hrr_garment.models.codes import WindowCodes
     from hrr_garment.models.codespace import CodeSpace, CodeSpaceConfig
     from hrr_garment.models.native_codes import native_window_codes
 
     torch.manual_seed(window)
-    cfg = CodeSpaceConfig(window=window, groups=6, classes=5, embedding_dim=3, hidden=40, motion_hidden=hidden,
-                          attention_heads=heads, regression_code=code, body_features=body)
+    cfg = CodeSpaceConfig(
+        window=window,
+        groups=6,
+        classes=5,
+        embedding_dim=3,
+        hidden=40,
+        motion_hidden=hidden,
+        attention_heads=heads,
+        regression_code=code,
+        body_features=body,
+    )
     cs = CodeSpace(cfg, 124 + body, latent).eval()
     native = native_window_codes(cs, regression, last_frame)
     if native is None:
@@ -90,8 +115,13 @@ def test_native_window_step_equals_pytorch_and_is_batch_invariant(window, hidden
     # a stream's gates: each frame's computed as it came (one row, then all of one frame's rows
     # together), the windows' own bits; gates that are not these frames' change the result
     frames = windows.numpy()
-    gates = np.stack([np.concatenate([native.frame_gates(frames[:1, t]), native.frame_gates(frames[1:, t])])
-                      for t in range(window)], 1)
+    gates = np.stack(
+        [
+            np.concatenate([native.frame_gates(frames[:1, t]), native.frame_gates(frames[1:, t])])
+            for t in range(window)
+        ],
+        1,
+    )
     kept = native(windows, gates)
     assert all(torch.equal(a, b) for a, b in zip(kept, got))
     assert not torch.equal(native(windows, np.roll(gates, 1, axis=1))[0], got[0])
@@ -104,20 +134,44 @@ def test_the_expected_code_is_the_mean_embedding_under_each_groups_softmax():
     from hrr_garment.models.codespace import CodeSpace, CodeSpaceConfig
     from hrr_garment.settings import SettingsError
 
-    cs = {code: CodeSpace(CodeSpaceConfig(window=4, groups=3, classes=5, embedding_dim=2, hidden=8, motion_hidden=8,
-                                          attention_heads=2, regression_code=code), 124, (2, 2)) for code in ("expected", "argmax")}
+    cs = {
+        code: CodeSpace(
+            CodeSpaceConfig(
+                window=4,
+                groups=3,
+                classes=5,
+                embedding_dim=2,
+                hidden=8,
+                motion_hidden=8,
+                attention_heads=2,
+                regression_code=code,
+            ),
+            124,
+            (2, 2),
+        )
+        for code in ("expected", "argmax")
+    }
     cs["argmax"].quantizer.embedding.data = cs["expected"].quantizer.embedding.data
     table = cs["expected"].quantizer.embedding.detach()  # (G, K, D)
     with torch.no_grad():
         uniform = regression_embedding(cs["expected"], torch.zeros(1, 3, 5))
-        assert torch.allclose(uniform.reshape(3, 2), table.mean(1), atol=1e-6)  # every class equally likely: the mean
+        assert torch.allclose(
+            uniform.reshape(3, 2), table.mean(1), atol=1e-6
+        )  # every class equally likely: the mean
         peaked = torch.full((1, 3, 5), -50.0)
         peaked[0, [0, 1, 2], [4, 0, 2]] = 50.0  # certain codes: both kinds give the same classes' embeddings
-        assert torch.allclose(regression_embedding(cs["expected"], peaked), regression_embedding(cs["argmax"], peaked), atol=1e-6)
+        assert torch.allclose(
+            regression_embedding(cs["expected"], peaked),
+            regression_embedding(cs["argmax"], peaked),
+            atol=1e-6,
+        )
         logits = torch.randn(2, 3, 5)
         weights = torch.softmax(logits, -1)
-        assert torch.allclose(regression_embedding(cs["expected"], logits).reshape(2, 3, 2),
-                              torch.einsum("bgk,gkd->bgd", weights, table), atol=1e-6)
+        assert torch.allclose(
+            regression_embedding(cs["expected"], logits).reshape(2, 3, 2),
+            torch.einsum("bgk,gkd->bgd", weights, table),
+            atol=1e-6,
+        )
     with pytest.raises(SettingsError, match="regression_code"):
         CodeSpaceConfig(regression_code="mode")
     with pytest.raises(SettingsError, match="code space model: resonator damping"):

@@ -126,9 +126,11 @@ def _amx_decoder(model):
 @pytest.mark.native
 def test_bfloat16_bits_round_as_pytorch_and_pair_rows():
     x = torch.randn(1000) * torch.logspace(-6, 6, 1000)
-    x[:4] = torch.tensor([1.0 + 2 ** -8, 1.0 + 3 * 2 ** -8, -0.0, 65504.0])  # ties round to even both ways
+    x[:4] = torch.tensor([1.0 + 2**-8, 1.0 + 3 * 2**-8, -0.0, 65504.0])  # ties round to even both ways
     assert np.array_equal(bf16_bits(x.numpy()), x.bfloat16().view(torch.int16).numpy().view(np.uint16))
-    m = np.arange(2 * 4 * 3, dtype=np.float32).reshape(2, 4, 3)  # (matrices, cin, width): small integers are exact
+    m = np.arange(2 * 4 * 3, dtype=np.float32).reshape(
+        2, 4, 3
+    )  # (matrices, cin, width): small integers are exact
     pairs = bf16_pairs(m)
     assert pairs.shape == (2, 2, 3, 2)
     back = torch.from_numpy(pairs.astype(np.int16)).view(torch.bfloat16).float().numpy()
@@ -147,7 +149,9 @@ def test_bfloat16_decoder_stays_within_its_rounding(hierarchy, skirt, batch):
     with torch.no_grad():
         exact = model.decode(z)
         first = fast(z)
-        fast(torch.randn(batch + 9, *model.latent_shape))  # other frames in the kept buffers, padding included
+        fast(
+            torch.randn(batch + 9, *model.latent_shape)
+        )  # other frames in the kept buffers, padding included
         assert torch.equal(fast(z), first)
     # end to end: 5 blocks of 8-significant-bit rounding (2^-9 relative), sums in float32
     shape = (exact - model.template).norm(dim=-1)
@@ -170,21 +174,27 @@ def test_bfloat16_block_equals_its_rounded_reference(hierarchy, skirt):
         last = i == len(fast.native_blocks) - 1
         xb = np.zeros((len(x), 32, x.shape[2]), np.uint16)
         xb[:, :19] = bf16_bits(x)
-        got = block.call_bf16(fast.lib, xb, 1, last)[:, :19, :block.cout]
-        got = torch.from_numpy(got.astype(np.int16)).view(torch.bfloat16).double().numpy() if not last else got
+        got = block.call_bf16(fast.lib, xb, 1, last)[:, :19, : block.cout]
+        got = (
+            torch.from_numpy(got.astype(np.int16)).view(torch.bfloat16).double().numpy() if not last else got
+        )
         xr = _bf16(x)
-        kernel, proj = _bf16(block.kernel[..., :block.cout]), _bf16(np.eye(block.cin, block.cout) if block.proj is None
-                                                                     else block.proj[:, :block.cout])
+        kernel, proj = (
+            _bf16(block.kernel[..., : block.cout]),
+            _bf16(np.eye(block.cin, block.cout) if block.proj is None else block.proj[:, : block.cout]),
+        )
         want = np.empty((block.vertices, 19, block.cout))
         for v in range(block.vertices):
             j = slice(block.offsets[v], block.offsets[v + 1])
             rows = xr[block.nbr[j]]  # (S, B, cin)
-            y = np.einsum("sbc,sco->bo", rows, kernel[j]) + block.bias[:block.cout]
+            y = np.einsum("sbc,sco->bo", rows, kernel[j]) + block.bias[: block.cout]
             projected = rows @ proj if block.pool is not None else xr[v] @ proj
-            residual = np.einsum("s,sbo->bo", block.pool[j], projected) if block.pool is not None else projected
+            residual = (
+                np.einsum("s,sbo->bo", block.pool[j], projected) if block.pool is not None else projected
+            )
             act = np.where(y > 0, y, np.expm1(np.minimum(y, 0))) if block.elu else y
             want[v] = block.a * act + block.b * residual
-        tolerance = 1e-5 * np.abs(want).max() if last else 2 ** -8 * np.abs(want) + 1e-6 * np.abs(want).max()
+        tolerance = 1e-5 * np.abs(want).max() if last else 2**-8 * np.abs(want) + 1e-6 * np.abs(want).max()
         assert (np.abs(got - want) <= tolerance).all(), f"block {i}"
         x = got.astype(np.float32)
 
@@ -245,7 +255,9 @@ def test_latent_interpolation_has_no_spikes(overfit, skirt):
     with torch.no_grad():
         z = model.encode(x)
         ends = model.decode(z).numpy()
-        mids = model.decode(torch.stack([(1 - t) * z[0] + t * z[1] for t in np.linspace(0.1, 0.9, 9)])).numpy()
+        mids = model.decode(
+            torch.stack([(1 - t) * z[0] + t * z[1] for t in np.linspace(0.1, 0.9, 9)])
+        ).numpy()
     bound = edge_strain(ends, skirt.vertices, edges).max() + 0.05
     assert edge_strain(mids, skirt.vertices, edges).max() <= bound
 
@@ -264,8 +276,10 @@ def test_fitted_latents_beat_the_encoder_and_ignore_batching(overfit, skirt):
     assert err_fitted.mean() < 0.8 * err_encoded.mean(), (err_fitted, err_encoded)
     assert all(torch.equal(v, model.state_dict()[k]) for k, v in weights.items())  # the weights stay fixed
     assert torch.equal(model.fit_latents(unseen, steps=0), encoded)
-    one_by_one = torch.cat([model.fit_latents(unseen[i:i + 1], steps=10) for i in range(len(unseen))])
-    assert torch.allclose(one_by_one, fitted, atol=1e-3)  # a frame's latent does not depend on its batch (up to rounding)
+    one_by_one = torch.cat([model.fit_latents(unseen[i : i + 1], steps=10) for i in range(len(unseen))])
+    assert torch.allclose(
+        one_by_one, fitted, atol=1e-3
+    )  # a frame's latent does not depend on its batch (up to rounding)
 
 
 @pytest.mark.slow
@@ -283,10 +297,17 @@ def test_training_resumes_and_encodes_every_sequence(tmp_path, skirt, monkeypatc
         yaw = yaw_of(motion.global_rotations[:, 0])
         t = np.linspace(0, 1, motion.num_frames)[:, None, None]
         local = (1 - t) * frames[0] + t * frames[1]
-        world = np.einsum("tij,tnj->tni", rotation_about_y(yaw), local) + (motion.root_translation * [1, 0, 1])[:, None]
+        world = (
+            np.einsum("tij,tnj->tni", rotation_about_y(yaw), local)
+            + (motion.root_translation * [1, 0, 1])[:, None]
+        )
         records.append(SequenceRecord(f"{kind}_000", world.astype(np.float32), motion))
-    data = write_dataset(tmp_path / "d.h5", skirt, records, {"train": ["walk_000"], "val": ["spin_000"], "test": ["idle_000"]})
-    cfg = ae.TrainConfig(epochs=3, batch_size=8, patience=10, refine_steps=0)  # counts the training's Adam steps only
+    data = write_dataset(
+        tmp_path / "d.h5", skirt, records, {"train": ["walk_000"], "val": ["spin_000"], "test": ["idle_000"]}
+    )
+    cfg = ae.TrainConfig(
+        epochs=3, batch_size=8, patience=10, refine_steps=0
+    )  # counts the training's Adam steps only
 
     # kill the first run after its second checkpoint
     saves = []
@@ -314,7 +335,9 @@ def test_training_resumes_and_encodes_every_sequence(tmp_path, skirt, monkeypatc
     monkeypatch.setattr(torch.optim.Adam, "step", counting_step)
     again = ae.train_autoencoder(data, tmp_path / "ae", train_config=cfg, progress=False)
     assert again.epochs == 3
-    assert len(trained) == 3  # one epoch left after the checkpoint at epoch 2: 12 frames + mirrored, 3 batches of 8
+    assert (
+        len(trained) == 3
+    )  # one epoch left after the checkpoint at epoch 2: 12 frames + mirrored, 3 batches of 8
     with np.load(tmp_path / "ae" / "latents.npz") as z:
         assert sorted(z.files) == ["idle_000", "spin_000", "walk_000"]
         assert z["walk_000"].shape == (12, *again.metrics["latent_shape"])
@@ -326,7 +349,9 @@ def test_training_resumes_and_encodes_every_sequence(tmp_path, skirt, monkeypatc
         plain = z["spin_000"].copy()
     saves.clear()
     monkeypatch.setattr(ae, "save_checkpoint", save_then_die)
-    refined = ae.train_autoencoder(data, tmp_path / "ae", train_config=replace(cfg, refine_steps=3), progress=False)
+    refined = ae.train_autoencoder(
+        data, tmp_path / "ae", train_config=replace(cfg, refine_steps=3), progress=False
+    )
     assert not saves and refined.metrics["extra"]["refine_steps"] == 3 and not refined.reused
     with np.load(tmp_path / "ae" / "latents.npz") as z:
         assert not np.allclose(z["spin_000"], plain)
@@ -373,7 +398,9 @@ def test_training_device_is_checked_before_anything_is_written(tmp_path):
         training_device("gpu0")
     if not torch.cuda.is_available():
         with pytest.raises(InputError, match="no CUDA device"):
-            train_autoencoder(tmp_path / "missing.h5", tmp_path / "ae", train_config=TrainConfig(device="cuda"))
+            train_autoencoder(
+                tmp_path / "missing.h5", tmp_path / "ae", train_config=TrainConfig(device="cuda")
+            )
         assert not (tmp_path / "ae").exists()
 
 
@@ -388,9 +415,13 @@ def test_mirrored_datasets_are_not_mirrored_again_and_epochs_are_bounded(tmp_pat
     records = [SequenceRecord(n, frames, motion) for n in ("a", "b", "c")]
     splits = {"train": ["a"], "val": ["b"], "test": ["c"]}
     plain = write_dataset(tmp_path / "plain.h5", skirt, records, splits)
-    mirrored = write_dataset(tmp_path / "mirrored.h5", skirt, records, splits, info={"augmentation": {"mirror": True}})
+    mirrored = write_dataset(
+        tmp_path / "mirrored.h5", skirt, records, splits, info={"augmentation": {"mirror": True}}
+    )
     assert len(ae.training_frames(GarmentDataset(plain), mirror=True).train) == 48  # mirrored here
-    assert len(ae.training_frames(GarmentDataset(mirrored), mirror=True).train) == 24  # mirrored by the simulator
+    assert (
+        len(ae.training_frames(GarmentDataset(mirrored), mirror=True).train) == 24
+    )  # mirrored by the simulator
     steps = []
     step = torch.optim.Adam.step
 

@@ -47,7 +47,9 @@ def test_the_size_is_the_fewest_components_within_the_tolerance():
     assert pick_components(errors, full_mm=3.0, tolerance=1.1) == 64  # 3.4 > 3.3; 3.2 is the first within
     assert pick_components(errors, full_mm=3.0, tolerance=1.2) == 32  # 4.0 > 3.6
     assert pick_components(errors, full_mm=2.0, tolerance=1.1) == 128  # none within: the most accurate ...
-    assert pick_components({**errors, 256: 3.14}, full_mm=2.0, tolerance=1.1) == 128  # ... or the fewest within 1 % of it
+    assert (
+        pick_components({**errors, 256: 3.14}, full_mm=2.0, tolerance=1.1) == 128
+    )  # ... or the fewest within 1 % of it
 
 
 def test_bad_sizes_are_refused():

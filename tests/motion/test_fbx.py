@@ -49,11 +49,17 @@ def test_a_clip_through_blenders_fbx_reads_as_its_bvh(tmp_path, mocap_dir):
     error naming the file."""
     command = blender_command()
     if command is None:
-        pytest.skip("no Blender: set HRR_BLENDER to the blender program or to a Python with bpy (pip install bpy)")
+        pytest.skip(
+            "no Blender: set HRR_BLENDER to the blender program or to a Python with bpy (pip install bpy)"
+        )
     script, fbx = tmp_path / "bvh_to_fbx.py", tmp_path / "02_01.fbx"
     script.write_text(BVH_TO_FBX)
-    subprocess.run([*command, str(script), "--", str(mocap_dir / "cmu" / "02_01.bvh"), str(fbx)], check=True,
-                   capture_output=True, timeout=600)
+    subprocess.run(
+        [*command, str(script), "--", str(mocap_dir / "cmu" / "02_01.bvh"), str(fbx)],
+        check=True,
+        capture_output=True,
+        timeout=600,
+    )
     bvh, from_fbx = load_motion(mocap_dir / "cmu" / "02_01.bvh"), load_motion(fbx)
     assert from_fbx.num_frames == bvh.num_frames and from_fbx.source == str(fbx)
     local = [m.joint_positions - m.root_translation[:, None] for m in (bvh, from_fbx)]

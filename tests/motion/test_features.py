@@ -82,12 +82,20 @@ def test_native_kinematics_and_causal_features_equal_numpy(kind, monkeypatch):
         pytest.skip("no C compiler: the native kernels are unavailable")
     motion = synthesize(kind, seconds=2.0, seed=5)
     sk = motion.skeleton
-    g_rot, g_pos = native.forward_kinematics(lib, motion.local_rotations, motion.root_translation, sk.offsets, sk.parents)
-    want_rot, want_pos = forward_kinematics(motion.local_rotations.astype(np.float64), motion.root_translation,
-                                            sk.offsets.astype(np.float64), sk.parents)
+    g_rot, g_pos = native.forward_kinematics(
+        lib, motion.local_rotations, motion.root_translation, sk.offsets, sk.parents
+    )
+    want_rot, want_pos = forward_kinematics(
+        motion.local_rotations.astype(np.float64),
+        motion.root_translation,
+        sk.offsets.astype(np.float64),
+        sk.parents,
+    )
     assert np.abs(g_rot - want_rot).max() < 1e-12 and np.abs(g_pos - want_pos).max() < 1e-12
     got = causal_features(motion)
-    monkeypatch.setattr(native, "load_kernel", lambda *args, **kwargs: None)  # the numpy reference, FK included
+    monkeypatch.setattr(
+        native, "load_kernel", lambda *args, **kwargs: None
+    )  # the numpy reference, FK included
     want = causal_features(Motion(motion.local_rotations, motion.root_translation, motion.fps))
     assert got.shape == want.shape == (motion.num_frames, 124)
     assert np.abs(got - want).max() < 1e-5

@@ -38,6 +38,8 @@ def test_body_frame_follows_the_pelvis_height_and_heading():
     motion = synthesize("jump", 1.5, seed=1)  # the pelvis dips and rises
     assert np.ptp(motion.root_translation[:, 1]) > 0.1
     offset = np.array([[0.1, -0.3, 0.2], [-0.2, 0.1, 0.05]])  # carried rigidly with the pelvis heading
-    world = motion.root_translation[:, None] + np.einsum("tij,nj->tni", rotation_about_y(yaw_of(motion.global_rotations[:, 0])), offset)
+    world = motion.root_translation[:, None] + np.einsum(
+        "tij,nj->tni", rotation_about_y(yaw_of(motion.global_rotations[:, 0])), offset
+    )
     local = to_body_frame(world, motion)
     assert np.allclose(local, offset + [0.0, REST_PELVIS_HEIGHT, 0.0], atol=1e-9)

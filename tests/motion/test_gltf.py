@@ -19,9 +19,22 @@ pygltflib = pytest.importorskip("pygltflib")
 
 BUNDLE = Path(__file__).resolve().parents[1] / "fixtures" / "bundle-31b4ef9"  # a small trained model
 
-MIXAMO = {"pelvis": "Hips", "spine1": "Spine", "spine2": "Spine1", "spine3": "Spine2", "neck": "Neck", "head": "Head",
-          "hip": "UpLeg", "knee": "Leg", "ankle": "Foot", "foot": "ToeBase", "collar": "Shoulder", "shoulder": "Arm",
-          "elbow": "ForeArm", "wrist": "Hand"}
+MIXAMO = {
+    "pelvis": "Hips",
+    "spine1": "Spine",
+    "spine2": "Spine1",
+    "spine3": "Spine2",
+    "neck": "Neck",
+    "head": "Head",
+    "hip": "UpLeg",
+    "knee": "Leg",
+    "ankle": "Foot",
+    "foot": "ToeBase",
+    "collar": "Shoulder",
+    "shoulder": "Arm",
+    "elbow": "ForeArm",
+    "wrist": "Hand",
+}
 
 
 def mixamo_names(prefix: str = "mixamorig:") -> list[str]:
@@ -60,8 +73,12 @@ class _Blob:
         view = pygltflib.BufferView(buffer=0, byteOffset=len(self.data), byteLength=array.nbytes)
         self.data += array.tobytes()
         self.gl.bufferViews.append(view)
-        acc = pygltflib.Accessor(bufferView=len(self.gl.bufferViews) - 1, componentType=pygltflib.FLOAT,
-                                 count=len(array), type=kind)
+        acc = pygltflib.Accessor(
+            bufferView=len(self.gl.bufferViews) - 1,
+            componentType=pygltflib.FLOAT,
+            count=len(array),
+            type=kind,
+        )
         if kind == "SCALAR":
             acc.min, acc.max = [float(array.min())], [float(array.max())]
         self.gl.accessors.append(acc)
@@ -76,7 +93,9 @@ def _animation(blob: _Blob, name: str, motion, rig: Rig) -> "pygltflib.Animation
     """Rotation channels on every joint and a translation channel on the root, in the rig's layout."""
     keys = np.arange(0, motion.num_frames, rig.every)
     local = motion.local_rotations.astype(np.float64)[keys]
-    glob, pos = forward_kinematics(local, motion.root_translation[keys], CANONICAL.offsets.astype(np.float64), PARENTS)
+    glob, pos = forward_kinematics(
+        local, motion.root_translation[keys], CANONICAL.offsets.astype(np.float64), PARENTS
+    )
     orient = rig.orient if rig.orient is not None else np.broadcast_to(np.eye(3), (len(JOINT_NAMES), 3, 3))
     arm = axis_angle_to_matrix(np.asarray(rig.armature, dtype=np.float64))
     times = blob.add(keys / motion.fps, "SCALAR")
@@ -85,15 +104,28 @@ def _animation(blob: _Blob, name: str, motion, rig: Rig) -> "pygltflib.Animation
         if p < 0:
             rot = arm.T @ glob[:, j] @ orient[j]
             trans = blob.add(pos[:, j] @ arm / rig.unit, "VEC3")  # arm.T @ p for each row
-            samplers.append(pygltflib.AnimationSampler(input=times, output=trans, interpolation=rig.interpolation))
-            channels.append(pygltflib.AnimationChannel(sampler=len(samplers) - 1,
-                                                       target=pygltflib.AnimationChannelTarget(node=j + 1, path="translation")))
+            samplers.append(
+                pygltflib.AnimationSampler(input=times, output=trans, interpolation=rig.interpolation)
+            )
+            channels.append(
+                pygltflib.AnimationChannel(
+                    sampler=len(samplers) - 1,
+                    target=pygltflib.AnimationChannelTarget(node=j + 1, path="translation"),
+                )
+            )
         else:
             rot = orient[p].T @ local[:, j] @ orient[j]
-        samplers.append(pygltflib.AnimationSampler(input=times, output=blob.add(_xyzw(rot), "VEC4"),
-                                                   interpolation=rig.interpolation))
-        channels.append(pygltflib.AnimationChannel(sampler=len(samplers) - 1,
-                                                   target=pygltflib.AnimationChannelTarget(node=j + 1, path="rotation")))
+        samplers.append(
+            pygltflib.AnimationSampler(
+                input=times, output=blob.add(_xyzw(rot), "VEC4"), interpolation=rig.interpolation
+            )
+        )
+        channels.append(
+            pygltflib.AnimationChannel(
+                sampler=len(samplers) - 1,
+                target=pygltflib.AnimationChannelTarget(node=j + 1, path="rotation"),
+            )
+        )
     return pygltflib.Animation(name=name, samplers=samplers, channels=channels)
 
 
@@ -105,15 +137,23 @@ def write_character(path, clips: dict, rig: Rig = Rig()) -> None:
     orient = rig.orient if rig.orient is not None else np.broadcast_to(np.eye(3), (len(JOINT_NAMES), 3, 3))
     arm = axis_angle_to_matrix(np.asarray(rig.armature, dtype=np.float64))
     rest_root = np.array([0.0, 0.96, 0.0])
-    nodes = [pygltflib.Node(name="Armature", children=[1], rotation=_xyzw(arm).tolist(), scale=[rig.unit] * 3)]
+    nodes = [
+        pygltflib.Node(name="Armature", children=[1], rotation=_xyzw(arm).tolist(), scale=[rig.unit] * 3)
+    ]
     for j, p in enumerate(PARENTS):
         if p < 0:
             t, r = arm.T @ rest_root / rig.unit, arm.T @ orient[j]
         else:
             t, r = orient[p].T @ CANONICAL.offsets[j].astype(np.float64) / rig.unit, orient[p].T @ orient[j]
         children = [c + 1 for c, q in enumerate(PARENTS) if q == j]
-        nodes.append(pygltflib.Node(name=rig.names[j], translation=t.tolist(), rotation=_xyzw(r).tolist(),
-                                    children=children or None))
+        nodes.append(
+            pygltflib.Node(
+                name=rig.names[j],
+                translation=t.tolist(),
+                rotation=_xyzw(r).tolist(),
+                children=children or None,
+            )
+        )
     gl.nodes = nodes
     gl.scenes = [pygltflib.Scene(nodes=[0])]
     gl.scene = 0
@@ -130,8 +170,15 @@ def write_character(path, clips: dict, rig: Rig = Rig()) -> None:
 
 
 def write_canonical_bvh(path, motion) -> None:
-    write_bvh(path, list(JOINT_NAMES), list(PARENTS), CANONICAL.offsets, motion.local_rotations.astype(np.float64),
-              motion.root_translation.astype(np.float64), 1.0 / motion.fps)
+    write_bvh(
+        path,
+        list(JOINT_NAMES),
+        list(PARENTS),
+        CANONICAL.offsets,
+        motion.local_rotations.astype(np.float64),
+        motion.root_translation.astype(np.float64),
+        1.0 / motion.fps,
+    )
 
 
 def assert_same_motion(a, b, tol_m: float = 1e-3) -> None:
@@ -176,7 +223,9 @@ def test_centimetre_armature_turned_from_z_up_and_bone_axes(tmp_path, walk, walk
     path = tmp_path / "centimetres.glb"
     write_character(path, {"Walk": walk}, rig)
     nodes = pygltflib.GLTF2().load(str(path)).nodes
-    assert nodes[0].scale == [0.01] * 3 and nodes[1].translation[2] == pytest.approx(96.0)  # cm, the armature's z up
+    assert nodes[0].scale == [0.01] * 3 and nodes[1].translation[2] == pytest.approx(
+        96.0
+    )  # cm, the armature's z up
     motion = load_motion(path)
     assert motion.source_height_m == pytest.approx(walk_bvh_motion.source_height_m, rel=1e-4)
     assert_same_motion(motion, walk_bvh_motion)
@@ -191,9 +240,13 @@ def test_centimetres_without_a_scaling_node_are_detected_or_given(tmp_path, walk
     gl.nodes[0].scale = None
     gl.save_binary(str(path))
     for motion in (load_motion(path), load_motion(path, unit_scale=0.01)):
-        assert motion.source_height_m == pytest.approx(walk_bvh_motion.source_height_m, rel=1e-4)  # metres, not 170
+        assert motion.source_height_m == pytest.approx(
+            walk_bvh_motion.source_height_m, rel=1e-4
+        )  # metres, not 170
         assert_same_motion(motion, walk_bvh_motion)
-    assert load_motion(path, unit_scale=0.02).source_height_m == pytest.approx(2 * walk_bvh_motion.source_height_m, rel=1e-4)
+    assert load_motion(path, unit_scale=0.02).source_height_m == pytest.approx(
+        2 * walk_bvh_motion.source_height_m, rel=1e-4
+    )
 
 
 def test_embedded_gltf_and_mixamo_names_without_colon(tmp_path, walk, walk_bvh_motion):
@@ -248,12 +301,22 @@ def test_cubic_spline_file_matches_linear_at_its_keys(tmp_path, walk, walk_bvh_m
         acc = gl.accessors[sampler.output]
         width = 4 if acc.type == "VEC4" else 3
         view = gl.bufferViews[acc.bufferView]
-        values = np.frombuffer(bytes(blob[view.byteOffset:view.byteOffset + view.byteLength]), np.float32).reshape(-1, width)
-        triple = np.stack([np.full_like(values, 7.0), values, np.full_like(values, -7.0)], 1)  # tangents never land on keys
+        values = np.frombuffer(
+            bytes(blob[view.byteOffset : view.byteOffset + view.byteLength]), np.float32
+        ).reshape(-1, width)
+        triple = np.stack(
+            [np.full_like(values, 7.0), values, np.full_like(values, -7.0)], 1
+        )  # tangents never land on keys
         gl.bufferViews.append(pygltflib.BufferView(buffer=0, byteOffset=len(blob), byteLength=triple.nbytes))
         blob += triple.tobytes()
-        gl.accessors.append(pygltflib.Accessor(bufferView=len(gl.bufferViews) - 1, componentType=pygltflib.FLOAT,
-                                               count=3 * acc.count, type=acc.type))
+        gl.accessors.append(
+            pygltflib.Accessor(
+                bufferView=len(gl.bufferViews) - 1,
+                componentType=pygltflib.FLOAT,
+                count=3 * acc.count,
+                type=acc.type,
+            )
+        )
         sampler.output, sampler.interpolation = len(gl.accessors) - 1, "CUBICSPLINE"
     gl.buffers[0].byteLength = len(blob)
     gl.set_binary_blob(bytes(blob))
@@ -273,7 +336,9 @@ def test_animation_by_name_and_by_index(tmp_path, walk, spin, walk_bvh_motion):
     assert_same_motion(load_motion(path, animation="1"), spin_bvh)  # as the command line gives it
     found = gltf_animations(path)
     assert [a.name for a in found] == ["Walk", "Spin"]
-    assert found[0].keyframes == walk.num_frames and found[0].duration_s == pytest.approx((walk.num_frames - 1) / 30, abs=1e-6)
+    assert found[0].keyframes == walk.num_frames and found[0].duration_s == pytest.approx(
+        (walk.num_frames - 1) / 30, abs=1e-6
+    )
     with pytest.raises(MotionError, match="no animation named 'Run'.*'Walk'.*'Spin'") as err:
         load_motion(path, animation="Run")
     assert str(path) in str(err.value)
@@ -299,9 +364,13 @@ def _bad_files(tmp_path, walk) -> dict:
     good = tmp_path / "good.glb"
     write_character(good, {"Walk": walk})
     data = good.read_bytes()
-    files = {"truncated": (tmp_path / "truncated.glb", "cut short"), "header": (tmp_path / "header.glb", "not a readable glTF"),
-             "no_skin": (tmp_path / "no_skin.glb", "no skin"), "no_anim": (tmp_path / "no_anim.glb", "no animations"),
-             "json": (tmp_path / "broken.gltf", "not a readable glTF")}
+    files = {
+        "truncated": (tmp_path / "truncated.glb", "cut short"),
+        "header": (tmp_path / "header.glb", "not a readable glTF"),
+        "no_skin": (tmp_path / "no_skin.glb", "no skin"),
+        "no_anim": (tmp_path / "no_anim.glb", "no animations"),
+        "json": (tmp_path / "broken.gltf", "not a readable glTF"),
+    }
     files["truncated"][0].write_bytes(data[: len(data) - 200])  # the binary chunk cut short
     files["header"][0].write_bytes(data[:30])  # cut inside the JSON chunk
     write_character(files["no_skin"][0], {"Walk": walk}, Rig(skin=False))
@@ -377,7 +446,9 @@ def test_without_pygltflib_the_extra_is_named(tmp_path, walk, monkeypatch, capsy
 
     path = tmp_path / "character.glb"
     write_character(path, {"Walk": walk})
-    monkeypatch.setitem(__import__("sys").modules, "pygltflib", None)  # as if the export extra were not installed
+    monkeypatch.setitem(
+        __import__("sys").modules, "pygltflib", None
+    )  # as if the export extra were not installed
     with pytest.raises(ImportError, match=r"pip install 'hrr_garment\[export\]'"):
         load_motion(path)
     assert main(["info", str(path)]) == 2
@@ -393,7 +464,9 @@ def test_hrr_animate_a_glb_animation(tmp_path, walk, spin, capsys):
     path = tmp_path / "character.glb"
     write_character(path, {"Walk": walk, "Spin": spin})
     out = tmp_path / "out.h5"
-    assert animate([str(path), "--animation", "Spin", "-o", str(out), "--model", str(BUNDLE)]) == 0, capsys.readouterr().err
+    assert animate([str(path), "--animation", "Spin", "-o", str(out), "--model", str(BUNDLE)]) == 0, (
+        capsys.readouterr().err
+    )
     with h5py.File(out, "r") as f:
         assert f["vertices"].shape[0] == spin.num_frames
 

@@ -16,8 +16,11 @@ from hrr_garment.motion.synth import synthesize
 def long_motion(frames: int) -> Motion:
     dance = synthesize("dance", 4.0, seed=1)
     reps = frames // dance.num_frames + 1
-    return Motion(np.tile(dance.local_rotations, (reps, 1, 1, 1))[:frames],
-                  np.tile(dance.root_translation, (reps, 1))[:frames], dance.fps)
+    return Motion(
+        np.tile(dance.local_rotations, (reps, 1, 1, 1))[:frames],
+        np.tile(dance.root_translation, (reps, 1))[:frames],
+        dance.fps,
+    )
 
 
 @pytest.fixture
@@ -34,7 +37,9 @@ def one_pass_and_in_passes(monkeypatch, compute):
 
 
 def test_features_in_passes_equal_one_pass(monkeypatch, clip):
-    whole, passes = one_pass_and_in_passes(monkeypatch, lambda: motion_features(Motion(clip.local_rotations, clip.root_translation, clip.fps)))
+    whole, passes = one_pass_and_in_passes(
+        monkeypatch, lambda: motion_features(Motion(clip.local_rotations, clip.root_translation, clip.fps))
+    )
     assert passes.shape == whole.shape == (500, 124)
     np.testing.assert_array_equal(passes, whole)
 
@@ -70,9 +75,13 @@ def test_memory_for_features_does_not_grow_with_the_clip(monkeypatch):
     does: the float64 temporaries are a pass's, and only the float32 result is the clip's."""
     motion = long_motion(40_000)
     monkeypatch.setattr(resample, "FRAME_CHUNK", 4096)
-    in_passes = peak_bytes(lambda: motion_features(Motion(motion.local_rotations, motion.root_translation, motion.fps)))
+    in_passes = peak_bytes(
+        lambda: motion_features(Motion(motion.local_rotations, motion.root_translation, motion.fps))
+    )
     monkeypatch.setattr(resample, "FRAME_CHUNK", 10**9)
-    one_pass = peak_bytes(lambda: motion_features(Motion(motion.local_rotations, motion.root_translation, motion.fps)))
+    one_pass = peak_bytes(
+        lambda: motion_features(Motion(motion.local_rotations, motion.root_translation, motion.fps))
+    )
     result = 40_000 * 124 * 4
     assert in_passes < one_pass / 3
     assert in_passes < 5 * result

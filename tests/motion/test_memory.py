@@ -62,7 +62,11 @@ def world_resonator(motion, hz: float, damping: float) -> tuple[np.ndarray, np.n
 def test_memory_is_the_world_velocity_average_seen_from_the_body(kind):
     motion = synthesize(kind, seconds=3.0, seed=3)
     got = with_memory(motion_features(motion), motion.fps, (0.5, 1.5))
-    assert got.shape == (motion.num_frames, FEATURE_DIM + 2 * MEMORY_WIDTH) == (motion.num_frames, feature_width((0.5, 1.5)))
+    assert (
+        got.shape
+        == (motion.num_frames, FEATURE_DIM + 2 * MEMORY_WIDTH)
+        == (motion.num_frames, feature_width((0.5, 1.5)))
+    )
     for i, seconds in enumerate((0.5, 1.5)):
         cols = slice(FEATURE_DIM + i * MEMORY_WIDTH, FEATURE_DIM + (i + 1) * MEMORY_WIDTH - 1)
         want = world_average(motion, seconds)
@@ -73,7 +77,11 @@ def test_memory_is_the_world_velocity_average_seen_from_the_body(kind):
 def test_resonators_are_world_pendulums_seen_from_the_body(kind):
     motion = synthesize(kind, seconds=3.0, seed=3)
     got = with_memory(motion_features(motion), motion.fps, RESONATING)
-    assert got.shape == (motion.num_frames, feature_width(RESONATING)) == (motion.num_frames, FEATURE_DIM + 8 * MEMORY_WIDTH)
+    assert (
+        got.shape
+        == (motion.num_frames, feature_width(RESONATING))
+        == (motion.num_frames, FEATURE_DIM + 8 * MEMORY_WIDTH)
+    )
     for i, hz in enumerate(RESONATING.resonator_hz):
         for j, want in enumerate(world_resonator(motion, hz, RESONATING.damping)):
             row = 2 + 2 * i + j  # after the two averages: w x, then q, per resonator
@@ -91,7 +99,7 @@ def test_a_resonator_answers_a_swaying_body_as_a_damped_pendulum(drive_hz):
     f[:, 120] = np.sin(2 * np.pi * drive_hz * t)  # the root's sideways velocity; no turning
     got = with_memory(f, fps, MemorySpec((), (hz,), damping))
     w, s = 2 * np.pi * hz, 2 * np.pi * drive_hz
-    settled = got[len(t) // 2:, FEATURE_DIM + 60]  # w x of the root's sideways velocity, after 6 s
+    settled = got[len(t) // 2 :, FEATURE_DIM + 60]  # w x of the root's sideways velocity, after 6 s
     want = w * s / abs(w * w - s * s + 2j * damping * w * s)
     assert abs(settled.max() - want) <= 0.03 * want
 
@@ -114,7 +122,9 @@ def test_memory_is_invariant_to_translation_and_vertical_rotation(kind, memory):
     base = with_memory(motion_features(motion), motion.fps, memory)
     for yaw, shift in ((2.5, [0.0, 0.0, 0.0]), (-1.1, [-12.0, 0.0, 40.0])):
         moved = transformed(motion, yaw, shift)
-        assert np.abs(with_memory(motion_features(moved), moved.fps, memory) - base).max() <= 1e-4 * max(1.0, np.abs(base).max())
+        assert np.abs(with_memory(motion_features(moved), moved.fps, memory) - base).max() <= 1e-4 * max(
+            1.0, np.abs(base).max()
+        )
 
 
 @pytest.mark.parametrize("spec", [(0.5, 1.5), RESONATING])

@@ -49,15 +49,23 @@ def test_a_motion_whose_arrays_its_caller_changed_is_checked_again_when_animated
         Animator.load(trained[0] / "model").animate(motion)
 
 
-@pytest.mark.parametrize("change, phrase", [
-    (lambda r: r * 1000, "joint pelvis is not a rotation matrix"),  # "matrices" scaled by 1000 (reproducer 13)
-    (lambda r: r * np.diag([-1.0, 1.0, 1.0]), "a scale, a reflection or zeros"),
-    (lambda r: np.zeros_like(r), "not a rotation matrix"),
-])
+@pytest.mark.parametrize(
+    "change, phrase",
+    [
+        (
+            lambda r: r * 1000,
+            "joint pelvis is not a rotation matrix",
+        ),  # "matrices" scaled by 1000 (reproducer 13)
+        (lambda r: r * np.diag([-1.0, 1.0, 1.0]), "a scale, a reflection or zeros"),
+        (lambda r: np.zeros_like(r), "not a rotation matrix"),
+    ],
+)
 def test_a_local_rotation_that_is_no_rotation_is_refused(walk, change, phrase):
     rot = walk.local_rotations.copy()
     rot[4, 0] = change(rot[4, 0])
-    with pytest.raises(MotionError, match=f"frame 4.*{phrase}" if "joint" not in phrase else f"frame 4, {phrase}"):
+    with pytest.raises(
+        MotionError, match=f"frame 4.*{phrase}" if "joint" not in phrase else f"frame 4, {phrase}"
+    ):
         Motion(rot, walk.root_translation, fps=walk.fps)
 
 

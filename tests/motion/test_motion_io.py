@@ -36,7 +36,16 @@ def test_cmu_frame_counts_follow_resampling(mocap_dir, cmu_motions):
 
 
 def _write(motion, path, **kw):
-    write_bvh(path, list(JOINT_NAMES), list(PARENTS), CANONICAL.offsets, motion.local_rotations.astype(np.float64), motion.root_translation.astype(np.float64), 1.0 / motion.fps, BvhStyle(**kw))
+    write_bvh(
+        path,
+        list(JOINT_NAMES),
+        list(PARENTS),
+        CANONICAL.offsets,
+        motion.local_rotations.astype(np.float64),
+        motion.root_translation.astype(np.float64),
+        1.0 / motion.fps,
+        BvhStyle(**kw),
+    )
 
 
 def test_bvh_variants_give_identical_features(tmp_path, rng):
@@ -59,7 +68,15 @@ def test_bvh_resampling_120fps_matches_every_fourth_frame(tmp_path):
     fast = synthesize("walk", seconds=2.0, seed=3)
     # Upsample by writing every frame 4 times slower is not possible; instead treat the clip as 120 fps.
     path = tmp_path / "fast.bvh"
-    write_bvh(path, list(JOINT_NAMES), list(PARENTS), CANONICAL.offsets, fast.local_rotations.astype(np.float64), fast.root_translation.astype(np.float64), 1.0 / 120.0)
+    write_bvh(
+        path,
+        list(JOINT_NAMES),
+        list(PARENTS),
+        CANONICAL.offsets,
+        fast.local_rotations.astype(np.float64),
+        fast.root_translation.astype(np.float64),
+        1.0 / 120.0,
+    )
     slow = load_motion(path, ground=False)
     assert slow.num_frames == (fast.num_frames - 1) // 4 + 1
     np.testing.assert_allclose(slow.joint_positions, fast.joint_positions[::4], atol=1e-5)
@@ -82,7 +99,9 @@ def test_resampling_slerps_between_frames(tmp_path):
     first = np.linalg.norm(matrix_to_axis_angle(np.swapaxes(prev, -1, -2) @ mid), axis=-1)
     whole = np.linalg.norm(matrix_to_axis_angle(np.swapaxes(prev, -1, -2) @ nxt), axis=-1)
     np.testing.assert_allclose(first, 0.5 * whole, atol=1e-5)
-    np.testing.assert_allclose(up.root_translation[1::2], 0.5 * (half.root_translation[:-1] + half.root_translation[1:]), atol=1e-6)
+    np.testing.assert_allclose(
+        up.root_translation[1::2], 0.5 * (half.root_translation[:-1] + half.root_translation[1:]), atol=1e-6
+    )
 
 
 @pytest.mark.parametrize("width", [72, 156, 165])
@@ -143,7 +162,11 @@ def test_strict_json_writes_non_finite_numbers_as_null():
 
     from hrr_garment.io_utils import strict_json
 
-    value = {"a": float("nan"), "b": [np.float32(np.inf), np.float64(1.5), np.int64(3)], "c": (np.bool_(True), "x")}
+    value = {
+        "a": float("nan"),
+        "b": [np.float32(np.inf), np.float64(1.5), np.int64(3)],
+        "c": (np.bool_(True), "x"),
+    }
     text = strict_json(value)
     assert "NaN" not in text and "Infinity" not in text
     assert json.loads(text) == {"a": None, "b": [None, 1.5, 3], "c": [True, "x"]}

@@ -11,10 +11,21 @@ from hrr_garment.motion.skeleton import CANONICAL, JOINT_INDEX, JOINT_NAMES, PAR
 
 
 def write_named(motion, path, names, **kw):
-    write_bvh(path, names, list(PARENTS), CANONICAL.offsets, motion.local_rotations.astype(np.float64), motion.root_translation, 1 / 30, BvhStyle(**kw))
+    write_bvh(
+        path,
+        names,
+        list(PARENTS),
+        CANONICAL.offsets,
+        motion.local_rotations.astype(np.float64),
+        motion.root_translation,
+        1 / 30,
+        BvhStyle(**kw),
+    )
 
 
-@pytest.mark.parametrize("scheme,prefix", [("mixamo", "mixamorig:"), ("cmu", ""), ("cmu_max", ""), ("smpl", "")])
+@pytest.mark.parametrize(
+    "scheme,prefix", [("mixamo", "mixamorig:"), ("cmu", ""), ("cmu_max", ""), ("smpl", "")]
+)
 def test_naming_schemes_are_detected_and_exact(tmp_path, scheme, prefix):
     motion = synthesize("dance", 2.0, seed=1)
     names = [prefix + NAMING_SCHEMES[scheme][n][0] for n in JOINT_NAMES]
@@ -33,7 +44,12 @@ def test_bandai_namco_names_with_one_spine_joint_fewer(tmp_path):
     names = [table[JOINT_NAMES[j]][0] for j in keep]
     new_index = {j: i for i, j in enumerate(keep)}
     s2, s3 = JOINT_INDEX["spine2"], JOINT_INDEX["spine3"]
-    parents = [new_index[s2 and PARENTS[s2]] if PARENTS[j] == s2 else (new_index[PARENTS[j]] if PARENTS[j] >= 0 else -1) for j in keep]
+    parents = [
+        new_index[s2 and PARENTS[s2]]
+        if PARENTS[j] == s2
+        else (new_index[PARENTS[j]] if PARENTS[j] >= 0 else -1)
+        for j in keep
+    ]
     offsets = CANONICAL.offsets[keep].astype(np.float64).copy()
     offsets[new_index[s3]] = CANONICAL.offsets[s2] + CANONICAL.offsets[s3]
     local = motion.local_rotations.astype(np.float64)[:, keep].copy()
@@ -108,7 +124,9 @@ def test_a_rig_without_a_standing_rest_pose_keeps_the_garment_attachment(tmp_pat
     for j in range(1, 22):
         p = PARENTS[j]
         local[:, j] = roll[p].T @ motion.local_rotations[:, j].astype(np.float64) @ roll[j]
-    offsets = np.stack([roll[PARENTS[j]].T @ CANONICAL.offsets[j] if j else CANONICAL.offsets[j] for j in range(22)])
+    offsets = np.stack(
+        [roll[PARENTS[j]].T @ CANONICAL.offsets[j] if j else CANONICAL.offsets[j] for j in range(22)]
+    )
     assert not rest_is_standing(rest_positions(offsets, PARENTS), {j: j for j in range(22)})
     path = tmp_path / "baked.bvh"
     write_bvh(path, list(JOINT_NAMES), list(PARENTS), offsets, local, motion.root_translation, 1 / 30)

@@ -27,8 +27,14 @@ def as_np(x):
     [
         (R.axis_angle_to_matrix, R.matrix_to_axis_angle),
         (R.axis_angle_to_quat, R.quat_to_axis_angle),
-        (lambda aa: R.matrix_to_6d(R.axis_angle_to_matrix(aa)), lambda d6: R.matrix_to_axis_angle(R.sixd_to_matrix(d6))),
-        (lambda aa: R.matrix_to_quat(R.axis_angle_to_matrix(aa)), lambda q: R.matrix_to_axis_angle(R.quat_to_matrix(q))),
+        (
+            lambda aa: R.matrix_to_6d(R.axis_angle_to_matrix(aa)),
+            lambda d6: R.matrix_to_axis_angle(R.sixd_to_matrix(d6)),
+        ),
+        (
+            lambda aa: R.matrix_to_quat(R.axis_angle_to_matrix(aa)),
+            lambda q: R.matrix_to_axis_angle(R.quat_to_matrix(q)),
+        ),
     ],
     ids=["matrix", "quat", "6d", "quat-matrix"],
 )
@@ -64,7 +70,11 @@ def test_torch_gradients_are_finite(rng):
 def test_quat_mul_matches_matrix_product(rng):
     a, b = random_aa(rng, 100), random_aa(rng, 100)
     qa, qb = R.axis_angle_to_quat(a), R.axis_angle_to_quat(b)
-    np.testing.assert_allclose(R.quat_to_matrix(R.quat_mul(qa, qb)), R.axis_angle_to_matrix(a) @ R.axis_angle_to_matrix(b), atol=1e-12)
+    np.testing.assert_allclose(
+        R.quat_to_matrix(R.quat_mul(qa, qb)),
+        R.axis_angle_to_matrix(a) @ R.axis_angle_to_matrix(b),
+        atol=1e-12,
+    )
 
 
 def test_slerp_halfway_is_half_angle():
@@ -79,8 +89,13 @@ def test_euler_round_trip(rng, order):
     np.testing.assert_allclose(R.euler_to_matrix(R.matrix_to_euler(m, order), order), m, atol=1e-10)
     # BVH order "ZYX" means R = Rz @ Ry @ Rx.
     angles = np.array([10.0, 20.0, 30.0])
-    single = [R.euler_to_matrix(np.array([a if k == i else 0.0 for k in range(3)]), order) for i, a in enumerate(angles)]
-    np.testing.assert_allclose(R.euler_to_matrix(angles, order), single[0] @ single[1] @ single[2], atol=1e-12)
+    single = [
+        R.euler_to_matrix(np.array([a if k == i else 0.0 for k in range(3)]), order)
+        for i, a in enumerate(angles)
+    ]
+    np.testing.assert_allclose(
+        R.euler_to_matrix(angles, order), single[0] @ single[1] @ single[2], atol=1e-12
+    )
 
 
 def test_kabsch_and_rotation_between(rng):

@@ -30,10 +30,17 @@ def test_fk_batched_numpy_equals_torch_and_local_round_trip(rng):
     local = axis_angle_to_matrix(rng.normal(scale=0.5, size=(7, 22, 3)))
     root = rng.normal(size=(7, 3))
     g_np, p_np = forward_kinematics(local, root, CANONICAL.offsets.astype(np.float64), PARENTS)
-    g_t, p_t = forward_kinematics(torch.from_numpy(local), torch.from_numpy(root), torch.from_numpy(CANONICAL.offsets.astype(np.float64)), PARENTS)
+    g_t, p_t = forward_kinematics(
+        torch.from_numpy(local),
+        torch.from_numpy(root),
+        torch.from_numpy(CANONICAL.offsets.astype(np.float64)),
+        PARENTS,
+    )
     np.testing.assert_allclose(g_np, g_t.numpy(), atol=1e-12)
     np.testing.assert_allclose(p_np, p_t.numpy(), atol=1e-12)
     np.testing.assert_allclose(global_to_local(g_np, PARENTS), local, atol=1e-12)
     # bone lengths are preserved by any pose
     for j, p in enumerate(PARENTS[1:], start=1):
-        np.testing.assert_allclose(np.linalg.norm(p_np[:, j] - p_np[:, p], axis=1), np.linalg.norm(CANONICAL.offsets[j]), rtol=1e-6)
+        np.testing.assert_allclose(
+            np.linalg.norm(p_np[:, j] - p_np[:, p], axis=1), np.linalg.norm(CANONICAL.offsets[j]), rtol=1e-6
+        )

@@ -25,14 +25,33 @@ def test_the_real_clip_raises_no_doubt(mocap_dir):
         load_motion(mocap_dir / "cmu" / "02_01.bvh")
 
 
-@pytest.mark.parametrize("a, b, named", [
-    ("LeftArm", "LeftForeArm", ["'LeftForeArm' (taken as l_elbow) is not below 'LeftArm' (taken as l_shoulder)",
-                                "the left elbow-wrist bone"]),
-    ("LeftUpLeg", "LeftArm", ["'LeftLeg' (taken as l_knee) is not below 'LeftUpLeg' (taken as l_hip)",
-                              "the left hip-knee bone"]),
-    ("LeftUpLeg", "RightUpLeg", ["'LeftUpLeg' (taken as l_hip) on the character's right"]),
-    ("LeftFoot", "LeftToeBase", ["'LeftToeBase' (taken as l_foot) is not below 'LeftFoot' (taken as l_ankle)"]),
-])
+@pytest.mark.parametrize(
+    "a, b, named",
+    [
+        (
+            "LeftArm",
+            "LeftForeArm",
+            [
+                "'LeftForeArm' (taken as l_elbow) is not below 'LeftArm' (taken as l_shoulder)",
+                "the left elbow-wrist bone",
+            ],
+        ),
+        (
+            "LeftUpLeg",
+            "LeftArm",
+            [
+                "'LeftLeg' (taken as l_knee) is not below 'LeftUpLeg' (taken as l_hip)",
+                "the left hip-knee bone",
+            ],
+        ),
+        ("LeftUpLeg", "RightUpLeg", ["'LeftUpLeg' (taken as l_hip) on the character's right"]),
+        (
+            "LeftFoot",
+            "LeftToeBase",
+            ["'LeftToeBase' (taken as l_foot) is not below 'LeftFoot' (taken as l_ankle)"],
+        ),
+    ],
+)
 def test_swapped_names_are_warned_about_with_the_joints_named(cmu_text, tmp_path, a, b, named):
     path = tmp_path / "swapped.bvh"
     path.write_text(swapped(cmu_text, a, b))
@@ -47,5 +66,7 @@ def test_swapped_names_are_warned_about_with_the_joints_named(cmu_text, tmp_path
 def test_legs_measured_on_swapped_joints_say_why_the_unit_is_unknown(cmu_text, tmp_path):
     path = tmp_path / "legs.bvh"
     path.write_text(swapped(cmu_text, "LeftLeg", "RightLeg"))
-    with pytest.raises(MotionError, match=r"cannot detect the length unit.*'LeftLeg' \(taken as l_knee\) is not below"):
+    with pytest.raises(
+        MotionError, match=r"cannot detect the length unit.*'LeftLeg' \(taken as l_knee\) is not below"
+    ):
         load_motion(path)

@@ -15,7 +15,19 @@ PIVOTING = {"spin"}
 
 
 def test_at_least_the_required_kinds():
-    required = {"idle", "walk", "run", "walk_curve", "turn_in_place", "side_step", "walk_backward", "jump", "hop", "spin", "dance"}
+    required = {
+        "idle",
+        "walk",
+        "run",
+        "walk_curve",
+        "turn_in_place",
+        "side_step",
+        "walk_backward",
+        "jump",
+        "hop",
+        "spin",
+        "dance",
+    }
     assert required <= set(MOTION_KINDS)
 
 
@@ -25,12 +37,16 @@ def test_kind_over_seeds(kind):
     for seed in SEEDS:
         motion = synthesize(kind, seconds=3.0, seed=seed)
         pos = motion.joint_positions
-        assert motion.num_frames == 90 and np.isfinite(pos).all() and np.isfinite(motion.local_rotations).all()
+        assert (
+            motion.num_frames == 90 and np.isfinite(pos).all() and np.isfinite(motion.local_rotations).all()
+        )
         acc = np.linalg.norm(np.diff(pos, 2, axis=0), axis=-1) * motion.fps**2
         assert acc.max() <= MAX_JOINT_ACCELERATION, f"{kind} seed {seed}: acceleration {acc.max():.0f} m/s^2"
         soles = motion.sole_heights()  # (T, 6): three points per foot
         lowest = soles.min(1)
-        assert lowest.min() >= -GROUND_TOLERANCE, f"{kind} seed {seed}: foot {-lowest.min():.3f} m below ground"
+        assert lowest.min() >= -GROUND_TOLERANCE, (
+            f"{kind} seed {seed}: foot {-lowest.min():.3f} m below ground"
+        )
         # Standing phases: a foot whose ankle is (nearly) still. Its sole must be on the ground.
         for side, cols, ankle in (("l", slice(0, 3), 7), ("r", slice(3, 6), 8)):
             speed = np.linalg.norm(np.diff(pos[:, ankle], axis=0), axis=1) * motion.fps
@@ -41,7 +57,9 @@ def test_kind_over_seeds(kind):
             for k in np.flatnonzero(run4):
                 still[k : k + 5] = True
             if still.any():
-                assert np.abs(soles[still, cols].min(1)).max() <= GROUND_TOLERANCE, f"{kind} seed {seed}: {side} foot stands off the ground"
+                assert np.abs(soles[still, cols].min(1)).max() <= GROUND_TOLERANCE, (
+                    f"{kind} seed {seed}: {side} foot stands off the ground"
+                )
         # No skating: a sole point resting on the ground does not slide.
         sole_pos = motion.sole_points()  # (T, 6, 3)
         if kind in PIVOTING:  # a pivoting foot turns about its ankle, which must stay put
@@ -49,7 +67,9 @@ def test_kind_over_seeds(kind):
         resting = soles < 0.001
         both = resting[1:] & resting[:-1]
         slide = np.linalg.norm(np.diff(sole_pos[..., [0, 2]], axis=0), axis=-1)[both]
-        assert slide.size == 0 or slide.max() < 0.005, f"{kind} seed {seed}: a planted foot slides {slide.max():.3f} m in a frame"
+        assert slide.size == 0 or slide.max() < 0.005, (
+            f"{kind} seed {seed}: a planted foot slides {slide.max():.3f} m in a frame"
+        )
         seen.add(round(float(motion.local_rotations[-1].sum() + pos[-1, 0].sum()), 5))
     assert len(seen) > 1  # seeds give different clips
 
@@ -100,4 +120,6 @@ def test_legs_do_not_pass_through_each_other(kind):
             for i in left:
                 points = a[t, i] + s * (b[t, i] - a[t, i])
                 gap = capsule_signed_distance(points, a[t, right], b[t, right], radii[right])[0] - radii[i]
-                assert gap.min() > -0.005, f"{kind} seed {seed} frame {t}: {names[i]} {-gap.min():.3f} m inside the right leg"
+                assert gap.min() > -0.005, (
+                    f"{kind} seed {seed} frame {t}: {names[i]} {-gap.min():.3f} m inside the right leg"
+                )

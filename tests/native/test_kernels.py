@@ -27,7 +27,9 @@ def test_native_capsule_distance_equals_numpy(rng):
     assert np.allclose(d3, d2[1], atol=1e-12)  # each frame against its own capsules
 
 
-@pytest.mark.parametrize("follow", [None, 0, 6])  # None: whole-mesh loops; 0: culled, no follow (the default); 6: a follow
+@pytest.mark.parametrize(
+    "follow", [None, 0, 6]
+)  # None: whole-mesh loops; 0: culled, no follow (the default); 6: a follow
 def test_native_push_out_equals_numpy(rng, follow):
     from hrr_garment.body.capsules import DEFAULT_BODY
     from hrr_garment.inference.collision import EdgeLimits, PushOutSettings, _push_frames, mean_operator
@@ -47,16 +49,26 @@ def test_native_push_out_equals_numpy(rng, follow):
     for rounds in (1, 2):
         settings = PushOutSettings(margin=0.002, smooth=4, rounds=rounds, depth=0.005, follow=follow or 0)
         ref = _push_frames(squeezed.astype(np.float64), (a, b, DEFAULT_BODY.radii), mean, settings, limits)
-        steps = PushSteps(mean, 0.002, 4, rounds, 0.005, None if limits is None else limits.push_mesh(settings))
+        steps = PushSteps(
+            mean, 0.002, 4, rounds, 0.005, None if limits is None else limits.push_mesh(settings)
+        )
         got = push_out_frames(lib, squeezed, (a, b, DEFAULT_BODY.radii), steps, threads=2)
         assert ref[1].max() > 0.05  # the test squeezes the skirt into the body
         assert np.abs(got[0] - ref[0]).max() < 1e-6
         assert np.allclose(got[1], ref[1]) and np.allclose(got[2], ref[2])
         for t in (0, 4):  # one frame at a time (streaming): the threads share the frame
-            one = push_out_frames(lib, squeezed[t:t + 1], (a[t:t + 1], b[t:t + 1], DEFAULT_BODY.radii), steps, threads=2)
+            one = push_out_frames(
+                lib, squeezed[t : t + 1], (a[t : t + 1], b[t : t + 1], DEFAULT_BODY.radii), steps, threads=2
+            )
             assert np.array_equal(one[0][0], got[0][t]) and one[1][0] == got[1][t] and one[2][0] == got[2][t]
     if follow:  # the followers moved: more of the skirt than without the follow
-        plain = _push_frames(squeezed.astype(np.float64), (a, b, DEFAULT_BODY.radii), mean, PushOutSettings(follow=0, depth=0.005), limits)
+        plain = _push_frames(
+            squeezed.astype(np.float64),
+            (a, b, DEFAULT_BODY.radii),
+            mean,
+            PushOutSettings(follow=0, depth=0.005),
+            limits,
+        )
         moved = lambda out: (np.abs(out[0] - squeezed).max(-1) > 0).mean()  # noqa: E731
         assert moved(ref) > moved(plain)
 
@@ -76,22 +88,34 @@ def test_the_push_limits_each_frame_as_the_strain_limit_does_after_it():
         pytest.skip("no C compiler")
     motion = synthesize("dance", 0.3, seed=4)
     skirt, squeezed = squeezed_skirt(motion, 0.7)  # deep into the hips: pushes that tear
-    squeezed = (squeezed + np.random.default_rng(3).normal(scale=0.004, size=squeezed.shape)).astype(np.float32)
+    squeezed = (squeezed + np.random.default_rng(3).normal(scale=0.004, size=squeezed.shape)).astype(
+        np.float32
+    )
     squeezed[::3, :, 0] += 1.0  # and frames a metre clear of the body
     a, b = DEFAULT_BODY.pose_motion(motion)
     limits = EdgeLimits.of(skirt.faces, skirt.vertices)
-    steps = PushSteps(mean_operator(skirt.faces, len(skirt.vertices)), 0.002, 4, 1, 0.005, limits.push_mesh(PUSH_OUT))
+    steps = PushSteps(
+        mean_operator(skirt.faces, len(skirt.vertices)), 0.002, 4, 1, 0.005, limits.push_mesh(PUSH_OUT)
+    )
     strain = _native_limit(limits, PUSH_OUT.max_strain, PUSH_OUT.stretch_slack)
-    pushed, before, after, untouched = push_out_frames(lib, squeezed, (a, b, DEFAULT_BODY.radii), steps, threads=2)
+    pushed, before, after, untouched = push_out_frames(
+        lib, squeezed, (a, b, DEFAULT_BODY.radii), steps, threads=2
+    )
     assert not untouched.any()  # no limit asked for
     want, torn = limit_strain(lib, pushed, squeezed, strain, threads=2)
     assert 0 < torn.sum() < len(torn), torn
     limited = steps._replace(limit=strain)
-    got, before2, after2, torn2 = push_out_frames(lib, squeezed, (a, b, DEFAULT_BODY.radii), limited, threads=2)
-    assert np.array_equal(torn2, torn) and np.abs(got - want).max() < 1e-6 and np.abs(got - pushed).max() > 1e-3
+    got, before2, after2, torn2 = push_out_frames(
+        lib, squeezed, (a, b, DEFAULT_BODY.radii), limited, threads=2
+    )
+    assert (
+        np.array_equal(torn2, torn) and np.abs(got - want).max() < 1e-6 and np.abs(got - pushed).max() > 1e-3
+    )
     assert np.array_equal(before2, before) and np.array_equal(after2, after)  # the push's own fractions
     for t in np.r_[np.nonzero(torn)[0][:2], np.nonzero(~torn)[0][:1]]:  # one frame at a time (streaming)
-        one = push_out_frames(lib, squeezed[t:t + 1], (a[t:t + 1], b[t:t + 1], DEFAULT_BODY.radii), limited, threads=2)
+        one = push_out_frames(
+            lib, squeezed[t : t + 1], (a[t : t + 1], b[t : t + 1], DEFAULT_BODY.radii), limited, threads=2
+        )
         assert np.array_equal(one[0][0], got[t]) and one[3][0] == torn[t]
 
 

@@ -85,7 +85,7 @@ def test_a_model_across_bodies_reads_their_measures_and_records_their_range(bodi
     ds = GarmentDataset(data)
     tall = ds.bodies["tall"].record
     feats = animator.features(synthesize("walk", 0.5, seed=0), body=animator.body(tall))
-    assert np.allclose(feats[:, -len(BODY_MEASURES):], body_vector(tall))  # every frame carries the body
+    assert np.allclose(feats[:, -len(BODY_MEASURES) :], body_vector(tall))  # every frame carries the body
 
 
 def test_the_garment_stands_on_the_body_it_is_animated_on(bodies_model):
@@ -163,12 +163,26 @@ def test_the_onnx_step_on_a_body_streams_as_the_python_stream_on_it(bodies_model
     write_body(tmp_path / "short.json", short)
     motion = synthesize("walk_curve", 1.0, seed=3)
     save_motion(motion, tmp_path / "clip.npz")
-    assert main(["--model", str(folder), "--onnx", "-o", str(tmp_path / "short.onnx"), "--body", str(tmp_path / "short.json"),
-                 "--check", str(tmp_path / "clip.npz")]) == 0
+    assert (
+        main(
+            [
+                "--model",
+                str(folder),
+                "--onnx",
+                "-o",
+                str(tmp_path / "short.onnx"),
+                "--body",
+                str(tmp_path / "short.json"),
+                "--check",
+                str(tmp_path / "clip.npz"),
+            ]
+        )
+        == 0
+    )
     graph = OnnxStream(tmp_path / "short.onnx")
     stream = Animator.load(folder).stream(mode="regression", body=short)
     for t in range(motion.num_frames):
-        ours = graph.push(motion_to_poses(motion.slice(t, t + 1))[0], motion.root_translation[t:t + 1])[0]
+        ours = graph.push(motion_to_poses(motion.slice(t, t + 1))[0], motion.root_translation[t : t + 1])[0]
         assert np.abs(ours - stream.push(motion.slice(t, t + 1))).max() < 1e-5, t
 
 
@@ -180,14 +194,38 @@ def test_hrr_animate_on_a_body_file(bodies_model, tmp_path, capsys):
 
     save_motion(synthesize("walk", 1.0, seed=2), tmp_path / "clip.npz")
     write_body(tmp_path / "short.json", GarmentDataset(data).bodies["short"].record)
-    assert main([str(tmp_path / "clip.npz"), "-o", str(tmp_path / "out.h5"), "--model", str(folder),
-                 "--body", str(tmp_path / "short.json")]) == 0
+    assert (
+        main(
+            [
+                str(tmp_path / "clip.npz"),
+                "-o",
+                str(tmp_path / "out.h5"),
+                "--model",
+                str(folder),
+                "--body",
+                str(tmp_path / "short.json"),
+            ]
+        )
+        == 0
+    )
     assert "on body short" in capsys.readouterr().out
     with h5py.File(tmp_path / "out.h5") as f:
         assert f.attrs["body"] == "short"
     write_body(tmp_path / "giant.json", _record(1.4))
-    assert main([str(tmp_path / "clip.npz"), "-o", str(tmp_path / "giant.h5"), "--model", str(folder),
-                 "--body", str(tmp_path / "giant.json")]) != 0
+    assert (
+        main(
+            [
+                str(tmp_path / "clip.npz"),
+                "-o",
+                str(tmp_path / "giant.h5"),
+                "--model",
+                str(folder),
+                "--body",
+                str(tmp_path / "giant.json"),
+            ]
+        )
+        != 0
+    )
     err = capsys.readouterr().err
     assert "giant.json" in err and "unlike the 2 bodies" in err and not (tmp_path / "giant.h5").exists()
 
@@ -208,10 +246,14 @@ def test_hrr_body_info_says_whether_a_body_is_within_a_models_range(bodies_model
     assert "outside the range of the 2 bodies" in out and "stature 2.380 m" in out
     assert main(["info", str(tmp_path / "giant.json"), "--model", str(folder), "--json"]) == 1
     info = json.loads(capsys.readouterr().out)
-    assert info["model"]["training_bodies"] == 2 and any(line.startswith("stature") for line in info["model"]["outside"])
+    assert info["model"]["training_bodies"] == 2 and any(
+        line.startswith("stature") for line in info["model"]["outside"]
+    )
 
 
-def test_hrr_body_info_inside_asks_the_model_how_much_cloth_goes_inside_the_body(bodies_model, tmp_path, capsys):
+def test_hrr_body_info_inside_asks_the_model_how_much_cloth_goes_inside_the_body(
+    bodies_model, tmp_path, capsys
+):
     """``--inside``: the cloth inside the body and inside the model's own before the push-out, on the
     check's walk, as :func:`cloth_inside` measures it; without ``--model`` a clear refusal."""
     from hrr_garment.cli.body import main
@@ -227,7 +269,9 @@ def test_hrr_body_info_inside_asks_the_model_how_much_cloth_goes_inside_the_body
     own, short = cloth_inside(animator, check_motion()), cloth_inside(animator, check_motion(), record)
     assert inside["the model's own body"]["inside_pct"] == pytest.approx(own.inside_pct)
     assert inside["body 'short'"]["inside_any_pct"] == pytest.approx(short.inside_any_pct)
-    assert inside["body 'short'"]["stature_m"] == pytest.approx(record.stature) != pytest.approx(own.stature_m)
+    assert (
+        inside["body 'short'"]["stature_m"] == pytest.approx(record.stature) != pytest.approx(own.stature_m)
+    )
     assert main(["info", str(tmp_path / "short.json"), "--model", str(folder), "--inside"]) == 0
     assert "inside body 'short' before the push-out" in capsys.readouterr().out
     assert main(["info", str(tmp_path / "short.json"), "--inside"]) != 0
@@ -243,8 +287,11 @@ def test_a_crowd_of_characters_on_different_bodies_equals_each_one_alone_on_its_
     animator = Animator.load(folder)
     ds = GarmentDataset(data)
     bodies = {"a": ds.bodies["tall"].record, "b": ds.bodies["short"].record, "c": None}
-    clips = {"a": synthesize("walk_curve", 0.8, seed=1), "b": synthesize("spin", 0.8, seed=2),
-             "c": synthesize("walk", 0.8, seed=3)}
+    clips = {
+        "a": synthesize("walk_curve", 0.8, seed=1),
+        "b": synthesize("spin", 0.8, seed=2),
+        "c": synthesize("walk", 0.8, seed=3),
+    }
     alone = {k: animator.animate(clips[k], body=bodies[k], causal=True).vertices for k in clips}
     crowd = animator.crowd()
     for k in ("a", "b"):
@@ -262,14 +309,34 @@ def test_the_unseen_bodies_protocol_sets_the_model_beside_a_specialist(bodies_mo
 
     folder, data = bodies_model
     root, mannequin_data, _ = trained
-    common = ["--model", str(folder), "--dataset", str(data), "--modes", "regression", "--no-sweep", "--library", "0",
-              "--ensemble", "0", "--no-plots", "--quiet"]
-    assert main([*common, "--unseen-body", f"{mannequin_data}={root / 'model'}", "-o", str(tmp_path / "report")]) == 0
-    section = json.loads((tmp_path / "report" / "report.json").read_text())["unseen_bodies"][mannequin_data.stem]
+    common = [
+        "--model",
+        str(folder),
+        "--dataset",
+        str(data),
+        "--modes",
+        "regression",
+        "--no-sweep",
+        "--library",
+        "0",
+        "--ensemble",
+        "0",
+        "--no-plots",
+        "--quiet",
+    ]
+    assert (
+        main([*common, "--unseen-body", f"{mannequin_data}={root / 'model'}", "-o", str(tmp_path / "report")])
+        == 0
+    )
+    section = json.loads((tmp_path / "report" / "report.json").read_text())["unseen_bodies"][
+        mannequin_data.stem
+    ]
     assert section["body"] == "mannequin" and section["sequences"] == ["run_000"]
     assert section["model"]["pve_mm"] > 0 and section["specialist"]["pve_mm"] > 0
     assert "## Unseen bodies" in (tmp_path / "report" / "report.md").read_text()
-    assert main([*common, "--unseen-body", str(data), "-o", str(tmp_path / "again")]) != 0  # tall and short: trained on
+    assert (
+        main([*common, "--unseen-body", str(data), "-o", str(tmp_path / "again")]) != 0
+    )  # tall and short: trained on
 
 
 def test_the_auto_calibration_measures_the_default_bodys_clips_apart(bodies_model, tmp_path):
@@ -284,7 +351,9 @@ def test_the_auto_calibration_measures_the_default_bodys_clips_apart(bodies_mode
     folder, data = bodies_model
     animator = Animator.load(folder)
     on_body = GarmentDataset(data).sequence("walk_002")
-    on_mannequin = GarmentDataset(write_synthetic_dataset(tmp_path / "m.h5", make_garment("skirt", 300))).sequence("run_000")
+    on_mannequin = GarmentDataset(
+        write_synthetic_dataset(tmp_path / "m.h5", make_garment("skirt", 300))
+    ).sequence("run_000")
     assert on_body.body != on_mannequin.body == "mannequin"
     mixed = calibrate_auto_mode(animator, [on_body, on_mannequin], progress=False)
     alone = calibrate_auto_mode(animator, [on_mannequin], progress=False)

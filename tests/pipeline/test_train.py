@@ -22,13 +22,20 @@ def test_settings_come_from_the_defaults_then_the_preset_then_the_file_then_the_
     tiny = load_preset("tiny")
     default = TrainSettings.load()
     preset = TrainSettings.load(tiny)
-    assert default.autoencoder.channels != preset.autoencoder.channels == tuple(tiny.train["autoencoder"]["model"]["channels"])
+    assert (
+        default.autoencoder.channels
+        != preset.autoencoder.channels
+        == tuple(tiny.train["autoencoder"]["model"]["channels"])
+    )
     config = tmp_path / "cfg.yaml"
     config.write_text("autoencoder:\n  train: {epochs: 7, max_minutes: 2.0}\n")
     user = TrainSettings.load(tiny, config)
     assert user.autoencoder_train.epochs == 7 and user.autoencoder.channels == preset.autoencoder.channels
-    flags = TrainSettings.load(tiny, config, {"autoencoder": {"train": {"max_minutes": 0.5}},
-                                              "codespace": {"train": {"validation": "windows"}}})
+    flags = TrainSettings.load(
+        tiny,
+        config,
+        {"autoencoder": {"train": {"max_minutes": 0.5}}, "codespace": {"train": {"validation": "windows"}}},
+    )
     assert flags.autoencoder_train.max_minutes == 0.5 and flags.autoencoder_train.epochs == 7
     assert flags.codespace_train.validation == "windows"
 
@@ -64,5 +71,7 @@ def test_unknown_stages_and_missing_datasets_are_refused_before_any_work(tmp_pat
         train_model(tmp_path / "none.h5", tmp_path / "model", TrainSettings(), stages=("simulate",))
     heard = _Heard()
     with pytest.raises(InputError, match="no dataset; make it with: hrr-simulate"):
-        train_model(tmp_path / "none.h5", tmp_path / "model", TrainSettings(), stages=("autoencoder",), callback=heard)
+        train_model(
+            tmp_path / "none.h5", tmp_path / "model", TrainSettings(), stages=("autoencoder",), callback=heard
+        )
     assert heard.stages == [] and not (tmp_path / "model").exists()

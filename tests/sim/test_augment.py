@@ -26,7 +26,9 @@ def _arms_through_the_chest(seconds: float) -> Motion:
     clip = synthesize("idle", seconds, seed=0)
     local = np.array(clip.local_rotations)
     for side, sign in (("l", 1.0), ("r", -1.0)):
-        local[:, JOINT_INDEX[f"{side}_shoulder"]] = rotation_about_y(np.asarray(sign * np.radians(160.0))).astype(np.float32)
+        local[:, JOINT_INDEX[f"{side}_shoulder"]] = rotation_about_y(
+            np.asarray(sign * np.radians(160.0))
+        ).astype(np.float32)
     return Motion(local, clip.root_translation, clip.fps, "arms through the chest")
 
 
@@ -83,7 +85,9 @@ def test_backward_windows_come_from_training_clips_whatever_their_names(library,
         np.testing.assert_array_equal(spec.motion().local_rotations, forward.motion().local_rotations[::-1])
         assert spec.key({}) != forward.key({})  # simulated apart from the forward window
     assert plan_backward(candidates, options) == backward  # seeded
-    assert window_candidates(specs, training, 4.0) == [] and plan_backward([], options) == []  # too short: none
+    assert (
+        window_candidates(specs, training, 4.0) == [] and plan_backward([], options) == []
+    )  # too short: none
     with pytest.raises(ValueError):
         SpliceOptions(backward=-1)
 
@@ -91,7 +95,9 @@ def test_backward_windows_come_from_training_clips_whatever_their_names(library,
 def test_no_splice_without_two_contents(library):
     walks = [s for s in library if "_walk_" in s.name]
     assert plan_splices(walks, SpliceOptions(count=3, seconds=2.0)).specs == []
-    assert splice_candidates(library, {s.name for s in library}, SpliceOptions(count=3, seconds=4.0)) == []  # too short
+    assert (
+        splice_candidates(library, {s.name for s in library}, SpliceOptions(count=3, seconds=4.0)) == []
+    )  # too short
     with pytest.raises(ValueError):
         SpliceOptions(count=-1)
     assert isinstance(library[0], SequenceSpec)
@@ -111,18 +117,33 @@ def test_a_build_adds_splices_of_training_clips_that_always_train(tmp_path, caps
         for style in ("proud", "sad", "old"):
             save_motion(synthesize(kind, 1.2, seed=i), clips / f"dataset-1_{content}_{style}_001.npz")
     preset = tmp_path / "p.yaml"
-    preset.write_text("name: spliced\nvertices: 300\nseconds: 1.0\nsequences: {}\nmotions: [clips]\nsplit_by: style\n"
-                      "splits: {val: 0.2, test: 0.2}\nsim: {substeps: 10, iterations: 3, settle_s: 0.1}\n"
-                      "splices: {count: 2, seconds: 1.0, arm_delay_s: 0.1, backward: 1}\n")
+    preset.write_text(
+        "name: spliced\nvertices: 300\nseconds: 1.0\nsequences: {}\nmotions: [clips]\nsplit_by: style\n"
+        "splits: {val: 0.2, test: 0.2}\nsim: {substeps: 10, iterations: 3, settle_s: 0.1}\n"
+        "splices: {count: 2, seconds: 1.0, arm_delay_s: 0.1, backward: 1}\n"
+    )
     out = tmp_path / "d.h5"
-    args = ["--garment", "skirt", "--preset", str(preset), "--jobs", "1", "--no-preview", "--quiet", "-o", str(out)]
+    args = [
+        "--garment",
+        "skirt",
+        "--preset",
+        str(preset),
+        "--jobs",
+        "1",
+        "--no-preview",
+        "--quiet",
+        "-o",
+        str(out),
+    ]
     assert simulate_main(args) == 0
     ds = GarmentDataset(out)
     splices = sorted(n for n in ds.names if n.startswith("splice_"))
     assert splices == ["splice_000", "splice_001"] and set(splices) <= set(ds.splits["train"])
     assert "backward_000" in ds.splits["train"] and "backward_000" not in ds.splits["test"] + ds.splits["val"]
     held = {n.split("_")[2] for n in ds.splits["test"] + ds.splits["val"]}  # the held-out styles
-    assert held and not held & {n.split("_")[2] for n in ds.splits["train"] if not n.startswith(("splice_", "backward_"))}
+    assert held and not held & {
+        n.split("_")[2] for n in ds.splits["train"] if not n.startswith(("splice_", "backward_"))
+    }
     for name in splices:
         record = ds.sequence(name)
         assert record.motion.num_frames == 30 and record.garment.shape[0] == 30

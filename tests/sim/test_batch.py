@@ -43,23 +43,37 @@ def test_a_batch_gives_each_sequence_the_frames_it_gets_alone(newton_installed):
 
     garment = make_garment("skirt", 200)
     tall = _dressed(garment)
-    specs = [SequenceSpec("walk_000", "walk", seed=0, seconds=1.0), SequenceSpec("spin_000", "spin", seed=1, seconds=0.7),
-             SequenceSpec("walk_tall", "walk", seed=2, seconds=1.0, body="tall")]
-    jobs = [SequenceJob(s, s.motion(), garment=garment, key=f"k{i}", body=tall if s.body else None) for i, s in enumerate(specs)]
+    specs = [
+        SequenceSpec("walk_000", "walk", seed=0, seconds=1.0),
+        SequenceSpec("spin_000", "spin", seed=1, seconds=0.7),
+        SequenceSpec("walk_tall", "walk", seed=2, seconds=1.0, body="tall"),
+    ]
+    jobs = [
+        SequenceJob(s, s.motion(), garment=garment, key=f"k{i}", body=tall if s.body else None)
+        for i, s in enumerate(specs)
+    ]
     config = SimConfig(device="cpu").to_dict()
     frames = []
     batched = simulate_sequences(jobs, config, progress=frames.append)
-    assert sum(frames) == sum(p.frames for p in batched) == 3 * 39 + 30 + 21 + 30  # each instance's own frames only
+    assert (
+        sum(frames) == sum(p.frames for p in batched) == 3 * 39 + 30 + 21 + 30
+    )  # each instance's own frames only
     for job, part in zip(jobs, batched):
         alone = simulate_sequence(job.spec, job.motion, job.garment, config, job.key, body=job.body)
         assert part.failure is None and part.name == alone.name and part.key == alone.key
-        assert part.vertices.shape == alone.vertices.shape == (round(30 * job.spec.seconds), garment.num_vertices, 3)
+        assert (
+            part.vertices.shape
+            == alone.vertices.shape
+            == (round(30 * job.spec.seconds), garment.num_vertices, 3)
+        )
         assert np.abs(part.vertices - alone.vertices).max() <= BATCH_TOLERANCE_M
-        assert part.info.get("body") == alone.info.get("body") and np.array_equal(part.motion.root_translation,
-                                                                                  alone.motion.root_translation)
+        assert part.info.get("body") == alone.info.get("body") and np.array_equal(
+            part.motion.root_translation, alone.motion.root_translation
+        )
         timing = ("sim_seconds",)
         assert {k: v for k, v in part.info["stats"].items() if k not in timing} == pytest.approx(
-            {k: v for k, v in alone.info["stats"].items() if k not in timing}, abs=1e-4)
+            {k: v for k, v in alone.info["stats"].items() if k not in timing}, abs=1e-4
+        )
 
 
 def _teleporting(clip: Motion, at: int) -> Motion:
@@ -75,7 +89,10 @@ def test_an_instance_that_explodes_is_simulated_alone_with_its_retries(newton_in
 
     garment = make_garment("skirt", 200)
     calm = synthesize("walk", 0.5, seed=0)
-    items = [batch.BatchItem(garment, calm, DEFAULT_BODY), batch.BatchItem(garment, _teleporting(calm, 8), DEFAULT_BODY)]
+    items = [
+        batch.BatchItem(garment, calm, DEFAULT_BODY),
+        batch.BatchItem(garment, _teleporting(calm, 8), DEFAULT_BODY),
+    ]
     alone_calls = []
 
     def spy(garment, motion, config, body, progress):
@@ -87,10 +104,15 @@ def test_an_instance_that_explodes_is_simulated_alone_with_its_retries(newton_in
     calm_result, exploded = batch.simulate_batch(items, config)
     assert alone_calls == ["teleport"]  # only the exploded instance is simulated again, alone
     assert isinstance(exploded, SimulationExploded)
-    assert "(10 substeps)" in str(exploded) and "(20 substeps)" in str(exploded)  # with the per-sequence retries
+    assert "(10 substeps)" in str(exploded) and "(20 substeps)" in str(
+        exploded
+    )  # with the per-sequence retries
     assert isinstance(calm_result, SimResult) and calm_result.attempts == 1
     # the frozen instance left its neighbour alone
-    assert np.abs(calm_result.vertices - simulate_garment(garment, calm, config).vertices).max() <= BATCH_TOLERANCE_M
+    assert (
+        np.abs(calm_result.vertices - simulate_garment(garment, calm, config).vertices).max()
+        <= BATCH_TOLERANCE_M
+    )
 
 
 def test_a_cloth_never_touches_another_worlds_capsules(newton_installed):
@@ -106,9 +128,15 @@ def test_a_cloth_never_touches_another_worlds_capsules(newton_installed):
     on_fuller = transfer_garment(garment, made_for=DEFAULT_BODY, body=fuller)[0]
     clip = synthesize("idle", 0.3, seed=0)
     config = _fast()
-    runs = [ClipRun(on_fuller, clip, body=fuller, config=config), ClipRun(garment, clip, body=DEFAULT_BODY, config=config)]
+    runs = [
+        ClipRun(on_fuller, clip, body=fuller, config=config),
+        ClipRun(garment, clip, body=DEFAULT_BODY, config=config),
+    ]
     a, b = fuller.pose_motion(clip)
-    inside = frames_signed_distance(garment.vertices[None].astype(np.float64), a[:1], b[:1], radii=fuller.radii)[0] < 0
+    inside = (
+        frames_signed_distance(garment.vertices[None].astype(np.float64), a[:1], b[:1], radii=fuller.radii)[0]
+        < 0
+    )
     assert inside.mean() > 0.3  # 44 %: its whole upper part starts inside world 0's capsules
     scene = BatchScene(runs, config)
     flags = scene.model.shape_flags.numpy().copy()

@@ -11,9 +11,15 @@ from hrr_garment.sim.plan import SequenceSpec
 from hrr_garment.sim.preset import load_preset
 
 
-@pytest.mark.parametrize("section, phrase", [({"from": "nowhere"}, "'from' must be"), ({"from": "sample", "colour": 1}, "colour"),
-                                             ({"from": "sample", "count": 4, "per_clip": 5}, "per_clip"),
-                                             ({"from": "sample", "statures_m": [1.9, 1.5]}, "low first")])
+@pytest.mark.parametrize(
+    "section, phrase",
+    [
+        ({"from": "nowhere"}, "'from' must be"),
+        ({"from": "sample", "colour": 1}, "colour"),
+        ({"from": "sample", "count": 4, "per_clip": 5}, "per_clip"),
+        ({"from": "sample", "statures_m": [1.9, 1.5]}, "low first"),
+    ],
+)
 def test_a_bad_bodies_section_is_refused_naming_the_preset(section, phrase):
     with pytest.raises(InputError, match=phrase) as err:
         BodyPlan.from_preset(section, "my-preset.yaml")
@@ -28,8 +34,9 @@ def test_sampled_bodies_span_the_statures_and_share_the_clips():
     pytest.importorskip("anny", reason="the bodies extra is not installed")
     plan = BodyPlan("sample", count=3, per_clip=2, statures_m=(1.5, 1.9))
     specs = [SequenceSpec(f"walk_{i:03d}", "walk", seed=i, seconds=1.0) for i in range(3)]
-    planned, bodies = plan_bodies(plan, specs, make_garment("skirt", 200), made_for=DEFAULT_BODY,
-                                  progress=False)
+    planned, bodies = plan_bodies(
+        plan, specs, make_garment("skirt", 200), made_for=DEFAULT_BODY, progress=False
+    )
     statures = sorted(b.record.stature for b in bodies.values())
     assert statures == pytest.approx([1.5, 1.7, 1.9], abs=0.005)
     assert len(planned) == 6 and len({s.name for s in planned}) == 6
@@ -43,18 +50,27 @@ def test_sampled_bodies_span_the_statures_and_share_the_clips():
 def test_a_preset_extends_another_and_replaces_only_what_it_names():
     base, bodies = load_preset("real-quick"), load_preset("real-quick-bodies")
     assert bodies.name == "real-quick-bodies" and bodies.bodies["from"] == "sample"
-    assert (bodies.motions, bodies.sim, bodies.sequences, bodies.mirror) == (base.motions, base.sim, base.sequences, base.mirror)
+    assert (bodies.motions, bodies.sim, bodies.sequences, bodies.mirror) == (
+        base.motions,
+        base.sim,
+        base.sequences,
+        base.mirror,
+    )
     assert load_preset("real-quick-performers").bodies == {"from": "performer"}
 
 
 def test_a_users_preset_file_extends_a_built_in_preset_by_its_name(tmp_path):
     """A file outside configs/presets names a built-in as its parent; a sibling file of that name wins."""
-    (tmp_path / "mine.yaml").write_text("extends: real-quick\nname: mine\nmirror: false\ntrain: {codespace: {train: {epochs: 3}}}\n")
+    (tmp_path / "mine.yaml").write_text(
+        "extends: real-quick\nname: mine\nmirror: false\ntrain: {codespace: {train: {epochs: 3}}}\n"
+    )
     mine, base = load_preset(str(tmp_path / "mine.yaml")), load_preset("real-quick")
     assert (mine.name, mine.mirror, mine.motions, mine.sim) == ("mine", False, base.motions, base.sim)
     assert mine.train["codespace"]["train"]["epochs"] == 3
     assert mine.train["codespace"]["train"]["latent_loss"] == base.train["codespace"]["train"]["latent_loss"]
-    (tmp_path / "real-quick.yaml").write_text("name: local\nvertices: 300\nseconds: 2.0\nsequences: {walk: 1}\n")
+    (tmp_path / "real-quick.yaml").write_text(
+        "name: local\nvertices: 300\nseconds: 2.0\nsequences: {walk: 1}\n"
+    )
     assert load_preset(str(tmp_path / "mine.yaml")).vertices == 300
     (tmp_path / "orphan.yaml").write_text("extends: no-such-preset\nname: orphan\n")
     with pytest.raises(InputError, match="not a valid preset"):
@@ -104,7 +120,9 @@ def test_a_procedural_clip_on_several_bodies_is_one_split_group():
     spec = SequenceSpec("walk_000", "walk", seed=0, seconds=1.0)
     copies = [spec] + [replace(spec, name=f"walk_000__{b}", body=b) for b in ("body03", "body07")]
     assert {sequence_group(s, preset) for s in copies} == {"walk_000"}
-    assert sequence_group(replace(spec, name="walk_000__x", body="body03"), preset) == "walk_000__x"  # not a body's suffix
+    assert (
+        sequence_group(replace(spec, name="walk_000__x", body="body03"), preset) == "walk_000__x"
+    )  # not a body's suffix
 
 
 def test_without_split_by_a_clip_on_several_bodies_splits_as_the_clip_alone():
@@ -115,14 +133,24 @@ def test_without_split_by_a_clip_on_several_bodies_splits_as_the_clip_alone():
     from hrr_garment.sim.build import BuildOptions, _split_sources
     from hrr_garment.sim.plan import on_body
 
-    clips = [SequenceSpec(f"{k}_{i:03d}", k, seed=i, seconds=1.0) for k in ("walk", "run", "spin") for i in range(4)]
+    clips = [
+        SequenceSpec(f"{k}_{i:03d}", k, seed=i, seconds=1.0)
+        for k in ("walk", "run", "spin")
+        for i in range(4)
+    ]
     kinds = {s.name: s.kind for s in clips}
-    alone = _split_sources(sorted(kinds), clips, BuildOptions(splits={"val": 0.2, "test": 0.2}, seed=2, kinds=kinds))
-    copies = [replace(s, name=on_body(s.name, b), body=b) for s in clips for b in ("body01", "body04")] + clips
+    alone = _split_sources(
+        sorted(kinds), clips, BuildOptions(splits={"val": 0.2, "test": 0.2}, seed=2, kinds=kinds)
+    )
+    copies = [
+        replace(s, name=on_body(s.name, b), body=b) for s in clips for b in ("body01", "body04")
+    ] + clips
     options = BuildOptions(splits={"val": 0.2, "test": 0.2}, seed=2, kinds={s.name: s.kind for s in copies})
     split = _split_sources(sorted(s.name for s in copies), copies, options)
     for part, names in alone.items():
-        assert split[part] == sorted(c for n in names for c in (n, on_body(n, "body01"), on_body(n, "body04")))
+        assert split[part] == sorted(
+            c for n in names for c in (n, on_body(n, "body01"), on_body(n, "body04"))
+        )
 
 
 @pytest.mark.parametrize("key", ["mannequin", "hold_out"])

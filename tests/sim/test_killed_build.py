@@ -15,7 +15,9 @@ from hrr_garment.data.dataset import GarmentDataset
 
 def session_processes(sid: int) -> list[str]:
     """The processes of session ``sid`` still alive (zombies are dead: their parent reaps them)."""
-    out = subprocess.run(["ps", "-s", str(sid), "-o", "pid=,stat=,args="], capture_output=True, text=True).stdout
+    out = subprocess.run(
+        ["ps", "-s", str(sid), "-o", "pid=,stat=,args="], capture_output=True, text=True
+    ).stdout
     return [line for line in out.splitlines() if line.split()[1:2] != ["Z"]]
 
 
@@ -50,7 +52,8 @@ def test_workers_of_a_killed_pool_die_with_it(tmp_path):
     """The mechanism on its own: a process pool whose workers called die_with_parent, its parent
     SIGKILLed mid-task, leaves nothing within 5 s (without it the workers sleep on)."""
     script = tmp_path / "parent.py"
-    script.write_text(textwrap.dedent("""
+    script.write_text(
+        textwrap.dedent("""
         import multiprocessing as mp, os, time
         from concurrent.futures import ProcessPoolExecutor
         from hrr_garment.workers import die_with_parent
@@ -60,8 +63,11 @@ def test_workers_of_a_killed_pool_die_with_it(tmp_path):
                 futures = [pool.submit(time.sleep, 600) for _ in range(2)]
                 print("started", flush=True)
                 time.sleep(600)
-    """))
-    parent = subprocess.Popen([sys.executable, str(script)], stdout=subprocess.PIPE, text=True, start_new_session=True)
+    """)
+    )
+    parent = subprocess.Popen(
+        [sys.executable, str(script)], stdout=subprocess.PIPE, text=True, start_new_session=True
+    )
     try:
         assert parent.stdout.readline().strip() == "started"
         assert wait_for(lambda: len(session_processes(parent.pid)) >= 3, 30)  # the parent and its two workers
@@ -78,14 +84,36 @@ def test_a_killed_build_leaves_no_process_and_resumes(tmp_path, sig):
     """SIGKILL: the workers die with the build. SIGTERM: the build stops its workers and exits 143
     at once (not when their sequences finish). Either way a re-run resumes."""
     out = tmp_path / "skirt.h5"
-    cmd = [sys.executable, "-m", "hrr_garment.cli.simulate", "--garment", "skirt", "--preset", "tiny", "--jobs", "2",
-           "--motions", "walk", "spin", "--seconds", "2", "--no-preview", "-o", str(out)]
+    cmd = [
+        sys.executable,
+        "-m",
+        "hrr_garment.cli.simulate",
+        "--garment",
+        "skirt",
+        "--preset",
+        "tiny",
+        "--jobs",
+        "2",
+        "--motions",
+        "walk",
+        "spin",
+        "--seconds",
+        "2",
+        "--no-preview",
+        "-o",
+        str(out),
+    ]
     # SIGINT at its default in the build (and so in its workers until die_with_parent ignores it):
     # a runner started in the background of a shell without job control (nohup, a CI script) ignores
     # it, every child inherited that, and the workers read as ready while still importing the
     # simulator, outliving the killed build by the rest of their import (past 5 s on a loaded 2-core machine)
-    build = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True,
-                             preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    build = subprocess.Popen(
+        cmd,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+        start_new_session=True,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+    )
     try:
         # two workers started and asked to die with the build, a sequence each under way
         assert wait_for(lambda: workers_asked_to_die(build.pid, 2), 120), session_processes(build.pid)

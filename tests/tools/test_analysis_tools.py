@@ -11,7 +11,9 @@ def test_gate_analysis_oracle_bounds_both_modes(trained):
     import importlib.util
     from pathlib import Path
 
-    spec = importlib.util.spec_from_file_location("gate_analysis", Path(__file__).parents[2] / "tools" / "gate_analysis.py")
+    spec = importlib.util.spec_from_file_location(
+        "gate_analysis", Path(__file__).parents[2] / "tools" / "gate_analysis.py"
+    )
     tool = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(tool)
     root, data, _ = trained
@@ -20,7 +22,9 @@ def test_gate_analysis_oracle_bounds_both_modes(trained):
     assert r["oracle_hybrid_mm"] <= min(r["regression_mm"], r["retrieval_mm"]) + 1e-9
     assert 0.0 <= r["retrieval_better_fraction"] <= 1.0 and r["windows"] > 0
     corr = [r[f"corr_advantage_low_{g}_doubt"] for g in ("entropy", "similarity", "distance")]
-    assert all(-1.0 <= c <= 1.0 or c != c for c in corr)  # a correlation per gate (NaN where a signal is constant)
+    assert all(
+        -1.0 <= c <= 1.0 or c != c for c in corr
+    )  # a correlation per gate (NaN where a signal is constant)
 
 
 def test_residual_nodes_analysis_spans_regression_to_residual(trained, tmp_path):
@@ -38,12 +42,16 @@ def test_residual_nodes_analysis_spans_regression_to_residual(trained, tmp_path)
     tool = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(tool)
     root, data, _ = trained
-    model = tmp_path / "model"  # with a residual weight, so that the residual mode differs from the regression
+    model = (
+        tmp_path / "model"
+    )  # with a residual weight, so that the residual mode differs from the regression
     shutil.copytree(root / "model", model)
     residual = json.loads((model / "bundle.json").read_text())["residual"]
     update_bundle_meta(model, {"residual": {**residual, "weight": 0.7}})
-    rows = {r["label"]: r for r in tool.analyse(str(model), str(data), [(-2000.0, -1000.0), (1000.0, 2000.0)],
-                                                sequences=2)}
+    rows = {
+        r["label"]: r
+        for r in tool.analyse(str(model), str(data), [(-2000.0, -1000.0), (1000.0, 2000.0)], sequences=2)
+    }
     assert rows["residual"]["pve_mm"] != rows["regression"]["pve_mm"]
     simulation = rows["simulation"]  # the clips' own simulations: no error, all their swing
     assert simulation["pve_mm"] == 0.0 and simulation["hem_swing_ratio"] == pytest.approx(1.0)

@@ -18,15 +18,42 @@ def test_bench_inference_reports_every_key(capsys):
     bench = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(bench)
     argv = sys.argv
-    sys.argv = [str(path), "--vertices", "300", "--database", "300", "--seconds", "1.5", "--pace", "60", "--json",
-                "--crowd", "3", "--crowd-frames", "25", "--crowd-bodies", "--crowd-repeat", "1"]
+    sys.argv = [
+        str(path),
+        "--vertices",
+        "300",
+        "--database",
+        "300",
+        "--seconds",
+        "1.5",
+        "--pace",
+        "60",
+        "--json",
+        "--crowd",
+        "3",
+        "--crowd-frames",
+        "25",
+        "--crowd-bodies",
+        "--crowd-repeat",
+        "1",
+    ]
     try:
         bench.main()
     finally:
         sys.argv = argv
     report = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
-    for key in ("vertices", "fps_hybrid", "fps_regression", "fps_retrieval", "fps_detail", "stream_p50_ms", "stream_p99_ms",
-                "stream_paced_p50_ms", "stream_paced_p99_ms", "peak_rss_mb"):
+    for key in (
+        "vertices",
+        "fps_hybrid",
+        "fps_regression",
+        "fps_retrieval",
+        "fps_detail",
+        "stream_p50_ms",
+        "stream_p99_ms",
+        "stream_paced_p50_ms",
+        "stream_paced_p99_ms",
+        "peak_rss_mb",
+    ):
         assert report[key] > 0, key
     assert report["stream_p50_ms"] <= report["stream_p99_ms"]
     assert set(report["stream_stage_p50_ms"]) == {"features", "encoder", "decoder", "world", "push_out"}
@@ -46,12 +73,30 @@ def test_the_push_out_analysis_reports_each_setting_with_and_without_the_subspac
     tool = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(tool)
     root, data, _ = trained
-    report = tool.analyse(str(root / "model"), str(data), "test", tool.push_out_rows([0], 0.25, [0.1]), sequences=1,
-                          crowd=8, repeat=1, subspace_push=True)
-    plain, pushed = report["rows"]["follow 0, slack 0.1"], report["rows"]["follow 0, slack 0.1, subspace push"]
+    report = tool.analyse(
+        str(root / "model"),
+        str(data),
+        "test",
+        tool.push_out_rows([0], 0.25, [0.1]),
+        sequences=1,
+        crowd=8,
+        repeat=1,
+        subspace_push=True,
+    )
+    plain, pushed = (
+        report["rows"]["follow 0, slack 0.1"],
+        report["rows"]["follow 0, slack 0.1, subspace push"],
+    )
     for row in (plain, pushed):
-        assert set(row) >= {"limited_frames_pct", "torn_before_limit_pct", "strain_max", "inside_before_pct",
-                            "inside_after_pct", "pve_mm", "us_per_character"}
+        assert set(row) >= {
+            "limited_frames_pct",
+            "torn_before_limit_pct",
+            "strain_max",
+            "inside_before_pct",
+            "inside_after_pct",
+            "pve_mm",
+            "us_per_character",
+        }
         assert row["pve_mm"] > 0 and row["us_per_character"] > 0
     assert pushed["inside_before_pct"] <= plain["inside_before_pct"]
     assert report["rows"]["unpushed"]["pve_mm"] > 0
@@ -70,7 +115,9 @@ def test_bodies_inside_counts_the_cloth_inside_each_body_before_the_push_out(tra
     from hrr_garment.sim.quality import body_signed_distance, penetration_fraction
 
     tools = Path(__file__).parents[2] / "tools"
-    monkeypatch.syspath_prepend(str(tools))  # the tool imports bench_inference's bodies, as when run from tools/
+    monkeypatch.syspath_prepend(
+        str(tools)
+    )  # the tool imports bench_inference's bodies, as when run from tools/
     spec = importlib.util.spec_from_file_location("bodies_inside", tools / "bodies_inside.py")
     tool = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(tool)
@@ -81,7 +128,9 @@ def test_bodies_inside_counts_the_cloth_inside_each_body_before_the_push_out(tra
     rows = report["rows"]
     assert [r["body"].split(" (")[0] for r in rows] == ["scaled 0", "scaled 1", "scaled 2", "own"]
     motion = check_motion()  # the walk the tool runs when given no clip
-    distance = body_signed_distance(animator.animate(motion, collision=False).vertices, motion, animator.body().body)
+    distance = body_signed_distance(
+        animator.animate(motion, collision=False).vertices, motion, animator.body().body
+    )
     assert rows[3]["inside_pct"] == pytest.approx(100 * penetration_fraction(distance).mean(), abs=1e-9)
     assert rows[3]["inside_any_pct"] == pytest.approx(100 * (distance < 0).mean(), abs=1e-9)
     assert rows[3]["outside_range"] == [] and rows[0]["outside_range"] and rows[2]["outside_range"]

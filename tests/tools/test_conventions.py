@@ -17,7 +17,11 @@ def _check_calls():
 
 def test_no_call_passes_more_than_three_positional_arguments_to_another_module():
     check = _check_calls()
-    found = [line for path in sorted((ROOT / "hrr_garment").rglob("*.py")) for line in check.long_calls(path, ROOT, 3)]
+    found = [
+        line
+        for path in sorted((ROOT / "hrr_garment").rglob("*.py"))
+        for line in check.long_calls(path, ROOT, 3)
+    ]
     assert not found, "\n".join(found)
 
 
@@ -28,7 +32,8 @@ def test_the_call_check_finds_long_calls_across_modules_only(tmp_path):
     (package / "__init__.py").write_text("")
     (package / "inner" / "__init__.py").write_text("")
     (package / "low.py").write_text("def f(a, b, c, d):\n    return a\n")
-    (package / "inner" / "user.py").write_text(textwrap.dedent("""\
+    (package / "inner" / "user.py").write_text(
+        textwrap.dedent("""\
         from ..low import f
         from .. import low as L
 
@@ -39,7 +44,8 @@ def test_the_call_check_finds_long_calls_across_modules_only(tmp_path):
         f(1, 2, 3, d=4)
         L.f(1, 2, 3, 4)
         g(1, 2, 3, 4)
-        """))
+        """)
+    )
     found = check.long_calls(package / "inner" / "user.py", tmp_path, 3)
     assert [line.split(": ", 1)[1] for line in found] == ["f(4 positional)", "L.f(4 positional)"]
     assert [int(line.split(":")[1]) for line in found] == [7, 9]

@@ -29,10 +29,15 @@ def test_the_paper_protocol_validates_on_a_tenth_of_the_training_clips_windows(t
     clips = json.loads((root / "model" / "codebook" / "report.json").read_text())
     ds = GarmentDataset(data)
     every = sum(max(ds.frames[n] - 9, 0) for n in ds.splits["train"] + ds.splits["val"])
-    assert report["windows"]["val"] == round(0.1 * every) and report["windows"]["train"] + report["windows"]["val"] == every
+    assert (
+        report["windows"]["val"] == round(0.1 * every)
+        and report["windows"]["train"] + report["windows"]["val"] == every
+    )
     assert report["key"] != clips["key"]
     bundle = load_bundle(paper_model)
-    assert bundle.meta["validation"] == "windows" and load_bundle(root / "model").meta["validation"] == "clips"
+    assert (
+        bundle.meta["validation"] == "windows" and load_bundle(root / "model").meta["validation"] == "clips"
+    )
     assert len(bundle.database) == report["windows"]["train"]
     assert set(bundle.database.names) == set(ds.splits["train"] + ds.splits["val"])
     with pytest.raises(SystemExit):
@@ -46,17 +51,25 @@ def test_hrr_train_writes_a_bundle_that_reproduces_its_validation_numbers(traine
     root, data, _ = trained
     report = json.loads((root / "model" / "codebook" / "report.json").read_text())
     log = [json.loads(line) for line in (root / "model" / "codebook" / "log.jsonl").read_text().splitlines()]
-    assert [r["epoch"] for r in log] == [1, 2, 3, 4] and {"val_agreement", "val_perplexity", "val_dead_classes"} <= set(log[0])
+    assert [r["epoch"] for r in log] == [1, 2, 3, 4] and {
+        "val_agreement",
+        "val_perplexity",
+        "val_dead_classes",
+    } <= set(log[0])
     bundle = load_bundle(root / "model")
     again = evaluate_bundle(bundle, data)
     for mode in ("hybrid", "regression", "retrieval", "autoencoder", "retrieval_usage"):
         assert again[mode] == report["validation_mm"][mode], mode
-    assert report["validation_mm"]["hybrid"] <= min(report["validation_mm"]["regression"], report["validation_mm"]["retrieval"])
+    assert report["validation_mm"]["hybrid"] <= min(
+        report["validation_mm"]["regression"], report["validation_mm"]["retrieval"]
+    )
     assert len(bundle.database) == report["windows"]["train"]
     from hrr_garment.data.dataset import GarmentDataset
 
     groups = GarmentDataset(data).template.groups  # kept in the bundle: evaluation measures the hem's swing
-    assert set(groups) <= set(bundle.template.groups) and np.array_equal(bundle.template.groups["hem"], groups["hem"])
+    assert set(groups) <= set(bundle.template.groups) and np.array_equal(
+        bundle.template.groups["hem"], groups["hem"]
+    )
 
 
 def test_the_code_space_anneals_its_learning_rate_over_the_run_and_keeps_its_best_epoch(trained):
@@ -68,10 +81,14 @@ def test_the_code_space_anneals_its_learning_rate_over_the_run_and_keeps_its_bes
     log = [json.loads(line) for line in (root / "model" / "codebook" / "log.jsonl").read_text().splitlines()]
     rates = [r["learning_rate"] for r in log]
     assert len(rates) == 4 and all(a > b for a, b in zip(rates, rates[1:]))
-    assert rates[0] < 1e-3 and rates[-1] < 1e-3 * 0.05  # logged at each epoch's last batch, just short of the end
+    assert (
+        rates[0] < 1e-3 and rates[-1] < 1e-3 * 0.05
+    )  # logged at each epoch's last batch, just short of the end
     report = json.loads((root / "model" / "codebook" / "report.json").read_text())["training"]
     best = min(range(4), key=lambda i: log[i]["val_regress"])
-    assert report["best_epoch"] == best + 1 and report["final"]["regress"] == pytest.approx(log[best]["val_regress"], rel=1e-5)
+    assert report["best_epoch"] == best + 1 and report["final"]["regress"] == pytest.approx(
+        log[best]["val_regress"], rel=1e-5
+    )
 
 
 def test_the_old_codebook_names_still_work_with_a_deprecation_message(trained, capsys):
@@ -85,7 +102,9 @@ def test_the_old_codebook_names_still_work_with_a_deprecation_message(trained, c
     assert train_main([*args_old, "--stage", "codebook"]) == 0
     out, err = capsys.readouterr()
     assert "code space:" in out and "(reused)" in out  # the same stage, settings and outputs
-    assert "--stage codebook is now --stage codespace" in err and "'codebook' is now called 'codespace'" in err
+    assert (
+        "--stage codebook is now --stage codespace" in err and "'codebook' is now called 'codespace'" in err
+    )
 
 
 def test_rerun_resumes_the_code_space_and_skips_finished_stages(trained, capsys):
@@ -114,13 +133,30 @@ def test_a_new_encoding_retrains_the_code_space(trained, tmp_path):
 
     root, data, args = trained
     shutil.copytree(root / "model", tmp_path / "model")
-    config = (root / "cfg.yaml").read_text().replace("target_mm: null}", "target_mm: null, refine_steps: 3}", 1)
+    config = (
+        (root / "cfg.yaml").read_text().replace("target_mm: null}", "target_mm: null, refine_steps: 3}", 1)
+    )
     (tmp_path / "cfg.yaml").write_text(config)
     before = json.loads((tmp_path / "model" / "codebook" / "report.json").read_text())
-    assert train_main(["--dataset", str(data), "--config", str(tmp_path / "cfg.yaml"), "-o", str(tmp_path / "model"), "--quiet"]) == 0
+    assert (
+        train_main(
+            [
+                "--dataset",
+                str(data),
+                "--config",
+                str(tmp_path / "cfg.yaml"),
+                "-o",
+                str(tmp_path / "model"),
+                "--quiet",
+            ]
+        )
+        == 0
+    )
     autoencoder = json.loads((tmp_path / "model" / "autoencoder" / "report.json").read_text())
     after = json.loads((tmp_path / "model" / "codebook" / "report.json").read_text())
-    assert autoencoder["extra"]["refine_steps"] == 3 and autoencoder["epochs"] == 3  # re-encoded, not retrained
+    assert (
+        autoencoder["extra"]["refine_steps"] == 3 and autoencoder["epochs"] == 3
+    )  # re-encoded, not retrained
     assert after["key"] != before["key"] and not after.get("reused")
     # the floor is scored with the stage's encoding (3 steps, not the default 10: the same weights
     # refined for 3 steps land elsewhere), here and from the bundle in a fresh load
@@ -136,10 +172,17 @@ def test_too_few_sequences_to_split_is_refused(tmp_path, capsys):
 
     full = GarmentDataset(synthetic_dataset(tmp_path / "all.h5", make_garment("skirt", 300)))
     records = [full.sequence("walk_000")]
-    data = write_dataset(tmp_path / "one.h5", full.template, records, {"train": ["walk_000"], "val": [], "test": []})
+    data = write_dataset(
+        tmp_path / "one.h5", full.template, records, {"train": ["walk_000"], "val": [], "test": []}
+    )
     (tmp_path / "cfg.yaml").write_text(TINY_TRAINING)
     out = tmp_path / "model"
-    assert train_main(["--dataset", str(data), "--config", str(tmp_path / "cfg.yaml"), "-o", str(out), "--quiet"]) == 2
+    assert (
+        train_main(
+            ["--dataset", str(data), "--config", str(tmp_path / "cfg.yaml"), "-o", str(out), "--quiet"]
+        )
+        == 2
+    )
     assert "one.h5" in capsys.readouterr().err
     assert not (out / "bundle.json").exists()
 
@@ -157,6 +200,11 @@ def test_a_dataset_no_stage_can_finish_is_refused_before_training(tmp_path, caps
         del f["splits/val"]
     (tmp_path / "cfg.yaml").write_text(TINY_TRAINING)
     out = tmp_path / "model"
-    assert train_main(["--dataset", str(data), "--config", str(tmp_path / "cfg.yaml"), "-o", str(out), "--quiet"]) == 2
+    assert (
+        train_main(
+            ["--dataset", str(data), "--config", str(tmp_path / "cfg.yaml"), "-o", str(out), "--quiet"]
+        )
+        == 2
+    )
     assert "needs at least one training and one validation sequence" in capsys.readouterr().err
     assert not out.exists()

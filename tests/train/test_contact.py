@@ -14,8 +14,12 @@ from hrr_garment.train.contact import capsule_distance
 def test_the_differentiable_capsule_distance_is_the_exact_one(rng):
     a, b = DEFAULT_BODY.rest_pose()
     points = rng.normal([0.0, 1.0, 0.0], [0.25, 0.45, 0.2], size=(3, 200, 3))
-    got = capsule_distance(torch.from_numpy(points), torch.from_numpy(np.stack([a] * 3)), torch.from_numpy(np.stack([b] * 3)),
-                           torch.from_numpy(np.stack([DEFAULT_BODY.radii] * 3)))
+    got = capsule_distance(
+        torch.from_numpy(points),
+        torch.from_numpy(np.stack([a] * 3)),
+        torch.from_numpy(np.stack([b] * 3)),
+        torch.from_numpy(np.stack([DEFAULT_BODY.radii] * 3)),
+    )
     for t in range(3):
         want = capsule_signed_distance(points[t], a, b, DEFAULT_BODY.radii)[0]
         np.testing.assert_allclose(got[t].numpy(), want, atol=1e-12)
@@ -31,7 +35,9 @@ def tiny_windows(trained):
 
     root, data, _ = trained
     ds = GarmentDataset(data)
-    return load_bundle(root / "model"), {split: model_contact_windows(root / "model", ds, split) for split in ("train", "val")}
+    return load_bundle(root / "model"), {
+        split: model_contact_windows(root / "model", ds, split) for split in ("train", "val")
+    }
 
 
 def test_the_contact_phase_takes_the_regression_out_of_a_body_it_lies_inside(tiny_windows, tmp_path):
@@ -42,23 +48,46 @@ def test_the_contact_phase_takes_the_regression_out_of_a_body_it_lies_inside(tin
     from hrr_garment.train.contact import ContactWindows, FrameDecoder, inside_fraction, teach_contact
 
     bundle, data = tiny_windows
-    grown = {k: ContactWindows(d.windows, replace(d.contacts, radii=d.contacts.radii + 0.015)) for k, d in data.items()}
+    grown = {
+        k: ContactWindows(d.windows, replace(d.contacts, radii=d.contacts.radii + 0.015))
+        for k, d in data.items()
+    }
     model, decoder = bundle.codespace, FrameDecoder(bundle.autoencoder, bundle.latent_stats)
     original = {k: v.clone() for k, v in model.state_dict().items()}
     config = CodeSpaceTrainConfig(contact_steps=250, contact_weight=2.0)
-    assert inside_fraction(model, decoder, data["val"]) < 0.05  # the real body: the skirt is (nearly) outside it
-    summary = teach_contact(model, decoder, grown["train"], val=grown["val"], config=config, latent_loss=mean_square,
-                            checkpoint=(tmp_path / "contact.pt", "k1"), progress=False)
+    assert (
+        inside_fraction(model, decoder, data["val"]) < 0.05
+    )  # the real body: the skirt is (nearly) outside it
+    summary = teach_contact(
+        model,
+        decoder,
+        grown["train"],
+        val=grown["val"],
+        config=config,
+        latent_loss=mean_square,
+        checkpoint=(tmp_path / "contact.pt", "k1"),
+        progress=False,
+    )
     assert summary["val_inside_before"] > 0.05
     assert summary["val_inside_after"] < 0.7 * summary["val_inside_before"]
     assert summary["val_inside_after"] == pytest.approx(inside_fraction(model, decoder, grown["val"]))
     trained_weights = {k: v.clone() for k, v in model.state_dict().items()}
     changed = [k for k in original if not torch.equal(original[k], trained_weights[k])]
-    assert changed and all(k.startswith("decoder.") for k in changed)  # the decoder alone: codes and database stay
+    assert changed and all(
+        k.startswith("decoder.") for k in changed
+    )  # the decoder alone: codes and database stay
 
     model.load_state_dict(original)
-    again = teach_contact(model, decoder, grown["train"], val=grown["val"], config=replace(config, contact_steps=10_000),
-                          latent_loss=mean_square, checkpoint=(tmp_path / "contact.pt", "k1"), progress=False)
+    again = teach_contact(
+        model,
+        decoder,
+        grown["train"],
+        val=grown["val"],
+        config=replace(config, contact_steps=10_000),
+        latent_loss=mean_square,
+        checkpoint=(tmp_path / "contact.pt", "k1"),
+        progress=False,
+    )
     assert again == json.loads(json.dumps(summary))
     assert all(torch.equal(trained_weights[k], v) for k, v in model.state_dict().items())
     model.load_state_dict(original)
@@ -73,7 +102,9 @@ def test_a_stage_rerun_with_the_contact_phase_resumes_the_finished_training(trai
     folder, _ = current_copy(trained, tmp_path / "model")
     before = json.loads((folder / "codebook" / "report.json").read_text())
     log = (folder / "codebook" / "log.jsonl").read_text()
-    train_tiny(data, folder, args[3], stages=("codespace",), overrides={"codespace": {"train": {"contact_steps": 5}}})
+    train_tiny(
+        data, folder, args[3], stages=("codespace",), overrides={"codespace": {"train": {"contact_steps": 5}}}
+    )
     after = json.loads((folder / "codebook" / "report.json").read_text())
     assert (folder / "codebook" / "log.jsonl").read_text() == log
     assert after["key"] != before["key"] and after["training"]["contact"]["steps"] == 5
@@ -92,9 +123,26 @@ def test_the_contact_sweep_tool_runs_a_weight_on_a_trained_model(trained, capsys
     tool = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(tool)
     before = (root / "model" / "decoder.safetensors").read_bytes()
-    monkeypatch.setattr(sys, "argv", [str(path), "--model", str(root / "model"), "--eval-dataset", str(data),
-                                      "--weights", "0,2", "--steps", "3", "--sequences", "1"])
+    monkeypatch.setattr(
+        sys,
+        "argv",
+        [
+            str(path),
+            "--model",
+            str(root / "model"),
+            "--eval-dataset",
+            str(data),
+            "--weights",
+            "0,2",
+            "--steps",
+            "3",
+            "--sequences",
+            "1",
+        ],
+    )
     tool.main()
     lines = [line for line in capsys.readouterr().out.splitlines() if line.startswith("weight")]
-    assert [line.split(",")[0] for line in lines] == ["weight 0", "weight 2"] and all("% of vertices" in line for line in lines)
+    assert [line.split(",")[0] for line in lines] == ["weight 0", "weight 2"] and all(
+        "% of vertices" in line for line in lines
+    )
     assert (root / "model" / "decoder.safetensors").read_bytes() == before  # the model on disk untouched

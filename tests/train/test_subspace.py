@@ -21,7 +21,9 @@ def test_the_fast_decoder_is_distilled_from_the_full_one(trained):
     assert bundle.subspace is not None and bundle.subspace.components == entry["components"]
     errors = {int(k): v for k, v in entry["candidates_mm"].items()}
     kept = entry["components"]  # the fewest within the tolerance, or else the most accurate
-    within = [k for k in sorted(errors) if errors[k] <= entry["train"]["tolerance"] * entry["full_validation_mm"]]
+    within = [
+        k for k in sorted(errors) if errors[k] <= entry["train"]["tolerance"] * entry["full_validation_mm"]
+    ]
     assert kept == (within[0] if within else min(errors, key=errors.get))
     ds = GarmentDataset(data)
     with np.load(root / "model" / "autoencoder" / "latents.npz") as f:
@@ -33,8 +35,13 @@ def test_the_fast_decoder_is_distilled_from_the_full_one(trained):
     from hrr_garment.models.subspace import SubspaceConfig
     from hrr_garment.train.subspace import SubspaceTrainConfig, run_subspace_stage
 
-    again = run_subspace_stage(data, root / "model", SubspaceConfig(**entry["config"]), SubspaceTrainConfig(**entry["train"]),
-                               progress=False)
+    again = run_subspace_stage(
+        data,
+        root / "model",
+        SubspaceConfig(**entry["config"]),
+        SubspaceTrainConfig(**entry["train"]),
+        progress=False,
+    )
     assert again.reused and again.metrics["components"] == kept  # a finished stage is not redone
 
 
@@ -51,7 +58,9 @@ def test_runs_take_the_fast_decoder_and_record_it(trained, tmp_path):
     full = animator.animate(motion, mode="regression", collision=False)
     assert fast.settings["decoder"] == "fast" and full.settings["decoder"] == "full"
     assert 0 < np.abs(fast.vertices - full.vertices).max() < 0.2
-    stream = animator.stream(mode="regression", decoder="fast")  # streaming equals offline causal, with either decoder
+    stream = animator.stream(
+        mode="regression", decoder="fast"
+    )  # streaming equals offline causal, with either decoder
     causal = animator.animate(motion, mode="regression", causal=True, decoder="fast").vertices
     pushed = np.stack([stream.push(motion.slice(t, t + 1)) for t in range(motion.num_frames)])
     assert np.abs(pushed - causal).max() <= 1e-5
@@ -69,7 +78,9 @@ def test_a_bundle_without_a_fast_decoder_refuses_it_by_name(trained, tmp_path):
 
     root, _, _ = trained
     folder = tmp_path / "model"
-    shutil.copytree(root / "model", folder, ignore=shutil.ignore_patterns("autoencoder", "codebook", "subspace"))
+    shutil.copytree(
+        root / "model", folder, ignore=shutil.ignore_patterns("autoencoder", "codebook", "subspace")
+    )
     meta = json.loads((folder / "bundle.json").read_text())
     meta.pop("subspace")
     meta["files"].pop("subspace.safetensors")
@@ -83,5 +94,6 @@ def test_a_bundle_without_a_fast_decoder_refuses_it_by_name(trained, tmp_path):
         animator.animate(synthesize("walk", 0.5, seed=1), push="subspace")
     # the torch step (ONNX export, a GPU crowd) is public too and says the same
     from hrr_garment.inference.torch_step import stream_step
+
     with pytest.raises(BundleError, match="hrr-train --stage subspace"):
         stream_step(animator, animator.body(), decoder="fast")

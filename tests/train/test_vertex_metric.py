@@ -17,8 +17,12 @@ from hrr_garment.train.vertex_metric import VertexMetric, sample_frames
 def decoder_and_frames():
     skirt = make_garment("skirt", 200)
     torch.manual_seed(0)
-    model = MeshAutoencoder(build_hierarchy(skirt.faces, skirt.num_vertices), AutoencoderConfig(channels=[8, 16]),
-                            skirt.vertices, scale=0.05).eval()
+    model = MeshAutoencoder(
+        build_hierarchy(skirt.faces, skirt.num_vertices),
+        AutoencoderConfig(channels=[8, 16]),
+        skirt.vertices,
+        scale=0.05,
+    ).eval()
     frames = torch.randn(6, *model.latent_shape).numpy()
     std = np.random.default_rng(1).uniform(0.5, 2.0, frames.shape[1] * frames.shape[2]).astype(np.float32)
     return model, frames, std
@@ -32,8 +36,15 @@ def test_the_metric_is_the_decoders_first_order_vertex_error(decoder_and_frames)
     errors = torch.as_tensor(rng.normal(size=(8, size)) * 1e-2, dtype=torch.float32)  # standardised
     z = torch.as_tensor(frames)
     with torch.no_grad():  # each error's squared vertex motion, averaged over the frames the metric averages
-        moved = torch.stack([(model.decode(z + (e * torch.as_tensor(std)).reshape(z.shape[1:])) - model.decode(z))
-                             .pow(2).sum((1, 2)).mean() for e in errors]).double()
+        moved = torch.stack(
+            [
+                (model.decode(z + (e * torch.as_tensor(std)).reshape(z.shape[1:])) - model.decode(z))
+                .pow(2)
+                .sum((1, 2))
+                .mean()
+                for e in errors
+            ]
+        ).double()
     predicted = torch.stack([metric(e[None]) for e in errors]).double()
     ratio = predicted / moved
     # one scale for every error (the metric's normalisation), to first order
@@ -48,6 +59,7 @@ def test_the_metric_weighs_what_moves_the_vertices(decoder_and_frames):
     metric = VertexMetric.of_decoder(model, frames, std, ridge=0.0, progress=False)
     gram = (metric.factor @ metric.factor.T).double()
     weights = torch.diag(gram)
+
     # a latent value's weight is the squared vertex motion of its unit (standardised) change, averaged
     # over the frames: the most and the least weighted values compare as their vertex motions do
     def vertex_motion(d: int) -> float:
@@ -59,12 +71,18 @@ def test_the_metric_weighs_what_moves_the_vertices(decoder_and_frames):
             return float((model.decode(z + raw) - model.decode(z)).pow(2).sum((1, 2)).mean())
 
     high, low = int(weights.argmax()), int(weights.argmin())
-    assert float(weights[high] / weights[low]) == pytest.approx(vertex_motion(high) / vertex_motion(low), rel=0.03)
+    assert float(weights[high] / weights[low]) == pytest.approx(
+        vertex_motion(high) / vertex_motion(low), rel=0.03
+    )
     assert float(weights[high]) > 3 * float(weights[low])  # not the identity in disguise
     e = torch.randn(metric.size)
-    assert float(metric(e[None])) == pytest.approx(float(e.double() @ gram @ e.double()) / metric.size, rel=1e-4)
+    assert float(metric(e[None])) == pytest.approx(
+        float(e.double() @ gram @ e.double()) / metric.size, rel=1e-4
+    )
     ridge = VertexMetric.of_decoder(model, frames, std, ridge=0.3, progress=False)
-    assert float(ridge(e[None])) == pytest.approx(0.7 * float(metric(e[None])) + 0.3 * float(e.pow(2).mean()), rel=1e-4)
+    assert float(ridge(e[None])) == pytest.approx(
+        0.7 * float(metric(e[None])) + 0.3 * float(e.pow(2).mean()), rel=1e-4
+    )
 
 
 def test_frames_are_sampled_seeded_and_settings_checked():
@@ -87,17 +105,31 @@ def test_the_code_space_trains_on_either_latent_loss(trained, tmp_path):
 
     root, data, args = trained
     shutil.copytree(root / "model", tmp_path / "model")
-    config = (root / "cfg.yaml").read_text().replace("patience: 5, max_minutes: null}",
-                                                     "patience: 5, max_minutes: null, latent_loss: vertex}")
+    config = (
+        (root / "cfg.yaml")
+        .read_text()
+        .replace("patience: 5, max_minutes: null}", "patience: 5, max_minutes: null, latent_loss: vertex}")
+    )
     assert "latent_loss: vertex" in config
     (tmp_path / "cfg.yaml").write_text(config)
     before = json.loads((tmp_path / "model" / "codebook" / "report.json").read_text())
-    stage = ["--dataset", str(data), "--config", str(tmp_path / "cfg.yaml"), "--stage", "codespace", "-o",
-             str(tmp_path / "model"), "--quiet"]
+    stage = [
+        "--dataset",
+        str(data),
+        "--config",
+        str(tmp_path / "cfg.yaml"),
+        "--stage",
+        "codespace",
+        "-o",
+        str(tmp_path / "model"),
+        "--quiet",
+    ]
     assert train_main(stage) == 0
     after = json.loads((tmp_path / "model" / "codebook" / "report.json").read_text())
     assert before["training"]["config"]["latent_loss"] == "standardised"
     assert after["key"] != before["key"] and after["training"]["config"]["latent_loss"] == "vertex"
-    logged = [json.loads(line) for line in (tmp_path / "model" / "codebook" / "log.jsonl").read_text().splitlines()]
+    logged = [
+        json.loads(line) for line in (tmp_path / "model" / "codebook" / "log.jsonl").read_text().splitlines()
+    ]
     assert len(logged) == after["training"]["epoch"] and all(np.isfinite(r["val_regress"]) for r in logged)
     assert np.isfinite(after["validation_mm"]["regression"])

@@ -47,8 +47,13 @@ class ImportHrrGarment(bpy.types.Operator, ImportHelper):
 
     filename_ext = ".glb"
     filter_glob: StringProperty(default="*.glb;*.pc2;*.usd;*.usdc;*.usda", options={"HIDDEN"})
-    fps: FloatProperty(name="Frame rate (PC2)", default=DEFAULT_FPS, min=1.0, max=1000.0,
-                       description="A PC2 file does not store its rate: the clip's (out.h5's fps)")
+    fps: FloatProperty(
+        name="Frame rate (PC2)",
+        default=DEFAULT_FPS,
+        min=1.0,
+        max=1000.0,
+        description="A PC2 file does not store its rate: the clip's (out.h5's fps)",
+    )
 
     def execute(self, context):
         path = self.filepath
@@ -67,7 +72,10 @@ class ImportHrrGarment(bpy.types.Operator, ImportHelper):
     def _import_glb(self, context, path: str) -> None:
         timeline = glb_timeline(path)
         if timeline is None:
-            self.report({"WARNING"}, f"{os.path.basename(path)} has no hrr-export timeline: imported at the scene's rate")
+            self.report(
+                {"WARNING"},
+                f"{os.path.basename(path)} has no hrr-export timeline: imported at the scene's rate",
+            )
         else:
             _set_timeline(context.scene, *timeline)
         bpy.ops.import_scene.gltf(filepath=path, import_shading="SMOOTH")
@@ -78,7 +86,9 @@ class ImportHrrGarment(bpy.types.Operator, ImportHelper):
         bpy.ops.wm.usd_import(filepath=path)
         roots = [o for o in context.selected_objects if "fps" in o.keys() and "frames" in o.keys()]
         if not roots:
-            self.report({"WARNING"}, f"{os.path.basename(path)} has no hrr-export timeline: the scene's rate is kept")
+            self.report(
+                {"WARNING"}, f"{os.path.basename(path)} has no hrr-export timeline: the scene's rate is kept"
+            )
             return
         _set_timeline(context.scene, float(roots[0]["fps"]), int(roots[0]["frames"]))
 
@@ -86,7 +96,9 @@ class ImportHrrGarment(bpy.types.Operator, ImportHelper):
         frames = pc2_frames(path)
         base = os.path.splitext(path)[0] + ".obj"
         if not os.path.isfile(base):
-            raise ValueError(f"{path}: its base mesh {os.path.basename(base)} is not beside it (hrr-export writes both)")
+            raise ValueError(
+                f"{path}: its base mesh {os.path.basename(base)} is not beside it (hrr-export writes both)"
+            )
         bpy.ops.wm.obj_import(filepath=base)
         imported = [o for o in context.selected_objects if o.type == "MESH"]
         if len(imported) != 1:

@@ -25,7 +25,9 @@ def synthesize(kind: str, seconds: float = 6.0, seed: int = 0, **params: float) 
         raise HRRError(f"unknown motion kind {kind!r}; available: {', '.join(KINDS)}")
     unknown = set(params) - set(kind_parameters(kind))
     if unknown:
-        raise HRRError(f"motion kind {kind!r} has no parameter(s) {sorted(unknown)}; it takes {kind_parameters(kind)}")
+        raise HRRError(
+            f"motion kind {kind!r} has no parameter(s) {sorted(unknown)}; it takes {kind_parameters(kind)}"
+        )
     if not seconds > 0:
         raise HRRError(f"seconds must be positive, got {seconds}")
     rng = np.random.default_rng([seed, sorted(KINDS).index(kind)])

@@ -39,13 +39,19 @@ def rot_z(a: np.ndarray) -> np.ndarray:
     return axis_angle_to_matrix(np.stack([0 * a, 0 * a, a], -1))
 
 
-def _foot_targets(plan: Plan, foot: FootPlan, pelvis_y: np.ndarray, takeoff_y: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _foot_targets(
+    plan: Plan, foot: FootPlan, pelvis_y: np.ndarray, takeoff_y: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Per frame: ankle target (N,3), foot yaw (N,), stance mask (N,)."""
     t, n = plan.t, len(plan.t)
     sign = 1.0 if foot.side == "l" else -1.0
     heading = rotation_about_y(plan.yaw)
     if not foot.stances:
-        offset = foot.free_target if foot.free_target is not None else np.tile([sign * foot.lateral, ANKLE_HEIGHT + foot.lift, -0.2], (n, 1))
+        offset = (
+            foot.free_target
+            if foot.free_target is not None
+            else np.tile([sign * foot.lateral, ANKLE_HEIGHT + foot.lift, -0.2], (n, 1))
+        )
         pos = np.concatenate([plan.root_xz[:, :1], np.zeros((n, 1)), plan.root_xz[:, 1:]], 1)
         target = pos + np.einsum("nij,nj->ni", heading, offset * np.array([1.0, 0.0, 1.0]))
         target[:, 1] = plan.ground_y + offset[:, 1]
@@ -54,7 +60,11 @@ def _foot_targets(plan: Plan, foot: FootPlan, pelvis_y: np.ndarray, takeoff_y: f
     for a, b in foot.stances:
         m = int(np.clip(np.searchsorted(t, 0.5 * (a + b)), 0, n - 1))
         local = heading[m] @ np.array([sign * foot.lateral, 0.0, foot.forward])
-        plants.append(np.array([plan.root_xz[m, 0] + local[0], plan.ground_y + ANKLE_HEIGHT, plan.root_xz[m, 1] + local[2]]))
+        plants.append(
+            np.array(
+                [plan.root_xz[m, 0] + local[0], plan.ground_y + ANKLE_HEIGHT, plan.root_xz[m, 1] + local[2]]
+            )
+        )
         plant_yaw.append(plan.yaw[m])
     target = np.zeros((n, 3))
     yaw = np.zeros(n)
@@ -80,7 +90,10 @@ def _foot_targets(plan: Plan, foot: FootPlan, pelvis_y: np.ndarray, takeoff_y: f
         # Swing relative to the moving root (cubic Hermite), so the foot stays within reach of the
         # hip and leaves and lands with zero world velocity.
         if k not in swing_ends:  # root position and velocity at lift-off and touch-down, once per swing
-            r0, r1, v0, v1 = (np.array([np.interp(x, t, arr[:, c]) for c in (0, 1)]) for arr, x in ((plan.root_xz, t0), (plan.root_xz, t1), (root_vel, t0), (root_vel, t1)))
+            r0, r1, v0, v1 = (
+                np.array([np.interp(x, t, arr[:, c]) for c in (0, 1)])
+                for arr, x in ((plan.root_xz, t0), (plan.root_xz, t1), (root_vel, t0), (root_vel, t1))
+            )
             swing_ends[k] = (plants[k][[0, 2]] - r0, plants[k + 1][[0, 2]] - r1, v0, v1)
         rel0, rel1, v0, v1 = swing_ends[k]
         h00, h10, h01, h11 = 2 * s**3 - 3 * s**2 + 1, s**3 - 2 * s**2 + s, -2 * s**3 + 3 * s**2, s**3 - s**2
@@ -97,7 +110,9 @@ def _foot_targets(plan: Plan, foot: FootPlan, pelvis_y: np.ndarray, takeoff_y: f
     return target, yaw, stance
 
 
-def _two_bone_ik(hip: np.ndarray, ankle: np.ndarray, pole: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _two_bone_ik(
+    hip: np.ndarray, ankle: np.ndarray, pole: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Thigh and shin global rotations (N,3,3) and the reached ankle, knee bending towards ``pole``."""
     d = ankle - hip
     dist = np.linalg.norm(d, axis=1, keepdims=True)
@@ -110,7 +125,10 @@ def _two_bone_ik(hip: np.ndarray, ankle: np.ndarray, pole: np.ndarray) -> tuple[
     reached = hip + dist * d
     hinge = normalize(np.cross(d, -bend))
     rest_shin = normalize(REST_OFFSETS[J["l_ankle"]].astype(np.float64))
-    thigh = _bone_frame(normalize(knee - hip), hinge) @ _bone_frame(np.array([0.0, -1.0, 0.0]), np.array([1.0, 0.0, 0.0])).T
+    thigh = (
+        _bone_frame(normalize(knee - hip), hinge)
+        @ _bone_frame(np.array([0.0, -1.0, 0.0]), np.array([1.0, 0.0, 0.0])).T
+    )
     shin = _bone_frame(normalize(reached - knee), hinge) @ _bone_frame(rest_shin, np.array([1.0, 0.0, 0.0])).T
     return thigh, shin, reached
 
@@ -154,11 +172,24 @@ def _keep_feet_apart(plan: Plan, foot_data: dict) -> dict:
         for k, (a, b) in enumerate(runs):
             if a == 0:
                 continue  # the first stance is where the clip starts; leave it
-            near = [r for r in other_runs if r[0] < b + 2 and r[1] > a - 2] or \
-                   [min(other_runs, key=lambda r: min(abs(r[0] - b), abs(r[1] - a)))] if other_runs else []
+            near = (
+                [r for r in other_runs if r[0] < b + 2 and r[1] > a - 2]
+                or [min(other_runs, key=lambda r: min(abs(r[0] - b), abs(r[1] - a)))]
+                if other_runs
+                else []
+            )
             mid = (a + b) // 2
-            deficit = max((float(_lateral_deficit(targets[side][mid], targets[other][(r[0] + r[1]) // 2], lateral[mid], sign))
-                           for r in near), default=0.0)
+            deficit = max(
+                (
+                    float(
+                        _lateral_deficit(
+                            targets[side][mid], targets[other][(r[0] + r[1]) // 2], lateral[mid], sign
+                        )
+                    )
+                    for r in near
+                ),
+                default=0.0,
+            )
             before = runs[k - 1][1] if k > 0 else a
             after = runs[k + 1][0] if k + 1 < len(runs) else b
             if deficit <= 0 or a - before < 4 or (after - b < 4 and k + 1 < len(runs)):
@@ -194,7 +225,9 @@ def build_motion(plan: Plan, source: str) -> Motion:
     pelvis_y = plan.pelvis_y.copy()
     takeoff_y = plan.takeoff_height if plan.takeoff_height is not None else float(np.max(plan.pelvis_y))
     hip_off = {s: REST_OFFSETS[J[f"{s}_hip"]].astype(np.float64) for s in "lr"}
-    foot_data = _keep_feet_apart(plan, {f.side: _foot_targets(plan, f, plan.pelvis_y, takeoff_y) for f in plan.feet})
+    foot_data = _keep_feet_apart(
+        plan, {f.side: _foot_targets(plan, f, plan.pelvis_y, takeoff_y) for f in plan.feet}
+    )
     # Lower the pelvis where a leg cannot reach its target; dilate then smooth the correction so the
     # result stays continuous in velocity and still lowers at least as much as needed.
     for _ in range(6):
@@ -207,9 +240,13 @@ def build_motion(plan: Plan, source: str) -> Motion:
         if drop.max() <= 1e-5:
             break
         # At most MAX_DROP per pass: a target out of reach horizontally is left to the IK clamp.
-        drop = gaussian_filter1d(maximum_filter1d(np.clip(drop, 0, MAX_DROP) * 1.05 + 1e-4 * (drop > 0), size=9), 2.0)
+        drop = gaussian_filter1d(
+            maximum_filter1d(np.clip(drop, 0, MAX_DROP) * 1.05 + 1e-4 * (drop > 0), size=9), 2.0
+        )
         pelvis_y = pelvis_y - drop
-        foot_data = _keep_feet_apart(plan, {f.side: _foot_targets(plan, f, pelvis_y, takeoff_y) for f in plan.feet})
+        foot_data = _keep_feet_apart(
+            plan, {f.side: _foot_targets(plan, f, pelvis_y, takeoff_y) for f in plan.feet}
+        )
     glob = np.zeros((n, len(PARENTS), 3, 3))
     glob[:] = np.eye(3)
     glob[:, J["pelvis"]] = pelvis_rot
@@ -219,13 +256,16 @@ def build_motion(plan: Plan, source: str) -> Motion:
         # Knees point between the foot and the pelvis heading, slightly outwards: following the
         # planted foot alone swung a knee into the other leg while the pelvis turned over it.
         sign = 1.0 if side == "l" else -1.0
-        pole = (rotation_about_y(foot_yaw) @ np.array([0.0, 0.0, 1.0])
-                + rotation_about_y(plan.yaw) @ np.array([0.25 * sign, 0.0, 1.0]))
+        pole = rotation_about_y(foot_yaw) @ np.array([0.0, 0.0, 1.0]) + rotation_about_y(plan.yaw) @ np.array(
+            [0.25 * sign, 0.0, 1.0]
+        )
         thigh, shin, _ = _two_bone_ik(hip, target, pole)
         glob[:, J[f"{side}_hip"]] = thigh
         glob[:, J[f"{side}_knee"]] = shin
         swing = ~foot_data[side][2]
-        toe_up = np.where(swing, 0.25 * np.clip((target[:, 1] - ANKLE_HEIGHT - plan.ground_y) / 0.1, 0, 1), 0.0)
+        toe_up = np.where(
+            swing, 0.25 * np.clip((target[:, 1] - ANKLE_HEIGHT - plan.ground_y) / 0.1, 0, 1), 0.0
+        )
         glob[:, J[f"{side}_ankle"]] = rotation_about_y(foot_yaw) @ rot_x(-toe_up)
         glob[:, J[f"{side}_foot"]] = glob[:, J[f"{side}_ankle"]]
     # Spine: spread the twist and lean over three joints; head keeps looking along the heading.
@@ -234,7 +274,11 @@ def build_motion(plan: Plan, source: str) -> Motion:
     for joint in ("spine1", "spine2", "spine3"):
         glob[:, J[joint]] = glob[:, PARENTS[J[joint]]] @ step
     chest = glob[:, J["spine3"]]
-    head_rot = heading @ rotation_about_y(plan.curve(plan.head_yaw)) @ rot_x(0.5 * plan.curve(plan.pelvis_pitch) + 0.05)
+    head_rot = (
+        heading
+        @ rotation_about_y(plan.curve(plan.head_yaw))
+        @ rot_x(0.5 * plan.curve(plan.pelvis_pitch) + 0.05)
+    )
     glob[:, J["neck"]] = _halfway(chest, head_rot)
     glob[:, J["head"]] = head_rot
     for side, sign in (("l", 1.0), ("r", -1.0)):

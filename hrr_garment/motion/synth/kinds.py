@@ -37,7 +37,9 @@ def _stances(t: np.ndarray, period: float, duty: float, phase: float) -> list[tu
     return [(phase + k * period - half, phase + k * period + half) for k in ks]
 
 
-def _path(t: np.ndarray, yaw: np.ndarray, forward: np.ndarray, sideways: np.ndarray | float = 0.0) -> np.ndarray:
+def _path(
+    t: np.ndarray, yaw: np.ndarray, forward: np.ndarray, sideways: np.ndarray | float = 0.0
+) -> np.ndarray:
     """Integrate heading-frame velocities (m/s) along the yaw into a ground path (N, 2)."""
     sideways = np.broadcast_to(sideways, t.shape)
     vx = forward * np.sin(yaw) + sideways * np.cos(yaw)
@@ -69,15 +71,26 @@ def _gait_plan(rng, t, pad, yaw, gait: Gait) -> Plan:
     phase = rng.uniform(0, period)
     w = 2 * np.pi * (t - phase) / period
     feet = [
-        FootPlan("l", _stances(t, period, gait.duty, phase), lateral=gait.lateral, lift=gait.lift, pivot=gait.pivot),
-        FootPlan("r", _stances(t, period, gait.duty, phase + 0.5 * period), lateral=gait.lateral, lift=gait.lift,
-                 pivot=gait.pivot),
+        FootPlan(
+            "l", _stances(t, period, gait.duty, phase), lateral=gait.lateral, lift=gait.lift, pivot=gait.pivot
+        ),
+        FootPlan(
+            "r",
+            _stances(t, period, gait.duty, phase + 0.5 * period),
+            lateral=gait.lateral,
+            lift=gait.lift,
+            pivot=gait.pivot,
+        ),
     ]
     bob, swing, flex, lean = gait.bob, gait.swing, gait.flex, gait.lean
     return Plan(
-        t=t, root_xz=_path(t, yaw, gait.speed, gait.side_speed), yaw=yaw,
-        pelvis_y=STAND - 2 * bob + bob * np.cos(2 * w), feet=feet,
-        pelvis_pitch=np.full_like(t, lean), pelvis_roll=0.05 * np.sin(w),
+        t=t,
+        root_xz=_path(t, yaw, gait.speed, gait.side_speed),
+        yaw=yaw,
+        pelvis_y=STAND - 2 * bob + bob * np.cos(2 * w),
+        feet=feet,
+        pelvis_pitch=np.full_like(t, lean),
+        pelvis_roll=0.05 * np.sin(w),
         spine_twist=-0.08 * np.sin(w) * min(1.0, abs(float(np.mean(gait.speed))) + 0.2),
         spine_lean=np.full_like(t, 0.5 * lean),
         arm_swing={"l": -swing * np.sin(w), "r": swing * np.sin(w)},
@@ -106,10 +119,16 @@ def idle(rng, seconds, sway=None, sway_hz=None, stance_width=None):
     whole = [(t[0] - 1.0, t[-1] + 1.0)]
     look = 0.3 * np.sin(2 * np.pi * 0.07 * t + rng.uniform(0, 6.3))
     return Plan(
-        t=t, root_xz=root, yaw=yaw, pelvis_y=STAND - 0.01 - 0.01 * s * s,
+        t=t,
+        root_xz=root,
+        yaw=yaw,
+        pelvis_y=STAND - 0.01 - 0.01 * s * s,
         feet=[FootPlan("l", whole, lateral=width), FootPlan("r", whole, lateral=width)],
-        pelvis_roll=-1.5 * a * s, head_yaw=look,
-        arm_swing={"l": 0.05 * s, "r": -0.05 * s}, elbow_flex={"l": 0.2 + 0.05 * s, "r": 0.2 - 0.05 * s}, pad=pad,
+        pelvis_roll=-1.5 * a * s,
+        head_yaw=look,
+        arm_swing={"l": 0.05 * s, "r": -0.05 * s},
+        elbow_flex={"l": 0.2 + 0.05 * s, "r": 0.2 - 0.05 * s},
+        pad=pad,
     )
 
 
@@ -119,7 +138,24 @@ def walk(rng, seconds, speed=None):
     v = _pick(rng, speed, 0.6, 1.8)
     period = 2.0 / _cadence(v)
     yaw = np.full_like(t, rng.uniform(-np.pi, np.pi))
-    return _gait_plan(rng, t, pad, yaw, Gait(speed=v, side_speed=0.0, period=period, duty=0.58, lift=0.06 + 0.03 * v, lateral=0.095, bob=0.012 + 0.008 * v, swing=0.15 + 0.12 * v, flex=0.25, lean=0.04))
+    return _gait_plan(
+        rng,
+        t,
+        pad,
+        yaw,
+        Gait(
+            speed=v,
+            side_speed=0.0,
+            period=period,
+            duty=0.58,
+            lift=0.06 + 0.03 * v,
+            lateral=0.095,
+            bob=0.012 + 0.008 * v,
+            swing=0.15 + 0.12 * v,
+            flex=0.25,
+            lean=0.04,
+        ),
+    )
 
 
 def run(rng, seconds, speed=None):
@@ -129,7 +165,24 @@ def run(rng, seconds, speed=None):
     period = 2.0 / (2.7 + 0.2 * (v - 2.0))
     yaw = np.full_like(t, rng.uniform(-np.pi, np.pi))
     # A high heel kick keeps the trailing foot within reach of the hip during early swing.
-    return _gait_plan(rng, t, pad, yaw, Gait(speed=v, side_speed=0.0, period=period, duty=0.36, lift=0.3 + 0.04 * v, lateral=0.07, bob=0.02, swing=0.5, flex=1.5, lean=0.15))
+    return _gait_plan(
+        rng,
+        t,
+        pad,
+        yaw,
+        Gait(
+            speed=v,
+            side_speed=0.0,
+            period=period,
+            duty=0.36,
+            lift=0.3 + 0.04 * v,
+            lateral=0.07,
+            bob=0.02,
+            swing=0.5,
+            flex=1.5,
+            lean=0.15,
+        ),
+    )
 
 
 def walk_curve(rng, seconds, speed=None, turn_rate=None):
@@ -139,7 +192,24 @@ def walk_curve(rng, seconds, speed=None, turn_rate=None):
     rate = np.deg2rad(turn_rate if turn_rate is not None else rng.choice([-1, 1]) * rng.uniform(20, 60))
     wobble = rng.uniform(0.3, 0.8) * rate * np.sin(2 * np.pi * rng.uniform(0.05, 0.15) * t)
     yaw = rng.uniform(-np.pi, np.pi) + np.cumsum((rate + wobble) / FPS)
-    return _gait_plan(rng, t, pad, yaw, Gait(speed=v, side_speed=0.0, period=2.0 / _cadence(v), duty=0.58, lift=0.07 + 0.03 * v, lateral=0.095, bob=0.015, swing=0.2 + 0.1 * v, flex=0.25, lean=0.04))
+    return _gait_plan(
+        rng,
+        t,
+        pad,
+        yaw,
+        Gait(
+            speed=v,
+            side_speed=0.0,
+            period=2.0 / _cadence(v),
+            duty=0.58,
+            lift=0.07 + 0.03 * v,
+            lateral=0.095,
+            bob=0.015,
+            swing=0.2 + 0.1 * v,
+            flex=0.25,
+            lean=0.04,
+        ),
+    )
 
 
 def turn_in_place(rng, seconds, turn_rate=None):
@@ -148,7 +218,23 @@ def turn_in_place(rng, seconds, turn_rate=None):
     rate = np.deg2rad(turn_rate if turn_rate is not None else rng.choice([-1, 1]) * rng.uniform(45, 90))
     ramp = quintic((t + 0.3) / 0.8) * quintic((seconds + 0.3 - t) / 0.8)
     yaw = rng.uniform(-np.pi, np.pi) + np.cumsum(rate * ramp / FPS)
-    return _gait_plan(rng, t, pad, yaw, Gait(speed=0.0, side_speed=0.0, period=1.2, duty=0.66, lift=0.05, lateral=0.1, bob=0.006, swing=0.05, flex=0.25))
+    return _gait_plan(
+        rng,
+        t,
+        pad,
+        yaw,
+        Gait(
+            speed=0.0,
+            side_speed=0.0,
+            period=1.2,
+            duty=0.66,
+            lift=0.05,
+            lateral=0.1,
+            bob=0.006,
+            swing=0.05,
+            flex=0.25,
+        ),
+    )
 
 
 def side_step(rng, seconds, speed=None):
@@ -156,7 +242,23 @@ def side_step(rng, seconds, speed=None):
     t, pad = _grid(seconds)
     v = _pick(rng, speed, 0.2, 0.4) * (rng.choice([-1, 1]) if speed is None else 1.0)
     yaw = np.full_like(t, rng.uniform(-np.pi, np.pi))
-    return _gait_plan(rng, t, pad, yaw, Gait(speed=0.0, side_speed=v, period=1.3, duty=0.7, lift=0.06, lateral=0.13, bob=0.008, swing=0.05, flex=0.25))
+    return _gait_plan(
+        rng,
+        t,
+        pad,
+        yaw,
+        Gait(
+            speed=0.0,
+            side_speed=v,
+            period=1.3,
+            duty=0.7,
+            lift=0.06,
+            lateral=0.13,
+            bob=0.008,
+            swing=0.05,
+            flex=0.25,
+        ),
+    )
 
 
 def walk_backward(rng, seconds, speed=None):
@@ -164,7 +266,24 @@ def walk_backward(rng, seconds, speed=None):
     t, pad = _grid(seconds)
     v = _pick(rng, speed, 0.4, 1.0)
     yaw = np.full_like(t, rng.uniform(-np.pi, np.pi))
-    return _gait_plan(rng, t, pad, yaw, Gait(speed=-v, side_speed=0.0, period=2.0 / _cadence(0.8 * v), duty=0.66, lift=0.07, lateral=0.095, bob=0.01, swing=0.1, flex=0.3, lean=0.02))
+    return _gait_plan(
+        rng,
+        t,
+        pad,
+        yaw,
+        Gait(
+            speed=-v,
+            side_speed=0.0,
+            period=2.0 / _cadence(0.8 * v),
+            duty=0.66,
+            lift=0.07,
+            lateral=0.095,
+            bob=0.01,
+            swing=0.1,
+            flex=0.3,
+            lean=0.02,
+        ),
+    )
 
 
 def spin(rng, seconds, revolutions_per_s=None, arm_raise=None):
@@ -173,7 +292,24 @@ def spin(rng, seconds, revolutions_per_s=None, arm_raise=None):
     rps = _pick(rng, revolutions_per_s, 0.6, 1.3) * rng.choice([-1, 1])
     ramp = quintic((t + 0.2) / 1.0) * quintic((seconds + 0.2 - t) / 1.0)
     yaw = rng.uniform(-np.pi, np.pi) + np.cumsum(2 * np.pi * rps * ramp / FPS)
-    plan = _gait_plan(rng, t, pad, yaw, Gait(speed=0.0, side_speed=0.0, period=0.6, duty=0.6, lift=0.05, lateral=0.08, bob=0.006, swing=0.05, flex=0.4, pivot=True))
+    plan = _gait_plan(
+        rng,
+        t,
+        pad,
+        yaw,
+        Gait(
+            speed=0.0,
+            side_speed=0.0,
+            period=0.6,
+            duty=0.6,
+            lift=0.05,
+            lateral=0.08,
+            bob=0.006,
+            swing=0.05,
+            flex=0.4,
+            pivot=True,
+        ),
+    )
     raise_ = _pick(rng, arm_raise, 0.6, 1.3)
     plan.arm_abduction = {s: raise_ * (0.3 + 0.7 * ramp) for s in "lr"}
     return plan
@@ -185,7 +321,23 @@ def dance(rng, seconds, sway=None, tempo_hz=None):
     a, f = _pick(rng, sway, 0.08, 0.2), _pick(rng, tempo_hz, 0.4, 0.7)
     yaw = rng.uniform(-np.pi, np.pi) + 0.5 * np.sin(2 * np.pi * 0.1 * t + rng.uniform(0, 6.3))
     w = 2 * np.pi * f * t
-    plan = _gait_plan(rng, t, pad, yaw, Gait(speed=0.0, side_speed=2 * np.pi * f * a * np.cos(w), period=1.0 / f, duty=0.7, lift=0.06, lateral=0.11, bob=0.01, swing=0.1, flex=0.5))
+    plan = _gait_plan(
+        rng,
+        t,
+        pad,
+        yaw,
+        Gait(
+            speed=0.0,
+            side_speed=2 * np.pi * f * a * np.cos(w),
+            period=1.0 / f,
+            duty=0.7,
+            lift=0.06,
+            lateral=0.11,
+            bob=0.01,
+            swing=0.1,
+            flex=0.5,
+        ),
+    )
     plan.pelvis_roll = 0.15 * np.sin(w + 0.5)
     plan.pelvis_y = STAND - 0.04 + 0.025 * np.cos(4 * np.pi * f * t)
     plan.spine_twist = 0.25 * np.sin(w + rng.uniform(0, 6.3))
@@ -195,7 +347,9 @@ def dance(rng, seconds, sway=None, tempo_hz=None):
     return plan
 
 
-def _jump_curve(t: np.ndarray, flights: list[tuple[float, float]], crouch: float, push: float, absorb: float, stand: float) -> np.ndarray:
+def _jump_curve(
+    t: np.ndarray, flights: list[tuple[float, float]], crouch: float, push: float, absorb: float, stand: float
+) -> np.ndarray:
     """Pelvis height: stand, crouch, push up to take-off, ballistic flight, absorb, stand.
 
     Cubic Hermite pieces meet the flight parabola with equal position and velocity.
@@ -231,7 +385,10 @@ def jump(rng, seconds, height=None, distance=None):
     flight = 2 * np.sqrt(2 * h / G)
     cycle = flight + 1.7 + rng.uniform(0, 0.5)
     first = rng.uniform(0.5, 0.9)
-    flights = [(first + k * cycle, first + k * cycle + flight) for k in range(int(np.ceil((seconds + 2) / cycle)) + 1)]
+    flights = [
+        (first + k * cycle, first + k * cycle + flight)
+        for k in range(int(np.ceil((seconds + 2) / cycle)) + 1)
+    ]
     crouch = 0.12 + 0.3 * h
     pelvis = _jump_curve(t, flights, crouch, 0.3, 0.3, STAND)
     yaw = np.full_like(t, rng.uniform(-np.pi, np.pi))
@@ -239,11 +396,24 @@ def jump(rng, seconds, height=None, distance=None):
     for t_off, t_land in flights:
         forward += dist * quintic((t - (t_off - 0.3)) / (t_land - t_off + 0.6))
     root = _path(t, yaw, np.gradient(forward, t))
-    stances = [(t[0] - 1.0, flights[0][0])] + [(flights[k][1], flights[k + 1][0]) for k in range(len(flights) - 1)] + [(flights[-1][1], t[-1] + 1.0)]
+    stances = (
+        [(t[0] - 1.0, flights[0][0])]
+        + [(flights[k][1], flights[k + 1][0]) for k in range(len(flights) - 1)]
+        + [(flights[-1][1], t[-1] + 1.0)]
+    )
     feet = [FootPlan(s, stances, lateral=0.1, lift=0.08, follow_pelvis=True) for s in "lr"]
     arms = 1.0 + 0.6 * np.cos(np.pi * np.clip((pelvis - STAND) / max(h, 1e-3), -1, 1))
-    plan = Plan(t=t, root_xz=root, yaw=yaw, pelvis_y=pelvis, feet=feet, pelvis_pitch=0.6 * (STAND - pelvis).clip(0, None),
-                arm_swing={"l": 0.6 - 0.5 * arms, "r": 0.6 - 0.5 * arms}, elbow_flex={"l": 0.2 + 0.2 * arms, "r": 0.2 + 0.2 * arms}, pad=pad)
+    plan = Plan(
+        t=t,
+        root_xz=root,
+        yaw=yaw,
+        pelvis_y=pelvis,
+        feet=feet,
+        pelvis_pitch=0.6 * (STAND - pelvis).clip(0, None),
+        arm_swing={"l": 0.6 - 0.5 * arms, "r": 0.6 - 0.5 * arms},
+        elbow_flex={"l": 0.2 + 0.2 * arms, "r": 0.2 + 0.2 * arms},
+        pad=pad,
+    )
     plan.takeoff_height = STAND
     return plan
 
@@ -256,7 +426,10 @@ def hop(rng, seconds, height=None, advance=None, side=None):
     free = "r" if support == "l" else "l"
     flight = 2 * np.sqrt(2 * h / G)
     cycle = flight + rng.uniform(0.45, 0.65)
-    flights = [(k * cycle, k * cycle + flight) for k in range(int(np.floor(t[0] / cycle)), int(np.ceil(t[-1] / cycle)) + 1)]
+    flights = [
+        (k * cycle, k * cycle + flight)
+        for k in range(int(np.floor(t[0] / cycle)), int(np.ceil(t[-1] / cycle)) + 1)
+    ]
     stand = STAND - 0.03
     pelvis = _jump_curve(t, flights, 0.05 + 0.3 * h, 0.15, 0.15, stand)
     yaw = np.full_like(t, rng.uniform(-np.pi, np.pi))
@@ -266,9 +439,21 @@ def hop(rng, seconds, height=None, advance=None, side=None):
     sign = 1.0 if support == "l" else -1.0
     lifted = np.tile([-sign * 0.1, 0.0, -0.22], (len(t), 1))
     lifted[:, 1] = pelvis - 0.55
-    feet = [FootPlan(support, stances, lateral=0.03, lift=0.04, follow_pelvis=True), FootPlan(free, [], free_target=lifted)]
-    plan = Plan(t=t, root_xz=root, yaw=yaw, pelvis_y=pelvis, feet=feet, pelvis_roll=np.full_like(t, -sign * 0.06),
-                arm_abduction={"l": np.full_like(t, 0.35), "r": np.full_like(t, 0.35)}, elbow_flex={"l": np.full_like(t, 0.6), "r": np.full_like(t, 0.6)}, pad=pad)
+    feet = [
+        FootPlan(support, stances, lateral=0.03, lift=0.04, follow_pelvis=True),
+        FootPlan(free, [], free_target=lifted),
+    ]
+    plan = Plan(
+        t=t,
+        root_xz=root,
+        yaw=yaw,
+        pelvis_y=pelvis,
+        feet=feet,
+        pelvis_roll=np.full_like(t, -sign * 0.06),
+        arm_abduction={"l": np.full_like(t, 0.35), "r": np.full_like(t, 0.35)},
+        elbow_flex={"l": np.full_like(t, 0.6), "r": np.full_like(t, 0.6)},
+        pad=pad,
+    )
     plan.takeoff_height = stand
     return plan
 

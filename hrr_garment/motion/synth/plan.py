@@ -32,7 +32,9 @@ class FootPlan:
     lift: float = 0.08  # swing height of the ankle, metres
     follow_pelvis: bool = False  # in swing, also rise with the pelvis above its take-off height (jumps)
     pivot: bool = False  # a planted foot turns with the body (spins) instead of keeping its yaw
-    free_target: np.ndarray | None = None  # (N, 3) ankle offset in the heading frame for a foot that never lands
+    free_target: np.ndarray | None = (
+        None  # (N, 3) ankle offset in the heading frame for a foot that never lands
+    )
 
 
 @dataclass
