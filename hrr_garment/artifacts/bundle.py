@@ -1,4 +1,4 @@
-"""Model bundle: one directory with everything inference needs for one garment (DESIGN 9).
+"""Model bundle: one directory with everything inference needs for one garment (docs/codespace.md).
 
 Files (all arrays as safetensors, nothing pickled)::
 

@@ -8,7 +8,7 @@ capsules posed like the mesh, as :func:`~.fit.fit_body` poses them). That is ski
 per vertex: exact along a bone, and where two pieces meet at a bending joint they overlap on the
 inside of the bend and open a crack on the outside. It is what the simulator can move as kinematic
 rigid bodies (one newton mesh shape per capsule's body, :meth:`BodyMesh.pieces`), and the study that
-compares it with the capsules (``tools/collider_study.py``, docs/bodies.md) measures both against
+compares it with the capsules (``tools/studies/collider_study.py``, docs/bodies.md) measures both against
 it, the body the viewer sees.
 """
 

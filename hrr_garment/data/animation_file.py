@@ -1,4 +1,4 @@
-"""``out.h5``: an animated garment as hrr-animate writes it (DESIGN 9). The file format lives in
+"""``out.h5``: an animated garment as hrr-animate writes it (docs/inference.md). The file format lives in
 ``data`` (with the dataset's) because inference writes it and export, eval and the previews read it.
 
     /faces                  (F, 3) int32

@@ -1,4 +1,4 @@
-"""Ensemble ground truth: K perturbed re-simulations of each evaluated sequence (DESIGN section 12).
+"""Ensemble ground truth: K perturbed re-simulations of each evaluated sequence (docs/method.md).
 
 Cloth simulation is chaotic: the same motion simulated with the density changed by one part in
 10,000 ends 15-25 mm PVE away from the first run, so a single simulated truth cannot rank models

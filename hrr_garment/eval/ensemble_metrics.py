@@ -9,7 +9,7 @@ of the Euclidean distance, mm). Definitions (docs/evaluation.md repeats them):
   two equally valid simulations are.
 - PVE to the members: mean over members of PVE(pred, member). A fresh simulation scores about the
   floor, so ``pve_floor_ratio`` = PVE to the members / floor is 1 for a prediction as good as
-  the simulator itself; the perfect conditional mean scores about 0.71 (DESIGN section 12).
+  the simulator itself; the perfect conditional mean scores about 0.71 (docs/method.md).
 - PVE to the mean: PVE(pred, mean of the members).
 - Energy score (mm): E|X - Y| - 1/2 E|X - X'| - 1/2 E|Y - Y'| with X, X' drawn from the
   prediction's samples and Y, Y' from the members, every expectation over all pairs (diagonal

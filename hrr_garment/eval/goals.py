@@ -1,4 +1,4 @@
-"""hrr-eval's comparative goals, from the paper's shape (DESIGN section 10): hybrid <= 0.5 x
+"""hrr-eval's comparative goals, from the paper's shape (docs/method.md): hybrid <= 0.5 x
 regression-only and <= 0.85 x retrieval-only in PVE, learned retrieval <= 0.8 x naive NN, and an
 interior optimum of tau; on the library protocol, the hybrid against the single modes. Each is
 reported with its ratio and whether it is met; a goal whose modes were not evaluated is left out.

@@ -1,4 +1,4 @@
-"""Garment metrics against simulated ground truth (DESIGN section 10), vectorised over frames.
+"""Garment metrics against simulated ground truth (docs/evaluation.md), vectorised over frames.
 
 All take world-space vertex arrays of the same template, ``pred`` and ``truth`` (T, V, 3) in
 metres, and return plain floats in the units their names state. The formulas, exactly as

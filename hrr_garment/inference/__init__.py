@@ -1,4 +1,4 @@
-"""Hybrid inference: a motion in, an animated garment out (paper 3.5, DESIGN 7).
+"""Hybrid inference: a motion in, an animated garment out (paper 3.5; docs/method.md).
 
 Modules: :mod:`.animator` (the API: Animator), :mod:`.animation` (its result), :mod:`.stream`
 (CrowdStream: many characters in one call; :mod:`.character_stream` one character; :mod:`.lod`

@@ -1,4 +1,4 @@
-"""Per-frame motion features (paper 3.3; DESIGN 4), offline and causal, and their statistics.
+"""Per-frame motion features (paper 3.3; docs/motion.md), offline and causal, and their statistics.
 
 f_t = [r (60); v (60); t (3); w (1)] = 124 values, all in the body frame's orientation at frame t
 (rotated by the pelvis yaw only, :func:`~hrr_garment.motion.frame.body_heading`):

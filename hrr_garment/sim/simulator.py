@@ -3,7 +3,7 @@
 The body is a set of kinematic capsules (one rigid body each) moved every substep by interpolating
 the motion's per-frame capsule transforms; the garment's attached vertices have zero mass and are
 written every substep from their skinned positions. Parameters and the reasons for them are in
-DESIGN.md section 8 (measured here): penetration is governed by the substep count, stretch by
+docs/dataset.md (measured here): penetration is governed by the substep count, stretch by
 convergence, so the defaults are 10 substeps x 3 iterations.
 
 A frame that is not finite, moves faster than ``max_speed`` or stretches an edge beyond

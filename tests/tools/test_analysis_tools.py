@@ -12,7 +12,7 @@ def test_gate_analysis_oracle_bounds_both_modes(trained):
     from pathlib import Path
 
     spec = importlib.util.spec_from_file_location(
-        "gate_analysis", Path(__file__).parents[2] / "tools" / "gate_analysis.py"
+        "gate_analysis", Path(__file__).parents[2] / "tools" / "studies" / "gate_analysis.py"
     )
     tool = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(tool)
@@ -37,7 +37,7 @@ def test_residual_nodes_analysis_spans_regression_to_residual(trained, tmp_path)
 
     from hrr_garment.artifacts.bundle_writer import update_bundle_meta
 
-    path = Path(__file__).parents[2] / "tools" / "residual_nodes_analysis.py"
+    path = Path(__file__).parents[2] / "tools" / "studies" / "residual_nodes_analysis.py"
     spec = importlib.util.spec_from_file_location("residual_nodes_analysis", path)
     tool = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(tool)

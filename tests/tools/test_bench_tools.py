@@ -63,12 +63,12 @@ def test_bench_inference_reports_every_key(capsys):
 
 
 def test_the_push_out_analysis_reports_each_setting_with_and_without_the_subspace_push(trained):
-    """tools/push_out_analysis.py on the tiny trained model: every row keeps its keys, and the push
+    """tools/studies/push_out_analysis.py on the tiny trained model: every row keeps its keys, and the push
     in the fast decoder's subspace leaves no more of the cloth inside the body than the decoder did."""
     import importlib.util
     from pathlib import Path
 
-    path = Path(__file__).parents[2] / "tools" / "push_out_analysis.py"
+    path = Path(__file__).parents[2] / "tools" / "studies" / "push_out_analysis.py"
     spec = importlib.util.spec_from_file_location("push_out_analysis", path)
     tool = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(tool)
@@ -103,7 +103,7 @@ def test_the_push_out_analysis_reports_each_setting_with_and_without_the_subspac
 
 
 def test_bodies_inside_counts_the_cloth_inside_each_body_before_the_push_out(trained, tmp_path, monkeypatch):
-    """tools/bodies_inside.py on the tiny trained model: a body file holding the model's own body
+    """tools/studies/bodies_inside.py on the tiny trained model: a body file holding the model's own body
     gives what animating on the default body and measuring directly gives; scaled mannequins away
     from the one training body are listed with the measures out of its range."""
     import importlib.util
@@ -115,10 +115,8 @@ def test_bodies_inside_counts_the_cloth_inside_each_body_before_the_push_out(tra
     from hrr_garment.sim.quality import body_signed_distance, penetration_fraction
 
     tools = Path(__file__).parents[2] / "tools"
-    monkeypatch.syspath_prepend(
-        str(tools)
-    )  # the tool imports bench_inference's bodies, as when run from tools/
-    spec = importlib.util.spec_from_file_location("bodies_inside", tools / "bodies_inside.py")
+    monkeypatch.syspath_prepend(str(tools))  # the tool imports bench_inference's bodies from tools/
+    spec = importlib.util.spec_from_file_location("bodies_inside", tools / "studies" / "bodies_inside.py")
     tool = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(tool)
     root, _, _ = trained

@@ -118,7 +118,7 @@ def test_the_contact_sweep_tool_runs_a_weight_on_a_trained_model(trained, capsys
     from pathlib import Path
 
     root, data, _ = trained
-    path = Path(__file__).parents[2] / "tools" / "contact_sweep.py"
+    path = Path(__file__).parents[2] / "tools" / "studies" / "contact_sweep.py"
     spec = importlib.util.spec_from_file_location("contact_sweep", path)
     tool = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(tool)

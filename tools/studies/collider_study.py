@@ -8,7 +8,7 @@ posed mesh (the share of cloth vertices inside it, by winding number, every 5th 
 the capsules, with the pooled edge strain p99 and the solver's seconds per simulated frame. A clip
 a collider cannot simulate is counted as rejected. Needs the sim and bodies extras.
 
-    python tools/collider_study.py hrr_work/mocap/bandai --clips 8 --jobs 2
+    python tools/studies/collider_study.py hrr_work/mocap/bandai --clips 8 --jobs 2
 """
 
 from __future__ import annotations

@@ -13,7 +13,7 @@ PVE).
 Sharpness is the bending energy over the truth's, hem swing the hem's amplitude over the truth's,
 jitter the mean distance between predicted and true accelerations (docs/evaluation.md, Metrics).
 
-    python tools/detail_analysis.py --model hrr_work/models/dress-real-quick --split test --sequences 12
+    python tools/studies/detail_analysis.py --model hrr_work/models/dress-real-quick --split test --sequences 12
 """
 
 from __future__ import annotations

@@ -11,8 +11,8 @@ computes the regression and retrieval candidates' per-vertex errors and prints:
   paper's), high code similarity of the match, low motion distance of the match;
 - the same oracle with the naive nearest-neighbour retrieval.
 
-    python tools/gate_analysis.py --model hrr_work/models/dress-quick --split val
-    python tools/gate_analysis.py --model hrr_work/models/dress-full --split test --json
+    python tools/studies/gate_analysis.py --model hrr_work/models/dress-quick --split val
+    python tools/studies/gate_analysis.py --model hrr_work/models/dress-full --split test --json
 """
 
 from __future__ import annotations

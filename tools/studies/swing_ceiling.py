@@ -13,7 +13,7 @@ which gives the predictable part ``V_c``. Beside it, the model's own ceilings on
 the code space's (each true window through the garment encoder, its argmax code and the decoder,
 windows blended): what the discrete code can give back of a garment it is shown.
 
-    python tools/swing_ceiling.py --model hrr_work/models/dress-real-quick --split test --sequences 12
+    python tools/studies/swing_ceiling.py --model hrr_work/models/dress-real-quick --split test --sequences 12
 """
 
 from __future__ import annotations

@@ -11,7 +11,7 @@ the vertices more than 5 mm inside the body (and which capsule holds them: a han
 skirt, the chest under the bodice), the hem's swing over the simulation's and the PVE against each
 clip's simulation, beside the plain modes and the simulation itself.
 
-    python tools/residual_nodes_analysis.py --model hrr_work/models/dress-real-quick-bodies-contact \\
+    python tools/studies/residual_nodes_analysis.py --model hrr_work/models/dress-real-quick-bodies-contact \\
         --dataset hrr_work/datasets/dress-real-quick-short-heavy.h5 --ranges 10-40,20-60,30-100
 """
 

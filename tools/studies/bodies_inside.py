@@ -14,22 +14,25 @@ Bodies: ``scaled`` (the mannequin's bones and capsules 0.9-1.1 x, as ``bench_inf
 bodies extra), or body files (body.json or a character's GLB). Bodies outside the model's range are
 animated anyway, with the measures that are out listed in the report.
 
-    python tools/bodies_inside.py --model hrr_work/models/dress-real-quick-bodies --bodies scaled anny --count 9
-    python tools/bodies_inside.py --model DIR --bodies hero.json villain.glb --motion clip.bvh --json
+    python tools/studies/bodies_inside.py --model hrr_work/models/dress-real-quick-bodies --bodies scaled anny --count 9
+    python tools/studies/bodies_inside.py --model DIR --bodies hero.json villain.glb --motion clip.bvh --json
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import sys
 from pathlib import Path
-
-from bench_inference import crowd_bodies
 
 from hrr_garment.eval.inside_body import check_motion, cloth_inside
 from hrr_garment.inference.animator import Animator
 from hrr_garment.inference.bodies import read_body_argument
 from hrr_garment.motion.io import load_motion
+
+# the crowds' bodies are the inference benchmark's, one folder up (tools/)
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from bench_inference import crowd_bodies  # noqa: E402
 
 SOURCES = ("scaled", "anny")
 

@@ -1,7 +1,7 @@
 """The detail mode's fold strain limit against what it changes: a model's default output (push-out
 on) on a dataset's test clips with the limit at each value, against each clip's simulation.
 
-    python tools/fold_limit_sweep.py --model hrr_work/models/dress-real-quick-bodies-contact \\
+    python tools/studies/fold_limit_sweep.py --model hrr_work/models/dress-real-quick-bodies-contact \\
         --dataset hrr_work/datasets/dress-real-quick.h5 --sequences 6 --limits none,1.5,1.3,1.2
 
 Prints, per limit, the PVE (mm), the edge strain p99 and max of the output beside the truth's (on

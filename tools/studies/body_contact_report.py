@@ -8,7 +8,7 @@ shape; motion_on_body) with that body's capsules. A frame is flagged where a lim
 measure the same (to the millimetre) share one body: the first such clip's. Prints a Markdown table
 per folder and in total; --json one JSON object. Needs the bodies extra.
 
-    python tools/body_contact_report.py hrr_work/mocap/bandai ../shared/data/mocap/cmu
+    python tools/studies/body_contact_report.py hrr_work/mocap/bandai ../shared/data/mocap/cmu
 """
 
 from __future__ import annotations

@@ -21,7 +21,7 @@ the push-out off), then the push-out under each setting asked for, and reports p
 With ``--subspace-push`` every setting is also run after the push in the fast decoder's subspace
 (:mod:`hrr_garment.inference.subspace_push`), its ``us_per_character`` the two together.
 
-    python tools/push_out_analysis.py --model hrr_work/models/dress-real-quick \\
+    python tools/studies/push_out_analysis.py --model hrr_work/models/dress-real-quick \\
         --dataset hrr_work/datasets/dress-real-quick.h5 --split test --follow 0 6 --slack 0 0.1 --sequences 12
 """
 
