@@ -1,4 +1,4 @@
-"""The analysis tools (tools/*_analysis.py) on the tiny trained model."""
+"""The analysis tools (tools/studies/*_analysis.py) on the tiny trained model."""
 
 from __future__ import annotations
 
