@@ -13,9 +13,9 @@ PAD_S = 1.5
 STAND = REST_PELVIS_HEIGHT - 0.015  # knees very slightly soft
 
 
-def pick_value(rng: np.random.Generator, value: float | None, lo: float, hi: float) -> float:
-    """``value`` if pinned, else a uniform draw from [lo, hi)."""
-    return float(rng.uniform(lo, hi)) if value is None else float(value)
+def pick_value(rng: np.random.Generator, value: float | None, span: tuple[float, float]) -> float:
+    """``value`` if pinned, else a uniform draw from ``span`` (low, high)."""
+    return float(rng.uniform(*span)) if value is None else float(value)
 
 
 def time_grid(seconds: float) -> tuple[np.ndarray, int]:

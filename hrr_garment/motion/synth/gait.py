@@ -35,7 +35,7 @@ class Gait:
     pivot: bool = False  # planted feet turn with the body (spins)
 
 
-def gait_plan(rng, t, pad, yaw, gait: Gait) -> Plan:
+def gait_plan(rng, t, pad, *, yaw, gait: Gait) -> Plan:
     """Shared by every stepping kind: alternating feet, arm swing opposite the legs."""
     period = gait.period
     phase = rng.uniform(0, period)
@@ -59,7 +59,7 @@ def gait_plan(rng, t, pad, yaw, gait: Gait) -> Plan:
     bob, swing, flex, lean = gait.bob, gait.swing, gait.flex, gait.lean
     return Plan(
         t=t,
-        root_xz=ground_path(t, yaw, gait.speed, gait.side_speed),
+        root_xz=ground_path(t, yaw, gait.speed, sideways=gait.side_speed),
         yaw=yaw,
         pelvis_y=STAND - 2 * bob + bob * np.cos(2 * w),
         feet=feet,

@@ -45,7 +45,7 @@ def jump_pelvis_curve(
 def jump(rng, seconds, height=None, distance=None):
     """Two-footed jumps: crouch, take off, land and absorb; ``height`` of the pelvis rise (m)."""
     t, pad = time_grid(seconds)
-    h, dist = pick_value(rng, height, 0.12, 0.3), pick_value(rng, distance, 0.0, 0.5)
+    h, dist = pick_value(rng, height, (0.12, 0.3)), pick_value(rng, distance, (0.0, 0.5))
     flight = 2 * np.sqrt(2 * h / GRAVITY)
     cycle = flight + 1.7 + rng.uniform(0, 0.5)
     first = rng.uniform(0.5, 0.9)
@@ -85,7 +85,7 @@ def jump(rng, seconds, height=None, distance=None):
 def hop(rng, seconds, height=None, advance=None, side=None):
     """Repeated hops on one foot; the other leg is held bent behind."""
     t, pad = time_grid(seconds)
-    h, step = pick_value(rng, height, 0.04, 0.1), pick_value(rng, advance, 0.0, 0.35)
+    h, step = pick_value(rng, height, (0.04, 0.1)), pick_value(rng, advance, (0.0, 0.35))
     support = side or str(rng.choice(["l", "r"]))
     free = "r" if support == "l" else "l"
     flight = 2 * np.sqrt(2 * h / GRAVITY)

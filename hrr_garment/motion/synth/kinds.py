@@ -21,8 +21,8 @@ from .stepping import dance, run, side_step, spin, turn_in_place, walk, walk_bac
 def idle(rng, seconds, sway=None, sway_hz=None, stance_width=None):
     """Stand with a slow sway and a wandering look."""
     t, pad = time_grid(seconds)
-    a, f = pick_value(rng, sway, 0.015, 0.045), pick_value(rng, sway_hz, 0.12, 0.3)
-    width = pick_value(rng, stance_width, 0.09, 0.13)
+    a, f = pick_value(rng, sway, (0.015, 0.045)), pick_value(rng, sway_hz, (0.12, 0.3))
+    width = pick_value(rng, stance_width, (0.09, 0.13))
     yaw = np.full_like(t, rng.uniform(-np.pi, np.pi))
     phase = rng.uniform(0, 2 * np.pi)
     s = np.sin(2 * np.pi * f * t + phase)

@@ -14,15 +14,15 @@ from .plan import quintic
 def walk(rng, seconds, speed=None):
     """Walk straight at ``speed`` m/s."""
     t, pad = time_grid(seconds)
-    v = pick_value(rng, speed, 0.6, 1.8)
+    v = pick_value(rng, speed, (0.6, 1.8))
     period = 2.0 / walking_cadence(v)
     yaw = np.full_like(t, rng.uniform(-np.pi, np.pi))
     return gait_plan(
         rng,
         t,
         pad,
-        yaw,
-        Gait(
+        yaw=yaw,
+        gait=Gait(
             speed=v,
             side_speed=0.0,
             period=period,
@@ -40,7 +40,7 @@ def walk(rng, seconds, speed=None):
 def run(rng, seconds, speed=None):
     """Run straight at ``speed`` m/s."""
     t, pad = time_grid(seconds)
-    v = pick_value(rng, speed, 2.0, 3.0)
+    v = pick_value(rng, speed, (2.0, 3.0))
     period = 2.0 / (2.7 + 0.2 * (v - 2.0))
     yaw = np.full_like(t, rng.uniform(-np.pi, np.pi))
     # A high heel kick keeps the trailing foot within reach of the hip during early swing.
@@ -48,8 +48,8 @@ def run(rng, seconds, speed=None):
         rng,
         t,
         pad,
-        yaw,
-        Gait(
+        yaw=yaw,
+        gait=Gait(
             speed=v,
             side_speed=0.0,
             period=period,
@@ -67,7 +67,7 @@ def run(rng, seconds, speed=None):
 def walk_curve(rng, seconds, speed=None, turn_rate=None):
     """Walk along a curve; ``turn_rate`` in degrees per second (sign gives the direction)."""
     t, pad = time_grid(seconds)
-    v = pick_value(rng, speed, 0.7, 1.5)
+    v = pick_value(rng, speed, (0.7, 1.5))
     rate = np.deg2rad(turn_rate if turn_rate is not None else rng.choice([-1, 1]) * rng.uniform(20, 60))
     wobble = rng.uniform(0.3, 0.8) * rate * np.sin(2 * np.pi * rng.uniform(0.05, 0.15) * t)
     yaw = rng.uniform(-np.pi, np.pi) + np.cumsum((rate + wobble) / FPS)
@@ -75,8 +75,8 @@ def walk_curve(rng, seconds, speed=None, turn_rate=None):
         rng,
         t,
         pad,
-        yaw,
-        Gait(
+        yaw=yaw,
+        gait=Gait(
             speed=v,
             side_speed=0.0,
             period=2.0 / walking_cadence(v),
@@ -101,8 +101,8 @@ def turn_in_place(rng, seconds, turn_rate=None):
         rng,
         t,
         pad,
-        yaw,
-        Gait(
+        yaw=yaw,
+        gait=Gait(
             speed=0.0,
             side_speed=0.0,
             period=1.2,
@@ -119,14 +119,14 @@ def turn_in_place(rng, seconds, turn_rate=None):
 def side_step(rng, seconds, speed=None):
     """Step sideways; positive ``speed`` moves to the character's left."""
     t, pad = time_grid(seconds)
-    v = pick_value(rng, speed, 0.2, 0.4) * (rng.choice([-1, 1]) if speed is None else 1.0)
+    v = pick_value(rng, speed, (0.2, 0.4)) * (rng.choice([-1, 1]) if speed is None else 1.0)
     yaw = np.full_like(t, rng.uniform(-np.pi, np.pi))
     return gait_plan(
         rng,
         t,
         pad,
-        yaw,
-        Gait(
+        yaw=yaw,
+        gait=Gait(
             speed=0.0,
             side_speed=v,
             period=1.3,
@@ -143,14 +143,14 @@ def side_step(rng, seconds, speed=None):
 def walk_backward(rng, seconds, speed=None):
     """Walk backwards at ``speed`` m/s."""
     t, pad = time_grid(seconds)
-    v = pick_value(rng, speed, 0.4, 1.0)
+    v = pick_value(rng, speed, (0.4, 1.0))
     yaw = np.full_like(t, rng.uniform(-np.pi, np.pi))
     return gait_plan(
         rng,
         t,
         pad,
-        yaw,
-        Gait(
+        yaw=yaw,
+        gait=Gait(
             speed=-v,
             side_speed=0.0,
             period=2.0 / walking_cadence(0.8 * v),
@@ -168,15 +168,15 @@ def walk_backward(rng, seconds, speed=None):
 def spin(rng, seconds, revolutions_per_s=None, arm_raise=None):
     """Twirl on the spot with quick pivoting steps and the arms out (makes skirts flare)."""
     t, pad = time_grid(seconds)
-    rps = pick_value(rng, revolutions_per_s, 0.6, 1.3) * rng.choice([-1, 1])
+    rps = pick_value(rng, revolutions_per_s, (0.6, 1.3)) * rng.choice([-1, 1])
     ramp = quintic((t + 0.2) / 1.0) * quintic((seconds + 0.2 - t) / 1.0)
     yaw = rng.uniform(-np.pi, np.pi) + np.cumsum(2 * np.pi * rps * ramp / FPS)
     plan = gait_plan(
         rng,
         t,
         pad,
-        yaw,
-        Gait(
+        yaw=yaw,
+        gait=Gait(
             speed=0.0,
             side_speed=0.0,
             period=0.6,
@@ -189,7 +189,7 @@ def spin(rng, seconds, revolutions_per_s=None, arm_raise=None):
             pivot=True,
         ),
     )
-    raise_ = pick_value(rng, arm_raise, 0.6, 1.3)
+    raise_ = pick_value(rng, arm_raise, (0.6, 1.3))
     plan.arm_abduction = {s: raise_ * (0.3 + 0.7 * ramp) for s in "lr"}
     return plan
 
@@ -197,15 +197,15 @@ def spin(rng, seconds, revolutions_per_s=None, arm_raise=None):
 def dance(rng, seconds, sway=None, tempo_hz=None):
     """Step-touch from side to side with hip sway, torso twist and waving arms."""
     t, pad = time_grid(seconds)
-    a, f = pick_value(rng, sway, 0.08, 0.2), pick_value(rng, tempo_hz, 0.4, 0.7)
+    a, f = pick_value(rng, sway, (0.08, 0.2)), pick_value(rng, tempo_hz, (0.4, 0.7))
     yaw = rng.uniform(-np.pi, np.pi) + 0.5 * np.sin(2 * np.pi * 0.1 * t + rng.uniform(0, 6.3))
     w = 2 * np.pi * f * t
     plan = gait_plan(
         rng,
         t,
         pad,
-        yaw,
-        Gait(
+        yaw=yaw,
+        gait=Gait(
             speed=0.0,
             side_speed=2 * np.pi * f * a * np.cos(w),
             period=1.0 / f,
