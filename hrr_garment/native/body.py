@@ -1,6 +1,7 @@
-"""ctypes glue of the kernels that work against the capsule body: the signed distance of points
-to it, the collision push-out and the push-out's strain limit (``kernels.c``; library from
-:func:`hrr_garment.native.load_kernel`)."""
+"""ctypes glue of the kernels that push a garment out of the capsule body: the collision push-out
+and the push-out's strain limit, with what they take of a garment converted once (``kernels.c``;
+library from :func:`hrr_garment.native.load_kernel`; the kernel's structs: :mod:`.kernel_structs`;
+the signed distance to the body: :mod:`.capsules`)."""
 
 from __future__ import annotations
 
@@ -9,7 +10,9 @@ from typing import NamedTuple
 
 import numpy as np
 
-MAX_CAPSULES = 64  # SDF_MAXC in kernels.c
+from .capsules import capsule_arrays
+from .kernel_structs import PushArgs, StrainArgs, SubspaceArgs
+
 MAX_SUBSPACE_COMPONENTS = 512  # SUBSPACE_MAXK in kernels.c
 
 
@@ -31,35 +34,9 @@ class PushSteps(NamedTuple):
     limit: "StrainLimit | None" = None
     subspace: "SubspaceMove | None" = None
 
-    def arguments(self) -> "_PushArgs":
+    def arguments(self) -> PushArgs:
         """The kernel's PushArgs of these steps."""
-        return _PushArgs(self.margin, self.smooth, self.rounds, self.depth)
-
-
-class _PushArgs(ctypes.Structure):
-    """kernels.c's PushArgs."""
-
-    _fields_ = [
-        ("margin", ctypes.c_double),
-        ("smooth", ctypes.c_int),
-        ("rounds", ctypes.c_int),
-        ("depth", ctypes.c_double),
-    ]
-
-
-class _SubspaceArgs(ctypes.Structure):
-    """kernels.c's SubspaceArgs."""
-
-    _fields_ = [
-        ("basis", ctypes.c_void_p),
-        ("blocks", ctypes.c_void_p),
-        ("stretch", ctypes.c_void_p),
-        ("k", ctypes.c_int),
-        ("iterations", ctypes.c_int),
-        ("strain_weight", ctypes.c_double),
-        ("ridge", ctypes.c_double),
-        ("clearance", ctypes.c_double),
-    ]
+        return PushArgs(self.margin, self.smooth, self.rounds, self.depth)
 
 
 class SubspaceMove:
@@ -93,7 +70,7 @@ class SubspaceMove:
         padded[:, :v] = basis
         self.blocks = np.ascontiguousarray(padded.reshape(k, count, 3 * self.BLOCK).transpose(1, 0, 2))
         self.stretch = np.ascontiguousarray(stretch, np.float64)
-        self.struct = _SubspaceArgs(
+        self.struct = SubspaceArgs(
             self.basis.ctypes.data,
             self.blocks.ctypes.data,
             self.stretch.ctypes.data,
@@ -103,26 +80,6 @@ class SubspaceMove:
             float(ridge),
             float(clearance),
         )
-
-
-class _StrainArgs(ctypes.Structure):
-    """kernels.c's StrainArgs."""
-
-    _fields_ = [
-        ("edges", ctypes.c_void_p),
-        ("rest", ctypes.c_void_p),
-        ("colour", ctypes.c_void_p),
-        ("colour_ptr", ctypes.c_void_p),
-        ("ve_ptr", ctypes.c_void_p),
-        ("ve_idx", ctypes.c_void_p),
-        ("E", ctypes.c_int),
-        ("colours", ctypes.c_int),
-        ("iterations", ctypes.c_int),
-        ("max_strain", ctypes.c_double),
-        ("slack", ctypes.c_double),
-        ("tol", ctypes.c_double),
-        ("omega", ctypes.c_double),
-    ]
 
 
 class PushMesh:
@@ -198,10 +155,10 @@ class StrainLimit(NamedTuple):
     omega: float
     slack: float = 0.0
 
-    def arguments(self) -> _StrainArgs:
+    def arguments(self) -> StrainArgs:
         """The kernel's StrainArgs of this limit (the edge arrays' addresses: keep them alive)."""
         arrays = self.edge_arrays
-        return _StrainArgs(
+        return StrainArgs(
             *arrays.addresses,
             len(arrays.edges),
             arrays.colours,
@@ -211,40 +168,6 @@ class StrainLimit(NamedTuple):
             self.tol,
             self.omega,
         )
-
-
-def _capsule_arrays(
-    a: np.ndarray, b: np.ndarray, radii: np.ndarray
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    if np.shape(radii)[-1] > MAX_CAPSULES:
-        raise ValueError(
-            f"the native capsule kernels handle up to {MAX_CAPSULES} capsules, not {np.shape(radii)[-1]}"
-        )
-    return tuple(np.ascontiguousarray(x, np.float64) for x in (a, b, radii))
-
-
-def capsule_sdf(
-    lib: ctypes.CDLL, points: np.ndarray, a: np.ndarray, b: np.ndarray, radii: np.ndarray, threads: int = 1
-) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`hrr_garment.body.capsules.capsule_signed_distance` (distance, normal) in the kernel,
-    for points (T, N, 3) against per-frame capsules a, b (T, C, 3)."""
-    a, b, r = _capsule_arrays(a, b, radii)
-    p = np.ascontiguousarray(points, np.float64)
-    t, n = p.shape[:2]
-    dist, normal = np.empty((t, n)), np.empty((t, n, 3))
-    lib.hrr_capsule_sdf(
-        p.ctypes.data,
-        t,
-        n,
-        a.ctypes.data,
-        b.ctypes.data,
-        r.ctypes.data,
-        len(r),
-        threads,
-        dist.ctypes.data,
-        normal.ctypes.data,
-    )
-    return dist, normal
 
 
 def push_out_frames(
@@ -269,7 +192,7 @@ def push_out_frames(
     parallel; a single frame (streaming) shared by the threads. ``out``: a C-contiguous float32
     array of the points' shape the pushed points are written to (and returned)."""
     mean, *_, mesh, limit, subspace = steps
-    a, b, r = _capsule_arrays(*capsules)
+    a, b, r = capsule_arrays(*capsules)
     p = np.ascontiguousarray(points, np.float64 if np.asarray(points).dtype == np.float64 else np.float32)
     if out is None:
         out = np.empty(p.shape, np.float32)
