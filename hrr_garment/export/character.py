@@ -33,10 +33,10 @@ from ..data.animation_file import AnimationFile
 from ..errors import InputError
 from ..garment.mesh import vertex_normals
 from ..motion.skeleton import JOINT_NAMES, PARENTS
+from .glb_blob import ARRAY_BUFFER, ELEMENT_ARRAY_BUFFER
 
 INFLUENCES = 4  # joints per vertex in the GLB (glTF's JOINTS_0 / WEIGHTS_0)
 SKELETON_TOLERANCE_M = 1e-3  # how far the animation's bones may differ from the character's fitted ones
-_FLOAT_BUFFER, _INDEX_BUFFER = 34962, 34963
 
 
 @dataclass(frozen=True)
@@ -151,12 +151,12 @@ def add_character(
     joints, weights = top_influences(character.weights)
     vertices = character.vertices.astype(np.float32)
     attributes = gl.Attributes(
-        POSITION=blob.stored(vertices, "VEC3", _FLOAT_BUFFER, bounds=True),
+        POSITION=blob.stored(vertices, "VEC3", ARRAY_BUFFER, bounds=True),
         NORMAL=blob.stored(
-            vertex_normals(vertices[None], character.faces)[0].astype(np.float32), "VEC3", _FLOAT_BUFFER
+            vertex_normals(vertices[None], character.faces)[0].astype(np.float32), "VEC3", ARRAY_BUFFER
         ),
-        JOINTS_0=blob.stored(joints, "VEC4", _FLOAT_BUFFER),
-        WEIGHTS_0=blob.stored(weights, "VEC4", _FLOAT_BUFFER),
+        JOINTS_0=blob.stored(joints, "VEC4", ARRAY_BUFFER),
+        WEIGHTS_0=blob.stored(weights, "VEC4", ARRAY_BUFFER),
     )
     materials.append(
         gl.Material(
@@ -173,7 +173,9 @@ def add_character(
                 gl.Primitive(
                     attributes=attributes,
                     material=len(materials) - 1,
-                    indices=blob.stored(character.faces.astype(np.uint32).ravel(), "SCALAR", _INDEX_BUFFER),
+                    indices=blob.stored(
+                        character.faces.astype(np.uint32).ravel(), "SCALAR", ELEMENT_ARRAY_BUFFER
+                    ),
                 )
             ],
         )
