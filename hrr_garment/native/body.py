@@ -36,7 +36,7 @@ class PushSteps(NamedTuple):
 
     def arguments(self) -> PushArgs:
         """The kernel's PushArgs of these steps."""
-        return PushArgs(self.margin, self.smooth, self.rounds, self.depth)
+        return PushArgs(margin=self.margin, smooth=self.smooth, rounds=self.rounds, depth=self.depth)
 
 
 class SubspaceMove:
@@ -71,14 +71,14 @@ class SubspaceMove:
         self.blocks = np.ascontiguousarray(padded.reshape(k, count, 3 * self.BLOCK).transpose(1, 0, 2))
         self.stretch = np.ascontiguousarray(stretch, np.float64)
         self.struct = SubspaceArgs(
-            self.basis.ctypes.data,
-            self.blocks.ctypes.data,
-            self.stretch.ctypes.data,
-            len(self.stretch),
-            int(iterations),
-            float(strain_weight),
-            float(ridge),
-            float(clearance),
+            basis=self.basis.ctypes.data,
+            blocks=self.blocks.ctypes.data,
+            stretch=self.stretch.ctypes.data,
+            k=len(self.stretch),
+            iterations=int(iterations),
+            strain_weight=float(strain_weight),
+            ridge=float(ridge),
+            clearance=float(clearance),
         )
 
 
@@ -158,15 +158,21 @@ class StrainLimit(NamedTuple):
     def arguments(self) -> StrainArgs:
         """The kernel's StrainArgs of this limit (the edge arrays' addresses: keep them alive)."""
         arrays = self.edge_arrays
+        edges, rest, colour, colour_ptr, ve_ptr, ve_idx = arrays.addresses
         return StrainArgs(
-            *arrays.addresses,
-            len(arrays.edges),
-            arrays.colours,
-            self.iterations,
-            self.max_strain,
-            self.slack,
-            self.tol,
-            self.omega,
+            edges=edges,
+            rest=rest,
+            colour=colour,
+            colour_ptr=colour_ptr,
+            ve_ptr=ve_ptr,
+            ve_idx=ve_idx,
+            E=len(arrays.edges),
+            colours=arrays.colours,
+            iterations=self.iterations,
+            max_strain=self.max_strain,
+            slack=self.slack,
+            tol=self.tol,
+            omega=self.omega,
         )
 
 
