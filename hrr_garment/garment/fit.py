@@ -33,7 +33,7 @@ UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001, "in": 0.0254}
 GARMENT_SIZE_M = (0.2, 2.2)  # largest extent of any plausible garment
 TOP_BAND_M = 0.03
 CONTACT_M = 0.02
-CLEARANCE_M = 0.012  # the built-in garments' distance from the body (templates.TubeShape.gap)
+CLEARANCE_M = 0.012  # the built-in garments' distance from the body (tube_shapes.TubeShape.gap)
 INSIDE_WARNING = 0.01  # a fitted garment with more of its vertices inside the body is pointed to --made-for
 
 
