@@ -32,7 +32,8 @@ def add_garment_options(p: argparse.ArgumentParser) -> None:
         "--attached",
         default=None,
         metavar="GROUP",
-        help="OBJ group whose vertices follow the body (with --template); 'auto': the top band lying on the torso",
+        help="OBJ group whose vertices follow the body (with --template); 'auto': the top band lying on the "
+        "torso",
     )
     p.add_argument(
         "--attached-file",

@@ -114,7 +114,8 @@ def _main(argv: Sequence[str] | None) -> int:
     if args.made_for and args.fit:
         raise InputError(
             "--fit",
-            "moves a garment onto the mannequin; a garment declared --made-for its body is carried, not moved",
+            "moves a garment onto the mannequin; a garment declared --made-for its body is carried, not "
+            "moved",
         )
     made_for = read_body(args.made_for) if args.made_for else None
     garment = resolve_garment(args, preset.vertices, made_for)

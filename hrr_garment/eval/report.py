@@ -118,9 +118,9 @@ def markdown(report: dict, plots: list[str]) -> str:
         "",
         f"Model `{model['folder']}` (hash {model['hash']}, calibrated gate {model.get('gate', 'entropy')} < "
         f"{model['tau']:.3f}; the default mode, auto, runs {model.get('auto', 'hybrid')}); dataset "
-        f"`{data['path']}`, split **{data['split']}**: {len(data['sequences'])} sequences, {data['frames']} frames. "
-        f"Collision push-out {'on' if settings['collision'] else 'off'}; own sequence excluded from retrieval: "
-        f"{'yes' if settings['exclude_own_sequence'] else 'no'}; hybrid gate {settings['gate']} < "
+        f"`{data['path']}`, split **{data['split']}**: {len(data['sequences'])} sequences, {data['frames']} "
+        f"frames. Collision push-out {'on' if settings['collision'] else 'off'}; own sequence excluded from "
+        f"retrieval: {'yes' if settings['exclude_own_sequence'] else 'no'}; hybrid gate {settings['gate']} < "
         f"{settings['tau']:.3f}" + _detail_clause(settings) + ". "
         f"Run time {report['seconds']:.0f} s.",
         "",
@@ -136,8 +136,9 @@ def markdown(report: dict, plots: list[str]) -> str:
         out += ["## Against the simulator's own chaos (ensemble ground truth)", "", *lead, ""]
         if reference:
             out += [
-                f"*{DATASET_SIMULATION}*: the dataset's own frames of each clip (what the model trained or was validated "
-                "on) scored as a prediction: about 1 x the floor where they are a simulation like the members.",
+                f"*{DATASET_SIMULATION}*: the dataset's own frames of each clip (what the model trained or "
+                "was validated on) scored as a prediction: about 1 x the floor where they are a simulation "
+                "like the members.",
                 "",
             ]
     out += markdown_holdouts(report.get("holdouts"))
@@ -174,10 +175,10 @@ def markdown(report: dict, plots: list[str]) -> str:
             "",
             "## Paper protocol (code space validated on a tenth of its training clips' windows)",
             "",
-            f"Model `{paper['model']}` (hash {paper['hash']}, calibrated gate {paper.get('gate', 'entropy')} < "
-            f"{paper['tau']:.3f}) on the same "
-            "sequences. The paper reserved 3-5 test clips and split the rest 9:1 into training and validation "
-            "(by window): tau is calibrated on windows of the training clips.",
+            f"Model `{paper['model']}` (hash {paper['hash']}, calibrated gate {paper.get('gate', 'entropy')} "
+            f"< {paper['tau']:.3f}) on the same sequences. The paper reserved 3-5 test clips and split the "
+            "rest 9:1 into training and validation (by window): tau is calibrated on windows of the "
+            "training clips.",
             "",
         ]
         lead = ensemble_table(paper["modes"], report.get("ensemble", {}))
@@ -198,8 +199,8 @@ def markdown(report: dict, plots: list[str]) -> str:
             "",
             "## Library protocol (the training clips played again)",
             "",
-            "Clips of the model's database re-timed by 0.9-1.1, entered part-way and cross-faded into each other "
-            f"over 0.3-0.5 s (seed {library['seed']}), as a game's animation system plays its library:",
+            "Clips of the model's database re-timed by 0.9-1.1, entered part-way and cross-faded into each "
+            f"other over 0.3-0.5 s (seed {library['seed']}), as a game's animation system plays its library:",
             "",
         ]
         out += [f"- `{name}`: {description}" for name, description in library["plays"].items()]
@@ -220,9 +221,9 @@ def markdown(report: dict, plots: list[str]) -> str:
             "",
             "## Unseen bodies (each beside a specialist trained on it alone)",
             "",
-            "The default mode (auto) of this model and of each body's specialist on the test clips of a dataset "
-            "simulated on that body, against its own truth ensembles; penetration against that body's capsules, "
-            "before the push-out; sharpness and hem swing over the truth's.",
+            "The default mode (auto) of this model and of each body's specialist on the test clips of a "
+            "dataset simulated on that body, against its own truth ensembles; penetration against that "
+            "body's capsules, before the push-out; sharpness and hem swing over the truth's.",
             "",
             *markdown_table(unseen),
         ]

@@ -74,8 +74,8 @@ def ensemble_table(modes: dict, ensemble: dict) -> list[str]:
     lines = [
         f"Against {ensemble['members']} perturbed simulations of each of {ensemble['sequences']} sequences "
         f"({', '.join(ensemble['perturbations'])}); floor = mean PVE between two of them, "
-        f"{any_row['floor_mm']:.2f} mm. PVE / floor is 1 for a prediction as good as a fresh simulation and about "
-        "0.71 for the perfect mean; ratios are the prediction's value over the truths'.",
+        f"{any_row['floor_mm']:.2f} mm. PVE / floor is 1 for a prediction as good as a fresh simulation and "
+        "about 0.71 for the perfect mean; ratios are the prediction's value over the truths'.",
         "",
         "| mode | " + " | ".join(label for _, label, _ in ENSEMBLE_METRICS) + " |",
         "|---|" + "---:|" * len(ENSEMBLE_METRICS),
@@ -91,8 +91,8 @@ def goal_table(goals: dict) -> list[str]:
     for name, g in goals.items():
         if name == "interior_tau_optimum":
             lines.append(
-                f"| interior tau optimum | best tau {g['best_tau']:.3f} ({g['best_pve_mm']:.2f} mm, retrieval "
-                f"{100 * g['retrieval_usage']:.0f} %) | interior | {'yes' if g['met'] else 'no'} |"
+                f"| interior tau optimum | best tau {g['best_tau']:.3f} ({g['best_pve_mm']:.2f} mm, "
+                f"retrieval {100 * g['retrieval_usage']:.0f} %) | interior | {'yes' if g['met'] else 'no'} |"
             )
         else:
             target = "" if g["target"] is None else f"<= {g['target']}"
@@ -107,7 +107,8 @@ def sweep_table(points: list[dict]) -> list[str]:
         "| tau | PVE mm | retrieval usage | sharpness (bend E ratio) |",
         "|---:|---:|---:|---:|",
         *[
-            f"| {p['tau']:.3f} | {p['pve_mm']:.2f} | {100 * p['retrieval_usage']:.1f} % | {p.get('sharpness', math.nan):.2f} |"
+            f"| {p['tau']:.3f} | {p['pve_mm']:.2f} | {100 * p['retrieval_usage']:.1f} % | "
+            f"{p.get('sharpness', math.nan):.2f} |"
             for p in points
         ],
     ]

@@ -55,8 +55,8 @@ class Fit:
     def describe(self) -> str:
         moved = ", ".join(f"{v:+.3f}" for v in self.offset)
         note = (
-            f"unit {self.unit} (x{self.scale:g}), up axis {self.up} -> +y, moved by ({moved}) m; its top band sits on "
-            f"average {1000 * self.top_gap_m:.0f} mm off a 12 mm clearance from the torso; "
+            f"unit {self.unit} (x{self.scale:g}), up axis {self.up} -> +y, moved by ({moved}) m; its top "
+            f"band sits on average {1000 * self.top_gap_m:.0f} mm off a 12 mm clearance from the torso; "
             f"{100 * self.inside:.1f} % of its vertices land more than 5 mm inside the body"
         )
         if self.inside > INSIDE_WARNING:

@@ -37,7 +37,8 @@ def load_amass(
     if missing:
         raise MotionError(
             path,
-            f"missing keys {missing} (AMASS-style npz needs poses, trans and the frame rate; native npz files carry format={NATIVE_FORMAT!r})",
+            f"missing keys {missing} (AMASS-style npz needs poses, trans and the frame rate; native npz "
+            f"files carry format={NATIVE_FORMAT!r})",
         )
     if rate_key is None and source_fps is None:
         raise MotionError(

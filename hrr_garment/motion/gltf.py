@@ -50,7 +50,8 @@ def _pick_skin(doc: GltfDocument, channels: list[AnimationChannel]) -> list[int]
     joints = list(skins[best].joints or [])
     if len(joints) > MAX_BVH_JOINTS:
         raise doc.fail(
-            f"skin {best} has {len(joints)} joints, more than {MAX_BVH_JOINTS} (a human rig has under a few hundred)"
+            f"skin {best} has {len(joints)} joints, more than {MAX_BVH_JOINTS} (a human rig has under a few "
+            "hundred)"
         )
     if not joints or not all(isinstance(j, int) and 0 <= j < len(doc.doc.nodes) for j in joints):
         raise doc.fail(f"skin {best} has no joints or names nodes that are missing")

@@ -105,8 +105,8 @@ def read_channels(doc: GltfDocument, index: int) -> list[AnimationChannel]:
             or not (np.diff(times) >= 0).all()
         ):
             raise doc.fail(
-                f"animation {index} channel {c} ({target.path} of node {target.node}): "
-                f"{len(times)} key times (must increase) for {values.shape[0]} values of width {values.shape[1]}"
+                f"animation {index} channel {c} ({target.path} of node {target.node}): {len(times)} key "
+                f"times (must increase) for {values.shape[0]} values of width {values.shape[1]}"
             )
         if target.path == "rotation":
             values = values[:, [3, 0, 1, 2]]  # glTF quaternions are x, y, z, w

@@ -42,7 +42,8 @@ def native_from_arrays(data: dict[str, np.ndarray], path: Path) -> Motion:
     if version.dtype.kind not in "iu" or version.size != 1 or int(version) != NATIVE_VERSION:
         raise MotionError(
             path,
-            f"native motion format version {str(version)[:20]} is not supported (this build reads version {NATIVE_VERSION})",
+            f"native motion format version {str(version)[:20]} is not supported (this build reads version "
+            f"{NATIVE_VERSION})",
         )
     missing = [k for k in ("local_rotations", "root_translation", "fps") if k not in data]
     if missing:

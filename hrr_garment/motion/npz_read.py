@@ -79,5 +79,6 @@ def check_finite(path: Path, *arrays: np.ndarray) -> None:
         if not ok.all():
             raise MotionError(
                 path,
-                f"non-finite values (NaN or inf) in {int((~ok).sum())} frame(s), first at frame {int(np.argmin(ok))}",
+                f"non-finite values (NaN or inf) in {int((~ok).sum())} frame(s), first at frame "
+                f"{int(np.argmin(ok))}",
             )

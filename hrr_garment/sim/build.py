@@ -160,8 +160,8 @@ def build_dataset(
         ):  # drawn from the training clips once the split is known
             if progress:
                 print(
-                    f"planning {o.splices.count} splices of the training clips (each checked for limbs through the body) "
-                    f"and {o.splices.backward} windows played backward"
+                    f"planning {o.splices.count} splices of the training clips (each checked for limbs "
+                    f"through the body) and {o.splices.backward} windows played backward"
                 )
             training = set(split["train"])
             splices = plan_splices(splice_candidates(specs, training, o.splices), o.splices)

@@ -169,7 +169,8 @@ def plan_sequences(
     names = [s.name for s in specs]
     if len(set(names)) != len(names):
         raise HRRError(
-            f"two motions would get the same sequence name: {sorted({n for n in names if names.count(n) > 1})}"
+            "two motions would get the same sequence name: "
+            f"{sorted({n for n in names if names.count(n) > 1})}"
         )
     if not specs:
         raise HRRError("nothing to simulate: the preset lists no sequences and no --motions were given")

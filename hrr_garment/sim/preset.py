@@ -82,7 +82,8 @@ def load_preset(name_or_path: str) -> Preset:
     if mirror_mode(preset.mirror) is None:
         raise InputError(
             path,
-            f"mirror: {preset.mirror!r} is not one of {', '.join(repr(m) for m in MIRROR_MODES)} (or true / false)",
+            f"mirror: {preset.mirror!r} is not one of {', '.join(repr(m) for m in MIRROR_MODES)} (or true / "
+            "false)",
         )
     unknown = sorted(set(preset.sequences) - set(KINDS))
     if unknown:
@@ -125,7 +126,8 @@ def _check_splices(path: Path, preset: Preset) -> None:
     if bad:
         raise InputError(
             path,
-            f"splices: {bad!r} not understood; it takes {', '.join(SPLICE_KEYS)} (numbers >= 0, a field name)",
+            f"splices: {bad!r} not understood; it takes {', '.join(SPLICE_KEYS)} (numbers >= 0, a field "
+            "name)",
         )
     name_field = preset.splices.get("field", "content")
     if preset.splices.get("count") and name_field not in re.compile(preset.name_pattern).groupindex:

@@ -33,7 +33,8 @@ def add_reflected_mirrors(
     }
     if asymmetric and progress:
         print(
-            f"not mirroring the sequences on {len(asymmetric)} asymmetric bod(y/ies): {sorted(asymmetric)[:3]}"
+            f"not mirroring the sequences on {len(asymmetric)} asymmetric bod(y/ies): "
+            f"{sorted(asymmetric)[:3]}"
         )
     flip = np.array([-1.0, 1.0, 1.0], np.float32)
     mirrored = [
