@@ -57,8 +57,9 @@ class SkinnedCharacter:
 
 
 def skinned_character(path: str | Path, **read) -> SkinnedCharacter:
-    """The character file ``path`` ready to export (``read``: :func:`~hrr_garment.body.character.read_character`'s
-    options); an InputError naming the file where its mesh carries no skin weights."""
+    """The character file ``path`` ready to export (``read``:
+    :func:`~hrr_garment.body.character.read_character`'s options); an InputError naming the file
+    where its mesh carries no skin weights."""
     record, character = character_body(path, **read)
     if character.weights is None:
         raise InputError(path, "its skinned mesh has no JOINTS_0 / WEIGHTS_0, so it cannot be posed")

@@ -136,7 +136,8 @@ def render_frames(
             yield render_frame(anim, style, int(t), track)
             bar.update()
     else:
-        # Ctrl-C and SIGTERM wait for the next frame: raised inside the pool's internals they can hang its clean-up
+        # Ctrl-C and SIGTERM wait for the next frame: raised inside the pool's internals they can
+        # hang its clean-up
         with (
             DeferredSignals() as signals,
             multiprocessing.get_context().Pool(

@@ -101,7 +101,8 @@ NAMING_SCHEMES: dict[str, dict[str, list[str]]] = {
             "{side}_wrist": ["Hand_{S}"],
         }
     ),
-    # Mixamo (names carry a "mixamorig:" prefix, or "mixamorig_" / "mixamorig" in glTF files, stripped before matching).
+    # Mixamo (names carry a "mixamorig:" prefix, or "mixamorig_" / "mixamorig" in glTF files,
+    # stripped before matching).
     "mixamo": _lr(
         {
             "pelvis": ["Hips"],

@@ -187,16 +187,17 @@ def push_out_frames(
     out: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """:func:`hrr_garment.inference.collision.push_out`'s per-frame steps in the kernel: points
-    (T, V, 3) float32 or float64 (others are converted to float32), ``capsules`` (ends a, b (T, C, 3), radii (C,) or per
-    frame (T, C)), the push's ``steps`` -> (pushed points float32, fraction deeper than
-    ``steps.depth`` before (T,), after (T,), the (T,) mask of frames the strain limit moved). The
-    push and the limit work in float64, a frame at a time. With ``steps.subspace``, each frame is
-    first moved in the garment's subspace, its body frame turned by ``turn`` (T, 3, 3, body ->
-    world), and ``before`` is the mesh push's. With ``steps.limit``, each frame is limited right
-    after its push (as :func:`limit_strain` on the pushed and unpushed frames would, measuring only
-    the edges of the vertices the push moved); ``after`` is the push's, before the limit. Frames in
-    parallel; a single frame (streaming) shared by the threads. ``out``: a C-contiguous float32
-    array of the points' shape the pushed points are written to (and returned)."""
+    (T, V, 3) float32 or float64 (others are converted to float32), ``capsules`` (ends a, b
+    (T, C, 3), radii (C,) or per frame (T, C)), the push's ``steps`` -> (pushed points float32,
+    fraction deeper than ``steps.depth`` before (T,), after (T,), the (T,) mask of frames the strain
+    limit moved). The push and the limit work in float64, a frame at a time. With
+    ``steps.subspace``, each frame is first moved in the garment's subspace, its body frame turned
+    by ``turn`` (T, 3, 3, body -> world), and ``before`` is the mesh push's. With ``steps.limit``,
+    each frame is limited right after its push (as :func:`limit_strain` on the pushed and unpushed
+    frames would, measuring only the edges of the vertices the push moved); ``after`` is the push's,
+    before the limit. Frames in parallel; a single frame (streaming) shared by the threads. ``out``:
+    a C-contiguous float32 array of the points' shape the pushed points are written to (and
+    returned)."""
     mean, *_, mesh, limit, subspace = steps
     a, b, r = capsule_arrays(*capsules)
     p = np.ascontiguousarray(points, np.float64 if np.asarray(points).dtype == np.float64 else np.float32)
@@ -260,8 +261,9 @@ def limit_strain(
 ) -> tuple[np.ndarray, np.ndarray]:
     """:func:`hrr_garment.inference.collision.limit_push_strain` in the kernel: pushed and unpushed
     points (T, V, 3), the ``limit`` (:class:`StrainLimit`) -> (the limited points, float64 (T, V, 3);
-    the (T,) mask of frames that had an edge over its limit). Frames in parallel; each stops on its own. ``in_place``: a C-contiguous float64
-    ``pushed`` is moved where it lies (and returned) instead of copied."""
+    the (T,) mask of frames that had an edge over its limit). Frames in parallel; each stops on its
+    own. ``in_place``: a C-contiguous float64 ``pushed`` is moved where it lies (and returned)
+    instead of copied."""
     own = in_place and pushed.dtype == np.float64 and pushed.flags.c_contiguous
     p = pushed if own else np.array(pushed, np.float64, order="C")  # moved in place
     u = np.ascontiguousarray(unpushed, np.float64)

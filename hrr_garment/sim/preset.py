@@ -51,7 +51,8 @@ class Preset:
     bodies: dict = field(
         default_factory=dict
     )  # which bodies the sequences stand on (sim/bodies.py); none: the mannequin
-    # more training motion from the training clips' parts (sim/augment.py): {count, seconds, arm_delay_s, field}
+    # more training motion from the training clips' parts (sim/augment.py): {count, seconds,
+    # arm_delay_s, field}
     splices: dict = field(default_factory=dict)
 
 
@@ -114,7 +115,8 @@ SPLICE_KEYS = {
 
 
 def _check_splices(path: Path, preset: Preset) -> None:
-    """An InputError unless ``splices`` holds only known keys of the right types and a field of the name pattern."""
+    """An InputError unless ``splices`` holds only known keys of the right types and a field of the
+    name pattern."""
     bad = {
         k: v
         for k, v in preset.splices.items()

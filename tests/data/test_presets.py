@@ -108,7 +108,8 @@ def test_mirrored_sequences_join_their_source_split():
     # Reflecting twice gives the frames back; each vertex lands where its mirror partner was.
     np.testing.assert_allclose(mirrored.garment[:, perm] * [-1, 1, 1], frames, atol=1e-6)
     assert mirrored.info["mirror_of"] == "a"
-    # a sequence on a body that is not its own mirror image is not mirrored (the mirror would stand on another body)
+    # a sequence on a body that is not its own mirror image is not mirrored (the mirror would stand
+    # on another body)
     from dataclasses import replace
 
     from hrr_garment.body.body_file import BodyRecord

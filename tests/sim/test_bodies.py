@@ -79,7 +79,8 @@ def test_a_users_preset_file_extends_a_built_in_preset_by_its_name(tmp_path):
 
 def test_every_clip_on_the_mannequin_as_well_holds_out_the_same_bodies():
     """``mannequin: true``: each clip also on the mannequin under its own name (a dataset of the mannequin
-    alone holds its part), the mannequin never held out as a body, the sampled bodies held out as without it."""
+    alone holds its part), the mannequin never held out as a body, the sampled bodies held out as
+    without it."""
     pytest.importorskip("anny", reason="the bodies extra is not installed")
     from hrr_garment.data.splits import split_groups
     from hrr_garment.sim.build import BuildOptions

@@ -46,5 +46,6 @@ def idle(rng, seconds, sway=None, sway_hz=None, stance_width=None):
 
 KINDS: dict[str, Callable[..., Plan]] = {
     "idle": idle, "walk": walk, "run": run, "walk_curve": walk_curve, "turn_in_place": turn_in_place,
-    "side_step": side_step, "walk_backward": walk_backward, "jump": jump, "hop": hop, "spin": spin, "dance": dance,
+    "side_step": side_step, "walk_backward": walk_backward, "jump": jump, "hop": hop, "spin": spin,
+    "dance": dance,
 }  # fmt: skip
