@@ -25,7 +25,7 @@ import numpy as np
 
 from hrr_garment import Animator, load_motion
 from hrr_garment.body.capsules import DEFAULT_BODY, body_mesh
-from hrr_garment.export.preview import PreviewMesh
+from hrr_garment.export.ortho_render import PreviewMesh
 from hrr_garment.export.video import BODY, GARMENT, PreviewStyle, render_scene
 from hrr_garment.motion.rotations import matrix_to_quat
 from hrr_garment.motion.synth import synthesize

@@ -22,7 +22,8 @@ from hrr_garment.data.dataset import DatasetError, _json_attr
 from hrr_garment.errors import InputError, MotionError
 from hrr_garment.io_utils import strict_json
 from hrr_garment.motion.bvh_write import write_bvh
-from hrr_garment.motion.io import check_source_fps, load_motion
+from hrr_garment.motion.io import load_motion
+from hrr_garment.motion.limits import check_source_fps
 from hrr_garment.motion.skeleton import CANONICAL, JOINT_NAMES, PARENTS
 from tests.conftest import write_meta
 

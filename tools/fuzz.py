@@ -996,7 +996,7 @@ def check_output(path: Path) -> str:
             arrays = [loaded] if isinstance(loaded, np.ndarray) else [loaded[k] for k in loaded.files]
             return "" if all(np.isfinite(a).all() for a in arrays) else "non-finite features"
         if path.suffix == ".glb":
-            from hrr_garment.export.glb import read_glb_keyframes
+            from hrr_garment.export.glb_read import read_glb_keyframes
 
             _, verts, _ = read_glb_keyframes(path)
             return "" if np.isfinite(verts).all() else "non-finite keyframes"

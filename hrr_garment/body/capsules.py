@@ -162,7 +162,7 @@ def frames_signed_distance(
     (T, N, 3). Runs in the native kernel of :mod:`hrr_garment.native` when it is compiled (equal to
     1e-12, tested)."""
     from ..native import default_threads, load_kernel
-    from ..native.body import capsule_sdf
+    from ..native.capsules import capsule_sdf
 
     lib = load_kernel()
     per_frame = np.ndim(radii) == 2

@@ -170,7 +170,8 @@ def read_character(
     bind, posed = _skin_to_world(world, ibm)
     if abs(np.linalg.det(bind[:3, :3])) < 1e-12:
         raise doc.fail(
-            f"skin {skin}'s bind pose is degenerate (its joints times their inverse bind matrices are singular)"
+            f"skin {skin}'s bind pose is degenerate (its joints times their inverse bind matrices are "
+            "singular)"
         )
     vertices, faces, skinning = read_mesh(doc, meshes)
     vertices = vertices @ bind[:3, :3].T + bind[:3, 3]

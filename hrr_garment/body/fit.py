@@ -207,7 +207,8 @@ def fit_body(vertices: np.ndarray, joints: np.ndarray) -> FittedBody:
         raise ValueError(f"a body mesh needs (V >= 50, 3) finite vertices, got {vertices.shape}")
     if joints.shape != (len(JOINT_NAMES), 3) or not np.isfinite(joints).all():
         raise ValueError(
-            f"a body needs its {len(JOINT_NAMES)} canonical joints as (22, 3) finite positions, got {joints.shape}"
+            f"a body needs its {len(JOINT_NAMES)} canonical joints as (22, 3) finite positions, got "
+            f"{joints.shape}"
         )
     skeleton = body_skeleton(joints)
     rotations = rest_pose_rotations(skeleton, joints)

@@ -51,7 +51,9 @@ HAND_RADIUS_MAX = next(c.radius for c in DEFAULT_BODY.capsules if c.name == "l_h
 class PerformerBody:
     """The body a clip's performer is played on (see the module docstring)."""
 
-    body: BodyModel  # capsules + skeleton + pelvis_height: what simulate_garment / motion_on_body / make_garment(body=) take
+    # capsules + skeleton + pelvis_height: what simulate_garment / motion_on_body /
+    # make_garment(body=) take
+    body: BodyModel
     stature: float  # metres, soles to the top of the head
     shape: dict  # anny's phenotype it was built from (BodyShape's fields), JSON-serialisable
     errors_mm: dict[str, float]  # each measure's difference, body minus performer

@@ -141,9 +141,9 @@ def _fit_character(args) -> int:
         notes.append(f"placed {', '.join(character.filled_joints)}, which the skeleton lacks")
     fit = record.report
     print(
-        f"wrote {args.output}: {record.stature:.3f} m tall, pelvis {record.pelvis_height:.3f} m over the soles; "
-        f"capsules within {fit.mean_mm:.1f} mm of the surface on average (95th percentile {fit.p95_mm:.1f} mm; "
-        f"{fit.outside_1cm:.0%} of vertices more than 1 cm outside) ({'; '.join(notes)})"
+        f"wrote {args.output}: {record.stature:.3f} m tall, pelvis {record.pelvis_height:.3f} m over the "
+        f"soles; capsules within {fit.mean_mm:.1f} mm of the surface on average (95th percentile "
+        f"{fit.p95_mm:.1f} mm; {fit.outside_1cm:.0%} of vertices more than 1 cm outside) ({'; '.join(notes)})"
     )
     return 0
 
@@ -176,8 +176,8 @@ def _nearest(args) -> int:
     write_body(args.output, body)
     errors = ", ".join(f"{k} {v:+.0f}" for k, v in found.errors_mm.items())
     print(
-        f"wrote {args.output}: {body.fitted.stature:.3f} m tall ({_values(body.shape.to_dict())}); the performer's "
-        f"measures missed by {found.rms_mm:.1f} mm RMS ({errors} mm)"
+        f"wrote {args.output}: {body.fitted.stature:.3f} m tall ({_values(body.shape.to_dict())}); the "
+        f"performer's measures missed by {found.rms_mm:.1f} mm RMS ({errors} mm)"
     )
     return 0
 
@@ -230,8 +230,8 @@ def _main(argv: Sequence[str] | None) -> int:
             )
             for who, r in summary["model"].get("inside_before_push_out", {}).items():
                 print(
-                    f"inside {who} before the push-out, on a {r['clip']}: {r['inside_pct']:.2f} % of the cloth more than "
-                    f"5 mm in (worst frame {r['inside_worst_pct']:.2f} %)"
+                    f"inside {who} before the push-out, on a {r['clip']}: {r['inside_pct']:.2f} % of the "
+                    f"cloth more than 5 mm in (worst frame {r['inside_worst_pct']:.2f} %)"
                 )
         return 1 if outside else 0
     if args.output.suffix.lower() != ".json":
@@ -252,8 +252,9 @@ def _main(argv: Sequence[str] | None) -> int:
     summary = _summary(read_body(args.output))
     fit = body.fitted.report
     print(
-        f"wrote {args.output}: {summary['stature_m']:.3f} m tall, pelvis {summary['pelvis_height_m']:.3f} m over the soles; capsules within {fit.mean_mm:.1f} mm of the surface on average "
-        f"(95th percentile {fit.p95_mm:.1f} mm)"
+        f"wrote {args.output}: {summary['stature_m']:.3f} m tall, pelvis {summary['pelvis_height_m']:.3f} m "
+        f"over the soles; capsules within {fit.mean_mm:.1f} mm of the surface on average (95th percentile "
+        f"{fit.p95_mm:.1f} mm)"
     )
     return 0
 

@@ -13,7 +13,7 @@ import numpy as np
 from ..errors import InputError
 from ..io_utils import atomic_path, refuse_input_as_output, require_suffix, strict_json
 from ..motion.features import motion_features
-from ..motion.gltf import gltf_summary
+from ..motion.gltf_animation import gltf_summary
 from ..motion.gltf_file import GLTF_SUFFIXES
 from ..motion.io import load_motion, save_motion
 from ..motion.poses import motion_to_poses

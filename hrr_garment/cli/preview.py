@@ -21,7 +21,7 @@ from ._common import run_cli
 
 
 def _parser() -> argparse.ArgumentParser:
-    from ..export.preview import VIEWS
+    from ..export.ortho_render import VIEWS
 
     p = argparse.ArgumentParser(
         prog="hrr-preview", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter

@@ -17,122 +17,19 @@ Re-running the same command skips sequences already simulated (kept in DATASET.p
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 from typing import Sequence
 
-from ..body.body_file import BodyRecord, body_to_dict, read_body
-from ..body.capsules import DEFAULT_BODY
+from ..body.body_file import body_to_dict, read_body
 from ..errors import InputError
-from ..garment.mesh import GarmentMesh
-from ..garment.obj import Placement, load_garment_obj
-from ..garment.templates import GARMENT_NAMES, make_garment
 from ..io_utils import refuse_input_as_output, require_suffix
 from ..paths import workspace
 from ..sim.plan import build_options, plan_sequences
 from ..sim.preset import load_preset, preset_names
 from ._common import add_fps_option, run_cli
-
-
-def add_garment_options(p: argparse.ArgumentParser) -> None:
-    """The options that pick a garment (shared with hrr-train)."""
-    p.add_argument(
-        "--garment",
-        default=None,
-        help=f"built-in template: {', '.join(GARMENT_NAMES)} (or the name of --template)",
-    )
-    p.add_argument(
-        "--template",
-        type=Path,
-        default=None,
-        help="your own garment OBJ in the canonical rest pose (Y up, metres)",
-    )
-    p.add_argument(
-        "--attached",
-        default=None,
-        metavar="GROUP",
-        help="OBJ group whose vertices follow the body (with --template); 'auto': the top band lying on the torso",
-    )
-    p.add_argument(
-        "--attached-file",
-        type=Path,
-        default=None,
-        help="file of 0-based attached vertex indices (with --template)",
-    )
-    p.add_argument("--vertices", type=int, default=None, help="template resolution (default: the preset's)")
-    p.add_argument(
-        "--fit",
-        action="store_true",
-        help="the OBJ is in another convention: detect its unit and up axis and place it on the body",
-    )
-    p.add_argument(
-        "--up",
-        default=None,
-        choices=("+x", "-x", "+y", "-y", "+z", "-z"),
-        help="with --fit: the OBJ's up axis",
-    )
-    p.add_argument(
-        "--unit", default=None, choices=("m", "cm", "mm", "in"), help="with --fit: the OBJ's length unit"
-    )
-    p.add_argument(
-        "--made-for",
-        type=Path,
-        default=None,
-        metavar="BODY_JSON",
-        help="the body your --template was modelled on (body.json from hrr-body; the OBJ in that body's "
-        "frame): the garment is carried from it onto the body simulated, which is this one unless "
-        "--body or the preset names others",
-    )
-    p.add_argument(
-        "--dense-ok",
-        action="store_true",
-        help="simulate a template far denser than the preset's resolution anyway (slow; see --preset full)",
-    )
-
-
-DENSE_FACTOR = 3  # a template with more than this many times the preset's vertices is refused
-
-
-def resolve_garment(
-    args: argparse.Namespace, default_vertices: int, made_for: BodyRecord | None = None
-) -> GarmentMesh:
-    """The garment the options name: a template, or the user's OBJ (fitted, its attached vertices
-    found, and refused when far denser than the preset's resolution unless --dense-ok)."""
-    if args.template is not None:
-        notes: list[str] = []
-        mesh = load_garment_obj(
-            args.template,
-            args.garment,
-            attached_group=args.attached,
-            attached_file=args.attached_file,
-            placement=Placement(
-                fit=args.fit,
-                up=args.up,
-                unit=args.unit,
-                body=made_for.body if made_for is not None else DEFAULT_BODY,
-            ),
-            notes=notes,
-        )
-        for note in notes:
-            print(note)
-        if mesh.num_vertices > DENSE_FACTOR * default_vertices and not args.dense_ok:
-            raise InputError(
-                args.template,
-                f"has {mesh.num_vertices:,} vertices, far more than this preset's "
-                f"{default_vertices:,}: the solver settings are tuned for that resolution "
-                "and the simulation time grows with it. Decimate the mesh to about "
-                f"{default_vertices:,} vertices, use a denser preset (--preset full: 4,000), "
-                "or pass --dense-ok",
-            )
-        return mesh
-    if args.fit or args.up or args.unit or args.made_for:
-        raise InputError(
-            "--made-for" if args.made_for else "--fit", "places your own garment: use it with --template OBJ"
-        )
-    if args.garment is None:
-        raise InputError("hrr-simulate", "give --garment NAME or --template OBJ")
-    return make_garment(args.garment, args.vertices or default_vertices)
+from .build_summary import print_build_report
+from .garment_options import add_garment_options, resolve_garment
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -217,7 +114,8 @@ def _main(argv: Sequence[str] | None) -> int:
     if args.made_for and args.fit:
         raise InputError(
             "--fit",
-            "moves a garment onto the mannequin; a garment declared --made-for its body is carried, not moved",
+            "moves a garment onto the mannequin; a garment declared --made-for its body is carried, not "
+            "moved",
         )
     made_for = read_body(args.made_for) if args.made_for else None
     garment = resolve_garment(args, preset.vertices, made_for)
@@ -268,57 +166,8 @@ def _main(argv: Sequence[str] | None) -> int:
         **options,
     )
     report = build_dataset(garment, choice.specs, config, out=out, options=build)
-    print_report(report, garment)
+    print_build_report(report, garment)
     return 0
-
-
-def print_report(report, garment: GarmentMesh) -> None:
-    """Print a dataset build's summary."""
-    s = report.summary
-    print(
-        f"wrote {report.path}: {s['sequences']} sequences, {s['frames']} frames, {garment.num_vertices} vertices "
-        f"({report.reused} reused, {report.simulated} simulated now, {len(report.rejects)} rejected)"
-    )
-    print(
-        f"  strain p99 {s['strain_p99']:.3f} (max {s['strain_max']:.2f}); penetration: worst frame "
-        f"{100 * s['penetration_frame_max']:.2f} % of vertices > 5 mm inside, mean {100 * s['penetration_mean']:.3f} %"
-    )
-    print(
-        f"  {s['self_intersection_frames']} frame(s) where the motion's limbs pass through the body; worst frame "
-        f"outside them {100 * s['penetration_frame_max_clean']:.2f} %"
-    )
-    if s["sim_frames_per_core_s"]:
-        print(
-            f"  {s['sim_frames_per_core_s']:.2f} simulated frames/s per core (lead-in included); wall {s['sim_wall_s']:.0f} s"
-        )
-    sp = s.get("splices", {})
-    if sp.get("asked"):
-        print(
-            f"  splices: {sp['made']} of {sp['asked']} (legs of one training clip, upper body of another; "
-            f"{sp['refused_self_intersection']} of {sp['drawn']} drawn refused for limbs through the body)"
-        )
-    if sp.get("backward_asked"):
-        short = (
-            ""
-            if sp["backward_made"] == sp["backward_asked"]
-            else " (fewer than asked: no training clip from a motion file is that long, or some failed to simulate)"
-        )
-        print(
-            f"  played backward: {sp['backward_made']} of {sp['backward_asked']} windows of training clips{short}"
-        )
-    for name, row in s.get("by_body", {}).items():
-        print(
-            f"  body {name or 'mannequin'} ({row['stature_m']:.2f} m): {row['sequences']} sequences, {row['frames']} frames, "
-            f"strain p99 {row['strain_p99']:.3f}"
-        )
-    print(
-        "  hem swing (m) by kind: "
-        + json.dumps({k: round(v, 3) for k, v in s["hem_swing_m_by_kind"].items()})
-    )
-    for name, reason in report.rejects.items():
-        print(f"  rejected {name}: {reason}")
-    if report.preview:
-        print(f"  preview: {report.preview}")
 
 
 def main(argv: Sequence[str] | None = None) -> int:

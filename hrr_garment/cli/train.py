@@ -92,9 +92,9 @@ class _Printer(TrainCallback):
 
     def on_stage_end(self, stage: str, result) -> None:
         if stage == "simulate" and result is not None:
-            from .simulate import print_report
+            from .build_summary import print_build_report
 
-            print_report(result.report, result.mesh)
+            print_build_report(result.report, result.mesh)
         elif stage == "autoencoder":
             _print_autoencoder(result)
         elif stage == "codespace":

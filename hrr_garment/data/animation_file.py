@@ -21,13 +21,8 @@
 
 Written to a temporary file and renamed, so a failed run leaves no half file.
 
-Versions (``format_version``; :func:`read_animation_h5` upgrades older files as it reads them):
-1 had no body capsules (still read; only what needs the body refuses such a file); 2 added them;
-3 renamed ``diagnostics/mode`` to ``diagnostics/retrieved`` (the inference mode is the ``mode``
-attribute) and ``diagnostics/source`` to ``diagnostics/match``, and ``retrieved`` no longer marks
-the residual and detail modes' frames, whose windows are the regression's with a match's detail;
-4 added the skeleton's motion (``body/rotations``, ``body/root_translation``, ``body/offsets``: what
-a character's skinned mesh is posed by in an export; older files export without it).
+Versions and the upgrade of older files: :mod:`.animation_versions`; the checks on reading:
+:mod:`.animation_checks`.
 """
 
 from __future__ import annotations
@@ -43,8 +38,9 @@ import numpy as np
 from ..errors import InputError
 from ..io_utils import atomic_h5
 from ..motion.motion import MAX_TRANSLATION_M
+from .animation_checks import check_arrays, checked_fps, checked_skeleton
+from .animation_versions import FORMAT_VERSION, OLD_NAMES, file_version, upgrade_from_version_2
 
-FORMAT_VERSION = 4
 SKELETON = (
     "body/rotations",
     "body/root_translation",
@@ -54,18 +50,6 @@ MAX_REACH_M = (
     1.5  # metres from the nearest body joint a garment vertex may be (a long dress's hem: under 0.6)
 )
 PER_FRAME = ("body/joints", "diagnostics/retrieved", "diagnostics/entropy", "diagnostics/match")
-
-
-def _fps(path: Path, attrs: dict) -> float:
-    """The file's frame rate attribute: one finite number in [1, 1000]."""
-    if "fps" not in attrs:
-        raise InputError(path, "missing the 'fps' attribute")
-    value = np.asarray(attrs["fps"])
-    if value.size != 1 or value.dtype.kind not in "iuf" or not 1 <= float(value.item()) <= 1000:
-        raise InputError(
-            path, f"the 'fps' attribute must be a frame rate in [1, 1000], got {str(attrs['fps'])[:40]!r}"
-        )
-    return float(value.item())
 
 
 @dataclass(frozen=True)
@@ -202,7 +186,7 @@ def read_animation_h5(path: str | Path) -> AnimationFile:
     try:
         with f:
             attrs = dict(f.attrs)
-            version = _version(path, attrs)
+            version = file_version(path, attrs)
             names = {**{k: k for k in PER_FRAME}, **(OLD_NAMES if version < 3 else {})}
             missing = [k for k in ("faces", "vertices") if k not in f] + [
                 names[k] for k in PER_FRAME if names[k] not in f
@@ -225,48 +209,12 @@ def read_animation_h5(path: str | Path) -> AnimationFile:
         raise InputError(
             path, f"damaged file, cannot be read ({type(exc).__name__}: {str(exc)[:200]})"
         ) from None
-    attrs["fps"] = _fps(path, attrs)
+    attrs["fps"] = checked_fps(path, attrs)
     if version < 3:
-        per_frame, attrs = _from_version_2(per_frame, attrs)
-    for key, arr in (("vertices", vertices), ("faces", faces), *per_frame.items()):
-        if not isinstance(arr, np.ndarray) or arr.dtype.kind not in "biuf":
-            raise InputError(path, f"/{key} must hold numbers, got {getattr(arr, 'dtype', type(arr))}")
-    if vertices.ndim != 3 or vertices.shape[2] != 3 or vertices.shape[0] < 1:
-        raise InputError(path, f"/vertices must be (T, V, 3) with T >= 1, got {vertices.shape}")
-    if faces.ndim != 2 or faces.shape[1] != 3 or len(faces) == 0:
-        raise InputError(path, f"/faces must be (F, 3), got {faces.shape}")
-    if faces.min() < 0 or faces.max() >= vertices.shape[1]:
-        raise InputError(path, f"/faces index vertices outside 0..{vertices.shape[1] - 1}")
-    for key, arr in (
-        ("vertices", vertices),
-        ("body/joints", per_frame["body/joints"]),
-        ("body/capsules", capsules),
-        ("body/radii", radii),
-    ):
-        if arr is not None and arr.dtype.kind == "f" and not np.isfinite(arr).all():
-            frames = np.flatnonzero(~np.isfinite(arr.reshape(len(arr), -1)).all(1))
-            raise InputError(
-                path, f"/{key} has non-finite values at frame {frames[0]} ({len(frames)} frames)"
-            )
-    t = vertices.shape[0]
-    for key, arr in per_frame.items():
-        if arr.ndim == 0 or arr.shape[0] != t:
-            raise InputError(path, f"/{key} has {arr.shape[:1]} rows, /vertices has {t} frames")
-    if per_frame["body/joints"].shape[1:] != (22, 3):
-        raise InputError(path, f"/body/joints must be (T, 22, 3), got {per_frame['body/joints'].shape}")
-    if capsules is not None and (
-        capsules.shape[:1] != (t,)
-        or capsules.shape[2:] != (2, 3)
-        or radii is None
-        or radii.shape != capsules.shape[1:2]
-    ):
-        raise InputError(
-            path,
-            f"/body/capsules {capsules.shape} and /body/radii "
-            f"{None if radii is None else radii.shape} do not match (T, C, 2, 3) and (C,)",
-        )
+        per_frame, attrs = upgrade_from_version_2(per_frame, attrs)
+    check_arrays(path, vertices, faces, per_frame=per_frame, capsules=capsules, radii=radii)
     _check_on_body(path, vertices, per_frame["body/joints"])
-    skeleton = _checked_skeleton(path, skeleton, t)
+    skeleton = checked_skeleton(path, skeleton, vertices.shape[0])
     return AnimationFile(
         path=path,
         vertices=vertices.astype(np.float32),
@@ -312,53 +260,3 @@ def _check_on_body(path: Path, vertices: np.ndarray, joints: np.ndarray) -> None
             f"a garment vertex is {reach:.3g} m from the body at frame {frame} (more than "
             f"{MAX_REACH_M:g} m): not cloth on a body (a damaged or edited file?)",
         )
-
-
-def _checked_skeleton(path: Path, found: dict, frames: int) -> dict:
-    """The skeleton's motion (version 4) as AnimationFile's fields, each checked; none where absent."""
-    if not found:
-        return {}
-    shapes = {
-        "body/rotations": (frames, 22, 4),
-        "body/root_translation": (frames, 3),
-        "body/offsets": (22, 3),
-    }
-    for key, shape in shapes.items():
-        arr = found.get(key)
-        if arr is None or arr.shape != shape or arr.dtype.kind != "f" or not np.isfinite(arr).all():
-            raise InputError(
-                path,
-                f"/{key} must be finite numbers of shape {shape}, got "
-                f"{None if arr is None else (arr.shape, str(arr.dtype))}",
-            )
-    return {
-        "rotations": found["body/rotations"],
-        "root_translation": found["body/root_translation"],
-        "offsets": found["body/offsets"],
-    }
-
-
-#: version 1 and 2 names of the datasets version 3 renamed
-OLD_NAMES = {"diagnostics/retrieved": "diagnostics/mode", "diagnostics/match": "diagnostics/source"}
-
-
-def _version(path: Path, attrs: dict) -> int:
-    """The file's format version (1 where it has none): one this hrr_garment reads."""
-    version = attrs.get("format_version", 1)
-    if isinstance(version, (bool, np.bool_)) or not isinstance(version, (int, np.integer)) or version < 1:
-        raise InputError(path, f"format_version must be a positive integer, got {version!r}")
-    if version > FORMAT_VERSION:
-        raise InputError(
-            path,
-            f"format version {version} is newer than this hrr_garment reads ({FORMAT_VERSION}); "
-            "upgrade hrr_garment",
-        )
-    return int(version)
-
-
-def _from_version_2(per_frame: dict, attrs: dict) -> tuple[dict, dict]:
-    """Versions 1-2 -> 3: ``retrieved`` marked every frame of the residual and detail modes (their
-    database match), which version 3 records in ``match`` only."""
-    if str(attrs.get("mode", "")) in ("residual", "detail"):
-        per_frame = {**per_frame, "diagnostics/retrieved": np.zeros_like(per_frame["diagnostics/retrieved"])}
-    return per_frame, {**attrs, "format_version": FORMAT_VERSION}

@@ -141,7 +141,8 @@ class GarmentDataset:
         if version not in READABLE_VERSIONS:
             raise DatasetError(
                 self.path,
-                f"format_version {version!r}; this hrr_garment reads {', '.join(map(str, READABLE_VERSIONS))}",
+                f"format_version {version!r}; this hrr_garment reads "
+                f"{', '.join(map(str, READABLE_VERSIONS))}",
             )
         for key in ("template/vertices", "template/faces", "template/attached", "sequences", "splits"):
             if key not in f:

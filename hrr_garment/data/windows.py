@@ -33,8 +33,8 @@ class WindowFrames:
             )
         if len(self.first) and (self.first.min() < 0 or self.first.max() + self.window > len(frames)):
             raise ValueError(
-                f"windows of {self.window} frames from frames {int(self.first.min())}-{int(self.first.max())} "
-                f"run past the {len(frames)} frames stored"
+                f"windows of {self.window} frames from frames "
+                f"{int(self.first.min())}-{int(self.first.max())} run past the {len(frames)} frames stored"
             )
 
     @classmethod

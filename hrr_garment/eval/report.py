@@ -1,4 +1,5 @@
-"""hrr-eval's outputs: report.json (schema in docs/evaluation.md), report.md, and PNG plots.
+"""hrr-eval's outputs: report.json (schema in docs/evaluation.md), report.md (its tables:
+:mod:`.report_tables`), and PNG plots.
 
 The comparative goals it reports are :mod:`.goals`'.
 
@@ -26,41 +27,15 @@ from pathlib import Path
 import numpy as np
 
 from ..io_utils import atomic_write_text, strict_json
-from .bars import HELD_OUT_BARS, LIBRARY_BARS, cell, default_output, markdown_lead
+from .bars import HELD_OUT_BARS, LIBRARY_BARS, default_output, markdown_lead
 from .evaluate import ModeResult, TauPoint
 from .goals import goals
 from .holdouts import holdout_section, markdown_holdouts
-from .library import SOURCE_SIMULATION
+from .report_tables import ensemble_table, goal_table, mode_table, simulated_section, sweep_table
 from .unseen_bodies import markdown_table
 
 DATASET_SIMULATION = "dataset simulation"  # the reference row: the dataset's own frames against the ensemble
 REPORT_VERSION = 12  # report.json's "format_version": see the module docstring
-TABLE_METRICS = (
-    ("pve_mm", "PVE mm", 2),
-    ("rmse_mm", "RMSE mm", 2),
-    ("sted", "STED", 4),
-    ("chamfer_cm", "CD cm", 3),
-    ("penetration_pct", "pen. %", 2),
-    ("curvature_error_cm", "E_curv cm", 1),
-    ("strain_p99", "strain p99", 3),
-    ("stretch_energy_ratio", "stretch E ratio", 2),
-    ("bending_energy_ratio", "bend E ratio", 2),
-    ("jitter_mm", "jitter mm", 2),
-    ("retrieval_usage", "retrieval", 3),
-)
-ENSEMBLE_METRICS = (
-    ("pve_floor_ratio", "PVE / floor", 2),
-    ("pve_members_mm", "PVE to members mm", 2),
-    ("pve_ensemble_mean_mm", "PVE to mean mm", 2),
-    ("energy_score_mm", "energy score mm", 2),
-    ("penetration_before_worst_pct", "pen. before push-out, worst frame %", 2),
-    ("strain_p99", "strain p99", 3),
-    ("strain_max", "strain max", 2),
-    ("jitter_ratio", "jitter ratio", 2),
-    ("acceleration_ratio", "accel. ratio", 2),
-    ("bending_energy_ratio", "sharpness (bend E ratio)", 2),
-    ("hem_swing_ratio", "hem swing ratio", 2),
-)
 
 
 def frame_entropies(modes: dict[str, ModeResult]) -> np.ndarray:
@@ -126,53 +101,6 @@ def build_report(
     }
 
 
-def _mode_table(modes: dict) -> list[str]:
-    lines = [
-        "| mode | " + " | ".join(label for _, label, _ in TABLE_METRICS) + " |",
-        "|---|" + "---:|" * len(TABLE_METRICS),
-    ]
-    for mode, entry in modes.items():
-        m = entry["metrics"]
-        lines.append(f"| {mode} | " + " | ".join(cell(m.get(k), d) for k, _, d in TABLE_METRICS) + " |")
-    return lines
-
-
-def _ensemble_table(modes: dict, ensemble: dict) -> list[str]:
-    """One row per mode against the truth ensemble, the truths' own values in the last row."""
-    rows = {
-        mode: {
-            **entry["ensemble"],
-            "strain_p99": entry["metrics"]["strain_p99"],
-            "strain_max": entry["metrics"]["strain_max"],
-        }
-        for mode, entry in modes.items()
-        if entry.get("ensemble")
-    }
-    if not rows:
-        return []
-    any_row = next(iter(rows.values()))
-    truth = {
-        "pve_floor_ratio": 1.0,
-        "pve_members_mm": any_row["floor_mm"],
-        "penetration_before_worst_pct": any_row.get("truth_penetration_worst_pct"),
-        "strain_p99": any_row.get("truth_strain_p99"),
-        "strain_max": any_row.get("truth_strain_max"),
-        **{k: 1.0 for k, _, _ in ENSEMBLE_METRICS if k.endswith("_ratio")},
-    }
-    lines = [
-        f"Against {ensemble['members']} perturbed simulations of each of {ensemble['sequences']} sequences "
-        f"({', '.join(ensemble['perturbations'])}); floor = mean PVE between two of them, "
-        f"{any_row['floor_mm']:.2f} mm. PVE / floor is 1 for a prediction as good as a fresh simulation and about "
-        "0.71 for the perfect mean; ratios are the prediction's value over the truths'.",
-        "",
-        "| mode | " + " | ".join(label for _, label, _ in ENSEMBLE_METRICS) + " |",
-        "|---|" + "---:|" * len(ENSEMBLE_METRICS),
-    ]
-    for mode, m in [*rows.items(), ("simulation (truths)", truth)]:
-        lines.append(f"| {mode} | " + " | ".join(cell(m.get(k), d) for k, _, d in ENSEMBLE_METRICS) + " |")
-    return lines
-
-
 def _detail_clause(settings: dict) -> str:
     """ "; detail mode: folds x0.8 on the regression" where the detail mode ran; "; causal (as
     streamed)" where the modes ran causally."""
@@ -190,9 +118,9 @@ def markdown(report: dict, plots: list[str]) -> str:
         "",
         f"Model `{model['folder']}` (hash {model['hash']}, calibrated gate {model.get('gate', 'entropy')} < "
         f"{model['tau']:.3f}; the default mode, auto, runs {model.get('auto', 'hybrid')}); dataset "
-        f"`{data['path']}`, split **{data['split']}**: {len(data['sequences'])} sequences, {data['frames']} frames. "
-        f"Collision push-out {'on' if settings['collision'] else 'off'}; own sequence excluded from retrieval: "
-        f"{'yes' if settings['exclude_own_sequence'] else 'no'}; hybrid gate {settings['gate']} < "
+        f"`{data['path']}`, split **{data['split']}**: {len(data['sequences'])} sequences, {data['frames']} "
+        f"frames. Collision push-out {'on' if settings['collision'] else 'off'}; own sequence excluded from "
+        f"retrieval: {'yes' if settings['exclude_own_sequence'] else 'no'}; hybrid gate {settings['gate']} < "
         f"{settings['tau']:.3f}" + _detail_clause(settings) + ". "
         f"Run time {report['seconds']:.0f} s.",
         "",
@@ -200,7 +128,7 @@ def markdown(report: dict, plots: list[str]) -> str:
     runs = model.get("auto", "hybrid")
     out += markdown_lead(report.get("default"), runs)
     reference = report.get("dataset_simulation")
-    lead = _ensemble_table(
+    lead = ensemble_table(
         {**report["modes"], **({DATASET_SIMULATION: reference} if reference else {})},
         report.get("ensemble", {}),
     )
@@ -208,20 +136,21 @@ def markdown(report: dict, plots: list[str]) -> str:
         out += ["## Against the simulator's own chaos (ensemble ground truth)", "", *lead, ""]
         if reference:
             out += [
-                f"*{DATASET_SIMULATION}*: the dataset's own frames of each clip (what the model trained or was validated "
-                "on) scored as a prediction: about 1 x the floor where they are a simulation like the members.",
+                f"*{DATASET_SIMULATION}*: the dataset's own frames of each clip (what the model trained or "
+                "was validated on) scored as a prediction: about 1 x the floor where they are a simulation "
+                "like the members.",
                 "",
             ]
     out += markdown_holdouts(report.get("holdouts"))
     out += ["## Modes (against the dataset's single simulation)", ""]
-    out += _mode_table(report["modes"])
-    out += ["", "## Goals (the paper's shape; PVE ratios)", "", *_goal_table(report["goals"])]
+    out += mode_table(report["modes"])
+    out += ["", "## Goals (the paper's shape; PVE ratios)", "", *goal_table(report["goals"])]
     if report["tau_sweep"]:
         out += [
             "",
             f"## Tau sweep (hybrid, gate {settings.get('gate', 'entropy')})",
             "",
-            *_sweep_table(report["tau_sweep"]),
+            *sweep_table(report["tau_sweep"]),
         ]
     e = report["entropy"]
     if e["quantiles"]:
@@ -238,7 +167,7 @@ def markdown(report: dict, plots: list[str]) -> str:
             f"## Real motion ({', '.join(real['files'])})",
             "",
             *markdown_lead(real.get("default"), runs),
-            *_simulated_section(real),
+            *simulated_section(real),
         ]
     paper = report.get("paper")
     if paper:
@@ -246,15 +175,15 @@ def markdown(report: dict, plots: list[str]) -> str:
             "",
             "## Paper protocol (code space validated on a tenth of its training clips' windows)",
             "",
-            f"Model `{paper['model']}` (hash {paper['hash']}, calibrated gate {paper.get('gate', 'entropy')} < "
-            f"{paper['tau']:.3f}) on the same "
-            "sequences. The paper reserved 3-5 test clips and split the rest 9:1 into training and validation "
-            "(by window): tau is calibrated on windows of the training clips.",
+            f"Model `{paper['model']}` (hash {paper['hash']}, calibrated gate {paper.get('gate', 'entropy')} "
+            f"< {paper['tau']:.3f}) on the same sequences. The paper reserved 3-5 test clips and split the "
+            "rest 9:1 into training and validation (by window): tau is calibrated on windows of the "
+            "training clips.",
             "",
         ]
-        lead = _ensemble_table(paper["modes"], report.get("ensemble", {}))
+        lead = ensemble_table(paper["modes"], report.get("ensemble", {}))
         out += [*lead, ""] if lead else []
-        out += _mode_table(paper["modes"])
+        out += mode_table(paper["modes"])
         out += ["", "| PVE ratio | ours | the paper |", "|---|---:|---:|"]
         for name, g in paper["goals"].items():
             if "ratio" in g:
@@ -270,31 +199,31 @@ def markdown(report: dict, plots: list[str]) -> str:
             "",
             "## Library protocol (the training clips played again)",
             "",
-            "Clips of the model's database re-timed by 0.9-1.1, entered part-way and cross-faded into each other "
-            f"over 0.3-0.5 s (seed {library['seed']}), as a game's animation system plays its library:",
+            "Clips of the model's database re-timed by 0.9-1.1, entered part-way and cross-faded into each "
+            f"other over 0.3-0.5 s (seed {library['seed']}), as a game's animation system plays its library:",
             "",
         ]
         out += [f"- `{name}`: {description}" for name, description in library["plays"].items()]
         out += [
             "",
             *markdown_lead(library.get("default"), runs),
-            *_simulated_section(library),
+            *simulated_section(library),
             "",
             "Goals on this protocol:",
             "",
-            *_goal_table(library["goals"]),
+            *goal_table(library["goals"]),
         ]
         if library["tau_sweep"]:
-            out += ["", *_sweep_table(library["tau_sweep"])]
+            out += ["", *sweep_table(library["tau_sweep"])]
     unseen = report.get("unseen_bodies")
     if unseen:
         out += [
             "",
             "## Unseen bodies (each beside a specialist trained on it alone)",
             "",
-            "The default mode (auto) of this model and of each body's specialist on the test clips of a dataset "
-            "simulated on that body, against its own truth ensembles; penetration against that body's capsules, "
-            "before the push-out; sharpness and hem swing over the truth's.",
+            "The default mode (auto) of this model and of each body's specialist on the test clips of a "
+            "dataset simulated on that body, against its own truth ensembles; penetration against that "
+            "body's capsules, before the push-out; sharpness and hem swing over the truth's.",
             "",
             *markdown_table(unseen),
         ]
@@ -302,57 +231,6 @@ def markdown(report: dict, plots: list[str]) -> str:
         out += ["", "## Plots", ""] + [f"![{Path(p).stem}]({Path(p).name})" for p in plots]
     out += ["", "Metric definitions: docs/evaluation.md."]
     return "\n".join(out) + "\n"
-
-
-def _goal_table(goals: dict) -> list[str]:
-    lines = ["| goal | ratio | target | met |", "|---|---:|---:|---|"]
-    for name, g in goals.items():
-        if name == "interior_tau_optimum":
-            lines.append(
-                f"| interior tau optimum | best tau {g['best_tau']:.3f} ({g['best_pve_mm']:.2f} mm, retrieval "
-                f"{100 * g['retrieval_usage']:.0f} %) | interior | {'yes' if g['met'] else 'no'} |"
-            )
-        else:
-            target = "" if g["target"] is None else f"<= {g['target']}"
-            met = "" if g["met"] is None else ("yes" if g["met"] else "no")
-            lines.append(f"| {name.replace('_', ' ')} | {g['ratio']:.3f} | {target} | {met} |")
-    return lines
-
-
-def _sweep_table(points: list[dict]) -> list[str]:
-    return [
-        "| tau | PVE mm | retrieval usage | sharpness (bend E ratio) |",
-        "|---:|---:|---:|---:|",
-        *[
-            f"| {p['tau']:.3f} | {p['pve_mm']:.2f} | {100 * p['retrieval_usage']:.1f} % | {p.get('sharpness', math.nan):.2f} |"
-            for p in points
-        ],
-    ]
-
-
-def _simulated_section(section: dict) -> list[str]:
-    """A section whose ground truth hrr-eval simulated (real motion, library plays): where, what
-    was rejected, the ensemble table and the mode table."""
-    out = [
-        f"Ground truth simulated with the dataset's settings into `{section['dataset']}`; "
-        f"{len(section['sequences'])} sequences, {section['frames']} frames.",
-        "",
-    ]
-    for name, reason in section.get("rejected", {}).items():  # no ground truth: not in the table
-        out += [f"- Not evaluated: `{name}`, its simulation was rejected ({reason})."]
-    if section.get("rejected"):
-        out += [""]
-    modes, note = section["modes"], []
-    if section.get("source_simulation"):  # the library plays' reference row
-        modes = {**modes, SOURCE_SIMULATION: section["source_simulation"]}
-        note = [
-            "",
-            f"*{SOURCE_SIMULATION}*: the dataset's own simulation of the frames each play shows (re-timed "
-            "frames interpolated, blends cross-faded), played along: what retrieval gives if it finds the "
-            "right clip at the right moment every frame, its ceiling on this protocol.",
-        ]
-    lead = _ensemble_table(modes, section.get("ensemble", {}))
-    return out + ([*lead, ""] if lead else []) + _mode_table(modes) + note
 
 
 def write_report(folder: str | Path, report: dict, plots: list[str]) -> tuple[Path, Path]:

@@ -33,10 +33,10 @@ from ..data.animation_file import AnimationFile
 from ..errors import InputError
 from ..garment.mesh import vertex_normals
 from ..motion.skeleton import JOINT_NAMES, PARENTS
+from .glb_blob import ARRAY_BUFFER, ELEMENT_ARRAY_BUFFER
 
 INFLUENCES = 4  # joints per vertex in the GLB (glTF's JOINTS_0 / WEIGHTS_0)
 SKELETON_TOLERANCE_M = 1e-3  # how far the animation's bones may differ from the character's fitted ones
-_FLOAT_BUFFER, _INDEX_BUFFER = 34962, 34963
 
 
 @dataclass(frozen=True)
@@ -57,8 +57,9 @@ class SkinnedCharacter:
 
 
 def skinned_character(path: str | Path, **read) -> SkinnedCharacter:
-    """The character file ``path`` ready to export (``read``: :func:`~hrr_garment.body.character.read_character`'s
-    options); an InputError naming the file where its mesh carries no skin weights."""
+    """The character file ``path`` ready to export (``read``:
+    :func:`~hrr_garment.body.character.read_character`'s options); an InputError naming the file
+    where its mesh carries no skin weights."""
     record, character = character_body(path, **read)
     if character.weights is None:
         raise InputError(path, "its skinned mesh has no JOINTS_0 / WEIGHTS_0, so it cannot be posed")
@@ -151,12 +152,12 @@ def add_character(
     joints, weights = top_influences(character.weights)
     vertices = character.vertices.astype(np.float32)
     attributes = gl.Attributes(
-        POSITION=blob.stored(vertices, "VEC3", _FLOAT_BUFFER, bounds=True),
+        POSITION=blob.stored(vertices, "VEC3", ARRAY_BUFFER, bounds=True),
         NORMAL=blob.stored(
-            vertex_normals(vertices[None], character.faces)[0].astype(np.float32), "VEC3", _FLOAT_BUFFER
+            vertex_normals(vertices[None], character.faces)[0].astype(np.float32), "VEC3", ARRAY_BUFFER
         ),
-        JOINTS_0=blob.stored(joints, "VEC4", _FLOAT_BUFFER),
-        WEIGHTS_0=blob.stored(weights, "VEC4", _FLOAT_BUFFER),
+        JOINTS_0=blob.stored(joints, "VEC4", ARRAY_BUFFER),
+        WEIGHTS_0=blob.stored(weights, "VEC4", ARRAY_BUFFER),
     )
     materials.append(
         gl.Material(
@@ -173,7 +174,9 @@ def add_character(
                 gl.Primitive(
                     attributes=attributes,
                     material=len(materials) - 1,
-                    indices=blob.stored(character.faces.astype(np.uint32).ravel(), "SCALAR", _INDEX_BUFFER),
+                    indices=blob.stored(
+                        character.faces.astype(np.uint32).ravel(), "SCALAR", ELEMENT_ARRAY_BUFFER
+                    ),
                 )
             ],
         )

@@ -14,7 +14,8 @@ They add about as many bytes as the positions.
 
 The body is a node per capsule (a rigid mesh) with animated translation and rotation, or, for a
 character file, the character's own skinned mesh on a skeleton playing the clip (:mod:`.character`).
-Needs the ``export`` extra (pygltflib).
+Needs the ``export`` extra (pygltflib). Its building blocks: :mod:`.glb_blob`; reading it back:
+:mod:`.glb_read`.
 """
 
 from __future__ import annotations
@@ -28,75 +29,9 @@ from ..data.animation_file import AnimationFile
 from ..garment.mesh import vertex_normals
 from ..io_utils import atomic_write_bytes
 from .character import SkinnedCharacter, add_character
+from .glb_blob import ARRAY_BUFFER, ELEMENT_ARRAY_BUFFER, GlbBlob, pygltflib_module
+from .glb_body import add_capsule_body
 from .keyframes import Keyframes, select_keyframes
-
-_FLOAT, _UINT, _USHORT = 5126, 5125, 5123
-_ARRAY_BUFFER, _ELEMENT_ARRAY_BUFFER = 34962, 34963
-
-
-def _gltf():
-    try:
-        import pygltflib
-    except ImportError:
-        raise ImportError("GLB export needs pygltflib: pip install 'hrr_garment[export]'") from None
-    return pygltflib
-
-
-class _Blob:
-    """The GLB binary chunk under construction: buffer views and accessors appended in order."""
-
-    def __init__(self, gl):
-        self.gl, self.parts, self.size = gl, [], 0
-        self.views: list = []
-        self.accessors: list = []
-
-    def view(self, array: np.ndarray, target: int | None = None, stride: int | None = None) -> int:
-        """``stride`` is required by glTF when several vertex accessors share one view."""
-        data = np.ascontiguousarray(array).tobytes()
-        self.views.append(
-            self.gl.BufferView(
-                buffer=0, byteOffset=self.size, byteLength=len(data), target=target, byteStride=stride
-            )
-        )
-        pad = (-len(data)) % 4
-        self.parts.append(data + b"\0" * pad)
-        self.size += len(data) + pad
-        return len(self.views) - 1
-
-    def accessor(self, view: int, array: np.ndarray, kind: str, bounds: bool = False, offset: int = 0) -> int:
-        """An accessor over ``array`` (already stored in ``view`` at byte ``offset``)."""
-        flat = array.reshape(len(array), -1)
-        component = {np.dtype(np.uint32): _UINT, np.dtype(np.uint16): _USHORT}.get(array.dtype, _FLOAT)
-        extra = {"min": flat.min(0).tolist(), "max": flat.max(0).tolist()} if bounds else {}
-        self.accessors.append(
-            self.gl.Accessor(
-                bufferView=view,
-                byteOffset=offset,
-                componentType=component,
-                count=len(array),
-                type=kind,
-                **extra,
-            )
-        )
-        return len(self.accessors) - 1
-
-    def stored(self, array: np.ndarray, kind: str, target: int | None = None, bounds: bool = False) -> int:
-        return self.accessor(self.view(array, target), array, kind, bounds)
-
-    def bytes(self) -> bytes:
-        return b"".join(self.parts)
-
-
-def _quaternion_z_to(d: np.ndarray) -> np.ndarray:
-    """Unit quaternions (x, y, z, w) rotating +Z onto unit directions d (T, 3), sign-continuous in T."""
-    w = 1.0 + d[:, 2]
-    q = np.concatenate([np.stack([-d[:, 1], d[:, 0], np.zeros(len(d))], 1), w[:, None]], 1)
-    flip = w < 1e-8  # d = -Z: half turn about X
-    q[flip] = (1.0, 0.0, 0.0, 0.0)
-    q /= np.linalg.norm(q, axis=1, keepdims=True)
-    sign = np.cumprod(np.where((q[1:] * q[:-1]).sum(1) < 0, -1.0, 1.0))  # slerp takes the short way
-    q[1:] *= sign[:, None]
-    return q
 
 
 @dataclass(frozen=True)
@@ -120,24 +55,24 @@ def write_glb(
     frame. ``normals``: vertex normals on the base and the targets (see the module docstring).
     ``with_body``: the collision capsules too; ``character``: the character's own skinned mesh,
     posed by the clip (:func:`.character.skinned_character`)."""
-    gl = _gltf()
+    gl = pygltflib_module()
     path = Path(path)
     keys = select_keyframes(anim.vertices, tolerance)
     verts = anim.vertices.astype(np.float32)
     base = verts[0]
     deltas = verts[keys.frames[1:]] - base  # (K-1, V, 3)
-    blob = _Blob(gl)
-    position = blob.stored(base, "VEC3", _ARRAY_BUFFER, bounds=True)
-    indices = blob.stored(anim.faces.astype(np.uint32).ravel(), "SCALAR", _ELEMENT_ARRAY_BUFFER)
+    blob = GlbBlob(gl)
+    position = blob.stored(base, "VEC3", ARRAY_BUFFER, bounds=True)
+    indices = blob.stored(anim.faces.astype(np.uint32).ravel(), "SCALAR", ELEMENT_ARRAY_BUFFER)
     normal, normal_deltas = None, None
     if normals:
         keyframe_normals = vertex_normals(verts[keys.frames], anim.faces).astype(np.float32)  # (K, V, 3)
-        normal = blob.stored(keyframe_normals[0], "VEC3", _ARRAY_BUFFER)
+        normal = blob.stored(keyframe_normals[0], "VEC3", ARRAY_BUFFER)
         normal_deltas = keyframe_normals[1:] - keyframe_normals[0]
     targets = []
     if len(deltas):
-        view = blob.view(deltas, _ARRAY_BUFFER, stride=12)
-        normal_view = None if normal_deltas is None else blob.view(normal_deltas, _ARRAY_BUFFER, stride=12)
+        view = blob.view(deltas, ARRAY_BUFFER, stride=12)
+        normal_view = None if normal_deltas is None else blob.view(normal_deltas, ARRAY_BUFFER, stride=12)
         for k, delta in enumerate(deltas):
             target = {"POSITION": blob.accessor(view, delta, "VEC3", True, k * delta.nbytes)}
             if normal_view is not None:
@@ -186,18 +121,18 @@ def write_glb(
             gl.AnimationChannel(sampler=0, target=gl.AnimationChannelTarget(node=0, path="weights"))
         )
     scene_nodes, skins = [0], []
+    parts = {
+        "nodes": nodes,
+        "meshes": meshes,
+        "materials": materials,
+        "samplers": samplers,
+        "channels": channels,
+        "skins": skins,
+    }
     if with_body:
-        scene_nodes.append(_add_body(gl, anim, blob, nodes, meshes, materials, samplers, channels))
+        scene_nodes.append(add_capsule_body(gl, blob, anim, gltf_parts=parts))
     if character is not None:
         times = blob.stored((np.arange(anim.num_frames) / anim.fps).astype(np.float32), "SCALAR", bounds=True)
-        parts = {
-            "nodes": nodes,
-            "meshes": meshes,
-            "materials": materials,
-            "samplers": samplers,
-            "channels": channels,
-            "skins": skins,
-        }
         scene_nodes.extend(add_character(gl, blob, anim, character=character, gltf_parts=parts, times=times))
     gltf = gl.GLTF2(
         asset=gl.Asset(generator="hrr_garment", version="2.0"),
@@ -225,115 +160,3 @@ def write_glb(
     data = b"".join(gltf.save_to_bytes())
     atomic_write_bytes(path, data)
     return GlbReport(path, keys, len(data))
-
-
-def _add_body(
-    gl,
-    anim: AnimationFile,
-    blob: _Blob,
-    nodes: list,
-    meshes: list,
-    materials: list,
-    samplers: list,
-    channels: list,
-) -> int:
-    """Capsule nodes under a "body" node; returns the body node's index."""
-    from ..body.capsules import body_mesh
-
-    anim.body_mesh(0)  # raises "no body in this file" for version-1 files
-    caps = anim.capsules.astype(np.float64)
-    materials.append(
-        gl.Material(
-            name="body",
-            pbrMetallicRoughness=gl.PbrMetallicRoughness(
-                baseColorFactor=[0.8, 0.76, 0.72, 1.0], metallicFactor=0.0, roughnessFactor=0.8
-            ),
-        )
-    )
-    times = blob.stored((np.arange(anim.num_frames) / anim.fps).astype(np.float32), "SCALAR", bounds=True)
-    children = []
-    for c, radius in enumerate(anim.radii.astype(np.float64)):
-        axis = caps[:, c, 1] - caps[:, c, 0]
-        length = float(np.linalg.norm(axis, axis=1).mean())  # rigid: the same in every frame
-        v, f = body_mesh(
-            np.zeros((1, 3)), np.array([[0.0, 0.0, length]]), np.array([radius]), segments=12, rings=6
-        )
-        prim = gl.Primitive(
-            attributes=gl.Attributes(
-                POSITION=blob.stored(v.astype(np.float32), "VEC3", _ARRAY_BUFFER, bounds=True),
-                NORMAL=blob.stored(vertex_normals(v, f).astype(np.float32), "VEC3", _ARRAY_BUFFER),
-            ),  # else shaded faceted
-            indices=blob.stored(f.astype(np.uint32).ravel(), "SCALAR", _ELEMENT_ARRAY_BUFFER),
-            material=len(materials) - 1,
-        )
-        meshes.append(gl.Mesh(name=f"capsule_{c}", primitives=[prim]))
-        direction = axis / np.maximum(np.linalg.norm(axis, axis=1, keepdims=True), 1e-12)
-        nodes.append(gl.Node(name=f"capsule_{c}", mesh=len(meshes) - 1))
-        children.append(len(nodes) - 1)
-        for key, values, kind in (
-            ("translation", caps[:, c, 0], "VEC3"),
-            ("rotation", _quaternion_z_to(direction), "VEC4"),
-        ):
-            samplers.append(
-                gl.AnimationSampler(
-                    input=times, output=blob.stored(values.astype(np.float32), kind), interpolation="LINEAR"
-                )
-            )
-            channels.append(
-                gl.AnimationChannel(
-                    sampler=len(samplers) - 1, target=gl.AnimationChannelTarget(node=len(nodes) - 1, path=key)
-                )
-            )
-    nodes.append(gl.Node(name="body", children=children))
-    return len(nodes) - 1
-
-
-def _accessor_array(gltf, blob: bytes, index: int) -> np.ndarray:
-    acc = gltf.accessors[index]
-    view = gltf.bufferViews[acc.bufferView]
-    width = {"SCALAR": 1, "VEC3": 3, "VEC4": 4, "MAT4": 16}[acc.type]
-    dtype = {_UINT: np.uint32, _USHORT: np.uint16}.get(acc.componentType, np.float32)
-    start = (view.byteOffset or 0) + (acc.byteOffset or 0)
-    return np.frombuffer(blob, dtype, acc.count * width, start).reshape(acc.count, width)
-
-
-def _morphed(path: str | Path, attribute: str) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
-    """The garment mesh's ``attribute`` (POSITION or NORMAL) at the animation's keyframes, base +
-    sum of weighted targets: (times (K,), values (K, V, 3) or None without the attribute, faces)."""
-    gl = _gltf()
-    gltf = gl.GLTF2().load(str(path))
-    blob = gltf.binary_blob()
-    prim = gltf.meshes[gltf.nodes[0].mesh].primitives[0]
-    faces = _accessor_array(gltf, blob, prim.indices).reshape(-1, 3)
-    if getattr(prim.attributes, attribute) is None:
-        return np.zeros(1), None, faces
-    base = _accessor_array(gltf, blob, getattr(prim.attributes, attribute)).astype(np.float64)
-    found = [
-        t[attribute] if isinstance(t, dict) else getattr(t, attribute) for t in prim.targets or []
-    ]  # dicts once loaded
-    targets = (
-        np.stack([_accessor_array(gltf, blob, i) for i in found]) if found else np.zeros((0,) + base.shape)
-    )
-    if not gltf.animations:
-        return np.zeros(1), base[None], faces
-    sampler = next(
-        gltf.animations[0].samplers[ch.sampler]
-        for ch in gltf.animations[0].channels
-        if ch.target.path == "weights"
-    )
-    times = _accessor_array(gltf, blob, sampler.input)[:, 0]
-    weights = _accessor_array(gltf, blob, sampler.output).reshape(len(times), len(targets)).astype(np.float64)
-    return times, base + np.einsum("kt,tvc->kvc", weights, targets), faces
-
-
-def read_glb_keyframes(path: str | Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Read back a GLB written by :func:`write_glb`: (keyframe times (K,), garment vertices at those
-    times (K, V, 3) evaluated as base + sum of weighted targets, faces (F, 3))."""
-    return _morphed(path, "POSITION")
-
-
-def read_glb_normals(path: str | Path) -> np.ndarray | None:
-    """The garment's normals at the keyframes as a renderer shades them (base + weighted targets,
-    normalised), (K, V, 3); None when the file has none (``normals=False``)."""
-    normals = _morphed(path, "NORMAL")[1]
-    return None if normals is None else normals / np.linalg.norm(normals, axis=-1, keepdims=True)

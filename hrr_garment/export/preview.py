@@ -1,9 +1,8 @@
-"""Preview images (PNG) of skeleton motion and of meshes (garment over body). Needs the ``preview``
-extra (Pillow)."""
+"""Preview images (PNG) of skeleton motion and of meshes (garment over body), and a built dataset's
+preview. Needs the ``preview`` extra (Pillow); the meshes are drawn by :mod:`.ortho_render`."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -12,15 +11,7 @@ from ..io_utils import atomic_path
 from ..motion.frame import to_body_frame
 from ..motion.motion import Motion
 from ..motion.skeleton import JOINT_NAMES, PARENTS
-
-
-def _pil():
-    try:
-        from PIL import Image, ImageDraw
-    except ImportError:
-        raise ImportError("preview images need Pillow: pip install 'hrr_garment[preview]'") from None
-    return Image, ImageDraw
-
+from .ortho_render import OrthoCamera, PreviewMesh, draw_meshes, pillow_modules
 
 _LEFT = (214, 69, 65)
 _RIGHT = (52, 101, 164)
@@ -40,7 +31,7 @@ def render_skeleton_preview(
     Views are in the character's ground-level body frame at that frame (front: looking at its face; side:
     from its left), centred on the pelvis, with the ground line drawn; 1 m = ``cell * 0.45`` px.
     """
-    Image, ImageDraw = _pil()
+    Image, ImageDraw = pillow_modules()
     width, height = frames * 2 * cell, len(rows) * (cell + 22)
     img = Image.new("RGB", (width, height), (250, 250, 247))
     draw = ImageDraw.Draw(img)
@@ -70,101 +61,6 @@ def render_skeleton_preview(
     return path
 
 
-@dataclass(frozen=True)
-class PreviewMesh:
-    """One mesh of a preview frame (world or view frame: Y up; the character faces +Z at azimuth 0)."""
-
-    vertices: np.ndarray
-    faces: np.ndarray
-    colour: tuple[int, int, int]
-
-
-# Camera azimuth (degrees about +Y, from +Z towards +X) per named view: "left" looks at the
-# character's left side (+X), "three-quarter" from front-left.
-VIEWS = {"front": 0.0, "three-quarter": 35.0, "left": 90.0, "side": 90.0, "back": 180.0, "right": 270.0}
-
-
-@dataclass(frozen=True)
-class OrthoCamera:
-    """An orthographic camera: ``azimuth``/``elevation`` in degrees, looking at ``target`` (world)."""
-
-    azimuth: float = 0.0
-    elevation: float = 0.0
-    target: tuple[float, float, float] = (0.0, 0.0, 0.0)
-
-    @classmethod
-    def named(cls, view: str, elevation: float = 0.0, target=(0.0, 0.0, 0.0)) -> "OrthoCamera":
-        if view not in VIEWS:
-            raise ValueError(f"unknown view {view!r}; choose from {', '.join(VIEWS)}")
-        return cls(VIEWS[view], elevation, tuple(target))
-
-    def axes(self) -> np.ndarray:
-        """Rows: screen right, screen up, towards the camera (an orthonormal, right-handed basis)."""
-        th, ph = np.radians(self.azimuth), np.radians(self.elevation)
-        return np.array(
-            [
-                [np.cos(th), 0.0, -np.sin(th)],
-                [-np.sin(th) * np.sin(ph), np.cos(ph), -np.cos(th) * np.sin(ph)],
-                [np.sin(th) * np.cos(ph), np.sin(ph), np.cos(th) * np.cos(ph)],
-            ]
-        )
-
-    def project(self, points: np.ndarray) -> np.ndarray:
-        """(..., 3) world -> (..., 3) camera coordinates (right, up, towards the camera)."""
-        return (points - np.asarray(self.target)) @ self.axes().T
-
-
-def draw_meshes(
-    image, meshes: list[PreviewMesh], camera: OrthoCamera, centre: tuple[float, float], scale: float
-):
-    """Flat-shaded, two-sided, z-buffered triangles drawn over the PIL ``image``; returns the new image.
-    The light comes from the camera and above."""
-    from .raster import rasterize
-
-    Image, _ = _pil()
-    light = np.array([0.0, 0.5, 1.0]) / np.sqrt(1.25)
-    pixels = np.array(image)
-    depth = np.full(pixels.shape[:2], -np.inf)
-    for mesh in meshes:
-        tri = camera.project(mesh.vertices)[mesh.faces]
-        normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-        normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-12)
-        shade = 0.35 + 0.65 * np.abs(normal @ light)
-        screen = np.stack([centre[0] + tri[..., 0] * scale, centre[1] - tri[..., 1] * scale, tri[..., 2]], -1)
-        rasterize(
-            pixels, depth, screen, colours=np.clip(np.outer(shade, mesh.colour), 0, 255).astype(np.uint8)
-        )
-    return Image.fromarray(pixels)
-
-
-def draw_ground(
-    draw,
-    camera: OrthoCamera,
-    centre: tuple[float, float],
-    scale: float,
-    half_width: float,
-    spacing: float = 0.5,
-    width: int = 1,
-) -> None:
-    """Grid lines on y = 0 around the camera target, so translation over the ground shows."""
-    tx, _, tz = camera.target
-
-    def grid(c: float) -> np.ndarray:
-        return (
-            np.arange(np.ceil((c - half_width) / spacing), np.floor((c + half_width) / spacing) + 1) * spacing
-        )
-
-    lines = [((x, 0.0, tz - half_width), (x, 0.0, tz + half_width)) for x in grid(tx)]
-    lines += [((tx - half_width, 0.0, z), (tx + half_width, 0.0, z)) for z in grid(tz)]
-    for a, b in lines:
-        ends = camera.project(np.array([a, b]))
-        draw.line(
-            [(centre[0] + e[0] * scale, centre[1] - e[1] * scale) for e in ends],
-            fill=(205, 205, 200),
-            width=width,
-        )
-
-
 def render_mesh_preview(
     rows: list[tuple[str, list[list[PreviewMesh]]]],
     path: str | Path,
@@ -176,7 +72,7 @@ def render_mesh_preview(
 
     ``metres`` is the height of world space a cell shows (feet at the bottom).
     """
-    Image, ImageDraw = _pil()
+    Image, ImageDraw = pillow_modules()
     columns = max(len(frames) for _, frames in rows) * len(views)
     img = Image.new("RGB", (columns * cell, len(rows) * (cell + 20)), (250, 250, 247))
     draw = ImageDraw.Draw(img)
@@ -191,8 +87,8 @@ def render_mesh_preview(
                     Image.new("RGB", (cell, cell), (250, 250, 247)),
                     meshes,
                     OrthoCamera.named(view),
-                    (cell / 2, cell * 0.97),
-                    scale,
+                    centre=(cell / 2, cell * 0.97),
+                    scale=scale,
                 )
                 img.paste(tile, (left, top + 20))
                 draw.text((left + 3, top + cell + 4), view, fill=(120, 120, 120))

@@ -24,7 +24,7 @@ from ..data.animation_file import AnimationFile
 from ..errors import InputError, OutputError
 from ..io_utils import atomic_path
 from ..workers import DeferredSignals, die_with_parent
-from .preview import VIEWS, OrthoCamera, PreviewMesh, _pil, draw_ground, draw_meshes
+from .ortho_render import VIEWS, OrthoCamera, PreviewMesh, draw_ground, draw_meshes, pillow_modules
 
 GARMENT = (70, 110, 200)
 RETRIEVED = (225, 135, 45)  # garment colour on retrieved frames with --color-mode
@@ -67,7 +67,7 @@ def render_scene(
 ):
     """One PIL image of ``meshes``: the style's views side by side, cameras aimed at ``target``
     (on the ground below the pelvis), with a ground grid and ``label`` in the corner."""
-    Image, ImageDraw = _pil()
+    Image, ImageDraw = pillow_modules()
     ss = max(1, style.supersample)
     cell = style.size * ss
     scale = cell / style.metres
@@ -126,7 +126,7 @@ def render_frames(
 ) -> Iterator:
     """PIL images, in order, one per frame index in ``frames`` (default: all), views side by side.
     Frames are rendered by ``workers`` processes (default: one per CPU) when there are many."""
-    Image, _ = _pil()
+    Image, _ = pillow_modules()
     frames = np.arange(anim.num_frames) if frames is None else np.asarray(frames)
     track = _smooth_track(anim.joints[:, 0].astype(np.float64), anim.fps)
     workers = min(os.cpu_count() or 1, 8) if workers is None else workers
@@ -136,7 +136,8 @@ def render_frames(
             yield render_frame(anim, style, int(t), track)
             bar.update()
     else:
-        # Ctrl-C and SIGTERM wait for the next frame: raised inside the pool's internals they can hang its clean-up
+        # Ctrl-C and SIGTERM wait for the next frame: raised inside the pool's internals they can
+        # hang its clean-up
         with (
             DeferredSignals() as signals,
             multiprocessing.get_context().Pool(
@@ -190,7 +191,7 @@ def write_preview(
             else np.array([anim.num_frames // 2])
         )  # one frame: the middle one
         images = list(render_frames(anim, style, chosen, progress))
-        Image, _ = _pil()
+        Image, _ = pillow_modules()
         sheet = Image.new("RGB", (images[0].width, sum(i.height for i in images)))
         for k, im in enumerate(images):
             sheet.paste(im, (0, k * images[0].height))

@@ -33,7 +33,7 @@ UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001, "in": 0.0254}
 GARMENT_SIZE_M = (0.2, 2.2)  # largest extent of any plausible garment
 TOP_BAND_M = 0.03
 CONTACT_M = 0.02
-CLEARANCE_M = 0.012  # the built-in garments' distance from the body (templates.TubeShape.gap)
+CLEARANCE_M = 0.012  # the built-in garments' distance from the body (tube_shapes.TubeShape.gap)
 INSIDE_WARNING = 0.01  # a fitted garment with more of its vertices inside the body is pointed to --made-for
 
 
@@ -55,8 +55,8 @@ class Fit:
     def describe(self) -> str:
         moved = ", ".join(f"{v:+.3f}" for v in self.offset)
         note = (
-            f"unit {self.unit} (x{self.scale:g}), up axis {self.up} -> +y, moved by ({moved}) m; its top band sits on "
-            f"average {1000 * self.top_gap_m:.0f} mm off a 12 mm clearance from the torso; "
+            f"unit {self.unit} (x{self.scale:g}), up axis {self.up} -> +y, moved by ({moved}) m; its top "
+            f"band sits on average {1000 * self.top_gap_m:.0f} mm off a 12 mm clearance from the torso; "
             f"{100 * self.inside:.1f} % of its vertices land more than 5 mm inside the body"
         )
         if self.inside > INSIDE_WARNING:

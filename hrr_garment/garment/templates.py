@@ -5,98 +5,24 @@ from its top edge down to the hem, plus two shoulder straps for the dress. A rin
 angle comes from the body itself: a ray from the body axis finds where the capsule body's surface
 is, and the cloth sits ``gap`` outside it. Below the waist each row may not shrink faster than the
 flare allows, which turns a body-hugging tube into an A-line skirt. Shapes (heights, flare, pleats,
-hem asymmetry) are dataclass values; ``make_garment(name, vertices)`` picks the resolution.
+hem asymmetry) are dataclass values (:mod:`.tube_shapes`); ``make_garment(name, vertices)`` picks
+the resolution. The body's surface is found by :mod:`.body_surface`.
 
 Angles: theta = 0 faces the front (+Z), theta = pi/2 is the character's left (+X).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
-
 import numpy as np
 
-from ..body.capsules import DEFAULT_BODY, BodyModel, capsule_signed_distance
+from ..body.capsules import DEFAULT_BODY, BodyModel
 from ..errors import InputError
-from ..motion.skeleton import JOINT_INDEX
+from .body_surface import body_fit_radius, push_out_of_body, shoulder_top
 from .mesh import GarmentMesh, check_garment
-
-
-@dataclass(frozen=True)
-class TubeShape:
-    """One tube garment. Heights in metres above the ground in the rest pose."""
-
-    top: float  # top edge height
-    waist: float  # where flaring may begin (rows above follow the body exactly)
-    hem: float  # mean hem height
-    flare: float  # tan of the skirt's half-angle below the waist
-    gap: float = 0.012  # cloth-to-body clearance
-    hem_tilt: float = 0.0  # asymmetric hem: height varies by +-hem_tilt around the tube
-    hem_tilt_angle: float = 0.0  # angle (rad) of the lowest point of the hem
-    pleats: int = 0  # number of knife pleats (0: plain)
-    pleat_depth: float = 0.0  # radial depth of a pleat at the hem, metres
-    attach_band: float = 0.025  # rows within this distance below the top edge are the waistband
-    straps: bool = False
-    strap_x: float = 0.10  # strap centre line, metres from the body's midline
-    strap_width: float = 0.035
-    shoulder_band: float = 0.03  # strap vertices this close to the strap's top are attached
-
-
-GARMENT_SHAPES: dict[str, TubeShape] = {
-    "dress": TubeShape(top=1.30, waist=1.10, hem=0.50, flare=0.42, straps=True, attach_band=0.0),
-    "skirt": TubeShape(top=1.05, waist=1.05, hem=0.56, flare=0.38),
-    "pleated_skirt": TubeShape(top=1.04, waist=1.04, hem=0.60, flare=0.30, pleats=16, pleat_depth=0.03),
-    "asymmetric_skirt": TubeShape(
-        top=1.05, waist=1.05, hem=0.58, flare=0.40, hem_tilt=0.16, hem_tilt_angle=np.pi * 0.75
-    ),
-}
-GARMENT_NAMES: tuple[str, ...] = tuple(GARMENT_SHAPES)
+from .tube_shapes import GARMENT_NAMES, GARMENT_SHAPES, TubeShape, shape_for_body
 
 # The default resolution of each named preset lives in configs/; this is make_garment's default.
 DEFAULT_VERTICES = 1000
-
-
-def rest_body(body: BodyModel = DEFAULT_BODY) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Capsule ends a, b (C, 3) and radii (C,) of the body in the canonical rest pose."""
-    a, b = body.rest_pose()
-    return a, b, body.radii
-
-
-def body_fit_radius(
-    theta: np.ndarray,
-    height: np.ndarray,
-    gap: float,
-    body: BodyModel = DEFAULT_BODY,
-    max_radius: float = 0.6,
-    step: float = 0.004,
-) -> np.ndarray:
-    """Distance from the vertical body axis, along angle ``theta`` at ``height``, to ``gap`` outside
-    the body's outer surface (0 where the ray misses the body). Marches inwards, then bisects."""
-    a, b, radii = rest_body(body)
-    theta, height = np.broadcast_arrays(np.asarray(theta, float), np.asarray(height, float))
-    shape = theta.shape
-    theta, height = theta.ravel(), height.ravel()
-    direction = np.stack([np.sin(theta), np.zeros_like(theta), np.cos(theta)], -1)
-    origin = np.stack([np.zeros_like(height), height, np.zeros_like(height)], -1)
-    ts = np.arange(max_radius, 0.0, -step)
-    out = np.zeros(len(theta))
-    for start in range(0, len(theta), 256):
-        sl = slice(start, start + 256)
-        pts = origin[sl, None] + ts[None, :, None] * direction[sl, None]
-        sd = capsule_signed_distance(pts.reshape(-1, 3), a, b, radii=radii)[0].reshape(pts.shape[:2])
-        inside = sd < gap
-        hit = inside.any(1)
-        first = inside.argmax(1)  # first sample (from outside) within gap of the body
-        lo = ts[first]  # inside the gap
-        hi = np.minimum(lo + step, max_radius)
-        for _ in range(12):
-            mid = 0.5 * (lo + hi)
-            p = origin[sl] + mid[:, None] * direction[sl]
-            d = capsule_signed_distance(p, a, b, radii=radii)[0]
-            inner = d < gap
-            lo, hi = np.where(inner, mid, lo), np.where(inner, hi, mid)
-        out[sl] = np.where(hit, 0.5 * (lo + hi), 0.0)
-    return out.reshape(shape)
 
 
 def _triangle_wave(x: np.ndarray) -> np.ndarray:
@@ -116,7 +42,7 @@ def _tube(shape: TubeShape, rows: int, cols: int, body: BodyModel) -> np.ndarray
     """(rows, cols, 3) tube vertices."""
     theta = 2.0 * np.pi * np.arange(cols) / cols
     height = _ring_heights(shape, rows, theta)
-    fit = body_fit_radius(np.broadcast_to(theta, height.shape), height, shape.gap, body)
+    fit = body_fit_radius(np.broadcast_to(theta, height.shape), height, shape.gap, body=body)
     radius = np.empty_like(fit)
     radius[0] = np.maximum(fit[0], 0.05)
     for r in range(1, rows):
@@ -139,29 +65,6 @@ def _tube_faces(rows: int, cols: int) -> np.ndarray:
     v10, v11 = v00 + cols, v01 + cols
     tri = np.stack([np.stack([v00, v10, v01], -1), np.stack([v01, v10, v11], -1)], 2)
     return tri.reshape(-1, 3)
-
-
-def _push_out(points: np.ndarray, gap: float, body: BodyModel, iterations: int = 4) -> np.ndarray:
-    a, b, radii = rest_body(body)
-    for _ in range(iterations):
-        d, n, _ = capsule_signed_distance(points, a, b, radii=radii)
-        points = points + np.maximum(gap - d, 0.0)[:, None] * n
-    return points
-
-
-def _shoulder_top(points: np.ndarray, gap: float, body: BodyModel) -> np.ndarray:
-    """Height ``gap`` above the body's top surface straight above each point (x, z), head and neck
-    left out: a strap passes beside them. (With them, a strap edge within the head's 9.5 cm radius
-    of the midline found the top of the head: at 400 and 4,000 vertices, where the column nearest
-    the strap line fell inside it, both straps looped over the head, 1.68 m high.)"""
-    a, b, radii = rest_body(body)
-    keep = [i for i, c in enumerate(body.capsules) if c.joint not in ("head", "neck")]
-    a, b, radii = a[keep], b[keep], radii[keep]
-    ys = np.arange(1.8, 0.9, -0.002)
-    grid = np.repeat(points[:, None], len(ys), axis=1)
-    grid[..., 1] = ys[None]
-    d = capsule_signed_distance(grid.reshape(-1, 3), a, b, radii=radii)[0].reshape(grid.shape[:2])
-    return ys[np.argmax(d < gap, axis=1)]
 
 
 def _add_straps(
@@ -187,7 +90,7 @@ def _add_straps(
         front_cols = [(cf + j) % cols for j in range(width_cols + 1)]
         back_cols = [(cols // 2 - c) % cols for c in front_cols]
         p_front, p_back = top[front_cols], top[back_cols]
-        crest = _shoulder_top(0.5 * (p_front + p_back), shape.gap, body)
+        crest = shoulder_top(0.5 * (p_front + p_back), shape.gap, body)
         length = (
             np.pi
             / 2
@@ -204,7 +107,7 @@ def _add_straps(
         y = shape.top + (crest[None, :] - shape.top) * np.sin(np.pi * s)[:, None]
         z = zc[None] + zr[None] * np.cos(np.pi * s)[:, None]
         pts = np.stack([x, y, z], -1).reshape(-1, 3)
-        pts = _push_out(pts, shape.gap, body)
+        pts = push_out_of_body(pts, shape.gap, body)
         base = n_tube + sum(len(v) for v in new_vertices)
         grid = np.empty((segments + 1, width_cols + 1), dtype=np.int64)
         grid[0] = front_cols
@@ -228,44 +131,6 @@ def _resolution(shape: TubeShape, vertices: int, body: BodyModel) -> tuple[int, 
     cols = int(max(12, 4 * round(np.sqrt(tube_vertices * circumference / length) / 4)))
     rows = int(max(4, round(tube_vertices / cols)))
     return rows, cols
-
-
-# heights of the body's landmarks in the rest pose: the ground, the knees, the pelvis, the upper
-# spine, the shoulders; a template's heights between two of them keep their place between them
-LANDMARKS = (("l_knee", "r_knee"), ("pelvis",), ("spine3",), ("l_shoulder", "r_shoulder"))
-
-
-def _landmark_heights(body: BodyModel) -> np.ndarray:
-    joints = body.rest_joints()
-    return np.array([0.0, *[np.mean([joints[JOINT_INDEX[j], 1] for j in group]) for group in LANDMARKS]])
-
-
-def shape_for_body(shape: TubeShape, body: BodyModel) -> TubeShape:
-    """``shape`` (made for the mannequin) on ``body``: each height mapped between the body's
-    landmarks (:data:`LANDMARKS`) as it lies between the mannequin's, the strap line moved with the
-    shoulders' width. The mannequin's own shape is returned as it is."""
-    if body.is_mannequin_frame:
-        return shape
-    ours, theirs = _landmark_heights(DEFAULT_BODY), _landmark_heights(body)
-
-    def height(y: float) -> float:  # piecewise linear, extended above the shoulders by the last ratio
-        if y <= ours[-1]:
-            return float(np.interp(y, ours, theirs))
-        return float(theirs[-1] + (y - ours[-1]) * (theirs[-1] - theirs[-2]) / (ours[-1] - ours[-2]))
-
-    joints, mannequin = body.rest_joints(), DEFAULT_BODY.rest_joints()
-    shoulders = abs(joints[JOINT_INDEX["l_shoulder"], 0]) / abs(mannequin[JOINT_INDEX["l_shoulder"], 0])
-    tilt = 0.5 * (
-        height(shape.hem + shape.hem_tilt) - height(shape.hem - shape.hem_tilt)
-    )  # the hem's span, mapped
-    return replace(
-        shape,
-        top=height(shape.top),
-        waist=height(shape.waist),
-        hem=height(shape.hem),
-        hem_tilt=tilt,
-        strap_x=shape.strap_x * shoulders,
-    )
 
 
 def make_garment(name: str, vertices: int = DEFAULT_VERTICES, body: BodyModel = DEFAULT_BODY) -> GarmentMesh:

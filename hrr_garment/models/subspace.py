@@ -101,7 +101,8 @@ class SubspaceDecoder(nn.Module):
         return self.net(x)
 
     def vertices(self, coefficients: torch.Tensor) -> torch.Tensor:
-        """(B, k) standardised coefficients, the first k <= K -> (B, V, 3) vertices through the first k components."""
+        """(B, k) standardised coefficients, the first k <= K -> (B, V, 3) vertices through the
+        first k components."""
         k = coefficients.shape[1]
         return (self.mean + (coefficients * self.coeff_std[:k]) @ self.basis[:k]).reshape(
             -1, self.num_vertices, 3

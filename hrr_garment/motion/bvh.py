@@ -124,8 +124,9 @@ def _parse_joint(tokens: _Tokens, tree: _Hierarchy, parent: int, depth: int) -> 
     if depth > MAX_BVH_DEPTH or len(tree.names) >= MAX_BVH_JOINTS:
         raise MotionError(
             path,
-            f"line {line}: joint {name!r} is {'nested ' + str(depth) + ' deep' if depth > MAX_BVH_DEPTH else 'one joint too many'}; "
-            f"at most {MAX_BVH_DEPTH} levels and {MAX_BVH_JOINTS} joints are read",
+            f"line {line}: joint {name!r} is "
+            f"{'nested ' + str(depth) + ' deep' if depth > MAX_BVH_DEPTH else 'one joint too many'}; at most "
+            f"{MAX_BVH_DEPTH} levels and {MAX_BVH_JOINTS} joints are read",
         )
     index = len(tree.names)
     tree.names.append(name)

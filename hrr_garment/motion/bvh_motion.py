@@ -42,7 +42,8 @@ def detect_unit_scale(rest: np.ndarray, mapping: dict[str, int], path: Path) -> 
     if not fits:
         raise MotionError(
             path,
-            f"cannot detect the length unit: standing height is {height_units:.4g} file units, which is no plausible human height in {', '.join(UNIT_SCALES)}; pass --unit-scale (metres per file unit)",
+            f"cannot detect the length unit: standing height is {height_units:.4g} file units, which is no "
+            f"plausible human height in {', '.join(UNIT_SCALES)}; pass --unit-scale (metres per file unit)",
         )
     return min(fits)[1]
 

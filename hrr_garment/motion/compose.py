@@ -41,7 +41,8 @@ def spliced(lower: Motion, upper: Motion) -> Motion:
         raise ValueError(f"the clips' frame rates differ: {lower.fps:g} and {upper.fps:g} frames/s")
     if upper.num_frames < lower.num_frames:
         raise ValueError(
-            f"the upper body's clip is shorter ({upper.num_frames} frames) than the legs' ({lower.num_frames})"
+            f"the upper body's clip is shorter ({upper.num_frames} frames) than the legs' "
+            f"({lower.num_frames})"
         )
     local = np.array(lower.local_rotations)
     joints = list(UPPER_BODY)

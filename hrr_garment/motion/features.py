@@ -65,7 +65,8 @@ def motion_features(motion: Motion) -> np.ndarray:
 
 
 def _features(global_rotations: np.ndarray, joint_positions: np.ndarray, fps: float) -> np.ndarray:
-    """:func:`motion_features` of (T >= 2) frames' global rotations (T, 22, 3, 3) and joint positions (T, 22, 3)."""
+    """:func:`motion_features` of (T >= 2) frames' global rotations (T, 22, 3, 3) and joint
+    positions (T, 22, 3)."""
     frames = len(global_rotations)
     yaw = yaw_of(global_rotations[:, 0])
     h_t = np.swapaxes(

@@ -1,4 +1,5 @@
-"""glTF 2.0 / GLB files as canonical motion: a skin's joints and one of the file's animations.
+"""glTF 2.0 / GLB files as canonical motion: a skin's joints and one of the file's animations (read
+by :mod:`.gltf_animation`).
 
 The file is read with pygltflib (the ``export`` extra). The skin's joints are nodes with names,
 parents and rest transforms; the animation's channels key their translation, rotation and scale
@@ -19,6 +20,7 @@ import numpy as np
 
 from ..errors import MotionError
 from .bvh_motion import PLAUSIBLE_HEIGHT_M, detect_unit_scale
+from .gltf_animation import AnimationChannel, animation_names, pick_animation, read_channels, sample_channel
 from .gltf_file import (
     GltfDocument,
     node_chain,
@@ -32,172 +34,10 @@ from .joint_maps import resolve_joint_map
 from .limits import MAX_BVH_JOINTS, check_frame_budget
 from .motion import FPS, Motion
 from .retarget import SourceMotion, check_source, retarget, standing_height_from_legs
-from .rotations import quat_slerp
 from .skeleton_doubts import skeleton_doubts, warn_doubts
 
-_PATH_WIDTHS = {"translation": 3, "rotation": 4, "scale": 3}
-_INTERPOLATIONS = ("LINEAR", "STEP", "CUBICSPLINE")
 
-
-@dataclass(frozen=True)
-class GltfAnimation:
-    """One animation of a file: its name (``#index`` when it has none), index, time span and keys."""
-
-    name: str
-    index: int
-    duration_s: float
-    keyframes: int  # the most keys of any of its channels
-    channels: int
-
-    def as_dict(self) -> dict:
-        """The animation as hrr-motion info prints it."""
-        return {
-            "name": self.name,
-            "index": self.index,
-            "duration_s": round(self.duration_s, 4),
-            "keyframes": self.keyframes,
-            "frames_30fps": int(np.floor(self.duration_s * FPS + 1e-4)) + 1,
-            "channels": self.channels,
-        }
-
-
-@dataclass
-class _Channel:
-    """One animation channel, read: the node it keys, which property, key times and values."""
-
-    node: int
-    path: str  # translation / rotation / scale
-    times: np.ndarray  # (K,) seconds
-    values: np.ndarray  # (K, W), or (K, 3, W) for CUBICSPLINE (in-tangent, value, out-tangent)
-    interpolation: str
-
-
-def _animation_names(doc: GltfDocument) -> list[str]:
-    return [a.name or f"#{i}" for i, a in enumerate(doc.doc.animations or [])]
-
-
-def _pick_animation(doc: GltfDocument, animation: str | int | None) -> int:
-    """The index of the animation asked for: by name first, then by index; the first by default."""
-    names = _animation_names(doc)
-    if not names:
-        raise doc.fail(
-            "the file has no animations (a glTF motion is read from an animation of a skinned character)"
-        )
-    listing = ", ".join(f"{i}: {n!r}" for i, n in enumerate(names))
-    if animation is None:
-        return 0
-    if isinstance(animation, str) and animation in names:
-        return names.index(animation)
-    try:
-        index = int(animation)
-    except (TypeError, ValueError):
-        raise doc.fail(f"no animation named {animation!r}; the file's animations are {listing}") from None
-    if not 0 <= index < len(names):
-        raise doc.fail(f"no animation {animation!r}; the file's animations are {listing}")
-    return index
-
-
-def _channels(doc: GltfDocument, index: int) -> list[_Channel]:
-    """The translation / rotation / scale channels of animation ``index``, read and checked (morph
-    target weights and extensions' targets are left out)."""
-    anim = doc.doc.animations[index]
-    out = []
-    for c, channel in enumerate(anim.channels or []):
-        target = channel.target
-        if target is None or target.node is None or target.path not in _PATH_WIDTHS:
-            continue
-        try:
-            sampler = anim.samplers[channel.sampler]
-        except (IndexError, TypeError):
-            raise doc.fail(
-                f"animation {index} channel {c} names sampler {channel.sampler}, which is missing"
-            ) from None
-        interpolation = sampler.interpolation or "LINEAR"
-        if interpolation not in _INTERPOLATIONS:
-            raise doc.fail(f"animation {index} channel {c}: unknown interpolation {interpolation!r}")
-        times = doc.accessor(sampler.input)[:, 0]
-        values = doc.accessor(sampler.output)
-        width = _PATH_WIDTHS[target.path]
-        per_key = 3 if interpolation == "CUBICSPLINE" else 1
-        if (
-            len(times) == 0
-            or values.shape != (len(times) * per_key, width)
-            or not (np.diff(times) >= 0).all()
-        ):
-            raise doc.fail(
-                f"animation {index} channel {c} ({target.path} of node {target.node}): "
-                f"{len(times)} key times (must increase) for {values.shape[0]} values of width {values.shape[1]}"
-            )
-        if target.path == "rotation":
-            values = values[:, [3, 0, 1, 2]]  # glTF quaternions are x, y, z, w
-        if per_key == 3:
-            values = values.reshape(len(times), 3, width)
-        out.append(_Channel(target.node, target.path, times, values, interpolation))
-    return out
-
-
-def _sample(ch: _Channel, times: np.ndarray) -> np.ndarray:
-    """A channel's value at ``times`` (F,) by its interpolation; held constant outside its keys."""
-    keys = ch.times
-    tol = 1e-6 * (1.0 + np.abs(times))  # key times stored as float32 still land on their frame
-    if ch.interpolation == "STEP" or len(keys) == 1:
-        idx = np.clip(np.searchsorted(keys, times + tol, side="right") - 1, 0, len(keys) - 1)
-        return ch.values[idx, 1] if ch.values.ndim == 3 else ch.values[idx]
-    i = np.clip(np.searchsorted(keys, times, side="right") - 1, 0, len(keys) - 2)
-    dt = keys[i + 1] - keys[i]
-    u = np.clip((times - keys[i]) / np.where(dt > 0, dt, 1.0), 0.0, 1.0)[:, None]
-    u = np.where((dt > 0)[:, None], u, 1.0)
-    if ch.interpolation == "CUBICSPLINE":  # Hermite: values and tangents (per second) of the two keys
-        v0, b0, a1, v1 = ch.values[i, 1], ch.values[i, 2], ch.values[i + 1, 0], ch.values[i + 1, 1]
-        d = dt[:, None]
-        out = (
-            (2 * u**3 - 3 * u**2 + 1) * v0
-            + (u**3 - 2 * u**2 + u) * d * b0
-            + (-2 * u**3 + 3 * u**2) * v1
-            + (u**3 - u**2) * d * a1
-        )
-        return out / np.linalg.norm(out, axis=-1, keepdims=True) if ch.path == "rotation" else out
-    v0, v1 = ch.values[i], ch.values[i + 1]
-    if ch.path == "rotation":
-        return quat_slerp(v0, v1, u[:, 0])
-    return (1.0 - u) * v0 + u * v1
-
-
-def _describe(doc: GltfDocument, index: int) -> GltfAnimation:
-    channels = _channels(doc, index)
-    if not channels:
-        return GltfAnimation(_animation_names(doc)[index], index, 0.0, 0, 0)
-    start = min(c.times[0] for c in channels)
-    end = max(c.times[-1] for c in channels)
-    return GltfAnimation(
-        _animation_names(doc)[index],
-        index,
-        float(end - start),
-        max(len(c.times) for c in channels),
-        len(channels),
-    )
-
-
-def gltf_animations(path: str | Path) -> list[GltfAnimation]:
-    """The animations of a glTF / GLB file: names, durations, key counts (hrr-motion info)."""
-    doc = GltfDocument(Path(path))
-    return [_describe(doc, i) for i in range(len(doc.doc.animations or []))]
-
-
-def gltf_summary(path: str | Path, animation: str | int | None = None) -> dict:
-    """The animation :func:`load_gltf` reads for ``animation`` and all of the file's animations."""
-    doc = GltfDocument(Path(path))
-    index = _pick_animation(doc, animation)
-    return {
-        "animation": _animation_names(doc)[index],
-        "animations": [_describe(doc, i).as_dict() for i in range(len(doc.doc.animations))],
-    }
-
-
-# --- the skin and its motion -------------------------------------------------------------------------
-
-
-def _pick_skin(doc: GltfDocument, channels: list[_Channel]) -> list[int]:
+def _pick_skin(doc: GltfDocument, channels: list[AnimationChannel]) -> list[int]:
     """The joints (node indices) of the skin the channels animate most (the first of equals)."""
     skins = doc.doc.skins or []
     if not skins:
@@ -210,7 +50,8 @@ def _pick_skin(doc: GltfDocument, channels: list[_Channel]) -> list[int]:
     joints = list(skins[best].joints or [])
     if len(joints) > MAX_BVH_JOINTS:
         raise doc.fail(
-            f"skin {best} has {len(joints)} joints, more than {MAX_BVH_JOINTS} (a human rig has under a few hundred)"
+            f"skin {best} has {len(joints)} joints, more than {MAX_BVH_JOINTS} (a human rig has under a few "
+            "hundred)"
         )
     if not joints or not all(isinstance(j, int) and 0 <= j < len(doc.doc.nodes) for j in joints):
         raise doc.fail(f"skin {best} has no joints or names nodes that are missing")
@@ -219,7 +60,7 @@ def _pick_skin(doc: GltfDocument, channels: list[_Channel]) -> list[int]:
     return joints
 
 
-def _times(doc: GltfDocument, channels: list[_Channel], fps: float) -> np.ndarray:
+def _times(doc: GltfDocument, channels: list[AnimationChannel], fps: float) -> np.ndarray:
     """The output frame times: the animation's span at ``fps`` (its last partial frame left out, as
     other inputs are resampled)."""
     start = min(c.times[0] for c in channels)
@@ -230,7 +71,7 @@ def _times(doc: GltfDocument, channels: list[_Channel], fps: float) -> np.ndarra
 
 
 def _local_transforms(
-    doc: GltfDocument, order: list[int], channels: list[_Channel], times: np.ndarray
+    doc: GltfDocument, order: list[int], channels: list[AnimationChannel], times: np.ndarray
 ) -> dict[int, tuple]:
     """Each node's local (translation, rotation, scale) per frame: its channels where keyed, its
     rest transform elsewhere."""
@@ -245,7 +86,7 @@ def _local_transforms(
         }
     for ch in channels:
         if ch.node in local:
-            local[ch.node][ch.path] = _sample(ch, times)
+            local[ch.node][ch.path] = sample_channel(ch, times)
     return {n: (v["translation"], v["rotation"], v["scale"]) for n, v in local.items()}
 
 
@@ -267,8 +108,8 @@ def gltf_source(
     """A glTF / GLB animation on its own skeleton, in metres, at ``options.fps``: (the motion, the
     naming scheme, canonical joint name -> source joint index, the animation's name)."""
     doc = GltfDocument(Path(path))
-    index = _pick_animation(doc, options.animation)
-    channels = _channels(doc, index)
+    index = pick_animation(doc, options.animation)
+    channels = read_channels(doc, index)
     joints = _pick_skin(doc, channels)
     parents = node_parents(doc)
     names = [doc.doc.nodes[j].name or f"node_{j}" for j in joints]
@@ -299,7 +140,7 @@ def gltf_source(
     )
     check_source(src)
     warn_doubts(str(doc.path), skeleton_doubts(names, joint_parents, rest=rest, mapping=mapping))
-    return src, scheme, mapping, _animation_names(doc)[index]
+    return src, scheme, mapping, animation_names(doc)[index]
 
 
 def world_unit_scale(

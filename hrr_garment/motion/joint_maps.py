@@ -101,7 +101,8 @@ NAMING_SCHEMES: dict[str, dict[str, list[str]]] = {
             "{side}_wrist": ["Hand_{S}"],
         }
     ),
-    # Mixamo (names carry a "mixamorig:" prefix, or "mixamorig_" / "mixamorig" in glTF files, stripped before matching).
+    # Mixamo (names carry a "mixamorig:" prefix, or "mixamorig_" / "mixamorig" in glTF files,
+    # stripped before matching).
     "mixamo": _lr(
         {
             "pelvis": ["Hips"],
@@ -171,7 +172,8 @@ def resolve_joint_map(
         if unknown:
             raise SkeletonMappingError(
                 path,
-                f"joint map names unknown canonical joints {unknown}; canonical joints are {list(JOINT_NAMES)}",
+                f"joint map names unknown canonical joints {unknown}; canonical joints are "
+                f"{list(JOINT_NAMES)}",
             )
         missing_src = sorted(src for src in custom_map.values() if _key(src) not in lookup)
         if missing_src:
@@ -205,9 +207,9 @@ def _check_required(mapping: dict[str, int], path: str, scheme: str, names: list
     if missing and animal:
         raise SkeletonMappingError(
             path,
-            f"not a human skeleton: its joints include {animal[:3]}, an animal's, and {len(missing)} of the canonical "
-            "human joints are missing; only a two-legged human rig (hips, knees, ankles, spine, shoulders, elbows, "
-            "wrists) can be read as a character or a motion",
+            f"not a human skeleton: its joints include {animal[:3]}, an animal's, and {len(missing)} of the "
+            "canonical human joints are missing; only a two-legged human rig (hips, knees, ankles, spine, "
+            "shoulders, elbows, wrists) can be read as a character or a motion",
         )
     if missing:
         raise SkeletonMappingError(

@@ -77,3 +77,18 @@ def check_root_speed(path: str | Path, root: np.ndarray, fps: float) -> None:
             f"the root moves {speed[worst]:.3g} m/s between frames {worst} and {worst + 1} "
             f"(more than {MAX_ROOT_SPEED:g} m/s: a wrong unit or a corrupt frame)",
         )
+
+
+def check_source_fps(value: float, path: str | Path) -> float:
+    """A file's frame rate as given by the user: finite, positive and plausible, or a clear error."""
+    arr = np.asarray(value)
+    if arr.size != 1 or arr.dtype.kind not in "iuf":
+        raise MotionError(path, f"frame rate must be one real number, got {str(value)[:40]!r}")
+    rate = float(arr.item())
+    if not (np.isfinite(rate) and MIN_SOURCE_FPS <= rate <= MAX_SOURCE_FPS):
+        raise MotionError(
+            path,
+            f"frame rate must be a finite number of frames per second in [{MIN_SOURCE_FPS:g}, "
+            f"{MAX_SOURCE_FPS:g}], got {rate:g}",
+        )
+    return rate

@@ -107,7 +107,8 @@ class Motion:
         if self.local_rotations.shape[1:] != (self.skeleton.num_joints, 3, 3):
             raise MotionError(
                 name,
-                f"local rotations have shape {self.local_rotations.shape}, expected (T, {self.skeleton.num_joints}, 3, 3)",
+                f"local rotations have shape {self.local_rotations.shape}, expected (T, "
+                f"{self.skeleton.num_joints}, 3, 3)",
             )
         if self.root_translation.shape != (t, 3):
             raise MotionError(

@@ -65,7 +65,8 @@ def _length_doubts(names: list[str], rest: np.ndarray, mapping: dict[str, int]) 
             doubts.append(
                 f"the left {a}-{b} bone ({names[mapping[keys[0][0]]]!r} to {names[mapping[keys[0][1]]]!r}, "
                 f"{lengths[0]:.3g}) and the right one ({names[mapping[keys[1][0]]]!r} to "
-                f"{names[mapping[keys[1][1]]]!r}, {lengths[1]:.3g}) differ by more than {MAX_SIDE_RATIO - 1:.0%}"
+                f"{names[mapping[keys[1][1]]]!r}, {lengths[1]:.3g}) differ by more than "
+                f"{MAX_SIDE_RATIO - 1:.0%}"
             )
     return doubts
 

@@ -10,8 +10,9 @@ compiled library is cached).
 - :mod:`.panels`: the dense products' panel layout;
 - :mod:`.decoder`: the mesh decoder's blocks, its single-frame form (streaming) and its bfloat16
   form on AMX;
-- :mod:`.body`: the capsule-body signed distance (:mod:`hrr_garment.body`), the push-out and its
-  strain limit of :mod:`hrr_garment.inference.collision`;
+- :mod:`.capsules`: the capsule-body signed distance (:mod:`hrr_garment.body`);
+- :mod:`.body`: the push-out and its strain limit of :mod:`hrr_garment.inference.collision`
+  (their structs: :mod:`.kernel_structs`);
 - :mod:`.motion`: forward kinematics, causal motion features and body-frame points into the
   world (:mod:`hrr_garment.motion`).
 

@@ -1,6 +1,7 @@
-"""ctypes glue of the kernels that work against the capsule body: the signed distance of points
-to it, the collision push-out and the push-out's strain limit (``kernels.c``; library from
-:func:`hrr_garment.native.load_kernel`)."""
+"""ctypes glue of the kernels that push a garment out of the capsule body: the collision push-out
+and the push-out's strain limit, with what they take of a garment converted once (``kernels.c``;
+library from :func:`hrr_garment.native.load_kernel`; the kernel's structs: :mod:`.kernel_structs`;
+the signed distance to the body: :mod:`.capsules`)."""
 
 from __future__ import annotations
 
@@ -9,7 +10,9 @@ from typing import NamedTuple
 
 import numpy as np
 
-MAX_CAPSULES = 64  # SDF_MAXC in kernels.c
+from .capsules import capsule_arrays
+from .kernel_structs import PushArgs, StrainArgs, SubspaceArgs
+
 MAX_SUBSPACE_COMPONENTS = 512  # SUBSPACE_MAXK in kernels.c
 
 
@@ -31,35 +34,9 @@ class PushSteps(NamedTuple):
     limit: "StrainLimit | None" = None
     subspace: "SubspaceMove | None" = None
 
-    def arguments(self) -> "_PushArgs":
+    def arguments(self) -> PushArgs:
         """The kernel's PushArgs of these steps."""
-        return _PushArgs(self.margin, self.smooth, self.rounds, self.depth)
-
-
-class _PushArgs(ctypes.Structure):
-    """kernels.c's PushArgs."""
-
-    _fields_ = [
-        ("margin", ctypes.c_double),
-        ("smooth", ctypes.c_int),
-        ("rounds", ctypes.c_int),
-        ("depth", ctypes.c_double),
-    ]
-
-
-class _SubspaceArgs(ctypes.Structure):
-    """kernels.c's SubspaceArgs."""
-
-    _fields_ = [
-        ("basis", ctypes.c_void_p),
-        ("blocks", ctypes.c_void_p),
-        ("stretch", ctypes.c_void_p),
-        ("k", ctypes.c_int),
-        ("iterations", ctypes.c_int),
-        ("strain_weight", ctypes.c_double),
-        ("ridge", ctypes.c_double),
-        ("clearance", ctypes.c_double),
-    ]
+        return PushArgs(margin=self.margin, smooth=self.smooth, rounds=self.rounds, depth=self.depth)
 
 
 class SubspaceMove:
@@ -93,36 +70,16 @@ class SubspaceMove:
         padded[:, :v] = basis
         self.blocks = np.ascontiguousarray(padded.reshape(k, count, 3 * self.BLOCK).transpose(1, 0, 2))
         self.stretch = np.ascontiguousarray(stretch, np.float64)
-        self.struct = _SubspaceArgs(
-            self.basis.ctypes.data,
-            self.blocks.ctypes.data,
-            self.stretch.ctypes.data,
-            len(self.stretch),
-            int(iterations),
-            float(strain_weight),
-            float(ridge),
-            float(clearance),
+        self.struct = SubspaceArgs(
+            basis=self.basis.ctypes.data,
+            blocks=self.blocks.ctypes.data,
+            stretch=self.stretch.ctypes.data,
+            k=len(self.stretch),
+            iterations=int(iterations),
+            strain_weight=float(strain_weight),
+            ridge=float(ridge),
+            clearance=float(clearance),
         )
-
-
-class _StrainArgs(ctypes.Structure):
-    """kernels.c's StrainArgs."""
-
-    _fields_ = [
-        ("edges", ctypes.c_void_p),
-        ("rest", ctypes.c_void_p),
-        ("colour", ctypes.c_void_p),
-        ("colour_ptr", ctypes.c_void_p),
-        ("ve_ptr", ctypes.c_void_p),
-        ("ve_idx", ctypes.c_void_p),
-        ("E", ctypes.c_int),
-        ("colours", ctypes.c_int),
-        ("iterations", ctypes.c_int),
-        ("max_strain", ctypes.c_double),
-        ("slack", ctypes.c_double),
-        ("tol", ctypes.c_double),
-        ("omega", ctypes.c_double),
-    ]
 
 
 class PushMesh:
@@ -198,53 +155,25 @@ class StrainLimit(NamedTuple):
     omega: float
     slack: float = 0.0
 
-    def arguments(self) -> _StrainArgs:
+    def arguments(self) -> StrainArgs:
         """The kernel's StrainArgs of this limit (the edge arrays' addresses: keep them alive)."""
         arrays = self.edge_arrays
-        return _StrainArgs(
-            *arrays.addresses,
-            len(arrays.edges),
-            arrays.colours,
-            self.iterations,
-            self.max_strain,
-            self.slack,
-            self.tol,
-            self.omega,
+        edges, rest, colour, colour_ptr, ve_ptr, ve_idx = arrays.addresses
+        return StrainArgs(
+            edges=edges,
+            rest=rest,
+            colour=colour,
+            colour_ptr=colour_ptr,
+            ve_ptr=ve_ptr,
+            ve_idx=ve_idx,
+            E=len(arrays.edges),
+            colours=arrays.colours,
+            iterations=self.iterations,
+            max_strain=self.max_strain,
+            slack=self.slack,
+            tol=self.tol,
+            omega=self.omega,
         )
-
-
-def _capsule_arrays(
-    a: np.ndarray, b: np.ndarray, radii: np.ndarray
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    if np.shape(radii)[-1] > MAX_CAPSULES:
-        raise ValueError(
-            f"the native capsule kernels handle up to {MAX_CAPSULES} capsules, not {np.shape(radii)[-1]}"
-        )
-    return tuple(np.ascontiguousarray(x, np.float64) for x in (a, b, radii))
-
-
-def capsule_sdf(
-    lib: ctypes.CDLL, points: np.ndarray, a: np.ndarray, b: np.ndarray, radii: np.ndarray, threads: int = 1
-) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`hrr_garment.body.capsules.capsule_signed_distance` (distance, normal) in the kernel,
-    for points (T, N, 3) against per-frame capsules a, b (T, C, 3)."""
-    a, b, r = _capsule_arrays(a, b, radii)
-    p = np.ascontiguousarray(points, np.float64)
-    t, n = p.shape[:2]
-    dist, normal = np.empty((t, n)), np.empty((t, n, 3))
-    lib.hrr_capsule_sdf(
-        p.ctypes.data,
-        t,
-        n,
-        a.ctypes.data,
-        b.ctypes.data,
-        r.ctypes.data,
-        len(r),
-        threads,
-        dist.ctypes.data,
-        normal.ctypes.data,
-    )
-    return dist, normal
 
 
 def push_out_frames(
@@ -258,18 +187,19 @@ def push_out_frames(
     out: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """:func:`hrr_garment.inference.collision.push_out`'s per-frame steps in the kernel: points
-    (T, V, 3) float32 or float64 (others are converted to float32), ``capsules`` (ends a, b (T, C, 3), radii (C,) or per
-    frame (T, C)), the push's ``steps`` -> (pushed points float32, fraction deeper than
-    ``steps.depth`` before (T,), after (T,), the (T,) mask of frames the strain limit moved). The
-    push and the limit work in float64, a frame at a time. With ``steps.subspace``, each frame is
-    first moved in the garment's subspace, its body frame turned by ``turn`` (T, 3, 3, body ->
-    world), and ``before`` is the mesh push's. With ``steps.limit``, each frame is limited right
-    after its push (as :func:`limit_strain` on the pushed and unpushed frames would, measuring only
-    the edges of the vertices the push moved); ``after`` is the push's, before the limit. Frames in
-    parallel; a single frame (streaming) shared by the threads. ``out``: a C-contiguous float32
-    array of the points' shape the pushed points are written to (and returned)."""
+    (T, V, 3) float32 or float64 (others are converted to float32), ``capsules`` (ends a, b
+    (T, C, 3), radii (C,) or per frame (T, C)), the push's ``steps`` -> (pushed points float32,
+    fraction deeper than ``steps.depth`` before (T,), after (T,), the (T,) mask of frames the strain
+    limit moved). The push and the limit work in float64, a frame at a time. With
+    ``steps.subspace``, each frame is first moved in the garment's subspace, its body frame turned
+    by ``turn`` (T, 3, 3, body -> world), and ``before`` is the mesh push's. With ``steps.limit``,
+    each frame is limited right after its push (as :func:`limit_strain` on the pushed and unpushed
+    frames would, measuring only the edges of the vertices the push moved); ``after`` is the push's,
+    before the limit. Frames in parallel; a single frame (streaming) shared by the threads. ``out``:
+    a C-contiguous float32 array of the points' shape the pushed points are written to (and
+    returned)."""
     mean, *_, mesh, limit, subspace = steps
-    a, b, r = _capsule_arrays(*capsules)
+    a, b, r = capsule_arrays(*capsules)
     p = np.ascontiguousarray(points, np.float64 if np.asarray(points).dtype == np.float64 else np.float32)
     if out is None:
         out = np.empty(p.shape, np.float32)
@@ -331,8 +261,9 @@ def limit_strain(
 ) -> tuple[np.ndarray, np.ndarray]:
     """:func:`hrr_garment.inference.collision.limit_push_strain` in the kernel: pushed and unpushed
     points (T, V, 3), the ``limit`` (:class:`StrainLimit`) -> (the limited points, float64 (T, V, 3);
-    the (T,) mask of frames that had an edge over its limit). Frames in parallel; each stops on its own. ``in_place``: a C-contiguous float64
-    ``pushed`` is moved where it lies (and returned) instead of copied."""
+    the (T,) mask of frames that had an edge over its limit). Frames in parallel; each stops on its
+    own. ``in_place``: a C-contiguous float64 ``pushed`` is moved where it lies (and returned)
+    instead of copied."""
     own = in_place and pushed.dtype == np.float64 and pushed.flags.c_contiguous
     p = pushed if own else np.array(pushed, np.float64, order="C")  # moved in place
     u = np.ascontiguousarray(unpushed, np.float64)

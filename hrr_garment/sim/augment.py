@@ -10,10 +10,11 @@ through the hips where a bow's arms meet a run's legs: :mod:`hrr_garment.body.se
 refused before it is simulated and another is drawn. The draw is seeded and depends only on the
 training clips, so a re-run plans the same splices and finds them simulated.
 
-``backward`` adds windows of training clips played backward (:func:`~hrr_garment.motion.compose.played_backward`):
-a walk becomes a walk backward, a sit-down a stand-up, contents a library of forward captures
-lacks. Their poses are the capture's own, so they need no check for limbs through the body. They
-are drawn by a generator of their own, so adding them leaves the splices' draw as it was.
+``backward`` adds windows of training clips played backward
+(:func:`~hrr_garment.motion.compose.played_backward`): a walk becomes a walk backward, a sit-down a
+stand-up, contents a library of forward captures lacks. Their poses are the capture's own, so they
+need no check for limbs through the body. They are drawn by a generator of their own, so adding them
+leaves the splices' draw as it was.
 """
 
 from __future__ import annotations

@@ -105,8 +105,8 @@ def placement_note(name: str, report: TransferReport) -> str:
     """One line on how the garment landed on a body."""
     return (
         f"the garment on body {name}: {100 * report.inside:.1f} % of its vertices were inside it and "
-        f"{100 * report.pushed:.1f} % pushed out; each vertex {report.moved_mean_mm:.1f} mm from where it was "
-        f"modelled on average, its distance from the body changed {report.gap_change_mean_mm:.1f} mm"
+        f"{100 * report.pushed:.1f} % pushed out; each vertex {report.moved_mean_mm:.1f} mm from where it "
+        f"was modelled on average, its distance from the body changed {report.gap_change_mean_mm:.1f} mm"
     )
 
 

@@ -15,13 +15,11 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Callable
 
-import numpy as np
-
-from ..data.bodies import MANNEQUIN, DressedBody, is_symmetric, mannequin_record
-from ..data.dataset import SequenceRecord, write_dataset
-from ..data.splits import MIRROR_SUFFIX, combine_splits, mirror_source, split_groups, split_names
+from ..data.bodies import MANNEQUIN, DressedBody, mannequin_record
+from ..data.dataset import write_dataset
+from ..data.splits import MIRROR_SUFFIX
 from ..errors import InputError
-from ..garment.mesh import GarmentMesh, mirror_map
+from ..garment.mesh import GarmentMesh
 from ..io_utils import atomic_write_text, exclusive_lock, strict_json
 from .augment import (
     BACKWARD_PREFIX,
@@ -31,10 +29,12 @@ from .augment import (
     splice_candidates,
     window_candidates,
 )
+from .build_split import split_finished
 from .executors import EXECUTORS, Execution, batches, run_local, run_ray
 from .parts import PART_VERSION, load_part, part_paths, parts_to_simulate, template_hash
-from .plan import SequenceSpec, clip_name
+from .plan import SequenceSpec
 from .preset import MIRROR_MODES, mirror_mode
+from .reflection import add_reflected_mirrors
 from .simulator import SimConfig, SimulationExploded, simulate_garment
 from .summary import summarise
 
@@ -153,15 +153,15 @@ def build_dataset(
         done = _finished(specs, run.rejects, parts)
         if not done:
             raise SimulationExploded(f"every sequence failed; nothing to write to {out}: {run.rejects}")
-        split = _split(done, specs, o)
+        split = split_finished(done, specs, o)
         splices, made = None, []
         if o.splices and (
             o.splices.count or o.splices.backward
         ):  # drawn from the training clips once the split is known
             if progress:
                 print(
-                    f"planning {o.splices.count} splices of the training clips (each checked for limbs through the body) "
-                    f"and {o.splices.backward} windows played backward"
+                    f"planning {o.splices.count} splices of the training clips (each checked for limbs "
+                    f"through the body) and {o.splices.backward} windows played backward"
                 )
             training = set(split["train"])
             splices = plan_splices(splice_candidates(specs, training, o.splices), o.splices)
@@ -194,7 +194,7 @@ def build_dataset(
                 "backward_made": sum(n.startswith(BACKWARD_PREFIX) for n in made),
             }
         if mirror == "reflect":
-            records, split = _add_mirrored(records, split, garment, progress, bodies)
+            records, split = add_reflected_mirrors(records, split, garment, progress=progress, bodies=bodies)
             summary["mirrored"] = len(records) - len(done)
         elif mirror == "simulate":
             summary["mirrored"] = sum(n.endswith(MIRROR_SUFFIX) for n in done)
@@ -282,93 +282,8 @@ def _finished(specs: list[SequenceSpec], rejects: dict[str, str], parts: Path) -
     return [s.name for s in specs if s.name not in rejects and part_paths(parts, s.name)[0].exists()]
 
 
-def _split(done: list[str], specs: list[SequenceSpec], o: BuildOptions) -> dict[str, list[str]]:
-    """The finished sequences split as ``o`` asks: by name, or by whole groups, with the more fields
-    of ``also_hold_out`` and the bodies held out beside (:class:`BuildOptions`). A simulated mirror
-    goes where its source goes (the split is drawn over the sources, so it is the split the
-    sources alone would get)."""
-    finished = set(done)
-    simulated_mirrors = mirror_mode(o.mirror) == "simulate"
-    by_source: dict[str, list[str]] = {}
-    for n in done:
-        by_source.setdefault(mirror_source(n) if simulated_mirrors else n, []).append(n)
-    split = _split_sources(sorted(by_source), specs, o)
-    return {
-        k: sorted(n for source in v for n in by_source.get(source, []) if n in finished)
-        for k, v in split.items()
-    }
-
-
-def _split_sources(done: list[str], specs: list[SequenceSpec], o: BuildOptions) -> dict[str, list[str]]:
-    val, test = (o.splits or {}).get("val", 0.1), (o.splits or {}).get("test", 0.1)
-    if o.groups:
-        split = split_groups({n: o.groups.get(n, n) for n in done}, val, test, seed=o.seed)
-    else:  # drawn over clips: a clip's copies on several bodies go where the clip goes
-        clip_of = {s.name: clip_name(s) for s in specs}
-        kinds = {clip_of.get(n, n): kind for n, kind in o.kinds.items()} if o.kinds else None
-        by_clip = split_names(sorted({clip_of.get(n, n) for n in done}), val, test, seed=o.seed, kinds=kinds)
-        part_of = {clip: part for part, clips in by_clip.items() for clip in clips}
-        split = {part: sorted(n for n in done if part_of[clip_of.get(n, n)] == part) for part in by_clip}
-    for held in (o.also_hold_out or {}).values():  # only the sequences the field groups take part
-        grouped = {n: held["groups"][n] for n in done if n in held["groups"]}
-        more = (
-            split_groups(grouped, held["val"], held["test"], seed=o.seed)
-            if grouped
-            else {"val": [], "test": []}
-        )
-        split = combine_splits(
-            split, {**more, "train": sorted(set(done) - set(more["val"]) - set(more["test"]))}
-        )
-    if o.hold_out_bodies:
-        # the mannequin is never held out as a body: it is the default body, and a preset that keeps
-        # every clip on it too (bodies: {mannequin: true}) holds out the same sampled bodies as without
-        by_body = {s.name: s.body for s in specs if s.name in done and s.body}
-        split = combine_splits(split, split_groups(by_body, val, test, seed=o.seed))
-    return split
-
-
 def _check_bodies(specs: list[SequenceSpec], bodies: dict[str, DressedBody]) -> dict[str, DressedBody]:
     missing = sorted({s.body for s in specs if s.body} - set(bodies))
     if missing:
         raise InputError("bodies", f"sequences name bodies that the build was not given: {missing[:5]}")
     return bodies
-
-
-def _add_mirrored(
-    records: list[SequenceRecord],
-    split: dict[str, list[str]],
-    garment: GarmentMesh,
-    progress: bool,
-    bodies: dict[str, DressedBody] | None = None,
-) -> tuple[list[SequenceRecord], dict[str, list[str]]]:
-    perm = mirror_map(garment.vertices)
-    if perm is None:
-        if progress:
-            print(f"not mirroring: the {garment.name} template is not symmetric about x = 0")
-        return records, split
-    # a body that is not its own mirror image would stand on another body in the mirror
-    asymmetric = {
-        n
-        for n, b in (bodies or {}).items()
-        if not (is_symmetric(b.body) and mirror_map(b.garment.vertices) is not None)
-    }
-    if asymmetric and progress:
-        print(
-            f"not mirroring the sequences on {len(asymmetric)} asymmetric bod(y/ies): {sorted(asymmetric)[:3]}"
-        )
-    flip = np.array([-1.0, 1.0, 1.0], np.float32)
-    mirrored = [
-        SequenceRecord(
-            f"{r.name}{MIRROR_SUFFIX}",
-            r.garment[:, perm] * flip,
-            r.motion.mirrored(),
-            info={**r.info, "mirror_of": r.name},
-            body=r.body,
-        )
-        for r in records
-        if r.body not in asymmetric
-    ]
-    names = {r.name for r in records if r.body not in asymmetric}
-    return records + mirrored, {
-        k: sorted(v + [f"{n}{MIRROR_SUFFIX}" for n in v if n in names]) for k, v in split.items()
-    }

@@ -2,10 +2,10 @@
 
 Both run one sequence per worker (Warp's CPU kernels use one thread), or with ``batch`` N one
 batch of up to N sequences of similar length per worker (:mod:`.batch`: one model on one device,
-meant for a GPU), and end with the same part files; the builder then assembles the dataset from the parts alone, so the dataset does not depend
-on which executor ran. Locally each worker writes its own part; on Ray a task returns its part's
-content to the driver, which writes it, so a cluster needs no shared filesystem (only the package,
-and the ``sim`` extra, installed on every node).
+meant for a GPU), and end with the same part files; the builder then assembles the dataset from the
+parts alone, so the dataset does not depend on which executor ran. Locally each worker writes its
+own part; on Ray a task returns its part's content to the driver, which writes it, so a cluster
+needs no shared filesystem (only the package, and the ``sim`` extra, installed on every node).
 """
 
 from __future__ import annotations

@@ -224,8 +224,9 @@ def parts_to_simulate(
 def borrow_part(part: Path, key: str, siblings: list[Path]) -> None:
     """Reuse the same sequence's part from another dataset in the same folder (``siblings``: their
     ``*.parts`` folders) when it was simulated under the same key (template, settings, motion): a
-    preset that only splits the same clips otherwise (``also_hold_out``) simulates nothing again. Hard-linked where the file
-    system allows, else copied (atomically: a temporary name, then a rename)."""
+    preset that only splits the same clips otherwise (``also_hold_out``) simulates nothing again.
+    Hard-linked where the file system allows, else copied (atomically: a temporary name, then a
+    rename)."""
     for sibling in siblings:
         other = sibling / part.name
         if not other.exists() or read_part_key(other) != key:

@@ -169,7 +169,8 @@ def plan_sequences(
     names = [s.name for s in specs]
     if len(set(names)) != len(names):
         raise HRRError(
-            f"two motions would get the same sequence name: {sorted({n for n in names if names.count(n) > 1})}"
+            "two motions would get the same sequence name: "
+            f"{sorted({n for n in names if names.count(n) > 1})}"
         )
     if not specs:
         raise HRRError("nothing to simulate: the preset lists no sequences and no --motions were given")
@@ -209,8 +210,8 @@ def _file_pieces(path: str, speed: float, source_fps: float | None) -> list[Sequ
 
 
 def build_options(preset: Preset, specs: list[SequenceSpec]) -> dict:
-    """The preset's keyword arguments for :class:`~hrr_garment.sim.build.BuildOptions`: splits (by clip group when it names
-    one), seed, mirroring and the provenance recorded in the file."""
+    """The preset's keyword arguments for :class:`~hrr_garment.sim.build.BuildOptions`: splits (by
+    clip group when it names one), seed, mirroring and the provenance recorded in the file."""
     groups = {s.name: sequence_group(s, preset) for s in specs} if preset.split_by else None
     info: dict = {"preset": preset.name, "plan": plan_record(preset)}
     if groups:  # recorded in the file: which groups were held out whole

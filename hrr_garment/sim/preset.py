@@ -51,7 +51,8 @@ class Preset:
     bodies: dict = field(
         default_factory=dict
     )  # which bodies the sequences stand on (sim/bodies.py); none: the mannequin
-    # more training motion from the training clips' parts (sim/augment.py): {count, seconds, arm_delay_s, field}
+    # more training motion from the training clips' parts (sim/augment.py): {count, seconds,
+    # arm_delay_s, field}
     splices: dict = field(default_factory=dict)
 
 
@@ -82,7 +83,8 @@ def load_preset(name_or_path: str) -> Preset:
     if mirror_mode(preset.mirror) is None:
         raise InputError(
             path,
-            f"mirror: {preset.mirror!r} is not one of {', '.join(repr(m) for m in MIRROR_MODES)} (or true / false)",
+            f"mirror: {preset.mirror!r} is not one of {', '.join(repr(m) for m in MIRROR_MODES)} (or true / "
+            "false)",
         )
     unknown = sorted(set(preset.sequences) - set(KINDS))
     if unknown:
@@ -113,7 +115,8 @@ SPLICE_KEYS = {
 
 
 def _check_splices(path: Path, preset: Preset) -> None:
-    """An InputError unless ``splices`` holds only known keys of the right types and a field of the name pattern."""
+    """An InputError unless ``splices`` holds only known keys of the right types and a field of the
+    name pattern."""
     bad = {
         k: v
         for k, v in preset.splices.items()
@@ -125,7 +128,8 @@ def _check_splices(path: Path, preset: Preset) -> None:
     if bad:
         raise InputError(
             path,
-            f"splices: {bad!r} not understood; it takes {', '.join(SPLICE_KEYS)} (numbers >= 0, a field name)",
+            f"splices: {bad!r} not understood; it takes {', '.join(SPLICE_KEYS)} (numbers >= 0, a field "
+            "name)",
         )
     name_field = preset.splices.get("field", "content")
     if preset.splices.get("count") and name_field not in re.compile(preset.name_pattern).groupindex:

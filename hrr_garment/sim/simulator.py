@@ -222,7 +222,8 @@ def simulate_garment(
     Raises :class:`SimulationExploded` (with every attempt's reason) when all attempts fail.
     """
     motion = played_by(motion, body)
-    # (substeps, clip frames with the arms off the cloth, fraction of the cloth inside the arms they come back at)
+    # (substeps, clip frames with the arms off the cloth, fraction of the cloth inside the arms they
+    # come back at)
     attempts: list[tuple[int, np.ndarray | None, float]] = [
         (config.substeps * 2**k, None, 0.0) for k in range(config.retries + 1)
     ]

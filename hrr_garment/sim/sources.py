@@ -129,7 +129,8 @@ def resolve_motion_entries(entries: list[str], base: Path | None = None) -> list
 
 
 def clip_group(stem: str, by: str | None, pattern: str = DEFAULT_NAME_PATTERN) -> str:
-    """The group a clip named ``stem`` belongs to for splitting: ``by`` field of ``pattern``, else the stem."""
+    """The group a clip named ``stem`` belongs to for splitting: ``by`` field of ``pattern``, else
+    the stem."""
     if by is None:
         return stem
     match = re.fullmatch(pattern, stem)

@@ -293,7 +293,8 @@ def test_an_anny_body_on_a_mixamo_skeleton_comes_back_and_fits_the_same(tmp_path
     assert np.allclose(record.body.radii, body.fitted.body.radii, atol=1e-4)
     assert record.stature == pytest.approx(body.fitted.stature, abs=1e-5)
     assert json.loads(out.read_text())["shape"] is None
-    # with --parametric, the nearest anny shape is found and its surface lies within 1 cm of the mesh (issue 45)
+    # with --parametric, the nearest anny shape is found and its surface lies within 1 cm of the
+    # mesh (issue 45)
     from hrr_garment.body.parametric import fit_shape
 
     nearest = fit_shape(character.vertices, character.faces, joints=character.joints)  # as the command fits

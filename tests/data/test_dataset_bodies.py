@@ -146,7 +146,8 @@ def test_hrr_simulate_on_a_body_records_it_and_mirrors_on_it(tmp_path, capsys):
     ds = GarmentDataset(out)
     assert ds.body_of == {"walk_000": "tall", "walk_000_mirror": "tall"}
     rec = ds.sequence("walk_000")
-    # ``mirror: true`` simulates the mirrored motion on the same body (not a reflection of the source's frames)
+    # ``mirror: true`` simulates the mirrored motion on the same body (not a reflection of the
+    # source's frames)
     mirror = ds.sequence("walk_000_mirror")
     np.testing.assert_allclose(
         mirror.motion.joint_positions, rec.motion.mirrored().joint_positions, atol=1e-4

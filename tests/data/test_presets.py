@@ -87,7 +87,7 @@ def test_mirrored_sequences_join_their_source_split():
     from hrr_garment.data.dataset import SequenceRecord
     from hrr_garment.garment.mesh import mirror_map
     from hrr_garment.garment.templates import make_garment
-    from hrr_garment.sim.build import _add_mirrored
+    from hrr_garment.sim.reflection import add_reflected_mirrors
 
     garment = make_garment("dress", 300)
     perm = mirror_map(garment.vertices)
@@ -100,13 +100,16 @@ def test_mirrored_sequences_join_their_source_split():
         SequenceRecord("a", frames.astype(np.float32), motion),
         SequenceRecord("b", frames.astype(np.float32), motion),
     ]
-    out, split = _add_mirrored(records, {"train": ["a"], "test": ["b"], "val": []}, garment, progress=False)
+    out, split = add_reflected_mirrors(
+        records, {"train": ["a"], "test": ["b"], "val": []}, garment, progress=False
+    )
     assert split == {"train": ["a", "a_mirror"], "test": ["b", "b_mirror"], "val": []}
     mirrored = next(r for r in out if r.name == "a_mirror")
     # Reflecting twice gives the frames back; each vertex lands where its mirror partner was.
     np.testing.assert_allclose(mirrored.garment[:, perm] * [-1, 1, 1], frames, atol=1e-6)
     assert mirrored.info["mirror_of"] == "a"
-    # a sequence on a body that is not its own mirror image is not mirrored (the mirror would stand on another body)
+    # a sequence on a body that is not its own mirror image is not mirrored (the mirror would stand
+    # on another body)
     from dataclasses import replace
 
     from hrr_garment.body.body_file import BodyRecord
@@ -117,7 +120,7 @@ def test_mirrored_sequences_join_their_source_split():
     body = replace(DEFAULT_BODY, capsules=lopsided)
     bodies = {"odd": DressedBody("odd", BodyRecord(body.skeleton, body, body.pelvis_height, 1.7), garment)}
     records[1] = SequenceRecord("b", frames.astype(np.float32), motion, body="odd")
-    out, split = _add_mirrored(
+    out, split = add_reflected_mirrors(
         records, {"train": ["a"], "test": ["b"], "val": []}, garment, progress=False, bodies=bodies
     )
     assert split == {"train": ["a", "a_mirror"], "test": ["b"], "val": []} and len(out) == 3
@@ -159,15 +162,16 @@ def test_simulated_mirrors_join_their_source_split():
     each mirror goes where its source goes, also when the source itself failed."""
     from dataclasses import replace
 
-    from hrr_garment.sim.build import BuildOptions, _split
+    from hrr_garment.sim.build import BuildOptions
+    from hrr_garment.sim.build_split import split_finished
     from hrr_garment.sim.plan import SequenceSpec
 
     sources = [SequenceSpec(f"walk_{i:03d}", "walk", seed=i, seconds=1.0) for i in range(10)]
     options = BuildOptions(splits={"val": 0.2, "test": 0.2}, seed=1, kinds={s.name: "walk" for s in sources})
-    alone = _split([s.name for s in sources], sources, options)
+    alone = split_finished([s.name for s in sources], sources, options)
     done = [s.name for s in sources] + [f"{s.name}_mirror" for s in sources if s.name != "walk_004"]
     done.remove("walk_007")  # its mirror simulated, the source did not
-    split = _split(done, sources, replace(options, mirror="simulate"))
+    split = split_finished(done, sources, replace(options, mirror="simulate"))
     for part, names in alone.items():
         expected = {n for n in names if n != "walk_007"} | {f"{n}_mirror" for n in names if n != "walk_004"}
         assert set(split[part]) == expected
@@ -225,7 +229,8 @@ def test_more_fields_held_out_whole_beside_the_split(library, tmp_path):
     """``also_hold_out``: whole contents held out beside whole styles; a content tests in none of
     its takes' styles, and the hold-out each test clip stands for is the one it belongs to."""
     from hrr_garment.eval.holdouts import holdout_of
-    from hrr_garment.sim.build import BuildOptions, _split
+    from hrr_garment.sim.build import BuildOptions
+    from hrr_garment.sim.build_split import split_finished
 
     preset_file = library / "lib.yaml"
     preset_file.write_text(
@@ -241,13 +246,13 @@ def test_more_fields_held_out_whole_beside_the_split(library, tmp_path):
         "walk_000" not in content["groups"]
     )  # a procedural clip has no content field: it is not held out by it
     names = [s.name for s in specs]
-    split = _split(names, specs, BuildOptions(**options))
+    split = split_finished(names, specs, BuildOptions(**options))
     assert sorted(sum(split.values(), [])) == sorted(names)
     trained = {content["groups"][n] for n in split["train"] if n in content["groups"]}
     tested = {content["groups"][n] for n in split["test"] if n in content["groups"]}
     unseen = tested - trained
     assert unseen  # at least one content tests in every take
-    style_only = _split(names, specs, BuildOptions(**{**options, "also_hold_out": None}))
+    style_only = split_finished(names, specs, BuildOptions(**{**options, "also_hold_out": None}))
     assert set(style_only["test"]) <= set(split["test"])  # the styles held out as before, and more
     kinds = holdout_of(options["info"], split, split["test"])
     assert {n for n, k in kinds.items() if k == "content"} == {

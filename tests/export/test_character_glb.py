@@ -22,12 +22,12 @@ def _skinned_frames(path) -> tuple[np.ndarray, np.ndarray]:
     """Each frame of the GLB's character, skinned as glTF says (joint world matrices from the
     animation's keys, times the inverse bind matrices, blended by the weights): joints (T, 22, 3)
     and vertices (T, V, 3)."""
-    from hrr_garment.export.glb import _accessor_array
+    from hrr_garment.export.glb_read import accessor_array
 
     gltf = pygltflib.GLTF2.load(str(path))
     blob = gltf.binary_blob()
     skin = gltf.skins[0]
-    read = lambda i: _accessor_array(gltf, blob, i)  # noqa: E731
+    read = lambda i: accessor_array(gltf, blob, i)  # noqa: E731
     keys = {
         (c.target.node, c.target.path): read(gltf.animations[0].samplers[c.sampler].output)
         for c in gltf.animations[0].channels

@@ -140,7 +140,8 @@ def test_threejs_plays_the_glb_as_the_animation(out_h5, tmp_path, tolerance):
 @pytest.mark.client
 @pytest.mark.parametrize("tolerance", [0.0, 0.002])
 def test_glb_reloads_to_the_same_vertices_and_validates(out_h5, tmp_path, tolerance):
-    from hrr_garment.export.glb import read_glb_keyframes, write_glb
+    from hrr_garment.export.glb import write_glb
+    from hrr_garment.export.glb_read import read_glb_keyframes
 
     anim = read_animation_h5(out_h5)
     report = write_glb(anim, tmp_path / "a.glb", tolerance=tolerance)
@@ -156,7 +157,7 @@ def test_glb_reloads_to_the_same_vertices_and_validates(out_h5, tmp_path, tolera
         assert len(keys) < anim.num_frames
     # the normals a renderer shades with (base + weighted targets, normalised) are those of the
     # morphed positions, recomputed, within a small angle
-    from hrr_garment.export.glb import read_glb_normals
+    from hrr_garment.export.glb_read import read_glb_normals
     from hrr_garment.garment.mesh import vertex_normals
 
     shaded = read_glb_normals(report.path)
@@ -167,7 +168,8 @@ def test_glb_reloads_to_the_same_vertices_and_validates(out_h5, tmp_path, tolera
 
 @pytest.mark.client
 def test_glb_without_normals_is_smaller_and_has_none(out_h5, tmp_path):
-    from hrr_garment.export.glb import read_glb_normals, write_glb
+    from hrr_garment.export.glb import write_glb
+    from hrr_garment.export.glb_read import read_glb_normals
 
     anim = read_animation_h5(out_h5)
     with_normals = write_glb(anim, tmp_path / "n.glb", tolerance=0.0)

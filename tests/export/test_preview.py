@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from hrr_garment.data.animation_file import read_animation_h5
-from hrr_garment.export.preview import VIEWS, OrthoCamera
+from hrr_garment.export.ortho_render import VIEWS, OrthoCamera
 from hrr_garment.export.raster import rasterize
 from tests.export.test_export import _animation_arrays, _write
 

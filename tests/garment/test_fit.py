@@ -68,8 +68,8 @@ def test_auto_attached_is_the_top_band_on_the_torso():
 
 
 def test_a_far_too_dense_template_is_refused_with_a_way_forward(tmp_path, capsys):
+    from hrr_garment.cli.garment_options import resolve_garment
     from hrr_garment.cli.simulate import main as simulate_main
-    from hrr_garment.cli.simulate import resolve_garment
 
     dense = make_garment("dress", 1200)
     path = tmp_path / "dense.obj"

@@ -5,6 +5,7 @@ import pytest
 
 from hrr_garment.body.capsules import capsule_signed_distance
 from hrr_garment.garment.attachment import bind_attached
+from hrr_garment.garment.body_surface import rest_body
 from hrr_garment.garment.mesh import (
     GarmentError,
     GarmentMesh,
@@ -13,7 +14,7 @@ from hrr_garment.garment.mesh import (
     repair_mesh,
 )
 from hrr_garment.garment.obj import load_garment_obj, read_obj, write_obj
-from hrr_garment.garment.templates import GARMENT_NAMES, make_garment, rest_body
+from hrr_garment.garment.templates import GARMENT_NAMES, make_garment
 from hrr_garment.motion.synth import synthesize
 
 

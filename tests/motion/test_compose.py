@@ -1,4 +1,5 @@
-"""Motion composed from parts of clips: one clip's upper body on another's legs, one arm late, a clip backward."""
+"""Motion composed from parts of clips: one clip's upper body on another's legs, one arm late, a
+clip backward."""
 
 import numpy as np
 import pytest
@@ -45,7 +46,8 @@ def test_a_splice_keeps_the_legs_and_takes_the_upper_body():
     np.testing.assert_array_equal(
         out.local_rotations[:, list(UPPER_BODY)], arms.local_rotations[: legs.num_frames, list(UPPER_BODY)]
     )
-    # the arms ride on the legs' pelvis: the wrist relative to the pelvis is the upper clip's, turned by the pelvis
+    # the arms ride on the legs' pelvis: the wrist relative to the pelvis is the upper clip's,
+    # turned by the pelvis
     wrist, pelvis = JOINT_INDEX["l_wrist"], JOINT_INDEX["pelvis"]
 
     def in_pelvis_frame(m):

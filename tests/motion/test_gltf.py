@@ -10,7 +10,7 @@ import pytest
 from hrr_garment import load_motion, synthesize
 from hrr_garment.errors import MotionError
 from hrr_garment.motion.bvh_write import write_bvh
-from hrr_garment.motion.gltf import _Channel, _sample, gltf_animations
+from hrr_garment.motion.gltf_animation import AnimationChannel, gltf_animations, sample_channel
 from hrr_garment.motion.motion import Motion
 from hrr_garment.motion.rotations import axis_angle_to_matrix, matrix_to_quat
 from hrr_garment.motion.skeleton import CANONICAL, JOINT_NAMES, PARENTS, forward_kinematics
@@ -280,14 +280,16 @@ def test_cubic_spline_follows_its_tangents():
     # x(t) = t^3 / 8 on [0, 2]: values 0 and 1, slopes 0 and 1.5 per second
     values = np.zeros((2, 3, 3))
     values[1, 1, 0], values[1, 0, 0] = 1.0, 1.5
-    channel = _Channel(0, "translation", times, values, "CUBICSPLINE")
+    channel = AnimationChannel(0, "translation", times, values, "CUBICSPLINE")
     t = np.linspace(0.0, 2.0, 9)
-    np.testing.assert_allclose(_sample(channel, t)[:, 0], t**3 / 8, atol=1e-12)
+    np.testing.assert_allclose(sample_channel(channel, t)[:, 0], t**3 / 8, atol=1e-12)
     # a rotation stays a unit quaternion
     quats = np.zeros((2, 3, 4))
     quats[:, 1] = [[1.0, 0, 0, 0], [0.0, 1, 0, 0]]
     quats[0, 2] = [0, 1.0, 0, 0]
-    out = _sample(_Channel(0, "rotation", np.array([0.0, 1.0]), quats, "CUBICSPLINE"), np.linspace(0, 1, 5))
+    out = sample_channel(
+        AnimationChannel(0, "rotation", np.array([0.0, 1.0]), quats, "CUBICSPLINE"), np.linspace(0, 1, 5)
+    )
     np.testing.assert_allclose(np.linalg.norm(out, axis=1), 1.0)
 
 

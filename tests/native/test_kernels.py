@@ -13,7 +13,7 @@ pytestmark = pytest.mark.native
 def test_native_capsule_distance_equals_numpy(rng):
     from hrr_garment.body.capsules import DEFAULT_BODY, capsule_signed_distance
     from hrr_garment.native import load_kernel
-    from hrr_garment.native.body import capsule_sdf
+    from hrr_garment.native.capsules import capsule_sdf
 
     lib = load_kernel()
     if lib is None:

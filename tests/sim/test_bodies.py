@@ -79,10 +79,12 @@ def test_a_users_preset_file_extends_a_built_in_preset_by_its_name(tmp_path):
 
 def test_every_clip_on_the_mannequin_as_well_holds_out_the_same_bodies():
     """``mannequin: true``: each clip also on the mannequin under its own name (a dataset of the mannequin
-    alone holds its part), the mannequin never held out as a body, the sampled bodies held out as without it."""
+    alone holds its part), the mannequin never held out as a body, the sampled bodies held out as
+    without it."""
     pytest.importorskip("anny", reason="the bodies extra is not installed")
     from hrr_garment.data.splits import split_groups
-    from hrr_garment.sim.build import BuildOptions, _split_sources
+    from hrr_garment.sim.build import BuildOptions
+    from hrr_garment.sim.build_split import split_sources
     from hrr_garment.sim.plan import clip_name
 
     assert BodyPlan.from_preset({"from": "sample", "mannequin": True}, "p").mannequin
@@ -96,7 +98,7 @@ def test_every_clip_on_the_mannequin_as_well_holds_out_the_same_bodies():
         planned, bodies = plan_bodies(plan, specs, garment, made_for=DEFAULT_BODY, progress=False)
         groups = {s.name: clip_name(s) for s in planned}  # a clip's sequences share its group
         options = BuildOptions(splits={"val": 0.25, "test": 0.25}, groups=groups, hold_out_bodies=True)
-        split = _split_sources([s.name for s in planned], planned, options)
+        split = split_sources([s.name for s in planned], planned, options)
         trained = {s.body for s in planned if s.name in split["train"]}
         held_out_bodies[mannequin] = set(bodies) - trained
         assert len(planned) == len(specs) * (3 if mannequin else 2) and len(bodies) == 4
@@ -130,7 +132,8 @@ def test_without_split_by_a_clip_on_several_bodies_splits_as_the_clip_alone():
     kinds, and every copy of a clip on a body goes where the clip goes."""
     from dataclasses import replace
 
-    from hrr_garment.sim.build import BuildOptions, _split_sources
+    from hrr_garment.sim.build import BuildOptions
+    from hrr_garment.sim.build_split import split_sources
     from hrr_garment.sim.plan import on_body
 
     clips = [
@@ -139,14 +142,14 @@ def test_without_split_by_a_clip_on_several_bodies_splits_as_the_clip_alone():
         for i in range(4)
     ]
     kinds = {s.name: s.kind for s in clips}
-    alone = _split_sources(
+    alone = split_sources(
         sorted(kinds), clips, BuildOptions(splits={"val": 0.2, "test": 0.2}, seed=2, kinds=kinds)
     )
     copies = [
         replace(s, name=on_body(s.name, b), body=b) for s in clips for b in ("body01", "body04")
     ] + clips
     options = BuildOptions(splits={"val": 0.2, "test": 0.2}, seed=2, kinds={s.name: s.kind for s in copies})
-    split = _split_sources(sorted(s.name for s in copies), copies, options)
+    split = split_sources(sorted(s.name for s in copies), copies, options)
     for part, names in alone.items():
         assert split[part] == sorted(
             c for n in names for c in (n, on_body(n, "body01"), on_body(n, "body04"))

@@ -59,7 +59,9 @@ def test_workers_of_a_killed_pool_die_with_it(tmp_path):
         from hrr_garment.workers import die_with_parent
         if __name__ == "__main__":
             ctx = mp.get_context("spawn")
-            with ProcessPoolExecutor(2, mp_context=ctx, initializer=die_with_parent, initargs=(os.getpid(),)) as pool:
+            with ProcessPoolExecutor(
+                2, mp_context=ctx, initializer=die_with_parent, initargs=(os.getpid(),)
+            ) as pool:
                 futures = [pool.submit(time.sleep, 600) for _ in range(2)]
                 print("started", flush=True)
                 time.sleep(600)

@@ -125,7 +125,8 @@ def test_limbs_through_the_body_get_last_tries_with_the_arms_off_the_cloth(simul
     garment = make_garment("skirt", 200)
     motion = _arms_in_the_hips()
     assert self_intersecting_frames(motion).all()
-    # switching the arms off the cloth clears their particle-collision flag, and only theirs; on again restores it
+    # switching the arms off the cloth clears their particle-collision flag, and only theirs; on
+    # again restores it
     _, _, half = capsule_transforms(motion, DEFAULT_BODY)
     scene = ClothScene(garment, garment.vertices, half, DEFAULT_BODY, SimConfig())
     before = scene.model.shape_flags.numpy().copy()

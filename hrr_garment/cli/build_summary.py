@@ -1,0 +1,61 @@
+"""The summary a dataset build prints (hrr-simulate, and hrr-train where it simulates): sequences,
+frames, strain, penetration, simulation speed, splices, bodies, rejects."""
+
+from __future__ import annotations
+
+import json
+
+from ..garment.mesh import GarmentMesh
+
+
+def print_build_report(report, garment: GarmentMesh) -> None:
+    """Print a dataset build's summary."""
+    s = report.summary
+    print(
+        f"wrote {report.path}: {s['sequences']} sequences, {s['frames']} frames, {garment.num_vertices} "
+        f"vertices ({report.reused} reused, {report.simulated} simulated now, {len(report.rejects)} rejected)"
+    )
+    print(
+        f"  strain p99 {s['strain_p99']:.3f} (max {s['strain_max']:.2f}); penetration: worst frame "
+        f"{100 * s['penetration_frame_max']:.2f} % of vertices > 5 mm inside, mean "
+        f"{100 * s['penetration_mean']:.3f} %"
+    )
+    print(
+        f"  {s['self_intersection_frames']} frame(s) where the motion's limbs pass through the body; worst "
+        f"frame outside them {100 * s['penetration_frame_max_clean']:.2f} %"
+    )
+    if s["sim_frames_per_core_s"]:
+        print(
+            f"  {s['sim_frames_per_core_s']:.2f} simulated frames/s per core (lead-in included); wall "
+            f"{s['sim_wall_s']:.0f} s"
+        )
+    sp = s.get("splices", {})
+    if sp.get("asked"):
+        print(
+            f"  splices: {sp['made']} of {sp['asked']} (legs of one training clip, upper body of another; "
+            f"{sp['refused_self_intersection']} of {sp['drawn']} drawn refused for limbs through the body)"
+        )
+    if sp.get("backward_asked"):
+        short = (
+            ""
+            if sp["backward_made"] == sp["backward_asked"]
+            else " (fewer than asked: no training clip from a motion file is that long, or some failed to "
+            "simulate)"
+        )
+        print(
+            f"  played backward: {sp['backward_made']} of {sp['backward_asked']} windows of training "
+            f"clips{short}"
+        )
+    for name, row in s.get("by_body", {}).items():
+        print(
+            f"  body {name or 'mannequin'} ({row['stature_m']:.2f} m): {row['sequences']} sequences, "
+            f"{row['frames']} frames, strain p99 {row['strain_p99']:.3f}"
+        )
+    print(
+        "  hem swing (m) by kind: "
+        + json.dumps({k: round(v, 3) for k, v in s["hem_swing_m_by_kind"].items()})
+    )
+    for name, reason in report.rejects.items():
+        print(f"  rejected {name}: {reason}")
+    if report.preview:
+        print(f"  preview: {report.preview}")
