@@ -160,12 +160,10 @@ def _stage_report(record: dict, folder: Path, reused: bool = False) -> StageRepo
     metrics["latent_shape"], metrics["sizes"] = tuple(metrics["latent_shape"]), tuple(metrics["sizes"])
     if reused:
         metrics["extra"] = {**metrics.get("extra", {}), "reused": True}
-    return StageReport(
+    return StageReport.of_record(
         "autoencoder",
         folder,
-        int(record["epochs"]),
-        best_epoch=int(record["best_epoch"]),
-        minutes=float(record["minutes"]),
+        record,
         reused=reused,
         metrics=metrics,
         epochs_asked=record.get("epochs_asked"),

@@ -196,15 +196,7 @@ def run_baseline_stage(
 
 
 def _stage_report(entry: dict, folder: Path, reused: bool = False) -> StageReport:
-    return StageReport(
-        "baseline",
-        folder / "baseline",
-        int(entry["epochs"]),
-        best_epoch=int(entry["best_epoch"]),
-        minutes=float(entry["minutes"]),
-        reused=reused,
-        metrics=entry,
-    )
+    return StageReport.of_record("baseline", folder / "baseline", entry, reused=reused)
 
 
 @torch.no_grad()

@@ -149,7 +149,7 @@ class ProgressBar(Callback):
 
 
 # the loop's own entries of the state, after "epoch" and the stage's (the order of report.json's "training")
-FRESH_STATE = {"best": math.inf, "best_epoch": 0, "stale": 0, "elapsed_s": 0.0}
+_LOOP_STATE = {"best": math.inf, "best_epoch": 0, "stale": 0, "elapsed_s": 0.0}
 
 
 def fit(
@@ -164,7 +164,7 @@ def fit(
     the best validation epoch's weights are left in it, in eval mode. ``state``: the stage's own
     entries of the loop's state (checkpointed with it), with their values at the start. Returns the
     state at the end, with ``stopped``, why the run stopped (:mod:`.schedule`)."""
-    run = TrainingRun(model, budget, {"epoch": 0, **(state or {}), **FRESH_STATE})
+    run = TrainingRun(model, budget, {"epoch": 0, **(state or {}), **_LOOP_STATE})
     for callback in callbacks:
         callback.on_fit_start(run)
     run.resumed()

@@ -306,13 +306,6 @@ def run_subspace_stage(
 
 
 def _stage_report(entry: dict, folder: Path, reused: bool = False) -> StageReport:
-    return StageReport(
-        "subspace",
-        folder / "subspace",
-        int(entry["epochs"]),
-        best_epoch=int(entry["best_epoch"]),
-        minutes=float(entry["minutes"]),
-        reused=reused,
-        metrics=entry,
-        validation_mm=float(entry["validation_mm"]),
+    return StageReport.of_record(
+        "subspace", folder / "subspace", entry, reused=reused, validation_mm=float(entry["validation_mm"])
     )
