@@ -33,10 +33,11 @@ from ..models.fcmae import AutoencoderConfig, MeshAutoencoder
 from ..models.hierarchy import cached_hierarchy
 from ..motion.frame import FRAME_VERSION, to_body_frame
 from ..settings import from_settings
-from .checkpoint import keep_if_best, load_checkpoint, save_checkpoint
+from .checkpoint import Checkpoint
+from .loop import Budget, Epoch, EpochStep, ProgressBar, TrainingRun, fit
 from .mesh_loss import apply_laplacian, laplacian_operator, pve_mm
 from .report import StageReport
-from .schedule import cap_since_raised, run_progress, set_learning_rate, stop_reason, training_device
+from .schedule import cap_since_raised, set_learning_rate, training_device
 
 
 @dataclass(frozen=True)
@@ -159,12 +160,10 @@ def _stage_report(record: dict, folder: Path, reused: bool = False) -> StageRepo
     metrics["latent_shape"], metrics["sizes"] = tuple(metrics["latent_shape"]), tuple(metrics["sizes"])
     if reused:
         metrics["extra"] = {**metrics.get("extra", {}), "reused": True}
-    return StageReport(
+    return StageReport.of_record(
         "autoencoder",
         folder,
-        int(record["epochs"]),
-        best_epoch=int(record["best_epoch"]),
-        minutes=float(record["minutes"]),
+        record,
         reused=reused,
         metrics=metrics,
         epochs_asked=record.get("epochs_asked"),
@@ -183,80 +182,46 @@ def _finished(folder: Path, key: str) -> dict | None:
     return None
 
 
-def _fit(
-    model: MeshAutoencoder,
-    optimizer: torch.optim.Optimizer,
-    frames: TrainingFrames,
-    folder: Path,
-    training_key: str,
-    config: TrainConfig,
-    device: torch.device,
-    progress: bool,
-) -> tuple[dict, bool]:
-    """The epochs, resumed from the checkpoint; leaves the best weights in ``model`` (eval mode).
-    Returns the loop's state and whether the progress bar was shown."""
-    train, val = frames.train, frames.val
-    checkpoint = folder / "checkpoint.pt"
-    state = {"epoch": 0, "best": float("inf"), "best_epoch": 0, "stale": 0, "elapsed_s": 0.0}
-    best_weights = {k: v.clone() for k, v in model.state_dict().items()}
-    state, best_weights = load_checkpoint(
-        checkpoint, training_key, state, best_weights=best_weights, model=model, optimizer=optimizer
-    )
-    conv0 = model.encoder[0].conv
-    lap = laplacian_operator(conv0.index.cpu(), conv0.mask.cpu()).to(device)
-    rng = np.random.default_rng(config.seed + state["epoch"])
-    bar = tqdm(
-        total=config.epochs, initial=state["epoch"], desc="autoencoder", unit="epoch", disable=not progress
-    )
-    # the wall-clock budget counts the time of earlier (interrupted) runs too
-    started, spent = time.perf_counter(), state["elapsed_s"]
-    deadline = None if config.max_minutes is None else started + 60 * config.max_minutes - spent
+class _AutoencoderEpochs(EpochStep):
+    """The autoencoder's epoch: a fresh sample of training frames in batches, the cosine rate set
+    before each, then the validation split's per-vertex error (mm)."""
 
-    def run_fraction(epoch: float) -> float:
-        return run_progress(
-            epoch, config.epochs, spent + time.perf_counter() - started, max_minutes=config.max_minutes
-        )
+    def __init__(
+        self,
+        model: MeshAutoencoder,
+        optimizer: torch.optim.Optimizer,
+        frames: TrainingFrames,
+        config: TrainConfig,
+        device: torch.device,
+    ):
+        self.model, self.optimizer, self.frames = model, optimizer, frames
+        self.config, self.device = config, device
+        conv0 = model.encoder[0].conv
+        self.lap = laplacian_operator(conv0.index.cpu(), conv0.mask.cpu()).to(device)
 
-    epoch_s = None  # the last epoch's duration
-    while (
-        stopped := stop_reason(
-            state, config, deadline=deadline, epoch_s=epoch_s, progress=run_fraction(state["epoch"])
-        )
-    ) is None:
-        epoch_started = time.perf_counter()
+    def start(self, run: TrainingRun) -> None:
+        self.rng = np.random.default_rng(self.config.seed + run.state["epoch"])
+
+    def run_epoch(self, run: TrainingRun) -> Epoch:
+        model, optimizer, config, train = self.model, self.optimizer, self.config, self.frames.train
         model.train()
         # a bounded epoch: one pass over the real-motion library's 114,000 frames took 18 min on
         # 2 cores, longer than its whole budget, so validation, checkpoints and the budget check
         # would wait for it; each epoch draws a fresh sample instead
-        order = rng.permutation(len(train))[: config.frames_per_epoch]
+        order = self.rng.permutation(len(train))[: config.frames_per_epoch]
         losses = []
         for i in range(0, len(order), config.batch_size):
-            set_learning_rate(optimizer, config, run_fraction(state["epoch"] + i / len(order)))
-            x = torch.from_numpy(train[order[i : i + config.batch_size]]).to(device)
+            set_learning_rate(optimizer, config, run.progress(run.state["epoch"] + i / len(order)))
+            x = torch.from_numpy(train[order[i : i + config.batch_size]]).to(self.device)
             y = model(x)
-            loss = (y - x).abs().mean() + config.laplacian * (apply_laplacian(lap, y - x)).abs().mean()
+            loss = (y - x).abs().mean() + config.laplacian * (apply_laplacian(self.lap, y - x)).abs().mean()
             optimizer.zero_grad(set_to_none=True)
             loss.backward()
             optimizer.step()
             losses.append(loss.item())
         model.eval()
-        val_err = pve_mm(model, val if len(val) else train[:256])
-        state["epoch"] += 1
-        state["elapsed_s"] = spent + time.perf_counter() - started
-        best_weights = keep_if_best(state, val_err, model, best_weights=best_weights)
-        save_checkpoint(
-            checkpoint, training_key, state, best_weights=best_weights, model=model, optimizer=optimizer
-        )
-        bar.set_postfix(
-            loss=f"{np.mean(losses) * 1000:.2f}mm", val=f"{val_err:.2f}mm", best=f"{state['best']:.2f}mm"
-        )
-        bar.update(1)
-        epoch_s = time.perf_counter() - epoch_started
-    bar.close()
-    state["stopped"] = stopped
-    model.load_state_dict(best_weights)
-    model.eval()
-    return state, not bar.disable
+        val_err = pve_mm(model, self.frames.val if len(self.frames.val) else train[:256])
+        return Epoch(val_err, postfix={"loss": f"{np.mean(losses) * 1000:.2f}mm", "val": f"{val_err:.2f}mm"})
 
 
 def train_autoencoder(
@@ -296,11 +261,24 @@ def train_autoencoder(
     ):
         # finished with these settings: nothing to redo
         return _stage_report(done, folder, reused=True)
-    state, shown = _fit(model, optimizer, frames, folder, training_key, train_config, device, progress)
+    state = fit(
+        model,
+        _AutoencoderEpochs(model, optimizer, frames, train_config, device),
+        Budget(train_config.epochs, train_config.max_minutes, patience=train_config.patience),
+        callbacks=[
+            Checkpoint(folder / "checkpoint.pt", training_key, optimizer=optimizer),
+            ProgressBar("autoencoder", progress, best="{:.2f}mm"),
+        ],
+    )
     # encoding (the refinement's decoder passes) runs on the training device, the rest on the CPU,
     # where inference will
     latents = encode_dataset(
-        model, ds, folder / "latents.npz", train_config.refine_steps, train_config.refine_lr, progress=shown
+        model,
+        ds,
+        folder / "latents.npz",
+        train_config.refine_steps,
+        train_config.refine_lr,
+        progress=progress,
     )
     model.cpu()
     with atomic_path(folder / "model.pt") as tmp:

@@ -12,14 +12,12 @@ from __future__ import annotations
 
 import hashlib
 import json
-import math
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
 import torch
-from tqdm import tqdm
 
 from ..artifacts.bundle_writer import add_bundle_part
 from ..data.windows import dataset_features
@@ -28,7 +26,8 @@ from ..models.direct import DirectConfig, DirectRegressor
 from ..settings import from_settings
 from .autoencoder import body_frames
 from .bundle_stage import bundle_and_dataset
-from .checkpoint import keep_if_best, load_checkpoint, resume_log, save_checkpoint
+from .checkpoint import Checkpoint, EpochLog
+from .loop import Budget, Epoch, EpochStep, ProgressBar, TrainingRun, fit
 from .report import StageReport
 
 
@@ -87,6 +86,33 @@ def _val_loss(model: DirectRegressor, motion: list[torch.Tensor], latents: list[
     return total / sum(y.numel() for y in latents)
 
 
+class _BaselineEpochs(EpochStep):
+    """The baseline's epoch: random crops of the training sequences, drawn by a generator seeded by
+    the epoch, then the L1 loss on the validation sequences run whole."""
+
+    def __init__(
+        self, model: DirectRegressor, optimizer: torch.optim.Optimizer, data: tuple, config: DirectTrainConfig
+    ):
+        self.model, self.optimizer, self.config = model, optimizer, config
+        self.train, self.val = data
+
+    def run_epoch(self, run: TrainingRun) -> Epoch:
+        model, config = self.model, self.config
+        model.train()
+        gen = torch.Generator().manual_seed(config.seed + run.state["epoch"])
+        total, count = 0.0, 0
+        for x, y in _crops(*self.train, config.crop, config.batch_size, gen):
+            loss = (model(x) - y).abs().mean()
+            self.optimizer.zero_grad(set_to_none=True)
+            loss.backward()
+            self.optimizer.step()
+            total, count = total + loss.item() * len(x), count + len(x)
+        val_loss = _val_loss(model, *self.val)
+        return Epoch(
+            val_loss, {"train_l1": total / max(count, 1), "val_l1": val_loss}, {"val": f"{val_loss:.3f}"}
+        )
+
+
 def train_direct(
     model: DirectRegressor,
     train: tuple,
@@ -97,52 +123,25 @@ def train_direct(
     progress: bool = True,
 ) -> dict:
     """Train (or resume) the baseline in ``folder``; leaves the best weights in ``model``, returns the
-    loop's state."""
+    loop's state. Its patience counts from the first epoch, and its cap stops it once passed."""
     folder.mkdir(parents=True, exist_ok=True)
     torch.manual_seed(config.seed)
     optimizer = torch.optim.Adam(
         model.parameters(), lr=config.learning_rate, weight_decay=config.weight_decay
     )
-    state = {"epoch": 0, "best": math.inf, "best_epoch": 0, "stale": 0, "elapsed_s": 0.0}
-    best_weights = {k: v.clone() for k, v in model.state_dict().items()}
-    checkpoint, log_path = folder / "checkpoint.pt", folder / "log.jsonl"
-    state, best_weights = load_checkpoint(
-        checkpoint, key, state, best_weights=best_weights, model=model, optimizer=optimizer
+    budget = Budget(
+        config.epochs, config.max_minutes, patience=config.patience, late_patience=False, whole_epochs=False
     )
-    resume_log(log_path, state["epoch"])
-    started, spent = time.perf_counter(), state["elapsed_s"]
-    deadline = None if config.max_minutes is None else started + 60 * config.max_minutes - spent
-    bar = tqdm(
-        total=config.epochs, initial=state["epoch"], desc="baseline", unit="epoch", disable=not progress
+    return fit(
+        model,
+        _BaselineEpochs(model, optimizer, (train, val), config),
+        budget,
+        callbacks=[
+            Checkpoint(folder / "checkpoint.pt", key, optimizer=optimizer),
+            EpochLog(folder / "log.jsonl"),
+            ProgressBar("baseline", progress),
+        ],
     )
-    while state["epoch"] < config.epochs and state["stale"] < config.patience:
-        if deadline is not None and time.perf_counter() > deadline:
-            break
-        model.train()
-        gen = torch.Generator().manual_seed(config.seed + state["epoch"])
-        total, count = 0.0, 0
-        for x, y in _crops(*train, config.crop, config.batch_size, gen):
-            loss = (model(x) - y).abs().mean()
-            optimizer.zero_grad(set_to_none=True)
-            loss.backward()
-            optimizer.step()
-            total, count = total + loss.item() * len(x), count + len(x)
-        val_loss = _val_loss(model, *val)
-        state["epoch"] += 1
-        state["elapsed_s"] = spent + time.perf_counter() - started
-        best_weights = keep_if_best(state, val_loss, model, best_weights=best_weights)
-        with open(log_path, "a", encoding="utf-8") as fh:
-            fh.write(
-                strict_json({"epoch": state["epoch"], "train_l1": total / max(count, 1), "val_l1": val_loss})
-                + "\n"
-            )
-        save_checkpoint(checkpoint, key, state, best_weights=best_weights, model=model, optimizer=optimizer)
-        bar.set_postfix(val=f"{val_loss:.3f}")
-        bar.update(1)
-    bar.close()
-    model.load_state_dict(best_weights)
-    model.eval()
-    return state
 
 
 def run_baseline_stage(
@@ -197,15 +196,7 @@ def run_baseline_stage(
 
 
 def _stage_report(entry: dict, folder: Path, reused: bool = False) -> StageReport:
-    return StageReport(
-        "baseline",
-        folder / "baseline",
-        int(entry["epochs"]),
-        best_epoch=int(entry["best_epoch"]),
-        minutes=float(entry["minutes"]),
-        reused=reused,
-        metrics=entry,
-    )
+    return StageReport.of_record("baseline", folder / "baseline", entry, reused=reused)
 
 
 @torch.no_grad()

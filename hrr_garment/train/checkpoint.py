@@ -3,7 +3,9 @@
 A checkpoint holds the settings key it was made under, the loop's plain ``state`` (epoch, best
 score, elapsed time... as JSON), the best weights so far, torch's RNG state and the state dict of
 every named stateful object (model, optimizer, scheduler...). It is written atomically after each
-epoch; a checkpoint made under other settings is ignored, so changed settings start afresh.
+epoch (:class:`Checkpoint`, a callback of the training loop :mod:`.loop`); a checkpoint made under
+other settings is ignored, so changed settings start afresh. Beside it a stage may keep one JSON
+line per epoch (:class:`EpochLog`), cut back to the checkpoint's epoch on resuming.
 """
 
 from __future__ import annotations
@@ -13,7 +15,8 @@ from pathlib import Path
 
 import torch
 
-from ..io_utils import atomic_path
+from ..io_utils import atomic_path, strict_json
+from .loop import Callback, Epoch, TrainingRun
 
 
 def save_checkpoint(path: Path, key: str, state: dict, best_weights: dict, **stateful) -> None:
@@ -45,17 +48,6 @@ def load_checkpoint(path: Path, key: str, state: dict, best_weights: dict, **sta
     return {**state, **json.loads(saved["state"])}, saved["best_weights"]
 
 
-def keep_if_best(state: dict, score: float, model: torch.nn.Module, best_weights: dict) -> dict:
-    """Early-stopping bookkeeping after an epoch scored ``score`` (lower is better): on a new best,
-    record it in ``state`` and return a copy of the model's weights; else count a stale epoch and
-    return ``best_weights`` unchanged."""
-    if score < state["best"]:
-        state.update(best=score, best_epoch=state["epoch"], stale=0)
-        return {k: v.detach().clone() for k, v in model.state_dict().items()}
-    state["stale"] += 1
-    return best_weights
-
-
 def resume_log(path: Path, epoch: int) -> None:
     """Make a JSON-lines epoch log agree with a checkpoint at ``epoch``: empty when starting afresh,
     else without the lines of epochs after it (a kill between the two writes)."""
@@ -64,3 +56,38 @@ def resume_log(path: Path, epoch: int) -> None:
     elif path.exists():
         lines = [line for line in path.read_text().splitlines() if json.loads(line)["epoch"] <= epoch]
         path.write_text("".join(line + "\n" for line in lines))
+
+
+class Checkpoint(Callback):
+    """Resume from ``path`` when it was saved under ``key``, and save there after every epoch: the
+    loop's state, the best weights, torch's RNG and the model's and the ``stateful`` objects'
+    states (optimizer, scheduler... by name)."""
+
+    def __init__(self, path: Path, key: str, **stateful):
+        self.path, self.key, self.stateful = path, key, stateful
+
+    def _objects(self, run: TrainingRun) -> dict:
+        return {"model": run.model, **self.stateful}
+
+    def on_fit_start(self, run: TrainingRun) -> None:
+        run.state, run.best_weights = load_checkpoint(
+            self.path, self.key, run.state, best_weights=run.best_weights, **self._objects(run)
+        )
+
+    def on_epoch_end(self, run: TrainingRun, epoch: Epoch) -> None:
+        save_checkpoint(self.path, self.key, run.state, best_weights=run.best_weights, **self._objects(run))
+
+
+class EpochLog(Callback):
+    """One JSON line per epoch in ``path``: its number and the step's ``Epoch.log``; on resuming,
+    the lines after the checkpoint's epoch are dropped (:func:`resume_log`)."""
+
+    def __init__(self, path: Path):
+        self.path = path
+
+    def on_fit_start(self, run: TrainingRun) -> None:
+        resume_log(self.path, run.state["epoch"])
+
+    def on_epoch_end(self, run: TrainingRun, epoch: Epoch) -> None:
+        with open(self.path, "a", encoding="utf-8") as fh:
+            fh.write(strict_json({"epoch": run.state["epoch"], **epoch.log}) + "\n")

@@ -29,16 +29,15 @@ from pathlib import Path
 
 import numpy as np
 import torch
-from tqdm.auto import tqdm
 
 from ..data.windows import WindowSet
-from ..io_utils import strict_json
 from ..models.codes import regression_embedding
 from ..models.codespace import CodeSpace
 from ..models.quantizer import group_entropy
 from ..settings import SettingsError, from_settings
-from .checkpoint import keep_if_best, load_checkpoint, resume_log, save_checkpoint
-from .schedule import run_progress, set_learning_rate, stop_reason
+from .checkpoint import Checkpoint, EpochLog
+from .loop import Budget, Epoch, EpochStep, ProgressBar, TrainingRun, fit
+from .schedule import set_learning_rate
 
 VALIDATION_PROTOCOLS = ("clips", "windows")
 LATENT_LOSSES = ("standardised", "vertex")
@@ -268,6 +267,70 @@ def _train_step(
     return out
 
 
+class _CodeSpaceEpochs(EpochStep):
+    """The code space's epoch: the temperature and match weight of its stage of the curriculum, a
+    fresh sample of training windows in batches (the cosine rate set before each), the validation
+    losses, then the plateau detector's switch."""
+
+    def __init__(
+        self,
+        model: CodeSpace,
+        optimizer: torch.optim.Optimizer,
+        data: tuple[WindowTensors, WindowTensors],
+        config: CodeSpaceTrainConfig,
+        plateau: PlateauDetector,
+        latent_loss: Callable[[torch.Tensor], torch.Tensor],
+    ):
+        self.model, self.optimizer, self.config, self.plateau = model, optimizer, config, plateau
+        (self.train, self.val), self.latent_loss = data, latent_loss
+
+    def start(self, run: TrainingRun) -> None:
+        # one generator for the run (not one an epoch as the fast decoder's), seeded at the epoch resumed
+        self.gen = torch.Generator().manual_seed(self.config.seed + run.state["epoch"])
+
+    def run_epoch(self, run: TrainingRun) -> Epoch:
+        model, config, state, epoch = self.model, self.config, run.state, run.state["epoch"]
+        temperature = max(config.temperature_min, config.temperature * config.temperature_decay**epoch)
+        match_weight = config.match_weight if state["switched_at"] is None else config.match_weight_late
+        model.train()
+        # bounded epochs: the temperature, the plateau switch and the patience count epochs, and
+        # the real-motion library has some 100,000 windows; each epoch draws a fresh sample
+        order = torch.randperm(len(self.train), generator=self.gen)[: config.windows_per_epoch]
+        sums = {"rec": 0.0, "match": 0.0, "diversity": 0.0}
+        for i in range(0, len(order), config.batch_size):
+            set_learning_rate(self.optimizer, config, run.progress(epoch + i / len(order)))
+            idx = order[i : i + config.batch_size]
+            out = _train_step(
+                model,
+                self.optimizer,
+                self.train[idx],
+                config,
+                weights=(temperature, match_weight),
+                latent_loss=self.latent_loss,
+            )
+            for k in sums:
+                sums[k] += out[k].item() * len(idx)
+        metrics = evaluate(model, self.val, latent_loss=self.latent_loss)
+        if state["switched_at"] is None and self.plateau.update(metrics["rec"]):
+            state["switched_at"] = epoch + 1  # the epochs done, this one counted
+        log = {
+            "temperature": temperature,
+            "match_weight": match_weight,
+            "learning_rate": self.optimizer.param_groups[0]["lr"],
+            **{f"train_{k}": v / len(order) for k, v in sums.items()},
+            **{f"val_{k}": v for k, v in metrics.items()},
+        }
+        postfix = {
+            "rec": f"{metrics['rec']:.3f}",
+            "regress": f"{metrics['regress']:.3f}",
+            "agree": f"{metrics['agreement']:.2f}",
+            "stage": 1 if state["switched_at"] is None else 2,
+        }
+        # the best regression path (what inference uses) is kept in both stages: a budgeted run
+        # on a large library can end before the plateau switch (real-quick: 17 epochs, no switch)
+        return Epoch(metrics["regress"], log, postfix)
+
+
 def train_codespace(
     model: CodeSpace,
     train: WindowTensors,
@@ -287,92 +350,18 @@ def train_codespace(
         model.parameters(), lr=config.learning_rate, weight_decay=config.weight_decay
     )
     plateau = PlateauDetector(config.plateau_patience, config.plateau_delta)
-    state = {"epoch": 0, "switched_at": None, "best": math.inf, "best_epoch": 0, "stale": 0, "elapsed_s": 0.0}
-    best_weights = {k: v.clone() for k, v in model.state_dict().items()}
-    checkpoint, log_path = folder / "checkpoint.pt", folder / "log.jsonl"
-    state, best_weights = load_checkpoint(
-        checkpoint, key, state, best_weights=best_weights, model=model, optimizer=optimizer, plateau=plateau
-    )
-    resume_log(log_path, state["epoch"])
-    gen = torch.Generator().manual_seed(config.seed + state["epoch"])
-    started, spent = time.perf_counter(), state["elapsed_s"]  # the budget counts interrupted runs too
-    deadline = None if config.max_minutes is None else started + 60 * config.max_minutes - spent
-    bar = tqdm(
-        total=config.epochs, initial=state["epoch"], desc="code space", unit="epoch", disable=not progress
-    )
     t0 = time.perf_counter()
-
-    def run_fraction(epoch: float) -> float:
-        return run_progress(
-            epoch, config.epochs, spent + time.perf_counter() - started, max_minutes=config.max_minutes
-        )
-
-    epoch_s = None  # the last epoch's duration
-    while (
-        stopped := stop_reason(
-            state, config, deadline=deadline, epoch_s=epoch_s, progress=run_fraction(state["epoch"])
-        )
-    ) is None:
-        epoch_started, epoch = time.perf_counter(), state["epoch"]
-        temperature = max(config.temperature_min, config.temperature * config.temperature_decay**epoch)
-        match_weight = config.match_weight if state["switched_at"] is None else config.match_weight_late
-        model.train()
-        # bounded epochs: the temperature, the plateau switch and the patience count epochs, and
-        # the real-motion library has some 100,000 windows; each epoch draws a fresh sample
-        order = torch.randperm(len(train), generator=gen)[: config.windows_per_epoch]
-        sums = {"rec": 0.0, "match": 0.0, "diversity": 0.0}
-        for i in range(0, len(order), config.batch_size):
-            set_learning_rate(optimizer, config, run_fraction(epoch + i / len(order)))
-            idx = order[i : i + config.batch_size]
-            out = _train_step(
-                model,
-                optimizer,
-                train[idx],
-                config,
-                weights=(temperature, match_weight),
-                latent_loss=latent_loss,
-            )
-            for k in sums:
-                sums[k] += out[k].item() * len(idx)
-        metrics = evaluate(model, val, latent_loss=latent_loss)
-        state["epoch"] += 1
-        state["elapsed_s"] = spent + time.perf_counter() - started
-        if state["switched_at"] is None and plateau.update(metrics["rec"]):
-            state["switched_at"] = state["epoch"]
-        # the best regression path (what inference uses) is kept in both stages: a budgeted run
-        # on a large library can end before the plateau switch (real-quick: 17 epochs, no switch)
-        best_weights = keep_if_best(state, metrics["regress"], model, best_weights=best_weights)
-        record = {
-            "epoch": state["epoch"],
-            "temperature": temperature,
-            "match_weight": match_weight,
-            "learning_rate": optimizer.param_groups[0]["lr"],
-            **{f"train_{k}": v / len(order) for k, v in sums.items()},
-            **{f"val_{k}": v for k, v in metrics.items()},
-        }
-        with open(log_path, "a", encoding="utf-8") as fh:
-            fh.write(strict_json(record) + "\n")
-        save_checkpoint(
-            checkpoint,
-            key,
-            state,
-            best_weights=best_weights,
-            model=model,
-            optimizer=optimizer,
-            plateau=plateau,
-        )
-        bar.set_postfix(
-            rec=f"{metrics['rec']:.3f}",
-            regress=f"{metrics['regress']:.3f}",
-            agree=f"{metrics['agreement']:.2f}",
-            stage=1 if state["switched_at"] is None else 2,
-        )
-        bar.update(1)
-        epoch_s = time.perf_counter() - epoch_started
-    bar.close()
-    state["stopped"] = stopped
-    model.load_state_dict(best_weights)
-    model.eval()
+    state = fit(
+        model,
+        _CodeSpaceEpochs(model, optimizer, (train, val), config, plateau, latent_loss),
+        Budget(config.epochs, config.max_minutes, patience=config.patience),
+        callbacks=[
+            Checkpoint(folder / "checkpoint.pt", key, optimizer=optimizer, plateau=plateau),
+            EpochLog(folder / "log.jsonl"),
+            ProgressBar("code space", progress),
+        ],
+        state={"switched_at": None},
+    )
     return {
         **state,
         "minutes": (time.perf_counter() - t0) / 60,

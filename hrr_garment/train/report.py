@@ -29,3 +29,20 @@ class StageReport:
         None  # why training stopped (train.schedule: "epochs", "early stop", "minutes cap"); None: unknown
     )
     validation_mm: float | None = None  # the validation error its settings' ``target_mm`` is compared with
+
+    @classmethod
+    def of_record(
+        cls, stage: str, folder: Path, record: dict, *, reused: bool = False, **fields
+    ) -> "StageReport":
+        """The report of a stage's record (its report.json or bundle.json entry, just written or read
+        back to reuse): the epochs, best epoch and minutes it holds; ``fields``, the others
+        (``metrics``, the record itself unless given)."""
+        return cls(
+            stage,
+            folder,
+            int(record["epochs"]),
+            best_epoch=int(record["best_epoch"]),
+            minutes=float(record["minutes"]),
+            reused=reused,
+            **({"metrics": record} | fields),
+        )

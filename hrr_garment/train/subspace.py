@@ -34,7 +34,8 @@ from ..models.subspace import SubspaceConfig, SubspaceDecoder, principal_compone
 from ..settings import from_settings, require_number
 from .autoencoder import body_frames
 from .bundle_stage import bundle_and_dataset
-from .checkpoint import keep_if_best, load_checkpoint, resume_log, save_checkpoint
+from .checkpoint import Checkpoint, EpochLog
+from .loop import Budget, Epoch, EpochStep, ProgressBar, TrainingRun, fit
 from .report import StageReport
 
 CANDIDATES = (16, 32, 64, 96, 128, 192, 256, 384, 512)  # component counts tried, up to max_components
@@ -102,6 +103,44 @@ def _coefficients(
     return out
 
 
+class _SubspaceEpochs(EpochStep):
+    """The fast decoder's epoch: every training frame in an order seeded by the epoch, in batches
+    (the cosine schedule stepped after each), then the validation loss. The loss weighs each
+    standardised coefficient by its share of the vertex error (``weight``)."""
+
+    def __init__(
+        self,
+        model: SubspaceDecoder,
+        optimizer: torch.optim.Optimizer,
+        schedule: torch.optim.lr_scheduler.LRScheduler,
+        data: tuple[tuple[torch.Tensor, torch.Tensor], tuple[torch.Tensor, torch.Tensor]],
+        config: SubspaceTrainConfig,
+    ):
+        self.model, self.optimizer, self.schedule, self.config = model, optimizer, schedule, config
+        (self.inputs, self.targets), self.val = data
+        self.weight = model.coeff_std**2 / (model.coeff_std**2).sum()
+
+    def run_epoch(self, run: TrainingRun) -> Epoch:
+        model, config, inputs, targets = self.model, self.config, self.inputs, self.targets
+        model.train()
+        order = torch.randperm(
+            len(inputs), generator=torch.Generator().manual_seed(config.seed + run.state["epoch"])
+        )
+        total = 0.0
+        for i in range(0, len(order), config.batch_size):
+            rows = order[i : i + config.batch_size]
+            loss = (((model.net(inputs[rows]) - targets[rows]) ** 2) * self.weight).sum(1).mean()
+            self.optimizer.zero_grad(set_to_none=True)
+            loss.backward()
+            self.optimizer.step()
+            self.schedule.step()
+            total += loss.item() * len(rows)
+        model.eval()
+        with torch.no_grad():
+            val_loss = float((((model.net(self.val[0]) - self.val[1]) ** 2) * self.weight).sum(1).mean())
+        return Epoch(val_loss, {"train": total / len(inputs), "val": val_loss}, {"val": f"{val_loss:.4f}"})
+
+
 def _fit(
     model: SubspaceDecoder,
     inputs: torch.Tensor,
@@ -115,53 +154,19 @@ def _fit(
     """Train ``model.net`` on standardised (inputs, targets); the best validation epoch's weights are left in it."""
     folder.mkdir(parents=True, exist_ok=True)
     torch.manual_seed(config.seed)
-    weight = model.coeff_std**2 / (model.coeff_std**2).sum()  # the vertex error's share of each coefficient
     optimizer = torch.optim.Adam(model.net.parameters(), lr=config.learning_rate)
     steps = config.epochs * math.ceil(len(inputs) / config.batch_size)
     schedule = torch.optim.lr_scheduler.CosineAnnealingLR(optimizer, T_max=steps)
-    state = {"epoch": 0, "best": math.inf, "best_epoch": 0, "stale": 0, "elapsed_s": 0.0}
-    best = {k: v.clone() for k, v in model.state_dict().items()}
-    checkpoint, log_path = folder / "checkpoint.pt", folder / "log.jsonl"
-    state, best = load_checkpoint(
-        checkpoint, key, state, best_weights=best, model=model, optimizer=optimizer, schedule=schedule
+    return fit(
+        model,
+        _SubspaceEpochs(model, optimizer, schedule, ((inputs, targets), val), config),
+        Budget(config.epochs),
+        callbacks=[
+            Checkpoint(folder / "checkpoint.pt", key, optimizer=optimizer, schedule=schedule),
+            EpochLog(folder / "log.jsonl"),
+            ProgressBar("subspace", progress),
+        ],
     )
-    resume_log(log_path, state["epoch"])
-    started, spent = time.perf_counter(), state["elapsed_s"]
-    bar = tqdm(
-        total=config.epochs, initial=state["epoch"], desc="subspace", unit="epoch", disable=not progress
-    )
-    while state["epoch"] < config.epochs:
-        model.train()
-        order = torch.randperm(
-            len(inputs), generator=torch.Generator().manual_seed(config.seed + state["epoch"])
-        )
-        total = 0.0
-        for i in range(0, len(order), config.batch_size):
-            rows = order[i : i + config.batch_size]
-            loss = (((model.net(inputs[rows]) - targets[rows]) ** 2) * weight).sum(1).mean()
-            optimizer.zero_grad(set_to_none=True)
-            loss.backward()
-            optimizer.step()
-            schedule.step()
-            total += loss.item() * len(rows)
-        model.eval()
-        with torch.no_grad():
-            val_loss = float((((model.net(val[0]) - val[1]) ** 2) * weight).sum(1).mean())
-        state["epoch"] += 1
-        state["elapsed_s"] = spent + time.perf_counter() - started
-        best = keep_if_best(state, val_loss, model, best_weights=best)
-        with open(log_path, "a", encoding="utf-8") as fh:
-            fh.write(
-                strict_json({"epoch": state["epoch"], "train": total / len(inputs), "val": val_loss}) + "\n"
-            )
-        save_checkpoint(
-            checkpoint, key, state, best_weights=best, model=model, optimizer=optimizer, schedule=schedule
-        )
-        bar.set_postfix(val=f"{val_loss:.4f}")
-        bar.update(1)
-    bar.close()
-    model.load_state_dict(best)
-    return state
 
 
 @torch.no_grad()
@@ -301,13 +306,6 @@ def run_subspace_stage(
 
 
 def _stage_report(entry: dict, folder: Path, reused: bool = False) -> StageReport:
-    return StageReport(
-        "subspace",
-        folder / "subspace",
-        int(entry["epochs"]),
-        best_epoch=int(entry["best_epoch"]),
-        minutes=float(entry["minutes"]),
-        reused=reused,
-        metrics=entry,
-        validation_mm=float(entry["validation_mm"]),
+    return StageReport.of_record(
+        "subspace", folder / "subspace", entry, reused=reused, validation_mm=float(entry["validation_mm"])
     )

@@ -287,6 +287,7 @@ def test_training_resumes_and_encodes_every_sequence(tmp_path, skirt, monkeypatc
     from hrr_garment.data.dataset import SequenceRecord, write_dataset
     from hrr_garment.motion.synth import synthesize
     from hrr_garment.train import autoencoder as ae
+    from hrr_garment.train import checkpoint
 
     frames = _two_frames(skirt).numpy()
     records = []
@@ -311,7 +312,7 @@ def test_training_resumes_and_encodes_every_sequence(tmp_path, skirt, monkeypatc
 
     # kill the first run after its second checkpoint
     saves = []
-    save = ae.save_checkpoint
+    save = checkpoint.save_checkpoint
 
     def save_then_die(*args, **kwargs):
         save(*args, **kwargs)
@@ -319,7 +320,7 @@ def test_training_resumes_and_encodes_every_sequence(tmp_path, skirt, monkeypatc
         if len(saves) == 2:
             raise KeyboardInterrupt
 
-    monkeypatch.setattr(ae, "save_checkpoint", save_then_die)
+    monkeypatch.setattr(checkpoint, "save_checkpoint", save_then_die)
     with pytest.raises(KeyboardInterrupt):
         ae.train_autoencoder(data, tmp_path / "ae", train_config=cfg, progress=False)
     assert not (tmp_path / "ae" / "model.pt").exists()  # nothing final written by the killed run
@@ -331,7 +332,7 @@ def test_training_resumes_and_encodes_every_sequence(tmp_path, skirt, monkeypatc
         trained.append(1)
         return step(self, *args, **kwargs)
 
-    monkeypatch.setattr(ae, "save_checkpoint", save)
+    monkeypatch.setattr(checkpoint, "save_checkpoint", save)
     monkeypatch.setattr(torch.optim.Adam, "step", counting_step)
     again = ae.train_autoencoder(data, tmp_path / "ae", train_config=cfg, progress=False)
     assert again.epochs == 3
@@ -348,7 +349,7 @@ def test_training_resumes_and_encodes_every_sequence(tmp_path, skirt, monkeypatc
     with np.load(tmp_path / "ae" / "latents.npz") as z:
         plain = z["spin_000"].copy()
     saves.clear()
-    monkeypatch.setattr(ae, "save_checkpoint", save_then_die)
+    monkeypatch.setattr(checkpoint, "save_checkpoint", save_then_die)
     refined = ae.train_autoencoder(
         data, tmp_path / "ae", train_config=replace(cfg, refine_steps=3), progress=False
     )
