@@ -18,7 +18,7 @@ from .database import CodeDatabase
 from .folds import FILE_KEYS as FOLD_FILE_KEYS
 from .folds import FoldStore
 from .manifest import FOLDS_FILE, SUBSPACE_FILE, BundleError
-from .manifest_entries import FoldsEntry, PartEntry
+from .manifest_entries import FoldsEntry, SubspaceEntry
 from .manifest_section import thawed
 
 
@@ -75,7 +75,9 @@ def load_arrays(folder: Path, name: str, keys: tuple[str, ...]) -> dict[str, np.
     return arrays
 
 
-def load_subspace(folder: Path, entry: PartEntry, latent_shape: tuple, num_vertices: int) -> SubspaceDecoder:
+def load_subspace(
+    folder: Path, entry: SubspaceEntry, latent_shape: tuple, num_vertices: int
+) -> SubspaceDecoder:
     """The fast decoder, its size and settings from bundle.json's ``subspace`` entry."""
     try:
         model = SubspaceDecoder(

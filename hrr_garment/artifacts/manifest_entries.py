@@ -150,7 +150,6 @@ class PartEntry(Section):
     key: str | None = None
     config: Mapping[str, Any]
     train: Mapping[str, Any] | None = None
-    components: int | None = None  # the fast decoder's
     epochs: int | None = None
     best_epoch: int | None = None
     validation_mm: float | None = None
@@ -162,11 +161,31 @@ class PartEntry(Section):
             "key": text(data.get("key"), f"{where}.key", optional=True),
             "config": mapping(data.get("config"), f"{where}.config"),
             "train": mapping(data.get("train"), f"{where}.train", optional=True),
-            "components": data.get("components"),  # checked as the fast decoder is built
             "epochs": whole(data.get("epochs"), f"{where}.epochs", optional=True),
             "best_epoch": whole(data.get("best_epoch"), f"{where}.best_epoch", optional=True),
             "validation_mm": number(data.get("validation_mm"), f"{where}.validation_mm", optional=True),
             "minutes": number(data.get("minutes"), f"{where}.minutes", optional=True),
+        }
+
+
+@dataclass(frozen=True, kw_only=True)
+class SubspaceEntry(PartEntry):
+    """``subspace``: the fast decoder (:mod:`hrr_garment.models.subspace`), its component count
+    and the validation errors it was chosen on (the full decoder's, each candidate count's)."""
+
+    components: int
+    full_validation_mm: float | None = None
+    candidates_mm: Mapping[str, float] | None = None  # component count (as text): validation mm
+
+    @classmethod
+    def _typed(cls, data: Mapping[str, Any], where: str) -> dict[str, Any]:
+        return {
+            **super()._typed(data, where),
+            "components": data.get("components"),  # checked as the fast decoder is built
+            "full_validation_mm": number(
+                data.get("full_validation_mm"), f"{where}.full_validation_mm", optional=True
+            ),
+            "candidates_mm": mapping(data.get("candidates_mm"), f"{where}.candidates_mm", optional=True),
         }
 
 

@@ -30,6 +30,7 @@ from .manifest_entries import (
     GateCalibration,
     PartEntry,
     ResidualEntry,
+    SubspaceEntry,
 )
 from .manifest_section import ManifestFieldError, Section, mapping, number, text, whole
 from .signature import check_signature
@@ -62,7 +63,7 @@ class Manifest(Section):
     folds: FoldsEntry | None = None
     manifest_hash: str | None = None  # absent before version 4 (written when next written)
     auto: AutoCalibration | None = None
-    subspace: PartEntry | None = None  # the fast decoder
+    subspace: SubspaceEntry | None = None  # the fast decoder
     direct: PartEntry | None = None  # the direct-regression baseline
     bodies: BodiesEntry | None = None  # absent for a model from before bodies
     NULLABLE = frozenset({"created", "dataset", "window", "validation_mm", "encoding", "preset", "bodies"})
@@ -105,7 +106,7 @@ class Manifest(Section):
             "folds": _optional(FoldsEntry, data, "folds"),
             "manifest_hash": text(data.get("manifest_hash"), "manifest_hash", optional=True),
             "auto": _optional(AutoCalibration, data, "auto"),
-            "subspace": _optional(PartEntry, data, "subspace"),
+            "subspace": _optional(SubspaceEntry, data, "subspace"),
             "direct": _optional(PartEntry, data, "direct"),
             "bodies": None if data.get("bodies") is None else BodiesEntry.parse(data["bodies"], "bodies"),
         }

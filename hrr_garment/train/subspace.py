@@ -28,7 +28,7 @@ from tqdm import tqdm
 
 from ..artifacts.bundle_writer import add_bundle_part
 from ..artifacts.manifest import SUBSPACE_FILE
-from ..artifacts.manifest_entries import PartEntry
+from ..artifacts.manifest_entries import SubspaceEntry
 from ..data.dataset import DatasetError
 from ..io_utils import atomic_write_text, strict_json
 from ..models.subspace import SubspaceConfig, SubspaceDecoder, principal_components
@@ -296,7 +296,7 @@ def run_subspace_stage(
         folder,
         SUBSPACE_FILE,
         {k: v.contiguous() for k, v in model.state_dict().items()},
-        subspace=PartEntry.from_report(entry, "subspace"),
+        subspace=SubspaceEntry.from_report(entry, "subspace"),
     )
     atomic_write_text(folder / "subspace" / "report.json", strict_json(entry, indent=2))
     return _stage_report(entry, folder)

@@ -10,7 +10,7 @@ import pytest
 
 from hrr_garment.artifacts.auto_calibration import UNCALIBRATED
 from hrr_garment.artifacts.manifest import BundleError, manifest_hash, migrate_manifest
-from hrr_garment.artifacts.manifest_entries import BodiesEntry, PartEntry, ResidualEntry
+from hrr_garment.artifacts.manifest_entries import BodiesEntry, PartEntry, ResidualEntry, SubspaceEntry
 from hrr_garment.artifacts.typed_manifest import Manifest, parse_manifest, read_manifest, update_manifest
 from tests.conftest import write_meta
 
@@ -50,7 +50,8 @@ def test_the_json_round_trip_is_exact(every_section):
 def test_sections_are_typed_and_frozen():
     manifest = parse_manifest(FIXTURE, _with_every_section(_fixture_json()))
     assert isinstance(manifest.residual, ResidualEntry) and manifest.residual.weight >= 0
-    assert isinstance(manifest.subspace, PartEntry) and manifest.subspace.components == 16
+    assert isinstance(manifest.subspace, SubspaceEntry) and manifest.subspace.components == 16
+    assert manifest.subspace.candidates_mm == {"16": 8.5} and isinstance(manifest.direct, PartEntry)
     assert isinstance(manifest.bodies, BodiesEntry) and manifest.bodies.count == 2
     assert manifest.default_body_is_mannequin and manifest.auto.residual_free_mm is None
     assert manifest.extra["note"] == "kept as written" and manifest.auto.extra["a_newer_field"][0] == 1
