@@ -76,6 +76,14 @@ def write_meta(folder: Path, meta: dict) -> None:
     (Path(folder) / "bundle.json").write_text(json.dumps(meta))
 
 
+def with_manifest(monkeypatch, bundle, **changes) -> None:
+    """``bundle`` (loaded) with fields of its typed manifest replaced for the test (``residual=``,
+    ``auto=``: typed sections), as a bundle.json with them would load."""
+    import dataclasses
+
+    monkeypatch.setattr(bundle, "manifest", dataclasses.replace(bundle.manifest, **changes))
+
+
 def synthetic_dataset(path, garment):
     """The simulator-free dataset (hrr_garment.data.synthetic): its garment follows the motion."""
     from hrr_garment.data.synthetic import write_synthetic_dataset

@@ -17,7 +17,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from hrr_garment import save_amass, save_motion, synthesize
-from hrr_garment.artifacts.bundle import BundleError, read_meta
+from hrr_garment.artifacts.bundle import BundleError
+from hrr_garment.artifacts.typed_manifest import read_manifest
 from hrr_garment.data.dataset import DatasetError, _json_attr
 from hrr_garment.errors import InputError, MotionError
 from hrr_garment.io_utils import strict_json
@@ -180,13 +181,13 @@ def test_bundle_json_with_any_value_in_a_key_is_verified_or_refused(
     meta = {**bundle_json, key: value}
     write_meta(folder, meta)
     try:
-        read_meta(folder)
+        manifest = read_manifest(folder)
     except BundleError as exc:
         assert str(folder) in str(exc)
         return
     # accepted: then the manifest is intact and every value the loader relies on has its type
-    assert meta["files"] == bundle_json["files"] and meta["content_hash"] == bundle_json["content_hash"]
-    assert isinstance(meta["garment"], str) and math.isfinite(meta["tau"]) and meta["tau"] >= 0
+    assert manifest.files == bundle_json["files"] and manifest.content_hash == bundle_json["content_hash"]
+    assert isinstance(manifest.garment, str) and math.isfinite(manifest.tau) and manifest.tau >= 0
 
 
 @BOUNDED

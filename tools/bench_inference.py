@@ -50,6 +50,8 @@ from hrr_garment.artifacts import fold_codec
 from hrr_garment.artifacts.bundle import Bundle
 from hrr_garment.artifacts.database import CodeDatabase
 from hrr_garment.artifacts.folds import FoldStore
+from hrr_garment.artifacts.manifest import FORMAT_VERSION
+from hrr_garment.artifacts.typed_manifest import Manifest
 from hrr_garment.data.windows import WindowFrames
 from hrr_garment.garment.templates import make_garment
 from hrr_garment.inference.animator import Animator
@@ -93,7 +95,26 @@ def random_bundle(vertices: int, windows: int, seed: int = 0, components: int = 
         cfg.classes,
         random_frames(cfg.features),
     )
-    meta = {"tau": 1.0, "gate": "entropy", "gates": {}, "garment": "dress", "content_hash": "random"}
+    manifest = Manifest.parse(  # what the animator reads of bundle.json: no file behind it
+        {
+            "format_version": FORMAT_VERSION,
+            "garment": "dress",
+            "autoencoder": {"config": ae.config.to_dict(), "scale": 0.02, "sizes": list(ae.hierarchy.sizes)},
+            "codespace": {
+                "config": cfg.to_dict(),
+                "features": cfg.features,
+                "latent_shape": list(ae.latent_shape),
+            },
+            "tau": 1.0,
+            "gate": "entropy",
+            "gates": {},
+            "database": {"names": db.names, "classes": cfg.classes},
+            "files": {},
+            "content_hash": "random",
+            "validation": "clips",
+        },
+        "bundle.json",
+    )
     blocks = fold_codec.blocks_of(3 * garment.num_vertices)  # as new bundles store them: nf4
     folds = FoldStore(
         rng.integers(0, 256, (frames, blocks, fold_codec.BLOCK // 2), dtype=np.uint8),
@@ -110,7 +131,7 @@ def random_bundle(vertices: int, windows: int, seed: int = 0, components: int = 
     subspace.coeff_std.fill_(1e-3)
     return Bundle(
         Path("."),
-        meta,
+        manifest,
         ae,
         cs,
         FeatureStats(np.zeros(cfg.features, np.float32), np.ones(cfg.features, np.float32)),

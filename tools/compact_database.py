@@ -34,7 +34,7 @@ def compact(folder: Path) -> tuple[int, int]:
         db.motion = WindowFrames.of_windows(db.motion, db.sequence, db.start)
         if not np.array_equal(db.motion.first, db.latents.first):
             raise ValueError("the latent and motion windows do not share their frames")
-    add_bundle_part(folder, path.name, db.arrays(), {}, numpy=True)
+    add_bundle_part(folder, path.name, db.arrays(), numpy=True)
     load_bundle(folder)  # the rewritten bundle loads and passes its checks
     return before, path.stat().st_size
 

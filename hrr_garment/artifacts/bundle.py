@@ -44,12 +44,15 @@ from ..models.hierarchy import cached_hierarchy
 from ..models.subspace import SubspaceDecoder
 from ..motion.features import FeatureStats
 from ..settings import require_number
+from .auto_calibration import AutoCalibration
 from .bundle_parts import load_arrays, load_folds, load_state, load_subspace
 from .database import CodeDatabase
 from .folds import FoldStore
 from .gate_signals import GATE_SIGNALS
-from .manifest import NETWORKS, UNCALIBRATED_AUTO, BundleError, read_meta
+from .manifest import NETWORKS, BundleError
+from .manifest_section import thawed
 from .residual import free_cloth_weights, rest_hang_m
+from .typed_manifest import Manifest, read_manifest
 
 MAX_SCALE_M = 10.0  # the autoencoder's vertex scale: the spread of a garment's training frames (centimetres)
 
@@ -59,7 +62,7 @@ class Bundle:
     """A loaded model bundle: the networks, statistics, database and template inference needs."""
 
     folder: Path
-    meta: dict
+    manifest: Manifest  # bundle.json, typed (:mod:`.typed_manifest`)
     autoencoder: MeshAutoencoder
     codespace: CodeSpace
     motion_stats: FeatureStats
@@ -77,12 +80,12 @@ class Bundle:
     @property
     def tau(self) -> float:
         """The calibrated threshold of the model's gate (:attr:`gate`)."""
-        return float(self.meta["tau"])
+        return float(self.manifest.tau)
 
     @property
     def gate(self) -> str:
         """The hybrid's calibrated gate signal."""
-        return str(self.meta["gate"])
+        return self.manifest.gate
 
     def gate_tau(self, signal: str) -> float:
         """The threshold calibrated for gate ``signal``: :attr:`tau` for the model's own gate, the
@@ -91,19 +94,19 @@ class Bundle:
             return self.tau
         if signal not in GATE_SIGNALS:
             raise BundleError(self.folder, f"has no gate {signal!r}; the gates are {', '.join(GATE_SIGNALS)}")
-        calibrated = self.meta["gates"].get(signal)
-        if not calibrated:
+        calibrated = self.manifest.gates.get(signal)
+        if calibrated is None or calibrated.tau is None:
             raise BundleError(
                 self.folder,
                 f"was not calibrated for the {signal!r} gate (trained before it, or "
                 "hrr-train --stage codespace again); give its threshold with --tau",
             )
-        return float(calibrated["tau"])
+        return float(calibrated.tau)
 
     @property
     def has_residual(self) -> bool:
         """Whether the residual mode can run: a calibrated weight and the database's motion windows."""
-        return isinstance(self.meta.get("residual"), dict) and self.database.motion is not None
+        return self.manifest.residual is not None and self.database.motion is not None
 
     def require_residual(self) -> None:
         """A BundleError, naming the model and the fix, where the residual mode cannot run."""
@@ -130,13 +133,13 @@ class Bundle:
     def residual_weight(self) -> float:
         """The residual mode's calibrated weight (:mod:`.residual`)."""
         self.require_residual()
-        return float(self.meta["residual"]["weight"])
+        return float(self.manifest.residual.weight)
 
     @property
     def residual_nodes(self) -> np.ndarray | None:
         """(nodes,) the residual's free-cloth weight per latent node, as the auto calibration chose
         (bundle.json ``auto.residual_free_mm``), or None: the plain residual (:mod:`.residual`)."""
-        ramp = self.auto.get("residual_free_mm")
+        ramp = self.auto.residual_free_mm
         return None if ramp is None else free_cloth_weights(self.node_hang_m, ramp)
 
     @property
@@ -144,7 +147,7 @@ class Bundle:
         """(V, 1) the detail mode's folds' weight per vertex on free cloth, as the auto calibration
         chose (bundle.json ``auto.folds_free_mm``), or None: the folds everywhere
         (:mod:`hrr_garment.inference.detail`)."""
-        ramp = self.auto.get("folds_free_mm")
+        ramp = self.auto.folds_free_mm
         return None if ramp is None else free_cloth_weights(self.vertex_hang_m, ramp)[:, None]
 
     @cached_property
@@ -173,7 +176,7 @@ class Bundle:
         """The latents the detail mode puts its simulated folds on, as the auto calibration chose
         (:mod:`hrr_garment.eval.auto_mode`): "residual", the residual mode's, or "regression" (also
         before the calibration, and where the residual cannot run)."""
-        base = self.auto["detail_base"]
+        base = self.auto.detail_base
         return (
             "residual"
             if base == "residual" and self.has_residual and self.residual_weight > 0
@@ -184,25 +187,25 @@ class Bundle:
     def detail_strength(self) -> float:
         """The strength of the detail mode's simulated folds, as the auto calibration chose
         (:data:`~.folds.DETAIL_STRENGTH` before the calibration)."""
-        return float(self.auto["detail_strength"])
+        return float(self.auto.detail_strength)
 
     @property
     def swing_gain(self) -> float:
         """The gain on the free cloth's swing the auto calibration chose (bundle.json
         ``auto.swing_gain``; 1, the swing as predicted, before it: :mod:`hrr_garment.inference.swing`)."""
-        return float(self.auto.get("swing_gain", 1.0))
+        return float(1.0 if self.auto.swing_gain is None else self.auto.swing_gain)
 
     @property
-    def auto(self) -> dict:
+    def auto(self) -> AutoCalibration:
         """bundle.json's ``auto``: what the auto calibration chose, or, before it ran, the hybrid
         with the default detail look."""
-        return self.meta.get("auto", UNCALIBRATED_AUTO)
+        return self.manifest.auto_or_uncalibrated
 
     @property
     def auto_mode(self) -> str:
         """The mode ``auto`` runs: the one calibrated at training (:mod:`hrr_garment.eval.auto_mode`);
         hybrid before the calibration, or where the mode it chose cannot run."""
-        mode = str(self.auto["mode"])
+        mode = self.auto.mode
         runnable = {"residual": self.has_residual, "detail": self.folds is not None}.get(mode, True)
         return mode if runnable else "hybrid"
 
@@ -210,11 +213,11 @@ class Bundle:
     def body_range(self) -> BodyRange:
         """The range of the bodies the model was trained on (:mod:`hrr_garment.body.measures`):
         the mannequin alone for a model from before bodies."""
-        bodies = self.meta.get("bodies")
-        if not bodies:
+        bodies = self.manifest.bodies
+        if bodies is None:
             return BodyRange.of([body_vector(mannequin_record())])
         try:
-            return BodyRange.from_dict(bodies["range"])
+            return BodyRange.from_dict(thawed(bodies.range))
         except (KeyError, TypeError, ValueError) as exc:
             raise BundleError(self.folder, f"bundle.json's bodies are unreadable ({exc})") from None
 
@@ -222,32 +225,31 @@ class Bundle:
     def default_body(self) -> BodyRecord:
         """The body the model animates when given none: the one body of a model trained on one,
         else the mannequin."""
-        bodies = self.meta.get("bodies") or {}
-        if bodies.get("default") is None:
+        if self.manifest.default_body_is_mannequin:
             return mannequin_record()
         try:
-            return body_from_dict(bodies["default"], self.folder / "bundle.json")
+            return body_from_dict(thawed(self.manifest.bodies.default), self.folder / "bundle.json")
         except InputError as exc:
             raise BundleError(self.folder, f"bundle.json's default body is unreadable ({exc})") from None
 
     @property
     def made_for(self) -> BodyModel:
         """The body the garment was modelled on (``hrr-simulate --made-for``), else the mannequin's."""
-        bodies = self.meta.get("bodies") or {}
-        if bodies.get("made_for") is None:
+        bodies = self.manifest.bodies
+        if bodies is None or bodies.made_for is None:
             return DEFAULT_BODY
         try:
-            return body_from_dict(bodies["made_for"], self.folder / "bundle.json").body
+            return body_from_dict(thawed(bodies.made_for), self.folder / "bundle.json").body
         except InputError as exc:
             raise BundleError(self.folder, f"bundle.json's made-for body is unreadable ({exc})") from None
 
     @property
     def garment(self) -> str:
-        return str(self.meta["garment"])
+        return self.manifest.garment
 
     @property
     def content_hash(self) -> str:
-        return str(self.meta["content_hash"])
+        return self.manifest.content_hash
 
 
 def load_bundle(folder: str | Path, cache_dir: Path | None = None) -> Bundle:
@@ -263,13 +265,13 @@ def load_bundle(folder: str | Path, cache_dir: Path | None = None) -> Bundle:
 
 
 def _load_bundle(folder: Path, cache_dir: Path | None) -> Bundle:
-    meta = read_meta(folder)
+    manifest = read_manifest(folder)
     try:
-        ae_cfg = AutoencoderConfig.from_dict(meta["autoencoder"]["config"])
-        cs_cfg = CodeSpaceConfig.from_dict(meta["codespace"]["config"])
-        features = int(meta["codespace"]["features"])
-        latent_shape = tuple(meta["codespace"]["latent_shape"])
-        scale = meta["autoencoder"]["scale"]
+        ae_cfg = AutoencoderConfig.from_dict(thawed(manifest.autoencoder.config))
+        cs_cfg = CodeSpaceConfig.from_dict(thawed(manifest.codespace.config))
+        features = manifest.codespace.features
+        latent_shape = manifest.codespace.latent_shape
+        scale = manifest.autoencoder.scale
         require_number("bundle.json autoencoder", "scale", scale, low=0, high=MAX_SCALE_M, above=True)
     except (KeyError, TypeError, ValueError) as exc:
         raise BundleError(folder, f"bundle.json has a bad or missing entry ({exc})") from None
@@ -283,7 +285,7 @@ def _load_bundle(folder: Path, cache_dir: Path | None) -> Bundle:
         k.split("/", 1)[1]: v for k, v in t.items() if k.startswith("group/")
     }  # the template's vertex groups, if any
     template = GarmentMesh(
-        str(meta["garment"]),
+        manifest.garment,
         t["vertices"],
         t["faces"],
         groups={**groups, "attached": t["attached"]},
@@ -296,11 +298,12 @@ def _load_bundle(folder: Path, cache_dir: Path | None) -> Bundle:
     hierarchy = cached_hierarchy(
         template.faces, template.num_vertices, cache_dir, **ae_cfg.hierarchy_options(), name=str(folder)
     )
-    if list(hierarchy.sizes) != meta["autoencoder"].get("sizes"):
+    sizes = manifest.autoencoder.sizes
+    if tuple(hierarchy.sizes) != sizes:
         raise BundleError(
             folder,
             f"the template's sampling hierarchy has levels {list(hierarchy.sizes)}, the model "
-            f"{meta['autoencoder'].get('sizes')}",
+            f"{None if sizes is None else list(sizes)}",
         )
     autoencoder = MeshAutoencoder(hierarchy, ae_cfg, template.vertices, scale=float(scale))
     load_state(autoencoder, folder / "autoencoder.safetensors", folder)
@@ -311,7 +314,7 @@ def _load_bundle(folder: Path, cache_dir: Path | None) -> Bundle:
     d = load_arrays(folder, "database.safetensors", ("codes", "sequence", "start"))
     try:
         database = CodeDatabase.from_arrays(
-            d, list(meta["database"]["names"]), int(meta["database"]["classes"]), cs_cfg.window
+            d, list(manifest.database.names), manifest.database.classes, cs_cfg.window
         )
     except (KeyError, TypeError, ValueError) as exc:
         raise BundleError(folder, f"database: {exc}") from None
@@ -322,23 +325,26 @@ def _load_bundle(folder: Path, cache_dir: Path | None) -> Bundle:
             folder,
             f"database shapes {database.codes.shape} / {database.latents.shape} do not fit the configuration",
         )
-    folds = load_folds(folder, meta, template, database=database) if "folds" in meta else None
+    folds = (
+        None if manifest.folds is None else load_folds(folder, manifest.folds, template, database=database)
+    )
     direct = None
-    if "direct" in meta:  # the optional baseline (hrr-train --stage baseline)
+    if manifest.direct is not None:  # the optional baseline (hrr-train --stage baseline)
         try:
-            direct = DirectRegressor(DirectConfig.from_dict(meta["direct"]["config"]), features, latent_shape)
+            config = DirectConfig.from_dict(thawed(manifest.direct.config))
+            direct = DirectRegressor(config, features, latent_shape)
         except (KeyError, TypeError, ValueError) as exc:
             raise BundleError(folder, f"bundle.json has a bad 'direct' entry ({exc})") from None
         load_state(direct, folder / "direct.safetensors", folder)
         direct.eval()
     subspace = (
-        load_subspace(folder, meta, latent_shape, num_vertices=template.num_vertices)
-        if "subspace" in meta
-        else None
+        None
+        if manifest.subspace is None
+        else load_subspace(folder, manifest.subspace, latent_shape, num_vertices=template.num_vertices)
     )
     return Bundle(
         folder,
-        meta,
+        manifest,
         autoencoder.eval(),
         codespace.eval(),
         FeatureStats(s["motion_mean"], s["motion_std"]),

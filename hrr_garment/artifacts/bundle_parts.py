@@ -18,6 +18,8 @@ from .database import CodeDatabase
 from .folds import FILE_KEYS as FOLD_FILE_KEYS
 from .folds import FoldStore
 from .manifest import FOLDS_FILE, SUBSPACE_FILE, BundleError
+from .manifest_entries import FoldsEntry, SubspaceEntry
+from .manifest_section import thawed
 
 
 def load_state(module: torch.nn.Module, path: Path, folder: Path) -> None:
@@ -73,14 +75,16 @@ def load_arrays(folder: Path, name: str, keys: tuple[str, ...]) -> dict[str, np.
     return arrays
 
 
-def load_subspace(folder: Path, meta: dict, latent_shape: tuple, num_vertices: int) -> SubspaceDecoder:
+def load_subspace(
+    folder: Path, entry: SubspaceEntry, latent_shape: tuple, num_vertices: int
+) -> SubspaceDecoder:
     """The fast decoder, its size and settings from bundle.json's ``subspace`` entry."""
     try:
         model = SubspaceDecoder(
             latent_shape,
             num_vertices,
-            int(meta["subspace"]["components"]),
-            config=SubspaceConfig.from_dict(meta["subspace"]["config"]),
+            int(entry.components),
+            config=SubspaceConfig.from_dict(thawed(entry.config)),
         )
     except (KeyError, TypeError, ValueError) as exc:
         raise BundleError(folder, f"bundle.json has a bad 'subspace' entry ({exc})") from None
@@ -88,19 +92,18 @@ def load_subspace(folder: Path, meta: dict, latent_shape: tuple, num_vertices: i
     return model.eval()
 
 
-def load_folds(folder: Path, meta: dict, template: GarmentMesh, database: CodeDatabase) -> FoldStore:
+def load_folds(folder: Path, entry: FoldsEntry, template: GarmentMesh, database: CodeDatabase) -> FoldStore:
     """The fold store, checked against the template and every database window it must cover."""
     levels = FOLD_FILE_KEYS["levels"]
     f = load_arrays(folder, FOLDS_FILE, (levels, "scale", "offsets"))
     try:
-        entry = meta["folds"]
         folds = FoldStore(
             f[levels],
             f["scale"],
             f["offsets"],
-            passes=entry["passes"],
-            encoding=entry["encoding"],
-            vertices=entry.get("vertices"),
+            passes=entry.passes,
+            encoding=entry.encoding,
+            vertices=entry.vertices,
         )
         folds.check_fits(
             template.num_vertices,

@@ -1,36 +1,33 @@
 """Writing a model bundle (:mod:`.bundle`): every file atomically, ``bundle.json`` last.
 
 A folder whose ``bundle.json`` is missing, or whose files do not match the hashes it lists, is not a
-bundle (:func:`~.manifest.read_meta` refuses it), so an interrupted write never looks like a model.
+bundle (:func:`~.typed_manifest.read_manifest` refuses it), so an interrupted write never looks like a
+model. bundle.json is written from its typed :class:`~.typed_manifest.Manifest`: checked as any
+reader will check it.
 """
 
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from safetensors.numpy import save_file as save_arrays
 from safetensors.torch import save_file as save_tensors
 
 from ..garment.mesh import GarmentMesh
-from ..io_utils import atomic_path, atomic_write_text, strict_json
+from ..io_utils import atomic_path
 from ..models.codespace import CodeSpace
 from ..models.fcmae import MeshAutoencoder
 from ..motion.features import FeatureStats
 from .database import CodeDatabase
 from .folds import FoldStore
 from .gate_signals import check_gate_signal
-from .manifest import (
-    FOLDS_FILE,
-    FORMAT_VERSION,
-    NETWORKS,
-    content_hash,
-    read_meta,
-    sha256,
-    with_manifest_hash,
-)
+from .manifest import FOLDS_FILE, FORMAT_VERSION, NETWORKS, content_hash, sha256
+from .manifest_section import as_json
+from .typed_manifest import parse_manifest, read_manifest, write_manifest
 
 
 def _save(path: Path, tensors: dict, numpy: bool = False) -> None:
@@ -101,7 +98,7 @@ def write_bundle(
     if folds is not None:
         _save(folder / FOLDS_FILE, folds.arrays(), numpy=True)
         parts.append(FOLDS_FILE)
-        info = {**info, "folds": folds.meta}
+        info = {**info, "folds": folds.entry.to_dict()}
     files = {p: sha256(folder / p) for p in sorted(parts)}
     meta = {
         "format_version": FORMAT_VERSION,
@@ -125,31 +122,17 @@ def write_bundle(
         "content_hash": content_hash(files),
         **info,
     }
-    atomic_write_text(folder / "bundle.json", strict_json(with_manifest_hash(meta), indent=2))
-    return folder / "bundle.json"
+    return write_manifest(folder, parse_manifest(folder, as_json(meta)))
 
 
 def add_bundle_part(
-    folder: str | Path, name: str, tensors: dict, meta: dict, numpy: bool = False, drop: tuple[str, ...] = ()
+    folder: str | Path, name: str, tensors: dict, numpy: bool = False, **changes: Any
 ) -> None:
     """Add (or replace) one file of an existing bundle (torch tensors, or ``numpy`` arrays) and
-    merge ``meta`` into bundle.json without the keys ``drop``; the file list and content hash are
-    updated, bundle.json last (atomically)."""
+    replace the manifest's fields ``changes`` (typed sections: ``subspace=PartEntry(...)``; None
+    drops one); the file list and content hash are updated, bundle.json last (atomically)."""
     folder = Path(folder)
-    current = {k: v for k, v in read_meta(folder).items() if k not in drop}
+    current = read_manifest(folder)
     _save(folder / name, tensors, numpy)
-    files = {**current["files"], name: sha256(folder / name)}
-    atomic_write_text(
-        folder / "bundle.json",
-        strict_json(
-            with_manifest_hash({**current, **meta, "files": files, "content_hash": content_hash(files)}),
-            indent=2,
-        ),
-    )
-
-
-def update_bundle_meta(folder: str | Path, meta: dict) -> None:
-    """Merge ``meta`` into an existing bundle's bundle.json (atomically; the files are unchanged)."""
-    folder = Path(folder)
-    current = read_meta(folder)
-    atomic_write_text(folder / "bundle.json", strict_json(with_manifest_hash({**current, **meta}), indent=2))
+    files = {**current.files, name: sha256(folder / name)}
+    write_manifest(folder, replace(current, files=files, content_hash=content_hash(files), **changes))

@@ -25,6 +25,7 @@ from scipy.sparse import csr_matrix
 
 from ..garment.smoothing import high_frequencies
 from . import fold_codec
+from .manifest_entries import FoldsEntry
 
 #: folds.safetensors' key for each field, where it differs (the file format keeps its first name)
 FILE_KEYS = {"levels": "detail"}
@@ -183,14 +184,17 @@ class FoldStore:
         return {FILE_KEYS["levels"]: self.levels, "scale": self.scale, "offsets": self.offsets}
 
     @property
-    def meta(self) -> dict:
+    def entry(self) -> FoldsEntry:
         """bundle.json's ``folds`` entry."""
-        return {
-            "passes": self.passes,
-            "frames": len(self.levels),
-            "encoding": self.encoding,
-            "vertices": self.num_vertices,
-        }
+        return FoldsEntry.parse(
+            {
+                "passes": self.passes,
+                "frames": len(self.levels),
+                "encoding": self.encoding,
+                "vertices": self.num_vertices,
+            },
+            "folds",
+        )
 
     def check_fits(self, num_vertices: int, sequences: int, sequence: np.ndarray, end: np.ndarray) -> None:
         """A ValueError unless the store fits a model: ``num_vertices`` per frame, ``sequences``

@@ -1,9 +1,11 @@
 """bundle.json: the manifest that makes a folder a model bundle (:mod:`.bundle`), and its checks.
 
 It records the format version, the garment, the calibrated settings (gate, tau, residual weight,
-auto mode) and the sha256 of every other file with a content hash over them. :func:`read_meta`
-refuses a manifest that is malformed, edited by hand or out of step with its files, and says which
-and why; there is no off switch.
+auto mode) and the sha256 of every other file with a content hash over them. This module holds its
+format: the versions, the upgrade of older ones, the hashes and the file list's check.
+:func:`~.typed_manifest.read_manifest` reads it as the typed, frozen
+:class:`~.typed_manifest.Manifest` the package uses, and refuses a manifest that is malformed,
+edited by hand or out of step with its files, and says which and why; there is no off switch.
 
 Versions: :data:`FORMAT_VERSION` moves whenever a field arrives or changes meaning, and
 :func:`migrate_manifest` upgrades an older manifest to the current one in memory, one step per
@@ -30,13 +32,11 @@ from __future__ import annotations
 
 import hashlib
 import json
-import math
 from pathlib import Path
 
 from ..errors import InputError
 from ..io_utils import strict_json
 from .folds import DETAIL_STRENGTH
-from .gate_signals import GATE_SIGNALS
 
 FORMAT_VERSION = 5  # see the module docstring
 OLDEST_READABLE = 2  # version 1 kept garments in world coordinates: no step upgrades its networks
@@ -110,8 +110,9 @@ def required_files(meta: dict) -> set[str]:
     return names | {file for part, file in optional.items() if part in meta}
 
 
-def check_manifest(folder: Path, meta: object) -> dict:
-    """bundle.json's structure, file list and content hash; the integrity check has no off switch."""
+def check_file_list(folder: Path, meta: object) -> dict:
+    """bundle.json's file list and content hash (the integrity check has no off switch); its other
+    fields are checked as it is typed (:mod:`.typed_manifest`)."""
     if not isinstance(meta, dict):
         raise BundleError(folder, f"bundle.json holds a {type(meta).__name__}, not an object")
     files = meta.get("files")
@@ -138,71 +139,6 @@ def check_manifest(folder: Path, meta: object) -> dict:
             f"content_hash {meta.get('content_hash')!r} does not match the file list "
             f"({content_hash(files)}): bundle.json was edited",
         )
-    garment, tau = meta.get("garment"), meta.get("tau")
-    if not isinstance(garment, str) or not garment:
-        raise BundleError(folder, f"bundle.json 'garment' must be a name, got {garment!r}")
-    if isinstance(tau, bool) or not isinstance(tau, (int, float)) or not math.isfinite(tau) or tau < 0:
-        raise BundleError(folder, f"bundle.json 'tau' must be a finite number >= 0, got {tau!r}")
-    if meta.get("gate") not in GATE_SIGNALS:
-        raise BundleError(
-            folder, f"bundle.json 'gate' must be one of {', '.join(GATE_SIGNALS)}, got {meta.get('gate')!r}"
-        )
-    residual = meta.get("residual", {"weight": 0.0})
-    weight = residual.get("weight") if isinstance(residual, dict) else None
-    if (
-        isinstance(weight, bool)
-        or not isinstance(weight, (int, float))
-        or not math.isfinite(weight)
-        or weight < 0
-    ):
-        raise BundleError(
-            folder, f"bundle.json 'residual' must hold a finite 'weight' >= 0, got {residual!r}"
-        )
-    if meta.get("validation") not in ("clips", "windows"):
-        raise BundleError(
-            folder, f"bundle.json 'validation' must be clips or windows, got {meta.get('validation')!r}"
-        )
-    gates = meta.get("gates")
-    if not isinstance(gates, dict) or not all(
-        k in GATE_SIGNALS and isinstance(v, dict) for k, v in gates.items()
-    ):
-        raise BundleError(
-            folder, f"bundle.json 'gates' must map gate signals to their calibration, got {gates!r}"
-        )
-    auto = meta.get("auto", UNCALIBRATED_AUTO)
-    if not isinstance(auto, dict) or auto.get("mode") not in AUTO_CHOICES:
-        raise BundleError(
-            folder, f"bundle.json 'auto' must hold a 'mode' of {', '.join(AUTO_CHOICES)}, got {auto!r}"
-        )
-    if auto.get("detail_base") not in DETAIL_BASES:
-        raise BundleError(
-            folder,
-            f"bundle.json 'auto' 'detail_base' must be one of {', '.join(DETAIL_BASES)}, "
-            f"got {auto.get('detail_base')!r}",
-        )
-    strength = auto.get("detail_strength")
-    if not valid_detail_strength(strength):
-        raise BundleError(
-            folder,
-            f"bundle.json 'auto' 'detail_strength' must be a number in (0, {MAX_DETAIL_STRENGTH:g}], "
-            f"got {strength!r}",
-        )
-    for key in ("residual_free_mm", "folds_free_mm"):  # the residual's and the folds' free-cloth ramps
-        ramp = auto.get(key)
-        if ramp is not None and not (
-            isinstance(ramp, list)
-            and len(ramp) == 2
-            and all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in ramp)
-            and math.isfinite(ramp[0])
-            and math.isfinite(ramp[1])
-            and ramp[0] < ramp[1]
-        ):
-            raise BundleError(
-                folder, f"bundle.json 'auto' {key!r} must be null or [lo, hi] mm with lo < hi, got {ramp!r}"
-            )
-    for section in ("autoencoder", "codespace", "database"):
-        if not isinstance(meta.get(section), dict):
-            raise BundleError(folder, f"bundle.json lacks its {section!r} section")
     return meta
 
 
@@ -262,31 +198,4 @@ def _from_version_2(meta: dict) -> dict:
             **codespace["config"],
         }
         meta["codespace"] = {**codespace, "config": config}
-    return meta
-
-
-def read_meta(folder: str | Path, trust: bool = True) -> dict:
-    """``bundle.json`` after the version, manifest and file-hash checks and (``trust``) the
-    signature policy (:mod:`.signature`; hrr-sign itself checks signatures its own way)."""
-    folder = Path(folder)
-    path = folder / "bundle.json"
-    if not folder.is_dir():
-        raise BundleError(folder, "no such model directory (train one with hrr-train)")
-    if not path.is_file():
-        raise BundleError(folder, "no bundle.json: not a model bundle, or its training did not finish")
-    from .signature import check_signature  # signature.py raises this module's BundleError
-
-    try:
-        raw = path.read_bytes()
-        meta = json.loads(raw.decode("utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise BundleError(folder, f"bundle.json is unreadable ({exc})") from None
-    meta = check_manifest(folder, migrate_manifest(folder, meta))
-    for name, digest in meta["files"].items():
-        if not (folder / name).is_file():
-            raise BundleError(folder, f"{name} is missing")
-        if sha256(folder / name) != digest:
-            raise BundleError(folder, f"{name} does not match its recorded hash (corrupt or truncated file)")
-    if trust:
-        check_signature(folder, raw)  # the bytes just checked: a signature over what was read
     return meta

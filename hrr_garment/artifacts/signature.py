@@ -6,7 +6,7 @@ can only be made with its author's private key. ``hrr-sign sign`` writes ``bundl
 SHA-256 of ``bundle.json``'s bytes, which record the SHA-256 of every other file, so one signature
 covers the whole bundle.
 
-On load (:func:`check_signature`, from :func:`~.manifest.read_meta`):
+On load (:func:`check_signature`, from :func:`~.typed_manifest.read_manifest`):
 
 * a ``bundle.sig`` that does not verify is refused, whatever the settings (the bundle was changed
   after it was signed);

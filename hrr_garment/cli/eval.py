@@ -28,6 +28,7 @@ from pathlib import Path
 from typing import Sequence
 
 from ..artifacts.gate_signals import GATE_SIGNALS
+from ..artifacts.manifest_section import thawed
 from ..errors import InputError
 from ..eval.evaluate import EvaluationSettings, evaluate_modes, tau_sweep
 from ..eval.terminal import report_lines
@@ -230,7 +231,7 @@ def _job(args) -> _Job:
     model_dir = find_model(args.model or args.garment)
     animator = Animator.load(model_dir)
     bundle = animator.bundle
-    dataset = args.dataset or Path(bundle.meta.get("dataset", ""))
+    dataset = args.dataset or Path(bundle.manifest.dataset or "")
     if not str(dataset) or not dataset.is_file():
         raise InputError(
             model_dir, f"its training dataset {str(dataset) or '(unrecorded)'} is not there; give --dataset"
@@ -357,11 +358,11 @@ def _evaluate(job: _Job, args) -> dict:
             "hash": bundle.content_hash,
             "gate": bundle.gate,
             "tau": bundle.tau,
-            "gates": bundle.meta["gates"],
+            "gates": thawed(bundle.manifest.gates),
             "auto": bundle.auto_mode,
-            "auto_calibration": bundle.meta.get("auto"),
+            "auto_calibration": thawed(bundle.manifest.auto),
             "vertices": bundle.template.num_vertices,
-            "preset": bundle.meta.get("preset"),
+            "preset": bundle.manifest.preset,
         },
         dataset={
             "path": str(job.ds.path),

@@ -18,8 +18,8 @@ import sys
 from pathlib import Path
 from typing import Sequence
 
-from ..artifacts.manifest import read_meta
 from ..artifacts.signature import SIGNATURE_FILE, generate_key, sign_bundle, verify_signature
+from ..artifacts.typed_manifest import read_manifest
 from ..errors import InputError
 from ..io_utils import refuse_input_as_output
 from ._common import run_cli
@@ -58,7 +58,7 @@ def _main(argv: Sequence[str] | None) -> int:
             f"wrote {args.output} (private: keep it to yourself) and {public} (public: give it to those who load your models)"
         )
         return 0
-    read_meta(args.model, trust=False)  # a bundle whose files match their hashes before anything else
+    read_manifest(args.model, trust=False)  # a bundle whose files match their hashes before anything else
     if args.command == "sign":
         refuse_input_as_output(args.model / SIGNATURE_FILE, [args.key])
         key = sign_bundle(args.model, args.key)

@@ -63,12 +63,15 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from contextlib import contextmanager
+from dataclasses import replace
 
 import numpy as np
 from tqdm import tqdm
 
+from ..artifacts.auto_calibration import AutoCalibration
 from ..artifacts.bundle import Bundle
 from ..artifacts.manifest import AUTO_CHOICES
+from ..artifacts.manifest_entries import BodiesEntry, ResidualEntry
 from ..artifacts.residual import FREE_CLOTH_RAMPS_MM
 from ..data.bodies import MANNEQUIN
 from ..data.dataset import SequenceRecord
@@ -99,45 +102,46 @@ from .auto_criterion import (
 AUTO_MAX_SEQUENCES = 24  # validation clips the choice animates at most (evenly spaced): about a minute
 
 
-def followed_otherwise(auto: dict) -> bool:
+def followed_otherwise(auto: AutoCalibration) -> bool:
     """Whether a recorded calibration's detail candidates ran with folds followed in time otherwise
     than this version's (recorded before the following: as they came, 1)."""
-    return float(auto.get("fold_follow", 1.0)) != FOLD_FOLLOW
+    return float(1.0 if auto.fold_follow is None else auto.fold_follow) != FOLD_FOLLOW
 
 
-def lacks_swing(auto: dict) -> bool:
+def lacks_swing(auto: AutoCalibration) -> bool:
     """Whether a recorded calibration has no swing candidates measured as the swing now runs
     (recorded before the swing's gain, or with another half-life)."""
-    return not any(SWING in k for k in auto["candidates"]) or auto.get("swing_half_life_s") != HALF_LIFE_S
+    return not any(SWING in k for k in auto.candidates or {}) or auto.swing_half_life_s != HALF_LIFE_S
 
 
-def lacks_free_folds(auto: dict) -> bool:
+def lacks_free_folds(auto: AutoCalibration) -> bool:
     """Whether a recorded calibration measured the detail mode before its folds were measured on
     free cloth as well (``auto.folds_free_cloth``)."""
-    return not auto.get("folds_free_cloth") and any(
-        candidate_setting(k)[0] == "detail" for k in auto["candidates"]
+    return not auto.folds_free_cloth and any(
+        candidate_setting(k)[0] == "detail" for k in auto.candidates or {}
     )
 
 
-def lacks_default_body(auto: dict, bodies: dict | None) -> bool:
+def lacks_default_body(auto: AutoCalibration, bodies: BodiesEntry | None) -> bool:
     """Whether a recorded calibration of a model across bodies whose default is the mannequin
     (bundle.json's ``bodies``) was measured before the default body's clips were measured apart."""
-    bodies = bodies or {}
     return (
-        bodies.get("default") is None
-        and (bodies.get("range") or {}).get("bodies", 1) > 1
-        and "default_body_sequences" not in auto
+        bodies is not None
+        and bodies.default is None
+        and bodies.count > 1
+        and auto.default_body_sequences is None
     )
 
 
-def lacks_free_cloth(auto: dict, residual: dict | None) -> bool:
+def lacks_free_cloth(auto: AutoCalibration, residual: ResidualEntry | None) -> bool:
     """Whether a recorded calibration measured the residual mode (of a calibrated weight,
     bundle.json's ``residual``) but not on free cloth: recorded before those candidates."""
-    weight = (residual or {}).get("weight", 0.0)
+    candidates = auto.candidates or {}
     return (
-        weight > 0
-        and "residual" in auto["candidates"]
-        and not any(FREE_CLOTH in k for k in auto["candidates"])
+        residual is not None
+        and residual.weight > 0
+        and "residual" in candidates
+        and not any(FREE_CLOTH in k for k in candidates)
     )
 
 
@@ -146,16 +150,14 @@ def free_cloth(bundle: Bundle, ramp_mm: tuple[float, float] | None):
     """The bundle's residual and folds on free cloth with ``ramp_mm`` (None: everywhere) while the
     block runs: a calibration measuring its candidates (bundle.json ``auto.residual_free_mm`` and
     ``auto.folds_free_mm``, in memory only)."""
-    had, before = "auto" in bundle.meta, bundle.meta.get("auto")
-    ramp = None if ramp_mm is None else list(ramp_mm)
-    bundle.meta["auto"] = {**bundle.auto, "residual_free_mm": ramp, "folds_free_mm": ramp}
+    before = bundle.manifest
+    ramp = None if ramp_mm is None else tuple(ramp_mm)
+    auto = replace(bundle.auto, residual_free_mm=ramp, folds_free_mm=ramp)
+    bundle.manifest = replace(before, auto=auto)
     try:
         yield
     finally:
-        if had:
-            bundle.meta["auto"] = before
-        else:
-            del bundle.meta["auto"]
+        bundle.manifest = before
 
 
 def calibrate_auto_mode(
@@ -208,12 +210,13 @@ def calibrate_auto_mode(
     )
 
 
-def swing_unmeasured(auto: dict, config: AutoConfig) -> bool:
+def swing_unmeasured(auto: AutoCalibration, config: AutoConfig) -> bool:
     """Whether a recorded calibration's first pick under ``config`` (its pick without a swing gain)
     has swing gains not yet measured: an allowance that moves the pick needs them measured before
     picking again."""
-    first = pick_auto_mode(_without_swing(auto["candidates"]), config)
-    return any(swing_label(first, gain) not in auto["candidates"] for gain in SWING_GAINS)
+    candidates = auto.candidates or {}
+    first = pick_auto_mode(_without_swing(candidates), config)
+    return any(swing_label(first, gain) not in candidates for gain in SWING_GAINS)
 
 
 def measure_swing_again(
@@ -261,7 +264,7 @@ def _measure_swing(
 def _on_default_body(bundle: Bundle, records: list[SequenceRecord]) -> list[bool] | None:
     """Which of ``records`` stand on the model's default body, where they mix it with other bodies
     (None where they do not: a model of one body, or a validation without its default body)."""
-    if (bundle.meta.get("bodies") or {}).get("default") is not None:
+    if not bundle.manifest.default_body_is_mannequin:
         return None  # a model of the one body it was trained on
     on = [r.body == MANNEQUIN for r in records]
     return on if any(on) and not all(on) else None

@@ -159,7 +159,7 @@ def paper_section(folder: Path, bundle, records, settings: EvaluationSettings, e
     folder = find_model(folder)
     animator = Animator.load(folder)
     other = animator.bundle
-    if other.meta["validation"] != "windows":
+    if other.manifest.validation != "windows":
         raise InputError(
             folder,
             "was validated on held-out clips; the paper protocol needs a model trained with "

@@ -83,7 +83,7 @@ def _check_unseen(animator: Animator, record, where: Path) -> None:
     training split, where that dataset is still there)."""
     from ..body.measures import body_vector
 
-    trained_on = Path(animator.bundle.meta.get("dataset", ""))
+    trained_on = Path(animator.bundle.manifest.dataset or "")
     if not trained_on.is_file():
         return
     ds = GarmentDataset(trained_on)

@@ -103,9 +103,7 @@ def character_body(
         body, name = body.record, name or body.name
     if body is None:
         record = bundle.default_body
-        label = name or (
-            MANNEQUIN if (bundle.meta.get("bodies") or {}).get("default") is None else "the model's body"
-        )
+        label = name or (MANNEQUIN if bundle.manifest.default_body_is_mannequin else "the model's body")
     elif isinstance(body, BodyRecord):
         record, label = body, name or "body"
     elif isinstance(body, (str, Path)):

@@ -341,41 +341,42 @@ def calibrate_auto(
     validation clips once per bundle and recorded in bundle.json with every candidate's numbers;
     the recorded one where it was, picked again from its numbers where ``config``'s allowance differs
     from the one it was picked under (the swing gains of a first pick that moved measured first)."""
-    from ..artifacts.bundle import read_meta
-    from ..artifacts.bundle_writer import update_bundle_meta
+    from ..artifacts.auto_calibration import AutoCalibration
+    from ..artifacts.typed_manifest import read_manifest, update_manifest
     from ..inference.animator import Animator
 
-    meta = read_meta(folder)  # reading it hashes every file: once
-    auto = meta.get("auto")
+    manifest = read_manifest(folder)  # reading it hashes every file: once
+    recorded = manifest.auto
     # calibrated again where recorded before the candidates carried their cloth inside the body (the
     # criterion counts it), the residual or the folds on free cloth, the default body's clips apart,
     # the folds followed in time (as the detail mode now runs) or the swing's gain; picked again
     # where only an allowance moved
     if (
-        auto is None
-        or any("penetration_pct" not in c for c in auto["candidates"].values())
-        or lacks_swing(auto)
-        or lacks_free_cloth(auto, meta.get("residual"))
-        or lacks_default_body(auto, meta.get("bodies"))
-        or (meta.get("folds") and (followed_otherwise(auto) or lacks_free_folds(auto)))
+        recorded is None
+        or any("penetration_pct" not in c for c in (recorded.candidates or {}).values())
+        or lacks_swing(recorded)
+        or lacks_free_cloth(recorded, manifest.residual)
+        or lacks_default_body(recorded, manifest.bodies)
+        or (manifest.folds is not None and (followed_otherwise(recorded) or lacks_free_folds(recorded)))
     ):
         auto = calibrate_auto_mode(
             Animator.load(folder), _validation_records(dataset), config, progress=progress
         )
-        update_bundle_meta(folder, {"auto": auto})
-    elif any(auto.get(key) != value for key, value in config.limits().items()):
+    elif any(getattr(recorded, key) != value for key, value in config.limits().items()):
         auto = (
             measure_swing_again(
                 Animator.load(folder),
                 _validation_records(dataset),
-                auto=auto,
+                auto=recorded.to_dict(),
                 config=config,
                 progress=progress,
             )
-            if swing_unmeasured(auto, config)
-            else repick(auto, config)
+            if swing_unmeasured(recorded, config)
+            else repick(recorded.to_dict(), config)
         )
-        update_bundle_meta(folder, {"auto": auto})
+    else:
+        return recorded.to_dict()
+    update_manifest(folder, auto=AutoCalibration.from_report(auto, "auto"))
     return auto
 
 

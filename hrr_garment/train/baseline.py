@@ -20,6 +20,7 @@ import numpy as np
 import torch
 
 from ..artifacts.bundle_writer import add_bundle_part
+from ..artifacts.manifest_entries import PartEntry
 from ..data.windows import dataset_features
 from ..io_utils import atomic_write_text, strict_json
 from ..models.direct import DirectConfig, DirectRegressor
@@ -157,15 +158,16 @@ def run_baseline_stage(
     t0 = time.perf_counter()
     folder = Path(folder)
     bundle, ds = bundle_and_dataset(folder, dataset, cache_dir)
-    base_files = {k: v for k, v in bundle.meta["files"].items() if k != "direct.safetensors"}
+    base_files = {k: v for k, v in bundle.manifest.files.items() if k != "direct.safetensors"}
     key = hashlib.sha1(
         json.dumps(
             [config.to_dict(), asdict(train_config) | {"max_minutes": None}, base_files, ds.splits],
             sort_keys=True,
         ).encode()
     ).hexdigest()[:16]
-    if bundle.meta.get("direct", {}).get("key") == key:
-        return _stage_report({**bundle.meta["direct"], "reused": True}, folder, reused=True)
+    recorded = bundle.manifest.direct
+    if recorded is not None and recorded.key == key:
+        return _stage_report({**recorded.to_dict(), "reused": True}, folder, reused=True)
     with np.load(folder / "autoencoder" / "latents.npz", allow_pickle=False) as f:
         latents = {name: f[name] for name in ds.names}
     names = {k: ds.splits[k] for k in ("train", "val")}
@@ -190,7 +192,9 @@ def run_baseline_stage(
         "validation_mm": val_mm,
         "minutes": (time.perf_counter() - t0) / 60,
     }
-    add_bundle_part(folder, "direct.safetensors", model.state_dict(), meta={"direct": entry})
+    add_bundle_part(
+        folder, "direct.safetensors", model.state_dict(), direct=PartEntry.from_report(entry, "direct")
+    )
     atomic_write_text(folder / "baseline" / "report.json", strict_json(entry, indent=2))
     return _stage_report(entry, folder)
 

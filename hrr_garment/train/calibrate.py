@@ -335,7 +335,7 @@ def evaluate_bundle(bundle, dataset: str | Path, split: str = "val") -> dict:
     names = ds.splits.get(split, [])
     if not names:
         raise DatasetError(dataset, f"has no {split!r} sequences")
-    encoding = refine_settings(bundle.meta.get("encoding", {}))
+    encoding = refine_settings(bundle.manifest.encoding or {})
     modes = window_mode_errors(
         bundle,
         dataset_features(

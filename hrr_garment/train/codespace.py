@@ -22,11 +22,13 @@ import numpy as np
 import torch
 from tqdm import tqdm
 
-from ..artifacts.bundle import BundleError, load_bundle, read_meta
-from ..artifacts.bundle_writer import BundleParts, add_bundle_part, update_bundle_meta, write_bundle
+from ..artifacts.bundle import BundleError, load_bundle
+from ..artifacts.bundle_writer import BundleParts, add_bundle_part, write_bundle
 from ..artifacts.database import CodeDatabase
 from ..artifacts.folds import FOLD_ENCODING, FoldStore
 from ..artifacts.manifest import FOLDS_FILE
+from ..artifacts.manifest_entries import ResidualEntry
+from ..artifacts.typed_manifest import Manifest, read_manifest, update_manifest
 from ..body.body_file import body_to_dict
 from ..body.measures import BODY_MEASURES, BodyRange, body_vector
 from ..data.bodies import MANNEQUIN
@@ -183,7 +185,7 @@ def _stage_report(report: dict, folder: Path, reused: bool = False) -> StageRepo
     )
 
 
-def _finished(folder: Path, report_path: Path, key: str) -> tuple[dict, dict] | None:
+def _finished(folder: Path, report_path: Path, key: str) -> tuple[dict, Manifest] | None:
     """The report and bundle.json of a finished stage with these settings whose bundle is intact, else None."""
     if not (report_path.is_file() and (folder / "bundle.json").is_file()):
         return None
@@ -191,7 +193,7 @@ def _finished(folder: Path, report_path: Path, key: str) -> tuple[dict, dict] | 
     if report.get("key") != key:
         return None
     try:
-        return report, read_meta(folder)
+        return report, read_manifest(folder)
     except BundleError:  # a damaged bundle is rebuilt
         return None
 
@@ -248,7 +250,7 @@ def _add_residual(
         {n: body_frames(ds, [n]) for n in val_names},
         windows=calibration,
     )
-    update_bundle_meta(folder, {"residual": residual})
+    update_manifest(folder, residual=ResidualEntry.from_report(residual, "residual"))
     report = {**report, "residual": residual}
     atomic_write_text(report_path, strict_json(report, indent=2, default=float))
     return report
@@ -284,15 +286,13 @@ def run_codespace_stage(
         train_config.max_minutes,
     ):
         finished = None  # cut short by a smaller cap: its checkpoint resumes
-    done, meta = finished if finished is not None else (None, {})
+    done, manifest = finished if finished is not None else (None, None)
     # trained before the folds, or stored in an older encoding (int8, twice the size): (re)build them
     # alone, and drop the auto choice made without them
-    if done is not None and meta.get("folds", {}).get("encoding") != FOLD_ENCODING:
-        folds = fold_store(ds, list(meta["database"]["names"]), progress)
-        add_bundle_part(
-            folder, FOLDS_FILE, folds.arrays(), meta={"folds": folds.meta}, numpy=True, drop=("auto",)
-        )
-    if done is not None and "residual" in meta:
+    if manifest is not None and (manifest.folds is None or manifest.folds.encoding != FOLD_ENCODING):
+        folds = fold_store(ds, list(manifest.database.names), progress)
+        add_bundle_part(folder, FOLDS_FILE, folds.arrays(), numpy=True, folds=folds.entry, auto=None)
+    if manifest is not None and manifest.residual is not None:
         return _stage_report(done, stage, reused=True)
     splits = {k: ds.splits[k] for k in ("train", "val")}
     features = dataset_features(

@@ -28,6 +28,7 @@ from tqdm import tqdm
 
 from ..artifacts.bundle_writer import add_bundle_part
 from ..artifacts.manifest import SUBSPACE_FILE
+from ..artifacts.manifest_entries import SubspaceEntry
 from ..data.dataset import DatasetError
 from ..io_utils import atomic_write_text, strict_json
 from ..models.subspace import SubspaceConfig, SubspaceDecoder, principal_components
@@ -234,14 +235,15 @@ def run_subspace_stage(
                 STAGE_VERSION,
                 config.to_dict(),
                 asdict(train_config),
-                bundle.meta["files"]["autoencoder.safetensors"],
+                bundle.manifest.files["autoencoder.safetensors"],
                 ds.splits,
             ],
             sort_keys=True,
         ).encode()
     ).hexdigest()[:16]
-    if bundle.meta.get("subspace", {}).get("key") == key:
-        return _stage_report({**bundle.meta["subspace"], "reused": True}, folder, reused=True)
+    recorded = bundle.manifest.subspace
+    if recorded is not None and recorded.key == key:
+        return _stage_report({**recorded.to_dict(), "reused": True}, folder, reused=True)
     with np.load(folder / "autoencoder" / "latents.npz", allow_pickle=False) as f:
         latents = {
             split: np.concatenate([f[n] for n in split_names]).astype(np.float32)
@@ -299,7 +301,7 @@ def run_subspace_stage(
         folder,
         SUBSPACE_FILE,
         {k: v.contiguous() for k, v in model.state_dict().items()},
-        meta={"subspace": entry},
+        subspace=SubspaceEntry.from_report(entry, "subspace"),
     )
     atomic_write_text(folder / "subspace" / "report.json", strict_json(entry, indent=2))
     return _stage_report(entry, folder)

@@ -8,8 +8,8 @@ from pathlib import Path
 import numpy as np
 
 from hrr_garment import Animator, synthesize
-from hrr_garment.artifacts.bundle_writer import update_bundle_meta
 from hrr_garment.artifacts.manifest import FORMAT_VERSION
+from hrr_garment.artifacts.typed_manifest import update_manifest
 from hrr_garment.data.animation_file import read_animation_h5
 
 DATA = Path(__file__).parents[1] / "fixtures"
@@ -30,11 +30,15 @@ def test_a_version_2_bundle_loads_and_animates_as_31b4ef9_did(tmp_path, monkeypa
 
     folder = shutil.copytree(DATA / "bundle-31b4ef9", tmp_path / "model")
     animator = Animator.load(folder)
-    meta = animator.bundle.meta
+    manifest = animator.bundle.manifest
     assert json.loads((folder / "bundle.json").read_text())["format_version"] == 2
-    assert meta["format_version"] == FORMAT_VERSION == 5  # upgraded in memory, the file untouched
-    assert meta["gate"] in ("entropy", "similarity", "distance") and isinstance(meta["gates"], dict)
-    assert {"memory_seconds", "resonator_hz", "regression_code"} <= set(meta["codespace"]["config"])
+    assert manifest.format_version == FORMAT_VERSION == 5  # upgraded in memory, the file untouched
+    assert manifest.gate in ("entropy", "similarity", "distance") and set(manifest.gates) <= {
+        "entropy",
+        "similarity",
+        "distance",
+    }
+    assert {"memory_seconds", "resonator_hz", "regression_code"} <= set(manifest.codespace.config)
     written = read_animation_h5(DATA / "out-31b4ef9" / "auto.h5")
     monkeypatch.setattr(fold_track, "FOLD_FOLLOW", 1.0)  # its folds as the playhead gave them
     limited = animator.animate(_walk())
@@ -81,7 +85,7 @@ def test_a_version_2_out_h5_reads_with_the_version_3_names():
 def test_writing_into_a_version_2_bundle_upgrades_its_manifest(tmp_path):
     folder = shutil.copytree(DATA / "bundle-31b4ef9", tmp_path / "model")
     before = Animator.load(folder).animate(_walk(), mode="hybrid", collision=False).vertices
-    update_bundle_meta(folder, {})
+    update_manifest(folder)
     on_disk = json.loads((folder / "bundle.json").read_text())
     assert on_disk["format_version"] == 5 and "gates" in on_disk and "detail_strength" in on_disk["auto"]
     assert on_disk["folds"]["encoding"] == "int8"  # the store as it was written

@@ -146,7 +146,7 @@ def test_a_trained_bundle_stores_frames_and_one_that_stored_windows_still_loads(
     }
     copy = tmp_path / "model"
     shutil.copytree(root / "model", copy)
-    add_bundle_part(copy, "database.safetensors", windows, {}, numpy=True)
+    add_bundle_part(copy, "database.safetensors", windows, numpy=True)
     old = load_bundle(copy)
     assert isinstance(old.database.latents, np.ndarray) and np.array_equal(
         old.database.latents, windows["latents"]

@@ -9,8 +9,8 @@ from pathlib import Path
 import pytest
 
 from hrr_garment.artifacts.bundle import load_bundle
-from hrr_garment.artifacts.bundle_writer import update_bundle_meta
-from hrr_garment.artifacts.manifest import BundleError, manifest_hash, read_meta
+from hrr_garment.artifacts.manifest import BundleError, manifest_hash
+from hrr_garment.artifacts.typed_manifest import read_manifest, update_manifest
 
 FIXTURE = Path(__file__).parents[1] / "fixtures" / "bundle-31b4ef9"
 
@@ -19,7 +19,7 @@ FIXTURE = Path(__file__).parents[1] / "fixtures" / "bundle-31b4ef9"
 def bundle(tmp_path) -> Path:
     """The version-2 fixture, written again: now at the current version, with its manifest hash."""
     folder = shutil.copytree(FIXTURE, tmp_path / "model")
-    update_bundle_meta(folder, {})
+    update_manifest(folder)
     meta = json.loads((folder / "bundle.json").read_text())
     assert meta["format_version"] == 5 and meta["manifest_hash"] == manifest_hash(meta)
     return folder
@@ -46,7 +46,7 @@ def _edit(folder: Path, change, rehash: bool = False) -> None:
 def test_an_edited_manifest_is_refused(bundle, change):
     _edit(bundle, change)
     with pytest.raises(BundleError, match="was edited after it was written"):
-        read_meta(bundle)
+        read_manifest(bundle)
 
 
 @pytest.mark.parametrize(
@@ -72,8 +72,9 @@ def test_a_re_hashed_manifest_still_has_its_values_checked(bundle, change, messa
 
 
 def test_a_manifest_written_again_stays_valid_and_a_version_3_one_still_loads(bundle, tmp_path):
-    update_bundle_meta(bundle, {"note": "calibrated again"})
-    assert read_meta(bundle)["note"] == "calibrated again"
+    update_manifest(bundle, extra={"note": "calibrated again"})  # a key the manifest does not type
+    assert read_manifest(bundle).extra["note"] == "calibrated again"
+    assert json.loads((bundle / "bundle.json").read_text())["note"] == "calibrated again"
     old = shutil.copytree(bundle, tmp_path / "v3")
     _edit(old, lambda m: (m.update(format_version=3), m.pop("manifest_hash")))
-    assert read_meta(old)["format_version"] == 5  # before the manifest hash: read as it was
+    assert read_manifest(old).format_version == 5  # before the manifest hash: read as it was

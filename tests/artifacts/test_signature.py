@@ -10,9 +10,9 @@ import pytest
 
 pytest.importorskip("cryptography")
 
-from hrr_garment.artifacts.bundle_writer import update_bundle_meta  # noqa: E402
-from hrr_garment.artifacts.manifest import BundleError, manifest_hash, read_meta  # noqa: E402
+from hrr_garment.artifacts.manifest import BundleError, manifest_hash  # noqa: E402
 from hrr_garment.artifacts.signature import SIGNATURE_FILE, SignatureWarning  # noqa: E402
+from hrr_garment.artifacts.typed_manifest import read_manifest, update_manifest  # noqa: E402
 from hrr_garment.cli.sign import main as sign_main  # noqa: E402
 
 FIXTURE = Path(__file__).parents[1] / "fixtures" / "bundle-31b4ef9"
@@ -21,7 +21,7 @@ FIXTURE = Path(__file__).parents[1] / "fixtures" / "bundle-31b4ef9"
 @pytest.fixture
 def bundle(tmp_path) -> Path:
     folder = shutil.copytree(FIXTURE, tmp_path / "model")
-    update_bundle_meta(folder, {})
+    update_manifest(folder)
     return folder
 
 
@@ -44,7 +44,7 @@ def test_a_signed_bundle_verifies_and_loads(bundle, keys, capsys, monkeypatch):
     assert "signature valid" in capsys.readouterr().out
     monkeypatch.setenv("HRR_TRUSTED_KEYS", str(keys[1]))
     monkeypatch.setenv("HRR_REQUIRE_SIGNATURE", "1")
-    read_meta(bundle)
+    read_manifest(bundle)
 
 
 def test_a_bundle_changed_after_signing_is_refused_however_rehashed(bundle, keys):
@@ -54,7 +54,7 @@ def test_a_bundle_changed_after_signing_is_refused_however_rehashed(bundle, keys
     meta["manifest_hash"] = manifest_hash(meta)
     (bundle / "bundle.json").write_text(json.dumps(meta))
     with pytest.raises(BundleError, match="made for another bundle.json"):
-        read_meta(bundle)
+        read_manifest(bundle)
 
 
 def test_a_forged_signature_is_refused(bundle, keys, tmp_path):
@@ -65,10 +65,10 @@ def test_a_forged_signature_is_refused(bundle, keys, tmp_path):
     other["key"] = (tmp_path / "other.pub").read_text().strip()  # the signature, claimed for another key
     (bundle / SIGNATURE_FILE).write_text(json.dumps(other))
     with pytest.raises(BundleError, match="does not verify"):
-        read_meta(bundle)
+        read_manifest(bundle)
     (bundle / SIGNATURE_FILE).write_text("{not json")
     with pytest.raises(BundleError, match="unreadable"):
-        read_meta(bundle)
+        read_manifest(bundle)
 
 
 def test_trusted_keys_warn_about_unsigned_bundles_and_require_refuses_them(
@@ -76,24 +76,24 @@ def test_trusted_keys_warn_about_unsigned_bundles_and_require_refuses_them(
 ):
     monkeypatch.setenv("HRR_TRUSTED_KEYS", str(keys[1]))
     with pytest.warns(SignatureWarning, match="not signed"):
-        read_meta(bundle)
+        read_manifest(bundle)
     monkeypatch.setenv("HRR_REQUIRE_SIGNATURE", "1")
     with pytest.raises(BundleError, match="not signed"):
-        read_meta(bundle)
+        read_manifest(bundle)
     assert sign_main(["keygen", "-o", str(tmp_path / "other.key")]) == 0
     assert sign_main(["sign", str(bundle), "--key", str(tmp_path / "other.key")]) == 0
     with pytest.raises(BundleError, match="not in HRR_TRUSTED_KEYS"):
-        read_meta(bundle)
+        read_manifest(bundle)
 
 
 def test_requiring_a_signature_without_a_trusted_key_is_an_error(bundle, monkeypatch):
     monkeypatch.setenv("HRR_REQUIRE_SIGNATURE", "1")
     with pytest.raises(BundleError, match="names no key to trust"):
-        read_meta(bundle)
+        read_manifest(bundle)
 
 
 def test_unsigned_bundles_load_as_before_and_verify_says_so(bundle, capsys):
-    read_meta(bundle)
+    read_manifest(bundle)
     assert sign_main(["verify", str(bundle)]) == 2
     assert "not signed" in capsys.readouterr().err
 

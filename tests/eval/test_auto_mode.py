@@ -4,10 +4,13 @@ own PVE, and that auto runs the calibrated mode in every path (offline, causal, 
 import json
 import math
 import shutil
+from dataclasses import replace
 
 import numpy as np
 import pytest
 
+from hrr_garment.artifacts.auto_calibration import UNCALIBRATED, AutoCalibration
+from hrr_garment.artifacts.manifest_entries import BodiesEntry
 from hrr_garment.eval.auto_criterion import (
     DEFAULT_BODY_PVE,
     DETAIL_CANDIDATES,
@@ -28,7 +31,6 @@ from hrr_garment.eval.auto_criterion import (
 from hrr_garment.eval.auto_mode import calibrate_auto_mode, free_cloth, lacks_default_body, swing_unmeasured
 from hrr_garment.motion.synth import synthesize
 from hrr_garment.settings import SettingsError
-from tests.conftest import write_meta
 
 
 def _c(pve, sharpness, swing):
@@ -145,11 +147,13 @@ def test_the_allowance_holds_on_the_default_bodys_clips_as_well():
     recorded = {k: {m: v for m, v in c.items() if m != DEFAULT_BODY_PVE} for k, c in candidates.items()}
     assert pick_auto_mode(recorded) == R10
     bodies = {"range": {"bodies": 12}, "default": None}
-    assert lacks_default_body({"candidates": recorded}, bodies)
-    assert not lacks_default_body({"candidates": recorded, "default_body_sequences": 0}, bodies)
-    assert not lacks_default_body({"candidates": recorded}, None)  # a model of the mannequin alone
+    auto = replace(UNCALIBRATED, candidates=recorded)
+    across = BodiesEntry.parse(bodies, "bodies")
+    assert lacks_default_body(auto, across)
+    assert not lacks_default_body(replace(auto, default_body_sequences=0), across)
+    assert not lacks_default_body(auto, None)  # a model of the mannequin alone
     assert not lacks_default_body(
-        {"candidates": recorded}, {**bodies, "default": {"name": "hero"}}
+        auto, BodiesEntry.parse({**bodies, "default": {"name": "hero"}}, "bodies")
     )  # of one body
 
 
@@ -305,7 +309,8 @@ def test_hrr_train_calibrates_auto_and_it_agrees_with_the_evaluation(trained):
     )
     assert again["candidates"]["hybrid"]["penetration_pct"] == pytest.approx(expected)
     # with a residual weight the detail mode is measured on both bases at every strength, each as the mode runs it
-    animator.bundle.meta["residual"] = {**animator.bundle.meta["residual"], "weight": 0.7}
+    bundle = animator.bundle
+    bundle.manifest = replace(bundle.manifest, residual=replace(bundle.manifest.residual, weight=0.7))
     both = calibrate_auto_mode(animator, records[:1], progress=False)
     assert set(both["candidates"]) >= set(DETAIL_CANDIDATES)
     for label, (base, strength) in DETAIL_CANDIDATES.items():
@@ -343,11 +348,11 @@ def test_a_wider_allowance_that_moves_the_first_pick_asks_for_its_swing_gains():
     accurate, sharp = _c(30.0, 0.2, 0.6), _c(32.0, 0.9, 0.7)
     candidates = {"hybrid": accurate, RR10: sharp}
     candidates |= {swing_label("hybrid", g): _c(30.0 + g / 10, 0.2, 0.6 * g) for g in SWING_GAINS}
-    auto = {"candidates": candidates}
+    auto = replace(UNCALIBRATED, candidates=candidates)
     assert not swing_unmeasured(auto, AutoConfig())  # 5 %: the detail mode is over, hybrid's gains are there
     assert swing_unmeasured(auto, AutoConfig(allowance=1.1))  # 10 %: the detail mode is the first pick
     candidates |= {swing_label(RR10, g): _c(32.0, 0.9, 0.7 * g) for g in SWING_GAINS}
-    assert not swing_unmeasured(auto, AutoConfig(allowance=1.1))
+    assert not swing_unmeasured(replace(auto, candidates=candidates), AutoConfig(allowance=1.1))
 
 
 def test_hrr_train_picks_auto_again_when_its_allowance_changes(trained, tmp_path):
@@ -398,7 +403,7 @@ def test_a_calibration_recorded_before_is_made_again(trained, tmp_path, before):
     detail mode's folds followed in time or before the folds were measured on free cloth, are
     calibrated again by hrr-train, not re-picked from numbers that lack it or measured another
     detail mode."""
-    from hrr_garment.artifacts.bundle_writer import update_bundle_meta
+    from hrr_garment.artifacts.typed_manifest import update_manifest
     from hrr_garment.inference.fold_track import FOLD_FOLLOW
     from hrr_garment.pipeline.train import calibrate_auto
 
@@ -410,12 +415,12 @@ def test_a_calibration_recorded_before_is_made_again(trained, tmp_path, before):
         old = {
             k: {m: v for m, v in c.items() if m != "penetration_pct"} for k, c in auto["candidates"].items()
         }
-        update_bundle_meta(tmp_path / "model", {"auto": {**auto, "candidates": old}})
+        update_manifest(tmp_path / "model", auto=AutoCalibration.parse({**auto, "candidates": old}))
     else:  # numbers of another detail mode (here: made up), recorded without the following (or the folds' ramps)
         old = {k: {**c, "pve_mm": 999.0} for k, c in auto["candidates"].items()}
-        update_bundle_meta(
+        update_manifest(
             tmp_path / "model",
-            {"auto": {**{k: v for k, v in auto.items() if k != before}, "candidates": old}},
+            auto=AutoCalibration.parse({**{k: v for k, v in auto.items() if k != before}, "candidates": old}),
         )
     again = calibrate_auto(tmp_path / "model", data, progress=False)
     assert again["fold_follow"] == FOLD_FOLLOW and again["folds_free_cloth"]
@@ -427,7 +432,7 @@ def test_a_calibration_recorded_before_is_made_again(trained, tmp_path, before):
 def test_the_folds_on_free_cloth_run_as_the_bundle_records_them(trained, tmp_path):
     """bundle.json ``auto.folds_free_mm``: a ramp beyond every vertex's hang leaves the regression's
     shape (no folds), one below all of them the folds everywhere, as without a ramp."""
-    from hrr_garment.artifacts.bundle_writer import update_bundle_meta
+    from hrr_garment.artifacts.typed_manifest import update_manifest
     from hrr_garment.inference.animator import Animator
     from hrr_garment.inference.run_settings import DetailLook
 
@@ -438,16 +443,11 @@ def test_the_folds_on_free_cloth_run_as_the_bundle_records_them(trained, tmp_pat
     look = DetailLook("regression", 1.0)
     runs = {}
     for ramp in (None, [5000.0, 6000.0], [-6000.0, -5000.0]):
-        update_bundle_meta(
+        update_manifest(
             copy,
-            {
-                "auto": {
-                    "mode": "detail",
-                    "detail_base": "regression",
-                    "detail_strength": 1.0,
-                    "folds_free_mm": ramp,
-                }
-            },
+            auto=AutoCalibration.parse(
+                {"mode": "detail", "detail_base": "regression", "detail_strength": 1.0, "folds_free_mm": ramp}
+            ),
         )
         animator = Animator.load(copy)
         runs[None if ramp is None else ramp[0]] = animator.animate(
@@ -464,19 +464,17 @@ def test_the_folds_on_free_cloth_run_as_the_bundle_records_them(trained, tmp_pat
     [("detail", "regression", 0.6), ("detail", "residual", 1.0), ("hybrid", "regression", 0.8)],
 )
 def test_auto_runs_the_calibrated_mode_everywhere(trained, tmp_path, chosen, base, strength):
-    from hrr_garment.artifacts.bundle_writer import update_bundle_meta
+    from hrr_garment.artifacts.typed_manifest import read_manifest, update_manifest
     from hrr_garment.inference.animator import Animator
 
     root, _, _ = trained
     copy = tmp_path / "model"
     shutil.copytree(root / "model", copy)
-    residual = json.loads((copy / "bundle.json").read_text())["residual"]
-    update_bundle_meta(
+    residual = read_manifest(copy).residual
+    update_manifest(
         copy,
-        {
-            "auto": {"mode": chosen, "detail_base": base, "detail_strength": strength},
-            "residual": {**residual, "weight": 0.7},
-        },
+        auto=AutoCalibration.parse({"mode": chosen, "detail_base": base, "detail_strength": strength}),
+        residual=replace(residual, weight=0.7),
     )
     animator = Animator.load(copy)
     assert animator.bundle.detail_base == base and animator.bundle.detail_strength == strength
@@ -492,15 +490,13 @@ def test_auto_runs_the_calibrated_mode_everywhere(trained, tmp_path, chosen, bas
 
 
 def test_a_model_without_auto_runs_the_hybrid(trained, tmp_path):
-    from hrr_garment.artifacts.bundle import read_meta
+    from hrr_garment.artifacts.typed_manifest import update_manifest
     from hrr_garment.inference.animator import Animator
 
     root, _, _ = trained
     copy = tmp_path / "model"
     shutil.copytree(root / "model", copy)
-    meta = read_meta(copy)
-    meta.pop("auto")
-    write_meta(copy, meta)
+    update_manifest(copy, auto=None)
     animator = Animator.load(copy)
     assert animator.resolve().mode == "hybrid"
     motion = synthesize("walk", 0.5, seed=6)

@@ -1,12 +1,14 @@
 """The detail mode: the regression's shape plus simulated folds, the high spatial frequencies of
 the database's frames (the fold store), chosen frame by frame by a playhead (the fold track)."""
 
+from dataclasses import replace
 from functools import partial
 
 import numpy as np
 import pytest
 
 from hrr_garment.artifacts import fold_codec
+from hrr_garment.artifacts.auto_calibration import AutoCalibration
 from hrr_garment.artifacts.folds import FOLD_ENCODING, FoldStore
 from hrr_garment.artifacts.manifest import migrate_manifest
 from hrr_garment.garment.smoothing import high_frequencies, mean_operator
@@ -243,14 +245,18 @@ def test_the_detail_mode_is_its_base_plus_the_tracked_simulated_folds(trained, b
 
     root, _, _ = trained
     animator = Animator.load(root / "model")
-    meta = animator.bundle.meta
-    assert animator.bundle.has_residual
-    meta["residual"] = {**meta["residual"], "weight": 0.7}  # a weight the tiny model may not have calibrated
-    meta["auto"] = {**meta["auto"], "detail_base": base, "detail_strength": strength}
+    bundle, manifest = animator.bundle, animator.bundle.manifest
+    assert bundle.has_residual
+    bundle.manifest = replace(
+        manifest,
+        residual=replace(manifest.residual, weight=0.7),  # a weight the tiny model may not have calibrated
+        auto=replace(manifest.auto, detail_base=base, detail_strength=strength),
+    )
     assert animator.bundle.detail_base == base
     if base == "regression":  # as version-2 bundles calibrated before the choice read, upgraded
-        old = {**meta, "format_version": 2, "auto": {"mode": meta["auto"]["mode"]}}
-        meta["auto"] = migrate_manifest(animator.bundle.folder, old)["auto"]
+        old = {**bundle.manifest.to_dict(), "format_version": 2, "auto": {"mode": manifest.auto.mode}}
+        upgraded = AutoCalibration.parse(migrate_manifest(bundle.folder, old)["auto"])
+        bundle.manifest = replace(bundle.manifest, auto=upgraded)
         assert (
             animator.bundle.detail_base == "regression" and animator.bundle.detail_strength == DETAIL_STRENGTH
         )
@@ -289,8 +295,8 @@ def test_a_bundle_before_the_folds_says_how_to_add_them_and_hrr_train_does(train
     import json
 
     from hrr_garment.artifacts.bundle import BundleError
-    from hrr_garment.artifacts.bundle_writer import update_bundle_meta
     from hrr_garment.artifacts.manifest import FOLDS_FILE, content_hash
+    from hrr_garment.artifacts.typed_manifest import update_manifest
     from hrr_garment.cli.train import main as train_main
     from hrr_garment.inference.animator import Animator
     from tests.conftest import current_copy, write_meta
@@ -303,7 +309,7 @@ def test_a_bundle_before_the_folds_says_how_to_add_them_and_hrr_train_does(train
     meta["format_version"] = 2  # a bundle written before the folds
     (old / FOLDS_FILE).unlink()
     write_meta(old, meta)
-    update_bundle_meta(old, {"auto": {**meta["auto"], "mode": "detail"}})
+    update_manifest(old, auto=AutoCalibration.parse({**meta["auto"], "mode": "detail"}))
     animator = Animator.load(old)
     assert not animator.supports("detail") and animator.resolve().mode == "hybrid"
     with pytest.raises(BundleError, match="hrr-train --stage codespace"):
@@ -319,7 +325,7 @@ def test_a_bundle_before_the_folds_says_how_to_add_them_and_hrr_train_does(train
     )
     assert (old / FOLDS_FILE).read_bytes() == folds
     animator = Animator.load(old)
-    assert animator.supports("detail") and "detail x0.8" in animator.bundle.meta["auto"]["candidates"]
+    assert animator.supports("detail") and "detail x0.8" in animator.bundle.auto.candidates
 
 
 def test_a_damaged_fold_store_is_refused(trained, tmp_path):
@@ -334,7 +340,7 @@ def test_a_damaged_fold_store_is_refused(trained, tmp_path):
     shutil.copytree(root / "model", copy)
     store = load_bundle(copy).folds
     short = {**store.arrays(), "offsets": store.offsets[:-1]}  # one database sequence too few
-    add_bundle_part(copy, FOLDS_FILE, short, {}, numpy=True)
+    add_bundle_part(copy, FOLDS_FILE, short, numpy=True)
     with pytest.raises(BundleError, match="offsets must rise"):
         load_bundle(copy)
     fewer = {
@@ -342,7 +348,7 @@ def test_a_damaged_fold_store_is_refused(trained, tmp_path):
         "scale": store.scale[:, :-1],
         "offsets": store.offsets,
     }  # a block short
-    add_bundle_part(copy, FOLDS_FILE, fewer, {}, numpy=True)
+    add_bundle_part(copy, FOLDS_FILE, fewer, numpy=True)
     with pytest.raises(BundleError, match="vertices"):
         load_bundle(copy)
 
@@ -351,10 +357,9 @@ def test_hrr_animate_runs_the_detail_mode_as_it_is_told(trained, tmp_path, capsy
     """``--detail-strength`` / ``--detail-base`` set the detail mode's look (with the default mode
     they run it), the output records the setting, and a setting the model cannot run is refused
     before anything is written."""
-    import json
     import shutil
 
-    from hrr_garment.artifacts.bundle_writer import update_bundle_meta
+    from hrr_garment.artifacts.typed_manifest import read_manifest, update_manifest
     from hrr_garment.cli.animate import main as animate_main
     from hrr_garment.data.animation_file import read_animation_h5
     from hrr_garment.inference.animator import Animator
@@ -363,8 +368,8 @@ def test_hrr_animate_runs_the_detail_mode_as_it_is_told(trained, tmp_path, capsy
     root, _, _ = trained
     model = tmp_path / "model"
     shutil.copytree(root / "model", model)
-    residual = json.loads((model / "bundle.json").read_text())["residual"]
-    update_bundle_meta(model, {"residual": {**residual, "weight": 0.7}})
+    residual = read_manifest(model).residual
+    update_manifest(model, residual=replace(residual, weight=0.7))
     motion = synthesize("walk", 1.0, seed=4)
     clip = tmp_path / "walk.npz"
     save_motion(motion, clip)
@@ -419,7 +424,7 @@ def test_hrr_animate_runs_the_detail_mode_as_it_is_told(trained, tmp_path, capsy
         animator.animate(motion, detail_strength=1.0)
 
     refused = tmp_path / "refused.h5"
-    update_bundle_meta(model, {"residual": {**residual, "weight": 0.0}})
+    update_manifest(model, residual=replace(residual, weight=0.0))
     for extra, phrase in (
         (["--detail-strength", "0"], "must be in (0, 2]"),
         (["--detail-strength", "2.5"], "must be in (0, 2]"),

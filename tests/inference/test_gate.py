@@ -47,10 +47,10 @@ def test_motion_distance_is_the_rms_of_the_standardised_windows(rng):
 
 def test_training_calibrates_every_gate_into_the_bundle(animator):
     bundle = animator.bundle
-    assert bundle.gate in GATE_SIGNALS and set(bundle.meta["gates"]) == set(GATE_SIGNALS)
+    assert bundle.gate in GATE_SIGNALS and set(bundle.manifest.gates) == set(GATE_SIGNALS)
     assert bundle.gate_tau(bundle.gate) == bundle.tau
     for g in GATE_SIGNALS:
-        assert bundle.gate_tau(g) == pytest.approx(bundle.meta["gates"][g]["tau"])
+        assert bundle.gate_tau(g) == pytest.approx(bundle.manifest.gates[g].tau)
 
 
 @pytest.mark.parametrize("gate", ["similarity", "distance"])

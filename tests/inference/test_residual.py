@@ -2,13 +2,15 @@
 regression of its own motion), scaled by the match's code similarity and a calibrated weight."""
 
 import json
+from dataclasses import replace
 
 import numpy as np
 import pytest
 
+from hrr_garment.artifacts.manifest_entries import ResidualEntry
 from hrr_garment.artifacts.residual import RESIDUAL_WEIGHTS, residual_latents
 from hrr_garment.motion.synth import synthesize
-from tests.conftest import current_copy, write_meta
+from tests.conftest import current_copy, with_manifest, write_meta
 
 
 def test_the_residual_adds_the_matchs_detail_scaled_by_its_similarity(rng):
@@ -25,15 +27,15 @@ def test_the_residual_adds_the_matchs_detail_scaled_by_its_similarity(rng):
 
 
 def test_training_calibrates_the_residual_weight_into_the_bundle(animator):
-    residual = animator.bundle.meta["residual"]
+    residual = animator.bundle.manifest.residual
     assert animator.bundle.has_residual and animator.supports("residual")
-    errors = residual["errors_mm"]
+    errors = residual.errors_mm
     assert (
         set(errors) == {"0.0", *map(str, RESIDUAL_WEIGHTS)}
-        and residual["validation_mm"] == errors[str(residual["weight"])]
+        and residual.validation_mm == errors[str(residual.weight)]
     )
-    allowed = [float(w) for w, e in errors.items() if e <= residual["allowance"] * errors["0.0"]]
-    assert residual["weight"] == max([0.0, *allowed])
+    allowed = [float(w) for w, e in errors.items() if e <= residual.allowance * errors["0.0"]]
+    assert residual.weight == max([0.0, *allowed])
 
 
 def test_residual_at_weight_zero_is_the_regression_and_otherwise_adds_the_matches(animator, monkeypatch):
@@ -43,13 +45,13 @@ def test_residual_at_weight_zero_is_the_regression_and_otherwise_adds_the_matche
 
     bundle = animator.bundle
     motion = synthesize("walk", 1.0, seed=3)
-    monkeypatch.setitem(bundle.meta, "residual", {"weight": 0.0})
+    with_manifest(monkeypatch, bundle, residual=ResidualEntry(weight=0.0))
     regression = animator.animate(motion, mode="regression", collision=False)
     zero = animator.animate(motion, mode="residual", collision=False)
     assert np.allclose(zero.vertices, regression.vertices, atol=1e-6)
     assert not zero.retrieved.any() and (zero.match >= 0).all()  # regression plus a match, not a retrieval
     # at weight 1, each window's latents move by its match's residual times the similarity
-    monkeypatch.setitem(bundle.meta, "residual", {"weight": 1.0})
+    with_manifest(monkeypatch, bundle, residual=ResidualEntry(weight=1.0))
     from hrr_garment.inference.gate import choose_windows
 
     windows = np.ascontiguousarray(sequence_windows(animator.features(motion), animator.window))
@@ -74,7 +76,7 @@ def test_the_detail_mode_on_the_residual_inertializes_its_latents_as_the_residua
     from hrr_garment.inference.run_settings import DetailLook
     from hrr_garment.motion.windows import causal_windows
 
-    monkeypatch.setitem(animator.bundle.meta, "residual", {"weight": 1.0})
+    with_manifest(monkeypatch, animator.bundle, residual=ResidualEntry(weight=1.0))
     motion = synthesize("walk_curve", 1.5, seed=5)
     windows = causal_windows(animator.features(motion, causal=True), animator.window)
     chosen = {
@@ -99,7 +101,7 @@ def test_the_detail_mode_on_the_residual_inertializes_its_latents_as_the_residua
 
 
 def test_stream_in_the_residual_mode_equals_offline_causal(animator, monkeypatch):
-    monkeypatch.setitem(animator.bundle.meta, "residual", {"weight": 0.5})
+    with_manifest(monkeypatch, animator.bundle, residual=ResidualEntry(weight=0.5))
     motion = synthesize("walk_curve", 1.0, seed=5)
     causal = animator.animate(motion, mode="residual", causal=True)
     stream = animator.stream(mode="residual")
@@ -129,8 +131,8 @@ def test_a_bundle_before_the_residual_mode_says_how_to_calibrate_it_and_hrr_trai
     assert (
         "(reused)" in capsys.readouterr().out and (old / "motion_encoder.safetensors").read_bytes() == weights
     )
-    again = load_bundle(old).meta["residual"]
-    assert again["weight"] == calibrated["weight"] and again["errors_mm"] == pytest.approx(
+    again = load_bundle(old).manifest.residual
+    assert again.weight == calibrated["weight"] and dict(again.errors_mm) == pytest.approx(
         calibrated["errors_mm"]
     )
     meta["residual"] = {"weight": -1}
@@ -183,13 +185,13 @@ def test_the_residual_on_free_cloth_keeps_the_regression_where_the_cloth_lies_on
         abs=1e-6,
     )
     lo, hi = np.quantile(hang, [0.3, 0.7]) * 1000  # a ramp through the middle of this garment's hang
-    monkeypatch.setitem(bundle.meta, "residual", {"weight": 1.0})
+    with_manifest(monkeypatch, bundle, residual=ResidualEntry(weight=1.0))
     windows = np.ascontiguousarray(
         sequence_windows(animator.features(synthesize("walk", 1.0, seed=3)), animator.window)
     )
     plain = choose_windows(bundle, windows, animator.resolve(mode="residual")).latents
     regression = choose_windows(bundle, windows, animator.resolve(mode="regression")).latents
-    monkeypatch.setitem(bundle.meta, "auto", {**bundle.auto, "residual_free_mm": [float(lo), float(hi)]})
+    with_manifest(monkeypatch, bundle, auto=replace(bundle.auto, residual_free_mm=(float(lo), float(hi))))
     nodes = bundle.residual_nodes
     assert (nodes == 0).any() and (nodes == 1).any()
     free = choose_windows(bundle, windows, animator.resolve(mode="residual")).latents

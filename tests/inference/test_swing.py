@@ -1,11 +1,14 @@
 """The free cloth's swing restored (inference/swing.py): what the gain scales and what it leaves,
 the same recursion offline, in a stream and in a crowd, and where the calibrated gain runs."""
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
 from hrr_garment.inference.swing import FREE_CLOTH_MM, HALF_LIFE_S, SwingGain
 from hrr_garment.motion.synth import synthesize
+from tests.conftest import with_manifest
 
 LO, HI = (x / 1000.0 for x in FREE_CLOTH_MM)
 HANG = np.array(
@@ -66,7 +69,8 @@ def test_only_the_regressions_departure_is_scaled():
 def test_swing_streams_as_it_animates_offline(animator, mode, monkeypatch):
     from hrr_garment.inference.run_settings import DetailLook
 
-    monkeypatch.setitem(animator.bundle.meta, "residual", {**animator.bundle.meta["residual"], "weight": 0.5})
+    bundle = animator.bundle
+    with_manifest(monkeypatch, bundle, residual=replace(bundle.manifest.residual, weight=0.5))
     look = {"detail": DetailLook("residual", 1.0)} if mode == "detail" else {}
     motion = synthesize("walk_curve", 1.0, seed=3)
     plain = animator.animate(motion, mode=mode, causal=True, **look)
@@ -84,11 +88,11 @@ def test_swing_streams_as_it_animates_offline(animator, mode, monkeypatch):
 
 def test_the_calibrated_gain_runs_in_auto_only(animator, monkeypatch):
     auto = animator.bundle.auto
-    monkeypatch.setitem(animator.bundle.meta, "auto", {**auto, "swing_gain": 1.2})
+    with_manifest(monkeypatch, animator.bundle, auto=replace(auto, swing_gain=1.2))
     assert animator.resolve().swing == 1.2
     assert animator.resolve(mode="regression").swing == 1.0  # a mode named runs as predicted
     assert animator.resolve(mode="regression", swing=1.1).swing == 1.1
-    monkeypatch.setitem(animator.bundle.meta, "auto", {k: v for k, v in auto.items() if k != "swing_gain"})
+    with_manifest(monkeypatch, animator.bundle, auto=replace(auto, swing_gain=None))
     assert animator.resolve().swing == 1.0  # calibrated before the gain: as it animated then
 
 
@@ -152,6 +156,6 @@ def test_an_evaluation_records_the_gain_each_mode_ran_with(animator, trained, mo
     _, data, _ = trained
     ds = GarmentDataset(data)
     records = [ds.sequence(ds.splits["val"][0])]
-    monkeypatch.setitem(animator.bundle.meta, "auto", {**animator.bundle.auto, "swing_gain": 1.2})
+    with_manifest(monkeypatch, animator.bundle, auto=replace(animator.bundle.auto, swing_gain=1.2))
     results = evaluate_modes(animator, records, EvaluationSettings(("auto", "regression"), progress=False))
     assert results["auto"].to_dict()["swing"] == 1.2 and results["regression"].to_dict()["swing"] == 1.0

@@ -30,12 +30,12 @@ def test_gate_analysis_oracle_bounds_both_modes(trained):
 def test_residual_nodes_analysis_spans_regression_to_residual(trained, tmp_path):
     """A ramp below every node's hang is the residual mode as it is, one above every node's the
     regression (through the residual mode's path): the variants sit between known ends."""
+    import dataclasses
     import importlib.util
-    import json
     import shutil
     from pathlib import Path
 
-    from hrr_garment.artifacts.bundle_writer import update_bundle_meta
+    from hrr_garment.artifacts.typed_manifest import read_manifest, update_manifest
 
     path = Path(__file__).parents[2] / "tools" / "studies" / "residual_nodes_analysis.py"
     spec = importlib.util.spec_from_file_location("residual_nodes_analysis", path)
@@ -46,8 +46,8 @@ def test_residual_nodes_analysis_spans_regression_to_residual(trained, tmp_path)
         tmp_path / "model"
     )  # with a residual weight, so that the residual mode differs from the regression
     shutil.copytree(root / "model", model)
-    residual = json.loads((model / "bundle.json").read_text())["residual"]
-    update_bundle_meta(model, {"residual": {**residual, "weight": 0.7}})
+    residual = read_manifest(model).residual
+    update_manifest(model, residual=dataclasses.replace(residual, weight=0.7))
     rows = {
         r["label"]: r
         for r in tool.analyse(str(model), str(data), [(-2000.0, -1000.0), (1000.0, 2000.0)], sequences=2)

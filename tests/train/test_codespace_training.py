@@ -36,7 +36,7 @@ def test_the_paper_protocol_validates_on_a_tenth_of_the_training_clips_windows(t
     assert report["key"] != clips["key"]
     bundle = load_bundle(paper_model)
     assert (
-        bundle.meta["validation"] == "windows" and load_bundle(root / "model").meta["validation"] == "clips"
+        bundle.manifest.validation == "windows" and load_bundle(root / "model").manifest.validation == "clips"
     )
     assert len(bundle.database) == report["windows"]["train"]
     assert set(bundle.database.names) == set(ds.splits["train"] + ds.splits["val"])

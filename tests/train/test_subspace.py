@@ -17,13 +17,11 @@ def test_the_fast_decoder_is_distilled_from_the_full_one(trained):
 
     root, data, _ = trained
     bundle = load_bundle(root / "model")
-    entry = bundle.meta["subspace"]
-    assert bundle.subspace is not None and bundle.subspace.components == entry["components"]
-    errors = {int(k): v for k, v in entry["candidates_mm"].items()}
-    kept = entry["components"]  # the fewest within the tolerance, or else the most accurate
-    within = [
-        k for k in sorted(errors) if errors[k] <= entry["train"]["tolerance"] * entry["full_validation_mm"]
-    ]
+    entry = bundle.manifest.subspace
+    assert bundle.subspace is not None and bundle.subspace.components == entry.components
+    errors = {int(k): v for k, v in entry.candidates_mm.items()}
+    kept = entry.components  # the fewest within the tolerance, or else the most accurate
+    within = [k for k in sorted(errors) if errors[k] <= entry.train["tolerance"] * entry.full_validation_mm]
     assert kept == (within[0] if within else min(errors, key=errors.get))
     ds = GarmentDataset(data)
     with np.load(root / "model" / "autoencoder" / "latents.npz") as f:
@@ -38,8 +36,8 @@ def test_the_fast_decoder_is_distilled_from_the_full_one(trained):
     again = run_subspace_stage(
         data,
         root / "model",
-        SubspaceConfig(**entry["config"]),
-        SubspaceTrainConfig(**entry["train"]),
+        SubspaceConfig(**entry.config),
+        SubspaceTrainConfig(**entry.train),
         progress=False,
     )
     assert again.reused and again.metrics["components"] == kept  # a finished stage is not redone

@@ -37,8 +37,7 @@ def main() -> None:
     p.add_argument("--steps", type=int, default=300)
     p.add_argument("--sequences", type=int, default=8, help="test clips animated, evenly spaced")
     args = p.parse_args()
-    meta = load_bundle(args.model).meta
-    trained_on = GarmentDataset(meta["dataset"])
+    trained_on = GarmentDataset(load_bundle(args.model).manifest.dataset)
     train = model_contact_windows(args.model, trained_on, "train")
     evaluation = GarmentDataset(args.eval_dataset)
     records = [evaluation.sequence(n) for n in evenly(evaluation.splits["test"], args.sequences)]

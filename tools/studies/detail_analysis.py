@@ -83,7 +83,7 @@ def analyse(model: str, split: str, sequences: int | None) -> dict:
     store = animator.bundle.folds
     if store is None:
         raise SystemExit(f"{model} has no fold store (hrr-train --stage codespace adds it)")
-    ds = GarmentDataset(animator.bundle.meta["dataset"])
+    ds = GarmentDataset(animator.bundle.manifest.dataset)
     names = ds.splits.get(split, [])
     if not names:
         raise SystemExit(f"{ds.path} has no {split!r} sequences")

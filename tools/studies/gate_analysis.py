@@ -33,7 +33,7 @@ from hrr_garment.train.calibrate import predict_windows, window_errors_mm
 
 def analyse(model: str, dataset: str | None, split: str) -> dict:
     bundle = load_bundle(model)
-    path = dataset or bundle.meta.get("dataset")
+    path = dataset or bundle.manifest.dataset
     if not path:
         raise SystemExit(f"{model} does not record its dataset; give --dataset")
     ds = GarmentDataset(path)

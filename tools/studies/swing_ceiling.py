@@ -80,7 +80,7 @@ def ceilings(animator: Animator, records: list, hem: np.ndarray) -> dict:
 
 def analyse(model: str, split: str, sequences: int | None, members: int) -> dict:
     animator = Animator.load(model)
-    ds = GarmentDataset(animator.bundle.meta["dataset"])
+    ds = GarmentDataset(animator.bundle.manifest.dataset)
     names = ds.splits.get(split, [])
     if sequences:
         names = [
