@@ -180,7 +180,7 @@ def crowd_bodies(count: int, source: str = "scaled") -> list:
 
         from hrr_garment.body.body_file import record_of
         from hrr_garment.body.parametric import parametric_body
-        from hrr_garment.sim.bodies import BodyPlan, sampled_shapes
+        from hrr_garment.sim.body_plan import BodyPlan, sampled_shapes
 
         shapes = sampled_shapes(BodyPlan("sample", count=count, seed=7))
         return [record_of(parametric_body(shape)) for shape in tqdm(shapes, desc="bodies", disable=None)]

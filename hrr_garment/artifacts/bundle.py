@@ -33,8 +33,8 @@ import numpy as np
 
 from ..body.body_file import BodyRecord, body_from_dict
 from ..body.capsules import DEFAULT_BODY, BodyModel
+from ..body.mannequin import mannequin_record
 from ..body.measures import BodyRange, body_vector
-from ..data.bodies import mannequin_record
 from ..errors import HRRError, InputError
 from ..garment.mesh import GarmentError, GarmentMesh, check_garment
 from ..models.codespace import CodeSpace, CodeSpaceConfig

@@ -106,7 +106,7 @@ def _parser() -> argparse.ArgumentParser:
 def _main(argv: Sequence[str] | None) -> int:
     args = _parser().parse_args(argv)
     from ..export.preview import write_dataset_preview
-    from ..sim.bodies import choose_bodies
+    from ..sim.body_plan import choose_bodies
     from ..sim.build import BuildOptions, build_dataset
     from ..sim.simulator import SimConfig
 

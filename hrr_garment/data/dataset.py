@@ -33,10 +33,12 @@ import h5py
 import numpy as np
 
 from .._version import __version__
+from ..body.mannequin import MANNEQUIN
 from ..errors import InputError, MotionError
+from ..garment.dressing import DressedBody
 from ..garment.mesh import GarmentError, GarmentMesh, check_garment
 from ..motion.motion import FPS, Motion
-from .bodies import MANNEQUIN, DressedBody, read_bodies, write_bodies
+from .dataset_bodies import read_bodies, write_bodies
 
 FORMAT_VERSION = 2
 READABLE_VERSIONS = (1, 2)

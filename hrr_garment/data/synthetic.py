@@ -11,12 +11,13 @@ from pathlib import Path
 
 import numpy as np
 
+from ..body.mannequin import MANNEQUIN
 from ..body.retarget import motion_on_body
+from ..garment.dressing import DressedBody
 from ..garment.mesh import GarmentMesh
 from ..motion.features import motion_features
 from ..motion.rotations import rotation_about_y, yaw_of
 from ..motion.synth import synthesize
-from .bodies import MANNEQUIN, DressedBody
 from .dataset import SequenceRecord, write_dataset
 
 # (sequence name, procedural kind, seed): three training clips, one for validation, one for test

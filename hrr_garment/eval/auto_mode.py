@@ -73,7 +73,7 @@ from ..artifacts.bundle import Bundle
 from ..artifacts.manifest import AUTO_CHOICES
 from ..artifacts.manifest_entries import BodiesEntry, ResidualEntry
 from ..artifacts.residual import FREE_CLOTH_RAMPS_MM
-from ..data.bodies import MANNEQUIN
+from ..body.mannequin import MANNEQUIN
 from ..data.dataset import SequenceRecord
 from ..garment.fit import hem_vertices
 from ..inference.animator import Animator

@@ -30,8 +30,9 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from ..body.capsules import DEFAULT_BODY, BodyModel
-from ..data.bodies import MANNEQUIN, DressedBody
+from ..body.mannequin import MANNEQUIN
 from ..data.dataset import SequenceRecord
+from ..garment.dressing import DressedBody
 from ..garment.mesh import GarmentMesh
 from ..io_utils import atomic_path, atomic_write_text
 from ..paths import workspace

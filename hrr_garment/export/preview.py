@@ -143,7 +143,7 @@ def write_dataset_preview(
 ) -> Path | None:
     """Front and side views of a walk and a spin (or the first two sequences) of a built
     dataset (``SequenceRecord``s of a ``GarmentMesh``), in the ground-level body frame; with
-    ``bodies`` (name -> :class:`~hrr_garment.data.bodies.DressedBody`), each on its own body, and
+    ``bodies`` (name -> :class:`~hrr_garment.garment.dressing.DressedBody`), each on its own body, and
     the garment at rest on the shortest and the tallest of them (a parametric body drawn as its own
     mesh). None when Pillow (the ``preview`` extra) is missing."""
     bodies = bodies or {}

@@ -13,7 +13,7 @@ capsules meet and the cloth does not tear between them. A last push moves any ve
 than ``min_gap`` to the new body out along the surface normal.
 
 The mannequin's templates go onto other bodies this way when a dataset simulates one garment on
-many bodies (one topology for every body, :mod:`hrr_garment.sim.bodies`), and so does a garment
+many bodies (one topology for every body, :mod:`hrr_garment.sim.body_plan`), and so does a garment
 of your own declared with the body it was modelled on (``--made-for``).
 """
 

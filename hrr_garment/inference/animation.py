@@ -9,8 +9,8 @@ from pathlib import Path
 import numpy as np
 
 from ..body.body_file import BodyRecord, body_to_dict
+from ..body.mannequin import MANNEQUIN
 from ..data.animation_file import MAX_REACH_M, farthest_from_body
-from ..data.bodies import MANNEQUIN
 from ..errors import InputError
 from ..io_utils import strict_json
 from ..motion.motion import Motion

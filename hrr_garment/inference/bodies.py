@@ -8,9 +8,9 @@ the bodies the model was trained on.
 A :class:`CharacterBody` holds what animating on it takes: the body (skeleton, pelvis height,
 capsules for the push-out), its measures (:mod:`hrr_garment.body.measures`: what a model trained
 across bodies reads with the motion), and the garment's rest offset on it
-(:meth:`~hrr_garment.data.bodies.DressedBody.offset`): models predict a garment relative to its
+(:meth:`~hrr_garment.garment.dressing.DressedBody.offset`): models predict a garment relative to its
 body at rest, and the offset stands it on this one. The garment is carried onto the body as the
-simulator carried it (:func:`~hrr_garment.data.bodies.dress`), so a body the model was trained
+simulator carried it (:func:`~hrr_garment.garment.dressing.dress`), so a body the model was trained
 on gets the rest shape its training data had.
 
 A body outside the range of the model's training bodies is refused with each measure that is out
@@ -29,10 +29,11 @@ import numpy as np
 from ..artifacts.bundle import Bundle
 from ..body.body_file import BodyRecord, read_body
 from ..body.capsules import BodyModel, pose_ends
+from ..body.mannequin import MANNEQUIN
 from ..body.measures import body_vector
 from ..body.retarget import played_by
-from ..data.bodies import MANNEQUIN, DressedBody, dress
 from ..errors import InputError
+from ..garment.dressing import DressedBody, dress
 from ..motion.motion import Motion
 from ..motion.skeleton import REST_PELVIS_HEIGHT
 from .collision import PosedCapsules
@@ -95,7 +96,7 @@ def character_body(
 ) -> CharacterBody:
     """``body`` (None: the model's own, :attr:`~hrr_garment.artifacts.bundle.Bundle.default_body`)
     ready to animate ``bundle``'s garment on, checked against the model's training bodies. A
-    dataset's body (:class:`~hrr_garment.data.bodies.DressedBody`, a sequence record's ``dressed``)
+    dataset's body (:class:`~hrr_garment.garment.dressing.DressedBody`, a sequence record's ``dressed``)
     keeps its name."""
     if isinstance(body, CharacterBody):
         return body

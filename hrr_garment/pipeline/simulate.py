@@ -93,7 +93,7 @@ def simulate_preset(garment: str, preset: Preset, out: Path, progress: bool = Tr
     would; finished sequences are reused)."""
     from ..export.preview import write_dataset_preview
     from ..garment.templates import make_garment
-    from ..sim.bodies import choose_bodies
+    from ..sim.body_plan import choose_bodies
     from ..sim.build import BuildOptions, build_dataset
     from ..sim.plan import build_options, plan_sequences
     from ..sim.simulator import SimConfig

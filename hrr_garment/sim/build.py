@@ -15,10 +15,11 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Callable
 
-from ..data.bodies import MANNEQUIN, DressedBody, mannequin_record
+from ..body.mannequin import MANNEQUIN, mannequin_record
 from ..data.dataset import write_dataset
 from ..data.splits import MIRROR_SUFFIX
 from ..errors import InputError
+from ..garment.dressing import DressedBody
 from ..garment.mesh import GarmentMesh
 from ..io_utils import atomic_write_text, exclusive_lock, strict_json
 from .augment import (

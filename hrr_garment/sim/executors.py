@@ -20,7 +20,8 @@ from typing import Callable
 
 from tqdm.auto import tqdm
 
-from ..data.bodies import MANNEQUIN, DressedBody
+from ..body.mannequin import MANNEQUIN
+from ..garment.dressing import DressedBody
 from ..motion.motion import FPS, Motion
 from ..workers import die_with_parent
 from .config import SimConfig
@@ -129,7 +130,7 @@ def run_local(
 ) -> dict[str, str]:
     """Simulate ``pending`` in ``execution.jobs`` spawned processes, one sequence or batch
     (``execution.batch``) per task; returns the rejected sequences' reasons. ``bodies``: the
-    mannequin (:data:`~hrr_garment.data.bodies.MANNEQUIN`, with the template) and every body a
+    mannequin (:data:`~hrr_garment.body.mannequin.MANNEQUIN`, with the template) and every body a
     sequence names (:mod:`.bodies`), each with the garment on it."""
     bar = _progress_bar(pending, config, execution.progress)
     rejects: dict[str, str] = {}

@@ -24,9 +24,10 @@ from typing import Callable
 import numpy as np
 
 from ..body.capsules import DEFAULT_BODY, BodyModel
+from ..body.mannequin import MANNEQUIN
 from ..body.retarget import motion_on_body
-from ..data.bodies import MANNEQUIN, DressedBody
 from ..data.dataset import SequenceRecord
+from ..garment.dressing import DressedBody
 from ..garment.mesh import GarmentMesh
 from ..io_utils import atomic_path, atomic_write_text
 from ..motion.motion import Motion

@@ -55,7 +55,7 @@ class SequenceSpec:
     stop: int = 0
     speed: float = 1.0  # the file's motion played this much faster (a speed-warp augmentation)
     source_fps: float | None = None  # the file's frame rate where it carries none (--fps)
-    body: str = ""  # the name of the body it is simulated on (sim/bodies.py); "": the mannequin
+    body: str = ""  # the name of the body it is simulated on (sim/body_plan.py); "": the mannequin
     mirrored: bool = False  # the motion reflected left-right (a preset's ``mirror: simulate``)
     # a splice (sim/augment.py): the spine, head and arms from this file's frames from upper_start on
     upper_path: str = ""
@@ -95,7 +95,7 @@ def load_file_motion(path: str, speed: float = 1.0, source_fps: float | None = N
 
 
 def on_body(name: str, body: str) -> str:
-    """The name of a clip's sequence on one of the several bodies it is simulated on (sim/bodies.py)."""
+    """The name of a clip's sequence on one of the several bodies it is simulated on (sim/body_plan.py)."""
     return f"{name}__{body}"
 
 

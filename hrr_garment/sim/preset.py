@@ -50,7 +50,7 @@ class Preset:
     base: str = ""  # the preset file's folder: relative motion entries resolve against it first
     bodies: dict = field(
         default_factory=dict
-    )  # which bodies the sequences stand on (sim/bodies.py); none: the mannequin
+    )  # which bodies the sequences stand on (sim/body_plan.py); none: the mannequin
     # more training motion from the training clips' parts (sim/augment.py): {count, seconds,
     # arm_delay_s, field}
     splices: dict = field(default_factory=dict)

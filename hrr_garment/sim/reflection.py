@@ -6,9 +6,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..data.bodies import DressedBody, is_symmetric
+from ..body.symmetry import is_symmetric
 from ..data.dataset import SequenceRecord
 from ..data.splits import MIRROR_SUFFIX
+from ..garment.dressing import DressedBody
 from ..garment.mesh import GarmentMesh, mirror_map
 
 

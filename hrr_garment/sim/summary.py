@@ -6,8 +6,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..data.bodies import MANNEQUIN, MANNEQUIN_STATURE_M, DressedBody
+from ..body.mannequin import MANNEQUIN, MANNEQUIN_STATURE_M
 from ..data.dataset import SequenceRecord
+from ..garment.dressing import DressedBody
 from ..garment.mesh import GarmentMesh
 from .quality import edge_strain
 

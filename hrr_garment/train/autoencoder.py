@@ -95,7 +95,7 @@ class TrainingFrames:
 def body_frames(ds: GarmentDataset, names: list[str]) -> np.ndarray:
     """All frames of ``names`` as the models learn them, (N, V, 3) float32: in each frame's body
     frame (:mod:`..motion.frame`), less the rest offset of the body the sequence was simulated on
-    (:meth:`~hrr_garment.data.bodies.DressedBody.offset`: nothing on the mannequin). A garment's
+    (:meth:`~hrr_garment.garment.dressing.DressedBody.offset`: nothing on the mannequin). A garment's
     motion relative to its own body at rest carries over between bodies; its absolute position
     does not (a 1.95 m body's dress hangs 19 cm higher in the body frame than the mannequin's)."""
     out = []

@@ -30,8 +30,8 @@ from ..artifacts.manifest import FOLDS_FILE
 from ..artifacts.manifest_entries import ResidualEntry
 from ..artifacts.typed_manifest import Manifest, read_manifest, update_manifest
 from ..body.body_file import body_to_dict
+from ..body.mannequin import MANNEQUIN
 from ..body.measures import BODY_MEASURES, BodyRange, body_vector
-from ..data.bodies import MANNEQUIN
 from ..data.dataset import DatasetError, GarmentDataset
 from ..data.windows import build_windows, dataset_features, fit_stats, split_windows
 from ..garment.smoothing import mean_operator

@@ -17,7 +17,7 @@ whole windows would cost some twenty times more for a gradient that neighbouring
 
 The capsules are those of the body each sequence was simulated on, posed by its own motion and
 taken into its body frame (:mod:`hrr_garment.motion.frame`); decoded frames get that body's rest
-offset added, as inference adds it (:meth:`~hrr_garment.data.bodies.DressedBody.offset`).
+offset added, as inference adds it (:meth:`~hrr_garment.garment.dressing.DressedBody.offset`).
 """
 
 from __future__ import annotations

@@ -10,9 +10,10 @@ import pytest
 
 from hrr_garment.body.body_file import BodyRecord, write_body
 from hrr_garment.body.capsules import DEFAULT_BODY
+from hrr_garment.body.mannequin import MANNEQUIN
 from hrr_garment.body.retarget import motion_on_body
+from hrr_garment.body.symmetry import is_symmetric, symmetrized
 from hrr_garment.cli.simulate import main as simulate_main
-from hrr_garment.data.bodies import MANNEQUIN, DressedBody, is_symmetric, symmetrized
 from hrr_garment.data.dataset import (
     DatasetError,
     GarmentDataset,
@@ -20,6 +21,7 @@ from hrr_garment.data.dataset import (
     write_dataset,
 )
 from hrr_garment.data.splits import combine_splits
+from hrr_garment.garment.dressing import DressedBody
 from hrr_garment.garment.templates import make_garment
 from hrr_garment.garment.transfer import transfer_garment
 from hrr_garment.motion.skeleton import REST_PELVIS_HEIGHT

@@ -114,7 +114,7 @@ def test_mirrored_sequences_join_their_source_split():
 
     from hrr_garment.body.body_file import BodyRecord
     from hrr_garment.body.capsules import DEFAULT_BODY
-    from hrr_garment.data.bodies import DressedBody
+    from hrr_garment.garment.dressing import DressedBody
 
     lopsided = DEFAULT_BODY.capsules[:-1] + (replace(DEFAULT_BODY.capsules[-1], radius=0.2),)
     body = replace(DEFAULT_BODY, capsules=lopsided)

@@ -10,9 +10,10 @@ import pytest
 
 from hrr_garment.body.body_file import BodyRecord, write_body
 from hrr_garment.body.capsules import DEFAULT_BODY
+from hrr_garment.body.mannequin import mannequin_record
 from hrr_garment.body.measures import BODY_MEASURES, BodyRange, body_vector
-from hrr_garment.data.bodies import DressedBody, mannequin_record
 from hrr_garment.data.dataset import GarmentDataset
+from hrr_garment.garment.dressing import DressedBody
 from hrr_garment.garment.templates import make_garment
 from hrr_garment.garment.transfer import transfer_garment
 from hrr_garment.motion.frame import to_body_frame

@@ -6,7 +6,7 @@ import pytest
 from hrr_garment.body.capsules import DEFAULT_BODY
 from hrr_garment.errors import InputError
 from hrr_garment.garment.templates import make_garment
-from hrr_garment.sim.bodies import BodyPlan, plan_bodies
+from hrr_garment.sim.body_plan import BodyPlan, plan_bodies
 from hrr_garment.sim.plan import SequenceSpec
 from hrr_garment.sim.preset import load_preset
 

@@ -51,10 +51,9 @@ def run_one(job: tuple[str, dict, str, str, int]) -> dict:
     from hrr_garment.body.mesh_collider import body_mesh
     from hrr_garment.body.parametric import BodyShape, parametric_body
     from hrr_garment.body.retarget import motion_on_body
-    from hrr_garment.data.bodies import DressedBody
+    from hrr_garment.garment.dressing import DressedBody, dress
     from hrr_garment.garment.templates import make_garment
     from hrr_garment.motion.io import load_motion
-    from hrr_garment.sim.bodies import dress
     from hrr_garment.sim.config import SimConfig
     from hrr_garment.sim.preset import load_preset
     from hrr_garment.sim.quality import body_signed_distance, edge_strain, penetration_fraction

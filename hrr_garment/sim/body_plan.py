@@ -29,8 +29,10 @@ import numpy as np
 
 from ..body.body_file import BodyRecord
 from ..body.capsules import BodyModel
-from ..data.bodies import MANNEQUIN, DressedBody, dress, mannequin_record, symmetrized
+from ..body.mannequin import MANNEQUIN, mannequin_record
+from ..body.symmetry import symmetrized
 from ..errors import InputError
+from ..garment.dressing import DressedBody, dress
 from ..garment.mesh import GarmentMesh
 from ..garment.transfer import TransferReport
 from .plan import SequenceSpec, on_body, safe_name

@@ -1,0 +1,70 @@
+"""A body and the garment on it in their rest poses (:class:`DressedBody`), and a garment carried
+onto a body (:func:`dress`). The garment on a body has the template's topology (the same vertices,
+faces and groups) and that body's rest shape, so a sequence's strain, its penetration and a model's
+predictions are measured against its own body."""
+
+from __future__ import annotations
+
+import hashlib
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from ..body.body_file import BodyRecord, body_to_dict
+from ..body.capsules import DEFAULT_BODY, BodyModel
+from ..body.symmetry import is_symmetric, symmetrized
+from ..io_utils import strict_json
+from ..motion.skeleton import REST_PELVIS_HEIGHT
+from .mesh import GarmentMesh, mirror_map
+from .transfer import TransferReport, transfer_garment
+
+
+@dataclass(frozen=True)
+class DressedBody:
+    """A body and the garment on it, both in their rest poses."""
+
+    name: str
+    record: BodyRecord
+    garment: GarmentMesh  # the template's topology, this body's rest shape
+
+    @property
+    def body(self) -> BodyModel:
+        return self.record.body
+
+    @property
+    def is_mannequin(self) -> bool:
+        return self.record.body.is_mannequin_frame and self.record.body.capsules == DEFAULT_BODY.capsules
+
+    def offset(self, template: GarmentMesh) -> np.ndarray:
+        """(V, 3) float32 where this body's garment at rest stands in the body frame
+        (:mod:`hrr_garment.motion.frame`) less where the template stands on the mannequin: zero on
+        the mannequin. Models learn each frame less its body's offset (the garment's motion
+        relative to its own body at rest) and add the offset of the body they animate; the body
+        frame's origin sits the canonical rest pelvis height under the pelvis, so a taller body's
+        garment stands higher in it."""
+        lift = np.array([0.0, self.record.pelvis_height - REST_PELVIS_HEIGHT, 0.0], np.float32)
+        return (self.garment.vertices - lift - template.vertices).astype(np.float32)
+
+    def key(self) -> str:
+        """A short content hash of the body (skeleton, capsules, heights) and the garment's rest
+        shape: what a simulated sequence on it depends on (its fit report and shape do not)."""
+        data = {k: v for k, v in body_to_dict(self.record).items() if k not in ("fit", "shape")}
+        h = hashlib.sha1(strict_json(data).encode())
+        for arr in (self.garment.vertices, self.garment.faces, self.garment.attached):
+            h.update(np.ascontiguousarray(arr).tobytes())
+        return h.hexdigest()[:16]
+
+
+def dress(
+    name: str, record: BodyRecord, garment: GarmentMesh, *, made_for: BodyModel
+) -> tuple[DressedBody, TransferReport]:
+    """The body (left and right made exactly alike where they nearly are: its sequences can then be
+    mirrored) and ``garment`` (modelled on ``made_for``) carried onto it."""
+    body = symmetrized(record.body)
+    record = replace(record, body=body, skeleton=body.skeleton)
+    on_body, report = transfer_garment(garment, made_for=made_for, body=body)
+    perm = mirror_map(garment.vertices) if is_symmetric(made_for) else None
+    if perm is not None and is_symmetric(body):  # exactly symmetric, as the template was
+        flip = np.array([-1.0, 1.0, 1.0], np.float32)
+        on_body = replace(on_body, vertices=0.5 * (on_body.vertices + on_body.vertices[perm] * flip))
+    return DressedBody(name, record, on_body), report
