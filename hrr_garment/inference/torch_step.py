@@ -32,7 +32,9 @@ from ..motion.memory import MEMORY_WIDTH, VECTORS, MotionMemory, motion_memory
 from ..motion.motion import FPS
 from ..motion.rotations import matrix_to_axis_angle, quat_to_matrix, rotation_about_y, yaw_of
 from ..motion.skeleton import FEATURE_JOINTS, NUM_JOINTS, REST_PELVIS_HEIGHT, forward_kinematics
-from .collision import PUSH_OUT, PushOutSettings
+from .collision import PUSH_OUT
+from .frame_path import FramePath
+from .modes import Mode
 from .torch_push_out import PushOutStage, constant, turn_y
 
 
@@ -208,39 +210,31 @@ class AutoencoderDecoder(nn.Module):
         return self.autoencoder.decode(latents)
 
 
-def stream_step(
-    animator,
-    character,
-    *,
-    push_out: bool = True,
-    decoder: str = "full",
-    movable: bool = False,
-    push_settings: PushOutSettings | None = None,
-) -> StreamStep:
-    """The :class:`StreamStep` of ``animator``'s model on ``character`` (a
-    :class:`~hrr_garment.inference.bodies.CharacterBody`, :meth:`Animator.body`'s), at the rate
-    every model streams at (:data:`~hrr_garment.motion.motion.FPS`). ``decoder``: "full" (the
-    mesh decoder's folded blocks; with ``movable``, the autoencoder's own, which moves to a GPU)
-    or "fast" (the bundle's subspace decoder); ``push_settings``: the push-out's
-    (:meth:`Animator.push_settings`; None: the product's)."""
-    bundle = animator.bundle
+def stream_step(path: FramePath, *, movable: bool = False) -> StreamStep:
+    """The :class:`StreamStep` of a frame path (:class:`~.frame_path.FramePath`: a model under a
+    resolved run: its body, ``push_out``, ``decoder`` and ``push``), at the rate every model streams
+    at (:data:`~hrr_garment.motion.motion.FPS`). The full decoder is the mesh decoder's folded
+    blocks, or with ``movable`` the autoencoder's own, which moves to a GPU; the fast one the
+    bundle's subspace decoder."""
+    bundle, run = path.bundle, path.run
+    if run.mode is not Mode.REGRESSION:
+        raise ValueError(f"the torch step runs the regression (mode='regression'), not {run.mode.value!r}")
     spec = bundle.codespace.config.memory
     memory = motion_memory(spec, FPS) if spec else None
     stage = None
-    if push_out:
-        body = character.body
+    if run.push_out:
+        body = run.body.body
         stage = PushOutStage(
             (*body.ends, body.radii),
-            animator.smoothing,
-            limits=animator.edge_limits,
-            settings=push_settings or PUSH_OUT,
+            path.smoothing,
+            limits=path.edge_limits,
+            settings=path.push_settings or PUSH_OUT,
         )
-    if decoder == "fast":
-        bundle.require_subspace()
-        module = bundle.subspace
+    if run.decoder == "fast":
+        module = path.decoder
     else:
-        module = AutoencoderDecoder(bundle.autoencoder) if movable else TorchDecoder(animator.decoder)
-    return StreamStep(bundle, module, character=character, memory=memory, fps=FPS, push_out=stage).eval()
+        module = AutoencoderDecoder(bundle.autoencoder) if movable else TorchDecoder(path.decoder)
+    return StreamStep(bundle, module, character=run.body, memory=memory, fps=FPS, push_out=stage).eval()
 
 
 def state_shapes(step: StreamStep) -> dict[str, tuple[int, ...]]:
