@@ -218,6 +218,7 @@ class Animator:
                 if run.mode is Mode.REGRESSION and rig is None and torch.cuda.is_available()
                 else "native"
             )
+        run = dataclasses.replace(run, device=device)
         if device == "native":
             return CrowdStream(self, run, rig=rig)
         if rig is not None:
@@ -226,7 +227,7 @@ class Animator:
             )
         from .torch_crowd import DeviceCrowd
 
-        return DeviceCrowd(self, run, device=device)
+        return DeviceCrowd(self, run)
 
     def _stream_run(self, settings: RunSettings | None, changes: dict) -> ResolvedRun:
         run = self.resolve(settings, **{**changes, "causal": True})

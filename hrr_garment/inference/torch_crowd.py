@@ -36,10 +36,9 @@ STATE = ("started", "previous_rotations", "previous_positions", "memory", "windo
 class DeviceCrowd:
     """Many characters of one body streamed on ``device`` in one call per frame; see the module docstring."""
 
-    def __init__(self, animator, run: ResolvedRun, *, device: str | torch.device):
-        """``run``: the settings resolved for ``animator``'s model (its body every character's);
-        ``device``: the torch device the step runs on (:meth:`~.animator.Animator.crowd` passes
-        the run's, or its choice)."""
+    def __init__(self, animator, run: ResolvedRun):
+        """``run``: the settings resolved for ``animator``'s model: its body every character's, its
+        ``device`` the torch device the step runs on."""
         if run.mode is not Mode.REGRESSION:
             raise ValueError(
                 f"a crowd on a torch device runs the regression (mode='regression'), not {run.mode.value!r}: "
@@ -50,7 +49,7 @@ class DeviceCrowd:
                 f"a crowd on a torch device runs the swing as predicted (swing=1), not {run.swing:g}: "
                 "the restored swing runs in the native crowd (device='native')"
             )
-        self.device = torch.device(device)
+        self.device = torch.device(run.device)
         self.run, self.body = run, run.body
         self.step = stream_step(FramePath(animator, run), movable=True).to(self.device)
         self._shapes = state_shapes(self.step)

@@ -30,7 +30,7 @@ def test_a_change_of_decoder_fades_in_without_a_pop(animator):
     and after the fade the character is exactly the fast decoder's."""
     frames, switch = 30, 10
     rotations, roots = _clip(frames)
-    full, fast, both = (animator.crowd(mode="regression", collision=False) for _ in range(3))
+    full, fast, both = (animator.crowd(mode="regression", push_out=False) for _ in range(3))
     out = {"full": [], "fast": [], "both": []}
     for t in range(frames):
         r, p = rotations[t : t + 1], roots[t : t + 1]
