@@ -53,24 +53,31 @@ def _offline(animator, motion, **settings) -> dict[str, np.ndarray]:
     return record.clip()
 
 
-# where the drivers compute a stage alike its outputs are the same bits; the features of a stream
-# (each frame against its last, memory carried) and of a clip (all at once) agree within rounding,
-# and so everything after them: what tests/inference/test_stream.py holds the vertices to
-CLOSE = {"features": 1e-4, "windows": 1e-4}
-VERTICES = 1e-5
+VERTEX_STAGES = ("decoding", "folds", "world", "push_out")
+# a stream against the clip animated causally, in metres or the stage's own units: the features (each
+# frame against its last, the memory carried) and the clip's (all at once) agree to rounding in
+# float64, the window step takes the same float32 inputs and chooses the same bits; the mesh decoder
+# batches a frame or a clip differently (float32 rounding), so the vertices agree to what
+# tests/inference/test_stream.py holds them to
+CAUSAL = {"features": 1e-12, "windows": 1e-12, "choice": 0.0, "blending": 0.0, "swing": 0.0} | dict.fromkeys(
+    VERTEX_STAGES, 1e-5
+)
+# the torch step against the native crowd: FK and memory in float32 (features within 1e-5 of
+# values up to about 6), then the same arithmetic; vertices as tests/export/test_onnx.py holds them
+TORCH = {"features": 1e-4, "windows": 1e-4, "choice": 1e-5, "blending": 1e-5, "swing": 1e-5} | dict.fromkeys(
+    VERTEX_STAGES, 1e-5
+)
 
 
-def _assert_stages_agree(ours: dict, theirs: dict, latents_tol: float, what: str) -> None:
+def _assert_stages_agree(ours: dict, theirs: dict, tolerances: dict, what: str) -> None:
     assert set(ours) == set(theirs) == set(STAGES), (what, sorted(ours), sorted(theirs))
     for stage in STAGES:
         a, b = ours[stage].astype(np.float64), theirs[stage].astype(np.float64)
         assert a.shape == b.shape, (what, stage, a.shape, b.shape)
-        scale = max(1.0, np.abs(a).max())
-        tol = CLOSE.get(
-            stage, VERTICES if stage in ("decoding", "folds", "world", "push_out") else latents_tol
+        gap = np.abs(a - b).max()
+        assert gap <= tolerances[stage], (
+            f"{what}: stage {stage} departs by {gap:.3g}, over {tolerances[stage]:g}"
         )
-        gap = np.abs(a - b).max() / scale
-        assert gap <= tol, f"{what}: stage {stage} departs by {gap:.3g} (relative), over {tol:g}"
 
 
 @pytest.mark.parametrize("mode", ["hybrid", "detail"])
@@ -88,9 +95,9 @@ def test_every_stage_of_a_stream_and_a_crowd_equals_the_clip_animated_causally(f
     for t in range(walk.num_frames):
         stream.push(walk.slice(t, t + 1))
         crowd.push_motions({"walk": walk.slice(t, t + 1), "spin": spin.slice(t, t + 1)})
-    _assert_stages_agree(alone.frames(0), expected["walk"], 1e-5, "stream")
+    _assert_stages_agree(alone.frames(0), expected["walk"], CAUSAL, "stream")
     for row, key in enumerate(("walk", "spin")):
-        _assert_stages_agree(together.frames(row), expected[key], 1e-5, f"crowd {key}")
+        _assert_stages_agree(together.frames(row), expected[key], CAUSAL, f"crowd {key}")
     # the same computation in the same order: a stream is a crowd of one, the same bits
     for stage in STAGES:
         assert np.array_equal(alone.frames(0)[stage], together.frames(0)[stage]), stage
@@ -109,10 +116,10 @@ def test_every_stage_of_the_torch_step_agrees_with_the_native_crowd(fixture_anim
     for t in range(motion.num_frames):
         native.push(quats[t : t + 1], roots[t : t + 1])
         device.push(quats[t : t + 1], roots[t : t + 1])
-    _assert_stages_agree(ours.frames(0), theirs.frames(0), 1e-4, "torch step")
+    _assert_stages_agree(ours.frames(0), theirs.frames(0), TORCH, "torch step")
 
 
-def test_the_run_request_carries_body_precision_device_and_exclusions(fixture_animator, tmp_path):
+def test_the_run_request_carries_body_precision_device_and_exclusions(fixture_animator):
     """Body, precision, device and the exclusions are fields of the one settings object, keywords
     of every call alike; push_out is the switch's name and collision its old one, still taken;
     records keep reading the old name."""
