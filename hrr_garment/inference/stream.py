@@ -9,7 +9,8 @@ characters in one call (:class:`CrowdStream`; one character: :mod:`.character_st
     vertices = crowd.push(rotations, roots, keys, lod=levels)   # levels of detail per character (.lod)
 
 Each character keeps its own state: its last pose, its motion memory, its last W feature frames,
-its inertialization and, in the detail mode, its fold playhead (:mod:`.fold_track`). A push runs every stage once for all the characters in it: the features, the
+its inertialization and, in the detail mode, its fold playhead (:mod:`.fold_track`). A push runs
+every stage of the frame path (:mod:`.frame_path`) once for all the characters in it: the features, the
 window step (motion encoder, gate, code-space decoder), the mesh decoder and the collision
 push-out, each batched through the native kernels. So N characters pushed together give what
 each gives pushed alone (tested), and a character's output is frame t of
@@ -54,8 +55,6 @@ from .lod import crowd_decode, crowd_latents, decoder_of, levels
 from .modes import Mode
 from .run_settings import ResolvedRun
 from .swing import step_crowd
-
-__all__ = ["STREAM_STAGES", "CrowdStream", "check_keys"]
 
 
 class CrowdStream:
