@@ -195,7 +195,7 @@ class Animator:
     def features(self, motion: Motion, causal: bool = False, body: CharacterBody | None = None) -> np.ndarray:
         """The model's per-frame motion features (T, F) of a clip (stage 1, :func:`~.clip_path.clip_features`):
         offline or as a stream sees them (``causal``), for ``body`` (default: the model's own)."""
-        return clip_features(self.bundle, motion, (body or self.body()).vector, causal)
+        return clip_features(self.bundle, motion, (body or self.body()).vector, causal=causal)
 
     def stream(self, settings: RunSettings | None = None, *, rig=None, **changes) -> AnimationStream:
         """One character, causal, one pose in and one frame out (:class:`~.character_stream.AnimationStream`);

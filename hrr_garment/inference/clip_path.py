@@ -51,7 +51,9 @@ def clip_latents(path: FramePath, motion: Motion) -> ClipLatents:
     if path.run.mode == Mode.DIRECT:
         return _direct(path, motion)
     t_frames, w, bundle = motion.num_frames, path.window, path.bundle
-    features = path.seen("features", clip_features(bundle, motion, path.run.body.vector, path.run.causal))
+    features = path.seen(
+        "features", clip_features(bundle, motion, path.run.body.vector, causal=path.run.causal)
+    )
     if path.run.causal:
         gates = frame_gates(bundle, path.step, features)
         if gates is not None:  # each frame's once, not in each of the W windows that hold it
