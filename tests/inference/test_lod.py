@@ -50,12 +50,12 @@ def test_a_change_of_decoder_fades_in_without_a_pop(animator):
 
 
 def test_a_far_character_runs_the_window_step_every_kth_frame(animator, monkeypatch):
-    import hrr_garment.inference.stream as stream_module
+    import hrr_garment.inference.frame_path as frame_path  # the choice stage, every driver's
 
     calls = []
-    real = stream_module.choose_windows
+    real = frame_path.choose_windows
     monkeypatch.setattr(
-        stream_module,
+        frame_path,
         "choose_windows",
         lambda bundle, windows, *a, **k: calls.append(len(windows)) or real(bundle, windows, *a, **k),
     )
