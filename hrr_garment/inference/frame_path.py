@@ -34,6 +34,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from ..body.measures import with_body
 from ..motion.frame import world_vertices
 from ..motion.motion import Motion
 from .collision import PushOutReport, push_out
@@ -51,10 +52,7 @@ Observer = Callable[[str, np.ndarray], None]  # a stage's name and its output
 def with_measures(bundle, features: np.ndarray, measures: np.ndarray) -> np.ndarray:
     """Stage 1's last part: (n, F) features with the body's ``measures`` ((b,) for all, or (n, b))
     appended, for a model trained across bodies; as they are otherwise."""
-    if not bundle.codespace.config.body_features:
-        return features
-    measures = np.asarray(measures, features.dtype)
-    return np.concatenate([features, np.broadcast_to(measures, (len(features), measures.shape[-1]))], 1)
+    return with_body(features, measures) if bundle.codespace.config.body_features else features
 
 
 class FramePath:
