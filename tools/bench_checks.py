@@ -74,7 +74,7 @@ def main() -> None:
         "teleport_check_us": round(teleport_us, 1),
     }
     if store is not None:
-        local = animator.animate(clip.slice(0, n), mode="regression", collision=False).vertices.astype(
+        local = animator.animate(clip.slice(0, n), mode="regression", push_out=False).vertices.astype(
             np.float64
         )
         rows = np.stack([np.arange(n) * 97 % len(store.levels), np.zeros(n, np.int64)], 1)

@@ -313,16 +313,16 @@ def _offline_and_stream(
     out = {}
     for mode in ("hybrid", "regression", "retrieval", "detail"):
         out[f"fps_{mode}"] = round(
-            _fps(animator, motion, repeat, mode=mode, tau=tau, collision=False, decoder=decoder), 1
+            _fps(animator, motion, repeat, mode=mode, tau=tau, push_out=False, decoder=decoder), 1
         )
     out["fps_hybrid_with_collision"] = round(
-        _fps(animator, motion, repeat, mode="hybrid", tau=tau, collision=True, decoder=decoder), 1
+        _fps(animator, motion, repeat, mode="hybrid", tau=tau, push_out=True, decoder=decoder), 1
     )
     runs = [("stream", True, 0.0), ("stream_no_collision", False, 0.0)] + (
         [("stream_paced", True, pace)] if pace else []
     )
     for key, collision, fps in runs:
-        stream = animator.stream(mode="hybrid", tau=tau, collision=collision, decoder=decoder)
+        stream = animator.stream(mode="hybrid", tau=tau, push_out=collision, decoder=decoder)
         start = time.perf_counter()
         for t in range(motion.num_frames):
             if fps:  # a game loop: the next pose arrives at the next frame time, the thread idles until then

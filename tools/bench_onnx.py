@@ -91,7 +91,7 @@ def main() -> None:
                 {
                     "model": args.model,
                     "vertices": int(animator.bundle.template.num_vertices),
-                    "push_out": settings["collision"],
+                    "push_out": settings["push_out"],
                     "decoder": settings["decoder"],
                     "push": settings["push"],
                     "crowds": rows,

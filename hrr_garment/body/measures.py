@@ -52,11 +52,11 @@ def body_vector(record: BodyRecord) -> np.ndarray:
 
 
 def with_body(features: np.ndarray, vector: np.ndarray) -> np.ndarray:
-    """Per-frame motion features (T, F) with the body's measures appended to every frame (T, F + b)."""
+    """Per-frame motion features (T, F) with the body's measures appended to every frame (T, F + b):
+    ``vector`` (b,) one body's, or (T, b) a body per row (a crowd's characters)."""
     features = np.asarray(features)
-    return np.concatenate(
-        [features, np.broadcast_to(np.asarray(vector, features.dtype), (len(features), len(vector)))], 1
-    )
+    vector = np.asarray(vector, features.dtype)
+    return np.concatenate([features, np.broadcast_to(vector, (len(features), vector.shape[-1]))], 1)
 
 
 @dataclass(frozen=True)

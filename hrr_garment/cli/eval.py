@@ -271,7 +271,7 @@ def _job(args) -> _Job:
         raise InputError("hrr-eval", f"--library takes 0 (none) or a number of plays, got {args.library}")
     if args.ensemble == 1 or args.ensemble < 0:
         raise InputError("hrr-eval", f"--ensemble takes 0 (none) or at least 2 members, got {args.ensemble}")
-    run = run_settings_of(args, "hrr-eval", collision=not args.no_collision, detail=look, causal=args.causal)
+    run = run_settings_of(args, "hrr-eval", push_out=not args.no_collision, detail=look, causal=args.causal)
     settings = EvaluationSettings(
         tuple(modes),
         run,

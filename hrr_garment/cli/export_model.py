@@ -86,14 +86,15 @@ def _main(argv: Sequence[str] | None) -> int:
     animator = Animator.load(model_dir)
     if args.garment is not None and animator.bundle.garment != args.garment:
         raise InputError(model_dir, f"this model animates a {animator.bundle.garment}, not a {args.garment}")
+    # the body made ready once (a character file is fitted once), for the export and the check
     body = animator.body(args.body, allow_outside=args.allow_outside_body) if args.body else None
     written = export_onnx(
         animator,
         args.output,
-        body,
+        body=body,
         push_out=not args.no_collision,
-        decoder=args.decoder or "full",
-        push=args.push or "mesh",
+        decoder=args.decoder,
+        push=args.push,
     )
     size = written.graph.stat().st_size / 2**20
     print(

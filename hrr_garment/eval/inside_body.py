@@ -52,7 +52,7 @@ def cloth_inside(animator: Animator, motion: Motion, body=None, *, name: str | N
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # the measures out of range are reported instead
         character = animator.body(body, allow_outside=True, name=name)
-        animation = animator.animate(motion, body=character, collision=False)
+        animation = animator.animate(motion, body=character, push_out=False)
     distance = body_signed_distance(
         animation.vertices, animation.skeleton, character.body
     )  # the clip as the body played it

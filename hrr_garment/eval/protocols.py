@@ -19,7 +19,7 @@ from .evaluate import EvaluationSettings, evaluate_modes, evaluate_vertices, tau
 def default_taus(animator, records, run: RunSettings) -> list[float]:
     """0, the deciles of the hybrid gate's per-frame doubts on these records (``run``'s gate, default
     the model's), and above the maximum (retrieval only)."""
-    hybrid = run.replace(mode="hybrid", tau=0.0, collision=False, detail=DetailLook())
+    hybrid = run.replace(mode="hybrid", tau=0.0, push_out=False, detail=DetailLook())
     h = np.concatenate(
         [animator.animate(r.motion, hybrid, body=r.dressed, allow_outside=True).doubt for r in records]
     )
@@ -176,7 +176,7 @@ def paper_section(folder: Path, bundle, records, settings: EvaluationSettings, e
         f"paper protocol: {folder} (calibrated gate {other.gate} < {other.tau:.3f}) on the same {len(records)} sequences"
     )
     own = replace(
-        settings, modes=modes, exclude_own_sequence=False, run=RunSettings(collision=settings.run.collision)
+        settings, modes=modes, exclude_own_sequence=False, run=RunSettings(push_out=settings.run.push_out)
     )  # its own calibrated gate, tau and look
     results = evaluate_modes(animator, records, own, ensembles=ensembles)
     return {

@@ -27,6 +27,9 @@ import torch
 
 from .._version import __version__
 from ..errors import InputError
+from ..inference.frame_path import FramePath
+from ..inference.modes import Mode
+from ..inference.run_settings import DECODERS, PUSHES, RunSettings
 from ..inference.torch_step import state_shapes, stream_step
 from ..io_utils import atomic_path, require_suffix
 from ..motion.motion import FPS, Motion
@@ -83,32 +86,21 @@ def initial_state(shapes: dict[str, tuple[int, ...]], characters: int) -> dict[s
     return {name: np.zeros((characters, *shape), np.float32) for name, shape in shapes.items()}
 
 
-def export_onnx(
-    animator,
-    path: str | Path,
-    body=None,
-    *,
-    push_out: bool = True,
-    allow_outside: bool = False,
-    decoder: str = "full",
-    push: str = "mesh",
-) -> OnnxExport:
-    """Write ``path`` (.onnx, one file) and its companion ``<stem>.tensors.npz``, atomically.
-    ``body``: what :meth:`~hrr_garment.inference.animator.Animator.body` takes (None: the model's own);
-    ``decoder``: "full" (the mesh decoder's folded kernels) or "fast" (the subspace decoder: a graph
-    a fraction of the size and a step a fraction of the time); ``push``: how the push-out takes the
-    cloth out of the body, as :class:`~hrr_garment.inference.run_settings.RunSettings` says ("mesh",
-    or "subspace": the push along the fast decoder's components first, fewer tears)."""
+def export_onnx(animator, path: str | Path, settings: RunSettings | None = None, **changes) -> OnnxExport:
+    """Write ``path`` (.onnx, one file) and its companion ``<stem>.tensors.npz``, atomically, for the
+    run ``settings`` ask (:class:`~hrr_garment.inference.run_settings.RunSettings`, with keyword
+    ``changes``, as :meth:`~hrr_garment.inference.animator.Animator.animate` takes them; the mode is
+    the regression): its ``body`` (None: the model's own), ``push_out``, ``decoder`` ("full": the
+    mesh decoder's folded kernels, or "fast": the subspace decoder, a graph a fraction of the size
+    and a step a fraction of the time) and ``push`` ("mesh", or "subspace": the push along the
+    fast decoder's components first, fewer tears)."""
     onnx = _require_onnx()
     path = Path(path)
     require_suffix(path, (".onnx",), "an ONNX model")
     t0 = time.perf_counter()
-    character = animator.body(body, allow_outside=allow_outside)
     # refuses a fast decoder or a subspace push without the bundle's fast decoder, before the export's minute
-    run = animator.resolve(mode="regression", decoder=decoder, push=push)
-    step = stream_step(
-        animator, character, push_out=push_out, decoder=decoder, push_settings=animator.push_settings(run)
-    )
+    run = animator.resolve(settings, **{"mode": Mode.REGRESSION, **changes, "causal": True})
+    step = stream_step(FramePath(animator, run))
     shapes = state_shapes(step)
     example = _example_inputs(shapes, 2)
     n = torch.export.Dim("characters", min=1, max=4096)
@@ -132,10 +124,10 @@ def export_onnx(
         "garment": bundle.garment,
         "content_hash": bundle.content_hash,
         "fps": FPS,
-        "push_out": bool(push_out),
+        "push_out": bool(run.push_out),
         "push": run.push,
-        "body": character.name,
-        "decoder": decoder,
+        "body": run.body.name,
+        "decoder": run.decoder,
         "vertices": int(bundle.template.num_vertices),
         "state": {k: list(v) for k, v in shapes.items()},
         "path": "regression",
@@ -204,11 +196,11 @@ class OnnxStream:
             )
         self.shapes = {k: tuple(v) for k, v in json.loads(meta["state"]).items()}
         # the run the graph holds, as Animator.stream and crowd take it (graphs written before the
-        # decoder and push were recorded: the full decoder, the mesh push)
+        # decoder and push were recorded: the default decoder and push, the full and the mesh)
         self.settings = {
-            "collision": json.loads(meta["push_out"]),
-            "decoder": meta.get("decoder", "full"),
-            "push": meta.get("push", "mesh"),
+            "push_out": json.loads(meta["push_out"]),
+            "decoder": meta.get("decoder", DECODERS[0]),
+            "push": meta.get("push", PUSHES[0]),
         }
         self.state: dict[str, np.ndarray] | None = None
 
@@ -228,13 +220,16 @@ class OnnxStream:
         return out[0]
 
 
-def check_onnx(animator, path: str | Path, motion: Motion, body=None, *, allow_outside: bool = False) -> dict:
+def check_onnx(
+    animator, path: str | Path, motion: Motion, settings: RunSettings | None = None, **changes
+) -> dict:
     """Stream ``motion`` (canonical skeleton) through the ONNX graph and through
-    :meth:`~hrr_garment.inference.animator.Animator.stream` in the regression mode (push-out as the
+    :meth:`~hrr_garment.inference.animator.Animator.stream` in the regression mode, on the body
+    ``settings`` and ``changes`` ask (as :func:`export_onnx`; the push-out, decoder and push as the
     graph was written) -> the gap per frame in millimetres: max, mean, and each path's median
     step time in milliseconds."""
     runner = OnnxStream(path)
-    python = animator.stream(mode="regression", body=body, allow_outside=allow_outside, **runner.settings)
+    python = animator.stream(settings, **{**changes, "mode": Mode.REGRESSION, **runner.settings})
     quats, roots = motion_to_poses(motion)
     gaps, onnx_s, python_s = [], [], []
     for t in range(motion.num_frames):

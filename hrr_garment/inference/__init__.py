@@ -6,7 +6,9 @@ levels of detail), :mod:`.torch_crowd` (a crowd as one torch step on a GPU: :mod
 :mod:`.torch_push_out`), :mod:`.modes`, :mod:`.gate` (retrieval or regression per window),
 :mod:`.blending` (windows to frames, inertialization), :mod:`.decoding` (the mesh decoder, the
 denormal switch), :mod:`.collision` (push-out and strain limit; :mod:`.edge_limits` what they need
-of a garment). The code-space step itself is :mod:`hrr_garment.models.codes`.
+of a garment). The code-space step itself is :mod:`hrr_garment.models.codes`. The stages of a
+frame, in one numbered list that the offline animator (:mod:`.clip_path`), the streams and the
+torch step all run: :mod:`.frame_path`; what a run is asked: :mod:`.run_settings`.
 
 Offline (default): features of the whole clip -> every window (stride 1, W frames, centred
 coverage) -> motion encoder -> code distribution -> per window, retrieval from the database when

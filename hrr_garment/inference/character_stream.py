@@ -17,8 +17,8 @@ class AnimationStream:
     """One character: one pose in, one garment frame out, causal (no future frames), bounded memory.
     ``push`` equals frame t of ``animator.animate(motion, causal=True)`` (tested to 1e-5)."""
 
-    def __init__(self, animator, run: ResolvedRun, *, rig=None, body=None):
-        self.crowd = CrowdStream(animator, run, rig=rig, body=body)
+    def __init__(self, animator, run: ResolvedRun, *, rig=None):
+        self.crowd = CrowdStream(animator, run, rig=rig)
 
     @property
     def mode(self) -> Mode:

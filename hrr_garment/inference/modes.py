@@ -28,7 +28,7 @@ class Mode(str, enum.Enum):
     @property
     def regresses(self) -> bool:
         """Whether the code-space decoder runs (hybrid, regression, residual and detail; auto is
-        resolved to one of these first, :meth:`~hrr_garment.inference.animator.Animator.resolve_mode`)."""
+        resolved to one of these first, :meth:`~hrr_garment.inference.run_settings.RunSettings.resolve`)."""
         return self in (Mode.HYBRID, Mode.REGRESSION, Mode.RESIDUAL, Mode.DETAIL)
 
 

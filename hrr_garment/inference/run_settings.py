@@ -1,9 +1,9 @@
-"""What a run is asked to do, as settings objects: :class:`DetailLook` and :class:`RunSettings`,
-and :class:`ResolvedRun`, the same settings resolved against one model.
+"""What a run is asked to do, as one settings object: :class:`DetailLook` and :class:`RunSettings`,
+and :class:`~.resolved_run.ResolvedRun`, the same settings resolved against one model.
 
-    settings = RunSettings(mode="detail", detail=DetailLook(base="residual", strength=1.0))
+    settings = RunSettings(mode="detail", detail=DetailLook(base="residual", strength=1.0), body="hero.json")
     anim = animator.animate(motion, settings)              # or animator.animate(motion, mode="detail", ...)
-    crowd = animator.crowd(settings.replace(collision=False))
+    crowd = animator.crowd(settings.replace(push_out=False, device="native"))
 
 A :class:`RunSettings` holds what the caller chose; a field left at None takes the model's
 calibrated value (bundle.json). Values are checked when the object is made, so a bad tau or
@@ -13,8 +13,12 @@ without a residual calibration, a named mode given another mode's settings). Eve
 API (the gate, the streams, the evaluation, the calibration) takes the :class:`ResolvedRun`; out.h5
 and report.json record :meth:`ResolvedRun.record`, written from this one place.
 
-New per-run choices (the body, the material) arrive here as fields, not as new arguments on
-every function that hands a run on.
+The settings hold the whole run request: the look (mode, gate, detail, swing), the push-out
+(``push_out``, ``push``), the body and its exclusions (``body``, ``allow_outside``,
+``exclude_sequence``), the arithmetic (``decoder``, ``precision``) and where a crowd runs
+(``device``). New per-run choices (the material) arrive here as fields, not as new arguments on
+every function that hands a run on. Each default is written once, here (:data:`DECODERS`,
+:data:`PUSHES`, :data:`~hrr_garment.native.PRECISIONS`: the first of each).
 """
 
 from __future__ import annotations
@@ -22,14 +26,20 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..artifacts.bundle import Bundle, BundleError
 from ..artifacts.gate_signals import GATE_SIGNALS
 from ..artifacts.manifest import DETAIL_BASES, MAX_DETAIL_STRENGTH, valid_detail_strength
+from ..native import PRECISIONS
 from .modes import Mode
+from .resolved_run import ResolvedRun
 from .swing import MAX_GAIN, valid_gain
+
+if TYPE_CHECKING:
+    from .bodies import CharacterBody
 
 DECODERS = (
     "full",
@@ -42,6 +52,33 @@ PUSHES = (
 
 #: keyword arguments of the API before the settings objects, and what replaced them
 RENAMED = {"detail_base": "detail=DetailLook(base=...)", "detail_strength": "detail=DetailLook(strength=...)"}
+#: old names of settings, still taken as keywords: old name -> the field
+OLD_NAMES = {"collision": "push_out"}
+
+
+def _new_names(changes: dict) -> dict:
+    """``changes`` with old setting names (:data:`OLD_NAMES`) under their fields' names."""
+    if not any(k in OLD_NAMES for k in changes):
+        return changes
+    out = {}
+    for key, value in changes.items():
+        name = OLD_NAMES.get(key, key)
+        if name in out:
+            raise TypeError(f"{key} is the old name of {name}: give one of them")
+        out[name] = value
+    return out
+
+
+def _taking_old_names(cls):
+    """The dataclass ``cls`` whose constructor also takes the old names of its fields."""
+    init = cls.__init__
+
+    def __init__(self, *args, **changes):
+        init(self, *args, **_new_names(changes))
+
+    __init__.__doc__, __init__.__wrapped__ = init.__doc__, init
+    cls.__init__ = __init__
+    return cls
 
 
 def _number(value: object, what: str) -> float:
@@ -81,6 +118,7 @@ class DetailLook:
         return self.base is not None or self.strength is not None
 
 
+@_taking_old_names
 @dataclass(frozen=True)
 class RunSettings:
     """How to animate, as asked (see the module docstring). None: the model's calibrated value."""
@@ -94,7 +132,7 @@ class RunSettings:
     tau: float | None = None
     # the detail mode's look: with the default mode, a chosen look runs the detail mode
     detail: DetailLook = field(default_factory=DetailLook)
-    collision: bool = True  # the collision push-out against the body
+    push_out: bool = True  # the collision push-out against the body (old name: collision)
     causal: bool = False  # no future frames: what the streaming API gives
     # the mesh decoder: "full" (the autoencoder's) or "fast" (its distilled subspace decoder, a few
     # times cheaper: crowds in a game's budget; where the bundle has one). None: full
@@ -108,6 +146,18 @@ class RunSettings:
     # from their recent course, 1: as predicted. None: the model's calibrated gain in the mode auto
     # picks, 1 in a mode named
     swing: float | None = None
+    # the body animated on: a body.json or character file's path, a BodyRecord, a CharacterBody, a
+    # dataset's DressedBody (Animator.body); None: the model's own. ``allow_outside``: one unlike the
+    # model's training bodies too (warned)
+    body: object = field(default=None, hash=False)
+    allow_outside: bool = False
+    exclude_sequence: int | None = None  # a database sequence retrieval may not use (evaluation)
+    # the full mesh decoder's arithmetic for batches of frames: "float32" or "bfloat16" (AMX on recent
+    # Intel Xeons, FastDecoder). None: float32
+    precision: str | None = None
+    # where a crowd runs: "native" (the CPU kernels), or a torch device ("cuda", "cpu": the regression
+    # as one torch step, torch_crowd.py). None: CUDA for a regression crowd where torch sees a GPU
+    device: str | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "mode", Mode(self.mode))
@@ -133,7 +183,11 @@ class RunSettings:
             raise ValueError(f"push must be one of {', '.join(PUSHES)}, got {self.push!r}")
         if not isinstance(self.detail, DetailLook):
             raise TypeError(f"detail must be a DetailLook, got {type(self.detail).__name__}")
-        for name in ("collision", "causal"):
+        if self.precision is not None and self.precision not in PRECISIONS:
+            raise ValueError(f"precision must be one of {', '.join(PRECISIONS)}, got {self.precision!r}")
+        if self.device is not None and not isinstance(self.device, str):
+            raise TypeError(f"device must be a name such as 'native' or 'cuda', got {self.device!r}")
+        for name in ("push_out", "causal", "allow_outside"):
             value = getattr(self, name)
             if not isinstance(value, (bool, np.bool_)):
                 raise TypeError(f"{name} must be True or False, got {value!r}")
@@ -153,7 +207,9 @@ class RunSettings:
         return self.gate is not None or self.tau is not None
 
     def replace(self, **changes) -> RunSettings:
-        """A copy with ``changes`` (field names); a TypeError naming any other keyword."""
+        """A copy with ``changes`` (field names, or their :data:`OLD_NAMES`); a TypeError naming any
+        other keyword."""
+        changes = _new_names(changes)
         unknown = sorted(set(changes) - {f.name for f in dataclasses.fields(self)})
         if unknown:
             hints = [f"{k} (now {RENAMED[k]})" for k in unknown if k in RENAMED]
@@ -164,8 +220,9 @@ class RunSettings:
             )
         return dataclasses.replace(self, **changes) if changes else self
 
-    def resolve(self, bundle: Bundle) -> ResolvedRun:
-        """These settings with the model's calibrated values filled in, checked against ``bundle``."""
+    def resolve(self, bundle: Bundle, body: CharacterBody) -> ResolvedRun:
+        """These settings with the model's calibrated values filled in, checked against ``bundle``;
+        ``body``: :attr:`body` made ready for the model (:meth:`~.animator.Animator.body`)."""
         mode, calibrated = self.mode, False
         if mode is Mode.AUTO:
             calibrated = not (self.hybrid_chosen or self.detail.chosen)
@@ -195,10 +252,10 @@ class RunSettings:
                     )
         elif mode is Mode.RESIDUAL:
             bundle.require_residual()
-        decoder = self.decoder or "full"
+        decoder = self.decoder or DECODERS[0]
         if decoder == "fast":
             bundle.require_subspace()
-        push = self.push or "mesh"
+        push = self.push or PUSHES[0]
         if push == "subspace":
             bundle.require_subspace("the subspace push")
         swing = self.swing if self.swing is not None else bundle.swing_gain if calibrated else 1.0
@@ -207,48 +264,30 @@ class RunSettings:
             gate=gate,
             tau=tau,
             detail=look,
-            collision=self.collision,
+            push_out=self.push_out,
             causal=self.causal,
             decoder=decoder,
             swing=swing,
             push=push,
+            body=body,
+            exclude_sequence=database_sequence(bundle, self.exclude_sequence),
+            precision=self.precision or PRECISIONS[0],
+            device=self.device,
         )
 
 
-@dataclass(frozen=True)
-class ResolvedRun:
-    """Run settings resolved against one model: every value concrete (see :meth:`RunSettings.resolve`)."""
-
-    mode: Mode  # never auto
-    gate: str
-    tau: float
-    detail: DetailLook | None  # concrete base and strength in the detail mode, else None
-    collision: bool
-    causal: bool
-    decoder: str = "full"  # "full" or "fast"
-    swing: float = 1.0  # the gain on the free cloth's swing (inference/swing.py), 1: as predicted
-    push: str = "mesh"  # "mesh" or "subspace" (the push in the garment's subspace first)
-
-    @property
-    def fold_base(self) -> str:
-        """What the detail mode's folds ride on ("regression" outside the detail mode)."""
-        return self.detail.base if self.detail is not None else "regression"
-
-    def record(self) -> dict:
-        """What out.h5's attributes and report.json's settings record of the run."""
-        out = {
-            "mode": str(self.mode),
-            "gate": self.gate,
-            "tau": self.tau,
-            "causal": int(self.causal),
-            "collision": int(self.collision),
-            "decoder": self.decoder,
-            "swing": self.swing,
-            "push": self.push,
-        }
-        if self.detail is not None:
-            out.update(detail_base=self.detail.base, detail_strength=self.detail.strength)
-        return out
+def database_sequence(bundle: Bundle, index: object) -> int | None:
+    """``index`` (None: none) as one of ``bundle``'s database sequences; a ValueError naming the range."""
+    if index is None:
+        return None
+    if isinstance(index, np.integer):
+        index = int(index)
+    count = len(bundle.database.names)
+    if isinstance(index, bool) or not isinstance(index, int) or not 0 <= index < count:
+        raise ValueError(
+            f"exclude_sequence must be a database sequence index in 0..{count - 1}, got {index!r}"
+        )
+    return index
 
 
 def run_settings(settings: RunSettings | None, changes: dict) -> RunSettings:

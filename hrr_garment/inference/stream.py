@@ -9,7 +9,8 @@ characters in one call (:class:`CrowdStream`; one character: :mod:`.character_st
     vertices = crowd.push(rotations, roots, keys, lod=levels)   # levels of detail per character (.lod)
 
 Each character keeps its own state: its last pose, its motion memory, its last W feature frames,
-its inertialization and, in the detail mode, its fold playhead (:mod:`.fold_track`). A push runs every stage once for all the characters in it: the features, the
+its inertialization and, in the detail mode, its fold playhead (:mod:`.fold_track`). A push runs
+every stage of the frame path (:mod:`.frame_path`) once for all the characters in it: the features, the
 window step (motion encoder, gate, code-space decoder), the mesh decoder and the collision
 push-out, each batched through the native kernels. So N characters pushed together give what
 each gives pushed alone (tested), and a character's output is frame t of
@@ -29,9 +30,7 @@ from __future__ import annotations
 
 import time
 import warnings
-from collections import deque
 from collections.abc import Hashable, Mapping, Sequence
-from dataclasses import dataclass, field
 from functools import partial
 
 import numpy as np
@@ -39,7 +38,6 @@ import numpy as np
 from ..errors import InputError, TeleportWarning
 from ..models.codes import traced_window_codes
 from ..motion.features import pair_features_batch
-from ..motion.frame import world_vertices
 from ..motion.limits import MAX_ROOT_SPEED
 from ..motion.memory import motion_memory
 from ..motion.motion import Motion
@@ -47,81 +45,44 @@ from ..motion.poses import poses_to_motion
 from ..native import pin_workers
 from .blending import Inertializer
 from .bodies import CrowdBodies
-from .collision import push_out
+from .crowd_state import STREAM_STAGES, CrowdCharacter, CrowdTimings, check_keys
 from .crowd_windows import CrowdWindows
 from .decoding import flush_denormals
-from .detail import add_folds
-from .fold_track import FoldTrack, FollowedFolds, follow_folds
-from .gate import choose_windows, frame_gates
-from .lod import LodState, crowd_decode, crowd_latents, decoder_of, levels
+from .fold_track import FoldTrack, follow_folds
+from .frame_path import FramePath, with_measures
+from .gate import frame_gates
+from .lod import crowd_decode, crowd_latents, decoder_of, levels
 from .modes import Mode
 from .run_settings import ResolvedRun
-from .swing import SwingGain, step_crowd
-
-STREAM_STAGES = ("features", "encoder", "decoder", "world", "push_out")
-
-
-@dataclass
-class _Character:
-    """One character's streaming state."""
-
-    features: deque  # its window's W frames' raw features (crowd_windows.CrowdWindows)
-    gates: deque  # those frames' GRU input gates, where the window step is native (gate.frame_gates)
-    inertia: int  # its row in the crowd's Inertializer
-    fold_track: FoldTrack | None = None  # the detail mode's playhead in the database's folds
-    followed: FollowedFolds | None = None  # its folds as followed in time (fold_track.follow_folds)
-    previous: tuple[np.ndarray, np.ndarray] | None = (
-        None  # its last pose: global rotations and joint positions
-    )
-    memory: np.ndarray | None = None  # its motion memory's state (rows, 64), when the model has one
-    root: np.ndarray | None = None  # its last pushed pelvis position (teleports restart it)
-    frames: int = 0
-    lod: LodState = field(default_factory=LodState)  # its level of detail's held step and decoder fade
-    swing_mean: np.ndarray | None = None  # (nodes, C) its latents' recent course (inference/swing.py)
-
-
-def check_keys(keys: list, count: int) -> None:
-    """An InputError unless ``keys`` are ``count`` distinct ids, one per pushed pose."""
-    if len(keys) != count or len(set(keys)) != len(keys):
-        raise InputError(
-            "push",
-            f"{count} poses need as many distinct keys, got {len(keys)} keys ({len(set(keys))} distinct)",
-        )
-
-
-@dataclass
-class _Timings:
-    """Per push: its latency and each stage's seconds (the last 1,000 pushes)."""
-
-    latency_s: deque = field(default_factory=lambda: deque(maxlen=1000))
-    stage_s: dict = field(default_factory=lambda: {k: deque(maxlen=1000) for k in STREAM_STAGES})
+from .swing import step_crowd
 
 
 class CrowdStream:
     """Many characters streamed in one call per frame; see the module docstring. ``rig``: a
     :class:`~hrr_garment.motion.stream_rig.StreamRig` when poses come on a source skeleton."""
 
-    def __init__(self, animator, run: ResolvedRun, *, rig=None, body=None):
+    def __init__(self, animator, run: ResolvedRun, *, rig=None):
         """``run``: the settings, resolved for ``animator``'s model (:meth:`~.animator.Animator.crowd`
-        makes both); they hold for the stream's life. ``body``: the :class:`~.bodies.CharacterBody`
-        its characters have (default: the model's own); poses on the canonical skeleton are played
-        by it, as :meth:`~.animator.Animator.animate` plays a clip."""
+        makes both); they hold for the stream's life. Its body (``run.body``, a
+        :class:`~.bodies.CharacterBody`) is every character's but those given one of their own
+        (:meth:`set_body`); poses on the canonical skeleton are played by it, as
+        :meth:`~.animator.Animator.animate` plays a clip."""
         self.animator, self.run, self.rig = animator, run, rig
-        self.body = animator.body() if body is None else body
+        self.path = FramePath(animator, run)  # the stages, run once a push for the whole crowd
+        self.body = run.body
         self._bodies: dict[Hashable, object] = {}  # characters with a body of their own (set_body)
         self._stacked: tuple = ((), None)  # the last mixed crowd's bodies and their stacked arrays
-        self._characters: dict[Hashable, _Character] = {}
+        self._characters: dict[Hashable, CrowdCharacter] = {}
         self._windows = CrowdWindows(animator.window)
         self._inertia = Inertializer(animator.blend, paths=0)  # every character's latent path, a row each
-        self.timings = _Timings()
+        self.timings = CrowdTimings()
         regression = run.mode.regresses
         bundle = animator.bundle
         self._decoders = {
-            "full": animator.decoder,
+            "full": animator.mesh_decoder(run.precision),
             "fast": bundle.subspace,
         }  # by name, as levels of detail pick them
-        self._swing: dict[float, SwingGain] = {}  # the swing's gain per frame rate pushed
-        self._step = animator.causal_step(regression) or traced_window_codes(
+        self._step = self.path.step or traced_window_codes(
             bundle.codespace, animator.window, bundle.codespace.features, regression=regression
         )
 
@@ -188,7 +149,7 @@ class CrowdStream:
         self.timings.latency_s.append(time.perf_counter() - t0)
         return vertices
 
-    def _with_memory(self, chars: list[_Character], features: np.ndarray, fps: float) -> np.ndarray:
+    def _with_memory(self, chars: list[CrowdCharacter], features: np.ndarray, fps: float) -> np.ndarray:
         """The pushed frame's features (N, 124) with each character's motion memory, carried one
         frame on (:mod:`hrr_garment.motion.memory`), as offline causal computes it over the clip."""
         spec = self.animator.bundle.codespace.config.memory
@@ -200,7 +161,7 @@ class CrowdStream:
             c.memory = s
         return np.concatenate([features, memory.values(state)], 1)
 
-    def _folds(self, chars: list[_Character], source: np.ndarray) -> np.ndarray:
+    def _folds(self, chars: list[CrowdCharacter], source: np.ndarray) -> np.ndarray:
         """(N, V, 3): each character's folds this frame, its :class:`FoldTrack` stepped on the last
         frame of its window's match (as :func:`~.fold_track.causal_proposals`)."""
         store, window = self.animator.bundle.folds, self.animator.window
@@ -211,7 +172,7 @@ class CrowdStream:
             steps.append(c.fold_track.step(sequence, start + window - 1))
         return store.folds(np.stack([r for r, _ in steps]), np.stack([w for _, w in steps]))
 
-    def _follow(self, chars: list[_Character]):
+    def _follow(self, chars: list[CrowdCharacter]):
         """The detail mode's fold term -> as each character's folds follow in time
         (:func:`~.fold_track.follow_folds`, its state kept on the character)."""
 
@@ -237,7 +198,7 @@ class CrowdStream:
         return poses.on_skeletons(stacked.skeletons, stacked.root_scale), stacked
 
     def _latents(
-        self, chars: list[_Character], windows: np.ndarray, gates: np.ndarray | None, lv: np.ndarray
+        self, chars: list[CrowdCharacter], windows: np.ndarray, gates: np.ndarray | None, lv: np.ndarray
     ) -> np.ndarray:
         """The window step (motion encoder, gate, code-space decoder) of the characters whose level
         of detail runs it now (all, at level 0), the others' held: (N, nodes, C) inertialized
@@ -246,14 +207,8 @@ class CrowdStream:
 
         def choose(rows):
             pick = slice(None) if rows is None else rows  # all: the arrays themselves
-            return choose_windows(
-                self.animator.bundle,
-                windows[pick],
-                self.run,
-                last_frame=True,
-                step=self._step,
-                gates=None if gates is None else gates[pick],
-            )
+            gated = None if gates is None else gates[pick]
+            return self.path.choose(windows[pick], last_frame=True, gates=gated, step=self._step)
 
         rows = np.array([c.inertia for c in chars])
         return crowd_latents(
@@ -281,68 +236,52 @@ class CrowdStream:
             )
 
     def _step_frame(self, keys: list, poses: Motion, lv: np.ndarray) -> np.ndarray:
-        t = [time.perf_counter()]
+        """The frame path's nine stages (:mod:`.frame_path`), each once for the whole crowd."""
+        path, t = self.path, [time.perf_counter()]
         pin_workers()  # a game loop idles between frames: its next frame must not wait for workers to move
         self._restart_teleported(keys, poses)
         for k in keys:
             if (
                 k not in self._characters
             ):  # not setdefault: that built a new character's state for every key every frame
-                self._characters[k] = _Character(*self._windows.start(), self._inertia.add_path())
+                self._characters[k] = CrowdCharacter(*self._windows.start(), self._inertia.add_path())
         chars = [self._characters[k] for k in keys]
         roots = poses.root_translation  # as pushed, before a body plays them
         poses, bodies = self._played(keys, poses)
+        # 1. features
         features = self._with_memory(
             chars, pair_features_batch([c.previous for c in chars], poses), poses.fps
         )
-        if self.animator.bundle.codespace.config.body_features:
-            measures = np.asarray(bodies.vector, features.dtype)
-            features = np.concatenate(
-                [features, np.broadcast_to(measures, (len(features), measures.shape[-1]))], 1
-            )
-        gates = frame_gates(self.animator.bundle, self._step, features)  # each frame's once, as it comes
+        features = path.seen("features", with_measures(path.bundle, features, bodies.vector))
+        # 2. windows: each frame's gates once, as it comes
+        gates = frame_gates(path.bundle, self._step, features)
         windows, window_gates = self._windows.push(
             tuple(keys), chars, features, gates
         )  # (N, W, F), (N, W, 3H)
+        path.seen("windows", windows)
         t.append(time.perf_counter())
-        latents = self._latents(chars, windows, window_gates, lv)
-        if self.run.swing != 1.0:  # the free cloth's swing restored, each character's course kept on it
-            if poses.fps not in self._swing:
-                self._swing[poses.fps] = SwingGain.of(
-                    self.run.swing, self.animator.bundle.node_hang_m, poses.fps
-                )
-            latents = step_crowd(self._swing[poses.fps], chars, latents)
+        # 3. choice and 4. blending
+        latents = path.seen("blending", self._latents(chars, windows, window_gates, lv))
+        # 5. swing: the free cloth's swing restored, each character's course kept on it
+        gain = path.swing_gain(poses.fps)
+        latents = path.seen("swing", latents if gain is None else step_crowd(gain, chars, latents))
         t.append(time.perf_counter())
+        # 6. decoding
         has_fast = self._decoders["fast"] is not None
         names = [decoder_of(int(level), self.run.decoder, has_fast) for level in lv]
-        local = crowd_decode(chars, latents, names, decoders=self._decoders)
-        if (
-            self.run.mode is Mode.DETAIL
-        ):  # the detail mode: each character's playhead one frame on, its folds added
-            local = add_folds(
-                local,
-                self._folds(chars, np.stack([c.lod.match for c in chars])),
-                self.animator.smoothing,
-                passes=self.animator.bundle.folds.passes,
-                strength=self.run.detail.strength,
-                limits=self.animator.edge_limits,
-                follow=self._follow(chars),
-                weights=self.animator.bundle.fold_weights,
-            )
+        local = path.seen("decoding", crowd_decode(chars, latents, names, decoders=self._decoders))
+        # 7. folds: each character's playhead one frame on
+        if self.run.mode is Mode.DETAIL:
+            folds = self._folds(chars, np.stack([c.lod.match for c in chars]))
+            local = path.add_folds(local, folds, follow=self._follow(chars))
+        path.seen("folds", local)
         t.append(time.perf_counter())
-        vertices = world_vertices(bodies.stand(local), poses)  # as offline: the same push-out inputs
+        # 8. world: as offline, the same push-out inputs
+        vertices = path.world(bodies.stand(local), poses)
         t.append(time.perf_counter())
-        if self.run.collision:
-            vertices, _ = push_out(
-                vertices,
-                poses,
-                self.animator.bundle.template.faces,
-                body=bodies.capsules(poses),
-                mean=self.animator.smoothing,
-                limits=self.animator.edge_limits,
-                settings=self.animator.push_settings(self.run),
-                report=False,
-            )
+        # 9. push-out
+        capsules = bodies.capsules(poses) if self.run.push_out else None
+        vertices, _ = path.push_out(vertices, poses, capsules, report=False)
         t.append(time.perf_counter())
         for i, c in enumerate(chars):
             c.previous = (poses.global_rotations[i], poses.joint_positions[i])

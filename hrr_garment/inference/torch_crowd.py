@@ -24,9 +24,10 @@ import torch
 
 from ..errors import InputError
 from ..motion.skeleton import NUM_JOINTS
+from .crowd_state import check_keys
+from .frame_path import FramePath
 from .modes import Mode
 from .run_settings import ResolvedRun
-from .stream import check_keys
 from .torch_step import state_shapes, stream_step
 
 STATE = ("started", "previous_rotations", "previous_positions", "memory", "window")
@@ -35,7 +36,9 @@ STATE = ("started", "previous_rotations", "previous_positions", "memory", "windo
 class DeviceCrowd:
     """Many characters of one body streamed on ``device`` in one call per frame; see the module docstring."""
 
-    def __init__(self, animator, run: ResolvedRun, *, device: str | torch.device, body=None):
+    def __init__(self, animator, run: ResolvedRun):
+        """``run``: the settings resolved for ``animator``'s model: its body every character's, its
+        ``device`` the torch device the step runs on."""
         if run.mode is not Mode.REGRESSION:
             raise ValueError(
                 f"a crowd on a torch device runs the regression (mode='regression'), not {run.mode.value!r}: "
@@ -46,17 +49,9 @@ class DeviceCrowd:
                 f"a crowd on a torch device runs the swing as predicted (swing=1), not {run.swing:g}: "
                 "the restored swing runs in the native crowd (device='native')"
             )
-        self.device = torch.device(device)
-        self.run = run
-        self.body = animator.body() if body is None else body
-        self.step = stream_step(
-            animator,
-            self.body,
-            push_out=run.collision,
-            decoder=run.decoder,
-            movable=True,
-            push_settings=animator.push_settings(run),
-        ).to(self.device)
+        self.device = torch.device(run.device)
+        self.run, self.body = run, run.body
+        self.step = stream_step(FramePath(animator, run), movable=True).to(self.device)
         self._shapes = state_shapes(self.step)
         self._state = {
             name: torch.zeros((0, *shape), device=self.device) for name, shape in self._shapes.items()

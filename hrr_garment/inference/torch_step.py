@@ -1,18 +1,22 @@
 """The streaming step of a trained model as one PyTorch module: a frame of poses in, the garment's
 world vertices out, each character's window state as explicit inputs and outputs. ONNX holds it
 (:mod:`hrr_garment.export.onnx_model` exports it) and a GPU runs it (:mod:`.torch_crowd`). The regression path of
-:class:`~hrr_garment.inference.stream.CrowdStream`, stage by stage with the same formulas:
+:class:`~hrr_garment.inference.stream.CrowdStream`, the frame path's stages (:mod:`.frame_path`,
+numbered alike in :meth:`StreamStep.forward`) with the same formulas and the same resolved run:
 
-1. poses: local quaternions -> matrices, forward kinematics on the body's skeleton (its bone
-   lengths, its pelvis height), as :meth:`~hrr_garment.inference.bodies.CharacterBody.play`;
-2. features: the frame against the character's last one (:func:`~hrr_garment.motion.features.pair_features_batch`),
-   its motion memory one frame on (:class:`~hrr_garment.motion.memory.MotionMemory`), the body's
-   measures, the window of the last W frames;
-3. the window step (:class:`~hrr_garment.models.codes.WindowCodes`): motion encoder, code
-   entropy and classes, the code-space decoder's latents of the window's last frame;
-4. the mesh decoder, the garment's rest offset on the body, the body frame to the world
-   (:func:`~hrr_garment.motion.frame.from_body_frame`);
-5. the collision push-out against the body's capsules and its strain limit (:mod:`.torch_push_out`).
+- before the stages, the poses: local quaternions -> matrices, forward kinematics on the body's
+  skeleton (its bone lengths, its pelvis height), as :meth:`~hrr_garment.inference.bodies.CharacterBody.play`;
+- 1 features: the frame against the character's last one (:func:`~hrr_garment.motion.features.pair_features_batch`),
+  its motion memory one frame on (:class:`~hrr_garment.motion.memory.MotionMemory`), the body's measures;
+- 2 windows: the last W frames;
+- 3 choice: the window step (:class:`~hrr_garment.models.codes.WindowCodes`): motion encoder, code
+  entropy and classes, the code-space decoder's latents of the window's last frame;
+- 4 blending, 5 swing: the regression is one source and its swing runs as predicted (swing 1),
+  so the latents as they are;
+- 6 decoding: the mesh decoder; 7 folds: none (the regression);
+- 8 world: the garment's rest offset on the body, the body frame to the world
+  (:func:`~hrr_garment.motion.frame.from_body_frame`);
+- 9 push_out: against the body's capsules, and its strain limit (:mod:`.torch_push_out`).
 
 A character's first frame is told by ``started`` = 0: its last pose is taken to be this one (zero
 velocities), its memory starts at rest and its window is this frame repeated, as a stream starts.
@@ -32,7 +36,9 @@ from ..motion.memory import MEMORY_WIDTH, VECTORS, MotionMemory, motion_memory
 from ..motion.motion import FPS
 from ..motion.rotations import matrix_to_axis_angle, quat_to_matrix, rotation_about_y, yaw_of
 from ..motion.skeleton import FEATURE_JOINTS, NUM_JOINTS, REST_PELVIS_HEIGHT, forward_kinematics
-from .collision import PUSH_OUT, PushOutSettings
+from .collision import PUSH_OUT
+from .frame_path import FramePath
+from .modes import Mode
 from .torch_push_out import PushOutStage, constant, turn_y
 
 
@@ -158,27 +164,48 @@ class StreamStep(nn.Module):
         constant(self, "rest_pelvis", [0.0, REST_PELVIS_HEIGHT, 0.0])
         self.decoder, self.push_out = decoder, push_out
         self.latent_shape = tuple(bundle.codespace.latent_shape)
+        self.observe = None  # a stage's name and output -> None (tests), as FramePath.observe
+
+    def seen(self, stage: str, value: torch.Tensor) -> torch.Tensor:
+        """``value``, the output of ``stage`` (:data:`~.frame_path.STAGES`), shown to
+        :attr:`observe` where one is set (a test's; never in an exported graph)."""
+        if self.observe is not None:
+            self.observe(stage, value.detach().cpu().numpy())
+        return value
 
     def forward(self, rotations, root, started, previous_rotations, previous_positions, memory, window):
+        """One frame through the frame path's stages (:mod:`.frame_path`), in torch."""
         rot, pos = self.pose(rotations, root)
         first = started.reshape(-1, 1, 1) <= 0
         previous = (
             torch.where(first[..., None], rot, previous_rotations),
             torch.where(first, pos, previous_positions),
         )
+        # 1. features
         features, memory = self.features(previous, (rot, pos), memory, started)
+        self.seen("features", features)
+        # 2. windows
         past = torch.where(first, features[:, None].expand_as(window), window)
-        frames = torch.cat([past, features[:, None]], 1)  # (N, W, F)
+        frames = self.seen("windows", torch.cat([past, features[:, None]], 1))  # (N, W, F)
+        # 3. choice: the window step's regression
         entropy, codes, latents = self.codes((frames - self.motion_mean) / self.motion_std)
         n = latents.shape[0]
         latents = (latents.reshape(n, -1) * self.latent_std + self.latent_mean).reshape(n, *self.latent_shape)
-        local = self.decoder(latents) + self.garment_offset
+        self.seen("choice", latents)
+        # 4. blending and 5. swing: one source whose swing runs as predicted, so the latents as they are
+        self.seen("blending", latents)
+        self.seen("swing", latents)
+        # 6. decoding, and 7. folds: none in the regression
+        local = self.seen("folds", self.seen("decoding", self.decoder(latents)))
+        # 8. world: stood on the body, the body frame to the world
         yaw = yaw_of(rot[:, 0])
         heading = (torch.cos(yaw), torch.sin(yaw))
         origin = root * self.pose.root_scale - self.rest_pelvis
-        world = turn_y(local, *heading) + origin[:, None]
+        world = self.seen("world", turn_y(local + self.garment_offset, *heading) + origin[:, None])
+        # 9. push-out
         if self.push_out is not None:
             world = self.push_out(world, rot, pos, heading)
+        self.seen("push_out", world)
         return (world, entropy, codes, torch.ones_like(started), rot, pos, memory, frames[:, 1:])
 
 
@@ -208,39 +235,31 @@ class AutoencoderDecoder(nn.Module):
         return self.autoencoder.decode(latents)
 
 
-def stream_step(
-    animator,
-    character,
-    *,
-    push_out: bool = True,
-    decoder: str = "full",
-    movable: bool = False,
-    push_settings: PushOutSettings | None = None,
-) -> StreamStep:
-    """The :class:`StreamStep` of ``animator``'s model on ``character`` (a
-    :class:`~hrr_garment.inference.bodies.CharacterBody`, :meth:`Animator.body`'s), at the rate
-    every model streams at (:data:`~hrr_garment.motion.motion.FPS`). ``decoder``: "full" (the
-    mesh decoder's folded blocks; with ``movable``, the autoencoder's own, which moves to a GPU)
-    or "fast" (the bundle's subspace decoder); ``push_settings``: the push-out's
-    (:meth:`Animator.push_settings`; None: the product's)."""
-    bundle = animator.bundle
+def stream_step(path: FramePath, *, movable: bool = False) -> StreamStep:
+    """The :class:`StreamStep` of a frame path (:class:`~.frame_path.FramePath`: a model under a
+    resolved run: its body, ``push_out``, ``decoder`` and ``push``), at the rate every model streams
+    at (:data:`~hrr_garment.motion.motion.FPS`). The full decoder is the mesh decoder's folded
+    blocks, or with ``movable`` the autoencoder's own, which moves to a GPU; the fast one the
+    bundle's subspace decoder."""
+    bundle, run = path.bundle, path.run
+    if run.mode is not Mode.REGRESSION:
+        raise ValueError(f"the torch step runs the regression (mode='regression'), not {run.mode.value!r}")
     spec = bundle.codespace.config.memory
     memory = motion_memory(spec, FPS) if spec else None
     stage = None
-    if push_out:
-        body = character.body
+    if run.push_out:
+        body = run.body.body
         stage = PushOutStage(
             (*body.ends, body.radii),
-            animator.smoothing,
-            limits=animator.edge_limits,
-            settings=push_settings or PUSH_OUT,
+            path.smoothing,
+            limits=path.edge_limits,
+            settings=path.push_settings or PUSH_OUT,
         )
-    if decoder == "fast":
-        bundle.require_subspace()
-        module = bundle.subspace
+    if run.decoder == "fast":
+        module = path.decoder
     else:
-        module = AutoencoderDecoder(bundle.autoencoder) if movable else TorchDecoder(animator.decoder)
-    return StreamStep(bundle, module, character=character, memory=memory, fps=FPS, push_out=stage).eval()
+        module = AutoencoderDecoder(bundle.autoencoder) if movable else TorchDecoder(path.decoder)
+    return StreamStep(bundle, module, character=run.body, memory=memory, fps=FPS, push_out=stage).eval()
 
 
 def state_shapes(step: StreamStep) -> dict[str, tuple[int, ...]]:

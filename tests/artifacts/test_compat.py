@@ -84,11 +84,11 @@ def test_a_version_2_out_h5_reads_with_the_version_3_names():
 
 def test_writing_into_a_version_2_bundle_upgrades_its_manifest(tmp_path):
     folder = shutil.copytree(DATA / "bundle-31b4ef9", tmp_path / "model")
-    before = Animator.load(folder).animate(_walk(), mode="hybrid", collision=False).vertices
+    before = Animator.load(folder).animate(_walk(), mode="hybrid", push_out=False).vertices
     update_manifest(folder)
     on_disk = json.loads((folder / "bundle.json").read_text())
     assert on_disk["format_version"] == 5 and "gates" in on_disk and "detail_strength" in on_disk["auto"]
     assert on_disk["folds"]["encoding"] == "int8"  # the store as it was written
     assert "manifest_hash" in on_disk
-    after = Animator.load(folder).animate(_walk(), mode="hybrid", collision=False).vertices
+    after = Animator.load(folder).animate(_walk(), mode="hybrid", push_out=False).vertices
     assert np.array_equal(before, after)

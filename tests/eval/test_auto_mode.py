@@ -451,9 +451,9 @@ def test_the_folds_on_free_cloth_run_as_the_bundle_records_them(trained, tmp_pat
         )
         animator = Animator.load(copy)
         runs[None if ramp is None else ramp[0]] = animator.animate(
-            motion, mode="detail", detail=look, collision=False
+            motion, mode="detail", detail=look, push_out=False
         ).vertices
-    regression = animator.animate(motion, mode="regression", collision=False).vertices
+    regression = animator.animate(motion, mode="regression", push_out=False).vertices
     assert np.abs(runs[None] - regression).max() > 1e-4  # the folds change the shape ...
     assert np.allclose(runs[5000.0], regression, atol=1e-6)  # ... not on cloth that is nowhere free
     assert np.array_equal(runs[-6000.0], runs[None])
@@ -479,11 +479,11 @@ def test_auto_runs_the_calibrated_mode_everywhere(trained, tmp_path, chosen, bas
     animator = Animator.load(copy)
     assert animator.bundle.detail_base == base and animator.bundle.detail_strength == strength
     motion = synthesize("walk", 1.0, seed=5)
-    default = animator.animate(motion, collision=False)
-    named = animator.animate(motion, mode=chosen, collision=False)
+    default = animator.animate(motion, push_out=False)
+    named = animator.animate(motion, mode=chosen, push_out=False)
     assert default.settings["mode"] == chosen and np.array_equal(default.vertices, named.vertices)
-    causal = animator.animate(motion, mode=chosen, collision=False, causal=True)
-    stream = animator.stream(collision=False)
+    causal = animator.animate(motion, mode=chosen, push_out=False, causal=True)
+    stream = animator.stream(push_out=False)
     assert stream.mode == chosen
     streamed = np.stack([stream.push(motion.slice(t, t + 1)) for t in range(motion.num_frames)])
     assert np.allclose(streamed, causal.vertices, atol=1e-5)
@@ -501,6 +501,6 @@ def test_a_model_without_auto_runs_the_hybrid(trained, tmp_path):
     assert animator.resolve().mode == "hybrid"
     motion = synthesize("walk", 0.5, seed=6)
     assert np.array_equal(
-        animator.animate(motion, collision=False).vertices,
-        animator.animate(motion, mode="hybrid", collision=False).vertices,
+        animator.animate(motion, push_out=False).vertices,
+        animator.animate(motion, mode="hybrid", push_out=False).vertices,
     )

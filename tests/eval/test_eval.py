@@ -329,8 +329,8 @@ def test_direct_baseline_trains_is_causal_and_is_evaluated(trained, tmp_path):
     animator = Animator.load(model)
     assert animator.has_direct
     motion = synthesize("walk", 1.5, seed=11)
-    full = animator.animate(motion, mode="direct", collision=False)
-    head = animator.animate(motion.slice(0, 20), mode="direct", collision=False)
+    full = animator.animate(motion, mode="direct", push_out=False)
+    head = animator.animate(motion.slice(0, 20), mode="direct", push_out=False)
     assert full.vertices.shape == (motion.num_frames, 308, 3) and np.isfinite(full.vertices).all()
     assert np.abs(full.vertices[:19] - head.vertices[:19]).max() < 1e-5  # frame t never sees frames after t
     assert full.retrieved.sum() == 0 and (full.match == -1).all()

@@ -64,10 +64,11 @@ def test_the_graphs_push_out_limits_the_strain_as_the_library_does(exported):
     from hrr_garment.body.capsules import DEFAULT_BODY
     from hrr_garment.export.onnx_model import stream_step
     from hrr_garment.inference.collision import limit_push_strain, push_out
+    from hrr_garment.inference.frame_path import FramePath
     from hrr_garment.motion.frame import world_vertices
 
     animator, _, clip = exported
-    step = stream_step(animator, animator.body())
+    step = stream_step(FramePath(animator, animator.resolve(mode="regression", causal=True)))
     poses = clip.slice(10, 13)
     rest = np.broadcast_to(animator.bundle.template.vertices, (3, *animator.bundle.template.vertices.shape))
     garment = world_vertices(rest.astype(np.float32), poses)

@@ -22,6 +22,7 @@ from hrr_garment.inference.fold_track import (
     offline_proposals,
     track_folds,
 )
+from hrr_garment.inference.frame_path import FramePath
 from hrr_garment.inference.run_settings import DetailLook, RunSettings
 from hrr_garment.motion.frame import from_body_frame, to_body_frame
 from hrr_garment.motion.synth import synthesize
@@ -263,14 +264,14 @@ def test_the_detail_mode_is_its_base_plus_the_tracked_simulated_folds(trained, b
     store = animator.bundle.folds
     assert store is not None and len(store.lengths) == len(animator.bundle.database.names)
     motion = synthesize("walk", 1.0, seed=3)
-    regression = animator.animate(motion, mode="regression", collision=False).vertices
-    shape = animator.animate(motion, mode=base, collision=False).vertices
-    detail = animator.animate(motion, mode="detail", collision=False)
-    retrieval = animator.animate(motion, mode="retrieval", collision=False)
+    regression = animator.animate(motion, mode="regression", push_out=False).vertices
+    shape = animator.animate(motion, mode=base, push_out=False).vertices
+    detail = animator.animate(motion, mode="detail", push_out=False)
+    retrieval = animator.animate(motion, mode="retrieval", push_out=False)
     assert not detail.retrieved.any() and np.array_equal(detail.match, retrieval.match)
     # the same by hand: the track over the windows' matches, their folds on the base in the body frame
     windows = np.ascontiguousarray(sequence_windows(animator.features(motion), animator.window))
-    source = animator._choose(windows, animator.resolve(mode="detail")).match
+    source = FramePath(animator, animator.resolve(mode="detail")).choose(windows).match
     rows, weights = track_folds(offline_proposals(source, motion.num_frames, animator.window), store.offsets)
     local = to_body_frame(shape.astype(np.float64), motion)
     follow = partial(follow_over_time, mean=animator.smoothing)
@@ -396,17 +397,17 @@ def test_hrr_animate_runs_the_detail_mode_as_it_is_told(trained, tmp_path, capsy
     assert written.attrs["detail_strength"] == 1.3 and written.attrs["detail_base"] == "residual"
     animator = Animator.load(model)
     look = DetailLook(base="residual", strength=1.3)
-    expected = animator.animate(motion, detail=look, collision=False)
+    expected = animator.animate(motion, detail=look, push_out=False)
     assert expected.settings["mode"] == "detail" and np.array_equal(written.vertices, expected.vertices)
-    calibrated = animator.animate(motion, mode="detail", collision=False)
+    calibrated = animator.animate(motion, mode="detail", push_out=False)
     assert calibrated.settings["detail_strength"] == animator.bundle.detail_strength != 1.3
     assert not np.allclose(calibrated.vertices, expected.vertices, atol=1e-4)
     # a stream keeps the look it was made with, frame by frame as offline causal
-    stream = animator.stream(mode="detail", detail=look, collision=False)
+    stream = animator.stream(mode="detail", detail=look, push_out=False)
     streamed = np.stack([stream.push(motion.slice(t, t + 1)) for t in range(motion.num_frames)])
-    causal = animator.animate(motion, RunSettings(mode="detail", detail=look, collision=False, causal=True))
+    causal = animator.animate(motion, RunSettings(mode="detail", detail=look, push_out=False, causal=True))
     assert np.allclose(streamed, causal.vertices, atol=1e-5)
-    from_array = animator.animate(motion, detail=DetailLook("residual", np.float32(1.3)), collision=False)
+    from_array = animator.animate(motion, detail=DetailLook("residual", np.float32(1.3)), push_out=False)
     assert from_array.settings["detail_strength"] == pytest.approx(1.3) and isinstance(
         from_array.settings["detail_strength"], float
     )
@@ -419,7 +420,7 @@ def test_hrr_animate_runs_the_detail_mode_as_it_is_told(trained, tmp_path, capsy
         lambda: {"tau": -1.0},
     ):
         with pytest.raises(ValueError):
-            animator.animate(motion, collision=False, **asked())
+            animator.animate(motion, push_out=False, **asked())
     with pytest.raises(TypeError, match=r"detail_strength \(now detail=DetailLook\(strength=...\)\)"):
         animator.animate(motion, detail_strength=1.0)
 

@@ -56,17 +56,17 @@ def test_training_calibrates_every_gate_into_the_bundle(animator):
 @pytest.mark.parametrize("gate", ["similarity", "distance"])
 def test_a_match_gate_spans_regression_to_retrieval(animator, gate):
     motion = synthesize("walk", 1.0, seed=3)
-    never = animator.animate(motion, gate=gate, tau=0.0, collision=False)
-    regression = animator.animate(motion, mode="regression", collision=False)
+    never = animator.animate(motion, gate=gate, tau=0.0, push_out=False)
+    regression = animator.animate(motion, mode="regression", push_out=False)
     assert not never.retrieved.any() and np.array_equal(never.vertices, regression.vertices)
-    always = animator.animate(motion, gate=gate, tau=1e9, collision=False)
-    retrieval = animator.animate(motion, mode="retrieval", collision=False)
+    always = animator.animate(motion, gate=gate, tau=1e9, push_out=False)
+    retrieval = animator.animate(motion, mode="retrieval", push_out=False)
     assert always.retrieved.all() and np.allclose(always.vertices, retrieval.vertices, atol=1e-6)
     # a threshold between two distinct signal values near the median: the gate compares in float64,
     # Animation.doubt is float32, and a threshold on a value itself would be a rounding tie
     values = np.unique(always.doubt.astype(np.float64))
     tau = float(values[len(values) // 2 - 1] + values[len(values) // 2]) / 2
-    middle = animator.animate(motion, gate=gate, tau=tau, collision=False)
+    middle = animator.animate(motion, gate=gate, tau=tau, push_out=False)
     assert 0 < middle.retrieved.sum() < len(middle.retrieved)
     assert np.array_equal(middle.retrieved.astype(bool), middle.doubt < middle.settings["tau"])
     if gate == "similarity":

@@ -30,7 +30,7 @@ def test_a_change_of_decoder_fades_in_without_a_pop(animator):
     and after the fade the character is exactly the fast decoder's."""
     frames, switch = 30, 10
     rotations, roots = _clip(frames)
-    full, fast, both = (animator.crowd(mode="regression", collision=False) for _ in range(3))
+    full, fast, both = (animator.crowd(mode="regression", push_out=False) for _ in range(3))
     out = {"full": [], "fast": [], "both": []}
     for t in range(frames):
         r, p = rotations[t : t + 1], roots[t : t + 1]
@@ -50,12 +50,12 @@ def test_a_change_of_decoder_fades_in_without_a_pop(animator):
 
 
 def test_a_far_character_runs_the_window_step_every_kth_frame(animator, monkeypatch):
-    import hrr_garment.inference.stream as stream_module
+    import hrr_garment.inference.frame_path as frame_path  # the choice stage, every driver's
 
     calls = []
-    real = stream_module.choose_windows
+    real = frame_path.choose_windows
     monkeypatch.setattr(
-        stream_module,
+        frame_path,
         "choose_windows",
         lambda bundle, windows, *a, **k: calls.append(len(windows)) or real(bundle, windows, *a, **k),
     )

@@ -46,8 +46,8 @@ def test_residual_at_weight_zero_is_the_regression_and_otherwise_adds_the_matche
     bundle = animator.bundle
     motion = synthesize("walk", 1.0, seed=3)
     with_manifest(monkeypatch, bundle, residual=ResidualEntry(weight=0.0))
-    regression = animator.animate(motion, mode="regression", collision=False)
-    zero = animator.animate(motion, mode="residual", collision=False)
+    regression = animator.animate(motion, mode="regression", push_out=False)
+    zero = animator.animate(motion, mode="residual", push_out=False)
     assert np.allclose(zero.vertices, regression.vertices, atol=1e-6)
     assert not zero.retrieved.any() and (zero.match >= 0).all()  # regression plus a match, not a retrieval
     # at weight 1, each window's latents move by its match's residual times the similarity

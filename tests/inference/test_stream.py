@@ -194,7 +194,7 @@ def test_a_bfloat16_crowd_stays_near_the_float32_one(animator):
     clips = [
         synthesize(kind, 1.0, seed=i) for i, kind in enumerate(["walk_curve", "spin", "dance", "idle"] * 2)
     ]
-    crowds = [a.crowd(collision=False) for a in (animator, half)]
+    crowds = [a.crowd(push_out=False) for a in (animator, half)]
     error = []
     for t in range(clips[0].num_frames):
         poses = {i: c.slice(t, t + 1) for i, c in enumerate(clips)}

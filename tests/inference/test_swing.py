@@ -108,7 +108,7 @@ def test_the_device_crowd_refuses_a_swing_gain(animator):
     from hrr_garment.inference.torch_crowd import DeviceCrowd
 
     with pytest.raises(ValueError, match="swing"):
-        DeviceCrowd(animator, animator.resolve(mode="regression", swing=1.2), device="cpu")
+        DeviceCrowd(animator, animator.resolve(mode="regression", swing=1.2, device="cpu"))
 
 
 def test_hrr_animate_takes_a_swing_gain_and_refuses_a_bad_one(trained, tmp_path, capsys):
@@ -142,7 +142,7 @@ def test_hrr_animate_takes_a_swing_gain_and_refuses_a_bad_one(trained, tmp_path,
     assert "mode regression, swing x1.4" in capsys.readouterr().out
     written = read_animation_h5(out)
     assert written.attrs["swing"] == 1.4
-    expected = Animator.load(root / "model").animate(motion, mode="regression", swing=1.4, collision=False)
+    expected = Animator.load(root / "model").animate(motion, mode="regression", swing=1.4, push_out=False)
     np.testing.assert_array_equal(written.vertices, expected.vertices)
     refused = tmp_path / "refused.h5"
     assert animate_main([str(clip), "-o", str(refused), "--model", str(root / "model"), "--swing", "0"]) == 2

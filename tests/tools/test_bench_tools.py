@@ -127,7 +127,7 @@ def test_bodies_inside_counts_the_cloth_inside_each_body_before_the_push_out(tra
     assert [r["body"].split(" (")[0] for r in rows] == ["scaled 0", "scaled 1", "scaled 2", "own"]
     motion = check_motion()  # the walk the tool runs when given no clip
     distance = body_signed_distance(
-        animator.animate(motion, collision=False).vertices, motion, animator.body().body
+        animator.animate(motion, push_out=False).vertices, motion, animator.body().body
     )
     assert rows[3]["inside_pct"] == pytest.approx(100 * penetration_fraction(distance).mean(), abs=1e-9)
     assert rows[3]["inside_any_pct"] == pytest.approx(100 * (distance < 0).mean(), abs=1e-9)

@@ -52,8 +52,8 @@ def test_runs_take_the_fast_decoder_and_record_it(trained, tmp_path):
     root, _, _ = trained
     animator = Animator.load(root / "model")
     motion = synthesize("walk_curve", 1.0, seed=3)
-    fast = animator.animate(motion, mode="regression", collision=False, decoder="fast")
-    full = animator.animate(motion, mode="regression", collision=False)
+    fast = animator.animate(motion, mode="regression", push_out=False, decoder="fast")
+    full = animator.animate(motion, mode="regression", push_out=False)
     assert fast.settings["decoder"] == "fast" and full.settings["decoder"] == "full"
     assert 0 < np.abs(fast.vertices - full.vertices).max() < 0.2
     stream = animator.stream(
@@ -90,8 +90,6 @@ def test_a_bundle_without_a_fast_decoder_refuses_it_by_name(trained, tmp_path):
         animator.animate(synthesize("walk", 0.5, seed=1), decoder="fast")
     with pytest.raises(BundleError, match="the subspace push runs on"):
         animator.animate(synthesize("walk", 0.5, seed=1), push="subspace")
-    # the torch step (ONNX export, a GPU crowd) is public too and says the same
-    from hrr_garment.inference.torch_step import stream_step
-
+    # the torch step (ONNX export, a GPU crowd) takes the same settings and says the same
     with pytest.raises(BundleError, match="hrr-train --stage subspace"):
-        stream_step(animator, animator.body(), decoder="fast")
+        animator.crowd(mode="regression", decoder="fast", device="cpu")

@@ -73,7 +73,7 @@ def main() -> None:
         errors, inside, frames = 0.0, 0.0, 0
         for r in records:
             vertices = animator.animate(
-                r.motion, mode="regression", body=r.dressed, allow_outside=True, collision=False
+                r.motion, mode="regression", body=r.dressed, allow_outside=True, push_out=False
             ).vertices
             errors += float(np.linalg.norm(vertices - r.garment, axis=-1).mean()) * 1000 * len(vertices)
             inside += float(

@@ -35,6 +35,7 @@ from hrr_garment.inference.fold_track import (
     offline_proposals,
     track_folds,
 )
+from hrr_garment.inference.frame_path import FramePath
 from hrr_garment.inference.run_settings import DetailLook
 from hrr_garment.motion.frame import from_body_frame, to_body_frame
 from hrr_garment.motion.windows import causal_windows, sequence_windows
@@ -70,12 +71,14 @@ def _running_mean(local: np.ndarray, fps: float, seconds: float = RUNNING_MEAN_S
 
 def _proposals(animator: Animator, motion, causal: bool) -> np.ndarray:
     w = animator.window
-    run = animator.resolve(mode="detail", detail=DetailLook(base="regression"))
+    path = FramePath(
+        animator, animator.resolve(mode="detail", detail=DetailLook(base="regression"), causal=causal)
+    )
     if causal:
         windows = causal_windows(animator.features(motion, causal=True), w)
-        return causal_proposals(animator._choose(windows, run, last_frame=True).match, w)
+        return causal_proposals(path.choose(windows, last_frame=True).match, w)
     windows = np.ascontiguousarray(sequence_windows(animator.features(motion), w))
-    return offline_proposals(animator._choose(windows, run).match, motion.num_frames, w)
+    return offline_proposals(path.choose(windows).match, motion.num_frames, w)
 
 
 def analyse(model: str, split: str, sequences: int | None) -> dict:
@@ -117,13 +120,13 @@ def analyse(model: str, split: str, sequences: int | None) -> dict:
         for causal in (False, True):
             kind = "causal" if causal else "offline"
             regression = animator.animate(
-                motion, mode="regression", collision=False, causal=causal
+                motion, mode="regression", push_out=False, causal=causal
             ).vertices.astype(np.float64)
             local = to_body_frame(regression, motion)
             proposals = _proposals(animator, motion, causal)
             outputs[f"regression ({kind})"] = regression
             outputs[f"auto, the default output ({kind})"] = animator.animate(
-                motion, collision=False, causal=causal
+                motion, push_out=False, causal=causal
             ).vertices
             for label, strength, hold, fade, follow in TRACKS if not causal else TRACKS[:1]:
                 rows, weights = track_folds(

@@ -111,7 +111,7 @@ def analyse(
     unpushed_pve = []
     for name in names:
         record = ds.sequence(name)
-        anim = animator.animate(record.motion, collision=False)
+        anim = animator.animate(record.motion, push_out=False)
         plain["unpushed"].append(edge_strain(anim.vertices, rest, edges))
         plain["simulation"].append(edge_strain(record.garment, rest, edges))
         unpushed_pve.append(np.linalg.norm(anim.vertices - record.garment, axis=-1).mean(1))

@@ -68,7 +68,7 @@ def analyse(model: str, dataset: str, ranges: list[tuple[float, float]], sequenc
                     r.garment
                     if label == "simulation"
                     else animator.animate(
-                        r.motion, collision=False, body=r.dressed, allow_outside=True, **settings
+                        r.motion, push_out=False, body=r.dressed, allow_outside=True, **settings
                     ).vertices
                 )
                 v, truth = v.astype(np.float64), r.garment.astype(np.float64)

@@ -68,7 +68,7 @@ def ceilings(animator: Animator, records: list, hem: np.ndarray) -> dict:
                 for k, v in outs.items()
             }
             preds["regression"] = animator.animate(
-                r.motion, mode="regression", collision=False, body=r.dressed, allow_outside=True
+                r.motion, mode="regression", push_out=False, body=r.dressed, allow_outside=True
             ).vertices
             for k, p in preds.items():
                 p = np.asarray(p, np.float64)

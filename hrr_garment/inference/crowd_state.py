@@ -1,0 +1,53 @@
+"""A crowd's state between pushes (:class:`~.stream.CrowdStream`): each character's, the push's
+keys checked, and where a push's time goes."""
+
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import InputError
+from .fold_track import FoldTrack, FollowedFolds
+from .lod import LodState
+
+# a push's time by groups of the frame path's stages (frame_path.STAGES): features (1-2), encoder
+# (3-5: the window step, blending, swing), decoder (6-7), world (8), push_out (9)
+STREAM_STAGES = ("features", "encoder", "decoder", "world", "push_out")
+
+
+@dataclass
+class CrowdCharacter:
+    """One character's streaming state."""
+
+    features: deque  # its window's W frames' raw features (crowd_windows.CrowdWindows)
+    gates: deque  # those frames' GRU input gates, where the window step is native (gate.frame_gates)
+    inertia: int  # its row in the crowd's Inertializer
+    fold_track: FoldTrack | None = None  # the detail mode's playhead in the database's folds
+    followed: FollowedFolds | None = None  # its folds as followed in time (fold_track.follow_folds)
+    previous: tuple[np.ndarray, np.ndarray] | None = (
+        None  # its last pose: global rotations and joint positions
+    )
+    memory: np.ndarray | None = None  # its motion memory's state (rows, 64), when the model has one
+    root: np.ndarray | None = None  # its last pushed pelvis position (teleports restart it)
+    frames: int = 0
+    lod: LodState = field(default_factory=LodState)  # its level of detail's held step and decoder fade
+    swing_mean: np.ndarray | None = None  # (nodes, C) its latents' recent course (inference/swing.py)
+
+
+def check_keys(keys: list, count: int) -> None:
+    """An InputError unless ``keys`` are ``count`` distinct ids, one per pushed pose."""
+    if len(keys) != count or len(set(keys)) != len(keys):
+        raise InputError(
+            "push",
+            f"{count} poses need as many distinct keys, got {len(keys)} keys ({len(set(keys))} distinct)",
+        )
+
+
+@dataclass
+class CrowdTimings:
+    """Per push: its latency and each stage's seconds (the last 1,000 pushes)."""
+
+    latency_s: deque = field(default_factory=lambda: deque(maxlen=1000))
+    stage_s: dict = field(default_factory=lambda: {k: deque(maxlen=1000) for k in STREAM_STAGES})

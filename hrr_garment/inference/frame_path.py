@@ -1,0 +1,160 @@
+"""The frame path: the nine stages that take a body's motion to the garment's world vertices, in
+one numbered list (:data:`STAGES`) that every driver runs in order:
+
+1. ``features``: each frame's motion features (:mod:`hrr_garment.motion.features`), its motion
+   memory (:mod:`hrr_garment.motion.memory`) and, for a model across bodies, the body's measures;
+2. ``windows``: the last W frames' features (offline: every W-frame window of the clip);
+3. ``choice``: the window step (motion encoder, gate, code-space decoder) and what the mode picks
+   (:func:`~.gate.choose_windows`): each window's latents and its database match;
+4. ``blending``: per-frame latents from the windows' (offline: :func:`~.blending.blend_windows`;
+   causal: the inertializer, :class:`~.blending.Inertializer`);
+5. ``swing``: the free cloth's swing restored (:mod:`.swing`; as predicted at gain 1);
+6. ``decoding``: the mesh decoder, latents to body-frame vertices (:mod:`.decoding`);
+7. ``folds``: the detail mode's simulated folds (:mod:`.detail`, :mod:`.fold_track`);
+8. ``world``: the garment stood on the body (its rest offset) and taken to the world
+   (:func:`~hrr_garment.motion.frame.world_vertices`);
+9. ``push_out``: the collision push-out and its strain limit (:mod:`.collision`).
+
+The drivers: :mod:`.clip_path` (a whole clip, offline or causal: :meth:`Animator.animate`),
+:class:`~.stream.CrowdStream` (a frame of many characters; one character:
+:mod:`.character_stream`) and :class:`~.torch_step.StreamStep` (the regression as one torch graph:
+the ONNX export and :class:`~.torch_crowd.DeviceCrowd`, the same stages' arithmetic in torch). A
+:class:`FramePath` is one model under one resolved run (:class:`~.resolved_run.ResolvedRun`): it
+holds what the stages share (the decoder the run asks for, the push-out's settings, the mesh's
+smoothing and edge limits) and runs the stages whose arithmetic every driver shares (3, 6 to 9);
+stages 1, 2, 4 and 5 keep a driver's state (a clip's frames at once, a crowd's characters one frame
+on) and are the drivers' own, under the same names. Every stage's output goes to ``observe`` where
+one is given (tests/inference/test_frame_path.py compares the drivers stage by stage): a check per
+stage and frame for the whole crowd, nothing per character.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+
+from ..body.measures import with_body
+from ..motion.frame import world_vertices
+from ..motion.motion import Motion
+from .collision import PushOutReport, push_out
+from .detail import add_folds
+from .gate import WindowChoice, choose_windows
+from .resolved_run import ResolvedRun
+from .swing import SwingGain
+
+#: the stages of a frame, in order (the module docstring says what each does)
+STAGES = ("features", "windows", "choice", "blending", "swing", "decoding", "folds", "world", "push_out")
+
+Observer = Callable[[str, np.ndarray], None]  # a stage's name and its output
+
+
+def with_measures(bundle, features: np.ndarray, measures: np.ndarray) -> np.ndarray:
+    """Stage 1's last part: (n, F) features with the body's ``measures`` ((b,) for all, or (n, b))
+    appended, for a model trained across bodies; as they are otherwise."""
+    return with_body(features, measures) if bundle.codespace.config.body_features else features
+
+
+class FramePath:
+    """One model (an :class:`~.animator.Animator`'s) under one resolved ``run``: the stages every
+    driver shares; see the module docstring. ``observe``: called with each stage's name and output."""
+
+    def __init__(self, animator, run: ResolvedRun, observe: Observer | None = None):
+        self.animator, self.bundle, self.run = animator, animator.bundle, run
+        self.window, self.blend = animator.window, animator.blend
+        self.smoothing, self.edge_limits = animator.smoothing, animator.edge_limits
+        self.decoder = animator.decoder_for(run)  # stage 6's
+        self.push_settings = animator.push_settings(run)  # stage 9's (None: the product's)
+        # stage 3's causal window step (native where it can be, else None: PyTorch's)
+        self.step = animator.causal_step(run.mode.regresses) if run.causal else None
+        self.observe = observe
+        self._swing: dict[float, SwingGain | None] = {}
+
+    def seen(self, stage: str, value):
+        """``value``, the output of ``stage``, shown to the observer (where there is one)."""
+        if self.observe is not None:
+            self.observe(stage, value)
+        return value
+
+    # 3. choice
+    def choose(
+        self,
+        windows: np.ndarray,
+        *,
+        last_frame: bool = False,
+        gates: np.ndarray | None = None,
+        step=None,
+    ) -> WindowChoice:
+        """Feature windows (N, W, F) -> the mode's :class:`~.gate.WindowChoice` (with ``last_frame``,
+        the latents of each window's last frame only: what causal paths use; ``gates``: the windows'
+        frames' GRU input gates, :func:`~.gate.frame_gates`; ``step``: a window step other than the
+        run's, a crowd's traced one). The run's ``exclude_sequence`` is retrieved from by no window."""
+        excluded = self.run.exclude_sequence
+        choice = choose_windows(
+            self.bundle,
+            windows,
+            self.run,
+            exclude=None if excluded is None else np.full(len(windows), excluded),
+            last_frame=last_frame,
+            step=(self.step if step is None else step) if last_frame else None,
+            gates=gates,
+        )
+        self.seen("choice", choice.latents[:, -1])
+        return choice
+
+    # 5. swing
+    def swing_gain(self, fps: float) -> SwingGain | None:
+        """The swing's gain at ``fps`` (made once per rate), None where the run leaves the swing as predicted."""
+        if fps not in self._swing:
+            swing = self.run.swing
+            self._swing[fps] = None if swing == 1.0 else SwingGain.of(swing, self.bundle.node_hang_m, fps)
+        return self._swing[fps]
+
+    # 7. folds
+    def add_folds(self, local: np.ndarray, folds: np.ndarray, follow) -> np.ndarray:
+        """Body-frame vertices (n, V, 3) with the detail mode's ``folds`` (n, V, 3) added at the run's
+        strength, ``follow``: the fold term's smoothing in time (:func:`~.detail.add_folds`)."""
+        store = self.bundle.folds
+        return add_folds(
+            local,
+            folds,
+            self.smoothing,
+            passes=store.passes,
+            strength=self.run.detail.strength,
+            limits=self.edge_limits,
+            follow=follow,
+            weights=self.bundle.fold_weights,
+        )
+
+    def follow_over_time(self, folds: np.ndarray) -> np.ndarray:
+        """A clip's fold term followed in time (:func:`~.fold_track.follow_over_time`)."""
+        from .fold_track import follow_over_time
+
+        return follow_over_time(folds, mean=self.smoothing)
+
+    # 8. world
+    def world(self, stood: np.ndarray, motion: Motion) -> np.ndarray:
+        """Body-frame vertices stood on the body (its rest offset added) -> world vertices."""
+        return self.seen("world", world_vertices(stood, motion))
+
+    # 9. push-out
+    def push_out(
+        self, vertices: np.ndarray, motion: Motion, capsules, report: bool = True
+    ) -> tuple[np.ndarray, PushOutReport | None]:
+        """World vertices (n, V, 3) pushed out of the body's ``capsules`` (a BodyModel posed by
+        ``motion``, or :class:`~.collision.PosedCapsules`) where the run asks for it; the report
+        where ``report`` and the push-out ran."""
+        out = None
+        if self.run.push_out:
+            vertices, out = push_out(
+                vertices,
+                motion,
+                self.bundle.template.faces,
+                body=capsules,
+                mean=self.smoothing,
+                limits=self.edge_limits,
+                settings=self.push_settings,
+                report=report,
+            )
+        self.seen("push_out", vertices)
+        return vertices, out

@@ -1,0 +1,65 @@
+"""A run's settings resolved against one model (:class:`ResolvedRun`): what every stage below the
+API reads (:mod:`.run_settings` makes it, :meth:`~.run_settings.RunSettings.resolve`)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
+from .modes import Mode
+
+if TYPE_CHECKING:
+    from .bodies import CharacterBody
+    from .run_settings import DetailLook
+
+#: old names of :meth:`ResolvedRun.record`'s keys in files written before (out.h5, report.json)
+OLD_RECORD_NAMES = {"push_out": "collision"}
+
+
+@dataclass(frozen=True)
+class ResolvedRun:
+    """Run settings resolved against one model: every value concrete (see :meth:`RunSettings.resolve`)."""
+
+    mode: Mode  # never auto
+    gate: str
+    tau: float
+    detail: DetailLook | None  # concrete base and strength in the detail mode, else None
+    push_out: bool
+    causal: bool
+    decoder: str  # "full" or "fast"
+    swing: float  # the gain on the free cloth's swing (inference/swing.py), 1: as predicted
+    push: str  # "mesh" or "subspace" (the push in the garment's subspace first)
+    body: CharacterBody = field(hash=False)  # the body animated on, ready for the model
+    exclude_sequence: int | None  # the database sequence retrieval may not use, or None
+    precision: str  # the full mesh decoder's arithmetic ("float32" or "bfloat16")
+    device: str | None  # where a crowd runs, as asked (None: the crowd's choice, Animator.crowd)
+
+    @property
+    def fold_base(self) -> str:
+        """What the detail mode's folds ride on ("regression" outside the detail mode)."""
+        return self.detail.base if self.detail is not None else "regression"
+
+    def record(self) -> dict:
+        """What out.h5's attributes and report.json's settings record of the run's look (files
+        before push_out had its old name, :data:`OLD_RECORD_NAMES`: :func:`recorded` reads both)."""
+        out = {
+            "mode": str(self.mode),
+            "gate": self.gate,
+            "tau": self.tau,
+            "causal": int(self.causal),
+            "push_out": int(self.push_out),
+            "decoder": self.decoder,
+            "swing": self.swing,
+            "push": self.push,
+        }
+        if self.detail is not None:
+            out.update(detail_base=self.detail.base, detail_strength=self.detail.strength)
+        return out
+
+
+def recorded(settings: dict, name: str):
+    """Setting ``name`` of a run's record (:meth:`ResolvedRun.record`), written under its name or,
+    by an older version, its old one; a KeyError naming it where neither is."""
+    if name in settings:
+        return settings[name]
+    return settings[OLD_RECORD_NAMES.get(name, name)]
