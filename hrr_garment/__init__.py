@@ -31,7 +31,7 @@ from .motion.skeleton import CANONICAL, JOINT_NAMES
 from .motion.synth import KINDS as MOTION_KINDS
 from .motion.synth import synthesize
 from .motion.windows import windows
-from .sim.simulator import SimConfig, SimResult, SimulationExploded, simulate_garment
+from .sim.simulator import SimResult, SimSettings, SimulationExploded, simulate_garment
 
 _LAZY = {
     "Animation": "inference.animation",
@@ -44,20 +44,30 @@ _LAZY = {
 }
 
 
+# the package's public names before the settings classes took one naming style (docs/architecture.md's
+# glossary): still found, with a DeprecationWarning
+RENAMED = {"SimConfig": "SimSettings"}
+
+
 def __getattr__(name: str):
     """The inference API loads torch, FAISS and safetensors: imported on first use, so the motion
-    and simulation tools start without them."""
+    and simulation tools start without them. An old public name (:data:`RENAMED`) gives its new one."""
     if name in _LAZY:
         import importlib
 
         return getattr(importlib.import_module(f".{_LAZY[name]}", __name__), name)
+    if name in RENAMED:
+        import warnings
+
+        warnings.warn(f"hrr_garment.{name} is now {RENAMED[name]}", DeprecationWarning, stacklevel=2)
+        return globals()[RENAMED[name]]
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 __all__ = [
     "__version__", "CANONICAL", "FEATURE_DIM", "FeatureStats", "HRRError", "InputError", "JOINT_NAMES", "MOTION_KINDS", "Motion",
     "MotionError", "SkeletonMappingError", "load_motion", "motion_features", "save_amass", "save_motion", "synthesize", "windows",
-    "GARMENT_NAMES", "GarmentDataset", "GarmentError", "GarmentMesh", "SequenceRecord", "SimConfig", "SimResult",
+    "GARMENT_NAMES", "GarmentDataset", "GarmentError", "GarmentMesh", "SequenceRecord", "SimSettings", "SimResult",
     "SimulationExploded", "make_garment", "simulate_garment",
     "Animation", "AnimationStream", "Animator", "CrowdStream", "Bundle", "BundleError", "load_bundle",
 ]  # fmt: skip

@@ -1,7 +1,7 @@
 """Benchmark: batched decoding speed of the mesh autoencoder's fast path (the native C kernel).
 
 For each template resolution (the dress at about 4,000 and 12,000 vertices by default; random
-weights: speed does not depend on them) it decodes batches of latents with ``fast_decoder()`` and
+weights: speed does not depend on them) it decodes batches of latents with ``inference_decoder()`` and
 reports decoded frames per second, the model's FLOPs per frame (counted from the layer shapes:
 2 x multiply-adds of every kernel product, residual average and 1x1 map), the achieved GFLOP/s,
 and the same machine's float32 matrix-multiply rate (a 2048^3 torch.mm) as the peak to compare with.
@@ -20,7 +20,7 @@ import time
 import torch
 
 from hrr_garment.garment.templates import make_garment
-from hrr_garment.models.fcmae import AutoencoderConfig, MeshAutoencoder
+from hrr_garment.models.fcmae import AutoencoderSettings, MeshAutoencoder
 from hrr_garment.models.hierarchy import build_hierarchy
 
 
@@ -61,9 +61,9 @@ def _rate(decode, z: torch.Tensor, seconds: float) -> float:
 def bench(vertices: int, batch: int, seconds: float, compiled: bool, torch_path: bool) -> dict:
     garment = make_garment("dress", vertices)
     model = MeshAutoencoder(
-        build_hierarchy(garment.faces, garment.num_vertices), AutoencoderConfig(), garment.vertices
+        build_hierarchy(garment.faces, garment.num_vertices), AutoencoderSettings(), garment.vertices
     ).eval()
-    fast = model.fast_decoder()
+    fast = model.inference_decoder()
     z = torch.randn(batch, *model.latent_shape)
     with torch.no_grad():
         max_diff = float(
@@ -71,7 +71,7 @@ def bench(vertices: int, batch: int, seconds: float, compiled: bool, torch_path:
         )  # the fast path must equal the training path
     fps = _rate(fast, z, seconds)
     extra = (
-        {"torch_frames_per_s": round(_rate(model.fast_decoder(native=False), z, seconds), 1)}
+        {"torch_frames_per_s": round(_rate(model.inference_decoder(native=False), z, seconds), 1)}
         if torch_path
         else {}
     )

@@ -29,10 +29,10 @@ from hrr_garment.body.capsules import DEFAULT_BODY
 from hrr_garment.garment.templates import make_garment
 from hrr_garment.motion.synth import synthesize
 from hrr_garment.sim.batch import BatchItem, simulate_batch
-from hrr_garment.sim.simulator import SimConfig, SimResult, simulate_garment
+from hrr_garment.sim.simulator import SimResult, SimSettings, simulate_garment
 
 
-def run_point(items: list[BatchItem], config: SimConfig, alone: np.ndarray) -> dict:
+def run_point(items: list[BatchItem], config: SimSettings, alone: np.ndarray) -> dict:
     """One batch size's numbers; ``alone``: the first item's frames simulated alone."""
     t0 = time.perf_counter()
     results = simulate_batch(items, config)
@@ -69,7 +69,7 @@ def main() -> None:
     )
     args = parser.parse_args()
     substeps, iterations = (int(x) for x in args.schedule.lower().split("x"))
-    config = SimConfig(device=args.device, substeps=substeps, iterations=iterations, retries=0)
+    config = SimSettings(device=args.device, substeps=substeps, iterations=iterations, retries=0)
     garment = make_garment(args.garment, args.vertices)
     sizes = [1]
     while sizes[-1] * 2 <= args.max_batch:

@@ -55,8 +55,8 @@ from hrr_garment.artifacts.typed_manifest import Manifest
 from hrr_garment.data.windows import WindowFrames
 from hrr_garment.garment.templates import make_garment
 from hrr_garment.inference.animator import Animator
-from hrr_garment.models.codespace import CodeSpace, CodeSpaceConfig
-from hrr_garment.models.fcmae import AutoencoderConfig, MeshAutoencoder
+from hrr_garment.models.codespace import CodeSpace, CodeSpaceSettings
+from hrr_garment.models.fcmae import AutoencoderSettings, MeshAutoencoder
 from hrr_garment.models.hierarchy import build_hierarchy
 from hrr_garment.models.subspace import SubspaceDecoder
 from hrr_garment.motion.features import FeatureStats
@@ -70,9 +70,9 @@ def random_bundle(vertices: int, windows: int, seed: int = 0, components: int = 
     rng = np.random.default_rng(seed)
     garment = make_garment("dress", vertices)
     ae = MeshAutoencoder(
-        build_hierarchy(garment.faces, garment.num_vertices), AutoencoderConfig(), garment.vertices, 0.02
+        build_hierarchy(garment.faces, garment.num_vertices), AutoencoderSettings(), garment.vertices, 0.02
     ).eval()
-    cfg = CodeSpaceConfig()
+    cfg = CodeSpaceSettings()
     cs = CodeSpace(cfg, cfg.features, ae.latent_shape).eval()
     size = ae.latent_shape[0] * ae.latent_shape[1]
     sequence, start = np.arange(windows) // 111, np.arange(windows) % 111

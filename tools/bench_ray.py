@@ -20,10 +20,10 @@ import tempfile
 from pathlib import Path
 
 from hrr_garment.garment.templates import make_garment
-from hrr_garment.sim.build import BuildOptions, build_dataset, warm_up
+from hrr_garment.sim.build import BuildSettings, build_dataset, warm_up
 from hrr_garment.sim.plan import plan_sequences
 from hrr_garment.sim.preset import load_preset
-from hrr_garment.sim.simulator import SimConfig
+from hrr_garment.sim.simulator import SimSettings
 
 KINDS = ("walk", "run", "spin", "dance", "side_step", "jump", "hop", "walk_curve")
 
@@ -38,7 +38,7 @@ def main() -> None:
     parser.add_argument("--workers", type=int, nargs="+", default=[1, 2])
     args = parser.parse_args()
     garment = make_garment("dress", args.vertices)
-    config = SimConfig.from_dict(load_preset("quick").sim)
+    config = SimSettings.from_dict(load_preset("quick").sim)
     specs = plan_sequences(
         load_preset("quick"), [KINDS[i % len(KINDS)] for i in range(args.clips)], args.seconds
     )
@@ -53,7 +53,7 @@ def main() -> None:
                 specs,
                 config,
                 out=out,
-                options=BuildOptions(jobs=jobs, preview=None, progress=False, executor=executor),
+                options=BuildSettings(jobs=jobs, preview=None, progress=False, executor=executor),
             )
             s = report.summary
             frames = sum(st.get("simulated_frames", 0) for st in report.stats.values())

@@ -21,12 +21,12 @@ import platform
 from hrr_garment.garment.templates import make_garment
 from hrr_garment.motion.synth import synthesize
 from hrr_garment.sim.quality import sequence_stats
-from hrr_garment.sim.simulator import SimConfig, SimulationExploded, simulate_garment
+from hrr_garment.sim.simulator import SimSettings, SimulationExploded, simulate_garment
 
 
 def run_point(vertices: int, substeps: int, iterations: int, seconds: float, kinds: list[str]) -> dict:
     garment = make_garment("dress", vertices)
-    config = SimConfig(substeps=substeps, iterations=iterations, retries=0)
+    config = SimSettings(substeps=substeps, iterations=iterations, retries=0)
     frames = stepping = 0.0
     worst: dict = {"strain_p99": 0.0, "penetration_max": 0.0}
     swing = {}
@@ -78,7 +78,7 @@ def main() -> None:
         )
     )
     simulate_garment(
-        make_garment("skirt", 100), synthesize("idle", 0.2), SimConfig(settle_s=0, blend_s=0)
+        make_garment("skirt", 100), synthesize("idle", 0.2), SimSettings(settle_s=0, blend_s=0)
     )  # load kernels
     base = []
     for v in args.vertices:

@@ -13,7 +13,7 @@ Files (all arrays as safetensors, nothing pickled)::
                                  bundles, every window in full: :class:`.database.CodeDatabase` reads both)
     template.safetensors         template vertices, faces, attached vertex indices, vertex groups (group/NAME)
     folds.safetensors            every database frame's simulated folds, for the detail mode (:mod:`.folds`)
-    direct.safetensors           the direct-regression baseline (hrr-train --stage baseline), where trained
+    direct.safetensors           the direct-regression baseline (hrr-train --stage direct), where trained
     subspace.safetensors         the fast decoder for games (hrr_garment/models/subspace.py), where trained
 
 ``bundle.json`` is written last (:mod:`.bundle_writer`): a directory without it (or whose files do
@@ -37,9 +37,9 @@ from ..body.mannequin import mannequin_record
 from ..body.measures import BodyRange, body_vector
 from ..errors import HRRError, InputError
 from ..garment.mesh import GarmentError, GarmentMesh, check_garment
-from ..models.codespace import CodeSpace, CodeSpaceConfig
-from ..models.direct import DirectConfig, DirectRegressor
-from ..models.fcmae import AutoencoderConfig, MeshAutoencoder
+from ..models.codespace import CodeSpace, CodeSpaceSettings
+from ..models.direct import DirectRegressor, DirectSettings
+from ..models.fcmae import AutoencoderSettings, MeshAutoencoder
 from ..models.hierarchy import cached_hierarchy
 from ..models.subspace import SubspaceDecoder
 from ..motion.features import FeatureStats
@@ -267,8 +267,8 @@ def load_bundle(folder: str | Path, cache_dir: Path | None = None) -> Bundle:
 def _load_bundle(folder: Path, cache_dir: Path | None) -> Bundle:
     manifest = read_manifest(folder)
     try:
-        ae_cfg = AutoencoderConfig.from_dict(thawed(manifest.autoencoder.config))
-        cs_cfg = CodeSpaceConfig.from_dict(thawed(manifest.codespace.config))
+        ae_cfg = AutoencoderSettings.from_dict(thawed(manifest.autoencoder.config))
+        cs_cfg = CodeSpaceSettings.from_dict(thawed(manifest.codespace.config))
         features = manifest.codespace.features
         latent_shape = manifest.codespace.latent_shape
         scale = manifest.autoencoder.scale
@@ -329,9 +329,9 @@ def _load_bundle(folder: Path, cache_dir: Path | None) -> Bundle:
         None if manifest.folds is None else load_folds(folder, manifest.folds, template, database=database)
     )
     direct = None
-    if manifest.direct is not None:  # the optional baseline (hrr-train --stage baseline)
+    if manifest.direct is not None:  # the optional baseline (hrr-train --stage direct)
         try:
-            config = DirectConfig.from_dict(thawed(manifest.direct.config))
+            config = DirectSettings.from_dict(thawed(manifest.direct.config))
             direct = DirectRegressor(config, features, latent_shape)
         except (KeyError, TypeError, ValueError) as exc:
             raise BundleError(folder, f"bundle.json has a bad 'direct' entry ({exc})") from None

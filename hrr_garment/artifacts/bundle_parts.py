@@ -13,7 +13,7 @@ from safetensors.numpy import load_file as load_arrays_file
 from safetensors.torch import load_file as load_tensors
 
 from ..garment.mesh import GarmentMesh
-from ..models.subspace import SubspaceConfig, SubspaceDecoder
+from ..models.subspace import SubspaceDecoder, SubspaceSettings
 from .database import CodeDatabase
 from .folds import FILE_KEYS as FOLD_FILE_KEYS
 from .folds import FoldStore
@@ -84,7 +84,7 @@ def load_subspace(
             latent_shape,
             num_vertices,
             int(entry.components),
-            config=SubspaceConfig.from_dict(thawed(entry.config)),
+            config=SubspaceSettings.from_dict(thawed(entry.config)),
         )
     except (KeyError, TypeError, ValueError) as exc:
         raise BundleError(folder, f"bundle.json has a bad 'subspace' entry ({exc})") from None

@@ -73,7 +73,7 @@ def proportions(joint_positions: np.ndarray) -> dict[str, float]:
 def source_proportions(path: str | Path, unit_scale: float | None = None) -> dict[str, float]:
     """The performer's measures from a BVH or glTF / GLB file's own rig (metres)."""
     from ..motion.bvh_motion import bvh_source
-    from ..motion.gltf import GltfOptions, gltf_source
+    from ..motion.gltf import GltfSettings, gltf_source
     from ..motion.gltf_file import GLTF_SUFFIXES
 
     path = Path(path)
@@ -81,7 +81,7 @@ def source_proportions(path: str | Path, unit_scale: float | None = None) -> dic
     if suffix == ".bvh":
         src, _, mapping, _ = bvh_source(path, unit_scale)
     elif suffix in GLTF_SUFFIXES:
-        src, _, mapping, _ = gltf_source(path, GltfOptions(unit_scale=unit_scale))
+        src, _, mapping, _ = gltf_source(path, GltfSettings(unit_scale=unit_scale))
     else:
         raise InputError(
             path, "a performer's proportions come from a BVH or glTF / GLB rig (npz files carry none)"

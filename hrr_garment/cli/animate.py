@@ -2,7 +2,7 @@
 
     hrr-animate walk.bvh -o out.h5 --garment dress        # workspace model (full if present, else quick)
     hrr-animate clip.npz -o out.h5 --model hrr_work/models/dress-quick --mode retrieval
-    hrr-animate walk.bvh -o out.h5 --garment dress --causal --no-collision
+    hrr-animate walk.bvh -o out.h5 --garment dress --causal --no-push-out
     hrr-animate walk.bvh -o out.h5 --garment dress --detail-strength 1 --detail-base residual
     hrr-animate walk.bvh -o out.h5 --model DIR --body hero.json      # on your character's body
     hrr-animate hero.glb --animation Walk -o out.h5 --model DIR --body hero.glb
@@ -53,7 +53,7 @@ def _parser() -> argparse.ArgumentParser:
         "3 %% of the most accurate (bundle.json 'auto'); hybrid: the calibrated gate between retrieval "
         "and regression; residual: regression plus the matched window's detail; detail: the "
         "regression's shape with simulated folds from the database; direct: the baseline, when the model "
-        "has it (hrr-train --stage baseline)",
+        "has it (hrr-train --stage direct)",
     )
     p.add_argument(
         "--gate",
@@ -82,7 +82,13 @@ def _parser() -> argparse.ArgumentParser:
         action="store_true",
         help="animate a body unlike the model's training bodies anyway (warned), rather than refuse it",
     )
-    p.add_argument("--no-collision", action="store_true", help="skip the collision push-out")
+    p.add_argument(
+        "--no-push-out",
+        "--no-collision",  # its old name, still read
+        dest="no_push_out",
+        action="store_true",
+        help="skip the collision push-out",
+    )
     add_decoder_option(p)
     add_push_option(p)
     p.add_argument("--causal", action="store_true", help="causal windows only, as the streaming API")
@@ -131,7 +137,7 @@ def _main(argv: Sequence[str] | None) -> int:
         args,
         "hrr-animate",
         detail=detail_look(args),
-        push_out=not args.no_collision,
+        push_out=not args.no_push_out,
         causal=args.causal,
         body=args.body,
         allow_outside=args.allow_outside_body,

@@ -14,7 +14,7 @@ motion files with the dataset's simulator settings (cached under the workspace; 
 extra) and evaluates on them as well. ``--library N`` (default 8) plays N of the model's training clips
 again as a game would, re-timed, entered part-way and blended into each other, simulates their
 ground truth and reports them as the library protocol, with its own tau sweep and goals. Modes: hybrid, regression, retrieval, naive-nn, and direct
-when the model has the direct-regression baseline (``hrr-train --stage baseline``).
+when the model has the direct-regression baseline (``hrr-train --stage direct``).
 """
 
 from __future__ import annotations
@@ -151,7 +151,13 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--jobs", type=int, default=None, help="processes simulating the ensemble (default: one per core)"
     )
-    p.add_argument("--no-collision", action="store_true", help="evaluate without the collision push-out")
+    p.add_argument(
+        "--no-push-out",
+        "--no-collision",  # its old name, still read
+        dest="no_push_out",
+        action="store_true",
+        help="evaluate without the collision push-out",
+    )
     p.add_argument(
         "--causal",
         action="store_true",
@@ -260,7 +266,7 @@ def _job(args) -> _Job:
         modes = [Mode.AUTO.value, *modes]
     if Mode.DIRECT in modes and not animator.has_direct:
         raise InputError(
-            model_dir, "has no direct-regression baseline: train it with hrr-train --stage baseline"
+            model_dir, "has no direct-regression baseline: train it with hrr-train --stage direct"
         )
     look = detail_look(args)
     if look.chosen and Mode.DETAIL not in modes:
@@ -271,7 +277,7 @@ def _job(args) -> _Job:
         raise InputError("hrr-eval", f"--library takes 0 (none) or a number of plays, got {args.library}")
     if args.ensemble == 1 or args.ensemble < 0:
         raise InputError("hrr-eval", f"--ensemble takes 0 (none) or at least 2 members, got {args.ensemble}")
-    run = run_settings_of(args, "hrr-eval", push_out=not args.no_collision, detail=look, causal=args.causal)
+    run = run_settings_of(args, "hrr-eval", push_out=not args.no_push_out, detail=look, causal=args.causal)
     settings = EvaluationSettings(
         tuple(modes),
         run,

@@ -51,7 +51,9 @@ def _parser() -> argparse.ArgumentParser:
         help="export for a body unlike the model's training bodies anyway (warned)",
     )
     p.add_argument(
-        "--no-collision",
+        "--no-push-out",
+        "--no-collision",  # its old name, still read
+        dest="no_push_out",
         action="store_true",
         help="leave the push-out out of the graph (an engine with its own collision)",
     )
@@ -92,7 +94,7 @@ def _main(argv: Sequence[str] | None) -> int:
         animator,
         args.output,
         body=body,
-        push_out=not args.no_collision,
+        push_out=not args.no_push_out,
         decoder=args.decoder,
         push=args.push,
     )

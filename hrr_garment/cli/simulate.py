@@ -107,8 +107,8 @@ def _main(argv: Sequence[str] | None) -> int:
     args = _parser().parse_args(argv)
     from ..export.preview import write_dataset_preview
     from ..sim.body_plan import choose_bodies
-    from ..sim.build import BuildOptions, build_dataset
-    from ..sim.simulator import SimConfig
+    from ..sim.build import BuildSettings, build_dataset
+    from ..sim.simulator import SimSettings
 
     preset = load_preset(args.preset)
     if args.made_for and args.fit:
@@ -136,7 +136,7 @@ def _main(argv: Sequence[str] | None) -> int:
         for k, v in (("substeps", args.substeps), ("iterations", args.iterations), ("device", args.device))
         if v is not None
     }
-    config = SimConfig.from_dict({**preset.sim, **overrides})
+    config = SimSettings.from_dict({**preset.sim, **overrides})
     out = args.output
     if out is None:
         suffix = f"-{args.vertices}v" if args.vertices else ""
@@ -153,7 +153,7 @@ def _main(argv: Sequence[str] | None) -> int:
     options["info"]["motions"] = list(args.motions) if args.motions else None  # None: the preset's own clips
     if args.address and args.executor != "ray":
         raise InputError("--address", "joins a Ray cluster: use it with --executor ray")
-    build = BuildOptions(
+    build = BuildSettings(
         jobs=args.jobs,
         retry_rejected=args.retry_rejected,
         preview=None if args.no_preview else write_dataset_preview,

@@ -9,7 +9,7 @@
 Stages, in order: ``simulate`` (only when the dataset does not exist; as hrr-simulate would),
 ``autoencoder`` (the FCMAE mesh autoencoder, then every frame encoded to latents), ``codespace``
 (motion and garment encoders sharing a Gumbel-Softmax code space, the retrieval database, tau
-calibration, the bundle); ``baseline`` (only when named: the direct-regression baseline that
+calibration, the bundle); ``direct`` (only when named: the direct-regression baseline that
 ``hrr-eval`` compares against, mode ``direct``). Each stage resumes from its checkpoint when re-run and is skipped when
 its outputs are current. The bundle lands in hrr_work/models/GARMENT-PRESET/, where
 ``hrr-animate --garment GARMENT`` finds it.
@@ -28,7 +28,7 @@ from typing import Sequence
 
 from ..errors import InputError
 from ..paths import workspace
-from ..pipeline.train import OLD_CODESPACE_NAME, STAGES, TrainCallback, TrainSettings, train_model
+from ..pipeline.train import OLD_STAGE_NAMES, STAGES, TrainCallback, TrainSettings, train_model
 from ..sim.preset import load_preset
 from ..train.report import StageReport
 from ._common import run_cli
@@ -43,10 +43,10 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--dataset", type=Path, default=None, help="dataset .h5 (instead of --garment/--preset)")
     p.add_argument(
         "--stage",
-        choices=(*STAGES, "baseline", "all", OLD_CODESPACE_NAME),
+        choices=(*STAGES, "direct", "all", *OLD_STAGE_NAMES),
         default="all",
-        help="one stage; 'baseline' trains the direct-regression baseline for hrr-eval "
-        f"('{OLD_CODESPACE_NAME}': deprecated name of 'codespace')",
+        help="one stage; 'direct' trains the direct-regression baseline for hrr-eval (mode direct); "
+        + ", ".join(f"'{old}': deprecated name of '{new}'" for old, new in OLD_STAGE_NAMES.items()),
     )
     p.add_argument(
         "--config", type=Path, default=None, help="YAML overriding configs/train.yaml (same sections)"
@@ -111,9 +111,9 @@ class _Printer(TrainCallback):
                 + ", ".join(f"{k} {v:.2f}" for k, v in m["candidates_mm"].items())
                 + ")"
             )
-        elif stage == "baseline":
+        elif stage == "direct":
             print(
-                f"baseline (direct regression): {_epochs(result)}; validation per-vertex error "
+                f"direct (the direct-regression baseline): {_epochs(result)}; validation per-vertex error "
                 f"{result.metrics['validation_mm']:.2f} mm"
             )
 
@@ -132,9 +132,9 @@ def _overrides(args) -> dict:
 def _main(argv: Sequence[str] | None) -> int:
     args = _parser().parse_args(argv)
     printer = _Printer()
-    if args.stage == OLD_CODESPACE_NAME:
-        printer.on_message(f"deprecated: --stage {OLD_CODESPACE_NAME} is now --stage codespace")
-        args.stage = "codespace"
+    if args.stage in OLD_STAGE_NAMES:
+        printer.on_message(f"deprecated: --stage {args.stage} is now --stage {OLD_STAGE_NAMES[args.stage]}")
+        args.stage = OLD_STAGE_NAMES[args.stage]
     preset = load_preset(args.preset)
     if args.dataset is None:
         if args.garment is None:

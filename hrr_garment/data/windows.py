@@ -16,7 +16,7 @@ import numpy as np
 
 from ..body.measures import body_vector, with_body
 from ..motion.features import FeatureStats, motion_features
-from ..motion.memory import MemorySpec, with_memory
+from ..motion.memory import MemorySettings, with_memory
 
 
 class WindowFrames:
@@ -174,7 +174,7 @@ def build_windows(
 
 
 def dataset_features(
-    dataset, names: list[str], memory: MemorySpec | Sequence[float], body_measures: bool = False
+    dataset, names: list[str], memory: MemorySettings | Sequence[float], body_measures: bool = False
 ) -> dict[str, np.ndarray]:
     """Motion features (T, 124 + memory) of each named sequence of a :class:`GarmentDataset`, with
     the motion memory ``memory`` (:mod:`hrr_garment.motion.memory`) and, with ``body_measures``,

@@ -1,5 +1,5 @@
 """The ``auto`` mode's criterion: which candidate a calibration's numbers pick, under which
-allowances (:class:`AutoConfig`), and the candidates' labels. What the criterion is and why:
+allowances (:class:`AutoSettings`), and the candidates' labels. What the criterion is and why:
 :mod:`hrr_garment.eval.auto_mode`, which measures the candidates on validation clips."""
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ DETAIL_STRENGTHS = (0.6, 0.8, 1.0)  # the folds' strengths measured (1: the simu
 
 
 @dataclass(frozen=True)
-class AutoConfig:
+class AutoSettings:
     """The auto mode's calibration settings (the training configuration's ``auto`` section)."""
 
     allowance: float = AUTO_ALLOWANCE  # PVE a candidate may pay over the most accurate one's, as a factor
@@ -44,7 +44,7 @@ class AutoConfig:
             )
 
     @classmethod
-    def from_dict(cls, values: dict) -> "AutoConfig":
+    def from_dict(cls, values: dict) -> "AutoSettings":
         return from_settings(cls, values, "auto mode")
 
     def limits(self) -> dict[str, float]:
@@ -115,7 +115,7 @@ def plausibility_gap(sharpness: float, swing: float) -> float:
     return math.hypot(math.log(sharpness), math.log(swing))
 
 
-def pick_auto_mode(candidates: dict[str, dict[str, float]], config: AutoConfig = AutoConfig()) -> str:
+def pick_auto_mode(candidates: dict[str, dict[str, float]], config: AutoSettings = AutoSettings()) -> str:
     """The criterion of the module docstring, under ``config``'s allowances, on each candidate's
     ``pve_mm``, ``sharpness`` and ``hem_swing`` (ratios to the truth) and, where recorded,
     ``penetration_pct`` (before the push-out; calibrations recorded before it have none, and are
@@ -152,7 +152,7 @@ def pick_auto_mode(candidates: dict[str, dict[str, float]], config: AutoConfig =
 
 
 def pick_auto_and_detail(
-    candidates: dict[str, dict[str, float]], config: AutoConfig = AutoConfig()
+    candidates: dict[str, dict[str, float]], config: AutoSettings = AutoSettings()
 ) -> tuple[str, str, float]:
     """(the mode auto runs, the detail mode's base, its strength) by the criterion on candidates
     labelled by mode, the detail mode's by :data:`DETAIL_CANDIDATES` (see the module docstring),
@@ -164,7 +164,7 @@ def pick_auto_and_detail(
 
 
 def pick_free_cloth(
-    candidates: dict[str, dict[str, float]], config: AutoConfig = AutoConfig()
+    candidates: dict[str, dict[str, float]], config: AutoSettings = AutoSettings()
 ) -> list[float] | None:
     """The model's one free-cloth ramp (``[lo, hi]`` mm, None: the plain residual): the picked
     candidate's where it uses the residual, else the detail setting's where that does, else the
@@ -180,7 +180,7 @@ def pick_free_cloth(
 
 
 def pick_fold_ramp(
-    candidates: dict[str, dict[str, float]], config: AutoConfig = AutoConfig()
+    candidates: dict[str, dict[str, float]], config: AutoSettings = AutoSettings()
 ) -> list[float] | None:
     """The folds' free-cloth ramp (``[lo, hi]`` mm, None: the folds everywhere): the detail
     setting's, as it was measured (see the module docstring)."""
@@ -194,7 +194,7 @@ def _of_mode(candidates: dict[str, dict[str, float]], mode: str) -> dict[str, di
     return {k: c for k, c in candidates.items() if candidate_setting(k)[0] == mode}
 
 
-def _picked_labels(candidates: dict[str, dict[str, float]], config: AutoConfig) -> tuple[str, str | None]:
+def _picked_labels(candidates: dict[str, dict[str, float]], config: AutoSettings) -> tuple[str, str | None]:
     """The label auto picks, and the detail mode's setting (that label where it is a detail
     setting, else the criterion's pick among the detail candidates alone; None: there are none)."""
     picked = pick_auto_mode(candidates, config)
@@ -204,7 +204,7 @@ def _picked_labels(candidates: dict[str, dict[str, float]], config: AutoConfig) 
     return picked, picked if picked in details else pick_auto_mode(details, config)
 
 
-def repick(auto: dict, config: AutoConfig) -> dict:
+def repick(auto: dict, config: AutoSettings) -> dict:
     """A recorded calibration (``bundle.json``'s ``auto``) picked again under ``config``'s
     allowances: the candidates' numbers stand, only the choice among them moves."""
     mode, detail_base, detail_strength = pick_auto_and_detail(auto["candidates"], config)

@@ -8,7 +8,7 @@ the validation clips through the product path (``Animator.animate``: offline, bl
 by one documented criterion that counts both:
 
 1. accuracy first: the candidates whose PVE is within the allowance (``auto.allowance`` in the
-   training configuration, :class:`AutoConfig`: 1.05, 5 %) of the most accurate candidate's. A
+   training configuration, :class:`AutoSettings`: 1.05, 5 %) of the most accurate candidate's. A
    sample of the truth's own distribution is about 1.4 x the PVE of its conditional mean, so cloth
    that looks like cloth costs PVE; 5 % of it for folds and swing that look real is the default's
    trade (issue 49's decision; it was 3 %). And no more cloth inside the body: a candidate may put
@@ -88,7 +88,7 @@ from .auto_criterion import (
     FREE_CLOTH,
     SWING,
     SWING_GAINS,
-    AutoConfig,
+    AutoSettings,
     borrows,
     candidate_setting,
     free_cloth_label,
@@ -163,14 +163,14 @@ def free_cloth(bundle: Bundle, ramp_mm: tuple[float, float] | None):
 def calibrate_auto_mode(
     animator: Animator,
     records: list[SequenceRecord],
-    config: AutoConfig = AutoConfig(),
+    config: AutoSettings = AutoSettings(),
     max_sequences: int | None = AUTO_MAX_SEQUENCES,
     progress: bool = True,
 ) -> dict:
     """Each candidate's PVE (mm, against each record's simulation), sharpness, hem swing and
     vertices inside the body before the push-out (%) on ``records`` (at most ``max_sequences`` of
     them, evenly spaced), and the mode the criterion picks under ``config``: ``{"mode",
-    "detail_base", "detail_strength", "criterion", the allowances (:meth:`AutoConfig.limits`),
+    "detail_base", "detail_strength", "criterion", the allowances (:meth:`AutoSettings.limits`),
     "sequences", "frames", "fold_follow", "candidates": {label: {...}}}``, what bundle.json keeps
     under ``auto`` (``fold_follow``: the folds' following in time the candidates ran with,
     :data:`~hrr_garment.inference.fold_track.FOLD_FOLLOW`)."""
@@ -210,7 +210,7 @@ def calibrate_auto_mode(
     )
 
 
-def swing_unmeasured(auto: AutoCalibration, config: AutoConfig) -> bool:
+def swing_unmeasured(auto: AutoCalibration, config: AutoSettings) -> bool:
     """Whether a recorded calibration's first pick under ``config`` (its pick without a swing gain)
     has swing gains not yet measured: an allowance that moves the pick needs them measured before
     picking again."""
@@ -223,7 +223,7 @@ def measure_swing_again(
     animator: Animator,
     records: list[SequenceRecord],
     auto: dict,
-    config: AutoConfig,
+    config: AutoSettings,
     max_sequences: int | None = AUTO_MAX_SEQUENCES,
     progress: bool = True,
 ) -> dict:
@@ -249,7 +249,7 @@ def _without_swing(candidates: dict[str, dict[str, float]]) -> dict[str, dict[st
 def _measure_swing(
     candidates: dict[str, dict[str, float]],
     measure: Callable[[str], dict[str, float]],
-    config: AutoConfig,
+    config: AutoSettings,
     progress: bool,
 ) -> None:
     """The first pick (among the candidates without a gain) with its swing restored, each gain a

@@ -37,13 +37,13 @@ from ..garment.mesh import GarmentMesh
 from ..io_utils import atomic_path, atomic_write_text
 from ..paths import workspace
 from ..sim.parts import template_hash
-from ..sim.simulator import SimConfig, SimulationExploded, simulate_garment
+from ..sim.simulator import SimSettings, SimulationExploded, simulate_garment
 
 DENSITY_STEP = 1.0e-4
 ENSEMBLE_VERSION = 1
 
 
-def member_config(config: SimConfig, k: int, fps: float) -> tuple[SimConfig, str]:
+def member_config(config: SimSettings, k: int, fps: float) -> tuple[SimSettings, str]:
     """The settings of member ``k`` and a short description of its perturbation."""
     size, kind = k // 4 + 1, k % 4
     if kind < 2:
@@ -67,7 +67,7 @@ class TruthEnsemble:
 
 
 def _member_key(
-    garment: GarmentMesh, record: SequenceRecord, config: SimConfig, body: BodyModel | None = None
+    garment: GarmentMesh, record: SequenceRecord, config: SimSettings, body: BodyModel | None = None
 ) -> str:
     h = hashlib.sha256()
     h.update(
@@ -92,7 +92,7 @@ def _simulate_member(
 ) -> str | None:
     """Simulate one member into ``path`` (atomically); returns why it failed, or None."""
     try:
-        result = simulate_garment(garment, record.motion, SimConfig.from_dict(config), body=body)
+        result = simulate_garment(garment, record.motion, SimSettings.from_dict(config), body=body)
     except SimulationExploded as exc:
         atomic_write_text(Path(path).with_suffix(".failed.json"), json.dumps({"reason": str(exc)}))
         return str(exc)
@@ -125,7 +125,7 @@ def _cached(path: Path) -> tuple[np.ndarray | None, str | None]:
 def truth_ensembles(
     garment: GarmentMesh,
     records: list[SequenceRecord],
-    config: SimConfig,
+    config: SimSettings,
     members: int = 4,
     jobs: int | None = None,
     cache: str | Path | None = None,
@@ -143,7 +143,7 @@ def truth_ensembles(
         raise ValueError(f"an ensemble needs at least 2 members, got {members}")
     cache = Path(cache) if cache is not None else workspace() / "cache" / "ensemble"
     cache.mkdir(parents=True, exist_ok=True)
-    plan: dict[tuple[str, int], tuple[Path, SimConfig, str]] = {}
+    plan: dict[tuple[str, int], tuple[Path, SimSettings, str]] = {}
     for record in records:
         for k in range(members):
             cfg, label = member_config(config, k, record.motion.fps)

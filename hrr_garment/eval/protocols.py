@@ -40,13 +40,13 @@ def truth_ensembles_of(ds, records, members: int, jobs: int | None, progress: bo
             f"{ds.path} records no simulator settings (not built by hrr-simulate): no ensemble ground truth"
         )
         return {}
-    from ..sim.simulator import SimConfig
+    from ..sim.simulator import SimSettings
     from .ensemble import truth_ensembles
 
     return truth_ensembles(
         ds.template,
         records,
-        SimConfig.from_dict(ds.info["sim"]),
+        SimSettings.from_dict(ds.info["sim"]),
         members=members,
         jobs=jobs,
         progress=progress,
@@ -95,10 +95,10 @@ def simulated_section(
     """Simulate the ground truth of ``truth`` with the dataset's settings (parts cached) and
     evaluate every mode there: the report section, the records and their truth ensembles."""
     from ..data.dataset import GarmentDataset
-    from ..sim.build import BuildOptions, build_dataset
-    from ..sim.simulator import SimConfig
+    from ..sim.build import BuildSettings, build_dataset
+    from ..sim.simulator import SimSettings
 
-    config = SimConfig.from_dict(ds.info.get("sim", {}))
+    config = SimSettings.from_dict(ds.info.get("sim", {}))
     print(
         f"simulating ground truth for {len(truth.specs)} sequence(s) (cached in {truth.path.with_suffix('.parts')})"
     )
@@ -107,7 +107,7 @@ def simulated_section(
         truth.specs,
         config,
         out=truth.path,
-        options=BuildOptions(
+        options=BuildSettings(
             splits={"val": 0.0, "test": 0.0},
             info={"purpose": truth.purpose, "source_dataset": str(ds.path)},
             progress=settings.progress,

@@ -29,7 +29,7 @@ from ..native import PRECISIONS
 from ..paths import workspace
 from . import collision
 from .animation import Animation
-from .bodies import CharacterBody, character_body
+from .character_body import CharacterBody, character_body
 from .character_stream import AnimationStream
 from .clip_path import animate_clip, clip_features
 from .collision import PushOutSettings
@@ -84,11 +84,11 @@ class Animator:
         self._subspace_push: SubspacePush | None = None
 
     def mesh_decoder(self, precision: str):
-        """The full mesh decoder (:class:`~hrr_garment.models.fast_decoder.FastDecoder`) in
+        """The full mesh decoder (:class:`~hrr_garment.models.inference_decoder.InferenceDecoder`) in
         ``precision``'s arithmetic for batches of frames: "float32" or "bfloat16" (AMX on recent
         Intel Xeons: about 3x faster for crowds and offline animation); made once per precision."""
         if precision not in self._decoders:
-            self._decoders[precision] = self.bundle.autoencoder.fast_decoder(precision=precision)
+            self._decoders[precision] = self.bundle.autoencoder.inference_decoder(precision=precision)
         return self._decoders[precision]
 
     @property
@@ -170,9 +170,9 @@ class Animator:
         allow_outside: bool = False,
         name: str | None = None,
     ) -> CharacterBody:
-        """A body to animate on (:mod:`.bodies`): a body.json or character file's path, a
+        """A body to animate on (:mod:`.character_body`): a body.json or character file's path, a
         :class:`~hrr_garment.body.body_file.BodyRecord`, or None for the model's own; refused
-        (:class:`~.bodies.BodyOutsideRange`) when it is unlike the model's training bodies, unless
+        (:class:`~.character_body.BodyOutsideRange`) when it is unlike the model's training bodies, unless
         ``allow_outside``."""
         if body is None and name is None and not allow_outside:
             if self._default_body is None:

@@ -93,7 +93,7 @@ def _direct(path: FramePath, motion: Motion) -> ClipLatents:
     bundle, t_frames = path.bundle, motion.num_frames
     if bundle.direct is None:
         raise InputError(
-            bundle.folder, "has no direct-regression baseline: train it with hrr-train --stage baseline"
+            bundle.folder, "has no direct-regression baseline: train it with hrr-train --stage direct"
         )
     features = path.seen("features", clip_features(bundle, motion, path.run.body.vector))
     with torch.no_grad():

@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING
 from .modes import Mode
 
 if TYPE_CHECKING:
-    from .bodies import CharacterBody
+    from .character_body import CharacterBody
     from .run_settings import DetailLook
 
 #: old names of :meth:`ResolvedRun.record`'s keys in files written before (out.h5, report.json)

@@ -39,7 +39,7 @@ from .resolved_run import ResolvedRun
 from .swing import MAX_GAIN, valid_gain
 
 if TYPE_CHECKING:
-    from .bodies import CharacterBody
+    from .character_body import CharacterBody
 
 DECODERS = (
     "full",
@@ -153,7 +153,7 @@ class RunSettings:
     allow_outside: bool = False
     exclude_sequence: int | None = None  # a database sequence retrieval may not use (evaluation)
     # the full mesh decoder's arithmetic for batches of frames: "float32" or "bfloat16" (AMX on recent
-    # Intel Xeons, FastDecoder). None: float32
+    # Intel Xeons, InferenceDecoder). None: float32
     precision: str | None = None
     # where a crowd runs: "native" (the CPU kernels), or a torch device ("cuda", "cpu": the regression
     # as one torch step, torch_crowd.py). None: CUDA for a regression crowd where torch sees a GPU

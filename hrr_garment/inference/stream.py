@@ -44,7 +44,7 @@ from ..motion.motion import Motion
 from ..motion.poses import poses_to_motion
 from ..native import pin_workers
 from .blending import Inertializer
-from .bodies import CrowdBodies
+from .character_body import CrowdBodies
 from .crowd_state import STREAM_STAGES, CrowdCharacter, CrowdTimings, check_keys
 from .crowd_windows import CrowdWindows
 from .decoding import flush_denormals
@@ -64,7 +64,7 @@ class CrowdStream:
     def __init__(self, animator, run: ResolvedRun, *, rig=None):
         """``run``: the settings, resolved for ``animator``'s model (:meth:`~.animator.Animator.crowd`
         makes both); they hold for the stream's life. Its body (``run.body``, a
-        :class:`~.bodies.CharacterBody`) is every character's but those given one of their own
+        :class:`~.character_body.CharacterBody`) is every character's but those given one of their own
         (:meth:`set_body`); poses on the canonical skeleton are played by it, as
         :meth:`~.animator.Animator.animate` plays a clip."""
         self.animator, self.run, self.rig = animator, run, rig

@@ -5,7 +5,7 @@ world vertices out, each character's window state as explicit inputs and outputs
 numbered alike in :meth:`StreamStep.forward`) with the same formulas and the same resolved run:
 
 - before the stages, the poses: local quaternions -> matrices, forward kinematics on the body's
-  skeleton (its bone lengths, its pelvis height), as :meth:`~hrr_garment.inference.bodies.CharacterBody.play`;
+  skeleton (its bone lengths, its pelvis height), as :meth:`~hrr_garment.inference.character_body.CharacterBody.play`;
 - 1 features: the frame against the character's last one (:func:`~hrr_garment.motion.features.pair_features_batch`),
   its motion memory one frame on (:class:`~hrr_garment.motion.memory.MotionMemory`), the body's measures;
 - 2 windows: the last W frames;
@@ -211,20 +211,20 @@ class StreamStep(nn.Module):
 
 class TorchDecoder(nn.Module):
     """The mesh decoder's PyTorch blocks (gathers and batched matmuls, the folded kernels of a
-    :class:`~hrr_garment.models.fast_decoder.FastDecoder`) as a module to export: the fast decoder
-    itself calls the native kernels, which a graph cannot hold."""
+    :class:`~hrr_garment.models.inference_decoder.InferenceDecoder`) as a module to export: the
+    inference decoder itself calls the native kernels, which a graph cannot hold."""
 
-    def __init__(self, fast_decoder):
+    def __init__(self, inference_decoder):
         super().__init__()
-        self.fast = fast_decoder
+        self.inference_decoder = inference_decoder
 
     def forward(self, latents: torch.Tensor) -> torch.Tensor:
-        return self.fast._torch_forward(latents)
+        return self.inference_decoder._torch_forward(latents)
 
 
 class AutoencoderDecoder(nn.Module):
     """The mesh autoencoder's own decoder as a module that moves to a device with its weights (a
-    :class:`~hrr_garment.models.fast_decoder.FastDecoder` keeps its folded kernels beside the
+    :class:`~hrr_garment.models.inference_decoder.InferenceDecoder` keeps its folded kernels beside the
     module, on the CPU): what a step on a GPU decodes with where it runs the full decoder."""
 
     def __init__(self, autoencoder):

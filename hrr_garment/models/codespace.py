@@ -24,7 +24,7 @@ from dataclasses import asdict, dataclass
 import torch
 from torch import nn
 
-from ..motion.memory import MemorySpec, feature_width
+from ..motion.memory import MemorySettings, feature_width
 from ..settings import SettingsError, from_settings, require_number
 from .quantizer import GumbelQuantizer
 
@@ -32,7 +32,7 @@ REGRESSION_CODES = ("expected", "argmax")
 
 
 @dataclass(frozen=True)
-class CodeSpaceConfig:
+class CodeSpaceSettings:
     """The code space's sizes: window, groups and classes, embedding and network widths."""
 
     window: int = 10  # W frames per window
@@ -62,7 +62,7 @@ class CodeSpaceConfig:
 
     def __post_init__(self):
         try:
-            spec = MemorySpec(
+            spec = MemorySettings(
                 tuple(self.memory_seconds), tuple(self.resonator_hz), float(self.resonator_damping)
             )
         except (TypeError, ValueError) as exc:
@@ -98,9 +98,9 @@ class CodeSpaceConfig:
             )
 
     @property
-    def memory(self) -> MemorySpec:
+    def memory(self) -> MemorySettings:
         """The motion memory the features carry (:mod:`hrr_garment.motion.memory`)."""
-        return MemorySpec(self.memory_seconds, self.resonator_hz, self.resonator_damping)
+        return MemorySettings(self.memory_seconds, self.resonator_hz, self.resonator_damping)
 
     @property
     def features(self) -> int:
@@ -108,7 +108,7 @@ class CodeSpaceConfig:
         return feature_width(self.memory) + self.body_features
 
     @classmethod
-    def from_dict(cls, values: dict) -> "CodeSpaceConfig":
+    def from_dict(cls, values: dict) -> "CodeSpaceSettings":
         return from_settings(cls, values, "code space model")
 
     def to_dict(self) -> dict:
@@ -177,7 +177,7 @@ class CodeSpace(nn.Module):
     """Motion encoder, garment encoder, quantiser and decoder for windows of ``latent_shape``
     (N nodes x C values) garment latents and ``features``-wide motion frames."""
 
-    def __init__(self, config: CodeSpaceConfig, features: int, latent_shape: tuple[int, int]):
+    def __init__(self, config: CodeSpaceSettings, features: int, latent_shape: tuple[int, int]):
         super().__init__()
         self.config, self.features, self.latent_shape = config, features, tuple(latent_shape)
         size = config.window * latent_shape[0] * latent_shape[1]

@@ -18,7 +18,7 @@ from ..settings import from_settings
 
 
 @dataclass(frozen=True)
-class DirectConfig:
+class DirectSettings:
     """The direct-regression baseline's sizes."""
 
     hidden: int = 256  # GRU and head width
@@ -26,8 +26,8 @@ class DirectConfig:
     dropout: float = 0.0  # between GRU layers
 
     @classmethod
-    def from_dict(cls, values: dict) -> "DirectConfig":
-        return from_settings(cls, values, "baseline model")
+    def from_dict(cls, values: dict) -> "DirectSettings":
+        return from_settings(cls, values, "direct model")
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -36,7 +36,7 @@ class DirectConfig:
 class DirectRegressor(nn.Module):
     """Motion features (B, T, F) -> garment latents per frame (B, T, nodes x C): a GRU and a head."""
 
-    def __init__(self, config: DirectConfig, features: int, latent_shape: tuple[int, int]):
+    def __init__(self, config: DirectSettings, features: int, latent_shape: tuple[int, int]):
         super().__init__()
         self.config, self.features, self.latent_shape = config, features, tuple(latent_shape)
         self.gru = nn.GRU(

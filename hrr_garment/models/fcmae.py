@@ -11,8 +11,8 @@ The encoder maps (B, V, 3) vertex offsets from the template (in the body's headi
 by the training data's spread) to (B, N, 8) latents on the coarsest level; the decoder maps back.
 Tensors are vertex-major inside, (V, B, C): a gather then picks whole rows of B x C values, which
 keeps it (and its backward, an index_add) fast on the CPU; each layer is one batched matmul of
-(V, B, S * C_in) by per-vertex kernels (V, S * C_in, C_out). ``fast_decoder()`` precomputes those
-kernels for inference (:mod:`.fast_decoder`).
+(V, B, S * C_in) by per-vertex kernels (V, S * C_in, C_out). ``inference_decoder()`` precomputes those
+kernels for inference (:mod:`.inference_decoder`).
 """
 
 from __future__ import annotations
@@ -29,11 +29,11 @@ from .fcmae_layers import Block
 from .hierarchy import Hierarchy
 
 if TYPE_CHECKING:
-    from .fast_decoder import FastDecoder
+    from .inference_decoder import InferenceDecoder
 
 
 @dataclass(frozen=True)
-class AutoencoderConfig:
+class AutoencoderSettings:
     """The mesh autoencoder's layer widths, basis size and sampling hierarchy settings."""
 
     channels: tuple[int, ...] = (16, 32, 64, 128)  # per level; the last value repeats for deeper levels
@@ -65,7 +65,7 @@ class AutoencoderConfig:
         require_number(what, "latent_fraction", self.latent_fraction, low=0, high=1, above=True)
 
     @classmethod
-    def from_dict(cls, values: dict) -> "AutoencoderConfig":
+    def from_dict(cls, values: dict) -> "AutoencoderSettings":
         if "channels" in values:
             values = {**values, "channels": tuple(values["channels"])}
         return from_settings(cls, values, "autoencoder")
@@ -100,7 +100,7 @@ class MeshAutoencoder(nn.Module):
     def __init__(
         self,
         hierarchy: Hierarchy,
-        config: AutoencoderConfig = AutoencoderConfig(),
+        config: AutoencoderSettings = AutoencoderSettings(),
         template: np.ndarray | None = None,
         scale: float = 0.1,
     ):
@@ -211,8 +211,8 @@ class MeshAutoencoder(nn.Module):
             out.append(z.detach())
         return torch.cat(out) if out else torch.zeros(0, *self.latent_shape)
 
-    def fast_decoder(self, native: bool | None = None, precision: str = "float32") -> "FastDecoder":
-        """The inference-only form of :attr:`decoder` (:mod:`.fast_decoder`)."""
-        from .fast_decoder import FastDecoder
+    def inference_decoder(self, native: bool | None = None, precision: str = "float32") -> "InferenceDecoder":
+        """The inference-only form of :attr:`decoder` (:mod:`.inference_decoder`)."""
+        from .inference_decoder import InferenceDecoder
 
-        return FastDecoder(self, native, precision=precision)
+        return InferenceDecoder(self, native, precision=precision)

@@ -2,7 +2,7 @@
 subspace of the garment's body-frame vertices (the principal components of the mesh decoder's
 outputs on the training frames) and a small network from a frame's latents to its coefficients.
 
-Why: the mesh autoencoder's decoder (:mod:`.fcmae`, run by :mod:`.fast_decoder`) applies a kernel
+Why: the mesh autoencoder's decoder (:mod:`.fcmae`, run by :mod:`.inference_decoder`) applies a kernel
 per vertex and layer; at 4,156 vertices a 32-character step streams 130 MB of them, most of a
 crowd's frame. Here a frame costs one small MLP and one (K x 3V) product, and a crowd's frames share
 the basis read (Holden et al. 2019's subspace neural physics, Unreal's ML Cloth). The FCMAE stays
@@ -28,7 +28,7 @@ from ..settings import SettingsError, from_settings, require_number
 
 
 @dataclass(frozen=True)
-class SubspaceConfig:
+class SubspaceSettings:
     """The subspace decoder's sizes (``subspace.model`` in the training configuration)."""
 
     # basis vectors fitted; training keeps the fewest that meet the tolerance. On real-quick's dress
@@ -46,7 +46,7 @@ class SubspaceConfig:
             require_number("subspace", name, getattr(self, name), low=1, high=high, whole=True)
 
     @classmethod
-    def from_dict(cls, values: dict) -> "SubspaceConfig":
+    def from_dict(cls, values: dict) -> "SubspaceSettings":
         return from_settings(cls, values, "subspace")
 
     def to_dict(self) -> dict:
@@ -66,7 +66,7 @@ class SubspaceDecoder(nn.Module):
         latent_shape: tuple[int, int],
         num_vertices: int,
         components: int,
-        config: SubspaceConfig = SubspaceConfig(),
+        config: SubspaceSettings = SubspaceSettings(),
     ):
         super().__init__()
         if components < 1 or components > 3 * num_vertices:

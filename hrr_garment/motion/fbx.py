@@ -17,14 +17,14 @@ from pathlib import Path
 
 from ..blender import run_blender_script
 from ..errors import InputError, MotionError
-from .gltf import GltfOptions, load_gltf
+from .gltf import GltfSettings, load_gltf
 from .motion import Motion
 
 FBX_SUFFIX = ".fbx"
 SCRIPT = Path(__file__).with_name("fbx_to_glb_in_blender.py")
 
 
-def load_fbx(path: str | Path, options: GltfOptions = GltfOptions(), ground: bool = True) -> Motion:
+def load_fbx(path: str | Path, options: GltfSettings = GltfSettings(), ground: bool = True) -> Motion:
     """An FBX animation as canonical motion (``options`` as for :func:`.gltf.load_gltf`; FBX takes
     beyond the first are not read: ``options.animation`` must be None)."""
     path = Path(path)

@@ -91,7 +91,7 @@ def _local_transforms(
 
 
 @dataclass(frozen=True)
-class GltfOptions:
+class GltfSettings:
     """How :func:`gltf_source` reads a file: which animation (name or index; None: the first),
     metres per file unit (None: the file's own metres, detected when implausible), a user joint map,
     the output frame rate."""
@@ -103,7 +103,7 @@ class GltfOptions:
 
 
 def gltf_source(
-    path: str | Path, options: GltfOptions = GltfOptions()
+    path: str | Path, options: GltfSettings = GltfSettings()
 ) -> tuple[SourceMotion, str, dict[str, int], str]:
     """A glTF / GLB animation on its own skeleton, in metres, at ``options.fps``: (the motion, the
     naming scheme, canonical joint name -> source joint index, the animation's name)."""
@@ -166,7 +166,7 @@ def world_unit_scale(
     return detect_unit_scale(rest, mapping, path)
 
 
-def load_gltf(path: str | Path, options: GltfOptions = GltfOptions(), ground: bool = True) -> Motion:
+def load_gltf(path: str | Path, options: GltfSettings = GltfSettings(), ground: bool = True) -> Motion:
     """A glTF / GLB animation as canonical motion: retargeted, grounded, at ``options.fps``."""
     src, scheme, mapping, _ = gltf_source(path, options)
     local, root = retarget(src, mapping, ground=ground)

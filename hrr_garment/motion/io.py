@@ -16,7 +16,7 @@ from ..errors import MotionError
 from .amass import load_amass, save_amass  # noqa: F401  (save_amass: public, hrr_garment.save_amass)
 from .bvh_motion import load_bvh
 from .fbx import FBX_SUFFIX, load_fbx
-from .gltf import GltfOptions, load_gltf
+from .gltf import GltfSettings, load_gltf
 from .gltf_file import GLTF_SUFFIXES
 from .joint_maps import load_joint_map
 from .limits import check_frame_budget, check_root_speed, check_source_fps
@@ -60,7 +60,7 @@ def load_motion(
             path, unit_scale=unit_scale, joint_map=custom, ground=ground, fps=fps, source_fps=source_fps
         )
     elif suffix in (*GLTF_SUFFIXES, FBX_SUFFIX):
-        options = GltfOptions(animation=animation, unit_scale=unit_scale, joint_map=custom, fps=fps)
+        options = GltfSettings(animation=animation, unit_scale=unit_scale, joint_map=custom, fps=fps)
         motion = (load_fbx if suffix == FBX_SUFFIX else load_gltf)(path, options, ground=ground)
     elif suffix == ".npz":
         data = read_npz(path)

@@ -5,9 +5,9 @@ A loose skirt's hem still swings from a turn made a second ago; the window alone
 turn. Two kinds of memory, both linear filters of the frame's velocity features u_t (the 20 feature
 joints' velocities and the root's, all 3-vectors in the body frame, and the yaw rate):
 
-- **Averages** over time constants s (``MemorySpec.seconds``):
+- **Averages** over time constants s (``MemorySettings.seconds``):
   ``m_t = a R_t m_{t-1} + (1 - a) u_t``, ``a = exp(-1 / (fps s))``, ``m_0 = u_0``.
-- **Resonators** at frequencies f (``MemorySpec.resonator_hz``) with damping ratio zeta: a damped
+- **Resonators** at frequencies f (``MemorySettings.resonator_hz``) with damping ratio zeta: a damped
   pendulum bob hung from each velocity, ``x'' + 2 zeta w x' + w^2 x = -du/dt`` (w = 2 pi f), the
   linear model of a hem driven by the body's acceleration. The bob's displacement x and velocity
   q = u + x' are its state, ``s_t = A R_t s_{t-1} + B u_t`` with the exact (zero-order hold)
@@ -21,7 +21,7 @@ not change when the whole motion is moved or turned about the vertical axis (tes
 
 It is computed from the features alone, one frame after another, so offline clips, causal clips
 and streams (:class:`MotionMemory`, carried per character) give the same values from the same
-features. Models store their memory (``CodeSpaceConfig.memory_seconds``, ``resonator_hz``,
+features. Models store their memory (``CodeSpaceSettings.memory_seconds``, ``resonator_hz``,
 ``resonator_damping``); none gives the 124 plain features of models trained before it.
 """
 
@@ -57,7 +57,7 @@ def check_memory_seconds(
 
 
 @dataclass(frozen=True)
-class MemorySpec:
+class MemorySettings:
     """Which memory a model's features carry: averages over ``seconds`` and resonators at
     ``resonator_hz`` with damping ratio ``damping``."""
 
@@ -77,9 +77,9 @@ class MemorySpec:
             )
 
     @classmethod
-    def of(cls, value: "MemorySpec | Sequence[float]") -> "MemorySpec":
+    def of(cls, value: "MemorySettings | Sequence[float]") -> "MemorySettings":
         """A spec, or averages only from a sequence of time constants."""
-        return value if isinstance(value, MemorySpec) else cls(tuple(value))
+        return value if isinstance(value, MemorySettings) else cls(tuple(value))
 
     @property
     def rows(self) -> int:
@@ -90,9 +90,9 @@ class MemorySpec:
         return self.rows > 0
 
 
-def feature_width(memory: MemorySpec | Sequence[float]) -> int:
+def feature_width(memory: MemorySettings | Sequence[float]) -> int:
     """Features per frame with ``memory``: 124 + 64 per average and 128 per resonator."""
-    return FEATURE_DIM + MEMORY_WIDTH * MemorySpec.of(memory).rows
+    return FEATURE_DIM + MEMORY_WIDTH * MemorySettings.of(memory).rows
 
 
 def resonator_step(hz: float, damping: float, fps: float) -> tuple[np.ndarray, np.ndarray]:
@@ -108,8 +108,8 @@ class MotionMemory:
     """The memory of N motions advanced one frame at a time (streams: one row per character).
     The state is (N, rows, 64): the averages, then each resonator's x and q."""
 
-    def __init__(self, memory: MemorySpec | Sequence[float], fps: float):
-        self.spec, self.fps = MemorySpec.of(memory), float(fps)
+    def __init__(self, memory: MemorySettings | Sequence[float], fps: float):
+        self.spec, self.fps = MemorySettings.of(memory), float(fps)
         self.decay = np.exp(-1.0 / (fps * np.array(self.spec.seconds)))[
             :, None
         ]  # (k, 1): broadcast over (N, k, 64)
@@ -169,7 +169,7 @@ class MotionMemory:
 
 
 @lru_cache(maxsize=16)
-def motion_memory(memory: MemorySpec, fps: float) -> MotionMemory:
+def motion_memory(memory: MemorySettings, fps: float) -> MotionMemory:
     """A :class:`MotionMemory`, made once per spec and frame rate (a stream steps it every push)."""
     return MotionMemory(memory, fps)
 
@@ -181,12 +181,12 @@ def _velocities(features: np.ndarray) -> np.ndarray:
     )
 
 
-def with_memory(features: np.ndarray, fps: float, memory: MemorySpec | Sequence[float]) -> np.ndarray:
+def with_memory(features: np.ndarray, fps: float, memory: MemorySettings | Sequence[float]) -> np.ndarray:
     """(T, 124) features of one motion -> (T, 124 + 64 rows) with its memory appended; unchanged
     (the same array) without any. The recursion of :class:`MotionMemory` in closed form: the
     velocities turned into the first frame's body frame (the yaw steps summed), linear filters
     there, turned back into each frame's body frame (the same values to rounding, tested)."""
-    memory = motion_memory(MemorySpec.of(memory), float(fps))  # its resonators' steps made once
+    memory = motion_memory(MemorySettings.of(memory), float(fps))  # its resonators' steps made once
     if not memory.spec:
         return features
     heading = np.cumsum(features[:, SLICE_W][:, 0].astype(np.float64)) / fps  # yaw since frame 0 ...

@@ -1,7 +1,7 @@
 """ctypes glue of the mesh decoder's kernels (``kernels.c``: the batched block and the factored
 single-frame block; ``amx_block.c``: the batched block in bfloat16 on AMX): each block's constants
 in the kernels' layouts (:class:`NativeBlock`), bfloat16 rounding and pair-interleaving, and the
-last rows turned into frames. Used by :class:`hrr_garment.models.fast_decoder.FastDecoder`; the
+last rows turned into frames. Used by :class:`hrr_garment.models.inference_decoder.InferenceDecoder`; the
 library from :func:`hrr_garment.native.load_kernel`.
 
 PyTorch runs a spatially varying convolution as a gather (materialising every neighbour's row for

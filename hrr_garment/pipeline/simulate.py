@@ -94,9 +94,9 @@ def simulate_preset(garment: str, preset: Preset, out: Path, progress: bool = Tr
     from ..export.preview import write_dataset_preview
     from ..garment.templates import make_garment
     from ..sim.body_plan import choose_bodies
-    from ..sim.build import BuildOptions, build_dataset
+    from ..sim.build import BuildSettings, build_dataset
     from ..sim.plan import build_options, plan_sequences
-    from ..sim.simulator import SimConfig
+    from ..sim.simulator import SimSettings
 
     mesh = make_garment(garment, preset.vertices)
     choice = choose_bodies(
@@ -109,9 +109,9 @@ def simulate_preset(garment: str, preset: Preset, out: Path, progress: bool = Tr
     report = build_dataset(
         mesh,
         choice.specs,
-        SimConfig.from_dict(preset.sim),
+        SimSettings.from_dict(preset.sim),
         out=out,
-        options=BuildOptions(
+        options=BuildSettings(
             progress=progress,
             preview=write_dataset_preview,
             bodies=choice.bodies,

@@ -13,8 +13,8 @@ The stages, in order: ``simulate`` (only where the dataset does not exist, or la
 preset has gained), ``autoencoder`` (the FCMAE mesh autoencoder, then every frame encoded),
 ``codespace`` (the shared code space, the retrieval database, the gate's and the residual mode's
 calibration, the bundle), then the auto mode's calibration on the validation clips, ``subspace``
-(the fast decoder for games, distilled from the mesh decoder); ``baseline``
-(the direct-regression baseline) only when asked for. Each stage resumes from its checkpoint and
+(the fast decoder for games, distilled from the mesh decoder); ``direct``
+(the direct-regression baseline, formerly ``baseline``) only when asked for. Each stage resumes from its checkpoint and
 is skipped when its outputs are current. A :class:`TrainCallback` hears each stage's end and
 messages; the command line's prints them, a library caller may ignore them.
 """
@@ -29,7 +29,7 @@ from pathlib import Path
 import yaml
 
 from ..errors import InputError
-from ..eval.auto_criterion import AutoConfig, repick
+from ..eval.auto_criterion import AutoSettings, repick
 from ..eval.auto_mode import (
     calibrate_auto_mode,
     followed_otherwise,
@@ -41,18 +41,18 @@ from ..eval.auto_mode import (
     swing_unmeasured,
 )
 from ..io_utils import remove_empty_folders
-from ..models.codespace import CodeSpaceConfig
-from ..models.direct import DirectConfig
-from ..models.fcmae import AutoencoderConfig
-from ..models.subspace import SubspaceConfig
+from ..models.codespace import CodeSpaceSettings
+from ..models.direct import DirectSettings
+from ..models.fcmae import AutoencoderSettings
+from ..models.subspace import SubspaceSettings
 from ..paths import workspace
 from ..settings import deep_merge
 from ..sim.preset import CONFIG_DIR, Preset
-from ..train.autoencoder import TrainConfig
-from ..train.baseline import DirectTrainConfig
-from ..train.codespace_training import CodeSpaceTrainConfig
+from ..train.autoencoder import AutoencoderTrainSettings
+from ..train.codespace_training import CodeSpaceTrainSettings
+from ..train.direct import DirectTrainSettings
 from ..train.report import StageReport
-from ..train.subspace import SubspaceTrainConfig, subspace_warning
+from ..train.subspace import SubspaceTrainSettings, subspace_warning
 from . import simulate as simulation
 from .budget import BudgetCheck, TrainingBudgetWarning, check_budget
 from .simulate import SimulatedDataset
@@ -62,10 +62,11 @@ STAGES = (
     "autoencoder",
     "codespace",
     "subspace",
-)  # what "all" runs; the baseline runs only when asked for
-SECTIONS = ("autoencoder", "codespace", "subspace", "baseline", "auto")  # of the training config
+)  # what "all" runs; the direct stage runs only when asked for
+SECTIONS = ("autoencoder", "codespace", "subspace", "direct", "auto")  # of the training config
 BUDGETED = ("autoencoder", "codespace")  # stages checked against their epochs and target error (.budget)
-OLD_CODESPACE_NAME = "codebook"  # the old name of the code-space stage and config section (deprecated)
+# the old names of stages and config sections (deprecated, still read): old -> current
+OLD_STAGE_NAMES = {"codebook": "codespace", "baseline": "direct"}
 
 
 class TrainCallback:
@@ -86,20 +87,17 @@ class TrainCallback:
 
 
 def _sections(data, source, callback: TrainCallback) -> dict:
-    """A training config's sections, checked, the code space's old section name renamed."""
-    if isinstance(data, dict) and OLD_CODESPACE_NAME in data:
-        callback.on_message(
-            f"deprecated: {source}: the config section '{OLD_CODESPACE_NAME}' is now called 'codespace'"
-        )
-        if "codespace" in data:
-            raise InputError(
-                source, f"has both a '{OLD_CODESPACE_NAME}' and a 'codespace' section; keep 'codespace'"
-            )
-        data = {("codespace" if k == OLD_CODESPACE_NAME else k): v for k, v in data.items()}
+    """A training config's sections, checked, old section names (:data:`OLD_STAGE_NAMES`) renamed."""
+    for old, new in OLD_STAGE_NAMES.items():
+        if isinstance(data, dict) and old in data:
+            callback.on_message(f"deprecated: {source}: the config section '{old}' is now called '{new}'")
+            if new in data:
+                raise InputError(source, f"has both a '{old}' and a '{new}' section; keep '{new}'")
+            data = {(new if k == old else k): v for k, v in data.items()}
     if not isinstance(data, dict) or set(data) - set(SECTIONS):
         raise InputError(
             source,
-            "expected a mapping with 'autoencoder', 'codespace' and/or 'baseline' sections "
+            "expected a mapping with 'autoencoder', 'codespace', 'subspace' and/or 'direct' sections "
             "(each with model/train) and/or an 'auto' section",
         )
     return data
@@ -124,15 +122,17 @@ def _build(factory, values: dict, source) -> object:
 class TrainSettings:
     """Every stage's model and training settings (each a config dataclass of its stage)."""
 
-    autoencoder: AutoencoderConfig = field(default_factory=AutoencoderConfig)
-    autoencoder_train: TrainConfig = field(default_factory=TrainConfig)
-    codespace: CodeSpaceConfig = field(default_factory=CodeSpaceConfig)
-    codespace_train: CodeSpaceTrainConfig = field(default_factory=CodeSpaceTrainConfig)
-    subspace: SubspaceConfig = field(default_factory=SubspaceConfig)
-    subspace_train: SubspaceTrainConfig = field(default_factory=SubspaceTrainConfig)
-    baseline: DirectConfig = field(default_factory=DirectConfig)
-    baseline_train: DirectTrainConfig = field(default_factory=DirectTrainConfig)
-    auto: AutoConfig = field(default_factory=AutoConfig)  # the auto mode's calibration after the code space
+    autoencoder: AutoencoderSettings = field(default_factory=AutoencoderSettings)
+    autoencoder_train: AutoencoderTrainSettings = field(default_factory=AutoencoderTrainSettings)
+    codespace: CodeSpaceSettings = field(default_factory=CodeSpaceSettings)
+    codespace_train: CodeSpaceTrainSettings = field(default_factory=CodeSpaceTrainSettings)
+    subspace: SubspaceSettings = field(default_factory=SubspaceSettings)
+    subspace_train: SubspaceTrainSettings = field(default_factory=SubspaceTrainSettings)
+    direct: DirectSettings = field(default_factory=DirectSettings)
+    direct_train: DirectTrainSettings = field(default_factory=DirectTrainSettings)
+    auto: AutoSettings = field(
+        default_factory=AutoSettings
+    )  # the auto mode's calibration after the code space
 
     @classmethod
     def load(
@@ -156,14 +156,14 @@ class TrainSettings:
         source = user_config or CONFIG_DIR / "train.yaml"
         built = {}
         for section, (model_cls, train_cls) in {
-            "autoencoder": (AutoencoderConfig, TrainConfig),
-            "codespace": (CodeSpaceConfig, CodeSpaceTrainConfig),
-            "subspace": (SubspaceConfig, SubspaceTrainConfig),
-            "baseline": (DirectConfig, DirectTrainConfig),
+            "autoencoder": (AutoencoderSettings, AutoencoderTrainSettings),
+            "codespace": (CodeSpaceSettings, CodeSpaceTrainSettings),
+            "subspace": (SubspaceSettings, SubspaceTrainSettings),
+            "direct": (DirectSettings, DirectTrainSettings),
         }.items():
             built[section] = _build(model_cls, values.get(section, {}).get("model"), source)
             built[f"{section}_train"] = _build(train_cls, values.get(section, {}).get("train"), source)
-        return cls(**built, auto=_build(AutoConfig, values.get("auto"), source))
+        return cls(**built, auto=_build(AutoSettings, values.get("auto"), source))
 
 
 @dataclass
@@ -195,9 +195,10 @@ def train_model(
     (without a garment it is the user's dataset, and must exist)."""
     dataset, folder = Path(dataset), Path(folder)
     callback = callback or TrainCallback()
-    unknown = [s for s in stages if s not in (*STAGES, "baseline")]
+    stages = tuple(OLD_STAGE_NAMES.get(s, s) for s in stages)
+    unknown = [s for s in stages if s not in (*STAGES, "direct")]
     if unknown:
-        raise ValueError(f"unknown stage(s) {unknown}; the stages are {', '.join((*STAGES, 'baseline'))}")
+        raise ValueError(f"unknown stage(s) {unknown}; the stages are {', '.join((*STAGES, 'direct'))}")
     result = TrainResult(folder)
     try:
         if dataset.exists() and {"autoencoder", "codespace"} & set(stages):
@@ -312,14 +313,14 @@ def _subspace_stage(dataset: Path, folder: Path, settings: TrainSettings, ctx: _
     )
 
 
-def _baseline_stage(dataset: Path, folder: Path, settings: TrainSettings, ctx: _Context) -> StageReport:
-    from ..train.baseline import run_baseline_stage
+def _direct_stage(dataset: Path, folder: Path, settings: TrainSettings, ctx: _Context) -> StageReport:
+    from ..train.direct import run_direct_stage
 
-    return run_baseline_stage(
+    return run_direct_stage(
         dataset,
         folder,
-        settings.baseline,
-        train_config=settings.baseline_train,
+        settings.direct,
+        train_config=settings.direct_train,
         cache_dir=workspace() / "cache",
         progress=ctx.progress,
     )
@@ -330,12 +331,12 @@ _STAGE_RUNNERS = {
     "autoencoder": _autoencoder_stage,
     "codespace": _codespace_stage,
     "subspace": _subspace_stage,
-    "baseline": _baseline_stage,
+    "direct": _direct_stage,
 }
 
 
 def calibrate_auto(
-    folder: str | Path, dataset: str | Path, progress: bool = True, config: AutoConfig = AutoConfig()
+    folder: str | Path, dataset: str | Path, progress: bool = True, config: AutoSettings = AutoSettings()
 ) -> dict:
     """The mode ``auto`` runs (:mod:`hrr_garment.eval.auto_mode`), calibrated on the dataset's
     validation clips once per bundle and recorded in bundle.json with every candidate's numbers;

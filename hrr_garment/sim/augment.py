@@ -39,7 +39,7 @@ DRAWS_PER_SPLICE = 20  # tries before the plan settles for fewer splices than as
 
 
 @dataclass(frozen=True)
-class SpliceOptions:
+class SpliceSettings:
     """How many splices a build adds and how they are drawn (a preset's ``splices:`` section)."""
 
     count: int = 0  # splices to add (0: none)
@@ -83,7 +83,7 @@ def window_candidates(specs: list[SequenceSpec], training: set[str], seconds: fl
 
 
 def splice_candidates(
-    specs: list[SequenceSpec], training: set[str], options: SpliceOptions
+    specs: list[SequenceSpec], training: set[str], options: SpliceSettings
 ) -> list[SequenceSpec]:
     """The :func:`window_candidates` a splice may take its parts from: those whose names give the
     field the parts must differ in."""
@@ -94,7 +94,7 @@ def splice_candidates(
     ]
 
 
-def plan_splices(candidates: list[SequenceSpec], options: SpliceOptions) -> SplicePlan:
+def plan_splices(candidates: list[SequenceSpec], options: SpliceSettings) -> SplicePlan:
     """``options.count`` splices of ``candidates`` (:func:`splice_candidates`): the legs of one, the
     upper body of another whose ``options.field`` differs, windows drawn inside each, every one
     checked for limbs through the body (the mannequin's capsules)."""
@@ -137,7 +137,7 @@ def plan_splices(candidates: list[SequenceSpec], options: SpliceOptions) -> Spli
     return SplicePlan(specs, drawn, refused)
 
 
-def plan_backward(candidates: list[SequenceSpec], options: SpliceOptions) -> list[SequenceSpec]:
+def plan_backward(candidates: list[SequenceSpec], options: SpliceSettings) -> list[SequenceSpec]:
     """``options.backward`` windows of ``candidates`` (:func:`window_candidates`) played backward,
     each of ``options.seconds``, clip and window drawn at random (seeded)."""
     frames = int(round(options.seconds * FPS))

@@ -31,7 +31,7 @@ from ..body.capsules import BodyModel
 from ..body.retarget import played_by
 from ..garment.mesh import GarmentMesh
 from ..motion.motion import Motion
-from .config import SimConfig
+from .config import SimSettings
 from .scene import (
     SteppedScene,
     add_ground,
@@ -66,7 +66,7 @@ class BatchScene(SteppedScene):
     """One newton model holding ``runs``' instances, each in its own world (see the module
     docstring); ``ranges[i]`` are instance ``i``'s particles in the concatenated positions."""
 
-    def __init__(self, runs: list[ClipRun], config: SimConfig):
+    def __init__(self, runs: list[ClipRun], config: SimSettings):
         wp, newton = import_newton()
         self.wp, self.newton, self.config = wp, newton, config
         self.device = resolve_device(wp, config.device)
@@ -148,7 +148,7 @@ def step_batch(
 
 
 def simulate_batch(
-    items: list[BatchItem], config: SimConfig = SimConfig(), progress: Callable[[int], None] | None = None
+    items: list[BatchItem], config: SimSettings = SimSettings(), progress: Callable[[int], None] | None = None
 ) -> list[SimResult | SimulationExploded]:
     """Simulate ``items`` together (one model, one solver, ``config``'s substeps and iterations for
     all); each gets what :func:`~.simulator.simulate_garment` gives it: its result, or the

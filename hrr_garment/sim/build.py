@@ -24,7 +24,7 @@ from ..garment.mesh import GarmentMesh
 from ..io_utils import atomic_write_text, exclusive_lock, strict_json
 from .augment import (
     BACKWARD_PREFIX,
-    SpliceOptions,
+    SpliceSettings,
     plan_backward,
     plan_splices,
     splice_candidates,
@@ -36,7 +36,7 @@ from .parts import PART_VERSION, load_part, part_paths, parts_to_simulate, templ
 from .plan import SequenceSpec
 from .preset import MIRROR_MODES, mirror_mode
 from .reflection import add_reflected_mirrors
-from .simulator import SimConfig, SimulationExploded, simulate_garment
+from .simulator import SimSettings, SimulationExploded, simulate_garment
 from .summary import summarise
 
 # Renders a built dataset's preview image (records, garment, path, bodies=...) -> path or None;
@@ -59,7 +59,7 @@ class BuildReport:
     stats: dict[str, dict] = field(default_factory=dict)
 
 
-def warm_up(garment: GarmentMesh, config: SimConfig) -> None:
+def warm_up(garment: GarmentMesh, config: SimSettings) -> None:
     """Compile/load the simulator's kernels once in this process (workers then find them cached)."""
     from ..motion.synth import synthesize
 
@@ -68,7 +68,7 @@ def warm_up(garment: GarmentMesh, config: SimConfig) -> None:
 
 
 @dataclass(frozen=True)
-class BuildOptions:
+class BuildSettings:
     """How :func:`build_dataset` builds: what goes into the dataset (``splits``, ``seed``, ``groups``,
     ``kinds``, ``mirror``, ``info``: :func:`~hrr_garment.sim.plan.build_options` gives a preset's)
     and how the sequences are simulated (``jobs``, ``executor``, ``address``, ``retry_rejected``,
@@ -90,12 +90,12 @@ class BuildOptions:
     whole groups of more fields beside ``groups`` (a sequence tests if any field's split tests it;
     sequences a field does not group train as far as that field goes).
 
-    ``bodies`` (name -> a body and the garment on it, :mod:`.bodies`) holds every body a sequence
+    ``bodies`` (name -> a body and the garment on it, :mod:`.body_plan`) holds every body a sequence
     names (``SequenceSpec.body``); ``hold_out_bodies`` makes validation and test hold out whole
     bodies as well as whole groups (a sequence tests if its group or its body does).
 
     ``batch`` N simulates up to N sequences of similar length together, each in its own world of
-    one newton model (:mod:`.batch`; for a GPU, ``SimConfig.device``): a worker process or Ray task
+    one newton model (:mod:`.batch`; for a GPU, ``SimSettings.device``): a worker process or Ray task
     per batch. 0 or 1 simulates one sequence per worker, as before. Parts and their keys are the
     same either way, so a batched build resumes an unbatched one and the other way round.
 
@@ -119,19 +119,19 @@ class BuildOptions:
     hold_out_bodies: bool = False
     batch: int = 0
     also_hold_out: dict[str, dict] | None = None
-    splices: SpliceOptions | None = None
+    splices: SpliceSettings | None = None
 
 
 def build_dataset(
     garment: GarmentMesh,
     specs: list[SequenceSpec],
-    config: SimConfig,
+    config: SimSettings,
     *,
     out: str | Path,
-    options: BuildOptions = BuildOptions(),
+    options: BuildSettings = BuildSettings(),
 ) -> BuildReport:
     """Simulate what is missing, then write ``out`` (HDF5) atomically, as ``options`` say. See the
-    module docstring and :class:`BuildOptions`."""
+    module docstring and :class:`BuildSettings`."""
     o = options
     progress, executor = o.progress, o.executor
     if executor not in EXECUTORS:
@@ -243,11 +243,11 @@ class _Simulated:
 def _simulate_missing(
     specs: list[SequenceSpec],
     garment: GarmentMesh,
-    config: SimConfig,
+    config: SimSettings,
     *,
     parts: Path,
     bodies: dict[str, DressedBody],
-    options: BuildOptions,
+    options: BuildSettings,
 ) -> _Simulated:
     """Simulate the ``specs`` that have no finished part under their key (parts of sibling datasets
     borrowed first), as ``options`` say (workers, Ray, batches, progress)."""

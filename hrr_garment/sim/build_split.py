@@ -1,6 +1,6 @@
 """How a build splits its finished sequences into train, validation and test: by name (clips, kinds
 held out only where they also train) or by whole groups, with more held-out fields and whole bodies
-beside, a simulated mirror going where its source goes (:class:`~.build.BuildOptions`)."""
+beside, a simulated mirror going where its source goes (:class:`~.build.BuildSettings`)."""
 
 from __future__ import annotations
 
@@ -11,12 +11,12 @@ from .plan import SequenceSpec, clip_name
 from .preset import mirror_mode
 
 if TYPE_CHECKING:  # build imports this module
-    from .build import BuildOptions
+    from .build import BuildSettings
 
 
-def split_finished(done: list[str], specs: list[SequenceSpec], o: BuildOptions) -> dict[str, list[str]]:
+def split_finished(done: list[str], specs: list[SequenceSpec], o: BuildSettings) -> dict[str, list[str]]:
     """The finished sequences split as ``o`` asks: by name, or by whole groups, with the more fields
-    of ``also_hold_out`` and the bodies held out beside (:class:`BuildOptions`). A simulated mirror
+    of ``also_hold_out`` and the bodies held out beside (:class:`BuildSettings`). A simulated mirror
     goes where its source goes (the split is drawn over the sources, so it is the split the
     sources alone would get)."""
     finished = set(done)
@@ -31,7 +31,7 @@ def split_finished(done: list[str], specs: list[SequenceSpec], o: BuildOptions) 
     }
 
 
-def split_sources(done: list[str], specs: list[SequenceSpec], o: BuildOptions) -> dict[str, list[str]]:
+def split_sources(done: list[str], specs: list[SequenceSpec], o: BuildSettings) -> dict[str, list[str]]:
     """:func:`split_finished` over the sources (``done``: the finished sequences, mirrors left out)."""
     val, test = (o.splits or {}).get("val", 0.1), (o.splits or {}).get("test", 0.1)
     if o.groups:

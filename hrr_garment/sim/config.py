@@ -1,4 +1,4 @@
-"""The simulator's solver and material settings (:class:`SimConfig`), shared by the newton scene
+"""The simulator's solver and material settings (:class:`SimSettings`), shared by the newton scene
 (:mod:`.scene`) and the simulation driver (:mod:`.simulator`, which re-exports it)."""
 
 from __future__ import annotations
@@ -9,7 +9,7 @@ from ..settings import from_settings
 
 
 @dataclass(frozen=True)
-class SimConfig:
+class SimSettings:
     """Solver and material values; configs/sim.yaml holds the project defaults."""
 
     substeps: int = 10
@@ -34,7 +34,7 @@ class SimConfig:
     device: str = "auto"  # "auto" (a GPU when present), "cpu", "cuda:0"...
 
     @classmethod
-    def from_dict(cls, values: dict) -> "SimConfig":
+    def from_dict(cls, values: dict) -> "SimSettings":
         return from_settings(cls, values, "simulator")
 
     def to_dict(self) -> dict:

@@ -24,7 +24,7 @@ from ..body.mannequin import MANNEQUIN
 from ..garment.dressing import DressedBody
 from ..motion.motion import FPS, Motion
 from ..workers import die_with_parent
-from .config import SimConfig
+from .config import SimSettings
 from .lead_in import lead_in_frames
 from .parts import PartResult, SequenceJob, simulate_sequence, simulate_sequences, write_part
 from .plan import SequenceSpec
@@ -32,7 +32,7 @@ from .plan import SequenceSpec
 EXECUTORS = ("local", "ray")
 
 
-def _frames_to_simulate(spec: SequenceSpec, config: SimConfig) -> int:
+def _frames_to_simulate(spec: SequenceSpec, config: SimSettings) -> int:
     lead = sum(lead_in_frames(config.settle_s, config.blend_s, FPS))
     return (int(round(spec.seconds * FPS)) if spec.kind != "file" else spec.stop - spec.start) + lead
 
@@ -52,7 +52,7 @@ class Execution:
     address: str | None = None
 
 
-def batches(pending: list[SequenceSpec], config: SimConfig, size: int) -> list[list[SequenceSpec]]:
+def batches(pending: list[SequenceSpec], config: SimSettings, size: int) -> list[list[SequenceSpec]]:
     """``pending`` in batches of up to ``size`` sequences of similar length (longest first, so a
     batch's shorter instances idle little); ``size`` 0 or 1: one sequence each, in order."""
     if size <= 1:
@@ -61,7 +61,7 @@ def batches(pending: list[SequenceSpec], config: SimConfig, size: int) -> list[l
     return [by_length[k : k + size] for k in range(0, len(by_length), size)]
 
 
-def _progress_bar(pending: list[SequenceSpec], config: SimConfig, progress: bool) -> tqdm:
+def _progress_bar(pending: list[SequenceSpec], config: SimSettings, progress: bool) -> tqdm:
     total = sum(_frames_to_simulate(s, config) for s in pending)
     return tqdm(total=total, unit="frame", desc="simulating", disable=not progress, smoothing=0.05)
 
@@ -126,12 +126,12 @@ def _local_worker(jobs: list[SequenceJob], config: dict, parts: str) -> list[Par
 
 
 def run_local(
-    pending: list[SequenceSpec], bodies: dict[str, DressedBody], config: SimConfig, execution: Execution
+    pending: list[SequenceSpec], bodies: dict[str, DressedBody], config: SimSettings, execution: Execution
 ) -> dict[str, str]:
     """Simulate ``pending`` in ``execution.jobs`` spawned processes, one sequence or batch
     (``execution.batch``) per task; returns the rejected sequences' reasons. ``bodies``: the
     mannequin (:data:`~hrr_garment.body.mannequin.MANNEQUIN`, with the template) and every body a
-    sequence names (:mod:`.bodies`), each with the garment on it."""
+    sequence names (:mod:`.body_plan`), each with the garment on it."""
     bar = _progress_bar(pending, config, execution.progress)
     rejects: dict[str, str] = {}
     ctx = mp.get_context("spawn")  # Warp is not fork-safe
@@ -200,7 +200,7 @@ def _import_ray():
 
 
 def run_ray(
-    pending: list[SequenceSpec], bodies: dict[str, DressedBody], config: SimConfig, execution: Execution
+    pending: list[SequenceSpec], bodies: dict[str, DressedBody], config: SimSettings, execution: Execution
 ) -> dict[str, str]:
     """Simulate ``pending`` as Ray tasks, one sequence (or one batch, ``execution.batch``) each;
     parts are written here as tasks finish.

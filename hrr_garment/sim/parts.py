@@ -35,7 +35,7 @@ from ..motion.skeleton import Skeleton
 from .batch import BatchItem, simulate_batch
 from .plan import SequenceSpec
 from .quality import sequence_stats
-from .simulator import SimConfig, SimResult, SimulationExploded, simulate_garment
+from .simulator import SimResult, SimSettings, SimulationExploded, simulate_garment
 
 PART_VERSION = 1
 
@@ -79,7 +79,7 @@ class PartResult:
 class SequenceJob:
     """One sequence to simulate: its spec, its motion (``spec.motion()``; None until it is loaded
     where the job runs), the garment (the template on the mannequin), its part's key and its body
-    (:mod:`.bodies`; None: the mannequin)."""
+    (:mod:`.body_plan`; None: the mannequin)."""
 
     spec: SequenceSpec
     motion: Motion | None
@@ -134,13 +134,13 @@ def simulate_sequence(
     body: DressedBody | None = None,
 ) -> PartResult:
     """Simulate one sequence (``motion`` is ``spec.motion()``, loaded by the caller) on the
-    mannequin, or on ``body`` (the sequence's, :mod:`.bodies`): the motion played by that body
+    mannequin, or on ``body`` (the sequence's, :mod:`.body_plan`): the motion played by that body
     (:func:`~hrr_garment.body.retarget.motion_on_body`) and the garment on it."""
     job = SequenceJob(spec, motion, garment, key, body)
     played, dressed, collider = on_body = job.on_body()
     try:
         result = simulate_garment(
-            dressed, played, SimConfig.from_dict(config), body=collider, progress=progress
+            dressed, played, SimSettings.from_dict(config), body=collider, progress=progress
         )
     except SimulationExploded as exc:
         result = exc
@@ -155,7 +155,7 @@ def simulate_sequences(
     solver's tolerance, and one that explodes in the batch is simulated alone with every retry."""
     on_bodies = [job.on_body() for job in jobs]
     items = [BatchItem(garment, motion, collider) for motion, garment, collider in on_bodies]
-    results = simulate_batch(items, SimConfig.from_dict(config), progress=progress)
+    results = simulate_batch(items, SimSettings.from_dict(config), progress=progress)
     return [_part(job, on_body, result) for job, on_body, result in zip(jobs, on_bodies, results)]
 
 

@@ -20,7 +20,7 @@ from ..motion.edit import retimed
 from ..motion.io import load_motion
 from ..motion.motion import Motion
 from ..motion.synth import KINDS, synthesize
-from .augment import AUGMENT_PREFIXES, SpliceOptions
+from .augment import AUGMENT_PREFIXES, SpliceSettings
 from .preset import Preset, mirror_mode, plan_record
 from .sources import clip_group, resolve_motion_entries
 
@@ -210,7 +210,7 @@ def _file_pieces(path: str, speed: float, source_fps: float | None) -> list[Sequ
 
 
 def build_options(preset: Preset, specs: list[SequenceSpec]) -> dict:
-    """The preset's keyword arguments for :class:`~hrr_garment.sim.build.BuildOptions`: splits (by
+    """The preset's keyword arguments for :class:`~hrr_garment.sim.build.BuildSettings`: splits (by
     clip group when it names one), seed, mirroring and the provenance recorded in the file."""
     groups = {s.name: sequence_group(s, preset) for s in specs} if preset.split_by else None
     info: dict = {"preset": preset.name, "plan": plan_record(preset)}
@@ -237,7 +237,7 @@ def build_options(preset: Preset, specs: list[SequenceSpec]) -> dict:
     kinds = {s.name: s.kind for s in specs if s.kind != "file"}  # procedural clips: held out in distribution
     splices = None
     if preset.splices.get("count") or preset.splices.get("backward"):
-        splices = SpliceOptions(**preset.splices, name_pattern=preset.name_pattern, seed=preset.seed)
+        splices = SpliceSettings(**preset.splices, name_pattern=preset.name_pattern, seed=preset.seed)
         info.setdefault("augmentation", {"mirror": mirror, "speed_warps": list(preset.speed_warps)})[
             "splices"
         ] = preset.splices

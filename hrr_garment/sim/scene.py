@@ -12,7 +12,7 @@ from ..body.capsules import BodyModel
 from ..garment.mesh import GarmentMesh
 from ..motion.motion import Motion
 from ..motion.rotations import matrix_to_quat, rotation_between
-from .config import SimConfig
+from .config import SimSettings
 
 ARMS_OFF_CAPSULES = ("upper_arm", "forearm", "hand")  # taken off the cloth in the simulator's last retries
 
@@ -76,7 +76,7 @@ def instance_builder(
     start_vertices: np.ndarray,
     half_lengths: np.ndarray,
     body: BodyModel,
-    config: SimConfig,
+    config: SimSettings,
     pieces: list | None = None,
 ):
     """A newton builder of one garment (attached vertices at zero mass) and ``body``'s capsules as
@@ -124,7 +124,7 @@ def instance_builder(
     return builder, shapes
 
 
-def add_ground(builder, config: SimConfig) -> None:
+def add_ground(builder, config: SimSettings) -> None:
     """The ground plane (a global shape: in a batch every world's cloth meets it)."""
     _, newton = import_newton()
     builder.add_ground_plane(
@@ -139,7 +139,9 @@ class SteppedScene:
     poses it takes and returns are the instances' concatenated: ``attached`` indexes the whole
     model's particles, ``arm_shapes[i]`` are instance ``i``'s arm capsules."""
 
-    def _finish(self, builder, config: SimConfig, arm_shapes: list[list[int]], attached: np.ndarray) -> None:
+    def _finish(
+        self, builder, config: SimSettings, arm_shapes: list[list[int]], attached: np.ndarray
+    ) -> None:
         """Finalize ``builder`` into the model, collision pipeline, solver and two states."""
         from .kernels import scatter_positions  # warp at import: only with the sim extra
 
@@ -270,7 +272,7 @@ class ClothScene(SteppedScene):
         start_vertices: np.ndarray,
         half_lengths: np.ndarray,
         body: BodyModel,
-        config: SimConfig,
+        config: SimSettings,
         pieces: list | None = None,
     ):
         wp, newton = import_newton()

@@ -36,7 +36,7 @@ from ..errors import HRRError
 from ..garment.attachment import bind_attached
 from ..garment.mesh import GarmentMesh
 from ..motion.motion import Motion
-from .config import SimConfig  # defined in .config (the scene needs it too); importable from here as before
+from .config import SimSettings  # defined in .config (the scene needs it too); importable from here as before
 from .lead_in import start_transform, with_lead_in
 from .scene import ClothScene, arms_off_capsules, capsule_transforms
 
@@ -80,7 +80,7 @@ class ClipRun:
         garment: GarmentMesh,
         motion: Motion,
         body: BodyModel,
-        config: SimConfig,
+        config: SimSettings,
         arms_off: np.ndarray | None = None,
         back_inside: float = 0.0,
     ):
@@ -163,7 +163,7 @@ def _attempt(
     garment: GarmentMesh,
     motion: Motion,
     body: BodyModel,
-    config: SimConfig,
+    config: SimSettings,
     progress: Callable[[int], None] | None,
     arms_off: np.ndarray | None = None,
     back_inside: float = 0.0,
@@ -203,7 +203,7 @@ def _arms_note(arms_off: np.ndarray) -> str:
 def simulate_garment(
     garment: GarmentMesh,
     motion: Motion,
-    config: SimConfig = SimConfig(),
+    config: SimSettings = SimSettings(),
     body: BodyModel = DEFAULT_BODY,
     progress: Callable[[int], None] | None = None,
     collider: BodyMesh | None = None,

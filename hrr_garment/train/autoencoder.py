@@ -29,7 +29,7 @@ from tqdm.auto import tqdm
 from ..data.dataset import GarmentDataset
 from ..garment.mesh import mirror_map
 from ..io_utils import atomic_path, atomic_write_text, strict_json
-from ..models.fcmae import AutoencoderConfig, MeshAutoencoder
+from ..models.fcmae import AutoencoderSettings, MeshAutoencoder
 from ..models.hierarchy import cached_hierarchy
 from ..motion.frame import FRAME_VERSION, to_body_frame
 from ..settings import from_settings
@@ -41,7 +41,7 @@ from .schedule import cap_since_raised, set_learning_rate, training_device
 
 
 @dataclass(frozen=True)
-class TrainConfig:
+class AutoencoderTrainSettings:
     """The autoencoder stage's training settings (configs/train.yaml, ``autoencoder.train``)."""
 
     epochs: int = 300
@@ -66,7 +66,7 @@ class TrainConfig:
     refine_lr: float = 0.03
 
     @classmethod
-    def from_dict(cls, values: dict) -> "TrainConfig":
+    def from_dict(cls, values: dict) -> "AutoencoderTrainSettings":
         return from_settings(cls, values, "training")
 
 
@@ -74,7 +74,7 @@ def refine_settings(values: dict) -> dict:
     """The encoding's settings (``fit_latents``' steps and rate) from a train config as a dict: a
     run's own, its saved config.json, or a bundle's record. Missing ones (files from before they
     were recorded) are the defaults."""
-    default = TrainConfig()
+    default = AutoencoderTrainSettings()
     return {
         "refine_steps": int(values.get("refine_steps", default.refine_steps)),
         "refine_lr": float(values.get("refine_lr", default.refine_lr)),
@@ -133,7 +133,7 @@ def _key(*parts) -> str:
 
 
 def _settings_keys(
-    model_config: AutoencoderConfig, train_config: TrainConfig, ds: GarmentDataset
+    model_config: AutoencoderSettings, train_config: AutoencoderTrainSettings, ds: GarmentDataset
 ) -> tuple[str, str]:
     """(training key, stage key). The checkpoint's key leaves out what only the encoding uses:
     changing the refinement re-encodes a finished run (its checkpoint is at the end of training)
@@ -191,7 +191,7 @@ class _AutoencoderEpochs(EpochStep):
         model: MeshAutoencoder,
         optimizer: torch.optim.Optimizer,
         frames: TrainingFrames,
-        config: TrainConfig,
+        config: AutoencoderTrainSettings,
         device: torch.device,
     ):
         self.model, self.optimizer, self.frames = model, optimizer, frames
@@ -227,8 +227,8 @@ class _AutoencoderEpochs(EpochStep):
 def train_autoencoder(
     dataset: str | Path,
     folder: str | Path,
-    model_config: AutoencoderConfig = AutoencoderConfig(),
-    train_config: TrainConfig = TrainConfig(),
+    model_config: AutoencoderSettings = AutoencoderSettings(),
+    train_config: AutoencoderTrainSettings = AutoencoderTrainSettings(),
     cache_dir: Path | None = None,
     progress: bool = True,
 ) -> StageReport:
@@ -352,7 +352,7 @@ def load_autoencoder(folder: str | Path, faces: np.ndarray, cache_dir: Path | No
     """The trained model of ``folder`` (weights only; no pickled objects are loaded)."""
     folder = Path(folder)
     meta = json.loads((folder / "config.json").read_text())
-    config = AutoencoderConfig.from_dict(meta["model"])
+    config = AutoencoderSettings.from_dict(meta["model"])
     hierarchy = cached_hierarchy(faces, meta["vertices"], cache_dir, **config.hierarchy_options())
     model = MeshAutoencoder(hierarchy, config)
     state = torch.load(folder / "model.pt", map_location="cpu", weights_only=True)

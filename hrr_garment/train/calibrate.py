@@ -199,7 +199,7 @@ def window_mode_errors(
         own_frames[n][rows_sorted] = fitted
     own = np.stack([own_frames[n][s : s + w] for n, s in windows])
     pred = predict_windows(codespace, m, motion_stats, latent_stats, database)
-    decode = autoencoder.fast_decoder()
+    decode = autoencoder.inference_decoder()
     err_reg = window_errors_mm(decode, pred.regression, truth)
     err_ret = window_errors_mm(decode, pred.retrieval, truth)
     err_ae = window_errors_mm(decode, own, truth)
@@ -261,7 +261,7 @@ def calibrate_residual(
     pred = predict_windows(model.codespace, m, model.motion_stats, model.latent_stats, model.database)
     if pred.match_regression is None:
         raise ValueError("the database has no motion windows: the residual mode cannot run on this model")
-    decode = model.autoencoder.fast_decoder()
+    decode = model.autoencoder.inference_decoder()
     return choose_residual_weight(
         window_errors_mm(decode, pred.regression, truth), residual_errors(pred, decode, truth)
     )

@@ -36,12 +36,12 @@ from ..data.dataset import DatasetError, GarmentDataset
 from ..data.windows import build_windows, dataset_features, fit_stats, split_windows
 from ..garment.smoothing import mean_operator
 from ..io_utils import atomic_write_text, strict_json
-from ..models.codespace import CodeSpace, CodeSpaceConfig
+from ..models.codespace import CodeSpace, CodeSpaceSettings
 from .autoencoder import body_frames, load_autoencoder, refine_settings
 from .calibrate import calibrate_residual, window_mode_errors
 from .codespace_training import (
     PAPER_VALIDATION_FRACTION,
-    CodeSpaceTrainConfig,
+    CodeSpaceTrainSettings,
     WindowTensors,
     evaluate,
     mean_square,
@@ -124,8 +124,8 @@ def _autoencoder_outputs(
 
 
 def _stage_key(
-    config: CodeSpaceConfig,
-    train_config: CodeSpaceTrainConfig,
+    config: CodeSpaceSettings,
+    train_config: CodeSpaceTrainSettings,
     ae_state: dict,
     latents: dict[str, np.ndarray],
     ds: GarmentDataset,
@@ -152,8 +152,8 @@ def _stage_key(
 
 
 def _stage_keys(
-    config: CodeSpaceConfig,
-    train_config: CodeSpaceTrainConfig,
+    config: CodeSpaceSettings,
+    train_config: CodeSpaceTrainSettings,
     ae_state: dict,
     latents: dict[str, np.ndarray],
     ds: GarmentDataset,
@@ -207,7 +207,11 @@ def fold_store(ds: GarmentDataset, names: list[str], progress: bool = True) -> F
 
 
 def _windows(
-    features: dict, latents: dict, splits: dict, config: CodeSpaceConfig, train_config: CodeSpaceTrainConfig
+    features: dict,
+    latents: dict,
+    splits: dict,
+    config: CodeSpaceSettings,
+    train_config: CodeSpaceTrainSettings,
 ):
     """Training and validation windows, their statistics, and the windows calibration decodes
     (None: every window of the validation clips)."""
@@ -259,8 +263,8 @@ def _add_residual(
 def run_codespace_stage(
     dataset: str | Path,
     folder: str | Path,
-    config: CodeSpaceConfig = CodeSpaceConfig(),
-    train_config: CodeSpaceTrainConfig = CodeSpaceTrainConfig(),
+    config: CodeSpaceSettings = CodeSpaceSettings(),
+    train_config: CodeSpaceTrainSettings = CodeSpaceTrainSettings(),
     cache_dir: Path | None = None,
     progress: bool = True,
     info: dict | None = None,

@@ -45,7 +45,7 @@ PAPER_VALIDATION_FRACTION = 0.1  # "windows": the paper's 9:1 split of the train
 
 
 @dataclass(frozen=True)
-class CodeSpaceTrainConfig:
+class CodeSpaceTrainSettings:
     """The code-space stage's training settings (``codespace.train``)."""
 
     epochs: int = 300
@@ -111,7 +111,7 @@ class CodeSpaceTrainConfig:
             )
 
     @classmethod
-    def from_dict(cls, values: dict) -> "CodeSpaceTrainConfig":
+    def from_dict(cls, values: dict) -> "CodeSpaceTrainSettings":
         return from_settings(cls, values, "code space training")
 
 
@@ -249,7 +249,7 @@ def _train_step(
     model: CodeSpace,
     optimizer: torch.optim.Optimizer,
     batch: tuple,
-    config: CodeSpaceTrainConfig,
+    config: CodeSpaceTrainSettings,
     *,
     weights: tuple[float, float],
     latent_loss: Callable[[torch.Tensor], torch.Tensor],
@@ -277,7 +277,7 @@ class _CodeSpaceEpochs(EpochStep):
         model: CodeSpace,
         optimizer: torch.optim.Optimizer,
         data: tuple[WindowTensors, WindowTensors],
-        config: CodeSpaceTrainConfig,
+        config: CodeSpaceTrainSettings,
         plateau: PlateauDetector,
         latent_loss: Callable[[torch.Tensor], torch.Tensor],
     ):
@@ -336,7 +336,7 @@ def train_codespace(
     train: WindowTensors,
     val: WindowTensors,
     folder: Path,
-    config: CodeSpaceTrainConfig = CodeSpaceTrainConfig(),
+    config: CodeSpaceTrainSettings = CodeSpaceTrainSettings(),
     key: str = "",
     progress: bool = True,
     latent_loss: Callable[[torch.Tensor], torch.Tensor] = mean_square,

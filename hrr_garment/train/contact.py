@@ -40,7 +40,7 @@ from ..models.codespace import CodeSpace
 from ..models.fcmae import MeshAutoencoder
 from ..motion.frame import to_body_frame
 from ..sim.quality import PENETRATION_DEPTH_M
-from .codespace_training import CodeSpaceTrainConfig, WindowTensors
+from .codespace_training import CodeSpaceTrainSettings, WindowTensors
 
 LEARNING_RATE = 1e-4  # a tenth of training's initial rate: the phase adjusts a trained decoder
 BATCH = 64  # windows (and so decoded frames) a step
@@ -166,7 +166,7 @@ def teach_contact(
     train: ContactWindows,
     *,
     val: ContactWindows | None,
-    config: CodeSpaceTrainConfig,
+    config: CodeSpaceTrainSettings,
     latent_loss: Callable[[torch.Tensor], torch.Tensor],
     checkpoint: tuple[Path, str],
     progress: bool = True,

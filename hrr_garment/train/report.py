@@ -15,7 +15,7 @@ class StageReport:
     errors and database statistics, the baseline's validation error).
     """
 
-    stage: str  # "autoencoder", "codespace" or "baseline"
+    stage: str  # "autoencoder", "codespace", "subspace" or "direct"
     folder: Path  # where the stage's outputs are
     epochs: int  # epochs trained, interrupted runs included
     best_epoch: int  # the epoch whose weights were kept

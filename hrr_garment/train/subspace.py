@@ -31,7 +31,7 @@ from ..artifacts.manifest import SUBSPACE_FILE
 from ..artifacts.manifest_entries import SubspaceEntry
 from ..data.dataset import DatasetError
 from ..io_utils import atomic_write_text, strict_json
-from ..models.subspace import SubspaceConfig, SubspaceDecoder, principal_components
+from ..models.subspace import SubspaceDecoder, SubspaceSettings, principal_components
 from ..settings import from_settings, require_number
 from .autoencoder import body_frames
 from .bundle_stage import bundle_and_dataset
@@ -46,7 +46,7 @@ STAGE_VERSION = (
 
 
 @dataclass(frozen=True)
-class SubspaceTrainConfig:
+class SubspaceTrainSettings:
     """The subspace stage's training settings (``subspace.train``)."""
 
     epochs: int = 60
@@ -66,7 +66,7 @@ class SubspaceTrainConfig:
         require_number("subspace training", "tolerance", self.tolerance, low=1, high=10)
 
     @classmethod
-    def from_dict(cls, values: dict) -> "SubspaceTrainConfig":
+    def from_dict(cls, values: dict) -> "SubspaceTrainSettings":
         return from_settings(cls, values, "subspace training")
 
 
@@ -115,7 +115,7 @@ class _SubspaceEpochs(EpochStep):
         optimizer: torch.optim.Optimizer,
         schedule: torch.optim.lr_scheduler.LRScheduler,
         data: tuple[tuple[torch.Tensor, torch.Tensor], tuple[torch.Tensor, torch.Tensor]],
-        config: SubspaceTrainConfig,
+        config: SubspaceTrainSettings,
     ):
         self.model, self.optimizer, self.schedule, self.config = model, optimizer, schedule, config
         (self.inputs, self.targets), self.val = data
@@ -148,7 +148,7 @@ def _fit(
     targets: torch.Tensor,
     val: tuple[torch.Tensor, torch.Tensor],
     folder: Path,
-    config: SubspaceTrainConfig,
+    config: SubspaceTrainSettings,
     key: str,
     progress: bool,
 ) -> dict:
@@ -214,8 +214,8 @@ def subspace_warning(entry: dict) -> str | None:
 def run_subspace_stage(
     dataset: str | Path,
     folder: str | Path,
-    config: SubspaceConfig = SubspaceConfig(),
-    train_config: SubspaceTrainConfig = SubspaceTrainConfig(),
+    config: SubspaceSettings = SubspaceSettings(),
+    train_config: SubspaceTrainSettings = SubspaceTrainSettings(),
     cache_dir: Path | None = None,
     progress: bool = True,
 ) -> StageReport:
@@ -249,7 +249,7 @@ def run_subspace_stage(
             split: np.concatenate([f[n] for n in split_names]).astype(np.float32)
             for split, split_names in names.items()
         }
-    full = bundle.autoencoder.fast_decoder()
+    full = bundle.autoencoder.inference_decoder()
     rng = np.random.default_rng(train_config.seed)
     sample = np.sort(
         rng.choice(len(latents["train"]), min(train_config.pca_frames, len(latents["train"])), replace=False)

@@ -332,19 +332,19 @@ def test_a_dataset_being_built_is_locked_against_a_second_build(tmp_path):
     from hrr_garment.errors import InputError
     from hrr_garment.garment.templates import make_garment
     from hrr_garment.io_utils import exclusive_lock
-    from hrr_garment.sim.build import BuildOptions, build_dataset
-    from hrr_garment.sim.simulator import SimConfig
+    from hrr_garment.sim.build import BuildSettings, build_dataset
+    from hrr_garment.sim.simulator import SimSettings
 
     out = tmp_path / "d.h5"
     with exclusive_lock(out.with_suffix(".lock"), out, "busy"):  # as the first build holds it
         with pytest.raises(InputError, match=r"another hrr-simulate is building this dataset.*process \d+"):
             build_dataset(
-                make_garment("skirt", 200), [], SimConfig(), out=out, options=BuildOptions(progress=False)
+                make_garment("skirt", 200), [], SimSettings(), out=out, options=BuildSettings(progress=False)
             )
     # released with its holder: the next build gets past the lock (and finds nothing to simulate)
     with pytest.raises(Exception, match="every sequence failed; nothing to write"):
         build_dataset(
-            make_garment("skirt", 200), [], SimConfig(), out=out, options=BuildOptions(progress=False)
+            make_garment("skirt", 200), [], SimSettings(), out=out, options=BuildSettings(progress=False)
         )
     assert not out.exists()
 

@@ -162,12 +162,12 @@ def test_simulated_mirrors_join_their_source_split():
     each mirror goes where its source goes, also when the source itself failed."""
     from dataclasses import replace
 
-    from hrr_garment.sim.build import BuildOptions
+    from hrr_garment.sim.build import BuildSettings
     from hrr_garment.sim.build_split import split_finished
     from hrr_garment.sim.plan import SequenceSpec
 
     sources = [SequenceSpec(f"walk_{i:03d}", "walk", seed=i, seconds=1.0) for i in range(10)]
-    options = BuildOptions(splits={"val": 0.2, "test": 0.2}, seed=1, kinds={s.name: "walk" for s in sources})
+    options = BuildSettings(splits={"val": 0.2, "test": 0.2}, seed=1, kinds={s.name: "walk" for s in sources})
     alone = split_finished([s.name for s in sources], sources, options)
     done = [s.name for s in sources] + [f"{s.name}_mirror" for s in sources if s.name != "walk_004"]
     done.remove("walk_007")  # its mirror simulated, the source did not
@@ -229,7 +229,7 @@ def test_more_fields_held_out_whole_beside_the_split(library, tmp_path):
     """``also_hold_out``: whole contents held out beside whole styles; a content tests in none of
     its takes' styles, and the hold-out each test clip stands for is the one it belongs to."""
     from hrr_garment.eval.holdouts import holdout_of
-    from hrr_garment.sim.build import BuildOptions
+    from hrr_garment.sim.build import BuildSettings
     from hrr_garment.sim.build_split import split_finished
 
     preset_file = library / "lib.yaml"
@@ -246,13 +246,13 @@ def test_more_fields_held_out_whole_beside_the_split(library, tmp_path):
         "walk_000" not in content["groups"]
     )  # a procedural clip has no content field: it is not held out by it
     names = [s.name for s in specs]
-    split = split_finished(names, specs, BuildOptions(**options))
+    split = split_finished(names, specs, BuildSettings(**options))
     assert sorted(sum(split.values(), [])) == sorted(names)
     trained = {content["groups"][n] for n in split["train"] if n in content["groups"]}
     tested = {content["groups"][n] for n in split["test"] if n in content["groups"]}
     unseen = tested - trained
     assert unseen  # at least one content tests in every take
-    style_only = split_finished(names, specs, BuildOptions(**{**options, "also_hold_out": None}))
+    style_only = split_finished(names, specs, BuildSettings(**{**options, "also_hold_out": None}))
     assert set(style_only["test"]) <= set(split["test"])  # the styles held out as before, and more
     kinds = holdout_of(options["info"], split, split["test"])
     assert {n for n, k in kinds.items() if k == "content"} == {

@@ -16,7 +16,7 @@ from hrr_garment.eval.auto_criterion import (
     DETAIL_CANDIDATES,
     DETAIL_STRENGTHS,
     SWING_GAINS,
-    AutoConfig,
+    AutoSettings,
     candidate_setting,
     detail_label,
     free_cloth_label,
@@ -87,7 +87,7 @@ def test_plausibility_gap_weighs_too_smooth_and_too_sharp_alike():
 )
 def test_the_criterion_takes_the_most_plausible_of_the_accurate(candidates, expected):
     assert pick_auto_mode(candidates) == expected
-    assert pick_auto_mode(candidates, AutoConfig(allowance=1.0)) == min(
+    assert pick_auto_mode(candidates, AutoSettings(allowance=1.0)) == min(
         candidates, key=lambda m: (candidates[m]["pve_mm"], list(candidates).index(m))
     )
 
@@ -103,10 +103,10 @@ def test_a_recorded_calibration_is_picked_again_under_another_allowance():
         "frames": 90,
         "candidates": candidates,
     }
-    wider = repick(auto, AutoConfig(allowance=1.05))  # the folds' 4 % fit the default's 5 %
+    wider = repick(auto, AutoSettings(allowance=1.05))  # the folds' 4 % fit the default's 5 %
     assert (wider["mode"], wider["allowance"], wider["candidates"]) == ("detail", 1.05, candidates)
     assert (
-        repick(wider, AutoConfig(allowance=1.03))["mode"] == "residual" and auto["mode"] == "residual"
+        repick(wider, AutoSettings(allowance=1.03))["mode"] == "residual" and auto["mode"] == "residual"
     )  # the record stays
 
 
@@ -120,7 +120,7 @@ def test_a_candidate_with_more_cloth_inside_the_body_is_not_the_default():
         RR10: {**_c(31.0, 0.90, 0.95), "penetration_pct": 3.9},
     }
     assert pick_auto_mode(candidates) == R10
-    assert pick_auto_mode(candidates, AutoConfig(penetration_allowance=1.5)) == RR10
+    assert pick_auto_mode(candidates, AutoSettings(penetration_allowance=1.5)) == RR10
     candidates[R10]["penetration_pct"] = 3.31  # 1.103 x: over too
     assert pick_auto_mode(candidates) == "hybrid"
     recorded = {k: {m: v for m, v in c.items() if m != "penetration_pct"} for k, c in candidates.items()}
@@ -129,9 +129,9 @@ def test_a_candidate_with_more_cloth_inside_the_body_is_not_the_default():
     assert (
         pick_auto_mode(small) == RR10
     )  # all under the 1 % floor: the push-out's to take, not a reason to lose swing
-    assert pick_auto_mode(small, AutoConfig(penetration_floor_pct=0.0)) == "hybrid"
+    assert pick_auto_mode(small, AutoSettings(penetration_floor_pct=0.0)) == "hybrid"
     with pytest.raises(SettingsError, match="penetration_allowance"):
-        AutoConfig(penetration_allowance=0.5)
+        AutoSettings(penetration_allowance=0.5)
 
 
 def test_the_allowance_holds_on_the_default_bodys_clips_as_well():
@@ -143,7 +143,7 @@ def test_the_allowance_holds_on_the_default_bodys_clips_as_well():
         RR8: {**_c(31.0, 0.70, 0.80), DEFAULT_BODY_PVE: 31.2},
     }
     assert pick_auto_mode(candidates) == RR8
-    assert pick_auto_mode(candidates, AutoConfig(allowance=1.06)) == R10
+    assert pick_auto_mode(candidates, AutoSettings(allowance=1.06)) == R10
     recorded = {k: {m: v for m, v in c.items() if m != DEFAULT_BODY_PVE} for k, c in candidates.items()}
     assert pick_auto_mode(recorded) == R10
     bodies = {"range": {"bodies": 12}, "default": None}
@@ -187,12 +187,12 @@ def test_the_detail_modes_setting_is_chosen_by_the_same_criterion(pves, expected
     candidates = {
         k: {"pve_mm": p, "sharpness": s, "hem_swing": w} for k, p, (s, w) in zip(labels, pves, plausibility)
     }
-    assert pick_auto_and_detail(candidates, AutoConfig(allowance=1.03)) == expected
+    assert pick_auto_and_detail(candidates, AutoSettings(allowance=1.03)) == expected
     for label in (RR8, RR10):  # no residual weight: the regression's
         del candidates[label]
-    assert pick_auto_and_detail(candidates, AutoConfig(allowance=1.03))[1] == "regression"
+    assert pick_auto_and_detail(candidates, AutoSettings(allowance=1.03))[1] == "regression"
     assert (
-        pick_auto_and_detail({"hybrid": candidates["hybrid"]}, AutoConfig(allowance=1.03))[0] == "hybrid"
+        pick_auto_and_detail({"hybrid": candidates["hybrid"]}, AutoSettings(allowance=1.03))[0] == "hybrid"
     )  # no folds: no detail candidate
 
 
@@ -224,7 +224,7 @@ def test_free_cloth_labels_and_the_models_one_ramp():
     # the detail setting's where it rides on the residual
     candidates[free_cloth_label(RR10, (20, 60))] = _c(30.5, 0.95, 0.95)
     assert pick_free_cloth(candidates) == [20.0, 60.0]
-    assert repick({"candidates": candidates}, AutoConfig())["residual_free_mm"] == [20.0, 60.0]
+    assert repick({"candidates": candidates}, AutoSettings())["residual_free_mm"] == [20.0, 60.0]
     assert pick_free_cloth({"hybrid": _c(30.0, 0.2, 0.6)}) is None
     # the detail setting is the picked detail candidate, not the pick among the detail candidates
     # alone (whose allowance, from their own most accurate, can admit one the model does not run)
@@ -249,7 +249,7 @@ def test_swing_labels_and_the_models_one_gain():
         swing_label(RR10, 1.3): _c(32.0, 0.9, 0.95),
     }
     picked = repick(
-        {"candidates": candidates}, AutoConfig()
+        {"candidates": candidates}, AutoSettings()
     )  # 1.3's swing is nearest the truth's, but over 5 %
     assert (picked["mode"], picked["detail_base"], picked["detail_strength"], picked["swing_gain"]) == (
         "detail",
@@ -257,11 +257,11 @@ def test_swing_labels_and_the_models_one_gain():
         1.0,
         1.1,
     )
-    assert repick({"candidates": candidates}, AutoConfig(allowance=1.1))["swing_gain"] == 1.3
+    assert repick({"candidates": candidates}, AutoSettings(allowance=1.1))["swing_gain"] == 1.3
     candidates[swing_label(RR10, 1.1)] = _c(
         31.0, 0.9, 1.6
     )  # a gain that overshoots the truth's swing is less plausible
-    assert repick({"candidates": candidates}, AutoConfig())["swing_gain"] == 1.0
+    assert repick({"candidates": candidates}, AutoSettings())["swing_gain"] == 1.0
 
 
 def test_hrr_train_calibrates_auto_and_it_agrees_with_the_evaluation(trained):
@@ -277,7 +277,7 @@ def test_hrr_train_calibrates_auto_and_it_agrees_with_the_evaluation(trained):
     assert auto["mode"] in AUTO_CHOICES and {candidate_setting(k)[0] for k in auto["candidates"]} <= set(
         AUTO_CHOICES
     )
-    config = AutoConfig(
+    config = AutoSettings(
         allowance=auto["allowance"],
         penetration_allowance=auto["penetration_allowance"],
         penetration_floor_pct=auto["penetration_floor_pct"],
@@ -349,27 +349,29 @@ def test_a_wider_allowance_that_moves_the_first_pick_asks_for_its_swing_gains():
     candidates = {"hybrid": accurate, RR10: sharp}
     candidates |= {swing_label("hybrid", g): _c(30.0 + g / 10, 0.2, 0.6 * g) for g in SWING_GAINS}
     auto = replace(UNCALIBRATED, candidates=candidates)
-    assert not swing_unmeasured(auto, AutoConfig())  # 5 %: the detail mode is over, hybrid's gains are there
-    assert swing_unmeasured(auto, AutoConfig(allowance=1.1))  # 10 %: the detail mode is the first pick
+    assert not swing_unmeasured(
+        auto, AutoSettings()
+    )  # 5 %: the detail mode is over, hybrid's gains are there
+    assert swing_unmeasured(auto, AutoSettings(allowance=1.1))  # 10 %: the detail mode is the first pick
     candidates |= {swing_label(RR10, g): _c(32.0, 0.9, 0.7 * g) for g in SWING_GAINS}
-    assert not swing_unmeasured(replace(auto, candidates=candidates), AutoConfig(allowance=1.1))
+    assert not swing_unmeasured(replace(auto, candidates=candidates), AutoSettings(allowance=1.1))
 
 
 def test_hrr_train_picks_auto_again_when_its_allowance_changes(trained, tmp_path):
     """The candidates' numbers stand: another allowance re-picks from them, without animating again."""
-    from hrr_garment.eval.auto_criterion import AutoConfig
+    from hrr_garment.eval.auto_criterion import AutoSettings
     from hrr_garment.pipeline.train import calibrate_auto
 
     root, data, _ = trained
     shutil.copytree(root / "model", tmp_path / "model")
     before = json.loads((tmp_path / "model" / "bundle.json").read_text())["auto"]
-    widest = calibrate_auto(tmp_path / "model", data, progress=False, config=AutoConfig(allowance=2.0))
+    widest = calibrate_auto(tmp_path / "model", data, progress=False, config=AutoSettings(allowance=2.0))
     recorded = json.loads((tmp_path / "model" / "bundle.json").read_text())["auto"]
     assert recorded == widest and widest["allowance"] == 2.0
     assert all(widest["candidates"][k] == c for k, c in before["candidates"].items())
     # what was added: the swing gains of the new first pick (the pick without a gain), where it moved
     first = pick_auto_mode(
-        {k: c for k, c in before["candidates"].items() if swing_of(k) == 1.0}, AutoConfig(allowance=2.0)
+        {k: c for k, c in before["candidates"].items() if swing_of(k) == 1.0}, AutoSettings(allowance=2.0)
     )
     assert set(widest["candidates"]) == set(before["candidates"]) | {
         swing_label(first, g) for g in SWING_GAINS

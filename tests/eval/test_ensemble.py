@@ -87,14 +87,14 @@ def test_ensemble_metrics_rank_a_member_and_the_blurry_mean(skirt):
 def test_members_are_perturbed_cached_and_close(tmp_path):
     from hrr_garment.data.dataset import SequenceRecord
     from hrr_garment.eval.ensemble import member_config, truth_ensembles
-    from hrr_garment.sim.simulator import SimConfig
+    from hrr_garment.sim.simulator import SimSettings
 
-    config = SimConfig(substeps=5, iterations=1, settle_s=0.2, blend_s=0.2, device="cpu")
+    config = SimSettings(substeps=5, iterations=1, settle_s=0.2, blend_s=0.2, device="cpu")
     labels = [member_config(config, k, 30.0)[1] for k in range(6)]
     assert labels[:4] == ["density x 1.0001", "density x 0.9999", "settle +1 frame", "settle -1 frame"]
     assert labels[4] == "density x 1.0002"
     with pytest.raises(ValueError, match="settle"):
-        member_config(SimConfig(settle_s=0.0), 3, 30.0)
+        member_config(SimSettings(settle_s=0.0), 3, 30.0)
 
     garment = make_garment("skirt", 200)
     motion = synthesize("walk", 0.5, seed=3)

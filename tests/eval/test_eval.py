@@ -313,18 +313,18 @@ def test_direct_baseline_trains_is_causal_and_is_evaluated(trained, tmp_path):
     model = tmp_path / "model"
     shutil.copytree(root / "model", model)  # the shared fixture's bundle stays without a baseline
     cfg = tmp_path / "cfg.yaml"
-    cfg.write_text(
+    cfg.write_text(  # the section under its old name, "baseline", still read
         (root / "cfg.yaml").read_text() + "baseline:\n  model: {hidden: 32, layers: 1}\n"
         "  train: {epochs: 6, crop: 20, batch_size: 4}\n"
     )
-    base = ["--dataset", str(data), "--config", str(cfg), "-o", str(model), "--quiet", "--stage", "baseline"]
-    assert train_main(base) == 0
-    log = [json.loads(line) for line in (model / "baseline" / "log.jsonl").read_text().splitlines()]
+    base = ["--dataset", str(data), "--config", str(cfg), "-o", str(model), "--quiet", "--stage"]
+    assert train_main([*base, "direct"]) == 0
+    log = [json.loads(line) for line in (model / "direct" / "log.jsonl").read_text().splitlines()]
     assert len(log) == 6 and min(r["val_l1"] for r in log) < log[0]["val_l1"]
     meta = json.loads((model / "bundle.json").read_text())
     assert meta["direct"]["epochs"] == 6 and "direct.safetensors" in meta["files"]
-    assert train_main(base) == 0  # a re-run finds it current
-    assert len((model / "baseline" / "log.jsonl").read_text().splitlines()) == 6
+    assert train_main([*base, "baseline"]) == 0  # a re-run (the stage's old name) finds it current
+    assert len((model / "direct" / "log.jsonl").read_text().splitlines()) == 6
 
     animator = Animator.load(model)
     assert animator.has_direct

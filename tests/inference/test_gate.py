@@ -128,7 +128,7 @@ def test_hrr_animate_runs_the_gate_it_is_given(trained, tmp_path, capsys):
                 "distance",
                 "--tau",
                 "1e9",
-                "--no-collision",
+                "--no-push-out",
             ]
         )
         == 0

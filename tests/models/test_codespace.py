@@ -45,11 +45,11 @@ def test_usage_counts_dead_classes_and_perplexity():
 
 @pytest.mark.parametrize("body", [0, 3])
 def test_decoding_only_the_last_frame_equals_the_full_window(body):
-    from hrr_garment.models.codespace import CodeSpace, CodeSpaceConfig
+    from hrr_garment.models.codespace import CodeSpace, CodeSpaceSettings
 
     torch.manual_seed(0)
     cs = CodeSpace(
-        CodeSpaceConfig(
+        CodeSpaceSettings(
             window=5, groups=4, classes=8, embedding_dim=3, hidden=32, motion_hidden=16, body_features=body
         ),
         124 + body,
@@ -84,11 +84,11 @@ def test_native_window_step_equals_pytorch_and_is_batch_invariant(
 ):
     """``body``: a model across bodies, whose decoder reads the window's body measures too."""
     from hrr_garment.models.codes import WindowCodes
-    from hrr_garment.models.codespace import CodeSpace, CodeSpaceConfig
+    from hrr_garment.models.codespace import CodeSpace, CodeSpaceSettings
     from hrr_garment.models.native_codes import native_window_codes
 
     torch.manual_seed(window)
-    cfg = CodeSpaceConfig(
+    cfg = CodeSpaceSettings(
         window=window,
         groups=6,
         classes=5,
@@ -131,12 +131,12 @@ def test_native_window_step_equals_pytorch_and_is_batch_invariant(
 
 def test_the_expected_code_is_the_mean_embedding_under_each_groups_softmax():
     from hrr_garment.models.codes import regression_embedding
-    from hrr_garment.models.codespace import CodeSpace, CodeSpaceConfig
+    from hrr_garment.models.codespace import CodeSpace, CodeSpaceSettings
     from hrr_garment.settings import SettingsError
 
     cs = {
         code: CodeSpace(
-            CodeSpaceConfig(
+            CodeSpaceSettings(
                 window=4,
                 groups=3,
                 classes=5,
@@ -173,6 +173,6 @@ def test_the_expected_code_is_the_mean_embedding_under_each_groups_softmax():
             atol=1e-6,
         )
     with pytest.raises(SettingsError, match="regression_code"):
-        CodeSpaceConfig(regression_code="mode")
+        CodeSpaceSettings(regression_code="mode")
     with pytest.raises(SettingsError, match="code space model: resonator damping"):
-        CodeSpaceConfig(resonator_hz=(1.0,), resonator_damping=1.5)
+        CodeSpaceSettings(resonator_hz=(1.0,), resonator_damping=1.5)

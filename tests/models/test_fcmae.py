@@ -8,7 +8,7 @@ import torch
 
 from hrr_garment.garment.mesh import GarmentError
 from hrr_garment.garment.templates import make_garment
-from hrr_garment.models.fcmae import AutoencoderConfig, MeshAutoencoder
+from hrr_garment.models.fcmae import AutoencoderSettings, MeshAutoencoder
 from hrr_garment.models.hierarchy import build_hierarchy, cached_hierarchy
 from hrr_garment.native.decoder import bf16_bits, bf16_pairs
 from hrr_garment.sim.quality import edge_strain
@@ -56,7 +56,7 @@ def test_hierarchy_is_deterministic_and_cached(tmp_path, skirt, hierarchy):
 
 
 def test_latent_level_keeps_a_minimum_of_nodes():
-    from hrr_garment.models.fcmae import AutoencoderConfig
+    from hrr_garment.models.fcmae import AutoencoderSettings
 
     dress = make_garment("dress", 1000)
     one_percent = build_hierarchy(dress.faces, dress.num_vertices)
@@ -64,8 +64,8 @@ def test_latent_level_keeps_a_minimum_of_nodes():
     assert one_percent.sizes[-1] < 32  # 1 % of 1,046 vertices: the ~18-node level
     assert floored.sizes == one_percent.sizes[:-1] and 48 <= floored.sizes[-1] <= 96  # the level nearest 64
     # a model saved before the option existed loads with the hierarchy it was trained on
-    assert AutoencoderConfig.from_dict({"latent_fraction": 0.01}).min_latent_nodes == 4
-    assert AutoencoderConfig().hierarchy_options()["min_latent_nodes"] == 4
+    assert AutoencoderSettings.from_dict({"latent_fraction": 0.01}).min_latent_nodes == 4
+    assert AutoencoderSettings().hierarchy_options()["min_latent_nodes"] == 4
 
 
 def test_disconnected_template_is_rejected():
@@ -75,7 +75,7 @@ def test_disconnected_template_is_rejected():
 
 def _model(hierarchy, skirt, seed=0, **cfg):
     torch.manual_seed(seed)
-    return MeshAutoencoder(hierarchy, AutoencoderConfig(**cfg), skirt.vertices, scale=0.05)
+    return MeshAutoencoder(hierarchy, AutoencoderSettings(**cfg), skirt.vertices, scale=0.05)
 
 
 def test_shapes_and_normalised_pooling(hierarchy, skirt):
@@ -100,12 +100,12 @@ def test_shapes_and_normalised_pooling(hierarchy, skirt):
 @pytest.mark.native
 @pytest.mark.parametrize("native", [True, False])
 @pytest.mark.parametrize("batch", [1, 5, 19])
-def test_fast_decoder_equals_training_path(hierarchy, skirt, batch, native):
+def test_inference_decoder_equals_training_path(hierarchy, skirt, batch, native):
     model = _model(hierarchy, skirt, seed=3)
     with torch.no_grad():
         for p in model.parameters():
             p.add_(0.1 * torch.randn_like(p))  # not the initial values
-    fast = model.fast_decoder(native=native)
+    fast = model.inference_decoder(native=native)
     if native and not fast.native:
         pytest.skip("no C compiler")
     z = torch.randn(batch, *model.latent_shape)  # 1: the single-frame path; 19: tiles plus a remainder
@@ -117,10 +117,10 @@ def test_fast_decoder_equals_training_path(hierarchy, skirt, batch, native):
 
 
 def _amx_decoder(model):
-    fast = model.fast_decoder()
+    fast = model.inference_decoder()
     if not fast.native or not fast.lib.hrr_amx_ready():
         pytest.skip("no AMX (bfloat16 decoding) on this CPU")
-    return model.fast_decoder(precision="bfloat16")
+    return model.inference_decoder(precision="bfloat16")
 
 
 @pytest.mark.native
@@ -202,14 +202,14 @@ def test_bfloat16_block_equals_its_rounded_reference(hierarchy, skirt):
 @pytest.mark.native
 def test_bfloat16_without_amx_is_refused_clearly(hierarchy, skirt, monkeypatch):
     model = _model(hierarchy, skirt, seed=3)
-    fast = model.fast_decoder()
+    fast = model.inference_decoder()
     if not fast.native:
         pytest.skip("no C compiler")
     monkeypatch.setattr(fast.lib, "hrr_amx_ready", lambda: 0)
     with pytest.raises(RuntimeError, match="AMX"):
-        model.fast_decoder(precision="bfloat16")
+        model.inference_decoder(precision="bfloat16")
     with pytest.raises(ValueError, match="precision"):
-        model.fast_decoder(precision="float16")
+        model.inference_decoder(precision="float16")
 
 
 def _two_frames(skirt):
@@ -306,7 +306,7 @@ def test_training_resumes_and_encodes_every_sequence(tmp_path, skirt, monkeypatc
     data = write_dataset(
         tmp_path / "d.h5", skirt, records, {"train": ["walk_000"], "val": ["spin_000"], "test": ["idle_000"]}
     )
-    cfg = ae.TrainConfig(
+    cfg = ae.AutoencoderTrainSettings(
         epochs=3, batch_size=8, patience=10, refine_steps=0
     )  # counts the training's Adam steps only
 
@@ -363,10 +363,10 @@ def test_training_resumes_and_encodes_every_sequence(tmp_path, skirt, monkeypatc
 
 
 def test_learning_rate_anneals_over_the_run_by_epochs_or_budget():
-    from hrr_garment.train.autoencoder import TrainConfig
+    from hrr_garment.train.autoencoder import AutoencoderTrainSettings
     from hrr_garment.train.schedule import early_stop, run_progress, set_learning_rate
 
-    cfg = TrainConfig(learning_rate=0.01, lr_final=0.02)
+    cfg = AutoencoderTrainSettings(learning_rate=0.01, lr_final=0.02)
     opt = torch.optim.Adam([torch.nn.Parameter(torch.zeros(1))], lr=1.0)
     rates = [set_learning_rate(opt, cfg, p) for p in np.linspace(0, 1, 11)]
     assert rates[0] == pytest.approx(0.01) and rates[-1] == pytest.approx(0.0002)
@@ -391,7 +391,7 @@ def test_the_budget_caps_training_instead_of_being_the_last_start():
 
 def test_training_device_is_checked_before_anything_is_written(tmp_path):
     from hrr_garment.errors import InputError
-    from hrr_garment.train.autoencoder import TrainConfig, train_autoencoder
+    from hrr_garment.train.autoencoder import AutoencoderTrainSettings, train_autoencoder
     from hrr_garment.train.schedule import training_device
 
     assert training_device("cpu") == torch.device("cpu")
@@ -400,7 +400,7 @@ def test_training_device_is_checked_before_anything_is_written(tmp_path):
     if not torch.cuda.is_available():
         with pytest.raises(InputError, match="no CUDA device"):
             train_autoencoder(
-                tmp_path / "missing.h5", tmp_path / "ae", train_config=TrainConfig(device="cuda")
+                tmp_path / "missing.h5", tmp_path / "ae", train_config=AutoencoderTrainSettings(device="cuda")
             )
         assert not (tmp_path / "ae").exists()
 
@@ -431,6 +431,6 @@ def test_mirrored_datasets_are_not_mirrored_again_and_epochs_are_bounded(tmp_pat
         return step(self, *args, **kwargs)
 
     monkeypatch.setattr(torch.optim.Adam, "step", counting_step)
-    cfg = ae.TrainConfig(epochs=2, batch_size=4, refine_steps=0, frames_per_epoch=8)
+    cfg = ae.AutoencoderTrainSettings(epochs=2, batch_size=4, refine_steps=0, frames_per_epoch=8)
     ae.train_autoencoder(plain, tmp_path / "ae", train_config=cfg, progress=False)
     assert len(steps) == 4  # two epochs of 8 of the 48 frames, in batches of 4

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 import torch
 
-from hrr_garment.models.subspace import SubspaceConfig, SubspaceDecoder, principal_components
+from hrr_garment.models.subspace import SubspaceDecoder, SubspaceSettings, principal_components
 from hrr_garment.settings import SettingsError
 from hrr_garment.train.subspace import pick_components, subspace_warning
 
@@ -26,7 +26,7 @@ def test_principal_components_recover_a_planted_subspace(rng):
 
 def test_a_truncated_decoder_is_the_prefix_of_the_coefficients(rng):
     torch.manual_seed(0)
-    model = SubspaceDecoder((4, 2), 10, 6, SubspaceConfig(max_components=6, hidden=16, layers=1))
+    model = SubspaceDecoder((4, 2), 10, 6, SubspaceSettings(max_components=6, hidden=16, layers=1))
     model.basis.copy_(torch.from_numpy(np.linalg.qr(rng.normal(size=(30, 6)))[0].T.astype(np.float32)))
     model.coeff_std.copy_(torch.tensor([3.0, 2.0, 1.0, 0.5, 0.2, 0.1]))
     model.mean.copy_(torch.from_numpy(rng.normal(size=30).astype(np.float32)))
@@ -54,7 +54,7 @@ def test_the_size_is_the_fewest_components_within_the_tolerance():
 
 def test_bad_sizes_are_refused():
     with pytest.raises(SettingsError, match="hidden"):
-        SubspaceConfig(hidden=0)
+        SubspaceSettings(hidden=0)
     with pytest.raises(SettingsError, match="components"):
         SubspaceDecoder((4, 2), 10, 31)
 
@@ -67,7 +67,7 @@ def test_a_fast_decoder_far_from_the_full_one_is_warned_about():
 
 def test_weights_loaded_after_a_forward_are_the_ones_it_decodes_with():
     torch.manual_seed(1)
-    model = SubspaceDecoder((4, 2), 10, 6, SubspaceConfig(max_components=6, hidden=8, layers=1)).eval()
+    model = SubspaceDecoder((4, 2), 10, 6, SubspaceSettings(max_components=6, hidden=8, layers=1)).eval()
     z = torch.randn(3, 4, 2)
     model(z)  # the scaled basis made once
     state = {k: v.clone() for k, v in model.state_dict().items()}

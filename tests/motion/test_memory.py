@@ -9,7 +9,7 @@ from hrr_garment import motion_features, synthesize
 from hrr_garment.motion.features import FEATURE_DIM
 from hrr_garment.motion.memory import (
     MEMORY_WIDTH,
-    MemorySpec,
+    MemorySettings,
     MotionMemory,
     check_memory_seconds,
     feature_width,
@@ -20,7 +20,7 @@ from hrr_garment.motion.rotations import rotation_about_y, yaw_of
 from hrr_garment.motion.skeleton import FEATURE_JOINTS
 from tests.motion.test_features import transformed
 
-RESONATING = MemorySpec((0.5, 1.5), (0.6, 1.0, 1.6), 0.3)
+RESONATING = MemorySettings((0.5, 1.5), (0.6, 1.0, 1.6), 0.3)
 
 
 def world_velocities(motion) -> np.ndarray:
@@ -97,7 +97,7 @@ def test_a_resonator_answers_a_swaying_body_as_a_damped_pendulum(drive_hz):
     t = np.arange(int(12 * fps)) / fps
     f = np.zeros((len(t), FEATURE_DIM), np.float32)
     f[:, 120] = np.sin(2 * np.pi * drive_hz * t)  # the root's sideways velocity; no turning
-    got = with_memory(f, fps, MemorySpec((), (hz,), damping))
+    got = with_memory(f, fps, MemorySettings((), (hz,), damping))
     w, s = 2 * np.pi * hz, 2 * np.pi * drive_hz
     settled = got[len(t) // 2 :, FEATURE_DIM + 60]  # w x of the root's sideways velocity, after 6 s
     want = w * s / abs(w * w - s * s + 2j * damping * w * s)
@@ -150,7 +150,7 @@ def test_no_time_constants_leaves_the_features_and_bad_ones_are_refused():
         with pytest.raises(ValueError, match="positive seconds"):
             check_memory_seconds(bad)
         with pytest.raises(ValueError, match="resonator frequencies must be positive hertz"):
-            MemorySpec((0.5,), bad)
+            MemorySettings((0.5,), bad)
     for damping in (0.0, 1.0, 2.0, float("nan")):
         with pytest.raises(ValueError, match="damping"):
-            MemorySpec((), (1.0,), damping)
+            MemorySettings((), (1.0,), damping)

@@ -112,7 +112,7 @@ def test_the_garment_stands_on_the_body_it_is_animated_on(bodies_model):
 
 def test_a_body_unlike_the_training_bodies_is_refused_or_warned_about(bodies_model):
     from hrr_garment.inference.animator import Animator
-    from hrr_garment.inference.bodies import BodyOutsideRange
+    from hrr_garment.inference.character_body import BodyOutsideRange
 
     folder, _ = bodies_model
     animator = Animator.load(folder)
@@ -126,7 +126,7 @@ def test_a_body_unlike_the_training_bodies_is_refused_or_warned_about(bodies_mod
 
 def test_a_model_of_the_mannequin_alone_keeps_its_networks_and_refuses_other_bodies(trained):
     from hrr_garment.inference.animator import Animator
-    from hrr_garment.inference.bodies import BodyOutsideRange
+    from hrr_garment.inference.character_body import BodyOutsideRange
 
     root, _, _ = trained
     meta = json.loads((root / "model" / "bundle.json").read_text())

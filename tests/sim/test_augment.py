@@ -11,7 +11,7 @@ from hrr_garment.motion.rotations import rotation_about_y
 from hrr_garment.motion.skeleton import JOINT_INDEX
 from hrr_garment.motion.synth import synthesize
 from hrr_garment.sim.augment import (
-    SpliceOptions,
+    SpliceSettings,
     plan_backward,
     plan_splices,
     splice_candidates,
@@ -46,7 +46,7 @@ def library(tmp_path):
 def test_splices_mix_contents_and_refuse_limbs_through_the_body(library):
     assert self_intersecting_frames(_arms_through_the_chest(1.0)).any()  # the fixture's premise
     training = {s.name for s in library if "sad" not in s.name}  # the sad style held out
-    options = SpliceOptions(count=10, seconds=2.0, arm_delay_s=0.2, seed=3)
+    options = SpliceSettings(count=10, seconds=2.0, arm_delay_s=0.2, seed=3)
     candidates = splice_candidates(library, training, options)
     assert {s.name for s in candidates} == training
     plan = plan_splices(candidates, options)
@@ -72,7 +72,7 @@ def test_backward_windows_come_from_training_clips_whatever_their_names(library,
     cmu = _file_pieces(str(tmp_path / "131_03.npz"), 1.0, None)
     specs = library + cmu
     training = {s.name for s in specs if "sad" not in s.name}
-    options = SpliceOptions(count=4, seconds=2.0, seed=3, backward=40)
+    options = SpliceSettings(count=4, seconds=2.0, seed=3, backward=40)
     assert cmu[0] not in splice_candidates(specs, training, options)
     candidates = window_candidates(specs, training, options.seconds)
     assert {s.name for s in candidates} == training
@@ -89,17 +89,17 @@ def test_backward_windows_come_from_training_clips_whatever_their_names(library,
         window_candidates(specs, training, 4.0) == [] and plan_backward([], options) == []
     )  # too short: none
     with pytest.raises(ValueError):
-        SpliceOptions(backward=-1)
+        SpliceSettings(backward=-1)
 
 
 def test_no_splice_without_two_contents(library):
     walks = [s for s in library if "_walk_" in s.name]
-    assert plan_splices(walks, SpliceOptions(count=3, seconds=2.0)).specs == []
+    assert plan_splices(walks, SpliceSettings(count=3, seconds=2.0)).specs == []
     assert (
-        splice_candidates(library, {s.name for s in library}, SpliceOptions(count=3, seconds=4.0)) == []
+        splice_candidates(library, {s.name for s in library}, SpliceSettings(count=3, seconds=4.0)) == []
     )  # too short
     with pytest.raises(ValueError):
-        SpliceOptions(count=-1)
+        SpliceSettings(count=-1)
     assert isinstance(library[0], SequenceSpec)
 
 

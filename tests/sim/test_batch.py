@@ -30,16 +30,16 @@ def newton_installed():
 
 
 def _fast(**changes):
-    from hrr_garment.sim.simulator import SimConfig
+    from hrr_garment.sim.simulator import SimSettings
 
-    return SimConfig(device="cpu", **{"settle_s": 0.1, "blend_s": 0.1, **changes})
+    return SimSettings(device="cpu", **{"settle_s": 0.1, "blend_s": 0.1, **changes})
 
 
 def test_a_batch_gives_each_sequence_the_frames_it_gets_alone(newton_installed):
     """Three sequences of different clips and lengths, one on a taller, fuller body: each part of
     the batch is the part of that sequence simulated alone, statistics included."""
     from hrr_garment.sim.parts import SequenceJob, simulate_sequence, simulate_sequences
-    from hrr_garment.sim.simulator import SimConfig
+    from hrr_garment.sim.simulator import SimSettings
 
     garment = make_garment("skirt", 200)
     tall = _dressed(garment)
@@ -52,7 +52,7 @@ def test_a_batch_gives_each_sequence_the_frames_it_gets_alone(newton_installed):
         SequenceJob(s, s.motion(), garment=garment, key=f"k{i}", body=tall if s.body else None)
         for i, s in enumerate(specs)
     ]
-    config = SimConfig(device="cpu").to_dict()
+    config = SimSettings(device="cpu").to_dict()
     frames = []
     batched = simulate_sequences(jobs, config, progress=frames.append)
     assert (

@@ -83,7 +83,7 @@ def test_every_clip_on_the_mannequin_as_well_holds_out_the_same_bodies():
     without it."""
     pytest.importorskip("anny", reason="the bodies extra is not installed")
     from hrr_garment.data.splits import split_groups
-    from hrr_garment.sim.build import BuildOptions
+    from hrr_garment.sim.build import BuildSettings
     from hrr_garment.sim.build_split import split_sources
     from hrr_garment.sim.plan import clip_name
 
@@ -97,7 +97,7 @@ def test_every_clip_on_the_mannequin_as_well_holds_out_the_same_bodies():
         plan = BodyPlan("sample", count=4, per_clip=2, statures_m=(1.5, 1.9), mannequin=mannequin)
         planned, bodies = plan_bodies(plan, specs, garment, made_for=DEFAULT_BODY, progress=False)
         groups = {s.name: clip_name(s) for s in planned}  # a clip's sequences share its group
-        options = BuildOptions(splits={"val": 0.25, "test": 0.25}, groups=groups, hold_out_bodies=True)
+        options = BuildSettings(splits={"val": 0.25, "test": 0.25}, groups=groups, hold_out_bodies=True)
         split = split_sources([s.name for s in planned], planned, options)
         trained = {s.body for s in planned if s.name in split["train"]}
         held_out_bodies[mannequin] = set(bodies) - trained
@@ -132,7 +132,7 @@ def test_without_split_by_a_clip_on_several_bodies_splits_as_the_clip_alone():
     kinds, and every copy of a clip on a body goes where the clip goes."""
     from dataclasses import replace
 
-    from hrr_garment.sim.build import BuildOptions
+    from hrr_garment.sim.build import BuildSettings
     from hrr_garment.sim.build_split import split_sources
     from hrr_garment.sim.plan import on_body
 
@@ -143,12 +143,12 @@ def test_without_split_by_a_clip_on_several_bodies_splits_as_the_clip_alone():
     ]
     kinds = {s.name: s.kind for s in clips}
     alone = split_sources(
-        sorted(kinds), clips, BuildOptions(splits={"val": 0.2, "test": 0.2}, seed=2, kinds=kinds)
+        sorted(kinds), clips, BuildSettings(splits={"val": 0.2, "test": 0.2}, seed=2, kinds=kinds)
     )
     copies = [
         replace(s, name=on_body(s.name, b), body=b) for s in clips for b in ("body01", "body04")
     ] + clips
-    options = BuildOptions(splits={"val": 0.2, "test": 0.2}, seed=2, kinds={s.name: s.kind for s in copies})
+    options = BuildSettings(splits={"val": 0.2, "test": 0.2}, seed=2, kinds={s.name: s.kind for s in copies})
     split = split_sources(sorted(s.name for s in copies), copies, options)
     for part, names in alone.items():
         assert split[part] == sorted(

@@ -14,9 +14,9 @@ from hrr_garment.sim.quality import sequence_stats
 
 def test_lead_in_starts_in_rest_pose_where_the_clip_starts():
     clip = synthesize("walk_curve", 1.0, seed=3)
-    from hrr_garment.sim.simulator import SimConfig
+    from hrr_garment.sim.simulator import SimSettings
 
-    ext, lead = with_lead_in(clip, SimConfig.settle_s, SimConfig.blend_s)
+    ext, lead = with_lead_in(clip, SimSettings.settle_s, SimSettings.blend_s)
     assert lead == 39 and ext.num_frames == clip.num_frames + 39
     assert np.array_equal(ext.local_rotations[lead:], clip.local_rotations)
     # Rest pose (only the root turned) at the clip's start position and heading.
@@ -39,19 +39,19 @@ def test_ground_level_body_frame_removes_root_motion():
 @pytest.fixture(scope="module")
 def simulator():
     pytest.importorskip("newton", reason="the sim extra is not installed")
-    from hrr_garment.sim.simulator import SimConfig, simulate_garment
+    from hrr_garment.sim.simulator import SimSettings, simulate_garment
 
-    return simulate_garment, SimConfig
+    return simulate_garment, SimSettings
 
 
 @pytest.mark.sim
 @pytest.mark.parametrize("name", GARMENT_NAMES)
 def test_every_garment_survives_walk_and_spin(simulator, name):
-    simulate_garment, SimConfig = simulator
+    simulate_garment, SimSettings = simulator
     garment = make_garment(name, 300)
     for kind in ("walk", "spin"):
         clip = synthesize(kind, 2.0, seed=0)
-        result = simulate_garment(garment, clip, SimConfig())
+        result = simulate_garment(garment, clip, SimSettings())
         assert result.vertices.shape == (clip.num_frames, garment.num_vertices, 3)
         assert result.attempts == 1, f"{name} {kind} needed a retry"
         stats = sequence_stats(
@@ -70,14 +70,14 @@ def test_every_garment_survives_walk_and_spin(simulator, name):
 
 @pytest.mark.sim
 def test_explosion_is_detected_retried_and_reported(simulator):
-    simulate_garment, SimConfig = simulator
+    simulate_garment, SimSettings = simulator
     from hrr_garment.sim.simulator import SimulationExploded
 
     garment = make_garment("skirt", 200)
     clip = synthesize("walk", 0.5, seed=0)
     with pytest.raises(SimulationExploded) as info:
         simulate_garment(
-            garment, clip, SimConfig(max_strain=1.0 + 1e-4, retries=1, settle_s=0.1, blend_s=0.1)
+            garment, clip, SimSettings(max_strain=1.0 + 1e-4, retries=1, settle_s=0.1, blend_s=0.1)
         )
     message = str(info.value)
     assert "edge strain" in message and "(10 substeps)" in message and "(20 substeps)" in message
@@ -88,11 +88,11 @@ def test_explosion_is_detected_retried_and_reported(simulator):
 def test_a_spin_too_fast_for_the_substeps_holds_at_one_more_doubling(simulator):
     """A pirouette at 4 turns a second tears the cloth at the schedule's substeps (an edge past the
     gate); rather than dropping the clip, the simulator doubles the substeps once more and keeps it."""
-    simulate_garment, SimConfig = simulator
+    simulate_garment, SimSettings = simulator
     garment = make_garment("dress", 300)
     clip = synthesize("spin", 1.5, seed=1, revolutions_per_s=4.0, arm_raise=1.3)
     result = simulate_garment(
-        garment, clip, SimConfig(substeps=8, iterations=1, retries=0, settle_s=0.1, blend_s=0.3)
+        garment, clip, SimSettings(substeps=8, iterations=1, retries=0, settle_s=0.1, blend_s=0.3)
     )
     assert (result.attempts, result.substeps) == (2, 16)
     assert np.isfinite(result.vertices).all() and len(result.vertices) == clip.num_frames
@@ -116,7 +116,7 @@ def _arms_in_the_hips(frames: int = 15, away: int = 0):
 
 @pytest.mark.sim
 def test_limbs_through_the_body_get_last_tries_with_the_arms_off_the_cloth(simulator):
-    simulate_garment, SimConfig = simulator
+    simulate_garment, SimSettings = simulator
     from hrr_garment.body.capsules import DEFAULT_BODY
     from hrr_garment.body.self_contact import self_intersecting_frames
     from hrr_garment.sim.scene import ARMS_OFF_CAPSULES, ClothScene, capsule_transforms
@@ -128,7 +128,7 @@ def test_limbs_through_the_body_get_last_tries_with_the_arms_off_the_cloth(simul
     # switching the arms off the cloth clears their particle-collision flag, and only theirs; on
     # again restores it
     _, _, half = capsule_transforms(motion, DEFAULT_BODY)
-    scene = ClothScene(garment, garment.vertices, half, DEFAULT_BODY, SimConfig())
+    scene = ClothScene(garment, garment.vertices, half, DEFAULT_BODY, SimSettings())
     before = scene.model.shape_flags.numpy().copy()
     scene.set_arm_contact(False)
     flags = scene.model.shape_flags.numpy()
@@ -149,7 +149,7 @@ def test_limbs_through_the_body_get_last_tries_with_the_arms_off_the_cloth(simul
     # frame, so the episode is the whole clip and the last attempt has the arms off throughout
     with pytest.raises(SimulationExploded) as info:
         simulate_garment(
-            garment, motion, SimConfig(max_strain=1.0 + 1e-4, retries=1, settle_s=0.1, blend_s=0.1)
+            garment, motion, SimSettings(max_strain=1.0 + 1e-4, retries=1, settle_s=0.1, blend_s=0.1)
         )
     assert str(info.value).count("substeps") == 4 and "(10 substeps, arms off the cloth)" in str(info.value)
     assert str(info.value).endswith(
@@ -160,7 +160,7 @@ def test_limbs_through_the_body_get_last_tries_with_the_arms_off_the_cloth(simul
     assert not self_intersecting_frames(late)[:8].any() and self_intersecting_frames(late)[8:].all()
     with pytest.raises(SimulationExploded) as info:
         simulate_garment(
-            garment, late, SimConfig(max_strain=1.0 + 1e-4, retries=1, settle_s=0.1, blend_s=0.1)
+            garment, late, SimSettings(max_strain=1.0 + 1e-4, retries=1, settle_s=0.1, blend_s=0.1)
         )
     reasons = str(info.value).split("; ")
     assert len(reasons) == 6 and all(
@@ -169,7 +169,7 @@ def test_limbs_through_the_body_get_last_tries_with_the_arms_off_the_cloth(simul
     assert reasons[4].endswith("(10 substeps, arms off the cloth)") and reasons[5].endswith(
         "(40 substeps, arms off the cloth)"
     )
-    result = simulate_garment(garment, motion, SimConfig(settle_s=0.1, blend_s=0.1))
+    result = simulate_garment(garment, motion, SimSettings(settle_s=0.1, blend_s=0.1))
     assert (
         result.arms_off_frames == 0 and result.attempts == 1
     )  # a motion that holds keeps its arms on the cloth

@@ -27,17 +27,17 @@ def test_the_fast_decoder_is_distilled_from_the_full_one(trained):
     with np.load(root / "model" / "autoencoder" / "latents.npz") as f:
         z = np.concatenate([f[n] for n in ds.splits["train"]])
     z = torch.from_numpy(z.astype(np.float32))
-    full, fast = bundle.autoencoder.fast_decoder()(z).numpy(), bundle.subspace(z).numpy()
+    full, fast = bundle.autoencoder.inference_decoder()(z).numpy(), bundle.subspace(z).numpy()
     spread = np.linalg.norm(full - full.mean(0), axis=-1).mean()  # what the mean frame alone would miss
     assert np.linalg.norm(fast - full, axis=-1).mean() < 0.35 * spread
-    from hrr_garment.models.subspace import SubspaceConfig
-    from hrr_garment.train.subspace import SubspaceTrainConfig, run_subspace_stage
+    from hrr_garment.models.subspace import SubspaceSettings
+    from hrr_garment.train.subspace import SubspaceTrainSettings, run_subspace_stage
 
     again = run_subspace_stage(
         data,
         root / "model",
-        SubspaceConfig(**entry.config),
-        SubspaceTrainConfig(**entry.train),
+        SubspaceSettings(**entry.config),
+        SubspaceTrainSettings(**entry.train),
         progress=False,
     )
     assert again.reused and again.metrics["components"] == kept  # a finished stage is not redone

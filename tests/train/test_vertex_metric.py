@@ -6,10 +6,10 @@ import pytest
 import torch
 
 from hrr_garment.garment.templates import make_garment
-from hrr_garment.models.fcmae import AutoencoderConfig, MeshAutoencoder
+from hrr_garment.models.fcmae import AutoencoderSettings, MeshAutoencoder
 from hrr_garment.models.hierarchy import build_hierarchy
 from hrr_garment.settings import SettingsError
-from hrr_garment.train.codespace_training import CodeSpaceTrainConfig, mean_square
+from hrr_garment.train.codespace_training import CodeSpaceTrainSettings, mean_square
 from hrr_garment.train.vertex_metric import VertexMetric, sample_frames
 
 
@@ -19,7 +19,7 @@ def decoder_and_frames():
     torch.manual_seed(0)
     model = MeshAutoencoder(
         build_hierarchy(skirt.faces, skirt.num_vertices),
-        AutoencoderConfig(channels=[8, 16]),
+        AutoencoderSettings(channels=[8, 16]),
         skirt.vertices,
         scale=0.05,
     ).eval()
@@ -90,9 +90,9 @@ def test_frames_are_sampled_seeded_and_settings_checked():
     assert np.array_equal(sample_frames(frames, 10, seed=3), sample_frames(frames, 10, seed=3))
     assert len(np.unique(sample_frames(frames, 10))) == 10 and len(sample_frames(frames[:5], 10)) == 5
     with pytest.raises(SettingsError, match="latent_loss must be one of standardised, vertex"):
-        CodeSpaceTrainConfig(latent_loss="vertices")
+        CodeSpaceTrainSettings(latent_loss="vertices")
     with pytest.raises(SettingsError, match="vertex_ridge"):
-        CodeSpaceTrainConfig(vertex_ridge=1.5)
+        CodeSpaceTrainSettings(vertex_ridge=1.5)
 
 
 def test_the_code_space_trains_on_either_latent_loss(trained, tmp_path):

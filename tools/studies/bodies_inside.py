@@ -27,7 +27,7 @@ from pathlib import Path
 
 from hrr_garment.eval.inside_body import check_motion, cloth_inside
 from hrr_garment.inference.animator import Animator
-from hrr_garment.inference.bodies import read_body_argument
+from hrr_garment.inference.character_body import read_body_argument
 from hrr_garment.motion.io import load_motion
 
 # the crowds' bodies are the inference benchmark's, one folder up (tools/)

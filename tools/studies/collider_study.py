@@ -54,7 +54,7 @@ def run_one(job: tuple[str, dict, str, str, int]) -> dict:
     from hrr_garment.garment.dressing import DressedBody, dress
     from hrr_garment.garment.templates import make_garment
     from hrr_garment.motion.io import load_motion
-    from hrr_garment.sim.config import SimConfig
+    from hrr_garment.sim.config import SimSettings
     from hrr_garment.sim.preset import load_preset
     from hrr_garment.sim.quality import body_signed_distance, edge_strain, penetration_fraction
     from hrr_garment.sim.simulator import SimulationExploded, simulate_garment
@@ -68,7 +68,7 @@ def run_one(job: tuple[str, dict, str, str, int]) -> dict:
     mesh = body_mesh(body, parametric.mesh.vertices, parametric.mesh.faces, parametric.mesh.joints)
     motion = motion_on_body(load_motion(clip), body)
     motion = motion.slice(0, min(motion.num_frames, max_frames))
-    config = SimConfig.from_dict(load_preset("real-quick").sim)
+    config = SimSettings.from_dict(load_preset("real-quick").sim)
     row = {"body": body_name, "clip": Path(clip).stem, "collider": collider, "frames": motion.num_frames}
     t0 = time.perf_counter()
     try:

@@ -25,7 +25,7 @@ def main() -> None:
     from hrr_garment.eval.unseen_bodies import evenly
     from hrr_garment.inference.animator import Animator
     from hrr_garment.sim.quality import body_signed_distance, penetration_fraction
-    from hrr_garment.train.codespace_training import CodeSpaceTrainConfig
+    from hrr_garment.train.codespace_training import CodeSpaceTrainSettings
     from hrr_garment.train.contact import FrameDecoder, model_contact_windows, teach_contact
     from hrr_garment.train.vertex_metric import VertexMetric, sample_frames
 
@@ -57,7 +57,7 @@ def main() -> None:
         metric = VertexMetric.of_decoder(
             bundle.autoencoder, sample_frames(raw), bundle.latent_stats.std, progress=False
         )
-        config = CodeSpaceTrainConfig(
+        config = CodeSpaceTrainSettings(
             contact_steps=args.steps, contact_weight=weight, contact_margin_m=margin
         )
         with tempfile.TemporaryDirectory() as tmp:

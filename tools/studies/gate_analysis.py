@@ -51,7 +51,7 @@ def analyse(model: str, dataset: str | None, split: str) -> dict:
         bundle.codespace, motion, bundle.motion_stats, bundle.latent_stats, bundle.database
     )
     naive = bundle.database.nearest_motion(bundle.motion_stats.normalize(motion))
-    decode = bundle.autoencoder.fast_decoder()
+    decode = bundle.autoencoder.inference_decoder()
     with torch.no_grad():
         reg = window_errors_mm(decode, pred.regression, truth)
         ret = window_errors_mm(decode, pred.retrieval, truth)

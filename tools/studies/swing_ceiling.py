@@ -35,7 +35,7 @@ from hrr_garment.inference.decoding import body_frame_vertices
 from hrr_garment.motion.frame import to_body_frame, world_vertices
 from hrr_garment.motion.windows import sequence_windows
 from hrr_garment.sim.quality import hem_swing
-from hrr_garment.sim.simulator import SimConfig
+from hrr_garment.sim.simulator import SimSettings
 
 
 def code_reconstruction(animator: Animator, latents: np.ndarray) -> np.ndarray:
@@ -91,7 +91,7 @@ def analyse(model: str, split: str, sequences: int | None, members: int) -> dict
         ]
     records = [ds.sequence(n) for n in names]
     ensembles = truth_ensembles(
-        ds.template, records, SimConfig.from_dict(ds.info["sim"]), members, jobs=2, bodies=ds.bodies
+        ds.template, records, SimSettings.from_dict(ds.info["sim"]), members, jobs=2, bodies=ds.bodies
     )
     template = animator.bundle.template
     rest, topo = (

@@ -1,4 +1,4 @@
-"""The mesh autoencoder's decoder for inference (:class:`FastDecoder`): the basis of every layer
+"""The mesh autoencoder's decoder for inference (:class:`InferenceDecoder`): the basis of every layer
 folded into per-vertex kernels once, run by the native kernels (a batched path, and a single-frame
 path for streaming), or by the PyTorch blocks without a compiler."""
 
@@ -25,7 +25,7 @@ SINGLE_FRAME_BELOW = 12
 BF16_BATCH_FROM = 4
 
 
-class FastDecoder(nn.Module):
+class InferenceDecoder(nn.Module):
     """Inference-only decoder: the same layers with each basis folded into per-vertex kernels and
     each residual average's weights computed once. By default a call runs the fused C kernel of
     :mod:`.native` (compiled on first use; about 5x faster on the CPU); without a C compiler, or

@@ -1,10 +1,10 @@
-"""The ``baseline`` stage of ``hrr-train``: the direct-regression baseline (:mod:`..models.direct`).
+"""The ``direct`` stage of ``hrr-train`` (formerly ``baseline``): the direct-regression baseline (:mod:`..models.direct`).
 
 Trained on the same data as the code space, in the same standardised spaces (the bundle's motion
 and latent statistics, the autoencoder's latents of every frame), with the same kind of budget
-(``baseline.train.max_minutes``, by default the code-space stage's). Random crops of ``crop``
+(``direct.train.max_minutes``, by default the code-space stage's). Random crops of ``crop``
 frames from the training sequences, L1 on the standardised latents, Adam; early stopping on the
-validation sequences run whole. Checkpointed each epoch in ``MODEL/baseline/`` and resumable; the
+validation sequences run whole. Checkpointed each epoch in ``MODEL/direct/`` and resumable; the
 weights join the bundle as ``direct.safetensors`` with a ``direct`` entry in bundle.json.
 """
 
@@ -23,7 +23,7 @@ from ..artifacts.bundle_writer import add_bundle_part
 from ..artifacts.manifest_entries import PartEntry
 from ..data.windows import dataset_features
 from ..io_utils import atomic_write_text, strict_json
-from ..models.direct import DirectConfig, DirectRegressor
+from ..models.direct import DirectRegressor, DirectSettings
 from ..settings import from_settings
 from .autoencoder import body_frames
 from .bundle_stage import bundle_and_dataset
@@ -33,8 +33,8 @@ from .report import StageReport
 
 
 @dataclass(frozen=True)
-class DirectTrainConfig:
-    """The baseline stage's training settings (``baseline.train``)."""
+class DirectTrainSettings:
+    """The direct stage's training settings (``direct.train``)."""
 
     epochs: int = 300
     batch_size: int = 16
@@ -46,8 +46,8 @@ class DirectTrainConfig:
     seed: int = 0
 
     @classmethod
-    def from_dict(cls, values: dict) -> "DirectTrainConfig":
-        return from_settings(cls, values, "baseline training")
+    def from_dict(cls, values: dict) -> "DirectTrainSettings":
+        return from_settings(cls, values, "direct training")
 
 
 def _sequences(
@@ -92,7 +92,11 @@ class _BaselineEpochs(EpochStep):
     the epoch, then the L1 loss on the validation sequences run whole."""
 
     def __init__(
-        self, model: DirectRegressor, optimizer: torch.optim.Optimizer, data: tuple, config: DirectTrainConfig
+        self,
+        model: DirectRegressor,
+        optimizer: torch.optim.Optimizer,
+        data: tuple,
+        config: DirectTrainSettings,
     ):
         self.model, self.optimizer, self.config = model, optimizer, config
         self.train, self.val = data
@@ -119,7 +123,7 @@ def train_direct(
     train: tuple,
     val: tuple,
     folder: Path,
-    config: DirectTrainConfig,
+    config: DirectTrainSettings,
     key: str,
     progress: bool = True,
 ) -> dict:
@@ -140,16 +144,16 @@ def train_direct(
         callbacks=[
             Checkpoint(folder / "checkpoint.pt", key, optimizer=optimizer),
             EpochLog(folder / "log.jsonl"),
-            ProgressBar("baseline", progress),
+            ProgressBar("direct", progress),
         ],
     )
 
 
-def run_baseline_stage(
+def run_direct_stage(
     dataset: str | Path,
     folder: str | Path,
-    config: DirectConfig = DirectConfig(),
-    train_config: DirectTrainConfig = DirectTrainConfig(),
+    config: DirectSettings = DirectSettings(),
+    train_config: DirectTrainSettings = DirectTrainSettings(),
     cache_dir: Path | None = None,
     progress: bool = True,
 ) -> StageReport:
@@ -181,7 +185,7 @@ def run_baseline_stage(
     val = _sequences(features, latents, names["val"], bundle)
     torch.manual_seed(train_config.seed)
     model = DirectRegressor(config, bundle.codespace.features, bundle.autoencoder.latent_shape)
-    state = train_direct(model, train, val, folder / "baseline", train_config, key, progress)
+    state = train_direct(model, train, val, folder / "direct", train_config, key, progress)
     val_mm = validation_pve_mm(model, bundle, val[0], body_frames(ds, names["val"]))
     entry = {
         "key": key,
@@ -195,18 +199,18 @@ def run_baseline_stage(
     add_bundle_part(
         folder, "direct.safetensors", model.state_dict(), direct=PartEntry.from_report(entry, "direct")
     )
-    atomic_write_text(folder / "baseline" / "report.json", strict_json(entry, indent=2))
+    atomic_write_text(folder / "direct" / "report.json", strict_json(entry, indent=2))
     return _stage_report(entry, folder)
 
 
 def _stage_report(entry: dict, folder: Path, reused: bool = False) -> StageReport:
-    return StageReport.of_record("baseline", folder / "baseline", entry, reused=reused)
+    return StageReport.of_record("direct", folder / "direct", entry, reused=reused)
 
 
 @torch.no_grad()
 def validation_pve_mm(model: DirectRegressor, bundle, motion: list[torch.Tensor], truth: np.ndarray) -> float:
     """Per-vertex error (mm) in the heading frame over the validation frames, decoded."""
-    decode = bundle.autoencoder.fast_decoder()
+    decode = bundle.autoencoder.inference_decoder()
     pred = []
     for m in motion:
         z = bundle.latent_stats.denormalize(model(m[None])[0].numpy())
