@@ -92,3 +92,35 @@ def test_writing_into_a_version_2_bundle_upgrades_its_manifest(tmp_path):
     assert "manifest_hash" in on_disk
     after = Animator.load(folder).animate(_walk(), mode="hybrid", push_out=False).vertices
     assert np.array_equal(before, after)
+
+
+def test_every_driver_of_the_frame_path_gives_what_it_gave_before_the_stages_were_one_list():
+    """The fixture bundle's frames through each driver, as commit 22a6010 (before the frame path
+    became one stage list) gave them: every fourth frame of a 2 s walk (a spin beside it in the
+    crowd). Bit-identical on the machine that wrote them (an AVX2 EPYC); the tolerance is for
+    other CPUs' kernels."""
+    from hrr_garment.motion.poses import motion_to_poses
+
+    before = np.load(DATA / "frame-path-22a6010.npz")
+    animator = Animator.load(DATA / "bundle-31b4ef9")
+    walk, spin = _walk(), synthesize("spin", seconds=2, seed=5)
+    frames = range(walk.num_frames)
+    stream, crowd = animator.stream(), animator.crowd(device="native")
+    torch_crowd = animator.crowd(mode="regression", device="cpu")
+    rotations, roots = motion_to_poses(walk)
+    now = {
+        "v2__auto__causal0__col1": animator.animate(walk).vertices,
+        "v2__hybrid__causal1__col1": animator.animate(walk, mode="hybrid", causal=True).vertices,
+        "v2__residual__causal0__col0": animator.animate(walk, mode="residual", push_out=False).vertices,
+        "v2__stream": np.stack([stream.push(walk.slice(t, t + 1)) for t in frames]),
+        "v2__crowd": np.stack(
+            [
+                crowd.push_motions({k: m.slice(t, t + 1) for k, m in zip("abc", (walk, spin, spin))})
+                for t in frames
+            ]
+        ),
+        "v2__torch": np.stack([torch_crowd.push(rotations[t : t + 1], roots[t : t + 1]) for t in frames]),
+    }
+    assert set(now) == set(before.files)
+    for name, vertices in now.items():
+        assert np.abs(vertices[::4] - before[name]).max() <= 1e-5, name
