@@ -87,11 +87,10 @@ def _body(argv: Sequence[str] | None) -> int:
 
 def _say_dataset(model: Path) -> None:
     """Print which dataset the demo model was trained on (its bundle records it)."""
-    import json
-
+    from ..artifacts.typed_manifest import read_manifest
     from ..data.dataset import GarmentDataset
 
-    dataset = Path(json.loads((model / "bundle.json").read_text()).get("dataset", ""))
+    dataset = Path(read_manifest(model).dataset or "")
     if not dataset.is_file():
         print(f"   trained on {dataset} (no longer there)")
         return
