@@ -203,7 +203,7 @@ def train_model(
     try:
         if dataset.exists() and {"autoencoder", "codespace"} & set(stages):
             from ..data.dataset import GarmentDataset
-            from ..train.codespace import check_splits
+            from ..train.codespace_inputs import check_splits
 
             check_splits(
                 GarmentDataset(dataset)
