@@ -19,7 +19,7 @@ from ..models.subspace import SubspaceSettings
 from ..settings import deep_merge
 from ..sim.preset import CONFIG_DIR, Preset
 from ..train.autoencoder import AutoencoderTrainSettings
-from ..train.codespace_training import CodeSpaceTrainSettings
+from ..train.codespace_settings import CodeSpaceTrainSettings
 from ..train.direct import DirectTrainSettings
 from ..train.report import StageReport
 from ..train.subspace import SubspaceTrainSettings

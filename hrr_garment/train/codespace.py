@@ -11,7 +11,8 @@ or the detail mode's folds only has what it lacks added).
 
 What the stage reads is in :mod:`~hrr_garment.train.codespace_inputs`, its keys and the reuse of
 a finished stage in :mod:`~hrr_garment.train.codespace_resume`, the epoch in
-:mod:`~hrr_garment.train.codespace_training`.
+:mod:`~hrr_garment.train.codespace_training` (its settings in
+:mod:`~hrr_garment.train.codespace_settings`, its losses in :mod:`~hrr_garment.train.codespace_losses`).
 """
 
 from __future__ import annotations
@@ -37,14 +38,10 @@ from ..models.codespace import CodeSpace, CodeSpaceSettings
 from .autoencoder import body_frames, load_autoencoder, refine_settings
 from .calibrate import window_mode_errors
 from .codespace_inputs import autoencoder_outputs, check_splits, codespace_windows, training_bodies
+from .codespace_losses import WindowTensors, evaluate, mean_square
 from .codespace_resume import add_residual_mode, finished_stage, stage_keys
-from .codespace_training import (
-    CodeSpaceTrainSettings,
-    WindowTensors,
-    evaluate,
-    mean_square,
-    train_codespace,
-)
+from .codespace_settings import CodeSpaceTrainSettings
+from .codespace_training import train_codespace
 from .contact import BodyContacts, ContactWindows, FrameDecoder, teach_contact
 from .report import StageReport
 from .schedule import cap_since_raised

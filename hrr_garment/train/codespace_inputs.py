@@ -15,7 +15,7 @@ from ..body.measures import BodyRange, body_vector
 from ..data.dataset import DatasetError, GarmentDataset
 from ..data.windows import build_windows, fit_stats, split_windows
 from ..models.codespace import CodeSpaceSettings
-from .codespace_training import PAPER_VALIDATION_FRACTION, CodeSpaceTrainSettings
+from .codespace_settings import PAPER_VALIDATION_FRACTION, CodeSpaceTrainSettings
 
 
 def check_splits(ds: GarmentDataset) -> None:

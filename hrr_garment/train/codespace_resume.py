@@ -18,7 +18,7 @@ from ..io_utils import atomic_write_text, strict_json
 from ..models.codespace import CodeSpaceSettings
 from .autoencoder import body_frames
 from .calibrate import calibrate_residual
-from .codespace_training import CodeSpaceTrainSettings
+from .codespace_settings import CodeSpaceTrainSettings
 
 CONTACT_SETTINGS = (
     "contact_steps",
