@@ -18,7 +18,7 @@ from ..models.fcmae import AutoencoderSettings
 from ..models.subspace import SubspaceSettings
 from ..settings import deep_merge
 from ..sim.preset import CONFIG_DIR, Preset
-from ..train.autoencoder import AutoencoderTrainSettings
+from ..train.autoencoder_settings import AutoencoderTrainSettings
 from ..train.codespace_settings import CodeSpaceTrainSettings
 from ..train.direct import DirectTrainSettings
 from ..train.report import StageReport

@@ -35,7 +35,8 @@ from ..data.windows import dataset_features
 from ..garment.smoothing import mean_operator
 from ..io_utils import atomic_write_text, strict_json
 from ..models.codespace import CodeSpace, CodeSpaceSettings
-from .autoencoder import body_frames, load_autoencoder, refine_settings
+from .autoencoder import load_autoencoder
+from .autoencoder_settings import refine_settings
 from .calibrate import window_mode_errors
 from .codespace_inputs import autoencoder_outputs, check_splits, codespace_windows, training_bodies
 from .codespace_losses import WindowTensors, evaluate, mean_square
@@ -45,6 +46,7 @@ from .codespace_training import train_codespace
 from .contact import BodyContacts, ContactWindows, FrameDecoder, teach_contact
 from .report import StageReport
 from .schedule import cap_since_raised
+from .training_frames import body_frames
 from .vertex_metric import VertexMetric, sample_frames
 
 STAGE_FOLDER = "codebook"  # under MODEL/: the name from before "code space" was the stage's name

@@ -16,9 +16,9 @@ from ..artifacts.typed_manifest import Manifest, read_manifest, update_manifest
 from ..data.dataset import GarmentDataset
 from ..io_utils import atomic_write_text, strict_json
 from ..models.codespace import CodeSpaceSettings
-from .autoencoder import body_frames
 from .calibrate import calibrate_residual
 from .codespace_settings import CodeSpaceTrainSettings
+from .training_frames import body_frames
 
 CONTACT_SETTINGS = (
     "contact_steps",
