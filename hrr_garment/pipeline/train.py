@@ -13,9 +13,9 @@ The stages, in order: ``simulate`` (only where the dataset does not exist, or la
 preset has gained), ``autoencoder`` (the FCMAE mesh autoencoder, then every frame encoded),
 ``codespace`` (the shared code space, the retrieval database, the gate's and the residual mode's
 calibration, the bundle), then the auto mode's calibration on the validation clips, ``subspace``
-(the fast decoder for games, distilled from the mesh decoder); ``direct``
-(the direct-regression baseline, formerly ``baseline``) only when asked for. Each stage resumes from its checkpoint and
-is skipped when its outputs are current. A :class:`TrainCallback` hears each stage's end and
+(the fast decoder for games, distilled from the mesh decoder); ``direct`` (the direct-regression
+baseline, formerly ``baseline``) only when asked for. Each stage resumes from its checkpoint and is
+skipped when its outputs are current. A :class:`TrainCallback` hears each stage's end and
 messages; the command line's prints them, a library caller may ignore them.
 
 The settings and the callback are in :mod:`~hrr_garment.pipeline.train_settings`, each stage's

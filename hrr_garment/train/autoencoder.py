@@ -1,11 +1,11 @@
 """Training the mesh autoencoder on a garment dataset, then encoding every frame to latents.
 
 Vertices are expressed in the body frame (:mod:`hrr_garment.motion.frame`: origin following the
-pelvis, Z along its heading), where a garment's shape depends on the pose but not on where the
-body is or which way it faces. Loss: L1 on vertex positions plus ``laplacian`` x L1 on uniform Laplacian coordinates
-(keeps the surface smooth between vertices). Adam with a cosine learning-rate schedule over the
-run (:func:`set_learning_rate`), early stopping on the validation split's per-vertex error, a
-checkpoint after every epoch (a re-run resumes from it), seeded. Every frame is then encoded, each
+pelvis, Z along its heading), where a garment's shape depends on the pose but not on where the body
+is or which way it faces. Loss: L1 on vertex positions plus ``laplacian`` x L1 on uniform Laplacian
+coordinates (keeps the surface smooth between vertices). Adam with a cosine learning-rate schedule
+over the run (:func:`set_learning_rate`), early stopping on the validation split's per-vertex error,
+a checkpoint after every epoch (a re-run resumes from it), seeded. Every frame is then encoded, each
 latent refined by a few gradient steps through the decoder (``MeshAutoencoder.fit_latents``); the
 report's errors are those of the refined latents, the encoder's own in ``extra``.
 

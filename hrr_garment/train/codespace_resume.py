@@ -75,7 +75,8 @@ def stage_keys(
 
 
 def finished_stage(folder: Path, report_path: Path, key: str) -> tuple[dict, Manifest] | None:
-    """The report and bundle.json of a finished stage with these settings whose bundle is intact, else None."""
+    """The report and bundle.json of a finished stage with these settings whose bundle is intact,
+    else None."""
     if not (report_path.is_file() and (folder / "bundle.json").is_file()):
         return None
     report = json.loads(report_path.read_text())

@@ -71,7 +71,8 @@ class CodeSpaceTrainSettings:
             )
         if not 0.0 <= self.contact_margin_m <= 0.05:
             raise SettingsError(
-                f"code space training: contact_margin_m must be in [0, 0.05] metres, got {self.contact_margin_m}"
+                "code space training: contact_margin_m must be in [0, 0.05] metres, "
+                f"got {self.contact_margin_m}"
             )
         if not 0.0 <= self.vertex_ridge <= 1.0:
             raise SettingsError(

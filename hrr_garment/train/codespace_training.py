@@ -7,17 +7,17 @@ Losses on a batch of windows (motion m, garment latents z, both standardised):
 - diversity: log K - entropy of the batch-mean class distribution (both encoders), against collapse.
 
 Curriculum: ``match_weight`` (0.1) until the validation reconstruction loss plateaus (no relative
-improvement above ``plateau_delta`` for ``plateau_patience`` epochs; :class:`PlateauDetector`),
-then ``match_weight_late`` (0.5). The best weights are kept by the validation loss of the
-regression path (decoder(E(c_m)) against z, what inference uses); training stops early after
-``patience`` epochs without improvement, but only in the last fifth of the run. Adam with weight
-decay and the autoencoder's cosine learning-rate schedule over the run's progress (epochs or the
-wall-clock budget, :mod:`.schedule`): a budgeted run ends at a small rate instead of stopping
-with noisy weights. Gumbel temperature decays per epoch to a floor. A checkpoint after every epoch: a re-run resumes. One JSON line per epoch in
-``log.jsonl``: losses, code agreement (fraction of groups where the motion and garment argmax
-agree, on validation), per-group perplexity and dead classes of the garment codes, and a histogram
-of the motion codes' entropies. The settings are in :mod:`.codespace_settings`, the losses and the
-validation in :mod:`.codespace_losses`.
+improvement above ``plateau_delta`` for ``plateau_patience`` epochs; :class:`PlateauDetector`), then
+``match_weight_late`` (0.5). The best weights are kept by the validation loss of the regression path
+(decoder(E(c_m)) against z, what inference uses); training stops early after ``patience`` epochs
+without improvement, but only in the last fifth of the run. Adam with weight decay and the
+autoencoder's cosine learning-rate schedule over the run's progress (epochs or the wall-clock
+budget, :mod:`.schedule`): a budgeted run ends at a small rate instead of stopping with noisy
+weights. Gumbel temperature decays per epoch to a floor. A checkpoint after every epoch: a re-run
+resumes. One JSON line per epoch in ``log.jsonl``: losses, code agreement (fraction of groups where
+the motion and garment argmax agree, on validation), per-group perplexity and dead classes of the
+garment codes, and a histogram of the motion codes' entropies. The settings are in
+:mod:`.codespace_settings`, the losses and the validation in :mod:`.codespace_losses`.
 """
 
 from __future__ import annotations
