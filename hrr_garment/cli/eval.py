@@ -23,28 +23,21 @@ import argparse
 import math
 import sys
 import time
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Sequence
 
 from ..artifacts.gate_signals import GATE_SIGNALS
-from ..artifacts.manifest_section import thawed
-from ..errors import InputError
-from ..eval.evaluate import EvaluationSettings, evaluate_modes, tau_sweep
 from ..eval.terminal import report_lines
-from ..inference.modes import Mode
 from ..paths import workspace
 from ._common import (
     add_decoder_option,
     add_detail_options,
     add_fps_option,
     add_push_option,
-    detail_look,
     run_cli,
-    run_settings_of,
 )
-
-ALL_MODES = tuple(m.value for m in Mode)
+from .eval_job import ALL_MODES, checked_job
+from .eval_run import run_protocols
 
 
 def _floats(text: str) -> list[float]:
@@ -179,8 +172,8 @@ def _main(argv: Sequence[str] | None) -> int:
     from ..eval.report import write_report
 
     t0 = time.perf_counter()
-    job = _job(args)
-    report = _evaluate(job, args)
+    job = checked_job(args)
+    report = run_protocols(job, args)
     out = args.output or workspace() / "eval" / job.model_dir.name
     plots = (
         []
@@ -198,210 +191,6 @@ def _main(argv: Sequence[str] | None) -> int:
         + f" in {report['seconds']:.0f} s"
     )
     return 0
-
-
-@dataclass
-class _Job:
-    """One hrr-eval run: the model, its dataset's records and the settings, all checked before any work."""
-
-    model_dir: Path
-    animator: object
-    ds: object
-    names: list[str]
-    records: list
-    settings: EvaluationSettings
-    results: dict | None = None
-    sweep: list | None = None
-
-
-def _job(args) -> _Job:
-    """The model, the dataset's records and the evaluation settings, each checked (before minutes of work)."""
-    import numpy as np
-
-    from ..data.dataset import DatasetError, GarmentDataset
-    from ..inference.animator import Animator, find_model
-
-    if (args.garment is None) == (args.model is None):
-        raise InputError("hrr-eval", "give exactly one of --garment NAME or --model DIR")
-    for f in args.motions or []:  # before minutes of evaluation, not after them
-        if not Path(f).is_file():
-            raise InputError(
-                f,
-                "no such motion file"
-                + (
-                    " (a pattern the shell did not expand: leave it unquoted)"
-                    if any(c in f for c in "*?[")
-                    else ""
-                ),
-            )
-    model_dir = find_model(args.model or args.garment)
-    animator = Animator.load(model_dir)
-    bundle = animator.bundle
-    dataset = args.dataset or Path(bundle.manifest.dataset or "")
-    if not str(dataset) or not dataset.is_file():
-        raise InputError(
-            model_dir, f"its training dataset {str(dataset) or '(unrecorded)'} is not there; give --dataset"
-        )
-    ds = GarmentDataset(dataset)
-    if ds.garment != bundle.garment or ds.template.num_vertices != bundle.template.num_vertices:
-        raise DatasetError(
-            dataset,
-            f"is a {ds.garment} dataset with {ds.template.num_vertices} vertices; the model in "
-            f"{model_dir} is for {bundle.garment} with {bundle.template.num_vertices}",
-        )
-    names = ds.splits.get(args.split, [])
-    if not names:
-        raise DatasetError(dataset, f"has no {args.split!r} sequences")
-    if args.sequences is not None:
-        if args.sequences < 1:
-            raise InputError("hrr-eval", f"--sequences must be at least 1, got {args.sequences}")
-        names = [
-            names[i]
-            for i in sorted(
-                {int(round(i)) for i in np.linspace(0, len(names) - 1, min(args.sequences, len(names)))}
-            )
-        ]
-    modes = args.modes or [m for m in ALL_MODES if m != Mode.AUTO and animator.supports(m)]
-    if Mode.AUTO not in modes:  # the default output leads every protocol, held to its bars (eval/bars.py)
-        modes = [Mode.AUTO.value, *modes]
-    if Mode.DIRECT in modes and not animator.has_direct:
-        raise InputError(
-            model_dir, "has no direct-regression baseline: train it with hrr-train --stage direct"
-        )
-    look = detail_look(args)
-    if look.chosen and Mode.DETAIL not in modes:
-        raise InputError(
-            "hrr-eval", "--detail-strength and --detail-base set the detail mode, which --modes leaves out"
-        )
-    if args.library < 0:
-        raise InputError("hrr-eval", f"--library takes 0 (none) or a number of plays, got {args.library}")
-    if args.ensemble == 1 or args.ensemble < 0:
-        raise InputError("hrr-eval", f"--ensemble takes 0 (none) or at least 2 members, got {args.ensemble}")
-    run = run_settings_of(args, "hrr-eval", push_out=not args.no_push_out, detail=look, causal=args.causal)
-    settings = EvaluationSettings(
-        tuple(modes),
-        run,
-        exclude_own_sequence=args.exclude_own_sequence,
-        members=args.ensemble,
-        jobs=args.jobs,
-        progress=not args.quiet,
-    )
-    for mode in modes:  # each mode's settings against the model (a residual without its calibration...), now
-        animator.resolve(settings.run_for(mode))
-    return _Job(model_dir, animator, ds, names, [ds.sequence(n) for n in names], settings)
-
-
-def _evaluate(job: _Job, args) -> dict:
-    """Every protocol asked for, into report.json's dictionary."""
-    from ..eval.evaluate import evaluate_vertices
-    from ..eval.holdouts import holdout_of
-    from ..eval.protocols import (
-        LibraryPlays,
-        default_taus,
-        ensemble_summary,
-        library_section,
-        paper_section,
-        real_motion_section,
-        truth_ensembles_of,
-    )
-    from ..eval.report import DATASET_SIMULATION, build_report
-
-    animator, records, settings = job.animator, job.records, job.settings
-    bundle = animator.bundle
-    ensembles = truth_ensembles_of(
-        job.ds, records, settings.members, jobs=settings.jobs, progress=settings.progress
-    )
-    print(
-        f"evaluating {job.model_dir} on {len(records)} {args.split} sequences of {job.ds.path} "
-        f"({sum(len(r.garment) for r in records)} frames): {', '.join(settings.modes)}"
-    )
-    job.results = evaluate_modes(animator, records, settings, ensembles=ensembles)
-    # the dataset's own frames scored as a prediction: a member like the others, or not (mirrored
-    # clips were not: docs/dataset.md)
-    reference = (
-        evaluate_vertices(
-            DATASET_SIMULATION,
-            {r.name: r.garment for r in records},
-            records,
-            template=bundle.template,
-            ensembles=ensembles,
-        ).to_dict()
-        if ensembles
-        else None
-    )
-    if not args.no_sweep:
-        job.sweep = tau_sweep(
-            animator,
-            records,
-            args.tau_sweep or default_taus(animator, records, settings.run),
-            settings=settings,
-        )
-    real = (
-        real_motion_section(animator, job.ds, args.motions, settings=settings, source_fps=args.fps)
-        if args.motions
-        else None
-    )
-    paper = (
-        paper_section(args.paper, bundle, records, settings=settings, ensembles=ensembles)
-        if args.paper
-        else None
-    )
-    unseen = None
-    if args.unseen_body:
-        from ..eval.unseen_bodies import UnseenBody, unseen_bodies_section
-
-        unseen = unseen_bodies_section(
-            animator, [UnseenBody.parse(t) for t in args.unseen_body], settings, sequences=args.sequences
-        )
-    library = None
-    if args.library:
-        plays = LibraryPlays(args.library, args.library_seed, args.tau_sweep, sweep=not args.no_sweep)
-        library = library_section(animator, job.ds, plays, settings=settings)
-    return build_report(
-        model={
-            "folder": str(job.model_dir),
-            "garment": bundle.garment,
-            "hash": bundle.content_hash,
-            "gate": bundle.gate,
-            "tau": bundle.tau,
-            "gates": thawed(bundle.manifest.gates),
-            "auto": bundle.auto_mode,
-            "auto_calibration": thawed(bundle.manifest.auto),
-            "vertices": bundle.template.num_vertices,
-            "preset": bundle.manifest.preset,
-        },
-        dataset={
-            "path": str(job.ds.path),
-            "split": args.split,
-            "sequences": job.names,
-            "frames": int(sum(len(r.garment) for r in records)),
-            "holdouts": holdout_of(job.ds.info, job.ds.splits, job.names) if args.split != "train" else None,
-        },
-        settings=evaluation_record(animator, settings),
-        ensemble=ensemble_summary(ensembles, records, settings.members),
-        modes=job.results,
-        sweep=job.sweep,
-        protocols={
-            "real_motion": real,
-            "library": library,
-            "paper": paper,
-            "unseen_bodies": unseen,
-            "dataset_simulation": reference,
-        },
-        seconds=0.0,
-    )
-
-
-def evaluation_record(animator, settings: EvaluationSettings) -> dict:
-    """report.json's ``settings``: the modes, the hybrid's resolved run (gate, tau, push-out) and,
-    where the detail mode runs, its resolved look, as out.h5 records them."""
-    record = {
-        k: v for k, v in animator.resolve(settings.run_for(Mode.HYBRID)).record().items() if k != "mode"
-    }
-    if Mode.DETAIL in settings.modes:
-        detail = animator.resolve(settings.run_for(Mode.DETAIL)).record()
-        record.update(detail_base=detail["detail_base"], detail_strength=detail["detail_strength"])
-    return {"modes": list(settings.modes), "exclude_own_sequence": settings.exclude_own_sequence, **record}
 
 
 def main(argv: Sequence[str] | None = None) -> int:

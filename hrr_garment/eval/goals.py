@@ -8,7 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .evaluate import ModeResult, TauPoint
+from .evaluate import TauPoint
+from .mode_results import ModeResult
 
 GOALS = (  # (name, numerator mode, denominator mode, target ratio)
     ("hybrid_vs_regression", "hybrid", "regression", 0.5),

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 from ..data.splits import mirror_source
 from .ensemble_metrics import ensemble_ratios
-from .evaluate import combine
+from .mode_results import combine
 
 ONE_CLIP = "clip"  # the hold-out of clips held out on their own (no group field in their name)
 

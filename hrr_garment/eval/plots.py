@@ -9,7 +9,8 @@ from pathlib import Path
 import numpy as np
 
 from ..io_utils import atomic_path
-from .evaluate import ModeResult, TauPoint
+from .evaluate import TauPoint
+from .mode_results import ModeResult
 from .report import frame_entropies
 
 

@@ -29,9 +29,10 @@ import numpy as np
 from ..inference.resolved_run import recorded
 from ..io_utils import atomic_write_text, strict_json
 from .bars import HELD_OUT_BARS, LIBRARY_BARS, default_output, markdown_lead
-from .evaluate import ModeResult, TauPoint
+from .evaluate import TauPoint
 from .goals import goals
 from .holdouts import holdout_section, markdown_holdouts
+from .mode_results import ModeResult
 from .report_tables import ensemble_table, goal_table, mode_table, simulated_section, sweep_table
 from .unseen_bodies import markdown_table
 

@@ -1,17 +1,18 @@
 """Training the mesh autoencoder on a garment dataset, then encoding every frame to latents.
 
 Vertices are expressed in the body frame (:mod:`hrr_garment.motion.frame`: origin following the
-pelvis, Z along its heading), where a garment's shape depends on the pose but not on where the
-body is or which way it faces. Loss: L1 on vertex positions plus ``laplacian`` x L1 on uniform Laplacian coordinates
-(keeps the surface smooth between vertices). Adam with a cosine learning-rate schedule over the
-run (:func:`set_learning_rate`), early stopping on the validation split's per-vertex error, a
-checkpoint after every epoch (a re-run resumes from it), seeded. Every frame is then encoded, each
+pelvis, Z along its heading), where a garment's shape depends on the pose but not on where the body
+is or which way it faces. Loss: L1 on vertex positions plus ``laplacian`` x L1 on uniform Laplacian
+coordinates (keeps the surface smooth between vertices). Adam with a cosine learning-rate schedule
+over the run (:func:`set_learning_rate`), early stopping on the validation split's per-vertex error,
+a checkpoint after every epoch (a re-run resumes from it), seeded. Every frame is then encoded, each
 latent refined by a few gradient steps through the decoder (``MeshAutoencoder.fit_latents``); the
 report's errors are those of the refined latents, the encoder's own in ``extra``.
 
 Outputs in the model folder (``autoencoder/``): ``config.json``, ``model.pt`` (the best weights,
 a plain state dict), ``checkpoint.pt`` (for resuming), ``latents.npz`` (per sequence (T, N, 8)),
-``report.json``.
+``report.json``. The settings are in :mod:`.autoencoder_settings`, the frames it learns (in the
+body frame, mirrored) in :mod:`.training_frames`.
 """
 
 from __future__ import annotations
@@ -19,7 +20,7 @@ from __future__ import annotations
 import hashlib
 import json
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
@@ -27,105 +28,17 @@ import torch
 from tqdm.auto import tqdm
 
 from ..data.dataset import GarmentDataset
-from ..garment.mesh import mirror_map
 from ..io_utils import atomic_path, atomic_write_text, strict_json
 from ..models.fcmae import AutoencoderSettings, MeshAutoencoder
 from ..models.hierarchy import cached_hierarchy
-from ..motion.frame import FRAME_VERSION, to_body_frame
-from ..settings import from_settings
+from ..motion.frame import FRAME_VERSION
+from .autoencoder_settings import AutoencoderTrainSettings, refine_settings
 from .checkpoint import Checkpoint
 from .loop import Budget, Epoch, EpochStep, ProgressBar, TrainingRun, fit
 from .mesh_loss import apply_laplacian, laplacian_operator, pve_mm
 from .report import StageReport
 from .schedule import cap_since_raised, set_learning_rate, training_device
-
-
-@dataclass(frozen=True)
-class AutoencoderTrainSettings:
-    """The autoencoder stage's training settings (configs/train.yaml, ``autoencoder.train``)."""
-
-    epochs: int = 300
-    batch_size: int = 32
-    learning_rate: float = 8e-3
-    lr_final: float = 0.01  # the cosine schedule's last learning rate, as a fraction of the first
-    laplacian: float = 0.2
-    patience: int = 30  # epochs without a better validation error before stopping (see early_stop)
-    max_minutes: float | None = (
-        None  # a wall-clock cap on the epochs (a run it cuts short warns: pipeline.budget)
-    )
-    target_mm: float | None = (
-        None  # validation error these settings reach on an idle machine (a run far above it warns)
-    )
-    seed: int = 0
-    threads: int | None = None
-    device: str = "cpu"  # torch device to train on ("cuda" on a GPU machine); the outputs are the same files
-    mirror: bool = True  # add left-right mirrored training frames when the template is symmetric (and the
-    #                      dataset does not hold mirrored sequences already)
-    frames_per_epoch: int | None = 16384  # an epoch draws at most this many training frames (None: all)
-    refine_steps: int = 10  # Adam steps on each encoded latent through the decoder (0: the encoder's latents)
-    refine_lr: float = 0.03
-
-    @classmethod
-    def from_dict(cls, values: dict) -> "AutoencoderTrainSettings":
-        return from_settings(cls, values, "training")
-
-
-def refine_settings(values: dict) -> dict:
-    """The encoding's settings (``fit_latents``' steps and rate) from a train config as a dict: a
-    run's own, its saved config.json, or a bundle's record. Missing ones (files from before they
-    were recorded) are the defaults."""
-    default = AutoencoderTrainSettings()
-    return {
-        "refine_steps": int(values.get("refine_steps", default.refine_steps)),
-        "refine_lr": float(values.get("refine_lr", default.refine_lr)),
-    }
-
-
-@dataclass
-class TrainingFrames:
-    """A dataset's frames in the body frame, per split; ``train`` ends with the mirrored copies."""
-
-    train: np.ndarray  # (N, V, 3) float32
-    val: np.ndarray
-    test: np.ndarray
-    simulated: int  # the training frames before the mirrored ones
-    scale: float  # the offsets' standard deviation from the template (the model's input scale)
-
-
-def body_frames(ds: GarmentDataset, names: list[str]) -> np.ndarray:
-    """All frames of ``names`` as the models learn them, (N, V, 3) float32: in each frame's body
-    frame (:mod:`..motion.frame`), less the rest offset of the body the sequence was simulated on
-    (:meth:`~hrr_garment.garment.dressing.DressedBody.offset`: nothing on the mannequin). A garment's
-    motion relative to its own body at rest carries over between bodies; its absolute position
-    does not (a 1.95 m body's dress hangs 19 cm higher in the body frame than the mannequin's)."""
-    out = []
-    for name in names:
-        rec = ds.sequence(name)
-        frames = to_body_frame(rec.garment.astype(np.float64), rec.motion).astype(np.float32)
-        out.append(frames - ds.bodies[ds.body_of[name]].offset(ds.template))
-    return np.concatenate(out) if out else np.zeros((0, ds.template.num_vertices, 3), np.float32)
-
-
-def holds_mirrors(ds: GarmentDataset) -> bool:
-    """Whether the dataset was built with every sequence mirrored (``hrr-simulate`` with a preset's
-    ``mirror: true``): then mirroring its frames again only doubles them."""
-    return bool(ds.info.get("augmentation", {}).get("mirror"))
-
-
-def training_frames(ds: GarmentDataset, mirror: bool) -> TrainingFrames:
-    """Every split's frames, the training split with its left-right mirror when asked, the
-    template is symmetric and the dataset does not hold the mirrored sequences already."""
-    splits = ds.splits
-    train = body_frames(ds, splits["train"])
-    val = body_frames(ds, splits.get("val", []))
-    test = body_frames(ds, splits.get("test", []))
-    template = ds.template.vertices.astype(np.float32)
-    perm = mirror_map(template) if mirror and not holds_mirrors(ds) else None
-    simulated = len(train)
-    if perm is not None:  # body frame: x is the body's left-right axis
-        train = np.concatenate([train, train[:, perm] * np.array([-1, 1, 1], np.float32)])
-    scale = float(np.std(train - template)) if len(train) else 0.1
-    return TrainingFrames(train, val, test, simulated, scale)
+from .training_frames import TrainingFrames, body_frames, training_frames
 
 
 def _key(*parts) -> str:

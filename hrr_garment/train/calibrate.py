@@ -39,7 +39,8 @@ from ..data.windows import dataset_features
 from ..models.codes import encode_motion, window_bodies
 from ..models.codespace import CodeSpace
 from ..motion.features import FeatureStats
-from .autoencoder import body_frames, refine_settings
+from .autoencoder_settings import refine_settings
+from .training_frames import body_frames
 
 # Windows the tau sweep decodes at most (evenly spaced; stride-1 windows overlap in W - 1 frames, so
 # a sample loses little): all 11,600 of the real-motion library's validation windows, three modes of

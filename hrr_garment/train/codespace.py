@@ -8,68 +8,48 @@ validation split (the hybrid's gate and the residual mode's weight), and writes 
 top of ``MODEL/`` (:mod:`hrr_garment.artifacts.bundle`). A re-run with nothing changed finds the
 finished report and returns it without redoing anything (a bundle from before the residual mode
 or the detail mode's folds only has what it lacks added).
+
+What the stage reads is in :mod:`~hrr_garment.train.codespace_inputs`, its keys and the reuse of
+a finished stage in :mod:`~hrr_garment.train.codespace_resume`, the epoch in
+:mod:`~hrr_garment.train.codespace_training` (its settings in
+:mod:`~hrr_garment.train.codespace_settings`, its losses in :mod:`~hrr_garment.train.codespace_losses`).
 """
 
 from __future__ import annotations
 
-import hashlib
-import json
 import time
-from dataclasses import asdict, replace
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import torch
 from tqdm import tqdm
 
-from ..artifacts.bundle import BundleError, load_bundle
 from ..artifacts.bundle_writer import BundleParts, add_bundle_part, write_bundle
 from ..artifacts.database import CodeDatabase
 from ..artifacts.folds import FOLD_ENCODING, FoldStore
 from ..artifacts.manifest import FOLDS_FILE
-from ..artifacts.manifest_entries import ResidualEntry
-from ..artifacts.typed_manifest import Manifest, read_manifest, update_manifest
-from ..body.body_file import body_to_dict
-from ..body.mannequin import MANNEQUIN
-from ..body.measures import BODY_MEASURES, BodyRange, body_vector
-from ..data.dataset import DatasetError, GarmentDataset
-from ..data.windows import build_windows, dataset_features, fit_stats, split_windows
+from ..body.measures import BODY_MEASURES
+from ..data.dataset import GarmentDataset
+from ..data.windows import dataset_features
 from ..garment.smoothing import mean_operator
 from ..io_utils import atomic_write_text, strict_json
 from ..models.codespace import CodeSpace, CodeSpaceSettings
-from .autoencoder import body_frames, load_autoencoder, refine_settings
-from .calibrate import calibrate_residual, window_mode_errors
-from .codespace_training import (
-    PAPER_VALIDATION_FRACTION,
-    CodeSpaceTrainSettings,
-    WindowTensors,
-    evaluate,
-    mean_square,
-    train_codespace,
-)
+from .autoencoder import load_autoencoder
+from .autoencoder_settings import refine_settings
+from .calibrate import window_mode_errors
+from .codespace_inputs import autoencoder_outputs, check_splits, codespace_windows, training_bodies
+from .codespace_losses import WindowTensors, evaluate, mean_square
+from .codespace_resume import add_residual_mode, finished_stage, stage_keys
+from .codespace_settings import CodeSpaceTrainSettings
+from .codespace_training import train_codespace
 from .contact import BodyContacts, ContactWindows, FrameDecoder, teach_contact
 from .report import StageReport
 from .schedule import cap_since_raised
+from .training_frames import body_frames
 from .vertex_metric import VertexMetric, sample_frames
 
-CONTACT_SETTINGS = (
-    "contact_steps",
-    "contact_weight",
-    "contact_margin_m",
-)  # the contact phase's: not the main training's key
-NOT_TRAINING = (*CONTACT_SETTINGS, "target_mm")  # settings that leave the main training as it is
 STAGE_FOLDER = "codebook"  # under MODEL/: the name from before "code space" was the stage's name
-
-
-def check_splits(ds: GarmentDataset) -> None:
-    """The code space needs training and validation sequences."""
-    if not ds.splits.get("train") or not ds.splits.get("val"):
-        raise DatasetError(
-            ds.path,
-            f"needs at least one training and one validation sequence; it has "
-            f"{len(ds.splits.get('train', []))} and {len(ds.splits.get('val', []))} "
-            f"({len(ds.names)} sequences in all: simulate at least 3)",
-        )
 
 
 @torch.no_grad()
@@ -81,92 +61,6 @@ def garment_codes(model: CodeSpace, windows: WindowTensors, batch: int = 512) ->
         motion, latents = windows[slice(i, i + batch)]
         out.append(model.quantizer.split(model.garment_encoder(latents, model.body_of(motion))).argmax(-1))
     return torch.cat(out).numpy().astype(np.uint8)
-
-
-def training_bodies(ds: GarmentDataset) -> dict | None:
-    """bundle.json's ``bodies`` of a model trained on ``ds``: the range of the bodies its training
-    split was simulated on (:class:`~hrr_garment.body.measures.BodyRange`), the body it animates
-    when given none (the one body of a model trained on one, the mannequin otherwise) and the body
-    its garment was modelled on (``hrr-simulate --made-for``; None: the mannequin). None where the
-    data is the mannequin's alone, as before bodies."""
-    names = sorted({ds.body_of[n] for n in ds.splits["train"]})
-    made_for = ds.info.get("made_for")
-    if names == [MANNEQUIN] and ds.bodies[MANNEQUIN].is_mannequin and made_for is None:
-        return None
-    known = BodyRange.of([body_vector(ds.bodies[n].record) for n in names])
-    return {
-        "range": known.to_dict(),
-        "default": body_to_dict(ds.bodies[names[0]].record) if len(names) == 1 else None,
-        "made_for": made_for,
-    }
-
-
-def _autoencoder_outputs(
-    ds: GarmentDataset, dataset, ae_folder: Path
-) -> tuple[dict, dict, dict[str, np.ndarray]]:
-    """The autoencoder stage's config.json, weights and per-sequence latents, checked against the dataset."""
-    if not (ae_folder / "latents.npz").is_file():
-        raise DatasetError(
-            ae_folder, "no latents.npz: run the autoencoder stage first (hrr-train --stage autoencoder)"
-        )
-    ae_meta = json.loads((ae_folder / "config.json").read_text())
-    if ae_meta.get("vertices") != ds.template.num_vertices or ae_meta.get("garment") != ds.garment:
-        raise DatasetError(
-            dataset,
-            f"the autoencoder in {ae_folder} was trained on {ae_meta.get('garment')} with "
-            f"{ae_meta.get('vertices')} vertices, the dataset is {ds.garment} with "
-            f"{ds.template.num_vertices}",
-        )
-    ae_state = torch.load(ae_folder / "model.pt", map_location="cpu", weights_only=True)
-    with np.load(ae_folder / "latents.npz", allow_pickle=False) as f:
-        latents = {name: f[name] for name in ds.names}
-    return ae_meta, ae_state, latents
-
-
-def _stage_key(
-    config: CodeSpaceSettings,
-    train_config: CodeSpaceTrainSettings,
-    ae_state: dict,
-    latents: dict[str, np.ndarray],
-    ds: GarmentDataset,
-) -> str:
-    """The main training's settings key (without the contact phase's): a checkpoint with it is resumed."""
-    # the latents as well as the weights: a changed encoding (refine_steps ...) re-encodes the same
-    # weights, and the code space trained on the old latents must not be reused
-    ae_hash = hashlib.sha256(
-        b"".join(
-            [k.encode() + ae_state[k].numpy().tobytes() for k in sorted(ae_state)]
-            + [n.encode() + latents[n].tobytes() for n in ds.names]
-        )
-    ).hexdigest()[:16]
-    training = {k: v for k, v in asdict(train_config).items() if k not in NOT_TRAINING} | {
-        "max_minutes": None
-    }
-    if (
-        train_config.latent_loss == "standardised"
-    ):  # as before the setting existed: finished stages stay reused
-        training = {k: v for k, v in training.items() if k not in ("latent_loss", "vertex_ridge")}
-    return hashlib.sha1(
-        json.dumps([config.to_dict(), training, ae_hash, ds.splits], sort_keys=True).encode()
-    ).hexdigest()[:16]
-
-
-def _stage_keys(
-    config: CodeSpaceSettings,
-    train_config: CodeSpaceTrainSettings,
-    ae_state: dict,
-    latents: dict[str, np.ndarray],
-    ds: GarmentDataset,
-) -> tuple[str, str]:
-    """(the stage's key, the main training's key). The contact phase comes after the training and
-    does not change it: its settings are left out of the training's key (a model trained without
-    the phase resumes its finished training and only adds the phase) and, where it runs, added to
-    the stage's (without it, the stage's key is the training's, as before the phase existed)."""
-    training = _stage_key(config, train_config, ae_state, latents, ds)
-    if train_config.contact_steps == 0:
-        return training, training
-    settings = json.dumps([training, {k: getattr(train_config, k) for k in CONTACT_SETTINGS}], sort_keys=True)
-    return hashlib.sha1(settings.encode()).hexdigest()[:16], training
 
 
 def _stage_report(report: dict, folder: Path, reused: bool = False) -> StageReport:
@@ -185,79 +79,12 @@ def _stage_report(report: dict, folder: Path, reused: bool = False) -> StageRepo
     )
 
 
-def _finished(folder: Path, report_path: Path, key: str) -> tuple[dict, Manifest] | None:
-    """The report and bundle.json of a finished stage with these settings whose bundle is intact, else None."""
-    if not (report_path.is_file() and (folder / "bundle.json").is_file()):
-        return None
-    report = json.loads(report_path.read_text())
-    if report.get("key") != key:
-        return None
-    try:
-        return report, read_manifest(folder)
-    except BundleError:  # a damaged bundle is rebuilt
-        return None
-
-
 def fold_store(ds: GarmentDataset, names: list[str], progress: bool = True) -> FoldStore:
     """The detail mode's folds of the database sequences ``names`` (:mod:`hrr_garment.artifacts.folds`)."""
     mean = mean_operator(ds.template.faces, ds.template.num_vertices)
     return FoldStore.build(
         (body_frames(ds, [n]) for n in tqdm(names, desc="folds", unit="sequence", disable=not progress)), mean
     )
-
-
-def _windows(
-    features: dict,
-    latents: dict,
-    splits: dict,
-    config: CodeSpaceSettings,
-    train_config: CodeSpaceTrainSettings,
-):
-    """Training and validation windows, their statistics, and the windows calibration decodes
-    (None: every window of the validation clips)."""
-    if train_config.validation == "windows":
-        # the paper's protocol: the windows of the training and validation clips split 9:1
-        clips = splits["train"] + splits["val"]
-        train_w, val_w = split_windows(
-            build_windows(features, latents, clips, window=config.window),
-            PAPER_VALIDATION_FRACTION,
-            train_config.seed,
-        )
-        motion_stats, latent_stats = fit_stats(features, latents, clips)
-        calibration = [(clips[i], int(s)) for i, s in zip(val_w.sequence, val_w.start)]
-    else:  # windows of both splits, standardised with the training split's statistics
-        train_w = build_windows(features, latents, splits["train"], window=config.window)
-        val_w = build_windows(features, latents, splits["val"], window=config.window)
-        motion_stats, latent_stats = fit_stats(features, latents, splits["train"])
-        calibration = None
-    return train_w, val_w, motion_stats, latent_stats, calibration
-
-
-def _add_residual(
-    folder: Path,
-    report_path: Path,
-    report: dict,
-    ds: GarmentDataset,
-    features: dict,
-    val_names: list[str],
-    calibration: list | None,
-    cache_dir: Path | None,
-) -> dict:
-    """Calibrate the residual mode of a finished bundle that predates it, on the windows its tau
-    was calibrated on; recorded in bundle.json and the stage's report."""
-    bundle = load_bundle(folder, cache_dir)
-    if bundle.database.motion is None:  # no motion windows to regress the matches from
-        return report
-    residual = calibrate_residual(
-        bundle,
-        {n: features[n] for n in val_names},
-        {n: body_frames(ds, [n]) for n in val_names},
-        windows=calibration,
-    )
-    update_manifest(folder, residual=ResidualEntry.from_report(residual, "residual"))
-    report = {**report, "residual": residual}
-    atomic_write_text(report_path, strict_json(report, indent=2, default=float))
-    return report
 
 
 def run_codespace_stage(
@@ -280,10 +107,10 @@ def run_codespace_stage(
         config, body_features=len(BODY_MEASURES) if bodies and bodies["range"]["bodies"] > 1 else 0
     )
     ae_folder = folder / "autoencoder"
-    ae_meta, ae_state, latents = _autoencoder_outputs(ds, dataset, ae_folder)
-    key, training_key = _stage_keys(config, train_config, ae_state, latents, ds)
+    ae_meta, ae_state, latents = autoencoder_outputs(ds, dataset, ae_folder)
+    key, training_key = stage_keys(config, train_config, ae_state, latents=latents, ds=ds)
     report_path = stage / "report.json"
-    finished = _finished(folder, report_path, key)
+    finished = finished_stage(folder, report_path, key)
     if finished is not None and cap_since_raised(
         finished[0]["training"].get("stopped"),
         finished[0]["training"]["config"].get("max_minutes"),
@@ -302,13 +129,22 @@ def run_codespace_stage(
     features = dataset_features(
         ds, splits["train"] + splits["val"], config.memory, body_measures=config.body_features > 0
     )
-    train_w, val_w, motion_stats, latent_stats, calibration = _windows(
-        features, latents, splits, config, train_config
+    train_w, val_w, motion_stats, latent_stats, calibration = codespace_windows(
+        features, latents, splits, config=config, train_config=train_config
     )
     encoding = refine_settings(ae_meta.get("train", {}))
     val_names = sorted({n for n, _ in calibration}) if calibration else splits["val"]
     if done is not None:  # trained before the residual mode: calibrate it alone
-        done = _add_residual(folder, report_path, done, ds, features, val_names, calibration, cache_dir)
+        done = add_residual_mode(
+            folder,
+            report_path,
+            done,
+            ds=ds,
+            features=features,
+            val_names=val_names,
+            calibration=calibration,
+            cache_dir=cache_dir,
+        )
         return _stage_report(done, stage, reused=True)
 
     autoencoder = load_autoencoder(ae_folder, ds.template.faces, cache_dir)

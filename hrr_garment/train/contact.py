@@ -40,7 +40,8 @@ from ..models.codespace import CodeSpace
 from ..models.fcmae import MeshAutoencoder
 from ..motion.frame import to_body_frame
 from ..sim.quality import PENETRATION_DEPTH_M
-from .codespace_training import CodeSpaceTrainSettings, WindowTensors
+from .codespace_losses import WindowTensors
+from .codespace_settings import CodeSpaceTrainSettings
 
 LEARNING_RATE = 1e-4  # a tenth of training's initial rate: the phase adjusts a trained decoder
 BATCH = 64  # windows (and so decoded frames) a step
@@ -114,7 +115,7 @@ def _regression(model: CodeSpace, motion: torch.Tensor) -> torch.Tensor:
 
 @dataclass(frozen=True)
 class ContactWindows:
-    """Windows (:class:`~.codespace_training.WindowTensors`) and their frames' bodies."""
+    """Windows (:class:`~.codespace_losses.WindowTensors`) and their frames' bodies."""
 
     windows: WindowTensors
     contacts: BodyContacts

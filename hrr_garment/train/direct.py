@@ -25,11 +25,11 @@ from ..data.windows import dataset_features
 from ..io_utils import atomic_write_text, strict_json
 from ..models.direct import DirectRegressor, DirectSettings
 from ..settings import from_settings
-from .autoencoder import body_frames
 from .bundle_stage import bundle_and_dataset
 from .checkpoint import Checkpoint, EpochLog
 from .loop import Budget, Epoch, EpochStep, ProgressBar, TrainingRun, fit
 from .report import StageReport
+from .training_frames import body_frames
 
 
 @dataclass(frozen=True)

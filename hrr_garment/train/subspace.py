@@ -33,11 +33,11 @@ from ..data.dataset import DatasetError
 from ..io_utils import atomic_write_text, strict_json
 from ..models.subspace import SubspaceDecoder, SubspaceSettings, principal_components
 from ..settings import from_settings, require_number
-from .autoencoder import body_frames
 from .bundle_stage import bundle_and_dataset
 from .checkpoint import Checkpoint, EpochLog
 from .loop import Budget, Epoch, EpochStep, ProgressBar, TrainingRun, fit
 from .report import StageReport
+from .training_frames import body_frames
 
 CANDIDATES = (16, 32, 64, 96, 128, 192, 256, 384, 512)  # component counts tried, up to max_components
 STAGE_VERSION = (

@@ -62,7 +62,7 @@ def test_frames_read_as_the_windows_they_hold():
 
 def test_training_reads_its_standardised_windows_from_frames():
     from hrr_garment.data.windows import fit_stats
-    from hrr_garment.train.codespace_training import WindowTensors
+    from hrr_garment.train.codespace_losses import WindowTensors
 
     motion, latents, names = sequences(3)
     w = build_windows(motion, latents, names, WINDOW)

@@ -360,7 +360,7 @@ def test_a_wider_allowance_that_moves_the_first_pick_asks_for_its_swing_gains():
 def test_hrr_train_picks_auto_again_when_its_allowance_changes(trained, tmp_path):
     """The candidates' numbers stand: another allowance re-picks from them, without animating again."""
     from hrr_garment.eval.auto_criterion import AutoSettings
-    from hrr_garment.pipeline.train import calibrate_auto
+    from hrr_garment.pipeline.auto_stage import calibrate_auto
 
     root, data, _ = trained
     shutil.copytree(root / "model", tmp_path / "model")
@@ -407,7 +407,7 @@ def test_a_calibration_recorded_before_is_made_again(trained, tmp_path, before):
     detail mode."""
     from hrr_garment.artifacts.typed_manifest import update_manifest
     from hrr_garment.inference.fold_track import FOLD_FOLLOW
-    from hrr_garment.pipeline.train import calibrate_auto
+    from hrr_garment.pipeline.auto_stage import calibrate_auto
 
     root, data, _ = trained
     shutil.copytree(root / "model", tmp_path / "model")

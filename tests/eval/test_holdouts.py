@@ -3,8 +3,8 @@
 import pytest
 
 from hrr_garment.eval.ensemble_metrics import ensemble_ratios
-from hrr_garment.eval.evaluate import combine
 from hrr_garment.eval.holdouts import holdout_section, markdown_holdouts
+from hrr_garment.eval.mode_results import combine
 
 
 def _entry(rows):

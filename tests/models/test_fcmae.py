@@ -288,6 +288,7 @@ def test_training_resumes_and_encodes_every_sequence(tmp_path, skirt, monkeypatc
     from hrr_garment.motion.synth import synthesize
     from hrr_garment.train import autoencoder as ae
     from hrr_garment.train import checkpoint
+    from hrr_garment.train.autoencoder_settings import AutoencoderTrainSettings
 
     frames = _two_frames(skirt).numpy()
     records = []
@@ -306,7 +307,7 @@ def test_training_resumes_and_encodes_every_sequence(tmp_path, skirt, monkeypatc
     data = write_dataset(
         tmp_path / "d.h5", skirt, records, {"train": ["walk_000"], "val": ["spin_000"], "test": ["idle_000"]}
     )
-    cfg = ae.AutoencoderTrainSettings(
+    cfg = AutoencoderTrainSettings(
         epochs=3, batch_size=8, patience=10, refine_steps=0
     )  # counts the training's Adam steps only
 
@@ -363,7 +364,7 @@ def test_training_resumes_and_encodes_every_sequence(tmp_path, skirt, monkeypatc
 
 
 def test_learning_rate_anneals_over_the_run_by_epochs_or_budget():
-    from hrr_garment.train.autoencoder import AutoencoderTrainSettings
+    from hrr_garment.train.autoencoder_settings import AutoencoderTrainSettings
     from hrr_garment.train.schedule import early_stop, run_progress, set_learning_rate
 
     cfg = AutoencoderTrainSettings(learning_rate=0.01, lr_final=0.02)
@@ -391,7 +392,8 @@ def test_the_budget_caps_training_instead_of_being_the_last_start():
 
 def test_training_device_is_checked_before_anything_is_written(tmp_path):
     from hrr_garment.errors import InputError
-    from hrr_garment.train.autoencoder import AutoencoderTrainSettings, train_autoencoder
+    from hrr_garment.train.autoencoder import train_autoencoder
+    from hrr_garment.train.autoencoder_settings import AutoencoderTrainSettings
     from hrr_garment.train.schedule import training_device
 
     assert training_device("cpu") == torch.device("cpu")
@@ -410,6 +412,8 @@ def test_mirrored_datasets_are_not_mirrored_again_and_epochs_are_bounded(tmp_pat
     from hrr_garment.data.dataset import GarmentDataset, SequenceRecord, write_dataset
     from hrr_garment.motion.synth import synthesize
     from hrr_garment.train import autoencoder as ae
+    from hrr_garment.train.autoencoder_settings import AutoencoderTrainSettings
+    from hrr_garment.train.training_frames import training_frames
 
     motion = synthesize("idle", 0.8, seed=0)  # 24 frames
     frames = np.repeat(skirt.vertices[None], motion.num_frames, 0).astype(np.float32)
@@ -419,9 +423,9 @@ def test_mirrored_datasets_are_not_mirrored_again_and_epochs_are_bounded(tmp_pat
     mirrored = write_dataset(
         tmp_path / "mirrored.h5", skirt, records, splits, info={"augmentation": {"mirror": True}}
     )
-    assert len(ae.training_frames(GarmentDataset(plain), mirror=True).train) == 48  # mirrored here
+    assert len(training_frames(GarmentDataset(plain), mirror=True).train) == 48  # mirrored here
     assert (
-        len(ae.training_frames(GarmentDataset(mirrored), mirror=True).train) == 24
+        len(training_frames(GarmentDataset(mirrored), mirror=True).train) == 24
     )  # mirrored by the simulator
     steps = []
     step = torch.optim.Adam.step
@@ -431,6 +435,6 @@ def test_mirrored_datasets_are_not_mirrored_again_and_epochs_are_bounded(tmp_pat
         return step(self, *args, **kwargs)
 
     monkeypatch.setattr(torch.optim.Adam, "step", counting_step)
-    cfg = ae.AutoencoderTrainSettings(epochs=2, batch_size=4, refine_steps=0, frames_per_epoch=8)
+    cfg = AutoencoderTrainSettings(epochs=2, batch_size=4, refine_steps=0, frames_per_epoch=8)
     ae.train_autoencoder(plain, tmp_path / "ae", train_config=cfg, progress=False)
     assert len(steps) == 4  # two epochs of 8 of the 48 frames, in batches of 4

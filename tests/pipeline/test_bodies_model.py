@@ -62,7 +62,7 @@ def test_a_uniformly_larger_body_measures_larger_by_the_same_factor():
 def test_models_learn_each_frame_less_its_bodys_rest_offset(bodies_model):
     """The autoencoder's frames: the body frame less the offset of the sequence's own body, which
     stands the garment on the mannequin's rest shape at rest."""
-    from hrr_garment.train.autoencoder import body_frames
+    from hrr_garment.train.training_frames import body_frames
 
     _, data = bodies_model
     ds = GarmentDataset(data)

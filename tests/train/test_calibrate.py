@@ -15,8 +15,8 @@ def test_calibration_on_a_window_sample_is_the_sample_of_the_full_errors(trained
     from hrr_garment.artifacts.bundle import load_bundle
     from hrr_garment.data.dataset import GarmentDataset
     from hrr_garment.data.windows import dataset_features
-    from hrr_garment.train.autoencoder import body_frames
     from hrr_garment.train.calibrate import window_mode_errors
+    from hrr_garment.train.training_frames import body_frames
 
     root, data, _ = trained
     bundle, ds = load_bundle(root / "model"), GarmentDataset(data)

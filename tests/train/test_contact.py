@@ -44,7 +44,8 @@ def test_the_contact_phase_takes_the_regression_out_of_a_body_it_lies_inside(tin
     """Capsules grown by 1.5 cm put much of the tiny model's skirt inside them; a short phase on them
     takes most of it out (on the validation windows, which it never trained on), and a re-run with
     the same key loads the result instead of training again."""
-    from hrr_garment.train.codespace_training import CodeSpaceTrainSettings, mean_square
+    from hrr_garment.train.codespace_losses import mean_square
+    from hrr_garment.train.codespace_settings import CodeSpaceTrainSettings
     from hrr_garment.train.contact import ContactWindows, FrameDecoder, inside_fraction, teach_contact
 
     bundle, data = tiny_windows

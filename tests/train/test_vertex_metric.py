@@ -9,7 +9,8 @@ from hrr_garment.garment.templates import make_garment
 from hrr_garment.models.fcmae import AutoencoderSettings, MeshAutoencoder
 from hrr_garment.models.hierarchy import build_hierarchy
 from hrr_garment.settings import SettingsError
-from hrr_garment.train.codespace_training import CodeSpaceTrainSettings, mean_square
+from hrr_garment.train.codespace_losses import mean_square
+from hrr_garment.train.codespace_settings import CodeSpaceTrainSettings
 from hrr_garment.train.vertex_metric import VertexMetric, sample_frames
 
 

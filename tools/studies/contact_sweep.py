@@ -25,7 +25,7 @@ def main() -> None:
     from hrr_garment.eval.unseen_bodies import evenly
     from hrr_garment.inference.animator import Animator
     from hrr_garment.sim.quality import body_signed_distance, penetration_fraction
-    from hrr_garment.train.codespace_training import CodeSpaceTrainSettings
+    from hrr_garment.train.codespace_settings import CodeSpaceTrainSettings
     from hrr_garment.train.contact import FrameDecoder, model_contact_windows, teach_contact
     from hrr_garment.train.vertex_metric import VertexMetric, sample_frames
 

@@ -1,0 +1,147 @@
+"""Scoring predictions against simulated ground truth: every metric of one predicted sequence, the
+truth ensemble's own values and a prediction's ensemble scores, and :class:`SequenceScorer`, which
+scores one garment's predictions sequence by sequence."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..body.capsules import DEFAULT_BODY, BodyModel
+from ..data.dataset import SequenceRecord
+from ..garment.fit import hem_vertices
+from ..sim.quality import body_signed_distance, penetration_fraction
+from . import metrics as M
+from .ensemble import TruthEnsemble
+from .ensemble_metrics import ensemble_metrics, truth_metrics
+from .mode_results import SequenceResult
+
+
+def body_of(record: SequenceRecord) -> BodyModel:
+    """The body a sequence was simulated on (its capsules): penetration is measured against it."""
+    return record.dressed.body if record.dressed is not None else DEFAULT_BODY
+
+
+def rest_of(record: SequenceRecord, template_rest: np.ndarray) -> np.ndarray:
+    """The garment at rest on the sequence's body: strain and the cloth energies are measured from it."""
+    return record.dressed.garment.vertices.astype(np.float64) if record.dressed is not None else template_rest
+
+
+def sequence_metrics(
+    pred: np.ndarray,
+    truth: np.ndarray,
+    record: SequenceRecord,
+    rest: np.ndarray,
+    topo: M.MeshTopology,
+    retrieved: np.ndarray,
+) -> dict[str, float]:
+    """Every metric of one predicted sequence (world space, metres)."""
+    pred, truth = pred.astype(np.float64), truth.astype(np.float64)
+    out = {
+        "pve_mm": M.pve_mm(pred, truth),
+        "rmse_mm": M.rmse_mm(pred, truth),
+        **M.sted(pred, truth, topo),
+        "chamfer_cm": M.chamfer_cm(pred, truth),
+        **M.penetration_pct(body_signed_distance(pred, record.motion, body_of(record))),
+        "curvature_error_cm": M.curvature_error_cm(pred, truth, topo),
+        **M.edge_strain_percentiles(pred, rest, topo),
+        **M.energy_ratios(pred, truth, rest, topo=topo),
+        **M.jitter_mm(pred, truth),
+        "retrieval_usage": float(np.mean(retrieved)),
+    }
+    return out
+
+
+def ensemble_truth(
+    ensemble: TruthEnsemble,
+    record: SequenceRecord,
+    rest: np.ndarray,
+    topo: M.MeshTopology,
+    hem: np.ndarray | None,
+) -> dict[str, float]:
+    """The members' own values, the penetration and strain beside the floor and the other ``truth_*``."""
+    truth_pen = [
+        penetration_fraction(body_signed_distance(m, record.motion, body_of(record)))
+        for m in ensemble.members
+    ]
+    strain = M.edge_strain_percentiles(ensemble.members.reshape(-1, *ensemble.members.shape[2:]), rest, topo)
+    return {
+        **truth_metrics(ensemble.members, record.motion, rest, topo=topo, hem=hem),
+        "truth_penetration_pct": 100.0 * float(np.mean([p.mean() for p in truth_pen])),
+        "truth_penetration_worst_pct": 100.0 * float(max(p.max() for p in truth_pen)),
+        "truth_strain_p99": strain["strain_p99"],
+        "truth_strain_max": strain["strain_max"],
+    }
+
+
+def sequence_ensemble_metrics(
+    anim_vertices: np.ndarray,
+    before_push_out: tuple[float, float] | None,
+    ensemble: TruthEnsemble,
+    record: SequenceRecord,
+    rest: np.ndarray,
+    topo: M.MeshTopology,
+    hem: np.ndarray | None,
+    truth: dict[str, float],
+) -> dict[str, float]:
+    """Ensemble scores of one prediction, with the penetration before the collision push-out
+    (``before_push_out``: mean and worst-frame fraction; None when there was no push-out) and the
+    members' own values (``truth``, from :func:`ensemble_truth`) beside it."""
+    out = ensemble_metrics(
+        anim_vertices, ensemble.members, record.motion, rest=rest, topo=topo, hem=hem, truth=truth
+    )
+    if before_push_out is None:
+        pen = penetration_fraction(body_signed_distance(anim_vertices, record.motion, body_of(record)))
+        before_push_out = float(pen.mean()), float(pen.max())
+    out.update(
+        penetration_before_pct=100.0 * before_push_out[0],
+        penetration_before_worst_pct=100.0 * before_push_out[1],
+    )
+    return out
+
+
+class SequenceScorer:
+    """Scores predictions of one garment against records and their truth ensembles, the truths'
+    own ensemble values computed once per record."""
+
+    def __init__(self, template, ensembles: dict[str, TruthEnsemble] | None):
+        self.topo = M.MeshTopology.of(template.faces, template.num_vertices)
+        self.rest = template.vertices.astype(np.float64)
+        self.hem = hem_vertices(template)
+        self.ensembles = ensembles or {}
+        self.truths: dict[str, dict[str, float]] = {}
+
+    def sequence(
+        self,
+        vertices: np.ndarray,
+        record: SequenceRecord,
+        retrieved: np.ndarray,
+        entropy: np.ndarray,
+        before_push_out: tuple[float, float] | None,
+    ) -> SequenceResult:
+        ensemble, rest = {}, rest_of(record, self.rest)
+        if record.name in self.ensembles:
+            if record.name not in self.truths:
+                self.truths[record.name] = ensemble_truth(
+                    self.ensembles[record.name], record, rest, self.topo, self.hem
+                )
+            ensemble = sequence_ensemble_metrics(
+                vertices,
+                before_push_out,
+                self.ensembles[record.name],
+                record,
+                rest,
+                self.topo,
+                self.hem,
+                self.truths[record.name],
+            )
+        return SequenceResult(
+            record.name,
+            len(record.garment),
+            sequence_metrics(vertices, record.garment, record, rest, self.topo, retrieved),
+            per_frame_pve_mm=M.per_frame_pve_mm(
+                vertices.astype(np.float64), record.garment.astype(np.float64)
+            ),
+            entropy=entropy,
+            retrieved=retrieved,
+            ensemble=ensemble,
+        )

@@ -1,0 +1,73 @@
+"""The auto mode's calibration after the code-space stage (:func:`calibrate_auto`): on the
+dataset's validation clips, recorded in bundle.json, and calibrated or picked again only where
+what it was recorded under changed."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from ..eval.auto_criterion import AutoSettings, repick
+from ..eval.auto_mode import (
+    calibrate_auto_mode,
+    followed_otherwise,
+    lacks_default_body,
+    lacks_free_cloth,
+    lacks_free_folds,
+    lacks_swing,
+    measure_swing_again,
+    swing_unmeasured,
+)
+
+
+def calibrate_auto(
+    folder: str | Path, dataset: str | Path, progress: bool = True, config: AutoSettings = AutoSettings()
+) -> dict:
+    """The mode ``auto`` runs (:mod:`hrr_garment.eval.auto_mode`), calibrated on the dataset's
+    validation clips once per bundle and recorded in bundle.json with every candidate's numbers;
+    the recorded one where it was, picked again from its numbers where ``config``'s allowance differs
+    from the one it was picked under (the swing gains of a first pick that moved measured first)."""
+    from ..artifacts.auto_calibration import AutoCalibration
+    from ..artifacts.typed_manifest import read_manifest, update_manifest
+    from ..inference.animator import Animator
+
+    manifest = read_manifest(folder)  # reading it hashes every file: once
+    recorded = manifest.auto
+    # calibrated again where recorded before the candidates carried their cloth inside the body (the
+    # criterion counts it), the residual or the folds on free cloth, the default body's clips apart,
+    # the folds followed in time (as the detail mode now runs) or the swing's gain; picked again
+    # where only an allowance moved
+    if (
+        recorded is None
+        or any("penetration_pct" not in c for c in (recorded.candidates or {}).values())
+        or lacks_swing(recorded)
+        or lacks_free_cloth(recorded, manifest.residual)
+        or lacks_default_body(recorded, manifest.bodies)
+        or (manifest.folds is not None and (followed_otherwise(recorded) or lacks_free_folds(recorded)))
+    ):
+        auto = calibrate_auto_mode(
+            Animator.load(folder), _validation_records(dataset), config, progress=progress
+        )
+    elif any(getattr(recorded, key) != value for key, value in config.limits().items()):
+        auto = (
+            measure_swing_again(
+                Animator.load(folder),
+                _validation_records(dataset),
+                auto=recorded.to_dict(),
+                config=config,
+                progress=progress,
+            )
+            if swing_unmeasured(recorded, config)
+            else repick(recorded.to_dict(), config)
+        )
+    else:
+        return recorded.to_dict()
+    update_manifest(folder, auto=AutoCalibration.from_report(auto, "auto"))
+    return auto
+
+
+def _validation_records(dataset: str | Path) -> list:
+    """The dataset's validation sequences (what the auto mode is calibrated on)."""
+    from ..data.dataset import GarmentDataset
+
+    ds = GarmentDataset(dataset)
+    return [ds.sequence(n) for n in ds.splits.get("val", [])]
