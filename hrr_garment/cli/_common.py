@@ -38,6 +38,11 @@ def add_decoder_option(p: argparse.ArgumentParser) -> None:
     )
 
 
+def add_no_push_out_option(p: argparse.ArgumentParser, help: str) -> None:
+    """``--no-push-out`` (its old name ``--no-collision`` still read): the run without the push-out."""
+    p.add_argument("--no-push-out", "--no-collision", dest="no_push_out", action="store_true", help=help)
+
+
 def add_push_option(p: argparse.ArgumentParser) -> None:
     """``--push``: how the push-out takes the cloth out of the body."""
     p.add_argument(

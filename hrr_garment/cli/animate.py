@@ -30,6 +30,7 @@ from ._common import (
     add_decoder_option,
     add_detail_options,
     add_fps_option,
+    add_no_push_out_option,
     add_push_option,
     detail_look,
     run_cli,
@@ -82,13 +83,7 @@ def _parser() -> argparse.ArgumentParser:
         action="store_true",
         help="animate a body unlike the model's training bodies anyway (warned), rather than refuse it",
     )
-    p.add_argument(
-        "--no-push-out",
-        "--no-collision",  # its old name, still read
-        dest="no_push_out",
-        action="store_true",
-        help="skip the collision push-out",
-    )
+    add_no_push_out_option(p, help="skip the collision push-out")
     add_decoder_option(p)
     add_push_option(p)
     p.add_argument("--causal", action="store_true", help="causal windows only, as the streaming API")

@@ -33,6 +33,7 @@ from ._common import (
     add_decoder_option,
     add_detail_options,
     add_fps_option,
+    add_no_push_out_option,
     add_push_option,
     run_cli,
 )
@@ -144,13 +145,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--jobs", type=int, default=None, help="processes simulating the ensemble (default: one per core)"
     )
-    p.add_argument(
-        "--no-push-out",
-        "--no-collision",  # its old name, still read
-        dest="no_push_out",
-        action="store_true",
-        help="evaluate without the collision push-out",
-    )
+    add_no_push_out_option(p, help="evaluate without the collision push-out")
     p.add_argument(
         "--causal",
         action="store_true",

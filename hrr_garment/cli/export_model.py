@@ -22,7 +22,7 @@ from typing import Sequence
 
 from ..errors import InputError
 from ..io_utils import refuse_input_as_output, require_suffix
-from ._common import add_decoder_option, add_push_option, run_cli
+from ._common import add_decoder_option, add_no_push_out_option, add_push_option, run_cli
 
 TOLERANCE_MM = 0.1  # the ONNX stream's largest gap from the Python stream that --check accepts
 
@@ -50,13 +50,7 @@ def _parser() -> argparse.ArgumentParser:
         action="store_true",
         help="export for a body unlike the model's training bodies anyway (warned)",
     )
-    p.add_argument(
-        "--no-push-out",
-        "--no-collision",  # its old name, still read
-        dest="no_push_out",
-        action="store_true",
-        help="leave the push-out out of the graph (an engine with its own collision)",
-    )
+    add_no_push_out_option(p, help="leave the push-out out of the graph (an engine with its own collision)")
     add_decoder_option(p)
     add_push_option(p)
     p.add_argument(
