@@ -70,9 +70,9 @@ class Animator:
         self.blend = blend  # inertialization frames in causal mode
         self.settings = run_settings(settings, changes)
         self._decoders: dict[str, object] = {}  # the full mesh decoder per precision (mesh_decoder)
-        self.mesh_decoder(
-            self.settings.precision or PRECISIONS[0]
-        )  # now: a precision the CPU lacks is refused at load
+        # the full mesh decoder in the settings' precision, built now: a precision the CPU lacks is
+        # refused at load
+        self.decoder = self.mesh_decoder(self.settings.precision or PRECISIONS[0])
         self.smoothing = mean_operator(
             bundle.template.faces, bundle.template.num_vertices
         )  # for the push-out
@@ -90,11 +90,6 @@ class Animator:
         if precision not in self._decoders:
             self._decoders[precision] = self.bundle.autoencoder.inference_decoder(precision=precision)
         return self._decoders[precision]
-
-    @property
-    def decoder(self):
-        """The full mesh decoder in the precision of the animator's settings."""
-        return self.mesh_decoder(self.settings.precision or PRECISIONS[0])
 
     @property
     def subspace_push(self) -> SubspacePush | None:
