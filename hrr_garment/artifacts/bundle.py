@@ -48,10 +48,10 @@ from .auto_calibration import AutoCalibration
 from .bundle_parts import load_arrays, load_folds, load_state, load_subspace
 from .database import CodeDatabase
 from .folds import FoldStore
+from .free_cloth import free_cloth_weights, rest_hang_m
 from .gate_signals import GATE_SIGNALS
 from .manifest import NETWORKS, BundleError
 from .manifest_section import thawed
-from .residual import free_cloth_weights, rest_hang_m
 from .typed_manifest import Manifest, read_manifest
 
 MAX_SCALE_M = 10.0  # the autoencoder's vertex scale: the spread of a garment's training frames (centimetres)

@@ -13,13 +13,8 @@ most detail within :data:`ACCURACY_ALLOWANCE` of the regression's error.
 Unreal Engine's ML Deformer went the same way, from nearest-neighbour poses to a regression plus
 the residual detail of the matched poses.
 
-*Free cloth.* Where the cloth lies on the body (a bodice), the match's deviation is another
-simulation's contact, on another body for a model across bodies: it puts cloth inside the body.
-Where the cloth hangs free (a skirt) it is the swing the regression lacks. The residual can be
-weighted per latent node (each a region of the garment) by how far that region hangs from the body
-at rest: 0 within ``lo`` mm, 1 beyond ``hi`` mm (:func:`free_cloth_weights`). Whether and with
-which ramp (:data:`FREE_CLOTH_RAMPS_MM`) is the auto calibration's choice on validation
-(:mod:`hrr_garment.eval.auto_mode`), recorded as bundle.json ``auto.residual_free_mm``.
+Where the cloth hangs free the residual is its swing, where it lies on the body another simulation's
+contact: the residual weighted by region, :mod:`hrr_garment.artifacts.free_cloth`.
 """
 
 from __future__ import annotations
@@ -27,7 +22,6 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from ..body.capsules import BodyModel, capsule_signed_distance
 from ..models.codes import encode_motion
 from .database import CodeDatabase
 
@@ -38,27 +32,6 @@ RESIDUAL_WEIGHTS = (0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 1.0)
 #: 1.03 x regression-only PVE with sharpness). Against one chaotic truth, window error alone always
 #: prefers the mean (weight 0), which is what the regression mode already gives.
 ACCURACY_ALLOWANCE = 1.03
-#: the free-cloth ramps (lo, hi) in mm the auto calibration tries beside the plain residual: at rest
-#: the dress's bodice nodes sit at its 12 mm clearance, its skirt's at 34-300 mm
-FREE_CLOTH_RAMPS_MM = ((10.0, 40.0), (20.0, 60.0))
-
-
-def rest_hang_m(rest_vertices: np.ndarray, body: BodyModel) -> np.ndarray:
-    """(V,) how far each vertex of the garment at rest on ``body`` (``rest_vertices`` (V, 3)) hangs
-    from it (metres, signed: negative inside)."""
-    a, b = body.rest_pose()
-    return capsule_signed_distance(np.asarray(rest_vertices, np.float64), a, b, radii=body.radii)[0].astype(
-        np.float32
-    )
-
-
-def free_cloth_weights(hang_m: np.ndarray, ramp_mm: tuple[float, float]) -> np.ndarray:
-    """(nodes,) float32 the residual's weight per node: 0 where the node hangs within ``lo`` mm of
-    the body, 1 beyond ``hi`` mm, linear between (``ramp_mm`` = (lo, hi), lo < hi; negative: inside)."""
-    lo, hi = (float(x) / 1000.0 for x in ramp_mm)
-    if not -np.inf < lo < hi < np.inf:
-        raise ValueError(f"a free-cloth ramp is (lo, hi) mm with lo < hi, got {tuple(ramp_mm)}")
-    return np.clip((np.asarray(hang_m, np.float64) - lo) / (hi - lo), 0.0, 1.0).astype(np.float32)
 
 
 def match_regression(

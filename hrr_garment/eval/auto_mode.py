@@ -38,7 +38,7 @@ is not a detail mode, the one the criterion picks among the detail candidates al
 ``--mode detail`` runs).
 
 Every candidate that borrows from the matches (their residual, their folds) is also measured on
-free cloth only (:data:`~hrr_garment.artifacts.residual.FREE_CLOTH_RAMPS_MM`, labelled ``..., free
+free cloth only (:data:`~hrr_garment.artifacts.free_cloth.FREE_CLOTH_RAMPS_MM`, labelled ``..., free
 cloth 10-40 mm``): what it borrows weighted per region by how far it hangs from the body, so that
 the skirt takes the match's swing and folds and the bodice keeps the regression's contact (a
 match's are another simulation's, on another body for a model across bodies: on the unseen
@@ -70,9 +70,9 @@ from tqdm import tqdm
 
 from ..artifacts.auto_calibration import AutoCalibration
 from ..artifacts.bundle import Bundle
+from ..artifacts.free_cloth import FREE_CLOTH_RAMPS_MM
 from ..artifacts.manifest import AUTO_CHOICES
 from ..artifacts.manifest_entries import BodiesEntry, ResidualEntry
-from ..artifacts.residual import FREE_CLOTH_RAMPS_MM
 from ..body.mannequin import MANNEQUIN
 from ..data.dataset import SequenceRecord
 from ..garment.fit import hem_vertices

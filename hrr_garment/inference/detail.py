@@ -20,7 +20,7 @@ frequencies, which it replaces, are smoothed alike. Measured on held-out real cl
 with another pose, on another body for a model across bodies, and they put cloth inside this one.
 The auto calibration may weight the term per vertex by how far the vertex hangs from the body at
 rest (0 within ``lo`` mm, 1 beyond ``hi``: bundle.json ``auto.folds_free_mm``, the same ramps as the
-residual's, :data:`~hrr_garment.artifacts.residual.FREE_CLOTH_RAMPS_MM`): the skirt takes the
+residual's, :data:`~hrr_garment.artifacts.free_cloth.FREE_CLOTH_RAMPS_MM`): the skirt takes the
 simulated folds, the bodice keeps the regression's shape. On the unseen tall-slim body this took the
 folds' share of the cloth inside before the push-out from 0.34 to 0.06 points
 (docs/decisions/0028-folds-on-free-cloth.md).

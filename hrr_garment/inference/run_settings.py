@@ -30,15 +30,15 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..artifacts.bundle import Bundle, BundleError
 from ..artifacts.gate_signals import GATE_SIGNALS
-from ..artifacts.manifest import DETAIL_BASES, MAX_DETAIL_STRENGTH, valid_detail_strength
+from ..artifacts.manifest import DETAIL_BASES, MAX_DETAIL_STRENGTH, BundleError, valid_detail_strength
 from ..native import PRECISIONS
 from .modes import Mode
 from .resolved_run import ResolvedRun
 from .swing import MAX_GAIN, valid_gain
 
-if TYPE_CHECKING:
+if TYPE_CHECKING:  # the bundle's models import torch, which a command that only reads settings does not need
+    from ..artifacts.bundle import Bundle
     from .character_body import CharacterBody
 
 DECODERS = (

@@ -35,7 +35,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..artifacts.residual import free_cloth_weights
+from ..artifacts.free_cloth import free_cloth_weights
 
 HALF_LIFE_S = 1.0  # the recent course's half-life: about one stride, so a step's swing is departure
 # the ramp (mm from the body at rest) from no gain to the full gain: the lower skirt. Measured on

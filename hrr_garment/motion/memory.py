@@ -33,7 +33,6 @@ from functools import lru_cache
 
 import numpy as np
 from scipy.linalg import expm
-from scipy.signal import lfilter, lfilter_zi, ss2tf
 
 from .features import FEATURE_DIM, SLICE_T, SLICE_V, SLICE_W
 from .rotations import rotation_about_y
@@ -119,6 +118,8 @@ class MotionMemory:
         self.omega = 2.0 * np.pi * np.array(self.spec.resonator_hz)
         # the same recursion as transfer functions for a whole clip (with_memory): s_t = A s_{t-1} + B u_t,
         # y_t = C s_t is a standard state space in s_{t-1} with outputs C A and C B; C = diag(w, 1)
+        from scipy.signal import lfilter_zi, ss2tf  # a second's import: only a memory's filters need it
+
         self.resonator_filters = []
         for a, b, w in zip(self.resonator_a, self.resonator_b, self.omega):
             c = np.diag([w, 1.0])
@@ -192,6 +193,8 @@ def with_memory(features: np.ndarray, fps: float, memory: MemorySettings | Seque
     heading = np.cumsum(features[:, SLICE_W][:, 0].astype(np.float64)) / fps  # yaw since frame 0 ...
     heading -= heading[0]  # ... frame 0's own step is before it
     to_first = rotation_about_y(heading)  # (T, 3, 3): frame t's body frame -> frame 0's
+    from scipy.signal import lfilter  # a second's import: only a memory's filters need it
+
     u = _velocities(features)
     vectors = u[:, :-1].reshape(len(u), VECTORS, 3) @ np.swapaxes(to_first, -1, -2)
     first = np.concatenate([vectors.reshape(len(u), -1), u[:, -1:]], 1)

@@ -169,3 +169,15 @@ def test_bad_frame_rate_keys_are_refused(capsys, tmp_path):
         bad = tmp_path / "bad_rate.npz"
         np.savez(bad, poses=data["poses"], trans=data["trans"], mocap_framerate=value)
         expect_failure(capsys, tmp_path, bad, "mocap_framerate", "frame rate")
+
+
+def test_the_motion_and_body_commands_start_without_torch():
+    """Reading a clip or a body needs no network: ``hrr-motion`` and ``hrr-body`` import in about a
+    second, without the several seconds torch's import takes (a bundle is imported where it is read)."""
+    script = (
+        "import sys, hrr_garment.cli.motion, hrr_garment.cli.body\n"
+        "print(sorted({'torch', 'scipy.signal'} & set(sys.modules)))"
+    )
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() == "[]"

@@ -326,7 +326,7 @@ def test_hrr_train_calibrates_auto_and_it_agrees_with_the_evaluation(trained):
     assert len(set(pves)) == len(pves)  # each setting changes the output
     # ... and every candidate that borrows from the matches (the residual, the folds) again on free
     # cloth, each ramp as the bundle runs it
-    from hrr_garment.artifacts.residual import FREE_CLOTH_RAMPS_MM
+    from hrr_garment.artifacts.free_cloth import FREE_CLOTH_RAMPS_MM
 
     free = [k for k in both["candidates"] if candidate_setting(k)[3] is not None]
     assert (

@@ -142,7 +142,7 @@ def test_a_bundle_before_the_residual_mode_says_how_to_calibrate_it_and_hrr_trai
 
 
 def test_free_cloth_weights_ramp_from_the_body_and_scale_the_residual_per_node(rng):
-    from hrr_garment.artifacts.residual import free_cloth_weights
+    from hrr_garment.artifacts.free_cloth import free_cloth_weights
 
     hang = np.array([-0.003, 0.012, 0.025, 0.040, 0.300])
     assert free_cloth_weights(hang, (10, 40)) == pytest.approx([0.0, 2 / 30, 0.5, 1.0, 1.0], abs=1e-6)

@@ -71,10 +71,10 @@ def peak_bytes(compute) -> int:
 
 
 def test_memory_for_features_does_not_grow_with_the_clip(monkeypatch):
-    """The features of 40,000 frames in passes of 4,096 need under a third of what one pass
+    """The features of 12,000 frames in passes of 1,024 need under a third of what one pass
     does: the float64 temporaries are a pass's, and only the float32 result is the clip's."""
-    motion = long_motion(40_000)
-    monkeypatch.setattr(resample, "FRAME_CHUNK", 4096)
+    motion = long_motion(12_000)
+    monkeypatch.setattr(resample, "FRAME_CHUNK", 1024)
     in_passes = peak_bytes(
         lambda: motion_features(Motion(motion.local_rotations, motion.root_translation, motion.fps))
     )
@@ -82,19 +82,19 @@ def test_memory_for_features_does_not_grow_with_the_clip(monkeypatch):
     one_pass = peak_bytes(
         lambda: motion_features(Motion(motion.local_rotations, motion.root_translation, motion.fps))
     )
-    result = 40_000 * 124 * 4
+    result = 12_000 * 124 * 4
     assert in_passes < one_pass / 3
     assert in_passes < 5 * result
 
 
 @pytest.mark.parametrize("fmt", ["native", "amass"])
 def test_memory_for_loading_does_not_grow_past_the_file(monkeypatch, tmp_path, fmt):
-    """Loading 40,000 frames in passes needs a third of what one pass does and under four times
-    the file: no float64 copy of the whole clip's rotations (one alone would be 63 MB)."""
-    motion = long_motion(40_000)
+    """Loading 12,000 frames in passes needs a third of what one pass does and under four times
+    the file: no float64 copy of the whole clip's rotations (one alone would be 19 MB)."""
+    motion = long_motion(12_000)
     path = tmp_path / f"{fmt}.npz"
     (save_motion if fmt == "native" else save_amass)(motion, path)
-    monkeypatch.setattr(resample, "FRAME_CHUNK", 4096)
+    monkeypatch.setattr(resample, "FRAME_CHUNK", 1024)
     in_passes = peak_bytes(lambda: load_motion(path))
     monkeypatch.setattr(resample, "FRAME_CHUNK", 10**9)
     one_pass = peak_bytes(lambda: load_motion(path))

@@ -43,7 +43,7 @@ def inside_by_capsule(vertices: np.ndarray, motion, body) -> tuple[np.ndarray, n
 def analyse(model: str, dataset: str, ranges: list[tuple[float, float]], sequences: int = 8) -> list[dict]:
     """One row per variant: ``label``, ``inside_pct``, ``inside_by_capsule_pct`` (capsule -> % of
     the vertices), ``hem_swing_ratio``, ``pve_mm``, ``mean_weight`` (ranges in mm)."""
-    from hrr_garment.artifacts.residual import free_cloth_weights
+    from hrr_garment.artifacts.free_cloth import free_cloth_weights
     from hrr_garment.data.dataset import GarmentDataset
     from hrr_garment.eval import metrics as M
     from hrr_garment.eval.auto_mode import free_cloth
