@@ -166,6 +166,7 @@ def test_a_trained_bundle_stores_frames_and_one_that_stored_windows_still_loads(
     )
 
 
+@pytest.mark.slow  # a fresh interpreter importing torch and the training commands: about 7 s
 def test_everything_before_a_database_runs_without_faiss():
     """FAISS is imported where an index is built, so training a mesh autoencoder needs none (a bare
     GPU image); building a database without it says what to install."""

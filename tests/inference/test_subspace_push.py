@@ -2,6 +2,7 @@
 comes out by a move of the basis alone, and a frame clear of the body is left as it is."""
 
 import numpy as np
+import pytest
 
 from hrr_garment.motion.frame import to_body_frame
 from hrr_garment.motion.synth import synthesize
@@ -92,8 +93,6 @@ def test_the_push_out_runs_the_subspace_push_the_same_in_the_kernel_and_in_numpy
     and the numpy reference agree, and a frame streamed alone is the same bits as in a batch."""
     import dataclasses
 
-    import pytest
-
     from hrr_garment import native
     from hrr_garment.inference.collision import PUSH_OUT, EdgeLimits, push_out
     from hrr_garment.inference.subspace_push import SubspacePush
@@ -121,8 +120,6 @@ def test_the_push_out_runs_the_subspace_push_the_same_in_the_kernel_and_in_numpy
 def test_a_stream_with_the_subspace_push_equals_the_offline_animation_and_changes_it(animator):
     """``push="subspace"`` runs the same in a stream, a crowd and offline, and is not the mesh push;
     a push that is neither is refused."""
-    import pytest
-
     from hrr_garment.inference.run_settings import RunSettings
 
     motion = synthesize("dance", 1.0, seed=3)
@@ -161,11 +158,9 @@ def test_the_report_counts_the_cloth_inside_as_decoded_before_the_subspace_push(
     assert both.inside_before == mesh.inside_before > 0.05 and both.worst_before == mesh.worst_before
 
 
-def test_the_torch_stage_moves_as_the_reference_does():
-    """The subspace push as a GPU crowd runs it (torch_push_out.SubspacePushStage: every vertex's
-    row weighted, one batched solve, float32) and as an ONNX export holds it (traced by
-    torch.export, the solve a Cholesky factorisation in loops) against the numpy reference (the rows
-    near the body, frame by frame, float64), the frames relative to the pelvis as the stage takes them."""
+def _torch_stage_case():
+    """The subspace push's torch stage (torch_push_out.SubspacePushStage) on a squeezed skirt, its
+    inputs relative to the pelvis as the step gives them, the pelvis, and the numpy reference's result."""
     import torch
 
     from hrr_garment.body.capsules import DEFAULT_BODY
@@ -181,31 +176,46 @@ def test_the_torch_stage_moves_as_the_reference_does():
     a, b = DEFAULT_BODY.pose_motion(motion)
     push = SubspacePush.of(basis, skirt.vertices, skirt.edges())
     theirs = push(squeezed, motion, (a, b, DEFAULT_BODY.radii), margin=0.002)
+    assert np.abs(theirs - squeezed).max() > 0.01  # the reference moved the cloth
     yaw, _ = body_heading(motion)
     centre = motion.joint_positions[:, :1]
-    stage = SubspacePushStage(push, margin=0.002)
     distance = PushOutStage.distance.__get__(
         type("Radii", (), {"radii": torch.tensor(DEFAULT_BODY.radii, dtype=torch.float32)})()
     )
-    f32 = lambda x: torch.from_numpy(np.asarray(x, np.float32))  # noqa: E731
-    relative = f32(squeezed - centre)
-    with torch.no_grad():
-        moved = stage(
-            relative, f32(a - centre), f32(b - centre), (f32(np.cos(yaw)), f32(np.sin(yaw))), distance
-        )
-    assert np.abs(theirs - squeezed).max() > 0.01  # the reference moved the cloth ...
-    assert np.abs(moved.numpy() + centre - theirs).max() < 2e-5  # ... and the stage moved it the same
-    assert torch.equal(moved[-1], relative[-1])  # nothing near the body: untouched
 
-    class Traced(torch.nn.Module):  # the stage with its distance, as the exported step holds it
+    class Stage(torch.nn.Module):  # the stage with its distance, as the exported step holds it
         def __init__(self):
             super().__init__()
-            self.stage = stage
+            self.stage = SubspacePushStage(push, margin=0.002)
 
         def forward(self, p, a, b, cos, sin):
             return self.stage(p, a, b, (cos, sin), distance)
 
-    inputs = (relative, f32(a - centre), f32(b - centre), f32(np.cos(yaw)), f32(np.sin(yaw)))
+    f32 = lambda x: torch.from_numpy(np.asarray(x, np.float32))  # noqa: E731
+    inputs = (f32(squeezed - centre), f32(a - centre), f32(b - centre), f32(np.cos(yaw)), f32(np.sin(yaw)))
+    return Stage(), inputs, centre, theirs
+
+
+def test_the_torch_stage_moves_as_the_reference_does():
+    """The subspace push as a GPU crowd runs it (torch_push_out.SubspacePushStage: every vertex's
+    row weighted, one batched solve, float32) against the numpy reference (the rows near the body,
+    frame by frame, float64)."""
+    import torch
+
+    stage, inputs, centre, theirs = _torch_stage_case()
     with torch.no_grad():
-        traced = torch.export.export(Traced(), inputs).module()(*inputs)
+        moved = stage(*inputs)
+    assert np.abs(moved.numpy() + centre - theirs).max() < 2e-5  # the stage moved it as the reference
+    assert torch.equal(moved[-1], inputs[0][-1])  # nothing near the body: untouched
+
+
+@pytest.mark.slow  # torch.export's trace takes about 8 s
+def test_the_exported_stage_moves_as_the_reference_does():
+    """The subspace push as an ONNX export holds it (traced by torch.export, the solve a Cholesky
+    factorisation in loops) against the numpy reference."""
+    import torch
+
+    stage, inputs, centre, theirs = _torch_stage_case()
+    with torch.no_grad():
+        traced = torch.export.export(stage, inputs).module()(*inputs)
     assert np.abs(traced.numpy() + centre - theirs).max() < 2e-5
