@@ -11,6 +11,10 @@ GLTF_VALIDATOR ?= gltf-validator@2.0.0-dev.3.10
 THREE_JS ?= three@0.187.0
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.hrr-installed
+# Python's bytecode cache on even where the environment turns it off (PYTHONDONTWRITEBYTECODE=1 in some
+# containers): a second test run then skips compiling the package and re-rewriting the asserts of every
+# test module, about 7 s a pytest worker
+export PYTHONDONTWRITEBYTECODE :=
 
 .PHONY: install demo test test-fast test-slow clean
 
