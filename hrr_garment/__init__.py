@@ -40,7 +40,7 @@ _LAZY = {
     "Animator": "inference.animator",
     "Bundle": "artifacts.bundle",
     "BundleError": "artifacts.bundle",
-    "load_bundle": "artifacts.bundle",
+    "load_bundle": "artifacts.bundle_loader",
 }
 
 

@@ -1005,7 +1005,7 @@ def check_output(path: Path) -> str:
 
             return "" if np.isfinite(read_pc2(path)[0]).all() else "non-finite points"
         if path.is_dir() and (path / "bundle.json").exists():
-            from hrr_garment.artifacts.bundle import load_bundle
+            from hrr_garment.artifacts.bundle_loader import load_bundle
 
             load_bundle(path)
         elif path.is_dir() and (path / "report.json").exists():

@@ -1,5 +1,5 @@
 """Loading a bundle's parts, each checked against what bundle.json and the configuration say
-(:func:`~.bundle.load_bundle` assembles them): network weights, array files, the fold store and the
+(:func:`~.bundle_loader.load_bundle` assembles them): network weights, array files, the fold store and the
 fast decoder. Every problem is a :class:`~.manifest.BundleError` that names the file and what is off."""
 
 from __future__ import annotations

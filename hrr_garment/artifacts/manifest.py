@@ -98,7 +98,7 @@ def content_hash(files: dict[str, str]) -> str:
 
 
 def required_files(meta: dict) -> set[str]:
-    """Every file :func:`.bundle.load_bundle` opens for this bundle: each must be listed with its hash."""
+    """Every file :func:`.bundle_loader.load_bundle` opens for this bundle: each must be listed with its hash."""
     names = {
         "autoencoder.safetensors",
         "stats.safetensors",

@@ -20,7 +20,8 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from ..artifacts.bundle import Bundle, BundleError, load_bundle
+from ..artifacts.bundle import Bundle, BundleError
+from ..artifacts.bundle_loader import load_bundle
 from ..body.body_file import BodyRecord
 from ..garment.smoothing import mean_operator
 from ..models.native_codes import native_window_codes

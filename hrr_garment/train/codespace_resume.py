@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..artifacts.bundle import BundleError, load_bundle
+from ..artifacts.bundle_loader import BundleError, load_bundle
 from ..artifacts.manifest_entries import ResidualEntry
 from ..artifacts.typed_manifest import Manifest, read_manifest, update_manifest
 from ..data.dataset import GarmentDataset

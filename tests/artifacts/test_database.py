@@ -11,7 +11,7 @@ import pytest
 import torch
 from safetensors.numpy import load_file
 
-from hrr_garment.artifacts.bundle import load_bundle
+from hrr_garment.artifacts.bundle_loader import load_bundle
 from hrr_garment.artifacts.bundle_writer import add_bundle_part
 from hrr_garment.artifacts.database import CodeDatabase
 from hrr_garment.data.windows import WindowFrames, WindowSet, build_windows

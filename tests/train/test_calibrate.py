@@ -12,7 +12,7 @@ from hrr_garment.train.calibrate import ModeErrors, choose_residual_weight, swee
 
 def test_calibration_on_a_window_sample_is_the_sample_of_the_full_errors(trained):
     """max_windows keeps evenly spaced windows: their errors are exactly those windows' full errors."""
-    from hrr_garment.artifacts.bundle import load_bundle
+    from hrr_garment.artifacts.bundle_loader import load_bundle
     from hrr_garment.data.dataset import GarmentDataset
     from hrr_garment.data.windows import dataset_features
     from hrr_garment.train.calibrate import window_mode_errors

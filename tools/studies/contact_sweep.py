@@ -20,7 +20,7 @@ import numpy as np
 
 
 def main() -> None:
-    from hrr_garment.artifacts.bundle import load_bundle
+    from hrr_garment.artifacts.bundle_loader import load_bundle
     from hrr_garment.data.dataset import GarmentDataset
     from hrr_garment.eval.unseen_bodies import evenly
     from hrr_garment.inference.animator import Animator

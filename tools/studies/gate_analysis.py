@@ -23,7 +23,7 @@ import json
 import numpy as np
 import torch
 
-from hrr_garment.artifacts.bundle import load_bundle
+from hrr_garment.artifacts.bundle_loader import load_bundle
 from hrr_garment.data.dataset import GarmentDataset
 from hrr_garment.data.windows import dataset_features
 from hrr_garment.motion.windows import sequence_windows
