@@ -16,8 +16,8 @@ from ..artifacts.typed_manifest import Manifest, read_manifest, update_manifest
 from ..data.dataset import GarmentDataset
 from ..io_utils import atomic_write_text, strict_json
 from ..models.codespace import CodeSpaceSettings
-from .calibrate import calibrate_residual
 from .codespace_settings import CodeSpaceTrainSettings
+from .residual_calibration import calibrate_residual
 from .training_frames import body_frames
 
 CONTACT_SETTINGS = (

@@ -7,7 +7,9 @@ import numpy as np
 import pytest
 
 from hrr_garment.artifacts.gate_signals import GATE_SIGNALS
-from hrr_garment.train.calibrate import ModeErrors, choose_residual_weight, sweep_tau
+from hrr_garment.train.calibrate import ModeErrors
+from hrr_garment.train.residual_calibration import choose_residual_weight
+from hrr_garment.train.tau_sweep import sweep_tau
 
 
 def test_calibration_on_a_window_sample_is_the_sample_of_the_full_errors(trained):

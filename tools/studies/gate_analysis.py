@@ -27,7 +27,7 @@ from hrr_garment.artifacts.bundle_loader import load_bundle
 from hrr_garment.data.dataset import GarmentDataset
 from hrr_garment.data.windows import dataset_features
 from hrr_garment.motion.windows import sequence_windows
-from hrr_garment.train.calibrate import predict_windows, window_errors_mm
+from hrr_garment.train.calibration_windows import predict_windows, window_errors_mm
 from hrr_garment.train.training_frames import body_frames
 
 
