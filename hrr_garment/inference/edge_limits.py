@@ -1,7 +1,7 @@
 """What the push-out and its strain limit need of a garment, made once per template
 (:class:`EdgeLimits`): its edges and rest lengths, the incidence, the edges' colours the strain
 limit projects them by, the 1-ring table the neighbour-follow walks, and the vertex patches the
-kernel measures against the capsules near them (:mod:`.collision` runs them)."""
+kernel measures against the capsules near them (:mod:`.collision` and :mod:`.strain_limit` run them)."""
 
 from __future__ import annotations
 
@@ -22,7 +22,7 @@ if TYPE_CHECKING:
 
 @dataclass(frozen=True)
 class EdgeLimits:
-    """What the push-out's neighbour-follow and :func:`limit_push_strain` need of a garment, made
+    """What the push-out's neighbour-follow and :func:`~.strain_limit.limit_push_strain` need of a garment, made
     once per template (the streaming path calls the push-out every frame): its edges, their rest
     lengths, the (V, E) incidence (+1 first vertex, -1 second; its rows list each vertex's edges),
     the edges' colours (no two edges of a colour share a vertex: the strain limit projects a colour's

@@ -14,7 +14,8 @@ import torch
 from torch import nn
 from torch._higher_order_ops.while_loop import while_loop
 
-from .collision import LIMIT_TOLERANCE_M, OVER_RELAXATION, PushOutSettings
+from .collision import PushOutSettings
+from .strain_limit import LIMIT_TOLERANCE_M, OVER_RELAXATION
 from .subspace_push import SubspacePush
 
 
@@ -123,7 +124,7 @@ class SubspacePushStage(nn.Module):
 class PushOutStage(nn.Module):
     """World vertices (N, V, 3) pushed out of the body's capsules posed by FK, then their edges
     stretched by the push limited (:func:`~hrr_garment.inference.collision.push_out` with
-    :func:`~hrr_garment.inference.collision.limit_push_strain`)."""
+    :func:`~hrr_garment.inference.strain_limit.limit_push_strain`)."""
 
     def __init__(self, capsules, smoothing, *, limits, settings: PushOutSettings, strain_passes: int = 60):
         super().__init__()
@@ -260,7 +261,7 @@ class PushOutStage(nn.Module):
 
     def _pass(self, passes: torch.Tensor, p: torch.Tensor, limit: torch.Tensor, active: torch.Tensor):
         """One Gauss-Seidel pass of edge-length projection, a colour of edges after another, on the
-        characters still over a limit (:func:`~hrr_garment.inference.collision.limit_push_strain`)."""
+        characters still over a limit (:func:`~hrr_garment.inference.strain_limit.limit_push_strain`)."""
         worst = torch.zeros_like(active, dtype=p.dtype)
         weight = active.to(p.dtype)
         for c in range(self.colours):
