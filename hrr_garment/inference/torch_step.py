@@ -39,7 +39,8 @@ from ..motion.skeleton import FEATURE_JOINTS, NUM_JOINTS, REST_PELVIS_HEIGHT, fo
 from .collision import PUSH_OUT
 from .frame_path import FramePath
 from .modes import Mode
-from .torch_push_out import PushOutStage, constant, turn_y
+from .torch_ops import constant, turn_y
+from .torch_push_out import PushOutStage
 
 
 class PoseStage(nn.Module):

@@ -162,7 +162,7 @@ def test_the_report_counts_the_cloth_inside_as_decoded_before_the_subspace_push(
 
 
 def test_the_torch_stage_moves_as_the_reference_does():
-    """The subspace push as a GPU crowd runs it (torch_push_out.SubspacePushStage: every vertex's
+    """The subspace push as a GPU crowd runs it (torch_subspace_push.SubspacePushStage: every vertex's
     row weighted, one batched solve, float32) and as an ONNX export holds it (traced by
     torch.export, the solve a Cholesky factorisation in loops) against the numpy reference (the rows
     near the body, frame by frame, float64), the frames relative to the pelvis as the stage takes them."""
@@ -170,7 +170,8 @@ def test_the_torch_stage_moves_as_the_reference_does():
 
     from hrr_garment.body.capsules import DEFAULT_BODY
     from hrr_garment.inference.subspace_push import SubspacePush
-    from hrr_garment.inference.torch_push_out import PushOutStage, SubspacePushStage
+    from hrr_garment.inference.torch_push_out import PushOutStage
+    from hrr_garment.inference.torch_subspace_push import SubspacePushStage
     from hrr_garment.motion.frame import body_heading
 
     skirt, basis = _skirt_and_basis()
