@@ -86,6 +86,11 @@ def swing_of(label: str) -> float:
     return float(gain) if gain else 1.0
 
 
+def without_swing(candidates: dict[str, dict[str, float]]) -> dict[str, dict[str, float]]:
+    """The candidates measured without a swing gain (those a first pick is made among)."""
+    return {k: c for k, c in candidates.items() if SWING not in k}
+
+
 def candidate_setting(label: str) -> tuple[str, str, float | None, tuple[float, float] | None]:
     """(mode, the detail mode's base, its strength or None, the free-cloth ramp in mm or None) of a
     candidate's label (a recorded calibration's too; its swing gain: :func:`swing_of`)."""

@@ -28,7 +28,8 @@ from hrr_garment.eval.auto_criterion import (
     swing_label,
     swing_of,
 )
-from hrr_garment.eval.auto_mode import calibrate_auto_mode, free_cloth, lacks_default_body, swing_unmeasured
+from hrr_garment.eval.auto_mode import calibrate_auto_mode, free_cloth
+from hrr_garment.eval.auto_outdated import lacks_default_body, swing_unmeasured
 from hrr_garment.motion.synth import synthesize
 from hrr_garment.settings import SettingsError
 
