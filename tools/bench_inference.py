@@ -510,17 +510,20 @@ def main() -> None:
             print(json.dumps(r))
             continue
         print(
-            f"{r['model']}, {r['motion']}: {r['vertices']} vertices, database {r['database_windows']} windows, "
-            f"{r['threads']} threads, {r['precision']} {r['decoder']} decoder; peak RSS {r['peak_rss_mb']} MB"
+            f"{r['model']}, {r['motion']}: {r['vertices']} vertices, database {r['database_windows']} "
+            f"windows, {r['threads']} threads, {r['precision']} {r['decoder']} decoder; peak RSS "
+            f"{r['peak_rss_mb']} MB"
         )
         if not args.crowd_only:
             print(
-                f"  {r['clip_frames']}-frame clip: offline frames/s hybrid {r['fps_hybrid']}, regression {r['fps_regression']}, "
-                f"retrieval {r['fps_retrieval']}, detail {r['fps_detail']} (hybrid with push-out {r['fps_hybrid_with_collision']}); "
-                f"streaming p50 {r['stream_p50_ms']} ms, p99 {r['stream_p99_ms']} ms (without push-out p50 "
-                f"{r['stream_no_collision_p50_ms']}, p99 {r['stream_no_collision_p99_ms']})"
+                f"  {r['clip_frames']}-frame clip: offline frames/s hybrid {r['fps_hybrid']}, regression "
+                f"{r['fps_regression']}, retrieval {r['fps_retrieval']}, detail {r['fps_detail']} (hybrid "
+                f"with push-out {r['fps_hybrid_with_collision']}); streaming p50 {r['stream_p50_ms']} ms, "
+                f"p99 {r['stream_p99_ms']} ms (without push-out p50 {r['stream_no_collision_p50_ms']}, p99 "
+                f"{r['stream_no_collision_p99_ms']})"
                 + (
-                    f"; paced at {args.pace:g} frames/s p50 {r['stream_paced_p50_ms']} ms, p99 {r['stream_paced_p99_ms']} ms"
+                    f"; paced at {args.pace:g} frames/s p50 {r['stream_paced_p50_ms']} ms, p99 "
+                    f"{r['stream_paced_p99_ms']} ms"
                     if args.pace
                     else ""
                 )
@@ -531,9 +534,9 @@ def main() -> None:
             )
         for n, c in r.get("crowd", {}).items():
             print(
-                f"  crowd of {n} ({r['crowd_device']}): step p50 {c['p50_ms']} ms, p99 {c['p99_ms']} ms (paced p50 {c['paced_p50_ms']}, "
-                f"p99 {c['paced_p99_ms']}); {c['per_character_us']} us a character, "
-                f"{c['character_frames_per_s']} character-frames/s"
+                f"  crowd of {n} ({r['crowd_device']}): step p50 {c['p50_ms']} ms, p99 {c['p99_ms']} ms "
+                f"(paced p50 {c['paced_p50_ms']}, p99 {c['paced_p99_ms']}); {c['per_character_us']} us a "
+                f"character, {c['character_frames_per_s']} character-frames/s"
                 + (
                     "; median ms per stage: " + ", ".join(f"{k} {v}" for k, v in c["stage_p50_ms"].items())
                     if "stage_p50_ms" in c

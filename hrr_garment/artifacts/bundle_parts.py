@@ -33,7 +33,8 @@ def load_state(module: torch.nn.Module, path: Path, folder: Path) -> None:
     if missing or extra:
         raise BundleError(
             folder,
-            f"{path.name} does not fit the configured network (missing {missing[:3]}, unexpected {extra[:3]})",
+            f"{path.name} does not fit the configured network "
+            f"(missing {missing[:3]}, unexpected {extra[:3]})",
         )
     for key, value in state.items():
         if tuple(value.shape) != tuple(expected[key].shape):

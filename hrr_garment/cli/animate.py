@@ -162,14 +162,16 @@ def _main(argv: Sequence[str] | None) -> int:
     )
     named = f"{args.mode} = {mode}" if args.mode != mode else str(mode)
     print(
-        f"wrote {args.output}: {anim.vertices.shape[0]} frames ({motion.duration_s:.2f} s at {anim.fps:g} fps), "
-        f"{anim.vertices.shape[1]} vertices on body {anim.body}; mode {named}{gate}, {used}; {seconds:.1f} s"
+        f"wrote {args.output}: {anim.vertices.shape[0]} frames "
+        f"({motion.duration_s:.2f} s at {anim.fps:g} fps), {anim.vertices.shape[1]} vertices on body "
+        f"{anim.body}; mode {named}{gate}, {used}; {seconds:.1f} s"
     )
     if anim.penetration is not None:
         p = anim.penetration
         print(
             f"  penetration (vertices > 5 mm inside the body): before push-out {100 * p.inside_before:.2f} % "
-            f"(worst frame {100 * p.worst_before:.2f} %), after {100 * p.inside_after:.2f} % (worst {100 * p.worst_after:.2f} %)"
+            f"(worst frame {100 * p.worst_before:.2f} %), after {100 * p.inside_after:.2f} % "
+            f"(worst {100 * p.worst_after:.2f} %)"
         )
     return 0
 

@@ -82,7 +82,8 @@ def _parser() -> argparse.ArgumentParser:
         "--modes",
         type=_modes,
         default=None,
-        help="comma-separated (default: hybrid,regression,retrieval,residual,detail,naive-nn; residual where calibrated, detail where the model has folds, direct where trained)",
+        help="comma-separated (default: hybrid,regression,retrieval,residual,detail,naive-nn; residual where "
+        "calibrated, detail where the model has folds, direct where trained)",
     )
     p.add_argument(
         "--gate",
@@ -122,8 +123,8 @@ def _parser() -> argparse.ArgumentParser:
         action="append",
         default=None,
         metavar="DATASET[=SPECIALIST]",
-        help="the unseen-bodies protocol (repeat per body): the test clips of a dataset simulated on one body "
-        "the model never saw (hrr-simulate --body), against their own truth ensembles, beside the "
+        help="the unseen-bodies protocol (repeat per body): the test clips of a dataset simulated on one "
+        "body the model never saw (hrr-simulate --body), against their own truth ensembles, beside the "
         "specialist model trained on that dataset alone (docs/evaluation.md)",
     )
     p.add_argument(

@@ -159,8 +159,8 @@ def calibrate_auto_mode(
             "default_body_sequences": sum(_on_default_body(bundle, records) or []),
             "swing_half_life_s": HALF_LIFE_S,
             "candidates": candidates,
-            "criterion": "the most plausible (hypot(ln sharpness, ln hem swing)) within the allowance x the most "
-            "accurate PVE and the penetration allowance x its cloth inside the body",
+            "criterion": "the most plausible (hypot(ln sharpness, ln hem swing)) within the allowance x the "
+            "most accurate PVE and the penetration allowance x its cloth inside the body",
         },
         config,
     )

@@ -121,8 +121,9 @@ def markdown(report: dict, plots: list[str]) -> str:
         f"Model `{model['folder']}` (hash {model['hash']}, calibrated gate {model.get('gate', 'entropy')} < "
         f"{model['tau']:.3f}; the default mode, auto, runs {model.get('auto', 'hybrid')}); dataset "
         f"`{data['path']}`, split **{data['split']}**: {len(data['sequences'])} sequences, {data['frames']} "
-        f"frames. Collision push-out {'on' if recorded(settings, 'push_out') else 'off'}; own sequence excluded "
-        f"from retrieval: {'yes' if settings['exclude_own_sequence'] else 'no'}; hybrid gate {settings['gate']} < "
+        f"frames. Collision push-out {'on' if recorded(settings, 'push_out') else 'off'}; own sequence "
+        f"excluded from retrieval: {'yes' if settings['exclude_own_sequence'] else 'no'}; hybrid gate "
+        f"{settings['gate']} < "
         f"{settings['tau']:.3f}" + _detail_clause(settings) + ". "
         f"Run time {report['seconds']:.0f} s.",
         "",

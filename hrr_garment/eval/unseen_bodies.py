@@ -155,6 +155,7 @@ def markdown_table(section: dict) -> list[str]:
             f"| {name} | {e['frames']} | {f(m['pve_floor_ratio'])} | {f(s.get('pve_floor_ratio'))} | "
             f"{f(e.get('pve_floor_over_specialist'), 3)} | {f(m['penetration_before_pct'])} | "
             f"{f(s.get('penetration_before_pct'))} | {f(m['bending_energy_ratio'])} | "
-            f"{f(s.get('bending_energy_ratio'))} | {f(m['hem_swing_ratio'])} | {f(s.get('hem_swing_ratio'))} |"
+            f"{f(s.get('bending_energy_ratio'))} | {f(m['hem_swing_ratio'])} | "
+            f"{f(s.get('hem_swing_ratio'))} |"
         )
     return lines

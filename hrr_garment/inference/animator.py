@@ -219,7 +219,8 @@ class Animator:
             return CrowdStream(self, run, rig=rig)
         if rig is not None:
             raise ValueError(
-                "a crowd on a torch device takes poses on the canonical skeleton (no rig); use device='native'"
+                "a crowd on a torch device takes poses on the canonical skeleton (no rig); "
+                "use device='native'"
             )
         from .torch_crowd import DeviceCrowd
 

@@ -120,8 +120,8 @@ def character_body(
         where = body if isinstance(body, (str, Path)) else label
         count = bundle.body_range.bodies
         message = (
-            f"body {label!r} is unlike the {count} bod{'y' if count == 1 else 'ies'} the model was trained on: "
-            f"{'; '.join(outside)}"
+            f"body {label!r} is unlike the {count} bod{'y' if count == 1 else 'ies'} the model was trained "
+            f"on: {'; '.join(outside)}"
         )
         if not allow_outside:
             raise BodyOutsideRange(

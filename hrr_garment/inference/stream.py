@@ -229,8 +229,8 @@ class CrowdStream:
             key = keys[known[j]]
             self._forget(key)
             warnings.warn(
-                f"character {key!r}: the pelvis moved {jump[j]:.3g} m in one frame (over {MAX_ROOT_SPEED:g} m/s); "
-                "taken as a teleport, its garment starts afresh there",
+                f"character {key!r}: the pelvis moved {jump[j]:.3g} m in one frame "
+                f"(over {MAX_ROOT_SPEED:g} m/s); taken as a teleport, its garment starts afresh there",
                 TeleportWarning,
                 stacklevel=4,
             )

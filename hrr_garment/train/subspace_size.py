@@ -47,7 +47,7 @@ def subspace_warning(entry: dict) -> str | None:
     if ratio <= FAR_FROM_FULL:
         return None
     return (
-        f"the fast decoder's validation error is {entry['validation_mm']:.2f} mm, {ratio:.1f} x the full decoder's "
-        f"{entry['full_validation_mm']:.2f} mm: run this model with decoder='full' (more training frames, or "
-        "subspace.model.hidden, bring it closer)"
+        f"the fast decoder's validation error is {entry['validation_mm']:.2f} mm, {ratio:.1f} x the full "
+        f"decoder's {entry['full_validation_mm']:.2f} mm: run this model with decoder='full' (more training "
+        "frames, or subspace.model.hidden, bring it closer)"
     )

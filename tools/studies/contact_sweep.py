@@ -42,7 +42,8 @@ def main() -> None:
     evaluation = GarmentDataset(args.eval_dataset)
     records = [evaluation.sequence(n) for n in evenly(evaluation.splits["test"], args.sequences)]
     print(
-        f"{args.model}: {len(train.windows)} training windows; {len(records)} test clips of {args.eval_dataset}"
+        f"{args.model}: {len(train.windows)} training windows; {len(records)} test clips of "
+        f"{args.eval_dataset}"
     )
     latents = train.windows.latents  # standardised; the latent loss is the real-motion presets' vertex metric
     raw = (
@@ -81,8 +82,9 @@ def main() -> None:
             )
             frames += len(vertices)
         print(
-            f"weight {weight:g}, margin {1000 * margin:g} mm, {args.steps} steps: PVE {errors / frames:.2f} mm, "
-            f"{100 * inside / frames:.2f} % of vertices > 5 mm inside before the push-out",
+            f"weight {weight:g}, margin {1000 * margin:g} mm, {args.steps} steps: "
+            f"PVE {errors / frames:.2f} mm, {100 * inside / frames:.2f} % of vertices > 5 mm inside before "
+            "the push-out",
             flush=True,
         )
 

@@ -203,8 +203,8 @@ def main() -> None:
     print(f"{'':52s} {'PVE mm':>8s} {'x reg':>6s} {'sharp':>6s} {'hem':>6s} {'jitter':>7s}")
     for key, r in result["modes"].items():
         print(
-            f"{key:52s} {r['pve_mm']:8.2f} {r['pve_vs_regression']:6.3f} {r['sharpness']:6.2f} {r['hem_swing']:6.2f} "
-            f"{r['jitter_mm']:7.2f}"
+            f"{key:52s} {r['pve_mm']:8.2f} {r['pve_vs_regression']:6.3f} {r['sharpness']:6.2f} "
+            f"{r['hem_swing']:6.2f} {r['jitter_mm']:7.2f}"
         )
 
 

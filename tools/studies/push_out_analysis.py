@@ -234,7 +234,8 @@ def main() -> None:
         print(json.dumps(report))
         return
     print(
-        f"{args.model} on {len(report['sequences'])} {args.split} clips of {args.dataset} (default mode, offline):"
+        f"{args.model} on {len(report['sequences'])} {args.split} clips of {args.dataset} "
+        "(default mode, offline):"
     )
     for label, row in report["rows"].items():
         print(f"  {label}: " + ", ".join(f"{k} {v}" for k, v in row.items()))
