@@ -1,7 +1,8 @@
 """A game-loop style use of the streaming API: a few dancers, one call per frame for all of them.
 
     python examples/game_loop.py                                   # workspace dress model, procedural dance
-    python examples/game_loop.py --motion ../shared/data/mocap/cmu/02_01.bvh --model hrr_work/models/dress-quick
+    python examples/game_loop.py --motion ../shared/data/mocap/cmu/02_01.bvh \\
+        --model hrr_work/models/dress-quick
     python examples/game_loop.py --characters 8 --headless --frames-dir hrr_work/game_frames
 
 A game takes each character's pose from its animation system as arrays: local joint rotations

@@ -25,13 +25,18 @@ push-out has more work (a dress whose bodice rests on the body) than random weig
 
     python tools/bench_inference.py                       # 4,000 and 12,000 vertices
     python tools/bench_inference.py --vertices 4000 --json
-    python tools/bench_inference.py --model hrr_work/models/dress-full --motion ../shared/data/mocap/cmu/131_03.bvh
+    python tools/bench_inference.py --model hrr_work/models/dress-full \\
+        --motion ../shared/data/mocap/cmu/131_03.bvh
     python tools/bench_inference.py --vertices 4266 --crowd 1 2 4 8 16 32 64   # the crowd's scaling
     python tools/bench_inference.py --vertices 4000 --crowd 32 --precision bfloat16   # decoder on AMX
-    python tools/bench_inference.py --model DIR --crowd 32 --crowd-bodies --pace 0 --json   # 32 bodies against one
-    python tools/bench_inference.py --model DIR --crowd 32 --crowd-bodies anny --crowd-only --pace 0   # anny's bodies
-    python tools/bench_inference.py --vertices 4156 --crowd 1 8 32 64 128 --decoder fast --crowd-only --pace 0
-    python tools/bench_inference.py --vertices 4156 --crowd 1000 --decoder fast --device cuda --crowd-only --pace 0
+    python tools/bench_inference.py --model DIR --crowd 32 --crowd-bodies \\
+        --pace 0 --json   # 32 bodies against one
+    python tools/bench_inference.py --model DIR --crowd 32 --crowd-bodies anny \\
+        --crowd-only --pace 0   # anny's bodies
+    python tools/bench_inference.py --vertices 4156 --crowd 1 8 32 64 128 --decoder fast \\
+        --crowd-only --pace 0
+    python tools/bench_inference.py --vertices 4156 --crowd 1000 --decoder fast --device cuda \\
+        --crowd-only --pace 0
 """
 
 from __future__ import annotations
@@ -220,8 +225,8 @@ def bench_crowd(
     """``characters`` streamed together for ``frames`` frames: character i plays ``motion`` from frame
     7 i, forward then backward at its ends (a wrap would jump the pelvis back, which the stream takes
     as a teleport and restarts the character), and stands 2 i metres to the side (on ``bodies[i]``
-    where given); returns the step's latency percentiles (ms), back to back and paced at ``pace`` frames/s, and the cost per
-    character. ``device``: "native" (the hybrid on the CPU kernels) or a torch device (the
+    where given); returns the step's latency percentiles (ms), back to back and paced at ``pace`` frames/s,
+    and the cost per character. ``device``: "native" (the hybrid on the CPU kernels) or a torch device (the
     regression as one torch step there, its output left on the device, the step synchronised);
     ``push``: the push-out's "mesh" or "subspace" push."""
     from hrr_garment.motion.rotations import matrix_to_quat

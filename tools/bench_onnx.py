@@ -1,7 +1,8 @@
 """Benchmark: the ONNX streaming step (hrr-export-model --onnx) on onnxruntime's CPU provider beside
 the package's own stream (native kernels), the same model, clip and characters, in one run.
 
-    python tools/bench_onnx.py --model hrr_work/models/dress-real-quick --motion ../shared/data/mocap/cmu/02_01.bvh
+    python tools/bench_onnx.py --model hrr_work/models/dress-real-quick \\
+        --motion ../shared/data/mocap/cmu/02_01.bvh
     python tools/bench_onnx.py --model DIR --graph dress.onnx --crowds 1 8 32 --json
 
 For each crowd size N, N characters play the clip, each from its own start frame and in its own

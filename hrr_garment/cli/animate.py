@@ -7,9 +7,9 @@
     hrr-animate walk.bvh -o out.h5 --model DIR --body hero.json      # on your character's body
     hrr-animate hero.glb --animation Walk -o out.h5 --model DIR --body hero.glb
 
-MOTION: BVH, glTF / GLB (``--animation NAME``), AMASS-style npz or the native npz (resampled to 30 fps). Output: out.h5 (see
-docs/inference.md), written atomically. Offline (default) blends windows centred on each frame;
-``--causal`` gives exactly what the streaming API gives (no future frames).
+MOTION: BVH, glTF / GLB (``--animation NAME``), AMASS-style npz or the native npz (resampled to 30 fps).
+Output: out.h5 (see docs/inference.md), written atomically. Offline (default) blends windows centred on each
+frame; ``--causal`` gives exactly what the streaming API gives (no future frames).
 """
 
 from __future__ import annotations

@@ -10,8 +10,8 @@ Stages, in order: ``simulate`` (only when the dataset does not exist; as hrr-sim
 ``autoencoder`` (the FCMAE mesh autoencoder, then every frame encoded to latents), ``codespace``
 (motion and garment encoders sharing a Gumbel-Softmax code space, the retrieval database, tau
 calibration, the bundle); ``direct`` (only when named: the direct-regression baseline that
-``hrr-eval`` compares against, mode ``direct``). Each stage resumes from its checkpoint when re-run and is skipped when
-its outputs are current. The bundle lands in hrr_work/models/GARMENT-PRESET/, where
+``hrr-eval`` compares against, mode ``direct``). Each stage resumes from its checkpoint when re-run and is
+skipped when its outputs are current. The bundle lands in hrr_work/models/GARMENT-PRESET/, where
 ``hrr-animate --garment GARMENT`` finds it.
 
 Settings: configs/train.yaml, then the preset's ``train:`` section, then ``--config FILE`` (same

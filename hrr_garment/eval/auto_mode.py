@@ -3,9 +3,9 @@ by default, and how the detail mode runs.
 
 Against a chaotic truth the most accurate output is close to the conditional mean, and the mean is
 blurry: its folds and its hem's swing average away. The modes that use the database trade a little
-accuracy for real simulated detail (docs/decisions/0009-auto-mode-default.md). ``auto`` is the calibrated trade, chosen on
-the validation clips through the product path (``Animator.animate``: offline, blended, push-out on)
-by one documented criterion that counts both:
+accuracy for real simulated detail (docs/decisions/0009-auto-mode-default.md). ``auto`` is the calibrated
+trade, chosen on the validation clips through the product path (``Animator.animate``: offline, blended,
+push-out on) by one documented criterion that counts both:
 
 1. accuracy first: the candidates whose PVE is within the allowance (``auto.allowance`` in the
    training configuration, :class:`AutoSettings`: 1.05, 5 %) of the most accurate candidate's. A
@@ -30,12 +30,12 @@ by one documented criterion that counts both:
    then the more accurate.
 
 The detail mode is measured in several settings (:data:`DETAIL_CANDIDATES`): its simulated folds at
-each of :data:`~.auto_criterion.DETAIL_STRENGTHS`, on the regression's latents and, where the residual mode runs, on
-the residual mode's (which bring the match's swing). The folds' strength is the trade itself: on
-held-out real clips the sharpness grows with it faster than the error (docs/decisions/0005-detail-strength-calibrated.md). The
-criterion picks among all candidates; the detail mode's setting is the picked one's, or, where auto
-is not a detail mode, the one the criterion picks among the detail candidates alone (what
-``--mode detail`` runs).
+each of :data:`~.auto_criterion.DETAIL_STRENGTHS`, on the regression's latents and, where the residual mode
+runs, on the residual mode's (which bring the match's swing). The folds' strength is the trade itself: on
+held-out real clips the sharpness grows with it faster than the error
+(docs/decisions/0005-detail-strength-calibrated.md). The criterion picks among all candidates; the detail
+mode's setting is the picked one's, or, where auto is not a detail mode, the one the criterion picks among the
+detail candidates alone (what ``--mode detail`` runs).
 
 Every candidate that borrows from the matches (their residual, their folds) is also measured on
 free cloth only (:data:`~hrr_garment.artifacts.residual.FREE_CLOTH_RAMPS_MM`, labelled ``..., free
@@ -48,8 +48,8 @@ detail setting's where that does, else the one the criterion picks among the res
 the detail setting's for the folds (``auto.folds_free_mm``).
 
 Last, the first pick is measured again with the free cloth's swing restored at each of
-:data:`~.auto_criterion.SWING_GAINS` (:mod:`hrr_garment.inference.swing`, labelled ``..., swing x1.2``) and the
-criterion picks again among all candidates: a regression swings less than the cloth, so a gain
+:data:`~.auto_criterion.SWING_GAINS` (:mod:`hrr_garment.inference.swing`, labelled ``..., swing x1.2``) and
+the criterion picks again among all candidates: a regression swings less than the cloth, so a gain
 wins where it brings the swing closer to the truth's within the allowance. The model keeps the
 picked candidate's gain (``auto.swing_gain``, 1 where the pick has none); it runs in the mode auto
 picks, not in a mode named. A recorded calibration picked again under another allowance first

@@ -137,7 +137,8 @@ NEGLIGIBLE_OFFSET_M = 1e-9  # a rest offset no larger than this (a nanometre) st
 
 @dataclass(frozen=True)
 class CrowdBodies:
-    """The bodies of a crowd push's characters (:class:`~.stream.CrowdStream`): one body for all, or arrays with a row per character."""
+    """The bodies of a crowd push's characters (:class:`~.stream.CrowdStream`): one body for all, or arrays
+    with a row per character."""
 
     vector: np.ndarray  # (b,) or (N, b) measures
     offset: np.ndarray  # (V, 3) or (N, V, 3) the garment's rest offsets

@@ -80,7 +80,8 @@ class SubspacePush:
 
     @cached_property
     def native(self) -> SubspaceMove:
-        """What the push-out's kernel takes of this push (:class:`~hrr_garment.native.body.SubspaceMove`), converted once."""
+        """What the push-out's kernel takes of this push (:class:`~hrr_garment.native.body.SubspaceMove`),
+        converted once."""
         return SubspaceMove(
             self.basis,
             self.stretch,

@@ -37,7 +37,8 @@ class SubspacePushStage(nn.Module):
         distance,
     ) -> torch.Tensor:
         """``p`` (N, V, 3) world points and capsule ends ``a``, ``b`` (relative to the pelvis), each
-        frame's body-frame ``heading`` (cosines, sines of its yaw), ``distance`` (:meth:`PushOutStage.distance`)."""
+        frame's body-frame ``heading`` (cosines, sines of its yaw), ``distance``
+        (:meth:`PushOutStage.distance`)."""
         cos, sin = heading
         eye = torch.eye(self.basis.shape[0], dtype=p.dtype, device=p.device)
         for _ in range(self.iterations):

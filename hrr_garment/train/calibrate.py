@@ -103,9 +103,9 @@ def window_mode_errors(
     progress: bool = False,
 ) -> ModeErrors:
     """Both modes' window-level errors of ``model`` (a bundle, or the parts of one being trained:
-    its code space, statistics, database and mesh autoencoder) on windows of the sequences ``motion`` (features (T, F)) /
-    ``frames`` (heading-frame vertices (T, V, 3)), decoded with the autoencoder's fast decoder:
-    ``windows`` ((sequence, first frame) pairs; default every window of every sequence), or
+    its code space, statistics, database and mesh autoencoder) on windows of the sequences ``motion``
+    (features (T, F)) / ``frames`` (heading-frame vertices (T, V, 3)), decoded with the autoencoder's fast
+    decoder: ``windows`` ((sequence, first frame) pairs; default every window of every sequence), or
     ``max_windows`` of them evenly spaced. ``encoding``: the autoencoder stage's ``refine_steps``
     and ``refine_lr``, which the floor's latents repeat. ``progress``: bars over the floor's
     encoding and the residual weights, the slow parts at full resolution on a CPU."""

@@ -8,9 +8,10 @@
    variance, so it is the squared vertex error within the subspace), Adam with a cosine schedule,
    ``epochs`` passes, the best validation epoch kept; checkpointed each epoch in ``MODEL/subspace/``.
 3. On the validation sequences, the full decoder's error against the simulation and the fast
-   decoder's at each candidate size (:mod:`.subspace_size`): the fewest components whose error is at most ``tolerance``
-   times the full decoder's are kept (else the fewest within 1 % of the most accurate), recorded in bundle.json ``subspace``
-   beside every candidate's number, and the weights join the bundle as ``subspace.safetensors``.
+   decoder's at each candidate size (:mod:`.subspace_size`): the fewest components whose error is at most
+   ``tolerance`` times the full decoder's are kept (else the fewest within 1 % of the most accurate), recorded
+   in bundle.json ``subspace`` beside every candidate's number, and the weights join the bundle as
+   ``subspace.safetensors``.
 """
 
 from __future__ import annotations
@@ -72,7 +73,8 @@ class SubspaceTrainSettings:
 
 @torch.no_grad()
 def _decode(decoder, latents: np.ndarray, batch: int = 256) -> np.ndarray:
-    """(F, N, C) latents -> (F, V, 3) vertices through ``decoder`` (either kind), ``batch`` frames at a time."""
+    """(F, N, C) latents -> (F, V, 3) vertices through ``decoder`` (either kind), ``batch`` frames at a
+    time."""
     return np.concatenate(
         [
             decoder(torch.from_numpy(np.ascontiguousarray(latents[i : i + batch]))).numpy()
@@ -152,7 +154,8 @@ def _fit(
     key: str,
     progress: bool,
 ) -> dict:
-    """Train ``model.net`` on standardised (inputs, targets); the best validation epoch's weights are left in it."""
+    """Train ``model.net`` on standardised (inputs, targets); the best validation epoch's weights are left in
+    it."""
     folder.mkdir(parents=True, exist_ok=True)
     torch.manual_seed(config.seed)
     optimizer = torch.optim.Adam(model.net.parameters(), lr=config.learning_rate)

@@ -5,9 +5,10 @@ then its regression animated (push-out off) on another dataset's test clips, aga
         --eval-dataset hrr_work/datasets/dress-real-quick-short-heavy.h5 --weights 0,0.5,1,2 --steps 300
     python tools/studies/contact_sweep.py --model M --eval-dataset D --weights 2 --margins 0.002,0.006,0.01
 
-The latent loss beside the body term is the vertex metric (the real-motion presets'). Prints, per weight, the PVE (mm, against each clip's single simulation) and the share of vertices
-more than 5 mm inside the clip's body before the push-out (docs/decisions/0020-contact-phase.md).
-The model on disk is not changed: each weight starts from its trained decoder.
+The latent loss beside the body term is the vertex metric (the real-motion presets'). Prints, per weight, the
+PVE (mm, against each clip's single simulation) and the share of vertices more than 5 mm inside the clip's
+body before the push-out (docs/decisions/0020-contact-phase.md). The model on disk is not changed: each weight
+starts from its trained decoder.
 """
 
 from __future__ import annotations

@@ -99,9 +99,8 @@ def analyse(model: str, split: str, sequences: int | None, members: int) -> dict
         M.MeshTopology.of(template.faces, template.num_vertices),
     )
     hem = hem_vertices(template)
-    sums = np.zeros(
-        8
-    )  # frames x: floor, PVE of the mean; bending of the mean, of the members; swing ditto; sqrt V_c, sqrt var_1
+    # frames x: floor, PVE of the mean; bending of the mean, of the members; swing ditto; sqrt V_c, sqrt var_1
+    sums = np.zeros(8)
     for record in records:
         if record.name not in ensembles:
             continue
