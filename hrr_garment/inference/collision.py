@@ -168,7 +168,12 @@ def push_out(
             )
         if limits is not None:
             out, torn = limit_push_strain(
-                out, vertices, limits, settings.max_strain, in_place=True, slack=settings.stretch_slack
+                out,
+                vertices,
+                limits,
+                max_strain=settings.max_strain,
+                in_place=True,
+                slack=settings.stretch_slack,
             )
     if report and settings.subspace is not None:  # "before": as decoded, not after the subspace push
         before = (

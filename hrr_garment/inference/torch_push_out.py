@@ -38,23 +38,23 @@ class PushOutStage(nn.Module):
         # the smoothing's row-normalised adjacency as (row, column, weight) triplets: a gather, a
         # product and a scatter-add (ONNX has no sparse product)
         smoothing = smoothing.tocoo()
-        constant(self, "smooth_rows", smoothing.row, torch.int64)
-        constant(self, "smooth_cols", smoothing.col, torch.int64)
+        constant(self, "smooth_rows", smoothing.row, dtype=torch.int64)
+        constant(self, "smooth_cols", smoothing.col, dtype=torch.int64)
         constant(self, "smooth_weights", smoothing.data[:, None])  # (nnz, 1): over the characters
         # the neighbour-follow's padded 1-ring and each slot's drop (slope x rest distance); the
         # padding's infinite drop as a large finite one, which never wins either
-        constant(self, "ring", limits.ring, torch.int64)
+        constant(self, "ring", limits.ring, dtype=torch.int64)
         constant(
             self, "ring_drop", np.minimum(settings.follow_slope * limits.ring_length, 1e6)[..., None]
         )  # (V, D, 1)
-        constant(self, "edges", limits.edges, torch.int64)
+        constant(self, "edges", limits.edges, dtype=torch.int64)
         constant(self, "allowed", settings.max_strain * limits.rest_length)
         constant(self, "slack", settings.stretch_slack * limits.rest_length)
         # a pass projects the edges a colour at a time (no two of a colour share a vertex): each
         # colour's edge indices
         self.colours = len(limits.colour_groups)
         for c, group in enumerate(limits.colour_groups):
-            constant(self, f"colour_{c}", group, torch.int64)
+            constant(self, f"colour_{c}", group, dtype=torch.int64)
 
     def distance(
         self, p: torch.Tensor, a: torch.Tensor, b: torch.Tensor

@@ -113,7 +113,7 @@ def window_mode_errors(
     motion_stats, latent_stats, database = model.motion_stats, model.latent_stats, model.database
     refine_steps, refine_lr = encoding["refine_steps"], encoding["refine_lr"]
     w = codespace.config.window
-    windows, m, truth = calibration_windows(motion, frames, w, windows, max_windows)
+    windows, m, truth = calibration_windows(motion, frames, w, windows=windows, max_windows=max_windows)
     # the floor: each frame's own latent, encoded as the training targets were (each frame fitted
     # once, on its own: fit_latents gives a frame the same latent whatever batch it is in)
     needed: dict[str, set[int]] = {}
@@ -128,7 +128,7 @@ def window_mode_errors(
         own_frames[n] = np.zeros((len(frames[n]), *fitted.shape[1:]), fitted.dtype)
         own_frames[n][rows_sorted] = fitted
     own = np.stack([own_frames[n][s : s + w] for n, s in windows])
-    pred = predict_windows(codespace, m, motion_stats, latent_stats, database)
+    pred = predict_windows(codespace, m, motion_stats, latent_stats=latent_stats, database=database)
     decode = autoencoder.inference_decoder()
     err_reg = window_errors_mm(decode, pred.regression, truth)
     err_ret = window_errors_mm(decode, pred.retrieval, truth)
@@ -140,7 +140,7 @@ def window_mode_errors(
         err_ae,
         doubts,
         {g: sweep_tau(d, err_reg, err_ret) for g, d in doubts.items()},
-        residual_errors(pred, decode, truth, progress),
+        residual_errors(pred, decode, truth, progress=progress),
     )
 
 

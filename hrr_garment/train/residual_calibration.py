@@ -42,8 +42,12 @@ def calibrate_residual(
 ) -> dict:
     """The residual mode's calibration alone (:meth:`ModeErrors.residual_calibration`), on the
     windows :func:`window_mode_errors` uses: for a model trained before the residual mode."""
-    _, m, truth = calibration_windows(motion, frames, model.codespace.config.window, windows, max_windows)
-    pred = predict_windows(model.codespace, m, model.motion_stats, model.latent_stats, model.database)
+    _, m, truth = calibration_windows(
+        motion, frames, model.codespace.config.window, windows=windows, max_windows=max_windows
+    )
+    pred = predict_windows(
+        model.codespace, m, model.motion_stats, latent_stats=model.latent_stats, database=model.database
+    )
     if pred.match_regression is None:
         raise ValueError("the database has no motion windows: the residual mode cannot run on this model")
     decode = model.autoencoder.inference_decoder()

@@ -76,7 +76,7 @@ def build_motion(plan: Plan, source: str) -> Motion:
     takeoff_y = plan.takeoff_height if plan.takeoff_height is not None else float(np.max(plan.pelvis_y))
     hip_off = {s: REST_OFFSETS[J[f"{s}_hip"]].astype(np.float64) for s in "lr"}
     foot_data = keep_feet_apart(
-        plan, {f.side: foot_targets(plan, f, plan.pelvis_y, takeoff_y) for f in plan.feet}
+        plan, {f.side: foot_targets(plan, f, plan.pelvis_y, takeoff_y=takeoff_y) for f in plan.feet}
     )
     # Lower the pelvis where a leg cannot reach its target; dilate then smooth the correction so the
     # result stays continuous in velocity and still lowers at least as much as needed.
@@ -95,7 +95,7 @@ def build_motion(plan: Plan, source: str) -> Motion:
         )
         pelvis_y = pelvis_y - drop
         foot_data = keep_feet_apart(
-            plan, {f.side: foot_targets(plan, f, pelvis_y, takeoff_y) for f in plan.feet}
+            plan, {f.side: foot_targets(plan, f, pelvis_y, takeoff_y=takeoff_y) for f in plan.feet}
         )
     glob = np.zeros((n, len(PARENTS), 3, 3))
     glob[:] = np.eye(3)
