@@ -1,7 +1,8 @@
 """A game-loop style use of the streaming API: a few dancers, one call per frame for all of them.
 
     python examples/game_loop.py                                   # workspace dress model, procedural dance
-    python examples/game_loop.py --motion ../shared/data/mocap/cmu/02_01.bvh --model hrr_work/models/dress-quick
+    python examples/game_loop.py --motion ../shared/data/mocap/cmu/02_01.bvh \\
+        --model hrr_work/models/dress-quick
     python examples/game_loop.py --characters 8 --headless --frames-dir hrr_work/game_frames
 
 A game takes each character's pose from its animation system as arrays: local joint rotations
@@ -146,9 +147,9 @@ def main(argv=None) -> int:
             time.sleep(max(0.0, start + (t + 1) / motion.fps - time.perf_counter()))
     p50, p99 = np.percentile(push_ms, [50, 99])
     print(
-        f"{len(push_ms)} frames of {n} x {animator.bundle.garment} ({vertices.shape[1]} vertices): crowd.push p50 "
-        f"{p50:.1f} ms, p99 {p99:.1f} ms for all {n}; drawing {np.mean(draw_ms):.0f} ms per shown frame"
-        + ("" if window else f"; frames in {args.frames_dir}")
+        f"{len(push_ms)} frames of {n} x {animator.bundle.garment} ({vertices.shape[1]} vertices): "
+        f"crowd.push p50 {p50:.1f} ms, p99 {p99:.1f} ms for all {n}; drawing {np.mean(draw_ms):.0f} ms per "
+        "shown frame" + ("" if window else f"; frames in {args.frames_dir}")
     )
     return 0
 

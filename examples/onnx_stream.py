@@ -71,8 +71,9 @@ def main() -> int:
     garment = np.stack(garment)
     ms = 1000 * np.array(seconds[10:] or seconds)  # the first frames warm onnxruntime up
     print(
-        f"{frames} frames of {n} character(s), {garment.shape[1]} vertices each: step median {np.median(ms):.2f} ms, "
-        f"p99 {np.percentile(ms, 99):.2f} ms ({meta.get('garment', '?')} model, body {meta.get('body', '?')})"
+        f"{frames} frames of {n} character(s), {garment.shape[1]} vertices each: step median "
+        f"{np.median(ms):.2f} ms, p99 {np.percentile(ms, 99):.2f} ms ({meta.get('garment', '?')} model, body "
+        f"{meta.get('body', '?')})"
     )
     if args.output is not None:
         partial = args.output.with_name(f".{args.output.name}.partial")

@@ -40,7 +40,7 @@ _LAZY = {
     "Animator": "inference.animator",
     "Bundle": "artifacts.bundle",
     "BundleError": "artifacts.bundle",
-    "load_bundle": "artifacts.bundle",
+    "load_bundle": "artifacts.bundle_loader",
 }
 
 
@@ -65,9 +65,10 @@ def __getattr__(name: str):
 
 
 __all__ = [
-    "__version__", "CANONICAL", "FEATURE_DIM", "FeatureStats", "HRRError", "InputError", "JOINT_NAMES", "MOTION_KINDS", "Motion",
-    "MotionError", "SkeletonMappingError", "load_motion", "motion_features", "save_amass", "save_motion", "synthesize", "windows",
-    "GARMENT_NAMES", "GarmentDataset", "GarmentError", "GarmentMesh", "SequenceRecord", "SimSettings", "SimResult",
-    "SimulationExploded", "make_garment", "simulate_garment",
+    "__version__", "CANONICAL", "FEATURE_DIM", "FeatureStats", "HRRError", "InputError", "JOINT_NAMES",
+    "MOTION_KINDS", "Motion", "MotionError", "SkeletonMappingError", "load_motion", "motion_features",
+    "save_amass", "save_motion", "synthesize", "windows",
+    "GARMENT_NAMES", "GarmentDataset", "GarmentError", "GarmentMesh", "SequenceRecord", "SimSettings",
+    "SimResult", "SimulationExploded", "make_garment", "simulate_garment",
     "Animation", "AnimationStream", "Animator", "CrowdStream", "Bundle", "BundleError", "load_bundle",
 ]  # fmt: skip

@@ -123,10 +123,11 @@ def main() -> None:
             print(json.dumps(result))
         else:
             print(
-                f"{result['vertices']} vertices (levels {result['levels']}), {result['backend']} decoder: {result['frames_per_s']} frames/s "
-                f"({result['ms_per_frame']} ms/frame, batch {args.batch}, {result['threads']} threads); "
-                f"{result['mflop_per_frame']} MFLOP/frame -> {result['gflops']} GFLOP/s = "
-                f"{100 * result['fraction_of_peak']:.1f} % of the {peak:.0f} GFLOP/s matmul peak"
+                f"{result['vertices']} vertices (levels {result['levels']}), {result['backend']} decoder: "
+                f"{result['frames_per_s']} frames/s ({result['ms_per_frame']} ms/frame, batch {args.batch}, "
+                f"{result['threads']} threads); {result['mflop_per_frame']} MFLOP/frame -> "
+                f"{result['gflops']} GFLOP/s = {100 * result['fraction_of_peak']:.1f} % of the {peak:.0f} "
+                "GFLOP/s matmul peak"
                 + (f"; PyTorch path: {result['torch_frames_per_s']} frames/s" if args.torch else "")
                 + (
                     f"; compiled PyTorch path: {result['compiled_frames_per_s']} frames/s"

@@ -5,8 +5,9 @@ newton model, each in its own world, and prints one JSON line: the batch size, s
 per second over the whole batch (lead-in included; solver stepping only, from the batch's own
 timing, so scene building and the first substeps' kernel loading are left out), the wall time
 including the scene's building, and how far the batch's first sequence lies from the same
-sequence simulated alone (the largest vertex difference over its frames, mm). A final line gives each size's frames per second over batch 1's,
-and batch 1 against one sequence simulated alone (ClothScene, the unbatched path).
+sequence simulated alone (the largest vertex difference over its frames, mm). A final line gives each size's
+frames per second over batch 1's, and batch 1 against one sequence simulated alone (ClothScene, the unbatched
+path).
 
     python tools/bench_batch.py --device cpu --max-batch 8 --vertices 300 --seconds 1
     python tools/bench_batch.py --device cuda:0 --max-batch 256 --vertices 4000 --seconds 4 --schedule 15x1

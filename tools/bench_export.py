@@ -136,7 +136,8 @@ def main() -> None:
         print(json.dumps(results, indent=1))
     else:
         print(
-            f"({results['frames']} frames x {results['vertices']} vertices; out.h5 {results['out_h5_bytes'] / 2**20:.1f} MiB)"
+            f"({results['frames']} frames x {results['vertices']} vertices; out.h5 "
+            f"{results['out_h5_bytes'] / 2**20:.1f} MiB)"
         )
 
 

@@ -25,13 +25,18 @@ push-out has more work (a dress whose bodice rests on the body) than random weig
 
     python tools/bench_inference.py                       # 4,000 and 12,000 vertices
     python tools/bench_inference.py --vertices 4000 --json
-    python tools/bench_inference.py --model hrr_work/models/dress-full --motion ../shared/data/mocap/cmu/131_03.bvh
+    python tools/bench_inference.py --model hrr_work/models/dress-full \\
+        --motion ../shared/data/mocap/cmu/131_03.bvh
     python tools/bench_inference.py --vertices 4266 --crowd 1 2 4 8 16 32 64   # the crowd's scaling
     python tools/bench_inference.py --vertices 4000 --crowd 32 --precision bfloat16   # decoder on AMX
-    python tools/bench_inference.py --model DIR --crowd 32 --crowd-bodies --pace 0 --json   # 32 bodies against one
-    python tools/bench_inference.py --model DIR --crowd 32 --crowd-bodies anny --crowd-only --pace 0   # anny's bodies
-    python tools/bench_inference.py --vertices 4156 --crowd 1 8 32 64 128 --decoder fast --crowd-only --pace 0
-    python tools/bench_inference.py --vertices 4156 --crowd 1000 --decoder fast --device cuda --crowd-only --pace 0
+    python tools/bench_inference.py --model DIR --crowd 32 --crowd-bodies \\
+        --pace 0 --json   # 32 bodies against one
+    python tools/bench_inference.py --model DIR --crowd 32 --crowd-bodies anny \\
+        --crowd-only --pace 0   # anny's bodies
+    python tools/bench_inference.py --vertices 4156 --crowd 1 8 32 64 128 --decoder fast \\
+        --crowd-only --pace 0
+    python tools/bench_inference.py --vertices 4156 --crowd 1000 --decoder fast --device cuda \\
+        --crowd-only --pace 0
 """
 
 from __future__ import annotations
@@ -220,8 +225,8 @@ def bench_crowd(
     """``characters`` streamed together for ``frames`` frames: character i plays ``motion`` from frame
     7 i, forward then backward at its ends (a wrap would jump the pelvis back, which the stream takes
     as a teleport and restarts the character), and stands 2 i metres to the side (on ``bodies[i]``
-    where given); returns the step's latency percentiles (ms), back to back and paced at ``pace`` frames/s, and the cost per
-    character. ``device``: "native" (the hybrid on the CPU kernels) or a torch device (the
+    where given); returns the step's latency percentiles (ms), back to back and paced at ``pace`` frames/s,
+    and the cost per character. ``device``: "native" (the hybrid on the CPU kernels) or a torch device (the
     regression as one torch step there, its output left on the device, the step synchronised);
     ``push``: the push-out's "mesh" or "subspace" push."""
     from hrr_garment.motion.rotations import matrix_to_quat
@@ -510,17 +515,20 @@ def main() -> None:
             print(json.dumps(r))
             continue
         print(
-            f"{r['model']}, {r['motion']}: {r['vertices']} vertices, database {r['database_windows']} windows, "
-            f"{r['threads']} threads, {r['precision']} {r['decoder']} decoder; peak RSS {r['peak_rss_mb']} MB"
+            f"{r['model']}, {r['motion']}: {r['vertices']} vertices, database {r['database_windows']} "
+            f"windows, {r['threads']} threads, {r['precision']} {r['decoder']} decoder; peak RSS "
+            f"{r['peak_rss_mb']} MB"
         )
         if not args.crowd_only:
             print(
-                f"  {r['clip_frames']}-frame clip: offline frames/s hybrid {r['fps_hybrid']}, regression {r['fps_regression']}, "
-                f"retrieval {r['fps_retrieval']}, detail {r['fps_detail']} (hybrid with push-out {r['fps_hybrid_with_collision']}); "
-                f"streaming p50 {r['stream_p50_ms']} ms, p99 {r['stream_p99_ms']} ms (without push-out p50 "
-                f"{r['stream_no_collision_p50_ms']}, p99 {r['stream_no_collision_p99_ms']})"
+                f"  {r['clip_frames']}-frame clip: offline frames/s hybrid {r['fps_hybrid']}, regression "
+                f"{r['fps_regression']}, retrieval {r['fps_retrieval']}, detail {r['fps_detail']} (hybrid "
+                f"with push-out {r['fps_hybrid_with_collision']}); streaming p50 {r['stream_p50_ms']} ms, "
+                f"p99 {r['stream_p99_ms']} ms (without push-out p50 {r['stream_no_collision_p50_ms']}, p99 "
+                f"{r['stream_no_collision_p99_ms']})"
                 + (
-                    f"; paced at {args.pace:g} frames/s p50 {r['stream_paced_p50_ms']} ms, p99 {r['stream_paced_p99_ms']} ms"
+                    f"; paced at {args.pace:g} frames/s p50 {r['stream_paced_p50_ms']} ms, p99 "
+                    f"{r['stream_paced_p99_ms']} ms"
                     if args.pace
                     else ""
                 )
@@ -531,9 +539,9 @@ def main() -> None:
             )
         for n, c in r.get("crowd", {}).items():
             print(
-                f"  crowd of {n} ({r['crowd_device']}): step p50 {c['p50_ms']} ms, p99 {c['p99_ms']} ms (paced p50 {c['paced_p50_ms']}, "
-                f"p99 {c['paced_p99_ms']}); {c['per_character_us']} us a character, "
-                f"{c['character_frames_per_s']} character-frames/s"
+                f"  crowd of {n} ({r['crowd_device']}): step p50 {c['p50_ms']} ms, p99 {c['p99_ms']} ms "
+                f"(paced p50 {c['paced_p50_ms']}, p99 {c['paced_p99_ms']}); {c['per_character_us']} us a "
+                f"character, {c['character_frames_per_s']} character-frames/s"
                 + (
                     "; median ms per stage: " + ", ".join(f"{k} {v}" for k, v in c["stage_p50_ms"].items())
                     if "stage_p50_ms" in c

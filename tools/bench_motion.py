@@ -60,7 +60,8 @@ def main() -> None:
                 "seconds_load_retarget": round(med["load_total"], 4),
                 "seconds_features": round(med["features"], 4),
                 "source_frames_per_s": round(source_frames / med["total"], 1),
-                "machine": f"{platform.processor() or platform.machine()}, {__import__('os').cpu_count()} cores, Python {platform.python_version()}",
+                "machine": f"{platform.processor() or platform.machine()}, {__import__('os').cpu_count()} "
+                f"cores, Python {platform.python_version()}",
             },
             indent=2,
         )

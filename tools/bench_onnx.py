@@ -1,7 +1,8 @@
 """Benchmark: the ONNX streaming step (hrr-export-model --onnx) on onnxruntime's CPU provider beside
 the package's own stream (native kernels), the same model, clip and characters, in one run.
 
-    python tools/bench_onnx.py --model hrr_work/models/dress-real-quick --motion ../shared/data/mocap/cmu/02_01.bvh
+    python tools/bench_onnx.py --model hrr_work/models/dress-real-quick \\
+        --motion ../shared/data/mocap/cmu/02_01.bvh
     python tools/bench_onnx.py --model DIR --graph dress.onnx --crowds 1 8 32 --json
 
 For each crowd size N, N characters play the clip, each from its own start frame and in its own
@@ -81,9 +82,9 @@ def main() -> None:
         rows.append(row)
         if not args.json:
             print(
-                f"{n:4d} characters: ONNX p50 {row['onnx_p50_ms']:7.2f} ms p99 {row['onnx_p99_ms']:7.2f} | package p50 "
-                f"{row['package_p50_ms']:7.2f} ms p99 {row['package_p99_ms']:7.2f} | ONNX {row['onnx_per_character_us']:.0f} "
-                f"us a character, {row['ratio_p50']:.2f} x the package"
+                f"{n:4d} characters: ONNX p50 {row['onnx_p50_ms']:7.2f} ms p99 {row['onnx_p99_ms']:7.2f} | "
+                f"package p50 {row['package_p50_ms']:7.2f} ms p99 {row['package_p99_ms']:7.2f} | ONNX "
+                f"{row['onnx_per_character_us']:.0f} us a character, {row['ratio_p50']:.2f} x the package"
             )
     if args.json:
         print(

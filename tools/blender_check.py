@@ -2,7 +2,8 @@
 
 Runs inside Blender's Python, not the package's (bpy pins its own numpy), with only bpy and numpy:
 
-    blender -b --factory-startup -P tools/blender_check.py -- ref.npz dance.glb dance.usdc dance.pc2 dance.blend
+    blender -b --factory-startup -P tools/blender_check.py -- \\
+        ref.npz dance.glb dance.usdc dance.pc2 dance.blend
     python-with-bpy tools/blender_check.py ref.npz dance.glb --json      # the bpy module from PyPI
     ... --set-fps --gltf-shading=SMOOTH       # as docs/export.md tells a user of the stock importers
     ... --addon=hrr_garment_blender.zip       # through our add-on (hrr-blender-addon)
@@ -11,8 +12,8 @@ Runs inside Blender's Python, not the package's (bpy pins its own numpy), with o
 ``fps``); ``tests/export/test_blender_client.py`` writes it and runs this script when a Blender is
 found. Each file is imported into an empty scene as a user would (``.glb`` through the glTF
 importer, ``.usd*`` through the USD importer, ``.pc2`` as its base ``.obj`` with a Mesh Cache
-modifier set as docs/export.md says, a ``.blend`` opened) and, for every frame of the clip, the evaluated garment (modifiers, shape keys,
-animation) is compared with the reference:
+modifier set as docs/export.md says, a ``.blend`` opened) and, for every frame of the clip, the evaluated
+garment (modifiers, shape keys, animation) is compared with the reference:
 
 - positions: the largest distance of a vertex from its reference position (vertices are matched
   in the file's order, which every importer here keeps);

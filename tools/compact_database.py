@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hrr_garment.artifacts.bundle import load_bundle
+from hrr_garment.artifacts.bundle_loader import load_bundle
 from hrr_garment.artifacts.bundle_writer import add_bundle_part
 from hrr_garment.data.windows import WindowFrames
 

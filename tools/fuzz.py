@@ -526,12 +526,14 @@ API_CALLS = {
         ["1e-300", "1e300", "0", "-30", "np.nan", "'30'", "True", "None", "complex(30, 1)"],
     ),
     "motion root": (
-        "r = T.copy(); r[3] = V; a = animator.animate(Motion(R, r, fps=clip.fps)); save(a.vertices, a.joints[:, 0])",
+        "r = T.copy(); r[3] = V; a = animator.animate(Motion(R, r, fps=clip.fps)); "
+        "save(a.vertices, a.joints[:, 0])",
         ["pelvis", "non-finite", "root"],
         ["1e39", "1e30", "np.nan", "[1e5, 0, 0]", "-np.inf"],
     ),
     "motion rotation": (
-        "q = R.copy(); q[3, 5] = V; a = animator.animate(Motion(q, T, fps=clip.fps)); save(a.vertices, a.joints[:, 0])",
+        "q = R.copy(); q[3, 5] = V; a = animator.animate(Motion(q, T, fps=clip.fps)); "
+        "save(a.vertices, a.joints[:, 0])",
         ["rotation", "non-finite"],
         ["q[3, 5] * 1000", "0", "np.nan", "-q[3, 5]", "np.diag([1, 1, -1])"],
     ),
@@ -1005,7 +1007,7 @@ def check_output(path: Path) -> str:
 
             return "" if np.isfinite(read_pc2(path)[0]).all() else "non-finite points"
         if path.is_dir() and (path / "bundle.json").exists():
-            from hrr_garment.artifacts.bundle import load_bundle
+            from hrr_garment.artifacts.bundle_loader import load_bundle
 
             load_bundle(path)
         elif path.is_dir() and (path / "report.json").exists():

@@ -52,8 +52,8 @@ def main() -> None:
     )
     moved = np.linalg.norm(v - dress.vertices, axis=1)
     print(
-        f"hero.json: {hero.fitted.stature:.2f} m; hero_dress.obj: {len(v)} vertices, {100 * (moved > 1e-6).mean():.0f} % "
-        f"moved onto the mesh ({1000 * moved.mean():.1f} mm on average)"
+        f"hero.json: {hero.fitted.stature:.2f} m; hero_dress.obj: {len(v)} vertices, "
+        f"{100 * (moved > 1e-6).mean():.0f} % moved onto the mesh ({1000 * moved.mean():.1f} mm on average)"
     )
 
 

@@ -130,7 +130,8 @@ def markdown(result: dict) -> str:
     for content, r in [*result["by_content"].items(), ("**all**", result["total"])]:
         lines.append(
             f"| {content} | {r['clips']} | {r['rejected']} | {r['frames']} | {r['strain_p99']:.3f} | "
-            f"{r['strain_max']:.2f} | {100 * r['pen_max']:.2f} % | {100 * r['pen_max_clean']:.2f} % | {r['flagged']} |"
+            f"{r['strain_max']:.2f} | {100 * r['pen_max']:.2f} % | {100 * r['pen_max_clean']:.2f} % | "
+            f"{r['flagged']} |"
         )
     if len(result["by_body"]) > 1 or set(result["by_body"]) != {"mannequin"}:
         lines += [
@@ -158,8 +159,9 @@ def main() -> None:
     if not args.json:
         t = result["total"]
         print(
-            f"\n{result['dataset']}: {result['vertices']} vertices; {100 * t['kept_fraction']:.1f} % of clips kept; "
-            f"{100 * t['flagged_fraction']:.1f} % of frames flagged (a limb more than 2.5 cm in the body)"
+            f"\n{result['dataset']}: {result['vertices']} vertices; {100 * t['kept_fraction']:.1f} % of "
+            f"clips kept; {100 * t['flagged_fraction']:.1f} % of frames flagged (a limb more than 2.5 cm in "
+            "the body)"
         )
 
 

@@ -60,7 +60,8 @@ class AutoCalibration(Section):
     def _typed(cls, data: Mapping[str, Any], where: str) -> dict[str, Any]:
         if data.get("detail_base") not in DETAIL_BASES:
             raise ManifestFieldError(
-                f"'auto' 'detail_base' must be one of {', '.join(DETAIL_BASES)}, got {data.get('detail_base')!r}"
+                f"'auto' 'detail_base' must be one of {', '.join(DETAIL_BASES)}, got "
+                f"{data.get('detail_base')!r}"
             )
         if not valid_detail_strength(data.get("detail_strength")):
             raise ManifestFieldError(

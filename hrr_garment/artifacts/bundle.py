@@ -17,10 +17,10 @@ Files (all arrays as safetensors, nothing pickled)::
     subspace.safetensors         the fast decoder for games (hrr_garment/models/subspace.py), where trained
 
 ``bundle.json`` is written last (:mod:`.bundle_writer`): a directory without it (or whose files do
-not match its hashes) is not a bundle, so an interrupted write never looks like a model.
-:func:`load_bundle` checks the version (older manifests are upgraded by
-:func:`~.manifest.migrate_manifest`), every file's hash and every tensor's shape (:mod:`.bundle_parts`),
-and says which and why when one is off.
+not match its hashes) is not a bundle, so an interrupted write never looks like a model. It is read
+and checked by :func:`~.bundle_loader.load_bundle`; this module is the loaded :class:`Bundle`: what
+it holds and what it derives from bundle.json (the gate's thresholds, the calibrated modes, the
+bodies).
 """
 
 from __future__ import annotations
@@ -35,26 +35,21 @@ from ..body.body_file import BodyRecord, body_from_dict
 from ..body.capsules import DEFAULT_BODY, BodyModel
 from ..body.mannequin import mannequin_record
 from ..body.measures import BodyRange, body_vector
-from ..errors import HRRError, InputError
-from ..garment.mesh import GarmentError, GarmentMesh, check_garment
-from ..models.codespace import CodeSpace, CodeSpaceSettings
-from ..models.direct import DirectRegressor, DirectSettings
-from ..models.fcmae import AutoencoderSettings, MeshAutoencoder
-from ..models.hierarchy import cached_hierarchy
+from ..errors import InputError
+from ..garment.mesh import GarmentMesh
+from ..models.codespace import CodeSpace
+from ..models.direct import DirectRegressor
+from ..models.fcmae import MeshAutoencoder
 from ..models.subspace import SubspaceDecoder
 from ..motion.features import FeatureStats
-from ..settings import require_number
 from .auto_calibration import AutoCalibration
-from .bundle_parts import load_arrays, load_folds, load_state, load_subspace
 from .database import CodeDatabase
 from .folds import FoldStore
 from .free_cloth import free_cloth_weights, rest_hang_m
 from .gate_signals import GATE_SIGNALS
-from .manifest import NETWORKS, BundleError
+from .manifest import BundleError
 from .manifest_section import thawed
-from .typed_manifest import Manifest, read_manifest
-
-MAX_SCALE_M = 10.0  # the autoencoder's vertex scale: the spread of a garment's training frames (centimetres)
+from .typed_manifest import Manifest
 
 
 @dataclass
@@ -250,108 +245,3 @@ class Bundle:
     @property
     def content_hash(self) -> str:
         return self.manifest.content_hash
-
-
-def load_bundle(folder: str | Path, cache_dir: Path | None = None) -> Bundle:
-    """Load and check a bundle written by :func:`write_bundle`."""
-    folder = Path(folder)
-    try:
-        return _load_bundle(folder, cache_dir)
-    except HRRError:
-        raise
-    except (KeyError, TypeError, ValueError, AttributeError, IndexError) as exc:
-        # the last line of defence: an entry of bundle.json of a type or shape no check above foresaw
-        raise BundleError(folder, f"bundle.json has a bad entry ({type(exc).__name__}: {exc})") from None
-
-
-def _load_bundle(folder: Path, cache_dir: Path | None) -> Bundle:
-    manifest = read_manifest(folder)
-    try:
-        ae_cfg = AutoencoderSettings.from_dict(thawed(manifest.autoencoder.config))
-        cs_cfg = CodeSpaceSettings.from_dict(thawed(manifest.codespace.config))
-        features = manifest.codespace.features
-        latent_shape = manifest.codespace.latent_shape
-        scale = manifest.autoencoder.scale
-        require_number("bundle.json autoencoder", "scale", scale, low=0, high=MAX_SCALE_M, above=True)
-    except (KeyError, TypeError, ValueError) as exc:
-        raise BundleError(folder, f"bundle.json has a bad or missing entry ({exc})") from None
-    if features != cs_cfg.features:
-        raise BundleError(
-            folder,
-            f"the model was trained on {features} motion features; its settings give {cs_cfg.features}",
-        )
-    t = load_arrays(folder, "template.safetensors", ("vertices", "faces", "attached"))
-    groups = {
-        k.split("/", 1)[1]: v for k, v in t.items() if k.startswith("group/")
-    }  # the template's vertex groups, if any
-    template = GarmentMesh(
-        manifest.garment,
-        t["vertices"],
-        t["faces"],
-        groups={**groups, "attached": t["attached"]},
-        attached_groups=("attached",),
-    )
-    try:
-        check_garment(template)
-    except GarmentError as exc:
-        raise BundleError(folder, f"template.safetensors: {exc.problem}") from None
-    hierarchy = cached_hierarchy(
-        template.faces, template.num_vertices, cache_dir, **ae_cfg.hierarchy_options(), name=str(folder)
-    )
-    sizes = manifest.autoencoder.sizes
-    if tuple(hierarchy.sizes) != sizes:
-        raise BundleError(
-            folder,
-            f"the template's sampling hierarchy has levels {list(hierarchy.sizes)}, the model "
-            f"{None if sizes is None else list(sizes)}",
-        )
-    autoencoder = MeshAutoencoder(hierarchy, ae_cfg, template.vertices, scale=float(scale))
-    load_state(autoencoder, folder / "autoencoder.safetensors", folder)
-    codespace = CodeSpace(cs_cfg, features, latent_shape)
-    for name in NETWORKS:
-        load_state(getattr(codespace, name), folder / f"{name}.safetensors", folder)
-    s = load_arrays(folder, "stats.safetensors", ("motion_mean", "motion_std", "latent_mean", "latent_std"))
-    d = load_arrays(folder, "database.safetensors", ("codes", "sequence", "start"))
-    try:
-        database = CodeDatabase.from_arrays(
-            d, list(manifest.database.names), manifest.database.classes, cs_cfg.window
-        )
-    except (KeyError, TypeError, ValueError) as exc:
-        raise BundleError(folder, f"database: {exc}") from None
-    if database.latents.shape[1:] != (cs_cfg.window, *latent_shape) or database.codes.shape[1:] != (
-        cs_cfg.groups,
-    ):
-        raise BundleError(
-            folder,
-            f"database shapes {database.codes.shape} / {database.latents.shape} do not fit the configuration",
-        )
-    folds = (
-        None if manifest.folds is None else load_folds(folder, manifest.folds, template, database=database)
-    )
-    direct = None
-    if manifest.direct is not None:  # the optional baseline (hrr-train --stage direct)
-        try:
-            config = DirectSettings.from_dict(thawed(manifest.direct.config))
-            direct = DirectRegressor(config, features, latent_shape)
-        except (KeyError, TypeError, ValueError) as exc:
-            raise BundleError(folder, f"bundle.json has a bad 'direct' entry ({exc})") from None
-        load_state(direct, folder / "direct.safetensors", folder)
-        direct.eval()
-    subspace = (
-        None
-        if manifest.subspace is None
-        else load_subspace(folder, manifest.subspace, latent_shape, num_vertices=template.num_vertices)
-    )
-    return Bundle(
-        folder,
-        manifest,
-        autoencoder.eval(),
-        codespace.eval(),
-        FeatureStats(s["motion_mean"], s["motion_std"]),
-        FeatureStats(s["latent_mean"], s["latent_std"]),
-        database,
-        template,
-        direct,
-        folds,
-        subspace,
-    )

@@ -1,5 +1,5 @@
 """Loading a bundle's parts, each checked against what bundle.json and the configuration say
-(:func:`~.bundle.load_bundle` assembles them): network weights, array files, the fold store and the
+(:func:`~.bundle_loader.load_bundle` assembles them): network weights, array files, the fold store and the
 fast decoder. Every problem is a :class:`~.manifest.BundleError` that names the file and what is off."""
 
 from __future__ import annotations
@@ -33,7 +33,8 @@ def load_state(module: torch.nn.Module, path: Path, folder: Path) -> None:
     if missing or extra:
         raise BundleError(
             folder,
-            f"{path.name} does not fit the configured network (missing {missing[:3]}, unexpected {extra[:3]})",
+            f"{path.name} does not fit the configured network "
+            f"(missing {missing[:3]}, unexpected {extra[:3]})",
         )
     for key, value in state.items():
         if tuple(value.shape) != tuple(expected[key].shape):

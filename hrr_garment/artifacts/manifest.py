@@ -16,11 +16,11 @@ version, so that everything after it reads every field as the current version de
   fields that later arrived one by one (``gate``, ``gates``, ``residual``, ``auto`` and its detail
   look, ``folds``, the code space's motion memory and regression code).
 - 3: every calibrated field present with its value: ``gate``, ``gates`` (each other signal's
-  calibrated tau), ``validation`` (the code space's: "clips" or the paper's "windows"), ``auto.detail_base`` and ``auto.detail_strength`` wherever ``auto`` is, and the
-  code space's ``memory_seconds``, ``resonator_hz`` and ``regression_code``. ``auto`` is absent
-  until training calibrates it (``auto`` then runs the hybrid), ``residual`` where the database
-  has no motion windows, ``folds``, ``direct`` and ``subspace`` (the fast decoder, which arrived later as an optional
-  part) where the bundle has no such part.
+  calibrated tau), ``validation`` (the code space's: "clips" or the paper's "windows"), ``auto.detail_base``
+  and ``auto.detail_strength`` wherever ``auto`` is, and the code space's ``memory_seconds``, ``resonator_hz``
+  and ``regression_code``. ``auto`` is absent until training calibrates it (``auto`` then runs the hybrid),
+  ``residual`` where the database has no motion windows, ``folds``, ``direct`` and ``subspace`` (the fast
+  decoder, which arrived later as an optional part) where the bundle has no such part.
 - 4: ``manifest_hash``, a hash over bundle.json's own content (everything but itself): the
   content hash covers the files, and a hand-edited garment name, tau or scale went unseen. A
   version-3 manifest has none; it gets one when it is next written.
@@ -98,7 +98,8 @@ def content_hash(files: dict[str, str]) -> str:
 
 
 def required_files(meta: dict) -> set[str]:
-    """Every file :func:`.bundle.load_bundle` opens for this bundle: each must be listed with its hash."""
+    """Every file :func:`.bundle_loader.load_bundle` opens for this bundle: each must be listed with its
+    hash."""
     names = {
         "autoencoder.safetensors",
         "stats.safetensors",

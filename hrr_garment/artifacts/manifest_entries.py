@@ -4,7 +4,7 @@ parts (the fast decoder, the baseline), the bodies trained on. The auto calibrat
 :mod:`.auto_calibration`; the whole manifest in :mod:`.typed_manifest`.
 
 Each field is named as its JSON key and checked where read; a model's settings (``config``) stay
-the JSON object the model's own ``from_dict`` reads (:func:`~.bundle.load_bundle` checks them, as it
+the JSON object the model's own ``from_dict`` reads (:func:`~.bundle_loader.load_bundle` checks them, as it
 builds the networks), so that they are written back exactly as read.
 """
 

@@ -7,8 +7,9 @@ latents minus the regression of the match's own motion. Where the query's motion
 the two regressions cancel and the result is the match itself; elsewhere the residual carries the
 match's folds and swing onto the regression's shape, not the match's pose. Scaled by the match's
 code similarity (how many code groups it shares with the query: a poor match adds little) and by
-one weight per model, calibrated on validation like tau (:mod:`hrr_garment.train.calibrate`): the
-most detail within :data:`ACCURACY_ALLOWANCE` of the regression's error.
+one weight per model, calibrated on validation like tau
+(:mod:`hrr_garment.train.residual_calibration`): the most detail within
+:data:`ACCURACY_ALLOWANCE` of the regression's error.
 
 Unreal Engine's ML Deformer went the same way, from nearest-neighbour poses to a regression plus
 the residual detail of the matched poses.

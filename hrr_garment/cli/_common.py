@@ -63,8 +63,9 @@ def add_detail_options(p: argparse.ArgumentParser) -> None:
         type=float,
         default=None,
         metavar="S",
-        help=f"the detail mode's simulated folds at S x their simulated size, in (0, {MAX_DETAIL_STRENGTH:g}] "
-        "(default: the strength the model was calibrated to; 1: the folds as simulated)",
+        help="the detail mode's simulated folds at S x their simulated size, in (0, "
+        f"{MAX_DETAIL_STRENGTH:g}] (default: the strength the model was calibrated to; 1: the folds as "
+        "simulated)",
     )
     p.add_argument(
         "--detail-base",

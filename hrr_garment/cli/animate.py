@@ -7,9 +7,9 @@
     hrr-animate walk.bvh -o out.h5 --model DIR --body hero.json      # on your character's body
     hrr-animate hero.glb --animation Walk -o out.h5 --model DIR --body hero.glb
 
-MOTION: BVH, glTF / GLB (``--animation NAME``), AMASS-style npz or the native npz (resampled to 30 fps). Output: out.h5 (see
-docs/inference.md), written atomically. Offline (default) blends windows centred on each frame;
-``--causal`` gives exactly what the streaming API gives (no future frames).
+MOTION: BVH, glTF / GLB (``--animation NAME``), AMASS-style npz or the native npz (resampled to 30 fps).
+Output: out.h5 (see docs/inference.md), written atomically. Offline (default) blends windows centred on each
+frame; ``--causal`` gives exactly what the streaming API gives (no future frames).
 """
 
 from __future__ import annotations
@@ -162,14 +162,16 @@ def _main(argv: Sequence[str] | None) -> int:
     )
     named = f"{args.mode} = {mode}" if args.mode != mode else str(mode)
     print(
-        f"wrote {args.output}: {anim.vertices.shape[0]} frames ({motion.duration_s:.2f} s at {anim.fps:g} fps), "
-        f"{anim.vertices.shape[1]} vertices on body {anim.body}; mode {named}{gate}, {used}; {seconds:.1f} s"
+        f"wrote {args.output}: {anim.vertices.shape[0]} frames "
+        f"({motion.duration_s:.2f} s at {anim.fps:g} fps), {anim.vertices.shape[1]} vertices on body "
+        f"{anim.body}; mode {named}{gate}, {used}; {seconds:.1f} s"
     )
     if anim.penetration is not None:
         p = anim.penetration
         print(
             f"  penetration (vertices > 5 mm inside the body): before push-out {100 * p.inside_before:.2f} % "
-            f"(worst frame {100 * p.worst_before:.2f} %), after {100 * p.inside_after:.2f} % (worst {100 * p.worst_after:.2f} %)"
+            f"(worst frame {100 * p.worst_before:.2f} %), after {100 * p.inside_after:.2f} % "
+            f"(worst {100 * p.worst_after:.2f} %)"
         )
     return 0
 

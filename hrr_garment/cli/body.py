@@ -204,7 +204,7 @@ def _main(argv: Sequence[str] | None) -> int:
         summary = _summary(record)
         outside = None
         if args.model is not None:  # before a held-out body's simulation: will this model animate it?
-            from ..artifacts.bundle import load_bundle
+            from ..artifacts.bundle_loader import load_bundle
             from ..body.measures import body_vector
 
             body_range = load_bundle(args.model).body_range

@@ -42,15 +42,18 @@ def _body(argv: Sequence[str] | None) -> int:
         rows.append((f"CMU {clip.name}", load_motion(clip)))
     else:
         print(
-            "CMU sample clips not found (looked for shared/data/mocap; set HRR_MOCAP_DIR); skipping the real clip"
+            "CMU sample clips not found (looked for shared/data/mocap; set HRR_MOCAP_DIR); "
+            "skipping the real clip"
         )
     for label, motion in rows:
         feats = motion_features(motion)
         s = motion.summary()
         print(f"== {label}")
         print(
-            f"   skeleton={s['source_skeleton']} frames={s['frames']} fps={s['fps']:.0f} duration={s['duration_s']:.2f}s "
-            f"height={s['height_m']:.2f}m root travel={s['root_displacement_m']:.2f}m mean lowest foot={100 * s['mean_lowest_foot_height_m']:.1f}cm"
+            f"   skeleton={s['source_skeleton']} frames={s['frames']} fps={s['fps']:.0f} "
+            f"duration={s['duration_s']:.2f}s height={s['height_m']:.2f}m "
+            f"root travel={s['root_displacement_m']:.2f}m "
+            f"mean lowest foot={100 * s['mean_lowest_foot_height_m']:.1f}cm"
         )
         print(f"   features {feats.shape}, windows {windows(feats).shape}")
     try:

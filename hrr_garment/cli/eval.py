@@ -9,12 +9,13 @@ Writes REPORT_DIR/report.json (schema: docs/evaluation.md), report.md and PNG pl
 per mode, entropy histogram with tau, tau curve). Each evaluated sequence of a simulated dataset is
 also simulated ``--ensemble K`` more times with tiny perturbations (cached under the workspace):
 report.md leads with every mode's error relative to that ensemble's spread (PVE / floor) and its
-plausibility relative to the truths (needs the ``sim`` extra; ``--ensemble 0`` skips it). ``--motions`` simulates the ground truth of real
-motion files with the dataset's simulator settings (cached under the workspace; needs the ``sim``
-extra) and evaluates on them as well. ``--library N`` (default 8) plays N of the model's training clips
-again as a game would, re-timed, entered part-way and blended into each other, simulates their
-ground truth and reports them as the library protocol, with its own tau sweep and goals. Modes: hybrid, regression, retrieval, naive-nn, and direct
-when the model has the direct-regression baseline (``hrr-train --stage direct``).
+plausibility relative to the truths (needs the ``sim`` extra; ``--ensemble 0`` skips it). ``--motions``
+simulates the ground truth of real motion files with the dataset's simulator settings (cached under the
+workspace; needs the ``sim`` extra) and evaluates on them as well. ``--library N`` (default 8) plays N of the
+model's training clips again as a game would, re-timed, entered part-way and blended into each other,
+simulates their ground truth and reports them as the library protocol, with its own tau sweep and goals.
+Modes: hybrid, regression, retrieval, naive-nn, and direct when the model has the direct-regression baseline
+(``hrr-train --stage direct``).
 """
 
 from __future__ import annotations
@@ -82,7 +83,8 @@ def _parser() -> argparse.ArgumentParser:
         "--modes",
         type=_modes,
         default=None,
-        help="comma-separated (default: hybrid,regression,retrieval,residual,detail,naive-nn; residual where calibrated, detail where the model has folds, direct where trained)",
+        help="comma-separated (default: hybrid,regression,retrieval,residual,detail,naive-nn; residual where "
+        "calibrated, detail where the model has folds, direct where trained)",
     )
     p.add_argument(
         "--gate",
@@ -122,8 +124,8 @@ def _parser() -> argparse.ArgumentParser:
         action="append",
         default=None,
         metavar="DATASET[=SPECIALIST]",
-        help="the unseen-bodies protocol (repeat per body): the test clips of a dataset simulated on one body "
-        "the model never saw (hrr-simulate --body), against their own truth ensembles, beside the "
+        help="the unseen-bodies protocol (repeat per body): the test clips of a dataset simulated on one "
+        "body the model never saw (hrr-simulate --body), against their own truth ensembles, beside the "
         "specialist model trained on that dataset alone (docs/evaluation.md)",
     )
     p.add_argument(

@@ -49,7 +49,8 @@ def _parser() -> argparse.ArgumentParser:
         "--tolerance",
         type=float,
         default=1.0,
-        help="GLB (and .blend) keyframe reduction: max per-vertex deviation in mm from every frame (0: every frame)",
+        help="GLB (and .blend) keyframe reduction: max per-vertex deviation in mm from every frame "
+        "(0: every frame)",
     )
     p.add_argument(
         "--with-body", action="store_true", help="also export the collision body (GLB, USD, .blend)"
@@ -138,8 +139,8 @@ def _main(argv: Sequence[str] | None) -> int:
     if len(written) == 2:
         names += f" + {written[1]}"
     print(
-        f"wrote {names} ({fmt}, {_size(written)}): {anim.num_frames} frames of {anim.vertices.shape[1]} vertices "
-        f"at {anim.fps:g} fps{detail}; {time.perf_counter() - t0:.1f} s"
+        f"wrote {names} ({fmt}, {_size(written)}): {anim.num_frames} frames of {anim.vertices.shape[1]} "
+        f"vertices at {anim.fps:g} fps{detail}; {time.perf_counter() - t0:.1f} s"
     )
     return 0
 

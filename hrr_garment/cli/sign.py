@@ -55,7 +55,8 @@ def _main(argv: Sequence[str] | None) -> int:
                 raise InputError(path, "already exists: a key is never overwritten (choose another name)")
         generate_key(args.output)
         print(
-            f"wrote {args.output} (private: keep it to yourself) and {public} (public: give it to those who load your models)"
+            f"wrote {args.output} (private: keep it to yourself) and {public} (public: give it to those who "
+            "load your models)"
         )
         return 0
     read_manifest(args.model, trust=False)  # a bundle whose files match their hashes before anything else

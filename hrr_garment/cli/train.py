@@ -10,8 +10,8 @@ Stages, in order: ``simulate`` (only when the dataset does not exist; as hrr-sim
 ``autoencoder`` (the FCMAE mesh autoencoder, then every frame encoded to latents), ``codespace``
 (motion and garment encoders sharing a Gumbel-Softmax code space, the retrieval database, tau
 calibration, the bundle); ``direct`` (only when named: the direct-regression baseline that
-``hrr-eval`` compares against, mode ``direct``). Each stage resumes from its checkpoint when re-run and is skipped when
-its outputs are current. The bundle lands in hrr_work/models/GARMENT-PRESET/, where
+``hrr-eval`` compares against, mode ``direct``). Each stage resumes from its checkpoint when re-run and is
+skipped when its outputs are current. The bundle lands in hrr_work/models/GARMENT-PRESET/, where
 ``hrr-animate --garment GARMENT`` finds it.
 
 Settings: configs/train.yaml, then the preset's ``train:`` section, then ``--config FILE`` (same
@@ -106,10 +106,9 @@ class _Printer(TrainCallback):
         elif stage == "subspace":
             m = result.metrics
             print(
-                f"subspace (fast decoder): {m['components']} components, {_epochs(result)}; validation per-vertex error "
-                f"{m['validation_mm']:.2f} mm (full decoder {m['full_validation_mm']:.2f} mm; by size: "
-                + ", ".join(f"{k} {v:.2f}" for k, v in m["candidates_mm"].items())
-                + ")"
+                f"subspace (fast decoder): {m['components']} components, {_epochs(result)}; validation "
+                f"per-vertex error {m['validation_mm']:.2f} mm (full decoder {m['full_validation_mm']:.2f} "
+                "mm; by size: " + ", ".join(f"{k} {v:.2f}" for k, v in m["candidates_mm"].items()) + ")"
             )
         elif stage == "direct":
             print(
@@ -170,9 +169,9 @@ def _epochs(r: StageReport) -> str:
 def _print_autoencoder(r: StageReport) -> None:
     m = r.metrics
     print(
-        f"autoencoder: {_epochs(r)}; per-vertex error val {m['val_pve_mm']:.2f} mm, test {m['test_pve_mm']:.2f} mm, "
-        f"train {m['train_pve_mm']:.2f} mm; latent {m['latent_shape'][0]} x {m['latent_shape'][1]} "
-        f"(levels {' > '.join(str(s) for s in m['sizes'])})"
+        f"autoencoder: {_epochs(r)}; per-vertex error val {m['val_pve_mm']:.2f} mm, test "
+        f"{m['test_pve_mm']:.2f} mm, train {m['train_pve_mm']:.2f} mm; latent {m['latent_shape'][0]} x "
+        f"{m['latent_shape'][1]} (levels {' > '.join(str(s) for s in m['sizes'])})"
     )
 
 
@@ -183,21 +182,24 @@ def _print_codespace(report: StageReport) -> None:
     size = sum(p.stat().st_size for p in folder.glob("*.safetensors")) / 1e6
     print(
         f"code space: {report.epochs} epochs (curriculum switch at "
-        f"{r['training']['switched_at']}){' (reused)' if report.reused else ''}; code agreement {r['code_agreement']:.2f} "
-        f"(chance {r['chance_agreement']:.2f}); database {r['windows']['train']} windows, "
-        f"{r['database_codes']['distinct_codes']} distinct codes, {r['database_codes']['dead_classes']} of "
-        f"{r['database_codes']['classes']} classes dead, perplexity {r['database_codes']['perplexity']:.2f}"
+        f"{r['training']['switched_at']}){' (reused)' if report.reused else ''}; code agreement "
+        f"{r['code_agreement']:.2f} (chance {r['chance_agreement']:.2f}); database {r['windows']['train']} "
+        f"windows, {r['database_codes']['distinct_codes']} distinct codes, "
+        f"{r['database_codes']['dead_classes']} of {r['database_codes']['classes']} classes dead, perplexity "
+        f"{r['database_codes']['perplexity']:.2f}"
     )
     print(
         f"validation per-vertex error (window level): hybrid {v['hybrid']:.2f} mm, regression-only "
-        f"{v['regression']:.2f} mm, retrieval-only {v['retrieval']:.2f} mm (autoencoder floor {v['autoencoder']:.2f} mm); "
-        f"gate {r.get('gate', 'entropy')} < tau {r['tau']:.3f}, retrieval usage {100 * v['retrieval_usage']:.0f} %"
+        f"{v['regression']:.2f} mm, retrieval-only {v['retrieval']:.2f} mm (autoencoder floor "
+        f"{v['autoencoder']:.2f} mm); gate {r.get('gate', 'entropy')} < tau {r['tau']:.3f}, retrieval usage "
+        f"{100 * v['retrieval_usage']:.0f} %"
     )
     if "gates" in r:  # reports from before the match gates have only the entropy's
         print(
             "gates calibrated on validation: "
             + "; ".join(
-                f"{g} < {c['tau']:.3f}: {c['validation_mm']:.2f} mm, {100 * c['retrieval_usage']:.0f} % retrieval"
+                f"{g} < {c['tau']:.3f}: {c['validation_mm']:.2f} mm, "
+                f"{100 * c['retrieval_usage']:.0f} % retrieval"
                 for g, c in r["gates"].items()
             )
         )

@@ -40,7 +40,8 @@ class AutoSettings:
             )
         if not 0.0 <= self.penetration_floor_pct <= 100.0:
             raise SettingsError(
-                f"auto: penetration_floor_pct is a share of the vertices, 0 to 100, got {self.penetration_floor_pct}"
+                "auto: penetration_floor_pct is a share of the vertices, 0 to 100, got "
+                f"{self.penetration_floor_pct}"
             )
 
     @classmethod
@@ -84,6 +85,11 @@ def swing_of(label: str) -> float:
     """The swing gain of a candidate's label (1: none)."""
     _, _, gain = label.partition(SWING)
     return float(gain) if gain else 1.0
+
+
+def without_swing(candidates: dict[str, dict[str, float]]) -> dict[str, dict[str, float]]:
+    """The candidates measured without a swing gain (those a first pick is made among)."""
+    return {k: c for k, c in candidates.items() if SWING not in k}
 
 
 def candidate_setting(label: str) -> tuple[str, str, float | None, tuple[float, float] | None]:
@@ -251,7 +257,8 @@ def describe_auto(auto: dict) -> str:
         )
     allowance += "; " if allowance else ""
     return (
-        f"auto mode: {auto['mode']} ({allowance}the detail mode's folds {detail}; on {auto['sequences']} validation clips: "
+        f"auto mode: {auto['mode']} ({allowance}the detail mode's folds {detail}; on {auto['sequences']} "
+        "validation clips: "
         + "; ".join(
             f"{m} {c['pve_mm']:.2f} mm, sharpness {c['sharpness']:.2f}, hem swing {c['hem_swing']:.2f}"
             + (f", {c['penetration_pct']:.2f} % inside" if "penetration_pct" in c else "")

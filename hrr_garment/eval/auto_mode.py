@@ -3,9 +3,9 @@ by default, and how the detail mode runs.
 
 Against a chaotic truth the most accurate output is close to the conditional mean, and the mean is
 blurry: its folds and its hem's swing average away. The modes that use the database trade a little
-accuracy for real simulated detail (docs/decisions/0009-auto-mode-default.md). ``auto`` is the calibrated trade, chosen on
-the validation clips through the product path (``Animator.animate``: offline, blended, push-out on)
-by one documented criterion that counts both:
+accuracy for real simulated detail (docs/decisions/0009-auto-mode-default.md). ``auto`` is the calibrated
+trade, chosen on the validation clips through the product path (``Animator.animate``: offline, blended,
+push-out on) by one documented criterion that counts both:
 
 1. accuracy first: the candidates whose PVE is within the allowance (``auto.allowance`` in the
    training configuration, :class:`AutoSettings`: 1.05, 5 %) of the most accurate candidate's. A
@@ -30,12 +30,12 @@ by one documented criterion that counts both:
    then the more accurate.
 
 The detail mode is measured in several settings (:data:`DETAIL_CANDIDATES`): its simulated folds at
-each of :data:`~.auto_criterion.DETAIL_STRENGTHS`, on the regression's latents and, where the residual mode runs, on
-the residual mode's (which bring the match's swing). The folds' strength is the trade itself: on
-held-out real clips the sharpness grows with it faster than the error (docs/decisions/0005-detail-strength-calibrated.md). The
-criterion picks among all candidates; the detail mode's setting is the picked one's, or, where auto
-is not a detail mode, the one the criterion picks among the detail candidates alone (what
-``--mode detail`` runs).
+each of :data:`~.auto_criterion.DETAIL_STRENGTHS`, on the regression's latents and, where the residual mode
+runs, on the residual mode's (which bring the match's swing). The folds' strength is the trade itself: on
+held-out real clips the sharpness grows with it faster than the error
+(docs/decisions/0005-detail-strength-calibrated.md). The criterion picks among all candidates; the detail
+mode's setting is the picked one's, or, where auto is not a detail mode, the one the criterion picks among the
+detail candidates alone (what ``--mode detail`` runs).
 
 Every candidate that borrows from the matches (their residual, their folds) is also measured on
 free cloth only (:data:`~hrr_garment.artifacts.free_cloth.FREE_CLOTH_RAMPS_MM`, labelled ``..., free
@@ -48,15 +48,17 @@ detail setting's where that does, else the one the criterion picks among the res
 the detail setting's for the folds (``auto.folds_free_mm``).
 
 Last, the first pick is measured again with the free cloth's swing restored at each of
-:data:`~.auto_criterion.SWING_GAINS` (:mod:`hrr_garment.inference.swing`, labelled ``..., swing x1.2``) and the
-criterion picks again among all candidates: a regression swings less than the cloth, so a gain
+:data:`~.auto_criterion.SWING_GAINS` (:mod:`hrr_garment.inference.swing`, labelled ``..., swing x1.2``) and
+the criterion picks again among all candidates: a regression swings less than the cloth, so a gain
 wins where it brings the swing closer to the truth's within the allowance. The model keeps the
 picked candidate's gain (``auto.swing_gain``, 1 where the pick has none); it runs in the mode auto
 picks, not in a mode named. A recorded calibration picked again under another allowance first
 measures the gains of its new first pick where they were not (:func:`measure_swing_again`).
 
 The criterion itself, on recorded numbers (:func:`~.auto_criterion.pick_auto_mode`,
-:func:`~.auto_criterion.repick`), and the candidates' labels: :mod:`.auto_criterion`.
+:func:`~.auto_criterion.repick`), and the candidates' labels: :mod:`.auto_criterion`. Whether a
+recorded calibration is out of date (calibrated again, or its gains measured first):
+:mod:`.auto_outdated`.
 """
 
 from __future__ import annotations
@@ -68,11 +70,9 @@ from dataclasses import replace
 import numpy as np
 from tqdm import tqdm
 
-from ..artifacts.auto_calibration import AutoCalibration
 from ..artifacts.bundle import Bundle
 from ..artifacts.free_cloth import FREE_CLOTH_RAMPS_MM
 from ..artifacts.manifest import AUTO_CHOICES
-from ..artifacts.manifest_entries import BodiesEntry, ResidualEntry
 from ..body.mannequin import MANNEQUIN
 from ..data.dataset import SequenceRecord
 from ..garment.fit import hem_vertices
@@ -85,8 +85,6 @@ from . import metrics as M
 from .auto_criterion import (
     DEFAULT_BODY_PVE,
     DETAIL_CANDIDATES,
-    FREE_CLOTH,
-    SWING,
     SWING_GAINS,
     AutoSettings,
     borrows,
@@ -97,52 +95,10 @@ from .auto_criterion import (
     swing_label,
     swing_of,
     uses_residual,
+    without_swing,
 )
 
 AUTO_MAX_SEQUENCES = 24  # validation clips the choice animates at most (evenly spaced): about a minute
-
-
-def followed_otherwise(auto: AutoCalibration) -> bool:
-    """Whether a recorded calibration's detail candidates ran with folds followed in time otherwise
-    than this version's (recorded before the following: as they came, 1)."""
-    return float(1.0 if auto.fold_follow is None else auto.fold_follow) != FOLD_FOLLOW
-
-
-def lacks_swing(auto: AutoCalibration) -> bool:
-    """Whether a recorded calibration has no swing candidates measured as the swing now runs
-    (recorded before the swing's gain, or with another half-life)."""
-    return not any(SWING in k for k in auto.candidates or {}) or auto.swing_half_life_s != HALF_LIFE_S
-
-
-def lacks_free_folds(auto: AutoCalibration) -> bool:
-    """Whether a recorded calibration measured the detail mode before its folds were measured on
-    free cloth as well (``auto.folds_free_cloth``)."""
-    return not auto.folds_free_cloth and any(
-        candidate_setting(k)[0] == "detail" for k in auto.candidates or {}
-    )
-
-
-def lacks_default_body(auto: AutoCalibration, bodies: BodiesEntry | None) -> bool:
-    """Whether a recorded calibration of a model across bodies whose default is the mannequin
-    (bundle.json's ``bodies``) was measured before the default body's clips were measured apart."""
-    return (
-        bodies is not None
-        and bodies.default is None
-        and bodies.count > 1
-        and auto.default_body_sequences is None
-    )
-
-
-def lacks_free_cloth(auto: AutoCalibration, residual: ResidualEntry | None) -> bool:
-    """Whether a recorded calibration measured the residual mode (of a calibrated weight,
-    bundle.json's ``residual``) but not on free cloth: recorded before those candidates."""
-    candidates = auto.candidates or {}
-    return (
-        residual is not None
-        and residual.weight > 0
-        and "residual" in candidates
-        and not any(FREE_CLOTH in k for k in candidates)
-    )
 
 
 @contextmanager
@@ -203,20 +159,11 @@ def calibrate_auto_mode(
             "default_body_sequences": sum(_on_default_body(bundle, records) or []),
             "swing_half_life_s": HALF_LIFE_S,
             "candidates": candidates,
-            "criterion": "the most plausible (hypot(ln sharpness, ln hem swing)) within the allowance x the most "
-            "accurate PVE and the penetration allowance x its cloth inside the body",
+            "criterion": "the most plausible (hypot(ln sharpness, ln hem swing)) within the allowance x the "
+            "most accurate PVE and the penetration allowance x its cloth inside the body",
         },
         config,
     )
-
-
-def swing_unmeasured(auto: AutoCalibration, config: AutoSettings) -> bool:
-    """Whether a recorded calibration's first pick under ``config`` (its pick without a swing gain)
-    has swing gains not yet measured: an allowance that moves the pick needs them measured before
-    picking again."""
-    candidates = auto.candidates or {}
-    first = pick_auto_mode(_without_swing(candidates), config)
-    return any(swing_label(first, gain) not in candidates for gain in SWING_GAINS)
 
 
 def measure_swing_again(
@@ -242,10 +189,6 @@ def _evenly(records: list[SequenceRecord], max_sequences: int | None) -> list[Se
     return records
 
 
-def _without_swing(candidates: dict[str, dict[str, float]]) -> dict[str, dict[str, float]]:
-    return {k: c for k, c in candidates.items() if SWING not in k}
-
-
 def _measure_swing(
     candidates: dict[str, dict[str, float]],
     measure: Callable[[str], dict[str, float]],
@@ -255,7 +198,7 @@ def _measure_swing(
     """The first pick (among the candidates without a gain) with its swing restored, each gain a
     candidate of its own, added to ``candidates`` where not there (the criterion then picks again
     among all: a gain wins where its swing closes the gap within the allowance)."""
-    first = pick_auto_mode(_without_swing(candidates), config)
+    first = pick_auto_mode(without_swing(candidates), config)
     for gain in tqdm(SWING_GAINS, desc="swing gain", unit="gain", disable=not progress):
         if swing_label(first, gain) not in candidates:
             candidates[swing_label(first, gain)] = measure(swing_label(first, gain))

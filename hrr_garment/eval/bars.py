@@ -136,6 +136,7 @@ def summary_line(default: dict | None) -> str | None:
         return None
     marks = {True: "met", False: "NOT met", None: "n/a"}
     return "  default output (auto): " + "; ".join(
-        f"{label} {'n/a' if c['value'] is None else format(c['value'], '.3g')} ({c['bar']}: {marks[c['met']]})"
+        f"{label} {'n/a' if c['value'] is None else format(c['value'], '.3g')} ({c['bar']}: "
+        f"{marks[c['met']]})"
         for label, c in default["bars"].items()
     )

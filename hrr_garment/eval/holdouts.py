@@ -91,7 +91,8 @@ def markdown_holdouts(section: dict | None, field_label: dict[str, str] | None =
     lines = [
         "## Hold-outs (the test split by what each clip holds out)",
         "",
-        "| hold-out | mode | clips | frames | PVE / floor | x the held-out styles' | worst clip (PVE / floor) |",
+        "| hold-out | mode | clips | frames | PVE / floor | x the held-out styles' "
+        "| worst clip (PVE / floor) |",
         "|---|---|---:|---:|---:|---:|---|",
     ]
     for kind, by_mode in summary.items():

@@ -100,7 +100,8 @@ def simulated_section(
 
     config = SimSettings.from_dict(ds.info.get("sim", {}))
     print(
-        f"simulating ground truth for {len(truth.specs)} sequence(s) (cached in {truth.path.with_suffix('.parts')})"
+        f"simulating ground truth for {len(truth.specs)} sequence(s) (cached in "
+        f"{truth.path.with_suffix('.parts')})"
     )
     report = build_dataset(
         ds.template,
@@ -173,7 +174,8 @@ def paper_section(folder: Path, bundle, records, settings: EvaluationSettings, e
         )
     modes = tuple(m for m in settings.modes if animator.supports(m))
     print(
-        f"paper protocol: {folder} (calibrated gate {other.gate} < {other.tau:.3f}) on the same {len(records)} sequences"
+        f"paper protocol: {folder} (calibrated gate {other.gate} < {other.tau:.3f}) on the same "
+        f"{len(records)} sequences"
     )
     own = replace(
         settings, modes=modes, exclude_own_sequence=False, run=RunSettings(push_out=settings.run.push_out)

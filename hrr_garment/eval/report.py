@@ -9,8 +9,8 @@ package reads a report back; the versions, for readers of old reports: 2 truth e
 (``gate`` beside each ``tau``, the model's calibrated ``gates``); 5 ``sharpness`` in each tau-sweep
 point; 6 the model's ``auto`` mode and its ``auto_calibration``; 7 the detail mode's look
 (``settings.detail``: strength, base); 8 the library's ``source_simulation`` reference; 9
-``settings`` as the run's record writes it (out.h5's attributes: ``gate``, ``tau``, ``push_out`` (``collision`` before),
-and ``detail_base`` / ``detail_strength`` where the detail mode ran, in place of
+``settings`` as the run's record writes it (out.h5's attributes: ``gate``, ``tau``, ``push_out``
+(``collision`` before), and ``detail_base`` / ``detail_strength`` where the detail mode ran, in place of
 ``settings.detail``), and ``retrieval_usage`` counts only windows retrieved as simulated (the
 residual and detail modes, which add a match's detail to the regression, report 0); 10
 ``unseen_bodies`` (the unseen-bodies protocol, :mod:`.unseen_bodies`); 11 ``default`` at the top
@@ -121,8 +121,9 @@ def markdown(report: dict, plots: list[str]) -> str:
         f"Model `{model['folder']}` (hash {model['hash']}, calibrated gate {model.get('gate', 'entropy')} < "
         f"{model['tau']:.3f}; the default mode, auto, runs {model.get('auto', 'hybrid')}); dataset "
         f"`{data['path']}`, split **{data['split']}**: {len(data['sequences'])} sequences, {data['frames']} "
-        f"frames. Collision push-out {'on' if recorded(settings, 'push_out') else 'off'}; own sequence excluded "
-        f"from retrieval: {'yes' if settings['exclude_own_sequence'] else 'no'}; hybrid gate {settings['gate']} < "
+        f"frames. Collision push-out {'on' if recorded(settings, 'push_out') else 'off'}; own sequence "
+        f"excluded from retrieval: {'yes' if settings['exclude_own_sequence'] else 'no'}; hybrid gate "
+        f"{settings['gate']} < "
         f"{settings['tau']:.3f}" + _detail_clause(settings) + ". "
         f"Run time {report['seconds']:.0f} s.",
         "",

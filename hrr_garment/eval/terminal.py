@@ -19,15 +19,15 @@ def report_lines(report: dict) -> list[str]:
         )
         out.append(
             f"  {mode:10s} PVE {m['pve_mm']:7.2f} mm  RMSE {m['rmse_mm']:7.2f} mm  STED {m['sted']:.4f}  "
-            f"CD {m['chamfer_cm']:.3f} cm  pen. {m['penetration_pct']:.2f} %  retrieval {100 * m['retrieval_usage']:.0f} %"
-            + floor
+            f"CD {m['chamfer_cm']:.3f} cm  pen. {m['penetration_pct']:.2f} %  retrieval "
+            f"{100 * m['retrieval_usage']:.0f} %" + floor
         )
     for kind, by_mode in ((report.get("holdouts") or {}).get("by_holdout") or {}).items():
         out.append(
             f"  {kind} hold-out: "
             + "; ".join(
-                f"{mode} PVE/floor {row['pve_floor_ratio']:.2f} over {row['sequences']} clips (worst {row['worst']['sequence']} "
-                f"{row['worst']['pve_floor_ratio']:.2f})"
+                f"{mode} PVE/floor {row['pve_floor_ratio']:.2f} over {row['sequences']} clips (worst "
+                f"{row['worst']['sequence']} {row['worst']['pve_floor_ratio']:.2f})"
                 for mode, row in by_mode.items()
             )
         )

@@ -1,9 +1,10 @@
 """The unseen-bodies protocol: a model trained across bodies, judged on bodies it never saw, beside
 a specialist trained on each of those bodies alone.
 
-    hrr-eval --model hrr_work/models/dress-real-quick-bodies \\
-        --unseen-body hrr_work/datasets/dress-real-quick-short-heavy.h5=hrr_work/models/dress-real-quick-short-heavy \\
-        --unseen-body hrr_work/datasets/dress-real-quick-tall-slim.h5=hrr_work/models/dress-real-quick-tall-slim ...
+    D=hrr_work/datasets M=hrr_work/models
+    hrr-eval --model $M/dress-real-quick-bodies \\
+        --unseen-body $D/dress-real-quick-short-heavy.h5=$M/dress-real-quick-short-heavy \\
+        --unseen-body $D/dress-real-quick-tall-slim.h5=$M/dress-real-quick-tall-slim ...
 
 Each ``--unseen-body`` names a dataset simulated on one body (``hrr-simulate --body``) and,
 optionally, a model trained on that dataset alone (the specialist, the reference). The protocol
@@ -155,6 +156,7 @@ def markdown_table(section: dict) -> list[str]:
             f"| {name} | {e['frames']} | {f(m['pve_floor_ratio'])} | {f(s.get('pve_floor_ratio'))} | "
             f"{f(e.get('pve_floor_over_specialist'), 3)} | {f(m['penetration_before_pct'])} | "
             f"{f(s.get('penetration_before_pct'))} | {f(m['bending_energy_ratio'])} | "
-            f"{f(s.get('bending_energy_ratio'))} | {f(m['hem_swing_ratio'])} | {f(s.get('hem_swing_ratio'))} |"
+            f"{f(s.get('bending_energy_ratio'))} | {f(m['hem_swing_ratio'])} | "
+            f"{f(s.get('hem_swing_ratio'))} |"
         )
     return lines

@@ -4,8 +4,8 @@ engine, Unity's inference engine, onnxruntime): ``hrr-export-model MODEL --onnx 
     step = export_onnx(animator, "dress.onnx")                  # + dress.tensors.npz
     gap = check_onnx(animator, "dress.onnx", motion)            # against the Python stream, mm
 
-The graph (:class:`~hrr_garment.inference.torch_step.StreamStep`) is the regression path of a stream for N characters
-of one body: a frame of poses in, world vertices out, each character's window state as explicit
+The graph (:class:`~hrr_garment.inference.torch_step.StreamStep`) is the regression path of a stream for N
+characters of one body: a frame of poses in, world vertices out, each character's window state as explicit
 inputs and outputs (:data:`STATE`; :func:`initial_state` gives a first frame's). What ONNX cannot
 hold, the retrieval database (a FAISS search over binary codes), travels as documented tensors in
 the companion npz (:data:`TENSORS`) beside the garment's faces, with the codes and entropies the

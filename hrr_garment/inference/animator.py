@@ -20,7 +20,8 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from ..artifacts.bundle import Bundle, BundleError, load_bundle
+from ..artifacts.bundle import Bundle, BundleError
+from ..artifacts.bundle_loader import load_bundle
 from ..body.body_file import BodyRecord
 from ..garment.smoothing import mean_operator
 from ..models.native_codes import native_window_codes
@@ -93,7 +94,8 @@ class Animator:
 
     @property
     def subspace_push(self) -> SubspacePush | None:
-        """The push in the bundle's fast-decoder subspace (:mod:`.subspace_push`), made once; None without a fast decoder."""
+        """The push in the bundle's fast-decoder subspace (:mod:`.subspace_push`), made once; None without a
+        fast decoder."""
         if self._subspace_push is None and self.bundle.subspace is not None:
             template = self.bundle.template
             self._subspace_push = SubspacePush.of(
@@ -115,8 +117,8 @@ class Animator:
         return self.bundle.subspace if run.decoder == "fast" else self.mesh_decoder(run.precision)
 
     def causal_step(self, regression: bool):
-        """The window step (:class:`~hrr_garment.models.codes.WindowCodes`' function) that causal inference runs,
-        offline and streaming alike, so both compute the same bits: the native kernel
+        """The window step (:class:`~hrr_garment.models.codes.WindowCodes`' function) that causal inference
+        runs, offline and streaming alike, so both compute the same bits: the native kernel
         (:mod:`hrr_garment.models.native_codes`), or None where it is unavailable (each path then
         uses its PyTorch form)."""
         if regression not in self._causal_steps:
@@ -182,14 +184,16 @@ class Animator:
         (``animate(motion, mode="regression", push_out=False, body="hero.json")``). A clip on the
         canonical skeleton is played by the run's body (:meth:`body`); ``exclude_sequence`` keeps one
         database sequence out of retrieval (evaluation). The frame path: :mod:`.clip_path`."""
-        motion.validate()  # again: its arrays are read-only views, but the caller's own arrays under them are not
+        # again: its arrays are read-only views, but the caller's own arrays under them are not
+        motion.validate()
         run = self.resolve(settings, **changes)
         with flush_denormals():
             return animate_clip(FramePath(self, run), run.body.play(motion))
 
     def features(self, motion: Motion, causal: bool = False, body: CharacterBody | None = None) -> np.ndarray:
-        """The model's per-frame motion features (T, F) of a clip (stage 1, :func:`~.clip_path.clip_features`):
-        offline or as a stream sees them (``causal``), for ``body`` (default: the model's own)."""
+        """The model's per-frame motion features (T, F) of a clip (stage 1,
+        :func:`~.clip_path.clip_features`): offline or as a stream sees them (``causal``), for ``body``
+        (default: the model's own)."""
         return clip_features(self.bundle, motion, (body or self.body()).vector, causal=causal)
 
     def stream(self, settings: RunSettings | None = None, *, rig=None, **changes) -> AnimationStream:
@@ -218,7 +222,8 @@ class Animator:
             return CrowdStream(self, run, rig=rig)
         if rig is not None:
             raise ValueError(
-                "a crowd on a torch device takes poses on the canonical skeleton (no rig); use device='native'"
+                "a crowd on a torch device takes poses on the canonical skeleton (no rig); "
+                "use device='native'"
             )
         from .torch_crowd import DeviceCrowd
 

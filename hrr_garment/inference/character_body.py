@@ -120,8 +120,8 @@ def character_body(
         where = body if isinstance(body, (str, Path)) else label
         count = bundle.body_range.bodies
         message = (
-            f"body {label!r} is unlike the {count} bod{'y' if count == 1 else 'ies'} the model was trained on: "
-            f"{'; '.join(outside)}"
+            f"body {label!r} is unlike the {count} bod{'y' if count == 1 else 'ies'} the model was trained "
+            f"on: {'; '.join(outside)}"
         )
         if not allow_outside:
             raise BodyOutsideRange(
@@ -137,7 +137,8 @@ NEGLIGIBLE_OFFSET_M = 1e-9  # a rest offset no larger than this (a nanometre) st
 
 @dataclass(frozen=True)
 class CrowdBodies:
-    """The bodies of a crowd push's characters (:class:`~.stream.CrowdStream`): one body for all, or arrays with a row per character."""
+    """The bodies of a crowd push's characters (:class:`~.stream.CrowdStream`): one body for all, or arrays
+    with a row per character."""
 
     vector: np.ndarray  # (b,) or (N, b) measures
     offset: np.ndarray  # (V, 3) or (N, V, 3) the garment's rest offsets

@@ -28,7 +28,7 @@ folds' share of the cloth inside before the push-out from 0.34 to 0.06 points
 Folds from another simulation can stretch an edge of this shape far past what any simulation does
 (2.3 x its rest length on held-out clips). Where they would take an edge past
 :data:`FOLD_MAX_STRAIN` and longer than the regression has it, the edge-length projection of the
-push-out (:func:`~.collision.limit_push_strain`) takes back as much of them as it must; elsewhere
+push-out (:func:`~.strain_limit.limit_push_strain`) takes back as much of them as it must; elsewhere
 the folds are untouched. On 6 held-out real clips this capped the strain max at 1.52 (from 2.28)
 with PVE, sharpness and jitter unchanged (0.84 to 0.83 bending energy ratio).
 """
@@ -42,10 +42,10 @@ from scipy.sparse import csr_matrix
 
 from ..artifacts.folds import DETAIL_STRENGTH
 from ..garment.smoothing import high_frequencies
-from .collision import limit_push_strain
 from .edge_limits import EdgeLimits
+from .strain_limit import limit_push_strain
 
-FOLD_MAX_STRAIN = 1.5  # x rest length: the push-out's own limit (collision.MAX_PUSH_STRAIN)
+FOLD_MAX_STRAIN = 1.5  # x rest length: the push-out's own limit (strain_limit.MAX_PUSH_STRAIN)
 # projection passes: on folds out of place ten take the strain max where sixty do, in a quarter of
 # the time (tools/bench_checks.py: the limit's share of a crowd's step)
 FOLD_LIMIT_ITERATIONS = 10

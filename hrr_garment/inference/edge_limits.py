@@ -1,7 +1,7 @@
 """What the push-out and its strain limit need of a garment, made once per template
 (:class:`EdgeLimits`): its edges and rest lengths, the incidence, the edges' colours the strain
 limit projects them by, the 1-ring table the neighbour-follow walks, and the vertex patches the
-kernel measures against the capsules near them (:mod:`.collision` runs them)."""
+kernel measures against the capsules near them (:mod:`.collision` and :mod:`.strain_limit` run them)."""
 
 from __future__ import annotations
 
@@ -22,8 +22,8 @@ if TYPE_CHECKING:
 
 @dataclass(frozen=True)
 class EdgeLimits:
-    """What the push-out's neighbour-follow and :func:`limit_push_strain` need of a garment, made
-    once per template (the streaming path calls the push-out every frame): its edges, their rest
+    """What the push-out's neighbour-follow and :func:`~.strain_limit.limit_push_strain` need of a garment,
+    made once per template (the streaming path calls the push-out every frame): its edges, their rest
     lengths, the (V, E) incidence (+1 first vertex, -1 second; its rows list each vertex's edges),
     the edges' colours (no two edges of a colour share a vertex: the strain limit projects a colour's
     edges at once, colour after colour), each vertex's 1-ring as a padded table (V, D) with each
@@ -40,7 +40,8 @@ class EdgeLimits:
 
     @classmethod
     def of(cls, faces: np.ndarray, rest: np.ndarray, mean: csr_matrix | None = None) -> "EdgeLimits":
-        """``mean``: the faces' :func:`mean_operator`, where the caller has it already (its order is the ring's)."""
+        """``mean``: the faces' :func:`mean_operator`, where the caller has it already (its order is the
+        ring's)."""
         edges = unique_edges(faces)
         v, e = len(rest), len(edges)
         signs = csr_matrix(
@@ -74,7 +75,8 @@ class EdgeLimits:
         return {}
 
     def push_mesh(self, settings: "PushOutSettings") -> PushMesh:
-        """What the push-out's kernel takes of this garment under ``settings``, converted once per settings."""
+        """What the push-out's kernel takes of this garment under ``settings``, converted once per
+        settings."""
         key = (settings.follow, settings.follow_slope)
         if key not in self._push_meshes:
             self._push_meshes[key] = PushMesh(

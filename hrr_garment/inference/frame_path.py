@@ -104,7 +104,8 @@ class FramePath:
 
     # 5. swing
     def swing_gain(self, fps: float) -> SwingGain | None:
-        """The swing's gain at ``fps`` (made once per rate), None where the run leaves the swing as predicted."""
+        """The swing's gain at ``fps`` (made once per rate), None where the run leaves the swing as
+        predicted."""
         if fps not in self._swing:
             swing = self.run.swing
             self._swing[fps] = None if swing == 1.0 else SwingGain.of(swing, self.bundle.node_hang_m, fps)

@@ -45,7 +45,8 @@ def levels(lod, count: int) -> np.ndarray:
 
 
 def decoder_of(level: int, run_decoder: str, has_fast: bool) -> str:
-    """The decoder a character at ``level`` runs: the crowd's at level 0, the fast one above (where there is one)."""
+    """The decoder a character at ``level`` runs: the crowd's at level 0, the fast one above (where there is
+    one)."""
     return "fast" if level >= 1 and has_fast else run_decoder
 
 

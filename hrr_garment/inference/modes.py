@@ -15,7 +15,9 @@ class Mode(str, enum.Enum):
     REGRESSION = "regression"  # the code-space decoder's latents
     RETRIEVAL = "retrieval"  # the database window with the nearest garment code
     RESIDUAL = "residual"  # regression plus the nearest window's detail (artifacts/residual.py)
-    DETAIL = "detail"  # the regression's or the residual mode's shape (as calibrated) plus the nearest window's folds (inference/detail.py)
+    # the regression's or the residual mode's shape (as calibrated) plus the nearest window's folds
+    # (inference/detail.py)
+    DETAIL = "detail"
     NAIVE_NN = "naive-nn"  # the database window with the nearest standardised motion (a baseline)
     DIRECT = "direct"  # the direct-regression baseline (a GRU; offline only, when the bundle has it)
 

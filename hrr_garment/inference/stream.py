@@ -1,11 +1,11 @@
 """Streaming: poses in as a game has them each frame, garment frames out, causal, for many
 characters in one call (:class:`CrowdStream`; one character: :mod:`.character_stream`).
 
-    crowd = animator.crowd()                              # hybrid, the model's tau, push-out on
+    crowd = animator.crowd()                            # hybrid, the model's tau, push-out on
     for frame in game:
-        vertices = crowd.push(rotations, roots, keys)     # (N, J, 4) quaternions, (N, 3) -> (N, V, 3)
-    crowd.leave("npc_7")                                  # a character that left the scene
-    crowd.set_body("npc_8", "tall.json")                  # a character of its own body (a model across bodies)
+        vertices = crowd.push(rotations, roots, keys)   # (N, J, 4) quaternions, (N, 3) -> (N, V, 3)
+    crowd.leave("npc_7")                                # a character that left the scene
+    crowd.set_body("npc_8", "tall.json")                # a character of its own body (a model across bodies)
     vertices = crowd.push(rotations, roots, keys, lod=levels)   # levels of detail per character (.lod)
 
 Each character keeps its own state: its last pose, its motion memory, its last W feature frames,
@@ -229,8 +229,8 @@ class CrowdStream:
             key = keys[known[j]]
             self._forget(key)
             warnings.warn(
-                f"character {key!r}: the pelvis moved {jump[j]:.3g} m in one frame (over {MAX_ROOT_SPEED:g} m/s); "
-                "taken as a teleport, its garment starts afresh there",
+                f"character {key!r}: the pelvis moved {jump[j]:.3g} m in one frame "
+                f"(over {MAX_ROOT_SPEED:g} m/s); taken as a teleport, its garment starts afresh there",
                 TeleportWarning,
                 stacklevel=4,
             )

@@ -59,7 +59,8 @@ class SubspacePush:
     def __post_init__(self) -> None:
         if not self.clearance > 0:
             raise ValueError(
-                f"clearance must be > 0 metres (the band a vertex's weight grows over), got {self.clearance!r}"
+                "clearance must be > 0 metres (the band a vertex's weight grows over), got "
+                f"{self.clearance!r}"
             )
 
     @classmethod
@@ -79,7 +80,8 @@ class SubspacePush:
 
     @cached_property
     def native(self) -> SubspaceMove:
-        """What the push-out's kernel takes of this push (:class:`~hrr_garment.native.body.SubspaceMove`), converted once."""
+        """What the push-out's kernel takes of this push (:class:`~hrr_garment.native.body.SubspaceMove`),
+        converted once."""
         return SubspaceMove(
             self.basis,
             self.stretch,

@@ -1,11 +1,10 @@
-"""The collision push-out and its strain limit (:mod:`hrr_garment.inference.collision`) as a
-PyTorch module that ONNX can hold, the last stage of :class:`~.torch_step.StreamStep`: the push's
-round and projections under conditionals (ONNX ``If``, skipped when nothing is inside), the
-strain limit's passes as a loop (ONNX ``Loop``) while a character still has an over-long edge, each
-character stopping on its own, as the package stops each frame. With the push in the garment's
-subspace first where the run asks for it (:class:`SubspacePushStage`: a batched solve when
-running, a GPU crowd's; a Cholesky factorisation in ONNX loops when exporting, since ONNX has
-no solve)."""
+"""The collision push-out and its strain limit (:mod:`hrr_garment.inference.collision`,
+:mod:`hrr_garment.inference.strain_limit`) as a PyTorch module that ONNX can hold, the last stage of
+:class:`~.torch_step.StreamStep`: the push's round and projections under conditionals (ONNX ``If``,
+skipped when nothing is inside), the strain limit's passes as a loop (ONNX ``Loop``) while a
+character still has an over-long edge, each character stopping on its own, as the package stops
+each frame. With the push in the garment's subspace first where the run asks for it
+(:class:`~.torch_subspace_push.SubspacePushStage`)."""
 
 from __future__ import annotations
 
@@ -14,116 +13,16 @@ import torch
 from torch import nn
 from torch._higher_order_ops.while_loop import while_loop
 
-from .collision import LIMIT_TOLERANCE_M, OVER_RELAXATION, PushOutSettings
-from .subspace_push import SubspacePush
-
-
-def constant(module: nn.Module, name: str, value, dtype=torch.float32) -> None:
-    """``value`` as a buffer of ``module`` that the exported graph holds as a constant."""
-    module.register_buffer(name, torch.as_tensor(np.asarray(value), dtype=dtype), persistent=False)
-
-
-def spd_solve(system: torch.Tensor, rhs: torch.Tensor) -> torch.Tensor:
-    """x with ``system`` @ x = ``rhs`` for a batch of symmetric positive definite systems (N, k, k)
-    and right-hand sides (N, k), in the operators ONNX has (``torch.linalg.solve`` has no ONNX
-    form): the Cholesky factor built a column at a time, then the two triangular substitutions, each
-    an ONNX ``Loop`` over the k columns. Each step works on whole rows, the entries not yet found
-    being zero, so that its one-hot picks need no slice of a size that changes."""
-    k = rhs.shape[-1]
-    index = torch.arange(k, device=rhs.device)
-    start = torch.zeros((), dtype=torch.int64, device=rhs.device)
-
-    def pick(j):
-        return (index == j).to(rhs.dtype)  # e_j
-
-    def factor(j, lower):  # column j of the factor: (A e_j - L L_j.) / sqrt(its diagonal), from row j down
-        e = pick(j)
-        column = system @ e - (lower @ (e @ lower)[..., None])[..., 0]
-        column = column / torch.sqrt((column * e).sum(-1, keepdim=True)) * (index >= j).to(rhs.dtype)
-        return j + 1, lower + column[:, :, None] * e
-
-    def forward(i, y):  # y_i = (b_i - L_i. y) / L_ii, the later entries of y still zero
-        e = pick(i)
-        row = e @ lower
-        return i + 1, y + e * (((rhs * e).sum(-1) - (row * y).sum(-1)) / (row * e).sum(-1))[:, None]
-
-    def backward(i, x):  # x_j = (y_j - L_.j x) / L_jj, from the last unknown up (j = k - 1 - i)
-        e = pick(k - 1 - i)
-        column = (lower @ e[:, None])[..., 0]
-        return i + 1, x + e * (((y * e).sum(-1) - (column * x).sum(-1)) / (column * e).sum(-1))[:, None]
-
-    _, lower = while_loop(lambda j, lower: j < k, factor, (start, torch.zeros_like(system)))
-    _, y = while_loop(lambda i, y: i < k, forward, (start, torch.zeros_like(rhs)))
-    _, x = while_loop(lambda i, x: i < k, backward, (start, torch.zeros_like(rhs)))
-    return x
-
-
-def turn_y(points: torch.Tensor, cos: torch.Tensor, sin: torch.Tensor) -> torch.Tensor:
-    """(N, ..., 3) points turned about +Y by angles given as (N,) cosines and sines."""
-    shape = (-1,) + (1,) * (points.dim() - 2)
-    c, s = cos.reshape(shape), sin.reshape(shape)
-    x, y, z = points[..., 0], points[..., 1], points[..., 2]
-    return torch.stack([c * x + s * z, y, c * z - s * x], -1)
-
-
-class SubspacePushStage(nn.Module):
-    """:class:`~.subspace_push.SubspacePush` (its reference, float64, frame by frame) for a batch of
-    frames in one graph: every vertex's row of the normal equations, weighted zero outside the band
-    near the body (the reference keeps only the rows inside it: the same sums), one batched solve."""
-
-    def __init__(self, push: SubspacePush, margin: float):
-        super().__init__()
-        constant(self, "basis", push.basis)  # (k, V, 3)
-        constant(self, "regulariser", push.strain_weight * push.stretch)  # (k, k)
-        self.ridge, self.clearance, self.iterations = (
-            float(push.ridge),
-            float(push.clearance),
-            int(push.iterations),
-        )
-        self.reach = float(margin) + self.clearance
-
-    def forward(
-        self,
-        p: torch.Tensor,
-        a: torch.Tensor,
-        b: torch.Tensor,
-        heading: tuple[torch.Tensor, torch.Tensor],
-        distance,
-    ) -> torch.Tensor:
-        """``p`` (N, V, 3) world points and capsule ends ``a``, ``b`` (relative to the pelvis), each
-        frame's body-frame ``heading`` (cosines, sines of its yaw), ``distance`` (:meth:`PushOutStage.distance`)."""
-        cos, sin = heading
-        eye = torch.eye(self.basis.shape[0], dtype=p.dtype, device=p.device)
-        for _ in range(self.iterations):
-            d, n = distance(p, a, b)
-            depth = self.reach - d
-            weight = torch.where(
-                depth > 0, torch.clamp(depth / self.clearance, max=1.0), torch.zeros_like(depth)
-            )
-            jac = torch.einsum(
-                "nvi,kvi->nvk", turn_y(n, cos, -sin), self.basis
-            )  # the normals in the body frame
-            weighted = jac * weight[..., None]
-            near = (weight > 0).any(1)[:, None, None]
-            system = (
-                weighted.transpose(1, 2) @ jac
-                + self.regulariser
-                + self.ridge * weight.sum(1)[:, None, None] * eye
-            )
-            system = torch.where(near, system, eye)  # a frame with nothing near stays as it is
-            rhs = (weighted * depth[..., None]).sum(1)
-            solve = (
-                spd_solve if torch.compiler.is_compiling() else torch.linalg.solve
-            )  # exporting: no ONNX solve
-            coef = solve(system, rhs) * near[:, :, 0]
-            p = p + turn_y(torch.einsum("nk,kvi->nvi", coef, self.basis), cos, sin)
-        return p
+from .collision import PushOutSettings
+from .strain_limit import LIMIT_TOLERANCE_M, OVER_RELAXATION
+from .torch_ops import constant
+from .torch_subspace_push import SubspacePushStage
 
 
 class PushOutStage(nn.Module):
     """World vertices (N, V, 3) pushed out of the body's capsules posed by FK, then their edges
     stretched by the push limited (:func:`~hrr_garment.inference.collision.push_out` with
-    :func:`~hrr_garment.inference.collision.limit_push_strain`)."""
+    :func:`~hrr_garment.inference.strain_limit.limit_push_strain`)."""
 
     def __init__(self, capsules, smoothing, *, limits, settings: PushOutSettings, strain_passes: int = 60):
         super().__init__()
@@ -139,23 +38,23 @@ class PushOutStage(nn.Module):
         # the smoothing's row-normalised adjacency as (row, column, weight) triplets: a gather, a
         # product and a scatter-add (ONNX has no sparse product)
         smoothing = smoothing.tocoo()
-        constant(self, "smooth_rows", smoothing.row, torch.int64)
-        constant(self, "smooth_cols", smoothing.col, torch.int64)
+        constant(self, "smooth_rows", smoothing.row, dtype=torch.int64)
+        constant(self, "smooth_cols", smoothing.col, dtype=torch.int64)
         constant(self, "smooth_weights", smoothing.data[:, None])  # (nnz, 1): over the characters
         # the neighbour-follow's padded 1-ring and each slot's drop (slope x rest distance); the
         # padding's infinite drop as a large finite one, which never wins either
-        constant(self, "ring", limits.ring, torch.int64)
+        constant(self, "ring", limits.ring, dtype=torch.int64)
         constant(
             self, "ring_drop", np.minimum(settings.follow_slope * limits.ring_length, 1e6)[..., None]
         )  # (V, D, 1)
-        constant(self, "edges", limits.edges, torch.int64)
+        constant(self, "edges", limits.edges, dtype=torch.int64)
         constant(self, "allowed", settings.max_strain * limits.rest_length)
         constant(self, "slack", settings.stretch_slack * limits.rest_length)
         # a pass projects the edges a colour at a time (no two of a colour share a vertex): each
         # colour's edge indices
         self.colours = len(limits.colour_groups)
         for c, group in enumerate(limits.colour_groups):
-            constant(self, f"colour_{c}", group, torch.int64)
+            constant(self, f"colour_{c}", group, dtype=torch.int64)
 
     def distance(
         self, p: torch.Tensor, a: torch.Tensor, b: torch.Tensor
@@ -260,7 +159,7 @@ class PushOutStage(nn.Module):
 
     def _pass(self, passes: torch.Tensor, p: torch.Tensor, limit: torch.Tensor, active: torch.Tensor):
         """One Gauss-Seidel pass of edge-length projection, a colour of edges after another, on the
-        characters still over a limit (:func:`~hrr_garment.inference.collision.limit_push_strain`)."""
+        characters still over a limit (:func:`~hrr_garment.inference.strain_limit.limit_push_strain`)."""
         worst = torch.zeros_like(active, dtype=p.dtype)
         weight = active.to(p.dtype)
         for c in range(self.colours):

@@ -1,13 +1,15 @@
 """The streaming step of a trained model as one PyTorch module: a frame of poses in, the garment's
 world vertices out, each character's window state as explicit inputs and outputs. ONNX holds it
-(:mod:`hrr_garment.export.onnx_model` exports it) and a GPU runs it (:mod:`.torch_crowd`). The regression path of
-:class:`~hrr_garment.inference.stream.CrowdStream`, the frame path's stages (:mod:`.frame_path`,
+(:mod:`hrr_garment.export.onnx_model` exports it) and a GPU runs it (:mod:`.torch_crowd`). The regression path
+of :class:`~hrr_garment.inference.stream.CrowdStream`, the frame path's stages (:mod:`.frame_path`,
 numbered alike in :meth:`StreamStep.forward`) with the same formulas and the same resolved run:
 
 - before the stages, the poses: local quaternions -> matrices, forward kinematics on the body's
-  skeleton (its bone lengths, its pelvis height), as :meth:`~hrr_garment.inference.character_body.CharacterBody.play`;
-- 1 features: the frame against the character's last one (:func:`~hrr_garment.motion.features.pair_features_batch`),
-  its motion memory one frame on (:class:`~hrr_garment.motion.memory.MotionMemory`), the body's measures;
+  skeleton (its bone lengths, its pelvis height), as
+  :meth:`~hrr_garment.inference.character_body.CharacterBody.play`;
+- 1 features: the frame against the character's last one
+  (:func:`~hrr_garment.motion.features.pair_features_batch`), its motion memory one frame on
+  (:class:`~hrr_garment.motion.memory.MotionMemory`), the body's measures;
 - 2 windows: the last W frames;
 - 3 choice: the window step (:class:`~hrr_garment.models.codes.WindowCodes`): motion encoder, code
   entropy and classes, the code-space decoder's latents of the window's last frame;
@@ -39,7 +41,8 @@ from ..motion.skeleton import FEATURE_JOINTS, NUM_JOINTS, REST_PELVIS_HEIGHT, fo
 from .collision import PUSH_OUT
 from .frame_path import FramePath
 from .modes import Mode
-from .torch_push_out import PushOutStage, constant, turn_y
+from .torch_ops import constant, turn_y
+from .torch_push_out import PushOutStage
 
 
 class PoseStage(nn.Module):

@@ -259,7 +259,7 @@ def limit_strain(
     threads: int = 1,
     in_place: bool = False,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`hrr_garment.inference.collision.limit_push_strain` in the kernel: pushed and unpushed
+    """:func:`hrr_garment.inference.strain_limit.limit_push_strain` in the kernel: pushed and unpushed
     points (T, V, 3), the ``limit`` (:class:`StrainLimit`) -> (the limited points, float64 (T, V, 3);
     the (T,) mask of frames that had an edge over its limit). Frames in parallel; each stops on its
     own. ``in_place``: a C-contiguous float64 ``pushed`` is moved where it lies (and returned)

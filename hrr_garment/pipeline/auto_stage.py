@@ -7,14 +7,13 @@ from __future__ import annotations
 from pathlib import Path
 
 from ..eval.auto_criterion import AutoSettings, repick
-from ..eval.auto_mode import (
-    calibrate_auto_mode,
+from ..eval.auto_mode import calibrate_auto_mode, measure_swing_again
+from ..eval.auto_outdated import (
     followed_otherwise,
     lacks_default_body,
     lacks_free_cloth,
     lacks_free_folds,
     lacks_swing,
-    measure_swing_again,
     swing_unmeasured,
 )
 

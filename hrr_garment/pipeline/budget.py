@@ -55,7 +55,8 @@ class BudgetCheck:
         why = f", stopped by {self.stopped}" if self.stopped else ""
         ratio = self.target_ratio
         target = (
-            f"; validation {self.validation_mm:.2f} mm against a target of {self.target_mm:.2f} mm ({ratio:.2f} x)"
+            f"; validation {self.validation_mm:.2f} mm against a target of {self.target_mm:.2f} mm "
+            f"({ratio:.2f} x)"
             if ratio is not None
             else ""
         )
@@ -66,9 +67,9 @@ class BudgetCheck:
         if self.cut_short:
             out.append(
                 f"{self.stage}: its {self.cap_minutes:g}-minute cap stopped training after {self.epochs} of "
-                f"{self.epochs_asked} epochs (a busy or slow machine): the model is weaker than these settings make. "
-                "Re-run the same command with a larger max_minutes (--config; --minutes for the autoencoder) "
-                "to finish the epochs from where it stopped"
+                f"{self.epochs_asked} epochs (a busy or slow machine): the model is weaker than these "
+                "settings make. Re-run the same command with a larger max_minutes (--config; --minutes for "
+                "the autoencoder) to finish the epochs from where it stopped"
             )
         ratio = self.target_ratio
         if ratio is not None and ratio > FAR_ABOVE_TARGET:

@@ -32,7 +32,7 @@ from pathlib import Path
 from ..io_utils import remove_empty_folders
 from ..sim.preset import Preset
 from ..train.report import StageReport
-from ..train.subspace import subspace_warning
+from ..train.subspace_size import subspace_warning
 from .auto_stage import calibrate_auto
 from .budget import BudgetCheck, check_budget
 from .stage_runners import STAGE_RUNNERS, StageContext

@@ -5,7 +5,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ..artifacts.bundle import Bundle, load_bundle
+from ..artifacts.bundle import Bundle
+from ..artifacts.bundle_loader import load_bundle
 from ..data.dataset import DatasetError, GarmentDataset
 
 

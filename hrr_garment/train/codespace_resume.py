@@ -10,14 +10,14 @@ from pathlib import Path
 
 import numpy as np
 
-from ..artifacts.bundle import BundleError, load_bundle
+from ..artifacts.bundle_loader import BundleError, load_bundle
 from ..artifacts.manifest_entries import ResidualEntry
 from ..artifacts.typed_manifest import Manifest, read_manifest, update_manifest
 from ..data.dataset import GarmentDataset
 from ..io_utils import atomic_write_text, strict_json
 from ..models.codespace import CodeSpaceSettings
-from .calibrate import calibrate_residual
 from .codespace_settings import CodeSpaceTrainSettings
+from .residual_calibration import calibrate_residual
 from .training_frames import body_frames
 
 CONTACT_SETTINGS = (

@@ -222,7 +222,7 @@ def model_contact_windows(folder: Path, ds: GarmentDataset, split: str) -> Conta
     """A trained model's windows of ``split`` of its dataset, standardised as it was trained, with
     their frames' bodies: what the phase takes, for a tool or a test that runs it on a finished
     model (``folder`` holds its bundle and its autoencoder stage's latents)."""
-    from ..artifacts.bundle import load_bundle
+    from ..artifacts.bundle_loader import load_bundle
     from ..data.windows import build_windows, dataset_features
 
     bundle = load_bundle(folder)

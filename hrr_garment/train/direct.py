@@ -1,4 +1,5 @@
-"""The ``direct`` stage of ``hrr-train`` (formerly ``baseline``): the direct-regression baseline (:mod:`..models.direct`).
+"""The ``direct`` stage of ``hrr-train`` (formerly ``baseline``): the direct-regression baseline
+(:mod:`..models.direct`).
 
 Trained on the same data as the code space, in the same standardised spaces (the bundle's motion
 and latent statistics, the autoencoder's latents of every frame), with the same kind of budget

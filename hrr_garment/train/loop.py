@@ -72,7 +72,8 @@ class TrainingRun:
         return self.spent + time.perf_counter() - self.started
 
     def progress(self, epoch: float) -> float:
-        """How far the run is at ``epoch`` (fractional within one), 0 to 1 (:func:`~.schedule.run_progress`)."""
+        """How far the run is at ``epoch`` (fractional within one), 0 to 1
+        (:func:`~.schedule.run_progress`)."""
         return run_progress(epoch, self.budget.epochs, self.elapsed_s, max_minutes=self.budget.max_minutes)
 
     def stop_reason(self) -> str | None:

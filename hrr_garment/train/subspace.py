@@ -8,9 +8,10 @@
    variance, so it is the squared vertex error within the subspace), Adam with a cosine schedule,
    ``epochs`` passes, the best validation epoch kept; checkpointed each epoch in ``MODEL/subspace/``.
 3. On the validation sequences, the full decoder's error against the simulation and the fast
-   decoder's at each candidate size: the fewest components whose error is at most ``tolerance``
-   times the full decoder's are kept (else the fewest within 1 % of the most accurate), recorded in bundle.json ``subspace``
-   beside every candidate's number, and the weights join the bundle as ``subspace.safetensors``.
+   decoder's at each candidate size (:mod:`.subspace_size`): the fewest components whose error is at most
+   ``tolerance`` times the full decoder's are kept (else the fewest within 1 % of the most accurate), recorded
+   in bundle.json ``subspace`` beside every candidate's number, and the weights join the bundle as
+   ``subspace.safetensors``.
 """
 
 from __future__ import annotations
@@ -37,9 +38,9 @@ from .bundle_stage import bundle_and_dataset
 from .checkpoint import Checkpoint, EpochLog
 from .loop import Budget, Epoch, EpochStep, ProgressBar, TrainingRun, fit
 from .report import StageReport
+from .subspace_size import pick_components, validation_errors
 from .training_frames import body_frames
 
-CANDIDATES = (16, 32, 64, 96, 128, 192, 256, 384, 512)  # component counts tried, up to max_components
 STAGE_VERSION = (
     2  # moves when the stage would give another result from the same inputs (2: the size's fallback)
 )
@@ -72,7 +73,8 @@ class SubspaceTrainSettings:
 
 @torch.no_grad()
 def _decode(decoder, latents: np.ndarray, batch: int = 256) -> np.ndarray:
-    """(F, N, C) latents -> (F, V, 3) vertices through ``decoder`` (either kind), ``batch`` frames at a time."""
+    """(F, N, C) latents -> (F, V, 3) vertices through ``decoder`` (either kind), ``batch`` frames at a
+    time."""
     return np.concatenate(
         [
             decoder(torch.from_numpy(np.ascontiguousarray(latents[i : i + batch]))).numpy()
@@ -152,7 +154,8 @@ def _fit(
     key: str,
     progress: bool,
 ) -> dict:
-    """Train ``model.net`` on standardised (inputs, targets); the best validation epoch's weights are left in it."""
+    """Train ``model.net`` on standardised (inputs, targets); the best validation epoch's weights are left in
+    it."""
     folder.mkdir(parents=True, exist_ok=True)
     torch.manual_seed(config.seed)
     optimizer = torch.optim.Adam(model.net.parameters(), lr=config.learning_rate)
@@ -167,47 +170,6 @@ def _fit(
             EpochLog(folder / "log.jsonl"),
             ProgressBar("subspace", progress),
         ],
-    )
-
-
-@torch.no_grad()
-def validation_errors(
-    model: SubspaceDecoder, latents: np.ndarray, truth: np.ndarray, batch: int = 256
-) -> dict[int, float]:
-    """Mean per-vertex error (mm) against ``truth`` of the first K components, for each candidate K:
-    the network runs once a frame, each size keeping a prefix of its coefficients."""
-    sizes = [c for c in CANDIDATES if c < model.components] + [model.components]
-    totals = dict.fromkeys(sizes, 0.0)
-    for i in range(0, len(latents), batch):
-        coefficients = model.coefficients(torch.from_numpy(np.ascontiguousarray(latents[i : i + batch])))
-        for k in sizes:
-            pred = model.vertices(coefficients[:, :k]).numpy()
-            totals[k] += float(np.linalg.norm(pred - truth[i : i + batch], axis=-1).sum())
-    return {k: 1000.0 * total / (truth.shape[0] * truth.shape[1]) for k, total in totals.items()}
-
-
-def pick_components(errors: dict[int, float], full_mm: float, tolerance: float) -> int:
-    """The fewest components whose error is at most ``tolerance`` x ``full_mm``; where none is,
-    the fewest within 1 % of the most accurate (more components would cost more for nothing)."""
-    bound = (
-        tolerance * full_mm if min(errors.values()) <= tolerance * full_mm else 1.01 * min(errors.values())
-    )
-    return min(k for k, e in errors.items() if e <= bound)
-
-
-FAR_FROM_FULL = 1.5  # a fast decoder above this x the full decoder's validation error is worth a warning
-
-
-def subspace_warning(entry: dict) -> str | None:
-    """A warning where the distilled decoder kept (bundle.json ``subspace``) is far from the full
-    one on validation (too few training frames, for one), else None."""
-    ratio = entry["validation_mm"] / max(entry["full_validation_mm"], 1e-9)
-    if ratio <= FAR_FROM_FULL:
-        return None
-    return (
-        f"the fast decoder's validation error is {entry['validation_mm']:.2f} mm, {ratio:.1f} x the full decoder's "
-        f"{entry['full_validation_mm']:.2f} mm: run this model with decoder='full' (more training frames, or "
-        "subspace.model.hidden, bring it closer)"
     )
 
 

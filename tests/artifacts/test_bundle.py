@@ -11,7 +11,7 @@ from tests.conftest import synthetic_dataset, write_meta
 def test_corrupt_bundle_and_wrong_garment_are_explained(trained, tmp_path):
     import shutil
 
-    from hrr_garment.artifacts.bundle import BundleError, load_bundle
+    from hrr_garment.artifacts.bundle_loader import BundleError, load_bundle
     from hrr_garment.data.dataset import DatasetError
     from hrr_garment.garment.templates import make_garment
     from hrr_garment.train.calibrate import evaluate_bundle
@@ -34,7 +34,7 @@ def test_corrupt_bundle_and_wrong_garment_are_explained(trained, tmp_path):
 def test_a_bundle_written_before_the_expected_code_regresses_from_the_argmax(trained, tmp_path):
     import shutil
 
-    from hrr_garment.artifacts.bundle import load_bundle
+    from hrr_garment.artifacts.bundle_loader import load_bundle
 
     root, _, _ = trained
     assert load_bundle(root / "model").codespace.config.regression_code == "expected"  # the default now

@@ -20,10 +20,11 @@ def _walk():
 
 
 def test_a_version_2_bundle_loads_and_animates_as_31b4ef9_did(tmp_path, monkeypatch):
-    """The detail mode as 31b4ef9 ran it, before its folds were strain-limited and followed in time, and before the push-out's
-    strain limit had its slack and its Gauss-Seidel passes (and the causal residual before only its departure was
-    inertialized): the same vertices on the frames the limit left, on the others within its repair; with the limits,
-    the same frames with no edge past them (tests/inference/test_detail.py and test_collision.py test the limits themselves)."""
+    """The detail mode as 31b4ef9 ran it, before its folds were strain-limited and followed in time, and
+    before the push-out's strain limit had its slack and its Gauss-Seidel passes (and the causal residual
+    before only its departure was inertialized): the same vertices on the frames the limit left, on the others
+    within its repair; with the limits, the same frames with no edge past them (tests/inference/test_detail.py
+    and test_collision.py test the limits themselves)."""
     import dataclasses
 
     from hrr_garment.inference import blending, collision, detail, fold_track

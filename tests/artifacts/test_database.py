@@ -11,7 +11,7 @@ import pytest
 import torch
 from safetensors.numpy import load_file
 
-from hrr_garment.artifacts.bundle import load_bundle
+from hrr_garment.artifacts.bundle_loader import load_bundle
 from hrr_garment.artifacts.bundle_writer import add_bundle_part
 from hrr_garment.artifacts.database import CodeDatabase
 from hrr_garment.data.windows import WindowFrames, WindowSet, build_windows
@@ -183,7 +183,8 @@ def test_everything_before_a_database_runs_without_faiss():
         "import hrr_garment.cli.train, hrr_garment.train.autoencoder, hrr_garment.inference.animator\n"
         "from hrr_garment.artifacts.database import CodeDatabase\n"
         "try:\n"
-        "    CodeDatabase(np.zeros((2, 3), np.uint8), np.zeros((2, 4, 3, 2), np.float32), np.zeros(2, np.int32),\n"
+        "    CodeDatabase(np.zeros((2, 3), np.uint8), np.zeros((2, 4, 3, 2), np.float32), "
+        "np.zeros(2, np.int32),\n"
         "                 np.zeros(2, np.int32), ['a'], 4)\n"
         "except ImportError as exc:\n"
         "    print(exc)\n"

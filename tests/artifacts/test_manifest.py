@@ -111,7 +111,7 @@ TAMPERS = {  # name: (edit of bundle.json's dict, or of the folder and dict; the
 def test_a_tampered_bundle_is_refused(trained, tmp_path, case):
     import shutil
 
-    from hrr_garment.artifacts.bundle import BundleError, load_bundle
+    from hrr_garment.artifacts.bundle_loader import BundleError, load_bundle
     from hrr_garment.artifacts.manifest import manifest_hash
 
     root, _, _ = trained
@@ -131,7 +131,7 @@ def test_a_tampered_bundle_is_refused(trained, tmp_path, case):
 def test_bundle_json_that_is_not_an_object_or_not_text_is_refused(trained, tmp_path):
     import shutil
 
-    from hrr_garment.artifacts.bundle import BundleError, load_bundle
+    from hrr_garment.artifacts.bundle_loader import BundleError, load_bundle
 
     root, _, _ = trained
     copy = tmp_path / "model"

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from hrr_garment.artifacts.bundle import load_bundle
+from hrr_garment.artifacts.bundle_loader import load_bundle
 from hrr_garment.artifacts.manifest import BundleError, manifest_hash
 from hrr_garment.artifacts.typed_manifest import read_manifest, update_manifest
 

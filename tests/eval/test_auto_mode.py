@@ -28,7 +28,8 @@ from hrr_garment.eval.auto_criterion import (
     swing_label,
     swing_of,
 )
-from hrr_garment.eval.auto_mode import calibrate_auto_mode, free_cloth, lacks_default_body, swing_unmeasured
+from hrr_garment.eval.auto_mode import calibrate_auto_mode, free_cloth
+from hrr_garment.eval.auto_outdated import lacks_default_body, swing_unmeasured
 from hrr_garment.motion.synth import synthesize
 from hrr_garment.settings import SettingsError
 
@@ -308,7 +309,8 @@ def test_hrr_train_calibrates_auto_and_it_agrees_with_the_evaluation(trained):
         / sum(len(a.vertices) for a in inside)
     )
     assert again["candidates"]["hybrid"]["penetration_pct"] == pytest.approx(expected)
-    # with a residual weight the detail mode is measured on both bases at every strength, each as the mode runs it
+    # with a residual weight the detail mode is measured on both bases at every strength, each as the mode
+    # runs it
     bundle = animator.bundle
     bundle.manifest = replace(bundle.manifest, residual=replace(bundle.manifest.residual, weight=0.7))
     both = calibrate_auto_mode(animator, records[:1], progress=False)
@@ -418,7 +420,9 @@ def test_a_calibration_recorded_before_is_made_again(trained, tmp_path, before):
             k: {m: v for m, v in c.items() if m != "penetration_pct"} for k, c in auto["candidates"].items()
         }
         update_manifest(tmp_path / "model", auto=AutoCalibration.parse({**auto, "candidates": old}))
-    else:  # numbers of another detail mode (here: made up), recorded without the following (or the folds' ramps)
+    else:
+        # numbers of another detail mode (here: made up), recorded without the following (or the folds'
+        # ramps)
         old = {k: {**c, "pve_mm": 999.0} for k, c in auto["candidates"].items()}
         update_manifest(
             tmp_path / "model",

@@ -43,8 +43,8 @@ def test_each_holdout_is_pooled_as_the_split_is_and_names_its_worst_clip():
     table = "\n".join(markdown_holdouts(section))
     style = section["by_holdout"]["style"]["auto"]["pve_floor_ratio"]
     assert (
-        f"| held-out contents | auto | 2 | 100 | {content['pve_floor_ratio']:.2f} | {content['pve_floor_ratio'] / style:.3f} |"
-        in table
+        f"| held-out contents | auto | 2 | 100 | {content['pve_floor_ratio']:.2f} | "
+        f"{content['pve_floor_ratio'] / style:.3f} |" in table
     )
 
 

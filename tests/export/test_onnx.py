@@ -63,8 +63,9 @@ def test_the_graphs_push_out_limits_the_strain_as_the_library_does(exported):
 
     from hrr_garment.body.capsules import DEFAULT_BODY
     from hrr_garment.export.onnx_model import stream_step
-    from hrr_garment.inference.collision import limit_push_strain, push_out
+    from hrr_garment.inference.collision import push_out
     from hrr_garment.inference.frame_path import FramePath
+    from hrr_garment.inference.strain_limit import limit_push_strain
     from hrr_garment.motion.frame import world_vertices
 
     animator, _, clip = exported

@@ -50,7 +50,8 @@ def test_push_out_moves_vertices_outside_without_spikes():
 
 def test_a_push_that_would_tear_the_cloth_is_undone_as_far_as_it_tears():
     from hrr_garment.garment.templates import make_garment
-    from hrr_garment.inference.collision import MAX_PUSH_STRAIN, EdgeLimits, limit_push_strain
+    from hrr_garment.inference.edge_limits import EdgeLimits
+    from hrr_garment.inference.strain_limit import MAX_PUSH_STRAIN, limit_push_strain
     from hrr_garment.sim.quality import edge_strain
 
     skirt = make_garment("skirt", 300)

@@ -332,7 +332,7 @@ def test_a_bundle_before_the_folds_says_how_to_add_them_and_hrr_train_does(train
 def test_a_damaged_fold_store_is_refused(trained, tmp_path):
     import shutil
 
-    from hrr_garment.artifacts.bundle import BundleError, load_bundle
+    from hrr_garment.artifacts.bundle_loader import BundleError, load_bundle
     from hrr_garment.artifacts.bundle_writer import add_bundle_part
     from hrr_garment.artifacts.manifest import FOLDS_FILE
 

@@ -87,7 +87,7 @@ def test_stream_with_a_match_gate_equals_offline_causal(animator, gate):
 def test_a_bundle_before_the_match_gates_runs_the_entropy_and_says_what_is_missing(trained, tmp_path):
     import shutil
 
-    from hrr_garment.artifacts.bundle import BundleError, load_bundle
+    from hrr_garment.artifacts.bundle_loader import BundleError, load_bundle
     from hrr_garment.artifacts.manifest import content_hash
 
     root, _, _ = trained

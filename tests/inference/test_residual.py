@@ -112,7 +112,7 @@ def test_stream_in_the_residual_mode_equals_offline_causal(animator, monkeypatch
 def test_a_bundle_before_the_residual_mode_says_how_to_calibrate_it_and_hrr_train_does(
     trained, tmp_path, capsys
 ):
-    from hrr_garment.artifacts.bundle import BundleError, load_bundle
+    from hrr_garment.artifacts.bundle_loader import BundleError, load_bundle
     from hrr_garment.cli.train import main as train_main
     from hrr_garment.inference.animator import Animator
 
@@ -207,7 +207,7 @@ def test_the_residual_on_free_cloth_keeps_the_regression_where_the_cloth_lies_on
 def test_a_free_cloth_ramp_in_bundle_json_is_checked(trained, tmp_path):
     import shutil
 
-    from hrr_garment.artifacts.bundle import BundleError, load_bundle
+    from hrr_garment.artifacts.bundle_loader import BundleError, load_bundle
 
     root, _, _ = trained
     shutil.copytree(root / "model", tmp_path / "model")

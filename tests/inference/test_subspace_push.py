@@ -159,13 +159,14 @@ def test_the_report_counts_the_cloth_inside_as_decoded_before_the_subspace_push(
 
 
 def _torch_stage_case():
-    """The subspace push's torch stage (torch_push_out.SubspacePushStage) on a squeezed skirt, its
+    """The subspace push's torch stage (torch_subspace_push.SubspacePushStage) on a squeezed skirt, its
     inputs relative to the pelvis as the step gives them, the pelvis, and the numpy reference's result."""
     import torch
 
     from hrr_garment.body.capsules import DEFAULT_BODY
     from hrr_garment.inference.subspace_push import SubspacePush
-    from hrr_garment.inference.torch_push_out import PushOutStage, SubspacePushStage
+    from hrr_garment.inference.torch_push_out import PushOutStage
+    from hrr_garment.inference.torch_subspace_push import SubspacePushStage
     from hrr_garment.motion.frame import body_heading
 
     skirt, basis = _skirt_and_basis()
@@ -197,7 +198,7 @@ def _torch_stage_case():
 
 
 def test_the_torch_stage_moves_as_the_reference_does():
-    """The subspace push as a GPU crowd runs it (torch_push_out.SubspacePushStage: every vertex's
+    """The subspace push as a GPU crowd runs it (torch_subspace_push.SubspacePushStage: every vertex's
     row weighted, one batched solve, float32) against the numpy reference (the rows near the body,
     frame by frame, float64)."""
     import torch

@@ -7,7 +7,7 @@ import torch
 
 from hrr_garment.models.subspace import SubspaceDecoder, SubspaceSettings, principal_components
 from hrr_garment.settings import SettingsError
-from hrr_garment.train.subspace import pick_components, subspace_warning
+from hrr_garment.train.subspace_size import pick_components, subspace_warning
 
 
 def test_principal_components_recover_a_planted_subspace(rng):

@@ -79,7 +79,8 @@ def test_the_push_limits_each_frame_as_the_strain_limit_does_after_it():
     edge gives (within the float32 rounding of the pushed frames it then starts from), the same torn
     frames, and the same bits batched or a frame at a time."""
     from hrr_garment.body.capsules import DEFAULT_BODY
-    from hrr_garment.inference.collision import PUSH_OUT, EdgeLimits, _native_limit, mean_operator
+    from hrr_garment.inference.collision import PUSH_OUT, EdgeLimits, mean_operator
+    from hrr_garment.inference.strain_limit import native_strain_limit
     from hrr_garment.native import load_kernel
     from hrr_garment.native.body import PushSteps, limit_strain, push_out_frames
 
@@ -97,7 +98,7 @@ def test_the_push_limits_each_frame_as_the_strain_limit_does_after_it():
     steps = PushSteps(
         mean_operator(skirt.faces, len(skirt.vertices)), 0.002, 4, 1, 0.005, limits.push_mesh(PUSH_OUT)
     )
-    strain = _native_limit(limits, PUSH_OUT.max_strain, PUSH_OUT.stretch_slack)
+    strain = native_strain_limit(limits, PUSH_OUT.max_strain, PUSH_OUT.stretch_slack)
     pushed, before, after, untouched = push_out_frames(
         lib, squeezed, (a, b, DEFAULT_BODY.radii), steps, threads=2
     )
@@ -124,11 +125,11 @@ def test_the_native_strain_limit_matches_the_numpy_reference():
     colours and per-frame stop (the kernel measures only edges whose ends moved: the same result);
     both end with every edge within its limit."""
     from hrr_garment.garment.templates import make_garment
-    from hrr_garment.inference.collision import (
+    from hrr_garment.inference.edge_limits import EdgeLimits
+    from hrr_garment.inference.strain_limit import (
         LIMIT_TOLERANCE_M,
         MAX_PUSH_STRAIN,
         OVER_RELAXATION,
-        EdgeLimits,
         _limit_frames,
     )
     from hrr_garment.native import load_kernel

@@ -232,7 +232,8 @@ def test_hrr_animate_on_a_body_file(bodies_model, tmp_path, capsys):
 
 
 def test_hrr_body_info_says_whether_a_body_is_within_a_models_range(bodies_model, tmp_path, capsys):
-    """The check before simulating a held-out body: within the range exits 0, outside 1 naming the measures."""
+    """The check before simulating a held-out body: within the range exits 0, outside 1 naming the
+    measures."""
     from hrr_garment.cli.body import main
 
     folder, data = bodies_model

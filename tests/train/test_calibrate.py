@@ -7,12 +7,14 @@ import numpy as np
 import pytest
 
 from hrr_garment.artifacts.gate_signals import GATE_SIGNALS
-from hrr_garment.train.calibrate import ModeErrors, choose_residual_weight, sweep_tau
+from hrr_garment.train.calibrate import ModeErrors
+from hrr_garment.train.residual_calibration import choose_residual_weight
+from hrr_garment.train.tau_sweep import sweep_tau
 
 
 def test_calibration_on_a_window_sample_is_the_sample_of_the_full_errors(trained):
     """max_windows keeps evenly spaced windows: their errors are exactly those windows' full errors."""
-    from hrr_garment.artifacts.bundle import load_bundle
+    from hrr_garment.artifacts.bundle_loader import load_bundle
     from hrr_garment.data.dataset import GarmentDataset
     from hrr_garment.data.windows import dataset_features
     from hrr_garment.train.calibrate import window_mode_errors

@@ -20,7 +20,7 @@ def test_curriculum_switches_once_when_the_loss_plateaus():
 def test_the_paper_protocol_validates_on_a_tenth_of_the_training_clips_windows(trained, paper_model):
     """hrr-train --validation windows: the training and validation clips' windows split 9:1, the
     database holds the nine tenths, tau is calibrated on the tenth, and the bundle says so."""
-    from hrr_garment.artifacts.bundle import load_bundle
+    from hrr_garment.artifacts.bundle_loader import load_bundle
     from hrr_garment.cli.train import main as train_main
     from hrr_garment.data.dataset import GarmentDataset
 
@@ -45,7 +45,7 @@ def test_the_paper_protocol_validates_on_a_tenth_of_the_training_clips_windows(t
 
 
 def test_hrr_train_writes_a_bundle_that_reproduces_its_validation_numbers(trained):
-    from hrr_garment.artifacts.bundle import load_bundle
+    from hrr_garment.artifacts.bundle_loader import load_bundle
     from hrr_garment.train.calibrate import evaluate_bundle
 
     root, data, _ = trained
@@ -127,7 +127,7 @@ def test_a_new_encoding_retrains_the_code_space(trained, tmp_path):
     the bundle's database) trained on the old latents must not be reused."""
     import shutil
 
-    from hrr_garment.artifacts.bundle import load_bundle
+    from hrr_garment.artifacts.bundle_loader import load_bundle
     from hrr_garment.cli.train import main as train_main
     from hrr_garment.train.calibrate import evaluate_bundle
 

@@ -29,7 +29,7 @@ def test_the_differentiable_capsule_distance_is_the_exact_one(rng):
 @pytest.fixture(scope="module")
 def tiny_windows(trained):
     """The tiny trained model's training and validation windows, with their frames' bodies."""
-    from hrr_garment.artifacts.bundle import load_bundle
+    from hrr_garment.artifacts.bundle_loader import load_bundle
     from hrr_garment.data.dataset import GarmentDataset
     from hrr_garment.train.contact import model_contact_windows
 

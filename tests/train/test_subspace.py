@@ -12,7 +12,7 @@ from hrr_garment.motion.synth import synthesize
 
 
 def test_the_fast_decoder_is_distilled_from_the_full_one(trained):
-    from hrr_garment.artifacts.bundle import load_bundle
+    from hrr_garment.artifacts.bundle_loader import load_bundle
     from hrr_garment.data.dataset import GarmentDataset
 
     root, data, _ = trained
@@ -69,7 +69,7 @@ def test_runs_take_the_fast_decoder_and_record_it(trained, tmp_path):
 
 
 def test_a_bundle_without_a_fast_decoder_refuses_it_by_name(trained, tmp_path):
-    from hrr_garment.artifacts.bundle import BundleError, load_bundle
+    from hrr_garment.artifacts.bundle_loader import BundleError, load_bundle
     from hrr_garment.artifacts.manifest import content_hash
     from hrr_garment.inference.animator import Animator
     from tests.conftest import write_meta

@@ -14,7 +14,8 @@ Bodies: ``scaled`` (the mannequin's bones and capsules 0.9-1.1 x, as ``bench_inf
 bodies extra), or body files (body.json or a character's GLB). Bodies outside the model's range are
 animated anyway, with the measures that are out listed in the report.
 
-    python tools/studies/bodies_inside.py --model hrr_work/models/dress-real-quick-bodies --bodies scaled anny --count 9
+    python tools/studies/bodies_inside.py --model hrr_work/models/dress-real-quick-bodies \\
+        --bodies scaled anny --count 9
     python tools/studies/bodies_inside.py --model DIR --bodies hero.json villain.glb --motion clip.bvh --json
 """
 

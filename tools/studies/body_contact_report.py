@@ -83,13 +83,15 @@ def main() -> None:
         print(json.dumps({"folders": groups, "total": total, "clips": rows}))
         return
     print(
-        "| folder | clips | frames | flagged, mannequin | flagged, performer body | bodies (stature m) | measures' RMS mm |"
+        "| folder | clips | frames | flagged, mannequin | flagged, performer body | bodies (stature m) | "
+        "measures' RMS mm |"
     )
     print("|---|---:|---:|---:|---:|---|---|")
     for name, g in [*groups.items(), ("total", total)]:
         print(
-            f"| {name} | {g['clips']} | {g['frames']} | {g['flagged_mannequin_pct']:.1f} % | {g['flagged_body_pct']:.1f} % | "
-            f"{', '.join(f'{s:.2f}' for s in g['body_statures_m'])} | {', '.join(f'{s:.1f}' for s in g['body_rms_mm'])} |"
+            f"| {name} | {g['clips']} | {g['frames']} | {g['flagged_mannequin_pct']:.1f} % | "
+            f"{g['flagged_body_pct']:.1f} % | {', '.join(f'{s:.2f}' for s in g['body_statures_m'])} | "
+            f"{', '.join(f'{s:.1f}' for s in g['body_rms_mm'])} |"
         )
 
 

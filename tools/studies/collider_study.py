@@ -156,7 +156,8 @@ def main() -> None:
     if args.json:
         args.json.write_text(json.dumps({"rows": rows, "summary": summary}, indent=1))
     print(
-        "| collider | runs | rejected | cloth inside the mesh, mean / worst frame | inside the capsules | strain p99 | solver s/frame |"
+        "| collider | runs | rejected | cloth inside the mesh, mean / worst frame | inside the capsules | "
+        "strain p99 | solver s/frame |"
     )
     print("|---|---:|---:|---:|---:|---:|---:|")
     for name, s in summary.items():
@@ -164,8 +165,9 @@ def main() -> None:
             print(f"| {name} | {s['runs']} | {s['rejected']} | - | - | - | - |")
             continue
         print(
-            f"| {name} | {s['runs']} | {s['rejected']} | {100 * s['inside_mesh_mean']:.2f} % / {100 * s['inside_mesh_max']:.1f} % | "
-            f"{100 * s['inside_capsules_mean']:.2f} % | {s['strain_p99']:.3f} | {1000 * s['seconds_per_frame']:.1f} ms |"
+            f"| {name} | {s['runs']} | {s['rejected']} | {100 * s['inside_mesh_mean']:.2f} % / "
+            f"{100 * s['inside_mesh_max']:.1f} % | {100 * s['inside_capsules_mean']:.2f} % | "
+            f"{s['strain_p99']:.3f} | {1000 * s['seconds_per_frame']:.1f} ms |"
         )
 
 

@@ -5,9 +5,10 @@ then its regression animated (push-out off) on another dataset's test clips, aga
         --eval-dataset hrr_work/datasets/dress-real-quick-short-heavy.h5 --weights 0,0.5,1,2 --steps 300
     python tools/studies/contact_sweep.py --model M --eval-dataset D --weights 2 --margins 0.002,0.006,0.01
 
-The latent loss beside the body term is the vertex metric (the real-motion presets'). Prints, per weight, the PVE (mm, against each clip's single simulation) and the share of vertices
-more than 5 mm inside the clip's body before the push-out (docs/decisions/0020-contact-phase.md).
-The model on disk is not changed: each weight starts from its trained decoder.
+The latent loss beside the body term is the vertex metric (the real-motion presets'). Prints, per weight, the
+PVE (mm, against each clip's single simulation) and the share of vertices more than 5 mm inside the clip's
+body before the push-out (docs/decisions/0020-contact-phase.md). The model on disk is not changed: each weight
+starts from its trained decoder.
 """
 
 from __future__ import annotations
@@ -20,7 +21,7 @@ import numpy as np
 
 
 def main() -> None:
-    from hrr_garment.artifacts.bundle import load_bundle
+    from hrr_garment.artifacts.bundle_loader import load_bundle
     from hrr_garment.data.dataset import GarmentDataset
     from hrr_garment.eval.unseen_bodies import evenly
     from hrr_garment.inference.animator import Animator
@@ -42,7 +43,8 @@ def main() -> None:
     evaluation = GarmentDataset(args.eval_dataset)
     records = [evaluation.sequence(n) for n in evenly(evaluation.splits["test"], args.sequences)]
     print(
-        f"{args.model}: {len(train.windows)} training windows; {len(records)} test clips of {args.eval_dataset}"
+        f"{args.model}: {len(train.windows)} training windows; {len(records)} test clips of "
+        f"{args.eval_dataset}"
     )
     latents = train.windows.latents  # standardised; the latent loss is the real-motion presets' vertex metric
     raw = (
@@ -81,8 +83,9 @@ def main() -> None:
             )
             frames += len(vertices)
         print(
-            f"weight {weight:g}, margin {1000 * margin:g} mm, {args.steps} steps: PVE {errors / frames:.2f} mm, "
-            f"{100 * inside / frames:.2f} % of vertices > 5 mm inside before the push-out",
+            f"weight {weight:g}, margin {1000 * margin:g} mm, {args.steps} steps: "
+            f"PVE {errors / frames:.2f} mm, {100 * inside / frames:.2f} % of vertices > 5 mm inside before "
+            "the push-out",
             flush=True,
         )
 

@@ -6,14 +6,15 @@ the matches forward (the fold track). This tool measures, on held-out clips of a
 (offline, no push-out, against each clip's single simulation), the mode as shipped and variants of
 its settings: the folds' strength, the track's hold and fade, no track at all (each frame's own
 proposal), the folds' following in time (:func:`~hrr_garment.inference.fold_track.follow_folds`: 1 is
-none), the default output itself offline and causal (``auto``, as a game streams it), and a swing gain (the regression's body-frame departure from the training frames' mean
-shape, or from its own causal running mean, scaled up: the hem swing the mean lacks, at a price in
-PVE).
+none), the default output itself offline and causal (``auto``, as a game streams it), and a swing gain (the
+regression's body-frame departure from the training frames' mean shape, or from its own causal running mean,
+scaled up: the hem swing the mean lacks, at a price in PVE).
 
 Sharpness is the bending energy over the truth's, hem swing the hem's amplitude over the truth's,
 jitter the mean distance between predicted and true accelerations (docs/evaluation.md, Metrics).
 
-    python tools/studies/detail_analysis.py --model hrr_work/models/dress-real-quick --split test --sequences 12
+    python tools/studies/detail_analysis.py --model hrr_work/models/dress-real-quick \\
+        --split test --sequences 12
 """
 
 from __future__ import annotations
@@ -203,8 +204,8 @@ def main() -> None:
     print(f"{'':52s} {'PVE mm':>8s} {'x reg':>6s} {'sharp':>6s} {'hem':>6s} {'jitter':>7s}")
     for key, r in result["modes"].items():
         print(
-            f"{key:52s} {r['pve_mm']:8.2f} {r['pve_vs_regression']:6.3f} {r['sharpness']:6.2f} {r['hem_swing']:6.2f} "
-            f"{r['jitter_mm']:7.2f}"
+            f"{key:52s} {r['pve_mm']:8.2f} {r['pve_vs_regression']:6.3f} {r['sharpness']:6.2f} "
+            f"{r['hem_swing']:6.2f} {r['jitter_mm']:7.2f}"
         )
 
 

@@ -60,9 +60,10 @@ def main() -> None:
             )
         a = np.array(rows)
         print(
-            f"limit {text.strip()}: PVE {a[:, 0].mean():.2f} mm, strain p99 {a[:, 1].mean():.3f} (truth {a[:, 3].mean():.3f}), "
-            f"max {a[:, 2].max():.2f} (truth {a[:, 4].max():.2f}), bending energy ratio {a[:, 5].mean():.2f}, "
-            f"acceleration ratio {a[:, 6].mean():.2f} ({time.perf_counter() - started:.0f} s)",
+            f"limit {text.strip()}: PVE {a[:, 0].mean():.2f} mm, strain p99 {a[:, 1].mean():.3f} (truth "
+            f"{a[:, 3].mean():.3f}), max {a[:, 2].max():.2f} (truth {a[:, 4].max():.2f}), bending energy "
+            f"ratio {a[:, 5].mean():.2f}, acceleration ratio {a[:, 6].mean():.2f} "
+            f"({time.perf_counter() - started:.0f} s)",
             flush=True,
         )
 

@@ -23,11 +23,11 @@ import json
 import numpy as np
 import torch
 
-from hrr_garment.artifacts.bundle import load_bundle
+from hrr_garment.artifacts.bundle_loader import load_bundle
 from hrr_garment.data.dataset import GarmentDataset
 from hrr_garment.data.windows import dataset_features
 from hrr_garment.motion.windows import sequence_windows
-from hrr_garment.train.calibrate import predict_windows, window_errors_mm
+from hrr_garment.train.calibration_windows import predict_windows, window_errors_mm
 from hrr_garment.train.training_frames import body_frames
 
 
@@ -86,12 +86,13 @@ def main(argv: list[str] | None = None) -> None:
         print(json.dumps(r))
         return
     print(
-        f"{r['model']} {r['split']}: {r['windows']} windows; regression {r['regression_mm']:.2f} mm, retrieval "
-        f"{r['retrieval_mm']:.2f} mm, naive NN {r['naive_nn_mm']:.2f} mm"
+        f"{r['model']} {r['split']}: {r['windows']} windows; regression {r['regression_mm']:.2f} mm, "
+        f"retrieval {r['retrieval_mm']:.2f} mm, naive NN {r['naive_nn_mm']:.2f} mm"
     )
     print(
         f"oracle hybrid (better candidate per window) {r['oracle_hybrid_mm']:.2f} mm = "
-        f"{r['oracle_hybrid_mm'] / r['regression_mm']:.3f} x regression; with naive NN {r['oracle_hybrid_naive_mm']:.2f} mm"
+        f"{r['oracle_hybrid_mm'] / r['regression_mm']:.3f} x regression; with naive NN "
+        f"{r['oracle_hybrid_naive_mm']:.2f} mm"
     )
     corr = ", ".join(
         f"{k.split('_low_')[1].removesuffix('_doubt')} {v:+.3f}"
@@ -99,8 +100,8 @@ def main(argv: list[str] | None = None) -> None:
         if k.startswith("corr_")
     )
     print(
-        f"retrieval better in {100 * r['retrieval_better_fraction']:.1f} % of windows; correlation of its advantage "
-        f"with each gate's confidence (low doubt): {corr}"
+        f"retrieval better in {100 * r['retrieval_better_fraction']:.1f} % of windows; correlation of its "
+        f"advantage with each gate's confidence (low doubt): {corr}"
     )
 
 

@@ -86,7 +86,8 @@ def analyse(
     ``subspace_push``: each also after the push in the fast decoder's subspace."""
     from hrr_garment.data.dataset import GarmentDataset
     from hrr_garment.inference.animator import Animator
-    from hrr_garment.inference.collision import limit_push_strain, push_out
+    from hrr_garment.inference.collision import push_out
+    from hrr_garment.inference.strain_limit import limit_push_strain
     from hrr_garment.sim.quality import body_signed_distance, edge_strain
 
     animator = Animator.load(model)
@@ -233,7 +234,8 @@ def main() -> None:
         print(json.dumps(report))
         return
     print(
-        f"{args.model} on {len(report['sequences'])} {args.split} clips of {args.dataset} (default mode, offline):"
+        f"{args.model} on {len(report['sequences'])} {args.split} clips of {args.dataset} "
+        "(default mode, offline):"
     )
     for label, row in report["rows"].items():
         print(f"  {label}: " + ", ".join(f"{k} {v}" for k, v in row.items()))

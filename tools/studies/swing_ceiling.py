@@ -99,9 +99,8 @@ def analyse(model: str, split: str, sequences: int | None, members: int) -> dict
         M.MeshTopology.of(template.faces, template.num_vertices),
     )
     hem = hem_vertices(template)
-    sums = np.zeros(
-        8
-    )  # frames x: floor, PVE of the mean; bending of the mean, of the members; swing ditto; sqrt V_c, sqrt var_1
+    # frames x: floor, PVE of the mean; bending of the mean, of the members; swing ditto; sqrt V_c, sqrt var_1
+    sums = np.zeros(8)
     for record in records:
         if record.name not in ensembles:
             continue
@@ -153,13 +152,14 @@ def main() -> None:
     r = analyse(args.model, args.split, args.sequences, args.ensemble)
     print(f"{r['clips']} clips, {r['members']} members each, floor {r['floor_mm']:.2f} mm")
     print(
-        f"the members' mean: PVE / floor {r['mean_pve_over_floor']:.3f}, sharpness {r['mean_sharpness']:.2f}, "
-        f"hem swing {r['mean_hem_swing']:.2f}"
+        f"the members' mean: PVE / floor {r['mean_pve_over_floor']:.3f}, sharpness "
+        f"{r['mean_sharpness']:.2f}, hem swing {r['mean_hem_swing']:.2f}"
     )
     print(f"the conditional mean (infinitely many members): hem swing {r['conditional_mean_hem_swing']:.2f}")
     for k, c in r["reconstructions"].items():
         print(
-            f"{k + (' reconstruction' if k != 'regression' else ''):28s} PVE {c['pve_mm']:6.2f} mm, hem swing {c['hem_swing']:.2f}"
+            f"{k + (' reconstruction' if k != 'regression' else ''):28s} PVE {c['pve_mm']:6.2f} mm, "
+            f"hem swing {c['hem_swing']:.2f}"
         )
 
 
