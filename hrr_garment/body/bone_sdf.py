@@ -1,27 +1,32 @@
-"""A collider that follows the body the viewer sees: each joint's share of the skinned mesh as a signed
-distance grid in that joint's rest frame.
+"""A collider that follows the body the viewer sees: the skinned mesh's signed distance, as a grid in
+each joint's rest frame.
 
     collider = bone_sdf_collider(visible)                  # a SkinnedBody (:mod:`.skinned_body`)
     distance, normal = collider.query(points, motion.global_rotations[t], motion.joint_positions[t])
 
-Built once a body, from its rest mesh: for each joint, the faces it moves (a vertex weight of at least
-:attr:`BoneSDFSettings.min_weight`) are its share; a grid over the share's box in the joint's rest
-frame holds, at each node, the signed distance to the share (signed by the mesh's normal at the
-nearest point), its gradient, and the joint's skin weight at that nearest point. A posed point is
-taken into every joint's frame (``R_j^T (x - p_j)``, the motion's own rotations and positions: the
-rest frame is baked into the grid) and each grid is read trilinearly; the joints' answers are
-averaged, each weighted by its skin weight at its nearest point and by how near its share is
-(``exp(-(|d_j| - min |d|) / blend_m)``), so along a bone the bone's own grid answers alone and at a
-joint the neighbours' answers mix as linear blend skinning mixes their vertices. The normal is the
-same average of the grids' gradients, turned into the world.
+Built once a body, from its rest mesh: each joint's grid covers the box of its share of the skin (the
+vertices it moves by at least :attr:`BoneSDFSettings.min_weight`, padded) in its rest frame, and holds
+at each node the rest mesh's signed distance (signed by the mesh's normal at the nearest point), its
+gradient, and the joint's skin weight at that nearest point. A posed point is taken into every
+joint's frame (``R_j^T (x - p_j)``: the motion's own rotations and positions, the rest frame baked
+into the grid) and each grid is read trilinearly. The joints that carry the nearest skin they see
+answer, averaged by that skin weight and faded by how much farther their skin lies than the nearest
+answer's (:attr:`BoneSDFSettings.blend_m`): along a bone its own grid answers alone; at a joint the
+neighbours' answers mix as linear blend skinning mixes their vertices. The normal is the same average
+of the grids' gradients, turned into the world.
 
 How near it is meant to be (``tools/studies/visible_collider_study.py`` measures it on anny bodies
-and real motion): at the rest pose the exact signed distance to the mesh, within the grid's
-trilinear error (under a millimetre at 1 cm nodes on a limb); posed, within a few millimetres of the
-exact distance to the linear-blend-skinned mesh along the bones, and within about a centimetre
-across a sharply bent joint, where skinning folds the skin in ways no rigid grid follows. Points
-more than :attr:`BoneSDFSettings.padding_m` from the skin are only known to be at least that far
-(their distance grows from the grid's edge).
+and real motion; ``tests/body/test_bone_sdf.py`` on a limb bent 90 degrees):
+
+- at the rest pose, the exact signed distance within the grid's trilinear error: under a millimetre
+  on a smooth limb, a few at a sharp rim, a millimetre on average on anny's coarse mesh;
+- posed, within a few millimetres of the exact distance to the skinned mesh along the bones;
+- at a bent joint, errors of one to three centimetres: where skinning pulls the skin in at the
+  outside of a bend, and deep in the fold of a bend, where the grid of the limb bent away can
+  outvote the one the point is in (a point two centimetres or more inside can read as outside).
+
+Points more than :attr:`BoneSDFSettings.padding_m` from the skin are only known to be at least that
+far (their distance grows from the grid's edge).
 """
 
 from __future__ import annotations
@@ -34,7 +39,8 @@ from .mesh_distance import nearest_on_mesh, vertex_normals
 from .skinned_body import SkinnedBody
 
 CHANNELS = 5  # per node: signed distance, its gradient (x, y, z in the joint's frame), skin weight
-NEAREST_CANDIDATES = 16  # faces tried per node (by centroid): a body's faces are of like size
+NEAREST_CANDIDATES = 16
+OFF_SKIN_M = 1.0  # how far a joint's answer is set back where it carries none of the nearest skin  # faces tried per node (by centroid): a body's faces are of like size
 
 
 @dataclass(frozen=True)
@@ -50,8 +56,14 @@ class BoneSDFSettings:
     # a vertex belongs to a joint's share from this skin weight: lower takes in more of the
     # neighbours' skin (wider overlap at joints, larger grids)
     min_weight: float = 0.05
-    # how fast a joint's answer fades as its share lies farther than the nearest one's: small
-    # keeps a bent limb's far grid (which sees the limb where it would be unbent) out
+    # a joint answers for a point where its skin weight at the nearest skin is at least the
+    # second value, not at all under the first (a ramp between keeps the distance continuous)
+    owner_weight: tuple[float, float] = (0.05, 0.2)
+    # the joints that answer are averaged by skin weight, each faded by exp(-(|d| - min |d|) / blend_m):
+    # where they agree (the blended skin at a joint) as skinning averages the skin; where one finds
+    # the skin nearer (a limb bent across another) it wins. A signed soft minimum (the union) was
+    # tried: it goes deeper than the skin where skinning pulls the skin in (p95 error 12-16 mm
+    # against 8-11 mm on anny bodies in bent poses)
     blend_m: float = 0.01
 
 
@@ -79,11 +91,13 @@ class BoneSDFCollider:
         rot = np.asarray(global_rotations, np.float64)[self.joints]  # (B, 3, 3)
         local = np.einsum("bji,nbj->nbi", rot, points[:, None] - np.asarray(joint_positions)[self.joints])
         sample, beyond = self._sample(local)  # (N, B, CHANNELS), (N, B)
-        distance = sample[..., 0] + beyond
-        nearest = np.abs(distance).min(1, keepdims=True)
-        blend = (np.clip(sample[..., 4], 0.0, 1.0) + 1e-3) * np.exp(
-            -(np.abs(distance) - nearest) / self.settings.blend_m
-        )
+        distance, weight = sample[..., 0] + beyond, np.clip(sample[..., 4], 0.0, 1.0)
+        # a joint answers for a point where it carries the skin nearest to where it puts the point;
+        # the others (their grids see other parts where those stood at rest) are set back by
+        # OFF_SKIN_M, fading in over a ramp of skin weight so that the field stays continuous
+        low, high = self.settings.owner_weight
+        rank = np.abs(distance) + (1.0 - np.clip((weight - low) / (high - low), 0.0, 1.0)) * OFF_SKIN_M
+        blend = (weight + 1e-6) * np.exp(-(rank - rank.min(1, keepdims=True)) / self.settings.blend_m)
         blend /= blend.sum(1, keepdims=True)
         normal = np.einsum("nb,bij,nbj->ni", blend, rot, sample[..., 1:4])
         normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-12)
@@ -99,7 +113,9 @@ class BoneSDFCollider:
         beyond = np.linalg.norm(g - inside, axis=-1) * voxel
         base = np.minimum(np.floor(inside), np.maximum(top - 1.0, 0.0)).astype(np.int64)
         frac = inside - base
-        stride = np.stack([self.shape[:, 1] * self.shape[:, 2], self.shape[:, 2], np.ones_like(self.start)], 1)
+        stride = np.stack(
+            [self.shape[:, 1] * self.shape[:, 2], self.shape[:, 2], np.ones_like(self.start)], 1
+        )
         row = self.start + (base * stride).sum(-1)  # (N, B)
         out = np.zeros((*local.shape[:2], CHANNELS))
         for corner in range(8):
@@ -126,21 +142,28 @@ def bone_sdf_collider(body: SkinnedBody, settings: BoneSDFSettings | None = None
         shape = np.ceil((hi - lo) / settings.voxel_m).astype(np.int64) + 1
         axes = [lo[a] + settings.voxel_m * np.arange(shape[a]) for a in range(3)]
         nodes = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, 3)
-        grid = _grid_values(nodes @ rot.T + pos, (body, faces, normals), j, shape, settings.voxel_m)
+        grid = _grid_values(nodes @ rot.T + pos, (body, normals), j, shape, settings.voxel_m)
         joints.append(j), origins.append(lo), shapes.append(shape), starts.append(total), grids.append(grid)
         total += len(grid)
     if not joints:
         raise ValueError("a skinned body with no faces has no collider")
     return BoneSDFCollider(
-        np.array(joints), np.array(origins), np.array(shapes), np.array(starts), np.concatenate(grids), settings
+        np.array(joints),
+        np.array(origins),
+        np.array(shapes),
+        np.array(starts),
+        np.concatenate(grids),
+        settings,
     )
 
 
-def _grid_values(world: np.ndarray, share: tuple, joint: int, shape: np.ndarray, voxel: float) -> np.ndarray:
-    """(nodes, CHANNELS) of one joint's grid at its nodes' rest positions ``world`` (x-major)."""
-    body, faces, normals = share
-    distance, face, bary = nearest_on_mesh(world, body.vertices, faces, candidates=NEAREST_CANDIDATES)
-    corners = faces[face]  # (n, 3)
+def _grid_values(world: np.ndarray, mesh: tuple, joint: int, shape: np.ndarray, voxel: float) -> np.ndarray:
+    """(nodes, CHANNELS) of one joint's grid at its nodes' rest positions ``world`` (x-major): the
+    whole rest mesh's signed distance (by its normal at the nearest point) and the joint's weight
+    there."""
+    body, normals = mesh
+    distance, face, bary = nearest_on_mesh(world, body.vertices, body.faces, candidates=NEAREST_CANDIDATES)
+    corners = body.faces[face]  # (n, 3)
     closest = np.einsum("nk,nkc->nc", bary, body.vertices[corners])
     outward = np.einsum("nk,nkc->nc", bary, normals[corners])
     signed = np.where(((world - closest) * outward).sum(1) < 0.0, -distance, distance)

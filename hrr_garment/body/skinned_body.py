@@ -65,13 +65,17 @@ class SkinnedBody:
     ) -> tuple[np.ndarray, np.ndarray]:
         """Each joint's rigid move from the rest pose, ``x -> R x + t``: (T, J, 3, 3) and (T, J, 3)."""
         rot = np.asarray(global_rotations, np.float64) @ np.swapaxes(self.rest_rotations, -1, -2)
-        return rot, np.asarray(joint_positions, np.float64) - np.einsum("tjab,jb->tja", rot, self.rest_positions)
+        return rot, np.asarray(joint_positions, np.float64) - np.einsum(
+            "tjab,jb->tja", rot, self.rest_positions
+        )
 
     def pose(self, global_rotations: np.ndarray, joint_positions: np.ndarray) -> np.ndarray:
         """(T, V, 3) the skinned mesh for FK results (T, J, 3, 3) and (T, J, 3)."""
         rot, trans = self.joint_transforms(global_rotations, joint_positions)
         blended = np.einsum("vj,tjab->tvab", self.weights, rot)  # (T, V, 3, 3): linear, not rigid
-        return np.einsum("tvab,vb->tva", blended, self.vertices) + np.einsum("vj,tja->tva", self.weights, trans)
+        return np.einsum("tvab,vb->tva", blended, self.vertices) + np.einsum(
+            "vj,tja->tva", self.weights, trans
+        )
 
 
 def skinned_body(skeleton: Skeleton, rest, weights: np.ndarray) -> SkinnedBody:
@@ -79,10 +83,11 @@ def skinned_body(skeleton: Skeleton, rest, weights: np.ndarray) -> SkinnedBody:
     ``joints`` in the same pose: a :class:`~.parametric.RestMesh`, a :class:`~.character.Character`)
     with its (V, 22) canonical ``weights``, posed by the motions of ``skeleton`` (fitted to it)."""
     rot, pos = rest_frames(skeleton, rest.joints)
+    weights = np.asarray(weights, np.float64)  # stored as float32: summing to 1 again in float64
     return SkinnedBody(
         np.asarray(rest.vertices, np.float64),
         np.asarray(rest.faces, np.int64),
-        np.asarray(weights, np.float64),
+        weights / weights.sum(1, keepdims=True),
         rot,
         pos,
     )
