@@ -39,8 +39,11 @@ from .mesh_distance import nearest_on_mesh, vertex_normals
 from .skinned_body import SkinnedBody
 
 CHANNELS = 5  # per node: signed distance, its gradient (x, y, z in the joint's frame), skin weight
-NEAREST_CANDIDATES = 16
-OFF_SKIN_M = 1.0  # how far a joint's answer is set back where it carries none of the nearest skin  # faces tried per node (by centroid): a body's faces are of like size
+NEAREST_CANDIDATES = 16  # faces tried per node (by centroid): a body's faces are of like size
+# how far a joint's answer is set back where it carries none of the nearest skin: far enough that a
+# joint carrying it wins, near enough that a point no grid claims takes the nearest grid's answer
+# (anny bodies in bent poses: 1 m gave an error p99 of 37 mm and a max of 0.7 m; 0.1 m 32 mm, 74 mm)
+OFF_SKIN_M = 0.1
 
 
 @dataclass(frozen=True)
