@@ -20,10 +20,13 @@ and real motion; ``tests/body/test_bone_sdf.py`` on a limb bent 90 degrees):
 
 - at the rest pose, the exact signed distance within the grid's trilinear error: under a millimetre
   on a smooth limb, a few at a sharp rim, a millimetre on average on anny's coarse mesh;
-- posed, within a few millimetres of the exact distance to the skinned mesh along the bones;
-- at a bent joint, errors of one to three centimetres: where skinning pulls the skin in at the
-  outside of a bend, and deep in the fold of a bend, where the grid of the limb bent away can
-  outvote the one the point is in (a point two centimetres or more inside can read as outside).
+- posed, within a few millimetres of the exact distance to the skinned mesh along the bones (p95
+  4.3 mm on anny bodies in bent poses);
+- where the skin is blended across joints (most of anny's), not yet: a p95 of 2.5 cm, up to 8 cm.
+  Outside a bend skinning pulls the skin in past every joint's rigid grid, and deep in the fold of
+  a bend the grid of the limb bent away can outvote the one the point is in (on a limb bent 90
+  degrees, a point two centimetres inside can read as outside). docs/bodies.md has the numbers and
+  the step that would close it (inverse skinning).
 
 Points more than :attr:`BoneSDFSettings.padding_m` from the skin are only known to be at least that
 far (their distance grows from the grid's edge).
@@ -65,8 +68,8 @@ class BoneSDFSettings:
     # the joints that answer are averaged by skin weight, each faded by exp(-(|d| - min |d|) / blend_m):
     # where they agree (the blended skin at a joint) as skinning averages the skin; where one finds
     # the skin nearer (a limb bent across another) it wins. A signed soft minimum (the union) was
-    # tried: it goes deeper than the skin where skinning pulls the skin in (p95 error 12-16 mm
-    # against 8-11 mm on anny bodies in bent poses)
+    # tried: it goes deeper than the skin where skinning pulls the skin in (on the average anny body
+    # in bent poses, p95 error 31 mm against 18 mm, outside called inside 16 % against 10 %)
     blend_m: float = 0.01
 
 

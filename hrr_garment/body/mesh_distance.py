@@ -100,6 +100,20 @@ def mesh_signed_distance(points: np.ndarray, vertices: np.ndarray, faces: np.nda
     return np.where(winding_inside(points, vertices, faces), -distance, distance)
 
 
+def surface_samples(
+    vertices: np.ndarray, faces: np.ndarray, count: int, *, rng: np.random.Generator
+) -> tuple[np.ndarray, np.ndarray]:
+    """``count`` points spread evenly by area over the mesh: (count,) their faces and (count, 3)
+    barycentric coordinates."""
+    tri = np.asarray(vertices, np.float64)[np.asarray(faces, np.int64)]
+    area = np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+    face = rng.choice(len(tri), count, p=area / area.sum())
+    u, v = rng.random((2, count))
+    flip = u + v > 1.0
+    u[flip], v[flip] = 1.0 - u[flip], 1.0 - v[flip]
+    return face, np.stack([1.0 - u - v, u, v], 1)
+
+
 def vertex_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     """(V, 3) unit normals, each the area-weighted mean of its faces' (outward for a mesh wound
     counter-clockwise seen from outside)."""

@@ -47,16 +47,10 @@ def bent_frames(motion, count: int) -> list[int]:
 def surface_points(vertices: np.ndarray, faces: np.ndarray, weights: np.ndarray, count: int, seed: int):
     """``count`` points on the mesh by area, each moved along the normal by one of OFFSETS_M, with its
     offset and its largest skin weight (interpolated)."""
-    from hrr_garment.body.mesh_distance import vertex_normals
+    from hrr_garment.body.mesh_distance import surface_samples, vertex_normals
 
     rng = np.random.default_rng(seed)
-    tri = vertices[faces]
-    area = np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
-    face = rng.choice(len(faces), count, p=area / area.sum())
-    u, v = rng.random((2, count))
-    flip = u + v > 1.0
-    u[flip], v[flip] = 1.0 - u[flip], 1.0 - v[flip]
-    bary = np.stack([1.0 - u - v, u, v], 1)
+    face, bary = surface_samples(vertices, faces, count, rng=rng)
     corners = faces[face]
     normal = np.einsum("nk,nkc->nc", bary, vertex_normals(vertices, faces)[corners])
     normal /= np.linalg.norm(normal, axis=1, keepdims=True)
