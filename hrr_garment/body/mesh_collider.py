@@ -9,20 +9,19 @@ per vertex: exact along a bone, and where two pieces meet at a bending joint the
 inside of the bend and open a crack on the outside. It is what the simulator can move as kinematic
 rigid bodies (one newton mesh shape per capsule's body, :meth:`BodyMesh.pieces`), and the study that
 compares it with the capsules (``tools/studies/collider_study.py``, docs/bodies.md) measures both against
-it, the body the viewer sees.
+the body the viewer sees, the skinned mesh (:mod:`.skinned_body`).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import lru_cache
 
 import numpy as np
 
 from ..motion.rotations import rotation_between
-from ..motion.skeleton import JOINT_INDEX, PARENTS, forward_kinematics, global_to_local
+from ..motion.skeleton import JOINT_INDEX
 from .capsules import BodyModel, capsule_signed_distance
-from .fit import rest_pose_rotations
+from .skinned_body import rest_frames
 
 
 @dataclass(frozen=True)
@@ -75,37 +74,12 @@ class BodyMesh:
 def body_mesh(body: BodyModel, vertices: np.ndarray, faces: np.ndarray, joints: np.ndarray) -> BodyMesh:
     """``vertices`` (V, 3) and ``faces`` of a rest mesh with its canonical ``joints`` (22, 3) in the
     same pose (an A-pose is fine), cut into rigid pieces along ``body``'s capsules (fitted to it)."""
-    vertices, joints = np.asarray(vertices, np.float64), np.asarray(joints, np.float64)
-    rotations = rest_pose_rotations(body.skeleton, joints)
-    local = global_to_local(rotations[None], PARENTS)
-    g_rot, g_pos = forward_kinematics(
-        local, joints[None, 0], body.skeleton.offsets.astype(np.float64), parents=PARENTS
-    )
-    a, b = body.pose(g_rot, g_pos)
+    vertices = np.asarray(vertices, np.float64)
+    rot, pos = rest_frames(body.skeleton, joints)
+    a, b = body.pose(rot[None], pos[None])
     _, _, nearest = capsule_signed_distance(vertices, a[0], b[0], radii=body.radii)
     joint = np.array([JOINT_INDEX[body.capsules[c].joint] for c in nearest])
-    rot, pos = g_rot[0], g_pos[0]
     in_joint = np.einsum("vji,vj->vi", rot[joint], vertices - pos[joint])  # R^T (v - p)
     return BodyMesh(
         in_joint, np.asarray(faces, np.int64), joint, nearest, rest_rotations=rot, rest_positions=pos
     )
-
-
-def visible_body(record) -> BodyMesh | None:
-    """The mesh a viewer sees of a body (a :class:`~.body_file.BodyRecord`): its parametric shape's
-    rest mesh cut into rigid pieces along its capsules, or None where the body has no parametric
-    shape (the mannequin, a fitted character) or anny (the ``bodies`` extra) is not installed."""
-    if not record.shape:
-        return None
-    try:
-        return _visible_body(tuple(sorted(record.shape.items())), record.body)
-    except ImportError:
-        return None
-
-
-@lru_cache(maxsize=32)
-def _visible_body(shape: tuple, body: BodyModel) -> BodyMesh:
-    from .parametric import BodyShape, anny_rest_mesh
-
-    rest = anny_rest_mesh(BodyShape(**dict(shape)))
-    return body_mesh(body, rest.vertices, rest.faces, rest.joints)

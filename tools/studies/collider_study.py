@@ -29,26 +29,11 @@ SHAPES = {
 }
 
 
-def inside_mesh(points: np.ndarray, vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    """(N,) whether each point is inside the triangle mesh: generalised winding number > 0.5
-    (robust to the cracks and overlaps of rigid pieces at bent joints)."""
-    tri = vertices[faces]  # (F, 3, 3)
-    inside = np.empty(len(points), bool)
-    for start in range(0, len(points), 256):
-        p = points[start : start + 256, None, None, :]
-        r = tri[None] - p  # (n, F, 3, 3)
-        a, b, c = r[..., 0, :], r[..., 1, :], r[..., 2, :]
-        la, lb, lc = (np.linalg.norm(x, axis=-1) for x in (a, b, c))
-        det = (a * np.cross(b, c)).sum(-1)
-        den = la * lb * lc + (a * b).sum(-1) * lc + (a * c).sum(-1) * lb + (b * c).sum(-1) * la
-        inside[start : start + 256] = np.abs(2.0 * np.arctan2(det, den).sum(-1) / (4.0 * np.pi)) > 0.5
-    return inside
-
-
 def run_one(job: tuple[str, dict, str, str, int]) -> dict:
     from hrr_garment.body.body_file import record_of
     from hrr_garment.body.capsules import DEFAULT_BODY
     from hrr_garment.body.mesh_collider import body_mesh
+    from hrr_garment.body.mesh_distance import winding_inside
     from hrr_garment.body.parametric import BodyShape, parametric_body
     from hrr_garment.body.retarget import motion_on_body
     from hrr_garment.garment.dressing import DressedBody, dress
@@ -80,9 +65,7 @@ def run_one(job: tuple[str, dict, str, str, int]) -> dict:
     verts = result.vertices
     posed = mesh.pose(motion.global_rotations, motion.joint_positions)
     frames = range(0, len(verts), FRAME_STRIDE)
-    in_mesh = np.array(
-        [inside_mesh(verts[t].astype(np.float64), posed[t], mesh.faces).mean() for t in frames]
-    )
+    in_mesh = np.array([winding_inside(verts[t], posed[t], mesh.faces).mean() for t in frames])
     in_capsules = penetration_fraction(body_signed_distance(verts, motion, body), depth=0.0)
     strain = edge_strain(verts, dressed.garment.vertices, dressed.garment.edges())
     return {
