@@ -155,7 +155,8 @@ def main() -> None:
     for key, s in summary.items():
         collider, where = key.split("/")
         print(
-            f"| {collider} | {where} | {s['points']} | {s['mean_mm']:.1f} / {s['p95_mm']:.1f} / {s['max_mm']:.0f} | "
+            f"| {collider} | {where} | {s['points']} | "
+            f"{s['mean_mm']:.1f} / {s['p95_mm']:.1f} / {s['max_mm']:.0f} | "
             f"{100 * s['over_20mm']:.1f} % | "
             f"{100 * s['inside_called_outside']:.1f} % | {100 * s['outside_called_inside']:.1f} % |"
         )
