@@ -183,6 +183,7 @@ def measure_swing_again(
     measured on the same validation clips where they were not (the other candidates' numbers stand)."""
     candidates = dict(auto.candidates or {})
     _measure_swing(candidates, _measurer(animator, _evenly(records, max_sequences)), config, progress)
+    # the new numbers as bundle.json will hold them (a non-finite one as null), as the recorded ones are
     return repick(replace(auto, candidates=frozen(as_json(candidates))), config)
 
 
