@@ -131,7 +131,7 @@ def trained(tmp_path_factory):
     data = synthetic_dataset(root / "skirt.h5", make_garment("skirt", 300))
     (root / "cfg.yaml").write_text(TINY_TRAINING)
     result = train_tiny(data, root / "model", root / "cfg.yaml")
-    assert set(result.reports) == {"autoencoder", "codespace", "subspace"} and result.auto["mode"] in (
+    assert set(result.reports) == {"autoencoder", "codespace", "subspace"} and result.auto.mode in (
         "hybrid",
         "residual",
         "detail",

@@ -5,8 +5,11 @@ allowances (:class:`AutoSettings`), and the candidates' labels. What the criteri
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from collections.abc import Mapping
+from dataclasses import dataclass, replace
+from typing import Any
 
+from ..artifacts.auto_calibration import AutoCalibration, FreeCloth
 from ..artifacts.folds import DETAIL_STRENGTH
 from ..artifacts.manifest import AUTO_CHOICES, DETAIL_BASES
 from ..settings import SettingsError, from_settings
@@ -69,6 +72,7 @@ DEFAULT_BODY_PVE = "default_body_pve_mm"  # a candidate's PVE on the default bod
 SWING = ", swing x"  # a label's swing suffix, last: "detail on residual x1, swing x1.2"
 #: the gains on the free cloth's swing measured on the first pick (inference/swing.py)
 SWING_GAINS = (1.2, 1.35, 1.5, 1.65, 1.8)
+Candidates = Mapping[str, Mapping[str, float]]  # a calibration's measurements: label -> {metric: number}
 
 
 def free_cloth_label(label: str, ramp_mm: tuple[float, float]) -> str:
@@ -87,7 +91,7 @@ def swing_of(label: str) -> float:
     return float(gain) if gain else 1.0
 
 
-def without_swing(candidates: dict[str, dict[str, float]]) -> dict[str, dict[str, float]]:
+def without_swing(candidates: Candidates) -> dict[str, Mapping[str, float]]:
     """The candidates measured without a swing gain (those a first pick is made among)."""
     return {k: c for k, c in candidates.items() if SWING not in k}
 
@@ -121,7 +125,7 @@ def plausibility_gap(sharpness: float, swing: float) -> float:
     return math.hypot(math.log(sharpness), math.log(swing))
 
 
-def pick_auto_mode(candidates: dict[str, dict[str, float]], config: AutoSettings = AutoSettings()) -> str:
+def pick_auto_mode(candidates: Candidates, config: AutoSettings = AutoSettings()) -> str:
     """The criterion of the module docstring, under ``config``'s allowances, on each candidate's
     ``pve_mm``, ``sharpness`` and ``hem_swing`` (ratios to the truth) and, where recorded,
     ``penetration_pct`` (before the push-out; calibrations recorded before it have none, and are
@@ -158,7 +162,7 @@ def pick_auto_mode(candidates: dict[str, dict[str, float]], config: AutoSettings
 
 
 def pick_auto_and_detail(
-    candidates: dict[str, dict[str, float]], config: AutoSettings = AutoSettings()
+    candidates: Candidates, config: AutoSettings = AutoSettings()
 ) -> tuple[str, str, float]:
     """(the mode auto runs, the detail mode's base, its strength) by the criterion on candidates
     labelled by mode, the detail mode's by :data:`DETAIL_CANDIDATES` (see the module docstring),
@@ -169,10 +173,8 @@ def pick_auto_and_detail(
     return candidate_setting(picked)[0], *candidate_setting(detail)[1:3]
 
 
-def pick_free_cloth(
-    candidates: dict[str, dict[str, float]], config: AutoSettings = AutoSettings()
-) -> list[float] | None:
-    """The model's one free-cloth ramp (``[lo, hi]`` mm, None: the plain residual): the picked
+def pick_free_cloth(candidates: Candidates, config: AutoSettings = AutoSettings()) -> FreeCloth | None:
+    """The model's one free-cloth ramp (``(lo, hi)`` mm, None: the plain residual): the picked
     candidate's where it uses the residual, else the detail setting's where that does, else the
     criterion's pick among the residual mode's candidates (see the module docstring)."""
     picked, detail = _picked_labels(candidates, config)
@@ -181,26 +183,22 @@ def pick_free_cloth(
     using = next(
         (label for label in (picked, detail, residual) if label is not None and uses_residual(label)), None
     )
-    ramp = None if using is None else candidate_setting(using)[3]
-    return None if ramp is None else list(ramp)
+    return None if using is None else candidate_setting(using)[3]
 
 
-def pick_fold_ramp(
-    candidates: dict[str, dict[str, float]], config: AutoSettings = AutoSettings()
-) -> list[float] | None:
-    """The folds' free-cloth ramp (``[lo, hi]`` mm, None: the folds everywhere): the detail
+def pick_fold_ramp(candidates: Candidates, config: AutoSettings = AutoSettings()) -> FreeCloth | None:
+    """The folds' free-cloth ramp (``(lo, hi)`` mm, None: the folds everywhere): the detail
     setting's, as it was measured (see the module docstring)."""
     detail = _picked_labels(candidates, config)[1]
-    ramp = None if detail is None else candidate_setting(detail)[3]
-    return None if ramp is None else list(ramp)
+    return None if detail is None else candidate_setting(detail)[3]
 
 
-def _of_mode(candidates: dict[str, dict[str, float]], mode: str) -> dict[str, dict[str, float]]:
+def _of_mode(candidates: Candidates, mode: str) -> dict[str, Mapping[str, float]]:
     """The candidates that run ``mode`` (each detail setting is the detail mode)."""
     return {k: c for k, c in candidates.items() if candidate_setting(k)[0] == mode}
 
 
-def _picked_labels(candidates: dict[str, dict[str, float]], config: AutoSettings) -> tuple[str, str | None]:
+def _picked_labels(candidates: Candidates, config: AutoSettings) -> tuple[str, str | None]:
     """The label auto picks, and the detail mode's setting (that label where it is a detail
     setting, else the criterion's pick among the detail candidates alone; None: there are none)."""
     picked = pick_auto_mode(candidates, config)
@@ -210,59 +208,65 @@ def _picked_labels(candidates: dict[str, dict[str, float]], config: AutoSettings
     return picked, picked if picked in details else pick_auto_mode(details, config)
 
 
-def repick(auto: dict, config: AutoSettings) -> dict:
-    """A recorded calibration (``bundle.json``'s ``auto``) picked again under ``config``'s
-    allowances: the candidates' numbers stand, only the choice among them moves."""
-    mode, detail_base, detail_strength = pick_auto_and_detail(auto["candidates"], config)
+def picked_fields(
+    candidates: Candidates, config: AutoSettings, *, folds_free_cloth: bool | None
+) -> dict[str, Any]:
+    """The fields of a calibration (:class:`~hrr_garment.artifacts.auto_calibration.AutoCalibration`)
+    that the criterion picks from ``candidates`` under ``config``'s allowances: the mode, the detail
+    look, the free-cloth ramps, the swing gain and the allowances picked under."""
+    mode, detail_base, detail_strength = pick_auto_and_detail(candidates, config)
     # the folds' ramp only where the candidates were measured with it (calibrations recorded before
     # ran a ramp on the residual alone, and their folds run everywhere as they were measured)
-    folds = (
-        {"folds_free_mm": pick_fold_ramp(auto["candidates"], config)} if auto.get("folds_free_cloth") else {}
-    )
+    folds = {"folds_free_mm": pick_fold_ramp(candidates, config)} if folds_free_cloth else {}
     return {
-        **auto,
         "mode": mode,
         "detail_base": detail_base,
         "detail_strength": detail_strength,
         **folds,
-        "residual_free_mm": pick_free_cloth(auto["candidates"], config),
-        "swing_gain": swing_of(pick_auto_mode(auto["candidates"], config)),
+        "residual_free_mm": pick_free_cloth(candidates, config),
+        "swing_gain": swing_of(pick_auto_mode(candidates, config)),
         **config.limits(),
     }
 
 
-def describe_auto(auto: dict) -> str:
+def repick(auto: AutoCalibration, config: AutoSettings) -> AutoCalibration:
+    """A recorded calibration (``bundle.json``'s ``auto``) picked again under ``config``'s
+    allowances: the candidates' numbers stand, only the choice among them moves."""
+    fields = picked_fields(auto.candidates or {}, config, folds_free_cloth=auto.folds_free_cloth)
+    return replace(auto, **fields)
+
+
+def describe_auto(auto: AutoCalibration) -> str:
     """One line on a calibration (``bundle.json``'s ``auto``): the choice, the detail mode's setting
     and every candidate's numbers."""
-    detail = f"x{auto['detail_strength']:g} on the {auto['detail_base']}"
-    if auto.get("swing_gain", 1.0) != 1.0:
-        detail += f"; the free cloth's swing x{auto['swing_gain']:g}"
-    if auto.get("residual_free_mm"):
-        detail += (
-            f"; the residual on free cloth {auto['residual_free_mm'][0]:g}-{auto['residual_free_mm'][1]:g} mm"
-        )
-    if auto.get("folds_free_mm"):
-        detail += f"; the folds on free cloth {auto['folds_free_mm'][0]:g}-{auto['folds_free_mm'][1]:g} mm"
+    detail = f"x{auto.detail_strength:g} on the {auto.detail_base}"
+    if auto.swing_gain is not None and auto.swing_gain != 1.0:
+        detail += f"; the free cloth's swing x{auto.swing_gain:g}"
+    if auto.residual_free_mm:
+        detail += f"; the residual on free cloth {auto.residual_free_mm[0]:g}-{auto.residual_free_mm[1]:g} mm"
+    if auto.folds_free_mm:
+        detail += f"; the folds on free cloth {auto.folds_free_mm[0]:g}-{auto.folds_free_mm[1]:g} mm"
     allowance = (
-        f"the most plausible within {100 * (auto['allowance'] - 1):.3g} % of the most accurate PVE"
-        if "allowance" in auto
+        f"the most plausible within {100 * (auto.allowance - 1):.3g} % of the most accurate PVE"
+        if auto.allowance is not None
         else ""
     )
-    if allowance and auto.get("default_body_sequences"):
-        allowance += f" (on the default body's {auto['default_body_sequences']} clips too)"
-    if allowance and "penetration_allowance" in auto:
+    if allowance and auto.default_body_sequences:
+        allowance += f" (on the default body's {auto.default_body_sequences} clips too)"
+    if allowance and auto.penetration_allowance is not None:
+        floor = 0 if auto.penetration_floor_pct is None else auto.penetration_floor_pct
         allowance += (
-            f" and {100 * (auto['penetration_allowance'] - 1):.0f} % of its cloth inside the body "
-            f"(or {auto.get('penetration_floor_pct', 0):g} % of the vertices)"
+            f" and {100 * (auto.penetration_allowance - 1):.0f} % of its cloth inside the body "
+            f"(or {floor:g} % of the vertices)"
         )
     allowance += "; " if allowance else ""
     return (
-        f"auto mode: {auto['mode']} ({allowance}the detail mode's folds {detail}; on {auto['sequences']} "
+        f"auto mode: {auto.mode} ({allowance}the detail mode's folds {detail}; on {auto.sequences} "
         "validation clips: "
         + "; ".join(
             f"{m} {c['pve_mm']:.2f} mm, sharpness {c['sharpness']:.2f}, hem swing {c['hem_swing']:.2f}"
             + (f", {c['penetration_pct']:.2f} % inside" if "penetration_pct" in c else "")
-            for m, c in auto["candidates"].items()
+            for m, c in (auto.candidates or {}).items()
         )
         + ")"
     )

@@ -63,16 +63,18 @@ recorded calibration is out of date (calibrated again, or its gains measured fir
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from contextlib import contextmanager
 from dataclasses import replace
 
 import numpy as np
 from tqdm import tqdm
 
+from ..artifacts.auto_calibration import AutoCalibration
 from ..artifacts.bundle import Bundle
 from ..artifacts.free_cloth import FREE_CLOTH_RAMPS_MM
 from ..artifacts.manifest import AUTO_CHOICES
+from ..artifacts.manifest_section import as_json, frozen
 from ..body.mannequin import MANNEQUIN
 from ..data.dataset import SequenceRecord
 from ..garment.fit import hem_vertices
@@ -91,6 +93,7 @@ from .auto_criterion import (
     candidate_setting,
     free_cloth_label,
     pick_auto_mode,
+    picked_fields,
     repick,
     swing_label,
     swing_of,
@@ -122,14 +125,14 @@ def calibrate_auto_mode(
     config: AutoSettings = AutoSettings(),
     max_sequences: int | None = AUTO_MAX_SEQUENCES,
     progress: bool = True,
-) -> dict:
+) -> AutoCalibration:
     """Each candidate's PVE (mm, against each record's simulation), sharpness, hem swing and
     vertices inside the body before the push-out (%) on ``records`` (at most ``max_sequences`` of
-    them, evenly spaced), and the mode the criterion picks under ``config``: ``{"mode",
-    "detail_base", "detail_strength", "criterion", the allowances (:meth:`AutoSettings.limits`),
-    "sequences", "frames", "fold_follow", "candidates": {label: {...}}}``, what bundle.json keeps
-    under ``auto`` (``fold_follow``: the folds' following in time the candidates ran with,
-    :data:`~hrr_garment.inference.fold_track.FOLD_FOLLOW`)."""
+    them, evenly spaced), and the mode the criterion picks under ``config``: the calibration
+    bundle.json keeps under ``auto``, as it will hold it (the mode, the detail look, the criterion,
+    the allowances (:meth:`AutoSettings.limits`), the clips and frames measured, ``fold_follow``: the
+    folds' following in time the candidates ran with,
+    :data:`~hrr_garment.inference.fold_track.FOLD_FOLLOW`, and ``candidates``: label -> numbers)."""
     records = _evenly(records, max_sequences)
     measure = _measurer(animator, records)
     bundle = animator.bundle
@@ -150,7 +153,8 @@ def calibrate_auto_mode(
     }
     _measure_swing(candidates, measure, config, progress)
     frames = sum(len(r.garment) for r in records)
-    return repick(
+    # as bundle.json will hold it (its keys in this order, a ramp not picked as null)
+    return AutoCalibration.from_report(
         {
             "sequences": len(records),
             "frames": frames,
@@ -161,24 +165,26 @@ def calibrate_auto_mode(
             "candidates": candidates,
             "criterion": "the most plausible (hypot(ln sharpness, ln hem swing)) within the allowance x the "
             "most accurate PVE and the penetration allowance x its cloth inside the body",
+            **picked_fields(candidates, config, folds_free_cloth=True),
         },
-        config,
+        "auto",
     )
 
 
 def measure_swing_again(
     animator: Animator,
     records: list[SequenceRecord],
-    auto: dict,
+    auto: AutoCalibration,
     config: AutoSettings,
     max_sequences: int | None = AUTO_MAX_SEQUENCES,
     progress: bool = True,
-) -> dict:
+) -> AutoCalibration:
     """A recorded calibration picked again under ``config``, the swing gains of its new first pick
     measured on the same validation clips where they were not (the other candidates' numbers stand)."""
-    candidates = dict(auto["candidates"])
+    candidates = dict(auto.candidates or {})
     _measure_swing(candidates, _measurer(animator, _evenly(records, max_sequences)), config, progress)
-    return repick({**auto, "candidates": candidates}, config)
+    # the new numbers as bundle.json will hold them (a non-finite one as null), as the recorded ones are
+    return repick(replace(auto, candidates=frozen(as_json(candidates))), config)
 
 
 def _evenly(records: list[SequenceRecord], max_sequences: int | None) -> list[SequenceRecord]:
@@ -190,7 +196,7 @@ def _evenly(records: list[SequenceRecord], max_sequences: int | None) -> list[Se
 
 
 def _measure_swing(
-    candidates: dict[str, dict[str, float]],
+    candidates: dict[str, Mapping[str, float]],
     measure: Callable[[str], dict[str, float]],
     config: AutoSettings,
     progress: bool,

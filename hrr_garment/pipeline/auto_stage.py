@@ -6,6 +6,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ..artifacts.auto_calibration import AutoCalibration
 from ..eval.auto_criterion import AutoSettings, repick
 from ..eval.auto_mode import calibrate_auto_mode, measure_swing_again
 from ..eval.auto_outdated import (
@@ -20,12 +21,11 @@ from ..eval.auto_outdated import (
 
 def calibrate_auto(
     folder: str | Path, dataset: str | Path, progress: bool = True, config: AutoSettings = AutoSettings()
-) -> dict:
+) -> AutoCalibration:
     """The mode ``auto`` runs (:mod:`hrr_garment.eval.auto_mode`), calibrated on the dataset's
     validation clips once per bundle and recorded in bundle.json with every candidate's numbers;
     the recorded one where it was, picked again from its numbers where ``config``'s allowance differs
     from the one it was picked under (the swing gains of a first pick that moved measured first)."""
-    from ..artifacts.auto_calibration import AutoCalibration
     from ..artifacts.typed_manifest import read_manifest, update_manifest
     from ..inference.animator import Animator
 
@@ -51,16 +51,16 @@ def calibrate_auto(
             measure_swing_again(
                 Animator.load(folder),
                 _validation_records(dataset),
-                auto=recorded.to_dict(),
+                auto=recorded,
                 config=config,
                 progress=progress,
             )
             if swing_unmeasured(recorded, config)
-            else repick(recorded.to_dict(), config)
+            else repick(recorded, config)
         )
     else:
-        return recorded.to_dict()
-    update_manifest(folder, auto=AutoCalibration.from_report(auto, "auto"))
+        return recorded
+    update_manifest(folder, auto=auto)
     return auto
 
 

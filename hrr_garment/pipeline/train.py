@@ -29,6 +29,7 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from ..artifacts.auto_calibration import AutoCalibration
 from ..io_utils import remove_empty_folders
 from ..sim.preset import Preset
 from ..train.report import StageReport
@@ -53,7 +54,7 @@ class TrainResult:
 
     folder: Path
     reports: dict[str, StageReport] = field(default_factory=dict)
-    auto: dict | None = None  # bundle.json's "auto" after the code-space stage
+    auto: AutoCalibration | None = None  # bundle.json's "auto" after the code-space stage
     budgets: dict[str, BudgetCheck] = field(
         default_factory=dict
     )  # the autoencoder's and code space's epochs and errors

@@ -10,6 +10,7 @@ from pathlib import Path
 
 import yaml
 
+from ..artifacts.auto_calibration import AutoCalibration
 from ..errors import InputError
 from ..eval.auto_criterion import AutoSettings
 from ..models.codespace import CodeSpaceSettings
@@ -42,9 +43,9 @@ class TrainCallback:
         :class:`~.budget.TrainingBudgetWarning` unless overridden."""
         warnings.warn(text, TrainingBudgetWarning, stacklevel=3)
 
-    def on_stage_end(self, stage: str, result: StageReport | dict | None) -> None:
+    def on_stage_end(self, stage: str, result: StageReport | AutoCalibration | None) -> None:
         """A stage finished: its report (``simulate``: a :class:`SimulatedDataset`, None where the
-        dataset was there; ``auto``: the calibration's dict)."""
+        dataset was there; ``auto``: the calibration, bundle.json's ``auto``)."""
 
 
 def _sections(data, source, callback: TrainCallback) -> dict:

@@ -95,19 +95,21 @@ def test_the_criterion_takes_the_most_plausible_of_the_accurate(candidates, expe
 
 def test_a_recorded_calibration_is_picked_again_under_another_allowance():
     candidates = {"hybrid": _c(30.0, 0.13, 0.60), "residual": _c(30.6, 0.16, 0.63), R10: _c(31.2, 0.90, 0.95)}
-    auto = {
-        "mode": "residual",
-        "detail_base": "regression",
-        "detail_strength": 1.0,
-        "allowance": 1.03,
-        "sequences": 3,
-        "frames": 90,
-        "candidates": candidates,
-    }
+    auto = AutoCalibration.parse(
+        {
+            "mode": "residual",
+            "detail_base": "regression",
+            "detail_strength": 1.0,
+            "allowance": 1.03,
+            "sequences": 3,
+            "frames": 90,
+            "candidates": candidates,
+        }
+    )
     wider = repick(auto, AutoSettings(allowance=1.05))  # the folds' 4 % fit the default's 5 %
-    assert (wider["mode"], wider["allowance"], wider["candidates"]) == ("detail", 1.05, candidates)
+    assert (wider.mode, wider.allowance, wider.candidates) == ("detail", 1.05, candidates)
     assert (
-        repick(wider, AutoSettings(allowance=1.03))["mode"] == "residual" and auto["mode"] == "residual"
+        repick(wider, AutoSettings(allowance=1.03)).mode == "residual" and auto.mode == "residual"
     )  # the record stays
 
 
@@ -216,16 +218,19 @@ def test_free_cloth_labels_and_the_models_one_ramp():
         free: _c(30.3, 0.3, 0.75),
         R10: _c(30.4, 0.3, 0.6),
     }
-    assert pick_auto_mode(candidates) == free and pick_free_cloth(candidates) == [10.0, 40.0]
+    assert pick_auto_mode(candidates) == free and pick_free_cloth(candidates) == (10.0, 40.0)
     # the detail mode's on the regression: the residual mode's own pick among its candidates
     candidates[R10] = _c(30.4, 0.9, 0.9)
-    assert pick_auto_mode(candidates) == R10 and pick_free_cloth(candidates) == [10.0, 40.0]
+    assert pick_auto_mode(candidates) == R10 and pick_free_cloth(candidates) == (10.0, 40.0)
     candidates["residual"] = _c(30.2, 0.3, 0.8)
     assert pick_free_cloth(candidates) is None
     # the detail setting's where it rides on the residual
     candidates[free_cloth_label(RR10, (20, 60))] = _c(30.5, 0.95, 0.95)
-    assert pick_free_cloth(candidates) == [20.0, 60.0]
-    assert repick({"candidates": candidates}, AutoSettings())["residual_free_mm"] == [20.0, 60.0]
+    assert pick_free_cloth(candidates) == (20.0, 60.0)
+    assert repick(replace(UNCALIBRATED, candidates=candidates), AutoSettings()).residual_free_mm == (
+        20.0,
+        60.0,
+    )
     assert pick_free_cloth({"hybrid": _c(30.0, 0.2, 0.6)}) is None
     # the detail setting is the picked detail candidate, not the pick among the detail candidates
     # alone (whose allowance, from their own most accurate, can admit one the model does not run)
@@ -250,19 +255,19 @@ def test_swing_labels_and_the_models_one_gain():
         swing_label(RR10, 1.3): _c(32.0, 0.9, 0.95),
     }
     picked = repick(
-        {"candidates": candidates}, AutoSettings()
+        replace(UNCALIBRATED, candidates=candidates), AutoSettings()
     )  # 1.3's swing is nearest the truth's, but over 5 %
-    assert (picked["mode"], picked["detail_base"], picked["detail_strength"], picked["swing_gain"]) == (
+    assert (picked.mode, picked.detail_base, picked.detail_strength, picked.swing_gain) == (
         "detail",
         "residual",
         1.0,
         1.1,
     )
-    assert repick({"candidates": candidates}, AutoSettings(allowance=1.1))["swing_gain"] == 1.3
+    assert repick(replace(UNCALIBRATED, candidates=candidates), AutoSettings(allowance=1.1)).swing_gain == 1.3
     candidates[swing_label(RR10, 1.1)] = _c(
         31.0, 0.9, 1.6
     )  # a gain that overshoots the truth's swing is less plausible
-    assert repick({"candidates": candidates}, AutoSettings())["swing_gain"] == 1.0
+    assert repick(replace(UNCALIBRATED, candidates=candidates), AutoSettings()).swing_gain == 1.0
 
 
 def test_hrr_train_calibrates_auto_and_it_agrees_with_the_evaluation(trained):
@@ -273,32 +278,31 @@ def test_hrr_train_calibrates_auto_and_it_agrees_with_the_evaluation(trained):
     from hrr_garment.inference.run_settings import DetailLook
 
     root, data, _ = trained
-    meta = json.loads((root / "model" / "bundle.json").read_text())
-    auto = meta["auto"]
-    assert auto["mode"] in AUTO_CHOICES and {candidate_setting(k)[0] for k in auto["candidates"]} <= set(
+    auto = AutoCalibration.parse(json.loads((root / "model" / "bundle.json").read_text())["auto"])
+    assert auto.mode in AUTO_CHOICES and {candidate_setting(k)[0] for k in auto.candidates} <= set(
         AUTO_CHOICES
     )
     config = AutoSettings(
-        allowance=auto["allowance"],
-        penetration_allowance=auto["penetration_allowance"],
-        penetration_floor_pct=auto["penetration_floor_pct"],
+        allowance=auto.allowance,
+        penetration_allowance=auto.penetration_allowance,
+        penetration_floor_pct=auto.penetration_floor_pct,
     )
-    assert (auto["mode"], auto["detail_base"], auto["detail_strength"]) == pick_auto_and_detail(
-        auto["candidates"], config
+    assert (auto.mode, auto.detail_base, auto.detail_strength) == pick_auto_and_detail(
+        auto.candidates, config
     )
     animator = Animator.load(root / "model")
-    assert animator.bundle.auto_mode == auto["mode"]
+    assert animator.bundle.auto_mode == auto.mode
     ds = GarmentDataset(data)
     records = [ds.sequence(n) for n in ds.splits["val"]]
     again = calibrate_auto_mode(animator, records, progress=False)
-    for mode, c in auto["candidates"].items():  # deterministic
-        assert again["candidates"][mode] == pytest.approx(c)
+    for mode, c in auto.candidates.items():  # deterministic
+        assert again.candidates[mode] == pytest.approx(c)
     # the same PVE as hrr-eval's on these clips (its own path: every metric, the single simulation)
     pve = evaluate_modes(animator, records, EvaluationSettings(("hybrid",), progress=False))[
         "hybrid"
     ].metrics["pve_mm"]
-    assert again["candidates"]["hybrid"]["pve_mm"] == pytest.approx(pve, rel=1e-6)
-    for c in again["candidates"].values():
+    assert again.candidates["hybrid"]["pve_mm"] == pytest.approx(pve, rel=1e-6)
+    for c in again.candidates.values():
         assert (
             c["pve_mm"] > 0 and c["sharpness"] > 0 and c["hem_swing"] > 0 and 0 <= c["penetration_pct"] <= 100
         )
@@ -308,20 +312,20 @@ def test_hrr_train_calibrates_auto_and_it_agrees_with_the_evaluation(trained):
         * sum(a.penetration.inside_before * len(a.vertices) for a in inside)
         / sum(len(a.vertices) for a in inside)
     )
-    assert again["candidates"]["hybrid"]["penetration_pct"] == pytest.approx(expected)
+    assert again.candidates["hybrid"]["penetration_pct"] == pytest.approx(expected)
     # with a residual weight the detail mode is measured on both bases at every strength, each as the mode
     # runs it
     bundle = animator.bundle
     bundle.manifest = replace(bundle.manifest, residual=replace(bundle.manifest.residual, weight=0.7))
     both = calibrate_auto_mode(animator, records[:1], progress=False)
-    assert set(both["candidates"]) >= set(DETAIL_CANDIDATES)
+    assert set(both.candidates) >= set(DETAIL_CANDIDATES)
     for label, (base, strength) in DETAIL_CANDIDATES.items():
         pred = animator.animate(records[0].motion, mode="detail", detail=DetailLook(base, strength)).vertices
-        assert both["candidates"][label]["pve_mm"] == pytest.approx(
+        assert both.candidates[label]["pve_mm"] == pytest.approx(
             float(np.linalg.norm(pred - records[0].garment, axis=-1).mean()) * 1000, rel=1e-5
         )
     pves = [
-        both["candidates"][detail_label(base, s)]["pve_mm"]
+        both.candidates[detail_label(base, s)]["pve_mm"]
         for base in ("regression", "residual")
         for s in DETAIL_STRENGTHS
     ]
@@ -330,16 +334,14 @@ def test_hrr_train_calibrates_auto_and_it_agrees_with_the_evaluation(trained):
     # cloth, each ramp as the bundle runs it
     from hrr_garment.artifacts.free_cloth import FREE_CLOTH_RAMPS_MM
 
-    free = [k for k in both["candidates"] if candidate_setting(k)[3] is not None]
-    assert (
-        len(free) == len(FREE_CLOTH_RAMPS_MM) * (1 + 2 * len(DETAIL_STRENGTHS)) and both["folds_free_cloth"]
-    )
+    free = [k for k in both.candidates if candidate_setting(k)[3] is not None]
+    assert len(free) == len(FREE_CLOTH_RAMPS_MM) * (1 + 2 * len(DETAIL_STRENGTHS)) and both.folds_free_cloth
     for label in free:
         mode, base, strength, ramp = candidate_setting(label)
         with free_cloth(animator.bundle, ramp):
             look = DetailLook(base, strength) if mode == "detail" else DetailLook()
             pred = animator.animate(records[0].motion, mode=mode, detail=look).vertices
-        assert both["candidates"][label]["pve_mm"] == pytest.approx(
+        assert both.candidates[label]["pve_mm"] == pytest.approx(
             float(np.linalg.norm(pred - records[0].garment, axis=-1).mean()) * 1000, rel=1e-5
         )
     assert animator.bundle.residual_nodes is None and animator.bundle.fold_weights is None  # left as it was
@@ -366,19 +368,19 @@ def test_hrr_train_picks_auto_again_when_its_allowance_changes(trained, tmp_path
 
     root, data, _ = trained
     shutil.copytree(root / "model", tmp_path / "model")
-    before = json.loads((tmp_path / "model" / "bundle.json").read_text())["auto"]
+    before = AutoCalibration.parse(json.loads((tmp_path / "model" / "bundle.json").read_text())["auto"])
     widest = calibrate_auto(tmp_path / "model", data, progress=False, config=AutoSettings(allowance=2.0))
     recorded = json.loads((tmp_path / "model" / "bundle.json").read_text())["auto"]
-    assert recorded == widest and widest["allowance"] == 2.0
-    assert all(widest["candidates"][k] == c for k, c in before["candidates"].items())
+    assert (
+        recorded == widest.to_dict() and AutoCalibration.parse(recorded) == widest and widest.allowance == 2.0
+    )
+    assert all(widest.candidates[k] == c for k, c in before.candidates.items())
     # what was added: the swing gains of the new first pick (the pick without a gain), where it moved
     first = pick_auto_mode(
-        {k: c for k, c in before["candidates"].items() if swing_of(k) == 1.0}, AutoSettings(allowance=2.0)
+        {k: c for k, c in before.candidates.items() if swing_of(k) == 1.0}, AutoSettings(allowance=2.0)
     )
-    assert set(widest["candidates"]) == set(before["candidates"]) | {
-        swing_label(first, g) for g in SWING_GAINS
-    }
-    c = widest["candidates"]
+    assert set(widest.candidates) == set(before.candidates) | {swing_label(first, g) for g in SWING_GAINS}
+    c = widest.candidates
     accurate = min(c, key=lambda m: c[m]["pve_mm"])
     eligible = [
         m
@@ -388,16 +390,14 @@ def test_hrr_train_picks_auto_again_when_its_allowance_changes(trained, tmp_path
     ]
     most_plausible = min(plausibility_gap(c[m]["sharpness"], c[m]["hem_swing"]) for m in eligible)
     picked = (
-        widest["mode"]
-        if widest["mode"] != "detail"
-        else detail_label(widest["detail_base"], widest["detail_strength"])
+        widest.mode if widest.mode != "detail" else detail_label(widest.detail_base, widest.detail_strength)
     )
-    if widest["residual_free_mm"] and (widest["mode"] == "residual" or widest["detail_base"] == "residual"):
-        picked = free_cloth_label(picked, widest["residual_free_mm"])
-    elif widest["mode"] == "detail" and widest["folds_free_mm"]:  # the folds alone on free cloth
-        picked = free_cloth_label(picked, widest["folds_free_mm"])
-    if widest["swing_gain"] != 1.0:
-        picked = swing_label(picked, widest["swing_gain"])
+    if widest.residual_free_mm and (widest.mode == "residual" or widest.detail_base == "residual"):
+        picked = free_cloth_label(picked, widest.residual_free_mm)
+    elif widest.mode == "detail" and widest.folds_free_mm:  # the folds alone on free cloth
+        picked = free_cloth_label(picked, widest.folds_free_mm)
+    if widest.swing_gain != 1.0:
+        picked = swing_label(picked, widest.swing_gain)
     assert plausibility_gap(c[picked]["sharpness"], c[picked]["hem_swing"]) == most_plausible
 
 
@@ -413,26 +413,22 @@ def test_a_calibration_recorded_before_is_made_again(trained, tmp_path, before):
 
     root, data, _ = trained
     shutil.copytree(root / "model", tmp_path / "model")
-    auto = json.loads((tmp_path / "model" / "bundle.json").read_text())["auto"]
-    assert auto["fold_follow"] == FOLD_FOLLOW
+    auto = AutoCalibration.parse(json.loads((tmp_path / "model" / "bundle.json").read_text())["auto"])
+    assert auto.fold_follow == FOLD_FOLLOW
     if before == "penetration":
-        old = {
-            k: {m: v for m, v in c.items() if m != "penetration_pct"} for k, c in auto["candidates"].items()
-        }
-        update_manifest(tmp_path / "model", auto=AutoCalibration.parse({**auto, "candidates": old}))
+        old = {k: {m: v for m, v in c.items() if m != "penetration_pct"} for k, c in auto.candidates.items()}
+        update_manifest(tmp_path / "model", auto=replace(auto, candidates=old))
     else:
         # numbers of another detail mode (here: made up), recorded without the following (or the folds'
         # ramps)
-        old = {k: {**c, "pve_mm": 999.0} for k, c in auto["candidates"].items()}
-        update_manifest(
-            tmp_path / "model",
-            auto=AutoCalibration.parse({**{k: v for k, v in auto.items() if k != before}, "candidates": old}),
-        )
+        old = {k: {**c, "pve_mm": 999.0} for k, c in auto.candidates.items()}
+        update_manifest(tmp_path / "model", auto=replace(auto, candidates=old, **{before: None}))
+        assert before not in json.loads((tmp_path / "model" / "bundle.json").read_text())["auto"]
     again = calibrate_auto(tmp_path / "model", data, progress=False)
-    assert again["fold_follow"] == FOLD_FOLLOW and again["folds_free_cloth"]
-    assert again["mode"] == auto["mode"] and set(again["candidates"]) == set(auto["candidates"])
-    for label, c in auto["candidates"].items():
-        assert again["candidates"][label] == pytest.approx(c)
+    assert again.fold_follow == FOLD_FOLLOW and again.folds_free_cloth
+    assert again.mode == auto.mode and set(again.candidates) == set(auto.candidates)
+    for label, c in auto.candidates.items():
+        assert again.candidates[label] == pytest.approx(c)
 
 
 def test_the_folds_on_free_cloth_run_as_the_bundle_records_them(trained, tmp_path):

@@ -359,10 +359,10 @@ def test_the_auto_calibration_measures_the_default_bodys_clips_apart(bodies_mode
     assert on_body.body != on_mannequin.body == "mannequin"
     mixed = calibrate_auto_mode(animator, [on_body, on_mannequin], progress=False)
     alone = calibrate_auto_mode(animator, [on_mannequin], progress=False)
-    assert mixed["default_body_sequences"] == 1 and alone["default_body_sequences"] == 0
-    for label, c in alone["candidates"].items():
+    assert mixed.default_body_sequences == 1 and alone.default_body_sequences == 0
+    for label, c in alone.candidates.items():
         assert DEFAULT_BODY_PVE not in c
-        if label in mixed["candidates"]:
-            assert mixed["candidates"][label][DEFAULT_BODY_PVE] == pytest.approx(c["pve_mm"])
-    assert all(DEFAULT_BODY_PVE in c for c in mixed["candidates"].values())
-    assert mixed["candidates"]["hybrid"]["pve_mm"] != pytest.approx(alone["candidates"]["hybrid"]["pve_mm"])
+        if label in mixed.candidates:
+            assert mixed.candidates[label][DEFAULT_BODY_PVE] == pytest.approx(c["pve_mm"])
+    assert all(DEFAULT_BODY_PVE in c for c in mixed.candidates.values())
+    assert mixed.candidates["hybrid"]["pve_mm"] != pytest.approx(alone.candidates["hybrid"]["pve_mm"])
