@@ -264,9 +264,16 @@ def describe_auto(auto: AutoCalibration) -> str:
         f"auto mode: {auto.mode} ({allowance}the detail mode's folds {detail}; on {auto.sequences} "
         "validation clips: "
         + "; ".join(
-            f"{m} {c['pve_mm']:.2f} mm, sharpness {c['sharpness']:.2f}, hem swing {c['hem_swing']:.2f}"
-            + (f", {c['penetration_pct']:.2f} % inside" if "penetration_pct" in c else "")
+            f"{m} {_shown(c['pve_mm'])} mm, sharpness {_shown(c['sharpness'])}, "
+            f"hem swing {_shown(c['hem_swing'])}"
+            + (f", {_shown(c['penetration_pct'])} % inside" if "penetration_pct" in c else "")
             for m, c in (auto.candidates or {}).items()
         )
         + ")"
     )
+
+
+def _shown(number: float | None) -> str:
+    """A candidate's number as the line shows it; a number that was not finite is stored as null
+    (bundle.json is JSON) and shown as such rather than failing the line."""
+    return "n/a" if number is None else f"{number:.2f}"

@@ -506,3 +506,22 @@ def test_a_model_without_auto_runs_the_hybrid(trained, tmp_path):
         animator.animate(motion, push_out=False).vertices,
         animator.animate(motion, mode="hybrid", push_out=False).vertices,
     )
+
+
+def test_a_candidate_measured_as_nan_is_described_not_raised():
+    """A NaN a candidate measured (a diverged model) is stored as null (bundle.json is JSON); the line
+    hrr-train prints says so instead of failing."""
+    from hrr_garment.artifacts.auto_calibration import AutoCalibration
+    from hrr_garment.eval.auto_criterion import describe_auto
+
+    auto = AutoCalibration.from_report(
+        {
+            "mode": "hybrid",
+            "detail_base": "regression",
+            "detail_strength": 1.0,
+            "sequences": 2,
+            "candidates": {"hybrid": {"pve_mm": float("nan"), "sharpness": 0.5, "hem_swing": 0.9}},
+        },
+        "auto",
+    )
+    assert "hybrid n/a mm, sharpness 0.50, hem swing 0.90" in describe_auto(auto)
