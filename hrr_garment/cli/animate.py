@@ -163,7 +163,7 @@ def _main(argv: Sequence[str] | None) -> int:
     named = f"{args.mode} = {mode}" if args.mode != mode else str(mode)
     print(
         f"wrote {args.output}: {anim.vertices.shape[0]} frames ({motion.duration_s:.2f} s at {anim.fps:g} fps), "
-        f"{anim.vertices.shape[1]} vertices on body {anim.body}; mode {named}{gate}, {used}; {seconds:.1f} s"
+        f"{anim.vertices.shape[1]} vertices on body {anim.body_name}; mode {named}{gate}, {used}; {seconds:.1f} s"
     )
     if anim.penetration is not None:
         p = anim.penetration

@@ -68,11 +68,11 @@ def _records(item: UnseenBody, animator: Animator, sequences: int | None):
     if not names:
         raise DatasetError(item.dataset, "has no test sequences")
     records = [ds.sequence(n) for n in names]
-    bodies = {r.body for r in records}
-    if len(bodies) != 1:
+    body_names = {r.body_name for r in records}
+    if len(body_names) != 1:
         raise DatasetError(
             item.dataset,
-            f"its test sequences stand on {len(bodies)} bodies; the protocol takes a dataset "
+            f"its test sequences stand on {len(body_names)} bodies; the protocol takes a dataset "
             "simulated on one (hrr-simulate --body)",
         )
     return ds, records
@@ -121,7 +121,7 @@ def unseen_bodies_section(
         animator.body(records[0].dressed)  # outside the model's range: refused here, before any work
         entry = {
             "dataset": str(item.dataset),
-            "body": records[0].body,
+            "body": records[0].body_name,
             "sequences": [r.name for r in records],
             "frames": int(sum(len(r.garment) for r in records)),
             "model": _row(evaluate_modes(animator, records, auto, ensembles=ensembles)[Mode.AUTO.value]),
