@@ -202,18 +202,18 @@ class GarmentDataset:
                 )
         self.frames = {n: int(f["sequences"][n]["garment"].shape[0]) for n in self.names}
         key = BODY_NAME_ATTR[version]
-        self.body_of = {n: str(f["sequences"][n].attrs.get(key, MANNEQUIN)) for n in self.names}
+        self.body_name_of = {n: str(f["sequences"][n].attrs.get(key, MANNEQUIN)) for n in self.names}
         try:
             self.bodies = read_bodies(f, self.template, str(self.path))
         except ValueError as exc:
             raise DatasetError(self.path, str(exc)) from None
-        unknown = sorted({b for b in self.body_of.values()} - set(self.bodies))
+        unknown = sorted({b for b in self.body_name_of.values()} - set(self.bodies))
         if unknown:
             raise DatasetError(self.path, f"sequences name bodies that are not in /bodies: {unknown[:5]}")
 
     def rest(self, name: str) -> np.ndarray:
         """(V, 3) the rest shape of the garment of sequence ``name`` (on its own body)."""
-        return self.bodies[self.body_of[name]].garment.vertices
+        return self.bodies[self.body_name_of[name]].garment.vertices
 
     def __len__(self) -> int:
         return len(self.names)
@@ -231,7 +231,7 @@ class GarmentDataset:
                     if key not in s:
                         raise DatasetError(self.path, f"sequence {name!r} lacks {key!r}")
                 garment = s["garment"][()]
-                body = self.bodies[self.body_of[name]].body
+                body = self.bodies[self.body_name_of[name]].body
                 motion = Motion(
                     s["local_rotations"][()],
                     s["root_translation"][()],
@@ -273,8 +273,9 @@ class GarmentDataset:
                 f"{frame}, beyond {MAX_GARMENT_REACH_M:g} m: the garment is in another unit or place "
                 "than the body",
             )
+        body_name = self.body_name_of[name]
         return SequenceRecord(
-            name, garment, motion, info, body_name=self.body_of[name], dressed=self.bodies[self.body_of[name]]
+            name, garment, motion, info, body_name=body_name, dressed=self.bodies[body_name]
         )
 
 

@@ -88,7 +88,7 @@ def _check_unseen(animator: Animator, record, where: Path) -> None:
         return
     ds = GarmentDataset(trained_on)
     mine = body_vector(record.dressed.record)
-    for name in sorted({ds.body_of[n] for n in ds.splits.get("train", [])}):
+    for name in sorted({ds.body_name_of[n] for n in ds.splits.get("train", [])}):
         if np.allclose(body_vector(ds.bodies[name].record), mine, atol=1e-4):
             raise InputError(
                 where,

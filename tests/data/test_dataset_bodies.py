@@ -57,7 +57,7 @@ def test_a_dataset_keeps_each_sequences_body_and_the_garment_on_it(tmp_path):
         tmp_path / "d.h5", garment, records, {"train": ["walk_tall", "walk_mannequin"]}, bodies={"tall": tall}
     )
     ds = GarmentDataset(path)
-    assert ds.body_of == {"walk_tall": "tall", "walk_mannequin": MANNEQUIN}
+    assert ds.body_name_of == {"walk_tall": "tall", "walk_mannequin": MANNEQUIN}
     rec = ds.sequence("walk_tall")
     assert rec.body_name == "tall"
     # the motion read back is the body's: its skeleton and its scaled root, the joints as simulated
@@ -106,11 +106,11 @@ def test_a_version_2_dataset_names_each_sequences_body_in_its_old_attribute(tmp_
         f.attrs["format_version"] = 2  # as version 2 wrote it
         f["sequences/w"].attrs["body"] = f["sequences/w"].attrs.pop("body_name")
     ds = GarmentDataset(path)
-    assert ds.body_of == {"w": "tall"} and ds.sequence("w").body_name == "tall"
+    assert ds.body_name_of == {"w": "tall"} and ds.sequence("w").body_name == "tall"
     assert np.array_equal(ds.rest("w"), tall.garment.vertices)
     with h5py.File(path, "a") as f:
         f.attrs["format_version"] = 3  # a version 3 file's attribute ``body`` is not its body's name
-    assert GarmentDataset(path).body_of == {"w": MANNEQUIN}
+    assert GarmentDataset(path).body_name_of == {"w": MANNEQUIN}
 
 
 def test_nearly_symmetric_bodies_are_made_exactly_symmetric():
@@ -172,7 +172,7 @@ def test_hrr_simulate_on_a_body_records_it_and_mirrors_on_it(tmp_path, capsys):
     )
     assert "body tall (1.87 m)" in capsys.readouterr().out
     ds = GarmentDataset(out)
-    assert ds.body_of == {"walk_000": "tall", "walk_000_mirror": "tall"}
+    assert ds.body_name_of == {"walk_000": "tall", "walk_000_mirror": "tall"}
     rec = ds.sequence("walk_000")
     # ``mirror: true`` simulates the mirrored motion on the same body (not a reflection of the
     # source's frames)

@@ -68,7 +68,7 @@ def test_models_learn_each_frame_less_its_bodys_rest_offset(bodies_model):
     ds = GarmentDataset(data)
     for name in ("walk_000", "walk_001"):
         rec = ds.sequence(name)
-        dressed = ds.bodies[ds.body_of[name]]
+        dressed = ds.bodies[ds.body_name_of[name]]
         frames = to_body_frame(rec.garment.astype(np.float64), rec.motion)
         assert np.allclose(body_frames(ds, [name]), frames - dressed.offset(ds.template), atol=1e-5)
         assert np.abs(dressed.offset(ds.template)).max() > 0.02  # a body unlike the mannequin
