@@ -57,18 +57,18 @@ def report(path: Path) -> dict:
         if "mirror_of" in rec.info:
             continue
         row = rows.setdefault(content_of(name, rec.info), _empty_row())
-        body = ds.bodies[rec.body].body  # the body it was simulated on, with the garment's rest on it
+        body = ds.bodies[rec.body_name].body  # the body it was simulated on, with the garment's rest on it
         strain = edge_strain(rec.garment, ds.rest(name), edges)
         pen = penetration_fraction(body_signed_distance(rec.garment, rec.motion, body))
         flagged = self_intersecting_frames(rec.motion, body)
         per_body = by_body.setdefault(
-            rec.body,
+            rec.body_name,
             {
                 "clips": 0,
                 "frames": 0,
                 "flagged": 0,
                 "strain": [],
-                "stature_m": ds.bodies[rec.body].record.stature,
+                "stature_m": ds.bodies[rec.body_name].record.stature,
             },
         )
         per_body["clips"] += 1

@@ -164,7 +164,7 @@ def _main(argv: Sequence[str] | None) -> int:
     print(
         f"wrote {args.output}: {anim.vertices.shape[0]} frames "
         f"({motion.duration_s:.2f} s at {anim.fps:g} fps), {anim.vertices.shape[1]} vertices on body "
-        f"{anim.body}; mode {named}{gate}, {used}; {seconds:.1f} s"
+        f"{anim.body_name}; mode {named}{gate}, {used}; {seconds:.1f} s"
     )
     if anim.penetration is not None:
         p = anim.penetration

@@ -14,8 +14,8 @@
     /diagnostics/match      (T, 2) int32, the database window (sequence, start frame) that gave or lent
                             to the frame (retrieval; the residual and detail modes' match), or -1
     attributes: fps, units ("m"), up_axis ("Y"), garment, source_motion (the motion file),
-                body (the name of the body animated), body_record (that body as body.json holds it,
-                JSON), format_version, model_hash, and the run's
+                body_name (the name of the body animated), body_record (that body as body.json holds
+                it, JSON), format_version, model_hash, and the run's
                 settings: mode (the inference mode), gate,
                 tau, causal, collision, detail_base and detail_strength (detail mode)
 
@@ -39,7 +39,13 @@ from ..errors import InputError
 from ..io_utils import atomic_h5
 from ..motion.motion import MAX_TRANSLATION_M
 from .animation_checks import check_arrays, checked_fps, checked_skeleton
-from .animation_versions import FORMAT_VERSION, OLD_NAMES, file_version, upgrade_from_version_2
+from .animation_versions import (
+    FORMAT_VERSION,
+    OLD_NAMES,
+    file_version,
+    upgrade_from_version_2,
+    upgrade_from_version_4,
+)
 
 SKELETON = (
     "body/rotations",
@@ -212,6 +218,8 @@ def read_animation_h5(path: str | Path) -> AnimationFile:
     attrs["fps"] = checked_fps(path, attrs)
     if version < 3:
         per_frame, attrs = upgrade_from_version_2(per_frame, attrs)
+    if version < 5:
+        attrs = upgrade_from_version_4(attrs)
     check_arrays(path, vertices, faces, per_frame=per_frame, capsules=capsules, radii=radii)
     _check_on_body(path, vertices, per_frame["body/joints"])
     skeleton = checked_skeleton(path, skeleton, vertices.shape[0])

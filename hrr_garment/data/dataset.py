@@ -1,6 +1,6 @@
 """The garment dataset file (HDF5): one template, many simulated sequences, fixed splits.
 
-Layout (format_version 2; documented in docs/dataset.md)::
+Layout (format_version 3; documented in docs/dataset.md)::
 
     /                      attrs: format_version, fps, garment, units="m", up_axis="y", generator, info (JSON)
     /template/vertices     (V, 3) float32, rest pose
@@ -11,8 +11,8 @@ Layout (format_version 2; documented in docs/dataset.md)::
     /sequences/<name>/joints           (T, 22, 3) float32, world joint positions
     /sequences/<name>/local_rotations  (T, 22, 3, 3) float32
     /sequences/<name>/root_translation (T, 3) float64
-                      attrs: source, info (JSON: kind, seed, stats...), body (a name under /bodies;
-                      absent: the mannequin)
+                      attrs: source, info (JSON: kind, seed, stats...), body_name (a name under
+                      /bodies; absent: the mannequin)
     /bodies/<name>/rest                (V, 3) float32, the garment on this body in its rest pose
                   attrs: body (JSON: body.json's content, hrr_garment.body.body_file)
     /splits/{train,val,test}           names of sequences (variable-length UTF-8 strings)
@@ -20,7 +20,8 @@ Layout (format_version 2; documented in docs/dataset.md)::
 A sequence on a body has that body's motion: the rotations drive the body's own skeleton and the
 root translation is already scaled to its legs (:func:`hrr_garment.body.retarget.motion_on_body`),
 so ``sequence(name).motion`` is what moved the cloth. Version 1 files (every sequence on the
-mannequin, no /bodies) read as before.
+mannequin, no /bodies) read as before, and so do version 2's, whose sequences name their body in
+the attribute ``body`` (version 3 calls it ``body_name``, leaving ``body`` to /bodies' records).
 """
 
 from __future__ import annotations
@@ -40,8 +41,10 @@ from ..garment.mesh import GarmentError, GarmentMesh, check_garment
 from ..motion.motion import FPS, Motion
 from .dataset_bodies import read_bodies, write_bodies
 
-FORMAT_VERSION = 2
-READABLE_VERSIONS = (1, 2)
+FORMAT_VERSION = 3
+READABLE_VERSIONS = (1, 2, 3)
+#: a sequence's attribute naming its body, by format version (3 renamed it)
+BODY_NAME_ATTR = {1: "body", 2: "body", 3: "body_name"}
 SPLITS = ("train", "val", "test")
 
 
@@ -57,7 +60,7 @@ class SequenceRecord:
     garment: np.ndarray
     motion: Motion
     info: dict = field(default_factory=dict)
-    body: str = MANNEQUIN  # the name of the body it was simulated on (GarmentDataset.bodies)
+    body_name: str = MANNEQUIN  # the name of the body it was simulated on (GarmentDataset.bodies)
     dressed: DressedBody | None = None  # that body and the garment at rest on it, as read from a dataset
 
 
@@ -104,9 +107,10 @@ def write_dataset(
             s.create_dataset("root_translation", data=rec.motion.root_translation.astype(np.float64))
             s.attrs["source"] = rec.motion.source
             s.attrs["info"] = json.dumps(rec.info)
-            if rec.body != MANNEQUIN:
-                s.attrs["body"] = rec.body
-        write_bodies(f, template, used={rec.body for rec in sequences} - {MANNEQUIN}, bodies=bodies or {})
+            if rec.body_name != MANNEQUIN:
+                s.attrs[BODY_NAME_ATTR[FORMAT_VERSION]] = rec.body_name
+        used = {rec.body_name for rec in sequences} - {MANNEQUIN}
+        write_bodies(f, template, used=used, bodies=bodies or {})
         sp = f.create_group("splits")
         str_type = h5py.string_dtype("utf-8")
         for split in SPLITS:
@@ -197,18 +201,19 @@ class GarmentDataset:
                     f"for a template of {self.template.num_vertices} vertices",
                 )
         self.frames = {n: int(f["sequences"][n]["garment"].shape[0]) for n in self.names}
-        self.body_of = {n: str(f["sequences"][n].attrs.get("body", MANNEQUIN)) for n in self.names}
+        key = BODY_NAME_ATTR[version]
+        self.body_name_of = {n: str(f["sequences"][n].attrs.get(key, MANNEQUIN)) for n in self.names}
         try:
             self.bodies = read_bodies(f, self.template, str(self.path))
         except ValueError as exc:
             raise DatasetError(self.path, str(exc)) from None
-        unknown = sorted({b for b in self.body_of.values()} - set(self.bodies))
+        unknown = sorted({b for b in self.body_name_of.values()} - set(self.bodies))
         if unknown:
             raise DatasetError(self.path, f"sequences name bodies that are not in /bodies: {unknown[:5]}")
 
     def rest(self, name: str) -> np.ndarray:
         """(V, 3) the rest shape of the garment of sequence ``name`` (on its own body)."""
-        return self.bodies[self.body_of[name]].garment.vertices
+        return self.bodies[self.body_name_of[name]].garment.vertices
 
     def __len__(self) -> int:
         return len(self.names)
@@ -226,7 +231,7 @@ class GarmentDataset:
                     if key not in s:
                         raise DatasetError(self.path, f"sequence {name!r} lacks {key!r}")
                 garment = s["garment"][()]
-                body = self.bodies[self.body_of[name]].body
+                body = self.bodies[self.body_name_of[name]].body
                 motion = Motion(
                     s["local_rotations"][()],
                     s["root_translation"][()],
@@ -268,8 +273,9 @@ class GarmentDataset:
                 f"{frame}, beyond {MAX_GARMENT_REACH_M:g} m: the garment is in another unit or place "
                 "than the body",
             )
+        body_name = self.body_name_of[name]
         return SequenceRecord(
-            name, garment, motion, info, body=self.body_of[name], dressed=self.bodies[self.body_of[name]]
+            name, garment, motion, info, body_name=body_name, dressed=self.bodies[body_name]
         )
 
 

@@ -40,14 +40,15 @@ def write_synthetic_dataset(
     and swinging with the speed of the body's own stride; default the mannequin."""
     records = []
     for i, (name, kind, seed) in enumerate(SEQUENCES):
-        motion, v, body = synthesize(kind, seconds, seed=seed), garment.vertices.astype(np.float32), MANNEQUIN
+        motion, rest, body_name = synthesize(kind, seconds, seed=seed), garment.vertices, MANNEQUIN
         if bodies:
             dressed = bodies[i % len(bodies)]
-            motion, v, body = (
+            motion, rest, body_name = (
                 motion_on_body(motion, dressed.record),
-                dressed.garment.vertices.astype(np.float32),
+                dressed.garment.vertices,
                 dressed.name,
             )
+        v = rest.astype(np.float32)
         # how far down the garment a vertex hangs, 0 at the waist to 1 at the hem, squared: hems swing most
         depth = np.clip((v[:, 1].max() - v[:, 1]) / np.ptp(v[:, 1]), 0, 1)[None, :] ** 2
         f = motion_features(motion)
@@ -60,5 +61,5 @@ def write_synthetic_dataset(
             np.einsum("tij,tnj->tni", rotation_about_y(yaw), local)
             + (motion.root_translation * [1, 0, 1])[:, None]
         )
-        records.append(SequenceRecord(name, world.astype(np.float32), motion, body=body))
+        records.append(SequenceRecord(name, world.astype(np.float32), motion, body_name=body_name))
     return write_dataset(path, garment, records, splits=SPLITS, bodies={b.name: b for b in bodies or []})

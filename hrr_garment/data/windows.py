@@ -184,7 +184,7 @@ def dataset_features(
         motion = dataset.sequence(name).motion
         out[name] = with_memory(motion_features(motion), motion.fps, memory)
         if body_measures:
-            out[name] = with_body(out[name], body_vector(dataset.bodies[dataset.body_of[name]].record))
+            out[name] = with_body(out[name], body_vector(dataset.bodies[dataset.body_name_of[name]].record))
     return out
 
 

@@ -215,7 +215,7 @@ def _on_default_body(bundle: Bundle, records: list[SequenceRecord]) -> list[bool
     (None where they do not: a model of one body, or a validation without its default body)."""
     if not bundle.manifest.default_body_is_mannequin:
         return None  # a model of the one body it was trained on
-    on = [r.body == MANNEQUIN for r in records]
+    on = [r.body_name == MANNEQUIN for r in records]
     return on if any(on) and not all(on) else None
 
 

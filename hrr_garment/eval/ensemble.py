@@ -136,7 +136,9 @@ def truth_ensembles(
     processes). A record on a body other than the mannequin is simulated on it, with the garment on
     it, from ``bodies`` (a dataset's :attr:`~hrr_garment.data.dataset.GarmentDataset.bodies`)."""
     dressed = {
-        r.name: (bodies[r.body].garment, bodies[r.body].body) if r.body != MANNEQUIN else (garment, None)
+        r.name: (bodies[r.body_name].garment, bodies[r.body_name].body)
+        if r.body_name != MANNEQUIN
+        else (garment, None)
         for r in records
     }
     if members < 2:

@@ -28,7 +28,7 @@ CHECK_SECONDS = 6.0  # the procedural walk a body is checked on: a curve, both l
 class InsideReport:
     """The cloth inside one body on one clip, before the push-out (percent of the garment's vertices)."""
 
-    body: str
+    body_name: str
     stature_m: float
     inside_pct: float  # more than 5 mm inside, the mean over frames (hrr-eval's "inside before the push-out")
     inside_worst_pct: float  # ... on the worst frame
@@ -58,7 +58,7 @@ def cloth_inside(animator: Animator, motion: Motion, body=None, *, name: str | N
     )  # the clip as the body played it
     deep = penetration_fraction(distance)
     return InsideReport(
-        body=character.name,
+        body_name=character.name,
         stature_m=float(character.record.stature),
         inside_pct=100.0 * float(deep.mean()),
         inside_worst_pct=100.0 * float(deep.max()),

@@ -69,11 +69,11 @@ def _records(item: UnseenBody, animator: Animator, sequences: int | None):
     if not names:
         raise DatasetError(item.dataset, "has no test sequences")
     records = [ds.sequence(n) for n in names]
-    bodies = {r.body for r in records}
-    if len(bodies) != 1:
+    body_names = {r.body_name for r in records}
+    if len(body_names) != 1:
         raise DatasetError(
             item.dataset,
-            f"its test sequences stand on {len(bodies)} bodies; the protocol takes a dataset "
+            f"its test sequences stand on {len(body_names)} bodies; the protocol takes a dataset "
             "simulated on one (hrr-simulate --body)",
         )
     return ds, records
@@ -89,7 +89,7 @@ def _check_unseen(animator: Animator, record, where: Path) -> None:
         return
     ds = GarmentDataset(trained_on)
     mine = body_vector(record.dressed.record)
-    for name in sorted({ds.body_of[n] for n in ds.splits.get("train", [])}):
+    for name in sorted({ds.body_name_of[n] for n in ds.splits.get("train", [])}):
         if np.allclose(body_vector(ds.bodies[name].record), mine, atol=1e-4):
             raise InputError(
                 where,
@@ -122,7 +122,7 @@ def unseen_bodies_section(
         animator.body(records[0].dressed)  # outside the model's range: refused here, before any work
         entry = {
             "dataset": str(item.dataset),
-            "body": records[0].body,
+            "body": records[0].body_name,
             "sequences": [r.name for r in records],
             "frames": int(sum(len(r.garment) for r in records)),
             "model": _row(evaluate_modes(animator, records, auto, ensembles=ensembles)[Mode.AUTO.value]),

@@ -151,12 +151,14 @@ def write_dataset_preview(
     for kind in ("walk", "spin"):
         chosen += [r for r in records if r.info.get("kind") == kind][:1]
     chosen = chosen or records[:2]
-    used = sorted({r.body for r in records if r.body in bodies}, key=lambda n: bodies[n].record.stature)
+    used = sorted(
+        {r.body_name for r in records if r.body_name in bodies}, key=lambda n: bodies[n].record.stature
+    )
     extremes = [used[0], used[-1]] if len(used) > 1 else used
     chosen += [
-        next(r for r in records if r.body == name)
+        next(r for r in records if r.body_name == name)
         for name in extremes
-        if not any(c.body == name for c in chosen)
+        if not any(c.body_name == name for c in chosen)
     ]
     try:
         rest = [
@@ -168,11 +170,11 @@ def write_dataset_preview(
         ]
         rows = [
             (
-                f"{r.name} on {r.body}" if r.body in bodies else r.name,
+                f"{r.name} on {r.body_name}" if r.body_name in bodies else r.name,
                 r.garment,
                 garment.faces,
                 r.motion,
-                *([bodies[r.body].record] if r.body in bodies else []),
+                *([bodies[r.body_name].record] if r.body_name in bodies else []),
             )
             for r in chosen
         ]

@@ -41,7 +41,7 @@ class Animation:
     penetration: PushOutReport | None = None
     capsules: np.ndarray | None = None  # (T, C, 2, 3) collision capsule ends, for previews and exports
     radii: np.ndarray | None = None  # (C,) the capsules' radii
-    body: str = MANNEQUIN  # the name of the body it was animated on
+    body_name: str = MANNEQUIN  # the name of the body it was animated on
     skeleton: Motion | None = (
         None  # the motion as the body played it (its skeleton and rotations), for exports
     )
@@ -103,7 +103,7 @@ class Animation:
                 "garment": self.garment,
                 "source_motion": self.motion_file,
                 "model_hash": self.model_hash,
-                "body": self.body,
+                "body_name": self.body_name,
                 "body_record": None
                 if self.body_record is None
                 else strict_json(body_to_dict(self.body_record)),

@@ -150,7 +150,7 @@ def animate_clip(path: FramePath, motion: Motion) -> Animation:
         penetration=report,
         capsules=np.stack(character.body.pose_motion(motion), 2).astype(np.float32),
         radii=character.body.radii,
-        body=character.name,
+        body_name=character.name,
         skeleton=motion,
         body_record=character.record,
         doubt=chosen.doubt,

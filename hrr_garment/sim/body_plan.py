@@ -100,7 +100,7 @@ def one_body(
 ) -> tuple[list[SequenceSpec], dict[str, DressedBody]]:
     """Every sequence on ``body`` (``hrr-simulate --body``)."""
     name = safe_name(name, empty="body")
-    return [replace(s, body=name) for s in specs], {name: replace(body, name=name)}
+    return [replace(s, body_name=name) for s in specs], {name: replace(body, name=name)}
 
 
 def placement_note(name: str, report: TransferReport) -> str:
@@ -154,7 +154,7 @@ def _performer_bodies(specs, garment, made_for, progress):
                 bodies.setdefault(name, replace(dressed, name=name))
                 by_body[found.body] = name
             by_path[spec.path] = by_body[found.body]
-        out.append(replace(spec, body=by_path[spec.path]))
+        out.append(replace(spec, body_name=by_path[spec.path]))
     return out, bodies
 
 
@@ -217,7 +217,7 @@ def _sampled_bodies(plan, specs, garment, made_for):
             out.append(spec)
         for name in chosen:
             several = plan.per_clip > 1 or plan.mannequin
-            out.append(replace(spec, name=on_body(spec.name, name) if several else spec.name, body=name))
+            out.append(replace(spec, name=on_body(spec.name, name) if several else spec.name, body_name=name))
     return out, bodies
 
 

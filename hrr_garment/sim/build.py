@@ -91,7 +91,7 @@ class BuildSettings:
     sequences a field does not group train as far as that field goes).
 
     ``bodies`` (name -> a body and the garment on it, :mod:`.body_plan`) holds every body a sequence
-    names (``SequenceSpec.body``); ``hold_out_bodies`` makes validation and test hold out whole
+    names (``SequenceSpec.body_name``); ``hold_out_bodies`` makes validation and test hold out whole
     bodies as well as whole groups (a sequence tests if its group or its body does).
 
     ``batch`` N simulates up to N sequences of similar length together, each in its own world of
@@ -253,7 +253,9 @@ def _simulate_missing(
     borrowed first), as ``options`` say (workers, Ray, batches, progress)."""
     o = options
     extra = {"template": template_hash(garment), "sim": config.to_dict(), "part_version": PART_VERSION}
-    keys = {s.name: s.key({**extra, "body": bodies[s.body].key()} if s.body else extra) for s in specs}
+    keys = {
+        s.name: s.key({**extra, "body": bodies[s.body_name].key()} if s.body_name else extra) for s in specs
+    }
     pending, rejects, reused = parts_to_simulate(specs, parts, keys, retry_rejected=o.retry_rejected)
     jobs = o.jobs
     if o.executor == "local":
@@ -284,7 +286,7 @@ def _finished(specs: list[SequenceSpec], rejects: dict[str, str], parts: Path) -
 
 
 def _check_bodies(specs: list[SequenceSpec], bodies: dict[str, DressedBody]) -> dict[str, DressedBody]:
-    missing = sorted({s.body for s in specs if s.body} - set(bodies))
+    missing = sorted({s.body_name for s in specs if s.body_name} - set(bodies))
     if missing:
         raise InputError("bodies", f"sequences name bodies that the build was not given: {missing[:5]}")
     return bodies

@@ -55,6 +55,6 @@ def split_sources(done: list[str], specs: list[SequenceSpec], o: BuildSettings) 
     if o.hold_out_bodies:
         # the mannequin is never held out as a body: it is the default body, and a preset that keeps
         # every clip on it too (bodies: {mannequin: true}) holds out the same sampled bodies as without
-        by_body = {s.name: s.body for s in specs if s.name in done and s.body}
+        by_body = {s.name: s.body_name for s in specs if s.name in done and s.body_name}
         split = combine_splits(split, split_groups(by_body, val, test, seed=o.seed))
     return split

@@ -77,7 +77,7 @@ def _job(
 ) -> SequenceJob:
     """A sequence's job: the template on the mannequin, and its body where it names one (the
     motion loaded where the job runs when not given)."""
-    body = bodies[spec.body] if spec.body else None
+    body = bodies[spec.body_name] if spec.body_name else None
     return SequenceJob(spec, motion, garment=bodies[MANNEQUIN].garment, key=key, body=body)
 
 

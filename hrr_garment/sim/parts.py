@@ -120,7 +120,7 @@ def _part(
     )
     info = {"kind": spec.kind, "seed": spec.seed, "path": spec.path, "stats": stats}
     if job.body is not None:
-        info["body"] = job.body.name
+        info["body_name"] = job.body.name
     return PartResult(spec.name, job.key, result.simulated_frames, result.vertices, motion, info)
 
 
@@ -170,7 +170,9 @@ def write_part(result: PartResult, parts: Path) -> None:
     motion = result.motion
     failed.unlink(missing_ok=True)  # an earlier rejection that a retry has now saved
     on_body = (
-        {"skeleton_offsets": np.asarray(motion.skeleton.offsets, np.float32)} if "body" in result.info else {}
+        {"skeleton_offsets": np.asarray(motion.skeleton.offsets, np.float32)}
+        if "body_name" in result.info
+        else {}
     )
     with atomic_path(part) as tmp:
         with open(tmp, "wb") as fh:
@@ -191,11 +193,15 @@ def load_part(part: Path, name: str) -> SequenceRecord:
     """A finished part as a SequenceRecord."""
     with np.load(part, allow_pickle=False) as z:
         info = json.loads(str(z["info"]))
+        if "body" in info:  # a part written before the body's name was called body_name (same key)
+            info["body_name"] = info.pop("body")
         on_body = {"skeleton": Skeleton(offsets=z["skeleton_offsets"])} if "skeleton_offsets" in z else {}
         motion = Motion(
             z["local_rotations"], z["root_translation"], float(z["fps"]), source=str(z["source"]), **on_body
         )
-        return SequenceRecord(name, z["garment"], motion, info=info, body=info.get("body", MANNEQUIN))
+        return SequenceRecord(
+            name, z["garment"], motion, info=info, body_name=info.get("body_name", MANNEQUIN)
+        )
 
 
 def parts_to_simulate(

@@ -33,13 +33,15 @@ FILE_PIECE_S = 12.0  # longer motion files are simulated in pieces of at most th
 LATER_FIELDS = {
     "speed": 1.0,
     "source_fps": None,
-    "body": "",
+    "body_name": "",
     "mirrored": False,
     "upper_path": "",
     "upper_start": 0,
     "arm_delay": 0,
     "backward": False,
 }
+# SequenceSpec fields renamed since: each hashes under its old name, so its sequences keep their keys
+KEYED_AS = {"body_name": "body"}
 
 
 @dataclass(frozen=True)
@@ -55,7 +57,7 @@ class SequenceSpec:
     stop: int = 0
     speed: float = 1.0  # the file's motion played this much faster (a speed-warp augmentation)
     source_fps: float | None = None  # the file's frame rate where it carries none (--fps)
-    body: str = ""  # the name of the body it is simulated on (sim/body_plan.py); "": the mannequin
+    body_name: str = ""  # the name of the body it is simulated on (sim/body_plan.py); "": the mannequin
     mirrored: bool = False  # the motion reflected left-right (a preset's ``mirror: simulate``)
     # a splice (sim/augment.py): the spine, head and arms from this file's frames from upper_start on
     upper_path: str = ""
@@ -80,7 +82,11 @@ class SequenceSpec:
     def key(self, extra: dict) -> str:
         """Content hash of everything that determines the simulated result."""
         # Defaults of fields added later stay out, so earlier sequences keep their keys.
-        spec = {k: v for k, v in asdict(self).items() if not (k in LATER_FIELDS and v == LATER_FIELDS[k])}
+        spec = {
+            KEYED_AS.get(k, k): v
+            for k, v in asdict(self).items()
+            if not (k in LATER_FIELDS and v == LATER_FIELDS[k])
+        }
         payload = {"spec": spec, **extra}
         if self.kind == "file":
             payload["file_sha1"] = hashlib.sha1(Path(self.path).read_bytes()).hexdigest()
@@ -94,15 +100,15 @@ def load_file_motion(path: str, speed: float = 1.0, source_fps: float | None = N
     return retimed(load_motion(path, source_fps=source_fps), speed)
 
 
-def on_body(name: str, body: str) -> str:
+def on_body(name: str, body_name: str) -> str:
     """The name of a clip's sequence on one of the several bodies it is simulated on (sim/body_plan.py)."""
-    return f"{name}__{body}"
+    return f"{name}__{body_name}"
 
 
 def clip_name(spec: SequenceSpec) -> str:
     """The name of the clip a sequence plays: its own, less the body's suffix of a clip simulated on
     several bodies (:func:`on_body`)."""
-    return spec.name.removesuffix(on_body("", spec.body)) if spec.body else spec.name
+    return spec.name.removesuffix(on_body("", spec.body_name)) if spec.body_name else spec.name
 
 
 def sequence_group(spec: SequenceSpec, preset: Preset) -> str:

@@ -44,12 +44,12 @@ def add_reflected_mirrors(
             r.garment[:, perm] * flip,
             r.motion.mirrored(),
             info={**r.info, "mirror_of": r.name},
-            body=r.body,
+            body_name=r.body_name,
         )
         for r in records
-        if r.body not in asymmetric
+        if r.body_name not in asymmetric
     ]
-    names = {r.name for r in records if r.body not in asymmetric}
+    names = {r.name for r in records if r.body_name not in asymmetric}
     return records + mirrored, {
         k: sorted(v + [f"{n}{MIRROR_SUFFIX}" for n in v if n in names]) for k, v in split.items()
     }

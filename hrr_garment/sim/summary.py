@@ -28,7 +28,7 @@ def summarise(
     stats = [r.info.get("stats", {}) for r in records]
     edges = garment.edges()
     rest = {MANNEQUIN: garment.vertices, **{n: b.garment.vertices for n, b in (bodies or {}).items()}}
-    strains = [edge_strain(r.garment, rest[r.body], edges).ravel() for r in records]
+    strains = [edge_strain(r.garment, rest[r.body_name], edges).ravel() for r in records]
     pooled = np.concatenate(strains)
     sim_frames = sum(s.get("simulated_frames", 0) for s in stats)
     sim_seconds = sum(s.get("sim_seconds", 0.0) for s in stats)
@@ -67,8 +67,8 @@ def _by_body(
 ) -> dict:
     """Per body: its stature, sequences, frames and strain p99."""
     out = {}
-    for name in sorted({r.body for r in records}):
-        mine = [k for k, r in enumerate(records) if r.body == name]
+    for name in sorted({r.body_name for r in records}):
+        mine = [k for k, r in enumerate(records) if r.body_name == name]
         pooled = np.concatenate([strains[k] for k in mine])
         stature = bodies[name].record.stature if name in bodies else MANNEQUIN_STATURE_M
         out[name] = {

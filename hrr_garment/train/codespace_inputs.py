@@ -35,7 +35,7 @@ def training_bodies(ds: GarmentDataset) -> dict | None:
     when given none (the one body of a model trained on one, the mannequin otherwise) and the body
     its garment was modelled on (``hrr-simulate --made-for``; None: the mannequin). None where the
     data is the mannequin's alone, as before bodies."""
-    names = sorted({ds.body_of[n] for n in ds.splits["train"]})
+    names = sorted({ds.body_name_of[n] for n in ds.splits["train"]})
     made_for = ds.info.get("made_for")
     if names == [MANNEQUIN] and ds.bodies[MANNEQUIN].is_mannequin and made_for is None:
         return None

@@ -62,10 +62,10 @@ class BodyContacts:
 
     @classmethod
     def of(cls, ds: GarmentDataset, windows: WindowSet) -> "BodyContacts":
-        bodies = sorted({ds.body_of[n] for n in windows.names})
+        body_names = sorted({ds.body_name_of[n] for n in windows.names})
         a, b, rows = [], [], []
         for name in windows.names:
-            motion, body = ds.sequence(name).motion, ds.bodies[ds.body_of[name]].body
+            motion, body = ds.sequence(name).motion, ds.bodies[ds.body_name_of[name]].body
             if motion.num_frames < windows.motion.window:  # no window, so none of its frames stored
                 continue
             ends = body.pose_motion(motion)
@@ -77,14 +77,14 @@ class BodyContacts:
                 )
             a.append(to_body_frame(ends[0], motion))
             b.append(to_body_frame(ends[1], motion))
-            rows.append(np.full(len(ends[0]), bodies.index(ds.body_of[name])))
+            rows.append(np.full(len(ends[0]), body_names.index(ds.body_name_of[name])))
         frames = len(windows.motion.frames)
         if sum(len(x) for x in a) != frames:
             raise ValueError(
                 f"the windows store {frames} frames, their sequences have {sum(len(x) for x in a)}"
             )
-        radii = np.stack([ds.bodies[n].body.radii for n in bodies]).astype(np.float32)
-        offsets = np.stack([ds.bodies[n].offset(ds.template) for n in bodies])
+        radii = np.stack([ds.bodies[n].body.radii for n in body_names]).astype(np.float32)
+        offsets = np.stack([ds.bodies[n].offset(ds.template) for n in body_names])
         return cls(
             *(torch.from_numpy(np.concatenate(x).astype(np.float32)) for x in (a, b)),
             torch.from_numpy(np.concatenate(rows).astype(np.int64)),

@@ -34,7 +34,7 @@ def body_frames(ds: GarmentDataset, names: list[str]) -> np.ndarray:
     for name in names:
         rec = ds.sequence(name)
         frames = to_body_frame(rec.garment.astype(np.float64), rec.motion).astype(np.float32)
-        out.append(frames - ds.bodies[ds.body_of[name]].offset(ds.template))
+        out.append(frames - ds.bodies[ds.body_name_of[name]].offset(ds.template))
     return np.concatenate(out) if out else np.zeros((0, ds.template.num_vertices, 3), np.float32)
 
 

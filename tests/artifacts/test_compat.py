@@ -125,3 +125,39 @@ def test_every_driver_of_the_frame_path_gives_what_it_gave_before_the_stages_wer
     assert set(now) == set(before.files)
     for name, vertices in now.items():
         assert np.abs(vertices[::4] - before[name]).max() <= 1e-5, name
+
+
+def test_an_out_h5_before_version_5_names_its_body_in_the_attribute_body(tmp_path):
+    """Versions 1-4 named the body animated on in the attribute ``body``; version 5 writes ``body_name``
+    (beside ``body_record`` and the ``body/`` group, the body itself), and older files read into it."""
+    import h5py
+
+    from hrr_garment.data.animation_versions import FORMAT_VERSION
+    from hrr_garment.inference.animation import Animation
+
+    motion = synthesize("walk", 0.2, seed=0)
+    joints = motion.joint_positions.astype(np.float32)
+    t = len(joints)
+    anim = Animation(
+        joints[:, :1] + np.zeros((1, 3, 3), np.float32),  # every vertex at the pelvis
+        np.array([[0, 1, 2]]),
+        30.0,
+        np.zeros(t, np.uint8),
+        np.zeros(t, np.float32),
+        -np.ones((t, 2), np.int32),
+        joints,
+        "skirt",
+        "hash",
+        "walk",
+        body_name="hero",
+    )
+    path = anim.save(tmp_path / "out.h5")
+    with h5py.File(path, "a") as f:
+        assert f.attrs["format_version"] == FORMAT_VERSION == 5 and f.attrs["body_name"] == "hero"
+        assert "body" not in f.attrs
+        f.attrs["format_version"] = 4  # as version 4 wrote it
+        f.attrs["body"] = f.attrs.pop("body_name")
+    old = read_animation_h5(path)
+    assert old.attrs["body_name"] == "hero" and "body" not in old.attrs
+    assert old.attrs["format_version"] == 4  # the arrays are version 4's: only the attribute is renamed
+    assert np.array_equal(old.vertices, anim.vertices)

@@ -37,7 +37,9 @@ def test_hrr_animate_writes_out_h5_and_refuses_bad_motion(trained, tmp_path, cap
         and attrs["up_axis"] == "Y"
         and attrs["garment"] == "skirt"
     )
-    assert attrs["format_version"] == 4 and len(attrs["model_hash"]) == 16 and attrs["body"] == "mannequin"
+    assert (
+        attrs["format_version"] == 5 and len(attrs["model_hash"]) == 16 and attrs["body_name"] == "mannequin"
+    )
     from hrr_garment.motion.motion import Motion
     from hrr_garment.motion.rotations import quat_to_matrix
     from hrr_garment.motion.skeleton import Skeleton

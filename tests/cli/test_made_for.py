@@ -76,7 +76,7 @@ def test_declared_with_its_body_the_garment_keeps_its_shape_and_simulates(modell
     assert "the garment on body made_for" in capsys.readouterr().out
     (name,) = ds.names
     rest = ds.rest(name)
-    on = ds.bodies[ds.body_of[name]].body
+    on = ds.bodies[ds.body_name_of[name]].body
     assert _inside(rest, on) <= 0.01
     assert (
         np.linalg.norm(rest - dress.vertices, axis=-1).mean() <= 0.003
@@ -94,7 +94,7 @@ def test_carried_onto_another_body_it_keeps_its_distance(modelled):
     )
     ds = _simulate(folder, obj, "--made-for", str(body_file), "--body", str(other_file))
     (name,) = ds.names
-    assert ds.body_of[name] == "small"
+    assert ds.body_name_of[name] == "small"
     rest = ds.rest(name)
     a0, b0 = body.rest_pose()
     a1, b1 = ds.bodies["small"].body.rest_pose()

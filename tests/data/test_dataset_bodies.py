@@ -50,16 +50,16 @@ def test_a_dataset_keeps_each_sequences_body_and_the_garment_on_it(tmp_path):
 
     frames = carried(tall.garment.vertices, on_body)
     records = [
-        SequenceRecord("walk_tall", frames, on_body, {"kind": "walk"}, body="tall"),
+        SequenceRecord("walk_tall", frames, on_body, {"kind": "walk"}, body_name="tall"),
         SequenceRecord("walk_mannequin", carried(garment.vertices, clip), clip),
     ]
     path = write_dataset(
         tmp_path / "d.h5", garment, records, {"train": ["walk_tall", "walk_mannequin"]}, bodies={"tall": tall}
     )
     ds = GarmentDataset(path)
-    assert ds.body_of == {"walk_tall": "tall", "walk_mannequin": MANNEQUIN}
+    assert ds.body_name_of == {"walk_tall": "tall", "walk_mannequin": MANNEQUIN}
     rec = ds.sequence("walk_tall")
-    assert rec.body == "tall"
+    assert rec.body_name == "tall"
     # the motion read back is the body's: its skeleton and its scaled root, the joints as simulated
     assert np.allclose(rec.motion.joint_positions, on_body.joint_positions, atol=1e-5)
     assert not np.allclose(rec.motion.joint_positions, clip.joint_positions, atol=1e-2)
@@ -78,13 +78,39 @@ def test_a_sequence_on_a_body_the_file_does_not_hold_is_refused(tmp_path):
     frames = np.repeat(garment.vertices[None], clip.num_frames, 0)
     with pytest.raises(ValueError, match="bodies that were not given"):
         write_dataset(
-            tmp_path / "d.h5", garment, [SequenceRecord("w", frames, clip, body="ghost")], {"train": ["w"]}
+            tmp_path / "d.h5",
+            garment,
+            [SequenceRecord("w", frames, clip, body_name="ghost")],
+            {"train": ["w"]},
         )
     path = write_dataset(tmp_path / "d.h5", garment, [SequenceRecord("w", frames, clip)], {"train": ["w"]})
     with h5py.File(path, "a") as f:
-        f["sequences/w"].attrs["body"] = "ghost"
+        f["sequences/w"].attrs["body_name"] = "ghost"
     with pytest.raises(DatasetError, match="ghost"):
         GarmentDataset(path)
+
+
+def test_a_version_2_dataset_names_each_sequences_body_in_its_old_attribute(tmp_path):
+    """Version 2 named a sequence's body in the attribute ``body``, version 3 in ``body_name`` (``body``
+    is the body record under /bodies): a version 2 file reads as before, into ``body_name``."""
+    garment = make_garment("skirt", 200)
+    tall = _dressed(garment)
+    clip = motion_on_body(synthesize("walk", 1.0, seed=0), tall.body)
+    root = clip.root_translation - clip.root_translation[:1]
+    frames = (tall.garment.vertices[None] + root[:, None]).astype(np.float32)  # carried with the pelvis
+    records = [SequenceRecord("w", frames, clip, body_name="tall")]
+    path = write_dataset(tmp_path / "d.h5", garment, records, {"train": ["w"]}, bodies={"tall": tall})
+    with h5py.File(path, "a") as f:
+        assert f.attrs["format_version"] == 3 and f["sequences/w"].attrs["body_name"] == "tall"
+        assert "body" not in f["sequences/w"].attrs
+        f.attrs["format_version"] = 2  # as version 2 wrote it
+        f["sequences/w"].attrs["body"] = f["sequences/w"].attrs.pop("body_name")
+    ds = GarmentDataset(path)
+    assert ds.body_name_of == {"w": "tall"} and ds.sequence("w").body_name == "tall"
+    assert np.array_equal(ds.rest("w"), tall.garment.vertices)
+    with h5py.File(path, "a") as f:
+        f.attrs["format_version"] = 3  # a version 3 file's attribute ``body`` is not its body's name
+    assert GarmentDataset(path).body_name_of == {"w": MANNEQUIN}
 
 
 def test_nearly_symmetric_bodies_are_made_exactly_symmetric():
@@ -146,7 +172,7 @@ def test_hrr_simulate_on_a_body_records_it_and_mirrors_on_it(tmp_path, capsys):
     )
     assert "body tall (1.87 m)" in capsys.readouterr().out
     ds = GarmentDataset(out)
-    assert ds.body_of == {"walk_000": "tall", "walk_000_mirror": "tall"}
+    assert ds.body_name_of == {"walk_000": "tall", "walk_000_mirror": "tall"}
     rec = ds.sequence("walk_000")
     # ``mirror: true`` simulates the mirrored motion on the same body (not a reflection of the
     # source's frames)

@@ -119,7 +119,7 @@ def test_mirrored_sequences_join_their_source_split():
     lopsided = DEFAULT_BODY.capsules[:-1] + (replace(DEFAULT_BODY.capsules[-1], radius=0.2),)
     body = replace(DEFAULT_BODY, capsules=lopsided)
     bodies = {"odd": DressedBody("odd", BodyRecord(body.skeleton, body, body.pelvis_height, 1.7), garment)}
-    records[1] = SequenceRecord("b", frames.astype(np.float32), motion, body="odd")
+    records[1] = SequenceRecord("b", frames.astype(np.float32), motion, body_name="odd")
     out, split = add_reflected_mirrors(
         records, {"train": ["a"], "test": ["b"], "val": []}, garment, progress=False, bodies=bodies
     )

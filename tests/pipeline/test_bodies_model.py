@@ -68,7 +68,7 @@ def test_models_learn_each_frame_less_its_bodys_rest_offset(bodies_model):
     ds = GarmentDataset(data)
     for name in ("walk_000", "walk_001"):
         rec = ds.sequence(name)
-        dressed = ds.bodies[ds.body_of[name]]
+        dressed = ds.bodies[ds.body_name_of[name]]
         frames = to_body_frame(rec.garment.astype(np.float64), rec.motion)
         assert np.allclose(body_frames(ds, [name]), frames - dressed.offset(ds.template), atol=1e-5)
         assert np.abs(dressed.offset(ds.template)).max() > 0.02  # a body unlike the mannequin
@@ -102,7 +102,7 @@ def test_the_garment_stands_on_the_body_it_is_animated_on(bodies_model):
     waist, rest = {}, {}
     for name in ("tall", "short"):
         anim = animator.animate(motion, body=ds.bodies[name], mode="regression")
-        assert anim.body == name and np.allclose(anim.radii, ds.bodies[name].body.radii)
+        assert anim.body_name == name and np.allclose(anim.radii, ds.bodies[name].body.radii)
         waist[name] = anim.vertices[:, :, 1].max(1).mean()
         rest[name] = ds.bodies[name].garment.vertices[:, 1].max()
         assert abs(waist[name] - rest[name]) < 0.05  # near its own rest height (the idle pelvis bobs)
@@ -211,7 +211,7 @@ def test_hrr_animate_on_a_body_file(bodies_model, tmp_path, capsys):
     )
     assert "on body short" in capsys.readouterr().out
     with h5py.File(tmp_path / "out.h5") as f:
-        assert f.attrs["body"] == "short"
+        assert f.attrs["body_name"] == "short"
     write_body(tmp_path / "giant.json", _record(1.4))
     assert (
         main(
@@ -356,7 +356,7 @@ def test_the_auto_calibration_measures_the_default_bodys_clips_apart(bodies_mode
     on_mannequin = GarmentDataset(
         write_synthetic_dataset(tmp_path / "m.h5", make_garment("skirt", 300))
     ).sequence("run_000")
-    assert on_body.body != on_mannequin.body == "mannequin"
+    assert on_body.body_name != on_mannequin.body_name == "mannequin"
     mixed = calibrate_auto_mode(animator, [on_body, on_mannequin], progress=False)
     alone = calibrate_auto_mode(animator, [on_mannequin], progress=False)
     assert mixed.default_body_sequences == 1 and alone.default_body_sequences == 0

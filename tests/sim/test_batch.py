@@ -46,10 +46,10 @@ def test_a_batch_gives_each_sequence_the_frames_it_gets_alone(newton_installed):
     specs = [
         SequenceSpec("walk_000", "walk", seed=0, seconds=1.0),
         SequenceSpec("spin_000", "spin", seed=1, seconds=0.7),
-        SequenceSpec("walk_tall", "walk", seed=2, seconds=1.0, body="tall"),
+        SequenceSpec("walk_tall", "walk", seed=2, seconds=1.0, body_name="tall"),
     ]
     jobs = [
-        SequenceJob(s, s.motion(), garment=garment, key=f"k{i}", body=tall if s.body else None)
+        SequenceJob(s, s.motion(), garment=garment, key=f"k{i}", body=tall if s.body_name else None)
         for i, s in enumerate(specs)
     ]
     config = SimSettings(device="cpu").to_dict()
@@ -67,7 +67,7 @@ def test_a_batch_gives_each_sequence_the_frames_it_gets_alone(newton_installed):
             == (round(30 * job.spec.seconds), garment.num_vertices, 3)
         )
         assert np.abs(part.vertices - alone.vertices).max() <= BATCH_TOLERANCE_M
-        assert part.info.get("body") == alone.info.get("body") and np.array_equal(
+        assert part.info.get("body_name") == alone.info.get("body_name") and np.array_equal(
             part.motion.root_translation, alone.motion.root_translation
         )
         timing = ("sim_seconds",)

@@ -41,9 +41,9 @@ def test_sampled_bodies_span_the_statures_and_share_the_clips():
     assert statures == pytest.approx([1.5, 1.7, 1.9], abs=0.005)
     assert len(planned) == 6 and len({s.name for s in planned}) == 6
     for spec in specs:  # each clip on two different bodies
-        mine = [s.body for s in planned if s.name.startswith(spec.name + "__")]
+        mine = [s.body_name for s in planned if s.name.startswith(spec.name + "__")]
         assert len(set(mine)) == 2
-    assert sorted(s.body for s in planned) == sorted(list(bodies) * 2)  # every body gets its share
+    assert sorted(s.body_name for s in planned) == sorted(list(bodies) * 2)  # every body gets its share
     assert {s.shape["gender"] for s in (b.record for b in bodies.values())} == {0.0, 1.0}
 
 
@@ -99,11 +99,11 @@ def test_every_clip_on_the_mannequin_as_well_holds_out_the_same_bodies():
         groups = {s.name: clip_name(s) for s in planned}  # a clip's sequences share its group
         options = BuildSettings(splits={"val": 0.25, "test": 0.25}, groups=groups, hold_out_bodies=True)
         split = split_sources([s.name for s in planned], planned, options)
-        trained = {s.body for s in planned if s.name in split["train"]}
+        trained = {s.body_name for s in planned if s.name in split["train"]}
         held_out_bodies[mannequin] = set(bodies) - trained
         assert len(planned) == len(specs) * (3 if mannequin else 2) and len(bodies) == 4
     assert held_out_bodies[True] == held_out_bodies[False] and held_out_bodies[True]
-    on_mannequin = sorted(s.name for s in planned if not s.body)
+    on_mannequin = sorted(s.name for s in planned if not s.body_name)
     assert on_mannequin == [s.name for s in specs]  # every clip, under its own name
     by_clip = split_groups(groups, 0.25, 0.25, seed=0)  # the mannequin's sequences follow their clips alone
     for k in ("train", "val", "test"):
@@ -120,10 +120,10 @@ def test_a_procedural_clip_on_several_bodies_is_one_split_group():
 
     preset = load_preset("real-quick-bodies")
     spec = SequenceSpec("walk_000", "walk", seed=0, seconds=1.0)
-    copies = [spec] + [replace(spec, name=f"walk_000__{b}", body=b) for b in ("body03", "body07")]
+    copies = [spec] + [replace(spec, name=f"walk_000__{b}", body_name=b) for b in ("body03", "body07")]
     assert {sequence_group(s, preset) for s in copies} == {"walk_000"}
     assert (
-        sequence_group(replace(spec, name="walk_000__x", body="body03"), preset) == "walk_000__x"
+        sequence_group(replace(spec, name="walk_000__x", body_name="body03"), preset) == "walk_000__x"
     )  # not a body's suffix
 
 
@@ -146,7 +146,7 @@ def test_without_split_by_a_clip_on_several_bodies_splits_as_the_clip_alone():
         sorted(kinds), clips, BuildSettings(splits={"val": 0.2, "test": 0.2}, seed=2, kinds=kinds)
     )
     copies = [
-        replace(s, name=on_body(s.name, b), body=b) for s in clips for b in ("body01", "body04")
+        replace(s, name=on_body(s.name, b), body_name=b) for s in clips for b in ("body01", "body04")
     ] + clips
     options = BuildSettings(splits={"val": 0.2, "test": 0.2}, seed=2, kinds={s.name: s.kind for s in copies})
     split = split_sources(sorted(s.name for s in copies), copies, options)
@@ -160,3 +160,11 @@ def test_without_split_by_a_clip_on_several_bodies_splits_as_the_clip_alone():
 def test_a_bodies_flag_is_true_or_false(key):
     with pytest.raises(InputError, match=f"{key} must be true or false"):
         BodyPlan.from_preset({"from": "sample", key: "false"}, "p.yaml")
+
+
+def test_a_sequence_on_a_body_keeps_the_key_it_had_before_its_body_name_was_renamed():
+    """``SequenceSpec.body_name`` was ``body``: it hashes under that name, so a build finds the parts
+    it simulated before the rename (the keys as commit 98d8d03 computed them)."""
+    on_body = SequenceSpec("walk_000__tall", "walk", seed=3, seconds=1.0, body_name="tall")
+    assert on_body.key({"template": "x"}) == "e9a77a6bbc6b149d"
+    assert SequenceSpec("walk_000", "walk", seed=3, seconds=1.0).key({"template": "x"}) == "c17a066cdd4c6ab8"

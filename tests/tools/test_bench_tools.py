@@ -124,7 +124,7 @@ def test_bodies_inside_counts_the_cloth_inside_each_body_before_the_push_out(tra
     own = write_body(tmp_path / "own.json", animator.bundle.default_body)
     report = tool.analyse(str(root / "model"), ["scaled", str(own)], [], count=3)
     rows = report["rows"]
-    assert [r["body"].split(" (")[0] for r in rows] == ["scaled 0", "scaled 1", "scaled 2", "own"]
+    assert [r["body_name"].split(" (")[0] for r in rows] == ["scaled 0", "scaled 1", "scaled 2", "own"]
     motion = check_motion()  # the walk the tool runs when given no clip
     distance = body_signed_distance(
         animator.animate(motion, push_out=False).vertices, motion, animator.body().body

@@ -90,7 +90,7 @@ def main() -> None:
     print("|---|---|---:|---:|---:|---|")
     for r in report["rows"]:
         print(
-            f"| {r['body']} | {r['clip']} | {r['inside_pct']:.2f} | {r['inside_worst_pct']:.2f} | "
+            f"| {r['body_name']} | {r['clip']} | {r['inside_pct']:.2f} | {r['inside_worst_pct']:.2f} | "
             f"{r['inside_any_pct']:.2f} | {'; '.join(r['outside_range']) or '-'} |"
         )
 
