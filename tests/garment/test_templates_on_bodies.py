@@ -23,6 +23,7 @@ def _larger_body(scale: float, fuller: float):
     return fit_body(surface - floor, joints - floor).body
 
 
+@pytest.mark.slow  # every template made at 1,000 vertices and the dress at 4,000: 5 to 10 s
 def test_the_mannequins_templates_are_those_it_was_trained_on():
     """The templates of every dataset and model so far: vertices and attached groups as 31b4ef9 made them."""
     digest = {

@@ -76,6 +76,7 @@ def capped(tmp_path, monkeypatch):
     return data, tmp_path, lambda: monkeypatch.setattr(schedule, "epoch_fits", fits)
 
 
+@pytest.mark.slow  # trains the tiny autoencoder, resumes it and trains it on: 3 to 7 s
 def test_a_run_its_cap_cut_short_warns_and_resumes_when_the_cap_is_raised(capped):
     from hrr_garment.pipeline.budget import TrainingBudgetWarning
     from tests.conftest import train_tiny

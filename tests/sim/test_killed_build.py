@@ -48,6 +48,7 @@ def wait_for(condition, seconds: float) -> bool:
     return condition()
 
 
+@pytest.mark.slow  # a process pool started, killed and waited for: 3 to 6 s
 def test_workers_of_a_killed_pool_die_with_it(tmp_path):
     """The mechanism on its own: a process pool whose workers called die_with_parent, its parent
     SIGKILLed mid-task, leaves nothing within 5 s (without it the workers sleep on)."""
