@@ -134,3 +134,30 @@ def test_bodies_inside_counts_the_cloth_inside_each_body_before_the_push_out(tra
     assert rows[3]["outside_range"] == [] and rows[0]["outside_range"] and rows[2]["outside_range"]
     for r in rows:
         assert 0 <= r["inside_pct"] <= r["inside_worst_pct"] <= 100 and r["inside_pct"] <= r["inside_any_pct"]
+
+
+@pytest.mark.slow
+def test_bench_ab_times_two_checkouts_pass_by_pass_and_refuses_what_is_no_checkout(tmp_path):
+    """The checkout against itself, two pairs of one workload: a row with both medians and a ratio
+    near 1 (the same code; the bar is loose, a pass is 0.1 s on a shared machine); a folder that is
+    no checkout is refused by name."""
+    import re
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    root = Path(__file__).parents[2]
+    tool = [sys.executable, str(root / "tools" / "bench_ab.py")]
+    done = subprocess.run(
+        tool + [str(root), str(root), "--pairs", "2", "--workloads", "hybrid"],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    assert done.returncode == 0, done.stderr
+    row = re.search(r"\| hybrid \| ([\d.]+) \| ([\d.]+) \| ([\d.]+) \| ([\d.]+)-([\d.]+) \|", done.stdout)
+    assert row, done.stdout
+    a, b, ratio, lo, hi = map(float, row.groups())
+    assert a > 0 and b > 0 and lo <= ratio <= hi and 0.5 < ratio < 2.0
+    refused = subprocess.run(tool + [str(tmp_path), str(root)], capture_output=True, text=True)
+    assert refused.returncode != 0 and f"{tmp_path}: not a checkout" in refused.stderr
