@@ -39,9 +39,9 @@ WORKLOADS = ("hybrid", "regression", "retrieval", "detail", "push", "crowd1", "c
 CROWD_FRAMES = 40  # a crowd pass: 40 steps, its median step timed
 
 
-def serve() -> None:
-    """The worker: build the model of this checkout, warm every workload once, then time one pass
-    per workload name read from stdin, printing seconds."""
+def serve(workloads: list[str]) -> None:
+    """The worker: build the model of this checkout, warm each of ``workloads`` once, then time one
+    pass per workload name read from stdin, printing seconds."""
     sys.path.insert(0, str(Path.cwd() / "tools"))
     import bench_inference as bench
 
@@ -62,7 +62,7 @@ def serve() -> None:
         animator.animate(motion, mode=mode, tau=tau, decoder="fast", **{switch: push})
         return time.perf_counter() - start
 
-    for name in WORKLOADS:
+    for name in workloads:
         one_pass(name)
     print("ready", flush=True)
     for line in sys.stdin:
@@ -72,11 +72,10 @@ def serve() -> None:
 class Worker:
     """A checkout's worker process."""
 
-    def __init__(self, root: Path):
+    def __init__(self, root: Path, workloads: list[str]):
         env = dict(os.environ, PYTHONPATH=str(root))
-        self.root = root
         self.process = subprocess.Popen(
-            [sys.executable, str(Path(__file__).resolve()), "--serve"],
+            [sys.executable, str(Path(__file__).resolve()), "--serve", "--workloads", *workloads],
             cwd=root,
             env=env,
             stdin=subprocess.PIPE,
@@ -111,7 +110,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--serve", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
     if args.serve:
-        serve()
+        serve(args.workloads)
         return 0
     if args.a is None or args.b is None or args.pairs < 2:
         parser.error("give two checkouts and at least 2 pairs")
@@ -120,7 +119,7 @@ def main(argv: list[str] | None = None) -> int:
             parser.error(
                 f"{root}: not a checkout of hrr_garment (no hrr_garment/ or tools/bench_inference.py)"
             )
-    workers = [Worker(args.a.resolve()), Worker(args.b.resolve())]
+    workers = [Worker(args.a.resolve(), args.workloads), Worker(args.b.resolve(), args.workloads)]
     times = {w: ([], []) for w in args.workloads}
     try:
         for i in range(args.pairs):
