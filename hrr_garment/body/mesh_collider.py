@@ -1,15 +1,17 @@
-"""A body's own mesh as the simulator's collider: its rest mesh cut into rigid pieces, one per capsule.
+"""The body the viewer sees as the simulator's collider: its skinned mesh, cut into pieces that ride
+with the capsules' kinematic bodies and are reshaped every frame to the skinned pose.
 
-    mesh = body_mesh(fitted.body, rest.vertices, rest.faces, rest.joints)   # a mesh in its rest pose
-    posed = mesh.pose(motion.global_rotations, motion.joint_positions)       # (T, V, 3): the visible body
+    pieces = skinned_pieces(body, visible)           # the capsules fitted to it, its SkinnedBody
+    local = pieces.local_frames(motion, centre, quat)  # (T, N, 3): every piece's vertices per frame
 
-Each vertex rides rigidly with the joint of the capsule nearest to it in the rest pose (the
-capsules posed like the mesh, as :func:`~.fit.fit_body` poses them). That is skinning with one bone
-per vertex: exact along a bone, and where two pieces meet at a bending joint they overlap on the
-inside of the bend and open a crack on the outside. It is what the simulator can move as kinematic
-rigid bodies (one newton mesh shape per capsule's body, :meth:`BodyMesh.pieces`), and the study that
-compares it with the capsules (``tools/studies/collider_study.py``, docs/bodies.md) measures both against
-the body the viewer sees, the skinned mesh (:mod:`.skinned_body`).
+Each face of the skinned mesh (:mod:`.skinned_body`) goes to the capsule nearest to it at rest, so
+the pieces partition the mesh: no two overlap, and since every vertex is where skinning puts it,
+neighbouring pieces meet along their shared edges in every pose. (Rigid pieces, each vertex riding
+one bone, overlap on the inside of a bent joint and tore the cloth caught there: 3 of 8 clips in
+docs/bodies.md.) The simulator moves each piece's capsule body every substep, as it moves the
+capsules; the piece's vertices, in that body's frame (:func:`hrr_garment.sim.scene.capsule_transforms`:
+the capsule's centre, +Z along its axis), are written once a frame, and what skinning adds to the
+bone's rigid motion during the frame is the mesh's own velocity, which the contact's friction reads.
 """
 
 from __future__ import annotations
@@ -18,68 +20,55 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..motion.rotations import rotation_between
-from ..motion.skeleton import JOINT_INDEX
+from ..motion.rotations import quat_to_matrix
 from .capsules import BodyModel, capsule_signed_distance
-from .skinned_body import rest_frames
+from .skinned_body import SkinnedBody
 
 
 @dataclass(frozen=True)
-class BodyMesh:
-    """A body mesh whose vertices each ride with one joint (see the module docstring)."""
+class MeshPiece:
+    """The faces of the skinned mesh that ride with one capsule."""
 
-    local: np.ndarray  # (V, 3) each vertex in its joint's frame
-    faces: np.ndarray  # (F, 3) int64
-    joint: np.ndarray  # (V,) the canonical joint each vertex rides with
-    capsule: np.ndarray  # (V,) the capsule it was nearest to (its piece)
-    rest_rotations: np.ndarray  # (22, 3, 3) the joints' global rotations in the mesh's rest pose
-    rest_positions: np.ndarray  # (22, 3)
+    capsule: int  # index into the body's capsules
+    vertices: np.ndarray  # (n,) int64 the skinned mesh's vertices it uses
+    faces: np.ndarray  # (m, 3) int64 into ``vertices``
 
-    def pose(self, global_rotations: np.ndarray, joint_positions: np.ndarray) -> np.ndarray:
-        """(T, V, 3) world vertices for FK results (T, 22, 3, 3) and (T, 22, 3)."""
-        rot = np.asarray(global_rotations, np.float64)[:, self.joint]
-        return np.asarray(joint_positions, np.float64)[:, self.joint] + np.einsum(
-            "tvij,vj->tvi", rot, self.local
-        )
 
-    def pieces(self, body: BodyModel) -> list[tuple[int, np.ndarray, np.ndarray]]:
-        """(capsule index, vertices in that capsule's simulator frame, faces) for each capsule with a
-        piece: every face with a vertex on the capsule, so neighbouring pieces overlap by one ring
-        and leave no hole at rest. The simulator's frame of a capsule is its centre, +Z along its
-        axis (:func:`hrr_garment.sim.scene.capsule_transforms`)."""
-        out = []
-        for c, capsule in enumerate(body.capsules):
-            faces = self.faces[np.isin(self.faces, np.flatnonzero(self.capsule == c)).any(1)]
-            if not len(faces):
-                continue
+@dataclass(frozen=True)
+class SkinnedPieces:
+    """A skinned mesh partitioned into pieces by capsule (see the module docstring)."""
+
+    skin: SkinnedBody
+    pieces: tuple[MeshPiece, ...]
+
+    @property
+    def offsets(self) -> np.ndarray:
+        """(P + 1,) where each piece's vertices start in :meth:`local_frames`' rows."""
+        return np.concatenate([[0], np.cumsum([len(p.vertices) for p in self.pieces])])
+
+    def local_frames(self, motion, centre: np.ndarray, quat: np.ndarray) -> np.ndarray:
+        """(T, N, 3) float32: every piece's vertices, concatenated in piece order, in its capsule's
+        simulator frame on each frame of ``motion`` (on the body's skeleton), the capsules placed
+        at ``centre`` (T, C, 3) with rotations ``quat`` (T, C, 4, x y z w)."""
+        world = self.skin.pose(motion.global_rotations, motion.joint_positions)  # (T, V, 3)
+        turn = quat_to_matrix(np.concatenate([quat[..., 3:], quat[..., :3]], -1))  # (T, C, 3, 3)
+        out = [
+            np.einsum("tvi,tij->tvj", world[:, p.vertices] - centre[:, p.capsule, None], turn[:, p.capsule])
+            for p in self.pieces
+        ]
+        return np.concatenate(out, 1).astype(np.float32)
+
+
+def skinned_pieces(body: BodyModel, skin: SkinnedBody) -> SkinnedPieces:
+    """``skin`` (the body the viewer sees) cut into one piece per capsule of ``body`` (fitted to it):
+    each face goes to the capsule nearest to its centroid with both posed at the skin's rest."""
+    a, b = body.pose(skin.rest_rotations[None], skin.rest_positions[None])
+    centroids = skin.vertices[skin.faces].mean(1)
+    _, _, nearest = capsule_signed_distance(centroids, a[0], b[0], radii=body.radii)
+    pieces = []
+    for c in range(len(body.capsules)):
+        faces = skin.faces[nearest == c]
+        if len(faces):
             used, compact = np.unique(faces, return_inverse=True)
-            a, b = np.asarray(capsule.a, np.float64), np.asarray(capsule.b, np.float64)
-            axis = b - a if np.linalg.norm(b - a) > 1e-9 else np.array([0.0, 0.0, 1.0])
-            align = rotation_between(np.array([0.0, 0.0, 1.0]), axis)
-            # every vertex of the piece in this capsule's joint frame, then in the capsule's frame
-            joint = JOINT_INDEX[capsule.joint]
-            in_joint = self._in_joint(used, joint)
-            out.append((c, (in_joint - 0.5 * (a + b)) @ align, compact.reshape(-1, 3)))
-        return out
-
-    def _in_joint(self, vertices: np.ndarray, joint: int) -> np.ndarray:
-        """The given vertices, each moved from its own joint's frame into ``joint``'s (rest pose)."""
-        rot, pos = self.rest_rotations, self.rest_positions
-        world = pos[self.joint[vertices]] + np.einsum(
-            "vij,vj->vi", rot[self.joint[vertices]], self.local[vertices]
-        )
-        return (world - pos[joint]) @ rot[joint]
-
-
-def body_mesh(body: BodyModel, vertices: np.ndarray, faces: np.ndarray, joints: np.ndarray) -> BodyMesh:
-    """``vertices`` (V, 3) and ``faces`` of a rest mesh with its canonical ``joints`` (22, 3) in the
-    same pose (an A-pose is fine), cut into rigid pieces along ``body``'s capsules (fitted to it)."""
-    vertices = np.asarray(vertices, np.float64)
-    rot, pos = rest_frames(body.skeleton, joints)
-    a, b = body.pose(rot[None], pos[None])
-    _, _, nearest = capsule_signed_distance(vertices, a[0], b[0], radii=body.radii)
-    joint = np.array([JOINT_INDEX[body.capsules[c].joint] for c in nearest])
-    in_joint = np.einsum("vji,vj->vi", rot[joint], vertices - pos[joint])  # R^T (v - p)
-    return BodyMesh(
-        in_joint, np.asarray(faces, np.int64), joint, nearest, rest_rotations=rot, rest_positions=pos
-    )
+            pieces.append(MeshPiece(c, used, compact.reshape(-1, 3)))
+    return SkinnedPieces(skin, tuple(pieces))

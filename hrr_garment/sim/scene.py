@@ -15,6 +15,9 @@ from ..motion.rotations import matrix_to_quat, rotation_between
 from .config import SimSettings
 
 ARMS_OFF_CAPSULES = ("upper_arm", "forearm", "hand")  # taken off the cloth in the simulator's last retries
+# how far a skinned piece's skin may stray from its bone's rigid motion (its box, set at rest, is
+# widened by this): skinning moves the skin at a bent joint by a few centimetres
+PIECE_BOUNDS_PAD_M = 0.1
 
 
 def arms_off_capsules(body: BodyModel) -> list[int]:
@@ -81,10 +84,11 @@ def instance_builder(
 ):
     """A newton builder of one garment (attached vertices at zero mass) and ``body``'s capsules as
     kinematic bodies, coloured for VBD, without the ground: a :class:`ClothScene` adds the ground
-    to it, a batch (:mod:`.batch`) adds it as one world of many. ``pieces``: the body's own mesh
-    collides instead of its capsules, (capsule index, vertices in that capsule's frame, faces) per
-    piece riding with the capsule's body (:meth:`hrr_garment.body.mesh_collider.BodyMesh.pieces`).
-    Returns (builder, each capsule's shape indices in it)."""
+    to it, a batch (:mod:`.batch`) adds it as one world of many. ``pieces``: the body the viewer
+    sees collides instead of its capsules, (capsule index, vertices in that capsule's frame, faces)
+    per piece riding with the capsule's body (:mod:`hrr_garment.body.mesh_collider`), the vertices
+    rewritten every frame (:meth:`SteppedScene.step_frame`). Returns (builder, each capsule's shape
+    indices in it): a piece is the only shape of its capsule's body."""
     wp, newton = import_newton()
     builder = newton.ModelBuilder(up_axis=newton.Axis.Y, gravity=(0.0, -config.gravity, 0.0))
     shape_cfg = newton.ModelBuilder.ShapeConfig(
@@ -140,9 +144,15 @@ class SteppedScene:
     model's particles, ``arm_shapes[i]`` are instance ``i``'s arm capsules."""
 
     def _finish(
-        self, builder, config: SimSettings, arm_shapes: list[list[int]], attached: np.ndarray
+        self,
+        builder,
+        config: SimSettings,
+        arm_shapes: list[list[int]],
+        attached: np.ndarray,
+        piece_shapes: list[int] = (),
     ) -> None:
-        """Finalize ``builder`` into the model, collision pipeline, solver and two states."""
+        """Finalize ``builder`` into the model, collision pipeline, solver and two states;
+        ``piece_shapes``: the skinned pieces' shapes, in the order :meth:`set_pieces` writes them."""
         from .kernels import scatter_positions  # warp at import: only with the sim extra
 
         newton = self.newton
@@ -168,6 +178,31 @@ class SteppedScene:
         self.arm_shapes = arm_shapes
         self.arm_contacts = [True] * len(arm_shapes)
         self.collide_particles = int(newton.ShapeFlags.COLLIDE_PARTICLES)
+        self.piece_meshes = [builder.shape_source[s].mesh for s in piece_shapes]
+        if piece_shapes:
+            self._pad_piece_bounds(piece_shapes)
+
+    def _pad_piece_bounds(self, piece_shapes: list[int]) -> None:
+        """Widen each piece's box in its body's frame (the contact search culls by it, computed at
+        finalize from the rest pose) by what skinning can move the piece's skin past its bone."""
+        lower, upper = self.model.shape_collision_aabb_lower.numpy(), self.model.shape_collision_aabb_upper.numpy()
+        lower[piece_shapes] -= PIECE_BOUNDS_PAD_M
+        upper[piece_shapes] += PIECE_BOUNDS_PAD_M
+        self.model.shape_collision_aabb_lower.assign(lower)
+        self.model.shape_collision_aabb_upper.assign(upper)
+
+    def set_pieces(self, local_from: np.ndarray, local_to: np.ndarray, dt: float) -> None:
+        """Reshape the skinned pieces for the coming frame: every piece's vertices (N, 3), concatenated
+        in :attr:`piece_meshes`' order, in its body's frame at the frame's end, and the velocity that
+        moves them there from ``local_from`` over ``dt`` (the contact's friction reads it)."""
+        start = 0
+        velocity = (local_to - local_from) / dt
+        for mesh in self.piece_meshes:
+            stop = start + mesh.points.shape[0]
+            mesh.points.assign(local_to[start:stop])
+            mesh.velocities.assign(velocity[start:stop])
+            mesh.refit()
+            start = stop
 
     @property
     def arm_contact(self) -> bool:
@@ -227,10 +262,13 @@ class SteppedScene:
         pin_to: np.ndarray,
         dt: float,
         substeps: int,
+        pieces: tuple[np.ndarray, np.ndarray] | None = None,
     ) -> np.ndarray:
         """Advance one frame; body_* (C, 7) [p, q(xyzw)] of every instance's capsules, pin_* (A, 3)
-        the positions of ``attached``, written on the device each substep. Returns every particle's
-        positions (V, 3)."""
+        the positions of ``attached``, written on the device each substep; ``pieces``: the skinned
+        pieces' vertices from and to (:meth:`set_pieces`). Returns every particle's positions (V, 3)."""
+        if pieces is not None:
+            self.set_pieces(pieces[0], pieces[1], dt)
         for k in range(substeps):
             t0, t1 = k / substeps, (k + 1) / substeps
             state_in, state_out = self.states[self.parity], self.states[1 - self.parity]
@@ -281,5 +319,9 @@ class ClothScene(SteppedScene):
         builder, shapes = instance_builder(garment, start_vertices, half_lengths, body, config, pieces=pieces)
         add_ground(builder, config)
         self._finish(
-            builder, config, [[s for c in arms_off_capsules(body) for s in shapes[c]]], garment.attached
+            builder,
+            config,
+            [[s for c in arms_off_capsules(body) for s in shapes[c]]],
+            garment.attached,
+            [shapes[c][0] for c, _, _ in pieces or ()],
         )

@@ -29,7 +29,7 @@ from typing import Callable
 import numpy as np
 
 from ..body.capsules import DEFAULT_BODY, BodyModel, frames_signed_distance
-from ..body.mesh_collider import BodyMesh
+from ..body.mesh_collider import SkinnedPieces
 from ..body.retarget import played_by
 from ..body.self_contact import LOWER_ARM, self_intersecting_frames
 from ..errors import HRRError
@@ -73,7 +73,8 @@ class ClipRun:
     ``arms_off``: (T,) clip frames on which the arms do not touch the cloth (the lead-in follows the
     clip's first frame). The arms come back only once at most ``back_inside`` of the cloth is inside
     them: switched on around cloth that an arm passed through, the contact throws it out at once
-    (CMU 131_03 tore the full dress nine frames after an episode ended)."""
+    (CMU 131_03 tore the full dress nine frames after an episode ended). ``collider``: the body the
+    viewer sees collides instead of the capsules, its pieces reshaped every frame (:attr:`pieces`)."""
 
     def __init__(
         self,
@@ -83,6 +84,7 @@ class ClipRun:
         config: SimSettings,
         arms_off: np.ndarray | None = None,
         back_inside: float = 0.0,
+        collider: SkinnedPieces | None = None,
     ):
         self.garment, self.motion, self.body, self.config, self.back_inside = (
             garment,
@@ -102,6 +104,9 @@ class ClipRun:
         self.start = garment.vertices.astype(np.float64) @ rot_y.T + shift
         centre, quat, self.half_lengths = capsule_transforms(extended, body)
         self.poses = np.concatenate([centre, quat], -1)
+        # (T, N, 3) every skinned piece's vertices in its capsule's frame, frame by frame
+        self.piece_local = None if collider is None else collider.local_frames(extended, centre, quat)
+        self.collider = collider
         binding = bind_attached(garment, body)
         self.pins = binding.pose(extended.global_rotations.astype(np.float64), extended.joint_positions)
         self.arms = arms_off_capsules(body)
@@ -124,6 +129,22 @@ class ClipRun:
         ):
             self.arms_off[frame] = True  # kept off until the cloth is clear of them
         return not self.arms_off[frame]
+
+    def scene_pieces(self) -> list[tuple[int, np.ndarray, np.ndarray]] | None:
+        """The skinned pieces as a scene builds them (capsule, vertices at the first frame, faces)."""
+        if self.collider is None:
+            return None
+        rows = self.collider.offsets
+        return [
+            (p.capsule, self.piece_local[0, rows[i] : rows[i + 1]], p.faces)
+            for i, p in enumerate(self.collider.pieces)
+        ]
+
+    def piece_frames(self, frame: int) -> tuple[np.ndarray, np.ndarray] | None:
+        """The skinned pieces' vertices from the previous frame to ``frame`` (a scene's step)."""
+        if self.piece_local is None:
+            return None
+        return self.piece_local[max(frame - 1, 0)], self.piece_local[frame]
 
     def check(self, frame: int, verts: np.ndarray, speeds: np.ndarray) -> None:
         """Raise :class:`SimulationExploded` when ``frame``'s positions are not finite, a point moves
@@ -167,19 +188,27 @@ def _attempt(
     progress: Callable[[int], None] | None,
     arms_off: np.ndarray | None = None,
     back_inside: float = 0.0,
-    pieces: list | None = None,
+    collider: SkinnedPieces | None = None,
 ) -> tuple[np.ndarray, int, float, int]:
-    """One simulation (see :class:`ClipRun` for ``arms_off`` and ``back_inside``); returns (the
-    clip's frames, simulated frames, seconds stepping, clip frames with the arms off)."""
-    run = ClipRun(garment, motion, body, config, arms_off, back_inside)
-    scene = ClothScene(garment, run.start, run.half_lengths, body=body, config=config, pieces=pieces)
+    """One simulation (see :class:`ClipRun` for ``arms_off``, ``back_inside`` and ``collider``);
+    returns (the clip's frames, simulated frames, seconds stepping, clip frames with the arms off)."""
+    run = ClipRun(garment, motion, body, config, arms_off, back_inside, collider)
+    scene = ClothScene(
+        garment, run.start, run.half_lengths, body=body, config=config, pieces=run.scene_pieces()
+    )
     stepping = 0.0
     for f in range(run.num_frames):
         prev = max(f - 1, 0)
         t0 = time.perf_counter()
         scene.set_arm_contact(run.arms_touch(f, scene.current, scene.arm_contact))
         verts = scene.step_frame(
-            run.poses[prev], run.poses[f], run.pins[prev], run.pins[f], run.dt, config.substeps
+            run.poses[prev],
+            run.poses[f],
+            run.pins[prev],
+            run.pins[f],
+            run.dt,
+            config.substeps,
+            pieces=run.piece_frames(f),
         )
         stepping += time.perf_counter() - t0
         run.check(f, verts, scene.speeds())
@@ -206,14 +235,15 @@ def simulate_garment(
     config: SimSettings = SimSettings(),
     body: BodyModel = DEFAULT_BODY,
     progress: Callable[[int], None] | None = None,
-    collider: BodyMesh | None = None,
+    collider: SkinnedPieces | None = None,
 ) -> SimResult:
     """Simulate ``garment`` on ``motion`` (30 fps canonical); on explosion retries with more substeps,
     then (for a motion with self-intersecting limbs) with the arms off the cloth during those
     episodes, then over the whole clip.
 
-    ``collider``: the body's own mesh in rigid pieces collides with the cloth instead of its
-    capsules (:mod:`hrr_garment.body.mesh_collider`; the study in docs/bodies.md).
+    ``collider``: the body the viewer sees, its skinned mesh in pieces
+    (:func:`hrr_garment.body.mesh_collider.skinned_pieces`), collides with the cloth instead of the
+    capsules; the capsules still decide when the arms are off the cloth.
 
     On a ``body`` other than the mannequin the motion plays on that body's skeleton: a clip on the
     canonical skeleton is played by the body (:func:`~hrr_garment.body.retarget.motion_on_body`);
@@ -240,7 +270,7 @@ def simulate_garment(
                 progress,
                 arms_off,
                 back_inside,
-                collider.pieces(body) if collider is not None else None,
+                collider,
             )
         except SimulationExploded as exc:
             reasons.append(str(exc))
