@@ -20,6 +20,11 @@ def print_build_report(report, garment: GarmentMesh) -> None:
         f"{100 * s['penetration_frame_max']:.2f} % of vertices > 5 mm inside, mean "
         f"{100 * s['penetration_mean']:.3f} %"
     )
+    if "inside_visible_mean" in s:
+        print(
+            f"  cloth inside the body the viewer sees (its mesh; the mannequin's capsules): mean "
+            f"{100 * s['inside_visible_mean']:.2f} %, worst frame {100 * s['inside_visible_frame_max']:.2f} %"
+        )
     print(
         f"  {s['self_intersection_frames']} frame(s) where the motion's limbs pass through the body; worst "
         f"frame outside them {100 * s['penetration_frame_max_clean']:.2f} %"
@@ -50,6 +55,12 @@ def print_build_report(report, garment: GarmentMesh) -> None:
         print(
             f"  body {name or 'mannequin'} ({row['stature_m']:.2f} m): {row['sequences']} sequences, "
             f"{row['frames']} frames, strain p99 {row['strain_p99']:.3f}"
+            + (
+                f", inside its visible mesh {100 * row['inside_visible_mean']:.2f} % "
+                f"(worst frame {100 * row['inside_visible_frame_max']:.2f} %)"
+                if "inside_visible_mean" in row
+                else ""
+            )
         )
     print(
         "  hem swing (m) by kind: "

@@ -12,6 +12,7 @@ import numpy as np
 
 from ..body.body_file import BodyRecord, body_to_dict
 from ..body.capsules import DEFAULT_BODY, BodyModel
+from ..body.skinned_body import SkinnedBody, visible_body
 from ..body.symmetry import is_symmetric, symmetrized
 from ..io_utils import strict_json
 from ..motion.skeleton import REST_PELVIS_HEIGHT
@@ -32,6 +33,12 @@ class DressedBody:
         return self.record.body
 
     @property
+    def visible(self) -> SkinnedBody | None:
+        """The mesh a viewer sees of the body, which the simulator collides the cloth with: a
+        parametric body's skinned mesh; None for a body drawn as its capsules (the mannequin)."""
+        return visible_body(self.record)
+
+    @property
     def is_mannequin(self) -> bool:
         return self.record.body.is_mannequin_frame and self.record.body.capsules == DEFAULT_BODY.capsules
 
@@ -46,11 +53,14 @@ class DressedBody:
         return (self.garment.vertices - lift - template.vertices).astype(np.float32)
 
     def key(self) -> str:
-        """A short content hash of the body (skeleton, capsules, heights) and the garment's rest
-        shape: what a simulated sequence on it depends on (its fit report and shape do not)."""
+        """A short content hash of the body (skeleton, capsules, heights, the mesh the cloth collides
+        with where it has one) and the garment's rest shape: what a simulated sequence on it
+        depends on (its fit report does not)."""
         data = {k: v for k, v in body_to_dict(self.record).items() if k not in ("fit", "shape")}
         h = hashlib.sha1(strict_json(data).encode())
-        for arr in (self.garment.vertices, self.garment.faces, self.garment.attached):
+        skin = self.visible
+        arrays = () if skin is None else (skin.vertices, skin.faces, skin.weights)
+        for arr in (self.garment.vertices, self.garment.faces, self.garment.attached, *arrays):
             h.update(np.ascontiguousarray(arr).tobytes())
         return h.hexdigest()[:16]
 

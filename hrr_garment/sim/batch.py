@@ -28,6 +28,7 @@ from typing import Callable
 import numpy as np
 
 from ..body.capsules import BodyModel
+from ..body.mesh_collider import SkinnedPieces
 from ..body.retarget import played_by
 from ..garment.mesh import GarmentMesh
 from ..motion.motion import Motion
@@ -46,11 +47,13 @@ from .simulator import ClipRun, SimResult, SimulationExploded, simulate_garment
 @dataclass(frozen=True)
 class BatchItem:
     """One sequence of a batch: the garment on its body, the motion (on the body's skeleton, or a
-    canonical clip that the body plays) and the body's capsules."""
+    canonical clip that the body plays), the body's capsules and, where the body has a mesh, the
+    collider that is that mesh (:func:`~hrr_garment.sim.simulator.simulate_garment`'s)."""
 
     garment: GarmentMesh
     motion: Motion
     body: BodyModel
+    collider: SkinnedPieces | None = None
 
 
 def _merged_groups(groups: list[list[np.ndarray]], offsets: list[int]) -> list[np.ndarray]:
@@ -72,10 +75,11 @@ class BatchScene(SteppedScene):
         self.device = resolve_device(wp, config.device)
         builder = newton.ModelBuilder(up_axis=newton.Axis.Y, gravity=(0.0, -config.gravity, 0.0))
         particle_groups, body_groups, arm_shapes, attached = [], [], [], []
-        particle_starts, body_starts, self.ranges = [], [], []
+        particle_starts, body_starts, self.ranges, piece_shapes = [], [], [], []
         for run in runs:
+            pieces = run.scene_pieces()
             instance, shapes = instance_builder(
-                run.garment, run.start, run.half_lengths, body=run.body, config=config
+                run.garment, run.start, run.half_lengths, body=run.body, config=config, pieces=pieces
             )
             first_particle, first_shape = builder.particle_count, builder.shape_count
             particle_starts.append(first_particle)
@@ -84,12 +88,13 @@ class BatchScene(SteppedScene):
             particle_groups.append(instance.particle_color_groups)
             body_groups.append(instance.body_color_groups)
             arm_shapes.append([first_shape + s for c in arms_off_capsules(run.body) for s in shapes[c]])
+            piece_shapes += [first_shape + shapes[c][0] for c, _, _ in pieces or ()]
             attached.append(first_particle + np.asarray(run.garment.attached, np.int64))
             self.ranges.append(slice(first_particle, builder.particle_count))
         add_ground(builder, config)  # global: every world's cloth meets it
         builder.set_coloring(_merged_groups(particle_groups, particle_starts))
         builder.body_color_groups = _merged_groups(body_groups, body_starts)
-        self._finish(builder, config, arm_shapes, np.concatenate(attached))
+        self._finish(builder, config, arm_shapes, np.concatenate(attached), piece_shapes)
 
     def instance_positions(self, instance: int) -> np.ndarray:
         """Instance ``instance``'s current positions (V, 3)."""
@@ -115,6 +120,20 @@ def _frame_inputs(runs: list[ClipRun], frame: int) -> tuple[np.ndarray, ...]:
     )
 
 
+def _piece_inputs(runs: list[ClipRun], frame: int) -> tuple[np.ndarray, np.ndarray] | None:
+    """Every instance's skinned pieces from the previous frame to ``frame``, concatenated in the
+    scene's order (a finished instance holds its last frame); None when no instance has any."""
+    mine = [r for r in runs if r.piece_local is not None]
+    if not mine:
+        return None
+    last = [min(frame, r.num_frames - 1) for r in mine]
+    prev = [max(min(frame - 1, r.num_frames - 1), 0) for r in mine]
+    return (
+        np.concatenate([r.piece_local[p] for r, p in zip(mine, prev)]),
+        np.concatenate([r.piece_local[f] for r, f in zip(mine, last)]),
+    )
+
+
 def step_batch(
     scene: BatchScene, runs: list[ClipRun], progress: Callable[[int], None] | None = None
 ) -> tuple[dict[int, str], float]:
@@ -130,7 +149,9 @@ def step_batch(
         for i in playing:
             wanted[i] = runs[i].arms_touch(f, lambda i=i: scene.instance_positions(i), scene.arm_contacts[i])
         scene.set_arm_contacts(wanted)
-        verts = scene.step_frame(*_frame_inputs(runs, f), dt=runs[0].dt, substeps=config.substeps)
+        verts = scene.step_frame(
+            *_frame_inputs(runs, f), dt=runs[0].dt, substeps=config.substeps, pieces=_piece_inputs(runs, f)
+        )
         stepping += time.perf_counter() - t0
         speeds = scene.speeds()
         for i in playing:
@@ -160,7 +181,8 @@ def simulate_batch(
     t0 = time.perf_counter()
     motions = [played_by(item.motion, item.body) for item in items]
     runs = [
-        ClipRun(item.garment, motion, body=item.body, config=config) for item, motion in zip(items, motions)
+        ClipRun(item.garment, motion, body=item.body, config=config, collider=item.collider)
+        for item, motion in zip(items, motions)
     ]
     dropped, stepping = step_batch(BatchScene(runs, config), runs, progress)
     wall = time.perf_counter() - t0
@@ -183,7 +205,14 @@ def simulate_batch(
             continue
         try:
             results.append(
-                simulate_garment(item.garment, motions[i], config, body=item.body, progress=progress)
+                simulate_garment(
+                    item.garment,
+                    motions[i],
+                    config,
+                    body=item.body,
+                    progress=progress,
+                    collider=item.collider,
+                )
             )
         except SimulationExploded as exc:
             results.append(exc)

@@ -25,6 +25,7 @@ import numpy as np
 
 from ..body.capsules import DEFAULT_BODY, BodyModel
 from ..body.mannequin import MANNEQUIN
+from ..body.mesh_collider import SkinnedPieces, skinned_pieces
 from ..body.retarget import motion_on_body
 from ..data.dataset import SequenceRecord
 from ..garment.dressing import DressedBody
@@ -93,6 +94,12 @@ class SequenceJob:
             return self.motion, self.garment, DEFAULT_BODY
         return motion_on_body(self.motion, self.body.body), self.body.garment, self.body.body
 
+    def collider(self) -> SkinnedPieces | None:
+        """What the cloth collides with where the body has a mesh of its own (its skinned mesh in
+        pieces); None: the capsules (the mannequin, drawn as its capsules)."""
+        visible = None if self.body is None else self.body.visible
+        return None if visible is None else skinned_pieces(self.body.body, visible)
+
 
 def _part(
     job: SequenceJob, on_body: tuple[Motion, GarmentMesh, BodyModel], result: SimResult | SimulationExploded
@@ -102,14 +109,15 @@ def _part(
     spec = job.spec
     if isinstance(result, SimulationExploded):
         return PartResult(spec.name, job.key, 0, failure=str(result))
-    motion, garment, collider = on_body
+    motion, garment, capsules = on_body
     stats = sequence_stats(
         result.vertices,
         garment.vertices,
         garment.edges(),
         motion=motion,
         hem=garment.groups.get("hem"),
-        body=collider,
+        body=capsules,
+        visible=None if job.body is None else job.body.visible,
     )
     stats.update(
         substeps=result.substeps,
@@ -137,10 +145,15 @@ def simulate_sequence(
     mannequin, or on ``body`` (the sequence's, :mod:`.body_plan`): the motion played by that body
     (:func:`~hrr_garment.body.retarget.motion_on_body`) and the garment on it."""
     job = SequenceJob(spec, motion, garment, key, body)
-    played, dressed, collider = on_body = job.on_body()
+    played, dressed, capsules = on_body = job.on_body()
     try:
         result = simulate_garment(
-            dressed, played, SimSettings.from_dict(config), body=collider, progress=progress
+            dressed,
+            played,
+            SimSettings.from_dict(config),
+            body=capsules,
+            progress=progress,
+            collider=job.collider(),
         )
     except SimulationExploded as exc:
         result = exc
@@ -154,7 +167,10 @@ def simulate_sequences(
     its own world); each part is what :func:`simulate_sequence` makes of it alone, within the
     solver's tolerance, and one that explodes in the batch is simulated alone with every retry."""
     on_bodies = [job.on_body() for job in jobs]
-    items = [BatchItem(garment, motion, collider) for motion, garment, collider in on_bodies]
+    items = [
+        BatchItem(garment, motion, body, job.collider())
+        for job, (motion, garment, body) in zip(jobs, on_bodies)
+    ]
     results = simulate_batch(items, SimSettings.from_dict(config), progress=progress)
     return [_part(job, on_body, result) for job, on_body, result in zip(jobs, on_bodies, results)]
 

@@ -185,7 +185,10 @@ class SteppedScene:
     def _pad_piece_bounds(self, piece_shapes: list[int]) -> None:
         """Widen each piece's box in its body's frame (the contact search culls by it, computed at
         finalize from the rest pose) by what skinning can move the piece's skin past its bone."""
-        lower, upper = self.model.shape_collision_aabb_lower.numpy(), self.model.shape_collision_aabb_upper.numpy()
+        lower, upper = (
+            self.model.shape_collision_aabb_lower.numpy(),
+            self.model.shape_collision_aabb_upper.numpy(),
+        )
         lower[piece_shapes] -= PIECE_BOUNDS_PAD_M
         upper[piece_shapes] += PIECE_BOUNDS_PAD_M
         self.model.shape_collision_aabb_lower.assign(lower)

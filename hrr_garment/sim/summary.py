@@ -53,6 +53,7 @@ def summarise(
         "self_intersection_frames": int(sum(s.get("self_intersection_frames", 0) for s in stats)),
         "penetration_mean": float(np.mean([s.get("penetration_mean", 0.0) for s in stats])),
         "deepest_mm": float(max(s.get("deepest_mm", 0.0) for s in stats)),
+        **_inside_visible(stats),
         "hem_swing_m_by_kind": {k: float(np.mean(v)) for k, v in sorted(by_kind.items())},
         "sim_frames_per_core_s": float(sim_frames / sim_seconds) if sim_seconds else None,
         "sim_wall_s": float(sim_wall),
@@ -76,5 +77,19 @@ def _by_body(
             "sequences": len(mine),
             "frames": int(sum(len(records[k].garment) for k in mine)),
             "strain_p99": float(np.percentile(pooled, 99)),
+            **_inside_visible([records[k].info.get("stats", {}) for k in mine]),
         }
     return out
+
+
+def _inside_visible(stats: list[dict]) -> dict:
+    """The cloth inside the body the viewer sees (:func:`~.quality.sequence_stats`): the mean over
+    sequences of their mean over frames, and the worst frame; empty for parts simulated before the
+    figure existed."""
+    known = [s for s in stats if "inside_visible_mean" in s]
+    if not known:
+        return {}
+    return {
+        "inside_visible_mean": float(np.mean([s["inside_visible_mean"] for s in known])),
+        "inside_visible_frame_max": float(max(s["inside_visible_max"] for s in known)),
+    }
