@@ -12,6 +12,7 @@ from ..body.capsules import DEFAULT_BODY, BodyModel, frames_signed_distance
 from ..body.self_contact import self_intersecting_frames
 from ..motion.frame import to_body_frame
 from ..motion.motion import Motion
+from .mesh_queries import mesh_signed_distances
 
 PENETRATION_DEPTH_M = (
     0.005  # how far inside the body a vertex counts as penetrating (reports, evaluation, training)
@@ -41,29 +42,6 @@ def body_signed_distance(vertices: np.ndarray, motion: Motion, body: BodyModel =
         if len(vertices)
         else np.zeros((0, vertices.shape[1]))
     )
-
-
-def mesh_signed_distances(vertices: np.ndarray, posed: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    """(T, V) signed distance of each vertex (T, V, 3) to a mesh posed frame by frame (T, M, 3) with
-    ``faces`` (negative inside, by winding number: :func:`~.kernels.mesh_signed_distance`); warp, so
-    only with the ``sim`` extra. Exact within a metre of the surface, a metre beyond."""
-    import warp as wp
-
-    from .kernels import mesh_signed_distance
-
-    out = np.empty(vertices.shape[:2], np.float32)
-    indices = wp.array(np.asarray(faces, np.int32).ravel(), dtype=wp.int32, device="cpu")
-    distance = wp.empty(vertices.shape[1], dtype=float, device="cpu")
-    for t in range(len(vertices)):
-        mesh = wp.Mesh(
-            points=wp.array(posed[t].astype(np.float32), dtype=wp.vec3, device="cpu"),
-            indices=indices,
-            support_winding_number=True,
-        )
-        points = wp.array(vertices[t].astype(np.float32), dtype=wp.vec3, device="cpu")
-        wp.launch(mesh_signed_distance, dim=len(points), inputs=[mesh.id, points, 1.0], outputs=[distance])
-        out[t] = distance.numpy()
-    return out
 
 
 def penetration_fraction(signed_distance: np.ndarray, depth: float = PENETRATION_DEPTH_M) -> np.ndarray:

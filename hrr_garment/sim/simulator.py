@@ -38,6 +38,7 @@ from ..garment.mesh import GarmentMesh
 from ..motion.motion import Motion
 from .config import SimSettings  # defined in .config (the scene needs it too); importable from here as before
 from .lead_in import start_transform, with_lead_in
+from .mesh_queries import clear_of_mesh
 from .scene import ClothScene, arms_off_capsules, capsule_transforms
 
 # after an episode the arms come back on once at most this fraction of the cloth is inside them:
@@ -109,6 +110,13 @@ class ClipRun:
         self.collider = collider
         binding = bind_attached(garment, body)
         self.pins = binding.pose(extended.global_rotations.astype(np.float64), extended.joint_positions)
+        if collider is not None:
+            # the pins follow torso joints only (:mod:`~hrr_garment.garment.attachment`), and the skin
+            # under a strap also follows the arm: kept a particle's radius out of the skin, as the
+            # contact keeps the free cloth
+            skin = collider.skin
+            posed = skin.pose(extended.global_rotations, extended.joint_positions)
+            self.pins = clear_of_mesh(self.pins, posed, skin.faces, config.particle_radius)
         self.arms = arms_off_capsules(body)
         self.arm_a, self.arm_b = (ends[:, self.arms] for ends in body.pose_motion(extended))
         self.edges = garment.edges()
