@@ -44,9 +44,18 @@ def mesh_signed_distances(points: np.ndarray, posed: np.ndarray, faces: np.ndarr
     return _query(points, posed, faces)[0]
 
 
+CLEAR_PASSES = 3  # a mesh of overlapping parts: a point moved out through one may be inside another
+
+
 def clear_of_mesh(points: np.ndarray, posed: np.ndarray, faces: np.ndarray, clearance: float) -> np.ndarray:
     """``points`` (T, N, 3) with each one inside the posed mesh, or nearer its surface than
-    ``clearance``, moved out along the surface's outward direction to ``clearance`` from it."""
-    distance, outward = _query(points, posed, faces)
-    short = np.maximum(clearance - distance, 0.0)[..., None]
-    return (np.asarray(points, np.float64) + short * outward).astype(np.asarray(points).dtype)
+    ``clearance``, moved out along the surface's outward direction to ``clearance`` from it (again,
+    up to :data:`CLEAR_PASSES` times, where that left it inside another overlapping part)."""
+    out = np.asarray(points, np.float64).copy()
+    for _ in range(CLEAR_PASSES):
+        distance, outward = _query(out, posed, faces)
+        short = np.maximum(clearance - distance, 0.0)
+        if not (short > 1e-4 * clearance).any():
+            break
+        out += short[..., None] * outward
+    return out.astype(np.asarray(points).dtype)

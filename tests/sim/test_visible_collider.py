@@ -30,6 +30,36 @@ class _Rest:
         self.vertices[:, 2] += np.where(thigh, BULGE_M * np.clip(front / 0.075, 0.0, 1.0), 0.0)
 
 
+def _leg() -> SkinnedBody:
+    """A closed tube of radius 6 cm along the mannequin's left thigh and shin, blended across the knee
+    over 10 cm as skinning blends a knee: one surface, no overlapping parts."""
+    hip, knee, ankle = (DEFAULT_BODY.rest_joints()[JOINT_INDEX[n]] for n in ("l_hip", "l_knee", "l_ankle"))
+    along = np.concatenate([np.linspace(0.0, 1.0, 8, endpoint=False), 1.0 + np.linspace(0.0, 1.0, 9)])
+    centres = np.array([hip + t * (knee - hip) if t < 1 else knee + (t - 1) * (ankle - knee) for t in along])
+    angle = np.linspace(0.0, 2 * np.pi, 12, endpoint=False)
+    ring = 0.06 * np.stack([np.cos(angle), np.zeros(12), np.sin(angle)], 1)
+    vertices = np.concatenate([(centres[:, None] + ring[None]).reshape(-1, 3), centres[[0, -1]]])
+    faces, n, (top, bottom) = [], len(angle), (len(vertices) - 2, len(vertices) - 1)
+    for r in range(len(centres) - 1):
+        for k in range(n):
+            a, b, c, d = r * n + k, r * n + (k + 1) % n, (r + 1) * n + k, (r + 1) * n + (k + 1) % n
+            faces += [(a, b, d), (a, d, c)]
+    last = (len(centres) - 1) * n
+    faces += [(top, (k + 1) % n, k) for k in range(n)] + [
+        (bottom, last + k, last + (k + 1) % n) for k in range(n)
+    ]
+    to_knee = np.clip((np.concatenate([np.repeat(along, n), [0.0, 2.0]]) - 1.0) / 0.4 * 0.5 + 0.5, 0.0, 1.0)
+    weights = np.zeros((len(vertices), 22))
+    weights[:, JOINT_INDEX["l_hip"]], weights[:, JOINT_INDEX["l_knee"]] = 1.0 - to_knee, to_knee
+
+    class Rest:
+        pass
+
+    rest = Rest()
+    rest.vertices, rest.faces, rest.joints = vertices, np.array(faces), DEFAULT_BODY.rest_joints()
+    return skinned_body(DEFAULT_BODY.skeleton, rest, weights)
+
+
 def _bulging_body() -> SkinnedBody:
     """That surface skinned rigidly, each vertex to its capsule's joint: it differs from the capsules
     only by the bulges."""
@@ -43,6 +73,26 @@ def _bulging_body() -> SkinnedBody:
 @pytest.fixture(scope="module")
 def newton_installed():
     pytest.importorskip("newton", reason="the sim extra is not installed")
+
+
+def test_distances_from_a_posed_mesh_are_exact_and_points_are_moved_out_to_the_clearance(newton_installed):
+    from hrr_garment.body.mesh_distance import mesh_signed_distance
+    from hrr_garment.sim.mesh_queries import clear_of_mesh, mesh_signed_distances
+
+    skin = _leg()
+    run = synthesize("run", 0.6, seed=2)
+    posed = skin.pose(run.global_rotations, run.joint_positions)[::3]
+    rng = np.random.default_rng(0)
+    points = posed[:, rng.integers(0, posed.shape[1], 300)] + rng.normal(size=(len(posed), 300, 3)) * 0.02
+    got = mesh_signed_distances(points, posed, skin.faces)
+    exact = np.stack([mesh_signed_distance(p, v, skin.faces) for p, v in zip(points, posed)])
+    assert np.abs(got - exact).max() < 1e-5 and ((got < 0) == (exact < 0)).all() and (exact < 0).mean() > 0.2
+    moved = clear_of_mesh(points, posed, skin.faces, 0.006)
+    after = np.stack([mesh_signed_distance(p, v, skin.faces) for p, v in zip(moved, posed)])
+    near = exact < 0.006
+    # out to the clearance along the surface's normal: exact on a flat face, more near an edge
+    assert after[near].min() > 0.006 - 1e-5 and np.median(np.abs(after[near] - 0.006)) < 1e-5
+    assert np.array_equal(moved[~near], points[~near])
 
 
 def test_a_heavier_skirt_stays_outside_thighs_that_bulge_out_of_their_capsules(newton_installed):
