@@ -168,7 +168,7 @@ def simulate_sequences(
     solver's tolerance, and one that explodes in the batch is simulated alone with every retry."""
     on_bodies = [job.on_body() for job in jobs]
     items = [
-        BatchItem(garment, motion, body, job.collider())
+        BatchItem(garment, motion, body, collider=job.collider())
         for job, (motion, garment, body) in zip(jobs, on_bodies)
     ]
     results = simulate_batch(items, SimSettings.from_dict(config), progress=progress)
