@@ -83,9 +83,9 @@ def mesh_to_dict(mesh: BodyMesh) -> dict:
     """body.json's ``mesh`` (JSON values): vertices, faces, joints and the sparse skin weights."""
     joints, weights = sparse_weights(mesh.weights)
     return {
-        "vertices": np.round(mesh.vertices, DECIMALS).tolist(),
+        "vertices": (np.round(mesh.vertices, DECIMALS) + 0.0).tolist(),  # + 0.0: no -0.0
         "faces": np.asarray(mesh.faces, np.int64).tolist(),
-        "joints": np.round(mesh.joints, DECIMALS).tolist(),
+        "joints": (np.round(mesh.joints, DECIMALS) + 0.0).tolist(),
         "skin_joints": joints.tolist(),
         "skin_weights": np.round(weights, DECIMALS).tolist(),
     }
@@ -97,8 +97,9 @@ def mesh_json(data: dict) -> str:
     file a fraction of the size ``json.dumps(indent=2)`` makes of it (a number a line)."""
     parts = []
     for key, rows in data.items():
-        body = ",\n".join(json.dumps(r, separators=(",", ":"), allow_nan=False) for r in rows)
-        parts.append(f'    "{key}": [\n{body}\n    ]')
+        compact = json.dumps(rows, separators=(",", ":"), allow_nan=False)  # no "],[" within a row
+        one_a_line = compact[1:-1].replace("],[", "],\n[")
+        parts.append(f'    "{key}": [\n{one_a_line}\n    ]')
     return "{\n" + ",\n".join(parts) + "\n  }"
 
 
