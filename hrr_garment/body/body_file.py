@@ -119,7 +119,9 @@ def read_body(path: str | Path) -> BodyRecord:
     path = Path(path)
     try:
         if path.stat().st_size > MAX_FILE_BYTES:
-            raise InputError(path, f"a body file of over {MAX_FILE_BYTES >> 20} MB; none is that large")
+            raise InputError(
+                path, f"{path.stat().st_size} bytes, more than a body file holds ({MAX_FILE_BYTES})"
+            )
         data = json.loads(path.read_text(encoding="utf-8"))
     except FileNotFoundError:
         raise InputError(path, "no such body file") from None

@@ -170,6 +170,6 @@ def _array(
         or (columns is not None and arr.shape[1] != columns)
         or arr.dtype.kind not in ("iu" if integers else "iuf")
     ):
-        shape = f"({len(rows)}, {columns})" if columns else "rows of equal length"
-        raise InputError(path, f"mesh {key} must be {shape} {kind}")
+        rows_of = f"{len(rows)} rows of {columns}" if columns else "equal rows of"
+        raise InputError(path, f"mesh {key} must be a list of {rows_of} {kind}")
     return arr.astype(np.int64 if integers else np.float64)
