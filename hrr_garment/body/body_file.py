@@ -6,7 +6,7 @@
 It holds what the simulator, the push-out and retargeting need (the skeleton's offsets, the
 capsules, the pelvis's height over the soles), where the body came from (the parametric shape,
 when it has one, and how closely its capsules follow its surface) and, for a character fitted by
-``hrr-body fit``, its own skinned mesh (:mod:`.body_mesh`: the body the viewer sees; an anny body's
+``hrr-body fit``, its own skinned mesh (:mod:`.mesh_record`: the body the viewer sees; an anny body's
 is rebuilt from its shape). ``format_version`` moves when a field arrives or changes meaning: 2
 brought ``mesh``. A file is written at the oldest version that holds it (1 without a mesh, so that
 a body without one reads the same everywhere, its content hash included); older files are upgraded
@@ -26,15 +26,15 @@ import numpy as np
 from ..errors import InputError
 from ..io_utils import atomic_write_text, strict_json
 from ..motion.skeleton import JOINT_NAMES, Skeleton
-from .body_mesh import BodyMesh, mesh_from_dict, mesh_json, mesh_to_dict
 from .capsules import BodyModel, Capsule
 from .fit import FitReport
+from .mesh_record import BodyMesh, mesh_from_dict, mesh_json, mesh_to_dict
 
 FORMAT_VERSION = 2  # 2: a character's own skinned mesh ("mesh")
 MAX_BONE_M = 1.5  # no bone of a human body is longer
 MAX_RADIUS_M = 0.5
 WITHOUT_MESH_VERSION = 1  # a body without a mesh is written as version 1 wrote it
-MAX_FILE_BYTES = 64 << 20  # a body.json of the largest mesh kept (body_mesh.MAX_MESH_VERTICES) is ~25 MB
+MAX_FILE_BYTES = 64 << 20  # a body.json of the largest mesh kept (mesh_record.MAX_MESH_VERTICES) is ~25 MB
 
 
 @dataclass(frozen=True)
@@ -86,7 +86,7 @@ def body_to_dict(body) -> dict:
 
 
 def write_body(path: str | Path, body) -> Path:
-    """Write body.json (atomically); a mesh one row a line (:func:`~.body_mesh.mesh_json`)."""
+    """Write body.json (atomically); a mesh one row a line (:func:`~.mesh_record.mesh_json`)."""
     path = Path(path)
     data = body_to_dict(body)
     mesh = data.pop("mesh", None)

@@ -38,8 +38,8 @@ from ..motion.gltf_file import open_gltf, rest_world_matrices
 from ..motion.joint_maps import resolve_joint_map
 from ..motion.skeleton import JOINT_INDEX, JOINT_NAMES, PARENTS, REST_OFFSETS
 from .body_file import BodyRecord
-from .body_mesh import MAX_MESH_FACES, MAX_MESH_VERTICES, BodyMesh
 from .fit import PRIMARY_CHILD, fit_body
+from .mesh_record import MAX_MESH_FACES, MAX_MESH_VERTICES, BodyMesh
 from .skinned_mesh import bind_matrices, canonical_weights, read_mesh, skinned_meshes
 
 _BIND_TOLERANCE = 1e-4  # relative: joints whose W @ IBM differ by more are posed away from the bind pose
@@ -238,7 +238,7 @@ def character_body(
 
 def own_mesh(character: Character) -> BodyMesh | None:
     """The character's skinned mesh as its body record keeps it, or None where its file carries no
-    skin weights or the mesh is larger than body.json keeps (:data:`~.body_mesh.MAX_MESH_VERTICES`):
+    skin weights or the mesh is larger than body.json keeps (:data:`~.mesh_record.MAX_MESH_VERTICES`):
     such a body is then drawn and collided as its capsules."""
     if character.weights is None or not (
         len(character.vertices) <= MAX_MESH_VERTICES and len(character.faces) <= MAX_MESH_FACES

@@ -151,7 +151,7 @@ def _fit_character(args) -> int:
 
 def _mesh_note(record, character) -> str:
     """What body.json keeps of the character's own mesh, the body the viewer sees."""
-    from ..body.body_mesh import MAX_MESH_VERTICES
+    from ..body.mesh_record import MAX_MESH_VERTICES
 
     if record.mesh is not None:
         return f"its skinned mesh kept as the body the viewer sees ({len(record.mesh.faces)} faces)"

@@ -1,6 +1,7 @@
-"""A body's own skinned mesh as body.json carries it (format 2's ``mesh``): a fitted character's
-rest mesh, its canonical joints in that pose and its skin weights, so that the body the viewer sees
-travels with the body and is posed wherever the body is (:func:`~.skinned_body.visible_body`).
+"""A body's own skinned mesh as its record and body.json carry it (format 2's ``mesh``): a fitted
+character's rest mesh, its canonical joints in that pose and its skin weights, so that the body the
+viewer sees travels with the body and is posed wherever the body is
+(:func:`~.skinned_body.visible_body`).
 
     mesh = BodyMesh.of_character(character)     # hrr-body fit
     data = mesh_to_dict(mesh)                   # body.json's "mesh"

@@ -9,11 +9,11 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from hrr_garment.body import body_file, body_mesh
+from hrr_garment.body import body_file, mesh_record
 from hrr_garment.body.body_file import body_to_dict, read_body, write_body
-from hrr_garment.body.body_mesh import BodyMesh, dense_weights, sparse_weights
 from hrr_garment.body.capsules import DEFAULT_BODY
 from hrr_garment.body.mannequin import mannequin_record
+from hrr_garment.body.mesh_record import BodyMesh, dense_weights, sparse_weights
 from hrr_garment.body.retarget import motion_on_body
 from hrr_garment.body.skinned_body import skinned_body, visible_body
 from hrr_garment.errors import InputError
@@ -70,7 +70,7 @@ def test_a_body_without_a_mesh_is_version_1_and_version_1_files_load(tmp_path):
     back = read_body(old)
     assert back.mesh is None and visible_body(back) is None
     assert np.array_equal(back.body.radii, record.body.radii)
-    data["mesh"] = body_mesh.mesh_to_dict(_mesh())
+    data["mesh"] = mesh_record.mesh_to_dict(_mesh())
     old.write_text(json.dumps(data))
     with pytest.raises(InputError, match="format_version 1 holds no 'mesh'"):
         read_body(old)
@@ -128,7 +128,7 @@ def test_bad_meshes_are_refused_naming_the_file(tmp_path, monkeypatch):
     for change, message in cases:
         _refused(tmp_path, change, message)
     # sizes are bounded before numpy reads a list, and a file before it is parsed
-    monkeypatch.setattr(body_mesh, "MAX_MESH_VERTICES", 10)
+    monkeypatch.setattr(mesh_record, "MAX_MESH_VERTICES", 10)
     _refused(tmp_path, lambda m: None, "at most 10 rows")
     path = tmp_path / "bad.json"
     monkeypatch.setattr(body_file, "MAX_FILE_BYTES", 1000)
