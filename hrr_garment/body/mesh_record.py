@@ -39,27 +39,45 @@ DECIMALS = 6
 
 @dataclass(frozen=True, eq=False)  # compared (and hashed) by identity: visible_body caches by it
 class BodyMesh:
-    """A rest mesh with its canonical joints in the same pose and its (V, 22) canonical weights:
-    what :func:`~.skinned_body.skinned_body` skins."""
+    """A rest mesh with its canonical joints in the same pose and its sparse canonical skin weights,
+    each value as body.json holds it (rounded), so that a mesh read back is the mesh written, to
+    the bit: what :func:`~.skinned_body.skinned_body` skins, and what a sequence's key hashes."""
 
     vertices: np.ndarray  # (V, 3) float64 metres, in the body's frame (soles on y = 0)
     faces: np.ndarray  # (F, 3) int64
     joints: np.ndarray  # (22, 3) float64 the canonical joints in the mesh's pose
-    weights: np.ndarray  # (V, 22) float64, each row non-negative, summing to 1
+    skin_joints: np.ndarray  # (V, K) int64 canonical joint indices, K <= MAX_INFLUENCES
+    skin_weights: np.ndarray  # (V, K) float64 their weights, non-negative, summing to 1 within 1e-5
+
+    @property
+    def weights(self) -> np.ndarray:
+        """(V, 22) float64 the canonical weights, each row summing to 1."""
+        return dense_weights(self.skin_joints, self.skin_weights)
+
+    @classmethod
+    def of(cls, vertices: np.ndarray, faces: np.ndarray, joints: np.ndarray, weights: np.ndarray) -> BodyMesh:
+        """The mesh of (V, 3) ``vertices``, (F, 3) ``faces``, the (22, 3) canonical ``joints`` in its
+        pose and (V, 22) canonical ``weights``, rounded and kept sparse as body.json keeps them."""
+        skin_joints, skin_weights = sparse_weights(weights)
+        return cls(
+            _rounded(vertices),
+            np.asarray(faces, np.int64),
+            _rounded(joints),
+            skin_joints,
+            np.round(skin_weights, DECIMALS),
+        )
 
     @classmethod
     def of_character(cls, character) -> BodyMesh:
-        """A :class:`~.character.Character`'s mesh with its file's weights, kept sparse as body.json
-        keeps them; a ValueError where the mesh carries no skin weights."""
+        """A :class:`~.character.Character`'s mesh with its file's weights; a ValueError where the
+        mesh carries no skin weights."""
         if character.weights is None:
             raise ValueError("the character's mesh carries no skin weights (JOINTS_0 / WEIGHTS_0)")
-        joints, weights = sparse_weights(character.weights)
-        return cls(
-            np.asarray(character.vertices, np.float64),
-            np.asarray(character.faces, np.int64),
-            np.asarray(character.joints, np.float64),
-            dense_weights(joints, weights),
-        )
+        return cls.of(character.vertices, character.faces, character.joints, character.weights)
+
+
+def _rounded(values: np.ndarray) -> np.ndarray:
+    return np.round(np.asarray(values, np.float64), DECIMALS) + 0.0  # + 0.0: no -0.0 written
 
 
 def sparse_weights(weights: np.ndarray, k: int = MAX_INFLUENCES) -> tuple[np.ndarray, np.ndarray]:
@@ -82,13 +100,12 @@ def dense_weights(joints: np.ndarray, weights: np.ndarray) -> np.ndarray:
 
 def mesh_to_dict(mesh: BodyMesh) -> dict:
     """body.json's ``mesh`` (JSON values): vertices, faces, joints and the sparse skin weights."""
-    joints, weights = sparse_weights(mesh.weights)
     return {
-        "vertices": (np.round(mesh.vertices, DECIMALS) + 0.0).tolist(),  # + 0.0: no -0.0
-        "faces": np.asarray(mesh.faces, np.int64).tolist(),
-        "joints": (np.round(mesh.joints, DECIMALS) + 0.0).tolist(),
-        "skin_joints": joints.tolist(),
-        "skin_weights": np.round(weights, DECIMALS).tolist(),
+        "vertices": mesh.vertices.tolist(),
+        "faces": mesh.faces.tolist(),
+        "joints": mesh.joints.tolist(),
+        "skin_joints": mesh.skin_joints.tolist(),
+        "skin_weights": mesh.skin_weights.tolist(),
     }
 
 
@@ -149,7 +166,7 @@ def mesh_from_dict(data: object, path: Path) -> BodyMesh:
             f"mesh skin_weights must be non-negative and sum to 1 (within {WEIGHT_SUM_TOLERANCE:g}) at "
             f"each vertex; vertex {bad} has {skin_weights[bad].tolist()}",
         )
-    return BodyMesh(vertices, faces, joints, dense_weights(skin_joints, skin_weights))
+    return BodyMesh(vertices, faces, joints, skin_joints, skin_weights)
 
 
 def _array(
