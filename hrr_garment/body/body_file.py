@@ -1,12 +1,16 @@
 """body.json: a body as a file, so that a character's body travels without its mesh library.
 
     write_body(path, body)        # a ParametricBody or a BodyRecord
-    record = read_body(path)      # BodyRecord: skeleton, capsules, pelvis height, shape, fit report
+    record = read_body(path)      # BodyRecord: skeleton, capsules, pelvis height, shape, fit report, mesh
 
 It holds what the simulator, the push-out and retargeting need (the skeleton's offsets, the
-capsules, the pelvis's height over the soles) and where the body came from (the parametric shape,
-when it has one, and how closely its capsules follow its surface). ``format_version`` moves when a
-field arrives or changes meaning; a file of a newer version is refused. Written atomically; every
+capsules, the pelvis's height over the soles), where the body came from (the parametric shape,
+when it has one, and how closely its capsules follow its surface) and, for a character fitted by
+``hrr-body fit``, its own skinned mesh (:mod:`.mesh_record`: the body the viewer sees; an anny body's
+is rebuilt from its shape). ``format_version`` moves when a field arrives or changes meaning: 2
+brought ``mesh``. A file is written at the oldest version that holds it (1 without a mesh, so that
+a body without one reads the same everywhere, its content hash included); older files are upgraded
+in memory (:func:`_upgrade`) and a file of a newer version is refused. Written atomically; every
 value is checked on reading, and a bad one is refused with the file and the field named.
 """
 
@@ -24,10 +28,13 @@ from ..io_utils import atomic_write_text, strict_json
 from ..motion.skeleton import JOINT_NAMES, Skeleton
 from .capsules import BodyModel, Capsule
 from .fit import FitReport
+from .mesh_record import BodyMesh, mesh_from_dict, mesh_json, mesh_to_dict
 
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2  # 2: a character's own skinned mesh ("mesh")
 MAX_BONE_M = 1.5  # no bone of a human body is longer
 MAX_RADIUS_M = 0.5
+WITHOUT_MESH_VERSION = 1  # a body without a mesh is written as version 1 wrote it
+MAX_FILE_BYTES = 64 << 20  # a body.json of the largest mesh kept (mesh_record.MAX_MESH_VERTICES) is ~25 MB
 
 
 @dataclass(frozen=True)
@@ -40,6 +47,7 @@ class BodyRecord:
     stature: float  # metres from the soles to the top of the head
     shape: dict | None = None  # the parametric shape's values, when the body has one
     report: FitReport | None = None
+    mesh: BodyMesh | None = None  # its own skinned mesh (a fitted character's); None: rebuilt or none
 
 
 def record_of(body) -> BodyRecord:
@@ -61,8 +69,8 @@ def body_to_dict(body) -> dict:
     """body.json's content (a dict of JSON values) for a ParametricBody or a BodyRecord; datasets
     keep their bodies in the same form (:mod:`hrr_garment.data.dataset`)."""
     r = record_of(body)
-    return {
-        "format_version": FORMAT_VERSION,
+    data = {
+        "format_version": FORMAT_VERSION if r.mesh is not None else WITHOUT_MESH_VERSION,
         "joints": list(JOINT_NAMES),
         "offsets": np.asarray(r.skeleton.offsets, np.float64).round(6).tolist(),
         "pelvis_height": round(float(r.pelvis_height), 6),
@@ -74,12 +82,18 @@ def body_to_dict(body) -> dict:
         "shape": r.shape,
         "fit": r.report.to_dict() if r.report else None,
     }
+    return data if r.mesh is None else {**data, "mesh": mesh_to_dict(r.mesh)}
 
 
 def write_body(path: str | Path, body) -> Path:
-    """Write body.json (atomically)."""
+    """Write body.json (atomically); a mesh one row a line (:func:`~.mesh_record.mesh_json`)."""
     path = Path(path)
-    atomic_write_text(path, strict_json(body_to_dict(body), indent=2))
+    data = body_to_dict(body)
+    mesh = data.pop("mesh", None)
+    text = strict_json(data, indent=2)
+    if mesh is not None:
+        text = f'{text[:-2]},\n  "mesh": {mesh_json(mesh)}\n}}'
+    atomic_write_text(path, text)
     return path
 
 
@@ -104,6 +118,10 @@ def read_body(path: str | Path) -> BodyRecord:
     """Read and check body.json; problems raise :class:`InputError` naming the file and the field."""
     path = Path(path)
     try:
+        if path.stat().st_size > MAX_FILE_BYTES:
+            raise InputError(
+                path, f"{path.stat().st_size} bytes, more than a body file holds ({MAX_FILE_BYTES})"
+            )
         data = json.loads(path.read_text(encoding="utf-8"))
     except FileNotFoundError:
         raise InputError(path, "no such body file") from None
@@ -115,13 +133,7 @@ def read_body(path: str | Path) -> BodyRecord:
 def body_from_dict(data: object, path: str | Path) -> BodyRecord:
     """Check body.json's content (``path`` names where it came from in errors) and make its record."""
     path = Path(path)
-    if not isinstance(data, dict):
-        raise InputError(path, "not a body file (not a JSON object)")
-    version = data.get("format_version")
-    if isinstance(version, bool) or not isinstance(version, int) or not 1 <= version <= FORMAT_VERSION:
-        raise InputError(
-            path, f"body format_version {version!r}; this hrr_garment reads 1 to {FORMAT_VERSION}"
-        )
+    data = _upgrade(data, path)
     if data.get("joints") != list(JOINT_NAMES):
         raise InputError(path, f"'joints' must be the canonical joints {list(JOINT_NAMES)}")
     offsets = data.get("offsets")
@@ -162,7 +174,25 @@ def body_from_dict(data: object, path: str | Path) -> BodyRecord:
         _number(path, "stature", data.get("stature"), 0.3, 3.0),
         shape=shape,
         report=report,
+        mesh=None if data.get("mesh") is None else mesh_from_dict(data["mesh"], path),
     )
+
+
+def _upgrade(data: object, path: Path) -> dict:
+    """body.json's content at :data:`FORMAT_VERSION`, one step per older version (version 1 had
+    no ``mesh``); refused where it is not a body file or its version is unknown or newer."""
+    if not isinstance(data, dict):
+        raise InputError(path, "not a body file (not a JSON object)")
+    version = data.get("format_version")
+    if isinstance(version, bool) or not isinstance(version, int) or not 1 <= version <= FORMAT_VERSION:
+        raise InputError(
+            path, f"body format_version {version!r}; this hrr_garment reads 1 to {FORMAT_VERSION}"
+        )
+    if version == 1:
+        if "mesh" in data:
+            raise InputError(path, "a body file of format_version 1 holds no 'mesh' (version 2 brought it)")
+        data = {**data, "mesh": None, "format_version": 2}
+    return data
 
 
 def _capsule(path: Path, c: object) -> Capsule:

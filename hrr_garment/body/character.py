@@ -39,6 +39,7 @@ from ..motion.joint_maps import resolve_joint_map
 from ..motion.skeleton import JOINT_INDEX, JOINT_NAMES, PARENTS, REST_OFFSETS
 from .body_file import BodyRecord
 from .fit import PRIMARY_CHILD, fit_body
+from .mesh_record import MAX_MESH_FACES, MAX_MESH_VERTICES, BodyMesh
 from .skinned_mesh import bind_matrices, canonical_weights, read_mesh, skinned_meshes
 
 _BIND_TOLERANCE = 1e-4  # relative: joints whose W @ IBM differ by more are posed away from the bind pose
@@ -210,8 +211,9 @@ def character_body(
 ) -> tuple[BodyRecord, Character]:
     """The body of a skinned character file (``hrr-body fit`` writes it; ``hrr-animate --body``
     reads it in place): :func:`read_character`, then the skeleton and capsules fitted to its mesh
-    (:func:`~.fit.fit_body`). An :class:`~hrr_garment.errors.InputError` naming the file where the
-    mesh cannot be fitted or the character is not of a human's height."""
+    (:func:`~.fit.fit_body`), and the mesh itself with its skin weights where it can be kept
+    (:func:`own_mesh`: the body the viewer sees). An :class:`~hrr_garment.errors.InputError` naming
+    the file where the mesh cannot be fitted or the character is not of a human's height."""
     character = read_character(path, skin=skin, joint_map=joint_map, unit_scale=unit_scale)
     try:
         fitted = fit_body(character.vertices, character.joints)
@@ -230,4 +232,16 @@ def character_body(
         pelvis_height=fitted.pelvis_height,
         stature=fitted.stature,
         report=fitted.report,
+        mesh=own_mesh(character),
     ), character
+
+
+def own_mesh(character: Character) -> BodyMesh | None:
+    """The character's skinned mesh as its body record keeps it, or None where its file carries no
+    skin weights or the mesh is larger than body.json keeps (:data:`~.mesh_record.MAX_MESH_VERTICES`):
+    such a body is then drawn and collided as its capsules."""
+    if character.weights is None or not (
+        len(character.vertices) <= MAX_MESH_VERTICES and len(character.faces) <= MAX_MESH_FACES
+    ):
+        return None
+    return BodyMesh.of_character(character)

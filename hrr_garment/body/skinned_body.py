@@ -1,7 +1,7 @@
 """The body the viewer sees: a body's rest mesh skinned to the canonical joints, posed by linear blend
 skinning as a game poses its character.
 
-    visible = visible_body(record)                      # an anny body's (None without a shape)
+    visible = visible_body(record)     # a character's (its record's mesh), an anny body's, or None
     visible = character_skinned_body(character, skeleton)  # a fitted character's, from its file
     posed = visible.pose(motion.global_rotations, motion.joint_positions)   # (T, V, 3)
 
@@ -119,15 +119,24 @@ def anny_weights() -> np.ndarray:
 
 
 def visible_body(record) -> SkinnedBody | None:
-    """The mesh a viewer sees of a body (a :class:`~.body_file.BodyRecord`): its parametric shape's
-    rest mesh skinned by anny's weights, or None where the body has no parametric shape (the
-    mannequin, a fitted character) or anny (the ``bodies`` extra) is not installed."""
+    """The mesh a viewer sees of a body (a :class:`~.body_file.BodyRecord`): a fitted character's
+    own skinned mesh, which its record carries (body.json's ``mesh``); an anny body's, its
+    parametric shape's rest mesh skinned by anny's weights; None for a body with neither (the
+    mannequin) or an anny body where anny (the ``bodies`` extra) is not installed."""
+    if record.mesh is not None:
+        return _own_visible_body(record.mesh, record.body)
     if not record.shape:
         return None
     try:
         return _visible_body(tuple(sorted(record.shape.items())), record.body)
     except ImportError:
         return None
+
+
+@lru_cache(maxsize=8)  # a character's mesh is large: a few bodies at a time
+def _own_visible_body(mesh, body: BodyModel) -> SkinnedBody:
+    # keyed by the mesh and the capsules (both hashed by identity), whose skeleton is fitted to the mesh
+    return skinned_body(body.skeleton, mesh, mesh.weights)
 
 
 @lru_cache(maxsize=32)

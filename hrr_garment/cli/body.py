@@ -139,6 +139,7 @@ def _fit_character(args) -> int:
         )
     if character.filled_joints:
         notes.append(f"placed {', '.join(character.filled_joints)}, which the skeleton lacks")
+    notes.append(_mesh_note(record, character))
     fit = record.report
     print(
         f"wrote {args.output}: {record.stature:.3f} m tall, pelvis {record.pelvis_height:.3f} m over the "
@@ -146,6 +147,20 @@ def _fit_character(args) -> int:
         f"{fit.p95_mm:.1f} mm; {fit.outside_1cm:.0%} of vertices more than 1 cm outside) ({'; '.join(notes)})"
     )
     return 0
+
+
+def _mesh_note(record, character) -> str:
+    """What body.json keeps of the character's own mesh, the body the viewer sees."""
+    from ..body.mesh_record import MAX_MESH_VERTICES
+
+    if record.mesh is not None:
+        return f"its skinned mesh kept as the body the viewer sees ({len(record.mesh.faces)} faces)"
+    why = (
+        "its file carries no skin weights"
+        if character.weights is None
+        else f"over {MAX_MESH_VERTICES} vertices or twice that in faces; decimate it to keep it"
+    )
+    return f"its mesh not kept ({why}): the body is drawn and collided as its capsules"
 
 
 def _announce_first_build() -> None:

@@ -35,7 +35,8 @@ class DressedBody:
     @property
     def visible(self) -> SkinnedBody | None:
         """The mesh a viewer sees of the body, which the simulator collides the cloth with: a
-        parametric body's skinned mesh; None for a body drawn as its capsules (the mannequin)."""
+        parametric body's or a fitted character's skinned mesh; None for a body drawn as its capsules
+        (the mannequin)."""
         return visible_body(self.record)
 
     @property
@@ -56,10 +57,12 @@ class DressedBody:
         """A short content hash of the body (skeleton, capsules, heights, the mesh the cloth collides
         with where it has one) and the garment's rest shape: what a simulated sequence on it
         depends on (its fit report does not)."""
-        data = {k: v for k, v in body_to_dict(self.record).items() if k not in ("fit", "shape")}
-        h = hashlib.sha1(strict_json(data).encode())
-        skin = self.visible
+        # a character's own mesh is hashed as arrays, not as body.json's text of it (a second a body)
+        plain = body_to_dict(replace(self.record, mesh=None))
+        h = hashlib.sha1(strict_json({k: v for k, v in plain.items() if k not in ("fit", "shape")}).encode())
+        skin, mesh = self.visible, self.record.mesh
         arrays = () if skin is None else (skin.vertices, skin.faces, skin.weights)
+        arrays += () if mesh is None else (mesh.joints,)
         for arr in (self.garment.vertices, self.garment.faces, self.garment.attached, *arrays):
             h.update(np.ascontiguousarray(arr).tobytes())
         return h.hexdigest()[:16]

@@ -3,7 +3,7 @@ the mannequin's capsule surface in a centimetre, Z-up armature), read back in th
 read_character and fitted by hrr-body fit; files that cannot be read are refused naming the file."""
 
 import json
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import pytest
@@ -471,3 +471,41 @@ def test_a_characters_own_skin_weights_pose_its_mesh(tmp_path):
     posed = visible.pose(walk.global_rotations, walk.joint_positions)
     own = np.linalg.norm(posed - walk.joint_positions[:, nearest], axis=-1)  # one bone each: rigid
     assert np.abs(own - own[0]).max() < 1e-5
+
+
+def test_hrr_body_fit_keeps_the_characters_own_mesh_as_its_visible_body(tmp_path, capsys):
+    """body.json carries the character's skinned mesh (format 2), and the body it gives back poses
+    within a millimetre of the file's own skin; the dressed body simulated on it collides with it."""
+    from hrr_garment.body.retarget import motion_on_body
+    from hrr_garment.body.skinned_body import character_skinned_body, visible_body
+    from hrr_garment.garment.dressing import DressedBody
+    from hrr_garment.garment.templates import make_garment
+    from hrr_garment.motion.synth import synthesize
+
+    vertices, faces, joints = _mannequin()
+    path = tmp_path / "hero.glb"
+    write_skinned(path, vertices, faces, joints, Layout(orient=_orient(), parts=2))
+    out = tmp_path / "hero.json"
+    assert main(["fit", str(path), "-o", str(out)]) == 0
+    assert "its skinned mesh kept as the body the viewer sees" in capsys.readouterr().out
+    record, character = read_body(out), read_character(path)
+    assert json.loads(out.read_text())["format_version"] == 2
+    assert np.array_equal(record.mesh.faces, character.faces)
+    visible = visible_body(record)
+    own = character_skinned_body(character, record.skeleton)
+    walk = motion_on_body(synthesize("walk", 1.0, seed=2), record)
+    posed = visible.pose(walk.global_rotations, walk.joint_positions)
+    assert np.abs(posed - own.pose(walk.global_rotations, walk.joint_positions)).max() < 1e-3
+    dressed = DressedBody("hero", record, make_garment("dress"))
+    assert dressed.visible is visible
+    bare = DressedBody("hero", replace(record, mesh=None), dressed.garment)
+    assert bare.visible is None and bare.key() != dressed.key()  # sequences on it are simulated anew
+    # a character's file without skin weights keeps no mesh: its body is its capsules, as it was
+    gl = pygltflib.GLTF2().load(str(path))
+    for mesh in gl.meshes:
+        for prim in mesh.primitives:
+            prim.attributes.JOINTS_0 = prim.attributes.WEIGHTS_0 = None
+    gl.save_binary(str(tmp_path / "unweighted.glb"))
+    assert main(["fit", str(tmp_path / "unweighted.glb"), "-o", str(out)]) == 0
+    assert "no skin weights" in capsys.readouterr().out
+    assert read_body(out).mesh is None and json.loads(out.read_text())["format_version"] == 1

@@ -110,7 +110,7 @@ def test_body_json_round_trips_and_refuses_bad_fields(tmp_path):
     )
     data = json.loads(path.read_text())
     for edit, message in (
-        (lambda d: d.update(format_version=2), "format_version 2"),
+        (lambda d: d.update(format_version=3), "format_version 3"),  # newer than this reads
         (lambda d: d.update(joints=d["joints"][::-1]), "canonical joints"),
         (lambda d: d["offsets"][3].__setitem__(1, 9.0), "offset of spine1"),
         (lambda d: d["capsules"][0].update(radius=-0.1), "capsule hips radius"),
