@@ -116,7 +116,7 @@ class ClipRun:
             # contact keeps the free cloth
             skin = collider.skin
             posed = skin.pose(extended.global_rotations, extended.joint_positions)
-            self.pins = clear_of_mesh(self.pins, posed, skin.faces, config.particle_radius)
+            self.pins = clear_of_mesh(self.pins, posed, skin.faces, clearance=config.particle_radius)
         self.arms = arms_off_capsules(body)
         self.arm_a, self.arm_b = (ends[:, self.arms] for ends in body.pose_motion(extended))
         self.edges = garment.edges()

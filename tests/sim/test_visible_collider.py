@@ -125,7 +125,8 @@ def test_a_batch_gives_a_sequence_on_the_visible_body_the_frames_it_gets_alone(n
     config = SimSettings(device="cpu", settle_s=0.1, blend_s=0.1)
     walk, spin = synthesize("walk", 0.6, seed=0), synthesize("spin", 0.8, seed=1)
     batched = simulate_batch(
-        [BatchItem(skirt, walk, DEFAULT_BODY, collider=collider), BatchItem(skirt, spin, DEFAULT_BODY)], config
+        [BatchItem(skirt, walk, DEFAULT_BODY, collider=collider), BatchItem(skirt, spin, DEFAULT_BODY)],
+        config,
     )
     alone = [
         simulate_garment(skirt, walk, config, collider=collider),
