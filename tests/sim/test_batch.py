@@ -95,9 +95,9 @@ def test_an_instance_that_explodes_is_simulated_alone_with_its_retries(newton_in
     ]
     alone_calls = []
 
-    def spy(garment, motion, config, body, progress):
+    def spy(garment, motion, config, body, progress, collider):
         alone_calls.append(motion.source)
-        return simulate_garment(garment, motion, config, body=body, progress=progress)
+        return simulate_garment(garment, motion, config, body=body, progress=progress, collider=collider)
 
     monkeypatch.setattr(batch, "simulate_garment", spy)
     config = _fast(retries=1)
