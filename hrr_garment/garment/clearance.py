@@ -1,24 +1,28 @@
 """A garment kept clear of the body the viewer sees: moved out of a body's visible mesh wherever it
 would lie inside it or nearer than its clearance, and nowhere else.
 
-    placed, report = keep_clearance(garment, VisibleSurface(mesh, faces))
+    placed, report = keep_clearance(garment, VisibleSurface(mesh, faces), mirror=mirror_map(...))
 
 A garment carried onto a body by its capsules (:mod:`.transfer`) keeps its distance from the
 capsules, but a body's mesh is not round: anny's chest and buttocks stand out of their capsules, its
-waist lies inside them. Here every vertex is moved by a displacement ``u`` that is as small and as
-smooth over the cloth as it can be,
+waist and lower back lie inside them. Here every vertex is moved by a displacement ``u`` as small and
+as smooth over the cloth as it can be,
 
     minimise  sum over edges |u_i - u_j|^2  +  sum over vertices (A_i / FALLOFF_M^2) |u_i|^2
 
-(A_i the vertex's share of the cloth's area), subject to each vertex lying at least ``clearance``
-off the mesh, its distance linearised along the direction in which it grows fastest and found
-again after each solve (a few rounds). A push fades along the cloth over about :data:`FALLOFF_M`,
+(A_i the vertex's share of the cloth's area) while each vertex lies at least ``clearance`` off the
+mesh. A vertex moves along the cloth's normal as the garment was placed (not down the distance's
+gradient, which runs sideways in a hollow such as between the breasts, where vertices pushed in
+from either side would collapse an edge), its distance linearised along that normal and measured
+again after each solve (:data:`ROUNDS`). A push fades along the cloth over about :data:`FALLOFF_M`,
 so the cloth round a pushed region rises with it instead of denting, and the template's silhouette
-and hem, where nothing is near the body, do not move. The attached vertices (a waistband, the strap
-tops) rest on the body: they are held at the clearance from either side, moved in where the mesh
-lies inside the capsules they were placed on. The inequality is solved by an active set (a vertex
-whose constraint would hold it in is let go) with a stiff penalty; a last push of what is left
-(a fraction of a millimetre) puts every vertex outside the clearance.
+and hem, where nothing is near the body, stay where they were. The attached vertices (a waistband,
+the strap tops) rest on the body: those within :data:`HOLD_WITHIN_M` of the clearance are held at it
+from either side, moved in where the mesh lies inside the capsules they were placed on; one farther
+off bridges a hollow the capsules filled (the small of the back), as before. The inequality is
+solved by an active set (a vertex whose constraint would hold it in is let go) with a stiff penalty;
+a last push along the distance's gradient of what is left (a fraction of a millimetre) puts every
+vertex outside the clearance.
 """
 
 from __future__ import annotations
@@ -35,12 +39,15 @@ from .visible_surface import VisibleSurface
 CLEARANCE_M = 0.012  # the built-in garments' distance from the body (tube_shapes.TubeShape.gap)
 FALLOFF_M = 0.08  # a push fades along the cloth over about this distance
 PENALTY = 1e5  # the constraint's stiffness against the smoothness terms (dimensionless)
-ROUNDS = 8  # distance linearised again this many times at most
-ACTIVE_SET_PASSES = 6
+ROUNDS = 4  # distance linearised again this many times at most (the last push takes what is left)
+ACTIVE_SET_PASSES = 6  # solves per round as vertices are held and let go
 TOLERANCE_M = 1e-4  # a vertex within this of its clearance keeps it
 MIN_RATE = 0.3  # the distance grows at least this fast along the cloth's normal (it is 1 where they agree)
+HOLD_WITHIN_M = 0.03  # an attached vertex farther off the clearance bridges a hollow: only pushed
+PULL_RATE = 0.7  # a band pulled in trusts the distance's rate of change no lower than this
 SLACK_M = 1e-6  # the penalty's own give, far below it
-FINAL_PUSHES = 4
+FINAL_PUSHES = 4  # pushes along the gradient of what the rounds left
+MIRROR = np.array([-1.0, 1.0, 1.0])
 
 
 @dataclass(frozen=True)
@@ -59,6 +66,21 @@ def cloth_normals(vertices: np.ndarray, faces: np.ndarray, away: np.ndarray) -> 
     directions away from it at each vertex): a garment's winding may face either way."""
     normals = vertex_normals(vertices, faces)
     return normals if (normals * away).sum() >= 0 else -normals
+
+
+def _nearer_of_mirrored(
+    distance: np.ndarray, direction: np.ndarray, mirror: np.ndarray | None
+) -> tuple[np.ndarray, np.ndarray]:
+    """A symmetric garment's distances from the mesh and its mirror image together (the nearer of
+    the two; inside either is inside): a body's mesh is a few millimetres from symmetric (anny's
+    skinned into the rest pose up to 15 mm), and a symmetric garment kept clear of both stays
+    symmetric. Each vertex's mirror image stands where its mirror vertex does."""
+    if mirror is None:
+        return distance, direction
+    nearer = distance[mirror] < distance
+    return np.where(nearer, distance[mirror], distance), np.where(
+        nearer[:, None], direction[mirror] * MIRROR, direction
+    )
 
 
 def _smoothness(vertices: np.ndarray, faces: np.ndarray, edges: np.ndarray):
@@ -89,48 +111,62 @@ def _solve(energy, active: np.ndarray, normal: np.ndarray, target: np.ndarray) -
     return spsolve(system, rhs).reshape(n, 3)
 
 
+def _solve_active(
+    energy, held: np.ndarray, active: np.ndarray, planes: tuple[np.ndarray, np.ndarray]
+) -> tuple[np.ndarray, np.ndarray]:
+    """The displacement with each vertex at least as far along its normal as its target (``planes``:
+    normals (V, 3), targets (V,)), the ``held`` ones exactly there, and the vertices that bind: an
+    active vertex the penalty holds in (beyond its target) is let go, a free one short of it held."""
+    normal, target = planes
+    for _ in range(ACTIVE_SET_PASSES):
+        moved = _solve(energy, active, normal, target)
+        along = (normal * moved).sum(1)
+        wanted = held | (along < target - SLACK_M) | (active & (along <= target + SLACK_M))
+        if np.array_equal(wanted, active):
+            break
+        active = wanted
+    return moved, active
+
+
 def keep_clearance(
-    garment: GarmentMesh, surface: VisibleSurface, clearance: float = CLEARANCE_M
+    garment: GarmentMesh,
+    surface: VisibleSurface,
+    clearance: float = CLEARANCE_M,
+    *,
+    mirror: np.ndarray | None = None,
 ) -> tuple[GarmentMesh, ClearanceReport]:
     """``garment`` with every vertex at least ``clearance`` off ``surface``'s mesh and its attached
     vertices at the clearance, moved as little and as smoothly as that allows (see the module
-    docstring)."""
+    docstring). ``mirror``: each vertex's mirror image's index (:func:`~.mesh.mirror_map`) for a
+    symmetric garment kept symmetric (its triangles are not: each square's diagonal runs one way)."""
     start = np.asarray(garment.vertices, np.float64)
+    energy = _smoothness(start, garment.faces, garment.edges())
+    distance, direction = _nearer_of_mirrored(*surface.signed(start), mirror)
     held = np.zeros(len(start), bool)
     held[garment.attached] = True
-    energy = _smoothness(start, garment.faces, garment.edges())
-    distance, direction = surface.signed(start)
+    held &= distance < clearance + HOLD_WITHIN_M
     before = distance
     u = np.zeros_like(start)
+    active = held.copy()
+    normal = cloth_normals(start, garment.faces, direction)
     for _ in range(ROUNDS):
         shortfall = clearance - distance
         if shortfall[~held].max() < TOLERANCE_M and np.abs(shortfall[held]).max(initial=0.0) < TOLERANCE_M:
             break
-        # each vertex moves out along the cloth's own normal (the distance's gradient runs sideways in
-        # a hollow, between the breasts, and two vertices pushed down it from either side collapse an
-        # edge), as far as the distance grows along it
-        normal = cloth_normals(start + u, garment.faces, direction)
+        # each vertex moves along the cloth's normal as far as the distance grows along it; a band
+        # pulled in trusts that rate a little only: it cannot pass through the body where the normal
+        # runs along it
         rate = np.maximum((normal * direction).sum(1), MIN_RATE)
-        # a band pulled in moves no farther than it stands off the clearance: it cannot pass the body
-        target = (normal * u).sum(1) + shortfall / np.where(shortfall > 0, rate, 1.0)
-        active = held | (shortfall > 0)
-        for _ in range(ACTIVE_SET_PASSES):
-            moved = _solve(energy, active, normal, target)
-            along = (normal * moved).sum(1)
-            # an active vertex the penalty holds in (beyond its target) is let go; a free one short of
-            # its target is held
-            wanted = held | (along < target - SLACK_M) | (active & (along <= target + SLACK_M))
-            if np.array_equal(wanted, active):
-                break
-            active = wanted
-        u = moved
-        distance, direction = surface.signed(start + u)
+        target = (normal * u).sum(1) + shortfall / np.where(shortfall > 0, rate, np.maximum(rate, PULL_RATE))
+        moved, active = _solve_active(energy, held, active | (shortfall > 0), (normal, target))
+        u = moved if mirror is None else 0.5 * (moved + moved[mirror] * MIRROR)
+        distance, direction = _nearer_of_mirrored(*surface.signed(start + u), mirror)
     for _ in range(FINAL_PUSHES):  # what the penalty and the linearisation left: a fraction of a mm
         short = np.maximum(clearance - distance, 0.0)
-        if not short.any():
+        if short.max() < SLACK_M:
             break
         u = u + short[:, None] * direction
-        distance, direction = surface.signed(start + u)
+        distance, direction = _nearer_of_mirrored(*surface.signed(start + u), mirror)
     shift = np.linalg.norm(u, axis=1)
     report = ClearanceReport(
         inside=float((before < 0).mean()),

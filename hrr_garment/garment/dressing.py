@@ -81,8 +81,8 @@ def dress(
     perm = mirror_map(garment.vertices) if is_symmetric(made_for) else None
     symmetric = perm is not None and is_symmetric(body)
     if visible is not None:
-        surface = VisibleSurface(rest_mesh(visible, body), visible.faces, mirrored=symmetric)
-        on_body, kept = keep_clearance(on_body, surface)
+        surface = VisibleSurface(rest_mesh(visible, body), visible.faces)
+        on_body, kept = keep_clearance(on_body, surface, mirror=perm if symmetric else None)
         report = replace(report, visible=kept)
     if symmetric:  # exactly symmetric, as the template was
         flip = np.array([-1.0, 1.0, 1.0], np.float32)

@@ -2,7 +2,7 @@
 pose, and the signed distance of the garment's vertices from it as they move.
 
     mesh = rest_mesh(visible, body)           # (V, 3) the skinned mesh in the body's rest (T-)pose
-    surface = VisibleSurface(mesh, faces, mirrored=True)
+    surface = VisibleSurface(mesh, faces)
     distance, direction = surface.signed(points)   # < 0 inside; direction: outward, unit
 
 Garments are dressed in the body's rest pose (:meth:`~hrr_garment.body.capsules.BodyModel.rest_pose`,
@@ -14,9 +14,7 @@ skinned one 20-25 mm (the capsules' own fit).
 The distance is exact (:func:`~hrr_garment.body.mesh_distance.nearest_on_mesh` on the faces whose
 centroids lie nearest); inside or outside is the generalised winding number's, asked again only for a
 point that moved at least as far as it was from the surface: a signed distance changes by no more
-than the point moves, so a nearer move cannot have crossed the surface. ``mirrored`` measures from
-the mesh and its mirror image together (the nearer of the two, inside either is inside): a body's
-mesh is a few millimetres from symmetric, and a symmetric garment kept clear of both stays symmetric.
+than the point moves, so a nearer move cannot have crossed the surface.
 """
 
 from __future__ import annotations
@@ -28,7 +26,6 @@ from ..body.mesh_distance import nearest_on_mesh, vertex_normals, winding_inside
 from ..body.skinned_body import SkinnedBody
 
 CANDIDATE_FACES = 24  # faces tried per point, by centroid (exact on a body's like-sized faces)
-MIRROR = np.array([-1.0, 1.0, 1.0])
 
 
 def rest_mesh(visible: SkinnedBody, body: BodyModel) -> np.ndarray:
@@ -42,40 +39,29 @@ class VisibleSurface:
     """Signed distances of a moving point set from a closed triangle mesh (see the module docstring).
     Each call to :meth:`signed` takes the same points, moved."""
 
-    def __init__(self, vertices: np.ndarray, faces: np.ndarray, *, mirrored: bool = False) -> None:
+    def __init__(self, vertices: np.ndarray, faces: np.ndarray) -> None:
         self.vertices = np.asarray(vertices, np.float64)
         self.faces = np.asarray(faces, np.int64)
         self.normals = vertex_normals(self.vertices, self.faces)
-        self.mirrored = mirrored
-        self._last: list[tuple[np.ndarray, np.ndarray] | None] = [None, None]  # (points, signed) per side
+        self._last: tuple[np.ndarray, np.ndarray] | None = None  # the points last asked about, signed
 
     def signed(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(N,) each point's signed distance (negative inside) and (N, 3) the unit direction in which
         it grows fastest (away from the nearest surface point; the surface's normal on it)."""
         points = np.asarray(points, np.float64)
-        distance, direction = self._side(points, 0)
-        if self.mirrored:
-            other, turned = self._side(points * MIRROR, 1)
-            nearer = other < distance
-            distance = np.where(nearer, other, distance)
-            direction = np.where(nearer[:, None], turned * MIRROR, direction)
-        return distance, direction
-
-    def _side(self, points: np.ndarray, side: int) -> tuple[np.ndarray, np.ndarray]:
         unsigned, face, bary = nearest_on_mesh(points, self.vertices, self.faces, CANDIDATE_FACES)
         corners = self.faces[face]
         nearest = np.einsum("nk,nkc->nc", bary, self.vertices[corners])
-        last = self._last[side]
-        if last is None:
+        if self._last is None or len(self._last[0]) != len(points):
             inside = winding_inside(points, self.vertices, self.faces)
         else:
-            before, signed = last
+            before, signed = self._last
             inside = signed < 0
             crossed = np.linalg.norm(points - before, axis=1) >= np.abs(signed)  # may have crossed
             if crossed.any():
                 inside[crossed] = winding_inside(points[crossed], self.vertices, self.faces)
         distance = np.where(inside, -unsigned, unsigned)
-        self._last[side] = (points.copy(), distance)
+        self._last = (points.copy(), distance)
         away = (points - nearest) / np.maximum(unsigned, 1e-12)[:, None]
         normal = np.einsum("nk,nkc->nc", bary, self.normals[corners])
         normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-12)
