@@ -1,7 +1,8 @@
 """A body and the garment on it in their rest poses (:class:`DressedBody`), and a garment carried
-onto a body (:func:`dress`). The garment on a body has the template's topology (the same vertices,
-faces and groups) and that body's rest shape, so a sequence's strain, its penetration and a model's
-predictions are measured against its own body."""
+onto a body (:func:`dress`): by its capsules (:mod:`.transfer`), then kept clear of the mesh the
+viewer sees where the body has one (:mod:`.clearance`). The garment on a body has the template's
+topology (the same vertices, faces and groups) and that body's rest shape, so a sequence's strain,
+its penetration and a model's predictions are measured against its own body."""
 
 from __future__ import annotations
 
