@@ -49,7 +49,7 @@ class VisibleSurface:
         """(N,) each point's signed distance (negative inside) and (N, 3) the unit direction in which
         it grows fastest (away from the nearest surface point; the surface's normal on it)."""
         points = np.asarray(points, np.float64)
-        unsigned, face, bary = nearest_on_mesh(points, self.vertices, self.faces, CANDIDATE_FACES)
+        unsigned, face, bary = nearest_on_mesh(points, self.vertices, self.faces, candidates=CANDIDATE_FACES)
         corners = self.faces[face]
         nearest = np.einsum("nk,nkc->nc", bary, self.vertices[corners])
         if self._last is None or len(self._last[0]) != len(points):
