@@ -42,7 +42,7 @@ PENALTY = 1e5  # the constraint's stiffness against the smoothness terms (dimens
 ROUNDS = 4  # distance linearised again this many times at most (the last push takes what is left)
 ACTIVE_SET_PASSES = 6  # solves per round as vertices are held and let go
 TOLERANCE_M = 1e-4  # a vertex within this of its clearance keeps it
-MIN_RATE = 0.3  # the distance grows at least this fast along the cloth's normal (it is 1 where they agree)
+MIN_RATE = 0.5  # a vertex whose distance grows slower along the cloth's normal moves down its gradient
 HOLD_WITHIN_M = 0.03  # an attached vertex farther off the clearance bridges a hollow: only pushed
 PULL_RATE = 0.7  # a band pulled in trusts the distance's rate of change no lower than this
 SLACK_M = 1e-6  # the penalty's own give, far below it
@@ -156,9 +156,13 @@ def keep_clearance(
         # each vertex moves along the cloth's normal as far as the distance grows along it; a band
         # pulled in trusts that rate a little only: it cannot pass through the body where the normal
         # runs along it
-        rate = np.maximum((normal * direction).sum(1), MIN_RATE)
-        target = (normal * u).sum(1) + shortfall / np.where(shortfall > 0, rate, np.maximum(rate, PULL_RATE))
-        moved, active = _solve_active(energy, held, active | (shortfall > 0), (normal, target))
+        # (where the normal runs nearly along the body, a vertex inside the armpit, it moves down the
+        # gradient instead: along the normal it would slide round the body without leaving it)
+        rate = (normal * direction).sum(1)
+        sideways = rate < MIN_RATE
+        way, rate = np.where(sideways[:, None], direction, normal), np.where(sideways, 1.0, rate)
+        target = (way * u).sum(1) + shortfall / np.where(shortfall > 0, rate, np.maximum(rate, PULL_RATE))
+        moved, active = _solve_active(energy, held, active | (shortfall > 0), (way, target))
         u = moved if mirror is None else 0.5 * (moved + moved[mirror] * MIRROR)
         distance, direction = _nearer_of_mirrored(*surface.signed(start + u), mirror)
     for _ in range(FINAL_PUSHES):  # what the penalty and the linearisation left: a fraction of a mm
