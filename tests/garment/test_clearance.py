@@ -13,6 +13,7 @@ from hrr_garment.garment.dressing import dress
 from hrr_garment.garment.mesh import mirror_map
 from hrr_garment.garment.templates import make_garment
 from hrr_garment.garment.visible_surface import VisibleSurface, rest_mesh
+from hrr_garment.motion.rotations import axis_angle_to_matrix
 from hrr_garment.motion.skeleton import JOINT_INDEX
 
 # an egg of a torso round the mannequin's hips: 3 cm wider than its capsules at the waist, 2 cm
@@ -99,3 +100,18 @@ def test_without_a_visible_mesh_the_garment_stays_where_its_capsules_put_it():
     default, report = dress("m", mannequin_record(), skirt, made_for=DEFAULT_BODY)  # the mannequin: no mesh
     none, _ = dress("m", mannequin_record(), skirt, made_for=DEFAULT_BODY, visible=None)
     assert report.visible is None and np.array_equal(default.garment.vertices, none.garment.vertices)
+
+
+def test_the_mesh_is_skinned_into_the_pose_the_garment_is_dressed_in():
+    """A mesh modelled with its arm 45 degrees down (anny's A-pose) stands in the body's T-pose."""
+    joints = DEFAULT_BODY.rest_joints().astype(np.float64)
+    shoulder, wrist = (JOINT_INDEX[j] for j in ("l_shoulder", "l_wrist"))
+    down = axis_angle_to_matrix(np.array([0.0, 0.0, -np.pi / 4]))
+    hand = joints[shoulder] + down @ (joints[wrist] - joints[shoulder])  # where the A-pose holds the hand
+    rotations = np.broadcast_to(np.eye(3), (22, 3, 3)).copy()
+    rotations[shoulder] = down
+    weights = np.zeros((1, 22))
+    weights[0, shoulder] = 1.0
+    arm = SkinnedBody(hand[None], np.zeros((1, 3), np.int64), weights, rotations, joints)
+    assert np.abs(hand - joints[wrist]).max() > 0.1
+    assert np.abs(rest_mesh(arm, DEFAULT_BODY)[0] - joints[wrist]).max() < 1e-9
