@@ -13,8 +13,9 @@ as smooth over the cloth as it can be,
 (A_i the vertex's share of the cloth's area) while each vertex lies at least ``clearance`` off the
 mesh. A vertex moves along the cloth's normal as the garment was placed (not down the distance's
 gradient, which runs sideways in a hollow such as between the breasts, where vertices pushed in
-from either side would collapse an edge), its distance linearised along that normal and measured
-again after each solve (:data:`ROUNDS`). A push fades along the cloth over about :data:`FALLOFF_M`,
+from either side would collapse an edge; down the gradient only where the normal runs nearly along
+the body), its distance linearised along that way and measured again after each solve
+(:data:`ROUNDS`). A push fades along the cloth over about :data:`FALLOFF_M`,
 so the cloth round a pushed region rises with it instead of denting, and the template's silhouette
 and hem, where nothing is near the body, stay where they were. The attached vertices (a waistband,
 the strap tops) rest on the body: those within :data:`HOLD_WITHIN_M` of the clearance are held at it
@@ -153,11 +154,10 @@ def keep_clearance(
         shortfall = clearance - distance
         if shortfall[~held].max() < TOLERANCE_M and np.abs(shortfall[held]).max(initial=0.0) < TOLERANCE_M:
             break
-        # each vertex moves along the cloth's normal as far as the distance grows along it; a band
-        # pulled in trusts that rate a little only: it cannot pass through the body where the normal
-        # runs along it
-        # (where the normal runs nearly along the body, a vertex inside the armpit, it moves down the
-        # gradient instead: along the normal it would slide round the body without leaving it)
+        # each vertex moves along the cloth's normal as far as the distance grows along it, or down the
+        # gradient where the normal runs nearly along the body (a vertex deep in a shoulder would
+        # slide round it without leaving it); a band pulled in trusts that rate a little only, so
+        # it cannot pass through the body
         rate = (normal * direction).sum(1)
         sideways = rate < MIN_RATE
         way, rate = np.where(sideways[:, None], direction, normal), np.where(sideways, 1.0, rate)
