@@ -1,12 +1,14 @@
 """A body and the garment on it in their rest poses (:class:`DressedBody`), and a garment carried
-onto a body (:func:`dress`). The garment on a body has the template's topology (the same vertices,
-faces and groups) and that body's rest shape, so a sequence's strain, its penetration and a model's
-predictions are measured against its own body."""
+onto a body (:func:`dress`): by its capsules (:mod:`.transfer`), then kept clear of the mesh the
+viewer sees where the body has one (:mod:`.clearance`). The garment on a body has the template's
+topology (the same vertices, faces and groups) and that body's rest shape, so a sequence's strain,
+its penetration and a model's predictions are measured against its own body."""
 
 from __future__ import annotations
 
 import hashlib
 from dataclasses import dataclass, replace
+from typing import Literal
 
 import numpy as np
 
@@ -16,8 +18,10 @@ from ..body.skinned_body import SkinnedBody, visible_body
 from ..body.symmetry import is_symmetric, symmetrized
 from ..io_utils import strict_json
 from ..motion.skeleton import REST_PELVIS_HEIGHT
+from .clearance import keep_clearance
 from .mesh import GarmentMesh, mirror_map
 from .transfer import TransferReport, transfer_garment
+from .visible_surface import VisibleSurface, rest_mesh
 
 
 @dataclass(frozen=True)
@@ -69,15 +73,31 @@ class DressedBody:
 
 
 def dress(
-    name: str, record: BodyRecord, garment: GarmentMesh, *, made_for: BodyModel
+    name: str,
+    record: BodyRecord,
+    garment: GarmentMesh,
+    *,
+    made_for: BodyModel,
+    visible: SkinnedBody | None | Literal["auto"] = "auto",
 ) -> tuple[DressedBody, TransferReport]:
     """The body (left and right made exactly alike where they nearly are: its sequences can then be
-    mirrored) and ``garment`` (modelled on ``made_for``) carried onto it."""
+    mirrored) and ``garment`` (modelled on ``made_for``) carried onto it, then kept its clearance
+    off the body the viewer sees (:func:`~.clearance.keep_clearance`): ``visible``, by default the
+    record's own (:func:`~hrr_garment.body.skinned_body.visible_body`: an anny body's mesh); None, or
+    a body without a mesh (the mannequin, whose capsules are what the viewer sees), keeps the garment
+    where its capsules put it."""
+    if isinstance(visible, str):  # "auto"
+        visible = visible_body(record)
     body = symmetrized(record.body)
     record = replace(record, body=body, skeleton=body.skeleton)
     on_body, report = transfer_garment(garment, made_for=made_for, body=body)
     perm = mirror_map(garment.vertices) if is_symmetric(made_for) else None
-    if perm is not None and is_symmetric(body):  # exactly symmetric, as the template was
+    symmetric = perm is not None and is_symmetric(body)
+    if visible is not None:
+        surface = VisibleSurface(rest_mesh(visible, body), visible.faces)
+        on_body, kept = keep_clearance(on_body, surface, mirror=perm if symmetric else None)
+        report = replace(report, visible=kept)
+    if symmetric:  # exactly symmetric, as the template was
         flip = np.array([-1.0, 1.0, 1.0], np.float32)
         on_body = replace(on_body, vertices=0.5 * (on_body.vertices + on_body.vertices[perm] * flip))
     return DressedBody(name, record, on_body), report

@@ -24,6 +24,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..body.capsules import BodyModel, capsule_signed_distance
+from .clearance import ClearanceReport
 from .mesh import GarmentMesh
 
 BLEND_M = (
@@ -43,6 +44,7 @@ class TransferReport:
     moved_mean_mm: (
         float  # mean distance of each vertex from where it was modelled (onto the same body: the push alone)
     )
+    visible: ClearanceReport | None = None  # then kept clear of the body's visible mesh (dressing.dress)
 
 
 def _capsule_frames(body: BodyModel) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -11,7 +11,8 @@ across bodies reads with the motion), and the garment's rest offset on it
 (:meth:`~hrr_garment.garment.dressing.DressedBody.offset`): models predict a garment relative to its
 body at rest, and the offset stands it on this one. The garment is carried onto the body as the
 simulator carried it (:func:`~hrr_garment.garment.dressing.dress`), so a body the model was trained
-on gets the rest shape its training data had.
+on gets the rest shape its training data had; on a skinned character it is kept clear of the
+character's own mesh.
 
 A body outside the range of the model's training bodies is refused with each measure that is out
 (:class:`BodyOutsideRange`), or with ``allow_outside`` warned about: the garment then stands on
@@ -79,12 +80,23 @@ class CharacterBody:
 def read_body_argument(body: str | Path) -> tuple[str, BodyRecord]:
     """A body file's name and record: body.json, or a skinned glTF / GLB character fitted as
     ``hrr-body fit`` fits it."""
+    return _body_and_mesh(body)[:2]
+
+
+def _body_and_mesh(body: str | Path) -> tuple[str, BodyRecord, object]:
+    """:func:`read_body_argument`, and the mesh the garment keeps clear of
+    (:func:`~hrr_garment.garment.dressing.dress`'s ``visible``): a character's own skinned mesh, or
+    "auto" (the record's own: an anny body's) for body.json and a mesh without skin weights."""
     path = Path(body)
     if path.suffix.lower() in CHARACTER_SUFFIXES:
         from ..body.character import character_body
+        from ..body.skinned_body import character_skinned_body
 
-        return path.stem, character_body(path)[0]
-    return path.stem, read_body(path)
+        record, character = character_body(path)
+        if character.weights is None:
+            return path.stem, record, "auto"
+        return path.stem, record, character_skinned_body(character, record.skeleton)
+    return path.stem, read_body(path), "auto"
 
 
 def character_body(
@@ -102,13 +114,14 @@ def character_body(
         return body
     if isinstance(body, DressedBody):
         body, name = body.record, name or body.name
+    visible = "auto"
     if body is None:
         record = bundle.default_body
         label = name or (MANNEQUIN if bundle.manifest.default_body_is_mannequin else "the model's body")
     elif isinstance(body, BodyRecord):
         record, label = body, name or "body"
     elif isinstance(body, (str, Path)):
-        label, record = read_body_argument(body)
+        label, record, visible = _body_and_mesh(body)
         label = name or label
     else:
         raise TypeError(
@@ -128,7 +141,7 @@ def character_body(
                 where, message + " (train on bodies like it, or allow it and expect its motion to be a guess)"
             )
         warnings.warn(message + "; animating it anyway", stacklevel=2)
-    dressed, _ = dress(label, record, bundle.template, made_for=bundle.made_for)
+    dressed, _ = dress(label, record, bundle.template, made_for=bundle.made_for, visible=visible)
     return CharacterBody(dressed, vector, dressed.offset(bundle.template))
 
 

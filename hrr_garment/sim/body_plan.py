@@ -32,6 +32,7 @@ from ..body.capsules import BodyModel
 from ..body.mannequin import MANNEQUIN, mannequin_record
 from ..body.symmetry import symmetrized
 from ..errors import InputError
+from ..garment.clearance import CLEARANCE_M
 from ..garment.dressing import DressedBody, dress
 from ..garment.mesh import GarmentMesh
 from ..garment.transfer import TransferReport
@@ -104,12 +105,21 @@ def one_body(
 
 
 def placement_note(name: str, report: TransferReport) -> str:
-    """One line on how the garment landed on a body."""
-    return (
+    """One line on how the garment landed on a body (and, where the body has a visible mesh, how it
+    was kept clear of it)."""
+    note = (
         f"the garment on body {name}: {100 * report.inside:.1f} % of its vertices were inside it and "
         f"{100 * report.pushed:.1f} % pushed out; each vertex {report.moved_mean_mm:.1f} mm from where it "
         f"was modelled on average, its distance from the body changed {report.gap_change_mean_mm:.1f} mm"
     )
+    kept = report.visible
+    if kept is not None:
+        note += (
+            f"; then kept {1000 * CLEARANCE_M:.0f} mm off the body's visible mesh: {100 * kept.inside:.1f} % "
+            f"of its vertices were inside the mesh and {100 * kept.closer:.1f} % nearer, "
+            f"{100 * kept.moved:.0f} % moved (at most {kept.moved_max_mm:.0f} mm)"
+        )
+    return note
 
 
 def plan_bodies(
