@@ -79,24 +79,13 @@ class CharacterBody:
 
 def read_body_argument(body: str | Path) -> tuple[str, BodyRecord]:
     """A body file's name and record: body.json, or a skinned glTF / GLB character fitted as
-    ``hrr-body fit`` fits it."""
-    return _body_and_mesh(body)[:2]
-
-
-def _body_and_mesh(body: str | Path) -> tuple[str, BodyRecord, object]:
-    """:func:`read_body_argument`, and the mesh the garment keeps clear of
-    (:func:`~hrr_garment.garment.dressing.dress`'s ``visible``): a character's own skinned mesh, or
-    "auto" (the record's own: an anny body's) for body.json and a mesh without skin weights."""
+    ``hrr-body fit`` fits it (its record carries its own skinned mesh, the body the viewer sees)."""
     path = Path(body)
     if path.suffix.lower() in CHARACTER_SUFFIXES:
         from ..body.character import character_body
-        from ..body.skinned_body import character_skinned_body
 
-        record, character = character_body(path)
-        if character.weights is None:
-            return path.stem, record, "auto"
-        return path.stem, record, character_skinned_body(character, record.skeleton)
-    return path.stem, read_body(path), "auto"
+        return path.stem, character_body(path)[0]
+    return path.stem, read_body(path)
 
 
 def character_body(
@@ -114,14 +103,13 @@ def character_body(
         return body
     if isinstance(body, DressedBody):
         body, name = body.record, name or body.name
-    visible = "auto"
     if body is None:
         record = bundle.default_body
         label = name or (MANNEQUIN if bundle.manifest.default_body_is_mannequin else "the model's body")
     elif isinstance(body, BodyRecord):
         record, label = body, name or "body"
     elif isinstance(body, (str, Path)):
-        label, record, visible = _body_and_mesh(body)
+        label, record = read_body_argument(body)
         label = name or label
     else:
         raise TypeError(
@@ -141,7 +129,7 @@ def character_body(
                 where, message + " (train on bodies like it, or allow it and expect its motion to be a guess)"
             )
         warnings.warn(message + "; animating it anyway", stacklevel=2)
-    dressed, _ = dress(label, record, bundle.template, made_for=bundle.made_for, visible=visible)
+    dressed, _ = dress(label, record, bundle.template, made_for=bundle.made_for)
     return CharacterBody(dressed, vector, dressed.offset(bundle.template))
 
 
