@@ -1,16 +1,18 @@
-"""The per-joint SDF grids against the body the viewer sees: how near their signed distance is to the
-exact distance to the linear-blend-skinned mesh, and the capsules' for contrast (issue 82).
+"""The colliders against the body the viewer sees: how near the inverse-skinning collider's, the
+per-joint SDF grids' and the capsules' signed distances are to the exact distance to the
+linear-blend-skinned mesh (issue 82).
 
 For each anny body and clip, the frames where the body is most bent (the largest sum of its joints'
 turns from the rest pose) are posed by linear blend skinning (hrr_garment.body.skinned_body); points
 are spread over the posed mesh by area and moved along its normal by -20, -5, 0, +5 and +20 mm. Each
-point's exact signed distance (nearest face, sign by winding number) is compared with the grids'
-(hrr_garment.body.bone_sdf) and the capsules' (hrr_garment.body.capsules): the error's mean, p95 and
+point's exact signed distance (nearest face, sign by winding number) is compared with the
+inverse-skinning collider's (hrr_garment.body.skin_collider), the grids' (hrr_garment.body.bone_sdf)
+and the capsules' (hrr_garment.body.capsules), on the same points: the error's mean, p95 and
 max and the share over 20 mm, at joints (the point's largest skin weight under 0.9) and along bones;
 of the points more than 3 mm inside the mesh, the share a collider calls outside (cloth it would
-leave inside), and of those more than 3 mm outside, the share it calls inside; and the query's
-time for 4,156 points (one dress) on one core, numpy. Needs the bodies extra (anny; its cache under
-HRR_HOME). About two minutes on one core.
+leave inside), and of those more than 3 mm outside, the share it calls inside; and the numpy
+queries' time for 4,156 points (one dress) on one core. Needs the bodies extra (anny; its cache
+under HRR_HOME). About four minutes on one core.
 
     python tools/studies/visible_collider_study.py ../shared/data/mocap/cmu/*.bvh --synth dance jump
 """
@@ -67,6 +69,7 @@ def measure(name: str, shape: dict, clips: list, args) -> list[dict]:
     from hrr_garment.body.mesh_distance import mesh_signed_distance
     from hrr_garment.body.parametric import BodyShape, parametric_body
     from hrr_garment.body.retarget import motion_on_body
+    from hrr_garment.body.skin_collider import skin_collider
     from hrr_garment.body.skinned_body import visible_body
 
     record = record_of(parametric_body(BodyShape(**shape)))
@@ -74,6 +77,12 @@ def measure(name: str, shape: dict, clips: list, args) -> list[dict]:
     t0 = time.perf_counter()
     grids = bone_sdf_collider(visible)
     print(f"{name}: {len(grids.values):,} grid nodes built in {time.perf_counter() - t0:.1f} s")
+    t0 = time.perf_counter()
+    skin = skin_collider(visible)
+    print(
+        f"{name}: inverse-skinning grid of {len(skin.distance):,} nodes, {skin.nbytes / 1e6:.1f} MB, "
+        f"built in {time.perf_counter() - t0:.1f} s"
+    )
     rows = []
     for clip_name, clip in clips:
         motion = motion_on_body(clip, record)
@@ -83,9 +92,11 @@ def measure(name: str, shape: dict, clips: list, args) -> list[dict]:
             points, offset, weight = surface_points(posed, visible.faces, visible.weights, args.points, t)
             a, b = record.body.pose(rot[None], pos[None])
             timing = surface_points(posed, visible.faces, visible.weights, CLOTH_VERTICES, t + 1)[0]
-            t0 = time.perf_counter()
-            grids.query(timing, rot, pos)
-            seconds = time.perf_counter() - t0
+            seconds = {}
+            for key, collider in (("grids", grids), ("skin", skin)):
+                t0 = time.perf_counter()
+                collider.query(timing, rot, pos)
+                seconds[key] = time.perf_counter() - t0
             rows.append(
                 {
                     "body": name,
@@ -94,9 +105,10 @@ def measure(name: str, shape: dict, clips: list, args) -> list[dict]:
                     "offset": offset,
                     "at_joint": weight < JOINT_WEIGHT,
                     "exact": mesh_signed_distance(points, posed, visible.faces),
+                    "skin": skin.query(points, rot, pos)[0],
                     "grids": grids.query(points, rot, pos)[0],
                     "capsules": capsule_signed_distance(points, a[0], b[0], radii=record.body.radii)[0],
-                    "grid_seconds": seconds,
+                    "seconds": seconds,
                 }
             )
     return rows
@@ -140,12 +152,12 @@ def main() -> None:
     rows = [row for b in args.bodies for row in measure(b, SHAPES[b], clips, args)]
     summary = {
         f"{collider}/{where}": summarise(rows, collider, where)
-        for collider in ("grids", "capsules")
+        for collider in ("skin", "grids", "capsules")
         for where in ("all", "joints", "bones")
     }
-    ms = 1000 * float(np.median([r["grid_seconds"] for r in rows]))
+    ms = {k: 1000 * float(np.median([r["seconds"][k] for r in rows])) for k in ("skin", "grids")}
     if args.json:
-        args.json.write_text(json.dumps({"summary": summary, "grid_query_ms": ms}, indent=1))
+        args.json.write_text(json.dumps({"summary": summary, "query_ms": ms}, indent=1))
     print(f"{len(rows)} frames ({', '.join(args.bodies)}; {', '.join(n for n, _ in clips)})")
     print(
         "| collider | where | points | error mean / p95 / max (mm) | error over 20 mm "
@@ -160,7 +172,10 @@ def main() -> None:
             f"{100 * s['over_20mm']:.1f} % | "
             f"{100 * s['inside_called_outside']:.1f} % | {100 * s['outside_called_inside']:.1f} % |"
         )
-    print(f"grids' query, {CLOTH_VERTICES} points, numpy on one core: {ms:.0f} ms (median over frames)")
+    for key, value in ms.items():
+        print(
+            f"{key}' query, {CLOTH_VERTICES} points, numpy on one core: {value:.0f} ms (median over frames)"
+        )
 
 
 if __name__ == "__main__":

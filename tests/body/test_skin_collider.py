@@ -1,0 +1,65 @@
+"""The inverse-skinning collider: the exact signed distance to the mesh at rest and under a rigid
+motion, within its stated distance of the exact distance to a skinned limb bent 90 degrees, and on
+the right side of points a centimetre inside and outside the bend."""
+
+import numpy as np
+import pytest
+
+from hrr_garment.body.mesh_distance import mesh_signed_distance
+from hrr_garment.body.skin_collider import SkinColliderSettings, skin_collider
+from hrr_garment.motion.rotations import axis_angle_to_matrix
+
+from .limb import ELBOW, LENGTH, RADIUS, bent, near_surface, skinned_limb
+
+SETTINGS = SkinColliderSettings(voxel_m=0.01, padding_m=0.03)
+
+
+@pytest.fixture(scope="module")
+def limb_and_collider():
+    limb = skinned_limb()
+    return limb, skin_collider(limb, SETTINGS)
+
+
+def test_at_rest_and_moved_rigidly_it_is_the_mesh(limb_and_collider):
+    limb, collider = limb_and_collider
+    points, _ = near_surface(limb, limb.vertices, count=60)
+    # off the vertices' normals, where two faces are equally near and either's normal is right
+    points += np.random.default_rng(1).normal(scale=0.002, size=points.shape)
+    exact = mesh_signed_distance(points, limb.vertices, limb.faces)
+    here, here_normal = collider.query(points, limb.rest_rotations, limb.rest_positions)
+    # a node lists every face that can be nearest to a point nearest to it: the exact distance
+    assert np.abs(here - exact).max() < 1e-9
+    # the whole limb turned and moved: the same distances, the normals turned with it
+    turn = axis_angle_to_matrix(np.array([0.7, 0.2, -1.3]))
+    shift = np.array([0.3, 1.0, -0.4])
+    rot, pos = limb.rest_rotations, limb.rest_positions
+    there, there_normal = collider.query(points @ turn.T + shift, turn @ rot, pos @ turn.T + shift)
+    assert np.abs(there - here).max() < 1e-9 and np.abs(there_normal - here_normal @ turn.T).max() < 1e-9
+    # along the side the outward normal points away from the axis, inside and out
+    side = (np.abs(here) > 0.004) & (points[:, 0] > 0.03) & (points[:, 0] < LENGTH - 0.03)
+    radial = points[side] * [0.0, 1.0, 1.0]
+    assert ((here_normal[side] * radial).sum(1) / np.linalg.norm(radial, axis=1) > 0.95).all()
+    assert collider.nbytes < 2_000_000
+
+
+def test_bent_ninety_degrees_it_follows_the_skinned_mesh(limb_and_collider):
+    limb, collider = limb_and_collider
+    rot, pos = bent(90.0)
+    posed = limb.pose(rot[None], pos[None])[0]
+    # posed vertices, and 5 and 20 mm off them both ways
+    points, _ = near_surface(limb, posed, count=50)
+    exact = mesh_signed_distance(points, posed, limb.faces)
+    distance, normal = collider.query(points, rot, pos)
+    error = np.abs(distance - exact)
+    # within 3 mm everywhere (the module docstring), exact but for a few points
+    assert error.max() < 0.003 and np.median(error) < 1e-9
+    assert (np.abs(np.linalg.norm(normal, axis=1) - 1.0) < 1e-9).all()
+    # points a centimetre or more inside and outside the bent limb near its elbow: each on its side
+    axes = [np.linspace(ELBOW - 0.1, ELBOW + 0.1, 9), np.linspace(-0.1, 0.1, 9), np.linspace(-0.07, 0.07, 6)]
+    grid = np.stack(np.meshgrid(*axes), -1).reshape(-1, 3)
+    signed = mesh_signed_distance(grid, posed, limb.faces)
+    clear = (np.abs(signed) > 0.01) & (np.abs(signed) < RADIUS)
+    assert (signed[clear] < 0).sum() > 20 and (signed[clear] > 0).sum() > 20
+    got = collider.query(grid[clear], rot, pos)[0]
+    assert (np.sign(got) == np.sign(signed[clear])).all()
+    assert np.abs(got - signed[clear]).max() < 0.006
