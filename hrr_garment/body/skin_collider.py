@@ -37,13 +37,6 @@ from .mesh_distance import closest_on_triangles, vertex_normals
 from .skinned_body import SkinnedBody
 
 TOP_JOINTS = 4  # skin weights kept per node: the four largest (99 % of the weight on anny's skin)
-OFF_SKIN_M = 0.1  # a start whose rigid guess lands on another joint's skin counts as this much farther
-SETTLED_M = 0.001  # a fixed point has settled where it carries its rest point this near the posed one
-# a settled rest point this far inside the rest mesh is inside, whatever the nearest face says (on the
-# average anny body in bent poses, 3 mm: inside called outside 0.6 %, outside called inside 1.1 %;
-# 10 mm: 0.6 % and 0.5 %; 20 mm: 1.3 % and 0.35 %; never: 1.6 % and 0.15 %)
-DEEP_M = 0.01
-STEP = 0.7  # each fixed-point step goes this share of the way (1: p99 error 10 mm at joints, 0.7: 2)
 SHORTLIST = 64  # faces tried per node when the grid is built (by centroid): a body's faces are of like size
 
 
@@ -61,6 +54,17 @@ class SkinColliderSettings:
     # joints whose rigid guess starts a fixed point (on the average anny body in bent poses, the
     # error's p99 at joints: 2 starts 11 mm, 3 starts 2 mm, 4 starts 1 mm at a third more time)
     starts: int = 3
+    # each fixed-point step goes this share of the way: undamped (1) it can swing between the two
+    # sides of a shoulder and settle on a root off the skin (p99 error at joints 10 mm; 0.7: 2 mm)
+    step: float = 0.7
+    # a start whose rigid guess lands on another joint's skin counts as this much farther
+    off_skin_m: float = 0.1
+    # a fixed point has settled where it carries its rest point this near the posed one
+    settled_m: float = 0.001
+    # a settled rest point this far inside the rest mesh is inside, whatever the nearest face says
+    # (on the average anny body in bent poses, 3 mm: inside called outside 0.6 %, outside called
+    # inside 1.1 %; 10 mm: 0.6 % and 0.5 %; 20 mm: 1.3 % and 0.35 %; never: 1.6 % and 0.15 %)
+    deep_m: float = 0.01
 
 
 @dataclass(frozen=True)
@@ -119,25 +123,26 @@ class SkinCollider:
     ) -> list[tuple[np.ndarray, np.ndarray]]:
         """Where inverse skinning takes posed ``points`` (N, 3) in the rest pose, for the joints'
         moves ``rot`` (J, 3, 3) and ``trans`` (J, 3): for each start, (N, 3) rest points and (N,)
-        whether the fixed point settled deeper than :data:`DEEP_M` inside the rest mesh."""
+        whether the fixed point settled deeper than ``deep_m`` inside the rest mesh."""
         rigid = np.einsum("jba,njb->nja", rot, points[:, None] - trans)  # (N, J, 3): T_j^-1 x
         node = self._node(rigid)  # (N, J)
         # the joints whose rigid guess lands nearest to skin of their own start: a guess landing on
-        # another joint's skin (or far from any) counts as OFF_SKIN_M farther
-        own = (self.weights[node] * (self.joints[node] == np.arange(len(rot))[:, None])).sum(-1)
-        rank = np.abs(self.distance[node]) + (1.0 - own) * OFF_SKIN_M
-        order = np.argsort(rank, axis=1)[:, : self.settings.starts]
+        # another joint's skin (or far from any) counts as ``off_skin_m`` farther
+        mine = self.joints[node] == np.arange(len(rot))[:, None]
+        own = np.where(mine, self.weights[node].astype(np.float64), 0.0).sum(-1)
+        rank = np.abs(self.distance[node].astype(np.float64)) + (1.0 - own) * self.settings.off_skin_m
+        order = np.argsort(rank, axis=1, kind="stable")[:, : self.settings.starts]
         out = []
         for rest in np.moveaxis(np.take_along_axis(rigid, order[..., None], 1), 1, 0):
             for k in range(self.settings.iterations + 1):
                 w, d = self._read(rest)  # (N, J), (N,)
                 m = np.einsum("nj,jab->nab", w, rot)
-                # x - M(w) r, the last step's miss; the step is damped: undamped it can swing
-                # between two sides of a shoulder and settle on a root off the skin
+                # x - M(w) r - t(w): how far the last step's rest point lands from x
                 miss = points - np.einsum("nab,nb->na", m, rest) - w @ trans
                 step = np.linalg.solve(m, miss[..., None])[..., 0]
-                rest = rest + STEP * step if k < self.settings.iterations else rest
-            out.append((rest, (np.linalg.norm(miss, axis=1) < SETTLED_M) & (d < -DEEP_M)))
+                rest = rest + self.settings.step * step if k < self.settings.iterations else rest
+            settled = np.linalg.norm(miss, axis=1) < self.settings.settled_m
+            out.append((rest, settled & (d < -self.settings.deep_m)))
         return out
 
     def _node(self, rest: np.ndarray) -> np.ndarray:
@@ -214,8 +219,10 @@ def skin_collider(body: SkinnedBody, settings: SkinColliderSettings | None = Non
     length = np.linalg.norm(nodes - closest, axis=1)
     signed = np.where(((nodes - closest) * outward).sum(1) < 0.0, -length, length)
     skin = np.einsum("nk,nkj->nj", bary, body.weights[corners])  # (nodes, J)
-    joints = np.argsort(-skin, axis=1)[:, :TOP_JOINTS]
+    skin = np.pad(skin, ((0, 0), (0, max(0, TOP_JOINTS - skin.shape[1]))))  # fewer joints: weight 0
+    joints = np.argsort(-skin, axis=1, kind="stable")[:, :TOP_JOINTS]
     weights = np.take_along_axis(skin, joints, 1)
+    joints = np.where(joints < body.weights.shape[1], joints, 0)  # the padding's, at weight 0
     return SkinCollider(
         body,
         lo,

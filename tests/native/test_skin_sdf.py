@@ -1,0 +1,37 @@
+"""The inverse-skinning collider's C kernel (native/skin_sdf.c) against its numpy reference
+(body/skin_collider.py) on the skinned limb, straight and bent."""
+
+import numpy as np
+import pytest
+
+from hrr_garment.body.skin_collider import SkinColliderSettings, skin_collider
+from tests.body.limb import ELBOW, bent, near_surface, skinned_limb
+
+pytestmark = pytest.mark.native
+
+
+@pytest.fixture(scope="module")
+def limb_and_collider():
+    limb = skinned_limb()
+    return limb, skin_collider(limb, SkinColliderSettings(voxel_m=0.01, padding_m=0.03))
+
+
+@pytest.mark.parametrize("degrees", [0.0, 90.0, 135.0])
+def test_native_skin_distance_equals_numpy(limb_and_collider, degrees):
+    from hrr_garment.native import load_kernel
+    from hrr_garment.native.skin import SkinKernel
+
+    lib = load_kernel()
+    if lib is None:
+        pytest.skip("no C compiler")
+    limb, collider = limb_and_collider
+    rot, pos = bent(degrees)
+    posed = limb.pose(rot[None], pos[None])[0]
+    # near the skin, and anywhere about the limb (in its grid and beyond it)
+    around = np.random.default_rng(0).uniform(-0.15, 0.15, (400, 3)) + [ELBOW, 0.0, 0.0]
+    points = np.concatenate([near_surface(limb, posed, count=60)[0], around * [2.0, 1.0, 1.0]])
+    points += np.random.default_rng(1).normal(scale=1e-4, size=points.shape)  # off the vertices' ties
+    distance, normal = collider.query(points, rot, pos)
+    native_distance, native_normal = SkinKernel(collider).query(lib, points, rot, pos)
+    assert np.abs(native_distance - distance).max() < 1e-12
+    assert np.abs(native_normal - normal).max() < 1e-9
