@@ -41,7 +41,7 @@ def main() -> None:
         f"{len(collider.distance):,} nodes, {collider.nbytes / 1e6:.1f} MB"
     )
     lib = load_kernel()
-    kernel = SkinKernel(collider) if lib is not None else None
+    kernel = SkinKernel(collider, lib) if lib is not None else None
     motion = motion_on_body(synthesize("dance", 4.0), record)
     rng = np.random.default_rng(0)
     rates: dict[str, list[float]] = {"numpy": [], "C": []}
@@ -61,7 +61,7 @@ def main() -> None:
         if kernel is not None:
             t0 = time.perf_counter()
             for _ in range(args.repeats):
-                kernel.query(lib, points, rot, pos)
+                kernel.query(points, rot, pos)
             rates["C"].append(args.points * args.repeats / (time.perf_counter() - t0))
     for name, values in rates.items():
         if values:

@@ -6,25 +6,42 @@ in any pose, found through one grid of the rest pose by inverse skinning.
 
 Built once a body, from its rest mesh: a grid over the rest mesh's box (2 cm nodes, padded) holds at
 each node the rest mesh's signed distance, the skin weights of the nearest skin (its four largest)
-and the few faces nearest to the node. A posed point ``x`` is taken back to the rest pose by the
-blend of its joints' moves, ``r = M(w)^-1 x`` with ``M(w) = sum_j w_j T_j`` (``T_j`` the joint's
-move from the rest pose, :meth:`~.skinned_body.SkinnedBody.joint_transforms`) and ``w`` the grid's
-skin weights at ``r``: a fixed point, iterated from the rigid guess of the joint whose skin ``x``
-falls on (SNARF's root finding, by fixed-point steps). On the skin the weights converge to the
-skin's own and ``r`` is the rest point skinning carries onto ``x``.
+and the faces that can be nearest to a point near the node (every face within the node's own
+distance plus the cell's diameter and a slack, at most 16). A posed point ``x`` is taken back to
+the rest pose by the blend of its joints' moves, ``r = M(w)^-1 x`` with ``M(w) = sum_j w_j T_j``
+(``T_j`` the joint's move from the rest pose, :meth:`~.skinned_body.SkinnedBody.joint_transforms`)
+and ``w`` the grid's skin weights at ``r``: a fixed point (SNARF's root finding, by damped
+fixed-point steps), iterated from the rigid guesses ``T_j^-1 x`` of the three joints that land
+nearest to skin of their own. On the skin the weights converge to the skin's own and ``r`` is the
+rest point skinning carries onto ``x``.
 
-The distance is then not read from the grid but measured: the faces the grid lists near ``r`` are
-posed (their vertices skinned as a game skins them, flat triangles between) and the distance is the
-exact distance to the nearest of them, inside where the posed mesh's normal at that nearest point
-says so. So wherever the grid lists the face that is nearest in the pose, the answer is the exact
-signed distance to the mesh the viewer sees, joints and blended skin included; where it does not,
-it is the distance to a face of that mesh a little farther away (never nearer than the skin).
+The distance is then not read from the grid but measured: the faces the grid lists at each ``r``
+are posed (their vertices skinned as a game skins them, flat triangles between) and the distance is
+the exact distance to the nearest of them, inside where the posed mesh's normal at that nearest
+point says so, or where a fixed point settled deep inside the rest mesh (the posed mesh overlapping
+itself). So wherever a list holds the face that is nearest in the pose, the answer is the exact
+signed distance to the mesh the viewer sees, joints and blended skin included; where none does, it
+is the distance to a face of that mesh a little farther away (never nearer than the skin).
 
-How near it is (``tools/studies/visible_collider_study.py`` on anny bodies and real motion;
-``tests/body/test_skin_collider.py`` on a limb bent 90 degrees): see docs/bodies.md.
+How near it is (``tools/studies/visible_collider_study.py`` on two anny bodies in the most bent
+frames of real and procedural clips; ``tests/body/test_skin_collider.py`` on a limb bent 90
+degrees; the numbers in docs/bodies.md):
 
-Points beyond :attr:`SkinColliderSettings.padding_m` of the rest skin are only known to be at least
-about that far.
+- at rest, the exact signed distance within the grid's padding;
+- on a limb bent 90 degrees, within 3 mm of the exact distance near the skin and on the right side
+  of every point a centimetre or more inside or outside the bend;
+- posed, the exact distance for 99 % of points near the skin, at joints and along bones alike (the
+  error's p95 0.0 mm, its mean 0.2 mm at anny's blended joints); the rest are points where the
+  fixed point settles off the skin (a root of the weights' extension off the skin, at the shoulders
+  of a raised arm) or where the posed mesh overlaps itself: up to a few centimetres;
+- the side: 0.8 % of the points more than 3 mm inside the posed mesh read as outside, 0.4 % of those
+  outside as inside, at anny's blended joints (where the posed mesh overlaps itself, inside is the
+  winding number's answer, which no nearest face gives; the deep rest point answers instead).
+
+The grid of an anny body: 150 to 170 thousand nodes, 13 to 15 MB (mostly the face lists), built in
+about 15 s on one core. Points beyond :attr:`SkinColliderSettings.padding_m` of the rest skin get
+the distance to faces near the grid's edge: at least as far as the nearest face, not exact. The
+query is numpy (the reference); ``hrr_garment.native.skin`` is its C kernel.
 """
 
 from __future__ import annotations

@@ -1,11 +1,11 @@
 """The kernels' build and load: the C sources compiled on first use into the workspace cache and
 loaded with ctypes, each exported function's argument types declared (:func:`load_kernel`).
 
-The sources (``kernels.c``, ``amx_block.c``, ``window_codes.c``, ``features.c`` and ``skin_sdf.c``, sharing
-``hrr_native.h``) are compiled as one translation unit with the system C compiler (``cc``/``gcc``,
-``-O3 -march=native -fopenmp``) into the workspace cache, keyed by a hash of the source, the flags
-and the CPU, and loaded with ctypes. Without a compiler :func:`load_kernel` returns None and
-callers use the PyTorch path; ``HRR_NATIVE=0`` forces that.
+The sources (``kernels.c``, ``amx_block.c``, ``window_codes.c``, ``features.c`` and
+``skin_sdf.c``, sharing ``hrr_native.h``) are compiled as one translation unit with the system C
+compiler (``cc``/``gcc``, ``-O3 -march=native -fopenmp``) into the workspace cache, keyed by a hash
+of the source, the flags and the CPU, and loaded with ctypes. Without a compiler :func:`load_kernel`
+returns None and callers use the PyTorch path; ``HRR_NATIVE=0`` forces that.
 """
 
 from __future__ import annotations

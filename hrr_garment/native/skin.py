@@ -2,8 +2,8 @@
 :class:`hrr_garment.body.skin_collider.SkinCollider`): its arrays converted once, and the signed
 distance of points to the body it follows, posed per frame.
 
-    kernel = SkinKernel(collider)                      # a SkinCollider, converted once
-    distance, normal = kernel.query(lib, points, global_rotations, joint_positions)
+    kernel = SkinKernel(collider, load_kernel())       # a SkinCollider, converted once
+    distance, normal = kernel.query(points, global_rotations, joint_positions)
 """
 
 from __future__ import annotations
@@ -51,7 +51,7 @@ class SkinKernel:
     lists as they are, the mesh's faces as int32 and each vertex's skin as its joints with a weight
     (padded with weight 0)."""
 
-    def __init__(self, collider) -> None:
+    def __init__(self, collider, lib: ctypes.CDLL) -> None:
         body, settings = collider.body, collider.settings
         if not 1 <= settings.starts <= MAX_STARTS or body.weights.shape[1] > MAX_JOINTS:
             raise ValueError(
@@ -93,10 +93,10 @@ class SkinKernel:
             deep=settings.deep_m,
             off_skin=settings.off_skin_m,
         )
-        self.vertices = len(body.vertices)
+        self.vertices, self.lib = len(body.vertices), lib
 
     def query(
-        self, lib: ctypes.CDLL, points: np.ndarray, global_rotations: np.ndarray, joint_positions: np.ndarray
+        self, points: np.ndarray, global_rotations: np.ndarray, joint_positions: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray]:
         """(N,) signed distances and (N, 3) outward normals of points (N, 3) against the body posed by
         (J, 3, 3) global rotations and (J, 3) joint positions, as the reference's ``query``."""
@@ -106,6 +106,7 @@ class SkinKernel:
         rot, trans = np.ascontiguousarray(rot[0]), np.ascontiguousarray(trans[0])
         posed, normals = np.empty((self.vertices, 3)), np.empty((self.vertices, 3))
         ref = ctypes.byref(self.struct)
+        lib = self.lib
         lib.hrr_skin_pose(ref, rot.ctypes.data, trans.ctypes.data, posed.ctypes.data, normals.ctypes.data)
         p = np.ascontiguousarray(points, np.float64).reshape(-1, 3)
         distance, normal = np.empty(len(p)), np.empty((len(p), 3))

@@ -32,6 +32,6 @@ def test_native_skin_distance_equals_numpy(limb_and_collider, degrees):
     points = np.concatenate([near_surface(limb, posed, count=60)[0], around * [2.0, 1.0, 1.0]])
     points += np.random.default_rng(1).normal(scale=1e-4, size=points.shape)  # off the vertices' ties
     distance, normal = collider.query(points, rot, pos)
-    native_distance, native_normal = SkinKernel(collider).query(lib, points, rot, pos)
+    native_distance, native_normal = SkinKernel(collider, lib).query(points, rot, pos)
     assert np.abs(native_distance - distance).max() < 1e-12
     assert np.abs(native_normal - normal).max() < 1e-9
