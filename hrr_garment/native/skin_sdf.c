@@ -63,13 +63,13 @@ void hrr_skin_pose(const SkinGrid *g, const double *rot, const double *trans, do
     }
 }
 
+/* min(max(x, lo), hi) inline (fmin and fmax are library calls where NaN must be honoured) */
+static inline double clamp(double x, double lo, double hi) { return x < lo ? lo : (x > hi ? hi : x); }
+
 static inline long skin_node(const SkinGrid *g, const double *r)
 {
     long idx[3];
-    for (int a = 0; a < 3; a++) {
-        const double x = nearbyint((r[a] - g->origin[a]) / g->voxel);
-        idx[a] = (long)fmin(fmax(x, 0.0), (double)(g->shape[a] - 1));
-    }
+    for (int a = 0; a < 3; a++) idx[a] = (long)clamp(nearbyint((r[a] - g->origin[a]) / g->voxel), 0.0, g->shape[a] - 1);
     return (idx[0] * g->shape[1] + idx[1]) * g->shape[2] + idx[2];
 }
 
@@ -84,8 +84,9 @@ static double skin_blend(const SkinGrid *g, const double *rot, const double *tra
     double frac[3], dist = 0.0;
     for (int a = 0; a < 3; a++) {
         const double top = g->shape[a] - 1;
-        const double x = fmin(fmax((r[a] - g->origin[a]) / g->voxel, 0.0), top);
-        base[a] = (long)fmin(floor(x), fmax(top - 1.0, 0.0));
+        const double x = clamp((r[a] - g->origin[a]) / g->voxel, 0.0, top);
+        const double last = top - 1.0 > 0.0 ? top - 1.0 : 0.0;
+        base[a] = (long)(floor(x) < last ? floor(x) : last);
         frac[a] = x - base[a];
     }
     for (int corner = 0; corner < 8; corner++) {
@@ -190,12 +191,19 @@ static void skin_point(const SkinGrid *g, const double *rot, const double *trans
     double rank[SKIN_MAX_STARTS], guess[SKIN_MAX_STARTS][3];
     const int S = g->starts < g->J ? g->starts : g->J;
     int found = 0;
+    /* every joint's rigid guess first, its node fetched ahead: the reads land all over the grid */
+    double rigid[256][3];
+    long at_node[256];
     for (int j = 0; j < g->J; j++) {
         const double *R = rot + 9 * j, *t = trans + 3 * j;
         const double y[3] = {x[0] - t[0], x[1] - t[1], x[2] - t[2]};
-        double r[3];
-        for (int a = 0; a < 3; a++) r[a] = R[a] * y[0] + R[3 + a] * y[1] + R[6 + a] * y[2]; /* R^T y */
-        const SkinNode *node = g->nodes + skin_node(g, r);
+        for (int a = 0; a < 3; a++) rigid[j][a] = R[a] * y[0] + R[3 + a] * y[1] + R[6 + a] * y[2]; /* R^T y */
+        at_node[j] = skin_node(g, rigid[j]);
+        __builtin_prefetch(g->nodes + at_node[j]);
+    }
+    for (int j = 0; j < g->J; j++) {
+        const double *r = rigid[j];
+        const SkinNode *node = g->nodes + at_node[j];
         double own = 0.0;
         for (int k = 0; k < SKIN_TOP; k++)
             if (node->joints[k] == j) own += (double)node->weights[k];
@@ -206,7 +214,7 @@ static void skin_point(const SkinGrid *g, const double *rot, const double *trans
             rank[at] = rank[at - 1], order[at] = order[at - 1], memcpy(guess[at], guess[at - 1], sizeof guess[0]);
             at--;
         }
-        rank[at] = score, order[at] = j, memcpy(guess[at], r, sizeof r);
+        rank[at] = score, order[at] = j, memcpy(guess[at], r, sizeof guess[0]);
     }
     double best = INFINITY, best_signed = 0.0, best_normal[3] = {0};
     long seen[SKIN_MAX_STARTS];
