@@ -39,7 +39,7 @@ degrees; the numbers in docs/bodies.md):
   winding number's answer, which no nearest face gives; the deep rest point answers instead).
 
 The grid of an anny body: 150 to 170 thousand nodes, 13 to 15 MB (mostly the face lists), built in
-about 15 s on one core. Points beyond :attr:`SkinColliderSettings.padding_m` of the rest skin get
+about 6 s of one core's time. Points beyond :attr:`SkinColliderSettings.padding_m` of the rest skin get
 the distance to faces near the grid's edge: at least as far as the nearest face, not exact. The
 query is numpy (the reference); ``hrr_garment.native.skin`` is its C kernel.
 """

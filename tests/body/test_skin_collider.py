@@ -2,6 +2,8 @@
 motion, within its stated distance of the exact distance to a skinned limb bent 90 degrees, and on
 the right side of points a centimetre inside and outside the bend."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -63,3 +65,15 @@ def test_bent_ninety_degrees_it_follows_the_skinned_mesh(limb_and_collider):
     got = collider.query(grid[clear], rot, pos)[0]
     assert (np.sign(got) == np.sign(signed[clear])).all()
     assert np.abs(got - signed[clear]).max() < 0.006
+
+
+def test_a_body_it_cannot_hold_is_refused_by_name(limb_and_collider):
+    limb, collider = limb_and_collider
+    no_faces = dataclasses.replace(limb, faces=np.zeros((0, 3), np.int64))
+    with pytest.raises(ValueError, match="no faces"):
+        skin_collider(no_faces, SETTINGS)
+    from hrr_garment.native.skin import SkinKernel
+
+    many = dataclasses.replace(collider, settings=dataclasses.replace(SETTINGS, starts=9))
+    with pytest.raises(ValueError, match="1 to 8 starts"):
+        SkinKernel(many, None)
