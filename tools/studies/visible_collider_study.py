@@ -174,9 +174,7 @@ def main() -> None:
             f"{100 * s['inside_called_outside']:.1f} % | {100 * s['outside_called_inside']:.1f} % |"
         )
     for key, value in ms.items():
-        print(
-            f"{key}: {CLOTH_VERTICES} points, numpy, one core: {value:.0f} ms a query (median over frames)"
-        )
+        print(f"{key}: {CLOTH_VERTICES} points, numpy, one core: {value:.0f} ms a query (median over frames)")
 
 
 if __name__ == "__main__":
