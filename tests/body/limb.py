@@ -1,4 +1,5 @@
-"""A tiny skinned body for the colliders' tests: a capped cylinder on two joints, bent at its elbow."""
+"""Tiny skinned bodies for the colliders' tests: a capped cylinder on two joints, bent at its elbow,
+and the same cylinder on a chain of joints, curled."""
 
 import numpy as np
 
@@ -9,9 +10,8 @@ from hrr_garment.motion.rotations import axis_angle_to_matrix
 LENGTH, RADIUS, ELBOW = 0.4, 0.05, 0.2  # a limb along +x, its joint halfway
 
 
-def skinned_limb() -> SkinnedBody:
-    """A closed cylinder (rings 1 cm apart, 24 sides, capped) skinned to two joints, at x = 0 and
-    at the elbow, blending over 10 cm about the elbow."""
+def _cylinder() -> tuple[np.ndarray, np.ndarray]:
+    """A closed cylinder along +x (rings 1 cm apart, 24 sides, capped): vertices and faces."""
     x = np.linspace(0.0, LENGTH, 41)
     angle = np.linspace(0.0, 2 * np.pi, 24, endpoint=False)
     ring = np.stack([np.zeros_like(angle), RADIUS * np.cos(angle), RADIUS * np.sin(angle)], 1)
@@ -24,14 +24,49 @@ def skinned_limb() -> SkinnedBody:
             faces += [[a, b, d], [a, d, c]]
     for k in range(s):
         faces += [[n * s, (k + 1) % s, k], [n * s + 1, (n - 1) * s + k, (n - 1) * s + (k + 1) % s]]
+    return vertices, np.array(faces)
+
+
+def skinned_limb() -> SkinnedBody:
+    """The cylinder skinned to two joints, at x = 0 and at the elbow, blending over 10 cm about
+    the elbow."""
+    vertices, faces = _cylinder()
     second = np.clip((vertices[:, 0] - (ELBOW - 0.05)) / 0.1, 0.0, 1.0)
     return SkinnedBody(
         vertices,
-        np.array(faces),
+        faces,
         np.stack([1.0 - second, second], 1),
         np.broadcast_to(np.eye(3), (2, 3, 3)).copy(),
         np.array([[0.0, 0.0, 0.0], [ELBOW, 0.0, 0.0]]),
     )
+
+
+def skinned_chain(joints: int) -> SkinnedBody:
+    """The cylinder skinned to ``joints`` joints spaced evenly along it, each vertex blended between
+    the two joints it lies between (linearly, as broadly as anny's blended skin)."""
+    vertices, faces = _cylinder()
+    at = np.linspace(0.0, LENGTH, joints + 1)[:-1]
+    weights = np.stack([np.interp(vertices[:, 0], at, np.eye(joints)[j]) for j in range(joints)], 1)
+    return SkinnedBody(
+        vertices,
+        faces,
+        weights,
+        np.broadcast_to(np.eye(3), (joints, 3, 3)).copy(),
+        np.stack([at, np.zeros(joints), np.zeros(joints)], 1),
+    )
+
+
+def curled(body: SkinnedBody, degrees: float, twist: float) -> tuple[np.ndarray, np.ndarray]:
+    """Global rotations and positions of a chain's joints, each turned ``degrees`` about z and
+    ``twist`` degrees about its bone from its parent."""
+    turn = axis_angle_to_matrix(np.array([0.0, 0.0, np.radians(degrees)])) @ axis_angle_to_matrix(
+        np.array([np.radians(twist), 0.0, 0.0])
+    )
+    rot, pos = [np.eye(3)], [body.rest_positions[0]]
+    for j in range(1, len(body.rest_positions)):
+        pos.append(pos[-1] + rot[-1] @ (body.rest_positions[j] - body.rest_positions[j - 1]))
+        rot.append(rot[-1] @ turn)
+    return np.stack(rot), np.stack(pos)
 
 
 def bent(degrees: float) -> tuple[np.ndarray, np.ndarray]:

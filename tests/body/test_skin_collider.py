@@ -1,6 +1,7 @@
 """The inverse-skinning collider: the exact signed distance to the mesh at rest and under a rigid
-motion, within its stated distance of the exact distance to a skinned limb bent 90 degrees, and on
-the right side of points a centimetre inside and outside the bend."""
+motion, within its stated distance of the exact distance to a skinned limb bent 90 degrees and to a
+curled chain of six joints, on the right side of points a centimetre inside and outside the bend,
+and a body it cannot hold refused by name."""
 
 import dataclasses
 
@@ -11,7 +12,7 @@ from hrr_garment.body.mesh_distance import mesh_signed_distance
 from hrr_garment.body.skin_collider import SkinColliderSettings, skin_collider
 from hrr_garment.motion.rotations import axis_angle_to_matrix
 
-from .limb import ELBOW, LENGTH, RADIUS, bent, near_surface, skinned_limb
+from .limb import ELBOW, LENGTH, RADIUS, bent, curled, near_surface, skinned_chain, skinned_limb
 
 SETTINGS = SkinColliderSettings(voxel_m=0.01, padding_m=0.03)
 
@@ -65,6 +66,21 @@ def test_bent_ninety_degrees_it_follows_the_skinned_mesh(limb_and_collider):
     got = collider.query(grid[clear], rot, pos)[0]
     assert (np.sign(got) == np.sign(signed[clear])).all()
     assert np.abs(got - signed[clear]).max() < 0.006
+
+
+def test_curled_on_a_chain_of_six_joints_blended_all_along_it_follows_the_mesh():
+    # every vertex between two joints (as broadly blended as anny's skin), each joint turned 30
+    # degrees and twisted 20 from its parent: 150 degrees in all, every start chosen among six
+    chain = skinned_chain(6)
+    collider = skin_collider(chain, SETTINGS)
+    rot, pos = curled(chain, 30.0, 20.0)
+    posed = chain.pose(rot[None], pos[None])[0]
+    points, _ = near_surface(chain, posed, count=60)
+    exact = mesh_signed_distance(points, posed, chain.faces)
+    distance = collider.query(points, rot, pos)[0]
+    assert np.abs(distance - exact).max() < 0.002 and np.median(np.abs(distance - exact)) < 1e-9
+    clear = np.abs(exact) > 0.003
+    assert (np.sign(distance[clear]) == np.sign(exact[clear])).all()
 
 
 def test_a_body_it_cannot_hold_is_refused_by_name(limb_and_collider):
