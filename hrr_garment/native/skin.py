@@ -42,6 +42,7 @@ class SkinGrid(ctypes.Structure):
         ("settled", ctypes.c_double),
         ("deep", ctypes.c_double),
         ("off_skin", ctypes.c_double),
+        ("face_side", ctypes.c_double),
     ]
 
 
@@ -92,6 +93,7 @@ class SkinKernel:
             settled=settings.settled_m,
             deep=settings.deep_m,
             off_skin=settings.off_skin_m,
+            face_side=settings.face_side_m,
         )
         self.vertices, self.lib = len(body.vertices), lib
 

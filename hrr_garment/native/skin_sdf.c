@@ -28,7 +28,7 @@ typedef struct {
     const int32_t *vertex_joints; /* (V, vertex_k) each vertex's joints, padded with weight 0 */
     const double *vertex_weights; /* (V, vertex_k) */
     int shape[3], V, F, J, vertex_k, starts, iterations;
-    double origin[3], voxel, step, settled, deep, off_skin;
+    double origin[3], voxel, step, settled, deep, off_skin, face_side;
 } SkinGrid;
 
 /* the posed mesh (V, 3) and its unit vertex normals (V, 3), each the area-weighted mean of its faces'
@@ -218,7 +218,7 @@ static void skin_point(const SkinGrid *g, const double *rot, const double *trans
     }
     double best = INFINITY, best_signed = 0.0, best_normal[3] = {0};
     long seen[SKIN_MAX_STARTS];
-    int deep = 0;
+    double deepest = 0.0; /* how deep inside the rest mesh a start settled */
     for (int s = 0; s < found; s++) {
         double *r = guess[s], M[9], t[3], miss[3], step[3], d = 0.0;
         for (int k = 0; k <= g->iterations; k++) {
@@ -228,7 +228,7 @@ static void skin_point(const SkinGrid *g, const double *rot, const double *trans
             solve3(M, miss, step);
             for (int a = 0; a < 3; a++) r[a] += g->step * step[a];
         }
-        deep |= sqrt(miss[0] * miss[0] + miss[1] * miss[1] + miss[2] * miss[2]) < g->settled && d < -g->deep;
+        if (sqrt(miss[0] * miss[0] + miss[1] * miss[1] + miss[2] * miss[2]) < g->settled && -d > deepest) deepest = -d;
         /* starts that settle in the same node list the same faces: measured once */
         seen[s] = skin_node(g, r);
         int again = 0;
@@ -238,8 +238,12 @@ static void skin_point(const SkinGrid *g, const double *rot, const double *trans
         const double signed_d = skin_nearest_face(g, seen[s], posed, normals, x, n);
         if (fabs(signed_d) < best) best = fabs(signed_d), best_signed = signed_d, memcpy(best_normal, n, sizeof n);
     }
-    /* a point skinning carries from deep inside the rest mesh is inside, whatever a buried face says */
-    const int flip = deep && best_signed > 0.0;
+    /* a point skinning carries from deep inside the rest mesh is inside, whatever a buried face says,
+       so long as that face is no farther than the depth (rest points inside the chest carried off
+       with the arm land far from any skin: not inside); past face_side, only that says inside */
+    const int inside = (best_signed < 0.0 && best_signed >= -g->face_side) ||
+                       (deepest > g->deep && fabs(best_signed) <= deepest + g->deep);
+    const int flip = inside != (best_signed < 0.0);
     *distance = flip ? -best_signed : best_signed;
     for (int a = 0; a < 3; a++) normal[a] = flip ? -best_normal[a] : best_normal[a];
 }
