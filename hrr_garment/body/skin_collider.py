@@ -18,7 +18,8 @@ rest point skinning carries onto ``x``.
 The distance is then not read from the grid but measured: the faces the grid lists at each ``r``
 are posed (their vertices skinned as a game skins them, flat triangles between) and the distance is
 the exact distance to the nearest of them, inside where the posed mesh's normal at that nearest
-point says so, or where a fixed point settled deep inside the rest mesh (the posed mesh overlapping
+point says so (within 5 cm of it, or of a start's rest depth), or where a fixed point settled deep
+inside the rest mesh and the face lies no farther than that depth (the posed mesh overlapping
 itself). So wherever a list holds the face that is nearest in the pose, the answer is the exact
 signed distance to the mesh the viewer sees, joints and blended skin included; where none does, it
 is the distance to a face of that mesh a little farther away (never nearer than the skin).
@@ -82,10 +83,10 @@ class SkinColliderSettings:
     # (on the average anny body in bent poses, 3 mm: inside called outside 0.6 %, outside called
     # inside 1.1 %; 10 mm: 0.6 % and 0.5 %; 20 mm: 1.3 % and 0.35 %; never: 1.6 % and 0.15 %)
     deep_m: float = 0.01
-    # past this distance the nearest face's normal no longer tells the side (the face may be the
-    # nearest of the lists' but not of the mesh): a point that far is inside only where a fixed point
-    # settled that deep (random points 3 cm to 50 cm from the average anny body in bent poses: 1.9 %
-    # on the wrong side without, 0.06 % with 5 cm)
+    # past this distance (plus a start's rest depth) the nearest face's normal no longer tells the
+    # side (the face may be the nearest of the lists' but not of the mesh): points 3 to 50 cm from
+    # the average anny body in bent poses, outside called inside 1.9 % without, 0.05 % with 5 cm;
+    # inside called outside 0.1 %
     face_side_m: float = 0.05
 
 
@@ -127,10 +128,10 @@ class SkinCollider:
         rot, trans = self.body.joint_transforms(global_rotations[None], joint_positions[None])
         rot, trans = rot[0], trans[0]
         posed = self.body.pose(global_rotations[None], joint_positions[None])[0]
-        answers, deepest = [], np.zeros(len(points))
-        for rest, depth in self.rest_points(points, rot, trans):
+        answers, deepest, under = [], np.zeros(len(points)), np.zeros(len(points))
+        for rest, depth, below in self.rest_points(points, rot, trans):
             answers.append(self._nearest_face(points, self._listed(self._node(rest)), posed))
-            deepest = np.maximum(deepest, depth)
+            deepest, under = np.maximum(deepest, depth), np.maximum(under, below)
         best = np.argmin(np.stack([np.abs(d) for d, _ in answers]), 0)[None, :, None]
         distance = np.take_along_axis(np.stack([d for d, _ in answers])[..., None], best, 0)[0, :, 0]
         normal = np.take_along_axis(np.stack([n for _, n in answers]), best, 0)[0]
@@ -138,20 +139,22 @@ class SkinCollider:
         # the nearest face can be one buried in the other part, facing away: a point that skinning
         # carries from deep inside the rest mesh is inside, whatever that face says, so long as that
         # face is no farther than the depth (skinning carries some rest points inside the chest off
-        # with the arm, far from any skin: those are not inside)
+        # with the arm, far from any skin: those are not inside). The face's normal says inside
+        # within ``face_side_m`` of it, or of the depth of a start's rest point
         deep = self.settings.deep_m
-        inside = ((distance < 0.0) & (distance >= -self.settings.face_side_m)) | (
-            (deepest > deep) & (np.abs(distance) <= deepest + deep)
-        )
+        side = self.settings.face_side_m
+        near_face = (distance >= -side) | ((under > deep) & (distance >= -(under + side)))
+        inside = ((distance < 0.0) & near_face) | ((deepest > deep) & (np.abs(distance) <= deepest + deep))
         flip = inside != (distance < 0.0)
         return np.where(flip, -distance, distance), np.where(flip[:, None], -normal, normal)
 
     def rest_points(
         self, points: np.ndarray, rot: np.ndarray, trans: np.ndarray
-    ) -> list[tuple[np.ndarray, np.ndarray]]:
+    ) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
         """Where inverse skinning takes posed ``points`` (N, 3) in the rest pose, for the joints'
-        moves ``rot`` (J, 3, 3) and ``trans`` (J, 3): for each start, (N, 3) rest points and (N,)
-        how deep inside the rest mesh the fixed point settled (0 where it did not, or outside)."""
+        moves ``rot`` (J, 3, 3) and ``trans`` (J, 3): for each start, (N, 3) rest points, (N,) how
+        deep inside the rest mesh the fixed point settled (0 where it did not, or outside) and (N,)
+        how deep inside the rest mesh its last rest point lies, settled or not."""
         rigid = np.einsum("jba,njb->nja", rot, points[:, None] - trans)  # (N, J, 3): T_j^-1 x
         node = self._node(rigid)  # (N, J)
         # the joints whose rigid guess lands nearest to skin of their own start: a guess landing on
@@ -170,7 +173,7 @@ class SkinCollider:
                 step = np.linalg.solve(m, miss[..., None])[..., 0]
                 rest = rest + self.settings.step * step if k < self.settings.iterations else rest
             settled = np.linalg.norm(miss, axis=1) < self.settings.settled_m
-            out.append((rest, np.where(settled, np.maximum(-d, 0.0), 0.0)))
+            out.append((rest, np.where(settled, np.maximum(-d, 0.0), 0.0), np.maximum(-d, 0.0)))
         return out
 
     def _node(self, rest: np.ndarray) -> np.ndarray:

@@ -218,7 +218,7 @@ static void skin_point(const SkinGrid *g, const double *rot, const double *trans
     }
     double best = INFINITY, best_signed = 0.0, best_normal[3] = {0};
     long seen[SKIN_MAX_STARTS];
-    double deepest = 0.0; /* how deep inside the rest mesh a start settled */
+    double deepest = 0.0, under = 0.0; /* how deep inside the rest mesh a start settled; ended, settled or not */
     for (int s = 0; s < found; s++) {
         double *r = guess[s], M[9], t[3], miss[3], step[3], d = 0.0;
         for (int k = 0; k <= g->iterations; k++) {
@@ -229,6 +229,7 @@ static void skin_point(const SkinGrid *g, const double *rot, const double *trans
             for (int a = 0; a < 3; a++) r[a] += g->step * step[a];
         }
         if (sqrt(miss[0] * miss[0] + miss[1] * miss[1] + miss[2] * miss[2]) < g->settled && -d > deepest) deepest = -d;
+        if (-d > under) under = -d;
         /* starts that settle in the same node list the same faces: measured once */
         seen[s] = skin_node(g, r);
         int again = 0;
@@ -240,9 +241,10 @@ static void skin_point(const SkinGrid *g, const double *rot, const double *trans
     }
     /* a point skinning carries from deep inside the rest mesh is inside, whatever a buried face says,
        so long as that face is no farther than the depth (rest points inside the chest carried off
-       with the arm land far from any skin: not inside); past face_side, only that says inside */
-    const int inside = (best_signed < 0.0 && best_signed >= -g->face_side) ||
-                       (deepest > g->deep && fabs(best_signed) <= deepest + g->deep);
+       with the arm land far from any skin: not inside); the face's normal says inside within
+       face_side of it, or of a start's rest depth */
+    const int near_face = best_signed >= -g->face_side || (under > g->deep && best_signed >= -(under + g->face_side));
+    const int inside = (best_signed < 0.0 && near_face) || (deepest > g->deep && fabs(best_signed) <= deepest + g->deep);
     const int flip = inside != (best_signed < 0.0);
     *distance = flip ? -best_signed : best_signed;
     for (int a = 0; a < 3; a++) normal[a] = flip ? -best_normal[a] : best_normal[a];

@@ -10,9 +10,10 @@ inverse-skinning collider's (hrr_garment.body.skin_collider), the grids' (hrr_ga
 and the capsules' (hrr_garment.body.capsules), on the same points: the error's mean, p95, p99 and
 max and the share over 20 mm, at joints (the point's largest skin weight under 0.9) and along bones;
 of the points more than 3 mm inside the mesh, the share a collider calls outside (cloth it would
-leave inside), and of those more than 3 mm outside, the share it calls inside; and the numpy
-queries' time for 4,156 points (one dress) on one core. Needs the bodies extra (anny; its cache
-under HRR_HOME). About four minutes on one core.
+leave inside), and of those more than 3 mm outside, the share it calls inside; the same shares of
+points anywhere about the body (its posed box widened by 50 cm) more than 3 cm from the skin; and
+the numpy queries' time for 4,156 points (one dress) on one core. Needs the bodies extra (anny;
+its cache under HRR_HOME). About five minutes on one core.
 
     python tools/studies/visible_collider_study.py ../shared/data/mocap/cmu/*.bvh --synth dance jump
 """
@@ -31,6 +32,8 @@ OFFSETS_M = (-0.02, -0.005, 0.0, 0.005, 0.02)  # along the posed mesh's normal
 JOINT_WEIGHT = 0.9  # a point whose largest skin weight is under this lies at a joint
 CLOTH_VERTICES = 4156  # the run-time push-out's dress, timed
 CLEAR_M = 0.003  # a point counts as inside or outside from this far from the skin
+AROUND_M = 0.5  # the points about the body: in its posed box widened by this
+FAR_M = 0.03  # of those, the ones this far from the skin (past the push-out's band)
 
 
 def bent_frames(motion, count: int) -> list[int]:
@@ -97,21 +100,29 @@ def measure(name: str, shape: dict, clips: list, args) -> list[dict]:
                 t0 = time.perf_counter()
                 collider.query(timing, rot, pos)
                 seconds[key] = time.perf_counter() - t0
-            rows.append(
-                {
-                    "body": name,
-                    "clip": clip_name,
-                    "frame": t,
-                    "offset": offset,
-                    "at_joint": weight < JOINT_WEIGHT,
-                    "exact": mesh_signed_distance(points, posed, visible.faces),
-                    "skin": skin.query(points, rot, pos)[0],
-                    "grids": grids.query(points, rot, pos)[0],
-                    "capsules": capsule_signed_distance(points, a[0], b[0], radii=record.body.radii)[0],
-                    "seconds": seconds,
-                }
-            )
+            # and points anywhere about the body, up to half a metre off its box (the band's outside)
+            rng = np.random.default_rng(t)
+            around = rng.uniform(posed.min(0) - AROUND_M, posed.max(0) + AROUND_M, (args.points, 3))
+            row = {"body": name, "clip": clip_name, "frame": t, "offset": offset, "seconds": seconds}
+            for key, p in (("", points), ("around_", around)):
+                row[key + "exact"] = mesh_signed_distance(p, posed, visible.faces)
+                row[key + "skin"] = skin.query(p, rot, pos)[0]
+                row[key + "grids"] = grids.query(p, rot, pos)[0]
+                row[key + "capsules"] = capsule_signed_distance(p, a[0], b[0], radii=record.body.radii)[0]
+            rows.append(row | {"at_joint": weight < JOINT_WEIGHT})
     return rows
+
+
+def far_sides(rows: list[dict], collider: str) -> dict:
+    """Of the points about the body more than FAR_M from its skin, the shares on the wrong side."""
+    exact = np.concatenate([r["around_exact"] for r in rows])
+    got = np.concatenate([r["around_" + collider] for r in rows])
+    inside, outside = exact < -FAR_M, exact > FAR_M
+    return {
+        "points": int((inside | outside).sum()),
+        "inside_called_outside": float((got[inside] > 0).mean()),
+        "outside_called_inside": float((got[outside] < 0).mean()),
+    }
 
 
 def summarise(rows: list[dict], collider: str, where: str) -> dict:
@@ -156,9 +167,10 @@ def main() -> None:
         for collider in ("skin", "grids", "capsules")
         for where in ("all", "joints", "bones")
     }
+    far = {collider: far_sides(rows, collider) for collider in ("skin", "grids", "capsules")}
     ms = {k: 1000 * float(np.median([r["seconds"][k] for r in rows])) for k in ("skin", "grids")}
     if args.json:
-        args.json.write_text(json.dumps({"summary": summary, "query_ms": ms}, indent=1))
+        args.json.write_text(json.dumps({"summary": summary, "far": far, "query_ms": ms}, indent=1))
     print(f"{len(rows)} frames ({', '.join(args.bodies)}; {', '.join(n for n, _ in clips)})")
     print(
         "| collider | where | points | error mean / p95 / p99 / max (mm) | error over 20 mm "
@@ -172,6 +184,12 @@ def main() -> None:
             f"{s['mean_mm']:.1f} / {s['p95_mm']:.1f} / {s['p99_mm']:.1f} / {s['max_mm']:.0f} | "
             f"{100 * s['over_20mm']:.1f} % | "
             f"{100 * s['inside_called_outside']:.1f} % | {100 * s['outside_called_inside']:.1f} % |"
+        )
+    for key, f in far.items():
+        print(
+            f"{key}: of {f['points']} points about the body more than {FAR_M * 1000:.0f} mm from the skin, "
+            f"inside called outside {100 * f['inside_called_outside']:.2f} %, "
+            f"outside called inside {100 * f['outside_called_inside']:.2f} %"
         )
     for key, value in ms.items():
         print(f"{key}: {CLOTH_VERTICES} points, numpy, one core: {value:.0f} ms a query (median over frames)")
