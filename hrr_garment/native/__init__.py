@@ -1,7 +1,7 @@
-"""Fused C kernels (``kernels.c``, ``amx_block.c``, ``window_codes.c`` and ``features.c`` in this
-folder, sharing ``hrr_native.h``), compiled on first use, and their ctypes glue. The ground floor
-of the package: it imports nothing of hrr_garment but :mod:`hrr_garment.paths` (where the
-compiled library is cached).
+"""Fused C kernels (``kernels.c``, ``amx_block.c``, ``window_codes.c``, ``features.c`` and
+``skin_sdf.c`` in this folder, sharing ``hrr_native.h``), compiled on first use, and their ctypes
+glue. The ground floor of the package: it imports nothing of hrr_garment but
+:mod:`hrr_garment.paths` (where the compiled library is cached).
 
 - :mod:`.build`: the compiler driver, the cache and the loaded library's ctypes table
   (:func:`load_kernel`; without a compiler, or with ``HRR_NATIVE=0``, None and callers use the
@@ -11,6 +11,8 @@ compiled library is cached).
 - :mod:`.decoder`: the mesh decoder's blocks, its single-frame form (streaming) and its bfloat16
   form on AMX;
 - :mod:`.capsules`: the capsule-body signed distance (:mod:`hrr_garment.body`);
+- :mod:`.skin`: the signed distance to the skinned mesh by inverse skinning
+  (:mod:`hrr_garment.body.skin_collider`'s query);
 - :mod:`.body`: the push-out and its strain limit of :mod:`hrr_garment.inference.collision`
   (their structs: :mod:`.kernel_structs`);
 - :mod:`.motion`: forward kinematics, causal motion features and body-frame points into the

@@ -1,11 +1,11 @@
 """The kernels' build and load: the C sources compiled on first use into the workspace cache and
 loaded with ctypes, each exported function's argument types declared (:func:`load_kernel`).
 
-The sources (``kernels.c``, ``amx_block.c``, ``window_codes.c`` and ``features.c``, sharing
-``hrr_native.h``) are compiled as one translation unit with the system C compiler (``cc``/``gcc``,
-``-O3 -march=native -fopenmp``) into the workspace cache, keyed by a hash of the source, the flags
-and the CPU, and loaded with ctypes. Without a compiler :func:`load_kernel` returns None and
-callers use the PyTorch path; ``HRR_NATIVE=0`` forces that.
+The sources (``kernels.c``, ``amx_block.c``, ``window_codes.c``, ``features.c`` and
+``skin_sdf.c``, sharing ``hrr_native.h``) are compiled as one translation unit with the system C
+compiler (``cc``/``gcc``, ``-O3 -march=native -fopenmp``) into the workspace cache, keyed by a hash
+of the source, the flags and the CPU, and loaded with ctypes. Without a compiler :func:`load_kernel`
+returns None and callers use the PyTorch path; ``HRR_NATIVE=0`` forces that.
 """
 
 from __future__ import annotations
@@ -25,7 +25,7 @@ from pathlib import Path
 _HERE = Path(__file__).resolve().parent
 HEADER = "hrr_native.h"  # what the sources share (helpers of kernels.c used by window_codes.c)
 # one translation unit, so shared helpers inline across files; each source includes the header
-SOURCES = ("kernels.c", "amx_block.c", "window_codes.c", "features.c")
+SOURCES = ("kernels.c", "amx_block.c", "window_codes.c", "features.c", "skin_sdf.c")
 SOURCE = "\n".join((_HERE / name).read_text() for name in SOURCES)
 _HEADER_TEXT = (_HERE / HEADER).read_text()
 
@@ -201,6 +201,10 @@ def _declare(lib: ctypes.CDLL) -> None:
     lib.hrr_amx_ready.restype = c_int
     lib.hrr_pin_workers.argtypes = [c_int]
     lib.hrr_pin_workers.restype = c_int
+    lib.hrr_skin_pose.argtypes = [d, d, d, d, d]
+    lib.hrr_skin_pose.restype = None
+    lib.hrr_skin_sdf.argtypes = [d, d, d, d, d, d, c_int, d, d]
+    lib.hrr_skin_sdf.restype = None
     lib.hrr_current_cpu.argtypes = []
     lib.hrr_current_cpu.restype = c_int
 

@@ -1,5 +1,5 @@
-/* hrr_native.h: what the four C sources of hrr_garment/native/ share. They are compiled together
-   as one translation unit (kernels.c, amx_block.c, window_codes.c, features.c, in that order; see
+/* hrr_native.h: what the five C sources of hrr_garment/native/ share. They are compiled together
+   as one translation unit (kernels.c, amx_block.c, window_codes.c, features.c, skin_sdf.c, in that order; see
    hrr_garment/native/__init__.py), so helpers stay static and inline across files; this header
    declares the ones defined in kernels.c that amx_block.c and window_codes.c use, instead of
    relying on the order of concatenation. Include guard: every source includes it. */

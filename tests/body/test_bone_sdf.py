@@ -9,56 +9,13 @@ from hrr_garment.body.bone_sdf import BoneSDFSettings, bone_sdf_collider
 from hrr_garment.body.mesh_distance import (
     closest_on_triangles,
     mesh_signed_distance,
-    vertex_normals,
     winding_inside,
 )
-from hrr_garment.body.skinned_body import SkinnedBody
 from hrr_garment.motion.rotations import axis_angle_to_matrix
 
-LENGTH, RADIUS, ELBOW = 0.4, 0.05, 0.2  # a limb along +x, its joint halfway
+from .limb import ELBOW, LENGTH, RADIUS, bent, near_surface, skinned_limb
+
 SETTINGS = BoneSDFSettings(voxel_m=0.01, padding_m=0.03)
-
-
-def _limb() -> SkinnedBody:
-    """A closed cylinder (rings 1 cm apart, 24 sides, capped) skinned to two joints, at x = 0 and
-    at the elbow, blending over 10 cm about the elbow."""
-    x = np.linspace(0.0, LENGTH, 41)
-    angle = np.linspace(0.0, 2 * np.pi, 24, endpoint=False)
-    ring = np.stack([np.zeros_like(angle), RADIUS * np.cos(angle), RADIUS * np.sin(angle)], 1)
-    vertices = np.concatenate([(ring + [xi, 0.0, 0.0]) for xi in x] + [[[0.0, 0, 0], [LENGTH, 0, 0]]])
-    n, s = len(x), len(angle)
-    faces = []
-    for i in range(n - 1):
-        for k in range(s):
-            a, b, c, d = i * s + k, i * s + (k + 1) % s, (i + 1) * s + k, (i + 1) * s + (k + 1) % s
-            faces += [[a, b, d], [a, d, c]]
-    for k in range(s):
-        faces += [[n * s, (k + 1) % s, k], [n * s + 1, (n - 1) * s + k, (n - 1) * s + (k + 1) % s]]
-    second = np.clip((vertices[:, 0] - (ELBOW - 0.05)) / 0.1, 0.0, 1.0)
-    return SkinnedBody(
-        vertices,
-        np.array(faces),
-        np.stack([1.0 - second, second], 1),
-        np.broadcast_to(np.eye(3), (2, 3, 3)).copy(),
-        np.array([[0.0, 0.0, 0.0], [ELBOW, 0.0, 0.0]]),
-    )
-
-
-def _bent(degrees: float) -> tuple[np.ndarray, np.ndarray]:
-    """Joint rotations and positions with the elbow bent about z."""
-    return np.stack([np.eye(3), axis_angle_to_matrix(np.array([0.0, 0.0, np.radians(degrees)]))]), np.array(
-        [[0.0, 0.0, 0.0], [ELBOW, 0.0, 0.0]]
-    )
-
-
-def _near_surface(body: SkinnedBody, posed: np.ndarray, count: int = 300):
-    """Points at ``count`` posed vertices and 5 and 20 mm along their normals both ways, with their rest x."""
-    normals = vertex_normals(posed, body.faces)
-    offsets = np.array([-0.02, -0.005, 0.0, 0.005, 0.02])
-    pick = np.random.default_rng(0).choice(len(posed) - 2, count, replace=False)  # not the caps' centres
-    off = np.tile(offsets, len(pick))
-    idx = np.repeat(pick, len(offsets))
-    return posed[idx] + off[:, None] * normals[idx], body.vertices[idx, 0]
 
 
 def test_closest_point_and_inside_on_simple_shapes():
@@ -75,7 +32,7 @@ def test_closest_point_and_inside_on_simple_shapes():
     dense = np.einsum("sk,nkc->nsc", samples, tri)
     assert (np.linalg.norm(dense - points[:, None], axis=-1).min(1) >= best - 1e-9).all()
     # a closed cylinder: on the axis it is inside by its radius, off the side outside by the gap
-    limb = _limb()
+    limb = skinned_limb()
     probe = np.array([[0.1, 0.0, 0.0], [0.3, 0.0, 0.1], [0.5, 0.0, 0.0]])
     assert winding_inside(probe, limb.vertices, limb.faces).tolist() == [True, False, False]
     signed = mesh_signed_distance(probe, limb.vertices, limb.faces)
@@ -84,10 +41,10 @@ def test_closest_point_and_inside_on_simple_shapes():
 
 
 def test_at_rest_it_is_the_mesh_and_a_rigid_motion_keeps_its_distances():
-    limb = _limb()
+    limb = skinned_limb()
     collider = bone_sdf_collider(limb, SETTINGS)
     rot, pos = limb.rest_rotations, limb.rest_positions
-    points, rest_x = _near_surface(limb, limb.vertices, count=120)
+    points, rest_x = near_surface(limb, limb.vertices, count=120)
     exact = mesh_signed_distance(points, limb.vertices, limb.faces)
     error = np.abs(collider.query(points, rot, pos)[0] - exact)
     # the grid's trilinear error: under a millimetre along the side, a few at the caps' sharp rims
@@ -95,7 +52,7 @@ def test_at_rest_it_is_the_mesh_and_a_rigid_motion_keeps_its_distances():
     # the whole body turned and moved: the same distances, the normals turned with it
     turn = axis_angle_to_matrix(np.array([0.7, 0.2, -1.3]))
     shift = np.array([0.3, 1.0, -0.4])
-    bent_rot, bent_pos = _bent(60.0)
+    bent_rot, bent_pos = bent(60.0)
     here, here_normal = collider.query(points, bent_rot, bent_pos)
     there, there_normal = collider.query(points @ turn.T + shift, turn @ bent_rot, bent_pos @ turn.T + shift)
     assert np.abs(there - here).max() < 1e-9
@@ -109,11 +66,11 @@ def test_at_rest_it_is_the_mesh_and_a_rigid_motion_keeps_its_distances():
 
 @pytest.mark.slow  # exact distances to the bent limb for 6,600 points in numpy: about 15 s
 def test_bent_ninety_degrees_it_stays_within_its_tolerance_and_is_negative_inside():
-    limb = _limb()
+    limb = skinned_limb()
     collider = bone_sdf_collider(limb, SETTINGS)
-    rot, pos = _bent(90.0)
+    rot, pos = bent(90.0)
     posed = limb.pose(rot[None], pos[None])[0]
-    points, rest_x = _near_surface(limb, posed)
+    points, rest_x = near_surface(limb, posed)
     exact = mesh_signed_distance(points, posed, limb.faces)
     error = np.abs(collider.query(points, rot, pos)[0] - exact)
     along = np.abs(rest_x - ELBOW) > 0.1  # past the blended skin and the bent limb's reach

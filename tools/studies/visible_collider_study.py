@@ -1,16 +1,19 @@
-"""The per-joint SDF grids against the body the viewer sees: how near their signed distance is to the
-exact distance to the linear-blend-skinned mesh, and the capsules' for contrast (issue 82).
+"""The colliders against the body the viewer sees: how near the inverse-skinning collider's, the
+per-joint SDF grids' and the capsules' signed distances are to the exact distance to the
+linear-blend-skinned mesh (issue 82).
 
 For each anny body and clip, the frames where the body is most bent (the largest sum of its joints'
 turns from the rest pose) are posed by linear blend skinning (hrr_garment.body.skinned_body); points
 are spread over the posed mesh by area and moved along its normal by -20, -5, 0, +5 and +20 mm. Each
-point's exact signed distance (nearest face, sign by winding number) is compared with the grids'
-(hrr_garment.body.bone_sdf) and the capsules' (hrr_garment.body.capsules): the error's mean, p95 and
+point's exact signed distance (nearest face, sign by winding number) is compared with the
+inverse-skinning collider's (hrr_garment.body.skin_collider), the grids' (hrr_garment.body.bone_sdf)
+and the capsules' (hrr_garment.body.capsules), on the same points: the error's mean, p95, p99 and
 max and the share over 20 mm, at joints (the point's largest skin weight under 0.9) and along bones;
 of the points more than 3 mm inside the mesh, the share a collider calls outside (cloth it would
-leave inside), and of those more than 3 mm outside, the share it calls inside; and the query's
-time for 4,156 points (one dress) on one core, numpy. Needs the bodies extra (anny; its cache under
-HRR_HOME). About two minutes on one core.
+leave inside), and of those more than 3 mm outside, the share it calls inside; the same shares of
+points anywhere about the body (its posed box widened by 50 cm) more than 3 cm from the skin; and
+the numpy queries' time for 4,156 points (one dress) on one core. Needs the bodies extra (anny;
+its cache under HRR_HOME). About five minutes on one core.
 
     python tools/studies/visible_collider_study.py ../shared/data/mocap/cmu/*.bvh --synth dance jump
 """
@@ -29,6 +32,8 @@ OFFSETS_M = (-0.02, -0.005, 0.0, 0.005, 0.02)  # along the posed mesh's normal
 JOINT_WEIGHT = 0.9  # a point whose largest skin weight is under this lies at a joint
 CLOTH_VERTICES = 4156  # the run-time push-out's dress, timed
 CLEAR_M = 0.003  # a point counts as inside or outside from this far from the skin
+AROUND_M = 0.5  # the points about the body: in its posed box widened by this
+FAR_M = 0.03  # of those, the ones this far from the skin (past the push-out's band)
 
 
 def bent_frames(motion, count: int) -> list[int]:
@@ -67,6 +72,7 @@ def measure(name: str, shape: dict, clips: list, args) -> list[dict]:
     from hrr_garment.body.mesh_distance import mesh_signed_distance
     from hrr_garment.body.parametric import BodyShape, parametric_body
     from hrr_garment.body.retarget import motion_on_body
+    from hrr_garment.body.skin_collider import skin_collider
     from hrr_garment.body.skinned_body import visible_body
 
     record = record_of(parametric_body(BodyShape(**shape)))
@@ -74,6 +80,12 @@ def measure(name: str, shape: dict, clips: list, args) -> list[dict]:
     t0 = time.perf_counter()
     grids = bone_sdf_collider(visible)
     print(f"{name}: {len(grids.values):,} grid nodes built in {time.perf_counter() - t0:.1f} s")
+    t0 = time.perf_counter()
+    skin = skin_collider(visible)
+    print(
+        f"{name}: inverse-skinning grid of {len(skin.distance):,} nodes, {skin.nbytes / 1e6:.1f} MB, "
+        f"built in {time.perf_counter() - t0:.1f} s"
+    )
     rows = []
     for clip_name, clip in clips:
         motion = motion_on_body(clip, record)
@@ -83,23 +95,34 @@ def measure(name: str, shape: dict, clips: list, args) -> list[dict]:
             points, offset, weight = surface_points(posed, visible.faces, visible.weights, args.points, t)
             a, b = record.body.pose(rot[None], pos[None])
             timing = surface_points(posed, visible.faces, visible.weights, CLOTH_VERTICES, t + 1)[0]
-            t0 = time.perf_counter()
-            grids.query(timing, rot, pos)
-            seconds = time.perf_counter() - t0
-            rows.append(
-                {
-                    "body": name,
-                    "clip": clip_name,
-                    "frame": t,
-                    "offset": offset,
-                    "at_joint": weight < JOINT_WEIGHT,
-                    "exact": mesh_signed_distance(points, posed, visible.faces),
-                    "grids": grids.query(points, rot, pos)[0],
-                    "capsules": capsule_signed_distance(points, a[0], b[0], radii=record.body.radii)[0],
-                    "grid_seconds": seconds,
-                }
-            )
+            seconds = {}
+            for key, collider in (("grids", grids), ("skin", skin)):
+                t0 = time.perf_counter()
+                collider.query(timing, rot, pos)
+                seconds[key] = time.perf_counter() - t0
+            # and points anywhere about the body, up to half a metre off its box (the band's outside)
+            rng = np.random.default_rng(t)
+            around = rng.uniform(posed.min(0) - AROUND_M, posed.max(0) + AROUND_M, (args.points, 3))
+            row = {"body": name, "clip": clip_name, "frame": t, "offset": offset, "seconds": seconds}
+            for key, p in (("", points), ("around_", around)):
+                row[key + "exact"] = mesh_signed_distance(p, posed, visible.faces)
+                row[key + "skin"] = skin.query(p, rot, pos)[0]
+                row[key + "grids"] = grids.query(p, rot, pos)[0]
+                row[key + "capsules"] = capsule_signed_distance(p, a[0], b[0], radii=record.body.radii)[0]
+            rows.append(row | {"at_joint": weight < JOINT_WEIGHT})
     return rows
+
+
+def far_sides(rows: list[dict], collider: str) -> dict:
+    """Of the points about the body more than FAR_M from its skin, the shares on the wrong side."""
+    exact = np.concatenate([r["around_exact"] for r in rows])
+    got = np.concatenate([r["around_" + collider] for r in rows])
+    inside, outside = exact < -FAR_M, exact > FAR_M
+    return {
+        "points": int((inside | outside).sum()),
+        "inside_called_outside": float((got[inside] > 0).mean()),
+        "outside_called_inside": float((got[outside] < 0).mean()),
+    }
 
 
 def summarise(rows: list[dict], collider: str, where: str) -> dict:
@@ -116,6 +139,7 @@ def summarise(rows: list[dict], collider: str, where: str) -> dict:
         "points": int(keep.sum()),
         "mean_mm": float(error.mean()),
         "p95_mm": float(np.percentile(error, 95)),
+        "p99_mm": float(np.percentile(error, 99)),
         "max_mm": float(error.max()),
         "over_20mm": float((error > 20).mean()),
         "inside_called_outside": float((got[inside] > 0).mean()),
@@ -140,15 +164,16 @@ def main() -> None:
     rows = [row for b in args.bodies for row in measure(b, SHAPES[b], clips, args)]
     summary = {
         f"{collider}/{where}": summarise(rows, collider, where)
-        for collider in ("grids", "capsules")
+        for collider in ("skin", "grids", "capsules")
         for where in ("all", "joints", "bones")
     }
-    ms = 1000 * float(np.median([r["grid_seconds"] for r in rows]))
+    far = {collider: far_sides(rows, collider) for collider in ("skin", "grids", "capsules")}
+    ms = {k: 1000 * float(np.median([r["seconds"][k] for r in rows])) for k in ("skin", "grids")}
     if args.json:
-        args.json.write_text(json.dumps({"summary": summary, "grid_query_ms": ms}, indent=1))
+        args.json.write_text(json.dumps({"summary": summary, "far": far, "query_ms": ms}, indent=1))
     print(f"{len(rows)} frames ({', '.join(args.bodies)}; {', '.join(n for n, _ in clips)})")
     print(
-        "| collider | where | points | error mean / p95 / max (mm) | error over 20 mm "
+        "| collider | where | points | error mean / p95 / p99 / max (mm) | error over 20 mm "
         "| inside called outside | outside called inside |"
     )
     print("|---|---|---:|---:|---:|---:|---:|")
@@ -156,11 +181,18 @@ def main() -> None:
         collider, where = key.split("/")
         print(
             f"| {collider} | {where} | {s['points']} | "
-            f"{s['mean_mm']:.1f} / {s['p95_mm']:.1f} / {s['max_mm']:.0f} | "
+            f"{s['mean_mm']:.1f} / {s['p95_mm']:.1f} / {s['p99_mm']:.1f} / {s['max_mm']:.0f} | "
             f"{100 * s['over_20mm']:.1f} % | "
             f"{100 * s['inside_called_outside']:.1f} % | {100 * s['outside_called_inside']:.1f} % |"
         )
-    print(f"grids' query, {CLOTH_VERTICES} points, numpy on one core: {ms:.0f} ms (median over frames)")
+    for key, f in far.items():
+        print(
+            f"{key}: of {f['points']} points about the body more than {FAR_M * 1000:.0f} mm from the skin, "
+            f"inside called outside {100 * f['inside_called_outside']:.2f} %, "
+            f"outside called inside {100 * f['outside_called_inside']:.2f} %"
+        )
+    for key, value in ms.items():
+        print(f"{key}: {CLOTH_VERTICES} points, numpy, one core: {value:.0f} ms a query (median over frames)")
 
 
 if __name__ == "__main__":

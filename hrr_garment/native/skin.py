@@ -1,0 +1,126 @@
+"""The inverse-skinning collider as the kernel takes it (``skin_sdf.c``; the numpy reference is
+:class:`hrr_garment.body.skin_collider.SkinCollider`): its arrays converted once, and the signed
+distance of points to the body it follows, posed per frame.
+
+    kernel = SkinKernel(collider, load_kernel())       # a SkinCollider, converted once
+    distance, normal = kernel.query(points, global_rotations, joint_positions)
+"""
+
+from __future__ import annotations
+
+import ctypes
+
+import numpy as np
+
+MAX_STARTS = 8  # SKIN_MAX_STARTS in skin_sdf.c
+MAX_JOINTS = 255  # a node's joints are bytes
+# skin_sdf.c's SkinNode: one node of the rest grid in 32 bytes
+NODE = np.dtype([("distance", "<f4"), ("weights", "<f4", 4), ("joints", "u1", 4), ("pad", "<i4", 2)])
+
+
+class SkinGrid(ctypes.Structure):
+    """skin_sdf.c's SkinGrid."""
+
+    _fields_ = [
+        ("nodes", ctypes.c_void_p),
+        ("face_start", ctypes.c_void_p),
+        ("face_list", ctypes.c_void_p),
+        ("faces", ctypes.c_void_p),
+        ("rest", ctypes.c_void_p),
+        ("vertex_joints", ctypes.c_void_p),
+        ("vertex_weights", ctypes.c_void_p),
+        ("shape", ctypes.c_int * 3),
+        ("V", ctypes.c_int),
+        ("F", ctypes.c_int),
+        ("J", ctypes.c_int),
+        ("vertex_k", ctypes.c_int),
+        ("starts", ctypes.c_int),
+        ("iterations", ctypes.c_int),
+        ("origin", ctypes.c_double * 3),
+        ("voxel", ctypes.c_double),
+        ("step", ctypes.c_double),
+        ("settled", ctypes.c_double),
+        ("deep", ctypes.c_double),
+        ("off_skin", ctypes.c_double),
+        ("face_side", ctypes.c_double),
+    ]
+
+
+class SkinKernel:
+    """A :class:`~hrr_garment.body.skin_collider.SkinCollider`'s arrays in the kernel's layout (held
+    here, so that the struct's addresses stay valid): the grid's nodes packed 32 bytes each, its face
+    lists as they are, the mesh's faces as int32 and each vertex's skin as its joints with a weight
+    (padded with weight 0)."""
+
+    def __init__(self, collider, lib: ctypes.CDLL) -> None:
+        body, settings = collider.body, collider.settings
+        if not 1 <= settings.starts <= MAX_STARTS or body.weights.shape[1] > MAX_JOINTS:
+            raise ValueError(
+                f"the native skin collider takes 1 to {MAX_STARTS} starts and up to {MAX_JOINTS} joints, "
+                f"not {settings.starts} and {body.weights.shape[1]}"
+            )
+        self.joint_transforms = body.joint_transforms
+        used = body.weights != 0.0
+        k = max(1, int(used.sum(1).max()))
+        order = np.argsort(~used, axis=1, kind="stable")[:, :k]  # each vertex's joints with weight first
+        nodes = np.zeros(len(collider.distance), NODE)
+        nodes["distance"], nodes["weights"], nodes["joints"] = (
+            collider.distance,
+            collider.weights,
+            collider.joints,
+        )
+        self.arrays = {
+            "nodes": nodes,
+            "face_start": np.ascontiguousarray(collider.face_start, np.int32),
+            "face_list": np.ascontiguousarray(collider.face_list, np.int32),
+            "faces": np.ascontiguousarray(body.faces, np.int32),
+            "rest": np.ascontiguousarray(body.vertices, np.float64),
+            "vertex_joints": np.ascontiguousarray(order, np.int32),
+            "vertex_weights": np.ascontiguousarray(np.take_along_axis(body.weights, order, 1), np.float64),
+        }
+        self.struct = SkinGrid(
+            **{name: a.ctypes.data for name, a in self.arrays.items()},
+            shape=(ctypes.c_int * 3)(*(int(n) for n in collider.shape)),
+            V=len(body.vertices),
+            F=len(body.faces),
+            J=body.weights.shape[1],
+            vertex_k=k,
+            starts=settings.starts,
+            iterations=settings.iterations,
+            origin=(ctypes.c_double * 3)(*(float(x) for x in collider.origin)),
+            voxel=settings.voxel_m,
+            step=settings.step,
+            settled=settings.settled_m,
+            deep=settings.deep_m,
+            off_skin=settings.off_skin_m,
+            face_side=settings.face_side_m,
+        )
+        self.vertices, self.lib = len(body.vertices), lib
+
+    def query(
+        self, points: np.ndarray, global_rotations: np.ndarray, joint_positions: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """(N,) signed distances and (N, 3) outward normals of points (N, 3) against the body posed by
+        (J, 3, 3) global rotations and (J, 3) joint positions, as the reference's ``query``."""
+        rot, trans = self.joint_transforms(
+            np.asarray(global_rotations)[None], np.asarray(joint_positions)[None]
+        )
+        rot, trans = np.ascontiguousarray(rot[0]), np.ascontiguousarray(trans[0])
+        posed, normals = np.empty((self.vertices, 3)), np.empty((self.vertices, 3))
+        ref = ctypes.byref(self.struct)
+        lib = self.lib
+        lib.hrr_skin_pose(ref, rot.ctypes.data, trans.ctypes.data, posed.ctypes.data, normals.ctypes.data)
+        p = np.ascontiguousarray(points, np.float64).reshape(-1, 3)
+        distance, normal = np.empty(len(p)), np.empty((len(p), 3))
+        lib.hrr_skin_sdf(
+            ref,
+            rot.ctypes.data,
+            trans.ctypes.data,
+            posed.ctypes.data,
+            normals.ctypes.data,
+            p.ctypes.data,
+            len(p),
+            distance.ctypes.data,
+            normal.ctypes.data,
+        )
+        return distance, normal

@@ -1,0 +1,86 @@
+"""Tiny skinned bodies for the colliders' tests: a capped cylinder on two joints, bent at its elbow,
+and the same cylinder on a chain of joints, curled."""
+
+import numpy as np
+
+from hrr_garment.body.mesh_distance import vertex_normals
+from hrr_garment.body.skinned_body import SkinnedBody
+from hrr_garment.motion.rotations import axis_angle_to_matrix
+
+LENGTH, RADIUS, ELBOW = 0.4, 0.05, 0.2  # a limb along +x, its joint halfway
+
+
+def _cylinder() -> tuple[np.ndarray, np.ndarray]:
+    """A closed cylinder along +x (rings 1 cm apart, 24 sides, capped): vertices and faces."""
+    x = np.linspace(0.0, LENGTH, 41)
+    angle = np.linspace(0.0, 2 * np.pi, 24, endpoint=False)
+    ring = np.stack([np.zeros_like(angle), RADIUS * np.cos(angle), RADIUS * np.sin(angle)], 1)
+    vertices = np.concatenate([(ring + [xi, 0.0, 0.0]) for xi in x] + [[[0.0, 0, 0], [LENGTH, 0, 0]]])
+    n, s = len(x), len(angle)
+    faces = []
+    for i in range(n - 1):
+        for k in range(s):
+            a, b, c, d = i * s + k, i * s + (k + 1) % s, (i + 1) * s + k, (i + 1) * s + (k + 1) % s
+            faces += [[a, b, d], [a, d, c]]
+    for k in range(s):
+        faces += [[n * s, (k + 1) % s, k], [n * s + 1, (n - 1) * s + k, (n - 1) * s + (k + 1) % s]]
+    return vertices, np.array(faces)
+
+
+def skinned_limb() -> SkinnedBody:
+    """The cylinder skinned to two joints, at x = 0 and at the elbow, blending over 10 cm about
+    the elbow."""
+    vertices, faces = _cylinder()
+    second = np.clip((vertices[:, 0] - (ELBOW - 0.05)) / 0.1, 0.0, 1.0)
+    return SkinnedBody(
+        vertices,
+        faces,
+        np.stack([1.0 - second, second], 1),
+        np.broadcast_to(np.eye(3), (2, 3, 3)).copy(),
+        np.array([[0.0, 0.0, 0.0], [ELBOW, 0.0, 0.0]]),
+    )
+
+
+def skinned_chain(joints: int) -> SkinnedBody:
+    """The cylinder skinned to ``joints`` joints spaced evenly along it, each vertex blended between
+    the two joints it lies between (linearly, as broadly as anny's blended skin)."""
+    vertices, faces = _cylinder()
+    at = np.linspace(0.0, LENGTH, joints + 1)[:-1]
+    weights = np.stack([np.interp(vertices[:, 0], at, np.eye(joints)[j]) for j in range(joints)], 1)
+    return SkinnedBody(
+        vertices,
+        faces,
+        weights,
+        np.broadcast_to(np.eye(3), (joints, 3, 3)).copy(),
+        np.stack([at, np.zeros(joints), np.zeros(joints)], 1),
+    )
+
+
+def curled(body: SkinnedBody, degrees: float, twist: float) -> tuple[np.ndarray, np.ndarray]:
+    """Global rotations and positions of a chain's joints, each turned ``degrees`` about z and
+    ``twist`` degrees about its bone from its parent."""
+    turn = axis_angle_to_matrix(np.array([0.0, 0.0, np.radians(degrees)])) @ axis_angle_to_matrix(
+        np.array([np.radians(twist), 0.0, 0.0])
+    )
+    rot, pos = [np.eye(3)], [body.rest_positions[0]]
+    for j in range(1, len(body.rest_positions)):
+        pos.append(pos[-1] + rot[-1] @ (body.rest_positions[j] - body.rest_positions[j - 1]))
+        rot.append(rot[-1] @ turn)
+    return np.stack(rot), np.stack(pos)
+
+
+def bent(degrees: float) -> tuple[np.ndarray, np.ndarray]:
+    """Joint rotations and positions with the elbow bent about z."""
+    return np.stack([np.eye(3), axis_angle_to_matrix(np.array([0.0, 0.0, np.radians(degrees)]))]), np.array(
+        [[0.0, 0.0, 0.0], [ELBOW, 0.0, 0.0]]
+    )
+
+
+def near_surface(body: SkinnedBody, posed: np.ndarray, count: int = 300):
+    """Points at ``count`` posed vertices and 5 and 20 mm along their normals both ways, with their rest x."""
+    normals = vertex_normals(posed, body.faces)
+    offsets = np.array([-0.02, -0.005, 0.0, 0.005, 0.02])
+    pick = np.random.default_rng(0).choice(len(posed) - 2, count, replace=False)  # not the caps' centres
+    off = np.tile(offsets, len(pick))
+    idx = np.repeat(pick, len(offsets))
+    return posed[idx] + off[:, None] * normals[idx], body.vertices[idx, 0]
