@@ -89,13 +89,15 @@ def _candidate_pairs(q: np.ndarray, v: np.ndarray, faces: np.ndarray) -> tuple[n
 
 def _edge_side(v: np.ndarray, a: np.ndarray, b: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The side of each point ``q`` (M, 3) of the directed edge ``a -> b`` across the ray (+1 left, -1
-    right) and its edge function, computed along the edge's lower-numbered end first so that both
-    faces of an edge see the same value, negated; on the line, the point nudged by (e, e^2) decides."""
+    right) and its edge function. It is the cross product of the ends' offsets from the point, each
+    end's offset the same for every edge at that end, so that the edges around a corner that a ray
+    (nearly) meets agree; on the line, the point nudged by (e, e^2) decides, the same for both faces
+    of an edge (which run along it in opposite directions)."""
     swap = a > b
     start, end = np.where(swap, b, a), np.where(swap, a, b)
-    d = v[end, :2] - v[start, :2]
-    r = q[:, :2] - v[start, :2]
-    e = d[:, 0] * r[:, 1] - d[:, 1] * r[:, 0]
+    r, s = v[start, :2] - q[:, :2], v[end, :2] - q[:, :2]
+    e = r[:, 0] * s[:, 1] - r[:, 1] * s[:, 0]
+    d = s - r  # the edge, lower-numbered end first
     tie = np.where(d[:, 1] != 0, -np.sign(d[:, 1]), np.sign(d[:, 0]))  # e + d_x e^2 - d_y e
     side = np.where(e != 0, np.sign(e), tie)
     flip = np.where(swap, -1.0, 1.0)
