@@ -2,14 +2,14 @@
 frame of a garment against the body the viewer sees (hrr-eval's headline plausibility figure).
 
     inside = mesh_inside(points, vertices, faces)                 # (N,) bool
-    deep = inside_deeper_than(points, vertices, faces, 0.005)      # (N,) bool: inside by more than 5 mm
+    deep = inside_deeper_than(points, vertices, faces, depth=0.005)  # (N,) bool: more than 5 mm inside
 
 On a closed mesh (every edge shared by two faces that run along it in opposite directions, as
 anny's is in every pose: skinning moves vertices, not the topology) the winding number of a point is
 an integer, and it equals the signed count of the mesh's crossings of a ray from the point: that
 count is what :func:`mesh_inside` computes, with the faces binned on a grid across the ray so that
-each point tries only the few faces in front of or behind it (about 0.01 of the faces of a body),
-instead of every face's solid angle (:func:`~.mesh_distance.winding_inside`, some 300 x slower). Each
+each point tries only the few faces in front of or behind it (a few in a thousand of a body's),
+instead of every face's solid angle (:func:`~.mesh_distance.winding_inside`, about 100 x slower). Each
 edge's side is decided once for both its faces, a tie broken by the same symbolic nudge of the point,
 so a ray through an edge or a corner crosses the mesh exactly once (watertight). An open mesh (a
 character's, with its eyes or clothes as separate shells) has no such integer: there
@@ -42,7 +42,7 @@ def is_closed(faces: np.ndarray) -> bool:
 
 
 def mesh_inside(
-    points: np.ndarray, vertices: np.ndarray, faces: np.ndarray, closed: bool | None = None
+    points: np.ndarray, vertices: np.ndarray, faces: np.ndarray, *, closed: bool | None = None
 ) -> np.ndarray:
     """(N,) whether each point lies inside the mesh: the ray count on a closed mesh, the generalised
     winding number on an open one (see the module docstring); ``closed``: :func:`is_closed` of
@@ -119,12 +119,12 @@ def _crossings(q: np.ndarray, v: np.ndarray, corners: np.ndarray) -> np.ndarray:
 
 
 def inside_deeper_than(
-    points: np.ndarray, vertices: np.ndarray, faces: np.ndarray, depth: float, closed: bool | None = None
+    points: np.ndarray, vertices: np.ndarray, faces: np.ndarray, *, depth: float, closed: bool | None = None
 ) -> np.ndarray:
     """(N,) whether each point lies inside the mesh (:func:`mesh_inside`) and farther than ``depth``
     from its surface (the exact distance: every face that could lie within ``depth`` is tried)."""
     points = np.asarray(points, np.float64).reshape(-1, 3)
-    deep = mesh_inside(points, vertices, faces, closed)
+    deep = mesh_inside(points, vertices, faces, closed=closed)
     if not deep.any() or depth <= 0:
         return deep
     tri = np.asarray(vertices, np.float64)[np.asarray(faces, np.int64)]

@@ -4,7 +4,9 @@ Every mode runs the product path (``Animator.animate``: offline windows blended 
 collision push-out unless disabled) on each sequence's motion, and every metric of
 :mod:`.metrics` compares the world-space result with the simulated frames. Per-sequence values
 are combined weighted by frame count (RMSE as the root of the weighted mean square, maxima as
-maxima). The results are in :mod:`.mode_results`, the scoring of a sequence in :mod:`.scoring`.
+maxima). The results are in :mod:`.mode_results`, the scoring of a sequence in :mod:`.scoring`. The
+frame path's world vertices before the push-out are kept too (:class:`StageOutput`): the cloth inside
+the body the viewer sees is measured before and after it (:mod:`.visible_inside`).
 """
 
 from __future__ import annotations

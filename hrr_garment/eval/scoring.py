@@ -61,7 +61,7 @@ def sequence_metrics(
     visible = visible_of(record) if visible is None else visible
     before = pred if before is None else before
     out = {
-        **inside_visible_pct(before, record.motion, visible, "inside_visible_before"),
+        **inside_visible_pct(before, record.motion, visible, prefix="inside_visible_before"),
         **inside_visible_pct(pred, record.motion, visible),
         "pve_mm": M.pve_mm(pred, truth),
         "rmse_mm": M.rmse_mm(pred, truth),

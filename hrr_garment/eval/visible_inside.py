@@ -76,12 +76,15 @@ def inside_visible(
     mesh = visible.mesh
     posed = mesh.pose(motion.global_rotations, motion.joint_positions)
     return np.array(
-        [inside_deeper_than(v, p, mesh.faces, depth, visible.closed).mean() for v, p in zip(vertices, posed)]
+        [
+            inside_deeper_than(v, p, mesh.faces, depth=depth, closed=visible.closed).mean()
+            for v, p in zip(vertices, posed)
+        ]
     )
 
 
 def inside_visible_pct(
-    vertices: np.ndarray, motion: Motion, visible: VisibleBody, prefix: str = "inside_visible"
+    vertices: np.ndarray, motion: Motion, visible: VisibleBody, *, prefix: str = "inside_visible"
 ) -> dict[str, float]:
     """``{prefix}_pct`` (the mean over frames) and ``{prefix}_worst_pct`` (the worst frame), in percent."""
     share = inside_visible(vertices, motion, visible)

@@ -91,7 +91,7 @@ def test_inside_deeper_than_counts_the_exact_depth(depth, rng):
     vertices, faces = box()
     points = rng.uniform(-0.13, 0.13, (2000, 3))
     signed = mesh_signed_distance(points, vertices, faces)
-    np.testing.assert_array_equal(inside_deeper_than(points, vertices, faces, depth), signed < -depth)
+    np.testing.assert_array_equal(inside_deeper_than(points, vertices, faces, depth=depth), signed < -depth)
     # on a side's middle, 3 mm and 8 mm in: only the deeper is more than 5 mm in
     known = np.array([[0.097, 0.01, -0.02], [0.092, 0.01, -0.02], [0.11, 0.0, 0.0], [0.0, 0.0, 0.0]])
-    assert inside_deeper_than(known, vertices, faces, 0.005).tolist() == [False, True, False, True]
+    assert inside_deeper_than(known, vertices, faces, depth=0.005).tolist() == [False, True, False, True]
