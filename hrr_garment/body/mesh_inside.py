@@ -21,7 +21,6 @@ says it.
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial import cKDTree
 from scipy.spatial.transform import Rotation
 
 from .mesh_distance import closest_on_triangles, winding_inside
@@ -44,47 +43,97 @@ def is_closed(faces: np.ndarray) -> bool:
 def mesh_inside(
     points: np.ndarray, vertices: np.ndarray, faces: np.ndarray, *, closed: bool | None = None
 ) -> np.ndarray:
-    """(N,) whether each point lies inside the mesh: the ray count on a closed mesh, the generalised
-    winding number on an open one (see the module docstring); ``closed``: :func:`is_closed` of
+    """Whether each point lies inside the mesh: the ray count on a closed mesh, the generalised winding
+    number on an open one (see the module docstring). ``points`` (N, 3) and ``vertices`` (V, 3) give
+    (N,); a batch of frames, (T, N, 3) and (T, V, 3), gives (T, N). ``closed``: :func:`is_closed` of
     ``faces`` where the caller knows it already."""
     if not (is_closed(faces) if closed is None else closed):
-        return winding_inside(points, vertices, faces)
+        points, vertices = np.asarray(points), np.asarray(vertices)
+        frames = zip(points.reshape(-1, *points.shape[-2:]), vertices.reshape(-1, *vertices.shape[-2:]))
+        return np.stack([winding_inside(p, v, faces) for p, v in frames]).reshape(points.shape[:-1])
     return np.abs(ray_winding_numbers(points, vertices, faces)) > 0.5
 
 
 def ray_winding_numbers(points: np.ndarray, vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    """(N,) the winding number of each point about a closed mesh: its ray's signed crossings."""
-    q = np.asarray(points, np.float64).reshape(-1, 3) @ RAY_FRAME.T
-    v = np.asarray(vertices, np.float64) @ RAY_FRAME.T
-    faces = np.asarray(faces, np.int64)
-    point, face = _candidate_pairs(q[:, :2], v[:, :2], faces)
-    return np.bincount(point, weights=_crossings(q[point], v, faces[face]), minlength=len(q)).round()
+    """The winding number of each point about a closed mesh, its ray's signed crossings; shapes as
+    :func:`mesh_inside`'s."""
+    return _Batch(points, vertices, faces, 0.0).winding().reshape(np.shape(points)[:-1])
 
 
-def _candidate_pairs(q: np.ndarray, v: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(M,) points and (M,) faces whose 2D boxes share a grid cell with them, across the ray."""
-    lo, hi = v[faces].min(1), v[faces].max(1)
+class _Batch:
+    """Frames of points and of a mesh's vertices, flattened into one set of each (every face and point
+    knowing its frame), in the rays' frame, with each point's candidate faces: those whose box across
+    the ray, grown by ``grow``, holds the point's shadow (found on a grid of cells, per frame). Only
+    the points ``where`` holds (all where None) are taken: ``chosen``, their flat indices."""
+
+    def __init__(self, points: np.ndarray, vertices: np.ndarray, faces: np.ndarray, grow: float, where=None):
+        points, vertices = np.asarray(points, np.float64), np.asarray(vertices, np.float64)
+        self.points = points.reshape(-1, *points.shape[-2:])  # (T, N, 3)
+        self.vertices = vertices.reshape(-1, *vertices.shape[-2:])  # (T, V, 3)
+        frames, n, nv = len(self.points), self.points.shape[1], self.vertices.shape[1]
+        self.chosen = (
+            np.arange(frames * n) if where is None else np.flatnonzero(np.asarray(where).reshape(-1))
+        )
+        self.q = (self.points @ RAY_FRAME.T).reshape(-1, 3)[self.chosen]
+        self.v = (self.vertices @ RAY_FRAME.T).reshape(-1, 3)
+        self.faces = (np.asarray(faces, np.int64)[None] + nv * np.arange(frames)[:, None, None]).reshape(
+            -1, 3
+        )
+        tri = self.v[self.faces]
+        self.lo, self.hi = tri.min(1), tri.max(1)  # (T F, 3) the faces' boxes
+        self.point, self.face = _candidate_pairs(
+            self.q[:, :2],
+            self.chosen // n,
+            (self.lo[:, :2] - grow, self.hi[:, :2] + grow),
+            np.repeat(np.arange(frames), len(faces)),
+        )
+
+    def winding(self) -> np.ndarray:
+        """(T N,) each point's winding number: the signed crossings of its ray."""
+        lo, hi, q2 = self.lo[self.face, :2], self.hi[self.face, :2], self.q[self.point, :2]
+        shadowed = ((q2 >= lo) & (q2 <= hi)).all(1)  # in the face's own box, not only the grown one
+        point, face = self.point[shadowed], self.face[shadowed]
+        crossings = _crossings(self.q[point], self.v, self.faces[face])
+        return np.bincount(point, weights=crossings, minlength=len(self.q)).round()
+
+
+def _candidate_pairs(
+    q: np.ndarray, q_frame: np.ndarray, boxes: tuple[np.ndarray, np.ndarray], face_frame: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """(M,) points and (M,) faces of the same frame whose 2D ``boxes`` (low and high corners) hold the
+    point; ``q`` (N, 2) the points, ``q_frame`` and ``face_frame`` the frames of points and faces."""
+    lo, hi = boxes
+    # only the faces whose boxes meet their frame's points' box: a skirt's rays meet no head
+    frames = int(max(q_frame.max(initial=0), face_frame.max(initial=0))) + 1
+    q_lo, q_hi = np.full((frames, 2), np.inf), np.full((frames, 2), -np.inf)
+    np.minimum.at(q_lo, q_frame, q)
+    np.maximum.at(q_hi, q_frame, q)
+    kept = np.flatnonzero(((lo <= q_hi[face_frame]) & (hi >= q_lo[face_frame])).all(1))
+    if not len(kept) or not len(q):
+        return np.zeros(0, np.int64), np.zeros(0, np.int64)
+    lo, hi, face_frame = lo[kept], hi[kept], face_frame[kept]
     size = max(float(np.median((hi - lo).max(1))), 1e-9)  # a face spans about two cells a side
     origin = lo.min(0)
     first, last = ((lo - origin) // size).astype(np.int64), ((hi - origin) // size).astype(np.int64)
-    rows = int(last[:, 1].max()) + 1
+    columns, rows = int(last[:, 0].max()) + 1, int(last[:, 1].max()) + 1
     span = last - first + 1
     counts = span.prod(1)
-    face_of = np.repeat(np.arange(len(faces)), counts)
+    face_of = np.repeat(np.arange(len(lo)), counts)
     k = np.arange(len(face_of)) - np.repeat(np.cumsum(counts) - counts, counts)
-    cell = (first[face_of, 0] + k // span[face_of, 1]) * rows + first[face_of, 1] + k % span[face_of, 1]
+    column = first[face_of, 0] + k // span[face_of, 1]
+    cell = (face_frame[face_of] * columns + column) * rows + first[face_of, 1] + k % span[face_of, 1]
     order = np.argsort(cell, kind="stable")
     cell, face_of = cell[order], face_of[order]
     at = np.floor((q - origin) / size).astype(np.int64)
-    on_grid = (at >= 0).all(1) & (at[:, 0] <= last[:, 0].max()) & (at[:, 1] < rows)
-    key = at[:, 0] * rows + at[:, 1]
+    on_grid = (at >= 0).all(1) & (at[:, 0] < columns) & (at[:, 1] < rows)
+    key = (q_frame * columns + at[:, 0]) * rows + at[:, 1]
     start = np.searchsorted(cell, key, "left")
     n = np.where(on_grid, np.searchsorted(cell, key, "right") - start, 0)
     point = np.repeat(np.arange(len(q)), n)
     offset = np.arange(len(point)) - np.repeat(np.cumsum(n) - n, n)
     face = face_of[np.repeat(start, n) + offset]
-    boxed = ((q[point] >= lo[face]) & (q[point] <= hi[face])).all(1)  # in the face's box, not only its cells
-    return point[boxed], face[boxed]
+    inside = ((q[point] >= lo[face]) & (q[point] <= hi[face])).all(1)  # in the box, not only its cells
+    return point[inside], kept[face[inside]]
 
 
 def _edge_side(v: np.ndarray, a: np.ndarray, b: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -119,25 +168,34 @@ def _crossings(q: np.ndarray, v: np.ndarray, corners: np.ndarray) -> np.ndarray:
 
 
 def inside_deeper_than(
-    points: np.ndarray, vertices: np.ndarray, faces: np.ndarray, *, depth: float, closed: bool | None = None
+    points: np.ndarray,
+    vertices: np.ndarray,
+    faces: np.ndarray,
+    *,
+    depth: float,
+    closed: bool | None = None,
+    where: np.ndarray | None = None,
 ) -> np.ndarray:
-    """(N,) whether each point lies inside the mesh (:func:`mesh_inside`) and farther than ``depth``
-    from its surface (the exact distance: every face that could lie within ``depth`` is tried)."""
-    points = np.asarray(points, np.float64).reshape(-1, 3)
-    deep = mesh_inside(points, vertices, faces, closed=closed)
-    if not deep.any() or depth <= 0:
-        return deep
-    tri = np.asarray(vertices, np.float64)[np.asarray(faces, np.int64)]
-    centre = tri.mean(1)
-    reach = np.linalg.norm(tri - centre[:, None], axis=-1).max(1)  # each face lies within this of its centre
-    inside = np.flatnonzero(deep)
-    pairs = cKDTree(points[inside]).sparse_distance_matrix(
-        cKDTree(centre), depth + float(reach.max()), output_type="ndarray"
-    )
-    keep = pairs["v"] <= depth + reach[pairs["j"]]  # only the faces that can come within ``depth``
-    owner, candidate = pairs["i"][keep].astype(np.int64), pairs["j"][keep].astype(np.int64)
-    p = points[inside][owner]
-    bary = closest_on_triangles(p, tri[candidate])
-    gap = np.linalg.norm(p - np.einsum("mk,mkc->mc", bary, tri[candidate]), axis=1)
-    deep[inside[np.unique(owner[gap <= depth])]] = False
-    return deep
+    """Whether each point lies inside the mesh (:func:`mesh_inside`) and farther than ``depth`` from its
+    surface (the exact distance: every face that could come within ``depth`` is tried); shapes as
+    :func:`mesh_inside`'s, a batch of frames at once. ``where`` (the points' shape without the last
+    axis): only the points it holds are measured, the others are False."""
+    closed = is_closed(faces) if closed is None else closed
+    batch = _Batch(points, vertices, faces, depth, where)
+    if closed:
+        deep = np.abs(batch.winding()) > 0.5
+    else:
+        deep = mesh_inside(batch.points, batch.vertices, faces, closed=False).reshape(-1)[batch.chosen]
+    # a face within ``depth`` of a point has the point's shadow in its box grown by ``depth``: the pairs
+    near = deep[batch.point] & (depth > 0)
+    point, face = batch.point[near], batch.face[near]
+    z = batch.q[point, 2]
+    near = (z >= batch.lo[face, 2] - depth) & (z <= batch.hi[face, 2] + depth)
+    point, face = point[near], face[near]
+    p = batch.q[point]
+    tri = batch.v[batch.faces[face]]
+    gap = np.linalg.norm(p - np.einsum("mk,mkc->mc", closest_on_triangles(p, tri), tri), axis=1)
+    deep[point[gap <= depth]] = False
+    out = np.zeros(np.shape(points)[:-1], bool)
+    out.reshape(-1)[batch.chosen] = deep
+    return out

@@ -16,15 +16,7 @@ from . import metrics as M
 from .ensemble import TruthEnsemble
 from .ensemble_metrics import ensemble_metrics, truth_metrics
 from .mode_results import SequenceResult
-from .visible_inside import VisibleBody, inside_visible, inside_visible_pct, visible_body_of
-
-# the cloth inside the visible body, before and after the push-out (percent; mean and worst frame)
-VISIBLE_KEYS = (
-    "inside_visible_before_pct",
-    "inside_visible_before_worst_pct",
-    "inside_visible_pct",
-    "inside_visible_worst_pct",
-)
+from .visible_inside import SHARES, VisibleBody, inside_before_and_after, inside_visible, visible_body_of
 
 
 def body_of(record: SequenceRecord) -> BodyModel:
@@ -61,8 +53,7 @@ def sequence_metrics(
     visible = visible_of(record) if visible is None else visible
     before = pred if before is None else before
     out = {
-        **inside_visible_pct(before, record.motion, visible, prefix="inside_visible_before"),
-        **inside_visible_pct(pred, record.motion, visible),
+        **inside_before_and_after(before, pred, record.motion, visible),
         "pve_mm": M.pve_mm(pred, truth),
         "rmse_mm": M.rmse_mm(pred, truth),
         **M.sted(pred, truth, topo),
@@ -178,7 +169,7 @@ class SequenceScorer:
             vertices, record.garment, record, rest, self.topo, retrieved, visible=visible, before=unpushed
         )
         if ensemble:  # the ensemble table's plausibility: inside the visible body, then the capsules
-            ensemble.update({k: metrics[k] for k in VISIBLE_KEYS})
+            ensemble.update({k: metrics[k] for k in SHARES})
         return SequenceResult(
             record.name,
             len(record.garment),

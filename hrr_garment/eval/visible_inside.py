@@ -21,6 +21,7 @@ compare) along the exact distance to the mesh; inside by the winding number
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -30,9 +31,17 @@ from ..body.capsules import DEFAULT_BODY, BodyModel
 from ..body.mesh_inside import inside_deeper_than, is_closed
 from ..body.skinned_body import SkinnedBody, visible_body
 from ..motion.motion import Motion
-from ..sim.quality import PENETRATION_DEPTH_M, body_signed_distance, penetration_fraction
+from ..sim.quality import PENETRATION_DEPTH_M, body_signed_distance
 
 MESH, CAPSULES, UNKNOWN = "mesh", "capsules", "unknown"  # VisibleBody.kind
+# the figures, percent: before and after the push-out, the mean over frames and the worst frame
+SHARES = (
+    "inside_visible_before_pct",
+    "inside_visible_before_worst_pct",
+    "inside_visible_pct",
+    "inside_visible_worst_pct",
+)
+POINTS_PER_PASS = 50_000  # garment vertices measured at once (all frames of a pass: tens of MB)
 
 
 @dataclass(frozen=True)
@@ -64,28 +73,62 @@ def visible_body_of(record: BodyRecord | None) -> VisibleBody:
     return VisibleBody(CAPSULES, record.body)
 
 
-def inside_visible(
-    vertices: np.ndarray, motion: Motion, visible: VisibleBody, depth: float = PENETRATION_DEPTH_M
+def deep_inside(
+    vertices: np.ndarray,
+    motion: Motion,
+    visible: VisibleBody,
+    *,
+    where: np.ndarray | None = None,
+    depth: float = PENETRATION_DEPTH_M,
 ) -> np.ndarray:
-    """(T,) the fraction of the garment's world ``vertices`` (T, V, 3) more than ``depth`` inside the
-    body ``visible`` as ``motion`` poses it; NaN on every frame where the visible body is unknown."""
+    """(T, V) whether each of the garment's world ``vertices`` (T, V, 3) lies more than ``depth`` inside
+    the body ``visible`` (a mesh, or capsules: not an unknown one) as ``motion`` poses it; on a mesh,
+    only the vertices ``where`` holds (T, V) are measured (the others False)."""
+    if visible.kind == CAPSULES:
+        return body_signed_distance(vertices, motion, visible.capsules) < -depth
+    mesh, step = visible.mesh, max(1, POINTS_PER_PASS // vertices.shape[1])
+    deep = []
+    for t in range(0, len(vertices), step):  # frames at once, as many as keep the arrays small
+        posed = mesh.pose(motion.global_rotations[t : t + step], motion.joint_positions[t : t + step])
+        deep.append(
+            inside_deeper_than(
+                vertices[t : t + step],
+                posed,
+                mesh.faces,
+                depth=depth,
+                closed=visible.closed,
+                where=None if where is None else where[t : t + step],
+            )
+        )
+    return np.concatenate(deep)
+
+
+def inside_visible(vertices: np.ndarray, motion: Motion, visible: VisibleBody) -> np.ndarray:
+    """(T,) the fraction of the garment's world ``vertices`` (T, V, 3) more than 5 mm inside the body
+    ``visible`` as ``motion`` poses it; NaN on every frame where the visible body is unknown."""
     if visible.kind == UNKNOWN:
         return np.full(len(vertices), np.nan)
-    if visible.kind == CAPSULES:
-        return penetration_fraction(body_signed_distance(vertices, motion, visible.capsules), depth)
-    mesh = visible.mesh
-    posed = mesh.pose(motion.global_rotations, motion.joint_positions)
-    return np.array(
-        [
-            inside_deeper_than(v, p, mesh.faces, depth=depth, closed=visible.closed).mean()
-            for v, p in zip(vertices, posed)
-        ]
-    )
+    return deep_inside(vertices, motion, visible).mean(1)
 
 
-def inside_visible_pct(
-    vertices: np.ndarray, motion: Motion, visible: VisibleBody, *, prefix: str = "inside_visible"
+def inside_before_and_after(
+    before: np.ndarray, after: np.ndarray, motion: Motion, visible: VisibleBody
 ) -> dict[str, float]:
-    """``{prefix}_pct`` (the mean over frames) and ``{prefix}_worst_pct`` (the worst frame), in percent."""
-    share = inside_visible(vertices, motion, visible)
-    return {f"{prefix}_pct": 100.0 * float(share.mean()), f"{prefix}_worst_pct": 100.0 * float(share.max())}
+    """The cloth inside the visible body before the push-out (``before``, (T, V, 3)) and after it
+    (``after``), in percent: ``inside_visible_before_pct`` and ``inside_visible_pct`` (the mean over
+    frames) with their ``_worst_pct`` (the worst frame); NaN where the visible body is unknown. Only the
+    vertices the push-out moved are measured again after it."""
+    if visible.kind == UNKNOWN:
+        return dict.fromkeys(SHARES, math.nan)
+    deep_before = deep_inside(before, motion, visible)
+    moved = (np.asarray(after) != np.asarray(before)).any(-1)
+    deep_after = deep_before.copy()
+    if moved.any():
+        deep_after[moved] = deep_inside(after, motion, visible, where=moved)[moved]
+    out = {}
+    for prefix, deep in (("inside_visible_before", deep_before), ("inside_visible", deep_after)):
+        share = deep.mean(1)
+        out.update(
+            {f"{prefix}_pct": 100.0 * float(share.mean()), f"{prefix}_worst_pct": 100.0 * float(share.max())}
+        )
+    return out

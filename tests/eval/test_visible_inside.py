@@ -21,8 +21,8 @@ from hrr_garment.eval.visible_inside import (
     MESH,
     UNKNOWN,
     VisibleBody,
+    inside_before_and_after,
     inside_visible,
-    inside_visible_pct,
     visible_body_of,
 )
 from hrr_garment.garment.templates import make_garment
@@ -58,15 +58,16 @@ def test_the_figure_is_the_share_of_cloth_placed_inside_a_skinned_mesh():
     visible = VisibleBody.of_mesh(mesh, DEFAULT_BODY)
     assert visible.kind == MESH and visible.closed
     np.testing.assert_array_equal(inside_visible(cloth, motion, visible), np.full(motion.num_frames, 0.5))
-    assert inside_visible_pct(cloth, motion, visible) == {
-        "inside_visible_pct": 50.0,
-        "inside_visible_worst_pct": 50.0,
-    }
-    # one frame with every point pushed out: the mean falls by that frame's share, the worst stays
-    cloth[3] += [0.0, 1.0, 0.0]
-    figure = inside_visible_pct(cloth, motion, visible)
-    assert math.isclose(figure["inside_visible_pct"], 50.0 * (motion.num_frames - 1) / motion.num_frames)
-    assert figure["inside_visible_worst_pct"] == 50.0
+    # the push-out takes every point out on frame 3 and moves one point in on frame 5 (it may: the
+    # figure after it is measured, not assumed): the mean after falls and rises by those frames' shares
+    after = cloth.copy()
+    after[3] += [0.0, 1.0, 0.0]
+    after[5, 5] = after[5, 0]
+    frames = motion.num_frames
+    figure = inside_before_and_after(cloth, after, motion, visible)
+    assert figure["inside_visible_before_pct"] == figure["inside_visible_before_worst_pct"] == 50.0
+    assert math.isclose(figure["inside_visible_pct"], 50.0 - 50.0 / frames + 100.0 / 6 / frames)
+    assert math.isclose(figure["inside_visible_worst_pct"], 100.0 * 4 / 6)
 
 
 def test_on_the_mannequin_the_figure_is_the_capsule_figure(rng):
