@@ -25,9 +25,11 @@ from scipy.spatial.transform import Rotation
 
 from .mesh_distance import closest_on_triangles, winding_inside
 
-# the rays' frame: a fixed direction that no axis or symmetry plane of a body lies along (the ray is
-# this frame's z axis; fewer rays graze an edge, though a grazing ray is counted right anyway)
-RAY_FRAME = Rotation.from_euler("xyz", [0.61, 0.37, 0.23]).as_matrix()
+# the rays' frame (the ray is its z axis): nearly level, so that a garment's shadow across the rays
+# covers few of a standing body's faces (a skirt's: the hips and thighs, not the head or the shins;
+# 2.7 ms a frame against 7.4 for a ray 32 degrees up, a 308-vertex skirt on anny), and along no axis or
+# symmetry plane of a body, so that few rays graze an edge (though one that does is counted right)
+RAY_FRAME = Rotation.from_euler("xyz", [0.11, 0.23, 0.17]).as_matrix()
 
 
 def is_closed(faces: np.ndarray) -> bool:
