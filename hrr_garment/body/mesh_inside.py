@@ -68,7 +68,14 @@ class _Batch:
     the ray, grown by ``grow``, holds the point's shadow (found on a grid of cells, per frame). Only
     the points ``where`` holds (all where None) are taken: ``chosen``, their flat indices."""
 
-    def __init__(self, points: np.ndarray, vertices: np.ndarray, faces: np.ndarray, grow: float, where=None):
+    def __init__(
+        self,
+        points: np.ndarray,
+        vertices: np.ndarray,
+        faces: np.ndarray,
+        grow: float,
+        where: np.ndarray | None = None,
+    ):
         points, vertices = np.asarray(points, np.float64), np.asarray(vertices, np.float64)
         self.points = points.reshape(-1, *points.shape[-2:])  # (T, N, 3)
         self.vertices = vertices.reshape(-1, *vertices.shape[-2:])  # (T, V, 3)

@@ -53,7 +53,7 @@ def sequence_metrics(
     visible = visible_of(record) if visible is None else visible
     before = pred if before is None else before
     out = {
-        **inside_before_and_after(before, pred, record.motion, visible),
+        **inside_before_and_after(before, pred, record.motion, visible=visible),
         "pve_mm": M.pve_mm(pred, truth),
         "rmse_mm": M.rmse_mm(pred, truth),
         **M.sted(pred, truth, topo),

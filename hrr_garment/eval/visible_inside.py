@@ -2,6 +2,7 @@
 
     visible = visible_body_of(record.dressed.record)     # what a viewer sees of the body
     share = inside_visible(vertices, motion, visible)     # (T,) fraction of the garment's vertices
+    figures = inside_before_and_after(before, after, motion, visible=visible)  # hrr-eval's four, in %
 
 A game draws the character's skinned mesh, not the 20 capsules the push-out works against, so the
 figure counts the garment's vertices inside that mesh, posed by linear blend skinning
@@ -56,6 +57,7 @@ class VisibleBody:
 
     @classmethod
     def of_mesh(cls, mesh: SkinnedBody, capsules: BodyModel) -> "VisibleBody":
+        """The visible body that is ``mesh`` (whether it is closed found once, here)."""
         return cls(MESH, capsules, mesh, is_closed(mesh.faces))
 
 
@@ -112,7 +114,7 @@ def inside_visible(vertices: np.ndarray, motion: Motion, visible: VisibleBody) -
 
 
 def inside_before_and_after(
-    before: np.ndarray, after: np.ndarray, motion: Motion, visible: VisibleBody
+    before: np.ndarray, after: np.ndarray, motion: Motion, *, visible: VisibleBody
 ) -> dict[str, float]:
     """The cloth inside the visible body before the push-out (``before``, (T, V, 3)) and after it
     (``after``), in percent: ``inside_visible_before_pct`` and ``inside_visible_pct`` (the mean over

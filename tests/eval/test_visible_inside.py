@@ -64,7 +64,7 @@ def test_the_figure_is_the_share_of_cloth_placed_inside_a_skinned_mesh():
     after[3] += [0.0, 1.0, 0.0]
     after[5, 5] = after[5, 0]
     frames = motion.num_frames
-    figure = inside_before_and_after(cloth, after, motion, visible)
+    figure = inside_before_and_after(cloth, after, motion, visible=visible)
     assert figure["inside_visible_before_pct"] == figure["inside_visible_before_worst_pct"] == 50.0
     assert math.isclose(figure["inside_visible_pct"], 50.0 - 50.0 / frames + 100.0 / 6 / frames)
     assert math.isclose(figure["inside_visible_worst_pct"], 100.0 * 4 / 6)
