@@ -244,9 +244,15 @@ def _main(argv: Sequence[str] | None) -> int:
                 + "; ".join(outside)
             )
             for who, r in summary["model"].get("inside_before_push_out", {}).items():
+                seen = (
+                    f"{r['inside_visible_pct']:.2f} % of the cloth more than 5 mm inside the body the viewer "
+                    f"sees (worst frame {r['inside_visible_worst_pct']:.2f} %)"
+                    if r["visible_body"] != "unknown"
+                    else "the body the viewer sees unknown (no mesh in its body.json)"
+                )
                 print(
-                    f"inside {who} before the push-out, on a {r['clip']}: {r['inside_pct']:.2f} % of the "
-                    f"cloth more than 5 mm in (worst frame {r['inside_worst_pct']:.2f} %)"
+                    f"inside {who} before the push-out, on a {r['clip']}: {seen}; inside its capsules "
+                    f"{r['inside_pct']:.2f} % (worst frame {r['inside_worst_pct']:.2f} %)"
                 )
         return 1 if outside else 0
     if args.output.suffix.lower() != ".json":

@@ -4,7 +4,9 @@ Every mode runs the product path (``Animator.animate``: offline windows blended 
 collision push-out unless disabled) on each sequence's motion, and every metric of
 :mod:`.metrics` compares the world-space result with the simulated frames. Per-sequence values
 are combined weighted by frame count (RMSE as the root of the weighted mean square, maxima as
-maxima). The results are in :mod:`.mode_results`, the scoring of a sequence in :mod:`.scoring`.
+maxima). The results are in :mod:`.mode_results`, the scoring of a sequence in :mod:`.scoring`. The
+frame path's world vertices before the push-out are kept too (:class:`StageOutput`): the cloth inside
+the body the viewer sees is measured before and after it (:mod:`.visible_inside`).
 """
 
 from __future__ import annotations
@@ -47,6 +49,19 @@ class EvaluationSettings:
         )
 
 
+class StageOutput:
+    """An observer of the frame path (:class:`~hrr_garment.inference.frame_path.FramePath`) keeping a
+    copy of one stage's output: the world vertices before the push-out, which the cloth inside the
+    visible body is measured on too."""
+
+    def __init__(self, stage: str):
+        self.stage, self.value = stage, None
+
+    def __call__(self, stage: str, value: np.ndarray) -> None:
+        if stage == self.stage:
+            self.value = np.array(value, copy=True)
+
+
 def _own_sequence(names: list[str], record: SequenceRecord, exclude: bool) -> int | None:
     """The record's own database sequence where it is one and ``exclude`` asks to keep it out."""
     return names.index(record.name) if exclude and record.name in names else None
@@ -74,13 +89,24 @@ def evaluate_modes(
     jobs = [(m, r) for r in records for m in settings.modes]
     for mode, record in tqdm(jobs, desc="evaluate", unit="run", disable=not settings.progress):
         own = _own_sequence(names, record, settings.exclude_own_sequence)
+        world = StageOutput("world")
         anim = animator.animate(
-            record.motion, runs[mode], body=record.dressed, allow_outside=True, exclude_sequence=own
+            record.motion,
+            runs[mode],
+            observe=world,
+            body=record.dressed,
+            allow_outside=True,
+            exclude_sequence=own,
         )
         before = (anim.penetration.inside_before, anim.penetration.worst_before) if anim.penetration else None
         results[mode].sequences.append(
             scorer.sequence(
-                anim.vertices, record, anim.retrieved.astype(bool), anim.entropy.astype(np.float64), before
+                anim.vertices,
+                record,
+                anim.retrieved.astype(bool),
+                anim.entropy.astype(np.float64),
+                before,
+                unpushed=world.value,
             )
         )
     return results

@@ -21,6 +21,9 @@ class SequenceResult:
     entropy: np.ndarray  # (T,) motion-code entropy of the window centred on each frame
     retrieved: np.ndarray  # (T,) bool
     ensemble: dict[str, float] = field(default_factory=dict)  # against the truth ensemble, when there is one
+    # what the viewer sees of its body, which the inside_visible metrics count against
+    # (:mod:`.visible_inside`: "mesh", "capsules" or "unknown")
+    visible_body: str = "unknown"
 
 
 @dataclass
@@ -46,6 +49,12 @@ class ModeResult:
         combined = combine([s.ensemble for s in rows], [s.frames for s in rows])
         return {**combined, **ensemble_ratios(combined), "sequences": len(rows)}
 
+    @property
+    def visible_bodies(self) -> dict[str, int]:
+        """How many sequences had each kind of visible body (:mod:`.visible_inside`)."""
+        kinds = [s.visible_body for s in self.sequences]
+        return {kind: kinds.count(kind) for kind in sorted(set(kinds))}
+
     def to_dict(self) -> dict:
         return {
             "mode": self.mode,
@@ -54,9 +63,11 @@ class ModeResult:
             "swing": self.swing,
             "metrics": self.metrics,
             "ensemble": self.ensemble,
+            "visible_bodies": self.visible_bodies,
             "sequences": {
                 s.name: {
                     "frames": s.frames,
+                    "visible_body": s.visible_body,
                     **s.metrics,
                     **({"ensemble": {**s.ensemble, **ensemble_ratios(s.ensemble)}} if s.ensemble else {}),
                 }
@@ -65,7 +76,15 @@ class ModeResult:
         }
 
 
-MAXIMA = ("strain_max", "truth_strain_max", "penetration_before_worst_pct", "truth_penetration_worst_pct")
+MAXIMA = (
+    "strain_max",
+    "truth_strain_max",
+    "penetration_before_worst_pct",
+    "truth_penetration_worst_pct",
+    "inside_visible_worst_pct",
+    "inside_visible_before_worst_pct",
+    "truth_inside_visible_worst_pct",
+)
 
 
 def combine(rows: list[dict[str, float]], weights: list[int]) -> dict[str, float]:

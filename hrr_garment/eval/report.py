@@ -16,7 +16,14 @@ residual and detail modes, which add a match's detail to the regression, report 
 ``unseen_bodies`` (the unseen-bodies protocol, :mod:`.unseen_bodies`); 11 ``default`` at the top
 level and in ``real_motion`` and ``library``: the default output's (auto's) lead row and its bars
 (:mod:`.bars`), auto evaluated as a mode of its own; 12 ``holdouts`` and ``dataset.holdouts``
-(:mod:`.holdouts`), ``settings.causal`` and the ``dataset_simulation`` reference row.
+(:mod:`.holdouts`), ``settings.causal`` and the ``dataset_simulation`` reference row; 13 the cloth
+inside the body the viewer sees (:mod:`.visible_inside`), the headline plausibility figure:
+``inside_visible_before_pct``, ``inside_visible_before_worst_pct``, ``inside_visible_pct`` and
+``inside_visible_worst_pct`` in each mode's and sequence's ``metrics`` and ``ensemble`` (null where the
+visible body is unknown), ``truth_inside_visible_pct`` and ``truth_inside_visible_worst_pct`` in
+``ensemble``, each sequence's ``visible_body`` and each mode's ``visible_bodies`` (and at the top level:
+how many sequences were measured against a mesh, the capsules or nothing known); ``penetration_pct``
+(the capsules) unchanged.
 """
 
 from __future__ import annotations
@@ -37,7 +44,7 @@ from .report_tables import ensemble_table, goal_table, mode_table, simulated_sec
 from .unseen_bodies import markdown_table
 
 DATASET_SIMULATION = "dataset simulation"  # the reference row: the dataset's own frames against the ensemble
-REPORT_VERSION = 12  # report.json's "format_version": see the module docstring
+REPORT_VERSION = 13  # report.json's "format_version": see the module docstring
 
 
 def frame_entropies(modes: dict[str, ModeResult]) -> np.ndarray:
@@ -90,6 +97,8 @@ def build_report(
         "ensemble": ensemble or {"members": 0},
         "default": default_output(entries, HELD_OUT_BARS),
         "modes": entries,
+        # what "inside seen" was measured against, the same for every mode (:mod:`.visible_inside`)
+        "visible_bodies": next(iter(entries.values()))["visible_bodies"] if entries else {},
         "goals": goals(modes, sweep),
         "tau_sweep": [vars(p) for p in sweep] if sweep else [],
         "entropy": entropy_summary(modes),

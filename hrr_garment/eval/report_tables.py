@@ -1,6 +1,7 @@
 """report.md's tables: the modes' metrics, the modes against the truth ensemble, the goals, the tau
 sweep, and a protocol section whose ground truth hrr-eval simulated (:func:`~.report.markdown`
-assembles them)."""
+assembles them). Plausibility leads with the cloth inside the body the viewer sees
+(:mod:`.visible_inside`), before and after the push-out; the capsules' figure follows it."""
 
 from __future__ import annotations
 
@@ -8,13 +9,17 @@ import math
 
 from .bars import cell
 from .library import SOURCE_SIMULATION
+from .visible_inside import CAPSULES, MESH, UNKNOWN
 
 TABLE_METRICS = (
     ("pve_mm", "PVE mm", 2),
     ("rmse_mm", "RMSE mm", 2),
     ("sted", "STED", 4),
     ("chamfer_cm", "CD cm", 3),
-    ("penetration_pct", "pen. %", 2),
+    ("inside_visible_before_pct", "inside seen before push-out %", 2),
+    ("inside_visible_pct", "inside seen %", 2),
+    ("inside_visible_worst_pct", "worst frame %", 2),
+    ("penetration_pct", "in capsules %", 2),
     ("curvature_error_cm", "E_curv cm", 1),
     ("strain_p99", "strain p99", 3),
     ("stretch_energy_ratio", "stretch E ratio", 2),
@@ -27,7 +32,10 @@ ENSEMBLE_METRICS = (
     ("pve_members_mm", "PVE to members mm", 2),
     ("pve_ensemble_mean_mm", "PVE to mean mm", 2),
     ("energy_score_mm", "energy score mm", 2),
-    ("penetration_before_worst_pct", "pen. before push-out, worst frame %", 2),
+    ("inside_visible_before_pct", "inside seen before push-out %", 2),
+    ("inside_visible_before_worst_pct", "worst frame %", 2),
+    ("inside_visible_pct", "inside seen after %", 2),
+    ("penetration_before_worst_pct", "capsules before push-out, worst frame %", 2),
     ("strain_p99", "strain p99", 3),
     ("strain_max", "strain max", 2),
     ("jitter_ratio", "jitter ratio", 2),
@@ -37,16 +45,49 @@ ENSEMBLE_METRICS = (
 )
 
 
+SEEN = {k for k, _, _ in (*TABLE_METRICS, *ENSEMBLE_METRICS) if k.startswith("inside_visible")}
+
+
+def seen_cell(row: dict, key: str, digits: int) -> str:
+    """``row[key]`` as a table's cell: "unknown" for a figure inside the visible body that is there but
+    not a number (that body unknown), n/a for any other missing value (a report older than the figure)."""
+    value = row.get(key)
+    missing = value is None or (isinstance(value, float) and not math.isfinite(value))
+    return "unknown" if key in SEEN and key in row and missing else cell(value, digits)
+
+
+def visible_note(modes: dict) -> list[str]:
+    """The sentence under a table saying what "inside seen" was measured against, from the modes'
+    ``visible_bodies`` (the same for every mode); none for a report written before them."""
+    kinds = next((e.get("visible_bodies") for e in modes.values() if e.get("visible_bodies")), None)
+    if not kinds:
+        return []
+    said = {
+        MESH: "the body's skinned mesh, posed by linear blend skinning",
+        CAPSULES: "its capsules, which are the visible body of a body with no mesh of its own (the "
+        "mannequin): there the figure is the capsule figure",
+        UNKNOWN: "unknown: a character fitted to a mesh that its body.json does not carry, or anny not "
+        "installed; see the capsule column instead",
+    }
+    parts = [f"{said[k]} ({n} clip{'s' if n > 1 else ''})" for k, n in kinds.items() if k in said]
+    return [
+        "",
+        "*inside seen*: garment vertices more than 5 mm inside the body the viewer sees, by the winding "
+        "number, every frame (mean over frames; worst frame), measured against " + "; ".join(parts) + ". "
+        "*in capsules*: inside the capsules the push-out works against, at any depth.",
+    ]
+
+
 def mode_table(modes: dict) -> list[str]:
-    """One row of :data:`TABLE_METRICS` per mode."""
+    """One row of :data:`TABLE_METRICS` per mode, and what "inside seen" was measured against."""
     lines = [
         "| mode | " + " | ".join(label for _, label, _ in TABLE_METRICS) + " |",
         "|---|" + "---:|" * len(TABLE_METRICS),
     ]
     for mode, entry in modes.items():
         m = entry["metrics"]
-        lines.append(f"| {mode} | " + " | ".join(cell(m.get(k), d) for k, _, d in TABLE_METRICS) + " |")
-    return lines
+        lines.append(f"| {mode} | " + " | ".join(seen_cell(m, k, d) for k, _, d in TABLE_METRICS) + " |")
+    return lines + visible_note(modes)
 
 
 def ensemble_table(modes: dict, ensemble: dict) -> list[str]:
@@ -71,6 +112,9 @@ def ensemble_table(modes: dict, ensemble: dict) -> list[str]:
         "strain_max": any_row.get("truth_strain_max"),
         **{k: 1.0 for k, _, _ in ENSEMBLE_METRICS if k.endswith("_ratio")},
     }
+    if "truth_inside_visible_pct" in any_row:  # a simulation has no push-out: before and after alike
+        truth["inside_visible_before_pct"] = truth["inside_visible_pct"] = any_row["truth_inside_visible_pct"]
+        truth["inside_visible_before_worst_pct"] = any_row["truth_inside_visible_worst_pct"]
     lines = [
         f"Against {ensemble['members']} perturbed simulations of each of {ensemble['sequences']} sequences "
         f"({', '.join(ensemble['perturbations'])}); floor = mean PVE between two of them, "
@@ -81,8 +125,8 @@ def ensemble_table(modes: dict, ensemble: dict) -> list[str]:
         "|---|" + "---:|" * len(ENSEMBLE_METRICS),
     ]
     for mode, m in [*rows.items(), ("simulation (truths)", truth)]:
-        lines.append(f"| {mode} | " + " | ".join(cell(m.get(k), d) for k, _, d in ENSEMBLE_METRICS) + " |")
-    return lines
+        lines.append(f"| {mode} | " + " | ".join(seen_cell(m, k, d) for k, _, d in ENSEMBLE_METRICS) + " |")
+    return lines + visible_note(modes)
 
 
 def goal_table(goals: dict) -> list[str]:

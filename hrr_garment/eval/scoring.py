@@ -1,6 +1,8 @@
 """Scoring predictions against simulated ground truth: every metric of one predicted sequence, the
 truth ensemble's own values and a prediction's ensemble scores, and :class:`SequenceScorer`, which
-scores one garment's predictions sequence by sequence."""
+scores one garment's predictions sequence by sequence. The cloth inside the body the viewer sees is
+:mod:`.visible_inside`'s, before and after the push-out; the capsule figures beside it are what the
+push-out works against."""
 
 from __future__ import annotations
 
@@ -14,11 +16,18 @@ from . import metrics as M
 from .ensemble import TruthEnsemble
 from .ensemble_metrics import ensemble_metrics, truth_metrics
 from .mode_results import SequenceResult
+from .visible_inside import SHARES, VisibleBody, inside_before_and_after, inside_visible, visible_body_of
 
 
 def body_of(record: SequenceRecord) -> BodyModel:
     """The body a sequence was simulated on (its capsules): penetration is measured against it."""
     return record.dressed.body if record.dressed is not None else DEFAULT_BODY
+
+
+def visible_of(record: SequenceRecord) -> VisibleBody:
+    """What a viewer sees of the body a sequence was simulated on
+    (:func:`~.visible_inside.visible_body_of`)."""
+    return visible_body_of(record.dressed.record if record.dressed is not None else None)
 
 
 def rest_of(record: SequenceRecord, template_rest: np.ndarray) -> np.ndarray:
@@ -33,10 +42,18 @@ def sequence_metrics(
     rest: np.ndarray,
     topo: M.MeshTopology,
     retrieved: np.ndarray,
+    *,
+    visible: VisibleBody | None = None,
+    before: np.ndarray | None = None,
 ) -> dict[str, float]:
-    """Every metric of one predicted sequence (world space, metres)."""
+    """Every metric of one predicted sequence (world space, metres). The cloth inside the body the
+    viewer sees (``visible``; None: :func:`visible_of` the record's) is measured on the prediction and
+    on it ``before`` the push-out (None: no push-out ran, the same)."""
     pred, truth = pred.astype(np.float64), truth.astype(np.float64)
+    visible = visible_of(record) if visible is None else visible
+    before = pred if before is None else before
     out = {
+        **inside_before_and_after(before, pred, record.motion, visible=visible),
         "pve_mm": M.pve_mm(pred, truth),
         "rmse_mm": M.rmse_mm(pred, truth),
         **M.sted(pred, truth, topo),
@@ -57,15 +74,20 @@ def ensemble_truth(
     rest: np.ndarray,
     topo: M.MeshTopology,
     hem: np.ndarray | None,
+    visible: VisibleBody,
 ) -> dict[str, float]:
-    """The members' own values, the penetration and strain beside the floor and the other ``truth_*``."""
+    """The members' own values, the penetration (inside the body the viewer sees, ``visible``, and
+    inside the capsules) and strain beside the floor and the other ``truth_*``."""
     truth_pen = [
         penetration_fraction(body_signed_distance(m, record.motion, body_of(record)))
         for m in ensemble.members
     ]
+    seen = np.stack([inside_visible(m, record.motion, visible) for m in ensemble.members])
     strain = M.edge_strain_percentiles(ensemble.members.reshape(-1, *ensemble.members.shape[2:]), rest, topo)
     return {
         **truth_metrics(ensemble.members, record.motion, rest, topo=topo, hem=hem),
+        "truth_inside_visible_pct": 100.0 * float(seen.mean()),
+        "truth_inside_visible_worst_pct": 100.0 * float(seen.max()),
         "truth_penetration_pct": 100.0 * float(np.mean([p.mean() for p in truth_pen])),
         "truth_penetration_worst_pct": 100.0 * float(max(p.max() for p in truth_pen)),
         "truth_strain_p99": strain["strain_p99"],
@@ -109,6 +131,7 @@ class SequenceScorer:
         self.hem = hem_vertices(template)
         self.ensembles = ensembles or {}
         self.truths: dict[str, dict[str, float]] = {}
+        self.visible: dict[str, VisibleBody] = {}
 
     def sequence(
         self,
@@ -117,12 +140,20 @@ class SequenceScorer:
         retrieved: np.ndarray,
         entropy: np.ndarray,
         before_push_out: tuple[float, float] | None,
+        *,
+        unpushed: np.ndarray | None = None,
     ) -> SequenceResult:
+        """One prediction's :class:`SequenceResult`: ``vertices`` (T, V, 3) world, ``unpushed`` the same
+        before the push-out (None: no push-out ran), ``before_push_out`` the push-out's own report of the
+        cloth inside the capsules before it (mean and worst-frame fraction)."""
         ensemble, rest = {}, rest_of(record, self.rest)
+        if record.name not in self.visible:
+            self.visible[record.name] = visible_of(record)
+        visible = self.visible[record.name]
         if record.name in self.ensembles:
             if record.name not in self.truths:
                 self.truths[record.name] = ensemble_truth(
-                    self.ensembles[record.name], record, rest, self.topo, self.hem
+                    self.ensembles[record.name], record, rest, self.topo, self.hem, visible
                 )
             ensemble = sequence_ensemble_metrics(
                 vertices,
@@ -134,14 +165,20 @@ class SequenceScorer:
                 self.hem,
                 self.truths[record.name],
             )
+        metrics = sequence_metrics(
+            vertices, record.garment, record, rest, self.topo, retrieved, visible=visible, before=unpushed
+        )
+        if ensemble:  # the ensemble table's plausibility: inside the visible body, then the capsules
+            ensemble.update({k: metrics[k] for k in SHARES})
         return SequenceResult(
             record.name,
             len(record.garment),
-            sequence_metrics(vertices, record.garment, record, rest, self.topo, retrieved),
+            metrics,
             per_frame_pve_mm=M.per_frame_pve_mm(
                 vertices.astype(np.float64), record.garment.astype(np.float64)
             ),
             entropy=entropy,
             retrieved=retrieved,
             ensemble=ensemble,
+            visible_body=visible.kind,
         )

@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+import math
+
 from .bars import summary_line
 
 
 def report_lines(report: dict) -> list[str]:
-    """The report's summary as hrr-eval prints it: the default output's bars, each mode's errors,
-    each hold-out, the goals, and the paper and library protocols where they ran."""
+    """The report's summary as hrr-eval prints it: the default output's bars, each mode's errors and
+    cloth inside the body the viewer sees (before -> after the push-out; then the capsules'), each
+    hold-out, the goals, and the paper and library protocols where they ran."""
     out = [line for line in [summary_line(report.get("default"))] if line]
     for mode, entry in report["modes"].items():
         m = entry["metrics"]
@@ -19,8 +22,8 @@ def report_lines(report: dict) -> list[str]:
         )
         out.append(
             f"  {mode:10s} PVE {m['pve_mm']:7.2f} mm  RMSE {m['rmse_mm']:7.2f} mm  STED {m['sted']:.4f}  "
-            f"CD {m['chamfer_cm']:.3f} cm  pen. {m['penetration_pct']:.2f} %  retrieval "
-            f"{100 * m['retrieval_usage']:.0f} %" + floor
+            f"CD {m['chamfer_cm']:.3f} cm  {_inside_seen(m)}  in capsules {m['penetration_pct']:.2f} %  "
+            f"retrieval {100 * m['retrieval_usage']:.0f} %" + floor
         )
     for kind, by_mode in ((report.get("holdouts") or {}).get("by_holdout") or {}).items():
         out.append(
@@ -52,6 +55,18 @@ def report_lines(report: dict) -> list[str]:
             )
         out += _goal_lines(library["goals"])
     return out
+
+
+def _inside_seen(m: dict) -> str:
+    """The cloth inside the body the viewer sees, before -> after the push-out (worst frame), or why not."""
+    if "inside_visible_pct" not in m:  # a report older than the figure
+        return ""
+    before, after, worst = (
+        m.get(k) for k in ("inside_visible_before_pct", "inside_visible_pct", "inside_visible_worst_pct")
+    )
+    if after is None or not math.isfinite(after):
+        return "inside seen: unknown (no visible mesh)"
+    return f"inside seen {before:.2f} -> {after:.2f} % (worst {worst:.2f} %)"
 
 
 def _goal_lines(goals: dict) -> list[str]:

@@ -10,8 +10,9 @@ Each ``--unseen-body`` names a dataset simulated on one body (``hrr-simulate --b
 optionally, a model trained on that dataset alone (the specialist, the reference). The protocol
 takes the dataset's test split (``--sequences N`` of it, evenly spaced), simulates each sequence's
 truth ensemble on that body (its own floor), and runs the model's default mode (``auto``, each
-model its own calibration) and the specialist's on the same clips. Per body: PVE / floor,
-penetration before the push-out (against that body's capsules), sharpness (bending energy over
+model its own calibration) and the specialist's on the same clips. Per body: PVE / floor, the
+cloth inside the body the viewer sees before the push-out (:mod:`.visible_inside`) and inside that
+body's capsules, sharpness (bending energy over
 the truth's) and hem swing (over the truth's), for both, and the generalist's PVE / floor over the
 specialist's. A body the model was trained on is refused: the protocol is for bodies it never saw.
 """
@@ -29,8 +30,15 @@ from ..inference.animator import Animator
 from ..inference.modes import Mode
 from .evaluate import EvaluationSettings, evaluate_modes
 from .protocols import truth_ensembles_of
+from .report_tables import SEEN, seen_cell
 
-COLUMNS = ("pve_floor_ratio", "penetration_before_pct", "bending_energy_ratio", "hem_swing_ratio")
+COLUMNS = (
+    "pve_floor_ratio",
+    "inside_visible_before_pct",
+    "penetration_before_pct",
+    "bending_energy_ratio",
+    "hem_swing_ratio",
+)
 
 
 @dataclass(frozen=True)
@@ -103,6 +111,7 @@ def _row(result) -> dict:
     return {k: e.get(k) for k in COLUMNS} | {
         "floor_mm": e.get("floor_mm"),
         "pve_mm": result.metrics["pve_mm"],
+        "visible_bodies": result.visible_bodies,
     }
 
 
@@ -142,21 +151,24 @@ def unseen_bodies_section(
 def markdown_table(section: dict) -> list[str]:
     """report.md's table of the protocol: a row per body, the model beside its specialist."""
     lines = [
-        "| body | frames | PVE / floor | specialist | ratio | penetration before push-out % | specialist | "
-        "sharpness | specialist | hem swing | specialist |",
-        "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
+        "| body | frames | PVE / floor | specialist | ratio | inside seen before push-out % | specialist | "
+        "capsules before push-out % | specialist | sharpness | specialist | hem swing | specialist |",
+        "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
     ]
 
-    def f(value, digits=2):
-        return "-" if value is None else f"{value:.{digits}f}"
+    def f(row: dict, key: str, digits: int = 2) -> str:
+        unknown = key in SEEN and key in row  # a figure inside a visible body that is unknown
+        return "-" if row.get(key) is None and not unknown else seen_cell(row, key, digits)
 
     for name, e in section.items():
         m, s = e["model"], e.get("specialist", {})
-        lines.append(
-            f"| {name} | {e['frames']} | {f(m['pve_floor_ratio'])} | {f(s.get('pve_floor_ratio'))} | "
-            f"{f(e.get('pve_floor_over_specialist'), 3)} | {f(m['penetration_before_pct'])} | "
-            f"{f(s.get('penetration_before_pct'))} | {f(m['bending_energy_ratio'])} | "
-            f"{f(s.get('bending_energy_ratio'))} | {f(m['hem_swing_ratio'])} | "
-            f"{f(s.get('hem_swing_ratio'))} |"
-        )
+        cells = [f(m, "pve_floor_ratio"), f(s, "pve_floor_ratio"), f(e, "pve_floor_over_specialist", 3)]
+        for key in (
+            "inside_visible_before_pct",
+            "penetration_before_pct",
+            "bending_energy_ratio",
+            "hem_swing_ratio",
+        ):
+            cells += [f(m, key), f(s, key)]
+        lines.append(f"| {name} | {e['frames']} | " + " | ".join(cells) + " |")
     return lines

@@ -36,7 +36,7 @@ from .clip_path import animate_clip, clip_features
 from .collision import PushOutSettings
 from .decoding import flush_denormals
 from .edge_limits import EdgeLimits
-from .frame_path import FramePath
+from .frame_path import FramePath, Observer
 from .modes import CODE_MODES, Mode
 from .run_settings import ResolvedRun, RunSettings, run_settings
 from .stream import CrowdStream
@@ -177,18 +177,26 @@ class Animator:
             return self._default_body
         return character_body(self.bundle, body, allow_outside=allow_outside, name=name)
 
-    def animate(self, motion: Motion, settings: RunSettings | None = None, **changes) -> Animation:
+    def animate(
+        self,
+        motion: Motion,
+        settings: RunSettings | None = None,
+        *,
+        observe: Observer | None = None,
+        **changes,
+    ) -> Animation:
         """Animate a whole clip (see :mod:`hrr_garment.inference`) as ``settings`` ask
         (:class:`~.run_settings.RunSettings`; default: the animator's, the model's calibrated mode,
         push-out on, offline, on the model's own body), with keyword ``changes`` to them
         (``animate(motion, mode="regression", push_out=False, body="hero.json")``). A clip on the
         canonical skeleton is played by the run's body (:meth:`body`); ``exclude_sequence`` keeps one
-        database sequence out of retrieval (evaluation). The frame path: :mod:`.clip_path`."""
+        database sequence out of retrieval (evaluation). The frame path: :mod:`.clip_path`, each
+        stage's output shown to ``observe`` where given (evaluation: the cloth before the push-out)."""
         # again: its arrays are read-only views, but the caller's own arrays under them are not
         motion.validate()
         run = self.resolve(settings, **changes)
         with flush_denormals():
-            return animate_clip(FramePath(self, run), run.body.play(motion))
+            return animate_clip(FramePath(self, run, observe), run.body.play(motion))
 
     def features(self, motion: Motion, causal: bool = False, body: CharacterBody | None = None) -> np.ndarray:
         """The model's per-frame motion features (T, F) of a clip (stage 1,

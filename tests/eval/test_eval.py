@@ -83,7 +83,7 @@ def test_hrr_eval_report_end_to_end(trained, tmp_path, capsys):
         == 0
     )
     report = json.loads((out / "report.json").read_text())
-    assert report["format_version"] == REPORT_VERSION == 12 and report["dataset"]["sequences"] == ["run_000"]
+    assert report["format_version"] == REPORT_VERSION == 13 and report["dataset"]["sequences"] == ["run_000"]
     assert (
         report["dataset"]["holdouts"] == {"run_000": "clip"} and report["holdouts"] is None
     )  # one hold-out: no table
@@ -103,6 +103,12 @@ def test_hrr_eval_report_end_to_end(trained, tmp_path, capsys):
         assert all(v is not None and math.isfinite(v) for v in m.values()), (name, m)
         assert m["pve_mm"] > 0 and m["rmse_mm"] >= m["pve_mm"] and 0 <= m["penetration_pct"] <= 100
         assert set(entry["sequences"]) == {"run_000"}
+        # the mannequin has no mesh: its capsules are the body the viewer sees, and the figure theirs
+        assert entry["visible_bodies"] == {"capsules": 1} == report["visible_bodies"]
+        assert entry["sequences"]["run_000"]["visible_body"] == "capsules"
+        assert m["inside_visible_pct"] == pytest.approx(m["penetration_5mm_pct"], rel=1e-12, abs=1e-12)
+        assert m["inside_visible_pct"] <= m["inside_visible_worst_pct"]
+        assert 0 <= m["inside_visible_before_pct"] <= m["inside_visible_before_worst_pct"] <= 100
     assert (
         modes["regression"]["metrics"]["retrieval_usage"] == 0
         and modes["retrieval"]["metrics"]["retrieval_usage"] == 1
@@ -130,10 +136,13 @@ def test_hrr_eval_report_end_to_end(trained, tmp_path, capsys):
     )
     md = (out / "report.md").read_text()
     assert "| hybrid |" in md and "## Tau sweep" in md
+    assert md.index("| inside seen before push-out % | inside seen % |") < md.index("| in capsules % |")
+    assert "which are the visible body of a body with no mesh of its own (the mannequin)" in md
     for plot in ("error_over_time.png", "entropy_histogram.png", "tau_curve.png"):
         assert (out / plot).stat().st_size > 1000
     printed = capsys.readouterr().out
     assert "hybrid_vs_regression" in printed and "no ensemble ground truth" in printed
+    assert printed.index("inside seen") < printed.index("in capsules")
     # a real-motion clip whose simulation was rejected is named in report.md, not silently dropped
     from hrr_garment.eval.report import markdown
 
@@ -178,6 +187,12 @@ def test_ensemble_scores_lead_the_report(trained):
         assert e["pve_ensemble_mean_mm"] == pytest.approx(result.metrics["pve_mm"], rel=1e-4)
         assert e["pve_members_mm"] >= e["pve_ensemble_mean_mm"] and e["energy_score_mm"] >= 0
         assert 0 <= e["penetration_before_worst_pct"] <= 100 and e["acceleration_ratio"] > 0
+        # before the push-out, inside the mannequin's visible body (its capsules) as the push-out saw it
+        assert e["inside_visible_before_pct"] == pytest.approx(e["penetration_before_pct"], abs=1e-9)
+        assert e["inside_visible_before_worst_pct"] == pytest.approx(
+            e["penetration_before_worst_pct"], abs=1e-9
+        )
+        assert e["truth_inside_visible_pct"] == pytest.approx(e["truth_penetration_pct"], abs=1e-9)
     report = build_report(
         model={"folder": "m", "garment": "skirt", "hash": "h", "tau": 0.1},
         dataset={"path": "d.h5", "split": "test", "sequences": [record.name], "frames": len(record.garment)},
@@ -462,7 +477,7 @@ def test_library_protocol_in_hrr_eval(artist_model, tmp_path, monkeypatch):
         == 0
     )
     report = json.loads((out / "report.json").read_text())
-    assert report["format_version"] == REPORT_VERSION == 12
+    assert report["format_version"] == REPORT_VERSION == 13
     # the dataset's own frames against the ensemble: a simulation like the members, about 1 x the floor
     own = report["dataset_simulation"]["ensemble"]
     assert 0.5 < own["pve_floor_ratio"] < 2.0 and set(report["dataset_simulation"]["sequences"]) == set(

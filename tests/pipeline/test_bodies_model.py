@@ -271,6 +271,9 @@ def test_hrr_body_info_inside_asks_the_model_how_much_cloth_goes_inside_the_body
     own, short = cloth_inside(animator, check_motion()), cloth_inside(animator, check_motion(), record)
     assert inside["the model's own body"]["inside_pct"] == pytest.approx(own.inside_pct)
     assert inside["body 'short'"]["inside_any_pct"] == pytest.approx(short.inside_any_pct)
+    # a body scaled from the mannequin has no mesh: its capsules are the body the viewer sees
+    assert inside["body 'short'"]["visible_body"] == "capsules" == own.visible_body
+    assert short.inside_visible_pct == pytest.approx(short.inside_pct, rel=1e-12, abs=1e-12)
     assert (
         inside["body 'short'"]["stature_m"] == pytest.approx(record.stature) != pytest.approx(own.stature_m)
     )
@@ -336,6 +339,10 @@ def test_the_unseen_bodies_protocol_sets_the_model_beside_a_specialist(bodies_mo
     assert section["body"] == "mannequin" and section["sequences"] == ["run_000"]
     assert section["model"]["pve_mm"] > 0 and section["specialist"]["pve_mm"] > 0
     assert "## Unseen bodies" in (tmp_path / "report" / "report.md").read_text()
+    assert section["model"]["visible_bodies"] == {"capsules": 1}  # the mannequin's visible body
+    assert section["model"]["inside_visible_before_pct"] == pytest.approx(
+        section["model"]["penetration_before_pct"], abs=1e-9
+    )
     assert (
         main([*common, "--unseen-body", str(data), "-o", str(tmp_path / "again")]) != 0
     )  # tall and short: trained on
