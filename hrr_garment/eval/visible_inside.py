@@ -12,12 +12,14 @@ compare) along the exact distance to the mesh; inside by the winding number
 (:mod:`hrr_garment.body.mesh_inside`: every frame, exact). What the viewer sees of a body
 (:class:`VisibleBody`'s ``kind``):
 
-- ``mesh``: an anny body's skinned mesh (:func:`~hrr_garment.body.skinned_body.visible_body`);
+- ``mesh``: an anny body's skinned mesh, or a fitted character's own, which its body.json carries
+  (:func:`~hrr_garment.body.skinned_body.visible_body`);
 - ``capsules``: a body with no mesh of its own (the mannequin, a body scaled from it): previews draw
   it as its capsules, so they are its visible body and the figure is the capsule figure itself;
-- ``unknown``: a body fitted to a character's mesh (``hrr-body fit``), whose body.json does not carry
-  the mesh, or an anny body without anny installed: the figure is unknown (NaN, null in report.json)
-  and the reports say so beside the capsule figure, never passing that off as the mesh's.
+- ``unknown``: a body fitted to a character's mesh whose body.json does not carry the mesh (written
+  before format 2, or a mesh without skin weights), or an anny body without anny installed: the
+  figure is unknown (NaN, null in report.json) and the reports say so beside the capsule figure,
+  never passing that off as the mesh's.
 """
 
 from __future__ import annotations
@@ -65,12 +67,10 @@ def visible_body_of(record: BodyRecord | None) -> VisibleBody:
     """What a viewer sees of the body ``record`` (None: the mannequin); see the module docstring."""
     if record is None:
         return VisibleBody(CAPSULES, DEFAULT_BODY)
-    if record.shape:
-        mesh = visible_body(record)
-        return (
-            VisibleBody.of_mesh(mesh, record.body) if mesh is not None else VisibleBody(UNKNOWN, record.body)
-        )
-    if record.report is not None:  # fitted to a character's mesh, which body.json does not hold
+    mesh = visible_body(record)
+    if mesh is not None:
+        return VisibleBody.of_mesh(mesh, record.body)
+    if record.shape or record.report is not None:  # anny missing; a character's mesh not in body.json
         return VisibleBody(UNKNOWN, record.body)
     return VisibleBody(CAPSULES, record.body)
 

@@ -1,6 +1,7 @@
 """hrr-eval's headline plausibility figure, the cloth inside the body the viewer sees: exactly the share
 of cloth placed more than 5 mm inside a skinned mesh built by hand; on the mannequin the capsule
-figure itself; unknown, and said to be, where body.json does not carry the character's mesh."""
+figure itself; a character measured against the mesh its body.json carries, and unknown, and said to
+be, where body.json does not carry it."""
 
 import math
 
@@ -92,6 +93,16 @@ def test_on_the_mannequin_the_figure_is_the_capsule_figure(rng):
     assert m["inside_visible_pct"] == 100.0 * capsules.mean()
     assert m["inside_visible_worst_pct"] == 100.0 * capsules.max()
     assert m["inside_visible_before_pct"] == m["inside_visible_pct"]  # no push-out ran: the same cloth
+
+
+def test_a_character_whose_body_file_carries_its_mesh_is_measured_against_that_mesh():
+    from tests.body.test_mesh_record import _mesh
+
+    fitted = BodyRecord(
+        CANONICAL, DEFAULT_BODY, 1.0, 1.7, report=FitReport(15.0, 40.0, 0.3, 0.01), mesh=_mesh()
+    )
+    visible = visible_body_of(fitted)
+    assert visible.kind == MESH and np.array_equal(visible.mesh.faces, fitted.mesh.faces)
 
 
 def test_a_character_whose_mesh_is_not_in_its_body_file_is_unknown_and_said_to_be():
