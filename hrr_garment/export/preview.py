@@ -109,8 +109,8 @@ def render_sequence_preview(
 def sequence_rows(rows: list[tuple], frames: int = 4) -> list:
     """:func:`render_sequence_preview`'s rows of meshes: (label, vertices, faces, motion), and the
     body it was simulated on (a :class:`~hrr_garment.body.body_file.BodyRecord`) as a fifth item
-    where it is not the mannequin: drawn as its own mesh where it has a parametric shape (and the
-    ``bodies`` extra is installed), else as its capsules."""
+    where it is not the mannequin: drawn as its own mesh where it has one (a parametric shape, with
+    the ``bodies`` extra installed; a fitted character's, from its body.json), else as its capsules."""
     from ..body.capsules import DEFAULT_BODY, body_mesh
     from ..body.skinned_body import visible_body
 
@@ -185,7 +185,8 @@ def write_dataset_preview(
 
 def template_meshes(garment, marker: float = 0.015, body=None) -> list[PreviewMesh]:
     """The body (a :class:`~hrr_garment.body.body_file.BodyRecord`; default the mannequin) in its
-    rest pose, as its own mesh where it has a parametric shape, else its capsules; the garment's
+    rest pose, as its own mesh where it has one (an anny body's, a fitted character's), else its
+    capsules; the garment's
     template on it and a small octahedron on every attached vertex: where a fitted garment sits,
     and what follows the body."""
     from ..body.capsules import DEFAULT_BODY, body_mesh
