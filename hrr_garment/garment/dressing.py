@@ -83,9 +83,9 @@ def dress(
     """The body (left and right made exactly alike where they nearly are: its sequences can then be
     mirrored) and ``garment`` (modelled on ``made_for``) carried onto it, then kept its clearance
     off the body the viewer sees (:func:`~.clearance.keep_clearance`): ``visible``, by default the
-    record's own (:func:`~hrr_garment.body.skinned_body.visible_body`: an anny body's mesh, a fitted character's); None, or
-    a body without a mesh (the mannequin, whose capsules are what the viewer sees), keeps the garment
-    where its capsules put it."""
+    record's own (:func:`~hrr_garment.body.skinned_body.visible_body`: an anny body's mesh, a fitted
+    character's); None, or a body without a mesh (the mannequin, whose capsules are what the viewer
+    sees), keeps the garment where its capsules put it."""
     if isinstance(visible, str):  # "auto"
         visible = visible_body(record)
     body = symmetrized(record.body)
