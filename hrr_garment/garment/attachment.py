@@ -14,9 +14,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..body.capsules import DEFAULT_BODY, BodyModel, capsule_signed_distance
+from ..body.mesh_distance import nearest_on_mesh
+from ..body.skinned_body import SkinnedBody
 from ..motion.skeleton import JOINT_INDEX, PARENTS
 from .mesh import GarmentMesh
 
+MAX_SKIN_JOINTS = 4  # joints an attached vertex bound to the skin follows (a glTF skin's own limit)
 TORSO_JOINTS: tuple[str, ...] = ("pelvis", "spine1", "spine2", "spine3", "neck", "l_collar", "r_collar")
 
 
@@ -65,3 +68,21 @@ def bind_attached(
     w /= w.sum(1, keepdims=True)
     offsets = verts[:, None, :] - joints_rest[nearest]
     return SkinBinding(mesh.attached.copy(), nearest.astype(np.int64), w.astype(np.float64), offsets)
+
+
+def bind_attached_to_skin(mesh: GarmentMesh, skin: SkinnedBody, body: BodyModel) -> SkinBinding:
+    """Skin the mesh's attached vertices (rest pose) as the skin nearest to each is skinned: the
+    weights of ``skin`` at its nearest point in ``body``'s rest pose, so that a strap or a waistband
+    rides the body the viewer sees (a strap bound to the torso's capsules alone sank into the shoulder's
+    skin, which follows the arm)."""
+    from .visible_surface import rest_mesh
+
+    verts = mesh.vertices[mesh.attached].astype(np.float64)
+    _, face, bary = nearest_on_mesh(verts, rest_mesh(skin, body), skin.faces)
+    weights = np.einsum("ak,akj->aj", bary, skin.weights[skin.faces[face]])  # (A, J)
+    order = np.argsort(-weights, axis=1)[:, :MAX_SKIN_JOINTS]
+    kept = np.take_along_axis(weights, order, 1)
+    offsets = verts[:, None, :] - body.rest_joints()[order]
+    return SkinBinding(
+        mesh.attached.copy(), order.astype(np.int64), kept / kept.sum(1, keepdims=True), offsets
+    )

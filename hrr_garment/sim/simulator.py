@@ -33,13 +33,11 @@ from ..body.mesh_collider import SkinnedPieces
 from ..body.retarget import played_by
 from ..body.self_contact import LOWER_ARM, self_intersecting_frames
 from ..errors import HRRError
-from ..garment.attachment import TORSO_JOINTS, bind_attached
+from ..garment.attachment import bind_attached, bind_attached_to_skin
 from ..garment.mesh import GarmentMesh
 from ..motion.motion import Motion
-from ..motion.skeleton import JOINT_INDEX
 from .config import SimSettings  # defined in .config (the scene needs it too); importable from here as before
 from .lead_in import start_transform, with_lead_in
-from .mesh_queries import clear_of_mesh
 from .scene import ClothScene, arms_off_capsules, capsule_transforms
 
 # after an episode the arms come back on once at most this fraction of the cloth is inside them:
@@ -63,13 +61,6 @@ class SimResult:
     simulated_frames: int  # lead-in included
     step_seconds: float = 0.0  # time spent stepping the solver (steady-state cost)
     arms_off_frames: int = 0  # clip frames on which the arms did not touch the cloth (the last retries)
-
-
-def torso_faces(skin) -> np.ndarray:
-    """The faces of a skinned mesh whose vertices all follow mostly the torso's joints (those the
-    pinned vertices are bound to)."""
-    torso = np.isin(skin.weights.argmax(1), [JOINT_INDEX[name] for name in TORSO_JOINTS])
-    return skin.faces[torso[skin.faces].all(1)]
 
 
 class ClipRun:
@@ -116,16 +107,14 @@ class ClipRun:
         # (T, N, 3) every skinned piece's vertices in its capsule's frame, frame by frame
         self.piece_local = None if collider is None else collider.local_frames(extended, centre, quat)
         self.collider = collider
-        binding = bind_attached(garment, body)
+        # on the body the viewer sees, the pins ride its skin (the torso's capsules alone left a strap
+        # inside the shoulder's skin, which follows the arm)
+        binding = (
+            bind_attached(garment, body)
+            if collider is None
+            else bind_attached_to_skin(garment, collider.skin, body)
+        )
         self.pins = binding.pose(extended.global_rotations.astype(np.float64), extended.joint_positions)
-        if collider is not None:
-            # the pins follow torso joints only (:mod:`~hrr_garment.garment.attachment`), and the skin
-            # under a strap also follows the arm: kept a particle's radius out of the torso's skin, as
-            # the contact keeps the free cloth (out of the arms' too, a lowered arm shoved the straps
-            # along and tore the dress in the lead-in on three of four anny bodies)
-            skin = collider.skin
-            posed = skin.pose(extended.global_rotations, extended.joint_positions)
-            self.pins = clear_of_mesh(self.pins, posed, torso_faces(skin), clearance=config.particle_radius)
         self.arms = arms_off_capsules(body)
         self.arm_a, self.arm_b = (ends[:, self.arms] for ends in body.pose_motion(extended))
         self.edges = garment.edges()
