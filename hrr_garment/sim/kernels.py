@@ -17,33 +17,19 @@ def scatter_positions(
 
 @wp.kernel
 def mesh_signed_distance(
-    mesh: wp.uint64,
-    points: wp.array(dtype=wp.vec3),
-    max_dist: float,
-    distance: wp.array(dtype=float),
-    outward: wp.array(dtype=wp.vec3),
+    mesh: wp.uint64, points: wp.array(dtype=wp.vec3), max_dist: float, distance: wp.array(dtype=float)
 ):
     """Each point's distance from the mesh's surface, negative inside it by the (fast) generalised
-    winding number, which holds on a posed mesh's cracks and overlaps, and the unit direction out of
-    the mesh at its nearest point (from that point to the point, turned where the point is inside;
-    the face's normal where the point is on the surface). ``max_dist`` and a zero direction where
-    no face lies nearer than that (the sign is then unknown and taken as outside)."""
+    winding number, which holds on a posed mesh's cracks and overlaps; ``max_dist`` where no face
+    lies nearer than that (the sign is then unknown and taken as outside)."""
     i = wp.tid()
     inside = float(0.0)
     face = int(0)
     u = float(0.0)
     v = float(0.0)
     d = max_dist
-    n = wp.vec3(0.0, 0.0, 0.0)
     if wp.mesh_query_point_sign_winding_number(mesh, points[i], max_dist, inside, face, u, v):
-        delta = points[i] - wp.mesh_eval_position(mesh, face, u, v)
-        d = wp.length(delta)
-        n = wp.mesh_eval_face_normal(mesh, face)
-        if d > 1.0e-6:
-            n = delta / d
-            if inside < 0.0:
-                n = -n
+        d = wp.length(points[i] - wp.mesh_eval_position(mesh, face, u, v))
         if inside < 0.0:
             d = -d
     distance[i] = d
-    outward[i] = n

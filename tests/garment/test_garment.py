@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from hrr_garment.body.capsules import capsule_signed_distance
+from hrr_garment.body.capsules import DEFAULT_BODY, capsule_signed_distance
 from hrr_garment.garment.attachment import bind_attached
 from hrr_garment.garment.body_surface import rest_body
 from hrr_garment.garment.mesh import (
@@ -193,3 +193,30 @@ def test_dress_straps_pass_over_the_shoulders_not_the_head(vertices):
     a, b = DEFAULT_BODY.rest_pose()
     neck = [i for i, c in enumerate(DEFAULT_BODY.capsules) if c.joint == "neck"][0]
     assert dress.vertices[dress.groups["straps"], 1].max() < min(a[neck, 1], b[neck, 1]) + 0.05
+
+
+def test_attached_vertices_bound_to_the_skin_ride_it():
+    """On the body the viewer sees, a strap rides the skin nearest to it: at rest it is where it was
+    modelled, under a rigid move of the body it moves rigidly, and it follows the joints of its
+    nearest skin with that skin's weights (the simulator's study measures it against posed meshes)."""
+    from hrr_garment.body.mesh_distance import nearest_on_mesh
+    from hrr_garment.garment.attachment import bind_attached_to_skin
+    from hrr_garment.motion.rotations import axis_angle_to_matrix
+    from tests.body.test_skinned_body import _mannequin
+
+    mesh, skin = make_garment("dress", 600), _mannequin()
+    binding = bind_attached_to_skin(mesh, skin, DEFAULT_BODY)
+    assert np.allclose(binding.weights.sum(1), 1.0) and binding.joints.shape[1] <= 4
+    rest = DEFAULT_BODY.rest_joints()[None]
+    assert np.allclose(
+        binding.pose(np.broadcast_to(np.eye(3), (1, 22, 3, 3)), rest)[0], mesh.vertices[mesh.attached]
+    )
+    walk = synthesize("walk", 0.5, seed=3)
+    turn, shift = axis_angle_to_matrix(np.array([0.0, 0.7, 0.0])), np.array([1.0, 0.0, -2.0])
+    moved = binding.pose(turn @ walk.global_rotations, walk.joint_positions @ turn.T + shift)
+    assert np.allclose(moved, binding.pose(walk.global_rotations, walk.joint_positions) @ turn.T + shift)
+    # each pin follows the joints of the skin nearest to it, with that skin's weights
+    _, face, bary = nearest_on_mesh(mesh.vertices[mesh.attached], skin.vertices, skin.faces)
+    nearest = np.einsum("ak,akj->aj", bary, skin.weights[skin.faces[face]])
+    kept = np.take_along_axis(nearest, binding.joints, 1)
+    assert np.allclose(binding.weights, kept / kept.sum(1, keepdims=True))

@@ -75,9 +75,9 @@ def newton_installed():
     pytest.importorskip("newton", reason="the sim extra is not installed")
 
 
-def test_distances_from_a_posed_mesh_are_exact_and_points_are_moved_out_to_the_clearance(newton_installed):
+def test_distances_from_a_posed_mesh_are_exact(newton_installed):
     from hrr_garment.body.mesh_distance import mesh_signed_distance
-    from hrr_garment.sim.mesh_queries import clear_of_mesh, mesh_signed_distances
+    from hrr_garment.sim.mesh_queries import mesh_signed_distances
 
     skin = _leg()
     run = synthesize("run", 0.6, seed=2)
@@ -87,12 +87,6 @@ def test_distances_from_a_posed_mesh_are_exact_and_points_are_moved_out_to_the_c
     got = mesh_signed_distances(points, posed, skin.faces)
     exact = np.stack([mesh_signed_distance(p, v, skin.faces) for p, v in zip(points, posed)])
     assert np.abs(got - exact).max() < 1e-5 and ((got < 0) == (exact < 0)).all() and (exact < 0).mean() > 0.2
-    moved = clear_of_mesh(points, posed, skin.faces, 0.006)
-    after = np.stack([mesh_signed_distance(p, v, skin.faces) for p, v in zip(moved, posed)])
-    near = exact < 0.006
-    # out to the clearance along the surface's normal: exact on a flat face, more near an edge
-    assert after[near].min() > 0.006 - 1e-5 and np.median(np.abs(after[near] - 0.006)) < 1e-5
-    assert np.array_equal(moved[~near], points[~near])
 
 
 def test_a_heavier_skirt_stays_outside_thighs_that_bulge_out_of_their_capsules(newton_installed):
