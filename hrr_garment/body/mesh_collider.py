@@ -8,10 +8,11 @@ Each face of the skinned mesh (:mod:`.skinned_body`) goes to the capsule nearest
 the pieces partition the mesh: no two overlap, and since every vertex is where skinning puts it,
 neighbouring pieces meet along their shared edges in every pose. (Rigid pieces, each vertex riding
 one bone, overlap on the inside of a bent joint and tore the cloth caught there: 3 of 8 clips in
-docs/bodies.md.) The simulator moves each piece's capsule body every substep, as it moves the
-capsules; the piece's vertices, in that body's frame (:func:`hrr_garment.sim.scene.capsule_transforms`:
-the capsule's centre, +Z along its axis), are written once a frame, and what skinning adds to the
-bone's rigid motion during the frame is the mesh's own velocity, which the contact's friction reads.
+decision 0039.) The simulator moves each piece's capsule body every substep, as it moves the
+capsules; the piece's vertices, in that body's frame (the capsule's centre, +Z along its axis:
+:func:`hrr_garment.sim.capsule_poses.capsule_transforms`), are written once a frame, and what
+skinning adds to the bone's rigid motion during the frame is the mesh's own velocity, which the
+contact's friction reads.
 """
 
 from __future__ import annotations

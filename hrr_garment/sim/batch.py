@@ -32,15 +32,9 @@ from ..body.mesh_collider import SkinnedPieces
 from ..body.retarget import played_by
 from ..garment.mesh import GarmentMesh
 from ..motion.motion import Motion
+from .capsule_poses import arms_off_capsules
 from .config import SimSettings
-from .scene import (
-    SteppedScene,
-    add_ground,
-    arms_off_capsules,
-    import_newton,
-    instance_builder,
-    resolve_device,
-)
+from .scene import SteppedScene, add_ground, import_newton, instance_builder, resolve_device
 from .simulator import ClipRun, SimResult, SimulationExploded, simulate_garment
 
 

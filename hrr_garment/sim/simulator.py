@@ -36,9 +36,10 @@ from ..errors import HRRError
 from ..garment.attachment import bind_attached, bind_attached_to_skin
 from ..garment.mesh import GarmentMesh
 from ..motion.motion import Motion
+from .capsule_poses import arms_off_capsules, capsule_transforms
 from .config import SimSettings  # defined in .config (the scene needs it too); importable from here as before
 from .lead_in import start_transform, with_lead_in
-from .scene import ClothScene, arms_off_capsules, capsule_transforms
+from .scene import ClothScene
 
 # after an episode the arms come back on once at most this fraction of the cloth is inside them:
 # first 0.5 % (CMU 131_01 then 0.07 % outside flagged frames, where waiting for none left the

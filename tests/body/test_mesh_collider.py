@@ -13,7 +13,7 @@ from .test_skinned_body import _mannequin
 
 
 def test_the_pieces_partition_the_mesh_and_placed_by_their_capsules_are_the_skinned_mesh():
-    from hrr_garment.sim.scene import capsule_transforms
+    from hrr_garment.sim.capsule_poses import capsule_transforms
 
     skin = _mannequin()
     collider = skinned_pieces(DEFAULT_BODY, skin)

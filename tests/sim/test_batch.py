@@ -120,7 +120,7 @@ def test_a_cloth_never_touches_another_worlds_capsules(newton_installed):
     the fuller body of world 0, yet touches only its own body and the ground, and moves as it does
     alone. Arms-off is per instance."""
     from hrr_garment.sim.batch import BatchScene, step_batch
-    from hrr_garment.sim.scene import arms_off_capsules
+    from hrr_garment.sim.capsule_poses import arms_off_capsules
     from hrr_garment.sim.simulator import ClipRun, simulate_garment
 
     garment = make_garment("skirt", 200)

@@ -119,7 +119,8 @@ def test_limbs_through_the_body_get_last_tries_with_the_arms_off_the_cloth(simul
     simulate_garment, SimSettings = simulator
     from hrr_garment.body.capsules import DEFAULT_BODY
     from hrr_garment.body.self_contact import self_intersecting_frames
-    from hrr_garment.sim.scene import ARMS_OFF_CAPSULES, ClothScene, capsule_transforms
+    from hrr_garment.sim.capsule_poses import ARMS_OFF_CAPSULES, capsule_transforms
+    from hrr_garment.sim.scene import ClothScene
     from hrr_garment.sim.simulator import SimulationExploded
 
     garment = make_garment("skirt", 200)
