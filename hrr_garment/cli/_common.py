@@ -10,7 +10,7 @@ from typing import Callable, Sequence
 
 from ..artifacts.manifest import DETAIL_BASES, MAX_DETAIL_STRENGTH
 from ..errors import HRRError, InputError
-from ..inference.run_settings import DECODERS, PUSHES, DetailLook, RunSettings
+from ..inference.run_settings import DECODERS, PUSH_BODIES, PUSHES, DetailLook, RunSettings
 
 EXIT_ERROR = 2
 
@@ -52,6 +52,14 @@ def add_push_option(p: argparse.ArgumentParser) -> None:
         help="the collision push-out: mesh (each vertex to the nearest surface; default) or subspace (first "
         "the whole garment along the fast decoder's components: fewer tears, about 2.5 x the push-out's "
         "cost; where the model has a fast decoder)",
+    )
+    p.add_argument(
+        "--push-body",
+        choices=PUSH_BODIES,
+        default=None,
+        help="what the push-out pushes the cloth out of: visible (the mesh the viewer sees, where the body "
+        "has one: an anny body's, a character's own; default, but capsules with --push subspace) or "
+        "capsules (the collision capsules: cheaper, but skin shows through where the mesh lies outside)",
     )
 
 
@@ -104,12 +112,17 @@ def run_settings_of(args: argparse.Namespace, prog: str, **fields) -> RunSetting
             decoder=getattr(args, "decoder", None),
             swing=getattr(args, "swing", None),
             push=getattr(args, "push", None),
+            push_body=getattr(args, "push_body", None),
             **fields,
         )
     except (TypeError, ValueError) as exc:
         message = str(exc)
         flag = next(
-            (f"--{name}" for name in ("tau", "gate", "mode", "swing") if message.startswith(name)),
+            (
+                f"--{name.replace('_', '-')}"
+                for name in ("tau", "gate", "mode", "swing", "push_body")
+                if message.startswith(name)
+            ),
             "the run settings",
         )
         raise InputError(flag, message) from None

@@ -24,6 +24,7 @@ from __future__ import annotations
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -38,6 +39,9 @@ from ..garment.dressing import DressedBody, dress
 from ..motion.motion import Motion
 from ..motion.skeleton import REST_PELVIS_HEIGHT
 from .collision import PosedCapsules
+
+if TYPE_CHECKING:
+    from .visible_push import VisibleCollider
 
 CHARACTER_SUFFIXES = (".glb", ".gltf")
 
@@ -66,6 +70,24 @@ class CharacterBody:
     @property
     def name(self) -> str:
         return self.dressed.name
+
+    def visible_collider(self) -> "VisibleCollider | None":
+        """The mesh the viewer sees as the push-out measures it (built once a body in a process), or
+        None where the body has none (the mannequin's is its capsules)."""
+        from .visible_push import visible_collider
+
+        skin = self.dressed.visible
+        return None if skin is None else visible_collider(self.body, skin)
+
+    def push_body(self, motion: Motion, visible: bool):
+        """What the push-out takes for ``motion`` on this body: its visible mesh posed
+        (:class:`~.visible_push.PosedSkin`) where ``visible`` and it has one, else its capsules."""
+        collider = self.visible_collider() if visible else None
+        if collider is None:
+            return self.body
+        from .visible_push import PosedSkin
+
+        return PosedSkin.of(collider, motion)
 
     def play(self, motion: Motion) -> Motion:
         """``motion`` on this body: a clip on the canonical skeleton is played by the body (its bone
@@ -147,13 +169,16 @@ class CrowdBodies:
     skeletons: np.ndarray | None = None  # (N, 22, 3) each character's skeleton offsets
     root_scale: np.ndarray | None = None  # (N,) each body's pelvis height over the mannequin's
     ends: tuple | None = None  # each character's capsules: joints (C,), local a and b (N, C, 3), radii (N, C)
+    characters: tuple = ()  # the distinct bodies (CharacterBody) and which each character has
+    which: np.ndarray | None = None  # (N,) int64, or None: every character the one body
 
     @classmethod
     def of_one(cls, body) -> "CrowdBodies":
-        return cls(body.vector, body.offset, body=body.body)
+        return cls(body.vector, body.offset, body=body.body, characters=(body,))
 
     @classmethod
     def of_many(cls, bodies: list) -> "CrowdBodies":
+        distinct = {id(b): b for b in bodies}  # by identity: a body's arrays make it unhashable
         each = [b.body.ends for b in bodies]
         joints = each[0][0]
         if any(not np.array_equal(e[0], joints) for e in each):
@@ -172,6 +197,8 @@ class CrowdBodies:
             skeletons=np.stack([b.record.skeleton.offsets for b in bodies]),
             root_scale=np.array([b.record.pelvis_height / REST_PELVIS_HEIGHT for b in bodies]),
             ends=ends,
+            characters=tuple(distinct.values()),
+            which=np.array([list(distinct).index(id(b)) for b in bodies], np.int64),
         )
 
     def stand(self, local: np.ndarray) -> np.ndarray:
@@ -179,6 +206,18 @@ class CrowdBodies:
         On the mannequin the offset is zero but for rounding (1e-17 m, below float32's resolution
         at a garment's coordinates): nothing is added, which saves a 3 MB copy of a 64-character frame."""
         return local + self.offset if np.abs(self.offset).max(initial=0.0) > NEGLIGIBLE_OFFSET_M else local
+
+    def push_body(self, poses: Motion, visible: bool):
+        """What the push-out takes: with ``visible``, each character's visible mesh posed by its pose
+        (:class:`~.visible_push.PosedSkin`) where every body of the crowd has one; else
+        :meth:`capsules`."""
+        colliders = [c.visible_collider() for c in self.characters] if visible else [None]
+        if any(c is None for c in colliders):  # the mannequin among them: its capsules are its mesh
+            return self.capsules(poses)
+        from .visible_push import PosedSkin
+
+        which = np.zeros(len(poses.global_rotations), np.int64) if self.which is None else self.which
+        return PosedSkin.of_frames(tuple(colliders), which, poses)
 
     def capsules(self, poses: Motion):
         """What the push-out takes: the one body, or each character's capsules posed by its pose."""

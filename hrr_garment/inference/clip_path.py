@@ -134,7 +134,10 @@ def animate_clip(path: FramePath, motion: Motion) -> Animation:
     path.seen("folds", local)
     character, bundle = path.run.body, path.bundle
     vertices = path.world(local + character.offset, motion)  # stood on the body's own rest shape
-    vertices, report = path.push_out(vertices, motion, character.body)
+    push_body = (
+        character.push_body(motion, visible=path.run.push_body == "visible") if path.run.push_out else None
+    )
+    vertices, report = path.push_out(vertices, motion, push_body)
     return Animation(
         vertices=vertices,
         faces=bundle.template.faces,

@@ -34,6 +34,7 @@ from .strain_limit import MAX_PUSH_STRAIN, limit_push_strain, native_strain_limi
 
 if TYPE_CHECKING:
     from .subspace_push import SubspacePush
+    from .visible_push import PosedSkin
 
 STRETCH_SLACK = 0.1  # (PushOutSettings.stretch_slack)
 
@@ -90,7 +91,7 @@ def push_out(
     motion: Motion,
     faces: np.ndarray,
     *,
-    body: BodyModel | PosedCapsules = DEFAULT_BODY,
+    body: "BodyModel | PosedCapsules | PosedSkin" = DEFAULT_BODY,
     settings: PushOutSettings | None = None,
     mean: csr_matrix | None = None,
     limits: EdgeLimits | None = None,
@@ -104,7 +105,9 @@ def push_out(
     (:func:`~.strain_limit.limit_push_strain`). Without ``report`` (a stream, which discards it) the
     report is None, and the frames the limit moved are not measured again (a quarter of a crowd's
     push-out).
-    ``body``: the body's capsules, posed by ``motion``, or :class:`PosedCapsules`. With
+    ``body``: the body's capsules, posed by ``motion``, or :class:`PosedCapsules`, or the mesh the
+    viewer sees (:class:`~.visible_push.PosedSkin`: the fractions are then of the vertices inside
+    it, and there is no subspace push). With
     ``settings.subspace`` (:class:`~.subspace_push.SubspacePush`) each frame is first moved in the
     garment's subspace, and the limit measures the push against the moved frame; the report's
     "before" is the cloth as it came."""
@@ -118,9 +121,26 @@ def push_out(
         settings.depth,
         settings.chunk,
     )
-    posed = body if isinstance(body, PosedCapsules) else PosedCapsules(*body.pose_motion(motion), body.radii)
+    from .visible_push import PosedSkin
+
+    skin = body if isinstance(body, PosedSkin) else None
+    if skin is not None and settings.subspace is not None:
+        raise ValueError("the subspace push measures capsules: push out of the visible mesh without it")
+    if skin is not None:
+        posed = skin.hulls
+    else:
+        posed = (
+            body if isinstance(body, PosedCapsules) else PosedCapsules(*body.pose_motion(motion), body.radii)
+        )
     a, b, radii = posed.a, posed.b, posed.radii
     framed = (lambda rows: radii[rows]) if np.ndim(radii) == 2 else (lambda rows: radii)  # noqa: E731
+
+    def measure(points: np.ndarray, rows) -> tuple[np.ndarray, np.ndarray]:
+        """Signed distances and normals of the frames ``rows`` (a slice) of the push-out."""
+        if skin is not None:
+            return skin.distance(points, rows, margin)
+        return frames_signed_distance(points, a[rows], b[rows], radii=framed(rows))
+
     mean = mean_operator(faces, vertices.shape[1]) if mean is None else mean
     before, after = np.zeros(len(vertices)), np.zeros(len(vertices))
     from ..native import default_threads, load_kernel
@@ -146,6 +166,7 @@ def push_out(
             else native_strain_limit(limits, settings.max_strain, settings.stretch_slack),
             subspace=None if settings.subspace is None else settings.subspace.native,
         )
+        skins = None if skin is None else skin.native()
         for start in range(0, len(out), chunk):
             sl = slice(start, start + chunk)
             _, before[sl], after[sl], torn[sl] = push_out_frames(
@@ -154,6 +175,7 @@ def push_out(
                 (a[sl], b[sl], framed(sl)),
                 steps=steps,
                 turn=None if turn is None else turn[sl],
+                skin=None if skins is None else skins.address(start),
                 threads=default_threads(),
                 out=out[sl],
             )
@@ -164,7 +186,7 @@ def push_out(
         for start in range(0, len(out), chunk):
             sl = slice(start, start + chunk)
             out[sl], before[sl], after[sl] = _push_frames(
-                vertices[sl].astype(np.float64), (a[sl], b[sl], framed(sl)), mean, settings, limits
+                vertices[sl].astype(np.float64), lambda p, rows=sl: measure(p, rows), mean, settings, limits
             )
         if limits is not None:
             out, torn = limit_push_strain(
@@ -176,15 +198,12 @@ def push_out(
                 slack=settings.stretch_slack,
             )
     if report and settings.subspace is not None:  # "before": as decoded, not after the subspace push
-        before = (
-            frames_signed_distance(np.asarray(original, np.float64), a, b, radii=radii)[0] < -depth
-        ).mean(1)
+        before = (measure(np.asarray(original, np.float64), slice(None))[0] < -depth).mean(1)
     if limits is not None and report and torn.any():  # only the frames the limit moved have a new "after"
-        inside = (
-            frames_signed_distance(out[torn].astype(np.float64), a[torn], b[torn], radii=framed(torn))[0]
-            < -depth
-        )
-        after[torn] = inside.mean(1)
+        rows = np.flatnonzero(torn)
+        after[rows] = [
+            (measure(out[t : t + 1].astype(np.float64), slice(t, t + 1))[0] < -depth).mean() for t in rows
+        ]
     if not report:
         return out, None
     return out, PushOutReport(
@@ -219,18 +238,23 @@ def follow_pushes(
 
 def _push_frames(
     p: np.ndarray,
-    capsules: tuple[np.ndarray, np.ndarray, np.ndarray],
+    body,
     mean: csr_matrix,
     settings: PushOutSettings,
     limits: EdgeLimits | None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The reference (and the path without a C compiler): whole-mesh arrays, frames at once;
-    ``capsules``: the frames' capsule ends a, b (T, C, 3) and the radii (C,); ``limits`` for the
+    ``body``: the frames' capsule ends a, b (T, C, 3) and the radii (C,), or a function of the
+    frames' points (T, V, 3) giving their signed distances and normals; ``limits`` for the
     neighbour-follow (None: no follow)."""
-    a, b, radii = capsules
+    if callable(body):
+        distance = body
+    else:
+        a, b, radii = body
+        distance = lambda q: frames_signed_distance(q, a, b, radii=radii)  # noqa: E731
     margin, smooth, rounds, depth = settings.margin, settings.smooth, settings.rounds, settings.depth
     t, v = p.shape[:2]
-    d, n = frames_signed_distance(p, a, b, radii=radii)
+    d, n = distance(p)
     before = (d < -depth).mean(1)
     for _ in range(rounds):
         need = np.maximum(margin - d, 0.0)  # how far along the normal each vertex must move
@@ -245,11 +269,11 @@ def _push_frames(
             short = np.where(hit, np.maximum(need - (disp * n).sum(-1), 0.0), 0.0)
             disp += short[..., None] * n
         p = p + disp
-        d, n = frames_signed_distance(p, a, b, radii=radii)
+        d, n = distance(p)
     for _ in range(4):  # exact projection; repeated where a push lands in another capsule
         inside = d < 0
         if not inside.any():
             break
         p = p + np.where(inside, margin - d, 0.0)[..., None] * n
-        d, n = frames_signed_distance(p, a, b, radii=radii)
+        d, n = distance(p)
     return p.astype(np.float32), before, (d < -depth).mean(1)

@@ -142,8 +142,9 @@ class FramePath:
     def push_out(
         self, vertices: np.ndarray, motion: Motion, capsules, report: bool = True
     ) -> tuple[np.ndarray, PushOutReport | None]:
-        """World vertices (n, V, 3) pushed out of the body's ``capsules`` (a BodyModel posed by
-        ``motion``, or :class:`~.collision.PosedCapsules`) where the run asks for it; the report
+        """World vertices (n, V, 3) pushed out of the body ``capsules`` (a BodyModel posed by
+        ``motion``, :class:`~.collision.PosedCapsules`, or the mesh the viewer sees,
+        :class:`~.visible_push.PosedSkin`) where the run asks for it; the report
         where ``report`` and the push-out ran."""
         out = None
         if self.run.push_out:

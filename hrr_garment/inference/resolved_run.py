@@ -29,6 +29,8 @@ class ResolvedRun:
     decoder: str  # "full" or "fast"
     swing: float  # the gain on the free cloth's swing (inference/swing.py), 1: as predicted
     push: str  # "mesh" or "subspace" (the push in the garment's subspace first)
+    # "visible" (the mesh the viewer sees, where the body has one; else its capsules) or "capsules"
+    push_body: str
     body: CharacterBody = field(hash=False)  # the body animated on, ready for the model
     exclude_sequence: int | None  # the database sequence retrieval may not use, or None
     precision: str  # the full mesh decoder's arithmetic ("float32" or "bfloat16")
@@ -51,6 +53,7 @@ class ResolvedRun:
             "decoder": self.decoder,
             "swing": self.swing,
             "push": self.push,
+            "push_body": self.push_body,
         }
         if self.detail is not None:
             out.update(detail_base=self.detail.base, detail_strength=self.detail.strength)

@@ -50,6 +50,8 @@ PUSHES = (
     "subspace",
 )  # the collision push-out alone, or after the push in the garment's subspace (subspace_push.py)
 
+PUSH_BODIES = ("visible", "capsules")  # what the push-out pushes out of (RunSettings.push_body)
+
 #: keyword arguments of the API before the settings objects, and what replaced them
 RENAMED = {"detail_base": "detail=DetailLook(base=...)", "detail_strength": "detail=DetailLook(strength=...)"}
 #: old names of settings, still taken as keywords: old name -> the field
@@ -142,6 +144,11 @@ class RunSettings:
     # components, then the mesh push: fewer tears, about 2.5 x the push-out's cost; where the bundle
     # has a fast decoder; docs/decisions/0032). None: mesh
     push: str | None = None
+    # what the push-out pushes the cloth out of: "visible" (the mesh the viewer sees, where the body
+    # has one: an anny body's, a character's own; the mannequin's is its capsules) or "capsules"
+    # (the 20 collision capsules: cheaper, but skin shows through where the mesh lies outside them).
+    # None: visible, but capsules with the subspace push (which measures capsules)
+    push_body: str | None = None
     # the hem's swing restored on free cloth (inference/swing.py): the gain on the latents' departure
     # from their recent course, 1: as predicted. None: the model's calibrated gain in the mode auto
     # picks, 1 in a mode named
@@ -181,6 +188,10 @@ class RunSettings:
             raise ValueError(f"decoder must be one of {', '.join(DECODERS)}, got {self.decoder!r}")
         if self.push is not None and self.push not in PUSHES:
             raise ValueError(f"push must be one of {', '.join(PUSHES)}, got {self.push!r}")
+        if self.push_body is not None and self.push_body not in PUSH_BODIES:
+            raise ValueError(f"push_body must be one of {', '.join(PUSH_BODIES)}, got {self.push_body!r}")
+        if self.push_body == "visible" and self.push == "subspace":
+            raise ValueError("the subspace push measures capsules: ask for push_body='capsules' with it")
         if not isinstance(self.detail, DetailLook):
             raise TypeError(f"detail must be a DetailLook, got {type(self.detail).__name__}")
         if self.precision is not None and self.precision not in PRECISIONS:
@@ -258,6 +269,7 @@ class RunSettings:
         push = self.push or PUSHES[0]
         if push == "subspace":
             bundle.require_subspace("the subspace push")
+        push_body = self.push_body or ("capsules" if push == "subspace" else PUSH_BODIES[0])
         swing = self.swing if self.swing is not None else bundle.swing_gain if calibrated else 1.0
         return ResolvedRun(
             mode=mode,
@@ -269,6 +281,7 @@ class RunSettings:
             decoder=decoder,
             swing=swing,
             push=push,
+            push_body=push_body,
             body=body,
             exclude_sequence=database_sequence(bundle, self.exclude_sequence),
             precision=self.precision or PRECISIONS[0],

@@ -280,8 +280,10 @@ class CrowdStream:
         vertices = path.world(bodies.stand(local), poses)
         t.append(time.perf_counter())
         # 9. push-out
-        capsules = bodies.capsules(poses) if self.run.push_out else None
-        vertices, _ = path.push_out(vertices, poses, capsules, report=False)
+        push_body = (
+            bodies.push_body(poses, visible=self.run.push_body == "visible") if self.run.push_out else None
+        )
+        vertices, _ = path.push_out(vertices, poses, push_body, report=False)
         t.append(time.perf_counter())
         for i, c in enumerate(chars):
             c.previous = (poses.global_rotations[i], poses.joint_positions[i])

@@ -183,6 +183,7 @@ def push_out_frames(
     steps: PushSteps,
     *,
     turn: np.ndarray | None = None,
+    skin: int | None = None,
     threads: int = 1,
     out: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -197,8 +198,13 @@ def push_out_frames(
     frames would, measuring only the edges of the vertices the push moved); ``after`` is the push's,
     before the limit. Frames in parallel; a single frame (streaming) shared by the threads. ``out``:
     a C-contiguous float32 array of the points' shape the pushed points are written to (and
-    returned)."""
+    returned). ``skin``: the address of T :class:`~.skin.SkinPose` structs (:class:`~.skin.PosedSkins`),
+    when the body is the skin the viewer sees; ``capsules`` then are its hulls
+    (:mod:`hrr_garment.body.skin_hull`), and the points within the margin of one are measured against
+    the skin."""
     mean, *_, mesh, limit, subspace = steps
+    if skin is not None and subspace is not None:
+        raise ValueError("the subspace push measures capsules: it does not take the skin")
     a, b, r = capsule_arrays(*capsules)
     p = np.ascontiguousarray(points, np.float64 if np.asarray(points).dtype == np.float64 else np.float32)
     if out is None:
@@ -240,6 +246,7 @@ def push_out_frames(
         None if strain_args is None else ctypes.byref(strain_args),
         None if subspace is None else ctypes.byref(subspace.struct),
         None if subspace is None else turn.ctypes.data,
+        skin,
         threads,
         before.ctypes.data,
         after.ctypes.data,

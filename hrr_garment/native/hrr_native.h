@@ -1,7 +1,8 @@
 /* hrr_native.h: what the five C sources of hrr_garment/native/ share. They are compiled together
    as one translation unit (kernels.c, amx_block.c, window_codes.c, features.c, skin_sdf.c, in that order; see
    hrr_garment/native/__init__.py), so helpers stay static and inline across files; this header
-   declares the ones defined in kernels.c that amx_block.c and window_codes.c use, instead of
+   declares the ones defined in kernels.c that amx_block.c and window_codes.c use (and the skin
+   collider of skin_sdf.c, which the push-out of kernels.c uses), instead of
    relying on the order of concatenation. Include guard: every source includes it. */
 
 #ifndef HRR_NATIVE_H
@@ -52,5 +53,42 @@ enum { PANEL = 64 };
 typedef void (*tile_fn)(const float *restrict, int, const float *restrict, const float *restrict, float *restrict,
                         int, int);
 static const tile_fn TILES[2][4];
+
+/* The skin collider's grid (skin_sdf.c; hrr_garment/native/skin.py builds it) and one frame of it
+   posed, as the push-out of kernels.c reads it: the joints' moves and the mesh skinned with its
+   vertex normals (hrr_skin_pose). */
+#define SKIN_MAX_STARTS 8
+#define SKIN_TOP 4 /* skin weights per node (TOP_JOINTS) */
+
+/* one node of the rest grid, in one cache line's half: a point's 22 rigid guesses and its fixed-point
+   steps read nodes all over the grid (3.5 MB for an anny body), so each read is one line, not three */
+typedef struct {
+    float distance;            /* the rest mesh's signed distance */
+    float weights[SKIN_TOP];   /* the nearest skin's four largest weights */
+    uint8_t joints[SKIN_TOP];  /* and their joints */
+    int32_t pad[2];
+} SkinNode;
+
+typedef struct {
+    const SkinNode *nodes;     /* x-major */
+    const int32_t *face_start; /* (nodes + 1,) */
+    const int32_t *face_list;
+    const int32_t *faces;         /* (F, 3) */
+    const double *rest;           /* (V, 3) the rest mesh */
+    const int32_t *vertex_joints; /* (V, vertex_k) each vertex's joints, padded with weight 0 */
+    const double *vertex_weights; /* (V, vertex_k) */
+    int shape[3], V, F, J, vertex_k, starts, iterations;
+    double origin[3], voxel, step, settled, deep, off_skin, face_side;
+} SkinGrid;
+
+typedef struct {
+    const SkinGrid *grid;
+    const double *rot, *trans;     /* (J, 3, 3), (J, 3) the joints' moves from the rest pose */
+    const double *posed, *normals; /* (V, 3), (V, 3) the mesh posed by them and its unit vertex normals */
+} SkinPose;
+
+/* The signed distance and outward normal of point x to the posed skin (skin_sdf.c) */
+static void skin_point(const SkinGrid *g, const double *rot, const double *trans, const double *posed,
+                       const double *normals, const double *x, double *distance, double *normal);
 
 #endif

@@ -401,6 +401,39 @@ static int grow_region(const PushMesh *m, int V, int rings, int seeds, int32_t *
     return hi;
 }
 
+/* Against the skin (sk not NULL) the capsules are its hulls, each covering its piece of the posed
+   mesh (hrr_garment/body/skin_hull.py), so the skin lies inside their union and a vertex farther
+   than the margin from every hull is farther than that from the skin: its hull distance stands (all
+   the push reads of it is that it needs no push). The others, within the margin of a hull or inside
+   one, are measured against the skin itself: entries of the list idx (NULL: 0 .. n - 1). */
+static void skin_refine(const SkinPose *sk, const double *p, const int32_t *idx, int n, double margin, double *d,
+                        double *nrm)
+{
+    if (!sk) return;
+    #pragma omp for schedule(dynamic, 32)
+    for (int i = 0; i < n; ++i) {
+        const int v = idx ? idx[i] : i;
+        if (d[v] <= margin)  /* a NaN stays as it is, as the push reads it */
+            skin_point(sk->grid, sk->rot, sk->trans, sk->posed, sk->normals, p + 3 * v, d + v, nrm + 3 * v);
+    }
+}
+
+/* skin_refine over the vertices of the `count` patches listed (list NULL: every patch) */
+static void skin_refine_patches(const SkinPose *sk, const double *p, const PushMesh *m, const int32_t *list, int count,
+                                double margin, double *d, double *nrm)
+{
+    if (!sk) return;
+    #pragma omp for schedule(dynamic, 1)
+    for (int k = 0; k < count; ++k) {
+        const int q = list ? list[k] : k;
+        for (int i = m->patch_ptr[q]; i < m->patch_ptr[q + 1]; ++i) {
+            const int v = m->patch_idx[i];
+            if (d[v] <= margin)
+                skin_point(sk->grid, sk->rot, sk->trans, sk->posed, sk->normals, p + 3 * v, d + v, nrm + 3 * v);
+        }
+    }
+}
+
 /* push_frame's projection list: vertex v appended to list (at *n) when inside, and to the moved
    vertices (at *total) the first time. */
 static inline void take_if_inside(int v, const double *d, int32_t *list, int *n, int *vmark, int32_t *moved, int *total)
@@ -424,7 +457,7 @@ static inline void take_if_inside(int v, const double *d, int32_t *list, int *n,
    moved vertices' marks; the marks zero between calls) and flag (5: one per purpose, so that no
    thread can see a later value) are the team's shared scratch. */
 static void push_frame(double *p, int V, const double *ca, const double *cb, const double *radii, int C,
-                       const PushMesh *m, double margin, int smooth, int rounds, double depth, double *before,
+                       const SkinPose *sk, const PushMesh *m, double margin, int smooth, int rounds, double depth, double *before,
                        double *after, double *buf, int32_t *ints, int *flag)
 {
     double *d = buf, *nrm = d + V, *need = nrm + 3 * (size_t)V, *req = need + V, *req2 = req + V;
@@ -435,6 +468,7 @@ static void push_frame(double *p, int V, const double *ca, const double *cb, con
     const int follow = m->ring ? m->follow : 0, rings = follow + smooth + 1;
     if (m->patch_ptr) sdf_patches(p, m, ca, cb, radii, C, margin, d, nrm);
     else sdf_points(p, NULL, V, ca, cb, radii, C, d, nrm);
+    skin_refine(sk, p, NULL, V, margin, d, nrm);
     #pragma omp single
     {
         int deep = 0;
@@ -528,8 +562,13 @@ static void push_frame(double *p, int V, const double *ca, const double *cb, con
         /* the moved patches measured again, culled as at first (a capsule left out is more than the
            margin from every vertex of the patch where it lies now): a push moves a few hundred vertices,
            each measured against every capsule it was twice the first measurement's work */
-        if (m->patch_ptr) sdf_patch_list(p, m, plist, flag[4], ca, cb, radii, C, margin, d, nrm);
-        else sdf_points(p, list, flag[1], ca, cb, radii, C, d, nrm);
+        if (m->patch_ptr) {
+            sdf_patch_list(p, m, plist, flag[4], ca, cb, radii, C, margin, d, nrm);
+            skin_refine_patches(sk, p, m, plist, flag[4], margin, d, nrm);
+        } else {
+            sdf_points(p, list, flag[1], ca, cb, radii, C, d, nrm);
+            skin_refine(sk, p, list, flag[1], margin, d, nrm);
+        }
     }
     for (int it = 0; it < 4; ++it) {
         #pragma omp single
@@ -557,6 +596,7 @@ static void push_frame(double *p, int V, const double *ca, const double *cb, con
             for (int k = 0; k < 3; ++k) p[3 * v + k] += (margin - d[v]) * nrm[3 * v + k];
         }
         sdf_points(p, list, n, ca, cb, radii, C, d, nrm);
+        skin_refine(sk, p, list, n, margin, d, nrm);
     }
     #pragma omp single
     {
@@ -902,7 +942,7 @@ static void subspace_push(double *p, int V, const double *ca, const double *cb, 
    which share the conversions and the push; the limit runs on one of them. */
 static void push_and_limit(const void *in, int in_double, float *out, int V, const double *ca, const double *cb,
                            const double *radii,
-                           int C, const PushMesh *m, const PushArgs *args, const StrainArgs *s, const SubspaceArgs *sp,
+                           int C, const SkinPose *sk, const PushMesh *m, const PushArgs *args, const StrainArgs *s, const SubspaceArgs *sp,
                            const double *turn, double *before, double *after, unsigned char *torn, PushTeam *team)
 {
     double *p = team->p, *u = team->u;
@@ -918,7 +958,7 @@ static void push_and_limit(const void *in, int in_double, float *out, int V, con
         #pragma omp for schedule(static)
         for (int k = 0; k < 3 * V; ++k) u[k] = p[k];
     }
-    push_frame(p, V, ca, cb, radii, C, m, args->margin, args->smooth, args->rounds, args->depth, before, after, team->buf,
+    push_frame(p, V, ca, cb, radii, C, sk, m, args->margin, args->smooth, args->rounds, args->depth, before, after, team->buf,
                team->ints, team->flag);
     if (s) {  /* push_frame ends at a barrier: the frame is pushed, team->moved lists what it moved */
         #pragma omp single
@@ -993,8 +1033,8 @@ void hrr_push_out(const void *in, int in_double, float *out, int T, int V, const
                   int radii_step, const int32_t *indptr, const int32_t *indices, const double *weights,
                   const int32_t *ring, const double *ring_drop, int width, int follow, const int32_t *patch_ptr,
                   const int32_t *patch_idx, int patches, const PushArgs *args, const StrainArgs *limit,
-                  const SubspaceArgs *subspace, const double *turn, int threads, double *before, double *after,
-                  unsigned char *torn)
+                  const SubspaceArgs *subspace, const double *turn, const SkinPose *skin, int threads, double *before,
+                  double *after, unsigned char *torn)
 {
     enum { MAX_TEAMS = 64, BUF = 26, SUBSPACE_MAXK = 512 };  /* BUF: push_frame's 20 V doubles, then p and u */
     if (T <= 0) return;
@@ -1043,7 +1083,7 @@ void hrr_push_out(const void *in, int in_double, float *out, int T, int V, const
         #pragma omp parallel num_threads(threads)
         for (int t = 0; t < T; ++t)
             push_and_limit(FRAME_IN(t), in_double, out + t * step, V, a + (size_t)t * 3 * C, b + (size_t)t * 3 * C,
-                           radii + (size_t)t * radii_step, C, &mesh, args, limit, subspace, turn ? turn + 9 * t : NULL,
+                           radii + (size_t)t * radii_step, C, skin ? skin + t : NULL, &mesh, args, limit, subspace, turn ? turn + 9 * t : NULL,
                            before + t, after + t, torn + t, team);
     } else {
         #pragma omp parallel for num_threads(teams) schedule(dynamic)
@@ -1051,7 +1091,7 @@ void hrr_push_out(const void *in, int in_double, float *out, int T, int V, const
             PushTeam *mine = team + omp_get_thread_num();
             #pragma omp parallel num_threads(1)  /* this frame's own one-thread team */
             push_and_limit(FRAME_IN(t), in_double, out + t * step, V, a + (size_t)t * 3 * C, b + (size_t)t * 3 * C,
-                           radii + (size_t)t * radii_step, C, &mesh, args, limit, subspace, turn ? turn + 9 * t : NULL,
+                           radii + (size_t)t * radii_step, C, skin ? skin + t : NULL, &mesh, args, limit, subspace, turn ? turn + 9 * t : NULL,
                            before + t, after + t, torn + t, mine);
         }
     }

@@ -124,3 +124,52 @@ class SkinKernel:
             normal.ctypes.data,
         )
         return distance, normal
+
+    def pose_frames(self, rot: np.ndarray, trans: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(T, V, 3) the mesh posed and (T, V, 3) its unit vertex normals for the joints' moves
+        ``rot`` (T, J, 3, 3) and ``trans`` (T, J, 3) (C-contiguous float64)."""
+        posed, normals = np.empty((len(rot), self.vertices, 3)), np.empty((len(rot), self.vertices, 3))
+        ref = ctypes.byref(self.struct)
+        for t in range(len(rot)):
+            self.lib.hrr_skin_pose(
+                ref, rot[t].ctypes.data, trans[t].ctypes.data, posed[t].ctypes.data, normals[t].ctypes.data
+            )
+        return posed, normals
+
+
+class SkinPose(ctypes.Structure):
+    """skin_sdf.c's SkinPose (hrr_native.h): one frame's grid, joints' moves and posed mesh."""
+
+    _fields_ = [(name, ctypes.c_void_p) for name in ("grid", "rot", "trans", "posed", "normals")]
+
+
+class PosedSkins:
+    """T frames of skinned bodies posed, as the push-out kernel reads them (``hrr_push_out``'s
+    ``skin``): frame t against ``kernels[which[t]]`` moved by ``rot[t]``, ``trans[t]``. Holds every
+    array the structs point at."""
+
+    def __init__(self, kernels: list[SkinKernel], which: np.ndarray, rot: np.ndarray, trans: np.ndarray):
+        self.rot = np.ascontiguousarray(rot, np.float64)
+        self.trans = np.ascontiguousarray(trans, np.float64)
+        self.kernels, self.which = kernels, np.asarray(which, np.int64)
+        self.posed: list[np.ndarray] = [np.empty(0)] * len(self.rot)
+        self.normals: list[np.ndarray] = [np.empty(0)] * len(self.rot)
+        for k, kernel in enumerate(kernels):
+            rows = np.flatnonzero(self.which == k)
+            if len(rows):
+                posed, normals = kernel.pose_frames(self.rot[rows], self.trans[rows])
+                for i, t in enumerate(rows):
+                    self.posed[t], self.normals[t] = posed[i], normals[i]
+        self.structs = (SkinPose * len(self.rot))()
+        for t, k in enumerate(self.which):
+            self.structs[t] = SkinPose(
+                ctypes.addressof(kernels[k].struct),
+                self.rot[t].ctypes.data,
+                self.trans[t].ctypes.data,
+                self.posed[t].ctypes.data,
+                self.normals[t].ctypes.data,
+            )
+
+    def address(self, first: int) -> int:
+        """The address of frame ``first``'s struct (the kernel reads the frames from there on)."""
+        return ctypes.addressof(self.structs) + first * ctypes.sizeof(SkinPose)

@@ -7,29 +7,6 @@
 
 #include "hrr_native.h"
 
-#define SKIN_MAX_STARTS 8
-#define SKIN_TOP 4 /* skin weights per node (TOP_JOINTS) */
-
-/* one node of the rest grid, in one cache line's half: a point's 22 rigid guesses and its fixed-point
-   steps read nodes all over the grid (3.5 MB for an anny body), so each read is one line, not three */
-typedef struct {
-    float distance;            /* the rest mesh's signed distance */
-    float weights[SKIN_TOP];   /* the nearest skin's four largest weights */
-    uint8_t joints[SKIN_TOP];  /* and their joints */
-    int32_t pad[2];
-} SkinNode;
-
-typedef struct {
-    const SkinNode *nodes;     /* x-major */
-    const int32_t *face_start; /* (nodes + 1,) */
-    const int32_t *face_list;
-    const int32_t *faces;         /* (F, 3) */
-    const double *rest;           /* (V, 3) the rest mesh */
-    const int32_t *vertex_joints; /* (V, vertex_k) each vertex's joints, padded with weight 0 */
-    const double *vertex_weights; /* (V, vertex_k) */
-    int shape[3], V, F, J, vertex_k, starts, iterations;
-    double origin[3], voxel, step, settled, deep, off_skin, face_side;
-} SkinGrid;
 
 /* the posed mesh (V, 3) and its unit vertex normals (V, 3), each the area-weighted mean of its faces'
    (mesh_distance.vertex_normals), for the joints' moves rot (J, 3, 3) and trans (J, 3) */

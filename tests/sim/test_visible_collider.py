@@ -5,29 +5,15 @@ let it in; in a batch a sequence with it gets the frames it gets alone."""
 import numpy as np
 import pytest
 
-from hrr_garment.body.capsules import DEFAULT_BODY, body_mesh, capsule_signed_distance
+from hrr_garment.body.capsules import DEFAULT_BODY
 from hrr_garment.body.mesh_collider import skinned_pieces
 from hrr_garment.body.skinned_body import SkinnedBody, skinned_body
 from hrr_garment.garment.templates import make_garment
 from hrr_garment.motion.skeleton import JOINT_INDEX
 from hrr_garment.motion.synth import synthesize
+from tests.body.bulging import bulging_body
 
 pytestmark = pytest.mark.sim
-
-BULGE_M = 0.05  # how far the thighs' fronts stand out of their capsules
-
-
-class _Rest:
-    """The mannequin's capsule surface, each thigh's front pushed forward by up to ``BULGE_M``."""
-
-    def __init__(self):
-        a, b = DEFAULT_BODY.rest_pose()
-        self.vertices, self.faces = body_mesh(a, b, DEFAULT_BODY.radii, 12, 6)
-        self.joints = DEFAULT_BODY.rest_joints()
-        _, _, self.capsule = capsule_signed_distance(self.vertices, a, b, radii=DEFAULT_BODY.radii)
-        thigh = np.array([DEFAULT_BODY.capsules[c].name.endswith("thigh") for c in self.capsule])
-        front = self.vertices[:, 2] - 0.5 * (a[self.capsule, 2] + b[self.capsule, 2])
-        self.vertices[:, 2] += np.where(thigh, BULGE_M * np.clip(front / 0.075, 0.0, 1.0), 0.0)
 
 
 def _leg() -> SkinnedBody:
@@ -60,16 +46,6 @@ def _leg() -> SkinnedBody:
     return skinned_body(DEFAULT_BODY.skeleton, rest, weights)
 
 
-def _bulging_body() -> SkinnedBody:
-    """That surface skinned rigidly, each vertex to its capsule's joint: it differs from the capsules
-    only by the bulges."""
-    rest = _Rest()
-    weights = np.zeros((len(rest.vertices), 22))
-    joints = [JOINT_INDEX[DEFAULT_BODY.capsules[c].joint] for c in rest.capsule]
-    weights[np.arange(len(weights)), joints] = 1.0
-    return skinned_body(DEFAULT_BODY.skeleton, rest, weights)
-
-
 @pytest.fixture(scope="module")
 def newton_installed():
     pytest.importorskip("newton", reason="the sim extra is not installed")
@@ -93,7 +69,7 @@ def test_a_heavier_skirt_stays_outside_thighs_that_bulge_out_of_their_capsules(n
     from hrr_garment.sim.quality import PENETRATION_DEPTH_M, mesh_signed_distances
     from hrr_garment.sim.simulator import SimSettings, simulate_garment
 
-    skin, skirt = _bulging_body(), make_garment("skirt", 200)
+    skin, skirt = bulging_body(), make_garment("skirt", 200)
     at_rest = mesh_signed_distances(skirt.vertices[None], skin.vertices[None], skin.faces)
     assert at_rest.min() > 0.01  # it starts outside: what follows is the collider's doing
     run = synthesize("run", 1.0, seed=0)
@@ -114,7 +90,7 @@ def test_a_batch_gives_a_sequence_on_the_visible_body_the_frames_it_gets_alone(n
     from hrr_garment.sim.batch import BatchItem, simulate_batch
     from hrr_garment.sim.simulator import SimSettings, simulate_garment
 
-    skin, skirt = _bulging_body(), make_garment("skirt", 200)
+    skin, skirt = bulging_body(), make_garment("skirt", 200)
     collider = skinned_pieces(DEFAULT_BODY, skin)
     config = SimSettings(device="cpu", settle_s=0.1, blend_s=0.1)
     walk, spin = synthesize("walk", 0.6, seed=0), synthesize("spin", 0.8, seed=1)

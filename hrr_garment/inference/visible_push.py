@@ -1,0 +1,124 @@
+"""The body the push-out pushes the cloth out of, when it is the mesh the viewer sees.
+
+    posed = PosedSkin.of(VisibleCollider.of(body, skin), motion)   # a clip on one body
+    vertices, report = push_out(vertices, motion, faces, body=posed)
+
+:func:`~.collision.push_out` takes a :class:`PosedSkin` where it takes capsules: every garment
+vertex is measured first against the skin's hulls (:mod:`hrr_garment.body.skin_hull`: the body's
+capsules widened frame by frame to hold their pieces of the posed skin), and those within the
+push's margin of a hull, or inside one, against the skin itself
+(:mod:`hrr_garment.body.skin_collider`: the exact signed distance to the skinned mesh's posed
+triangles). A vertex farther than the margin from every hull is farther than that from the skin,
+so the push moves exactly the vertices the skin alone would have it move. The kernel
+(``hrr_garment.native``) does the same per frame; :meth:`PosedSkin.distance` is the reference.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property
+
+import numpy as np
+
+from ..body.capsules import BodyModel, frames_signed_distance
+from ..body.skin_collider import SkinCollider, skin_collider
+from ..body.skin_hull import SkinHull, skin_hull
+from ..body.skinned_body import SkinnedBody
+from ..motion.motion import Motion
+from .collision import PosedCapsules
+
+
+@dataclass(frozen=True)
+class VisibleCollider:
+    """One body's visible mesh as the push-out measures it: its capsules (fitted to the mesh), the
+    skin's hulls over them and the skin's collider (built once a body: seconds for an anny body)."""
+
+    body: BodyModel
+    hull: SkinHull
+    collider: SkinCollider
+
+    @classmethod
+    def of(cls, body: BodyModel, skin: SkinnedBody) -> "VisibleCollider":
+        return cls(body, skin_hull(body, skin), skin_collider(skin))
+
+    @cached_property
+    def kernel(self):
+        """The collider in the C kernel's layout (None without a C compiler)."""
+        from ..native import load_kernel
+        from ..native.skin import SkinKernel
+
+        lib = load_kernel()
+        return None if lib is None else SkinKernel(self.collider, lib)
+
+
+_BUILT: dict[tuple[int, int], tuple[BodyModel, SkinnedBody, VisibleCollider]] = {}
+KEPT_COLLIDERS = 8  # bodies whose colliders a process keeps (an anny body's: about 15 MB)
+
+
+def visible_collider(body: BodyModel, skin: SkinnedBody) -> VisibleCollider:
+    """:meth:`VisibleCollider.of`, built once a body in a process (seconds each): keyed by the two
+    objects' identity, which :func:`~hrr_garment.body.skinned_body.visible_body` keeps for a body."""
+    key = (id(body), id(skin))
+    if key not in _BUILT:
+        while len(_BUILT) >= KEPT_COLLIDERS:
+            _BUILT.pop(next(iter(_BUILT)))
+        _BUILT[key] = (body, skin, VisibleCollider.of(body, skin))  # the objects held: ids stay theirs
+    return _BUILT[key][2]
+
+
+@dataclass(frozen=True)
+class PosedSkin:
+    """Frames of visible bodies posed: frame t is ``bodies[which[t]]`` in the pose of the joints'
+    global rotations and positions (what :func:`~.collision.push_out` takes for ``body``)."""
+
+    bodies: tuple[VisibleCollider, ...]
+    which: np.ndarray  # (T,) int64
+    rotations: np.ndarray  # (T, J, 3, 3) the joints' global rotations
+    positions: np.ndarray  # (T, J, 3)
+    hulls: PosedCapsules  # the capsules' ends (T, C, 3) and each frame's hull radii (T, C)
+
+    @classmethod
+    def of(cls, visible: VisibleCollider, motion: Motion) -> "PosedSkin":
+        """A clip on one body."""
+        return cls.of_frames((visible,), np.zeros(motion.num_frames, np.int64), motion)
+
+    @classmethod
+    def of_frames(cls, bodies: tuple[VisibleCollider, ...], which: np.ndarray, poses: Motion) -> "PosedSkin":
+        """Frame t of ``poses`` on ``bodies[which[t]]`` (a crowd's characters, one frame each)."""
+        rot, pos = np.asarray(poses.global_rotations), np.asarray(poses.joint_positions)
+        a = np.empty((len(which), len(bodies[0].body.capsules), 3))
+        b, radii = np.empty_like(a), np.empty(a.shape[:2])
+        for k, visible in enumerate(bodies):
+            rows = np.flatnonzero(which == k)
+            if not len(rows):
+                continue
+            if len(visible.body.capsules) != a.shape[1]:
+                raise ValueError("every body of a push-out needs the same number of capsules")
+            a[rows], b[rows] = visible.body.pose(rot[rows], pos[rows])
+            skin = visible.collider.body.pose(rot[rows], pos[rows])
+            radii[rows] = visible.hull.radii(skin, a[rows], b[rows])
+        return cls(tuple(bodies), np.asarray(which, np.int64), rot, pos, PosedCapsules(a, b, radii))
+
+    def distance(self, points: np.ndarray, rows: slice, margin: float) -> tuple[np.ndarray, np.ndarray]:
+        """(t, V) signed distances and (t, V, 3) outward normals of points (t, V, 3) of frames
+        ``rows``: the skin's where within ``margin`` of a hull or inside one, else the hulls' (more
+        than the margin, as the skin's is there): the push-out kernel's reference, the skin measured by
+        its own kernel where there is one (equal to its reference to 1e-15)."""
+        a, b, radii = self.hulls.a[rows], self.hulls.b[rows], self.hulls.radii[rows]
+        d, n = frames_signed_distance(points, a, b, radii=radii)
+        for i, t in enumerate(range(*rows.indices(len(self.which)))):
+            near = np.flatnonzero(d[i] <= margin)
+            if len(near):
+                visible = self.bodies[self.which[t]]
+                query = visible.collider.query if visible.kernel is None else visible.kernel.query
+                d[i, near], n[i, near] = query(points[i, near], self.rotations[t], self.positions[t])
+        return d, n
+
+    def native(self):
+        """The frames as the kernel reads them (:class:`~hrr_garment.native.skin.PosedSkins`)."""
+        from ..native.skin import PosedSkins
+
+        moves = [v.collider.body.joint_transforms(self.rotations, self.positions) for v in self.bodies]
+        rot = np.stack([moves[k][0][t] for t, k in enumerate(self.which)])
+        trans = np.stack([moves[k][1][t] for t, k in enumerate(self.which)])
+        return PosedSkins([v.kernel for v in self.bodies], self.which, rot, trans)

@@ -1,0 +1,152 @@
+"""The push-out against the mesh the viewer sees (hrr_garment.inference.visible_push): the skin's
+hulls hold the skin in every pose; the kernel pushes exactly as the numpy reference does, a frame
+at a time as in batches, a crowd of two bodies as each alone; and the cloth ends outside the
+visible mesh where the capsules' push-out leaves it inside the thighs' bulges."""
+
+import numpy as np
+import pytest
+
+from hrr_garment.body.capsules import DEFAULT_BODY, frames_signed_distance
+from hrr_garment.body.mesh_distance import mesh_signed_distance
+from hrr_garment.inference.collision import PushOutSettings, _push_frames, mean_operator, push_out
+from hrr_garment.inference.visible_push import PosedSkin, VisibleCollider
+from hrr_garment.motion.synth import synthesize
+from tests.body.bulging import bulging_body
+from tests.conftest import squeezed_skirt
+
+SETTINGS = PushOutSettings(depth=0.005)
+
+
+@pytest.fixture(scope="module")
+def visible():
+    return VisibleCollider.of(DEFAULT_BODY, bulging_body())
+
+
+@pytest.fixture(scope="module")
+def skirt_frames():
+    """A dance, and the tiny skirt worn on the body, 5 % narrower: into the hips and the bulges."""
+    motion = synthesize("dance", 0.3, seed=4)
+    skirt, frames = squeezed_skirt(motion, 0.95, on_body=True)
+    return motion, skirt, frames
+
+
+def _inside(visible, motion, frames, depth=SETTINGS.depth):
+    """(T,) the fraction of vertices more than ``depth`` inside the posed visible mesh, exactly."""
+    skin = visible.collider.body
+    posed = skin.pose(motion.global_rotations, motion.joint_positions)
+    return np.array(
+        [
+            (mesh_signed_distance(f.astype(np.float64), p, skin.faces) < -depth).mean()
+            for f, p in zip(frames, posed)
+        ]
+    )
+
+
+def test_the_hulls_hold_the_skin(visible):
+    motion = synthesize("jump", 0.5, seed=1)
+    posed = PosedSkin.of(visible, motion)
+    skin = visible.collider.body.pose(motion.global_rotations, motion.joint_positions)
+    d, _ = frames_signed_distance(skin, posed.hulls.a, posed.hulls.b, posed.hulls.radii)
+    assert d.max() <= 0.0  # every vertex of the posed skin in a hull (and so every face: capsules are convex)
+    assert (posed.hulls.radii >= DEFAULT_BODY.radii).all()
+    thighs = [i for i, c in enumerate(DEFAULT_BODY.capsules) if c.name.endswith("thigh")]
+    assert (posed.hulls.radii[:, thighs] > DEFAULT_BODY.radii[thighs] + 0.03).all()  # widened over the bulge
+
+
+def test_the_kernel_pushes_as_the_reference(visible, skirt_frames):
+    from hrr_garment.native import load_kernel
+
+    if load_kernel() is None:
+        pytest.skip("no C compiler")
+    motion, skirt, frames = skirt_frames
+    posed = PosedSkin.of(visible, motion)
+    mean = mean_operator(skirt.faces, len(skirt.vertices))
+    ref = _push_frames(
+        frames, lambda p: posed.distance(p, slice(None), SETTINGS.margin), mean, SETTINGS, None
+    )
+    got, report = push_out(frames.astype(np.float32), motion, skirt.faces, body=posed, settings=SETTINGS)
+    assert ref[1].max() > 0.02  # the skirt starts inside the body
+    assert np.abs(got - ref[0]).max() < 1e-5
+    assert report.inside_before == pytest.approx(ref[1].mean()) and report.inside_after == pytest.approx(
+        ref[2].mean()
+    )
+    one, _ = push_out(
+        frames[3:4].astype(np.float32),
+        motion.slice(3, 4),
+        skirt.faces,
+        body=PosedSkin.of(visible, motion.slice(3, 4)),
+        settings=SETTINGS,
+    )
+    assert np.array_equal(one[0], got[3])  # a frame alone (a stream's) as in the batch
+
+
+def test_the_cloth_ends_outside_the_visible_mesh(visible, skirt_frames):
+    motion, skirt, frames = skirt_frames
+    f32 = frames.astype(np.float32)
+    on_skin, report = push_out(
+        f32, motion, skirt.faces, body=PosedSkin.of(visible, motion), settings=SETTINGS
+    )
+    on_capsules, _ = push_out(f32, motion, skirt.faces, body=DEFAULT_BODY, settings=SETTINGS)
+    # the skirt starts in the bulges (the report: the collider's figure, within a point of the winding
+    # number's: this mesh is a union of overlapping capsule surfaces, whose inside no nearest face tells)
+    before = _inside(visible, motion, frames).mean()
+    assert before > 0.01 and report.inside_before == pytest.approx(before, abs=0.01)
+    # the capsules' push leaves the bulges in the cloth; the skin's takes nearly all of them out (what
+    # stays is where the capsule surfaces overlap)
+    assert _inside(visible, motion, on_capsules).mean() > 0.004
+    assert _inside(visible, motion, on_skin).mean() < 0.3 * _inside(visible, motion, on_capsules).mean()
+
+
+def test_a_crowd_of_two_bodies_pushes_each_as_alone(visible, skirt_frames):
+    from hrr_garment.native import load_kernel
+
+    if load_kernel() is None:
+        pytest.skip("no C compiler")
+    motion, skirt, frames = skirt_frames
+    slimmer = VisibleCollider.of(DEFAULT_BODY, bulging_body(0.02))
+    which = np.arange(motion.num_frames) % 2
+    crowd = PosedSkin.of_frames((visible, slimmer), which, motion)
+    together, _ = push_out(frames.astype(np.float32), motion, skirt.faces, body=crowd, settings=SETTINGS)
+    for k, body in enumerate((visible, slimmer)):
+        alone, _ = push_out(
+            frames.astype(np.float32), motion, skirt.faces, body=PosedSkin.of(body, motion), settings=SETTINGS
+        )
+        assert np.array_equal(together[which == k], alone[which == k])
+
+
+def test_the_run_settings_choose_the_body():
+    from hrr_garment.inference.run_settings import RunSettings
+
+    with pytest.raises(ValueError, match="push_body"):
+        RunSettings(push_body="skin")
+    with pytest.raises(ValueError, match="subspace push measures capsules"):
+        RunSettings(push_body="visible", push="subspace")
+    settings = RunSettings(push_body="capsules")
+    assert settings.push_body == "capsules" and RunSettings().push_body is None
+
+
+def test_the_animator_pushes_out_of_the_characters_own_mesh(animator, visible):
+    """A character whose body.json carries its own mesh (the bulging body): by default the push-out
+    measures that mesh (its report counts the cloth inside it), with push_body="capsules" the
+    capsules; on the mannequin, with no mesh, the two are one run. Offline and a crowd agree."""
+    from dataclasses import replace
+
+    from hrr_garment.body.mannequin import mannequin_record
+    from hrr_garment.body.mesh_record import BodyMesh
+
+    skin = bulging_body()
+    record = replace(
+        mannequin_record(), mesh=BodyMesh.of(skin.vertices, skin.faces, skin.rest_positions, skin.weights)
+    )
+    motion = synthesize("walk", 0.6, seed=2)
+    on_mesh = animator.animate(motion, body=record, causal=True)
+    on_capsules = animator.animate(motion, body=record, causal=True, push_body="capsules")
+    assert on_mesh.settings["push_body"] == "visible" and on_capsules.settings["push_body"] == "capsules"
+    assert not np.array_equal(on_mesh.vertices, on_capsules.vertices)
+    plain = [animator.animate(motion, push_body=b).vertices for b in ("visible", "capsules")]
+    assert np.array_equal(*plain)
+    crowd = animator.crowd()
+    crowd.set_body("hero", record)
+    for frame in range(3):
+        out = crowd.push_motions({"hero": motion.slice(frame, frame + 1)})
+        assert np.abs(out[0] - on_mesh.vertices[frame]).max() <= 1e-4

@@ -1,0 +1,129 @@
+"""The push-out against the mesh the viewer sees, beside the push-out against the capsules, timed in
+the same run: milliseconds a character-frame of 64 frames pushed at once (the crowd's batch; frames
+in parallel on every core), their ratio, and the cloth inside the visible mesh before and after
+each (the fraction of vertices more than 5 mm inside, mean and worst frame). Prints; asserts nothing.
+
+The cloth is an ``hrr-animate`` output (``--animation out.h5``: a trained model's frames, on the
+body it names with ``--body``), or by default the dress at rest on an anny body carried by the body
+frame through a real clip: no swing, so the legs stride through the skirt and the bodice sits
+where the garment was placed (a harder case than a trained model's cloth, and no model needed).
+
+    python tools/bench_visible_push.py ../shared/data/mocap/cmu/02_01.bvh --frames 256
+    python tools/bench_visible_push.py walk.bvh --animation out.h5 --body hero.json
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+
+DEPTH_M = 0.005  # the push-out report's depth: inside counts past 5 mm
+
+
+def cloth_frames(args, record, motion):
+    """(T, V, 3) float32 world frames and the faces: the animation's, or the dress carried."""
+    if args.animation:
+        from hrr_garment.data.animation_file import read_animation_h5
+
+        animation = read_animation_h5(args.animation)
+        return animation.vertices[: motion.num_frames].astype(np.float32), animation.faces
+    from hrr_garment.body.capsules import DEFAULT_BODY
+    from hrr_garment.garment.dressing import dress
+    from hrr_garment.garment.templates import make_garment
+    from hrr_garment.motion.frame import world_vertices
+
+    template = make_garment("dress", args.vertices)
+    dressed = dress("bench", record, template, made_for=DEFAULT_BODY)[0]
+    local = np.repeat((template.vertices + dressed.offset(template))[None], motion.num_frames, 0)
+    return world_vertices(local, motion), template.faces
+
+
+def machine() -> str:
+    """The CPU's model and the vector flags that decide the kernels' speed."""
+    try:
+        info = open("/proc/cpuinfo").read().splitlines()
+    except OSError:
+        return "unknown CPU"
+    model = next((x.split(":", 1)[1].strip() for x in info if x.startswith("model name")), "unknown CPU")
+    flags = next((x.split(":", 1)[1].split() for x in info if x.startswith("flags")), [])
+    return f"{model} ({', '.join(f for f in ('avx2', 'fma', 'avx512f', 'amx_tile') if f in flags)})"
+
+
+def timed(run, repeats: int) -> tuple[float, object]:
+    """The median seconds of ``repeats`` runs and the last run's result."""
+    times, out = [], None
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        out = run()
+        times.append(time.perf_counter() - t0)
+    return float(np.median(times)), out
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("motion", help="a clip (BVH, glTF, npz)")
+    p.add_argument("--animation", help="an hrr-animate output (.h5) of that clip, on --body")
+    p.add_argument("--body", help="body.json (default: the average anny body)")
+    p.add_argument("--frames", type=int, default=256, help="frames of the clip pushed (64 at a time)")
+    p.add_argument("--vertices", type=int, default=4156, help="the carried dress's vertices")
+    p.add_argument("--repeats", type=int, default=3)
+    args = p.parse_args()
+    from hrr_garment.body.body_file import read_body, record_of
+    from hrr_garment.body.parametric import BodyShape, parametric_body
+    from hrr_garment.body.retarget import motion_on_body
+    from hrr_garment.body.skinned_body import visible_body
+    from hrr_garment.inference.collision import PushOutSettings, mean_operator, push_out
+    from hrr_garment.inference.edge_limits import EdgeLimits
+    from hrr_garment.inference.visible_push import PosedSkin, VisibleCollider
+    from hrr_garment.motion.io import load_motion
+    from hrr_garment.native import default_threads
+
+    record = read_body(args.body) if args.body else record_of(parametric_body(BodyShape()))
+    skin = visible_body(record)
+    if skin is None:
+        raise SystemExit("the body has no visible mesh (the mannequin's is its capsules)")
+    motion = motion_on_body(load_motion(args.motion), record)
+    motion = motion.slice(0, min(args.frames, motion.num_frames))
+    frames, faces = cloth_frames(args, record, motion)
+    t0 = time.perf_counter()
+    visible = VisibleCollider.of(record.body, skin)
+    built = time.perf_counter() - t0
+    settings = PushOutSettings(depth=DEPTH_M)
+    mean = mean_operator(faces, frames.shape[1])
+    limits = EdgeLimits.of(faces, frames[0].astype(np.float64))
+    run = {
+        "capsules": lambda: push_out(
+            frames, motion, faces, body=record.body, settings=settings, mean=mean, limits=limits
+        ),
+        "visible": lambda: push_out(
+            frames,
+            motion,
+            faces,
+            body=PosedSkin.of(visible, motion),
+            settings=settings,
+            mean=mean,
+            limits=limits,
+        ),
+    }
+    print(f"{machine()}; {default_threads()} threads; collider built in {built:.1f} s")
+    print(f"{frames.shape[1]} vertices, {len(frames)} frames of {args.motion}")
+    seconds = {}
+    for name, go in run.items():
+        seconds[name], (out, _) = timed(go, args.repeats)
+        measured = PosedSkin.of(visible, motion)
+        before = (measured.distance(frames.astype(np.float64), slice(None), 0.0)[0] < -DEPTH_M).mean(1)
+        after = (measured.distance(out.astype(np.float64), slice(None), 0.0)[0] < -DEPTH_M).mean(1)
+        moved = np.abs(out - frames).max(-1) > 0
+        print(
+            f"{name}: {1e3 * seconds[name] / len(frames):.3f} ms a character-frame; inside the visible "
+            f"mesh before {100 * before.mean():.2f} % (worst {100 * before.max():.2f} %), after "
+            f"{100 * after.mean():.2f} % (worst {100 * after.max():.2f} %); vertices moved "
+            f"{100 * moved.mean():.1f} %"
+        )
+    print(f"visible / capsules: {seconds['visible'] / seconds['capsules']:.2f} x")
+
+
+if __name__ == "__main__":
+    main()
