@@ -10,7 +10,7 @@ Inputs (float32, or float64 where asked): ``points`` (B, N, 3) for B characters,
 kinematics' output, as the reference's ``query`` takes them); outputs ``distance`` (B, N), < 0
 inside, and ``normal`` (B, N, 3), outward. B and N are dynamic. The graph is
 :class:`~hrr_garment.models.skin_collider_graph.SkinColliderGraph`, its grid held as constants
-(about 40 MB for an anny body in float32). Needs the ``onnx`` extra.
+(24 MB for an anny body in float32). Needs the ``onnx`` extra.
 """
 
 from __future__ import annotations

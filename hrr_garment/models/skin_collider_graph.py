@@ -24,8 +24,8 @@ data-dependent shapes or loops, the graph does with fixed ones:
 to 135 degrees, a curled chain and an anny body in a dance, the distance within 1e-15 m, the
 normal within 1e-10).
 In float32 (tests/models/test_skin_collider_graph.py, the bound stated and tested): the distance
-within 1 um of the reference's (0.3 um measured on an anny body) and on its side; the normal, a
-millimetre or more off the skin, within 0.01 (0.002 measured) but where two faces lie equally
+within 1 um of the reference's (0.31 um measured on an anny body) and on its side; the normal, a
+millimetre or more off the skin, within 0.01 (0.003 measured) but where two faces lie equally
 near within float32's rounding (a point deep in a bend: then the other face's normal, as right),
 always pointing to a nearest point of the posed mesh. Nearer the skin than a millimetre the
 normal (the gap's direction) is rounding's.
