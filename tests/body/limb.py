@@ -84,3 +84,13 @@ def near_surface(body: SkinnedBody, posed: np.ndarray, count: int = 300):
     off = np.tile(offsets, len(pick))
     idx = np.repeat(pick, len(offsets))
     return posed[idx] + off[:, None] * normals[idx], body.vertices[idx, 0]
+
+
+def probes(body: SkinnedBody, posed: np.ndarray, seed: int = 0) -> np.ndarray:
+    """Points where a collider is asked: near the posed skin (:func:`near_surface` at 60 vertices)
+    and 400 anywhere about the body's middle, in its grid and beyond it, each 0.1 mm off the
+    vertices' ties (where two faces are equally near)."""
+    rng = np.random.default_rng(seed)
+    around = (rng.uniform(-0.15, 0.15, (400, 3)) * [2.0, 1.0, 1.0]) + posed.mean(0)
+    points = np.concatenate([near_surface(body, posed, count=60)[0], around])
+    return points + rng.normal(scale=1e-4, size=points.shape)
