@@ -121,4 +121,4 @@ class PosedSkin:
         moves = [v.collider.body.joint_transforms(self.rotations, self.positions) for v in self.bodies]
         rot = np.stack([moves[k][0][t] for t, k in enumerate(self.which)])
         trans = np.stack([moves[k][1][t] for t, k in enumerate(self.which)])
-        return PosedSkins([v.kernel for v in self.bodies], self.which, rot, trans)
+        return PosedSkins([v.kernel for v in self.bodies], self.which, rot=rot, trans=trans)
