@@ -6,8 +6,9 @@ PVE / floor, energy score, sharpness, hem swing and jitter ratio, each bar marke
 (docs/evaluation.md, *Bars*). The bars, from the issues that set them:
 
 - **held-out sequences and real motion** (against truth ensembles): PVE / floor at most 1.5 and
-  at most 1.05 x the regression's PVE (the auto allowance); penetration before the push-out at most
-  3 %; edge strain at most 2.0 x rest; jitter at most 1.1 x the truths'; sharpness and hem swing
+  at most 1.05 x the regression's PVE (the auto allowance); the cloth inside the mesh the viewer sees
+  (the visible body; on the mannequin its capsules) at most 1 % of the vertices before the push-out
+  and 0.2 % after (the model's own output keeps out of the body, and the push-out finishes it); edge strain at most 2.0 x rest; jitter at most 1.1 x the truths'; sharpness and hem swing
   each at least 0.85 of the truths' (cloth that looks like the simulation's);
 - **library plays** (the training clips played as a game plays them): the energy score at most the
   regression's, sharpness and hem swing each at least 0.85 (the database's own simulation of the
@@ -52,7 +53,9 @@ class Bar:
 HELD_OUT_BARS = (
     Bar("PVE / floor", "pve_floor_ratio", 1.5),
     Bar("PVE vs regression", "pve_members_mm", 1.05, of_regression=True),
-    Bar("penetration before push-out %", "penetration_before_pct", 3.0),
+    # the cloth inside the mesh the viewer sees (on the mannequin its capsules), issue 82's bars
+    Bar("inside seen before push-out %", "inside_visible_before_pct", 1.0),
+    Bar("inside seen after push-out %", "inside_visible_pct", 0.2),
     Bar("strain max", "strain_max", 2.0, source="metrics"),
     Bar("jitter ratio", "jitter_ratio", 1.1),
     Bar("sharpness", "bending_energy_ratio", 0.85, at_most=False),

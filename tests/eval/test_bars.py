@@ -5,7 +5,7 @@ import pytest
 from hrr_garment.eval.bars import HELD_OUT_BARS, LIBRARY_BARS, default_output, markdown_lead, summary_line
 
 
-def _entry(pve_floor, members, energy, sharpness, swing, jitter, pen, strain_max):
+def _entry(pve_floor, members, energy, sharpness, swing, jitter, pen, strain_max, after=0.1):
     return {
         "metrics": {"strain_max": strain_max},
         "ensemble": {
@@ -15,7 +15,8 @@ def _entry(pve_floor, members, energy, sharpness, swing, jitter, pen, strain_max
             "bending_energy_ratio": sharpness,
             "hem_swing_ratio": swing,
             "jitter_ratio": jitter,
-            "penetration_before_pct": pen,
+            "inside_visible_before_pct": pen,
+            "inside_visible_pct": after,
         },
     }
 
@@ -31,7 +32,8 @@ def test_the_default_output_is_held_to_each_bar_and_to_the_regression_beside_it(
         held["PVE vs regression"]["target"] == pytest.approx(1.05 * 34.0) and held["PVE vs regression"]["met"]
     )
     assert (
-        not held["penetration before push-out %"]["met"]
+        not held["inside seen before push-out %"]["met"]
+        and held["inside seen after push-out %"]["met"]
         and held["strain max"]["met"]
         and held["jitter ratio"]["met"]
     )
