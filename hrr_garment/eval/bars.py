@@ -8,7 +8,8 @@ PVE / floor, energy score, sharpness, hem swing and jitter ratio, each bar marke
 - **held-out sequences and real motion** (against truth ensembles): PVE / floor at most 1.5 and
   at most 1.05 x the regression's PVE (the auto allowance); the cloth inside the mesh the viewer sees
   (the visible body; on the mannequin its capsules) at most 1 % of the vertices before the push-out
-  and 0.2 % after (the model's own output keeps out of the body, and the push-out finishes it); edge strain at most 2.0 x rest; jitter at most 1.1 x the truths'; sharpness and hem swing
+  and 0.2 % after (the model's own output keeps out of the body, and the push-out finishes it); edge
+  strain at most 2.0 x rest; jitter at most 1.1 x the truths'; sharpness and hem swing
   each at least 0.85 of the truths' (cloth that looks like the simulation's);
 - **library plays** (the training clips played as a game plays them): the energy score at most the
   regression's, sharpness and hem swing each at least 0.85 (the database's own simulation of the

@@ -5,7 +5,7 @@ import pytest
 from hrr_garment.eval.bars import HELD_OUT_BARS, LIBRARY_BARS, default_output, markdown_lead, summary_line
 
 
-def _entry(pve_floor, members, energy, sharpness, swing, jitter, pen, strain_max, after=0.1):
+def _entry(pve_floor, members, energy, sharpness, swing, jitter, pen, strain_max):
     return {
         "metrics": {"strain_max": strain_max},
         "ensemble": {
@@ -16,7 +16,7 @@ def _entry(pve_floor, members, energy, sharpness, swing, jitter, pen, strain_max
             "hem_swing_ratio": swing,
             "jitter_ratio": jitter,
             "inside_visible_before_pct": pen,
-            "inside_visible_pct": after,
+            "inside_visible_pct": 0.1,
         },
     }
 
