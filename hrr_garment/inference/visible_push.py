@@ -21,7 +21,8 @@ from functools import cached_property
 import numpy as np
 
 from ..body.capsules import BodyModel, frames_signed_distance
-from ..body.skin_collider import SkinCollider, skin_collider
+from ..body.skin_collider import SkinCollider
+from ..body.skin_collider_store import stored_skin_collider
 from ..body.skin_hull import SkinHull, skin_hull
 from ..body.skinned_body import SkinnedBody
 from ..motion.motion import Motion
@@ -39,7 +40,7 @@ class VisibleCollider:
 
     @classmethod
     def of(cls, body: BodyModel, skin: SkinnedBody) -> "VisibleCollider":
-        return cls(body, skin_hull(body, skin), skin_collider(skin))
+        return cls(body, skin_hull(body, skin), stored_skin_collider(skin))
 
     @cached_property
     def kernel(self):
