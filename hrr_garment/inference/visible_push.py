@@ -51,6 +51,15 @@ class VisibleCollider:
         lib = load_kernel()
         return None if lib is None else SkinKernel(self.collider, lib)
 
+    def pose(self, rotations: np.ndarray, positions: np.ndarray) -> np.ndarray:
+        """(n, V, 3) the skin posed by n frames' joint rotations and positions: in the kernel where
+        there is one (a character's mesh has tens of thousands of vertices, whose blended matrices
+        numpy would hold at once)."""
+        if self.kernel is None:
+            return self.collider.body.pose(rotations, positions)
+        rot, trans = self.collider.body.joint_transforms(rotations, positions)
+        return self.kernel.pose_frames(np.ascontiguousarray(rot), np.ascontiguousarray(trans))[0]
+
 
 _BUILT: dict[tuple[int, int], tuple[BodyModel, SkinnedBody, VisibleCollider]] = {}
 KEPT_COLLIDERS = 8  # bodies whose colliders a process keeps (an anny body's: about 15 MB)
@@ -96,8 +105,7 @@ class PosedSkin:
             if len(visible.body.capsules) != a.shape[1]:
                 raise ValueError("every body of a push-out needs the same number of capsules")
             a[rows], b[rows] = visible.body.pose(rot[rows], pos[rows])
-            skin = visible.collider.body.pose(rot[rows], pos[rows])
-            radii[rows] = visible.hull.radii(skin, a[rows], b[rows])
+            radii[rows] = visible.hull.radii(visible.pose(rot[rows], pos[rows]), a[rows], b[rows])
         return cls(tuple(bodies), np.asarray(which, np.int64), rot, pos, PosedCapsules(a, b, radii))
 
     def distance(self, points: np.ndarray, rows: slice, margin: float) -> tuple[np.ndarray, np.ndarray]:
