@@ -5,29 +5,17 @@ let it in; in a batch a sequence with it gets the frames it gets alone."""
 import numpy as np
 import pytest
 
-from hrr_garment.body.capsules import DEFAULT_BODY, body_mesh, capsule_signed_distance
+from hrr_garment.body.capsules import DEFAULT_BODY
 from hrr_garment.body.mesh_collider import skinned_pieces
 from hrr_garment.body.skinned_body import SkinnedBody, skinned_body
 from hrr_garment.garment.templates import make_garment
 from hrr_garment.motion.skeleton import JOINT_INDEX
 from hrr_garment.motion.synth import synthesize
+from tests.body.limb import BulgingMannequin
 
 pytestmark = pytest.mark.sim
 
 BULGE_M = 0.05  # how far the thighs' fronts stand out of their capsules
-
-
-class _Rest:
-    """The mannequin's capsule surface, each thigh's front pushed forward by up to ``BULGE_M``."""
-
-    def __init__(self):
-        a, b = DEFAULT_BODY.rest_pose()
-        self.vertices, self.faces = body_mesh(a, b, DEFAULT_BODY.radii, 12, 6)
-        self.joints = DEFAULT_BODY.rest_joints()
-        _, _, self.capsule = capsule_signed_distance(self.vertices, a, b, radii=DEFAULT_BODY.radii)
-        thigh = np.array([DEFAULT_BODY.capsules[c].name.endswith("thigh") for c in self.capsule])
-        front = self.vertices[:, 2] - 0.5 * (a[self.capsule, 2] + b[self.capsule, 2])
-        self.vertices[:, 2] += np.where(thigh, BULGE_M * np.clip(front / 0.075, 0.0, 1.0), 0.0)
 
 
 def _leg() -> SkinnedBody:
@@ -61,13 +49,9 @@ def _leg() -> SkinnedBody:
 
 
 def _bulging_body() -> SkinnedBody:
-    """That surface skinned rigidly, each vertex to its capsule's joint: it differs from the capsules
-    only by the bulges."""
-    rest = _Rest()
-    weights = np.zeros((len(rest.vertices), 22))
-    joints = [JOINT_INDEX[DEFAULT_BODY.capsules[c].joint] for c in rest.capsule]
-    weights[np.arange(len(weights)), joints] = 1.0
-    return skinned_body(DEFAULT_BODY.skeleton, rest, weights)
+    """The mannequin's capsule surface, each thigh's front pushed forward by up to ``BULGE_M``,
+    skinned rigidly: it differs from the capsules only by the bulges."""
+    return BulgingMannequin(BULGE_M).skinned()
 
 
 @pytest.fixture(scope="module")
