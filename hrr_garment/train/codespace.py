@@ -176,8 +176,8 @@ def run_codespace_stage(
         summary["contact"] = teach_contact(
             model,
             FrameDecoder(autoencoder, latent_stats),
-            ContactWindows(train_t, BodyContacts.of(ds, train_w)),
-            val=ContactWindows(val_t, BodyContacts.of(ds, val_w)),
+            ContactWindows(train_t, BodyContacts.of(ds, train_w, train_config.contact_body)),
+            val=ContactWindows(val_t, BodyContacts.of(ds, val_w, train_config.contact_body)),
             config=train_config,
             latent_loss=latent_loss,
             checkpoint=(stage / "contact.pt", key),

@@ -25,7 +25,9 @@ CONTACT_SETTINGS = (
     "contact_weight",
     "contact_margin_m",
 )  # the contact phase's: not the main training's key
-NOT_TRAINING = (*CONTACT_SETTINGS, "target_mm")  # settings that leave the main training as it is
+# settings that leave the main training as it is (contact_body: the phase's too, in its key where it
+# changes what the phase trains against, stage_keys)
+NOT_TRAINING = (*CONTACT_SETTINGS, "contact_body", "target_mm")
 
 
 def main_training_key(
@@ -70,7 +72,12 @@ def stage_keys(
     training = main_training_key(config, train_config, ae_state, latents, ds)
     if train_config.contact_steps == 0:
         return training, training
-    settings = json.dumps([training, {k: getattr(train_config, k) for k in CONTACT_SETTINGS}], sort_keys=True)
+    phase = {k: getattr(train_config, k) for k in CONTACT_SETTINGS}
+    if train_config.contact_body == "visible" and any(b.visible is not None for b in ds.bodies.values()):
+        # the phase trains against skins: a stage whose phase ran before against the capsules of
+        # the same bodies is not reused (on the mannequin's capsules the key is as before)
+        phase["contact_body"] = "visible"
+    settings = json.dumps([training, phase], sort_keys=True)
     return hashlib.sha1(settings.encode()).hexdigest()[:16], training
 
 

@@ -9,6 +9,10 @@ from ..settings import SettingsError, from_settings
 
 VALIDATION_PROTOCOLS = ("clips", "windows")
 LATENT_LOSSES = ("standardised", "vertex")
+CONTACT_BODIES = (
+    "visible",
+    "capsules",
+)  # the contact phase's body: the skin where a body has one, or capsules
 PAPER_VALIDATION_FRACTION = 0.1  # "windows": the paper's 9:1 split of the training clips' windows
 
 
@@ -51,6 +55,9 @@ class CodeSpaceTrainSettings:
     contact_steps: int = 0
     contact_weight: float = 2.0
     contact_margin_m: float = 0.002
+    # the body the phase keeps the cloth out of: "visible", the mesh the viewer sees where the body has
+    # one (an anny body's, a fitted character's; the mannequin's is its capsules), or "capsules"
+    contact_body: str = "visible"
     seed: int = 0
 
     def __post_init__(self) -> None:
@@ -63,6 +70,11 @@ class CodeSpaceTrainSettings:
             raise SettingsError(
                 f"code space training: latent_loss must be one of {', '.join(LATENT_LOSSES)}, "
                 f"got {self.latent_loss!r}"
+            )
+        if self.contact_body not in CONTACT_BODIES:
+            raise SettingsError(
+                f"code space training: contact_body must be one of {', '.join(CONTACT_BODIES)}, "
+                f"got {self.contact_body!r}"
             )
         if self.contact_steps < 0 or self.contact_weight < 0:
             raise SettingsError(

@@ -10,14 +10,18 @@ the body.
 After the main training, ``contact_steps`` Adam steps on the decoder alone (the encoders, and so
 the codes and the retrieval database, stay as trained), each on a batch of training windows: the
 regression path's latent loss as in training, plus ``contact_weight`` times the mean depth (in mm)
-by which decoded vertices fall inside the body's capsules grown by ``contact_margin_m`` (2 mm by
-default: a clearance, so that a small error at run time stays outside). One random frame
+by which decoded vertices fall inside the body grown by ``contact_margin_m`` (2 mm by default: a
+clearance, so that a small error at run time stays outside). One random frame
 of each window is decoded through the frozen mesh decoder: the depth needs vertices, and decoding
 whole windows would cost some twenty times more for a gradient that neighbouring frames share.
 
-The capsules are those of the body each sequence was simulated on, posed by its own motion and
-taken into its body frame (:mod:`hrr_garment.motion.frame`); decoded frames get that body's rest
-offset added, as inference adds it (:meth:`~hrr_garment.garment.dressing.DressedBody.offset`).
+The body is the one each sequence was simulated on, posed by its own motion and taken into its body
+frame (:mod:`hrr_garment.motion.frame`): the mesh the viewer sees where the body has one (an anny
+body, a fitted character: :attr:`~hrr_garment.garment.dressing.DressedBody.visible`, the signed
+distance of :mod:`.skin_contact`), its capsules where it has not (the mannequin) or where
+``contact_body`` is "capsules". Decoded frames get that body's rest offset added, as inference adds
+it (:meth:`~hrr_garment.garment.dressing.DressedBody.offset`). The report says which bodies' skins
+and which capsules the phase trained against and measured (``against``).
 """
 
 from __future__ import annotations
@@ -42,6 +46,7 @@ from ..motion.frame import to_body_frame
 from ..sim.quality import PENETRATION_DEPTH_M
 from .codespace_losses import WindowTensors
 from .codespace_settings import CodeSpaceTrainSettings
+from .skin_contact import VisibleContacts
 
 LEARNING_RATE = 1e-4  # a tenth of training's initial rate: the phase adjusts a trained decoder
 BATCH = 64  # windows (and so decoded frames) a step
@@ -52,18 +57,23 @@ REPORT_WINDOWS = 512  # validation windows whose middle frame the report decodes
 class BodyContacts:
     """Per stored frame of a :class:`~hrr_garment.data.windows.WindowSet` (row for row with its
     motion and latent frames): the capsules of the body the frame's sequence was simulated on,
-    posed and in the body frame, and which body's rest offset its decoded garment stands on."""
+    posed and in the body frame, and which body's rest offset its decoded garment stands on; and
+    where bodies have a skin (``visible``), the joints' poses that pose it."""
 
     a: torch.Tensor  # (frames, C, 3) capsule end points
     b: torch.Tensor  # (frames, C, 3)
     body: torch.Tensor  # (frames,) int64 row of ``radii`` and ``offsets``
     radii: torch.Tensor  # (bodies, C) each body's capsule radii
     offsets: torch.Tensor  # (bodies, V, 3) each body's rest offset from the template
+    names: tuple[str, ...] = ()  # each body's name
+    visible: VisibleContacts | None = None  # the skins of the bodies that have one; None: capsules only
 
     @classmethod
-    def of(cls, ds: GarmentDataset, windows: WindowSet) -> "BodyContacts":
+    def of(cls, ds: GarmentDataset, windows: WindowSet, against: str = "visible") -> "BodyContacts":
+        """``against``: "visible", each body's skin where it has one (its capsules where not: the
+        mannequin); "capsules", the capsules of every body."""
         body_names = sorted({ds.body_name_of[n] for n in windows.names})
-        a, b, rows = [], [], []
+        a, b, rows, motions = [], [], [], []
         for name in windows.names:
             motion, body = ds.sequence(name).motion, ds.bodies[ds.body_name_of[name]].body
             if motion.num_frames < windows.motion.window:  # no window, so none of its frames stored
@@ -78,6 +88,7 @@ class BodyContacts:
             a.append(to_body_frame(ends[0], motion))
             b.append(to_body_frame(ends[1], motion))
             rows.append(np.full(len(ends[0]), body_names.index(ds.body_name_of[name])))
+            motions.append(motion)
         frames = len(windows.motion.frames)
         if sum(len(x) for x in a) != frames:
             raise ValueError(
@@ -85,12 +96,39 @@ class BodyContacts:
             )
         radii = np.stack([ds.bodies[n].body.radii for n in body_names]).astype(np.float32)
         offsets = np.stack([ds.bodies[n].offset(ds.template) for n in body_names])
+        skins = [
+            (ds.bodies[n].visible if against == "visible" else None, ds.bodies[n].body) for n in body_names
+        ]
         return cls(
             *(torch.from_numpy(np.concatenate(x).astype(np.float32)) for x in (a, b)),
             torch.from_numpy(np.concatenate(rows).astype(np.int64)),
             torch.from_numpy(radii),
             torch.from_numpy(offsets),
+            names=tuple(body_names),
+            visible=(
+                VisibleContacts.of(motions, np.concatenate(rows), skins)
+                if any(s is not None for s, _ in skins)
+                else None
+            ),
         )
+
+    def distance(self, vertices: torch.Tensor, rows: torch.Tensor, reach_m: float = 0.0) -> torch.Tensor:
+        """(n, V) signed distance of body-frame ``vertices`` (n, V, 3) of the stored frames ``rows``
+        to their bodies, differentiable: to the skin where :attr:`visible` has one (exact wherever
+        at most ``reach_m``, elsewhere a bound above it: :mod:`.skin_contact`), else the capsules."""
+        body = self.body[rows]
+        capsules = capsule_distance(vertices, self.a[rows], self.b[rows], self.radii[body])
+        if self.visible is None:
+            return capsules
+        return self.visible.distance(vertices, rows, fallback=capsules, reach_m=reach_m)
+
+    @property
+    def against(self) -> dict[str, list[str]]:
+        """Which bodies the distances are to: their skins ("visible") or their capsules."""
+        skinned = self.visible.skinned if self.visible is not None else [False] * len(self.names)
+        out = {"visible": [n for n, s in zip(self.names, skinned) if s]}
+        out["capsules"] = [n for n, s in zip(self.names, skinned) if not s]
+        return {k: v for k, v in out.items() if v}
 
 
 def capsule_distance(
@@ -129,21 +167,24 @@ class FrameDecoder:
         self.mean = torch.from_numpy(np.asarray(latent_stats.mean, np.float32))
         self.std = torch.from_numpy(np.asarray(latent_stats.std, np.float32))
 
-    def distance(self, latents: torch.Tensor, contacts: BodyContacts, rows: torch.Tensor) -> torch.Tensor:
+    def distance(
+        self, latents: torch.Tensor, contacts: BodyContacts, rows: torch.Tensor, reach_m: float = 0.0
+    ) -> torch.Tensor:
         """(n, N, C) standardised latents of the stored frames ``rows`` -> (n, V) signed distance of
-        their decoded vertices, on their bodies' rest offsets, to their bodies' capsules."""
+        their decoded vertices, on their bodies' rest offsets, to their bodies
+        (:meth:`BodyContacts.distance`)."""
         raw = latents.reshape(len(latents), -1) * self.std + self.mean
-        body = contacts.body[rows]
-        vertices = self.autoencoder.decode(raw.reshape(latents.shape)) + contacts.offsets[body]
-        return capsule_distance(vertices, contacts.a[rows], contacts.b[rows], contacts.radii[body])
+        vertices = self.autoencoder.decode(raw.reshape(latents.shape)) + contacts.offsets[contacts.body[rows]]
+        return contacts.distance(vertices, rows, reach_m)
 
 
 @torch.no_grad()
 def inside_fraction(
     model: CodeSpace, decoder: FrameDecoder, data: ContactWindows, count: int = REPORT_WINDOWS
 ) -> float:
-    """The fraction of vertices more than 5 mm inside the body in the regression's middle frame of
-    up to ``count`` of the windows, evenly spaced."""
+    """The fraction of vertices more than 5 mm inside the body (the contacts' own: skin or capsules,
+    :attr:`BodyContacts.against`) in the regression's middle frame of up to ``count`` of the
+    windows, evenly spaced."""
     windows = data.windows
     if not len(windows):
         return float("nan")
@@ -194,7 +235,10 @@ def teach_contact(
         pred = _regression(model, motion)
         frame = torch.randint(0, windows.window, (len(idx),), generator=gen)
         distance = decoder.distance(
-            pred[torch.arange(len(idx)), frame], train.contacts, windows.first[idx] + frame
+            pred[torch.arange(len(idx)), frame],
+            train.contacts,
+            windows.first[idx] + frame,
+            reach_m=config.contact_margin_m,  # the skin's answers are needed only this near
         )
         depth_mm = 1000.0 * torch.relu(config.contact_margin_m - distance).mean()
         loss = latent_loss(pred - latents) + config.contact_weight * depth_mm
@@ -208,6 +252,7 @@ def teach_contact(
         "steps": config.contact_steps,
         "weight": config.contact_weight,
         "margin_m": config.contact_margin_m,
+        "against": train.contacts.against,
         "mean_depth_mm": depth_sum / max(config.contact_steps, 1),
         "val_inside_before": before,
         "val_inside_after": after,
@@ -218,10 +263,13 @@ def teach_contact(
     return summary
 
 
-def model_contact_windows(folder: Path, ds: GarmentDataset, split: str) -> ContactWindows:
+def model_contact_windows(
+    folder: Path, ds: GarmentDataset, split: str, against: str = "visible"
+) -> ContactWindows:
     """A trained model's windows of ``split`` of its dataset, standardised as it was trained, with
-    their frames' bodies: what the phase takes, for a tool or a test that runs it on a finished
-    model (``folder`` holds its bundle and its autoencoder stage's latents)."""
+    their frames' bodies (``against``: as :meth:`BodyContacts.of`): what the phase takes, for a tool
+    or a test that runs it on a finished model (``folder`` holds its bundle and its autoencoder
+    stage's latents)."""
     from ..artifacts.bundle_loader import load_bundle
     from ..data.windows import build_windows, dataset_features
 
@@ -237,5 +285,6 @@ def model_contact_windows(folder: Path, ds: GarmentDataset, split: str) -> Conta
         window=config.window,
     )
     return ContactWindows(
-        WindowTensors.of(windows, bundle.motion_stats, bundle.latent_stats), BodyContacts.of(ds, windows)
+        WindowTensors.of(windows, bundle.motion_stats, bundle.latent_stats),
+        BodyContacts.of(ds, windows, against),
     )

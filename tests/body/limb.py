@@ -1,5 +1,6 @@
 """Tiny skinned bodies for the colliders' tests: a capped cylinder on two joints, bent at its elbow,
-and the same cylinder on a chain of joints, curled."""
+and the same cylinder on a chain of joints, curled; the mannequin's capsule surface with its thighs
+bulging out of their capsules."""
 
 import numpy as np
 
@@ -94,3 +95,32 @@ def probes(body: SkinnedBody, posed: np.ndarray, seed: int = 0) -> np.ndarray:
     around = (rng.uniform(-0.15, 0.15, (400, 3)) * [2.0, 1.0, 1.0]) + posed.mean(0)
     points = np.concatenate([near_surface(body, posed, count=60)[0], around])
     return points + rng.normal(scale=1e-4, size=points.shape)
+
+
+class BulgingMannequin:
+    """The mannequin's capsule surface as a rest mesh in its T-pose, each thigh's front pushed forward
+    by up to ``bulge_m`` (and every capsule's radius ``grow_m`` larger), each vertex skinned rigidly to
+    its capsule's joint: it differs from the capsules only by the bulges (and the growth).
+    ``vertices``, ``faces``, ``joints`` and ``weights`` as a skinned body's rest
+    (:func:`~hrr_garment.body.skinned_body.skinned_body`) and a body.json mesh take them."""
+
+    def __init__(self, bulge_m: float, grow_m: float = 0.0):
+        from hrr_garment.body.capsules import DEFAULT_BODY, body_mesh, capsule_signed_distance
+        from hrr_garment.motion.skeleton import JOINT_INDEX
+
+        a, b = DEFAULT_BODY.rest_pose()
+        self.vertices, self.faces = body_mesh(a, b, DEFAULT_BODY.radii + grow_m, 12, 6)
+        self.joints = DEFAULT_BODY.rest_joints()
+        _, _, capsule = capsule_signed_distance(self.vertices, a, b, radii=DEFAULT_BODY.radii + grow_m)
+        thigh = np.array([DEFAULT_BODY.capsules[c].name.endswith("thigh") for c in capsule])
+        front = self.vertices[:, 2] - 0.5 * (a[capsule, 2] + b[capsule, 2])
+        self.vertices[:, 2] += np.where(thigh, bulge_m * np.clip(front / 0.075, 0.0, 1.0), 0.0)
+        self.weights = np.zeros((len(self.vertices), 22))
+        joints = [JOINT_INDEX[DEFAULT_BODY.capsules[c].joint] for c in capsule]
+        self.weights[np.arange(len(self.weights)), joints] = 1.0
+
+    def skinned(self) -> SkinnedBody:
+        from hrr_garment.body.capsules import DEFAULT_BODY
+        from hrr_garment.body.skinned_body import skinned_body
+
+        return skinned_body(DEFAULT_BODY.skeleton, self, self.weights)

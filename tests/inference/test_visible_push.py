@@ -11,7 +11,7 @@ from hrr_garment.body.mesh_distance import mesh_signed_distance
 from hrr_garment.inference.collision import PushOutSettings, _push_frames, mean_operator, push_out
 from hrr_garment.inference.visible_push import PosedSkin, VisibleCollider
 from hrr_garment.motion.synth import synthesize
-from tests.body.bulging import bulging_body
+from tests.body.limb import BulgingMannequin
 from tests.conftest import squeezed_skirt
 
 SETTINGS = PushOutSettings(depth=0.005)
@@ -19,7 +19,7 @@ SETTINGS = PushOutSettings(depth=0.005)
 
 @pytest.fixture(scope="module")
 def visible():
-    return VisibleCollider.of(DEFAULT_BODY, bulging_body())
+    return VisibleCollider.of(DEFAULT_BODY, BulgingMannequin(0.05).skinned())
 
 
 @pytest.fixture(scope="module")
@@ -103,7 +103,7 @@ def test_a_crowd_of_two_bodies_pushes_each_as_alone(visible, skirt_frames):
     if load_kernel() is None:
         pytest.skip("no C compiler")
     motion, skirt, frames = skirt_frames
-    slimmer = VisibleCollider.of(DEFAULT_BODY, bulging_body(0.02))
+    slimmer = VisibleCollider.of(DEFAULT_BODY, BulgingMannequin(0.02).skinned())
     which = np.arange(motion.num_frames) % 2
     crowd = PosedSkin.of_frames((visible, slimmer), which, motion)
     together, _ = push_out(frames.astype(np.float32), motion, skirt.faces, body=crowd, settings=SETTINGS)
@@ -134,7 +134,7 @@ def test_the_animator_pushes_out_of_the_characters_own_mesh(animator, visible):
     from hrr_garment.body.mannequin import mannequin_record
     from hrr_garment.body.mesh_record import BodyMesh
 
-    skin = bulging_body()
+    skin = BulgingMannequin(0.05).skinned()
     record = replace(
         mannequin_record(), mesh=BodyMesh.of(skin.vertices, skin.faces, skin.rest_positions, skin.weights)
     )

@@ -11,9 +11,11 @@ from hrr_garment.body.skinned_body import SkinnedBody, skinned_body
 from hrr_garment.garment.templates import make_garment
 from hrr_garment.motion.skeleton import JOINT_INDEX
 from hrr_garment.motion.synth import synthesize
-from tests.body.bulging import bulging_body
+from tests.body.limb import BulgingMannequin
 
 pytestmark = pytest.mark.sim
+
+BULGE_M = 0.05  # how far the thighs' fronts stand out of their capsules
 
 
 def _leg() -> SkinnedBody:
@@ -46,6 +48,12 @@ def _leg() -> SkinnedBody:
     return skinned_body(DEFAULT_BODY.skeleton, rest, weights)
 
 
+def _bulging_body() -> SkinnedBody:
+    """The mannequin's capsule surface, each thigh's front pushed forward by up to ``BULGE_M``,
+    skinned rigidly: it differs from the capsules only by the bulges."""
+    return BulgingMannequin(BULGE_M).skinned()
+
+
 @pytest.fixture(scope="module")
 def newton_installed():
     pytest.importorskip("newton", reason="the sim extra is not installed")
@@ -69,7 +77,7 @@ def test_a_heavier_skirt_stays_outside_thighs_that_bulge_out_of_their_capsules(n
     from hrr_garment.sim.quality import PENETRATION_DEPTH_M, mesh_signed_distances
     from hrr_garment.sim.simulator import SimSettings, simulate_garment
 
-    skin, skirt = bulging_body(), make_garment("skirt", 200)
+    skin, skirt = _bulging_body(), make_garment("skirt", 200)
     at_rest = mesh_signed_distances(skirt.vertices[None], skin.vertices[None], skin.faces)
     assert at_rest.min() > 0.01  # it starts outside: what follows is the collider's doing
     run = synthesize("run", 1.0, seed=0)
@@ -90,7 +98,7 @@ def test_a_batch_gives_a_sequence_on_the_visible_body_the_frames_it_gets_alone(n
     from hrr_garment.sim.batch import BatchItem, simulate_batch
     from hrr_garment.sim.simulator import SimSettings, simulate_garment
 
-    skin, skirt = bulging_body(), make_garment("skirt", 200)
+    skin, skirt = _bulging_body(), make_garment("skirt", 200)
     collider = skinned_pieces(DEFAULT_BODY, skin)
     config = SimSettings(device="cpu", settle_s=0.1, blend_s=0.1)
     walk, spin = synthesize("walk", 0.6, seed=0), synthesize("spin", 0.8, seed=1)

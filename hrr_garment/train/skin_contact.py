@@ -1,0 +1,158 @@
+"""The contact phase's body where a body has a skin: the signed distance of decoded vertices to the
+mesh the viewer sees, differentiable, for :mod:`.contact`.
+
+The distance is the inverse-skinning collider's (:mod:`hrr_garment.body.skin_collider`), in its C
+kernel (:mod:`hrr_garment.native.skin`; the numpy reference where no compiler is found), frame by
+frame in threads (``torch.get_num_threads()``: the kernel is one thread a call and leaves Python's
+lock). Its gradient is the outward normal the collider returns with it (the signed distance's
+gradient wherever one point of the skin is nearest), so the backward pass costs nothing more.
+
+Decoded frames are in the body frame (:mod:`hrr_garment.motion.frame`), and the collider is posed
+there too: the body frame is a rigid move of the world (a turn about Y and a shift), and skinning
+and its inverse commute with one rigid move of every joint, so the joints' rotations and positions
+taken into the body frame pose the skin in it (tested equal to posing in the world).
+
+Points far from the skin are not queried: each body's capsules grown to hold its posed skin
+(:mod:`hrr_garment.body.skin_envelope`) give a lower bound on the distance to it, and a point whose
+bound exceeds the caller's ``reach_m`` (the contact margin: the loss ``relu(margin - d)`` is zero
+there, and so is its gradient) gets the bound instead, with a zero gradient. The bound also corrects
+the collider where it calls a point inside that lies outside the grown capsules (so outside the
+skin): the collider's side can be wrong far from the skin, beyond its grid (docs/bodies.md).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+
+from ..body.capsules import BodyModel, frames_signed_distance
+from ..body.skin_collider import skin_collider
+from ..body.skin_envelope import SkinEnvelope
+from ..body.skinned_body import SkinnedBody
+from ..motion.frame import body_heading, to_body_frame
+from ..motion.motion import Motion
+from ..native import default_threads, load_kernel
+from ..native.skin import SkinKernel
+
+Query = Callable[[np.ndarray, np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]
+_QUERIES: dict[int, tuple[SkinnedBody, Query]] = {}  # by the skin's id (held, so the id stays its)
+
+
+def skin_query(skin: SkinnedBody) -> Query:
+    """The collider's query of ``skin`` (points, rotations, positions -> distance, normal), in the C
+    kernel where it compiles; built once a skin (a few seconds for an anny body)."""
+    if id(skin) not in _QUERIES:
+        collider = skin_collider(skin)
+        lib = load_kernel()
+        _QUERIES[id(skin)] = (skin, collider.query if lib is None else SkinKernel(collider, lib).query)
+        while len(_QUERIES) > 16:  # a dataset's few bodies
+            del _QUERIES[next(iter(_QUERIES))]
+    return _QUERIES[id(skin)][1]
+
+
+def body_frame_pose(motion: Motion) -> tuple[np.ndarray, np.ndarray]:
+    """(T, J, 3, 3) global rotations and (T, J, 3) positions of the joints in the body frame."""
+    _, heading = body_heading(motion)  # body frame -> world
+    return np.einsum("tba,tjbc->tjac", heading, motion.global_rotations), to_body_frame(
+        motion.joint_positions, motion
+    )
+
+
+class _SignedDistance(torch.autograd.Function):
+    """Points (..., 3) -> the signed distance ``answer`` gives (numpy: points -> distances and their
+    gradients); backward: the incoming gradient times that gradient."""
+
+    @staticmethod
+    def forward(ctx, points: torch.Tensor, answer: Callable) -> torch.Tensor:
+        distance, gradient = answer(points.detach().numpy().astype(np.float64))
+        ctx.save_for_backward(torch.from_numpy(gradient).to(points.dtype))
+        return torch.from_numpy(distance).to(points.dtype)
+
+    @staticmethod
+    def backward(ctx, grad: torch.Tensor):
+        (gradient,) = ctx.saved_tensors
+        return grad[..., None] * gradient, None
+
+
+def signed_distance(points: torch.Tensor, answer: Callable) -> torch.Tensor:
+    """The distance ``answer`` gives ``points``, differentiable (:class:`_SignedDistance`)."""
+    return _SignedDistance.apply(points, answer)
+
+
+@dataclass(frozen=True)
+class VisibleContacts:
+    """Per stored frame, the joints posed in the body frame; per body (rows as :class:`.contact.
+    BodyContacts`' ``radii``), its skin's query and envelope, or None for a body drawn as its capsules."""
+
+    rotations: np.ndarray  # (frames, J, 3, 3) float32
+    positions: np.ndarray  # (frames, J, 3) float32
+    body: np.ndarray  # (frames,) int64 each frame's body row
+    queries: tuple[Query | None, ...]
+    envelopes: tuple[SkinEnvelope | None, ...]
+
+    @classmethod
+    def of(
+        cls, motions: list[Motion], body: np.ndarray, skins: list[tuple[SkinnedBody | None, BodyModel]]
+    ) -> "VisibleContacts":
+        """Of the stored frames of ``motions`` (their frames in turn; ``body`` each frame's row)
+        on the bodies ``skins`` (per row: the skin, or None, and the body's capsules)."""
+        poses = [body_frame_pose(m) for m in motions]
+        return cls(
+            np.concatenate([r for r, _ in poses]).astype(np.float32),
+            np.concatenate([p for _, p in poses]).astype(np.float32),
+            np.asarray(body, np.int64),
+            tuple(None if s is None else skin_query(s) for s, _ in skins),
+            tuple(None if s is None else SkinEnvelope.of(s, capsules) for s, capsules in skins),
+        )
+
+    @property
+    def skinned(self) -> list[bool]:
+        """Per body row: whether it has a skin."""
+        return [q is not None for q in self.queries]
+
+    def distance(
+        self, vertices: torch.Tensor, rows: torch.Tensor, *, fallback: torch.Tensor, reach_m: float
+    ) -> torch.Tensor:
+        """(n, V) signed distance of body-frame ``vertices`` (n, V, 3) of the stored frames ``rows``
+        (n,) to their bodies' skins, ``fallback`` (n, V) for frames of bodies without one: the
+        collider's wherever it is at most ``reach_m``, elsewhere a lower bound above it with a zero
+        gradient (and the bound too where the collider answers less than a positive bound: there
+        the point is outside the skin by at least the bound, the collider's side is wrong)."""
+        rows_np = rows.numpy()
+        body = self.body[rows_np]
+        frames = np.flatnonzero([self.queries[b] is not None for b in body])
+        if not len(frames):
+            return fallback
+        rot = self.rotations[rows_np[frames]].astype(np.float64)
+        pos = self.positions[rows_np[frames]].astype(np.float64)
+        lower = np.full((len(frames), vertices.shape[1]), -np.inf)  # where no reach: every point asked
+        points = vertices.detach()[torch.from_numpy(frames)].numpy().astype(np.float64)
+        for row in np.unique(body[frames]) if np.isfinite(reach_m) else ():
+            mine = np.flatnonzero(body[frames] == row)
+            a, b, radii = self.envelopes[row].grown(rot[mine], pos[mine])
+            lower[mine] = frames_signed_distance(points[mine], a, b=b, radii=radii)[0]
+
+        def answer(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            distance, normal = lower.copy(), np.zeros(points.shape)
+
+            def one(k: int) -> None:
+                near = np.flatnonzero(lower[k] <= reach_m)
+                if len(near):
+                    query = self.queries[body[frames[k]]]
+                    d, n = query(points[k, near], rot[k], pos[k])
+                    # outside the grown capsules a point is outside the skin, at least that far: an
+                    # answer nearer (the collider's side far from the skin) gives way to the bound
+                    wrong = (lower[k, near] > 0.0) & (d < lower[k, near])
+                    distance[k, near] = np.where(wrong, lower[k, near], d)
+                    normal[k, near] = np.where(wrong[:, None], 0.0, n)
+
+            with ThreadPoolExecutor(max(1, default_threads())) as pool:
+                list(pool.map(one, range(len(frames))))
+            return distance, normal
+
+        picked = torch.from_numpy(frames)
+        return fallback.index_copy(0, picked, signed_distance(vertices[picked], answer))
