@@ -29,13 +29,14 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from ..body.capsules import BodyModel, frames_signed_distance
+from ..body.capsules import BodyModel, capsule_signed_distance
 from ..body.skin_collider import skin_collider
 from ..body.skin_envelope import SkinEnvelope
 from ..body.skinned_body import SkinnedBody
 from ..motion.frame import body_heading, to_body_frame
 from ..motion.motion import Motion
 from ..native import default_threads, load_kernel
+from ..native.capsules import capsule_sdf
 from ..native.skin import SkinKernel
 
 Query = Callable[[np.ndarray, np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]
@@ -129,25 +130,27 @@ class VisibleContacts:
             return fallback
         rot = self.rotations[rows_np[frames]].astype(np.float64)
         pos = self.positions[rows_np[frames]].astype(np.float64)
-        lower = np.full((len(frames), vertices.shape[1]), -np.inf)  # where no reach: every point asked
-        points = vertices.detach()[torch.from_numpy(frames)].numpy().astype(np.float64)
+        grown = [None] * len(frames)  # each frame's capsules grown to hold its skin (none: ask every point)
         for row in np.unique(body[frames]) if np.isfinite(reach_m) else ():
             mine = np.flatnonzero(body[frames] == row)
-            a, b, radii = self.envelopes[row].grown(rot[mine], pos[mine])
-            lower[mine] = frames_signed_distance(points[mine], a, b=b, radii=radii)[0]
+            for k, capsules in zip(mine, zip(*self.envelopes[row].grown(rot[mine], pos[mine]))):
+                grown[k] = capsules
 
         def answer(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-            distance, normal = lower.copy(), np.zeros(points.shape)
+            distance, normal = np.full(points.shape[:2], -np.inf), np.zeros(points.shape)
 
             def one(k: int) -> None:
-                near = np.flatnonzero(lower[k] <= reach_m)
+                if grown[k] is not None:
+                    distance[k] = _capsule_distance(points[k], *grown[k])
+                lower = distance[k].copy()
+                near = np.flatnonzero(lower <= reach_m)
                 if len(near):
                     query = self.queries[body[frames[k]]]
                     d, n = query(points[k, near], rot[k], pos[k])
                     # outside the grown capsules a point is outside the skin, at least that far: an
                     # answer nearer (the collider's side far from the skin) gives way to the bound
-                    wrong = (lower[k, near] > 0.0) & (d < lower[k, near])
-                    distance[k, near] = np.where(wrong, lower[k, near], d)
+                    wrong = (lower[near] > 0.0) & (d < lower[near])
+                    distance[k, near] = np.where(wrong, lower[near], d)
                     normal[k, near] = np.where(wrong[:, None], 0.0, n)
 
             with ThreadPoolExecutor(max(1, default_threads())) as pool:
@@ -156,3 +159,13 @@ class VisibleContacts:
 
         picked = torch.from_numpy(frames)
         return fallback.index_copy(0, picked, signed_distance(vertices[picked], answer))
+
+
+def _capsule_distance(points: np.ndarray, a: np.ndarray, b: np.ndarray, radii: np.ndarray) -> np.ndarray:
+    """(N,) signed distance of points (N, 3) to one frame's capsules (C), on the calling thread: in
+    the kernel where it compiles (a thread of the frames' pool; a team of its own costs more than the
+    frame), else numpy."""
+    lib = load_kernel()
+    if lib is None:
+        return capsule_signed_distance(points, a, b, radii=radii)[0]
+    return capsule_sdf(lib, points[None], a[None], b=b[None], radii=radii, threads=1)[0][0]
