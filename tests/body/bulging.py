@@ -27,7 +27,22 @@ class _Rest:
 def bulging_body(bulge: float = BULGE_M) -> SkinnedBody:
     """That surface skinned rigidly, each vertex to its capsule's joint: it differs from the capsules
     only by the bulges."""
+    return _skinned(_Rest(bulge))
+
+
+def closed_bulging_body(bulge: float = BULGE_M) -> SkinnedBody:
+    """The same with each capsule's poles, which the capsule mesh keeps as rings of copies of one
+    point, welded into one vertex: a closed surface (the push-out's broad phase needs one)."""
     rest = _Rest(bulge)
+    key = np.column_stack([np.round(rest.vertices, 9), rest.capsule])
+    _, first, inverse = np.unique(key, axis=0, return_index=True, return_inverse=True)
+    faces = inverse.ravel()[rest.faces]
+    keep = (faces[:, 0] != faces[:, 1]) & (faces[:, 1] != faces[:, 2]) & (faces[:, 2] != faces[:, 0])
+    rest.vertices, rest.capsule, rest.faces = rest.vertices[first], rest.capsule[first], faces[keep]
+    return _skinned(rest)
+
+
+def _skinned(rest: _Rest) -> SkinnedBody:
     weights = np.zeros((len(rest.vertices), 22))
     joints = [JOINT_INDEX[DEFAULT_BODY.capsules[c].joint] for c in rest.capsule]
     weights[np.arange(len(weights)), joints] = 1.0
