@@ -78,6 +78,23 @@ def nearest_on_mesh(
     return distance, face, bary
 
 
+def within_reach(points: np.ndarray, vertices: np.ndarray, faces: np.ndarray, reach: float) -> np.ndarray:
+    """(N,) whether some face of the mesh lies within ``reach`` of each point (N, 3), exactly: only the
+    pairs whose face's box grown by ``reach`` holds the point are measured (a body's few near ones)."""
+    points = np.asarray(points, np.float64).reshape(-1, 3)
+    tri = np.asarray(vertices, np.float64)[np.asarray(faces, np.int64)]
+    lo, hi = tri.min(1) - reach, tri.max(1) + reach
+    out = np.zeros(len(points), bool)
+    step = max(1, PAIRS_PER_PASS // max(len(tri), 1))
+    for s in range(0, len(points), step):
+        p = points[s : s + step]
+        i, f = np.nonzero(((p[:, None] >= lo) & (p[:, None] <= hi)).all(-1))
+        bary = closest_on_triangles(p[i], tri[f])
+        gap = p[i] - np.einsum("mk,mkc->mc", bary, tri[f])
+        out[s + i[(gap * gap).sum(1) <= reach * reach]] = True
+    return out
+
+
 def winding_inside(points: np.ndarray, vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     """(N,) whether each point is inside the triangle mesh: generalised winding number > 0.5, robust
     to the cracks and overlaps of a posed mesh (Jacobson et al. 2013, the solid angle of each face)."""

@@ -166,7 +166,7 @@ def push_out(
             else native_strain_limit(limits, settings.max_strain, settings.stretch_slack),
             subspace=None if settings.subspace is None else settings.subspace.native,
         )
-        skins = None if skin is None else skin.native()
+        skins = None if skin is None else skin.native(margin, measure_after=report)
         for start in range(0, len(out), chunk):
             sl = slice(start, start + chunk)
             _, before[sl], after[sl], torn[sl] = push_out_frames(
@@ -199,7 +199,8 @@ def push_out(
             )
     if report and settings.subspace is not None:  # "before": as decoded, not after the subspace push
         before = (measure(np.asarray(original, np.float64), slice(None))[0] < -depth).mean(1)
-    if limits is not None and report and torn.any():  # only the frames the limit moved have a new "after"
+    # only the frames the limit moved have a new "after" (the kernel measures them against the skin itself)
+    if limits is not None and report and torn.any() and (lib is None or skin is None):
         rows = np.flatnonzero(torn)
         after[rows] = [
             (measure(out[t : t + 1].astype(np.float64), slice(t, t + 1))[0] < -depth).mean() for t in rows

@@ -8,9 +8,11 @@ vertex is measured first against the skin's hulls (:mod:`hrr_garment.body.skin_h
 capsules widened frame by frame to hold their pieces of the posed skin), and those within the
 push's margin of a hull, or inside one, against the skin itself
 (:mod:`hrr_garment.body.skin_collider`: the exact signed distance to the skinned mesh's posed
-triangles). A vertex farther than the margin from every hull is farther than that from the skin,
-so the push moves exactly the vertices the skin alone would have it move. The kernel
-(``hrr_garment.native``) does the same per frame; :meth:`PosedSkin.distance` is the reference.
+triangles), except those the frame's broad phase finds farther than the margin from the skin and
+outside it (:mod:`hrr_garment.body.skin_cells`, where the mesh is closed): they get ``FAR_AWAY``.
+A vertex farther than the margin from every hull is farther than that from the skin, so the push
+moves exactly the vertices the skin alone would have it move. The kernel (``hrr_garment.native``)
+does the same per frame; :meth:`PosedSkin.distance` is the reference.
 """
 
 from __future__ import annotations
@@ -21,6 +23,8 @@ from functools import cached_property
 import numpy as np
 
 from ..body.capsules import BodyModel, frames_signed_distance
+from ..body.mesh_distance import winding_inside, within_reach
+from ..body.skin_cells import SkinCells, closed_mesh, skin_cells
 from ..body.skin_collider import SkinCollider
 from ..body.skin_collider_store import stored_skin_collider
 from ..body.skin_hull import SkinHull, skin_hull
@@ -51,15 +55,33 @@ class VisibleCollider:
         lib = load_kernel()
         return None if lib is None else SkinKernel(self.collider, lib)
 
-    def pose(self, rotations: np.ndarray, positions: np.ndarray) -> np.ndarray:
-        """(n, V, 3) the skin posed by n frames' joint rotations and positions: in the kernel where
-        there is one (a character's mesh has tens of thousands of vertices, whose blended matrices
-        numpy would hold at once)."""
+    def posed(self, rotations: np.ndarray, positions: np.ndarray) -> np.ndarray:
+        """(T, V, 3) the mesh posed by (T, J, 3, 3) global rotations and (T, J, 3) joint positions: by
+        the kernel where there is one (a third of the numpy skinning's time), as the push-out poses it."""
+        body = self.collider.body
         if self.kernel is None:
-            return self.collider.body.pose(rotations, positions)
-        rot, trans = self.collider.body.joint_transforms(rotations, positions)
+            return body.pose(rotations, positions)
+        rot, trans = body.joint_transforms(rotations, positions)
         return self.kernel.pose_frames(np.ascontiguousarray(rot), np.ascontiguousarray(trans))[0]
 
+    @cached_property
+    def closed(self) -> bool:
+        """Whether the visible mesh is closed (the broad phase's outside needs it)."""
+        return closed_mesh(self.collider.body.faces)
+
+    def cells(self, rotations: np.ndarray, positions: np.ndarray, margin: float) -> SkinCells | None:
+        """One frame's broad phase (None on an open mesh): the kernel's where there is one (equal to
+        :func:`~hrr_garment.body.skin_cells.skin_cells`, its reference, on the same posed mesh)."""
+        if not self.closed:
+            return None
+        posed = self.posed(rotations[None], positions[None])[0]
+        if self.kernel is None:
+            return skin_cells(posed, self.collider.body.faces, margin=margin, cell=CELL_M)
+        return SkinCells(*self.kernel.cells(posed, margin, CELL_M), CELL_M)
+
+
+CELL_M = 0.02  # the broad phase's cells (docs/bodies.md, "The push-out against the visible mesh")
+FAR_AWAY = 1e30  # the distance of a point the broad phase finds far outside the skin (the kernel's)
 
 _BUILT: dict[tuple[int, int], tuple[BodyModel, SkinnedBody, VisibleCollider]] = {}
 KEPT_COLLIDERS = 8  # bodies whose colliders a process keeps (an anny body's: about 15 MB)
@@ -105,29 +127,55 @@ class PosedSkin:
             if len(visible.body.capsules) != a.shape[1]:
                 raise ValueError("every body of a push-out needs the same number of capsules")
             a[rows], b[rows] = visible.body.pose(rot[rows], pos[rows])
-            radii[rows] = visible.hull.radii(visible.pose(rot[rows], pos[rows]), a[rows], b[rows])
+            radii[rows] = visible.hull.radii(visible.posed(rot[rows], pos[rows]), a[rows], b[rows])
         return cls(tuple(bodies), np.asarray(which, np.int64), rot, pos, PosedCapsules(a, b, radii))
 
     def distance(self, points: np.ndarray, rows: slice, margin: float) -> tuple[np.ndarray, np.ndarray]:
         """(t, V) signed distances and (t, V, 3) outward normals of points (t, V, 3) of frames
         ``rows``: the skin's where within ``margin`` of a hull or inside one, else the hulls' (more
-        than the margin, as the skin's is there): the push-out kernel's reference, the skin measured by
-        its own kernel where there is one (equal to its reference to 1e-15)."""
+        than the margin, as the skin's is there), and ``FAR_AWAY`` (normal 0) where the point is
+        farther than the margin from the skin and outside it (the winding number), on a closed mesh
+        (the cells the broad phase's flood reaches are, the others are measured exactly against every
+        triangle): the push-out kernel's reference, the skin measured by its own kernel where there is
+        one (equal to its reference to 1e-15)."""
         a, b, radii = self.hulls.a[rows], self.hulls.b[rows], self.hulls.radii[rows]
         d, n = frames_signed_distance(points, a, b, radii=radii)
         for i, t in enumerate(range(*rows.indices(len(self.which)))):
             near = np.flatnonzero(d[i] <= margin)
+            visible = self.bodies[self.which[t]]
+            cells = visible.cells(self.rotations[t], self.positions[t], margin) if len(near) else None
+            if cells is not None:
+                far = cells.far(points[i, near])
+                rest = near[~far]  # the band and the cells the flood did not reach: measured exactly
+                if len(rest):
+                    faces = visible.collider.body.faces
+                    posed = visible.posed(self.rotations[t][None], self.positions[t][None])[0]
+                    clear = ~within_reach(points[i, rest], posed, faces, reach=margin)
+                    clear[clear] = ~winding_inside(points[i, rest[clear]], posed, faces)
+                    far[~far] = clear
+                d[i, near[far]], n[i, near[far]] = FAR_AWAY, 0.0
+                near = near[~far]
             if len(near):
-                visible = self.bodies[self.which[t]]
                 query = visible.collider.query if visible.kernel is None else visible.kernel.query
                 d[i, near], n[i, near] = query(points[i, near], self.rotations[t], self.positions[t])
         return d, n
 
-    def native(self):
-        """The frames as the kernel reads them (:class:`~hrr_garment.native.skin.PosedSkins`)."""
+    def native(self, margin: float, *, measure_after: bool = False):
+        """The frames as the kernel reads them (:class:`~hrr_garment.native.skin.PosedSkins`), with
+        room for their broad phase for the push's ``margin``; ``measure_after``: the kernel measures
+        a frame its strain limit moved again, for the report."""
         from ..native.skin import PosedSkins
 
         moves = [v.collider.body.joint_transforms(self.rotations, self.positions) for v in self.bodies]
         rot = np.stack([moves[k][0][t] for t, k in enumerate(self.which)])
         trans = np.stack([moves[k][1][t] for t, k in enumerate(self.which)])
-        return PosedSkins([v.kernel for v in self.bodies], self.which, rot=rot, trans=trans)
+        return PosedSkins(
+            [v.kernel for v in self.bodies],
+            self.which,
+            rot,
+            trans=trans,
+            closed=[v.closed for v in self.bodies],
+            margin=margin,
+            cell=CELL_M,
+            measure_after=measure_after,
+        )

@@ -405,7 +405,20 @@ static int grow_region(const PushMesh *m, int V, int rings, int seeds, int32_t *
    mesh (hrr_garment/body/skin_hull.py), so the skin lies inside their union and a vertex farther
    than the margin from every hull is farther than that from the skin: its hull distance stands (all
    the push reads of it is that it needs no push). The others, within the margin of a hull or inside
-   one, are measured against the skin itself: entries of the list idx (NULL: 0 .. n - 1). */
+   one, are measured against the skin itself (skin_point, ~3 us), but for those the frame's broad
+   phase shows farther than the margin from the skin and outside it (skin_far_outside: the flood's
+   cells, or the band's triangles and a ray; most of a garment inside the hulls, which hold the skin
+   loosely): FAR_AWAY, as a patch no capsule comes near. Entries of the list idx (NULL: 0 .. n - 1). */
+static inline void skin_measure(const SkinPose *sk, double margin, const double *x, double *d, double *nrm)
+{
+    if (sk->cells && skin_far_outside(sk, margin, x)) {
+        *d = FAR_AWAY;
+        nrm[0] = nrm[1] = nrm[2] = 0.0;
+    } else {
+        skin_point(sk->grid, sk->rot, sk->trans, sk->posed, sk->normals, x, d, nrm);
+    }
+}
+
 static void skin_refine(const SkinPose *sk, const double *p, const int32_t *idx, int n, double margin, double *d,
                         double *nrm)
 {
@@ -413,8 +426,7 @@ static void skin_refine(const SkinPose *sk, const double *p, const int32_t *idx,
     #pragma omp for schedule(dynamic, 32)
     for (int i = 0; i < n; ++i) {
         const int v = idx ? idx[i] : i;
-        if (d[v] <= margin)  /* a NaN stays as it is, as the push reads it */
-            skin_point(sk->grid, sk->rot, sk->trans, sk->posed, sk->normals, p + 3 * v, d + v, nrm + 3 * v);
+        if (d[v] <= margin) skin_measure(sk, margin, p + 3 * v, d + v, nrm + 3 * v); /* a NaN stays, as the push reads it */
     }
 }
 
@@ -428,8 +440,7 @@ static void skin_refine_patches(const SkinPose *sk, const double *p, const PushM
         const int q = list ? list[k] : k;
         for (int i = m->patch_ptr[q]; i < m->patch_ptr[q + 1]; ++i) {
             const int v = m->patch_idx[i];
-            if (d[v] <= margin)
-                skin_point(sk->grid, sk->rot, sk->trans, sk->posed, sk->normals, p + 3 * v, d + v, nrm + 3 * v);
+            if (d[v] <= margin) skin_measure(sk, margin, p + 3 * v, d + v, nrm + 3 * v);
         }
     }
 }
@@ -842,6 +853,8 @@ typedef struct {
     int32_t *ints, *moved;
     int *flag;
     LimitScratch limit;
+    SkinPose skin; /* the frame's skin with its band listed */
+    SkinBand band;
 } PushTeam;
 
 /* vertices a block of the subspace move (its rows of the basis stay in cache); SubspaceMove.BLOCK
@@ -958,6 +971,16 @@ static void push_and_limit(const void *in, int in_double, float *out, int V, con
         #pragma omp for schedule(static)
         for (int k = 0; k < 3 * V; ++k) u[k] = p[k];
     }
+    if (sk && sk->cells) {  /* the frame's broad phase against the skin, here where frames run in parallel,
+                               its band listed in the team's copy of the frame's struct */
+        #pragma omp single
+        {
+            team->skin = *sk;
+            if (skin_band_cells(sk->grid, sk->posed, args->margin, sk->cell, sk->origin, sk->dims, sk->cells, &team->band))
+                team->skin.band_start = team->band.start, team->skin.band_list = team->band.list;
+        }
+        sk = &team->skin;
+    }
     push_frame(p, V, ca, cb, radii, C, sk, m, args->margin, args->smooth, args->rounds, args->depth, before, after, team->buf,
                team->ints, team->flag);
     if (s) {  /* push_frame ends at a barrier: the frame is pushed, team->moved lists what it moved */
@@ -966,6 +989,36 @@ static void push_and_limit(const void *in, int in_double, float *out, int V, con
     }
     #pragma omp for schedule(static)
     for (int k = 0; k < 3 * V; ++k) out[k] = (float)p[k];
+    /* against the skin, a frame the limit moved is measured again here, as it comes out (float), for
+       the report: the caller would measure it in numpy against the hulls and then the skin, ten times
+       the push's own time on a garment the limit repairs on every frame. Only the vertices that come
+       out elsewhere than they came in are measured: push_frame's last distance of any other (its
+       buffer d) is of the point it came in at, which it leaves at (floats in, floats out) */
+    if (s && sk && sk->measure_after && *torn) {  /* *torn: written in a single, read after its barrier */
+        double *d = team->buf, *nrm = d + V;
+        int32_t *list = team->ints + V;  /* push_frame's work list, free again */
+        #pragma omp single
+        {
+            int n = 0;
+            for (int v = 0; v < V; ++v) {
+                const float *was = (const float *)in + 3 * v, *now = out + 3 * v;
+                if (in_double || was[0] != now[0] || was[1] != now[1] || was[2] != now[2]) {
+                    for (int k = 0; k < 3; ++k) p[3 * v + k] = (double)now[k];
+                    list[n++] = v;
+                }
+            }
+            team->flag[2] = n;
+        }
+        const int n = team->flag[2];
+        sdf_points(p, list, n, ca, cb, radii, C, d, nrm);
+        skin_refine(sk, p, list, n, args->margin, d, nrm);
+        #pragma omp single
+        {
+            int deep = 0;
+            for (int v = 0; v < V; ++v) deep += d[v] < -args->depth;
+            *after = (double)deep / V;
+        }
+    }
 }
 
 /* The subspace push of T frames at once (several teams, a frame each): the frames taken into
@@ -1066,7 +1119,8 @@ void hrr_push_out(const void *in, int in_double, float *out, int T, int V, const
     for (int k = 0; k < team_count; ++k) {
         double *mine = buf + ((size_t)V * BUF + solve) * k;
         team[k] = (PushTeam){mine, mine + (size_t)V * 20, mine + (size_t)V * 23, mine + (size_t)V * BUF,
-                             ints + (size_t)V * 7 * k, ints + (size_t)V * 7 * k + 3 * (size_t)V, flags + 5 * k, {0}};
+                             ints + (size_t)V * 7 * k, ints + (size_t)V * 7 * k + 3 * (size_t)V, flags + 5 * k, {0},
+                             {0}, {0}};
         if (limit) team[k].limit = limit_scratch(limit_block + per_limit * k, limit->E);
     }
     const size_t step = (size_t)V * 3;
@@ -1096,6 +1150,11 @@ void hrr_push_out(const void *in, int in_double, float *out, int T, int V, const
         }
     }
     #undef FRAME_IN
+    for (int k = 0; k < team_count; ++k) {
+        free(team[k].band.pairs);
+        free(team[k].band.start);
+        free(team[k].band.list);
+    }
     free(moved);
     free(buf);
     free(ints);

@@ -136,19 +136,70 @@ class SkinKernel:
             )
         return posed, normals
 
+    def cells(
+        self, posed: np.ndarray, margin: float, cell: float
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The broad phase of one posed frame (hrr_skin_cells; the reference is
+        :func:`hrr_garment.body.skin_cells.skin_cells`): the grid's first corner, its cells along each
+        axis and (cells,) uint8, 2 where a cell is farther than ``margin`` from the skin and outside
+        it (a closed mesh's: the caller checks)."""
+        origin, dims = cell_box(posed, margin, cell)
+        out = np.empty(int(np.prod(dims, dtype=np.int64)), np.uint8)
+        self.lib.hrr_skin_cells(
+            ctypes.byref(self.struct),
+            posed.ctypes.data,
+            margin,
+            cell,
+            origin.ctypes.data,
+            dims.ctypes.data,
+            out.ctypes.data,
+        )
+        return origin, dims, out
+
 
 class SkinPose(ctypes.Structure):
-    """skin_sdf.c's SkinPose (hrr_native.h): one frame's grid, joints' moves and posed mesh."""
+    """skin_sdf.c's SkinPose (hrr_native.h): one frame's grid, joints' moves and posed mesh, and the
+    cells of its broad phase (``cells`` 0: none)."""
 
-    _fields_ = [(name, ctypes.c_void_p) for name in ("grid", "rot", "trans", "posed", "normals")]
+    _fields_ = [(name, ctypes.c_void_p) for name in ("grid", "rot", "trans", "posed", "normals", "cells")] + [
+        ("dims", ctypes.c_int * 3),
+        ("origin", ctypes.c_double * 3),
+        ("cell", ctypes.c_double),
+        ("measure_after", ctypes.c_int),
+        ("band_start", ctypes.c_void_p),  # the kernel's own (its copy of the struct lists the band)
+        ("band_list", ctypes.c_void_p),
+    ]
+
+
+def cell_box(posed: np.ndarray, margin: float, cell: float) -> tuple[np.ndarray, np.ndarray]:
+    """The broad phase's grid over a posed mesh (V, 3): (3,) its first corner and (3,) int32 cells
+    along each axis, reaching ``margin`` plus two cells past the mesh's box on every side (so that
+    every border cell is farther than the margin from the mesh: hrr_skin_cells)."""
+    pad = margin + 2.0 * cell
+    origin = posed.min(0) - pad
+    return origin, (np.floor((posed.max(0) + pad - origin) / cell) + 1).astype(np.int32)
 
 
 class PosedSkins:
     """T frames of skinned bodies posed, as the push-out kernel reads them (``hrr_push_out``'s
-    ``skin``): frame t against ``kernels[which[t]]`` moved by ``rot[t]``, ``trans[t]``. Holds every
-    array the structs point at."""
+    ``skin``): frame t against ``kernels[which[t]]`` moved by ``rot[t]``, ``trans[t]``, with room
+    for the broad phase's cells (which the kernel fills for the push's ``margin``, frames in
+    parallel) where ``cell`` is given and the body's mesh is closed (``closed[which[t]]``); with
+    ``measure_after``, the kernel measures a frame its strain limit moved again, for the report.
+    Holds every array the structs point at."""
 
-    def __init__(self, kernels: list[SkinKernel], which: np.ndarray, rot: np.ndarray, trans: np.ndarray):
+    def __init__(
+        self,
+        kernels: list[SkinKernel],
+        which: np.ndarray,
+        rot: np.ndarray,
+        trans: np.ndarray,
+        *,
+        closed: list[bool] | None = None,
+        margin: float = 0.0,
+        cell: float | None = None,
+        measure_after: bool = False,
+    ):
         self.rot = np.ascontiguousarray(rot, np.float64)
         self.trans = np.ascontiguousarray(trans, np.float64)
         self.kernels, self.which = kernels, np.asarray(which, np.int64)
@@ -161,6 +212,7 @@ class PosedSkins:
                 for i, t in enumerate(rows):
                     self.posed[t], self.normals[t] = posed[i], normals[i]
         self.structs = (SkinPose * len(self.rot))()
+        self.cells: list[np.ndarray | None] = [None] * len(self.rot)
         for t, k in enumerate(self.which):
             self.structs[t] = SkinPose(
                 ctypes.addressof(kernels[k].struct),
@@ -168,7 +220,15 @@ class PosedSkins:
                 self.trans[t].ctypes.data,
                 self.posed[t].ctypes.data,
                 self.normals[t].ctypes.data,
+                measure_after=int(measure_after),
             )
+            if cell is not None and closed is not None and closed[k]:
+                origin, dims = cell_box(self.posed[t], margin, cell)
+                self.cells[t] = np.empty(int(np.prod(dims, dtype=np.int64)), np.uint8)
+                self.structs[t].cells = self.cells[t].ctypes.data
+                self.structs[t].dims[:] = [int(n) for n in dims]
+                self.structs[t].origin[:] = [float(x) for x in origin]
+                self.structs[t].cell = cell
 
     def address(self, first: int) -> int:
         """The address of frame ``first``'s struct (the kernel reads the frames from there on)."""

@@ -3,7 +3,9 @@
    ctypes glue). Per frame, hrr_skin_pose skins the mesh and its vertex normals once; per point,
    hrr_skin_sdf takes the point back to the rest pose from the best joints' rigid guesses by damped
    fixed-point steps r <- r + step M(w(r))^-1 (x - M(w(r)) r - t(w(r))), reads the faces the grid lists
-   at each rest point's node and returns the exact signed distance to the nearest of them, posed. */
+   at each rest point's node and returns the exact signed distance to the nearest of them, posed.
+   The push-out's broad phase (hrr_skin_cells, skin_far_by_ray) spares it the points a frame's posed
+   triangles show farther than the margin from the skin and outside it. */
 
 #include "hrr_native.h"
 
@@ -233,4 +235,243 @@ void hrr_skin_sdf(const SkinGrid *g, const double *rot, const double *trans, con
                   const double *normals, const double *points, int N, double *distance, double *normal)
 {
     for (int i = 0; i < N; i++) skin_point(g, rot, trans, posed, normals, points + 3 * i, distance + i, normal + 3 * i);
+}
+
+/* (a . b), summed in the order numpy's reference sums it */
+#define DOT3(u, w) ((u)[0] * (w)[0] + (u)[1] * (w)[1] + (u)[2] * (w)[2])
+
+/* triangle v's unit normal nh and plane offset po (nh . x = po on it), and each edge e's outward unit
+   normal in the plane m[e] (edge e runs from v[e] to v[e + 1]) with its offset o[e] = m[e] . v[e];
+   all zero for a degenerate triangle (hrr_garment/body/skin_cells.py computes the same, op for op) */
+static void unit_normal(const double *const v[3], double nh[3], double m[3][3], double o[3], double *po)
+{
+    const double u[3] = {v[1][0] - v[0][0], v[1][1] - v[0][1], v[1][2] - v[0][2]};
+    const double w[3] = {v[2][0] - v[0][0], v[2][1] - v[0][1], v[2][2] - v[0][2]};
+    const double n[3] = {u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2], u[0] * w[1] - u[1] * w[0]};
+    const double len = sqrt(DOT3(n, n));
+    for (int k = 0; k < 3; k++) nh[k] = len > 0.0 ? n[k] / len : 0.0;
+    *po = DOT3(nh, v[0]);
+    for (int e = 0; e < 3; e++) {
+        const double *s = v[e], *t = v[(e + 1) % 3];
+        const double d[3] = {t[0] - s[0], t[1] - s[1], t[2] - s[2]};
+        const double q[3] = {d[1] * nh[2] - d[2] * nh[1], d[2] * nh[0] - d[0] * nh[2], d[0] * nh[1] - d[1] * nh[0]};
+        const double ql = sqrt(DOT3(q, q));
+        for (int k = 0; k < 3; k++) m[e][k] = ql > 0.0 ? q[k] / ql : 0.0;
+        o[e] = DOT3(m[e], s);
+    }
+}
+
+/* grows *a (of *cap int32s) to hold at least `need` */
+static int grow_ints(int32_t **a, size_t *cap, size_t need)
+{
+    if (need <= *cap) return 1;
+    const size_t want = need > 2 * *cap ? need : 2 * *cap;
+    int32_t *b = realloc(*a, sizeof(int32_t) * want);
+    if (!b) return 0;
+    *a = b, *cap = want;
+    return 1;
+}
+
+/* The broad phase of the push-out against the skin, one frame: which cells of a uniform grid (cell
+   size `cell`, first corner origin, dims cells x-major; hrr_garment/body/skin_cells.py the reference,
+   which also picks the box) lie farther than `margin` from every triangle of the posed mesh and
+   outside it. cells (zeroed here): 1 where a triangle may come within the margin of the cell, 2 the
+   free cells the grid's border reaches through free cells (6-neighbours), 0 the other free cells.
+   Why it holds, for a closed mesh (every edge shared by two faces, as the caller checks):
+   - a point of a cell within `margin` of a triangle puts the cell's centre within r = margin + h of
+     it (h: half the cell's diagonal), so a cell whose centre is farther than r from every
+     triangle (the test below takes no fewer cells) is farther than the margin from the skin;
+   - the box reaches margin + 2 cells past the skin's, so every border cell is free and outside;
+   - a closed mesh's winding number is constant on a connected set that does not touch it: the free
+     cells the border reaches are outside (winding 0) however the posed mesh overlaps itself.
+   Points in the band and in the free cells the flood does not reach (inside the body, or pockets
+   the band closes off) are left to skin_far_by_ray, then to the measurement (skin_point).
+   And where band is given the triangles of each band cell listed in it: every
+   triangle the test below takes a cell for (so every triangle within the margin of a point of the
+   cell, and every triangle that meets the cell). Returns whether the lists were made (not without
+   the memory: the cells stand alone then). */
+static int skin_band_cells(const SkinGrid *g, const double *posed, double margin, double cell, const double *origin,
+                           const int *dims, uint8_t *cells, SkinBand *band)
+{
+    const long nx = dims[0], ny = dims[1], nz = dims[2], count = nx * ny * nz;
+    const double r = margin + 0.5 * sqrt(3.0) * cell;
+    size_t pairs = 0;
+    memset(cells, 0, (size_t)count);
+    for (int f = 0; f < g->F; f++) {
+        const int *c = g->faces + 3 * f;
+        const double *v[3] = {posed + 3 * c[0], posed + 3 * c[1], posed + 3 * c[2]};
+        long lo[3], hi[3];
+        for (int k = 0; k < 3; k++) {  /* the cells whose centres lie in the triangle's box grown by r */
+            const double mn = fmin(v[0][k], fmin(v[1][k], v[2][k])), mx = fmax(v[0][k], fmax(v[1][k], v[2][k]));
+            lo[k] = (long)fmax(ceil((mn - r - origin[k]) / cell - 0.5), 0.0);
+            hi[k] = (long)fmin(floor((mx + r - origin[k]) / cell - 0.5), (double)(dims[k] - 1));
+        }
+        /* a cell is taken where its centre x is within r of the triangle's plane and of the inner side
+           of each edge's line (m_e . x - o_e <= r, m_e the edge's outward unit normal in the plane):
+           every point within r of the triangle is, so the test takes every cell the band needs (and
+           a few more about the corners), at four dot products a cell */
+        double nh[3], m[3][3], o[3], po = 0.0;
+        unit_normal(v, nh, m, o, &po);
+        const int flat = nh[0] == 0.0 && nh[1] == 0.0 && nh[2] == 0.0;  /* degenerate: its whole box */
+        /* only the cells near the plane: along the axis a the normal is largest on, each column of
+           the box holds an interval of them (widened past rounding) */
+        int a = fabs(nh[0]) >= fabs(nh[1]) ? 0 : 1;
+        a = fabs(nh[2]) > fabs(nh[a]) ? 2 : a;
+        const int p1 = (a + 1) % 3, p2 = (a + 2) % 3;
+        const long stride[3] = {ny * nz, nz, 1};
+        const double inv_cell = 1.0 / cell, inv_n = flat ? 0.0 : inv_cell / nh[a], spread = flat ? 0.0 : r * fabs(inv_n);
+        for (long i = lo[p1]; i <= hi[p1]; i++)
+            for (long j = lo[p2]; j <= hi[p2]; j++) {
+                long k0 = lo[a], k1 = hi[a];
+                double x[3];
+                x[p1] = origin[p1] + (i + 0.5) * cell, x[p2] = origin[p2] + (j + 0.5) * cell;
+                if (!flat) {  /* nh . x - po within +-r: an interval of x_a (in cells: products, no divisions) */
+                    const double mid = (po - nh[p1] * x[p1] - nh[p2] * x[p2]) * inv_n - origin[a] * inv_cell - 0.5;
+                    const double from = floor(mid - spread - 1e-6), to = ceil(mid + spread + 1e-6);
+                    if (from > k0) k0 = (long)from;
+                    if (to < k1) k1 = (long)to;
+                }
+                for (long k = k0; k <= k1; k++) {
+                    const long at = i * stride[p1] + j * stride[p2] + k * stride[a];
+                    if (cells[at] && !band) continue;  /* listing, every triangle of the cell is wanted */
+                    x[a] = origin[a] + (k + 0.5) * cell;
+                    if (flat || (fabs(DOT3(nh, x) - po) <= r && DOT3(m[0], x) - o[0] <= r && DOT3(m[1], x) - o[1] <= r &&
+                                 DOT3(m[2], x) - o[2] <= r)) {
+                        cells[at] = 1;
+                        if (band && grow_ints(&band->pairs, &band->pairs_cap, 2 * pairs + 2))
+                            band->pairs[2 * pairs] = (int32_t)at, band->pairs[2 * pairs + 1] = f, pairs++;
+                        else
+                            band = NULL;  /* no memory: no lists */
+                    }
+                }
+            }
+    }
+    /* the flood from the border: every border cell is free (the box's padding) and outside, marked 2;
+       the flood then runs on the inner cells only, each pushed once (marked 2 as it is pushed), whose
+       six neighbours all lie in the grid: no bounds to check, no index to divide out */
+    int32_t *stack = malloc(sizeof(int32_t) * (size_t)count);
+    if (!stack) {  /* no memory: no cell is known outside, every point is measured */
+        memset(cells, 1, (size_t)count);
+        return 0;
+    }
+    long top = 0;
+    const long step[3] = {ny * nz, nz, 1}, size[3] = {nx, ny, nz};
+    for (long i = 0; i < nx; i++)
+        for (long j = 0; j < ny; j++)
+            for (long k = 0; k < nz; k++) {
+                const long idx[3] = {i, j, k}, at = (i * ny + j) * nz + k;
+                int border = 0;
+                for (int a = 0; a < 3; a++) border |= idx[a] == 0 || idx[a] == size[a] - 1;
+                if (!border) {
+                    k = k < nz - 2 ? nz - 2 : k;  /* an inner row: on to its last cell */
+                    continue;
+                }
+                cells[at] = 2;
+                for (int a = 0; a < 3; a++) {  /* the inner neighbour across each border face */
+                    const long in = idx[a] == 0 ? at + step[a] : (idx[a] == size[a] - 1 ? at - step[a] : -1);
+                    const long ia = idx[a] == 0 ? 1 : size[a] - 2;
+                    int inner = in >= 0 && ia > 0 && ia < size[a] - 1;
+                    for (int e = 0; e < 3; e++)
+                        if (e != a) inner &= idx[e] > 0 && idx[e] < size[e] - 1;
+                    if (inner && !cells[in]) {
+                        cells[in] = 2;
+                        stack[top++] = (int32_t)in;
+                    }
+                }
+            }
+    while (top > 0) {
+        const long at = stack[--top];
+        for (int a = 0; a < 3; a++)
+            for (int s = -1; s <= 1; s += 2) {
+                uint8_t *next = cells + at + s * step[a];
+                if (*next) continue;
+                *next = 2;
+                stack[top++] = (int32_t)(next - cells);
+            }
+    }
+    free(stack);
+    if (!band || !grow_ints(&band->start, &band->start_cap, (size_t)count + 1) ||
+        !grow_ints(&band->list, &band->list_cap, pairs > 0 ? pairs : 1))
+        return 0;
+    /* the pairs' CSR by cell: counted, summed, filled (each start moved up to its cell's end), shifted back */
+    int32_t *start = band->start;
+    memset(start, 0, sizeof(int32_t) * ((size_t)count + 1));
+    for (size_t q = 0; q < pairs; q++) start[band->pairs[2 * q] + 1]++;
+    for (long c = 0; c < count; c++) start[c + 1] += start[c];
+    for (size_t q = 0; q < pairs; q++) band->list[start[band->pairs[2 * q]]++] = band->pairs[2 * q + 1];
+    for (long c = count; c > 0; c--) start[c] = start[c - 1];
+    start[0] = 0;
+    return 1;
+}
+
+/* the cells alone (hrr_garment.native.skin's SkinKernel.cells: the reference's measure) */
+void hrr_skin_cells(const SkinGrid *g, const double *posed, double margin, double cell, const double *origin,
+                    const int *dims, uint8_t *cells)
+{
+    skin_band_cells(g, posed, margin, cell, origin, dims, cells, NULL);
+}
+
+/* The crossing of the ray from x along +x with triangle v (vertex indices c): +1 where it leaves
+   through the triangle (the triangle's normal along +x), -1 where it enters, 0 where it misses, and
+   the crossing's x in *hit. Watertight: each edge's function in the (y, z) plane is evaluated from
+   its lower-indexed end, so two triangles sharing the edge see exactly opposite values, and a ray
+   through the edge itself goes to one side of it by a fixed rule (the edge's direction): a ray
+   through a shared edge crosses exactly one of the two faces, or, at a silhouette, both or
+   neither, which cancel. */
+static int ray_cross(const double *x, const double *const v[3], const int *c, double *hit)
+{
+    double e[3];
+    int side[3];
+    for (int k = 0; k < 3; k++) {  /* edge k from corner k to k + 1; its function is 0 on its line */
+        const int flip = c[k] > c[(k + 1) % 3];
+        const double *s = flip ? v[(k + 1) % 3] : v[k], *t = flip ? v[k] : v[(k + 1) % 3];
+        const double f = (t[1] - s[1]) * (x[2] - s[2]) - (t[2] - s[2]) * (x[1] - s[1]);
+        const int tie = t[1] > s[1] || (t[1] == s[1] && t[2] > s[2]) ? 1 : -1;
+        e[k] = flip ? -f : f;
+        side[k] = (f > 0.0 ? 1 : (f < 0.0 ? -1 : tie)) * (flip ? -1 : 1);
+    }
+    if (side[0] != side[1] || side[1] != side[2]) return 0;
+    const double area = e[0] + e[1] + e[2];  /* twice the (y, z) projection's signed area */
+    if (area == 0.0) return 0;  /* edge on to the ray: its neighbours count the crossing */
+    /* barycentric weights: each corner's, the function of the edge across from it */
+    *hit = (e[1] * v[0][0] + e[2] * v[1][0] + e[0] * v[2][0]) / area;
+    return side[0];
+}
+
+/* For a point x in the band or in a free cell the flood did not reach (cls 1 or 0, cell idx):
+   whether it is farther than the margin from the skin and outside it. Farther: no triangle of its
+   cell's list comes within the margin of it (every triangle within the margin of a point of the
+   cell is listed). Outside: the winding number along the ray from x along +x is 0. The ray runs
+   through the row of cells to the first of the far outside (winding 0 there, as everywhere in it):
+   the crossings on the way are those of the band cells' triangles whose crossing lies in the cell
+   at hand (a triangle that meets a cell is listed in it; each crossing counted once); a free
+   cell holds none. */
+static int skin_far_by_ray(const SkinPose *sk, double margin, const double *x, const long idx[3], int cls)
+{
+    const SkinGrid *g = sk->grid;
+    const long row = (long)sk->dims[1] * sk->dims[2], first = (idx[0] * sk->dims[1] + idx[1]) * sk->dims[2] + idx[2];
+    if (cls == 1)
+        for (int e = sk->band_start[first]; e < sk->band_start[first + 1]; e++) {
+            const int *c = g->faces + 3 * sk->band_list[e];
+            const double *a = sk->posed + 3 * c[0], *b = sk->posed + 3 * c[1], *d = sk->posed + 3 * c[2];
+            double bary[3], q2 = 0.0;
+            closest_bary(x, a, b, d, bary);
+            for (int k = 0; k < 3; k++) {
+                const double q = x[k] - (bary[0] * a[k] + bary[1] * b[k] + bary[2] * d[k]);
+                q2 += q * q;
+            }
+            if (q2 <= margin * margin) return 0;
+        }
+    int winding = 0;
+    for (long i = idx[0], at = first; i < sk->dims[0]; i++, at += row) {
+        if (sk->cells[at] == 2) break;
+        for (int e = sk->band_start[at]; e < sk->band_start[at + 1]; e++) {
+            const int *c = g->faces + 3 * sk->band_list[e];
+            const double *v[3] = {sk->posed + 3 * c[0], sk->posed + 3 * c[1], sk->posed + 3 * c[2]};
+            double hit;
+            const int cross = ray_cross(x, v, c, &hit);
+            if (cross && hit > x[0] && floor((hit - sk->origin[0]) / sk->cell) == (double)i) winding += cross;
+        }
+    }
+    return winding == 0;
 }

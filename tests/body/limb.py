@@ -112,6 +112,7 @@ class BulgingMannequin:
         self.vertices, self.faces = body_mesh(a, b, DEFAULT_BODY.radii + grow_m, 12, 6)
         self.joints = DEFAULT_BODY.rest_joints()
         _, _, capsule = capsule_signed_distance(self.vertices, a, b, radii=DEFAULT_BODY.radii + grow_m)
+        self.capsule = capsule
         thigh = np.array([DEFAULT_BODY.capsules[c].name.endswith("thigh") for c in capsule])
         front = self.vertices[:, 2] - 0.5 * (a[capsule, 2] + b[capsule, 2])
         self.vertices[:, 2] += np.where(thigh, bulge_m * np.clip(front / 0.075, 0.0, 1.0), 0.0)
@@ -124,3 +125,18 @@ class BulgingMannequin:
         from hrr_garment.body.skinned_body import skinned_body
 
         return skinned_body(DEFAULT_BODY.skeleton, self, self.weights)
+
+    def closed(self) -> "BulgingMannequin":
+        """The same with each capsule's poles, which the capsule mesh keeps as rings of copies of one
+        point, welded into one vertex: a closed surface (the push-out's broad phase needs one)."""
+        key = np.column_stack([np.round(self.vertices, 9), self.capsule])
+        _, first, inverse = np.unique(key, axis=0, return_index=True, return_inverse=True)
+        faces = inverse.ravel()[self.faces]
+        keep = (faces[:, 0] != faces[:, 1]) & (faces[:, 1] != faces[:, 2]) & (faces[:, 2] != faces[:, 0])
+        self.vertices, self.capsule, self.weights = (
+            self.vertices[first],
+            self.capsule[first],
+            self.weights[first],
+        )
+        self.faces = faces[keep]
+        return self

@@ -1,15 +1,23 @@
 """The push-out against the mesh the viewer sees (hrr_garment.inference.visible_push): the skin's
-hulls hold the skin in every pose; the kernel pushes exactly as the numpy reference does, a frame
-at a time as in batches, a crowd of two bodies as each alone; and the cloth ends outside the
-visible mesh where the capsules' push-out leaves it inside the thighs' bulges."""
+hulls hold the skin in every pose; the broad phase of a closed mesh is its reference's, cell for
+cell, and leaves out only points outside the mesh and farther than the margin; the kernel pushes
+exactly as the numpy reference does (an open mesh and a closed one), a frame at a time as in
+batches, a crowd of two bodies as each alone, and reports the cloth inside after its strain limit as
+the reference measures it; a vertex deep inside is pushed out and a far one left as it was; and the
+cloth ends outside the visible mesh where the capsules' push-out leaves it inside the thighs'
+bulges."""
+
+from dataclasses import replace
 
 import numpy as np
 import pytest
 
 from hrr_garment.body.capsules import DEFAULT_BODY, frames_signed_distance
 from hrr_garment.body.mesh_distance import mesh_signed_distance
+from hrr_garment.body.skin_cells import skin_cells
 from hrr_garment.inference.collision import PushOutSettings, _push_frames, mean_operator, push_out
-from hrr_garment.inference.visible_push import PosedSkin, VisibleCollider
+from hrr_garment.inference.edge_limits import EdgeLimits
+from hrr_garment.inference.visible_push import CELL_M, PosedSkin, VisibleCollider
 from hrr_garment.motion.synth import synthesize
 from tests.body.limb import BulgingMannequin
 from tests.conftest import squeezed_skirt
@@ -20,6 +28,19 @@ SETTINGS = PushOutSettings(depth=0.005)
 @pytest.fixture(scope="module")
 def visible():
     return VisibleCollider.of(DEFAULT_BODY, BulgingMannequin(0.05).skinned())
+
+
+@pytest.fixture(scope="module")
+def closed_visible():
+    """The same body with its capsules' poles welded: closed, so the push-out's broad phase runs."""
+    return VisibleCollider.of(DEFAULT_BODY, BulgingMannequin(0.05).closed().skinned())
+
+
+def _kernel_or_skip():
+    from hrr_garment.native import load_kernel
+
+    if load_kernel() is None:
+        pytest.skip("no C compiler")
 
 
 @pytest.fixture(scope="module")
@@ -53,11 +74,30 @@ def test_the_hulls_hold_the_skin(visible):
     assert (posed.hulls.radii[:, thighs] > DEFAULT_BODY.radii[thighs] + 0.03).all()  # widened over the bulge
 
 
-def test_the_kernel_pushes_as_the_reference(visible, skirt_frames):
-    from hrr_garment.native import load_kernel
+def test_the_broad_phase_is_its_reference_and_culls_only_far_outside(visible, closed_visible):
+    _kernel_or_skip()
+    assert closed_visible.closed and not visible.closed  # the open mesh measures every point
+    motion = synthesize("dance", 0.3, seed=4)
+    skin, margin = closed_visible.collider.body, SETTINGS.margin
+    rng = np.random.default_rng(0)
+    for t in (0, motion.num_frames // 2):
+        rot, pos = motion.global_rotations[t], motion.joint_positions[t]
+        cells = closed_visible.cells(rot, pos, margin)  # the kernel's
+        moves = skin.joint_transforms(rot[None], pos[None])
+        posed = closed_visible.kernel.pose_frames(*(np.ascontiguousarray(m) for m in moves))[0][0]
+        reference = skin_cells(posed, skin.faces, margin=margin, cell=CELL_M)
+        assert np.array_equal(cells.cells, reference.cells) and np.array_equal(cells.dims, reference.dims)
+        points = rng.uniform(posed.min(0) - 0.1, posed.max(0) + 0.1, (3000, 3))
+        far = cells.far(points)
+        signed = mesh_signed_distance(points, posed, skin.faces)
+        assert signed[far].min() > margin  # left out: outside the mesh and farther than the margin
+        assert far[signed > 0.05].mean() > 0.95  # and nearly every point 5 cm or more outside is left out
 
-    if load_kernel() is None:
-        pytest.skip("no C compiler")
+
+@pytest.mark.parametrize("body", ["visible", "closed_visible"])
+def test_the_kernel_pushes_as_the_reference(request, body, skirt_frames):
+    _kernel_or_skip()
+    visible = request.getfixturevalue(body)
     motion, skirt, frames = skirt_frames
     posed = PosedSkin.of(visible, motion)
     mean = mean_operator(skirt.faces, len(skirt.vertices))
@@ -78,6 +118,45 @@ def test_the_kernel_pushes_as_the_reference(visible, skirt_frames):
         settings=SETTINGS,
     )
     assert np.array_equal(one[0], got[3])  # a frame alone (a stream's) as in the batch
+
+
+def test_the_kernel_reports_the_cloth_inside_after_its_limit_as_the_reference(closed_visible, skirt_frames):
+    """The kernel measures the frames its strain limit moved again itself (only the vertices that
+    moved): its report is the reference's measure of what comes out."""
+    _kernel_or_skip()
+    motion, skirt, frames = skirt_frames
+    posed, f32 = PosedSkin.of(closed_visible, motion), frames.astype(np.float32)
+    limits = EdgeLimits.of(skirt.faces, skirt.vertices.astype(np.float64))
+    strict = replace(SETTINGS, max_strain=1.0, stretch_slack=0.0)  # no edge stretched: the limit acts
+    out, report = push_out(f32, motion, skirt.faces, body=posed, settings=strict, limits=limits)
+    unlimited, _ = push_out(f32, motion, skirt.faces, body=posed, settings=strict)
+    assert not np.array_equal(out, unlimited)  # the limit moved some frames
+    d, _ = posed.distance(out.astype(np.float64), slice(None), SETTINGS.margin)
+    after = (d < -SETTINGS.depth).mean(1)
+    assert report.inside_after == pytest.approx(after.mean())
+    assert report.worst_after == pytest.approx(after.max())
+
+
+def test_a_vertex_deep_inside_is_pushed_out_and_a_far_one_left(closed_visible):
+    """Two triangles: one on a thigh's axis (8 cm inside, no skin within the margin: the broad
+    phase must not take it for outside), one 30 cm in front of the chest."""
+    motion = synthesize("walk", 0.1, seed=1).slice(0, 1)
+    a, b = DEFAULT_BODY.pose_motion(motion)
+    thigh = next(i for i, c in enumerate(DEFAULT_BODY.capsules) if c.name.endswith("thigh"))
+    centre = 0.5 * (a[0, thigh] + b[0, thigh])
+    chest = b[0].max(0) * np.array([0.0, 0.85, 0.0]) + np.array([0.0, 0.0, 0.3])
+    offsets = np.array([[0.0, 0.0, 0.0], [0.01, 0.0, 0.0], [0.0, 0.01, 0.0]])
+    points = np.concatenate([centre + offsets, chest + offsets])[None]
+    faces = np.array([[0, 1, 2], [3, 4, 5]])
+    skin = closed_visible.collider.body
+    posed_mesh = skin.pose(motion.global_rotations, motion.joint_positions)[0]
+    assert mesh_signed_distance(points[0, :3], posed_mesh, skin.faces).max() < -0.05
+    out, report = push_out(
+        points.astype(np.float32), motion, faces, body=PosedSkin.of(closed_visible, motion), settings=SETTINGS
+    )
+    assert report.inside_before == pytest.approx(0.5) and report.inside_after == 0.0
+    assert mesh_signed_distance(out[0, :3].astype(np.float64), posed_mesh, skin.faces).min() > 0.0
+    assert np.array_equal(out[0, 3:], points[0, 3:].astype(np.float32))
 
 
 def test_the_cloth_ends_outside_the_visible_mesh(visible, skirt_frames):
