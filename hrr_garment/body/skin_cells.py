@@ -5,7 +5,7 @@ in ``hrr_garment/native/skin_sdf.c``, cell for cell).
     cells = skin_cells(posed, faces, margin, cell)     # one frame of a closed mesh
     far = cells.far(points)                            # (N,) nothing to measure there
 
-Why: the skin's hulls (:mod:`.skin_hull`) hold the skin loosely, 4 to 13 cm wider than the capsules,
+Why: the skin's hulls (:mod:`.skin_envelope`) hold the skin loosely, 4 to 13 cm wider than the capsules,
 so two thirds of a dress lies within them while a twentieth lies within 2 mm of the skin; each of
 those would cost the skin collider's few microseconds. A cell goes to the band where its centre lies
 within the margin plus half the cell's diagonal of a triangle (or near it: of its plane and of the

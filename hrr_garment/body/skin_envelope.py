@@ -100,9 +100,12 @@ class SkinEnvelope:
                 )
         return posed
 
-    def growth(self, global_rotations: np.ndarray, joint_positions: np.ndarray) -> np.ndarray:
-        """(T, C) how far each capsule must grow, posed so, to hold its pieces (-inf: it holds none)."""
-        posed = self.pose(global_rotations, joint_positions)
+    def growth(
+        self, global_rotations: np.ndarray, joint_positions: np.ndarray, posed: np.ndarray | None = None
+    ) -> np.ndarray:
+        """(T, C) how far each capsule must grow, posed so, to hold its pieces (-inf: it holds none);
+        ``posed``: the skin already posed by the same frames (T, V, 3), where the caller has it."""
+        posed = self.pose(global_rotations, joint_positions) if posed is None else posed
         points = np.einsum("pk,tpkc->tpc", self.bary, posed[:, self.corners])  # (T, P, 3)
         a, b = self.body.pose(global_rotations, joint_positions)
         outside = (

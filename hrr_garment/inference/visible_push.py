@@ -4,7 +4,7 @@
     vertices, report = push_out(vertices, motion, faces, body=posed)
 
 :func:`~.collision.push_out` takes a :class:`PosedSkin` where it takes capsules: every garment
-vertex is measured first against the skin's hulls (:mod:`hrr_garment.body.skin_hull`: the body's
+vertex is measured first against the skin's hulls (:mod:`hrr_garment.body.skin_envelope`: the body's
 capsules widened frame by frame to hold their pieces of the posed skin), and those within the
 push's margin of a hull, or inside one, against the skin itself
 (:mod:`hrr_garment.body.skin_collider`: the exact signed distance to the skinned mesh's posed
@@ -27,7 +27,7 @@ from ..body.mesh_distance import winding_inside, within_reach
 from ..body.skin_cells import SkinCells, closed_mesh, skin_cells
 from ..body.skin_collider import SkinCollider
 from ..body.skin_collider_store import stored_skin_collider
-from ..body.skin_hull import SkinHull, skin_hull
+from ..body.skin_envelope import SkinEnvelope
 from ..body.skinned_body import SkinnedBody
 from ..motion.motion import Motion
 from .collision import PosedCapsules
@@ -39,12 +39,12 @@ class VisibleCollider:
     skin's hulls over them and the skin's collider (built once a body: seconds for an anny body)."""
 
     body: BodyModel
-    hull: SkinHull
+    envelope: SkinEnvelope  # the capsules grown per frame to hold the skin
     collider: SkinCollider
 
     @classmethod
     def of(cls, body: BodyModel, skin: SkinnedBody) -> "VisibleCollider":
-        return cls(body, skin_hull(body, skin), stored_skin_collider(skin))
+        return cls(body, SkinEnvelope.of(skin, body), stored_skin_collider(skin))
 
     @cached_property
     def kernel(self):
@@ -127,7 +127,10 @@ class PosedSkin:
             if len(visible.body.capsules) != a.shape[1]:
                 raise ValueError("every body of a push-out needs the same number of capsules")
             a[rows], b[rows] = visible.body.pose(rot[rows], pos[rows])
-            radii[rows] = visible.hull.radii(visible.posed(rot[rows], pos[rows]), a[rows], b[rows])
+            growth = visible.envelope.growth(rot[rows], pos[rows], posed=visible.posed(rot[rows], pos[rows]))
+            # never narrower than the capsule (inside the body: the union keeps the body's inside in
+            # it), and a capsule that holds no piece of the skin as it is
+            radii[rows] = np.maximum(visible.body.radii + growth, visible.body.radii)
         return cls(tuple(bodies), np.asarray(which, np.int64), rot, pos, PosedCapsules(a, b, radii))
 
     def distance(self, points: np.ndarray, rows: slice, margin: float) -> tuple[np.ndarray, np.ndarray]:

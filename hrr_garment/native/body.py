@@ -200,7 +200,7 @@ def push_out_frames(
     a C-contiguous float32 array of the points' shape the pushed points are written to (and
     returned). ``skin``: the address of T :class:`~.skin.SkinPose` structs (:class:`~.skin.PosedSkins`),
     when the body is the skin the viewer sees; ``capsules`` then are its hulls
-    (:mod:`hrr_garment.body.skin_hull`), and the points within the margin of one are measured against
+    (:mod:`hrr_garment.body.skin_envelope`), and the points within the margin of one are measured against
     the skin."""
     mean, *_, mesh, limit, subspace = steps
     if skin is not None and subspace is not None:

@@ -402,7 +402,7 @@ static int grow_region(const PushMesh *m, int V, int rings, int seeds, int32_t *
 }
 
 /* Against the skin (sk not NULL) the capsules are its hulls, each covering its piece of the posed
-   mesh (hrr_garment/body/skin_hull.py), so the skin lies inside their union and a vertex farther
+   mesh (hrr_garment/body/skin_envelope.py), so the skin lies inside their union and a vertex farther
    than the margin from every hull is farther than that from the skin: its hull distance stands (all
    the push reads of it is that it needs no push). The others, within the margin of a hull or inside
    one, are measured against the skin itself (skin_point, ~3 us), but for those the frame's broad
