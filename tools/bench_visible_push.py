@@ -109,7 +109,7 @@ def main() -> None:
     mean = mean_operator(faces, frames.shape[1])
     limits = EdgeLimits.of(faces, frames[0].astype(np.float64))
     # the same collider with the broad phase off (as if its mesh were open): the hulls' cull alone
-    hulls_only = VisibleCollider(visible.body, visible.hull, visible.collider)
+    hulls_only = VisibleCollider(visible.body, visible.envelope, visible.collider)
     hulls_only.__dict__["closed"] = False  # the cached property, set before it is first read
 
     def on_skin(collider):
