@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..errors import OutputError
 from ..io_utils import atomic_path
 from ..paths import workspace
 from .skin_collider import SkinCollider, SkinColliderSettings, skin_collider
@@ -51,7 +52,7 @@ def stored_skin_collider(
     try:
         with atomic_path(path) as tmp, open(tmp, "wb") as f:
             np.savez(f, **{name: getattr(collider, name) for name in ARRAYS})
-    except OSError:  # a read-only workspace: the grid is still this process's to use
+    except (OSError, OutputError):  # a read-only workspace: the grid is still this process's to use
         pass
     return collider
 

@@ -48,3 +48,11 @@ def test_a_damaged_file_is_built_again(tmp_path):
     assert (
         stored_skin_collider(body, folder=tmp_path).distance.shape == built.distance.shape
     )  # stored again, whole
+
+
+def test_a_workspace_that_cannot_be_written_still_gives_the_grid(tmp_path):
+    body = skinned_limb()
+    blocked = tmp_path / "file"
+    blocked.write_text("not a folder")  # the store's folder cannot be made under a file
+    collider = stored_skin_collider(body, folder=blocked / "cache")
+    assert np.array_equal(collider.face_list, stored_skin_collider(body, folder=tmp_path).face_list)
