@@ -139,8 +139,8 @@ def test_bodies_inside_counts_the_cloth_inside_each_body_before_the_push_out(tra
 @pytest.mark.slow
 def test_bench_ab_times_two_checkouts_pass_by_pass_and_refuses_what_is_no_checkout(tmp_path):
     """The checkout against itself, two pairs of one workload: a row with both medians and a ratio
-    near 1 (the same code; the bar is loose, a pass is 0.1 s on a shared machine); a folder that is
-    no checkout is refused by name."""
+    within its own interval (no speed is asserted: a pass is 0.1 s on a shared machine); a folder
+    that is no checkout is refused by name."""
     import re
     import subprocess
     import sys
@@ -158,6 +158,8 @@ def test_bench_ab_times_two_checkouts_pass_by_pass_and_refuses_what_is_no_checko
     row = re.search(r"\| hybrid \| ([\d.]+) \| ([\d.]+) \| ([\d.]+) \| ([\d.]+)-([\d.]+) \|", done.stdout)
     assert row, done.stdout
     a, b, ratio, lo, hi = map(float, row.groups())
-    assert a > 0 and b > 0 and lo <= ratio <= hi and 0.5 < ratio < 2.0
+    # the ratio itself is a timing: on two shared cores beside the other test worker it has come out
+    # at 2.1 for the same code, so the test holds the row's consistency, not a speed
+    assert a > 0 and b > 0 and lo <= ratio <= hi
     refused = subprocess.run(tool + [str(tmp_path), str(root)], capture_output=True, text=True)
     assert refused.returncode != 0 and f"{tmp_path}: not a checkout" in refused.stderr
