@@ -30,7 +30,7 @@ import numpy as np
 import torch
 
 from ..body.capsules import BodyModel, capsule_signed_distance
-from ..body.skin_collider import skin_collider
+from ..body.skin_collider_store import stored_skin_collider
 from ..body.skin_envelope import SkinEnvelope
 from ..body.skinned_body import SkinnedBody
 from ..motion.frame import body_heading, to_body_frame
@@ -45,9 +45,10 @@ _QUERIES: dict[int, tuple[SkinnedBody, Query]] = {}  # by the skin's id (held, s
 
 def skin_query(skin: SkinnedBody) -> Query:
     """The collider's query of ``skin`` (points, rotations, positions -> distance, normal), in the C
-    kernel where it compiles; built once a skin (a few seconds for an anny body)."""
+    kernel where it compiles; built once a skin and kept in the workspace
+    (:func:`~hrr_garment.body.skin_collider_store.stored_skin_collider`: a few seconds for an anny body)."""
     if id(skin) not in _QUERIES:
-        collider = skin_collider(skin)
+        collider = stored_skin_collider(skin)
         lib = load_kernel()
         _QUERIES[id(skin)] = (skin, collider.query if lib is None else SkinKernel(collider, lib).query)
         while len(_QUERIES) > 16:  # a dataset's few bodies
