@@ -55,14 +55,23 @@ class VisibleCollider:
         lib = load_kernel()
         return None if lib is None else SkinKernel(self.collider, lib)
 
-    def posed(self, rotations: np.ndarray, positions: np.ndarray) -> np.ndarray:
-        """(T, V, 3) the mesh posed by (T, J, 3, 3) global rotations and (T, J, 3) joint positions: by
-        the kernel where there is one (a third of the numpy skinning's time), as the push-out poses it."""
+    def skinned(
+        self, rotations: np.ndarray, positions: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
+        """For (T, J, 3, 3) global rotations and (T, J, 3) joint positions: the joints' moves from the
+        rest pose (T, J, 3, 3) and (T, J, 3), the mesh posed by them (T, V, 3) and its unit vertex
+        normals (T, V, 3): by the kernel where there is one (a third of the numpy skinning's time), as
+        the push-out poses it; no normals without it (the numpy reference poses its faces itself)."""
         body = self.collider.body
-        if self.kernel is None:
-            return body.pose(rotations, positions)
         rot, trans = body.joint_transforms(rotations, positions)
-        return self.kernel.pose_frames(np.ascontiguousarray(rot), np.ascontiguousarray(trans))[0]
+        rot, trans = np.ascontiguousarray(rot), np.ascontiguousarray(trans)
+        if self.kernel is None:
+            return rot, trans, body.pose(rotations, positions), None
+        return rot, trans, *self.kernel.pose_frames(rot, trans)
+
+    def posed(self, rotations: np.ndarray, positions: np.ndarray) -> np.ndarray:
+        """(T, V, 3) the mesh posed (:meth:`skinned`)."""
+        return self.skinned(rotations, positions)[2]
 
     @cached_property
     def closed(self) -> bool:
@@ -108,6 +117,11 @@ class PosedSkin:
     rotations: np.ndarray  # (T, J, 3, 3) the joints' global rotations
     positions: np.ndarray  # (T, J, 3)
     hulls: PosedCapsules  # the capsules' ends (T, C, 3) and each frame's hull radii (T, C)
+    # each frame's body's skin as the hulls were made from it (VisibleCollider.skinned), kept for the
+    # kernel, which would otherwise pose it again: the joints' moves (T, J, 3, 3) and (T, J, 3), and
+    # per frame the posed mesh (V, 3) and its vertex normals (None without the kernel)
+    moves: tuple[np.ndarray, np.ndarray]
+    skins: tuple[tuple[np.ndarray, np.ndarray | None], ...]
 
     @classmethod
     def of(cls, visible: VisibleCollider, motion: Motion) -> "PosedSkin":
@@ -120,6 +134,8 @@ class PosedSkin:
         rot, pos = np.asarray(poses.global_rotations), np.asarray(poses.joint_positions)
         a = np.empty((len(which), len(bodies[0].body.capsules), 3))
         b, radii = np.empty_like(a), np.empty(a.shape[:2])
+        moves = np.empty(rot.shape), np.empty(pos.shape)
+        skins: list = [None] * len(which)
         for k, visible in enumerate(bodies):
             rows = np.flatnonzero(which == k)
             if not len(rows):
@@ -127,11 +143,22 @@ class PosedSkin:
             if len(visible.body.capsules) != a.shape[1]:
                 raise ValueError("every body of a push-out needs the same number of capsules")
             a[rows], b[rows] = visible.body.pose(rot[rows], pos[rows])
-            growth = visible.envelope.growth(rot[rows], pos[rows], posed=visible.posed(rot[rows], pos[rows]))
+            moves[0][rows], moves[1][rows], posed, normals = visible.skinned(rot[rows], pos[rows])
+            for i, t in enumerate(rows):
+                skins[t] = (posed[i], None if normals is None else normals[i])
+            growth = visible.envelope.growth(rot[rows], pos[rows], posed=posed)
             # never narrower than the capsule (inside the body: the union keeps the body's inside in
             # it), and a capsule that holds no piece of the skin as it is
             radii[rows] = np.maximum(visible.body.radii + growth, visible.body.radii)
-        return cls(tuple(bodies), np.asarray(which, np.int64), rot, pos, PosedCapsules(a, b, radii))
+        return cls(
+            tuple(bodies),
+            np.asarray(which, np.int64),
+            rot,
+            pos,
+            PosedCapsules(a, b, radii),
+            moves,
+            tuple(skins),
+        )
 
     def distance(self, points: np.ndarray, rows: slice, margin: float) -> tuple[np.ndarray, np.ndarray]:
         """(t, V) signed distances and (t, V, 3) outward normals of points (t, V, 3) of frames
@@ -152,7 +179,7 @@ class PosedSkin:
                 rest = near[~far]  # the band and the cells the flood did not reach: measured exactly
                 if len(rest):
                     faces = visible.collider.body.faces
-                    posed = visible.posed(self.rotations[t][None], self.positions[t][None])[0]
+                    posed = self.skins[t][0]
                     clear = ~within_reach(points[i, rest], posed, faces, reach=margin)
                     clear[clear] = ~winding_inside(points[i, rest[clear]], posed, faces)
                     far[~far] = clear
@@ -169,14 +196,11 @@ class PosedSkin:
         a frame its strain limit moved again, for the report."""
         from ..native.skin import PosedSkins
 
-        moves = [v.collider.body.joint_transforms(self.rotations, self.positions) for v in self.bodies]
-        rot = np.stack([moves[k][0][t] for t, k in enumerate(self.which)])
-        trans = np.stack([moves[k][1][t] for t, k in enumerate(self.which)])
         return PosedSkins(
             [v.kernel for v in self.bodies],
             self.which,
-            rot,
-            trans=trans,
+            moves=self.moves,
+            skins=self.skins,
             closed=[v.closed for v in self.bodies],
             margin=margin,
             cell=CELL_M,

@@ -182,7 +182,9 @@ def cell_box(posed: np.ndarray, margin: float, cell: float) -> tuple[np.ndarray,
 
 class PosedSkins:
     """T frames of skinned bodies posed, as the push-out kernel reads them (``hrr_push_out``'s
-    ``skin``): frame t against ``kernels[which[t]]`` moved by ``rot[t]``, ``trans[t]``, with room
+    ``skin``): frame t against ``kernels[which[t]]``, its joints' moves ``moves`` (rotations
+    (T, J, 3, 3), translations (T, J, 3)) and ``skins[t]``, the mesh they pose and its vertex normals
+    (:meth:`SkinKernel.pose_frames`), with room
     for the broad phase's cells (which the kernel fills for the push's ``margin``, frames in
     parallel) where ``cell`` is given and the body's mesh is closed (``closed[which[t]]``); with
     ``measure_after``, the kernel measures a frame its strain limit moved again, for the report.
@@ -192,25 +194,19 @@ class PosedSkins:
         self,
         kernels: list[SkinKernel],
         which: np.ndarray,
-        rot: np.ndarray,
-        trans: np.ndarray,
+        moves: tuple[np.ndarray, np.ndarray],
+        skins: tuple,
         *,
         closed: list[bool] | None = None,
         margin: float = 0.0,
         cell: float | None = None,
         measure_after: bool = False,
     ):
-        self.rot = np.ascontiguousarray(rot, np.float64)
-        self.trans = np.ascontiguousarray(trans, np.float64)
+        self.rot = np.ascontiguousarray(moves[0], np.float64)
+        self.trans = np.ascontiguousarray(moves[1], np.float64)
         self.kernels, self.which = kernels, np.asarray(which, np.int64)
-        self.posed: list[np.ndarray] = [np.empty(0)] * len(self.rot)
-        self.normals: list[np.ndarray] = [np.empty(0)] * len(self.rot)
-        for k, kernel in enumerate(kernels):
-            rows = np.flatnonzero(self.which == k)
-            if len(rows):
-                posed, normals = kernel.pose_frames(self.rot[rows], self.trans[rows])
-                for i, t in enumerate(rows):
-                    self.posed[t], self.normals[t] = posed[i], normals[i]
+        self.posed = [np.ascontiguousarray(posed, np.float64) for posed, _ in skins]
+        self.normals = [np.ascontiguousarray(normals, np.float64) for _, normals in skins]
         self.structs = (SkinPose * len(self.rot))()
         self.cells: list[np.ndarray | None] = [None] * len(self.rot)
         for t, k in enumerate(self.which):
