@@ -136,7 +136,7 @@ def push_out(
     framed = (lambda rows: radii[rows]) if np.ndim(radii) == 2 else (lambda rows: radii)  # noqa: E731
 
     def measure(points: np.ndarray, rows) -> tuple[np.ndarray, np.ndarray]:
-        """Signed distances and normals of the frames ``rows`` (a slice) of the push-out."""
+        """Signed distances and normals of the frames ``rows`` (a slice or indices) of the push-out."""
         if skin is not None:
             return skin.distance(points, rows, margin)
         return frames_signed_distance(points, a[rows], b[rows], radii=framed(rows))
@@ -202,9 +202,7 @@ def push_out(
     # only the frames the limit moved have a new "after" (the kernel measures them against the skin itself)
     if limits is not None and report and torn.any() and (lib is None or skin is None):
         rows = np.flatnonzero(torn)
-        after[rows] = [
-            (measure(out[t : t + 1].astype(np.float64), slice(t, t + 1))[0] < -depth).mean() for t in rows
-        ]
+        after[rows] = (measure(out[rows].astype(np.float64), rows)[0] < -depth).mean(1)
     if not report:
         return out, None
     return out, PushOutReport(

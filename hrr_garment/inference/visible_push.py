@@ -160,17 +160,19 @@ class PosedSkin:
             tuple(skins),
         )
 
-    def distance(self, points: np.ndarray, rows: slice, margin: float) -> tuple[np.ndarray, np.ndarray]:
+    def distance(
+        self, points: np.ndarray, rows: slice | np.ndarray, margin: float
+    ) -> tuple[np.ndarray, np.ndarray]:
         """(t, V) signed distances and (t, V, 3) outward normals of points (t, V, 3) of frames
-        ``rows``: the skin's where within ``margin`` of a hull or inside one, else the hulls' (more
-        than the margin, as the skin's is there), and ``FAR_AWAY`` (normal 0) where the point is
-        farther than the margin from the skin and outside it (the winding number), on a closed mesh
-        (the cells the broad phase's flood reaches are, the others are measured exactly against every
-        triangle): the push-out kernel's reference, the skin measured by its own kernel where there is
-        one (equal to its reference to 1e-15)."""
+        ``rows`` (a slice or indices): the skin's where within ``margin`` of a hull or inside one,
+        else the hulls' (more than the margin, as the skin's is there), and ``FAR_AWAY`` (normal 0)
+        where the point is farther than the margin from the skin and outside it (the winding
+        number), on a closed mesh (the cells the broad phase's flood reaches are, the others are
+        measured exactly against every triangle): the push-out kernel's reference, the skin
+        measured by its own kernel where there is one (equal to its reference to 1e-15)."""
         a, b, radii = self.hulls.a[rows], self.hulls.b[rows], self.hulls.radii[rows]
         d, n = frames_signed_distance(points, a, b, radii=radii)
-        for i, t in enumerate(range(*rows.indices(len(self.which)))):
+        for i, t in enumerate(np.arange(len(self.which))[rows]):
             near = np.flatnonzero(d[i] <= margin)
             visible = self.bodies[self.which[t]]
             cells = visible.cells(self.rotations[t], self.positions[t], margin) if len(near) else None
