@@ -1,5 +1,7 @@
 """Garment templates, mesh checks and repairs, OBJ round trips, attachment skinning."""
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -220,3 +222,39 @@ def test_attached_vertices_bound_to_the_skin_ride_it():
     nearest = np.einsum("ak,akj->aj", bary, skin.weights[skin.faces[face]])
     kept = np.take_along_axis(nearest, binding.joints, 1)
     assert np.allclose(binding.weights, kept / kept.sum(1, keepdims=True))
+    # the edges held are exactly the mesh's edges between two attached vertices, at their rest lengths
+    attached = set(mesh.attached.tolist())
+    among = {tuple(sorted(e)) for e in mesh.edges().tolist() if e[0] in attached and e[1] in attached}
+    held = {tuple(sorted(e)) for e in mesh.attached[binding.held].tolist()}
+    assert held == among and len(held) > 0
+    ends = mesh.vertices[mesh.attached[binding.held]]
+    assert np.allclose(binding.held_lengths, np.linalg.norm(ends[:, 0] - ends[:, 1], axis=1))
+
+    # posed, the skin under the straps stretches them to 2.85 x (this coarse test skin), the held
+    # edges come back to within 5 % of their rest lengths
+    def strain(posing) -> np.ndarray:
+        ends = posing.pose(walk.global_rotations, walk.joint_positions)[:, binding.held]
+        return np.linalg.norm(ends[:, :, 0] - ends[:, :, 1], axis=-1) / binding.held_lengths
+
+    assert strain(replace(binding, held=binding.held[:0])).max() > 2.0
+    assert strain(binding).max() < 1.05
+
+
+def test_relaxing_stretch_draws_stretched_edges_back_and_leaves_the_rest():
+    """A chain stretched in the middle comes back to its rest lengths within a percent, never shorter
+    than them; an unstretched or compressed chain is left exactly as it was; and the result moves
+    rigidly with its input."""
+    from hrr_garment.garment.attachment import relax_stretch
+    from hrr_garment.motion.rotations import axis_angle_to_matrix
+
+    edges = np.array([[0, 1], [1, 2], [2, 3], [3, 4]])
+    rest = np.full(4, 0.1)
+    x = np.array([0.0, 0.1, 0.25, 0.35, 0.45])  # the middle edge 50 % long
+    chain = np.stack([x, np.zeros(5), np.zeros(5)], -1)[None]
+    relaxed = relax_stretch(chain, edges, rest, passes=100)
+    lengths = np.linalg.norm(np.diff(relaxed[0], axis=0), axis=1)
+    assert lengths.max() < 1.01 * 0.1 and lengths.min() > 0.1 - 1e-9
+    compressed = chain * [0.5, 1.0, 1.0]
+    assert np.array_equal(relax_stretch(compressed, edges, rest), compressed)
+    turn, shift = axis_angle_to_matrix(np.array([0.3, 1.1, -0.4])), np.array([0.5, -1.0, 2.0])
+    assert np.allclose(relax_stretch(chain @ turn.T + shift, edges, rest), relaxed @ turn.T + shift)
