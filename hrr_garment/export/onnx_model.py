@@ -126,6 +126,7 @@ def export_onnx(animator, path: str | Path, settings: RunSettings | None = None,
         "fps": FPS,
         "push_out": bool(run.push_out),
         "push": run.push,
+        "push_body": run.push_body,
         "body": run.body.name,
         "decoder": run.decoder,
         "vertices": int(bundle.template.num_vertices),
@@ -196,11 +197,13 @@ class OnnxStream:
             )
         self.shapes = {k: tuple(v) for k, v in json.loads(meta["state"]).items()}
         # the run the graph holds, as Animator.stream and crowd take it (graphs written before the
-        # decoder and push were recorded: the default decoder and push, the full and the mesh)
+        # decoder, push and push body were recorded: the full decoder, the mesh push and the capsules,
+        # which every graph pushed out of before issue 82)
         self.settings = {
             "push_out": json.loads(meta["push_out"]),
             "decoder": meta.get("decoder", DECODERS[0]),
             "push": meta.get("push", PUSHES[0]),
+            "push_body": meta.get("push_body", "capsules"),
         }
         self.state: dict[str, np.ndarray] | None = None
 

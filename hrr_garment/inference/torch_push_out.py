@@ -4,7 +4,14 @@
 skipped when nothing is inside), the strain limit's passes as a loop (ONNX ``Loop``) while a
 character still has an over-long edge, each character stopping on its own, as the package stops
 each frame. With the push in the garment's subspace first where the run asks for it
-(:class:`~.torch_subspace_push.SubspacePushStage`)."""
+(:class:`~.torch_subspace_push.SubspacePushStage`).
+
+The body it pushes out of is the capsules posed by FK, or the mesh the viewer sees: a character's
+skinned mesh measured by its collider's graph (:class:`~hrr_garment.models.skin_collider_graph.
+SkinColliderGraph`, the same collider the package's kernel measures), the rest unchanged, as the
+package's push-out against a :class:`~.visible_push.PosedSkin` is its capsule push with the other
+distance. The graph has none of the kernel's culls (which leave out only what is not pushed), so it
+measures every vertex against the skin: exact, and far slower than the capsules."""
 
 from __future__ import annotations
 
@@ -24,8 +31,20 @@ class PushOutStage(nn.Module):
     stretched by the push limited (:func:`~hrr_garment.inference.collision.push_out` with
     :func:`~hrr_garment.inference.strain_limit.limit_push_strain`)."""
 
-    def __init__(self, capsules, smoothing, *, limits, settings: PushOutSettings, strain_passes: int = 60):
+    def __init__(
+        self,
+        capsules,
+        smoothing,
+        *,
+        limits,
+        settings: PushOutSettings,
+        strain_passes: int = 60,
+        skin: nn.Module | None = None,
+    ):
         super().__init__()
+        if skin is not None and settings.subspace is not None:
+            raise ValueError("the subspace push measures capsules: a visible mesh's stage goes without it")
+        self.skin = skin  # the visible mesh's collider graph, measured instead of the capsules
         joints, a, b, radii = capsules
         self.joints = [int(j) for j in joints]
         constant(self, "cap_a", a)
@@ -61,7 +80,11 @@ class PushOutStage(nn.Module):
     ) -> tuple[torch.Tensor, torch.Tensor]:
         """Signed distances (N, V) to the union of capsules and the nearest one's outward normals.
         Through products of (N, V, 3) by (N, 3, C) (no (N, V, C, 3) temporaries, which cost most of
-        a step in onnxruntime); ``p``, ``a``, ``b`` relative to the pelvis keep them to metres."""
+        a step in onnxruntime); ``p``, ``a``, ``b`` relative to the pelvis keep them to metres. On
+        the visible mesh, ``a`` and ``b`` are the joints' moves (:meth:`forward`) and the distance
+        and normal the skin's."""
+        if self.skin is not None:
+            return self.skin.query_moves(p, a, b)
         ab = b - a  # (N, C, 3)
         ab_ab = (ab * ab).sum(-1)[:, None]  # (N, 1, C)
         rel_ab = p @ ab.transpose(1, 2) - (a * ab).sum(-1)[:, None]  # (p - a) . ab: (N, V, C)
@@ -186,11 +209,15 @@ class PushOutStage(nn.Module):
         heading: tuple[torch.Tensor, torch.Tensor] | None = None,
     ) -> torch.Tensor:
         """``heading``: each frame's body-frame yaw as (cosines, sines), which the subspace push needs."""
-        rot, pos = rotations[:, self.joints], positions[:, self.joints]
         centre = positions[:, :1]  # (N, 1, 3): the pelvis
+        p = vertices - centre
+        if self.skin is not None:  # the joints' moves from the rest pose, about the pelvis (the
+            # skin's weights sum to 1, so the posed skin moves with the points)
+            a, trans = self.skin.moves(rotations, positions)
+            return self.limit(self.push(p, a, trans - centre) + centre, vertices)
+        rot, pos = rotations[:, self.joints], positions[:, self.joints]
         a = pos - centre + (rot @ self.cap_a[..., None])[..., 0]
         b = pos - centre + (rot @ self.cap_b[..., None])[..., 0]
-        p = vertices - centre
         if self.subspace is not None:
             if heading is None:
                 raise ValueError("the subspace push needs each frame's heading (the body frame's yaw)")

@@ -33,6 +33,7 @@ import torch
 from torch import nn
 
 from ..models.codes import WindowCodes
+from ..models.skin_collider_graph import SkinColliderGraph
 from ..motion.features import SLICE_T, SLICE_V, SLICE_W
 from ..motion.memory import MEMORY_WIDTH, VECTORS, MotionMemory, motion_memory
 from ..motion.motion import FPS
@@ -240,10 +241,10 @@ class AutoencoderDecoder(nn.Module):
 
 def stream_step(path: FramePath, *, movable: bool = False) -> StreamStep:
     """The :class:`StreamStep` of a frame path (:class:`~.frame_path.FramePath`: a model under a
-    resolved run: its body, ``push_out``, ``decoder`` and ``push``), at the rate every model streams
-    at (:data:`~hrr_garment.motion.motion.FPS`). The full decoder is the mesh decoder's folded
-    blocks, or with ``movable`` the autoencoder's own, which moves to a GPU; the fast one the
-    bundle's subspace decoder."""
+    resolved run: its body, ``push_out``, ``push_body``, ``decoder`` and ``push``), at the rate
+    every model streams at (:data:`~hrr_garment.motion.motion.FPS`). The full decoder is the mesh
+    decoder's folded blocks, or with ``movable`` the autoencoder's own, which moves to a GPU; the
+    fast one the bundle's subspace decoder."""
     bundle, run = path.bundle, path.run
     if run.mode is not Mode.REGRESSION:
         raise ValueError(f"the torch step runs the regression (mode='regression'), not {run.mode.value!r}")
@@ -257,12 +258,20 @@ def stream_step(path: FramePath, *, movable: bool = False) -> StreamStep:
             path.smoothing,
             limits=path.edge_limits,
             settings=path.push_settings or PUSH_OUT,
+            skin=_skin_graph(run),
         )
     if run.decoder == "fast":
         module = path.decoder
     else:
         module = AutoencoderDecoder(bundle.autoencoder) if movable else TorchDecoder(path.decoder)
     return StreamStep(bundle, module, character=run.body, memory=memory, fps=FPS, push_out=stage).eval()
+
+
+def _skin_graph(run) -> SkinColliderGraph | None:
+    """The collider graph of the mesh the run's body is drawn with, where the run pushes out of it
+    (``push_body="visible"``, the default) and the body has one; None: its capsules."""
+    collider = run.body.visible_collider() if run.push_body == "visible" else None
+    return None if collider is None else SkinColliderGraph(collider.collider)
 
 
 def state_shapes(step: StreamStep) -> dict[str, tuple[int, ...]]:

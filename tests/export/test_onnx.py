@@ -1,6 +1,7 @@
 """The streaming step in ONNX (hrr-export-model --onnx): onnxruntime gives what the Python stream
 gives, frame by frame and character by character; its push-out equals the library's where the
-strain limit works; the example runs with numpy and onnxruntime alone; bad inputs are refused."""
+strain limit works, on the capsules and on a character's own mesh; the example runs with numpy and
+onnxruntime alone; bad inputs are refused."""
 
 import subprocess
 import sys
@@ -103,6 +104,38 @@ def test_the_graphs_push_out_limits_the_strain_as_the_library_does(exported):
     )
     assert np.abs(theirs - pushed).max() > 1e-3  # the limit moved vertices by millimetres ...
     assert np.abs(ours - theirs).max() < 2e-5  # ... and the graph moved them the same
+
+
+def test_the_graph_pushes_out_of_a_characters_own_mesh_as_the_library_does(exported, tmp_path):
+    """A character whose body.json carries its mesh (a mannequin with bulging thighs): the graph's
+    push-out measures that mesh through the collider's graph (issue 82) and streams as the Python
+    stream does, whose push-out is the kernel's against the posed skin; asked for the capsules, it
+    streams otherwise."""
+    from dataclasses import replace
+
+    from hrr_garment.body.mannequin import mannequin_record
+    from hrr_garment.body.mesh_record import BodyMesh
+    from hrr_garment.export.onnx_model import OnnxStream, export_onnx
+    from tests.body.limb import BulgingMannequin
+
+    animator, _, _ = exported
+    skin = BulgingMannequin(0.05).skinned()
+    record = replace(
+        mannequin_record(), mesh=BodyMesh.of(skin.vertices, skin.faces, skin.rest_positions, skin.weights)
+    )
+    written = export_onnx(animator, tmp_path / "hero.onnx", body=record)
+    rotations, roots = motion_to_poses(synthesize("walk", 0.6, seed=2))
+    graph, stream = OnnxStream(written.graph), animator.stream(mode="regression", body=record)
+    assert graph.settings["push_body"] == "visible"  # recorded, for check_onnx's stream
+    capsules = animator.stream(mode="regression", body=record, push_body="capsules")
+    worst, apart = 0.0, 0.0
+    for t in range(len(rotations)):
+        ours = graph.push(rotations[t : t + 1], roots[t : t + 1])[0]
+        theirs = stream.push(rotation=rotations[t], root=roots[t])
+        worst = max(worst, float(np.abs(ours - theirs).max()))
+        apart = max(apart, float(np.abs(theirs - capsules.push(rotation=rotations[t], root=roots[t])).max()))
+    assert apart > 1e-3  # the mesh pushes the skirt otherwise than the capsules ...
+    assert worst < 1e-5, f"ONNX departs from the Python stream by {worst * 1000:.4f} mm"  # ... as the graph
 
 
 def test_the_fast_decoders_graph_with_the_subspace_push_streams_as_the_python_stream_does(exported, tmp_path):

@@ -181,7 +181,7 @@ def _torch_stage_case():
     yaw, _ = body_heading(motion)
     centre = motion.joint_positions[:, :1]
     distance = PushOutStage.distance.__get__(
-        type("Radii", (), {"radii": torch.tensor(DEFAULT_BODY.radii, dtype=torch.float32)})()
+        type("Radii", (), {"radii": torch.tensor(DEFAULT_BODY.radii, dtype=torch.float32), "skin": None})()
     )
 
     class Stage(torch.nn.Module):  # the stage with its distance, as the exported step holds it

@@ -229,3 +229,55 @@ def test_the_animator_pushes_out_of_the_characters_own_mesh(animator, visible):
     for frame in range(3):
         out = crowd.push_motions({"hero": motion.slice(frame, frame + 1)})
         assert np.abs(out[0] - on_mesh.vertices[frame]).max() <= 1e-4
+
+
+def test_the_torch_stage_on_the_visible_mesh_pushes_as_the_kernel(closed_visible, skirt_frames):
+    """The step's push-out stage (a GPU crowd's, the ONNX graph's) with the collider's graph in place
+    of the capsules moves the cloth as the package's push-out against the posed skin does, its
+    follow and strain limit included (float32 against the kernel); a subspace push is refused."""
+    import dataclasses
+
+    import torch
+
+    from hrr_garment.inference.torch_push_out import PushOutStage
+    from hrr_garment.models.skin_collider_graph import SkinColliderGraph
+
+    motion, skirt, frames = skirt_frames
+    frames = frames.astype(np.float32)
+    settings = dataclasses.replace(SETTINGS, follow=4)
+    mean = mean_operator(skirt.faces, len(skirt.vertices))
+    limits = EdgeLimits.of(skirt.faces, skirt.vertices.astype(np.float64), mean)
+    theirs, _ = push_out(
+        frames,
+        motion,
+        skirt.faces,
+        body=PosedSkin.of(closed_visible, motion),
+        settings=settings,
+        mean=mean,
+        limits=limits,
+        report=False,
+    )
+    body = DEFAULT_BODY
+    stage = PushOutStage(
+        (*body.ends, body.radii),
+        mean,
+        limits=limits,
+        settings=settings,
+        skin=SkinColliderGraph(closed_visible.collider),
+    )
+    with torch.no_grad():
+        ours = stage(
+            torch.from_numpy(frames),
+            torch.from_numpy(motion.global_rotations).float(),
+            torch.from_numpy(motion.joint_positions).float(),
+        ).numpy()
+    assert np.abs(theirs - frames).max() > 0.01  # the push moved the cloth a centimetre ...
+    assert np.abs(ours - theirs).max() < 1e-5  # ... and the stage moved it the same (0.1 um measured)
+    with pytest.raises(ValueError, match="subspace"):
+        PushOutStage(
+            (*body.ends, body.radii),
+            mean,
+            limits=limits,
+            settings=dataclasses.replace(settings, subspace=object()),
+            skin=stage.skin,
+        )
