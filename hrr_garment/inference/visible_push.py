@@ -89,7 +89,8 @@ class VisibleCollider:
         return SkinCells(*self.kernel.cells(posed, margin, CELL_M), CELL_M)
 
 
-CELL_M = 0.02  # the broad phase's cells (docs/bodies.md, "The push-out against the visible mesh")
+CELL_M = 0.02  # the reference's cull's cells (docs/bodies.md, "The push-out against the visible mesh")
+COLUMN_M = 0.02  # the kernel's broad phase's columns (the same section)
 FAR_AWAY = 1e30  # the distance of a point the broad phase finds far outside the skin (the kernel's)
 
 _BUILT: dict[tuple[int, int], tuple[BodyModel, SkinnedBody, VisibleCollider]] = {}
@@ -192,10 +193,10 @@ class PosedSkin:
                 d[i, near], n[i, near] = query(points[i, near], self.rotations[t], self.positions[t])
         return d, n
 
-    def native(self, margin: float, *, measure_after: bool = False):
+    def native(self, *, measure_after: bool = False):
         """The frames as the kernel reads them (:class:`~hrr_garment.native.skin.PosedSkins`), with
-        room for their broad phase for the push's ``margin``; ``measure_after``: the kernel measures
-        a frame its strain limit moved again, for the report."""
+        their broad phase's column width where the mesh is closed; ``measure_after``: the kernel
+        measures a frame its strain limit moved again, for the report."""
         from ..native.skin import PosedSkins
 
         return PosedSkins(
@@ -204,7 +205,6 @@ class PosedSkin:
             moves=self.moves,
             skins=self.skins,
             closed=[v.closed for v in self.bodies],
-            margin=margin,
-            cell=CELL_M,
+            cell=COLUMN_M,
             measure_after=measure_after,
         )

@@ -406,12 +406,12 @@ static int grow_region(const PushMesh *m, int V, int rings, int seeds, int32_t *
    than the margin from every hull is farther than that from the skin: its hull distance stands (all
    the push reads of it is that it needs no push). The others, within the margin of a hull or inside
    one, are measured against the skin itself (skin_point, ~3 us), but for those the frame's broad
-   phase shows farther than the margin from the skin and outside it (skin_far_outside: the flood's
-   cells, or the band's triangles and a ray; most of a garment inside the hulls, which hold the skin
+   phase shows farther than the margin from the skin and outside it (skin_far_by_column: its
+   column's triangles and a ray; most of a garment inside the hulls, which hold the skin
    loosely): FAR_AWAY, as a patch no capsule comes near. Entries of the list idx (NULL: 0 .. n - 1). */
 static inline void skin_measure(const SkinPose *sk, double margin, const double *x, double *d, double *nrm)
 {
-    if (sk->cells && skin_far_outside(sk, margin, x)) {
+    if (sk->col_start && skin_far_by_column(sk, margin, x)) {
         *d = FAR_AWAY;
         nrm[0] = nrm[1] = nrm[2] = 0.0;
     } else {
@@ -853,8 +853,8 @@ typedef struct {
     int32_t *ints, *moved;
     int *flag;
     LimitScratch limit;
-    SkinPose skin; /* the frame's skin with its band listed */
-    SkinBand band;
+    SkinPose skin; /* the frame's skin with its columns */
+    SkinColumns columns;
 } PushTeam;
 
 /* vertices a block of the subspace move (its rows of the basis stay in cache); SubspaceMove.BLOCK
@@ -971,13 +971,12 @@ static void push_and_limit(const void *in, int in_double, float *out, int V, con
         #pragma omp for schedule(static)
         for (int k = 0; k < 3 * V; ++k) u[k] = p[k];
     }
-    if (sk && sk->cells) {  /* the frame's broad phase against the skin, here where frames run in parallel,
-                               its band listed in the team's copy of the frame's struct */
+    if (sk && sk->cell > 0.0) {  /* the frame's broad phase against the skin, here where frames run in
+                                    parallel, its columns in the team's copy of the frame's struct */
         #pragma omp single
         {
             team->skin = *sk;
-            if (skin_band_cells(sk->grid, sk->posed, args->margin, sk->cell, sk->origin, sk->dims, sk->cells, &team->band))
-                team->skin.band_start = team->band.start, team->skin.band_list = team->band.list;
+            skin_columns(sk->grid, sk->posed, args->margin, sk->cell, &team->columns, &team->skin);
         }
         sk = &team->skin;
     }
@@ -1151,9 +1150,9 @@ void hrr_push_out(const void *in, int in_double, float *out, int T, int V, const
     }
     #undef FRAME_IN
     for (int k = 0; k < team_count; ++k) {
-        free(team[k].band.pairs);
-        free(team[k].band.start);
-        free(team[k].band.list);
+        free(team[k].columns.start);
+        free(team[k].columns.list);
+        free(team[k].columns.face);
     }
     free(moved);
     free(buf);

@@ -156,18 +156,35 @@ class SkinKernel:
         )
         return origin, dims, out
 
+    def far_outside(self, posed: np.ndarray, points: np.ndarray, margin: float, cell: float) -> np.ndarray:
+        """(N,) whether each point (N, 3) is farther than ``margin`` from the posed closed mesh (V, 3)
+        and outside it, as the push-out's broad phase answers it (its columns ``cell`` wide, built
+        for this frame: hrr_skin_far)."""
+        p = np.ascontiguousarray(points, np.float64).reshape(-1, 3)
+        out = np.zeros(len(p), np.uint8)
+        posed = np.ascontiguousarray(posed, np.float64)
+        if not self.lib.hrr_skin_far(
+            ctypes.byref(self.struct), posed.ctypes.data, margin, cell, p.ctypes.data, len(p), out.ctypes.data
+        ):
+            raise MemoryError("the broad phase could not allocate its columns")
+        return out.astype(bool)
+
 
 class SkinPose(ctypes.Structure):
     """skin_sdf.c's SkinPose (hrr_native.h): one frame's grid, joints' moves and posed mesh, and the
-    cells of its broad phase (``cells`` 0: none)."""
+    width of its broad phase's columns (``cell`` 0: none); the kernel fills the columns in its own
+    copy of the struct."""
 
-    _fields_ = [(name, ctypes.c_void_p) for name in ("grid", "rot", "trans", "posed", "normals", "cells")] + [
-        ("dims", ctypes.c_int * 3),
-        ("origin", ctypes.c_double * 3),
+    _fields_ = [(name, ctypes.c_void_p) for name in ("grid", "rot", "trans", "posed", "normals")] + [
         ("cell", ctypes.c_double),
         ("measure_after", ctypes.c_int),
-        ("band_start", ctypes.c_void_p),  # the kernel's own (its copy of the struct lists the band)
-        ("band_list", ctypes.c_void_p),
+        ("col_start", ctypes.c_void_p),
+        ("col_list", ctypes.c_void_p),
+        ("col_face", ctypes.c_void_p),
+        ("ny", ctypes.c_int),
+        ("nz", ctypes.c_int),
+        ("y0", ctypes.c_double),
+        ("z0", ctypes.c_double),
     ]
 
 
@@ -184,11 +201,10 @@ class PosedSkins:
     """T frames of skinned bodies posed, as the push-out kernel reads them (``hrr_push_out``'s
     ``skin``): frame t against ``kernels[which[t]]``, its joints' moves ``moves`` (rotations
     (T, J, 3, 3), translations (T, J, 3)) and ``skins[t]``, the mesh they pose and its vertex normals
-    (:meth:`SkinKernel.pose_frames`), with room
-    for the broad phase's cells (which the kernel fills for the push's ``margin``, frames in
-    parallel) where ``cell`` is given and the body's mesh is closed (``closed[which[t]]``); with
-    ``measure_after``, the kernel measures a frame its strain limit moved again, for the report.
-    Holds every array the structs point at."""
+    (:meth:`SkinKernel.pose_frames`), with the broad phase's columns ``cell`` wide (which the kernel
+    builds for the push's margin, frames in parallel) where ``cell`` is given and the body's mesh is
+    closed (``closed[which[t]]``); with ``measure_after``, the kernel measures a frame its strain
+    limit moved again, for the report. Holds every array the structs point at."""
 
     def __init__(
         self,
@@ -198,7 +214,6 @@ class PosedSkins:
         skins: tuple,
         *,
         closed: list[bool] | None = None,
-        margin: float = 0.0,
         cell: float | None = None,
         measure_after: bool = False,
     ):
@@ -208,23 +223,17 @@ class PosedSkins:
         self.posed = [np.ascontiguousarray(posed, np.float64) for posed, _ in skins]
         self.normals = [np.ascontiguousarray(normals, np.float64) for _, normals in skins]
         self.structs = (SkinPose * len(self.rot))()
-        self.cells: list[np.ndarray | None] = [None] * len(self.rot)
         for t, k in enumerate(self.which):
+            broad = cell is not None and closed is not None and closed[k]
             self.structs[t] = SkinPose(
                 ctypes.addressof(kernels[k].struct),
                 self.rot[t].ctypes.data,
                 self.trans[t].ctypes.data,
                 self.posed[t].ctypes.data,
                 self.normals[t].ctypes.data,
+                cell=cell if broad else 0.0,
                 measure_after=int(measure_after),
             )
-            if cell is not None and closed is not None and closed[k]:
-                origin, dims = cell_box(self.posed[t], margin, cell)
-                self.cells[t] = np.empty(int(np.prod(dims, dtype=np.int64)), np.uint8)
-                self.structs[t].cells = self.cells[t].ctypes.data
-                self.structs[t].dims[:] = [int(n) for n in dims]
-                self.structs[t].origin[:] = [float(x) for x in origin]
-                self.structs[t].cell = cell
 
     def address(self, first: int) -> int:
         """The address of frame ``first``'s struct (the kernel reads the frames from there on)."""
