@@ -90,9 +90,10 @@ typedef struct {
     double cell;
     int measure_after; /* the push-out measures a frame the strain limit moved again, for its report */
     /* the frame's columns (skin_columns; col_start NULL: not built): (ny nz + 1) starts, the faces
-       listed, each face's record (SKIN_FACE doubles), the columns' first corner in (y, z) */
+       listed, each face's record (SKIN_FACE doubles), each column's reach along x (2 doubles), the
+       columns' first corner in (y, z) */
     const int32_t *col_start, *col_list;
-    const double *col_face;
+    const double *col_face, *col_reach;
     int ny, nz;
     double y0, z0;
 } SkinPose;
@@ -104,8 +105,8 @@ enum { SKIN_FACE = 16 };
    push-out) */
 typedef struct {
     int32_t *start, *list;
-    double *face;
-    size_t start_cap, list_cap, face_cap;
+    double *face, *reach;
+    size_t start_cap, list_cap, face_cap, reach_cap;
 } SkinColumns;
 
 static void skin_columns(const SkinGrid *g, const double *posed, double margin, double cell, SkinColumns *c,

@@ -181,6 +181,7 @@ class SkinPose(ctypes.Structure):
         ("col_start", ctypes.c_void_p),
         ("col_list", ctypes.c_void_p),
         ("col_face", ctypes.c_void_p),
+        ("col_reach", ctypes.c_void_p),
         ("ny", ctypes.c_int),
         ("nz", ctypes.c_int),
         ("y0", ctypes.c_double),

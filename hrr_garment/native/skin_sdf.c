@@ -431,7 +431,8 @@ static int grow_doubles(double **a, size_t *cap, size_t need)
 /* The push-out's broad phase against the skin, one frame: the posed triangles listed by columns of a
    grid over the (y, z) plane (cells `cell` wide), each triangle in every column its box grown by the
    margin (and a micrometre for rounding) meets, and each triangle's record (SKIN_FACE doubles: that
-   grown box lo, hi, then its three corners). A point's column then lists every triangle within the
+   grown box lo, hi, then its three corners), and each column's reach along x (the least lo and the
+   greatest hi of its triangles' boxes). A point's column then lists every triangle within the
    margin of it (such a triangle's grown box holds the point) and every triangle the ray from it
    along +x crosses (its (y, z) projection holds the point): skin_far_by_column reads both off it.
    It replaced a 3D grid of 2 cm cells flooded from its border (165,000 cells an anny body, 1.2 ms a
@@ -442,27 +443,33 @@ static void skin_columns(const SkinGrid *g, const double *posed, double margin, 
 {
     sk->col_start = NULL;
     const double reach = margin + 1e-6;
-    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY}, sum = 0.0;
     if (!grow_doubles(&c->face, &c->face_cap, (size_t)SKIN_FACE * g->F)) return;
     for (int f = 0; f < g->F; f++) {
         double *r = c->face + (size_t)SKIN_FACE * f;
         for (int k = 0; k < 3; k++) {
             const double *v = posed + 3 * g->faces[3 * f + k];
-            memcpy(r + 6 + 3 * k, v, 3 * sizeof(double));
+            r[6 + 3 * k] = v[0], r[7 + 3 * k] = v[1], r[8 + 3 * k] = v[2];
+            sum += v[0] + v[1] + v[2];
         }
-        for (int a = 0; a < 3; a++) {
-            const double mn = fmin(r[6 + a], fmin(r[9 + a], r[12 + a])), mx = fmax(r[6 + a], fmax(r[9 + a], r[12 + a]));
+        for (int a = 0; a < 3; a++) {  /* ternaries, not fmin and fmax (library calls): NaN is caught by sum */
+            const double p = r[6 + a], q = r[9 + a], t = r[12 + a];
+            const double mn = p < q ? (p < t ? p : t) : (q < t ? q : t), mx = p > q ? (p > t ? p : t) : (q > t ? q : t);
             r[a] = mn - reach, r[3 + a] = mx + reach;
-            lo[a] = fmin(lo[a], r[a]), hi[a] = fmax(hi[a], r[3 + a]);
+            lo[a] = r[a] < lo[a] ? r[a] : lo[a], hi[a] = r[3 + a] > hi[a] ? r[3 + a] : hi[a];
         }
     }
-    if (!(hi[1] - lo[1] < 1e3 * cell && hi[2] - lo[2] < 1e3 * cell)) return;  /* NaN, or not a body */
+    if (!(sum == sum && hi[1] - lo[1] < 1e3 * cell && hi[2] - lo[2] < 1e3 * cell)) return;  /* not finite, or not a body */
     const int ny = (int)floor((hi[1] - lo[1]) / cell) + 1, nz = (int)floor((hi[2] - lo[2]) / cell) + 1;
     const long count = (long)ny * nz;
-    if (!grow_ints(&c->start, &c->start_cap, (size_t)count + 1)) return;
+    if (!grow_ints(&c->start, &c->start_cap, (size_t)count + 1) || !grow_doubles(&c->reach, &c->reach_cap, 2 * (size_t)count))
+        return;
     int32_t *start = c->start;
+    double *reach_x = c->reach;
     memset(start, 0, sizeof(int32_t) * ((size_t)count + 1));
-    /* twice over the faces: counted, then listed (each column's start moved up to its end, shifted back) */
+    for (long q = 0; q < count; q++) reach_x[2 * q] = INFINITY, reach_x[2 * q + 1] = -INFINITY;
+    /* twice over the faces: counted, then listed (each column's start moved up to its end, shifted
+       back); a face's columns those its box's corners fall in (the same rounding as a point's) */
     for (int pass = 0; pass < 2; pass++) {
         if (pass == 1) {
             for (long q = 0; q < count; q++) start[q + 1] += start[q];
@@ -471,17 +478,23 @@ static void skin_columns(const SkinGrid *g, const double *posed, double margin, 
         for (int f = 0; f < g->F; f++) {
             const double *r = c->face + (size_t)SKIN_FACE * f;
             const int y0 = (int)floor((r[1] - lo[1]) / cell), z0 = (int)floor((r[2] - lo[2]) / cell);
-            const int y1 = (int)fmin(floor((r[4] - lo[1]) / cell), ny - 1), z1 = (int)fmin(floor((r[5] - lo[2]) / cell), nz - 1);
-            for (int i = y0 < 0 ? 0 : y0; i <= y1; i++)
-                for (int j = z0 < 0 ? 0 : z0; j <= z1; j++) {
-                    if (pass == 0) start[(long)i * nz + j + 1]++;
-                    else c->list[start[(long)i * nz + j]++] = f;
+            const int y1 = (int)floor((r[4] - lo[1]) / cell), z1 = (int)floor((r[5] - lo[2]) / cell);
+            for (int i = y0 < 0 ? 0 : y0; i <= (y1 < ny ? y1 : ny - 1); i++)
+                for (int j = z0 < 0 ? 0 : z0; j <= (z1 < nz ? z1 : nz - 1); j++) {
+                    const long q = (long)i * nz + j;
+                    if (pass == 0) {
+                        start[q + 1]++;
+                        if (r[0] < reach_x[2 * q]) reach_x[2 * q] = r[0];
+                        if (r[3] > reach_x[2 * q + 1]) reach_x[2 * q + 1] = r[3];
+                    } else {
+                        c->list[start[q]++] = f;
+                    }
                 }
         }
     }
     for (long q = count; q > 0; q--) start[q] = start[q - 1];
     start[0] = 0;
-    sk->col_start = start, sk->col_list = c->list, sk->col_face = c->face;
+    sk->col_start = start, sk->col_list = c->list, sk->col_face = c->face, sk->col_reach = reach_x;
     sk->ny = ny, sk->nz = nz, sk->y0 = lo[1], sk->z0 = lo[2];
 }
 
@@ -497,6 +510,10 @@ static int skin_far_by_column(const SkinPose *sk, double margin, const double *x
     if (fy != fy || fz != fz || x[0] != x[0]) return 0;
     if (fy < 0.0 || fz < 0.0 || fy >= sk->ny || fz >= sk->nz) return 1;
     const long col = (long)fy * sk->nz + (long)fz;
+    /* before every box of the column along x (nothing within the margin, nothing crosses the line
+       at x's (y, z) short of x: its winding number is that of the line's far end, 0), or past every
+       one (nothing within the margin, nothing crossed past x) */
+    if (x[0] < sk->col_reach[2 * col] || x[0] > sk->col_reach[2 * col + 1]) return 1;
     const int32_t *faces = sk->grid->faces;
     int winding = 0;
     for (int e = sk->col_start[col]; e < sk->col_start[col + 1]; e++) {
@@ -536,5 +553,6 @@ int hrr_skin_far(const SkinGrid *g, const double *posed, double margin, double c
     free(c.start);
     free(c.list);
     free(c.face);
+    free(c.reach);
     return ok;
 }
