@@ -125,16 +125,48 @@ class SkinKernel:
         )
         return distance, normal
 
-    def pose_frames(self, rot: np.ndarray, trans: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def pose_frames(
+        self, rot: np.ndarray, trans: np.ndarray, *, threads: int = 1
+    ) -> tuple[np.ndarray, np.ndarray]:
         """(T, V, 3) the mesh posed and (T, V, 3) its unit vertex normals for the joints' moves
-        ``rot`` (T, J, 3, 3) and ``trans`` (T, J, 3) (C-contiguous float64)."""
-        posed, normals = np.empty((len(rot), self.vertices, 3)), np.empty((len(rot), self.vertices, 3))
-        ref = ctypes.byref(self.struct)
-        for t in range(len(rot)):
-            self.lib.hrr_skin_pose(
-                ref, rot[t].ctypes.data, trans[t].ctypes.data, posed[t].ctypes.data, normals[t].ctypes.data
-            )
-        return posed, normals
+        ``rot`` (T, J, 3, 3) and ``trans`` (T, J, 3) (C-contiguous float64), frames in parallel."""
+        return self.hulls(rot, trans, threads=threads)[:2]
+
+    def hulls(
+        self,
+        rot: np.ndarray,
+        trans: np.ndarray,
+        capsules: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
+        pieces: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
+        *,
+        threads: int = 1,
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+        """:meth:`pose_frames` and, given the frames' ``capsules`` (ends a, b (T, C, 3), radii (C,)) and
+        the skin's ``pieces`` (:class:`~hrr_garment.body.skin_envelope.SkinEnvelope`'s corners (P, 3)
+        int32, bary (P, 3) and capsule (P,) int32), the hulls' radii (T, C): each capsule grown to
+        hold its pieces of the posed skin, never narrower (hrr_skin_frames; the reference is the
+        envelope's ``growth``)."""
+        t = len(rot)
+        posed, normals = np.empty((t, self.vertices, 3)), np.empty((t, self.vertices, 3))
+        hull, args = None, (None, None, None, 0, None, None, None, 0)
+        if capsules is not None and pieces is not None:
+            a, b, radii = (np.ascontiguousarray(x, np.float64) for x in capsules)
+            hull = np.empty((t, len(radii)))
+            corners, bary, capsule = (x.ctypes.data for x in pieces)
+            args = (a.ctypes.data, b.ctypes.data, radii.ctypes.data, len(radii), corners, bary, capsule)
+            args += (len(pieces[2]),)
+        self.lib.hrr_skin_frames(
+            ctypes.byref(self.struct),
+            t,
+            rot.ctypes.data,
+            trans.ctypes.data,
+            posed.ctypes.data,
+            normals.ctypes.data,
+            *args,
+            None if hull is None else hull.ctypes.data,
+            threads,
+        )
+        return posed, normals, hull
 
     def cells(
         self, posed: np.ndarray, margin: float, cell: float
@@ -189,6 +221,18 @@ class SkinPose(ctypes.Structure):
     ]
 
 
+_NUMPY = {ctypes.c_void_p: np.uint64, ctypes.c_double: np.float64, ctypes.c_int: np.int32}
+# SkinPose's fields as a numpy structured type, at ctypes' offsets (numpy cannot read its addresses' format)
+_POSE_FIELDS = np.dtype(
+    {
+        "names": [name for name, _ in SkinPose._fields_],
+        "formats": [_NUMPY[kind] for _, kind in SkinPose._fields_],
+        "offsets": [getattr(SkinPose, name).offset for name, _ in SkinPose._fields_],
+        "itemsize": ctypes.sizeof(SkinPose),
+    }
+)
+
+
 def cell_box(posed: np.ndarray, margin: float, cell: float) -> tuple[np.ndarray, np.ndarray]:
     """The broad phase's grid over a posed mesh (V, 3): (3,) its first corner and (3,) int32 cells
     along each axis, reaching ``margin`` plus two cells past the mesh's box on every side (so that
@@ -223,18 +267,19 @@ class PosedSkins:
         self.kernels, self.which = kernels, np.asarray(which, np.int64)
         self.posed = [np.ascontiguousarray(posed, np.float64) for posed, _ in skins]
         self.normals = [np.ascontiguousarray(normals, np.float64) for _, normals in skins]
-        self.structs = (SkinPose * len(self.rot))()
-        for t, k in enumerate(self.which):
-            broad = cell is not None and closed is not None and closed[k]
-            self.structs[t] = SkinPose(
-                ctypes.addressof(kernels[k].struct),
-                self.rot[t].ctypes.data,
-                self.trans[t].ctypes.data,
-                self.posed[t].ctypes.data,
-                self.normals[t].ctypes.data,
-                cell=cell if broad else 0.0,
-                measure_after=int(measure_after),
-            )
+        t = len(self.rot)
+        self.structs = (SkinPose * t)()
+        # filled as one numpy view of the structs, field by field (a ctypes struct a frame cost 60 us)
+        view = np.frombuffer(self.structs, _POSE_FIELDS)
+        view["grid"] = np.array([ctypes.addressof(k.struct) for k in kernels], np.uint64)[self.which]
+        frame = np.arange(t, dtype=np.uint64)
+        view["rot"] = self.rot.ctypes.data + frame * np.uint64(self.rot[0].nbytes)
+        view["trans"] = self.trans.ctypes.data + frame * np.uint64(self.trans[0].nbytes)
+        view["posed"] = [p.ctypes.data for p in self.posed]
+        view["normals"] = [n.ctypes.data for n in self.normals]
+        broad = np.zeros(len(kernels), bool) if closed is None or cell is None else np.asarray(closed, bool)
+        view["cell"] = np.where(broad[self.which], cell or 0.0, 0.0)
+        view["measure_after"] = int(measure_after)
 
     def address(self, first: int) -> int:
         """The address of frame ``first``'s struct (the kernel reads the frames from there on)."""

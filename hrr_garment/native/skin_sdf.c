@@ -45,6 +45,49 @@ void hrr_skin_pose(const SkinGrid *g, const double *rot, const double *trans, do
 /* min(max(x, lo), hi) inline (fmin and fmax are library calls where NaN must be honoured) */
 static inline double clamp(double x, double lo, double hi) { return x < lo ? lo : (x > hi ? hi : x); }
 
+/* T frames posed at once, frames in parallel (`threads`): each frame's mesh and vertex normals
+   (hrr_skin_pose) for its joints' moves rot (T, J, 3, 3), trans (T, J, 3), and where pieces are given
+   (P > 0) its hulls' radii (T, C): each capsule (ends a, b (T, C, 3), radius radii (C,)) grown by the
+   farthest any of its pieces' points lies outside it, never narrower than it
+   (hrr_garment/body/skin_envelope.py's growth and PosedSkin.of_frames, the reference): point p lies
+   on the face of vertices corners (P, 3) at barycentric bary (P, 3), its piece held by capsule
+   capsule[p]. Posing and growing a 64-frame batch in numpy, one thread, was a tenth of the push */
+void hrr_skin_frames(const SkinGrid *g, int T, const double *rot, const double *trans, double *posed, double *normals,
+                     const double *a, const double *b, const double *radii, int C, const int32_t *corners,
+                     const double *bary, const int32_t *capsule, int P, double *hull, int threads)
+{
+    #pragma omp parallel for num_threads(threads) schedule(static)
+    for (int t = 0; t < T; t++) {
+        double *pt = posed + (size_t)t * 3 * g->V;
+        hrr_skin_pose(g, rot + (size_t)t * 9 * g->J, trans + (size_t)t * 3 * g->J, pt, normals + (size_t)t * 3 * g->V);
+        if (P <= 0) continue;
+        const double *at = a + (size_t)t * 3 * C, *bt = b + (size_t)t * 3 * C;
+        double *h = hull + (size_t)t * C;
+        for (int c = 0; c < C; c++) h[c] = -INFINITY;
+        for (int q = 0; q < P; q++) {
+            const int32_t *v = corners + 3 * q;
+            const double *w = bary + 3 * q;
+            const int c = capsule[q];
+            double rel[3], axis[3], dot = 0.0, len2 = 0.0;
+            for (int k = 0; k < 3; k++) {
+                const double x = w[0] * pt[3 * v[0] + k] + w[1] * pt[3 * v[1] + k] + w[2] * pt[3 * v[2] + k];
+                axis[k] = bt[3 * c + k] - at[3 * c + k], rel[k] = x - at[3 * c + k];
+                dot += rel[k] * axis[k], len2 += axis[k] * axis[k];
+            }
+            const double s = clamp(dot / (len2 > 1e-12 ? len2 : 1e-12), 0.0, 1.0);
+            double gap2 = 0.0;
+            for (int k = 0; k < 3; k++) gap2 += (rel[k] - s * axis[k]) * (rel[k] - s * axis[k]);
+            const double out = sqrt(gap2) - radii[c];
+            if (out > h[c] || out != out) h[c] = out;  /* a NaN stays, as numpy's maximum keeps it */
+        }
+        for (int c = 0; c < C; c++) {
+            const double grown = radii[c] + h[c];
+            h[c] = grown > radii[c] || grown != grown ? grown : radii[c];
+        }
+    }
+}
+
+
 static inline long skin_node(const SkinGrid *g, const double *r)
 {
     long idx[3];
@@ -154,10 +197,11 @@ static double skin_nearest_face(const SkinGrid *g, long node, const double *pose
     const int inside = gap[0] * out[0] + gap[1] * out[1] + gap[2] * out[2] < 0.0;
     double n[3];
     if (best > 1e-9)
-        for (int k = 0; k < 3; k++) n[k] = (inside ? -gap[k] : gap[k]) / fmax(best, 1e-12);
+        for (int k = 0; k < 3; k++) n[k] = (inside ? -gap[k] : gap[k]) / best;  /* best > 1e-9 > 1e-12 */
     else
         memcpy(n, out, sizeof n);
-    const double len = fmax(sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]), 1e-12);
+    const double norm = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+    const double len = norm > 1e-12 ? norm : 1e-12;  /* fmax's answer, NaN included, without its call */
     for (int k = 0; k < 3; k++) normal[k] = n[k] / len;
     return inside ? -best : best;
 }

@@ -70,6 +70,10 @@ def test_the_hulls_hold_the_skin(visible):
     d, _ = frames_signed_distance(skin, posed.hulls.a, posed.hulls.b, posed.hulls.radii)
     assert d.max() <= 1e-9  # every vertex of the posed skin in a hull, to rounding (so every face: convexity)
     assert (posed.hulls.radii >= DEFAULT_BODY.radii).all()
+    # the kernel's hulls (where there is one) are the envelope's, its reference
+    growth = visible.envelope.growth(motion.global_rotations, motion.joint_positions)
+    reference = np.maximum(DEFAULT_BODY.radii + growth, DEFAULT_BODY.radii)
+    assert np.abs(posed.hulls.radii - reference).max() < 1e-12
     thighs = [i for i, c in enumerate(DEFAULT_BODY.capsules) if c.name.endswith("thigh")]
     assert (posed.hulls.radii[:, thighs] > DEFAULT_BODY.radii[thighs] + 0.03).all()  # widened over the bulge
 
