@@ -4,8 +4,10 @@
    hrr_skin_sdf takes the point back to the rest pose from the best joints' rigid guesses by damped
    fixed-point steps r <- r + step M(w(r))^-1 (x - M(w(r)) r - t(w(r))), reads the faces the grid lists
    at each rest point's node and returns the exact signed distance to the nearest of them, posed.
-   The push-out's broad phase (hrr_skin_cells, skin_far_by_ray) spares it the points a frame's posed
-   triangles show farther than the margin from the skin and outside it. */
+   The push-out's broad phase (skin_columns, skin_far_by_column) spares it the points a frame's posed
+   triangles show farther than the margin from the skin and outside it; hrr_skin_cells is the
+   reference's cull (PosedSkin.distance), and hrr_skin_frames poses a batch of frames and grows the
+   skin's hulls. */
 
 #include "hrr_native.h"
 
