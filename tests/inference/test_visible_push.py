@@ -1,6 +1,8 @@
 """The push-out against the mesh the viewer sees (hrr_garment.inference.visible_push): the skin's
-hulls hold the skin in every pose; the broad phase of a closed mesh is its reference's, cell for
-cell, and leaves out only points outside the mesh and farther than the margin; the kernel pushes
+hulls hold the skin in every pose (the kernel's are the envelope's); the reference's cull of a
+closed mesh is its reference's, cell for cell, and leaves out only points outside the mesh and
+farther than the margin; the kernel's broad phase (columns and a ray) leaves out exactly those the
+exact test does; the kernel pushes
 exactly as the numpy reference does (an open mesh and a closed one), a frame at a time as in
 batches, a crowd of two bodies as each alone, and reports the cloth inside after its strain limit as
 the reference measures it; a vertex deep inside is pushed out and a far one left as it was; and the
