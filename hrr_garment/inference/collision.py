@@ -166,7 +166,7 @@ def push_out(
             else native_strain_limit(limits, settings.max_strain, settings.stretch_slack),
             subspace=None if settings.subspace is None else settings.subspace.native,
         )
-        skins = None if skin is None else skin.native(margin, measure_after=report)
+        skins = None if skin is None else skin.native(measure_after=report)
         for start in range(0, len(out), chunk):
             sl = slice(start, start + chunk)
             _, before[sl], after[sl], torn[sl] = push_out_frames(

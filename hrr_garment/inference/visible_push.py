@@ -56,18 +56,42 @@ class VisibleCollider:
         return None if lib is None else SkinKernel(self.collider, lib)
 
     def skinned(
-        self, rotations: np.ndarray, positions: np.ndarray
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
+        self,
+        rotations: np.ndarray,
+        positions: np.ndarray,
+        capsules: tuple[np.ndarray, np.ndarray] | None = None,
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None, np.ndarray | None]:
         """For (T, J, 3, 3) global rotations and (T, J, 3) joint positions: the joints' moves from the
-        rest pose (T, J, 3, 3) and (T, J, 3), the mesh posed by them (T, V, 3) and its unit vertex
-        normals (T, V, 3): by the kernel where there is one (a third of the numpy skinning's time), as
-        the push-out poses it; no normals without it (the numpy reference poses its faces itself)."""
+        rest pose (T, J, 3, 3) and (T, J, 3), the mesh posed by them (T, V, 3), its unit vertex
+        normals (T, V, 3) and, given the frames' capsule ends (a, b (T, C, 3)), the skin's hulls'
+        radii (T, C) (:mod:`~hrr_garment.body.skin_envelope`: each capsule grown to hold its pieces
+        of the posed skin, never narrower): by the kernel where there is one, frames in parallel,
+        as the push-out poses it; no normals without it (the numpy reference poses its faces
+        itself), and the hulls by the envelope's ``growth`` (the kernel's reference)."""
         body = self.collider.body
         rot, trans = body.joint_transforms(rotations, positions)
         rot, trans = np.ascontiguousarray(rot), np.ascontiguousarray(trans)
         if self.kernel is None:
-            return rot, trans, body.pose(rotations, positions), None
-        return rot, trans, *self.kernel.pose_frames(rot, trans)
+            posed = body.pose(rotations, positions)
+            if capsules is None:
+                return rot, trans, posed, None, None
+            growth = self.envelope.growth(rotations, positions, posed=posed)
+            return rot, trans, posed, None, np.maximum(self.body.radii + growth, self.body.radii)
+        from ..native import default_threads
+
+        ends = None if capsules is None else (*capsules, self.body.radii)
+        return rot, trans, *self.kernel.hulls(rot, trans, ends, self.pieces, threads=default_threads())
+
+    @cached_property
+    def pieces(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The envelope's pieces as the kernel takes them: corners (P, 3) int32, bary (P, 3), capsule
+        (P,) int32."""
+        e = self.envelope
+        return (
+            np.ascontiguousarray(e.corners, np.int32),
+            np.ascontiguousarray(e.bary, np.float64),
+            np.ascontiguousarray(e.capsule, np.int32),
+        )
 
     def posed(self, rotations: np.ndarray, positions: np.ndarray) -> np.ndarray:
         """(T, V, 3) the mesh posed (:meth:`skinned`)."""
@@ -89,7 +113,8 @@ class VisibleCollider:
         return SkinCells(*self.kernel.cells(posed, margin, CELL_M), CELL_M)
 
 
-CELL_M = 0.02  # the broad phase's cells (docs/bodies.md, "The push-out against the visible mesh")
+CELL_M = 0.02  # the reference's cull's cells (docs/bodies.md, "The push-out against the visible mesh")
+COLUMN_M = 0.02  # the kernel's broad phase's columns (the same section)
 FAR_AWAY = 1e30  # the distance of a point the broad phase finds far outside the skin (the kernel's)
 
 _BUILT: dict[tuple[int, int], tuple[BodyModel, SkinnedBody, VisibleCollider]] = {}
@@ -143,13 +168,13 @@ class PosedSkin:
             if len(visible.body.capsules) != a.shape[1]:
                 raise ValueError("every body of a push-out needs the same number of capsules")
             a[rows], b[rows] = visible.body.pose(rot[rows], pos[rows])
-            moves[0][rows], moves[1][rows], posed, normals = visible.skinned(rot[rows], pos[rows])
+            # the hulls never narrower than the capsules (inside the body: the union keeps the body's
+            # inside in it), and a capsule that holds no piece of the skin as it is
+            moves[0][rows], moves[1][rows], posed, normals, radii[rows] = visible.skinned(
+                rot[rows], pos[rows], capsules=(a[rows], b[rows])
+            )
             for i, t in enumerate(rows):
                 skins[t] = (posed[i], None if normals is None else normals[i])
-            growth = visible.envelope.growth(rot[rows], pos[rows], posed=posed)
-            # never narrower than the capsule (inside the body: the union keeps the body's inside in
-            # it), and a capsule that holds no piece of the skin as it is
-            radii[rows] = np.maximum(visible.body.radii + growth, visible.body.radii)
         return cls(
             tuple(bodies),
             np.asarray(which, np.int64),
@@ -192,10 +217,10 @@ class PosedSkin:
                 d[i, near], n[i, near] = query(points[i, near], self.rotations[t], self.positions[t])
         return d, n
 
-    def native(self, margin: float, *, measure_after: bool = False):
+    def native(self, *, measure_after: bool = False):
         """The frames as the kernel reads them (:class:`~hrr_garment.native.skin.PosedSkins`), with
-        room for their broad phase for the push's ``margin``; ``measure_after``: the kernel measures
-        a frame its strain limit moved again, for the report."""
+        their broad phase's column width where the mesh is closed; ``measure_after``: the kernel
+        measures a frame its strain limit moved again, for the report."""
         from ..native.skin import PosedSkins
 
         return PosedSkins(
@@ -204,7 +229,6 @@ class PosedSkin:
             moves=self.moves,
             skins=self.skins,
             closed=[v.closed for v in self.bodies],
-            margin=margin,
-            cell=CELL_M,
+            cell=COLUMN_M,
             measure_after=measure_after,
         )

@@ -85,52 +85,38 @@ typedef struct {
     const SkinGrid *grid;
     const double *rot, *trans;     /* (J, 3, 3), (J, 3) the joints' moves from the rest pose */
     const double *posed, *normals; /* (V, 3), (V, 3) the mesh posed by them and its unit vertex normals */
-    /* the frame's broad phase (hrr_skin_cells, which the push-out runs on the frame first; NULL: none,
-       every point is measured): (dims x-major) 2 where a cell is farther than the margin from the
-       skin and outside it */
-    uint8_t *cells;
-    int dims[3];
-    double origin[3], cell;
+    /* the broad phase's column width (skin_columns, which the push-out runs on the frame first, in its
+       own copy of the struct; 0: none, every point near a hull is measured: an open mesh) */
+    double cell;
     int measure_after; /* the push-out measures a frame the strain limit moved again, for its report */
-    /* the band's cells' triangles (CSR over every cell: band_start (cells + 1), band_list), which
-       the push-out lists in its own copy of the struct (NULL: not listed, the band is measured) */
-    const int32_t *band_start, *band_list;
+    /* the frame's columns (skin_columns; col_start NULL: not built): (ny nz + 1) starts, the faces
+       listed, each face's record (SKIN_FACE doubles), each column's reach along x (2 doubles), the
+       columns' first corner in (y, z) */
+    const int32_t *col_start, *col_list;
+    const double *col_face, *col_reach;
+    int ny, nz;
+    double y0, z0;
 } SkinPose;
 
-/* The triangles of each band cell, listed by hrr_skin_cells where it is given one: (cell, face)
-   pairs as found, then their CSR; each array grown as a frame needs (a team's, kept over its
-   frames, freed by the push-out) */
+/* A face's record in the columns: its box grown by the margin (lo, hi), then its three corners */
+enum { SKIN_FACE = 16 };
+
+/* The columns' arrays, each grown as a frame needs (a team's, kept over its frames, freed by the
+   push-out) */
 typedef struct {
-    int32_t *pairs, *start, *list;
-    size_t pairs_cap, start_cap, list_cap;
-} SkinBand;
+    int32_t *start, *list;
+    double *face, *reach;
+    size_t start_cap, list_cap, face_cap, reach_cap;
+} SkinColumns;
 
-static int skin_far_by_ray(const SkinPose *sk, double margin, const double *x, const long idx[3], int cls);
-
-/* Whether point x is known farther than the margin from sk's skin and outside it (no need to measure
-   it): in a cell of the far outside or beyond the grid's box; or, where the band is listed, in a
-   band cell with no triangle within the margin of x or a free cell the flood did not reach, with a
-   winding number of 0 along the ray from x (skin_far_by_ray) */
-static inline int skin_far_outside(const SkinPose *sk, double margin, const double *x)
-{
-    double f[3];
-    for (int a = 0; a < 3; a++) {
-        f[a] = floor((x[a] - sk->origin[a]) / sk->cell);
-        if (f[a] != f[a]) return 0; /* a NaN is measured */
-    }
-    for (int a = 0; a < 3; a++)
-        if (f[a] < 0.0 || f[a] >= sk->dims[a]) return 1; /* beyond the box: outside, and farther than the margin */
-    const long idx[3] = {(long)f[0], (long)f[1], (long)f[2]};
-    const int cls = sk->cells[(idx[0] * sk->dims[1] + idx[1]) * sk->dims[2] + idx[2]];
-    return cls == 2 || (sk->band_start && skin_far_by_ray(sk, margin, x, idx, cls));
-}
+static void skin_columns(const SkinGrid *g, const double *posed, double margin, double cell, SkinColumns *c,
+                         SkinPose *sk);
+static int skin_far_by_column(const SkinPose *sk, double margin, const double *x);
 
 /* The signed distance and outward normal of point x to the posed skin (skin_sdf.c) */
 static void skin_point(const SkinGrid *g, const double *rot, const double *trans, const double *posed,
                        const double *normals, const double *x, double *distance, double *normal);
 void hrr_skin_cells(const SkinGrid *g, const double *posed, double margin, double cell, const double *origin,
                     const int *dims, uint8_t *cells);
-static int skin_band_cells(const SkinGrid *g, const double *posed, double margin, double cell, const double *origin,
-                           const int *dims, uint8_t *cells, SkinBand *band);
 
 #endif

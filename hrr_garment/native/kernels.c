@@ -406,12 +406,12 @@ static int grow_region(const PushMesh *m, int V, int rings, int seeds, int32_t *
    than the margin from every hull is farther than that from the skin: its hull distance stands (all
    the push reads of it is that it needs no push). The others, within the margin of a hull or inside
    one, are measured against the skin itself (skin_point, ~3 us), but for those the frame's broad
-   phase shows farther than the margin from the skin and outside it (skin_far_outside: the flood's
-   cells, or the band's triangles and a ray; most of a garment inside the hulls, which hold the skin
+   phase shows farther than the margin from the skin and outside it (skin_far_by_column: its
+   column's triangles and a ray; most of a garment inside the hulls, which hold the skin
    loosely): FAR_AWAY, as a patch no capsule comes near. Entries of the list idx (NULL: 0 .. n - 1). */
 static inline void skin_measure(const SkinPose *sk, double margin, const double *x, double *d, double *nrm)
 {
-    if (sk->cells && skin_far_outside(sk, margin, x)) {
+    if (sk->col_start && skin_far_by_column(sk, margin, x)) {
         *d = FAR_AWAY;
         nrm[0] = nrm[1] = nrm[2] = 0.0;
     } else {
@@ -427,21 +427,6 @@ static void skin_refine(const SkinPose *sk, const double *p, const int32_t *idx,
     for (int i = 0; i < n; ++i) {
         const int v = idx ? idx[i] : i;
         if (d[v] <= margin) skin_measure(sk, margin, p + 3 * v, d + v, nrm + 3 * v); /* a NaN stays, as the push reads it */
-    }
-}
-
-/* skin_refine over the vertices of the `count` patches listed (list NULL: every patch) */
-static void skin_refine_patches(const SkinPose *sk, const double *p, const PushMesh *m, const int32_t *list, int count,
-                                double margin, double *d, double *nrm)
-{
-    if (!sk) return;
-    #pragma omp for schedule(dynamic, 1)
-    for (int k = 0; k < count; ++k) {
-        const int q = list ? list[k] : k;
-        for (int i = m->patch_ptr[q]; i < m->patch_ptr[q + 1]; ++i) {
-            const int v = m->patch_idx[i];
-            if (d[v] <= margin) skin_measure(sk, margin, p + 3 * v, d + v, nrm + 3 * v);
-        }
     }
 }
 
@@ -477,6 +462,7 @@ static void push_frame(double *p, int V, const double *ca, const double *cb, con
     int *mark = (int *)(ints + 2 * (size_t)V), *pmark = (int *)(ints + 5 * (size_t)V), *vmark = (int *)(ints + 6 * (size_t)V);
     int ends[MAX_REGION_RINGS + 1];
     const int follow = m->ring ? m->follow : 0, rings = follow + smooth + 1;
+    const int by_patch = m->patch_ptr && !sk;  /* the moved vertices measured again by their patches */
     if (m->patch_ptr) sdf_patches(p, m, ca, cb, radii, C, margin, d, nrm);
     else sdf_points(p, NULL, V, ca, cb, radii, C, d, nrm);
     skin_refine(sk, p, NULL, V, margin, d, nrm);
@@ -572,10 +558,12 @@ static void push_frame(double *p, int V, const double *ca, const double *cb, con
         }
         /* the moved patches measured again, culled as at first (a capsule left out is more than the
            margin from every vertex of the patch where it lies now): a push moves a few hundred vertices,
-           each measured against every capsule it was twice the first measurement's work */
-        if (m->patch_ptr) {
+           each measured against every capsule it was twice the first measurement's work. Against the
+           skin only the vertices that moved: a vertex of a moved patch that did not move needed no
+           push (its distance at least the margin), and measured again it would be the same, at the
+           skin's cost (a third of its calls) */
+        if (by_patch) {
             sdf_patch_list(p, m, plist, flag[4], ca, cb, radii, C, margin, d, nrm);
-            skin_refine_patches(sk, p, m, plist, flag[4], margin, d, nrm);
         } else {
             sdf_points(p, list, flag[1], ca, cb, radii, C, d, nrm);
             skin_refine(sk, p, list, flag[1], margin, d, nrm);
@@ -588,7 +576,7 @@ static void push_frame(double *p, int V, const double *ca, const double *cb, con
                at first those of the last round's moved patches (its moved vertices, list, without
                patches), then those the projection before moved (list, filtered in place) */
             int n = 0, total = flag[3];
-            if (it == 0 && m->patch_ptr) {
+            if (it == 0 && by_patch) {
                 for (int k = 0; k < flag[4]; ++k)
                     for (int i = m->patch_ptr[plist[k]]; i < m->patch_ptr[plist[k] + 1]; ++i)
                         take_if_inside(m->patch_idx[i], d, list, &n, vmark, moved, &total);
@@ -853,8 +841,8 @@ typedef struct {
     int32_t *ints, *moved;
     int *flag;
     LimitScratch limit;
-    SkinPose skin; /* the frame's skin with its band listed */
-    SkinBand band;
+    SkinPose skin; /* the frame's skin with its columns */
+    SkinColumns columns;
 } PushTeam;
 
 /* vertices a block of the subspace move (its rows of the basis stay in cache); SubspaceMove.BLOCK
@@ -971,13 +959,12 @@ static void push_and_limit(const void *in, int in_double, float *out, int V, con
         #pragma omp for schedule(static)
         for (int k = 0; k < 3 * V; ++k) u[k] = p[k];
     }
-    if (sk && sk->cells) {  /* the frame's broad phase against the skin, here where frames run in parallel,
-                               its band listed in the team's copy of the frame's struct */
+    if (sk && sk->cell > 0.0) {  /* the frame's broad phase against the skin, here where frames run in
+                                    parallel, its columns in the team's copy of the frame's struct */
         #pragma omp single
         {
             team->skin = *sk;
-            if (skin_band_cells(sk->grid, sk->posed, args->margin, sk->cell, sk->origin, sk->dims, sk->cells, &team->band))
-                team->skin.band_start = team->band.start, team->skin.band_list = team->band.list;
+            skin_columns(sk->grid, sk->posed, args->margin, sk->cell, &team->columns, &team->skin);
         }
         sk = &team->skin;
     }
@@ -1151,9 +1138,10 @@ void hrr_push_out(const void *in, int in_double, float *out, int T, int V, const
     }
     #undef FRAME_IN
     for (int k = 0; k < team_count; ++k) {
-        free(team[k].band.pairs);
-        free(team[k].band.start);
-        free(team[k].band.list);
+        free(team[k].columns.start);
+        free(team[k].columns.list);
+        free(team[k].columns.face);
+        free(team[k].columns.reach);
     }
     free(moved);
     free(buf);

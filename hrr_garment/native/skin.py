@@ -125,16 +125,48 @@ class SkinKernel:
         )
         return distance, normal
 
-    def pose_frames(self, rot: np.ndarray, trans: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def pose_frames(
+        self, rot: np.ndarray, trans: np.ndarray, *, threads: int = 1
+    ) -> tuple[np.ndarray, np.ndarray]:
         """(T, V, 3) the mesh posed and (T, V, 3) its unit vertex normals for the joints' moves
-        ``rot`` (T, J, 3, 3) and ``trans`` (T, J, 3) (C-contiguous float64)."""
-        posed, normals = np.empty((len(rot), self.vertices, 3)), np.empty((len(rot), self.vertices, 3))
-        ref = ctypes.byref(self.struct)
-        for t in range(len(rot)):
-            self.lib.hrr_skin_pose(
-                ref, rot[t].ctypes.data, trans[t].ctypes.data, posed[t].ctypes.data, normals[t].ctypes.data
-            )
-        return posed, normals
+        ``rot`` (T, J, 3, 3) and ``trans`` (T, J, 3) (C-contiguous float64), frames in parallel."""
+        return self.hulls(rot, trans, threads=threads)[:2]
+
+    def hulls(
+        self,
+        rot: np.ndarray,
+        trans: np.ndarray,
+        capsules: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
+        pieces: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
+        *,
+        threads: int = 1,
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+        """:meth:`pose_frames` and, given the frames' ``capsules`` (ends a, b (T, C, 3), radii (C,)) and
+        the skin's ``pieces`` (:class:`~hrr_garment.body.skin_envelope.SkinEnvelope`'s corners (P, 3)
+        int32, bary (P, 3) and capsule (P,) int32), the hulls' radii (T, C): each capsule grown to
+        hold its pieces of the posed skin, never narrower (hrr_skin_frames; the reference is the
+        envelope's ``growth``)."""
+        t = len(rot)
+        posed, normals = np.empty((t, self.vertices, 3)), np.empty((t, self.vertices, 3))
+        hull, args = None, (None, None, None, 0, None, None, None, 0)
+        if capsules is not None and pieces is not None:
+            a, b, radii = (np.ascontiguousarray(x, np.float64) for x in capsules)
+            hull = np.empty((t, len(radii)))
+            corners, bary, capsule = (x.ctypes.data for x in pieces)
+            args = (a.ctypes.data, b.ctypes.data, radii.ctypes.data, len(radii), corners, bary, capsule)
+            args += (len(pieces[2]),)
+        self.lib.hrr_skin_frames(
+            ctypes.byref(self.struct),
+            t,
+            rot.ctypes.data,
+            trans.ctypes.data,
+            posed.ctypes.data,
+            normals.ctypes.data,
+            *args,
+            None if hull is None else hull.ctypes.data,
+            threads,
+        )
+        return posed, normals, hull
 
     def cells(
         self, posed: np.ndarray, margin: float, cell: float
@@ -156,19 +188,49 @@ class SkinKernel:
         )
         return origin, dims, out
 
+    def far_outside(self, posed: np.ndarray, points: np.ndarray, margin: float, cell: float) -> np.ndarray:
+        """(N,) whether each point (N, 3) is farther than ``margin`` from the posed closed mesh (V, 3)
+        and outside it, as the push-out's broad phase answers it (its columns ``cell`` wide, built
+        for this frame: hrr_skin_far)."""
+        p = np.ascontiguousarray(points, np.float64).reshape(-1, 3)
+        out = np.zeros(len(p), np.uint8)
+        posed = np.ascontiguousarray(posed, np.float64)
+        if not self.lib.hrr_skin_far(
+            ctypes.byref(self.struct), posed.ctypes.data, margin, cell, p.ctypes.data, len(p), out.ctypes.data
+        ):
+            raise MemoryError("the broad phase could not allocate its columns")
+        return out.astype(bool)
+
 
 class SkinPose(ctypes.Structure):
     """skin_sdf.c's SkinPose (hrr_native.h): one frame's grid, joints' moves and posed mesh, and the
-    cells of its broad phase (``cells`` 0: none)."""
+    width of its broad phase's columns (``cell`` 0: none); the kernel fills the columns in its own
+    copy of the struct."""
 
-    _fields_ = [(name, ctypes.c_void_p) for name in ("grid", "rot", "trans", "posed", "normals", "cells")] + [
-        ("dims", ctypes.c_int * 3),
-        ("origin", ctypes.c_double * 3),
+    _fields_ = [(name, ctypes.c_void_p) for name in ("grid", "rot", "trans", "posed", "normals")] + [
         ("cell", ctypes.c_double),
         ("measure_after", ctypes.c_int),
-        ("band_start", ctypes.c_void_p),  # the kernel's own (its copy of the struct lists the band)
-        ("band_list", ctypes.c_void_p),
+        ("col_start", ctypes.c_void_p),
+        ("col_list", ctypes.c_void_p),
+        ("col_face", ctypes.c_void_p),
+        ("col_reach", ctypes.c_void_p),
+        ("ny", ctypes.c_int),
+        ("nz", ctypes.c_int),
+        ("y0", ctypes.c_double),
+        ("z0", ctypes.c_double),
     ]
+
+
+_NUMPY = {ctypes.c_void_p: np.uint64, ctypes.c_double: np.float64, ctypes.c_int: np.int32}
+# SkinPose's fields as a numpy structured type, at ctypes' offsets (numpy cannot read its addresses' format)
+_POSE_FIELDS = np.dtype(
+    {
+        "names": [name for name, _ in SkinPose._fields_],
+        "formats": [_NUMPY[kind] for _, kind in SkinPose._fields_],
+        "offsets": [getattr(SkinPose, name).offset for name, _ in SkinPose._fields_],
+        "itemsize": ctypes.sizeof(SkinPose),
+    }
+)
 
 
 def cell_box(posed: np.ndarray, margin: float, cell: float) -> tuple[np.ndarray, np.ndarray]:
@@ -184,11 +246,10 @@ class PosedSkins:
     """T frames of skinned bodies posed, as the push-out kernel reads them (``hrr_push_out``'s
     ``skin``): frame t against ``kernels[which[t]]``, its joints' moves ``moves`` (rotations
     (T, J, 3, 3), translations (T, J, 3)) and ``skins[t]``, the mesh they pose and its vertex normals
-    (:meth:`SkinKernel.pose_frames`), with room
-    for the broad phase's cells (which the kernel fills for the push's ``margin``, frames in
-    parallel) where ``cell`` is given and the body's mesh is closed (``closed[which[t]]``); with
-    ``measure_after``, the kernel measures a frame its strain limit moved again, for the report.
-    Holds every array the structs point at."""
+    (:meth:`SkinKernel.pose_frames`), with the broad phase's columns ``cell`` wide (which the kernel
+    builds for the push's margin, frames in parallel) where ``cell`` is given and the body's mesh is
+    closed (``closed[which[t]]``); with ``measure_after``, the kernel measures a frame its strain
+    limit moved again, for the report. Holds every array the structs point at."""
 
     def __init__(
         self,
@@ -198,7 +259,6 @@ class PosedSkins:
         skins: tuple,
         *,
         closed: list[bool] | None = None,
-        margin: float = 0.0,
         cell: float | None = None,
         measure_after: bool = False,
     ):
@@ -207,24 +267,19 @@ class PosedSkins:
         self.kernels, self.which = kernels, np.asarray(which, np.int64)
         self.posed = [np.ascontiguousarray(posed, np.float64) for posed, _ in skins]
         self.normals = [np.ascontiguousarray(normals, np.float64) for _, normals in skins]
-        self.structs = (SkinPose * len(self.rot))()
-        self.cells: list[np.ndarray | None] = [None] * len(self.rot)
-        for t, k in enumerate(self.which):
-            self.structs[t] = SkinPose(
-                ctypes.addressof(kernels[k].struct),
-                self.rot[t].ctypes.data,
-                self.trans[t].ctypes.data,
-                self.posed[t].ctypes.data,
-                self.normals[t].ctypes.data,
-                measure_after=int(measure_after),
-            )
-            if cell is not None and closed is not None and closed[k]:
-                origin, dims = cell_box(self.posed[t], margin, cell)
-                self.cells[t] = np.empty(int(np.prod(dims, dtype=np.int64)), np.uint8)
-                self.structs[t].cells = self.cells[t].ctypes.data
-                self.structs[t].dims[:] = [int(n) for n in dims]
-                self.structs[t].origin[:] = [float(x) for x in origin]
-                self.structs[t].cell = cell
+        t = len(self.rot)
+        self.structs = (SkinPose * t)()
+        # filled as one numpy view of the structs, field by field (a ctypes struct a frame cost 60 us)
+        view = np.frombuffer(self.structs, _POSE_FIELDS)
+        view["grid"] = np.array([ctypes.addressof(k.struct) for k in kernels], np.uint64)[self.which]
+        frame = np.arange(t, dtype=np.uint64)
+        view["rot"] = self.rot.ctypes.data + frame * np.uint64(self.rot[0].nbytes)
+        view["trans"] = self.trans.ctypes.data + frame * np.uint64(self.trans[0].nbytes)
+        view["posed"] = [p.ctypes.data for p in self.posed]
+        view["normals"] = [n.ctypes.data for n in self.normals]
+        broad = np.zeros(len(kernels), bool) if closed is None or cell is None else np.asarray(closed, bool)
+        view["cell"] = np.where(broad[self.which], cell or 0.0, 0.0)
+        view["measure_after"] = int(measure_after)
 
     def address(self, first: int) -> int:
         """The address of frame ``first``'s struct (the kernel reads the frames from there on)."""

@@ -1,6 +1,8 @@
 """The push-out against the mesh the viewer sees (hrr_garment.inference.visible_push): the skin's
-hulls hold the skin in every pose; the broad phase of a closed mesh is its reference's, cell for
-cell, and leaves out only points outside the mesh and farther than the margin; the kernel pushes
+hulls hold the skin in every pose (the kernel's are the envelope's); the reference's cull of a
+closed mesh is its reference's, cell for cell, and leaves out only points outside the mesh and
+farther than the margin; the kernel's broad phase (columns and a ray) leaves out exactly those the
+exact test does; the kernel pushes
 exactly as the numpy reference does (an open mesh and a closed one), a frame at a time as in
 batches, a crowd of two bodies as each alone, and reports the cloth inside after its strain limit as
 the reference measures it; a vertex deep inside is pushed out and a far one left as it was; and the
@@ -13,11 +15,11 @@ import numpy as np
 import pytest
 
 from hrr_garment.body.capsules import DEFAULT_BODY, frames_signed_distance
-from hrr_garment.body.mesh_distance import mesh_signed_distance
+from hrr_garment.body.mesh_distance import mesh_signed_distance, winding_inside, within_reach
 from hrr_garment.body.skin_cells import skin_cells
 from hrr_garment.inference.collision import PushOutSettings, _push_frames, mean_operator, push_out
 from hrr_garment.inference.edge_limits import EdgeLimits
-from hrr_garment.inference.visible_push import CELL_M, PosedSkin, VisibleCollider
+from hrr_garment.inference.visible_push import CELL_M, COLUMN_M, PosedSkin, VisibleCollider
 from hrr_garment.motion.synth import synthesize
 from tests.body.limb import BulgingMannequin
 from tests.conftest import squeezed_skirt
@@ -70,6 +72,10 @@ def test_the_hulls_hold_the_skin(visible):
     d, _ = frames_signed_distance(skin, posed.hulls.a, posed.hulls.b, posed.hulls.radii)
     assert d.max() <= 1e-9  # every vertex of the posed skin in a hull, to rounding (so every face: convexity)
     assert (posed.hulls.radii >= DEFAULT_BODY.radii).all()
+    # the kernel's hulls (where there is one) are the envelope's, its reference
+    growth = visible.envelope.growth(motion.global_rotations, motion.joint_positions)
+    reference = np.maximum(DEFAULT_BODY.radii + growth, DEFAULT_BODY.radii)
+    assert np.abs(posed.hulls.radii - reference).max() < 1e-12
     thighs = [i for i, c in enumerate(DEFAULT_BODY.capsules) if c.name.endswith("thigh")]
     assert (posed.hulls.radii[:, thighs] > DEFAULT_BODY.radii[thighs] + 0.03).all()  # widened over the bulge
 
@@ -92,6 +98,27 @@ def test_the_broad_phase_is_its_reference_and_culls_only_far_outside(visible, cl
         signed = mesh_signed_distance(points, posed, skin.faces)
         assert signed[far].min() > margin  # left out: outside the mesh and farther than the margin
         assert far[signed > 0.05].mean() > 0.95  # and nearly every point 5 cm or more outside is left out
+
+
+def test_the_kernels_broad_phase_leaves_out_exactly_the_points_far_outside(closed_visible):
+    """The push-out's own broad phase (the columns and a ray): a point is left out exactly where no
+    triangle lies within the margin and the winding number is 0, the reference's exact test, on
+    points all about the body and within a few millimetres of its skin."""
+    _kernel_or_skip()
+    motion = synthesize("dance", 0.3, seed=4)
+    skin, margin = closed_visible.collider.body, SETTINGS.margin
+    rng = np.random.default_rng(1)
+    for t in (0, motion.num_frames // 2):
+        rot, pos = motion.global_rotations[t], motion.joint_positions[t]
+        posed = closed_visible.posed(rot[None], pos[None])[0]
+        tri = posed[skin.faces]
+        on_skin = tri[rng.integers(len(tri), size=2000)].mean(1) + rng.normal(0.0, 0.004, (2000, 3))
+        points = np.concatenate([rng.uniform(posed.min(0) - 0.1, posed.max(0) + 0.1, (3000, 3)), on_skin])
+        far = closed_visible.kernel.far_outside(posed, points, margin, COLUMN_M)
+        near = within_reach(points, posed, skin.faces, reach=margin)
+        exact = ~near & ~winding_inside(points, posed, skin.faces)
+        assert np.array_equal(far, exact)
+        assert far.mean() > 0.3 and (~far).mean() > 0.3  # both answers given often
 
 
 @pytest.mark.parametrize("body", ["visible", "closed_visible"])
