@@ -18,6 +18,7 @@ from ..body.skinned_body import SkinnedBody, visible_body
 from ..body.symmetry import is_symmetric, symmetrized
 from ..io_utils import strict_json
 from ..motion.skeleton import REST_PELVIS_HEIGHT
+from .attachment import RELAX_PASSES
 from .clearance import keep_clearance
 from .mesh import GarmentMesh, mirror_map
 from .transfer import TransferReport, transfer_garment
@@ -69,6 +70,8 @@ class DressedBody:
         arrays += () if mesh is None else (mesh.joints,)
         for arr in (self.garment.vertices, self.garment.faces, self.garment.attached, *arrays):
             h.update(np.ascontiguousarray(arr).tobytes())
+        if skin is not None:  # its pinned vertices ride the skin, relaxed: parts from before are stale
+            h.update(f"pins relaxed {RELAX_PASSES}".encode())
         return h.hexdigest()[:16]
 
 
