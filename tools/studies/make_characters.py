@@ -26,30 +26,13 @@ from pathlib import Path
 
 import numpy as np
 
+from hrr_garment.motion.joint_maps import NAMING_SCHEMES
 from hrr_garment.motion.skeleton import JOINT_NAMES, PARENTS
-
-MIXAMO = {
-    "pelvis": "Hips",
-    "spine1": "Spine",
-    "spine2": "Spine1",
-    "spine3": "Spine2",
-    "neck": "Neck",
-    "head": "Head",
-    "hip": "UpLeg",
-    "knee": "Leg",
-    "ankle": "Foot",
-    "foot": "ToeBase",
-    "collar": "Shoulder",
-    "shoulder": "Arm",
-    "elbow": "ForeArm",
-    "wrist": "Hand",
-}
 
 
 def mixamo_name(joint: str) -> str:
-    if joint[:2] in ("l_", "r_"):
-        return "mixamorig:" + ("Left" if joint[0] == "l" else "Right") + MIXAMO[joint[2:]]
-    return "mixamorig:" + MIXAMO[joint]
+    """The canonical joint's name in a Mixamo rig (the reader's own naming scheme, prefixed)."""
+    return "mixamorig:" + NAMING_SCHEMES["mixamo"][joint][0]
 
 
 @dataclass(frozen=True)
