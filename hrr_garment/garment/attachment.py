@@ -11,12 +11,14 @@ and weights), and the skin stretches where linear blend skinning stretches it: o
 the arm comes down from the T-pose, by up to 33 %. A strap of cloth would slide over that skin
 rather than stretch with it, so the posed attached vertices are relaxed: every edge between two of
 them longer than at rest is drawn back towards its rest length, the two ends moving alike (never
-pushed apart), as the strap sliding along the skin.
+pushed apart), as the strap sliding along the skin. And there a strap rides the skin whole
+(:func:`riding_skin`): held at its top only, its free part was carried outwards by the skin under
+it, which moves with the arms, and stretched (a dash's arm swing tore it on three of seven bodies).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -56,6 +58,16 @@ class SkinBinding:
         per_joint = np.einsum("takij,akj->taki", rot, self.offsets) + pos
         posed = np.einsum("taki,ak->tai", per_joint, self.weights)
         return relax_stretch(posed, self.held, self.held_lengths) if len(self.held) else posed
+
+
+def riding_skin(garment: GarmentMesh) -> GarmentMesh:
+    """``garment`` as the body the viewer sees carries it: its straps (a template's ``straps``
+    group, where it has one) attached whole, as skin-tight straps ride the shoulders; a garment
+    without straps as it is. On seven bodies and six Bandai clips (docs/bodies.md), the dress kept
+    every clip this way where strap tops alone tore four of 42."""
+    if "straps" not in garment.groups or "straps" in garment.attached_groups:
+        return garment
+    return replace(garment, attached_groups=(*garment.attached_groups, "straps"))
 
 
 def relax_stretch(

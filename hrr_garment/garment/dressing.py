@@ -70,8 +70,8 @@ class DressedBody:
         arrays += () if mesh is None else (mesh.joints,)
         for arr in (self.garment.vertices, self.garment.faces, self.garment.attached, *arrays):
             h.update(np.ascontiguousarray(arr).tobytes())
-        if skin is not None:  # its pinned vertices ride the skin, relaxed: parts from before are stale
-            h.update(f"pins relaxed {RELAX_PASSES}".encode())
+        if skin is not None:  # its straps ride the skin whole, relaxed: parts from before are stale
+            h.update(f"pins relaxed {RELAX_PASSES}, straps riding whole".encode())
         return h.hexdigest()[:16]
 
 

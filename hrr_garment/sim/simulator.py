@@ -33,7 +33,7 @@ from ..body.mesh_collider import SkinnedPieces
 from ..body.retarget import played_by
 from ..body.self_contact import LOWER_ARM, self_intersecting_frames
 from ..errors import HRRError
-from ..garment.attachment import bind_attached, bind_attached_to_skin
+from ..garment.attachment import bind_attached, bind_attached_to_skin, riding_skin
 from ..garment.mesh import GarmentMesh
 from ..motion.motion import Motion
 from .capsule_poses import arms_off_capsules, capsule_transforms
@@ -87,6 +87,8 @@ class ClipRun:
         back_inside: float = 0.0,
         collider: SkinnedPieces | None = None,
     ):
+        if collider is not None:  # on the body the viewer sees, straps ride its skin whole
+            garment = riding_skin(garment)
         self.garment, self.motion, self.body, self.config, self.back_inside = (
             garment,
             motion,
@@ -201,7 +203,7 @@ def _attempt(
     returns (the clip's frames, simulated frames, seconds stepping, clip frames with the arms off)."""
     run = ClipRun(garment, motion, body, config, arms_off, back_inside, collider)
     scene = ClothScene(
-        garment, run.start, run.half_lengths, body=body, config=config, pieces=run.scene_pieces()
+        run.garment, run.start, run.half_lengths, body=body, config=config, pieces=run.scene_pieces()
     )
     stepping = 0.0
     for f in range(run.num_frames):

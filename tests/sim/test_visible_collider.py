@@ -1,6 +1,6 @@
 """The body the viewer sees as the simulator's collider (hrr_garment.body.mesh_collider): a heavier
 skirt on a body whose thighs bulge out of their capsules stays outside that body, where the capsules
-let it in; in a batch a sequence with it gets the frames it gets alone."""
+let it in; in a batch a sequence with it gets the frames it gets alone; a dress's straps ride it whole."""
 
 import numpy as np
 import pytest
@@ -116,3 +116,26 @@ def test_a_batch_gives_a_sequence_on_the_visible_body_the_frames_it_gets_alone(n
     # and the visible body did change the walk: on the capsules it differs by more than noise
     on_capsules = simulate_garment(skirt, walk, config).vertices
     assert np.abs(on_capsules - alone[0].vertices).max() > 1e-3
+
+
+def test_on_the_visible_body_the_straps_ride_the_skin_whole_and_do_not_stretch(newton_installed):
+    """The template holds its straps by their tops; on the body the viewer sees they are attached
+    whole (riding the skin, their stretched edges relaxed), so no strap edge stretches; on the
+    capsules the template is simulated as it is."""
+    from hrr_garment.sim.simulator import ClipRun, SimSettings, simulate_garment
+
+    skin, dress = _bulging_body(), make_garment("dress", 300)
+    straps = dress.groups["straps"]
+    assert not np.isin(straps, dress.attached).all()
+    walk = synthesize("walk", 0.5, seed=1)
+    config = SimSettings(device="cpu", settle_s=0.1, blend_s=0.2)
+    collider = skinned_pieces(DEFAULT_BODY, skin)
+    assert np.isin(
+        straps, ClipRun(dress, walk, DEFAULT_BODY, config, collider=collider).garment.attached
+    ).all()
+    assert ClipRun(dress, walk, DEFAULT_BODY, config).garment is dress
+    frames = simulate_garment(dress, walk, config, collider=collider).vertices
+    edges = dress.edges()[np.isin(dress.edges(), straps).all(1)]
+    rest = np.linalg.norm(dress.vertices[edges[:, 0]] - dress.vertices[edges[:, 1]], axis=1)
+    strain = np.linalg.norm(frames[:, edges[:, 0]] - frames[:, edges[:, 1]], axis=-1) / rest
+    assert strain.max() < 1.05
