@@ -6,8 +6,9 @@ the spine thus blends both, a strap vertex on the shoulder follows the collar. O
 are candidates: a strap that took 12 % of the upper arm's rotation stretched by 65 % when the arm
 dropped from the T-pose, and a waistband must not follow a swinging thigh.
 
-On the body the viewer sees, each attached vertex rides the skin nearest to it instead (its joints
-and weights), and the skin stretches where linear blend skinning stretches it: over a shoulder, as
+On the body the viewer sees, each attached vertex rides the face of the skin nearest to it instead
+(:class:`SkinFaceBinding`: where skinning puts that face, at the vertex's clearance along its
+normal), and the skin stretches where linear blend skinning stretches it: over a shoulder, as
 the arm comes down from the T-pose, by up to 33 %. A strap of cloth would slide over that skin
 rather than stretch with it, so the posed attached vertices are relaxed: every edge between two of
 them longer than at rest is drawn back towards its rest length, the two ends moving alike (never
@@ -28,7 +29,6 @@ from ..body.skinned_body import SkinnedBody
 from ..motion.skeleton import JOINT_INDEX, PARENTS
 from .mesh import GarmentMesh
 
-MAX_SKIN_JOINTS = 4  # joints an attached vertex bound to the skin follows (a glTF skin's own limit)
 # Jacobi passes drawing stretched edges between attached vertices back (anny bodies, three Bandai
 # clips: between attached vertices, strain p99 1.26-1.28 -> 1.10 after 10 passes, 1.04 after 30,
 # 1.01 after 60, 1.004 after 100; the pins move 1 mm on average, 12.6 mm at most)
@@ -64,7 +64,7 @@ def riding_skin(garment: GarmentMesh) -> GarmentMesh:
     """``garment`` as the body the viewer sees carries it: its straps (a template's ``straps``
     group, where it has one) attached whole, as skin-tight straps ride the shoulders; a garment
     without straps as it is. On seven bodies and six Bandai clips (docs/bodies.md), the dress kept
-    every clip this way where strap tops alone tore four of 42."""
+    all 42 clips this way where strap tops alone tore four."""
     if "straps" not in garment.groups or "straps" in garment.attached_groups:
         return garment
     return replace(garment, attached_groups=(*garment.attached_groups, "straps"))
@@ -122,28 +122,81 @@ def bind_attached(
     return SkinBinding(mesh.attached.copy(), nearest.astype(np.int64), w.astype(np.float64), offsets)
 
 
-def bind_attached_to_skin(mesh: GarmentMesh, skin: SkinnedBody, body: BodyModel) -> SkinBinding:
-    """Skin the mesh's attached vertices (rest pose) as the skin nearest to each is skinned: the
-    weights of ``skin`` at its nearest point in ``body``'s rest pose, so that a strap or a waistband
-    rides the body the viewer sees (a strap bound to the torso's capsules alone sank into the shoulder's
-    skin, which follows the arm)."""
+@dataclass(frozen=True)
+class SkinFaceBinding:
+    """Attached vertices that ride the skin's surface: each at its nearest face's point (``bary`` of
+    ``faces``, indices into ``rest``) plus its rest offset from it in the face's own frame
+    (``local``: along the face's two edges from its first corner and its unit normal; ``offset`` the
+    distance from the skin), as the face is posed by linear blend skinning (``rest`` (U, 3) the
+    skin's vertices those faces use, ``weights`` (U, J) theirs, ``rest_rotations`` /
+    ``rest_positions`` the skin's rest joints); then relaxed along ``held`` as :class:`SkinBinding`
+    is. Bound to the joints' blend instead, a pin sinks into the
+    skin where skinning bulges it (a dress with its straps attached whole had 1.2 % of its
+    vertices inside the mesh); on its face it keeps its clearance."""
+
+    vertices: np.ndarray
+    rest: np.ndarray
+    weights: np.ndarray
+    faces: np.ndarray
+    bary: np.ndarray
+    local: np.ndarray
+    offset: np.ndarray
+    rest_rotations: np.ndarray
+    rest_positions: np.ndarray
+    held: np.ndarray
+    held_lengths: np.ndarray
+
+    def pose(self, global_rotations: np.ndarray, joint_positions: np.ndarray) -> np.ndarray:
+        """(T, A, 3) attached vertex positions for FK results (T, J, 3, 3) and (T, J, 3)."""
+        rot = np.asarray(global_rotations, np.float64) @ np.swapaxes(self.rest_rotations, -1, -2)
+        trans = np.asarray(joint_positions, np.float64) - np.einsum("tjab,jb->tja", rot, self.rest_positions)
+        posed = np.einsum("uj,tjab,ub->tua", self.weights, rot, self.rest) + np.einsum(
+            "uj,tja->tua", self.weights, trans
+        )
+        corners = posed[:, self.faces]  # (T, A, 3, 3)
+        point = np.einsum("takc,ak->tac", corners, self.bary)
+        frame = _face_frames(corners)  # (T, A, 3, 3): two edges and the unit normal
+        riding = point + np.einsum("takc,ak->tac", frame, self.local)
+        return relax_stretch(riding, self.held, self.held_lengths) if len(self.held) else riding
+
+
+def bind_attached_to_skin(mesh: GarmentMesh, skin: SkinnedBody, body: BodyModel) -> SkinFaceBinding:
+    """Bind the mesh's attached vertices (rest pose) to the faces of ``skin`` nearest to each in
+    ``body``'s rest pose, at their distance along each face's normal, so that a strap or a waistband
+    rides the body the viewer sees (a strap bound to the torso's capsules alone sank into the
+    shoulder's skin, which follows the arm)."""
     from .visible_surface import rest_mesh
 
     verts = mesh.vertices[mesh.attached].astype(np.float64)
-    _, face, bary = nearest_on_mesh(verts, rest_mesh(skin, body), skin.faces)
-    weights = np.einsum("ak,akj->aj", bary, skin.weights[skin.faces[face]])  # (A, J)
-    order = np.argsort(-weights, axis=1)[:, :MAX_SKIN_JOINTS]
-    kept = np.take_along_axis(weights, order, 1)
-    offsets = verts[:, None, :] - body.rest_joints()[order]
+    at_rest = rest_mesh(skin, body)
+    _, face, bary = nearest_on_mesh(verts, at_rest, skin.faces)
+    corners = at_rest[skin.faces[face]]
+    frame = _face_frames(corners[None])[0]  # (A, 3, 3)
+    away = verts - np.einsum("ak,akc->ac", bary, corners)
+    local = np.linalg.solve(np.swapaxes(frame, 1, 2), away[..., None])[..., 0]  # away = local @ frame
+    used, faces = np.unique(skin.faces[face], return_inverse=True)
     held = _edges_among(mesh, mesh.attached)
-    return SkinBinding(
+    return SkinFaceBinding(
         mesh.attached.copy(),
-        order.astype(np.int64),
-        kept / kept.sum(1, keepdims=True),
-        offsets,
+        rest=skin.vertices[used],
+        weights=skin.weights[used],
+        faces=faces.reshape(-1, 3),
+        bary=bary,
+        local=local,
+        offset=local[:, 2],
+        rest_rotations=skin.rest_rotations,
+        rest_positions=skin.rest_positions,
         held=held,
         held_lengths=np.linalg.norm(verts[held[:, 0]] - verts[held[:, 1]], axis=1),
     )
+
+
+def _face_frames(corners: np.ndarray) -> np.ndarray:
+    """(..., 3, 3) each triangle's two edges from its first corner and its unit normal, as rows."""
+    first, second = corners[..., 1, :] - corners[..., 0, :], corners[..., 2, :] - corners[..., 0, :]
+    normal = np.cross(first, second)
+    normal /= np.maximum(np.linalg.norm(normal, axis=-1, keepdims=True), 1e-12)
+    return np.stack([first, second, normal], -2)
 
 
 def _edges_among(mesh: GarmentMesh, chosen: np.ndarray) -> np.ndarray:

@@ -71,7 +71,7 @@ class DressedBody:
         for arr in (self.garment.vertices, self.garment.faces, self.garment.attached, *arrays):
             h.update(np.ascontiguousarray(arr).tobytes())
         if skin is not None:  # its straps ride the skin whole, relaxed: parts from before are stale
-            h.update(f"pins relaxed {RELAX_PASSES}, straps riding whole".encode())
+            h.update(f"pins on faces, relaxed {RELAX_PASSES}, straps riding whole".encode())
         return h.hexdigest()[:16]
 
 
