@@ -19,7 +19,7 @@ it, which moves with the arms, and stretched (a dash's arm swing tore it on thre
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -39,25 +39,19 @@ TORSO_JOINTS: tuple[str, ...] = ("pelvis", "spine1", "spine2", "spine3", "neck",
 @dataclass(frozen=True)
 class SkinBinding:
     """vertices (A,) garment indices; joints (A, K); weights (A, K) summing to 1; offsets (A, K, 3)
-    rest-pose position relative to each joint (the rest pose has identity global rotations);
-    held (E, 2) the edges between attached vertices (indices into ``vertices``) that may not
-    stretch, with their rest lengths (E,): none for the capsules' binding, whose torso joints do not
-    stretch the cloth."""
+    rest-pose position relative to each joint (the rest pose has identity global rotations)."""
 
     vertices: np.ndarray
     joints: np.ndarray
     weights: np.ndarray
     offsets: np.ndarray
-    held: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), np.int64))
-    held_lengths: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
     def pose(self, global_rotations: np.ndarray, joint_positions: np.ndarray) -> np.ndarray:
         """(T, A, 3) attached vertex positions for FK results (T, 22, 3, 3) and (T, 22, 3)."""
         rot = global_rotations[:, self.joints]  # (T, A, K, 3, 3)
         pos = joint_positions[:, self.joints]  # (T, A, K, 3)
         per_joint = np.einsum("takij,akj->taki", rot, self.offsets) + pos
-        posed = np.einsum("taki,ak->tai", per_joint, self.weights)
-        return relax_stretch(posed, self.held, self.held_lengths) if len(self.held) else posed
+        return np.einsum("taki,ak->tai", per_joint, self.weights)
 
 
 def riding_skin(garment: GarmentMesh) -> GarmentMesh:
@@ -124,36 +118,31 @@ def bind_attached(
 
 @dataclass(frozen=True)
 class SkinFaceBinding:
-    """Attached vertices that ride the skin's surface: each at its nearest face's point (``bary`` of
-    ``faces``, indices into ``rest``) plus its rest offset from it in the face's own frame
-    (``local``: along the face's two edges from its first corner and its unit normal; ``offset`` the
-    distance from the skin), as the face is posed by linear blend skinning (``rest`` (U, 3) the
-    skin's vertices those faces use, ``weights`` (U, J) theirs, ``rest_rotations`` /
-    ``rest_positions`` the skin's rest joints); then relaxed along ``held`` as :class:`SkinBinding`
-    is. Bound to the joints' blend instead, a pin sinks into the
-    skin where skinning bulges it (a dress with its straps attached whole had 1.2 % of its
-    vertices inside the mesh); on its face it keeps its clearance."""
+    """Attached vertices (``vertices`` (A,) garment indices) that ride the skin's surface: each at
+    its face's point (``bary`` of ``skin``'s face of the same row: ``skin`` holds only the skin's
+    faces the attached vertices ride, one a vertex, and the vertices those use) plus its rest offset
+    from it in the face's own frame (``local``: along the face's two edges from its first corner and
+    its unit normal), as the face is posed by linear blend skinning; then every edge of ``held``
+    (E, 2, indices into ``vertices``) longer than its rest length (``held_lengths``) relaxed
+    (:func:`relax_stretch`). Bound to the joints' blend instead, a pin sinks into the skin where
+    skinning bulges it (a dress with its straps attached whole had 1.2 % of its vertices inside the
+    mesh); on its face it keeps its clearance."""
 
     vertices: np.ndarray
-    rest: np.ndarray
-    weights: np.ndarray
-    faces: np.ndarray
+    skin: SkinnedBody
     bary: np.ndarray
     local: np.ndarray
-    offset: np.ndarray
-    rest_rotations: np.ndarray
-    rest_positions: np.ndarray
     held: np.ndarray
     held_lengths: np.ndarray
 
+    @property
+    def offset(self) -> np.ndarray:
+        """(A,) each attached vertex's rest distance from its face's plane."""
+        return self.local[:, 2]
+
     def pose(self, global_rotations: np.ndarray, joint_positions: np.ndarray) -> np.ndarray:
         """(T, A, 3) attached vertex positions for FK results (T, J, 3, 3) and (T, J, 3)."""
-        rot = np.asarray(global_rotations, np.float64) @ np.swapaxes(self.rest_rotations, -1, -2)
-        trans = np.asarray(joint_positions, np.float64) - np.einsum("tjab,jb->tja", rot, self.rest_positions)
-        posed = np.einsum("uj,tjab,ub->tua", self.weights, rot, self.rest) + np.einsum(
-            "uj,tja->tua", self.weights, trans
-        )
-        corners = posed[:, self.faces]  # (T, A, 3, 3)
+        corners = self.skin.pose(global_rotations, joint_positions)[:, self.skin.faces]  # (T, A, 3, 3)
         point = np.einsum("takc,ak->tac", corners, self.bary)
         frame = _face_frames(corners)  # (T, A, 3, 3): two edges and the unit normal
         riding = point + np.einsum("takc,ak->tac", frame, self.local)
@@ -175,17 +164,16 @@ def bind_attached_to_skin(mesh: GarmentMesh, skin: SkinnedBody, body: BodyModel)
     away = verts - np.einsum("ak,akc->ac", bary, corners)
     local = np.linalg.solve(np.swapaxes(frame, 1, 2), away[..., None])[..., 0]  # away = local @ frame
     used, faces = np.unique(skin.faces[face], return_inverse=True)
+    # the skin cut down to the faces ridden, one a vertex, and their vertices (skinned as the whole is)
+    ridden = replace(
+        skin, vertices=skin.vertices[used], faces=faces.reshape(-1, 3), weights=skin.weights[used]
+    )
     held = _edges_among(mesh, mesh.attached)
     return SkinFaceBinding(
         mesh.attached.copy(),
-        rest=skin.vertices[used],
-        weights=skin.weights[used],
-        faces=faces.reshape(-1, 3),
+        skin=ridden,
         bary=bary,
         local=local,
-        offset=local[:, 2],
-        rest_rotations=skin.rest_rotations,
-        rest_positions=skin.rest_positions,
         held=held,
         held_lengths=np.linalg.norm(verts[held[:, 0]] - verts[held[:, 1]], axis=1),
     )
