@@ -171,7 +171,8 @@ def _main(argv: Sequence[str] | None) -> int:
         print(
             f"  penetration (vertices > 5 mm inside the body): before push-out {100 * p.inside_before:.2f} % "
             f"(worst frame {100 * p.worst_before:.2f} %), after {100 * p.inside_after:.2f} % "
-            f"(worst {100 * p.worst_after:.2f} %)"
+            f"(worst {100 * p.worst_after:.2f} %); the strain limit repaired the push on "
+            f"{100 * p.limited:.1f} % of frames"
         )
     return 0
 

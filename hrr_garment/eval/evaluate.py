@@ -98,15 +98,16 @@ def evaluate_modes(
             allow_outside=True,
             exclude_sequence=own,
         )
-        before = (anim.penetration.inside_before, anim.penetration.worst_before) if anim.penetration else None
+        pushed = anim.penetration
         results[mode].sequences.append(
             scorer.sequence(
                 anim.vertices,
                 record,
                 anim.retrieved.astype(bool),
                 anim.entropy.astype(np.float64),
-                before,
+                None if pushed is None else (pushed.inside_before, pushed.worst_before),
                 unpushed=world.value,
+                limited=None if pushed is None else pushed.limited,
             )
         )
     return results

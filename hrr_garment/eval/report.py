@@ -23,7 +23,8 @@ inside the body the viewer sees (:mod:`.visible_inside`), the headline plausibil
 visible body is unknown), ``truth_inside_visible_pct`` and ``truth_inside_visible_worst_pct`` in
 ``ensemble``, each sequence's ``visible_body`` and each mode's ``visible_bodies`` (and at the top level:
 how many sequences were measured against a mesh, the capsules or nothing known); ``penetration_pct``
-(the capsules) unchanged.
+(the capsules) unchanged; 14 ``push_limited_pct`` in each mode's and sequence's ``metrics`` and
+``ensemble``: the frames on which the push-out's strain limit moved an edge (null where no push-out ran).
 """
 
 from __future__ import annotations
@@ -44,7 +45,7 @@ from .report_tables import ensemble_table, goal_table, mode_table, simulated_sec
 from .unseen_bodies import markdown_table
 
 DATASET_SIMULATION = "dataset simulation"  # the reference row: the dataset's own frames against the ensemble
-REPORT_VERSION = 13  # report.json's "format_version": see the module docstring
+REPORT_VERSION = 14  # report.json's "format_version": see the module docstring
 
 
 def frame_entropies(modes: dict[str, ModeResult]) -> np.ndarray:

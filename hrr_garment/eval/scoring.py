@@ -6,6 +6,8 @@ push-out works against."""
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from ..body.capsules import DEFAULT_BODY, BodyModel
@@ -17,6 +19,10 @@ from .ensemble import TruthEnsemble
 from .ensemble_metrics import ensemble_metrics, truth_metrics
 from .mode_results import SequenceResult
 from .visible_inside import SHARES, VisibleBody, inside_before_and_after, inside_visible, visible_body_of
+
+# the share of frames (%) on which the push-out's strain limit moved an edge: where the push alone tore
+# the cloth; NaN where no push-out ran
+LIMITED = "push_limited_pct"
 
 
 def body_of(record: SequenceRecord) -> BodyModel:
@@ -142,10 +148,12 @@ class SequenceScorer:
         before_push_out: tuple[float, float] | None,
         *,
         unpushed: np.ndarray | None = None,
+        limited: float | None = None,
     ) -> SequenceResult:
         """One prediction's :class:`SequenceResult`: ``vertices`` (T, V, 3) world, ``unpushed`` the same
         before the push-out (None: no push-out ran), ``before_push_out`` the push-out's own report of the
-        cloth inside the capsules before it (mean and worst-frame fraction)."""
+        cloth inside the capsules before it (mean and worst-frame fraction), ``limited`` its share of
+        frames on which the strain limit moved an edge (None: no push-out ran; the metric is NaN)."""
         ensemble, rest = {}, rest_of(record, self.rest)
         if record.name not in self.visible:
             self.visible[record.name] = visible_of(record)
@@ -168,8 +176,9 @@ class SequenceScorer:
         metrics = sequence_metrics(
             vertices, record.garment, record, rest, self.topo, retrieved, visible=visible, before=unpushed
         )
-        if ensemble:  # the ensemble table's plausibility: inside the visible body, then the capsules
-            ensemble.update({k: metrics[k] for k in SHARES})
+        metrics[LIMITED] = math.nan if limited is None else 100.0 * limited
+        if ensemble:  # the ensemble table's plausibility: inside the visible body, the push-out's tears
+            ensemble.update({k: metrics[k] for k in (*SHARES, LIMITED)})
         return SequenceResult(
             record.name,
             len(record.garment),

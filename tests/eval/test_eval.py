@@ -83,7 +83,7 @@ def test_hrr_eval_report_end_to_end(trained, tmp_path, capsys):
         == 0
     )
     report = json.loads((out / "report.json").read_text())
-    assert report["format_version"] == REPORT_VERSION == 13 and report["dataset"]["sequences"] == ["run_000"]
+    assert report["format_version"] == REPORT_VERSION == 14 and report["dataset"]["sequences"] == ["run_000"]
     assert (
         report["dataset"]["holdouts"] == {"run_000": "clip"} and report["holdouts"] is None
     )  # one hold-out: no table
@@ -102,6 +102,8 @@ def test_hrr_eval_report_end_to_end(trained, tmp_path, capsys):
         m = entry["metrics"]
         assert all(v is not None and math.isfinite(v) for v in m.values()), (name, m)
         assert m["pve_mm"] > 0 and m["rmse_mm"] >= m["pve_mm"] and 0 <= m["penetration_pct"] <= 100
+        # the push-out ran (the default): the share of frames its strain limit repaired, a percentage
+        assert 0 <= m["push_limited_pct"] <= 100
         assert set(entry["sequences"]) == {"run_000"}
         # the mannequin has no mesh: its capsules are the body the viewer sees, and the figure theirs
         assert entry["visible_bodies"] == {"capsules": 1} == report["visible_bodies"]
@@ -477,7 +479,7 @@ def test_library_protocol_in_hrr_eval(artist_model, tmp_path, monkeypatch):
         == 0
     )
     report = json.loads((out / "report.json").read_text())
-    assert report["format_version"] == REPORT_VERSION == 13
+    assert report["format_version"] == REPORT_VERSION == 14
     # the dataset's own frames against the ensemble: a simulation like the members, about 1 x the floor
     own = report["dataset_simulation"]["ensemble"]
     assert 0.5 < own["pve_floor_ratio"] < 2.0 and set(report["dataset_simulation"]["sequences"]) == set(

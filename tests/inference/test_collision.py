@@ -102,3 +102,25 @@ def test_the_push_out_with_its_limit_is_the_same_without_the_kernel(monkeypatch)
         [numpy_report.inside_after, numpy_report.worst_after],
         atol=0.01,
     )
+    # the report's share of frames the limit moved: exactly the frames the unlimited push left different
+    repaired = (np.abs(unlimited - numpy_out).max(axis=(1, 2)) > 0).mean()
+    assert repaired > 0 and native_report.limited == numpy_report.limited == repaired
+
+
+def test_the_report_counts_the_frames_the_strain_limit_repaired():
+    """Every fourth frame narrowed where the template lies while the dance moves the legs through it
+    (the push tears it), the others worn loose on the body (nothing to repair): the report's
+    ``limited`` is those frames' share, and 0 without limits."""
+    from hrr_garment.inference.collision import EdgeLimits, push_out
+    from hrr_garment.inference.strain_limit import limit_push_strain
+
+    motion = synthesize("dance", 0.4, seed=4)
+    skirt, squeezed = squeezed_skirt(motion, 0.7)  # where the template lies: the legs pass through it
+    _, loose = squeezed_skirt(motion, 1.3, on_body=True)  # wider than the template: clear of the body
+    frames = np.where((np.arange(motion.num_frames) % 4 == 0)[:, None, None], squeezed, loose)
+    limits = EdgeLimits.of(skirt.faces, skirt.vertices)
+    _, report = push_out(frames.astype(np.float32), motion, skirt.faces, limits=limits)
+    unlimited, bare = push_out(frames.astype(np.float32), motion, skirt.faces)
+    _, torn = limit_push_strain(unlimited, frames.astype(np.float32), limits)  # the tears the push left
+    assert torn.tolist() == (np.arange(motion.num_frames) % 4 == 0).tolist()
+    assert report.limited == torn.mean() and bare.limited == 0.0

@@ -79,10 +79,11 @@ def test_the_push_out_analysis_reports_each_setting_with_and_without_the_subspac
         "test",
         tool.push_out_rows([0], 0.25, [0.1]),
         sequences=1,
-        crowd=8,
-        repeat=1,
+        timing=(8, 1),
         subspace_push=True,
+        mode="regression",
     )
+    assert report["mode"] == "regression"
     plain, pushed = (
         report["rows"]["follow 0, slack 0.1"],
         report["rows"]["follow 0, slack 0.1, subspace push"],

@@ -78,12 +78,15 @@ def analyse(
     split: str,
     rows: dict,
     sequences: int,
-    crowd: int,
-    repeat: int,
+    timing: tuple[int, int],
     subspace_push: bool = False,
+    mode: str | None = None,
 ) -> dict:
     """``rows``: label -> :class:`~hrr_garment.inference.collision.PushOutSettings` (:func:`push_out_rows`);
-    ``subspace_push``: each also after the push in the fast decoder's subspace."""
+    ``timing``: (crowd, repeat) of the timed pushes; ``subspace_push``: each also after the push in the
+    fast decoder's subspace; ``mode``: the mode animated (None: the model's default, which a retrained
+    stage may have reset)."""
+    crowd, repeat = timing
     from hrr_garment.data.dataset import GarmentDataset
     from hrr_garment.inference.animator import Animator
     from hrr_garment.inference.collision import push_out
@@ -112,7 +115,7 @@ def analyse(
     unpushed_pve = []
     for name in names:
         record = ds.sequence(name)
-        anim = animator.animate(record.motion, push_out=False)
+        anim = animator.animate(record.motion, push_out=False, **({"mode": mode} if mode else {}))
         plain["unpushed"].append(edge_strain(anim.vertices, rest, edges))
         plain["simulation"].append(edge_strain(record.garment, rest, edges))
         unpushed_pve.append(np.linalg.norm(anim.vertices - record.garment, axis=-1).mean(1))
@@ -164,6 +167,7 @@ def analyse(
             )
     report = {
         "model": model,
+        "mode": mode or "default",
         "dataset": dataset,
         "split": split,
         "sequences": names,
@@ -218,6 +222,7 @@ def main() -> None:
         action="store_true",
         help="each setting also after the push in the fast decoder's subspace",
     )
+    parser.add_argument("--mode", help="the mode animated (default: the model's own default mode)")
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args()
     report = analyse(
@@ -226,16 +231,16 @@ def main() -> None:
         args.split,
         push_out_rows(args.follow, args.slope, args.slack),
         args.sequences,
-        args.crowd,
-        args.repeat,
+        (args.crowd, args.repeat),
         args.subspace_push,
+        args.mode,
     )
     if args.json:
         print(json.dumps(report))
         return
     print(
         f"{args.model} on {len(report['sequences'])} {args.split} clips of {args.dataset} "
-        "(default mode, offline):"
+        f"({args.mode or 'default'} mode, offline):"
     )
     for label, row in report["rows"].items():
         print(f"  {label}: " + ", ".join(f"{k} {v}" for k, v in row.items()))
