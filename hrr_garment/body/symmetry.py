@@ -95,6 +95,14 @@ def symmetrized(body: BodyModel, tolerance: float = NEARLY_SYMMETRIC_M) -> BodyM
     return replace(body, capsules=capsules, skeleton=skeleton)
 
 
+def symmetrized_record(record):
+    """A body record (:class:`~.body_file.BodyRecord`) on its :func:`symmetrized` body and that body's
+    skeleton: the body a garment is dressed on and a clip is played by (so also the skeleton an
+    exported character must stand on to play that clip)."""
+    body = symmetrized(record.body)
+    return replace(record, body=body, skeleton=body.skeleton)
+
+
 def _mirror_name(name: str) -> str:
     if name.startswith("l_"):
         return "r_" + name[2:]

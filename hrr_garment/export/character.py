@@ -29,6 +29,7 @@ import numpy as np
 from ..body.body_file import BodyRecord
 from ..body.character import character_body
 from ..body.fit import rest_pose_rotations
+from ..body.symmetry import symmetrized_record
 from ..data.animation_file import AnimationFile
 from ..errors import InputError
 from ..garment.mesh import vertex_normals
@@ -61,6 +62,9 @@ def skinned_character(path: str | Path, **read) -> SkinnedCharacter:
     :func:`~hrr_garment.body.character.read_character`'s options); an InputError naming the file
     where its mesh carries no skin weights."""
     record, character = character_body(path, **read)
+    # the body a clip is played by (its left and right made alike where they nearly are), so that the
+    # exported skeleton is the one out.h5's clip stands on
+    record = symmetrized_record(record)
     if character.weights is None:
         raise InputError(path, "its skinned mesh has no JOINTS_0 / WEIGHTS_0, so it cannot be posed")
     rotations = rest_pose_rotations(record.skeleton, character.joints)  # global, T-pose -> bind pose

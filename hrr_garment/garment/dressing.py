@@ -15,7 +15,7 @@ import numpy as np
 from ..body.body_file import BodyRecord, body_to_dict
 from ..body.capsules import DEFAULT_BODY, BodyModel
 from ..body.skinned_body import SkinnedBody, visible_body
-from ..body.symmetry import is_symmetric, symmetrized
+from ..body.symmetry import is_symmetric, symmetrized_record
 from ..io_utils import strict_json
 from ..motion.skeleton import REST_PELVIS_HEIGHT
 from .attachment import RELAX_PASSES
@@ -91,8 +91,8 @@ def dress(
     sees), keeps the garment where its capsules put it."""
     if isinstance(visible, str):  # "auto"
         visible = visible_body(record)
-    body = symmetrized(record.body)
-    record = replace(record, body=body, skeleton=body.skeleton)
+    record = symmetrized_record(record)
+    body = record.body
     on_body, report = transfer_garment(garment, made_for=made_for, body=body)
     perm = mirror_map(garment.vertices) if is_symmetric(made_for) else None
     symmetric = perm is not None and is_symmetric(body)
