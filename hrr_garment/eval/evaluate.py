@@ -98,16 +98,14 @@ def evaluate_modes(
             allow_outside=True,
             exclude_sequence=own,
         )
-        pushed = anim.penetration
         results[mode].sequences.append(
             scorer.sequence(
                 anim.vertices,
                 record,
                 anim.retrieved.astype(bool),
                 anim.entropy.astype(np.float64),
-                None if pushed is None else (pushed.inside_before, pushed.worst_before),
+                anim.penetration,
                 unpushed=world.value,
-                limited=None if pushed is None else pushed.limited,
             )
         )
     return results

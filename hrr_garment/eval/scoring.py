@@ -13,6 +13,7 @@ import numpy as np
 from ..body.capsules import DEFAULT_BODY, BodyModel
 from ..data.dataset import SequenceRecord
 from ..garment.fit import hem_vertices
+from ..inference.collision import PushOutReport
 from ..sim.quality import body_signed_distance, penetration_fraction
 from . import metrics as M
 from .ensemble import TruthEnsemble
@@ -145,15 +146,14 @@ class SequenceScorer:
         record: SequenceRecord,
         retrieved: np.ndarray,
         entropy: np.ndarray,
-        before_push_out: tuple[float, float] | None,
+        pushed: PushOutReport | None,
         *,
         unpushed: np.ndarray | None = None,
-        limited: float | None = None,
     ) -> SequenceResult:
         """One prediction's :class:`SequenceResult`: ``vertices`` (T, V, 3) world, ``unpushed`` the same
-        before the push-out (None: no push-out ran), ``before_push_out`` the push-out's own report of the
-        cloth inside the capsules before it (mean and worst-frame fraction), ``limited`` its share of
-        frames on which the strain limit moved an edge (None: no push-out ran; the metric is NaN)."""
+        before the push-out (None: no push-out ran), ``pushed`` the push-out's own report (None: no
+        push-out ran): the cloth inside the capsules before it and the share of frames on which its
+        strain limit moved an edge (NaN without one)."""
         ensemble, rest = {}, rest_of(record, self.rest)
         if record.name not in self.visible:
             self.visible[record.name] = visible_of(record)
@@ -165,7 +165,7 @@ class SequenceScorer:
                 )
             ensemble = sequence_ensemble_metrics(
                 vertices,
-                before_push_out,
+                None if pushed is None else (pushed.inside_before, pushed.worst_before),
                 self.ensembles[record.name],
                 record,
                 rest,
@@ -176,7 +176,7 @@ class SequenceScorer:
         metrics = sequence_metrics(
             vertices, record.garment, record, rest, self.topo, retrieved, visible=visible, before=unpushed
         )
-        metrics[LIMITED] = math.nan if limited is None else 100.0 * limited
+        metrics[LIMITED] = math.nan if pushed is None else 100.0 * pushed.limited
         if ensemble:  # the ensemble table's plausibility: inside the visible body, the push-out's tears
             ensemble.update({k: metrics[k] for k in (*SHARES, LIMITED)})
         return SequenceResult(
