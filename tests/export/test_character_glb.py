@@ -3,14 +3,15 @@
 by glTF's rule stays on the character's body; a T-pose frame gives back the file's mesh; an
 animation on another body, or from before format 4, is refused."""
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
 from hrr_garment.body.capsules import frames_signed_distance
 from hrr_garment.data.animation_file import read_animation_h5
 from hrr_garment.motion.motion import Motion
-from hrr_garment.motion.rotations import quat_to_matrix
-from hrr_garment.motion.skeleton import CANONICAL, JOINT_INDEX, PARENTS, REST_PELVIS_HEIGHT
+from hrr_garment.motion.skeleton import CANONICAL, JOINT_INDEX, REST_PELVIS_HEIGHT
 from hrr_garment.motion.synth import synthesize
 from tests.body.test_character import _mannequin, write_skinned
 from tests.export.test_export import _animation_arrays, _validate, _write
@@ -19,45 +20,11 @@ pygltflib = pytest.importorskip("pygltflib")
 
 
 def _skinned_frames(path) -> tuple[np.ndarray, np.ndarray]:
-    """Each frame of the GLB's character, skinned as glTF says (joint world matrices from the
-    animation's keys, times the inverse bind matrices, blended by the weights): joints (T, 22, 3)
-    and vertices (T, V, 3)."""
-    from hrr_garment.export.glb_read import accessor_array
+    """Each frame of the GLB's character, skinned as glTF says: joints (T, 22, 3), vertices (T, V, 3)."""
+    from hrr_garment.export.glb_read import read_glb_character
 
-    gltf = pygltflib.GLTF2.load(str(path))
-    blob = gltf.binary_blob()
-    skin = gltf.skins[0]
-    read = lambda i: accessor_array(gltf, blob, i)  # noqa: E731
-    keys = {
-        (c.target.node, c.target.path): read(gltf.animations[0].samplers[c.sampler].output)
-        for c in gltf.animations[0].channels
-    }
-    prim = gltf.meshes[[n.mesh for n in gltf.nodes if n.skin is not None][0]].primitives[0]
-    vertices, joints, weights = (
-        read(prim.attributes.POSITION),
-        read(prim.attributes.JOINTS_0),
-        read(prim.attributes.WEIGHTS_0),
-    )
-    inverse = np.swapaxes(read(skin.inverseBindMatrices).reshape(-1, 4, 4), 1, 2)
-    frames = len(keys[(skin.joints[0], "rotation")])
-    world_joints, skinned = [], []
-    for t in range(frames):
-        world = np.zeros((22, 4, 4))
-        for j, node in enumerate(skin.joints):
-            local = np.eye(4)
-            q = keys[(node, "rotation")][t]
-            local[:3, :3] = quat_to_matrix(np.array([q[3], q[0], q[1], q[2]], np.float64))
-            local[:3, 3] = (
-                keys[(node, "translation")][t]
-                if (node, "translation") in keys
-                else gltf.nodes[node].translation
-            )
-            world[j] = local if PARENTS[j] < 0 else world[PARENTS[j]] @ local
-        m = world @ inverse  # (22, 4, 4)
-        blend = np.einsum("vk,vkij->vij", weights, m[joints.astype(int)])
-        skinned.append(np.einsum("vij,vj->vi", blend[:, :3, :3], vertices) + blend[:, :3, 3])
-        world_joints.append(world[:, :3, 3])
-    return np.stack(world_joints), np.stack(skinned)
+    joints, vertices, _ = read_glb_character(path)
+    return joints, vertices
 
 
 @pytest.fixture
@@ -87,7 +54,7 @@ def lopsided_glb(tmp_path_factory):
     return root / "lopsided.glb"
 
 
-def test_the_character_plays_the_clip_in_the_glb_on_its_own_mesh(trained, character_glb, tmp_path):
+def test_the_character_plays_the_clip_in_the_glb_on_its_own_mesh(trained, character_glb, tmp_path, capsys):
     from hrr_garment.cli.export import main as export_main
     from hrr_garment.export.character import skinned_character
     from hrr_garment.inference.animator import Animator
@@ -121,6 +88,30 @@ def test_the_character_plays_the_clip_in_the_glb_on_its_own_mesh(trained, charac
         np.median(gap) < 0.01 and np.quantile(gap, 0.95) < 0.04
     )  # the mesh stays on the body it was fitted to
     _validate(tmp_path / "hero_dress.glb")
+    _renders_both(tmp_path / "hero_dress.glb", tmp_path / "hero.png", capsys)
+
+
+def _renders_both(glb, png, capsys) -> None:
+    """tools/render_glb.py draws the garment and the character's skin from the GLB alone, and says
+    how much of the garment lies inside the mesh on each frame drawn."""
+    import runpy
+    import sys
+
+    from PIL import Image
+
+    argv = sys.argv
+    sys.argv = ["render_glb.py", str(glb), "-o", str(png), "--frames", "0", "5", "--size", "160"]
+    try:
+        runpy.run_path(str(Path(__file__).parents[2] / "tools" / "render_glb.py"), run_name="__main__")
+    finally:
+        sys.argv = argv
+    pixels = np.asarray(Image.open(png).convert("RGB")).reshape(-1, 3).astype(int)
+    assert pixels.shape[0] == 2 * 160 * 160
+    garment = (pixels[:, 2] > pixels[:, 0] + 40).sum()  # bluish
+    skin = (pixels[:, 0] > pixels[:, 2] + 30).sum()  # the skin's warm tone
+    assert garment > 500 and skin > 500, (garment, skin)
+    printed = capsys.readouterr().out
+    assert "frame 0, " in printed and "frame 5, " in printed and "inside the mesh" in printed
 
 
 def test_a_lopsided_character_is_exported_on_the_skeleton_its_clip_was_played_by(trained, lopsided_glb):
