@@ -37,6 +37,7 @@ if TYPE_CHECKING:
     from .visible_push import PosedSkin
 
 STRETCH_SLACK = 0.1  # (PushOutSettings.stretch_slack)
+PROJECTIONS = 4  # exact projections at most after the rounds (the kernel's and the ONNX graph's too)
 
 
 @dataclass
@@ -276,7 +277,7 @@ def _push_frames(
             disp += short[..., None] * n
         p = p + disp
         d, n = distance(p)
-    for _ in range(4):  # exact projection; repeated where a push lands in another capsule
+    for _ in range(PROJECTIONS):  # exact projection; repeated where a push lands in another capsule
         inside = d < 0
         if not inside.any():
             break

@@ -20,7 +20,7 @@ import torch
 from torch import nn
 from torch._higher_order_ops.while_loop import while_loop
 
-from .collision import PushOutSettings
+from .collision import PROJECTIONS, PushOutSettings
 from .strain_limit import LIMIT_TOLERANCE_M, OVER_RELAXATION
 from .torch_ops import constant
 from .torch_subspace_push import SubspacePushStage
@@ -106,9 +106,22 @@ class PushOutStage(nn.Module):
         d, n = self.distance(p, a, b)
         for _ in range(self.settings.rounds):
             p, d, n = _when((d < self.settings.margin).any(), self._round, (p, d, n, a, b))
-        for _ in range(4):  # exact projection, again where a push landed in another capsule
-            p, d, n = _when((d < 0).any(), self._project, (p, d, n, a, b))
-        return p
+        # exact projections, again where a push landed in another capsule, while a vertex is inside:
+        # exported as an ONNX Loop, so that its measure is traced once (a character's skin graph
+        # traced once a projection made the export 2.5 minutes), run as the same steps in Python
+        state = (torch.zeros((), dtype=torch.int64, device=p.device), p, d, n)
+
+        def projecting(k, p, d, n):
+            return (k < PROJECTIONS) & (d < 0).any()
+
+        def project(k, p, d, n):
+            return k + 1, *self._project(p, d, n, a, b)
+
+        if torch.compiler.is_compiling():
+            return while_loop(projecting, project, state)[1]
+        while bool(projecting(*state)):
+            state = project(*state)
+        return state[1]
 
     def _round(self, p, d, n, a, b):
         """A push along the normals, spread to the neighbours, never below what is needed."""
