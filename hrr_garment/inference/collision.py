@@ -18,6 +18,7 @@ the whole garment in its fast decoder's subspace (:mod:`.subspace_push`, docs/de
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -37,6 +38,7 @@ if TYPE_CHECKING:
     from .visible_push import PosedSkin
 
 STRETCH_SLACK = 0.1  # (PushOutSettings.stretch_slack)
+RELEASE_PASSES = 2  # a torn frame pushed again at most this many times, letting go of more limbs
 PROJECTIONS = 4  # exact projections at most after the rounds (the kernel's and the ONNX graph's too)
 
 
@@ -72,6 +74,10 @@ class PushOutSettings:
     # repairs tears, not a push that lengthens an already long edge by a hair
     stretch_slack: float = STRETCH_SLACK
     chunk: int = 64  # frames processed at once
+    # a frame the push tore is pushed again without the limb capsules holding the torn cloth
+    # (.limb_release: where a limb passes through the cloth no push keeps it whole); capsule bodies,
+    # the mesh push (not the subspace push nor the visible mesh)
+    release_limbs: bool = True
     # the push in the garment's subspace before the mesh push (.subspace_push; None: none), made
     # per bundle (Animator.push_settings)
     subspace: "SubspacePush | None" = None
@@ -115,9 +121,64 @@ def push_out(
     ``settings.subspace`` (:class:`~.subspace_push.SubspacePush`) each frame is first moved in the
     garment's subspace, and the limit measures the push against the moved frame; the report's
     "before" is the cloth as it came."""
-    settings = (
-        PUSH_OUT if settings is None else settings
-    )  # read here, so that the product's settings are one object
+    settings = PUSH_OUT if settings is None else settings  # read here: the product's settings are one object
+    mean = mean_operator(faces, vertices.shape[1]) if mean is None else mean
+    out, before, after, torn, measure = _push(vertices, motion, faces, body, settings, mean, limits, report)
+    from .visible_push import PosedSkin
+
+    if limits is not None and settings.release_limbs and settings.subspace is None and torn.any():
+        if not isinstance(body, PosedSkin):
+            torn, redone = _release_torn(out, vertices, torn, (motion, faces, body), settings, mean, limits)
+            if report and redone.any():  # measured against the whole body, the limbs let go included
+                rows = np.flatnonzero(redone)
+                after[rows] = (measure(out[rows].astype(np.float64), rows)[0] < -settings.depth).mean(1)
+    if not report:
+        return out, None
+    return out, PushOutReport(
+        float(before.mean()),
+        float(after.mean()),
+        float(before.max(initial=0)),
+        float(after.max(initial=0)),
+        limited=float(torn.mean()) if limits is not None and len(torn) else 0.0,
+    )
+
+
+def _release_torn(out, unpushed, torn, clip, settings: PushOutSettings, mean, limits):
+    """The frames ``torn`` pushed again (into ``out``) without the limb capsules that hold the torn
+    cloth (:mod:`.limb_release`), twice at most; returns (T,) the frames the limit still moved and
+    (T,) those pushed again."""
+    from .limb_release import RELEASED_RADIUS, held_limbs, limb_capsules
+
+    motion, faces, body = clip
+    posed = body if isinstance(body, PosedCapsules) else PosedCapsules(*body.pose_motion(motion), body.radii)
+    radii = np.array(np.broadcast_to(posed.radii, posed.a.shape[:2]))
+    limbs = limb_capsules(body if isinstance(body, BodyModel) else None)
+    again = dataclasses.replace(settings, release_limbs=False)
+    unlimited = dataclasses.replace(again, max_strain=np.inf)
+    redone = np.zeros(len(torn), bool)
+    for _ in range(RELEASE_PASSES):
+        rows = np.flatnonzero(torn)
+        pushed = PosedCapsules(posed.a[rows], posed.b[rows], radii[rows])
+        bare = _push(unpushed[rows], motion, faces, pushed, unlimited, mean, limits, False)[0]
+        repaired = np.any(out[rows] != bare, axis=-1)  # (rows, V): the vertices the limit moved
+        let_go = held_limbs(
+            repaired, unpushed[rows], (pushed.a, pushed.b, pushed.radii), settings.margin, limbs
+        )
+        rows, let_go = rows[let_go.any(1)], let_go[let_go.any(1)]
+        if not len(rows):
+            break
+        radii[rows] = np.where(let_go, RELEASED_RADIUS, radii[rows])
+        pushed = PosedCapsules(posed.a[rows], posed.b[rows], radii[rows])
+        out[rows], _, _, torn[rows], _ = _push(
+            unpushed[rows], motion, faces, pushed, again, mean, limits, False
+        )
+        redone[rows] = True
+    return torn, redone
+
+
+def _push(vertices, motion, faces, body, settings: PushOutSettings, mean, limits, report):
+    """:func:`push_out`'s push and strain limit: the frames pushed, (T,) fractions inside before and
+    after, (T,) the frames the limit moved, and the measure of the frames against ``body``."""
     margin, smooth, rounds, depth, chunk = (
         settings.margin,
         settings.smooth,
@@ -146,7 +207,7 @@ def push_out(
         return frames_signed_distance(points, a[rows], b[rows], radii=framed(rows))
 
     mean = mean_operator(faces, vertices.shape[1]) if mean is None else mean
-    before, after = np.zeros(len(vertices)), np.zeros(len(vertices))
+    before, after, torn = np.zeros(len(vertices)), np.zeros(len(vertices)), np.zeros(len(vertices), bool)
     from ..native import default_threads, load_kernel
     from ..native.body import PushSteps, push_out_frames
 
@@ -207,15 +268,7 @@ def push_out(
     if limits is not None and report and torn.any() and (lib is None or skin is None):
         rows = np.flatnonzero(torn)
         after[rows] = (measure(out[rows].astype(np.float64), rows)[0] < -depth).mean(1)
-    if not report:
-        return out, None
-    return out, PushOutReport(
-        float(before.mean()),
-        float(after.mean()),
-        float(before.max(initial=0)),
-        float(after.max(initial=0)),
-        limited=float(torn.mean()) if limits is not None and len(torn) else 0.0,
-    )
+    return out, before, after, torn, measure
 
 
 def follow_pushes(

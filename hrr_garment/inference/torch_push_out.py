@@ -20,7 +20,8 @@ import torch
 from torch import nn
 from torch._higher_order_ops.while_loop import while_loop
 
-from .collision import PROJECTIONS, PushOutSettings
+from .collision import PROJECTIONS, RELEASE_PASSES, PushOutSettings
+from .limb_release import RELEASED_RADIUS, limb_capsules
 from .strain_limit import LIMIT_TOLERANCE_M, OVER_RELAXATION
 from .torch_ops import constant
 from .torch_subspace_push import SubspacePushStage
@@ -67,6 +68,7 @@ class PushOutStage(nn.Module):
             self, "ring_drop", np.minimum(settings.follow_slope * limits.ring_length, 1e6)[..., None]
         )  # (V, D, 1)
         constant(self, "edges", limits.edges, dtype=torch.int64)
+        constant(self, "limbs", limb_capsules(), dtype=torch.int64)  # the capsules that may let go
         constant(self, "allowed", settings.max_strain * limits.rest_length)
         constant(self, "slack", settings.stretch_slack * limits.rest_length)
         # a pass projects the edges a colour at a time (no two of a colour share a vertex): each
@@ -76,22 +78,24 @@ class PushOutStage(nn.Module):
             constant(self, f"colour_{c}", group, dtype=torch.int64)
 
     def distance(
-        self, p: torch.Tensor, a: torch.Tensor, b: torch.Tensor
+        self, p: torch.Tensor, a: torch.Tensor, b: torch.Tensor, radii: torch.Tensor | None = None
     ) -> tuple[torch.Tensor, torch.Tensor]:
         """Signed distances (N, V) to the union of capsules and the nearest one's outward normals.
         Through products of (N, V, 3) by (N, 3, C) (no (N, V, C, 3) temporaries, which cost most of
         a step in onnxruntime); ``p``, ``a``, ``b`` relative to the pelvis keep them to metres. On
         the visible mesh, ``a`` and ``b`` are the joints' moves (:meth:`forward`) and the distance
-        and normal the skin's."""
+        and normal the skin's. ``radii``: (N, 1, C) each character's (a limb let go of: very
+        negative; None: the body's)."""
         if self.skin is not None:
             return self.skin.query_moves(p, a, b)
+        radii = self.radii if radii is None else radii
         ab = b - a  # (N, C, 3)
         ab_ab = (ab * ab).sum(-1)[:, None]  # (N, 1, C)
         rel_ab = p @ ab.transpose(1, 2) - (a * ab).sum(-1)[:, None]  # (p - a) . ab: (N, V, C)
         rel_rel = (p * p).sum(-1, keepdim=True) - 2.0 * (p @ a.transpose(1, 2)) + (a * a).sum(-1)[:, None]
         s = torch.clamp(rel_ab / torch.clamp(ab_ab, min=1e-12), 0.0, 1.0)
         axis2 = rel_rel - s * (2.0 * rel_ab - s * ab_ab)  # |p - a - s ab|^2
-        d, nearest = (torch.sqrt(torch.clamp(axis2, min=0.0)) - self.radii).min(-1)
+        d, nearest = (torch.sqrt(torch.clamp(axis2, min=0.0)) - radii).min(-1)
         pick = torch.nn.functional.one_hot(nearest, a.shape[1]).to(p.dtype)  # (N, V, C)
         s_near = (pick * s).sum(-1, keepdim=True)
         diff = p - pick @ a - s_near * (pick @ ab)
@@ -102,10 +106,10 @@ class PushOutStage(nn.Module):
         terms = torch.index_select(disp, 0, self.smooth_cols) * self.smooth_weights[..., None]
         return torch.zeros_like(disp).index_add(0, self.smooth_rows, terms)
 
-    def push(self, p: torch.Tensor, a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
-        d, n = self.distance(p, a, b)
+    def push(self, p: torch.Tensor, a: torch.Tensor, b: torch.Tensor, radii: torch.Tensor) -> torch.Tensor:
+        d, n = self.distance(p, a, b, radii)
         for _ in range(self.settings.rounds):
-            p, d, n = _when((d < self.settings.margin).any(), self._round, (p, d, n, a, b))
+            p, d, n = _when((d < self.settings.margin).any(), self._round, (p, d, n, a, b, radii))
         # exact projections, again where a push landed in another capsule, while a vertex is inside:
         # exported as an ONNX Loop, so that its measure is traced once (a character's skin graph
         # traced once a projection made the export 2.5 minutes), run as the same steps in Python
@@ -115,7 +119,7 @@ class PushOutStage(nn.Module):
             return (k < PROJECTIONS) & (d < 0).any()
 
         def project(k, p, d, n):
-            return k + 1, *self._project(p, d, n, a, b)
+            return k + 1, *self._project(p, d, n, a, b, radii)
 
         if torch.compiler.is_compiling():
             return while_loop(projecting, project, state)[1]
@@ -123,7 +127,7 @@ class PushOutStage(nn.Module):
             state = project(*state)
         return state[1]
 
-    def _round(self, p, d, n, a, b):
+    def _round(self, p, d, n, a, b, radii):
         """A push along the normals, spread to the neighbours, never below what is needed."""
         need = torch.clamp(self.settings.margin - d, min=0.0).transpose(
             0, 1
@@ -140,7 +144,7 @@ class PushOutStage(nn.Module):
             )
             disp = disp + short[..., None] * normals
         p = p + disp.transpose(0, 1)
-        return (p, *self.distance(p, a, b))
+        return (p, *self.distance(p, a, b, radii))
 
     def _follow(self, need: torch.Tensor, normals: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """One pass of the neighbour-follow (:func:`~hrr_garment.inference.collision.follow_pushes`),
@@ -156,9 +160,9 @@ class PushOutStage(nn.Module):
             better[..., None], normals[source, characters], normals
         )
 
-    def _project(self, p, d, n, a, b):
+    def _project(self, p, d, n, a, b, radii):
         p = p + torch.where(d < 0, self.settings.margin - d, torch.zeros_like(d))[..., None] * n
-        return (p, *self.distance(p, a, b))
+        return (p, *self.distance(p, a, b, radii))
 
     def _edge_vectors(self, p: torch.Tensor) -> torch.Tensor:
         """(E, N, 3) of vertex-major points (V, N, 3)."""
@@ -224,21 +228,52 @@ class PushOutStage(nn.Module):
         """``heading``: each frame's body-frame yaw as (cosines, sines), which the subspace push needs."""
         centre = positions[:, :1]  # (N, 1, 3): the pelvis
         p = vertices - centre
+        radii = self.radii + torch.zeros_like(p[:, :1, :1])  # (N, 1, C): each character's
         if self.skin is not None:  # the joints' moves from the rest pose, about the pelvis (the
             # skin's weights sum to 1, so the posed skin moves with the points)
             a, trans = self.skin.moves(rotations, positions)
-            return self.limit(self.push(p, a, trans - centre) + centre, vertices)
+            return self.limit(self.push(p, a, trans - centre, radii) + centre, vertices)
         rot, pos = rotations[:, self.joints], positions[:, self.joints]
         a = pos - centre + (rot @ self.cap_a[..., None])[..., 0]
         b = pos - centre + (rot @ self.cap_b[..., None])[..., 0]
         if self.subspace is not None:
             if heading is None:
                 raise ValueError("the subspace push needs each frame's heading (the body frame's yaw)")
-            p = self.subspace(p, a, b, heading, self.distance)
+            p = self.subspace(p, a, b, heading, lambda q, a, b: self.distance(q, a, b, radii))
             vertices = (
                 p + centre
             )  # the limit's reference: the frame as the mesh push gets it, as the kernel's
-        return self.limit(self.push(p, a, b) + centre, vertices)
+        pushed = self.push(p, a, b, radii)
+        out = self.limit(pushed + centre, vertices)
+        if not self.settings.release_limbs or self.subspace is not None:
+            return out
+        for _ in range(RELEASE_PASSES):  # collision.push_out's: a torn character pushed again without
+            # the limb capsules within the margin of a vertex the limit moved, where the push took it
+            repaired = (out != pushed + centre).any(-1)  # (N, V)
+            held = self._held_limbs(repaired, p, a, b, radii)  # (N, C)
+            radii = torch.where(held[:, None], torch.full_like(radii, RELEASED_RADIUS), radii)
+            operands = (p, a, b, radii, centre, vertices, pushed, out)
+            pushed, out = _when_released(held.any(), self._released, operands)
+        return out
+
+    def _held_limbs(self, repaired, p, a, b, radii) -> torch.Tensor:
+        """(N, C) the limb capsules within the margin of a repaired vertex (:mod:`.limb_release`)."""
+        limbs = self.limbs
+        la, ab = a[:, limbs], b[:, limbs] - a[:, limbs]  # (N, L, 3)
+        rel = p[:, :, None] - la[:, None]  # (N, V, L, 3)
+        s = torch.clamp(
+            (rel * ab[:, None]).sum(-1) / torch.clamp((ab * ab).sum(-1), min=1e-12)[:, None], 0.0, 1.0
+        )
+        gap = torch.sqrt(((rel - s[..., None] * ab[:, None]) ** 2).sum(-1)) - radii[:, :, limbs]
+        near = ((gap < self.settings.margin) & repaired[..., None]).any(1)  # (N, L)
+        return torch.zeros_like(radii[:, 0], dtype=torch.bool).index_copy(1, limbs, near)
+
+    def _released(self, p, a, b, radii, centre, vertices, pushed, out):
+        """The characters that let go of a limb pushed again (the others as they were)."""
+        again = self.push(p, a, b, radii)
+        limited = self.limit(again + centre, vertices)
+        moved = (radii < self.radii).any(-1)  # (N, 1): a character that let go of a limb
+        return torch.where(moved[..., None], again, pushed), torch.where(moved[..., None], limited, out)
 
 
 def _when(predicate: torch.Tensor, step, operands: tuple):
@@ -249,6 +284,19 @@ def _when(predicate: torch.Tensor, step, operands: tuple):
     return step(*operands) if bool(predicate) else operands[:3]
 
 
-def _as_is(p: torch.Tensor, d: torch.Tensor, n: torch.Tensor, a: torch.Tensor, b: torch.Tensor):
+def _when_released(predicate: torch.Tensor, step, operands: tuple):
+    """``step(*operands)`` where a character let go of a limb, else the last push and its limit as
+    they are (an ONNX ``If`` when exporting)."""
+    if torch.compiler.is_compiling():
+        return torch.cond(predicate, step, _kept, operands)
+    return step(*operands) if bool(predicate) else operands[-2:]
+
+
+def _kept(p, a, b, radii, centre, vertices, pushed, out):
+    """The branch with no limb let go (a conditional's outputs may not alias its inputs)."""
+    return pushed.clone(), out.clone()
+
+
+def _as_is(p: torch.Tensor, d: torch.Tensor, n: torch.Tensor, *moves: torch.Tensor):
     """The branch of a push step with nothing to move (a conditional's outputs may not alias its inputs)."""
     return p.clone(), d.clone(), n.clone()

@@ -124,3 +124,74 @@ def test_the_report_counts_the_frames_the_strain_limit_repaired():
     _, torn = limit_push_strain(unlimited, frames.astype(np.float32), limits)  # the tears the push left
     assert torn.tolist() == (np.arange(motion.num_frames) % 4 == 0).tolist()
     assert report.limited == torn.mean() and bare.limited == 0.0
+
+
+def test_a_limb_through_the_cloth_is_let_go_of_rather_than_torn():
+    """A sheet pierced by the left forearm (T-pose, far from the torso): pushed out of the forearm, its
+    vertices inside part to either side and tear it; the push-out lets go of the forearm on that
+    frame instead (the cloth left as it came, through the limb, as the simulator leaves cloth where
+    a capture's arms pass through the body), while a frame whose sheet only grazes the forearm is
+    pushed as before; the numpy reference and the kernel agree."""
+    import dataclasses
+
+    from hrr_garment import native
+    from hrr_garment.body.capsules import DEFAULT_BODY
+    from hrr_garment.inference.collision import PUSH_OUT, EdgeLimits, push_out
+    from hrr_garment.inference.limb_release import limb_capsules
+    from hrr_garment.motion.motion import Motion
+    from hrr_garment.motion.skeleton import CANONICAL, REST_PELVIS_HEIGHT
+
+    pose = Motion(
+        np.broadcast_to(np.eye(3), (2, 22, 3, 3)).copy(),
+        np.tile([0.0, REST_PELVIS_HEIGHT, 0.0], (2, 1)),
+        30.0,
+        skeleton=CANONICAL,
+    )
+    forearm = [c.name for c in DEFAULT_BODY.capsules].index("l_forearm")
+    assert forearm in limb_capsules() and len(limb_capsules()) == 10
+    a, b = DEFAULT_BODY.pose_motion(pose)
+    mid, axis = (a[0, forearm] + b[0, forearm]) / 2, b[0, forearm] - a[0, forearm]
+    assert abs(axis[0]) > 0.9 * np.linalg.norm(axis)  # the T-pose's forearm lies along x
+    # a 21 x 21 sheet at 1 cm across the forearm's middle (its plane x = const), and the same sheet
+    # moved up by the forearm's radius less 1 mm: a graze
+    u, w = np.meshgrid(np.linspace(-0.1, 0.1, 21), np.linspace(-0.1, 0.1, 21), indexing="ij")
+    sheet = mid + np.stack([np.zeros(u.size), u.ravel(), w.ravel()], 1)
+    graze = sheet + [0.0, DEFAULT_BODY.radii[forearm] + 0.101 - 0.001, 0.0]
+    quads = np.arange(21 * 21).reshape(21, 21)[:-1, :-1].ravel()
+    faces = np.concatenate(
+        [np.stack([quads, quads + 21, quads + 1], 1), np.stack([quads + 1, quads + 21, quads + 22], 1)]
+    )
+    frames = np.stack([sheet, graze]).astype(np.float32)
+    limits = EdgeLimits.of(faces, sheet)
+    held = dataclasses.replace(PUSH_OUT, release_limbs=False)
+    torn, torn_report = push_out(frames, pose, faces, limits=limits, settings=held)
+    let_go, report = push_out(frames, pose, faces, limits=limits)
+    assert torn_report.limited == 0.5 and report.limited == 0.0  # the pierced frame tore, and now does not
+    assert np.array_equal(let_go[0], frames[0])  # let go of: the sheet as it came
+    assert report.inside_after > 0.0  # ... and honestly reported: the forearm's inside it
+    assert np.array_equal(let_go[1], torn[1]) and np.abs(let_go[1] - frames[1]).max() > 1e-3  # grazed: pushed
+    # the step's torch stage (a GPU crowd's, the ONNX graph's) lets go of it alike
+    import torch
+
+    from hrr_garment.inference.collision import mean_operator
+    from hrr_garment.inference.torch_push_out import PushOutStage
+
+    stage = PushOutStage(
+        (*DEFAULT_BODY.ends, DEFAULT_BODY.radii),
+        mean_operator(faces, len(sheet)),
+        limits=limits,
+        settings=PUSH_OUT,
+    )
+    with torch.no_grad():
+        ours = stage(
+            torch.from_numpy(frames),
+            torch.from_numpy(pose.global_rotations).float(),
+            torch.from_numpy(pose.joint_positions).float(),
+        ).numpy()
+    assert np.abs(ours - let_go).max() < 1e-5
+    if native.load_kernel() is not None:
+        import unittest.mock
+
+        with unittest.mock.patch.object(native, "load_kernel", lambda *args, **kwargs: None):
+            reference, reference_report = push_out(frames, pose, faces, limits=limits)
+        assert np.abs(reference - let_go).max() < 1e-5 and reference_report.limited == report.limited
