@@ -74,10 +74,11 @@ class PushOutSettings:
     # repairs tears, not a push that lengthens an already long edge by a hair
     stretch_slack: float = STRETCH_SLACK
     chunk: int = 64  # frames processed at once
-    # a frame the push tore is pushed again without the limb capsules holding the torn cloth
-    # (.limb_release: where a limb passes through the cloth no push keeps it whole); capsule bodies,
-    # the mesh push (not the subspace push nor the visible mesh)
-    release_limbs: bool = True
+    # a frame the push tore pushed again without the limb capsules holding the torn cloth
+    # (.limb_release; capsule bodies and the mesh push only). Off: on the real-quick model it halves
+    # the frames the strain limit repairs (42.9 -> 21.3 %) but leaves 4 x the cloth inside the body
+    # (0.14 -> 0.63 %) where the model put it through a limb (docs/decisions/0041)
+    release_limbs: bool = False
     # the push in the garment's subspace before the mesh push (.subspace_push; None: none), made
     # per bundle (Animator.push_settings)
     subspace: "SubspacePush | None" = None

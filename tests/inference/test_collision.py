@@ -128,8 +128,8 @@ def test_the_report_counts_the_frames_the_strain_limit_repaired():
 
 def test_a_limb_through_the_cloth_is_let_go_of_rather_than_torn():
     """A sheet pierced by the left forearm (T-pose, far from the torso): pushed out of the forearm, its
-    vertices inside part to either side and tear it; the push-out lets go of the forearm on that
-    frame instead (the cloth left as it came, through the limb, as the simulator leaves cloth where
+    vertices inside part to either side and tear it; with ``release_limbs`` the push-out lets go of
+    the forearm on that frame instead (the cloth left as it came, through the limb, as the simulator leaves cloth where
     a capture's arms pass through the body), while a frame whose sheet only grazes the forearm is
     pushed as before; the numpy reference and the kernel agree."""
     import dataclasses
@@ -163,9 +163,9 @@ def test_a_limb_through_the_cloth_is_let_go_of_rather_than_torn():
     )
     frames = np.stack([sheet, graze]).astype(np.float32)
     limits = EdgeLimits.of(faces, sheet)
-    held = dataclasses.replace(PUSH_OUT, release_limbs=False)
-    torn, torn_report = push_out(frames, pose, faces, limits=limits, settings=held)
-    let_go, report = push_out(frames, pose, faces, limits=limits)
+    release = dataclasses.replace(PUSH_OUT, release_limbs=True)
+    torn, torn_report = push_out(frames, pose, faces, limits=limits)  # the default holds every capsule
+    let_go, report = push_out(frames, pose, faces, limits=limits, settings=release)
     assert torn_report.limited == 0.5 and report.limited == 0.0  # the pierced frame tore, and now does not
     assert np.array_equal(let_go[0], frames[0])  # let go of: the sheet as it came
     assert report.inside_after > 0.0  # ... and honestly reported: the forearm's inside it
@@ -180,7 +180,7 @@ def test_a_limb_through_the_cloth_is_let_go_of_rather_than_torn():
         (*DEFAULT_BODY.ends, DEFAULT_BODY.radii),
         mean_operator(faces, len(sheet)),
         limits=limits,
-        settings=PUSH_OUT,
+        settings=release,
     )
     with torch.no_grad():
         ours = stage(
@@ -193,5 +193,5 @@ def test_a_limb_through_the_cloth_is_let_go_of_rather_than_torn():
         import unittest.mock
 
         with unittest.mock.patch.object(native, "load_kernel", lambda *args, **kwargs: None):
-            reference, reference_report = push_out(frames, pose, faces, limits=limits)
+            reference, reference_report = push_out(frames, pose, faces, limits=limits, settings=release)
         assert np.abs(reference - let_go).max() < 1e-5 and reference_report.limited == report.limited
