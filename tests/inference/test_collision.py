@@ -129,9 +129,10 @@ def test_the_report_counts_the_frames_the_strain_limit_repaired():
 def test_a_limb_through_the_cloth_is_let_go_of_rather_than_torn():
     """A sheet pierced by the left forearm (T-pose, far from the torso): pushed out of the forearm, its
     vertices inside part to either side and tear it; with ``release_limbs`` the push-out lets go of
-    the forearm on that frame instead (the cloth left as it came, through the limb, as the simulator leaves cloth where
-    a capture's arms pass through the body), while a frame whose sheet only grazes the forearm is
-    pushed as before; the numpy reference and the kernel agree."""
+    the forearm on that frame instead (the cloth left as it came, through the limb, as the simulator
+    leaves cloth where a capture's arms pass through the body), while a frame whose sheet only
+    grazes the forearm is pushed as before; the numpy reference, the kernel and the torch stage
+    agree."""
     import dataclasses
 
     from hrr_garment import native
