@@ -162,9 +162,8 @@ def _release_torn(out, unpushed, torn, clip, settings: PushOutSettings, mean, li
         pushed = PosedCapsules(posed.a[rows], posed.b[rows], radii[rows])
         bare = _push(unpushed[rows], motion, faces, pushed, unlimited, mean, limits, False)[0]
         repaired = np.any(out[rows] != bare, axis=-1)  # (rows, V): the vertices the limit moved
-        let_go = held_limbs(
-            repaired, unpushed[rows], (pushed.a, pushed.b, pushed.radii), settings.margin, limbs
-        )
+        ends = (pushed.a, pushed.b, pushed.radii)
+        let_go = held_limbs(repaired, unpushed[rows], ends=ends, margin=settings.margin, limbs=limbs)
         rows, let_go = rows[let_go.any(1)], let_go[let_go.any(1)]
         if not len(rows):
             break
