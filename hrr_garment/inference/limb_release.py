@@ -5,9 +5,9 @@ the dress between them, a stride's thigh through the skirt), no push out of that
 cloth whole: the vertices inside it go out of its nearest surface, half one way and half the other,
 and the strain limit then undoes part of the push. Measured on real-quick's 16 test clips, the
 push-out of the *simulated* cloth itself tore 28 % of the frames (131_03 93 %, a bye wave 100 %),
-all where the capture's own limbs sink into the body: the simulator lets the arms through the cloth
-there (:mod:`hrr_garment.sim.simulator`), so the truth has arms through the dress, and a model
-that learns it does too.
+nearly all where the capture's own arms sink into the body or rest on it: the simulator lets the
+arms through the cloth there (:mod:`hrr_garment.sim.simulator`), so the truth has arms through the
+dress, and a model that learns it does too.
 
 So a frame the push tore is pushed again without the limb capsules holding the torn cloth: the
 vertices the strain limit moved lie inside (or within the push's margin of) those capsules as the
