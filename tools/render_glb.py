@@ -8,7 +8,7 @@ it shows what Blender, three.js or an engine will show, without them.
 
 The frames are keyframe indices (``hrr-export --tolerance 0`` keeps every frame, so that each is the
 clip's frame of that number). Prints, per frame, the garment's vertices inside the character's
-mesh (winding number, more than 5 mm deep), the figure ``hrr-eval`` reports after the push-out.
+mesh (more than 5 mm deep), the figure ``hrr-eval`` reports after the push-out.
 """
 
 from __future__ import annotations
@@ -34,12 +34,11 @@ def arguments() -> argparse.Namespace:
 
 
 def inside_share(garment: np.ndarray, skin: np.ndarray, faces: np.ndarray) -> float:
-    """The share of garment vertices (V, 3) more than DEPTH_M inside the closed mesh (skin, faces)."""
-    from hrr_garment.body.mesh_distance import winding_inside, within_reach
+    """The share of garment vertices (V, 3) more than DEPTH_M inside the mesh (skin, faces), as
+    hrr-eval counts it (:func:`~hrr_garment.body.mesh_inside.inside_deeper_than`)."""
+    from hrr_garment.body.mesh_inside import inside_deeper_than
 
-    inside = winding_inside(garment, skin, faces)
-    shallow = within_reach(garment[inside], skin, faces, reach=DEPTH_M)
-    return float(inside.sum() - shallow.sum()) / len(garment)
+    return float(inside_deeper_than(garment, skin, faces, depth=DEPTH_M).mean())
 
 
 def main() -> None:

@@ -140,18 +140,30 @@ def capsule_signed_distance(
     Returns (distance (N,), outward unit normal of the nearest capsule (N, 3), its index (N,)).
     Negative distances are inside the body. Exact for the union (the minimum over capsules).
     """
-    ab = b - a  # (C, 3)
-    denom = np.maximum((ab * ab).sum(-1), 1e-12)
-    rel = points[:, None, :] - a[None]  # (N, C, 3)
-    s = np.clip((rel * ab[None]).sum(-1) / denom, 0.0, 1.0)
-    diff = rel - s[..., None] * ab[None]
-    dist_axis = np.sqrt((diff * diff).sum(-1))
+    diff, dist_axis = _axis_gaps(points, a, b)
     sd = dist_axis - radii[None]
     nearest = sd.argmin(1)
     rows = np.arange(points.shape[0])
     d = diff[rows, nearest]
     n = d / np.maximum(dist_axis[rows, nearest], 1e-12)[:, None]
     return sd[rows, nearest], n, nearest
+
+
+def each_capsule_signed_distance(
+    points: np.ndarray, a: np.ndarray, b: np.ndarray, radii: np.ndarray
+) -> np.ndarray:
+    """(N, C) signed distance from each point (N, 3) to each capsule (ends a, b (C, 3), radii (C,))."""
+    return _axis_gaps(points, a, b)[1] - radii[None]
+
+
+def _axis_gaps(points: np.ndarray, a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Each point's (N, 3) offset from each capsule's axis segment (N, C, 3) and its length (N, C)."""
+    ab = b - a  # (C, 3)
+    denom = np.maximum((ab * ab).sum(-1), 1e-12)
+    rel = points[:, None, :] - a[None]  # (N, C, 3)
+    s = np.clip((rel * ab[None]).sum(-1) / denom, 0.0, 1.0)
+    diff = rel - s[..., None] * ab[None]
+    return diff, np.sqrt((diff * diff).sum(-1))
 
 
 def frames_signed_distance(

@@ -125,14 +125,18 @@ def push_out(
     settings = PUSH_OUT if settings is None else settings  # read here: the product's settings are one object
     mean = mean_operator(faces, vertices.shape[1]) if mean is None else mean
     out, before, after, torn, measure = _push(vertices, motion, faces, body, settings, mean, limits, report)
-    from .visible_push import PosedSkin
-
-    if limits is not None and settings.release_limbs and settings.subspace is None and torn.any():
-        if not isinstance(body, PosedSkin):
-            torn, redone = _release_torn(out, vertices, torn, (motion, faces, body), settings, mean, limits)
-            if report and redone.any():  # measured against the whole body, the limbs let go included
-                rows = np.flatnonzero(redone)
-                after[rows] = (measure(out[rows].astype(np.float64), rows)[0] < -settings.depth).mean(1)
+    capsules = isinstance(body, (BodyModel, PosedCapsules))  # the visible mesh has none to let go of
+    if (
+        capsules
+        and limits is not None
+        and settings.release_limbs
+        and settings.subspace is None
+        and torn.any()
+    ):
+        torn, redone = _release_torn(out, vertices, torn, (motion, faces, body), settings, mean, limits)
+        if report and redone.any():  # measured against the whole body, the limbs let go included
+            rows = np.flatnonzero(redone)
+            after[rows] = (measure(out[rows].astype(np.float64), rows)[0] < -settings.depth).mean(1)
     if not report:
         return out, None
     return out, PushOutReport(
@@ -206,7 +210,6 @@ def _push(vertices, motion, faces, body, settings: PushOutSettings, mean, limits
             return skin.distance(points, rows, margin)
         return frames_signed_distance(points, a[rows], b[rows], radii=framed(rows))
 
-    mean = mean_operator(faces, vertices.shape[1]) if mean is None else mean
     before, after, torn = np.zeros(len(vertices)), np.zeros(len(vertices)), np.zeros(len(vertices), bool)
     from ..native import default_threads, load_kernel
     from ..native.body import PushSteps, push_out_frames

@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..body.capsules import DEFAULT_BODY, BodyModel
+from ..body.capsules import DEFAULT_BODY, BodyModel, each_capsule_signed_distance
 from ..body.self_contact import LEG_PARTS, LOWER_ARM, UPPER_ARM
 
 RELEASED_RADIUS = -1e3  # a released capsule's radius: every point a kilometre outside it
@@ -52,10 +52,6 @@ def held_limbs(
     out = np.zeros(radii.shape, bool)
     for t in np.flatnonzero(repaired.any(1)):
         x = unpushed[t, repaired[t]].astype(np.float64)
-        la, lb = a[t, limbs], b[t, limbs]
-        axis = lb - la
-        rel = x[:, None] - la[None]  # (k, L, 3)
-        s = np.clip((rel * axis).sum(-1) / np.maximum((axis * axis).sum(-1), 1e-12), 0.0, 1.0)
-        gap = np.linalg.norm(rel - s[..., None] * axis, axis=-1) - radii[t, limbs]
+        gap = each_capsule_signed_distance(x, a[t, limbs], b[t, limbs], radii=radii[t, limbs])  # (k, L)
         out[t, limbs[(gap < margin).any(0)]] = True
     return out
