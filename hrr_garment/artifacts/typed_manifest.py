@@ -18,6 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from ..io_utils import atomic_write_text, strict_json
+from ..motion.licences import MotionLicences
 from .auto_calibration import UNCALIBRATED, AutoCalibration
 from .gate_signals import GATE_SIGNALS
 from .manifest import BundleError, check_file_list, migrate_manifest, sha256, with_manifest_hash
@@ -66,7 +67,12 @@ class Manifest(Section):
     subspace: SubspaceEntry | None = None  # the fast decoder
     direct: PartEntry | None = None  # the direct-regression baseline
     bodies: BodiesEntry | None = None  # absent for a model from before bodies
-    NULLABLE = frozenset({"created", "dataset", "window", "validation_mm", "encoding", "preset", "bodies"})
+    # the motion sources of the clips it learned from and their terms (motion/licences.py); absent
+    # for a model from before they were recorded
+    motion: Mapping[str, Any] | None = None
+    NULLABLE = frozenset(
+        {"created", "dataset", "window", "validation_mm", "encoding", "preset", "bodies", "motion"}
+    )
 
     @classmethod
     def _typed(cls, data: Mapping[str, Any], where: str) -> dict[str, Any]:
@@ -109,6 +115,7 @@ class Manifest(Section):
             "subspace": _optional(SubspaceEntry, data, "subspace"),
             "direct": _optional(PartEntry, data, "direct"),
             "bodies": None if data.get("bodies") is None else BodiesEntry.parse(data["bodies"], "bodies"),
+            "motion": mapping(data.get("motion"), "motion", optional=True),
         }
 
     @property
@@ -116,6 +123,17 @@ class Manifest(Section):
         """``auto``: what the auto calibration chose, or, before it ran, the hybrid with the default
         detail look (:data:`~.auto_calibration.UNCALIBRATED`)."""
         return self.auto if self.auto is not None else UNCALIBRATED
+
+    @property
+    def licences(self) -> MotionLicences:
+        """Where the model's training motion comes from and whether it may ship commercially (its
+        commercial use unknown for a model from before this was recorded)."""
+        if self.motion is None:
+            return MotionLicences({}, {}, unrecorded=1)
+        try:
+            return MotionLicences.from_dict(self.motion)
+        except (KeyError, TypeError, ValueError, AttributeError):
+            return MotionLicences({}, {}, unrecorded=1)
 
     @property
     def default_body_is_mannequin(self) -> bool:

@@ -222,12 +222,14 @@ def _main(argv: Sequence[str] | None) -> int:
             from ..artifacts.bundle_loader import load_bundle
             from ..body.measures import body_vector
 
-            body_range = load_bundle(args.model).body_range
+            bundle = load_bundle(args.model)
+            body_range = bundle.body_range
             outside = body_range.outside(body_vector(record))
             summary["model"] = {
                 "folder": str(args.model),
                 "training_bodies": body_range.bodies,
                 "outside": outside,
+                "motion_licence": bundle.manifest.licences.to_dict(),
             }
             if args.inside:
                 summary["model"]["inside_before_push_out"] = _inside(args.model, record, args.body.stem)
@@ -243,6 +245,7 @@ def _main(argv: Sequence[str] | None) -> int:
                 else f"outside the range of the {body_range.bodies} bodies {args.model} was trained on: "
                 + "; ".join(outside)
             )
+            print(f"motion licence: {bundle.manifest.licences.statement}")
             for who, r in summary["model"].get("inside_before_push_out", {}).items():
                 seen = (
                     f"{r['inside_visible_pct']:.2f} % of the cloth more than 5 mm inside the body the viewer "

@@ -62,6 +62,10 @@ def print_build_report(report, garment: GarmentMesh) -> None:
                 else ""
             )
         )
+    licence = s.get("motion_licence")
+    if licence:
+        counts = ", ".join(f"{k} {v['sequences']}" for k, v in licence["sources"].items())
+        print(f"  motion sources (sequences): {counts}; {licence['statement']}")
     print(
         "  hem swing (m) by kind: "
         + json.dumps({k: round(v, 3) for k, v in s["hem_swing_m_by_kind"].items()})

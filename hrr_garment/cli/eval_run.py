@@ -88,6 +88,7 @@ def run_protocols(job: EvalJob, args) -> dict:
             "auto_calibration": thawed(bundle.manifest.auto),
             "vertices": bundle.template.num_vertices,
             "preset": bundle.manifest.preset,
+            "motion_licence": bundle.manifest.licences.to_dict(),
         },
         dataset={
             "path": str(job.ds.path),

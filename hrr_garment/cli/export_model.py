@@ -97,6 +97,7 @@ def _main(argv: Sequence[str] | None) -> int:
         f"wrote {written.graph} ({size:.1f} MiB, {written.vertices} vertices) and {written.tensors.name} "
         f"in {written.seconds:.0f} s"
     )
+    print(f"motion licence: {animator.bundle.manifest.licences.statement}")
     if motion is None:
         return 0
     gap = check_onnx(animator, written.graph, motion, body=body)

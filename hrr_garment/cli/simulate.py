@@ -144,7 +144,7 @@ def _main(argv: Sequence[str] | None) -> int:
         out = workspace() / "datasets" / f"{garment.name}-{preset.name}{suffix}{on}.h5"
     require_suffix(out, (".h5", ".hdf5"), "a dataset")
     refuse_input_as_output(out, [*(args.motions or []), args.template, args.body, args.made_for])
-    options = build_options(preset, choice.specs)
+    options = build_options(preset, choice.specs, args.motions)
     options["info"]["garment_vertices"] = garment.num_vertices
     if choice.bodies:
         options["info"]["bodies"] = choice.info

@@ -26,6 +26,7 @@ import sys
 from pathlib import Path
 from typing import Sequence
 
+from ..artifacts.typed_manifest import read_manifest
 from ..errors import InputError
 from ..paths import workspace
 from ..pipeline.train import OLD_STAGE_NAMES, STAGES, TrainCallback, TrainSettings, train_model
@@ -156,6 +157,8 @@ def _main(argv: Sequence[str] | None) -> int:
         callback=printer,
     )
     print(f"bundle: {folder}")
+    if (Path(folder) / "bundle.json").is_file():  # not before the code-space stage wrote it
+        print(f"motion licence: {read_manifest(folder).licences.statement}")
     print("time per stage: " + ", ".join(f"{k} {v / 60:.1f} min" for k, v in result.seconds.items()))
     for check in result.budgets.values():
         print(f"budget: {check.summary()}")

@@ -16,6 +16,7 @@ from ..body.retarget import motion_on_body
 from ..garment.dressing import DressedBody
 from ..garment.mesh import GarmentMesh
 from ..motion.features import motion_features
+from ..motion.licences import PROCEDURAL, SOURCES
 from ..motion.rotations import rotation_about_y, yaw_of
 from ..motion.synth import synthesize
 from .dataset import SequenceRecord, write_dataset
@@ -62,4 +63,10 @@ def write_synthetic_dataset(
             + (motion.root_translation * [1, 0, 1])[:, None]
         )
         records.append(SequenceRecord(name, world.astype(np.float32), motion, body_name=body_name))
-    return write_dataset(path, garment, records, splits=SPLITS, bodies={b.name: b for b in bodies or []})
+    sources = {
+        "motion_sources": {r.name: PROCEDURAL for r in records},
+        "sources": {PROCEDURAL: SOURCES[PROCEDURAL].to_dict()},
+    }
+    return write_dataset(
+        path, garment, records, splits=SPLITS, info=sources, bodies={b.name: b for b in bodies or []}
+    )

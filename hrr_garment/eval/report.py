@@ -137,6 +137,11 @@ def markdown(report: dict, plots: list[str]) -> str:
         f"{settings['tau']:.3f}" + _detail_clause(settings) + ". "
         f"Run time {report['seconds']:.0f} s.",
         "",
+        *(
+            [f"Motion licence: {model['motion_licence']['statement']}", ""]
+            if model.get("motion_licence")
+            else []
+        ),
     ]
     runs = model.get("auto", "hybrid")
     out += markdown_lead(report.get("default"), runs)

@@ -132,6 +132,10 @@ def export_onnx(animator, path: str | Path, settings: RunSettings | None = None,
         "vertices": int(bundle.template.num_vertices),
         "state": {k: list(v) for k, v in shapes.items()},
         "path": "regression",
+        # the graph holds the database's simulated windows and weights learned from the motion: its
+        # terms travel with it (motion/licences.py)
+        "motion_licence": bundle.manifest.licences.statement,
+        "commercial_use": bundle.manifest.licences.commercial,
     }
     for key, value in meta.items():
         entry = model.metadata_props.add()

@@ -22,6 +22,7 @@ from ..errors import InputError
 from ..garment.dressing import DressedBody
 from ..garment.mesh import GarmentMesh
 from ..io_utils import atomic_write_text, exclusive_lock, strict_json
+from ..motion.licences import OWN, SOURCES, licences_of
 from .augment import (
     BACKWARD_PREFIX,
     SpliceSettings,
@@ -33,7 +34,7 @@ from .augment import (
 from .build_split import split_finished
 from .executors import EXECUTORS, Execution, batches, run_local, run_ray
 from .parts import PART_VERSION, load_part, part_paths, parts_to_simulate, template_hash
-from .plan import SequenceSpec
+from .plan import SequenceSpec, spec_sources
 from .preset import MIRROR_MODES, mirror_mode
 from .reflection import add_reflected_mirrors
 from .simulator import SimSettings, SimulationExploded, simulate_garment
@@ -120,6 +121,8 @@ class BuildSettings:
     batch: int = 0
     also_hold_out: dict[str, dict] | None = None
     splices: SpliceSettings | None = None
+    # motion file -> its source (motion/licences.py; sim.plan.file_sources); files it lacks: the user's own
+    file_sources: dict[str, str] | None = None
 
 
 def build_dataset(
@@ -155,7 +158,7 @@ def build_dataset(
         if not done:
             raise SimulationExploded(f"every sequence failed; nothing to write to {out}: {run.rejects}")
         split = split_finished(done, specs, o)
-        splices, made = None, []
+        splices, made, added = None, [], []
         if o.splices and (
             o.splices.count or o.splices.backward
         ):  # drawn from the training clips once the split is known
@@ -199,12 +202,13 @@ def build_dataset(
             summary["mirrored"] = len(records) - len(done)
         elif mirror == "simulate":
             summary["mirrored"] = sum(n.endswith(MIRROR_SUFFIX) for n in done)
+        sources, summary["motion_licence"] = _motion_sources(specs + added, records, o.file_sources or {})
         write_dataset(
             out,
             garment,
             records,
             splits=split,
-            info={**(o.info or {}), "summary": summary, "sim": config.to_dict()},
+            info={**(o.info or {}), "summary": summary, "sim": config.to_dict(), **sources},
             bodies=bodies,
         )
         atomic_write_text(out.with_suffix(".summary.json"), strict_json(summary, indent=2))
@@ -278,6 +282,19 @@ def _simulate_missing(
         run = run_ray if o.executor == "ray" else run_local
         rejects.update(run(pending, everyone, config, execution))
     return _Simulated(rejects, reused, len(pending), jobs)
+
+
+def _motion_sources(specs: list[SequenceSpec], records: list, files: dict[str, str]) -> tuple[dict, dict]:
+    """The dataset info's record of where each sequence's motion comes from (``motion_sources``) and
+    those sources' terms (``sources``): motion/licences.py; and the summary's account of them. A
+    reflected mirror is its source's."""
+    by_name = {s.name: spec_sources(s, files) for s in specs}
+    named = {
+        r.name: by_name.get(r.name, by_name.get(r.name.removesuffix(MIRROR_SUFFIX), OWN)) for r in records
+    }
+    used = {part for value in named.values() for part in value.split("+")}
+    info = {"motion_sources": named, "sources": {k: SOURCES[k].to_dict() for k in sorted(used)}}
+    return info, licences_of(named, info).to_dict()
 
 
 def _finished(specs: list[SequenceSpec], rejects: dict[str, str], parts: Path) -> list[str]:

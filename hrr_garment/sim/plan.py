@@ -18,6 +18,7 @@ from ..errors import HRRError, InputError, MotionError
 from ..motion.compose import arm_delayed, played_backward, spliced
 from ..motion.edit import retimed
 from ..motion.io import load_motion
+from ..motion.licences import OWN, PROCEDURAL, SOURCES, entry_source
 from ..motion.motion import Motion
 from ..motion.synth import KINDS, synthesize
 from .augment import AUGMENT_PREFIXES, SpliceSettings
@@ -136,35 +137,16 @@ def plan_sequences(
     pieces). The preset's speed warps apply to motion files either way; ``source_fps`` is the
     files' own frame rate where they carry none."""
     seconds = float(seconds or preset.seconds)
-    counts: dict[str, int] = {}
-    entries: list[str] = []
-    if motions:
-        for item in motions:
-            if item in KINDS:
-                counts[item] = counts.get(item, 0) + 1
-            elif (
-                Path(item).suffix
-                or Path(item).exists()
-                or any(c in item for c in "*?[")
-                or item.startswith("mocap:")
-            ):
-                entries.append(item)
-            else:
-                raise InputError(
-                    item, f"neither a motion kind ({', '.join(KINDS)}) nor a motion file, folder or glob"
-                )
-    else:
-        counts = dict(preset.sequences)
-        entries = list(preset.motions)
+    counts = _kind_counts(motions) if motions else dict(preset.sequences)
     specs = [
         SequenceSpec(f"{kind}_{i:03d}", kind, seed=preset.seed * 1000 + i, seconds=seconds)
         for kind, n in counts.items()
         for i in range(n)
     ]
-    files = resolve_motion_entries(entries, Path(preset.base) if preset.base and not motions else None)
+    files = list(file_sources(preset, motions))
     for path in files:
         for speed in (1.0, *preset.speed_warps):
-            specs += _file_pieces(str(path), speed, source_fps)
+            specs += _file_pieces(path, speed, source_fps)
     taken = sorted(s.path for s in specs if s.name.startswith(AUGMENT_PREFIXES))
     if taken:  # their parts would be the added sequences' parts
         raise InputError(
@@ -181,6 +163,64 @@ def plan_sequences(
     if not specs:
         raise HRRError("nothing to simulate: the preset lists no sequences and no --motions were given")
     return specs
+
+
+def _is_file_entry(item: str) -> bool:
+    return bool(
+        Path(item).suffix or Path(item).exists() or any(c in item for c in "*?[") or item.startswith("mocap:")
+    )
+
+
+def _kind_counts(motions: list[str]) -> dict[str, int]:
+    """How many clips of each procedural kind ``--motions`` names (an InputError for an item that is
+    neither a kind nor a motion file)."""
+    counts: dict[str, int] = {}
+    for item in motions:
+        if item in KINDS:
+            counts[item] = counts.get(item, 0) + 1
+        elif not _is_file_entry(item):
+            raise InputError(
+                item, f"neither a motion kind ({', '.join(KINDS)}) nor a motion file, folder or glob"
+            )
+    return counts
+
+
+def _sourced_entries(preset: Preset, motions: list[str] | None) -> tuple[list[tuple[str, str]], list[str]]:
+    """The motion entries a build reads, each with its source (motion/licences.py): ``--motions``'
+    files where given, else the preset's; and the entries a ``commercial_only`` preset leaves out."""
+    if motions:
+        entries = [(item, entry_source(item)) for item in motions if item not in KINDS]
+    else:
+        entries = [
+            (e, entry_source(e)) if isinstance(e, str) else (e["path"], entry_source(e["path"], e["source"]))
+            for e in preset.motions
+        ]
+    if not preset.commercial_only:
+        return entries, []
+    return [e for e in entries if SOURCES[e[1]].commercial], [
+        e for e, s in entries if not SOURCES[s].commercial
+    ]
+
+
+def file_sources(preset: Preset, motions: list[str] | None = None) -> dict[str, str]:
+    """Every motion file a build reads (``--motions``' files where given, else the preset's), in
+    order, each with the source of the entry that named it first."""
+    entries, _ = _sourced_entries(preset, motions)
+    base = Path(preset.base) if preset.base and not motions else None
+    sources: dict[str, str] = {}
+    for entry, source in entries:
+        for path in resolve_motion_entries([entry], base):
+            sources.setdefault(str(path), source)
+    return sources
+
+
+def spec_sources(spec: SequenceSpec, files: dict[str, str]) -> str:
+    """The source of a sequence's motion: procedural, or its file's (``a+b`` for a splice of files
+    from two sources); a file no entry named is the user's own."""
+    if spec.kind != "file":
+        return PROCEDURAL
+    found = [files.get(spec.path, OWN)] + ([files.get(spec.upper_path, OWN)] if spec.upper_path else [])
+    return "+".join(sorted(set(found)))
 
 
 def _file_pieces(path: str, speed: float, source_fps: float | None) -> list[SequenceSpec]:
@@ -215,9 +255,16 @@ def _file_pieces(path: str, speed: float, source_fps: float | None) -> list[Sequ
     return specs
 
 
-def build_options(preset: Preset, specs: list[SequenceSpec]) -> dict:
+def build_options(preset: Preset, specs: list[SequenceSpec], motions: list[str] | None = None) -> dict:
     """The preset's keyword arguments for :class:`~hrr_garment.sim.build.BuildSettings`: splits (by
-    clip group when it names one), seed, mirroring and the provenance recorded in the file."""
+    clip group when it names one), seed, mirroring, each motion file's source (``motions``: the
+    files given instead of the preset's) and the provenance recorded in the file."""
+    _, left_out = _sourced_entries(preset, motions)
+    if left_out:
+        print(
+            f"{preset.name} builds only from commercially usable motion: left out {', '.join(left_out)} "
+            "(motion/licences.py)"
+        )
     groups = {s.name: sequence_group(s, preset) for s in specs} if preset.split_by else None
     info: dict = {"preset": preset.name, "plan": plan_record(preset)}
     if groups:  # recorded in the file: which groups were held out whole
@@ -256,4 +303,5 @@ def build_options(preset: Preset, specs: list[SequenceSpec]) -> dict:
         "kinds": kinds or None,
         "also_hold_out": also or None,
         "splices": splices,
+        "file_sources": file_sources(preset, motions),
     }

@@ -17,6 +17,7 @@ from pathlib import Path
 import yaml
 
 from ..errors import InputError
+from ..motion.licences import SOURCES
 from ..motion.synth import KINDS
 from ..settings import deep_merge
 from .sources import DEFAULT_NAME_PATTERN
@@ -36,7 +37,9 @@ class Preset:
     seed: int = 0
     sim: dict = field(default_factory=dict)
     train: dict = field(default_factory=dict)  # hrr-train overrides, shaped like configs/train.yaml
-    motions: list[str] = field(default_factory=list)  # motion files, globs, folders, archives
+    # motion files, globs, folders, archives; an entry may declare its source ({path: ..., source:
+    # cmu}, motion/licences.py), else the shared folder it names or the user's own is its source
+    motions: list[str | dict] = field(default_factory=list)
     split_by: str | None = None  # a field of name_pattern whose groups are held out whole
     # more fields held out whole beside it, each with its own fractions ({content: {test: 0.08}}):
     # a sequence tests where any field's split tests it; files whose names lack the field train
@@ -54,6 +57,9 @@ class Preset:
     # more training motion from the training clips' parts (sim/augment.py): {count, seconds,
     # arm_delay_s, field}
     splices: dict = field(default_factory=dict)
+    # build only from motion whose source allows a sold product (CMU, procedural, the user's own):
+    # entries from other sources are left out, and the build says which
+    commercial_only: bool = False
 
 
 def preset_names() -> list[str]:
@@ -80,6 +86,7 @@ def load_preset(name_or_path: str) -> Preset:
         raise InputError(path, f"speed_warps must be factors between 0.25 and 4, got {bad_warps}")
     _check_also_hold_out(path, preset)
     _check_splices(path, preset)
+    _check_motions(path, preset)
     if mirror_mode(preset.mirror) is None:
         raise InputError(
             path,
@@ -134,6 +141,26 @@ def _check_splices(path: Path, preset: Preset) -> None:
     name_field = preset.splices.get("field", "content")
     if preset.splices.get("count") and name_field not in re.compile(preset.name_pattern).groupindex:
         raise InputError(path, f"splices: field {name_field!r} is not a field of the name pattern")
+
+
+def _check_motions(path: Path, preset: Preset) -> None:
+    """An InputError unless every motion entry is a path or ``{path, source}`` with a known source."""
+    for entry in preset.motions:
+        if isinstance(entry, str):
+            continue
+        if (
+            not isinstance(entry, dict)
+            or set(entry) - {"path", "source"}
+            or not isinstance(entry.get("path"), str)
+        ):
+            raise InputError(path, f"motions: {entry!r} is neither a path nor {{path: ..., source: ...}}")
+        if entry.get("source") not in SOURCES:
+            known = ", ".join(SOURCES)
+            raise InputError(
+                path, f"motions: {entry['path']!r} declares source {entry.get('source')!r}; known: {known}"
+            )
+    if not isinstance(preset.commercial_only, bool):
+        raise InputError(path, f"commercial_only must be true or false, got {preset.commercial_only!r}")
 
 
 def _check_also_hold_out(path: Path, preset: Preset) -> None:
@@ -196,10 +223,14 @@ PLAN_FIELDS = (
     "bodies",
     "splices",
     "seed",
+    "commercial_only",
 )
 
 
 def plan_record(preset: Preset) -> dict:
     """:data:`PLAN_FIELDS` of ``preset`` as a dataset records them (JSON's types), so that a dataset
     made before the preset was edited is told apart (hrr_garment/pipeline/simulate.py)."""
-    return json.loads(json.dumps({k: getattr(preset, k) for k in PLAN_FIELDS}))
+    record = {k: getattr(preset, k) for k in PLAN_FIELDS}
+    if not record["commercial_only"]:  # added later: datasets made before it record no such field
+        del record["commercial_only"]
+    return json.loads(json.dumps(record))

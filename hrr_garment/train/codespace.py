@@ -29,12 +29,15 @@ from ..artifacts.bundle_writer import BundleParts, add_bundle_part, write_bundle
 from ..artifacts.database import CodeDatabase
 from ..artifacts.folds import FOLD_ENCODING, FoldStore
 from ..artifacts.manifest import FOLDS_FILE
+from ..artifacts.manifest_section import thawed
+from ..artifacts.typed_manifest import update_manifest
 from ..body.measures import BODY_MEASURES
 from ..data.dataset import GarmentDataset
 from ..data.windows import dataset_features
 from ..garment.smoothing import mean_operator
 from ..io_utils import atomic_write_text, strict_json
 from ..models.codespace import CodeSpace, CodeSpaceSettings
+from ..motion.licences import licences_of
 from .autoencoder import load_autoencoder
 from .autoencoder_settings import refine_settings
 from .calibrate import window_mode_errors
@@ -123,9 +126,14 @@ def run_codespace_stage(
     if manifest is not None and (manifest.folds is None or manifest.folds.encoding != FOLD_ENCODING):
         folds = fold_store(ds, list(manifest.database.names), progress)
         add_bundle_part(folder, FOLDS_FILE, folds.arrays(), numpy=True, folds=folds.entry, auto=None)
+    splits = {k: ds.splits[k] for k in ("train", "val")}
+    motion = licences_of(splits["train"] + splits["val"], ds.info).to_dict()
+    # a finished model whose record of its motion's sources is missing (trained before they were
+    # recorded) or out of date (the dataset built again records them otherwise): record them
+    if manifest is not None and "motion_sources" in ds.info and thawed(manifest.motion) != motion:
+        update_manifest(folder, motion=motion)
     if manifest is not None and manifest.residual is not None:
         return _stage_report(done, stage, reused=True)
-    splits = {k: ds.splits[k] for k in ("train", "val")}
     features = dataset_features(
         ds, splits["train"] + splits["val"], config.memory, body_measures=config.body_features > 0
     )
@@ -249,6 +257,8 @@ def run_codespace_stage(
             "encoding": encoding,
             "validation": train_config.validation,
             **({"bodies": bodies} if bodies else {}),
+            # where the clips it learned from (and its database stores) come from, and their terms
+            "motion": motion,
             **(info or {}),
         },
     )

@@ -173,6 +173,11 @@ def test_killed_build_resumes_and_the_dataset_is_valid(built):
         timeout=300,
     )
     assert "(3 reused, 0 simulated now" in again.stdout
+    # where each sequence's motion comes from: here all procedural, so a model of it may ship
+    assert set(ds.info["motion_sources"].values()) == {"procedural"} and set(ds.info["sources"]) == {
+        "procedural"
+    }
+    assert "motion sources (sequences): procedural 3; may ship commercially" in again.stdout
 
 
 @pytest.mark.sim

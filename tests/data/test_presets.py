@@ -1,6 +1,7 @@
 """Presets that name motion files: globs, folders, archives, clip groups held out whole, mirroring."""
 
 import tarfile
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -10,8 +11,8 @@ from hrr_garment.errors import InputError
 from hrr_garment.motion.io import save_motion
 from hrr_garment.motion.skeleton import MIRROR_JOINTS
 from hrr_garment.motion.synth import synthesize
-from hrr_garment.sim.plan import build_options, plan_sequences
-from hrr_garment.sim.preset import load_preset
+from hrr_garment.sim.plan import build_options, plan_sequences, spec_sources
+from hrr_garment.sim.preset import load_preset, plan_record
 from hrr_garment.sim.sources import clip_group, resolve_motion_entries
 
 
@@ -391,3 +392,46 @@ def test_a_motion_file_may_not_take_an_added_sequences_name(tmp_path):
     )
     with pytest.raises(InputError, match="backward_000.npz.*rename the file"):
         plan_sequences(load_preset(str(preset_file)))
+
+
+def test_each_file_keeps_its_source_and_a_commercial_only_preset_leaves_out_the_rest(
+    library, tmp_path, monkeypatch, capsys
+):
+    mocap = tmp_path / "mocap"
+    for folder in ("bandai", "cmu"):
+        (mocap / folder).mkdir(parents=True)
+    save_motion(synthesize("walk", 1.0, seed=0), mocap / "bandai" / "dataset-1_walk_proud_000.npz")
+    save_motion(synthesize("run", 1.0, seed=1), mocap / "cmu" / "09_01.npz")
+    save_motion(synthesize("spin", 1.0, seed=2), library / "mine.npz")
+    monkeypatch.setenv("HRR_MOCAP_DIR", str(mocap))
+    text = (
+        "name: lic\nvertices: 300\nseconds: 1.0\nsequences: {walk: 1}\nmirror: true\n"
+        "motions: ['mocap:bandai/*.npz', 'mocap:cmu/*.npz', mine.npz,\n"
+        "          {path: 'clips/*walk_sad*', source: bandai}]\n"
+    )
+    (library / "lic.yaml").write_text(text)
+    preset = load_preset(str(library / "lic.yaml"))
+    specs = plan_sequences(preset)
+    sources = build_options(preset, specs)["file_sources"]
+    assert {Path(p).name: s for p, s in sources.items()} == {
+        "dataset-1_walk_proud_000.npz": "bandai",
+        "09_01.npz": "cmu",
+        "mine.npz": "own",
+        "dataset-1_walk_sad_001.npz": "bandai",  # declared
+    }
+    assert {spec_sources(s, sources) for s in specs} == {"bandai", "cmu", "own", "procedural"}
+    (library / "clean.yaml").write_text(text.replace("name: lic", "name: clean\ncommercial_only: true"))
+    clean = load_preset(str(library / "clean.yaml"))
+    kept = plan_sequences(clean)
+    assert sorted(s.name for s in kept) == ["09_01", "mine", "walk_000"]
+    build_options(clean, kept)
+    assert "left out mocap:bandai/*.npz, clips/*walk_sad*" in capsys.readouterr().out
+    assert plan_record(clean)["commercial_only"] is True and "commercial_only" not in plan_record(preset)
+
+
+def test_a_motion_entry_declaring_an_unknown_source_is_refused(library):
+    (library / "bad.yaml").write_text(
+        "name: bad\nvertices: 300\nseconds: 1.0\nsequences: {}\nmotions: [{path: clips, source: mixamo}]\n"
+    )
+    with pytest.raises(InputError, match="declares source 'mixamo'; known: bandai"):
+        load_preset(str(library / "bad.yaml"))

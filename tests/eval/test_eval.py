@@ -45,6 +45,9 @@ def test_hrr_eval_causal_scores_what_a_stream_shows(trained, tmp_path):
     )
     report = json.loads((out / "report.json").read_text())
     assert report["settings"]["causal"] and "causal (as streamed" in (out / "report.md").read_text()
+    # the model's report says whether it may ship (its motion procedural: yes)
+    assert report["model"]["motion_licence"]["commercial"] is True
+    assert "Motion licence: may ship commercially" in (out / "report.md").read_text()
     record = GarmentDataset(data).sequence("run_000")
     animator = Animator.load(root / "model")
     for mode in ("regression", "residual"):

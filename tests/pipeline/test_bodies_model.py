@@ -150,7 +150,7 @@ def test_a_stream_on_a_body_equals_the_offline_causal_animation_on_it(bodies_mod
     assert np.abs(pushed - causal).max() <= 1e-5
 
 
-def test_the_onnx_step_on_a_body_streams_as_the_python_stream_on_it(bodies_model, tmp_path):
+def test_the_onnx_step_on_a_body_streams_as_the_python_stream_on_it(bodies_model, tmp_path, capsys):
     """hrr-export-model --onnx --body: the graph reads the body's measures, plays the poses on its
     skeleton, stands the garment on it and pushes out of its capsules, as the Python stream does."""
     pytest.importorskip("onnxruntime")
@@ -180,7 +180,10 @@ def test_the_onnx_step_on_a_body_streams_as_the_python_stream_on_it(bodies_model
         )
         == 0
     )
+    # the terms of the motion it learned from travel with the graph (here procedural: it may ship)
+    assert "motion licence: may ship commercially" in capsys.readouterr().out
     graph = OnnxStream(tmp_path / "short.onnx")
+    assert graph.session.get_modelmeta().custom_metadata_map["commercial_use"] == "true"
     stream = Animator.load(folder).stream(mode="regression", body=short)
     for t in range(motion.num_frames):
         ours = graph.push(motion_to_poses(motion.slice(t, t + 1))[0], motion.root_translation[t : t + 1])[0]
