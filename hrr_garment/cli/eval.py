@@ -129,6 +129,15 @@ def _parser() -> argparse.ArgumentParser:
         "specialist model trained on that dataset alone (docs/evaluation.md)",
     )
     p.add_argument(
+        "--other-source",
+        action="append",
+        default=None,
+        metavar="DATASET[=MODEL]",
+        help="the cross-source protocol (repeat per dataset): the test clips of a dataset of motion from "
+        "another source than the model's (another lab and rig), against their own truth ensembles, "
+        "beside the model trained on that dataset; pooled and per clip (docs/evaluation.md)",
+    )
+    p.add_argument(
         "--paper",
         type=Path,
         default=None,

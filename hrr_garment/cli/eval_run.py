@@ -1,6 +1,6 @@
 """hrr-eval's protocols: every one the options ask for (the held-out split, its tau sweep, real
-motions, the paper's, unseen bodies, the library), run on the checked job into report.json's
-dictionary."""
+motions, the paper's, unseen bodies, other motion sources, the library), run on the checked job
+into report.json's dictionary."""
 
 from __future__ import annotations
 
@@ -72,6 +72,14 @@ def run_protocols(job: EvalJob, args) -> dict:
         unseen = unseen_bodies_section(
             animator, [UnseenBody.parse(t) for t in args.unseen_body], settings, sequences=args.sequences
         )
+    cross = None
+    if args.other_source:
+        from ..eval.cross_source import OtherSource, cross_source_section, with_own_split
+
+        auto = job.results.get(Mode.AUTO.value)
+        own = auto.ensemble.get("pve_floor_ratio") if auto is not None and args.split == "test" else None
+        items = [OtherSource.parse(t) for t in args.other_source]
+        cross = with_own_split(cross_source_section(animator, items, settings, sequences=args.sequences), own)
     library = None
     if args.library:
         plays = LibraryPlays(args.library, args.library_seed, args.tau_sweep, sweep=not args.no_sweep)
@@ -106,6 +114,7 @@ def run_protocols(job: EvalJob, args) -> dict:
             "library": library,
             "paper": paper,
             "unseen_bodies": unseen,
+            "cross_source": cross,
             "dataset_simulation": reference,
         },
         seconds=0.0,

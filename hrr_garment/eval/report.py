@@ -24,7 +24,9 @@ visible body is unknown), ``truth_inside_visible_pct`` and ``truth_inside_visibl
 ``ensemble``, each sequence's ``visible_body`` and each mode's ``visible_bodies`` (and at the top level:
 how many sequences were measured against a mesh, the capsules or nothing known); ``penetration_pct``
 (the capsules) unchanged; 14 ``push_limited_pct`` in each mode's and sequence's ``metrics`` and
-``ensemble``: the frames on which the push-out's strain limit moved an edge (null where no push-out ran).
+``ensemble``: the frames on which the push-out's strain limit moved an edge (null where no push-out ran);
+15 ``cross_source`` (the cross-source protocol, :mod:`.cross_source`) and ``model.motion_licence`` (where
+its training motion comes from and whether it may ship: :mod:`hrr_garment.motion.licences`).
 """
 
 from __future__ import annotations
@@ -37,6 +39,7 @@ import numpy as np
 from ..inference.resolved_run import recorded
 from ..io_utils import atomic_write_text, strict_json
 from .bars import HELD_OUT_BARS, LIBRARY_BARS, default_output, markdown_lead
+from .cross_source import markdown_table as cross_source_table
 from .evaluate import TauPoint
 from .goals import goals
 from .holdouts import holdout_section, markdown_holdouts
@@ -45,7 +48,7 @@ from .report_tables import ensemble_table, goal_table, mode_table, simulated_sec
 from .unseen_bodies import markdown_table
 
 DATASET_SIMULATION = "dataset simulation"  # the reference row: the dataset's own frames against the ensemble
-REPORT_VERSION = 14  # report.json's "format_version": see the module docstring
+REPORT_VERSION = 15  # report.json's "format_version": see the module docstring
 
 
 def frame_entropies(modes: dict[str, ModeResult]) -> np.ndarray:
@@ -108,6 +111,7 @@ def build_report(
         "library": protocols.get("library"),
         "paper": protocols.get("paper"),
         "unseen_bodies": protocols.get("unseen_bodies"),
+        "cross_source": protocols.get("cross_source"),
         "dataset_simulation": protocols.get("dataset_simulation"),
         "seconds": seconds,
     }
@@ -244,6 +248,18 @@ def markdown(report: dict, plots: list[str]) -> str:
             "body's capsules, before the push-out; sharpness and hem swing over the truth's.",
             "",
             *markdown_table(unseen),
+        ]
+    cross = report.get("cross_source")
+    if cross:
+        out += [
+            "",
+            "## Other motion sources (each beside the model trained on it)",
+            "",
+            "The default mode (auto) of this model and of the reference on the test clips of a dataset "
+            "whose motion comes from another source, against their own truth ensembles (clips the model "
+            "trained on left out); over own split: this model's PVE / floor over its own test split's.",
+            "",
+            *cross_source_table(cross),
         ]
     if plots:
         out += ["", "## Plots", ""] + [f"![{Path(p).stem}]({Path(p).name})" for p in plots]

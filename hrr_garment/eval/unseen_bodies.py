@@ -62,21 +62,27 @@ def evenly(names: list[str], count: int | None) -> list[str]:
     return [names[i] for i in sorted({int(round(i)) for i in np.linspace(0, len(names) - 1, count)})]
 
 
-def _records(item: UnseenBody, animator: Animator, sequences: int | None):
-    ds = GarmentDataset(item.dataset)
+def test_records(dataset: Path, animator: Animator, sequences: int | None):
+    """``dataset`` (of the model's garment, a DatasetError otherwise) and ``sequences`` of its test
+    split, evenly spaced (all without a count), as records."""
+    ds = GarmentDataset(dataset)
     if (
         ds.garment != animator.bundle.garment
         or ds.template.num_vertices != animator.bundle.template.num_vertices
     ):
         raise DatasetError(
-            item.dataset,
+            dataset,
             f"is a {ds.garment} dataset with {ds.template.num_vertices} vertices; the model "
             f"animates a {animator.bundle.garment} with {animator.bundle.template.num_vertices}",
         )
     names = evenly(ds.splits.get("test", []), sequences)
     if not names:
-        raise DatasetError(item.dataset, "has no test sequences")
-    records = [ds.sequence(n) for n in names]
+        raise DatasetError(dataset, "has no test sequences")
+    return ds, [ds.sequence(n) for n in names]
+
+
+def _records(item: UnseenBody, animator: Animator, sequences: int | None):
+    ds, records = test_records(item.dataset, animator, sequences)
     body_names = {r.body_name for r in records}
     if len(body_names) != 1:
         raise DatasetError(
@@ -106,7 +112,9 @@ def _check_unseen(animator: Animator, record, where: Path) -> None:
             )
 
 
-def _row(result) -> dict:
+def scores_row(result) -> dict:
+    """A mode's result (:class:`~.mode_results.ModeResult`) as a protocol's row: its ensemble scores
+    (:data:`COLUMNS`), the floor, the PVE and what its visible bodies were."""
     e = result.ensemble
     return {k: e.get(k) for k in COLUMNS} | {
         "floor_mm": e.get("floor_mm"),
@@ -134,13 +142,15 @@ def unseen_bodies_section(
             "body": records[0].body_name,
             "sequences": [r.name for r in records],
             "frames": int(sum(len(r.garment) for r in records)),
-            "model": _row(evaluate_modes(animator, records, auto, ensembles=ensembles)[Mode.AUTO.value]),
+            "model": scores_row(
+                evaluate_modes(animator, records, auto, ensembles=ensembles)[Mode.AUTO.value]
+            ),
         }
         if item.specialist is not None:
             specialist = Animator.load(item.specialist)
             entry["specialist"] = {
                 "folder": str(item.specialist),
-                **_row(evaluate_modes(specialist, records, auto, ensembles=ensembles)[Mode.AUTO.value]),
+                **scores_row(evaluate_modes(specialist, records, auto, ensembles=ensembles)[Mode.AUTO.value]),
             }
             mine, theirs = entry["model"]["pve_floor_ratio"], entry["specialist"]["pve_floor_ratio"]
             entry["pve_floor_over_specialist"] = mine / theirs if mine is not None and theirs else None
