@@ -13,7 +13,7 @@ from .limits import MAX_AXIS_ANGLE, check_frame_budget, check_source_fps
 from .motion import FPS, MAX_TRANSLATION_M, Motion
 from .native_file import NATIVE_FORMAT
 from .npz_read import numeric_array
-from .resample import frame_chunks, resample_linear, resample_rotations, resample_times
+from .resample import frame_chunks, kernel_width, resample_linear, resample_rotations, resample_times
 from .retarget import ground_align
 from .rotations import axis_angle_to_matrix, matrix_to_axis_angle
 from .skeleton import NUM_JOINTS
@@ -72,8 +72,9 @@ def load_amass(
     root = trans @ Z_UP_TO_Y_UP.T
     check_frame_budget(path, poses.shape[0], rate, fps_out=fps)
     frames = resample_times(poses.shape[0], rate, fps)
-    local = resample_rotations(local, frames)
-    root = resample_linear(root, frames)
+    width = kernel_width(rate, fps)  # a faster capture low-pass filtered first (.resample)
+    local = resample_rotations(local, frames, width)
+    root = resample_linear(root, frames, width)
     if ground:
         root = ground_align(local, root)
     return Motion(

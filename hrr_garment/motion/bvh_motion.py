@@ -14,7 +14,7 @@ from .bvh import read_bvh
 from .joint_maps import resolve_joint_map
 from .limits import check_frame_budget
 from .motion import FPS, Motion
-from .resample import resample_linear, resample_rotations, resample_times
+from .resample import kernel_width, resample_linear, resample_rotations, resample_times
 from .retarget import SourceMotion, check_source, retarget, standing_height_from_legs
 from .skeleton import forward_kinematics, rest_positions
 from .skeleton_doubts import doubts_sentence, skeleton_doubts, warn_doubts
@@ -96,8 +96,9 @@ def bvh_source(
     src_fps = source_fps or 1.0 / clip.frame_time
     check_frame_budget(path, clip.num_frames, src_fps, fps_out=fps)
     frames = resample_times(clip.num_frames, src_fps, fps)
-    local_rot = resample_rotations(clip.local_rotations, frames)
-    local_trans = resample_linear(clip.local_translations, frames) * unit_scale
+    width = kernel_width(src_fps, fps)  # a faster capture low-pass filtered first (.resample)
+    local_rot = resample_rotations(clip.local_rotations, frames, width)
+    local_trans = resample_linear(clip.local_translations, frames, width) * unit_scale
     # Non-root translations: position channels hold the joint's parent-relative position.
     g_rot, g_pos = forward_kinematics(local_rot, local_trans[:, 0], local_trans, parents=clip.parents)
     src = SourceMotion(

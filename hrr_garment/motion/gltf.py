@@ -33,6 +33,7 @@ from .gltf_file import (
 from .joint_maps import resolve_joint_map
 from .limits import MAX_BVH_JOINTS, check_frame_budget
 from .motion import FPS, Motion
+from .resample import kernel_width, resample_linear, resample_rotations
 from .retarget import SourceMotion, check_source, retarget, standing_height_from_legs
 from .skeleton_doubts import skeleton_doubts, warn_doubts
 
@@ -58,6 +59,14 @@ def _pick_skin(doc: GltfDocument, channels: list[AnimationChannel]) -> list[int]
     if not keyed & set(joints):
         raise doc.fail(f"the animation keys none of skin {best}'s {len(joints)} joints")
     return joints
+
+
+def _key_rate(channels: list[AnimationChannel]) -> float | None:
+    """The rate the densest channel is keyed at (from its median key spacing); None where no
+    channel has three keys."""
+    spacings = [float(np.median(np.diff(c.times))) for c in channels if len(c.times) >= 3]
+    spacings = [d for d in spacings if d > 0]
+    return 1.0 / min(spacings) if spacings else None
 
 
 def _times(doc: GltfDocument, channels: list[AnimationChannel], fps: float) -> np.ndarray:
@@ -122,13 +131,21 @@ def gltf_source(
     scheme, mapping = resolve_joint_map(names, str(doc.path), options.joint_map)
     order = node_chain(parents, joints)
     times = _times(doc, channels, options.fps)
-    world = world_transforms(order, parents, _local_transforms(doc, order, channels, times))
+    # keyed much faster than the output (a 120 fps capture baked to keys): evaluated at its key
+    # rate and low-pass filtered down, as a BVH of it is (.resample)
+    rate = _key_rate(channels)
+    width = kernel_width(rate, options.fps) if rate else 1.0
+    sampled = _times(doc, channels, rate) if width > 1.0 else times
+    world = world_transforms(order, parents, _local_transforms(doc, order, channels, sampled))
     at_rest = rest_world(doc, order, parents)
     rest = np.stack([at_rest[j][1][0] for j in joints])
     scale = world_unit_scale(doc.path, rest, mapping, options.unit_scale)
     rest_rot = np.stack([rotation_part(at_rest[j][0][0]) for j in joints])
     g_rot = np.stack([rotation_part(world[j][0]) for j in joints], 1) @ np.swapaxes(rest_rot, -1, -2)
     g_pos = np.stack([world[j][1] for j in joints], 1) * scale
+    if width > 1.0:
+        frames = np.minimum((times - sampled[0]) * rate, len(sampled) - 1)
+        g_rot, g_pos = resample_rotations(g_rot, frames, width), resample_linear(g_pos, frames, width)
     src = SourceMotion(
         names,
         joint_parents,

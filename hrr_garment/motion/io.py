@@ -23,7 +23,7 @@ from .limits import check_frame_budget, check_root_speed, check_source_fps
 from .motion import FPS, Motion
 from .native_file import NATIVE_FORMAT, native_from_arrays, save_motion  # noqa: F401  (save_motion: public)
 from .npz_read import check_finite, read_npz
-from .resample import resample_linear, resample_rotations, resample_times
+from .resample import kernel_width, resample_linear, resample_rotations, resample_times
 
 
 def load_motion(
@@ -82,17 +82,42 @@ def load_motion(
 
 
 def resample_motion(motion: Motion, fps: float = FPS, path: str | Path | None = None) -> Motion:
-    """The motion at ``fps`` (rotations slerped, translations interpolated)."""
+    """The motion at ``fps`` (rotations slerped, translations interpolated; from a rate
+    :data:`~.resample.ANTI_ALIAS_RATIO` times faster or more, low-pass filtered: :mod:`.resample`)."""
     if abs(motion.fps - fps) < 1e-6:
         return motion
     check_frame_budget(path or motion.source, motion.num_frames, motion.fps, fps_out=fps)
     frames = resample_times(motion.num_frames, motion.fps, fps)
+    width = kernel_width(motion.fps, fps)  # a faster motion low-pass filtered first (.resample)
     return Motion(
-        resample_rotations(motion.local_rotations.astype(np.float64), frames),
-        resample_linear(motion.root_translation.astype(np.float64), frames),
+        resample_rotations(motion.local_rotations.astype(np.float64), frames, width),
+        resample_linear(motion.root_translation.astype(np.float64), frames, width),
         fps,
         source=motion.source,
         source_skeleton=motion.source_skeleton,
         source_height_m=motion.source_height_m,
         check_rotations=False,  # slerped rotations
     )
+
+
+def native_frame_rate(path: str | Path) -> float | None:
+    """The frame rate a BVH or npz motion file was recorded at (its header's frame time, its rate
+    key), without reading the motion; None for other formats or where the file does not say."""
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix == ".bvh":
+        with open(path, encoding="utf-8", errors="replace") as fh:
+            for line in fh:
+                if line.strip().lower().startswith("frame time:"):
+                    try:
+                        frame_time = float(line.split(":", 1)[1])
+                    except ValueError:
+                        return None
+                    return 1.0 / frame_time if frame_time > 0 else None
+        return None
+    if suffix == ".npz":
+        data = read_npz(path)
+        for key in ("fps", "mocap_framerate", "mocap_frame_rate"):
+            if key in data and np.ndim(data[key]) == 0:
+                return float(data[key])
+    return None

@@ -17,14 +17,16 @@ from pathlib import Path
 from ..errors import HRRError, InputError, MotionError
 from ..motion.compose import arm_delayed, played_backward, spliced
 from ..motion.edit import retimed
-from ..motion.io import load_motion
+from ..motion.io import load_motion, native_frame_rate
 from ..motion.licences import OWN, PROCEDURAL, SOURCES, entry_source
-from ..motion.motion import Motion
+from ..motion.motion import FPS, Motion
+from ..motion.resample import kernel_width
 from ..motion.synth import KINDS, synthesize
 from .augment import AUGMENT_PREFIXES, SpliceSettings
 from .preset import Preset, mirror_mode, plan_record
 from .sources import clip_group, resolve_motion_entries
 
+ANTI_ALIASED = "anti-aliased"  # the part key's mark of a faster capture read low-pass filtered
 MIN_CLIP_FRAMES = 15  # half a second: shorter clips are mostly lead-in
 FILE_PIECE_S = 12.0  # longer motion files are simulated in pieces of at most this length
 
@@ -93,6 +95,12 @@ class SequenceSpec:
             payload["file_sha1"] = hashlib.sha1(Path(self.path).read_bytes()).hexdigest()
         if self.upper_path:
             payload["upper_sha1"] = hashlib.sha1(Path(self.upper_path).read_bytes()).hexdigest()
+        # a file recorded faster than 30 fps has been read low-pass filtered since 2026-12-03
+        # (motion/resample.py): its sequences simulated before are of other motion; others keep their keys
+        files = [self.path, self.upper_path] if self.kind == "file" else []
+        rates = [self.source_fps or native_frame_rate(f) for f in files if f]
+        if any(rate and kernel_width(rate, FPS) > 1.0 for rate in rates):
+            payload["read"] = ANTI_ALIASED
         return hashlib.sha256(json.dumps(payload, sort_keys=True, default=str).encode()).hexdigest()[:16]
 
 

@@ -498,3 +498,16 @@ def test_a_node_cycle_is_refused(tmp_path, walk):
     gl.save_binary(str(path))
     with pytest.raises(MotionError, match="cycle"):
         load_motion(path)
+
+
+def test_a_glb_keyed_at_120_fps_is_filtered_down_as_its_bvh_is(tmp_path, walk):
+    """A 120 fps capture baked to keys reads as the same capture in a BVH: low-pass filtered to 30
+    fps (motion/resample.py), not every fourth key."""
+    fast = Motion(walk.local_rotations, walk.root_translation, 120.0)  # the walk played 4 x faster
+    bvh = tmp_path / "fast.bvh"
+    write_canonical_bvh(bvh, fast)
+    write_character(tmp_path / "fast.glb", {"Fast": fast})
+    from_bvh, from_glb = load_motion(bvh), load_motion(tmp_path / "fast.glb")
+    assert_same_motion(from_glb, from_bvh, tol_m=2e-3)
+    decimated = Motion(fast.local_rotations[::4], fast.root_translation[::4], 30.0)
+    assert np.abs(from_glb.joint_positions - decimated.joint_positions[: from_glb.num_frames]).max() > 5e-3

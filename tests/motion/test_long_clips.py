@@ -44,12 +44,18 @@ def test_features_in_passes_equal_one_pass(monkeypatch, clip):
     np.testing.assert_array_equal(passes, whole)
 
 
-def test_resampling_in_passes_equals_one_pass(monkeypatch, clip):
+@pytest.mark.parametrize("width", [1.0, 4.0])  # interpolated, and low-pass filtered (120 -> 30 fps)
+def test_resampling_in_passes_equals_one_pass(monkeypatch, clip, width):
     frames = resample.resample_times(clip.num_frames, 120.0, 30.0)
     rot = clip.local_rotations.astype(np.float64)
-    whole, passes = one_pass_and_in_passes(monkeypatch, lambda: resample.resample_rotations(rot, frames))
+    whole, passes = one_pass_and_in_passes(
+        monkeypatch, lambda: resample.resample_rotations(rot, frames, width)
+    )
     np.testing.assert_array_equal(passes, whole)
     assert passes.dtype == np.float64 and len(passes) == len(frames)
+    root = clip.root_translation
+    whole, passes = one_pass_and_in_passes(monkeypatch, lambda: resample.resample_linear(root, frames, width))
+    np.testing.assert_array_equal(passes, whole)
 
 
 @pytest.mark.parametrize("fmt", ["native", "amass"])

@@ -64,7 +64,10 @@ def test_bvh_variants_give_identical_features(tmp_path, rng):
     assert np.abs(fa - motion_features(motion)).max() <= 1e-4  # and equal to the original motion
 
 
-def test_bvh_resampling_120fps_matches_every_fourth_frame(tmp_path):
+def test_bvh_resampling_120fps_is_every_fourth_frame_low_pass_filtered(tmp_path):
+    from hrr_garment.motion.motion import Motion
+    from hrr_garment.motion.resample import resample_linear, resample_rotations, resample_times
+
     fast = synthesize("walk", seconds=2.0, seed=3)
     # Upsample by writing every frame 4 times slower is not possible; instead treat the clip as 120 fps.
     path = tmp_path / "fast.bvh"
@@ -79,7 +82,16 @@ def test_bvh_resampling_120fps_matches_every_fourth_frame(tmp_path):
     )
     slow = load_motion(path, ground=False)
     assert slow.num_frames == (fast.num_frames - 1) // 4 + 1
-    np.testing.assert_allclose(slow.joint_positions, fast.joint_positions[::4], atol=1e-5)
+    # every fourth frame, each averaged over the 120 fps frames within one 30 fps frame of it (the
+    # anti-alias filter: motion/resample.py), not the bare fourth frames
+    frames = resample_times(fast.num_frames, 120.0, 30.0)
+    filtered = Motion(
+        resample_rotations(fast.local_rotations.astype(np.float64), frames, 4.0),
+        resample_linear(fast.root_translation.astype(np.float64), frames, 4.0),
+        30.0,
+    )
+    np.testing.assert_allclose(slow.joint_positions, filtered.joint_positions, atol=1e-4)
+    assert np.abs(slow.joint_positions - fast.joint_positions[::4]).max() > 1e-3  # it did filter
 
 
 def test_resampling_slerps_between_frames(tmp_path):
