@@ -7,9 +7,10 @@ and capture pipeline) than it trained on, beside a model trained on that source.
 
 Each ``--other-source`` names a dataset of the same garment whose motion comes from other sources
 (its record of them: :mod:`hrr_garment.motion.licences`) and, optionally, the model trained on it
-(the reference, which has seen its source). The protocol takes the dataset's test split
-(``--sequences N`` of it, evenly spaced), leaves out any clip the model itself trained on (a take
-shared by both libraries), simulates each clip's truth ensemble and runs the model's default mode
+(the reference, which has seen its source). The protocol takes the captured clips of the
+dataset's test split (procedural clips, the same generator on both sides, left out), leaves out
+any clip the model itself trained on (a take shared by both libraries), keeps ``--sequences N`` of
+the rest (evenly spaced), simulates each clip's truth ensemble and runs the model's default mode
 (``auto``) and the reference's on the same clips: PVE / floor pooled and per clip, its worst clip,
 the plausibility columns of :mod:`.unseen_bodies`, the model's ratio over the reference's and
 (filled in by hrr-eval where the run also scored the model's own test split) over its own split's:
@@ -29,7 +30,7 @@ from ..inference.modes import Mode
 from ..motion.licences import licences_of
 from .evaluate import EvaluationSettings, evaluate_modes
 from .protocols import truth_ensembles_of
-from .unseen_bodies import scores_row, test_records
+from .unseen_bodies import evenly, scores_row, test_records
 
 
 @dataclass(frozen=True)
@@ -78,11 +79,15 @@ def cross_source_section(
     mine = sorted(animator.bundle.manifest.licences.sequences)
     out = {}
     for item in items:
-        ds, records = test_records(item.dataset, animator, sequences)
-        shared = [r.name for r in records if mirror_source(r.name) in seen]
-        records = [r for r in records if r.name not in shared]
+        ds, records = test_records(item.dataset, animator, None)
+        captured = [r for r in records if r.info.get("kind") == "file"]  # procedural: the same on both sides
+        shared = [r.name for r in captured if mirror_source(r.name) in seen]
+        kept = {n: r for r in captured if (n := r.name) not in shared}
+        records = [kept[n] for n in evenly(list(kept), sequences)]
         if not records:
-            raise InputError(item.dataset, "every test clip of it is one the model trained on")
+            raise InputError(
+                item.dataset, "has no test clip of captured motion that the model did not train on"
+            )
         theirs = sorted(licences_of([r.name for r in records], ds.info).sequences)
         ensembles = truth_ensembles_of(
             ds, records, settings.members, jobs=settings.jobs, progress=settings.progress
