@@ -74,10 +74,10 @@ def run_protocols(job: EvalJob, args) -> dict:
         )
     cross = None
     if args.other_source:
-        from ..eval.cross_source import OtherSource, cross_source_section, with_own_split
+        from ..eval.cross_source import OtherSource, captured_ratio, cross_source_section, with_own_split
 
         auto = job.results.get(Mode.AUTO.value)
-        own = auto.ensemble.get("pve_floor_ratio") if auto is not None and args.split == "test" else None
+        own = captured_ratio(auto, records) if auto is not None and args.split == "test" else None
         items = [OtherSource.parse(t) for t in args.other_source]
         cross = with_own_split(cross_source_section(animator, items, settings, sequences=args.sequences), own)
     library = None

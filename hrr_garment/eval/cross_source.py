@@ -28,7 +28,9 @@ from ..errors import InputError
 from ..inference.animator import Animator
 from ..inference.modes import Mode
 from ..motion.licences import licences_of
+from .ensemble_metrics import ensemble_ratios
 from .evaluate import EvaluationSettings, evaluate_modes
+from .mode_results import combine
 from .protocols import truth_ensembles_of
 from .unseen_bodies import evenly, scores_row, test_records
 
@@ -113,9 +115,21 @@ def cross_source_section(
     return out
 
 
+def captured_ratio(result, records) -> float | None:
+    """A mode's pooled PVE / floor over the captured clips among ``records`` (the model's own test
+    split, procedural clips left out as the protocol leaves them out), None without ensembles."""
+    captured = {r.name for r in records if r.info.get("kind") == "file"}
+    rows = [s for s in result.sequences if s.name in captured and s.ensemble]
+    if not rows:
+        return None
+    pooled = combine([s.ensemble for s in rows], [s.frames for s in rows])
+    return ensemble_ratios(pooled).get("pve_floor_ratio")
+
+
 def with_own_split(section: dict, own_ratio: float | None) -> dict:
     """``section`` with each dataset's PVE / floor over the model's own test split's (``own_ratio``,
-    its auto mode's pooled ratio there; None: not scored in this run)."""
+    its auto mode's pooled ratio over that split's captured clips, :func:`captured_ratio`; None:
+    not scored in this run)."""
     for entry in section.values():
         ratio = entry["model"]["pve_floor_ratio"]
         entry["own_split_pve_floor"] = own_ratio

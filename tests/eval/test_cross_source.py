@@ -3,6 +3,9 @@ training clips left out, beside the reference model, pooled and per clip."""
 
 import json
 
+import numpy as np
+import pytest
+
 from hrr_garment.data.dataset import GarmentDataset, write_dataset
 from hrr_garment.motion.licences import SOURCES
 
@@ -53,3 +56,35 @@ def test_a_dataset_of_only_trained_or_procedural_clips_is_refused(trained, tmp_p
     assert main([*args, "--other-source", str(only_trained)]) != 0
     assert "has no test clip of captured motion that the model did not train on" in capsys.readouterr().err
     assert not (out / "report.json").exists()
+
+
+def test_the_own_split_ratio_pools_the_captured_clips_by_frames():
+    from hrr_garment.data.dataset import SequenceRecord
+    from hrr_garment.eval.cross_source import captured_ratio
+    from hrr_garment.eval.mode_results import ModeResult, SequenceResult
+    from hrr_garment.motion.synth import synthesize
+
+    def result(name, frames, pve, floor):
+        return SequenceResult(
+            name,
+            frames,
+            {},
+            np.zeros(frames),
+            np.zeros(frames),
+            np.zeros(frames, bool),
+            ensemble={"pve_members_mm": pve, "floor_mm": floor},
+        )
+
+    motion = synthesize("walk", 1.0)
+    records = [
+        SequenceRecord(n, np.zeros((1, 1, 3)), motion, info={"kind": k})
+        for n, k in (("a", "file"), ("b", "file"), ("walk_000", "walk"))
+    ]
+    auto = ModeResult(
+        "auto",
+        0.0,
+        [result("a", 30, 20.0, 10.0), result("b", 90, 60.0, 20.0), result("walk_000", 50, 1.0, 10.0)],
+    )
+    # (30 * 20 + 90 * 60) / (30 * 10 + 90 * 20): the procedural clip left out
+    assert captured_ratio(auto, records) == pytest.approx(6000 / 2100)
+    assert captured_ratio(ModeResult("auto", 0.0, [result("walk_000", 50, 1.0, 10.0)]), records) is None
