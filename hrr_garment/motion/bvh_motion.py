@@ -5,6 +5,7 @@ stream's rig (:mod:`.stream_rig`) calibrates on."""
 
 from __future__ import annotations
 
+import functools
 from pathlib import Path
 
 import numpy as np
@@ -14,6 +15,7 @@ from .bvh import read_bvh
 from .joint_maps import resolve_joint_map
 from .limits import check_frame_budget
 from .motion import FPS, Motion
+from .reference_frames import leading_reference_frames
 from .resample import kernel_width, resample_linear, resample_rotations, resample_times
 from .retarget import SourceMotion, check_source, retarget, standing_height_from_legs
 from .skeleton import forward_kinematics, rest_positions
@@ -69,6 +71,19 @@ def load_bvh(
     )
 
 
+@functools.lru_cache(maxsize=1024)
+def bvh_reference_frames(path: str, mtime_ns: int = 0) -> int:
+    """How many leading reference frames reading the BVH file at ``path`` drops (``mtime_ns``: the
+    file's, so that an edited file is read again); what a dataset part's key records."""
+    del mtime_ns
+    clip = read_bvh(Path(path))
+    _, mapping = resolve_joint_map(clip.names, path, None)
+    scale = detect_unit_scale(rest_positions(clip.offsets, clip.parents), mapping, Path(path))
+    return leading_reference_frames(
+        clip.local_rotations, clip.local_translations[:, 0] * scale, 1.0 / clip.frame_time
+    )
+
+
 def bvh_source(
     path: Path,
     unit_scale: float | None = None,
@@ -95,10 +110,14 @@ def bvh_source(
         )
     src_fps = source_fps or 1.0 / clip.frame_time
     check_frame_budget(path, clip.num_frames, src_fps, fps_out=fps)
-    frames = resample_times(clip.num_frames, src_fps, fps)
+    # a conversion's T-pose before the motion is no part of it (.reference_frames)
+    start = leading_reference_frames(
+        clip.local_rotations, clip.local_translations[:, 0] * unit_scale, src_fps
+    )
+    frames = resample_times(clip.num_frames - start, src_fps, fps)
     width = kernel_width(src_fps, fps)  # a faster capture low-pass filtered first (.resample)
-    local_rot = resample_rotations(clip.local_rotations, frames, width)
-    local_trans = resample_linear(clip.local_translations, frames, width) * unit_scale
+    local_rot = resample_rotations(clip.local_rotations[start:], frames, width)
+    local_trans = resample_linear(clip.local_translations[start:], frames, width) * unit_scale
     # Non-root translations: position channels hold the joint's parent-relative position.
     g_rot, g_pos = forward_kinematics(local_rot, local_trans[:, 0], local_trans, parents=clip.parents)
     src = SourceMotion(

@@ -33,7 +33,8 @@ from .gltf_file import (
 from .joint_maps import resolve_joint_map
 from .limits import MAX_BVH_JOINTS, check_frame_budget
 from .motion import FPS, Motion
-from .resample import kernel_width, resample_linear, resample_rotations
+from .reference_frames import leading_reference_frames
+from .resample import kernel_width, resample_linear, resample_rotations, resample_times
 from .retarget import SourceMotion, check_source, retarget, standing_height_from_legs
 from .skeleton_doubts import skeleton_doubts, warn_doubts
 
@@ -143,8 +144,11 @@ def gltf_source(
     rest_rot = np.stack([rotation_part(at_rest[j][0][0]) for j in joints])
     g_rot = np.stack([rotation_part(world[j][0]) for j in joints], 1) @ np.swapaxes(rest_rot, -1, -2)
     g_pos = np.stack([world[j][1] for j in joints], 1) * scale
+    # a conversion's T-pose before the motion is no part of it (.reference_frames)
+    start = leading_reference_frames(g_rot, g_pos[:, mapping["pelvis"]], rate if width > 1.0 else options.fps)
+    g_rot, g_pos, sampled = g_rot[start:], g_pos[start:], sampled[start:]
     if width > 1.0:
-        frames = np.minimum((times - sampled[0]) * rate, len(sampled) - 1)
+        frames = resample_times(len(sampled), rate, options.fps)
         g_rot, g_pos = resample_rotations(g_rot, frames, width), resample_linear(g_pos, frames, width)
     src = SourceMotion(
         names,

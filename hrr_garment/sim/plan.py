@@ -15,6 +15,7 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 
 from ..errors import HRRError, InputError, MotionError
+from ..motion.bvh_motion import bvh_reference_frames
 from ..motion.compose import arm_delayed, played_backward, spliced
 from ..motion.edit import retimed
 from ..motion.io import load_motion, native_frame_rate
@@ -27,6 +28,7 @@ from .preset import Preset, mirror_mode, plan_record
 from .sources import clip_group, resolve_motion_entries
 
 ANTI_ALIASED = "anti-aliased"  # the part key's mark of a faster capture read low-pass filtered
+REFERENCE_DROPPED = "reference frames dropped"  # and of a file whose leading T-pose the reader drops
 MIN_CLIP_FRAMES = 15  # half a second: shorter clips are mostly lead-in
 FILE_PIECE_S = 12.0  # longer motion files are simulated in pieces of at most this length
 
@@ -82,6 +84,14 @@ class SequenceSpec:
             clip = played_backward(clip)
         return clip.mirrored() if self.mirrored else clip
 
+    def _read_marks(self, path: str) -> list[str]:
+        """What reading the file does beyond the reader of before 2026-12-03 (module docstring)."""
+        rate = self.source_fps or native_frame_rate(path)
+        marks = [ANTI_ALIASED] if rate and kernel_width(rate, FPS) > 1.0 else []
+        if path.lower().endswith(".bvh") and bvh_reference_frames(path, Path(path).stat().st_mtime_ns):
+            marks.append(REFERENCE_DROPPED)
+        return marks
+
     def key(self, extra: dict) -> str:
         """Content hash of everything that determines the simulated result."""
         # Defaults of fields added later stay out, so earlier sequences keep their keys.
@@ -95,12 +105,12 @@ class SequenceSpec:
             payload["file_sha1"] = hashlib.sha1(Path(self.path).read_bytes()).hexdigest()
         if self.upper_path:
             payload["upper_sha1"] = hashlib.sha1(Path(self.upper_path).read_bytes()).hexdigest()
-        # a file recorded faster than 30 fps has been read low-pass filtered since 2026-12-03
-        # (motion/resample.py): its sequences simulated before are of other motion; others keep their keys
-        files = [self.path, self.upper_path] if self.kind == "file" else []
-        rates = [self.source_fps or native_frame_rate(f) for f in files if f]
-        if any(rate and kernel_width(rate, FPS) > 1.0 for rate in rates):
-            payload["read"] = ANTI_ALIASED
+        # since 2026-12-03 a file recorded faster than 30 fps is read low-pass filtered
+        # (motion/resample.py) and a conversion's leading T-pose is dropped (motion/reference_frames.py):
+        # such a file's sequences simulated before are of other motion; other files keep their keys
+        marks = sorted({m for f in (self.path, self.upper_path) if f for m in self._read_marks(f)})
+        if marks:
+            payload["read"] = marks
         return hashlib.sha256(json.dumps(payload, sort_keys=True, default=str).encode()).hexdigest()[:16]
 
 
