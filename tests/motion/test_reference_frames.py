@@ -14,7 +14,7 @@ FPS = 120.0
 
 
 def _clip() -> Motion:
-    walk = synthesize("walk", 2.0, seed=4)  # played at 120 fps: a brisk but human motion
+    walk = synthesize("walk", 4.0, seed=4)  # played at 120 fps: a brisk but human motion
     return Motion(walk.local_rotations, walk.root_translation, FPS)
 
 
