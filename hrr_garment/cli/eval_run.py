@@ -67,18 +67,19 @@ def run_protocols(job: EvalJob, args) -> dict:
     )
     unseen = None
     if args.unseen_body:
-        from ..eval.unseen_bodies import UnseenBody, unseen_bodies_section
+        from ..eval.unseen_bodies import DatasetAndModel, unseen_bodies_section
 
         unseen = unseen_bodies_section(
-            animator, [UnseenBody.parse(t) for t in args.unseen_body], settings, sequences=args.sequences
+            animator, [DatasetAndModel.parse(t) for t in args.unseen_body], settings, sequences=args.sequences
         )
     cross = None
     if args.other_source:
-        from ..eval.cross_source import OtherSource, captured_ratio, cross_source_section, with_own_split
+        from ..eval.cross_source import captured_ratio, cross_source_section, with_own_split
+        from ..eval.unseen_bodies import DatasetAndModel
 
         auto = job.results.get(Mode.AUTO.value)
         own = captured_ratio(auto, records) if auto is not None and args.split == "test" else None
-        items = [OtherSource.parse(t) for t in args.other_source]
+        items = [DatasetAndModel.parse(t) for t in args.other_source]
         cross = with_own_split(cross_source_section(animator, items, settings, sequences=args.sequences), own)
     library = None
     if args.library:

@@ -19,7 +19,7 @@ the gap between pipelines, on every model.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from pathlib import Path
 
 from ..data.dataset import GarmentDataset
@@ -32,21 +32,7 @@ from .ensemble_metrics import ensemble_ratios
 from .evaluate import EvaluationSettings, evaluate_modes
 from .mode_results import combine
 from .protocols import truth_ensembles_of
-from .unseen_bodies import evenly, scores_row, test_records
-
-
-@dataclass(frozen=True)
-class OtherSource:
-    """One dataset of the protocol and, optionally, the model trained on it (the reference)."""
-
-    dataset: Path
-    reference: Path | None = None
-
-    @classmethod
-    def parse(cls, text: str) -> "OtherSource":
-        """``DATASET`` or ``DATASET=MODEL_DIR``."""
-        dataset, _, reference = text.partition("=")
-        return cls(Path(dataset), Path(reference) if reference else None)
+from .unseen_bodies import DatasetAndModel, beside, evenly, over, scores_row, test_records
 
 
 def trained_clips(animator: Animator) -> set[str]:
@@ -72,7 +58,10 @@ def _scored(animator: Animator, records, settings: EvaluationSettings, ensembles
 
 
 def cross_source_section(
-    animator: Animator, items: list[OtherSource], settings: EvaluationSettings, sequences: int | None = None
+    animator: Animator,
+    items: list[DatasetAndModel],
+    settings: EvaluationSettings,
+    sequences: int | None = None,
 ) -> dict:
     """report.json's ``cross_source``: per dataset, the model's and its reference's scores on its
     test clips (see the module docstring)."""
@@ -103,15 +92,9 @@ def cross_source_section(
             "frames": int(sum(len(r.garment) for r in records)),
             "model": _scored(animator, records, auto, ensembles),
         }
-        if item.reference is not None:
-            reference = Animator.load(item.reference)
-            entry["reference"] = {
-                "folder": str(item.reference),
-                **_scored(reference, records, auto, ensembles),
-            }
-            a, b = entry["model"]["pve_floor_ratio"], entry["reference"]["pve_floor_ratio"]
-            entry["pve_floor_over_reference"] = a / b if a is not None and b else None
-        out[Path(item.dataset).stem] = entry
+        out[Path(item.dataset).stem] = beside(
+            entry, item.model, "reference", lambda other: _scored(other, records, auto, ensembles)
+        )
     return out
 
 
@@ -131,9 +114,8 @@ def with_own_split(section: dict, own_ratio: float | None) -> dict:
     its auto mode's pooled ratio over that split's captured clips, :func:`captured_ratio`; None:
     not scored in this run)."""
     for entry in section.values():
-        ratio = entry["model"]["pve_floor_ratio"]
         entry["own_split_pve_floor"] = own_ratio
-        entry["pve_floor_over_own_split"] = ratio / own_ratio if ratio is not None and own_ratio else None
+        entry["pve_floor_over_own_split"] = over(entry["model"]["pve_floor_ratio"], own_ratio)
     return section
 
 

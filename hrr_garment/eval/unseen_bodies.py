@@ -42,17 +42,18 @@ COLUMNS = (
 
 
 @dataclass(frozen=True)
-class UnseenBody:
-    """One body of the protocol: a dataset simulated on it and, optionally, its specialist model."""
+class DatasetAndModel:
+    """A protocol's dataset and, optionally, the model it is judged beside (an unseen body's
+    specialist, another source's own model)."""
 
     dataset: Path
-    specialist: Path | None = None
+    model: Path | None = None
 
     @classmethod
-    def parse(cls, text: str) -> "UnseenBody":
-        """``DATASET`` or ``DATASET=SPECIALIST_MODEL_DIR``."""
-        dataset, _, specialist = text.partition("=")
-        return cls(Path(dataset), Path(specialist) if specialist else None)
+    def parse(cls, text: str) -> "DatasetAndModel":
+        """``DATASET`` or ``DATASET=MODEL_DIR`` (the command line's form)."""
+        dataset, _, model = text.partition("=")
+        return cls(Path(dataset), Path(model) if model else None)
 
 
 def evenly(names: list[str], count: int | None) -> list[str]:
@@ -81,7 +82,7 @@ def test_records(dataset: Path, animator: Animator, sequences: int | None):
     return ds, [ds.sequence(n) for n in names]
 
 
-def _records(item: UnseenBody, animator: Animator, sequences: int | None):
+def _records(item: DatasetAndModel, animator: Animator, sequences: int | None):
     ds, records = test_records(item.dataset, animator, sequences)
     body_names = {r.body_name for r in records}
     if len(body_names) != 1:
@@ -124,7 +125,10 @@ def scores_row(result) -> dict:
 
 
 def unseen_bodies_section(
-    animator: Animator, bodies: list[UnseenBody], settings: EvaluationSettings, sequences: int | None = None
+    animator: Animator,
+    bodies: list[DatasetAndModel],
+    settings: EvaluationSettings,
+    sequences: int | None = None,
 ) -> dict:
     """report.json's ``unseen_bodies``: per body, the model's and its specialist's scores (see the
     module docstring)."""
@@ -146,16 +150,30 @@ def unseen_bodies_section(
                 evaluate_modes(animator, records, auto, ensembles=ensembles)[Mode.AUTO.value]
             ),
         }
-        if item.specialist is not None:
-            specialist = Animator.load(item.specialist)
-            entry["specialist"] = {
-                "folder": str(item.specialist),
-                **scores_row(evaluate_modes(specialist, records, auto, ensembles=ensembles)[Mode.AUTO.value]),
-            }
-            mine, theirs = entry["model"]["pve_floor_ratio"], entry["specialist"]["pve_floor_ratio"]
-            entry["pve_floor_over_specialist"] = mine / theirs if mine is not None and theirs else None
-        out[Path(item.dataset).stem] = entry
+        out[Path(item.dataset).stem] = beside(
+            entry,
+            item.model,
+            "specialist",
+            lambda other: scores_row(
+                evaluate_modes(other, records, auto, ensembles=ensembles)[Mode.AUTO.value]
+            ),
+        )
     return out
+
+
+def beside(entry: dict, model: Path | None, name: str, score) -> dict:
+    """``entry`` with the model at ``model`` (where given) scored by ``score(animator)`` under
+    ``name`` and ``entry``'s own model's PVE / floor over its (``pve_floor_over_NAME``)."""
+    if model is None:
+        return entry
+    entry[name] = {"folder": str(model), **score(Animator.load(model))}
+    entry[f"pve_floor_over_{name}"] = over(entry["model"]["pve_floor_ratio"], entry[name]["pve_floor_ratio"])
+    return entry
+
+
+def over(mine: float | None, theirs: float | None) -> float | None:
+    """``mine / theirs``, None where either is unknown (or ``theirs`` 0)."""
+    return mine / theirs if mine is not None and theirs else None
 
 
 def markdown_table(section: dict) -> list[str]:
