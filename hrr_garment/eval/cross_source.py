@@ -93,7 +93,7 @@ def cross_source_section(
             "model": _scored(animator, records, auto, ensembles),
         }
         out[Path(item.dataset).stem] = beside(
-            entry, item.model, "reference", lambda other: _scored(other, records, auto, ensembles)
+            entry, item.model, "reference", score=lambda other: _scored(other, records, auto, ensembles)
         )
     return out
 

@@ -154,14 +154,14 @@ def unseen_bodies_section(
             entry,
             item.model,
             "specialist",
-            lambda other: scores_row(
+            score=lambda other: scores_row(
                 evaluate_modes(other, records, auto, ensembles=ensembles)[Mode.AUTO.value]
             ),
         )
     return out
 
 
-def beside(entry: dict, model: Path | None, name: str, score) -> dict:
+def beside(entry: dict, model: Path | None, name: str, *, score) -> dict:
     """``entry`` with the model at ``model`` (where given) scored by ``score(animator)`` under
     ``name`` and ``entry``'s own model's PVE / floor over its (``pve_floor_over_NAME``)."""
     if model is None:
