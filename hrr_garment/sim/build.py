@@ -33,8 +33,9 @@ from .augment import (
 )
 from .build_split import split_finished
 from .executors import EXECUTORS, Execution, batches, run_local, run_ray
+from .motion_sources import spec_sources
 from .parts import PART_VERSION, load_part, part_paths, parts_to_simulate, template_hash
-from .plan import SequenceSpec, spec_sources
+from .plan import SequenceSpec
 from .preset import MIRROR_MODES, mirror_mode
 from .reflection import add_reflected_mirrors
 from .simulator import SimSettings, SimulationExploded, simulate_garment

@@ -19,13 +19,13 @@ from ..motion.bvh_motion import bvh_reference_frames
 from ..motion.compose import arm_delayed, played_backward, spliced
 from ..motion.edit import retimed
 from ..motion.io import load_motion, native_frame_rate
-from ..motion.licences import OWN, PROCEDURAL, SOURCES, entry_source
 from ..motion.motion import FPS, Motion
 from ..motion.resample import kernel_width
 from ..motion.synth import KINDS, synthesize
 from .augment import AUGMENT_PREFIXES, SpliceSettings
+from .motion_sources import file_sources, sourced_entries
 from .preset import Preset, mirror_mode, plan_record
-from .sources import clip_group, resolve_motion_entries
+from .sources import clip_group
 
 ANTI_ALIASED = "anti-aliased"  # the part key's mark of a faster capture read low-pass filtered
 REFERENCE_DROPPED = "reference frames dropped"  # and of a file whose leading T-pose the reader drops
@@ -203,44 +203,6 @@ def _kind_counts(motions: list[str]) -> dict[str, int]:
     return counts
 
 
-def _sourced_entries(preset: Preset, motions: list[str] | None) -> tuple[list[tuple[str, str]], list[str]]:
-    """The motion entries a build reads, each with its source (motion/licences.py): ``--motions``'
-    files where given, else the preset's; and the entries a ``commercial_only`` preset leaves out."""
-    if motions:
-        entries = [(item, entry_source(item)) for item in motions if item not in KINDS]
-    else:
-        entries = [
-            (e, entry_source(e)) if isinstance(e, str) else (e["path"], entry_source(e["path"], e["source"]))
-            for e in preset.motions
-        ]
-    if not preset.commercial_only:
-        return entries, []
-    return [e for e in entries if SOURCES[e[1]].commercial], [
-        e for e, s in entries if not SOURCES[s].commercial
-    ]
-
-
-def file_sources(preset: Preset, motions: list[str] | None = None) -> dict[str, str]:
-    """Every motion file a build reads (``--motions``' files where given, else the preset's), in
-    order, each with the source of the entry that named it first."""
-    entries, _ = _sourced_entries(preset, motions)
-    base = Path(preset.base) if preset.base and not motions else None
-    sources: dict[str, str] = {}
-    for entry, source in entries:
-        for path in resolve_motion_entries([entry], base):
-            sources.setdefault(str(path), source)
-    return sources
-
-
-def spec_sources(spec: SequenceSpec, files: dict[str, str]) -> str:
-    """The source of a sequence's motion: procedural, or its file's (``a+b`` for a splice of files
-    from two sources); a file no entry named is the user's own."""
-    if spec.kind != "file":
-        return PROCEDURAL
-    found = [files.get(spec.path, OWN)] + ([files.get(spec.upper_path, OWN)] if spec.upper_path else [])
-    return "+".join(sorted(set(found)))
-
-
 def _file_pieces(path: str, speed: float, source_fps: float | None) -> list[SequenceSpec]:
     """A motion file as sequences of at most FILE_PIECE_S (a short tail folds into the last)."""
     clip = load_file_motion(path, speed, source_fps)
@@ -277,7 +239,7 @@ def build_options(preset: Preset, specs: list[SequenceSpec], motions: list[str] 
     """The preset's keyword arguments for :class:`~hrr_garment.sim.build.BuildSettings`: splits (by
     clip group when it names one), seed, mirroring, each motion file's source (``motions``: the
     files given instead of the preset's) and the provenance recorded in the file."""
-    _, left_out = _sourced_entries(preset, motions)
+    _, left_out = sourced_entries(preset, motions)
     if left_out:
         print(
             f"{preset.name} builds only from commercially usable motion: left out {', '.join(left_out)} "

@@ -11,7 +11,8 @@ from hrr_garment.errors import InputError
 from hrr_garment.motion.io import save_motion
 from hrr_garment.motion.skeleton import MIRROR_JOINTS
 from hrr_garment.motion.synth import synthesize
-from hrr_garment.sim.plan import build_options, plan_sequences, spec_sources
+from hrr_garment.sim.motion_sources import spec_sources
+from hrr_garment.sim.plan import build_options, plan_sequences
 from hrr_garment.sim.preset import load_preset, plan_record
 from hrr_garment.sim.sources import clip_group, resolve_motion_entries
 
