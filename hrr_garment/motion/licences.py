@@ -140,7 +140,7 @@ def licences_of(names: Iterable[str], info: Mapping) -> MotionLicences:
     ``motion_sources``: sequence -> source, a splice of two sources as ``a+b``; its ``sources``: the
     terms recorded when it was built)."""
     recorded: Mapping[str, str] = info.get("motion_sources") or {}
-    terms = {**{k: MotionSource(**v) for k, v in (info.get("sources") or {}).items()}}
+    terms = {k: MotionSource(**v) for k, v in (info.get("sources") or {}).items()}
     counts: Counter[str] = Counter()
     unrecorded = 0
     for name in names:
