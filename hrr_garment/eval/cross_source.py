@@ -45,6 +45,11 @@ def trained_clips(animator: Animator) -> set[str]:
     return {mirror_source(n) for split in ("train", "val") for n in ds.splits.get(split, [])}
 
 
+def _captured(records: list) -> list:
+    """The records of captured motion (a motion file's sequences), procedural clips left out."""
+    return [r for r in records if r.info.get("kind") == "file"]
+
+
 def _scored(animator: Animator, records, settings: EvaluationSettings, ensembles: dict) -> dict:
     """The auto mode's row over ``records`` and each clip's PVE / floor."""
     result = evaluate_modes(animator, records, settings, ensembles=ensembles)[Mode.AUTO.value]
@@ -71,7 +76,7 @@ def cross_source_section(
     out = {}
     for item in items:
         ds, records = test_records(item.dataset, animator, None)
-        captured = [r for r in records if r.info.get("kind") == "file"]  # procedural: the same on both sides
+        captured = _captured(records)  # procedural clips: the same generator on both sides
         shared = [r.name for r in captured if mirror_source(r.name) in seen]
         kept = {n: r for r in captured if (n := r.name) not in shared}
         records = [kept[n] for n in evenly(list(kept), sequences)]
@@ -101,7 +106,7 @@ def cross_source_section(
 def captured_ratio(result, records) -> float | None:
     """A mode's pooled PVE / floor over the captured clips among ``records`` (the model's own test
     split, procedural clips left out as the protocol leaves them out), None without ensembles."""
-    captured = {r.name for r in records if r.info.get("kind") == "file"}
+    captured = {r.name for r in _captured(records)}
     rows = [s for s in result.sequences if s.name in captured and s.ensemble]
     if not rows:
         return None

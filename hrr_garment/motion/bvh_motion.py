@@ -72,16 +72,16 @@ def load_bvh(
 
 
 @functools.lru_cache(maxsize=1024)
-def bvh_reference_frames(path: str, mtime_ns: int = 0) -> int:
-    """How many leading reference frames reading the BVH file at ``path`` drops (``mtime_ns``: the
-    file's, so that an edited file is read again); what a dataset part's key records."""
+def bvh_reading(path: str, source_fps: float | None = None, mtime_ns: int = 0) -> tuple[float, int]:
+    """(the rate the BVH file at ``path`` is read at: ``source_fps``, else its frame time's; how many
+    leading reference frames reading it drops): what a dataset part's key records of the file, read
+    once (``mtime_ns``: the file's, so that an edited file is read again)."""
     del mtime_ns
     clip = read_bvh(Path(path))
+    rate = source_fps or 1.0 / clip.frame_time
     _, mapping = resolve_joint_map(clip.names, path, None)
     scale = detect_unit_scale(rest_positions(clip.offsets, clip.parents), mapping, Path(path))
-    return leading_reference_frames(
-        clip.local_rotations, clip.local_translations[:, 0] * scale, 1.0 / clip.frame_time
-    )
+    return rate, leading_reference_frames(clip.local_rotations, clip.local_translations[:, 0] * scale, rate)
 
 
 def bvh_source(

@@ -14,7 +14,7 @@ import numpy as np
 
 from ..errors import MotionError
 from .amass import load_amass, save_amass  # noqa: F401  (save_amass: public, hrr_garment.save_amass)
-from .bvh_motion import load_bvh
+from .bvh_motion import bvh_reading, load_bvh
 from .fbx import FBX_SUFFIX, load_fbx
 from .gltf import GltfSettings, load_gltf
 from .gltf_file import GLTF_SUFFIXES
@@ -101,20 +101,12 @@ def resample_motion(motion: Motion, fps: float = FPS, path: str | Path | None = 
 
 
 def native_frame_rate(path: str | Path) -> float | None:
-    """The frame rate a BVH or npz motion file was recorded at (its header's frame time, its rate
-    key), without reading the motion; None for other formats or where the file does not say."""
+    """The frame rate a BVH or npz motion file was recorded at (a BVH's frame time, an npz's rate
+    key); None for other formats or where the file does not say."""
     path = Path(path)
     suffix = path.suffix.lower()
     if suffix == ".bvh":
-        with open(path, encoding="utf-8", errors="replace") as fh:
-            for line in fh:
-                if line.strip().lower().startswith("frame time:"):
-                    try:
-                        frame_time = float(line.split(":", 1)[1])
-                    except ValueError:
-                        return None
-                    return 1.0 / frame_time if frame_time > 0 else None
-        return None
+        return bvh_reading(str(path), None, path.stat().st_mtime_ns)[0]
     if suffix == ".npz":
         data = read_npz(path)
         for key in ("fps", "mocap_framerate", "mocap_frame_rate"):

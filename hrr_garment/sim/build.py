@@ -17,7 +17,7 @@ from typing import Callable
 
 from ..body.mannequin import MANNEQUIN, mannequin_record
 from ..data.dataset import write_dataset
-from ..data.splits import MIRROR_SUFFIX
+from ..data.splits import MIRROR_SUFFIX, mirror_source
 from ..errors import InputError
 from ..garment.dressing import DressedBody
 from ..garment.mesh import GarmentMesh
@@ -290,9 +290,7 @@ def _motion_sources(specs: list[SequenceSpec], records: list, files: dict[str, s
     those sources' terms (``sources``): motion/licences.py; and the summary's account of them. A
     reflected mirror is its source's."""
     by_name = {s.name: spec_sources(s, files) for s in specs}
-    named = {
-        r.name: by_name.get(r.name, by_name.get(r.name.removesuffix(MIRROR_SUFFIX), OWN)) for r in records
-    }
+    named = {r.name: by_name.get(r.name, by_name.get(mirror_source(r.name), OWN)) for r in records}
     used = {part for value in named.values() for part in value.split("+")}
     info = {"motion_sources": named, "sources": {k: SOURCES[k].to_dict() for k in sorted(used)}}
     return info, licences_of(named, info).to_dict()

@@ -15,7 +15,7 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 
 from ..errors import HRRError, InputError, MotionError
-from ..motion.bvh_motion import bvh_reference_frames
+from ..motion.bvh_motion import bvh_reading
 from ..motion.compose import arm_delayed, played_backward, spliced
 from ..motion.edit import retimed
 from ..motion.io import load_motion, native_frame_rate
@@ -86,11 +86,12 @@ class SequenceSpec:
 
     def _read_marks(self, path: str) -> list[str]:
         """What reading the file does beyond the reader of before 2026-12-03 (module docstring)."""
-        rate = self.source_fps or native_frame_rate(path)
+        if path.lower().endswith(".bvh"):  # the file read once for both
+            rate, dropped = bvh_reading(path, self.source_fps, Path(path).stat().st_mtime_ns)
+        else:
+            rate, dropped = self.source_fps or native_frame_rate(path), 0
         marks = [ANTI_ALIASED] if rate and kernel_width(rate, FPS) > 1.0 else []
-        if path.lower().endswith(".bvh") and bvh_reference_frames(path, Path(path).stat().st_mtime_ns):
-            marks.append(REFERENCE_DROPPED)
-        return marks
+        return marks + ([REFERENCE_DROPPED] if dropped else [])
 
     def key(self, extra: dict) -> str:
         """Content hash of everything that determines the simulated result."""

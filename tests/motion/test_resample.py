@@ -10,6 +10,8 @@ from hrr_garment.motion.resample import kernel_width, resample_linear, resample_
 from hrr_garment.motion.rotations import axis_angle_to_matrix
 from hrr_garment.motion.synth import synthesize
 
+from tests.motion.test_gltf import write_canonical_bvh
+
 NATIVE, OUT = 120.0, 30.0
 
 
@@ -44,7 +46,7 @@ def test_a_faster_capture_keeps_its_motion_and_loses_its_noise(kind):
 
 def test_a_30_fps_file_reads_as_before_and_a_faster_one_says_its_rate(tmp_path):
     """Same-rate reading is untouched (no filter), and the rate a file was captured at is read from
-    its header without reading the motion (what a dataset part's key needs)."""
+    it (what a dataset part's key needs)."""
     clip = synthesize("walk", 2.0, seed=0)
     save_motion(clip, tmp_path / "walk.npz")
     again = load_motion(tmp_path / "walk.npz")
@@ -55,5 +57,5 @@ def test_a_30_fps_file_reads_as_before_and_a_faster_one_says_its_rate(tmp_path):
         native_frame_rate(tmp_path / "fast.npz") == 120.0 and native_frame_rate(tmp_path / "walk.npz") == 30.0
     )
     bvh = tmp_path / "x.bvh"
-    bvh.write_text("HIERARCHY\nROOT Hips\n{\n}\nMOTION\nFrames: 2\nFrame Time: 0.008333\n0 0 0\n0 0 0\n")
+    write_canonical_bvh(bvh, fast)
     assert native_frame_rate(bvh) == pytest.approx(120.0, rel=1e-3)
