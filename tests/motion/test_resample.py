@@ -9,7 +9,6 @@ from hrr_garment.motion.motion import Motion
 from hrr_garment.motion.resample import kernel_width, resample_linear, resample_rotations, resample_times
 from hrr_garment.motion.rotations import axis_angle_to_matrix
 from hrr_garment.motion.synth import synthesize
-
 from tests.motion.test_gltf import write_canonical_bvh
 
 NATIVE, OUT = 120.0, 30.0
