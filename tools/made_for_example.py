@@ -7,6 +7,10 @@ body), as OBJ with its attached band as a group. It reproduces issue 45's made-f
         --attached band --preset real-quick -o hrr_work/datasets/hero-dress-real-quick.h5
     python tools/sim_report.py hrr_work/datasets/hero-dress-real-quick.h5
 
+With ``--body character.json`` (``hrr-body fit`` of a rigged character, which keeps its mesh) the
+dress is modelled on that character instead, written as ``dress.obj`` beside nothing else: the
+garment a user brings with their own character (``hrr-make character.glb --garment dress.obj``).
+
 The dress starts as the built-in template made for the body's capsules, then each vertex within
 5 cm of the body's mesh is moved to 12 mm off the mesh (three passes): the mesh's cross-sections
 are not round, so this dress is not the capsules' and part of it lies inside them, as a garment
@@ -35,24 +39,33 @@ def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("-o", "--output", type=Path, required=True, help="folder for hero.json and hero_dress.obj")
     p.add_argument("--vertices", type=int, default=1000)
+    p.add_argument(
+        "--body", type=Path, default=None, help="a fitted character's body.json (with its mesh) to model on"
+    )
     args = p.parse_args()
     args.output.mkdir(parents=True, exist_ok=True)
-    hero = parametric_body(BodyShape(height=0.8, gender=1.0, weight=0.6, muscle=0.6))
-    write_body(args.output / "hero.json", hero)
-    dress = make_garment("dress", args.vertices, body=hero.fitted.body)
-    skin = hero.mesh.vertices
+    if args.body is not None:
+        from hrr_garment.body.body_file import read_body
+
+        record = read_body(args.body)
+        if record.mesh is None:
+            raise SystemExit(f"{args.body}: keeps no mesh (fit a rigged character with hrr-body fit)")
+        body, skin, name = record.body, record.mesh.vertices, "dress.obj"
+    else:
+        hero = parametric_body(BodyShape(height=0.8, gender=1.0, weight=0.6, muscle=0.6))
+        write_body(args.output / "hero.json", hero)
+        body, skin, name = hero.fitted.body, hero.mesh.vertices, "hero_dress.obj"
+    dress = make_garment("dress", args.vertices, body=body)
     tree = cKDTree(skin)
     v = dress.vertices.astype(np.float64)
     for _ in range(3):
         d, i = tree.query(v)
         near = d < ON_BODY_M
         v[near] = skin[i[near]] + (v[near] - skin[i[near]]) / np.maximum(d[near], 1e-9)[:, None] * SKIN_GAP_M
-    write_obj(
-        args.output / "hero_dress.obj", v.astype(np.float32), dress.faces, groups={"band": dress.attached}
-    )
+    write_obj(args.output / name, v.astype(np.float32), dress.faces, groups={"band": dress.attached})
     moved = np.linalg.norm(v - dress.vertices, axis=1)
     print(
-        f"hero.json: {hero.fitted.stature:.2f} m; hero_dress.obj: {len(v)} vertices, "
+        f"{name}: {len(v)} vertices, "
         f"{100 * (moved > 1e-6).mean():.0f} % moved onto the mesh ({1000 * moved.mean():.1f} mm on average)"
     )
 

@@ -124,6 +124,9 @@ class BuildSettings:
     splices: SpliceSettings | None = None
     # motion file -> its source (motion/licences.py; sim.plan.file_sources); files it lacks: the user's own
     file_sources: dict[str, str] | None = None
+    # sequence -> "train", "val" or "test", drawn beforehand over a larger plan (a budget simulates a
+    # subset of a library and keeps the library's held-out clips held out); None: drawn here
+    assigned: dict[str, str] | None = None
 
 
 def build_dataset(

@@ -32,7 +32,14 @@ def split_finished(done: list[str], specs: list[SequenceSpec], o: BuildSettings)
 
 
 def split_sources(done: list[str], specs: list[SequenceSpec], o: BuildSettings) -> dict[str, list[str]]:
-    """:func:`split_finished` over the sources (``done``: the finished sequences, mirrors left out)."""
+    """:func:`split_finished` over the sources (``done``: the finished sequences, mirrors left out);
+    where ``o.assigned`` gives the split, that split (drawn over a whole library of which only some
+    sequences are simulated: hrr-make's budget)."""
+    if o.assigned is not None:
+        unassigned = sorted(set(done) - set(o.assigned))
+        if unassigned:
+            raise ValueError(f"the build's assigned split names no part for {unassigned[:3]}")
+        return {part: sorted(n for n in done if o.assigned[n] == part) for part in ("train", "val", "test")}
     val, test = (o.splits or {}).get("val", 0.1), (o.splits or {}).get("test", 0.1)
     if o.groups:
         split = split_groups({n: o.groups.get(n, n) for n in done}, val, test, seed=o.seed)

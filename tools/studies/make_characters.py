@@ -10,7 +10,9 @@ names them and the inverse bind matrices of the restyled rest pose:
 
 - ``toon``: a short body with a large head and short, thick limbs;
 - ``hero``: tall, broad shoulders and chest, long legs, slim waist;
-- ``stout``: short legs, a wide belly and hips, thick neck.
+- ``stout``: short legs, a wide belly and hips, thick neck;
+- ``plain``: anny's body as it is (a mid-height woman), no restyling: an anny body exported as a
+  skinned GLB (not made unless asked for: ``--styles plain``).
 
     python tools/studies/make_characters.py -o hrr_work/characters
     hrr-body fit hrr_work/characters/toon.glb -o hrr_work/characters/toon.json
@@ -65,7 +67,9 @@ STYLES = {
         bones={"knee": 0.85, "ankle": 0.85, "neck": 0.8},
         girth={"pelvis": 1.15, "spine1": 1.2, "spine2": 1.1, "neck": 1.25, "hip": 1.1},
     ),
+    "plain": Style({"height": 0.5, "weight": 0.5, "gender": 0.2}),
 }
+MADE_BY_DEFAULT = ("toon", "hero", "stout")  # issue 82's three restyled characters
 
 
 def restyled(vertices: np.ndarray, joints: np.ndarray, weights: np.ndarray, style: Style):
@@ -148,7 +152,7 @@ def write_character(path: Path, vertices, faces, joints, weights) -> None:
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("-o", "--out", default="hrr_work/characters", help="folder for the GLB files")
-    p.add_argument("--styles", nargs="*", default=list(STYLES), choices=list(STYLES))
+    p.add_argument("--styles", nargs="*", default=list(MADE_BY_DEFAULT), choices=list(STYLES))
     args = p.parse_args()
     from hrr_garment.body.parametric import BodyShape, anny_rest_mesh
     from hrr_garment.body.skinned_body import anny_weights

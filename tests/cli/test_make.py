@@ -1,0 +1,152 @@
+"""hrr-make end to end on tiny inputs: a body, the tiny preset's five clips, a budget of minutes. It
+writes the model, the ONNX graph, the clips, the preview, the report and make.json; a re-run redoes
+nothing; a run stopped after simulating goes on from its recorded plan (the same dataset, not
+simulated again); a changed garment keeps the body and the motion library and makes the rest again;
+bad input is refused naming the problem."""
+
+import json
+
+import pytest
+
+from hrr_garment.body.body_file import write_body
+from hrr_garment.body.mannequin import mannequin_record
+from hrr_garment.cli import make as make_cli
+from hrr_garment.cli.make_data import own_animations
+from hrr_garment.cli.make_run import MakeRun
+from hrr_garment.motion.synth import synthesize
+from hrr_garment.pipeline.make_budget import BudgetShares
+from hrr_garment.pipeline.make_record import MakeRecord, MakeRequest
+
+pytestmark = [pytest.mark.slow, pytest.mark.sim]
+
+# the costs of tiny stages, so that a budget of a few minutes plans a run of a few minutes
+TINY = BudgetShares(train_fixed_s=10.0, onnx_s=20.0, clip_s=5.0, report_s_per_frame=0.01, min_train_s=10.0)
+BUDGET_S = 150.0
+
+
+def _request(tmp_path, garment="skirt", skip=()) -> MakeRequest:
+    body = tmp_path / "body.json"
+    if not body.exists():
+        write_body(body, mannequin_record())
+    return MakeRequest(
+        character=body,
+        garment=garment,
+        out=tmp_path / "out",
+        budget_s=BUDGET_S,
+        library="tiny",
+        jobs=1,
+        progress=False,
+        skip=skip,
+    )
+
+
+@pytest.fixture(scope="module")
+def made(tmp_path_factory):
+    """One whole run, stopped once after its simulation (a KeyboardInterrupt in training) and run
+    again: what each run recorded."""
+    from hrr_garment.garment.templates import make_garment
+    from hrr_garment.sim.build import warm_up
+    from hrr_garment.sim.preset import load_preset
+    from hrr_garment.sim.simulator import SimSettings
+
+    # the simulator's kernels compiled before the run: a cold compile (minutes) would not fit the budget
+    warm_up(make_garment("skirt", 300), SimSettings.from_dict(load_preset("tiny").sim))
+    tmp_path = tmp_path_factory.mktemp("make")
+    request = _request(tmp_path)
+    monkeypatch = pytest.MonkeyPatch()
+
+    def stopped(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr("hrr_garment.pipeline.train.train_model", stopped)
+    with pytest.raises(KeyboardInterrupt):
+        MakeRun(request, TINY).run()
+    monkeypatch.undo()
+    first = json.loads((request.out / "make.json").read_text())
+    dataset_bytes = (request.out / "dataset.h5").read_bytes()
+    MakeRun(request, TINY).run()
+    return request, first, dataset_bytes
+
+
+def test_a_run_writes_every_output_and_its_record(made):
+    request, _, _ = made
+    out = request.out
+    outputs = out / "outputs"
+    for path in ("body.json", "dataset.h5", "model/bundle.json", "train.yaml", "make.json"):
+        assert (out / path).exists(), path
+    assert (outputs / "body.onnx").exists() and (outputs / "body.tensors.npz").exists()
+    assert (outputs / "preview.png").exists() and (outputs / "report" / "report.json").exists()
+    clips = sorted(outputs.glob("body_*.glb"))
+    assert clips, "no clip exported"
+    summary = json.loads((outputs / "summary.json").read_text())
+    assert summary["pve_over_floor"] > 0 and summary["step_ms"] > 0
+    assert summary["motion_licence"].startswith("may ship commercially")  # procedural motion only
+    record = MakeRecord.open(out)
+    assert list(record.stages) == ["body", "motions", "probe", "simulate", "train", "onnx", "clips", "report"]
+    assert all(entry["seconds"] >= 0 for entry in record.stages.values())
+    plan = record.plan
+    assert set(plan["selection"]) == {"train", "val", "test"} and plan["selection"]["test"]
+    assert plan["budget"]["total_s"] == pytest.approx(BUDGET_S, abs=2.0)
+    assert "hrr-eval --model" in record.stages["report"]["command"]
+
+
+def test_a_stopped_run_goes_on_from_its_plan(made):
+    request, first, dataset_bytes = made
+    assert set(first["stages"]) == {"body", "motions", "probe", "simulate"}  # stopped in training
+    record = MakeRecord.open(request.out)
+    assert record.plan["selection"] == first["plan"]["selection"]  # not planned again
+    for stage in ("probe", "simulate"):
+        assert record.stages[stage] == first["stages"][stage]  # not run again
+    assert (request.out / "dataset.h5").read_bytes() == dataset_bytes
+
+
+def test_a_finished_run_redoes_nothing(made, monkeypatch):
+    request, _, _ = made
+    before = MakeRecord.open(request.out).stages
+
+    def refused(*args, **kwargs):
+        raise AssertionError("a finished stage ran again")
+
+    for name in ("hrr_garment.sim.build.build_dataset", "hrr_garment.pipeline.train.train_model"):
+        monkeypatch.setattr(name, refused)
+    MakeRun(request, TINY).run()
+    assert MakeRecord.open(request.out).stages == before
+
+
+def test_a_new_garment_keeps_the_body_and_the_motion(made, tmp_path):
+    request, _, _ = made
+    import shutil
+
+    shutil.copytree(request.out, tmp_path / "out")
+    (tmp_path / "body.json").write_bytes(request.character.read_bytes())
+    before = MakeRecord.open(tmp_path / "out").stages
+    again = _request(tmp_path, garment="dress", skip=("onnx", "clips", "report"))
+    MakeRun(again, TINY).run()
+    after = MakeRecord.open(tmp_path / "out").stages
+    assert after["body"] == before["body"] and after["motions"] == before["motions"]
+    for stage in ("probe", "simulate", "train"):
+        assert after[stage]["key"] != before[stage]["key"]
+    assert not {"onnx", "clips", "report"} & set(after)  # the old garment's outputs are gone
+    assert not (tmp_path / "out" / "outputs" / "body.onnx").exists()
+
+
+def test_bad_requests_are_refused(tmp_path, capsys):
+    body = tmp_path / "body.json"
+    write_body(body, mannequin_record())
+    out = str(tmp_path / "out")
+    assert make_cli.main([str(body), "--garment", "cape", "-o", out]) == 2
+    assert "neither an OBJ nor a built-in garment" in capsys.readouterr().err
+    assert make_cli.main([str(body), "--garment", "skirt", "-o", out, "--budget", "soon"]) == 2
+    assert "not a budget" in capsys.readouterr().err
+    assert make_cli.main([str(tmp_path / "missing.glb"), "--garment", "skirt", "-o", out]) == 2
+    assert "missing.glb: no such file" in capsys.readouterr().err
+
+
+def test_a_characters_own_animations_become_clips(tmp_path):
+    from tests.motion.test_gltf import write_character
+
+    glb = tmp_path / "hero.glb"
+    write_character(glb, {"Walk": synthesize("walk", 3.0, seed=1), "Wave": synthesize("idle", 1.0, seed=2)})
+    run = MakeRun(_request(tmp_path), TINY)
+    assert own_animations(glb, run.out / "motions" / "own") == ["Walk"]  # the other, 1 s, is a pose
+    assert [p.name for p in run.own_motions] == ["own_Walk.npz"]  # never a library sequence's name

@@ -1,0 +1,83 @@
+"""hrr-make's plan (hrr_garment.pipeline.make_budget): the stages' estimates add up to the budget, the
+simulation gets its share at the measured rate, a budget too small is refused, budgets parse."""
+
+import pytest
+
+from hrr_garment.pipeline.make_budget import (
+    BudgetShares,
+    BudgetTooSmall,
+    MeasuredStart,
+    parse_budget,
+    plan_budget,
+    take_prefix,
+)
+
+START = MeasuredStart({"body": 5.0, "motions": 20.0, "probe": 120.0}, sim_frames_per_s=40.0)
+
+
+def test_the_estimates_fill_the_budget():
+    shares = BudgetShares()
+    plan = plan_budget(3600, START, test_frames=1800, clips=2, shares=shares)
+    assert plan.total_s == pytest.approx(3600, abs=1.0)  # up to a frame's rounding
+    assert list(plan.estimates)[:3] == ["body", "motions", "probe"]  # the spent stages as measured
+    assert plan.estimates["probe"] == 120.0
+    # the simulation's share of what is left buys frames at the measured rate, with their encoding
+    left = 3600 - 145 - plan.estimates["onnx"] - plan.estimates["clips"] - plan.estimates["report"]
+    left -= shares.train_fixed_s
+    assert plan.sim_frames * (1 / 40 + shares.train_s_per_frame) == pytest.approx(
+        shares.simulate * left, abs=1
+    )
+    assert plan.autoencoder_minutes / (plan.autoencoder_minutes + plan.codespace_minutes) == pytest.approx(
+        shares.autoencoder, abs=0.01
+    )
+
+
+def test_a_faster_simulator_buys_more_frames_and_the_same_training():
+    slow = plan_budget(3600, START, test_frames=0, clips=1, shares=BudgetShares())
+    fast = plan_budget(3600, MeasuredStart(START.spent, 80.0), test_frames=0, clips=1, shares=BudgetShares())
+    assert fast.sim_frames > 1.5 * slow.sim_frames
+    assert fast.autoencoder_minutes == slow.autoencoder_minutes
+
+
+def test_the_probes_frames_are_data_already_paid_for():
+    """The probe's frames are in the data and their time is spent: the plan simulates only the rest
+    and still fills the budget."""
+    fresh = plan_budget(3600, START, test_frames=0, clips=1, shares=BudgetShares())
+    probed = MeasuredStart(START.spent, START.sim_frames_per_s, simulated_frames=1000)
+    kept = plan_budget(3600, probed, test_frames=0, clips=1, shares=BudgetShares())
+    assert kept.sim_frames > fresh.sim_frames  # the probe's 1,000 frames beside what the share buys
+    assert kept.estimates["simulate"] < fresh.estimates["simulate"]
+    assert kept.total_s == pytest.approx(3600, abs=1.0)
+
+
+def test_the_report_is_paid_for():
+    plain = plan_budget(3600, START, test_frames=0, clips=1, shares=BudgetShares())
+    reported = plan_budget(3600, START, test_frames=4000, clips=1, shares=BudgetShares())
+    assert reported.estimates["report"] == pytest.approx(4000 * (4 / 40 + 0.01))
+    assert reported.sim_frames < plain.sim_frames
+
+
+def test_a_budget_under_the_fixed_costs_is_refused():
+    with pytest.raises(BudgetTooSmall, match="give a larger --budget"):
+        plan_budget(600, START, test_frames=1800, clips=2, shares=BudgetShares())
+
+
+@pytest.mark.parametrize(
+    ("text", "seconds"), [("60m", 3600), ("2h", 7200), ("1h30m", 5400), ("90", 5400), ("0.5h", 1800)]
+)
+def test_budgets_parse(text, seconds):
+    assert parse_budget(text) == seconds
+
+
+@pytest.mark.parametrize("text", ["", "soon", "0m", "-5m", "1d"])
+def test_bad_budgets_are_refused(text):
+    with pytest.raises(ValueError):
+        parse_budget(text)
+
+
+def test_a_prefix_reaches_its_frames():
+    frames = {"a": 100, "b": 50, "c": 80}
+    assert take_prefix(["a", "b", "c"], frames, 120) == ["a", "b"]
+    assert take_prefix(["a", "b", "c"], frames, 100) == ["a"]
+    assert take_prefix(["a", "b", "c"], frames, 0, at_least=2) == ["a", "b"]
+    assert take_prefix(["a", "b", "c"], frames, 10_000) == ["a", "b", "c"]
