@@ -18,6 +18,8 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass
 
+from ..train.loop import ENDLESS_EPOCHS
+
 OUTPUT_STAGES = ("onnx", "clips", "report")  # the stages after training, each of which may be skipped
 
 
@@ -140,12 +142,12 @@ def train_config(plan: dict, device: str | None = None) -> dict:
     """The training settings a plan (:meth:`BudgetPlan.to_dict`) adds to its preset's: each stage for
     its minutes (epochs unbounded: the minutes end it, the cosine schedule spans them); on a CUDA
     ``device`` the autoencoder there, as ``hrr-train --device`` puts it."""
-    autoencoder = {"epochs": 10_000, "max_minutes": plan["autoencoder_minutes"]}
+    autoencoder = {"epochs": ENDLESS_EPOCHS, "max_minutes": plan["autoencoder_minutes"]}
     if (device or "").startswith("cuda"):
         autoencoder["device"] = device.split(":")[0]
     return {
         "autoencoder": {"train": autoencoder},
-        "codespace": {"train": {"epochs": 10_000, "max_minutes": plan["codespace_minutes"]}},
+        "codespace": {"train": {"epochs": ENDLESS_EPOCHS, "max_minutes": plan["codespace_minutes"]}},
     }
 
 

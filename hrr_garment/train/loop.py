@@ -26,6 +26,8 @@ from tqdm.auto import tqdm
 
 from .schedule import run_progress, stop_reason
 
+ENDLESS_EPOCHS = 10_000  # a budget of this many epochs or more is one its minutes end
+
 
 @dataclass(frozen=True)
 class Budget:
@@ -126,24 +128,33 @@ class Callback:
 
 class ProgressBar(Callback):
     """A tqdm bar of the run's epochs (``desc``; none unless ``shown``) with the epoch's numbers and,
-    where ``best`` is a format, the best score so far."""
+    where ``best`` is a format, the best score so far. A run of :data:`ENDLESS_EPOCHS` that its
+    minutes end (hrr-make trains for minutes) counts its minutes instead."""
 
     def __init__(self, desc: str, shown: bool, best: str | None = None):
         self.desc, self.shown, self.best = desc, shown, best
 
     def on_fit_start(self, run: TrainingRun) -> None:
+        budget = run.budget
+        self.by_time = budget.max_minutes is not None and budget.epochs >= ENDLESS_EPOCHS
         self.bar = tqdm(
-            total=run.budget.epochs,
-            initial=run.state["epoch"],
+            total=budget.max_minutes if self.by_time else budget.epochs,
+            initial=run.state["elapsed_s"] / 60 if self.by_time else run.state["epoch"],
             desc=self.desc,
-            unit="epoch",
+            unit="min" if self.by_time else "epoch",
             disable=not self.shown,
+            bar_format="{l_bar}{bar}| {n:.1f}/{total:.1f} min [{elapsed}{postfix}]" if self.by_time else None,
         )
 
     def on_epoch_end(self, run: TrainingRun, epoch: Epoch) -> None:
         best = {"best": self.best.format(run.state["best"])} if self.best else {}
-        self.bar.set_postfix(**epoch.postfix, **best)
-        self.bar.update(1)
+        self.bar.set_postfix(
+            **epoch.postfix, **best, **({"epoch": run.state["epoch"]} if self.by_time else {})
+        )
+        if self.by_time:
+            self.bar.update(min(run.elapsed_s / 60, self.bar.total) - self.bar.n)
+        else:
+            self.bar.update(1)
 
     def on_fit_end(self, run: TrainingRun) -> None:
         self.bar.close()
