@@ -12,9 +12,12 @@ dress is modelled on that character instead, written as ``dress.obj`` beside not
 garment a user brings with their own character (``hrr-make character.glb --garment dress.obj``).
 
 The dress starts as the built-in template made for the body's capsules, then each vertex within
-5 cm of the body's mesh is moved to 12 mm off the mesh (three passes): the mesh's cross-sections
-are not round, so this dress is not the capsules' and part of it lies inside them, as a garment
-modelled on a real character would. Needs the bodies extra.
+5 cm of the body's mesh is moved to 12 mm off the mesh's nearest vertex (three passes): the mesh's
+cross-sections are not round, so this dress is not the capsules' and part of it lies inside them,
+as a garment modelled on a real character would. Needs the bodies extra. On a character's body
+(``--body``) each vertex is moved off the mesh's *surface* instead and the dress kept left-right
+symmetric (:func:`off_surface`): off the nearest vertex of a coarse mesh the cloth stays inside the
+surface between vertices, lopsided.
 """
 
 from __future__ import annotations
@@ -28,8 +31,49 @@ SKIN_GAP_M = 0.012  # the dress's distance from the mesh where it lies on the bo
 ON_BODY_M = 0.05  # vertices nearer the mesh than this lie on it; the rest hangs free
 
 
-def main() -> None:
+def off_nearest_vertex(vertices: np.ndarray, skin: np.ndarray) -> np.ndarray:
+    """Each dress vertex within 5 cm of a skin vertex moved to 12 mm off that vertex (three passes):
+    issue 45's dress. On a coarse mesh it leaves cloth inside the surface between the vertices."""
     from scipy.spatial import cKDTree
+
+    tree = cKDTree(skin)
+    v = vertices.astype(np.float64)
+    for _ in range(3):
+        d, i = tree.query(v)
+        near = d < ON_BODY_M
+        v[near] = skin[i[near]] + (v[near] - skin[i[near]]) / np.maximum(d[near], 1e-9)[:, None] * SKIN_GAP_M
+    return v
+
+
+def off_surface(vertices: np.ndarray, skin: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Each dress vertex inside the skin or within 5 cm of its surface moved to 12 mm off the surface
+    along the line from its nearest surface point (three passes), then made left-right symmetric (the
+    template on a fitted body's capsules is symmetric only as far as the fit is: each vertex is paired
+    with the one nearest its reflection)."""
+    from scipy.spatial import cKDTree
+
+    from hrr_garment.body.mesh_distance import nearest_on_mesh
+    from hrr_garment.body.mesh_inside import mesh_inside
+    from hrr_garment.garment.mesh import mirror_map
+
+    v = vertices.astype(np.float64)
+    for _ in range(3):
+        distance, face, bary = nearest_on_mesh(v, skin, faces, candidates=16)
+        surface = np.einsum("nk,nkc->nc", bary, skin[faces[face]])
+        inside = mesh_inside(v, skin, faces)
+        away = (v - surface) / np.maximum(distance, 1e-9)[:, None] * np.where(inside, -1.0, 1.0)[:, None]
+        near = inside | (distance < ON_BODY_M)
+        v[near] = surface[near] + away[near] * SKIN_GAP_M
+    flip = np.array([-1.0, 1.0, 1.0])
+    mirror = mirror_map(vertices)
+    if mirror is None:
+        gap, mirror = cKDTree(vertices).query(vertices * flip)
+        paired = np.array_equal(mirror[mirror], np.arange(len(mirror))) and gap.max() < 0.02
+        mirror = mirror if paired else None
+    return v if mirror is None else 0.5 * (v + v[mirror] * flip)
+
+
+def main() -> None:
 
     from hrr_garment.body.body_file import write_body
     from hrr_garment.body.parametric import BodyShape, parametric_body
@@ -50,18 +94,16 @@ def main() -> None:
         record = read_body(args.body)
         if record.mesh is None:
             raise SystemExit(f"{args.body}: keeps no mesh (fit a rigged character with hrr-body fit)")
-        body, skin, name = record.body, record.mesh.vertices, "dress.obj"
+        body, skin, faces, name = record.body, record.mesh.vertices, record.mesh.faces, "dress.obj"
     else:
         hero = parametric_body(BodyShape(height=0.8, gender=1.0, weight=0.6, muscle=0.6))
         write_body(args.output / "hero.json", hero)
-        body, skin, name = hero.fitted.body, hero.mesh.vertices, "hero_dress.obj"
+        body, skin, faces, name = hero.fitted.body, hero.mesh.vertices, hero.mesh.faces, "hero_dress.obj"
     dress = make_garment("dress", args.vertices, body=body)
-    tree = cKDTree(skin)
-    v = dress.vertices.astype(np.float64)
-    for _ in range(3):
-        d, i = tree.query(v)
-        near = d < ON_BODY_M
-        v[near] = skin[i[near]] + (v[near] - skin[i[near]]) / np.maximum(d[near], 1e-9)[:, None] * SKIN_GAP_M
+    if args.body is not None:
+        v = off_surface(dress.vertices, skin, faces)
+    else:  # issue 45's measurement, as it was made
+        v = off_nearest_vertex(dress.vertices, skin)
     write_obj(args.output / name, v.astype(np.float32), dress.faces, groups={"band": dress.attached})
     moved = np.linalg.norm(v - dress.vertices, axis=1)
     print(
