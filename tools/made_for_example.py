@@ -111,7 +111,6 @@ def main() -> None:
     from hrr_garment.body.parametric import BodyShape, parametric_body
     from hrr_garment.garment.obj import write_obj
     from hrr_garment.garment.templates import make_garment
-    from hrr_garment.motion.skeleton import JOINT_INDEX
 
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("-o", "--output", type=Path, required=True, help="folder for hero.json and hero_dress.obj")
@@ -128,8 +127,6 @@ def main() -> None:
         if record.mesh is None:
             raise SystemExit(f"{args.body}: keeps no mesh (fit a rigged character with hrr-body fit)")
         body, skin, faces, name = record.body, record.mesh.vertices, record.mesh.faces, "dress.obj"
-        arms = [JOINT_INDEX[f"{side}_{j}"] for side in "lr" for j in ("shoulder", "elbow", "wrist")]
-        free = record.mesh.weights[:, arms].sum(1) > 0.5
     else:
         hero = parametric_body(BodyShape(height=0.8, gender=1.0, weight=0.6, muscle=0.6))
         write_body(args.output / "hero.json", hero)
