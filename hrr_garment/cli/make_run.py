@@ -21,6 +21,7 @@ from ..pipeline.make_budget import (
     plan_budget,
     take_prefix,
     train_config,
+    training_minutes,
 )
 from ..pipeline.make_library import (
     DESCRIPTORS_NAME,
@@ -265,8 +266,20 @@ class MakeRun:
         from ..pipeline.train import train_model
         from ..pipeline.train_settings import TrainSettings
 
-        budget = self.record.plan["budget"]
-        config = train_config(budget, self.request.device)
+        plan = self.record.plan
+        if plan.get("training", {}).get("simulate_key") != self.keys["simulate"]:  # decided once, kept
+            minutes = training_minutes(plan["budget"], self.progress.elapsed(), self.shares)
+            plan["training"] = {"simulate_key": self.keys["simulate"], **minutes}
+            self.record.write()
+            if self.request.progress:
+                print(
+                    f"hrr-make: training for what the budget has left: the autoencoder "
+                    f"{minutes['autoencoder_minutes']:.1f} min, the code space "
+                    f"{minutes['codespace_minutes']:.1f} min "
+                    f"(planned {plan['budget']['autoencoder_minutes']:.1f} and "
+                    f"{plan['budget']['codespace_minutes']:.1f})"
+                )
+        config = train_config(plan["training"], self.request.device)
         config_path = self.out / "train.yaml"
         text = "# hrr-make's training budget (the preset's settings, trained for these minutes)\n"
         config_path.write_text(text + yaml.safe_dump(config, sort_keys=True), encoding="utf-8")

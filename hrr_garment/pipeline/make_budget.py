@@ -47,10 +47,11 @@ class BudgetShares:
     train_s_per_frame: float = 0.004
     # training's fixed cost: the code space's contact phase, the gate's and auto mode's calibration
     train_fixed_s: float = 240.0
-    # the ONNX graph for the character's body (exported and checked once)
-    onnx_s: float = 120.0
-    # each of the character's clips: animated, exported with the character, and the preview
-    clip_s: float = 30.0
+    # the ONNX graph for the character's body (72 s for a 1,028-vertex dress on a 615-vertex body)
+    onnx_s: float = 90.0
+    # each of the character's clips: animated, exported with the character, and the preview (4 s each
+    # for 4 to 12 s clips)
+    clip_s: float = 10.0
     # the report's inference over the held-out frames, besides simulating their truth ensembles
     report_s_per_frame: float = 0.01
     # the least training a budget may leave, both stages together: less learns nothing worth shipping
@@ -136,6 +137,19 @@ def plan_budget(
         **outputs,
     }
     return BudgetPlan(float(budget_s), frames, round(ae_min, 2), round(cs_min, 2), estimates)
+
+
+def training_minutes(plan: dict, elapsed_s: float, shares: BudgetShares) -> dict:
+    """The training's minutes once the simulation has ended (``plan``: :meth:`BudgetPlan.to_dict`,
+    ``elapsed_s``: the run's time so far): what the budget has left after the outputs' estimates and
+    the training's fixed part, in the autoencoder's share, at least ``shares.min_train_s`` in all. A
+    simulation quicker than its estimate (the probe's clips are not the plan's) gives its time to
+    training, a slower one takes it, so that the run ends near its budget."""
+    after = sum(plan["estimates"].get(stage, 0.0) for stage in OUTPUT_STAGES)
+    encoding = plan["sim_frames"] * shares.train_s_per_frame
+    train_s = max(plan["budget_s"] - elapsed_s - after - shares.train_fixed_s - encoding, shares.min_train_s)
+    autoencoder = round(shares.autoencoder * train_s / 60, 2)
+    return {"autoencoder_minutes": autoencoder, "codespace_minutes": round(train_s / 60 - autoencoder, 2)}
 
 
 def train_config(plan: dict, device: str | None = None) -> dict:

@@ -10,6 +10,7 @@ from hrr_garment.pipeline.make_budget import (
     parse_budget,
     plan_budget,
     take_prefix,
+    training_minutes,
 )
 
 START = MeasuredStart({"body": 5.0, "motions": 20.0, "probe": 120.0}, sim_frames_per_s=40.0)
@@ -48,6 +49,21 @@ def test_the_probes_frames_are_data_already_paid_for():
     assert kept.sim_frames > fresh.sim_frames  # the probe's 1,000 frames beside what the share buys
     assert kept.estimates["simulate"] < fresh.estimates["simulate"]
     assert kept.total_s == pytest.approx(3600, abs=1.0)
+
+
+def test_training_takes_what_the_simulation_left():
+    """After the simulation, training gets what the budget has left: more when the simulation was
+    quicker than planned, less when slower, never under the least, in the autoencoder's share."""
+    shares = BudgetShares()
+    plan = plan_budget(3600, START, test_frames=1800, clips=2, shares=shares).to_dict()
+    simulated_at = sum(plan["estimates"][s] for s in ("body", "motions", "probe", "simulate"))
+    on_time = training_minutes(plan, simulated_at, shares)
+    assert on_time["autoencoder_minutes"] == pytest.approx(plan["autoencoder_minutes"], abs=0.02)
+    assert on_time["codespace_minutes"] == pytest.approx(plan["codespace_minutes"], abs=0.02)
+    early = training_minutes(plan, simulated_at - 300, shares)
+    assert sum(early.values()) == pytest.approx(sum(on_time.values()) + 5, abs=0.02)
+    late = training_minutes(plan, 3600, shares)
+    assert sum(late.values()) == pytest.approx(shares.min_train_s / 60, abs=0.02)
 
 
 def test_the_report_is_paid_for():
