@@ -80,11 +80,12 @@ def skinned_character(path: str | Path, **read) -> SkinnedCharacter:
 
 def top_influences(weights: np.ndarray, count: int = INFLUENCES) -> tuple[np.ndarray, np.ndarray]:
     """(V, count) joint indices (uint16) and weights (float32, summing to 1) of each vertex's
-    ``count`` heaviest joints."""
+    ``count`` heaviest joints; a slot of weight 0 names joint 0, as glTF asks (its validator warns
+    of a zero weight on any other joint)."""
     order = np.argsort(-weights, axis=1, kind="stable")[:, :count]
     kept = np.take_along_axis(weights, order, 1)
-    kept = kept / np.maximum(kept.sum(1, keepdims=True), 1e-12)
-    return order.astype(np.uint16), kept.astype(np.float32)
+    kept = (kept / np.maximum(kept.sum(1, keepdims=True), 1e-12)).astype(np.float32)
+    return np.where(kept > 0, order, 0).astype(np.uint16), kept
 
 
 def check_played_on(anim: AnimationFile, character: SkinnedCharacter) -> None:

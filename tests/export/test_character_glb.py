@@ -184,3 +184,18 @@ def test_an_animation_on_another_body_or_without_a_skeleton_is_refused(
     assert "carries no skeleton motion" in capsys.readouterr().err
     assert export_main([str(out_h5), "-o", str(tmp_path / "x.usda"), "--character", str(character_glb)]) != 0
     assert "--character is for glb" in capsys.readouterr().err
+
+
+def test_a_vertex_of_few_influences_names_joint_zero_in_its_empty_slots():
+    """glTF: a joint slot of weight 0 names joint 0 (the validator warns of any other); the kept
+    weights are the heaviest, renormalised."""
+    from hrr_garment.export.character import top_influences
+
+    weights = np.zeros((3, 22))
+    weights[0, [5, 9]] = [0.75, 0.25]
+    weights[1, 3] = 1.0
+    weights[2, [1, 2, 4, 7, 8]] = [0.3, 0.3, 0.2, 0.15, 0.05]
+    joints, kept = top_influences(weights)
+    assert joints[0].tolist() == [5, 9, 0, 0] and kept[0].tolist() == [0.75, 0.25, 0.0, 0.0]
+    assert joints[1].tolist() == [3, 0, 0, 0]
+    assert joints[2].tolist() == [1, 2, 4, 7] and np.isclose(kept[2].sum(), 1.0)
