@@ -74,7 +74,18 @@ def _parser() -> argparse.ArgumentParser:
         help="which library clips the budget takes: coverage (default) or random",
     )
     p.add_argument("--jobs", type=int, default=None, help="simulation workers (default: one per core)")
-    p.add_argument("--device", default=None, help="the simulator's device: cpu, cuda:0 (default: auto)")
+    p.add_argument(
+        "--device",
+        default=None,
+        help="the simulator's device, cpu or cuda:0 (default: auto); on CUDA the autoencoder trains there",
+    )
+    p.add_argument(
+        "--batch",
+        type=int,
+        default=0,
+        metavar="N",
+        help="simulate up to N sequences together in one model (for a GPU, with --device cuda:0)",
+    )
     p.add_argument("--seed", type=int, default=0, help="the random selection's seed")
     p.add_argument(
         "--skip",
@@ -110,6 +121,7 @@ def _main(argv: Sequence[str] | None) -> int:
         selection=args.selection,
         jobs=args.jobs,
         device=args.device,
+        batch=args.batch,
         progress=not args.quiet,
         seed=args.seed,
         skip=tuple(args.skip),

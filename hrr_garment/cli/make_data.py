@@ -159,6 +159,7 @@ def build_chosen(library: MotionLibrary, names: list[str], build: ChosenBuild, *
         options=BuildSettings(
             **options,
             jobs=build.request.jobs,
+            batch=build.request.batch,
             progress=build.request.progress,
             preview=None if probe else write_dataset_preview,
             bodies=choice.bodies,

@@ -60,6 +60,7 @@ class MakeRequest:
     selection: str = "coverage"
     jobs: int | None = None
     device: str | None = None
+    batch: int = 0  # sequences simulated together in one model (a GPU: hrr-simulate --batch)
     progress: bool = True
     seed: int = 0
     skip: tuple[str, ...] = ()  # outputs not to make: any of OUTPUT_STAGES
