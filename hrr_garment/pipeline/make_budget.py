@@ -45,8 +45,12 @@ class BudgetShares:
     ensemble: int = 4
     # per simulated frame: encoding it with the autoencoder and the code space's data and database
     train_s_per_frame: float = 0.004
-    # training's fixed cost: the code space's contact phase, the gate's and auto mode's calibration
-    train_fixed_s: float = 240.0
+    # per validation frame: the auto mode's calibration, 22 candidate modes and 5 swing gains played
+    # over the validation clips with the push-out (about 800 s for 4,240 frames on a character with
+    # its own mesh, 2 cores: the second measured run, which the old fixed 240 s took 13 minutes over)
+    calibration_s_per_val_frame: float = 0.19
+    # training's fixed cost: the code space's contact phase and the gate's calibration
+    train_fixed_s: float = 120.0
     # the ONNX graph for the character's body (72 s for a 1,028-vertex dress on a 615-vertex body)
     onnx_s: float = 90.0
     # each of the character's clips: animated, exported with the character, and the preview (4 s each
@@ -59,6 +63,13 @@ class BudgetShares:
 
     def to_dict(self) -> dict:
         return asdict(self)
+
+    def per_frame_s(self) -> float:
+        """Training's seconds per simulated frame beyond its minutes: encoding it, and calibrating
+        on it where it validates (``validation`` of every ``1 + validation`` frames)."""
+        return self.train_s_per_frame + self.calibration_s_per_val_frame * self.validation / (
+            1 + self.validation
+        )
 
 
 @dataclass(frozen=True)
@@ -114,11 +125,13 @@ def plan_budget(
     }
     outputs = {stage: costs[stage] for stage in outputs}
     left = budget_s - sum(start.spent.values()) - sum(outputs.values()) - shares.train_fixed_s
-    # left = new frames / rate (simulate) + every frame * per_frame (encode) + minutes (train): the
-    # simulation's share of it goes to the frames beyond the probe's and to encoding them all
+    # left = new frames / rate (simulate) + every frame * per_frame (encode, calibrate on its share of
+    # validation) + minutes (train): the simulation's share of it goes to the frames beyond the
+    # probe's and to what every frame costs after training
     sim_s = shares.simulate * left
     already = start.simulated_frames
-    new = int((sim_s - already * shares.train_s_per_frame) / (1.0 / rate + shares.train_s_per_frame))
+    per_frame = shares.per_frame_s()
+    new = int((sim_s - already * per_frame) / (1.0 / rate + per_frame))
     frames = already + max(new, 0)
     train_s = left - sim_s
     if new <= 0 or train_s < shares.min_train_s:
@@ -133,7 +146,7 @@ def plan_budget(
     estimates = {
         **start.spent,
         "simulate": new / rate,
-        "train": train_s + shares.train_fixed_s + frames * shares.train_s_per_frame,
+        "train": train_s + shares.train_fixed_s + frames * per_frame,
         **outputs,
     }
     return BudgetPlan(float(budget_s), frames, round(ae_min, 2), round(cs_min, 2), estimates)
@@ -146,7 +159,7 @@ def training_minutes(plan: dict, elapsed_s: float, shares: BudgetShares) -> dict
     simulation quicker than its estimate (the probe's clips are not the plan's) gives its time to
     training, a slower one takes it, so that the run ends near its budget."""
     after = sum(plan["estimates"].get(stage, 0.0) for stage in OUTPUT_STAGES)
-    encoding = plan["sim_frames"] * shares.train_s_per_frame
+    encoding = plan["sim_frames"] * shares.per_frame_s()
     train_s = max(plan["budget_s"] - elapsed_s - after - shares.train_fixed_s - encoding, shares.min_train_s)
     autoencoder = round(shares.autoencoder * train_s / 60, 2)
     return {"autoencoder_minutes": autoencoder, "codespace_minutes": round(train_s / 60 - autoencoder, 2)}

@@ -25,9 +25,7 @@ def test_the_estimates_fill_the_budget():
     # the simulation's share of what is left buys frames at the measured rate, with their encoding
     left = 3600 - 145 - plan.estimates["onnx"] - plan.estimates["clips"] - plan.estimates["report"]
     left -= shares.train_fixed_s
-    assert plan.sim_frames * (1 / 40 + shares.train_s_per_frame) == pytest.approx(
-        shares.simulate * left, abs=1
-    )
+    assert plan.sim_frames * (1 / 40 + shares.per_frame_s()) == pytest.approx(shares.simulate * left, abs=1)
     assert plan.autoencoder_minutes / (plan.autoencoder_minutes + plan.codespace_minutes) == pytest.approx(
         shares.autoencoder, abs=0.01
     )
@@ -36,7 +34,10 @@ def test_the_estimates_fill_the_budget():
 def test_a_faster_simulator_buys_more_frames_and_the_same_training():
     slow = plan_budget(3600, START, test_frames=0, clips=1, shares=BudgetShares())
     fast = plan_budget(3600, MeasuredStart(START.spent, 80.0), test_frames=0, clips=1, shares=BudgetShares())
-    assert fast.sim_frames > 1.5 * slow.sim_frames
+    per_frame = BudgetShares().per_frame_s()  # what every frame costs after training, whatever the rate
+    assert fast.sim_frames / slow.sim_frames == pytest.approx(
+        (1 / 40 + per_frame) / (1 / 80 + per_frame), rel=1e-3
+    )
     assert fast.autoencoder_minutes == slow.autoencoder_minutes
 
 
