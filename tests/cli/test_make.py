@@ -150,3 +150,16 @@ def test_a_characters_own_animations_become_clips(tmp_path):
     run = MakeRun(_request(tmp_path), TINY)
     assert own_animations(glb, run.out / "motions" / "own") == ["Walk"]  # the other, 1 s, is a pose
     assert [p.name for p in run.own_motions] == ["own_Walk.npz"]  # never a library sequence's name
+
+
+def test_the_body_a_garment_was_modelled_on(tmp_path):
+    """--made-for: a body.json is read as it is; a file of another kind is refused naming it (a body
+    mesh OBJ is fitted with the parametric body, the bodies extra: not run here)."""
+    from hrr_garment.cli.make_data import garment_body
+    from hrr_garment.errors import InputError
+
+    body = tmp_path / "made_for.json"
+    write_body(body, mannequin_record())
+    assert garment_body(body).stature == pytest.approx(mannequin_record().stature)
+    with pytest.raises(InputError, match="a body.json or a body mesh as OBJ"):
+        garment_body(tmp_path / "made_for.fbx")
