@@ -66,21 +66,22 @@ def _showcase(run: MakeRun) -> list[tuple[str, Path]]:
     if run.own_motions:
         return [(p.stem, p) for p in run.own_motions]
     from ..data.dataset import GarmentDataset
+    from ..data.splits import mirror_source
 
-    test = GarmentDataset(run.dataset).splits.get("test", [])
-    chosen = [n for n in test if not n.endswith("_mirror")][:SHOWCASE_CLIPS]
-    return [(name, _motion_file(run, name)) for name in chosen]
+    ds = GarmentDataset(run.dataset)
+    chosen = [n for n in ds.splits.get("test", []) if mirror_source(n) == n][:SHOWCASE_CLIPS]
+    return [(name, _motion_file(run, ds, name)) for name in chosen]
 
 
-def _motion_file(run: MakeRun, name: str) -> Path:
-    """A held-out sequence's motion as a file hrr-animate reads (its piece of the library's clip)."""
-    from ..data.dataset import GarmentDataset
+def _motion_file(run: MakeRun, ds, name: str) -> Path:
+    """A held-out sequence of ``ds`` (the run's dataset) as a motion file hrr-animate reads (its piece
+    of the library's clip)."""
     from ..motion.native_file import save_motion
 
     path = run.out / "motions" / "held_out" / f"{name}.npz"
     if not path.exists():
         path.parent.mkdir(parents=True, exist_ok=True)
-        save_motion(GarmentDataset(run.dataset).sequence(name).motion, path)
+        save_motion(ds.sequence(name).motion, path)
     return path
 
 

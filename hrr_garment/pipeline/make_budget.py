@@ -18,8 +18,6 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass
 
-from ..train.loop import ENDLESS_EPOCHS
-
 OUTPUT_STAGES = ("onnx", "clips", "report")  # the stages after training, each of which may be skipped
 
 
@@ -169,6 +167,8 @@ def train_config(plan: dict, device: str | None = None) -> dict:
     """The training settings a plan (:meth:`BudgetPlan.to_dict`) adds to its preset's: each stage for
     its minutes (epochs unbounded: the minutes end it, the cosine schedule spans them); on a CUDA
     ``device`` the autoencoder there, as ``hrr-train --device`` puts it."""
+    from ..train.loop import ENDLESS_EPOCHS  # torch: not for hrr-make --help, which reads this module
+
     autoencoder = {"epochs": ENDLESS_EPOCHS, "max_minutes": plan["autoencoder_minutes"]}
     if (device or "").startswith("cuda"):
         autoencoder["device"] = device.split(":")[0]
