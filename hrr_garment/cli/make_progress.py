@@ -76,9 +76,13 @@ class MakeProgress:
 
     def left(self, stage: str) -> float | None:
         """The plan's seconds for ``stage`` and every stage after it, or None before the plan."""
-        estimates = self.record.plan.get("estimates")
+        estimates = dict(self.record.plan.get("estimates") or {})
         if not estimates:
             return None
+        # training's minutes are decided again when the simulation ends (what the budget has left)
+        estimates["train"] = self.record.plan.get("training", {}).get(
+            "estimate_s", estimates.get("train", 0.0)
+        )
         return sum(estimates.get(s, 0.0) for s in STAGES[STAGES.index(stage) :])
 
     @contextmanager

@@ -21,6 +21,7 @@ from ..pipeline.make_budget import (
     plan_budget,
     take_prefix,
     train_config,
+    training_estimate_s,
     training_minutes,
 )
 from ..pipeline.make_library import (
@@ -269,7 +270,8 @@ class MakeRun:
         plan = self.record.plan
         if plan.get("training", {}).get("simulate_key") != self.keys["simulate"]:  # decided once, kept
             minutes = training_minutes(plan["budget"], self.progress.elapsed(), self.shares)
-            plan["training"] = {"simulate_key": self.keys["simulate"], **minutes}
+            estimate = training_estimate_s(minutes, plan["budget"], self.shares)
+            plan["training"] = {"simulate_key": self.keys["simulate"], **minutes, "estimate_s": estimate}
             self.record.write()
             if self.request.progress:
                 print(

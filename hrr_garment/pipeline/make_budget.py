@@ -163,6 +163,16 @@ def training_minutes(plan: dict, elapsed_s: float, shares: BudgetShares) -> dict
     return {"autoencoder_minutes": autoencoder, "codespace_minutes": round(train_s / 60 - autoencoder, 2)}
 
 
+def training_estimate_s(minutes: dict, plan: dict, shares: BudgetShares) -> float:
+    """The training stage's seconds with ``minutes`` (:func:`training_minutes`) for ``plan``'s frames:
+    the two stages' minutes, the fixed part, and encoding and calibrating on every frame."""
+    return (
+        60 * (minutes["autoencoder_minutes"] + minutes["codespace_minutes"])
+        + shares.train_fixed_s
+        + plan["sim_frames"] * shares.per_frame_s()
+    )
+
+
 def train_config(plan: dict, device: str | None = None) -> dict:
     """The training settings a plan (:meth:`BudgetPlan.to_dict`) adds to its preset's: each stage for
     its minutes (epochs unbounded: the minutes end it, the cosine schedule spans them); on a CUDA

@@ -80,12 +80,13 @@ class Checkpoint(Callback):
 
 class EpochLog(Callback):
     """One JSON line per epoch in ``path``: its number and the step's ``Epoch.log``; on resuming,
-    the lines after the checkpoint's epoch are dropped (:func:`resume_log`)."""
+    the lines after the checkpoint's epoch are dropped (:func:`resume_log`). Give it before the
+    :class:`Checkpoint`: an epoch's line is written before its checkpoint, so none is lost."""
 
     def __init__(self, path: Path):
         self.path = path
 
-    def on_fit_start(self, run: TrainingRun) -> None:
+    def on_resumed(self, run: TrainingRun) -> None:
         resume_log(self.path, run.state["epoch"])
 
     def on_epoch_end(self, run: TrainingRun, epoch: Epoch) -> None:

@@ -175,8 +175,8 @@ def train_codespace(
         _CodeSpaceEpochs(model, optimizer, (train, val), config, plateau, latent_loss),
         Budget(config.epochs, config.max_minutes, patience=config.patience),
         callbacks=[
-            Checkpoint(folder / "checkpoint.pt", key, optimizer=optimizer, plateau=plateau),
             EpochLog(folder / "log.jsonl"),
+            Checkpoint(folder / "checkpoint.pt", key, optimizer=optimizer, plateau=plateau),
             ProgressBar("code space", progress),
         ],
         state={"switched_at": None},

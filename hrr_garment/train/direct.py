@@ -143,8 +143,8 @@ def train_direct(
         _BaselineEpochs(model, optimizer, (train, val), config),
         budget,
         callbacks=[
-            Checkpoint(folder / "checkpoint.pt", key, optimizer=optimizer),
             EpochLog(folder / "log.jsonl"),
+            Checkpoint(folder / "checkpoint.pt", key, optimizer=optimizer),
             ProgressBar("direct", progress),
         ],
     )

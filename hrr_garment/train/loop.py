@@ -8,9 +8,11 @@ its callbacks (:class:`~.checkpoint.Checkpoint`, :class:`~.checkpoint.EpochLog`,
 :class:`ProgressBar`). At the end the best weights are back in the model, in eval mode.
 
 The order is fixed, since a run killed and re-run must go on exactly as one that was not: the
-callbacks resume (in the order given, the checkpoint first), then the step starts, then each
-epoch: the step's epoch, its number counted with the time spent, keep-if-best, then the callbacks
-in order (the epoch's log line, the checkpoint with the RNG state, the progress bar).
+callbacks resume (the checkpoint restores the state, then each callback hears where the run goes
+on from), then the step starts, then each epoch: the step's epoch, its number counted with the time
+spent, keep-if-best, then the callbacks in the order given (the epoch's log line, then the
+checkpoint with the RNG state, then the progress bar: a kill between the log line and the
+checkpoint leaves a line that the resumed run drops and writes again, never a lost one).
 """
 
 from __future__ import annotations
@@ -119,6 +121,9 @@ class Callback:
     def on_fit_start(self, run: TrainingRun) -> None:
         """Before the first epoch (a checkpoint resumes here)."""
 
+    def on_resumed(self, run: TrainingRun) -> None:
+        """After every callback's :meth:`on_fit_start`: ``run.state`` is where the run goes on from."""
+
     def on_epoch_end(self, run: TrainingRun, epoch: Epoch) -> None:
         """After an epoch, counted in ``run.state`` and its best weights kept."""
 
@@ -179,6 +184,8 @@ def fit(
     run = TrainingRun(model, budget, {"epoch": 0, **(state or {}), **_LOOP_STATE})
     for callback in callbacks:
         callback.on_fit_start(run)
+    for callback in callbacks:
+        callback.on_resumed(run)
     run.resumed()
     step.start(run)
     while (stopped := run.stop_reason()) is None:

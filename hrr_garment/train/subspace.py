@@ -166,8 +166,8 @@ def _fit(
         _SubspaceEpochs(model, optimizer, schedule, ((inputs, targets), val), config),
         Budget(config.epochs),
         callbacks=[
-            Checkpoint(folder / "checkpoint.pt", key, optimizer=optimizer, schedule=schedule),
             EpochLog(folder / "log.jsonl"),
+            Checkpoint(folder / "checkpoint.pt", key, optimizer=optimizer, schedule=schedule),
             ProgressBar("subspace", progress),
         ],
     )

@@ -4,7 +4,9 @@ nothing; a run stopped after simulating goes on from its recorded plan (the same
 simulated again); a changed garment keeps the body and the motion library and makes the rest again;
 bad input is refused naming the problem."""
 
+import importlib
 import json
+from pathlib import Path
 
 import pytest
 
@@ -13,6 +15,7 @@ from hrr_garment.body.mannequin import mannequin_record
 from hrr_garment.cli import make as make_cli
 from hrr_garment.cli.make_data import own_animations
 from hrr_garment.cli.make_run import MakeRun
+from hrr_garment.data.dataset import GarmentDataset
 from hrr_garment.motion.synth import synthesize
 from hrr_garment.pipeline.make_budget import BudgetShares
 from hrr_garment.pipeline.make_record import MakeRecord, MakeRequest
@@ -20,7 +23,9 @@ from hrr_garment.pipeline.make_record import MakeRecord, MakeRequest
 pytestmark = [pytest.mark.slow, pytest.mark.sim]
 
 # the costs of tiny stages, so that a budget of a few minutes plans a run of a few minutes
-TINY = BudgetShares(train_fixed_s=10.0, onnx_s=20.0, clip_s=5.0, report_s_per_frame=0.01, min_train_s=10.0)
+TINY = BudgetShares(
+    train_fixed_s=10.0, onnx_s=20.0, clip_s=5.0, report_s_per_frame=0.01, min_train_s=10.0, ensemble=2
+)
 BUDGET_S = 150.0
 
 
@@ -40,10 +45,32 @@ def _request(tmp_path, garment="skirt", skip=()) -> MakeRequest:
     )
 
 
+def _stopped(run: MakeRun, target: str, stop_after) -> None:
+    """Run ``run`` with ``target`` (a function's import path) wrapped to call the original and then
+    raise KeyboardInterrupt, as Ctrl-C would, where ``stop_after(*args)`` says so."""
+    module, name = target.rsplit(".", 1)
+    original = getattr(importlib.import_module(module), name)
+
+    def then_stop(*args, **kwargs):
+        original(*args, **kwargs)
+        if stop_after(*args):
+            raise KeyboardInterrupt
+
+    with pytest.MonkeyPatch.context() as patch, pytest.raises(KeyboardInterrupt):
+        patch.setattr(target, then_stop)
+        run.run()
+
+
+def _parts(out: Path) -> dict[str, int]:
+    """Each simulated part's modification time: a part simulated again would change it."""
+    return {p.name: p.stat().st_mtime_ns for p in (out / "dataset.parts").glob("*.npz")}
+
+
 @pytest.fixture(scope="module")
 def made(tmp_path_factory):
-    """One whole run, stopped once after its simulation (a KeyboardInterrupt in training) and run
-    again: what each run recorded."""
+    """One whole run, stopped twice as Ctrl-C stops it: when the simulation has finished its first
+    sequence, then when the code space has written its first checkpoint; run again each time. What
+    it had recorded at each stop."""
     from hrr_garment.garment.templates import make_garment
     from hrr_garment.sim.build import warm_up
     from hrr_garment.sim.preset import load_preset
@@ -53,23 +80,32 @@ def made(tmp_path_factory):
     warm_up(make_garment("skirt", 300), SimSettings.from_dict(load_preset("tiny").sim))
     tmp_path = tmp_path_factory.mktemp("make")
     request = _request(tmp_path)
-    monkeypatch = pytest.MonkeyPatch()
-
-    def stopped(*args, **kwargs):
-        raise KeyboardInterrupt
-
-    monkeypatch.setattr("hrr_garment.pipeline.train.train_model", stopped)
-    with pytest.raises(KeyboardInterrupt):
-        MakeRun(request, TINY).run()
-    monkeypatch.undo()
-    first = json.loads((request.out / "make.json").read_text())
-    dataset_bytes = (request.out / "dataset.h5").read_bytes()
+    out = request.out
+    # the probe's sequences finish before its stage is recorded; the first one after it is the simulation's
+    _stopped(MakeRun(request, TINY), "hrr_garment.sim.executors._finish", lambda *a: _probed(out))
+    simulating = {"record": json.loads((out / "make.json").read_text()), "parts": _parts(out)}
+    codespace_checkpoint = lambda path, *a: "codebook" in Path(path).parts  # noqa: E731
+    _stopped(MakeRun(request, TINY), "hrr_garment.train.checkpoint.save_checkpoint", codespace_checkpoint)
+    training = {
+        "record": json.loads((out / "make.json").read_text()),
+        "dataset": (out / "dataset.h5").read_bytes(),
+        "autoencoder": (out / "model" / "autoencoder" / "model.pt").stat().st_mtime_ns,
+        "codespace_epochs": _epochs(out / "model" / "codebook" / "log.jsonl"),
+    }
     MakeRun(request, TINY).run()
-    return request, first, dataset_bytes
+    return request, {"simulating": simulating, "training": training}
+
+
+def _probed(out: Path) -> bool:
+    return "probe" in json.loads((out / "make.json").read_text())["stages"]
+
+
+def _epochs(log: Path) -> list[int]:
+    return [json.loads(line)["epoch"] for line in log.read_text().splitlines()] if log.exists() else []
 
 
 def test_a_run_writes_every_output_and_its_record(made):
-    request, _, _ = made
+    request, _ = made
     out = request.out
     outputs = out / "outputs"
     for path in ("body.json", "dataset.h5", "model/bundle.json", "train.yaml", "make.json"):
@@ -90,18 +126,39 @@ def test_a_run_writes_every_output_and_its_record(made):
     assert "hrr-eval --model" in record.stages["report"]["command"]
 
 
-def test_a_stopped_run_goes_on_from_its_plan(made):
-    request, first, dataset_bytes = made
-    assert set(first["stages"]) == {"body", "motions", "probe", "simulate"}  # stopped in training
+def test_a_run_stopped_mid_simulation_goes_on_from_its_plan(made):
+    request, stops = made
+    stopped = stops["simulating"]
+    assert set(stopped["record"]["stages"]) == {"body", "motions", "probe"}
     record = MakeRecord.open(request.out)
-    assert record.plan["selection"] == first["plan"]["selection"]  # not planned again
-    for stage in ("probe", "simulate"):
-        assert record.stages[stage] == first["stages"][stage]  # not run again
-    assert (request.out / "dataset.h5").read_bytes() == dataset_bytes
+    assert record.plan["selection"] == stopped["record"]["plan"]["selection"]  # not planned again
+    assert record.stages["probe"] == stopped["record"]["stages"]["probe"]  # not probed again
+    # the probe's sequences and the one finished before the stop are kept, not simulated again
+    finished = _parts(request.out)
+    assert stopped["parts"] and all(finished[name] == stamp for name, stamp in stopped["parts"].items())
+    assert len(finished) > len(stopped["parts"])
+    planned = {n for names in record.plan["selection"].values() for n in names}
+    simulated = GarmentDataset(request.out / "dataset.h5").names
+    assert set(simulated) <= planned | {f"{n}_mirror" for n in planned}
+
+
+def test_a_run_stopped_mid_training_goes_on_from_its_checkpoint(made):
+    request, stops = made
+    stopped = stops["training"]
+    out = request.out
+    assert "simulate" in stopped["record"]["stages"] and "train" not in stopped["record"]["stages"]
+    assert stopped["codespace_epochs"] == [1]  # stopped at the code space's first checkpoint
+    assert (out / "dataset.h5").read_bytes() == stopped["dataset"]  # the same dataset
+    # the autoencoder kept; the code space continued from its checkpoint: every epoch trained once
+    assert (out / "model" / "autoencoder" / "model.pt").stat().st_mtime_ns == stopped["autoencoder"]
+    epochs = _epochs(out / "model" / "codebook" / "log.jsonl")
+    # (a loaded machine may have spent the code space's minutes on its first epoch: then none follows)
+    assert epochs == list(range(1, len(epochs) + 1))
+    assert MakeRecord.open(out).plan["training"] == stopped["record"]["plan"]["training"]  # minutes kept
 
 
 def test_a_finished_run_redoes_nothing(made, monkeypatch):
-    request, _, _ = made
+    request, _ = made
     before = MakeRecord.open(request.out).stages
 
     def refused(*args, **kwargs):
@@ -114,20 +171,22 @@ def test_a_finished_run_redoes_nothing(made, monkeypatch):
 
 
 def test_a_new_garment_keeps_the_body_and_the_motion(made, tmp_path):
-    request, _, _ = made
+    """Only the garment changed: the body and the motion library's features are kept, everything
+    that depends on the garment (its probe, data, model and outputs) goes; the run is stopped once
+    the new garment's simulation has begun."""
     import shutil
 
+    request, _ = made
     shutil.copytree(request.out, tmp_path / "out")
     (tmp_path / "body.json").write_bytes(request.character.read_bytes())
     before = MakeRecord.open(tmp_path / "out").stages
-    again = _request(tmp_path, garment="dress", skip=("onnx", "clips", "report"))
-    MakeRun(again, TINY).run()
-    after = MakeRecord.open(tmp_path / "out").stages
+    again = _request(tmp_path, garment="dress")
+    _stopped(MakeRun(again, TINY), "hrr_garment.sim.executors._finish", lambda *a: _probed(again.out))
+    after = MakeRecord.open(again.out).stages
     assert after["body"] == before["body"] and after["motions"] == before["motions"]
-    for stage in ("probe", "simulate", "train"):
-        assert after[stage]["key"] != before[stage]["key"]
-    assert not {"onnx", "clips", "report"} & set(after)  # the old garment's outputs are gone
-    assert not (tmp_path / "out" / "outputs" / "body.onnx").exists()
+    assert after["probe"]["key"] != before["probe"]["key"]
+    assert not {"simulate", "train", "onnx", "clips", "report"} & set(after)
+    assert not (again.out / "model").exists() and not (again.out / "outputs").exists()
 
 
 def test_bad_requests_are_refused(tmp_path, capsys):

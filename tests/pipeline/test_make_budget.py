@@ -10,6 +10,7 @@ from hrr_garment.pipeline.make_budget import (
     parse_budget,
     plan_budget,
     take_prefix,
+    training_estimate_s,
     training_minutes,
 )
 
@@ -61,6 +62,8 @@ def test_training_takes_what_the_simulation_left():
     on_time = training_minutes(plan, simulated_at, shares)
     assert on_time["autoencoder_minutes"] == pytest.approx(plan["autoencoder_minutes"], abs=0.02)
     assert on_time["codespace_minutes"] == pytest.approx(plan["codespace_minutes"], abs=0.02)
+    # the stage's estimate with them is the plan's: the time left shown from then on adds up
+    assert training_estimate_s(on_time, plan, shares) == pytest.approx(plan["estimates"]["train"], abs=2.0)
     early = training_minutes(plan, simulated_at - 300, shares)
     assert sum(early.values()) == pytest.approx(sum(on_time.values()) + 5, abs=0.02)
     late = training_minutes(plan, 3600, shares)

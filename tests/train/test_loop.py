@@ -1,11 +1,16 @@
 """The epoch loop (hrr_garment.train.loop): a budget of endless epochs is ended by its minutes and its
 progress bar counts minutes; a budget of epochs ends at its epochs and counts them; the best epoch's
-weights are the model's at the end."""
+weights are the model's at the end; a run stopped at any point of an epoch's end goes on with one log
+line per epoch."""
 
+import json
 import time
 
+import pytest
 import torch
 
+from hrr_garment.train import checkpoint
+from hrr_garment.train.checkpoint import Checkpoint, EpochLog
 from hrr_garment.train.loop import ENDLESS_EPOCHS, Budget, Epoch, EpochStep, ProgressBar, fit
 
 
@@ -40,3 +45,30 @@ def test_a_budget_of_epochs_counts_epochs():
     assert state["epoch"] == 4 and state["stopped"] == "epochs"
     assert not bar.by_time and bar.bar.n == 4
     assert float(model.weight.detach()) == 1.0
+
+
+@pytest.mark.parametrize("stop", ["after the checkpoint", "between the log line and the checkpoint"])
+def test_a_stopped_run_goes_on_with_one_log_line_per_epoch(tmp_path, monkeypatch, stop):
+    """Ctrl-C at epoch 2's end, after its checkpoint or between its log line and its checkpoint: the
+    run again trains the epochs the checkpoint lacks and logs each epoch once."""
+    log, saved = tmp_path / "log.jsonl", tmp_path / "checkpoint.pt"
+    save = checkpoint.save_checkpoint
+
+    def save_then_stop(path, key, state, *args, **kwargs):
+        if stop == "after the checkpoint" or state["epoch"] < 2:
+            save(path, key, state, *args, **kwargs)
+        if state["epoch"] == 2:
+            raise KeyboardInterrupt
+
+    def run(budget):
+        model = torch.nn.Linear(1, 1)
+        callbacks = [EpochLog(log), Checkpoint(saved, "k"), ProgressBar("test", shown=False)]
+        return fit(model, _Steps(0.0, best=3), budget, callbacks=callbacks)
+
+    with monkeypatch.context() as patch, pytest.raises(KeyboardInterrupt):
+        patch.setattr(checkpoint, "save_checkpoint", save_then_stop)
+        run(Budget(4))
+    assert [json.loads(line)["epoch"] for line in log.read_text().splitlines()] == [1, 2]
+    state = run(Budget(4))
+    assert state["epoch"] == 4
+    assert [json.loads(line)["epoch"] for line in log.read_text().splitlines()] == [1, 2, 3, 4]
