@@ -69,6 +69,11 @@ class BudgetShares:
             1 + self.validation
         )
 
+    def beyond_minutes_s(self, frames: int) -> float:
+        """What the training stage costs beyond its two stages' minutes on ``frames`` simulated
+        frames: its fixed part, and encoding and calibrating on every frame."""
+        return self.train_fixed_s + frames * self.per_frame_s()
+
 
 @dataclass(frozen=True)
 class BudgetPlan:
@@ -144,7 +149,7 @@ def plan_budget(
     estimates = {
         **start.spent,
         "simulate": new / rate,
-        "train": train_s + shares.train_fixed_s + frames * per_frame,
+        "train": train_s + shares.beyond_minutes_s(frames),
         **outputs,
     }
     return BudgetPlan(float(budget_s), frames, round(ae_min, 2), round(cs_min, 2), estimates)
@@ -157,20 +162,17 @@ def training_minutes(plan: dict, elapsed_s: float, shares: BudgetShares) -> dict
     simulation quicker than its estimate (the probe's clips are not the plan's) gives its time to
     training, a slower one takes it, so that the run ends near its budget."""
     after = sum(plan["estimates"].get(stage, 0.0) for stage in OUTPUT_STAGES)
-    encoding = plan["sim_frames"] * shares.per_frame_s()
-    train_s = max(plan["budget_s"] - elapsed_s - after - shares.train_fixed_s - encoding, shares.min_train_s)
+    beyond = shares.beyond_minutes_s(plan["sim_frames"])
+    train_s = max(plan["budget_s"] - elapsed_s - after - beyond, shares.min_train_s)
     autoencoder = round(shares.autoencoder * train_s / 60, 2)
     return {"autoencoder_minutes": autoencoder, "codespace_minutes": round(train_s / 60 - autoencoder, 2)}
 
 
 def training_estimate_s(minutes: dict, plan: dict, shares: BudgetShares) -> float:
     """The training stage's seconds with ``minutes`` (:func:`training_minutes`) for ``plan``'s frames:
-    the two stages' minutes, the fixed part, and encoding and calibrating on every frame."""
-    return (
-        60 * (minutes["autoencoder_minutes"] + minutes["codespace_minutes"])
-        + shares.train_fixed_s
-        + plan["sim_frames"] * shares.per_frame_s()
-    )
+    the two stages' minutes and what it costs beyond them (:meth:`BudgetShares.beyond_minutes_s`)."""
+    minutes_s = 60 * (minutes["autoencoder_minutes"] + minutes["codespace_minutes"])
+    return minutes_s + shares.beyond_minutes_s(plan["sim_frames"])
 
 
 def train_config(plan: dict, device: str | None = None) -> dict:

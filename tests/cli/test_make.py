@@ -1,8 +1,8 @@
 """hrr-make end to end on tiny inputs: a body, the tiny preset's five clips, a budget of minutes. It
 writes the model, the ONNX graph, the clips, the preview, the report and make.json; a re-run redoes
-nothing; a run stopped after simulating goes on from its recorded plan (the same dataset, not
-simulated again); a changed garment keeps the body and the motion library and makes the rest again;
-bad input is refused naming the problem."""
+nothing; a run stopped mid-simulation or mid-training goes on from its recorded plan (finished
+sequences not simulated again, the code space from its checkpoint); a changed garment keeps the
+body and the motion library and makes the rest again; bad input is refused naming the problem."""
 
 import importlib
 import json
