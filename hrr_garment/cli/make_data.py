@@ -169,16 +169,16 @@ def build_chosen(library: MotionLibrary, names: list[str], build: ChosenBuild, *
 
 
 def frames_to_simulate(library: MotionLibrary, names: list[str], dataset: Path) -> int:
-    """The frames of ``names`` (and their mirrors) that ``dataset``'s build has neither finished nor
-    rejected yet: what a build of them will simulate (a probe stopped and run again measures only
-    those)."""
+    """The frames the simulator runs, lead-ins included, for the sequences of ``names`` (and their
+    mirrors) that ``dataset``'s build has neither finished nor rejected yet: what a build of them
+    will simulate (a probe stopped and run again measures only those)."""
     from ..data.splits import MIRROR_SUFFIX
     from ..sim.parts import part_paths
 
     parts = dataset.with_suffix(".parts")
     copies = [""] + ([MIRROR_SUFFIX] if library.copies == 2 else [])
     return sum(
-        library.frames[n]
+        library.frames[n] + library.lead
         for n in names
         for suffix in copies
         if not any(p.exists() for p in part_paths(parts, n + suffix))

@@ -108,8 +108,9 @@ class MakeProgress:
         print(
             f"plan for a budget of {clock(budget['budget_s'])}: simulate {sum(frames.values()):,} frames "
             f"(train {frames['train']:,}, validation {frames['val']:,}, test {frames['test']:,}; "
-            f"the library has {plan['library_frames']:,}) at the measured "
-            f"{self.record.stages['probe']['sim_frames_per_s']:.1f} frames/s; train the autoencoder "
+            f"the library has {plan['library_frames']:,}) at {budget['sim_frames_per_s']:.1f} frames/s "
+            f"(the probe's {self.record.stages['probe']['simulator_frames_per_s']:.1f}, lead-ins "
+            "included); train the autoencoder "
             f"{budget['autoencoder_minutes']:.1f} min and the code space "
             f"{budget['codespace_minutes']:.1f} min"
         )

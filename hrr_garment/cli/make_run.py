@@ -16,6 +16,7 @@ from ..body.body_file import read_body, write_body
 from ..errors import InputError
 from ..pipeline.make_budget import (
     OUTPUT_STAGES,
+    BudgetPlan,
     BudgetShares,
     MeasuredStart,
     plan_budget,
@@ -31,7 +32,7 @@ from ..pipeline.make_library import (
     library_descriptors,
     motion_library,
     ordered_parts,
-    select,
+    sized_selection,
 )
 from ..pipeline.make_record import MakeRecord, MakeRequest, content_key, file_key
 from ..sim.preset import load_preset
@@ -200,9 +201,9 @@ class MakeRun:
             raise InputError(
                 self.dataset, "the probe found its clips simulated already; remove make.json to start over"
             )
-        rate = pending / max(t.seconds - compiled, 1e-6)
+        rate = pending / max(t.seconds - compiled, 1e-6)  # every frame the simulator ran, lead-ins too
         self.record.plan["garment_key"] = self.keys["garment"]
-        notes = {"frames": library.simulated_frames(probe), "sim_frames_per_s": round(rate, 2)}
+        notes = {"frames": library.simulated_frames(probe), "simulator_frames_per_s": round(rate, 2)}
         self.record.finish("probe", key, t.seconds, notes)
 
     def plan(self, library, order) -> dict[str, list[str]]:
@@ -221,21 +222,28 @@ class MakeRun:
             take_prefix(order["test"], library.frames, REPORT_FRAMES, at_least=MIN_HELD_OUT)
         )
         probe = self.record.stages["probe"]
-        start = MeasuredStart(spent, probe["sim_frames_per_s"], simulated_frames=probe["frames"])
         outputs = request.outputs
         if "report" in outputs and not order["test"]:
             print("hrr-make: the library holds out no test clips: no report")
             outputs = tuple(s for s in outputs if s != "report")
-        budget = plan_budget(
-            request.budget_s,
-            start,
-            test_frames=test_frames,
-            clips=(len(self.own_motions) or SHOWCASE_CLIPS) if "clips" in outputs else 0,
-            outputs=outputs,
-            shares=self.shares,
-        )
-        chosen = select(
-            library, order, budget.sim_frames, test_frames=REPORT_FRAMES, validation=self.shares.validation
+
+        def plan_at(rate: float) -> BudgetPlan:
+            return plan_budget(
+                request.budget_s,
+                MeasuredStart(spent, rate, simulated_frames=probe["frames"]),
+                test_frames=test_frames,
+                clips=(len(self.own_motions) or SHOWCASE_CLIPS) if "clips" in outputs else 0,
+                outputs=outputs,
+                shares=self.shares,
+            )
+
+        budget, chosen = sized_selection(
+            library,
+            order,
+            plan_at,
+            probe["simulator_frames_per_s"],
+            test_frames=REPORT_FRAMES,
+            validation=self.shares.validation,
         )
         plan.update(
             key=key,

@@ -85,6 +85,7 @@ class BudgetPlan:
     autoencoder_minutes: float
     codespace_minutes: float
     estimates: dict[str, float]
+    sim_frames_per_s: float = 0.0  # the simulator's rate the plan assumed, in data frames
 
     @property
     def total_s(self) -> float:
@@ -152,7 +153,7 @@ def plan_budget(
         "train": train_s + shares.beyond_minutes_s(frames),
         **outputs,
     }
-    return BudgetPlan(float(budget_s), frames, round(ae_min, 2), round(cs_min, 2), estimates)
+    return BudgetPlan(float(budget_s), frames, round(ae_min, 2), round(cs_min, 2), estimates, rate)
 
 
 def training_minutes(plan: dict, elapsed_s: float, shares: BudgetShares) -> dict:

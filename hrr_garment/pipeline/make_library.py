@@ -12,6 +12,7 @@ budget takes a prefix of each.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -21,7 +22,7 @@ from ..motion.features import motion_features
 from ..sim.coverage import coverage_order, random_order, window_descriptors
 from ..sim.plan import SequenceSpec, build_options, load_file_motion, plan_sequences
 from ..sim.preset import Preset, mirror_mode
-from .make_budget import take_prefix
+from .make_budget import BudgetPlan, take_prefix
 
 PARTS = ("train", "val", "test")
 SELECTIONS = ("coverage", "random")
@@ -41,10 +42,17 @@ class MotionLibrary:
     options: dict  # the preset's BuildSettings keywords (sim.plan.build_options)
     own: list[str]  # the sequences of the character's own animations (always trained on)
     copies: int  # simulated sequences per source: 2 where the preset simulates mirrors, else 1
+    # frames each simulated sequence runs before its first kept one (settling, easing into the clip):
+    # 30 on real-quick, an eighth of an average clip's cost, more of a short clip's
+    lead: int = 0
 
     def simulated_frames(self, names: list[str]) -> int:
-        """The frames simulating ``names`` costs (their mirrors included)."""
+        """The frames ``names`` give the data (their mirrors included)."""
         return self.copies * sum(self.frames[n] for n in names)
+
+    def simulator_frames(self, names: list[str]) -> int:
+        """The frames the simulator runs for ``names``: their data frames and each copy's lead-in."""
+        return self.simulated_frames(names) + self.copies * self.lead * len(names)
 
     @property
     def names(self) -> list[str]:
@@ -58,8 +66,11 @@ def spec_frames(spec: SequenceSpec) -> int:
 
 def motion_library(preset: Preset, own: list[Path]) -> MotionLibrary:
     """``preset``'s clips and the ``own`` motion files (the character's animations), split."""
+    from ..motion.motion import FPS
     from ..sim.build import BuildSettings
     from ..sim.build_split import split_sources
+    from ..sim.config import SimSettings
+    from ..sim.lead_in import lead_in_frames
 
     own = [Path(p).resolve() for p in own]  # the plan records files by their resolved paths
     preset = replace(preset, motions=[*preset.motions, *(str(p) for p in own)])
@@ -75,7 +86,9 @@ def motion_library(preset: Preset, own: list[Path]) -> MotionLibrary:
     part.update({name: "train" for name in own_names})
     copies = 2 if mirror_mode(preset.mirror) == "simulate" else 1
     frames = {s.name: spec_frames(s) for s in specs}
-    return MotionLibrary(preset, specs, frames, part, options, own_names, copies)
+    sim = SimSettings.from_dict(preset.sim)
+    lead = sum(lead_in_frames(sim.settle_s, sim.blend_s, FPS))
+    return MotionLibrary(preset, specs, frames, part, options, own_names, copies, lead)
 
 
 def library_descriptors(library: MotionLibrary, cache: Path, progress: bool = True) -> dict[str, np.ndarray]:
@@ -157,3 +170,30 @@ def select(
     wanted = int(train_frames) - sum(frames[n] for n in own)
     train = own + (take_prefix(rest, frames, wanted) if wanted > 0 else [])
     return {"train": train, "val": val, "test": test}
+
+
+def sized_selection(
+    library: MotionLibrary,
+    order: dict[str, list[str]],
+    plan_at: Callable[[float], BudgetPlan],
+    simulator_rate: float,
+    *,
+    test_frames: int,
+    validation: float,
+) -> tuple[BudgetPlan, dict[str, list[str]]]:
+    """The plan (``plan_at``: the plan for a rate in data frames a second) and the sequences it buys
+    (:func:`select`), with the rate that selection simulates at: the simulator's ``simulator_rate``
+    counts every frame it runs, lead-ins included, so a selection of short clips gives fewer data
+    frames a second than one of long clips. The rate and the selection are settled together, a few
+    rounds from the library's own ratio (a plan that counted data frames alone ran its simulation
+    6 % over its estimate)."""
+    rate = simulator_rate * library.simulated_frames(library.names) / library.simulator_frames(library.names)
+    for _ in range(4):
+        plan = plan_at(rate)
+        chosen = select(library, order, plan.sim_frames, test_frames=test_frames, validation=validation)
+        names = [n for part in PARTS for n in chosen[part]]
+        settled = simulator_rate * library.simulated_frames(names) / max(library.simulator_frames(names), 1)
+        if abs(settled - rate) <= 1e-3 * rate:
+            break
+        rate = settled
+    return plan, chosen

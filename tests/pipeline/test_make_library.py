@@ -10,12 +10,14 @@ import pytest
 
 from hrr_garment.motion.native_file import save_motion
 from hrr_garment.motion.synth import synthesize
+from hrr_garment.pipeline.make_budget import BudgetPlan
 from hrr_garment.pipeline.make_library import (
     PARTS,
     library_descriptors,
     motion_library,
     ordered_parts,
     select,
+    sized_selection,
 )
 from hrr_garment.sim.build import BuildSettings
 from hrr_garment.sim.build_split import split_sources
@@ -64,6 +66,34 @@ def test_selections_are_prefixes_of_their_parts(library):
         assert train_frames <= 600 - sum(lib.frames[n] for n in chosen["test"] + chosen["val"]) + 90
     with pytest.raises(ValueError, match="unknown selection"):
         ordered_parts(lib, described, "alphabetical")
+
+
+def test_a_selection_pays_for_its_lead_ins(library):
+    """The simulator runs each sequence's lead-in too: the plan buys the frames the simulator's rate
+    pays for, lead-ins included, at the rate the chosen clips give data (a 30-frame lead-in is half
+    of a 60-frame clip)."""
+    lib, _ = library
+    assert lib.lead == 39  # the tiny preset's: settle 0.5 s and blend 0.8 s at 30 frames a second
+    order = {part: [n for n in lib.names if lib.part[n] == part] for part in PARTS}
+    seconds, simulator = 12.0, 40.0  # what a plan gives the simulation, the simulator's rate
+
+    def plan_at(rate: float) -> BudgetPlan:
+        return BudgetPlan(0.0, int(rate * seconds), 1.0, 1.0, {"simulate": seconds}, rate)
+
+    bought = {}
+    for lead in (0, 30):
+        plan, chosen = sized_selection(
+            replace(lib, lead=lead), order, plan_at, simulator, test_frames=60, validation=0.25
+        )
+        names = [n for part in PARTS for n in chosen[part]]
+        data = sum(lib.frames[n] for n in names)
+        bought[lead] = data
+        # the rate the plan assumed is the one its clips give: data frames a second
+        assert plan.sim_frames_per_s == pytest.approx(simulator * data / (data + lead * len(names)), rel=0.05)
+        # what the simulator runs is what the plan pays for, within a clip a part (prefixes of whole
+        # clips; the held-out parts keep two clips whatever the budget)
+        assert data + lead * len(names) <= simulator * seconds + 3 * (90 + lead)
+    assert bought[30] < 0.8 * bought[0]
 
 
 def test_own_clips_are_found_from_a_relative_folder_and_always_train(tmp_path, monkeypatch):
