@@ -241,7 +241,7 @@ class MakeRun:
             library,
             order,
             plan_at,
-            probe["simulator_frames_per_s"],
+            simulator_rate=probe["simulator_frames_per_s"],
             test_frames=REPORT_FRAMES,
             validation=self.shares.validation,
         )

@@ -176,8 +176,8 @@ def sized_selection(
     library: MotionLibrary,
     order: dict[str, list[str]],
     plan_at: Callable[[float], BudgetPlan],
-    simulator_rate: float,
     *,
+    simulator_rate: float,
     test_frames: int,
     validation: float,
 ) -> tuple[BudgetPlan, dict[str, list[str]]]:

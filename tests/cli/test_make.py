@@ -26,7 +26,7 @@ pytestmark = [pytest.mark.slow, pytest.mark.sim]
 TINY = BudgetShares(
     train_fixed_s=10.0, onnx_s=20.0, clip_s=5.0, report_s_per_frame=0.01, min_train_s=10.0, ensemble=2
 )
-BUDGET_S = 150.0
+BUDGET_S = 100.0
 
 
 def _request(tmp_path, garment="skirt", skip=()) -> MakeRequest:

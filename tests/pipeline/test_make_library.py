@@ -83,7 +83,7 @@ def test_a_selection_pays_for_its_lead_ins(library):
     bought = {}
     for lead in (0, 30):
         plan, chosen = sized_selection(
-            replace(lib, lead=lead), order, plan_at, simulator, test_frames=60, validation=0.25
+            replace(lib, lead=lead), order, plan_at, simulator_rate=simulator, test_frames=60, validation=0.25
         )
         names = [n for part in PARTS for n in chosen[part]]
         data = sum(lib.frames[n] for n in names)
