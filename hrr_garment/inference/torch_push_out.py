@@ -10,8 +10,11 @@ The body it pushes out of is the capsules posed by FK, or the mesh the viewer se
 skinned mesh measured by its collider's graph (:class:`~hrr_garment.models.skin_collider_graph.
 SkinColliderGraph`, the same collider the package's kernel measures), the rest unchanged, as the
 package's push-out against a :class:`~.visible_push.PosedSkin` is its capsule push with the other
-distance. The graph has none of the kernel's culls (which leave out only what is not pushed), so it
-measures every vertex against the skin: exact, and far slower than the capsules."""
+distance. Beyond the margin of every hull (the capsules grown to hold the posed skin,
+:mod:`.torch_skin_hulls`) the hulls' distance is the distance, as the package's; within it the graph
+measures every vertex against the skin, without the package's flood of cells and winding test, so
+where the collider's side is wrong inside a hull (far across a gap from the nearest skin) the graph
+can push what the package leaves. Far slower than the capsules."""
 
 from __future__ import annotations
 
@@ -41,11 +44,13 @@ class PushOutStage(nn.Module):
         settings: PushOutSettings,
         strain_passes: int = 60,
         skin: nn.Module | None = None,
+        hulls: nn.Module | None = None,
     ):
         super().__init__()
         if skin is not None and settings.subspace is not None:
             raise ValueError("the subspace push measures capsules: a visible mesh's stage goes without it")
         self.skin = skin  # the visible mesh's collider graph, measured instead of the capsules
+        self.hulls = hulls  # its hulls (.torch_skin_hulls): the skin measured only within the margin of one
         joints, a, b, radii = capsules
         self.joints = [int(j) for j in joints]
         constant(self, "cap_a", a)
@@ -87,8 +92,20 @@ class PushOutStage(nn.Module):
         and normal the skin's. ``radii``: (N, 1, C) each character's (a limb let go of: very
         negative; None: the body's)."""
         if self.skin is not None:
-            return self.skin.query_moves(p, a, b)
-        radii = self.radii if radii is None else radii
+            d, n = self.skin.query_moves(p, a, b)
+            if self.hulls is None:
+                return d, n
+            # beyond the margin of every hull the hulls' distance, as the package's push-out takes it
+            # (``radii``: the hulls' ends and radii, (N, C, 7))
+            hd, hn = self.distance_to_capsules(p, radii[..., :3], radii[..., 3:6], radii[..., 6][:, None])
+            far = hd > self.settings.margin
+            return torch.where(far, hd, d), torch.where(far[..., None], hn, n)
+        return self.distance_to_capsules(p, a, b, self.radii if radii is None else radii)
+
+    def distance_to_capsules(
+        self, p: torch.Tensor, a: torch.Tensor, b: torch.Tensor, radii: torch.Tensor
+    ) -> tuple[torch.Tensor, torch.Tensor]:
+        """:meth:`distance` to the capsules a-b (N, C, 3) of ``radii`` (N, 1, C)."""
         ab = b - a  # (N, C, 3)
         ab_ab = (ab * ab).sum(-1)[:, None]  # (N, 1, C)
         rel_ab = p @ ab.transpose(1, 2) - (a * ab).sum(-1)[:, None]  # (p - a) . ab: (N, V, C)
@@ -232,7 +249,14 @@ class PushOutStage(nn.Module):
         if self.skin is not None:  # the joints' moves from the rest pose, about the pelvis (the
             # skin's weights sum to 1, so the posed skin moves with the points)
             a, trans = self.skin.moves(rotations, positions)
-            return self.limit(self.push(p, a, trans - centre, radii) + centre, vertices)
+            trans = trans - centre
+            if self.hulls is not None:  # the hulls about the pelvis, carried where radii go
+                rot, pos = rotations[:, self.joints], positions[:, self.joints]
+                ca = pos - centre + (rot @ self.cap_a[..., None])[..., 0]
+                cb = pos - centre + (rot @ self.cap_b[..., None])[..., 0]
+                hull = self.hulls(self.skin.pose(a, trans), ca, cb, self.radii)
+                radii = torch.cat([ca, cb, hull[..., None]], -1)  # (N, C, 7)
+            return self.limit(self.push(p, a, trans, radii) + centre, vertices)
         rot, pos = rotations[:, self.joints], positions[:, self.joints]
         a = pos - centre + (rot @ self.cap_a[..., None])[..., 0]
         b = pos - centre + (rot @ self.cap_b[..., None])[..., 0]

@@ -44,6 +44,7 @@ from .frame_path import FramePath
 from .modes import Mode
 from .torch_ops import constant, turn_y
 from .torch_push_out import PushOutStage
+from .torch_skin_hulls import SkinHulls
 
 
 class PoseStage(nn.Module):
@@ -258,7 +259,7 @@ def stream_step(path: FramePath, *, movable: bool = False) -> StreamStep:
             path.smoothing,
             limits=path.edge_limits,
             settings=path.push_settings or PUSH_OUT,
-            skin=_skin_graph(run),
+            **_skin_graph(run),
         )
     if run.decoder == "fast":
         module = path.decoder
@@ -267,11 +268,13 @@ def stream_step(path: FramePath, *, movable: bool = False) -> StreamStep:
     return StreamStep(bundle, module, character=run.body, memory=memory, fps=FPS, push_out=stage).eval()
 
 
-def _skin_graph(run) -> SkinColliderGraph | None:
-    """The collider graph of the mesh the run's body is drawn with, where the run pushes out of it
-    (``push_body="visible"``, the default) and the body has one; None: its capsules."""
+def _skin_graph(run) -> dict:
+    """The collider graph of the mesh the run's body is drawn with and its hulls, where the run pushes
+    out of it (``push_body="visible"``, the default) and the body has one; none: its capsules."""
     collider = run.body.visible_collider() if run.push_body == "visible" else None
-    return None if collider is None else SkinColliderGraph(collider.collider)
+    if collider is None:
+        return {}
+    return {"skin": SkinColliderGraph(collider.collider), "hulls": SkinHulls(collider.envelope)}
 
 
 def state_shapes(step: StreamStep) -> dict[str, tuple[int, ...]]:

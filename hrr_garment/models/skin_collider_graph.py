@@ -104,8 +104,7 @@ class SkinColliderGraph(nn.Module):
         self, points: torch.Tensor, rot: torch.Tensor, trans: torch.Tensor
     ) -> tuple[torch.Tensor, torch.Tensor]:
         """:meth:`forward` for the joints' moves (B, J, 3, 3) and (B, J, 3) (:meth:`moves`)."""
-        blend = (self.skin @ rot.flatten(-2)).unflatten(-1, (3, 3))  # (B, V, 3, 3): linear, not rigid
-        posed = (blend * self.rest[:, None, :]).sum(-1) + self.skin @ trans
+        posed = self.pose(rot, trans)
         rest, deepest, under = self.rest_points(points.detach(), rot.detach(), trans.detach())
         distance, normal = self._nearest_face(points, self._node(rest), posed)  # (B, N, S)
         best = torch.argmin(distance.abs(), dim=-1, keepdim=True)
@@ -117,6 +116,12 @@ class SkinColliderGraph(nn.Module):
         inside = ((distance < 0.0) & near_face) | ((deepest > deep) & (distance.abs() <= deepest + deep))
         flip = inside != (distance < 0.0)
         return torch.where(flip, -distance, distance), torch.where(flip[..., None], -normal, normal)
+
+    def pose(self, rot: torch.Tensor, trans: torch.Tensor) -> torch.Tensor:
+        """(B, V, 3) the mesh posed by the joints' moves (B, J, 3, 3) and (B, J, 3): linear blend
+        skinning."""
+        blend = (self.skin @ rot.flatten(-2)).unflatten(-1, (3, 3))  # (B, V, 3, 3): linear, not rigid
+        return (blend * self.rest[:, None, :]).sum(-1) + self.skin @ trans
 
     def rest_points(
         self, points: torch.Tensor, rot: torch.Tensor, trans: torch.Tensor

@@ -13,12 +13,14 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+import torch
 
 from hrr_garment.body.capsules import DEFAULT_BODY, frames_signed_distance
 from hrr_garment.body.mesh_distance import mesh_signed_distance, winding_inside, within_reach
 from hrr_garment.body.skin_cells import skin_cells
 from hrr_garment.inference.collision import PushOutSettings, _push_frames, mean_operator, push_out
 from hrr_garment.inference.edge_limits import EdgeLimits
+from hrr_garment.inference.torch_skin_hulls import SkinHulls
 from hrr_garment.inference.visible_push import CELL_M, COLUMN_M, PosedSkin, VisibleCollider
 from hrr_garment.motion.synth import synthesize
 from tests.body.limb import BulgingMannequin
@@ -300,6 +302,21 @@ def test_the_torch_stage_on_the_visible_mesh_pushes_as_the_kernel(closed_visible
         ).numpy()
     assert np.abs(theirs - frames).max() > 0.01  # the push moved the cloth a centimetre ...
     assert np.abs(ours - theirs).max() < 1e-5  # ... and the stage moved it the same (0.1 um measured)
+    hulled = PushOutStage(
+        (*body.ends, body.radii),
+        mean,
+        limits=limits,
+        settings=settings,
+        skin=stage.skin,
+        hulls=SkinHulls(closed_visible.envelope),
+    )
+    with torch.no_grad():  # with the hulls, as the export has them: the same
+        again = hulled(
+            torch.from_numpy(frames),
+            torch.from_numpy(motion.global_rotations).float(),
+            torch.from_numpy(motion.joint_positions).float(),
+        ).numpy()
+    assert np.abs(again - theirs).max() < 1e-5
     with pytest.raises(ValueError, match="subspace"):
         PushOutStage(
             (*body.ends, body.radii),
@@ -308,3 +325,50 @@ def test_the_torch_stage_on_the_visible_mesh_pushes_as_the_kernel(closed_visible
             settings=dataclasses.replace(settings, subspace=object()),
             skin=stage.skin,
         )
+
+
+def test_the_graphs_hulls_are_the_kernels_and_bound_a_wrong_inside(closed_visible, monkeypatch):
+    """The hulls' radii in torch are the package's (VisibleCollider.skinned) in every pose; beyond
+    the margin of every hull the stage takes the hulls' distance, as the package's push-out does, so
+    a point the collider calls inside there (between the thighs, across the gap from the nearest
+    skin, on a real body) is not pushed."""
+    from hrr_garment.inference.torch_push_out import PushOutStage
+    from hrr_garment.inference.torch_skin_hulls import SkinHulls
+    from hrr_garment.models.skin_collider_graph import SkinColliderGraph
+
+    motion = synthesize("dance", 0.5, seed=2)
+    rot, pos = motion.global_rotations, motion.joint_positions
+    a, b = DEFAULT_BODY.pose(rot, pos)
+    radii = closed_visible.skinned(rot, pos, capsules=(a, b))[4]
+    graph = SkinColliderGraph(closed_visible.collider, torch.float64)
+    hulls = SkinHulls(closed_visible.envelope).double()
+    moves = graph.moves(torch.from_numpy(rot), torch.from_numpy(pos))
+    ours = hulls(
+        graph.pose(*moves), torch.from_numpy(a), torch.from_numpy(b), torch.from_numpy(DEFAULT_BODY.radii)
+    )
+    assert (radii > DEFAULT_BODY.radii + 0.005).any()  # the bulges grow the thighs' hulls ...
+    assert np.abs(ours.numpy() - radii).max() < 1e-9  # ... as the package grows them
+
+    skirt = squeezed_skirt(motion, 1.0, on_body=True)[0]
+    mean = mean_operator(skirt.faces, len(skirt.vertices))
+    limits = EdgeLimits.of(skirt.faces, skirt.vertices.astype(np.float64), mean)
+    stage = PushOutStage(
+        (*DEFAULT_BODY.ends, DEFAULT_BODY.radii),
+        mean,
+        limits=limits,
+        settings=SETTINGS,
+        skin=SkinColliderGraph(closed_visible.collider),
+        hulls=SkinHulls(closed_visible.envelope),
+    )
+    # one frame about the pelvis, as the stage measures: the hulls' ends and radii packed (1, C, 7)
+    frame_rot, frame_pos = torch.from_numpy(rot[:1]).float(), torch.from_numpy(pos[:1]).float()
+    centre = frame_pos[:, :1]
+    ends = torch.from_numpy(np.concatenate([a[:1], b[:1]], -1)).float() - centre.repeat(1, 1, 2)
+    hull = torch.cat([ends, torch.from_numpy(radii[:1, :, None]).float()], -1)
+    rot_moves, trans = stage.skin.moves(frame_rot, frame_pos)
+    wrong = lambda p, a, b: (torch.full(p.shape[:2], -0.05), torch.zeros_like(p))  # noqa: E731
+    monkeypatch.setattr(stage.skin, "query_moves", wrong)  # the collider calls every point inside
+    for offset, inside in (([0.0, 0.0, 0.0], True), ([0.0, 0.0, 3.0], False)):  # the pelvis; 3 m before it
+        point = torch.tensor([[offset]])
+        d, _ = stage.distance(point, rot_moves, trans - centre, hull)
+        assert (float(d) < 0) == inside  # the collider's answer near the body, the hulls' far from it
