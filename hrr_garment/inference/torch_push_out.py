@@ -97,26 +97,10 @@ class PushOutStage(nn.Module):
                 return d, n
             # beyond the margin of every hull the hulls' distance, as the package's push-out takes it
             # (``radii``: the hulls' ends and radii, (N, C, 7))
-            hd, hn = self.distance_to_capsules(p, radii[..., :3], radii[..., 3:6], radii[..., 6][:, None])
+            hd, hn = capsule_distance(p, radii[..., :3], radii[..., 3:6], radii[..., 6][:, None])
             far = hd > self.settings.margin
             return torch.where(far, hd, d), torch.where(far[..., None], hn, n)
-        return self.distance_to_capsules(p, a, b, self.radii if radii is None else radii)
-
-    def distance_to_capsules(
-        self, p: torch.Tensor, a: torch.Tensor, b: torch.Tensor, radii: torch.Tensor
-    ) -> tuple[torch.Tensor, torch.Tensor]:
-        """:meth:`distance` to the capsules a-b (N, C, 3) of ``radii`` (N, 1, C)."""
-        ab = b - a  # (N, C, 3)
-        ab_ab = (ab * ab).sum(-1)[:, None]  # (N, 1, C)
-        rel_ab = p @ ab.transpose(1, 2) - (a * ab).sum(-1)[:, None]  # (p - a) . ab: (N, V, C)
-        rel_rel = (p * p).sum(-1, keepdim=True) - 2.0 * (p @ a.transpose(1, 2)) + (a * a).sum(-1)[:, None]
-        s = torch.clamp(rel_ab / torch.clamp(ab_ab, min=1e-12), 0.0, 1.0)
-        axis2 = rel_rel - s * (2.0 * rel_ab - s * ab_ab)  # |p - a - s ab|^2
-        d, nearest = (torch.sqrt(torch.clamp(axis2, min=0.0)) - radii).min(-1)
-        pick = torch.nn.functional.one_hot(nearest, a.shape[1]).to(p.dtype)  # (N, V, C)
-        s_near = (pick * s).sum(-1, keepdim=True)
-        diff = p - pick @ a - s_near * (pick @ ab)
-        return d, diff / torch.clamp(torch.sqrt((diff * diff).sum(-1, keepdim=True)), min=1e-12)
+        return capsule_distance(p, a, b, self.radii if radii is None else radii)
 
     def smooth(self, disp: torch.Tensor) -> torch.Tensor:
         """One pass of the mean over each vertex's neighbours, vertex-major (V, N, 3) (see :meth:`limit`)."""
@@ -324,3 +308,20 @@ def _kept(p, a, b, radii, centre, vertices, pushed, out):
 def _as_is(p: torch.Tensor, d: torch.Tensor, n: torch.Tensor, *moves: torch.Tensor):
     """The branch of a push step with nothing to move (a conditional's outputs may not alias its inputs)."""
     return p.clone(), d.clone(), n.clone()
+
+
+def capsule_distance(
+    p: torch.Tensor, a: torch.Tensor, b: torch.Tensor, radii: torch.Tensor
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """:meth:`PushOutStage.distance` to the capsules a-b (N, C, 3) of ``radii`` (N, 1, C)."""
+    ab = b - a  # (N, C, 3)
+    ab_ab = (ab * ab).sum(-1)[:, None]  # (N, 1, C)
+    rel_ab = p @ ab.transpose(1, 2) - (a * ab).sum(-1)[:, None]  # (p - a) . ab: (N, V, C)
+    rel_rel = (p * p).sum(-1, keepdim=True) - 2.0 * (p @ a.transpose(1, 2)) + (a * a).sum(-1)[:, None]
+    s = torch.clamp(rel_ab / torch.clamp(ab_ab, min=1e-12), 0.0, 1.0)
+    axis2 = rel_rel - s * (2.0 * rel_ab - s * ab_ab)  # |p - a - s ab|^2
+    d, nearest = (torch.sqrt(torch.clamp(axis2, min=0.0)) - radii).min(-1)
+    pick = torch.nn.functional.one_hot(nearest, a.shape[1]).to(p.dtype)  # (N, V, C)
+    s_near = (pick * s).sum(-1, keepdim=True)
+    diff = p - pick @ a - s_near * (pick @ ab)
+    return d, diff / torch.clamp(torch.sqrt((diff * diff).sum(-1, keepdim=True)), min=1e-12)
