@@ -235,15 +235,11 @@ class PushOutStage(nn.Module):
             a, trans = self.skin.moves(rotations, positions)
             trans = trans - centre
             if self.hulls is not None:  # the hulls about the pelvis, carried where radii go
-                rot, pos = rotations[:, self.joints], positions[:, self.joints]
-                ca = pos - centre + (rot @ self.cap_a[..., None])[..., 0]
-                cb = pos - centre + (rot @ self.cap_b[..., None])[..., 0]
+                ca, cb = self._capsule_ends(rotations, positions, centre)
                 hull = self.hulls(self.skin.pose(a, trans), ca, cb, self.radii)
                 radii = torch.cat([ca, cb, hull[..., None]], -1)  # (N, C, 7)
             return self.limit(self.push(p, a, trans, radii) + centre, vertices)
-        rot, pos = rotations[:, self.joints], positions[:, self.joints]
-        a = pos - centre + (rot @ self.cap_a[..., None])[..., 0]
-        b = pos - centre + (rot @ self.cap_b[..., None])[..., 0]
+        a, b = self._capsule_ends(rotations, positions, centre)
         if self.subspace is not None:
             if heading is None:
                 raise ValueError("the subspace push needs each frame's heading (the body frame's yaw)")
@@ -263,6 +259,14 @@ class PushOutStage(nn.Module):
             operands = (p, a, b, radii, centre, vertices, pushed, out)
             pushed, out = _when_released(held.any(), self._released, operands)
         return out
+
+    def _capsule_ends(
+        self, rotations: torch.Tensor, positions: torch.Tensor, centre: torch.Tensor
+    ) -> tuple[torch.Tensor, torch.Tensor]:
+        """The capsules' ends (N, C, 3) posed by FK, about the pelvis ``centre`` (N, 1, 3)."""
+        rot, pos = rotations[:, self.joints], positions[:, self.joints]
+        a = pos - centre + (rot @ self.cap_a[..., None])[..., 0]
+        return a, pos - centre + (rot @ self.cap_b[..., None])[..., 0]
 
     def _held_limbs(self, repaired, p, a, b, radii) -> torch.Tensor:
         """(N, C) the limb capsules within the margin of a repaired vertex (:mod:`.limb_release`)."""

@@ -259,7 +259,7 @@ def stream_step(path: FramePath, *, movable: bool = False) -> StreamStep:
             path.smoothing,
             limits=path.edge_limits,
             settings=path.push_settings or PUSH_OUT,
-            **_skin_graph(run),
+            **_visible_body(run),
         )
     if run.decoder == "fast":
         module = path.decoder
@@ -268,7 +268,7 @@ def stream_step(path: FramePath, *, movable: bool = False) -> StreamStep:
     return StreamStep(bundle, module, character=run.body, memory=memory, fps=FPS, push_out=stage).eval()
 
 
-def _skin_graph(run) -> dict:
+def _visible_body(run) -> dict:
     """The collider graph of the mesh the run's body is drawn with and its hulls, where the run pushes
     out of it (``push_body="visible"``, the default) and the body has one; none: its capsules."""
     collider = run.body.visible_collider() if run.push_body == "visible" else None
