@@ -15,6 +15,7 @@ from typing import Iterable, Iterator
 import h5py
 
 from .errors import InputError, OutputError
+from .input_files import read_by_this_command
 
 # Errors of the storage itself (full, over quota, read-only, no permission, failing), as opposed to a
 # bug or bad input inside the writing code: these become one-line OutputErrors naming the target. An
@@ -74,21 +75,35 @@ def refuse_input_as_output(output: str | Path, inputs: Iterable[str | Path | Non
         raise storage_error(out, exc) from None
 
 
+def refuse_inputs_as_outputs(*outputs: str | Path) -> None:
+    """Refuse outputs that are files the running command read (:mod:`hrr_garment.input_files`); a
+    writer of several files asks for all of them before it writes the first."""
+    for output in outputs:
+        source = read_by_this_command(output)
+        if source is not None:
+            raise OutputError(
+                output,
+                f"is the input {source}: writing it would destroy the input; give another output path",
+            )
+
+
 @contextlib.contextmanager
 def atomic_path(path: str | Path, private: bool = False) -> Iterator[Path]:
     """Yield a temporary path in the target's folder; rename it onto ``path`` on success
     (``private``: readable by its owner only, as a key must be).
 
-    A target that exists and is not a regular file (a folder, a device such as /dev/full) is refused
-    before anything is written, and storage failures (disk full, read-only or missing folder, special
-    file systems such as /proc) raise :class:`OutputError` naming ``path``; the temporary file is
-    removed either way."""
+    A target that exists and is not a regular file (a folder, a device such as /dev/full), or that is
+    a file the running command read (:mod:`hrr_garment.input_files`: an output never destroys an
+    input), is refused before anything is written, and storage failures (disk full, read-only or
+    missing folder, special file systems such as /proc) raise :class:`OutputError` naming ``path``;
+    the temporary file is removed either way."""
     path = Path(path)
     try:
         if path.exists() and not path.is_file():
             raise OutputError(
                 path, "exists and is not a regular file (a folder or a device); give a file path"
             )
+        refuse_inputs_as_outputs(path)
         path.parent.mkdir(parents=True, exist_ok=True)
         fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp" + path.suffix, dir=path.parent)
         os.close(fd)

@@ -26,12 +26,17 @@ import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
+from ..errors import InputError
+from ..input_files import read_input_text
 from ..io_utils import atomic_path
 from .manifest import BundleError
 
 SIGNATURE_FILE = "bundle.sig"
 SIGNATURE_FORMAT = "hrr_garment bundle signature"
 SIGNATURE_VERSION = 1
+# a key file's first line, which keeps a public key from being used to sign and a private one from
+# being handed out as trusted (the two are 32 bytes of base64 alike)
+KEY_LABELS = {"private": "# hrr-sign ed25519 private key", "public": "# hrr-sign ed25519 public key"}
 MAX_SIGNATURE_BYTES = 4096  # the file is a few hundred bytes: a larger one is not ours
 
 
@@ -70,18 +75,34 @@ def generate_key(private_path: Path) -> Path:
     )
     public = key.public_key().public_bytes(serialization.Encoding.Raw, serialization.PublicFormat.Raw)
     private_path = Path(private_path)
+    if private_path.suffix == ".pub":
+        raise InputError(
+            private_path,
+            "is where the public key would go (PRIVATE.pub): name the private key otherwise (studio.key)",
+        )
     with atomic_path(private_path, private=True) as tmp:
-        Path(tmp).write_text(_b64(raw) + "\n")
+        Path(tmp).write_text(f"{KEY_LABELS['private']}\n{_b64(raw)}\n")
     public_path = private_path.with_suffix(".pub")
     with atomic_path(public_path) as tmp:
-        Path(tmp).write_text(_b64(public) + "\n")
+        Path(tmp).write_text(f"{KEY_LABELS['public']}\n{_b64(public)}\n")
     return public_path
 
 
-def _read_key(path: Path, size: int = 32) -> bytes:
+def _read_key(path: Path, kind: str) -> bytes:
+    """The raw key in a key file of hrr-sign keygen; ``kind``: "private" or "public", the file's
+    label must say the same (a file without one, from before the labels, is taken as either, but a
+    private key is never read from a .pub)."""
+    size = 32
+    text = read_input_text(path, limit=4096, what="a key file")
+    lines = [line.strip() for line in text.splitlines() if line.strip()]
+    label = next((line for line in lines if line.startswith("#")), None)
+    other = next(k for k in KEY_LABELS if k != kind)
+    if label == KEY_LABELS[other] or (label is None and kind == "private" and Path(path).suffix == ".pub"):
+        use = "sign with the private key beside it" if kind == "private" else "trust the .pub file"
+        raise BundleError(path, f"is a {other} key where a {kind} key is needed: {use}")
     try:
-        raw = base64.b64decode(Path(path).read_text(encoding="ascii").strip(), validate=True)
-    except (OSError, UnicodeDecodeError, ValueError) as exc:
+        raw = base64.b64decode("".join(line for line in lines if not line.startswith("#")), validate=True)
+    except ValueError as exc:
         raise BundleError(path, f"not a key written by hrr-sign keygen ({exc})") from None
     if len(raw) != size:
         raise BundleError(path, f"not an Ed25519 key: {len(raw)} bytes, expected {size}")
@@ -95,7 +116,7 @@ def sign_bundle(folder: Path, private_path: Path) -> str:
     from cryptography.hazmat.primitives import serialization
 
     folder = Path(folder)
-    key = ed25519.Ed25519PrivateKey.from_private_bytes(_read_key(private_path))
+    key = ed25519.Ed25519PrivateKey.from_private_bytes(_read_key(private_path, "private"))
     digest = hashlib.sha256((folder / "bundle.json").read_bytes()).hexdigest()
     public = key.public_key().public_bytes(serialization.Encoding.Raw, serialization.PublicFormat.Raw)
     record = {
@@ -138,7 +159,7 @@ def verify_signature(folder: Path, bundle_json: bytes) -> SignatureCheck:
         public = base64.b64decode(record["key"], validate=True) if ok else b""
         signature = base64.b64decode(record["signature"], validate=True) if ok else b""
         digest = str(record["bundle_sha256"]) if ok else ""
-    except (OSError, UnicodeDecodeError, ValueError, KeyError, TypeError) as exc:
+    except (OSError, UnicodeDecodeError, ValueError, KeyError, TypeError, RecursionError) as exc:
         raise BundleError(folder, f"{SIGNATURE_FILE} is unreadable ({exc})") from None
     if not ok or len(public) != 32:
         raise BundleError(folder, f"{SIGNATURE_FILE} is not an Ed25519 bundle signature of this version")
@@ -161,7 +182,7 @@ def verify_signature(folder: Path, bundle_json: bytes) -> SignatureCheck:
 def trusted_keys() -> dict[str, Path]:
     """key_id -> key file of the public keys in ``HRR_TRUSTED_KEYS``."""
     paths = [p for p in os.environ.get("HRR_TRUSTED_KEYS", "").split(os.pathsep) if p.strip()]
-    return {key_id(_read_key(Path(p))): Path(p) for p in paths}
+    return {key_id(_read_key(Path(p), "public")): Path(p) for p in paths}
 
 
 def check_signature(folder: Path, bundle_json: bytes) -> SignatureCheck:

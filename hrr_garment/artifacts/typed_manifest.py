@@ -168,7 +168,7 @@ def read_manifest(folder: str | Path, trust: bool = True) -> Manifest:
     try:
         raw = path.read_bytes()
         meta = json.loads(raw.decode("utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError, RecursionError) as exc:
         raise BundleError(folder, f"bundle.json is unreadable ({exc})") from None
     manifest = parse_manifest(folder, check_file_list(folder, migrate_manifest(folder, meta)))
     for name, digest in manifest.files.items():

@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
+from ..input_files import read_input_text
 from ..io_utils import atomic_write_text, strict_json
 from ..motion.skeleton import JOINT_NAMES, Skeleton
 from .capsules import BodyModel, Capsule
@@ -117,15 +118,12 @@ def _vector(path: Path, what: str, value: object, limit: float) -> tuple[float, 
 def read_body(path: str | Path) -> BodyRecord:
     """Read and check body.json; problems raise :class:`InputError` naming the file and the field."""
     path = Path(path)
+    text = read_input_text(path, limit=MAX_FILE_BYTES, what="a body file")
     try:
-        if path.stat().st_size > MAX_FILE_BYTES:
-            raise InputError(
-                path, f"{path.stat().st_size} bytes, more than a body file holds ({MAX_FILE_BYTES})"
-            )
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise InputError(path, "no such body file") from None
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        data = json.loads(text)
+    except RecursionError:
+        raise InputError(path, "not a body file (its JSON is nested too deep)") from None
+    except json.JSONDecodeError as exc:
         raise InputError(path, f"not a body file ({exc})") from None
     return body_from_dict(data, path)
 

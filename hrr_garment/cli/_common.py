@@ -11,6 +11,7 @@ from typing import Callable, Sequence
 from ..artifacts.manifest import DETAIL_BASES, MAX_DETAIL_STRENGTH
 from ..errors import HRRError, InputError
 from ..inference.run_settings import DECODERS, PUSH_BODIES, PUSHES, DetailLook, RunSettings
+from ..input_files import guarding_inputs
 
 EXIT_ERROR = 2
 
@@ -143,7 +144,8 @@ def run_cli(body: Callable[[Sequence[str] | None], int], argv: Sequence[str] | N
     main_thread = threading.current_thread() is threading.main_thread()
     previous = signal.signal(signal.SIGTERM, _terminate) if main_thread else None
     try:
-        return body(argv)
+        with guarding_inputs():  # what the command reads, no output of it may replace
+            return body(argv)
     except HRRError as exc:
         print(f"{prog}: error: {exc}", file=sys.stderr)
         return EXIT_ERROR

@@ -70,8 +70,10 @@ def _main(argv: Sequence[str] | None) -> int:
     if args.garment is None and args.model is None:
         raise InputError("hrr-export-model", "give --garment NAME or --model DIR")
     require_suffix(args.output, (".onnx",), "an ONNX model")
-    refuse_input_as_output(args.output, [args.check, args.body])
-    from ..export.onnx_model import check_onnx, export_onnx
+    from ..export.onnx_model import check_onnx, export_onnx, tensors_path
+
+    for output in (args.output, tensors_path(args.output)):  # the graph and its companion
+        refuse_input_as_output(output, [args.check, args.body])
     from ..inference.animator import Animator, find_model
     from ..motion.io import load_motion
 

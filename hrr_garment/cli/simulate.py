@@ -143,7 +143,8 @@ def _main(argv: Sequence[str] | None) -> int:
         on = f"-on-{Path(args.body).stem}" if args.body else ""
         out = workspace() / "datasets" / f"{garment.name}-{preset.name}{suffix}{on}.h5"
     require_suffix(out, (".h5", ".hdf5"), "a dataset")
-    refuse_input_as_output(out, [*(args.motions or []), args.template, args.body, args.made_for])
+    inputs = [*(args.motions or []), args.template, args.body, args.made_for, args.attached_file]
+    refuse_input_as_output(out, inputs)
     options = build_options(preset, choice.specs, args.motions)
     options["info"]["garment_vertices"] = garment.num_vertices
     if choice.bodies:

@@ -36,6 +36,7 @@ import h5py
 import numpy as np
 
 from ..errors import InputError
+from ..input_files import input_file
 from ..io_utils import atomic_h5
 from ..motion.motion import MAX_TRANSLATION_M
 from .animation_checks import check_arrays, checked_fps, checked_skeleton
@@ -183,8 +184,7 @@ def write_animation_h5(path: str | Path, arrays: AnimationArrays, attrs: dict) -
 def read_animation_h5(path: str | Path) -> AnimationFile:
     """Read and check an out.h5; problems raise :class:`InputError` naming the file."""
     path = Path(path)
-    if not path.is_file():
-        raise InputError(path, "no such file")
+    input_file(path, "an animation file")
     try:
         f = h5py.File(path, "r")
     except OSError as exc:

@@ -31,7 +31,7 @@ from ..inference.frame_path import FramePath
 from ..inference.modes import Mode
 from ..inference.run_settings import DECODERS, PUSHES, RunSettings
 from ..inference.torch_step import state_shapes, stream_step
-from ..io_utils import atomic_path, require_suffix
+from ..io_utils import atomic_path, refuse_inputs_as_outputs, require_suffix
 from ..motion.motion import FPS, Motion
 from ..motion.poses import motion_to_poses
 from ..motion.skeleton import JOINT_NAMES, NUM_JOINTS
@@ -86,6 +86,12 @@ def initial_state(shapes: dict[str, tuple[int, ...]], characters: int) -> dict[s
     return {name: np.zeros((characters, *shape), np.float32) for name, shape in shapes.items()}
 
 
+def tensors_path(graph: str | Path) -> Path:
+    """The companion file of the graph ``graph``: ``<stem>.tensors.npz`` beside it."""
+    graph = Path(graph)
+    return graph.with_name(f"{graph.stem}.tensors.npz")
+
+
 def export_onnx(animator, path: str | Path, settings: RunSettings | None = None, **changes) -> OnnxExport:
     """Write ``path`` (.onnx, one file) and its companion ``<stem>.tensors.npz``, atomically, for the
     run ``settings`` ask (:class:`~hrr_garment.inference.run_settings.RunSettings`, with keyword
@@ -97,6 +103,8 @@ def export_onnx(animator, path: str | Path, settings: RunSettings | None = None,
     onnx = _require_onnx()
     path = Path(path)
     require_suffix(path, (".onnx",), "an ONNX model")
+    tensors = tensors_path(path)
+    refuse_inputs_as_outputs(path, tensors)  # neither written where the other would then fail
     t0 = time.perf_counter()
     # refuses a fast decoder or a subspace push without the bundle's fast decoder, before the export's minute
     run = animator.resolve(settings, **{"mode": Mode.REGRESSION, **changes, "causal": True})
@@ -142,7 +150,6 @@ def export_onnx(animator, path: str | Path, settings: RunSettings | None = None,
         entry.key, entry.value = key, value if isinstance(value, str) else json.dumps(value)
     with atomic_path(path) as tmp:
         onnx.save_model(model, str(tmp))
-    tensors = path.with_name(f"{path.stem}.tensors.npz")
     db = bundle.database
     with atomic_path(tensors) as tmp, open(tmp, "wb") as fh:
         np.savez(

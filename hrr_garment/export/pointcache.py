@@ -21,6 +21,7 @@ from tqdm import tqdm
 from ..data.animation_file import AnimationFile
 from ..errors import InputError
 from ..garment.obj import SMOOTH_SHADING, format_rows, write_obj
+from ..input_files import MAX_BINARY_BYTES, read_input
 from ..io_utils import atomic_path, storage_error
 
 _PC2_HEADER = struct.Struct("<12siiffi")
@@ -40,7 +41,7 @@ def write_pc2(vertices: np.ndarray, path: str | Path, start_frame: float = 0.0) 
 def read_pc2(path: str | Path) -> tuple[np.ndarray, float, float]:
     """(vertices (T, V, 3) float32, start frame, sample rate); checks the header against the size."""
     path = Path(path)
-    data = path.read_bytes()
+    data = read_input(path, limit=MAX_BINARY_BYTES, what="a PC2 file")
     if len(data) < _PC2_HEADER.size:
         raise InputError(path, "too short for a PC2 header")
     magic, version, points, start, rate, samples = _PC2_HEADER.unpack_from(data)

@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from ..body.capsules import DEFAULT_BODY, BodyModel
+from ..input_files import input_file
 from ..io_utils import atomic_path
 from .mesh import GarmentError, GarmentMesh, check_garment, repair_mesh
 
@@ -21,8 +22,7 @@ from .mesh import GarmentError, GarmentMesh, check_garment, repair_mesh
 def read_obj(path: str | Path) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
     """(vertices (V, 3) float64, triangles (F, 3) int64, {group name: face indices})."""
     path = Path(path)
-    if not path.is_file():
-        raise GarmentError(path, "no such file")
+    input_file(path, "a garment OBJ")
     verts: list[list[float]] = []
     faces: list[tuple[int, int, int]] = []
     groups: dict[str, list[int]] = {}
@@ -146,6 +146,7 @@ def load_garment_obj(
         raise GarmentError(path, "--up and --unit go with --fit")
     if attached_file is not None:
         attached_file = Path(attached_file)
+        input_file(attached_file, "a list of attached vertices")
         try:
             idx = (
                 np.load(attached_file, allow_pickle=False)

@@ -16,7 +16,8 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import MotionError
-from .limits import MAX_BVH_DEPTH, MAX_BVH_JOINTS, MAX_BVH_VALUE, MIN_SOURCE_FPS, max_frames
+from ..input_files import MAX_BINARY_BYTES, read_input
+from .limits import MAX_BVH_DEPTH, MAX_BVH_VALUE, MAX_JOINTS, MIN_SOURCE_FPS, max_frames
 from .rotations import euler_to_matrix
 
 _ROT = {"xrotation": "X", "yrotation": "Y", "zrotation": "Z"}
@@ -121,12 +122,12 @@ def _parse_joint(tokens: _Tokens, tree: _Hierarchy, parent: int, depth: int) -> 
     """One JOINT (or the ROOT) block and, recursively, its children, appended to ``tree``."""
     path = tokens.path
     line, name = tokens.next("joint name")
-    if depth > MAX_BVH_DEPTH or len(tree.names) >= MAX_BVH_JOINTS:
+    if depth > MAX_BVH_DEPTH or len(tree.names) >= MAX_JOINTS:
         raise MotionError(
             path,
             f"line {line}: joint {name!r} is "
             f"{'nested ' + str(depth) + ' deep' if depth > MAX_BVH_DEPTH else 'one joint too many'}; at most "
-            f"{MAX_BVH_DEPTH} levels and {MAX_BVH_JOINTS} joints are read",
+            f"{MAX_BVH_DEPTH} levels and {MAX_JOINTS} joints are read",
         )
     index = len(tree.names)
     tree.names.append(name)
@@ -251,10 +252,7 @@ def _local_transforms(
 def read_bvh(path: str | Path) -> BvhClip:
     """Parse a BVH file into its hierarchy and channels (no retargeting)."""
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8", errors="replace")
-    except OSError as exc:
-        raise MotionError(path, f"cannot read file ({exc.strerror})") from None
+    text = read_input(path, limit=MAX_BINARY_BYTES, what="a BVH file").decode("utf-8", errors="replace")
     lines = text.splitlines()
     motion_line = next((i for i, line in enumerate(lines) if line.strip().upper().startswith("MOTION")), None)
     if motion_line is None:

@@ -31,7 +31,7 @@ from .gltf_file import (
     world_transforms,
 )
 from .joint_maps import resolve_joint_map
-from .limits import MAX_BVH_JOINTS, check_frame_budget
+from .limits import MAX_JOINTS, check_frame_budget
 from .motion import FPS, Motion
 from .reference_frames import leading_reference_frames
 from .resample import kernel_width, resample_linear, resample_rotations, resample_times
@@ -50,9 +50,9 @@ def _pick_skin(doc: GltfDocument, channels: list[AnimationChannel]) -> list[int]
     keyed = {c.node for c in channels}
     best = max(range(len(skins)), key=lambda s: (len(keyed & set(skins[s].joints or [])), -s))
     joints = list(skins[best].joints or [])
-    if len(joints) > MAX_BVH_JOINTS:
+    if len(joints) > MAX_JOINTS:
         raise doc.fail(
-            f"skin {best} has {len(joints)} joints, more than {MAX_BVH_JOINTS} (a human rig has under a few "
+            f"skin {best} has {len(joints)} joints, more than {MAX_JOINTS} (a human rig has under a few "
             "hundred)"
         )
     if not joints or not all(isinstance(j, int) and 0 <= j < len(doc.doc.nodes) for j in joints):

@@ -13,7 +13,9 @@ from urllib.parse import unquote
 
 import numpy as np
 
-from ..errors import MotionError
+from ..errors import InputError, MotionError
+from ..input_files import MAX_BINARY_BYTES, input_file, read_input
+from .gltf_checks import check_document
 from .rotations import matrix_to_quat, quat_to_matrix
 
 GLTF_SUFFIXES = (".glb", ".gltf")
@@ -27,6 +29,7 @@ _COMPONENTS = {
     5126: ("<f4", None),
 }
 _WIDTHS = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT4": 16}
+MAX_GLTF_JSON_BYTES = 256 << 20  # a GLB's JSON chunk (a character's is a few hundred kilobytes)
 # pygltflib's failures on a file that is not glTF (or is cut short): one line each, never a traceback
 READ_ERRORS = (
     OSError,
@@ -51,16 +54,35 @@ def pygltflib_module():
     return pygltflib
 
 
+def _json_of(path: Path, data: bytes) -> dict:
+    """The JSON of a .gltf file's bytes, or of a GLB's first chunk, as parsed (nothing coerced)."""
+    text = data
+    if data[:4] == b"glTF":
+        size = int.from_bytes(data[12:16], "little") if len(data) >= 20 else 0
+        if data[16:20] != b"JSON" or not 0 < size <= min(MAX_GLTF_JSON_BYTES, len(data) - 20):
+            raise MotionError(
+                path, "not a readable glTF 2.0 / GLB file: its first chunk is not JSON, or is cut short"
+            )
+        text = data[20 : 20 + size]
+    try:
+        doc = json.loads(text.decode("utf-8"))
+    except RecursionError:
+        raise MotionError(path, "its JSON is nested too deep to be a glTF document") from None
+    except (UnicodeDecodeError, ValueError) as exc:
+        raise MotionError(path, f"not a readable glTF 2.0 / GLB file, or cut short ({exc})") from None
+    if not isinstance(doc, dict):
+        raise MotionError(path, "not a glTF document: its JSON is not an object")
+    return doc
+
+
 class GltfDocument:
     """A loaded glTF document and its buffers' bytes, with checked access to accessors."""
 
     def __init__(self, path: Path):
         self.path = path
         gltf = pygltflib_module()
-        try:
-            data = path.read_bytes()
-        except OSError as exc:
-            raise MotionError(path, f"cannot read file ({exc.strerror})") from None
+        data = read_input(path, limit=MAX_BINARY_BYTES, what="a glTF / GLB file")
+        check_document(_json_of(path, data), self.fail, len(data))  # before pygltflib coerces it
         try:
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
@@ -69,6 +91,8 @@ class GltfDocument:
                     if data[:4] == b"glTF"
                     else gltf.GLTF2.from_json(data.decode("utf-8"))
                 )
+        except RecursionError:
+            raise MotionError(path, "its JSON is nested too deep to be a glTF document") from None
         except (*READ_ERRORS, json.JSONDecodeError) as exc:
             raise MotionError(
                 path, f"not a readable glTF 2.0 / GLB file, or cut short ({type(exc).__name__}: {exc})"
@@ -113,13 +137,21 @@ class GltfDocument:
         return self._buffers[index]
 
     def _external(self, uri: str, size: int) -> bytes:
-        """The first ``size`` bytes of a buffer file beside a .gltf (never a path out of its folder)."""
+        """The first ``size`` bytes of a buffer file beside a .gltf: never a path out of its folder,
+        a link included (resolved before the check), and only a regular file."""
         relative = Path(uri)
-        target = self.path.parent / relative
-        if relative.is_absolute() or ".." in relative.parts or not target.is_file():
-            raise self.fail(f"buffer file {uri!r} is not a file beside the .gltf")
-        with open(target, "rb") as fh:
-            return fh.read(size)
+        folder = self.path.parent.resolve()
+        try:
+            target = (folder / relative).resolve()
+        except (OSError, RuntimeError, ValueError):
+            target = None
+        if relative.is_absolute() or target is None or not target.is_relative_to(folder):
+            raise self.fail(f"buffer file {uri!r} is not a file beside the .gltf, in its folder")
+        try:
+            with open(input_file(target, what=f"buffer file {uri!r}"), "rb") as fh:
+                return fh.read(size)  # a longer file's first byteLength bytes are the buffer
+        except InputError as exc:
+            raise self.fail(f"buffer file {uri!r}: {exc.problem}") from None
 
     def accessor(self, index: int, raw_integers: bool = False) -> np.ndarray:
         """Accessor ``index`` as (count, width) float64, normalized integers scaled to [-1, 1].

@@ -7,6 +7,7 @@ import re
 from pathlib import Path
 
 from ..errors import MotionError, SkeletonMappingError
+from ..input_files import read_input_text
 from .skeleton import JOINT_NAMES
 
 # Canonical joints that may be missing from a source; they then follow their parent rigidly.
@@ -224,9 +225,10 @@ def load_joint_map(path: str | Path) -> dict[str, str]:
     import yaml
 
     path = Path(path)
+    text = read_input_text(path, what="a joint map")
     try:
-        data = yaml.safe_load(path.read_text())
-    except (OSError, yaml.YAMLError) as exc:
+        data = yaml.safe_load(text)
+    except (yaml.YAMLError, RecursionError) as exc:
         raise MotionError(path, f"cannot read joint map: {exc}") from None
     if not isinstance(data, dict) or not all(
         isinstance(k, str) and isinstance(v, str) for k, v in data.items()

@@ -21,7 +21,7 @@ from ..errors import MotionError
 MAX_FRAMES = 1_080_000  # frames after resampling: ten hours at 30 fps
 MAX_NPZ_BYTES = 2 << 30  # decompressed size of an npz's arrays
 MAX_BVH_DEPTH = 64  # joints nested inside one another (a human hierarchy is under 15 deep)
-MAX_BVH_JOINTS = 1024  # joints in a hierarchy (hands and face rigs stay in the hundreds)
+MAX_JOINTS = 1024  # joints in a hierarchy or a skin (hands and face rigs stay in the hundreds)
 MAX_BVH_VALUE = 1.0e6  # |offset|, |position| in file units and |angle| in degrees
 MAX_AXIS_ANGLE = 8 * np.pi  # radians: poses stay near pi; more is a scaled or corrupt rotation
 ROTATION_TOLERANCE = 1e-3  # how far a given rotation matrix may be from one (rotations.rotation_matrix_error)

@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import MotionError
+from ..input_files import input_file
 from .limits import max_npz_bytes
 
 NPZ_KINDS = "biufUS"  # dtype kinds an npz may hold: numbers and strings (bool only where it is read as such)
@@ -20,6 +21,7 @@ def read_npz(path: Path) -> dict[str, np.ndarray]:
     numbers and strings only (never objects), and at most ``max_npz_bytes()`` in all, so a huge
     declared shape or a compression bomb is refused before it is allocated."""
     limit, total, arrays = max_npz_bytes(), 0, {}
+    input_file(path, "a motion file")
     try:
         with zipfile.ZipFile(path) as archive:
             for member in archive.infolist():

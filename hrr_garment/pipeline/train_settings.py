@@ -13,6 +13,7 @@ import yaml
 from ..artifacts.auto_calibration import AutoCalibration
 from ..errors import InputError
 from ..eval.auto_criterion import AutoSettings
+from ..input_files import read_input_text
 from ..models.codespace import CodeSpaceSettings
 from ..models.direct import DirectSettings
 from ..models.fcmae import AutoencoderSettings
@@ -67,8 +68,8 @@ def _sections(data, source, callback: TrainCallback) -> dict:
 
 def _read_yaml(path: Path, callback: TrainCallback) -> dict:
     try:
-        data = yaml.safe_load(Path(path).read_text(encoding="utf-8")) or {}
-    except (OSError, yaml.YAMLError) as exc:
+        data = yaml.safe_load(read_input_text(path, what="a training config")) or {}
+    except (yaml.YAMLError, RecursionError) as exc:
         raise InputError(path, f"cannot read the training config: {exc}") from None
     return _sections(data, path, callback)
 
