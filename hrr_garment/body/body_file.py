@@ -27,7 +27,7 @@ from ..errors import InputError
 from ..input_files import read_input_text
 from ..io_utils import atomic_write_text, strict_json
 from ..motion.skeleton import JOINT_NAMES, Skeleton
-from .capsules import BodyModel, Capsule
+from .capsules import DEFAULT_BODY, BodyModel, Capsule
 from .fit import FitReport
 from .mesh_record import BodyMesh, mesh_from_dict, mesh_json, mesh_to_dict
 
@@ -142,19 +142,27 @@ def body_from_dict(data: object, path: str | Path) -> BodyRecord:
             [_vector(path, f"offset of {n}", o, MAX_BONE_M) for n, o in zip(JOINT_NAMES, offsets)], np.float32
         )
     )
+    _check_upright(path, skeleton)
     capsules = data.get("capsules")
-    if not isinstance(capsules, list) or not capsules:
-        raise InputError(path, "'capsules' must be a list of capsules")
+    expected = [(c.name, c.joint) for c in DEFAULT_BODY.capsules]
+    given = [(c.get("name"), c.get("joint")) if isinstance(c, dict) else c for c in capsules or []]
+    if not isinstance(capsules, list) or given != expected:
+        names = ", ".join(f"{name} on {joint}" for name, joint in expected)
+        raise InputError(path, f"'capsules' must be the body's {len(expected)} capsules in order: {names}")
     pelvis_height = _number(path, "pelvis_height", data.get("pelvis_height"), 0.2, 2.0)
     body = BodyModel(
         tuple(_capsule(path, c) for c in capsules), skeleton=skeleton, pelvis_height=pelvis_height
     )
     shape = data.get("shape")
     if shape is not None and not (
-        isinstance(shape, dict) and all(isinstance(v, (int, float)) for v in shape.values())
+        isinstance(shape, dict)
+        and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in shape.values())
+        and all(math.isfinite(v) for v in shape.values())
     ):
-        raise InputError(path, f"'shape' must map phenotype names to numbers, got {shape!r}")
+        raise InputError(path, f"'shape' must map phenotype names to finite numbers, got {shape!r}")
     fit = data.get("fit")
+    if fit is not None and not isinstance(fit, dict):
+        raise InputError(path, f"'fit' must be an object (the fit's report) or null, got {fit!r}")
     report = (
         FitReport(
             **{
@@ -191,6 +199,21 @@ def _upgrade(data: object, path: Path) -> dict:
             raise InputError(path, "a body file of format_version 1 holds no 'mesh' (version 2 brought it)")
         data = {**data, "mesh": None, "format_version": 2}
     return data
+
+
+def _check_upright(path: Path, skeleton: Skeleton) -> None:
+    """Refuse a skeleton no body has: upside down (the head below the pelvis, the feet above it) or
+    mirrored (the left joints on the right: a body's left is +x, as the canonical skeleton's)."""
+    joints = skeleton.rest_positions()
+    at = {name: joints[i] for i, name in enumerate(JOINT_NAMES)}
+    if not at["head"][1] > at["pelvis"][1] > max(at["l_ankle"][1], at["r_ankle"][1]):
+        raise InputError(
+            path, "its skeleton is upside down or flat: the head must stand above the pelvis, the feet below"
+        )
+    if not (at["l_hip"][0] > at["r_hip"][0] and at["l_shoulder"][0] > at["r_shoulder"][0]):
+        raise InputError(
+            path, "its skeleton is mirrored: the left hip and shoulder must lie on +x, the right on -x"
+        )
 
 
 def _capsule(path: Path, c: object) -> Capsule:

@@ -18,7 +18,6 @@ or a joint map), in metres, Y up, facing +Z.
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from dataclasses import fields, replace
 from pathlib import Path
@@ -28,6 +27,7 @@ from ..body.body_file import read_body, write_body
 from ..body.measures import BODY_MEASURES, body_vector
 from ..body.parametric import BodyShape
 from ..errors import InputError
+from ..io_utils import strict_json
 from ._common import run_cli
 
 
@@ -234,7 +234,7 @@ def _main(argv: Sequence[str] | None) -> int:
             if args.inside:
                 summary["model"]["inside_before_push_out"] = _inside(args.model, record, args.body.stem)
         print(
-            json.dumps(summary)
+            strict_json(summary)  # a non-finite value prints as null, never NaN
             if args.json
             else "\n".join(f"{k}: {v}" for k, v in summary.items() if k != "model")
         )

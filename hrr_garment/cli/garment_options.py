@@ -11,7 +11,7 @@ from ..body.body_file import BodyRecord
 from ..body.capsules import DEFAULT_BODY
 from ..errors import InputError
 from ..garment.mesh import GarmentMesh
-from ..garment.obj import Placement, load_garment_obj
+from ..garment.obj import Placement, load_garment_obj, require_cloth
 from ..garment.templates import GARMENT_NAMES, make_garment
 
 
@@ -97,6 +97,7 @@ def resolve_garment(
         )
         for note in notes:
             print(note)
+        require_cloth(mesh, args.template)
         if mesh.num_vertices > DENSE_FACTOR * default_vertices and not args.dense_ok:
             raise InputError(
                 args.template,

@@ -63,7 +63,7 @@ def place_garment(request, body: BodyRecord, vertices: int):
     (``request.fit``: another unit or up axis); or a built-in template made for the mannequin. The
     build carries it onto the character. Returns the mesh and the body it was modelled on (None: the
     mannequin)."""
-    from ..garment.obj import Placement, load_garment_obj
+    from ..garment.obj import Placement, load_garment_obj, require_cloth
     from ..garment.templates import GARMENT_NAMES, make_garment
 
     obj = Path(request.garment)
@@ -74,6 +74,7 @@ def place_garment(request, body: BodyRecord, vertices: int):
         notes: list[str] = []
         placement = Placement(fit=request.fit, body=made_for.body)
         mesh = load_garment_obj(obj, None, attached_group=request.attached, placement=placement, notes=notes)
+        require_cloth(mesh, obj)
         for note in notes:
             print(note)
         return mesh, made_for

@@ -8,6 +8,7 @@ index file (one 0-based vertex index per line, or a .npy integer array).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -17,6 +18,8 @@ from ..body.capsules import DEFAULT_BODY, BodyModel
 from ..input_files import input_file
 from ..io_utils import atomic_path
 from .mesh import GarmentError, GarmentMesh, check_garment, repair_mesh
+
+MIN_GARMENT_VERTICES = 16  # a garment to simulate: fewer is no cloth (a panel of 4 x 4 vertices)
 
 
 def read_obj(path: str | Path) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
@@ -38,6 +41,8 @@ def read_obj(path: str | Path) -> tuple[np.ndarray, np.ndarray, dict[str, np.nda
                     verts.append([float(x) for x in parts[1:4]])
                     if len(verts[-1]) != 3:
                         raise ValueError("a vertex needs three coordinates")
+                    if not all(map(math.isfinite, verts[-1])):  # never dropped with its faces later
+                        raise ValueError("a vertex coordinate is not a finite number")
                 elif tag == "f":
                     idx = [int(p.split("/")[0]) for p in parts[1:]]
                     idx = [i - 1 if i > 0 else len(verts) + i for i in idx]
@@ -57,6 +62,17 @@ def read_obj(path: str | Path) -> tuple[np.ndarray, np.ndarray, dict[str, np.nda
     if f.min() < 0 or f.max() >= len(v):
         raise GarmentError(path, f"face indices out of range 1..{len(v)}")
     return v, f, {k: np.array(i, np.int64) for k, i in groups.items()}
+
+
+def require_cloth(mesh: GarmentMesh, path: str | Path) -> GarmentMesh:
+    """``mesh`` (read from ``path``) if it is enough cloth to simulate and learn, else a
+    :class:`GarmentError`: the commands that simulate a user's OBJ ask it (a single triangle was
+    once simulated and trained on)."""
+    if mesh.num_vertices < MIN_GARMENT_VERTICES:
+        raise GarmentError(
+            path, f"{mesh.num_vertices} vertices: a garment to simulate has at least {MIN_GARMENT_VERTICES}"
+        )
+    return mesh
 
 
 def read_obj_vertices(path: str | Path) -> np.ndarray:

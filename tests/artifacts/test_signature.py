@@ -101,3 +101,24 @@ def test_unsigned_bundles_load_as_before_and_verify_says_so(bundle, capsys):
 def test_keygen_never_overwrites_a_key(keys, capsys):
     assert sign_main(["keygen", "-o", str(keys[0])]) == 2
     assert "already exists" in capsys.readouterr().err
+
+
+def test_keys_keep_their_kind_and_keygen_never_writes_a_key_over_the_other(bundle, keys, tmp_path, capsys):
+    """Issue 88: ``keygen -o mine.pub`` wrote the private key, then the public key over it;
+    ``sign --key studio.pub`` signed with a public key; a key file that is a device read forever."""
+    assert sign_main(["keygen", "-o", str(tmp_path / "mine.pub")]) == 2
+    assert "mine.pub" in capsys.readouterr().err and not (tmp_path / "mine.pub").exists()
+    assert sign_main(["sign", str(bundle), "--key", str(keys[1])]) == 2
+    err = capsys.readouterr().err
+    assert "studio.pub" in err and "public key where a private key is needed" in err
+    assert not (bundle / SIGNATURE_FILE).exists()
+    labelled_public = keys[1].read_text()
+    unlabelled = tmp_path / "old.key"  # a private key from before the labels still signs
+    unlabelled.write_text(keys[0].read_text().split()[-1] + "\n")
+    assert sign_main(["sign", str(bundle), "--key", str(unlabelled)]) == 0
+    swapped = tmp_path / "swapped.key"  # a public key's content under a private key's name
+    swapped.write_text(labelled_public)
+    assert sign_main(["sign", str(bundle), "--key", str(swapped)]) == 2
+    (tmp_path / "zero.key").symlink_to("/dev/zero")
+    assert sign_main(["sign", str(bundle), "--key", str(tmp_path / "zero.key")]) == 2
+    assert "not a regular file" in capsys.readouterr().err

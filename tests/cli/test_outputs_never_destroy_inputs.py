@@ -2,6 +2,7 @@
 names another format than the one written, is refused before anything is written, and no hidden
 temporary file is left behind (issue 48's data-loss reproducers 10 and 11)."""
 
+import json
 import shutil
 from pathlib import Path
 
@@ -99,3 +100,32 @@ def test_an_export_of_absurd_cloth_is_refused_as_hrr_animate_would(tmp_path, cap
     assert main([str(anim), "--to", to, "-o", str(output)]) == 2
     assert "from the body at frame 3" in capsys.readouterr().err and _listing(tmp_path) == before
     assert not output.exists()
+
+
+def test_the_new_doors_never_write_over_what_they_read(tmp_path, capsys):
+    """Issue 88: a joint map, a clip given as --check (under the name of the graph's companion
+    tensors) and an attached-vertex list given again as the output, each refused, each untouched."""
+    from hrr_garment.cli.body import main as body
+    from hrr_garment.cli.export_model import main as export_model
+    from hrr_garment.cli.simulate import main as simulate
+    from tests.body.test_character import Layout, _mannequin, write_skinned
+
+    vertices, faces, joints = _mannequin()
+    write_skinned(tmp_path / "hero.glb", vertices, faces, joints)
+    joint_map = tmp_path / "map.json"
+    joint_map.write_text(json.dumps(dict(zip(JOINT_NAMES, Layout().names))))  # the whole rig, named
+    before = _listing(tmp_path)
+    assert body(["fit", str(tmp_path / "hero.glb"), "--joint-map", str(joint_map), "-o", str(joint_map)]) == 2
+    err = capsys.readouterr().err
+    assert "map.json: is the input" in err and _listing(tmp_path) == before
+    clip = tmp_path / "walk.tensors.npz"
+    save_motion(synthesize("walk", seconds=1.0, seed=0), clip)
+    before = _listing(tmp_path)
+    args = ["--model", str(FIXTURES.parent / "bundle-31b4ef9"), "--onnx", "--check", str(clip)]
+    assert export_model([*args, "-o", str(tmp_path / "walk.onnx")]) == 2
+    assert "is the input" in capsys.readouterr().err and _listing(tmp_path) == before
+    indices = tmp_path / "idx.h5"
+    indices.write_text("0 1 2\n")
+    args = ["--garment", "skirt", "--preset", "tiny", "--attached-file", str(indices), "-o", str(indices)]
+    assert simulate(args) == 2
+    assert "is the input" in capsys.readouterr().err and indices.read_text() == "0 1 2\n"

@@ -266,3 +266,30 @@ def test_relaxing_stretch_draws_stretched_edges_back_and_leaves_the_rest():
     assert np.array_equal(relax_stretch(compressed, edges, rest), compressed)
     turn, shift = axis_angle_to_matrix(np.array([0.3, 1.1, -0.4])), np.array([0.5, -1.0, 2.0])
     assert np.allclose(relax_stretch(chain @ turn.T + shift, edges, rest), relaxed @ turn.T + shift)
+
+
+def test_a_nan_vertex_is_refused_and_a_triangle_is_no_garment(tmp_path, capsys):
+    """Issue 88: ``v nan 1.0 0.0`` was dropped with its faces and the rest simulated; a one-triangle
+    garment was simulated and trained on."""
+    from hrr_garment.cli.simulate import main as simulate
+
+    path = tmp_path / "nan.obj"
+    path.write_text("v 0 0 0\nv nan 1.0 0.0\nv 1 0 0\nv 1 1 0\ng band\nf 1 2 3\nf 1 3 4\n")
+    with pytest.raises(GarmentError, match="line 2: a vertex coordinate is not a finite number"):
+        read_obj(path)
+    triangle = tmp_path / "triangle.obj"
+    triangle.write_text("v 0 1.2 0.1\nv 0.1 1.2 0.1\nv 0 1.1 0.1\ng band\nf 1 2 3\n")
+    for obj, phrase in ((path, "not a finite number"), (triangle, "a garment to simulate has at least")):
+        args = [
+            "--template",
+            str(obj),
+            "--attached",
+            "band",
+            "--preset",
+            "tiny",
+            "-o",
+            str(tmp_path / "d.h5"),
+        ]
+        assert simulate(args) == 2
+        err = capsys.readouterr().err
+        assert str(obj) in err and phrase in err and not (tmp_path / "d.h5").exists()
