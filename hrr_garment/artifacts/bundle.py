@@ -213,7 +213,7 @@ class Bundle:
             return BodyRange.of([body_vector(mannequin_record())])
         try:
             return BodyRange.from_dict(thawed(bodies.range))
-        except (KeyError, TypeError, ValueError) as exc:
+        except (KeyError, TypeError, ValueError, AttributeError) as exc:
             raise BundleError(self.folder, f"bundle.json's bodies are unreadable ({exc})") from None
 
     @property

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import json
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -182,6 +182,18 @@ def body_from_dict(data: object, path: str | Path) -> BodyRecord:
         report=report,
         mesh=None if data.get("mesh") is None else mesh_from_dict(data["mesh"], path),
     )
+
+
+def checked_record(record: BodyRecord, name: str = "body") -> BodyRecord:
+    """A record made in code held to what body.json's reader checks (a NaN pelvis height, a capsule
+    a kilometre long, offsets of the wrong shape, a skeleton upside down or mirrored): ``record``
+    itself, or an :class:`InputError` naming ``name``. Its mesh is checked where it was made."""
+    try:
+        data = json.loads(strict_json(body_to_dict(replace(record, mesh=None))))  # NaN -> null
+    except (TypeError, ValueError, IndexError, AttributeError) as exc:
+        raise InputError(name, f"not a body record ({exc})") from None
+    body_from_dict(data, name)
+    return record
 
 
 def _upgrade(data: object, path: Path) -> dict:

@@ -20,6 +20,7 @@ when asked, warned about) by the caller.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -96,6 +97,10 @@ class BodyRange:
         names = tuple(data["names"])
         if names != BODY_MEASURES:
             raise ValueError(f"body measures {list(names)} are not this version's {list(BODY_MEASURES)}")
-        return cls(
-            tuple(map(float, data["low"])), tuple(map(float, data["high"])), int(data["bodies"]), names
-        )
+        low, high = tuple(map(float, data["low"])), tuple(map(float, data["high"]))
+        bodies = data["bodies"]
+        if not (len(low) == len(high) == len(names) and all(map(math.isfinite, low + high))):
+            raise ValueError(f"a range needs {len(names)} finite low and high measures")
+        if not all(a <= b for a, b in zip(low, high)) or not isinstance(bodies, int) or bodies < 1:
+            raise ValueError("a range's lows lie at or below its highs, over at least one body")
+        return cls(low, high, bodies, names)

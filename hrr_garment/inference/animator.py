@@ -179,7 +179,7 @@ class Animator:
 
     def animate(
         self,
-        motion: Motion,
+        motion: Motion | str | Path,
         settings: RunSettings | None = None,
         *,
         observe: Observer | None = None,
@@ -191,7 +191,14 @@ class Animator:
         (``animate(motion, mode="regression", push_out=False, body="hero.json")``). A clip on the
         canonical skeleton is played by the run's body (:meth:`body`); ``exclude_sequence`` keeps one
         database sequence out of retrieval (evaluation). The frame path: :mod:`.clip_path`, each
-        stage's output shown to ``observe`` where given (evaluation: the cloth before the push-out)."""
+        stage's output shown to ``observe`` where given (evaluation: the cloth before the push-out).
+        ``motion`` may be a motion file's path (read by :func:`~hrr_garment.motion.io.load_motion`)."""
+        if isinstance(motion, (str, Path)):
+            from ..motion.io import load_motion
+
+            motion = load_motion(motion)
+        if not isinstance(motion, Motion):
+            raise TypeError(f"motion must be a Motion or a motion file's path, not {type(motion).__name__}")
         # again: its arrays are read-only views, but the caller's own arrays under them are not
         motion.validate()
         run = self.resolve(settings, **changes)

@@ -29,7 +29,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..artifacts.bundle import Bundle
-from ..body.body_file import BodyRecord, read_body
+from ..body.body_file import BodyRecord, checked_record, read_body
 from ..body.capsules import BodyModel, pose_ends
 from ..body.mannequin import MANNEQUIN
 from ..body.measures import body_vector
@@ -129,7 +129,8 @@ def character_body(
         record = bundle.default_body
         label = name or (MANNEQUIN if bundle.manifest.default_body_is_mannequin else "the model's body")
     elif isinstance(body, BodyRecord):
-        record, label = body, name or "body"
+        label = name or "body"
+        record = checked_record(body, label)
     elif isinstance(body, (str, Path)):
         label, record = read_body_argument(body)
         label = name or label

@@ -53,6 +53,8 @@ class AnimationStream:
         if pose is not None:
             if rotation is not None or root is not None:
                 raise TypeError("push takes a pose or rotation= and root=, not both")
+            if not isinstance(pose, Motion):
+                raise TypeError(f"pose must be a one-frame Motion, not {type(pose).__name__}")
             return self.crowd.push_motions({0: pose})[0]
         if rotation is None or root is None:
             raise TypeError("push needs a one-frame Motion, or rotation= and root=")

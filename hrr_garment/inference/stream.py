@@ -122,6 +122,11 @@ class CrowdStream:
         one id per character (default 0 .. N-1; a new id joins); ``lod``: each character's level of
         detail (:mod:`.lod`; None: all at 0). -> (N, V, 3) world vertices, float32."""
         rotations, roots = np.asarray(rotations), np.asarray(roots)
+        for name, value in (("rotations", rotations), ("roots", roots)):
+            if value.dtype.kind not in "iuf" or value.ndim < 2:
+                raise TypeError(
+                    f"{name} must be numbers, a row per character, got {value.dtype} of shape {value.shape}"
+                )
         keys = list(range(len(rotations))) if keys is None else list(keys)
         if self.rig is not None:
             poses = self.rig.to_canonical(rotations, roots)

@@ -32,6 +32,25 @@ UNIT_SCALES = {
     "ft": 0.3048,
 }
 PLAUSIBLE_HEIGHT_M = (1.2, 2.3)
+GIVEN_HEIGHT_M = (0.3, 3.0)  # what a unit scale the user gives may make of a skeleton (body.json's range)
+
+
+def check_unit_scale(path: Path, unit_scale: float, rest: np.ndarray, mapping: dict[str, int]) -> float:
+    """A user's ``--unit-scale``: a positive number that stands the rest skeleton ``rest`` (file
+    units) at a body's height, else a :class:`MotionError` naming the file and the option."""
+    if not (np.isfinite(unit_scale) and unit_scale > 0):
+        raise MotionError(
+            path, f"unit scale must be a positive number of metres per file unit, got {unit_scale}"
+        )
+    height = standing_height_from_legs(rest, mapping) * unit_scale
+    lo, hi = GIVEN_HEIGHT_M
+    if not lo <= height <= hi:
+        raise MotionError(
+            path,
+            f"--unit-scale {unit_scale:g} stands its skeleton {height:.3g} m tall, where a body is "
+            f"{lo:g}-{hi:g} m: give metres per file unit (0.01 for centimetres)",
+        )
+    return float(unit_scale)
 
 
 def detect_unit_scale(rest: np.ndarray, mapping: dict[str, int], path: Path) -> float:
@@ -104,10 +123,8 @@ def bvh_source(
             raise MotionError(
                 path, f"{exc.problem}; {doubts_sentence(doubts)}" if doubts else exc.problem
             ) from None
-    elif not (np.isfinite(unit_scale) and unit_scale > 0):
-        raise MotionError(
-            path, f"unit scale must be a positive number of metres per file unit, got {unit_scale}"
-        )
+    else:
+        unit_scale = check_unit_scale(path, unit_scale, rest, mapping)
     src_fps = source_fps or 1.0 / clip.frame_time
     check_frame_budget(path, clip.num_frames, src_fps, fps_out=fps)
     # a conversion's T-pose before the motion is no part of it (.reference_frames)

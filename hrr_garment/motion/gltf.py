@@ -18,8 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import MotionError
-from .bvh_motion import PLAUSIBLE_HEIGHT_M, detect_unit_scale
+from .bvh_motion import PLAUSIBLE_HEIGHT_M, check_unit_scale, detect_unit_scale
 from .gltf_animation import AnimationChannel, animation_names, pick_animation, read_channels, sample_channel
 from .gltf_file import (
     GltfDocument,
@@ -177,11 +176,7 @@ def world_unit_scale(
     or above the tallest plausible human in metres (a file written in centimetres without a scaling
     node), then the unit that height says (:func:`~.bvh_motion.detect_unit_scale`)."""
     if unit_scale is not None:
-        if not (np.isfinite(unit_scale) and unit_scale > 0):
-            raise MotionError(
-                path, f"unit scale must be a positive number of metres per file unit, got {unit_scale}"
-            )
-        return float(unit_scale)
+        return check_unit_scale(path, unit_scale, rest, mapping)
     if shortest_m <= standing_height_from_legs(rest, mapping) <= PLAUSIBLE_HEIGHT_M[1]:
         return 1.0
     return detect_unit_scale(rest, mapping, path)

@@ -244,9 +244,11 @@ def test_centimetres_without_a_scaling_node_are_detected_or_given(tmp_path, walk
             walk_bvh_motion.source_height_m, rel=1e-4
         )  # metres, not 170
         assert_same_motion(motion, walk_bvh_motion)
-    assert load_motion(path, unit_scale=0.02).source_height_m == pytest.approx(
-        2 * walk_bvh_motion.source_height_m, rel=1e-4
+    assert load_motion(path, unit_scale=0.012).source_height_m == pytest.approx(
+        1.2 * walk_bvh_motion.source_height_m, rel=1e-4
     )
+    with pytest.raises(MotionError, match="--unit-scale 1e-09 stands its skeleton"):  # issue 88
+        load_motion(path, unit_scale=1e-9)
 
 
 def test_embedded_gltf_and_mixamo_names_without_colon(tmp_path, walk, walk_bvh_motion):
