@@ -15,6 +15,7 @@ is written atomically. GLB, USD need the ``export`` extra; .blend a Blender. See
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 import time
 from pathlib import Path
@@ -85,8 +86,8 @@ def _main(argv: Sequence[str] | None) -> int:
         raise InputError(
             args.output, f"cannot tell the format from the extension; give --to {'|'.join(_FORMATS)}"
         )
-    if args.tolerance < 0:
-        raise InputError("--tolerance", f"must be >= 0 mm, got {args.tolerance}")
+    if not (math.isfinite(args.tolerance) and args.tolerance >= 0):  # NaN passes a plain "< 0"
+        raise InputError("--tolerance", f"must be a finite number of millimetres >= 0, got {args.tolerance}")
     if args.no_normals and fmt != "glb":
         raise InputError(args.output, f"--no-normals is for glb, not {fmt}")
     if args.character is not None and fmt != "glb":
