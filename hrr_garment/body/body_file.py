@@ -144,15 +144,15 @@ def body_from_dict(data: object, path: str | Path) -> BodyRecord:
     )
     _check_upright(path, skeleton)
     capsules = data.get("capsules")
+    if not isinstance(capsules, list) or not capsules:
+        raise InputError(path, "'capsules' must be a list of capsules")
+    capsules = tuple(_capsule(path, c) for c in capsules)
     expected = [(c.name, c.joint) for c in DEFAULT_BODY.capsules]
-    given = [(c.get("name"), c.get("joint")) if isinstance(c, dict) else c for c in capsules or []]
-    if not isinstance(capsules, list) or given != expected:
+    if [(c.name, c.joint) for c in capsules] != expected:  # what the push-out and the limbs index
         names = ", ".join(f"{name} on {joint}" for name, joint in expected)
         raise InputError(path, f"'capsules' must be the body's {len(expected)} capsules in order: {names}")
     pelvis_height = _number(path, "pelvis_height", data.get("pelvis_height"), 0.2, 2.0)
-    body = BodyModel(
-        tuple(_capsule(path, c) for c in capsules), skeleton=skeleton, pelvis_height=pelvis_height
-    )
+    body = BodyModel(capsules, skeleton=skeleton, pelvis_height=pelvis_height)
     shape = data.get("shape")
     if shape is not None and not (
         isinstance(shape, dict)

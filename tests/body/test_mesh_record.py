@@ -135,7 +135,7 @@ def test_bad_meshes_are_refused_naming_the_file(tmp_path, monkeypatch):
     _refused(tmp_path, lambda m: None, "at most 10 rows")
     path = tmp_path / "bad.json"
     monkeypatch.setattr(body_file, "MAX_FILE_BYTES", 1000)
-    with pytest.raises(InputError, match="more than a body file holds"):
+    with pytest.raises(InputError, match="more than a body file may be"):
         read_body(path)
     data = body_to_dict(_record())
     data["mesh"] = [1, 2, 3]
