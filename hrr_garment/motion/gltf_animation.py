@@ -11,11 +11,13 @@ from pathlib import Path
 import numpy as np
 
 from .gltf_file import GltfDocument
+from .limits import MAX_BVH_VALUE
 from .motion import FPS
 from .rotations import quat_slerp
 
 _PATH_WIDTHS = {"translation": 3, "rotation": 4, "scale": 3}
 _INTERPOLATIONS = ("LINEAR", "STEP", "CUBICSPLINE")
+MIN_SCALE = 1e-6  # a scale key below this collapses the skeleton below it to a point
 
 
 @dataclass(frozen=True)
@@ -108,12 +110,32 @@ def read_channels(doc: GltfDocument, index: int) -> list[AnimationChannel]:
                 f"animation {index} channel {c} ({target.path} of node {target.node}): {len(times)} key "
                 f"times (must increase) for {values.shape[0]} values of width {values.shape[1]}"
             )
+        where = f"animation {index} channel {c} ({target.path} of node {target.node})"
+        _check_keys(doc, where, target.path, values[1::3] if per_key == 3 else values)
         if target.path == "rotation":
             values = values[:, [3, 0, 1, 2]]  # glTF quaternions are x, y, z, w
         if per_key == 3:
             values = values.reshape(len(times), 3, width)
         out.append(AnimationChannel(target.node, target.path, times, values, interpolation))
     return out
+
+
+def _check_keys(doc: GltfDocument, where: str, path: str, keys: np.ndarray) -> None:
+    """Keys (a cubic spline's values, not its tangents) that are no transform: a rotation far from
+    a unit quaternion (of zeros, or scaled: the specification asks unit ones), a scale of zero (the
+    skeleton below it collapses to a point) or a translation past the bound on file units a BVH
+    is held to."""
+    if path == "rotation":
+        length = np.linalg.norm(keys, axis=-1)
+        bad = np.flatnonzero(np.abs(length - 1.0) > 0.1)
+        if len(bad):
+            raise doc.fail(
+                f"{where}: key {bad[0]} is no rotation (a quaternion of length {length[bad[0]]:.3g})"
+            )
+    elif path == "scale" and (np.abs(keys) < MIN_SCALE).any():
+        raise doc.fail(f"{where}: a scale of zero collapses the skeleton below it")
+    elif path == "translation" and not (np.abs(keys) <= MAX_BVH_VALUE).all():
+        raise doc.fail(f"{where}: a key lies beyond {MAX_BVH_VALUE:g} file units of the origin")
 
 
 def sample_channel(ch: AnimationChannel, times: np.ndarray) -> np.ndarray:

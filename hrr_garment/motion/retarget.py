@@ -185,7 +185,7 @@ def retarget(
     local, root, _ = _retarget(src, mapping_by_name, None if calibration is None else calibration.roll)
     if ground:
         root = root.copy()
-        root[:, 1] -= clip_floor(local, root) if calibration is None else calibration.floor
+        root[:, 1] -= clip_floor(local, root, src.path or "") if calibration is None else calibration.floor
     return local, root
 
 
@@ -264,11 +264,13 @@ def _retarget(
     return local, root, used
 
 
-def clip_floor(local: np.ndarray, root: np.ndarray) -> float:
+def clip_floor(local: np.ndarray, root: np.ndarray, source: str = "") -> float:
     """The height of the floor under a clip: the 10th percentile over its frames of the lowest sole
     point. That point is ~0 whenever a foot is planted, and the percentile is robust to jumps and
-    hops (airborne frames are higher)."""
-    heights = [Motion(local[a:b], root[a:b]).lowest_foot_height() for a, b in frame_chunks(len(local))]
+    hops (airborne frames are higher). ``source`` names the clip in errors."""
+    heights = [
+        Motion(local[a:b], root[a:b], source=source).lowest_foot_height() for a, b in frame_chunks(len(local))
+    ]
     return float(np.percentile(np.concatenate(heights), 10))
 
 

@@ -8,6 +8,7 @@ import json
 import os
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from hrr_garment import synthesize
@@ -180,3 +181,39 @@ def test_an_output_never_replaces_a_buffer_the_command_read(tmp_path, document, 
     assert "data.npy" in err and "destroy the input" in err
     assert (tmp_path / "data.npy").read_bytes() == data
     assert sorted(p.name for p in tmp_path.iterdir()) == ["data.npy", "walk.gltf"]
+
+
+def _keys_changed(document: dict, path: str, change) -> dict:
+    """The document with the first ``path`` channel's key values changed by ``change``."""
+    doc = json.loads(json.dumps(document))
+    head, encoded = doc["buffers"][0]["uri"].split(",", 1)
+    data = bytearray(base64.b64decode(encoded))
+    animation = doc["animations"][0]
+    channel = next(c for c in animation["channels"] if c["target"]["path"] == path)
+    accessor = doc["accessors"][animation["samplers"][channel["sampler"]]["output"]]
+    start = doc["bufferViews"][accessor["bufferView"]].get("byteOffset", 0) + accessor.get("byteOffset", 0)
+    end = start + 4 * accessor["count"] * {"VEC3": 3, "VEC4": 4}[accessor["type"]]
+    data[start:end] = change(np.frombuffer(bytes(data[start:end]), "<f4")).astype("<f4").tobytes()
+    doc["buffers"][0]["uri"] = f"{head},{base64.b64encode(bytes(data)).decode()}"
+    return doc
+
+
+@pytest.mark.parametrize(
+    "path, change, phrase",
+    [
+        ("rotation", lambda q: 0 * q, "is no rotation"),
+        ("rotation", lambda q: 3 * q, "is no rotation"),
+        ("translation", lambda t: t + 1e30, r"beyond 1e\+06 file units"),
+        ("translation", lambda t: t + 1e5, "the pelvis goes"),  # within a file's units, too far in metres
+    ],
+)
+def test_keys_that_are_no_transform_are_refused_naming_the_file(
+    tmp_path, document, path, change, phrase, capsys
+):
+    from hrr_garment.motion.io import load_motion
+
+    hostile = tmp_path / "keys.gltf"
+    hostile.write_text(json.dumps(_keys_changed(document, path, change)))
+    with pytest.raises(MotionError, match=phrase) as err:
+        load_motion(hostile)
+    assert str(err.value).startswith(f"{hostile}: ")
