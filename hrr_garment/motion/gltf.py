@@ -69,6 +69,9 @@ def _key_rate(channels: list[AnimationChannel]) -> float | None:
     return 1.0 / min(spacings) if spacings else None
 
 
+MAX_SECONDS_PER_KEY = 60.0  # between keys on average: hand-keyed animation keys every few frames
+
+
 def _times(doc: GltfDocument, channels: list[AnimationChannel], fps: float) -> np.ndarray:
     """The output frame times: the animation's span at ``fps`` (its last partial frame left out, as
     other inputs are resampled)."""
@@ -76,6 +79,12 @@ def _times(doc: GltfDocument, channels: list[AnimationChannel], fps: float) -> n
     end = max(c.times[-1] for c in channels)
     frames = int(np.floor((end - start) * fps + 1e-4)) + 1
     check_frame_budget(doc.path, frames, fps, fps_out=fps)
+    keys = max(len(c.times) for c in channels)
+    if frames > max(keys, 2) * MAX_SECONDS_PER_KEY * fps:  # memory and time follow the file's content
+        raise doc.fail(
+            f"its animation spans {end - start:,.0f} s with {keys} keys in its densest channel: more than "
+            f"{MAX_SECONDS_PER_KEY:g} s a key is no motion a file of keys holds"
+        )
     return start + np.arange(frames) / fps
 
 

@@ -14,6 +14,7 @@ import pytest
 from hrr_garment import synthesize
 from hrr_garment.errors import MotionError
 from hrr_garment.motion.gltf_file import open_gltf
+from hrr_garment.motion.io import load_motion
 
 from .test_gltf import Rig, write_character
 
@@ -183,6 +184,13 @@ def test_an_output_never_replaces_a_buffer_the_command_read(tmp_path, document, 
     assert sorted(p.name for p in tmp_path.iterdir()) == ["data.npy", "walk.gltf"]
 
 
+def _float_span(doc: dict, index: int) -> tuple[int, int]:
+    """The bytes of float accessor ``index`` in the document's one buffer."""
+    accessor = doc["accessors"][index]
+    start = doc["bufferViews"][accessor["bufferView"]].get("byteOffset", 0) + accessor.get("byteOffset", 0)
+    return start, start + 4 * accessor["count"] * {"SCALAR": 1, "VEC3": 3, "VEC4": 4}[accessor["type"]]
+
+
 def _keys_changed(document: dict, path: str, change) -> dict:
     """The document with the first ``path`` channel's key values changed by ``change``."""
     doc = json.loads(json.dumps(document))
@@ -190,9 +198,7 @@ def _keys_changed(document: dict, path: str, change) -> dict:
     data = bytearray(base64.b64decode(encoded))
     animation = doc["animations"][0]
     channel = next(c for c in animation["channels"] if c["target"]["path"] == path)
-    accessor = doc["accessors"][animation["samplers"][channel["sampler"]]["output"]]
-    start = doc["bufferViews"][accessor["bufferView"]].get("byteOffset", 0) + accessor.get("byteOffset", 0)
-    end = start + 4 * accessor["count"] * {"VEC3": 3, "VEC4": 4}[accessor["type"]]
+    start, end = _float_span(doc, animation["samplers"][channel["sampler"]]["output"])
     data[start:end] = change(np.frombuffer(bytes(data[start:end]), "<f4")).astype("<f4").tobytes()
     doc["buffers"][0]["uri"] = f"{head},{base64.b64encode(bytes(data)).decode()}"
     return doc
@@ -210,10 +216,31 @@ def _keys_changed(document: dict, path: str, change) -> dict:
 def test_keys_that_are_no_transform_are_refused_naming_the_file(
     tmp_path, document, path, change, phrase, capsys
 ):
-    from hrr_garment.motion.io import load_motion
 
     hostile = tmp_path / "keys.gltf"
     hostile.write_text(json.dumps(_keys_changed(document, path, change)))
     with pytest.raises(MotionError, match=phrase) as err:
         load_motion(hostile)
     assert str(err.value).startswith(f"{hostile}: ")
+
+
+def test_two_keys_ten_hours_apart_are_refused_before_they_are_sampled(tmp_path, document):
+    """A 294 KB GLB whose two keys lay 35,000 s apart took 5.9 GB and 127 s: the span a file's keys
+    may cover follows how many keys it holds."""
+    doc = json.loads(json.dumps(document))
+    head, encoded = doc["buffers"][0]["uri"].split(",", 1)
+    data = bytearray(base64.b64decode(encoded))
+    for sampler in doc["animations"][0]["samplers"]:
+        accessor = doc["accessors"][sampler["input"]]
+        start = doc["bufferViews"][accessor["bufferView"]].get("byteOffset", 0) + accessor.get(
+            "byteOffset", 0
+        )
+        times = np.frombuffer(bytes(data[start : start + 4 * accessor["count"]]), "<f4").copy()
+        times[-1] = 35_000.0
+        data[start : start + 4 * accessor["count"]] = times.astype("<f4").tobytes()
+        accessor["max"] = [35_000.0]
+    doc["buffers"][0]["uri"] = f"{head},{base64.b64encode(bytes(data)).decode()}"
+    path = tmp_path / "span.gltf"
+    path.write_text(json.dumps(doc))
+    with pytest.raises(MotionError, match="spans 35,000 s with 15 keys"):
+        load_motion(path)
