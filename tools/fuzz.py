@@ -37,6 +37,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 import numpy as np
+from fuzz_doors import DOOR_KINDS, door_case, make_door_samples
 from tqdm import tqdm
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -644,6 +645,7 @@ class Case:
     names: list[str] = field(default_factory=list)  # file names an error line should mention (any one)
     keep: dict = field(default_factory=dict)  # inputs that must come out unchanged: path -> sha256
     interrupt: tuple | None = None  # (signal, seconds after the command starts working)
+    env: dict = field(default_factory=dict)  # settings the command runs under (trusted keys and the like)
 
 
 def _cli(module: str, *args: object) -> list[str]:
@@ -667,6 +669,7 @@ KINDS = {
     "output path": 0.05,
     "output = input": 0.06,
     "interrupt": 0.05,
+    **DOOR_KINDS,
 }
 
 
@@ -777,6 +780,27 @@ def make_case(number: int, samples: Samples, work: Path, rng: np.random.Generato
             out / "out.h5",
             ["model", "bundle.json"],
         )
+    if kind in DOOR_KINDS:
+        doors = make_door_samples(work / "samples" / "doors", samples.model, samples.native)
+        case = door_case(
+            kind,
+            doors,
+            folder,
+            rng,
+            cli=_cli,
+            hostile=HOSTILE_VALUES,
+            damage=mutate_bytes,
+        )
+        return Case(
+            number,
+            case.kind,
+            case.mutation,
+            case.command,
+            case.output,
+            case.names,
+            keep={str(p): _digest(p) for p in case.keep if p.is_file()},
+            env=case.env,
+        )
     if kind == "api":
         return _api_case(number, samples, out, rng)
     if kind == "output = input":
@@ -863,7 +887,7 @@ def _limits(memory_gib: float):
 
 
 def run_case(case: Case, timeout: float, memory_gib: float) -> dict:
-    env = {**os.environ, "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+    env = {**os.environ, "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", **case.env}
     start = time.perf_counter()
     proc = subprocess.Popen(
         case.command,
@@ -965,6 +989,8 @@ def judge(case: Case, rc: int, err: str, hung: bool) -> tuple[str, str]:
         return "clean error", lines[-1][-200:]
     if leftovers:
         return "partial file", f"left {leftovers}"
+    if case.output.name == "none":  # a command that only prints (hrr-motion info, hrr-body info)
+        return "ok", ""
     problem = check_output(case.output)
     return ("bad output", problem) if problem else ("ok", "")
 
@@ -1006,6 +1032,8 @@ def check_output(path: Path) -> str:
             from hrr_garment.export.pointcache import read_pc2
 
             return "" if np.isfinite(read_pc2(path)[0]).all() else "non-finite points"
+        if path.suffix == ".json":  # body.json and the like: strict JSON, no NaN or Infinity
+            json.loads(path.read_text(), parse_constant=lambda c: (_ for _ in ()).throw(ValueError(c)))
         if path.is_dir() and (path / "bundle.json").exists():
             from hrr_garment.artifacts.bundle_loader import load_bundle
 
