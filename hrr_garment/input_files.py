@@ -2,8 +2,8 @@
 
 Only regular files are read: a pipe would hang the command, a device such as ``/dev/zero`` never
 ends, and a symlink is resolved before anything is decided, so a link to either is the device it
-names. Sizes are bounded before reading (and the read itself stops one byte past the bound, for a
-file that grows while it is read), so memory follows the file's real content.
+names. Sizes are bounded before reading, and the read takes the size the file had (a file that
+grows while it is read is refused), so memory follows the file's real content.
 
 While a command runs (:func:`guarding_inputs`, which the command-line wrapper holds), every file read
 through here is remembered, and :func:`~hrr_garment.io_utils.atomic_path` refuses to replace one:
@@ -65,11 +65,12 @@ def read_input(path: str | Path, *, limit: int, what: str = "file") -> bytes:
         raise InputError(path, f"is {size:,} bytes, more than {what} may be ({limit:,} bytes)")
     try:
         with open(target, "rb") as fh:
-            data = fh.read(limit + 1)
+            data = fh.read(size)  # a buffer of the file's size: read(limit) would allocate the limit
+            grew = fh.read(1)
     except OSError as exc:
         raise InputError(path, f"cannot read {what} ({exc.strerror or exc})") from None
-    if len(data) > limit:  # it grew while being read
-        raise InputError(path, f"holds more than {what} may be ({limit:,} bytes)")
+    if grew:  # it grew while being read
+        raise InputError(path, f"grew while it was read: {what} must stay still")
     return data
 
 
