@@ -35,7 +35,7 @@ PLAUSIBLE_HEIGHT_M = (1.2, 2.3)
 GIVEN_HEIGHT_M = (0.3, 3.0)  # what a unit scale the user gives may make of a skeleton (body.json's range)
 
 
-def check_unit_scale(path: Path, unit_scale: float, rest: np.ndarray, mapping: dict[str, int]) -> float:
+def check_unit_scale(path: Path, unit_scale: float, *, rest: np.ndarray, mapping: dict[str, int]) -> float:
     """A user's ``--unit-scale``: a positive number that stands the rest skeleton ``rest`` (file
     units) at a body's height, else a :class:`MotionError` naming the file and the option."""
     if not (np.isfinite(unit_scale) and unit_scale > 0):
@@ -124,7 +124,7 @@ def bvh_source(
                 path, f"{exc.problem}; {doubts_sentence(doubts)}" if doubts else exc.problem
             ) from None
     else:
-        unit_scale = check_unit_scale(path, unit_scale, rest, mapping)
+        unit_scale = check_unit_scale(path, unit_scale, rest=rest, mapping=mapping)
     src_fps = source_fps or 1.0 / clip.frame_time
     check_frame_budget(path, clip.num_frames, src_fps, fps_out=fps)
     # a conversion's T-pose before the motion is no part of it (.reference_frames)

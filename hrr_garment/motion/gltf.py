@@ -185,7 +185,7 @@ def world_unit_scale(
     or above the tallest plausible human in metres (a file written in centimetres without a scaling
     node), then the unit that height says (:func:`~.bvh_motion.detect_unit_scale`)."""
     if unit_scale is not None:
-        return check_unit_scale(path, unit_scale, rest, mapping)
+        return check_unit_scale(path, unit_scale, rest=rest, mapping=mapping)
     if shortest_m <= standing_height_from_legs(rest, mapping) <= PLAUSIBLE_HEIGHT_M[1]:
         return 1.0
     return detect_unit_scale(rest, mapping, path)
