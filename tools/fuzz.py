@@ -974,7 +974,9 @@ def judge(case: Case, rc: int, err: str, hung: bool) -> tuple[str, str]:
         return "traceback", last[-300:]
     if rc == 2:
         if leftovers or (
-            not special and _exists(case.output) and case.kind not in ("output path", "output = input")
+            not special
+            and _exists(case.output)
+            and case.kind not in ("output path", "output = input", "new output = input")
         ):
             return "partial file", f"left {leftovers or case.output.name}"
         lines = [ln for ln in err.splitlines() if "error:" in ln]
@@ -1048,6 +1050,12 @@ def check_output(path: Path) -> str:
         return f"output does not read back: {type(exc).__name__}: {str(exc)[:200]}"
 
 
+def _special_files(folder: str, names: list[str]) -> list[str]:
+    """The names in ``folder`` that are neither files, folders nor links (pipes, sockets)."""
+    paths = [Path(folder) / n for n in names]
+    return [p.name for p in paths if not (p.is_symlink() or p.is_file() or p.is_dir())]
+
+
 def write_report(results: list[dict], work: Path, seconds: float) -> str:
     kinds = sorted({r["kind"] for r in results})
     outcomes = ["clean error", "ok", *FAILURES]
@@ -1113,7 +1121,8 @@ def main(argv: list[str] | None = None) -> int:
             }
         if r["outcome"] in FAILURES:
             kept = args.work / "failures" / folder.name
-            shutil.copytree(folder, kept, dirs_exist_ok=True)
+            # links kept as links and pipes left out: a copy through a link to /dev/zero never ends
+            shutil.copytree(folder, kept, symlinks=True, ignore=_special_files, dirs_exist_ok=True)
             (kept / "command.txt").write_text(" ".join(map(str, r["command"])) + "\n\n" + r["stderr"])
         shutil.rmtree(folder, ignore_errors=True)
         return r
