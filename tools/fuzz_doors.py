@@ -362,7 +362,13 @@ def _signature_case(samples: DoorSamples, folder: Path, rng: np.random.Generator
         return DoorCase("signature", what, command, folder / "out" / "mine.pub", ["mine.pub"], [], {})
     command = cli("animate", clip, "--model", copy, "-o", folder / "out" / "out.h5")
     return DoorCase(
-        "signature", what, command, folder / "out" / "out.h5", ["model", "HRR_", "bundle"], [], env
+        "signature",
+        what,
+        command,
+        folder / "out" / "out.h5",
+        ["model", "HRR_", "bundle", "zero.pub", "nobody.pub"],
+        [],
+        env,
     )
 
 

@@ -19,6 +19,7 @@ from ..input_files import input_file
 from ..io_utils import atomic_path
 from .mesh import GarmentError, GarmentMesh, check_garment, repair_mesh
 
+MAX_COORDINATE = 1e6  # file units (a millimetre OBJ of a 1,000 km garment): past it float32 loses the cloth
 MIN_GARMENT_VERTICES = 16  # a garment to simulate: fewer is no cloth (a panel of 4 x 4 vertices)
 
 
@@ -43,6 +44,8 @@ def read_obj(path: str | Path) -> tuple[np.ndarray, np.ndarray, dict[str, np.nda
                         raise ValueError("a vertex needs three coordinates")
                     if not all(map(math.isfinite, verts[-1])):  # never dropped with its faces later
                         raise ValueError("a vertex coordinate is not a finite number")
+                    if max(map(abs, verts[-1])) > MAX_COORDINATE:  # float32 holds the garment
+                        raise ValueError(f"a vertex coordinate beyond {MAX_COORDINATE:g} file units")
                 elif tag == "f":
                     idx = [int(p.split("/")[0]) for p in parts[1:]]
                     idx = [i - 1 if i > 0 else len(verts) + i for i in idx]

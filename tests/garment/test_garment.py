@@ -279,7 +279,14 @@ def test_a_nan_vertex_is_refused_and_a_triangle_is_no_garment(tmp_path, capsys):
         read_obj(path)
     triangle = tmp_path / "triangle.obj"
     triangle.write_text("v 0 1.2 0.1\nv 0.1 1.2 0.1\nv 0 1.1 0.1\ng band\nf 1 2 3\n")
-    for obj, phrase in ((path, "not a finite number"), (triangle, "a garment to simulate has at least")):
+    far = tmp_path / "far.obj"
+    far.write_text(path.read_text().replace("nan", "1e300"))
+    cases = (
+        (path, "not a finite number"),
+        (triangle, "a garment to simulate has at least"),
+        (far, "beyond 1e+06"),
+    )
+    for obj, phrase in cases:
         args = [
             "--template",
             str(obj),
