@@ -287,16 +287,7 @@ def test_a_nan_vertex_is_refused_and_a_triangle_is_no_garment(tmp_path, capsys):
         (far, "beyond 1e+06"),
     )
     for obj, phrase in cases:
-        args = [
-            "--template",
-            str(obj),
-            "--attached",
-            "band",
-            "--preset",
-            "tiny",
-            "-o",
-            str(tmp_path / "d.h5"),
-        ]
+        args = f"--template {obj} --attached band --preset tiny -o {tmp_path / 'd.h5'}".split()
         assert simulate(args) == 2
         err = capsys.readouterr().err
         assert str(obj) in err and phrase in err and not (tmp_path / "d.h5").exists()
