@@ -3,9 +3,8 @@ frames, strain, penetration, simulation speed, splices, bodies, rejects."""
 
 from __future__ import annotations
 
-import json
-
 from ..garment.mesh import GarmentMesh
+from ..io_utils import strict_json
 
 
 def print_build_report(report, garment: GarmentMesh) -> None:
@@ -68,7 +67,7 @@ def print_build_report(report, garment: GarmentMesh) -> None:
         print(f"  motion sources (sequences): {counts}; {licence['statement']}")
     print(
         "  hem swing (m) by kind: "
-        + json.dumps({k: round(v, 3) for k, v in s["hem_swing_m_by_kind"].items()})
+        + strict_json({k: round(v, 3) for k, v in s["hem_swing_m_by_kind"].items()})
     )
     for name, reason in report.rejects.items():
         print(f"  rejected {name}: {reason}")

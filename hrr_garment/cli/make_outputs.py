@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..errors import HRRError
-from ..io_utils import atomic_write_text
+from ..io_utils import atomic_write_text, strict_json
 from ..pipeline.make_record import content_key
 
 if TYPE_CHECKING:
@@ -127,7 +127,7 @@ def _report(run: MakeRun, outputs: Path, model_key: str) -> None:
         command = _call(evaluate, [*argv, "--no-plots", "--ensemble", members, "-o", folder])
         step = _step_ms(run)
     summary = _summary(folder / "report.json", step)
-    atomic_write_text(outputs / "summary.json", json.dumps(summary, indent=2))
+    atomic_write_text(outputs / "summary.json", strict_json(summary, indent=2))
     run.record.finish("report", model_key, t.seconds, {"command": "hrr-eval " + command, **summary})
     print(
         f"held-out clips: PVE / floor {_number(summary['pve_over_floor'])}, cloth inside the body "

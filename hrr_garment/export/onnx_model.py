@@ -31,7 +31,7 @@ from ..inference.frame_path import FramePath
 from ..inference.modes import Mode
 from ..inference.run_settings import DECODERS, PUSHES, RunSettings
 from ..inference.torch_step import state_shapes, stream_step
-from ..io_utils import atomic_path, refuse_inputs_as_outputs, require_suffix
+from ..io_utils import atomic_path, refuse_inputs_as_outputs, require_suffix, strict_json
 from ..motion.motion import FPS, Motion
 from ..motion.poses import motion_to_poses
 from ..motion.skeleton import JOINT_NAMES, NUM_JOINTS
@@ -147,7 +147,7 @@ def export_onnx(animator, path: str | Path, settings: RunSettings | None = None,
     }
     for key, value in meta.items():
         entry = model.metadata_props.add()
-        entry.key, entry.value = key, value if isinstance(value, str) else json.dumps(value)
+        entry.key, entry.value = key, value if isinstance(value, str) else strict_json(value)
     with atomic_path(path) as tmp:
         onnx.save_model(model, str(tmp))
     db = bundle.database

@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..errors import InputError
-from ..io_utils import atomic_write_text
+from ..io_utils import atomic_write_text, strict_json
 from .make_budget import OUTPUT_STAGES
 
 MAKE_RECORD_FORMAT = 1
@@ -126,4 +126,4 @@ class MakeRecord:
             "stages": self.stages,
             "plan": self.plan,
         }
-        atomic_write_text(self.path, json.dumps(data, indent=2, default=str))
+        atomic_write_text(self.path, strict_json(data, indent=2, default=str))
