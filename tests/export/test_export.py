@@ -324,7 +324,7 @@ def test_hrr_export_refuses_bad_input_without_output(out_h5, tmp_path, capsys):
         (["absent.h5", "-o", "x.glb"], "no such file"),
         ([str(out_h5), "-o", "x.fbx"], "cannot tell the format"),
         ([str(out_h5), "-o", "x.pc2", "--with-body"], "--with-body"),
-        ([str(out_h5), "-o", "x.glb", "--tolerance", "-1"], "must be >= 0"),
+        ([str(out_h5), "-o", "x.glb", "--tolerance", "-1"], "millimetres >= 0"),
     ]
     for args, message in cases:
         args = [str(tmp_path / a) if a.endswith(".h5") and "/" not in a else a for a in args]
