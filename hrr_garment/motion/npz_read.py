@@ -47,7 +47,16 @@ def read_npz(path: Path) -> dict[str, np.ndarray]:
                     )
             with np.load(path, allow_pickle=False) as npz:
                 arrays = {k: npz[k] for k in npz.files}
-    except (OSError, ValueError, zipfile.BadZipFile, EOFError, KeyError) as exc:
+    # NotImplementedError: a damaged header naming a compression zipfile lacks; RuntimeError: "encrypted"
+    except (
+        OSError,
+        ValueError,
+        zipfile.BadZipFile,
+        EOFError,
+        KeyError,
+        NotImplementedError,
+        RuntimeError,
+    ) as exc:
         raise MotionError(path, f"not a readable npz file ({exc})") from None
     return arrays
 

@@ -197,3 +197,18 @@ def test_concatenate_reuses_forward_kinematics_exactly():
     assert "_fk" not in fresh.__dict__
     for x, y, z in zip(joined._fk, fresh._fk, m._fk):
         assert np.array_equal(x, y) and np.array_equal(y, z)
+
+
+def test_an_npz_naming_a_compression_zipfile_lacks_is_refused(tmp_path):
+    """Found by tools/fuzz.py (issue 88's run, case 1222): damaged bytes that name an unknown
+    compression method were a NotImplementedError traceback."""
+    from hrr_garment.errors import MotionError
+
+    path = tmp_path / "clip.npz"
+    save_motion(synthesize("walk", 0.5, seed=0), path)
+    data = bytearray(path.read_bytes())
+    entry = data.index(b"PK\x01\x02")  # the first member's entry in the central directory
+    data[entry + 10 : entry + 12] = (99).to_bytes(2, "little")  # its compression method
+    path.write_bytes(bytes(data))
+    with pytest.raises(MotionError, match="not a readable npz file"):
+        load_motion(path)
