@@ -13,7 +13,7 @@ import numpy as np
 from ..errors import MotionError
 from .bvh import read_bvh
 from .joint_maps import resolve_joint_map
-from .limits import check_frame_budget
+from .limits import MAX_SOURCE_FPS, check_frame_budget
 from .motion import FPS, Motion
 from .reference_frames import leading_reference_frames
 from .resample import kernel_width, resample_linear, resample_rotations, resample_times
@@ -126,6 +126,12 @@ def bvh_source(
     else:
         unit_scale = check_unit_scale(path, unit_scale, rest=rest, mapping=mapping)
     src_fps = source_fps or 1.0 / clip.frame_time
+    if source_fps is None and src_fps > MAX_SOURCE_FPS:  # its low-pass filter would span millions of frames
+        raise MotionError(
+            path,
+            f"its frame time {clip.frame_time:g} s is {src_fps:g} frames/s, more than {MAX_SOURCE_FPS:g}: "
+            "give the capture rate with --fps",
+        )
     check_frame_budget(path, clip.num_frames, src_fps, fps_out=fps)
     # a conversion's T-pose before the motion is no part of it (.reference_frames)
     start = leading_reference_frames(

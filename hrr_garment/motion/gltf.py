@@ -30,7 +30,7 @@ from .gltf_file import (
     world_transforms,
 )
 from .joint_maps import resolve_joint_map
-from .limits import MAX_JOINTS, check_frame_budget
+from .limits import MAX_JOINTS, MAX_SOURCE_FPS, check_frame_budget
 from .motion import FPS, Motion
 from .reference_frames import leading_reference_frames
 from .resample import kernel_width, resample_linear, resample_rotations, resample_times
@@ -143,6 +143,10 @@ def gltf_source(
     # keyed much faster than the output (a 120 fps capture baked to keys): evaluated at its key
     # rate and low-pass filtered down, as a BVH of it is (.resample)
     rate = _key_rate(channels)
+    if rate and rate > MAX_SOURCE_FPS:  # its low-pass filter would span millions of frames
+        raise doc.fail(
+            f"its keys lie {1 / rate:.3g} s apart: {rate:.3g} keys a second, more than {MAX_SOURCE_FPS:g}"
+        )
     width = kernel_width(rate, options.fps) if rate else 1.0
     sampled = _times(doc, channels, rate) if width > 1.0 else times
     world = world_transforms(order, parents, _local_transforms(doc, order, channels, sampled))

@@ -212,3 +212,23 @@ def test_an_npz_naming_a_compression_zipfile_lacks_is_refused(tmp_path):
     path.write_bytes(bytes(data))
     with pytest.raises(MotionError, match="not a readable npz file"):
         load_motion(path)
+
+
+def test_a_bvh_of_a_billion_frames_a_second_is_refused_unless_its_rate_is_given(tmp_path):
+    """Found by tools/fuzz.py (issue 88's run, case 1537): a frame time of 1e-9 s asked the
+    low-pass filter for 98 GiB."""
+    from hrr_garment.errors import MotionError
+
+    motion = synthesize("walk", 1.0, seed=0)
+    path = tmp_path / "fast.bvh"
+    rotations = motion.local_rotations.astype(np.float64)
+    write_bvh(
+        path, list(JOINT_NAMES), list(PARENTS), CANONICAL.offsets, rotations, motion.root_translation, 1 / 30
+    )
+    lines = [
+        ("Frame Time: 1e-9" if ln.startswith("Frame Time") else ln) for ln in path.read_text().splitlines()
+    ]
+    path.write_text("\n".join(lines) + "\n")
+    with pytest.raises(MotionError, match="more than 1000: give the capture rate with --fps"):
+        load_motion(path)
+    assert load_motion(path, source_fps=30.0).num_frames == motion.num_frames
