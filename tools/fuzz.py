@@ -1093,6 +1093,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--only", choices=list(KINDS), default=None, help="one input kind")
     p.add_argument("--work", type=Path, default=ROOT / "hrr_work" / "fuzz")
     args = p.parse_args(argv)
+    args.work = args.work.resolve()  # a relative folder would make the cases' links dangle
     samples = make_samples(args.work / "samples")
     shutil.rmtree(args.work / "failures", ignore_errors=True)
 
