@@ -80,7 +80,7 @@ def _checked_blender(command: tuple[str, ...]) -> None:
         status, output = _run_bounded(probe, PROBE_TIMEOUT_S)
     except OSError as exc:
         raise InputError(
-            "HRR_BLENDER", f"{command[0]} cannot run ({exc.strerror or exc}): {MISSING}"
+            "HRR_BLENDER", f"{command[0]} is not there or cannot run ({exc.strerror or exc}): {MISSING}"
         ) from None
     if status is None or PROBE_MARK not in output:
         raise InputError(
