@@ -188,10 +188,7 @@ def door_case(
         command, target = commands[name]
         return DoorCase(kind, f"{name}: {what}", command, target, [src.name], [], {})
     if kind == "body.json":
-        data = json.loads(samples.body.read_text())
-        what = _mutate_body(data, rng, hostile)
-        src = folder / "body.json"
-        src.write_text(json.dumps(data))
+        src, what = _hostile_body(samples, folder, rng, hostile)
         if rng.random() < 0.5:
             return DoorCase(
                 kind, f"info: {what}", cli("body", "info", src, "--json"), out / "none", [src.name], [], {}
@@ -225,10 +222,7 @@ def door_case(
         )
         return DoorCase(kind, what, command, out / "d.h5", [src.name], [], {})
     if kind == "onnx export":
-        data = json.loads(samples.body.read_text())
-        what = _mutate_body(data, rng, hostile)
-        src = folder / "body.json"
-        src.write_text(json.dumps(data))
+        src, what = _hostile_body(samples, folder, rng, hostile)
         command = cli(
             "export_model",
             "--model",
@@ -247,6 +241,17 @@ def door_case(
     if kind == "special file":
         return _special_case(samples, folder, rng, cli)
     return _output_is_input_case(samples, folder, rng, cli)
+
+
+def _hostile_body(
+    samples: DoorSamples, folder: Path, rng: np.random.Generator, hostile: list
+) -> tuple[Path, str]:
+    """The sample body.json mutated once, written into ``folder``: (its path, what was done)."""
+    data = json.loads(samples.body.read_text())
+    what = _mutate_body(data, rng, hostile)
+    src = folder / "body.json"
+    src.write_text(json.dumps(data))
+    return src, what
 
 
 def _mutate_body(data: dict, rng: np.random.Generator, hostile: list) -> str:
