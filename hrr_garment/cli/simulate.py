@@ -10,6 +10,8 @@ Examples::
     hrr-simulate --garment dress --preset real-quick --body hero.json        # on your character's body
     hrr-simulate --template hero_dress.obj --made-for hero.json --attached auto --preset real-quick
     hrr-simulate --garment dress --preset real-quick-bodies                  # on 16 sampled bodies
+    hrr-simulate --garment dress --preset quick --material denim --air-drag 1.2   # a fabric, in air
+    hrr-simulate --garment skirt --preset quick --material jersey,bend=2e-5  # a fabric, one value changed
 
 Re-running the same command skips sequences already simulated (kept in DATASET.parts/).
 """
@@ -23,6 +25,8 @@ from typing import Sequence
 
 from ..body.body_file import body_to_dict, read_body
 from ..errors import InputError
+from ..garment.fabrics import FABRICS
+from ..garment.material import parse_material
 from ..io_utils import refuse_input_as_output, require_suffix
 from ..paths import workspace
 from ..sim.plan import build_options, plan_sequences
@@ -70,6 +74,23 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--substeps", type=int, default=None, help="override the preset's substeps per frame")
     p.add_argument("--iterations", type=int, default=None, help="override the preset's solver iterations")
     p.add_argument("--device", default=None, help="warp device: auto (default), cpu, cuda:0")
+    p.add_argument(
+        "--material",
+        default=None,
+        metavar="FABRIC",
+        help="the cloth: a fabric (" + ", ".join(FABRICS) + "), a fabric with values changed "
+        "(denim,bend=4e-5), values (density=0.2,stretch=5000,shear=2000,bend=1e-5,damping=0.1: kg/m^2, "
+        "N/m, N/m, N m, s) or a YAML file of them; default: the preset's, else the project's cloth "
+        "(docs/materials.md)",
+    )
+    p.add_argument(
+        "--air-drag",
+        type=float,
+        default=None,
+        metavar="CD",
+        help="the air's drag on the cloth, as a drag coefficient (about 1.2 for a sheet; 0: none); "
+        "default: the preset's, else none",
+    )
     p.add_argument(
         "--batch",
         type=int,
@@ -133,17 +154,28 @@ def _main(argv: Sequence[str] | None) -> int:
         print(note)
     overrides = {
         k: v
-        for k, v in (("substeps", args.substeps), ("iterations", args.iterations), ("device", args.device))
+        for k, v in (
+            ("substeps", args.substeps),
+            ("iterations", args.iterations),
+            ("device", args.device),
+            ("air_drag", args.air_drag),
+        )
         if v is not None
     }
+    if args.material is not None:
+        overrides["material"] = parse_material(args.material, "--material")
+
     config = SimSettings.from_dict({**preset.sim, **overrides})
     out = args.output
     if out is None:
         suffix = f"-{args.vertices}v" if args.vertices else ""
         on = f"-on-{Path(args.body).stem}" if args.body else ""
-        out = workspace() / "datasets" / f"{garment.name}-{preset.name}{suffix}{on}.h5"
+        cloth = f"-{config.material.name}" if args.material is not None else ""
+        out = workspace() / "datasets" / f"{garment.name}-{preset.name}{suffix}{on}{cloth}.h5"
     require_suffix(out, (".h5", ".hdf5"), "a dataset")
     inputs = [*(args.motions or []), args.template, args.body, args.made_for, args.attached_file]
+    if args.material and args.material.endswith((".yaml", ".yml")):
+        inputs.append(args.material)
     refuse_input_as_output(out, inputs)
     options = build_options(preset, choice.specs, args.motions)
     options["info"]["garment_vertices"] = garment.num_vertices
@@ -168,6 +200,9 @@ def _main(argv: Sequence[str] | None) -> int:
     )
     report = build_dataset(garment, choice.specs, config, out=out, options=build)
     print_build_report(report, garment)
+    if config.material is not None or config.air_drag:
+        cloth = config.material.describe() if config.material is not None else "the project's cloth"
+        print(f"  cloth: {cloth}; air drag: drag coefficient {config.air_drag:g}")
     return 0
 
 

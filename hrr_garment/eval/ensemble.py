@@ -48,7 +48,7 @@ def member_config(config: SimSettings, k: int, fps: float) -> tuple[SimSettings,
     size, kind = k // 4 + 1, k % 4
     if kind < 2:
         factor = 1.0 + (1 if kind == 0 else -1) * DENSITY_STEP * size
-        return replace(config, density=config.density * factor), f"density x {factor:.6g}"
+        return config.with_density_scaled(factor), f"density x {factor:.6g}"
     frames = (1 if kind == 2 else -1) * size
     settle = config.settle_s + frames / fps
     if settle < 0:

@@ -3,9 +3,10 @@
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 
-from ..settings import from_settings
+from ..garment.material import Material, material_from
+from ..settings import from_settings, require_number
 
 
 @dataclass(frozen=True)
@@ -32,10 +33,34 @@ class SimSettings:
     max_strain: float = 2.5  # edge length / rest length beyond which the cloth has exploded
     retries: int = 1  # extra attempts, each with twice the substeps
     device: str = "auto"  # "auto" (a GPU when present), "cpu", "cuda:0"...
+    # air resisting the cloth's motion across itself: the drag coefficient of a plate (about 1.2);
+    # 0: none, as every dataset before materials was simulated (a light fabric's float and a heavy
+    # one's swing come from it: the same drag slows a sheet a third as heavy three times as fast)
+    air_drag: float = 0.0
+    # the cloth in physical units (a fabric's name, values, a Material: garment/material.py); it
+    # replaces density, tri_* and edge_* above (sim/cloth_parameters.py maps it); None: those values
+    material: Material | None = None
+
+    def __post_init__(self) -> None:
+        require_number("simulator settings", "air_drag", self.air_drag, low=0.0, high=10.0)
+        if self.material is not None and not isinstance(self.material, Material):
+            object.__setattr__(self, "material", material_from(self.material, "simulator settings: material"))
 
     @classmethod
     def from_dict(cls, values: dict) -> "SimSettings":
         return from_settings(cls, values, "simulator")
 
     def to_dict(self) -> dict:
-        return asdict(self)
+        """The settings as plain values; no ``material`` or ``air_drag`` key without them (the keys
+        of datasets simulated before materials existed stay as they were)."""
+        out = asdict(self)
+        for key in ("material", "air_drag"):
+            if not out[key]:
+                del out[key]
+        return out
+
+    def with_density_scaled(self, factor: float) -> "SimSettings":
+        """These settings with the cloth's density times ``factor`` (the material's, when set)."""
+        if self.material is None:
+            return replace(self, density=self.density * factor)
+        return replace(self, material=replace(self.material, density=self.material.density * factor))

@@ -33,3 +33,48 @@ def mesh_signed_distance(
         if inside < 0.0:
             d = -d
     distance[i] = d
+
+
+@wp.kernel
+def add_face_normals(
+    positions: wp.array(dtype=wp.vec3),
+    triangles: wp.array2d(dtype=wp.int32),
+    normals: wp.array(dtype=wp.vec3),
+):
+    """Each triangle's area-weighted normal (twice its area) added to its three vertices' normals
+    (``normals`` zeroed before)."""
+    t = wp.tid()
+    i, j, k = triangles[t, 0], triangles[t, 1], triangles[t, 2]
+    n = wp.cross(positions[j] - positions[i], positions[k] - positions[i])
+    wp.atomic_add(normals, i, n)
+    wp.atomic_add(normals, j, n)
+    wp.atomic_add(normals, k, n)
+
+
+@wp.kernel
+def air_drag(
+    normals: wp.array(dtype=wp.vec3),
+    drag_per_mass: wp.array(dtype=float),
+    dt: float,
+    velocities: wp.array(dtype=wp.vec3),
+):
+    """Quadratic air drag on the velocity along each vertex's normal, integrated exactly over ``dt``:
+    dv/dt = -c |v| v with c = ``drag_per_mass`` (0.5 * air density * drag coefficient * the vertex's
+    area / its mass, per metre; 0 for a pinned vertex). The cloth's motion along itself is not
+    damped (air slides along a sheet with little resistance)."""
+    i = wp.tid()
+    c = drag_per_mass[i]
+    n = normals[i]
+    length = wp.length(n)
+    if c > 0.0 and length > 0.0:
+        n = n / length
+        v = velocities[i]
+        along = wp.dot(v, n)
+        kept = along / (1.0 + c * wp.abs(along) * dt)
+        velocities[i] = v + (kept - along) * n
+
+
+@wp.kernel
+def zero_vectors(values: wp.array(dtype=wp.vec3)):
+    """Every vector zero (inside a captured graph, where a memset is not recorded on every device)."""
+    values[wp.tid()] = wp.vec3(0.0, 0.0, 0.0)

@@ -11,7 +11,11 @@ import numpy as np
 from ..body.capsules import BodyModel
 from ..garment.mesh import GarmentMesh
 from .capsule_poses import arms_off_capsules, nlerp
+from .cloth_parameters import cloth_parameters, hinge_stiffness
 from .config import SimSettings
+
+# kg/m^3, sea level at 20 C: the air the drag pushes (SimSettings.air_drag is the drag coefficient)
+AIR_DENSITY = 1.204
 
 # how far a skinned piece's skin may stray from its bone's rigid motion (its box, set at rest, is
 # widened by this): skinning moves the skin at a bent joint by a few centimetres
@@ -73,6 +77,8 @@ def instance_builder(
         for c, vertices, faces in pieces:
             mesh = newton.Mesh(np.asarray(vertices, np.float32), np.asarray(faces, np.int32).ravel())
             shapes[c].append(builder.add_shape_mesh(bodies[c], mesh=mesh, cfg=shape_cfg))
+    cloth = cloth_parameters(config)
+    first_edge = len(builder.edge_indices)
     builder.add_cloth_mesh(
         pos=wp.vec3(0.0, 0.0, 0.0),
         rot=wp.quat_identity(),
@@ -80,14 +86,18 @@ def instance_builder(
         vel=wp.vec3(0.0, 0.0, 0.0),
         vertices=[wp.vec3(*v) for v in start_vertices.astype(float)],
         indices=garment.faces.ravel().tolist(),
-        density=config.density,
-        tri_ke=config.tri_ke,
-        tri_ka=config.tri_ka,
-        tri_kd=config.tri_kd,
-        edge_ke=config.edge_ke,
-        edge_kd=config.edge_kd,
+        density=cloth.density,
+        tri_ke=cloth.tri_ke,
+        tri_ka=cloth.tri_ka,
+        tri_kd=cloth.tri_kd,
+        edge_ke=cloth.edge_ke,
+        edge_kd=cloth.edge_kd,
         particle_radius=config.particle_radius,
     )
+    if cloth.bend is not None:  # a material: each hinge's stiffness from its own rest geometry
+        builder.edge_bending_properties[first_edge:] = hinge_stiffness(
+            cloth, np.asarray(builder.particle_q, np.float64), np.asarray(builder.edge_indices[first_edge:])
+        )
     for i in garment.attached:
         builder.particle_mass[int(i)] = 0.0  # zero mass: pinned, positions written each substep
     builder.color(include_bending=True)
@@ -119,11 +129,13 @@ class SteppedScene:
     ) -> None:
         """Finalize ``builder`` into the model, collision pipeline, solver and two states;
         ``piece_shapes``: the skinned pieces' shapes, in the order :meth:`set_pieces` writes them."""
-        from .kernels import scatter_positions  # warp at import: only with the sim extra
+        from . import kernels  # warp at import: only with the sim extra
 
         newton = self.newton
-        self.scatter_positions = scatter_positions
+        self.kernels = kernels
+        self.scatter_positions = kernels.scatter_positions
         self.model = builder.finalize(device=self.device)
+        self.drag_per_mass = self._drag_per_mass(config.air_drag) if config.air_drag > 0 else None
         self.model.soft_contact_ke = config.contact_ke
         self.model.soft_contact_kd = config.contact_kd
         self.model.soft_contact_mu = config.contact_mu
@@ -147,6 +159,18 @@ class SteppedScene:
         self.piece_meshes = [builder.shape_source[s].mesh for s in piece_shapes]
         if piece_shapes:
             self._pad_piece_bounds(piece_shapes)
+
+    def _drag_per_mass(self, coefficient: float):
+        """Per particle, 0.5 * air density * ``coefficient`` * its share of the cloth's rest area /
+        its mass (0 for a pinned particle): the air drag kernel's constant (per metre)."""
+        wp, model = self.wp, self.model
+        triangles = model.tri_indices.numpy()
+        area = np.zeros(model.particle_count)
+        np.add.at(area, triangles.ravel(), np.repeat(model.tri_areas.numpy() / 3.0, 3))
+        mass = model.particle_mass.numpy()
+        per_mass = np.where(mass > 0, 0.5 * AIR_DENSITY * coefficient * area / np.maximum(mass, 1e-12), 0.0)
+        self.normals = wp.zeros(model.particle_count, dtype=wp.vec3, device=self.device)
+        return wp.array(per_mass.astype(np.float32), dtype=float, device=self.device)
 
     def _pad_piece_bounds(self, piece_shapes: list[int]) -> None:
         """Widen each piece's box in its body's frame (the contact search culls by it, computed at
@@ -204,6 +228,23 @@ class SteppedScene:
         state_in, state_out = self.states[parity], self.states[1 - parity]
         self.pipeline.collide(state_in, self.contacts)
         self.solver.step(state_in, state_out, self.control, self.contacts, dt)
+        if self.drag_per_mass is not None:
+            wp, k, model = self.wp, self.kernels, self.model
+            wp.launch(k.zero_vectors, dim=model.particle_count, outputs=[self.normals], device=self.device)
+            wp.launch(
+                k.add_face_normals,
+                dim=model.tri_count,
+                inputs=[state_out.particle_q, model.tri_indices],
+                outputs=[self.normals],
+                device=self.device,
+            )
+            wp.launch(
+                k.air_drag,
+                dim=model.particle_count,
+                inputs=[self.normals, self.drag_per_mass, dt],
+                outputs=[state_out.particle_qd],
+                device=self.device,
+            )
 
     def _run_substep(self, dt: float) -> None:
         """One substep, replayed from a captured graph: Python launch overhead dominates otherwise."""

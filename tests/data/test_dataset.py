@@ -212,6 +212,26 @@ def test_a_ray_build_equals_the_local_build_bit_for_bit(built, tmp_path):
 
 
 @pytest.mark.sim
+def test_a_build_in_a_fabric_records_it_and_differs(built, tmp_path):
+    """--material and --air-drag reach the simulator (other frames than the project's cloth) and the
+    dataset's record of its settings, which evaluation's truth ensembles re-simulate from."""
+    from hrr_garment.sim.simulator import SimSettings
+
+    out = tmp_path / "denim.h5"
+    cmd = [sys.executable, "-m", "hrr_garment.cli.simulate", *SIM_ARGS, "--material", "denim"]
+    run = subprocess.run(
+        [*cmd, "--air-drag", "1.2", "-o", str(out)], capture_output=True, text=True, timeout=600
+    )
+    assert run.returncode == 0, run.stderr
+    assert "cloth: denim (density 0.324 kg/m^2" in run.stdout and "drag coefficient 1.2" in run.stdout
+    denim, plain = GarmentDataset(out), GarmentDataset(built[0])
+    sim = SimSettings.from_dict(denim.info["sim"])
+    assert sim.material.name == "denim" and sim.air_drag == 1.2 and "material" not in plain.info["sim"]
+    name = plain.names[0]
+    assert np.abs(denim.sequence(name).garment - plain.sequence(name).garment).max() > 0.01
+
+
+@pytest.mark.sim
 def test_a_batched_build_equals_the_unbatched_one_and_each_resumes_the_other(built, tmp_path):
     """--batch 3: the three sequences simulated together in one worker (one model, three worlds)
     give the unbatched build's frames (bit-identical on the CPU) in parts of the same keys, so an
@@ -321,6 +341,16 @@ def test_bad_inputs_exit_nonzero_and_write_nothing(tmp_path, capsys):
         ["--garment", "skirt", "--preset", "huge", "-o", str(out)],
         out,
         "unknown preset",
+    )
+    _expect_failure(
+        capsys, simulate_main, ["--garment", "skirt", "--material", "velvet", "-o", str(out)], out, "velvet"
+    )
+    _expect_failure(
+        capsys,
+        simulate_main,
+        ["--garment", "skirt", "--air-drag", "-1", "-o", str(out)],
+        out,
+        "air_drag must be a number from 0",
     )
 
 
