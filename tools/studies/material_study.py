@@ -9,7 +9,9 @@ or shorter). Per fabric:
   every dataset is held to: 1.15); ``attempts``: the most attempts a member needed;
 - ``hem_swing_cm``: the hem's swing while the body moves (hrr_garment.sim.quality.hem_swing);
 - ``settle_s``: after the body stops, when the hem's mean speed falls below ``--still`` (m/s) for
-  good, mean over members (None: not within the hold);
+  good, mean over members (None: not within the hold); ``hem_speed_1s`` / ``hem_speed_end``: the
+  hem's mean speed (m/s) one second after the stop and at the end of the hold, and
+  ``hem_still_amplitude_mm``: how far the hem still moves about its mean over the hold's last second;
 - ``floor_mm``: the chaos floor, the mean distance between two members while the body moves
   (hrr_garment.eval.ensemble_metrics.mean_pairwise_mm, the one hrr-eval's PVE / floor divides by);
 - ``drop_cm``: how far the hem hangs below the default cloth's, standing at the end.
@@ -90,6 +92,19 @@ def _member_path(work: Path, args, fabric: str, k: int) -> Path:
     return work / f"{fabric}-{k}-{hashlib.sha1(key.encode()).hexdigest()[:10]}.npz"
 
 
+def _after_the_stop(hem: np.ndarray, start: int, fps: float) -> dict:
+    """Members' mean hem speed a second after frame ``start`` and at the end, and the hem's motion
+    about its mean over the last second (``hem``: (K, T, H, 3))."""
+    speed = np.linalg.norm(np.diff(hem[:, start:], axis=1), axis=-1).mean(axis=(0, 2)) * fps
+    last = hem[:, -int(fps) :]
+    amplitude = np.linalg.norm(last - last.mean(axis=1, keepdims=True), axis=-1).mean()
+    return {
+        "hem_speed_1s": float(speed[min(int(fps), len(speed) - 1)]),
+        "hem_speed_end": float(speed[-1]),
+        "hem_still_amplitude_mm": 1000.0 * float(amplitude),
+    }
+
+
 def _solver(args) -> dict:
     """The simulator settings the study varies (the rest are the project's)."""
     return {"air_drag": args.air_drag, "iterations": args.iterations}
@@ -118,6 +133,7 @@ def _fabric_row(args, fabric: str, files: list[Path], motion: Motion, garment, d
         ),
         "hem_swing_cm": 100.0 * float(np.mean([hem_swing(v[:stop], moving, hem) for v in verts])),
         "settle_s": None if any(s is None for s in settles) else float(np.mean(settles)),
+        **_after_the_stop(verts[:, :, hem], stop - 1, motion.fps),
         "floor_mm": mean_pairwise_mm(verts[:, :stop]),
         "hem_height_m": float(verts[:, -1][:, hem, 1].mean()),
         "drop_cm": None
@@ -177,19 +193,21 @@ def main(argv=None) -> int:
     out = args.output or args.work / "summary.json"
     record = {"clip": args.clip, "solver": _solver(args), "rows": rows, "failures": failures}
     atomic_write_text(out, json.dumps(record, indent=1))
-    head = ("fabric", "density kg/m^2", "bend N m", "strain p99", "hem swing cm", "settle s", "floor mm")
-    print("| " + " | ".join((*head, "hem below default cm")) + " |")
-    print("|---|---|---|---|---|---|---|---|")
+    head = ("fabric", "density kg/m^2", "bend N m", "strain p99", "hem swing cm", "settle s")
+    tail = ("hem m/s 1 s / 3 s after", "still moving mm", "floor mm", "hem below default cm")
+    print("| " + " | ".join((*head, *tail)) + " |")
+    print("|---" * (len(head) + len(tail)) + "|")
     for r in rows:
         m = FABRICS[r["fabric"]]
         if "floor_mm" not in r:
-            print(f"| {r['fabric']} | {m.density:.3f} | {m.bend:.2g} | ({r['members']} members) | | | | |")
+            print(f"| {r['fabric']} | {m.density:.3f} | {m.bend:.2g} | ({r['members']} members) | | | | | | |")
             continue
         settle = "> hold" if r["settle_s"] is None else f"{r['settle_s']:.2f}"
         drop = "" if r["drop_cm"] is None else f"{r['drop_cm']:.1f}"
         print(
             f"| {r['fabric']} | {m.density:.3f} | {m.bend:.2g} | {r['strain_p99']:.3f} | "
-            f"{r['hem_swing_cm']:.1f} | {settle} | {r['floor_mm']:.1f} | {drop} |"
+            f"{r['hem_swing_cm']:.1f} | {settle} | {r['hem_speed_1s']:.2f} / {r['hem_speed_end']:.2f} | "
+            f"{r['hem_still_amplitude_mm']:.0f} | {r['floor_mm']:.1f} | {drop} |"
         )
     for name, why in failures.items():
         print(f"{name}: {why}")
