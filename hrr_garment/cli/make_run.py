@@ -14,6 +14,7 @@ from pathlib import Path
 
 from ..body.body_file import read_body, write_body
 from ..errors import InputError
+from ..io_utils import atomic_write_text
 from ..pipeline.make_budget import (
     OUTPUT_STAGES,
     BudgetPlan,
@@ -292,7 +293,7 @@ class MakeRun:
         config = train_config(plan["training"], self.request.device)
         config_path = self.out / "train.yaml"
         text = "# hrr-make's training budget (the preset's settings, trained for these minutes)\n"
-        config_path.write_text(text + yaml.safe_dump(config, sort_keys=True), encoding="utf-8")
+        atomic_write_text(config_path, text + yaml.safe_dump(config, sort_keys=True))
         key = self.keys["train"] = content_key(["train", self.keys["simulate"], config, self.preset.train])
         if self.record.current("train", key) and (self.model / "bundle.json").exists():
             return

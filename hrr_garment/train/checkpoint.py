@@ -15,7 +15,7 @@ from pathlib import Path
 
 import torch
 
-from ..io_utils import atomic_path, strict_json
+from ..io_utils import atomic_path, atomic_write_text, strict_json
 from .loop import Callback, Epoch, TrainingRun
 
 
@@ -55,7 +55,7 @@ def resume_log(path: Path, epoch: int) -> None:
         path.unlink(missing_ok=True)
     elif path.exists():
         lines = [line for line in path.read_text().splitlines() if json.loads(line)["epoch"] <= epoch]
-        path.write_text("".join(line + "\n" for line in lines))
+        atomic_write_text(path, "".join(line + "\n" for line in lines))
 
 
 class Checkpoint(Callback):
