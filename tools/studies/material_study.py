@@ -200,7 +200,8 @@ def main(argv=None) -> int:
     for r in rows:
         m = FABRICS[r["fabric"]]
         if "floor_mm" not in r:
-            print(f"| {r['fabric']} | {m.density:.3f} | {m.bend:.2g} | ({r['members']} members) | | | | | | |")
+            blanks = " |" * 6
+            print(f"| {r['fabric']} | {m.density:.3f} | {m.bend:.2g} | ({r['members']} members) |{blanks}")
             continue
         settle = "> hold" if r["settle_s"] is None else f"{r['settle_s']:.2f}"
         drop = "" if r["drop_cm"] is None else f"{r['drop_cm']:.1f}"
