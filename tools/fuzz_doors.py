@@ -1,7 +1,8 @@
 """The fuzz suite's newer doors (issue 88): a character and its animations in glTF, body.json, a
 garment modelled on a body, the ONNX export, signatures and trusted keys, and special files where
-any of them is expected, each mutated as a hostile user would and run through the real commands.
-``tools/fuzz.py`` draws these kinds beside its older ones and judges them alike.
+any of them is expected, each mutated as a hostile user would and run through the real commands,
+and, where Blender is there, the add-on's import (``tools/fuzz_blender.py``). ``tools/fuzz.py``
+draws these kinds beside its older ones and judges them alike.
 
 Samples (made once in the work folder, from nothing outside it): anny's average body as a skinned
 GLB (``tools/studies/make_characters.py --styles plain``; the ``bodies`` extra), its body.json
@@ -22,6 +23,8 @@ from typing import Callable
 
 import numpy as np
 
+from hrr_garment.blender import blender_command
+
 ROOT = Path(__file__).resolve().parents[1]
 DOOR_KINDS = {
     "gltf": 0.08,
@@ -32,6 +35,8 @@ DOOR_KINDS = {
     "special file": 0.04,
     "new output = input": 0.03,
 }
+if blender_command() is not None:  # the add-on's door needs Blender (tools/fuzz_blender.py)
+    DOOR_KINDS["blender add-on"] = 0.04
 GLTF_SECTIONS = ("accessors", "bufferViews", "buffers", "nodes", "skins", "meshes", "animations")
 
 
@@ -240,6 +245,10 @@ def door_case(
         return _signature_case(samples, folder, rng, cli)
     if kind == "special file":
         return _special_case(samples, folder, rng, cli)
+    if kind == "blender add-on":
+        from fuzz_blender import blender_case
+
+        return blender_case(samples, folder, rng, hostile=hostile, damage=damage)
     return _output_is_input_case(samples, folder, rng, cli)
 
 

@@ -7,6 +7,7 @@ import importlib.util
 import io
 import json
 import os
+import struct
 import subprocess
 import zipfile
 from pathlib import Path
@@ -69,6 +70,71 @@ def test_the_addon_reads_the_timeline_of_our_glb_and_pc2(tmp_path, out_h5):
         files.glb_timeline(str(tmp_path / "a.pc2"))
     with pytest.raises(ValueError, match="not a PC2"):
         files.pc2_frames(str(tmp_path / "a.obj"))
+
+
+def _glb_with(path: Path, document: object, claim: int | None = None) -> str:
+    """A GLB whose JSON chunk is ``document`` (its length field ``claim`` when given)."""
+    body = json.dumps(document).encode()
+    body += b" " * (-len(body) % 4)
+    header = struct.pack("<5I", 0x46546C67, 2, 20 + len(body), claim or len(body), 0x4E4F534A)
+    path.write_bytes(header + body)
+    return str(path)
+
+
+@pytest.mark.parametrize(
+    ("document", "words"),
+    [
+        ([1, 2], "document is not an object"),
+        ({"scenes": [{}], "scene": 3}, "scene 3 is not one of its 1 scenes"),
+        ({"scenes": {"a": 1}}, "scenes are not a list"),
+        ({"scenes": [{}], "scene": "0"}, "scenes are not a list with a whole-number scene"),
+        ({"scenes": [7]}, "scene is not an object"),
+        ({"scenes": [{"extras": [1]}]}, "scene extras is not an object"),
+        ({"scenes": [{"extras": {"fps": float("inf"), "frames": 10}}]}, "frame rate inf"),
+        ({"scenes": [{"extras": {"fps": 0, "frames": 10}}]}, "frame rate 0"),
+        ({"scenes": [{"extras": {"fps": 30, "frames": 0}}]}, "frame count 0"),
+        ({"scenes": [{"extras": {"fps": 30, "frames": 10**12}}]}, "frame count 1000000000000"),
+        ({"scenes": [{"extras": {"fps": 30, "frames": True}}]}, "frame count True"),
+        ({"scenes": [{"extras": {"fps": "30", "frames": 10}}]}, "frame rate '30'"),
+    ],
+)
+def test_the_addon_refuses_a_glb_out_of_shape_by_name(tmp_path, document, words):
+    """Each would have been a Python error inside Blender (an index, a type, inf in the scene's rate,
+    a trillion-frame timeline); now one message naming the file, which the operator reports."""
+    files = _addon_files_module()
+    path = _glb_with(tmp_path / "hostile.glb", document)
+    with pytest.raises(ValueError) as err:
+        files.glb_timeline(path)
+    assert str(err.value).startswith(path) and words in str(err.value)
+
+
+def test_the_addon_refuses_a_glb_or_pc2_whose_sizes_lie(tmp_path, out_h5):
+    from hrr_garment.cli.export import main as export
+
+    files = _addon_files_module()
+    with pytest.raises(ValueError, match="claims 4000000000 bytes"):
+        files.glb_timeline(_glb_with(tmp_path / "long.glb", {"scenes": [{}]}, claim=4_000_000_000))
+    nested = tmp_path / "deep.glb"
+    _glb_with(nested, {})
+    deep = b"[" * 100_000 + b"]" * 100_000
+    nested.write_bytes(struct.pack("<5I", 0x46546C67, 2, 20 + len(deep), len(deep), 0x4E4F534A) + deep)
+    with pytest.raises(ValueError, match="nested too deep"):
+        files.glb_timeline(str(nested))
+    nested.write_bytes(nested.read_bytes()[:20] + b"\xe7" + nested.read_bytes()[21:])
+    with pytest.raises(ValueError, match="deep.glb: its JSON chunk is damaged"):
+        files.glb_timeline(str(nested))
+    assert export([str(out_h5), "-o", str(tmp_path / "a.pc2")]) == 0
+    data = (tmp_path / "a.pc2").read_bytes()
+    for name, damaged, words in (
+        ("cut.pc2", data[:-12], "but it holds"),
+        ("zero.pc2", data[:28] + struct.pack("<i", 0) + data[32:], "0 samples is not an animation"),
+        ("many.pc2", data[:28] + struct.pack("<i", 2**31 - 1) + data[32:], "is not an animation"),
+        ("neg.pc2", data[:16] + struct.pack("<i", -3) + data[20:], "-3 points"),
+    ):
+        (tmp_path / name).write_bytes(damaged)
+        with pytest.raises(ValueError) as err:
+            files.pc2_frames(str(tmp_path / name))
+        assert words in str(err.value) and str(err.value).startswith(str(tmp_path / name))
 
 
 def test_a_glb_of_another_tool_has_no_timeline(tmp_path):
@@ -171,3 +237,46 @@ def test_blender_plays_our_exports_through_the_addon(tmp_path):
         assert "error" not in r, r
         assert r["rate_ok"] and r["range_ok"] and r["smooth_faces"] == 1.0, r
         assert r["max_vertex_error_mm"] < 0.001 and r["normal_error_p99_deg"] < 5.0, r
+
+
+@pytest.mark.client
+@pytest.mark.tool
+def test_blender_reports_a_damaged_export_through_the_addon(tmp_path, out_h5):
+    """In a real Blender, the add-on's import of a GLB whose timeline is inf, or of a PC2 cut short,
+    is refused with one message naming the file (the operator's error report; before, an
+    OverflowError escaped into Blender), and an intact export imports."""
+    blender = blender_command()
+    if blender is None:
+        pytest.skip(
+            "no Blender: set HRR_BLENDER to the blender program or to a Python with bpy (pip install bpy)"
+        )
+    from hrr_garment.cli.blender_addon import main as addon
+    from hrr_garment.cli.export import main as export
+
+    assert addon(["-o", str(tmp_path / "addon.zip")]) == 0
+    assert export([str(out_h5), "-o", str(tmp_path / "a.glb")]) == 0
+    assert export([str(out_h5), "-o", str(tmp_path / "a.pc2")]) == 0
+    infinite = _glb_with(
+        tmp_path / "inf.glb",
+        {"asset": {"version": "2.0"}, "scenes": [{"extras": {"fps": 1e999, "frames": 3}}]},
+    )
+    (tmp_path / "cut.pc2").write_bytes((tmp_path / "a.pc2").read_bytes()[:-12])
+    (tmp_path / "cut.obj").write_bytes((tmp_path / "a.obj").read_bytes())
+    env = dict(os.environ, BLENDER_USER_RESOURCES=str(tmp_path / "blender"))
+    script = str(ROOT / "tools" / "blender_addon_import.py")
+
+    def run(path):
+        done = subprocess.run(
+            blender + [script, "--", f"--addon={tmp_path / 'addon.zip'}", str(path)],
+            capture_output=True,
+            text=True,
+            timeout=300,
+            env=env,
+        )
+        return done.returncode, done.stderr
+
+    assert run(tmp_path / "a.glb")[0] == 0
+    for path, words in ((infinite, "frame rate inf"), (tmp_path / "cut.pc2", "but it holds")):
+        rc, err = run(path)
+        assert rc == 2 and "Traceback" not in err, err[-2000:]
+        assert str(path) in err.splitlines()[-1] and words in err.splitlines()[-1]

@@ -26,9 +26,19 @@ import bpy
 from bpy.props import FloatProperty, StringProperty
 from bpy_extras.io_utils import ImportHelper
 
-from .files import glb_timeline, pc2_frames
+from .files import checked_timeline, glb_timeline, pc2_frames
 
 DEFAULT_FPS = 30.0  # out.h5's rate unless the clip had another: a PC2 does not store it
+
+
+def _blender_import(path: str, what: str, run) -> None:
+    """``run()``, one of Blender's own importers on ``path``; its failure (a RuntimeError that says
+    only "Couldn't parse glTF") becomes a ValueError that names the file."""
+    try:
+        run()
+    except RuntimeError as exc:
+        reason = str(exc).strip().splitlines()[-1].removeprefix("Error: ").strip() if str(exc).strip() else ""
+        raise ValueError(f"{path}: Blender's {what} importer could not read it ({reason})") from None
 
 
 def _set_timeline(scene, fps: float, frames: int) -> None:
@@ -78,19 +88,21 @@ class ImportHrrGarment(bpy.types.Operator, ImportHelper):
             )
         else:
             _set_timeline(context.scene, *timeline)
-        bpy.ops.import_scene.gltf(filepath=path, import_shading="SMOOTH")
+        _blender_import(
+            path, "glTF", lambda: bpy.ops.import_scene.gltf(filepath=path, import_shading="SMOOTH")
+        )
         if timeline is not None:
             _set_timeline(context.scene, *timeline)  # the importer may have moved the range
 
     def _import_usd(self, context, path: str) -> None:
-        bpy.ops.wm.usd_import(filepath=path)
+        _blender_import(path, "USD", lambda: bpy.ops.wm.usd_import(filepath=path))
         roots = [o for o in context.selected_objects if "fps" in o.keys() and "frames" in o.keys()]
         if not roots:
             self.report(
                 {"WARNING"}, f"{os.path.basename(path)} has no hrr-export timeline: the scene's rate is kept"
             )
             return
-        _set_timeline(context.scene, float(roots[0]["fps"]), int(roots[0]["frames"]))
+        _set_timeline(context.scene, *checked_timeline(path, roots[0]["fps"], roots[0]["frames"]))
 
     def _import_pc2(self, context, path: str) -> None:
         frames = pc2_frames(path)
@@ -99,7 +111,7 @@ class ImportHrrGarment(bpy.types.Operator, ImportHelper):
             raise ValueError(
                 f"{path}: its base mesh {os.path.basename(base)} is not beside it (hrr-export writes both)"
             )
-        bpy.ops.wm.obj_import(filepath=base)
+        _blender_import(base, "OBJ", lambda: bpy.ops.wm.obj_import(filepath=base))
         imported = [o for o in context.selected_objects if o.type == "MESH"]
         if len(imported) != 1:
             raise ValueError(f"{base}: expected one mesh, found {len(imported)}")
