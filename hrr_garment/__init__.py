@@ -22,6 +22,8 @@ Animation (after ``hrr-train --garment dress``)::
 from ._version import __version__
 from .data.dataset import GarmentDataset, SequenceRecord
 from .errors import HRRError, InputError, MotionError, SkeletonMappingError
+from .garment.fabrics import FABRICS
+from .garment.material import Material, parse_material
 from .garment.mesh import GarmentError, GarmentMesh
 from .garment.templates import GARMENT_NAMES, make_garment
 from .motion.features import FEATURE_DIM, FeatureStats, motion_features
@@ -69,6 +71,7 @@ __all__ = [
     "MOTION_KINDS", "Motion", "MotionError", "SkeletonMappingError", "load_motion", "motion_features",
     "save_amass", "save_motion", "synthesize", "windows",
     "GARMENT_NAMES", "GarmentDataset", "GarmentError", "GarmentMesh", "SequenceRecord", "SimSettings",
-    "SimResult", "SimulationExploded", "make_garment", "simulate_garment",
+    "SimResult", "SimulationExploded", "make_garment", "simulate_garment", "FABRICS", "Material",
+    "parse_material",
     "Animation", "AnimationStream", "Animator", "CrowdStream", "Bundle", "BundleError", "load_bundle",
 ]  # fmt: skip
