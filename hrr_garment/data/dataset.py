@@ -137,7 +137,7 @@ class GarmentDataset:
         try:
             with h5py.File(self.path, "r") as f:
                 self._read_header(f)
-        except OSError as exc:
+        except (OSError, RuntimeError) as exc:  # HDF5's own damage reports ("bad local heap signature")
             raise DatasetError(self.path, f"not a readable HDF5 file ({exc})") from None
         except (KeyError, ValueError, TypeError, IndexError) as exc:  # a header of the wrong shape or type
             raise DatasetError(self.path, f"damaged header ({type(exc).__name__}: {exc})") from None
@@ -240,7 +240,7 @@ class GarmentDataset:
                     skeleton=body.skeleton,
                 )
                 info = _json_attr(self.path, s.attrs, "info", {}, f"sequence {name!r}: ")
-        except OSError as exc:  # a damaged chunk ("filter returned failure"), a truncated file
+        except (OSError, RuntimeError) as exc:  # a damaged chunk ("filter returned failure"), a bad heap
             raise DatasetError(self.path, f"sequence {name!r} cannot be read ({exc})") from None
         except MotionError as exc:  # the motion's own checks (shapes, frames)
             raise DatasetError(self.path, f"sequence {name!r}: {exc.problem}") from None

@@ -465,6 +465,22 @@ def test_random_bytes_inside_a_chunk_are_a_clear_error(tmp_path):
         GarmentDataset(path).sequence("a")
 
 
+def test_a_damaged_local_heap_is_a_clear_error(tmp_path):
+    """HDF5 reports damage to a group's name heap as a RuntimeError ("bad local heap signature"),
+    not an OSError (fuzz #782 of 2026-12-04: a traceback from hrr-eval)."""
+    path = tmp_path / "d.h5"
+    skirt = make_garment("skirt", 200)
+    motion = synthesize("idle", 1.0, seed=0)
+    frames = np.zeros((motion.num_frames, skirt.num_vertices, 3), np.float32)
+    write_dataset(path, skirt, [SequenceRecord("a", frames, motion)], {"train": ["a"], "val": [], "test": []})
+    data = path.read_bytes()
+    assert b"HEAP" in data
+    path.write_bytes(data.replace(b"HEAP", b"HEAQ"))
+    with pytest.raises(DatasetError, match="not a readable HDF5 file") as info:
+        GarmentDataset(path)
+    assert str(path) in str(info.value)
+
+
 def test_a_garment_far_from_its_body_is_refused(tmp_path):
     """A garment in another unit (scaled x1e6, fuzz #917) trained an autoencoder the bundle check
     then refused, and left the model folder: the dataset refuses it when read."""
