@@ -10,12 +10,10 @@ import numpy as np
 
 from ..body.capsules import BodyModel
 from ..garment.mesh import GarmentMesh
+from .air_drag import AirDrag
 from .capsule_poses import arms_off_capsules, nlerp
 from .cloth_parameters import cloth_parameters, hinge_stiffness
 from .config import SimSettings
-
-# kg/m^3, sea level at 20 C: the air the drag pushes (SimSettings.air_drag is the drag coefficient)
-AIR_DENSITY = 1.204
 
 # how far a skinned piece's skin may stray from its bone's rigid motion (its box, set at rest, is
 # widened by this): skinning moves the skin at a bent joint by a few centimetres
@@ -129,13 +127,12 @@ class SteppedScene:
     ) -> None:
         """Finalize ``builder`` into the model, collision pipeline, solver and two states;
         ``piece_shapes``: the skinned pieces' shapes, in the order :meth:`set_pieces` writes them."""
-        from . import kernels  # warp at import: only with the sim extra
+        from .kernels import scatter_positions  # warp at import: only with the sim extra
 
         newton = self.newton
-        self.kernels = kernels
-        self.scatter_positions = kernels.scatter_positions
+        self.scatter_positions = scatter_positions
         self.model = builder.finalize(device=self.device)
-        self.drag_per_mass = self._drag_per_mass(config.air_drag) if config.air_drag > 0 else None
+        self.air = AirDrag(self.wp, self.model, config.air_drag, self.device) if config.air_drag > 0 else None
         self.model.soft_contact_ke = config.contact_ke
         self.model.soft_contact_kd = config.contact_kd
         self.model.soft_contact_mu = config.contact_mu
@@ -159,18 +156,6 @@ class SteppedScene:
         self.piece_meshes = [builder.shape_source[s].mesh for s in piece_shapes]
         if piece_shapes:
             self._pad_piece_bounds(piece_shapes)
-
-    def _drag_per_mass(self, coefficient: float):
-        """Per particle, 0.5 * air density * ``coefficient`` * its share of the cloth's rest area /
-        its mass (0 for a pinned particle): the air drag kernel's constant (per metre)."""
-        wp, model = self.wp, self.model
-        triangles = model.tri_indices.numpy()
-        area = np.zeros(model.particle_count)
-        np.add.at(area, triangles.ravel(), np.repeat(model.tri_areas.numpy() / 3.0, 3))
-        mass = model.particle_mass.numpy()
-        per_mass = np.where(mass > 0, 0.5 * AIR_DENSITY * coefficient * area / np.maximum(mass, 1e-12), 0.0)
-        self.normals = wp.zeros(model.particle_count, dtype=wp.vec3, device=self.device)
-        return wp.array(per_mass.astype(np.float32), dtype=float, device=self.device)
 
     def _pad_piece_bounds(self, piece_shapes: list[int]) -> None:
         """Widen each piece's box in its body's frame (the contact search culls by it, computed at
@@ -228,23 +213,8 @@ class SteppedScene:
         state_in, state_out = self.states[parity], self.states[1 - parity]
         self.pipeline.collide(state_in, self.contacts)
         self.solver.step(state_in, state_out, self.control, self.contacts, dt)
-        if self.drag_per_mass is not None:
-            wp, k, model = self.wp, self.kernels, self.model
-            wp.launch(k.zero_vectors, dim=model.particle_count, outputs=[self.normals], device=self.device)
-            wp.launch(
-                k.add_face_normals,
-                dim=model.tri_count,
-                inputs=[state_out.particle_q, model.tri_indices],
-                outputs=[self.normals],
-                device=self.device,
-            )
-            wp.launch(
-                k.air_drag,
-                dim=model.particle_count,
-                inputs=[self.normals, self.drag_per_mass, dt],
-                outputs=[state_out.particle_qd],
-                device=self.device,
-            )
+        if self.air is not None:
+            self.air.apply(state_out, dt)
 
     def _run_substep(self, dt: float) -> None:
         """One substep, replayed from a captured graph: Python launch overhead dominates otherwise."""

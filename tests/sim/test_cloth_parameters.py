@@ -193,7 +193,7 @@ def test_air_drag_gives_a_falling_sheet_its_terminal_speed(simulator):
     """A level sheet falling through air settles at v = sqrt(density * g / (0.5 * air density * Cd)):
     1.43 m/s for 150 g/m^2 at Cd 1.2, twice that for four times the weight."""
     from hrr_garment.garment.mesh import GarmentMesh
-    from hrr_garment.sim.scene import AIR_DENSITY
+    from hrr_garment.sim.air_drag import AIR_DENSITY
 
     n, step = 7, 0.05
     grid = np.array([(2.0 + x * step, 10.0, z * step) for x in range(n) for z in range(n)], np.float32)
