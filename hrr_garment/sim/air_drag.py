@@ -15,7 +15,7 @@ AIR_DENSITY = 1.204
 class AirDrag:
     """The drag of one finalized newton model's cloth."""
 
-    def __init__(self, wp, model, coefficient: float, device: str):
+    def __init__(self, wp, model, *, coefficient: float, device: str):
         from . import kernels  # warp at import: only with the sim extra
 
         self.wp, self.kernels, self.model, self.device = wp, kernels, model, device

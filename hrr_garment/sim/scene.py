@@ -132,7 +132,11 @@ class SteppedScene:
         newton = self.newton
         self.scatter_positions = scatter_positions
         self.model = builder.finalize(device=self.device)
-        self.air = AirDrag(self.wp, self.model, config.air_drag, self.device) if config.air_drag > 0 else None
+        self.air = (
+            AirDrag(self.wp, self.model, coefficient=config.air_drag, device=self.device)
+            if config.air_drag > 0
+            else None
+        )
         self.model.soft_contact_ke = config.contact_ke
         self.model.soft_contact_kd = config.contact_kd
         self.model.soft_contact_mu = config.contact_mu
