@@ -26,7 +26,7 @@ from typing import Sequence
 from ..body.body_file import body_to_dict, read_body
 from ..errors import InputError
 from ..garment.fabrics import FABRICS
-from ..garment.material import parse_material
+from ..garment.material import material_file, parse_material
 from ..io_utils import refuse_input_as_output, require_suffix
 from ..paths import workspace
 from ..sim.plan import build_options, plan_sequences
@@ -173,9 +173,8 @@ def _main(argv: Sequence[str] | None) -> int:
         cloth = f"-{config.material.name}" if args.material is not None else ""
         out = workspace() / "datasets" / f"{garment.name}-{preset.name}{suffix}{on}{cloth}.h5"
     require_suffix(out, (".h5", ".hdf5"), "a dataset")
-    inputs = [*(args.motions or []), args.template, args.body, args.made_for, args.attached_file]
-    if args.material and args.material.endswith((".yaml", ".yml")):
-        inputs.append(args.material)
+    cloth_file = material_file(args.material) if args.material is not None else None
+    inputs = [*(args.motions or []), args.template, args.body, args.made_for, args.attached_file, cloth_file]
     refuse_input_as_output(out, inputs)
     options = build_options(preset, choice.specs, args.motions)
     options["info"]["garment_vertices"] = garment.num_vertices

@@ -62,10 +62,6 @@ class Material:
         values = ", ".join(f"{k} {getattr(self, k):.4g} {UNITS[k]}" for k in UNITS)
         return f"{self.name} ({values})"
 
-    def vector(self) -> tuple[float, ...]:
-        """The values in UNITS' order (what a model conditioned on the material sees, before scaling)."""
-        return tuple(float(getattr(self, k)) for k in UNITS)
-
 
 VALUE_NAMES = tuple(f.name for f in fields(Material) if f.name != "name")
 
@@ -91,18 +87,24 @@ def _with_values(base: Material, values: dict, where: str, name: str | None = No
         raise InputError(where, exc.problem) from None
 
 
+def material_file(spec: str) -> Path | None:
+    """The YAML file ``spec`` names, or None when it names a fabric or values."""
+    text = spec.strip()
+    return Path(text) if text.endswith((".yaml", ".yml")) else None
+
+
 def parse_material(spec: str, where: str = "--material") -> Material:
     """A material from what a user typed: a fabric's name (``silk``), a name with values changed
     (``silk,bend=4e-6``), values alone over the default cloth (``density=0.2,stretch=5000``), or a
     YAML file of values (``name:`` optional). Errors name ``where`` and the problem."""
     from .fabrics import FABRICS, fabric
 
-    text = spec.strip()
-    if text.endswith((".yaml", ".yml")):
-        return read_material(Path(text))
+    path = material_file(spec)
+    if path is not None:
+        return read_material(path)
     base = Material(name="default")
     values: dict[str, float] = {}
-    for i, part in enumerate(p.strip() for p in text.split(",")):
+    for i, part in enumerate(p.strip() for p in spec.strip().split(",")):
         if "=" in part:
             key, _, number = part.partition("=")
             values[key.strip()] = _number(number.strip(), key.strip(), where)

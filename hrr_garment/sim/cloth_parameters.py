@@ -32,10 +32,6 @@ import numpy as np
 from ..garment.material import Material
 from .config import SimSettings
 
-# the hinge energy 0.5 k L theta^2 summed over a sheet of equilateral triangles rolled onto a
-# cylinder equals B k^2 / 2 per area (within 3 % in every direction of the roll) when
-# k = B L / (A1 + A2); a mesh whose vertices stray by a tenth of an edge stores 7 % more
-BENDING_WEIGHT = 1.0
 # an isotropic membrane's shear at least this share of its stretch (Poisson's ratio at most 1/3)
 MIN_SHEAR_SHARE = 3.0 / 8.0
 # the softest membrane the solver is given, N/m: the project's cloth (mu = lambda = 1e4), whose
@@ -83,8 +79,11 @@ def cloth_parameters(config: SimSettings) -> ClothParameters:
 
 
 def hinge_weights(positions: np.ndarray, edges: np.ndarray) -> np.ndarray:
-    """(E,) BENDING_WEIGHT * L / (A1 + A2) per hinge at rest (``edges``: newton's rows (opposite 0,
-    opposite 1, edge start, edge end), -1 where the edge has one triangle: weight 0)."""
+    """(E,) L / (A1 + A2) per hinge at rest (``edges``: newton's rows (opposite 0, opposite 1, edge
+    start, edge end), -1 where the edge has one triangle: weight 0). Times B, the hinge energy
+    0.5 k L theta^2 summed over a sheet of equilateral triangles rolled onto a cylinder equals
+    B k^2 / 2 per area (within 3 % in every direction of the roll); a mesh whose vertices stray by a
+    tenth of an edge stores 7 % more."""
     edges = np.asarray(edges, np.int64)
     x = np.asarray(positions, np.float64)
     interior = (edges[:, 0] >= 0) & (edges[:, 1] >= 0)
@@ -95,7 +94,7 @@ def hinge_weights(positions: np.ndarray, edges: np.ndarray) -> np.ndarray:
     area0 = 0.5 * np.linalg.norm(np.cross(axis, x[e[:, 0]] - start), axis=1)
     area1 = 0.5 * np.linalg.norm(np.cross(axis, x[e[:, 1]] - start), axis=1)
     weights = np.zeros(len(edges))
-    weights[interior] = BENDING_WEIGHT * length / np.maximum(area0 + area1, 1e-12)
+    weights[interior] = length / np.maximum(area0 + area1, 1e-12)
     return weights
 
 

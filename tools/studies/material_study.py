@@ -110,16 +110,14 @@ def _solver(args) -> dict:
     return {"air_drag": args.air_drag, "iterations": args.iterations}
 
 
-def _fabric_row(args, fabric: str, files: list[Path], motion: Motion, garment, default_hem_y: float | None):
+def _fabric_row(args, fabric: str, files: list[Path], motion: Motion, garment) -> dict:
     members = [np.load(f) for f in files if f.exists()]
     if len(members) < 2:
         return {"fabric": fabric, "members": len(members)}
     verts = np.stack([m["vertices"] for m in members]).astype(np.float64)
     hem = garment.groups["hem"]
     stop = int(round(args.seconds * motion.fps))
-    moving = replace(
-        motion, local_rotations=motion.local_rotations[:stop], root_translation=motion.root_translation[:stop]
-    )
+    moving = motion.slice(0, stop)
     edges = garment.edges()
     settles = [settle_time(v[:, hem], stop - 1, motion.fps, args.still) for v in verts]
     return {
@@ -136,9 +134,6 @@ def _fabric_row(args, fabric: str, files: list[Path], motion: Motion, garment, d
         **_after_the_stop(verts[:, :, hem], stop - 1, motion.fps),
         "floor_mm": mean_pairwise_mm(verts[:, :stop]),
         "hem_height_m": float(verts[:, -1][:, hem, 1].mean()),
-        "drop_cm": None
-        if default_hem_y is None
-        else 100.0 * (default_hem_y - float(verts[:, -1][:, hem, 1].mean())),
     }
 
 
@@ -184,12 +179,12 @@ def main(argv=None) -> int:
                 failures[f"{fabric}-{k}"] = failure
     motion = stopping(load_motion(args.clip), args.seconds, args.hold)
     garment = make_garment(args.garment)
-    default = (
-        _fabric_row(args, "default", files["default"], motion, garment, None) if "default" in files else {}
-    )
-    rows = [
-        _fabric_row(args, f, files[f], motion, garment, default.get("hem_height_m")) for f in args.fabrics
-    ]
+    rows = [_fabric_row(args, f, files[f], motion, garment) for f in args.fabrics]
+    default = next((r.get("hem_height_m") for r in rows if r["fabric"] == "default"), None)
+    for r in rows:  # how far below the default cloth's hem each one hangs
+        r["drop_cm"] = (
+            None if default is None or "hem_height_m" not in r else 100.0 * (default - r["hem_height_m"])
+        )
     out = args.output or args.work / "summary.json"
     record = {"clip": args.clip, "solver": _solver(args), "rows": rows, "failures": failures}
     atomic_write_text(out, json.dumps(record, indent=1))

@@ -37,7 +37,8 @@ def _blender_import(path: str, what: str, run) -> None:
     try:
         run()
     except RuntimeError as exc:
-        reason = str(exc).strip().splitlines()[-1].removeprefix("Error: ").strip() if str(exc).strip() else ""
+        lines = str(exc).strip().splitlines()
+        reason = lines[-1].removeprefix("Error: ").strip() if lines else ""
         raise ValueError(f"{path}: Blender's {what} importer could not read it ({reason})") from None
 
 
