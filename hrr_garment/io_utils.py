@@ -42,6 +42,26 @@ def storage_error(path: str | Path, exc: OSError) -> OutputError:
     return OutputError(path, f"cannot write the output: {reason}")
 
 
+def is_storage_error(exc: OSError) -> bool:
+    """Whether ``exc`` is the storage refusing (full, read-only, no permission, missing folder)
+    rather than a bug or a broken pipe in the code that met it."""
+    return exc.errno is None or exc.errno in _STORAGE_ERRNOS
+
+
+def require_writable_place(path: str | Path) -> None:
+    """Refuse, before any long work, an output whose nearest existing folder cannot take new files
+    (read-only, no permission, immutable, or a file where a folder is needed). The writer still
+    reports what the storage says later (a disk that fills meanwhile)."""
+    path = Path(path).absolute()
+    place = path.parent
+    while not place.exists() and place != place.parent:
+        place = place.parent
+    if path.exists() and path.is_dir():  # an output folder that exists: its own entries are written
+        place = path
+    if not place.is_dir() or not os.access(place, os.W_OK | os.X_OK):
+        raise OutputError(path, f"cannot write here: {place} is not a writable folder")
+
+
 def require_suffix(path: str | Path, suffixes: tuple[str, ...], what: str) -> None:
     """Refuse an output whose extension names another format than the one written (``suffixes``,
     lower case, with the dot; ``""`` for a folder): a file called clip.bvh holding npz bytes
@@ -118,7 +138,7 @@ def atomic_path(path: str | Path, private: bool = False) -> Iterator[Path]:
             os.chmod(tmp_path, 0o666 & ~umask)
         os.replace(tmp_path, path)
     except OSError as exc:
-        if exc.errno is not None and exc.errno not in _STORAGE_ERRNOS:
+        if not is_storage_error(exc):
             raise  # e.g. a broken pipe: not the storage, so not reported as if it were
         raise storage_error(path, exc) from None
     finally:

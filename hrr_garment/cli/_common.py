@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 import signal
 import sys
 import threading
@@ -12,6 +13,7 @@ from ..artifacts.manifest import DETAIL_BASES, MAX_DETAIL_STRENGTH
 from ..errors import HRRError, InputError
 from ..inference.run_settings import DECODERS, PUSH_BODIES, PUSHES, DetailLook, RunSettings
 from ..input_files import guarding_inputs
+from ..io_utils import is_storage_error
 
 EXIT_ERROR = 2
 
@@ -151,6 +153,14 @@ def run_cli(body: Callable[[Sequence[str] | None], int], argv: Sequence[str] | N
         return EXIT_ERROR
     except ImportError as exc:  # optional extras name themselves in the message
         print(f"{prog}: error: {exc}", file=sys.stderr)
+        return EXIT_ERROR
+    except OSError as exc:
+        # The storage refusing a path no writer wrapped (a folder made for an output, a lock file):
+        # still one line naming the path. Anything else is a bug and keeps its traceback.
+        if exc.filename is None or not is_storage_error(exc):
+            raise
+        reason = os.strerror(exc.errno) if exc.errno else str(exc)
+        print(f"{prog}: error: {exc.filename}: {reason}", file=sys.stderr)
         return EXIT_ERROR
     except Terminated:
         print(f"{prog}: terminated", file=sys.stderr)

@@ -15,7 +15,6 @@ frame; ``--causal`` gives exactly what the streaming API gives (no future frames
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 import time
 from pathlib import Path
@@ -24,7 +23,7 @@ from typing import Sequence
 from ..artifacts.gate_signals import GATE_SIGNALS
 from ..errors import InputError
 from ..inference.modes import Mode
-from ..io_utils import refuse_input_as_output
+from ..io_utils import refuse_input_as_output, require_writable_place
 from ..native import PRECISIONS
 from ._common import (
     add_decoder_option,
@@ -116,9 +115,7 @@ def _main(argv: Sequence[str] | None) -> int:
         raise InputError("hrr-animate", "give --garment NAME or --model DIR")
     if args.output.suffix.lower() not in (".h5", ".hdf5"):
         raise InputError(args.output, "the output must be an .h5 file")
-    parent = args.output.resolve().parent
-    if not parent.is_dir() or not os.access(parent, os.W_OK):
-        raise InputError(args.output, f"cannot write here: {parent} is not a writable directory")
+    require_writable_place(args.output)
     refuse_input_as_output(args.output, [args.motion, args.body])
     model_dir = find_model(args.model or args.garment)
     if args.model is None:

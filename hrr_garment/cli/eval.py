@@ -29,6 +29,7 @@ from typing import Sequence
 
 from ..artifacts.gate_signals import GATE_SIGNALS
 from ..eval.terminal import report_lines
+from ..io_utils import require_writable_place
 from ..paths import workspace
 from ._common import (
     add_decoder_option,
@@ -179,8 +180,9 @@ def _main(argv: Sequence[str] | None) -> int:
 
     t0 = time.perf_counter()
     job = checked_job(args)
-    report = run_protocols(job, args)
     out = args.output or workspace() / "eval" / job.model_dir.name
+    require_writable_place(out)  # before the protocols' minutes, not after them
+    report = run_protocols(job, args)
     plots = (
         []
         if args.no_plots

@@ -24,6 +24,7 @@ from pathlib import Path
 from typing import Sequence
 
 from ..errors import InputError
+from ..io_utils import require_writable_place
 from ..pipeline.make_budget import OUTPUT_STAGES, BudgetTooSmall, parse_budget
 from ..pipeline.make_library import SELECTIONS
 from ..sim.preset import preset_names
@@ -109,6 +110,7 @@ def _main(argv: Sequence[str] | None) -> int:
         raise InputError("--budget", str(exc)) from None
     if args.output.exists() and not args.output.is_dir():
         raise InputError(args.output, "is a file; hrr-make writes a folder")
+    require_writable_place(args.output)
     request = MakeRequest(
         character=args.character,
         garment=args.garment,

@@ -27,7 +27,7 @@ from ..body.body_file import body_to_dict, read_body
 from ..errors import InputError
 from ..garment.fabrics import FABRICS
 from ..garment.material import material_file, parse_material
-from ..io_utils import refuse_input_as_output, require_suffix
+from ..io_utils import refuse_input_as_output, require_suffix, require_writable_place
 from ..paths import workspace
 from ..sim.plan import build_options, plan_sequences
 from ..sim.preset import load_preset, preset_names
@@ -176,6 +176,7 @@ def _main(argv: Sequence[str] | None) -> int:
     cloth_file = material_file(args.material) if args.material is not None else None
     inputs = [*(args.motions or []), args.template, args.body, args.made_for, args.attached_file, cloth_file]
     refuse_input_as_output(out, inputs)
+    require_writable_place(out)
     options = build_options(preset, choice.specs, args.motions)
     options["info"]["garment_vertices"] = garment.num_vertices
     if choice.bodies:

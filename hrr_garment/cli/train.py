@@ -28,6 +28,7 @@ from typing import Sequence
 
 from ..artifacts.typed_manifest import read_manifest
 from ..errors import InputError
+from ..io_utils import require_writable_place
 from ..paths import workspace
 from ..pipeline.train import OLD_STAGE_NAMES, STAGES, TrainCallback, TrainSettings, train_model
 from ..sim.preset import load_preset
@@ -141,6 +142,7 @@ def _main(argv: Sequence[str] | None) -> int:
             raise InputError("hrr-train", "give --garment NAME (with --preset) or --dataset FILE")
         args.dataset = workspace() / "datasets" / f"{args.garment}-{preset.name}.h5"
     folder = args.output or workspace() / "models" / args.dataset.stem
+    require_writable_place(folder)
     settings = TrainSettings.load(preset, args.config, _overrides(args), printer)
     if args.threads:
         import torch

@@ -88,8 +88,8 @@ def test_hrr_animate_explains_bad_models_and_outputs(trained, tmp_path, capsys, 
             "animates a skirt, not a dress",
         ),
         (
-            [str(clip), "-o", str(tmp_path / "missing" / "out.h5"), "--model", str(model)],
-            "not a writable directory",
+            [str(clip), "-o", str(model / "bundle.json" / "out.h5"), "--model", str(model)],
+            "not a writable folder",  # a file where the folder should be
         ),
         # a threshold that is no threshold names its flag (issue 48, reproducer 13)
         *(

@@ -126,7 +126,7 @@ def test_a_read_only_folder_is_one_line(case, animation, tmp_path):
     folder = tmp_path / "disk"
     rc, err, left = _run_on_small_disk(CASES[case](model, clip, h5, folder), folder, read_only=True)
     assert rc == 2 and "Traceback" not in err and len(err.strip().splitlines()) == 1, err
-    assert "Read-only file system" in err or "not a writable directory" in err, err
+    assert "Read-only file system" in err or "not a writable folder" in err, err
     assert left == []
 
 
