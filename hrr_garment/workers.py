@@ -11,11 +11,13 @@ from __future__ import annotations
 
 import contextlib
 import ctypes
+import multiprocessing
 import os
 import signal
 import sys
 import threading
 import time
+from typing import Iterator
 
 PR_SET_PDEATHSIG = 1  # linux/prctl.h
 
@@ -45,6 +47,37 @@ def _watch_parent(parent_pid: int) -> None:
     os._exit(1)
 
 
+_HOLDING = 0  # DeferredSignals blocks open in this process
+
+
+def _reset_in_child() -> None:
+    # A process forked while signals are held would inherit the holding handler and, until its own
+    # start-up code ran, ignore the SIGTERM its pool's terminate() sends it: a worker stuck there
+    # would then keep the pool's clean-up waiting forever.
+    if _HOLDING:
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_reset_in_child)
+
+
+def results_heeding(results, signals: "DeferredSignals", poll_s: float = 0.2) -> Iterator:
+    """The items of a pool's ``imap`` iterator, in order, delivering a held signal within
+    ``poll_s`` even while no result comes (a slow or stuck worker), not only between results."""
+    while True:
+        try:
+            item = results.next(timeout=poll_s)
+        except multiprocessing.TimeoutError:
+            signals.check()
+            continue
+        except StopIteration:
+            return
+        signals.check()
+        yield item
+
+
 class DeferredSignals(contextlib.AbstractContextManager):
     """SIGINT and SIGTERM held while a pool's internals run, delivered at :meth:`check` (a point
     between results, where nothing is half done) or on leaving, through the handlers they would
@@ -59,14 +92,19 @@ class DeferredSignals(contextlib.AbstractContextManager):
         self._previous: dict = {}
 
     def __enter__(self) -> "DeferredSignals":
+        global _HOLDING
         if threading.current_thread() is threading.main_thread():
             self._previous = {s: signal.signal(s, self._hold) for s in self.SIGNALS}
+            _HOLDING += 1
         return self
 
     def _hold(self, signum: int, frame: object) -> None:
         self.pending = signum
 
     def _restore(self) -> None:
+        global _HOLDING
+        if self._previous:
+            _HOLDING -= 1
         for s, handler in self._previous.items():
             signal.signal(s, handler)
         self._previous = {}

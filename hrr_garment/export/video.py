@@ -23,7 +23,7 @@ from tqdm import tqdm
 from ..data.animation_file import AnimationFile
 from ..errors import InputError, OutputError
 from ..io_utils import atomic_path
-from ..workers import DeferredSignals, die_with_parent
+from ..workers import DeferredSignals, die_with_parent, results_heeding
 from .ortho_render import VIEWS, OrthoCamera, PreviewMesh, draw_ground, draw_meshes, pillow_modules
 
 GARMENT = (70, 110, 200)
@@ -136,16 +136,16 @@ def render_frames(
             yield render_frame(anim, style, int(t), track)
             bar.update()
     else:
-        # Ctrl-C and SIGTERM wait for the next frame: raised inside the pool's internals they can
-        # hang its clean-up
+        # Ctrl-C and SIGTERM are held while the pool's internals run (raised there they can hang its
+        # clean-up) and delivered between frames, or within a poll while a frame is late
         with (
             DeferredSignals() as signals,
             multiprocessing.get_context().Pool(
                 workers, _worker_init, (os.getpid(), anim, style, track)
             ) as pool,
         ):
-            for size, data in pool.imap(_worker_render, frames.tolist(), chunksize=4):
-                signals.check()
+            results = pool.imap(_worker_render, frames.tolist(), chunksize=4)
+            for size, data in results_heeding(results, signals):
                 yield Image.frombytes("RGB", size, data)
                 bar.update()
     bar.close()
