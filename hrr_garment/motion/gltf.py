@@ -33,7 +33,7 @@ from .joint_maps import resolve_joint_map
 from .limits import MAX_JOINTS, MAX_SOURCE_FPS, check_frame_budget
 from .motion import FPS, Motion
 from .reference_frames import leading_reference_frames
-from .resample import kernel_width, resample_linear, resample_rotations, resample_times
+from .resample import frame_chunks, kernel_width, resample_linear, resample_rotations, resample_times
 from .retarget import SourceMotion, check_source, retarget, standing_height_from_legs
 from .skeleton_doubts import skeleton_doubts, warn_doubts
 
@@ -108,6 +108,30 @@ def _local_transforms(
     return {n: (v["translation"], v["rotation"], v["scale"]) for n, v in local.items()}
 
 
+# frames composed a pass: every node of the chain's local and world transforms of a long clip at
+# once would take gigabytes (a character's chain is 50-70 nodes; 8,192 frames of it ~ 0.1 GB)
+WORLD_CHUNK = 8_192
+
+
+def _joint_world(
+    doc: GltfDocument,
+    rig: tuple[list[int], list[int], list[int]],
+    channels: list[AnimationChannel],
+    times: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The joints' world rotations (F, J, 3, 3) and positions (F, J, 3) at ``times``, composed in
+    passes of :data:`WORLD_CHUNK` frames; ``rig`` is (the node chain in order, every node's
+    parent, the skin's joints). Memory follows the joints' output, not the chain's temporaries."""
+    order, parents, joints = rig
+    rot = np.empty((len(times), len(joints), 3, 3))
+    pos = np.empty((len(times), len(joints), 3))
+    for a, b in frame_chunks(len(times), WORLD_CHUNK):
+        world = world_transforms(order, parents, _local_transforms(doc, order, channels, times[a:b]))
+        rot[a:b] = np.stack([rotation_part(world[j][0]) for j in joints], 1)
+        pos[a:b] = np.stack([world[j][1] for j in joints], 1)
+    return rot, pos
+
+
 @dataclass(frozen=True)
 class GltfSettings:
     """How :func:`gltf_source` reads a file: which animation (name or index; None: the first),
@@ -149,13 +173,13 @@ def gltf_source(
         )
     width = kernel_width(rate, options.fps) if rate else 1.0
     sampled = _times(doc, channels, rate) if width > 1.0 else times
-    world = world_transforms(order, parents, _local_transforms(doc, order, channels, sampled))
     at_rest = rest_world(doc, order, parents)
     rest = np.stack([at_rest[j][1][0] for j in joints])
     scale = world_unit_scale(doc.path, rest, mapping, options.unit_scale)
     rest_rot = np.stack([rotation_part(at_rest[j][0][0]) for j in joints])
-    g_rot = np.stack([rotation_part(world[j][0]) for j in joints], 1) @ np.swapaxes(rest_rot, -1, -2)
-    g_pos = np.stack([world[j][1] for j in joints], 1) * scale
+    g_rot, g_pos = _joint_world(doc, (order, parents, joints), channels, sampled)
+    g_rot = g_rot @ np.swapaxes(rest_rot, -1, -2)
+    g_pos *= scale
     # a conversion's T-pose before the motion is no part of it (.reference_frames)
     start = leading_reference_frames(g_rot, g_pos[:, mapping["pelvis"]], rate if width > 1.0 else options.fps)
     g_rot, g_pos, sampled = g_rot[start:], g_pos[start:], sampled[start:]

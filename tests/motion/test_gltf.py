@@ -231,6 +231,25 @@ def test_centimetre_armature_turned_from_z_up_and_bone_axes(tmp_path, walk, walk
     assert_same_motion(motion, walk_bvh_motion)
 
 
+def test_a_long_animation_composed_in_passes_is_the_one_pass_motion(tmp_path, walk, rng, monkeypatch):
+    """The node tree is composed a few thousand frames at a time (memory follows the joints, not
+    every node's temporaries): passes of 7 frames give the same motion to the bit, under an armature
+    scaled and turned, with bone axes, at a key rate filtered down (keys 4 x the output rate)."""
+    from hrr_garment.motion import gltf
+
+    orient = axis_angle_to_matrix(rng.normal(size=(len(JOINT_NAMES), 3)))
+    rig = Rig(names=mixamo_names("mixamorig_"), unit=0.01, armature=(-np.pi / 2, 0.0, 0.0), orient=orient)
+    fast = Motion(walk.local_rotations, walk.root_translation, 120.0)  # keyed at 120 fps
+    path = tmp_path / "fast.glb"
+    write_character(path, {"Walk": fast}, rig)
+    whole = load_motion(path)
+    monkeypatch.setattr(gltf, "WORLD_CHUNK", 7)
+    passes = load_motion(path)
+    assert whole.num_frames == passes.num_frames == 8
+    assert np.array_equal(whole.local_rotations, passes.local_rotations)
+    assert np.array_equal(whole.root_translation, passes.root_translation)
+
+
 def test_centimetres_without_a_scaling_node_are_detected_or_given(tmp_path, walk, walk_bvh_motion):
     """A file written in centimetres with no node scaling them (not glTF's metres) is detected by
     its standing height, as BVH units are; --unit-scale says it outright."""
