@@ -37,7 +37,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 import numpy as np
-from fuzz_doors import DOOR_KINDS, door_case, make_door_samples
+from fuzz_doors import DOOR_KINDS, door_case, make_door_samples, unlock
 from tqdm import tqdm
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -1120,6 +1120,7 @@ def main(argv: list[str] | None = None) -> int:
                 "detail": f"fuzzer error: {type(exc).__name__}: {exc}",
                 "stderr": "",
             }
+        unlock(folder)
         if r["outcome"] in FAILURES:
             kept = args.work / "failures" / folder.name
             # links kept as links and pipes left out: a copy through a link to /dev/zero never ends

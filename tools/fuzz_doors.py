@@ -17,6 +17,7 @@ import os
 import shutil
 import subprocess
 import sys
+import threading
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
@@ -34,6 +35,7 @@ DOOR_KINDS = {
     "signature": 0.04,
     "special file": 0.04,
     "new output = input": 0.03,
+    "unwritable output": 0.03,
 }
 if blender_command() is not None:  # the add-on's door needs Blender (tools/fuzz_blender.py)
     DOOR_KINDS["blender add-on"] = 0.04
@@ -72,8 +74,16 @@ def _run(*command: object) -> None:
         raise SystemExit(f"fuzz: could not make a door sample: {' '.join(map(str, command))}\n{done.stderr}")
 
 
+_SAMPLES_LOCK = threading.Lock()  # the fuzz's worker threads ask at once on a fresh work folder
+
+
 def make_door_samples(folder: Path, model: Path, clip: Path) -> DoorSamples:
     """The doors' valid inputs; ``model`` the suite's tiny model, ``clip`` its sample motion."""
+    with _SAMPLES_LOCK:
+        return _door_samples(folder, model, clip)
+
+
+def _door_samples(folder: Path, model: Path, clip: Path) -> DoorSamples:
     s = DoorSamples(
         folder / "plain.glb",
         folder / "plain_walk.glb",
@@ -245,6 +255,8 @@ def door_case(
         return _signature_case(samples, folder, rng, cli)
     if kind == "special file":
         return _special_case(samples, folder, rng, cli)
+    if kind == "unwritable output":
+        return _unwritable_case(samples, folder, rng, cli)
     if kind == "blender add-on":
         from fuzz_blender import blender_case
 
@@ -487,3 +499,48 @@ def _output_is_input_case(
         [joint_map, local_clip, folder / "body.json"],
         {},
     )
+
+
+LOCKED = "locked"  # the unwritable-output cases' folder, unlocked by :func:`unlock` after the run
+
+
+def _unwritable_case(samples: DoorSamples, folder: Path, rng: np.random.Generator, cli: Callable) -> DoorCase:
+    """An output in a folder that takes no new file (read-only permissions; for root, who ignores
+    them, the immutable attribute), or in a missing folder below it: one line naming the output,
+    exit 2, before any work."""
+    locked = folder / LOCKED
+    locked.mkdir()
+    locked.chmod(0o555)
+    if os.access(locked, os.W_OK):  # root
+        subprocess.run(["chattr", "+i", str(locked)], capture_output=True)
+    if os.access(locked, os.W_OK):
+        raise SystemExit("fuzz: cannot make a folder unwritable here (root without chattr)")
+    where = locked / "missing" if rng.random() < 0.3 else locked
+    model, clip = samples.model, samples.clip
+    commands = {
+        "simulate": cli("simulate", "--garment", "skirt", "--preset", "tiny", "-o", where / "d.h5"),
+        "train": cli("train", "--garment", "skirt", "--preset", "tiny", "-o", where / "model"),
+        "make": cli("make", samples.body, "--garment", "skirt", "-o", where / "made"),
+        "animate": cli("animate", clip, "--model", model, "-o", where / "out.h5"),
+        "export-model": cli(
+            "export_model", "--model", model, "--onnx", "--no-push-out", "-o", where / "m.onnx"
+        ),
+        "body fit": cli("body", "fit", samples.character, "-o", where / "body.json"),
+        "keygen": cli("sign", "keygen", "-o", where / "mine.key"),
+        "motion poses": cli("motion", "poses", clip, "-o", where / "poses.npz"),
+        "blender add-on": cli("blender_addon", "-o", where / "addon.zip"),
+    }
+    what = str(rng.choice(sorted(commands)))
+    command = commands[what]
+    output = Path(command[-1])
+    return DoorCase(
+        "unwritable output", f"{what} into {output.parent.name}/", command, output, [output.name], [], {}
+    )
+
+
+def unlock(case_folder: Path) -> None:
+    """Make an unwritable-output case's folder removable again."""
+    locked = case_folder / LOCKED
+    if locked.is_dir() and not locked.is_symlink():
+        subprocess.run(["chattr", "-i", str(locked)], capture_output=True)
+        locked.chmod(0o755)
