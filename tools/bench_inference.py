@@ -50,6 +50,7 @@ from pathlib import Path
 
 import numpy as np
 import torch
+from machine import cpu_description, gmac_reference_ms
 
 from hrr_garment.artifacts import fold_codec
 from hrr_garment.artifacts.bundle import Bundle
@@ -379,6 +380,7 @@ def bench(
     motion = load_motion(motion_file) if motion_file else synthesize("walk_curve", seconds, seed=0)
     tau = bundle.tau if model else _median_entropy_tau(bundle, motion)
     out = {
+        "cpu": cpu_description(),
         "vertices": bundle.template.num_vertices,
         "database_windows": len(bundle.database),
         "clip_frames": motion.num_frames,
@@ -393,12 +395,19 @@ def bench(
     if offline:
         out.update(_offline_and_stream(animator, motion, tau, repeat, pace, decoder))
     if crowd:
-        out["crowd"] = {
-            str(n): bench_crowd(
+        # the budget's reference, timed before and after every crowd of this run (tools/machine.py):
+        # a step's multiple of it compares across machines
+        references = [gmac_reference_ms()]
+        out["crowd"] = {}
+        for n in crowd:
+            out["crowd"][str(n)] = bench_crowd(
                 animator, motion, tau, n, pace, crowd_frames, decoder=decoder, device=device, push=push
             )
-            for n in crowd
-        }
+            references.append(gmac_reference_ms())
+        out["reference_ms"] = round(float(np.median(references)), 3)
+        out["reference_spread_ms"] = [round(min(references), 3), round(max(references), 3)]
+        for c in out["crowd"].values():
+            c["p50_x"], c["p99_x"] = (round(c[k] / out["reference_ms"], 3) for k in ("p50_ms", "p99_ms"))
         if crowd_bodies_repeat:
             out["crowd_bodies"] = {
                 str(n): bench_crowd_bodies(
@@ -537,9 +546,17 @@ def main() -> None:
                 "  streamed frame, median ms per stage: "
                 + ", ".join(f"{k} {v}" for k, v in r["stream_stage_p50_ms"].items())
             )
+        print(f"  {r['cpu']}")
+        if "reference_ms" in r:
+            low, high = r["reference_spread_ms"]
+            print(
+                f"  budget reference (a 1024 x 1024 float32 matrix product, {r['threads']} threads): "
+                f"{r['reference_ms']} ms median of this run ({low}-{high})"
+            )
         for n, c in r.get("crowd", {}).items():
             print(
-                f"  crowd of {n} ({r['crowd_device']}): step p50 {c['p50_ms']} ms, p99 {c['p99_ms']} ms "
+                f"  crowd of {n} ({r['crowd_device']}): step p50 {c['p50_ms']} ms ({c['p50_x']} x the "
+                f"reference), p99 {c['p99_ms']} ms ({c['p99_x']} x) "
                 f"(paced p50 {c['paced_p50_ms']}, p99 {c['paced_p99_ms']}); {c['per_character_us']} us a "
                 f"character, {c['character_frames_per_s']} character-frames/s"
                 + (

@@ -18,12 +18,12 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import platform
 import subprocess
 import sys
 from pathlib import Path
 
 import numpy as np
+from machine import cpu_description
 
 WORKER = r"""
 import json, sys, time
@@ -79,12 +79,7 @@ def main() -> int:
     args = p.parse_args()
     files = {k: str(getattr(args, k).resolve()) for k in ("character", "animated", "body")}
     a, b = Checkout(args.a, files), Checkout(args.b, files)
-    flags = next((ln for ln in Path("/proc/cpuinfo").read_text().splitlines() if ln.startswith("flags")), "")
-    wanted = ("avx2", "fma", "avx512f", "amx_tile")
-    print(
-        f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores, flags: "
-        f"{' '.join(f for f in wanted if f' {f}' in flags)}"
-    )
+    print(cpu_description())
     rng = np.random.default_rng(0)
     for workload in ("character", "animation", "body"):
         ratios, ta, tb = [], [], []

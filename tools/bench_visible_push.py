@@ -26,6 +26,7 @@ import argparse
 import time
 
 import numpy as np
+from machine import cpu_description
 
 DEPTH_M = 0.005  # the push-out report's depth: inside counts past 5 mm
 STEP = 64  # characters a step (the issue's figure: a 64-character step)
@@ -47,17 +48,6 @@ def cloth_frames(args, record, motion):
     dressed = dress("bench", record, template, made_for=DEFAULT_BODY)[0]
     local = np.repeat((template.vertices + dressed.offset(template))[None], motion.num_frames, 0)
     return world_vertices(local, motion), template.faces
-
-
-def machine() -> str:
-    """The CPU's model and the vector flags that decide the kernels' speed."""
-    try:
-        info = open("/proc/cpuinfo").read().splitlines()
-    except OSError:
-        return "unknown CPU"
-    model = next((x.split(":", 1)[1].strip() for x in info if x.startswith("model name")), "unknown CPU")
-    flags = next((x.split(":", 1)[1].split() for x in info if x.startswith("flags")), [])
-    return f"{model} ({', '.join(f for f in ('avx2', 'fma', 'avx512f', 'amx_tile') if f in flags)})"
 
 
 def timed(runs: dict, repeats: int) -> tuple[dict, dict, dict]:
@@ -158,7 +148,7 @@ def main() -> None:
         "visible, hulls only": stepped(lambda poses: PosedSkin.of(hulls_only, poses)),
         "visible": stepped(lambda poses: PosedSkin.of(visible, poses)),
     }
-    print(f"{machine()}; {default_threads()} threads; collider built in {built:.1f} s")
+    print(f"{cpu_description()}; {default_threads()} threads; collider built in {built:.1f} s")
     print(
         f"{frames.shape[1]} vertices, {len(frames)} frames of {args.motion}: {len(cuts)} step(s) of "
         f"{len(frames) // len(cuts)} characters"

@@ -6,7 +6,7 @@ pytestmark = pytest.mark.tool
 
 
 @pytest.mark.slow
-def test_bench_inference_reports_every_key(capsys):
+def test_bench_inference_reports_every_key(capsys, monkeypatch):
     """The benchmark's JSON keeps the keys the issue names (speeds are measured there, not here)."""
     import importlib.util
     import json
@@ -14,6 +14,7 @@ def test_bench_inference_reports_every_key(capsys):
     from pathlib import Path
 
     path = Path(__file__).parents[2] / "tools" / "bench_inference.py"
+    monkeypatch.syspath_prepend(str(path.parent))  # its sibling tools/machine.py, as a script finds it
     spec = importlib.util.spec_from_file_location("bench_inference", path)
     bench = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(bench)
@@ -60,6 +61,11 @@ def test_bench_inference_reports_every_key(capsys):
     bodies = report["crowd_bodies"]["3"]  # three characters on three bodies, against one body for all
     assert bodies["p99_ratio_median"] > 0 and len(bodies["bodies"]) == len(bodies["one_body"]) == 1
     assert bodies["bodies_from"] == "scaled" and bodies["bodies"][0]["push_out_p50_ms"] > 0
+    # the budget on any machine: the reference timed in the same run, each step also as its multiple
+    crowd = report["crowd"]["3"]
+    assert report["reference_ms"] > 0 and report["reference_spread_ms"][0] <= report["reference_ms"]
+    assert crowd["p99_x"] == pytest.approx(crowd["p99_ms"] / report["reference_ms"], abs=1e-3)
+    assert "cores" in report["cpu"]
 
 
 def test_the_push_out_analysis_reports_each_setting_with_and_without_the_subspace_push(trained):
