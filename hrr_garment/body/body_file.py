@@ -189,7 +189,8 @@ def checked_record(record: BodyRecord, name: str = "body") -> BodyRecord:
     a kilometre long, offsets of the wrong shape, a skeleton upside down or mirrored): ``record``
     itself, or an :class:`InputError` naming ``name``. Its mesh is checked where it was made."""
     try:
-        data = json.loads(strict_json(body_to_dict(replace(record, mesh=None))))  # NaN -> null
+        # through JSON as a reader sees it, NaN kept as NaN so that the error says "got nan"
+        data = json.loads(json.dumps(body_to_dict(replace(record, mesh=None))))
     except (TypeError, ValueError, IndexError, AttributeError) as exc:
         raise InputError(name, f"not a body record ({exc})") from None
     body_from_dict(data, name)

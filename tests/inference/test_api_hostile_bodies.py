@@ -37,8 +37,8 @@ def _record(offsets=None, capsule=None, pelvis_height=None) -> BodyRecord:
 
 OFFSETS = DEFAULT_BODY.skeleton.offsets
 HOSTILE = {
-    "a NaN pelvis height": (dict(pelvis_height=float("nan")), "pelvis_height"),
-    "a NaN capsule radius": (dict(capsule={"radius": float("nan")}), "radius"),
+    "a NaN pelvis height": (dict(pelvis_height=float("nan")), "pelvis_height must be .*, got nan"),
+    "a NaN capsule radius": (dict(capsule={"radius": float("nan")}), "radius.*got nan"),
     "a capsule 1e30 m long": (dict(capsule={"b": (0.0, 1e30, 0.0)}), "capsule hips b"),
     "upside down": (dict(offsets=OFFSETS * np.array([1.0, -1.0, 1.0])), "upside down"),
     "mirrored": (dict(offsets=OFFSETS * np.array([-1.0, 1.0, 1.0])), "mirrored"),
