@@ -65,7 +65,10 @@ if hasattr(os, "register_at_fork"):
 
 def results_heeding(results, signals: "DeferredSignals", poll_s: float = 0.2) -> Iterator:
     """The items of a pool's ``imap`` iterator, in order, delivering a held signal within
-    ``poll_s`` even while no result comes (a slow or stuck worker), not only between results."""
+    ``poll_s`` even while no result comes (a slow or stuck worker), not only between results.
+    ``results`` must be an ``imap`` of chunksize 1 (a larger one gives a generator without waits)."""
+    if not callable(getattr(results, "next", None)):
+        raise TypeError(f"results_heeding needs a pool's imap iterator of chunksize 1, not {type(results)}")
     while True:
         try:
             item = results.next(timeout=poll_s)

@@ -104,6 +104,7 @@ def render_frame(anim: AnimationFile, style: PreviewStyle, t: int, track: np.nda
 
 
 _WORKER: tuple = ()
+FRAMES_A_TASK = 4
 
 
 def _worker_init(parent_pid: int, anim: AnimationFile, style: PreviewStyle, track: np.ndarray) -> None:
@@ -112,9 +113,10 @@ def _worker_init(parent_pid: int, anim: AnimationFile, style: PreviewStyle, trac
     _WORKER = (anim, style, track)
 
 
-def _worker_render(t: int) -> tuple[tuple[int, int], bytes]:
-    image = render_frame(_WORKER[0], _WORKER[1], int(t), _WORKER[2])
-    return image.size, image.tobytes()
+def _worker_render(frames: list[int]) -> list[tuple[tuple[int, int], bytes]]:
+    """A few frames a task (one message each way for them), as (size, RGB bytes)."""
+    images = [render_frame(_WORKER[0], _WORKER[1], int(t), _WORKER[2]) for t in frames]
+    return [(image.size, image.tobytes()) for image in images]
 
 
 def render_frames(
@@ -144,10 +146,13 @@ def render_frames(
                 workers, _worker_init, (os.getpid(), anim, style, track)
             ) as pool,
         ):
-            results = pool.imap(_worker_render, frames.tolist(), chunksize=4)
-            for size, data in results_heeding(results, signals):
-                yield Image.frombytes("RGB", size, data)
-                bar.update()
+            # tasks of FRAMES_A_TASK frames, each its own imap item (an imap chunksize over 1 gives a
+            # plain generator, which cannot wait with a timeout)
+            tasks = [frames[i : i + FRAMES_A_TASK].tolist() for i in range(0, len(frames), FRAMES_A_TASK)]
+            for rendered in results_heeding(pool.imap(_worker_render, tasks), signals):
+                for size, data in rendered:
+                    yield Image.frombytes("RGB", size, data)
+                    bar.update()
     bar.close()
 
 
