@@ -93,6 +93,7 @@ def _main(argv: Sequence[str] | None) -> int:
         push_out=not args.no_push_out,
         decoder=args.decoder,
         push=args.push,
+        push_body=args.push_body,
     )
     size = written.graph.stat().st_size / 2**20
     print(

@@ -210,3 +210,23 @@ def test_bad_requests_are_refused_with_the_reason(tmp_path, capsys):
     with pytest.raises(InputError, match="junk.onnx.*not an ONNX model"):
         OnnxStream(tmp_path / "junk.onnx")
     assert not (tmp_path / "x.onnx").exists()
+
+
+@pytest.mark.parametrize("flags", [["--push-body", "capsules"], ["--push-body", "visible"], []])
+def test_the_command_exports_the_run_its_flags_ask(trained, tmp_path, monkeypatch, flags):
+    """--push-body (with --decoder and --push) reaches the export: a request for the capsules
+    exported the visible mesh's push-out, at 60-280 x the native step's cost."""
+    from hrr_garment.export import onnx_model
+
+    asked = {}
+
+    def recording(animator, path, settings=None, **changes):
+        asked.update(changes)
+        raise InputError(path, "recorded")  # stop before the export's minute
+
+    monkeypatch.setattr(onnx_model, "export_onnx", recording)
+    root, _, _ = trained
+    command = ["--model", str(root / "model"), "--onnx", *flags, "-o", str(tmp_path / "x.onnx")]
+    assert export_model_main(command) == 2
+    assert asked["push_body"] == (flags[1] if flags else None)  # None: the run's default
+    assert asked["push_out"] is True and asked["decoder"] is None and asked["push"] is None
