@@ -184,13 +184,20 @@ def body_from_dict(data: object, path: str | Path) -> BodyRecord:
     )
 
 
+def _plain_number(value: object) -> object:
+    """A numpy scalar as the Python number it holds (json's hook for what it cannot write)."""
+    if getattr(value, "ndim", None) == 0 and callable(getattr(value, "item", None)):
+        return value.item()
+    raise TypeError(f"{type(value).__name__} is not a number")
+
+
 def checked_record(record: BodyRecord, name: str = "body") -> BodyRecord:
     """A record made in code held to what body.json's reader checks (a NaN pelvis height, a capsule
     a kilometre long, offsets of the wrong shape, a skeleton upside down or mirrored): ``record``
     itself, or an :class:`InputError` naming ``name``. Its mesh is checked where it was made."""
     try:
         # through JSON as a reader sees it, NaN kept as NaN so that the error says "got nan"
-        data = json.loads(json.dumps(body_to_dict(replace(record, mesh=None))))
+        data = json.loads(json.dumps(body_to_dict(replace(record, mesh=None)), default=_plain_number))
     except (TypeError, ValueError, IndexError, AttributeError) as exc:
         raise InputError(name, f"not a body record ({exc})") from None
     body_from_dict(data, name)
