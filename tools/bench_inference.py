@@ -222,6 +222,8 @@ def bench_crowd(
     decoder: str = "full",
     device: str = "native",
     push: str = "mesh",
+    mode: str = "hybrid",
+    changes: dict | None = None,
 ) -> dict:
     """``characters`` streamed together for ``frames`` frames: character i plays ``motion`` from frame
     7 i, forward then backward at its ends (a wrap would jump the pelvis back, which the stream takes
@@ -229,7 +231,8 @@ def bench_crowd(
     where given); returns the step's latency percentiles (ms), back to back and paced at ``pace`` frames/s,
     and the cost per character. ``device``: "native" (the hybrid on the CPU kernels) or a torch device (the
     regression as one torch step there, its output left on the device, the step synchronised);
-    ``push``: the push-out's "mesh" or "subspace" push."""
+    ``push``: the push-out's "mesh" or "subspace" push; ``mode``: the native crowd's mode (the hybrid at
+    ``tau``, or another that takes no tau: regression, sample), ``changes`` its other run settings."""
     from hrr_garment.motion.rotations import matrix_to_quat
 
     quats = matrix_to_quat(motion.local_rotations.astype(np.float64))[..., [1, 2, 3, 0]].astype(
@@ -242,7 +245,14 @@ def bench_crowd(
     out = {}
     for key, fps in (("", 0.0), ("paced_", pace)) if pace else (("", 0.0),):
         crowd = (
-            animator.crowd(mode="hybrid", tau=tau, decoder=decoder, device="native", push=push)
+            animator.crowd(
+                mode=mode,
+                **({"tau": tau} if mode == "hybrid" else {}),
+                **(changes or {}),
+                decoder=decoder,
+                device="native",
+                push=push,
+            )
             if native
             else animator.crowd(mode="regression", decoder=decoder, device=device, push=push)
         )

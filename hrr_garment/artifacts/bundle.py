@@ -14,6 +14,7 @@ Files (all arrays as safetensors, nothing pickled)::
     template.safetensors         template vertices, faces, attached vertex indices, vertex groups (group/NAME)
     folds.safetensors            every database frame's simulated folds, for the detail mode (:mod:`.folds`)
     direct.safetensors           the direct-regression baseline (hrr-train --stage direct), where trained
+    sampler.safetensors          the generative decoder, mode sample (hrr-train --stage sampler)
     subspace.safetensors         the fast decoder for games (hrr_garment/models/subspace.py), where trained
 
 ``bundle.json`` is written last (:mod:`.bundle_writer`): a directory without it (or whose files do
@@ -40,6 +41,7 @@ from ..garment.mesh import GarmentMesh
 from ..models.codespace import CodeSpace
 from ..models.direct import DirectRegressor
 from ..models.fcmae import MeshAutoencoder
+from ..models.sampler import ClothSampler
 from ..models.subspace import SubspaceDecoder
 from ..motion.features import FeatureStats
 from .auto_calibration import AutoCalibration
@@ -65,6 +67,7 @@ class Bundle:
     database: CodeDatabase
     template: GarmentMesh
     direct: DirectRegressor | None = None  # the direct-regression baseline, when trained
+    sampler: ClothSampler | None = None  # the generative decoder (mode sample), when trained
     folds: FoldStore | None = (
         None  # the database frames' folds, for the detail mode (where the bundle has them)
     )
@@ -111,6 +114,15 @@ class Bundle:
                 "has no calibrated residual weight (trained before the residual mode): run "
                 f"hrr-train --stage codespace -o {self.folder} on its dataset again (the "
                 "trained weights are kept; only the weight is calibrated)",
+            )
+
+    def require_sampler(self) -> None:
+        """A BundleError, naming the model and the fix, where the sample mode cannot run."""
+        if self.sampler is None:
+            raise BundleError(
+                self.folder,
+                f"has no generative decoder for the sample mode: train one with hrr-train --stage sampler "
+                f"-o {self.folder} on its dataset",
             )
 
     def require_subspace(self, needed_by: str | None = None) -> None:

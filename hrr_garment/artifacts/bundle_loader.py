@@ -16,6 +16,7 @@ from ..models.codespace import CodeSpace, CodeSpaceSettings
 from ..models.direct import DirectRegressor, DirectSettings
 from ..models.fcmae import AutoencoderSettings, MeshAutoencoder
 from ..models.hierarchy import cached_hierarchy
+from ..models.sampler import ClothSampler, SamplerSettings
 from ..motion.features import FeatureStats
 from ..settings import require_number
 from .bundle import Bundle
@@ -104,15 +105,19 @@ def _load_bundle(folder: Path, cache_dir: Path | None) -> Bundle:
     folds = (
         None if manifest.folds is None else load_folds(folder, manifest.folds, template, database=database)
     )
-    direct = None
-    if manifest.direct is not None:  # the optional baseline (hrr-train --stage direct)
-        try:
-            config = DirectSettings.from_dict(thawed(manifest.direct.config))
-            direct = DirectRegressor(config, features, latent_shape)
-        except (KeyError, TypeError, ValueError) as exc:
-            raise BundleError(folder, f"bundle.json has a bad 'direct' entry ({exc})") from None
-        load_state(direct, folder / "direct.safetensors", folder)
-        direct.eval()
+    direct = _trained_part(
+        folder,
+        manifest.direct,
+        "direct",
+        lambda config: DirectRegressor(DirectSettings.from_dict(config), features, latent_shape),
+    )
+    latent_size = latent_shape[0] * latent_shape[1]
+    sampler = _trained_part(
+        folder,
+        manifest.sampler,
+        "sampler",
+        lambda config: ClothSampler(SamplerSettings.from_dict(config), features, latent_size),
+    )
     subspace = (
         None
         if manifest.subspace is None
@@ -128,6 +133,20 @@ def _load_bundle(folder: Path, cache_dir: Path | None) -> Bundle:
         database=database,
         template=template,
         direct=direct,
+        sampler=sampler,
         folds=folds,
         subspace=subspace,
     )
+
+
+def _trained_part(folder: Path, entry, name: str, build):
+    """An optional trained network of the bundle (``name``.safetensors), built by ``build`` from its
+    entry's config and loaded, in eval mode; None where bundle.json has no ``name`` entry."""
+    if entry is None:
+        return None
+    try:
+        model = build(thawed(entry.config))
+    except (KeyError, TypeError, ValueError) as exc:
+        raise BundleError(folder, f"bundle.json has a bad {name!r} entry ({exc})") from None
+    load_state(model, folder / f"{name}.safetensors", folder)
+    return model.eval()

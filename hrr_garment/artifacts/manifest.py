@@ -19,8 +19,9 @@ version, so that everything after it reads every field as the current version de
   calibrated tau), ``validation`` (the code space's: "clips" or the paper's "windows"), ``auto.detail_base``
   and ``auto.detail_strength`` wherever ``auto`` is, and the code space's ``memory_seconds``, ``resonator_hz``
   and ``regression_code``. ``auto`` is absent until training calibrates it (``auto`` then runs the hybrid),
-  ``residual`` where the database has no motion windows, ``folds``, ``direct`` and ``subspace`` (the fast
-  decoder, which arrived later as an optional part) where the bundle has no such part.
+  ``residual`` where the database has no motion windows, ``folds``, ``direct``, ``sampler`` and
+  ``subspace`` (the fast decoder, which arrived later as an optional part) where the bundle has no
+  such part.
 - 4: ``manifest_hash``, a hash over bundle.json's own content (everything but itself): the
   content hash covers the files, and a hand-edited garment name, tau or scale went unseen. A
   version-3 manifest has none; it gets one when it is next written.
@@ -107,7 +108,12 @@ def required_files(meta: dict) -> set[str]:
         "template.safetensors",
         *[f"{n}.safetensors" for n in NETWORKS],
     }
-    optional = {"direct": "direct.safetensors", "folds": FOLDS_FILE, "subspace": SUBSPACE_FILE}
+    optional = {
+        "direct": "direct.safetensors",
+        "sampler": "sampler.safetensors",
+        "folds": FOLDS_FILE,
+        "subspace": SUBSPACE_FILE,
+    }
     return names | {file for part, file in optional.items() if part in meta}
 
 

@@ -66,6 +66,7 @@ class Manifest(Section):
     auto: AutoCalibration | None = None
     subspace: SubspaceEntry | None = None  # the fast decoder
     direct: PartEntry | None = None  # the direct-regression baseline
+    sampler: PartEntry | None = None  # the generative decoder (mode sample)
     bodies: BodiesEntry | None = None  # absent for a model from before bodies
     # the motion sources of the clips it learned from and their terms (motion/licences.py); absent
     # for a model from before they were recorded
@@ -114,6 +115,7 @@ class Manifest(Section):
             "auto": _optional(AutoCalibration, data, "auto"),
             "subspace": _optional(SubspaceEntry, data, "subspace"),
             "direct": _optional(PartEntry, data, "direct"),
+            "sampler": _optional(PartEntry, data, "sampler"),
             "bodies": None if data.get("bodies") is None else BodiesEntry.parse(data["bodies"], "bodies"),
             "motion": mapping(data.get("motion"), "motion", optional=True),
         }

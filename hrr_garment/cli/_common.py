@@ -41,6 +41,23 @@ def add_decoder_option(p: argparse.ArgumentParser) -> None:
     )
 
 
+def add_sample_options(p: argparse.ArgumentParser) -> None:
+    """``--seed`` and ``--sample-steps``: the sample mode's draw."""
+    p.add_argument(
+        "--seed",
+        type=int,
+        default=0,
+        help="the sample mode's seed: the same seed draws the same cloth, another seed another cloth as "
+        "likely (default 0)",
+    )
+    p.add_argument(
+        "--sample-steps",
+        type=int,
+        default=None,
+        help="the sample mode's integration steps a frame (network evaluations; default: the model's)",
+    )
+
+
 def add_no_push_out_option(p: argparse.ArgumentParser, help: str) -> None:
     """``--no-push-out`` (its old name ``--no-collision`` still read): the run without the push-out."""
     p.add_argument("--no-push-out", "--no-collision", dest="no_push_out", action="store_true", help=help)
@@ -116,6 +133,7 @@ def run_settings_of(args: argparse.Namespace, prog: str, **fields) -> RunSetting
             swing=getattr(args, "swing", None),
             push=getattr(args, "push", None),
             push_body=getattr(args, "push_body", None),
+            **{k: getattr(args, k) for k in ("seed", "sample_steps") if hasattr(args, k)},
             **fields,
         )
     except (TypeError, ValueError) as exc:
@@ -123,7 +141,7 @@ def run_settings_of(args: argparse.Namespace, prog: str, **fields) -> RunSetting
         flag = next(
             (
                 f"--{name.replace('_', '-')}"
-                for name in ("tau", "gate", "mode", "swing", "push_body")
+                for name in ("tau", "gate", "mode", "swing", "push_body", "seed", "sample_steps")
                 if message.startswith(name)
             ),
             "the run settings",

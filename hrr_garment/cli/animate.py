@@ -31,6 +31,7 @@ from ._common import (
     add_fps_option,
     add_no_push_out_option,
     add_push_option,
+    add_sample_options,
     detail_look,
     run_cli,
     run_settings_of,
@@ -53,7 +54,9 @@ def _parser() -> argparse.ArgumentParser:
         "3 %% of the most accurate (bundle.json 'auto'); hybrid: the calibrated gate between retrieval "
         "and regression; residual: regression plus the matched window's detail; detail: the "
         "regression's shape with simulated folds from the database; direct: the baseline, when the model "
-        "has it (hrr-train --stage direct)",
+        "has it (hrr-train --stage direct); sample: a draw of the cloth's distribution by the generative "
+        "decoder, frame after frame (causal; --seed picks the draw), when the model has it (hrr-train "
+        "--stage sampler)",
     )
     p.add_argument(
         "--gate",
@@ -85,6 +88,7 @@ def _parser() -> argparse.ArgumentParser:
     add_no_push_out_option(p, help="skip the collision push-out")
     add_decoder_option(p)
     add_push_option(p)
+    add_sample_options(p)
     p.add_argument("--causal", action="store_true", help="causal windows only, as the streaming API")
     p.add_argument(
         "--precision",
@@ -148,6 +152,8 @@ def _main(argv: Sequence[str] | None) -> int:
         if mode == Mode.HYBRID
         else f", folds x{anim.settings['detail_strength']:g} on the {anim.settings['detail_base']}"
         if mode == Mode.DETAIL
+        else f", seed {anim.settings['seed']}, {anim.settings['sample_steps']} steps a frame"
+        if mode == Mode.SAMPLE
         else ""
     )
     if anim.settings.get("swing", 1.0) != 1.0:

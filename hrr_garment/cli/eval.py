@@ -37,6 +37,7 @@ from ._common import (
     add_fps_option,
     add_no_push_out_option,
     add_push_option,
+    add_sample_options,
     run_cli,
 )
 from .eval_job import ALL_MODES, checked_job
@@ -165,6 +166,7 @@ def _parser() -> argparse.ArgumentParser:
     )
     add_decoder_option(p)
     add_push_option(p)
+    add_sample_options(p)
     p.add_argument("--no-plots", action="store_true")
     p.add_argument(
         "-o", "--output", type=Path, default=None, help="report folder (default: hrr_work/eval/MODEL)"

@@ -16,6 +16,9 @@ of the Euclidean distance, mm). Definitions (docs/evaluation.md repeats them):
   included): half the energy distance between the two empirical distributions. It is >= 0 and 0
   only when the samples are the members. For one prediction E|X - X'| = 0 and it is
   E|X - y| - 1/2 E|y - y'|.
+- Draw spread (mm, with S > 1 samples: the sample mode's draws from S seeds): the mean PVE between
+  two draws; over the floor (``draw_spread_ratio``) it says whether two seeds differ as two
+  simulations do (1), less (a draw near the mean) or more.
 - Plausibility, each as the prediction's value over the members' mean value: acceleration
   (mean ||second difference in time||; < 1 too smooth, > 1 jittery), bending and stretch energy
   (:func:`.metrics.cloth_energies`; < 1 too smooth or slack), hem swing
@@ -119,6 +122,8 @@ def ensemble_metrics(
         "pve_ensemble_mean_mm": _pve_mm(point, members.astype(np.float64).mean(0)),
         "energy_score_mm": energy_score_mm(x, members),
     }
+    if len(x) > 1:  # a generative mode's draws: how far apart two of them are, beside the floor
+        out["draw_spread_mm"] = mean_pairwise_mm(x)
     if len(point) >= 3:
         acc_pred, acc_truth = _acceleration(x), _acceleration(members)
         out["jitter_mm"] = float(np.mean([_mean_norm_mm(a - b) for a in acc_pred for b in acc_truth]))
@@ -133,6 +138,7 @@ RATIOS = (  # (name, prediction key, truth key)
     ("bending_energy_ratio", "bending_energy", "truth_bending_energy"),
     ("stretch_energy_ratio", "stretch_energy", "truth_stretch_energy"),
     ("hem_swing_ratio", "hem_swing_m", "truth_hem_swing_m"),
+    ("draw_spread_ratio", "draw_spread_mm", "floor_mm"),  # two draws apart, over two simulations apart
 )
 
 

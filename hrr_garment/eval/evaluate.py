@@ -43,9 +43,12 @@ class EvaluationSettings:
     progress: bool = True
 
     def run_for(self, mode: str) -> RunSettings:
-        """The run settings of ``mode``: the shared ones, the detail look only where it applies."""
+        """The run settings of ``mode``: the shared ones, the detail look and the sample mode's steps
+        only where they apply."""
         return self.run.replace(
-            mode=mode, detail=self.run.detail if Mode(mode) is Mode.DETAIL else DetailLook()
+            mode=mode,
+            detail=self.run.detail if Mode(mode) is Mode.DETAIL else DetailLook(),
+            sample_steps=self.run.sample_steps if Mode(mode) is Mode.SAMPLE else None,
         )
 
 
@@ -90,14 +93,17 @@ def evaluate_modes(
     for mode, record in tqdm(jobs, desc="evaluate", unit="run", disable=not settings.progress):
         own = _own_sequence(names, record, settings.exclude_own_sequence)
         world = StageOutput("world")
-        anim = animator.animate(
-            record.motion,
-            runs[mode],
-            observe=world,
-            body=record.dressed,
-            allow_outside=True,
-            exclude_sequence=own,
-        )
+        run = runs[mode].replace(body=record.dressed, allow_outside=True, exclude_sequence=own)
+        anim = animator.animate(record.motion, run, observe=world)
+        draws = None
+        if Mode(mode) is Mode.SAMPLE and settings.members >= 2 and record.name in (ensembles or {}):
+            # a sample is judged as a sample: as many draws as the truth has members, seeds on from the run's
+            draws = np.stack(
+                [
+                    animator.animate(record.motion, run.replace(seed=run.seed + k)).vertices
+                    for k in range(1, settings.members)
+                ]
+            )
         results[mode].sequences.append(
             scorer.sequence(
                 anim.vertices,
@@ -106,6 +112,7 @@ def evaluate_modes(
                 anim.entropy.astype(np.float64),
                 anim.penetration,
                 unpushed=world.value,
+                draws=draws,
             )
         )
     return results

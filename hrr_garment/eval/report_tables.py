@@ -44,6 +44,7 @@ ENSEMBLE_METRICS = (
     ("acceleration_ratio", "accel. ratio", 2),
     ("bending_energy_ratio", "sharpness (bend E ratio)", 2),
     ("hem_swing_ratio", "hem swing ratio", 2),
+    ("draw_spread_ratio", "draws apart / floor", 2),
 )
 
 

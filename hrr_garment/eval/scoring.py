@@ -112,14 +112,16 @@ def sequence_ensemble_metrics(
     hem: np.ndarray | None,
     truth: dict[str, float],
 ) -> dict[str, float]:
-    """Ensemble scores of one prediction, with the penetration before the collision push-out
+    """Ensemble scores of one prediction ((T, V, 3), or (S, T, V, 3): its draws), with the
+    penetration (of the first draw) before the collision push-out
     (``before_push_out``: mean and worst-frame fraction; None when there was no push-out) and the
     members' own values (``truth``, from :func:`ensemble_truth`) beside it."""
     out = ensemble_metrics(
         anim_vertices, ensemble.members, record.motion, rest=rest, topo=topo, hem=hem, truth=truth
     )
     if before_push_out is None:
-        pen = penetration_fraction(body_signed_distance(anim_vertices, record.motion, body_of(record)))
+        first = anim_vertices if anim_vertices.ndim == 3 else anim_vertices[0]
+        pen = penetration_fraction(body_signed_distance(first, record.motion, body_of(record)))
         before_push_out = float(pen.mean()), float(pen.max())
     out.update(
         penetration_before_pct=100.0 * before_push_out[0],
@@ -149,11 +151,15 @@ class SequenceScorer:
         pushed: PushOutReport | None,
         *,
         unpushed: np.ndarray | None = None,
+        draws: np.ndarray | None = None,
     ) -> SequenceResult:
         """One prediction's :class:`SequenceResult`: ``vertices`` (T, V, 3) world, ``unpushed`` the same
         before the push-out (None: no push-out ran), ``pushed`` the push-out's own report (None: no
         push-out ran): the cloth inside the capsules before it and the share of frames on which its
-        strain limit moved an edge (NaN without one)."""
+        strain limit moved an edge (NaN without one). ``draws``: (S, T, V, 3) further draws of a
+        generative mode (other seeds), scored with ``vertices`` as one prediction's samples against
+        the truth ensemble (the energy score's spread term, the draws' spread); the other metrics
+        are ``vertices``' alone."""
         ensemble, rest = {}, rest_of(record, self.rest)
         if record.name not in self.visible:
             self.visible[record.name] = visible_of(record)
@@ -164,7 +170,7 @@ class SequenceScorer:
                     self.ensembles[record.name], record, rest, self.topo, self.hem, visible
                 )
             ensemble = sequence_ensemble_metrics(
-                vertices,
+                vertices if draws is None else np.concatenate([vertices[None], draws]),
                 None if pushed is None else (pushed.inside_before, pushed.worst_before),
                 self.ensembles[record.name],
                 record,

@@ -147,6 +147,7 @@ class Animator:
             Mode.DIRECT: self.has_direct,
             Mode.RESIDUAL: self.bundle.has_residual,
             Mode.DETAIL: self.bundle.folds is not None,
+            Mode.SAMPLE: self.bundle.sampler is not None,
         }.get(mode, True)
 
     @property

@@ -60,6 +60,8 @@ def clip_latents(path: FramePath, motion: Motion) -> ClipLatents:
             gates = causal_windows(gates, w, view=True)
         choice = path.choose(path.seen("windows", causal_windows(features, w)), last_frame=True, gates=gates)
         latents = causal_latents(choice, path.blend)
+        if path.run.mode is Mode.SAMPLE:  # the draw departs from the regression, frame after frame
+            latents = path.draw(features, latents)
         regression = None if choice.regression_part is None else choice.regression_part[:, -1]
         proposals = causal_proposals(choice.match, w) if choice.lends_folds else None
         per_frame = np.arange(t_frames)

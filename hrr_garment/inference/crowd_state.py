@@ -9,6 +9,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import InputError
+from ..models.sampler import SampleTrack
 from .fold_track import FoldTrack, FollowedFolds
 from .lod import LodState
 
@@ -34,6 +35,7 @@ class CrowdCharacter:
     frames: int = 0
     lod: LodState = field(default_factory=LodState)  # its level of detail's held step and decoder fade
     swing_mean: np.ndarray | None = None  # (nodes, C) its latents' recent course (inference/swing.py)
+    sample: SampleTrack | None = None  # the sample mode's draw as it goes on (models/sampler.py)
 
 
 def check_keys(keys: list, count: int) -> None:

@@ -33,6 +33,7 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import numpy as np
+import torch
 
 from ..body.measures import with_body
 from ..motion.frame import world_vertices
@@ -101,6 +102,24 @@ class FramePath:
         )
         self.seen("choice", choice.latents[:, -1])
         return choice
+
+    # 4. blending, the sample mode's draw
+    def draw(self, features: np.ndarray, regression: np.ndarray, tracks: list | None = None) -> np.ndarray:
+        """Frames drawn by the generative decoder (:mod:`hrr_garment.models.sampler`): raw
+        ``features`` (n, F) and the regression's latents (n, nodes, C) of each frame from the window
+        ending at it -> the drawn latents (n, nodes, C). Without ``tracks``, the n frames are a clip
+        drawn from the run's seed, frame after frame; with them, one frame of n characters, each
+        moving its :class:`~hrr_garment.models.sampler.SampleTrack` on (a crowd). Frame t reads
+        frames <= t only and its seed's noise a frame at a time, so both draw the same frames."""
+        bundle, sampler = self.bundle, self.bundle.sampler
+        n, shape = len(regression), regression.shape[1:]
+        feats = torch.from_numpy(bundle.motion_stats.normalize(features).astype(np.float32))
+        mean = torch.from_numpy(bundle.latent_stats.normalize(regression.reshape(n, -1)).astype(np.float32))
+        if tracks is None:
+            drawn = sampler.roll_out(feats, mean, seed=self.run.seed, steps=self.run.sample_steps)
+        else:
+            drawn = sampler.draw_frame(tracks, feats, mean, steps=self.run.sample_steps)
+        return bundle.latent_stats.denormalize(drawn.numpy()).reshape(n, *shape).astype(np.float32)
 
     # 5. swing
     def swing_gain(self, fps: float) -> SwingGain | None:

@@ -136,7 +136,11 @@ def choose_windows(
         match, similarity = db.search(enc.codes, exclude, bodies)
         distance = db.motion_distance(enc.standardised, match) if run.gate == "distance" else None
         doubt = gate_doubt(run.gate, enc.entropy, similarity, distance=distance)
-    retrieved = {Mode.HYBRID: doubt < run.tau, Mode.REGRESSION: np.zeros(n, bool)}.get(mode, np.ones(n, bool))
+    retrieved = {
+        Mode.HYBRID: doubt < run.tau,
+        Mode.REGRESSION: np.zeros(n, bool),
+        Mode.SAMPLE: np.zeros(n, bool),  # the regression, which the sampler then departs from
+    }.get(mode, np.ones(n, bool))
     latents = (
         enc.regression.copy()
         if enc.regression is not None

@@ -20,6 +20,9 @@ class Mode(str, enum.Enum):
     DETAIL = "detail"
     NAIVE_NN = "naive-nn"  # the database window with the nearest standardised motion (a baseline)
     DIRECT = "direct"  # the direct-regression baseline (a GRU; offline only, when the bundle has it)
+    # a draw of the cloth's distribution: the regression's latents plus the generative decoder's
+    # departure, frame by frame (causal; models/sampler.py, when the bundle has it)
+    SAMPLE = "sample"
 
     def __str__(self) -> str:
         return self.value
@@ -29,10 +32,18 @@ class Mode(str, enum.Enum):
 
     @property
     def regresses(self) -> bool:
-        """Whether the code-space decoder runs (hybrid, regression, residual and detail; auto is
+        """Whether the code-space decoder runs (hybrid, regression, residual, detail and sample; auto is
         resolved to one of these first, :meth:`~hrr_garment.inference.run_settings.RunSettings.resolve`)."""
-        return self in (Mode.HYBRID, Mode.REGRESSION, Mode.RESIDUAL, Mode.DETAIL)
+        return self in (Mode.HYBRID, Mode.REGRESSION, Mode.RESIDUAL, Mode.DETAIL, Mode.SAMPLE)
 
 
 #: the modes that run the motion encoder and the gate (offline, causal and streaming)
-CODE_MODES = (Mode.HYBRID, Mode.REGRESSION, Mode.RETRIEVAL, Mode.RESIDUAL, Mode.DETAIL, Mode.NAIVE_NN)
+CODE_MODES = (
+    Mode.HYBRID,
+    Mode.REGRESSION,
+    Mode.RETRIEVAL,
+    Mode.RESIDUAL,
+    Mode.DETAIL,
+    Mode.NAIVE_NN,
+    Mode.SAMPLE,
+)

@@ -35,6 +35,8 @@ class ResolvedRun:
     exclude_sequence: int | None  # the database sequence retrieval may not use, or None
     precision: str  # the full mesh decoder's arithmetic ("float32" or "bfloat16")
     device: str | None  # where a crowd runs, as asked (None: the crowd's choice, Animator.crowd)
+    seed: int = 0  # the sample mode's seed
+    sample_steps: int | None = None  # the sample mode's integration steps a frame (None outside it)
 
     @property
     def fold_base(self) -> str:
@@ -57,6 +59,8 @@ class ResolvedRun:
         }
         if self.detail is not None:
             out.update(detail_base=self.detail.base, detail_strength=self.detail.strength)
+        if self.sample_steps is not None:
+            out.update(seed=self.seed, sample_steps=self.sample_steps)
         return out
 
 

@@ -165,6 +165,10 @@ class RunSettings:
     # where a crowd runs: "native" (the CPU kernels), or a torch device ("cuda", "cpu": the regression
     # as one torch step, torch_crowd.py). None: CUDA for a regression crowd where torch sees a GPU
     device: str | None = None
+    # the sample mode's draw: its seed (the same seed, the same cloth; another, another as likely)
+    # and the generative decoder's integration steps a frame (None: the steps it was trained for)
+    seed: int = 0
+    sample_steps: int | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "mode", Mode(self.mode))
@@ -198,6 +202,17 @@ class RunSettings:
             raise ValueError(f"precision must be one of {', '.join(PRECISIONS)}, got {self.precision!r}")
         if self.device is not None and not isinstance(self.device, str):
             raise TypeError(f"device must be a name such as 'native' or 'cuda', got {self.device!r}")
+        for name, least in (("seed", 0), ("sample_steps", 1)):
+            value = getattr(self, name)
+            if value is None and name == "sample_steps":
+                continue
+            if isinstance(value, np.integer):
+                value = int(value)
+            if isinstance(value, bool) or not isinstance(value, int) or value < least:
+                raise ValueError(f"{name} must be a whole number >= {least}, got {value!r}")
+            object.__setattr__(self, name, value)
+        if self.sample_steps is not None and self.mode not in (Mode.SAMPLE, Mode.AUTO):
+            raise ValueError(f"sample_steps sets the sample mode's draw; mode {self.mode.value} draws none")
         for name in ("push_out", "causal", "allow_outside"):
             value = getattr(self, name)
             if not isinstance(value, (bool, np.bool_)):
@@ -263,6 +278,8 @@ class RunSettings:
                     )
         elif mode is Mode.RESIDUAL:
             bundle.require_residual()
+        elif mode is Mode.SAMPLE:
+            bundle.require_sampler()
         decoder = self.decoder or DECODERS[0]
         if decoder == "fast":
             bundle.require_subspace()
@@ -277,7 +294,7 @@ class RunSettings:
             tau=tau,
             detail=look,
             push_out=self.push_out,
-            causal=self.causal,
+            causal=self.causal or mode is Mode.SAMPLE,  # a sample is drawn frame after frame
             decoder=decoder,
             swing=swing,
             push=push,
@@ -286,6 +303,8 @@ class RunSettings:
             exclude_sequence=database_sequence(bundle, self.exclude_sequence),
             precision=self.precision or PRECISIONS[0],
             device=self.device,
+            seed=self.seed,
+            sample_steps=(self.sample_steps or bundle.sampler.config.steps) if mode is Mode.SAMPLE else None,
         )
 
 

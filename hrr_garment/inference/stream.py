@@ -37,6 +37,7 @@ import numpy as np
 
 from ..errors import InputError, TeleportWarning
 from ..models.codes import traced_window_codes
+from ..models.sampler import SampleTrack
 from ..motion.features import pair_features_batch
 from ..motion.limits import MAX_ROOT_SPEED
 from ..motion.memory import motion_memory
@@ -71,6 +72,7 @@ class CrowdStream:
         self.path = FramePath(animator, run)  # the stages, run once a push for the whole crowd
         self.body = run.body
         self._bodies: dict[Hashable, object] = {}  # characters with a body of their own (set_body)
+        self._seeds: dict[Hashable, int] = {}  # characters with a seed of their own (set_seed)
         self._stacked: tuple = ((), None)  # the last mixed crowd's bodies and their stacked arrays
         self._characters: dict[Hashable, CrowdCharacter] = {}
         self._windows = CrowdWindows(animator.window)
@@ -103,12 +105,24 @@ class CrowdStream:
         its capsules. Characters of different bodies still go through one batched step."""
         self._bodies[key] = self.animator.body(body, allow_outside=allow_outside)
 
+    def set_seed(self, key: Hashable, seed: int) -> None:
+        """Give character ``key`` a seed of its own for the sample mode's draw (the run's seed is
+        every other character's): before it joins, or to start its draw afresh from that seed."""
+        if isinstance(seed, np.integer):
+            seed = int(seed)
+        if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+            raise ValueError(f"a seed is a whole number >= 0, got {seed!r}")
+        self._seeds[key] = seed
+        if key in self._characters:
+            self._characters[key].sample = None
+
     def leave(self, key: Hashable) -> None:
         """Forget a character: pushed again later, it starts afresh (as from a standstill)."""
         if key not in self._characters:
             raise KeyError(f"no character {key!r} in this stream (characters: {self.characters})")
         self._forget(key)
         self._bodies.pop(key, None)
+        self._seeds.pop(key, None)
 
     def _forget(self, key: Hashable) -> None:
         """Drop a character's state (it starts afresh if pushed again), its inertialization's row freed."""
@@ -266,7 +280,13 @@ class CrowdStream:
         path.seen("windows", windows)
         t.append(time.perf_counter())
         # 3. choice and 4. blending
-        latents = path.seen("blending", self._latents(chars, windows, window_gates, lv))
+        latents = self._latents(chars, windows, window_gates, lv)
+        if self.run.mode is Mode.SAMPLE:  # each character's draw departs from its regression
+            for k, c in zip(keys, chars):
+                if c.sample is None:
+                    c.sample = SampleTrack(path.bundle.sampler, self._seeds.get(k, self.run.seed))
+            latents = path.draw(features, latents, [c.sample for c in chars])
+        path.seen("blending", latents)
         # 5. swing: the free cloth's swing restored, each character's course kept on it
         gain = path.swing_gain(poses.fps)
         latents = path.seen("swing", latents if gain is None else step_crowd(gain, chars, latents))

@@ -113,10 +113,24 @@ def _direct_stage(dataset: Path, folder: Path, settings: TrainSettings, ctx: Sta
     )
 
 
+def _sampler_stage(dataset: Path, folder: Path, settings: TrainSettings, ctx: StageContext) -> StageReport:
+    from ..train.sampler import run_sampler_stage
+
+    return run_sampler_stage(
+        dataset,
+        folder,
+        settings.sampler,
+        train_config=settings.sampler_train,
+        cache_dir=workspace() / "cache",
+        progress=ctx.progress,
+    )
+
+
 STAGE_RUNNERS = {
     "simulate": _simulate_stage,
     "autoencoder": _autoencoder_stage,
     "codespace": _codespace_stage,
     "subspace": _subspace_stage,
     "direct": _direct_stage,
+    "sampler": _sampler_stage,
 }

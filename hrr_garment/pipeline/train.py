@@ -44,7 +44,8 @@ STAGES = (
     "autoencoder",
     "codespace",
     "subspace",
-)  # what "all" runs; the direct stage runs only when asked for
+)  # what "all" runs
+NAMED_STAGES = ("direct", "sampler")  # run only when asked for: the baseline, the generative decoder
 BUDGETED = ("autoencoder", "codespace")  # stages checked against their epochs and target error (.budget)
 
 
@@ -78,9 +79,9 @@ def train_model(
     dataset, folder = Path(dataset), Path(folder)
     callback = callback or TrainCallback()
     stages = tuple(OLD_STAGE_NAMES.get(s, s) for s in stages)
-    unknown = [s for s in stages if s not in (*STAGES, "direct")]
+    unknown = [s for s in stages if s not in (*STAGES, *NAMED_STAGES)]
     if unknown:
-        raise ValueError(f"unknown stage(s) {unknown}; the stages are {', '.join((*STAGES, 'direct'))}")
+        raise ValueError(f"unknown stage(s) {unknown}; the stages are {', '.join((*STAGES, *NAMED_STAGES))}")
     result = TrainResult(folder)
     try:
         if dataset.exists() and {"autoencoder", "codespace"} & set(stages):

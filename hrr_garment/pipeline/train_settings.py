@@ -17,6 +17,7 @@ from ..input_files import read_input_text
 from ..models.codespace import CodeSpaceSettings
 from ..models.direct import DirectSettings
 from ..models.fcmae import AutoencoderSettings
+from ..models.sampler import SamplerSettings
 from ..models.subspace import SubspaceSettings
 from ..settings import deep_merge
 from ..sim.preset import CONFIG_DIR, Preset
@@ -24,10 +25,11 @@ from ..train.autoencoder_settings import AutoencoderTrainSettings
 from ..train.codespace_settings import CodeSpaceTrainSettings
 from ..train.direct import DirectTrainSettings
 from ..train.report import StageReport
+from ..train.sampler import SamplerTrainSettings
 from ..train.subspace import SubspaceTrainSettings
 from .budget import TrainingBudgetWarning
 
-SECTIONS = ("autoencoder", "codespace", "subspace", "direct", "auto")  # of the training config
+SECTIONS = ("autoencoder", "codespace", "subspace", "direct", "sampler", "auto")  # of the training config
 # the old names of stages and config sections (deprecated, still read): old -> current
 OLD_STAGE_NAMES = {"codebook": "codespace", "baseline": "direct"}
 
@@ -60,8 +62,8 @@ def _sections(data, source, callback: TrainCallback) -> dict:
     if not isinstance(data, dict) or set(data) - set(SECTIONS):
         raise InputError(
             source,
-            "expected a mapping with 'autoencoder', 'codespace', 'subspace' and/or 'direct' sections "
-            "(each with model/train) and/or an 'auto' section",
+            "expected a mapping with 'autoencoder', 'codespace', 'subspace', 'direct' and/or 'sampler' "
+            "sections (each with model/train) and/or an 'auto' section",
         )
     return data
 
@@ -93,6 +95,8 @@ class TrainSettings:
     subspace_train: SubspaceTrainSettings = field(default_factory=SubspaceTrainSettings)
     direct: DirectSettings = field(default_factory=DirectSettings)
     direct_train: DirectTrainSettings = field(default_factory=DirectTrainSettings)
+    sampler: SamplerSettings = field(default_factory=SamplerSettings)
+    sampler_train: SamplerTrainSettings = field(default_factory=SamplerTrainSettings)
     auto: AutoSettings = field(
         default_factory=AutoSettings
     )  # the auto mode's calibration after the code space
@@ -123,6 +127,7 @@ class TrainSettings:
             "codespace": (CodeSpaceSettings, CodeSpaceTrainSettings),
             "subspace": (SubspaceSettings, SubspaceTrainSettings),
             "direct": (DirectSettings, DirectTrainSettings),
+            "sampler": (SamplerSettings, SamplerTrainSettings),
         }.items():
             built[section] = _build(model_cls, values.get(section, {}).get("model"), source)
             built[f"{section}_train"] = _build(train_cls, values.get(section, {}).get("train"), source)

@@ -11,8 +11,6 @@ weights join the bundle as ``direct.safetensors`` with a ``direct`` entry in bun
 
 from __future__ import annotations
 
-import hashlib
-import json
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -26,7 +24,7 @@ from ..data.windows import dataset_features
 from ..io_utils import atomic_write_text, strict_json
 from ..models.direct import DirectRegressor, DirectSettings
 from ..settings import from_settings
-from .bundle_stage import bundle_and_dataset
+from .bundle_stage import bundle_and_dataset, decoded_pve_mm, part_key
 from .checkpoint import Checkpoint, EpochLog
 from .loop import Budget, Epoch, EpochStep, ProgressBar, TrainingRun, fit
 from .report import StageReport
@@ -163,13 +161,8 @@ def run_direct_stage(
     t0 = time.perf_counter()
     folder = Path(folder)
     bundle, ds = bundle_and_dataset(folder, dataset, cache_dir)
-    base_files = {k: v for k, v in bundle.manifest.files.items() if k != "direct.safetensors"}
-    key = hashlib.sha1(
-        json.dumps(
-            [config.to_dict(), asdict(train_config) | {"max_minutes": None}, base_files, ds.splits],
-            sort_keys=True,
-        ).encode()
-    ).hexdigest()[:16]
+    settings = [config.to_dict(), asdict(train_config) | {"max_minutes": None}]
+    key = part_key(bundle, "direct.safetensors", settings, splits=ds.splits)
     recorded = bundle.manifest.direct
     if recorded is not None and recorded.key == key:
         return _stage_report({**recorded.to_dict(), "reused": True}, folder, reused=True)
@@ -211,13 +204,4 @@ def _stage_report(entry: dict, folder: Path, reused: bool = False) -> StageRepor
 @torch.no_grad()
 def validation_pve_mm(model: DirectRegressor, bundle, motion: list[torch.Tensor], truth: np.ndarray) -> float:
     """Per-vertex error (mm) in the heading frame over the validation frames, decoded."""
-    decode = bundle.autoencoder.inference_decoder()
-    pred = []
-    for m in motion:
-        z = bundle.latent_stats.denormalize(model(m[None])[0].numpy())
-        pred.append(
-            decode(
-                torch.from_numpy(z.reshape(len(z), *bundle.autoencoder.latent_shape).astype(np.float32))
-            ).numpy()
-        )
-    return 1000.0 * float(np.linalg.norm(np.concatenate(pred) - truth, axis=-1).mean())
+    return decoded_pve_mm(bundle, [model(m[None])[0].numpy() for m in motion], truth)
