@@ -7,7 +7,8 @@ one numbered list (:data:`STAGES`) that every driver runs in order:
 3. ``choice``: the window step (motion encoder, gate, code-space decoder) and what the mode picks
    (:func:`~.gate.choose_windows`): each window's latents and its database match;
 4. ``blending``: per-frame latents from the windows' (offline: :func:`~.blending.blend_windows`;
-   causal: the inertializer, :class:`~.blending.Inertializer`);
+   causal: the inertializer, :class:`~.blending.Inertializer`); in the sample mode, the generative
+   decoder's draw departing from them (:meth:`FramePath.draw`);
 5. ``swing``: the free cloth's swing restored (:mod:`.swing`; as predicted at gain 1);
 6. ``decoding``: the mesh decoder, latents to body-frame vertices (:mod:`.decoding`);
 7. ``folds``: the detail mode's simulated folds (:mod:`.detail`, :mod:`.fold_track`);

@@ -45,7 +45,7 @@ class SamplerSettings:
     hidden: int = 768  # the velocity network's width
     layers: int = 3  # its hidden layers after the first
     history: int = 0  # previous frames' drawn departures each frame is also given (0: none; drifts)
-    steps: int = 4  # Euler steps from noise to a departure at run time (network evaluations a frame)
+    steps: int = 1  # Euler steps from noise to a departure at run time (network evaluations a frame)
     time_features: int = 32  # sinusoidal features of the flow's time
 
     @classmethod
