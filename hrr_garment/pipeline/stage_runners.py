@@ -4,6 +4,7 @@ stages of :mod:`hrr_garment.train`, each with its settings from :class:`TrainSet
 
 from __future__ import annotations
 
+import importlib
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -87,50 +88,30 @@ def _codespace_stage(dataset: Path, folder: Path, settings: TrainSettings, ctx: 
     )
 
 
-def _subspace_stage(dataset: Path, folder: Path, settings: TrainSettings, ctx: StageContext) -> StageReport:
-    from ..train.subspace import run_subspace_stage
+def _part_stage(section: str):
+    """The stage that adds the trained part ``section`` (subspace, direct, sampler) to a bundle:
+    ``hrr_garment.train.<section>.run_<section>_stage`` (imported when it runs: torch and the
+    part's code load only for a stage asked for) with the settings' ``section`` and its training."""
 
-    return run_subspace_stage(
-        dataset,
-        folder,
-        settings.subspace,
-        train_config=settings.subspace_train,
-        cache_dir=workspace() / "cache",
-        progress=ctx.progress,
-    )
+    def run(dataset: Path, folder: Path, settings: TrainSettings, ctx: StageContext) -> StageReport:
+        module = importlib.import_module(f"..train.{section}", __package__)
+        return getattr(module, f"run_{section}_stage")(
+            dataset,
+            folder,
+            getattr(settings, section),
+            train_config=getattr(settings, f"{section}_train"),
+            cache_dir=workspace() / "cache",
+            progress=ctx.progress,
+        )
 
-
-def _direct_stage(dataset: Path, folder: Path, settings: TrainSettings, ctx: StageContext) -> StageReport:
-    from ..train.direct import run_direct_stage
-
-    return run_direct_stage(
-        dataset,
-        folder,
-        settings.direct,
-        train_config=settings.direct_train,
-        cache_dir=workspace() / "cache",
-        progress=ctx.progress,
-    )
-
-
-def _sampler_stage(dataset: Path, folder: Path, settings: TrainSettings, ctx: StageContext) -> StageReport:
-    from ..train.sampler import run_sampler_stage
-
-    return run_sampler_stage(
-        dataset,
-        folder,
-        settings.sampler,
-        train_config=settings.sampler_train,
-        cache_dir=workspace() / "cache",
-        progress=ctx.progress,
-    )
+    return run
 
 
 STAGE_RUNNERS = {
     "simulate": _simulate_stage,
     "autoencoder": _autoencoder_stage,
     "codespace": _codespace_stage,
-    "subspace": _subspace_stage,
-    "direct": _direct_stage,
-    "sampler": _sampler_stage,
+    "subspace": _part_stage("subspace"),
+    "direct": _part_stage("direct"),
+    "sampler": _part_stage("sampler"),
 }

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
@@ -12,7 +13,12 @@ import torch
 
 from ..artifacts.bundle import Bundle
 from ..artifacts.bundle_loader import load_bundle
+from ..artifacts.bundle_writer import add_bundle_part
+from ..artifacts.manifest_entries import PartEntry
 from ..data.dataset import DatasetError, GarmentDataset
+from ..data.windows import dataset_features
+from ..io_utils import atomic_write_text, strict_json
+from .report import StageReport
 
 
 def bundle_and_dataset(
@@ -61,3 +67,55 @@ def decoded_pve_mm(bundle: Bundle, latents: list[np.ndarray], truth: np.ndarray)
     """Per-vertex error (mm, body frame) of standardised latents (:func:`decoded_frames`) against
     ``truth`` (sum of T, V, 3)."""
     return 1000.0 * float(np.linalg.norm(decoded_frames(bundle, latents) - truth, axis=-1).mean())
+
+
+@dataclass
+class PartInputs:
+    """What a stage that adds a trained part to a bundle starts from (:func:`part_inputs`)."""
+
+    bundle: Bundle
+    dataset: GarmentDataset
+    key: str  # the part's key (:func:`part_key`)
+    names: dict[str, list[str]]  # the dataset's train and val sequences
+    latents: dict[str, np.ndarray]  # the autoencoder's latents of every sequence (T, nodes, C)
+    features: dict[str, np.ndarray]  # the train and val sequences' motion features, as the code space's
+
+
+def part_inputs(
+    folder: Path, dataset: str | Path, cache_dir: Path | None, *, part: str, config, train
+) -> tuple[PartInputs, dict | None]:
+    """The inputs of the part ``part`` (its weights ``part``.safetensors) of settings ``config``
+    trained with ``train`` (a dataclass; its time cap is not part of the key) on the bundle in
+    ``folder``, and its bundle.json entry where one with the same key is there already (the stage
+    is then reused: the inputs' latents and features are left empty)."""
+    settings = [config.to_dict(), asdict(train) | {"max_minutes": None}]
+    bundle, ds = bundle_and_dataset(folder, dataset, cache_dir)
+    key = part_key(bundle, f"{part}.safetensors", settings, splits=ds.splits)
+    names = {k: ds.splits[k] for k in ("train", "val")}
+    recorded = getattr(bundle.manifest, part)
+    if recorded is not None and recorded.key == key:
+        return PartInputs(bundle, ds, key, names, {}, {}), {**recorded.to_dict(), "reused": True}
+    with np.load(folder / "autoencoder" / "latents.npz", allow_pickle=False) as f:
+        latents = {name: f[name] for name in ds.names}
+    features = dataset_features(
+        ds,
+        names["train"] + names["val"],
+        bundle.codespace.config.memory,
+        body_measures=bool(bundle.codespace.config.body_features),
+    )
+    return PartInputs(bundle, ds, key, names, latents, features), None
+
+
+def add_trained_part(folder: Path, part: str, model: torch.nn.Module, *, entry: dict) -> StageReport:
+    """The trained ``model`` into the bundle as ``part``.safetensors with its bundle.json entry
+    ``entry`` (and ``part``/report.json); the stage's report."""
+    add_bundle_part(
+        folder, f"{part}.safetensors", model.state_dict(), **{part: PartEntry.from_report(entry, part)}
+    )
+    atomic_write_text(folder / part / "report.json", strict_json(entry, indent=2))
+    return part_report(part, folder, entry)
+
+
+def part_report(part: str, folder: Path, entry: dict) -> StageReport:
+    """The stage report of part ``part`` from its entry (``reused`` where the entry says so)."""
+    return StageReport.of_record(part, folder / part, entry, reused=bool(entry.get("reused")))

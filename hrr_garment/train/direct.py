@@ -18,13 +18,9 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from ..artifacts.bundle_writer import add_bundle_part
-from ..artifacts.manifest_entries import PartEntry
-from ..data.windows import dataset_features
-from ..io_utils import atomic_write_text, strict_json
 from ..models.direct import DirectRegressor, DirectSettings
 from ..settings import from_settings
-from .bundle_stage import bundle_and_dataset, decoded_pve_mm, part_key
+from .bundle_stage import add_trained_part, decoded_pve_mm, part_inputs, part_report
 from .checkpoint import Checkpoint, EpochLog
 from .loop import Budget, Epoch, EpochStep, ProgressBar, TrainingRun, fit
 from .report import StageReport
@@ -160,29 +156,20 @@ def run_direct_stage(
     ``metrics`` is its ``direct`` entry in bundle.json."""
     t0 = time.perf_counter()
     folder = Path(folder)
-    bundle, ds = bundle_and_dataset(folder, dataset, cache_dir)
-    settings = [config.to_dict(), asdict(train_config) | {"max_minutes": None}]
-    key = part_key(bundle, "direct.safetensors", settings, splits=ds.splits)
-    recorded = bundle.manifest.direct
-    if recorded is not None and recorded.key == key:
-        return _stage_report({**recorded.to_dict(), "reused": True}, folder, reused=True)
-    with np.load(folder / "autoencoder" / "latents.npz", allow_pickle=False) as f:
-        latents = {name: f[name] for name in ds.names}
-    names = {k: ds.splits[k] for k in ("train", "val")}
-    features = dataset_features(
-        ds,
-        names["train"] + names["val"],
-        bundle.codespace.config.memory,
-        body_measures=bool(bundle.codespace.config.body_features),
+    inputs, recorded = part_inputs(
+        folder, dataset, cache_dir, part="direct", config=config, train=train_config
     )
-    train = _sequences(features, latents, names["train"], bundle)
-    val = _sequences(features, latents, names["val"], bundle)
+    if recorded is not None:
+        return part_report("direct", folder, recorded)
+    bundle, names = inputs.bundle, inputs.names
+    train = _sequences(inputs.features, inputs.latents, names["train"], bundle)
+    val = _sequences(inputs.features, inputs.latents, names["val"], bundle)
     torch.manual_seed(train_config.seed)
     model = DirectRegressor(config, bundle.codespace.features, bundle.autoencoder.latent_shape)
-    state = train_direct(model, train, val, folder / "direct", train_config, key, progress)
-    val_mm = validation_pve_mm(model, bundle, val[0], body_frames(ds, names["val"]))
+    state = train_direct(model, train, val, folder / "direct", train_config, inputs.key, progress)
+    val_mm = validation_pve_mm(model, bundle, val[0], body_frames(inputs.dataset, names["val"]))
     entry = {
-        "key": key,
+        "key": inputs.key,
         "config": config.to_dict(),
         "train": asdict(train_config),
         "epochs": state["epoch"],
@@ -190,15 +177,7 @@ def run_direct_stage(
         "validation_mm": val_mm,
         "minutes": (time.perf_counter() - t0) / 60,
     }
-    add_bundle_part(
-        folder, "direct.safetensors", model.state_dict(), direct=PartEntry.from_report(entry, "direct")
-    )
-    atomic_write_text(folder / "direct" / "report.json", strict_json(entry, indent=2))
-    return _stage_report(entry, folder)
-
-
-def _stage_report(entry: dict, folder: Path, reused: bool = False) -> StageReport:
-    return StageReport.of_record("direct", folder / "direct", entry, reused=reused)
+    return add_trained_part(folder, "direct", model, entry=entry)
 
 
 @torch.no_grad()

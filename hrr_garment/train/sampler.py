@@ -24,15 +24,11 @@ import numpy as np
 import torch
 from tqdm.auto import tqdm
 
-from ..artifacts.bundle_writer import add_bundle_part
-from ..artifacts.manifest_entries import PartEntry
-from ..data.windows import dataset_features
-from ..io_utils import atomic_write_text, strict_json
 from ..models.codes import encode_motion
 from ..models.sampler import ClothSampler, SamplerSettings
 from ..motion.windows import causal_windows
 from ..settings import from_settings
-from .bundle_stage import bundle_and_dataset, decoded_pve_mm, part_key
+from .bundle_stage import add_trained_part, decoded_pve_mm, part_inputs, part_report
 from .checkpoint import Checkpoint, EpochLog
 from .loop import Budget, Epoch, EpochStep, ProgressBar, TrainingRun, fit
 from .report import StageReport
@@ -215,31 +211,24 @@ def run_sampler_stage(
     ``metrics`` is its ``sampler`` entry in bundle.json."""
     t0 = time.perf_counter()
     folder = Path(folder)
-    bundle, ds = bundle_and_dataset(folder, dataset, cache_dir)
-    settings = [config.to_dict(), asdict(train_config) | {"max_minutes": None}]
-    key = part_key(bundle, "sampler.safetensors", settings, splits=ds.splits)
-    recorded = bundle.manifest.sampler
-    if recorded is not None and recorded.key == key:
-        return _stage_report({**recorded.to_dict(), "reused": True}, folder, reused=True)
-    with np.load(folder / "autoencoder" / "latents.npz", allow_pickle=False) as f:
-        latents = {name: f[name] for name in ds.names}
-    names = {k: ds.splits[k] for k in ("train", "val")}
-    features = dataset_features(
-        ds,
-        names["train"] + names["val"],
-        bundle.codespace.config.memory,
-        body_measures=bool(bundle.codespace.config.body_features),
+    inputs, recorded = part_inputs(
+        folder, dataset, cache_dir, part="sampler", config=config, train=train_config
     )
-    train, val = (sampler_frames(bundle, features, latents, names[k], progress) for k in ("train", "val"))
+    if recorded is not None:
+        return part_report("sampler", folder, recorded)
+    bundle, names = inputs.bundle, inputs.names
+    train, val = (
+        sampler_frames(bundle, inputs.features, inputs.latents, names[k], progress) for k in ("train", "val")
+    )
     torch.manual_seed(train_config.seed)
     model = ClothSampler(config, bundle.codespace.features, int(np.prod(bundle.autoencoder.latent_shape)))
-    state = train_sampler(model, (train, val), folder / "sampler", train_config, key, progress)
+    state = train_sampler(model, (train, val), folder / "sampler", train_config, inputs.key, progress)
     model.eval()
-    truth = body_frames(ds, names["val"])
+    truth = body_frames(inputs.dataset, names["val"])
     calibration = calibrate_draws(model, bundle, (val, truth), seed=train_config.seed, progress=progress)
     regression = [m.numpy() for m in val.sequences(val.mean)]
     entry = {
-        "key": key,
+        "key": inputs.key,
         "config": config.to_dict(),
         "train": asdict(train_config),
         "epochs": state["epoch"],
@@ -249,12 +238,4 @@ def run_sampler_stage(
         "regression_validation_mm": decoded_pve_mm(bundle, regression, truth),
         "minutes": (time.perf_counter() - t0) / 60,
     }
-    add_bundle_part(
-        folder, "sampler.safetensors", model.state_dict(), sampler=PartEntry.from_report(entry, "sampler")
-    )
-    atomic_write_text(folder / "sampler" / "report.json", strict_json(entry, indent=2))
-    return _stage_report(entry, folder)
-
-
-def _stage_report(entry: dict, folder: Path, reused: bool = False) -> StageReport:
-    return StageReport.of_record("sampler", folder / "sampler", entry, reused=reused)
+    return add_trained_part(folder, "sampler", model, entry=entry)
