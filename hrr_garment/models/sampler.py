@@ -42,7 +42,7 @@ from ..settings import from_settings
 class SamplerSettings:
     """The sampler's sizes and its default integration."""
 
-    hidden: int = 768  # the velocity network's width
+    hidden: int = 512  # the velocity network's width
     layers: int = 3  # its hidden layers after the first
     history: int = 0  # previous frames' drawn departures each frame is also given (0: none; drifts)
     steps: int = 1  # Euler steps from noise to a departure at run time (network evaluations a frame)
