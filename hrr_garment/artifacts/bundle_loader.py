@@ -118,6 +118,11 @@ def _load_bundle(folder: Path, cache_dir: Path | None) -> Bundle:
         "sampler",
         lambda config: ClothSampler(SamplerSettings.from_dict(config), features, latent_size),
     )
+    if sampler is not None:
+        try:
+            sampler.check_calibration()
+        except ValueError as exc:
+            raise BundleError(folder, f"sampler.safetensors: {exc}") from None
     subspace = (
         None
         if manifest.subspace is None

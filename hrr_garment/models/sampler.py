@@ -37,6 +37,15 @@ from torch import nn
 
 from ..settings import from_settings
 
+# each size's bounds (a bundle's settings are read from outside)
+SIZE_BOUNDS = {
+    "hidden": (1, 8192),
+    "layers": (1, 32),
+    "history": (0, 16),
+    "steps": (1, 64),
+    "time_features": (1, 1024),
+}
+
 
 @dataclass(frozen=True)
 class SamplerSettings:
@@ -50,12 +59,15 @@ class SamplerSettings:
 
     @classmethod
     def from_dict(cls, values: dict) -> "SamplerSettings":
+        """The settings of ``values`` (a training config's, or a bundle's: read from outside, so every
+        size is a whole number within bounds before a network is built of it)."""
         settings = from_settings(cls, values, "sampler model")
-        for name in ("hidden", "layers", "steps", "time_features"):
-            if getattr(settings, name) < 1:
-                raise ValueError(f"sampler model: {name} must be at least 1, got {getattr(settings, name)}")
-        if settings.history < 0:
-            raise ValueError(f"sampler model: history must be at least 0, got {settings.history}")
+        for name, (low, high) in SIZE_BOUNDS.items():
+            value = getattr(settings, name)
+            if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= high:
+                raise ValueError(
+                    f"sampler model: {name} must be a whole number in [{low}, {high}], got {value!r}"
+                )
         return settings
 
     def to_dict(self) -> dict:
@@ -121,6 +133,16 @@ class ClothSampler(nn.Module):
         departure ``target`` at times ``tau`` against that path's velocity."""
         x = (1 - tau[:, None]) * noise + tau[:, None] * target
         return (self.velocity(x, tau, context) - (target - noise)).square().mean()
+
+    def check_calibration(self) -> None:
+        """A ValueError unless the trained scales and the noise's settings are usable: every
+        departure scale positive, the pole in [0, 1), the temperature in (0, 4]."""
+        if not bool((self.residual_scale > 0).all()):
+            raise ValueError("the departures' scales must be positive")
+        if not 0.0 <= float(self.noise_decay) < 1.0:
+            raise ValueError(f"the noise's pole must be in [0, 1), got {float(self.noise_decay)}")
+        if not 0.0 < float(self.temperature) <= 4.0:
+            raise ValueError(f"the noise's temperature must be in (0, 4], got {float(self.temperature)}")
 
     @torch.no_grad()
     def draw_frame(

@@ -107,3 +107,18 @@ def test_settings_are_checked():
         SamplerSettings.from_dict({"steps": 0})
     with pytest.raises(ValueError, match="unknown"):
         SamplerSettings.from_dict({"hiden": 3})
+    for bad in ({"hidden": 10**9}, {"hidden": "wide"}, {"layers": True}, {"time_features": 2.5}):
+        with pytest.raises(ValueError, match="whole number"):  # a bundle's settings come from outside
+            SamplerSettings.from_dict(bad)
+    sampler = _sampler()
+    sampler.check_calibration()
+    for name, value, said in (
+        ("noise_decay", 1.0, "pole"),
+        ("temperature", 0.0, "temperature"),
+        ("temperature", float("inf"), "temperature"),
+        ("residual_scale", -1.0, "scales"),
+    ):
+        broken = _sampler()
+        getattr(broken, name).fill_(value)
+        with pytest.raises(ValueError, match=said):
+            broken.check_calibration()
