@@ -20,7 +20,7 @@ from tqdm import tqdm
 from ..data.dataset import SequenceRecord
 from ..inference.animator import Animator
 from ..inference.modes import Mode
-from ..inference.run_settings import DetailLook, RunSettings
+from ..inference.run_settings import MAX_SEED, DetailLook, RunSettings
 from . import metrics as M
 from .ensemble import TruthEnsemble
 from .mode_results import ModeResult
@@ -98,12 +98,8 @@ def evaluate_modes(
         draws = None
         if Mode(mode) is Mode.SAMPLE and settings.members >= 2 and record.name in (ensembles or {}):
             # a sample is judged as a sample: as many draws as the truth has members, seeds on from the run's
-            draws = np.stack(
-                [
-                    animator.animate(record.motion, run.replace(seed=run.seed + k)).vertices
-                    for k in range(1, settings.members)
-                ]
-            )
+            seeds = [(run.seed + k) % (MAX_SEED + 1) for k in range(1, settings.members)]
+            draws = np.stack([animator.animate(record.motion, run.replace(seed=s)).vertices for s in seeds])
         results[mode].sequences.append(
             scorer.sequence(
                 anim.vertices,

@@ -51,6 +51,7 @@ PUSHES = (
 )  # the collision push-out alone, or after the push in the garment's subspace (subspace_push.py)
 
 PUSH_BODIES = ("visible", "capsules")  # what the push-out pushes out of (RunSettings.push_body)
+MAX_SEED = 2**32 - 1  # the sample mode's seeds: 0 .. MAX_SEED
 
 #: keyword arguments of the API before the settings objects, and what replaced them
 RENAMED = {"detail_base": "detail=DetailLook(base=...)", "detail_strength": "detail=DetailLook(strength=...)"}
@@ -202,14 +203,14 @@ class RunSettings:
             raise ValueError(f"precision must be one of {', '.join(PRECISIONS)}, got {self.precision!r}")
         if self.device is not None and not isinstance(self.device, str):
             raise TypeError(f"device must be a name such as 'native' or 'cuda', got {self.device!r}")
-        for name, least in (("seed", 0), ("sample_steps", 1)):
+        for name, (least, most) in (("seed", (0, MAX_SEED)), ("sample_steps", (1, 64))):
             value = getattr(self, name)
             if value is None and name == "sample_steps":
                 continue
             if isinstance(value, np.integer):
                 value = int(value)
-            if isinstance(value, bool) or not isinstance(value, int) or value < least:
-                raise ValueError(f"{name} must be a whole number >= {least}, got {value!r}")
+            if isinstance(value, bool) or not isinstance(value, int) or not least <= value <= most:
+                raise ValueError(f"{name} must be a whole number in [{least}, {most}], got {value!r}")
             object.__setattr__(self, name, value)
         if self.sample_steps is not None and self.mode not in (Mode.SAMPLE, Mode.AUTO):
             raise ValueError(f"sample_steps sets the sample mode's draw; mode {self.mode.value} draws none")

@@ -54,7 +54,7 @@ from .frame_path import FramePath, with_measures
 from .gate import frame_gates
 from .lod import crowd_decode, crowd_latents, decoder_of, levels
 from .modes import Mode
-from .run_settings import ResolvedRun
+from .run_settings import MAX_SEED, ResolvedRun
 from .swing import step_crowd
 
 
@@ -110,8 +110,8 @@ class CrowdStream:
         every other character's): before it joins, or to start its draw afresh from that seed."""
         if isinstance(seed, np.integer):
             seed = int(seed)
-        if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
-            raise ValueError(f"a seed is a whole number >= 0, got {seed!r}")
+        if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed <= MAX_SEED:
+            raise ValueError(f"a seed is a whole number in [0, {MAX_SEED}], got {seed!r}")
         self._seeds[key] = seed
         if key in self._characters:
             self._characters[key].sample = None

@@ -647,8 +647,11 @@ def test_sampler_trains_draws_by_seed_streams_the_same_and_is_evaluated(trained,
     assert np.abs(streamed[1] - other.vertices).max() < 1e-4
     with pytest.raises(ValueError, match="sample_steps"):
         animator.animate(motion, mode="regression", sample_steps=2)
+    for bad in (-1, 2**32, 1.5):
+        with pytest.raises(ValueError, match="seed"):
+            animator.animate(motion, mode="sample", seed=bad)
     with pytest.raises(ValueError, match="seed"):
-        animator.animate(motion, mode="sample", seed=-1)
+        crowd.set_seed("c", 2**40)
 
     out_h5 = tmp_path / "drawn.h5"
     model_args = ["--model", str(model), "-o", str(out_h5), "--mode", "sample", "--seed", "3"]
