@@ -32,60 +32,11 @@ implemented (docs/evaluation.md repeats them):
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 from scipy.spatial import cKDTree
 
+from ..garment.cloth_energy import MeshTopology, cloth_energies, dihedral_angles, edge_lengths
 from ..sim.quality import PENETRATION_DEPTH_M
-
-
-@dataclass(frozen=True)
-class MeshTopology:
-    """Edges and the two faces of each interior edge, from a triangle list (computed once)."""
-
-    faces: np.ndarray  # (F, 3)
-    edges: np.ndarray  # (E, 2) unique, sorted pairs
-    interior: np.ndarray  # (I,) indices into edges of the edges with exactly two faces
-    wings: np.ndarray  # (I, 2) the two faces of each interior edge
-    opposite: np.ndarray  # (I, 2) the vertex of each wing face not on the edge
-    num_vertices: int
-
-    @classmethod
-    def of(cls, faces: np.ndarray, num_vertices: int) -> "MeshTopology":
-        faces = np.asarray(faces, np.int64)
-        corner = np.stack([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]], 1).reshape(-1, 2)
-        opp = faces[:, [2, 0, 1]].reshape(-1)
-        face_of = np.repeat(np.arange(len(faces)), 3)
-        key = np.sort(corner, 1)
-        edges, inverse, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
-        inverse = inverse.reshape(-1)
-        order = np.argsort(inverse, kind="stable")
-        starts = np.r_[0, np.cumsum(counts)[:-1]]
-        interior = np.flatnonzero(counts == 2)
-        first, second = order[starts[interior]], order[starts[interior] + 1]
-        return cls(
-            faces,
-            edges,
-            interior,
-            np.stack([face_of[first], face_of[second]], 1),
-            np.stack([opp[first], opp[second]], 1),
-            num_vertices,
-        )
-
-
-def _edge_lengths(v: np.ndarray, edges: np.ndarray) -> np.ndarray:
-    return np.linalg.norm(v[..., edges[:, 1], :] - v[..., edges[:, 0], :], axis=-1)
-
-
-def dihedral_angles(v: np.ndarray, topo: MeshTopology) -> np.ndarray:
-    """(..., I) unsigned angle between the normals of the two faces of each interior edge."""
-    tri = v[..., topo.faces, :]
-    n = np.cross(tri[..., 1, :] - tri[..., 0, :], tri[..., 2, :] - tri[..., 0, :])
-    n /= np.maximum(np.linalg.norm(n, axis=-1, keepdims=True), 1e-20)
-    a, b = n[..., topo.wings[:, 0], :], n[..., topo.wings[:, 1], :]
-    # atan2 of |a x b| and a . b: accurate for small angles, where arccos loses digits
-    return np.arctan2(np.linalg.norm(np.cross(a, b), axis=-1), (a * b).sum(-1))
 
 
 def pve_mm(pred: np.ndarray, truth: np.ndarray) -> float:
@@ -105,7 +56,7 @@ def per_frame_pve_mm(pred: np.ndarray, truth: np.ndarray) -> np.ndarray:
 
 def sted(pred: np.ndarray, truth: np.ndarray, topo: MeshTopology) -> dict[str, float]:
     """Spatio-temporal edge difference (STED): edge-length deviation, spatial and temporal."""
-    lp, lg = _edge_lengths(pred, topo.edges), _edge_lengths(truth, topo.edges)  # (T, E)
+    lp, lg = edge_lengths(pred, topo.edges), edge_lengths(truth, topo.edges)  # (T, E)
     lg = np.maximum(lg, 1e-12)
     dev = (lp - lg) / lg
     # length-weighted mean and variance of dev over each vertex's incident edges
@@ -138,14 +89,14 @@ def curvature_error_cm(pred: np.ndarray, truth: np.ndarray, topo: MeshTopology) 
     edges = topo.edges[topo.interior]
 
     def integral(v):
-        return (dihedral_angles(v, topo) * 100.0 * _edge_lengths(v, edges)).sum(-1)
+        return (dihedral_angles(v, topo) * 100.0 * edge_lengths(v, edges)).sum(-1)
 
     return float(0.5 * np.abs(integral(pred) - integral(truth)).mean())
 
 
 def edge_strain_percentiles(pred: np.ndarray, rest: np.ndarray, topo: MeshTopology) -> dict[str, float]:
     """Percentiles and maximum of edge length over rest length."""
-    strain = _edge_lengths(pred, topo.edges) / np.maximum(_edge_lengths(rest, topo.edges), 1e-12)
+    strain = edge_lengths(pred, topo.edges) / np.maximum(edge_lengths(rest, topo.edges), 1e-12)
     p50, p95, p99 = np.percentile(strain, [50, 95, 99])
     return {
         "strain_p50": float(p50),
@@ -153,30 +104,6 @@ def edge_strain_percentiles(pred: np.ndarray, rest: np.ndarray, topo: MeshTopolo
         "strain_p99": float(p99),
         "strain_max": float(strain.max()),
     }
-
-
-def _rest_hinge_heights(rest: np.ndarray, topo: MeshTopology) -> np.ndarray:
-    """h0_e: a third of the summed heights of the two rest triangles over each interior edge."""
-    e = topo.edges[topo.interior]
-    base = np.linalg.norm(rest[e[:, 1]] - rest[e[:, 0]], axis=-1)
-    heights = []
-    for k in range(2):
-        apex = rest[topo.opposite[:, k]]
-        area2 = np.linalg.norm(np.cross(rest[e[:, 1]] - rest[e[:, 0]], apex - rest[e[:, 0]]), axis=-1)
-        heights.append(area2 / np.maximum(base, 1e-12))
-    return (heights[0] + heights[1]) / 3.0
-
-
-def cloth_energies(v: np.ndarray, rest: np.ndarray, topo: MeshTopology) -> tuple[np.ndarray, np.ndarray]:
-    """Per-frame (stretch, bending) energies up to material constants (see the module docstring)."""
-    l0 = np.maximum(_edge_lengths(rest, topo.edges), 1e-12)
-    stretch = (l0 * (_edge_lengths(v, topo.edges) / l0 - 1.0) ** 2).sum(-1)
-    e0 = l0[topo.interior]
-    theta0 = dihedral_angles(rest, topo)
-    bend = (
-        (dihedral_angles(v, topo) - theta0) ** 2 * e0 / np.maximum(_rest_hinge_heights(rest, topo), 1e-12)
-    ).sum(-1)
-    return stretch, bend
 
 
 def energy_ratios(

@@ -622,6 +622,12 @@ def test_sampler_trains_draws_by_seed_streams_the_same_and_is_evaluated(trained,
     meta = json.loads((model / "bundle.json").read_text())
     assert meta["sampler"]["epochs"] == 3 and "sampler.safetensors" in meta["files"]
     assert math.isfinite(meta["sampler"]["validation_mm"])
+    from hrr_garment.train.sampler_calibration import NOISE_DECAYS, TEMPERATURES
+
+    entry = meta["sampler"]  # the draw calibrated on the validation clips: as sharp as the simulation
+    assert entry["temperature"] in TEMPERATURES and entry["noise_decay"] in NOISE_DECAYS
+    nearest = min(entry["sharpness"].values(), key=lambda r: abs(math.log(r)))
+    assert entry["sharpness"][f"{entry['temperature']:g}"] == nearest
     assert train_main([*base, "sampler"]) == 0  # a re-run finds it current
     assert len((model / "sampler" / "log.jsonl").read_text().splitlines()) == 3
 
