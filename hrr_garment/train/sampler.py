@@ -5,10 +5,11 @@ Trained after the code space, on its training sequences: each frame's condition 
 sampler sees at run time (the regression's causal latents, from the window ending at the frame;
 the frame's motion features), its target the frame's departure from those latents in the
 autoencoder's standardised latent space, scaled by the departures' spread over the training frames.
-The previous frames' departures are the truth's (teacher forcing) with a little Gaussian noise
-(``history_noise``), since at run time they are the sampler's own draws. Flow matching's loss,
-Adam; early stopping on the validation frames' loss at fixed noise and times. Checkpointed each
-epoch in ``MODEL/sampler/`` and resumable; the weights join the bundle as
+With a ``history`` (off by default: its roll-out drifts), the previous frames' departures are the
+truth's (teacher forcing) with a little Gaussian noise (``history_noise``). Flow matching's loss,
+Adam; early stopping on the validation frames' loss at fixed noise and times; then the draw's
+temperature and pole calibrated on the validation clips (:mod:`.sampler_calibration`).
+Checkpointed each epoch in ``MODEL/sampler/`` and resumable; the weights join the bundle as
 ``sampler.safetensors`` with a ``sampler`` entry in bundle.json, whose ``validation_mm`` is a
 seeded draw of the validation sequences (against their one simulation: a sample is judged against
 the truth's ensemble by ``hrr-eval``, this only tells a broken training).
