@@ -70,17 +70,19 @@ def calibrate_draws(model: ClothSampler, bundle, val: tuple, *, seed: int, progr
         a, b = draw(seed), draw(seed + 1)
         scores[temperature] = 0.5 * (_pve_mm(a, truth) + _pve_mm(b, truth)) - 0.5 * _pve_mm(a, b)
         sharpness[temperature] = bending(a) / truth_bending
-    model.temperature.fill_(min(sharpness, key=lambda t: abs(np.log(sharpness[t]))))
+    temperature = min(sharpness, key=lambda t: abs(np.log(sharpness[t])))
+    model.temperature.fill_(temperature)
     target = mean_acceleration_mm(truth, frames.lengths)
     ratios = {}
     for decay in tqdm(NOISE_DECAYS, desc="sampler: the noise's pole", disable=not progress, leave=False):
         model.noise_decay.fill_(decay)
         ratios[decay] = mean_acceleration_mm(draw(seed), frames.lengths) / max(target, 1e-9)
-    model.noise_decay.fill_(next((d for d in NOISE_DECAYS if ratios[d] <= 1.0), NOISE_DECAYS[-1]))
+    decay = next((d for d in NOISE_DECAYS if ratios[d] <= 1.0), NOISE_DECAYS[-1])
+    model.noise_decay.fill_(decay)
     return {
-        "temperature": float(model.temperature),
+        "temperature": temperature,  # the candidates as chosen (the buffers hold them in float32)
         "sharpness": {f"{t:g}": v for t, v in sharpness.items()},
         "energy_scores_mm": {f"{t:g}": v for t, v in scores.items()},
-        "noise_decay": float(model.noise_decay),
+        "noise_decay": decay,
         "acceleration_ratios": {f"{d:g}": r for d, r in ratios.items()},
     }
