@@ -63,10 +63,15 @@ def decoded_frames(bundle: Bundle, latents: list[np.ndarray]) -> np.ndarray:
     )
 
 
+def frames_pve_mm(frames: np.ndarray, truth: np.ndarray) -> float:
+    """Per-vertex error (mm): the mean distance between ``frames`` and ``truth`` (n, V, 3), metres."""
+    return 1000.0 * float(np.linalg.norm(frames - truth, axis=-1).mean())
+
+
 def decoded_pve_mm(bundle: Bundle, latents: list[np.ndarray], truth: np.ndarray) -> float:
     """Per-vertex error (mm, body frame) of standardised latents (:func:`decoded_frames`) against
     ``truth`` (sum of T, V, 3)."""
-    return 1000.0 * float(np.linalg.norm(decoded_frames(bundle, latents) - truth, axis=-1).mean())
+    return frames_pve_mm(decoded_frames(bundle, latents), truth)
 
 
 @dataclass

@@ -194,12 +194,6 @@ def train_sampler(
     )
 
 
-def drawn_latents(model: ClothSampler, frames: SamplerFrames, seed: int) -> list[np.ndarray]:
-    """Each sequence of ``frames`` drawn whole from ``seed`` (standardised latents (T, L) each)."""
-    pairs = zip(frames.sequences(frames.features), frames.sequences(frames.mean))
-    return [model.roll_out(feats, mean, seed=seed).numpy() for feats, mean in pairs]
-
-
 def run_sampler_stage(
     dataset: str | Path,
     folder: str | Path,
@@ -235,7 +229,6 @@ def run_sampler_stage(
         "epochs": state["epoch"],
         "best_epoch": state["best_epoch"],
         **calibration,
-        "validation_mm": decoded_pve_mm(bundle, drawn_latents(model, val, train_config.seed), truth),
         "regression_validation_mm": decoded_pve_mm(bundle, regression, truth),
         "minutes": (time.perf_counter() - t0) / 60,
     }

@@ -22,7 +22,7 @@ from tqdm.auto import tqdm
 
 from ..garment.cloth_energy import MeshTopology, cloth_energies
 from ..models.sampler import ClothSampler
-from .bundle_stage import decoded_frames
+from .bundle_stage import decoded_frames, frames_pve_mm
 
 TEMPERATURES = (0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 1.0)  # the noise's scales tried
 NOISE_DECAYS = (0.5, 0.7, 0.8, 0.9, 0.95, 0.98)  # the noise's poles tried, fastest first
@@ -40,17 +40,19 @@ def mean_acceleration_mm(frames: np.ndarray, lengths: list[int]) -> float:
     return 1000.0 * float(np.concatenate(parts).mean()) if parts else 0.0
 
 
-def _pve_mm(a: np.ndarray, b: np.ndarray) -> float:
-    return 1000.0 * float(np.linalg.norm(a - b, axis=-1).mean())
+def drawn_latents(model: ClothSampler, frames, seed: int) -> list[np.ndarray]:
+    """Each sequence of ``frames`` (:class:`~.sampler.SamplerFrames`) drawn whole from ``seed``
+    (standardised latents (T, L) each)."""
+    pairs = zip(frames.sequences(frames.features), frames.sequences(frames.mean))
+    return [model.roll_out(feats, mean, seed=seed).numpy() for feats, mean in pairs]
 
 
 def calibrate_draws(model: ClothSampler, bundle, val: tuple, *, seed: int, progress: bool = True) -> dict:
     """Set the sampler's ``temperature`` and ``noise_decay`` on ``val`` (its
     :class:`~.sampler.SamplerFrames` and their simulated frames) as the module docstring says;
     -> both, with each candidate's sharpness (bending energy over the truth's), energy score (mm)
-    and acceleration over the truth's."""
-    from .sampler import drawn_latents
-
+    and acceleration over the truth's, and the chosen draw's distance to the clips' simulation
+    (``validation_mm``)."""
     frames, truth = val
 
     def draw(draw_seed: int) -> np.ndarray:
@@ -68,15 +70,18 @@ def calibrate_draws(model: ClothSampler, bundle, val: tuple, *, seed: int, progr
     for temperature in tqdm(TEMPERATURES, desc="sampler: temperature", disable=not progress, leave=False):
         model.temperature.fill_(temperature)
         a, b = draw(seed), draw(seed + 1)
-        scores[temperature] = 0.5 * (_pve_mm(a, truth) + _pve_mm(b, truth)) - 0.5 * _pve_mm(a, b)
+        to_truth = 0.5 * (frames_pve_mm(a, truth) + frames_pve_mm(b, truth))
+        scores[temperature] = to_truth - 0.5 * frames_pve_mm(a, b)
         sharpness[temperature] = bending(a) / truth_bending
     temperature = min(sharpness, key=lambda t: abs(np.log(sharpness[t])))
     model.temperature.fill_(temperature)
     target = mean_acceleration_mm(truth, frames.lengths)
-    ratios = {}
+    ratios, distances = {}, {}
     for decay in tqdm(NOISE_DECAYS, desc="sampler: the noise's pole", disable=not progress, leave=False):
         model.noise_decay.fill_(decay)
-        ratios[decay] = mean_acceleration_mm(draw(seed), frames.lengths) / max(target, 1e-9)
+        drawn = draw(seed)
+        ratios[decay] = mean_acceleration_mm(drawn, frames.lengths) / max(target, 1e-9)
+        distances[decay] = frames_pve_mm(drawn, truth)
     decay = next((d for d in NOISE_DECAYS if ratios[d] <= 1.0), NOISE_DECAYS[-1])
     model.noise_decay.fill_(decay)
     return {
@@ -85,4 +90,5 @@ def calibrate_draws(model: ClothSampler, bundle, val: tuple, *, seed: int, progr
         "energy_scores_mm": {f"{t:g}": v for t, v in scores.items()},
         "noise_decay": decay,
         "acceleration_ratios": {f"{d:g}": r for d, r in ratios.items()},
+        "validation_mm": distances[decay],  # a seeded draw against the clips' one simulation
     }
