@@ -8,7 +8,10 @@ frame, in Python for reading. Needs only numpy and onnxruntime (not hrr_garment)
 The graph takes one frame of N characters, their local joint rotations (quaternions x y z w, on
 the joints its tensors file lists, in order) and pelvis positions (metres, Y up), and the state it
 returned last frame; it returns the garments' world vertices and the next state. A character's
-first frame goes in with the state all zeros (``started`` 0). Here N characters play the same clip,
+first frame goes in with the state all zeros (``started`` 0). A graph of the sample mode
+(``hrr-export-model --mode sample``) also takes ``noise``, two N(0, 1) vectors per character each
+frame (the second is read at a character's first frame only): any generator's; here numpy's, seeded
+per character, so the same seed draws the same cloth. Here N characters play the same clip,
 each from its own start frame, side by side; the first one's garment frames are saved as
 (T, V, 3) float32 with the faces in the tensors file beside the graph.
 """
@@ -36,6 +39,12 @@ def _args() -> argparse.Namespace:
     )
     p.add_argument("--characters", type=int, default=1, help="characters stepped together (default 1)")
     p.add_argument("--spacing", type=float, default=1.5, help="metres between the characters (default 1.5)")
+    p.add_argument(
+        "--seed",
+        type=int,
+        default=0,
+        help="a sample mode's graph: character i draws from seed + i (default 0)",
+    )
     return p.parse_args()
 
 
@@ -58,11 +67,15 @@ def main() -> int:
     offset[:, 0] = (np.arange(n) - (n - 1) / 2) * args.spacing
 
     state = {name: np.zeros((n, *shape), np.float32) for name, shape in shapes.items()}
+    noise = json.loads(meta["noise"]) if "noise" in meta else None  # per character, a sample mode's graph
+    generators = [np.random.default_rng(args.seed + i) for i in range(n)]
     outputs = [o.name for o in session.get_outputs()]
     garment, seconds = [], []
     for t in range(frames):
         rows = (starts + t) % frames
         feed = {"rotations": rotations[rows], "root": roots[rows] + offset, **state}
+        if noise is not None:
+            feed["noise"] = np.stack([g.standard_normal(noise, np.float32) for g in generators])
         t0 = time.perf_counter()
         result = dict(zip(outputs, session.run(outputs, feed)))
         seconds.append(time.perf_counter() - t0)

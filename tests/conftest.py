@@ -262,3 +262,26 @@ def squeezed_skirt(motion, narrower: float, on_body: bool = False):
     squeezed = rest.copy()
     squeezed[..., [0, 2]] = centre + narrower * (rest[..., [0, 2]] - centre)
     return skirt, squeezed
+
+
+def with_drawn_sampler(animator, *, history: int = 0):
+    """``animator``'s model with a generative decoder of untrained weights, calibrated by hand (a
+    pole, a temperature, departure scales): what the paths of the sample mode must agree on holds
+    for any weights, and this one is built in milliseconds where training one takes a minute."""
+    import dataclasses
+    import math
+
+    import torch
+
+    from hrr_garment.inference.animator import Animator
+    from hrr_garment.models.sampler import ClothSampler, SamplerSettings
+
+    bundle = animator.bundle
+    latent = math.prod(bundle.codespace.latent_shape)
+    torch.manual_seed(0)
+    settings = SamplerSettings(hidden=32, layers=1, steps=2, history=history)
+    sampler = ClothSampler(settings, len(bundle.motion_stats.mean), latent)
+    sampler.residual_scale.copy_(torch.rand(latent) + 0.5)
+    sampler.noise_decay.fill_(0.8)
+    sampler.temperature.fill_(0.7)
+    return Animator(dataclasses.replace(bundle, sampler=sampler.eval()))

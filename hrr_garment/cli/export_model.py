@@ -4,10 +4,11 @@
     hrr-export-model --garment dress --onnx -o hero_dress.onnx --body hero.json
     hrr-export-model --model DIR --onnx -o dress.onnx --check walk.bvh   # against the Python stream
     hrr-export-model --model DIR --onnx -o dress.onnx --decoder fast --push subspace   # the game's step
+    hrr-export-model --model DIR --onnx -o drawn.onnx --mode sample --check walk.bvh --seed 3
 
 Writes dress.onnx (one graph: a frame of N characters' poses in, their garments' world vertices
 out at 30 frames a second, the window state as explicit inputs and outputs; the regression path
-with the push-out) and
+with the push-out, or with --mode sample the generative decoder's draw, fed white noise) and
 dress.tensors.npz (the garment's faces, the joint order, the retrieval database as tensors). With
 --check, the clip is streamed through onnxruntime and through the Python stream and the largest
 gap is printed; over 0.1 mm is an error. Needs the ``onnx`` extra. See docs/export.md.
@@ -21,8 +22,9 @@ from pathlib import Path
 from typing import Sequence
 
 from ..errors import InputError
+from ..inference.run_settings import RunSettings
 from ..io_utils import refuse_input_as_output, require_suffix
-from ._common import add_decoder_option, add_no_push_out_option, add_push_option, run_cli
+from ._common import add_decoder_option, add_no_push_out_option, add_push_option, add_sample_options, run_cli
 
 TOLERANCE_MM = 0.1  # the ONNX stream's largest gap from the Python stream that --check accepts
 
@@ -54,6 +56,14 @@ def _parser() -> argparse.ArgumentParser:
     add_decoder_option(p)
     add_push_option(p)
     p.add_argument(
+        "--mode",
+        choices=("regression", "sample"),
+        default="regression",
+        help="the path in the graph: the regression (default), or the sample mode's draw (the generative "
+        "decoder; the engine feeds each character's white noise, docs/export.md)",
+    )
+    add_sample_options(p)
+    p.add_argument(
         "--check",
         type=Path,
         default=None,
@@ -70,6 +80,7 @@ def _main(argv: Sequence[str] | None) -> int:
     if args.garment is None and args.model is None:
         raise InputError("hrr-export-model", "give --garment NAME or --model DIR")
     require_suffix(args.output, (".onnx",), "an ONNX model")
+    drawing = _sample_changes(args)
     from ..export.onnx_model import check_onnx, export_onnx, tensors_path
 
     for output in (args.output, tensors_path(args.output)):  # the graph and its companion
@@ -94,6 +105,7 @@ def _main(argv: Sequence[str] | None) -> int:
         decoder=args.decoder,
         push=args.push,
         push_body=args.push_body,
+        **drawing,
     )
     size = written.graph.stat().st_size / 2**20
     print(
@@ -103,7 +115,7 @@ def _main(argv: Sequence[str] | None) -> int:
     print(f"motion licence: {animator.bundle.manifest.licences.statement}")
     if motion is None:
         return 0
-    gap = check_onnx(animator, written.graph, motion, body=body)
+    gap = check_onnx(animator, written.graph, motion, body=body, seed=args.seed)
     print(
         f"{args.check.name}: {gap['frames']} frames, ONNX - Python stream max {gap['max_mm']:.4f} mm, mean "
         f"{gap['mean_mm']:.4f} mm; median step ONNX {gap['onnx_ms']:.2f} ms, Python {gap['python_ms']:.2f} ms"
@@ -114,6 +126,18 @@ def _main(argv: Sequence[str] | None) -> int:
         )
         return 1
     return 0
+
+
+def _sample_changes(args: argparse.Namespace) -> dict:
+    """The run's mode and its draw's steps; an InputError for values it cannot take (checked with the
+    seed, which --check draws with, before the export's minute)."""
+    changes = {"mode": args.mode, "sample_steps": args.sample_steps}
+    try:
+        RunSettings(**changes, seed=args.seed)
+    except ValueError as exc:
+        flag = "--seed" if str(exc).startswith("seed") else "--sample-steps"
+        raise InputError(flag, str(exc)) from None
+    return changes
 
 
 def main(argv: Sequence[str] | None = None) -> int:

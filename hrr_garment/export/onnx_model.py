@@ -5,8 +5,9 @@ engine, Unity's inference engine, onnxruntime): ``hrr-export-model MODEL --onnx 
     gap = check_onnx(animator, "dress.onnx", motion)            # against the Python stream, mm
 
 The graph (:class:`~hrr_garment.inference.torch_step.StreamStep`) is the regression path of a stream for N
-characters of one body: a frame of poses in, world vertices out, each character's window state as explicit
-inputs and outputs (:data:`STATE`; :func:`initial_state` gives a first frame's). What ONNX cannot
+characters of one body, or the sample mode's (``mode="sample"``): a frame of poses in, world vertices out,
+each character's window state as explicit inputs and outputs (:data:`STATE`, and the sample mode's draw
+state after its white noise input; :func:`initial_state` gives a first frame's). What ONNX cannot
 hold, the retrieval database (a FAISS search over binary codes), travels as documented tensors in
 the companion npz (:data:`TENSORS`) beside the garment's faces, with the codes and entropies the
 graph outputs for a search of one's own (docs/export.md). Needs the ``onnx`` extra.
@@ -21,6 +22,7 @@ import warnings
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Sequence
 
 import numpy as np
 import torch
@@ -30,15 +32,18 @@ from ..errors import InputError
 from ..inference.frame_path import FramePath
 from ..inference.modes import Mode
 from ..inference.run_settings import DECODERS, PUSHES, RunSettings
-from ..inference.torch_step import state_shapes, stream_step
+from ..inference.torch_step import SAMPLE_STATE, STATE, noise_shape, state_shapes, stream_step
 from ..io_utils import atomic_path, refuse_inputs_as_outputs, require_suffix, strict_json
+from ..models.sampler import white_noise
 from ..motion.motion import FPS, Motion
 from ..motion.poses import motion_to_poses
 from ..motion.skeleton import JOINT_NAMES, NUM_JOINTS
 
 INPUTS = ("rotations", "root")
-STATE = ("started", "previous_rotations", "previous_positions", "memory", "window")
 OUTPUTS = ("vertices", "entropy", "codes") + tuple(f"next_{name}" for name in STATE)
+# the sample mode's graph: its white noise input after the state, and its draw state after the window
+NOISE = "noise"
+SAMPLE_OUTPUTS = OUTPUTS + tuple(f"next_{name}" for name in SAMPLE_STATE)
 # what the companion npz holds (docs/export.md says how a retrieval uses them)
 TENSORS = {
     "faces": "(F, 3) int32 the garment's triangles",
@@ -60,6 +65,7 @@ class OnnxExport:
     vertices: int
     state: dict  # input name -> shape per character (without the leading N)
     seconds: float
+    noise: tuple[int, ...] | None = None  # the sample mode's white noise per character (None: none)
 
 
 def _require_onnx():
@@ -82,7 +88,8 @@ def _onnxruntime():
 
 
 def initial_state(shapes: dict[str, tuple[int, ...]], characters: int) -> dict[str, np.ndarray]:
-    """Zeros of each state input for ``characters`` starting characters (``started`` 0)."""
+    """Zeros of each state input for ``characters`` starting characters (``started`` 0: every
+    other state input is then read as nothing before)."""
     return {name: np.zeros((characters, *shape), np.float32) for name, shape in shapes.items()}
 
 
@@ -96,10 +103,11 @@ def export_onnx(animator, path: str | Path, settings: RunSettings | None = None,
     """Write ``path`` (.onnx, one file) and its companion ``<stem>.tensors.npz``, atomically, for the
     run ``settings`` ask (:class:`~hrr_garment.inference.run_settings.RunSettings`, with keyword
     ``changes``, as :meth:`~hrr_garment.inference.animator.Animator.animate` takes them; the mode is
-    the regression): its ``body`` (None: the model's own), ``push_out``, ``decoder`` ("full": the
-    mesh decoder's folded kernels, or "fast": the subspace decoder, a graph a fraction of the size
-    and a step a fraction of the time) and ``push`` ("mesh", or "subspace": the push along the
-    fast decoder's components first, fewer tears)."""
+    the regression, or ``mode="sample"``: the generative decoder's draw, ``sample_steps`` a frame, the
+    engine's white noise in): its ``body`` (None: the model's own), ``push_out``, ``decoder``
+    ("full": the mesh decoder's folded kernels, or "fast": the subspace decoder, a graph a fraction
+    of the size and a step a fraction of the time) and ``push`` ("mesh", or "subspace": the push
+    along the fast decoder's components first, fewer tears)."""
     onnx = _require_onnx()
     path = Path(path)
     require_suffix(path, (".onnx",), "an ONNX model")
@@ -107,10 +115,12 @@ def export_onnx(animator, path: str | Path, settings: RunSettings | None = None,
     refuse_inputs_as_outputs(path, tensors)  # neither written where the other would then fail
     t0 = time.perf_counter()
     # refuses a fast decoder or a subspace push without the bundle's fast decoder, before the export's minute
-    run = animator.resolve(settings, **{"mode": Mode.REGRESSION, **changes, "causal": True})
+    asked = changes.get("mode", None if settings is None else settings.mode)
+    mode = Mode.SAMPLE if asked in (Mode.SAMPLE, Mode.SAMPLE.value) else Mode.REGRESSION
+    run = animator.resolve(settings, **{**changes, "mode": mode, "causal": True})
     step = stream_step(FramePath(animator, run))
-    shapes = state_shapes(step)
-    example = _example_inputs(shapes, 2)
+    shapes, noise = state_shapes(step), noise_shape(step)
+    example = _example_inputs(shapes, noise, 2)
     n = torch.export.Dim("characters", min=1, max=4096)
     dynamic = tuple({0: n} for _ in example)
     with torch.no_grad(), _quiet():
@@ -119,7 +129,7 @@ def export_onnx(animator, path: str | Path, settings: RunSettings | None = None,
             tuple(torch.from_numpy(x) for x in example.values()),
             dynamo=True,
             input_names=list(example),
-            output_names=list(OUTPUTS),
+            output_names=list(OUTPUTS if noise is None else SAMPLE_OUTPUTS),
             dynamic_shapes=dynamic,
             opset_version=OPSET,
             optimize=True,
@@ -139,12 +149,14 @@ def export_onnx(animator, path: str | Path, settings: RunSettings | None = None,
         "decoder": run.decoder,
         "vertices": int(bundle.template.num_vertices),
         "state": {k: list(v) for k, v in shapes.items()},
-        "path": "regression",
+        "path": run.mode.value,
         # the graph holds the database's simulated windows and weights learned from the motion: its
         # terms travel with it (motion/licences.py)
         "motion_licence": bundle.manifest.licences.statement,
         "commercial_use": bundle.manifest.licences.commercial,
     }
+    if noise is not None:  # the white noise a frame takes per character, and the steps it is drawn in
+        meta |= {"noise": list(noise), "sample_steps": run.sample_steps}
     for key, value in meta.items():
         entry = model.metadata_props.add()
         entry.key, entry.value = key, value if isinstance(value, str) else strict_json(value)
@@ -161,7 +173,9 @@ def export_onnx(animator, path: str | Path, settings: RunSettings | None = None,
             database_sequence=np.asarray(db.sequence, np.int32),
             database_start=np.asarray(db.start, np.int32),
         )
-    return OnnxExport(path, tensors, int(bundle.template.num_vertices), shapes, time.perf_counter() - t0)
+    return OnnxExport(
+        path, tensors, int(bundle.template.num_vertices), shapes, time.perf_counter() - t0, noise
+    )
 
 
 @contextmanager
@@ -178,21 +192,29 @@ def _quiet():
         logging.disable(previous)
 
 
-def _example_inputs(shapes: dict, characters: int) -> dict[str, np.ndarray]:
+def _example_inputs(shapes: dict, noise: tuple | None, characters: int) -> dict[str, np.ndarray]:
+    """The step's inputs in its order: poses, the window state, the sample mode's noise and draw state."""
     rng = np.random.default_rng(0)
     quats = rng.normal(size=(characters, NUM_JOINTS, 4)).astype(np.float32)
     inputs = {
         "rotations": quats / np.linalg.norm(quats, axis=-1, keepdims=True),
         "root": np.tile(np.float32([0.0, 0.96, 0.0]), (characters, 1)),
     }
-    return inputs | initial_state(shapes, characters)
+    state = initial_state(shapes, characters)
+    inputs |= {name: state.pop(name) for name in STATE}
+    if noise is not None:
+        inputs[NOISE] = rng.standard_normal((characters, *noise)).astype(np.float32)
+    return inputs | state
 
 
 class OnnxStream:
     """A graph written by :func:`export_onnx` run by onnxruntime, its state kept: one frame of N
-    characters per :meth:`push` (what examples/onnx_stream.py does without the package)."""
+    characters per :meth:`push` (what examples/onnx_stream.py does without the package). A sample
+    mode's graph is fed each character's white noise from a generator seeded with ``seeds`` (one
+    seed for every character, as a crowd's run seed, or one each): what the Python stream draws
+    from the same seed."""
 
-    def __init__(self, path: str | Path, threads: int | None = None):
+    def __init__(self, path: str | Path, threads: int | None = None, seeds: int | Sequence[int] = 0):
         ort = _onnxruntime()
         options = ort.SessionOptions()
         if threads:
@@ -211,39 +233,55 @@ class OnnxStream:
         # decoder, push and push body were recorded: the full decoder, the mesh push and the capsules,
         # which every graph pushed out of before issue 82)
         self.settings = {
+            "mode": meta.get("path", "regression"),
             "push_out": json.loads(meta["push_out"]),
             "decoder": meta.get("decoder", DECODERS[0]),
             "push": meta.get("push", PUSHES[0]),
             "push_body": meta.get("push_body", "capsules"),
         }
+        self.noise = tuple(json.loads(meta["noise"])) if "noise" in meta else None
+        if self.noise is not None:
+            self.settings["sample_steps"] = json.loads(meta["sample_steps"])
+        self.outputs = list(OUTPUTS) + [f"next_{name}" for name in self.shapes if name not in STATE]
+        self.seeds, self.generators = seeds, None
         self.state: dict[str, np.ndarray] | None = None
 
     def push(self, rotations: np.ndarray, roots: np.ndarray) -> np.ndarray:
         """(N, 22, 4) quaternions x y z w and (N, 3) roots -> (N, V, 3) world vertices."""
         if self.state is None:
             self.state = initial_state(self.shapes, len(rotations))
-        out = self.session.run(
-            list(OUTPUTS),
-            {
-                "rotations": np.asarray(rotations, np.float32),
-                "root": np.asarray(roots, np.float32),
-                **self.state,
-            },
-        )
-        self.state = dict(zip(STATE, out[3:]))
+        feed = {"rotations": np.asarray(rotations, np.float32), "root": np.asarray(roots, np.float32)}
+        if self.noise is not None:
+            feed[NOISE] = self._white_noise(len(rotations))
+        out = self.session.run(self.outputs, feed | self.state)
+        self.state = dict(zip(self.shapes, out[3:]))
         return out[0]
+
+    def _white_noise(self, characters: int) -> np.ndarray:
+        """(N, 2, L): each character's white noise this frame from its seeded generator."""
+        if self.generators is None:
+            seeds = [self.seeds] * characters if isinstance(self.seeds, int) else list(self.seeds)
+            if len(seeds) != characters:
+                raise ValueError(f"{len(seeds)} seeds for {characters} characters")
+            self.generators = [torch.Generator().manual_seed(int(seed)) for seed in seeds]
+        first = self.state["started"] <= 0
+        size = self.noise[1]
+        return torch.stack(
+            [white_noise(g, size, first=bool(f)) for g, f in zip(self.generators, first)]
+        ).numpy()
 
 
 def check_onnx(
     animator, path: str | Path, motion: Motion, settings: RunSettings | None = None, **changes
 ) -> dict:
     """Stream ``motion`` (canonical skeleton) through the ONNX graph and through
-    :meth:`~hrr_garment.inference.animator.Animator.stream` in the regression mode, on the body
-    ``settings`` and ``changes`` ask (as :func:`export_onnx`; the push-out, decoder and push as the
-    graph was written) -> the gap per frame in millimetres: max, mean, and each path's median
-    step time in milliseconds."""
-    runner = OnnxStream(path)
-    python = animator.stream(settings, **{**changes, "mode": Mode.REGRESSION, **runner.settings})
+    :meth:`~hrr_garment.inference.animator.Animator.stream`, on the body ``settings`` and ``changes``
+    ask (as :func:`export_onnx`; the mode, push-out, decoder and push as the graph was written; a
+    sample mode's graph drawn from the ``seed`` of ``changes``, 0 without one, on both) -> the gap
+    per frame in millimetres: max, mean, and each path's median step time in milliseconds."""
+    seed = changes.get("seed", 0 if settings is None else settings.seed)
+    runner = OnnxStream(path, seeds=seed)
+    python = animator.stream(settings, **{**changes, **runner.settings})
     quats, roots = motion_to_poses(motion)
     gaps, onnx_s, python_s = [], [], []
     for t in range(motion.num_frames):
@@ -267,6 +305,7 @@ def check_onnx(
 
 __all__ = [
     "INPUTS",
+    "NOISE",
     "STATE",
     "OUTPUTS",
     "TENSORS",

@@ -46,7 +46,7 @@ from ..motion.poses import poses_to_motion
 from ..native import pin_workers
 from .blending import Inertializer
 from .character_body import CrowdBodies
-from .crowd_state import STREAM_STAGES, CrowdCharacter, CrowdTimings, check_keys
+from .crowd_state import STREAM_STAGES, CrowdCharacter, CrowdTimings, character_seed, check_keys
 from .crowd_windows import CrowdWindows
 from .decoding import flush_denormals
 from .fold_track import FoldTrack, follow_folds
@@ -54,7 +54,7 @@ from .frame_path import FramePath, with_measures
 from .gate import frame_gates
 from .lod import crowd_decode, crowd_latents, decoder_of, levels
 from .modes import Mode
-from .run_settings import MAX_SEED, ResolvedRun
+from .run_settings import ResolvedRun
 from .swing import step_crowd
 
 
@@ -108,11 +108,7 @@ class CrowdStream:
     def set_seed(self, key: Hashable, seed: int) -> None:
         """Give character ``key`` a seed of its own for the sample mode's draw (the run's seed is
         every other character's): before it joins, or to start its draw afresh from that seed."""
-        if isinstance(seed, np.integer):
-            seed = int(seed)
-        if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed <= MAX_SEED:
-            raise ValueError(f"a seed is a whole number in [0, {MAX_SEED}], got {seed!r}")
-        self._seeds[key] = seed
+        self._seeds[key] = character_seed(seed)
         if key in self._characters:
             self._characters[key].sample = None
 

@@ -8,8 +8,9 @@ characters' state kept on the device between frames.
     tensor = crowd.push(rotations, roots, keys, as_tensor=True)    # (N, V, 3) left on the device
 
 What it runs: the regression (the window step's own latents, no database: a retrieval is a search
-the GPU step does not hold), one body for every character, poses as local quaternions on the
-canonical skeleton. On the CPU (``device="cpu"``) it gives what the native crowd gives within float
+the GPU step does not hold), or the sample mode's draw (each character's white noise from its own
+seeded generator, the run's seed or :meth:`DeviceCrowd.set_seed`'s, as the native crowd draws it),
+one body for every character, poses as local quaternions on the canonical skeleton. On the CPU (``device="cpu"``) it gives what the native crowd gives within float
 rounding (tested); a character's first frame starts it as a stream starts (zero velocities, its
 window that frame repeated); a pelvis that jumps is not taken as a teleport here (call
 :meth:`leave` first).
@@ -23,14 +24,13 @@ import numpy as np
 import torch
 
 from ..errors import InputError
+from ..models.sampler import white_noise
 from ..motion.skeleton import NUM_JOINTS
-from .crowd_state import check_keys
+from .crowd_state import character_seed, check_keys
 from .frame_path import FramePath
 from .modes import Mode
 from .run_settings import ResolvedRun
-from .torch_step import state_shapes, stream_step
-
-STATE = ("started", "previous_rotations", "previous_positions", "memory", "window")
+from .torch_step import SAMPLE_STATE, STATE, state_shapes, stream_step
 
 
 class DeviceCrowd:
@@ -39,10 +39,11 @@ class DeviceCrowd:
     def __init__(self, animator, run: ResolvedRun):
         """``run``: the settings resolved for ``animator``'s model: its body every character's, its
         ``device`` the torch device the step runs on."""
-        if run.mode is not Mode.REGRESSION:
+        if run.mode not in (Mode.REGRESSION, Mode.SAMPLE):
             raise ValueError(
-                f"a crowd on a torch device runs the regression (mode='regression'), not {run.mode.value!r}: "
-                "the database's retrieval, residual and folds run in the native crowd (device='native')"
+                f"a crowd on a torch device runs the regression or the sample mode (mode='regression' or "
+                f"'sample'), not {run.mode.value!r}: the database's retrieval, residual and folds run in "
+                "the native crowd (device='native')"
             )
         if run.swing != 1.0:
             raise ValueError(
@@ -58,6 +59,9 @@ class DeviceCrowd:
         }
         self._slots: dict[Hashable, int] = {}
         self._free: list[int] = []
+        # the sample mode's draw: each character's seed and its generator of white noise
+        self._seeds: dict[Hashable, int] = {}
+        self._generators: dict[Hashable, torch.Generator] = {}
 
     @property
     def mode(self) -> Mode:
@@ -73,6 +77,26 @@ class DeviceCrowd:
         if key not in self._slots:
             raise KeyError(f"no character {key!r} in this crowd (characters: {self.characters})")
         self._free.append(self._slots.pop(key))
+        self._seeds.pop(key, None)
+        self._generators.pop(key, None)
+
+    def set_seed(self, key: Hashable, seed: int) -> None:
+        """Give character ``key`` a seed of its own for the sample mode's draw (the run's seed is every
+        other character's), before it joins (one that has: :meth:`leave` it first)."""
+        if key in self._slots:
+            raise ValueError(f"character {key!r} has joined: leave it first to draw it afresh from a seed")
+        self._seeds[key] = character_seed(seed)
+
+    def _white_noise(self, keys: list, rows: torch.Tensor) -> torch.Tensor:
+        """(N, 2, L) each character's white noise this frame, from its seeded generator (on the CPU,
+        in the order the native crowd draws it; the second vector at a first frame only)."""
+        size = self.step.sample.size
+        first = (self._state["started"][rows] <= 0).cpu().tolist()
+        for key in keys:
+            if key not in self._generators:
+                self._generators[key] = torch.Generator().manual_seed(self._seeds.get(key, self.run.seed))
+        noise = [white_noise(self._generators[k], size, first=f) for k, f in zip(keys, first)]
+        return torch.stack(noise).to(self.device)
 
     def _slots_of(self, keys: list) -> torch.Tensor:
         """Each key's row of the state (new keys get a free row, zeroed: ``started`` 0)."""
@@ -121,7 +145,10 @@ class DeviceCrowd:
             raise InputError("push", "non-finite rotations or roots")
         rows = self._slots_of(keys)
         state = [self._state[name][rows] for name in STATE]
-        out = self.step(rotations.to(self.device), roots.to(self.device), *state)
-        for name, value in zip(STATE, out[3:]):
+        drawing = []
+        if self.step.sample is not None:
+            drawing = [self._white_noise(keys, rows), *(self._state[name][rows] for name in SAMPLE_STATE)]
+        out = self.step(rotations.to(self.device), roots.to(self.device), *state, *drawing)
+        for name, value in zip(self._shapes, out[3:]):
             self._state[name][rows] = value
         return out[0] if as_tensor else out[0].cpu().numpy()

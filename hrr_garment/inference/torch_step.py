@@ -14,7 +14,8 @@ numbered alike in :meth:`StreamStep.forward`) with the same formulas and the sam
 - 3 choice: the window step (:class:`~hrr_garment.models.codes.WindowCodes`): motion encoder, code
   entropy and classes, the code-space decoder's latents of the window's last frame;
 - 4 blending, 5 swing: the regression is one source and its swing runs as predicted (swing 1),
-  so the latents as they are;
+  so the latents as they are; in the sample mode the generative decoder's draw departs from them
+  (:mod:`.torch_sample`: the engine's white noise in, each character's draw state carried);
 - 6 decoding: the mesh decoder; 7 folds: none (the regression);
 - 8 world: the garment's rest offset on the body, the body frame to the world
   (:func:`~hrr_garment.motion.frame.from_body_frame`);
@@ -44,6 +45,7 @@ from .frame_path import FramePath
 from .modes import Mode
 from .torch_ops import constant, turn_y
 from .torch_push_out import PushOutStage
+from .torch_sample import SampleStage
 from .torch_skin_hulls import SkinHulls
 
 
@@ -137,13 +139,16 @@ class FeatureStage(nn.Module):
 
 
 class StreamStep(nn.Module):
-    """One frame of N characters through the regression path; see the module docstring.
+    """One frame of N characters through the regression path, or the sample mode's (``sample``); see
+    the module docstring.
 
     Inputs: ``rotations`` (N, 22, 4) local quaternions x y z w, ``root`` (N, 3) pelvis positions
     (metres, Y up), and the state: ``started`` (N,) 0 at a character's first frame else 1,
     ``previous_rotations`` (N, 22, 3, 3), ``previous_positions`` (N, 22, 3), ``memory`` (N, rows, 64),
-    ``window`` (N, W - 1, F). Outputs: ``vertices`` (N, V, 3), ``entropy`` (N,), ``codes`` (N, G), and
-    the next state in the same order (``started`` all ones)."""
+    ``window`` (N, W - 1, F); with ``sample``, then ``noise`` (N, 2, L) white noise and the draw's
+    state ``sample_drive``, ``sample_noise``, ``sample_latents`` (N, L). Outputs: ``vertices`` (N, V,
+    3), ``entropy`` (N,), ``codes`` (N, G), and the next state in the same order (``started`` all
+    ones)."""
 
     def __init__(
         self,
@@ -154,6 +159,7 @@ class StreamStep(nn.Module):
         memory: MotionMemory | None,
         fps: float,
         push_out: PushOutStage | None,
+        sample: SampleStage | None = None,
     ):
         super().__init__()
         record = character.record
@@ -167,7 +173,7 @@ class StreamStep(nn.Module):
         constant(self, "latent_std", bundle.latent_stats.std)
         constant(self, "garment_offset", character.offset)
         constant(self, "rest_pelvis", [0.0, REST_PELVIS_HEIGHT, 0.0])
-        self.decoder, self.push_out = decoder, push_out
+        self.decoder, self.push_out, self.sample = decoder, push_out, sample
         self.latent_shape = tuple(bundle.codespace.latent_shape)
         self.observe = None  # a stage's name and output -> None (tests), as FramePath.observe
 
@@ -178,8 +184,22 @@ class StreamStep(nn.Module):
             self.observe(stage, value.detach().cpu().numpy())
         return value
 
-    def forward(self, rotations, root, started, previous_rotations, previous_positions, memory, window):
-        """One frame through the frame path's stages (:mod:`.frame_path`), in torch."""
+    def forward(  # noqa: PLR0913  (one argument per graph input: ONNX names each)
+        self,
+        rotations,
+        root,
+        started,
+        previous_rotations,
+        previous_positions,
+        memory,
+        window,
+        noise=None,
+        sample_drive=None,
+        sample_noise=None,
+        sample_latents=None,
+    ):
+        """One frame through the frame path's stages (:mod:`.frame_path`), in torch; the sample
+        mode's white ``noise`` and draw state last (None in the regression)."""
         rot, pos = self.pose(rotations, root)
         first = started.reshape(-1, 1, 1) <= 0
         previous = (
@@ -193,12 +213,17 @@ class StreamStep(nn.Module):
         past = torch.where(first, features[:, None].expand_as(window), window)
         frames = self.seen("windows", torch.cat([past, features[:, None]], 1))  # (N, W, F)
         # 3. choice: the window step's regression
-        entropy, codes, latents = self.codes((frames - self.motion_mean) / self.motion_std)
+        standard = (frames - self.motion_mean) / self.motion_std
+        entropy, codes, latents = self.codes(standard)
         n = latents.shape[0]
-        latents = (latents.reshape(n, -1) * self.latent_std + self.latent_mean).reshape(n, *self.latent_shape)
-        self.seen("choice", latents)
-        # 4. blending and 5. swing: one source whose swing runs as predicted, so the latents as they are
-        self.seen("blending", latents)
+        self.seen("choice", self.destandardised(latents))
+        # 4. blending: one source, or the sample mode's draw departing from it
+        drawn = ()
+        if self.sample is not None:
+            drawing = (noise, sample_drive, sample_noise, sample_latents)
+            latents, drawn = self.sample(standard[:, -1], latents.reshape(n, -1), first[:, 0], *drawing)
+        latents = self.seen("blending", self.destandardised(latents))
+        # 5. swing: runs as predicted, so the latents as they are
         self.seen("swing", latents)
         # 6. decoding, and 7. folds: none in the regression
         local = self.seen("folds", self.seen("decoding", self.decoder(latents)))
@@ -211,7 +236,12 @@ class StreamStep(nn.Module):
         if self.push_out is not None:
             world = self.push_out(world, rot, pos, heading)
         self.seen("push_out", world)
-        return (world, entropy, codes, torch.ones_like(started), rot, pos, memory, frames[:, 1:])
+        return (world, entropy, codes, torch.ones_like(started), rot, pos, memory, frames[:, 1:], *drawn)
+
+    def destandardised(self, latents: torch.Tensor) -> torch.Tensor:
+        """The code-space decoder's standardised latents (N, ...) as the mesh decoder's (N, nodes, C)."""
+        n = latents.shape[0]
+        return (latents.reshape(n, -1) * self.latent_std + self.latent_mean).reshape(n, *self.latent_shape)
 
 
 class TorchDecoder(nn.Module):
@@ -245,10 +275,15 @@ def stream_step(path: FramePath, *, movable: bool = False) -> StreamStep:
     resolved run: its body, ``push_out``, ``push_body``, ``decoder`` and ``push``), at the rate
     every model streams at (:data:`~hrr_garment.motion.motion.FPS`). The full decoder is the mesh
     decoder's folded blocks, or with ``movable`` the autoencoder's own, which moves to a GPU; the
-    fast one the bundle's subspace decoder."""
+    fast one the bundle's subspace decoder. The sample mode draws ``sample_steps`` steps a frame."""
     bundle, run = path.bundle, path.run
-    if run.mode is not Mode.REGRESSION:
-        raise ValueError(f"the torch step runs the regression (mode='regression'), not {run.mode.value!r}")
+    if run.mode not in (Mode.REGRESSION, Mode.SAMPLE):
+        raise ValueError(
+            f"the torch step runs the regression or the sample mode (mode='regression' or 'sample'), "
+            f"not {run.mode.value!r}"
+        )
+    if run.swing != 1.0:
+        raise ValueError(f"the torch step runs the swing as predicted (swing 1), not swing={run.swing:g}")
     spec = bundle.codespace.config.memory
     memory = motion_memory(spec, FPS) if spec else None
     stage = None
@@ -265,7 +300,10 @@ def stream_step(path: FramePath, *, movable: bool = False) -> StreamStep:
         module = path.decoder
     else:
         module = AutoencoderDecoder(bundle.autoencoder) if movable else TorchDecoder(path.decoder)
-    return StreamStep(bundle, module, character=run.body, memory=memory, fps=FPS, push_out=stage).eval()
+    sample = SampleStage(bundle.sampler, run.sample_steps) if run.mode is Mode.SAMPLE else None
+    return StreamStep(
+        bundle, module, character=run.body, memory=memory, fps=FPS, push_out=stage, sample=sample
+    ).eval()
 
 
 def _visible_body(run) -> dict:
@@ -278,12 +316,32 @@ def _visible_body(run) -> dict:
 
 
 def state_shapes(step: StreamStep) -> dict[str, tuple[int, ...]]:
-    """Each state input's shape per character."""
+    """Each state input's shape per character, in the step's order (the sample mode's draw state
+    after the white noise it takes, :func:`noise_shape`)."""
     window = step.codes.codespace.config.window
-    return {
-        "started": (),
-        "previous_rotations": (NUM_JOINTS, 3, 3),
-        "previous_positions": (NUM_JOINTS, 3),
-        "memory": (max(step.features.rows, 1), MEMORY_WIDTH),
-        "window": (window - 1, int(step.motion_mean.shape[0])),
-    }
+    shapes = dict(
+        zip(
+            STATE,
+            [
+                (),
+                (NUM_JOINTS, 3, 3),
+                (NUM_JOINTS, 3),
+                (max(step.features.rows, 1), MEMORY_WIDTH),
+                (window - 1, int(step.motion_mean.shape[0])),
+            ],
+        )
+    )
+    if step.sample is not None:
+        shapes |= {name: (step.sample.size,) for name in SAMPLE_STATE}
+    return shapes
+
+
+# each character's state, as the step takes it and gives it back
+STATE = ("started", "previous_rotations", "previous_positions", "memory", "window")
+# the sample mode's draw state: the noise's two filters and the regression's latents of the frame before
+SAMPLE_STATE = ("sample_drive", "sample_noise", "sample_latents")
+
+
+def noise_shape(step: StreamStep) -> tuple[int, ...] | None:
+    """The shape per character of the white noise a sample mode's step takes (None: it takes none)."""
+    return None if step.sample is None else (2, step.sample.size)

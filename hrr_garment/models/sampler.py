@@ -107,12 +107,19 @@ class ClothSampler(nn.Module):
         self.register_buffer("temperature", torch.ones(()))  # the noise's scale (a draw's spread)
 
     def context(
-        self, features: torch.Tensor, mean: torch.Tensor, previous_mean: torch.Tensor, history: torch.Tensor
+        self,
+        features: torch.Tensor,
+        mean: torch.Tensor,
+        previous_mean: torch.Tensor,
+        history: torch.Tensor | None = None,
     ) -> torch.Tensor:
         """The condition's part of the first layer, (B, hidden), made once per frame: ``features``
         (B, F) standardised, ``mean`` and ``previous_mean`` (B, L) the regression's standardised
-        latents at t and t-1, ``history`` (B, history, L) the scaled departures drawn at t-1, t-2, ..."""
-        parts = [features, mean, mean - previous_mean, history.reshape(len(history), -1)]
+        latents at t and t-1, ``history`` (B, history, L) the scaled departures drawn at t-1, t-2, ...
+        (None where the sampler takes none)."""
+        parts = [features, mean, mean - previous_mean]
+        if self.config.history:
+            parts.append(history.reshape(len(history), -1))
         return self.condition(torch.cat(parts, -1))
 
     def velocity(self, x: torch.Tensor, tau: torch.Tensor, context: torch.Tensor) -> torch.Tensor:
@@ -124,7 +131,7 @@ class ClothSampler(nn.Module):
         steps: the same noise gives the same departure."""
         x, dt = noise, 1.0 / steps
         for i in range(steps):
-            tau = torch.full((len(x),), i * dt, dtype=x.dtype)
+            tau = x.new_full(x.shape[:1], i * dt)
             x = x + dt * self.velocity(x, tau, context)
         return x
 
@@ -155,7 +162,7 @@ class ClothSampler(nn.Module):
         decay = float(self.noise_decay)
         noise = self.temperature * torch.stack([t.next_noise(decay, self.latent_size) for t in tracks])
         previous = torch.stack([mean[i] if t.previous is None else t.previous for i, t in enumerate(tracks)])
-        history = torch.stack([t.history for t in tracks])
+        history = torch.stack([t.history for t in tracks]) if self.config.history else None
         scaled = self.draw(self.context(features, mean, previous, history), noise, steps)
         for i, t in enumerate(tracks):
             t.previous = mean[i].clone()
@@ -195,11 +202,34 @@ class SampleTrack:
         first-order filters of pole ``decay`` (an Ornstein-Uhlenbeck process smoothed once more:
         one alone has a rough path, whose second differences showed as jitter), scaled back to unit
         variance, started from the filters' stationary state (two draws at the first frame)."""
-        a, fresh = decay, torch.randn(size, generator=self.generator)
+        fresh, second = white_noise(self.generator, size, first=self.noise is None)
         if self.noise is None:
-            self.drive = fresh
-            self.noise = (fresh + a * torch.randn(size, generator=self.generator)) / (1 + a * a) ** 0.5
+            self.drive, self.noise = start_noise(decay, fresh, second)
         else:
-            self.drive = a * self.drive + (1 - a * a) ** 0.5 * fresh
-            self.noise = a * self.noise + (1 - a * a) / (1 + a * a) ** 0.5 * self.drive
+            self.drive, self.noise = continue_noise(decay, fresh, (self.drive, self.noise))
         return self.noise
+
+
+def white_noise(generator: torch.Generator, size: int, *, first: bool) -> torch.Tensor:
+    """(2, size): what a character's noise takes from its generator in one frame, N(0, I) values in
+    the order drawn: the frame's fresh noise, and at its first frame a second draw that starts the
+    filters in their stationary state (zeros after it: nothing drawn). A graph's ``noise`` input
+    (:mod:`hrr_garment.export.onnx_model`) takes them so, which makes its draw a Python stream's."""
+    fresh = torch.randn(size, generator=generator)
+    second = torch.randn(size, generator=generator) if first else torch.zeros(size)
+    return torch.stack([fresh, second])
+
+
+def start_noise(decay, fresh: torch.Tensor, second: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """The two filters of pole ``decay`` at a character's first frame, stationary: (drive, noise)."""
+    return fresh, (fresh + decay * second) / (1 + decay * decay) ** 0.5
+
+
+def continue_noise(
+    decay, fresh: torch.Tensor, state: tuple[torch.Tensor, torch.Tensor]
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """The two filters' ``state`` (drive, noise) one frame on, ``fresh`` white noise in: each keeps
+    unit variance (:meth:`SampleTrack.next_noise`)."""
+    drive, noise = state
+    drive = decay * drive + (1 - decay * decay) ** 0.5 * fresh
+    return drive, decay * noise + (1 - decay * decay) / (1 + decay * decay) ** 0.5 * drive

@@ -18,6 +18,7 @@ from hrr_garment.cli.motion import main as motion_main  # noqa: E402
 from hrr_garment.errors import InputError  # noqa: E402
 from hrr_garment.motion.poses import motion_to_poses  # noqa: E402
 from hrr_garment.motion.synth import synthesize  # noqa: E402
+from tests.conftest import with_drawn_sampler  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -161,31 +162,44 @@ def test_the_fast_decoders_graph_with_the_subspace_push_streams_as_the_python_st
     assert gap["max_mm"] < min(0.01, acted_mm / 10)  # ... and the graph moved it as the stream did
 
 
+def _example(graph: Path, poses: Path, output: Path, *flags: str) -> np.ndarray:
+    """examples/onnx_stream.py run on ``graph`` with hrr_garment and torch made unimportable -> its
+    first character's garment frames."""
+    blocked = (
+        "import runpy, sys\n"
+        "for name in ('hrr_garment', 'torch'): sys.modules[name] = None\n"
+        f"sys.argv = ['onnx_stream.py', {str(graph)!r}, {str(poses)!r}, '-o', {str(output)!r}, "
+        f"'--characters', '2', *{list(flags)!r}]\n"
+        f"runpy.run_path({str(ROOT / 'examples' / 'onnx_stream.py')!r}, run_name='__main__')\n"
+    )
+    done = subprocess.run([sys.executable, "-c", blocked], capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    return np.load(output)
+
+
 @pytest.mark.tool
-def test_the_example_streams_with_numpy_and_onnxruntime_alone(exported, tmp_path):
+def test_the_example_streams_with_numpy_and_onnxruntime_alone(exported, drawn, tmp_path):
     """examples/onnx_stream.py with hrr_garment and torch made unimportable: its first character's
-    garment equals the graph run through the package."""
+    garment equals the graph run through the package; a sample mode's graph is fed numpy's white
+    noise, the same seed the same cloth, another seed another."""
     from hrr_garment.export.onnx_model import OnnxStream
     from hrr_garment.motion.io import save_motion
 
     _, written, clip = exported
     save_motion(clip, tmp_path / "spin.npz")
     assert motion_main(["poses", str(tmp_path / "spin.npz"), "-o", str(tmp_path / "spin.poses.npz")]) == 0
-    blocked = (
-        "import runpy, sys\n"
-        "for name in ('hrr_garment', 'torch'): sys.modules[name] = None\n"
-        f"sys.argv = ['onnx_stream.py', {str(written.graph)!r}, {str(tmp_path / 'spin.poses.npz')!r}, "
-        f"'-o', {str(tmp_path / 'garment.npy')!r}, '--characters', '2']\n"
-        f"runpy.run_path({str(ROOT / 'examples' / 'onnx_stream.py')!r}, run_name='__main__')\n"
-    )
-    done = subprocess.run([sys.executable, "-c", blocked], capture_output=True, text=True, timeout=300)
-    assert done.returncode == 0, done.stderr
-    garment = np.load(tmp_path / "garment.npy")
+    poses = tmp_path / "spin.poses.npz"
+    garment = _example(written.graph, poses, tmp_path / "garment.npy")
     rotations, roots = motion_to_poses(clip)
     graph = OnnxStream(written.graph)
     alone = np.stack([graph.push(rotations[t : t + 1], roots[t : t + 1])[0] for t in range(clip.num_frames)])
     assert garment.shape == alone.shape
     assert np.abs(garment - alone).max() < 1e-5
+    seeded = [
+        _example(drawn[1].graph, poses, tmp_path / f"drawn{seed}.npy", "--seed", seed) for seed in "337"
+    ]
+    assert seeded[0].shape == alone.shape and np.isfinite(seeded[0]).all()
+    assert np.array_equal(seeded[0], seeded[1]) and np.abs(seeded[0] - seeded[2]).max() > 1e-4
 
 
 def test_poses_round_trip_to_the_motion():
@@ -210,6 +224,12 @@ def test_bad_requests_are_refused_with_the_reason(tmp_path, capsys):
     with pytest.raises(InputError, match="junk.onnx.*not an ONNX model"):
         OnnxStream(tmp_path / "junk.onnx")
     assert not (tmp_path / "x.onnx").exists()
+    for flags in (["--sample-steps", "2"], ["--mode", "sample", "--seed", "-1"]):  # before any model is read
+        assert (
+            export_model_main(["--model", str(tmp_path), "--onnx", "-o", str(tmp_path / "x.onnx"), *flags])
+            == 2
+        )
+        assert flags[-2] in capsys.readouterr().err
 
 
 @pytest.mark.parametrize("flags", [["--push-body", "capsules"], ["--push-body", "visible"], []])
@@ -230,3 +250,48 @@ def test_the_command_exports_the_run_its_flags_ask(trained, tmp_path, monkeypatc
     assert export_model_main(command) == 2
     assert asked["push_body"] == (flags[1] if flags else None)  # None: the run's default
     assert asked["push_out"] is True and asked["decoder"] is None and asked["push"] is None
+
+
+@pytest.fixture(scope="module")
+def drawn(exported, tmp_path_factory):
+    """The tiny model with a hand-calibrated sampler and its sample mode's graph."""
+    from hrr_garment.export.onnx_model import export_onnx
+
+    drawing = with_drawn_sampler(exported[0])
+    return drawing, export_onnx(drawing, tmp_path_factory.mktemp("drawn") / "drawn.onnx", mode="sample")
+
+
+def test_the_sample_modes_graph_draws_what_the_python_stream_draws_from_the_same_seed(
+    exported, drawn, tmp_path
+):
+    """hrr-export-model --mode sample: the graph fed each character's white noise from its seed
+    (OnnxStream) gives the Python stream's draw for that seed, character by character in one batch
+    (a sampler of untrained weights, calibrated by hand: equality holds for any weights); two seeds
+    give two cloths; a sampler that reads the frames drawn before cannot be held."""
+    from hrr_garment.export.onnx_model import NOISE, OnnxStream, check_onnx, export_onnx
+
+    animator, _, clip = exported
+    drawing, written = drawn
+    latent = drawing.bundle.sampler.latent_size
+    assert written.noise == (2, latent) and "sample_latents" in written.state
+    clip = clip.slice(0, 25)
+    rotations, roots = motion_to_poses(clip)
+    graph = OnnxStream(written.graph, seeds=[3, 4])
+    streams = [drawing.stream(mode="sample", seed=seed) for seed in (3, 4)]
+    worst, apart = 0.0, 0.0
+    for t in range(clip.num_frames):
+        both = graph.push(rotations[[t, t]], roots[[t, t]])
+        alone = [s.push(rotation=rotations[t], root=roots[t]) for s in streams]
+        worst = max(worst, *(float(np.abs(both[i] - alone[i]).max()) for i in range(2)))
+        apart = max(apart, float(np.abs(alone[0] - alone[1]).max()))
+    assert worst < 1e-5, f"the sample graph departs from the Python stream by {worst * 1000:.4f} mm"
+    assert apart > 100 * max(worst, 1e-7)  # the seeds drew apart, far beyond the paths' gap
+    assert check_onnx(drawing, written.graph, clip, seed=3)["max_mm"] < 0.01
+    assert NOISE in [i.name for i in graph.session.get_inputs()]
+    with pytest.raises(ValueError, match="seeds for"):
+        OnnxStream(written.graph, seeds=[1, 2, 3]).push(rotations[:2], roots[:2])
+    with pytest.raises(ValueError, match="history"):
+        export_onnx(with_drawn_sampler(animator, history=1), tmp_path / "x.onnx", mode="sample")
+    with pytest.raises(ValueError, match="swing"):  # the graph runs the swing as predicted
+        export_onnx(drawing, tmp_path / "x.onnx", mode="sample", swing=1.3)
+    assert not (tmp_path / "x.onnx").exists()

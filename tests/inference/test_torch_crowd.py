@@ -6,6 +6,7 @@ import pytest
 
 from hrr_garment.motion.poses import motion_to_poses
 from hrr_garment.motion.synth import synthesize
+from tests.conftest import with_drawn_sampler
 
 
 @pytest.mark.parametrize("decoder, push", [("full", "mesh"), ("fast", "mesh"), ("fast", "subspace")])
@@ -34,7 +35,28 @@ def test_the_device_crowd_equals_the_native_crowd(animator, decoder, push):
         device.leave("a")
 
 
-def test_a_device_crowd_runs_the_regression_only(animator):
+def test_the_device_crowds_draw_is_the_native_crowds_for_each_seed(animator):
+    """The sample mode as one torch step: each character drawn from the run's seed or its own
+    (set_seed before it joins) as the native crowd draws it; a joined character's seed is refused."""
+    drawing = with_drawn_sampler(animator)
+    rotations, roots = motion_to_poses(synthesize("walk_curve", 1.0, seed=1))
+    crowds = [drawing.crowd(mode="sample", seed=5, device=device) for device in ("native", "cpu")]
+    for crowd in crowds:
+        crowd.set_seed("b", 9)
+    worst, apart = 0.0, 0.0
+    for t in range(12):
+        native, device = (c.push(rotations[[t, t]], roots[[t, t]], ["a", "b"]) for c in crowds)
+        worst = max(worst, float(np.abs(native - device).max()))
+        apart = max(apart, float(np.abs(native[0] - native[1]).max()))
+    assert worst < 1e-4, f"{worst * 1000:.3f} mm from the native crowd"
+    assert apart > 100 * worst  # the two seeds drew two cloths from the same poses
+    with pytest.raises(ValueError, match="leave it first"):
+        crowds[1].set_seed("a", 3)
+    with pytest.raises(ValueError, match="seed"):
+        crowds[1].set_seed("c", -1)
+
+
+def test_a_device_crowd_runs_the_regression_or_the_sample_mode_only(animator):
     with pytest.raises(ValueError, match="regression"):
         animator.crowd(mode="hybrid", device="cpu")
     crowd = animator.crowd(mode="regression", device="cpu")
