@@ -48,7 +48,8 @@ AUTO_CHOICES = (
     "hybrid",
     "residual",
     "detail",
-)  # what mode ``auto`` may stand for (eval/auto_mode.py chooses)
+    "sample",
+)  # what mode ``auto`` may stand for (eval/auto_mode.py chooses), the cheaper first
 DETAIL_BASES = (
     "regression",
     "residual",

@@ -1,5 +1,5 @@
-"""The ``auto`` mode's calibration: which of the hybrid, residual and detail modes a model runs
-by default, and how the detail mode runs.
+"""The ``auto`` mode's calibration: which of the hybrid, residual, detail and sample modes a model
+runs by default, and how the detail mode runs.
 
 Against a chaotic truth the most accurate output is close to the conditional mean, and the mean is
 blurry: its folds and its hem's swing average away. The modes that use the database trade a little
@@ -26,8 +26,13 @@ push-out on) by one documented criterion that counts both:
    smallest *plausibility gap* ``hypot(ln sharpness, ln hem swing)``, sharpness being the bending
    energy over the truth's and hem swing the hem's amplitude over the truth's (0: both as in the
    simulation; a half and a double are equally far, and a gain in either counts);
-3. ties: the cheaper mode (hybrid, then residual, then detail: the order of :data:`AUTO_CHOICES`),
-   then the more accurate.
+3. ties: the cheaper mode (hybrid, then residual, then detail, then sample: the order of
+   :data:`AUTO_CHOICES`), then the more accurate.
+
+The sample mode (the generative decoder's draw, seed 0, where the model has it: ``hrr-train --stage
+sampler``) is a candidate like the others, measured against the same one simulation per clip: a
+draw is no nearer to it than the mean where the model is at the chaos floor, but a model short of
+the floor can draw nearer (docs/sampler.md).
 
 The detail mode is measured in several settings (:data:`DETAIL_CANDIDATES`): its simulated folds at
 each of :data:`~.auto_criterion.DETAIL_STRENGTHS`, on the regression's latents and, where the residual mode
@@ -53,7 +58,8 @@ the criterion picks again among all candidates: a regression swings less than th
 wins where it brings the swing closer to the truth's within the allowance. The model keeps the
 picked candidate's gain (``auto.swing_gain``, 1 where the pick has none); it runs in the mode auto
 picks, not in a mode named. A recorded calibration picked again under another allowance first
-measures the gains of its new first pick where they were not (:func:`measure_swing_again`).
+measures the gains of its new first pick where they were not (:func:`measure_again`), and a model
+that gained the sample mode since has it measured first.
 
 The criterion itself, on recorded numbers (:func:`~.auto_criterion.pick_auto_mode`,
 :func:`~.auto_criterion.repick`), and the candidates' labels: :mod:`.auto_criterion`. Whether a
@@ -171,18 +177,25 @@ def calibrate_auto_mode(
     )
 
 
-def measure_swing_again(
+def measure_again(
     animator: Animator,
     records: list[SequenceRecord],
     auto: AutoCalibration,
     config: AutoSettings,
+    *,
+    new: tuple[str, ...] = (),
     max_sequences: int | None = AUTO_MAX_SEQUENCES,
     progress: bool = True,
 ) -> AutoCalibration:
-    """A recorded calibration picked again under ``config``, the swing gains of its new first pick
-    measured on the same validation clips where they were not (the other candidates' numbers stand)."""
-    candidates = dict(auto.candidates or {})
-    _measure_swing(candidates, _measurer(animator, _evenly(records, max_sequences)), config, progress)
+    """A recorded calibration picked again under ``config``, the candidates ``new`` (a mode the model
+    gained since: the sample mode's draw) and the swing gains of its new first pick measured on the
+    same validation clips where they were not (the other candidates' numbers stand)."""
+    # the recorded numbers as plain dicts (bundle.json's are read-only mappings, which JSON cannot write)
+    candidates = {label: dict(numbers) for label, numbers in (auto.candidates or {}).items()}
+    measure = _measurer(animator, _evenly(records, max_sequences))
+    for label in tqdm(new, desc="auto mode", unit="mode", disable=not progress):
+        candidates[label] = measure(label)
+    _measure_swing(candidates, measure, config, progress)
     # the new numbers as bundle.json will hold them (a non-finite one as null), as the recorded ones are
     return repick(replace(auto, candidates=frozen(as_json(candidates))), config)
 

@@ -64,6 +64,12 @@ def lacks_free_cloth(auto: AutoCalibration, residual: ResidualEntry | None) -> b
     )
 
 
+def lacks_sample(auto: AutoCalibration, sampler) -> bool:
+    """Whether a model with a generative decoder (bundle.json's ``sampler``) has a calibration
+    recorded without its sample mode among the candidates (trained after it: measured then)."""
+    return sampler is not None and "sample" not in (auto.candidates or {})
+
+
 def swing_unmeasured(auto: AutoCalibration, config: AutoSettings) -> bool:
     """Whether a recorded calibration's first pick under ``config`` (its pick without a swing gain)
     has swing gains not yet measured: an allowance that moves the pick needs them measured before

@@ -85,9 +85,9 @@ def evaluate_modes(
     hybrid = animator.resolve(
         settings.run_for(Mode.HYBRID)
     )  # each mode's result records the hybrid's gate and tau
+    resolved = {m: animator.resolve(runs[m]) for m in settings.modes}
     results = {
-        m: ModeResult(m, hybrid.tau, gate=hybrid.gate, swing=animator.resolve(runs[m]).swing)
-        for m in settings.modes
+        m: ModeResult(m, hybrid.tau, gate=hybrid.gate, swing=resolved[m].swing) for m in settings.modes
     }
     jobs = [(m, r) for r in records for m in settings.modes]
     for mode, record in tqdm(jobs, desc="evaluate", unit="run", disable=not settings.progress):
@@ -96,7 +96,8 @@ def evaluate_modes(
         run = runs[mode].replace(body=record.dressed, allow_outside=True, exclude_sequence=own)
         anim = animator.animate(record.motion, run, observe=world)
         draws = None
-        if Mode(mode) is Mode.SAMPLE and settings.members >= 2 and record.name in (ensembles or {}):
+        drawn = resolved[mode].mode is Mode.SAMPLE  # the sample mode, or auto calibrated to it
+        if drawn and settings.members >= 2 and record.name in (ensembles or {}):
             # a sample is judged as a sample: as many draws as the truth has members, seeds on from the run's
             seeds = [(run.seed + k) % (MAX_SEED + 1) for k in range(1, settings.members)]
             draws = np.stack([animator.animate(record.motion, run.replace(seed=s)).vertices for s in seeds])

@@ -10,7 +10,7 @@ class Mode(str, enum.Enum):
     """How a garment latent is chosen per window. A ``str`` subclass: ``Mode.HYBRID == "hybrid"``,
     and it formats as its value."""
 
-    AUTO = "auto"  # the model's calibrated choice among hybrid, residual and detail (eval/auto_mode.py)
+    AUTO = "auto"  # the model's calibrated choice among hybrid, residual, detail, sample (eval/auto_mode.py)
     HYBRID = "hybrid"  # retrieval where the motion code's entropy is below tau, else regression
     REGRESSION = "regression"  # the code-space decoder's latents
     RETRIEVAL = "retrieval"  # the database window with the nearest garment code

@@ -10,10 +10,10 @@ characters' state kept on the device between frames.
 What it runs: the regression (the window step's own latents, no database: a retrieval is a search
 the GPU step does not hold), or the sample mode's draw (each character's white noise from its own
 seeded generator, the run's seed or :meth:`DeviceCrowd.set_seed`'s, as the native crowd draws it),
-one body for every character, poses as local quaternions on the canonical skeleton. On the CPU (``device="cpu"``) it gives what the native crowd gives within float
-rounding (tested); a character's first frame starts it as a stream starts (zero velocities, its
-window that frame repeated); a pelvis that jumps is not taken as a teleport here (call
-:meth:`leave` first).
+one body for every character, poses as local quaternions on the canonical skeleton. On the CPU
+(``device="cpu"``) it gives what the native crowd gives within float rounding (tested); a
+character's first frame starts it as a stream starts (zero velocities, its window that frame
+repeated); a pelvis that jumps is not taken as a teleport here (call :meth:`leave` first).
 """
 
 from __future__ import annotations

@@ -8,12 +8,13 @@ from pathlib import Path
 
 from ..artifacts.auto_calibration import AutoCalibration
 from ..eval.auto_criterion import AutoSettings, repick
-from ..eval.auto_mode import calibrate_auto_mode, measure_swing_again
+from ..eval.auto_mode import calibrate_auto_mode, measure_again
 from ..eval.auto_outdated import (
     followed_otherwise,
     lacks_default_body,
     lacks_free_cloth,
     lacks_free_folds,
+    lacks_sample,
     lacks_swing,
     swing_unmeasured,
 )
@@ -33,8 +34,8 @@ def calibrate_auto(
     recorded = manifest.auto
     # calibrated again where recorded before the candidates carried their cloth inside the body (the
     # criterion counts it), the residual or the folds on free cloth, the default body's clips apart,
-    # the folds followed in time (as the detail mode now runs) or the swing's gain; picked again
-    # where only an allowance moved
+    # the folds followed in time (as the detail mode now runs) or the swing's gain; the sample mode
+    # measured where the model gained it since; picked again where only an allowance moved
     if (
         recorded is None
         or any("penetration_pct" not in c for c in (recorded.candidates or {}).values())
@@ -46,18 +47,17 @@ def calibrate_auto(
         auto = calibrate_auto_mode(
             Animator.load(folder), _validation_records(dataset), config, progress=progress
         )
-    elif any(getattr(recorded, key) != value for key, value in config.limits().items()):
-        auto = (
-            measure_swing_again(
-                Animator.load(folder),
-                _validation_records(dataset),
-                auto=recorded,
-                config=config,
-                progress=progress,
-            )
-            if swing_unmeasured(recorded, config)
-            else repick(recorded, config)
+    elif lacks_sample(recorded, manifest.sampler) or swing_unmeasured(recorded, config):
+        auto = measure_again(
+            Animator.load(folder),
+            _validation_records(dataset),
+            auto=recorded,
+            config=config,
+            new=("sample",) if lacks_sample(recorded, manifest.sampler) else (),
+            progress=progress,
         )
+    elif any(getattr(recorded, key) != value for key, value in config.limits().items()):
+        auto = repick(recorded, config)
     else:
         return recorded
     update_manifest(folder, auto=auto)

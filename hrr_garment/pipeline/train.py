@@ -108,7 +108,7 @@ def train_model(
                     for text in result.budgets[stage].warnings():
                         callback.on_warning(text)
             callback.on_stage_end(stage, report)
-            if stage == "codespace":
+            if stage in ("codespace", "sampler"):  # a new candidate of auto's: the sample mode
                 result.auto = calibrate_auto(folder, dataset, progress, config=settings.auto)
                 callback.on_stage_end("auto", result.auto)
             result.seconds[stage] = time.perf_counter() - t0

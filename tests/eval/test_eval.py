@@ -628,6 +628,9 @@ def test_sampler_trains_draws_by_seed_streams_the_same_and_is_evaluated(trained,
     assert entry["temperature"] in TEMPERATURES and entry["noise_decay"] in NOISE_DECAYS
     nearest = min(entry["sharpness"].values(), key=lambda r: abs(math.log(r)))
     assert entry["sharpness"][f"{entry['temperature']:g}"] == nearest
+    auto = meta["auto"]  # the draw is a candidate of auto's, measured into the recorded calibration
+    assert set(auto["candidates"]["sample"]) >= {"pve_mm", "sharpness", "hem_swing", "penetration_pct"}
+    assert "hybrid" in auto["candidates"] and auto["mode"] in ("hybrid", "residual", "detail", "sample")
     assert train_main([*base, "sampler"]) == 0  # a re-run finds it current
     assert len((model / "sampler" / "log.jsonl").read_text().splitlines()) == 3
 
