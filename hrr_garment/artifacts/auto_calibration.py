@@ -47,6 +47,7 @@ class AutoCalibration(Section):
     folds_free_cloth: bool | None = None
     default_body_sequences: int | None = None
     swing_half_life_s: float | None = None
+    sampler_key: str | None = None  # the generative decoder the sample mode's numbers are of (its key)
     NULLABLE = frozenset({"residual_free_mm", "folds_free_mm"})
 
     @classmethod
@@ -77,6 +78,7 @@ class AutoCalibration(Section):
             "swing_gain": number(data.get("swing_gain"), f"{where}.swing_gain", optional=True),
             "candidates": mapping(data.get("candidates"), f"{where}.candidates", optional=True),
             "criterion": text(data.get("criterion"), f"{where}.criterion", optional=True),
+            "sampler_key": text(data.get("sampler_key"), f"{where}.sampler_key", optional=True),
             **{
                 key: number(data.get(key), f"{where}.{key}", optional=True)
                 for key in ("allowance", "penetration_allowance", "penetration_floor_pct", "fold_follow")

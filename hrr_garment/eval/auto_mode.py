@@ -168,6 +168,7 @@ def calibrate_auto_mode(
             "folds_free_cloth": True,
             "default_body_sequences": sum(_on_default_body(bundle, records) or []),
             "swing_half_life_s": HALF_LIFE_S,
+            "sampler_key": _sampler_key(bundle),
             "candidates": candidates,
             "criterion": "the most plausible (hypot(ln sharpness, ln hem swing)) within the allowance x the "
             "most accurate PVE and the penetration allowance x its cloth inside the body",
@@ -190,14 +191,27 @@ def measure_again(
     """A recorded calibration picked again under ``config``, the candidates ``new`` (a mode the model
     gained since: the sample mode's draw) and the swing gains of its new first pick measured on the
     same validation clips where they were not (the other candidates' numbers stand)."""
-    # the recorded numbers as plain dicts (bundle.json's are read-only mappings, which JSON cannot write)
-    candidates = {label: dict(numbers) for label, numbers in (auto.candidates or {}).items()}
+    # the recorded numbers as plain dicts (bundle.json's are read-only mappings, which JSON cannot
+    # write), a new candidate's old ones (its swing gains too) left out
+    candidates = {
+        label: dict(numbers)
+        for label, numbers in (auto.candidates or {}).items()
+        if candidate_setting(label)[0] not in new
+    }
     measure = _measurer(animator, _evenly(records, max_sequences))
     for label in tqdm(new, desc="auto mode", unit="mode", disable=not progress):
         candidates[label] = measure(label)
     _measure_swing(candidates, measure, config, progress)
     # the new numbers as bundle.json will hold them (a non-finite one as null), as the recorded ones are
-    return repick(replace(auto, candidates=frozen(as_json(candidates))), config)
+    measured = replace(
+        auto, candidates=frozen(as_json(candidates)), sampler_key=_sampler_key(animator.bundle)
+    )
+    return repick(measured, config)
+
+
+def _sampler_key(bundle: Bundle) -> str | None:
+    """The key of the generative decoder whose sample mode a calibration measures (None: none)."""
+    return None if bundle.manifest.sampler is None else bundle.manifest.sampler.key
 
 
 def _evenly(records: list[SequenceRecord], max_sequences: int | None) -> list[SequenceRecord]:

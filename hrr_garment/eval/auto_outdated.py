@@ -66,8 +66,11 @@ def lacks_free_cloth(auto: AutoCalibration, residual: ResidualEntry | None) -> b
 
 def lacks_sample(auto: AutoCalibration, sampler) -> bool:
     """Whether a model with a generative decoder (bundle.json's ``sampler``) has a calibration
-    recorded without its sample mode among the candidates (trained after it: measured then)."""
-    return sampler is not None and "sample" not in (auto.candidates or {})
+    recorded without this decoder's sample mode among the candidates: trained after it, or trained
+    again since (its key another)."""
+    return sampler is not None and (
+        "sample" not in (auto.candidates or {}) or auto.sampler_key != sampler.key
+    )
 
 
 def swing_unmeasured(auto: AutoCalibration, config: AutoSettings) -> bool:

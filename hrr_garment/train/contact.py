@@ -72,11 +72,23 @@ class BodyContacts:
     def of(cls, ds: GarmentDataset, windows: WindowSet, against: str = "visible") -> "BodyContacts":
         """``against``: "visible", each body's skin where it has one (its capsules where not: the
         mannequin); "capsules", the capsules of every body."""
-        body_names = sorted({ds.body_name_of[n] for n in windows.names})
+        contacts = cls.of_sequences(ds, windows.names, against, min_frames=windows.motion.window)
+        frames = len(windows.motion.frames)
+        if len(contacts.body) != frames:
+            raise ValueError(f"the windows store {frames} frames, their sequences have {len(contacts.body)}")
+        return contacts
+
+    @classmethod
+    def of_sequences(
+        cls, ds: GarmentDataset, names: list[str], against: str = "visible", *, min_frames: int = 1
+    ) -> "BodyContacts":
+        """Of every frame of the sequences ``names`` in turn, those shorter than ``min_frames`` left
+        out (a window set stores none of their frames); ``against`` as :meth:`of`."""
+        body_names = sorted({ds.body_name_of[n] for n in names})
         a, b, rows, motions = [], [], [], []
-        for name in windows.names:
+        for name in names:
             motion, body = ds.sequence(name).motion, ds.bodies[ds.body_name_of[name]].body
-            if motion.num_frames < windows.motion.window:  # no window, so none of its frames stored
+            if motion.num_frames < min_frames:
                 continue
             ends = body.pose_motion(motion)
             if a and len(body.capsules) != a[0].shape[1]:
@@ -89,11 +101,6 @@ class BodyContacts:
             b.append(to_body_frame(ends[1], motion))
             rows.append(np.full(len(ends[0]), body_names.index(ds.body_name_of[name])))
             motions.append(motion)
-        frames = len(windows.motion.frames)
-        if sum(len(x) for x in a) != frames:
-            raise ValueError(
-                f"the windows store {frames} frames, their sequences have {sum(len(x) for x in a)}"
-            )
         radii = np.stack([ds.bodies[n].body.radii for n in body_names]).astype(np.float32)
         offsets = np.stack([ds.bodies[n].offset(ds.template) for n in body_names])
         skins = [

@@ -29,11 +29,13 @@ from ..models.codes import encode_motion
 from ..models.sampler import ClothSampler, SamplerSettings
 from ..motion.windows import causal_windows
 from ..settings import from_settings
-from .bundle_stage import add_trained_part, decoded_pve_mm, part_inputs, part_report
+from .bundle_stage import add_trained_part, decoded_pve_mm, part_inputs, part_key, part_report
 from .checkpoint import Checkpoint, EpochLog
+from .contact import BodyContacts, FrameDecoder
 from .loop import Budget, Epoch, EpochStep, ProgressBar, TrainingRun, fit
 from .report import StageReport
 from .sampler_calibration import calibrate_draws
+from .sampler_contact import teach_sampler_contact
 from .training_frames import body_frames
 
 SCALE_FLOOR = 1e-3  # the smallest spread a latent value's departures are scaled by
@@ -51,6 +53,17 @@ class SamplerTrainSettings:
     history_noise: float = 0.1  # Gaussian noise on the history's scaled departures in training
     max_minutes: float | None = None
     seed: int = 0
+    # the contact phase after the flow's training (.sampler_contact): Adam steps on the sampler with
+    # its draws' depth inside the body in the loss (0: none), that depth's weight (mm) beside the
+    # flow's loss, and how far outside the body it is counted from (metres: a clearance)
+    contact_steps: int = 300
+    contact_weight: float = 2.0
+    contact_margin_m: float = 0.002
+
+    def flow_settings(self) -> dict:
+        """The settings the flow's training depends on (the contact phase's apart: a phase changed
+        resumes from the trained flow, as the key of its checkpoint stays)."""
+        return {k: v for k, v in asdict(self).items() if not k.startswith("contact_")}
 
     @classmethod
     def from_dict(cls, values: dict) -> "SamplerTrainSettings":
@@ -217,8 +230,19 @@ def run_sampler_stage(
     )
     torch.manual_seed(train_config.seed)
     model = ClothSampler(config, bundle.codespace.features, int(np.prod(bundle.autoencoder.latent_shape)))
-    state = train_sampler(model, (train, val), folder / "sampler", train_config, inputs.key, progress)
+    flow_key = part_key(
+        bundle,
+        "sampler.safetensors",
+        [config.to_dict(), train_config.flow_settings() | {"max_minutes": None}],
+        splits=inputs.dataset.splits,
+    )
+    state = train_sampler(model, (train, val), folder / "sampler", train_config, flow_key, progress)
     model.eval()
+    contact = (
+        _teach_contact(model, inputs, (train, val), train_config, folder / "sampler" / "contact.pt", progress)
+        if train_config.contact_steps
+        else None
+    )
     truth = body_frames(inputs.dataset, names["val"])
     calibration = calibrate_draws(model, bundle, (val, truth), seed=train_config.seed, progress=progress)
     regression = [m.numpy() for m in val.sequences(val.mean)]
@@ -230,6 +254,33 @@ def run_sampler_stage(
         "best_epoch": state["best_epoch"],
         **calibration,
         "regression_validation_mm": decoded_pve_mm(bundle, regression, truth),
+        "contact": contact,
         "minutes": (time.perf_counter() - t0) / 60,
     }
     return add_trained_part(folder, "sampler", model, entry=entry)
+
+
+def _teach_contact(
+    model: ClothSampler, inputs, data: tuple, config: SamplerTrainSettings, path: Path, progress: bool
+) -> dict:
+    """The contact phase (:mod:`.sampler_contact`) on the stage's frames and their bodies, kept at
+    ``path``."""
+    bundle, ds = inputs.bundle, inputs.dataset
+    bodies = (
+        FrameDecoder(bundle.autoencoder, bundle.latent_stats),
+        *(BodyContacts.of_sequences(ds, inputs.names[k]) for k in ("train", "val")),
+    )
+
+    def condition(sampler, frames, rows, gen):
+        return sampler_batch(sampler, frames, rows, config.history_noise, gen)
+
+    return teach_sampler_contact(
+        model,
+        data,
+        bodies,
+        condition=condition,
+        config=config,
+        shape=tuple(bundle.autoencoder.latent_shape),
+        checkpoint=(path, inputs.key),
+        progress=progress,
+    )

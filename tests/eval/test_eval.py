@@ -615,13 +615,16 @@ def test_sampler_trains_draws_by_seed_streams_the_same_and_is_evaluated(trained,
     cfg = tmp_path / "cfg.yaml"
     cfg.write_text(
         (root / "cfg.yaml").read_text() + "sampler:\n  model: {hidden: 32, layers: 1, steps: 2}\n"
-        "  train: {epochs: 3, batch_size: 64}\n"
+        "  train: {epochs: 3, batch_size: 64, contact_steps: 4}\n"
     )
     base = ["--dataset", str(data), "--config", str(cfg), "-o", str(model), "--quiet", "--stage"]
     assert train_main([*base, "sampler"]) == 0
     meta = json.loads((model / "bundle.json").read_text())
     assert meta["sampler"]["epochs"] == 3 and "sampler.safetensors" in meta["files"]
     assert math.isfinite(meta["sampler"]["validation_mm"])
+    contact = meta["sampler"]["contact"]  # draws taught the body (here the mannequin's capsules)
+    assert contact["steps"] == 4 and contact["against"] == {"capsules": ["mannequin"]}
+    assert 0.0 <= contact["val_inside_after"] <= 1.0 and math.isfinite(contact["mean_depth_mm"])
     from hrr_garment.train.sampler_calibration import NOISE_DECAYS, TEMPERATURES
 
     entry = meta["sampler"]  # the draw calibrated on the validation clips: as sharp as the simulation
