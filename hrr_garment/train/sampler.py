@@ -59,6 +59,9 @@ class SamplerTrainSettings:
     contact_steps: int = 300
     contact_weight: float = 2.0
     contact_margin_m: float = 0.002
+    # the weight of the draws' mean squared distance to the trained flow's draws (scaled departures):
+    # what keeps the draw where it was away from the body (sampler_contact.py)
+    contact_anchor: float = 1.0
 
     def flow_settings(self) -> dict:
         """The settings the flow's training depends on (the contact phase's apart: a phase changed
