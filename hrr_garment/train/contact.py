@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import json
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -185,6 +185,39 @@ class FrameDecoder:
         return contacts.distance(vertices, rows, reach_m)
 
 
+def evenly_spaced(count: int, most: int) -> torch.Tensor:
+    """Up to ``most`` of the rows 0 .. ``count`` - 1, evenly spaced (what a phase's report measures)."""
+    return torch.from_numpy(np.unique(np.linspace(0, count - 1, min(most, count)).astype(np.int64)))
+
+
+def share_inside(distances: Iterable[torch.Tensor]) -> float:
+    """The share of all the signed distances in ``distances`` more than 5 mm inside the body."""
+    inside, total = 0.0, 0
+    for d in distances:
+        inside += float((d < -PENETRATION_DEPTH_M).sum())
+        total += d.numel()
+    return inside / total
+
+
+def load_phase(path: Path, key: str, model: torch.nn.Module) -> dict | None:
+    """A contact phase's result kept at ``path`` under ``key``: its weights loaded into ``model`` and
+    its summary; None where there is none under that key."""
+    if not path.is_file():
+        return None
+    saved = torch.load(path, map_location="cpu", weights_only=True)
+    if saved.get("key") != key:
+        return None
+    model.load_state_dict(saved["weights"])
+    return json.loads(saved["summary"])
+
+
+def save_phase(path: Path, key: str, model: torch.nn.Module, *, summary: dict) -> None:
+    """Keep a contact phase's result (``model``'s weights and ``summary``) at ``path`` under ``key``."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with atomic_path(path) as tmp:
+        torch.save({"key": key, "weights": model.state_dict(), "summary": strict_json(summary)}, tmp)
+
+
 @torch.no_grad()
 def inside_fraction(
     model: CodeSpace, decoder: FrameDecoder, data: ContactWindows, count: int = REPORT_WINDOWS
@@ -195,18 +228,15 @@ def inside_fraction(
     windows = data.windows
     if not len(windows):
         return float("nan")
-    picked = torch.from_numpy(
-        np.unique(np.linspace(0, len(windows) - 1, min(count, len(windows))).astype(np.int64))
-    )
-    inside, total, middle = 0.0, 0, windows.window // 2
-    for chunk in picked.split(BATCH):
+    middle = windows.window // 2
+
+    def distances(chunk: torch.Tensor) -> torch.Tensor:
         motion, _ = windows[chunk]
-        d = decoder.distance(
+        return decoder.distance(
             _regression(model, motion)[:, middle], data.contacts, windows.first[chunk] + middle
         )
-        inside += float((d < -PENETRATION_DEPTH_M).sum())
-        total += d.numel()
-    return inside / total
+
+    return share_inside(distances(chunk) for chunk in evenly_spaced(len(windows), count).split(BATCH))
 
 
 def teach_contact(
@@ -225,11 +255,8 @@ def teach_contact(
     before and after. The result is kept at ``checkpoint`` (path, key): a re-run with the same key
     loads it instead."""
     path, key = checkpoint
-    if path.is_file():
-        saved = torch.load(path, map_location="cpu", weights_only=True)
-        if saved.get("key") == key:
-            model.load_state_dict(saved["weights"])
-            return json.loads(saved["summary"])
+    if (kept := load_phase(path, key, model)) is not None:
+        return kept
     decoder.autoencoder.requires_grad_(False)  # frozen: its weights' gradients would be computed for nothing
     model.eval()  # the decoder as inference runs it
     before = inside_fraction(model, decoder, val) if val is not None else float("nan")
@@ -265,8 +292,7 @@ def teach_contact(
         "val_inside_after": after,
         "minutes": (time.perf_counter() - started) / 60,
     }
-    with atomic_path(path) as tmp:
-        torch.save({"key": key, "weights": model.state_dict(), "summary": strict_json(summary)}, tmp)
+    save_phase(path, key, model, summary=summary)
     return summary
 
 

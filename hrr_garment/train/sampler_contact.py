@@ -24,19 +24,15 @@ where it has one, :class:`~.contact.BodyContacts`).
 from __future__ import annotations
 
 import copy
-import json
 import time
 from collections.abc import Callable
 from pathlib import Path
 
-import numpy as np
 import torch
 from tqdm.auto import tqdm
 
-from ..io_utils import atomic_path, strict_json
 from ..models.sampler import ClothSampler
-from ..sim.quality import PENETRATION_DEPTH_M
-from .contact import BodyContacts, FrameDecoder
+from .contact import BodyContacts, FrameDecoder, evenly_spaced, load_phase, save_phase, share_inside
 from .sampler_calibration import TEMPERATURES
 
 LEARNING_RATE = 1e-4  # a third of training's rate: the phase adjusts a trained flow
@@ -64,22 +60,19 @@ def draw_inside_fraction(
     """The fraction of vertices more than 5 mm inside the body in seeded draws (temperature
     :data:`REPORT_TEMPERATURE`) of up to :data:`REPORT_FRAMES` of ``frames``, evenly spaced."""
     decoder, contacts = bodies
-    count = len(frames.mean)
-    if not count:
+    if not len(frames.mean):
         return float("nan")
-    picked = torch.from_numpy(
-        np.unique(np.linspace(0, count - 1, min(REPORT_FRAMES, count)).astype(np.int64))
-    )
     gen = torch.Generator().manual_seed(7919)
-    inside, total = 0.0, 0
-    for rows in picked.split(BATCH):
+
+    def distances(rows: torch.Tensor) -> torch.Tensor:
         context, target = condition(model, frames, rows, gen)
         noise = REPORT_TEMPERATURE * torch.randn(target.shape, generator=gen)
         latents = drawn_latents(model, frames, context, noise, rows)
-        d = decoder.distance(latents.reshape(len(rows), *shape), contacts, rows)
-        inside += float((d < -PENETRATION_DEPTH_M).sum())
-        total += d.numel()
-    return inside / total
+        return decoder.distance(latents.reshape(len(rows), *shape), contacts, rows)
+
+    return share_inside(
+        distances(rows) for rows in evenly_spaced(len(frames.mean), REPORT_FRAMES).split(BATCH)
+    )
 
 
 def teach_sampler_contact(
@@ -100,11 +93,8 @@ def teach_sampler_contact(
     inside the body before and after. ``shape``: the latents' (nodes, C). Kept at ``checkpoint``
     (path, key): a re-run with the same key loads it instead."""
     path, key = checkpoint
-    if path.is_file():
-        saved = torch.load(path, map_location="cpu", weights_only=True)
-        if saved.get("key") == key:
-            model.load_state_dict(saved["weights"])
-            return json.loads(saved["summary"])
+    if (kept := load_phase(path, key, model)) is not None:
+        return kept
     (train, val), (decoder, train_bodies, val_bodies) = data, bodies
     decoder.autoencoder.requires_grad_(False)  # frozen: its gradients would be computed for nothing
     model.eval()
@@ -154,7 +144,5 @@ def teach_sampler_contact(
         "val_inside_after": draw_inside_fraction(model, val, (decoder, val_bodies), condition, shape),
         "minutes": (time.perf_counter() - started) / 60,
     }
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with atomic_path(path) as tmp:
-        torch.save({"key": key, "weights": model.state_dict(), "summary": strict_json(summary)}, tmp)
+    save_phase(path, key, model, summary=summary)
     return summary

@@ -1,0 +1,105 @@
+"""The torch step's first stages (:mod:`.torch_step`): a frame's poses through forward kinematics on
+the body's skeleton (:class:`PoseStage`), and its features against each character's last pose with
+the motion memory carried one frame on and the body's measures (:class:`FeatureStage`), as
+:meth:`~hrr_garment.inference.stream.CrowdStream._step_frame` makes them."""
+
+from __future__ import annotations
+
+import numpy as np
+import torch
+from torch import nn
+
+from ..motion.features import SLICE_T, SLICE_V, SLICE_W
+from ..motion.memory import MEMORY_WIDTH, VECTORS, MotionMemory
+from ..motion.rotations import matrix_to_axis_angle, quat_to_matrix, rotation_about_y, yaw_of
+from ..motion.skeleton import FEATURE_JOINTS, REST_PELVIS_HEIGHT, forward_kinematics
+from .torch_ops import constant, turn_y
+
+
+class PoseStage(nn.Module):
+    """Local quaternions (N, 22, 4), x y z w, and pelvis positions (N, 3) -> global rotations
+    (N, 22, 3, 3) and joint positions (N, 22, 3) on the body's skeleton."""
+
+    def __init__(self, offsets: np.ndarray, parents: tuple[int, ...], pelvis_height: float):
+        super().__init__()
+        constant(self, "offsets", offsets)
+        self.parents, self.root_scale = tuple(parents), float(pelvis_height) / REST_PELVIS_HEIGHT
+
+    def forward(self, rotations: torch.Tensor, root: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        local = quat_to_matrix(rotations[..., [3, 0, 1, 2]])
+        return forward_kinematics(local, root * self.root_scale, self.offsets, parents=self.parents)
+
+
+class FeatureStage(nn.Module):
+    """A frame's features (N, F) against each character's last pose, its motion memory carried one
+    frame on, and the body's measures: what :meth:`CrowdStream._step_frame` appends to a window."""
+
+    def __init__(self, memory: MotionMemory | None, fps: float, body_vector: np.ndarray | None):
+        super().__init__()
+        self.fps, self.joints = float(fps), list(FEATURE_JOINTS)
+        self.averages = 0 if memory is None else len(memory.spec.seconds)
+        self.rows = 0 if memory is None else memory.spec.rows
+        if memory is not None:
+            constant(self, "decay", memory.decay)  # (k, 1)
+            constant(self, "resonator_a", memory.resonator_a)  # (r, 2, 2)
+            constant(self, "resonator_b", memory.resonator_b)  # (r, 2)
+            constant(self, "omega", memory.omega)  # (r,)
+        self.has_body = body_vector is not None
+        if self.has_body:
+            constant(self, "body_vector", body_vector)
+
+    def pair(
+        self, previous: tuple[torch.Tensor, torch.Tensor], current: tuple[torch.Tensor, torch.Tensor]
+    ) -> torch.Tensor:
+        """(N, 124) features of the current frame given the previous one (global rotations, positions)."""
+        (rot0, pos0), (rot1, pos1) = previous, current
+        n = rot1.shape[0]
+        yaw0, yaw1 = yaw_of(rot0[:, 0]), yaw_of(rot1[:, 0])
+        c, s = torch.cos(yaw1), torch.sin(yaw1)
+        heading_t = rotation_about_y(yaw1).transpose(-1, -2)  # world -> body frame
+        r = matrix_to_axis_angle(heading_t[:, None] @ rot1[:, self.joints]).reshape(n, -1)
+        v = turn_y((pos1[:, self.joints] - pos0[:, self.joints]) * self.fps, c, -s).reshape(n, -1)
+        t = turn_y((pos1[:, 0] - pos0[:, 0]) * self.fps, c, -s)
+        step = yaw1 - yaw0
+        w = torch.atan2(torch.sin(step), torch.cos(step))[:, None] * self.fps
+        return torch.cat([r, v, t, w], 1)
+
+    def memory(self, state: torch.Tensor, features: torch.Tensor, started: torch.Tensor) -> torch.Tensor:
+        """The memory state (N, rows, 64) one frame on (at its start where ``started`` is 0)."""
+        n = features.shape[0]
+        u = torch.cat([features[:, SLICE_V], features[:, SLICE_T], features[:, SLICE_W]], 1)[
+            :, None
+        ]  # (N, 1, 64)
+        # at a start (MotionMemory.start): every average at the first velocities, every bob at rest
+        # (x 0, q the first velocities)
+        bob = torch.stack([torch.zeros_like(u[:, 0]), u[:, 0]], 1)  # (N, 2, 64)
+        fresh = torch.cat(
+            [u.expand(n, self.averages, MEMORY_WIDTH), bob.repeat(1, (self.rows - self.averages) // 2, 1)], 1
+        )
+        # the last body frame's vectors seen from this one: turned by minus this frame's yaw step
+        angle = -features[:, SLICE_W][:, 0] / self.fps
+        turned = turn_y(state[..., :-1].reshape(n, self.rows, VECTORS, 3), torch.cos(angle), torch.sin(angle))
+        carried = torch.cat([turned.reshape(n, self.rows, -1), state[..., -1:]], -1)
+        averages = self.decay * carried[:, : self.averages] + (1.0 - self.decay) * u
+        bobs = carried[:, self.averages :].reshape(n, -1, 2, MEMORY_WIDTH)
+        bobs = self.resonator_a @ bobs + self.resonator_b[..., None] * u[:, None]
+        stepped = torch.cat([averages, bobs.reshape(n, -1, MEMORY_WIDTH)], 1)
+        return torch.where(started.reshape(-1, 1, 1) > 0, stepped, fresh)
+
+    def memory_values(self, state: torch.Tensor) -> torch.Tensor:
+        """(N, rows x 64): the averages, each resonator's w x and q (:meth:`MotionMemory.values`)."""
+        n = state.shape[0]
+        bobs = state[:, self.averages :].reshape(n, -1, 2, MEMORY_WIDTH)
+        scaled = torch.stack([bobs[:, :, 0] * self.omega[None, :, None], bobs[:, :, 1]], 2)
+        return torch.cat([state[:, : self.averages], scaled.reshape(n, -1, MEMORY_WIDTH)], 1).reshape(n, -1)
+
+    def forward(self, previous, current, memory: torch.Tensor, started: torch.Tensor):
+        """-> the frame's full features (N, F) and the next memory state."""
+        features = self.pair(previous, current)
+        parts = [features]
+        if self.rows:
+            memory = self.memory(memory, features, started)
+            parts.append(self.memory_values(memory))
+        if self.has_body:
+            parts.append(self.body_vector.expand(features.shape[0], -1))
+        return torch.cat(parts, 1), memory
