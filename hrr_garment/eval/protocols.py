@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..body.mannequin import MANNEQUIN
 from ..errors import InputError
 from ..inference.run_settings import DetailLook, RunSettings
 from .evaluate import EvaluationSettings, evaluate_modes, evaluate_vertices, tau_sweep
@@ -89,6 +90,17 @@ class LibraryPlays:
     sweep: bool = True
 
 
+def own_body(ds):
+    """The one body a dataset's sequences were all simulated on, where it is not the mannequin (a
+    character's, an anny body's): the body a simulated protocol's truths stand on, so that the model
+    is judged on its own body (None: the mannequin, as for a dataset across bodies, whose default
+    body it is)."""
+    names = {ds.body_name_of[n] for n in ds.names}
+    if len(names) != 1 or MANNEQUIN in names:
+        return None
+    return ds.bodies[names.pop()]
+
+
 def simulated_section(
     animator, ds, truth: SimulatedTruth, settings: EvaluationSettings
 ) -> tuple[dict, list, dict]:
@@ -99,19 +111,23 @@ def simulated_section(
     from ..sim.simulator import SimSettings
 
     config = SimSettings.from_dict(ds.info.get("sim", {}))
+    body = own_body(ds)
+    specs = truth.specs if body is None else [replace(s, body_name=body.name) for s in truth.specs]
     print(
-        f"simulating ground truth for {len(truth.specs)} sequence(s) (cached in "
+        f"simulating ground truth for {len(specs)} sequence(s) on "
+        f"{'the mannequin' if body is None else f'the body {body.name!r}'} (cached in "
         f"{truth.path.with_suffix('.parts')})"
     )
     report = build_dataset(
         ds.template,
-        truth.specs,
+        specs,
         config,
         out=truth.path,
         options=BuildSettings(
             splits={"val": 0.0, "test": 0.0},
             info={"purpose": truth.purpose, "source_dataset": str(ds.path)},
             progress=settings.progress,
+            bodies=None if body is None else {body.name: body},
         ),
     )
     data = GarmentDataset(report.path)

@@ -376,3 +376,19 @@ def test_the_auto_calibration_measures_the_default_bodys_clips_apart(bodies_mode
             assert mixed.candidates[label][DEFAULT_BODY_PVE] == pytest.approx(c["pve_mm"])
     assert all(DEFAULT_BODY_PVE in c for c in mixed.candidates.values())
     assert mixed.candidates["hybrid"]["pve_mm"] != pytest.approx(alone.candidates["hybrid"]["pve_mm"])
+
+
+def test_simulated_protocols_stand_their_truths_on_the_datasets_own_body(bodies_model, trained, tmp_path):
+    """A dataset of one body other than the mannequin (a character's, an anny body's) has hrr-eval's
+    simulated truths (--motions, the library protocol) on that body, as its model was trained; one
+    across bodies, or of the mannequin, on the mannequin."""
+    from hrr_garment.data.dataset import GarmentDataset
+    from hrr_garment.data.synthetic import write_synthetic_dataset
+    from hrr_garment.eval.protocols import own_body
+
+    garment = make_garment("skirt", 300)
+    one = write_synthetic_dataset(tmp_path / "one.h5", garment, bodies=[_dressed(garment, "tall", 1.1, 1.1)])
+    body = own_body(GarmentDataset(one))
+    assert body is not None and body.name == "tall" and body.record.stature == pytest.approx(1.87)
+    assert own_body(GarmentDataset(bodies_model[1])) is None  # tall and short: the mannequin, their default
+    assert own_body(GarmentDataset(trained[1])) is None
