@@ -34,7 +34,7 @@ from ..inference.modes import Mode
 from ..inference.run_settings import DECODERS, PUSHES, RunSettings
 from ..inference.torch_step import SAMPLE_STATE, STATE, noise_shape, state_shapes, stream_step
 from ..io_utils import atomic_path, refuse_inputs_as_outputs, require_suffix, strict_json
-from ..models.sampler import white_noise
+from ..models.sampler import characters_noise
 from ..motion.motion import FPS, Motion
 from ..motion.poses import motion_to_poses
 from ..motion.skeleton import JOINT_NAMES, NUM_JOINTS
@@ -116,7 +116,7 @@ def export_onnx(animator, path: str | Path, settings: RunSettings | None = None,
     t0 = time.perf_counter()
     # refuses a fast decoder or a subspace push without the bundle's fast decoder, before the export's minute
     asked = changes.get("mode", None if settings is None else settings.mode)
-    mode = Mode.SAMPLE if asked in (Mode.SAMPLE, Mode.SAMPLE.value) else Mode.REGRESSION
+    mode = Mode.SAMPLE if asked == Mode.SAMPLE else Mode.REGRESSION  # a str enum: the name too
     run = animator.resolve(settings, **{**changes, "mode": mode, "causal": True})
     step = stream_step(FramePath(animator, run))
     shapes, noise = state_shapes(step), noise_shape(step)
@@ -264,11 +264,7 @@ class OnnxStream:
             if len(seeds) != characters:
                 raise ValueError(f"{len(seeds)} seeds for {characters} characters")
             self.generators = [torch.Generator().manual_seed(int(seed)) for seed in seeds]
-        first = self.state["started"] <= 0
-        size = self.noise[1]
-        return torch.stack(
-            [white_noise(g, size, first=bool(f)) for g, f in zip(self.generators, first)]
-        ).numpy()
+        return characters_noise(self.generators, self.noise[1], list(self.state["started"] <= 0)).numpy()
 
 
 def check_onnx(

@@ -12,7 +12,7 @@ from ..errors import InputError
 from ..models.sampler import SampleTrack
 from .fold_track import FoldTrack, FollowedFolds
 from .lod import LodState
-from .run_settings import MAX_SEED
+from .run_settings import MAX_SEED, whole_number
 
 # a push's time by groups of the frame path's stages (frame_path.STAGES): features (1-2), encoder
 # (3-5: the window step, blending, swing), decoder (6-7), world (8), push_out (9)
@@ -42,11 +42,7 @@ class CrowdCharacter:
 def character_seed(seed) -> int:
     """``seed``, a character's own seed for the sample mode's draw, as an int; a ValueError naming the
     range unless it is a whole number in [0, MAX_SEED], as the run's seed is."""
-    if isinstance(seed, np.integer):
-        seed = int(seed)
-    if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed <= MAX_SEED:
-        raise ValueError(f"a seed is a whole number in [0, {MAX_SEED}], got {seed!r}")
-    return seed
+    return whole_number(seed, "seed", bounds=(0, MAX_SEED))
 
 
 def check_keys(keys: list, count: int) -> None:

@@ -203,15 +203,11 @@ class RunSettings:
             raise ValueError(f"precision must be one of {', '.join(PRECISIONS)}, got {self.precision!r}")
         if self.device is not None and not isinstance(self.device, str):
             raise TypeError(f"device must be a name such as 'native' or 'cuda', got {self.device!r}")
-        for name, (least, most) in (("seed", (0, MAX_SEED)), ("sample_steps", (1, 64))):
-            value = getattr(self, name)
-            if value is None and name == "sample_steps":
-                continue
-            if isinstance(value, np.integer):
-                value = int(value)
-            if isinstance(value, bool) or not isinstance(value, int) or not least <= value <= most:
-                raise ValueError(f"{name} must be a whole number in [{least}, {most}], got {value!r}")
-            object.__setattr__(self, name, value)
+        object.__setattr__(self, "seed", whole_number(self.seed, "seed", bounds=(0, MAX_SEED)))
+        if self.sample_steps is not None:
+            object.__setattr__(
+                self, "sample_steps", whole_number(self.sample_steps, "sample_steps", bounds=(1, 64))
+            )
         if self.sample_steps is not None and self.mode not in (Mode.SAMPLE, Mode.AUTO):
             raise ValueError(f"sample_steps sets the sample mode's draw; mode {self.mode.value} draws none")
         for name in ("push_out", "causal", "allow_outside"):
@@ -307,6 +303,17 @@ class RunSettings:
             seed=self.seed,
             sample_steps=(self.sample_steps or bundle.sampler.config.steps) if mode is Mode.SAMPLE else None,
         )
+
+
+def whole_number(value: object, name: str, *, bounds: tuple[int, int]) -> int:
+    """``value`` as an int (a numpy integer too); a ValueError naming ``name`` and the range unless
+    it is a whole number in ``bounds`` (both included; a bool is not)."""
+    least, most = bounds
+    if isinstance(value, np.integer):
+        value = int(value)
+    if isinstance(value, bool) or not isinstance(value, int) or not least <= value <= most:
+        raise ValueError(f"{name} must be a whole number in [{least}, {most}], got {value!r}")
+    return value
 
 
 def database_sequence(bundle: Bundle, index: object) -> int | None:

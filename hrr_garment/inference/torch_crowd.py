@@ -24,7 +24,7 @@ import numpy as np
 import torch
 
 from ..errors import InputError
-from ..models.sampler import white_noise
+from ..models.sampler import characters_noise
 from ..motion.skeleton import NUM_JOINTS
 from .crowd_state import character_seed, check_keys
 from .frame_path import FramePath
@@ -87,16 +87,17 @@ class DeviceCrowd:
             raise ValueError(f"character {key!r} has joined: leave it first to draw it afresh from a seed")
         self._seeds[key] = character_seed(seed)
 
-    def _white_noise(self, keys: list, rows: torch.Tensor) -> torch.Tensor:
+    def _white_noise(self, keys: list) -> torch.Tensor:
         """(N, 2, L) each character's white noise this frame, from its seeded generator (on the CPU,
-        in the order the native crowd draws it; the second vector at a first frame only)."""
-        size = self.step.sample.size
-        first = (self._state["started"][rows] <= 0).cpu().tolist()
-        for key in keys:
-            if key not in self._generators:
+        in the order the native crowd draws it). A character without a generator yet is at its first
+        frame (a new or a returning one: :meth:`leave` drops it), so the device's ``started`` need
+        not be read back."""
+        first = [key not in self._generators for key in keys]
+        for key, new in zip(keys, first):
+            if new:
                 self._generators[key] = torch.Generator().manual_seed(self._seeds.get(key, self.run.seed))
-        noise = [white_noise(self._generators[k], size, first=f) for k, f in zip(keys, first)]
-        return torch.stack(noise).to(self.device)
+        generators = [self._generators[key] for key in keys]
+        return characters_noise(generators, self.step.sample.size, first).to(self.device)
 
     def _slots_of(self, keys: list) -> torch.Tensor:
         """Each key's row of the state (new keys get a free row, zeroed: ``started`` 0)."""
@@ -147,7 +148,7 @@ class DeviceCrowd:
         state = [self._state[name][rows] for name in STATE]
         drawing = []
         if self.step.sample is not None:
-            drawing = [self._white_noise(keys, rows), *(self._state[name][rows] for name in SAMPLE_STATE)]
+            drawing = [self._white_noise(keys), *(self._state[name][rows] for name in SAMPLE_STATE)]
         out = self.step(rotations.to(self.device), roots.to(self.device), *state, *drawing)
         for name, value in zip(self._shapes, out[3:]):
             self._state[name][rows] = value

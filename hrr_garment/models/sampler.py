@@ -220,6 +220,12 @@ def white_noise(generator: torch.Generator, size: int, *, first: bool) -> torch.
     return torch.stack([fresh, second])
 
 
+def characters_noise(generators: list[torch.Generator], size: int, first: list[bool]) -> torch.Tensor:
+    """(N, 2, size): each character's :func:`white_noise` this frame from its own generator, ``first``
+    where the frame is its first: what a graph or a device crowd is fed."""
+    return torch.stack([white_noise(g, size, first=bool(f)) for g, f in zip(generators, first)])
+
+
 def start_noise(decay, fresh: torch.Tensor, second: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
     """The two filters of pole ``decay`` at a character's first frame, stationary: (drive, noise)."""
     return fresh, (fresh + decay * second) / (1 + decay * decay) ** 0.5

@@ -44,9 +44,7 @@ REPORT_TEMPERATURE = 0.7  # the temperature of the report's draws
 Condition = Callable[[ClothSampler, object, torch.Tensor, torch.Generator], tuple[torch.Tensor, torch.Tensor]]
 
 
-def drawn_latents(
-    model: ClothSampler, frames, context: torch.Tensor, noise: torch.Tensor, rows
-) -> torch.Tensor:
+def drawn_rows(model: ClothSampler, frames, context: torch.Tensor, noise: torch.Tensor, rows) -> torch.Tensor:
     """The standardised latents (n, L) of frames ``rows`` drawn from ``noise`` (scaled already by a
     temperature) in the model's Euler steps: differentiable, as the phase needs."""
     scaled = model.draw(context, noise, model.config.steps)
@@ -67,7 +65,7 @@ def draw_inside_fraction(
     def distances(rows: torch.Tensor) -> torch.Tensor:
         context, target = condition(model, frames, rows, gen)
         noise = REPORT_TEMPERATURE * torch.randn(target.shape, generator=gen)
-        latents = drawn_latents(model, frames, context, noise, rows)
+        latents = drawn_rows(model, frames, context, noise, rows)
         return decoder.distance(latents.reshape(len(rows), *shape), contacts, rows)
 
     return share_inside(
@@ -113,10 +111,10 @@ def teach_sampler_contact(
         )
         temperature = low + (high - low) * torch.rand(len(rows), 1, generator=gen)
         noise = temperature * torch.randn(target.shape, generator=gen)
-        latents = drawn_latents(model, train, context, noise, rows)
+        latents = drawn_rows(model, train, context, noise, rows)
         with torch.no_grad():
             anchored = condition(trained, train, rows, torch.Generator().set_state(state))[0]
-            anchor = drawn_latents(trained, train, anchored, noise, rows)
+            anchor = drawn_rows(trained, train, anchored, noise, rows)
         gap = ((latents - anchor) / model.residual_scale).square().mean()
         distance = decoder.distance(
             latents.reshape(len(rows), *shape), train_bodies, rows, reach_m=config.contact_margin_m
