@@ -49,10 +49,12 @@ query is numpy (the reference); ``hrr_garment.native.skin`` is its C kernel.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
-from .mesh_distance import closest_on_triangles, vertex_normals
+from .mesh_distance import closest_on_triangles
+from .pseudo_normals import PseudoNormals, edge_neighbours, pseudo_normals
 from .skinned_body import SkinnedBody
 
 TOP_JOINTS = 4  # skin weights kept per node: the four largest (99 % of the weight on anny's skin)
@@ -129,25 +131,17 @@ class SkinCollider:
         rot, trans = self.body.joint_transforms(global_rotations[None], joint_positions[None])
         rot, trans = rot[0], trans[0]
         posed = self.body.pose(global_rotations[None], joint_positions[None])[0]
-        answers, deepest, under = [], np.zeros(len(points)), np.zeros(len(points))
+        normals = pseudo_normals(posed, self.body.faces)
+        answers, own_deep, under = [], np.zeros(len(points)), np.zeros(len(points))
         for rest, depth, below in self.rest_points(points, rot, trans):
-            answers.append(self._nearest_face(points, self._listed(self._node(rest)), posed))
-            deepest, under = np.maximum(deepest, depth), np.maximum(under, below)
+            d, n = self._nearest_face(points, self._listed(self._node(rest)), posed, normals)
+            answers.append((d, n))
+            own_deep = np.maximum(own_deep, np.where(d < 0.0, depth, 0.0))
+            under = np.maximum(under, below)
         best = np.argmin(np.stack([np.abs(d) for d, _ in answers]), 0)[None, :, None]
         distance = np.take_along_axis(np.stack([d for d, _ in answers])[..., None], best, 0)[0, :, 0]
         normal = np.take_along_axis(np.stack([n for _, n in answers]), best, 0)[0]
-        # where the posed mesh overlaps itself (a thigh pressed into the other, an arm into the chest)
-        # the nearest face can be one buried in the other part, facing away: a point that skinning
-        # carries from deep inside the rest mesh is inside, whatever that face says, so long as that
-        # face is no farther than the depth (skinning carries some rest points inside the chest off
-        # with the arm, far from any skin: those are not inside). The face's normal says inside
-        # within ``face_side_m`` of it, or of the depth of a start's rest point
-        deep = self.settings.deep_m
-        side = self.settings.face_side_m
-        near_face = (distance >= -side) | ((under > deep) & (distance >= -(under + side)))
-        inside = ((distance < 0.0) & near_face) | ((deepest > deep) & (np.abs(distance) <= deepest + deep))
-        flip = inside != (distance < 0.0)
-        return np.where(flip, -distance, distance), np.where(flip[:, None], -normal, normal)
+        return side_rules(distance, normal, own_deep, under, self.settings)
 
     def rest_points(
         self, points: np.ndarray, rot: np.ndarray, trans: np.ndarray
@@ -207,10 +201,11 @@ class SkinCollider:
         return out, distance
 
     def _nearest_face(
-        self, points: np.ndarray, candidates: np.ndarray, posed: np.ndarray
+        self, points: np.ndarray, candidates: np.ndarray, posed: np.ndarray, normals: PseudoNormals
     ) -> tuple[np.ndarray, np.ndarray]:
         """The signed distance and outward normal of each point (N, 3) to the nearest of its
-        candidate faces (N, k) of the ``posed`` mesh."""
+        candidate faces (N, k) of the ``posed`` mesh, the side by the pseudonormal of the nearest
+        point's face, edge or vertex (``normals``, :mod:`.pseudo_normals`)."""
         n, k = candidates.shape
         tri = posed[self.body.faces[candidates.ravel()]]  # (N k, 3, 3)
         rep = np.repeat(points, k, axis=0)
@@ -220,14 +215,36 @@ class SkinCollider:
         best = length.argmin(1)
         rows = np.arange(n)
         pick = rows * k + best
-        corners = self.body.faces[candidates[rows, best]]
-        outward = np.einsum("nk,nkc->nc", bary[pick], vertex_normals(posed, self.body.faces)[corners])
+        outward = normals.at(self.body.faces, candidates[rows, best], bary[pick], self.neighbours)
         inside = (gap[pick] * outward).sum(1) < 0.0
         distance = np.where(inside, -length[rows, best], length[rows, best])
         clear = length[rows, best] > 1e-9
         normal = np.where(clear[:, None], gap[pick] / np.maximum(length[rows, best], 1e-12)[:, None], outward)
         normal = np.where(inside[:, None] & clear[:, None], -normal, normal)
         return distance, normal / np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-12)
+
+    @cached_property
+    def neighbours(self) -> np.ndarray:
+        """(F, 3) the face across each face's edges (:func:`~.pseudo_normals.edge_neighbours`)."""
+        return edge_neighbours(self.body.faces)
+
+
+def side_rules(
+    distance: np.ndarray, normal: np.ndarray, own_deep: np.ndarray, under: np.ndarray, settings
+) -> tuple[np.ndarray, np.ndarray]:
+    """The nearest face's signed ``distance`` and ``normal`` with the side settled by the depth rules:
+    where the posed mesh overlaps itself (a thigh pressed into the other, an arm into the chest) the
+    nearest face can be one buried in the other part, facing away, so a point is also inside where
+    a start settled deep inside the rest mesh (``own_deep``: the deepest such start whose own nearest
+    face also puts the point inside) and the nearest face is no farther than that depth (skinning
+    carries some rest points inside the chest off with the arm, far from any skin: their own faces
+    put them outside). The face's normal says inside within ``face_side_m`` of it, or of the depth
+    ``under`` of a start's last rest point, settled or not."""
+    deep, side = settings.deep_m, settings.face_side_m
+    near_face = (distance >= -side) | ((under > deep) & (distance >= -(under + side)))
+    inside = ((distance < 0.0) & near_face) | ((own_deep > deep) & (np.abs(distance) <= own_deep + deep))
+    flip = inside != (distance < 0.0)
+    return np.where(flip, -distance, distance), np.where(flip[..., None], -normal, normal)
 
 
 def skin_collider(body: SkinnedBody, settings: SkinColliderSettings | None = None) -> SkinCollider:
@@ -245,9 +262,11 @@ def skin_collider(body: SkinnedBody, settings: SkinColliderSettings | None = Non
     nodes = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, 3)
     reach = settings.voxel_m * np.sqrt(3.0) + settings.slack_m
     listed, bary = _faces_within(nodes, body, reach, settings.max_faces)
-    corners = body.faces[[f[0] for f in listed]]
+    first = np.array([f[0] for f in listed], np.int64)
+    corners = body.faces[first]
     closest = np.einsum("nk,nkc->nc", bary, body.vertices[corners])
-    outward = np.einsum("nk,nkc->nc", bary, vertex_normals(body.vertices, body.faces)[corners])
+    normals = pseudo_normals(body.vertices, body.faces)
+    outward = normals.at(body.faces, first, bary, edge_neighbours(body.faces))
     length = np.linalg.norm(nodes - closest, axis=1)
     signed = np.where(((nodes - closest) * outward).sum(1) < 0.0, -length, length)
     skin = np.einsum("nk,nkj->nj", bary, body.weights[corners])  # (nodes, J)

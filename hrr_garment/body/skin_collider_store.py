@@ -24,7 +24,7 @@ from ..paths import workspace
 from .skin_collider import SkinCollider, SkinColliderSettings, skin_collider
 from .skinned_body import SkinnedBody
 
-STORE_FORMAT = 1  # raise when SkinCollider's arrays or their meaning change
+STORE_FORMAT = 2  # raise when SkinCollider's arrays or their meaning change
 ARRAYS = ("origin", "shape", "distance", "joints", "weights", "face_start", "face_list")
 
 

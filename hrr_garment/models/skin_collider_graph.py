@@ -43,7 +43,7 @@ import numpy as np
 import torch
 from torch import nn
 
-from .torch_mesh import closest_on_triangles, cross, dot, vertex_normals
+from .torch_mesh import closest_on_triangles, cross, dot, pseudo_normals
 
 
 class SkinColliderGraph(nn.Module):
@@ -77,6 +77,7 @@ class SkinColliderGraph(nn.Module):
         listed = collider.face_start[:-1, None] + np.where(column < count[:, None], column, 0)
         self.register_buffer("face_table", torch.as_tensor(collider.face_list[listed], dtype=torch.int32))
         self.register_buffer("faces", torch.as_tensor(body.faces, dtype=torch.int64))
+        self.register_buffer("neighbours", torch.as_tensor(collider.neighbours, dtype=torch.int64))
         self.register_buffer("shape", torch.as_tensor(collider.shape, dtype=torch.int64))
         corners = [[(c >> 2) & 1, (c >> 1) & 1, c & 1] for c in range(8)]
         self.register_buffer("corners", torch.tensor(corners, dtype=torch.int64))
@@ -105,15 +106,17 @@ class SkinColliderGraph(nn.Module):
     ) -> tuple[torch.Tensor, torch.Tensor]:
         """:meth:`forward` for the joints' moves (B, J, 3, 3) and (B, J, 3) (:meth:`moves`)."""
         posed = self.pose(rot, trans)
-        rest, deepest, under = self.rest_points(points.detach(), rot.detach(), trans.detach())
+        rest, depth, under = self.rest_points(points.detach(), rot.detach(), trans.detach())
         distance, normal = self._nearest_face(points, self._node(rest), posed)  # (B, N, S)
+        # the deepest settled start whose own nearest face puts the point inside too
+        own_deep = torch.where(distance < 0.0, depth, torch.zeros_like(depth)).amax(-1)
         best = torch.argmin(distance.abs(), dim=-1, keepdim=True)
         distance = torch.gather(distance, -1, best)[..., 0]
         normal = torch.gather(normal, -2, best[..., None].expand(*best.shape, 3))[..., 0, :]
-        # the deep and face-side rules (SkinCollider.query says why)
+        # the deep and face-side rules (skin_collider.side_rules says why)
         deep, side = self.settings.deep_m, self.settings.face_side_m
         near_face = (distance >= -side) | ((under > deep) & (distance >= -(under + side)))
-        inside = ((distance < 0.0) & near_face) | ((deepest > deep) & (distance.abs() <= deepest + deep))
+        inside = ((distance < 0.0) & near_face) | ((own_deep > deep) & (distance.abs() <= own_deep + deep))
         flip = inside != (distance < 0.0)
         return torch.where(flip, -distance, distance), torch.where(flip[..., None], -normal, normal)
 
@@ -126,9 +129,9 @@ class SkinColliderGraph(nn.Module):
     def rest_points(
         self, points: torch.Tensor, rot: torch.Tensor, trans: torch.Tensor
     ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-        """Inverse skinning of points (B, N, 3): (B, N, S, 3) each start's rest point, (B, N) the
-        depth inside the rest mesh of the deepest settled one and of the deepest one
-        (:meth:`~hrr_garment.body.skin_collider.SkinCollider.rest_points`)."""
+        """Inverse skinning of points (B, N, 3): (B, N, S, 3) each start's rest point, (B, N, S) how
+        deep inside the rest mesh each settled (0 where it did not) and (B, N) the depth of the
+        deepest one, settled or not (:meth:`~hrr_garment.body.skin_collider.SkinCollider.rest_points`)."""
         rigid = torch.einsum("bnjc,bjca->bnja", points[:, :, None] - trans[:, None], rot)  # R^T (x - t)
         joint = torch.arange(self.joints, device=points.device)
         # a joint's own weight and the rest distance at the node its guess lands on: one table entry each
@@ -155,8 +158,7 @@ class SkinColliderGraph(nn.Module):
                 rest = rest + self.settings.step * _solve3(m, miss)
         settled = torch.linalg.vector_norm(miss, dim=-1) < self.settings.settled_m
         below = torch.clamp(-d, min=0.0)
-        deepest = torch.where(settled, below, torch.zeros_like(below)).amax(-1)
-        return rest, deepest, below.amax(-1)
+        return rest, torch.where(settled, below, torch.zeros_like(below)), below.amax(-1)
 
     def _entries(self, index: torch.Tensor) -> torch.Tensor:
         return torch.index_select(self.table.reshape(-1), 0, index.reshape(-1)).reshape(index.shape)
@@ -214,9 +216,7 @@ class SkinColliderGraph(nn.Module):
             return torch.gather(value, -1, best[None].expand(3, *best.shape))[..., 0].permute(1, 2, 3, 0)
 
         bary, gap = pick(bary), pick(gap)
-        corners = self.faces[torch.gather(listed, -1, best)[..., 0]] + frames * v  # (B, N, S, 3)
-        normals = vertex_normals(posed, self.faces).reshape(-1, 3)
-        outward = (bary[..., None] * normals[corners]).sum(-2)
+        outward = self._pseudo_normal(posed.detach(), torch.gather(listed, -1, best)[..., 0], bary)
         inside = (gap * outward).sum(-1) < 0.0
         distance = torch.where(inside, -length, length)
         clear = (length > 1e-9)[..., None]
@@ -225,6 +225,31 @@ class SkinColliderGraph(nn.Module):
         return distance, normal / torch.clamp(
             torch.linalg.vector_norm(normal, dim=-1, keepdim=True), min=1e-12
         )
+
+    def _pseudo_normal(self, posed: torch.Tensor, face: torch.Tensor, bary: torch.Tensor) -> torch.Tensor:
+        """(B, N, S, 3) the pseudonormal (:mod:`~hrr_garment.body.pseudo_normals`) at the nearest
+        points on faces (B, N, S) of the ``posed`` meshes (B, V, 3) at barycentric ``bary`` (B, N, S,
+        3): the face's unit normal, the two faces' across an edge, a corner's angle-weighted normal.
+        It only chooses the side (and the normal of a point on the skin), so it takes no gradient."""
+        b, v = posed.shape[:2]
+        face_normals, vertex = pseudo_normals(posed, self.faces)  # (B, F, 3), (B, V, 3)
+        frames = torch.arange(b, device=posed.device).reshape(b, 1, 1)
+
+        def rows(table: torch.Tensor, index: torch.Tensor, count: int) -> torch.Tensor:
+            """(B, N, S, 3) rows ``index`` (B, N, S) of each frame's ``table`` (B, count, 3)."""
+            flat = (index + frames * count).reshape(-1)
+            return torch.index_select(table.reshape(-1, 3), 0, flat).reshape(*index.shape, 3)
+
+        zero = bary == 0.0
+        count = zero.sum(-1)
+        # on an edge, the one opposite the corner of no weight: from corner k + 1 to k + 2
+        edge = torch.remainder(torch.argmax(zero.to(torch.int64), -1) + 1, 3)
+        across = torch.gather(self.neighbours[face], -1, edge[..., None])[..., 0]
+        own = rows(face_normals, face, len(self.faces))
+        out = torch.where((count == 1)[..., None], own + rows(face_normals, across, len(self.faces)), own)
+        weighted = torch.argmax((~zero).to(torch.int64), -1)[..., None]
+        corner = torch.gather(self.faces[face], -1, weighted)[..., 0]
+        return torch.where((count == 2)[..., None], rows(vertex, corner, v), out)
 
 
 def _solve3(m: torch.Tensor, b: torch.Tensor) -> torch.Tensor:

@@ -1,6 +1,6 @@
 """Triangle-mesh geometry in torch, in the operators ONNX has, each the twin of a numpy function of
 :mod:`hrr_garment.body.mesh_distance` (so that float64 answers agree to rounding): the point of a
-triangle nearest to a point, and a mesh's vertex normals. Differentiable: every division's
+triangle nearest to a point, and a mesh's pseudonormals. Differentiable: every division's
 denominator is kept off zero in the branches ``where`` drops, so that their gradients stay finite.
 
 The nearest point takes its vectors component-major, (3, ...): each product and sum then runs over
@@ -57,14 +57,17 @@ def closest_on_triangles(points: torch.Tensor, triangles: torch.Tensor) -> torch
     return torch.stack([u, v, w])
 
 
-def vertex_normals(vertices: torch.Tensor, faces: torch.Tensor) -> torch.Tensor:
-    """(B, V, 3) unit normals of meshes (B, V, 3) with (F, 3) int64 ``faces``, each the
-    area-weighted mean of its faces' (:func:`~hrr_garment.body.mesh_distance.vertex_normals`): the
-    faces' normals summed onto their corners, a corner after another (a scatter-add, vertex-major)."""
+def pseudo_normals(vertices: torch.Tensor, faces: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """(B, F, 3) unit face normals and (B, V, 3) angle-weighted unit vertex normals of meshes (B, V, 3)
+    (:func:`~hrr_garment.body.pseudo_normals.pseudo_normals`; a degenerate face's count as zero)."""
     tri = vertices[:, faces]  # (B, F, 3, 3)
-    face_normals = cross(tri[..., 1, :] - tri[..., 0, :], tri[..., 2, :] - tri[..., 0, :]).transpose(0, 1)
+    n = cross(tri[..., 1, :] - tri[..., 0, :], tri[..., 2, :] - tri[..., 0, :])
+    unit = n / torch.clamp(torch.linalg.vector_norm(n, dim=-1, keepdim=True), min=1e-30)
     out = torch.zeros_like(vertices.transpose(0, 1))  # (V, B, 3)
-    for corner in range(3):
-        out = out.index_add(0, faces[:, corner], face_normals)
+    for k in range(3):
+        u = tri[..., (k + 1) % 3, :] - tri[..., k, :]
+        w = tri[..., (k + 2) % 3, :] - tri[..., k, :]
+        angle = torch.atan2(torch.linalg.vector_norm(cross(u, w), dim=-1), (u * w).sum(-1))  # (B, F)
+        out = out.index_add(0, faces[:, k], (angle[..., None] * unit).transpose(0, 1))
     length = torch.linalg.vector_norm(out, dim=-1, keepdim=True)
-    return (out / torch.clamp(length, min=1e-12)).transpose(0, 1)
+    return unit, (out / torch.clamp(length, min=1e-12)).transpose(0, 1)

@@ -56,7 +56,7 @@ static const tile_fn TILES[2][4];
 
 /* The skin collider's grid (skin_sdf.c; hrr_garment/native/skin.py builds it) and one frame of it
    posed, as the push-out of kernels.c reads it: the joints' moves and the mesh skinned with its
-   vertex normals (hrr_skin_pose). */
+   vertex pseudonormals (hrr_skin_pose). */
 #define SKIN_MAX_STARTS 8
 #define SKIN_TOP 4 /* skin weights per node (TOP_JOINTS) */
 
@@ -74,6 +74,7 @@ typedef struct {
     const int32_t *face_start; /* (nodes + 1,) */
     const int32_t *face_list;
     const int32_t *faces;         /* (F, 3) */
+    const int32_t *neighbours;    /* (F, 3) the face across each edge (pseudo_normals.edge_neighbours) */
     const double *rest;           /* (V, 3) the rest mesh */
     const int32_t *vertex_joints; /* (V, vertex_k) each vertex's joints, padded with weight 0 */
     const double *vertex_weights; /* (V, vertex_k) */
@@ -84,7 +85,7 @@ typedef struct {
 typedef struct {
     const SkinGrid *grid;
     const double *rot, *trans;     /* (J, 3, 3), (J, 3) the joints' moves from the rest pose */
-    const double *posed, *normals; /* (V, 3), (V, 3) the mesh posed by them and its unit vertex normals */
+    const double *posed, *normals; /* (V, 3), (V, 3) the mesh posed by them and its vertex pseudonormals */
     /* the broad phase's column width (skin_columns, which the push-out runs on the frame first, in its
        own copy of the struct; 0: none, every point near a hull is measured: an open mesh) */
     double cell;

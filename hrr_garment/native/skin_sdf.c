@@ -12,8 +12,21 @@
 #include "hrr_native.h"
 
 
-/* the posed mesh (V, 3) and its unit vertex normals (V, 3), each the area-weighted mean of its faces'
-   (mesh_distance.vertex_normals), for the joints' moves rot (J, 3, 3) and trans (J, 3) */
+/* a posed face's unit normal (zero where degenerate; pseudo_normals.py's) */
+static void face_unit_normal(const SkinGrid *g, const double *posed, int f, double n[3])
+{
+    const int *c = g->faces + 3 * f;
+    const double *a = posed + 3 * c[0], *b = posed + 3 * c[1], *d = posed + 3 * c[2];
+    const double u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, w[3] = {d[0] - a[0], d[1] - a[1], d[2] - a[2]};
+    n[0] = u[1] * w[2] - u[2] * w[1], n[1] = u[2] * w[0] - u[0] * w[2], n[2] = u[0] * w[1] - u[1] * w[0];
+    const double len = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+    const double s = len > 1e-300 ? len : 1e-300;
+    n[0] /= s, n[1] /= s, n[2] /= s;
+}
+
+/* the posed mesh (V, 3) and its angle-weighted unit vertex normals (V, 3), the vertices'
+   pseudonormals (hrr_garment/body/pseudo_normals.py), for the joints' moves rot (J, 3, 3) and
+   trans (J, 3) */
 void hrr_skin_pose(const SkinGrid *g, const double *rot, const double *trans, double *posed, double *normals)
 {
     for (int v = 0; v < g->V; v++) {
@@ -31,11 +44,15 @@ void hrr_skin_pose(const SkinGrid *g, const double *rot, const double *trans, do
     memset(normals, 0, sizeof(double) * 3 * g->V);
     for (int f = 0; f < g->F; f++) {
         const int *c = g->faces + 3 * f;
-        const double *a = posed + 3 * c[0], *b = posed + 3 * c[1], *d = posed + 3 * c[2];
-        const double u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, w[3] = {d[0] - a[0], d[1] - a[1], d[2] - a[2]};
-        const double n[3] = {u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2], u[0] * w[1] - u[1] * w[0]};
-        for (int k = 0; k < 3; k++)
-            for (int a2 = 0; a2 < 3; a2++) normals[3 * c[k] + a2] += n[a2];
+        double n[3];
+        face_unit_normal(g, posed, f, n);
+        for (int k = 0; k < 3; k++) {
+            const double *o = posed + 3 * c[k], *p1 = posed + 3 * c[(k + 1) % 3], *p2 = posed + 3 * c[(k + 2) % 3];
+            const double u[3] = {p1[0] - o[0], p1[1] - o[1], p1[2] - o[2]}, w[3] = {p2[0] - o[0], p2[1] - o[1], p2[2] - o[2]};
+            const double x[3] = {u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2], u[0] * w[1] - u[1] * w[0]};
+            const double angle = atan2(sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2]), u[0] * w[0] + u[1] * w[1] + u[2] * w[2]);
+            for (int a2 = 0; a2 < 3; a2++) normals[3 * c[k] + a2] += angle * n[a2];
+        }
     }
     for (int v = 0; v < g->V; v++) {
         double *n = normals + 3 * v;
@@ -175,8 +192,9 @@ static void closest_bary(const double *p, const double *a, const double *b, cons
     bary[1] = vb / s, bary[2] = vc / s, bary[0] = 1.0 - bary[1] - bary[2];
 }
 
-/* the nearest of the faces node lists to x: its distance, signed by the posed vertex normals at the
-   nearest point, and the outward normal */
+/* the nearest of the faces node lists to x: its distance, signed by the pseudonormal of the nearest
+   point's face, edge or vertex (pseudo_normals.py: the face's normal, the two faces' across an edge,
+   the vertex's angle-weighted normal), and the outward normal */
 static double skin_nearest_face(const SkinGrid *g, long node, const double *posed, const double *normals,
                                  const double *x, double *normal)
 {
@@ -193,9 +211,20 @@ static double skin_nearest_face(const SkinGrid *g, long node, const double *pose
         if (len < best) best = len, face = f, memcpy(gap, q, sizeof gap), memcpy(bary_best, bary, sizeof bary_best);
     }
     const int *c = g->faces + 3 * face;
+    const int zeros = (bary_best[0] == 0.0) + (bary_best[1] == 0.0) + (bary_best[2] == 0.0);
     double out[3];
-    for (int k = 0; k < 3; k++)
-        out[k] = bary_best[0] * normals[3 * c[0] + k] + bary_best[1] * normals[3 * c[1] + k] + bary_best[2] * normals[3 * c[2] + k];
+    if (zeros == 2) {  /* at a corner: the vertex's */
+        const int k = bary_best[0] != 0.0 ? 0 : (bary_best[1] != 0.0 ? 1 : 2);
+        memcpy(out, normals + 3 * c[k], sizeof out);
+    } else {
+        face_unit_normal(g, posed, face, out);
+        if (zeros == 1) {  /* on the edge opposite the corner of no weight: the face across it too */
+            const int k = bary_best[0] == 0.0 ? 0 : (bary_best[1] == 0.0 ? 1 : 2);
+            double across[3];
+            face_unit_normal(g, posed, g->neighbours[3 * face + (k + 1) % 3], across);
+            for (int a = 0; a < 3; a++) out[a] += across[a];
+        }
+    }
     const int inside = gap[0] * out[0] + gap[1] * out[1] + gap[2] * out[2] < 0.0;
     double n[3];
     if (best > 1e-9)
@@ -243,7 +272,10 @@ static void skin_point(const SkinGrid *g, const double *rot, const double *trans
     }
     double best = INFINITY, best_signed = 0.0, best_normal[3] = {0};
     long seen[SKIN_MAX_STARTS];
-    double deepest = 0.0, under = 0.0; /* how deep inside the rest mesh a start settled; ended, settled or not */
+    double signed_at[SKIN_MAX_STARTS];
+    /* how deep inside the rest mesh a start settled whose own nearest face puts x inside too; how deep
+       a start ended, settled or not */
+    double own_deep = 0.0, under = 0.0;
     /* the starts' fixed points in step: each step of one start a chain of dependent reads (its nodes,
        a division, the next rest point), so the starts' steps taken side by side overlap (each start's
        arithmetic as alone; 2.5 -> 2.1 us a point of one core) */
@@ -259,23 +291,27 @@ static void skin_point(const SkinGrid *g, const double *rot, const double *trans
         }
     for (int s = 0; s < found; s++) {
         const double *r = guess[s], *m = miss[s], d = rest_d[s];
-        if (sqrt(m[0] * m[0] + m[1] * m[1] + m[2] * m[2]) < g->settled && -d > deepest) deepest = -d;
         if (-d > under) under = -d;
         /* starts that settle in the same node list the same faces: measured once */
         seen[s] = skin_node(g, r);
-        int again = 0;
-        for (int q = 0; q < s; q++) again |= seen[q] == seen[s];
-        if (again) continue;
-        double n[3];
-        const double signed_d = skin_nearest_face(g, seen[s], posed, normals, x, n);
-        if (fabs(signed_d) < best) best = fabs(signed_d), best_signed = signed_d, memcpy(best_normal, n, sizeof n);
+        int again = -1;
+        for (int q = 0; q < s; q++)
+            if (again < 0 && seen[q] == seen[s]) again = q;
+        if (again >= 0) {
+            signed_at[s] = signed_at[again];
+        } else {
+            double n[3];
+            signed_at[s] = skin_nearest_face(g, seen[s], posed, normals, x, n);
+            if (fabs(signed_at[s]) < best) best = fabs(signed_at[s]), best_signed = signed_at[s], memcpy(best_normal, n, sizeof n);
+        }
+        if (sqrt(m[0] * m[0] + m[1] * m[1] + m[2] * m[2]) < g->settled && signed_at[s] < 0.0 && -d > own_deep) own_deep = -d;
     }
-    /* a point skinning carries from deep inside the rest mesh is inside, whatever a buried face says,
-       so long as that face is no farther than the depth (rest points inside the chest carried off
-       with the arm land far from any skin: not inside); the face's normal says inside within
-       face_side of it, or of a start's rest depth */
+    /* the side rules (skin_collider.side_rules): a point skinning carries from deep inside the rest
+       mesh, whose own nearest face agrees, is inside whatever a buried face says, so long as that face
+       is no farther than the depth; the face's normal says inside within face_side of it, or of a
+       start's rest depth */
     const int near_face = best_signed >= -g->face_side || (under > g->deep && best_signed >= -(under + g->face_side));
-    const int inside = (best_signed < 0.0 && near_face) || (deepest > g->deep && fabs(best_signed) <= deepest + g->deep);
+    const int inside = (best_signed < 0.0 && near_face) || (own_deep > g->deep && fabs(best_signed) <= own_deep + g->deep);
     const int flip = inside != (best_signed < 0.0);
     *distance = flip ? -best_signed : best_signed;
     for (int a = 0; a < 3; a++) normal[a] = flip ? -best_normal[a] : best_normal[a];

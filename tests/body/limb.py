@@ -11,10 +11,10 @@ from hrr_garment.motion.rotations import axis_angle_to_matrix
 LENGTH, RADIUS, ELBOW = 0.4, 0.05, 0.2  # a limb along +x, its joint halfway
 
 
-def _cylinder() -> tuple[np.ndarray, np.ndarray]:
-    """A closed cylinder along +x (rings 1 cm apart, 24 sides, capped): vertices and faces."""
-    x = np.linspace(0.0, LENGTH, 41)
-    angle = np.linspace(0.0, 2 * np.pi, 24, endpoint=False)
+def _cylinder(rings: int = 41, sides: int = 24) -> tuple[np.ndarray, np.ndarray]:
+    """A closed cylinder along +x (by default rings 1 cm apart, 24 sides, capped): vertices and faces."""
+    x = np.linspace(0.0, LENGTH, rings)
+    angle = np.linspace(0.0, 2 * np.pi, sides, endpoint=False)
     ring = np.stack([np.zeros_like(angle), RADIUS * np.cos(angle), RADIUS * np.sin(angle)], 1)
     vertices = np.concatenate([(ring + [xi, 0.0, 0.0]) for xi in x] + [[[0.0, 0, 0], [LENGTH, 0, 0]]])
     n, s = len(x), len(angle)
@@ -28,10 +28,10 @@ def _cylinder() -> tuple[np.ndarray, np.ndarray]:
     return vertices, np.array(faces)
 
 
-def skinned_limb() -> SkinnedBody:
+def skinned_limb(rings: int = 41, sides: int = 24) -> SkinnedBody:
     """The cylinder skinned to two joints, at x = 0 and at the elbow, blending over 10 cm about
-    the elbow."""
-    vertices, faces = _cylinder()
+    the elbow; ``rings`` and ``sides`` coarser for a game's low-poly limb."""
+    vertices, faces = _cylinder(rings, sides)
     second = np.clip((vertices[:, 0] - (ELBOW - 0.05)) / 0.1, 0.0, 1.0)
     return SkinnedBody(
         vertices,
@@ -140,3 +140,49 @@ class BulgingMannequin:
         )
         self.faces = faces[keep]
         return self
+
+
+def _icosphere(subdivisions: int) -> tuple[np.ndarray, np.ndarray]:
+    """A unit icosphere: vertices on the sphere and faces wound outward."""
+    t = (1.0 + np.sqrt(5.0)) / 2.0
+    v = [[-1, t, 0], [1, t, 0], [-1, -t, 0], [1, -t, 0], [0, -1, t], [0, 1, t]]
+    v += [[0, -1, -t], [0, 1, -t], [t, 0, -1], [t, 0, 1], [-t, 0, -1], [-t, 0, 1]]
+    faces = [[0, 11, 5], [0, 5, 1], [0, 1, 7], [0, 7, 10], [0, 10, 11], [1, 5, 9], [5, 11, 4]]
+    faces += [[11, 10, 2], [10, 7, 6], [7, 1, 8], [3, 9, 4], [3, 4, 2], [3, 2, 6], [3, 6, 8]]
+    faces += [[3, 8, 9], [4, 9, 5], [2, 4, 11], [6, 2, 10], [8, 6, 7], [9, 8, 1]]
+    vertices = [np.array(p, float) / np.linalg.norm(p) for p in v]
+    for _ in range(subdivisions):
+        middle: dict = {}
+
+        def mid(a: int, b: int) -> int:
+            key = (min(a, b), max(a, b))
+            if key not in middle:
+                p = vertices[a] + vertices[b]
+                vertices.append(p / np.linalg.norm(p))
+                middle[key] = len(vertices) - 1
+            return middle[key]
+
+        finer = []
+        for a, b, c in faces:
+            ab, bc, ca = mid(a, b), mid(b, c), mid(c, a)
+            finer += [[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]
+        faces = finer
+    return np.array(vertices), np.array(faces)
+
+
+def bumpy_ball(radius: float = 0.1, bumps: float = 0.4, seed: int = 0) -> SkinnedBody:
+    """A coarse closed mesh with saddles and hollows, as a low-poly game character's crotch and armpits
+    have: an icosphere (162 vertices) each pushed in or out along its ray by up to ``bumps`` of the
+    ``radius`` (star-shaped about its centre, so it never crosses itself), skinned to two joints
+    blended across its middle."""
+    unit, faces = _icosphere(2)
+    scale = 1.0 + np.random.default_rng(seed).uniform(-bumps, bumps, len(unit))
+    vertices = radius * unit * scale[:, None]
+    second = np.clip(0.5 + vertices[:, 0] / radius, 0.0, 1.0)
+    return SkinnedBody(
+        vertices,
+        faces,
+        np.stack([1.0 - second, second], 1),
+        np.broadcast_to(np.eye(3), (2, 3, 3)).copy(),
+        np.array([[-0.5 * radius, 0.0, 0.0], [0.5 * radius, 0.0, 0.0]]),
+    )

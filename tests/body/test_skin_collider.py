@@ -12,7 +12,7 @@ from hrr_garment.body.mesh_distance import mesh_signed_distance
 from hrr_garment.body.skin_collider import SkinColliderSettings, skin_collider
 from hrr_garment.motion.rotations import axis_angle_to_matrix
 
-from .limb import ELBOW, LENGTH, RADIUS, bent, curled, near_surface, skinned_chain, skinned_limb
+from .limb import ELBOW, LENGTH, RADIUS, bent, bumpy_ball, curled, near_surface, skinned_chain, skinned_limb
 
 SETTINGS = SkinColliderSettings(voxel_m=0.01, padding_m=0.03)
 
@@ -87,6 +87,28 @@ def test_curled_on_a_chain_of_six_joints_blended_all_along_it_follows_the_mesh()
     exact = mesh_signed_distance(around, posed, chain.faces)
     clear = np.abs(exact) > 0.003
     assert (np.sign(collider.query(around[clear], rot, pos)[0]) == np.sign(exact[clear])).all()
+
+
+def turned_halves(body, degrees: float) -> tuple[np.ndarray, np.ndarray]:
+    """A two-joint body's second joint turned ``degrees`` about z, in place."""
+    turn = axis_angle_to_matrix(np.array([0.0, 0.0, np.radians(degrees)]))
+    return np.stack([np.eye(3), turn]), body.rest_positions.copy()
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_on_a_low_poly_ball_with_saddles_and_hollows_every_point_is_on_its_side(seed):
+    # the nearest face's side by its pseudonormal (body/pseudo_normals.py): the shading normals
+    # interpolated over a face put points centimetres outside a coarse mesh's saddles inside
+    ball = bumpy_ball(seed=seed)
+    collider = skin_collider(ball, SETTINGS)
+    rot, pos = turned_halves(ball, 30.0)
+    posed = ball.pose(rot[None], pos[None])[0]
+    points = np.random.default_rng(1).uniform(-0.16, 0.16, (3000, 3))
+    exact = mesh_signed_distance(points, posed, ball.faces)
+    clear = np.abs(exact) > 0.003
+    distance = collider.query(points[clear], rot, pos)[0]
+    assert (np.sign(distance) == np.sign(exact[clear])).all()
+    assert np.abs(distance - exact[clear]).max() < 0.01
 
 
 def test_a_body_it_cannot_hold_is_refused_by_name(limb_and_collider):

@@ -1,7 +1,8 @@
 """The visible body's collider as a torch graph (models/skin_collider_graph.py) against its numpy
-reference (body/skin_collider.py): equal to rounding in float64 on a limb bent up to 135 degrees and
-on a curled chain of six joints, batched as alone; within its stated bound in float32; and the
-distance's gradient is the normal at the points, and minus the normal summed over the joints."""
+reference (body/skin_collider.py): equal to rounding in float64 on a limb bent up to 135 degrees, on
+a curled chain of six joints and on a low-poly ball, batched as alone; within its stated bound in
+float32; and the distance's gradient is the normal at the points, and minus the normal summed over
+the joints."""
 
 import numpy as np
 import pytest
@@ -10,7 +11,8 @@ import torch
 from hrr_garment.body.mesh_distance import nearest_on_mesh
 from hrr_garment.body.skin_collider import SkinColliderSettings, skin_collider
 from hrr_garment.models.skin_collider_graph import SkinColliderGraph
-from tests.body.limb import bent, curled, probes, skinned_chain, skinned_limb
+from tests.body.limb import bent, bumpy_ball, curled, probes, skinned_chain, skinned_limb
+from tests.body.test_skin_collider import turned_halves
 
 SETTINGS = SkinColliderSettings(voxel_m=0.01, padding_m=0.03)
 
@@ -52,6 +54,17 @@ def test_on_a_curled_chain_and_batched_it_is_the_reference():
     for k, (r, p) in enumerate(poses):
         distance, normal = collider.query(points[k], r, p)
         assert np.abs(ours[k] - distance).max() < 1e-9 and np.abs(our_normal[k] - normal).max() < 1e-9
+
+
+def test_on_a_low_poly_ball_the_pseudonormals_side_is_the_reference():
+    # a face's, an edge's and a corner's pseudonormal each chosen on its saddles and hollows
+    ball = bumpy_ball()
+    collider = skin_collider(ball, SETTINGS)
+    rot, pos = turned_halves(ball, 30.0)
+    points = np.random.default_rng(1).uniform(-0.16, 0.16, (2000, 3))
+    distance, normal = collider.query(points, rot, pos)
+    ours, our_normal = _query(SkinColliderGraph(collider, torch.float64), points, rot, pos)
+    assert np.abs(ours - distance).max() < 1e-9 and np.abs(our_normal - normal).max() < 1e-9
 
 
 def test_in_float32_it_is_within_its_bound(limb_and_collider):

@@ -5,7 +5,8 @@ import numpy as np
 import pytest
 
 from hrr_garment.body.skin_collider import SkinColliderSettings, skin_collider
-from tests.body.limb import ELBOW, bent, curled, near_surface, skinned_chain, skinned_limb
+from tests.body.limb import ELBOW, bent, bumpy_ball, curled, near_surface, skinned_chain, skinned_limb
+from tests.body.test_skin_collider import turned_halves
 
 pytestmark = pytest.mark.native
 
@@ -52,6 +53,24 @@ def test_native_skin_distance_equals_numpy_on_a_curled_chain():
     around = np.random.default_rng(2).uniform(-0.1, 0.1, (400, 3)) + posed.mean(0)
     points = np.concatenate([near_surface(chain, posed, count=60)[0], around * [2.0, 2.0, 1.0]])
     points += np.random.default_rng(3).normal(scale=1e-4, size=points.shape)
+    distance, normal = collider.query(points, rot, pos)
+    native_distance, native_normal = SkinKernel(collider, lib).query(points, rot, pos)
+    assert np.abs(native_distance - distance).max() < 1e-12
+    assert np.abs(native_normal - normal).max() < 1e-9
+
+
+def test_native_skin_distance_equals_numpy_on_a_low_poly_ball():
+    # the pseudonormals' three cases (a face, an edge, a corner) all met on its saddles and hollows
+    from hrr_garment.native import load_kernel
+    from hrr_garment.native.skin import SkinKernel
+
+    lib = load_kernel()
+    if lib is None:
+        pytest.skip("no C compiler")
+    ball = bumpy_ball()
+    collider = skin_collider(ball, SkinColliderSettings(voxel_m=0.01, padding_m=0.03))
+    rot, pos = turned_halves(ball, 30.0)
+    points = np.random.default_rng(1).uniform(-0.16, 0.16, (2000, 3))
     distance, normal = collider.query(points, rot, pos)
     native_distance, native_normal = SkinKernel(collider, lib).query(points, rot, pos)
     assert np.abs(native_distance - distance).max() < 1e-12
