@@ -17,12 +17,13 @@ rest point skinning carries onto ``x``.
 
 The distance is then not read from the grid but measured: the faces the grid lists at each ``r``
 are posed (their vertices skinned as a game skins them, flat triangles between) and the distance is
-the exact distance to the nearest of them, inside where the posed mesh's normal at that nearest
-point says so (within 5 cm of it, or of a start's rest depth), or where a fixed point settled deep
-inside the rest mesh and the face lies no farther than that depth (the posed mesh overlapping
-itself). So wherever a list holds the face that is nearest in the pose, the answer is the exact
-signed distance to the mesh the viewer sees, joints and blended skin included; where none does, it
-is the distance to a face of that mesh a little farther away (never nearer than the skin).
+the exact distance to the nearest of them, inside where the pseudonormal of that nearest point's
+face, edge or vertex says so (:mod:`.pseudo_normals`; within 5 cm of it, or of a start's rest
+depth), or where a fixed point settled deep inside the rest mesh, its own nearest face agrees and
+the nearest face lies no farther than that depth (the posed mesh overlapping itself). So wherever
+a list holds the face that is nearest in the pose, the answer is the exact signed distance to the
+mesh the viewer sees, joints and blended skin included; where none does, it is the distance to a
+face of that mesh a little farther away (never nearer than the skin).
 
 How near it is (``tools/studies/visible_collider_study.py`` on two anny bodies in the most bent
 frames of real and procedural clips; ``tests/body/test_skin_collider.py`` on a limb bent 90
@@ -35,10 +36,10 @@ degrees; the numbers in docs/bodies.md):
   error's p95 0.0 mm, its mean 0.2 mm at anny's blended joints); the rest are points where the
   fixed point settles off the skin (a root of the weights' extension off the skin, at the shoulders
   of a raised arm) or where the posed mesh overlaps itself: up to a few centimetres;
-- the side: 0.8 % of the points more than 3 mm inside the posed mesh read as outside, 0.4 % of those
+- the side: 1.0 % of the points more than 3 mm inside the posed mesh read as outside, 0.2 % of those
   outside as inside, at anny's blended joints (where the posed mesh overlaps itself, inside is the
   winding number's answer, which no nearest face gives; the deep rest point answers instead); of
-  points anywhere about the body more than 3 cm from the skin, 0.00 % and 0.05 %.
+  points anywhere about the body more than 3 cm from the skin, 0.00 % and 0.00 %.
 
 The grid of an anny body: 150 to 170 thousand nodes, 13 to 15 MB (mostly the face lists), built in
 about 6 s of one core's time. Points beyond :attr:`SkinColliderSettings.padding_m` of the rest skin get
@@ -82,9 +83,12 @@ class SkinColliderSettings:
     off_skin_m: float = 0.1
     # a fixed point has settled where it carries its rest point this near the posed one
     settled_m: float = 0.001
-    # a settled rest point this far inside the rest mesh is inside, whatever the nearest face says
-    # (on the average anny body in bent poses, 3 mm: inside called outside 0.6 %, outside called
-    # inside 1.1 %; 10 mm: 0.6 % and 0.5 %; 20 mm: 1.3 % and 0.35 %; never: 1.6 % and 0.15 %)
+    # a settled rest point this far inside the rest mesh, whose own nearest face agrees, is inside,
+    # whatever the nearest face says (chosen with the shading normals' side, on the average anny
+    # body in bent poses, 3 mm: inside called outside 0.6 %, outside called inside 1.1 %; 10 mm:
+    # 0.6 % and 0.5 %; 20 mm: 1.3 % and 0.35 %; never: 1.6 % and 0.15 %. With the pseudonormals'
+    # side and its own face asked, on a heavy anny body in a dance: 0.86 % and 0.01 %; never: 2.1 %
+    # and 0.01 %; without asking its own face: 0.70 % and 0.46 %)
     deep_m: float = 0.01
     # past this distance (plus a start's rest depth) the nearest face's normal no longer tells the
     # side (the face may be the nearest of the lists' but not of the mesh): points 3 to 50 cm from

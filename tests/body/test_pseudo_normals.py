@@ -17,9 +17,7 @@ def test_the_face_across_each_edge_holds_it_reversed_and_an_open_edge_keeps_its_
         for e in range(3):
             a, b = faces[f, e], faces[f, (e + 1) % 3]
             other = faces[across[f, e]]
-            assert across[f, e] != f and any(
-                other[k] == b and other[(k + 1) % 3] == a for k in range(3)
-            )
+            assert across[f, e] != f and any(other[k] == b and other[(k + 1) % 3] == a for k in range(3))
     open_mesh = faces[1:]  # the first face gone: its three neighbours' edges have no one across
     lonely = edge_neighbours(open_mesh)
     assert (lonely == np.arange(len(open_mesh))[:, None]).sum() == 3
