@@ -13,9 +13,10 @@ package's push-out against a :class:`~.visible_push.PosedSkin` is its capsule pu
 distance. Beyond the margin of every hull (the capsules grown to hold the posed skin,
 :mod:`.torch_skin_hulls`) the hulls' distance is the distance, as the package's; within it the graph
 measures every vertex against the skin, without the package's flood of cells and winding test: the
-same push wherever the collider's side is right, which its pseudonormals make it but where the
-posed mesh overlaps itself (an arm pressed into the chest: there the package's winding number
-decides, and the graph can push what the package leaves). Far slower than the capsules."""
+same push wherever the collider's side is right, which its pseudonormals make it but at points
+whose nearest face in the pose its grid does not list (a few in a hundred thousand: there the
+package's winding number decides, and the graph can push what the package leaves). Far slower
+than the capsules."""
 
 from __future__ import annotations
 

@@ -67,7 +67,15 @@ def pseudo_normals(vertices: torch.Tensor, faces: torch.Tensor) -> tuple[torch.T
     for k in range(3):
         u = tri[..., (k + 1) % 3, :] - tri[..., k, :]
         w = tri[..., (k + 2) % 3, :] - tri[..., k, :]
-        angle = torch.atan2(torch.linalg.vector_norm(cross(u, w), dim=-1), (u * w).sum(-1))  # (B, F)
+        angle = _angle(torch.linalg.vector_norm(cross(u, w), dim=-1), (u * w).sum(-1))  # (B, F)
         out = out.index_add(0, faces[:, k], (angle[..., None] * unit).transpose(0, 1))
     length = torch.linalg.vector_norm(out, dim=-1, keepdim=True)
     return unit, (out / torch.clamp(length, min=1e-12)).transpose(0, 1)
+
+
+def _angle(sine: torch.Tensor, cosine: torch.Tensor) -> torch.Tensor:
+    """atan2: exported in float32 whatever the graph's type (onnxruntime has no double Atan; an
+    angle only weighs a vertex's normal, which only chooses a side)."""
+    if torch.compiler.is_compiling() and sine.dtype != torch.float32:
+        return torch.atan2(sine.float(), cosine.float()).to(sine.dtype)
+    return torch.atan2(sine, cosine)
