@@ -60,23 +60,22 @@ class VisibleCollider:
         rotations: np.ndarray,
         positions: np.ndarray,
         capsules: tuple[np.ndarray, np.ndarray] | None = None,
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None, np.ndarray | None]:
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
         """For (T, J, 3, 3) global rotations and (T, J, 3) joint positions: the joints' moves from the
-        rest pose (T, J, 3, 3) and (T, J, 3), the mesh posed by them (T, V, 3), its unit vertex
-        normals (T, V, 3) and, given the frames' capsule ends (a, b (T, C, 3)), the skin's hulls'
-        radii (T, C) (:mod:`~hrr_garment.body.skin_envelope`: each capsule grown to hold its pieces
-        of the posed skin, never narrower): by the kernel where there is one, frames in parallel,
-        as the push-out poses it; no normals without it (the numpy reference poses its faces
-        itself), and the hulls by the envelope's ``growth`` (the kernel's reference)."""
+        rest pose (T, J, 3, 3) and (T, J, 3), the mesh posed by them (T, V, 3) and, given the frames'
+        capsule ends (a, b (T, C, 3)), the skin's hulls' radii (T, C)
+        (:mod:`~hrr_garment.body.skin_envelope`: each capsule grown to hold its pieces of the posed
+        skin, never narrower): by the kernel where there is one, frames in parallel, as the push-out
+        poses it, and the hulls by the envelope's ``growth`` (the kernel's reference) without it."""
         body = self.collider.body
         rot, trans = body.joint_transforms(rotations, positions)
         rot, trans = np.ascontiguousarray(rot), np.ascontiguousarray(trans)
         if self.kernel is None:
             posed = body.pose(rotations, positions)
             if capsules is None:
-                return rot, trans, posed, None, None
+                return rot, trans, posed, None
             growth = self.envelope.growth(rotations, positions, posed=posed)
-            return rot, trans, posed, None, np.maximum(self.body.radii + growth, self.body.radii)
+            return rot, trans, posed, np.maximum(self.body.radii + growth, self.body.radii)
         from ..native import default_threads
 
         ends = None if capsules is None else (*capsules, self.body.radii)
@@ -144,9 +143,9 @@ class PosedSkin:
     hulls: PosedCapsules  # the capsules' ends (T, C, 3) and each frame's hull radii (T, C)
     # each frame's body's skin as the hulls were made from it (VisibleCollider.skinned), kept for the
     # kernel, which would otherwise pose it again: the joints' moves (T, J, 3, 3) and (T, J, 3), and
-    # per frame the posed mesh (V, 3) and its vertex normals (None without the kernel)
+    # per frame the posed mesh (V, 3)
     moves: tuple[np.ndarray, np.ndarray]
-    skins: tuple[tuple[np.ndarray, np.ndarray | None], ...]
+    skins: tuple[np.ndarray, ...]
 
     @classmethod
     def of(cls, visible: VisibleCollider, motion: Motion) -> "PosedSkin":
@@ -170,11 +169,11 @@ class PosedSkin:
             a[rows], b[rows] = visible.body.pose(rot[rows], pos[rows])
             # the hulls never narrower than the capsules (inside the body: the union keeps the body's
             # inside in it), and a capsule that holds no piece of the skin as it is
-            moves[0][rows], moves[1][rows], posed, normals, radii[rows] = visible.skinned(
+            moves[0][rows], moves[1][rows], posed, radii[rows] = visible.skinned(
                 rot[rows], pos[rows], capsules=(a[rows], b[rows])
             )
             for i, t in enumerate(rows):
-                skins[t] = (posed[i], None if normals is None else normals[i])
+                skins[t] = posed[i]
         return cls(
             tuple(bodies),
             np.asarray(which, np.int64),
@@ -206,7 +205,7 @@ class PosedSkin:
                 rest = near[~far]  # the band and the cells the flood did not reach: measured exactly
                 if len(rest):
                     faces = visible.collider.body.faces
-                    posed = self.skins[t][0]
+                    posed = self.skins[t]
                     clear = ~within_reach(points[i, rest], posed, faces, reach=margin)
                     clear[clear] = ~winding_inside(points[i, rest[clear]], posed, faces)
                     far[~far] = clear

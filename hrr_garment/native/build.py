@@ -202,11 +202,11 @@ def _declare(lib: ctypes.CDLL) -> None:
     lib.hrr_amx_ready.restype = c_int
     lib.hrr_pin_workers.argtypes = [c_int]
     lib.hrr_pin_workers.restype = c_int
-    lib.hrr_skin_pose.argtypes = [d, d, d, d, d]
+    lib.hrr_skin_pose.argtypes = [d, d, d, d]
     lib.hrr_skin_pose.restype = None
-    lib.hrr_skin_frames.argtypes = [d, c_int, d, d, d, d, d, d, d, c_int, d, d, d, c_int, d, c_int]
+    lib.hrr_skin_frames.argtypes = [d, c_int, d, d, d, d, d, d, c_int, d, d, d, c_int, d, c_int]
     lib.hrr_skin_frames.restype = None
-    lib.hrr_skin_sdf.argtypes = [d, d, d, d, d, d, c_int, d, d]
+    lib.hrr_skin_sdf.argtypes = [d, d, d, d, d, c_int, d, d]
     lib.hrr_skin_sdf.restype = None
     lib.hrr_skin_cells.argtypes = [d, d, c_double, c_double, d, d, d]
     lib.hrr_skin_cells.restype = None

@@ -55,8 +55,8 @@ typedef void (*tile_fn)(const float *restrict, int, const float *restrict, const
 static const tile_fn TILES[2][4];
 
 /* The skin collider's grid (skin_sdf.c; hrr_garment/native/skin.py builds it) and one frame of it
-   posed, as the push-out of kernels.c reads it: the joints' moves and the mesh skinned with its
-   vertex pseudonormals (hrr_skin_pose). */
+   posed, as the push-out of kernels.c reads it: the joints' moves and the mesh skinned
+   (hrr_skin_pose). */
 #define SKIN_MAX_STARTS 8
 #define SKIN_TOP 4 /* skin weights per node (TOP_JOINTS) */
 
@@ -75,6 +75,8 @@ typedef struct {
     const int32_t *face_list;
     const int32_t *faces;         /* (F, 3) */
     const int32_t *neighbours;    /* (F, 3) the face across each edge (pseudo_normals.edge_neighbours) */
+    const int32_t *corner_start;  /* (V + 1,) each vertex's first entry in corner_list */
+    const int32_t *corner_list;   /* its corners, 3 f + k: face f's corner k */
     const double *rest;           /* (V, 3) the rest mesh */
     const int32_t *vertex_joints; /* (V, vertex_k) each vertex's joints, padded with weight 0 */
     const double *vertex_weights; /* (V, vertex_k) */
@@ -85,7 +87,7 @@ typedef struct {
 typedef struct {
     const SkinGrid *grid;
     const double *rot, *trans;     /* (J, 3, 3), (J, 3) the joints' moves from the rest pose */
-    const double *posed, *normals; /* (V, 3), (V, 3) the mesh posed by them and its vertex pseudonormals */
+    const double *posed;           /* (V, 3) the mesh posed by them */
     /* the broad phase's column width (skin_columns, which the push-out runs on the frame first, in its
        own copy of the struct; 0: none, every point near a hull is measured: an open mesh) */
     double cell;
@@ -116,7 +118,7 @@ static int skin_far_by_column(const SkinPose *sk, double margin, const double *x
 
 /* The signed distance and outward normal of point x to the posed skin (skin_sdf.c) */
 static void skin_point(const SkinGrid *g, const double *rot, const double *trans, const double *posed,
-                       const double *normals, const double *x, double *distance, double *normal);
+                       const double *x, double *distance, double *normal);
 void hrr_skin_cells(const SkinGrid *g, const double *posed, double margin, double cell, const double *origin,
                     const int *dims, uint8_t *cells);
 

@@ -415,7 +415,7 @@ static inline void skin_measure(const SkinPose *sk, double margin, const double 
         *d = FAR_AWAY;
         nrm[0] = nrm[1] = nrm[2] = 0.0;
     } else {
-        skin_point(sk->grid, sk->rot, sk->trans, sk->posed, sk->normals, x, d, nrm);
+        skin_point(sk->grid, sk->rot, sk->trans, sk->posed, x, d, nrm);
     }
 }
 

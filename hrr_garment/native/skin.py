@@ -27,6 +27,8 @@ class SkinGrid(ctypes.Structure):
         ("face_list", ctypes.c_void_p),
         ("faces", ctypes.c_void_p),
         ("neighbours", ctypes.c_void_p),
+        ("corner_start", ctypes.c_void_p),
+        ("corner_list", ctypes.c_void_p),
         ("rest", ctypes.c_void_p),
         ("vertex_joints", ctypes.c_void_p),
         ("vertex_weights", ctypes.c_void_p),
@@ -45,6 +47,16 @@ class SkinGrid(ctypes.Structure):
         ("off_skin", ctypes.c_double),
         ("face_side", ctypes.c_double),
     ]
+
+
+def vertex_corners(faces: np.ndarray, vertices: int) -> dict[str, np.ndarray]:
+    """Each vertex's corners (3 f + k: face f's corner k) as the kernel's ``corner_start`` (V + 1,)
+    and ``corner_list``, int32: where a point's nearest point is a vertex, its pseudonormal is
+    measured over them."""
+    flat = np.asarray(faces, np.int64).ravel()
+    order = np.argsort(flat, kind="stable")
+    start = np.searchsorted(flat[order], np.arange(vertices + 1))
+    return {"corner_start": start.astype(np.int32), "corner_list": order.astype(np.int32)}
 
 
 class SkinKernel:
@@ -76,6 +88,7 @@ class SkinKernel:
             "face_list": np.ascontiguousarray(collider.face_list, np.int32),
             "faces": np.ascontiguousarray(body.faces, np.int32),
             "neighbours": np.ascontiguousarray(collider.neighbours, np.int32),
+            **vertex_corners(body.faces, len(body.vertices)),
             "rest": np.ascontiguousarray(body.vertices, np.float64),
             "vertex_joints": np.ascontiguousarray(order, np.int32),
             "vertex_weights": np.ascontiguousarray(np.take_along_axis(body.weights, order, 1), np.float64),
@@ -108,10 +121,10 @@ class SkinKernel:
             np.asarray(global_rotations)[None], np.asarray(joint_positions)[None]
         )
         rot, trans = np.ascontiguousarray(rot[0]), np.ascontiguousarray(trans[0])
-        posed, normals = np.empty((self.vertices, 3)), np.empty((self.vertices, 3))
+        posed = np.empty((self.vertices, 3))
         ref = ctypes.byref(self.struct)
         lib = self.lib
-        lib.hrr_skin_pose(ref, rot.ctypes.data, trans.ctypes.data, posed.ctypes.data, normals.ctypes.data)
+        lib.hrr_skin_pose(ref, rot.ctypes.data, trans.ctypes.data, posed.ctypes.data)
         p = np.ascontiguousarray(points, np.float64).reshape(-1, 3)
         distance, normal = np.empty(len(p)), np.empty((len(p), 3))
         lib.hrr_skin_sdf(
@@ -119,7 +132,6 @@ class SkinKernel:
             rot.ctypes.data,
             trans.ctypes.data,
             posed.ctypes.data,
-            normals.ctypes.data,
             p.ctypes.data,
             len(p),
             distance.ctypes.data,
@@ -127,12 +139,10 @@ class SkinKernel:
         )
         return distance, normal
 
-    def pose_frames(
-        self, rot: np.ndarray, trans: np.ndarray, *, threads: int = 1
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """(T, V, 3) the mesh posed and (T, V, 3) its unit vertex normals for the joints' moves
-        ``rot`` (T, J, 3, 3) and ``trans`` (T, J, 3) (C-contiguous float64), frames in parallel."""
-        return self.hulls(rot, trans, threads=threads)[:2]
+    def pose_frames(self, rot: np.ndarray, trans: np.ndarray, *, threads: int = 1) -> np.ndarray:
+        """(T, V, 3) the mesh posed for the joints' moves ``rot`` (T, J, 3, 3) and ``trans`` (T, J, 3)
+        (C-contiguous float64), frames in parallel."""
+        return self.hulls(rot, trans, threads=threads)[0]
 
     def hulls(
         self,
@@ -142,14 +152,14 @@ class SkinKernel:
         pieces: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
         *,
         threads: int = 1,
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    ) -> tuple[np.ndarray, np.ndarray | None]:
         """:meth:`pose_frames` and, given the frames' ``capsules`` (ends a, b (T, C, 3), radii (C,)) and
         the skin's ``pieces`` (:class:`~hrr_garment.body.skin_envelope.SkinEnvelope`'s corners (P, 3)
         int32, bary (P, 3) and capsule (P,) int32), the hulls' radii (T, C): each capsule grown to
         hold its pieces of the posed skin, never narrower (hrr_skin_frames; the reference is the
         envelope's ``growth``)."""
         t = len(rot)
-        posed, normals = np.empty((t, self.vertices, 3)), np.empty((t, self.vertices, 3))
+        posed = np.empty((t, self.vertices, 3))
         hull, args = None, (None, None, None, 0, None, None, None, 0)
         if capsules is not None and pieces is not None:
             a, b, radii = (np.ascontiguousarray(x, np.float64) for x in capsules)
@@ -163,12 +173,11 @@ class SkinKernel:
             rot.ctypes.data,
             trans.ctypes.data,
             posed.ctypes.data,
-            normals.ctypes.data,
             *args,
             None if hull is None else hull.ctypes.data,
             threads,
         )
-        return posed, normals, hull
+        return posed, hull
 
     def cells(
         self, posed: np.ndarray, margin: float, cell: float
@@ -209,7 +218,7 @@ class SkinPose(ctypes.Structure):
     width of its broad phase's columns (``cell`` 0: none); the kernel fills the columns in its own
     copy of the struct."""
 
-    _fields_ = [(name, ctypes.c_void_p) for name in ("grid", "rot", "trans", "posed", "normals")] + [
+    _fields_ = [(name, ctypes.c_void_p) for name in ("grid", "rot", "trans", "posed")] + [
         ("cell", ctypes.c_double),
         ("measure_after", ctypes.c_int),
         ("col_start", ctypes.c_void_p),
@@ -247,7 +256,7 @@ def cell_box(posed: np.ndarray, margin: float, cell: float) -> tuple[np.ndarray,
 class PosedSkins:
     """T frames of skinned bodies posed, as the push-out kernel reads them (``hrr_push_out``'s
     ``skin``): frame t against ``kernels[which[t]]``, its joints' moves ``moves`` (rotations
-    (T, J, 3, 3), translations (T, J, 3)) and ``skins[t]``, the mesh they pose and its vertex normals
+    (T, J, 3, 3), translations (T, J, 3)) and ``skins[t]``, the mesh they pose
     (:meth:`SkinKernel.pose_frames`), with the broad phase's columns ``cell`` wide (which the kernel
     builds for the push's margin, frames in parallel) where ``cell`` is given and the body's mesh is
     closed (``closed[which[t]]``); with ``measure_after``, the kernel measures a frame its strain
@@ -267,8 +276,7 @@ class PosedSkins:
         self.rot = np.ascontiguousarray(moves[0], np.float64)
         self.trans = np.ascontiguousarray(moves[1], np.float64)
         self.kernels, self.which = kernels, np.asarray(which, np.int64)
-        self.posed = [np.ascontiguousarray(posed, np.float64) for posed, _ in skins]
-        self.normals = [np.ascontiguousarray(normals, np.float64) for _, normals in skins]
+        self.posed = [np.ascontiguousarray(posed, np.float64) for posed in skins]
         t = len(self.rot)
         self.structs = (SkinPose * t)()
         # filled as one numpy view of the structs, field by field (a ctypes struct a frame cost 60 us)
@@ -278,7 +286,6 @@ class PosedSkins:
         view["rot"] = self.rot.ctypes.data + frame * np.uint64(self.rot[0].nbytes)
         view["trans"] = self.trans.ctypes.data + frame * np.uint64(self.trans[0].nbytes)
         view["posed"] = [p.ctypes.data for p in self.posed]
-        view["normals"] = [n.ctypes.data for n in self.normals]
         broad = np.zeros(len(kernels), bool) if closed is None or cell is None else np.asarray(closed, bool)
         view["cell"] = np.where(broad[self.which], cell or 0.0, 0.0)
         view["measure_after"] = int(measure_after)

@@ -1,6 +1,6 @@
 /* skin_sdf.c: the signed distance to the body the viewer sees, by inverse skinning into one rest grid
    (hrr_garment/body/skin_collider.py is the reference, step for step; hrr_garment/native/skin.py the
-   ctypes glue). Per frame, hrr_skin_pose skins the mesh and its vertex normals once; per point,
+   ctypes glue). Per frame, hrr_skin_pose skins the mesh once; per point,
    hrr_skin_sdf takes the point back to the rest pose from the best joints' rigid guesses by damped
    fixed-point steps r <- r + step M(w(r))^-1 (x - M(w(r)) r - t(w(r))), reads the faces the grid lists
    at each rest point's node and returns the exact signed distance to the nearest of them, posed.
@@ -24,10 +24,29 @@ static void face_unit_normal(const SkinGrid *g, const double *posed, int f, doub
     n[0] /= s, n[1] /= s, n[2] /= s;
 }
 
-/* the posed mesh (V, 3) and its angle-weighted unit vertex normals (V, 3), the vertices'
-   pseudonormals (hrr_garment/body/pseudo_normals.py), for the joints' moves rot (J, 3, 3) and
-   trans (J, 3) */
-void hrr_skin_pose(const SkinGrid *g, const double *rot, const double *trans, double *posed, double *normals)
+/* a posed vertex's angle-weighted unit normal, its pseudonormal (pseudo_normals.py): its faces' unit
+   normals, each weighted by the face's angle at the vertex. Measured where a point's nearest point is
+   that vertex, not for every vertex a frame (its faces' angles would cost the pose four times over) */
+static void vertex_pseudonormal(const SkinGrid *g, const double *posed, int v, double n[3])
+{
+    n[0] = n[1] = n[2] = 0.0;
+    for (int e = g->corner_start[v]; e < g->corner_start[v + 1]; e++) {
+        const int f = g->corner_list[e] / 3, k = g->corner_list[e] % 3;
+        const int *c = g->faces + 3 * f;
+        const double *o = posed + 3 * c[k], *p1 = posed + 3 * c[(k + 1) % 3], *p2 = posed + 3 * c[(k + 2) % 3];
+        const double u[3] = {p1[0] - o[0], p1[1] - o[1], p1[2] - o[2]}, w[3] = {p2[0] - o[0], p2[1] - o[1], p2[2] - o[2]};
+        const double x[3] = {u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2], u[0] * w[1] - u[1] * w[0]};
+        const double angle = atan2(sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2]), u[0] * w[0] + u[1] * w[1] + u[2] * w[2]);
+        double unit[3];
+        face_unit_normal(g, posed, f, unit);
+        for (int a = 0; a < 3; a++) n[a] += angle * unit[a];
+    }
+    const double len = fmax(sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]), 1e-12);
+    n[0] /= len, n[1] /= len, n[2] /= len;
+}
+
+/* the posed mesh (V, 3) for the joints' moves rot (J, 3, 3) and trans (J, 3) */
+void hrr_skin_pose(const SkinGrid *g, const double *rot, const double *trans, double *posed)
 {
     for (int v = 0; v < g->V; v++) {
         const double *r = g->rest + 3 * v;
@@ -41,44 +60,25 @@ void hrr_skin_pose(const SkinGrid *g, const double *rot, const double *trans, do
             for (int a = 0; a < 3; a++) p[a] += w * (R[3 * a] * r[0] + R[3 * a + 1] * r[1] + R[3 * a + 2] * r[2] + t[a]);
         }
     }
-    memset(normals, 0, sizeof(double) * 3 * g->V);
-    for (int f = 0; f < g->F; f++) {
-        const int *c = g->faces + 3 * f;
-        double n[3];
-        face_unit_normal(g, posed, f, n);
-        for (int k = 0; k < 3; k++) {
-            const double *o = posed + 3 * c[k], *p1 = posed + 3 * c[(k + 1) % 3], *p2 = posed + 3 * c[(k + 2) % 3];
-            const double u[3] = {p1[0] - o[0], p1[1] - o[1], p1[2] - o[2]}, w[3] = {p2[0] - o[0], p2[1] - o[1], p2[2] - o[2]};
-            const double x[3] = {u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2], u[0] * w[1] - u[1] * w[0]};
-            const double angle = atan2(sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2]), u[0] * w[0] + u[1] * w[1] + u[2] * w[2]);
-            for (int a2 = 0; a2 < 3; a2++) normals[3 * c[k] + a2] += angle * n[a2];
-        }
-    }
-    for (int v = 0; v < g->V; v++) {
-        double *n = normals + 3 * v;
-        const double len = fmax(sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]), 1e-12);
-        n[0] /= len, n[1] /= len, n[2] /= len;
-    }
 }
 
 /* min(max(x, lo), hi) inline (fmin and fmax are library calls where NaN must be honoured) */
 static inline double clamp(double x, double lo, double hi) { return x < lo ? lo : (x > hi ? hi : x); }
 
-/* T frames posed at once, frames in parallel (`threads`): each frame's mesh and vertex normals
-   (hrr_skin_pose) for its joints' moves rot (T, J, 3, 3), trans (T, J, 3), and where pieces are given
+/* T frames posed at once, frames in parallel (`threads`): each frame's mesh (hrr_skin_pose) for its joints' moves rot (T, J, 3, 3), trans (T, J, 3), and where pieces are given
    (P > 0) its hulls' radii (T, C): each capsule (ends a, b (T, C, 3), radius radii (C,)) grown by the
    farthest any of its pieces' points lies outside it, never narrower than it
    (hrr_garment/body/skin_envelope.py's growth and PosedSkin.of_frames, the reference): point p lies
    on the face of vertices corners (P, 3) at barycentric bary (P, 3), its piece held by capsule
    capsule[p]. Posing and growing a 64-frame batch in numpy, one thread, was a tenth of the push */
-void hrr_skin_frames(const SkinGrid *g, int T, const double *rot, const double *trans, double *posed, double *normals,
+void hrr_skin_frames(const SkinGrid *g, int T, const double *rot, const double *trans, double *posed,
                      const double *a, const double *b, const double *radii, int C, const int32_t *corners,
                      const double *bary, const int32_t *capsule, int P, double *hull, int threads)
 {
     #pragma omp parallel for num_threads(threads) schedule(static)
     for (int t = 0; t < T; t++) {
         double *pt = posed + (size_t)t * 3 * g->V;
-        hrr_skin_pose(g, rot + (size_t)t * 9 * g->J, trans + (size_t)t * 3 * g->J, pt, normals + (size_t)t * 3 * g->V);
+        hrr_skin_pose(g, rot + (size_t)t * 9 * g->J, trans + (size_t)t * 3 * g->J, pt);
         if (P <= 0) continue;
         const double *at = a + (size_t)t * 3 * C, *bt = b + (size_t)t * 3 * C;
         double *h = hull + (size_t)t * C;
@@ -195,8 +195,7 @@ static void closest_bary(const double *p, const double *a, const double *b, cons
 /* the nearest of the faces node lists to x: its distance, signed by the pseudonormal of the nearest
    point's face, edge or vertex (pseudo_normals.py: the face's normal, the two faces' across an edge,
    the vertex's angle-weighted normal), and the outward normal */
-static double skin_nearest_face(const SkinGrid *g, long node, const double *posed, const double *normals,
-                                 const double *x, double *normal)
+static double skin_nearest_face(const SkinGrid *g, long node, const double *posed, const double *x, double *normal)
 {
     double best = INFINITY, gap[3] = {0}, bary_best[3] = {0};
     int face = -1;
@@ -215,7 +214,7 @@ static double skin_nearest_face(const SkinGrid *g, long node, const double *pose
     double out[3];
     if (zeros == 2) {  /* at a corner: the vertex's */
         const int k = bary_best[0] != 0.0 ? 0 : (bary_best[1] != 0.0 ? 1 : 2);
-        memcpy(out, normals + 3 * c[k], sizeof out);
+        vertex_pseudonormal(g, posed, c[k], out);
     } else {
         face_unit_normal(g, posed, face, out);
         if (zeros == 1) {  /* on the edge opposite the corner of no weight: the face across it too */
@@ -238,7 +237,7 @@ static double skin_nearest_face(const SkinGrid *g, long node, const double *pose
 }
 
 static void skin_point(const SkinGrid *g, const double *rot, const double *trans, const double *posed,
-                       const double *normals, const double *x, double *distance, double *normal)
+                       const double *x, double *distance, double *normal)
 {
     /* the starts: the joints whose rigid guess lands nearest to skin of their own (ties: lowest index) */
     int order[SKIN_MAX_STARTS];
@@ -301,7 +300,7 @@ static void skin_point(const SkinGrid *g, const double *rot, const double *trans
             signed_at[s] = signed_at[again];
         } else {
             double n[3];
-            signed_at[s] = skin_nearest_face(g, seen[s], posed, normals, x, n);
+            signed_at[s] = skin_nearest_face(g, seen[s], posed, x, n);
             if (fabs(signed_at[s]) < best) best = fabs(signed_at[s]), best_signed = signed_at[s], memcpy(best_normal, n, sizeof n);
         }
         if (sqrt(m[0] * m[0] + m[1] * m[1] + m[2] * m[2]) < g->settled && signed_at[s] < 0.0 && -d > own_deep) own_deep = -d;
@@ -320,9 +319,9 @@ static void skin_point(const SkinGrid *g, const double *rot, const double *trans
 /* (N,) signed distances and (N, 3) outward normals of points (N, 3) against the mesh posed by
    hrr_skin_pose for the same moves */
 void hrr_skin_sdf(const SkinGrid *g, const double *rot, const double *trans, const double *posed,
-                  const double *normals, const double *points, int N, double *distance, double *normal)
+                  const double *points, int N, double *distance, double *normal)
 {
-    for (int i = 0; i < N; i++) skin_point(g, rot, trans, posed, normals, points + 3 * i, distance + i, normal + 3 * i);
+    for (int i = 0; i < N; i++) skin_point(g, rot, trans, posed, points + 3 * i, distance + i, normal + 3 * i);
 }
 
 /* (a . b), summed in the order numpy's reference sums it */

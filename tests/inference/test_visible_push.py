@@ -92,7 +92,7 @@ def test_the_broad_phase_is_its_reference_and_culls_only_far_outside(visible, cl
         rot, pos = motion.global_rotations[t], motion.joint_positions[t]
         cells = closed_visible.cells(rot, pos, margin)  # the kernel's
         moves = skin.joint_transforms(rot[None], pos[None])
-        posed = closed_visible.kernel.pose_frames(*(np.ascontiguousarray(m) for m in moves))[0][0]
+        posed = closed_visible.kernel.pose_frames(*(np.ascontiguousarray(m) for m in moves))[0]
         reference = skin_cells(posed, skin.faces, margin=margin, cell=CELL_M)
         assert np.array_equal(cells.cells, reference.cells) and np.array_equal(cells.dims, reference.dims)
         points = rng.uniform(posed.min(0) - 0.1, posed.max(0) + 0.1, (3000, 3))
@@ -339,7 +339,7 @@ def test_the_graphs_hulls_are_the_kernels_and_bound_a_wrong_inside(closed_visibl
     motion = synthesize("dance", 0.5, seed=2)
     rot, pos = motion.global_rotations, motion.joint_positions
     a, b = DEFAULT_BODY.pose(rot, pos)
-    radii = closed_visible.skinned(rot, pos, capsules=(a, b))[4]
+    radii = closed_visible.skinned(rot, pos, capsules=(a, b))[3]
     graph = SkinColliderGraph(closed_visible.collider, torch.float64)
     hulls = SkinHulls(closed_visible.envelope).double()
     moves = graph.moves(torch.from_numpy(rot), torch.from_numpy(pos))
