@@ -84,6 +84,23 @@ class PushOutStage(nn.Module):
         for c, group in enumerate(limits.colour_groups):
             constant(self, f"colour_{c}", group, dtype=torch.int64)
 
+    @classmethod
+    def of_visible(cls, visible, smoothing, *, limits, settings: PushOutSettings) -> "PushOutStage":
+        """The stage that pushes out of the mesh a :class:`~.visible_push.VisibleCollider` measures:
+        its collider's graph within the margin of its hulls (the capsules of its body grown)."""
+        from ..models.skin_collider_graph import SkinColliderGraph
+        from .torch_skin_hulls import SkinHulls
+
+        body = visible.body
+        return cls(
+            (*body.ends, body.radii),
+            smoothing,
+            limits=limits,
+            settings=settings,
+            skin=SkinColliderGraph(visible.collider),
+            hulls=SkinHulls(visible.envelope),
+        )
+
     def distance(
         self, p: torch.Tensor, a: torch.Tensor, b: torch.Tensor, radii: torch.Tensor | None = None
     ) -> tuple[torch.Tensor, torch.Tensor]:

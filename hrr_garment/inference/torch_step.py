@@ -33,7 +33,6 @@ import torch
 from torch import nn
 
 from ..models.codes import WindowCodes
-from ..models.skin_collider_graph import SkinColliderGraph
 from ..motion.memory import MEMORY_WIDTH, MotionMemory, motion_memory
 from ..motion.motion import FPS
 from ..motion.rotations import yaw_of
@@ -45,7 +44,6 @@ from .torch_features import FeatureStage, PoseStage
 from .torch_ops import constant, turn_y
 from .torch_push_out import PushOutStage
 from .torch_sample import SampleStage
-from .torch_skin_hulls import SkinHulls
 
 
 class StreamStep(nn.Module):
@@ -198,13 +196,14 @@ def stream_step(path: FramePath, *, movable: bool = False) -> StreamStep:
     memory = motion_memory(spec, FPS) if spec else None
     stage = None
     if run.push_out:
-        body = run.body.body
-        stage = PushOutStage(
-            (*body.ends, body.radii),
-            path.smoothing,
-            limits=path.edge_limits,
-            settings=path.push_settings or PUSH_OUT,
-            **_visible_body(run),
+        # the mesh the run's body is drawn with, where the run pushes out of it (push_body "visible",
+        # the default) and the body has one; else its capsules
+        visible = run.body.visible_collider() if run.push_body == "visible" else None
+        body, settings = run.body.body, path.push_settings or PUSH_OUT
+        stage = (
+            PushOutStage((*body.ends, body.radii), path.smoothing, limits=path.edge_limits, settings=settings)
+            if visible is None
+            else PushOutStage.of_visible(visible, path.smoothing, limits=path.edge_limits, settings=settings)
         )
     if run.decoder == "fast":
         module = path.decoder
@@ -214,15 +213,6 @@ def stream_step(path: FramePath, *, movable: bool = False) -> StreamStep:
     return StreamStep(
         bundle, module, character=run.body, memory=memory, fps=FPS, push_out=stage, sample=sample
     ).eval()
-
-
-def _visible_body(run) -> dict:
-    """The collider graph of the mesh the run's body is drawn with and its hulls, where the run pushes
-    out of it (``push_body="visible"``, the default) and the body has one; none: its capsules."""
-    collider = run.body.visible_collider() if run.push_body == "visible" else None
-    if collider is None:
-        return {}
-    return {"skin": SkinColliderGraph(collider.collider), "hulls": SkinHulls(collider.envelope)}
 
 
 def state_shapes(step: StreamStep) -> dict[str, tuple[int, ...]]:

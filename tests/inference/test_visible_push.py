@@ -302,14 +302,7 @@ def test_the_torch_stage_on_the_visible_mesh_pushes_as_the_kernel(closed_visible
         ).numpy()
     assert np.abs(theirs - frames).max() > 0.01  # the push moved the cloth a centimetre ...
     assert np.abs(ours - theirs).max() < 1e-5  # ... and the stage moved it the same (0.1 um measured)
-    hulled = PushOutStage(
-        (*body.ends, body.radii),
-        mean,
-        limits=limits,
-        settings=settings,
-        skin=stage.skin,
-        hulls=SkinHulls(closed_visible.envelope),
-    )
+    hulled = PushOutStage.of_visible(closed_visible, mean, limits=limits, settings=settings)
     with torch.no_grad():  # with the hulls, as the export has them: the same
         again = hulled(
             torch.from_numpy(frames),
@@ -333,7 +326,6 @@ def test_the_graphs_hulls_are_the_kernels_and_bound_a_wrong_inside(closed_visibl
     a point the collider calls inside there (between the thighs, across the gap from the nearest
     skin, on a real body) is not pushed."""
     from hrr_garment.inference.torch_push_out import PushOutStage
-    from hrr_garment.inference.torch_skin_hulls import SkinHulls
     from hrr_garment.models.skin_collider_graph import SkinColliderGraph
 
     motion = synthesize("dance", 0.5, seed=2)
@@ -352,14 +344,7 @@ def test_the_graphs_hulls_are_the_kernels_and_bound_a_wrong_inside(closed_visibl
     skirt = squeezed_skirt(motion, 1.0, on_body=True)[0]
     mean = mean_operator(skirt.faces, len(skirt.vertices))
     limits = EdgeLimits.of(skirt.faces, skirt.vertices.astype(np.float64), mean)
-    stage = PushOutStage(
-        (*DEFAULT_BODY.ends, DEFAULT_BODY.radii),
-        mean,
-        limits=limits,
-        settings=SETTINGS,
-        skin=SkinColliderGraph(closed_visible.collider),
-        hulls=SkinHulls(closed_visible.envelope),
-    )
+    stage = PushOutStage.of_visible(closed_visible, mean, limits=limits, settings=SETTINGS)
     # one frame about the pelvis, as the stage measures: the hulls' ends and radii packed (1, C, 7)
     frame_rot, frame_pos = torch.from_numpy(rot[:1]).float(), torch.from_numpy(pos[:1]).float()
     centre = frame_pos[:, :1]

@@ -35,14 +35,12 @@ def pulled_in(frames: np.ndarray, motion) -> np.ndarray:
     return (frames - PULL_M * off / length).astype(np.float32)
 
 
-def compare(visible, body, frames: np.ndarray, motion, faces: np.ndarray) -> dict:
+def compare(visible, frames: np.ndarray, motion, faces: np.ndarray) -> dict:
     """Both push-outs of ``frames`` (T, V, 3) float32 and how they differ."""
     from hrr_garment.inference.collision import PushOutSettings, mean_operator, push_out
     from hrr_garment.inference.edge_limits import EdgeLimits
     from hrr_garment.inference.torch_push_out import PushOutStage
-    from hrr_garment.inference.torch_skin_hulls import SkinHulls
     from hrr_garment.inference.visible_push import PosedSkin
-    from hrr_garment.models.skin_collider_graph import SkinColliderGraph
 
     settings = PushOutSettings()
     mean = mean_operator(faces, frames.shape[1])
@@ -51,14 +49,7 @@ def compare(visible, body, frames: np.ndarray, motion, faces: np.ndarray) -> dic
         frames, motion, faces, body=PosedSkin.of(visible, motion), settings=settings, mean=mean,
         limits=limits, report=False,
     )  # fmt: skip
-    stage = PushOutStage(
-        (*body.ends, body.radii),
-        mean,
-        limits=limits,
-        settings=settings,
-        skin=SkinColliderGraph(visible.collider),
-        hulls=SkinHulls(visible.envelope),
-    )
+    stage = PushOutStage.of_visible(visible, mean, limits=limits, settings=settings)
     rot = torch.from_numpy(motion.global_rotations).float()
     pos = torch.from_numpy(motion.joint_positions).float()
     with torch.no_grad():
@@ -107,7 +98,7 @@ def main() -> None:
         motion = sequence.motion.slice(0, count)
         simulated = sequence.garment[:count].astype(np.float32)
         for cloth, frames in (("simulated", simulated), ("pulled 2 cm in", pulled_in(simulated, motion))):
-            r = compare(visible, record.body, frames, motion, data.template.faces)
+            r = compare(visible, frames, motion, data.template.faces)
             print(
                 f"{name} | {cloth} | {count} | {r['moved_package']:.1f} / {r['moved_graph']:.1f} | "
                 f"{r['apart_a_frame']:.2f} | {r['frames_apart_pct']:.0f} % | {r['worst_mm']:.2f}"
