@@ -65,7 +65,8 @@ class PseudoNormals:
 def pseudo_normals(vertices: np.ndarray, faces: np.ndarray) -> PseudoNormals:
     """The mesh's (V, 3) ``vertices`` and (F, 3) ``faces`` pseudonormals (a degenerate face's normal
     and angles count as zero)."""
-    tri = np.asarray(vertices, np.float64)[np.asarray(faces, np.int64)]
+    faces = np.asarray(faces, np.int64)
+    tri = np.asarray(vertices, np.float64)[faces]
     n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
     length = np.linalg.norm(n, axis=1, keepdims=True)
     unit = n / np.maximum(length, 1e-300)
@@ -73,6 +74,6 @@ def pseudo_normals(vertices: np.ndarray, faces: np.ndarray) -> PseudoNormals:
     for k in range(3):
         u, w = tri[:, (k + 1) % 3] - tri[:, k], tri[:, (k + 2) % 3] - tri[:, k]
         angle = np.arctan2(np.linalg.norm(np.cross(u, w), axis=1), (u * w).sum(1))
-        np.add.at(vertex, np.asarray(faces, np.int64)[:, k], angle[:, None] * unit)
+        np.add.at(vertex, faces[:, k], angle[:, None] * unit)
     vertex /= np.maximum(np.linalg.norm(vertex, axis=1, keepdims=True), 1e-12)
     return PseudoNormals(unit, vertex)

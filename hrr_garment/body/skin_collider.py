@@ -145,7 +145,7 @@ class SkinCollider:
         best = np.argmin(np.stack([np.abs(d) for d, _ in answers]), 0)[None, :, None]
         distance = np.take_along_axis(np.stack([d for d, _ in answers])[..., None], best, 0)[0, :, 0]
         normal = np.take_along_axis(np.stack([n for _, n in answers]), best, 0)[0]
-        return side_rules(distance, normal, own_deep, under, self.settings)
+        return side_rules(distance, normal, own_deep=own_deep, under=under, settings=self.settings)
 
     def rest_points(
         self, points: np.ndarray, rot: np.ndarray, trans: np.ndarray
@@ -233,9 +233,7 @@ class SkinCollider:
         return edge_neighbours(self.body.faces)
 
 
-def side_rules(
-    distance: np.ndarray, normal: np.ndarray, own_deep: np.ndarray, under: np.ndarray, settings
-) -> tuple[np.ndarray, np.ndarray]:
+def side_rules(distance, normal, *, own_deep, under, settings: SkinColliderSettings):
     """The nearest face's signed ``distance`` and ``normal`` with the side settled by the depth rules:
     where the posed mesh overlaps itself (a thigh pressed into the other, an arm into the chest) the
     nearest face can be one buried in the other part, facing away, so a point is also inside where
@@ -243,12 +241,13 @@ def side_rules(
     face also puts the point inside) and the nearest face is no farther than that depth (skinning
     carries some rest points inside the chest off with the arm, far from any skin: their own faces
     put them outside). The face's normal says inside within ``face_side_m`` of it, or of the depth
-    ``under`` of a start's last rest point, settled or not."""
+    ``under`` of a start's last rest point, settled or not. Numpy arrays (the reference) or torch
+    tensors (:class:`~hrr_garment.models.skin_collider_graph.SkinColliderGraph`) alike: operators only."""
     deep, side = settings.deep_m, settings.face_side_m
     near_face = (distance >= -side) | ((under > deep) & (distance >= -(under + side)))
-    inside = ((distance < 0.0) & near_face) | ((own_deep > deep) & (np.abs(distance) <= own_deep + deep))
-    flip = inside != (distance < 0.0)
-    return np.where(flip, -distance, distance), np.where(flip[..., None], -normal, normal)
+    inside = ((distance < 0.0) & near_face) | ((own_deep > deep) & (abs(distance) <= own_deep + deep))
+    sign = 1.0 - 2.0 * (inside != (distance < 0.0))  # -1 where the rules flip the face's side
+    return distance * sign, normal * sign[..., None]
 
 
 def skin_collider(body: SkinnedBody, settings: SkinColliderSettings | None = None) -> SkinCollider:

@@ -43,6 +43,7 @@ import numpy as np
 import torch
 from torch import nn
 
+from ..body.skin_collider import side_rules
 from .torch_mesh import closest_on_triangles, cross, dot, pseudo_normals
 
 
@@ -113,12 +114,7 @@ class SkinColliderGraph(nn.Module):
         best = torch.argmin(distance.abs(), dim=-1, keepdim=True)
         distance = torch.gather(distance, -1, best)[..., 0]
         normal = torch.gather(normal, -2, best[..., None].expand(*best.shape, 3))[..., 0, :]
-        # the deep and face-side rules (skin_collider.side_rules says why)
-        deep, side = self.settings.deep_m, self.settings.face_side_m
-        near_face = (distance >= -side) | ((under > deep) & (distance >= -(under + side)))
-        inside = ((distance < 0.0) & near_face) | ((own_deep > deep) & (distance.abs() <= own_deep + deep))
-        flip = inside != (distance < 0.0)
-        return torch.where(flip, -distance, distance), torch.where(flip[..., None], -normal, normal)
+        return side_rules(distance, normal, own_deep=own_deep, under=under, settings=self.settings)
 
     def pose(self, rot: torch.Tensor, trans: torch.Tensor) -> torch.Tensor:
         """(B, V, 3) the mesh posed by the joints' moves (B, J, 3, 3) and (B, J, 3): linear blend

@@ -36,10 +36,11 @@ static void vertex_pseudonormal(const SkinGrid *g, const double *posed, int v, d
         const double *o = posed + 3 * c[k], *p1 = posed + 3 * c[(k + 1) % 3], *p2 = posed + 3 * c[(k + 2) % 3];
         const double u[3] = {p1[0] - o[0], p1[1] - o[1], p1[2] - o[2]}, w[3] = {p2[0] - o[0], p2[1] - o[1], p2[2] - o[2]};
         const double x[3] = {u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2], u[0] * w[1] - u[1] * w[0]};
-        const double angle = atan2(sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2]), u[0] * w[0] + u[1] * w[1] + u[2] * w[2]);
-        double unit[3];
-        face_unit_normal(g, posed, f, unit);
-        for (int a = 0; a < 3; a++) n[a] += angle * unit[a];
+        /* x is the face's normal at any of its corners, |x| the sine of the angle there times the edges */
+        const double len = sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2]);
+        const double angle = atan2(len, u[0] * w[0] + u[1] * w[1] + u[2] * w[2]);
+        const double s = angle / (len > 1e-300 ? len : 1e-300);
+        for (int a = 0; a < 3; a++) n[a] += s * x[a];
     }
     const double len = fmax(sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]), 1e-12);
     n[0] /= len, n[1] /= len, n[2] /= len;
@@ -65,9 +66,10 @@ void hrr_skin_pose(const SkinGrid *g, const double *rot, const double *trans, do
 /* min(max(x, lo), hi) inline (fmin and fmax are library calls where NaN must be honoured) */
 static inline double clamp(double x, double lo, double hi) { return x < lo ? lo : (x > hi ? hi : x); }
 
-/* T frames posed at once, frames in parallel (`threads`): each frame's mesh (hrr_skin_pose) for its joints' moves rot (T, J, 3, 3), trans (T, J, 3), and where pieces are given
-   (P > 0) its hulls' radii (T, C): each capsule (ends a, b (T, C, 3), radius radii (C,)) grown by the
-   farthest any of its pieces' points lies outside it, never narrower than it
+/* T frames posed at once, frames in parallel (`threads`): each frame's mesh (hrr_skin_pose) for its
+   joints' moves rot (T, J, 3, 3), trans (T, J, 3), and where pieces are given (P > 0) its hulls' radii
+   (T, C): each capsule (ends a, b (T, C, 3), radius radii (C,)) grown by the farthest any of its
+   pieces' points lies outside it, never narrower than it
    (hrr_garment/body/skin_envelope.py's growth and PosedSkin.of_frames, the reference): point p lies
    on the face of vertices corners (P, 3) at barycentric bary (P, 3), its piece held by capsule
    capsule[p]. Posing and growing a 64-frame batch in numpy, one thread, was a tenth of the push */

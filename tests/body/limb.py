@@ -77,6 +77,12 @@ def bent(degrees: float) -> tuple[np.ndarray, np.ndarray]:
     )
 
 
+def turned_halves(body: SkinnedBody, degrees: float) -> tuple[np.ndarray, np.ndarray]:
+    """A two-joint body's (:func:`bumpy_ball`'s) second joint turned ``degrees`` about z, in place."""
+    turn = axis_angle_to_matrix(np.array([0.0, 0.0, np.radians(degrees)]))
+    return np.stack([np.eye(3), turn]), body.rest_positions.copy()
+
+
 def near_surface(body: SkinnedBody, posed: np.ndarray, count: int = 300):
     """Points at ``count`` posed vertices and 5 and 20 mm along their normals both ways, with their rest x."""
     normals = vertex_normals(posed, body.faces)

@@ -12,7 +12,18 @@ from hrr_garment.body.mesh_distance import mesh_signed_distance
 from hrr_garment.body.skin_collider import SkinColliderSettings, skin_collider
 from hrr_garment.motion.rotations import axis_angle_to_matrix
 
-from .limb import ELBOW, LENGTH, RADIUS, bent, bumpy_ball, curled, near_surface, skinned_chain, skinned_limb
+from .limb import (
+    ELBOW,
+    LENGTH,
+    RADIUS,
+    bent,
+    bumpy_ball,
+    curled,
+    near_surface,
+    skinned_chain,
+    skinned_limb,
+    turned_halves,
+)
 
 SETTINGS = SkinColliderSettings(voxel_m=0.01, padding_m=0.03)
 
@@ -87,12 +98,6 @@ def test_curled_on_a_chain_of_six_joints_blended_all_along_it_follows_the_mesh()
     exact = mesh_signed_distance(around, posed, chain.faces)
     clear = np.abs(exact) > 0.003
     assert (np.sign(collider.query(around[clear], rot, pos)[0]) == np.sign(exact[clear])).all()
-
-
-def turned_halves(body, degrees: float) -> tuple[np.ndarray, np.ndarray]:
-    """A two-joint body's second joint turned ``degrees`` about z, in place."""
-    turn = axis_angle_to_matrix(np.array([0.0, 0.0, np.radians(degrees)]))
-    return np.stack([np.eye(3), turn]), body.rest_positions.copy()
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])

@@ -11,8 +11,7 @@ import torch
 from hrr_garment.body.mesh_distance import nearest_on_mesh
 from hrr_garment.body.skin_collider import SkinColliderSettings, skin_collider
 from hrr_garment.models.skin_collider_graph import SkinColliderGraph
-from tests.body.limb import bent, bumpy_ball, curled, probes, skinned_chain, skinned_limb
-from tests.body.test_skin_collider import turned_halves
+from tests.body.limb import bent, bumpy_ball, curled, probes, skinned_chain, skinned_limb, turned_halves
 
 SETTINGS = SkinColliderSettings(voxel_m=0.01, padding_m=0.03)
 

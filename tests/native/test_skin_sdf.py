@@ -5,8 +5,16 @@ import numpy as np
 import pytest
 
 from hrr_garment.body.skin_collider import SkinColliderSettings, skin_collider
-from tests.body.limb import ELBOW, bent, bumpy_ball, curled, near_surface, skinned_chain, skinned_limb
-from tests.body.test_skin_collider import turned_halves
+from tests.body.limb import (
+    ELBOW,
+    bent,
+    bumpy_ball,
+    curled,
+    near_surface,
+    skinned_chain,
+    skinned_limb,
+    turned_halves,
+)
 
 pytestmark = pytest.mark.native
 
