@@ -5,7 +5,8 @@ the same run (in turn, the median of the rounds): milliseconds a character of a 
 core), wall-clock and the process's CPU time (every core's, so that a machine of N free cores takes
 about CPU / N), their ratio (and the visible mesh's without its broad phase, the hulls' cull alone),
 and the cloth inside the visible mesh before and after each (the fraction of vertices more than 5 mm
-inside, mean and worst frame). Prints; asserts nothing.
+inside, mean and worst frame, on 8 frames spread over the clip: the exact reference takes seconds a
+frame). Prints; asserts nothing.
 
 The cloth is an ``hrr-animate`` output (``--animation out.h5``: a trained model's frames, on the
 body it names with ``--body``), or by default the dress at rest on an anny body carried by the body
@@ -17,7 +18,11 @@ where the garment was placed (a harder case than a trained model's cloth, and no
 
 The report (the default) measures the frames the strain limit moved again: against the capsules
 in numpy, against the skin in the kernel; ``--no-report`` times the push alone, as a stream or a
-crowd's step runs it. ``--threads`` sets the kernels' threads (default: PyTorch's).
+crowd's step runs it. ``--threads`` sets the kernels' threads (default: PyTorch's). ``--device
+cuda`` also times the exported step's push-out (the torch stage an ONNX graph holds: the visible
+mesh's collider graph within its hulls, and the capsules' for the ratio) on that torch device, its
+inputs already there as a GPU crowd's decoded frames are, each step synchronised, and counts the
+vertices it leaves more than 1 mm from the package's push.
 """
 
 from __future__ import annotations
@@ -29,6 +34,8 @@ import numpy as np
 from machine import cpu_description
 
 DEPTH_M = 0.005  # the push-out report's depth: inside counts past 5 mm
+MEASURED = 8  # frames the cloth inside is measured on, evenly spread (the exact reference: seconds each)
+APART_M = 0.001  # the torch stage's push and the package's differ where farther apart than this
 STEP = 64  # characters a step (the issue's figure: a 64-character step)
 
 
@@ -67,6 +74,36 @@ def timed(runs: dict, repeats: int) -> tuple[dict, dict, dict]:
     return median(wall), median(cpu), out
 
 
+def torch_runs(stages: dict, frames: np.ndarray, motion, cuts: list, device: str) -> dict:
+    """Each torch stage (name: ``PushOutStage``) pushing the steps in order on ``device``, its
+    inputs moved there first (a GPU crowd decodes its frames there), synchronised at the end."""
+    import torch
+
+    where = torch.device(device)
+    inputs = [
+        tuple(
+            torch.from_numpy(np.ascontiguousarray(x[cut])).float().to(where)
+            for x in (frames, motion.global_rotations, motion.joint_positions)
+        )
+        for cut in cuts
+    ]
+
+    def stepped(stage):
+        stage = stage.to(where)
+
+        def run():
+            with torch.no_grad():
+                out = torch.cat([stage(*step) for step in inputs])
+            if where.type == "cuda":
+                torch.cuda.synchronize(where)
+            return out
+
+        run()  # the first call allocates and (on a GPU) loads its kernels
+        return run
+
+    return {name: stepped(stage) for name, stage in stages.items()}
+
+
 def arguments() -> argparse.Namespace:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("motion", help="a clip (BVH, glTF, npz)")
@@ -78,6 +115,7 @@ def arguments() -> argparse.Namespace:
     p.add_argument("--vertices", type=int, default=4156, help="the carried dress's vertices")
     p.add_argument("--repeats", type=int, default=3)
     p.add_argument("--threads", type=int, help="the kernels' threads (default: PyTorch's)")
+    p.add_argument("--device", help="also time the torch stage's push-out on this device (cpu, cuda)")
     p.add_argument(
         "--no-report",
         action="store_true",
@@ -148,28 +186,71 @@ def main() -> None:
         "visible, hulls only": stepped(lambda poses: PosedSkin.of(hulls_only, poses)),
         "visible": stepped(lambda poses: PosedSkin.of(visible, poses)),
     }
+    if args.device:
+        from hrr_garment.inference.torch_push_out import PushOutStage
+
+        body = record.body
+        stages = {
+            f"torch capsules ({args.device})": PushOutStage(
+                (*body.ends, body.radii), mean, limits=limits, settings=settings
+            ),
+            f"torch visible ({args.device})": PushOutStage.of_visible(
+                visible, mean, limits=limits, settings=settings
+            ),
+        }
+        run.update(torch_runs(stages, frames, motion, cuts, args.device))
     print(f"{cpu_description()}; {default_threads()} threads; collider built in {built:.1f} s")
     print(
         f"{frames.shape[1]} vertices, {len(frames)} frames of {args.motion}: {len(cuts)} step(s) of "
         f"{len(frames) // len(cuts)} characters"
     )
     seconds, cpu, results = timed(run, args.repeats)
-    measured = PosedSkin.of(visible, motion)
-    before = (measured.distance(frames.astype(np.float64), slice(None), 0.0)[0] < -DEPTH_M).mean(1)
+    measured = lambda t: PosedSkin.of(visible, motion.slice(t, t + 1))  # noqa: E731
+    report(seconds, cpu, results, measured, frames, device=args.device)
+
+
+def report(seconds: dict, cpu: dict, results: dict, measured, frames: np.ndarray, *, device) -> None:
+    """Prints each run's time a character, the cloth inside the visible mesh (``measured(t)``: the
+    skin posed at frame t; on ``MEASURED`` frames) before and after it, and the ratios."""
+    sample = np.linspace(0, len(frames) - 1, min(MEASURED, len(frames))).round().astype(int)
+    poses = [measured(t) for t in sample]
+
+    def inside(cloth: np.ndarray) -> np.ndarray:
+        """Each sampled frame's share of ``cloth`` (T, V, 3) more than DEPTH_M inside the skin."""
+        return np.array(
+            [
+                (pose.distance(cloth[t : t + 1].astype(np.float64), slice(None), 0.0)[0] < -DEPTH_M).mean()
+                for t, pose in zip(sample, poses)
+            ]
+        )
+
+    before = inside(frames)
+    package = results["visible"]
     for name, out in results.items():
-        after = (measured.distance(out.astype(np.float64), slice(None), 0.0)[0] < -DEPTH_M).mean(1)
+        out = out if isinstance(out, np.ndarray) else out.float().cpu().numpy()
+        apart = ""
+        if name.startswith("torch visible"):
+            far = np.linalg.norm(out - package, axis=-1) > APART_M
+            apart = f"; apart from the package's push: {far.sum(1).mean():.2f} vertices a frame"
+        after = inside(out)
         moved = np.abs(out - frames).max(-1) > 0
         print(
             f"{name}: {1e3 * seconds[name] / len(frames):.3f} ms a character (CPU "
             f"{1e3 * cpu[name] / len(frames):.3f} ms); inside the visible "
             f"mesh before {100 * before.mean():.2f} % (worst {100 * before.max():.2f} %), after "
             f"{100 * after.mean():.2f} % (worst {100 * after.max():.2f} %); vertices moved "
-            f"{100 * moved.mean():.1f} %"
+            f"{100 * moved.mean():.1f} %{apart}"
         )
     print(
         f"visible / capsules: {seconds['visible'] / seconds['capsules']:.2f} x (hulls only "
         f"{seconds['visible, hulls only'] / seconds['capsules']:.2f} x)"
     )
+    if device:
+        graph, capsules = (seconds[f"torch {kind} ({device})"] for kind in ("visible", "capsules"))
+        print(
+            f"torch visible / torch capsules: {graph / capsules:.2f} x; torch visible / package "
+            f"visible: {graph / seconds['visible']:.2f} x"
+        )
 
 
 if __name__ == "__main__":
