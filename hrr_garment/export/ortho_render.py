@@ -63,16 +63,23 @@ class OrthoCamera:
 
 
 def draw_meshes(
-    image, meshes: list[PreviewMesh], camera: OrthoCamera, centre: tuple[float, float], scale: float
+    image,
+    meshes: list[PreviewMesh],
+    camera: OrthoCamera,
+    centre: tuple[float, float],
+    scale: float,
+    depth: np.ndarray | None = None,
 ):
     """Flat-shaded, two-sided, z-buffered triangles drawn over the PIL ``image``; returns the new image.
-    The light comes from the camera and above."""
+    The light comes from the camera and above. ``depth``: the z-buffer (the image's height x width,
+    larger is nearer; -inf where nothing is drawn), filled in place where given."""
     from .raster import rasterize
 
     Image, _ = pillow_modules()
     light = np.array([0.0, 0.5, 1.0]) / np.sqrt(1.25)
     pixels = np.array(image)
-    depth = np.full(pixels.shape[:2], -np.inf)
+    if depth is None:
+        depth = np.full(pixels.shape[:2], -np.inf)
     for mesh in meshes:
         tri = camera.project(mesh.vertices)[mesh.faces]
         normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])

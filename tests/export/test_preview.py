@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from hrr_garment.data.animation_file import read_animation_h5
-from hrr_garment.export.ortho_render import VIEWS, OrthoCamera
+from hrr_garment.export.ortho_render import VIEWS, OrthoCamera, PreviewMesh, draw_meshes, pillow_modules
 from hrr_garment.export.raster import rasterize
 from tests.export.test_export import _animation_arrays, _write
 
@@ -71,6 +71,25 @@ def test_front_camera_sees_the_character_face_on():
     p = cam.project(np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]))
     assert p[0, 0] == pytest.approx(1.0) and p[1, 2] == pytest.approx(1.0)
     assert OrthoCamera.named("left").project(np.array([[1.0, 0, 0]]))[0, 2] == pytest.approx(1.0)
+
+
+def test_draw_meshes_fills_the_depth_buffer_it_is_given():
+    # two unit squares facing the front camera, at z = 0.5 and z = -0.5 (nearer = larger depth),
+    # the far one shifted right: where they overlap the near one's depth, beyond it the far one's
+    Image, _ = pillow_modules()
+    quad = np.array([[0, 1, 2], [1, 3, 2]])
+    square = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]], float)
+    meshes = [
+        PreviewMesh(square + [0, 0, 0.5], quad, (10, 0, 0)),
+        PreviewMesh(square + [0.5, 0, -0.5], quad, (0, 20, 0)),
+    ]
+    camera, blank = OrthoCamera.named("front", 0.0, target=(0.75, 0.5, 0.0)), Image.new("RGB", (40, 40))
+    depth = np.full((40, 40), -np.inf)
+    image = draw_meshes(blank, meshes, camera, (20, 20), 20.0, depth)
+    assert np.array_equal(np.asarray(image), np.asarray(draw_meshes(blank, meshes, camera, (20, 20), 20.0)))
+    row = depth[20]  # screen x = 20 + 20 (x - 0.75): the near square over 5..25, the far one 15..35
+    assert np.allclose(row[6:24], 0.5) and np.allclose(row[26:34], -0.5)
+    assert np.all(np.isinf(row[:4])) and np.all(np.isinf(row[36:]))
 
 
 @pytest.fixture
