@@ -86,10 +86,9 @@ def test_the_push_out_analysis_reports_each_setting_with_and_without_the_subspac
         tool.push_out_rows([0], 0.25, [0.1]),
         sequences=1,
         timing=(8, 1),
-        subspace_push=True,
-        mode="regression",
+        asked=tool.Asked(mode="regression", subspace_push=True),
     )
-    assert report["mode"] == "regression"
+    assert report["mode"] == "regression" and report["body"] == "capsules"
     plain, pushed = (
         report["rows"]["follow 0, slack 0.1"],
         report["rows"]["follow 0, slack 0.1, subspace push"],
@@ -107,6 +106,12 @@ def test_the_push_out_analysis_reports_each_setting_with_and_without_the_subspac
         assert row["pve_mm"] > 0 and row["us_per_character"] > 0
     assert pushed["inside_before_pct"] <= plain["inside_before_pct"]
     assert report["rows"]["unpushed"]["pve_mm"] > 0
+    # the first setting on the simulation itself: pushed out, never timed, inside no deeper after
+    truth = report["rows"]["simulation, pushed"]
+    assert truth["us_per_character"] is None and truth["inside_after_pct"] <= truth["inside_before_pct"]
+    with pytest.raises(SystemExit, match="no mesh of its own"):  # the tiny model's body is the mannequin
+        tool.analyse(str(root / "model"), str(data), "test", tool.push_out_rows([0], 0.25, [0.1]), 1, (8, 1),
+                     tool.Asked(visible=True))  # fmt: skip
 
 
 def test_bodies_inside_counts_the_cloth_inside_each_body_before_the_push_out(trained, tmp_path, monkeypatch):

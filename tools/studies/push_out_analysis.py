@@ -23,6 +23,12 @@ With ``--subspace-push`` every setting is also run after the push in the fast de
 
     python tools/studies/push_out_analysis.py --model hrr_work/models/dress-real-quick \\
         --dataset hrr_work/datasets/dress-real-quick.h5 --split test --follow 0 6 --slack 0 0.1 --sequences 12
+    python tools/studies/push_out_analysis.py --model hrr_work/make-plain/model \\
+        --dataset hrr_work/make-plain/dataset.h5 --split test --follow 0 --visible
+
+``--visible`` pushes out of the mesh the model's body is drawn with (a character's own, an anny
+body's), as ``hrr-animate`` does on such a body, instead of its capsules. The first setting also
+pushes the simulation itself (``simulation, pushed``): what the truth asks of the push-out.
 """
 
 from __future__ import annotations
@@ -31,13 +37,17 @@ import argparse
 import dataclasses
 import json
 import time
+from typing import NamedTuple
 
 import numpy as np
 
 
-def _timed_us(vertices: np.ndarray, motion, faces, animator, settings, crowd: int, repeat: int) -> float:
+def _timed_us(
+    vertices: np.ndarray, motion, faces, animator, settings, crowd: int, repeat: int, body_of
+) -> float:
     """Median microseconds per frame of the push-out (its subspace push included where
-    ``settings`` has one), ``crowd`` frames a call (report off)."""
+    ``settings`` has one), ``crowd`` frames a call (report off); ``body_of(motion)``: the body
+    pushed out of, posed for those frames."""
     from hrr_garment.inference.collision import push_out
 
     per_frame = []
@@ -49,7 +59,7 @@ def _timed_us(vertices: np.ndarray, motion, faces, animator, settings, crowd: in
                 vertices[sl],
                 motion.slice(start, start + crowd),
                 faces,
-                body=animator.body().body,
+                body=body_of(motion.slice(start, start + crowd)),
                 settings=settings,
                 mean=animator.smoothing,
                 limits=animator.edge_limits,
@@ -57,6 +67,41 @@ def _timed_us(vertices: np.ndarray, motion, faces, animator, settings, crowd: in
             )
             per_frame.append((time.perf_counter() - t0) / crowd)
     return 1e6 * float(np.median(per_frame)) if per_frame else float("nan")
+
+
+def body_of_model(animator, visible: bool):
+    """``body_of(motion)``: what the push-out pushes out of, posed for ``motion``: the model's body's
+    capsules, or (``visible``) the mesh it is drawn with (:class:`~hrr_garment.inference.visible_push.
+    PosedSkin`: the push-out hrr-animate runs on an anny body or a fitted character)."""
+    body = animator.body()
+    if not visible:
+        return lambda motion: body.body
+    from hrr_garment.inference.visible_push import PosedSkin
+
+    collider = body.visible_collider()
+    if collider is None:
+        raise SystemExit(
+            "--visible: the model's body has no mesh of its own (the mannequin is drawn as its capsules)"
+        )
+    return lambda motion: PosedSkin.of(collider, motion)
+
+
+def inside_pct(frames: np.ndarray, out: np.ndarray, record, faces, animator, settings, body_of) -> tuple:
+    """Each frame's share of vertices more than 5 mm inside the body before and after the push:
+    against capsules measured here, against a mesh the push-out's own report (its means, per frame)."""
+    from hrr_garment.inference.collision import push_out
+    from hrr_garment.inference.visible_push import PosedSkin
+    from hrr_garment.sim.quality import body_signed_distance
+
+    body = body_of(record.motion)
+    if not isinstance(body, PosedSkin):
+        measured = [(body_signed_distance(x, record.motion, body) < -0.005).mean(1) for x in (frames, out)]
+        return tuple(measured)
+    _, report = push_out(
+        frames, record.motion, faces, body=body, settings=settings, mean=animator.smoothing,
+        limits=animator.edge_limits, report=True,
+    )  # fmt: skip
+    return np.full(len(frames), report.inside_before), np.full(len(frames), report.inside_after)
 
 
 def push_out_rows(follows: list[int], slope: float, slacks: list[float]) -> dict:
@@ -72,32 +117,35 @@ def push_out_rows(follows: list[int], slope: float, slacks: list[float]) -> dict
     }
 
 
+class Asked(NamedTuple):
+    """How the cloth is made and pushed: the ``mode`` animated (None: the model's default, which a
+    retrained stage may have reset), each setting also after the push in the fast decoder's subspace
+    (``subspace_push``), out of the mesh the model's body is drawn with (``visible``) or its capsules."""
+
+    mode: str | None = None
+    subspace_push: bool = False
+    visible: bool = False
+
+
 def analyse(
-    model: str,
-    dataset: str,
-    split: str,
-    rows: dict,
-    sequences: int,
-    timing: tuple[int, int],
-    subspace_push: bool = False,
-    mode: str | None = None,
+    model: str, dataset: str, split: str, rows: dict, sequences: int, timing: tuple[int, int], asked=Asked()
 ) -> dict:
     """``rows``: label -> :class:`~hrr_garment.inference.collision.PushOutSettings` (:func:`push_out_rows`);
-    ``timing``: (crowd, repeat) of the timed pushes; ``subspace_push``: each also after the push in the
-    fast decoder's subspace; ``mode``: the mode animated (None: the model's default, which a retrained
-    stage may have reset)."""
+    ``timing``: (crowd, repeat) of the timed pushes; ``asked``: :class:`Asked`. The first row is also
+    run on the simulation itself (``"simulation, pushed"``): what the truth asks of the push-out."""
     crowd, repeat = timing
+    mode, subspace_push, visible = asked.mode, asked.subspace_push, asked.visible
     from hrr_garment.data.dataset import GarmentDataset
     from hrr_garment.inference.animator import Animator
     from hrr_garment.inference.collision import push_out
     from hrr_garment.inference.strain_limit import limit_push_strain
-    from hrr_garment.sim.quality import body_signed_distance, edge_strain
+    from hrr_garment.sim.quality import edge_strain
 
     animator = Animator.load(model)
     ds = GarmentDataset(dataset)
     names = ds.splits[split][:sequences]
     faces, rest, edges = ds.template.faces, ds.template.vertices, ds.template.edges()
-    body = animator.body().body
+    body, body_of = animator.body().body, body_of_model(animator, visible)
     subspace = animator.subspace_push if subspace_push else None
     if subspace_push and subspace is None:
         raise SystemExit(f"{model}: no fast decoder (subspace) to push in")
@@ -107,9 +155,10 @@ def analyse(
         if subspace
         else []
     )
+    truth_label, truth_settings = "simulation, pushed", next(iter(rows.values()))
     found = {
         k: {"limited": [], "torn": [], "strain": [], "inside": [], "before": [], "pve": [], "us": []}
-        for k, _, _ in variants
+        for k in [label for label, _, _ in variants] + [truth_label]
     }
     plain = {"unpushed": [], "simulation": []}
     unpushed_pve = []
@@ -120,63 +169,64 @@ def analyse(
         plain["simulation"].append(edge_strain(record.garment, rest, edges))
         unpushed_pve.append(np.linalg.norm(anim.vertices - record.garment, axis=-1).mean(1))
         capsules = (*body.pose_motion(record.motion), body.radii)
+        pushed_body = body_of(record.motion)
+        cases = [(label, settings, push, anim.vertices) for label, settings, push in variants]
+        cases.append((truth_label, truth_settings, None, record.garment.astype(np.float32)))
         for (
             label,
             settings,
             push,
-        ) in variants:  # the push alone (its follow included), then with its strain limit
-            frames = (
-                anim.vertices
-                if push is None
-                else push(anim.vertices, record.motion, capsules, settings.margin)
-            )
+            cloth,
+        ) in cases:  # the push alone (its follow included), then with its strain limit
+            frames = cloth if push is None else push(cloth, record.motion, capsules, settings.margin)
+            common = {
+                "body": pushed_body,
+                "mean": animator.smoothing,
+                "limits": animator.edge_limits,
+                "report": False,
+            }
             bare, _ = push_out(
                 frames,
                 record.motion,
                 faces,
-                body=body,
                 settings=dataclasses.replace(settings, max_strain=np.inf),
-                mean=animator.smoothing,
-                limits=animator.edge_limits,
-                report=False,
+                **common,
             )
             _, torn = limit_push_strain(
                 bare, frames, animator.edge_limits, settings.max_strain, slack=settings.stretch_slack
             )
-            out, _ = push_out(
-                frames,
-                record.motion,
-                faces,
-                body=body,
-                settings=settings,
-                mean=animator.smoothing,
-                limits=animator.edge_limits,
-                report=False,
-            )
+            out, _ = push_out(frames, record.motion, faces, settings=settings, **common)
+            before, inside = inside_pct(frames, out, record, faces, animator, settings, body_of)
             found[label]["torn"].append(torn)
             found[label]["limited"].append(np.abs(out - bare).max((1, 2)) > 0)
             found[label]["strain"].append(edge_strain(out, rest, edges))
-            found[label]["before"].append(
-                (body_signed_distance(frames, record.motion, body) < -0.005).mean(1)
-            )
-            found[label]["inside"].append((body_signed_distance(out, record.motion, body) < -0.005).mean(1))
+            found[label]["before"].append(before)
+            found[label]["inside"].append(inside)
             found[label]["pve"].append(np.linalg.norm(out - record.garment, axis=-1).mean(1))
-            timed = settings if push is None else dataclasses.replace(settings, subspace=push)
-            found[label]["us"].append(
-                _timed_us(anim.vertices, record.motion, faces, animator, timed, crowd, repeat)
-            )
+            if label != truth_label:
+                timed = settings if push is None else dataclasses.replace(settings, subspace=push)
+                found[label]["us"].append(
+                    _timed_us(cloth, record.motion, faces, animator, timed, crowd, repeat, body_of)
+                )
     report = {
         "model": model,
         "mode": mode or "default",
         "dataset": dataset,
         "split": split,
+        "body": "visible" if visible else "capsules",
         "sequences": names,
         "crowd": crowd,
-        "rows": {},
+        "rows": summarised(found, plain, unpushed_pve),
     }
+    return report
+
+
+def summarised(found: dict, plain: dict, unpushed_pve: list) -> dict:
+    """Each row's figures from the per-sequence arrays ``analyse`` gathered."""
+    rows = {}
     for label, f in found.items():
         strain = np.concatenate(f["strain"])
-        report["rows"][label] = {
+        rows[label] = {
             "limited_frames_pct": round(100 * float(np.concatenate(f["limited"]).mean()), 2),
             "torn_before_limit_pct": round(100 * float(np.concatenate(f["torn"]).mean()), 2),
             "strain_max": round(float(strain.max()), 3),
@@ -184,16 +234,16 @@ def analyse(
             "inside_before_pct": round(100 * float(np.concatenate(f["before"]).mean()), 3),
             "inside_after_pct": round(100 * float(np.concatenate(f["inside"]).mean()), 3),
             "pve_mm": round(1000 * float(np.concatenate(f["pve"]).mean()), 2),
-            "us_per_character": round(float(np.median(f["us"])), 1),
+            "us_per_character": round(float(np.median(f["us"])), 1) if f["us"] else None,
         }
     for label, strains in plain.items():
         strain = np.concatenate(strains)
-        report["rows"][label] = {
+        rows[label] = {
             "strain_max": round(float(strain.max()), 3),
             "strain_p99": round(float(np.percentile(strain, 99)), 4),
         }
-    report["rows"]["unpushed"]["pve_mm"] = round(1000 * float(np.concatenate(unpushed_pve).mean()), 2)
-    return report
+    rows["unpushed"]["pve_mm"] = round(1000 * float(np.concatenate(unpushed_pve).mean()), 2)
+    return rows
 
 
 def main() -> None:
@@ -223,6 +273,12 @@ def main() -> None:
         help="each setting also after the push in the fast decoder's subspace",
     )
     parser.add_argument("--mode", help="the mode animated (default: the model's own default mode)")
+    parser.add_argument(
+        "--visible",
+        action="store_true",
+        help="push out of the mesh the model's body is drawn with (an anny body, a fitted character), "
+        "not its capsules",
+    )
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args()
     report = analyse(
@@ -232,15 +288,14 @@ def main() -> None:
         push_out_rows(args.follow, args.slope, args.slack),
         args.sequences,
         (args.crowd, args.repeat),
-        args.subspace_push,
-        args.mode,
+        Asked(args.mode, args.subspace_push, args.visible),
     )
     if args.json:
         print(json.dumps(report))
         return
     print(
         f"{args.model} on {len(report['sequences'])} {args.split} clips of {args.dataset} "
-        f"({args.mode or 'default'} mode, offline):"
+        f"({args.mode or 'default'} mode, offline; pushed out of the body's {report['body']}):"
     )
     for label, row in report["rows"].items():
         print(f"  {label}: " + ", ".join(f"{k} {v}" for k, v in row.items()))
