@@ -147,6 +147,8 @@ def analyse(
     faces, rest, edges = ds.template.faces, ds.template.vertices, ds.template.edges()
     body, body_of = animator.body().body, body_of_model(animator, visible)
     subspace = animator.subspace_push if subspace_push else None
+    if subspace_push and visible:
+        raise SystemExit("--subspace-push measures the capsules: it goes without --visible")
     if subspace_push and subspace is None:
         raise SystemExit(f"{model}: no fast decoder (subspace) to push in")
     variants = [(label, settings, None) for label, settings in rows.items()]
