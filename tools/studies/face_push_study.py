@@ -106,9 +106,21 @@ def main() -> None:
         keep_skin_out_of_faces(pushed[t], faces, skin[t].astype(np.float64), skin_faces, args.clearance)
         for t in frames
     ]
+    # the push-out's own strain limit after the faces' push: what of it survives the limit
+    from hrr_garment.inference.collision import PUSH_OUT
+    from hrr_garment.inference.strain_limit import limit_push_strain
+
+    limited, repaired = limit_push_strain(
+        np.stack(after),
+        np.stack(before),
+        animator.edge_limits,
+        PUSH_OUT.max_strain,
+        slack=PUSH_OUT.stretch_slack,
+    )
     for label, cloth in (
         ("the vertex push-out", before),
         (f"then the faces {1e3 * args.clearance:g} mm off", after),
+        (f"then the strain limit (it acted on {100 * repaired.mean():.0f} % of the frames)", list(limited)),
     ):
         seen = skin_seen(cloth, faces, [skin[t] for t in frames], skin_faces)
         print(
