@@ -167,8 +167,11 @@ def analyse(
     for name in names:
         record = ds.sequence(name)
         anim = animator.animate(record.motion, push_out=False, **({"mode": mode} if mode else {}))
-        plain["unpushed"].append(edge_strain(anim.vertices, rest, edges))
-        plain["simulation"].append(edge_strain(record.garment, rest, edges))
+        # strain against the garment at rest on the sequence's own body (a carried garment's edges
+        # are not the template's)
+        at_rest = rest if record.dressed is None else record.dressed.garment.vertices
+        plain["unpushed"].append(edge_strain(anim.vertices, at_rest, edges))
+        plain["simulation"].append(edge_strain(record.garment, at_rest, edges))
         unpushed_pve.append(np.linalg.norm(anim.vertices - record.garment, axis=-1).mean(1))
         capsules = (*body.pose_motion(record.motion), body.radii)
         pushed_body = body_of(record.motion)
@@ -201,7 +204,7 @@ def analyse(
             before, inside = inside_pct(frames, out, record, faces, animator, settings, body_of)
             found[label]["torn"].append(torn)
             found[label]["limited"].append(np.abs(out - bare).max((1, 2)) > 0)
-            found[label]["strain"].append(edge_strain(out, rest, edges))
+            found[label]["strain"].append(edge_strain(out, at_rest, edges))
             found[label]["before"].append(before)
             found[label]["inside"].append(inside)
             found[label]["pve"].append(np.linalg.norm(out - record.garment, axis=-1).mean(1))
