@@ -8,6 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from hrr_garment.body.mesh_distance import nearest_on_mesh, vertex_normals
+
 pytestmark = pytest.mark.tool
 
 
@@ -37,11 +39,9 @@ def test_a_skin_peak_through_a_cloth_face_ends_under_it_by_the_clearance():
     peak = int(np.argmin(np.linalg.norm(skin[:, [0, 2]] - [0.012, 0.013], axis=1)))
     skin[peak, 1] = 0.004  # ... with one vertex 4 mm through the cloth, inside a face
     moved = tool.keep_skin_out_of_faces(cloth, cloth_faces, skin, skin_faces, clearance=0.003)
-    normal = tool.vertex_normals(skin, skin_faces)[peak]
+    normal = vertex_normals(skin, skin_faces)[peak]
     assert normal[1] > 0.5  # the peak's normal points up, through the cloth
     # the cloth over the peak (its height there, barycentric) is now at least the clearance above it
-    from hrr_garment.body.mesh_distance import nearest_on_mesh
-
     _, face, bary = nearest_on_mesh(skin[peak : peak + 1], moved, cloth_faces)
     above = bary[0] @ moved[cloth_faces[face[0]]] - skin[peak]
     assert above @ normal >= 0.003 - 1e-4

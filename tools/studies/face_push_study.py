@@ -31,22 +31,11 @@ REACH_M = 0.03  # a skin vertex farther than this from the cloth is not under it
 SIDEWAYS_M = 0.01  # nor one whose nearest cloth point lies farther than this off its normal
 
 
-def vertex_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    """(V, 3) area-weighted unit vertex normals."""
-    normal = np.zeros_like(vertices)
-    face_normal = np.cross(
-        vertices[faces[:, 1]] - vertices[faces[:, 0]], vertices[faces[:, 2]] - vertices[faces[:, 0]]
-    )
-    for k in range(3):
-        np.add.at(normal, faces[:, k], face_normal)
-    return normal / np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-12)
-
-
 def keep_skin_out_of_faces(cloth, faces, skin, skin_faces, clearance: float, rounds: int = 4) -> np.ndarray:
     """``cloth`` (V, 3) with each face a skin vertex comes through (or within ``clearance`` of, along
     the skin's normal) moved out along that normal by its barycentric share of the depth, the moves
     of a vertex from several faces averaged, ``rounds`` times."""
-    from hrr_garment.body.mesh_distance import nearest_on_mesh
+    from hrr_garment.body.mesh_distance import nearest_on_mesh, vertex_normals
 
     cloth = np.asarray(cloth, np.float64).copy()
     normals = vertex_normals(skin, skin_faces)

@@ -86,21 +86,14 @@ def body_of_model(animator, visible: bool):
     return lambda motion: PosedSkin.of(collider, motion)
 
 
-def inside_pct(frames: np.ndarray, out: np.ndarray, record, faces, animator, settings, body_of) -> tuple:
-    """Each frame's share of vertices more than 5 mm inside the body before and after the push:
-    against capsules measured here, against a mesh the push-out's own report (its means, per frame)."""
-    from hrr_garment.inference.collision import push_out
-    from hrr_garment.inference.visible_push import PosedSkin
+def inside_pct(frames: np.ndarray, out: np.ndarray, motion, body, report) -> tuple:
+    """Each frame's share of vertices more than 5 mm inside ``body`` before and after the push:
+    against capsules measured here, against a mesh (a ``PosedSkin``) the push-out's own ``report``
+    (its means, per frame)."""
     from hrr_garment.sim.quality import body_signed_distance
 
-    body = body_of(record.motion)
-    if not isinstance(body, PosedSkin):
-        measured = [(body_signed_distance(x, record.motion, body) < -0.005).mean(1) for x in (frames, out)]
-        return tuple(measured)
-    _, report = push_out(
-        frames, record.motion, faces, body=body, settings=settings, mean=animator.smoothing,
-        limits=animator.edge_limits, report=True,
-    )  # fmt: skip
+    if report is None:
+        return tuple((body_signed_distance(x, motion, body) < -0.005).mean(1) for x in (frames, out))
     return np.full(len(frames), report.inside_before), np.full(len(frames), report.inside_after)
 
 
@@ -177,31 +170,28 @@ def analyse(
         pushed_body = body_of(record.motion)
         cases = [(label, settings, push, anim.vertices) for label, settings, push in variants]
         cases.append((truth_label, truth_settings, None, record.garment.astype(np.float32)))
-        for (
-            label,
-            settings,
-            push,
-            cloth,
-        ) in cases:  # the push alone (its follow included), then with its strain limit
+        # the push alone (its follow included), then with its strain limit
+        for label, settings, push, cloth in cases:
             frames = cloth if push is None else push(cloth, record.motion, capsules, settings.margin)
-            common = {
-                "body": pushed_body,
-                "mean": animator.smoothing,
-                "limits": animator.edge_limits,
-                "report": False,
-            }
+            common = {"body": pushed_body, "mean": animator.smoothing, "limits": animator.edge_limits}
             bare, _ = push_out(
                 frames,
                 record.motion,
                 faces,
                 settings=dataclasses.replace(settings, max_strain=np.inf),
+                report=False,
                 **common,
             )
             _, torn = limit_push_strain(
                 bare, frames, animator.edge_limits, settings.max_strain, slack=settings.stretch_slack
             )
-            out, _ = push_out(frames, record.motion, faces, settings=settings, **common)
-            before, inside = inside_pct(frames, out, record, faces, animator, settings, body_of)
+            # against a mesh the push-out's own report measures the cloth inside (in the kernel)
+            out, measured = push_out(
+                frames, record.motion, faces, settings=settings, report=visible, **common
+            )
+            before, inside = inside_pct(
+                frames, out, record.motion, pushed_body, measured if visible else None
+            )
             found[label]["torn"].append(torn)
             found[label]["limited"].append(np.abs(out - bare).max((1, 2)) > 0)
             found[label]["strain"].append(edge_strain(out, at_rest, edges))
