@@ -22,7 +22,7 @@ the body, but its motion is a guess from bodies unlike it.
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -39,6 +39,7 @@ from ..garment.dressing import DressedBody, dress
 from ..motion.motion import Motion
 from ..motion.skeleton import REST_PELVIS_HEIGHT
 from .collision import PosedCapsules
+from .edge_limits import EdgeLimits
 
 if TYPE_CHECKING:
     from .visible_push import VisibleCollider
@@ -78,6 +79,13 @@ class CharacterBody:
 
         skin = self.dressed.visible
         return None if skin is None else visible_collider(self.body, skin)
+
+    def push_limits(self, limits: EdgeLimits, template: np.ndarray) -> EdgeLimits:
+        """The push-out's strain limits (``limits``: the garment's, at rest as ``template`` (V, 3)) for
+        the garment as it rests on this body: its own edge lengths; on the mannequin the template's."""
+        if np.abs(self.offset).max(initial=0.0) <= NEGLIGIBLE_OFFSET_M:
+            return limits
+        return limits.on_bodies(template + self.offset)
 
     def push_body(self, motion: Motion, visible: bool):
         """What the push-out takes for ``motion`` on this body: its visible mesh posed
@@ -172,6 +180,8 @@ class CrowdBodies:
     ends: tuple | None = None  # each character's capsules: joints (C,), local a and b (N, C, 3), radii (N, C)
     characters: tuple = ()  # the distinct bodies (CharacterBody) and which each character has
     which: np.ndarray | None = None  # (N,) int64, or None: every character the one body
+    # the push-out's strain limits made for these bodies, by the garment limits they came from
+    _push_limits: dict = field(default_factory=dict, compare=False, repr=False)
 
     @classmethod
     def of_one(cls, body) -> "CrowdBodies":
@@ -207,6 +217,20 @@ class CrowdBodies:
         On the mannequin the offset is zero but for rounding (1e-17 m, below float32's resolution
         at a garment's coordinates): nothing is added, which saves a 3 MB copy of a 64-character frame."""
         return local + self.offset if np.abs(self.offset).max(initial=0.0) > NEGLIGIBLE_OFFSET_M else local
+
+    def push_limits(self, limits: EdgeLimits, template: np.ndarray) -> EdgeLimits:
+        """:meth:`CharacterBody.push_limits` for the crowd's characters, a rest shape per distinct body
+        (made once for the crowd's bodies)."""
+        key = id(limits)
+        if key not in self._push_limits:
+            if self.which is None or len(self.characters) == 1:
+                made = self.characters[0].push_limits(limits, template)
+            elif all(np.abs(c.offset).max(initial=0.0) <= NEGLIGIBLE_OFFSET_M for c in self.characters):
+                made = limits
+            else:
+                made = limits.on_bodies(np.stack([template + c.offset for c in self.characters]), self.which)
+            self._push_limits[key] = (limits, made)  # the limits kept alive with their id
+        return self._push_limits[key][1]
 
     def push_body(self, poses: Motion, visible: bool):
         """What the push-out takes: with ``visible``, each character's visible mesh posed by its pose

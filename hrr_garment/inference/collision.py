@@ -164,7 +164,8 @@ def _release_torn(out, unpushed, torn, clip, settings: PushOutSettings, mean, li
     for _ in range(RELEASE_PASSES):
         rows = np.flatnonzero(torn)
         pushed = PosedCapsules(posed.a[rows], posed.b[rows], radii[rows])
-        bare = _push(unpushed[rows], motion, faces, pushed, unlimited, mean, limits, False)[0]
+        limited = limits.of_frames(rows)
+        bare = _push(unpushed[rows], motion, faces, pushed, unlimited, mean, limited, False)[0]
         repaired = np.any(out[rows] != bare, axis=-1)  # (rows, V): the vertices the limit moved
         ends = (pushed.a, pushed.b, pushed.radii)
         let_go = held_limbs(repaired, unpushed[rows], ends=ends, margin=settings.margin, limbs=limbs)
@@ -174,7 +175,7 @@ def _release_torn(out, unpushed, torn, clip, settings: PushOutSettings, mean, li
         radii[rows] = np.where(let_go, RELEASED_RADIUS, radii[rows])
         pushed = PosedCapsules(posed.a[rows], posed.b[rows], radii[rows])
         out[rows], _, _, torn[rows], _ = _push(
-            unpushed[rows], motion, faces, pushed, again, mean, limits, False
+            unpushed[rows], motion, faces, pushed, again, mean, limits.of_frames(rows), False
         )
         redone[rows] = True
     return torn, redone
@@ -241,7 +242,10 @@ def _push(vertices, motion, faces, body, settings: PushOutSettings, mean, limits
                 lib,
                 vertices[sl],
                 (a[sl], b[sl], framed(sl)),
-                steps=steps,
+                # the limit's rows (a rest per body) from this chunk's first frame
+                steps=steps
+                if steps.limit is None
+                else steps._replace(limit=steps.limit._replace(first_frame=start)),
                 turn=None if turn is None else turn[sl],
                 skin=None if skins is None else skins.address(start),
                 threads=default_threads(),

@@ -5,7 +5,7 @@ kernel measures against the capsules near them (:mod:`.collision` and :mod:`.str
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import cached_property
 from typing import TYPE_CHECKING
 
@@ -31,12 +31,15 @@ class EdgeLimits:
     in patches of neighbours (the kernel measures a patch only against the capsules near it)."""
 
     edges: np.ndarray
-    rest_length: np.ndarray
+    rest_length: np.ndarray  # (E,), or (B, E) a row per body where ``body_of_frame`` is set
     signs: csr_matrix
     colour: np.ndarray  # (E,) uint8
     ring: np.ndarray  # (V, D) int32
     ring_length: np.ndarray  # (V, D) float64, inf where padded
     patches: tuple[np.ndarray, np.ndarray]  # (P + 1,) offsets into (V,) vertex indices, int32
+    # (T,) int64 the body of each frame pushed, where the frames' garments rest in different shapes (a
+    # crowd of bodies: :meth:`on_bodies`); None: ``rest_length`` is every frame's
+    body_of_frame: np.ndarray | None = None
 
     @classmethod
     def of(cls, faces: np.ndarray, rest: np.ndarray, mean: csr_matrix | None = None) -> "EdgeLimits":
@@ -61,6 +64,44 @@ class EdgeLimits:
             ring_length,
             _patches(rest),
         )
+
+    def on_bodies(self, rests: np.ndarray, body_of_frame: np.ndarray | None = None) -> "EdgeLimits":
+        """The same garment resting in other shapes: ``rests`` (V, 3), or (B, V, 3) with
+        ``body_of_frame`` (T,) the one each pushed frame's garment rests in. Why: a garment carried
+        onto a body is not the template (on a character its edges run 0.65 to 1.9 x the template's),
+        and a strain limit measured against the template's lengths takes the carried garment's own
+        long edges for torn ones. One rest shape also gives the neighbour-follow its 1-ring
+        distances; several keep the template's there (the follow is off in the product's push)."""
+        rests = np.asarray(rests, np.float64)
+        single = rests.ndim == 2
+        rests = rests[None] if single else rests
+        lengths = np.linalg.norm(rests[:, self.edges[:, 1]] - rests[:, self.edges[:, 0]], axis=-1)
+        if single or len(rests) == 1:
+            ring_length = np.full(self.ring.shape, np.inf)
+            real = np.isfinite(self.ring_length)
+            rows = np.nonzero(real)[0]
+            ring_length[real] = np.linalg.norm(rests[0][self.ring[real]] - rests[0][rows], axis=-1)
+            return replace(self, rest_length=lengths[0], ring_length=ring_length, body_of_frame=None)
+        if body_of_frame is None:
+            raise ValueError(f"{len(rests)} rest shapes need each frame's body (body_of_frame)")
+        which = np.asarray(body_of_frame, np.int64)
+        if which.size and (which.min() < 0 or which.max() >= len(rests)):
+            raise ValueError(f"body_of_frame names bodies outside 0..{len(rests) - 1}")
+        return replace(self, rest_length=lengths, body_of_frame=which)
+
+    def of_frames(self, rows: np.ndarray) -> "EdgeLimits":
+        """These limits for the frames ``rows`` (indices) of the frames they were made for."""
+        if self.body_of_frame is None:
+            return self
+        return replace(self, body_of_frame=self.body_of_frame[rows])
+
+    def frame_rest_length(self, frames: int) -> np.ndarray:
+        """The rest lengths of ``frames`` frames: (E,) the one rest's, or (T, E) each frame's body's."""
+        if self.body_of_frame is None:
+            return self.rest_length
+        if len(self.body_of_frame) != frames:
+            raise ValueError(f"limits made for {len(self.body_of_frame)} frames, given {frames}")
+        return self.rest_length[self.body_of_frame]
 
     @cached_property
     def colour_groups(self) -> tuple[np.ndarray, ...]:
@@ -95,6 +136,7 @@ class EdgeLimits:
             edges=self.edges,
             rest_length=self.rest_length,
             colour=self.colour,
+            body_of_frame=self.body_of_frame,
             vertex_edges_indptr=self.signs.indptr,
             vertex_edges_indices=self.signs.indices,
         )

@@ -64,7 +64,10 @@ class FramePath:
     def __init__(self, animator, run: ResolvedRun, observe: Observer | None = None):
         self.animator, self.bundle, self.run = animator, animator.bundle, run
         self.window, self.blend = animator.window, animator.blend
-        self.smoothing, self.edge_limits = animator.smoothing, animator.edge_limits
+        self.smoothing, self.edge_limits = animator.smoothing, animator.edge_limits  # the template's
+        # stage 9's strain limit measures the garment as it rests on the run's body (a carried
+        # garment's edges are not the template's); a crowd's push gives its own bodies' limits
+        self.push_limits = run.body.push_limits(animator.edge_limits, self.bundle.template.vertices)
         self.decoder = animator.decoder_for(run)  # stage 6's
         self.push_settings = animator.push_settings(run)  # stage 9's (None: the product's)
         # stage 3's causal window step (native where it can be, else None: PyTorch's)
@@ -160,12 +163,13 @@ class FramePath:
 
     # 9. push-out
     def push_out(
-        self, vertices: np.ndarray, motion: Motion, capsules, report: bool = True
+        self, vertices: np.ndarray, motion: Motion, capsules, report: bool = True, limits=None
     ) -> tuple[np.ndarray, PushOutReport | None]:
         """World vertices (n, V, 3) pushed out of the body ``capsules`` (a BodyModel posed by
         ``motion``, :class:`~.collision.PosedCapsules`, or the mesh the viewer sees,
         :class:`~.visible_push.PosedSkin`) where the run asks for it; the report
-        where ``report`` and the push-out ran."""
+        where ``report`` and the push-out ran. ``limits``: the strain limit's
+        (:class:`~.edge_limits.EdgeLimits`) where the frames rest on other bodies than the run's."""
         out = None
         if self.run.push_out:
             vertices, out = push_out(
@@ -174,7 +178,7 @@ class FramePath:
                 self.bundle.template.faces,
                 body=capsules,
                 mean=self.smoothing,
-                limits=self.edge_limits,
+                limits=self.push_limits if limits is None else limits,
                 settings=self.push_settings,
                 report=report,
             )

@@ -53,10 +53,8 @@ def limit_push_strain(
             return pushed, torn
         # the frames it left are ``pushed``'s widened to float64: narrowing them back is exact
         return p.astype(pushed.dtype, copy=False), torn
-    limit = np.maximum(
-        max_strain * limits.rest_length,
-        limits.lengths(unpushed.astype(np.float64)) + slack * limits.rest_length,
-    )
+    rest = limits.frame_rest_length(len(pushed))
+    limit = np.maximum(max_strain * rest, limits.lengths(unpushed.astype(np.float64)) + slack * rest)
     torn = (limits.lengths(pushed.astype(np.float64)) > limit * (1 + 1e-6)).any(1)
     if not torn.any():
         return pushed, torn

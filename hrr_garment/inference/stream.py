@@ -304,7 +304,10 @@ class CrowdStream:
         push_body = (
             bodies.push_body(poses, visible=self.run.push_body == "visible") if self.run.push_out else None
         )
-        vertices, _ = path.push_out(vertices, poses, push_body, report=False)
+        limits = (
+            bodies.push_limits(path.edge_limits, path.bundle.template.vertices) if self.run.push_out else None
+        )
+        vertices, _ = path.push_out(vertices, poses, push_body, report=False, limits=limits)
         t.append(time.perf_counter())
         for i, c in enumerate(chars):
             c.previous = (poses.global_rotations[i], poses.joint_positions[i])

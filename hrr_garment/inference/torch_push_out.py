@@ -51,6 +51,8 @@ class PushOutStage(nn.Module):
         super().__init__()
         if skin is not None and settings.subspace is not None:
             raise ValueError("the subspace push measures capsules: a visible mesh's stage goes without it")
+        if limits.body_of_frame is not None:
+            raise ValueError("a step's push-out stage is of one body: give it that body's limits")
         self.skin = skin  # the visible mesh's collider graph, measured instead of the capsules
         self.hulls = hulls  # its hulls (.torch_skin_hulls): the skin measured only within the margin of one
         joints, a, b, radii = capsules

@@ -201,9 +201,9 @@ def stream_step(path: FramePath, *, movable: bool = False) -> StreamStep:
         visible = run.body.visible_collider() if run.push_body == "visible" else None
         body, settings = run.body.body, path.push_settings or PUSH_OUT
         stage = (
-            PushOutStage((*body.ends, body.radii), path.smoothing, limits=path.edge_limits, settings=settings)
+            PushOutStage((*body.ends, body.radii), path.smoothing, limits=path.push_limits, settings=settings)
             if visible is None
-            else PushOutStage.of_visible(visible, path.smoothing, limits=path.edge_limits, settings=settings)
+            else PushOutStage.of_visible(visible, path.smoothing, limits=path.push_limits, settings=settings)
         )
     if run.decoder == "fast":
         module = path.decoder

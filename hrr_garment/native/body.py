@@ -115,7 +115,8 @@ class PushMesh:
 
 class EdgeArrays:
     """A garment's edges as the strain limit's kernel takes them, converted once: (E, 2) vertex
-    pairs int32, rest lengths float64, colours uint8 (no two edges of a colour share a vertex) with
+    pairs int32, rest lengths float64 (a row per body where the frames' bodies differ, with each
+    frame's body ``body_of_frame``), colours uint8 (no two edges of a colour share a vertex) with
     each colour's offset in an E-long array, and each vertex's edges (CSR indptr and indices int32),
     with their addresses (a stream limits every frame, and asking numpy for five addresses cost a
     fifth of a one-frame limit)."""
@@ -127,9 +128,11 @@ class EdgeArrays:
         colour: np.ndarray,
         vertex_edges_indptr: np.ndarray,
         vertex_edges_indices: np.ndarray,
+        body_of_frame: np.ndarray | None = None,
     ) -> None:
         self.edges = np.ascontiguousarray(edges, np.int32)
-        self.rest_length = np.ascontiguousarray(rest_length, np.float64)
+        self.rest_length = np.ascontiguousarray(rest_length, np.float64)  # (E,) or (B, E) with body_of_frame
+        self.body_of_frame = None if body_of_frame is None else np.ascontiguousarray(body_of_frame, np.int64)
         self.colour = np.ascontiguousarray(colour, np.uint8)
         self.colours = int(self.colour.max()) + 1 if len(self.colour) else 0
         self.colour_ptr = np.r_[0, np.cumsum(np.bincount(self.colour, minlength=self.colours))].astype(
@@ -154,12 +157,17 @@ class StrainLimit(NamedTuple):
     tol: float
     omega: float
     slack: float = 0.0
+    # where the frames limited start among those the edge arrays' body_of_frame was made for (a
+    # push in chunks of frames)
+    first_frame: int = 0
 
     def arguments(self) -> StrainArgs:
         """The kernel's StrainArgs of this limit (the edge arrays' addresses: keep them alive)."""
         arrays = self.edge_arrays
         edges, rest, colour, colour_ptr, ve_ptr, ve_idx = arrays.addresses
+        rows = arrays.body_of_frame
         return StrainArgs(
+            rest_row=None if rows is None else rows.ctypes.data + rows.itemsize * self.first_frame,
             edges=edges,
             rest=rest,
             colour=colour,
@@ -226,6 +234,9 @@ def push_out_frames(
     if r.ndim == 2 and r.shape[0] != t:
         raise ValueError(f"per-frame radii for {r.shape[0]} frames, points for {t}")
     count = r.shape[-1]
+    rows = None if limit is None else limit.edge_arrays.body_of_frame
+    if rows is not None and len(rows) < limit.first_frame + t:
+        raise ValueError(f"a strain limit for {len(rows)} frames, {t} from frame {limit.first_frame} pushed")
     push_args, strain_args = steps.arguments(), None if limit is None else limit.arguments()
     lib.hrr_push_out(
         p.ctypes.data,
@@ -271,6 +282,11 @@ def limit_strain(
     the (T,) mask of frames that had an edge over its limit). Frames in parallel; each stops on its
     own. ``in_place``: a C-contiguous float64 ``pushed`` is moved where it lies (and returned)
     instead of copied."""
+    rows = limit.edge_arrays.body_of_frame
+    if rows is not None and len(rows) < limit.first_frame + len(pushed):
+        raise ValueError(
+            f"a strain limit for {len(rows)} frames, {len(pushed)} from frame {limit.first_frame} given"
+        )
     own = in_place and pushed.dtype == np.float64 and pushed.flags.c_contiguous
     p = pushed if own else np.array(pushed, np.float64, order="C")  # moved in place
     u = np.ascontiguousarray(unpushed, np.float64)

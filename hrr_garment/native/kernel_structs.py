@@ -50,4 +50,5 @@ class StrainArgs(ctypes.Structure):
         ("slack", ctypes.c_double),
         ("tol", ctypes.c_double),
         ("omega", ctypes.c_double),
+        ("rest_row", ctypes.c_void_p),
     ]

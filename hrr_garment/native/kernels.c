@@ -611,7 +611,8 @@ static void push_frame(double *p, int V, const double *ca, const double *cb, con
    with each colour's offset in an E-long array (colour_ptr, colours + 1 entries) and each vertex's
    edges (CSR ve_ptr, ve_idx); the strain an edge may reach, the slack over a stretch the push did
    not make, at most `iterations` passes, which stop once no edge is more than tol over its limit,
-   over-relaxed by omega. */
+   over-relaxed by omega. rest_row (NULL: one rest for every frame): frame t's garment rests in row
+   rest_row[t] of rest (E doubles a row), where the frames' bodies differ (a crowd's). */
 typedef struct {
     const int32_t *edges;
     const double *rest;
@@ -619,7 +620,16 @@ typedef struct {
     const int32_t *colour_ptr, *ve_ptr, *ve_idx;
     int E, colours, iterations;
     double max_strain, slack, tol, omega;
+    const int64_t *rest_row;
 } StrainArgs;
+
+/* Frame t's strain limit: s with its body's rest lengths. */
+static inline StrainArgs frame_limit(const StrainArgs *s, int t)
+{
+    StrainArgs own = *s;
+    if (s->rest_row) own.rest = s->rest + (size_t)s->rest_row[t] * (size_t)s->E;
+    return own;
+}
 
 enum { MAX_EDGE_COLOURS = 256 };
 
@@ -782,8 +792,10 @@ int hrr_limit_strain(double *p, const double *unpushed, int T, int V, const Stra
     {
         LimitScratch w = limit_scratch(scratch + per * (size_t)omp_get_thread_num(), s->E);
         #pragma omp for schedule(dynamic)
-        for (int t = 0; t < T; ++t)
-            torn[t] = (unsigned char)limit_one(p + (size_t)t * V * 3, unpushed + (size_t)t * V * 3, V, s, NULL, 0, &w);
+        for (int t = 0; t < T; ++t) {
+            const StrainArgs own = frame_limit(s, t);
+            torn[t] = (unsigned char)limit_one(p + (size_t)t * V * 3, unpushed + (size_t)t * V * 3, V, &own, NULL, 0, &w);
+        }
     }
     free(scratch);
     return 0;
@@ -1122,18 +1134,21 @@ void hrr_push_out(const void *in, int in_double, float *out, int T, int V, const
     #define FRAME_IN(t) (in_double ? (const void *)((const double *)in + (t) * step) : (const void *)((const float *)in + (t) * step))
     if (shared) {
         #pragma omp parallel num_threads(threads)
-        for (int t = 0; t < T; ++t)
+        for (int t = 0; t < T; ++t) {
+            const StrainArgs own = limit ? frame_limit(limit, t) : (StrainArgs){0};
             push_and_limit(FRAME_IN(t), in_double, out + t * step, V, a + (size_t)t * 3 * C, b + (size_t)t * 3 * C,
-                           radii + (size_t)t * radii_step, C, skin ? skin + t : NULL, &mesh, args, limit, subspace, turn ? turn + 9 * t : NULL,
-                           before + t, after + t, torn + t, team);
+                           radii + (size_t)t * radii_step, C, skin ? skin + t : NULL, &mesh, args, limit ? &own : NULL, subspace,
+                           turn ? turn + 9 * t : NULL, before + t, after + t, torn + t, team);
+        }
     } else {
         #pragma omp parallel for num_threads(teams) schedule(dynamic)
         for (int t = 0; t < T; ++t) {
             PushTeam *mine = team + omp_get_thread_num();
+            const StrainArgs own = limit ? frame_limit(limit, t) : (StrainArgs){0};
             #pragma omp parallel num_threads(1)  /* this frame's own one-thread team */
             push_and_limit(FRAME_IN(t), in_double, out + t * step, V, a + (size_t)t * 3 * C, b + (size_t)t * 3 * C,
-                           radii + (size_t)t * radii_step, C, skin ? skin + t : NULL, &mesh, args, limit, subspace, turn ? turn + 9 * t : NULL,
-                           before + t, after + t, torn + t, mine);
+                           radii + (size_t)t * radii_step, C, skin ? skin + t : NULL, &mesh, args, limit ? &own : NULL, subspace,
+                           turn ? turn + 9 * t : NULL, before + t, after + t, torn + t, mine);
         }
     }
     #undef FRAME_IN

@@ -196,3 +196,77 @@ def test_a_limb_through_the_cloth_is_let_go_of_rather_than_torn():
         with unittest.mock.patch.object(native, "load_kernel", lambda *args, **kwargs: None):
             reference, reference_report = push_out(frames, pose, faces, limits=limits, settings=release)
         assert np.abs(reference - let_go).max() < 1e-5 and reference_report.limited == report.limited
+
+
+def test_frames_resting_on_different_bodies_are_limited_against_their_own_rest(monkeypatch):
+    """A garment carried onto a body rests in its own shape (here 1.45 x wider: every edge about its
+    axis longer than the template's). Limits made for that rest are the template's with its edge and
+    1-ring lengths; a crowd's frames on two bodies, pushed in one call, are limited each against its
+    body's rest as if pushed alone, in the kernel and in numpy alike; and the template's lengths take
+    the wide garment's own long edges for tears that its own do not."""
+    import dataclasses
+
+    import pytest
+
+    from hrr_garment import native
+    from hrr_garment.inference.collision import PUSH_OUT, EdgeLimits, push_out
+
+    motion = synthesize("dance", 0.3, seed=4)
+    skirt, squeezed = squeezed_skirt(motion, 0.7)  # deep into the hips: the push tears
+    wide = skirt.vertices.astype(np.float64).copy()
+    centre = wide[:, [0, 2]].mean(0)
+    wide[:, [0, 2]] = centre + 1.45 * (wide[:, [0, 2]] - centre)
+    template = EdgeLimits.of(skirt.faces, skirt.vertices)
+    on_wide = template.on_bodies(wide)
+    own = EdgeLimits.of(skirt.faces, wide)
+    assert np.allclose(on_wide.rest_length, own.rest_length) and np.array_equal(on_wide.edges, template.edges)
+    assert np.allclose(on_wide.ring_length, own.ring_length) and on_wide.body_of_frame is None
+    which = np.arange(motion.num_frames) % 2  # even frames on the template's body, odd on the wide one
+    frames = squeezed.astype(np.float32)
+    both = template.on_bodies(np.stack([skirt.vertices, wide]), which)
+    with pytest.raises(ValueError, match="body_of_frame"):
+        template.on_bodies(np.stack([skirt.vertices, wide]))
+    assert np.array_equal(both.frame_rest_length(len(which))[1], on_wide.rest_length)
+
+    def pushed(limits_of_frames, kernel=True, chunk=PUSH_OUT.chunk):
+        if not kernel:
+            monkeypatch.setattr(native, "load_kernel", lambda *args, **kwargs: None)
+        settings = dataclasses.replace(PUSH_OUT, chunk=chunk)
+        out = push_out(frames, motion, skirt.faces, limits=limits_of_frames, settings=settings, report=False)[
+            0
+        ]
+        monkeypatch.undo()
+        return out
+
+    mixed = pushed(both)
+    alone = {0: pushed(template.on_bodies(skirt.vertices)), 1: pushed(on_wide)}
+    for body in (0, 1):
+        rows = which == body
+        assert np.array_equal(mixed[rows], alone[body][rows])
+    assert np.abs(alone[0][which == 1] - alone[1][which == 1]).max() > 1e-3  # the rest matters
+    assert np.array_equal(pushed(both, chunk=3), mixed)  # 3 frames at a time (odd: the rows shift)
+    if native.load_kernel() is not None:
+        assert np.abs(pushed(both, kernel=False) - mixed).max() < 1e-5
+    # the wide garment at its own rest, pushed 2 cm sideways at one vertex a frame: no tear against its
+    # own lengths; against the template's its stretched edges (1.45 x) are past the 1.5 x limit less
+    # the push's 10 % slack, and the push is taken for a tear
+    from hrr_garment.inference.strain_limit import limit_push_strain
+
+    rest = np.repeat(wide[None], 4, 0)
+    nudged = rest.copy()
+    nudged[np.arange(4), [10, 50, 90, 130], 0] += 0.02
+    assert not limit_push_strain(nudged, rest, on_wide)[1].any()
+    assert limit_push_strain(nudged, rest, template)[1].all()
+    # the strain limit alone on the two bodies' frames: each row as on its body alone, kernel and numpy
+    rests = np.where(which[:, None, None] == 1, wide[None], skirt.vertices[None].astype(np.float64))
+    nudged = rests.copy()
+    nudged[:, 10, 0] += 0.03
+    got, torn = limit_push_strain(nudged, rests, both)
+    for body, alone_limits in ((0, template.on_bodies(skirt.vertices)), (1, on_wide)):
+        rows = which == body
+        theirs, their_torn = limit_push_strain(nudged[rows], rests[rows], alone_limits)
+        assert np.array_equal(got[rows], theirs) and np.array_equal(torn[rows], their_torn)
+    monkeypatch.setattr(native, "load_kernel", lambda *args, **kwargs: None)
+    reference, reference_torn = limit_push_strain(nudged, rests, both)
+    assert np.array_equal(reference_torn, torn) and np.abs(reference - got).max() < 1e-8
+    assert torn.any()

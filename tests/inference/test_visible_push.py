@@ -258,6 +258,17 @@ def test_the_animator_pushes_out_of_the_characters_own_mesh(animator, visible):
     for frame in range(3):
         out = crowd.push_motions({"hero": motion.slice(frame, frame + 1)})
         assert np.abs(out[0] - on_mesh.vertices[frame]).max() <= 1e-4
+    # the strain limit measures the garment as it rests on the character (kept clear of its mesh: not
+    # the template), on the mannequin the template itself
+    from hrr_garment.inference.frame_path import FramePath
+    from hrr_garment.inference.run_settings import RunSettings
+
+    run = animator.resolve(RunSettings(body=record))
+    rest = animator.bundle.template.vertices.astype(np.float64) + run.body.offset
+    limits, edges = FramePath(animator, run).push_limits, animator.edge_limits.edges
+    assert np.abs(run.body.offset).max() > 1e-3 and limits is not animator.edge_limits
+    assert np.allclose(limits.rest_length, np.linalg.norm(rest[edges[:, 1]] - rest[edges[:, 0]], axis=-1))
+    assert FramePath(animator, animator.resolve(RunSettings())).push_limits is animator.edge_limits
 
 
 def test_the_torch_stage_on_the_visible_mesh_pushes_as_the_kernel(closed_visible, skirt_frames):

@@ -99,10 +99,11 @@ def main() -> None:
     from hrr_garment.inference.collision import PUSH_OUT
     from hrr_garment.inference.strain_limit import limit_push_strain
 
+    at_rest = data.template.vertices if sequence.dressed is None else sequence.dressed.garment.vertices
     limited, repaired = limit_push_strain(
         np.stack(after),
         np.stack(before),
-        animator.edge_limits,
+        animator.edge_limits.on_bodies(at_rest),  # the garment as it rests on the character
         PUSH_OUT.max_strain,
         slack=PUSH_OUT.stretch_slack,
     )

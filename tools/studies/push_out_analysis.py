@@ -43,11 +43,11 @@ import numpy as np
 
 
 def _timed_us(
-    vertices: np.ndarray, motion, faces, animator, settings, crowd: int, repeat: int, body_of
+    vertices: np.ndarray, motion, faces, common: dict, settings, crowd: int, repeat: int, body_of
 ) -> float:
     """Median microseconds per frame of the push-out (its subspace push included where
     ``settings`` has one), ``crowd`` frames a call (report off); ``body_of(motion)``: the body
-    pushed out of, posed for those frames."""
+    pushed out of, posed for those frames; ``common``: push_out's ``mean`` and ``limits``."""
     from hrr_garment.inference.collision import push_out
 
     per_frame = []
@@ -61,8 +61,8 @@ def _timed_us(
                 faces,
                 body=body_of(motion.slice(start, start + crowd)),
                 settings=settings,
-                mean=animator.smoothing,
-                limits=animator.edge_limits,
+                mean=common["mean"],
+                limits=common["limits"],
                 report=False,
             )
             per_frame.append((time.perf_counter() - t0) / crowd)
@@ -168,12 +168,17 @@ def analyse(
         unpushed_pve.append(np.linalg.norm(anim.vertices - record.garment, axis=-1).mean(1))
         capsules = (*body.pose_motion(record.motion), body.radii)
         pushed_body = body_of(record.motion)
+        # the strain limit measures the garment as it rests on that body, as the product's push does
+        common = {
+            "body": pushed_body,
+            "mean": animator.smoothing,
+            "limits": animator.edge_limits.on_bodies(at_rest),
+        }
         cases = [(label, settings, push, anim.vertices) for label, settings, push in variants]
         cases.append((truth_label, truth_settings, None, record.garment.astype(np.float32)))
         # the push alone (its follow included), then with its strain limit
         for label, settings, push, cloth in cases:
             frames = cloth if push is None else push(cloth, record.motion, capsules, settings.margin)
-            common = {"body": pushed_body, "mean": animator.smoothing, "limits": animator.edge_limits}
             bare, _ = push_out(
                 frames,
                 record.motion,
@@ -183,7 +188,7 @@ def analyse(
                 **common,
             )
             _, torn = limit_push_strain(
-                bare, frames, animator.edge_limits, settings.max_strain, slack=settings.stretch_slack
+                bare, frames, common["limits"], settings.max_strain, slack=settings.stretch_slack
             )
             # against a mesh the push-out's own report measures the cloth inside (in the kernel)
             out, measured = push_out(
@@ -201,7 +206,7 @@ def analyse(
             if label != truth_label:
                 timed = settings if push is None else dataclasses.replace(settings, subspace=push)
                 found[label]["us"].append(
-                    _timed_us(cloth, record.motion, faces, animator, timed, crowd, repeat, body_of)
+                    _timed_us(cloth, record.motion, faces, common, timed, crowd, repeat, body_of)
                 )
     report = {
         "model": model,
