@@ -129,6 +129,7 @@ def _main(argv: Sequence[str] | None) -> int:
     from ..export.preview import write_dataset_preview
     from ..sim.body_plan import choose_bodies
     from ..sim.build import BuildSettings, build_dataset
+    from ..sim.material_plan import choose_materials
     from ..sim.simulator import SimSettings
 
     preset = load_preset(args.preset)
@@ -152,6 +153,7 @@ def _main(argv: Sequence[str] | None) -> int:
     )
     for note in choice.notes:
         print(note)
+    cloths = choose_materials(choice.specs, preset.materials, args.preset)
     overrides = {
         k: v
         for k, v in (
@@ -177,10 +179,12 @@ def _main(argv: Sequence[str] | None) -> int:
     inputs = [*(args.motions or []), args.template, args.body, args.made_for, args.attached_file, cloth_file]
     refuse_input_as_output(out, inputs)
     require_writable_place(out)
-    options = build_options(preset, choice.specs, args.motions)
+    options = build_options(preset, cloths.specs, args.motions)
     options["info"]["garment_vertices"] = garment.num_vertices
     if choice.bodies:
         options["info"]["bodies"] = choice.info
+    if cloths.materials:
+        options["info"]["materials"] = cloths.info
     if made_for is not None:  # models trained on it carry the garment from this body onto others
         options["info"]["made_for"] = body_to_dict(made_for)
     options["info"]["motions"] = list(args.motions) if args.motions else None  # None: the preset's own clips
@@ -195,12 +199,15 @@ def _main(argv: Sequence[str] | None) -> int:
         address=args.address,
         bodies=choice.bodies,
         hold_out_bodies=choice.hold_out,
+        hold_out_materials=cloths.hold_out,
         batch=args.batch,
         **options,
     )
-    report = build_dataset(garment, choice.specs, config, out=out, options=build)
+    report = build_dataset(garment, cloths.specs, config, out=out, options=build)
     print_build_report(report, garment)
-    if config.material is not None or config.air_drag:
+    if cloths.materials:
+        print(f"  cloths: {len(cloths.materials)} ({', '.join(cloths.materials)}), each sequence in its own")
+    elif config.material is not None or config.air_drag:
         cloth = config.material.describe() if config.material is not None else "the project's cloth"
         print(f"  cloth: {cloth}; air drag: drag coefficient {config.air_drag:g}")
     return 0

@@ -37,6 +37,8 @@ from .._version import __version__
 from ..body.mannequin import MANNEQUIN
 from ..errors import InputError, MotionError
 from ..garment.dressing import DressedBody
+from ..garment.fabrics import FABRICS
+from ..garment.material import Material, material_from
 from ..garment.mesh import GarmentError, GarmentMesh, check_garment
 from ..motion.motion import FPS, Motion
 from .dataset_bodies import read_bodies, write_bodies
@@ -210,6 +212,23 @@ class GarmentDataset:
         unknown = sorted({b for b in self.body_name_of.values()} - set(self.bodies))
         if unknown:
             raise DatasetError(self.path, f"sequences name bodies that are not in /bodies: {unknown[:5]}")
+
+    def material_of(self, name: str) -> Material:
+        """The cloth sequence ``name`` was simulated in: its own where the build gave each sequence
+        one (sim/material_plan.py), else the dataset's (its simulator settings'), else the default
+        cloth every dataset had before materials."""
+        if not hasattr(self, "_materials"):  # every sequence's info read once, when first asked
+            with h5py.File(self.path, "r") as f:
+                own = {
+                    n: _json_attr(self.path, f["sequences"][n].attrs, "info", {}).get("material")
+                    for n in self.names
+                }
+            everyone = self.info.get("sim", {}).get("material")
+            self._materials = {
+                n: material_from(m if m is not None else everyone or FABRICS["default"], f"{self.path}: {n}")
+                for n, m in own.items()
+            }
+        return self._materials[name]
 
     def rest(self, name: str) -> np.ndarray:
         """(V, 3) the rest shape of the garment of sequence ``name`` (on its own body)."""

@@ -31,8 +31,11 @@ from tqdm.auto import tqdm
 
 from ..body.capsules import DEFAULT_BODY, BodyModel
 from ..body.mannequin import MANNEQUIN
+from ..body.mesh_collider import skinned_pieces
+from ..body.skinned_body import SkinnedBody
 from ..data.dataset import SequenceRecord
 from ..garment.dressing import DressedBody
+from ..garment.material import material_from
 from ..garment.mesh import GarmentMesh
 from ..io_utils import atomic_path, atomic_write_text
 from ..paths import workspace
@@ -66,8 +69,19 @@ class TruthEnsemble:
     failed: dict[str, str]  # perturbation -> why its simulation was rejected
 
 
+def record_settings(config: SimSettings, record: SequenceRecord) -> SimSettings:
+    """The dataset's simulator ``config`` in the sequence's own cloth, where the build gave it one
+    (its info's ``material``: sim/material_plan.py)."""
+    cloth = record.info.get("material")
+    return config if cloth is None else replace(config, material=material_from(cloth, record.name))
+
+
 def _member_key(
-    garment: GarmentMesh, record: SequenceRecord, config: SimSettings, body: BodyModel | None = None
+    garment: GarmentMesh,
+    record: SequenceRecord,
+    config: SimSettings,
+    body: BodyModel | None = None,
+    visible: SkinnedBody | None = None,
 ) -> str:
     h = hashlib.sha256()
     h.update(
@@ -81,6 +95,9 @@ def _member_key(
     ):  # on another body: its bones and capsules too (the mannequin's keys stay as they were)
         h.update(np.ascontiguousarray(body.skeleton.offsets, np.float64).tobytes())
         h.update(json.dumps([[c.name, c.joint, c.a, c.b, c.radius] for c in body.capsules]).encode())
+    if visible is not None:  # collided with the body's own mesh (capsule-collided members are not these)
+        for array in (visible.vertices, visible.faces, visible.weights):
+            h.update(np.ascontiguousarray(array).tobytes())
     for array in (record.motion.local_rotations, record.motion.root_translation):
         h.update(np.ascontiguousarray(array).tobytes())
     h.update(repr(record.motion.fps).encode())
@@ -88,11 +105,21 @@ def _member_key(
 
 
 def _simulate_member(
-    garment: GarmentMesh, record: SequenceRecord, config: dict, path: str, body: BodyModel = DEFAULT_BODY
+    garment: GarmentMesh,
+    record: SequenceRecord,
+    config: dict,
+    path: str,
+    on: tuple[BodyModel, SkinnedBody | None] = (DEFAULT_BODY, None),
 ) -> str | None:
-    """Simulate one member into ``path`` (atomically); returns why it failed, or None."""
+    """Simulate one member into ``path`` (atomically) as the dataset simulated its sequence: on the
+    body's capsules, or against its own mesh where it has one (``on``: the body and that mesh, as
+    :class:`~hrr_garment.sim.parts.SequenceJob` collides); returns why it failed, or None."""
+    body, visible = on
+    collider = None if visible is None else skinned_pieces(body, visible)
     try:
-        result = simulate_garment(garment, record.motion, SimSettings.from_dict(config), body=body)
+        result = simulate_garment(
+            garment, record.motion, SimSettings.from_dict(config), body=body, collider=collider
+        )
     except SimulationExploded as exc:
         atomic_write_text(Path(path).with_suffix(".failed.json"), json.dumps({"reason": str(exc)}))
         return str(exc)
@@ -134,11 +161,12 @@ def truth_ensembles(
 ) -> dict[str, TruthEnsemble]:
     """``members`` perturbed simulations of each record (cached; missing ones run in ``jobs``
     processes). A record on a body other than the mannequin is simulated on it, with the garment on
-    it, from ``bodies`` (a dataset's :attr:`~hrr_garment.data.dataset.GarmentDataset.bodies`)."""
+    it, from ``bodies`` (a dataset's :attr:`~hrr_garment.data.dataset.GarmentDataset.bodies`), against
+    its own mesh where it has one, as the dataset was; a record in a cloth of its own, in it."""
     dressed = {
-        r.name: (bodies[r.body_name].garment, bodies[r.body_name].body)
+        r.name: (bodies[r.body_name].garment, bodies[r.body_name].body, bodies[r.body_name].visible)
         if r.body_name != MANNEQUIN
-        else (garment, None)
+        else (garment, None, None)
         for r in records
     }
     if members < 2:
@@ -147,10 +175,12 @@ def truth_ensembles(
     cache.mkdir(parents=True, exist_ok=True)
     plan: dict[tuple[str, int], tuple[Path, SimSettings, str]] = {}
     for record in records:
+        own = record_settings(config, record)
         for k in range(members):
-            cfg, label = member_config(config, k, record.motion.fps)
-            on, body = dressed[record.name]
-            plan[record.name, k] = (cache / f"{_member_key(on, record, cfg, body)}.npy", cfg, label)
+            cfg, label = member_config(own, k, record.motion.fps)
+            on, body, visible = dressed[record.name]
+            key = _member_key(on, record, cfg, body, visible)
+            plan[record.name, k] = (cache / f"{key}.npy", cfg, label)
     missing = [
         (name, k)
         for (name, k), (path, _, _) in plan.items()
@@ -175,7 +205,7 @@ def truth_ensembles(
                     by_name[name],
                     plan[name, k][1].to_dict(),
                     str(plan[name, k][0]),
-                    dressed[name][1] or DEFAULT_BODY,
+                    (dressed[name][1] or DEFAULT_BODY, dressed[name][2]),
                 ): (name, k)
                 for name, k in missing
             }

@@ -95,6 +95,7 @@ def simulate_preset(garment: str, preset: Preset, out: Path, progress: bool = Tr
     from ..garment.templates import make_garment
     from ..sim.body_plan import choose_bodies
     from ..sim.build import BuildSettings, build_dataset
+    from ..sim.material_plan import choose_materials
     from ..sim.plan import build_options, plan_sequences
     from ..sim.simulator import SimSettings
 
@@ -102,13 +103,16 @@ def simulate_preset(garment: str, preset: Preset, out: Path, progress: bool = Tr
     choice = choose_bodies(
         plan_sequences(preset), mesh, preset_bodies=preset.bodies, where=preset.name, progress=progress
     )
-    options = build_options(preset, choice.specs)
+    cloths = choose_materials(choice.specs, preset.materials, preset.name)
+    options = build_options(preset, cloths.specs)
     options["info"]["garment_vertices"] = mesh.num_vertices
     if choice.bodies:
         options["info"]["bodies"] = choice.info
+    if cloths.materials:
+        options["info"]["materials"] = cloths.info
     report = build_dataset(
         mesh,
-        choice.specs,
+        cloths.specs,
         SimSettings.from_dict(preset.sim),
         out=out,
         options=BuildSettings(
@@ -116,6 +120,7 @@ def simulate_preset(garment: str, preset: Preset, out: Path, progress: bool = Tr
             preview=write_dataset_preview,
             bodies=choice.bodies,
             hold_out_bodies=choice.hold_out,
+            hold_out_materials=cloths.hold_out,
             **options,
         ),
     )

@@ -119,6 +119,7 @@ class BuildSettings:
     kinds: dict[str, str] | None = None
     bodies: dict[str, DressedBody] | None = None
     hold_out_bodies: bool = False
+    hold_out_materials: bool = False  # validation and test hold out whole cloths (SequenceSpec.material)
     batch: int = 0
     also_hold_out: dict[str, dict] | None = None
     splices: SpliceSettings | None = None

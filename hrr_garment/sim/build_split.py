@@ -1,6 +1,6 @@
 """How a build splits its finished sequences into train, validation and test: by name (clips, kinds
-held out only where they also train) or by whole groups, with more held-out fields and whole bodies
-beside, a simulated mirror going where its source goes (:class:`~.build.BuildSettings`)."""
+held out only where they also train) or by whole groups, with more held-out fields, whole bodies
+and whole cloths beside, a simulated mirror going where its source goes (:class:`~.build.BuildSettings`)."""
 
 from __future__ import annotations
 
@@ -64,4 +64,7 @@ def split_sources(done: list[str], specs: list[SequenceSpec], o: BuildSettings) 
         # every clip on it too (bodies: {mannequin: true}) holds out the same sampled bodies as without
         by_body = {s.name: s.body_name for s in specs if s.name in done and s.body_name}
         split = combine_splits(split, split_groups(by_body, val, test, seed=o.seed))
+    if o.hold_out_materials:  # whole cloths (sim/material_plan.py)
+        by_cloth = {s.name: s.material.name for s in specs if s.name in done and s.material is not None}
+        split = combine_splits(split, split_groups(by_cloth, val, test, seed=o.seed + 1))
     return split

@@ -53,12 +53,18 @@ class Execution:
 
 
 def batches(pending: list[SequenceSpec], config: SimSettings, size: int) -> list[list[SequenceSpec]]:
-    """``pending`` in batches of up to ``size`` sequences of similar length (longest first, so a
-    batch's shorter instances idle little); ``size`` 0 or 1: one sequence each, in order."""
+    """``pending`` in batches of up to ``size`` sequences of one cloth and similar length (longest
+    first, so a batch's shorter instances idle little); ``size`` 0 or 1: one sequence each, in order."""
     if size <= 1:
         return [[s] for s in pending]
-    by_length = sorted(pending, key=lambda s: -_frames_to_simulate(s, config))
-    return [by_length[k : k + size] for k in range(0, len(by_length), size)]
+    by_cloth: dict = {}  # a batch is one model of one cloth
+    for s in pending:
+        by_cloth.setdefault(s.material, []).append(s)
+    out = []
+    for group in by_cloth.values():
+        by_length = sorted(group, key=lambda s: -_frames_to_simulate(s, config))
+        out += [by_length[k : k + size] for k in range(0, len(by_length), size)]
+    return out
 
 
 def _progress_bar(pending: list[SequenceSpec], config: SimSettings, progress: bool) -> tqdm:

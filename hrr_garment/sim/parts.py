@@ -17,7 +17,7 @@ import hashlib
 import json
 import os
 import shutil
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Callable
 
@@ -129,7 +129,14 @@ def _part(
     info = {"kind": spec.kind, "seed": spec.seed, "path": spec.path, "stats": stats}
     if job.body is not None:
         info["body_name"] = job.body.name
+    if spec.material is not None:
+        info["material"] = spec.material.to_dict()
     return PartResult(spec.name, job.key, result.simulated_frames, result.vertices, motion, info)
+
+
+def in_cloth(settings: SimSettings, spec: SequenceSpec) -> SimSettings:
+    """The build's simulator ``settings`` in the sequence's own cloth, where it names one."""
+    return settings if spec.material is None else replace(settings, material=spec.material)
 
 
 def simulate_sequence(
@@ -150,7 +157,7 @@ def simulate_sequence(
         result = simulate_garment(
             dressed,
             played,
-            SimSettings.from_dict(config),
+            in_cloth(SimSettings.from_dict(config), spec),
             body=capsules,
             progress=progress,
             collider=job.collider(),
@@ -171,7 +178,10 @@ def simulate_sequences(
         BatchItem(garment, motion, body, collider=job.collider())
         for job, (motion, garment, body) in zip(jobs, on_bodies)
     ]
-    results = simulate_batch(items, SimSettings.from_dict(config), progress=progress)
+    cloths = {job.spec.material for job in jobs}
+    if len(cloths) > 1:  # a batch is one model of one cloth (executors.batches groups by cloth)
+        raise ValueError(f"a batch of sequences in {len(cloths)} cloths; batch each cloth's apart")
+    results = simulate_batch(items, in_cloth(SimSettings.from_dict(config), jobs[0].spec), progress=progress)
     return [_part(job, on_body, result) for job, on_body, result in zip(jobs, on_bodies, results)]
 
 

@@ -15,6 +15,7 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 
 from ..errors import HRRError, InputError, MotionError
+from ..garment.material import Material
 from ..motion.bvh_motion import bvh_reading
 from ..motion.compose import arm_delayed, played_backward, spliced
 from ..motion.edit import retimed
@@ -44,6 +45,7 @@ LATER_FIELDS = {
     "upper_start": 0,
     "arm_delay": 0,
     "backward": False,
+    "material": None,
 }
 # SequenceSpec fields renamed since: each hashes under its old name, so its sequences keep their keys
 KEYED_AS = {"body_name": "body"}
@@ -69,6 +71,8 @@ class SequenceSpec:
     upper_start: int = 0
     arm_delay: int = 0  # frames the left arm (> 0) or the right arm (< 0) plays late
     backward: bool = False  # the frames played in reverse order (sim/augment.py)
+    # the cloth it is simulated in (sim/material_plan.py); None: the build's own (SimSettings.material)
+    material: Material | None = None
 
     def motion(self) -> Motion:
         if self.kind == "file":
@@ -125,10 +129,18 @@ def on_body(name: str, body_name: str) -> str:
     return f"{name}__{body_name}"
 
 
+def in_material(name: str, material: str) -> str:
+    """The name of a clip's sequence in one of the several cloths it is simulated in (sim/material_plan)."""
+    return f"{name}__{material}"
+
+
 def clip_name(spec: SequenceSpec) -> str:
-    """The name of the clip a sequence plays: its own, less the body's suffix of a clip simulated on
-    several bodies (:func:`on_body`)."""
-    return spec.name.removesuffix(on_body("", spec.body_name)) if spec.body_name else spec.name
+    """The name of the clip a sequence plays: its own, less the material's and the body's suffixes of
+    a clip simulated in several cloths (:func:`in_material`) or on several bodies (:func:`on_body`)."""
+    name = spec.name
+    if spec.material is not None:
+        name = name.removesuffix(in_material("", spec.material.name))
+    return name.removesuffix(on_body("", spec.body_name)) if spec.body_name else name
 
 
 def sequence_group(spec: SequenceSpec, preset: Preset) -> str:

@@ -54,6 +54,8 @@ class Preset:
     bodies: dict = field(
         default_factory=dict
     )  # which bodies the sequences stand on (sim/body_plan.py); none: the mannequin
+    # which cloths the sequences are simulated in (sim/material_plan.py); none: the sim section's
+    materials: dict = field(default_factory=dict)
     # more training motion from the training clips' parts (sim/augment.py): {count, seconds,
     # arm_delay_s, field}
     splices: dict = field(default_factory=dict)
@@ -86,6 +88,9 @@ def load_preset(name_or_path: str) -> Preset:
         raise InputError(path, f"speed_warps must be factors between 0.25 and 4, got {bad_warps}")
     _check_also_hold_out(path, preset)
     _check_splices(path, preset)
+    from .material_plan import MaterialPlan  # imports this module's users: here, not at the top
+
+    MaterialPlan.from_preset(preset.materials, str(path))
     _check_motions(path, preset)
     if mirror_mode(preset.mirror) is None:
         raise InputError(
@@ -221,6 +226,7 @@ PLAN_FIELDS = (
     "mirror",
     "speed_warps",
     "bodies",
+    "materials",
     "splices",
     "seed",
     "commercial_only",
@@ -231,6 +237,7 @@ def plan_record(preset: Preset) -> dict:
     """:data:`PLAN_FIELDS` of ``preset`` as a dataset records them (JSON's types), so that a dataset
     made before the preset was edited is told apart (hrr_garment/pipeline/simulate.py)."""
     record = {k: getattr(preset, k) for k in PLAN_FIELDS}
-    if not record["commercial_only"]:  # added later: datasets made before it record no such field
-        del record["commercial_only"]
+    for later in ("commercial_only", "materials"):  # added later: datasets made before record neither
+        if not record[later]:
+            del record[later]
     return json.loads(json.dumps(record))

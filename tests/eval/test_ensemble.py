@@ -114,3 +114,38 @@ def test_members_are_perturbed_cached_and_close(tmp_path):
         "walk_000"
     ]
     assert np.array_equal(again.members, first.members) and [f.stat().st_mtime_ns for f in files] == stamps
+
+
+def test_members_simulate_as_the_dataset_did_against_the_bodys_mesh_and_in_its_cloth(tmp_path, monkeypatch):
+    """A member of a sequence on a body with a mesh of its own collides with that mesh, as the
+    dataset's simulation did (its cache key apart from a capsule-collided member's); a sequence in
+    a cloth of its own (sim/material_plan.py) is re-simulated in it."""
+    from types import SimpleNamespace
+
+    from hrr_garment.body.capsules import DEFAULT_BODY
+    from hrr_garment.data.dataset import SequenceRecord
+    from hrr_garment.eval import ensemble
+    from hrr_garment.garment.fabrics import FABRICS
+    from hrr_garment.sim.simulator import SimSettings
+    from tests.body.limb import BulgingMannequin
+
+    garment, motion = make_garment("skirt", 200), synthesize("walk", 0.3, seed=3)
+    frames = np.zeros((motion.num_frames, garment.num_vertices, 3), np.float32)
+    config = SimSettings(substeps=5, iterations=1)
+    denim = SequenceRecord("a", frames, motion, {"material": FABRICS["denim"].to_dict()})
+    assert ensemble.record_settings(config, denim).material == FABRICS["denim"]
+    plain = SequenceRecord("b", frames, motion, {})
+    assert ensemble.record_settings(config, plain) is config
+    skin = BulgingMannequin(0.05).skinned()
+    on_capsules = ensemble._member_key(garment, plain, config, DEFAULT_BODY)
+    assert ensemble._member_key(garment, plain, config, DEFAULT_BODY, skin) != on_capsules
+    seen = []
+    monkeypatch.setattr(
+        ensemble, "simulate_garment", lambda *a, **kw: seen.append(kw) or SimpleNamespace(vertices=frames)
+    )
+    for k, on in enumerate([(DEFAULT_BODY, None), (DEFAULT_BODY, skin)]):
+        assert (
+            ensemble._simulate_member(garment, plain, config.to_dict(), str(tmp_path / f"{k}.npy"), on)
+            is None
+        )
+    assert seen[0]["collider"] is None and seen[1]["collider"] is not None
