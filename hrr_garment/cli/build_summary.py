@@ -61,6 +61,14 @@ def print_build_report(report, garment: GarmentMesh) -> None:
                 else ""
             )
         )
+    for name, row in s.get("by_material", {}).items():
+        kept = f"{row['sequences']} sequences ({row['rejected']} rejected), {row['frames']} frames"
+        quality = (
+            f", strain p99 {row['strain_p99']:.3f}, hem swing {row['hem_swing_m']:.3f} m"
+            if row["sequences"] and row["hem_swing_m"] is not None
+            else ""
+        )
+        print(f"  cloth {name}: {kept}{quality}")
     licence = s.get("motion_licence")
     if licence:
         counts = ", ".join(f"{k} {v['sequences']}" for k, v in licence["sources"].items())

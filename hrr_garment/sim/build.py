@@ -192,6 +192,7 @@ def build_dataset(
             jobs=run.jobs,
             simulated=run.simulated,
             bodies=bodies,
+            cloth_of={x.name: x.material.name for x in specs + added if x.material is not None} or None,
         )
         if splices is not None:
             summary["splices"] = {

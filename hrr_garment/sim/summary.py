@@ -22,9 +22,12 @@ def summarise(
     jobs: int | None,
     simulated: int,
     bodies: dict[str, DressedBody] | None = None,
+    cloth_of: dict[str, str] | None = None,
 ) -> dict:
     """The dataset summary: counts, quality statistics (each sequence's strain against the garment
-    on its own body) and simulation speed; with bodies, the strain and frames of each."""
+    on its own body) and simulation speed; with bodies, the strain and frames of each; with
+    ``cloth_of`` (each planned sequence's cloth, sim/material_plan.py), those of each cloth and its
+    rejects."""
     stats = [r.info.get("stats", {}) for r in records]
     edges = garment.edges()
     rest = {MANNEQUIN: garment.vertices, **{n: b.garment.vertices for n, b in (bodies or {}).items()}}
@@ -60,7 +63,29 @@ def summarise(
         "jobs": jobs,
         "simulated_now": simulated,
         **({"by_body": _by_body(records, strains, bodies)} if bodies else {}),
+        **({"by_material": _by_material(records, strains, cloth_of, rejects)} if cloth_of else {}),
     }
+
+
+def _by_material(
+    records: list[SequenceRecord], strains: list[np.ndarray], cloth_of: dict[str, str], rejects: dict
+) -> dict:
+    """Per cloth: its sequences kept and rejected, frames, strain p99 and mean hem swing."""
+    out = {}
+    for cloth in sorted(set(cloth_of.values())):
+        mine = [k for k, r in enumerate(records) if cloth_of.get(r.name) == cloth]
+        swing = [records[k].info.get("stats", {}).get("hem_swing_m") for k in mine]
+        swing = [v for v in swing if v is not None]
+        out[cloth] = {
+            "sequences": len(mine),
+            "rejected": sum(cloth_of.get(n) == cloth for n in rejects),
+            "frames": int(sum(len(records[k].garment) for k in mine)),
+            "strain_p99": float(np.percentile(np.concatenate([strains[k] for k in mine]), 99))
+            if mine
+            else None,
+            "hem_swing_m": float(np.mean(swing)) if swing else None,
+        }
+    return out
 
 
 def _by_body(

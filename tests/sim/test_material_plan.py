@@ -118,8 +118,17 @@ def test_hrr_simulate_gives_each_sequence_its_cloth_and_the_dataset_records_it(t
     out = tmp_path / "cloths.h5"
     argv = ["--garment", "skirt", "--preset", str(preset), "--seconds", "0.5", "--jobs", "1"]
     assert simulate_main([*argv, "--no-preview", "--quiet", "-o", str(out)]) == 0
-    assert "cloths: 3 (denim, polyester, cloth00)" in capsys.readouterr().out
+    printed = capsys.readouterr().out
+    assert (
+        "cloths: 3 (denim, polyester, cloth00)" in printed
+        and "cloth denim: 1 sequences (0 rejected)" in printed
+    )
     ds = GarmentDataset(out)
+    assert {k: v["sequences"] for k, v in ds.info["summary"]["by_material"].items()} == {
+        "cloth00": 1,
+        "denim": 1,
+        "polyester": 1,
+    }
     cloths = {ds.material_of(n).name for n in ds.names}
     assert cloths == {"denim", "polyester", "cloth00"} and ds.info["materials"]["count"] == 1
     for name in ds.names:
