@@ -119,7 +119,8 @@ class BuildSettings:
     kinds: dict[str, str] | None = None
     bodies: dict[str, DressedBody] | None = None
     hold_out_bodies: bool = False
-    hold_out_materials: bool = False  # validation and test hold out whole cloths (SequenceSpec.material)
+    # validation and test hold out whole cloths (SequenceSpec.material), or these cloths test
+    hold_out_materials: bool | tuple[str, ...] = False
     batch: int = 0
     also_hold_out: dict[str, dict] | None = None
     splices: SpliceSettings | None = None

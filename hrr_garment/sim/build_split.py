@@ -64,7 +64,13 @@ def split_sources(done: list[str], specs: list[SequenceSpec], o: BuildSettings) 
         # every clip on it too (bodies: {mannequin: true}) holds out the same sampled bodies as without
         by_body = {s.name: s.body_name for s in specs if s.name in done and s.body_name}
         split = combine_splits(split, split_groups(by_body, val, test, seed=o.seed))
-    if o.hold_out_materials:  # whole cloths (sim/material_plan.py)
+    if o.hold_out_materials:  # whole cloths (sim/material_plan.py): drawn, or the named ones test
         by_cloth = {s.name: s.material.name for s in specs if s.name in done and s.material is not None}
-        split = combine_splits(split, split_groups(by_cloth, val, test, seed=o.seed + 1))
+        named = o.hold_out_materials if isinstance(o.hold_out_materials, tuple) else None
+        cloths = (
+            split_groups(by_cloth, val, test, seed=o.seed + 1)
+            if named is None
+            else {"val": [], "test": sorted(n for n, c in by_cloth.items() if c in named)}
+        )
+        split = combine_splits(split, cloths)
     return split

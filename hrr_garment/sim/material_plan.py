@@ -7,6 +7,7 @@ is simulated in the build's own cloth (``sim: {material: ...}``, else the defaul
                 count: 8,                          # and cloths drawn log-uniform over their span
                 per_clip: 1,                       # how many of them each clip is simulated in
                 hold_out: true, seed: 0}           # validation and test hold out whole cloths
+    materials: {..., hold_out: [polyester, denim, cloth03]}  # these cloths test, never train
 
 A drawn cloth takes each value (density, stretch, shear, bend) log-uniform between the smallest and
 the largest of the named fabrics' (a seeded Latin hypercube, so that the draws spread over the
@@ -39,7 +40,8 @@ class MaterialPlan:
     fabrics: tuple[str, ...] = ()  # named fabrics, each a cloth of its own
     count: int = 0  # cloths drawn over the fabrics' span
     per_clip: int = 1  # how many of the cloths each clip is simulated in
-    hold_out: bool = True  # validation and test also hold out whole cloths
+    # validation and test also hold out whole cloths (drawn at random), or these cloths test
+    hold_out: bool | tuple[str, ...] = True
     seed: int = 0
 
     @classmethod
@@ -57,8 +59,12 @@ class MaterialPlan:
             raise InputError(where, "materials: fabrics is a list of fabric names, or all")
         fabrics = tuple(fabric(n, f"{where}: materials").name for n in named)
         hold_out = section.get("hold_out", True)
-        if not isinstance(hold_out, bool):  # YAML's "false" in quotes is a string, true to bool()
-            raise InputError(where, f"materials: hold_out must be true or false, got {hold_out!r}")
+        if isinstance(hold_out, list) and all(isinstance(n, str) for n in hold_out):
+            hold_out = tuple(hold_out)
+        elif not isinstance(hold_out, bool):  # YAML's "false" in quotes is a string, true to bool()
+            raise InputError(
+                where, f"materials: hold_out must be true, false or a list of cloths, got {hold_out!r}"
+            )
         plan = cls(
             fabrics,
             int(section.get("count", 0)),
@@ -71,6 +77,15 @@ class MaterialPlan:
             raise InputError(where, "materials: each fabric once, count 0-256")
         if total < 1 or not 1 <= plan.per_clip <= total:
             raise InputError(where, f"materials: {total} cloths; per_clip must be 1-{max(total, 1)}")
+        if isinstance(plan.hold_out, tuple):
+            known = set(plan.fabrics) | {f"cloth{k:02d}" for k in range(plan.count)}
+            unknown = sorted(set(plan.hold_out) - known)
+            if unknown or len(set(plan.hold_out)) >= total:
+                raise InputError(
+                    where,
+                    f"materials: hold_out names cloths of the plan, leaving one to train; {unknown} are not "
+                    f"among {sorted(known)}",
+                )
         return plan
 
 
@@ -95,7 +110,8 @@ class MaterialChoice:
 
     specs: list[SequenceSpec]  # each naming its cloth (None: the build's own)
     materials: dict[str, Material] = field(default_factory=dict)
-    hold_out: bool = False  # validation and test hold out whole cloths too
+    # validation and test hold out whole cloths too (True), or these cloths test (a tuple)
+    hold_out: bool | tuple[str, ...] = False
     info: dict = field(default_factory=dict)  # what the dataset records of the choice
 
 
@@ -121,4 +137,7 @@ def choose_materials(specs: list[SequenceSpec], section: dict, where: str) -> Ma
         "per_clip": plan.per_clip,
         "cloths": {m.name: {k: getattr(m, k) for k in VALUE_NAMES} for m in cloths},
     }
-    return MaterialChoice(out, materials, plan.hold_out and len(cloths) > 2, info)
+    held = plan.hold_out if isinstance(plan.hold_out, tuple) else plan.hold_out and len(cloths) > 2
+    return MaterialChoice(
+        out, materials, held, {**info, "held_out": list(held) if isinstance(held, tuple) else held}
+    )

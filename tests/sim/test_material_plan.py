@@ -22,7 +22,9 @@ from hrr_garment.sim.preset import CONFIG_DIR
         ({"fabrics": ["denim", "jersey"], "per_clip": 3}, "per_clip must be 1-2"),
         ({"fabrics": ["denim", "denim"]}, "each fabric once"),
         ({"fabrics": "denim"}, "a list of fabric names"),
-        ({"count": 2, "hold_out": "false"}, "hold_out must be true or false"),
+        ({"count": 2, "hold_out": "false"}, "hold_out must be true, false or a list"),
+        ({"fabrics": ["denim", "jersey"], "hold_out": ["silk"]}, "hold_out names cloths of the plan"),
+        ({"fabrics": ["denim", "jersey"], "hold_out": ["denim", "jersey"]}, "leaving one to train"),
     ],
 )
 def test_a_bad_materials_section_is_refused_naming_the_preset(section, phrase):
@@ -99,6 +101,14 @@ def test_validation_and_test_hold_out_whole_cloths():
     trained = {cloth[n] for n in split["train"]}
     held = {cloth[n] for n in split["val"] + split["test"]} - trained
     assert held and trained and not {cloth[n] for n in split["train"]} & held
+    # named: those cloths test, every other trains or validates by its style alone
+    named = choose_materials(specs, {"fabrics": "all", "count": 4, "hold_out": ["polyester", "cloth02"]}, "p")
+    assert named.hold_out == ("polyester", "cloth02") and named.info["held_out"] == ["polyester", "cloth02"]
+    options = BuildSettings(splits={"val": 0.2, "test": 0.2}, hold_out_materials=named.hold_out)
+    split = split_sources([s.name for s in named.specs], named.specs, options)
+    cloth = {s.name: s.material.name for s in named.specs}
+    assert {cloth[n] for n in split["train"] + split["val"]}.isdisjoint({"polyester", "cloth02"})
+    assert {n for n in cloth if cloth[n] in ("polyester", "cloth02")} <= set(split["test"])
 
 
 def test_hrr_simulate_gives_each_sequence_its_cloth_and_the_dataset_records_it(tmp_path, capsys):
