@@ -124,6 +124,32 @@ def _parser() -> argparse.ArgumentParser:
     return p
 
 
+def _sim_overrides(args, preset) -> dict:
+    """The command line's simulator settings over the preset's: the solver's, the air's and the cloth
+    (refused where the preset gives each sequence its own: its materials section)."""
+    overrides = {
+        k: v
+        for k, v in (
+            ("substeps", args.substeps),
+            ("iterations", args.iterations),
+            ("device", args.device),
+            ("air_drag", args.air_drag),
+        )
+        if v is not None
+    }
+    if args.material is not None:
+        if preset.materials:
+            raise InputError(
+                "--material",
+                f"preset {preset.name} gives each sequence its own cloth (its materials section); "
+                "use a preset without one for a single cloth",
+            )
+        overrides["material"] = parse_material(args.material, "--material")
+    elif preset.materials and preset.sim.get("material") is not None:
+        print(f"preset {preset.name}: its materials section gives each sequence its cloth, not sim.material")
+    return overrides
+
+
 def _main(argv: Sequence[str] | None) -> int:
     args = _parser().parse_args(argv)
     from ..export.preview import write_dataset_preview
@@ -154,19 +180,7 @@ def _main(argv: Sequence[str] | None) -> int:
     for note in choice.notes:
         print(note)
     cloths = choose_materials(choice.specs, preset.materials, args.preset)
-    overrides = {
-        k: v
-        for k, v in (
-            ("substeps", args.substeps),
-            ("iterations", args.iterations),
-            ("device", args.device),
-            ("air_drag", args.air_drag),
-        )
-        if v is not None
-    }
-    if args.material is not None:
-        overrides["material"] = parse_material(args.material, "--material")
-
+    overrides = _sim_overrides(args, preset)
     config = SimSettings.from_dict({**preset.sim, **overrides})
     out = args.output
     if out is None:

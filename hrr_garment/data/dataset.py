@@ -220,7 +220,9 @@ class GarmentDataset:
         if not hasattr(self, "_materials"):  # every sequence's info read once, when first asked
             with h5py.File(self.path, "r") as f:
                 own = {
-                    n: _json_attr(self.path, f["sequences"][n].attrs, "info", {}).get("material")
+                    n: _json_attr(self.path, f["sequences"][n].attrs, "info", {}, f"sequence {n!r}: ").get(
+                        "material"
+                    )
                     for n in self.names
                 }
             everyone = self.info.get("sim", {}).get("material")
@@ -228,6 +230,10 @@ class GarmentDataset:
                 n: material_from(m if m is not None else everyone or FABRICS["default"], f"{self.path}: {n}")
                 for n, m in own.items()
             }
+        if name not in self._materials:
+            raise DatasetError(
+                self.path, f"no sequence {name!r} (has {len(self.names)}: {self.names[:5]}...)"
+            )
         return self._materials[name]
 
     def rest(self, name: str) -> np.ndarray:

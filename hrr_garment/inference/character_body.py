@@ -58,6 +58,9 @@ class CharacterBody:
     dressed: DressedBody
     vector: np.ndarray  # (len(BODY_MEASURES),) its measures, metres
     offset: np.ndarray  # (V, 3) float32 the garment's rest offset on it (zero on the mannequin)
+    # the push-out's strain limits made for it (push_limits), by the garment limits they came from: a
+    # stream makes its crowd's bodies every step
+    _push_limits: dict = field(default_factory=dict, compare=False, repr=False)
 
     @property
     def record(self) -> BodyRecord:
@@ -83,9 +86,12 @@ class CharacterBody:
     def push_limits(self, limits: EdgeLimits, template: np.ndarray) -> EdgeLimits:
         """The push-out's strain limits (``limits``: the garment's, at rest as ``template`` (V, 3)) for
         the garment as it rests on this body: its own edge lengths; on the mannequin the template's."""
-        if np.abs(self.offset).max(initial=0.0) <= NEGLIGIBLE_OFFSET_M:
+        if at_template_rest(self.offset):
             return limits
-        return limits.on_bodies(template + self.offset)
+        key = id(limits)
+        if key not in self._push_limits:  # the limits kept alive with their id
+            self._push_limits[key] = (limits, limits.on_bodies(template + self.offset))
+        return self._push_limits[key][1]
 
     def push_body(self, motion: Motion, visible: bool):
         """What the push-out takes for ``motion`` on this body: its visible mesh posed
@@ -167,6 +173,11 @@ def character_body(
 NEGLIGIBLE_OFFSET_M = 1e-9  # a rest offset no larger than this (a nanometre) stands the garment where it is
 
 
+def at_template_rest(offset: np.ndarray) -> bool:
+    """Whether a garment's rest ``offset`` on a body leaves it where the template rests (the mannequin)."""
+    return bool(np.abs(offset).max(initial=0.0) <= NEGLIGIBLE_OFFSET_M)
+
+
 @dataclass(frozen=True)
 class CrowdBodies:
     """The bodies of a crowd push's characters (:class:`~.stream.CrowdStream`): one body for all, or arrays
@@ -216,7 +227,7 @@ class CrowdBodies:
         """Body-frame garment vertices (N, V, 3) stood on these bodies: plus their rest offsets.
         On the mannequin the offset is zero but for rounding (1e-17 m, below float32's resolution
         at a garment's coordinates): nothing is added, which saves a 3 MB copy of a 64-character frame."""
-        return local + self.offset if np.abs(self.offset).max(initial=0.0) > NEGLIGIBLE_OFFSET_M else local
+        return local if at_template_rest(self.offset) else local + self.offset
 
     def push_limits(self, limits: EdgeLimits, template: np.ndarray) -> EdgeLimits:
         """:meth:`CharacterBody.push_limits` for the crowd's characters, a rest shape per distinct body
@@ -225,7 +236,7 @@ class CrowdBodies:
         if key not in self._push_limits:
             if self.which is None or len(self.characters) == 1:
                 made = self.characters[0].push_limits(limits, template)
-            elif all(np.abs(c.offset).max(initial=0.0) <= NEGLIGIBLE_OFFSET_M for c in self.characters):
+            elif all(at_template_rest(c.offset) for c in self.characters):
                 made = limits
             else:
                 made = limits.on_bodies(np.stack([template + c.offset for c in self.characters]), self.which)

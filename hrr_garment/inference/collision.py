@@ -123,6 +123,9 @@ def push_out(
     garment's subspace, and the limit measures the push against the moved frame; the report's
     "before" is the cloth as it came."""
     settings = PUSH_OUT if settings is None else settings  # read here: the product's settings are one object
+    rows = None if limits is None else limits.body_of_frame
+    if rows is not None and len(rows) != len(vertices):
+        raise ValueError(f"strain limits made for {len(rows)} frames' bodies, {len(vertices)} frames pushed")
     mean = mean_operator(faces, vertices.shape[1]) if mean is None else mean
     out, before, after, torn, measure = _push(vertices, motion, faces, body, settings, mean, limits, report)
     capsules = isinstance(body, (BodyModel, PosedCapsules))  # the visible mesh has none to let go of

@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..errors import InputError
 from ..motion.features import motion_features
 from ..sim.coverage import coverage_order, random_order, window_descriptors
 from ..sim.plan import SequenceSpec, build_options, load_file_motion, plan_sequences
@@ -72,6 +73,11 @@ def motion_library(preset: Preset, own: list[Path]) -> MotionLibrary:
     from ..sim.config import SimSettings
     from ..sim.lead_in import lead_in_frames
 
+    if preset.materials:  # the budget plans one cloth's simulation rate
+        raise InputError(
+            preset.name,
+            "hrr-make's library is simulated in one cloth: choose a preset without a materials section",
+        )
     own = [Path(p).resolve() for p in own]  # the plan records files by their resolved paths
     preset = replace(preset, motions=[*preset.motions, *(str(p) for p in own)])
     specs = plan_sequences(preset)

@@ -48,6 +48,10 @@ class MaterialPlan:
     def from_preset(cls, section: dict, where: str) -> "MaterialPlan | None":
         if not section:
             return None
+        if not isinstance(section, dict):
+            raise InputError(
+                where, f"materials: a mapping ({{fabrics: [...], count: N, ...}}), not {section!r}"
+            )
         unknown = sorted(set(section) - KEYS)
         if unknown:
             raise InputError(
@@ -65,13 +69,11 @@ class MaterialPlan:
             raise InputError(
                 where, f"materials: hold_out must be true, false or a list of cloths, got {hold_out!r}"
             )
-        plan = cls(
-            fabrics,
-            int(section.get("count", 0)),
-            int(section.get("per_clip", 1)),
-            hold_out,
-            int(section.get("seed", 0)),
-        )
+        numbers = {k: section.get(k, default) for k, default in (("count", 0), ("per_clip", 1), ("seed", 0))}
+        bad = {k: v for k, v in numbers.items() if isinstance(v, bool) or not isinstance(v, int)}
+        if bad:
+            raise InputError(where, f"materials: {', '.join(bad)} must be whole numbers, got {bad}")
+        plan = cls(fabrics, numbers["count"], numbers["per_clip"], hold_out, numbers["seed"])
         total = len(set(plan.fabrics)) + plan.count
         if len(set(plan.fabrics)) != len(plan.fabrics) or not (0 <= plan.count <= 256):
             raise InputError(where, "materials: each fabric once, count 0-256")
@@ -80,12 +82,12 @@ class MaterialPlan:
         if isinstance(plan.hold_out, tuple):
             known = set(plan.fabrics) | {f"cloth{k:02d}" for k in range(plan.count)}
             unknown = sorted(set(plan.hold_out) - known)
-            if unknown or len(set(plan.hold_out)) >= total:
+            if unknown:
                 raise InputError(
-                    where,
-                    f"materials: hold_out names cloths of the plan, leaving one to train; {unknown} are not "
-                    f"among {sorted(known)}",
+                    where, f"materials: hold_out names {unknown}, not among the plan's cloths {sorted(known)}"
                 )
+            if len(set(plan.hold_out)) >= total:
+                raise InputError(where, "materials: hold_out names every cloth; leave at least one to train")
         return plan
 
 

@@ -23,8 +23,10 @@ from hrr_garment.sim.preset import CONFIG_DIR
         ({"fabrics": ["denim", "denim"]}, "each fabric once"),
         ({"fabrics": "denim"}, "a list of fabric names"),
         ({"count": 2, "hold_out": "false"}, "hold_out must be true, false or a list"),
-        ({"fabrics": ["denim", "jersey"], "hold_out": ["silk"]}, "hold_out names cloths of the plan"),
-        ({"fabrics": ["denim", "jersey"], "hold_out": ["denim", "jersey"]}, "leaving one to train"),
+        ({"fabrics": ["denim", "jersey"], "hold_out": ["silk"]}, r"hold_out names \['silk'\], not among"),
+        ({"fabrics": ["denim", "jersey"], "hold_out": ["denim", "jersey"]}, "leave at least one to train"),
+        ({"fabrics": ["denim"], "count": 2.7}, "count must be whole numbers"),
+        ("denim", "a mapping"),
     ],
 )
 def test_a_bad_materials_section_is_refused_naming_the_preset(section, phrase):
@@ -88,19 +90,23 @@ def test_a_cloth_is_part_of_a_sequences_key_and_none_keeps_the_old_one():
 
 
 def test_validation_and_test_hold_out_whole_cloths():
+    """Drawn whole: a held-out cloth has no sequence in training, where without the hold-out every
+    cloth trains; named: those cloths only test."""
     from hrr_garment.sim.build import BuildSettings
     from hrr_garment.sim.build_split import split_sources
 
-    specs = [SequenceSpec(f"walk_{i:03d}", "walk", seed=i, seconds=1.0) for i in range(20)]
-    choice = choose_materials(specs, {"fabrics": "all", "count": 4}, "p")
-    names = [s.name for s in choice.specs]
-    split = split_sources(
-        names, choice.specs, BuildSettings(splits={"val": 0.2, "test": 0.2}, hold_out_materials=True)
-    )
-    cloth = {s.name: s.material.name for s in choice.specs}
-    trained = {cloth[n] for n in split["train"]}
-    held = {cloth[n] for n in split["val"] + split["test"]} - trained
-    assert held and trained and not {cloth[n] for n in split["train"]} & held
+    specs = [SequenceSpec(f"walk_{i:03d}", "walk", seed=i, seconds=1.0) for i in range(60)]
+    choice = choose_materials(specs, {"fabrics": ["denim", "jersey", "default", "fleece"]}, "p")
+    names, cloth = [s.name for s in choice.specs], {s.name: s.material.name for s in choice.specs}
+    trained = {}
+    for hold in (False, True):
+        options = BuildSettings(splits={"val": 0.25, "test": 0.25}, hold_out_materials=hold)
+        split = split_sources(names, choice.specs, options)
+        trained[hold] = {cloth[n] for n in split["train"]}
+        if hold:
+            out = set(cloth.values()) - trained[hold]
+            assert out and all(n in split["val"] + split["test"] for n in names if cloth[n] in out)
+    assert trained[False] == set(cloth.values()) and trained[True] < trained[False]
     # named: those cloths test, every other trains or validates by its style alone
     named = choose_materials(specs, {"fabrics": "all", "count": 4, "hold_out": ["polyester", "cloth02"]}, "p")
     assert named.hold_out == ("polyester", "cloth02") and named.info["held_out"] == ["polyester", "cloth02"]
@@ -127,6 +133,8 @@ def test_hrr_simulate_gives_each_sequence_its_cloth_and_the_dataset_records_it(t
     )
     out = tmp_path / "cloths.h5"
     argv = ["--garment", "skirt", "--preset", str(preset), "--seconds", "0.5", "--jobs", "1"]
+    assert simulate_main([*argv, "--material", "denim", "--quiet", "-o", str(out)]) == 2  # one cloth or many
+    assert "gives each sequence its own cloth" in capsys.readouterr().err and not out.exists()
     assert simulate_main([*argv, "--no-preview", "--quiet", "-o", str(out)]) == 0
     printed = capsys.readouterr().out
     assert (
@@ -154,3 +162,17 @@ def test_hrr_simulate_gives_each_sequence_its_cloth_and_the_dataset_records_it(t
     frames = np.repeat(skirt.vertices[None], motion.num_frames, 0).astype(np.float32)
     old = write_dataset(tmp_path / "old.h5", skirt, [SequenceRecord("a", frames, motion)], {"train": ["a"]})
     assert GarmentDataset(old).material_of("a") == FABRICS["default"]
+
+
+def test_hrr_make_refuses_a_library_in_many_cloths():
+    """hrr-make's budget plans one cloth's simulation: a library preset with a materials section is
+    refused, naming it."""
+    from dataclasses import replace
+
+    from hrr_garment.pipeline.make_library import motion_library
+    from hrr_garment.sim.preset import load_preset
+
+    preset = replace(load_preset("tiny"), materials={"fabrics": ["denim", "jersey"]})
+    with pytest.raises(InputError, match="simulated in one cloth") as err:
+        motion_library(preset, [])
+    assert "tiny" in str(err.value)
