@@ -368,3 +368,33 @@ def test_the_graphs_hulls_are_the_kernels_and_bound_a_wrong_inside(closed_visibl
         point = torch.tensor([[offset]])
         d, _ = stage.distance(point, rot_moves, trans - centre, hull)
         assert (float(d) < 0) == inside  # the collider's answer near the body, the hulls' far from it
+
+
+def test_a_crowd_of_two_bodies_limits_each_against_its_own_rest(animator):
+    """A crowd of a character whose garment rests clear of its mesh and one on the model's own body:
+    one push for both (the strain limit's rest chosen per character), each character's cloth as in
+    a crowd of its body alone; the limits made once for the crowd's bodies."""
+    from dataclasses import replace
+
+    from hrr_garment.body.mannequin import mannequin_record
+    from hrr_garment.body.mesh_record import BodyMesh
+
+    skin = BulgingMannequin(0.05).skinned()
+    record = replace(
+        mannequin_record(), mesh=BodyMesh.of(skin.vertices, skin.faces, skin.rest_positions, skin.weights)
+    )
+    dance = synthesize("dance", 0.3, seed=5)
+    mixed, alone = animator.crowd(push_body="capsules"), animator.crowd(push_body="capsules")
+    mixed.set_body("hero", record)
+    alone.set_body("hero", record)
+    plain = animator.crowd(push_body="capsules")
+    for frame in range(3):
+        pose = dance.slice(frame, frame + 1)
+        both = mixed.push_motions({"hero": pose, "npc": pose})
+        assert np.abs(both[0] - alone.push_motions({"hero": pose})[0]).max() <= 1e-5
+        assert np.abs(both[1] - plain.push_motions({"npc": pose})[0]).max() <= 1e-5
+    bodies = mixed._stacked[1]
+    assert bodies.which is not None and len(bodies._push_limits) == 1  # made once, kept for the crowd
+    (limits,) = [made for _, made in bodies._push_limits.values()]
+    assert limits.body_of_frame is not None and limits.rest_length.shape[0] == 2
+    assert not np.allclose(limits.rest_length[0], limits.rest_length[1])  # the two garments' own rests
