@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import json
 from dataclasses import dataclass, field
+from functools import cached_property
 from pathlib import Path
 
 import h5py
@@ -217,24 +218,31 @@ class GarmentDataset:
         """The cloth sequence ``name`` was simulated in: its own where the build gave each sequence
         one (sim/material_plan.py), else the dataset's (its simulator settings'), else the default
         cloth every dataset had before materials."""
-        if not hasattr(self, "_materials"):  # every sequence's info read once, when first asked
-            with h5py.File(self.path, "r") as f:
-                own = {
-                    n: _json_attr(self.path, f["sequences"][n].attrs, "info", {}, f"sequence {n!r}: ").get(
-                        "material"
-                    )
-                    for n in self.names
-                }
-            everyone = self.info.get("sim", {}).get("material")
-            self._materials = {
-                n: material_from(m if m is not None else everyone or FABRICS["default"], f"{self.path}: {n}")
-                for n, m in own.items()
+        self._require(name)
+        return self._materials[name]
+
+    @cached_property
+    def _materials(self) -> dict[str, Material]:
+        """Every sequence's cloth (:meth:`material_of`), its info read once, when first asked."""
+        with h5py.File(self.path, "r") as f:
+            own = {
+                n: _json_attr(self.path, f["sequences"][n].attrs, "info", {}, f"sequence {n!r}: ").get(
+                    "material"
+                )
+                for n in self.names
             }
-        if name not in self._materials:
+        everyone = self.info.get("sim", {}).get("material")
+        return {
+            n: material_from(m if m is not None else everyone or FABRICS["default"], f"{self.path}: {n}")
+            for n, m in own.items()
+        }
+
+    def _require(self, name: str) -> None:
+        """A DatasetError unless the file holds sequence ``name``."""
+        if name not in self.frames:
             raise DatasetError(
                 self.path, f"no sequence {name!r} (has {len(self.names)}: {self.names[:5]}...)"
             )
-        return self._materials[name]
 
     def rest(self, name: str) -> np.ndarray:
         """(V, 3) the rest shape of the garment of sequence ``name`` (on its own body)."""
@@ -247,10 +255,7 @@ class GarmentDataset:
         """One sequence, checked: its arrays present, readable, finite and of the template's shape."""
         try:
             with h5py.File(self.path, "r") as f:
-                if name not in f["sequences"]:
-                    raise DatasetError(
-                        self.path, f"no sequence {name!r} (has {len(self.names)}: {self.names[:5]}...)"
-                    )
+                self._require(name)
                 s = f["sequences"][name]
                 for key in SEQUENCE_ARRAYS:
                     if key not in s:

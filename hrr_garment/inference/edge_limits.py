@@ -75,12 +75,9 @@ class EdgeLimits:
         rests = np.asarray(rests, np.float64)
         single = rests.ndim == 2
         rests = rests[None] if single else rests
-        lengths = np.linalg.norm(rests[:, self.edges[:, 1]] - rests[:, self.edges[:, 0]], axis=-1)
+        lengths = self.lengths(rests)
         if single or len(rests) == 1:
-            ring_length = np.full(self.ring.shape, np.inf)
-            real = np.isfinite(self.ring_length)
-            rows = np.nonzero(real)[0]
-            ring_length[real] = np.linalg.norm(rests[0][self.ring[real]] - rests[0][rows], axis=-1)
+            ring_length = _ring_lengths(self.ring, rests[0])
             return replace(self, rest_length=lengths[0], ring_length=ring_length, body_of_frame=None)
         if body_of_frame is None:
             raise ValueError(f"{len(rests)} rest shapes need each frame's body (body_of_frame)")
@@ -172,9 +169,15 @@ def _ring_table(mean: csr_matrix, rest: np.ndarray) -> tuple[np.ndarray, np.ndar
     slot = np.arange(len(mean.indices)) - np.repeat(mean.indptr[:-1], counts)
     rows = np.repeat(np.arange(len(rest)), counts)
     ring[rows, slot] = mean.indices
-    length = np.full(ring.shape, np.inf)
-    length[rows, slot] = np.linalg.norm(rest[mean.indices] - rest[rows], axis=-1)
-    return ring, length
+    return ring, _ring_lengths(ring, rest)
+
+
+def _ring_lengths(ring: np.ndarray, rest: np.ndarray) -> np.ndarray:
+    """(V, D) float64 the rest distance from each vertex to each of its ring's neighbours, inf in the
+    padding (the slots that repeat the vertex itself: no vertex is its own neighbour)."""
+    own = np.arange(len(rest))[:, None]
+    length = np.linalg.norm(rest[ring] - rest[own], axis=-1).astype(np.float64)
+    return np.where(ring == own, np.inf, length)
 
 
 def _patches(rest: np.ndarray, size: int = 48) -> tuple[np.ndarray, np.ndarray]:
