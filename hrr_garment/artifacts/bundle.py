@@ -37,6 +37,8 @@ from ..body.capsules import DEFAULT_BODY, BodyModel
 from ..body.mannequin import mannequin_record
 from ..body.measures import BodyRange, body_vector
 from ..errors import InputError
+from ..garment.material import Material, material_from
+from ..garment.material_range import MaterialRange
 from ..garment.mesh import GarmentMesh
 from ..models.codespace import CodeSpace
 from ..models.direct import DirectRegressor
@@ -227,6 +229,31 @@ class Bundle:
             return BodyRange.from_dict(thawed(bodies.range))
         except (KeyError, TypeError, ValueError, AttributeError) as exc:
             raise BundleError(self.folder, f"bundle.json's bodies are unreadable ({exc})") from None
+
+    @property
+    def material_range(self) -> MaterialRange | None:
+        """The range of the cloths the model was trained in (:mod:`hrr_garment.garment.material_range`);
+        None for a model from before cloths were recorded (it animates the cloth it learned)."""
+        materials = self.manifest.materials
+        if materials is None:
+            return None
+        try:
+            return MaterialRange.from_dict(thawed(materials.range))
+        except (KeyError, TypeError, ValueError, AttributeError) as exc:
+            raise BundleError(self.folder, f"bundle.json's materials are unreadable ({exc})") from None
+
+    @property
+    def default_material(self) -> Material | None:
+        """The cloth the model animates when given none (the project's default cloth where it
+        was trained in it, else the middle of its range); None for a model from before cloths
+        were recorded."""
+        materials = self.manifest.materials
+        if materials is None:
+            return None
+        try:
+            return material_from(dict(thawed(materials.default)), "bundle.json's materials.default")
+        except InputError as exc:
+            raise BundleError(self.folder, f"bundle.json's default cloth is unreadable ({exc})") from None
 
     @property
     def default_body(self) -> BodyRecord:

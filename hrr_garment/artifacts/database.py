@@ -90,20 +90,22 @@ class CodeDatabase:
         return len(self.codes)
 
     def search(
-        self, codes: np.ndarray, exclude: np.ndarray | None = None, bodies: np.ndarray | None = None
+        self, codes: np.ndarray, exclude: np.ndarray | None = None, conditions: np.ndarray | None = None
     ) -> tuple[np.ndarray, np.ndarray]:
         """Best match per query code (Q, G): (indices (Q,), cosine similarity (Q,)).
         ``exclude`` (Q,): a sequence index per query whose windows may not be returned (-1: none).
-        ``bodies`` (Q, b): each query's standardised body measures, for a model trained across
-        bodies: among the windows whose codes are equally near, the one simulated on the nearest
-        body wins (its motion relative to the body carries over best), ties to the lowest row."""
-        if bodies is None or self.motion is None:
+        ``conditions`` (Q, c): each query's standardised body measures and cloth values, for a model
+        trained across bodies or cloths (the last c columns of its motion frames): among the windows
+        whose codes are equally near, the one simulated on the nearest body in the nearest cloth
+        wins (its motion relative to the body carries over best, and its folds are its cloth's), ties
+        to the lowest row."""
+        if conditions is None or self.motion is None:
             dist, idx, _ = self._search(self.index, pack_codes(codes, self.classes), exclude)
             return idx[:, 0], 1.0 - dist[:, 0] / (2.0 * self.groups)
         dist, idx, allowed = self._search(self.index, pack_codes(codes, self.classes), exclude, RERANK)
-        bodies = np.asarray(bodies, np.float64)
-        theirs = self.motion[idx.reshape(-1), -1:][:, 0, -bodies.shape[1] :].reshape(*idx.shape, -1)
-        apart = ((theirs - bodies[:, None]) ** 2).sum(-1)
+        conditions = np.asarray(conditions, np.float64)
+        theirs = self.motion[idx.reshape(-1), -1:][:, 0, -conditions.shape[1] :].reshape(*idx.shape, -1)
+        apart = ((theirs - conditions[:, None]) ** 2).sum(-1)
         apart[~allowed | (dist != dist[:, :1])] = np.inf  # only the nearest codes compete
         rows = np.arange(len(idx))
         best = np.lexsort((idx, apart), axis=-1)[:, 0]

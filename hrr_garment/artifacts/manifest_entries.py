@@ -212,3 +212,19 @@ class BodiesEntry(Section):
     def count(self) -> int:
         """How many bodies the model was trained on (1 where the range does not say)."""
         return int((self.range or {}).get("bodies", 1))
+
+
+@dataclass(frozen=True, kw_only=True)
+class MaterialsEntry(Section):
+    """``materials``: the range of the cloths trained in and the cloth animated when given none
+    (:class:`~.bundle.Bundle` reads them; absent for a model from before cloths were recorded)."""
+
+    range: Mapping[str, Any]
+    default: Mapping[str, Any]
+
+    @classmethod
+    def _typed(cls, data: Mapping[str, Any], where: str) -> dict[str, Any]:
+        return {
+            "range": mapping(data.get("range"), f"{where}.range"),
+            "default": mapping(data.get("default"), f"{where}.default"),
+        }

@@ -29,6 +29,7 @@ from .manifest_entries import (
     DatabaseEntry,
     FoldsEntry,
     GateCalibration,
+    MaterialsEntry,
     PartEntry,
     ResidualEntry,
     SubspaceEntry,
@@ -68,11 +69,22 @@ class Manifest(Section):
     direct: PartEntry | None = None  # the direct-regression baseline
     sampler: PartEntry | None = None  # the generative decoder (mode sample)
     bodies: BodiesEntry | None = None  # absent for a model from before bodies
+    materials: MaterialsEntry | None = None  # absent for a model from before cloths were recorded
     # the motion sources of the clips it learned from and their terms (motion/licences.py); absent
     # for a model from before they were recorded
     motion: Mapping[str, Any] | None = None
     NULLABLE = frozenset(
-        {"created", "dataset", "window", "validation_mm", "encoding", "preset", "bodies", "motion"}
+        {
+            "created",
+            "dataset",
+            "window",
+            "validation_mm",
+            "encoding",
+            "preset",
+            "bodies",
+            "materials",
+            "motion",
+        }
     )
 
     @classmethod
@@ -117,6 +129,9 @@ class Manifest(Section):
             "direct": _optional(PartEntry, data, "direct"),
             "sampler": _optional(PartEntry, data, "sampler"),
             "bodies": None if data.get("bodies") is None else BodiesEntry.parse(data["bodies"], "bodies"),
+            "materials": None
+            if data.get("materials") is None
+            else MaterialsEntry.parse(data["materials"], "materials"),
             "motion": mapping(data.get("motion"), "motion", optional=True),
         }
 

@@ -52,9 +52,10 @@ def body_vector(record: BodyRecord) -> np.ndarray:
     return np.array([values[k] for k in BODY_MEASURES], np.float32)
 
 
-def with_body(features: np.ndarray, vector: np.ndarray) -> np.ndarray:
-    """Per-frame motion features (T, F) with the body's measures appended to every frame (T, F + b):
-    ``vector`` (b,) one body's, or (T, b) a body per row (a crowd's characters)."""
+def with_columns(features: np.ndarray, vector: np.ndarray) -> np.ndarray:
+    """Per-frame motion features (T, F) with a conditioning vector (a body's measures, a cloth's
+    values) appended to every frame (T, F + b): ``vector`` (b,) one for all, or (T, b) one per row
+    (a crowd's characters)."""
     features = np.asarray(features)
     vector = np.asarray(vector, features.dtype)
     return np.concatenate([features, np.broadcast_to(vector, (len(features), vector.shape[-1]))], 1)

@@ -6,6 +6,8 @@
     hrr-animate walk.bvh -o out.h5 --garment dress --detail-strength 1 --detail-base residual
     hrr-animate walk.bvh -o out.h5 --model DIR --body hero.json      # on your character's body
     hrr-animate hero.glb --animation Walk -o out.h5 --model DIR --body hero.glb
+    hrr-animate walk.bvh -o out.h5 --model DIR --material silk       # a model trained across cloths
+    hrr-animate walk.bvh -o out.h5 --model DIR --material jersey,bend=8e-6
 
 MOTION: BVH, glTF / GLB (``--animation NAME``), AMASS-style npz or the native npz (resampled to 30 fps).
 Output: out.h5 (see docs/inference.md), written atomically. Offline (default) blends windows centred on each
@@ -85,6 +87,19 @@ def _parser() -> argparse.ArgumentParser:
         action="store_true",
         help="animate a body unlike the model's training bodies anyway (warned), rather than refuse it",
     )
+    p.add_argument(
+        "--material",
+        default=None,
+        metavar="CLOTH",
+        help="the cloth: a fabric (silk, denim, ...), a fabric with values changed (jersey,bend=8e-6), "
+        "values (density=0.2,bend=1e-5) or a YAML file of them; within the range the model was trained in "
+        "(default: the model's cloth)",
+    )
+    p.add_argument(
+        "--allow-outside-material",
+        action="store_true",
+        help="animate a cloth unlike the model's training cloths anyway (warned), rather than refuse it",
+    )
     add_no_push_out_option(p, help="skip the collision push-out")
     add_decoder_option(p)
     add_push_option(p)
@@ -137,6 +152,8 @@ def _main(argv: Sequence[str] | None) -> int:
         causal=args.causal,
         body=args.body,
         allow_outside=args.allow_outside_body,
+        material=args.material,
+        allow_outside_material=args.allow_outside_material,
         precision=args.precision,
     )
     animator = Animator.load(model_dir, settings)
@@ -164,10 +181,12 @@ def _main(argv: Sequence[str] | None) -> int:
         else f"retrieval usage {100 * anim.retrieval_usage:.1f} % of frames"
     )
     named = f"{args.mode} = {mode}" if args.mode != mode else str(mode)
+    material = anim.material
+    cloth = f" in {material.describe()}" if material is not None else ""
     print(
         f"wrote {args.output}: {anim.vertices.shape[0]} frames "
         f"({motion.duration_s:.2f} s at {anim.fps:g} fps), {anim.vertices.shape[1]} vertices on body "
-        f"{anim.body_name}; mode {named}{gate}, {used}; {seconds:.1f} s"
+        f"{anim.body_name}{cloth}; mode {named}{gate}, {used}; {seconds:.1f} s"
     )
     if anim.penetration is not None:
         p = anim.penetration

@@ -36,6 +36,7 @@ import h5py
 import numpy as np
 
 from ..errors import InputError
+from ..garment.material import Material, recorded_material
 from ..input_files import input_file
 from ..io_utils import atomic_h5
 from ..motion.motion import MAX_TRANSLATION_M
@@ -84,6 +85,12 @@ class AnimationFile:
     @property
     def num_frames(self) -> int:
         return int(self.vertices.shape[0])
+
+    @property
+    def material(self) -> Material | None:
+        """The cloth the garment was animated in, where the file records one (written by a model that
+        records its cloths); None otherwise."""
+        return recorded_material(self.attrs.get("material"), str(self.path))
 
     @cached_property
     def _visible_body(self) -> tuple[np.ndarray, np.ndarray] | None:

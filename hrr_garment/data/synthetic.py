@@ -14,6 +14,8 @@ import numpy as np
 from ..body.mannequin import MANNEQUIN
 from ..body.retarget import motion_on_body
 from ..garment.dressing import DressedBody
+from ..garment.fabrics import FABRICS
+from ..garment.material import Material
 from ..garment.mesh import GarmentMesh
 from ..motion.features import motion_features
 from ..motion.licences import PROCEDURAL, SOURCES
@@ -32,13 +34,26 @@ SEQUENCES = (
 SPLITS = {"train": ["walk_000", "walk_001", "spin_000"], "val": ["walk_002"], "test": ["run_000"]}
 
 
+def cloth_swing(material: Material) -> float:
+    """How far a cloth swings here, relative to the default cloth's: as (density / bend)^(1/4), so
+    that a lighter, softer cloth swings farther (a fold's length goes with (bend / density)^(1/3))."""
+    default = FABRICS["default"]
+    return float((material.density / material.bend / (default.density / default.bend)) ** 0.25)
+
+
 def write_synthetic_dataset(
-    path: str | Path, garment: GarmentMesh, seconds: float = 1.5, bodies: list[DressedBody] | None = None
+    path: str | Path,
+    garment: GarmentMesh,
+    seconds: float = 1.5,
+    bodies: list[DressedBody] | None = None,
+    materials: list[Material] | None = None,
 ) -> Path:
     """Write the five sequences of ``garment`` to ``path`` (an .h5 dataset); returns the path.
     ``bodies``: the sequences in turn on each of these bodies (:class:`~.bodies.DressedBody`, the
     garment on it), each played by its body, the garment hanging from the body's own rest shape
-    and swinging with the speed of the body's own stride; default the mannequin."""
+    and swinging with the speed of the body's own stride; default the mannequin. ``materials``: the
+    sequences in turn in each of these cloths, recorded as a simulation records them, each swinging
+    by :func:`cloth_swing`; default none recorded (the default cloth)."""
     records = []
     for i, (name, kind, seed) in enumerate(SEQUENCES):
         motion, rest, body_name = synthesize(kind, seconds, seed=seed), garment.vertices, MANNEQUIN
@@ -55,14 +70,17 @@ def write_synthetic_dataset(
         f = motion_features(motion)
         speed, turn = np.tanh(f[:, -4:-1].sum(1, keepdims=True)), np.tanh(f[:, -1:])
         local = np.repeat(v[None], motion.num_frames, 0)
-        local[..., 2] -= 0.1 * depth * speed
-        local[..., 0] += 0.1 * depth * turn
+        cloth = materials[i % len(materials)] if materials else None
+        swing = 0.1 * (cloth_swing(cloth) if cloth is not None else 1.0)
+        local[..., 2] -= swing * depth * speed
+        local[..., 0] += swing * depth * turn
         yaw = yaw_of(motion.global_rotations[:, 0])
         world = (
             np.einsum("tij,tnj->tni", rotation_about_y(yaw), local)
             + (motion.root_translation * [1, 0, 1])[:, None]
         )
-        records.append(SequenceRecord(name, world.astype(np.float32), motion, body_name=body_name))
+        info = {} if cloth is None else {"material": cloth.to_dict()}
+        records.append(SequenceRecord(name, world.astype(np.float32), motion, info, body_name=body_name))
     sources = {
         "motion_sources": {r.name: PROCEDURAL for r in records},
         "sources": {PROCEDURAL: SOURCES[PROCEDURAL].to_dict()},

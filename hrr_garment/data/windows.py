@@ -9,14 +9,14 @@ Statistics for standardising both sides are fitted on the training split's frame
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
-from ..body.measures import body_vector, with_body
+from ..body.measures import body_vector, with_columns
+from ..garment.material_range import material_vector
 from ..motion.features import FeatureStats, motion_features
-from ..motion.memory import MemorySettings, with_memory
+from ..motion.memory import with_memory
 
 
 class WindowFrames:
@@ -173,18 +173,22 @@ def build_windows(
     return WindowSet(motion, lat, seq, start, list(names))
 
 
-def dataset_features(
-    dataset, names: list[str], memory: MemorySettings | Sequence[float], body_measures: bool = False
-) -> dict[str, np.ndarray]:
-    """Motion features (T, 124 + memory) of each named sequence of a :class:`GarmentDataset`, with
-    the motion memory ``memory`` (:mod:`hrr_garment.motion.memory`) and, with ``body_measures``,
-    the measures of the body each sequence was simulated on (:mod:`hrr_garment.body.measures`)."""
+def dataset_features(dataset, names: list[str], config) -> dict[str, np.ndarray]:
+    """Motion features (T, F) of each named sequence of a :class:`GarmentDataset` as a code space
+    of settings ``config`` (a :class:`~hrr_garment.models.codespace.CodeSpaceSettings`) reads them:
+    the motion memory (:mod:`hrr_garment.motion.memory`) and, where it has their columns, the
+    measures of the body each sequence was simulated on (:mod:`hrr_garment.body.measures`) and the
+    values of the cloth it was simulated in (:mod:`hrr_garment.garment.material_range`)."""
     out = {}
     for name in names:
         motion = dataset.sequence(name).motion
-        out[name] = with_memory(motion_features(motion), motion.fps, memory)
-        if body_measures:
-            out[name] = with_body(out[name], body_vector(dataset.bodies[dataset.body_name_of[name]].record))
+        out[name] = with_memory(motion_features(motion), motion.fps, config.memory)
+        if config.body_features:
+            out[name] = with_columns(
+                out[name], body_vector(dataset.bodies[dataset.body_name_of[name]].record)
+            )
+        if config.material_features:
+            out[name] = with_columns(out[name], material_vector(dataset.material_of(name)))
     return out
 
 

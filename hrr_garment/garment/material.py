@@ -154,3 +154,17 @@ def read_material(path: Path) -> Material:
         raise InputError(path, "a material file is a mapping of values (density: 0.2, ...)")
     values.setdefault("name", path.stem)
     return material_from(values, str(path))
+
+
+def recorded_material(text: str | None, where: str) -> Material | None:
+    """The cloth a file records as JSON (out.h5's ``material`` attribute: a material's values and
+    name, :meth:`Material.to_dict`), or None where it records none."""
+    import json
+
+    if text is None:
+        return None
+    try:
+        values = json.loads(text)
+    except (TypeError, ValueError):
+        raise InputError(where, f"its material {text!r} is not a JSON object of values") from None
+    return material_from(values, where)

@@ -12,6 +12,7 @@ from ..body.body_file import BodyRecord, body_to_dict
 from ..body.mannequin import MANNEQUIN
 from ..data.animation_file import MAX_REACH_M, farthest_from_body
 from ..errors import InputError
+from ..garment.material import Material, recorded_material
 from ..io_utils import strict_json
 from ..motion.motion import Motion
 from ..motion.rotations import matrix_to_quat
@@ -47,6 +48,12 @@ class Animation:
     )
     body_record: BodyRecord | None = None  # the body itself (previews draw its own mesh where it has a shape)
     doubt: np.ndarray | None = None  # (T,) the gate signal's value per frame (retrieval where below tau)
+
+    @property
+    def material(self) -> Material | None:
+        """The cloth animated (the run's, :mod:`.run_material`); None for a model from before cloths
+        were recorded."""
+        return recorded_material(self.settings.get("material"), "the animation")
 
     @property
     def retrieval_usage(self) -> float:

@@ -38,6 +38,7 @@ from .decoding import flush_denormals
 from .edge_limits import EdgeLimits
 from .frame_path import FramePath, Observer
 from .modes import CODE_MODES, Mode
+from .run_material import material_columns, run_material
 from .run_settings import ResolvedRun, RunSettings, run_settings
 from .stream import CrowdStream
 from .subspace_push import SubspacePush
@@ -206,11 +207,14 @@ class Animator:
         with flush_denormals():
             return animate_clip(FramePath(self, run, observe), run.body.play(motion))
 
-    def features(self, motion: Motion, causal: bool = False, body: CharacterBody | None = None) -> np.ndarray:
+    def features(
+        self, motion: Motion, causal: bool = False, body: CharacterBody | None = None, material=None
+    ) -> np.ndarray:
         """The model's per-frame motion features (T, F) of a clip (stage 1,
         :func:`~.clip_path.clip_features`): offline or as a stream sees them (``causal``), for ``body``
-        (default: the model's own)."""
-        return clip_features(self.bundle, motion, (body or self.body()).vector, causal=causal)
+        (default: the model's own) in ``material`` (default: the model's cloth)."""
+        cloth = material_columns(self.bundle, run_material(self.bundle, material))
+        return clip_features(self.bundle, motion, (body or self.body()).vector, cloth, causal=causal)
 
     def stream(self, settings: RunSettings | None = None, *, rig=None, **changes) -> AnimationStream:
         """One character, causal, one pose in and one frame out (:class:`~.character_stream.AnimationStream`);

@@ -18,19 +18,22 @@ from .animation import Animation
 from .blending import blend_windows, causal_latents
 from .decoding import body_frame_vertices
 from .fold_track import causal_proposals, offline_proposals, track_folds
-from .frame_path import FramePath, with_measures
+from .frame_path import FramePath, with_conditions
 from .gate import frame_gates
 from .modes import Mode
 
 
-def clip_features(bundle, motion: Motion, measures: np.ndarray, causal: bool = False) -> np.ndarray:
+def clip_features(
+    bundle, motion: Motion, measures: np.ndarray, cloth: np.ndarray | None = None, causal: bool = False
+) -> np.ndarray:
     """Stage 1 over a clip: the model's per-frame features (T, F): the plain ones, offline or as a
     stream sees them (``causal``), with the motion memory the model was trained with and, for a
-    model across bodies, the body's ``measures``."""
+    model across bodies, the body's ``measures``, for a model across cloths the ``cloth``'s values."""
     plain = (
         causal_features(motion) if causal or motion.num_frames < 2 else motion_features(motion)
     )  # one frame: no velocity
-    return with_measures(bundle, with_memory(plain, motion.fps, bundle.codespace.config.memory), measures)
+    memory = with_memory(plain, motion.fps, bundle.codespace.config.memory)
+    return with_conditions(bundle, memory, measures, cloth)
 
 
 @dataclass
@@ -52,7 +55,7 @@ def clip_latents(path: FramePath, motion: Motion) -> ClipLatents:
         return _direct(path, motion)
     t_frames, w, bundle = motion.num_frames, path.window, path.bundle
     features = path.seen(
-        "features", clip_features(bundle, motion, path.run.body.vector, causal=path.run.causal)
+        "features", clip_features(bundle, motion, path.run.body.vector, path.cloth, causal=path.run.causal)
     )
     if path.run.causal:
         gates = frame_gates(bundle, path.step, features)
@@ -97,7 +100,7 @@ def _direct(path: FramePath, motion: Motion) -> ClipLatents:
         raise InputError(
             bundle.folder, "has no direct-regression baseline: train it with hrr-train --stage direct"
         )
-    features = path.seen("features", clip_features(bundle, motion, path.run.body.vector))
+    features = path.seen("features", clip_features(bundle, motion, path.run.body.vector, path.cloth))
     with torch.no_grad():
         z = bundle.direct(torch.from_numpy(bundle.motion_stats.normalize(features).astype(np.float32))[None])[
             0

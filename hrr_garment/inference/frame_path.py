@@ -2,7 +2,8 @@
 one numbered list (:data:`STAGES`) that every driver runs in order:
 
 1. ``features``: each frame's motion features (:mod:`hrr_garment.motion.features`), its motion
-   memory (:mod:`hrr_garment.motion.memory`) and, for a model across bodies, the body's measures;
+   memory (:mod:`hrr_garment.motion.memory`) and, for a model across bodies, the body's measures,
+   for a model across cloths, the cloth's values (:mod:`hrr_garment.garment.material_range`);
 2. ``windows``: the last W frames' features (offline: every W-frame window of the clip);
 3. ``choice``: the window step (motion encoder, gate, code-space decoder) and what the mode picks
    (:func:`~.gate.choose_windows`): each window's latents and its database match;
@@ -36,13 +37,14 @@ from collections.abc import Callable
 import numpy as np
 import torch
 
-from ..body.measures import with_body
+from ..body.measures import with_columns
 from ..motion.frame import world_vertices
 from ..motion.motion import Motion
 from .collision import PushOutReport, push_out
 from .detail import add_folds
 from .gate import WindowChoice, choose_windows
 from .resolved_run import ResolvedRun
+from .run_material import material_columns
 from .swing import SwingGain
 
 #: the stages of a frame, in order (the module docstring says what each does)
@@ -51,10 +53,18 @@ STAGES = ("features", "windows", "choice", "blending", "swing", "decoding", "fol
 Observer = Callable[[str, np.ndarray], None]  # a stage's name and its output
 
 
-def with_measures(bundle, features: np.ndarray, measures: np.ndarray) -> np.ndarray:
+def with_conditions(
+    bundle, features: np.ndarray, measures: np.ndarray, cloth: np.ndarray | None
+) -> np.ndarray:
     """Stage 1's last part: (n, F) features with the body's ``measures`` ((b,) for all, or (n, b))
-    appended, for a model trained across bodies; as they are otherwise."""
-    return with_body(features, measures) if bundle.codespace.config.body_features else features
+    appended for a model trained across bodies, and then the ``cloth``'s values ((m,) or (n, m),
+    :func:`~.run_material.material_columns`) for a model trained across cloths."""
+    config = bundle.codespace.config
+    if config.body_features:
+        features = with_columns(features, measures)
+    if config.material_features:
+        features = with_columns(features, cloth)
+    return features
 
 
 class FramePath:
@@ -64,6 +74,7 @@ class FramePath:
     def __init__(self, animator, run: ResolvedRun, observe: Observer | None = None):
         self.animator, self.bundle, self.run = animator, animator.bundle, run
         self.window, self.blend = animator.window, animator.blend
+        self.cloth = material_columns(self.bundle, run.material)  # stage 1's cloth values (None: reads none)
         self.smoothing, self.edge_limits = animator.smoothing, animator.edge_limits  # the template's
         # stage 9's strain limit measures the garment as it rests on the run's body (a carried
         # garment's edges are not the template's); a crowd's push gives its own bodies' limits

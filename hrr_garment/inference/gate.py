@@ -18,7 +18,7 @@ import torch
 from ..artifacts.bundle import Bundle
 from ..artifacts.gate_signals import gate_doubt
 from ..artifacts.residual import match_regression, residual_latents, residual_scale
-from ..models.codes import encode_motion, window_bodies
+from ..models.codes import encode_motion, window_conditions
 from .modes import CODE_MODES, Mode
 from .run_settings import ResolvedRun
 
@@ -81,10 +81,10 @@ def choose_windows(
     )
     n = len(enc.entropy)
     frames = 1 if last_frame else db.latents.shape[1]
-    bodies = window_bodies(bundle.codespace, enc)
+    conditions = window_conditions(bundle.codespace, enc)
     doubt, match = enc.entropy, None
     if mode in (Mode.RESIDUAL, Mode.DETAIL):  # no gate: every window's regression and its best match
-        match, similarity = db.search(enc.codes, exclude, bodies)
+        match, similarity = db.search(enc.codes, exclude, conditions)
         matched = np.stack([db.sequence[match], db.start[match]], 1).astype(np.int32)
         latents = enc.regression
         # the detail mode adds the matches' folds (.detail) to the regression's latents or to the
@@ -133,7 +133,7 @@ def choose_windows(
             regression_part=part,
         )
     if run.gate != "entropy" and mode is Mode.HYBRID:  # the match decides: search every window first
-        match, similarity = db.search(enc.codes, exclude, bodies)
+        match, similarity = db.search(enc.codes, exclude, conditions)
         distance = db.motion_distance(enc.standardised, match) if run.gate == "distance" else None
         doubt = gate_doubt(run.gate, enc.entropy, similarity, distance=distance)
     retrieved = {
@@ -155,7 +155,7 @@ def choose_windows(
         elif match is not None:
             found = match[rows]
         else:
-            found, _ = db.search(enc.codes[rows], ex, None if bodies is None else bodies[rows])
+            found, _ = db.search(enc.codes[rows], ex, None if conditions is None else conditions[rows])
         latents[rows] = db.latents[found, -frames:]
         source[rows] = np.stack([db.sequence[found], db.start[found]], 1)
     return WindowChoice(latents, retrieved, enc.entropy, np.asarray(doubt, np.float64), source)

@@ -3,12 +3,14 @@ API reads (:mod:`.run_settings` makes it, :meth:`~.run_settings.RunSettings.reso
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 from .modes import Mode
 
 if TYPE_CHECKING:
+    from ..garment.material import Material
     from .character_body import CharacterBody
     from .run_settings import DetailLook
 
@@ -37,6 +39,8 @@ class ResolvedRun:
     device: str | None  # where a crowd runs, as asked (None: the crowd's choice, Animator.crowd)
     seed: int = 0  # the sample mode's seed
     sample_steps: int | None = None  # the sample mode's integration steps a frame (None outside it)
+    # the cloth animated (inference/run_material.py); None for a model from before cloths were recorded
+    material: Material | None = None
 
     @property
     def fold_base(self) -> str:
@@ -61,6 +65,8 @@ class ResolvedRun:
             out.update(detail_base=self.detail.base, detail_strength=self.detail.strength)
         if self.sample_steps is not None:
             out.update(seed=self.seed, sample_steps=self.sample_steps)
+        if self.material is not None:  # its name and its values, as a material file writes them
+            out.update(material=json.dumps(self.material.to_dict(), sort_keys=True))
         return out
 
 

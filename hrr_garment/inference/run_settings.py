@@ -35,6 +35,7 @@ from ..artifacts.manifest import DETAIL_BASES, MAX_DETAIL_STRENGTH, BundleError,
 from ..native import PRECISIONS
 from .modes import Mode
 from .resolved_run import ResolvedRun
+from .run_material import run_material
 from .swing import MAX_GAIN, valid_gain
 
 if TYPE_CHECKING:  # the bundle's models import torch, which a command that only reads settings does not need
@@ -159,6 +160,12 @@ class RunSettings:
     # model's training bodies too (warned)
     body: object = field(default=None, hash=False)
     allow_outside: bool = False
+    # the cloth animated: a Material, a fabric's name or values as --material takes them ("silk",
+    # "density=0.12,bend=4e-6"), a mapping; None: the model's default cloth. A model across cloths
+    # takes any within the range it was trained in (``allow_outside_material``: beyond it too,
+    # warned); a model of one cloth, that cloth (inference/run_material.py)
+    material: object = field(default=None, hash=False)
+    allow_outside_material: bool = False
     exclude_sequence: int | None = None  # a database sequence retrieval may not use (evaluation)
     # the full mesh decoder's arithmetic for batches of frames: "float32" or "bfloat16" (AMX on recent
     # Intel Xeons, InferenceDecoder). None: float32
@@ -210,7 +217,7 @@ class RunSettings:
             )
         if self.sample_steps is not None and self.mode not in (Mode.SAMPLE, Mode.AUTO):
             raise ValueError(f"sample_steps sets the sample mode's draw; mode {self.mode.value} draws none")
-        for name in ("push_out", "causal", "allow_outside"):
+        for name in ("push_out", "causal", "allow_outside", "allow_outside_material"):
             value = getattr(self, name)
             if not isinstance(value, (bool, np.bool_)):
                 raise TypeError(f"{name} must be True or False, got {value!r}")
@@ -302,6 +309,7 @@ class RunSettings:
             device=self.device,
             seed=self.seed,
             sample_steps=(self.sample_steps or bundle.sampler.config.steps) if mode is Mode.SAMPLE else None,
+            material=run_material(bundle, self.material, self.allow_outside_material),
         )
 
 

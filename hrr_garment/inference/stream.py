@@ -50,10 +50,11 @@ from .crowd_state import STREAM_STAGES, CrowdCharacter, CrowdTimings, character_
 from .crowd_windows import CrowdWindows
 from .decoding import flush_denormals
 from .fold_track import FoldTrack, follow_folds
-from .frame_path import FramePath, with_measures
+from .frame_path import FramePath, with_conditions
 from .gate import frame_gates
 from .lod import crowd_decode, crowd_latents, decoder_of, levels
 from .modes import Mode
+from .run_material import material_columns, run_material
 from .run_settings import ResolvedRun
 from .swing import step_crowd
 
@@ -73,6 +74,7 @@ class CrowdStream:
         self.body = run.body
         self._bodies: dict[Hashable, object] = {}  # characters with a body of their own (set_body)
         self._seeds: dict[Hashable, int] = {}  # characters with a seed of their own (set_seed)
+        self._materials: dict[Hashable, object] = {}  # characters with a cloth of their own (set_material)
         self._stacked: tuple = ((), None)  # the last mixed crowd's bodies and their stacked arrays
         self._characters: dict[Hashable, CrowdCharacter] = {}
         self._windows = CrowdWindows(animator.window)
@@ -105,6 +107,14 @@ class CrowdStream:
         its capsules. Characters of different bodies still go through one batched step."""
         self._bodies[key] = self.animator.body(body, allow_outside=allow_outside)
 
+    def set_material(self, key: Hashable, material, *, allow_outside: bool = False) -> None:
+        """Dress character ``key`` in a cloth of its own (what ``RunSettings.material`` takes: a
+        fabric's name, values, a Material), before it joins or between frames; the run's cloth is
+        every other character's. Checked against the model's range of cloths as the run's is
+        (:func:`~.run_material.run_material`); characters in different cloths still go through one
+        batched step."""
+        self._materials[key] = run_material(self.animator.bundle, material, allow_outside)
+
     def set_seed(self, key: Hashable, seed: int) -> None:
         """Give character ``key`` a seed of its own for the sample mode's draw (the run's seed is
         every other character's): before it joins, or to start its draw afresh from that seed."""
@@ -119,6 +129,7 @@ class CrowdStream:
         self._forget(key)
         self._bodies.pop(key, None)
         self._seeds.pop(key, None)
+        self._materials.pop(key, None)
 
     def _forget(self, key: Hashable) -> None:
         """Drop a character's state (it starts afresh if pushed again), its inertialization's row freed."""
@@ -212,6 +223,16 @@ class CrowdStream:
         stacked = self._stacked[1]
         return poses.on_skeletons(stacked.skeletons, stacked.root_scale), stacked
 
+    def _cloths(self, keys: list) -> np.ndarray | None:
+        """The cloth values the model reads (:func:`~.run_material.material_columns`): the run's for
+        all, or one row per character where some have their own; None for a model of one cloth."""
+        run_cloth = self.path.cloth
+        if run_cloth is None or not any(k in self._materials for k in keys):
+            return run_cloth
+        return material_columns(
+            self.animator.bundle, [self._materials.get(k, self.run.material) for k in keys]
+        )
+
     def _latents(
         self, chars: list[CrowdCharacter], windows: np.ndarray, gates: np.ndarray | None, lv: np.ndarray
     ) -> np.ndarray:
@@ -267,7 +288,9 @@ class CrowdStream:
         features = self._with_memory(
             chars, pair_features_batch([c.previous for c in chars], poses), poses.fps
         )
-        features = path.seen("features", with_measures(path.bundle, features, bodies.vector))
+        features = path.seen(
+            "features", with_conditions(path.bundle, features, bodies.vector, self._cloths(keys))
+        )
         # 2. windows: each frame's gates once, as it comes
         gates = frame_gates(path.bundle, self._step, features)
         windows, window_gates = self._windows.push(

@@ -32,9 +32,10 @@ class PoseStage(nn.Module):
 
 class FeatureStage(nn.Module):
     """A frame's features (N, F) against each character's last pose, its motion memory carried one
-    frame on, and the body's measures: what :meth:`CrowdStream._step_frame` appends to a window."""
+    frame on, and what conditions the model (the body's measures, the cloth's values; None where it
+    reads neither): what :meth:`CrowdStream._step_frame` appends to a window."""
 
-    def __init__(self, memory: MotionMemory | None, fps: float, body_vector: np.ndarray | None):
+    def __init__(self, memory: MotionMemory | None, fps: float, condition: np.ndarray | None):
         super().__init__()
         self.fps, self.joints = float(fps), list(FEATURE_JOINTS)
         self.averages = 0 if memory is None else len(memory.spec.seconds)
@@ -44,9 +45,9 @@ class FeatureStage(nn.Module):
             constant(self, "resonator_a", memory.resonator_a)  # (r, 2, 2)
             constant(self, "resonator_b", memory.resonator_b)  # (r, 2)
             constant(self, "omega", memory.omega)  # (r,)
-        self.has_body = body_vector is not None
-        if self.has_body:
-            constant(self, "body_vector", body_vector)
+        self.has_condition = condition is not None
+        if self.has_condition:
+            constant(self, "condition", condition)
 
     def pair(
         self, previous: tuple[torch.Tensor, torch.Tensor], current: tuple[torch.Tensor, torch.Tensor]
@@ -100,6 +101,6 @@ class FeatureStage(nn.Module):
         if self.rows:
             memory = self.memory(memory, features, started)
             parts.append(self.memory_values(memory))
-        if self.has_body:
-            parts.append(self.body_vector.expand(features.shape[0], -1))
+        if self.has_condition:
+            parts.append(self.condition.expand(features.shape[0], -1))
         return torch.cat(parts, 1), memory

@@ -29,6 +29,7 @@ of a millimetre of it over a real clip (tests/export/test_onnx.py).
 
 from __future__ import annotations
 
+import numpy as np
 import torch
 from torch import nn
 
@@ -38,7 +39,7 @@ from ..motion.motion import FPS
 from ..motion.rotations import yaw_of
 from ..motion.skeleton import NUM_JOINTS, REST_PELVIS_HEIGHT
 from .collision import PUSH_OUT
-from .frame_path import FramePath
+from .frame_path import FramePath, with_conditions
 from .modes import Mode
 from .torch_features import FeatureStage, PoseStage
 from .torch_ops import constant, turn_y
@@ -68,12 +69,14 @@ class StreamStep(nn.Module):
         fps: float,
         push_out: PushOutStage | None,
         sample: SampleStage | None = None,
+        cloth: np.ndarray | None = None,
     ):
         super().__init__()
         record = character.record
         self.pose = PoseStage(record.skeleton.offsets, record.skeleton.parents, record.pelvis_height)
-        measures = character.vector if bundle.codespace.config.body_features else None
-        self.features = FeatureStage(memory, fps, measures)
+        # the body's measures and the cloth's values where the model reads them (frame_path's stage 1)
+        condition = with_conditions(bundle, np.zeros((1, 0), np.float32), character.vector, cloth)[0]
+        self.features = FeatureStage(memory, fps, condition if condition.size else None)
         self.codes = WindowCodes(bundle.codespace.eval(), regression=True, last_frame=True)
         constant(self, "motion_mean", bundle.motion_stats.mean)
         constant(self, "motion_std", bundle.motion_stats.std)
@@ -211,7 +214,14 @@ def stream_step(path: FramePath, *, movable: bool = False) -> StreamStep:
         module = AutoencoderDecoder(bundle.autoencoder) if movable else TorchDecoder(path.decoder)
     sample = SampleStage(bundle.sampler, run.sample_steps) if run.mode is Mode.SAMPLE else None
     return StreamStep(
-        bundle, module, character=run.body, memory=memory, fps=FPS, push_out=stage, sample=sample
+        bundle,
+        module,
+        character=run.body,
+        memory=memory,
+        fps=FPS,
+        push_out=stage,
+        sample=sample,
+        cloth=path.cloth,
     ).eval()
 
 

@@ -47,14 +47,15 @@ def regression_embedding(codespace, logits: torch.Tensor) -> torch.Tensor:
     return q.embed(torch.nn.functional.one_hot(logits.argmax(-1), q.classes).to(logits.dtype))
 
 
-def window_bodies(codespace, codes: MotionCodes) -> np.ndarray | None:
-    """The standardised body measures (N, b) of the windows ``codes`` were made of, for a model
-    trained across bodies (retrieval prefers matches from near bodies:
-    :meth:`~hrr_garment.artifacts.database.CodeDatabase.search`); None for a model of one body."""
-    b = codespace.config.body_features
-    if not b:
+def window_conditions(codespace, codes: MotionCodes) -> np.ndarray | None:
+    """The standardised body measures and cloth values (N, c) of the windows ``codes`` were made
+    of, for a model trained across bodies or cloths (retrieval prefers matches from near bodies in
+    near cloths: :meth:`~hrr_garment.artifacts.database.CodeDatabase.search`); None for a model of
+    one body in one cloth."""
+    c = codespace.config.condition_features
+    if not c:
         return None
-    return codes.motion_stats.normalize(codes.windows[:, -1])[:, -b:]  # the last frame's: not every window's
+    return codes.motion_stats.normalize(codes.windows[:, -1])[:, -c:]  # the last frame's: not every window's
 
 
 class WindowCodes(torch.nn.Module):
@@ -75,7 +76,7 @@ class WindowCodes(torch.nn.Module):
         return (
             group_entropy(logits),
             idx,
-            self.codespace.decode(embedding, self.last_frame, self.codespace.body_of(windows)),
+            self.codespace.decode(embedding, self.last_frame, self.codespace.condition_of(windows)),
         )
 
 

@@ -10,10 +10,12 @@
 - :class:`CodeSpace` holds the three and the shared :class:`~.quantizer.GumbelQuantizer`.
 
 A model trained across bodies (``body_features`` > 0) reads each body's measures
-(:mod:`hrr_garment.body.measures`) as the last ``body_features`` columns of every motion frame:
-the motion encoder sees them with the motion, and the garment encoder and the decoder take them
-from the window's last frame (:meth:`CodeSpace.body_of`) beside their own inputs, so one code
-means one movement of the cloth relative to its body, decoded for the body at hand.
+(:mod:`hrr_garment.body.measures`) after every motion frame's features, and a model trained in
+several cloths (``material_features`` > 0) the cloth's values (:mod:`hrr_garment.garment.material_range`)
+after them: together the last ``condition_features`` columns. The motion encoder sees them with the
+motion, and the garment encoder and the decoder take them from the window's last frame
+(:meth:`CodeSpace.condition_of`) beside their own inputs, so one code means one movement of the
+cloth relative to its body, decoded for the body and the cloth at hand.
 """
 
 from __future__ import annotations
@@ -59,6 +61,9 @@ class CodeSpaceSettings:
     # body measures appended to every motion frame (hrr_garment.body.measures): set by training
     # when its data holds more than one body; 0, one body (the encoders and decoder read none)
     body_features: int = 0
+    # the cloth's values appended after them (hrr_garment.garment.material_range): set by training
+    # when its data holds more than one cloth; 0, one cloth
+    material_features: int = 0
 
     def __post_init__(self):
         try:
@@ -87,10 +92,10 @@ class CodeSpaceSettings:
                 f"{what}: motion_hidden ({self.motion_hidden}) must divide into attention_heads "
                 f"({self.attention_heads})"
             )
-        if not isinstance(self.body_features, int) or self.body_features < 0:
-            raise SettingsError(
-                f"code space model: body_features must be a count >= 0, got {self.body_features!r}"
-            )
+        for name in ("body_features", "material_features"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int) or value < 0:
+                raise SettingsError(f"code space model: {name} must be a count >= 0, got {value!r}")
         if self.regression_code not in REGRESSION_CODES:
             raise SettingsError(
                 f"code space model: regression_code must be one of {', '.join(REGRESSION_CODES)}, "
@@ -103,9 +108,14 @@ class CodeSpaceSettings:
         return MemorySettings(self.memory_seconds, self.resonator_hz, self.resonator_damping)
 
     @property
+    def condition_features(self) -> int:
+        """The columns after the motion's that condition the model: the body's and the cloth's."""
+        return self.body_features + self.material_features
+
+    @property
     def features(self) -> int:
-        """Motion features per frame: the 124 plain ones, the memory's and the body's measures."""
-        return feature_width(self.memory) + self.body_features
+        """Motion features per frame: the 124 plain ones, the memory's, the body's and the cloth's."""
+        return feature_width(self.memory) + self.condition_features
 
     @classmethod
     def from_dict(cls, values: dict) -> "CodeSpaceSettings":
@@ -185,34 +195,35 @@ class CodeSpace(nn.Module):
         self.motion_encoder = MotionEncoder(
             features, self.quantizer.logits_size, config.motion_hidden, config.attention_heads
         )
-        body = config.body_features
+        condition = config.condition_features
         self.garment_encoder = GarmentEncoder(
-            size + body, self.quantizer.logits_size, config.hidden, config.dropout
+            size + condition, self.quantizer.logits_size, config.hidden, config.dropout
         )
         self.decoder = LatentDecoder(
-            self.quantizer.embedding_size + body, size, config.hidden, config.dropout
+            self.quantizer.embedding_size + condition, size, config.hidden, config.dropout
         )
 
-    def body_of(self, motion: torch.Tensor) -> torch.Tensor | None:
-        """The standardised body measures (B, b) of motion windows (B, W, F): their last frame's
-        last ``body_features`` columns; None for a model of one body."""
-        b = self.config.body_features
-        return motion[:, -1, motion.shape[-1] - b :] if b else None
+    def condition_of(self, motion: torch.Tensor) -> torch.Tensor | None:
+        """The standardised body measures and cloth values (B, c) of motion windows (B, W, F): their
+        last frame's last ``condition_features`` columns; None for a model of one body in one cloth."""
+        c = self.config.condition_features
+        return motion[:, -1, motion.shape[-1] - c :] if c else None
 
     def decode(
-        self, embedding: torch.Tensor, last_frame: bool = False, body: torch.Tensor | None = None
+        self, embedding: torch.Tensor, last_frame: bool = False, condition: torch.Tensor | None = None
     ) -> torch.Tensor:
-        """(B, G * dim) and, for a model trained across bodies, the body (:meth:`body_of`) ->
+        """(B, G * dim) and, for a model trained across bodies or cloths, their values
+        (:meth:`condition_of`) ->
         (B, W, N, C) standardised latents; with ``last_frame`` only the window's last frame,
         (B, 1, N, C), which is all causal inference uses: the output layer's other rows (nine
         tenths of the decoder's weights) are skipped."""
-        if (body is None) != (self.config.body_features == 0):
+        if (condition is None) != (self.config.condition_features == 0):
             raise ValueError(
-                f"the decoder reads {self.config.body_features} body measures; "
-                f"{'none' if body is None else body.shape[-1]} given"
+                f"the decoder reads {self.config.condition_features} body and cloth values; "
+                f"{'none' if condition is None else condition.shape[-1]} given"
             )
-        if body is not None:
-            embedding = torch.cat([embedding, body], 1)
+        if condition is not None:
+            embedding = torch.cat([embedding, condition], 1)
         if not last_frame:
             return self.decoder(embedding).reshape(embedding.shape[0], self.config.window, *self.latent_shape)
         *hidden, out = self.decoder.net

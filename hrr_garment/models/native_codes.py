@@ -79,9 +79,8 @@ class NativeWindowCodes:
             q.embedding,
             torch.tensor([enc.norm.eps, out_norm.eps]),
         ]
-        sizes = [
-            q.embedding_size + cfg.body_features
-        ]  # a model across bodies: its measures after the embedding
+        # a model across bodies or cloths: their values after the embedding
+        sizes = [q.embedding_size + cfg.condition_features]
         for i, layer in enumerate(linears):
             last = i == len(linears) - 1  # causal inference needs only the last frame's rows
             weights += (
@@ -107,7 +106,7 @@ class NativeWindowCodes:
                 len(linears),
                 *sizes,
                 int(cfg.regression_code == "expected"),
-                cfg.body_features,
+                cfg.condition_features,
             ],
             np.int32,
         )

@@ -102,12 +102,7 @@ def part_inputs(
         return PartInputs(bundle, ds, key, names, {}, {}), {**recorded.to_dict(), "reused": True}
     with np.load(folder / "autoencoder" / "latents.npz", allow_pickle=False) as f:
         latents = {name: f[name] for name in ds.names}
-    features = dataset_features(
-        ds,
-        names["train"] + names["val"],
-        bundle.codespace.config.memory,
-        body_measures=bool(bundle.codespace.config.body_features),
-    )
+    features = dataset_features(ds, names["train"] + names["val"], bundle.codespace.config)
     return PartInputs(bundle, ds, key, names, latents, features), None
 
 

@@ -164,12 +164,7 @@ def evaluate_bundle(bundle, dataset: str | Path, split: str = "val") -> dict:
     encoding = refine_settings(bundle.manifest.encoding or {})
     modes = window_mode_errors(
         bundle,
-        dataset_features(
-            ds,
-            names,
-            bundle.codespace.config.memory,
-            body_measures=bool(bundle.codespace.config.body_features),
-        ),
+        dataset_features(ds, names, bundle.codespace.config),
         {n: body_frames(ds, [n]) for n in names},
         encoding=encoding,
     )

@@ -13,7 +13,7 @@ import torch
 from ..artifacts.database import CodeDatabase
 from ..artifacts.gate_signals import GATE_SIGNALS, gate_doubt
 from ..artifacts.residual import match_regression, residual_latents
-from ..models.codes import encode_motion, window_bodies
+from ..models.codes import encode_motion, window_conditions
 from ..models.codespace import CodeSpace
 from ..motion.features import FeatureStats
 
@@ -60,7 +60,7 @@ def predict_windows(
 ) -> WindowPredictions:
     """Both candidates for every motion window (N, W, F) (raw features)."""
     enc = encode_motion(model, motion_stats, latent_stats, motion_windows=motion)
-    match, similarity = database.search(enc.codes, exclude, window_bodies(model, enc))
+    match, similarity = database.search(enc.codes, exclude, window_conditions(model, enc))
     distance = own = None
     if database.motion is not None:
         distance = database.motion_distance(enc.standardised, match)

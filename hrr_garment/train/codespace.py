@@ -34,6 +34,7 @@ from ..artifacts.typed_manifest import update_manifest
 from ..body.measures import BODY_MEASURES
 from ..data.dataset import GarmentDataset
 from ..data.windows import dataset_features
+from ..garment.material_range import MATERIAL_FEATURES
 from ..garment.smoothing import mean_operator
 from ..io_utils import atomic_write_text, strict_json
 from ..models.codespace import CodeSpace, CodeSpaceSettings
@@ -41,7 +42,13 @@ from ..motion.licences import licences_of
 from .autoencoder import load_autoencoder
 from .autoencoder_settings import refine_settings
 from .calibrate import window_mode_errors
-from .codespace_inputs import autoencoder_outputs, check_splits, codespace_windows, training_bodies
+from .codespace_inputs import (
+    autoencoder_outputs,
+    check_splits,
+    codespace_windows,
+    training_bodies,
+    training_materials,
+)
 from .codespace_losses import WindowTensors, evaluate, mean_square
 from .codespace_resume import add_residual_mode, finished_stage, stage_keys
 from .codespace_settings import CodeSpaceTrainSettings
@@ -62,7 +69,9 @@ def garment_codes(model: CodeSpace, windows: WindowTensors, batch: int = 512) ->
     out = []
     for i in range(0, len(windows), batch):  # the latent windows, and the body of a model across bodies
         motion, latents = windows[slice(i, i + batch)]
-        out.append(model.quantizer.split(model.garment_encoder(latents, model.body_of(motion))).argmax(-1))
+        out.append(
+            model.quantizer.split(model.garment_encoder(latents, model.condition_of(motion))).argmax(-1)
+        )
     return torch.cat(out).numpy().astype(np.uint8)
 
 
@@ -105,9 +114,13 @@ def run_codespace_stage(
     stage = folder / STAGE_FOLDER
     ds = GarmentDataset(dataset)
     check_splits(ds)
-    bodies = training_bodies(ds)  # a model across bodies reads their measures; a model of one body does not
+    # a model across bodies reads their measures, a model across cloths their values; a model of
+    # one body or one cloth does not
+    bodies, materials = training_bodies(ds), training_materials(ds)
     config = replace(
-        config, body_features=len(BODY_MEASURES) if bodies and bodies["range"]["bodies"] > 1 else 0
+        config,
+        body_features=len(BODY_MEASURES) if bodies and bodies["range"]["bodies"] > 1 else 0,
+        material_features=len(MATERIAL_FEATURES) if materials["range"]["cloths"] > 1 else 0,
     )
     ae_folder = folder / "autoencoder"
     ae_meta, ae_state, latents = autoencoder_outputs(ds, dataset, ae_folder)
@@ -134,9 +147,7 @@ def run_codespace_stage(
         update_manifest(folder, motion=motion)
     if manifest is not None and manifest.residual is not None:
         return _stage_report(done, stage, reused=True)
-    features = dataset_features(
-        ds, splits["train"] + splits["val"], config.memory, body_measures=config.body_features > 0
-    )
+    features = dataset_features(ds, splits["train"] + splits["val"], config)
     train_w, val_w, motion_stats, latent_stats, calibration = codespace_windows(
         features, latents, splits, config=config, train_config=train_config
     )
@@ -257,6 +268,7 @@ def run_codespace_stage(
             "encoding": encoding,
             "validation": train_config.validation,
             **({"bodies": bodies} if bodies else {}),
+            "materials": materials,
             # where the clips it learned from (and its database stores) come from, and their terms
             "motion": motion,
             **(info or {}),

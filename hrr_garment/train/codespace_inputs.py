@@ -14,6 +14,8 @@ from ..body.mannequin import MANNEQUIN
 from ..body.measures import BodyRange, body_vector
 from ..data.dataset import DatasetError, GarmentDataset
 from ..data.windows import build_windows, fit_stats, split_windows
+from ..garment.fabrics import FABRICS
+from ..garment.material_range import MaterialRange, material_vector
 from ..models.codespace import CodeSpaceSettings
 from .codespace_settings import PAPER_VALIDATION_FRACTION, CodeSpaceTrainSettings
 
@@ -45,6 +47,23 @@ def training_bodies(ds: GarmentDataset) -> dict | None:
         "default": body_to_dict(ds.bodies[names[0]].record) if len(names) == 1 else None,
         "made_for": made_for,
     }
+
+
+def training_materials(ds: GarmentDataset) -> dict:
+    """bundle.json's ``materials`` of a model trained on ``ds``: the range of the cloths its
+    training split was simulated in (:class:`~hrr_garment.garment.material_range.MaterialRange`)
+    and the cloth it animates when given none: the project's default cloth where the range holds
+    it, else the training cloth nearest the range's middle (a model of one cloth: that cloth)."""
+    cloths = {m.describe(): m for m in (ds.material_of(n) for n in ds.splits["train"])}
+    vectors = {k: material_vector(m) for k, m in cloths.items()}
+    known = MaterialRange.of(list(vectors.values()))
+    default = FABRICS["default"]
+    if known.outside(material_vector(default), margin=0.0):
+        middle = (np.array(known.low) + np.array(known.high)) / 2
+        spans = np.maximum(np.array(known.high) - np.array(known.low), 1e-9)
+        nearest = min(sorted(vectors), key=lambda k: float((((vectors[k] - middle) / spans) ** 2).sum()))
+        default = cloths[nearest]
+    return {"range": known.to_dict(), "default": default.to_dict()}
 
 
 def autoencoder_outputs(

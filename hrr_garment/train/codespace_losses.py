@@ -68,8 +68,8 @@ def batch_losses(
 ) -> dict[str, torch.Tensor]:
     """The losses of a batch of windows at the Gumbel ``temperature``, with both encoders' logits
     (detached: the code statistics' input)."""
-    q, body = model.quantizer, model.body_of(motion)
-    g_logits, m_logits = model.garment_encoder(latents, body), model.motion_encoder(motion)
+    q, condition = model.quantizer, model.condition_of(motion)
+    g_logits, m_logits = model.garment_encoder(latents, condition), model.motion_encoder(motion)
     _, e_g = q(g_logits, temperature)
     _, e_m = q(m_logits, temperature)
     # the regression path as inference runs it: the code distribution's mean embedding (or the
@@ -78,12 +78,12 @@ def batch_losses(
         regression_embedding(model, q.split(m_logits)) if model.config.regression_code == "expected" else e_m
     )
     return {
-        "rec": latent_loss(model.decode(e_g, body=body) - latents),
+        "rec": latent_loss(model.decode(e_g, condition=condition) - latents),
         "match": (e_g - e_m).pow(2).mean(),
         "diversity": 0.5 * (q.diversity_loss(g_logits) + q.diversity_loss(m_logits)),
         "g_logits": g_logits.detach(),
         "m_logits": m_logits.detach(),
-        "regress": latent_loss(model.decode(e_reg, body=body) - latents),
+        "regress": latent_loss(model.decode(e_reg, condition=condition) - latents),
     }
 
 

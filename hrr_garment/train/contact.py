@@ -155,7 +155,7 @@ def _regression(model: CodeSpace, motion: torch.Tensor) -> torch.Tensor:
     standardised latents; the motion encoder's output is a constant here (only the decoder learns)."""
     with torch.no_grad():
         logits = model.quantizer.split(model.motion_encoder(motion))
-    return model.decode(regression_embedding(model, logits), body=model.body_of(motion))
+    return model.decode(regression_embedding(model, logits), condition=model.condition_of(motion))
 
 
 @dataclass(frozen=True)
@@ -312,7 +312,7 @@ def model_contact_windows(
     with np.load(Path(folder) / "autoencoder" / "latents.npz", allow_pickle=False) as f:
         latents = {n: f[n] for n in names}
     windows = build_windows(
-        dataset_features(ds, names, config.memory, body_measures=config.body_features > 0),
+        dataset_features(ds, names, config),
         latents,
         names,
         window=config.window,

@@ -66,8 +66,8 @@ def test_among_equally_near_codes_retrieval_prefers_the_nearest_body():
         motion=motion,
     )
     query = np.array([[0, 1, 2, 3], [0, 1, 2, 3], [0, 1, 2, 3]], np.uint8)
-    found, similarity = db.search(query, bodies=np.array([[0.1, -0.1], [0.9, 1.0], [-2.0, -2.0]]))
+    found, similarity = db.search(query, conditions=np.array([[0.1, -0.1], [0.9, 1.0], [-2.0, -2.0]]))
     assert found.tolist() == [1, 2, 0] and np.allclose(similarity, 1.0)  # row 3 is the nearest body, not code
     assert db.search(query)[0].tolist() == [0, 0, 0]
-    found, _ = db.search(query[:1], exclude=np.array([1]), bodies=np.array([[0.1, -0.1]]))
+    found, _ = db.search(query[:1], exclude=np.array([1]), conditions=np.array([[0.1, -0.1]]))
     assert found.tolist() == [0]  # its own sequence excluded: the next nearest body among the equal codes

@@ -43,46 +43,68 @@ def test_usage_counts_dead_classes_and_perplexity():
     assert usage.perplexity == pytest.approx((4 + 1) / 2)
 
 
-@pytest.mark.parametrize("body", [0, 3])
-def test_decoding_only_the_last_frame_equals_the_full_window(body):
+@pytest.mark.parametrize("body,material", [(0, 0), (3, 0), (0, 5), (3, 5)])
+def test_decoding_only_the_last_frame_equals_the_full_window(body, material):
     from hrr_garment.models.codespace import CodeSpace, CodeSpaceSettings
 
     torch.manual_seed(0)
-    cs = CodeSpace(
-        CodeSpaceSettings(
-            window=5, groups=4, classes=8, embedding_dim=3, hidden=32, motion_hidden=16, body_features=body
-        ),
-        124 + body,
-        (6, 8),
+    settings = CodeSpaceSettings(
+        window=5,
+        groups=4,
+        classes=8,
+        embedding_dim=3,
+        hidden=32,
+        motion_hidden=16,
+        body_features=body,
+        material_features=material,
     )
+    cs = CodeSpace(settings, settings.features, (6, 8))
     embedding = torch.randn(7, cs.quantizer.embedding_size)
-    measures = cs.body_of(torch.randn(7, 5, 124 + body))
-    assert measures is None if not body else measures.shape == (7, body)
+    motion = torch.randn(7, 5, settings.features)
+    condition = cs.condition_of(motion)
+    c = body + material
+    assert condition is None if not c else torch.equal(condition, motion[:, -1, -c:])
     with torch.no_grad():
         assert torch.allclose(
-            cs.decode(embedding, True, measures), cs.decode(embedding, body=measures)[:, -1:], atol=1e-6
+            cs.decode(embedding, True, condition),
+            cs.decode(embedding, condition=condition)[:, -1:],
+            atol=1e-6,
         )
-        if body:  # the decoder reads the body: another body, other latents
-            assert not torch.allclose(
-                cs.decode(embedding, body=measures), cs.decode(embedding, body=measures + 1)
-            )
-    with pytest.raises(ValueError, match="body measures"):
-        cs.decode(embedding, body=None if body else torch.zeros(7, 2))
+        if c:  # the decoder reads the body and the cloth: another of either, other latents
+            for column in range(c):
+                other = condition.clone()
+                other[:, column] += 1
+                assert not torch.allclose(
+                    cs.decode(embedding, condition=condition), cs.decode(embedding, condition=other)
+                )
+    with pytest.raises(ValueError, match="body and cloth values"):
+        cs.decode(embedding, condition=None if c else torch.zeros(7, 2))
+
+
+def test_settings_refuse_a_negative_or_fractional_condition_width():
+    from hrr_garment.models.codespace import CodeSpaceSettings
+    from hrr_garment.settings import SettingsError
+
+    for bad in (-1, 2.5, True):
+        with pytest.raises(SettingsError, match="material_features"):
+            CodeSpaceSettings(material_features=bad)
+    assert CodeSpaceSettings(body_features=12, material_features=5).condition_features == 17
 
 
 @pytest.mark.native
 @pytest.mark.parametrize(
-    "window,hidden,heads,latent,body",
-    [(10, 32, 2, (6, 8), 0), (7, 48, 3, (5, 3), 12), (12, 64, 4, (9, 8), 0)],
+    "window,hidden,heads,latent,condition",
+    [(10, 32, 2, (6, 8), (0, 0)), (7, 48, 3, (5, 3), (12, 5)), (12, 64, 4, (9, 8), (0, 5))],
 )
 @pytest.mark.parametrize(
     "regression,last_frame,code",
     [(True, True, "expected"), (True, False, "expected"), (False, True, "expected"), (True, True, "argmax")],
 )
 def test_native_window_step_equals_pytorch_and_is_batch_invariant(
-    window, hidden, heads, latent, body, regression, last_frame, code
+    window, hidden, heads, latent, condition, regression, last_frame, code
 ):
-    """``body``: a model across bodies, whose decoder reads the window's body measures too."""
+    """``condition``: (body measures, cloth values) of a model across bodies or cloths, whose
+    decoder reads the window's too."""
     from hrr_garment.models.codes import WindowCodes
     from hrr_garment.models.codespace import CodeSpace, CodeSpaceSettings
     from hrr_garment.models.native_codes import native_window_codes
@@ -97,13 +119,14 @@ def test_native_window_step_equals_pytorch_and_is_batch_invariant(
         motion_hidden=hidden,
         attention_heads=heads,
         regression_code=code,
-        body_features=body,
+        body_features=condition[0],
+        material_features=condition[1],
     )
-    cs = CodeSpace(cfg, 124 + body, latent).eval()
+    cs = CodeSpace(cfg, 124 + sum(condition), latent).eval()
     native = native_window_codes(cs, regression, last_frame)
     if native is None:
         pytest.skip("no C compiler: the native kernels are unavailable")
-    windows = torch.randn(9, window, 124 + body)
+    windows = torch.randn(9, window, 124 + sum(condition))
     with torch.no_grad():
         want = WindowCodes(cs, regression, last_frame)(windows)
     got = native(windows)

@@ -25,7 +25,7 @@ def test_calibration_on_a_window_sample_is_the_sample_of_the_full_errors(trained
     names = ds.splits["val"]
     args = (
         bundle,
-        dataset_features(ds, names, bundle.codespace.config.memory),
+        dataset_features(ds, names, bundle.codespace.config),
         {n: body_frames(ds, [n]) for n in names},
     )
     encoding = {"refine_steps": 0, "refine_lr": 0.0}

@@ -41,9 +41,7 @@ def analyse(model: str, dataset: str | None, split: str) -> dict:
     if not names:
         raise SystemExit(f"{path} has no {split!r} sequences")
     w = bundle.codespace.config.window
-    features = dataset_features(
-        ds, names, bundle.codespace.config.memory, body_measures=bool(bundle.codespace.config.body_features)
-    )
+    features = dataset_features(ds, names, bundle.codespace.config)
     names = [n for n in names if len(features[n]) >= w]
     motion = np.concatenate([sequence_windows(features[n], w) for n in names])
     truth = np.concatenate([sequence_windows(body_frames(ds, [n]), w) for n in names])
