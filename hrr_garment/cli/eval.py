@@ -131,6 +131,15 @@ def _parser() -> argparse.ArgumentParser:
         "specialist model trained on that dataset alone (docs/evaluation.md)",
     )
     p.add_argument(
+        "--unseen-material",
+        action="append",
+        default=None,
+        metavar="DATASET[=SPECIALIST]",
+        help="the unseen-materials protocol (repeat per cloth): the test clips of a dataset simulated in "
+        "one cloth the model never trained in (hrr-simulate --material), against their own truth "
+        "ensembles, beside the specialist model trained in that cloth alone (docs/evaluation.md)",
+    )
+    p.add_argument(
         "--other-source",
         action="append",
         default=None,

@@ -72,6 +72,12 @@ def run_protocols(job: EvalJob, args) -> dict:
         unseen = unseen_bodies_section(
             animator, [DatasetAndModel.parse(t) for t in args.unseen_body], settings, sequences=args.sequences
         )
+    cloths = None
+    if args.unseen_material:
+        from ..eval.unseen_bodies import DatasetAndModel, unseen_bodies_section
+
+        items = [DatasetAndModel.parse(t) for t in args.unseen_material]
+        cloths = unseen_bodies_section(animator, items, settings, sequences=args.sequences, kind="cloth")
     cross = None
     if args.other_source:
         from ..eval.cross_source import captured_ratio, cross_source_section, with_own_split
@@ -115,6 +121,7 @@ def run_protocols(job: EvalJob, args) -> dict:
             "library": library,
             "paper": paper,
             "unseen_bodies": unseen,
+            "unseen_materials": cloths,
             "cross_source": cross,
             "dataset_simulation": reference,
         },

@@ -65,6 +65,7 @@ class SequenceRecord:
     info: dict = field(default_factory=dict)
     body_name: str = MANNEQUIN  # the name of the body it was simulated on (GarmentDataset.bodies)
     dressed: DressedBody | None = None  # that body and the garment at rest on it, as read from a dataset
+    material: Material | None = None  # the cloth it was simulated in, as read from a dataset
 
 
 def write_dataset(
@@ -305,7 +306,13 @@ class GarmentDataset:
             )
         body_name = self.body_name_of[name]
         return SequenceRecord(
-            name, garment, motion, info, body_name=body_name, dressed=self.bodies[body_name]
+            name,
+            garment,
+            motion,
+            info,
+            body_name=body_name,
+            dressed=self.bodies[body_name],
+            material=self.material_of(name),
         )
 
 

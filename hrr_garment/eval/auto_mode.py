@@ -106,6 +106,7 @@ from .auto_criterion import (
     uses_residual,
     without_swing,
 )
+from .scoring import as_simulated
 
 AUTO_MAX_SEQUENCES = 24  # validation clips the choice animates at most (evenly spaced): about a minute
 
@@ -278,9 +279,8 @@ def _measurer(animator: Animator, records: list[SequenceRecord]) -> Callable[[st
                     mode=mode,
                     detail=look,
                     swing=swing_of(label),
-                    body=r.dressed,
-                    allow_outside=True,
                     exclude_sequence=own,
+                    **as_simulated(bundle, r),
                 )
                 pred = anim.vertices.astype(np.float64)
                 inside += anim.penetration.inside_before * len(

@@ -24,7 +24,7 @@ from ..inference.run_settings import MAX_SEED, DetailLook, RunSettings
 from . import metrics as M
 from .ensemble import TruthEnsemble
 from .mode_results import ModeResult
-from .scoring import SequenceScorer
+from .scoring import SequenceScorer, as_simulated
 
 
 @dataclass(frozen=True)
@@ -93,7 +93,7 @@ def evaluate_modes(
     for mode, record in tqdm(jobs, desc="evaluate", unit="run", disable=not settings.progress):
         own = _own_sequence(names, record, settings.exclude_own_sequence)
         world = StageOutput("world")
-        run = runs[mode].replace(body=record.dressed, allow_outside=True, exclude_sequence=own)
+        run = runs[mode].replace(exclude_sequence=own, **as_simulated(bundle, record))
         anim = animator.animate(record.motion, run, observe=world)
         draws = None
         drawn = resolved[mode].mode is Mode.SAMPLE  # the sample mode, or auto calibrated to it
@@ -169,9 +169,8 @@ def tau_sweep(
             anim = animator.animate(
                 record.motion,
                 hybrid.replace(tau=tau),
-                body=record.dressed,
-                allow_outside=True,
                 exclude_sequence=own,
+                **as_simulated(animator.bundle, record),
             )
             pred = anim.vertices.astype(np.float64)
             errors += M.pve_mm(pred, record.garment.astype(np.float64)) * len(anim.vertices)

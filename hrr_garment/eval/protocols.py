@@ -15,6 +15,7 @@ from ..body.mannequin import MANNEQUIN
 from ..errors import InputError
 from ..inference.run_settings import DetailLook, RunSettings
 from .evaluate import EvaluationSettings, evaluate_modes, evaluate_vertices, tau_sweep
+from .scoring import as_simulated
 
 
 def default_taus(animator, records, run: RunSettings) -> list[float]:
@@ -22,7 +23,7 @@ def default_taus(animator, records, run: RunSettings) -> list[float]:
     the model's), and above the maximum (retrieval only)."""
     hybrid = run.replace(mode="hybrid", tau=0.0, push_out=False, detail=DetailLook())
     h = np.concatenate(
-        [animator.animate(r.motion, hybrid, body=r.dressed, allow_outside=True).doubt for r in records]
+        [animator.animate(r.motion, hybrid, **as_simulated(animator.bundle, r)).doubt for r in records]
     )
     top = float(h.max()) + 1e-3 if len(h) else 1.0
     if animator.resolve(hybrid).gate == "entropy":  # at least every entropy

@@ -26,7 +26,8 @@ how many sequences were measured against a mesh, the capsules or nothing known);
 (the capsules) unchanged; 14 ``push_limited_pct`` in each mode's and sequence's ``metrics`` and
 ``ensemble``: the frames on which the push-out's strain limit moved an edge (null where no push-out ran);
 15 ``cross_source`` (the cross-source protocol, :mod:`.cross_source`) and ``model.motion_licence`` (where
-its training motion comes from and whether it may ship: :mod:`hrr_garment.motion.licences`).
+its training motion comes from and whether it may ship: :mod:`hrr_garment.motion.licences`); 16
+``unseen_materials`` (the unseen-materials protocol, :mod:`.unseen_bodies` with cloths for bodies).
 """
 
 from __future__ import annotations
@@ -48,7 +49,7 @@ from .report_tables import ensemble_table, goal_table, mode_table, simulated_sec
 from .unseen_bodies import markdown_table
 
 DATASET_SIMULATION = "dataset simulation"  # the reference row: the dataset's own frames against the ensemble
-REPORT_VERSION = 15  # report.json's "format_version": see the module docstring
+REPORT_VERSION = 16  # report.json's "format_version": see the module docstring
 
 
 def frame_entropies(modes: dict[str, ModeResult]) -> np.ndarray:
@@ -111,10 +112,41 @@ def build_report(
         "library": protocols.get("library"),
         "paper": protocols.get("paper"),
         "unseen_bodies": protocols.get("unseen_bodies"),
+        "unseen_materials": protocols.get("unseen_materials"),
         "cross_source": protocols.get("cross_source"),
         "dataset_simulation": protocols.get("dataset_simulation"),
         "seconds": seconds,
     }
+
+
+def _unseen_tables(report: dict) -> list[str]:
+    """report.md's tables of the unseen-bodies and unseen-materials protocols, where they ran."""
+    out = []
+    unseen = report.get("unseen_bodies")
+    if unseen:
+        out += [
+            "",
+            "## Unseen bodies (each beside a specialist trained on it alone)",
+            "",
+            "The default mode (auto) of this model and of each body's specialist on the test clips of a "
+            "dataset simulated on that body, against its own truth ensembles; penetration against that "
+            "body's capsules, before the push-out; sharpness and hem swing over the truth's.",
+            "",
+            *markdown_table(unseen),
+        ]
+    cloths = report.get("unseen_materials")
+    if cloths:
+        out += [
+            "",
+            "## Unseen cloths (each beside a specialist trained in it alone)",
+            "",
+            "The default mode (auto) of this model, animating each clip in the dataset's cloth, and of "
+            "each cloth's specialist on the test clips of a dataset simulated in that cloth, against its "
+            "own truth ensembles; sharpness and hem swing over the truth's.",
+            "",
+            *markdown_table(cloths, kind="cloth"),
+        ]
+    return out
 
 
 def _detail_clause(settings: dict) -> str:
@@ -237,18 +269,7 @@ def markdown(report: dict, plots: list[str]) -> str:
         ]
         if library["tau_sweep"]:
             out += ["", *sweep_table(library["tau_sweep"])]
-    unseen = report.get("unseen_bodies")
-    if unseen:
-        out += [
-            "",
-            "## Unseen bodies (each beside a specialist trained on it alone)",
-            "",
-            "The default mode (auto) of this model and of each body's specialist on the test clips of a "
-            "dataset simulated on that body, against its own truth ensembles; penetration against that "
-            "body's capsules, before the push-out; sharpness and hem swing over the truth's.",
-            "",
-            *markdown_table(unseen),
-        ]
+    out += _unseen_tables(report)
     cross = report.get("cross_source")
     if cross:
         out += [

@@ -26,6 +26,20 @@ from .visible_inside import SHARES, VisibleBody, inside_before_and_after, inside
 LIMITED = "push_limited_pct"
 
 
+def as_simulated(bundle, record: SequenceRecord) -> dict:
+    """The run settings that animate ``record`` as it was simulated: on its body and, for a model
+    that records its cloths, in its cloth; either one outside the model's range is animated anyway
+    (warned): a measurement, not a user's run. A model from before cloths were recorded animates
+    its own."""
+    cloth = record.material if bundle.material_range is not None else None
+    return {
+        "body": record.dressed,
+        "allow_outside": True,
+        "material": cloth,
+        "allow_outside_material": cloth is not None,
+    }
+
+
 def body_of(record: SequenceRecord) -> BodyModel:
     """The body a sequence was simulated on (its capsules): penetration is measured against it."""
     return record.dressed.body if record.dressed is not None else DEFAULT_BODY

@@ -15,12 +15,18 @@ cloth inside the body the viewer sees before the push-out (:mod:`.visible_inside
 body's capsules, sharpness (bending energy over
 the truth's) and hem swing (over the truth's), for both, and the generalist's PVE / floor over the
 specialist's. A body the model was trained on is refused: the protocol is for bodies it never saw.
+
+The unseen-materials protocol is the same with cloths for bodies (``--unseen-material``, ``kind``
+"cloth"): each dataset simulated in one cloth (``hrr-simulate --material``), the model trained across
+cloths (it animates each clip in the dataset's cloth) beside the specialist trained in that cloth
+alone, a cloth the model was trained in refused, and one outside its range too.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
@@ -82,34 +88,67 @@ def test_records(dataset: Path, animator: Animator, sequences: int | None):
     return ds, [ds.sequence(n) for n in names]
 
 
-def _records(item: DatasetAndModel, animator: Animator, sequences: int | None):
+class Held(NamedTuple):
+    """What a protocol holds out, in words: a body or a cloth."""
+
+    plural: str  # "bodies"
+    on: str  # the preposition: "on" a body, "in" a cloth
+    flag: str  # hrr-simulate's option that makes such a dataset
+
+
+KINDS = {"body": Held("bodies", "on", "--body"), "cloth": Held("cloths", "in", "--material")}
+
+
+def _held(record, kind: str) -> str:
+    """The name of the body a record stands on, or of the cloth it was simulated in."""
+    return record.body_name if kind == "body" else record.material.name
+
+
+def _records(item: DatasetAndModel, animator: Animator, sequences: int | None, kind: str):
     ds, records = test_records(item.dataset, animator, sequences)
-    body_names = {r.body_name for r in records}
-    if len(body_names) != 1:
+    held, words = {_held(r, kind) for r in records}, KINDS[kind]
+    if len(held) != 1:
         raise DatasetError(
             item.dataset,
-            f"its test sequences stand on {len(body_names)} bodies; the protocol takes a dataset "
-            "simulated on one (hrr-simulate --body)",
+            f"its test sequences were simulated {words.on} {len(held)} {words.plural}; the protocol "
+            f"takes a dataset simulated {words.on} one (hrr-simulate {words.flag})",
         )
     return ds, records
 
 
-def _check_unseen(animator: Animator, record, where: Path) -> None:
-    """Refuse a body that one of the model's training sequences stood on (its training dataset's
-    training split, where that dataset is still there)."""
+def _vector(kind: str, ds: GarmentDataset, name: str) -> np.ndarray:
+    """A sequence's body measures or cloth values."""
     from ..body.measures import body_vector
+    from ..garment.material_range import material_vector
 
+    if kind == "body":
+        return body_vector(ds.bodies[ds.body_name_of[name]].record)
+    return material_vector(ds.material_of(name))
+
+
+def _check_unseen(animator: Animator, ds: GarmentDataset, name: str, where: Path, kind: str) -> None:
+    """Refuse a body that one of the model's training sequences stood on, or a cloth one was
+    simulated in (its training dataset's training split, where that dataset is still there); and,
+    before any work, one outside the model's range (refused as a run would refuse it)."""
+    from ..inference.run_material import run_material
+
+    record, words = ds.sequence(name), KINDS[kind]
+    if kind == "body":
+        animator.body(record.dressed)
+    else:
+        run_material(animator.bundle, record.material)
     trained_on = Path(animator.bundle.manifest.dataset or "")
     if not trained_on.is_file():
         return
-    ds = GarmentDataset(trained_on)
-    mine = body_vector(record.dressed.record)
-    for name in sorted({ds.body_name_of[n] for n in ds.splits.get("train", [])}):
-        if np.allclose(body_vector(ds.bodies[name].record), mine, atol=1e-4):
+    training = GarmentDataset(trained_on)
+    mine = _vector(kind, ds, name)
+    for other in training.splits.get("train", []):
+        if np.allclose(_vector(kind, training, other), mine, atol=1e-4):
             raise InputError(
                 where,
-                f"stands on body {name!r}, which the model was trained on ({trained_on}): the "
-                "protocol is for bodies it never saw",
+                f"was simulated {words.on} {kind} {_held(training.sequence(other), kind)!r}, which the "
+                f"model was trained {words.on} ({trained_on}): the protocol is for {words.plural} it "
+                "never saw",
             )
 
 
@@ -129,21 +168,23 @@ def unseen_bodies_section(
     bodies: list[DatasetAndModel],
     settings: EvaluationSettings,
     sequences: int | None = None,
+    kind: str = "body",
 ) -> dict:
-    """report.json's ``unseen_bodies``: per body, the model's and its specialist's scores (see the
-    module docstring)."""
+    """report.json's ``unseen_bodies`` (``kind`` "body") or ``unseen_materials`` ("cloth"): per body
+    or cloth, the model's and its specialist's scores (see the module docstring)."""
+    if kind not in KINDS:
+        raise ValueError(f"kind must be one of {', '.join(KINDS)}, got {kind!r}")
     auto = replace(settings, modes=(Mode.AUTO.value,))
     out = {}
     for item in bodies:
-        ds, records = _records(item, animator, sequences)
-        _check_unseen(animator, records[0], item.dataset)
+        ds, records = _records(item, animator, sequences, kind)
+        _check_unseen(animator, ds, records[0].name, item.dataset, kind)
         ensembles = truth_ensembles_of(
             ds, records, settings.members, jobs=settings.jobs, progress=settings.progress
         )
-        animator.body(records[0].dressed)  # outside the model's range: refused here, before any work
         entry = {
             "dataset": str(item.dataset),
-            "body": records[0].body_name,
+            kind: _held(records[0], kind),
             "sequences": [r.name for r in records],
             "frames": int(sum(len(r.garment) for r in records)),
             "model": scores_row(
@@ -176,11 +217,12 @@ def over(mine: float | None, theirs: float | None) -> float | None:
     return mine / theirs if mine is not None and theirs else None
 
 
-def markdown_table(section: dict) -> list[str]:
-    """report.md's table of the protocol: a row per body, the model beside its specialist."""
+def markdown_table(section: dict, kind: str = "body") -> list[str]:
+    """report.md's table of the protocol: a row per body (or cloth), the model beside its specialist."""
     lines = [
-        "| body | frames | PVE / floor | specialist | ratio | inside seen before push-out % | specialist | "
-        "capsules before push-out % | specialist | sharpness | specialist | hem swing | specialist |",
+        f"| {kind} | frames | PVE / floor | specialist | ratio | inside seen before push-out % | "
+        "specialist | capsules before push-out % | specialist | sharpness | specialist | hem swing | "
+        "specialist |",
         "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
     ]
 

@@ -32,10 +32,13 @@ class PoseStage(nn.Module):
 
 class FeatureStage(nn.Module):
     """A frame's features (N, F) against each character's last pose, its motion memory carried one
-    frame on, and what conditions the model (the body's measures, the cloth's values; None where it
-    reads neither): what :meth:`CrowdStream._step_frame` appends to a window."""
+    frame on, and what conditions the model: the body's ``measures`` and the ``cloth``'s values (each
+    None where the model reads none; the cloth's may come per character instead, :meth:`forward`):
+    what :meth:`CrowdStream._step_frame` appends to a window."""
 
-    def __init__(self, memory: MotionMemory | None, fps: float, condition: np.ndarray | None):
+    def __init__(
+        self, memory: MotionMemory | None, fps: float, measures: np.ndarray | None, cloth: np.ndarray | None
+    ):
         super().__init__()
         self.fps, self.joints = float(fps), list(FEATURE_JOINTS)
         self.averages = 0 if memory is None else len(memory.spec.seconds)
@@ -45,9 +48,11 @@ class FeatureStage(nn.Module):
             constant(self, "resonator_a", memory.resonator_a)  # (r, 2, 2)
             constant(self, "resonator_b", memory.resonator_b)  # (r, 2)
             constant(self, "omega", memory.omega)  # (r,)
-        self.has_condition = condition is not None
-        if self.has_condition:
-            constant(self, "condition", condition)
+        self.has_body, self.has_cloth = measures is not None, cloth is not None
+        if self.has_body:
+            constant(self, "body_vector", measures)
+        if self.has_cloth:
+            constant(self, "cloth", cloth)
 
     def pair(
         self, previous: tuple[torch.Tensor, torch.Tensor], current: tuple[torch.Tensor, torch.Tensor]
@@ -94,13 +99,17 @@ class FeatureStage(nn.Module):
         scaled = torch.stack([bobs[:, :, 0] * self.omega[None, :, None], bobs[:, :, 1]], 2)
         return torch.cat([state[:, : self.averages], scaled.reshape(n, -1, MEMORY_WIDTH)], 1).reshape(n, -1)
 
-    def forward(self, previous, current, memory: torch.Tensor, started: torch.Tensor):
-        """-> the frame's full features (N, F) and the next memory state."""
+    def forward(self, previous, current, memory: torch.Tensor, started: torch.Tensor, cloth=None):
+        """-> the frame's full features (N, F) and the next memory state; ``cloth`` (N, m): each
+        character's cloth values, for a model across cloths (None: the step's own cloth)."""
         features = self.pair(previous, current)
         parts = [features]
         if self.rows:
             memory = self.memory(memory, features, started)
             parts.append(self.memory_values(memory))
-        if self.has_condition:
-            parts.append(self.condition.expand(features.shape[0], -1))
+        n = features.shape[0]
+        if self.has_body:
+            parts.append(self.body_vector.expand(n, -1))
+        if self.has_cloth:
+            parts.append(self.cloth.expand(n, -1) if cloth is None else cloth)
         return torch.cat(parts, 1), memory

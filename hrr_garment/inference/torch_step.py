@@ -39,7 +39,7 @@ from ..motion.motion import FPS
 from ..motion.rotations import yaw_of
 from ..motion.skeleton import NUM_JOINTS, REST_PELVIS_HEIGHT
 from .collision import PUSH_OUT
-from .frame_path import FramePath, with_conditions
+from .frame_path import FramePath
 from .modes import Mode
 from .torch_features import FeatureStage, PoseStage
 from .torch_ops import constant, turn_y
@@ -75,8 +75,13 @@ class StreamStep(nn.Module):
         record = character.record
         self.pose = PoseStage(record.skeleton.offsets, record.skeleton.parents, record.pelvis_height)
         # the body's measures and the cloth's values where the model reads them (frame_path's stage 1)
-        condition = with_conditions(bundle, np.zeros((1, 0), np.float32), character.vector, cloth)[0]
-        self.features = FeatureStage(memory, fps, condition if condition.size else None)
+        config = bundle.codespace.config
+        self.features = FeatureStage(
+            memory,
+            fps,
+            character.vector if config.body_features else None,
+            cloth if config.material_features else None,
+        )
         self.codes = WindowCodes(bundle.codespace.eval(), regression=True, last_frame=True)
         constant(self, "motion_mean", bundle.motion_stats.mean)
         constant(self, "motion_std", bundle.motion_stats.std)
@@ -108,9 +113,12 @@ class StreamStep(nn.Module):
         sample_drive=None,
         sample_noise=None,
         sample_latents=None,
+        material=None,
     ):
         """One frame through the frame path's stages (:mod:`.frame_path`), in torch; the sample
-        mode's white ``noise`` and draw state last (None in the regression)."""
+        mode's white ``noise`` and draw state last (None in the regression); ``material`` (N, m) each
+        character's cloth values for a model across cloths (:func:`~.run_material.material_columns`;
+        None: the run's cloth, which the step holds)."""
         rot, pos = self.pose(rotations, root)
         first = started.reshape(-1, 1, 1) <= 0
         previous = (
@@ -118,7 +126,7 @@ class StreamStep(nn.Module):
             torch.where(first, pos, previous_positions),
         )
         # 1. features
-        features, memory = self.features(previous, (rot, pos), memory, started)
+        features, memory = self.features(previous, (rot, pos), memory, started, material)
         self.seen("features", features)
         # 2. windows
         past = torch.where(first, features[:, None].expand_as(window), window)

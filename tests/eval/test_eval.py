@@ -86,7 +86,7 @@ def test_hrr_eval_report_end_to_end(trained, tmp_path, capsys):
         == 0
     )
     report = json.loads((out / "report.json").read_text())
-    assert report["format_version"] == REPORT_VERSION == 15 and report["dataset"]["sequences"] == ["run_000"]
+    assert report["format_version"] == REPORT_VERSION == 16 and report["dataset"]["sequences"] == ["run_000"]
     assert (
         report["dataset"]["holdouts"] == {"run_000": "clip"} and report["holdouts"] is None
     )  # one hold-out: no table
@@ -482,7 +482,7 @@ def test_library_protocol_in_hrr_eval(artist_model, tmp_path, monkeypatch):
         == 0
     )
     report = json.loads((out / "report.json").read_text())
-    assert report["format_version"] == REPORT_VERSION == 15
+    assert report["format_version"] == REPORT_VERSION == 16
     # the dataset's own frames against the ensemble: a simulation like the members, about 1 x the floor
     own = report["dataset_simulation"]["ensemble"]
     assert 0.5 < own["pve_floor_ratio"] < 2.0 and set(report["dataset_simulation"]["sequences"]) == set(

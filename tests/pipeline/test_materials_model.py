@@ -155,3 +155,32 @@ def test_hrr_animate_takes_a_cloth_and_refuses_one_outside_the_range(materials_m
     err = capsys.readouterr().err
     assert "denim" in err and "density 0.324 kg/m^2, trained on 0.187-0.22" in err
     assert not out.exists()  # nothing written
+
+
+def test_the_unseen_materials_protocol_sets_the_model_beside_a_specialist(materials_model, trained, tmp_path):
+    """hrr-eval --unseen-material: a cloth between jersey and twill, which the model never trained
+    in, beside a model of one cloth as the reference; the training cloths and a cloth outside the
+    range are refused."""
+    from hrr_garment.cli.eval import main
+    from hrr_garment.data.synthetic import write_synthetic_dataset
+    from hrr_garment.garment.templates import make_garment
+
+    folder, data = materials_model
+    root, _, _ = trained
+    between = parse_material("density=0.2,stretch=600,shear=8,bend=1.3e-5")
+    unseen = write_synthetic_dataset(tmp_path / "between.h5", make_garment("skirt", 300), materials=[between])
+    heavy = write_synthetic_dataset(
+        tmp_path / "denim.h5", make_garment("skirt", 300), materials=[FABRICS["denim"]]
+    )
+    common = ["--model", str(folder), "--dataset", str(data), "--modes", "regression", "--no-sweep"]
+    common += ["--library", "0", "--ensemble", "0", "--no-plots", "--quiet"]
+    with pytest.warns(UserWarning, match="unlike the 1 cloth"):  # the reference: a model of the default cloth
+        assert (
+            main([*common, "--unseen-material", f"{unseen}={root / 'model'}", "-o", str(tmp_path / "r")]) == 0
+        )
+    section = json.loads((tmp_path / "r" / "report.json").read_text())["unseen_materials"]["between"]
+    assert section["cloth"] == between.name and section["sequences"] == ["run_000"]
+    assert section["model"]["pve_mm"] > 0 and section["specialist"]["pve_mm"] > 0
+    assert "## Unseen cloths" in (tmp_path / "r" / "report.md").read_text()
+    assert main([*common, "--unseen-material", str(data), "-o", str(tmp_path / "again")]) != 0  # trained in
+    assert main([*common, "--unseen-material", str(heavy), "-o", str(tmp_path / "heavy")]) != 0  # outside
