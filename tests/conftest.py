@@ -17,6 +17,7 @@ SLOW_FIXTURES = {
     "paper_model",
     "artist_model",
     "bodies_model",
+    "materials_model",
 }  # train a tiny model: tens of seconds and more
 SIM_FIXTURES = {"artist_model"}  # runs hrr-simulate (newton/Warp)
 
@@ -285,3 +286,27 @@ def with_drawn_sampler(animator, *, history: int = 0):
     sampler.noise_decay.fill_(0.8)
     sampler.temperature.fill_(0.7)
     return Animator(dataclasses.replace(bundle, sampler=sampler.eval()))
+
+
+def three_clips() -> dict:
+    """Three characters' clips (walk_curve, spin, walk; 0.8 s each) for a crowd test."""
+    from hrr_garment.motion.synth import synthesize
+
+    return {
+        "a": synthesize("walk_curve", 0.8, seed=1),
+        "b": synthesize("spin", 0.8, seed=2),
+        "c": synthesize("walk", 0.8, seed=3),
+    }
+
+
+def assert_crowd_streams_as_alone(crowd, clips: dict, alone: dict, atol: float = 1e-4) -> None:
+    """Every frame of ``crowd`` (native or on a torch device) pushed all ``clips`` at once as an
+    engine's poses, keyed, equals each character's ``alone`` frames (T, V, 3) within ``atol`` metres."""
+    from hrr_garment.motion.poses import motion_to_poses
+
+    poses = {k: motion_to_poses(m) for k, m in clips.items()}
+    for frame in range(next(iter(clips.values())).num_frames):
+        rotations = np.stack([p[0][frame] for p in poses.values()])
+        out = crowd.push(rotations, np.stack([p[1][frame] for p in poses.values()]), list(clips))
+        for row, k in enumerate(clips):
+            assert np.abs(out[row] - alone[k][frame]).max() <= atol, (k, frame)

@@ -30,6 +30,27 @@ def add_fps_option(p: argparse.ArgumentParser) -> None:
     )
 
 
+def add_cloth_options(p: argparse.ArgumentParser, fabrics: Sequence[str]) -> None:
+    """``--material`` and ``--air-drag``: the cloth a simulation runs in (hrr-simulate, hrr-make)."""
+    p.add_argument(
+        "--material",
+        default=None,
+        metavar="FABRIC",
+        help="the cloth: a fabric (" + ", ".join(fabrics) + "), a fabric with values changed "
+        "(denim,bend=4e-5), values (density=0.2,stretch=5000,shear=2000,bend=1e-5,damping=0.1: kg/m^2, "
+        "N/m, N/m, N m, s) or a YAML file of them; default: the preset's, else the project's cloth "
+        "(docs/materials.md)",
+    )
+    p.add_argument(
+        "--air-drag",
+        type=float,
+        default=None,
+        metavar="CD",
+        help="the air's drag on the cloth, as a drag coefficient (about 1.2 for a sheet; 0: none); "
+        "default: the preset's, else none",
+    )
+
+
 def add_decoder_option(p: argparse.ArgumentParser) -> None:
     """``--decoder``: the full mesh decoder or the bundle's fast (subspace) decoder."""
     p.add_argument(

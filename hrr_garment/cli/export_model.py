@@ -52,6 +52,13 @@ def _parser() -> argparse.ArgumentParser:
         action="store_true",
         help="export for a body unlike the model's training bodies anyway (warned)",
     )
+    p.add_argument(
+        "--material",
+        default=None,
+        metavar="CLOTH",
+        help="a model across cloths: the cloth the graph's material input defaults to and --check streams "
+        "(a fabric or values, as hrr-animate takes them; default: the model's cloth)",
+    )
     add_no_push_out_option(p, help="leave the push-out out of the graph (an engine with its own collision)")
     add_decoder_option(p)
     add_push_option(p)
@@ -105,6 +112,7 @@ def _main(argv: Sequence[str] | None) -> int:
         decoder=args.decoder,
         push=args.push,
         push_body=args.push_body,
+        material=args.material,
         **drawing,
     )
     size = written.graph.stat().st_size / 2**20
@@ -115,7 +123,7 @@ def _main(argv: Sequence[str] | None) -> int:
     print(f"motion licence: {animator.bundle.manifest.licences.statement}")
     if motion is None:
         return 0
-    gap = check_onnx(animator, written.graph, motion, body=body, seed=args.seed)
+    gap = check_onnx(animator, written.graph, motion, body=body, seed=args.seed, material=args.material)
     print(
         f"{args.check.name}: {gap['frames']} frames, ONNX - Python stream max {gap['max_mm']:.4f} mm, mean "
         f"{gap['mean_mm']:.4f} mm; median step ONNX {gap['onnx_ms']:.2f} ms, Python {gap['python_ms']:.2f} ms"

@@ -6,6 +6,7 @@ trained, and the ONNX graph, the character's clips with the garment, a preview a
     hrr-make hero.glb --garment hero_dress.obj -o hero/ --budget 2h   # more data, longer training
     hrr-make hero.glb --garment dress -o hero/                        # the built-in dress, carried onto hero
     hrr-make body.json --garment skirt -o out/ --library real-quick   # Bandai motion: non-commercial
+    hrr-make hero.glb --garment dress -o hero/ --material denim --air-drag 1.2   # in denim, in air
 
 Writes into OUT: body.json, dataset.h5, model/, outputs/ (NAME.onnx, NAME_CLIP.glb for each of the
 character's animations, preview.png, report/, summary.json) and make.json, the record of every stage:
@@ -24,11 +25,13 @@ from pathlib import Path
 from typing import Sequence
 
 from ..errors import InputError
+from ..garment.fabrics import FABRICS
+from ..garment.material import parse_material
 from ..io_utils import require_writable_place
 from ..pipeline.make_budget import OUTPUT_STAGES, BudgetTooSmall, parse_budget
 from ..pipeline.make_library import SELECTIONS
 from ..sim.preset import preset_names
-from ._common import run_cli
+from ._common import add_cloth_options, run_cli
 
 DEFAULT_LIBRARY = "real-quick-commercial"  # motion a studio may ship (docs/licences.md)
 
@@ -74,6 +77,7 @@ def _parser() -> argparse.ArgumentParser:
         default="coverage",
         help="which library clips the budget takes: coverage (default) or random",
     )
+    add_cloth_options(p, FABRICS)
     p.add_argument("--jobs", type=int, default=None, help="simulation workers (default: one per core)")
     p.add_argument(
         "--device",
@@ -111,6 +115,12 @@ def _main(argv: Sequence[str] | None) -> int:
     if args.output.exists() and not args.output.is_dir():
         raise InputError(args.output, "is a file; hrr-make writes a folder")
     require_writable_place(args.output)
+    if args.material is not None:  # a typo refused now, not after the body's fit
+        parse_material(args.material, "--material")
+    if args.air_drag is not None and not 0.0 <= args.air_drag <= 10.0:
+        raise InputError(
+            "--air-drag", f"a drag coefficient is between 0 and 10 (a sheet: about 1.2), got {args.air_drag}"
+        )
     request = MakeRequest(
         character=args.character,
         garment=args.garment,
@@ -127,6 +137,8 @@ def _main(argv: Sequence[str] | None) -> int:
         progress=not args.quiet,
         seed=args.seed,
         skip=tuple(args.skip),
+        material=args.material,
+        air_drag=args.air_drag,
     )
     try:
         MakeRun(request).run()

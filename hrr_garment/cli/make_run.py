@@ -10,6 +10,7 @@ records under each stage's ``command``, so any stage can be re-run alone from th
 from __future__ import annotations
 
 import shutil
+from dataclasses import replace
 from pathlib import Path
 
 from ..body.body_file import read_body, write_body
@@ -53,6 +54,13 @@ REPORT_FRAMES = 450  # held-out frames (15 s of motion, before mirroring) the re
 PROBE_SEQUENCES = 2  # random training sequences per worker the probe simulates (kept: taken first)
 
 
+def with_cloth(preset, material: str | None, air_drag: float | None):
+    """``preset`` with its simulation in the cloth ``material`` and the air's ``air_drag`` where given
+    (hrr-make --material, --air-drag): the model then knows that cloth."""
+    changes = {k: v for k, v in (("material", material), ("air_drag", air_drag)) if v is not None}
+    return replace(preset, sim={**preset.sim, **changes}) if changes else preset
+
+
 class MakeRun:
     """One run of hrr-make over ``request.out`` (see the module docstring)."""
 
@@ -61,7 +69,7 @@ class MakeRun:
         self.out = request.out
         self.record = MakeRecord.open(self.out)
         self.record.request = request.to_dict()
-        self.preset = load_preset(request.library)
+        self.preset = with_cloth(load_preset(request.library), request.material, request.air_drag)
         self.progress = MakeProgress(self.record, shown=request.progress)
         self.keys: dict[str, str] = {}
 

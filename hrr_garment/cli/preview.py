@@ -3,6 +3,7 @@
     hrr-preview out.h5 -o dress.gif                         # front and left views, body shown
     hrr-preview out.h5 -o dress.mp4 --views front three-quarter back --color-mode
     hrr-preview out.h5 -o sheet.png --frames 8              # a contact sheet of 8 frames
+    hrr-preview silk.h5 --beside denim.h5 -o cloths.gif     # one clip in two cloths, side by side
     hrr-preview out.h5 -o dress.gif --no-body --every 2 --size 240
 
 --color-mode paints the garment orange on frames that were retrieved from the database and blue on
@@ -38,6 +39,15 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--color-mode", action="store_true", help="colour retrieved frames orange, regressed ones blue"
     )
+    p.add_argument(
+        "--beside",
+        type=Path,
+        action="append",
+        default=[],
+        metavar="OTHER.h5",
+        help="another animation of the same clip drawn to the right (repeatable): the same dress in "
+        "another cloth, say (each frame's label names the cloth where the file records one)",
+    )
     p.add_argument("--size", type=int, default=360, help="pixels per view (default 360)")
     p.add_argument("--elevation", type=float, default=12.0, help="camera elevation in degrees (default 12)")
     p.add_argument("--every", type=int, default=1, help="render every N-th frame (GIF/MP4)")
@@ -59,7 +69,8 @@ def _main(argv: Sequence[str] | None) -> int:
         color_mode=args.color_mode,
     )
     anim = read_animation_h5(args.animation)
-    path = write_preview(anim, args.output, style, every=args.every, sheet_frames=args.frames)
+    beside = tuple(read_animation_h5(other) for other in args.beside)
+    path = write_preview(anim, args.output, style, every=args.every, sheet_frames=args.frames, beside=beside)
     print(
         f"wrote {path} ({path.stat().st_size / 2**20:.1f} MiB) from {anim.num_frames} frames; "
         f"{time.perf_counter() - t0:.1f} s"

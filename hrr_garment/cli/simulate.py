@@ -31,7 +31,7 @@ from ..io_utils import refuse_input_as_output, require_suffix, require_writable_
 from ..paths import workspace
 from ..sim.plan import build_options, plan_sequences
 from ..sim.preset import load_preset, preset_names
-from ._common import add_fps_option, run_cli
+from ._common import add_cloth_options, add_fps_option, run_cli
 from .build_summary import print_build_report
 from .garment_options import add_garment_options, resolve_garment
 
@@ -74,23 +74,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--substeps", type=int, default=None, help="override the preset's substeps per frame")
     p.add_argument("--iterations", type=int, default=None, help="override the preset's solver iterations")
     p.add_argument("--device", default=None, help="warp device: auto (default), cpu, cuda:0")
-    p.add_argument(
-        "--material",
-        default=None,
-        metavar="FABRIC",
-        help="the cloth: a fabric (" + ", ".join(FABRICS) + "), a fabric with values changed "
-        "(denim,bend=4e-5), values (density=0.2,stretch=5000,shear=2000,bend=1e-5,damping=0.1: kg/m^2, "
-        "N/m, N/m, N m, s) or a YAML file of them; default: the preset's, else the project's cloth "
-        "(docs/materials.md)",
-    )
-    p.add_argument(
-        "--air-drag",
-        type=float,
-        default=None,
-        metavar="CD",
-        help="the air's drag on the cloth, as a drag coefficient (about 1.2 for a sheet; 0: none); "
-        "default: the preset's, else none",
-    )
+    add_cloth_options(p, FABRICS)
     p.add_argument(
         "--batch",
         type=int,

@@ -29,6 +29,7 @@ import torch
 
 from .._version import __version__
 from ..errors import InputError
+from ..garment.material_range import MATERIAL_FEATURES, MaterialRange, material_vector
 from ..inference.frame_path import FramePath
 from ..inference.modes import Mode
 from ..inference.run_settings import DECODERS, PUSHES, RunSettings
@@ -40,6 +41,9 @@ from ..motion.poses import motion_to_poses
 from ..motion.skeleton import JOINT_NAMES, NUM_JOINTS
 
 INPUTS = ("rotations", "root")
+# a model across cloths' graph: each character's cloth values (N, 5) after the poses
+# (hrr_garment.garment.material_range: log10 density, stretch, shear, bend; damping)
+MATERIAL = "material"
 OUTPUTS = ("vertices", "entropy", "codes") + tuple(f"next_{name}" for name in STATE)
 # the sample mode's graph: its white noise input after the state, and its draw state after the window
 NOISE = "noise"
@@ -118,9 +122,12 @@ def export_onnx(animator, path: str | Path, settings: RunSettings | None = None,
     asked = changes.get("mode", None if settings is None else settings.mode)
     mode = Mode.SAMPLE if asked == Mode.SAMPLE else Mode.REGRESSION  # a str enum: the name too
     run = animator.resolve(settings, **{**changes, "mode": mode, "causal": True})
-    step = stream_step(FramePath(animator, run))
+    frame_path = FramePath(animator, run)
+    step = stream_step(frame_path)
     shapes, noise = state_shapes(step), noise_shape(step)
-    example = _example_inputs(shapes, noise, 2)
+    example = _example_inputs(shapes, noise, 2, frame_path.cloth)
+    if frame_path.cloth is not None:
+        step = MaterialInput(step)
     n = torch.export.Dim("characters", min=1, max=4096)
     dynamic = tuple({0: n} for _ in example)
     with torch.no_grad(), _quiet():
@@ -157,6 +164,12 @@ def export_onnx(animator, path: str | Path, settings: RunSettings | None = None,
     }
     if noise is not None:  # the white noise a frame takes per character, and the steps it is drawn in
         meta |= {"noise": list(noise), "sample_steps": run.sample_steps}
+    if frame_path.cloth is not None:  # the material input: what it holds and the cloth exported with
+        meta |= {
+            "material": list(MATERIAL_FEATURES),
+            "material_default": run.material.to_dict(),
+            "material_range": bundle.material_range.to_dict(),
+        }
     for key, value in meta.items():
         entry = model.metadata_props.add()
         entry.key, entry.value = key, value if isinstance(value, str) else strict_json(value)
@@ -192,14 +205,47 @@ def _quiet():
         logging.disable(previous)
 
 
-def _example_inputs(shapes: dict, noise: tuple | None, characters: int) -> dict[str, np.ndarray]:
-    """The step's inputs in its order: poses, the window state, the sample mode's noise and draw state."""
+class MaterialInput(torch.nn.Module):
+    """A step of a model across cloths with each character's cloth values as its third input,
+    after the poses (:data:`MATERIAL`), in place of the run's cloth the step holds."""
+
+    def __init__(self, step: torch.nn.Module):
+        super().__init__()
+        self.step = step
+
+    def forward(  # noqa: PLR0913  (one argument per graph input, as StreamStep.forward's)
+        self,
+        rotations,
+        root,
+        material,
+        started,
+        previous_rotations,
+        previous_positions,
+        memory,
+        window,
+        noise=None,
+        sample_drive=None,
+        sample_noise=None,
+        sample_latents=None,
+    ):
+        state = (started, previous_rotations, previous_positions, memory, window)
+        drawing = (noise, sample_drive, sample_noise, sample_latents)
+        return self.step(rotations, root, *state, *drawing, material=material)
+
+
+def _example_inputs(
+    shapes: dict, noise: tuple | None, characters: int, cloth: np.ndarray | None = None
+) -> dict[str, np.ndarray]:
+    """The step's inputs in its order: poses, the cloth's values (a model across cloths), the window
+    state, the sample mode's noise and draw state."""
     rng = np.random.default_rng(0)
     quats = rng.normal(size=(characters, NUM_JOINTS, 4)).astype(np.float32)
     inputs = {
         "rotations": quats / np.linalg.norm(quats, axis=-1, keepdims=True),
         "root": np.tile(np.float32([0.0, 0.96, 0.0]), (characters, 1)),
     }
+    if cloth is not None:
+        inputs[MATERIAL] = np.tile(np.asarray(cloth, np.float32), (characters, 1))
     state = initial_state(shapes, characters)
     inputs |= {name: state.pop(name) for name in STATE}
     if noise is not None:
@@ -214,7 +260,13 @@ class OnnxStream:
     seed for every character, as a crowd's run seed, or one each): what the Python stream draws
     from the same seed."""
 
-    def __init__(self, path: str | Path, threads: int | None = None, seeds: int | Sequence[int] = 0):
+    def __init__(
+        self,
+        path: str | Path,
+        threads: int | None = None,
+        seeds: int | Sequence[int] = 0,
+        material: object = None,
+    ):
         ort = _onnxruntime()
         options = ort.SessionOptions()
         if threads:
@@ -240,6 +292,11 @@ class OnnxStream:
             "push_body": meta.get("push_body", "capsules"),
         }
         self.noise = tuple(json.loads(meta["noise"])) if "noise" in meta else None
+        self.material = None  # a model across cloths' graph: every character's cloth values (m,)
+        if MATERIAL in meta:
+            self.material = graph_material(path, meta, material)
+        elif material is not None:
+            raise InputError(path, "its model was trained in one cloth: the graph takes no material")
         if self.noise is not None:
             self.settings["sample_steps"] = json.loads(meta["sample_steps"])
         self.outputs = list(OUTPUTS) + [f"next_{name}" for name in self.shapes if name not in STATE]
@@ -251,6 +308,8 @@ class OnnxStream:
         if self.state is None:
             self.state = initial_state(self.shapes, len(rotations))
         feed = {"rotations": np.asarray(rotations, np.float32), "root": np.asarray(roots, np.float32)}
+        if self.material is not None:
+            feed[MATERIAL] = np.tile(self.material, (len(rotations), 1))
         if self.noise is not None:
             feed[NOISE] = self._white_noise(len(rotations))
         out = self.session.run(self.outputs, feed | self.state)
@@ -267,6 +326,20 @@ class OnnxStream:
         return characters_noise(self.generators, self.noise[1], list(self.state["started"] <= 0)).numpy()
 
 
+def graph_material(path: str | Path, meta: dict, material: object) -> np.ndarray:
+    """The cloth values (m,) a graph of a model across cloths is fed: ``material`` (what
+    ``RunSettings.material`` takes) checked against the range the graph records, or the cloth it
+    was exported with where None."""
+    from ..garment.material import material_from
+
+    cloth = material_from(json.loads(meta["material_default"]) if material is None else material, str(path))
+    known = MaterialRange.from_dict(json.loads(meta["material_range"]))
+    outside = known.outside(material_vector(cloth))
+    if outside:
+        raise InputError(path, f"cloth {cloth.name!r} is outside its model's range: {'; '.join(outside)}")
+    return material_vector(cloth)
+
+
 def check_onnx(
     animator, path: str | Path, motion: Motion, settings: RunSettings | None = None, **changes
 ) -> dict:
@@ -276,7 +349,8 @@ def check_onnx(
     sample mode's graph drawn from the ``seed`` of ``changes``, 0 without one, on both) -> the gap
     per frame in millimetres: max, mean, and each path's median step time in milliseconds."""
     seed = changes.get("seed", 0 if settings is None else settings.seed)
-    runner = OnnxStream(path, seeds=seed)
+    material = changes.get("material", None if settings is None else settings.material)
+    runner = OnnxStream(path, seeds=seed, material=material)
     python = animator.stream(settings, **{**changes, **runner.settings})
     quats, roots = motion_to_poses(motion)
     gaps, onnx_s, python_s = [], [], []

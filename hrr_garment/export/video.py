@@ -9,6 +9,7 @@ the body's own bob and sway stay visible), with a ground grid that shows the tra
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import multiprocessing
 import os
 import shutil
@@ -98,6 +99,9 @@ def render_frame(anim: AnimationFile, style: PreviewStyle, t: int, track: np.nda
     if style.with_body:
         meshes.insert(0, PreviewMesh(*anim.body_mesh(t), BODY))
     label = f"frame {t}  {t / anim.fps:5.2f} s"
+    cloth = anim.material
+    if cloth is not None:  # which cloth, where the file records one (two side by side: which is which)
+        label += f"  {cloth.name}"
     if style.color_mode:
         label += "  retrieval" if retrieved else "  regression"
     return render_scene(meshes, (track[t, 0], 0.0, track[t, 2]), style, label)
@@ -172,6 +176,16 @@ def ffmpeg_executable() -> str:
     return found
 
 
+def side_by_side(streams: list[Iterator]) -> Iterator:
+    """One image per frame: each stream's image of that frame, left to right."""
+    Image, _ = pillow_modules()
+    for images in zip(*streams):
+        row = Image.new("RGB", (sum(i.width for i in images), images[0].height))
+        for k, image in enumerate(images):
+            row.paste(image, (k * images[0].width, 0))
+        yield row
+
+
 def write_preview(
     anim: AnimationFile,
     path: str | Path,
@@ -179,10 +193,23 @@ def write_preview(
     every: int = 1,
     sheet_frames: int = 6,
     progress: bool = True,
+    beside: tuple[AnimationFile, ...] = (),
 ) -> Path:
     """GIF or MP4 of every ``every``-th frame, or (.png) a contact sheet of ``sheet_frames`` evenly
-    spaced frames one under the other (just the middle frame when 1). Written atomically."""
+    spaced frames one under the other (just the middle frame when 1). Written atomically.
+    ``beside``: other animations of the same clip (the same garment in another cloth, say), each
+    frame drawn to the right of ``anim``'s, over the frames they all have."""
     path = Path(path)
+    if beside:
+        frames = min(a.num_frames for a in (anim, *beside))
+        anim, *beside = [_first_frames(a, frames) for a in (anim, *beside)]
+
+    def render(chosen: np.ndarray) -> Iterator:
+        streams = [
+            render_frames(a, style, chosen, progress and k == 0) for k, a in enumerate((anim, *beside))
+        ]
+        return side_by_side(streams) if beside else streams[0]
+
     suffix = path.suffix.lower()
     if suffix not in PREVIEW_SUFFIXES:
         raise InputError(path, f"previews are {', '.join(PREVIEW_SUFFIXES)}, not {suffix or 'no extension'}")
@@ -195,7 +222,7 @@ def write_preview(
             if n > 1
             else np.array([anim.num_frames // 2])
         )  # one frame: the middle one
-        images = list(render_frames(anim, style, chosen, progress))
+        images = list(render(chosen))
         Image, _ = pillow_modules()
         sheet = Image.new("RGB", (images[0].width, sum(i.height for i in images)))
         for k, im in enumerate(images):
@@ -205,7 +232,7 @@ def write_preview(
         return path
     frames = np.arange(0, anim.num_frames, every)
     fps = anim.fps / every
-    images = render_frames(anim, style, frames, progress)
+    images = render(frames)
     with atomic_path(path) as tmp:
         if suffix == ".gif":
             first = next(images)
@@ -220,8 +247,27 @@ def write_preview(
                 optimize=False,
             )
         else:
-            _encode_mp4(images, tmp, fps, style.size * len(style.views), style.size, target=path)
+            width = style.size * len(style.views) * (1 + len(beside))
+            _encode_mp4(images, tmp, fps, width, style.size, target=path)
     return path
+
+
+def _first_frames(anim: AnimationFile, frames: int) -> AnimationFile:
+    """``anim`` cut to its first ``frames`` frames (every per-frame array)."""
+    if anim.num_frames == frames:
+        return anim
+    per_frame = (
+        "vertices",
+        "joints",
+        "retrieved",
+        "entropy",
+        "match",
+        "capsules",
+        "rotations",
+        "root_translation",
+    )
+    cut = {k: getattr(anim, k)[:frames] for k in per_frame if getattr(anim, k) is not None}
+    return dataclasses.replace(anim, **cut)
 
 
 def _encode_mp4(images: Iterator, path: Path, fps: float, width: int, height: int, target: Path) -> None:

@@ -29,6 +29,7 @@ from ..motion.skeleton import NUM_JOINTS
 from .crowd_state import character_seed, check_keys
 from .frame_path import FramePath
 from .modes import Mode
+from .run_material import material_columns, run_material
 from .run_settings import ResolvedRun
 from .torch_step import SAMPLE_STATE, STATE, state_shapes, stream_step
 
@@ -62,6 +63,8 @@ class DeviceCrowd:
         # the sample mode's draw: each character's seed and its generator of white noise
         self._seeds: dict[Hashable, int] = {}
         self._generators: dict[Hashable, torch.Generator] = {}
+        self._animator = animator
+        self._cloths: dict[Hashable, np.ndarray] = {}  # characters in a cloth of their own (set_material)
 
     @property
     def mode(self) -> Mode:
@@ -79,6 +82,23 @@ class DeviceCrowd:
         self._free.append(self._slots.pop(key))
         self._seeds.pop(key, None)
         self._generators.pop(key, None)
+        self._cloths.pop(key, None)
+
+    def set_material(self, key: Hashable, material, *, allow_outside: bool = False) -> None:
+        """Dress character ``key`` in a cloth of its own, as :meth:`CrowdStream.set_material` does
+        (the step takes each character's cloth values, docs/materials.md)."""
+        bundle = self._animator.bundle
+        cloth = material_columns(bundle, run_material(bundle, material, allow_outside))
+        if cloth is not None:  # a model of one cloth reads none: the cloth is checked, nothing more
+            self._cloths[key] = cloth
+
+    def _materials(self, keys: list) -> torch.Tensor | None:
+        """(N, m) each character's cloth values where some have their own, else None (the run's)."""
+        if not any(k in self._cloths for k in keys):
+            return None
+        run = self.step.features.cloth.cpu().numpy()
+        rows = np.stack([self._cloths.get(k, run) for k in keys]).astype(np.float32)
+        return torch.from_numpy(rows).to(self.device)
 
     def set_seed(self, key: Hashable, seed: int) -> None:
         """Give character ``key`` a seed of its own for the sample mode's draw (the run's seed is every
@@ -149,7 +169,9 @@ class DeviceCrowd:
         drawing = []
         if self.step.sample is not None:
             drawing = [self._white_noise(keys), *(self._state[name][rows] for name in SAMPLE_STATE)]
-        out = self.step(rotations.to(self.device), roots.to(self.device), *state, *drawing)
+        out = self.step(
+            rotations.to(self.device), roots.to(self.device), *state, *drawing, material=self._materials(keys)
+        )
         for name, value in zip(self._shapes, out[3:]):
             self._state[name][rows] = value
         return out[0] if as_tensor else out[0].cpu().numpy()

@@ -64,6 +64,10 @@ class MakeRequest:
     progress: bool = True
     seed: int = 0
     skip: tuple[str, ...] = ()  # outputs not to make: any of OUTPUT_STAGES
+    # the cloth the library is simulated in (a fabric, values, a material file; None: the preset's)
+    # and the air's drag coefficient (None: the preset's)
+    material: str | None = None
+    air_drag: float | None = None
 
     def to_dict(self) -> dict:
         return {k: str(v) if isinstance(v, Path) else v for k, v in self.__dict__.items()}

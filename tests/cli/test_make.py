@@ -199,6 +199,26 @@ def test_bad_requests_are_refused(tmp_path, capsys):
     assert "not a budget" in capsys.readouterr().err
     assert make_cli.main([str(tmp_path / "missing.glb"), "--garment", "skirt", "-o", out]) == 2
     assert "missing.glb: no such file" in capsys.readouterr().err
+    assert make_cli.main([str(body), "--garment", "skirt", "-o", out, "--material", "denimm"]) == 2
+    assert "denimm" in capsys.readouterr().err
+    assert make_cli.main([str(body), "--garment", "skirt", "-o", out, "--air-drag", "-1"]) == 2
+    assert "a drag coefficient" in capsys.readouterr().err
+    assert not Path(out).exists()  # nothing made
+
+
+def test_a_cloth_asked_for_is_the_librarys_cloth():
+    """hrr-make --material --air-drag: the library is simulated in that cloth, in that air (the
+    simulation's key with it), and the model then knows that cloth."""
+    from hrr_garment.cli.make_run import with_cloth
+    from hrr_garment.garment.fabrics import FABRICS
+    from hrr_garment.sim.config import SimSettings
+    from hrr_garment.sim.preset import load_preset
+
+    preset = load_preset("real-quick-commercial")
+    assert with_cloth(preset, None, None) is preset
+    denim = SimSettings.from_dict(with_cloth(preset, "denim", 1.2).sim)
+    assert denim.material == FABRICS["denim"] and denim.air_drag == 1.2
+    assert denim.substeps == SimSettings.from_dict(preset.sim).substeps  # the rest as the preset's
 
 
 def test_a_characters_own_animations_become_clips(tmp_path):

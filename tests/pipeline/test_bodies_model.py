@@ -19,7 +19,7 @@ from hrr_garment.garment.transfer import transfer_garment
 from hrr_garment.motion.frame import to_body_frame
 from hrr_garment.motion.poses import motion_to_poses
 from hrr_garment.motion.synth import synthesize
-from tests.conftest import TINY_TRAINING, train_tiny
+from tests.conftest import TINY_TRAINING, assert_crowd_streams_as_alone, three_clips, train_tiny
 from tests.garment.test_templates_on_bodies import _larger_body
 
 
@@ -295,19 +295,12 @@ def test_a_crowd_of_characters_on_different_bodies_equals_each_one_alone_on_its_
     animator = Animator.load(folder)
     ds = GarmentDataset(data)
     bodies = {"a": ds.bodies["tall"].record, "b": ds.bodies["short"].record, "c": None}
-    clips = {
-        "a": synthesize("walk_curve", 0.8, seed=1),
-        "b": synthesize("spin", 0.8, seed=2),
-        "c": synthesize("walk", 0.8, seed=3),
-    }
+    clips = three_clips()
     alone = {k: animator.animate(clips[k], body=bodies[k], causal=True).vertices for k in clips}
     crowd = animator.crowd()
     for k in ("a", "b"):
         crowd.set_body(k, bodies[k])
-    for frame in range(clips["a"].num_frames):
-        out = crowd.push_motions({k: m.slice(frame, frame + 1) for k, m in clips.items()})
-        for row, k in enumerate(clips):
-            assert np.abs(out[row] - alone[k][frame]).max() <= 1e-4, (k, frame)
+    assert_crowd_streams_as_alone(crowd, clips, alone)
 
 
 def test_the_unseen_bodies_protocol_sets_the_model_beside_a_specialist(bodies_model, trained, tmp_path):

@@ -11,7 +11,7 @@ from hrr_garment.garment.fabrics import FABRICS
 from hrr_garment.garment.material import parse_material
 from hrr_garment.garment.material_range import MATERIAL_FEATURES, MaterialRange, material_vector
 from hrr_garment.motion.synth import synthesize
-from tests.conftest import TINY_TRAINING, train_tiny
+from tests.conftest import TINY_TRAINING, assert_crowd_streams_as_alone, three_clips, train_tiny
 
 LIGHT, STIFF = FABRICS["jersey"], FABRICS["cotton-twill"]
 
@@ -80,7 +80,28 @@ def test_the_cloth_reaches_the_decoder_and_is_recorded(materials_model, tmp_path
     assert np.abs(light.vertices - stiff.vertices).max() > 1e-4  # another cloth, other cloth
     assert light.material == LIGHT and stiff.material == STIFF
     light.save(tmp_path / "light.h5")
+    stiff.save(tmp_path / "stiff.h5")
     assert read_animation_h5(tmp_path / "light.h5").material == LIGHT
+
+
+def test_hrr_preview_draws_one_clip_in_two_cloths_side_by_side(materials_model, tmp_path):
+    from PIL import Image
+
+    from hrr_garment.cli.preview import main
+    from hrr_garment.inference.animator import Animator
+
+    folder, _ = materials_model
+    animator = Animator.load(folder)
+    motion = synthesize("walk", 0.5, seed=4)
+    for cloth in ("jersey", "cotton-twill"):
+        animator.animate(motion, material=cloth).save(tmp_path / f"{cloth}.h5")
+    args = [str(tmp_path / "jersey.h5"), "--frames", "1", "--size", "64", "--views", "front"]
+    assert main([*args, "-o", str(tmp_path / "one.png")]) == 0
+    assert main([*args, "--beside", str(tmp_path / "cotton-twill.h5"), "-o", str(tmp_path / "two.png")]) == 0
+    one, two = Image.open(tmp_path / "one.png"), Image.open(tmp_path / "two.png")
+    assert two.size == (2 * one.width, one.height) == (128, 64)
+    left = np.asarray(two)[:, :64].astype(int)
+    assert np.abs(left - np.asarray(one).astype(int)).max() == 0  # the first clip drawn as alone
 
 
 def test_a_cloth_unlike_the_training_cloths_is_refused_or_warned_about(materials_model):
@@ -123,19 +144,21 @@ def test_a_crowd_of_characters_in_different_cloths_equals_each_one_alone_in_its_
     folder, _ = materials_model
     animator = Animator.load(folder)
     cloths = {"a": LIGHT, "b": "cotton-twill,bend=2e-5", "c": None}
-    clips = {
-        "a": synthesize("walk_curve", 0.8, seed=1),
-        "b": synthesize("spin", 0.8, seed=2),
-        "c": synthesize("walk", 0.8, seed=3),
-    }
+    clips = three_clips()
     alone = {k: animator.animate(clips[k], material=cloths[k], causal=True).vertices for k in clips}
     crowd = animator.crowd()
     for k in ("a", "b"):
         crowd.set_material(k, cloths[k])
-    for frame in range(clips["a"].num_frames):
-        out = crowd.push_motions({k: m.slice(frame, frame + 1) for k, m in clips.items()})
-        for row, k in enumerate(clips):
-            assert np.abs(out[row] - alone[k][frame]).max() <= 1e-4, (k, frame)
+    assert_crowd_streams_as_alone(crowd, clips, alone)
+    # the regression as one torch step (a GPU's crowd, here on the CPU): each character's cloth an input
+    regression = {
+        k: animator.animate(clips[k], material=cloths[k], causal=True, mode="regression").vertices
+        for k in clips
+    }
+    device = animator.crowd(mode="regression", device="cpu")
+    for k in ("a", "b"):
+        device.set_material(k, cloths[k])
+    assert_crowd_streams_as_alone(device, clips, regression)
 
 
 def test_hrr_animate_takes_a_cloth_and_refuses_one_outside_the_range(materials_model, tmp_path, capsys):
@@ -184,3 +207,28 @@ def test_the_unseen_materials_protocol_sets_the_model_beside_a_specialist(materi
     assert "## Unseen cloths" in (tmp_path / "r" / "report.md").read_text()
     assert main([*common, "--unseen-material", str(data), "-o", str(tmp_path / "again")]) != 0  # trained in
     assert main([*common, "--unseen-material", str(heavy), "-o", str(tmp_path / "heavy")]) != 0  # outside
+
+
+def test_the_onnx_step_takes_each_characters_cloth_as_an_input(materials_model, tmp_path):
+    """A model across cloths' graph has a material input: fed a cloth, it streams as the Python stream
+    in that cloth; a cloth outside the model's range is refused by the runner."""
+    pytest.importorskip("onnxruntime")
+    from hrr_garment.errors import InputError
+    from hrr_garment.export.onnx_model import MATERIAL, OnnxStream, export_onnx
+    from hrr_garment.inference.animator import Animator
+    from hrr_garment.motion.poses import motion_to_poses
+
+    folder, _ = materials_model
+    animator = Animator.load(folder)
+    written = export_onnx(animator, tmp_path / "skirt.onnx", material="jersey")
+    motion = synthesize("walk_curve", 0.6, seed=3)
+    quats, roots = motion_to_poses(motion)
+    for cloth in ("jersey", "cotton-twill,bend=2e-5"):
+        graph = OnnxStream(written.graph, material=cloth)
+        assert MATERIAL in [i.name for i in graph.session.get_inputs()]
+        stream = animator.stream(mode="regression", material=cloth)
+        for t in range(motion.num_frames):
+            ours = graph.push(quats[t : t + 1], roots[t : t + 1])[0]
+            assert np.abs(ours - stream.push(rotation=quats[t], root=roots[t])).max() < 1e-4, (cloth, t)
+    with pytest.raises(InputError, match="outside its model's range"):
+        OnnxStream(written.graph, material="denim")
