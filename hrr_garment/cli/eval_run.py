@@ -111,6 +111,7 @@ def run_protocols(job: EvalJob, args) -> dict:
             "sequences": job.names,
             "frames": int(sum(len(r.garment) for r in records)),
             "holdouts": holdout_of(job.ds.info, job.ds.splits, job.names) if args.split != "train" else None,
+            "cloths": cloths_of(job.ds, job.names),
         },
         settings=evaluation_record(animator, settings),
         ensemble=ensemble_summary(ensembles, records, settings.members),
@@ -127,6 +128,13 @@ def run_protocols(job: EvalJob, args) -> dict:
         },
         seconds=0.0,
     )
+
+
+def cloths_of(ds, names: list[str]) -> dict[str, str] | None:
+    """Each evaluated clip's cloth, where they are in more than one (report.json's ``cloths`` pools
+    by it); None otherwise."""
+    cloths = {n: ds.material_of(n).name for n in names}
+    return cloths if len(set(cloths.values())) > 1 else None
 
 
 def evaluation_record(animator, settings: EvaluationSettings) -> dict:

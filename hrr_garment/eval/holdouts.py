@@ -116,3 +116,32 @@ def markdown_holdouts(section: dict | None, field_label: dict[str, str] | None =
         cells = " | ".join("n/a" if m not in clip else f"{clip[m]:.2f}" for m in modes)
         lines.append(f"| {name} | {labels.get(clip['holdout'], clip['holdout'])} | {cells} |")
     return [*lines, ""]
+
+
+def markdown_cloths(section: dict | None) -> list[str]:
+    """report.md's table of the test split by cloth (a :func:`holdout_section` grouped by each
+    clip's cloth): each cloth's pooled PVE / floor against its own clips' floor, its sharpness and
+    hem swing over the truth's, and its worst clip."""
+    if not section:
+        return []
+    summary = section["by_holdout"]
+    modes = sorted({m for cloth in summary.values() for m in cloth}, key=lambda m: (m != "auto", m))
+    lines = [
+        "## By cloth (each against its own clips' truth ensembles)",
+        "",
+        "| cloth | mode | clips | frames | PVE / floor | sharpness | hem swing | worst clip (PVE / floor) |",
+        "|---|---|---:|---:|---:|---:|---:|---|",
+    ]
+    for cloth, by_mode in summary.items():
+        for mode in modes:
+            row = by_mode.get(mode)
+            if row is None:
+                continue
+            cells = [
+                f"{row[k]:.2f}" if k in row else "n/a" for k in ("bending_energy_ratio", "hem_swing_ratio")
+            ]
+            lines.append(
+                f"| {cloth} | {mode} | {row['sequences']} | {row['frames']} | {row['pve_floor_ratio']:.2f} | "
+                f"{' | '.join(cells)} | {row['worst']['sequence']} ({row['worst']['pve_floor_ratio']:.2f}) |"
+            )
+    return [*lines, ""]

@@ -27,7 +27,8 @@ how many sequences were measured against a mesh, the capsules or nothing known);
 ``ensemble``: the frames on which the push-out's strain limit moved an edge (null where no push-out ran);
 15 ``cross_source`` (the cross-source protocol, :mod:`.cross_source`) and ``model.motion_licence`` (where
 its training motion comes from and whether it may ship: :mod:`hrr_garment.motion.licences`); 16
-``unseen_materials`` (the unseen-materials protocol, :mod:`.unseen_bodies` with cloths for bodies).
+``unseen_materials`` (the unseen-materials protocol, :mod:`.unseen_bodies` with cloths for bodies),
+``cloths`` and ``dataset.cloths`` (the test clips grouped by their cloth, as ``holdouts`` groups them).
 """
 
 from __future__ import annotations
@@ -43,7 +44,7 @@ from .bars import HELD_OUT_BARS, LIBRARY_BARS, default_output, markdown_lead
 from .cross_source import markdown_table as cross_source_table
 from .evaluate import TauPoint
 from .goals import goals
-from .holdouts import holdout_section, markdown_holdouts
+from .holdouts import holdout_section, markdown_cloths, markdown_holdouts
 from .mode_results import ModeResult
 from .report_tables import ensemble_table, goal_table, mode_table, simulated_section, sweep_table
 from .unseen_bodies import markdown_table
@@ -108,6 +109,8 @@ def build_report(
         "tau_sweep": [vars(p) for p in sweep] if sweep else [],
         "entropy": entropy_summary(modes),
         "holdouts": holdout_section(entries, dataset["holdouts"]) if dataset.get("holdouts") else None,
+        # the clips grouped by their cloth where they are in several (a model across cloths)
+        "cloths": holdout_section(entries, dataset["cloths"]) if dataset.get("cloths") else None,
         "real_motion": protocols.get("real_motion"),
         "library": protocols.get("library"),
         "paper": protocols.get("paper"),
@@ -196,6 +199,7 @@ def markdown(report: dict, plots: list[str]) -> str:
                 "",
             ]
     out += markdown_holdouts(report.get("holdouts"))
+    out += markdown_cloths(report.get("cloths"))
     out += ["## Modes (against the dataset's single simulation)", ""]
     out += mode_table(report["modes"])
     out += ["", "## Goals (the paper's shape; PVE ratios)", "", *goal_table(report["goals"])]

@@ -53,3 +53,16 @@ def test_one_holdout_or_no_ensembles_leave_no_section():
     assert holdout_section({"auto": _entry(rows)}, {"a": "style", "b": "style"}) is None
     bare = {"auto": {"sequences": {"a": {"frames": 10}, "b": {"frames": 10}}}}
     assert holdout_section(bare, {"a": "style", "b": "content"}) is None
+
+
+def test_the_test_split_by_cloth_pools_each_cloth_against_its_own_floor():
+    from hrr_garment.eval.holdouts import markdown_cloths
+
+    rows = [("a", 100, 30.0, 20.0), ("b", 50, 50.0, 25.0), ("c", 80, 44.0, 22.0)]
+    section = holdout_section({"auto": _entry(rows)}, {"a": "jersey", "b": "jersey", "c": "denim"})
+    jersey = section["by_holdout"]["jersey"]["auto"]
+    assert jersey["pve_floor_ratio"] == pytest.approx((100 * 30 + 50 * 50) / (100 * 20 + 50 * 25))
+    table = "\n".join(markdown_cloths(section))
+    assert f"| jersey | auto | 2 | 150 | {jersey['pve_floor_ratio']:.2f} | n/a | n/a | b (2.00) |" in table
+    assert "| denim | auto | 1 | 80 | 2.00 |" in table
+    assert markdown_cloths(None) == []
