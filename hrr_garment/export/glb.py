@@ -154,7 +154,13 @@ def write_glb(
         bufferViews=blob.views,
         buffers=[gl.Buffer(byteLength=blob.size)],
         animations=[gl.Animation(name="garment", samplers=samplers, channels=channels)] if channels else [],
-        extras={"fps": anim.fps, "keyframe_tolerance_m": tolerance, "keyframe_max_error_m": keys.max_error},
+        extras={
+            "fps": anim.fps,
+            "keyframe_tolerance_m": tolerance,
+            "keyframe_max_error_m": keys.max_error,
+            # the cloth animated, where the animation records one (a model across cloths)
+            **({"cloth": anim.material.to_dict()} if anim.material is not None else {}),
+        },
     )
     gltf.set_binary_blob(blob.bytes())
     data = b"".join(gltf.save_to_bytes())

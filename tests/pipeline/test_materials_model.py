@@ -80,8 +80,12 @@ def test_the_cloth_reaches_the_decoder_and_is_recorded(materials_model, tmp_path
     assert np.abs(light.vertices - stiff.vertices).max() > 1e-4  # another cloth, other cloth
     assert light.material == LIGHT and stiff.material == STIFF
     light.save(tmp_path / "light.h5")
-    stiff.save(tmp_path / "stiff.h5")
     assert read_animation_h5(tmp_path / "light.h5").material == LIGHT
+    gl = pytest.importorskip("pygltflib")
+    from hrr_garment.export.glb import write_glb
+
+    glb = write_glb(read_animation_h5(tmp_path / "light.h5"), tmp_path / "light.glb").path
+    assert gl.GLTF2().load(str(glb)).extras["cloth"] == LIGHT.to_dict()  # the export records the cloth
 
 
 def test_hrr_preview_draws_one_clip_in_two_cloths_side_by_side(materials_model, tmp_path):
