@@ -80,7 +80,7 @@ def write_synthetic_dataset(
             + (motion.root_translation * [1, 0, 1])[:, None]
         )
         info = {} if cloth is None else {"material": cloth.to_dict()}
-        records.append(SequenceRecord(name, world.astype(np.float32), motion, info, body_name=body_name))
+        records.append(SequenceRecord(name, world.astype(np.float32), motion, info=info, body_name=body_name))
     sources = {
         "motion_sources": {r.name: PROCEDURAL for r in records},
         "sources": {PROCEDURAL: SOURCES[PROCEDURAL].to_dict()},

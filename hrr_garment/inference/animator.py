@@ -214,7 +214,7 @@ class Animator:
         :func:`~.clip_path.clip_features`): offline or as a stream sees them (``causal``), for ``body``
         (default: the model's own) in ``material`` (default: the model's cloth)."""
         cloth = material_columns(self.bundle, run_material(self.bundle, material))
-        return clip_features(self.bundle, motion, (body or self.body()).vector, cloth, causal=causal)
+        return clip_features(self.bundle, motion, (body or self.body()).vector, cloth=cloth, causal=causal)
 
     def stream(self, settings: RunSettings | None = None, *, rig=None, **changes) -> AnimationStream:
         """One character, causal, one pose in and one frame out (:class:`~.character_stream.AnimationStream`);

@@ -33,7 +33,7 @@ def clip_features(
         causal_features(motion) if causal or motion.num_frames < 2 else motion_features(motion)
     )  # one frame: no velocity
     memory = with_memory(plain, motion.fps, bundle.codespace.config.memory)
-    return with_conditions(bundle, memory, measures, cloth)
+    return with_conditions(bundle, memory, measures, cloth=cloth)
 
 
 @dataclass

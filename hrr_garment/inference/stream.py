@@ -289,7 +289,7 @@ class CrowdStream:
             chars, pair_features_batch([c.previous for c in chars], poses), poses.fps
         )
         features = path.seen(
-            "features", with_conditions(path.bundle, features, bodies.vector, self._cloths(keys))
+            "features", with_conditions(path.bundle, features, bodies.vector, cloth=self._cloths(keys))
         )
         # 2. windows: each frame's gates once, as it comes
         gates = frame_gates(path.bundle, self._step, features)

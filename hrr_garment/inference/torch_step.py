@@ -79,8 +79,8 @@ class StreamStep(nn.Module):
         self.features = FeatureStage(
             memory,
             fps,
-            character.vector if config.body_features else None,
-            cloth if config.material_features else None,
+            measures=character.vector if config.body_features else None,
+            cloth=cloth if config.material_features else None,
         )
         self.codes = WindowCodes(bundle.codespace.eval(), regression=True, last_frame=True)
         constant(self, "motion_mean", bundle.motion_stats.mean)
