@@ -74,7 +74,8 @@ class CrowdStream:
         self.body = run.body
         self._bodies: dict[Hashable, object] = {}  # characters with a body of their own (set_body)
         self._seeds: dict[Hashable, int] = {}  # characters with a seed of their own (set_seed)
-        self._materials: dict[Hashable, object] = {}  # characters with a cloth of their own (set_material)
+        # characters in a cloth of their own (set_material): the cloth's values as the model reads them
+        self._cloths_of: dict[Hashable, np.ndarray] = {}
         self._stacked: tuple = ((), None)  # the last mixed crowd's bodies and their stacked arrays
         self._characters: dict[Hashable, CrowdCharacter] = {}
         self._windows = CrowdWindows(animator.window)
@@ -113,7 +114,10 @@ class CrowdStream:
         every other character's. Checked against the model's range of cloths as the run's is
         (:func:`~.run_material.run_material`); characters in different cloths still go through one
         batched step."""
-        self._materials[key] = run_material(self.animator.bundle, material, allow_outside)
+        bundle = self.animator.bundle
+        cloth = material_columns(bundle, run_material(bundle, material, allow_outside))
+        if cloth is not None:  # a model of one cloth reads none: the cloth is checked, nothing more
+            self._cloths_of[key] = cloth
 
     def set_seed(self, key: Hashable, seed: int) -> None:
         """Give character ``key`` a seed of its own for the sample mode's draw (the run's seed is
@@ -129,7 +133,7 @@ class CrowdStream:
         self._forget(key)
         self._bodies.pop(key, None)
         self._seeds.pop(key, None)
-        self._materials.pop(key, None)
+        self._cloths_of.pop(key, None)
 
     def _forget(self, key: Hashable) -> None:
         """Drop a character's state (it starts afresh if pushed again), its inertialization's row freed."""
@@ -227,11 +231,9 @@ class CrowdStream:
         """The cloth values the model reads (:func:`~.run_material.material_columns`): the run's for
         all, or one row per character where some have their own; None for a model of one cloth."""
         run_cloth = self.path.cloth
-        if run_cloth is None or not any(k in self._materials for k in keys):
+        if run_cloth is None or not any(k in self._cloths_of for k in keys):
             return run_cloth
-        return material_columns(
-            self.animator.bundle, [self._materials.get(k, self.run.material) for k in keys]
-        )
+        return np.stack([self._cloths_of.get(k, run_cloth) for k in keys])
 
     def _latents(
         self, chars: list[CrowdCharacter], windows: np.ndarray, gates: np.ndarray | None, lv: np.ndarray

@@ -53,7 +53,9 @@ class DeviceCrowd:
             )
         self.device = torch.device(run.device)
         self.run, self.body = run, run.body
-        self.step = stream_step(FramePath(animator, run), movable=True).to(self.device)
+        path = FramePath(animator, run)
+        self.step = stream_step(path, movable=True).to(self.device)
+        self._run_cloth = path.cloth  # the run's cloth values (None: the model reads none)
         self._shapes = state_shapes(self.step)
         self._state = {
             name: torch.zeros((0, *shape), device=self.device) for name, shape in self._shapes.items()
@@ -96,8 +98,7 @@ class DeviceCrowd:
         """(N, m) each character's cloth values where some have their own, else None (the run's)."""
         if not any(k in self._cloths for k in keys):
             return None
-        run = self.step.features.cloth.cpu().numpy()
-        rows = np.stack([self._cloths.get(k, run) for k in keys]).astype(np.float32)
+        rows = np.stack([self._cloths.get(k, self._run_cloth) for k in keys]).astype(np.float32)
         return torch.from_numpy(rows).to(self.device)
 
     def set_seed(self, key: Hashable, seed: int) -> None:
