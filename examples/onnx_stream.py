@@ -68,12 +68,19 @@ def main() -> int:
 
     state = {name: np.zeros((n, *shape), np.float32) for name, shape in shapes.items()}
     noise = json.loads(meta["noise"]) if "noise" in meta else None  # per character, a sample mode's graph
+    cloth = None  # a model across cloths' graph: each character's cloth, here the one it was exported with
+    if "material" in meta:
+        values = json.loads(meta["material_default"])  # log10 of each value but the damping (docs/export.md)
+        row = [np.log10(values[k]) if k != "damping" else values[k] for k in json.loads(meta["material"])]
+        cloth = np.tile(np.float32(row), (n, 1))
     generators = [np.random.default_rng(args.seed + i) for i in range(n)]
     outputs = [o.name for o in session.get_outputs()]
     garment, seconds = [], []
     for t in range(frames):
         rows = (starts + t) % frames
         feed = {"rotations": rotations[rows], "root": roots[rows] + offset, **state}
+        if cloth is not None:
+            feed["material"] = cloth
         if noise is not None:
             feed["noise"] = np.stack([g.standard_normal(noise, np.float32) for g in generators])
         t0 = time.perf_counter()

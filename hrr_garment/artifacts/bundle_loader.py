@@ -11,6 +11,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from ..errors import HRRError
+from ..garment.material_range import MATERIAL_FEATURES
 from ..garment.mesh import GarmentError, GarmentMesh, check_garment
 from ..models.codespace import CodeSpace, CodeSpaceSettings
 from ..models.direct import DirectRegressor, DirectSettings
@@ -56,6 +57,15 @@ def _load_bundle(folder: Path, cache_dir: Path | None) -> Bundle:
         raise BundleError(
             folder,
             f"the model was trained on {features} motion features; its settings give {cs_cfg.features}",
+        )
+    if cs_cfg.material_features not in (0, len(MATERIAL_FEATURES)) or (
+        cs_cfg.material_features and manifest.materials is None
+    ):
+        raise BundleError(
+            folder,
+            f"its code space reads {cs_cfg.material_features} cloth values; a model reads none or "
+            f"{len(MATERIAL_FEATURES)}, and a model across cloths records their range (bundle.json "
+            "materials)",
         )
     t = load_arrays(folder, "template.safetensors", ("vertices", "faces", "attached"))
     groups = {

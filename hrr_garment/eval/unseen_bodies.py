@@ -136,7 +136,7 @@ def _check_unseen(animator: Animator, ds: GarmentDataset, name: str, where: Path
     if kind == "body":
         animator.body(record.dressed)
     else:
-        run_material(animator.bundle, record.material)
+        run_material(animator.bundle, record.material, where=str(where))
     trained_on = Path(animator.bundle.manifest.dataset or "")
     if not trained_on.is_file():
         return

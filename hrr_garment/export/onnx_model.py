@@ -292,9 +292,10 @@ class OnnxStream:
             "push_body": meta.get("push_body", "capsules"),
         }
         self.noise = tuple(json.loads(meta["noise"])) if "noise" in meta else None
+        self.path, self._meta = Path(path), meta
         self.material = None  # a model across cloths' graph: every character's cloth values (m,)
         if MATERIAL in meta:
-            self.material = graph_material(path, meta, material)
+            self.dress(material)
         elif material is not None:
             raise InputError(path, "its model was trained in one cloth: the graph takes no material")
         if self.noise is not None:
@@ -302,6 +303,22 @@ class OnnxStream:
         self.outputs = list(OUTPUTS) + [f"next_{name}" for name in self.shapes if name not in STATE]
         self.seeds, self.generators = seeds, None
         self.state: dict[str, np.ndarray] | None = None
+
+    def dress(self, material: object = None) -> None:
+        """Every character's cloth, for a graph of a model across cloths: ``material`` (what
+        ``RunSettings.material`` takes) checked against the range the graph records, or the cloth
+        it was exported with where None; ``settings["material"]`` is then that cloth."""
+        from ..garment.material import material_from
+
+        meta = self._meta
+        where = str(self.path)
+        cloth = material_from(json.loads(meta["material_default"]) if material is None else material, where)
+        outside = MaterialRange.from_dict(json.loads(meta["material_range"])).outside(material_vector(cloth))
+        if outside:
+            raise InputError(
+                where, f"cloth {cloth.name!r} is outside its model's range: {'; '.join(outside)}"
+            )
+        self.material, self.settings["material"] = material_vector(cloth), cloth
 
     def push(self, rotations: np.ndarray, roots: np.ndarray) -> np.ndarray:
         """(N, 22, 4) quaternions x y z w and (N, 3) roots -> (N, V, 3) world vertices."""
@@ -326,20 +343,6 @@ class OnnxStream:
         return characters_noise(self.generators, self.noise[1], list(self.state["started"] <= 0)).numpy()
 
 
-def graph_material(path: str | Path, meta: dict, material: object) -> np.ndarray:
-    """The cloth values (m,) a graph of a model across cloths is fed: ``material`` (what
-    ``RunSettings.material`` takes) checked against the range the graph records, or the cloth it
-    was exported with where None."""
-    from ..garment.material import material_from
-
-    cloth = material_from(json.loads(meta["material_default"]) if material is None else material, str(path))
-    known = MaterialRange.from_dict(json.loads(meta["material_range"]))
-    outside = known.outside(material_vector(cloth))
-    if outside:
-        raise InputError(path, f"cloth {cloth.name!r} is outside its model's range: {'; '.join(outside)}")
-    return material_vector(cloth)
-
-
 def check_onnx(
     animator, path: str | Path, motion: Motion, settings: RunSettings | None = None, **changes
 ) -> dict:
@@ -350,7 +353,9 @@ def check_onnx(
     per frame in millimetres: max, mean, and each path's median step time in milliseconds."""
     seed = changes.get("seed", 0 if settings is None else settings.seed)
     material = changes.get("material", None if settings is None else settings.material)
-    runner = OnnxStream(path, seeds=seed, material=material)
+    runner = OnnxStream(path, seeds=seed)
+    if runner.material is not None and material is not None:  # a graph with a material input
+        runner.dress(material)
     python = animator.stream(settings, **{**changes, **runner.settings})
     quats, roots = motion_to_poses(motion)
     gaps, onnx_s, python_s = [], [], []

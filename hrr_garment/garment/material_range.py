@@ -12,8 +12,11 @@ with sqrt(stretch / density)), so the model reads their logarithms; the damping 
 is read as it is.
 
 A model records the range of its training cloths (:class:`MaterialRange`); a cloth outside it by
-more than a tenth of the range's span (at least :data:`MIN_SLACK`) is one the model never saw the
-like of, and is refused (or, when asked, warned about) by the caller.
+more than a tenth of the range's span is one the model never saw the like of, and is refused (or,
+when asked, warned about) by the caller. A value every training cloth shares (the damping, so far;
+every value of a model of one cloth) has no span: any other value of it is outside, since the model
+never learned what it does (standardised over no spread, a hundredth of a second would read as ten
+deviations).
 """
 
 from __future__ import annotations
@@ -30,9 +33,7 @@ MATERIAL_FEATURES = ("density", "stretch", "shear", "bend", "damping")
 LOGARITHMIC = frozenset({"density", "stretch", "shear", "bend"})
 # of each value's span across the training cloths: how far out a cloth still counts as known
 RANGE_MARGIN = 0.1
-# the least slack around a value's range: 0.02 decades (4.7 %) of a logarithmic value, 0.01 s of the
-# damping; a model of one cloth takes that cloth within it and refuses any other
-MIN_SLACK = {"logarithmic": 0.02, "linear": 0.01}
+SAME = 1e-5  # how near a value must be to one every training cloth shares (rounding of the stored range)
 
 
 def material_vector(material: Material) -> np.ndarray:
@@ -70,8 +71,7 @@ class MaterialRange:
         empty when the cloth is within it. Values are shown in their physical units."""
         lines = []
         for name, lo, hi, x in zip(MATERIAL_FEATURES, self.low, self.high, np.asarray(vector, np.float64)):
-            kind = "logarithmic" if name in LOGARITHMIC else "linear"
-            slack = max(margin * (hi - lo), MIN_SLACK[kind])
+            slack = max(margin * (hi - lo), SAME)
             if not lo - slack <= x <= hi + slack:
                 lines.append(
                     f"{name} {_physical(name, x):.3g} {UNITS[name]}, trained on "

@@ -22,19 +22,21 @@ class MaterialOutsideRange(InputError):
     """A cloth unlike any the model was trained in."""
 
 
-def run_material(bundle, material: object = None, allow_outside: bool = False) -> Material | None:
+def run_material(
+    bundle, material: object = None, allow_outside: bool = False, where: str = "material"
+) -> Material | None:
     """The cloth a run of ``bundle`` animates: ``material`` (a :class:`Material`, a fabric's name or
     values as ``--material`` takes them, a mapping) checked against the model's range of cloths, or
     the model's default where None (None for a model from before cloths were recorded). Outside the
     range: :class:`MaterialOutsideRange` naming each value and its range, or, with
-    ``allow_outside``, a warning."""
+    ``allow_outside``, a warning. Errors name ``where`` (the option or file the cloth came from)."""
     if material is None:
         return bundle.default_material
-    cloth = material_from(material, "material")
+    cloth = material_from(material, where)
     known = bundle.material_range
     if known is None:
         raise InputError(
-            "material",
+            where,
             f"the model in {bundle.folder} was trained before cloths were recorded: it animates the "
             "cloth it learned and cannot take another (train it again to choose the cloth)",
         )
@@ -49,7 +51,7 @@ def run_material(bundle, material: object = None, allow_outside: bool = False) -
             hint = (
                 "train in cloths like it" if count > 1 else "this model knows one cloth: train across cloths"
             )
-            raise MaterialOutsideRange("material", f"{message} ({hint}, or allow it and expect a guess)")
+            raise MaterialOutsideRange(where, f"{message} ({hint}, or allow it and expect a guess)")
         warnings.warn(message + "; animating it anyway", stacklevel=3)
     return cloth
 

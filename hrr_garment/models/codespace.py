@@ -122,7 +122,12 @@ class CodeSpaceSettings:
         return from_settings(cls, values, "code space model")
 
     def to_dict(self) -> dict:
-        return asdict(self)
+        """The settings as plain values; no ``material_features`` key for a model of one cloth (its
+        bundle.json as before cloths were read, which older versions also read)."""
+        out = asdict(self)
+        if not out["material_features"]:
+            del out["material_features"]
+        return out
 
 
 def _mlp(sizes: list[int], dropout: float = 0.0) -> nn.Sequential:
@@ -164,11 +169,11 @@ class GarmentEncoder(nn.Module):
         super().__init__()
         self.net = _mlp([size, hidden, hidden, logits], dropout)
 
-    def forward(self, latents: torch.Tensor, body: torch.Tensor | None = None) -> torch.Tensor:
-        """(B, W, N, C) or (B, W * N * C), and the body's standardised measures (B, b) of a model
-        trained across bodies -> (B, G * K) logits."""
+    def forward(self, latents: torch.Tensor, condition: torch.Tensor | None = None) -> torch.Tensor:
+        """(B, W, N, C) or (B, W * N * C), and the standardised body measures and cloth values (B, c)
+        of a model trained across bodies or cloths -> (B, G * K) logits."""
         flat = latents.reshape(len(latents), -1)
-        return self.net(flat if body is None else torch.cat([flat, body], 1))
+        return self.net(flat if condition is None else torch.cat([flat, condition], 1))
 
 
 class LatentDecoder(nn.Module):

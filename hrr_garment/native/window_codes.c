@@ -115,7 +115,7 @@ static void frame_gates(const float *x, int n, int F, int H, const float *const 
     linear_shared(a, n, H, p[P_IH_W], p[P_IH_B], 3 * H, gates);
 }
 
-/* The widest input of the decoder's layers (the embedding, with the body's measures, or a hidden layer). */
+/* The widest input of the decoder's layers (the embedding with the body's and cloth's values, or a hidden layer). */
 static long decoder_widest(const int32_t *dims)
 {
     long widest = dims[8];
@@ -125,8 +125,9 @@ static long decoder_widest(const int32_t *dims)
 
 /* dims: F, W, H, heads, G, K, D, L, then the decoder's L + 1 layer sizes (G * D + nb first), then 1
    where the regression decodes the expected embedding (the mean over each group's softmax), 0
-   where it decodes the argmax class's, then nb: how many body measures the decoder reads beside the
-   embedding (a model trained across bodies: the last nb features of each window's last frame);
+   where it decodes the argmax class's, then nb: how many condition values (the body's measures, then
+   the cloth's values) the decoder reads beside the embedding (a model trained across bodies or
+   cloths: the last nb features of each window's last frame);
    params: the pointers in the order of the enum above, then L (weight, bias) pairs; every weight
    packed in panels (see linear_rows), the pooling's in-projection split into its query and
    key-value parts; eps holds the two layer norms' epsilons. B windows in lockstep: x (B, W, F)
@@ -148,7 +149,7 @@ static void window_codes(const float *x, const float *gates, int B, const int32_
               L = dims[7];
     const int32_t *sizes = dims + 8;
     const int expected = dims[9 + L];  /* the regression decodes the expected embedding, else the argmax's */
-    const int nb = dims[10 + L];  /* body measures after the embedding in the decoder's input */
+    const int nb = dims[10 + L];  /* body and cloth values after the embedding in the decoder's input */
     const long BW = (long)B * W, widest = decoder_widest(dims);
     const int x_frames = gates ? 1 : W;  /* frames of x per window: with the gates, its last only */
     float *a = work, *gi = a + BW * H, *hs = gi + BW * 3 * H, *gh = hs + BW * H, *state = gh + (long)B * 3 * H,
@@ -228,7 +229,7 @@ static void window_codes(const float *x, const float *gates, int B, const int32_
         entropy[b] = total / (float)G;
     }
     if (!latents) return;
-    if (nb) {  /* the body's measures after each window's embedding */
+    if (nb) {  /* the body's and the cloth's values after each window's embedding */
         #pragma omp for schedule(static)
         for (int b = 0; b < B; ++b)
             memcpy(h0 + (long)b * sizes[0] + (long)G * D, x + ((long)b * x_frames + x_frames - 1) * F + F - nb,

@@ -29,6 +29,7 @@ from ..artifacts.bundle_writer import BundleParts, add_bundle_part, write_bundle
 from ..artifacts.database import CodeDatabase
 from ..artifacts.folds import FOLD_ENCODING, FoldStore
 from ..artifacts.manifest import FOLDS_FILE
+from ..artifacts.manifest_entries import MaterialsEntry
 from ..artifacts.manifest_section import thawed
 from ..artifacts.typed_manifest import update_manifest
 from ..body.measures import BODY_MEASURES
@@ -99,6 +100,18 @@ def fold_store(ds: GarmentDataset, names: list[str], progress: bool = True) -> F
     )
 
 
+def _record_what_it_learned(
+    folder: Path, manifest, ds: GarmentDataset, motion: dict, materials: dict
+) -> None:
+    """A finished model's records brought up to date: its motion's sources where missing (trained
+    before they were recorded) or out of date (the dataset built again records them otherwise), and
+    the cloth it learned where it was trained before cloths were recorded."""
+    if "motion_sources" in ds.info and thawed(manifest.motion) != motion:
+        update_manifest(folder, motion=motion)
+    if manifest.materials is None:
+        update_manifest(folder, materials=MaterialsEntry.parse(materials, "materials"))
+
+
 def run_codespace_stage(
     dataset: str | Path,
     folder: str | Path,
@@ -141,10 +154,8 @@ def run_codespace_stage(
         add_bundle_part(folder, FOLDS_FILE, folds.arrays(), numpy=True, folds=folds.entry, auto=None)
     splits = {k: ds.splits[k] for k in ("train", "val")}
     motion = licences_of(splits["train"] + splits["val"], ds.info).to_dict()
-    # a finished model whose record of its motion's sources is missing (trained before they were
-    # recorded) or out of date (the dataset built again records them otherwise): record them
-    if manifest is not None and "motion_sources" in ds.info and thawed(manifest.motion) != motion:
-        update_manifest(folder, motion=motion)
+    if manifest is not None:
+        _record_what_it_learned(folder, manifest, ds, motion, materials)
     if manifest is not None and manifest.residual is not None:
         return _stage_report(done, stage, reused=True)
     features = dataset_features(ds, splits["train"] + splits["val"], config)

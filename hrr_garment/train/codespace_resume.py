@@ -53,9 +53,7 @@ def main_training_key(
         train_config.latent_loss == "standardised"
     ):  # as before the setting existed: finished stages stay reused
         training = {k: v for k, v in training.items() if k not in ("latent_loss", "vertex_ridge")}
-    model = config.to_dict()
-    if not model["material_features"]:  # a model of one cloth: its key as before cloths were read
-        del model["material_features"]
+    model = config.to_dict()  # a model of one cloth: its key as before cloths were read
     return hashlib.sha1(
         json.dumps([model, training, ae_hash, ds.splits], sort_keys=True).encode()
     ).hexdigest()[:16]

@@ -23,6 +23,7 @@ import numpy as np
 def main() -> None:
     from hrr_garment.artifacts.bundle_loader import load_bundle
     from hrr_garment.data.dataset import GarmentDataset
+    from hrr_garment.eval.scoring import as_simulated
     from hrr_garment.eval.unseen_bodies import evenly
     from hrr_garment.inference.animator import Animator
     from hrr_garment.sim.quality import body_signed_distance, penetration_fraction
@@ -75,7 +76,7 @@ def main() -> None:
         errors, inside, frames = 0.0, 0.0, 0
         for r in records:
             vertices = animator.animate(
-                r.motion, mode="regression", body=r.dressed, allow_outside=True, push_out=False
+                r.motion, mode="regression", push_out=False, **as_simulated(animator.bundle, r)
             ).vertices
             errors += float(np.linalg.norm(vertices - r.garment, axis=-1).mean()) * 1000 * len(vertices)
             inside += float(

@@ -21,6 +21,7 @@ def main() -> None:
     import hrr_garment.inference.detail as detail
     from hrr_garment.data.dataset import GarmentDataset
     from hrr_garment.eval.metrics import MeshTopology, edge_strain_percentiles, energy_ratios, pve_mm
+    from hrr_garment.eval.scoring import as_simulated
     from hrr_garment.eval.unseen_bodies import evenly
     from hrr_garment.inference.animator import Animator
 
@@ -40,7 +41,7 @@ def main() -> None:
         detail.FOLD_MAX_STRAIN = limit if limit is not None else np.inf
         rows, started = [], time.perf_counter()
         for r in records:
-            v = animator.animate(r.motion, body=r.dressed, allow_outside=True).vertices.astype(np.float64)
+            v = animator.animate(r.motion, **as_simulated(animator.bundle, r)).vertices.astype(np.float64)
             g = r.garment.astype(np.float64)
             out, truth = (edge_strain_percentiles(x, template.vertices, topo) for x in (v, g))
             acceleration = (

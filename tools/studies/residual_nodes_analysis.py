@@ -47,7 +47,7 @@ def analyse(model: str, dataset: str, ranges: list[tuple[float, float]], sequenc
     from hrr_garment.data.dataset import GarmentDataset
     from hrr_garment.eval import metrics as M
     from hrr_garment.eval.auto_mode import free_cloth
-    from hrr_garment.eval.scoring import body_of
+    from hrr_garment.eval.scoring import as_simulated, body_of
     from hrr_garment.eval.unseen_bodies import evenly
     from hrr_garment.garment.fit import hem_vertices
     from hrr_garment.inference.animator import Animator
@@ -68,7 +68,7 @@ def analyse(model: str, dataset: str, ranges: list[tuple[float, float]], sequenc
                     r.garment
                     if label == "simulation"
                     else animator.animate(
-                        r.motion, push_out=False, body=r.dressed, allow_outside=True, **settings
+                        r.motion, push_out=False, **as_simulated(animator.bundle, r), **settings
                     ).vertices
                 )
                 v, truth = v.astype(np.float64), r.garment.astype(np.float64)

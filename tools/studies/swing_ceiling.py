@@ -28,6 +28,7 @@ import torch
 from hrr_garment.data.dataset import GarmentDataset
 from hrr_garment.eval import metrics as M
 from hrr_garment.eval.ensemble import truth_ensembles
+from hrr_garment.eval.scoring import as_simulated
 from hrr_garment.garment.fit import hem_vertices
 from hrr_garment.inference.animator import Animator
 from hrr_garment.inference.blending import blend_windows
@@ -42,6 +43,10 @@ def code_reconstruction(animator: Animator, latents: np.ndarray) -> np.ndarray:
     """(T, nodes, C) true latents -> (T, nodes, C): each window through the garment encoder, its
     argmax code and the code-space decoder, overlapping windows blended as inference blends them."""
     b, w = animator.bundle, animator.window
+    if b.codespace.config.condition_features:
+        raise SystemExit(
+            "the code reconstruction reads a model of one body in one cloth (no condition columns)"
+        )
     standard = b.latent_stats.normalize(latents.reshape(len(latents), -1)).reshape(latents.shape)
     windows = np.ascontiguousarray(sequence_windows(standard.astype(np.float32), w))
     cs = b.codespace
@@ -68,7 +73,7 @@ def ceilings(animator: Animator, records: list, hem: np.ndarray) -> dict:
                 for k, v in outs.items()
             }
             preds["regression"] = animator.animate(
-                r.motion, mode="regression", push_out=False, body=r.dressed, allow_outside=True
+                r.motion, mode="regression", push_out=False, **as_simulated(animator.bundle, r)
             ).vertices
             for k, p in preds.items():
                 p = np.asarray(p, np.float64)
