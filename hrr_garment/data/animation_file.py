@@ -86,7 +86,7 @@ class AnimationFile:
     def num_frames(self) -> int:
         return int(self.vertices.shape[0])
 
-    @property
+    @cached_property
     def material(self) -> Material | None:
         """The cloth the garment was animated in, where the file records one (written by a model that
         records its cloths); None otherwise."""

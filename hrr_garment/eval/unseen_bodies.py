@@ -30,8 +30,10 @@ from typing import NamedTuple
 
 import numpy as np
 
+from ..body.measures import body_vector
 from ..data.dataset import DatasetError, GarmentDataset
 from ..errors import InputError
+from ..garment.material_range import material_vector
 from ..inference.animator import Animator
 from ..inference.modes import Mode
 from .evaluate import EvaluationSettings, evaluate_modes
@@ -116,23 +118,33 @@ def _records(item: DatasetAndModel, animator: Animator, sequences: int | None, k
     return ds, records
 
 
-def _vector(kind: str, ds: GarmentDataset, name: str) -> np.ndarray:
-    """A sequence's body measures or cloth values."""
-    from ..body.measures import body_vector
-    from ..garment.material_range import material_vector
-
-    if kind == "body":
-        return body_vector(ds.bodies[ds.body_name_of[name]].record)
-    return material_vector(ds.material_of(name))
+def _vector(kind: str, record) -> np.ndarray:
+    """A record's body measures or cloth values."""
+    return body_vector(record.dressed.record) if kind == "body" else material_vector(record.material)
 
 
-def _check_unseen(animator: Animator, ds: GarmentDataset, name: str, where: Path, kind: str) -> None:
+def _trained(kind: str, training: GarmentDataset) -> dict[str, np.ndarray]:
+    """The bodies (or cloths) of a dataset's training split by name, each's measures (or values)
+    taken once."""
+    out = {}
+    for name in training.splits.get("train", []):
+        if kind == "body":
+            key = training.body_name_of[name]
+            if key not in out:
+                out[key] = body_vector(training.bodies[key].record)
+        else:
+            cloth = training.material_of(name)
+            out.setdefault(cloth.name, material_vector(cloth))
+    return out
+
+
+def _check_unseen(animator: Animator, record, where: Path, kind: str) -> None:
     """Refuse a body that one of the model's training sequences stood on, or a cloth one was
     simulated in (its training dataset's training split, where that dataset is still there); and,
     before any work, one outside the model's range (refused as a run would refuse it)."""
     from ..inference.run_material import run_material
 
-    record, words = ds.sequence(name), KINDS[kind]
+    words = KINDS[kind]
     if kind == "body":
         animator.body(record.dressed)
     else:
@@ -140,15 +152,13 @@ def _check_unseen(animator: Animator, ds: GarmentDataset, name: str, where: Path
     trained_on = Path(animator.bundle.manifest.dataset or "")
     if not trained_on.is_file():
         return
-    training = GarmentDataset(trained_on)
-    mine = _vector(kind, ds, name)
-    for other in training.splits.get("train", []):
-        if np.allclose(_vector(kind, training, other), mine, atol=1e-4):
+    mine = _vector(kind, record)
+    for name, theirs in sorted(_trained(kind, GarmentDataset(trained_on)).items()):
+        if np.allclose(theirs, mine, atol=1e-4):
             raise InputError(
                 where,
-                f"was simulated {words.on} {kind} {_held(training.sequence(other), kind)!r}, which the "
-                f"model was trained {words.on} ({trained_on}): the protocol is for {words.plural} it "
-                "never saw",
+                f"was simulated {words.on} {kind} {name!r}, which the model was trained {words.on} "
+                f"({trained_on}): the protocol is for {words.plural} it never saw",
             )
 
 
@@ -178,7 +188,7 @@ def unseen_bodies_section(
     out = {}
     for item in bodies:
         ds, records = _records(item, animator, sequences, kind)
-        _check_unseen(animator, ds, records[0].name, item.dataset, kind)
+        _check_unseen(animator, records[0], item.dataset, kind)
         ensembles = truth_ensembles_of(
             ds, records, settings.members, jobs=settings.jobs, progress=settings.progress
         )

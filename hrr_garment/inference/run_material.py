@@ -66,3 +66,10 @@ def material_columns(bundle, materials: Material | list[Material] | None) -> np.
     if materials is None or any(m is None for m in materials):
         raise ValueError("a model across cloths needs each character's cloth")
     return np.stack([material_vector(m) for m in materials])
+
+
+def cloth_columns(bundle, material: object, allow_outside: bool = False) -> np.ndarray | None:
+    """A character's cloth as the model reads it: ``material`` checked (:func:`run_material`), then
+    its values (:func:`material_columns`); None for a model of one cloth (the cloth is checked,
+    nothing more). What a crowd's ``set_material`` keeps."""
+    return material_columns(bundle, run_material(bundle, material, allow_outside))

@@ -54,7 +54,7 @@ from .frame_path import FramePath, with_conditions
 from .gate import frame_gates
 from .lod import crowd_decode, crowd_latents, decoder_of, levels
 from .modes import Mode
-from .run_material import material_columns, run_material
+from .run_material import cloth_columns
 from .run_settings import ResolvedRun
 from .swing import step_crowd
 
@@ -114,8 +114,7 @@ class CrowdStream:
         every other character's. Checked against the model's range of cloths as the run's is
         (:func:`~.run_material.run_material`); characters in different cloths still go through one
         batched step."""
-        bundle = self.animator.bundle
-        cloth = material_columns(bundle, run_material(bundle, material, allow_outside))
+        cloth = cloth_columns(self.animator.bundle, material, allow_outside)
         if cloth is not None:  # a model of one cloth reads none: the cloth is checked, nothing more
             self._cloths_of[key] = cloth
 

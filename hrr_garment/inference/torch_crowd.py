@@ -29,7 +29,7 @@ from ..motion.skeleton import NUM_JOINTS
 from .crowd_state import character_seed, check_keys
 from .frame_path import FramePath
 from .modes import Mode
-from .run_material import material_columns, run_material
+from .run_material import cloth_columns
 from .run_settings import ResolvedRun
 from .torch_step import SAMPLE_STATE, STATE, state_shapes, stream_step
 
@@ -89,8 +89,7 @@ class DeviceCrowd:
     def set_material(self, key: Hashable, material, *, allow_outside: bool = False) -> None:
         """Dress character ``key`` in a cloth of its own, as :meth:`CrowdStream.set_material` does
         (the step takes each character's cloth values, docs/materials.md)."""
-        bundle = self._animator.bundle
-        cloth = material_columns(bundle, run_material(bundle, material, allow_outside))
+        cloth = cloth_columns(self._animator.bundle, material, allow_outside)
         if cloth is not None:  # a model of one cloth reads none: the cloth is checked, nothing more
             self._cloths[key] = cloth
 
