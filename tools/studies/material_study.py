@@ -28,8 +28,8 @@ from __future__ import annotations
 import argparse
 import hashlib
 import json
+import sys
 from concurrent.futures import ProcessPoolExecutor, as_completed
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -45,15 +45,8 @@ from hrr_garment.motion.motion import Motion
 from hrr_garment.sim.quality import edge_strain, hem_swing
 from hrr_garment.sim.simulator import SimSettings, SimulationExploded, simulate_garment
 
-
-def stopping(motion: Motion, seconds: float, hold: float) -> Motion:
-    """The first ``seconds`` of ``motion``, then its last frame held ``hold`` seconds: the body stops."""
-    moving = motion.slice(0, min(motion.num_frames, int(round(seconds * motion.fps))))
-    still = int(round(hold * motion.fps))
-    idx = np.r_[np.arange(moving.num_frames), np.full(still, moving.num_frames - 1)]
-    return replace(
-        moving, local_rotations=moving.local_rotations[idx], root_translation=moving.root_translation[idx]
-    )
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from settle_study import stopping  # noqa: E402
 
 
 def settle_time(hem: np.ndarray, start: int, fps: float, still: float) -> float | None:

@@ -1,0 +1,67 @@
+"""tools/studies/settle_study.py: the hem's settling after a stop, against known answers."""
+
+from __future__ import annotations
+
+import importlib.util
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from hrr_garment.motion.synth import synthesize
+
+pytestmark = pytest.mark.tool
+
+FPS = 30.0
+
+
+def _tool():
+    path = Path(__file__).parents[2] / "tools" / "studies" / "settle_study.py"
+    spec = importlib.util.spec_from_file_location("settle_study", path)
+    tool = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(tool)
+    return tool
+
+
+def _decaying_hem(seconds: float, start_m: float, tau_s: float) -> np.ndarray:
+    """(T, 8, 3): eight hem points displaced sideways by start_m * exp(-t / tau_s) from where they rest."""
+    t = np.arange(round(seconds * FPS)) / FPS
+    rest = np.stack(
+        [np.cos(np.linspace(0, 2 * np.pi, 8)), np.zeros(8), np.sin(np.linspace(0, 2 * np.pi, 8))], 1
+    )
+    offset = start_m * np.exp(-t / tau_s)
+    return rest[None] + offset[:, None, None] * np.array([1.0, 0.0, 0.0])
+
+
+def test_settle_time_of_an_exponential_decay():
+    tool = _tool()
+    hem = _decaying_hem(8.0, 0.05, 0.5)
+    away = tool.away_from_rest(hem, FPS, smooth_s=1 / FPS)  # unsmoothed
+    # 50 mm decaying with a 0.5 s time constant passes 10 mm at 0.5 ln 5 = 0.80 s
+    assert tool.settle_time(away, FPS, 0.010) == pytest.approx(0.5 * math.log(5.0), abs=1.5 / FPS)
+    # a hem that never comes within 1 mm before the last second has not settled
+    assert tool.settle_time(tool.away_from_rest(_decaying_hem(3.0, 0.05, 5.0), FPS, 0.5), FPS, 0.001) is None
+    # one that never leaves is settled from the start
+    assert tool.settle_time(np.zeros(90), FPS, 0.010) == 0.0
+
+
+def test_smoothing_removes_a_jitter_about_the_resting_place():
+    tool = _tool()
+    hem = _decaying_hem(4.0, 0.0, 1.0)
+    jitter = 0.004 * np.where(np.arange(len(hem)) % 2 == 0, 1.0, -1.0)  # 4 mm each frame, alternating
+    hem[:, :, 1] += jitter[:, None]
+    assert tool.away_from_rest(hem, FPS, 1 / FPS).mean() == pytest.approx(0.004, rel=0.05)
+    assert tool.away_from_rest(hem, FPS, 0.5).max() < 0.004  # 0.5 s of positions averaged
+
+
+def test_stopping_holds_the_last_frame():
+    tool = _tool()
+    motion = synthesize("walk", 2.0, seed=0)
+    stopped = tool.stopping(motion, 1.0, 0.5)
+    assert stopped.num_frames == 30 + 15
+    np.testing.assert_array_equal(stopped.local_rotations[:30], motion.local_rotations[:30])
+    np.testing.assert_array_equal(
+        stopped.local_rotations[30:], np.repeat(motion.local_rotations[29:30], 15, 0)
+    )
+    np.testing.assert_array_equal(stopped.root_translation[-1], motion.root_translation[29])

@@ -1,0 +1,211 @@
+"""Study: the hem after the body stops, a model against its truth, per cloth (issue 85: the model's
+hem swing and settle time within 10 % of the truth's, on held-out cloths).
+
+One clip plays, then its last frame is held ``--hold`` seconds: the body stops dead and stands. In
+each cloth the dataset's own simulator (its settings, on the mannequin) makes a truth ensemble of
+``--members`` (hrr_garment/eval/ensemble.py: cached, shared with hrr-eval), and the model animates
+the same motion in the same cloth (``--mode``, the push-out on, as a user runs it). Per cloth:
+
+- ``hem_swing_cm``: the hem's swing while the body moves (hrr_garment.sim.quality.hem_swing);
+  the truth's is its members' mean;
+- ``settle_s``: seconds after the stop until the hem stays within ``--near`` (mm, mean over hem
+  vertices) of where it stands at the end (its mean over the hold's last second), its positions
+  averaged over ``--smooth`` seconds: a jitter about a place is not a swing, and the solver's hem
+  jitters (docs/materials.md). The truth's is its members' mean, None where any member does not
+  settle within the hold;
+- ``hem_speed_last_s``: the hem's mean speed (m/s) over the hold's last second;
+- ``away_mm``: the hem's smoothed distance from its resting place at the stop and 0.5 / 1 / 2 / 4 s
+  after it: the decay the settle time summarises.
+
+The run's last second (held past ``--hold``) is left out: an offline animation's last frames are
+its last window's end alone.
+
+Run from the repository root:
+
+    python tools/studies/settle_study.py --model hrr_work/models/dress-real-quick-materials \\
+        --dataset hrr_work/datasets/dress-real-quick-materials.h5 \\
+        --clip /work/shared/data/mocap/cmu/131_03.bvh --cloths jersey cotton-twill cloth02 --hold 12
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+from hrr_garment.data.dataset import GarmentDataset, SequenceRecord
+from hrr_garment.eval.ensemble import truth_ensembles
+from hrr_garment.garment.material import Material, material_from
+from hrr_garment.inference.animator import Animator
+from hrr_garment.io_utils import atomic_write_text
+from hrr_garment.motion.io import load_motion
+from hrr_garment.motion.motion import Motion
+from hrr_garment.sim.quality import hem_swing
+from hrr_garment.sim.simulator import SimSettings
+
+AFTER_S = (0.0, 0.5, 1.0, 2.0, 4.0)
+# the run's last second is held past the hold and left out: an offline animation's last frames are
+# its last window's end alone, where the blend of overlapping windows thins to one (up to 25 mm off
+# the blend on a standing body), which is not the cloth settling
+END_S = 1.0
+
+
+def stopping(motion: Motion, seconds: float | None, hold: float) -> Motion:
+    """The first ``seconds`` of ``motion`` (None: all of it), then its last frame held ``hold``
+    seconds: the body stops dead."""
+    frames = motion.num_frames if seconds is None else min(motion.num_frames, round(seconds * motion.fps))
+    idx = np.r_[np.arange(frames), np.full(round(hold * motion.fps), frames - 1)]
+    return replace(
+        motion, local_rotations=motion.local_rotations[idx], root_translation=motion.root_translation[idx]
+    )
+
+
+def away_from_rest(hem: np.ndarray, fps: float, smooth_s: float) -> np.ndarray:
+    """(T,) the hem's mean distance (m) from where it stands at the end (``hem``: (T, H, 3) after
+    the stop; the resting place: its mean over the last second), its positions first averaged over
+    ``smooth_s`` (centred): a jitter about a place is not a swing."""
+    width = max(1, round(smooth_s * fps))
+    padded = np.pad(hem, ((width // 2, width - 1 - width // 2), (0, 0), (0, 0)), mode="edge")
+    total = np.concatenate([np.zeros_like(padded[:1]), np.cumsum(padded, axis=0)])
+    smoothed = (total[width:] - total[:-width]) / width
+    rest = hem[-round(fps) :].mean(axis=0)
+    return np.linalg.norm(smoothed - rest, axis=-1).mean(axis=1)
+
+
+def settle_time(away: np.ndarray, fps: float, near_m: float) -> float | None:
+    """Seconds until ``away`` (from :func:`away_from_rest`) stays below ``near_m``; None if it is
+    still above it within the hold's last second (the resting place is that second's mean)."""
+    above = np.flatnonzero(away >= near_m)
+    if not len(above):
+        return 0.0
+    if above[-1] >= len(away) - round(fps):
+        return None
+    return float(above[-1] + 1) / fps
+
+
+def hem_after_stop(vertices: np.ndarray, motion: Motion, stop: int, hem: np.ndarray, args) -> dict:
+    """Hem swing while moving and the settling after frame ``stop`` of one run (``vertices``: (T, V, 3))."""
+    after = vertices[stop : len(vertices) - round(END_S * motion.fps), hem]
+    away = away_from_rest(after, motion.fps, args.smooth)
+    speed = np.linalg.norm(np.diff(after, axis=0), axis=-1).mean(axis=1) * motion.fps
+    at = {f"{s:g}s": 1000.0 * float(away[min(round(s * motion.fps), len(away) - 1)]) for s in AFTER_S}
+    return {
+        "hem_swing_cm": 100.0 * hem_swing(vertices[:stop], motion.slice(0, stop), hem),
+        "settle_s": settle_time(away, motion.fps, args.near / 1000.0),
+        "away_mm": at,
+        "hem_speed_last_s": float(speed[-round(motion.fps) :].mean()),  # m/s, the hold's last second
+        # the whole decay, every quarter second (the study's JSON)
+        "away_curve_mm": [1000.0 * float(a) for a in away[:: max(1, round(motion.fps / 4))]],
+    }
+
+
+def _mean(runs: list[dict]) -> dict:
+    settles = [r["settle_s"] for r in runs]
+    return {
+        "hem_swing_cm": float(np.mean([r["hem_swing_cm"] for r in runs])),
+        "settle_s": None if None in settles else float(np.mean(settles)),
+        "settle_s_members": settles,
+        "hem_speed_last_s": float(np.mean([r["hem_speed_last_s"] for r in runs])),
+        "away_mm": {k: float(np.mean([r["away_mm"][k] for r in runs])) for k in runs[0]["away_mm"]},
+        "away_curve_mm": np.mean([r["away_curve_mm"] for r in runs], axis=0).tolist(),
+    }
+
+
+def _ratio(model, truth) -> float | None:
+    return None if model is None or not truth else float(model) / float(truth)
+
+
+def cloths_of(ds: GarmentDataset, names: list[str]) -> dict[str, Material]:
+    """The dataset's recorded cloths by name (its info's materials; named fabrics and sampled ones)."""
+    recorded = ds.info.get("materials", {}).get("cloths", {})
+    missing = [n for n in names if n not in recorded]
+    if missing:
+        raise SystemExit(f"{ds.path}: no cloth {missing} (it records {sorted(recorded)})")
+    return {n: material_from({"name": n, **recorded[n]}, f"{ds.path}: {n}") for n in names}
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--model", required=True, type=Path)
+    p.add_argument("--dataset", required=True, type=Path, help="its simulator settings and cloths")
+    p.add_argument("--clip", required=True, help="a real clip (BVH, glTF, npz)")
+    p.add_argument("--cloths", nargs="+", required=True, help="cloths the dataset records, by name")
+    p.add_argument("--seconds", type=float, default=None, help="of the clip before the stop (all)")
+    p.add_argument("--hold", type=float, default=4.0, help="seconds the body then stands")
+    p.add_argument("--members", type=int, default=4)
+    p.add_argument("--mode", default="auto")
+    p.add_argument("--near", type=float, default=10.0, help="mm from the resting place counted as settled")
+    p.add_argument("--smooth", type=float, default=0.5, help="seconds the distance is smoothed over")
+    p.add_argument("--jobs", type=int, default=2)
+    p.add_argument("-o", "--output", type=Path, default=Path("hrr_work/studies/settle/summary.json"))
+    args = p.parse_args(argv)
+    ds = GarmentDataset(args.dataset)
+    cloths = cloths_of(ds, args.cloths)
+    motion = stopping(load_motion(args.clip), args.seconds, args.hold + END_S)
+    stop = motion.num_frames - round((args.hold + END_S) * motion.fps)
+    template = ds.template
+    hem = template.groups["hem"]
+    records = [
+        SequenceRecord(
+            f"{Path(args.clip).stem}-stop-{name}",
+            np.zeros((motion.num_frames, len(template.vertices), 3), np.float32),
+            motion,
+            info={"material": cloth.to_dict()},
+            material=cloth,
+        )
+        for name, cloth in cloths.items()
+    ]
+    ensembles = truth_ensembles(
+        template, records, SimSettings.from_dict(ds.info["sim"]), args.members, jobs=args.jobs
+    )
+    animator = Animator.load(args.model)
+    rows = []
+    for record, name in zip(records, cloths):
+        truth = [
+            hem_after_stop(m.astype(np.float64), motion, stop, hem, args)
+            for m in ensembles[record.name].members
+        ]
+        run = animator.animate(motion, mode=args.mode, material=record.material, allow_outside_material=True)
+        model = hem_after_stop(run.vertices.astype(np.float64), motion, stop, hem, args)
+        t = _mean(truth)
+        rows.append(
+            {
+                "cloth": name,
+                "truth": t,
+                "model": model,
+                "hem_swing_ratio": _ratio(model["hem_swing_cm"], t["hem_swing_cm"]),
+                "settle_ratio": _ratio(model["settle_s"], t["settle_s"]),
+            }
+        )
+    record = {
+        "clip": args.clip,
+        "model": str(args.model),
+        "settings": vars(args) | {"model": str(args.model)},
+        "rows": rows,
+    }
+    atomic_write_text(args.output, json.dumps(record, indent=1, default=str))
+    print(
+        "| cloth | hem swing cm: truth / model | ratio | settle s: truth (members) / model | ratio | "
+        + " | ".join(f"away mm {k}: truth / model" for k in rows[0]["model"]["away_mm"])
+        + " | hem m/s at the end: truth / model |"
+    )
+    for r in rows:
+        t, m = r["truth"], r["model"]
+        fmt = lambda s: "> hold" if s is None else f"{s:.2f}"  # noqa: E731
+        members = ", ".join(fmt(s) for s in t["settle_s_members"])
+        print(
+            f"| {r['cloth']} | {t['hem_swing_cm']:.1f} / {m['hem_swing_cm']:.1f} | "
+            f"{r['hem_swing_ratio'] or 0:.2f} | "
+            f"{fmt(t['settle_s'])} ({members}) / {fmt(m['settle_s'])} | "
+            f"{'' if r['settle_ratio'] is None else format(r['settle_ratio'], '.2f')} | "
+            + " | ".join(f"{t['away_mm'][k]:.0f} / {m['away_mm'][k]:.0f}" for k in m["away_mm"])
+            + f" | {t['hem_speed_last_s']:.2f} / {m['hem_speed_last_s']:.2f} |"
+        )
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
