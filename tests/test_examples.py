@@ -2,19 +2,15 @@
 
 import pytest
 
+from tests.scripts import load_script
+
 pytestmark = pytest.mark.tool
 
 
 def test_game_loop_example_runs_headless(trained, tmp_path, capsys):
-    import importlib.util
-    from pathlib import Path
 
     root, _, _ = trained
-    spec = importlib.util.spec_from_file_location(
-        "game_loop", Path(__file__).parents[1] / "examples" / "game_loop.py"
-    )
-    game_loop = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(game_loop)
+    game_loop = load_script("examples/game_loop.py")
     frames = tmp_path / "frames"
     assert (
         game_loop.main(

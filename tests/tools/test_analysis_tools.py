@@ -4,18 +4,14 @@ from __future__ import annotations
 
 import pytest
 
+from tests.scripts import load_script
+
 pytestmark = pytest.mark.tool
 
 
 def test_gate_analysis_oracle_bounds_both_modes(trained):
-    import importlib.util
-    from pathlib import Path
 
-    spec = importlib.util.spec_from_file_location(
-        "gate_analysis", Path(__file__).parents[2] / "tools" / "studies" / "gate_analysis.py"
-    )
-    tool = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(tool)
+    tool = load_script("tools/studies/gate_analysis.py")
     root, data, _ = trained
     r = tool.analyse(str(root / "model"), str(data), "val")
     # each window takes its better candidate: never worse than either mode alone
@@ -31,16 +27,11 @@ def test_residual_nodes_analysis_spans_regression_to_residual(trained, tmp_path)
     """A ramp below every node's hang is the residual mode as it is, one above every node's the
     regression (through the residual mode's path): the variants sit between known ends."""
     import dataclasses
-    import importlib.util
     import shutil
-    from pathlib import Path
 
     from hrr_garment.artifacts.typed_manifest import read_manifest, update_manifest
 
-    path = Path(__file__).parents[2] / "tools" / "studies" / "residual_nodes_analysis.py"
-    spec = importlib.util.spec_from_file_location("residual_nodes_analysis", path)
-    tool = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(tool)
+    tool = load_script("tools/studies/residual_nodes_analysis.py")
     root, data, _ = trained
     model = (
         tmp_path / "model"

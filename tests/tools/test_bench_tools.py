@@ -2,22 +2,21 @@
 
 import pytest
 
+from tests.scripts import load_script
+
 pytestmark = pytest.mark.tool
 
 
 @pytest.mark.slow
 def test_bench_inference_reports_every_key(capsys, monkeypatch):
     """The benchmark's JSON keeps the keys the issue names (speeds are measured there, not here)."""
-    import importlib.util
     import json
     import sys
     from pathlib import Path
 
     path = Path(__file__).parents[2] / "tools" / "bench_inference.py"
     monkeypatch.syspath_prepend(str(path.parent))  # its sibling tools/machine.py, as a script finds it
-    spec = importlib.util.spec_from_file_location("bench_inference", path)
-    bench = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(bench)
+    bench = load_script(path)
     argv = sys.argv
     sys.argv = [
         str(path),
@@ -71,13 +70,8 @@ def test_bench_inference_reports_every_key(capsys, monkeypatch):
 def test_the_push_out_analysis_reports_each_setting_with_and_without_the_subspace_push(trained):
     """tools/studies/push_out_analysis.py on the tiny trained model: every row keeps its keys, and the push
     in the fast decoder's subspace leaves no more of the cloth inside the body than the decoder did."""
-    import importlib.util
-    from pathlib import Path
 
-    path = Path(__file__).parents[2] / "tools" / "studies" / "push_out_analysis.py"
-    spec = importlib.util.spec_from_file_location("push_out_analysis", path)
-    tool = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(tool)
+    tool = load_script("tools/studies/push_out_analysis.py")
     root, data, _ = trained
     report = tool.analyse(
         str(root / "model"),
@@ -118,7 +112,6 @@ def test_bodies_inside_counts_the_cloth_inside_each_body_before_the_push_out(tra
     """tools/studies/bodies_inside.py on the tiny trained model: a body file holding the model's own body
     gives what animating on the default body and measuring directly gives; scaled mannequins away
     from the one training body are listed with the measures out of its range."""
-    import importlib.util
     from pathlib import Path
 
     from hrr_garment.body.body_file import write_body
@@ -128,9 +121,7 @@ def test_bodies_inside_counts_the_cloth_inside_each_body_before_the_push_out(tra
 
     tools = Path(__file__).parents[2] / "tools"
     monkeypatch.syspath_prepend(str(tools))  # the tool imports bench_inference's bodies from tools/
-    spec = importlib.util.spec_from_file_location("bodies_inside", tools / "studies" / "bodies_inside.py")
-    tool = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(tool)
+    tool = load_script(tools / "studies" / "bodies_inside.py")
     root, _, _ = trained
     animator = Animator.load(root / "model")
     own = write_body(tmp_path / "own.json", animator.bundle.default_body)

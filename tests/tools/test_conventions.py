@@ -1,18 +1,16 @@
 """The package's conventions that no linter holds: calls across modules name their arguments past
 the third (tools/check_calls.py)."""
 
-import importlib.util
 import textwrap
 from pathlib import Path
+
+from tests.scripts import load_script
 
 ROOT = Path(__file__).resolve().parents[2]
 
 
 def _check_calls():
-    spec = importlib.util.spec_from_file_location("check_calls", ROOT / "tools" / "check_calls.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_script("tools/check_calls.py")
 
 
 def test_no_call_passes_more_than_three_positional_arguments_to_another_module():

@@ -2,23 +2,17 @@
 
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
-
 import numpy as np
 import pytest
 
 from hrr_garment.body.mesh_distance import nearest_on_mesh, vertex_normals
+from tests.scripts import load_script
 
 pytestmark = pytest.mark.tool
 
 
 def _tool():
-    path = Path(__file__).parents[2] / "tools" / "studies" / "face_push_study.py"
-    spec = importlib.util.spec_from_file_location("face_push_study", path)
-    tool = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(tool)
-    return tool
+    return load_script("tools/studies/face_push_study.py")
 
 
 def _grid(n: int, size: float, height: float):

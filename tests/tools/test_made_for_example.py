@@ -4,20 +4,13 @@ left-right symmetric."""
 
 from __future__ import annotations
 
-import importlib.util
-import sys
-from pathlib import Path
-
 import numpy as np
+
+from tests.scripts import load_script
 
 
 def _tool():
-    path = Path(__file__).parents[2] / "tools" / "made_for_example.py"
-    spec = importlib.util.spec_from_file_location("made_for_example", path)
-    tool = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = tool
-    spec.loader.exec_module(tool)
-    return tool
+    return load_script("tools/made_for_example.py")
 
 
 def _coarse_sphere(radius=0.1, rings=6, sectors=8):

@@ -4,23 +4,16 @@ character it was, Mixamo-named joints, four skin weights and all, and fits."""
 
 from __future__ import annotations
 
-import importlib.util
-import sys
-from pathlib import Path
-
 import numpy as np
 import pytest
+
+from tests.scripts import load_script
 
 pytest.importorskip("pygltflib")
 
 
 def _tool():
-    path = Path(__file__).parents[2] / "tools" / "studies" / "make_characters.py"
-    spec = importlib.util.spec_from_file_location("make_characters", path)
-    tool = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = tool  # its dataclasses look their module up
-    spec.loader.exec_module(tool)
-    return tool
+    return load_script("tools/studies/make_characters.py")
 
 
 def _body():

@@ -2,14 +2,13 @@
 
 from __future__ import annotations
 
-import importlib.util
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 from hrr_garment.motion.synth import synthesize
+from tests.scripts import load_script
 
 pytestmark = pytest.mark.tool
 
@@ -17,11 +16,7 @@ FPS = 30.0
 
 
 def _tool():
-    path = Path(__file__).parents[2] / "tools" / "studies" / "settle_study.py"
-    spec = importlib.util.spec_from_file_location("settle_study", path)
-    tool = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(tool)
-    return tool
+    return load_script("tools/studies/settle_study.py")
 
 
 def _decaying_hem(seconds: float, start_m: float, tau_s: float) -> np.ndarray:

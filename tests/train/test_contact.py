@@ -9,6 +9,7 @@ import torch
 
 from hrr_garment.body.capsules import DEFAULT_BODY, capsule_signed_distance
 from hrr_garment.train.contact import capsule_distance
+from tests.scripts import load_script
 
 
 def test_the_differentiable_capsule_distance_is_the_exact_one(rng):
@@ -114,15 +115,12 @@ def test_a_stage_rerun_with_the_contact_phase_resumes_the_finished_training(trai
 
 @pytest.mark.tool
 def test_the_contact_sweep_tool_runs_a_weight_on_a_trained_model(trained, capsys, monkeypatch):
-    import importlib.util
     import sys
     from pathlib import Path
 
     root, data, _ = trained
     path = Path(__file__).parents[2] / "tools" / "studies" / "contact_sweep.py"
-    spec = importlib.util.spec_from_file_location("contact_sweep", path)
-    tool = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(tool)
+    tool = load_script(path)
     before = (root / "model" / "decoder.safetensors").read_bytes()
     monkeypatch.setattr(
         sys,
