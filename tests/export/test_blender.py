@@ -3,7 +3,6 @@ the exports opened in a real Blender through tools/blender_check.py."""
 
 from __future__ import annotations
 
-import importlib.util
 import io
 import json
 import os
@@ -19,6 +18,7 @@ import tomllib
 from hrr_garment.blender import blender_command
 from hrr_garment.export.blender_package import ADDON_FILES, ADDON_SOURCE, addon_zip_bytes
 from hrr_garment.garment.mesh import vertex_normals
+from tests.scripts import load_script
 
 from .test_export import ROOT, _animation_arrays, _write
 
@@ -30,10 +30,7 @@ def out_h5(tmp_path) -> Path:
 
 def _addon_files_module():
     """The add-on's bpy-free reader module, loaded from its file as Blender would load it."""
-    spec = importlib.util.spec_from_file_location("hrr_addon_files", ADDON_SOURCE / "files.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_script(ADDON_SOURCE / "files.py", "hrr_addon_files")
 
 
 def test_the_addon_zip_holds_a_blender_extension():
