@@ -138,7 +138,7 @@ def main(argv=None) -> int:
     p.add_argument("--members", type=int, default=4)
     p.add_argument("--mode", default="auto")
     p.add_argument("--near", type=float, default=10.0, help="mm from the resting place counted as settled")
-    p.add_argument("--smooth", type=float, default=0.5, help="seconds the distance is smoothed over")
+    p.add_argument("--smooth", type=float, default=0.5, help="seconds the hem's positions are averaged over")
     p.add_argument("--jobs", type=int, default=2)
     p.add_argument("-o", "--output", type=Path, default=Path("hrr_work/studies/settle/summary.json"))
     args = p.parse_args(argv)
@@ -180,13 +180,8 @@ def main(argv=None) -> int:
                 "settle_ratio": _ratio(model["settle_s"], t["settle_s"]),
             }
         )
-    record = {
-        "clip": args.clip,
-        "model": str(args.model),
-        "settings": vars(args) | {"model": str(args.model)},
-        "rows": rows,
-    }
-    atomic_write_text(args.output, json.dumps(record, indent=1, default=str))
+    summary = {"clip": args.clip, "model": args.model, "settings": vars(args), "rows": rows}
+    atomic_write_text(args.output, json.dumps(summary, indent=1, default=str))
     print(
         "| cloth | hem swing cm: truth / model | ratio | settle s: truth (members) / model | ratio | "
         + " | ".join(f"away mm {k}: truth / model" for k in rows[0]["model"]["away_mm"])
