@@ -60,15 +60,14 @@ def main() -> None:
         graph = Path(tempfile.mkdtemp()) / "step.onnx"
         export_onnx(animator, graph)
     rotations, roots = motion_to_poses(load_motion(args.motion))
-    settings = OnnxStream(
-        graph
-    ).settings  # the package runs what the graph holds: its push-out, decoder and push
+    # the package runs what the graph holds: its mode, push-out, decoder and push
+    settings = OnnxStream(graph).settings
     rows = []
     for n in args.crowds:
         starts = np.arange(n) * 7 % len(rotations)
         offsets = np.stack([np.arange(n) * 1.5, np.zeros(n), np.zeros(n)], 1).astype(np.float32)
         onnx_ms = _timed(OnnxStream(graph).push, rotations, roots, starts, offsets, args.steps)
-        crowd = animator.crowd(mode="regression", **settings)
+        crowd = animator.crowd(**settings)
         package_ms = _timed(crowd.push, rotations, roots, starts, offsets, args.steps)
         row = {
             "characters": n,

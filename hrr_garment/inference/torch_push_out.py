@@ -28,6 +28,7 @@ from torch._higher_order_ops.while_loop import while_loop
 from .collision import PROJECTIONS, RELEASE_PASSES, PushOutSettings
 from .limb_release import RELEASED_RADIUS, limb_capsules
 from .strain_limit import LIMIT_TOLERANCE_M, OVER_RELAXATION
+from .torch_capsules import capsule_depths, capsule_distance_within, per_point, point_capsule_distance
 from .torch_ops import constant
 from .torch_subspace_push import SubspacePushStage
 
@@ -85,6 +86,9 @@ class PushOutStage(nn.Module):
         self.colours = len(limits.colour_groups)
         for c, group in enumerate(limits.colour_groups):
             constant(self, f"colour_{c}", group, dtype=torch.int64)
+            constant(self, f"colour_edges_{c}", limits.edges[group], dtype=torch.int64)
+            # both ends in one list: one scatter-add moves them (no two edges of a colour share one)
+            constant(self, f"colour_ends_{c}", limits.edges[group].T.reshape(-1), dtype=torch.int64)
 
     @classmethod
     def of_visible(cls, visible, smoothing, *, limits, settings: PushOutSettings) -> "PushOutStage":
@@ -104,27 +108,34 @@ class PushOutStage(nn.Module):
         )
 
     def distance(
-        self, p: torch.Tensor, a: torch.Tensor, b: torch.Tensor, radii: torch.Tensor | None = None
+        self,
+        p: torch.Tensor,
+        a: torch.Tensor,
+        b: torch.Tensor,
+        radii: torch.Tensor | None = None,
+        within: float | None = None,
     ) -> tuple[torch.Tensor, torch.Tensor]:
-        """Signed distances (N, V) to the union of capsules and the nearest one's outward normals.
-        Through products of (N, V, 3) by (N, 3, C) (no (N, V, C, 3) temporaries, which cost most of
-        a step in onnxruntime); ``p``, ``a``, ``b`` relative to the pelvis keep them to metres. On
-        the visible mesh, ``a`` and ``b`` are the joints' moves (:meth:`forward`) and the distance
-        and normal the skin's. ``radii``: (N, 1, C) each character's (a limb let go of: very
-        negative; None: the body's)."""
+        """Signed distances (N, V) to the union of capsules and the nearest one's outward normals,
+        (N, V, 3), measured where the distance is under ``within`` (the push's margin by default:
+        where a push reads them) and zero elsewhere (:func:`capsule_distance_within`); ``p``, ``a``,
+        ``b`` relative to the pelvis keep them to metres. On the visible mesh, ``a`` and ``b`` are
+        the joints' moves (:meth:`forward`) and the distance and normal the skin's, everywhere.
+        ``radii``: (N, 1, C) each character's (a limb let go of: very negative; None: the body's)."""
         if self.skin is not None:
             d, n = self.skin.query_moves(p, a, b)
             if self.hulls is None:
                 return d, n
             # beyond the margin of every hull the hulls' distance, as the package's push-out takes it
             # (``radii``: the hulls' ends and radii, (N, C, 7))
-            hd, hn = capsule_distance(p, radii[..., :3], radii[..., 3:6], radii[..., 6][:, None])
+            # (their normals never read: no push moves a point farther than the margin)
+            hd = capsule_depths(p, radii[..., :3], radii[..., 3:6], radii[..., 6][:, None])
             far = hd > self.settings.margin
-            return torch.where(far, hd, d), torch.where(far[..., None], hn, n)
-        return capsule_distance(p, a, b, self.radii if radii is None else radii)
+            return torch.where(far, hd, d), torch.where(far[..., None], torch.zeros_like(n), n)
+        within = self.settings.margin if within is None else within
+        return capsule_distance_within(p, a, b, self.radii if radii is None else radii, within)
 
     def smooth(self, disp: torch.Tensor) -> torch.Tensor:
-        """One pass of the mean over each vertex's neighbours, vertex-major (V, N, 3) (see :meth:`limit`)."""
+        """One pass of the mean over each vertex's neighbours, vertex-major (V, ...) (see :meth:`limit`)."""
         terms = torch.index_select(disp, 0, self.smooth_cols) * self.smooth_weights[..., None]
         return torch.zeros_like(disp).index_add(0, self.smooth_rows, terms)
 
@@ -132,41 +143,89 @@ class PushOutStage(nn.Module):
         d, n = self.distance(p, a, b, radii)
         for _ in range(self.settings.rounds):
             p, d, n = _when((d < self.settings.margin).any(), self._round, (p, d, n, a, b, radii))
-        # exact projections, again where a push landed in another capsule, while a vertex is inside:
-        # exported as an ONNX Loop, so that its measure is traced once (a character's skin graph
-        # traced once a projection made the export 2.5 minutes), run as the same steps in Python
-        state = (torch.zeros((), dtype=torch.int64, device=p.device), p, d, n)
+        # exact projections, again where a push landed in another capsule, while a vertex is inside,
+        # on the points inside after the rounds alone (a projection moves only points inside, and a
+        # point it brings out stays out): exported as an ONNX Loop, so that its measure is traced
+        # once (a character's skin graph traced once a projection made the export 2.5 minutes), run
+        # as the same steps in Python
+        rows = torch.nonzero((d < 0).reshape(-1))[:, 0]
+        character = torch.div(rows, p.shape[1], rounding_mode="floor")
+        own = self._per_point(character, a, b, radii)
+        points = torch.index_select(p.reshape(-1, 3), 0, rows)
+        state = (
+            torch.zeros((), dtype=torch.int64, device=p.device),
+            points,
+            torch.index_select(d.reshape(-1), 0, rows),
+            torch.index_select(n.reshape(-1, 3), 0, rows),
+        )
 
-        def projecting(k, p, d, n):
-            return (k < PROJECTIONS) & (d < 0).any()
+        def projecting(k, q, dq, nq):
+            return (k < PROJECTIONS) & (dq < 0).any()
 
-        def project(k, p, d, n):
-            return k + 1, *self._project(p, d, n, a, b, radii)
+        def project(k, q, dq, nq):
+            inside = dq < 0
+            q = q + torch.where(inside, self.settings.margin - dq, torch.zeros_like(dq))[:, None] * nq
+            dk, nk = self._point_distance(q, *own)
+            return k + 1, q, torch.where(inside, dk, dq), torch.where(inside[:, None], nk, nq)
 
         if torch.compiler.is_compiling():
-            return while_loop(projecting, project, state)[1]
-        while bool(projecting(*state)):
-            state = project(*state)
-        return state[1]
+            points = while_loop(projecting, project, state)[1]
+        else:
+            while bool(projecting(*state)):
+                state = project(*state)
+            points = state[1]
+        return p.reshape(-1, 3).index_copy(0, rows, points).reshape(p.shape)
 
     def _round(self, p, d, n, a, b, radii):
-        """A push along the normals, spread to the neighbours, never below what is needed."""
+        """A push along the normals, spread to the neighbours, never below what is needed. In
+        (V, 3, N): a vertex's rows whole for the smoothing's gathers and scatter-adds, and no
+        product broadcast over a last axis of 3 (which onnxruntime runs an element triple at a
+        time)."""
         need = torch.clamp(self.settings.margin - d, min=0.0).transpose(
             0, 1
         )  # vertex-major, as smooth takes it
         normals = n.transpose(0, 1)
         for _ in range(self.settings.follow):
             need, normals = self._follow(need, normals)
+        normals = normals.permute(0, 2, 1)  # (V, 3, N)
         hit = need > 0
-        disp = need[..., None] * normals
+        disp = need[:, None] * normals
         for _ in range(self.settings.smooth):
             disp = self.smooth(disp)
             short = torch.where(
-                hit, torch.clamp(need - (disp * normals).sum(-1), min=0.0), torch.zeros_like(need)
+                hit, torch.clamp(need - (disp * normals).sum(1), min=0.0), torch.zeros_like(need)
             )
-            disp = disp + short[..., None] * normals
-        p = p + disp.transpose(0, 1)
-        return (p, *self.distance(p, a, b, radii))
+            disp = disp + short[:, None] * normals
+        # measured again only where the round moved the cloth: elsewhere the distance stands
+        moved = torch.nonzero((disp != 0).any(1).transpose(0, 1).reshape(-1))[:, 0]
+        return self._measured(p + disp.permute(2, 0, 1), moved, d, n, a, b, radii)
+
+    def _measured(self, p, rows, d, n, a, b, radii):
+        """``p`` with its distances ``d`` (N, V) and normals ``n`` (N, V, 3) measured again at the
+        flat (character x vertex) ``rows`` alone: a push moves a few vertices of a frame, and
+        measuring every vertex of every character again after it cost most of a crowd's push-out in
+        onnxruntime. The same distances (each point's depends on it and its own character alone)."""
+        count, size = p.shape[:2]
+        character = torch.div(rows, size, rounding_mode="floor")
+        point = torch.index_select(p.reshape(-1, 3), 0, rows)  # (K, 3)
+        dk, nk = self._point_distance(point, *self._per_point(character, a, b, radii))
+        d = d.reshape(-1).index_copy(0, rows, dk).reshape(count, size)
+        n = n.reshape(-1, 3).index_copy(0, rows, nk).reshape(count, size, 3)
+        return p, d, n
+
+    def _per_point(self, character, a, b, radii) -> tuple:
+        """The body's operands of each point's ``character`` (K,), as :meth:`_point_distance` takes them."""
+        if self.skin is None:
+            return per_point(character, a, b, radii[:, 0])
+        return tuple(torch.index_select(x, 0, character) for x in (a, b, radii))
+
+    def _point_distance(self, points, *own) -> tuple[torch.Tensor, torch.Tensor]:
+        """(K,) distances and (K, 3) normals of points (K, 3), each of its own character (``own``:
+        :meth:`_per_point`)."""
+        if self.skin is None:
+            return point_capsule_distance(points, *own)
+        d, n = self.distance(points[:, None], *own)
+        return d[:, 0], n[:, 0]
 
     def _follow(self, need: torch.Tensor, normals: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """One pass of the neighbour-follow (:func:`~hrr_garment.inference.collision.follow_pushes`),
@@ -182,29 +241,35 @@ class PushOutStage(nn.Module):
             better[..., None], normals[source, characters], normals
         )
 
-    def _project(self, p, d, n, a, b, radii):
-        p = p + torch.where(d < 0, self.settings.margin - d, torch.zeros_like(d))[..., None] * n
-        return (p, *self.distance(p, a, b, radii))
-
-    def _edge_vectors(self, p: torch.Tensor) -> torch.Tensor:
-        """(E, N, 3) of vertex-major points (V, N, 3)."""
-        return torch.index_select(p, 0, self.edges[:, 1]) - torch.index_select(p, 0, self.edges[:, 0])
+    def _edge_lengths(
+        self, p: torch.Tensor, edges: torch.Tensor | None = None
+    ) -> tuple[torch.Tensor, torch.Tensor]:
+        """The lengths (E, N) and vectors (E, 3, N) of ``edges`` (all by default) of points (V, 3, N),
+        a coordinate plane at a time (onnxruntime sums over a middle axis and broadcasts over one
+        several times slower)."""
+        edges = self.edges if edges is None else edges
+        d = torch.index_select(p, 0, edges[:, 1]) - torch.index_select(p, 0, edges[:, 0])
+        x, y, z = d[:, 0], d[:, 1], d[:, 2]
+        return torch.sqrt(x * x + y * y + z * z), d
 
     def limit(self, pushed: torch.Tensor, unpushed: torch.Tensor) -> torch.Tensor:
         """Undo what of the push tears the cloth, on the characters with an edge over its limit.
-        Vertex-major, (V, N, 3): gathers and scatter-adds of whole rows (along the characters' axis
-        each exported with transposes that cost more than the arithmetic)."""
-        pushed, unpushed = pushed.transpose(0, 1), unpushed.transpose(0, 1)
-        before = torch.sqrt((self._edge_vectors(unpushed) ** 2).sum(-1))
+        In (V, 3, N): gathers and scatter-adds of whole vertex rows (along the characters' axis each
+        exported with transposes that cost more than the arithmetic), the products broadcast over
+        the characters, not over a last axis of 3 (see :meth:`_round`)."""
+        pushed, unpushed = pushed.permute(1, 2, 0), unpushed.permute(1, 2, 0)
+        before = self._edge_lengths(unpushed)[0]
         limit = torch.maximum(self.allowed[:, None], before + self.slack[:, None])  # (E, N)
-        length = torch.sqrt((self._edge_vectors(pushed) ** 2).sum(-1))
-        torn = (length > limit * (1.0 + 1e-6)).any(0)
+        length = self._edge_lengths(pushed)[0]
+        # the passes on the torn characters alone (each stops on its own: the others would pass
+        # through every pass unchanged, and carried through them they cost most of the loop)
+        torn = torch.nonzero((length > limit * (1.0 + 1e-6)).any(0))[:, 0]
         passes = torch.zeros((), dtype=torch.int64, device=pushed.device)
         state = (
             passes,
-            pushed.contiguous(),
-            limit,
-            torn,
+            torch.index_select(pushed, 2, torn).contiguous(),
+            torch.index_select(limit, 1, torn),
+            torch.ones_like(torn, dtype=torch.bool),
         )  # as a pass's scatter-adds leave it (an ONNX Loop's carried layout)
         if torch.compiler.is_compiling():  # exporting: an ONNX Loop
             _, p, _, _ = while_loop(self._limiting, self._pass, state)
@@ -212,7 +277,7 @@ class PushOutStage(nn.Module):
             while bool(self._limiting(*state)):
                 state = self._pass(*state)
             p = state[1]
-        return p.transpose(0, 1)
+        return pushed.index_copy(2, torn, p).permute(2, 0, 1)
 
     def _limiting(
         self, passes: torch.Tensor, p: torch.Tensor, limit: torch.Tensor, active: torch.Tensor
@@ -226,13 +291,12 @@ class PushOutStage(nn.Module):
         weight = active.to(p.dtype)
         for c in range(self.colours):
             group = getattr(self, f"colour_{c}")
-            first, second = self.edges[group, 0], self.edges[group, 1]
-            d = torch.index_select(p, 0, second) - torch.index_select(p, 0, first)  # (e, N, 3)
-            length = torch.sqrt((d * d).sum(-1))
+            length, d = self._edge_lengths(p, getattr(self, f"colour_edges_{c}"))  # (e, N), (e, 3, N)
             excess = torch.clamp(length - limit[group], min=0.0) * weight
             worst = torch.maximum(worst, excess.max(0).values)
-            corr = (0.5 * OVER_RELAXATION * excess / torch.clamp(length, min=1e-12))[..., None] * d
-            p = p.index_add(0, first, corr).index_add(0, second, -corr)
+            f = 0.5 * OVER_RELAXATION * excess / torch.clamp(length, min=1e-12)
+            corr = torch.stack([f * d[:, 0], f * d[:, 1], f * d[:, 2]], 1)  # planes: see _edge_lengths
+            p = p.index_add(0, getattr(self, f"colour_ends_{c}"), torch.cat([corr, -corr]))
         return (
             passes + 1,
             p,
@@ -264,7 +328,8 @@ class PushOutStage(nn.Module):
         if self.subspace is not None:
             if heading is None:
                 raise ValueError("the subspace push needs each frame's heading (the body frame's yaw)")
-            p = self.subspace(p, a, b, heading, lambda q, a, b: self.distance(q, a, b, radii))
+            reach = self.subspace.reach  # its normals read within the margin and its clearance
+            p = self.subspace(p, a, b, heading, lambda q, a, b: self.distance(q, a, b, radii, reach))
             vertices = (
                 p + centre
             )  # the limit's reference: the frame as the mesh push gets it, as the kernel's
@@ -333,20 +398,3 @@ def _kept(p, a, b, radii, centre, vertices, pushed, out):
 def _as_is(p: torch.Tensor, d: torch.Tensor, n: torch.Tensor, *moves: torch.Tensor):
     """The branch of a push step with nothing to move (a conditional's outputs may not alias its inputs)."""
     return p.clone(), d.clone(), n.clone()
-
-
-def capsule_distance(
-    p: torch.Tensor, a: torch.Tensor, b: torch.Tensor, radii: torch.Tensor
-) -> tuple[torch.Tensor, torch.Tensor]:
-    """:meth:`PushOutStage.distance` to the capsules a-b (N, C, 3) of ``radii`` (N, 1, C)."""
-    ab = b - a  # (N, C, 3)
-    ab_ab = (ab * ab).sum(-1)[:, None]  # (N, 1, C)
-    rel_ab = p @ ab.transpose(1, 2) - (a * ab).sum(-1)[:, None]  # (p - a) . ab: (N, V, C)
-    rel_rel = (p * p).sum(-1, keepdim=True) - 2.0 * (p @ a.transpose(1, 2)) + (a * a).sum(-1)[:, None]
-    s = torch.clamp(rel_ab / torch.clamp(ab_ab, min=1e-12), 0.0, 1.0)
-    axis2 = rel_rel - s * (2.0 * rel_ab - s * ab_ab)  # |p - a - s ab|^2
-    d, nearest = (torch.sqrt(torch.clamp(axis2, min=0.0)) - radii).min(-1)
-    pick = torch.nn.functional.one_hot(nearest, a.shape[1]).to(p.dtype)  # (N, V, C)
-    s_near = (pick * s).sum(-1, keepdim=True)
-    diff = p - pick @ a - s_near * (pick @ ab)
-    return d, diff / torch.clamp(torch.sqrt((diff * diff).sum(-1, keepdim=True)), min=1e-12)

@@ -165,7 +165,7 @@ def _torch_stage_case():
 
     from hrr_garment.body.capsules import DEFAULT_BODY
     from hrr_garment.inference.subspace_push import SubspacePush
-    from hrr_garment.inference.torch_push_out import PushOutStage
+    from hrr_garment.inference.torch_capsules import capsule_distance_within
     from hrr_garment.inference.torch_subspace_push import SubspacePushStage
     from hrr_garment.motion.frame import body_heading
 
@@ -180,9 +180,7 @@ def _torch_stage_case():
     assert np.abs(theirs - squeezed).max() > 0.01  # the reference moved the cloth
     yaw, _ = body_heading(motion)
     centre = motion.joint_positions[:, :1]
-    distance = PushOutStage.distance.__get__(
-        type("Radii", (), {"radii": torch.tensor(DEFAULT_BODY.radii, dtype=torch.float32), "skin": None})()
-    )
+    radii = torch.tensor(DEFAULT_BODY.radii, dtype=torch.float32)
 
     class Stage(torch.nn.Module):  # the stage with its distance, as the exported step holds it
         def __init__(self):
@@ -190,7 +188,10 @@ def _torch_stage_case():
             self.stage = SubspacePushStage(push, margin=0.002)
 
         def forward(self, p, a, b, cos, sin):
-            return self.stage(p, a, b, (cos, sin), distance)
+            reach = self.stage.reach  # the normals where the subspace push reads them
+            return self.stage(
+                p, a, b, (cos, sin), lambda q, a, b: capsule_distance_within(q, a, b, radii, reach)
+            )
 
     f32 = lambda x: torch.from_numpy(np.asarray(x, np.float32))  # noqa: E731
     inputs = (f32(squeezed - centre), f32(a - centre), f32(b - centre), f32(np.cos(yaw)), f32(np.sin(yaw)))
