@@ -164,62 +164,16 @@ class StreamStep(nn.Module):
 
 
 class TorchDecoder(nn.Module):
-    """The mesh decoder's blocks (gathers and batched matmuls over the folded kernels of an
+    """The mesh decoder's PyTorch blocks (gathers and batched matmuls, the folded kernels of a
     :class:`~hrr_garment.models.inference_decoder.InferenceDecoder`) as a module to export: the
-    inference decoder itself calls the native kernels, which a graph cannot hold.
-
-    Its tensors are (vertices, channels, characters), not the training blocks' (vertices,
-    characters, channels): a vertex's gathered neighbours (V, S, C, B) are then already the rows of
-    its kernel's product, (V, D, S*C) @ (V, S*C, B), where the other layout transposes every block's
-    gathered neighbours first, which cost a third of a 32-character graph's decoding in onnxruntime.
-    The same sums in another order: equal to the blocks to float32 rounding."""
+    inference decoder itself calls the native kernels, which a graph cannot hold."""
 
     def __init__(self, inference_decoder):
         super().__init__()
-        self.blocks = []  # per block: (index, kernel^T, bias, pool weights, projection, a, b, activation)
-        for k, (block, kernel, weights) in enumerate(
-            zip(inference_decoder.blocks, inference_decoder.kernels, inference_decoder.weights)
-        ):
-            conv, residual = block.conv, block.residual
-            constant(self, f"index_{k}", conv.index, dtype=torch.int64)
-            constant(self, f"kernel_{k}", kernel.transpose(1, 2))  # (V, D, S*C)
-            constant(self, f"bias_{k}", conv.bias.detach()[:, None])  # (D, 1): over the characters
-            pool = residual.neighbours
-            if pool:
-                constant(self, f"pool_index_{k}", residual.index, dtype=torch.int64)
-                constant(self, f"pool_{k}", weights[:, None])  # (V, 1, S)
-            project = residual.project
-            if project is not None:
-                constant(self, f"project_{k}", project.weight.detach())  # (D, C)
-            self.blocks.append(
-                (pool, block.shared_gather, project is not None, block.a, block.b, block.activation)
-            )
-        constant(self, "template", inference_decoder.template.detach())
-        self.scale = float(inference_decoder.scale)
+        self.inference_decoder = inference_decoder
 
     def forward(self, latents: torch.Tensor) -> torch.Tensor:
-        """(B, N, c) latents -> (B, V, 3) heading-frame vertices."""
-        x = latents.permute(1, 2, 0)  # (N, c, B)
-        for k, (pool, shared, project, a, b, activation) in enumerate(self.blocks):
-            index = getattr(self, f"index_{k}")
-            gathered = torch.index_select(x, 0, index.reshape(-1))  # (V * S, C, B)
-            v, s = index.shape
-            rows = gathered.reshape(v, s * x.shape[1], x.shape[2])  # (V, S*C, B)
-            y = torch.matmul(getattr(self, f"kernel_{k}"), rows) + getattr(self, f"bias_{k}")
-            if activation:
-                y = torch.nn.functional.elu(y)
-            r = x
-            if pool:
-                if not shared:
-                    pool_index = getattr(self, f"pool_index_{k}")
-                    gathered = torch.index_select(x, 0, pool_index.reshape(-1))
-                    v, s = pool_index.shape
-                r = torch.matmul(getattr(self, f"pool_{k}"), gathered.reshape(v, s, -1))  # (V, 1, C*B)
-                r = r.reshape(v, x.shape[1], x.shape[2])
-            if project:
-                r = torch.matmul(getattr(self, f"project_{k}"), r)  # (D, C) @ (V, C, B)
-            x = a * y + b * r
-        return x.permute(2, 0, 1) * self.scale + self.template
+        return self.inference_decoder._torch_forward(latents)
 
 
 class AutoencoderDecoder(nn.Module):
