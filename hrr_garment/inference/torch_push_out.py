@@ -27,9 +27,9 @@ from torch._higher_order_ops.while_loop import while_loop
 
 from .collision import PROJECTIONS, RELEASE_PASSES, PushOutSettings
 from .limb_release import RELEASED_RADIUS, limb_capsules
-from .strain_limit import LIMIT_TOLERANCE_M, OVER_RELAXATION
 from .torch_capsules import capsule_depths, capsule_distance_within, per_point, point_capsule_distance
 from .torch_ops import constant
+from .torch_strain_limit import StrainLimitStage
 from .torch_subspace_push import SubspacePushStage
 
 
@@ -61,7 +61,7 @@ class PushOutStage(nn.Module):
         constant(self, "cap_a", a)
         constant(self, "cap_b", b)
         constant(self, "radii", radii)
-        self.settings, self.strain_passes = settings, int(strain_passes)
+        self.settings = settings
         self.subspace = (
             None if settings.subspace is None else SubspacePushStage(settings.subspace, settings.margin)
         )
@@ -77,18 +77,8 @@ class PushOutStage(nn.Module):
         constant(
             self, "ring_drop", np.minimum(settings.follow_slope * limits.ring_length, 1e6)[..., None]
         )  # (V, D, 1)
-        constant(self, "edges", limits.edges, dtype=torch.int64)
         constant(self, "limbs", limb_capsules(), dtype=torch.int64)  # the capsules that may let go
-        constant(self, "allowed", settings.max_strain * limits.rest_length)
-        constant(self, "slack", settings.stretch_slack * limits.rest_length)
-        # a pass projects the edges a colour at a time (no two of a colour share a vertex): each
-        # colour's edge indices
-        self.colours = len(limits.colour_groups)
-        for c, group in enumerate(limits.colour_groups):
-            constant(self, f"colour_{c}", group, dtype=torch.int64)
-            constant(self, f"colour_edges_{c}", limits.edges[group], dtype=torch.int64)
-            # both ends in one list: one scatter-add moves them (no two edges of a colour share one)
-            constant(self, f"colour_ends_{c}", limits.edges[group].T.reshape(-1), dtype=torch.int64)
+        self.strain = StrainLimitStage(limits, settings.max_strain, settings.stretch_slack, strain_passes)
 
     @classmethod
     def of_visible(cls, visible, smoothing, *, limits, settings: PushOutSettings) -> "PushOutStage":
@@ -244,69 +234,6 @@ class PushOutStage(nn.Module):
             better[..., None], normals[source, characters], normals
         )
 
-    def _edge_lengths(
-        self, p: torch.Tensor, edges: torch.Tensor | None = None
-    ) -> tuple[torch.Tensor, torch.Tensor]:
-        """The lengths (E, N) and vectors (E, 3, N) of ``edges`` (all by default) of points (V, 3, N),
-        a coordinate plane at a time (onnxruntime sums over a middle axis and broadcasts over one
-        several times slower)."""
-        edges = self.edges if edges is None else edges
-        d = torch.index_select(p, 0, edges[:, 1]) - torch.index_select(p, 0, edges[:, 0])
-        x, y, z = d[:, 0], d[:, 1], d[:, 2]
-        return torch.sqrt(x * x + y * y + z * z), d
-
-    def limit(self, pushed: torch.Tensor, unpushed: torch.Tensor) -> torch.Tensor:
-        """Undo what of the push tears the cloth, on the characters with an edge over its limit.
-        In (V, 3, N): gathers and scatter-adds of whole vertex rows (along the characters' axis each
-        exported with transposes that cost more than the arithmetic), the products broadcast over
-        the characters, not over a last axis of 3 (see :meth:`_round`)."""
-        pushed, unpushed = pushed.permute(1, 2, 0), unpushed.permute(1, 2, 0)
-        before = self._edge_lengths(unpushed)[0]
-        limit = torch.maximum(self.allowed[:, None], before + self.slack[:, None])  # (E, N)
-        length = self._edge_lengths(pushed)[0]
-        # the passes on the torn characters alone (each stops on its own: the others would pass
-        # through every pass unchanged, and carried through them they cost most of the loop)
-        torn = torch.nonzero((length > limit * (1.0 + 1e-6)).any(0))[:, 0]
-        passes = torch.zeros((), dtype=torch.int64, device=pushed.device)
-        state = (
-            passes,
-            torch.index_select(pushed, 2, torn).contiguous(),
-            torch.index_select(limit, 1, torn),
-            torch.ones_like(torn, dtype=torch.bool),
-        )  # as a pass's scatter-adds leave it (an ONNX Loop's carried layout)
-        if torch.compiler.is_compiling():  # exporting: an ONNX Loop
-            _, p, _, _ = while_loop(self._limiting, self._pass, state)
-        else:  # running (a GPU crowd): the same passes in Python, without a compile per batch shape
-            while bool(self._limiting(*state)):
-                state = self._pass(*state)
-            p = state[1]
-        return pushed.index_copy(2, torn, p).permute(2, 0, 1)
-
-    def _limiting(
-        self, passes: torch.Tensor, p: torch.Tensor, limit: torch.Tensor, active: torch.Tensor
-    ) -> torch.Tensor:
-        return (passes < self.strain_passes) & active.any()
-
-    def _pass(self, passes: torch.Tensor, p: torch.Tensor, limit: torch.Tensor, active: torch.Tensor):
-        """One Gauss-Seidel pass of edge-length projection, a colour of edges after another, on the
-        characters still over a limit (:func:`~hrr_garment.inference.strain_limit.limit_push_strain`)."""
-        worst = torch.zeros_like(active, dtype=p.dtype)
-        weight = active.to(p.dtype)
-        for c in range(self.colours):
-            group = getattr(self, f"colour_{c}")
-            length, d = self._edge_lengths(p, getattr(self, f"colour_edges_{c}"))  # (e, N), (e, 3, N)
-            excess = torch.clamp(length - limit[group], min=0.0) * weight
-            worst = torch.maximum(worst, excess.max(0).values)
-            f = 0.5 * OVER_RELAXATION * excess / torch.clamp(length, min=1e-12)
-            corr = torch.stack([f * d[:, 0], f * d[:, 1], f * d[:, 2]], 1)  # planes: see _edge_lengths
-            p = p.index_add(0, getattr(self, f"colour_ends_{c}"), torch.cat([corr, -corr]))
-        return (
-            passes + 1,
-            p,
-            limit.clone(),
-            active & (worst > LIMIT_TOLERANCE_M),
-        )  # a character stops on its own
-
     def forward(
         self,
         vertices: torch.Tensor,
@@ -326,7 +253,7 @@ class PushOutStage(nn.Module):
                 ca, cb = self._capsule_ends(rotations, positions, centre)
                 hull = self.hulls(self.skin.pose(a, trans), ca, cb, self.radii)
                 radii = torch.cat([ca, cb, hull[..., None]], -1)  # (N, C, 7)
-            return self.limit(self.push(p, a, trans, radii) + centre, vertices)
+            return self.strain(self.push(p, a, trans, radii) + centre, vertices)
         a, b = self._capsule_ends(rotations, positions, centre)
         if self.subspace is not None:
             if heading is None:
@@ -337,7 +264,7 @@ class PushOutStage(nn.Module):
                 p + centre
             )  # the limit's reference: the frame as the mesh push gets it, as the kernel's
         pushed = self.push(p, a, b, radii)
-        out = self.limit(pushed + centre, vertices)
+        out = self.strain(pushed + centre, vertices)
         if not self.settings.release_limbs or self.subspace is not None:
             return out
         for _ in range(RELEASE_PASSES):  # collision.push_out's: a torn character pushed again without
@@ -372,7 +299,7 @@ class PushOutStage(nn.Module):
     def _released(self, p, a, b, radii, centre, vertices, pushed, out):
         """The characters that let go of a limb pushed again (the others as they were)."""
         again = self.push(p, a, b, radii)
-        limited = self.limit(again + centre, vertices)
+        limited = self.strain(again + centre, vertices)
         moved = (radii < self.radii).any(-1)  # (N, 1): a character that let go of a limb
         return torch.where(moved[..., None], again, pushed), torch.where(moved[..., None], limited, out)
 

@@ -115,3 +115,58 @@ def test_the_torch_push_out_follows_and_limits_as_the_library_does(animator):
     )
     assert np.abs(theirs - plain).max() > 1e-3  # the follow moved the cloth ...
     assert np.abs(ours - theirs).max() < 2e-5  # ... and the torch stage moved it the same
+
+
+@pytest.mark.parametrize("reach", [0, 3])
+def test_the_torch_strain_limit_near_the_tears_limits_as_over_every_edge(animator, monkeypatch, reach):
+    """The torch stage's strain limit measures the edges within a few rings of a tear; where a
+    correction moves a vertex beyond them (every tear, with no ring), it passes over every edge
+    again: either way the cloth is limited as the library limits it."""
+    import dataclasses
+
+    import torch
+
+    from hrr_garment.inference import torch_strain_limit
+    from hrr_garment.inference.collision import PUSH_OUT, push_out
+    from hrr_garment.inference.torch_push_out import PushOutStage
+    from hrr_garment.motion.frame import world_vertices
+
+    monkeypatch.setattr(torch_strain_limit, "LIMIT_REACH", reach)
+    again = []
+    passes = torch_strain_limit.StrainLimitStage._passes
+    monkeypatch.setattr(
+        torch_strain_limit.StrainLimitStage,
+        "_passes",
+        lambda self, p, limit, lists, start=0: (
+            again.append(not isinstance(start, int) and int(start) == 0)
+            or passes(self, p, limit, lists, start)
+        ),
+    )
+    poses = synthesize("spin", 0.5, seed=3).slice(5, 8)
+    rest = np.broadcast_to(animator.bundle.template.vertices, (3, *animator.bundle.template.vertices.shape))
+    garment = world_vertices(rest.astype(np.float32), poses)
+    garment[:, ::7] = (0.3 * garment[:, ::7] + 0.7 * poses.joint_positions[:, :1]).astype(np.float32)
+    body = animator.body().body
+    pushed = {}
+    for name, settings in (("limited", PUSH_OUT), ("free", dataclasses.replace(PUSH_OUT, max_strain=1e6))):
+        pushed[name], _ = push_out(
+            garment,
+            poses,
+            animator.bundle.template.faces,
+            body=body,
+            settings=settings,
+            mean=animator.smoothing,
+            limits=animator.edge_limits,
+            report=False,
+        )
+    stage = PushOutStage(
+        (*body.ends, body.radii), animator.smoothing, limits=animator.edge_limits, settings=PUSH_OUT
+    )
+    ours = stage(
+        torch.from_numpy(garment),
+        torch.from_numpy(poses.global_rotations).float(),
+        torch.from_numpy(poses.joint_positions).float(),
+    ).numpy()
+    assert np.abs(pushed["limited"] - pushed["free"]).max() > 1e-3  # the limit acted ...
+    assert np.abs(ours - pushed["limited"]).max() < 2e-5  # ... and the torch stage limited alike
+    assert any(again) == (reach == 0)  # the passes over every edge ran where a correction strayed

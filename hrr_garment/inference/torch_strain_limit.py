@@ -1,0 +1,132 @@
+"""The push-out's strain limit (:func:`~hrr_garment.inference.strain_limit.limit_push_strain`) as a
+PyTorch module that ONNX can hold, the last part of :class:`~.torch_push_out.PushOutStage`:
+Gauss-Seidel passes of edge-length projection, a colour of edges after another, on the characters
+with an edge over its limit, each character stopping on its own (an ONNX ``Loop`` while any is
+still over).
+
+The passes measure the edges near a tear alone: those with an end within :data:`LIMIT_REACH` rings
+of an end of an edge over its limit in any torn character. Every other edge keeps its length as
+long as none of its ends moves, and was within its limit to begin with, so the passes do what
+passes over every edge do wherever no vertex beyond those rings moved; where one did (a correction
+carried that far), the passes run again over every edge. A single character's
+passes otherwise read and scatter every edge of the mesh, at onnxruntime's cost per row.
+
+Tensors are (V, 3, N): gathers and scatter-adds of whole vertex rows, the products broadcast over
+the characters and the lengths summed a coordinate plane at a time (onnxruntime broadcasts over a
+last axis of 3 and sums over a middle one several times slower)."""
+
+from __future__ import annotations
+
+import torch
+from torch import nn
+from torch._higher_order_ops.while_loop import while_loop
+
+from .strain_limit import LIMIT_TOLERANCE_M, OVER_RELAXATION
+from .torch_ops import constant
+
+# Rings about a tear's ends whose edges the passes measure: on the real-quick jersey model through
+# CMU 02_01 (32 characters, 60 frames), the vertices the passes moved lay at most 1 ring from those
+# ends on 6 frames, 2 on 38, 3 on 14 and 4 on 2 (there every edge is measured again).
+LIMIT_REACH = 3
+
+
+class StrainLimitStage(nn.Module):
+    """Pushed points (N, V, 3) with what of the push tears the cloth undone, against the points
+    before the push."""
+
+    def __init__(self, limits, max_strain: float, stretch_slack: float, passes: int = 60):
+        super().__init__()
+        self.passes = int(passes)
+        constant(self, "edges", limits.edges, dtype=torch.int64)
+        constant(self, "first", limits.edges[:, 0], dtype=torch.int64)
+        constant(self, "second", limits.edges[:, 1], dtype=torch.int64)
+        constant(self, "ring", limits.ring, dtype=torch.int64)  # each vertex's 1-ring, padded with itself
+        constant(self, "allowed", max_strain * limits.rest_length)
+        constant(self, "slack", stretch_slack * limits.rest_length)
+        # a pass projects the edges a colour at a time (no two of a colour share a vertex)
+        self.colours = len(limits.colour_groups)
+        for c, group in enumerate(limits.colour_groups):
+            constant(self, f"colour_{c}", group, dtype=torch.int64)
+
+    def forward(self, pushed: torch.Tensor, unpushed: torch.Tensor) -> torch.Tensor:
+        pushed, unpushed = pushed.permute(1, 2, 0), unpushed.permute(1, 2, 0)
+        before = self._lengths(unpushed, self.first, self.second)[0]
+        limit = torch.maximum(self.allowed[:, None], before + self.slack[:, None])  # (E, N)
+        over = self._lengths(pushed, self.first, self.second)[0] > limit * (1.0 + 1e-6)
+        # the passes on the torn characters alone (each stops on its own: the others would pass
+        # through every pass unchanged)
+        torn = torch.nonzero(over.any(0))[:, 0]
+        start = torch.index_select(pushed, 2, torn).contiguous()
+        limit = torch.index_select(limit, 1, torn)
+        near = self._near(over.any(1))
+        limited = self._passes(start, limit, self._colour_lists(near))
+        # a vertex beyond the rings moved: its other edges were not measured; all of them, again
+        # (a second loop that runs no pass where none did: a conditional would lose the torn
+        # characters' count, which the export cannot then match to the limits')
+        strayed = ((limited != start).any(1).any(1) & ~near).any()
+        again = torch.where(strayed, start, limited)
+        skipped = torch.where(strayed, 0, self.passes)
+        limited = self._passes(again, limit, self._colour_lists(None), skipped)
+        return pushed.index_copy(2, torn, limited).permute(2, 0, 1)
+
+    def _near(self, over: torch.Tensor) -> torch.Tensor:
+        """(V,) the vertices within :data:`LIMIT_REACH` rings of an end of an edge ``over`` (E,)."""
+        ends = torch.index_select(self.edges, 0, torch.nonzero(over)[:, 0]).reshape(-1)
+        near = torch.zeros(self.ring.shape[0], device=over.device).index_fill(0, ends, 1.0) > 0
+        for _ in range(LIMIT_REACH):
+            near = near | near[self.ring].any(1)
+        return near
+
+    def _colour_lists(self, near: torch.Tensor | None) -> list[tuple[torch.Tensor, ...]]:
+        """Each colour's edges with an end ``near`` (all where None): their indices, first and second
+        ends, and both ends in one list (one scatter-add moves them)."""
+        lists = []
+        for c in range(self.colours):
+            group = getattr(self, f"colour_{c}")
+            if near is not None:
+                ends = torch.index_select(self.edges, 0, group)
+                group = torch.index_select(group, 0, torch.nonzero(near[ends].any(1))[:, 0])
+            # gathered each on its own: a loop's captured tensors may not be views of one another
+            first, second = (torch.index_select(x, 0, group) for x in (self.first, self.second))
+            lists.append((group, first, second, torch.cat([first, second])))
+        return lists
+
+    def _passes(self, p: torch.Tensor, limit: torch.Tensor, lists, start=0) -> torch.Tensor:
+        """The passes over the colours' ``lists`` on points (V, 3, K) from ``p``, each character until
+        no edge is more than :data:`LIMIT_TOLERANCE_M` over its ``limit`` (E, K), at most
+        ``self.passes`` counting from ``start`` (a scalar tensor or an int)."""
+        state = (
+            torch.zeros((), dtype=torch.int64, device=p.device) + start,
+            p,
+            torch.ones(p.shape[2], dtype=torch.bool, device=p.device),
+        )
+
+        def limiting(passes, p, active):
+            return (passes < self.passes) & active.any()
+
+        def one_pass(passes, p, active):
+            worst = torch.zeros_like(active, dtype=p.dtype)
+            weight = active.to(p.dtype)
+            for group, first, second, ends in lists:
+                length, d = self._lengths(p, first, second)  # (e, K), (e, 3, K)
+                excess = torch.clamp(length - limit[group], min=0.0) * weight
+                # over the colour's edges and a zero (a list near the tears may be empty)
+                worst = torch.maximum(worst, torch.cat([excess, torch.zeros_like(worst)[None]]).amax(0))
+                f = 0.5 * OVER_RELAXATION * excess / torch.clamp(length, min=1e-12)
+                corr = torch.stack([f * d[:, 0], f * d[:, 1], f * d[:, 2]], 1)
+                p = p.index_add(0, ends, torch.cat([corr, -corr]))
+            return passes + 1, p, active & (worst > LIMIT_TOLERANCE_M)  # a character stops on its own
+
+        if torch.compiler.is_compiling():  # exporting: an ONNX Loop
+            return while_loop(limiting, one_pass, state)[1]
+        while bool(limiting(*state)):  # running (a GPU crowd): no compile per batch shape
+            state = one_pass(*state)
+        return state[1]
+
+    @staticmethod
+    def _lengths(p: torch.Tensor, first: torch.Tensor, second: torch.Tensor) -> tuple[torch.Tensor, ...]:
+        """The lengths (E, N) and vectors (E, 3, N) of the edges ``first`` -> ``second`` (E,) of points
+        (V, 3, N)."""
+        d = torch.index_select(p, 0, second) - torch.index_select(p, 0, first)
+        x, y, z = d[:, 0], d[:, 1], d[:, 2]
+        return torch.sqrt(x * x + y * y + z * z), d
