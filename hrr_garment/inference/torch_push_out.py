@@ -78,7 +78,9 @@ class PushOutStage(nn.Module):
             self, "ring_drop", np.minimum(settings.follow_slope * limits.ring_length, 1e6)[..., None]
         )  # (V, D, 1)
         constant(self, "limbs", limb_capsules(), dtype=torch.int64)  # the capsules that may let go
-        self.strain = StrainLimitStage(limits, settings.max_strain, settings.stretch_slack, strain_passes)
+        self.strain = StrainLimitStage(
+            limits, max_strain=settings.max_strain, stretch_slack=settings.stretch_slack, passes=strain_passes
+        )
 
     @classmethod
     def of_visible(cls, visible, smoothing, *, limits, settings: PushOutSettings) -> "PushOutStage":
@@ -118,11 +120,12 @@ class PushOutStage(nn.Module):
             # beyond the margin of every hull the hulls' distance, as the package's push-out takes it
             # (``radii``: the hulls' ends and radii, (N, C, 7))
             # (their normals never read: no push moves a point farther than the margin)
-            hd = capsule_depths(p, radii[..., :3], radii[..., 3:6], radii[..., 6][:, None])
+            hd = capsule_depths(p, radii[..., :3], radii[..., 3:6], radii=radii[..., 6][:, None])
             far = hd > self.settings.margin
             return torch.where(far, hd, d), torch.where(far[..., None], torch.zeros_like(n), n)
         within = self.settings.margin if within is None else within
-        return capsule_distance_within(p, a, b, self.radii if radii is None else radii, within)
+        radii = self.radii if radii is None else radii
+        return capsule_distance_within(p, a, b, radii=radii, within=within)
 
     def smooth(self, disp: torch.Tensor) -> torch.Tensor:
         """One pass of the mean over each vertex's neighbours, vertex-major (V, ...) (see :meth:`limit`)."""
@@ -155,7 +158,7 @@ class PushOutStage(nn.Module):
         def project(k, q, dq, nq):
             inside = dq < 0
             q = q + torch.where(inside, self.settings.margin - dq, torch.zeros_like(dq))[:, None] * nq
-            dk, nk = self._point_distance(q, *own)
+            dk, nk = self._point_distance(q, own)
             return k + 1, q, torch.where(inside, dk, dq), torch.where(inside[:, None], nk, nq)
 
         if torch.compiler.is_compiling():
@@ -201,7 +204,7 @@ class PushOutStage(nn.Module):
         count, size = p.shape[:2]
         character = torch.div(rows, size, rounding_mode="floor")
         point = torch.index_select(p.reshape(-1, 3), 0, rows)  # (K, 3)
-        dk, nk = self._point_distance(point, *self._per_point(character, a, b, radii))
+        dk, nk = self._point_distance(point, self._per_point(character, a, b, radii))
         d = d.reshape(-1).index_copy(0, rows, dk).reshape(count, size)
         n = n.reshape(-1, 3).index_copy(0, rows, nk).reshape(count, size, 3)
         return p, d, n
@@ -209,14 +212,14 @@ class PushOutStage(nn.Module):
     def _per_point(self, character, a, b, radii) -> tuple:
         """The body's operands of each point's ``character`` (K,), as :meth:`_point_distance` takes them."""
         if self.skin is None:
-            return per_point(character, a, b, radii[:, 0])
+            return per_point(character, a, b, radii=radii[:, 0])
         return tuple(torch.index_select(x, 0, character) for x in (a, b, radii))
 
-    def _point_distance(self, points, *own) -> tuple[torch.Tensor, torch.Tensor]:
+    def _point_distance(self, points, own: tuple) -> tuple[torch.Tensor, torch.Tensor]:
         """(K,) distances and (K, 3) normals of points (K, 3), each of its own character (``own``:
         :meth:`_per_point`)."""
         if self.skin is None:
-            return point_capsule_distance(points, *own)
+            return point_capsule_distance(points, own)
         d, n = self.distance(points[:, None], *own)
         return d[:, 0], n[:, 0]
 

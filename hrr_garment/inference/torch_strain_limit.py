@@ -34,7 +34,7 @@ class StrainLimitStage(nn.Module):
     """Pushed points (N, V, 3) with what of the push tears the cloth undone, against the points
     before the push."""
 
-    def __init__(self, limits, max_strain: float, stretch_slack: float, passes: int = 60):
+    def __init__(self, limits, *, max_strain: float, stretch_slack: float, passes: int = 60):
         super().__init__()
         self.passes = int(passes)
         constant(self, "edges", limits.edges, dtype=torch.int64)

@@ -189,9 +189,11 @@ def _torch_stage_case():
 
         def forward(self, p, a, b, cos, sin):
             reach = self.stage.reach  # the normals where the subspace push reads them
-            return self.stage(
-                p, a, b, (cos, sin), lambda q, a, b: capsule_distance_within(q, a, b, radii, reach)
-            )
+
+            def distance(q, a, b):
+                return capsule_distance_within(q, a, b, radii=radii, within=reach)
+
+            return self.stage(p, a, b, (cos, sin), distance)
 
     f32 = lambda x: torch.from_numpy(np.asarray(x, np.float32))  # noqa: E731
     inputs = (f32(squeezed - centre), f32(a - centre), f32(b - centre), f32(np.cos(yaw)), f32(np.sin(yaw)))

@@ -42,7 +42,8 @@ def test_the_crowd_distances_are_the_capsules_and_their_normals_only_where_read(
     arrays, tensors = _crowd(rng, getattr(torch, dtype_name))
     d_ref, n_ref = _reference(*arrays)
     within = 0.02
-    d, n = (x.numpy() for x in capsule_distance_within(*tensors, within))
+    points, a, b, radii = tensors
+    d, n = (x.numpy() for x in capsule_distance_within(points, a, b, radii=radii, within=within))
     near = d_ref < within
     assert 0.2 < near.mean() < 0.9 and (d_ref < 0).any()  # both sides of the cut, and points inside
     assert np.abs(d - d_ref).max() < tolerance  # the folded products' cancellation stays in float32's reach
@@ -60,7 +61,7 @@ def test_scattered_points_each_against_their_own_characters_capsules(rng):
     rows = torch.from_numpy(rng.choice(points.shape[0] * points.shape[1], 300, replace=False))
     character = torch.div(rows, points.shape[1], rounding_mode="floor")
     d, n = point_capsule_distance(
-        torch.index_select(points.reshape(-1, 3), 0, rows), *per_point(character, a, b, radii[:, 0])
+        torch.index_select(points.reshape(-1, 3), 0, rows), per_point(character, a, b, radii=radii[:, 0])
     )
     assert np.abs(d.numpy() - d_ref.reshape(-1)[rows]).max() < 1e-12
     assert np.abs(n.numpy() - n_ref.reshape(-1, 3)[rows]).max() < 1e-9
