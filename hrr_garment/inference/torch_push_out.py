@@ -111,7 +111,8 @@ class PushOutStage(nn.Module):
         (N, V, 3), measured where the distance is under ``within`` (the push's margin by default:
         where a push reads them) and zero elsewhere (:func:`capsule_distance_within`); ``p``, ``a``,
         ``b`` relative to the pelvis keep them to metres. On the visible mesh, ``a`` and ``b`` are
-        the joints' moves (:meth:`forward`) and the distance and normal the skin's, everywhere.
+        the joints' moves (:meth:`forward`) and the distance and normal the skin's within the
+        margin of its hulls (beyond it the hulls' distance and a zero normal).
         ``radii``: (N, 1, C) each character's (a limb let go of: very negative; None: the body's)."""
         if self.skin is not None:
             d, n = self.skin.query_moves(p, a, b)
@@ -128,7 +129,7 @@ class PushOutStage(nn.Module):
         return capsule_distance_within(p, a, b, radii=radii, within=within)
 
     def smooth(self, disp: torch.Tensor) -> torch.Tensor:
-        """One pass of the mean over each vertex's neighbours, vertex-major (V, ...) (see :meth:`limit`)."""
+        """One pass of the mean over each vertex's neighbours, vertex-major (V, ...)."""
         terms = torch.index_select(disp, 0, self.smooth_cols) * self.smooth_weights[..., None]
         return torch.zeros_like(disp).index_add(0, self.smooth_rows, terms)
 
@@ -137,10 +138,11 @@ class PushOutStage(nn.Module):
         for _ in range(self.settings.rounds):
             p, d, n = _when((d < self.settings.margin).any(), self._round, (p, d, n, a, b, radii))
         # exact projections, again where a push landed in another capsule, while a vertex is inside,
-        # on the points inside after the rounds alone (a projection moves only points inside, and a
-        # point it brings out stays out): exported as an ONNX Loop, so that its measure is traced
-        # once (a character's skin graph traced once a projection made the export 2.5 minutes), run
-        # as the same steps in Python
+        # on the points inside after the rounds alone (a projection moves only points inside, so a
+        # point outside then never moves, nor comes inside): exported as an ONNX Loop, so that its
+        # measure is traced once (a character's skin graph traced once a projection made the export
+        # 2.5 minutes), run as the same steps in Python. On the skin each point poses its
+        # character's mesh: the few points inside only.
         rows = torch.nonzero((d < 0).reshape(-1))[:, 0]
         character = torch.div(rows, p.shape[1], rounding_mode="floor")
         own = self._per_point(character, a, b, radii)
@@ -192,9 +194,13 @@ class PushOutStage(nn.Module):
                 hit, torch.clamp(need - (disp * normals).sum(1), min=0.0), torch.zeros_like(need)
             )
             disp = disp + short[:, None] * normals
+        p = p + disp.permute(2, 0, 1)
+        if self.skin is not None:  # the skin's graph poses the whole mesh for each point's character:
+            # the characters measured whole (thousands of moved points each posing it took gigabytes)
+            return (p, *self.distance(p, a, b, radii))
         # measured again only where the round moved the cloth: elsewhere the distance stands
         moved = torch.nonzero((disp != 0).any(1).transpose(0, 1).reshape(-1))[:, 0]
-        return self._measured(p + disp.permute(2, 0, 1), moved, d, n, a, b, radii)
+        return self._measured(p, moved, d, n, a, b, radii)
 
     def _measured(self, p, rows, d, n, a, b, radii):
         """``p`` with its distances ``d`` (N, V) and normals ``n`` (N, V, 3) measured again at the

@@ -37,7 +37,6 @@ class StrainLimitStage(nn.Module):
     def __init__(self, limits, *, max_strain: float, stretch_slack: float, passes: int = 60):
         super().__init__()
         self.passes = int(passes)
-        constant(self, "edges", limits.edges, dtype=torch.int64)
         constant(self, "first", limits.edges[:, 0], dtype=torch.int64)
         constant(self, "second", limits.edges[:, 1], dtype=torch.int64)
         constant(self, "ring", limits.ring, dtype=torch.int64)  # each vertex's 1-ring, padded with itself
@@ -52,13 +51,14 @@ class StrainLimitStage(nn.Module):
         pushed, unpushed = pushed.permute(1, 2, 0), unpushed.permute(1, 2, 0)
         before = self._lengths(unpushed, self.first, self.second)[0]
         limit = torch.maximum(self.allowed[:, None], before + self.slack[:, None])  # (E, N)
-        over = self._lengths(pushed, self.first, self.second)[0] > limit * (1.0 + 1e-6)
-        # the passes on the torn characters alone (each stops on its own: the others would pass
-        # through every pass unchanged)
-        torn = torch.nonzero(over.any(0))[:, 0]
+        length = self._lengths(pushed, self.first, self.second)[0]
+        # the passes on the torn characters alone, an edge more than a millionth over its limit (each
+        # stops on its own: the others would pass through every pass unchanged) ...
+        torn = torch.nonzero((length > limit * (1.0 + 1e-6)).any(0))[:, 0]
         start = torch.index_select(pushed, 2, torn).contiguous()
+        # ... which correct every edge over its limit at all
+        near = self._near((length > limit).any(1))
         limit = torch.index_select(limit, 1, torn)
-        near = self._near(over.any(1))
         limited = self._passes(start, limit, self._colour_lists(near))
         # a vertex beyond the rings moved: its other edges were not measured; all of them, again
         # (a second loop that runs no pass where none did: a conditional would lose the torn
@@ -71,7 +71,8 @@ class StrainLimitStage(nn.Module):
 
     def _near(self, over: torch.Tensor) -> torch.Tensor:
         """(V,) the vertices within :data:`LIMIT_REACH` rings of an end of an edge ``over`` (E,)."""
-        ends = torch.index_select(self.edges, 0, torch.nonzero(over)[:, 0]).reshape(-1)
+        over = torch.nonzero(over)[:, 0]
+        ends = torch.cat([torch.index_select(self.first, 0, over), torch.index_select(self.second, 0, over)])
         near = torch.zeros(self.ring.shape[0], device=over.device).index_fill(0, ends, 1.0) > 0
         for _ in range(LIMIT_REACH):
             near = near | near[self.ring].any(1)
@@ -84,8 +85,8 @@ class StrainLimitStage(nn.Module):
         for c in range(self.colours):
             group = getattr(self, f"colour_{c}")
             if near is not None:
-                ends = torch.index_select(self.edges, 0, group)
-                group = torch.index_select(group, 0, torch.nonzero(near[ends].any(1))[:, 0])
+                ends = near[self.first[group]] | near[self.second[group]]
+                group = torch.index_select(group, 0, torch.nonzero(ends)[:, 0])
             # gathered each on its own: a loop's captured tensors may not be views of one another
             first, second = (torch.index_select(x, 0, group) for x in (self.first, self.second))
             lists.append((group, first, second, torch.cat([first, second])))
