@@ -69,50 +69,59 @@ def test_a_device_crowd_runs_the_regression_or_the_sample_mode_only(animator):
         crowd.push(rotations[:2], roots[:2], ["x", "x"])
 
 
-def test_the_torch_push_out_follows_and_limits_as_the_library_does(animator):
-    """Vertices dragged deep into the body, the push-out with its neighbour-follow and strain limit:
-    the torch stage (a GPU crowd's, the ONNX graph's) equals :func:`push_out` (float32 against float64)."""
-    import dataclasses
-
-    import torch
-
-    from hrr_garment.inference.collision import PUSH_OUT, push_out
-    from hrr_garment.inference.torch_push_out import PushOutStage
+def _dragged_garment(animator, every: int):
+    """Three frames of a spin with every ``every``-th garment vertex dragged deep into the body."""
     from hrr_garment.motion.frame import world_vertices
 
     poses = synthesize("spin", 0.5, seed=3).slice(5, 8)
     rest = np.broadcast_to(animator.bundle.template.vertices, (3, *animator.bundle.template.vertices.shape))
     garment = world_vertices(rest.astype(np.float32), poses)
-    garment[:, ::7] = (0.3 * garment[:, ::7] + 0.7 * poses.joint_positions[:, :1]).astype(np.float32)
-    settings = dataclasses.replace(PUSH_OUT, follow=6)
+    garment[:, ::every] = (0.3 * garment[:, ::every] + 0.7 * poses.joint_positions[:, :1]).astype(np.float32)
+    return garment, poses
+
+
+def _pushed(animator, garment, poses, settings, *, torch_stage: bool = False) -> np.ndarray:
+    """:func:`push_out` of the garment on the animator's body, or the torch stage's push (a GPU
+    crowd's, the ONNX graph's)."""
+    import torch
+
+    from hrr_garment.inference.collision import push_out
+    from hrr_garment.inference.torch_push_out import PushOutStage
+
     body = animator.body().body
+    if not torch_stage:
+        return push_out(
+            garment,
+            poses,
+            animator.bundle.template.faces,
+            body=body,
+            settings=settings,
+            mean=animator.smoothing,
+            limits=animator.edge_limits,
+            report=False,
+        )[0]
     stage = PushOutStage(
         (*body.ends, body.radii), animator.smoothing, limits=animator.edge_limits, settings=settings
     )
-    ours = stage(
+    return stage(
         torch.from_numpy(garment),
         torch.from_numpy(poses.global_rotations).float(),
         torch.from_numpy(poses.joint_positions).float(),
     ).numpy()
-    theirs, _ = push_out(
-        garment,
-        poses,
-        animator.bundle.template.faces,
-        body=body,
-        settings=settings,
-        mean=animator.smoothing,
-        limits=animator.edge_limits,
-        report=False,
-    )
-    plain, _ = push_out(
-        garment,
-        poses,
-        animator.bundle.template.faces,
-        body=body,
-        mean=animator.smoothing,
-        limits=animator.edge_limits,
-        report=False,
-    )
+
+
+def test_the_torch_push_out_follows_and_limits_as_the_library_does(animator):
+    """Vertices dragged deep into the body, the push-out with its neighbour-follow and strain limit:
+    the torch stage (a GPU crowd's, the ONNX graph's) equals :func:`push_out` (float32 against float64)."""
+    import dataclasses
+
+    from hrr_garment.inference.collision import PUSH_OUT
+
+    garment, poses = _dragged_garment(animator, 7)
+    settings = dataclasses.replace(PUSH_OUT, follow=6)
+    ours = _pushed(animator, garment, poses, settings, torch_stage=True)
+    theirs = _pushed(animator, garment, poses, settings)
+    plain = _pushed(animator, garment, poses, PUSH_OUT)
     assert np.abs(theirs - plain).max() > 1e-3  # the follow moved the cloth ...
     assert np.abs(ours - theirs).max() < 2e-5  # ... and the torch stage moved it the same
 
@@ -121,15 +130,12 @@ def test_the_torch_push_out_follows_and_limits_as_the_library_does(animator):
 def test_the_torch_strain_limit_near_the_tears_limits_as_over_every_edge(animator, monkeypatch, reach, every):
     """The torch stage's strain limit measures the edges within a few rings of a tear; where a
     correction moves a vertex beyond them (many tears, no ring about them), it passes over every
-    edge again: either way the cloth is limited as the library limits it."""
+    edge again: either way the cloth is limited as the library limits it. Tears everywhere (every
+    7th vertex dragged into the body) or in places (every 41st)."""
     import dataclasses
 
-    import torch
-
     from hrr_garment.inference import torch_strain_limit
-    from hrr_garment.inference.collision import PUSH_OUT, push_out
-    from hrr_garment.inference.torch_push_out import PushOutStage
-    from hrr_garment.motion.frame import world_vertices
+    from hrr_garment.inference.collision import PUSH_OUT
 
     monkeypatch.setattr(torch_strain_limit, "LIMIT_REACH", reach)
     again, near = [], []  # whether the passes over every edge ran; the vertices near the tears
@@ -144,34 +150,12 @@ def test_the_torch_strain_limit_near_the_tears_limits_as_over_every_edge(animato
         ),
     )
     monkeypatch.setattr(stage_class, "_near", lambda self, over: near.append(near_of(self, over)) or near[-1])
-    poses = synthesize("spin", 0.5, seed=3).slice(5, 8)
-    rest = np.broadcast_to(animator.bundle.template.vertices, (3, *animator.bundle.template.vertices.shape))
-    garment = world_vertices(rest.astype(np.float32), poses)
-    # vertices dragged into the body: tears everywhere (every 7th), or in places (every 41st)
-    garment[:, ::every] = (0.3 * garment[:, ::every] + 0.7 * poses.joint_positions[:, :1]).astype(np.float32)
-    body = animator.body().body
-    pushed = {}
-    for name, settings in (("limited", PUSH_OUT), ("free", dataclasses.replace(PUSH_OUT, max_strain=1e6))):
-        pushed[name], _ = push_out(
-            garment,
-            poses,
-            animator.bundle.template.faces,
-            body=body,
-            settings=settings,
-            mean=animator.smoothing,
-            limits=animator.edge_limits,
-            report=False,
-        )
-    stage = PushOutStage(
-        (*body.ends, body.radii), animator.smoothing, limits=animator.edge_limits, settings=PUSH_OUT
-    )
-    ours = stage(
-        torch.from_numpy(garment),
-        torch.from_numpy(poses.global_rotations).float(),
-        torch.from_numpy(poses.joint_positions).float(),
-    ).numpy()
-    assert np.abs(pushed["limited"] - pushed["free"]).max() > 1e-3  # the limit acted ...
-    assert np.abs(ours - pushed["limited"]).max() < 2e-5  # ... and the torch stage limited alike
+    garment, poses = _dragged_garment(animator, every)
+    limited = _pushed(animator, garment, poses, PUSH_OUT)
+    free = _pushed(animator, garment, poses, dataclasses.replace(PUSH_OUT, max_strain=1e6))
+    ours = _pushed(animator, garment, poses, PUSH_OUT, torch_stage=True)
+    assert np.abs(limited - free).max() > 1e-3  # the limit acted ...
+    assert np.abs(ours - limited).max() < 2e-5  # ... and the torch stage limited alike
     assert any(again) == (reach == 0)  # the passes over every edge ran where a correction strayed
     if reach:
         assert 0 < float(near[0].float().mean()) < 0.6  # near the tears: a part of the cloth
