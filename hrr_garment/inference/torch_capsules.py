@@ -57,14 +57,20 @@ def capsule_distance_within(
     normals (N, V, 3), measured only where the distance is under ``within`` (by
     :func:`point_capsule_distance`) and zero elsewhere."""
     d = capsule_depths(p, a, b, radii=radii)
-    count, size = d.shape
     rows = torch.nonzero((d < within).reshape(-1))[:, 0]
-    character = torch.div(rows, size, rounding_mode="floor")
-    radii = radii.reshape(-1, radii.shape[-1]).expand(count, -1)  # (N, C): each character's, or one set
+    radii = radii.reshape(-1, radii.shape[-1]).expand(p.shape[0], -1)  # (N, C): each character's, or one set
+    _, normals = capsule_distance_at(p, rows, ends=(a, b), radii=radii)
+    return d, torch.zeros_like(p).reshape(-1, 3).index_copy(0, rows, normals).reshape(p.shape)
+
+
+def capsule_distance_at(
+    p: torch.Tensor, rows: torch.Tensor, *, ends: tuple, radii: torch.Tensor
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """(K,) distances and (K, 3) normals of the points (N, V, 3) at the flat (character x vertex)
+    ``rows`` (K,), each against its character's capsules: ``ends`` a, b (N, C, 3), ``radii`` (N, C)."""
+    character = torch.div(rows, p.shape[1], rounding_mode="floor")
     points = torch.index_select(p.reshape(-1, 3), 0, rows)
-    _, normals = point_capsule_distance(points, per_point(character, a, b, radii=radii))
-    n = torch.zeros_like(p).reshape(-1, 3).index_copy(0, rows, normals)
-    return d, n.reshape(count, size, 3)
+    return point_capsule_distance(points, per_point(character, *ends, radii=radii))
 
 
 def per_point(character: torch.Tensor, a: torch.Tensor, b: torch.Tensor, *, radii: torch.Tensor) -> tuple:

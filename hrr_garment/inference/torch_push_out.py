@@ -27,7 +27,13 @@ from torch._higher_order_ops.while_loop import while_loop
 
 from .collision import PROJECTIONS, RELEASE_PASSES, PushOutSettings
 from .limb_release import RELEASED_RADIUS, limb_capsules
-from .torch_capsules import capsule_depths, capsule_distance_within, per_point, point_capsule_distance
+from .torch_capsules import (
+    capsule_depths,
+    capsule_distance_at,
+    capsule_distance_within,
+    per_point,
+    point_capsule_distance,
+)
 from .torch_ops import constant
 from .torch_strain_limit import StrainLimitStage
 from .torch_subspace_push import SubspacePushStage
@@ -203,17 +209,14 @@ class PushOutStage(nn.Module):
         return self._measured(p, moved, d, n, a, b, radii)
 
     def _measured(self, p, rows, d, n, a, b, radii):
-        """``p`` with its distances ``d`` (N, V) and normals ``n`` (N, V, 3) measured again at the
-        flat (character x vertex) ``rows`` alone: a push moves a few vertices of a frame, and
-        measuring every vertex of every character again after it cost most of a crowd's push-out in
-        onnxruntime. The same distances (each point's depends on it and its own character alone)."""
-        count, size = p.shape[:2]
-        character = torch.div(rows, size, rounding_mode="floor")
-        point = torch.index_select(p.reshape(-1, 3), 0, rows)  # (K, 3)
-        dk, nk = self._point_distance(point, self._per_point(character, a, b, radii))
-        d = d.reshape(-1).index_copy(0, rows, dk).reshape(count, size)
-        n = n.reshape(-1, 3).index_copy(0, rows, nk).reshape(count, size, 3)
-        return p, d, n
+        """``p`` with its distances ``d`` (N, V) to the capsules and normals ``n`` (N, V, 3) measured
+        again at the flat (character x vertex) ``rows`` alone: a push moves a few vertices of a
+        frame, and measuring every vertex of every character again after it cost most of a crowd's
+        push-out in onnxruntime. The same distances (each point's depends on it and its own
+        character alone)."""
+        dk, nk = capsule_distance_at(p, rows, ends=(a, b), radii=radii[:, 0])
+        d = d.reshape(-1).index_copy(0, rows, dk).reshape(d.shape)
+        return p, d, n.reshape(-1, 3).index_copy(0, rows, nk).reshape(n.shape)
 
     def _per_point(self, character, a, b, radii) -> tuple:
         """The body's operands of each point's ``character`` (K,), as :meth:`_point_distance` takes them."""

@@ -17,6 +17,7 @@ last axis of 3 and sums over a middle one several times slower)."""
 
 from __future__ import annotations
 
+import numpy as np
 import torch
 from torch import nn
 from torch._higher_order_ops.while_loop import while_loop
@@ -42,10 +43,15 @@ class StrainLimitStage(nn.Module):
         constant(self, "ring", limits.ring, dtype=torch.int64)  # each vertex's 1-ring, padded with itself
         constant(self, "allowed", max_strain * limits.rest_length)
         constant(self, "slack", stretch_slack * limits.rest_length)
-        # a pass projects the edges a colour at a time (no two of a colour share a vertex)
+        # a pass projects the edges a colour at a time (no two of a colour share a vertex): each
+        # colour's edges, their first and second ends, and both ends in one list (one scatter-add
+        # moves them)
         self.colours = len(limits.colour_groups)
         for c, group in enumerate(limits.colour_groups):
-            constant(self, f"colour_{c}", group, dtype=torch.int64)
+            first, second = limits.edges[group, 0], limits.edges[group, 1]
+            for name, value in (("", group), ("_first", first), ("_second", second)):
+                constant(self, f"colour{name}_{c}", value, dtype=torch.int64)
+            constant(self, f"colour_ends_{c}", np.concatenate([first, second]), dtype=torch.int64)
 
     def forward(self, pushed: torch.Tensor, unpushed: torch.Tensor) -> torch.Tensor:
         pushed, unpushed = pushed.permute(1, 2, 0), unpushed.permute(1, 2, 0)
@@ -80,15 +86,16 @@ class StrainLimitStage(nn.Module):
 
     def _colour_lists(self, near: torch.Tensor | None) -> list[tuple[torch.Tensor, ...]]:
         """Each colour's edges with an end ``near`` (all where None): their indices, first and second
-        ends, and both ends in one list (one scatter-add moves them)."""
+        ends, and both ends in one list."""
         lists = []
         for c in range(self.colours):
-            group = getattr(self, f"colour_{c}")
-            if near is not None:
-                ends = near[self.first[group]] | near[self.second[group]]
-                group = torch.index_select(group, 0, torch.nonzero(ends)[:, 0])
+            group, first, second = (getattr(self, f"colour{name}_{c}") for name in ("", "_first", "_second"))
+            if near is None:
+                lists.append((group, first, second, getattr(self, f"colour_ends_{c}")))
+                continue
+            kept = torch.nonzero(near[first] | near[second])[:, 0]
             # gathered each on its own: a loop's captured tensors may not be views of one another
-            first, second = (torch.index_select(x, 0, group) for x in (self.first, self.second))
+            group, first, second = (torch.index_select(x, 0, kept) for x in (group, first, second))
             lists.append((group, first, second, torch.cat([first, second])))
         return lists
 
