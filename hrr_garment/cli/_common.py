@@ -31,7 +31,8 @@ def add_fps_option(p: argparse.ArgumentParser) -> None:
 
 
 def add_cloth_options(p: argparse.ArgumentParser, fabrics: Sequence[str]) -> None:
-    """``--material`` and ``--air-drag``: the cloth a simulation runs in (hrr-simulate, hrr-make)."""
+    """``--material``, ``--air-drag`` and ``--cloth-viscosity``: the cloth a simulation runs in
+    (hrr-simulate, hrr-make)."""
     p.add_argument(
         "--material",
         default=None,
@@ -48,6 +49,14 @@ def add_cloth_options(p: argparse.ArgumentParser, fabrics: Sequence[str]) -> Non
         metavar="CD",
         help="the air's drag on the cloth, as a drag coefficient (about 1.2 for a sheet; 0: none); "
         "default: the preset's, else none",
+    )
+    p.add_argument(
+        "--cloth-viscosity",
+        type=float,
+        default=None,
+        metavar="NU",
+        help="the cloth's internal friction, a viscosity in m^2/s that lets the cloth come to rest "
+        "(0.02: a dress settles after a stop; 0: none); default: the preset's, else none",
     )
 
 

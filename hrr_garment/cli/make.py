@@ -121,6 +121,11 @@ def _main(argv: Sequence[str] | None) -> int:
         raise InputError(
             "--air-drag", f"a drag coefficient is between 0 and 10 (a sheet: about 1.2), got {args.air_drag}"
         )
+    if args.cloth_viscosity is not None and not 0.0 <= args.cloth_viscosity <= 1.0:
+        raise InputError(
+            "--cloth-viscosity",
+            f"a viscosity is between 0 and 1 m^2/s (0.02: a dress settles), got {args.cloth_viscosity}",
+        )
     request = MakeRequest(
         character=args.character,
         garment=args.garment,
@@ -139,6 +144,7 @@ def _main(argv: Sequence[str] | None) -> int:
         skip=tuple(args.skip),
         material=args.material,
         air_drag=args.air_drag,
+        cloth_viscosity=args.cloth_viscosity,
     )
     try:
         MakeRun(request).run()

@@ -54,10 +54,11 @@ REPORT_FRAMES = 450  # held-out frames (15 s of motion, before mirroring) the re
 PROBE_SEQUENCES = 2  # random training sequences per worker the probe simulates (kept: taken first)
 
 
-def with_cloth(preset, material: str | None, air_drag: float | None):
-    """``preset`` with its simulation in the cloth ``material`` and the air's ``air_drag`` where given
-    (hrr-make --material, --air-drag): the model then knows that cloth."""
-    changes = {k: v for k, v in (("material", material), ("air_drag", air_drag)) if v is not None}
+def with_cloth(preset, request: MakeRequest):
+    """``preset`` with its simulation in the request's cloth, air drag and cloth viscosity where given
+    (hrr-make --material, --air-drag, --cloth-viscosity): the model then knows that cloth."""
+    given = (("material", request.material), ("air_drag", request.air_drag))
+    changes = {k: v for k, v in (*given, ("cloth_viscosity", request.cloth_viscosity)) if v is not None}
     return replace(preset, sim={**preset.sim, **changes}) if changes else preset
 
 
@@ -69,7 +70,7 @@ class MakeRun:
         self.out = request.out
         self.record = MakeRecord.open(self.out)
         self.record.request = request.to_dict()
-        self.preset = with_cloth(load_preset(request.library), request.material, request.air_drag)
+        self.preset = with_cloth(load_preset(request.library), request)
         self.progress = MakeProgress(self.record, shown=request.progress)
         self.keys: dict[str, str] = {}
 

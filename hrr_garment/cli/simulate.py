@@ -118,6 +118,7 @@ def _sim_overrides(args, preset) -> dict:
             ("iterations", args.iterations),
             ("device", args.device),
             ("air_drag", args.air_drag),
+            ("cloth_viscosity", args.cloth_viscosity),
         )
         if v is not None
     }
@@ -205,9 +206,12 @@ def _main(argv: Sequence[str] | None) -> int:
     print_build_report(report, garment)
     if cloths.materials:
         print(f"  cloths: {len(cloths.materials)} ({', '.join(cloths.materials)}), each sequence in its own")
-    elif config.material is not None or config.air_drag:
+    elif config.material is not None or config.air_drag or config.cloth_viscosity:
         cloth = config.material.describe() if config.material is not None else "the project's cloth"
-        print(f"  cloth: {cloth}; air drag: drag coefficient {config.air_drag:g}")
+        print(
+            f"  cloth: {cloth}; air drag: drag coefficient {config.air_drag:g}; "
+            f"cloth viscosity {config.cloth_viscosity:g} m^2/s"
+        )
     return 0
 
 

@@ -65,9 +65,10 @@ class MakeRequest:
     seed: int = 0
     skip: tuple[str, ...] = ()  # outputs not to make: any of OUTPUT_STAGES
     # the cloth the library is simulated in (a fabric, values, a material file; None: the preset's)
-    # and the air's drag coefficient (None: the preset's)
+    # the air's drag coefficient and the cloth's viscosity, m^2/s (None: the preset's)
     material: str | None = None
     air_drag: float | None = None
+    cloth_viscosity: float | None = None
 
     def to_dict(self) -> dict:
         return {k: str(v) if isinstance(v, Path) else v for k, v in self.__dict__.items()}

@@ -37,12 +37,17 @@ class SimSettings:
     # 0: none, as every dataset before materials was simulated (a light fabric's float and a heavy
     # one's swing come from it: the same drag slows a sheet a third as heavy three times as fast)
     air_drag: float = 0.0
+    # the cloth's internal friction, a kinematic viscosity (m^2/s): the cloth's motion against itself
+    # dies (sim/cloth_viscosity.py); 0: none, as every dataset before it was simulated, whose dress
+    # never comes to rest on a standing body (the solver at few substeps gains energy)
+    cloth_viscosity: float = 0.0
     # the cloth in physical units (a fabric's name, values, a Material: garment/material.py); it
     # replaces density, tri_* and edge_* above (sim/cloth_parameters.py maps it); None: those values
     material: Material | None = None
 
     def __post_init__(self) -> None:
         require_number("simulator settings", "air_drag", self.air_drag, low=0.0, high=10.0)
+        require_number("simulator settings", "cloth_viscosity", self.cloth_viscosity, low=0.0, high=1.0)
         if self.material is not None and not isinstance(self.material, Material):
             object.__setattr__(self, "material", material_from(self.material, "simulator settings: material"))
 
@@ -51,10 +56,10 @@ class SimSettings:
         return from_settings(cls, values, "simulator")
 
     def to_dict(self) -> dict:
-        """The settings as plain values; no ``material`` or ``air_drag`` key without them (the keys
-        of datasets simulated before materials existed stay as they were)."""
+        """The settings as plain values; no ``material``, ``air_drag`` or ``cloth_viscosity`` key
+        without them (the keys of datasets simulated before they existed stay as they were)."""
         out = asdict(self)
-        for key in ("material", "air_drag"):
+        for key in ("material", "air_drag", "cloth_viscosity"):
             if not out[key]:
                 del out[key]
         return out

@@ -78,3 +78,29 @@ def air_drag(
 def zero_vectors(values: wp.array(dtype=wp.vec3)):
     """Every vector zero (inside a captured graph, where a memset is not recorded on every device)."""
     values[wp.tid()] = wp.vec3(0.0, 0.0, 0.0)
+
+
+@wp.kernel
+def relax_velocities(
+    velocities: wp.array(dtype=wp.vec3),
+    offsets: wp.array(dtype=wp.int32),
+    neighbours: wp.array(dtype=wp.int32),
+    rates: wp.array(dtype=float),
+    relaxed: wp.array(dtype=wp.vec3),
+):
+    """One explicit step of the cloth's internal friction: each vertex's velocity moves toward its
+    neighbours' by ``rates`` (the step's share per neighbour, 0 for a pinned vertex's row), read
+    from ``velocities`` and written to ``relaxed`` (every vertex reads the same old velocities)."""
+    i = wp.tid()
+    v = velocities[i]
+    change = wp.vec3(0.0, 0.0, 0.0)
+    for k in range(offsets[i], offsets[i + 1]):
+        change += rates[k] * (velocities[neighbours[k]] - v)
+    relaxed[i] = v + change
+
+
+@wp.kernel
+def copy_vectors(source: wp.array(dtype=wp.vec3), target: wp.array(dtype=wp.vec3)):
+    """``target[i] = source[i]`` (inside a captured graph)."""
+    i = wp.tid()
+    target[i] = source[i]

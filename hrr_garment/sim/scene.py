@@ -13,6 +13,7 @@ from ..garment.mesh import GarmentMesh
 from .air_drag import AirDrag
 from .capsule_poses import arms_off_capsules, nlerp
 from .cloth_parameters import cloth_parameters, hinge_stiffness
+from .cloth_viscosity import ClothViscosity
 from .config import SimSettings
 
 # how far a skinned piece's skin may stray from its bone's rigid motion (its box, set at rest, is
@@ -137,6 +138,11 @@ class SteppedScene:
             if config.air_drag > 0
             else None
         )
+        self.viscosity = (
+            ClothViscosity(self.wp, self.model, viscosity=config.cloth_viscosity, device=self.device)
+            if config.cloth_viscosity > 0
+            else None
+        )
         self.model.soft_contact_ke = config.contact_ke
         self.model.soft_contact_kd = config.contact_kd
         self.model.soft_contact_mu = config.contact_mu
@@ -219,6 +225,8 @@ class SteppedScene:
         self.solver.step(state_in, state_out, self.control, self.contacts, dt)
         if self.air is not None:
             self.air.apply(state_out, dt)
+        if self.viscosity is not None:
+            self.viscosity.apply(state_out, dt)
 
     def _run_substep(self, dt: float) -> None:
         """One substep, replayed from a captured graph: Python launch overhead dominates otherwise."""

@@ -6,6 +6,7 @@ body and the motion library and makes the rest again; bad input is refused namin
 
 import importlib
 import json
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
@@ -207,17 +208,20 @@ def test_bad_requests_are_refused(tmp_path, capsys):
 
 
 def test_a_cloth_asked_for_is_the_librarys_cloth():
-    """hrr-make --material --air-drag: the library is simulated in that cloth, in that air (the
-    simulation's key with it), and the model then knows that cloth."""
+    """hrr-make --material --air-drag --cloth-viscosity: the library is simulated in that cloth, in
+    that air (the simulation's key with it), and the model then knows that cloth."""
     from hrr_garment.cli.make_run import with_cloth
     from hrr_garment.garment.fabrics import FABRICS
+    from hrr_garment.pipeline.make_record import MakeRequest
     from hrr_garment.sim.config import SimSettings
     from hrr_garment.sim.preset import load_preset
 
     preset = load_preset("real-quick-commercial")
-    assert with_cloth(preset, None, None) is preset
-    denim = SimSettings.from_dict(with_cloth(preset, "denim", 1.2).sim)
-    assert denim.material == FABRICS["denim"] and denim.air_drag == 1.2
+    asked = MakeRequest(Path("hero.glb"), "dress.obj", Path("out"))
+    assert with_cloth(preset, asked) is preset
+    asked = replace(asked, material="denim", air_drag=1.2, cloth_viscosity=0.02)
+    denim = SimSettings.from_dict(with_cloth(preset, asked).sim)
+    assert denim.material == FABRICS["denim"] and denim.air_drag == 1.2 and denim.cloth_viscosity == 0.02
     assert denim.substeps == SimSettings.from_dict(preset.sim).substeps  # the rest as the preset's
 
 

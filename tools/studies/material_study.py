@@ -99,8 +99,12 @@ def _after_the_stop(hem: np.ndarray, start: int, fps: float) -> dict:
 
 
 def _solver(args) -> dict:
-    """The simulator settings the study varies (the rest are the project's)."""
-    return {"air_drag": args.air_drag, "iterations": args.iterations}
+    """The simulator settings the study varies (the rest are the project's; the substeps and the
+    cloth's viscosity only where given, so that earlier members keep their files)."""
+    given = {"substeps": args.substeps, "cloth_viscosity": args.cloth_viscosity}
+    return {"air_drag": args.air_drag, "iterations": args.iterations} | {
+        k: v for k, v in given.items() if v is not None
+    }
 
 
 def _fabric_row(args, fabric: str, files: list[Path], motion: Motion, garment) -> dict:
@@ -141,6 +145,10 @@ def main(argv=None) -> int:
     p.add_argument("--still", type=float, default=0.02, help="hem speed (m/s) counted as settled")
     p.add_argument("--air-drag", type=float, default=1.2, help="the air's drag coefficient (0: none)")
     p.add_argument("--iterations", type=int, default=SimSettings.iterations, help="solver iterations")
+    p.add_argument("--substeps", type=int, default=None, help="solver substeps a frame (the project's)")
+    p.add_argument(
+        "--cloth-viscosity", type=float, default=None, help="the cloth's internal friction, m^2/s (none)"
+    )
     p.add_argument("--jobs", type=int, default=2)
     p.add_argument("--work", type=Path, default=Path("hrr_work/studies/materials"))
     p.add_argument(
