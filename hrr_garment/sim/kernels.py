@@ -6,13 +6,14 @@ import warp as wp
 
 
 @wp.kernel
-def scatter_positions(
-    values: wp.array(dtype=wp.vec3), index: wp.array(dtype=wp.int32), positions: wp.array(dtype=wp.vec3)
+def scatter_vectors(
+    values: wp.array(dtype=wp.vec3), index: wp.array(dtype=wp.int32), vectors: wp.array(dtype=wp.vec3)
 ):
-    """``positions[index[i]] = values[i]``: the pinned vertices written on the device, without
-    reading every particle back to the host each substep (megabytes per substep in a GPU batch)."""
+    """``vectors[index[i]] = values[i]``: the pinned vertices' positions or velocities written on the
+    device, without reading every particle back to the host each substep (megabytes per substep in
+    a GPU batch)."""
     i = wp.tid()
-    positions[index[i]] = values[i]
+    vectors[index[i]] = values[i]
 
 
 @wp.kernel
@@ -85,17 +86,17 @@ def relax_velocities(
     velocities: wp.array(dtype=wp.vec3),
     offsets: wp.array(dtype=wp.int32),
     neighbours: wp.array(dtype=wp.int32),
-    rates: wp.array(dtype=float),
+    shares: wp.array(dtype=float),
     relaxed: wp.array(dtype=wp.vec3),
 ):
     """One explicit step of the cloth's internal friction: each vertex's velocity moves toward its
-    neighbours' by ``rates`` (the step's share per neighbour, 0 for a pinned vertex's row), read
+    neighbours' by ``shares`` (the step's share per neighbour, 0 for a pinned vertex's row), read
     from ``velocities`` and written to ``relaxed`` (every vertex reads the same old velocities)."""
     i = wp.tid()
     v = velocities[i]
     change = wp.vec3(0.0, 0.0, 0.0)
     for k in range(offsets[i], offsets[i + 1]):
-        change += rates[k] * (velocities[neighbours[k]] - v)
+        change += shares[k] * (velocities[neighbours[k]] - v)
     relaxed[i] = v + change
 
 

@@ -128,10 +128,10 @@ class SteppedScene:
     ) -> None:
         """Finalize ``builder`` into the model, collision pipeline, solver and two states;
         ``piece_shapes``: the skinned pieces' shapes, in the order :meth:`set_pieces` writes them."""
-        from .kernels import scatter_positions  # warp at import: only with the sim extra
+        from .kernels import scatter_vectors  # warp at import: only with the sim extra
 
         newton = self.newton
-        self.scatter_positions = scatter_positions
+        self.scatter_vectors = scatter_vectors
         self.model = builder.finalize(device=self.device)
         self.air = (
             AirDrag(self.wp, self.model, coefficient=config.air_drag, device=self.device)
@@ -139,7 +139,9 @@ class SteppedScene:
             else None
         )
         self.viscosity = (
-            ClothViscosity(self.wp, self.model, viscosity=config.cloth_viscosity, device=self.device)
+            ClothViscosity(
+                self.wp, self.model, viscosity=config.cloth_viscosity, pinned=attached, device=self.device
+            )
             if config.cloth_viscosity > 0
             else None
         )
@@ -261,6 +263,9 @@ class SteppedScene:
         pieces' vertices from and to (:meth:`set_pieces`). Returns every particle's positions (V, 3)."""
         if pieces is not None:
             self.set_pieces(pieces[0], pieces[1], dt)
+        if len(self.attached) and self.viscosity is not None:
+            # the pins move from pin_from to pin_to at one velocity over the frame
+            self.viscosity.set_pinned_velocity((pin_to - pin_from) / dt)
         for k in range(substeps):
             t0, t1 = k / substeps, (k + 1) / substeps
             state_in, state_out = self.states[self.parity], self.states[1 - self.parity]
@@ -277,7 +282,7 @@ class SteppedScene:
             if len(self.attached):
                 self.pin_values.assign(((1 - t1) * pin_from + t1 * pin_to).astype(np.float32))
                 self.wp.launch(
-                    self.scatter_positions,
+                    self.scatter_vectors,
                     dim=len(self.attached),
                     inputs=[self.pin_values, self.pin_index],
                     outputs=[state_in.particle_q],
