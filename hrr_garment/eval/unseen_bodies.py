@@ -152,14 +152,39 @@ def _check_unseen(animator: Animator, record, where: Path, kind: str) -> None:
     trained_on = Path(animator.bundle.manifest.dataset or "")
     if not trained_on.is_file():
         return
+    training = GarmentDataset(trained_on)
+    if kind == "cloth":
+        _check_same_simulator(GarmentDataset(where), training)
     mine = _vector(kind, record)
-    for name, theirs in sorted(_trained(kind, GarmentDataset(trained_on)).items()):
+    for name, theirs in sorted(_trained(kind, training).items()):
         if np.allclose(theirs, mine, atol=1e-4):
             raise InputError(
                 where,
                 f"was simulated {words.on} {kind} {name!r}, which the model was trained {words.on} "
                 f"({trained_on}): the protocol is for {words.plural} it never saw",
             )
+
+
+# simulator settings a cloth's dataset may hold apart from the model's training data: the cloth itself
+# and where and how often it ran (the rest change the truth the cloth is scored against)
+CLOTH_SETTINGS = ("material", "device", "retries")
+
+
+def _check_same_simulator(unseen: GarmentDataset, training: GarmentDataset) -> None:
+    """Refuse a cloth's dataset simulated otherwise than the model's training data (say, without the
+    cloth's viscosity): the model would be scored against a truth of another solver."""
+    ours, theirs = (
+        {k: v for k, v in ds.info.get("sim", {}).items() if k not in CLOTH_SETTINGS}
+        for ds in (unseen, training)
+    )
+    differ = sorted(k for k in ours.keys() | theirs.keys() if ours.get(k) != theirs.get(k))
+    if differ:
+        values = ", ".join(f"{k} {ours.get(k)} (the model's data: {theirs.get(k)})" for k in differ)
+        raise InputError(
+            unseen.path,
+            f"was simulated with other simulator settings than the model's training data {training.path}: "
+            f"{values}; simulate it as that data was, in its own cloth",
+        )
 
 
 def scores_row(result) -> dict:

@@ -184,7 +184,9 @@ def test_hrr_animate_takes_a_cloth_and_refuses_one_outside_the_range(materials_m
     assert not out.exists()  # nothing written
 
 
-def test_the_unseen_materials_protocol_sets_the_model_beside_a_specialist(materials_model, trained, tmp_path):
+def test_the_unseen_materials_protocol_sets_the_model_beside_a_specialist(
+    materials_model, trained, tmp_path, capsys
+):
     """hrr-eval --unseen-material: a cloth between jersey and twill, which the model never trained
     in, beside a model of one cloth as the reference; the training cloths and a cloth outside the
     range are refused."""
@@ -211,6 +213,14 @@ def test_the_unseen_materials_protocol_sets_the_model_beside_a_specialist(materi
     assert "## Unseen cloths" in (tmp_path / "r" / "report.md").read_text()
     assert main([*common, "--unseen-material", str(data), "-o", str(tmp_path / "again")]) != 0  # trained in
     assert main([*common, "--unseen-material", str(heavy), "-o", str(tmp_path / "heavy")]) != 0  # outside
+    # the cloth's data simulated otherwise than the model's (here with the cloth's viscosity): its
+    # truth is another solver's, and the comparison is refused naming the setting
+    import h5py
+
+    with h5py.File(unseen, "r+") as f:
+        f.attrs["info"] = json.dumps({**json.loads(f.attrs["info"]), "sim": {"cloth_viscosity": 0.02}})
+    assert main([*common, "--unseen-material", str(unseen), "-o", str(tmp_path / "viscous")]) != 0
+    assert "cloth_viscosity 0.02 (the model's data: None)" in capsys.readouterr().err
 
 
 def test_the_onnx_step_takes_each_characters_cloth_as_an_input(materials_model, tmp_path):
