@@ -204,14 +204,15 @@ def _main(argv: Sequence[str] | None) -> int:
     )
     report = build_dataset(garment, cloths.specs, config, out=out, options=build)
     print_build_report(report, garment)
+    air = f"air drag: drag coefficient {config.air_drag:g}; cloth viscosity {config.cloth_viscosity:g} m^2/s"
     if cloths.materials:
-        print(f"  cloths: {len(cloths.materials)} ({', '.join(cloths.materials)}), each sequence in its own")
+        print(
+            f"  cloths: {len(cloths.materials)} ({', '.join(cloths.materials)}), "
+            f"each sequence in its own; {air}"
+        )
     elif config.material is not None or config.air_drag or config.cloth_viscosity:
         cloth = config.material.describe() if config.material is not None else "the project's cloth"
-        print(
-            f"  cloth: {cloth}; air drag: drag coefficient {config.air_drag:g}; "
-            f"cloth viscosity {config.cloth_viscosity:g} m^2/s"
-        )
+        print(f"  cloth: {cloth}; {air}")
     return 0
 
 
