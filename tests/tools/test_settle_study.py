@@ -60,3 +60,20 @@ def test_stopping_holds_the_last_frame():
         stopped.local_rotations[30:], np.repeat(motion.local_rotations[29:30], 15, 0)
     )
     np.testing.assert_array_equal(stopped.root_translation[-1], motion.root_translation[29])
+
+
+def test_still_time_of_an_exponential_decay_and_of_a_creep():
+    """The hem's speed (50 mm decaying with a 0.5 s time constant: 0.1 exp(-t / 0.5) m/s) falls
+    under 2 cm/s at 0.5 ln 5 = 0.80 s; a creep at 1 cm/s is still from the start, though it comes
+    within 10 mm of where it ends only a second before then."""
+    tool = _tool()
+    hem = _decaying_hem(8.0, 0.05, 0.5)
+    assert tool.still_time(hem, FPS, 1 / FPS, 0.02) == pytest.approx(0.5 * math.log(5.0), abs=1.5 / FPS)
+    creep = _decaying_hem(8.0, 0.0, 1.0)
+    creep[:, :, 0] += 0.01 * np.arange(len(creep))[:, None] / FPS
+    assert tool.still_time(creep, FPS, 0.5, 0.02) == 0.0
+    # while its distance from where it ends (its mean over the last second, at 7.5 s) stays over
+    # 10 mm until 6.5 s
+    away = tool.away_from_rest(creep, FPS, 0.5)
+    assert tool.settle_time(away, FPS, 0.010) == pytest.approx(6.5, abs=1.5 / FPS)
+    assert tool.still_time(creep, FPS, 0.5, 0.005) is None

@@ -86,6 +86,23 @@ def settle_time(away: np.ndarray, fps: float, near_m: float) -> float | None:
     return float(above[-1] + 1) / fps
 
 
+def still_time(hem: np.ndarray, fps: float, smooth_s: float, still: float) -> float | None:
+    """Seconds until the hem's mean speed (m/s; ``hem``: (T, H, 3) after the stop, its positions
+    first averaged over ``smooth_s`` as :func:`away_from_rest` does) stays below ``still``; None if
+    it is above it within the last second."""
+    width = max(1, round(smooth_s * fps))
+    padded = np.pad(hem, ((width // 2, width - 1 - width // 2), (0, 0), (0, 0)), mode="edge")
+    total = np.concatenate([np.zeros_like(padded[:1]), np.cumsum(padded, axis=0)])
+    smoothed = (total[width:] - total[:-width]) / width
+    speed = np.linalg.norm(np.diff(smoothed, axis=0), axis=-1).mean(axis=1) * fps
+    moving = np.flatnonzero(speed >= still)
+    if not len(moving):
+        return 0.0
+    if moving[-1] >= len(speed) - round(fps):
+        return None
+    return float(moving[-1] + 1) / fps
+
+
 def hem_after_stop(vertices: np.ndarray, motion: Motion, stop: int, hem: np.ndarray, args) -> dict:
     """Hem swing while moving and the settling after frame ``stop`` of one run (``vertices``: (T, V, 3))."""
     after = vertices[stop : len(vertices) - round(END_S * motion.fps), hem]
@@ -95,6 +112,9 @@ def hem_after_stop(vertices: np.ndarray, motion: Motion, stop: int, hem: np.ndar
     return {
         "hem_swing_cm": 100.0 * hem_swing(vertices[:stop], motion.slice(0, stop), hem),
         "settle_s": settle_time(away, motion.fps, args.near / 1000.0),
+        # when the hem's speed (its positions averaged as for ``away``) stays below --still: the
+        # swing gone, whatever slow creep of its resting place is left
+        "still_s": still_time(after, motion.fps, args.smooth, args.still),
         "away_mm": at,
         "hem_speed_last_s": float(speed[-round(motion.fps) :].mean()),  # m/s, the hold's last second
         # the whole decay, every quarter second (the study's JSON)
@@ -104,9 +124,11 @@ def hem_after_stop(vertices: np.ndarray, motion: Motion, stop: int, hem: np.ndar
 
 def _mean(runs: list[dict]) -> dict:
     settles = [r["settle_s"] for r in runs]
+    stills = [r["still_s"] for r in runs]
     return {
         "hem_swing_cm": float(np.mean([r["hem_swing_cm"] for r in runs])),
         "settle_s": None if None in settles else float(np.mean(settles)),
+        "still_s": None if None in stills else float(np.mean(stills)),
         "settle_s_members": settles,
         "hem_speed_last_s": float(np.mean([r["hem_speed_last_s"] for r in runs])),
         "away_mm": {k: float(np.mean([r["away_mm"][k] for r in runs])) for k in runs[0]["away_mm"]},
@@ -139,6 +161,7 @@ def main(argv=None) -> int:
     p.add_argument("--mode", default="auto")
     p.add_argument("--near", type=float, default=10.0, help="mm from the resting place counted as settled")
     p.add_argument("--smooth", type=float, default=0.5, help="seconds the hem's positions are averaged over")
+    p.add_argument("--still", type=float, default=0.02, help="hem speed (m/s) counted as still")
     p.add_argument("--jobs", type=int, default=2)
     p.add_argument("-o", "--output", type=Path, default=Path("hrr_work/studies/settle/summary.json"))
     args = p.parse_args(argv)
@@ -185,7 +208,7 @@ def main(argv=None) -> int:
     print(
         "| cloth | hem swing cm: truth / model | ratio | settle s: truth (members) / model | ratio | "
         + " | ".join(f"away mm {k}: truth / model" for k in rows[0]["model"]["away_mm"])
-        + " | hem m/s at the end: truth / model |"
+        + " | still (hem under --still m/s) s: truth / model | hem m/s at the end: truth / model |"
     )
     for r in rows:
         t, m = r["truth"], r["model"]
@@ -197,6 +220,7 @@ def main(argv=None) -> int:
             f"{fmt(t['settle_s'])} ({members}) / {fmt(m['settle_s'])} | "
             f"{'' if r['settle_ratio'] is None else format(r['settle_ratio'], '.2f')} | "
             + " | ".join(f"{t['away_mm'][k]:.0f} / {m['away_mm'][k]:.0f}" for k in m["away_mm"])
+            + f" | {fmt(t['still_s'])} / {fmt(m['still_s'])}"
             + f" | {t['hem_speed_last_s']:.2f} / {m['hem_speed_last_s']:.2f} |"
         )
     return 0
