@@ -63,44 +63,46 @@ def stopping(motion: Motion, seconds: float | None, hold: float) -> Motion:
     )
 
 
-def away_from_rest(hem: np.ndarray, fps: float, smooth_s: float) -> np.ndarray:
-    """(T,) the hem's mean distance (m) from where it stands at the end (``hem``: (T, H, 3) after
-    the stop; the resting place: its mean over the last second), its positions first averaged over
-    ``smooth_s`` (centred): a jitter about a place is not a swing."""
+def smoothed(hem: np.ndarray, fps: float, smooth_s: float) -> np.ndarray:
+    """``hem`` (T, H, 3) with each position averaged over ``smooth_s`` (centred, the ends held): a
+    jitter about a place is not a swing."""
     width = max(1, round(smooth_s * fps))
     padded = np.pad(hem, ((width // 2, width - 1 - width // 2), (0, 0), (0, 0)), mode="edge")
     total = np.concatenate([np.zeros_like(padded[:1]), np.cumsum(padded, axis=0)])
-    smoothed = (total[width:] - total[:-width]) / width
+    return (total[width:] - total[:-width]) / width
+
+
+def away_from_rest(hem: np.ndarray, fps: float, smooth_s: float) -> np.ndarray:
+    """(T,) the hem's mean distance (m) from where it stands at the end (``hem``: (T, H, 3) after
+    the stop; the resting place: its mean over the last second), its positions first averaged over
+    ``smooth_s`` (:func:`smoothed`)."""
     rest = hem[-round(fps) :].mean(axis=0)
-    return np.linalg.norm(smoothed - rest, axis=-1).mean(axis=1)
+    return np.linalg.norm(smoothed(hem, fps, smooth_s) - rest, axis=-1).mean(axis=1)
+
+
+def _stays_below(values: np.ndarray, threshold: float, fps: float) -> float | None:
+    """Seconds until ``values`` (one a frame) stay below ``threshold``; None if they are above it
+    within the last second."""
+    above = np.flatnonzero(values >= threshold)
+    if not len(above):
+        return 0.0
+    if above[-1] >= len(values) - round(fps):
+        return None
+    return float(above[-1] + 1) / fps
 
 
 def settle_time(away: np.ndarray, fps: float, near_m: float) -> float | None:
     """Seconds until ``away`` (from :func:`away_from_rest`) stays below ``near_m``; None if it is
     still above it within the hold's last second (the resting place is that second's mean)."""
-    above = np.flatnonzero(away >= near_m)
-    if not len(above):
-        return 0.0
-    if above[-1] >= len(away) - round(fps):
-        return None
-    return float(above[-1] + 1) / fps
+    return _stays_below(away, near_m, fps)
 
 
 def still_time(hem: np.ndarray, fps: float, smooth_s: float, still: float) -> float | None:
     """Seconds until the hem's mean speed (m/s; ``hem``: (T, H, 3) after the stop, its positions
-    first averaged over ``smooth_s`` as :func:`away_from_rest` does) stays below ``still``; None if
-    it is above it within the last second."""
-    width = max(1, round(smooth_s * fps))
-    padded = np.pad(hem, ((width // 2, width - 1 - width // 2), (0, 0), (0, 0)), mode="edge")
-    total = np.concatenate([np.zeros_like(padded[:1]), np.cumsum(padded, axis=0)])
-    smoothed = (total[width:] - total[:-width]) / width
-    speed = np.linalg.norm(np.diff(smoothed, axis=0), axis=-1).mean(axis=1) * fps
-    moving = np.flatnonzero(speed >= still)
-    if not len(moving):
-        return 0.0
-    if moving[-1] >= len(speed) - round(fps):
-        return None
-    return float(moving[-1] + 1) / fps
+    first averaged over ``smooth_s``: :func:`smoothed`) stays below ``still``; None if it is above
+    it within the last second."""
+    speed = np.linalg.norm(np.diff(smoothed(hem, fps, smooth_s), axis=0), axis=-1).mean(axis=1) * fps
+    return _stays_below(speed, still, fps)
 
 
 def hem_after_stop(vertices: np.ndarray, motion: Motion, stop: int, hem: np.ndarray, args) -> dict:
