@@ -57,8 +57,8 @@ PROBE_SEQUENCES = 2  # random training sequences per worker the probe simulates 
 def with_cloth(preset, request: MakeRequest):
     """``preset`` with its simulation in the request's cloth, air drag and cloth viscosity where given
     (hrr-make --material, --air-drag, --cloth-viscosity): the model then knows that cloth."""
-    given = (("material", request.material), ("air_drag", request.air_drag))
-    changes = {k: v for k, v in (*given, ("cloth_viscosity", request.cloth_viscosity)) if v is not None}
+    given = {k: getattr(request, k) for k in ("material", "air_drag", "cloth_viscosity")}
+    changes = {k: v for k, v in given.items() if v is not None}
     return replace(preset, sim={**preset.sim, **changes}) if changes else preset
 
 

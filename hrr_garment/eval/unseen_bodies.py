@@ -138,13 +138,13 @@ def _trained(kind: str, training: GarmentDataset) -> dict[str, np.ndarray]:
     return out
 
 
-def _check_unseen(animator: Animator, record, where: Path, kind: str) -> None:
+def _check_unseen(animator: Animator, record, unseen: GarmentDataset, kind: str) -> None:
     """Refuse a body that one of the model's training sequences stood on, or a cloth one was
     simulated in (its training dataset's training split, where that dataset is still there); and,
     before any work, one outside the model's range (refused as a run would refuse it)."""
     from ..inference.run_material import run_material
 
-    words = KINDS[kind]
+    words, where = KINDS[kind], unseen.path
     if kind == "body":
         animator.body(record.dressed)
     else:
@@ -154,7 +154,7 @@ def _check_unseen(animator: Animator, record, where: Path, kind: str) -> None:
         return
     training = GarmentDataset(trained_on)
     if kind == "cloth":
-        _check_same_simulator(GarmentDataset(where), training)
+        _check_same_simulator(unseen, training)
     mine = _vector(kind, record)
     for name, theirs in sorted(_trained(kind, training).items()):
         if np.allclose(theirs, mine, atol=1e-4):
@@ -213,7 +213,7 @@ def unseen_bodies_section(
     out = {}
     for item in bodies:
         ds, records = _records(item, animator, sequences, kind)
-        _check_unseen(animator, records[0], item.dataset, kind)
+        _check_unseen(animator, records[0], ds, kind)
         ensembles = truth_ensembles_of(
             ds, records, settings.members, jobs=settings.jobs, progress=settings.progress
         )

@@ -67,7 +67,8 @@ def step_shares(offsets: np.ndarray, neighbours: np.ndarray, rates: np.ndarray, 
 class ClothViscosity:
     """The internal friction of one finalized newton model's cloth."""
 
-    def __init__(self, wp, model, *, viscosity: float, pinned: np.ndarray, device: str):
+    def __init__(self, wp, model, *, viscosity: float, pinned, device: str):
+        """``pinned``: the scene's device array (int32) of the pinned vertices' indices."""
         from . import kernels  # warp at import: only with the sim extra
 
         self.wp, self.kernels, self.device = wp, kernels, device
@@ -80,10 +81,10 @@ class ClothViscosity:
         self.neighbours = wp.array(neighbours.astype(np.int32), dtype=wp.int32, device=device)
         self.rates = rates  # 1/s; the substep's shares are made on its first call
         self.shares = None
+        self.dt: float | None = None  # the substep the shares are for
         self.relaxed = wp.zeros(self.count, dtype=wp.vec3, device=device)
-        self.pinned = wp.array(np.asarray(pinned, np.int32), dtype=wp.int32, device=device)
-        self.pinned_velocity = wp.zeros(len(pinned), dtype=wp.vec3, device=device)
-        self.dt: float | None = None
+        self.pinned = pinned
+        self.pinned_velocity = wp.zeros(pinned.shape[0], dtype=wp.vec3, device=device)
 
     def set_pinned_velocity(self, velocity: np.ndarray) -> None:
         """The pinned vertices' velocity (A, 3) over the coming frame (outside the captured graph)."""
@@ -93,7 +94,7 @@ class ClothViscosity:
         """Relax ``state``'s particle velocities over ``dt`` (after the solver's step, which leaves a
         pinned vertex's velocity zero: the pin's is written first)."""
         wp, k = self.wp, self.kernels
-        if self.shares is None:  # the scene replays one substep length (its graphs are captured)
+        if self.dt is None:  # the scene replays one substep length (its graphs are captured)
             shares = step_shares(self.offsets_host, self.neighbours_host, self.rates, dt)
             self.shares = wp.array(shares.astype(np.float32), dtype=float, device=self.device)
             self.dt = dt

@@ -133,6 +133,9 @@ class SteppedScene:
         newton = self.newton
         self.scatter_vectors = scatter_vectors
         self.model = builder.finalize(device=self.device)
+        self.pin_index = self.wp.array(
+            np.asarray(attached, np.int32), dtype=self.wp.int32, device=self.device
+        )
         self.air = (
             AirDrag(self.wp, self.model, coefficient=config.air_drag, device=self.device)
             if config.air_drag > 0
@@ -140,7 +143,11 @@ class SteppedScene:
         )
         self.viscosity = (
             ClothViscosity(
-                self.wp, self.model, viscosity=config.cloth_viscosity, pinned=attached, device=self.device
+                self.wp,
+                self.model,
+                viscosity=config.cloth_viscosity,
+                pinned=self.pin_index,
+                device=self.device,
             )
             if config.cloth_viscosity > 0
             else None
@@ -156,9 +163,6 @@ class SteppedScene:
         self.states = (self.model.state(), self.model.state())
         self.control = self.model.control()
         self.attached = attached
-        self.pin_index = self.wp.array(
-            np.asarray(attached, np.int32), dtype=self.wp.int32, device=self.device
-        )
         self.pin_values = self.wp.empty(len(attached), dtype=self.wp.vec3, device=self.device)
         self.parity = 0  # states[parity] holds the current positions
         self.graphs: list = [None, None]

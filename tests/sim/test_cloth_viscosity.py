@@ -11,6 +11,7 @@ import pytest
 
 from hrr_garment.sim.cloth_viscosity import relaxation_rates, step_shares
 from hrr_garment.sim.config import SimSettings
+from tests.sim.test_cloth_parameters import _still
 
 
 def _lattice(n: int = 9, edge: float = 0.03):
@@ -97,16 +98,6 @@ def simulator():
     from hrr_garment.sim.simulator import simulate_garment
 
     return simulate_garment
-
-
-def _still(frames: int):
-    from hrr_garment.motion.motion import Motion
-    from hrr_garment.motion.skeleton import REST_PELVIS_HEIGHT
-
-    return Motion(
-        np.tile(np.eye(3, dtype=np.float32), (frames, 22, 1, 1)),
-        np.tile([0.0, REST_PELVIS_HEIGHT, 0.0], (frames, 1)),
-    )
 
 
 def _sheet(held: bool, height: float = 1.0):
