@@ -50,6 +50,11 @@ def print_build_report(report, garment: GarmentMesh) -> None:
             f"  played backward: {sp['backward_made']} of {sp['backward_asked']} windows of training "
             f"clips{short}"
         )
+    if sp.get("stops_asked"):
+        print(
+            f"  stop and stand: {sp['stops_made']} of {sp['stops_asked']} windows of training clips, "
+            "each then held still"
+        )
     for name, row in s.get("by_body", {}).items():
         print(
             f"  body {name or 'mannequin'} ({row['stature_m']:.2f} m): {row['sequences']} sequences, "

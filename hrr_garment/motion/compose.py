@@ -97,3 +97,19 @@ def played_backward(motion: Motion) -> Motion:
         skeleton=motion.skeleton,
         check_rotations=False,
     )
+
+
+def held_still(motion: Motion, frames: int) -> Motion:
+    """``motion`` then its last pose held ``frames`` more frames: the body stops dead and stands, as a
+    game's character does when its animation ends or cuts to a still pose."""
+    idx = np.r_[np.arange(motion.num_frames), np.full(frames, motion.num_frames - 1)]
+    return Motion(
+        motion.local_rotations[idx],
+        motion.root_translation[idx],
+        motion.fps,
+        source=f"{motion.source} (then held {frames} frames)",
+        source_skeleton=motion.source_skeleton,
+        source_height_m=motion.source_height_m,
+        skeleton=motion.skeleton,
+        check_rotations=False,
+    )

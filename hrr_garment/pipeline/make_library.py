@@ -60,11 +60,6 @@ class MotionLibrary:
         return [s.name for s in self.specs]
 
 
-def spec_frames(spec: SequenceSpec) -> int:
-    """A source sequence's frames at 30 frames a second, before mirroring."""
-    return spec.stop - spec.start if spec.kind == "file" else round(spec.seconds * 30)
-
-
 def motion_library(preset: Preset, own: list[Path]) -> MotionLibrary:
     """``preset``'s clips and the ``own`` motion files (the character's animations), split."""
     from ..motion.motion import FPS
@@ -91,7 +86,7 @@ def motion_library(preset: Preset, own: list[Path]) -> MotionLibrary:
     part = {name: p for p, members in split.items() for name in members}
     part.update({name: "train" for name in own_names})
     copies = 2 if mirror_mode(preset.mirror) == "simulate" else 1
-    frames = {s.name: spec_frames(s) for s in specs}
+    frames = {s.name: s.frames for s in specs}
     sim = SimSettings.from_dict(preset.sim)
     lead = sum(lead_in_frames(sim.settle_s, sim.blend_s, FPS))
     return MotionLibrary(preset, specs, frames, part, options, own_names, copies, lead)

@@ -15,6 +15,12 @@ training clips, so a re-run plans the same splices and finds them simulated.
 stand-up, contents a library of forward captures lacks. Their poses are the capture's own, so they
 need no check for limbs through the body. They are drawn by a generator of their own, so adding them
 leaves the splices' draw as it was.
+
+``stops`` adds windows of training clips after which the body stops dead and stands
+(:func:`~hrr_garment.motion.compose.held_still`): the cloth's swing dying away and the skirt coming
+to rest, which clips cut from longer captures almost never show, and which a game shows every time
+a character's animation ends in a still pose (issue 85: models trained without them brought the hem
+to rest in a third of the simulated time). They too have a generator of their own.
 """
 
 from __future__ import annotations
@@ -34,7 +40,9 @@ if TYPE_CHECKING:  # the plan builds its options from a preset (sim.plan imports
 
 SPLICE_PREFIX = "splice_"
 BACKWARD_PREFIX = "backward_"
-AUGMENT_PREFIXES = (SPLICE_PREFIX, BACKWARD_PREFIX)  # the sequences a build plans once the split is known
+STOP_PREFIX = "stop_"
+# the sequences a build plans once the split is known
+AUGMENT_PREFIXES = (SPLICE_PREFIX, BACKWARD_PREFIX, STOP_PREFIX)
 DRAWS_PER_SPLICE = 20  # tries before the plan settles for fewer splices than asked
 
 
@@ -47,14 +55,26 @@ class SpliceSettings:
     arm_delay_s: float = 0.0  # one arm up to this late against the other, drawn per splice (0: never)
     field: str = "content"  # the name field whose values must differ between legs and upper body
     backward: int = 0  # windows of training clips (``seconds`` long) played backward to add (0: none)
+    stops: int = 0  # windows of training clips that stop dead, then stand, to add (0: none)
+    stop_motion_s: float = 3.0  # each stop's motion before it stops
+    stop_hold_s: float = 6.0  # and how long the body then stands
     name_pattern: str = DEFAULT_NAME_PATTERN
     seed: int = 0
 
     def __post_init__(self) -> None:
-        if self.count < 0 or self.seconds <= 0 or self.arm_delay_s < 0 or self.backward < 0:
+        if (
+            min(self.count, self.arm_delay_s, self.backward, self.stops) < 0
+            or min(self.seconds, self.stop_motion_s, self.stop_hold_s) <= 0
+        ):
             raise ValueError(
-                f"splices need count >= 0, seconds > 0, arm_delay_s >= 0 and backward >= 0, got {self}"
+                "splices need count, arm_delay_s, backward and stops >= 0, seconds, stop_motion_s and "
+                f"stop_hold_s > 0, got {self}"
             )
+
+    @property
+    def adds(self) -> bool:
+        """Whether a build adds any sequence."""
+        return bool(self.count or self.backward or self.stops)
 
 
 @dataclass
@@ -149,4 +169,19 @@ def plan_backward(candidates: list[SequenceSpec], options: SpliceSettings) -> li
         specs.append(
             replace(clip, name=f"{BACKWARD_PREFIX}{i:03d}", start=start, stop=start + frames, backward=True)
         )
+    return specs
+
+
+def plan_stops(candidates: list[SequenceSpec], options: SpliceSettings) -> list[SequenceSpec]:
+    """``options.stops`` windows of ``candidates`` (:func:`window_candidates` of
+    ``options.stop_motion_s``), each then held still ``options.stop_hold_s``, clip and window drawn
+    at random (seeded)."""
+    frames = int(round(options.stop_motion_s * FPS))
+    hold = int(round(options.stop_hold_s * FPS))
+    rng = np.random.default_rng([options.seed, 2])  # neither the splices' nor the backward windows'
+    specs = []
+    for i in range(options.stops if candidates else 0):
+        clip = candidates[int(rng.integers(len(candidates)))]
+        start = clip.start + int(rng.integers(0, clip.stop - clip.start - frames + 1))
+        specs.append(replace(clip, name=f"{STOP_PREFIX}{i:03d}", start=start, stop=start + frames, hold=hold))
     return specs

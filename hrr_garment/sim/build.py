@@ -25,9 +25,12 @@ from ..io_utils import atomic_write_text, exclusive_lock, strict_json
 from ..motion.licences import OWN, SOURCES, licences_of
 from .augment import (
     BACKWARD_PREFIX,
+    SPLICE_PREFIX,
+    STOP_PREFIX,
     SpliceSettings,
     plan_backward,
     plan_splices,
+    plan_stops,
     splice_candidates,
     window_candidates,
 )
@@ -103,7 +106,8 @@ class BuildSettings:
 
     ``splices`` (:mod:`.augment`) adds that many splices of the training clips (one's legs, another's
     upper body), drawn once the split is known, each checked for limbs through the body, and windows
-    of training clips played backward, all training."""
+    of training clips played backward and windows after which the body stops and stands, all
+    training."""
 
     jobs: int | None = None
     splits: dict[str, float] | None = None
@@ -165,18 +169,19 @@ def build_dataset(
             raise SimulationExploded(f"every sequence failed; nothing to write to {out}: {run.rejects}")
         split = split_finished(done, specs, o)
         splices, made, added = None, [], []
-        if o.splices and (
-            o.splices.count or o.splices.backward
-        ):  # drawn from the training clips once the split is known
+        if o.splices and o.splices.adds:  # drawn from the training clips once the split is known
             if progress:
                 print(
                     f"planning {o.splices.count} splices of the training clips (each checked for limbs "
-                    f"through the body) and {o.splices.backward} windows played backward"
+                    f"through the body), {o.splices.backward} windows played backward and "
+                    f"{o.splices.stops} that stop and stand"
                 )
             training = set(split["train"])
             splices = plan_splices(splice_candidates(specs, training, o.splices), o.splices)
-            added = splices.specs + plan_backward(
-                window_candidates(specs, training, o.splices.seconds), o.splices
+            added = (
+                splices.specs
+                + plan_backward(window_candidates(specs, training, o.splices.seconds), o.splices)
+                + plan_stops(window_candidates(specs, training, o.splices.stop_motion_s), o.splices)
             )
             spliced = _simulate_missing(added, garment, config, parts=parts, bodies=bodies, options=o)
             run = run.merged(spliced)
@@ -198,11 +203,13 @@ def build_dataset(
         if splices is not None:
             summary["splices"] = {
                 "asked": o.splices.count,
-                "made": sum(not n.startswith(BACKWARD_PREFIX) for n in made),
+                "made": sum(n.startswith(SPLICE_PREFIX) for n in made),
                 "drawn": splices.drawn,
                 "refused_self_intersection": splices.refused,
                 "backward_asked": o.splices.backward,
                 "backward_made": sum(n.startswith(BACKWARD_PREFIX) for n in made),
+                "stops_asked": o.splices.stops,
+                "stops_made": sum(n.startswith(STOP_PREFIX) for n in made),
             }
         if mirror == "reflect":
             records, split = add_reflected_mirrors(records, split, garment, progress=progress, bodies=bodies)

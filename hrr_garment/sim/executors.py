@@ -34,7 +34,7 @@ EXECUTORS = ("local", "ray")
 
 def _frames_to_simulate(spec: SequenceSpec, config: SimSettings) -> int:
     lead = sum(lead_in_frames(config.settle_s, config.blend_s, FPS))
-    return (int(round(spec.seconds * FPS)) if spec.kind != "file" else spec.stop - spec.start) + lead
+    return spec.frames + lead
 
 
 @dataclass(frozen=True)

@@ -17,7 +17,7 @@ from pathlib import Path
 from ..errors import HRRError, InputError, MotionError
 from ..garment.material import Material
 from ..motion.bvh_motion import bvh_reading
-from ..motion.compose import arm_delayed, played_backward, spliced
+from ..motion.compose import arm_delayed, held_still, played_backward, spliced
 from ..motion.edit import retimed
 from ..motion.io import load_motion, native_frame_rate
 from ..motion.motion import FPS, Motion
@@ -46,6 +46,7 @@ LATER_FIELDS = {
     "arm_delay": 0,
     "backward": False,
     "material": None,
+    "hold": 0,
 }
 # SequenceSpec fields renamed since: each hashes under its old name, so its sequences keep their keys
 KEYED_AS = {"body_name": "body"}
@@ -73,6 +74,13 @@ class SequenceSpec:
     backward: bool = False  # the frames played in reverse order (sim/augment.py)
     # the cloth it is simulated in (sim/material_plan.py); None: the build's own (SimSettings.material)
     material: Material | None = None
+    hold: int = 0  # frames its last pose is held after the clip: the body stops dead (sim/augment.py)
+
+    @property
+    def frames(self) -> int:
+        """The frames its motion plays at 30 fps (any hold included; the simulator's lead-in not)."""
+        played = self.stop - self.start if self.kind == "file" else int(round(self.seconds * FPS))
+        return played + self.hold
 
     def motion(self) -> Motion:
         if self.kind == "file":
@@ -86,6 +94,8 @@ class SequenceSpec:
             clip = arm_delayed(clip, "l" if self.arm_delay > 0 else "r", abs(self.arm_delay))
         if self.backward:
             clip = played_backward(clip)
+        if self.hold:
+            clip = held_still(clip, self.hold)
         return clip.mirrored() if self.mirrored else clip
 
     def _read_marks(self, path: str) -> list[str]:
@@ -282,7 +292,7 @@ def build_options(preset: Preset, specs: list[SequenceSpec], motions: list[str] 
         info["also_hold_out"] = also
     kinds = {s.name: s.kind for s in specs if s.kind != "file"}  # procedural clips: held out in distribution
     splices = None
-    if preset.splices.get("count") or preset.splices.get("backward"):
+    if any(preset.splices.get(k) for k in ("count", "backward", "stops")):
         splices = SpliceSettings(**preset.splices, name_pattern=preset.name_pattern, seed=preset.seed)
         info.setdefault("augmentation", {"mirror": mirror, "speed_warps": list(preset.speed_warps)})[
             "splices"

@@ -57,7 +57,7 @@ class Preset:
     # which cloths the sequences are simulated in (sim/material_plan.py); none: the sim section's
     materials: dict = field(default_factory=dict)
     # more training motion from the training clips' parts (sim/augment.py): {count, seconds,
-    # arm_delay_s, field}
+    # arm_delay_s, field, backward, stops, stop_motion_s, stop_hold_s}
     splices: dict = field(default_factory=dict)
     # build only from motion whose source allows a sold product (CMU, procedural, the user's own):
     # entries from other sources are left out, and the build says which
@@ -123,6 +123,9 @@ SPLICE_KEYS = {
     "arm_delay_s": (int, float),
     "field": str,
     "backward": int,
+    "stops": int,
+    "stop_motion_s": (int, float),
+    "stop_hold_s": (int, float),
 }
 
 

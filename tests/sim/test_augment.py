@@ -1,5 +1,7 @@
-"""Splices (the legs of one training clip under the upper body of another, checked before simulation)
-and windows of training clips played backward."""
+"""Splices (the legs of one training clip under the upper body of another, checked before simulation),
+windows of training clips played backward and windows after which the body stops and stands."""
+
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -11,9 +13,11 @@ from hrr_garment.motion.rotations import rotation_about_y
 from hrr_garment.motion.skeleton import JOINT_INDEX
 from hrr_garment.motion.synth import synthesize
 from hrr_garment.sim.augment import (
+    AUGMENT_PREFIXES,
     SpliceSettings,
     plan_backward,
     plan_splices,
+    plan_stops,
     splice_candidates,
     window_candidates,
 )
@@ -92,6 +96,40 @@ def test_backward_windows_come_from_training_clips_whatever_their_names(library,
         SpliceSettings(backward=-1)
 
 
+def test_stops_play_a_training_window_then_stand_still(library):
+    """Each stop: a window of a training clip at its own speed, then its last pose held; seeded, keyed
+    apart from the window alone and from another hold, drawn apart from the backward windows."""
+    training = {s.name for s in library if "sad" not in s.name}
+    options = SpliceSettings(seconds=2.0, backward=5, stops=12, stop_motion_s=1.5, stop_hold_s=2.0, seed=3)
+    candidates = window_candidates(library, training, options.stop_motion_s)
+    stops = plan_stops(candidates, options)
+    assert [s.name for s in stops] == [f"stop_{i:03d}" for i in range(12)]
+    assert len({(s.path, s.start) for s in stops}) > 1
+    for spec in stops:
+        assert "sad" not in spec.path and spec.stop - spec.start == 45 and spec.hold == 60
+        assert spec.frames == 105
+        motion = spec.motion()
+        alone = SequenceSpec(spec.name, "file", path=spec.path, start=spec.start, stop=spec.stop)
+        window = alone.motion()
+        assert motion.num_frames == 105
+        np.testing.assert_array_equal(motion.local_rotations[:45], window.local_rotations)
+        np.testing.assert_array_equal(
+            motion.root_translation[45:], np.repeat(window.root_translation[-1:], 60, 0)
+        )
+        assert np.abs(np.diff(motion.joint_positions[44:], axis=0)).max() < 1e-6  # it stands still
+        assert spec.key({}) not in {alone.key({}), replace(alone, hold=30).key({})}
+    assert plan_stops(candidates, options) == stops  # seeded
+    # the backward windows' draw does not depend on how many stops there are
+    assert plan_backward(candidates, options) == plan_backward(
+        candidates, SpliceSettings(seconds=2.0, backward=5, seed=3)
+    )
+    assert plan_stops([], options) == []
+    with pytest.raises(ValueError):
+        SpliceSettings(stops=-1)
+    with pytest.raises(ValueError):
+        SpliceSettings(stops=2, stop_hold_s=0.0)
+
+
 def test_no_splice_without_two_contents(library):
     walks = [s for s in library if "_walk_" in s.name]
     assert plan_splices(walks, SpliceSettings(count=3, seconds=2.0)).specs == []
@@ -120,7 +158,8 @@ def test_a_build_adds_splices_of_training_clips_that_always_train(tmp_path, caps
     preset.write_text(
         "name: spliced\nvertices: 300\nseconds: 1.0\nsequences: {}\nmotions: [clips]\nsplit_by: style\n"
         "splits: {val: 0.2, test: 0.2}\nsim: {substeps: 10, iterations: 3, settle_s: 0.1}\n"
-        "splices: {count: 2, seconds: 1.0, arm_delay_s: 0.1, backward: 1}\n"
+        "splices: {count: 2, seconds: 1.0, arm_delay_s: 0.1, backward: 1, stops: 1, stop_motion_s: 0.5, "
+        "stop_hold_s: 0.5}\n"
     )
     out = tmp_path / "d.h5"
     args = [
@@ -142,7 +181,7 @@ def test_a_build_adds_splices_of_training_clips_that_always_train(tmp_path, caps
     assert "backward_000" in ds.splits["train"] and "backward_000" not in ds.splits["test"] + ds.splits["val"]
     held = {n.split("_")[2] for n in ds.splits["test"] + ds.splits["val"]}  # the held-out styles
     assert held and not held & {
-        n.split("_")[2] for n in ds.splits["train"] if not n.startswith(("splice_", "backward_"))
+        n.split("_")[2] for n in ds.splits["train"] if not n.startswith(AUGMENT_PREFIXES)
     }
     for name in splices:
         record = ds.sequence(name)
@@ -151,7 +190,11 @@ def test_a_build_adds_splices_of_training_clips_that_always_train(tmp_path, caps
     backward = ds.sequence("backward_000").motion
     assert backward.num_frames == 30 and "played backward" in backward.source
     assert not any(style in backward.source for style in held)
-    assert ds.info["summary"]["splices"]["made"] == 2 and ds.info["summary"]["splices"]["backward_made"] == 1
+    stop = ds.sequence("stop_000")
+    assert "stop_000" in ds.splits["train"] and stop.motion.num_frames == 30 and stop.garment.shape[0] == 30
+    assert np.abs(np.diff(stop.motion.root_translation[14:], axis=0)).max() == 0.0  # the body stands
+    made = ds.info["summary"]["splices"]
+    assert made["made"] == 2 and made["backward_made"] == 1 and made["stops_made"] == 1
     capsys.readouterr()
     assert simulate_main(args) == 0  # resumes: the same splices planned again, found simulated
-    assert "12 reused, 0 simulated now" in capsys.readouterr().out
+    assert "13 reused, 0 simulated now" in capsys.readouterr().out

@@ -31,7 +31,6 @@ from __future__ import annotations
 
 import argparse
 import json
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -41,6 +40,7 @@ from hrr_garment.eval.ensemble import truth_ensembles
 from hrr_garment.garment.material import Material, material_from
 from hrr_garment.inference.animator import Animator
 from hrr_garment.io_utils import atomic_write_text
+from hrr_garment.motion.compose import held_still
 from hrr_garment.motion.io import load_motion
 from hrr_garment.motion.motion import Motion
 from hrr_garment.sim.quality import hem_swing
@@ -57,10 +57,7 @@ def stopping(motion: Motion, seconds: float | None, hold: float) -> Motion:
     """The first ``seconds`` of ``motion`` (None: all of it), then its last frame held ``hold``
     seconds: the body stops dead."""
     frames = motion.num_frames if seconds is None else min(motion.num_frames, round(seconds * motion.fps))
-    idx = np.r_[np.arange(frames), np.full(round(hold * motion.fps), frames - 1)]
-    return replace(
-        motion, local_rotations=motion.local_rotations[idx], root_translation=motion.root_translation[idx]
-    )
+    return held_still(motion.slice(0, frames), round(hold * motion.fps))
 
 
 def smoothed(hem: np.ndarray, fps: float, smooth_s: float) -> np.ndarray:
