@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from dataclasses import replace
 from pathlib import Path
 from typing import Sequence
 
@@ -110,7 +111,8 @@ def _parser() -> argparse.ArgumentParser:
 
 def _sim_overrides(args, preset) -> dict:
     """The command line's simulator settings over the preset's: the solver's, the air's and the cloth
-    (refused where the preset gives each sequence its own: its materials section)."""
+    (which, on a preset that gives each sequence its own, takes the place of its materials section:
+    :func:`_main`)."""
     overrides = {
         k: v
         for k, v in (
@@ -123,12 +125,6 @@ def _sim_overrides(args, preset) -> dict:
         if v is not None
     }
     if args.material is not None:
-        if preset.materials:
-            raise InputError(
-                "--material",
-                f"preset {preset.name} gives each sequence its own cloth (its materials section); "
-                "use a preset without one for a single cloth",
-            )
         overrides["material"] = parse_material(args.material, "--material")
     elif preset.materials and preset.sim.get("material") is not None:
         print(f"preset {preset.name}: its materials section gives each sequence its cloth, not sim.material")
@@ -144,6 +140,9 @@ def _main(argv: Sequence[str] | None) -> int:
     from ..sim.simulator import SimSettings
 
     preset = load_preset(args.preset)
+    if args.material is not None and preset.materials:  # the preset's clips and solver in one cloth
+        print(f"preset {preset.name} in one cloth: --material takes the place of its materials section")
+        preset = replace(preset, materials={})
     if args.made_for and args.fit:
         raise InputError(
             "--fit",

@@ -133,8 +133,13 @@ def test_hrr_simulate_gives_each_sequence_its_cloth_and_the_dataset_records_it(t
     )
     out = tmp_path / "cloths.h5"
     argv = ["--garment", "skirt", "--preset", str(preset), "--seconds", "0.5", "--jobs", "1"]
-    assert simulate_main([*argv, "--material", "denim", "--quiet", "-o", str(out)]) == 2  # one cloth or many
-    assert "gives each sequence its own cloth" in capsys.readouterr().err and not out.exists()
+    # --material: the preset's clips and solver in that one cloth (a specialist's data)
+    one = tmp_path / "denim.h5"
+    assert simulate_main([*argv, "--material", "denim", "--no-preview", "--quiet", "-o", str(one)]) == 0
+    assert "in one cloth: --material takes the place of its materials section" in capsys.readouterr().out
+    alone = GarmentDataset(one)
+    assert len(alone.names) == 3 and {alone.material_of(n) for n in alone.names} == {FABRICS["denim"]}
+    assert "materials" not in alone.info and "materials" not in alone.info["plan"]
     assert simulate_main([*argv, "--no-preview", "--quiet", "-o", str(out)]) == 0
     printed = capsys.readouterr().out
     assert (
