@@ -131,6 +131,16 @@ def _sim_overrides(args, preset) -> dict:
     return overrides
 
 
+def _preset(args):
+    """The preset named; with ``--material``, one with a materials section in that one cloth (its
+    clips and solver: a specialist's data)."""
+    preset = load_preset(args.preset)
+    if args.material is not None and preset.materials:
+        print(f"preset {preset.name} in one cloth: --material takes the place of its materials section")
+        preset = replace(preset, materials={})
+    return preset
+
+
 def _main(argv: Sequence[str] | None) -> int:
     args = _parser().parse_args(argv)
     from ..export.preview import write_dataset_preview
@@ -139,10 +149,7 @@ def _main(argv: Sequence[str] | None) -> int:
     from ..sim.material_plan import choose_materials
     from ..sim.simulator import SimSettings
 
-    preset = load_preset(args.preset)
-    if args.material is not None and preset.materials:  # the preset's clips and solver in one cloth
-        print(f"preset {preset.name} in one cloth: --material takes the place of its materials section")
-        preset = replace(preset, materials={})
+    preset = _preset(args)
     if args.made_for and args.fit:
         raise InputError(
             "--fit",
