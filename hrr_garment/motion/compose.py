@@ -47,16 +47,7 @@ def spliced(lower: Motion, upper: Motion) -> Motion:
     local = np.array(lower.local_rotations)
     joints = list(UPPER_BODY)
     local[:, joints] = upper.local_rotations[: lower.num_frames, joints]
-    return Motion(
-        local,
-        lower.root_translation,
-        lower.fps,
-        source=f"{lower.source} + upper body of {upper.source}",
-        source_skeleton=lower.source_skeleton,
-        source_height_m=lower.source_height_m,
-        skeleton=lower.skeleton,
-        check_rotations=False,
-    )
+    return _edited(lower, local, lower.root_translation, f" + upper body of {upper.source}")
 
 
 def arm_delayed(motion: Motion, side: str, frames: int) -> Motion:
@@ -70,16 +61,7 @@ def arm_delayed(motion: Motion, side: str, frames: int) -> Motion:
     joints = list(ARM_JOINTS[side])
     source = np.clip(np.arange(motion.num_frames) - frames, 0, None)
     local[:, joints] = motion.local_rotations[source][:, joints]
-    return Motion(
-        local,
-        motion.root_translation,
-        motion.fps,
-        source=f"{motion.source} ({side} arm {frames} frames late)",
-        source_skeleton=motion.source_skeleton,
-        source_height_m=motion.source_height_m,
-        skeleton=motion.skeleton,
-        check_rotations=False,
-    )
+    return _edited(motion, local, motion.root_translation, f" ({side} arm {frames} frames late)")
 
 
 def played_backward(motion: Motion) -> Motion:
@@ -87,27 +69,27 @@ def played_backward(motion: Motion) -> Motion:
     through the body that did not in the capture), the root travels the same path the other way.
     The garment is simulated forward on it, so its cloth answers to the reversed motion as cloth
     does, not as the capture's cloth played back."""
-    return Motion(
-        motion.local_rotations[::-1].copy(),
-        motion.root_translation[::-1].copy(),
-        motion.fps,
-        source=f"{motion.source} (played backward)",
-        source_skeleton=motion.source_skeleton,
-        source_height_m=motion.source_height_m,
-        skeleton=motion.skeleton,
-        check_rotations=False,
-    )
+    local, root = motion.local_rotations[::-1].copy(), motion.root_translation[::-1].copy()
+    return _edited(motion, local, root, " (played backward)")
 
 
 def held_still(motion: Motion, frames: int) -> Motion:
     """``motion`` then its last pose held ``frames`` more frames: the body stops dead and stands, as a
     game's character does when its animation ends or cuts to a still pose."""
     idx = np.r_[np.arange(motion.num_frames), np.full(frames, motion.num_frames - 1)]
+    return _edited(
+        motion, motion.local_rotations[idx], motion.root_translation[idx], f" (then held {frames} frames)"
+    )
+
+
+def _edited(motion: Motion, local_rotations: np.ndarray, root_translation: np.ndarray, what: str) -> Motion:
+    """New frames of ``motion``'s skeleton and source, the edit ``what`` appended to its source (the
+    poses are the capture's own, checked when it was read)."""
     return Motion(
-        motion.local_rotations[idx],
-        motion.root_translation[idx],
+        local_rotations,
+        root_translation,
         motion.fps,
-        source=f"{motion.source} (then held {frames} frames)",
+        source=f"{motion.source}{what}",
         source_skeleton=motion.source_skeleton,
         source_height_m=motion.source_height_m,
         skeleton=motion.skeleton,
