@@ -41,6 +41,22 @@ def test_settle_time_of_an_exponential_decay():
     assert tool.settle_time(np.zeros(90), FPS, 0.010) == 0.0
 
 
+def test_the_curve_gap_tells_a_ringing_hem_from_a_creeping_one():
+    """Two hems that settle (within 10 mm) at the same time: one closes on its place smoothly, the
+    other swings back out; the gap between their curves says so, and is zero for a curve itself."""
+    tool = _tool()
+    t = np.arange(0, 8.0, 0.25)
+    creep = 40.0 * np.exp(-t / 3.0)
+    ringing = 40.0 * np.exp(-t / 3.0) * np.abs(np.cos(np.pi * t / 2.0))
+    settle = [tool.settle_time(c / 1000.0, 4.0, 0.010) for c in (creep, ringing)]
+    assert settle[0] == pytest.approx(settle[1], abs=0.5)
+    assert tool.curve_gap(creep, creep) == 0.0
+    assert (
+        tool.curve_gap(creep, ringing) == pytest.approx(np.mean(creep - ringing))
+        and tool.curve_gap(creep, ringing) > 5.0
+    )
+
+
 def test_smoothing_removes_a_jitter_about_the_resting_place():
     tool = _tool()
     hem = _decaying_hem(4.0, 0.0, 1.0)

@@ -15,7 +15,10 @@ the same motion in the same cloth (``--mode``, the push-out on, as a user runs i
   settle within the hold;
 - ``hem_speed_last_s``: the hem's mean speed (m/s) over the hold's last second;
 - ``away_mm``: the hem's smoothed distance from its resting place at the stop and 0.5 / 1 / 2 / 4 s
-  after it: the decay the settle time summarises.
+  after it: the decay the settle time summarises;
+- ``curve_gap_mm``: the mean distance between the model's and the truth's (members' mean) distance
+  from rest over the hold, every quarter second: whether the model comes to rest as the truth does,
+  which a settle time alone does not say (a hem swinging back out until late settles late too).
 
 The run's last second (held past ``--hold``) is left out: an offline animation's last frames are
 its last window's end alone.
@@ -135,6 +138,11 @@ def _mean(runs: list[dict]) -> dict:
     }
 
 
+def curve_gap(truth_mm: list[float], model_mm: list[float]) -> float:
+    """Mean absolute difference (mm) between two distance-from-rest curves sampled alike."""
+    return float(np.abs(np.asarray(model_mm) - np.asarray(truth_mm)).mean())
+
+
 def _ratio(model, truth) -> float | None:
     return None if model is None or not truth else float(model) / float(truth)
 
@@ -200,6 +208,7 @@ def main(argv=None) -> int:
                 "model": model,
                 "hem_swing_ratio": _ratio(model["hem_swing_cm"], t["hem_swing_cm"]),
                 "settle_ratio": _ratio(model["settle_s"], t["settle_s"]),
+                "curve_gap_mm": curve_gap(t["away_curve_mm"], model["away_curve_mm"]),
             }
         )
     summary = {"clip": args.clip, "model": args.model, "settings": vars(args), "rows": rows}
@@ -207,7 +216,8 @@ def main(argv=None) -> int:
     print(
         "| cloth | hem swing cm: truth / model | ratio | settle s: truth (members) / model | ratio | "
         + " | ".join(f"away mm {k}: truth / model" for k in rows[0]["model"]["away_mm"])
-        + " | still (hem under --still m/s) s: truth / model | hem m/s at the end: truth / model |"
+        + " | still (hem under --still m/s) s: truth / model | hem m/s at the end: truth / model "
+        + "| curve gap mm |"
     )
     for r in rows:
         t, m = r["truth"], r["model"]
@@ -220,7 +230,7 @@ def main(argv=None) -> int:
             f"{'' if r['settle_ratio'] is None else format(r['settle_ratio'], '.2f')} | "
             + " | ".join(f"{t['away_mm'][k]:.0f} / {m['away_mm'][k]:.0f}" for k in m["away_mm"])
             + f" | {fmt(t['still_s'])} / {fmt(m['still_s'])}"
-            + f" | {t['hem_speed_last_s']:.2f} / {m['hem_speed_last_s']:.2f} |"
+            + f" | {t['hem_speed_last_s']:.2f} / {m['hem_speed_last_s']:.2f} | {r['curve_gap_mm']:.1f} |"
         )
     return 0
 
