@@ -51,9 +51,15 @@ def print_build_report(report, garment: GarmentMesh) -> None:
             f"clips{short}"
         )
     if sp.get("stops_asked"):
+        short = (
+            ""
+            if sp["stops_made"] == sp["stops_asked"]
+            else " (fewer than asked: no training clip from a motion file is stop_motion_s long, or some "
+            "failed to simulate)"
+        )
         print(
             f"  stop and stand: {sp['stops_made']} of {sp['stops_asked']} windows of training clips, "
-            "each then held still"
+            f"each then held still{short}"
         )
     for name, row in s.get("by_body", {}).items():
         print(

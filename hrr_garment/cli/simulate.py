@@ -112,7 +112,7 @@ def _parser() -> argparse.ArgumentParser:
 def _sim_overrides(args, preset) -> dict:
     """The command line's simulator settings over the preset's: the solver's, the air's and the cloth
     (which, on a preset that gives each sequence its own, takes the place of its materials section:
-    :func:`_main`)."""
+    :func:`_preset`)."""
     overrides = {
         k: v
         for k, v in (
@@ -132,13 +132,13 @@ def _sim_overrides(args, preset) -> dict:
 
 
 def _preset(args):
-    """The preset named; with ``--material``, one with a materials section in that one cloth (its
-    clips and solver: a specialist's data)."""
+    """The preset named, and whether ``--material`` took the place of its materials section (its
+    clips and solver in that one cloth: a specialist's data)."""
     preset = load_preset(args.preset)
     if args.material is not None and preset.materials:
         print(f"preset {preset.name} in one cloth: --material takes the place of its materials section")
-        preset = replace(preset, materials={})
-    return preset
+        return replace(preset, materials={}), True
+    return preset, False
 
 
 def _main(argv: Sequence[str] | None) -> int:
@@ -149,7 +149,7 @@ def _main(argv: Sequence[str] | None) -> int:
     from ..sim.material_plan import choose_materials
     from ..sim.simulator import SimSettings
 
-    preset = _preset(args)
+    preset, one_cloth = _preset(args)
     if args.made_for and args.fit:
         raise InputError(
             "--fit",
@@ -190,6 +190,8 @@ def _main(argv: Sequence[str] | None) -> int:
         options["info"]["bodies"] = choice.info
     if cloths.materials:
         options["info"]["materials"] = cloths.info
+    if one_cloth:  # not the preset's dataset: hrr-train --garment must not rebuild it as one
+        options["info"]["in_one_cloth"] = config.material.name
     if made_for is not None:  # models trained on it carry the garment from this body onto others
         options["info"]["made_for"] = body_to_dict(made_for)
     options["info"]["motions"] = list(args.motions) if args.motions else None  # None: the preset's own clips

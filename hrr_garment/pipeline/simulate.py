@@ -49,13 +49,15 @@ def missing_sequences(dataset: Path, preset: Preset) -> list[str]:
 
 def _own_dataset(dataset: Path, preset: Preset):
     """The dataset at ``dataset`` (a :class:`~hrr_garment.data.dataset.GarmentDataset`) where it was
-    made by ``preset`` from the preset's own clips; None where there is none, or it holds other clips."""
+    made by ``preset`` from the preset's own clips; None where there is none, or it holds other clips
+    or other cloths (``hrr-simulate --material`` on a preset with a materials section)."""
     if not dataset.exists():
         return None
     from ..data.dataset import GarmentDataset
 
     ds = GarmentDataset(dataset)
-    return None if ds.info.get("preset") != preset.name or ds.info.get("motions") else ds
+    own = ds.info.get("preset") == preset.name and not (ds.info.get("motions") or ds.info.get("in_one_cloth"))
+    return ds if own else None
 
 
 def _missing_names(ds, preset: Preset) -> list[str]:

@@ -19,8 +19,9 @@ leaves the splices' draw as it was.
 ``stops`` adds windows of training clips after which the body stops dead and stands
 (:func:`~hrr_garment.motion.compose.held_still`): the cloth's swing dying away and the skirt coming
 to rest, which clips cut from longer captures almost never show, and which a game shows every time
-a character's animation ends in a still pose (issue 85: models trained without them brought the hem
-to rest in a third of the simulated time). They too have a generator of their own.
+a character's animation ends in a still pose. They too have a generator of their own. No preset adds
+them: 100 of them did not teach a model the truth's slow settling after a stop (issue 85;
+docs/history/results-log.md, "Teaching a model to stop").
 """
 
 from __future__ import annotations
@@ -40,7 +41,7 @@ if TYPE_CHECKING:  # the plan builds its options from a preset (sim.plan imports
 
 SPLICE_PREFIX = "splice_"
 BACKWARD_PREFIX = "backward_"
-STOP_PREFIX = "stop_"
+STOP_PREFIX = "stopstand_"  # not "stop_": a game's own animations are often named so
 # the sequences a build plans once the split is known
 AUGMENT_PREFIXES = (SPLICE_PREFIX, BACKWARD_PREFIX, STOP_PREFIX)
 DRAWS_PER_SPLICE = 20  # tries before the plan settles for fewer splices than asked

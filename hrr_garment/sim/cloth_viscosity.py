@@ -20,10 +20,11 @@ exchanges shrink until they do not, each edge by the same factor both ways (at 0
 dress's largest sum is 0.2-0.4). Runs inside the scene's captured substep graph (extra ``sim``).
 
 On a curved cloth the exchange also brakes the cloth turning as a rigid body, at about nu / R^2
-(R the radius of curvature: 0.2-0.5 per second on a skirt), which no fabric's internal friction
-does; a skirt twisted by a spin untwists slowly (docs/materials.md, "After a stop"). The form that
-leaves rigid turning alone (each edge's exchange less its ends' fitted spin) was tried: the hem then
-moved at 0.29 m/s twelve seconds after the stop, as with no friction at all (2026-12-05). The energy
+(R the radius of curvature; about 0.2-0.5 per second on a skirt at 0.02 m^2/s), which no fabric's
+internal friction does; a skirt twisted by a spin untwists slowly (docs/materials.md, "After a
+stop"). The form that leaves rigid turning alone (each edge's exchange less its ends' fitted spin)
+was tried: the hem then moved at 0.27-0.29 m/s twelve seconds after the stop, as with no viscosity
+(2026-12-05). The energy
 the solver gains goes into the skirt's swing about the waist, which is, locally, a turning."""
 
 from __future__ import annotations

@@ -18,6 +18,7 @@ import yaml
 
 from ..errors import InputError
 from ..motion.licences import SOURCES
+from ..motion.motion import FPS
 from ..motion.synth import KINDS
 from ..settings import deep_merge
 from .sources import DEFAULT_NAME_PATTERN
@@ -146,6 +147,10 @@ def _check_splices(path: Path, preset: Preset) -> None:
             f"splices: {bad!r} not understood; it takes {', '.join(SPLICE_KEYS)} (numbers >= 0, a field "
             "name)",
         )
+    lengths = ("seconds", "stop_motion_s", "stop_hold_s")
+    short = [k for k in lengths if k in preset.splices and round(preset.splices[k] * FPS) < 1]
+    if short:
+        raise InputError(path, f"splices: {', '.join(short)} must be at least one frame (1/{FPS:g} s)")
     name_field = preset.splices.get("field", "content")
     if preset.splices.get("count") and name_field not in re.compile(preset.name_pattern).groupindex:
         raise InputError(path, f"splices: field {name_field!r} is not a field of the name pattern")

@@ -287,6 +287,23 @@ def test_a_bad_also_hold_out_is_refused(library, text, problem):
 
 
 @pytest.mark.parametrize(
+    "text, problem",
+    [
+        ("{stops: 2, stop_hold_s: 0.01}", "stop_hold_s must be at least one frame"),
+        ("{stops: 2, stop_motion_s: 0}", "stop_motion_s must be at least one frame"),
+        ("{stops: -1}", "not understood"),
+        ("{stops: 2, hold: 3}", "not understood"),
+    ],
+)
+def test_bad_stops_are_refused_naming_the_file(library, text, problem):
+    preset_file = library / "bad.yaml"
+    preset_file.write_text(f"name: bad\nvertices: 300\nseconds: 1.0\nsequences: {{}}\nsplices: {text}\n")
+    with pytest.raises(InputError, match=problem) as refused:
+        load_preset(str(preset_file))
+    assert "bad.yaml" in str(refused.value)
+
+
+@pytest.mark.parametrize(
     "recorded,expected",
     [
         (True, ["run_000_mirror", "walk_000_mirror"]),

@@ -103,7 +103,7 @@ def test_stops_play_a_training_window_then_stand_still(library):
     options = SpliceSettings(seconds=2.0, backward=5, stops=12, stop_motion_s=1.5, stop_hold_s=2.0, seed=3)
     candidates = window_candidates(library, training, options.stop_motion_s)
     stops = plan_stops(candidates, options)
-    assert [s.name for s in stops] == [f"stop_{i:03d}" for i in range(12)]
+    assert [s.name for s in stops] == [f"stopstand_{i:03d}" for i in range(12)]
     assert len({(s.path, s.start) for s in stops}) > 1
     for spec in stops:
         assert "sad" not in spec.path and spec.stop - spec.start == 45 and spec.hold == 60
@@ -119,10 +119,15 @@ def test_stops_play_a_training_window_then_stand_still(library):
         assert np.abs(np.diff(motion.joint_positions[44:], axis=0)).max() < 1e-6  # it stands still
         assert spec.key({}) not in {alone.key({}), replace(alone, hold=30).key({})}
     assert plan_stops(candidates, options) == stops  # seeded
-    # the backward windows' draw does not depend on how many stops there are
-    assert plan_backward(candidates, options) == plan_backward(
-        candidates, SpliceSettings(seconds=2.0, backward=5, seed=3)
-    )
+    # each kind drawn by a generator of its own: adding stops leaves the splices and the backward
+    # windows (and their parts) as they were, and the stops do not depend on the others
+    windows = window_candidates(library, training, options.seconds)
+    alone = SpliceSettings(count=3, seconds=2.0, backward=5, seed=3)
+    with_stops = replace(alone, stops=12, stop_motion_s=1.5, stop_hold_s=2.0)
+    assert plan_backward(windows, with_stops) == plan_backward(windows, alone)
+    mixed = splice_candidates(library, training, alone)
+    assert plan_splices(mixed, with_stops).specs == plan_splices(mixed, alone).specs
+    assert plan_stops(candidates, replace(options, count=0, backward=0)) == stops
     assert plan_stops([], options) == []
     with pytest.raises(ValueError):
         SpliceSettings(stops=-1)
@@ -190,8 +195,10 @@ def test_a_build_adds_splices_of_training_clips_that_always_train(tmp_path, caps
     backward = ds.sequence("backward_000").motion
     assert backward.num_frames == 30 and "played backward" in backward.source
     assert not any(style in backward.source for style in held)
-    stop = ds.sequence("stop_000")
-    assert "stop_000" in ds.splits["train"] and stop.motion.num_frames == 30 and stop.garment.shape[0] == 30
+    stop = ds.sequence("stopstand_000")
+    assert (
+        "stopstand_000" in ds.splits["train"] and stop.motion.num_frames == 30 and stop.garment.shape[0] == 30
+    )
     assert np.abs(np.diff(stop.motion.root_translation[14:], axis=0)).max() == 0.0  # the body stands
     made = ds.info["summary"]["splices"]
     assert made["made"] == 2 and made["backward_made"] == 1 and made["stops_made"] == 1

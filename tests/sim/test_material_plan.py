@@ -140,6 +140,12 @@ def test_hrr_simulate_gives_each_sequence_its_cloth_and_the_dataset_records_it(t
     alone = GarmentDataset(one)
     assert len(alone.names) == 3 and {alone.material_of(n) for n in alone.names} == {FABRICS["denim"]}
     assert "materials" not in alone.info and "materials" not in alone.info["plan"]
+    assert alone.info["in_one_cloth"] == "denim"
+    # not the preset's own dataset: hrr-train --garment must not take it as out of date and rebuild it
+    from hrr_garment.pipeline.simulate import dataset_out_of_date
+    from hrr_garment.sim.preset import load_preset
+
+    assert dataset_out_of_date(one, load_preset(str(preset))) is None
     assert simulate_main([*argv, "--no-preview", "--quiet", "-o", str(out)]) == 0
     printed = capsys.readouterr().out
     assert (
