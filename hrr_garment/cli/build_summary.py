@@ -39,28 +39,24 @@ def print_build_report(report, garment: GarmentMesh) -> None:
             f"  splices: {sp['made']} of {sp['asked']} (legs of one training clip, upper body of another; "
             f"{sp['refused_self_intersection']} of {sp['drawn']} drawn refused for limbs through the body)"
         )
-    if sp.get("backward_asked"):
-        short = (
-            ""
-            if sp["backward_made"] == sp["backward_asked"]
-            else " (fewer than asked: no training clip from a motion file is that long, or some failed to "
-            "simulate)"
-        )
-        print(
-            f"  played backward: {sp['backward_made']} of {sp['backward_asked']} windows of training "
-            f"clips{short}"
-        )
-    if sp.get("stops_asked"):
-        short = (
-            ""
-            if sp["stops_made"] == sp["stops_asked"]
-            else " (fewer than asked: no training clip from a motion file is stop_motion_s long, or some "
-            "failed to simulate)"
-        )
-        print(
-            f"  stop and stand: {sp['stops_made']} of {sp['stops_asked']} windows of training clips, "
-            f"each then held still{short}"
-        )
+    windows = (  # (kind, what each is, the length a training clip needs)
+        ("backward", "played backward: {made} of {asked} windows of training clips", "that long"),
+        (
+            "stops",
+            "stop and stand: {made} of {asked} windows of training clips, each then held still",
+            "stop_motion_s long",
+        ),
+    )
+    for kind, line, needs in windows:
+        made, asked = sp.get(f"{kind}_made"), sp.get(f"{kind}_asked")
+        if asked:
+            short = (
+                ""
+                if made == asked
+                else f" (fewer than asked: no training clip from a motion file is {needs}, or some failed "
+                "to simulate)"
+            )
+            print("  " + line.format(made=made, asked=asked) + short)
     for name, row in s.get("by_body", {}).items():
         print(
             f"  body {name or 'mannequin'} ({row['stature_m']:.2f} m): {row['sequences']} sequences, "
