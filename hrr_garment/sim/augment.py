@@ -161,28 +161,33 @@ def plan_splices(candidates: list[SequenceSpec], options: SpliceSettings) -> Spl
 def plan_backward(candidates: list[SequenceSpec], options: SpliceSettings) -> list[SequenceSpec]:
     """``options.backward`` windows of ``candidates`` (:func:`window_candidates`) played backward,
     each of ``options.seconds``, clip and window drawn at random (seeded)."""
-    frames = int(round(options.seconds * FPS))
-    rng = np.random.default_rng([options.seed, 1])  # not the splices' generator: their draw stays as it was
-    specs = []
-    for i in range(options.backward if candidates else 0):
-        clip = candidates[int(rng.integers(len(candidates)))]
-        start = clip.start + int(rng.integers(0, clip.stop - clip.start - frames + 1))
-        specs.append(
-            replace(clip, name=f"{BACKWARD_PREFIX}{i:03d}", start=start, stop=start + frames, backward=True)
-        )
-    return specs
+    # not the splices' generator: their draw stays as it was
+    return _drawn_windows(
+        candidates, options.backward, options.seconds, [options.seed, 1], BACKWARD_PREFIX, backward=True
+    )
 
 
 def plan_stops(candidates: list[SequenceSpec], options: SpliceSettings) -> list[SequenceSpec]:
     """``options.stops`` windows of ``candidates`` (:func:`window_candidates` of
     ``options.stop_motion_s``), each then held still ``options.stop_hold_s``, clip and window drawn
     at random (seeded)."""
-    frames = int(round(options.stop_motion_s * FPS))
     hold = int(round(options.stop_hold_s * FPS))
-    rng = np.random.default_rng([options.seed, 2])  # neither the splices' nor the backward windows'
+    # neither the splices' generator nor the backward windows'
+    return _drawn_windows(
+        candidates, options.stops, options.stop_motion_s, [options.seed, 2], STOP_PREFIX, hold=hold
+    )
+
+
+def _drawn_windows(
+    candidates: list[SequenceSpec], count: int, seconds: float, seed: list[int], prefix: str, **change
+) -> list[SequenceSpec]:
+    """``count`` windows of ``seconds`` of ``candidates``, clip and window drawn by a generator seeded
+    ``seed``, named ``prefix`` and a number, each with ``change`` applied."""
+    frames = int(round(seconds * FPS))
+    rng = np.random.default_rng(seed)
     specs = []
-    for i in range(options.stops if candidates else 0):
+    for i in range(count if candidates else 0):
         clip = candidates[int(rng.integers(len(candidates)))]
         start = clip.start + int(rng.integers(0, clip.stop - clip.start - frames + 1))
-        specs.append(replace(clip, name=f"{STOP_PREFIX}{i:03d}", start=start, stop=start + frames, hold=hold))
+        specs.append(replace(clip, name=f"{prefix}{i:03d}", start=start, stop=start + frames, **change))
     return specs

@@ -24,8 +24,8 @@ On a curved cloth the exchange also brakes the cloth turning as a rigid body, at
 internal friction does; a skirt twisted by a spin untwists slowly (docs/materials.md, "After a
 stop"). The form that leaves rigid turning alone (each edge's exchange less its ends' fitted spin)
 was tried: the hem then moved at 0.27-0.29 m/s twelve seconds after the stop, as with no viscosity
-(2026-12-05). The energy
-the solver gains goes into the skirt's swing about the waist, which is, locally, a turning."""
+(2026-12-05). The energy the solver gains goes into the skirt's swing about the waist, which is,
+locally, a turning."""
 
 from __future__ import annotations
 

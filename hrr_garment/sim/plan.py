@@ -291,9 +291,8 @@ def build_options(preset: Preset, specs: list[SequenceSpec], motions: list[str] 
     if also:
         info["also_hold_out"] = also
     kinds = {s.name: s.kind for s in specs if s.kind != "file"}  # procedural clips: held out in distribution
-    splices = None
-    if any(preset.splices.get(k) for k in ("count", "backward", "stops")):
-        splices = SpliceSettings(**preset.splices, name_pattern=preset.name_pattern, seed=preset.seed)
+    splices = SpliceSettings(**preset.splices, name_pattern=preset.name_pattern, seed=preset.seed)
+    if splices.adds:
         info.setdefault("augmentation", {"mirror": mirror, "speed_warps": list(preset.speed_warps)})[
             "splices"
         ] = preset.splices
@@ -305,6 +304,6 @@ def build_options(preset: Preset, specs: list[SequenceSpec], motions: list[str] 
         "info": info,
         "kinds": kinds or None,
         "also_hold_out": also or None,
-        "splices": splices,
+        "splices": splices if splices.adds else None,
         "file_sources": file_sources(preset, motions),
     }
