@@ -10,7 +10,7 @@ import torch
 from torch import nn
 
 from ..motion.features import SLICE_T, SLICE_V, SLICE_W
-from ..motion.memory import MEMORY_WIDTH, VECTORS, MotionMemory
+from ..motion.memory import LONG_STILL_S, MEMORY_WIDTH, MOVING_ABOVE, STILL_BELOW, VECTORS, MotionMemory
 from ..motion.rotations import matrix_to_axis_angle, quat_to_matrix, rotation_about_y, yaw_of
 from ..motion.skeleton import FEATURE_JOINTS, REST_PELVIS_HEIGHT, forward_kinematics
 from .torch_ops import constant, turn_y
@@ -43,6 +43,10 @@ class FeatureStage(nn.Module):
         self.fps, self.joints = float(fps), list(FEATURE_JOINTS)
         self.averages = 0 if memory is None else len(memory.spec.seconds)
         self.rows = 0 if memory is None else memory.spec.rows
+        self.filter_rows = 0 if memory is None else memory.spec.filter_rows
+        self.clocked = memory is not None and bool(memory.spec.still_seconds)
+        if self.clocked:
+            constant(self, "still_seconds", np.array(memory.spec.still_seconds))
         if memory is not None:
             constant(self, "decay", memory.decay)  # (k, 1)
             constant(self, "resonator_a", memory.resonator_a)  # (r, 2, 2)
@@ -79,25 +83,40 @@ class FeatureStage(nn.Module):
         # at a start (MotionMemory.start): every average at the first velocities, every bob at rest
         # (x 0, q the first velocities)
         bob = torch.stack([torch.zeros_like(u[:, 0]), u[:, 0]], 1)  # (N, 2, 64)
-        fresh = torch.cat(
-            [u.expand(n, self.averages, MEMORY_WIDTH), bob.repeat(1, (self.rows - self.averages) // 2, 1)], 1
-        )
+        rows = self.filter_rows
+        fresh = [u.expand(n, self.averages, MEMORY_WIDTH), bob.repeat(1, (rows - self.averages) // 2, 1)]
         # the last body frame's vectors seen from this one: turned by minus this frame's yaw step
         angle = -features[:, SLICE_W][:, 0] / self.fps
-        turned = turn_y(state[..., :-1].reshape(n, self.rows, VECTORS, 3), torch.cos(angle), torch.sin(angle))
-        carried = torch.cat([turned.reshape(n, self.rows, -1), state[..., -1:]], -1)
+        turned = turn_y(state[:, :rows, :-1].reshape(n, rows, VECTORS, 3), torch.cos(angle), torch.sin(angle))
+        carried = torch.cat([turned.reshape(n, rows, 3 * VECTORS), state[:, :rows, -1:]], -1)
         averages = self.decay * carried[:, : self.averages] + (1.0 - self.decay) * u
         bobs = carried[:, self.averages :].reshape(n, -1, 2, MEMORY_WIDTH)
         bobs = self.resonator_a @ bobs + self.resonator_b[..., None] * u[:, None]
-        stepped = torch.cat([averages, bobs.reshape(n, -1, MEMORY_WIDTH)], 1)
-        return torch.where(started.reshape(-1, 1, 1) > 0, stepped, fresh)
+        stepped = [averages, bobs.reshape(n, -1, MEMORY_WIDTH)]
+        if self.clocked:  # the stillness clock (MotionMemory.step), from LONG_STILL_S at a start
+            still = self.stillness(features)
+            stepped.append(still * (state[:, rows:] + 1.0 / self.fps))
+            fresh.append(still * (LONG_STILL_S + 1.0 / self.fps) + torch.zeros_like(state[:, rows:]))
+        return torch.where(started.reshape(-1, 1, 1) > 0, torch.cat(stepped, 1), torch.cat(fresh, 1))
+
+    @staticmethod
+    def stillness(features: torch.Tensor) -> torch.Tensor:
+        """(N, 1, 1): :func:`~hrr_garment.motion.memory.stillness` of the frame's features."""
+        v = features[:, SLICE_V].reshape(features.shape[0], -1, 3)
+        speed = torch.sqrt((v * v).sum(-1)).mean(-1)
+        return torch.clamp((MOVING_ABOVE - speed) / (MOVING_ABOVE - STILL_BELOW), 0.0, 1.0)[:, None, None]
 
     def memory_values(self, state: torch.Tensor) -> torch.Tensor:
-        """(N, rows x 64): the averages, each resonator's w x and q (:meth:`MotionMemory.values`)."""
+        """(N, width): the averages, each resonator's w x and q, the clock's (:meth:`MotionMemory.values`)."""
         n = state.shape[0]
-        bobs = state[:, self.averages :].reshape(n, -1, 2, MEMORY_WIDTH)
+        bobs = state[:, self.averages : self.filter_rows].reshape(n, -1, 2, MEMORY_WIDTH)
         scaled = torch.stack([bobs[:, :, 0] * self.omega[None, :, None], bobs[:, :, 1]], 2)
-        return torch.cat([state[:, : self.averages], scaled.reshape(n, -1, MEMORY_WIDTH)], 1).reshape(n, -1)
+        parts = [
+            torch.cat([state[:, : self.averages], scaled.reshape(n, -1, MEMORY_WIDTH)], 1).reshape(n, -1)
+        ]
+        if self.clocked:
+            parts.append(torch.exp(-state[:, self.filter_rows, :1] / self.still_seconds[None]))
+        return torch.cat(parts, 1)
 
     def forward(self, previous, current, memory: torch.Tensor, started: torch.Tensor, cloth=None):
         """-> the frame's full features (N, F) and the next memory state; ``cloth`` (N, m): each

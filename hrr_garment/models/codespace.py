@@ -55,6 +55,9 @@ class CodeSpaceSettings:
         1.6,
     )  # the motion memory's resonators' frequencies; () for none
     resonator_damping: float = 0.3  # their damping ratio
+    # the motion memory's stillness clock (motion.memory): how long the body has stood still, read
+    # through exp(-tau / s) for each s; () for none
+    still_seconds: tuple[float, ...] = ()
     # what the regression decodes: "expected", the embedding averaged over the motion code's
     # distribution (each group's softmax), or "argmax", the most likely class's (the paper's)
     regression_code: str = "expected"
@@ -68,13 +71,17 @@ class CodeSpaceSettings:
     def __post_init__(self):
         try:
             spec = MemorySettings(
-                tuple(self.memory_seconds), tuple(self.resonator_hz), float(self.resonator_damping)
+                tuple(self.memory_seconds),
+                tuple(self.resonator_hz),
+                float(self.resonator_damping),
+                tuple(self.still_seconds),
             )
         except (TypeError, ValueError) as exc:
             raise SettingsError(f"code space model: {exc}") from None
         object.__setattr__(self, "memory_seconds", spec.seconds)
         object.__setattr__(self, "resonator_hz", spec.resonator_hz)
         object.__setattr__(self, "resonator_damping", spec.damping)
+        object.__setattr__(self, "still_seconds", spec.still_seconds)
         what = "code space model"
         for name, low, high in (
             ("window", 1, 1000),
@@ -105,7 +112,9 @@ class CodeSpaceSettings:
     @property
     def memory(self) -> MemorySettings:
         """The motion memory the features carry (:mod:`hrr_garment.motion.memory`)."""
-        return MemorySettings(self.memory_seconds, self.resonator_hz, self.resonator_damping)
+        return MemorySettings(
+            self.memory_seconds, self.resonator_hz, self.resonator_damping, self.still_seconds
+        )
 
     @property
     def condition_features(self) -> int:
@@ -122,11 +131,13 @@ class CodeSpaceSettings:
         return from_settings(cls, values, "code space model")
 
     def to_dict(self) -> dict:
-        """The settings as plain values; no ``material_features`` key for a model of one cloth (its
-        bundle.json as before cloths were read, which older versions also read)."""
+        """The settings as plain values; no ``material_features`` key for a model of one cloth and
+        no ``still_seconds`` for one without a stillness clock (its bundle.json as before those were
+        read, which older versions also read)."""
         out = asdict(self)
-        if not out["material_features"]:
-            del out["material_features"]
+        for key in ("material_features", "still_seconds"):
+            if not out[key]:
+                del out[key]
         return out
 
 

@@ -15,6 +15,16 @@ joints' velocities and the root's, all 3-vectors in the body frame, and the yaw 
   (``x_0 = 0, q_0 = u_0``). The features are w x and q: where a pendulum of that period would be
   in its swing, which an average cannot say (an average has no phase).
 
+- **A stillness clock** (``MemorySettings.still_seconds``): tau_t, the seconds the body has stood
+  still, ``tau_t = g_t (tau_{t-1} + 1 / fps)``, where g_t is 1 while the feature joints' mean speed
+  is under :data:`STILL_BELOW`, 0 over :data:`MOVING_ABOVE` and linear between (a body swaying as it
+  stands still counts as standing). The features are ``exp(-tau_t / s)`` for each s: 1 while the body
+  moves, falling after it stops. A skirt twisted by a dance keeps untwisting for seconds after the
+  body stands still (docs/materials.md, "After a stop"); the averages and resonators fade at their
+  own rates whatever the cloth does, and none says how long ago the body stopped. A motion still at
+  its first frame has stood :data:`LONG_STILL_S` (all its clock's features near 0), as the averages
+  start as if the first velocities had always been.
+
 R_t turns last frame's body frame into this frame's (the yaw step from the yaw-rate feature), so
 the memory is of the world velocities, seen from the body frame at t: like the features, it does
 not change when the whole motion is moved or turned about the vertical axis (tested).
@@ -22,7 +32,7 @@ not change when the whole motion is moved or turned about the vertical axis (tes
 It is computed from the features alone, one frame after another, so offline clips, causal clips
 and streams (:class:`MotionMemory`, carried per character) give the same values from the same
 features. Models store their memory (``CodeSpaceSettings.memory_seconds``, ``resonator_hz``,
-``resonator_damping``); none gives the 124 plain features of models trained before it.
+``resonator_damping``, ``still_seconds``); none gives the 124 plain features of models trained before it.
 """
 
 from __future__ import annotations
@@ -43,6 +53,11 @@ VECTORS = (
 MEMORY_WIDTH = (
     3 * VECTORS + 1
 )  # values per average (and per resonator output): the 3-vectors and the yaw rate
+# the stillness clock's ramp, the feature joints' mean speed in m/s: the standing parts of the
+# library's bow, bye and raise-up clips read 0.01-0.04 (their 5th to 25th percentiles), a hand waved
+# while standing about 0.05, its walks 0.75 or more (docs/codespace.md)
+STILL_BELOW, MOVING_ABOVE = 0.05, 0.15
+LONG_STILL_S = 1000.0  # how long a motion still at its first frame has stood
 
 
 def check_memory_seconds(
@@ -63,11 +78,15 @@ class MemorySettings:
     seconds: tuple[float, ...] = ()
     resonator_hz: tuple[float, ...] = ()
     damping: float = 0.3
+    still_seconds: tuple[float, ...] = ()  # the stillness clock's time constants; () for no clock
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "seconds", check_memory_seconds(self.seconds))
         object.__setattr__(
             self, "resonator_hz", check_memory_seconds(self.resonator_hz, "resonator frequencies", "hertz")
+        )
+        object.__setattr__(
+            self, "still_seconds", check_memory_seconds(self.still_seconds, "stillness time constants")
         )
         object.__setattr__(self, "damping", float(self.damping))
         if not (np.isfinite(self.damping) and 0.0 < self.damping < 1.0):
@@ -81,17 +100,51 @@ class MemorySettings:
         return value if isinstance(value, MemorySettings) else cls(tuple(value))
 
     @property
-    def rows(self) -> int:
-        """Rows of MEMORY_WIDTH values a frame: one per average, two per resonator."""
+    def filter_rows(self) -> int:
+        """Rows of MEMORY_WIDTH values the linear filters keep: one per average, two per resonator."""
         return len(self.seconds) + 2 * len(self.resonator_hz)
+
+    @property
+    def rows(self) -> int:
+        """Rows of the state: the filters', then one for the stillness clock where there is one
+        (tau in every column, so that the state stays one array)."""
+        return self.filter_rows + bool(self.still_seconds)
+
+    @property
+    def width(self) -> int:
+        """Feature columns the memory adds: 64 per filter row, one per stillness time constant."""
+        return MEMORY_WIDTH * self.filter_rows + len(self.still_seconds)
 
     def __bool__(self) -> bool:
         return self.rows > 0
 
 
 def feature_width(memory: MemorySettings | Sequence[float]) -> int:
-    """Features per frame with ``memory``: 124 + 64 per average and 128 per resonator."""
-    return FEATURE_DIM + MEMORY_WIDTH * MemorySettings.of(memory).rows
+    """Features per frame with ``memory``: 124 + 64 per average, 128 per resonator and one per
+    stillness time constant."""
+    return FEATURE_DIM + MemorySettings.of(memory).width
+
+
+def stillness(features: np.ndarray) -> np.ndarray:
+    """(N,) g in [0, 1] of features (N, 124): 1 where the feature joints' mean speed is under
+    STILL_BELOW, 0 over MOVING_ABOVE, linear between."""
+    v = features[:, SLICE_V].astype(np.float64).reshape(len(features), -1, 3)
+    speed = np.linalg.norm(v, axis=-1).mean(-1)
+    return np.clip((MOVING_ABOVE - speed) / (MOVING_ABOVE - STILL_BELOW), 0.0, 1.0)
+
+
+def still_clock(features: np.ndarray, fps: float) -> np.ndarray:
+    """(T,) tau: the seconds the body has stood still at each frame of one motion's features (T, 124)."""
+    g, dt = stillness(features), 1.0 / fps
+    tau, last = np.empty(len(features)), LONG_STILL_S
+    for t, g_t in enumerate(g):  # a recursion through a clamp: no closed form, and a frame costs ns
+        last = tau[t] = g_t * (last + dt)
+    return tau
+
+
+def clock_values(tau: np.ndarray, still_seconds: Sequence[float]) -> np.ndarray:
+    """(N, k) float32 features exp(-tau / s) of clock readings tau (N,)."""
+    return np.exp(-np.asarray(tau, np.float64)[:, None] / np.asarray(still_seconds)[None]).astype(np.float32)
 
 
 def resonator_step(hz: float, damping: float, fps: float) -> tuple[np.ndarray, np.ndarray]:
@@ -134,21 +187,26 @@ class MotionMemory:
         k, r = len(self.spec.seconds), len(self.spec.resonator_hz)
         state = np.repeat(u[:, None], k + 2 * r, 1)
         state[:, k::2] = 0.0
+        if self.spec.still_seconds:
+            clock = stillness(features) * (LONG_STILL_S + 1.0 / self.fps)
+            state = np.concatenate([state, np.repeat(clock[:, None, None], MEMORY_WIDTH, 2)], 1)
         return state
 
     def step(self, state: np.ndarray, features: np.ndarray) -> np.ndarray:
         """The state (N, rows, 64) one frame on, from the last state and this frame's features (N, 124)."""
-        n, rows, k = len(state), state.shape[1], len(self.spec.seconds)
+        n, rows, k = len(state), self.spec.filter_rows, len(self.spec.seconds)
+        clock = state[:, rows:]  # (N, 0 or 1, 64): not a vector, never turned
+        clock = stillness(features)[:, None, None] * (clock + 1.0 / self.fps)
         turn = rotation_about_y(
             -features[:, SLICE_W][:, 0].astype(np.float64) / self.fps
         )  # (N, 3, 3): last body frame -> this
-        vectors = state[..., :-1].reshape(n, rows, VECTORS, 3) @ np.swapaxes(turn, -1, -2)[:, None]
-        carried = np.concatenate([vectors.reshape(n, rows, -1), state[..., -1:]], -1)
+        vectors = state[:, :rows, :-1].reshape(n, rows, VECTORS, 3) @ np.swapaxes(turn, -1, -2)[:, None]
+        carried = np.concatenate([vectors.reshape(n, rows, 3 * VECTORS), state[:, :rows, -1:]], -1)
         u = _velocities(features)[:, None]
         averages = self.decay * carried[:, :k] + (1.0 - self.decay) * u
         bobs = carried[:, k:].reshape(n, -1, 2, MEMORY_WIDTH)
         bobs = self.resonator_a @ bobs + self.resonator_b[..., None] * u[:, None]
-        return np.concatenate([averages, bobs.reshape(n, -1, MEMORY_WIDTH)], 1)
+        return np.concatenate([averages, bobs.reshape(n, -1, MEMORY_WIDTH), clock], 1)
 
     def advance(self, states: Sequence[np.ndarray | None], features: np.ndarray) -> np.ndarray:
         """N motions one frame on, each from its last state (rows, 64), or from its start where it
@@ -162,11 +220,14 @@ class MotionMemory:
         return out
 
     def values(self, state: np.ndarray) -> np.ndarray:
-        """The state as feature columns (N, rows x 64), float32: the averages, w x and q."""
-        k = len(self.spec.seconds)
-        out = state.copy()
+        """The state as feature columns (N, width), float32: the averages, w x and q, the clock's."""
+        k, rows = len(self.spec.seconds), self.spec.filter_rows
+        out = state[:, :rows].copy()
         out[:, k::2] *= self.omega[None, :, None]
-        return out.reshape(len(state), -1).astype(np.float32)
+        out = out.reshape(len(state), -1).astype(np.float32)
+        if not self.spec.still_seconds:
+            return out
+        return np.concatenate([out, clock_values(state[:, rows, 0], self.spec.still_seconds)], 1)
 
 
 @lru_cache(maxsize=16)
@@ -183,7 +244,7 @@ def _velocities(features: np.ndarray) -> np.ndarray:
 
 
 def with_memory(features: np.ndarray, fps: float, memory: MemorySettings | Sequence[float]) -> np.ndarray:
-    """(T, 124) features of one motion -> (T, 124 + 64 rows) with its memory appended; unchanged
+    """(T, 124) features of one motion -> (T, feature_width) with its memory appended; unchanged
     (the same array) without any. The recursion of :class:`MotionMemory` in closed form: the
     velocities turned into the first frame's body frame (the yaw steps summed), linear filters
     there, turned back into each frame's body frame (the same values to rounding, tested)."""
@@ -195,7 +256,13 @@ def with_memory(features: np.ndarray, fps: float, memory: MemorySettings | Seque
     to_first = rotation_about_y(heading)  # (T, 3, 3): frame t's body frame -> frame 0's
     from scipy.signal import lfilter  # a second's import: only a memory's filters need it
 
+    out = np.empty((len(features), feature_width(memory.spec)), np.float32)
+    out[:, :FEATURE_DIM] = features
     u = _velocities(features)
+    if memory.spec.still_seconds:
+        out[:, FEATURE_DIM + memory.spec.filter_rows * MEMORY_WIDTH :] = clock_values(
+            still_clock(features, fps), memory.spec.still_seconds
+        )
     vectors = u[:, :-1].reshape(len(u), VECTORS, 3) @ np.swapaxes(to_first, -1, -2)
     first = np.concatenate([vectors.reshape(len(u), -1), u[:, -1:]], 1)
     filtered = [lfilter([1.0 - a], [1.0, -a], first, axis=0, zi=a * first[:1])[0] for a in memory.decay[:, 0]]
@@ -203,8 +270,6 @@ def with_memory(features: np.ndarray, fps: float, memory: MemorySettings | Seque
         lfilter(num, den, first, axis=0, zi=zi[:, None] * first[:1])[0]
         for num, den, zi in memory.resonator_filters
     ]
-    out = np.empty((len(features), feature_width(memory.spec)), np.float32)
-    out[:, :FEATURE_DIM] = features
     for i, smoothed in enumerate(filtered):
         back = smoothed[:, :-1].reshape(len(u), VECTORS, 3) @ to_first
         cols = slice(FEATURE_DIM + i * MEMORY_WIDTH, FEATURE_DIM + (i + 1) * MEMORY_WIDTH)

@@ -199,3 +199,16 @@ def test_the_expected_code_is_the_mean_embedding_under_each_groups_softmax():
         CodeSpaceSettings(regression_code="mode")
     with pytest.raises(SettingsError, match="code space model: resonator damping"):
         CodeSpaceSettings(resonator_hz=(1.0,), resonator_damping=1.5)
+
+
+def test_a_stillness_clock_widens_the_features_and_round_trips_through_the_settings():
+    from hrr_garment.models.codespace import CodeSpaceSettings
+    from hrr_garment.settings import SettingsError
+
+    plain = CodeSpaceSettings()
+    clocked = CodeSpaceSettings(still_seconds=(1.0, 3.0, 9.0))
+    assert clocked.features == plain.features + 3 and clocked.memory.still_seconds == (1.0, 3.0, 9.0)
+    assert "still_seconds" not in plain.to_dict()  # bundle.json as older versions read it
+    assert CodeSpaceSettings.from_dict(clocked.to_dict()) == clocked
+    with pytest.raises(SettingsError, match="code space model: stillness time constants"):
+        CodeSpaceSettings(still_seconds=(-1.0,))

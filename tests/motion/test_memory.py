@@ -6,8 +6,10 @@ import numpy as np
 import pytest
 
 from hrr_garment import motion_features, synthesize
+from hrr_garment.motion.compose import held_still
 from hrr_garment.motion.features import FEATURE_DIM
 from hrr_garment.motion.memory import (
+    LONG_STILL_S,
     MEMORY_WIDTH,
     MemorySettings,
     MotionMemory,
@@ -21,6 +23,7 @@ from hrr_garment.motion.skeleton import FEATURE_JOINTS
 from tests.motion.test_features import transformed
 
 RESONATING = MemorySettings((0.5, 1.5), (0.6, 1.0, 1.6), 0.3)
+CLOCKED = MemorySettings((0.5, 1.5), (0.6, 1.0, 1.6), 0.3, (1.0, 4.0))
 
 
 def world_velocities(motion) -> np.ndarray:
@@ -116,7 +119,7 @@ def test_memory_of_a_steady_motion_is_its_velocity_and_the_yaw_rate_average_is_p
 
 
 @pytest.mark.parametrize("kind", ["walk_curve", "dance"])
-@pytest.mark.parametrize("memory", [(0.5, 1.5), RESONATING])
+@pytest.mark.parametrize("memory", [(0.5, 1.5), RESONATING, CLOCKED])
 def test_memory_is_invariant_to_translation_and_vertical_rotation(kind, memory):
     motion = synthesize(kind, seconds=2.0, seed=7)
     base = with_memory(motion_features(motion), motion.fps, memory)
@@ -127,9 +130,12 @@ def test_memory_is_invariant_to_translation_and_vertical_rotation(kind, memory):
         )
 
 
-@pytest.mark.parametrize("spec", [(0.5, 1.5), RESONATING])
+@pytest.mark.parametrize("spec", [(0.5, 1.5), RESONATING, CLOCKED])
 def test_stepping_frame_by_frame_equals_the_clip_and_characters_are_independent(spec):
-    clips = [motion_features(synthesize(kind, seconds=2.0, seed=5)) for kind in ("walk_curve", "spin")]
+    clips = [
+        motion_features(held_still(synthesize(kind, seconds=2.0, seed=5), 30))[-60:]  # moving, then still
+        for kind in ("walk_curve", "spin")
+    ]
     fps = 30.0
     memory = MotionMemory(spec, fps)
     state = memory.start(np.stack([c[0] for c in clips]))
@@ -154,3 +160,24 @@ def test_no_time_constants_leaves_the_features_and_bad_ones_are_refused():
     for damping in (0.0, 1.0, 2.0, float("nan")):
         with pytest.raises(ValueError, match="damping"):
             MemorySettings((), (1.0,), damping)
+
+
+def test_the_stillness_clock_counts_the_seconds_since_the_body_stopped():
+    walk = synthesize("walk", seconds=2.0, seed=3)
+    held = held_still(walk, 90)  # then 3 s standing
+    fps, spec = held.fps, MemorySettings((), (), 0.3, (1.0, 4.0))
+    got = with_memory(motion_features(held), fps, spec)[:, FEATURE_DIM:]
+    assert got.shape == (held.num_frames, 2) and feature_width(spec) == FEATURE_DIM + 2
+    moving = got[: walk.num_frames - 1]
+    np.testing.assert_array_equal(moving, 1.0)  # a walk never reads as standing
+    # frame walk.num_frames is the first with zero velocity: tau = 1 / fps there, k / fps k frames on
+    tau = np.arange(1, 91) / fps
+    np.testing.assert_allclose(
+        got[walk.num_frames :], np.exp(-tau[:, None] / np.array([1.0, 4.0])), rtol=1e-5
+    )
+    # standing from the first frame: stood for LONG_STILL_S already, nothing left of the clock
+    still = held_still(walk.slice(0, 2), 40)
+    stood = with_memory(motion_features(still.slice(2, 42)), fps, spec)[:, FEATURE_DIM:]
+    assert np.all(stood <= np.exp(-LONG_STILL_S / 4.0) + 1e-12)
+    with pytest.raises(ValueError, match="stillness time constants must be positive"):
+        MemorySettings((), (), 0.3, (0.0,))
