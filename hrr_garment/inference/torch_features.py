@@ -93,18 +93,19 @@ class FeatureStage(nn.Module):
         bobs = carried[:, self.averages :].reshape(n, -1, 2, MEMORY_WIDTH)
         bobs = self.resonator_a @ bobs + self.resonator_b[..., None] * u[:, None]
         stepped = [averages, bobs.reshape(n, -1, MEMORY_WIDTH)]
-        if self.clocked:  # the stillness clock (MotionMemory.step), from LONG_STILL_S at a start
-            still = self.stillness(features)
-            stepped.append(still * (state[:, rows:] + 1.0 / self.fps))
-            fresh.append(still * (LONG_STILL_S + 1.0 / self.fps) + torch.zeros_like(state[:, rows:]))
+        if self.clocked:  # the stillness clock (motion.memory.clock_step), LONG_STILL_S at a start
+            stepped.append(self.clock_step(state[:, rows:], features))
+            fresh.append(torch.full_like(state[:, rows:], LONG_STILL_S))
         return torch.where(started.reshape(-1, 1, 1) > 0, torch.cat(stepped, 1), torch.cat(fresh, 1))
 
-    @staticmethod
-    def stillness(features: torch.Tensor) -> torch.Tensor:
-        """(N, 1, 1): :func:`~hrr_garment.motion.memory.stillness` of the frame's features."""
+    def clock_step(self, clock: torch.Tensor, features: torch.Tensor) -> torch.Tensor:
+        """The clock rows (N, 1, 64) one frame on: :func:`~hrr_garment.motion.memory.clock_step`."""
         v = features[:, SLICE_V].reshape(features.shape[0], -1, 3)
-        speed = torch.sqrt((v * v).sum(-1)).mean(-1)
-        return torch.clamp((MOVING_ABOVE - speed) / (MOVING_ABOVE - STILL_BELOW), 0.0, 1.0)[:, None, None]
+        speed = torch.sqrt((v * v).sum(-1)).mean(-1)[:, None, None]
+        count = torch.clamp((MOVING_ABOVE - speed) / (MOVING_ABOVE - STILL_BELOW), 0.0, 1.0) / self.fps
+        return torch.where(
+            speed > MOVING_ABOVE, torch.zeros_like(clock), torch.clamp(clock + count, max=LONG_STILL_S)
+        )
 
     def memory_values(self, state: torch.Tensor) -> torch.Tensor:
         """(N, width): the averages, each resonator's w x and q, the clock's (:meth:`MotionMemory.values`)."""

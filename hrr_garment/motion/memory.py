@@ -16,14 +16,16 @@ joints' velocities and the root's, all 3-vectors in the body frame, and the yaw 
   in its swing, which an average cannot say (an average has no phase).
 
 - **A stillness clock** (``MemorySettings.still_seconds``): tau_t, the seconds the body has stood
-  still, ``tau_t = g_t (tau_{t-1} + 1 / fps)``, where g_t is 1 while the feature joints' mean speed
-  is under :data:`STILL_BELOW`, 0 over :data:`MOVING_ABOVE` and linear between (a body swaying as it
-  stands still counts as standing). The features are ``exp(-tau_t / s)`` for each s: 1 while the body
-  moves, falling after it stops. A skirt twisted by a dance keeps untwisting for seconds after the
-  body stands still (docs/materials.md, "After a stop"); the averages and resonators fade at their
-  own rates whatever the cloth does, and none says how long ago the body stopped. A motion still at
-  its first frame has stood :data:`LONG_STILL_S` (all its clock's features near 0), as the averages
-  start as if the first velocities had always been.
+  still. It is reset to 0 while the feature joints' mean speed is over :data:`MOVING_ABOVE` and
+  counts 1 / fps a frame under :data:`STILL_BELOW`, a fraction of that between (a body swaying as it
+  stands counts as standing, a gesture slows the count without resetting it); it never passes
+  :data:`LONG_STILL_S`. The features are ``exp(-tau_t / s)`` for each s: 1 while the body moves,
+  falling after it stops. A skirt twisted by a dance keeps untwisting for seconds after the body
+  stands still (docs/materials.md, "After a stop"); the averages and resonators fade at their own
+  rates whatever the cloth does, and none says how long ago the body stopped. Every motion's first
+  frame reads LONG_STILL_S (the garment starts at rest), whatever its velocity: the offline
+  features give frame 0 frame 1's velocities and the causal ones none, and the clock must not tell
+  the two apart.
 
 R_t turns last frame's body frame into this frame's (the yaw step from the yaw-rate feature), so
 the memory is of the world velocities, seen from the body frame at t: like the features, it does
@@ -57,7 +59,7 @@ MEMORY_WIDTH = (
 # library's bow, bye and raise-up clips read 0.01-0.04 (their 5th to 25th percentiles), a hand waved
 # while standing about 0.05, its walks 0.75 or more (docs/codespace.md)
 STILL_BELOW, MOVING_ABOVE = 0.05, 0.15
-LONG_STILL_S = 1000.0  # how long a motion still at its first frame has stood
+LONG_STILL_S = 1000.0  # the clock's reading at a motion's first frame, and its most
 
 
 def check_memory_seconds(
@@ -125,20 +127,25 @@ def feature_width(memory: MemorySettings | Sequence[float]) -> int:
     return FEATURE_DIM + MemorySettings.of(memory).width
 
 
-def stillness(features: np.ndarray) -> np.ndarray:
-    """(N,) g in [0, 1] of features (N, 124): 1 where the feature joints' mean speed is under
-    STILL_BELOW, 0 over MOVING_ABOVE, linear between."""
+def body_speed(features: np.ndarray) -> np.ndarray:
+    """(N,) the feature joints' mean speed (m/s) of features (N, 124)."""
     v = features[:, SLICE_V].astype(np.float64).reshape(len(features), -1, 3)
-    speed = np.linalg.norm(v, axis=-1).mean(-1)
-    return np.clip((MOVING_ABOVE - speed) / (MOVING_ABOVE - STILL_BELOW), 0.0, 1.0)
+    return np.linalg.norm(v, axis=-1).mean(-1)
+
+
+def clock_step(tau: np.ndarray, features: np.ndarray, fps: float) -> np.ndarray:
+    """The clock readings tau (N,) one frame on, with this frame's features (N, 124): reset over
+    MOVING_ABOVE, 1 / fps more under STILL_BELOW, a fraction of that between, at most LONG_STILL_S."""
+    speed = body_speed(features)
+    count = np.clip((MOVING_ABOVE - speed) / (MOVING_ABOVE - STILL_BELOW), 0.0, 1.0) / fps
+    return np.where(speed > MOVING_ABOVE, 0.0, np.minimum(tau + count, LONG_STILL_S))
 
 
 def still_clock(features: np.ndarray, fps: float) -> np.ndarray:
-    """(T,) tau: the seconds the body has stood still at each frame of one motion's features (T, 124)."""
-    g, dt = stillness(features), 1.0 / fps
-    tau, last = np.empty(len(features)), LONG_STILL_S
-    for t, g_t in enumerate(g):  # a recursion through a clamp: no closed form, and a frame costs ns
-        last = tau[t] = g_t * (last + dt)
+    """(T,) tau: the clock at each frame of one motion's features (T, 124), from LONG_STILL_S."""
+    tau = np.full(len(features), LONG_STILL_S)
+    for t in range(1, len(features)):  # a recursion through a reset: no closed form; ns a frame
+        tau[t] = clock_step(tau[t - 1 : t], features[t : t + 1], fps)[0]
     return tau
 
 
@@ -188,15 +195,16 @@ class MotionMemory:
         state = np.repeat(u[:, None], k + 2 * r, 1)
         state[:, k::2] = 0.0
         if self.spec.still_seconds:
-            clock = stillness(features) * (LONG_STILL_S + 1.0 / self.fps)
-            state = np.concatenate([state, np.repeat(clock[:, None, None], MEMORY_WIDTH, 2)], 1)
+            state = np.concatenate([state, np.full((len(u), 1, MEMORY_WIDTH), LONG_STILL_S)], 1)
         return state
 
     def step(self, state: np.ndarray, features: np.ndarray) -> np.ndarray:
         """The state (N, rows, 64) one frame on, from the last state and this frame's features (N, 124)."""
         n, rows, k = len(state), self.spec.filter_rows, len(self.spec.seconds)
-        clock = state[:, rows:]  # (N, 0 or 1, 64): not a vector, never turned
-        clock = stillness(features)[:, None, None] * (clock + 1.0 / self.fps)
+        clock = state[:, rows:, :1]  # (N, 0 or 1, 1): not a vector, never turned
+        if self.spec.still_seconds:
+            clock = clock_step(clock[:, 0, 0], features, self.fps)[:, None, None]
+        clock = np.repeat(clock, MEMORY_WIDTH, 2)
         turn = rotation_about_y(
             -features[:, SLICE_W][:, 0].astype(np.float64) / self.fps
         )  # (N, 3, 3): last body frame -> this

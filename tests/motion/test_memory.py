@@ -14,8 +14,10 @@ from hrr_garment.motion.memory import (
     MemorySettings,
     MotionMemory,
     check_memory_seconds,
+    clock_step,
     feature_width,
     resonator_step,
+    still_clock,
     with_memory,
 )
 from hrr_garment.motion.rotations import rotation_about_y, yaw_of
@@ -162,22 +164,59 @@ def test_no_time_constants_leaves_the_features_and_bad_ones_are_refused():
             MemorySettings((), (1.0,), damping)
 
 
-def test_the_stillness_clock_counts_the_seconds_since_the_body_stopped():
+# the stillness clock's known answers: the feature joints' mean speed a frame (m/s), and tau in frames
+# (1 / fps each): the start reads LONG_STILL_S, a reset over 0.15, a full count under 0.05, half a
+# count at 0.10, a tenth (but no reset) at 0.14
+CLOCK_SPEEDS = [0.3, 0.2, 0.0, 0.0, 0.1, 0.1, 0.04, 0.14, 0.2, 0.0]
+CLOCK_FRAMES = [None, 0.0, 1.0, 2.0, 2.5, 3.0, 4.0, 4.1, 0.0, 1.0]
+
+
+def features_at_speeds(speeds) -> np.ndarray:
+    """(T, 124) features whose every feature joint moves at ``speeds[t]`` (m/s), each in its own
+    direction; everything else zero."""
+    f = np.zeros((len(speeds), FEATURE_DIM), np.float32)
+    directions = rotation_about_y(np.linspace(0.0, 3.0, 20)) @ np.array([1.0, 0.0, 0.0])  # (20, 3)
+    f[:, 60:120] = (np.asarray(speeds)[:, None, None] * directions[None]).reshape(len(speeds), 60)
+    return f
+
+
+def expected_clock(fps: float) -> np.ndarray:
+    return np.array([LONG_STILL_S if k is None else k / fps for k in CLOCK_FRAMES])
+
+
+@pytest.mark.parametrize("fps", [30.0, 24.0])
+def test_the_stillness_clock_resets_counts_and_slows_as_the_known_answers_say(fps):
+    f, spec = features_at_speeds(CLOCK_SPEEDS), MemorySettings((0.5,), (1.0,), 0.3, (1.0, 4.0))
+    tau = expected_clock(fps)
+    np.testing.assert_allclose(still_clock(f, fps), tau, rtol=1e-6)  # float32 speeds
+    want = np.exp(-tau[:, None] / np.array([1.0, 4.0]))
+    np.testing.assert_allclose(with_memory(f, fps, spec)[:, -2:], want, rtol=1e-6, atol=1e-30)
+    memory = MotionMemory(spec, fps)  # the stream's step, one character started three frames late
+    states, rows = [None, None], []
+    for t in range(len(f)):
+        frame = np.stack([f[t], f[max(t - 3, 0)]])
+        states = list(
+            memory.advance([s if t else None for s in states[:1]] + [states[1] if t > 3 else None], frame)
+        )
+        rows.append(memory.values(np.stack(states))[:, -2:])
+    np.testing.assert_allclose(np.stack(rows)[:, 0], want, rtol=1e-6, atol=1e-30)
+    np.testing.assert_allclose(np.stack(rows)[3:, 1], want[: len(f) - 3], rtol=1e-6, atol=1e-30)
+    capped = clock_step(np.array([LONG_STILL_S - 1e-3]), f[2:3], fps)
+    assert capped[0] == LONG_STILL_S  # the clock never passes its start
+
+
+def test_the_stillness_clock_counts_the_seconds_since_a_real_stop():
     walk = synthesize("walk", seconds=2.0, seed=3)
     held = held_still(walk, 90)  # then 3 s standing
     fps, spec = held.fps, MemorySettings((), (), 0.3, (1.0, 4.0))
     got = with_memory(motion_features(held), fps, spec)[:, FEATURE_DIM:]
     assert got.shape == (held.num_frames, 2) and feature_width(spec) == FEATURE_DIM + 2
-    moving = got[: walk.num_frames - 1]
-    np.testing.assert_array_equal(moving, 1.0)  # a walk never reads as standing
+    np.testing.assert_array_equal(got[0], 0.0)  # the start: the garment at rest (exp(-1000 / s))
+    np.testing.assert_array_equal(got[1 : walk.num_frames - 1], 1.0)  # a walk never reads as standing
     # frame walk.num_frames is the first with zero velocity: tau = 1 / fps there, k / fps k frames on
     tau = np.arange(1, 91) / fps
     np.testing.assert_allclose(
         got[walk.num_frames :], np.exp(-tau[:, None] / np.array([1.0, 4.0])), rtol=1e-5
     )
-    # standing from the first frame: stood for LONG_STILL_S already, nothing left of the clock
-    still = held_still(walk.slice(0, 2), 40)
-    stood = with_memory(motion_features(still.slice(2, 42)), fps, spec)[:, FEATURE_DIM:]
-    assert np.all(stood <= np.exp(-LONG_STILL_S / 4.0) + 1e-12)
     with pytest.raises(ValueError, match="stillness time constants must be positive"):
         MemorySettings((), (), 0.3, (0.0,))
