@@ -3,7 +3,7 @@ second), appended to the per-frame features (:mod:`.features`).
 
 A loose skirt's hem still swings from a turn made a second ago; the window alone cannot see that
 turn. Two kinds of memory, both linear filters of the frame's velocity features u_t (the 20 feature
-joints' velocities and the root's, all 3-vectors in the body frame, and the yaw rate):
+joints' velocities and the root's, all 3-vectors in the body frame, and the yaw rate), and a clock:
 
 - **Averages** over time constants s (``MemorySettings.seconds``):
   ``m_t = a R_t m_{t-1} + (1 - a) u_t``, ``a = exp(-1 / (fps s))``, ``m_0 = u_0``.
@@ -14,7 +14,6 @@ joints' velocities and the root's, all 3-vectors in the body frame, and the yaw 
   discretisation of ``x' = q - u, q' = -w^2 x - 2 zeta w (q - u)``, at rest at the start
   (``x_0 = 0, q_0 = u_0``). The features are w x and q: where a pendulum of that period would be
   in its swing, which an average cannot say (an average has no phase).
-
 - **A stillness clock** (``MemorySettings.still_seconds``): tau_t, the seconds the body has stood
   still. It is reset to 0 while the feature joints' mean speed is over :data:`MOVING_ABOVE` and
   counts 1 / fps a frame under :data:`STILL_BELOW`, a fraction of that between (a body swaying as it
@@ -28,7 +27,7 @@ joints' velocities and the root's, all 3-vectors in the body frame, and the yaw 
   the two apart.
 
 R_t turns last frame's body frame into this frame's (the yaw step from the yaw-rate feature), so
-the memory is of the world velocities, seen from the body frame at t: like the features, it does
+the filters are of the world velocities, seen from the body frame at t: like the features, it does
 not change when the whole motion is moved or turned about the vertical axis (tested).
 
 It is computed from the features alone, one frame after another, so offline clips, causal clips
