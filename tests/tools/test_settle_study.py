@@ -93,3 +93,25 @@ def test_still_time_of_an_exponential_decay_and_of_a_creep():
     away = tool.away_from_rest(creep, FPS, 0.5)
     assert tool.settle_time(away, FPS, 0.010) == pytest.approx(6.5, abs=1.5 / FPS)
     assert tool.still_time(creep, FPS, 0.5, 0.005) is None
+
+
+def test_the_members_mean_keeps_the_shared_settling_and_drops_the_chaotic():
+    """Two members share a decay of 50 mm (0.5 s) and differ by a slow one of 40 mm (3 s) in
+    opposite directions: each settles late, their mean as the shared decay alone (0.80 s)."""
+    tool = _tool()
+    motion = synthesize("walk", 9.0, seed=0)
+    shared = _decaying_hem(8.0, 0.05, 0.5)
+    t = np.arange(len(shared)) / FPS
+    chaos = 0.04 * np.exp(-t / 3.0)[:, None, None] * np.array([0.0, 0.0, 1.0])
+    # (30 + T, 16, 3): a second before the stop where the cloth stands as it is at the stop
+    members = [np.repeat(shared + sign * chaos, 2, axis=1) for sign in (1.0, -1.0)]
+    members = [np.concatenate([np.repeat(m[:1], 30, 0), m]) for m in members]
+    hem = np.arange(16)
+
+    class Args:
+        near, smooth, still = 10.0, 1 / FPS, 0.02
+
+    alone = [tool.hem_after_stop(m, motion, 30, hem, Args) for m in members]
+    mean = tool.mean_member_after_stop(members, motion, 30, hem, Args)
+    assert mean["settle_s"] == pytest.approx(0.5 * math.log(5.0), abs=1.5 / FPS)
+    assert all(a["settle_s"] > 3.0 for a in alone)
