@@ -71,10 +71,10 @@ class CodeSpaceSettings:
     def __post_init__(self):
         try:
             spec = MemorySettings(
-                tuple(self.memory_seconds),
-                tuple(self.resonator_hz),
-                float(self.resonator_damping),
-                tuple(self.still_seconds),
+                seconds=tuple(self.memory_seconds),
+                resonator_hz=tuple(self.resonator_hz),
+                damping=float(self.resonator_damping),
+                still_seconds=tuple(self.still_seconds),
             )
         except (TypeError, ValueError) as exc:
             raise SettingsError(f"code space model: {exc}") from None
@@ -113,7 +113,10 @@ class CodeSpaceSettings:
     def memory(self) -> MemorySettings:
         """The motion memory the features carry (:mod:`hrr_garment.motion.memory`)."""
         return MemorySettings(
-            self.memory_seconds, self.resonator_hz, self.resonator_damping, self.still_seconds
+            seconds=self.memory_seconds,
+            resonator_hz=self.resonator_hz,
+            damping=self.resonator_damping,
+            still_seconds=self.still_seconds,
         )
 
     @property

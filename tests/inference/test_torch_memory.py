@@ -37,8 +37,8 @@ def stepped_both_ways(spec: MemorySettings, clip: np.ndarray, fps: float):
     "spec",
     [
         MemorySettings((0.5, 1.5), (0.6, 1.0)),
-        MemorySettings((0.5,), (1.0,), 0.3, (1.0, 4.0)),
-        MemorySettings((), (), 0.3, (2.0,)),
+        MemorySettings((0.5,), (1.0,), still_seconds=(1.0, 4.0)),
+        MemorySettings(still_seconds=(2.0,)),
     ],
 )
 def test_the_graphs_memory_equals_the_packages_through_a_stop(spec):
@@ -52,7 +52,7 @@ def test_the_graphs_memory_equals_the_packages_through_a_stop(spec):
 def test_the_graphs_stillness_clock_gives_the_known_answers():
     fps, seconds = 30.0, np.array([1.0, 4.0])
     want = np.exp(-expected_clock(fps)[:, None] / seconds)
-    spec = MemorySettings((), (), 0.3, tuple(seconds))
+    spec = MemorySettings(still_seconds=tuple(seconds))
     _, got = stepped_both_ways(spec, features_at_speeds(CLOCK_SPEEDS), fps)
     np.testing.assert_allclose(got[:, 0], want, rtol=1e-5, atol=1e-30)
     np.testing.assert_allclose(got[LATE:, 1], want[: len(want) - LATE], rtol=1e-5, atol=1e-30)

@@ -25,7 +25,7 @@ from hrr_garment.motion.skeleton import FEATURE_JOINTS
 from tests.motion.test_features import transformed
 
 RESONATING = MemorySettings((0.5, 1.5), (0.6, 1.0, 1.6), 0.3)
-CLOCKED = MemorySettings((0.5, 1.5), (0.6, 1.0, 1.6), 0.3, (1.0, 4.0))
+CLOCKED = MemorySettings((0.5, 1.5), (0.6, 1.0, 1.6), still_seconds=(1.0, 4.0))
 
 
 def world_velocities(motion) -> np.ndarray:
@@ -186,7 +186,7 @@ def expected_clock(fps: float) -> np.ndarray:
 
 @pytest.mark.parametrize("fps", [30.0, 24.0])
 def test_the_stillness_clock_resets_counts_and_slows_as_the_known_answers_say(fps):
-    f, spec = features_at_speeds(CLOCK_SPEEDS), MemorySettings((0.5,), (1.0,), 0.3, (1.0, 4.0))
+    f, spec = features_at_speeds(CLOCK_SPEEDS), MemorySettings((0.5,), (1.0,), still_seconds=(1.0, 4.0))
     tau = expected_clock(fps)
     np.testing.assert_allclose(still_clock(f, fps), tau, rtol=1e-6)  # float32 speeds
     want = np.exp(-tau[:, None] / np.array([1.0, 4.0]))
@@ -208,7 +208,7 @@ def test_the_stillness_clock_resets_counts_and_slows_as_the_known_answers_say(fp
 def test_the_stillness_clock_counts_the_seconds_since_a_real_stop():
     walk = synthesize("walk", seconds=2.0, seed=3)
     held = held_still(walk, 90)  # then 3 s standing
-    fps, spec = held.fps, MemorySettings((), (), 0.3, (1.0, 4.0))
+    fps, spec = held.fps, MemorySettings(still_seconds=(1.0, 4.0))
     got = with_memory(motion_features(held), fps, spec)[:, FEATURE_DIM:]
     assert got.shape == (held.num_frames, 2) and feature_width(spec) == FEATURE_DIM + 2
     np.testing.assert_array_equal(got[0], 0.0)  # the start: the garment at rest (exp(-1000 / s))
@@ -219,4 +219,4 @@ def test_the_stillness_clock_counts_the_seconds_since_a_real_stop():
         got[walk.num_frames :], np.exp(-tau[:, None] / np.array([1.0, 4.0])), rtol=1e-5
     )
     with pytest.raises(ValueError, match="stillness time constants must be positive"):
-        MemorySettings((), (), 0.3, (0.0,))
+        MemorySettings(still_seconds=(0.0,))
