@@ -17,7 +17,7 @@ the same motion in the same cloth (``--mode``, the push-out on, as a user runs i
 - ``away_mm``: the hem's smoothed distance from its resting place at the stop and 0.5 / 1 / 2 / 4 s
   after it: the decay the settle time summarises;
 - ``truth_mean``: the same of the members' mean cloth (their vertices averaged frame by frame).
-  The members come to rest in places 15-17 mm apart (chaos); what they share is the part of the
+  The members' hems come to rest 15-17 mm from their mean (chaos); what they share is the part of the
   settling that the motion decides, which a model predicting the expected cloth can learn: its
   ``settle_s`` is the reference such a model's is read against (``settle_ratio_to_mean``);
 - ``curve_gap_mm``: the mean distance between the model's and the truth's (members' mean) distance
