@@ -132,19 +132,32 @@ def body_speed(features: np.ndarray) -> np.ndarray:
     return np.linalg.norm(v, axis=-1).mean(-1)
 
 
+def _clock_inputs(features: np.ndarray, fps: float) -> tuple[np.ndarray, np.ndarray]:
+    """(N,) whether each frame of features (N, 124) resets the clock (over MOVING_ABOVE), and (N,)
+    the seconds it counts otherwise: 1 / fps under STILL_BELOW, a fraction of that between."""
+    speed = body_speed(features)
+    return speed > MOVING_ABOVE, np.clip(
+        (MOVING_ABOVE - speed) / (MOVING_ABOVE - STILL_BELOW), 0.0, 1.0
+    ) / fps
+
+
+def _advanced(tau, moving, count):
+    """The clock one frame on from ``tau``, given :func:`_clock_inputs`' values (arrays or scalars)."""
+    return np.where(moving, 0.0, np.minimum(tau + count, LONG_STILL_S))
+
+
 def clock_step(tau: np.ndarray, features: np.ndarray, fps: float) -> np.ndarray:
     """The clock readings tau (N,) one frame on, with this frame's features (N, 124): reset over
     MOVING_ABOVE, 1 / fps more under STILL_BELOW, a fraction of that between, at most LONG_STILL_S."""
-    speed = body_speed(features)
-    count = np.clip((MOVING_ABOVE - speed) / (MOVING_ABOVE - STILL_BELOW), 0.0, 1.0) / fps
-    return np.where(speed > MOVING_ABOVE, 0.0, np.minimum(tau + count, LONG_STILL_S))
+    return _advanced(tau, *_clock_inputs(features, fps))
 
 
 def still_clock(features: np.ndarray, fps: float) -> np.ndarray:
     """(T,) tau: the clock at each frame of one motion's features (T, 124), from LONG_STILL_S."""
+    moving, count = _clock_inputs(features, fps)  # every frame's speed at once; only the sum loops
     tau = np.full(len(features), LONG_STILL_S)
-    for t in range(1, len(features)):  # a recursion through a reset: no closed form; ns a frame
-        tau[t] = clock_step(tau[t - 1 : t], features[t : t + 1], fps)[0]
+    for t in range(1, len(features)):  # a recursion through a reset: no closed form
+        tau[t] = _advanced(tau[t - 1], moving[t], count[t])
     return tau
 
 
