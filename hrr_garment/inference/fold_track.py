@@ -9,6 +9,13 @@ the current proposal when they have disagreed for ``hold`` frames (or its sequen
 cross-fades the old playhead's folds out over ``fade`` frames after a jump. The same step runs
 offline, causal and streaming, so a stream equals the causal track.
 
+*Resting.* Where the same window keeps matching (a body standing still), every frame proposes the
+same simulated frame. A playhead that played on from it would disagree after ``slack`` frames and jump
+back after ``hold`` more: a loop of a dozen frames of another simulation's moving folds, for as long
+as the body stands (the clocked stops model's hem moved at 0.17 m/s 12 s into a stop, the truth's at
+0.01). Once the proposal has stayed the same for ``rest`` frames the playhead therefore rests on its
+frame, and the folds stand still with the body.
+
 *Following in time.* The playhead's folds are another simulation's, so their motion is not the
 truth's: every millimetre of their acceleration adds to the output's jitter (detail on the
 regression, 16 held-out clips: 1.11 x the truths' jitter against the regression's 0.95). The folds
@@ -34,6 +41,7 @@ from ..garment.smoothing import high_frequencies
 FOLD_HOLD = 8  # frames the proposals may disagree with the playhead before it jumps
 FOLD_FADE = 6  # frames over which the folds of the frame jumped from fade out
 FOLD_SLACK = 3  # a proposal this many frames or fewer from the playhead, in its sequence, agrees
+FOLD_REST = 8  # frames one proposal must repeat before the playhead rests on it (module docstring)
 # the share of the way the followed folds move to this frame's each frame (1: no smoothing); on
 # validation 0.4 / 0.5 / 0.6 left 6.38 / 6.47 / 6.56 mm of jitter at 0.980 / 0.983 / 0.985 of the
 # folds' bending energy (decision 0024)
@@ -50,12 +58,15 @@ class FoldTrack:
     hold: int = FOLD_HOLD
     fade: int = FOLD_FADE
     slack: int = FOLD_SLACK
+    rest: int = FOLD_REST
     sequence: int = -1
     frame: int = 0
     disagreed: int = 0  # frames since a proposal last agreed (or since the jump)
     old_sequence: int = -1
     old_frame: int = 0
     fading: int = 0  # frames of the old playhead's fade left
+    last: tuple[int, int] = (-1, -1)  # the last proposal
+    repeated: int = 0  # frames it has been the same (``rest`` or more: the playhead rests)
 
     def __post_init__(self) -> None:
         self.lengths = np.diff(self.offsets)
@@ -64,10 +75,12 @@ class FoldTrack:
         """This frame's proposal (database sequence, frame) -> the fold store rows (2,) of the
         playhead and of the one fading out, and their weights (2,) (0 when none; they sum to 1)."""
         sequence, frame = int(sequence), int(frame)
+        self.repeated = self.repeated + 1 if (sequence, frame) == self.last else 0
+        self.last = (sequence, frame)
         if self.sequence < 0:
             self.sequence, self.frame = sequence, frame
         else:
-            self.frame += 1
+            self.frame += 0 if self.repeated >= self.rest else 1  # resting (module docstring)
             self.old_frame = (
                 min(self.old_frame + 1, int(self.lengths[self.old_sequence]) - 1) if self.fading else 0
             )
@@ -102,7 +115,7 @@ def causal_proposals(source: np.ndarray, window: int) -> np.ndarray:
 
 def track_folds(proposals: np.ndarray, offsets: np.ndarray, **settings: int) -> tuple[np.ndarray, np.ndarray]:
     """(T, 2) proposals -> the fold store rows (T, 2) and weights (T, 2) of a :class:`FoldTrack`
-    over them (``offsets``: the store's; ``settings``: its hold, fade or slack, for analysis)."""
+    over them (``offsets``: the store's; ``settings``: its hold, fade, slack or rest, for analysis)."""
     track = FoldTrack(offsets, **settings)
     steps = [track.step(sequence, frame) for sequence, frame in proposals]
     return np.array([r for r, _ in steps], np.int64).reshape(-1, 2), np.array([w for _, w in steps]).reshape(

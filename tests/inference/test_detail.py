@@ -215,6 +215,20 @@ def test_the_track_jumps_after_hold_frames_of_disagreement_and_fades_the_old_fol
     )  # the old plays on as it fades
 
 
+def test_the_track_rests_where_the_same_frame_keeps_being_proposed():
+    # a body standing still: every window matches the same one, so every frame proposes one frame
+    track = FoldTrack(OFFSETS, hold=4, fade=3, rest=4)
+    steps = [track.step(2, 50) for _ in range(40)]
+    rows = np.array([r for r, _ in steps])
+    weights = np.array([w for _, w in steps])
+    # it plays on while the proposal might still move, then rests within the slack: no loop back
+    assert rows[:, 0].tolist() == [OFFSETS[2] + f for f in (50, 51, 52, 53)] + [OFFSETS[2] + 53] * 36
+    assert np.array_equal(weights[:, 0], np.ones(40))  # no jump, so nothing fades
+    # and it plays on again, one frame a frame, once the proposals move
+    moved = [track.step(2, 54 + t)[0][0] for t in range(5)]
+    assert moved == [OFFSETS[2] + f for f in range(54, 59)]
+
+
 def test_the_track_jumps_where_its_sequence_ends():
     track = FoldTrack(OFFSETS, hold=50)
     rows = [track.step(1, 27)[0][0] for _ in range(2)] + [track.step(0, 3)[0][0] for _ in range(2)]
