@@ -94,9 +94,10 @@ class CodeDatabase:
     ) -> tuple[np.ndarray, np.ndarray]:
         """Best match per query code (Q, G): (indices (Q,), cosine similarity (Q,)).
         ``exclude`` (Q,): a sequence index per query whose windows may not be returned (-1: none).
-        ``conditions`` (Q, c): each query's standardised body measures and cloth values, for a model
-        trained across bodies or cloths (the last c columns of its motion frames): among the windows
-        whose codes are equally near, the one simulated on the nearest body in the nearest cloth
+        ``conditions`` (Q, c): each query's standardised body measures and cloth values (and the
+        stillness clock's, where the model reads it), for a model trained across bodies or cloths
+        (the last c columns of its motion frames): among the windows whose codes are equally near,
+        the one simulated on the nearest body in the nearest cloth (at the nearest time after a stop)
         wins (its motion relative to the body carries over best, and its folds are its cloth's), ties
         to the lowest row."""
         if conditions is None or self.motion is None:

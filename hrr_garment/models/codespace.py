@@ -12,10 +12,11 @@
 A model trained across bodies (``body_features`` > 0) reads each body's measures
 (:mod:`hrr_garment.body.measures`) after every motion frame's features, and a model trained in
 several cloths (``material_features`` > 0) the cloth's values (:mod:`hrr_garment.garment.material_range`)
-after them: together the last ``condition_features`` columns. The motion encoder sees them with the
+after them: together the last ``condition_features`` columns (with ``clock_conditions`` also the
+stillness clock's, the memory's last columns, just before them). The motion encoder sees them with the
 motion, and the garment encoder and the decoder take them from the window's last frame
 (:meth:`CodeSpace.condition_of`) beside their own inputs, so one code means one movement of the
-cloth relative to its body, decoded for the body and the cloth at hand.
+cloth relative to its body, decoded for the body, the cloth and the time since a stop at hand.
 """
 
 from __future__ import annotations
@@ -58,6 +59,10 @@ class CodeSpaceSettings:
     # the motion memory's stillness clock (motion.memory): how long the body has stood still, read
     # through exp(-tau / s) for each s; () for none
     still_seconds: tuple[float, ...] = ()
+    # whether the garment encoder and the decoder also read the clock's values beside the code, as
+    # they read the body's and the cloth's: the creep after a stop is a smooth function of the time
+    # since it, which the window's discrete code keeps half of (docs/materials.md, "After a stop")
+    clock_conditions: bool = False
     # what the regression decodes: "expected", the embedding averaged over the motion code's
     # distribution (each group's softmax), or "argmax", the most likely class's (the paper's)
     regression_code: str = "expected"
@@ -94,6 +99,12 @@ class CodeSpaceSettings:
         ):
             require_number(what, name, getattr(self, name), low=low, high=high, whole=True)
         require_number(what, "dropout", self.dropout, low=0, high=1)
+        if not isinstance(self.clock_conditions, bool):
+            raise SettingsError(
+                f"{what}: clock_conditions must be true or false, got {self.clock_conditions!r}"
+            )
+        if self.clock_conditions and not self.still_seconds:
+            raise SettingsError(f"{what}: clock_conditions needs a stillness clock (still_seconds)")
         if self.motion_hidden % self.attention_heads:
             raise SettingsError(
                 f"{what}: motion_hidden ({self.motion_hidden}) must divide into attention_heads "
@@ -121,24 +132,28 @@ class CodeSpaceSettings:
 
     @property
     def condition_features(self) -> int:
-        """The columns after the motion's that condition the model: the body's and the cloth's."""
-        return self.body_features + self.material_features
+        """The last columns of a motion frame, which condition the garment encoder and the decoder
+        beside the code: the stillness clock's with ``clock_conditions`` (the memory's last
+        columns), the body's and the cloth's."""
+        clock = len(self.still_seconds) if self.clock_conditions else 0
+        return clock + self.body_features + self.material_features
 
     @property
     def features(self) -> int:
         """Motion features per frame: the 124 plain ones, the memory's, the body's and the cloth's."""
-        return feature_width(self.memory) + self.condition_features
+        return feature_width(self.memory) + self.body_features + self.material_features
 
     @classmethod
     def from_dict(cls, values: dict) -> "CodeSpaceSettings":
         return from_settings(cls, values, "code space model")
 
     def to_dict(self) -> dict:
-        """The settings as plain values; no ``material_features`` key for a model of one cloth and
-        no ``still_seconds`` for one without a stillness clock (its bundle.json as before those were
-        read, which older versions also read)."""
+        """The settings as plain values; no ``material_features`` key for a model of one cloth, no
+        ``still_seconds`` for one without a stillness clock and no ``clock_conditions`` where the
+        clock conditions nothing (its bundle.json as before those were read, which older versions
+        also read)."""
         out = asdict(self)
-        for key in ("material_features", "still_seconds"):
+        for key in ("material_features", "still_seconds", "clock_conditions"):
             if not out[key]:
                 del out[key]
         return out
@@ -223,8 +238,9 @@ class CodeSpace(nn.Module):
         )
 
     def condition_of(self, motion: torch.Tensor) -> torch.Tensor | None:
-        """The standardised body measures and cloth values (B, c) of motion windows (B, W, F): their
-        last frame's last ``condition_features`` columns; None for a model of one body in one cloth."""
+        """The standardised conditions (B, c) of motion windows (B, W, F), the clock's, body measures
+        and cloth values as the model reads them: their last frame's last ``condition_features``
+        columns; None for a model that reads none."""
         c = self.config.condition_features
         return motion[:, -1, motion.shape[-1] - c :] if c else None
 
@@ -238,7 +254,7 @@ class CodeSpace(nn.Module):
         tenths of the decoder's weights) are skipped."""
         if (condition is None) != (self.config.condition_features == 0):
             raise ValueError(
-                f"the decoder reads {self.config.condition_features} body and cloth values; "
+                f"the decoder reads {self.config.condition_features} clock, body and cloth values; "
                 f"{'none' if condition is None else condition.shape[-1]} given"
             )
         if condition is not None:

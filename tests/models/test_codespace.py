@@ -43,8 +43,10 @@ def test_usage_counts_dead_classes_and_perplexity():
     assert usage.perplexity == pytest.approx((4 + 1) / 2)
 
 
-@pytest.mark.parametrize("body,material", [(0, 0), (3, 0), (0, 5), (3, 5)])
-def test_decoding_only_the_last_frame_equals_the_full_window(body, material):
+@pytest.mark.parametrize(
+    "body,material,clock", [(0, 0, 0), (3, 0, 0), (0, 5, 0), (3, 5, 0), (0, 5, 3), (0, 0, 2)]
+)
+def test_decoding_only_the_last_frame_equals_the_full_window(body, material, clock):
     from hrr_garment.models.codespace import CodeSpace, CodeSpaceSettings
 
     torch.manual_seed(0)
@@ -57,12 +59,15 @@ def test_decoding_only_the_last_frame_equals_the_full_window(body, material):
         motion_hidden=16,
         body_features=body,
         material_features=material,
+        still_seconds=tuple(float(s + 1) for s in range(clock)),
+        clock_conditions=bool(clock),
     )
     cs = CodeSpace(settings, settings.features, (6, 8))
     embedding = torch.randn(7, cs.quantizer.embedding_size)
     motion = torch.randn(7, 5, settings.features)
     condition = cs.condition_of(motion)
-    c = body + material
+    c = clock + body + material  # the clock's columns are the memory's last, just before the body's
+    assert settings.features - c == 124 + settings.memory.width - clock
     assert condition is None if not c else torch.equal(condition, motion[:, -1, -c:])
     with torch.no_grad():
         assert torch.allclose(
@@ -70,7 +75,7 @@ def test_decoding_only_the_last_frame_equals_the_full_window(body, material):
             cs.decode(embedding, condition=condition)[:, -1:],
             atol=1e-6,
         )
-        if c:  # the decoder reads the body and the cloth: another of either, other latents
+        if c:  # the decoder reads the clock, the body and the cloth: another of any, other latents
             for column in range(c):
                 other = condition.clone()
                 other[:, column] += 1
@@ -94,7 +99,12 @@ def test_settings_refuse_a_negative_or_fractional_condition_width():
 @pytest.mark.native
 @pytest.mark.parametrize(
     "window,hidden,heads,latent,condition",
-    [(10, 32, 2, (6, 8), (0, 0)), (7, 48, 3, (5, 3), (12, 5)), (12, 64, 4, (9, 8), (0, 5))],
+    [
+        (10, 32, 2, (6, 8), (0, 0, 0)),
+        (7, 48, 3, (5, 3), (12, 5, 0)),
+        (12, 64, 4, (9, 8), (0, 5, 0)),
+        (7, 32, 2, (5, 3), (0, 5, 2)),
+    ],
 )
 @pytest.mark.parametrize(
     "regression,last_frame,code",
@@ -103,8 +113,8 @@ def test_settings_refuse_a_negative_or_fractional_condition_width():
 def test_native_window_step_equals_pytorch_and_is_batch_invariant(
     window, hidden, heads, latent, condition, regression, last_frame, code
 ):
-    """``condition``: (body measures, cloth values) of a model across bodies or cloths, whose
-    decoder reads the window's too."""
+    """``condition``: (body measures, cloth values, stillness clock values) of a model across bodies
+    or cloths, or whose decoder reads the clock, whose decoder reads the window's too."""
     from hrr_garment.models.codes import WindowCodes
     from hrr_garment.models.codespace import CodeSpace, CodeSpaceSettings
     from hrr_garment.models.native_codes import native_window_codes
@@ -121,6 +131,8 @@ def test_native_window_step_equals_pytorch_and_is_batch_invariant(
         regression_code=code,
         body_features=condition[0],
         material_features=condition[1],
+        still_seconds=tuple(float(s + 1) for s in range(condition[2])),
+        clock_conditions=bool(condition[2]),
     )
     cs = CodeSpace(cfg, 124 + sum(condition), latent).eval()
     native = native_window_codes(cs, regression, last_frame)
@@ -210,5 +222,14 @@ def test_a_stillness_clock_widens_the_features_and_round_trips_through_the_setti
     assert clocked.features == plain.features + 3 and clocked.memory.still_seconds == (1.0, 3.0, 9.0)
     assert "still_seconds" not in plain.to_dict()  # bundle.json as older versions read it
     assert CodeSpaceSettings.from_dict(clocked.to_dict()) == clocked
+    # the clock as a condition of the garment encoder and the decoder: its columns counted in
+    conditioned = CodeSpaceSettings(still_seconds=(1.0, 3.0, 9.0), clock_conditions=True, material_features=5)
+    assert conditioned.condition_features == 8 and conditioned.features == clocked.features + 5
+    assert "clock_conditions" not in clocked.to_dict()
+    assert CodeSpaceSettings.from_dict(conditioned.to_dict()) == conditioned
+    with pytest.raises(SettingsError, match="clock_conditions needs a stillness clock"):
+        CodeSpaceSettings(clock_conditions=True)
+    with pytest.raises(SettingsError, match="clock_conditions must be true or false"):
+        CodeSpaceSettings(still_seconds=(1.0,), clock_conditions="yes")
     with pytest.raises(SettingsError, match="code space model: stillness time constants"):
         CodeSpaceSettings(still_seconds=(-1.0,))
