@@ -115,3 +115,35 @@ def test_the_members_mean_keeps_the_shared_settling_and_drops_the_chaotic():
     mean = tool.mean_member_after_stop(members, motion, 30, hem, Args)
     assert mean["settle_s"] == pytest.approx(0.5 * math.log(5.0), abs=1.5 / FPS)
     assert all(a["settle_s"] > 3.0 for a in alone)
+
+
+def test_by_cloth_averages_each_cloth_over_the_clips():
+    tool = _tool()
+
+    def row(clip, cloth, truth, shared, model, swings, gap):
+        return {
+            "clip": clip,
+            "cloth": cloth,
+            "truth": {"settle_s": truth, "hem_swing_cm": swings[0]},
+            "truth_mean": {"settle_s": shared},
+            "model": {"settle_s": model, "hem_swing_cm": swings[1]},
+            "curve_gap_mm": gap,
+        }
+
+    rows = [
+        row("a", "silk", 8.0, 6.0, 4.0, (10.0, 9.0), 2.0),
+        row("b", "silk", 10.0, 8.0, 8.0, (20.0, 15.0), 4.0),
+        row("a", "denim", None, 5.0, 3.0, (12.0, 12.0), 1.0),  # a truth that never settles
+        row("b", "denim", 6.0, 5.0, 5.0, (8.0, 8.0), 3.0),
+    ]
+    summary = tool.by_cloth(rows)
+    assert list(summary) == ["silk", "denim"]
+    silk = summary["silk"]
+    assert silk["clips"] == 2 and silk["settle_s"] == {"truth": 9.0, "members_mean": 7.0, "model": 6.0}
+    assert silk["settle_ratio"] == pytest.approx(6.0 / 9.0)
+    assert silk["settle_ratio_to_mean"] == pytest.approx(6.0 / 7.0)
+    assert silk["hem_swing_ratio"] == pytest.approx(12.0 / 15.0)  # the ratio of the means
+    assert silk["curve_gap_mm"] == pytest.approx(3.0)
+    denim = summary["denim"]
+    assert denim["settle_s"]["truth"] is None and denim["settle_ratio"] is None
+    assert denim["settle_ratio_to_mean"] == pytest.approx(1.0 / 1.25)

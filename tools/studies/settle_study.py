@@ -1,7 +1,8 @@
 """Study: the hem after the body stops, a model against its truth, per cloth (issue 85: the model's
 hem swing and settle time within 10 % of the truth's, on held-out cloths).
 
-One clip plays, then its last frame is held ``--hold`` seconds: the body stops dead and stands. In
+One clip plays, then its last frame is held ``--hold`` seconds: the body stops dead and stands. Per
+clip (``--clip`` takes several: one clip's settling is one draw of its chaos) and in
 each cloth the dataset's own simulator (its settings, on the mannequin) makes a truth ensemble of
 ``--members`` (hrr_garment/eval/ensemble.py: cached, shared with hrr-eval), and the model animates
 the same motion in the same cloth (``--mode``, the push-out on, as a user runs it). Per cloth:
@@ -25,13 +26,16 @@ the same motion in the same cloth (``--mode``, the push-out on, as a user runs i
   which a settle time alone does not say (a hem swinging back out until late settles late too).
 
 The run's last second (held past ``--hold``) is left out: an offline animation's last frames are
-its last window's end alone.
+its last window's end alone. With several clips, ``by_cloth`` (printed after the rows) averages each
+cloth's over the clips (:func:`by_cloth`): the settle times' means (None where any is), the hem
+swings' ratio of means, the curve gaps' mean.
 
 Run from the repository root:
 
     python tools/studies/settle_study.py --model hrr_work/models/dress-real-quick-materials \\
         --dataset hrr_work/datasets/dress-real-quick-materials.h5 \\
-        --clip /work/shared/data/mocap/cmu/131_03.bvh --cloths jersey cotton-twill cloth02 --hold 12
+        --clip /work/shared/data/mocap/cmu/131_03.bvh /work/shared/data/mocap/cmu/131_01.bvh \
+        --cloths jersey cotton-twill cloth02 --hold 12
 """
 
 from __future__ import annotations
@@ -168,13 +172,131 @@ def cloths_of(ds: GarmentDataset, names: list[str]) -> dict[str, Material]:
     return {n: material_from({"name": n, **recorded[n]}, f"{ds.path}: {n}") for n in names}
 
 
+def by_cloth(rows: list[dict]) -> dict[str, dict]:
+    """Each cloth's rows (one a clip) averaged over the clips: the truth's, the members' mean's and
+    the model's settle times (mean; None where any clip's is), their ratios, the hem swings'
+    ratio of means and the curve gaps' mean."""
+
+    def settle(values: list) -> float | None:
+        return None if None in values else float(np.mean(values))
+
+    out = {}
+    for cloth in dict.fromkeys(r["cloth"] for r in rows):
+        mine = [r for r in rows if r["cloth"] == cloth]
+        truth = settle([r["truth"]["settle_s"] for r in mine])
+        shared = settle([r["truth_mean"]["settle_s"] for r in mine])
+        model = settle([r["model"]["settle_s"] for r in mine])
+        out[cloth] = {
+            "clips": len(mine),
+            "settle_s": {"truth": truth, "members_mean": shared, "model": model},
+            "settle_ratio": _ratio(model, truth),
+            "settle_ratio_to_mean": _ratio(model, shared),
+            "hem_swing_ratio": _ratio(
+                np.mean([r["model"]["hem_swing_cm"] for r in mine]),
+                np.mean([r["truth"]["hem_swing_cm"] for r in mine]),
+            ),
+            "curve_gap_mm": float(np.mean([r["curve_gap_mm"] for r in mine])),
+        }
+    return out
+
+
+def study_clip(
+    clip: str, cloths: dict[str, Material], ds: GarmentDataset, animator: Animator, args
+) -> list[dict]:
+    """One clip stopped and held, in each cloth: the truth's members, their mean and the model."""
+    motion = stopping(load_motion(clip), args.seconds, args.hold + END_S)
+    stop = motion.num_frames - round((args.hold + END_S) * motion.fps)
+    template = ds.template
+    hem = template.groups["hem"]
+    records = [
+        SequenceRecord(
+            f"{Path(clip).stem}-stop-{name}",
+            np.zeros((motion.num_frames, len(template.vertices), 3), np.float32),
+            motion,
+            info={"material": cloth.to_dict()},
+            material=cloth,
+        )
+        for name, cloth in cloths.items()
+    ]
+    ensembles = truth_ensembles(
+        template, records, SimSettings.from_dict(ds.info["sim"]), args.members, jobs=args.jobs
+    )
+    rows = []
+    for record, name in zip(records, cloths):
+        members = [m.astype(np.float64) for m in ensembles[record.name].members]
+        truth = [hem_after_stop(m, motion, stop, hem, args) for m in members]
+        truth_mean = mean_member_after_stop(members, motion, stop, hem, args)
+        run = animator.animate(motion, mode=args.mode, material=record.material, allow_outside_material=True)
+        model = hem_after_stop(run.vertices.astype(np.float64), motion, stop, hem, args)
+        t = _mean(truth)
+        rows.append(
+            {
+                "clip": Path(clip).stem,
+                "cloth": name,
+                "truth": t,
+                "truth_mean": truth_mean,
+                "model": model,
+                "hem_swing_ratio": _ratio(model["hem_swing_cm"], t["hem_swing_cm"]),
+                "settle_ratio": _ratio(model["settle_s"], t["settle_s"]),
+                "settle_ratio_to_mean": _ratio(model["settle_s"], truth_mean["settle_s"]),
+                "curve_gap_mm": curve_gap(t["away_curve_mm"], model["away_curve_mm"]),
+            }
+        )
+    return rows
+
+
+def _settle(s: float | None) -> str:
+    return "> hold" if s is None else f"{s:.2f}"
+
+
+def _of(ratio: float | None) -> str:
+    return "" if ratio is None else format(ratio, ".2f")
+
+
+def print_rows(rows: list[dict]) -> None:
+    print(
+        "| clip | cloth | hem swing cm: truth / model | ratio | settle s: truth (members) / model | ratio | "
+        + "settle s: members' mean / model | ratio | "
+        + " | ".join(f"away mm {k}: truth / model" for k in rows[0]["model"]["away_mm"])
+        + " | still (hem under --still m/s) s: truth / model | hem m/s at the end: truth / model "
+        + "| curve gap mm |"
+    )
+    for r in rows:
+        t, m = r["truth"], r["model"]
+        members = ", ".join(_settle(s) for s in t["settle_s_members"])
+        print(
+            f"| {r['clip']} | {r['cloth']} | {t['hem_swing_cm']:.1f} / {m['hem_swing_cm']:.1f} | "
+            f"{r['hem_swing_ratio'] or 0:.2f} | "
+            f"{_settle(t['settle_s'])} ({members}) / {_settle(m['settle_s'])} | {_of(r['settle_ratio'])} | "
+            f"{_settle(r['truth_mean']['settle_s'])} / {_settle(m['settle_s'])} | "
+            f"{_of(r['settle_ratio_to_mean'])} | "
+            + " | ".join(f"{t['away_mm'][k]:.0f} / {m['away_mm'][k]:.0f}" for k in m["away_mm"])
+            + f" | {_settle(t['still_s'])} / {_settle(m['still_s'])}"
+            + f" | {t['hem_speed_last_s']:.2f} / {m['hem_speed_last_s']:.2f} | {r['curve_gap_mm']:.1f} |"
+        )
+
+
+def print_by_cloth(summary: dict[str, dict]) -> None:
+    print(
+        "| cloth | clips | hem swing / truth | settle s: truth / members' mean / model | "
+        "over the truth's | over the members' mean's | curve gap mm |"
+    )
+    for cloth, c in summary.items():
+        s = c["settle_s"]
+        print(
+            f"| {cloth} | {c['clips']} | {_of(c['hem_swing_ratio'])} | "
+            f"{_settle(s['truth'])} / {_settle(s['members_mean'])} / {_settle(s['model'])} | "
+            f"{_of(c['settle_ratio'])} | {_of(c['settle_ratio_to_mean'])} | {c['curve_gap_mm']:.1f} |"
+        )
+
+
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--model", required=True, type=Path)
     p.add_argument("--dataset", required=True, type=Path, help="its simulator settings and cloths")
-    p.add_argument("--clip", required=True, help="a real clip (BVH, glTF, npz)")
+    p.add_argument("--clip", nargs="+", required=True, help="real clips (BVH, glTF, npz), each studied alone")
     p.add_argument("--cloths", nargs="+", required=True, help="cloths the dataset records, by name")
-    p.add_argument("--seconds", type=float, default=None, help="of the clip before the stop (all)")
+    p.add_argument("--seconds", type=float, default=None, help="of each clip before the stop (all)")
     p.add_argument("--hold", type=float, default=4.0, help="seconds the body then stands")
     p.add_argument("--members", type=int, default=4)
     p.add_argument("--mode", default="auto")
@@ -186,68 +308,19 @@ def main(argv=None) -> int:
     args = p.parse_args(argv)
     ds = GarmentDataset(args.dataset)
     cloths = cloths_of(ds, args.cloths)
-    motion = stopping(load_motion(args.clip), args.seconds, args.hold + END_S)
-    stop = motion.num_frames - round((args.hold + END_S) * motion.fps)
-    template = ds.template
-    hem = template.groups["hem"]
-    records = [
-        SequenceRecord(
-            f"{Path(args.clip).stem}-stop-{name}",
-            np.zeros((motion.num_frames, len(template.vertices), 3), np.float32),
-            motion,
-            info={"material": cloth.to_dict()},
-            material=cloth,
-        )
-        for name, cloth in cloths.items()
-    ]
-    ensembles = truth_ensembles(
-        template, records, SimSettings.from_dict(ds.info["sim"]), args.members, jobs=args.jobs
-    )
     animator = Animator.load(args.model)
-    rows = []
-    for record, name in zip(records, cloths):
-        members = [m.astype(np.float64) for m in ensembles[record.name].members]
-        truth = [hem_after_stop(m, motion, stop, hem, args) for m in members]
-        truth_mean = mean_member_after_stop(members, motion, stop, hem, args)
-        run = animator.animate(motion, mode=args.mode, material=record.material, allow_outside_material=True)
-        model = hem_after_stop(run.vertices.astype(np.float64), motion, stop, hem, args)
-        t = _mean(truth)
-        rows.append(
-            {
-                "cloth": name,
-                "truth": t,
-                "truth_mean": truth_mean,
-                "model": model,
-                "hem_swing_ratio": _ratio(model["hem_swing_cm"], t["hem_swing_cm"]),
-                "settle_ratio": _ratio(model["settle_s"], t["settle_s"]),
-                "settle_ratio_to_mean": _ratio(model["settle_s"], truth_mean["settle_s"]),
-                "curve_gap_mm": curve_gap(t["away_curve_mm"], model["away_curve_mm"]),
-            }
-        )
-    summary = {"clip": args.clip, "model": args.model, "settings": vars(args), "rows": rows}
+    rows = [row for clip in args.clip for row in study_clip(clip, cloths, ds, animator, args)]
+    summary = {
+        "clips": args.clip,
+        "model": args.model,
+        "settings": vars(args),
+        "rows": rows,
+        "by_cloth": by_cloth(rows),
+    }
     atomic_write_text(args.output, json.dumps(summary, indent=1, default=str))
-    print(
-        "| cloth | hem swing cm: truth / model | ratio | settle s: truth (members) / model | ratio | "
-        + "settle s: members' mean / model | ratio | "
-        + " | ".join(f"away mm {k}: truth / model" for k in rows[0]["model"]["away_mm"])
-        + " | still (hem under --still m/s) s: truth / model | hem m/s at the end: truth / model "
-        + "| curve gap mm |"
-    )
-    for r in rows:
-        t, m = r["truth"], r["model"]
-        fmt = lambda s: "> hold" if s is None else f"{s:.2f}"  # noqa: E731
-        members = ", ".join(fmt(s) for s in t["settle_s_members"])
-        print(
-            f"| {r['cloth']} | {t['hem_swing_cm']:.1f} / {m['hem_swing_cm']:.1f} | "
-            f"{r['hem_swing_ratio'] or 0:.2f} | "
-            f"{fmt(t['settle_s'])} ({members}) / {fmt(m['settle_s'])} | "
-            f"{'' if r['settle_ratio'] is None else format(r['settle_ratio'], '.2f')} | "
-            f"{fmt(r['truth_mean']['settle_s'])} / {fmt(m['settle_s'])} | "
-            f"{'' if r['settle_ratio_to_mean'] is None else format(r['settle_ratio_to_mean'], '.2f')} | "
-            + " | ".join(f"{t['away_mm'][k]:.0f} / {m['away_mm'][k]:.0f}" for k in m["away_mm"])
-            + f" | {fmt(t['still_s'])} / {fmt(m['still_s'])}"
-            + f" | {t['hem_speed_last_s']:.2f} / {m['hem_speed_last_s']:.2f} | {r['curve_gap_mm']:.1f} |"
-        )
+    print_rows(rows)
+    if len(args.clip) > 1:
+        print_by_cloth(summary["by_cloth"])
     return 0
 
 
