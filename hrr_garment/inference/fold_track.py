@@ -13,8 +13,11 @@ offline, causal and streaming, so a stream equals the causal track.
 same simulated frame. A playhead that played on from it would disagree after ``slack`` frames and jump
 back after ``hold`` more: a loop of a dozen frames of another simulation's moving folds, for as long
 as the body stands (the clocked stops model's hem moved at 0.17 m/s 12 s into a stop, the truth's at
-0.01). Once the proposal has stayed the same for ``rest`` frames the playhead therefore rests on its
-frame, and the folds stand still with the body.
+0.01). Once the proposal has stayed the same for ``rest`` frames the playhead therefore stops
+advancing. At the defaults it has then played past the slack, so it jumps back to the proposal once
+(with the fade) and rests there, and the folds stand still with the body. A rest of ``slack + 1``
+would rest without that jump, but it also froze the folds of a tiny model's walk, whose matches
+repeat for a few frames while the body moves.
 
 *Following in time.* The playhead's folds are another simulation's, so their motion is not the
 truth's: every millimetre of their acceleration adds to the output's jitter (detail on the

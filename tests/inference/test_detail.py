@@ -229,6 +229,13 @@ def test_the_track_rests_where_the_same_frame_keeps_being_proposed():
     assert moved == [OFFSETS[2] + f for f in range(54, 59)]
 
 
+def test_at_the_defaults_a_repeated_proposal_costs_one_jump_back_then_the_track_rests():
+    track = FoldTrack(OFFSETS)
+    rows = [int(track.step(2, 50)[0][0]) - OFFSETS[2] for _ in range(40)]
+    # plays on 8 frames, stops (disagreeing), jumps back after the hold, rests there for good
+    assert rows == list(range(50, 58)) + [57] * 3 + [50] * 29
+
+
 def test_the_track_jumps_where_its_sequence_ends():
     track = FoldTrack(OFFSETS, hold=50)
     rows = [track.step(1, 27)[0][0] for _ in range(2)] + [track.step(0, 3)[0][0] for _ in range(2)]
