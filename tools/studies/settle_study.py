@@ -34,8 +34,11 @@ Run from the repository root:
 
     python tools/studies/settle_study.py --model hrr_work/models/dress-real-quick-materials \\
         --dataset hrr_work/datasets/dress-real-quick-materials.h5 \\
-        --clip /work/shared/data/mocap/cmu/131_03.bvh /work/shared/data/mocap/cmu/131_01.bvh \
+        --clip /work/shared/data/mocap/cmu/131_03.bvh dataset-1_walk_sad_001.bvh \\
         --cloths jersey cotton-twill cloth02 --hold 12
+
+(clips the model never trained on: 131_03 and walk_sad_001 are in the materials dataset's test
+split, 131_01 in its training split).
 """
 
 from __future__ import annotations
