@@ -44,6 +44,7 @@ class FeatureStage(nn.Module):
         self.averages = 0 if memory is None else len(memory.spec.seconds)
         self.rows = 0 if memory is None else memory.spec.rows
         self.filter_rows = 0 if memory is None else memory.spec.filter_rows
+        self.held = 0 if memory is None else len(memory.spec.held_seconds)
         self.clocked = memory is not None and bool(memory.spec.still_seconds)
         if self.clocked:
             constant(self, "still_seconds", np.array(memory.spec.still_seconds))
@@ -52,6 +53,7 @@ class FeatureStage(nn.Module):
             constant(self, "resonator_a", memory.resonator_a)  # (r, 2, 2)
             constant(self, "resonator_b", memory.resonator_b)  # (r, 2)
             constant(self, "omega", memory.omega)  # (r,)
+            constant(self, "held_rate", memory.held_rate)  # (h, 1)
         self.has_body, self.has_cloth = measures is not None, cloth is not None
         if self.has_body:
             constant(self, "body_vector", measures)
@@ -80,19 +82,28 @@ class FeatureStage(nn.Module):
         u = torch.cat([features[:, SLICE_V], features[:, SLICE_T], features[:, SLICE_W]], 1)[
             :, None
         ]  # (N, 1, 64)
-        # at a start (MotionMemory.start): every average at the first velocities, every bob at rest
-        # (x 0, q the first velocities)
+        # at a start (MotionMemory.start): every average (held or not) at the first velocities,
+        # every bob at rest (x 0, q the first velocities)
         bob = torch.stack([torch.zeros_like(u[:, 0]), u[:, 0]], 1)  # (N, 2, 64)
-        rows = self.filter_rows
-        fresh = [u.expand(n, self.averages, MEMORY_WIDTH), bob.repeat(1, (rows - self.averages) // 2, 1)]
+        rows, held_from = self.filter_rows, self.filter_rows - self.held
+        fresh = [
+            u.expand(n, self.averages, MEMORY_WIDTH),
+            bob.repeat(1, (held_from - self.averages) // 2, 1),
+            u.expand(n, self.held, MEMORY_WIDTH),
+        ]
         # the last body frame's vectors seen from this one: turned by minus this frame's yaw step
         angle = -features[:, SLICE_W][:, 0] / self.fps
         turned = turn_y(state[:, :rows, :-1].reshape(n, rows, VECTORS, 3), torch.cos(angle), torch.sin(angle))
         carried = torch.cat([turned.reshape(n, rows, 3 * VECTORS), state[:, :rows, -1:]], -1)
         averages = self.decay * carried[:, : self.averages] + (1.0 - self.decay) * u
-        bobs = carried[:, self.averages :].reshape(n, -1, 2, MEMORY_WIDTH)
+        bobs = carried[:, self.averages : held_from].reshape(n, -1, 2, MEMORY_WIDTH)
         bobs = self.resonator_a @ bobs + self.resonator_b[..., None] * u[:, None]
         stepped = [averages, bobs.reshape(n, -1, MEMORY_WIDTH)]
+        if self.held:  # motion.memory.moving_fraction: the averages stop while the body stands
+            speed, _ = self.speed_and_count(features)
+            moving = torch.clamp((speed - STILL_BELOW) / (MOVING_ABOVE - STILL_BELOW), 0.0, 1.0)
+            hold = torch.exp(-moving * self.held_rate)  # (N, h, 1)
+            stepped.append(hold * carried[:, held_from:] + (1.0 - hold) * u)
         if self.clocked:  # the stillness clock (motion.memory.clock_step), LONG_STILL_S at a start
             stepped.append(self.clock_step(state[:, rows:], features))
             fresh.append(torch.full_like(state[:, rows:], LONG_STILL_S))
@@ -100,21 +111,30 @@ class FeatureStage(nn.Module):
 
     def clock_step(self, clock: torch.Tensor, features: torch.Tensor) -> torch.Tensor:
         """The clock rows (N, 1, 64) one frame on: :func:`~hrr_garment.motion.memory.clock_step`."""
-        v = features[:, SLICE_V].reshape(features.shape[0], -1, 3)
-        speed = torch.sqrt((v * v).sum(-1)).mean(-1)[:, None, None]
-        count = torch.clamp((MOVING_ABOVE - speed) / (MOVING_ABOVE - STILL_BELOW), 0.0, 1.0) / self.fps
+        speed, count = self.speed_and_count(features)
         return torch.where(
             speed > MOVING_ABOVE, torch.zeros_like(clock), torch.clamp(clock + count, max=LONG_STILL_S)
         )
 
+    def speed_and_count(self, features: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """(N, 1, 1) the feature joints' mean speed and the seconds the clock counts at it."""
+        v = features[:, SLICE_V].reshape(features.shape[0], -1, 3)
+        speed = torch.sqrt((v * v).sum(-1)).mean(-1)[:, None, None]
+        count = torch.clamp((MOVING_ABOVE - speed) / (MOVING_ABOVE - STILL_BELOW), 0.0, 1.0) / self.fps
+        return speed, count
+
     def memory_values(self, state: torch.Tensor) -> torch.Tensor:
-        """(N, width): the averages, each resonator's w x and q, the clock's (:meth:`MotionMemory.values`)."""
-        n = state.shape[0]
-        bobs = state[:, self.averages : self.filter_rows].reshape(n, -1, 2, MEMORY_WIDTH)
+        """(N, width): the averages, each resonator's w x and q, the held averages, the clock's
+        (:meth:`MotionMemory.values`)."""
+        n, held_from = state.shape[0], self.filter_rows - self.held
+        bobs = state[:, self.averages : held_from].reshape(n, -1, 2, MEMORY_WIDTH)
         scaled = torch.stack([bobs[:, :, 0] * self.omega[None, :, None], bobs[:, :, 1]], 2)
-        parts = [
-            torch.cat([state[:, : self.averages], scaled.reshape(n, -1, MEMORY_WIDTH)], 1).reshape(n, -1)
+        rows = [
+            state[:, : self.averages],
+            scaled.reshape(n, -1, MEMORY_WIDTH),
+            state[:, held_from : self.filter_rows],
         ]
+        parts = [torch.cat(rows, 1).reshape(n, -1)]
         if self.clocked:
             parts.append(torch.exp(-state[:, self.filter_rows, :1] / self.still_seconds[None]))
         return torch.cat(parts, 1)

@@ -56,6 +56,10 @@ class CodeSpaceSettings:
         1.6,
     )  # the motion memory's resonators' frequencies; () for none
     resonator_damping: float = 0.3  # their damping ratio
+    # the motion memory's held averages (motion.memory): averages of the velocities over these
+    # seconds of moving time, which keep what the body did before it stopped while it stands; ()
+    # for none
+    held_seconds: tuple[float, ...] = ()
     # the motion memory's stillness clock (motion.memory): how long the body has stood still, read
     # through exp(-tau / s) for each s; () for none
     still_seconds: tuple[float, ...] = ()
@@ -80,6 +84,7 @@ class CodeSpaceSettings:
                 resonator_hz=tuple(self.resonator_hz),
                 damping=float(self.resonator_damping),
                 still_seconds=tuple(self.still_seconds),
+                held_seconds=tuple(self.held_seconds),
             )
         except (TypeError, ValueError) as exc:
             raise SettingsError(f"code space model: {exc}") from None
@@ -87,6 +92,7 @@ class CodeSpaceSettings:
         object.__setattr__(self, "resonator_hz", spec.resonator_hz)
         object.__setattr__(self, "resonator_damping", spec.damping)
         object.__setattr__(self, "still_seconds", spec.still_seconds)
+        object.__setattr__(self, "held_seconds", spec.held_seconds)
         what = "code space model"
         for name, low, high in (
             ("window", 1, 1000),
@@ -128,6 +134,7 @@ class CodeSpaceSettings:
             resonator_hz=self.resonator_hz,
             damping=self.resonator_damping,
             still_seconds=self.still_seconds,
+            held_seconds=self.held_seconds,
         )
 
     @property
@@ -149,11 +156,11 @@ class CodeSpaceSettings:
 
     def to_dict(self) -> dict:
         """The settings as plain values; no ``material_features`` key for a model of one cloth, no
-        ``still_seconds`` for one without a stillness clock and no ``clock_conditions`` where the
-        clock conditions nothing (its bundle.json as before those were read, which older versions
-        also read)."""
+        ``still_seconds`` for one without a stillness clock, no ``held_seconds`` for one without
+        held averages and no ``clock_conditions`` where the clock conditions nothing (its
+        bundle.json as before those were read, which older versions also read)."""
         out = asdict(self)
-        for key in ("material_features", "still_seconds", "clock_conditions"):
+        for key in ("material_features", "still_seconds", "held_seconds", "clock_conditions"):
             if not out[key]:
                 del out[key]
         return out

@@ -14,6 +14,11 @@ joints' velocities and the root's, all 3-vectors in the body frame, and the yaw 
   discretisation of ``x' = q - u, q' = -w^2 x - 2 zeta w (q - u)``, at rest at the start
   (``x_0 = 0, q_0 = u_0``). The features are w x and q: where a pendulum of that period would be
   in its swing, which an average cannot say (an average has no phase).
+- **Held averages** (``MemorySettings.held_seconds``): averages over time constants s of the time
+  the body moves, ``h_t = b_t R_t h_{t-1} + (1 - b_t) u_t``, ``b_t = exp(-g_t / (fps s))``, g_t the
+  frame's moving fraction (1 over :data:`MOVING_ABOVE`, 0 under :data:`STILL_BELOW`, linear
+  between). While the body stands they keep what it did before it stopped: the turn or the run
+  whose twist the skirt is still undoing, which an average forgets within its time constant.
 - **A stillness clock** (``MemorySettings.still_seconds``): tau_t, the seconds the body has stood
   still. It is reset to 0 while the feature joints' mean speed is over :data:`MOVING_ABOVE` and
   counts 1 / fps a frame under :data:`STILL_BELOW`, a fraction of that between (a body swaying as it
@@ -33,7 +38,8 @@ not change when the whole motion is moved or turned about the vertical axis (tes
 It is computed from the features alone, one frame after another, so offline clips, causal clips
 and streams (:class:`MotionMemory`, carried per character) give the same values from the same
 features. Models store their memory (``CodeSpaceSettings.memory_seconds``, ``resonator_hz``,
-``resonator_damping``, ``still_seconds``); none gives the 124 plain features of models trained before it.
+``resonator_damping``, ``held_seconds``, ``still_seconds``); none gives the 124 plain features of
+models trained before it.
 """
 
 from __future__ import annotations
@@ -80,9 +86,13 @@ class MemorySettings:
     resonator_hz: tuple[float, ...] = ()
     damping: float = 0.3
     still_seconds: tuple[float, ...] = ()  # the stillness clock's time constants; () for no clock
+    held_seconds: tuple[float, ...] = ()  # the held averages' time constants (of moving time)
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "seconds", check_memory_seconds(self.seconds))
+        object.__setattr__(
+            self, "held_seconds", check_memory_seconds(self.held_seconds, "held time constants")
+        )
         object.__setattr__(
             self, "resonator_hz", check_memory_seconds(self.resonator_hz, "resonator frequencies", "hertz")
         )
@@ -102,8 +112,9 @@ class MemorySettings:
 
     @property
     def filter_rows(self) -> int:
-        """Rows of MEMORY_WIDTH values the linear filters keep: one per average, two per resonator."""
-        return len(self.seconds) + 2 * len(self.resonator_hz)
+        """Rows of MEMORY_WIDTH values the filters keep: one per average, two per resonator, one per
+        held average."""
+        return len(self.seconds) + 2 * len(self.resonator_hz) + len(self.held_seconds)
 
     @property
     def rows(self) -> int:
@@ -121,8 +132,8 @@ class MemorySettings:
 
 
 def feature_width(memory: MemorySettings | Sequence[float]) -> int:
-    """Features per frame with ``memory``: 124 + 64 per average, 128 per resonator and one per
-    stillness time constant."""
+    """Features per frame with ``memory``: 124 + 64 per average, 128 per resonator, 64 per held
+    average and one per stillness time constant."""
     return FEATURE_DIM + MemorySettings.of(memory).width
 
 
@@ -139,6 +150,12 @@ def _clock_inputs(features: np.ndarray, fps: float) -> tuple[np.ndarray, np.ndar
     return speed > MOVING_ABOVE, np.clip(
         (MOVING_ABOVE - speed) / (MOVING_ABOVE - STILL_BELOW), 0.0, 1.0
     ) / fps
+
+
+def moving_fraction(features: np.ndarray) -> np.ndarray:
+    """(N,) how much of each frame of features (N, 124) counts as moving, for the held averages: 1
+    over MOVING_ABOVE, 0 under STILL_BELOW, linear between (1 less the clock's count, in frames)."""
+    return np.clip((body_speed(features) - STILL_BELOW) / (MOVING_ABOVE - STILL_BELOW), 0.0, 1.0)
 
 
 def _advanced(tau, moving, count):
@@ -188,6 +205,7 @@ class MotionMemory:
         self.resonator_a = np.array([a for a, _ in steps]).reshape(-1, 2, 2)  # (r, 2, 2)
         self.resonator_b = np.array([b for _, b in steps]).reshape(-1, 2)  # (r, 2)
         self.omega = 2.0 * np.pi * np.array(self.spec.resonator_hz)
+        self.held_rate = (1.0 / (fps * np.array(self.spec.held_seconds)))[:, None]  # (h, 1), per moving frame
         # the same recursion as transfer functions for a whole clip (with_memory): s_t = A s_{t-1} + B u_t,
         # y_t = C s_t is a standard state space in s_{t-1} with outputs C A and C B; C = diag(w, 1)
         from scipy.signal import lfilter_zi, ss2tf  # a second's import: only a memory's filters need it
@@ -201,11 +219,11 @@ class MotionMemory:
 
     def start(self, features: np.ndarray) -> np.ndarray:
         """The state (N, rows, 64) at a motion's first frame, from its features (N, 124): every
-        average at the first velocities, every bob at rest (x 0, q the first velocities)."""
+        average (held or not) at the first velocities, every bob at rest (x 0, q the first velocities)."""
         u = _velocities(features)
         k, r = len(self.spec.seconds), len(self.spec.resonator_hz)
-        state = np.repeat(u[:, None], k + 2 * r, 1)
-        state[:, k::2] = 0.0
+        state = np.repeat(u[:, None], self.spec.filter_rows, 1)
+        state[:, k : k + 2 * r : 2] = 0.0
         if self.spec.still_seconds:
             state = np.concatenate([state, np.full((len(u), 1, MEMORY_WIDTH), LONG_STILL_S)], 1)
         return state
@@ -224,9 +242,12 @@ class MotionMemory:
         carried = np.concatenate([vectors.reshape(n, rows, 3 * VECTORS), state[:, :rows, -1:]], -1)
         u = _velocities(features)[:, None]
         averages = self.decay * carried[:, :k] + (1.0 - self.decay) * u
-        bobs = carried[:, k:].reshape(n, -1, 2, MEMORY_WIDTH)
+        held_from = k + 2 * len(self.spec.resonator_hz)
+        bobs = carried[:, k:held_from].reshape(n, -1, 2, MEMORY_WIDTH)
         bobs = self.resonator_a @ bobs + self.resonator_b[..., None] * u[:, None]
-        return np.concatenate([averages, bobs.reshape(n, -1, MEMORY_WIDTH), clock], 1)
+        hold = np.exp(-moving_fraction(features)[:, None, None] * self.held_rate)  # (N, h, 1)
+        held = hold * carried[:, held_from:] + (1.0 - hold) * u
+        return np.concatenate([averages, bobs.reshape(n, -1, MEMORY_WIDTH), held, clock], 1)
 
     def advance(self, states: Sequence[np.ndarray | None], features: np.ndarray) -> np.ndarray:
         """N motions one frame on, each from its last state (rows, 64), or from its start where it
@@ -240,10 +261,11 @@ class MotionMemory:
         return out
 
     def values(self, state: np.ndarray) -> np.ndarray:
-        """The state as feature columns (N, width), float32: the averages, w x and q, the clock's."""
+        """The state as feature columns (N, width), float32: the averages, w x and q, the held
+        averages, the clock's."""
         k, rows = len(self.spec.seconds), self.spec.filter_rows
         out = state[:, :rows].copy()
-        out[:, k::2] *= self.omega[None, :, None]
+        out[:, k : k + 2 * len(self.spec.resonator_hz) : 2] *= self.omega[None, :, None]
         out = out.reshape(len(state), -1).astype(np.float32)
         if not self.spec.still_seconds:
             return out
@@ -290,8 +312,21 @@ def with_memory(features: np.ndarray, fps: float, memory: MemorySettings | Seque
         lfilter(num, den, first, axis=0, zi=zi[:, None] * first[:1])[0]
         for num, den, zi in memory.resonator_filters
     ]
+    if memory.spec.held_seconds:
+        moving = moving_fraction(features)
+        filtered += [_held_average(first, np.exp(-moving * rate)) for rate in memory.held_rate[:, 0]]
     for i, smoothed in enumerate(filtered):
         back = smoothed[:, :-1].reshape(len(u), VECTORS, 3) @ to_first
         cols = slice(FEATURE_DIM + i * MEMORY_WIDTH, FEATURE_DIM + (i + 1) * MEMORY_WIDTH)
         out[:, cols] = np.concatenate([back.reshape(len(u), -1), smoothed[:, -1:]], 1)
+    return out
+
+
+def _held_average(u: np.ndarray, hold: np.ndarray) -> np.ndarray:
+    """(T, 64) h_t = hold_t h_{t-1} + (1 - hold_t) u_t from h_0 = u_0, of velocities u (T, 64) in one
+    frame: a recursion whose factor changes each frame, which no fixed filter gives."""
+    out = np.empty_like(u)
+    out[0] = u[0]
+    for t in range(1, len(u)):
+        out[t] = hold[t] * out[t - 1] + (1.0 - hold[t]) * u[t]
     return out

@@ -1,7 +1,8 @@
-"""A model whose garment encoder and decoder read the stillness clock beside the code
-(``codespace: {model: {still_seconds: [...], clock_conditions: true}}``), trained on the shared tiny
-model's data: its decoder's inputs, and through a stop its stream equals its causal clip and its
-torch crowd (the ONNX graph's step) its native crowd."""
+"""A model whose garment encoder and decoder read the stillness clock beside the code, and whose
+memory holds averages through a stop (``codespace: {model: {still_seconds: [...], held_seconds:
+[...], clock_conditions: true}}``), trained on the shared tiny model's data: its decoder's inputs,
+and through a stop its stream equals its causal clip, its torch crowd (the ONNX graph's step) its
+native crowd and its ONNX graph its stream."""
 
 import shutil
 
@@ -13,6 +14,7 @@ from hrr_garment.motion.poses import motion_to_poses
 from hrr_garment.motion.synth import synthesize
 
 CLOCK = (0.5, 2.0)
+HELD = (1.0,)
 
 
 @pytest.fixture(scope="module")
@@ -23,7 +25,11 @@ def clocked(trained, tmp_path_factory):
     root, data, args = trained
     folder = tmp_path_factory.mktemp("clocked") / "model"
     shutil.copytree(root / "model", folder)  # the autoencoder kept, the code space trained anew
-    overrides = {"codespace": {"model": {"still_seconds": list(CLOCK), "clock_conditions": True}}}
+    overrides = {
+        "codespace": {
+            "model": {"still_seconds": list(CLOCK), "held_seconds": list(HELD), "clock_conditions": True}
+        }
+    }
     train_tiny(data, folder, args[3], stages=("codespace",), overrides=overrides)
     return Animator.load(folder)
 
@@ -35,6 +41,8 @@ def _stopping():
 def test_the_decoder_reads_the_clock_beside_the_code(clocked):
     config = clocked.bundle.codespace.config
     assert config.clock_conditions and config.still_seconds == CLOCK and config.condition_features == 2
+    rows = len(config.memory_seconds) + 2 * len(config.resonator_hz) + len(HELD)
+    assert config.held_seconds == HELD and config.memory.width == 64 * rows + len(CLOCK)
     first = clocked.bundle.codespace.decoder.net[0]
     assert first.in_features == clocked.bundle.codespace.quantizer.embedding_size + 2
 

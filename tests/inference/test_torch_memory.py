@@ -39,6 +39,8 @@ def stepped_both_ways(spec: MemorySettings, clip: np.ndarray, fps: float):
         MemorySettings((0.5, 1.5), (0.6, 1.0)),
         MemorySettings((0.5,), (1.0,), still_seconds=(1.0, 4.0)),
         MemorySettings(still_seconds=(2.0,)),
+        MemorySettings((0.5,), (1.0,), held_seconds=(0.5, 2.0)),
+        MemorySettings(held_seconds=(1.0,)),
     ],
 )
 def test_the_graphs_memory_equals_the_packages_through_a_stop(spec):

@@ -233,3 +233,10 @@ def test_a_stillness_clock_widens_the_features_and_round_trips_through_the_setti
         CodeSpaceSettings(still_seconds=(1.0,), clock_conditions="yes")
     with pytest.raises(SettingsError, match="code space model: stillness time constants"):
         CodeSpaceSettings(still_seconds=(-1.0,))
+    # held averages: 64 columns each, before the clock's (which stay the memory's last)
+    held = CodeSpaceSettings(still_seconds=(1.0, 3.0, 9.0), held_seconds=(1.5,), clock_conditions=True)
+    assert held.features == conditioned.features - 5 + 64 and held.memory.held_seconds == (1.5,)
+    assert "held_seconds" not in clocked.to_dict()
+    assert CodeSpaceSettings.from_dict(held.to_dict()) == held
+    with pytest.raises(SettingsError, match="code space model: held time constants"):
+        CodeSpaceSettings(held_seconds=(0.0,))

@@ -16,6 +16,7 @@ from hrr_garment.motion.memory import (
     check_memory_seconds,
     clock_step,
     feature_width,
+    moving_fraction,
     resonator_step,
     still_clock,
     with_memory,
@@ -26,6 +27,7 @@ from tests.motion.test_features import transformed
 
 RESONATING = MemorySettings((0.5, 1.5), (0.6, 1.0, 1.6), 0.3)
 CLOCKED = MemorySettings((0.5, 1.5), (0.6, 1.0, 1.6), still_seconds=(1.0, 4.0))
+HELD = MemorySettings((0.5,), (1.0,), still_seconds=(1.0,), held_seconds=(0.5, 2.0))
 
 
 def world_velocities(motion) -> np.ndarray:
@@ -121,7 +123,7 @@ def test_memory_of_a_steady_motion_is_its_velocity_and_the_yaw_rate_average_is_p
 
 
 @pytest.mark.parametrize("kind", ["walk_curve", "dance"])
-@pytest.mark.parametrize("memory", [(0.5, 1.5), RESONATING, CLOCKED])
+@pytest.mark.parametrize("memory", [(0.5, 1.5), RESONATING, CLOCKED, HELD])
 def test_memory_is_invariant_to_translation_and_vertical_rotation(kind, memory):
     motion = synthesize(kind, seconds=2.0, seed=7)
     base = with_memory(motion_features(motion), motion.fps, memory)
@@ -132,7 +134,7 @@ def test_memory_is_invariant_to_translation_and_vertical_rotation(kind, memory):
         )
 
 
-@pytest.mark.parametrize("spec", [(0.5, 1.5), RESONATING, CLOCKED])
+@pytest.mark.parametrize("spec", [(0.5, 1.5), RESONATING, CLOCKED, HELD])
 def test_stepping_frame_by_frame_equals_the_clip_and_characters_are_independent(spec):
     clips = [
         motion_features(held_still(synthesize(kind, seconds=2.0, seed=5), 30))[-60:]  # moving, then still
@@ -220,3 +222,33 @@ def test_the_stillness_clock_counts_the_seconds_since_a_real_stop():
     )
     with pytest.raises(ValueError, match="stillness time constants must be positive"):
         MemorySettings(still_seconds=(0.0,))
+
+
+def test_held_averages_average_the_moving_time_in_the_world_and_keep_it_through_a_stop():
+    walk = synthesize("walk_curve", seconds=2.0, seed=4)
+    motion = held_still(walk, 60)  # then 2 s standing
+    features = motion_features(motion)
+    got = with_memory(features, motion.fps, HELD)
+    held = got[:, FEATURE_DIM + 3 * MEMORY_WIDTH : FEATURE_DIM + 5 * MEMORY_WIDTH].reshape(-1, 2, 64)
+    assert got.shape[1] == feature_width(HELD) == FEATURE_DIM + 5 * MEMORY_WIDTH + 1
+    # the long way: world velocities averaged in the world at a factor each frame's speed sets (the
+    # feature joints' mean speed, the same in any frame), turned into each frame's body frame
+    v, heading = world_velocities(motion)
+    speed = np.linalg.norm(v[:, :20], axis=-1).mean(-1)
+    np.testing.assert_allclose(moving_fraction(features), np.clip((speed - 0.05) / 0.1, 0, 1), atol=1e-5)
+    for i, seconds in enumerate(HELD.held_seconds):
+        hold = np.exp(-np.clip((speed - 0.05) / 0.1, 0, 1) / (motion.fps * seconds))
+        avg, want = v[0], []
+        for t in range(len(v)):
+            avg = avg if t == 0 else hold[t] * avg + (1 - hold[t]) * v[t]
+            want.append(avg @ heading[t])
+        want = np.array(want).reshape(len(v), -1)
+        np.testing.assert_allclose(held[:, i, :-1], want, atol=1e-4 * np.abs(want).max())
+    # standing: the held averages keep the walk's last values, where the plain average forgets it
+    stop = walk.num_frames  # the first frame with no velocity at all
+    np.testing.assert_allclose(held[stop:], np.repeat(held[stop - 1 : stop], len(held) - stop, 0), atol=1e-6)
+    assert np.abs(held[-1, 1, :-1]).max() > 0.3  # m/s: the walk, remembered
+    plain = got[:, FEATURE_DIM : FEATURE_DIM + MEMORY_WIDTH]
+    assert np.abs(plain[-1]).max() < 0.03 * np.abs(plain[stop - 1]).max()  # exp(-60 / 15)
+    with pytest.raises(ValueError, match="held time constants must be positive"):
+        MemorySettings(held_seconds=(0.0,))
