@@ -121,10 +121,11 @@ def test_by_cloth_averages_each_cloth_over_the_clips():
     tool = _tool()
 
     def row(clip, cloth, truth, shared, model, swings, gap):
+        members = [None, 5.0] if truth is None else [truth - 1.0, truth + 1.0]
         return {
             "clip": clip,
             "cloth": cloth,
-            "truth": {"settle_s": truth, "hem_swing_cm": swings[0]},
+            "truth": {"settle_s": truth, "hem_swing_cm": swings[0], "settle_s_members": members},
             "truth_mean": {"settle_s": shared},
             "model": {"settle_s": model, "hem_swing_cm": swings[1]},
             "curve_gap_mm": gap,
@@ -144,6 +145,18 @@ def test_by_cloth_averages_each_cloth_over_the_clips():
     assert silk["settle_ratio_to_mean"] == pytest.approx(6.0 / 7.0)
     assert silk["hem_swing_ratio"] == pytest.approx(12.0 / 15.0)  # the ratio of the means
     assert silk["curve_gap_mm"] == pytest.approx(3.0)
+    # the members settle at 7 and 9 s, then 9 and 11: 8 and 10 s over the clips, each over the other
+    assert silk["member_settle_ratios"] == pytest.approx([0.8, 1.25])
+    assert summary["denim"]["member_settle_ratios"] is None  # a member that never settles
     denim = summary["denim"]
     assert denim["settle_s"]["truth"] is None and denim["settle_ratio"] is None
     assert denim["settle_ratio_to_mean"] == pytest.approx(1.0 / 1.25)
+
+
+def test_a_members_settle_ratio_is_over_the_other_members_mean_over_the_clips():
+    tool = _tool()
+    rows = [{"truth": {"settle_s_members": m}} for m in ([6.0, 9.0, 12.0], [4.0, 9.0, 8.0])]
+    # over the clips: 5, 9 and 10 s; each against the other two's mean over both clips
+    assert tool.member_settle_ratios(rows) == pytest.approx([5.0 / 9.5, 9.0 / 7.5, 10.0 / 7.0])
+    same = [{"truth": {"settle_s_members": [7.0, 7.0, 7.0, 7.0]}}]
+    assert tool.member_settle_ratios(same) == pytest.approx([1.0] * 4)  # an ensemble without chaos

@@ -28,7 +28,11 @@ the same motion in the same cloth (``--mode``, the push-out on, as a user runs i
 The run's last second (held past ``--hold``) is left out: an offline animation's last frames are
 its last window's end alone. With several clips, ``by_cloth`` (printed after the rows) averages each
 cloth's over the clips (:func:`by_cloth`): the settle times' means (None where any is), the hem
-swings' ratio of means, the curve gaps' mean.
+swings' ratio of means, the curve gaps' mean, and the settle ratio's floor: each truth member's
+settle time over the other members' (both averaged over the clips), what a second simulation of
+the same motion and cloth scores against the truth (:func:`member_settle_ratios`). A model's
+``settle_ratio`` inside that band cannot be told from a member's; a bar tighter than the band is
+one the solver itself fails.
 
 Run from the repository root:
 
@@ -175,10 +179,21 @@ def cloths_of(ds: GarmentDataset, names: list[str]) -> dict[str, Material]:
     return {n: material_from({"name": n, **recorded[n]}, f"{ds.path}: {n}") for n in names}
 
 
+def member_settle_ratios(rows: list[dict]) -> list[float] | None:
+    """Each truth member's settle time over the other members' (leave one out), both averaged over
+    ``rows`` (one cloth's clips): the settle ratios a simulation of the truth scores; None where a
+    member does not settle on some clip."""
+    settles = [r["truth"]["settle_s_members"] for r in rows]
+    if any(s is None for clip in settles for s in clip):
+        return None
+    m = np.array(settles, float)  # (clips, members)
+    return [float(m[:, i].mean() / np.delete(m, i, 1).mean()) for i in range(m.shape[1])]
+
+
 def by_cloth(rows: list[dict]) -> dict[str, dict]:
     """Each cloth's rows (one a clip) averaged over the clips: the truth's, the members' mean's and
-    the model's settle times (mean; None where any clip's is), their ratios, the hem swings'
-    ratio of means and the curve gaps' mean."""
+    the model's settle times (mean; None where any clip's is), their ratios, the members' own
+    (:func:`member_settle_ratios`), the hem swings' ratio of means and the curve gaps' mean."""
 
     def settle(values: list) -> float | None:
         return None if None in values else float(np.mean(values))
@@ -194,6 +209,7 @@ def by_cloth(rows: list[dict]) -> dict[str, dict]:
             "settle_s": {"truth": truth, "members_mean": shared, "model": model},
             "settle_ratio": _ratio(model, truth),
             "settle_ratio_to_mean": _ratio(model, shared),
+            "member_settle_ratios": member_settle_ratios(mine),
             "hem_swing_ratio": _ratio(
                 np.mean([r["model"]["hem_swing_cm"] for r in mine]),
                 np.mean([r["truth"]["hem_swing_cm"] for r in mine]),
@@ -282,14 +298,16 @@ def print_rows(rows: list[dict]) -> None:
 def print_by_cloth(summary: dict[str, dict]) -> None:
     print(
         "| cloth | clips | hem swing / truth | settle s: truth / members' mean / model | "
-        "over the truth's | over the members' mean's | curve gap mm |"
+        "over the truth's | a member over the others' | over the members' mean's | curve gap mm |"
     )
     for cloth, c in summary.items():
-        s = c["settle_s"]
+        s, floor = c["settle_s"], c["member_settle_ratios"]
+        band = "" if floor is None else f"{min(floor):.2f}-{max(floor):.2f}"
         print(
             f"| {cloth} | {c['clips']} | {_of(c['hem_swing_ratio'])} | "
             f"{_settle(s['truth'])} / {_settle(s['members_mean'])} / {_settle(s['model'])} | "
-            f"{_of(c['settle_ratio'])} | {_of(c['settle_ratio_to_mean'])} | {c['curve_gap_mm']:.1f} |"
+            f"{_of(c['settle_ratio'])} | {band} | {_of(c['settle_ratio_to_mean'])} | "
+            f"{c['curve_gap_mm']:.1f} |"
         )
 
 
