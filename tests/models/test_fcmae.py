@@ -285,17 +285,16 @@ def test_fitted_latents_beat_the_encoder_and_ignore_batching(overfit, skirt):
 @pytest.mark.slow
 def test_training_resumes_and_encodes_every_sequence(tmp_path, skirt, monkeypatch):
     from hrr_garment.data.dataset import SequenceRecord, write_dataset
+    from hrr_garment.motion.rotations import rotation_about_y, yaw_of
     from hrr_garment.motion.synth import synthesize
     from hrr_garment.train import autoencoder as ae
     from hrr_garment.train import checkpoint
     from hrr_garment.train.autoencoder_settings import AutoencoderTrainSettings
 
     frames = _two_frames(skirt).numpy()
-    records = []
-    for i, kind in enumerate(("walk", "spin", "idle")):
-        motion = synthesize(kind, 0.4, seed=i)  # 12 frames; garment placed in the motion's heading frame
-        from hrr_garment.motion.rotations import rotation_about_y, yaw_of
 
+    def record(kind: str, seed: int, seconds: float = 0.4) -> SequenceRecord:
+        motion = synthesize(kind, seconds, seed=seed)  # 30 fps; garment placed in the motion's heading frame
         yaw = yaw_of(motion.global_rotations[:, 0])
         t = np.linspace(0, 1, motion.num_frames)[:, None, None]
         local = (1 - t) * frames[0] + t * frames[1]
@@ -303,10 +302,11 @@ def test_training_resumes_and_encodes_every_sequence(tmp_path, skirt, monkeypatc
             np.einsum("tij,tnj->tni", rotation_about_y(yaw), local)
             + (motion.root_translation * [1, 0, 1])[:, None]
         )
-        records.append(SequenceRecord(f"{kind}_000", world.astype(np.float32), motion))
-    data = write_dataset(
-        tmp_path / "d.h5", skirt, records, {"train": ["walk_000"], "val": ["spin_000"], "test": ["idle_000"]}
-    )
+        return SequenceRecord(f"{kind}_000", world.astype(np.float32), motion)
+
+    records = [record(kind, i) for i, kind in enumerate(("walk", "spin", "idle"))]  # 12 frames each
+    splits = {"train": ["walk_000"], "val": ["spin_000"], "test": ["idle_000"]}
+    data = write_dataset(tmp_path / "d.h5", skirt, records, splits)
     cfg = AutoencoderTrainSettings(
         epochs=3, batch_size=8, patience=10, refine_steps=0
     )  # counts the training's Adam steps only
@@ -357,6 +357,14 @@ def test_training_resumes_and_encodes_every_sequence(tmp_path, skirt, monkeypatc
     assert not saves and refined.metrics["extra"]["refine_steps"] == 3 and not refined.reused
     with np.load(tmp_path / "ae" / "latents.npz") as z:
         assert not np.allclose(z["spin_000"], plain)
+    # the same names in a dataset made again, one sequence longer: its latents, the weights kept
+    again = write_dataset(tmp_path / "d2.h5", skirt, [record("walk", 0, 0.8), *records[1:]], splits)
+    encoded = ae.train_autoencoder(
+        again, tmp_path / "ae", train_config=replace(cfg, refine_steps=3), progress=False
+    )
+    assert not encoded.reused and not saves  # no checkpoint written: encoded, not trained
+    with np.load(tmp_path / "ae" / "latents.npz") as z:
+        assert z["walk_000"].shape == (24, *encoded.metrics["latent_shape"])
     model = ae.load_autoencoder(tmp_path / "ae", skirt.faces)
     x = torch.as_tensor(frames[:1])
     with torch.no_grad():
