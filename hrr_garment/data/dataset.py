@@ -26,6 +26,7 @@ the attribute ``body`` (version 3 calls it ``body_name``, leaving ``body`` to /b
 
 from __future__ import annotations
 
+import hashlib
 import json
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -214,6 +215,21 @@ class GarmentDataset:
         unknown = sorted({b for b in self.body_name_of.values()} - set(self.bodies))
         if unknown:
             raise DatasetError(self.path, f"sequences name bodies that are not in /bodies: {unknown[:5]}")
+
+    def content_key(self) -> str:
+        """A short hash of what the file holds, cheap to take: every sequence's name, shape and
+        first and last garment frames. A dataset made again with other frames (another cloth, stops
+        held longer, a sequence imported anew) has another; one assembled again from the same parts
+        (only its run's timings differ) the same."""
+        h = hashlib.sha1()
+        with h5py.File(self.path, "r") as f:
+            for name in self.names:
+                garment = f["sequences"][name]["garment"]
+                h.update(name.encode() + np.asarray(garment.shape, np.int64).tobytes())
+                h.update(
+                    np.ascontiguousarray(garment[0]).tobytes() + np.ascontiguousarray(garment[-1]).tobytes()
+                )
+        return h.hexdigest()[:16]
 
     def material_of(self, name: str) -> Material:
         """The cloth sequence ``name`` was simulated in: its own where the build gave each sequence

@@ -2,7 +2,7 @@
 second), appended to the per-frame features (:mod:`.features`).
 
 A loose skirt's hem still swings from a turn made a second ago; the window alone cannot see that
-turn. Two kinds of memory, both linear filters of the frame's velocity features u_t (the 20 feature
+turn. Three kinds of memory, all filters of the frame's velocity features u_t (the 20 feature
 joints' velocities and the root's, all 3-vectors in the body frame, and the yaw rate), and a clock:
 
 - **Averages** over time constants s (``MemorySettings.seconds``):
@@ -79,8 +79,9 @@ def check_memory_seconds(
 
 @dataclass(frozen=True)
 class MemorySettings:
-    """Which memory a model's features carry: averages over ``seconds`` and resonators at
-    ``resonator_hz`` with damping ratio ``damping``."""
+    """Which memory a model's features carry: averages over ``seconds``, resonators at
+    ``resonator_hz`` with damping ratio ``damping``, held averages over ``held_seconds`` of moving
+    time and a stillness clock read at ``still_seconds``."""
 
     seconds: tuple[float, ...] = ()
     resonator_hz: tuple[float, ...] = ()
@@ -194,7 +195,8 @@ def resonator_step(hz: float, damping: float, fps: float) -> tuple[np.ndarray, n
 
 class MotionMemory:
     """The memory of N motions advanced one frame at a time (streams: one row per character).
-    The state is (N, rows, 64): the averages, then each resonator's x and q."""
+    The state is (N, rows, 64): the averages, each resonator's x and q, the held averages, then the
+    stillness clock's row (tau in every column) where there is one."""
 
     def __init__(self, memory: MemorySettings | Sequence[float], fps: float):
         self.spec, self.fps = MemorySettings.of(memory), float(fps)
@@ -245,8 +247,10 @@ class MotionMemory:
         held_from = k + 2 * len(self.spec.resonator_hz)
         bobs = carried[:, k:held_from].reshape(n, -1, 2, MEMORY_WIDTH)
         bobs = self.resonator_a @ bobs + self.resonator_b[..., None] * u[:, None]
-        hold = np.exp(-moving_fraction(features)[:, None, None] * self.held_rate)  # (N, h, 1)
-        held = hold * carried[:, held_from:] + (1.0 - hold) * u
+        held = carried[:, held_from:]
+        if self.spec.held_seconds:
+            hold = np.exp(-moving_fraction(features)[:, None, None] * self.held_rate)  # (N, h, 1)
+            held = hold * held + (1.0 - hold) * u
         return np.concatenate([averages, bobs.reshape(n, -1, MEMORY_WIDTH), held, clock], 1)
 
     def advance(self, states: Sequence[np.ndarray | None], features: np.ndarray) -> np.ndarray:

@@ -51,9 +51,9 @@ def _settings_keys(
     """(training key, stage key). The checkpoint's key leaves out what only the encoding uses:
     changing the refinement re-encodes a finished run (its checkpoint is at the end of training)
     instead of training it again. The objective was L1 per coordinate before: those latents
-    re-encode. The stage key also holds what the dataset holds (each sequence's frames, its
-    recorded settings and statistics): latents are of one dataset's frames, and a dataset made
-    again under the same names (its stops held longer, another cloth) re-encodes them."""
+    re-encode. The stage key also holds what the dataset holds (:meth:`GarmentDataset.content_key`):
+    latents are of one dataset's frames, and a dataset made again under the same names (its stops
+    held longer, another cloth) re-encodes them."""
     encoding = refine_settings(asdict(train_config)) | {"refine_objective": "vertex distance"}
     training = {k: v for k, v in asdict(train_config).items() if k not in encoding and k != "target_mm"}
     training_key = _key(
@@ -64,7 +64,7 @@ def _settings_keys(
         ds.splits,
         {"frame": FRAME_VERSION},
     )
-    return training_key, _key(training_key, encoding, {"frames": ds.frames, "info": ds.info})
+    return training_key, _key(training_key, encoding, ds.content_key())
 
 
 def _stage_report(record: dict, folder: Path, reused: bool = False) -> StageReport:

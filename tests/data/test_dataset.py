@@ -128,6 +128,16 @@ def test_dataset_file_round_trip(tmp_path):
         ds.template.faces, garment.faces
     )
     assert ds.splits["train"] == ["walk_000"] and ds.splits["val"] == []
+    # its content key: the same frames written again keep it, one vertex moved at the end changes it
+    again = write_dataset(
+        tmp_path / "again.h5", garment, [SequenceRecord("walk_000", verts, clip)], ds.splits
+    )
+    moved = verts.copy()
+    moved[-1, 7, 1] += 1e-3
+    other = write_dataset(
+        tmp_path / "moved.h5", garment, [SequenceRecord("walk_000", moved, clip)], ds.splits
+    )
+    assert GarmentDataset(again).content_key() == ds.content_key() != GarmentDataset(other).content_key()
 
 
 @pytest.fixture(scope="module")
@@ -209,6 +219,7 @@ def test_a_ray_build_equals_the_local_build_bit_for_bit(built, tmp_path):
         assert np.array_equal(a.garment, b.garment)
         assert np.array_equal(a.motion.local_rotations, b.motion.local_rotations)
         assert np.array_equal(a.motion.root_translation, b.motion.root_translation)
+    assert remote.content_key() == local.content_key()  # the same frames from another run
 
 
 @pytest.mark.sim
@@ -229,6 +240,7 @@ def test_a_build_in_a_fabric_records_it_and_differs(built, tmp_path):
     assert sim.material.name == "denim" and sim.air_drag == 1.2 and "material" not in plain.info["sim"]
     name = plain.names[0]
     assert np.abs(denim.sequence(name).garment - plain.sequence(name).garment).max() > 0.01
+    assert denim.content_key() != plain.content_key()
 
 
 @pytest.mark.sim

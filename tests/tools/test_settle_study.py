@@ -160,3 +160,4 @@ def test_a_members_settle_ratio_is_over_the_other_members_mean_over_the_clips():
     assert tool.member_settle_ratios(rows) == pytest.approx([5.0 / 9.5, 9.0 / 7.5, 10.0 / 7.0])
     same = [{"truth": {"settle_s_members": [7.0, 7.0, 7.0, 7.0]}}]
     assert tool.member_settle_ratios(same) == pytest.approx([1.0] * 4)  # an ensemble without chaos
+    assert tool.member_settle_ratios([{"truth": {"settle_s_members": [7.0]}}]) is None  # no other member

@@ -182,12 +182,13 @@ def cloths_of(ds: GarmentDataset, names: list[str]) -> dict[str, Material]:
 def member_settle_ratios(rows: list[dict]) -> list[float] | None:
     """Each truth member's settle time over the other members' (leave one out), both averaged over
     ``rows`` (one cloth's clips): the settle ratios a simulation of the truth scores; None where a
-    member does not settle on some clip."""
+    member does not settle on some clip, or where there is no other member."""
     settles = [r["truth"]["settle_s_members"] for r in rows]
-    if any(s is None for clip in settles for s in clip):
+    if any(s is None for clip in settles for s in clip) or min(len(clip) for clip in settles) < 2:
         return None
     m = np.array(settles, float)  # (clips, members)
-    return [float(m[:, i].mean() / np.delete(m, i, 1).mean()) for i in range(m.shape[1])]
+    others = [np.delete(m, i, 1).mean() for i in range(m.shape[1])]
+    return None if min(others) <= 0 else [float(m[:, i].mean() / o) for i, o in enumerate(others)]
 
 
 def by_cloth(rows: list[dict]) -> dict[str, dict]:
