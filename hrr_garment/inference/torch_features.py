@@ -100,9 +100,8 @@ class FeatureStage(nn.Module):
         bobs = self.resonator_a @ bobs + self.resonator_b[..., None] * u[:, None]
         stepped = [averages, bobs.reshape(n, -1, MEMORY_WIDTH)]
         if self.held:  # motion.memory.moving_fraction: the averages stop while the body stands
-            speed, _ = self.speed_and_count(features)
-            moving = torch.clamp((speed - STILL_BELOW) / (MOVING_ABOVE - STILL_BELOW), 0.0, 1.0)
-            hold = torch.exp(-moving * self.held_rate)  # (N, h, 1)
+            _, still = self.speed_and_still(features)
+            hold = torch.exp(-(1.0 - still) * self.held_rate)  # (N, h, 1)
             stepped.append(hold * carried[:, held_from:] + (1.0 - hold) * u)
         if self.clocked:  # the stillness clock (motion.memory.clock_step), LONG_STILL_S at a start
             stepped.append(self.clock_step(state[:, rows:], features))
@@ -111,17 +110,20 @@ class FeatureStage(nn.Module):
 
     def clock_step(self, clock: torch.Tensor, features: torch.Tensor) -> torch.Tensor:
         """The clock rows (N, 1, 64) one frame on: :func:`~hrr_garment.motion.memory.clock_step`."""
-        speed, count = self.speed_and_count(features)
+        speed, still = self.speed_and_still(features)
         return torch.where(
-            speed > MOVING_ABOVE, torch.zeros_like(clock), torch.clamp(clock + count, max=LONG_STILL_S)
+            speed > MOVING_ABOVE,
+            torch.zeros_like(clock),
+            torch.clamp(clock + still / self.fps, max=LONG_STILL_S),
         )
 
-    def speed_and_count(self, features: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        """(N, 1, 1) the feature joints' mean speed and the seconds the clock counts at it."""
+    @staticmethod
+    def speed_and_still(features: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """(N, 1, 1) the feature joints' mean speed and how much of the frame counts as standing
+        (motion.memory._still_ramp: the clock's count in frames, 1 less the held averages' moving)."""
         v = features[:, SLICE_V].reshape(features.shape[0], -1, 3)
         speed = torch.sqrt((v * v).sum(-1)).mean(-1)[:, None, None]
-        count = torch.clamp((MOVING_ABOVE - speed) / (MOVING_ABOVE - STILL_BELOW), 0.0, 1.0) / self.fps
-        return speed, count
+        return speed, torch.clamp((MOVING_ABOVE - speed) / (MOVING_ABOVE - STILL_BELOW), 0.0, 1.0)
 
     def memory_values(self, state: torch.Tensor) -> torch.Tensor:
         """(N, width): the averages, each resonator's w x and q, the held averages, the clock's

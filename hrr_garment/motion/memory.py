@@ -144,19 +144,24 @@ def body_speed(features: np.ndarray) -> np.ndarray:
     return np.linalg.norm(v, axis=-1).mean(-1)
 
 
+def _still_ramp(speed: np.ndarray) -> np.ndarray:
+    """(N,) how much of a frame at feature-joint mean ``speed`` (m/s) counts as standing: 1 under
+    STILL_BELOW, 0 over MOVING_ABOVE, linear between (the clock's count in frames; the held
+    averages' moving fraction is 1 less it)."""
+    return np.clip((MOVING_ABOVE - speed) / (MOVING_ABOVE - STILL_BELOW), 0.0, 1.0)
+
+
 def _clock_inputs(features: np.ndarray, fps: float) -> tuple[np.ndarray, np.ndarray]:
     """(N,) whether each frame of features (N, 124) resets the clock (over MOVING_ABOVE), and (N,)
     the seconds it counts otherwise: 1 / fps under STILL_BELOW, a fraction of that between."""
     speed = body_speed(features)
-    return speed > MOVING_ABOVE, np.clip(
-        (MOVING_ABOVE - speed) / (MOVING_ABOVE - STILL_BELOW), 0.0, 1.0
-    ) / fps
+    return speed > MOVING_ABOVE, _still_ramp(speed) / fps
 
 
 def moving_fraction(features: np.ndarray) -> np.ndarray:
     """(N,) how much of each frame of features (N, 124) counts as moving, for the held averages: 1
     over MOVING_ABOVE, 0 under STILL_BELOW, linear between (1 less the clock's count, in frames)."""
-    return np.clip((body_speed(features) - STILL_BELOW) / (MOVING_ABOVE - STILL_BELOW), 0.0, 1.0)
+    return 1.0 - _still_ramp(body_speed(features))
 
 
 def _advanced(tau, moving, count):
