@@ -140,6 +140,15 @@ def add_detail_options(p: argparse.ArgumentParser) -> None:
         help="the free cloth's swing restored: GAIN on the latents' departure from their recent course "
         "(1: as predicted; default: the model's calibrated gain in the auto mode, 1 in a mode named)",
     )
+    p.add_argument(
+        "--settle",
+        type=float,
+        default=0.0,
+        metavar="SECONDS",
+        help="the cloth settling after a stop: the time constant of the garment's lag towards the "
+        "model's prediction, fading out over four of them (default 0: none; docs/materials.md has "
+        "its measured trade)",
+    )
 
 
 def detail_look(args: argparse.Namespace) -> DetailLook:
@@ -161,6 +170,7 @@ def run_settings_of(args: argparse.Namespace, prog: str, **fields) -> RunSetting
             tau=args.tau,
             decoder=getattr(args, "decoder", None),
             swing=getattr(args, "swing", None),
+            settle=getattr(args, "settle", 0.0),
             push=getattr(args, "push", None),
             push_body=getattr(args, "push_body", None),
             **{k: getattr(args, k) for k in ("seed", "sample_steps") if hasattr(args, k)},
@@ -171,7 +181,7 @@ def run_settings_of(args: argparse.Namespace, prog: str, **fields) -> RunSetting
         flag = next(
             (
                 f"--{name.replace('_', '-')}"
-                for name in ("tau", "gate", "mode", "swing", "push_body", "seed", "sample_steps")
+                for name in ("tau", "gate", "mode", "swing", "settle", "push_body", "seed", "sample_steps")
                 if message.startswith(name)
             ),
             "the run settings",

@@ -175,6 +175,8 @@ def _main(argv: Sequence[str] | None) -> int:
     )
     if anim.settings.get("swing", 1.0) != 1.0:
         gate += f", swing x{anim.settings['swing']:g}"
+    if anim.settings.get("settle", 0.0):
+        gate += f", settling over {anim.settings['settle']:g} s"
     used = (
         "a database match on every frame"
         if mode in (Mode.RESIDUAL, Mode.DETAIL)

@@ -87,7 +87,8 @@ def evaluate_modes(
     )  # each mode's result records the hybrid's gate and tau
     resolved = {m: animator.resolve(runs[m]) for m in settings.modes}
     results = {
-        m: ModeResult(m, hybrid.tau, gate=hybrid.gate, swing=resolved[m].swing) for m in settings.modes
+        m: ModeResult(m, hybrid.tau, gate=hybrid.gate, swing=resolved[m].swing, settle=resolved[m].settle)
+        for m in settings.modes
     }
     jobs = [(m, r) for r in records for m in settings.modes]
     for mode, record in tqdm(jobs, desc="evaluate", unit="run", disable=not settings.progress):

@@ -35,6 +35,7 @@ class ModeResult:
     sequences: list[SequenceResult] = field(default_factory=list)
     gate: str = "entropy"  # the hybrid's gate signal, which tau thresholds
     swing: float = 1.0  # the swing gain the mode ran with (inference/swing.py; auto: the calibrated one)
+    settle: float = 0.0  # the settling lag it ran with (s; inference/settle.py; auto: the calibrated one)
 
     @property
     def metrics(self) -> dict[str, float]:
@@ -61,6 +62,7 @@ class ModeResult:
             "gate": self.gate,
             "tau": self.tau,
             "swing": self.swing,
+            "settle": self.settle,
             "metrics": self.metrics,
             "ensemble": self.ensemble,
             "visible_bodies": self.visible_bodies,

@@ -47,6 +47,7 @@ class ClipLatents:
     entropy: np.ndarray  # (T,) float32
     match: np.ndarray  # (T, 2) int32
     doubt: np.ndarray  # (T,) float32
+    features: np.ndarray  # (T, F) each frame's features (stage 1; the settling lag reads them)
 
 
 def clip_latents(path: FramePath, motion: Motion) -> ClipLatents:
@@ -89,6 +90,7 @@ def clip_latents(path: FramePath, motion: Motion) -> ClipLatents:
         choice.entropy[per_frame].astype(np.float32),
         choice.match[per_frame],
         choice.doubt[per_frame].astype(np.float32),
+        features[:t_frames],
     )
 
 
@@ -117,6 +119,7 @@ def _direct(path: FramePath, motion: Motion) -> ClipLatents:
         entropy,
         np.full((t_frames, 2), -1, np.int32),
         entropy.copy(),
+        features,
     )
 
 
@@ -129,6 +132,9 @@ def animate_clip(path: FramePath, motion: Motion) -> Animation:
     latents, gain = chosen.latents, path.swing_gain(motion.fps)
     if gain is not None:  # the free cloth's swing restored (causal: offline, streams and crowds alike)
         latents = gain.apply(latents, chosen.regression)
+    lag = path.settle_lag(motion.fps)
+    if lag is not None:  # the cloth settling after a stop (as streams and crowds lag it)
+        latents = lag.apply(latents, chosen.features)
     local = path.seen("decoding", body_frame_vertices(path.bundle, path.seen("swing", latents), path.decoder))
     if (
         chosen.proposals is not None

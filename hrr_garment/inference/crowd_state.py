@@ -36,6 +36,8 @@ class CrowdCharacter:
     frames: int = 0
     lod: LodState = field(default_factory=LodState)  # its level of detail's held step and decoder fade
     swing_mean: np.ndarray | None = None  # (nodes, C) its latents' recent course (inference/swing.py)
+    # its last latents, lagged (nodes, C), and its stillness clock (inference/settle.py)
+    settled: tuple[np.ndarray, float] | None = None
     sample: SampleTrack | None = None  # the sample mode's draw as it goes on (models/sampler.py)
 
 

@@ -10,7 +10,8 @@ one numbered list (:data:`STAGES`) that every driver runs in order:
 4. ``blending``: per-frame latents from the windows' (offline: :func:`~.blending.blend_windows`;
    causal: the inertializer, :class:`~.blending.Inertializer`); in the sample mode, the generative
    decoder's draw departing from them (:meth:`FramePath.draw`);
-5. ``swing``: the free cloth's swing restored (:mod:`.swing`; as predicted at gain 1);
+5. ``swing``: the free cloth's swing restored (:mod:`.swing`; as predicted at gain 1), then the
+   cloth's settling after a stop (:mod:`.settle`; none at 0 s);
 6. ``decoding``: the mesh decoder, latents to body-frame vertices (:mod:`.decoding`);
 7. ``folds``: the detail mode's simulated folds (:mod:`.detail`, :mod:`.fold_track`);
 8. ``world``: the garment stood on the body (its rest offset) and taken to the world
@@ -45,6 +46,7 @@ from .detail import add_folds
 from .gate import WindowChoice, choose_windows
 from .resolved_run import ResolvedRun
 from .run_material import material_columns
+from .settle import SettleLag
 from .swing import SwingGain
 
 #: the stages of a frame, in order (the module docstring says what each does)
@@ -85,6 +87,7 @@ class FramePath:
         self.step = animator.causal_step(run.mode.regresses) if run.causal else None
         self.observe = observe
         self._swing: dict[float, SwingGain | None] = {}
+        self._settle: dict[float, SettleLag | None] = {}
 
     def seen(self, stage: str, value):
         """``value``, the output of ``stage``, shown to the observer (where there is one)."""
@@ -144,6 +147,13 @@ class FramePath:
             swing = self.run.swing
             self._swing[fps] = None if swing == 1.0 else SwingGain.of(swing, self.bundle.node_hang_m, fps)
         return self._swing[fps]
+
+    def settle_lag(self, fps: float) -> SettleLag | None:
+        """The settling lag at ``fps`` (made once per rate), None where the run has none."""
+        if fps not in self._settle:
+            settle = self.run.settle
+            self._settle[fps] = SettleLag(settle, fps) if settle > 0 else None
+        return self._settle[fps]
 
     # 7. folds
     def add_folds(self, local: np.ndarray, folds: np.ndarray, follow) -> np.ndarray:

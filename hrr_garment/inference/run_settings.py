@@ -36,6 +36,7 @@ from ..native import PRECISIONS
 from .modes import Mode
 from .resolved_run import ResolvedRun
 from .run_material import run_material
+from .settle import MAX_SETTLE_S, valid_settle
 from .swing import MAX_GAIN, valid_gain
 
 if TYPE_CHECKING:  # the bundle's models import torch, which a command that only reads settings does not need
@@ -155,6 +156,9 @@ class RunSettings:
     # from their recent course, 1: as predicted. None: the model's calibrated gain in the mode auto
     # picks, 1 in a mode named
     swing: float | None = None
+    # the cloth settling after a stop (inference/settle.py): the time constant (s) of the latents'
+    # lag towards the model's prediction, fading out over four of them after the stop; 0: none
+    settle: float = 0.0
     # the body animated on: a body.json or character file's path, a BodyRecord, a CharacterBody, a
     # dataset's DressedBody (Animator.body); None: the model's own. ``allow_outside``: one unlike the
     # model's training bodies too (warned)
@@ -187,6 +191,12 @@ class RunSettings:
                     f"swing is a gain in (0, {MAX_GAIN:g}] (1: the swing as predicted), got {self.swing!r}"
                 )
             object.__setattr__(self, "swing", swing)
+        settle = _number(self.settle, "settle")
+        if not valid_settle(settle):
+            raise ValueError(
+                f"settle is a time constant in [0, {MAX_SETTLE_S:g}] seconds (0: no lag), got {self.settle!r}"
+            )
+        object.__setattr__(self, "settle", settle)
         if self.gate is not None and self.gate not in GATE_SIGNALS:
             raise ValueError(f"gate must be one of {', '.join(GATE_SIGNALS)}, got {self.gate!r}")
         if self.tau is not None:
@@ -301,6 +311,7 @@ class RunSettings:
             causal=self.causal or mode is Mode.SAMPLE,  # a sample is drawn frame after frame
             decoder=decoder,
             swing=swing,
+            settle=self.settle,
             push=push,
             push_body=push_body,
             body=body,

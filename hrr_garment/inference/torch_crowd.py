@@ -51,6 +51,11 @@ class DeviceCrowd:
                 f"a crowd on a torch device runs the swing as predicted (swing=1), not {run.swing:g}: "
                 "the restored swing runs in the native crowd (device='native')"
             )
+        if run.settle != 0.0:
+            raise ValueError(
+                f"a crowd on a torch device runs without the settling lag (settle=0), not {run.settle:g}: "
+                "the lag runs in the native crowd (device='native')"
+            )
         self.device = torch.device(run.device)
         self.run, self.body = run, run.body
         path = FramePath(animator, run)

@@ -13,8 +13,9 @@ numbered alike in :meth:`StreamStep.forward`) with the same formulas and the sam
 - 2 windows: the last W frames;
 - 3 choice: the window step (:class:`~hrr_garment.models.codes.WindowCodes`): motion encoder, code
   entropy and classes, the code-space decoder's latents of the window's last frame;
-- 4 blending, 5 swing: the regression is one source and its swing runs as predicted (swing 1),
-  so the latents as they are; in the sample mode the generative decoder's draw departs from them
+- 4 blending, 5 swing: the regression is one source, its swing runs as predicted (swing 1) and
+  without the settling lag (settle 0), so the latents as they are; in the sample mode the
+  generative decoder's draw departs from them
   (:mod:`.torch_sample`: the engine's white noise in, each character's draw state carried);
 - 6 decoding: the mesh decoder; 7 folds: none (the regression);
 - 8 world: the garment's rest offset on the body, the body frame to the world
@@ -203,6 +204,10 @@ def stream_step(path: FramePath, *, movable: bool = False) -> StreamStep:
         )
     if run.swing != 1.0:
         raise ValueError(f"the torch step runs the swing as predicted (swing 1), not swing={run.swing:g}")
+    if run.settle != 0.0:
+        raise ValueError(
+            f"the torch step runs without the settling lag (settle 0), not settle={run.settle:g}"
+        )
     spec = bundle.codespace.config.memory
     memory = motion_memory(spec, FPS) if spec else None
     stage = None

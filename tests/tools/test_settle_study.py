@@ -127,7 +127,7 @@ def test_by_cloth_averages_each_cloth_over_the_clips():
             "cloth": cloth,
             "truth": {"settle_s": truth, "hem_swing_cm": swings[0], "settle_s_members": members},
             "truth_mean": {"settle_s": shared},
-            "model": {"settle_s": model, "hem_swing_cm": swings[1]},
+            "model": {"settle_s": model, "hem_swing_cm": swings[1], "stand_pve_mm": gap + 20.0},
             "curve_gap_mm": gap,
         }
 
@@ -145,6 +145,7 @@ def test_by_cloth_averages_each_cloth_over_the_clips():
     assert silk["settle_ratio_to_mean"] == pytest.approx(6.0 / 7.0)
     assert silk["hem_swing_ratio"] == pytest.approx(12.0 / 15.0)  # the ratio of the means
     assert silk["curve_gap_mm"] == pytest.approx(3.0)
+    assert silk["stand_pve_mm"] == pytest.approx(23.0)
     # the members settle at 7 and 9 s, then 9 and 11: 8 and 10 s over the clips, each over the other
     assert silk["member_settle_ratios"] == pytest.approx([0.8, 1.25])
     assert summary["denim"]["member_settle_ratios"] is None  # a member that never settles

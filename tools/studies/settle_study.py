@@ -21,6 +21,7 @@ the same motion in the same cloth (``--mode``, the push-out on, as a user runs i
   The members' hems come to rest 15-17 mm from their mean (chaos); what they share is the part of the
   settling that the motion decides, which a model predicting the expected cloth can learn: its
   ``settle_s`` is the reference such a model's is read against (``settle_ratio_to_mean``);
+- ``stand_pve_mm``: the model's PVE over the stand against each member (their mean);
 - ``curve_gap_mm``: the mean distance between the model's and the truth's (members' mean) distance
   from rest over the hold, every quarter second: whether the model comes to rest as the truth does,
   which a settle time alone does not say (a hem swinging back out until late settles late too).
@@ -55,6 +56,7 @@ import numpy as np
 
 from hrr_garment.data.dataset import GarmentDataset, SequenceRecord
 from hrr_garment.eval.ensemble import truth_ensembles
+from hrr_garment.eval.metrics import pve_mm
 from hrr_garment.garment.material import Material, material_from
 from hrr_garment.inference.animator import Animator
 from hrr_garment.io_utils import atomic_write_text
@@ -216,6 +218,7 @@ def by_cloth(rows: list[dict]) -> dict[str, dict]:
                 np.mean([r["truth"]["hem_swing_cm"] for r in mine]),
             ),
             "curve_gap_mm": float(np.mean([r["curve_gap_mm"] for r in mine])),
+            "stand_pve_mm": float(np.mean([r["model"]["stand_pve_mm"] for r in mine])),
         }
     return out
 
@@ -246,8 +249,14 @@ def study_clip(
         members = [m.astype(np.float64) for m in ensembles[record.name].members]
         truth = [hem_after_stop(m, motion, stop, hem, args) for m in members]
         truth_mean = mean_member_after_stop(members, motion, stop, hem, args)
-        run = animator.animate(motion, mode=args.mode, material=record.material, allow_outside_material=True)
-        model = hem_after_stop(run.vertices.astype(np.float64), motion, stop, hem, args)
+        run = animator.animate(
+            motion, mode=args.mode, settle=args.settle, material=record.material, allow_outside_material=True
+        )
+        pred = run.vertices.astype(np.float64)
+        model = hem_after_stop(pred, motion, stop, hem, args)
+        end = len(pred) - round(END_S * motion.fps)
+        # the whole garment over the stand against each member (their mean PVE)
+        model["stand_pve_mm"] = float(np.mean([pve_mm(pred[stop:end], m[stop:end]) for m in members]))
         t = _mean(truth)
         rows.append(
             {
@@ -299,7 +308,8 @@ def print_rows(rows: list[dict]) -> None:
 def print_by_cloth(summary: dict[str, dict]) -> None:
     print(
         "| cloth | clips | hem swing / truth | settle s: truth / members' mean / model | "
-        "over the truth's | a member over the others' | over the members' mean's | curve gap mm |"
+        "over the truth's | a member over the others' | over the members' mean's | curve gap mm | "
+        "PVE over the stand mm |"
     )
     for cloth, c in summary.items():
         s, floor = c["settle_s"], c["member_settle_ratios"]
@@ -308,7 +318,7 @@ def print_by_cloth(summary: dict[str, dict]) -> None:
             f"| {cloth} | {c['clips']} | {_of(c['hem_swing_ratio'])} | "
             f"{_settle(s['truth'])} / {_settle(s['members_mean'])} / {_settle(s['model'])} | "
             f"{_of(c['settle_ratio'])} | {band} | {_of(c['settle_ratio_to_mean'])} | "
-            f"{c['curve_gap_mm']:.1f} |"
+            f"{c['curve_gap_mm']:.1f} | {c['stand_pve_mm']:.1f} |"
         )
 
 
@@ -322,6 +332,7 @@ def main(argv=None) -> int:
     p.add_argument("--hold", type=float, default=4.0, help="seconds the body then stands")
     p.add_argument("--members", type=int, default=4)
     p.add_argument("--mode", default="auto")
+    p.add_argument("--settle", type=float, default=0.0, help="the settling lag, s (0: none)")
     p.add_argument("--near", type=float, default=10.0, help="mm from the resting place counted as settled")
     p.add_argument("--smooth", type=float, default=0.5, help="seconds the hem's positions are averaged over")
     p.add_argument("--still", type=float, default=0.02, help="hem speed (m/s) counted as still")

@@ -1,0 +1,110 @@
+"""The cloth settling after a stop (inference/settle.py): the lag's known answers, its fading after
+the stop, what it leaves alone, and the same recursion offline, in a stream and in a crowd."""
+
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from hrr_garment.inference.settle import FADE, SettleLag, step_crowd
+from hrr_garment.motion.compose import held_still
+from hrr_garment.motion.features import causal_features, motion_features
+from hrr_garment.motion.memory import LONG_STILL_S, moving_fraction, still_clock
+from hrr_garment.motion.synth import synthesize
+
+FPS = 30.0
+
+
+def _walk_then_stand(stand_s: float = 8.0, seed: int = 3):
+    return held_still(synthesize("walk_curve", 1.5, seed=seed), round(stand_s * FPS))
+
+
+def test_right_after_a_stop_the_output_closes_on_the_prediction_at_the_time_constant():
+    """The prediction jumps at the stop and holds: the gap closes as exp(-t / s_t), s_t the time
+    constant fading over FADE of them; while the body moved, the output was the prediction."""
+    motion = _walk_then_stand()
+    features = causal_features(motion)
+    lag = SettleLag(1.0, FPS)
+    tau = still_clock(features, FPS)
+    stop = int(np.flatnonzero(tau == 0.0)[-1])  # the clock's last reset: the last moving frame
+    latents = np.zeros((motion.num_frames, 2, 3), np.float32)
+    latents[stop + 1 :] = 1.0  # the prediction steps at the stop
+    out = lag.apply(latents, features)
+    np.testing.assert_array_equal(out[: stop + 1], latents[: stop + 1])
+    # by hand: each frame keeps its still share times exp(-1 / (fps s_t)) of the gap
+    gap, expected = 1.0, []
+    for t in range(stop + 1, motion.num_frames):
+        s_t = max(0.0, 1.0 - tau[t] / (FADE * 1.0))
+        gap *= (
+            np.exp(-1.0 / (FPS * s_t)) * (1.0 - moving_fraction(features[t : t + 1])[0]) if s_t > 0 else 0.0
+        )
+        expected.append(1.0 - gap)
+    np.testing.assert_allclose(out[stop + 1 :, 0, 0], expected, atol=1e-5)
+    assert 0.3 < out[stop + round(FPS), 0, 0] < 0.8  # a second after the stop: on its way
+    assert out[stop + round(FADE * FPS) + 1, 0, 0] == pytest.approx(1.0)  # faded out: as predicted
+
+
+def test_a_body_that_stood_from_the_start_is_not_lagged():
+    """A wave on the spot: its cloth moves with the gestures the model predicts, no stop to settle."""
+    standing = held_still(synthesize("walk", 1.0, seed=0).slice(0, 1), 90)
+    features = motion_features(standing)
+    assert still_clock(features, FPS).min() == LONG_STILL_S
+    latents = np.random.default_rng(0).normal(size=(90, 2, 3)).astype(np.float32)
+    np.testing.assert_array_equal(SettleLag(2.0, FPS).apply(latents, features), latents)
+
+
+def test_a_crowds_steps_equal_each_clip_lagged_whole():
+    """Characters that join later start from their own first frame, their clocks their own."""
+    clips = [_walk_then_stand(5.0, seed) for seed in (1, 2, 3)]
+    features = [causal_features(m) for m in clips]
+    rng = np.random.default_rng(0)
+    latents = [rng.normal(size=(len(f), 4, 3)).astype(np.float32) for f in features]
+    joins, length = [0, 5, 12], min(len(f) for f in features) - 12
+    lag = SettleLag(1.5, FPS)
+    whole = [lag.apply(z, f) for z, f in zip(latents, features)]
+    chars = [SimpleNamespace(settled=None) for _ in range(3)]
+    for frame in range(length + 12):
+        rows = [i for i in range(3) if joins[i] <= frame < joins[i] + length]
+        out = step_crowd(
+            lag,
+            [chars[i] for i in rows],
+            np.stack([latents[i][frame - joins[i]] for i in rows]),
+            features=np.stack([features[i][frame - joins[i]] for i in rows]),
+        )
+        for j, i in enumerate(rows):
+            np.testing.assert_allclose(out[j], whole[i][frame - joins[i]], atol=1e-6)
+
+
+@pytest.mark.parametrize("mode", ["regression", "detail"])
+def test_the_lag_streams_as_it_animates_causally(animator, mode):
+    """A walk that stops: the lag changes the cloth only once the body stops, and a stream lags it
+    frame for frame as the causal clip does."""
+    motion = _walk_then_stand(3.0)
+    plain = animator.animate(motion, mode=mode, causal=True)
+    lagged = animator.animate(motion, mode=mode, causal=True, settle=1.0)
+    assert lagged.settings["settle"] == 1.0 and plain.settings["settle"] == 0.0
+    stop = int(np.flatnonzero(still_clock(causal_features(motion), FPS) == 0.0)[-1])
+    np.testing.assert_array_equal(lagged.vertices[: stop + 1], plain.vertices[: stop + 1])
+    assert np.abs(lagged.vertices[stop + 5 : stop + 30] - plain.vertices[stop + 5 : stop + 30]).max() > 1e-4
+    stream = animator.stream(mode=mode, settle=1.0)
+    pushed = np.stack([stream.push(motion.slice(t, t + 1)) for t in range(motion.num_frames)])
+    assert np.abs(pushed - lagged.vertices).max() <= 1e-5
+
+
+@pytest.mark.parametrize("bad", [-1.0, 25.0, float("nan"), "long", True, None])
+def test_a_settle_time_out_of_range_is_refused(bad):
+    from hrr_garment.inference.run_settings import RunSettings
+
+    with pytest.raises((ValueError, TypeError), match="settle"):
+        RunSettings(settle=bad)
+
+
+def test_the_torch_step_and_device_crowd_refuse_a_lag(animator):
+    from hrr_garment.inference.frame_path import FramePath
+    from hrr_garment.inference.torch_crowd import DeviceCrowd
+    from hrr_garment.inference.torch_step import stream_step
+
+    with pytest.raises(ValueError, match="settle"):
+        DeviceCrowd(animator, animator.resolve(mode="regression", settle=1.0, device="cpu"))
+    with pytest.raises(ValueError, match="settle"):
+        stream_step(FramePath(animator, animator.resolve(mode="regression", settle=1.0)))
