@@ -35,7 +35,7 @@ class ModeResult:
     sequences: list[SequenceResult] = field(default_factory=list)
     gate: str = "entropy"  # the hybrid's gate signal, which tau thresholds
     swing: float = 1.0  # the swing gain the mode ran with (inference/swing.py; auto: the calibrated one)
-    settle: float = 0.0  # the settling lag it ran with (s; inference/settle.py; auto: the calibrated one)
+    settle: float = 0.0  # the settling lag it ran with (s, as the run asked; inference/settle.py)
 
     @property
     def metrics(self) -> dict[str, float]:

@@ -30,7 +30,7 @@ class ResolvedRun:
     causal: bool
     decoder: str  # "full" or "fast"
     swing: float  # the gain on the free cloth's swing (inference/swing.py), 1: as predicted
-    settle: float  # the settling lag's time constant (s) while the body stands (inference/settle.py), 0: none
+    settle: float  # the settling lag's time constant (s) after a stop (inference/settle.py), 0: none
     push: str  # "mesh" or "subspace" (the push in the garment's subspace first)
     # "visible" (the mesh the viewer sees, where the body has one; else its capsules) or "capsules"
     push_body: str

@@ -56,8 +56,8 @@ from .lod import crowd_decode, crowd_latents, decoder_of, levels
 from .modes import Mode
 from .run_material import cloth_columns
 from .run_settings import ResolvedRun
-from .settle import step_crowd as settle_crowd
-from .swing import step_crowd
+from .settle import settle_crowd
+from .swing import swing_crowd
 
 
 class CrowdStream:
@@ -310,7 +310,7 @@ class CrowdStream:
         path.seen("blending", latents)
         # 5. swing: the free cloth's swing restored, each character's course kept on it
         gain = path.swing_gain(poses.fps)
-        latents = latents if gain is None else step_crowd(gain, chars, latents)
+        latents = latents if gain is None else swing_crowd(gain, chars, latents)
         lag = path.settle_lag(poses.fps)  # then the cloth settling after a stop
         if lag is not None:
             latents = settle_crowd(lag, chars, latents, features=features)

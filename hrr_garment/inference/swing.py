@@ -99,7 +99,7 @@ class SwingGain:
         return out
 
 
-def step_crowd(gain: SwingGain, chars: list, latents: np.ndarray) -> np.ndarray:
+def swing_crowd(gain: SwingGain, chars: list, latents: np.ndarray) -> np.ndarray:
     """(N, nodes, C) a crowd's latents this frame with the swing restored, as :meth:`SwingGain.apply`
     does a clip: each character's regression part (``c.lod.regression``, its last window step's,
     else its whole latent) and that part's course, kept on the character (``c.swing_mean``, None

@@ -6,7 +6,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from hrr_garment.inference.settle import FADE, SettleLag, step_crowd
+from hrr_garment.inference.settle import FADE, SettleLag, settle_crowd
 from hrr_garment.motion.compose import held_still
 from hrr_garment.motion.features import causal_features, motion_features
 from hrr_garment.motion.memory import LONG_STILL_S, moving_fraction, still_clock
@@ -65,7 +65,7 @@ def test_a_crowds_steps_equal_each_clip_lagged_whole():
     chars = [SimpleNamespace(settled=None) for _ in range(3)]
     for frame in range(length + 12):
         rows = [i for i in range(3) if joins[i] <= frame < joins[i] + length]
-        out = step_crowd(
+        out = settle_crowd(
             lag,
             [chars[i] for i in rows],
             np.stack([latents[i][frame - joins[i]] for i in rows]),
@@ -108,3 +108,19 @@ def test_the_torch_step_and_device_crowd_refuse_a_lag(animator):
         DeviceCrowd(animator, animator.resolve(mode="regression", settle=1.0, device="cpu"))
     with pytest.raises(ValueError, match="settle"):
         stream_step(FramePath(animator, animator.resolve(mode="regression", settle=1.0)))
+
+
+def test_offline_the_lag_changes_the_cloth_only_after_the_stop(animator):
+    motion = _walk_then_stand(3.0)
+    plain, lagged = (animator.animate(motion, mode="regression", settle=s) for s in (0.0, 1.0))
+    stop = int(np.flatnonzero(still_clock(motion_features(motion), FPS) == 0.0)[-1])
+    np.testing.assert_array_equal(lagged.vertices[: stop + 1], plain.vertices[: stop + 1])
+    assert np.abs(lagged.vertices[stop + 5 : stop + 30] - plain.vertices[stop + 5 : stop + 30]).max() > 1e-4
+
+
+def test_a_crowd_with_a_lag_stays_native_where_a_gpu_would_run_the_regression(animator, monkeypatch):
+    from hrr_garment.inference.stream import CrowdStream
+
+    monkeypatch.setattr("torch.cuda.is_available", lambda: True)
+    assert isinstance(animator.crowd(mode="regression", settle=1.0), CrowdStream)
+    assert isinstance(animator.crowd(mode="regression", swing=1.2), CrowdStream)
