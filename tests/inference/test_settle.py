@@ -124,3 +124,27 @@ def test_a_crowd_with_a_lag_stays_native_where_a_gpu_would_run_the_regression(an
     monkeypatch.setattr("torch.cuda.is_available", lambda: True)
     assert isinstance(animator.crowd(mode="regression", settle=1.0), CrowdStream)
     assert isinstance(animator.crowd(mode="regression", swing=1.2), CrowdStream)
+
+
+def test_hrr_animate_takes_a_settling_lag_and_refuses_a_bad_one(trained, tmp_path, capsys):
+    from hrr_garment.cli.animate import main as animate_main
+    from hrr_garment.data.animation_file import read_animation_h5
+    from hrr_garment.inference.animator import Animator
+    from hrr_garment.motion.io import save_motion
+
+    root, _, _ = trained
+    motion = _walk_then_stand(2.0, seed=4)
+    clip = tmp_path / "stop.npz"
+    save_motion(motion, clip)
+    out = tmp_path / "out.h5"
+    model = ["--model", str(root / "model")]
+    asked = ["--mode", "regression", "--settle", "1.5", "--no-collision"]
+    assert animate_main([str(clip), "-o", str(out), *model, *asked]) == 0
+    assert "settling over 1.5 s" in capsys.readouterr().out
+    written = read_animation_h5(out)
+    assert written.attrs["settle"] == 1.5
+    expected = Animator.load(root / "model").animate(motion, mode="regression", settle=1.5, push_out=False)
+    np.testing.assert_array_equal(written.vertices, expected.vertices)
+    refused = tmp_path / "refused.h5"
+    assert animate_main([str(clip), "-o", str(refused), *model, "--settle", "-1"]) == 2
+    assert "--settle" in capsys.readouterr().err and not refused.exists()
