@@ -91,23 +91,30 @@ def test_the_lag_streams_as_it_animates_causally(animator, mode):
     assert np.abs(pushed - lagged.vertices).max() <= 1e-5
 
 
-@pytest.mark.parametrize("bad", [-1.0, 25.0, float("nan"), "long", True, None])
-def test_a_settle_time_out_of_range_is_refused(bad):
+@pytest.mark.parametrize(
+    ("field", "bad"),
+    [("settle", bad) for bad in (-1.0, 25.0, float("nan"), "long", True, None)]
+    + [("swing", bad) for bad in (0.0, -1.0, 3.5, float("nan"), "big", True)],
+)
+def test_a_look_out_of_range_is_refused(field, bad):
+    """The settling lag and the swing's gain (inference/swing.py) alike."""
     from hrr_garment.inference.run_settings import RunSettings
 
-    with pytest.raises((ValueError, TypeError), match="settle"):
-        RunSettings(settle=bad)
+    with pytest.raises((ValueError, TypeError), match=field):
+        RunSettings(**{field: bad})
 
 
-def test_the_torch_step_and_device_crowd_refuse_a_lag(animator):
+@pytest.mark.parametrize("look", [{"settle": 1.0}, {"swing": 1.2}])
+def test_the_torch_step_and_device_crowd_refuse_a_look_they_do_not_run(animator, look):
     from hrr_garment.inference.frame_path import FramePath
     from hrr_garment.inference.torch_crowd import DeviceCrowd
     from hrr_garment.inference.torch_step import stream_step
 
-    with pytest.raises(ValueError, match="settle"):
-        DeviceCrowd(animator, animator.resolve(mode="regression", settle=1.0, device="cpu"))
-    with pytest.raises(ValueError, match="settle"):
-        stream_step(FramePath(animator, animator.resolve(mode="regression", settle=1.0)))
+    (field,) = look
+    with pytest.raises(ValueError, match=field):
+        DeviceCrowd(animator, animator.resolve(mode="regression", device="cpu", **look))
+    with pytest.raises(ValueError, match=field):
+        stream_step(FramePath(animator, animator.resolve(mode="regression", **look)))
 
 
 def test_offline_the_lag_changes_the_cloth_only_after_the_stop(animator):
@@ -126,7 +133,15 @@ def test_a_crowd_with_a_lag_stays_native_where_a_gpu_would_run_the_regression(an
     assert isinstance(animator.crowd(mode="regression", swing=1.2), CrowdStream)
 
 
-def test_hrr_animate_takes_a_settling_lag_and_refuses_a_bad_one(trained, tmp_path, capsys):
+@pytest.mark.parametrize(
+    ("field", "value", "bad", "printed"),
+    [("settle", 1.5, "-1", "settling over 1.5 s"), ("swing", 1.4, "0", "mode regression, swing x1.4")],
+)
+def test_hrr_animate_takes_a_look_and_refuses_a_bad_one(
+    trained, tmp_path, capsys, field, value, bad, printed
+):  # noqa: PLR0913
+    """--settle and --swing: the cloth written is the API's with the look, recorded in out.h5; a bad
+    value is refused naming the flag, and no file is written."""
     from hrr_garment.cli.animate import main as animate_main
     from hrr_garment.data.animation_file import read_animation_h5
     from hrr_garment.inference.animator import Animator
@@ -138,13 +153,14 @@ def test_hrr_animate_takes_a_settling_lag_and_refuses_a_bad_one(trained, tmp_pat
     save_motion(motion, clip)
     out = tmp_path / "out.h5"
     model = ["--model", str(root / "model")]
-    asked = ["--mode", "regression", "--settle", "1.5", "--no-collision"]
+    asked = ["--mode", "regression", f"--{field}", str(value), "--no-collision"]
     assert animate_main([str(clip), "-o", str(out), *model, *asked]) == 0
-    assert "settling over 1.5 s" in capsys.readouterr().out
+    assert printed in capsys.readouterr().out
     written = read_animation_h5(out)
-    assert written.attrs["settle"] == 1.5
-    expected = Animator.load(root / "model").animate(motion, mode="regression", settle=1.5, push_out=False)
+    assert written.attrs[field] == value
+    look = {field: value}
+    expected = Animator.load(root / "model").animate(motion, mode="regression", push_out=False, **look)
     np.testing.assert_array_equal(written.vertices, expected.vertices)
     refused = tmp_path / "refused.h5"
-    assert animate_main([str(clip), "-o", str(refused), *model, "--settle", "-1"]) == 2
-    assert "--settle" in capsys.readouterr().err and not refused.exists()
+    assert animate_main([str(clip), "-o", str(refused), *model, f"--{field}", bad]) == 2
+    assert f"--{field}" in capsys.readouterr().err and not refused.exists()

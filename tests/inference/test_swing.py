@@ -96,59 +96,6 @@ def test_the_calibrated_gain_runs_in_auto_only(animator, monkeypatch):
     assert animator.resolve().swing == 1.0  # calibrated before the gain: as it animated then
 
 
-@pytest.mark.parametrize("bad", [0.0, -1.0, 3.5, float("nan"), "big", True])
-def test_a_swing_gain_out_of_range_is_refused(bad):
-    from hrr_garment.inference.run_settings import RunSettings
-
-    with pytest.raises((ValueError, TypeError), match="swing"):
-        RunSettings(swing=bad)
-
-
-def test_the_device_crowd_refuses_a_swing_gain(animator):
-    from hrr_garment.inference.torch_crowd import DeviceCrowd
-
-    with pytest.raises(ValueError, match="swing"):
-        DeviceCrowd(animator, animator.resolve(mode="regression", swing=1.2, device="cpu"))
-
-
-def test_hrr_animate_takes_a_swing_gain_and_refuses_a_bad_one(trained, tmp_path, capsys):
-    from hrr_garment.cli.animate import main as animate_main
-    from hrr_garment.data.animation_file import read_animation_h5
-    from hrr_garment.inference.animator import Animator
-    from hrr_garment.motion.io import save_motion
-
-    root, _, _ = trained
-    motion = synthesize("walk", 1.0, seed=4)
-    clip = tmp_path / "walk.npz"
-    save_motion(motion, clip)
-    out = tmp_path / "out.h5"
-    assert (
-        animate_main(
-            [
-                str(clip),
-                "-o",
-                str(out),
-                "--model",
-                str(root / "model"),
-                "--mode",
-                "regression",
-                "--swing",
-                "1.4",
-                "--no-collision",
-            ]
-        )
-        == 0
-    )
-    assert "mode regression, swing x1.4" in capsys.readouterr().out
-    written = read_animation_h5(out)
-    assert written.attrs["swing"] == 1.4
-    expected = Animator.load(root / "model").animate(motion, mode="regression", swing=1.4, push_out=False)
-    np.testing.assert_array_equal(written.vertices, expected.vertices)
-    refused = tmp_path / "refused.h5"
-    assert animate_main([str(clip), "-o", str(refused), "--model", str(root / "model"), "--swing", "0"]) == 2
-    assert "--swing" in capsys.readouterr().err and not refused.exists()
-
-
 def test_an_evaluation_records_the_gain_each_mode_ran_with(animator, trained, monkeypatch):
     from hrr_garment.data.dataset import GarmentDataset
     from hrr_garment.eval.evaluate import EvaluationSettings, evaluate_modes
