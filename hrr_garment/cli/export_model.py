@@ -71,6 +71,14 @@ def _parser() -> argparse.ArgumentParser:
     )
     add_sample_options(p)
     p.add_argument(
+        "--settle",
+        type=float,
+        default=0.0,
+        metavar="SECONDS",
+        help="the settling lag after a stop in the graph (its state 'settled'; docs/inference.md): the "
+        "time constant of the garment's lag towards the model's prediction (default 0: none)",
+    )
+    p.add_argument(
         "--check",
         type=Path,
         default=None,
@@ -87,7 +95,7 @@ def _main(argv: Sequence[str] | None) -> int:
     if args.garment is None and args.model is None:
         raise InputError("hrr-export-model", "give --garment NAME or --model DIR")
     require_suffix(args.output, (".onnx",), "an ONNX model")
-    drawing = _sample_changes(args)
+    drawing = _run_changes(args)
     from ..export.onnx_model import check_onnx, export_onnx, tensors_path
 
     for output in (args.output, tensors_path(args.output)):  # the graph and its companion
@@ -136,15 +144,17 @@ def _main(argv: Sequence[str] | None) -> int:
     return 0
 
 
-def _sample_changes(args: argparse.Namespace) -> dict:
-    """The run's mode and its draw's steps; an InputError for values it cannot take (checked with the
-    seed, which --check draws with, before the export's minute)."""
-    changes = {"mode": args.mode, "sample_steps": args.sample_steps}
+def _run_changes(args: argparse.Namespace) -> dict:
+    """The run's mode, its draw's steps and its settling lag; an InputError naming the flag for a
+    value they cannot take (checked with the seed, which --check draws with, before the export's
+    minute)."""
+    changes = {"mode": args.mode, "sample_steps": args.sample_steps, "settle": args.settle}
     try:
         RunSettings(**changes, seed=args.seed)
-    except ValueError as exc:
-        flag = "--seed" if str(exc).startswith("seed") else "--sample-steps"
-        raise InputError(flag, str(exc)) from None
+    except (TypeError, ValueError) as exc:
+        message = str(exc)
+        flag = next((f"--{n}" for n in ("seed", "settle") if message.startswith(n)), "--sample-steps")
+        raise InputError(flag, message) from None
     return changes
 
 

@@ -33,7 +33,7 @@ from ..garment.material_range import MATERIAL_FEATURES, MaterialRange, material_
 from ..inference.frame_path import FramePath
 from ..inference.modes import Mode
 from ..inference.run_settings import DECODERS, PUSHES, RunSettings
-from ..inference.torch_step import SAMPLE_STATE, STATE, noise_shape, state_shapes, stream_step
+from ..inference.torch_step import SETTLE_STATE, STATE, noise_shape, state_shapes, stream_step
 from ..io_utils import atomic_path, refuse_inputs_as_outputs, require_suffix, strict_json
 from ..models.sampler import characters_noise
 from ..motion.motion import FPS, Motion
@@ -45,9 +45,9 @@ INPUTS = ("rotations", "root")
 # (hrr_garment.garment.material_range: log10 density, stretch, shear, bend; damping)
 MATERIAL = "material"
 OUTPUTS = ("vertices", "entropy", "codes") + tuple(f"next_{name}" for name in STATE)
-# the sample mode's graph: its white noise input after the state, and its draw state after the window
+# the sample mode's graph: its white noise input after the state, and its draw state after the
+# window's (and the settling lag's, where the graph has the lag)
 NOISE = "noise"
-SAMPLE_OUTPUTS = OUTPUTS + tuple(f"next_{name}" for name in SAMPLE_STATE)
 # what the companion npz holds (docs/export.md says how a retrieval uses them)
 TENSORS = {
     "faces": "(F, 3) int32 the garment's triangles",
@@ -126,17 +126,15 @@ def export_onnx(animator, path: str | Path, settings: RunSettings | None = None,
     step = stream_step(frame_path)
     shapes, noise = state_shapes(step), noise_shape(step)
     example = _example_inputs(shapes, noise, 2, frame_path.cloth)
-    if frame_path.cloth is not None:
-        step = MaterialInput(step)
     n = torch.export.Dim("characters", min=1, max=4096)
-    dynamic = tuple({0: n} for _ in example)
+    dynamic = (tuple({0: n} for _ in example),)  # the inputs, one tuple (GraphInputs' *inputs)
     with torch.no_grad(), _quiet():
         program = torch.onnx.export(
-            step,
+            GraphInputs(step, list(example)),
             tuple(torch.from_numpy(x) for x in example.values()),
             dynamo=True,
             input_names=list(example),
-            output_names=list(OUTPUTS if noise is None else SAMPLE_OUTPUTS),
+            output_names=list(OUTPUTS) + [f"next_{name}" for name in shapes if name not in STATE],
             dynamic_shapes=dynamic,
             opset_version=OPSET,
             optimize=True,
@@ -162,6 +160,8 @@ def export_onnx(animator, path: str | Path, settings: RunSettings | None = None,
         "motion_licence": bundle.manifest.licences.statement,
         "commercial_use": bundle.manifest.licences.commercial,
     }
+    if run.settle > 0:  # the settling lag the graph runs (its state ``settled``)
+        meta["settle"] = run.settle
     if noise is not None:  # the white noise a frame takes per character, and the steps it is drawn in
         meta |= {"noise": list(noise), "sample_steps": run.sample_steps}
     if frame_path.cloth is not None:  # the material input: what it holds and the cloth exported with
@@ -205,32 +205,17 @@ def _quiet():
         logging.disable(previous)
 
 
-class MaterialInput(torch.nn.Module):
-    """A step of a model across cloths with each character's cloth values as its third input,
-    after the poses (:data:`MATERIAL`), in place of the run's cloth the step holds."""
+class GraphInputs(torch.nn.Module):
+    """The step with the graph's inputs in the graph's order, each handed to it by name: the poses,
+    a model across cloths' :data:`MATERIAL`, the state, the sample mode's noise and draw state, as
+    the graph has them (:func:`_example_inputs`)."""
 
-    def __init__(self, step: torch.nn.Module):
+    def __init__(self, step: torch.nn.Module, names: list[str]):
         super().__init__()
-        self.step = step
+        self.step, self.names = step, list(names)
 
-    def forward(  # noqa: PLR0913  (one argument per graph input, as StreamStep.forward's)
-        self,
-        rotations,
-        root,
-        material,
-        started,
-        previous_rotations,
-        previous_positions,
-        memory,
-        window,
-        noise=None,
-        sample_drive=None,
-        sample_noise=None,
-        sample_latents=None,
-    ):
-        state = (started, previous_rotations, previous_positions, memory, window)
-        drawing = (noise, sample_drive, sample_noise, sample_latents)
-        return self.step(rotations, root, *state, *drawing, material=material)
+    def forward(self, *inputs):
+        return self.step(**dict(zip(self.names, inputs)))
 
 
 def _example_inputs(
@@ -248,6 +233,8 @@ def _example_inputs(
         inputs[MATERIAL] = np.tile(np.asarray(cloth, np.float32), (characters, 1))
     state = initial_state(shapes, characters)
     inputs |= {name: state.pop(name) for name in STATE}
+    if SETTLE_STATE in state:  # the settling lag's, after the window's
+        inputs[SETTLE_STATE] = state.pop(SETTLE_STATE)
     if noise is not None:
         inputs[NOISE] = rng.standard_normal((characters, *noise)).astype(np.float32)
     return inputs | state
@@ -290,6 +277,7 @@ class OnnxStream:
             "decoder": meta.get("decoder", DECODERS[0]),
             "push": meta.get("push", PUSHES[0]),
             "push_body": meta.get("push_body", "capsules"),
+            "settle": float(json.loads(meta.get("settle", "0"))),  # the settling lag (0: none)
         }
         self.noise = tuple(json.loads(meta["noise"])) if "noise" in meta else None
         self.path, self._meta = Path(path), meta

@@ -228,12 +228,12 @@ class Animator:
         arguments as :meth:`stream` (every character of the crowd has the run's body). The run's
         ``device``: "native" (the CPU kernels: every mode, a body per character), a torch device such
         as "cuda" (the regression as one torch step there: :class:`~.torch_crowd.DeviceCrowd`), or
-        None: CUDA for a regression crowd as predicted (no swing gain, no settling lag: the torch
-        step runs neither) where torch sees a GPU, else native."""
+        None: CUDA for a regression crowd whose swing runs as predicted (the torch step runs no
+        swing gain) where torch sees a GPU, else native."""
         run = self._stream_run(settings, changes)
         device = run.device
         if device is None:
-            as_predicted = run.mode is Mode.REGRESSION and run.swing == 1.0 and run.settle == 0.0
+            as_predicted = run.mode is Mode.REGRESSION and run.swing == 1.0
             device = "cuda" if as_predicted and rig is None and torch.cuda.is_available() else "native"
         run = dataclasses.replace(run, device=device)
         if device == "native":

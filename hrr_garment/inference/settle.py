@@ -20,10 +20,11 @@ The lag fades out as the stillness clock reads :data:`FADE` time constants (the 
 frame in full once the body is under 0.05 m/s, a share of it up to 0.15): by then the relaxation is done,
 and a body that has stood longer (a wave, a bow, a talk) moves its cloth by its gestures, which the
 model predicts and a lag would only delay (on held-out clips of standing gestures an unfaded lag of
-1 s cost 9-12 % of PVE). The lag looks only backwards, so the offline path, a stream and a crowd
-run the same recursion from the same first frame. It runs where a run asks for it (``settle``,
-``hrr-animate --settle S``): a look, whose measured trade is in docs/materials.md; 0 leaves the
-latents as they are.
+1 s cost 9-12 % of PVE). The lag looks only backwards, so the offline path, a stream, a crowd and
+the torch step (a crowd on a torch device, the ONNX graph: :mod:`.torch_settle`) run the same
+recursion from the same first frame. It runs where a run asks for it (``settle``, ``hrr-animate
+--settle S``, ``hrr-export-model --onnx --settle S``): a look, whose measured trade is in
+docs/materials.md; 0 leaves the latents as they are.
 """
 
 from __future__ import annotations

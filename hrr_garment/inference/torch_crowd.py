@@ -31,7 +31,7 @@ from .frame_path import FramePath
 from .modes import Mode
 from .run_material import cloth_columns
 from .run_settings import ResolvedRun
-from .torch_step import SAMPLE_STATE, STATE, state_shapes, stream_step
+from .torch_step import SAMPLE_STATE, SETTLE_STATE, STATE, state_shapes, stream_step
 
 
 class DeviceCrowd:
@@ -50,11 +50,6 @@ class DeviceCrowd:
             raise ValueError(
                 f"a crowd on a torch device runs the swing as predicted (swing=1), not {run.swing:g}: "
                 "the restored swing runs in the native crowd (device='native')"
-            )
-        if run.settle != 0.0:
-            raise ValueError(
-                f"a crowd on a torch device runs without the settling lag (settle=0), not {run.settle:g}: "
-                "the lag runs in the native crowd (device='native')"
             )
         self.device = torch.device(run.device)
         self.run, self.body = run, run.body
@@ -171,6 +166,7 @@ class DeviceCrowd:
             raise InputError("push", "non-finite rotations or roots")
         rows = self._slots_of(keys)
         state = [self._state[name][rows] for name in STATE]
+        state.append(self._state[SETTLE_STATE][rows] if SETTLE_STATE in self._state else None)
         drawing = []
         if self.step.sample is not None:
             drawing = [self._white_noise(keys), *(self._state[name][rows] for name in SAMPLE_STATE)]

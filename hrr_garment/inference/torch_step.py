@@ -13,9 +13,9 @@ numbered alike in :meth:`StreamStep.forward`) with the same formulas and the sam
 - 2 windows: the last W frames;
 - 3 choice: the window step (:class:`~hrr_garment.models.codes.WindowCodes`): motion encoder, code
   entropy and classes, the code-space decoder's latents of the window's last frame;
-- 4 blending, 5 swing: the regression is one source, its swing runs as predicted (swing 1) and
-  without the settling lag (settle 0), so the latents as they are; in the sample mode the
-  generative decoder's draw departs from them
+- 4 blending, 5 swing: the regression is one source and its swing runs as predicted (swing 1),
+  then the settling lag where the run asks for it (:mod:`.torch_settle`, its state ``settled``
+  after the window's); in the sample mode the generative decoder's draw departs from them
   (:mod:`.torch_sample`: the engine's white noise in, each character's draw state carried);
 - 6 decoding: the mesh decoder; 7 folds: none (the regression);
 - 8 world: the garment's rest offset on the body, the body frame to the world
@@ -46,6 +46,7 @@ from .torch_features import FeatureStage, PoseStage
 from .torch_ops import constant, turn_y
 from .torch_push_out import PushOutStage
 from .torch_sample import SampleStage
+from .torch_settle import SettleStage
 
 
 class StreamStep(nn.Module):
@@ -55,12 +56,13 @@ class StreamStep(nn.Module):
     Inputs: ``rotations`` (N, 22, 4) local quaternions x y z w, ``root`` (N, 3) pelvis positions
     (metres, Y up), and the state: ``started`` (N,) 0 at a character's first frame else 1,
     ``previous_rotations`` (N, 22, 3, 3), ``previous_positions`` (N, 22, 3), ``memory`` (N, rows, 64),
-    ``window`` (N, W - 1, F); with ``sample``, then ``noise`` (N, 2, L) white noise and the draw's
+    ``window`` (N, W - 1, F); with ``settle``, then ``settled`` (N, nodes C + 1); with ``sample``,
+    then ``noise`` (N, 2, L) white noise and the draw's
     state ``sample_drive``, ``sample_noise``, ``sample_latents`` (N, L). Outputs: ``vertices`` (N, V,
     3), ``entropy`` (N,), ``codes`` (N, G), and the next state in the same order (``started`` all
     ones)."""
 
-    def __init__(
+    def __init__(  # noqa: PLR0913  (the step's stages, each its own)
         self,
         bundle,
         decoder,
@@ -71,6 +73,7 @@ class StreamStep(nn.Module):
         push_out: PushOutStage | None,
         sample: SampleStage | None = None,
         cloth: np.ndarray | None = None,
+        settle: SettleStage | None = None,
     ):
         super().__init__()
         record = character.record
@@ -90,7 +93,7 @@ class StreamStep(nn.Module):
         constant(self, "latent_std", bundle.latent_stats.std)
         constant(self, "garment_offset", character.offset)
         constant(self, "rest_pelvis", [0.0, REST_PELVIS_HEIGHT, 0.0])
-        self.decoder, self.push_out, self.sample = decoder, push_out, sample
+        self.decoder, self.push_out, self.sample, self.settle = decoder, push_out, sample, settle
         self.latent_shape = tuple(bundle.codespace.latent_shape)
         self.observe = None  # a stage's name and output -> None (tests), as FramePath.observe
 
@@ -110,16 +113,18 @@ class StreamStep(nn.Module):
         previous_positions,
         memory,
         window,
+        settled=None,
         noise=None,
         sample_drive=None,
         sample_noise=None,
         sample_latents=None,
         material=None,
     ):
-        """One frame through the frame path's stages (:mod:`.frame_path`), in torch; the sample
-        mode's white ``noise`` and draw state last (None in the regression); ``material`` (N, m) each
-        character's cloth values for a model across cloths (:func:`~.run_material.material_columns`;
-        None: the run's cloth, which the step holds)."""
+        """One frame through the frame path's stages (:mod:`.frame_path`), in torch; ``settled``
+        the settling lag's state where the step has the lag (None without); the sample mode's white
+        ``noise`` and draw state last (None in the regression); ``material`` (N, m) each character's
+        cloth values for a model across cloths (:func:`~.run_material.material_columns`; None: the
+        run's cloth, which the step holds)."""
         rot, pos = self.pose(rotations, root)
         first = started.reshape(-1, 1, 1) <= 0
         previous = (
@@ -143,7 +148,11 @@ class StreamStep(nn.Module):
             drawing = (noise, sample_drive, sample_noise, sample_latents)
             latents, drawn = self.sample(standard[:, -1], latents.reshape(n, -1), first[:, 0], *drawing)
         latents = self.seen("blending", self.destandardised(latents))
-        # 5. swing: runs as predicted, so the latents as they are
+        # 5. swing: runs as predicted; then the settling lag where the run asks for it
+        lagged = ()
+        if self.settle is not None:
+            latents, settled = self.settle(latents, features, settled, first)
+            lagged = (settled,)
         self.seen("swing", latents)
         # 6. decoding, and 7. folds: none in the regression
         local = self.seen("folds", self.seen("decoding", self.decoder(latents)))
@@ -156,7 +165,8 @@ class StreamStep(nn.Module):
         if self.push_out is not None:
             world = self.push_out(world, rot, pos, heading)
         self.seen("push_out", world)
-        return (world, entropy, codes, torch.ones_like(started), rot, pos, memory, frames[:, 1:], *drawn)
+        state = (torch.ones_like(started), rot, pos, memory, frames[:, 1:], *lagged, *drawn)
+        return (world, entropy, codes, *state)
 
     def destandardised(self, latents: torch.Tensor) -> torch.Tensor:
         """The code-space decoder's standardised latents (N, ...) as the mesh decoder's (N, nodes, C)."""
@@ -204,10 +214,6 @@ def stream_step(path: FramePath, *, movable: bool = False) -> StreamStep:
         )
     if run.swing != 1.0:
         raise ValueError(f"the torch step runs the swing as predicted (swing 1), not swing={run.swing:g}")
-    if run.settle != 0.0:
-        raise ValueError(
-            f"the torch step runs without the settling lag (settle 0), not settle={run.settle:g}"
-        )
     spec = bundle.codespace.config.memory
     memory = motion_memory(spec, FPS) if spec else None
     stage = None
@@ -235,6 +241,7 @@ def stream_step(path: FramePath, *, movable: bool = False) -> StreamStep:
         push_out=stage,
         sample=sample,
         cloth=path.cloth,
+        settle=SettleStage(run.settle, FPS) if run.settle > 0 else None,
     ).eval()
 
 
@@ -254,6 +261,8 @@ def state_shapes(step: StreamStep) -> dict[str, tuple[int, ...]]:
             ],
         )
     )
+    if step.settle is not None:  # the lagged latents, flattened, and the stillness clock's reading
+        shapes[SETTLE_STATE] = (int(np.prod(step.latent_shape)) + 1,)
     if step.sample is not None:
         shapes |= {name: (step.sample.size,) for name in SAMPLE_STATE}
     return shapes
@@ -261,6 +270,8 @@ def state_shapes(step: StreamStep) -> dict[str, tuple[int, ...]]:
 
 # each character's state, as the step takes it and gives it back
 STATE = ("started", "previous_rotations", "previous_positions", "memory", "window")
+# the settling lag's state (inference/torch_settle.py), where the run asks for the lag
+SETTLE_STATE = "settled"
 # the sample mode's draw state: the noise's two filters and the regression's latents of the frame before
 SAMPLE_STATE = ("sample_drive", "sample_noise", "sample_latents")
 

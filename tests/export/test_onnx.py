@@ -224,7 +224,8 @@ def test_bad_requests_are_refused_with_the_reason(tmp_path, capsys):
     with pytest.raises(InputError, match="junk.onnx.*not an ONNX model"):
         OnnxStream(tmp_path / "junk.onnx")
     assert not (tmp_path / "x.onnx").exists()
-    for flags in (["--sample-steps", "2"], ["--mode", "sample", "--seed", "-1"]):  # before any model is read
+    # before any model is read
+    for flags in (["--sample-steps", "2"], ["--mode", "sample", "--seed", "-1"], ["--settle", "-1"]):
         assert (
             export_model_main(["--model", str(tmp_path), "--onnx", "-o", str(tmp_path / "x.onnx"), *flags])
             == 2
@@ -232,7 +233,9 @@ def test_bad_requests_are_refused_with_the_reason(tmp_path, capsys):
         assert flags[-2] in capsys.readouterr().err
 
 
-@pytest.mark.parametrize("flags", [["--push-body", "capsules"], ["--push-body", "visible"], []])
+@pytest.mark.parametrize(
+    "flags", [["--push-body", "capsules"], ["--push-body", "visible"], [], ["--settle", "1.5"]]
+)
 def test_the_command_exports_the_run_its_flags_ask(trained, tmp_path, monkeypatch, flags):
     """--push-body (with --decoder and --push) reaches the export: a request for the capsules
     exported the visible mesh's push-out, at 60-280 x the native step's cost."""
@@ -248,7 +251,8 @@ def test_the_command_exports_the_run_its_flags_ask(trained, tmp_path, monkeypatc
     root, _, _ = trained
     command = ["--model", str(root / "model"), "--onnx", *flags, "-o", str(tmp_path / "x.onnx")]
     assert export_model_main(command) == 2
-    assert asked["push_body"] == (flags[1] if flags else None)  # None: the run's default
+    assert asked["settle"] == (1.5 if "--settle" in flags else 0.0)
+    assert asked["push_body"] == (flags[1] if flags[:1] == ["--push-body"] else None)  # None: the default
     assert asked["push_out"] is True and asked["decoder"] is None and asked["push"] is None
 
 
@@ -295,3 +299,24 @@ def test_the_sample_modes_graph_draws_what_the_python_stream_draws_from_the_same
     with pytest.raises(ValueError, match="swing"):  # the graph runs the swing as predicted
         export_onnx(drawing, tmp_path / "x.onnx", mode="sample", swing=1.3)
     assert not (tmp_path / "x.onnx").exists()
+
+
+def test_the_graph_with_the_settling_lag_streams_as_the_python_stream_does(exported, tmp_path):
+    """hrr-export-model --settle S: the lag's state (``settled``) carried through the graph, a walk
+    that stops streamed as the Python stream with the same lag gives it; the graph records it."""
+    from hrr_garment.export.onnx_model import OnnxStream, check_onnx, export_onnx
+    from hrr_garment.motion.compose import held_still
+
+    animator, plain, _ = exported
+    clip = held_still(synthesize("walk_curve", 1.0, seed=3), 45)
+    written = export_onnx(animator, tmp_path / "settled.onnx", settle=1.0)
+    assert "settled" in written.state and OnnxStream(written.graph).settings["settle"] == 1.0
+    assert OnnxStream(plain.graph).settings["settle"] == 0.0 and "settled" not in plain.state
+    assert check_onnx(animator, written.graph, clip)["max_mm"] < 0.01
+    rotations, roots = motion_to_poses(clip)
+    lagged, unlagged = OnnxStream(written.graph), OnnxStream(plain.graph)
+    apart = max(
+        float(np.abs(lagged.push(r[None], x[None]) - unlagged.push(r[None], x[None])).max())
+        for r, x in zip(rotations, roots)
+    )
+    assert apart > 1e-3  # the lag acted after the stop
