@@ -181,3 +181,21 @@ def test_hrr_animate_takes_a_look_and_refuses_a_bad_one(
     refused = tmp_path / "refused.h5"
     assert animate_main([str(clip), "-o", str(refused), *model, f"--{field}", bad]) == 2
     assert f"--{field}" in capsys.readouterr().err and not refused.exists()
+
+
+def test_the_device_crowds_draw_lags_as_the_native_crowds_does(animator):
+    """The sample mode with the lag on a torch device: the lag's state before the draw's (the
+    step's order), each seed's cloth as the native crowd draws and lags it."""
+    from hrr_garment.motion.poses import motion_to_poses
+    from tests.conftest import with_drawn_sampler
+
+    drawing = with_drawn_sampler(animator)
+    rotations, roots = motion_to_poses(_walk_then_stand(2.0, seed=1))
+    crowds = [drawing.crowd(mode="sample", seed=5, settle=1.0, device=d) for d in ("native", "cpu")]
+    worst = 0.0
+    for t in range(len(rotations)):
+        native, device = (
+            c.push(rotations[[t, t]], roots[[t, t]] + [[0, 0, 0], [2, 0, 0]], ["a", "b"]) for c in crowds
+        )
+        worst = max(worst, float(np.abs(native - device).max()))
+    assert worst < 1e-4, f"{worst * 1000:.3f} mm from the native crowd"
