@@ -16,6 +16,17 @@ from ..motion.skeleton import FEATURE_JOINTS, REST_PELVIS_HEIGHT, forward_kinema
 from .torch_ops import constant, turn_y
 
 
+def advanced_clock(
+    clock: torch.Tensor, speed: torch.Tensor, still: torch.Tensor, *, fps: float
+) -> torch.Tensor:
+    """Stillness clock readings one frame on, given the frame's :meth:`FeatureStage.speed_and_still`
+    (each (N, 1, 1), broadcast over ``clock``): reset over MOVING_ABOVE, the still share of a frame
+    more otherwise, at most LONG_STILL_S (:func:`~hrr_garment.motion.memory.clock_step`)."""
+    return torch.where(
+        speed > MOVING_ABOVE, torch.zeros_like(clock), torch.clamp(clock + still / fps, max=LONG_STILL_S)
+    )
+
+
 class PoseStage(nn.Module):
     """Local quaternions (N, 22, 4), x y z w, and pelvis positions (N, 3) -> global rotations
     (N, 22, 3, 3) and joint positions (N, 22, 3) on the body's skeleton."""
@@ -110,12 +121,7 @@ class FeatureStage(nn.Module):
 
     def clock_step(self, clock: torch.Tensor, features: torch.Tensor) -> torch.Tensor:
         """The clock rows (N, 1, 64) one frame on: :func:`~hrr_garment.motion.memory.clock_step`."""
-        speed, still = self.speed_and_still(features)
-        return torch.where(
-            speed > MOVING_ABOVE,
-            torch.zeros_like(clock),
-            torch.clamp(clock + still / self.fps, max=LONG_STILL_S),
-        )
+        return advanced_clock(clock, *self.speed_and_still(features), fps=self.fps)
 
     @staticmethod
     def speed_and_still(features: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:

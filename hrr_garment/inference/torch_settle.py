@@ -8,9 +8,9 @@ from __future__ import annotations
 import torch
 from torch import nn
 
-from ..motion.memory import LONG_STILL_S, MOVING_ABOVE
+from ..motion.memory import LONG_STILL_S
 from .settle import FADE
-from .torch_features import FeatureStage
+from .torch_features import FeatureStage, advanced_clock
 
 
 class SettleStage(nn.Module):
@@ -28,10 +28,7 @@ class SettleStage(nn.Module):
         n = latents.shape[0]
         speed, still = FeatureStage.speed_and_still(features)  # (N, 1, 1)
         # the stillness clock one frame on (motion.memory.clock_step), LONG_STILL_S at a start
-        tau = state[:, -1:].reshape(n, 1, 1)
-        tau = torch.where(
-            speed > MOVING_ABOVE, torch.zeros_like(tau), torch.clamp(tau + still / self.fps, max=LONG_STILL_S)
-        )
+        tau = advanced_clock(state[:, -1:].reshape(n, 1, 1), speed, still, fps=self.fps)
         start = first.reshape(n, 1, 1)
         tau = torch.where(start, torch.full_like(tau, LONG_STILL_S), tau)
         lag = self.seconds * torch.clamp(1.0 - tau / (FADE * self.seconds), 0.0, 1.0)
