@@ -177,16 +177,21 @@ def run_settings_of(args: argparse.Namespace, prog: str, **fields) -> RunSetting
             **fields,
         )
     except (TypeError, ValueError) as exc:
-        message = str(exc)
-        flag = next(
-            (
-                f"--{name.replace('_', '-')}"
-                for name in ("tau", "gate", "mode", "swing", "settle", "push_body", "seed", "sample_steps")
-                if message.startswith(name)
-            ),
-            "the run settings",
-        )
-        raise InputError(flag, message) from None
+        raise run_settings_error(exc) from None
+
+
+# the RunSettings fields a command's flags set, by the name their errors begin with
+RUN_FLAGS = ("tau", "gate", "mode", "swing", "settle", "push_body", "seed", "sample_steps")
+
+
+def run_settings_error(exc: Exception) -> InputError:
+    """An InputError naming the flag a :class:`RunSettings` error is about (its message begins with
+    the field's name), or the run settings as a whole."""
+    message = str(exc)
+    flag = next(
+        (f"--{name.replace('_', '-')}" for name in RUN_FLAGS if message.startswith(name)), "the run settings"
+    )
+    return InputError(flag, message)
 
 
 class Terminated(KeyboardInterrupt):

@@ -24,7 +24,14 @@ from typing import Sequence
 from ..errors import InputError
 from ..inference.run_settings import RunSettings
 from ..io_utils import refuse_input_as_output, require_suffix
-from ._common import add_decoder_option, add_no_push_out_option, add_push_option, add_sample_options, run_cli
+from ._common import (
+    add_decoder_option,
+    add_no_push_out_option,
+    add_push_option,
+    add_sample_options,
+    run_cli,
+    run_settings_error,
+)
 
 TOLERANCE_MM = 0.1  # the ONNX stream's largest gap from the Python stream that --check accepts
 
@@ -152,9 +159,7 @@ def _run_changes(args: argparse.Namespace) -> dict:
     try:
         RunSettings(**changes, seed=args.seed)
     except (TypeError, ValueError) as exc:
-        message = str(exc)
-        flag = next((f"--{n}" for n in ("seed", "settle") if message.startswith(n)), "--sample-steps")
-        raise InputError(flag, message) from None
+        raise run_settings_error(exc) from None
     return changes
 
 
