@@ -3,13 +3,16 @@ keys checked, and where a push's time goes."""
 
 from __future__ import annotations
 
+import warnings
 from collections import deque
+from collections.abc import Hashable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..errors import InputError
+from ..errors import InputError, TeleportWarning
 from ..models.sampler import SampleTrack
+from ..motion.limits import MAX_ROOT_SPEED
 from .fold_track import FoldTrack, FollowedFolds
 from .lod import LodState
 from .run_settings import MAX_SEED, whole_number
@@ -54,6 +57,37 @@ def check_keys(keys: list, count: int) -> None:
             "push",
             f"{count} poses need as many distinct keys, got {len(keys)} keys ({len(set(keys))} distinct)",
         )
+
+
+def teleported(
+    keys: Sequence[Hashable],
+    last_roots: Sequence[np.ndarray | None],
+    roots: np.ndarray,
+    *,
+    fps: float,
+    stacklevel: int,
+) -> list[int]:
+    """The indices into ``keys`` of the characters whose pelvis moved faster than
+    :data:`~hrr_garment.motion.limits.MAX_ROOT_SPEED` from its last pushed position (``last_roots``,
+    None for a character not pushed before) to ``roots`` (N, 3): respawns, each warned of with a
+    :class:`~hrr_garment.errors.TeleportWarning` (both crowds restart them: cloth dragged across the
+    jump would be what no simulation gives). ``stacklevel``: the warning's, counted from here to the
+    user's call."""
+    known = [i for i, last in enumerate(last_roots) if last is not None]
+    if not known:
+        return []
+    last = np.stack([last_roots[i] for i in known])
+    jump = np.linalg.norm(np.asarray(roots, np.float64)[known] - last, axis=1)
+    out = []
+    for j in np.flatnonzero(jump * fps > MAX_ROOT_SPEED):
+        out.append(known[j])
+        warnings.warn(
+            f"character {keys[known[j]]!r}: the pelvis moved {jump[j]:.3g} m in one frame "
+            f"(over {MAX_ROOT_SPEED:g} m/s); taken as a teleport, its garment starts afresh there",
+            TeleportWarning,
+            stacklevel=stacklevel,
+        )
+    return out
 
 
 @dataclass

@@ -29,24 +29,22 @@ blend would otherwise sweep the cloth across the jump.
 from __future__ import annotations
 
 import time
-import warnings
 from collections.abc import Hashable, Mapping, Sequence
 from functools import partial
 
 import numpy as np
 
-from ..errors import InputError, TeleportWarning
+from ..errors import InputError
 from ..models.codes import traced_window_codes
 from ..models.sampler import SampleTrack
 from ..motion.features import pair_features_batch
-from ..motion.limits import MAX_ROOT_SPEED
 from ..motion.memory import motion_memory
 from ..motion.motion import Motion
 from ..motion.poses import poses_to_motion
 from ..native import pin_workers
 from .blending import Inertializer
 from .character_body import CrowdBodies
-from .crowd_state import STREAM_STAGES, CrowdCharacter, CrowdTimings, character_seed, check_keys
+from .crowd_state import STREAM_STAGES, CrowdCharacter, CrowdTimings, character_seed, check_keys, teleported
 from .crowd_windows import CrowdWindows
 from .decoding import flush_denormals
 from .fold_track import FoldTrack, follow_folds
@@ -254,24 +252,11 @@ class CrowdStream:
         )
 
     def _restart_teleported(self, keys: list, poses: Motion) -> None:
-        """Forget the characters whose pelvis moved faster than :data:`MAX_ROOT_SPEED` since their
-        last push (they start afresh this frame), each with a :class:`TeleportWarning`."""
-        known = [
-            i for i, k in enumerate(keys) if k in self._characters and self._characters[k].root is not None
-        ]
-        if not known:
-            return
-        last = np.stack([self._characters[keys[i]].root for i in known])
-        jump = np.linalg.norm(poses.root_translation[known] - last, axis=1)
-        for j in np.flatnonzero(jump * poses.fps > MAX_ROOT_SPEED):
-            key = keys[known[j]]
-            self._forget(key)
-            warnings.warn(
-                f"character {key!r}: the pelvis moved {jump[j]:.3g} m in one frame "
-                f"(over {MAX_ROOT_SPEED:g} m/s); taken as a teleport, its garment starts afresh there",
-                TeleportWarning,
-                stacklevel=4,
-            )
+        """Forget the characters whose pelvis jumped since their last push (:func:`.crowd_state.teleported`:
+        they start afresh this frame, each with a warning)."""
+        last = [self._characters[k].root if k in self._characters else None for k in keys]
+        for i in teleported(keys, last, poses.root_translation, fps=poses.fps, stacklevel=6):
+            self._forget(keys[i])
 
     def _step_frame(self, keys: list, poses: Motion, lv: np.ndarray) -> np.ndarray:
         """The frame path's nine stages (:mod:`.frame_path`), each once for the whole crowd."""

@@ -13,7 +13,8 @@ seeded generator, the run's seed or :meth:`DeviceCrowd.set_seed`'s, as the nativ
 one body for every character, poses as local quaternions on the canonical skeleton. On the CPU
 (``device="cpu"``) it gives what the native crowd gives within float rounding (tested); a
 character's first frame starts it as a stream starts (zero velocities, its window that frame
-repeated); a pelvis that jumps is not taken as a teleport here (call :meth:`leave` first).
+repeated); a character whose pelvis jumps (a respawn) starts afresh there, with its cloth and seed,
+as in the native crowd (:func:`~.crowd_state.teleported`).
 """
 
 from __future__ import annotations
@@ -25,8 +26,9 @@ import torch
 
 from ..errors import InputError
 from ..models.sampler import characters_noise
+from ..motion.motion import FPS
 from ..motion.skeleton import NUM_JOINTS
-from .crowd_state import character_seed, check_keys
+from .crowd_state import character_seed, check_keys, teleported
 from .frame_path import FramePath
 from .modes import Mode
 from .run_material import cloth_columns
@@ -67,6 +69,8 @@ class DeviceCrowd:
         self._generators: dict[Hashable, torch.Generator] = {}
         self._animator = animator
         self._cloths: dict[Hashable, np.ndarray] = {}  # characters in a cloth of their own (set_material)
+        # each character's last pushed pelvis position, kept on the host: a jump restarts it
+        self._roots: dict[Hashable, np.ndarray] = {}
 
     @property
     def mode(self) -> Mode:
@@ -82,6 +86,7 @@ class DeviceCrowd:
         if key not in self._slots:
             raise KeyError(f"no character {key!r} in this crowd (characters: {self.characters})")
         self._free.append(self._slots.pop(key))
+        self._roots.pop(key, None)
         self._seeds.pop(key, None)
         self._generators.pop(key, None)
         self._cloths.pop(key, None)
@@ -118,6 +123,16 @@ class DeviceCrowd:
                 self._generators[key] = torch.Generator().manual_seed(self._seeds.get(key, self.run.seed))
         generators = [self._generators[key] for key in keys]
         return characters_noise(generators, self.step.sample.size, first).to(self.device)
+
+    def _restart_teleported(self, keys: list, roots: np.ndarray) -> None:
+        """Start afresh the characters whose pelvis jumped since their last push: their state rows
+        zeroed (``started`` 0: their first frame) and their draw restarted from their seed, their
+        cloth and seed kept (:meth:`CrowdStream._restart_teleported` does the same)."""
+        for i in teleported(keys, [self._roots.get(k) for k in keys], roots, fps=FPS, stacklevel=5):
+            slot = self._slots[keys[i]]
+            for t in self._state.values():
+                t[slot] = 0.0
+            self._generators.pop(keys[i], None)
 
     def _slots_of(self, keys: list) -> torch.Tensor:
         """Each key's row of the state (new keys get a free row, zeroed: ``started`` 0)."""
@@ -164,7 +179,10 @@ class DeviceCrowd:
         check_keys(keys, len(rotations))
         if not (torch.isfinite(rotations).all() and torch.isfinite(roots).all()):
             raise InputError("push", "non-finite rotations or roots")
+        host_roots = roots.double().cpu().numpy()
+        self._restart_teleported(keys, host_roots)
         rows = self._slots_of(keys)
+        self._roots.update(zip(keys, host_roots))
         state = [self._state[name][rows] for name in STATE]
         state.append(self._state[SETTLE_STATE][rows] if SETTLE_STATE in self._state else None)
         drawing = []

@@ -56,6 +56,37 @@ def test_the_device_crowds_draw_is_the_native_crowds_for_each_seed(animator):
         crowds[1].set_seed("c", -1)
 
 
+@pytest.mark.parametrize("mode", ["regression", "sample"])
+def test_a_teleport_restarts_a_device_crowds_character_as_the_native_crowd_does(animator, mode):
+    """A pelvis 50 m away one frame later is a respawn on a torch device too: the character starts
+    afresh there (its draw from its seed again), warned of, the other character carried on, both as
+    the native crowd gives them; walking on from there is no teleport."""
+    import warnings
+
+    from hrr_garment.errors import TeleportWarning
+
+    model = with_drawn_sampler(animator) if mode == "sample" else animator
+    rotations, roots = motion_to_poses(synthesize("walk_curve", 1.0, seed=1))
+    crowds = [model.crowd(mode=mode, seed=3, device=device) for device in ("native", "cpu")]
+    fresh = model.crowd(mode=mode, seed=3, device="cpu")
+    worst, restarted = 0.0, None
+    for t in range(14):
+        moved = roots[t] + ([50.0, 0.0, 0.0] if t >= 8 else 0.0)  # "b" respawns 50 m away at frame 8
+        rot, root = rotations[[t, t]], np.stack([roots[t] + [2.0, 0.0, 0.0], moved])
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", TeleportWarning)
+            native, device = (c.push(rot, root, ["a", "b"]) for c in crowds)
+        jumps = [w for w in caught if issubclass(w.category, TeleportWarning)]
+        assert len(jumps) == (2 if t == 8 else 0), [str(w.message) for w in jumps]
+        if t == 8:
+            assert "'b': the pelvis moved 50 m in one frame" in str(jumps[1].message)
+            assert [w.filename for w in jumps] == [__file__] * 2  # each points at the caller's push
+            restarted = fresh.push(rot[1:], root[1:], ["b"])
+            np.testing.assert_allclose(device[1:], restarted, atol=1e-5)
+        worst = max(worst, float(np.abs(native - device).max()))
+    assert worst < 1e-4, f"{worst * 1000:.3f} mm from the native crowd"
+
+
 def test_a_device_crowd_runs_the_regression_or_the_sample_mode_only(animator):
     with pytest.raises(ValueError, match="regression"):
         animator.crowd(mode="hybrid", device="cpu")
