@@ -13,7 +13,7 @@ from ..errors import InputError, MotionError
 from ..motion.features import causal_features, motion_features
 from ..motion.memory import with_memory
 from ..motion.motion import Motion
-from ..motion.windows import causal_windows, sequence_windows
+from ..motion.windows import causal_windows, covering_windows
 from .animation import Animation
 from .blending import blend_windows, causal_latents
 from .decoding import body_frame_vertices
@@ -70,18 +70,17 @@ def clip_latents(path: FramePath, motion: Motion) -> ClipLatents:
         proposals = causal_proposals(choice.match, w) if choice.lends_folds else None
         per_frame = np.arange(t_frames)
     else:
-        if t_frames < w:  # shorter than one window: pad with the last frame, keep the first T outputs
-            features = np.concatenate([features, np.repeat(features[-1:], w - t_frames, 0)])
-        windows = path.seen("windows", np.ascontiguousarray(sequence_windows(features, w)))
+        windows = path.seen("windows", np.ascontiguousarray(covering_windows(features, w)))
         choice = path.choose(windows)
-        latents = blend_windows(choice.latents, len(features))[:t_frames]
+        clip = slice(w - 1, w - 1 + t_frames)  # the blend's frames of the clip (its ends padded)
+        latents = blend_windows(choice.latents, len(windows) + w - 1)[clip]
         regression = (
             None
             if choice.regression_part is None
-            else blend_windows(choice.regression_part, len(features))[:t_frames]
+            else blend_windows(choice.regression_part, len(windows) + w - 1)[clip]
         )
         proposals = offline_proposals(choice.match, t_frames, w) if choice.lends_folds else None
-        per_frame = np.clip(np.arange(t_frames) - w // 2, 0, len(windows) - 1)  # the window centred on t
+        per_frame = np.arange(t_frames) + w - 1 - w // 2  # the window centred on t
     return ClipLatents(
         path.seen("blending", latents),
         regression,

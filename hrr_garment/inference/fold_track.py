@@ -106,9 +106,11 @@ class FoldTrack:
 
 def offline_proposals(source: np.ndarray, frames: int, window: int) -> np.ndarray:
     """Offline: frame t's proposal is its frame in the match of the window centred on it (window
-    i covers frames i .. i + W - 1). ``source`` (N, 2) (database sequence, start) -> (frames, 2)."""
-    i = np.clip(np.arange(frames) - window // 2, 0, len(source) - 1)
-    return np.stack([source[i, 0], source[i, 1] + np.arange(frames) - i], 1)
+    i covers frames i - W + 1 .. i: :func:`~hrr_garment.motion.windows.covering_windows`).
+    ``source`` (frames + W - 1, 2) (database sequence, start) -> (frames, 2)."""
+    t = np.arange(frames)
+    i = t + window - 1 - window // 2
+    return np.stack([source[i, 0], source[i, 1] + window // 2], 1)
 
 
 def causal_proposals(source: np.ndarray, window: int) -> np.ndarray:

@@ -1,8 +1,9 @@
 """Sliding windows over per-frame arrays, the one place for them: every window of a clip
-(offline inference and training), or the window ending at each frame (causal inference).
+(training), every window that holds a frame of it, its ends repeated (offline inference), or the
+window ending at each frame (causal inference).
 
 All are views or one copy of the frames; a window holds W consecutive frames, window i covering
-frames i .. i + W - 1 (offline) or t - W + 1 .. t (causal, window t).
+frames i .. i + W - 1 (training), i - W + 1 .. i (offline) or t - W + 1 .. t (causal, window t).
 """
 
 from __future__ import annotations
@@ -29,6 +30,19 @@ def windows(
             source, f"clip has {features.shape[0]} frames, shorter than one window of {size} frames"
         )
     return sequence_windows(features, size)[::stride]
+
+
+def covering_windows(features: np.ndarray, size: int) -> np.ndarray:
+    """(T, F) -> (T + W - 1, W, F): every window that holds a frame of the clip, window i covering
+    frames i - W + 1 .. i, the first frame repeated before the start and the last after the end (a
+    view of the padded frames). Offline, every frame is then the mean of all W window positions:
+    with the clip's own windows alone, a frame within a window of either end took their leading or
+    trailing positions only, and the cloth of a body standing still drifted 12-19 mm a frame
+    there (the decoder's course along a window is not flat). The start is a stream's (its first
+    frame's window repeated); the end holds the last frame's features as they are, moving or not."""
+    pad = size - 1
+    padded = np.concatenate([np.repeat(features[:1], pad, 0), features, np.repeat(features[-1:], pad, 0)])
+    return sequence_windows(padded, size)
 
 
 def causal_windows(features: np.ndarray, size: int, view: bool = False) -> np.ndarray:

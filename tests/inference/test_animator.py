@@ -39,6 +39,20 @@ def test_clip_shorter_than_a_window_is_padded(animator):
     assert animator.animate(synthesize("walk", 0.2, seed=1).slice(0, 1)).vertices.shape[0] == 1
 
 
+@pytest.mark.parametrize("mode", ["regression", "hybrid"])
+def test_a_body_standing_still_keeps_its_cloth_still_to_both_ends_of_the_clip(animator, mode):
+    """Offline, every frame is the blend of all the windows' positions, the clip's first and last
+    frames included (its ends repeated): the cloth of a body that never moves does not move. With
+    the clip's own windows alone, the frames within a window of either end took the windows'
+    leading or trailing positions only, and drifted (12-19 mm a frame on a trained model)."""
+    from hrr_garment.motion.compose import held_still
+
+    still = held_still(synthesize("walk", 0.2, seed=1).slice(0, 1), 39)
+    vertices = animator.animate(still, mode=mode, push_out=False).vertices.astype(np.float64)
+    moved = np.linalg.norm(np.diff(vertices, axis=0), axis=-1).max()
+    assert moved < 1e-5, f"the cloth moved {moved * 1000:.3f} mm between two frames of a still body"
+
+
 @pytest.mark.parametrize(
     "damage, phrase",
     [

@@ -3,6 +3,7 @@
 import numpy as np
 
 from hrr_garment.inference.blending import Inertializer, blend_windows, window_weights
+from hrr_garment.motion.windows import covering_windows
 
 
 def test_blending_keeps_a_constant_and_favours_centres():
@@ -13,6 +14,22 @@ def test_blending_keeps_a_constant_and_favours_centres():
     ramp = np.arange(16, dtype=np.float32)
     windows = np.stack([ramp[i : i + 10] for i in range(7)])[..., None]
     assert np.allclose(blend_windows(windows, 16)[:, 0], ramp)  # consistent windows blend to themselves
+
+
+def test_every_frame_of_a_clip_blends_every_window_position_its_ends_too():
+    """The offline windows (each frame's first and last repeated past the clip's ends) give every
+    frame all W positions: a decoder whose course along a window is not flat (a bias by position)
+    shifts every frame alike, the first and last frames too."""
+    frames, w = 16, 10
+    clip = np.arange(frames, dtype=np.float64)[:, None]
+    windows = covering_windows(clip, w)
+    assert windows.shape == (frames + w - 1, w, 1)
+    assert (windows[0] == 0).all() and (windows[-1] == frames - 1).all()  # the ends repeated
+    assert windows[w - 1, :, 0].tolist() == list(range(w))  # window i holds frames i - W + 1 .. i
+    bias = (np.arange(w) / w) ** 2  # later positions of a window further off
+    blended = blend_windows(windows + bias[None, :, None], frames + 2 * (w - 1))[w - 1 : w - 1 + frames]
+    shift = (window_weights(w) * bias).sum() / window_weights(w).sum()
+    assert np.allclose(blended - clip, shift, atol=1e-5)  # float32 out
 
 
 def test_inertialization_is_continuous_in_position_and_velocity():

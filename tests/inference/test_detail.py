@@ -26,7 +26,7 @@ from hrr_garment.inference.frame_path import FramePath
 from hrr_garment.inference.run_settings import DetailLook, RunSettings
 from hrr_garment.motion.frame import from_body_frame, to_body_frame
 from hrr_garment.motion.synth import synthesize
-from hrr_garment.motion.windows import sequence_windows
+from hrr_garment.motion.windows import covering_windows
 
 
 @pytest.fixture(scope="module")
@@ -243,18 +243,22 @@ def test_the_track_jumps_where_its_sequence_ends():
 
 
 def test_proposals_are_each_frames_frame_in_its_match():
-    source = np.array([[0, 10], [1, 40], [2, 7], [0, 60]])  # 4 windows of 5 frames: 8 frames
+    # offline: 8 frames, windows of 5, so 12 windows, window i covering frames i - 4 .. i (the clip's
+    # ends repeated); frame t's is its frame (the centre, 2) in the match of window t + 2
+    source = np.array(
+        [[0, 10], [1, 40], [2, 7], [0, 60], [1, 0], [2, 20], [0, 5], [1, 9], [2, 30], [0, 1]] * 2
+    )[:12]
     assert offline_proposals(source, 8, 5).tolist() == [
-        [0, 10],
-        [0, 11],
-        [0, 12],
-        [1, 42],
         [2, 9],
         [0, 62],
-        [0, 63],
-        [0, 64],
+        [1, 2],
+        [2, 22],
+        [0, 7],
+        [1, 11],
+        [2, 32],
+        [0, 3],
     ]
-    assert causal_proposals(source, 5).tolist() == [[0, 14], [1, 44], [2, 11], [0, 64]]
+    assert causal_proposals(source[:4], 5).tolist() == [[0, 14], [1, 44], [2, 11], [0, 64]]
 
 
 @pytest.mark.parametrize("base, strength", [("residual", 1.0), ("regression", None)])
@@ -291,7 +295,7 @@ def test_the_detail_mode_is_its_base_plus_the_tracked_simulated_folds(trained, b
     retrieval = animator.animate(motion, mode="retrieval", push_out=False)
     assert not detail.retrieved.any() and np.array_equal(detail.match, retrieval.match)
     # the same by hand: the track over the windows' matches, their folds on the base in the body frame
-    windows = np.ascontiguousarray(sequence_windows(animator.features(motion), animator.window))
+    windows = np.ascontiguousarray(covering_windows(animator.features(motion), animator.window))
     source = FramePath(animator, animator.resolve(mode="detail")).choose(windows).match
     rows, weights = track_folds(offline_proposals(source, motion.num_frames, animator.window), store.offsets)
     local = to_body_frame(shape.astype(np.float64), motion)

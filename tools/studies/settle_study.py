@@ -26,14 +26,14 @@ the same motion in the same cloth (``--mode``, the push-out on, as a user runs i
   from rest over the hold, every quarter second: whether the model comes to rest as the truth does,
   which a settle time alone does not say (a hem swinging back out until late settles late too).
 
-The run's last second (held past ``--hold``) is left out: an offline animation's last frames are
-its last window's end alone. With several clips, ``by_cloth`` (printed after the rows) averages each
-cloth's over the clips (:func:`by_cloth`): the settle times' means (None where any is), the hem
-swings' ratio of means, the curve gaps' mean, and the settle ratio's floor: each truth member's
-settle time over the other members' (both averaged over the clips), what a second simulation of
-the same motion and cloth scores against the truth (:func:`member_settle_ratios`). A model's
-``settle_ratio`` inside that band cannot be told from a member's; a bar tighter than the band is
-one the solver itself fails.
+The run's last second (held past ``--hold``) is left out (an offline animation's last frames were
+its last windows' ends alone before the clip's ends were padded; the cached truths keep the length).
+With several clips, ``by_cloth`` (printed after the rows) averages each cloth's over the clips
+(:func:`by_cloth`): the settle times' means (None where any is), the hem swings' ratio of means, the
+curve gaps' mean, and the settle ratio's floor: each truth member's settle time over the other
+members' (both averaged over the clips), what a second simulation of the same motion and cloth
+scores against the truth (:func:`member_settle_ratios`). A model's ``settle_ratio`` inside that band
+cannot be told from a member's; a bar tighter than the band is one the solver itself fails.
 
 Run from the repository root:
 
@@ -67,9 +67,9 @@ from hrr_garment.sim.quality import hem_swing
 from hrr_garment.sim.simulator import SimSettings
 
 AFTER_S = (0.0, 0.5, 1.0, 2.0, 4.0)
-# the run's last second is held past the hold and left out: an offline animation's last frames are
-# its last window's end alone, where the blend of overlapping windows thins to one (up to 25 mm off
-# the blend on a standing body), which is not the cloth settling
+# the run's last second is held past the hold and left out: an offline animation's last frames were
+# its last windows' trailing positions alone (up to 25 mm off the blend on a standing body) until the
+# clip's ends were padded (motion/windows.covering_windows); kept, so that the cached truths' length holds
 END_S = 1.0
 
 
