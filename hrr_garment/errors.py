@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import re
+import sys
+
 
 class HRRError(Exception):
     """Base class for errors the command-line tools report without a traceback."""
@@ -35,6 +38,19 @@ class SkeletonMappingError(MotionError):
 
 class UnsupportedHardware(HRRError, RuntimeError):
     """An option this machine's processor (or its build of the kernels) cannot run."""
+
+
+_INTERNAL = re.compile(r"(hrr_garment|torch)(\.|$)")  # the modules a warning's user line lies beyond
+
+
+def user_stacklevel() -> int:
+    """The ``stacklevel`` for a warning raised by the function that calls this one that points at the
+    first frame outside the package and torch (whose decorators wrap some of the package's entry
+    points): the user's line, however many of the package's frames lie between."""
+    frame, level = sys._getframe(1), 1
+    while frame is not None and _INTERNAL.match(str(frame.f_globals.get("__name__", ""))):
+        frame, level = frame.f_back, level + 1
+    return level
 
 
 class TeleportWarning(UserWarning):

@@ -1,5 +1,6 @@
 """A whole clip through the frame path (:mod:`.frame_path`), stage by stage: what
-:meth:`~.animator.Animator.animate` runs, offline (every window of the clip, blended) or causal (each
+:meth:`~.animator.Animator.animate` runs, offline (every window that holds a frame of the clip, its
+ends repeated, blended) or causal (each
 frame from the window ending at it, as a stream sees the clip; a stream's frame t equals it)."""
 
 from __future__ import annotations
@@ -17,7 +18,7 @@ from ..motion.windows import causal_windows, covering_windows
 from .animation import Animation
 from .blending import blend_windows, causal_latents
 from .decoding import body_frame_vertices
-from .fold_track import causal_proposals, offline_proposals, track_folds
+from .fold_track import causal_proposals, centred_windows, offline_proposals, track_folds
 from .frame_path import FramePath, with_conditions
 from .gate import frame_gates
 from .modes import Mode
@@ -80,7 +81,7 @@ def clip_latents(path: FramePath, motion: Motion) -> ClipLatents:
             else blend_windows(choice.regression_part, len(windows) + w - 1)[clip]
         )
         proposals = offline_proposals(choice.match, t_frames, w) if choice.lends_folds else None
-        per_frame = np.arange(t_frames) + w - 1 - w // 2  # the window centred on t
+        per_frame = centred_windows(t_frames, w)  # the window centred on t
     return ClipLatents(
         path.seen("blending", latents),
         regression,

@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..errors import InputError, TeleportWarning
+from ..errors import InputError, TeleportWarning, user_stacklevel
 from ..models.sampler import SampleTrack
 from ..motion.limits import MAX_ROOT_SPEED
 from .fold_track import FoldTrack, FollowedFolds
@@ -65,14 +65,12 @@ def teleported(
     roots: np.ndarray,
     *,
     fps: float,
-    stacklevel: int,
 ) -> list[int]:
     """The indices into ``keys`` of the characters whose pelvis moved faster than
     :data:`~hrr_garment.motion.limits.MAX_ROOT_SPEED` from its last pushed position (``last_roots``,
     None for a character not pushed before) to ``roots`` (N, 3): respawns, each warned of with a
     :class:`~hrr_garment.errors.TeleportWarning` (both crowds restart them: cloth dragged across the
-    jump would be what no simulation gives). ``stacklevel``: the warning's, counted from here to the
-    user's call."""
+    jump would be what no simulation gives), each warning pointing at the user's call."""
     known = [i for i, last in enumerate(last_roots) if last is not None]
     if not known:
         return []
@@ -85,7 +83,7 @@ def teleported(
             f"character {keys[known[j]]!r}: the pelvis moved {jump[j]:.3g} m in one frame "
             f"(over {MAX_ROOT_SPEED:g} m/s); taken as a teleport, its garment starts afresh there",
             TeleportWarning,
-            stacklevel=stacklevel,
+            stacklevel=user_stacklevel(),
         )
     return out
 

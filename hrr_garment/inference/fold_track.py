@@ -105,12 +105,26 @@ class FoldTrack:
 
 
 def offline_proposals(source: np.ndarray, frames: int, window: int) -> np.ndarray:
-    """Offline: frame t's proposal is its frame in the match of the window centred on it (window
-    i covers frames i - W + 1 .. i: :func:`~hrr_garment.motion.windows.covering_windows`).
-    ``source`` (frames + W - 1, 2) (database sequence, start) -> (frames, 2)."""
-    t = np.arange(frames)
-    i = t + window - 1 - window // 2
-    return np.stack([source[i, 0], source[i, 1] + window // 2], 1)
+    """Offline: frame t's proposal is its frame in the match of the window centred on it among the
+    windows the clip fills (:func:`centred_windows`; window i covers frames i - W + 1 .. i:
+    :func:`~hrr_garment.motion.windows.covering_windows`). ``source`` (frames + W - 1, 2) (database
+    sequence, start) -> (frames, 2)."""
+    if len(source) != frames + window - 1:
+        raise ValueError(
+            f"offline proposals take the matches of the {frames + window - 1} windows that hold a frame "
+            f"of a {frames}-frame clip (covering_windows), got {len(source)}"
+        )
+    i = centred_windows(frames, window)
+    return np.stack([source[i, 0], source[i, 1] + np.arange(frames) - (i - window + 1)], 1)
+
+
+def centred_windows(frames: int, window: int) -> np.ndarray:
+    """(frames,) each frame's window among a clip's covering windows (window i holding frames
+    i - W + 1 .. i): the one centred on it, or near an end the clip's first or last window of its own
+    frames alone (one past its ends holds repeated frames: its match is no sequence to follow, and
+    its entropy no window of the clip's)."""
+    own = np.clip(np.arange(frames) - window // 2, 0, max(frames - window, 0))  # first frame held
+    return own + window - 1
 
 
 def causal_proposals(source: np.ndarray, window: int) -> np.ndarray:

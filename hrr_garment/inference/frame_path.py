@@ -4,7 +4,8 @@ one numbered list (:data:`STAGES`) that every driver runs in order:
 1. ``features``: each frame's motion features (:mod:`hrr_garment.motion.features`), its motion
    memory (:mod:`hrr_garment.motion.memory`) and, for a model across bodies, the body's measures,
    for a model across cloths, the cloth's values (:mod:`hrr_garment.garment.material_range`);
-2. ``windows``: the last W frames' features (offline: every W-frame window of the clip);
+2. ``windows``: the last W frames' features (offline: every W-frame window that holds a frame of
+   the clip, its ends repeated: :func:`~hrr_garment.motion.windows.covering_windows`);
 3. ``choice``: the window step (motion encoder, gate, code-space decoder) and what the mode picks
    (:func:`~.gate.choose_windows`): each window's latents and its database match;
 4. ``blending``: per-frame latents from the windows' (offline: :func:`~.blending.blend_windows`;

@@ -255,7 +255,7 @@ class CrowdStream:
         """Forget the characters whose pelvis jumped since their last push (:func:`.crowd_state.teleported`:
         they start afresh this frame, each with a warning)."""
         last = [self._characters[k].root if k in self._characters else None for k in keys]
-        for i in teleported(keys, last, poses.root_translation, fps=poses.fps, stacklevel=6):
+        for i in teleported(keys, last, poses.root_translation, fps=poses.fps):
             self._forget(keys[i])
 
     def _step_frame(self, keys: list, poses: Motion, lv: np.ndarray) -> np.ndarray:

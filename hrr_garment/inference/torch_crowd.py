@@ -115,8 +115,8 @@ class DeviceCrowd:
     def _white_noise(self, keys: list) -> torch.Tensor:
         """(N, 2, L) each character's white noise this frame, from its seeded generator (on the CPU,
         in the order the native crowd draws it). A character without a generator yet is at its first
-        frame (a new or a returning one: :meth:`leave` drops it), so the device's ``started`` need
-        not be read back."""
+        frame (a new, a returning or a respawned one: :meth:`leave` and a teleport drop it), so the
+        device's ``started`` need not be read back."""
         first = [key not in self._generators for key in keys]
         for key, new in zip(keys, first):
             if new:
@@ -128,7 +128,7 @@ class DeviceCrowd:
         """Start afresh the characters whose pelvis jumped since their last push: their state rows
         zeroed (``started`` 0: their first frame) and their draw restarted from their seed, their
         cloth and seed kept (:meth:`CrowdStream._restart_teleported` does the same)."""
-        for i in teleported(keys, [self._roots.get(k) for k in keys], roots, fps=FPS, stacklevel=5):
+        for i in teleported(keys, [self._roots.get(k) for k in keys], roots, fps=FPS):
             slot = self._slots[keys[i]]
             for t in self._state.values():
                 t[slot] = 0.0
@@ -182,7 +182,6 @@ class DeviceCrowd:
         host_roots = roots.double().cpu().numpy()
         self._restart_teleported(keys, host_roots)
         rows = self._slots_of(keys)
-        self._roots.update(zip(keys, host_roots))
         state = [self._state[name][rows] for name in STATE]
         state.append(self._state[SETTLE_STATE][rows] if SETTLE_STATE in self._state else None)
         drawing = []
@@ -193,4 +192,5 @@ class DeviceCrowd:
         )
         for name, value in zip(self._shapes, out[3:]):
             self._state[name][rows] = value
+        self._roots.update(zip(keys, host_roots))  # as the native crowd: once the frame has run
         return out[0] if as_tensor else out[0].cpu().numpy()

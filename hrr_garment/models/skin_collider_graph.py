@@ -195,7 +195,13 @@ class SkinColliderGraph(nn.Module):
         nearest of the faces each start's node (B, N, S) lists, of the ``posed`` meshes (B, V, 3)
         (the reference's ``_nearest_face``), the triangles component-major (3, 3, B, N, S, K)."""
         b, v = posed.shape[:2]
-        listed = torch.index_select(self.face_table, 0, node.reshape(-1)).reshape(*node.shape, -1).long()
+        # the list's length by name, not -1: an ONNX Reshape cannot infer a -1 where no point is asked
+        # (the projection loop's points inside, often none)
+        listed = (
+            torch.index_select(self.face_table, 0, node.reshape(-1))
+            .reshape(*node.shape, self.face_table.shape[1])
+            .long()
+        )
         frames = torch.arange(b, device=posed.device).reshape(b, 1, 1, 1)
         everyone = posed[:, self.faces].reshape(-1, 9)  # (B F, 9): rows gather fastest
         flat = (listed + frames * len(self.faces)).reshape(-1)

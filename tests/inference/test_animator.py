@@ -53,6 +53,24 @@ def test_a_body_standing_still_keeps_its_cloth_still_to_both_ends_of_the_clip(an
     assert moved < 1e-5, f"the cloth moved {moved * 1000:.3f} mm between two frames of a still body"
 
 
+def test_each_frames_diagnostics_are_the_window_centred_on_it(animator):
+    """Offline, frame t reports the entropy and match of the window centred on it (window i of the
+    clip's covering windows holding frames i - W + 1 .. i), near an end the clip's first or last
+    window of its own frames: the ones past the ends hold repeated frames."""
+    from hrr_garment.inference.frame_path import FramePath
+    from hrr_garment.motion.windows import covering_windows
+
+    motion, w = synthesize("walk", 1.0, seed=0), animator.window
+    anim = animator.animate(motion, mode="retrieval", push_out=False)
+    windows = np.ascontiguousarray(covering_windows(animator.features(motion), w))
+    choice = FramePath(animator, animator.resolve(mode="retrieval")).choose(windows)
+    t = np.arange(motion.num_frames)
+    centred = np.clip(t - w // 2, 0, motion.num_frames - w) + w - 1
+    assert centred[0] == w - 1 and centred[-1] == motion.num_frames - 1  # the clip's first and last windows
+    np.testing.assert_allclose(anim.entropy, choice.entropy[centred], rtol=1e-6)
+    assert np.array_equal(anim.match, choice.match[centred])
+
+
 @pytest.mark.parametrize(
     "damage, phrase",
     [

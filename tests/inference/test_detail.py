@@ -244,20 +244,23 @@ def test_the_track_jumps_where_its_sequence_ends():
 
 def test_proposals_are_each_frames_frame_in_its_match():
     # offline: 8 frames, windows of 5, so 12 windows, window i covering frames i - 4 .. i (the clip's
-    # ends repeated); frame t's is its frame (the centre, 2) in the match of window t + 2
+    # ends repeated); frame t's is its frame in the match of the window centred on it, or near an
+    # end the clip's first (4) or last (7) window of its own frames
     source = np.array(
         [[0, 10], [1, 40], [2, 7], [0, 60], [1, 0], [2, 20], [0, 5], [1, 9], [2, 30], [0, 1]] * 2
     )[:12]
     assert offline_proposals(source, 8, 5).tolist() == [
-        [2, 9],
-        [0, 62],
+        [1, 0],
+        [1, 1],
         [1, 2],
         [2, 22],
         [0, 7],
         [1, 11],
-        [2, 32],
-        [0, 3],
+        [1, 12],
+        [1, 13],
     ]
+    with pytest.raises(ValueError, match="covering_windows"):  # the clip's own windows alone: refused
+        offline_proposals(source[:4], 8, 5)
     assert causal_proposals(source[:4], 5).tolist() == [[0, 14], [1, 44], [2, 11], [0, 64]]
 
 

@@ -215,8 +215,14 @@ def test_a_teleport_restarts_the_character_with_a_warning(animator):
     stream = animator.crowd()
     for t in range(10):
         stream.push(rot[t][None], root[t][None], keys=["npc"])
-    with pytest.warns(TeleportWarning, match="'npc': the pelvis moved 50 m in one frame"):
+    with pytest.warns(TeleportWarning, match="'npc': the pelvis moved 50 m in one frame") as caught:
         jumped = stream.push(rot[10][None], moved[None], keys=["npc"])
+    assert caught[0].filename == __file__  # the warning points at the user's push
+    one = animator.stream()  # a one-character stream warns at its user's line too
+    one.push(rotation=rot[9], root=root[9])
+    with pytest.warns(TeleportWarning) as caught:
+        one.push(rotation=rot[10], root=moved)
+    assert caught[0].filename == __file__
     fresh = animator.crowd().push(rot[10][None], moved[None], keys=["npc"])
     np.testing.assert_allclose(jumped, fresh, atol=1e-5)
     assert stream._characters["npc"].frames == 1

@@ -39,7 +39,7 @@ from hrr_garment.inference.fold_track import (
 from hrr_garment.inference.frame_path import FramePath
 from hrr_garment.inference.run_settings import DetailLook
 from hrr_garment.motion.frame import from_body_frame, to_body_frame
-from hrr_garment.motion.windows import causal_windows, sequence_windows
+from hrr_garment.motion.windows import causal_windows, covering_windows
 from hrr_garment.sim.quality import hem_swing
 
 # (label, strength, hold, fade, follow): strength None is the model's calibrated one, follow None
@@ -78,7 +78,7 @@ def _proposals(animator: Animator, motion, causal: bool) -> np.ndarray:
     if causal:
         windows = causal_windows(animator.features(motion, causal=True), w)
         return causal_proposals(path.choose(windows, last_frame=True).match, w)
-    windows = np.ascontiguousarray(sequence_windows(animator.features(motion), w))
+    windows = np.ascontiguousarray(covering_windows(animator.features(motion), w))
     return offline_proposals(path.choose(windows).match, motion.num_frames, w)
 
 

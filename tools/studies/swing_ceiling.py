@@ -34,7 +34,7 @@ from hrr_garment.inference.animator import Animator
 from hrr_garment.inference.blending import blend_windows
 from hrr_garment.inference.decoding import body_frame_vertices
 from hrr_garment.motion.frame import to_body_frame, world_vertices
-from hrr_garment.motion.windows import sequence_windows
+from hrr_garment.motion.windows import covering_windows
 from hrr_garment.sim.quality import hem_swing
 from hrr_garment.sim.simulator import SimSettings
 
@@ -48,13 +48,13 @@ def code_reconstruction(animator: Animator, latents: np.ndarray) -> np.ndarray:
             "the code reconstruction reads a model of one body in one cloth (no condition columns)"
         )
     standard = b.latent_stats.normalize(latents.reshape(len(latents), -1)).reshape(latents.shape)
-    windows = np.ascontiguousarray(sequence_windows(standard.astype(np.float32), w))
+    windows = np.ascontiguousarray(covering_windows(standard.astype(np.float32), w))
     cs = b.codespace
     with torch.no_grad():
         logits = cs.garment_encoder(torch.from_numpy(windows.reshape(len(windows), -1)))
         decoded = cs.decode(cs.quantizer.embed(cs.quantizer.codes(logits))).numpy()
     decoded = b.latent_stats.denormalize(decoded.reshape(*decoded.shape[:2], -1)).reshape(decoded.shape)
-    return blend_windows(decoded, len(latents))
+    return blend_windows(decoded, len(windows) + w - 1)[w - 1 : w - 1 + len(latents)]
 
 
 def ceilings(animator: Animator, records: list, hem: np.ndarray) -> dict:
