@@ -29,7 +29,6 @@ from .collision import PROJECTIONS, RELEASE_PASSES, PushOutSettings
 from .limb_release import RELEASED_RADIUS, limb_capsules
 from .torch_capsules import (
     capsule_depths,
-    capsule_distance_at,
     capsule_distance_within,
     per_point,
     point_capsule_distance,
@@ -121,15 +120,22 @@ class PushOutStage(nn.Module):
         margin of its hulls (beyond it the hulls' distance and a zero normal).
         ``radii``: (N, 1, C) each character's (a limb let go of: very negative; None: the body's)."""
         if self.skin is not None:
-            d, n = self.skin.query_moves(p, a, b)
-            if self.hulls is None:
-                return d, n
-            # beyond the margin of every hull the hulls' distance, as the package's push-out takes it
-            # (``radii``: the hulls' ends and radii, (N, C, 7))
-            # (their normals never read: no push moves a point farther than the margin)
-            hd = capsule_depths(p, radii[..., :3], radii[..., 3:6], radii=radii[..., 6][:, None])
-            far = hd > self.settings.margin
-            return torch.where(far, hd, d), torch.where(far[..., None], torch.zeros_like(n), n)
+            if self.hulls is None:  # every point measured
+                rows = torch.arange(p.shape[0] * p.shape[1], device=p.device)
+                beyond = torch.zeros_like(p[..., 0])
+            else:  # beyond the margin of every hull the hulls' distance, as the package's push-out takes
+                # it (``radii``: the hulls' ends and radii, (N, C, 7)); the skin measured within it alone
+                # (their normals never read: no push moves a point farther than the margin)
+                beyond = capsule_depths(p, radii[..., :3], radii[..., 3:6], radii=radii[..., 6][:, None])
+                rows = torch.nonzero((beyond <= self.settings.margin).reshape(-1))[:, 0]
+            d, n = self.skin.query_rows(
+                torch.index_select(p.reshape(-1, 3), 0, rows),
+                torch.div(rows, p.shape[1], rounding_mode="floor"),
+                a,
+                b,
+            )
+            normal = torch.zeros_like(p).reshape(-1, 3).index_copy(0, rows, n).reshape(p.shape)
+            return beyond.reshape(-1).index_copy(0, rows, d).reshape(beyond.shape), normal
         within = self.settings.margin if within is None else within
         radii = self.radii if radii is None else radii
         return capsule_distance_within(p, a, b, radii=radii, within=within)
@@ -201,36 +207,44 @@ class PushOutStage(nn.Module):
             )
             disp = disp + short[:, None] * normals
         p = p + disp.permute(2, 0, 1)
-        if self.skin is not None:  # the skin's graph poses the whole mesh for each point's character:
-            # the characters measured whole (thousands of moved points each posing it took gigabytes)
-            return (p, *self.distance(p, a, b, radii))
         # measured again only where the round moved the cloth: elsewhere the distance stands
         moved = torch.nonzero((disp != 0).any(1).transpose(0, 1).reshape(-1))[:, 0]
         return self._measured(p, moved, d, n, a, b, radii)
 
     def _measured(self, p, rows, d, n, a, b, radii):
-        """``p`` with its distances ``d`` (N, V) to the capsules and normals ``n`` (N, V, 3) measured
+        """``p`` with its distances ``d`` (N, V) to the body and normals ``n`` (N, V, 3) measured
         again at the flat (character x vertex) ``rows`` alone: a push moves a few vertices of a
         frame, and measuring every vertex of every character again after it cost most of a crowd's
         push-out in onnxruntime. The same distances (each point's depends on it and its own
         character alone)."""
-        dk, nk = capsule_distance_at(p, rows, ends=(a, b), radii=radii[:, 0])
+        character = torch.div(rows, p.shape[1], rounding_mode="floor")
+        points = torch.index_select(p.reshape(-1, 3), 0, rows)
+        dk, nk = self._point_distance(points, self._per_point(character, a, b, radii))
         d = d.reshape(-1).index_copy(0, rows, dk).reshape(d.shape)
         return p, d, n.reshape(-1, 3).index_copy(0, rows, nk).reshape(n.shape)
 
     def _per_point(self, character, a, b, radii) -> tuple:
-        """The body's operands of each point's ``character`` (K,), as :meth:`_point_distance` takes them."""
+        """The body's operands of each point's ``character`` (K,), as :meth:`_point_distance` takes
+        them: its capsules, or its character with the crowd's joint moves and its hulls."""
         if self.skin is None:
             return per_point(character, a, b, radii=radii[:, 0])
-        return tuple(torch.index_select(x, 0, character) for x in (a, b, radii))
+        return character, a, b, torch.index_select(radii, 0, character)
 
     def _point_distance(self, points, own: tuple) -> tuple[torch.Tensor, torch.Tensor]:
         """(K,) distances and (K, 3) normals of points (K, 3), each of its own character (``own``:
-        :meth:`_per_point`)."""
+        :meth:`_per_point`); on the skin, beyond the margin of every hull of its character the
+        hulls' distance, as :meth:`distance` takes it."""
         if self.skin is None:
             return point_capsule_distance(points, own)
-        d, n = self.distance(points[:, None], *own)
-        return d[:, 0], n[:, 0]
+        character, rot, trans, hull = own
+        d, n = self.skin.query_rows(points, character, rot, trans)
+        if self.hulls is None:
+            return d, n
+        beyond = capsule_depths(points[:, None], hull[..., :3], hull[..., 3:6], radii=hull[..., 6][:, None])[
+            :, 0
+        ]
+        far = beyond > self.settings.margin
+        return torch.where(far, beyond, d), torch.where(far[:, None], torch.zeros_like(n), n)
 
     def _follow(self, need: torch.Tensor, normals: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """One pass of the neighbour-follow (:func:`~hrr_garment.inference.collision.follow_pushes`),

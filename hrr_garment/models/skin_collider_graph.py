@@ -39,12 +39,14 @@ gap as its gradient. Gradients reach the joints' rotations and positions through
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 import torch
 from torch import nn
 
 from ..body.skin_collider import side_rules
-from .torch_mesh import closest_on_triangles, cross, dot, pseudo_normals
+from .torch_mesh import closest_in_plane, closest_on_triangles, dot, pseudo_normals
 
 
 class SkinColliderGraph(nn.Module):
@@ -80,8 +82,16 @@ class SkinColliderGraph(nn.Module):
         self.register_buffer("faces", torch.as_tensor(body.faces, dtype=torch.int64))
         self.register_buffer("neighbours", torch.as_tensor(collider.neighbours, dtype=torch.int64))
         self.register_buffer("shape", torch.as_tensor(collider.shape, dtype=torch.int64))
-        corners = [[(c >> 2) & 1, (c >> 1) & 1, c & 1] for c in range(8)]
-        self.register_buffer("corners", torch.tensor(corners, dtype=torch.int64))
+        # the eight nodes about a point, c = 4 c0 + 2 c1 + c2, as offsets of its base node's row (an
+        # axis of one node: its only one)
+        s = np.asarray(collider.shape, np.int64)
+        offsets = [
+            min((c >> 2) & 1, s[0] - 1) * s[1] * s[2]
+            + min((c >> 1) & 1, s[1] - 1) * s[2]
+            + min(c & 1, s[2] - 1)
+            for c in range(8)
+        ]
+        self.register_buffer("corner_offsets", torch.tensor(offsets, dtype=torch.int64))
 
     def moves(
         self, global_rotations: torch.Tensor, joint_positions: torch.Tensor
@@ -106,9 +116,39 @@ class SkinColliderGraph(nn.Module):
         self, points: torch.Tensor, rot: torch.Tensor, trans: torch.Tensor
     ) -> tuple[torch.Tensor, torch.Tensor]:
         """:meth:`forward` for the joints' moves (B, J, 3, 3) and (B, J, 3) (:meth:`moves`)."""
-        posed = self.pose(rot, trans)
-        rest, depth, under = self.rest_points(points.detach(), rot.detach(), trans.detach())
-        distance, normal = self._nearest_face(points, self._node(rest), posed)  # (B, N, S)
+        b, n = points.shape[:2]
+        character = torch.arange(b, device=points.device)[:, None].expand(b, n).reshape(-1)
+        distance, normal = self.query_rows(points.reshape(-1, 3), character, rot, trans)
+        return distance.reshape(b, n), normal.reshape(b, n, 3)
+
+    def query_rows(
+        self, points: torch.Tensor, character: torch.Tensor, rot: torch.Tensor, trans: torch.Tensor
+    ) -> tuple[torch.Tensor, torch.Tensor]:
+        """(K,) signed distance and (K, 3) outward normal of points (K, 3), each against its own
+        ``character`` (K,) of the B whose joints moved by (B, J, 3, 3) and (B, J, 3): a crowd's
+        points in one list, so that a push measures only the points it asks about, each
+        character's mesh posed once."""
+        surface = self.surface(rot, trans)
+        x = points.detach().t()[:, :, None]  # (3, K, 1): component-major
+        rest, depth, under = self.rest_points(x, character, rot.detach(), trans.detach())
+        node = self._node(rest)  # (K, S)
+        # starts that settled on one node list the same faces and get the same answer: each
+        # point's distinct nodes measured once (about half its starts on a body), the others copied
+        starts = node.shape[1]
+        first = _first_alike(node)  # (K, S): the first start on each start's node
+        pairs = torch.nonzero((first == torch.arange(starts, device=node.device)).reshape(-1))[:, 0]
+        point = torch.div(pairs, starts, rounding_mode="floor")
+        d, n = self._nearest_face(
+            torch.index_select(points, 0, point),
+            torch.index_select(character, 0, point),
+            torch.index_select(node.reshape(-1), 0, pairs),
+            surface,
+        )
+        source = (torch.arange(len(node), device=node.device)[:, None] * starts + first).reshape(-1)
+        distance = torch.zeros_like(node, dtype=points.dtype).reshape(-1).index_copy(0, pairs, d)
+        distance = torch.index_select(distance, 0, source).reshape(node.shape)
+        normal = torch.zeros_like(points).repeat(starts, 1).index_copy(0, pairs, n)
+        normal = torch.index_select(normal, 0, source).reshape(*node.shape, 3)
         # the deepest settled start whose own nearest face puts the point inside too
         own_deep = torch.where(distance < 0.0, depth, torch.zeros_like(depth)).amax(-1)
         best = torch.argmin(distance.abs(), dim=-1, keepdim=True)
@@ -122,17 +162,42 @@ class SkinColliderGraph(nn.Module):
         blend = (self.skin @ rot.flatten(-2)).unflatten(-1, (3, 3))  # (B, V, 3, 3): linear, not rigid
         return (blend * self.rest[:, None, :]).sum(-1) + self.skin @ trans
 
+    def surface(self, rot: torch.Tensor, trans: torch.Tensor) -> "PosedSurface":
+        """The mesh posed for each of B characters (:meth:`pose`) with what every point's nearest
+        face reads of it, computed once a character rather than once a point and face."""
+        posed = self.pose(rot, trans)
+        fixed = posed.detach()
+        tri = fixed[:, self.faces]  # (B, F, 3 corners, 3)
+        a, ab, ac = tri[..., 0, :], tri[..., 1, :] - tri[..., 0, :], tri[..., 2, :] - tri[..., 0, :]
+        dots = [
+            (ab * ab).sum(-1, keepdim=True),
+            (ab * ac).sum(-1, keepdim=True),
+            (ac * ac).sum(-1, keepdim=True),
+        ]
+        # (12, B F): a, ab, ac and their products, one row each, so that a gather of faces gives planes
+        planes = torch.cat([a, ab, ac, *dots], -1).reshape(-1, 12).t().contiguous()
+        face_normals, vertex_normals = pseudo_normals(fixed, self.faces)
+        return PosedSurface(posed, planes, face_normals.reshape(-1, 3), vertex_normals.reshape(-1, 3))
+
     def rest_points(
-        self, points: torch.Tensor, rot: torch.Tensor, trans: torch.Tensor
+        self, x: torch.Tensor, character: torch.Tensor, rot: torch.Tensor, trans: torch.Tensor
     ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-        """Inverse skinning of points (B, N, 3): (B, N, S, 3) each start's rest point, (B, N, S) how
-        deep inside the rest mesh each settled (0 where it did not) and (B, N) the depth of the
-        deepest one, settled or not (:meth:`~hrr_garment.body.skin_collider.SkinCollider.rest_points`)."""
-        rigid = torch.einsum("bnjc,bjca->bnja", points[:, :, None] - trans[:, None], rot)  # R^T (x - t)
-        joint = torch.arange(self.joints, device=points.device)
+        """Inverse skinning of points, component-major (3, K, 1), each of its ``character`` (K,):
+        (3, K, S) each start's rest point, (K, S) how deep inside the rest mesh each settled (0
+        where it did not) and (K,) the depth of the deepest one, settled or not
+        (:meth:`~hrr_garment.body.skin_collider.SkinCollider.rest_points`). Each point's joint
+        moves are gathered from its character's: the products run on planes, not on last axes of 3."""
+        b, joints = rot.shape[:2]
+        # R_j^T (x - t_j) for every joint j at once: x's row times (3, 3 J), less R_j^T t_j
+        spread = rot.permute(0, 2, 1, 3).reshape(b, 3, 3 * joints)
+        offset = (trans[..., None] * rot).sum(-2).reshape(b, 3 * joints)
+        px = x[:, :, 0].t()[:, None]  # (K, 1, 3)
+        rigid = torch.bmm(px, torch.index_select(spread, 0, character))[:, 0]
+        rigid = (rigid - torch.index_select(offset, 0, character)).reshape(-1, joints, 3)  # (K, J, 3)
+        joint = torch.arange(joints, device=x.device)
         # a joint's own weight and the rest distance at the node its guess lands on: one table entry each
-        at = self._node(rigid) * (self.joints + 1)  # (B, N, J)
-        own, distance = self._entries(at + joint), self._entries(at + self.joints)
+        at = self._node(rigid.permute(2, 0, 1)) * (joints + 1)  # (K, J)
+        own, distance = self._entries(at + joint), self._entries(at + joints)
         rank = distance.abs() + (1.0 - own) * self.settings.off_skin_m
         # the starts in the stable order's first places: the lowest rank, ties to the lower joint
         # (argmin's first), then that joint out of the running
@@ -141,18 +206,21 @@ class SkinColliderGraph(nn.Module):
             pick = torch.argmin(rank, dim=-1, keepdim=True)
             chosen.append(pick)
             rank = torch.where(joint == pick, torch.full_like(rank, float("inf")), rank)
-        chosen = torch.cat(chosen, -1)  # (B, N, S)
-        rest = torch.gather(rigid, 2, chosen[..., None].expand(*chosen.shape, 3))
-        x = points[:, :, None]
-        moves = torch.cat([rot.flatten(-2), trans], -1)  # (B, J, 12)
+        chosen = torch.cat(chosen, -1)  # (K, S)
+        rest = torch.gather(rigid, 1, chosen[..., None].expand(*chosen.shape, 3)).permute(2, 0, 1)
+        moves = torch.index_select(torch.cat([rot.flatten(-2), trans], -1), 0, character)  # (K, J, 12)
         for k in range(self.settings.iterations + 1):
-            w, d = self._read(rest)  # (B, N, S, J), (B, N, S)
-            blend = (w.flatten(1, 2) @ moves).reshape(*rest.shape[:-1], 12)  # one product a character
-            m = blend[..., :9].unflatten(-1, (3, 3))
-            miss = x - (m * rest[..., None, :]).sum(-1) - blend[..., 9:]
+            w, d = self._read(rest)  # (K, S, J), (K, S)
+            m = torch.bmm(w, moves).permute(2, 0, 1)  # (12, K, S): M(w) row by row, then t(w)
+            miss = [
+                x[i] - (m[3 * i] * rest[0] + m[3 * i + 1] * rest[1] + m[3 * i + 2] * rest[2]) - m[9 + i]
+                for i in range(3)
+            ]
             if k < self.settings.iterations:
                 rest = rest + self.settings.step * _solve3(m, miss)
-        settled = torch.linalg.vector_norm(miss, dim=-1) < self.settings.settled_m
+        settled = (
+            torch.sqrt(miss[0] * miss[0] + miss[1] * miss[1] + miss[2] * miss[2]) < self.settings.settled_m
+        )
         below = torch.clamp(-d, min=0.0)
         return rest, torch.where(settled, below, torch.zeros_like(below)), below.amax(-1)
 
@@ -160,25 +228,34 @@ class SkinColliderGraph(nn.Module):
         return torch.index_select(self.table.reshape(-1), 0, index.reshape(-1)).reshape(index.shape)
 
     def _node(self, rest: torch.Tensor) -> torch.Tensor:
-        """The nearest node of rest points (..., 3), clamped to the grid."""
-        g = torch.round((rest - self.origin) / self.settings.voxel_m)
-        return self._index(torch.minimum(torch.clamp(g, min=0.0), self.top).long())
+        """The nearest node of rest points, component-major (3, ...), clamped to the grid."""
+        g = [
+            torch.minimum(
+                torch.clamp(torch.round((rest[i] - self.origin[i]) / self.settings.voxel_m), min=0.0),
+                self.top[i],
+            )
+            for i in range(3)
+        ]
+        return self._index(*(c.long() for c in g))
 
-    def _index(self, g: torch.Tensor) -> torch.Tensor:
-        return (g[..., 0] * self.shape[1] + g[..., 1]) * self.shape[2] + g[..., 2]
+    def _index(self, g0: torch.Tensor, g1: torch.Tensor, g2: torch.Tensor) -> torch.Tensor:
+        return (g0 * self.shape[1] + g1) * self.shape[2] + g2
 
     def _read(self, rest: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        """(..., J) skin weights and (...,) rest distance at rest points (..., 3), trilinear over the
-        eight nodes about each (the reference's ``_read``: one gather of the eight rows, summed by
-        a product)."""
-        g = torch.minimum(torch.clamp((rest - self.origin) / self.settings.voxel_m, min=0.0), self.top)
-        base = torch.minimum(torch.floor(g), torch.clamp(self.top - 1.0, min=0.0))
-        frac = g[..., None, :] - base[..., None, :]  # (..., 1, 3)
-        node = self._index(
-            base[..., None, :].long() + torch.minimum(self.corners, self.shape - 1)
-        )  # (..., 8)
-        share = torch.where(self.corners > 0, frac, 1.0 - frac)
-        share = share[..., 0] * share[..., 1] * share[..., 2]  # (..., 8)
+        """(..., J) skin weights and (...,) rest distance at rest points, component-major (3, ...),
+        trilinear over the eight nodes about each (the reference's ``_read``: one gather of the
+        eight rows, summed by their shares)."""
+        g = [
+            torch.minimum(
+                torch.clamp((rest[i] - self.origin[i]) / self.settings.voxel_m, min=0.0), self.top[i]
+            )
+            for i in range(3)
+        ]
+        base = [torch.minimum(torch.floor(g[i]), torch.clamp(self.top[i] - 1.0, min=0.0)) for i in range(3)]
+        # the eight corners' shares, corner c = 4 c0 + 2 c1 + c2 as ``corners`` orders them
+        s0, s1, s2 = (torch.stack([1.0 - (g[i] - base[i]), g[i] - base[i]], -1) for i in range(3))
+        share = (s0[..., :, None, None] * s1[..., None, :, None] * s2[..., None, None, :]).flatten(-3)
+        node = self._index(*(c.long() for c in base))[..., None] + self.corner_offsets  # (..., 8)
         if torch.compiler.is_compiling():  # exporting: ONNX holds embedding_bag only as a Loop over the bags
             rows = torch.index_select(self.table, 0, node.reshape(-1)).reshape(*node.shape, self.joints + 1)
             out = (share[..., None] * rows).sum(-2)
@@ -189,76 +266,104 @@ class SkinColliderGraph(nn.Module):
         return out[..., :-1], out[..., -1]
 
     def _nearest_face(
-        self, points: torch.Tensor, node: torch.Tensor, posed: torch.Tensor
+        self, points: torch.Tensor, character: torch.Tensor, node: torch.Tensor, surface: "PosedSurface"
     ) -> tuple[torch.Tensor, torch.Tensor]:
-        """(B, N, S) signed distance and (B, N, S, 3) outward normal of points (B, N, 3) to the
-        nearest of the faces each start's node (B, N, S) lists, of the ``posed`` meshes (B, V, 3)
-        (the reference's ``_nearest_face``), the triangles component-major (3, 3, B, N, S, K)."""
-        b, v = posed.shape[:2]
+        """(P,) signed distance and (P, 3) outward normal of points (P, 3) to the nearest of the
+        faces their nodes (P,) list, of each point's ``character``'s posed mesh (the reference's
+        ``_nearest_face``). Every listed face is ranked by its distance from the face's planes
+        (:meth:`surface`; no gradient), then the nearest one's point found again from its posed
+        corners, as the reference finds it: that one carries the gradient."""
+        count = len(self.faces)
         # the list's length by name, not -1: an ONNX Reshape cannot infer a -1 where no point is asked
         # (the projection loop's points inside, often none)
         listed = (
-            torch.index_select(self.face_table, 0, node.reshape(-1))
-            .reshape(*node.shape, self.face_table.shape[1])
-            .long()
+            torch.index_select(self.face_table, 0, node).reshape(len(node), self.face_table.shape[1]).long()
         )
-        frames = torch.arange(b, device=posed.device).reshape(b, 1, 1, 1)
-        everyone = posed[:, self.faces].reshape(-1, 9)  # (B F, 9): rows gather fastest
-        flat = (listed + frames * len(self.faces)).reshape(-1)
-        tri = torch.index_select(everyone, 0, flat).t().contiguous().reshape(3, 3, *listed.shape)
-        x = points.permute(2, 0, 1)[..., None, None]  # (3, B, N, 1, 1)
+        flat = (listed + (character * count)[:, None]).reshape(-1)
+        near = torch.index_select(surface.planes, 1, flat).reshape(12, *listed.shape)  # (12, P, L)
+        ap = points.detach().t()[:, :, None] - near[0:3]  # (3, P, L)
+        ab, ac = near[3:6], near[6:9]
+        v, w = closest_in_plane(dot(ab, ap), dot(ac, ap), near[9], near[10], near[11])
+        gap = ap - v * ab - w * ac
+        best = torch.argmin(dot(gap, gap), dim=-1, keepdim=True)  # (P, 1)
+        face = torch.gather(listed, -1, best)[:, 0]  # (P,)
+        corners = torch.index_select(self.faces, 0, face)  # (P, 3)
+        at = (corners + (character * surface.posed.shape[1])[:, None]).reshape(-1)
+        tri = torch.index_select(surface.posed.reshape(-1, 3), 0, at).reshape(len(face), 3, 3)
+        tri = tri.permute(1, 2, 0)  # (3 corners, 3, P)
+        x = points.t()  # (3, P)
         bary = closest_on_triangles(x, tri)
-        gap = x - (bary[0] * tri[0] + bary[1] * tri[1] + bary[2] * tri[2])
-        # (B, N, S, K); kept off zero, where the square root's gradient is not finite
+        gap = x - (bary[0] * tri[0] + bary[1] * tri[1] + bary[2] * tri[2])  # (3, P)
+        # kept off zero, where the square root's gradient is not finite
         length = torch.sqrt(torch.clamp(dot(gap, gap), min=1e-30))
-        best = torch.argmin(length, dim=-1, keepdim=True)
-        length = torch.gather(length, -1, best)[..., 0]
-
-        def pick(value: torch.Tensor) -> torch.Tensor:  # (3, B, N, S, K) -> (B, N, S, 3)
-            return torch.gather(value, -1, best[None].expand(3, *best.shape))[..., 0].permute(1, 2, 3, 0)
-
-        bary, gap = pick(bary), pick(gap)
-        outward = self._pseudo_normal(posed.detach(), torch.gather(listed, -1, best)[..., 0], bary)
+        outward = self._pseudo_normal(surface, character, face, bary)
+        gap = gap.t()  # (P, 3)
         inside = (gap * outward).sum(-1) < 0.0
         distance = torch.where(inside, -length, length)
-        clear = (length > 1e-9)[..., None]
-        normal = torch.where(clear, gap / torch.clamp(length, min=1e-12)[..., None], outward)
-        normal = torch.where(inside[..., None] & clear, -normal, normal)
+        clear = (length > 1e-9)[:, None]
+        normal = torch.where(clear, gap / torch.clamp(length, min=1e-12)[:, None], outward)
+        normal = torch.where(inside[:, None] & clear, -normal, normal)
         return distance, normal / torch.clamp(
             torch.linalg.vector_norm(normal, dim=-1, keepdim=True), min=1e-12
         )
 
-    def _pseudo_normal(self, posed: torch.Tensor, face: torch.Tensor, bary: torch.Tensor) -> torch.Tensor:
-        """(B, N, S, 3) the pseudonormal (:mod:`~hrr_garment.body.pseudo_normals`) at the nearest
-        points on faces (B, N, S) of the ``posed`` meshes (B, V, 3) at barycentric ``bary`` (B, N, S,
-        3): the face's unit normal, the two faces' across an edge, a corner's angle-weighted normal.
-        It only chooses the side (and the normal of a point on the skin), so it takes no gradient."""
-        b, v = posed.shape[:2]
-        face_normals, vertex = pseudo_normals(posed, self.faces)  # (B, F, 3), (B, V, 3)
-        frames = torch.arange(b, device=posed.device).reshape(b, 1, 1)
+    def _pseudo_normal(
+        self, surface: "PosedSurface", character: torch.Tensor, face: torch.Tensor, bary: torch.Tensor
+    ) -> torch.Tensor:
+        """(P, 3) the pseudonormal (:mod:`~hrr_garment.body.pseudo_normals`) at the nearest points
+        on faces (P,) of their ``character``'s posed meshes at barycentric ``bary`` (3, P): the
+        face's unit normal, the two faces' across an edge, a corner's angle-weighted normal. It only
+        chooses the side (and the normal of a point on the skin), so it takes no gradient."""
+        count, vertices = len(self.faces), surface.posed.shape[1]
 
-        def rows(table: torch.Tensor, index: torch.Tensor, count: int) -> torch.Tensor:
-            """(B, N, S, 3) rows ``index`` (B, N, S) of each frame's ``table`` (B, count, 3)."""
-            flat = (index + frames * count).reshape(-1)
-            return torch.index_select(table.reshape(-1, 3), 0, flat).reshape(*index.shape, 3)
+        def pick(table: torch.Tensor, index: torch.Tensor, size: int) -> torch.Tensor:
+            """(P, 3) rows ``index`` (P,) of each point's character's ``table`` (B size, 3)."""
+            return torch.index_select(table, 0, index + character * size)
 
-        zero = bary == 0.0
-        count = zero.sum(-1)
+        z0, z1, z2 = bary[0] == 0.0, bary[1] == 0.0, bary[2] == 0.0
+        zeros = z0.long() + z1.long() + z2.long()
         # on an edge, the one opposite the corner of no weight: from corner k + 1 to k + 2
-        edge = torch.remainder(torch.argmax(zero.to(torch.int64), -1) + 1, 3)
-        across = torch.gather(self.neighbours[face], -1, edge[..., None])[..., 0]
-        own = rows(face_normals, face, len(self.faces))
-        out = torch.where((count == 1)[..., None], own + rows(face_normals, across, len(self.faces)), own)
-        weighted = torch.argmax((~zero).to(torch.int64), -1)[..., None]
-        corner = torch.gather(self.faces[face], -1, weighted)[..., 0]
-        return torch.where((count == 2)[..., None], rows(vertex, corner, v), out)
+        edge = torch.where(z0, 1, torch.where(z1, 2, 0))
+        across = torch.gather(torch.index_select(self.neighbours, 0, face), -1, edge[:, None])[:, 0]
+        own = pick(surface.face_normals, face, count)
+        out = torch.where((zeros == 1)[:, None], own + pick(surface.face_normals, across, count), own)
+        weighted = torch.where(~z0, 0, torch.where(~z1, 1, 2))  # on a corner: the one of weight 1
+        corner = torch.gather(torch.index_select(self.faces, 0, face), -1, weighted[:, None])[:, 0]
+        return torch.where((zeros == 2)[:, None], pick(surface.vertex_normals, corner, vertices), out)
 
 
-def _solve3(m: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
-    """m^-1 b for (..., 3, 3) and (..., 3) by the adjugate, whose rows' cofactors are the cross
-    products of the other two rows (skin_sdf.c's solve3: a blend of rotations is far from singular
-    where skin is)."""
-    r0, r1, r2 = m.unbind(-2)
-    c0, c1, c2 = cross(r1, r2), cross(r2, r0), cross(r0, r1)
-    inverse = 1.0 / (r0 * c0).sum(-1, keepdim=True)
-    return (c0 * b[..., :1] + c1 * b[..., 1:2] + c2 * b[..., 2:]) * inverse
+@dataclass(frozen=True)
+class PosedSurface:
+    """What a query reads of the B characters' posed meshes (:meth:`SkinColliderGraph.surface`)."""
+
+    posed: torch.Tensor  # (B, V, 3) the meshes, with their gradient
+    planes: torch.Tensor  # (12, B F) each face's corner a, edges ab and ac, ab.ab, ab.ac and ac.ac
+    face_normals: torch.Tensor  # (B F, 3) unit
+    vertex_normals: torch.Tensor  # (B V, 3) angle-weighted, unit
+
+
+def _first_alike(node: torch.Tensor) -> torch.Tensor:
+    """(K, S) for each start the first start of its point on the same node (itself where none)."""
+    starts = node.shape[1]
+    columns = []
+    for s in range(starts):
+        first = torch.full_like(node[:, s], s)
+        for earlier in reversed(range(s)):  # the lowest written last
+            first = torch.where(node[:, earlier] == node[:, s], earlier, first)
+        columns.append(first)
+    return torch.stack(columns, -1)
+
+
+def _solve3(m: torch.Tensor, b: list) -> torch.Tensor:
+    """M^-1 b for M's rows m[0:3], m[3:6], m[6:9] and b's components, all planes (...), by the
+    adjugate, whose rows' cofactors are the cross products of the other two rows (skin_sdf.c's
+    solve3: a blend of rotations is far from singular where skin is): (3, ...)."""
+    r0, r1, r2 = m[0:3], m[3:6], m[6:9]
+    c0, c1, c2 = _cross(r1, r2), _cross(r2, r0), _cross(r0, r1)
+    inverse = 1.0 / dot(r0, c0)
+    return (c0 * b[0] + c1 * b[1] + c2 * b[2]) * inverse
+
+
+def _cross(u: torch.Tensor, v: torch.Tensor) -> torch.Tensor:
+    """u x v of component-major vectors (3, ...)."""
+    return torch.stack([u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]])
