@@ -22,7 +22,11 @@ crowd's step runs it. ``--threads`` sets the kernels' threads (default: PyTorch'
 cuda`` also times the exported step's push-out (the torch stage an ONNX graph holds: the visible
 mesh's collider graph within its hulls, and the capsules' for the ratio) on that torch device, its
 inputs already there as a GPU crowd's decoded frames are, each step synchronised, and counts the
-vertices it leaves more than 1 mm from the package's push.
+vertices it leaves more than 1 mm from the package's push; with ``--onnx`` (and ``--device cpu``)
+the same stages exported to ONNX as a step is (minutes for the visible mesh's) and run by
+onnxruntime on the CPU, as an engine runs the step's push-out.
+
+    python tools/bench_visible_push.py 02_01.bvh --frames 64 --no-report --device cpu --onnx
 """
 
 from __future__ import annotations
@@ -104,6 +108,61 @@ def torch_runs(stages: dict, frames: np.ndarray, motion, cuts: list, device: str
     return {name: stepped(stage) for name, stage in stages.items()}
 
 
+def onnx_runs(stages: dict, frames: np.ndarray, motion, cuts: list) -> dict:
+    """Each torch stage exported to ONNX (as ``hrr-export-model`` exports a step: torch's exporter,
+    then one pass of its optimiser) and run by onnxruntime on the CPU, the steps in order."""
+    import tempfile
+    from pathlib import Path
+
+    import onnxruntime
+    import torch
+
+    from hrr_garment.export.onnx_model import OPSET, _optimise, _quiet
+
+    names = ["vertices", "rotations", "positions"]
+    feeds = [
+        {
+            k: np.ascontiguousarray(x[cut]).astype(np.float32)
+            for k, x in zip(names, (frames, *motion_arrays(motion)))
+        }
+        for cut in cuts
+    ]
+    example = tuple(torch.from_numpy(x[:2].copy()) for x in feeds[0].values())
+    folder = Path(tempfile.mkdtemp())
+    runs = {}
+    for name, stage in stages.items():
+        characters = torch.export.Dim("characters", min=1, max=4096)
+        t0 = time.perf_counter()
+        with torch.no_grad(), _quiet():
+            program = torch.onnx.export(
+                stage.eval(),
+                example,
+                dynamo=True,
+                input_names=names,
+                output_names=["pushed"],
+                dynamic_shapes=tuple({0: characters} for _ in names),
+                opset_version=OPSET,
+                optimize=False,
+                verbose=False,
+            )
+            _optimise(program.model)
+        path = folder / f"{len(runs)}.onnx"
+        program.save(str(path))
+        print(f"{name}: exported in {time.perf_counter() - t0:.0f} s")
+        session = onnxruntime.InferenceSession(str(path), providers=["CPUExecutionProvider"])
+
+        def run(session=session):
+            return np.concatenate([session.run(None, feed)[0] for feed in feeds])
+
+        run()  # the first run allocates
+        runs[name.replace("torch", "onnxruntime").replace(" (cpu)", "")] = run
+    return runs
+
+
+def motion_arrays(motion) -> tuple[np.ndarray, np.ndarray]:
+    return motion.global_rotations, motion.joint_positions
+
+
 def arguments() -> argparse.Namespace:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("motion", help="a clip (BVH, glTF, npz)")
@@ -116,6 +175,11 @@ def arguments() -> argparse.Namespace:
     p.add_argument("--repeats", type=int, default=3)
     p.add_argument("--threads", type=int, help="the kernels' threads (default: PyTorch's)")
     p.add_argument("--device", help="also time the torch stage's push-out on this device (cpu, cuda)")
+    p.add_argument(
+        "--onnx",
+        action="store_true",
+        help="also time the torch stages exported to ONNX, in onnxruntime (CPU)",
+    )
     p.add_argument(
         "--no-report",
         action="store_true",
@@ -199,6 +263,8 @@ def main() -> None:
             ),
         }
         run.update(torch_runs(stages, frames, motion, cuts, args.device))
+        if args.onnx:
+            run.update(onnx_runs(stages, frames, motion, cuts))
     print(f"{cpu_description()}; {default_threads()} threads; collider built in {built:.1f} s")
     print(
         f"{frames.shape[1]} vertices, {len(frames)} frames of {args.motion}: {len(cuts)} step(s) of "
@@ -229,7 +295,7 @@ def report(seconds: dict, cpu: dict, results: dict, measured, frames: np.ndarray
     for name, out in results.items():
         out = out if isinstance(out, np.ndarray) else out.float().cpu().numpy()
         apart = ""
-        if name.startswith("torch visible"):
+        if name.startswith(("torch visible", "onnxruntime visible")):
             far = np.linalg.norm(out - package, axis=-1) > APART_M
             apart = f"; apart from the package's push: {far.sum(1).mean():.2f} vertices a frame"
         after = inside(out)
@@ -250,6 +316,12 @@ def report(seconds: dict, cpu: dict, results: dict, measured, frames: np.ndarray
         print(
             f"torch visible / torch capsules: {graph / capsules:.2f} x; torch visible / package "
             f"visible: {graph / seconds['visible']:.2f} x"
+        )
+    if "onnxruntime visible" in seconds:
+        graph, capsules = seconds["onnxruntime visible"], seconds["onnxruntime capsules"]
+        print(
+            f"onnxruntime visible / onnxruntime capsules: {graph / capsules:.2f} x; onnxruntime visible / "
+            f"package visible: {graph / seconds['visible']:.2f} x"
         )
 
 

@@ -144,11 +144,10 @@ class SkinColliderGraph(nn.Module):
             torch.index_select(node.reshape(-1), 0, pairs),
             surface,
         )
-        source = (torch.arange(len(node), device=node.device)[:, None] * starts + first).reshape(-1)
         distance = torch.zeros_like(node, dtype=points.dtype).reshape(-1).index_copy(0, pairs, d)
-        distance = torch.index_select(distance, 0, source).reshape(node.shape)
-        normal = torch.zeros_like(points).repeat(starts, 1).index_copy(0, pairs, n)
-        normal = torch.index_select(normal, 0, source).reshape(*node.shape, 3)
+        distance = torch.gather(distance.reshape(node.shape), 1, first)
+        normal = torch.zeros_like(points).repeat(1, starts).reshape(-1, 3).index_copy(0, pairs, n)
+        normal = torch.gather(normal.reshape(*node.shape, 3), 1, first[..., None].expand(*first.shape, 3))
         # the deepest settled start whose own nearest face puts the point inside too
         own_deep = torch.where(distance < 0.0, depth, torch.zeros_like(depth)).amax(-1)
         best = torch.argmin(distance.abs(), dim=-1, keepdim=True)
@@ -274,23 +273,21 @@ class SkinColliderGraph(nn.Module):
         (:meth:`surface`; no gradient), then the nearest one's point found again from its posed
         corners, as the reference finds it: that one carries the gradient."""
         count = len(self.faces)
-        # the list's length by name, not -1: an ONNX Reshape cannot infer a -1 where no point is asked
-        # (the projection loop's points inside, often none)
-        listed = (
-            torch.index_select(self.face_table, 0, node).reshape(len(node), self.face_table.shape[1]).long()
-        )
+        listed = torch.index_select(self.face_table, 0, node).long()  # (P, L)
         flat = (listed + (character * count)[:, None]).reshape(-1)
         near = torch.index_select(surface.planes, 1, flat).reshape(12, *listed.shape)  # (12, P, L)
         ap = points.detach().t()[:, :, None] - near[0:3]  # (3, P, L)
         ab, ac = near[3:6], near[6:9]
-        v, w = closest_in_plane(dot(ab, ap), dot(ac, ap), near[9], near[10], near[11])
+        v, w = closest_in_plane(dot(ab, ap), dot(ac, ap), aa=near[9], bc=near[10], cc=near[11])
         gap = ap - v * ab - w * ac
         best = torch.argmin(dot(gap, gap), dim=-1, keepdim=True)  # (P, 1)
         face = torch.gather(listed, -1, best)[:, 0]  # (P,)
         corners = torch.index_select(self.faces, 0, face)  # (P, 3)
-        at = (corners + (character * surface.posed.shape[1])[:, None]).reshape(-1)
-        tri = torch.index_select(surface.posed.reshape(-1, 3), 0, at).reshape(len(face), 3, 3)
-        tri = tri.permute(1, 2, 0)  # (3 corners, 3, P)
+        at, everyone = character * surface.posed.shape[1], surface.posed.reshape(-1, 3)
+        # a corner at a time: reshaping a gather of a data-dependent length fails the exporter's first
+        # trace (which prints the graph and traces again)
+        tri = torch.stack([torch.index_select(everyone, 0, corners[:, c] + at) for c in range(3)])
+        tri = tri.permute(0, 2, 1)  # (3 corners, 3, P)
         x = points.t()  # (3, P)
         bary = closest_on_triangles(x, tri)
         gap = x - (bary[0] * tri[0] + bary[1] * tri[1] + bary[2] * tri[2])  # (3, P)

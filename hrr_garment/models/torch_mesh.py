@@ -58,7 +58,7 @@ def closest_on_triangles(points: torch.Tensor, triangles: torch.Tensor) -> torch
 
 
 def closest_in_plane(
-    d1: torch.Tensor, d2: torch.Tensor, aa: torch.Tensor, bc: torch.Tensor, cc: torch.Tensor
+    d1: torch.Tensor, d2: torch.Tensor, *, aa: torch.Tensor, bc: torch.Tensor, cc: torch.Tensor
 ) -> tuple[torch.Tensor, torch.Tensor]:
     """The nearest point of triangles a, b, c to points p as ``a + v (b - a) + w (c - a)``: (v, w),
     from the products d1 = ab.ap and d2 = ac.ap with the triangles' own ab.ab, ab.ac and ac.ac

@@ -114,3 +114,19 @@ def test_the_gradient_of_the_distance_is_the_normal(limb_and_collider):
     moved = _query(graph, points[off], rot, pos + step)[0] - _query(graph, points[off], rot, pos - step)[0]
     assert np.abs(moved / 2.0 + normal.detach().numpy()[off] @ step).max() < 1e-10
     assert torch.isfinite(rotations.grad).all() and rotations.grad.abs().sum() > 0
+
+
+def test_a_faces_nearest_point_from_its_planes_is_the_triangles():
+    # the ranking's (v, w) from two products a point and the face's own three, against Ericson's
+    # closest point on every region of the triangle: corners, edges and the face (points far off it)
+    from hrr_garment.models.torch_mesh import closest_in_plane, closest_on_triangles, dot
+
+    rng = np.random.default_rng(4)
+    tri = torch.as_tensor(rng.normal(size=(3, 3, 2000)))  # (corner, component, pair)
+    points = torch.as_tensor(rng.normal(scale=2.0, size=(3, 2000)))
+    bary = closest_on_triangles(points, tri)
+    ab, ac, ap = tri[1] - tri[0], tri[2] - tri[0], points - tri[0]
+    v, w = closest_in_plane(dot(ab, ap), dot(ac, ap), aa=dot(ab, ab), bc=dot(ab, ac), cc=dot(ac, ac))
+    assert (v - bary[1]).abs().max() < 1e-9 and (w - bary[2]).abs().max() < 1e-9
+    regions = {(float(a > 0), float(b > 0), float(c > 0)) for a, b, c in bary.t().tolist()}
+    assert len(regions) == 7  # every corner, edge and the face's inside asked
