@@ -25,6 +25,7 @@ import torch
 from torch import nn
 from torch._higher_order_ops.while_loop import while_loop
 
+from ..models.skin_collider_graph import SkinColliderGraph
 from .collision import PROJECTIONS, RELEASE_PASSES, PushOutSettings
 from .limb_release import RELEASED_RADIUS, limb_capsules
 from .torch_capsules import (
@@ -91,7 +92,6 @@ class PushOutStage(nn.Module):
     def of_visible(cls, visible, smoothing, *, limits, settings: PushOutSettings) -> "PushOutStage":
         """The stage that pushes out of the mesh a :class:`~.visible_push.VisibleCollider` measures:
         its collider's graph within the margin of its hulls (the capsules of its body grown)."""
-        from ..models.skin_collider_graph import SkinColliderGraph
         from .torch_skin_hulls import SkinHulls
 
         body = visible.body
@@ -111,13 +111,15 @@ class PushOutStage(nn.Module):
         b: torch.Tensor,
         radii: torch.Tensor | None = None,
         within: float | None = None,
+        surface: tuple = (),
     ) -> tuple[torch.Tensor, torch.Tensor]:
         """Signed distances (N, V) to the union of capsules and the nearest one's outward normals,
         (N, V, 3), measured where the distance is under ``within`` (the push's margin by default:
         where a push reads them) and zero elsewhere (:func:`capsule_distance_within`); ``p``, ``a``,
         ``b`` relative to the pelvis keep them to metres. On the visible mesh, ``a`` and ``b`` are
         the joints' moves (:meth:`forward`) and the distance and normal the skin's within the
-        margin of its hulls (beyond it the hulls' distance and a zero normal).
+        margin of its hulls (beyond it the hulls' distance and a zero normal), ``surface`` the
+        characters' posed skin (:meth:`~.SkinColliderGraph.surface`, made once a push).
         ``radii``: (N, 1, C) each character's (a limb let go of: very negative; None: the body's)."""
         if self.skin is not None:
             if self.hulls is None:  # every point measured
@@ -133,6 +135,7 @@ class PushOutStage(nn.Module):
                 torch.div(rows, p.shape[1], rounding_mode="floor"),
                 a,
                 b,
+                surface=SkinColliderGraph.posed_surface(surface),
             )
             normal = torch.zeros_like(p).reshape(-1, 3).index_copy(0, rows, n).reshape(p.shape)
             return beyond.reshape(-1).index_copy(0, rows, d).reshape(beyond.shape), normal
@@ -145,10 +148,13 @@ class PushOutStage(nn.Module):
         terms = torch.index_select(disp, 0, self.smooth_cols) * self.smooth_weights[..., None]
         return torch.zeros_like(disp).index_add(0, self.smooth_rows, terms)
 
-    def push(self, p: torch.Tensor, a: torch.Tensor, b: torch.Tensor, radii: torch.Tensor) -> torch.Tensor:
-        d, n = self.distance(p, a, b, radii)
+    def push(
+        self, p: torch.Tensor, a: torch.Tensor, b: torch.Tensor, radii: torch.Tensor, *surface: torch.Tensor
+    ) -> torch.Tensor:
+        """``surface``: on the visible mesh, the characters' posed skin's tensors (made once a push)."""
+        d, n = self.distance(p, a, b, radii, surface=surface)
         for _ in range(self.settings.rounds):
-            p, d, n = _when((d < self.settings.margin).any(), self._round, (p, d, n, a, b, radii))
+            p, d, n = _when((d < self.settings.margin).any(), self._round, (p, d, n, a, b, radii, *surface))
         # exact projections, again where a push landed in another capsule, while a vertex is inside,
         # on the points inside after the rounds alone (a projection moves only points inside, so a
         # point outside then never moves, nor comes inside): exported as an ONNX Loop, so that its
@@ -157,7 +163,7 @@ class PushOutStage(nn.Module):
         # character's mesh: the few points inside only.
         rows = torch.nonzero((d < 0).reshape(-1))[:, 0]
         character = torch.div(rows, p.shape[1], rounding_mode="floor")
-        own = self._per_point(character, a, b, radii)
+        own = self._per_point(character, a, b, radii, *surface)
         points = torch.index_select(p.reshape(-1, 3), 0, rows)
         state = (
             torch.zeros((), dtype=torch.int64, device=p.device),
@@ -183,7 +189,7 @@ class PushOutStage(nn.Module):
             points = state[1]
         return p.reshape(-1, 3).index_copy(0, rows, points).reshape(p.shape)
 
-    def _round(self, p, d, n, a, b, radii):
+    def _round(self, p, d, n, a, b, radii, *surface):
         """A push along the normals, spread to the neighbours, never below what is needed. In
         (V, 3, N): a vertex's rows whole for the smoothing's gathers and scatter-adds, and no
         product broadcast over a last axis of 3 (which onnxruntime runs an element triple at a
@@ -209,9 +215,9 @@ class PushOutStage(nn.Module):
         p = p + disp.permute(2, 0, 1)
         # measured again only where the round moved the cloth: elsewhere the distance stands
         moved = torch.nonzero((disp != 0).any(1).transpose(0, 1).reshape(-1))[:, 0]
-        return self._measured(p, moved, d, n, a, b, radii)
+        return self._measured(p, moved, d, n, a, b, radii, *surface)
 
-    def _measured(self, p, rows, d, n, a, b, radii):
+    def _measured(self, p, rows, d, n, a, b, radii, *surface):
         """``p`` with its distances ``d`` (N, V) to the body and normals ``n`` (N, V, 3) measured
         again at the flat (character x vertex) ``rows`` alone: a push moves a few vertices of a
         frame, and measuring every vertex of every character again after it cost most of a crowd's
@@ -219,16 +225,16 @@ class PushOutStage(nn.Module):
         character alone)."""
         character = torch.div(rows, p.shape[1], rounding_mode="floor")
         points = torch.index_select(p.reshape(-1, 3), 0, rows)
-        dk, nk = self._point_distance(points, self._per_point(character, a, b, radii))
+        dk, nk = self._point_distance(points, self._per_point(character, a, b, radii, *surface))
         d = d.reshape(-1).index_copy(0, rows, dk).reshape(d.shape)
         return p, d, n.reshape(-1, 3).index_copy(0, rows, nk).reshape(n.shape)
 
-    def _per_point(self, character, a, b, radii) -> tuple:
+    def _per_point(self, character, a, b, radii, *surface) -> tuple:
         """The body's operands of each point's ``character`` (K,), as :meth:`_point_distance` takes
         them: its capsules, or its character with the crowd's joint moves and its hulls."""
         if self.skin is None:
             return per_point(character, a, b, radii=radii[:, 0])
-        return character, a, b, torch.index_select(radii, 0, character)
+        return character, a, b, torch.index_select(radii, 0, character), surface
 
     def _point_distance(self, points, own: tuple) -> tuple[torch.Tensor, torch.Tensor]:
         """(K,) distances and (K, 3) normals of points (K, 3), each of its own character (``own``:
@@ -236,8 +242,10 @@ class PushOutStage(nn.Module):
         hulls' distance, as :meth:`distance` takes it."""
         if self.skin is None:
             return point_capsule_distance(points, own)
-        character, rot, trans, hull = own
-        d, n = self.skin.query_rows(points, character, rot, trans)
+        character, rot, trans, hull, surface = own
+        d, n = self.skin.query_rows(
+            points, character, rot, trans, surface=SkinColliderGraph.posed_surface(surface)
+        )
         if self.hulls is None:
             return d, n
         beyond = capsule_depths(points[:, None], hull[..., :3], hull[..., 3:6], radii=hull[..., 6][:, None])[
@@ -275,11 +283,12 @@ class PushOutStage(nn.Module):
             # skin's weights sum to 1, so the posed skin moves with the points)
             a, trans = self.skin.moves(rotations, positions)
             trans = trans - centre
+            surface = self.skin.surface(a, trans)  # the skins posed once, for every measure of the push
             if self.hulls is not None:  # the hulls about the pelvis, carried where radii go
                 ca, cb = self._capsule_ends(rotations, positions, centre)
-                hull = self.hulls(self.skin.pose(a, trans), ca, cb, self.radii)
+                hull = self.hulls(surface.posed, ca, cb, self.radii)
                 radii = torch.cat([ca, cb, hull[..., None]], -1)  # (N, C, 7)
-            return self.strain(self.push(p, a, trans, radii) + centre, vertices)
+            return self.strain(self.push(p, a, trans, radii, *surface) + centre, vertices)
         a, b = self._capsule_ends(rotations, positions, centre)
         if self.subspace is not None:
             if heading is None:

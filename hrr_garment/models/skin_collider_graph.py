@@ -39,7 +39,7 @@ gap as its gradient. Gradients reach the joints' rotations and positions through
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 import torch
@@ -122,13 +122,20 @@ class SkinColliderGraph(nn.Module):
         return distance.reshape(b, n), normal.reshape(b, n, 3)
 
     def query_rows(
-        self, points: torch.Tensor, character: torch.Tensor, rot: torch.Tensor, trans: torch.Tensor
+        self,
+        points: torch.Tensor,
+        character: torch.Tensor,
+        rot: torch.Tensor,
+        trans: torch.Tensor,
+        *,
+        surface: "PosedSurface | None" = None,
     ) -> tuple[torch.Tensor, torch.Tensor]:
         """(K,) signed distance and (K, 3) outward normal of points (K, 3), each against its own
         ``character`` (K,) of the B whose joints moved by (B, J, 3, 3) and (B, J, 3): a crowd's
         points in one list, so that a push measures only the points it asks about, each
-        character's mesh posed once."""
-        surface = self.surface(rot, trans)
+        character's mesh posed once (``surface``: :meth:`surface` of these moves, where the caller
+        measures them again)."""
+        surface = self.surface(rot, trans) if surface is None else surface
         x = points.detach().t()[:, :, None]  # (3, K, 1): component-major
         rest, depth, under = self.rest_points(x, character, rot.detach(), trans.detach())
         node = self._node(rest)  # (K, S)
@@ -160,6 +167,11 @@ class SkinColliderGraph(nn.Module):
         skinning."""
         blend = (self.skin @ rot.flatten(-2)).unflatten(-1, (3, 3))  # (B, V, 3, 3): linear, not rigid
         return (blend * self.rest[:, None, :]).sum(-1) + self.skin @ trans
+
+    @staticmethod
+    def posed_surface(tensors: tuple) -> "PosedSurface | None":
+        """The :class:`PosedSurface` of its tensors in order (None for none: made by the query)."""
+        return PosedSurface(*tensors) if tensors else None
 
     def surface(self, rot: torch.Tensor, trans: torch.Tensor) -> "PosedSurface":
         """The mesh posed for each of B characters (:meth:`pose`) with what every point's nearest
@@ -329,9 +341,9 @@ class SkinColliderGraph(nn.Module):
         return torch.where((zeros == 2)[:, None], pick(surface.vertex_normals, corner, vertices), out)
 
 
-@dataclass(frozen=True)
-class PosedSurface:
-    """What a query reads of the B characters' posed meshes (:meth:`SkinColliderGraph.surface`)."""
+class PosedSurface(NamedTuple):
+    """What a query reads of the B characters' posed meshes (:meth:`SkinColliderGraph.surface`): a
+    tuple of tensors, so that a graph's conditionals and loops carry it."""
 
     posed: torch.Tensor  # (B, V, 3) the meshes, with their gradient
     planes: torch.Tensor  # (12, B F) each face's corner a, edges ab and ac, ab.ab, ab.ac and ac.ac

@@ -362,7 +362,7 @@ def test_the_graphs_hulls_are_the_kernels_and_bound_a_wrong_inside(closed_visibl
     ends = torch.from_numpy(np.concatenate([a[:1], b[:1]], -1)).float() - centre.repeat(1, 1, 2)
     hull = torch.cat([ends, torch.from_numpy(radii[:1, :, None]).float()], -1)
     rot_moves, trans = stage.skin.moves(frame_rot, frame_pos)
-    wrong = lambda p, character, a, b: (torch.full(p.shape[:1], -0.05), torch.zeros_like(p))  # noqa: E731
+    wrong = lambda p, character, a, b, surface=None: (torch.full(p.shape[:1], -0.05), torch.zeros_like(p))  # noqa: E731
     monkeypatch.setattr(stage.skin, "query_rows", wrong)  # the collider calls every point inside
     for offset, inside in (([0.0, 0.0, 0.0], True), ([0.0, 0.0, 3.0], False)):  # the pelvis; 3 m before it
         point = torch.tensor([[offset]])
