@@ -49,6 +49,9 @@ from ..body.skin_collider import side_rules
 from .torch_mesh import closest_in_plane, closest_on_triangles, dot, pseudo_normals
 
 
+MAX_POINTS = 1 << 40  # the most points one query takes (a bound for the exporter)
+
+
 class SkinColliderGraph(nn.Module):
     """A :class:`~hrr_garment.body.skin_collider.SkinCollider`'s arrays as buffers (its rest mesh,
     weights, rest frames and grid) and its query as :meth:`forward`."""
@@ -136,6 +139,10 @@ class SkinColliderGraph(nn.Module):
         character's mesh posed once (``surface``: :meth:`surface` of these moves, where the caller
         measures them again)."""
         surface = self.surface(rot, trans) if surface is None else surface
+        # a bound the exporter can see on a list of points made inside a graph's conditional (the
+        # points a push's round moved): without one, its starts' count (3 x the largest int64)
+        # overflows the int64 checks it writes into the graph
+        torch._check(points.shape[0] <= MAX_POINTS)
         x = points.detach().t()[:, :, None]  # (3, K, 1): component-major
         rest, depth, under = self.rest_points(x, character, rot.detach(), trans.detach())
         node = self._node(rest)  # (K, S)
@@ -153,7 +160,8 @@ class SkinColliderGraph(nn.Module):
         )
         distance = torch.zeros_like(node, dtype=points.dtype).reshape(-1).index_copy(0, pairs, d)
         distance = torch.gather(distance.reshape(node.shape), 1, first)
-        normal = torch.zeros_like(points).repeat(1, starts).reshape(-1, 3).index_copy(0, pairs, n)
+        # (a zero of each (point, start) pair, in any order: every pair read is written first)
+        normal = torch.zeros_like(points).repeat(starts, 1).index_copy(0, pairs, n)
         normal = torch.gather(normal.reshape(*node.shape, 3), 1, first[..., None].expand(*first.shape, 3))
         # the deepest settled start whose own nearest face puts the point inside too
         own_deep = torch.where(distance < 0.0, depth, torch.zeros_like(depth)).amax(-1)
