@@ -48,7 +48,6 @@ from torch import nn
 from ..body.skin_collider import side_rules
 from .torch_mesh import closest_in_plane, closest_on_triangles, dot, pseudo_normals
 
-
 MAX_POINTS = 1 << 40  # the most points one query takes (a bound for the exporter)
 
 
