@@ -6,7 +6,9 @@ in gathers, batched products and ``where``, with shapes that depend on no point'
     graph = SkinColliderGraph(skin_collider(visible))            # float32; dtype=torch.float64 too
     distance, normal = graph(points, global_rotations, joint_positions)   # (N,), (N, 3)
 
-Batched over B characters as well: points (B, N, 3) with (B, J, 3, 3) and (B, J, 3).
+Batched over B characters as well: points (B, N, 3) with (B, J, 3, 3) and (B, J, 3); or a crowd's
+points as one list, each with its character (:meth:`SkinColliderGraph.query_rows`), so that a push
+measures the points it asks about and no others.
 ``hrr_garment.export.skin_collider_onnx`` writes it as ONNX. What the reference does with
 data-dependent shapes or loops, the graph does with fixed ones:
 
@@ -19,6 +21,12 @@ data-dependent shapes or loops, the graph does with fixed ones:
 - each node's face list padded to the longest (at most ``max_faces``) with its first face: the
   nearest is unchanged (a repeated face is no nearer than itself; the first of equals wins, as in
   the reference), and every point measures the same number of faces a start.
+- a point's starts that settled on one node list the same faces: each distinct node measured once
+  (a list of (point, start) pairs), its answer copied to the others;
+- each character's mesh posed once a query, with each face's corner, edges and their products
+  (:meth:`SkinColliderGraph.surface`): every listed face ranked from those by two products a point
+  and face, the nearest one's point then found again from its posed corners as the reference finds
+  it (to rounding the same face; that one carries the gradient).
 
 **Equal to the reference.** In float64, to rounding (1e-9 in the tests; measured on a limb bent up
 to 135 degrees, a curled chain and an anny body in a dance, the distance within 1e-15 m, the
