@@ -22,9 +22,9 @@ crowd's step runs it. ``--threads`` sets the kernels' threads (default: PyTorch'
 cuda`` also times the exported step's push-out (the torch stage an ONNX graph holds: the visible
 mesh's collider graph within its hulls, and the capsules' for the ratio) on that torch device, its
 inputs already there as a GPU crowd's decoded frames are, each step synchronised, and counts the
-vertices it leaves more than 1 mm from the package's push; with ``--onnx`` (and ``--device cpu``)
-the same stages exported to ONNX as a step is (minutes for the visible mesh's) and run by
-onnxruntime on the CPU, as an engine runs the step's push-out.
+vertices it leaves more than 1 mm from the package's push; ``--onnx`` times the same stages
+exported to ONNX as a step is (minutes for the visible mesh's) and run by onnxruntime on the CPU,
+as an engine runs the step's push-out.
 
     python tools/bench_visible_push.py 02_01.bvh --frames 64 --no-report --device cpu --onnx
 """
@@ -155,7 +155,7 @@ def onnx_runs(stages: dict, frames: np.ndarray, motion, cuts: list) -> dict:
             return np.concatenate([session.run(None, feed)[0] for feed in feeds])
 
         run()  # the first run allocates
-        runs[name.replace("torch", "onnxruntime").replace(" (cpu)", "")] = run
+        runs[name] = run
     return runs
 
 
@@ -250,21 +250,23 @@ def main() -> None:
         "visible, hulls only": stepped(lambda poses: PosedSkin.of(hulls_only, poses)),
         "visible": stepped(lambda poses: PosedSkin.of(visible, poses)),
     }
-    if args.device:
+    if args.device or args.onnx:
         from hrr_garment.inference.torch_push_out import PushOutStage
 
         body = record.body
         stages = {
-            f"torch capsules ({args.device})": PushOutStage(
-                (*body.ends, body.radii), mean, limits=limits, settings=settings
-            ),
-            f"torch visible ({args.device})": PushOutStage.of_visible(
-                visible, mean, limits=limits, settings=settings
-            ),
+            "capsules": PushOutStage((*body.ends, body.radii), mean, limits=limits, settings=settings),
+            "visible": PushOutStage.of_visible(visible, mean, limits=limits, settings=settings),
         }
-        run.update(torch_runs(stages, frames, motion, cuts, args.device))
+        if args.device:
+            named = {f"torch {kind} ({args.device})": stage for kind, stage in stages.items()}
+            run.update(torch_runs(named, frames, motion, cuts, args.device))
         if args.onnx:
-            run.update(onnx_runs(stages, frames, motion, cuts))
+            run.update(
+                onnx_runs(
+                    {f"onnxruntime {kind}": stage for kind, stage in stages.items()}, frames, motion, cuts
+                )
+            )
     print(f"{cpu_description()}; {default_threads()} threads; collider built in {built:.1f} s")
     print(
         f"{frames.shape[1]} vertices, {len(frames)} frames of {args.motion}: {len(cuts)} step(s) of "
