@@ -15,8 +15,10 @@ distance. Beyond the margin of every hull (the capsules grown to hold the posed 
 measures every vertex against the skin, without the package's flood of cells and winding test: the
 same push wherever the collider's side is right, which its pseudonormals make it but at points
 whose nearest face in the pose its grid does not list (a few in a hundred thousand: there the
-package's winding number decides, and the graph can push what the package leaves). Far slower
-than the capsules."""
+package's winding number decides, and the graph can push what the package leaves). The skin is
+measured at the vertices within that margin alone, and again only where a round moved them, each
+character's skin posed once a push; still about 15 x the capsules' stage in onnxruntime (the dress
+on anny's average body, docs/benchmarks.md), for want of the package's broad phase."""
 
 from __future__ import annotations
 
@@ -159,8 +161,8 @@ class PushOutStage(nn.Module):
         # on the points inside after the rounds alone (a projection moves only points inside, so a
         # point outside then never moves, nor comes inside): exported as an ONNX Loop, so that its
         # measure is traced once (a character's skin graph traced once a projection made the export
-        # 2.5 minutes), run as the same steps in Python. On the skin each point poses its
-        # character's mesh: the few points inside only.
+        # 2.5 minutes), run as the same steps in Python. On the skin each point is measured against
+        # its character's skin as the push posed it.
         rows = torch.nonzero((d < 0).reshape(-1))[:, 0]
         character = torch.div(rows, p.shape[1], rounding_mode="floor")
         own = self._per_point(character, a, b, radii, *surface)
