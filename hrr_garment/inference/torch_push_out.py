@@ -27,7 +27,6 @@ import torch
 from torch import nn
 from torch._higher_order_ops.while_loop import while_loop
 
-from ..models.skin_collider_graph import SkinColliderGraph
 from .collision import PROJECTIONS, RELEASE_PASSES, PushOutSettings
 from .limb_release import RELEASED_RADIUS, limb_capsules
 from .torch_capsules import (
@@ -94,6 +93,7 @@ class PushOutStage(nn.Module):
     def of_visible(cls, visible, smoothing, *, limits, settings: PushOutSettings) -> "PushOutStage":
         """The stage that pushes out of the mesh a :class:`~.visible_push.VisibleCollider` measures:
         its collider's graph within the margin of its hulls (the capsules of its body grown)."""
+        from ..models.skin_collider_graph import SkinColliderGraph
         from .torch_skin_hulls import SkinHulls
 
         body = visible.body
@@ -137,7 +137,7 @@ class PushOutStage(nn.Module):
                 torch.div(rows, p.shape[1], rounding_mode="floor"),
                 a,
                 b,
-                surface=SkinColliderGraph.posed_surface(surface),
+                surface=surface,
             )
             normal = torch.zeros_like(p).reshape(-1, 3).index_copy(0, rows, n).reshape(p.shape)
             return beyond.reshape(-1).index_copy(0, rows, d).reshape(beyond.shape), normal
@@ -245,9 +245,7 @@ class PushOutStage(nn.Module):
         if self.skin is None:
             return point_capsule_distance(points, own)
         character, rot, trans, hull, surface = own
-        d, n = self.skin.query_rows(
-            points, character, rot, trans, surface=SkinColliderGraph.posed_surface(surface)
-        )
+        d, n = self.skin.query_rows(points, character, rot, trans, surface=surface)
         if self.hulls is None:
             return d, n
         beyond = capsule_depths(points[:, None], hull[..., :3], hull[..., 3:6], radii=hull[..., 6][:, None])[

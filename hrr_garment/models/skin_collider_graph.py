@@ -54,7 +54,7 @@ import torch
 from torch import nn
 
 from ..body.skin_collider import side_rules
-from .torch_mesh import closest_in_plane, closest_on_triangles, dot, pseudo_normals
+from .torch_mesh import closest_in_plane, closest_on_triangles, cross, dot, pseudo_normals
 
 MAX_POINTS = 1 << 40  # the most points one query takes (a bound for the exporter)
 
@@ -138,14 +138,14 @@ class SkinColliderGraph(nn.Module):
         rot: torch.Tensor,
         trans: torch.Tensor,
         *,
-        surface: "PosedSurface | None" = None,
+        surface: tuple = (),
     ) -> tuple[torch.Tensor, torch.Tensor]:
         """(K,) signed distance and (K, 3) outward normal of points (K, 3), each against its own
         ``character`` (K,) of the B whose joints moved by (B, J, 3, 3) and (B, J, 3): a crowd's
         points in one list, so that a push measures only the points it asks about, each
-        character's mesh posed once (``surface``: :meth:`surface` of these moves, where the caller
-        measures them again)."""
-        surface = self.surface(rot, trans) if surface is None else surface
+        character's mesh posed once (``surface``: the tensors of :meth:`surface` of these moves, where
+        the caller measures them again; none: made here)."""
+        surface = PosedSurface(*surface) if surface else self.surface(rot, trans)
         # a bound the exporter can see on a list of points made inside a graph's conditional (the
         # points a push's round moved): without one, its starts' count (3 x the largest int64)
         # overflows the int64 checks it writes into the graph
@@ -182,11 +182,6 @@ class SkinColliderGraph(nn.Module):
         skinning."""
         blend = (self.skin @ rot.flatten(-2)).unflatten(-1, (3, 3))  # (B, V, 3, 3): linear, not rigid
         return (blend * self.rest[:, None, :]).sum(-1) + self.skin @ trans
-
-    @staticmethod
-    def posed_surface(tensors: tuple) -> "PosedSurface | None":
-        """The :class:`PosedSurface` of its tensors in order (None for none: made by the query)."""
-        return PosedSurface(*tensors) if tensors else None
 
     def surface(self, rot: torch.Tensor, trans: torch.Tensor) -> "PosedSurface":
         """The mesh posed for each of B characters (:meth:`pose`) with what every point's nearest
@@ -383,11 +378,6 @@ def _solve3(m: torch.Tensor, b: list) -> torch.Tensor:
     adjugate, whose rows' cofactors are the cross products of the other two rows (skin_sdf.c's
     solve3: a blend of rotations is far from singular where skin is): (3, ...)."""
     r0, r1, r2 = m[0:3], m[3:6], m[6:9]
-    c0, c1, c2 = _cross(r1, r2), _cross(r2, r0), _cross(r0, r1)
+    c0, c1, c2 = cross(r1, r2, 0), cross(r2, r0, 0), cross(r0, r1, 0)
     inverse = 1.0 / dot(r0, c0)
     return (c0 * b[0] + c1 * b[1] + c2 * b[2]) * inverse
-
-
-def _cross(u: torch.Tensor, v: torch.Tensor) -> torch.Tensor:
-    """u x v of component-major vectors (3, ...)."""
-    return torch.stack([u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]])
