@@ -1,7 +1,8 @@
 """The collision push-out and its strain limit (:mod:`hrr_garment.inference.collision`,
 :mod:`hrr_garment.inference.strain_limit`) as a PyTorch module that ONNX can hold, the last stage of
-:class:`~.torch_step.StreamStep`: the push's round and projections under conditionals (ONNX ``If``,
-skipped when nothing is inside), the strain limit's passes as a loop (ONNX ``Loop``) while a
+:class:`~.torch_step.StreamStep`: the push's round under a conditional (ONNX ``If``, skipped when
+nothing is within the margin) and its projections as a loop (ONNX ``Loop``, while a point is inside,
+the body measured in it again where a step moved the cloth), the strain limit's passes as a loop (ONNX ``Loop``) while a
 character still has an over-long edge, each character stopping on its own, as the package stops
 each frame. With the push in the garment's subspace first where the run asks for it
 (:class:`~.torch_subspace_push.SubspacePushStage`).
@@ -120,30 +121,32 @@ class PushOutStage(nn.Module):
         where a push reads them) and zero elsewhere (:func:`capsule_distance_within`); ``p``, ``a``,
         ``b`` relative to the pelvis keep them to metres. On the visible mesh, ``a`` and ``b`` are
         the joints' moves (:meth:`forward`) and the distance and normal the skin's within the
-        margin of its hulls (beyond it the hulls' distance and a zero normal), ``surface`` the
-        characters' posed skin (:meth:`~.SkinColliderGraph.surface`, made once a push).
+        margin of its hulls (beyond it the hulls' distance and a zero normal: :meth:`_start`),
+        ``surface`` the characters' posed skin (:meth:`~.SkinColliderGraph.surface`).
         ``radii``: (N, 1, C) each character's (a limb let go of: very negative; None: the body's)."""
         if self.skin is not None:
-            if self.hulls is None:  # every point measured
-                rows = torch.arange(p.shape[0] * p.shape[1], device=p.device)
-                beyond = torch.zeros_like(p[..., 0])
-            else:  # beyond the margin of every hull the hulls' distance, as the package's push-out takes
-                # it (``radii``: the hulls' ends and radii, (N, C, 7)); the skin measured within it alone
-                # (their normals never read: no push moves a point farther than the margin)
-                beyond = capsule_depths(p, radii[..., :3], radii[..., 3:6], radii=radii[..., 6][:, None])
-                rows = torch.nonzero((beyond <= self.settings.margin).reshape(-1))[:, 0]
-            d, n = self.skin.query_rows(
-                torch.index_select(p.reshape(-1, 3), 0, rows),
-                torch.div(rows, p.shape[1], rounding_mode="floor"),
-                a,
-                b,
-                surface=surface,
-            )
-            normal = torch.zeros_like(p).reshape(-1, 3).index_copy(0, rows, n).reshape(p.shape)
-            return beyond.reshape(-1).index_copy(0, rows, d).reshape(beyond.shape), normal
+            d, n, pending = self._start(p, a, b, radii)
+            rows = torch.nonzero(pending.reshape(-1))[:, 0]
+            return self._measured(p, rows, d, n, a, b, radii, *surface)[1:]
         within = self.settings.margin if within is None else within
         radii = self.radii if radii is None else radii
         return capsule_distance_within(p, a, b, radii=radii, within=within)
+
+    def _start(self, p: torch.Tensor, a: torch.Tensor, b: torch.Tensor, radii: torch.Tensor) -> tuple:
+        """What a push starts from: the distances (N, V), normals (N, V, 3) and the vertices (N, V)
+        its next measure takes. The capsules are measured here, at once. On the visible mesh, beyond the
+        margin of every hull the hulls' distance is the distance, as the package's push-out takes it
+        (``radii``: the hulls' ends and radii, (N, C, 7)); the skin is left to be measured at the
+        vertices within it (their normals never read until then: no push moves a point farther
+        than the margin), in the push's loop, so that the skin's graph is traced once."""
+        if self.skin is None:  # (the points inside: what a push without rounds projects first)
+            d, n = self.distance(p, a, b, radii)
+            return d, n, d < 0
+        if self.hulls is None:  # every point measured
+            beyond = torch.zeros_like(p[..., 0])
+        else:
+            beyond = capsule_depths(p, radii[..., :3], radii[..., 3:6], radii=radii[..., 6][:, None])
+        return beyond, torch.zeros_like(p), beyond <= self.settings.margin
 
     def smooth(self, disp: torch.Tensor) -> torch.Tensor:
         """One pass of the mean over each vertex's neighbours, vertex-major (V, ...)."""
@@ -153,49 +156,52 @@ class PushOutStage(nn.Module):
     def push(
         self, p: torch.Tensor, a: torch.Tensor, b: torch.Tensor, radii: torch.Tensor, *surface: torch.Tensor
     ) -> torch.Tensor:
-        """``surface``: on the visible mesh, the characters' posed skin's tensors (made once a push)."""
-        d, n = self.distance(p, a, b, radii, surface=surface)
-        for _ in range(self.settings.rounds):
-            p, d, n = _when((d < self.settings.margin).any(), self._round, (p, d, n, a, b, radii, *surface))
-        # exact projections, again where a push landed in another capsule, while a vertex is inside,
-        # on the points inside after the rounds alone (a projection moves only points inside, so a
-        # point outside then never moves, nor comes inside): exported as an ONNX Loop, so that its
-        # measure is traced once (a character's skin graph traced once a projection made the export
-        # 2.5 minutes), run as the same steps in Python. On the skin each point is measured against
-        # its character's skin as the push posed it.
-        rows = torch.nonzero((d < 0).reshape(-1))[:, 0]
-        character = torch.div(rows, p.shape[1], rounding_mode="floor")
-        own = self._per_point(character, a, b, radii, *surface)
-        points = torch.index_select(p.reshape(-1, 3), 0, rows)
-        state = (
-            torch.zeros((), dtype=torch.int64, device=p.device),
-            points,
-            torch.index_select(d.reshape(-1), 0, rows),
-            torch.index_select(n.reshape(-1, 3), 0, rows),
-        )
+        """``surface``: on the visible mesh, the characters' posed skin's tensors (made once a push).
 
-        def projecting(k, q, dq, nq):
-            return (k < PROJECTIONS) & (dq < 0).any()
+        The body measured (on the skin: at the vertices within its hulls' margin), the rounds of
+        push-and-spread, then one loop (an ONNX ``Loop`` when exporting, the same steps in Python
+        when running) that measures the body again at the vertices the step before moved and
+        projects those still inside out to the margin, at most :data:`PROJECTIONS` times, while a
+        point is inside. The measure after the rounds and after each projection is one traced
+        graph: a character's skin graph traced apart for each made the export of its step minutes
+        longer (and a conditional inside the loop does not export)."""
+        d, n, pending = self._start(p, a, b, radii)
+        for r in range(self.settings.rounds):
+            if r or self.skin is not None:  # the capsules' start measured every vertex
+                p, d, n = self._measured(
+                    p, torch.nonzero(pending.reshape(-1))[:, 0], d, n, a, b, radii, *surface
+                )
+            p, pending = _when((d < self.settings.margin).any(), self._round, (p, d, n))
+        state = (torch.zeros((), dtype=torch.int64, device=p.device), p, d, n, pending)
 
-        def project(k, q, dq, nq):
-            inside = dq < 0
-            q = q + torch.where(inside, self.settings.margin - dq, torch.zeros_like(dq))[:, None] * nq
-            dk, nk = self._point_distance(q, own)
-            return k + 1, q, torch.where(inside, dk, dq), torch.where(inside[:, None], nk, nq)
+        def projecting(k, p, d, n, pending):
+            return pending.any()
+
+        def project(k, p, d, n, pending):
+            rows = torch.nonzero(pending.reshape(-1))[:, 0]
+            p, d, n = self._measured(p, rows, d, n, a, b, radii, *surface)
+            # the points inside moved out to the margin along their normals, while projections remain
+            # (a projection moves only points inside, so a point outside never moves, nor comes inside)
+            inside = (d < 0) & (k < PROJECTIONS)
+            rows = torch.nonzero(inside.reshape(-1))[:, 0]
+            lift = (self.settings.margin - torch.index_select(d.reshape(-1), 0, rows))[:, None]
+            moved = torch.index_select(p.reshape(-1, 3), 0, rows) + lift * torch.index_select(
+                n.reshape(-1, 3), 0, rows
+            )
+            return k + 1, p.reshape(-1, 3).index_copy(0, rows, moved).reshape(p.shape), d, n, inside
 
         if torch.compiler.is_compiling():
-            points = while_loop(projecting, project, state)[1]
-        else:
-            while bool(projecting(*state)):
-                state = project(*state)
-            points = state[1]
-        return p.reshape(-1, 3).index_copy(0, rows, points).reshape(p.shape)
+            return while_loop(projecting, project, state)[1]
+        while bool(projecting(*state)):
+            state = project(*state)
+        return state[1]
 
-    def _round(self, p, d, n, a, b, radii, *surface):
-        """A push along the normals, spread to the neighbours, never below what is needed. In
-        (V, 3, N): a vertex's rows whole for the smoothing's gathers and scatter-adds, and no
-        product broadcast over a last axis of 3 (which onnxruntime runs an element triple at a
-        time)."""
+    def _round(self, p, d, n) -> tuple[torch.Tensor, torch.Tensor]:
+        """A push along the normals, spread to the neighbours, never below what is needed -> the
+        points and the vertices it moved (N, V), whose distances no longer stand. In (V, 3, N): a
+        vertex's rows whole for the smoothing's gathers and scatter-adds, and no product broadcast
+        over a last axis of 3 (which onnxruntime runs an element triple at a time). Nothing within
+        the margin: nothing moves."""
         need = torch.clamp(self.settings.margin - d, min=0.0).transpose(
             0, 1
         )  # vertex-major, as smooth takes it
@@ -214,10 +220,8 @@ class PushOutStage(nn.Module):
                 hit, torch.clamp(need - (disp * normals).sum(1), min=0.0), torch.zeros_like(need)
             )
             disp = disp + short[:, None] * normals
-        p = p + disp.permute(2, 0, 1)
-        # measured again only where the round moved the cloth: elsewhere the distance stands
-        moved = torch.nonzero((disp != 0).any(1).transpose(0, 1).reshape(-1))[:, 0]
-        return self._measured(p, moved, d, n, a, b, radii, *surface)
+        # the mask laid out as the projection's (a conditional's two branches must agree)
+        return p + disp.permute(2, 0, 1), (disp != 0).any(1).transpose(0, 1).contiguous()
 
     def _measured(self, p, rows, d, n, a, b, radii, *surface):
         """``p`` with its distances ``d`` (N, V) to the body and normals ``n`` (N, V, 3) measured
@@ -340,11 +344,18 @@ class PushOutStage(nn.Module):
 
 
 def _when(predicate: torch.Tensor, step, operands: tuple):
-    """``step(*operands)`` where ``predicate`` holds, else the points as they are: an ONNX ``If``
-    when exporting, a Python branch when running (torch.cond would compile every batch shape)."""
+    """``step(*operands)`` where ``predicate`` holds, else the points as they are and none moved: an
+    ONNX ``If`` when exporting, a Python branch when running (torch.cond would compile every batch
+    shape)."""
     if torch.compiler.is_compiling():
-        return torch.cond(predicate, step, _as_is, operands)
-    return step(*operands) if bool(predicate) else operands[:3]
+        return torch.cond(predicate, step, _unmoved, operands)
+    return step(*operands) if bool(predicate) else _unmoved(*operands)
+
+
+def _unmoved(p: torch.Tensor, d: torch.Tensor, n: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """The branch of a round with nothing within the margin (a conditional's outputs may not alias
+    its inputs)."""
+    return p.clone(), torch.zeros_like(d, dtype=torch.bool)
 
 
 def _when_released(predicate: torch.Tensor, step, operands: tuple):
@@ -358,8 +369,3 @@ def _when_released(predicate: torch.Tensor, step, operands: tuple):
 def _kept(p, a, b, radii, centre, vertices, pushed, out):
     """The branch with no limb let go (a conditional's outputs may not alias its inputs)."""
     return pushed.clone(), out.clone()
-
-
-def _as_is(p: torch.Tensor, d: torch.Tensor, n: torch.Tensor, *moves: torch.Tensor):
-    """The branch of a push step with nothing to move (a conditional's outputs may not alias its inputs)."""
-    return p.clone(), d.clone(), n.clone()
