@@ -1,10 +1,10 @@
 """The collision push-out and its strain limit (:mod:`hrr_garment.inference.collision`,
 :mod:`hrr_garment.inference.strain_limit`) as a PyTorch module that ONNX can hold, the last stage of
 :class:`~.torch_step.StreamStep`: the push's round under a conditional (ONNX ``If``, skipped when
-nothing is within the margin) and its projections as a loop (ONNX ``Loop``, while a point is inside,
-the body measured in it again where a step moved the cloth), the strain limit's passes as a loop (ONNX ``Loop``) while a
-character still has an over-long edge, each character stopping on its own, as the package stops
-each frame. With the push in the garment's subspace first where the run asks for it
+nothing is within the margin) and its projections as a loop (ONNX ``Loop``, while a point is
+inside, the body measured in it again where a step moved the cloth), the strain limit's passes as a
+loop while a character still has an over-long edge, each character stopping on its own, as the
+package stops each frame. With the push in the garment's subspace first where the run asks for it
 (:class:`~.torch_subspace_push.SubspacePushStage`).
 
 The body it pushes out of is the capsules posed by FK, or the mesh the viewer sees: a character's
