@@ -121,32 +121,21 @@ class PushOutStage(nn.Module):
         where a push reads them) and zero elsewhere (:func:`capsule_distance_within`); ``p``, ``a``,
         ``b`` relative to the pelvis keep them to metres. On the visible mesh, ``a`` and ``b`` are
         the joints' moves (:meth:`forward`) and the distance and normal the skin's within the
-        margin of its hulls (beyond it the hulls' distance and a zero normal: :meth:`_start`),
-        ``surface`` the characters' posed skin (:meth:`~.SkinColliderGraph.surface`).
+        margin of its hulls (beyond it the hulls' distance and a zero normal), ``surface`` the
+        characters' posed skin (:meth:`~.SkinColliderGraph.surface`).
         ``radii``: (N, 1, C) each character's (a limb let go of: very negative; None: the body's)."""
         if self.skin is not None:
-            d, n, pending = self._start(p, a, b, radii)
-            rows = torch.nonzero(pending.reshape(-1))[:, 0]
-            return self._measured(p, rows, d, n, a, b, radii, *surface)[1:]
+            if self.hulls is None:  # every point measured
+                beyond = torch.zeros_like(p[..., 0])
+            else:  # beyond the margin of every hull the hulls' distance, as the package's push-out takes
+                # it (``radii``: the hulls' ends and radii, (N, C, 7)); the skin measured within it alone
+                # (their normals never read: no push moves a point farther than the margin)
+                beyond = capsule_depths(p, radii[..., :3], radii[..., 3:6], radii=radii[..., 6][:, None])
+            within = beyond <= self.settings.margin
+            return self._measured(p, within, beyond, torch.zeros_like(p), a, b, radii, *surface)[1:]
         within = self.settings.margin if within is None else within
         radii = self.radii if radii is None else radii
         return capsule_distance_within(p, a, b, radii=radii, within=within)
-
-    def _start(self, p: torch.Tensor, a: torch.Tensor, b: torch.Tensor, radii: torch.Tensor) -> tuple:
-        """What a push starts from: the distances (N, V), normals (N, V, 3) and the vertices (N, V)
-        its next measure takes. The capsules are measured here, at once. On the visible mesh, beyond the
-        margin of every hull the hulls' distance is the distance, as the package's push-out takes it
-        (``radii``: the hulls' ends and radii, (N, C, 7)); the skin is left to be measured at the
-        vertices within it (their normals never read until then: no push moves a point farther
-        than the margin), in the push's loop, so that the skin's graph is traced once."""
-        if self.skin is None:  # (the points inside: what a push without rounds projects first)
-            d, n = self.distance(p, a, b, radii)
-            return d, n, d < 0
-        if self.hulls is None:  # every point measured
-            beyond = torch.zeros_like(p[..., 0])
-        else:
-            beyond = capsule_depths(p, radii[..., :3], radii[..., 3:6], radii=radii[..., 6][:, None])
-        return beyond, torch.zeros_like(p), beyond <= self.settings.margin
 
     def smooth(self, disp: torch.Tensor) -> torch.Tensor:
         """One pass of the mean over each vertex's neighbours, vertex-major (V, ...)."""
@@ -158,19 +147,18 @@ class PushOutStage(nn.Module):
     ) -> torch.Tensor:
         """``surface``: on the visible mesh, the characters' posed skin's tensors (made once a push).
 
-        The body measured (on the skin: at the vertices within its hulls' margin), the rounds of
-        push-and-spread, then one loop (an ONNX ``Loop`` when exporting, the same steps in Python
-        when running) that measures the body again at the vertices the step before moved and
-        projects those still inside out to the margin, at most :data:`PROJECTIONS` times, while a
-        point is inside. The measure after the rounds and after each projection is one traced
-        graph: a character's skin graph traced apart for each made the export of its step minutes
-        longer (and a conditional inside the loop does not export)."""
-        d, n, pending = self._start(p, a, b, radii)
+        The body measured (:meth:`distance`), the rounds of push-and-spread, then one loop (an ONNX
+        ``Loop`` when exporting, the same steps in Python when running) that measures the body again
+        at the vertices the step before moved and projects those still inside out to the margin, at
+        most :data:`PROJECTIONS` times, while a point is inside. The measure after the rounds and
+        after each projection is one traced graph: a character's skin graph traced apart for each
+        made the export of its step minutes longer (and a conditional inside the loop does not
+        export, so the first measure stays apart)."""
+        d, n = self.distance(p, a, b, radii, surface=surface)
+        pending = d < 0  # what a push without rounds projects first
         for r in range(self.settings.rounds):
-            if r or self.skin is not None:  # the capsules' start measured every vertex
-                p, d, n = self._measured(
-                    p, torch.nonzero(pending.reshape(-1))[:, 0], d, n, a, b, radii, *surface
-                )
+            if r:  # the round before moved these
+                p, d, n = self._measured(p, pending, d, n, a, b, radii, *surface)
             p, pending = _when((d < self.settings.margin).any(), self._round, (p, d, n))
         state = (torch.zeros((), dtype=torch.int64, device=p.device), p, d, n, pending)
 
@@ -178,8 +166,7 @@ class PushOutStage(nn.Module):
             return pending.any()
 
         def project(k, p, d, n, pending):
-            rows = torch.nonzero(pending.reshape(-1))[:, 0]
-            p, d, n = self._measured(p, rows, d, n, a, b, radii, *surface)
+            p, d, n = self._measured(p, pending, d, n, a, b, radii, *surface)
             # the points inside moved out to the margin along their normals, while projections remain
             # (a projection moves only points inside, so a point outside never moves, nor comes inside)
             inside = (d < 0) & (k < PROJECTIONS)
@@ -223,12 +210,13 @@ class PushOutStage(nn.Module):
         # the mask laid out as the projection's (a conditional's two branches must agree)
         return p + disp.permute(2, 0, 1), (disp != 0).any(1).transpose(0, 1).contiguous()
 
-    def _measured(self, p, rows, d, n, a, b, radii, *surface):
+    def _measured(self, p, moved, d, n, a, b, radii, *surface):
         """``p`` with its distances ``d`` (N, V) to the body and normals ``n`` (N, V, 3) measured
-        again at the flat (character x vertex) ``rows`` alone: a push moves a few vertices of a
-        frame, and measuring every vertex of every character again after it cost most of a crowd's
-        push-out in onnxruntime. The same distances (each point's depends on it and its own
-        character alone)."""
+        again at the vertices ``moved`` (N, V) alone: a push moves a few vertices of a frame, and
+        measuring every vertex of every character again after it cost most of a crowd's push-out
+        in onnxruntime. The same distances (each point's depends on it and its own character
+        alone)."""
+        rows = torch.nonzero(moved.reshape(-1))[:, 0]  # flat (character x vertex)
         character = torch.div(rows, p.shape[1], rounding_mode="floor")
         points = torch.index_select(p.reshape(-1, 3), 0, rows)
         dk, nk = self._point_distance(points, self._per_point(character, a, b, radii, *surface))
