@@ -16,7 +16,8 @@ import pytest
 import torch
 
 from hrr_garment.body.capsules import DEFAULT_BODY, frames_signed_distance
-from hrr_garment.body.mesh_distance import mesh_signed_distance, winding_inside, within_reach
+from hrr_garment.body.mesh_distance import mesh_signed_distance, within_reach
+from hrr_garment.body.mesh_inside import inside_deeper_than, mesh_inside
 from hrr_garment.body.skin_cells import skin_cells
 from hrr_garment.inference.collision import PushOutSettings, _push_frames, mean_operator, push_out
 from hrr_garment.inference.edge_limits import EdgeLimits
@@ -56,15 +57,11 @@ def skirt_frames():
 
 
 def _inside(visible, motion, frames, depth=SETTINGS.depth):
-    """(T,) the fraction of vertices more than ``depth`` inside the posed visible mesh, exactly."""
+    """(T,) the fraction of vertices more than ``depth`` inside the posed visible mesh, exactly (the
+    winding number, then the distance of the points inside alone)."""
     skin = visible.collider.body
     posed = skin.pose(motion.global_rotations, motion.joint_positions)
-    return np.array(
-        [
-            (mesh_signed_distance(f.astype(np.float64), p, skin.faces) < -depth).mean()
-            for f, p in zip(frames, posed)
-        ]
-    )
+    return inside_deeper_than(frames.astype(np.float64), posed, skin.faces, depth=depth).mean(-1)
 
 
 def test_the_hulls_hold_the_skin(visible):
@@ -97,15 +94,20 @@ def test_the_broad_phase_is_its_reference_and_culls_only_far_outside(visible, cl
         assert np.array_equal(cells.cells, reference.cells) and np.array_equal(cells.dims, reference.dims)
         points = rng.uniform(posed.min(0) - 0.1, posed.max(0) + 0.1, (3000, 3))
         far = cells.far(points)
-        signed = mesh_signed_distance(points, posed, skin.faces)
-        assert signed[far].min() > margin  # left out: outside the mesh and farther than the margin
-        assert far[signed > 0.05].mean() > 0.95  # and nearly every point 5 cm or more outside is left out
+        # the exact answers: the closed mesh's ray count (tests/body/test_mesh_inside.py: the winding
+        # number's) and every face within a reach tried
+        outside = ~mesh_inside(points, posed, skin.faces, closed=True)
+        # left out: outside the mesh and farther than the margin ...
+        assert (outside & ~within_reach(points, posed, skin.faces, reach=margin))[far].all()
+        # ... and nearly every point 5 cm or more outside is left out
+        assert far[outside & ~within_reach(points, posed, skin.faces, reach=0.05)].mean() > 0.95
 
 
 def test_the_kernels_broad_phase_leaves_out_exactly_the_points_far_outside(closed_visible):
-    """The push-out's own broad phase (the columns and a ray): a point is left out exactly where no
-    triangle lies within the margin and the winding number is 0, the reference's exact test, on
-    points all about the body and within a few millimetres of its skin."""
+    """The push-out's own broad phase (the columns and a ray along x): a point is left out exactly
+    where no triangle lies within the margin and it is outside the mesh (numpy's count along a ray of
+    another direction: on this closed mesh the winding number), on points all about the body and
+    within a few millimetres of its skin."""
     _kernel_or_skip()
     motion = synthesize("dance", 0.3, seed=4)
     skin, margin = closed_visible.collider.body, SETTINGS.margin
@@ -118,7 +120,7 @@ def test_the_kernels_broad_phase_leaves_out_exactly_the_points_far_outside(close
         points = np.concatenate([rng.uniform(posed.min(0) - 0.1, posed.max(0) + 0.1, (3000, 3)), on_skin])
         far = closed_visible.kernel.far_outside(posed, points, margin, COLUMN_M)
         near = within_reach(points, posed, skin.faces, reach=margin)
-        exact = ~near & ~winding_inside(points, posed, skin.faces)
+        exact = ~near & ~mesh_inside(points, posed, skin.faces, closed=True)  # the numpy ray count
         assert np.array_equal(far, exact)
         assert far.mean() > 0.3 and (~far).mean() > 0.3  # both answers given often
 
