@@ -24,7 +24,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import torch
@@ -95,6 +95,9 @@ class VisibleContacts:
     body: np.ndarray  # (frames,) int64 each frame's body row
     queries: tuple[Query | None, ...]
     envelopes: tuple[SkinEnvelope | None, ...]
+    # per body row, its frames' grown capsules as :meth:`grown` made them (a frame's pose never
+    # changes: made on its first batch and kept)
+    _grown: dict = field(default_factory=dict, compare=False, repr=False)
 
     @classmethod
     def of(
@@ -116,6 +119,29 @@ class VisibleContacts:
         """Per body row: whether it has a skin."""
         return [q is not None for q in self.queries]
 
+    def grown(self, row: int, frames: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The capsules of body ``row`` grown to hold its skin posed as the stored ``frames`` (n,) of
+        that body are (:meth:`~hrr_garment.body.skin_envelope.SkinEnvelope.grown`): ends (n, C, 3)
+        twice and radii (n, C). Each frame's made on the first batch that holds it and kept (the
+        same arrays, in float64): made every batch, they took a third of a contact phase."""
+        if row not in self._grown:
+            mine = np.flatnonzero(self.body == row)
+            slot = np.full(len(self.body), -1)
+            slot[mine] = np.arange(len(mine))
+            capsules = len(self.envelopes[row].body.radii)
+            made = (np.zeros((len(mine), capsules, 3)), np.zeros((len(mine), capsules, 3)))
+            self._grown[row] = (slot, np.zeros(len(mine), bool), *made, np.zeros((len(mine), capsules)))
+        slot, known, *capsules = self._grown[row]
+        at = slot[frames]
+        new = np.unique(at[~known[at]])
+        if len(new):
+            frame = np.flatnonzero(self.body == row)[new]
+            rot, pos = self.rotations[frame].astype(np.float64), self.positions[frame].astype(np.float64)
+            for kept, made in zip(capsules, self.envelopes[row].grown(rot, pos)):
+                kept[new] = made
+            known[new] = True
+        return tuple(kept[at] for kept in capsules)
+
     def distance(
         self, vertices: torch.Tensor, rows: torch.Tensor, *, fallback: torch.Tensor, reach_m: float
     ) -> torch.Tensor:
@@ -134,7 +160,7 @@ class VisibleContacts:
         grown = [None] * len(frames)  # each frame's capsules grown to hold its skin (none: ask every point)
         for row in np.unique(body[frames]) if np.isfinite(reach_m) else ():
             mine = np.flatnonzero(body[frames] == row)
-            for k, capsules in zip(mine, zip(*self.envelopes[row].grown(rot[mine], pos[mine]))):
+            for k, capsules in zip(mine, zip(*self.grown(row, rows_np[frames[mine]]))):
                 grown[k] = capsules
 
         def answer(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -124,7 +124,8 @@ def test_points_are_left_out_only_where_the_skin_is_farther_than_the_reach(bulgi
     """A point is left out where the capsules grown to hold the posed skin lie farther than the
     reach (tests/body/test_skin_envelope.py): it gets their distance, which is more than the reach
     and no more than the distance to the skin; every other point gets the collider's answer, or
-    the bound where that is positive and more (the collider's side wrong far from the skin)."""
+    the bound where that is positive and more (the collider's side wrong far from the skin). The
+    capsules grown for a frame are kept for its next batch, and answer the same."""
     ds, windows = bulging_dataset
     contacts = BodyContacts.of(ds, windows)
     dressed = ds.bodies["bulging"]
@@ -137,7 +138,12 @@ def test_points_are_left_out_only_where_the_skin_is_farther_than_the_reach(bulgi
     everywhere[rows] = world
     x = torch.from_numpy(to_body_frame(everywhere, motion)[rows])
     reach = 0.01
+    # two of the frames asked first: the call after keeps their grown capsules and makes the others'
+    contacts.distance(x[:2], torch.from_numpy(rows[:2]), reach_m=reach)
     left_out = contacts.distance(x, torch.from_numpy(rows), reach_m=reach).numpy()
+    # ... and a batch of frames all met before, in another order, gets the same answers
+    again = contacts.distance(x.flip(0), torch.from_numpy(rows[::-1].copy()), reach_m=reach).numpy()
+    assert np.array_equal(again, left_out[::-1])
     every = contacts.distance(x, torch.from_numpy(rows), reach_m=np.inf).numpy()
     a, b, radii = SkinEnvelope.of(skin, dressed.body).grown(rot, pos)
     bound = np.stack([capsule_signed_distance(w, *c)[0] for w, c in zip(world, zip(a, b, radii))])
