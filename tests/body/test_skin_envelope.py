@@ -3,6 +3,7 @@ of the skin's faces, their distance never exceeds the distance to the skin, and 
 the skin stands out of them (and its pieces are not carried out of them)."""
 
 import numpy as np
+import pytest
 
 from hrr_garment.body.capsules import DEFAULT_BODY, capsule_signed_distance
 from hrr_garment.body.mesh_distance import mesh_signed_distance
@@ -14,6 +15,7 @@ from .limb import BulgingMannequin
 BULGE_M = 0.05
 
 
+@pytest.mark.slow  # the exact distance to a 3,360-vertex skin: 8 s
 def test_grown_capsules_hold_the_posed_skin_and_bound_the_distance_to_it(rng):
     skin = BulgingMannequin(BULGE_M).skinned()
     envelope = SkinEnvelope.of(skin, DEFAULT_BODY)

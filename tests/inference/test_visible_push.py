@@ -190,6 +190,7 @@ def test_a_vertex_deep_inside_is_pushed_out_and_a_far_one_left(closed_visible):
     assert np.array_equal(out[0, 3:], points[0, 3:].astype(np.float32))
 
 
+@pytest.mark.slow  # the winding number of 27 frames: 20-25 s
 def test_the_cloth_ends_outside_the_visible_mesh(visible, skirt_frames):
     motion, skirt, frames = skirt_frames
     f32 = frames.astype(np.float32)

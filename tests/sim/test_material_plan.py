@@ -117,6 +117,7 @@ def test_validation_and_test_hold_out_whole_cloths():
     assert {n for n in cloth if cloth[n] in ("polyester", "cloth02")} <= set(split["test"])
 
 
+@pytest.mark.sim  # simulates a tiny dataset: 30-40 s
 def test_hrr_simulate_gives_each_sequence_its_cloth_and_the_dataset_records_it(tmp_path, capsys):
     """A preset of two fabrics and a drawn cloth, one a clip: each sequence simulated in its own
     (its part's stats and the dataset's ``material_of``), the choice recorded in the file's info; a

@@ -120,6 +120,7 @@ def test_a_dataset_on_a_body_with_a_skin_is_kept_out_of_the_skin(bulging_dataset
     assert (capsules > 0.015).all()
 
 
+@pytest.mark.slow  # 6 s
 def test_points_are_left_out_only_where_the_skin_is_farther_than_the_reach(bulging_dataset, rng):
     """A point is left out where the capsules grown to hold the posed skin lie farther than the
     reach (tests/body/test_skin_envelope.py): it gets their distance, which is more than the reach
