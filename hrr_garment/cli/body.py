@@ -8,7 +8,7 @@
     hrr-body info hero.json --model DIR --inside        # and how much cloth it puts inside the body
 
 ``make`` builds anny's body of that shape (the ``bodies`` extra; the first run builds its blend
-shapes, about a minute, cached under the workspace), fits the canonical skeleton's bone lengths and
+shapes, 20-30 s, cached under the workspace), fits the canonical skeleton's bone lengths and
 the collision capsules to it and writes body.json (docs/bodies.md), reporting its height and how
 closely the capsules follow its surface. ``fit`` does the same for your character: a skinned glTF /
 GLB's mesh in its bind pose and its skeleton's joints (Mixamo's names and the other known rigs,
@@ -164,12 +164,12 @@ def _mesh_note(record, character) -> str:
 
 
 def _announce_first_build() -> None:
-    """Say so before anny builds its blend shapes (about a minute, once), which shows no progress."""
+    """Say so before anny builds its blend shapes (20-30 s, once), which shows no progress."""
     from ..body.parametric import anny_cache, anny_cache_ready
 
     if not anny_cache_ready():
         print(
-            f"hrr-body: building the parametric body's blend shapes, once (about a minute on two cores; "
+            f"hrr-body: building the parametric body's blend shapes, once (20-30 s on two cores; "
             f"cached in {anny_cache()})",
             file=sys.stderr,
         )

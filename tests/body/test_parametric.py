@@ -8,9 +8,7 @@ import pytest
 
 pytest.importorskip("anny", reason="the bodies extra is not installed")
 
-pytestmark = (
-    pytest.mark.slow
-)  # anny builds its blend shapes once (about a minute), cached under the workspace
+pytestmark = pytest.mark.slow  # anny builds its blend shapes once (20-30 s), cached under the workspace
 
 from hrr_garment.body.parametric import BodyShape, parametric_body  # noqa: E402
 from hrr_garment.motion.skeleton import JOINT_INDEX  # noqa: E402
