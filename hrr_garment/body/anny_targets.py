@@ -53,7 +53,11 @@ def load_target(filename, vertices_count: int, world_transformation, dtype):
 def read_at_once(anny) -> Iterator[bool]:
     """anny's target reader replaced by :func:`load_target` within the block, where anny is the
     version it was written against; yields whether it was."""
-    if importlib.metadata.version("anny") != READER_VERSION:
+    try:
+        version = importlib.metadata.version("anny")
+    except importlib.metadata.PackageNotFoundError:  # importable, but not installed as a package
+        version = None
+    if version != READER_VERSION:
         yield False
         return
     full_model = importlib.import_module(f"{anny.__name__}.models.full_model")

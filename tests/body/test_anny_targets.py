@@ -71,3 +71,10 @@ def test_annys_reader_is_replaced_within_the_block_on_its_version_alone(monkeypa
     monkeypatch.setattr(anny_targets.importlib.metadata, "version", lambda name: "0.7.0")
     with read_at_once(anny) as replaced:
         assert not replaced and full_model.load_blend_shape is original
+
+    def not_installed(name):
+        raise anny_targets.importlib.metadata.PackageNotFoundError(name)
+
+    monkeypatch.setattr(anny_targets.importlib.metadata, "version", not_installed)
+    with read_at_once(anny) as replaced:
+        assert not replaced and full_model.load_blend_shape is original
