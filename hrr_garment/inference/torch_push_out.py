@@ -131,8 +131,8 @@ class PushOutStage(nn.Module):
                 # it (``radii``: the hulls' ends and radii, (N, C, 7)); the skin measured within it alone
                 # (their normals never read: no push moves a point farther than the margin)
                 beyond = capsule_depths(p, radii[..., :3], radii[..., 3:6], radii=radii[..., 6][:, None])
-            within = beyond <= self.settings.margin
-            return self._measured(p, within, beyond, torch.zeros_like(p), a, b, radii, *surface)[1:]
+            near = beyond <= self.settings.margin
+            return self._measured(p, near, beyond, torch.zeros_like(p), a, b, radii, *surface)[1:]
         within = self.settings.margin if within is None else within
         radii = self.radii if radii is None else radii
         return capsule_distance_within(p, a, b, radii=radii, within=within)

@@ -97,7 +97,7 @@ class VisibleContacts:
     envelopes: tuple[SkinEnvelope | None, ...]
     # per body row, its frames' grown capsules as :meth:`grown` made them (a frame's pose never
     # changes: made on its first batch and kept)
-    _grown: dict = field(default_factory=dict, compare=False, repr=False)
+    _grown: dict[int, "_GrownCapsules"] = field(default_factory=dict, compare=False, repr=False)
 
     @classmethod
     def of(
@@ -125,22 +125,17 @@ class VisibleContacts:
         twice and radii (n, C). Each frame's made on the first batch that holds it and kept (the
         same arrays, in float64): made every batch, they took a third of a contact phase."""
         if row not in self._grown:
-            mine = np.flatnonzero(self.body == row)
-            slot = np.full(len(self.body), -1)
-            slot[mine] = np.arange(len(mine))
-            capsules = len(self.envelopes[row].body.radii)
-            made = (np.zeros((len(mine), capsules, 3)), np.zeros((len(mine), capsules, 3)))
-            self._grown[row] = (slot, np.zeros(len(mine), bool), *made, np.zeros((len(mine), capsules)))
-        slot, known, *capsules = self._grown[row]
-        at = slot[frames]
-        new = np.unique(at[~known[at]])
+            self._grown[row] = _GrownCapsules.empty(self.body == row, len(self.envelopes[row].body.radii))
+        kept = self._grown[row]
+        at = kept.slot[frames]
+        new = np.unique(at[~kept.known[at]])
         if len(new):
-            frame = np.flatnonzero(self.body == row)[new]
+            frame = kept.frames[new]
             rot, pos = self.rotations[frame].astype(np.float64), self.positions[frame].astype(np.float64)
-            for kept, made in zip(capsules, self.envelopes[row].grown(rot, pos)):
-                kept[new] = made
-            known[new] = True
-        return tuple(kept[at] for kept in capsules)
+            for held, made in zip(kept.capsules, self.envelopes[row].grown(rot, pos)):
+                held[new] = made
+            kept.known[new] = True
+        return tuple(held[at] for held in kept.capsules)
 
     def distance(
         self, vertices: torch.Tensor, rows: torch.Tensor, *, fallback: torch.Tensor, reach_m: float
@@ -186,6 +181,26 @@ class VisibleContacts:
 
         picked = torch.from_numpy(frames)
         return fallback.index_copy(0, picked, signed_distance(vertices[picked], answer))
+
+
+@dataclass(frozen=True)
+class _GrownCapsules:
+    """One body's frames' grown capsules (:meth:`VisibleContacts.grown`), those made so far."""
+
+    frames: np.ndarray  # (n,) the body's stored frames
+    slot: np.ndarray  # (all frames,) each of them at its place in ``frames`` (-1: another body's)
+    known: np.ndarray  # (n,) bool, which are made
+    capsules: tuple[np.ndarray, np.ndarray, np.ndarray]  # ends (n, C, 3) twice and radii (n, C)
+
+    @classmethod
+    def empty(cls, mine: np.ndarray, capsules: int) -> "_GrownCapsules":
+        """None made yet, for the frames ``mine`` (all frames,) bool of a body of ``capsules``."""
+        frames = np.flatnonzero(mine)
+        slot = np.full(len(mine), -1)
+        slot[frames] = np.arange(len(frames))
+        n = len(frames)
+        ends = (np.zeros((n, capsules, 3)), np.zeros((n, capsules, 3)))
+        return cls(frames, slot, np.zeros(n, bool), (*ends, np.zeros((n, capsules))))
 
 
 def _capsule_distance(points: np.ndarray, a: np.ndarray, b: np.ndarray, radii: np.ndarray) -> np.ndarray:
