@@ -125,17 +125,21 @@ class PushOutStage(nn.Module):
         characters' posed skin (:meth:`~.SkinColliderGraph.surface`).
         ``radii``: (N, 1, C) each character's (a limb let go of: very negative; None: the body's)."""
         if self.skin is not None:
-            if self.hulls is None:  # every point measured
-                beyond = torch.zeros_like(p[..., 0])
-            else:  # beyond the margin of every hull the hulls' distance, as the package's push-out takes
-                # it (``radii``: the hulls' ends and radii, (N, C, 7)); the skin measured within it alone
-                # (their normals never read: no push moves a point farther than the margin)
-                beyond = capsule_depths(p, radii[..., :3], radii[..., 3:6], radii=radii[..., 6][:, None])
+            beyond = self._beyond(p, radii)
             near = beyond <= self.settings.margin
             return self._measured(p, near, beyond, torch.zeros_like(p), a, b, radii, *surface)[1:]
         within = self.settings.margin if within is None else within
         radii = self.radii if radii is None else radii
         return capsule_distance_within(p, a, b, radii=radii, within=within)
+
+    def _beyond(self, p: torch.Tensor, radii: torch.Tensor) -> torch.Tensor:
+        """(N, V) on the visible mesh, the hulls' distance, as the package's push-out takes it beyond
+        the margin of every hull (``radii``: the hulls' ends and radii, (N, C, 7)); the skin is measured
+        within it alone (their normals never read: no push moves a point farther than the margin).
+        Without hulls 0: every point measured."""
+        if self.hulls is None:
+            return torch.zeros_like(p[..., 0])
+        return capsule_depths(p, radii[..., :3], radii[..., 3:6], radii=radii[..., 6][:, None])
 
     def smooth(self, disp: torch.Tensor) -> torch.Tensor:
         """One pass of the mean over each vertex's neighbours, vertex-major (V, ...)."""
@@ -150,38 +154,73 @@ class PushOutStage(nn.Module):
         The body measured (:meth:`distance`), the rounds of push-and-spread, then one loop (an ONNX
         ``Loop`` when exporting, the same steps in Python when running) that measures the body again
         at the vertices the step before moved and projects those still inside out to the margin, at
-        most :data:`PROJECTIONS` times, while a point is inside. The measure after the rounds and
-        after each projection is one traced graph: a character's skin graph traced apart for each
-        made the export of its step minutes longer (and a conditional inside the loop does not
-        export, so the first measure stays apart)."""
-        d, n = self.distance(p, a, b, radii, surface=surface)
+        most :data:`PROJECTIONS` times, while a point is inside. On the visible mesh the first measure
+        and the rounds are that loop's first steps too (:meth:`_skin_push`)."""
+        if self.skin is not None:
+            return self._skin_push(p, a, b, radii, *surface)
+        d, n = self.distance(p, a, b, radii)
         pending = d < 0  # what a push without rounds projects first
         for r in range(self.settings.rounds):
             if r:  # the round before moved these
-                p, d, n = self._measured(p, pending, d, n, a, b, radii, *surface)
+                p, d, n = self._measured(p, pending, d, n, a, b, radii)
             p, pending = _when((d < self.settings.margin).any(), self._round, (p, d, n))
         state = (torch.zeros((), dtype=torch.int64, device=p.device), p, d, n, pending)
 
-        def projecting(k, p, d, n, pending):
-            return pending.any()
-
         def project(k, p, d, n, pending):
-            p, d, n = self._measured(p, pending, d, n, a, b, radii, *surface)
-            # the points inside moved out to the margin along their normals, while projections remain
-            # (a projection moves only points inside, so a point outside never moves, nor comes inside)
-            inside = (d < 0) & (k < PROJECTIONS)
-            rows = torch.nonzero(inside.reshape(-1))[:, 0]
-            lift = (self.settings.margin - torch.index_select(d.reshape(-1), 0, rows))[:, None]
-            moved = torch.index_select(p.reshape(-1, 3), 0, rows) + lift * torch.index_select(
-                n.reshape(-1, 3), 0, rows
-            )
-            return k + 1, p.reshape(-1, 3).index_copy(0, rows, moved).reshape(p.shape), d, n, inside
+            p, d, n = self._measured(p, pending, d, n, a, b, radii)
+            projected, inside = self._projected(p, d, n, k < PROJECTIONS)
+            return k + 1, projected, d, n, inside
 
-        if torch.compiler.is_compiling():
-            return while_loop(projecting, project, state)[1]
-        while bool(projecting(*state)):
-            state = project(*state)
-        return state[1]
+        return _loop(project, state)[1]
+
+    def _skin_push(self, p, a, b, radii, *surface) -> torch.Tensor:
+        """:meth:`push` on the visible mesh, its every measure of the skin in one loop: the first
+        step measures the points within the margin of a hull (beyond it the hull's distance stands),
+        the rounds follow it, each measuring what the one before moved, then the projections. Each
+        step computes a round and a projection and keeps the one its count asks for (a conditional
+        inside the loop does not export): the skin's graph is then traced once, not once before the
+        loop and again inside it, which took a quarter of a character's step's export."""
+        beyond = self._beyond(p, radii)
+        rounds = self.settings.rounds
+        state = (
+            torch.zeros((), dtype=torch.int64, device=p.device),
+            p,
+            beyond,
+            torch.zeros_like(p),
+            beyond <= self.settings.margin,
+        )
+
+        def step(k, p, d, n, pending):
+            p, d, n = self._measured(p, pending, d, n, a, b, radii, *surface)
+            if not torch.compiler.is_compiling():  # running: the step its count asks for alone
+                p, moved = (
+                    self._round(p, d, n) if k < rounds else self._projected(p, d, n, k < rounds + PROJECTIONS)
+                )
+                return k + 1, p, d, n, moved
+            pushed, spread_moved = self._round(p, d, n)
+            projected, inside = self._projected(p, d, n, k < rounds + PROJECTIONS)
+            spread = k < rounds
+            return (
+                k + 1,
+                torch.where(spread, pushed, projected),
+                d,
+                n,
+                (spread & spread_moved) | (~spread & inside),  # onnxruntime has no Where of booleans
+            )
+
+        return _loop(step, state)[1]
+
+    def _projected(self, p, d, n, more: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """The points inside moved out to the margin along their normals where ``more`` projections
+        remain (a projection moves only points inside, so a point outside never moves, nor comes
+        inside) -> the points and the ones it moved."""
+        inside = (d < 0) & more
+        rows = torch.nonzero(inside.reshape(-1))[:, 0]
+        lift = (self.settings.margin - torch.index_select(d.reshape(-1), 0, rows))[:, None]
+        moved = torch.index_select(p.reshape(-1, 3), 0, rows) + lift * torch.index_select(
+            n.reshape(-1, 3), 0, rows
+        )
+        return p.reshape(-1, 3).index_copy(0, rows, moved).reshape(p.shape), inside
 
     def _round(self, p, d, n) -> tuple[torch.Tensor, torch.Tensor]:
         """A push along the normals, spread to the neighbours, never below what is needed -> the
@@ -329,6 +368,20 @@ class PushOutStage(nn.Module):
         limited = self.strain(again + centre, vertices)
         moved = (radii < self.radii).any(-1)  # (N, 1): a character that let go of a limb
         return torch.where(moved[..., None], again, pushed), torch.where(moved[..., None], limited, out)
+
+
+def _loop(step, state: tuple) -> tuple:
+    """``step`` while the last of ``state`` (a mask of points still to measure) has any: an ONNX
+    ``Loop`` when exporting, a Python loop when running."""
+
+    def pending(*state):
+        return state[-1].any()
+
+    if torch.compiler.is_compiling():
+        return while_loop(pending, step, state)
+    while bool(pending(*state)):
+        state = step(*state)
+    return state
 
 
 def _when(predicate: torch.Tensor, step, operands: tuple):
