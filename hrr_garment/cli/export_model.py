@@ -92,6 +92,7 @@ def _parser() -> argparse.ArgumentParser:
         metavar="CLIP",
         help="stream this motion file through the graph and the Python stream and compare",
     )
+    p.add_argument("--quiet", action="store_true", help="no progress bar (the export's stages and its clock)")
     return p
 
 
@@ -128,6 +129,7 @@ def _main(argv: Sequence[str] | None) -> int:
         push=args.push,
         push_body=args.push_body,
         material=args.material,
+        progress=not args.quiet,
         **drawing,
     )
     size = written.graph.stat().st_size / 2**20

@@ -55,9 +55,8 @@ def _onnx(run: MakeRun, outputs: Path, model_key: str) -> None:
     if run.record.current("onnx", model_key) and graph.exists():
         return
     with run.progress.stage("onnx") as t:
-        command = _call(
-            export_model, ["--model", run.model, "--onnx", "-o", graph, "--body", _character(run)]
-        )
+        argv = ["--model", run.model, "--onnx", "-o", graph, "--body", _character(run)]
+        command = _call(export_model, argv + ([] if run.request.progress else ["--quiet"]))
     run.record.finish("onnx", model_key, t.seconds, {"command": "hrr-export-model " + command})
 
 

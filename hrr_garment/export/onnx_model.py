@@ -39,6 +39,7 @@ from ..models.sampler import characters_noise
 from ..motion.motion import FPS, Motion
 from ..motion.poses import motion_to_poses
 from ..motion.skeleton import JOINT_NAMES, NUM_JOINTS
+from .stage_progress import stage_progress
 
 INPUTS = ("rotations", "root")
 # a model across cloths' graph: each character's cloth values (N, 5) after the poses
@@ -58,6 +59,8 @@ TENSORS = {
     "database_start": "(M,) int32 its first frame in that sequence",
 }
 OPSET = 18
+# what an export's progress bar names: torch's trace of the step (most of the time), its optimiser, the files
+EXPORT_STAGES = ("tracing the step", "optimising the graph", "writing")
 
 
 @dataclass(frozen=True)
@@ -103,7 +106,9 @@ def tensors_path(graph: str | Path) -> Path:
     return graph.with_name(f"{graph.stem}.tensors.npz")
 
 
-def export_onnx(animator, path: str | Path, settings: RunSettings | None = None, **changes) -> OnnxExport:
+def export_onnx(
+    animator, path: str | Path, settings: RunSettings | None = None, *, progress: bool = False, **changes
+) -> OnnxExport:
     """Write ``path`` (.onnx, one file) and its companion ``<stem>.tensors.npz``, atomically, for the
     run ``settings`` ask (:class:`~hrr_garment.inference.run_settings.RunSettings`, with keyword
     ``changes``, as :meth:`~hrr_garment.inference.animator.Animator.animate` takes them; the mode is
@@ -111,7 +116,8 @@ def export_onnx(animator, path: str | Path, settings: RunSettings | None = None,
     engine's white noise in): its ``body`` (None: the model's own), ``push_out``, ``decoder``
     ("full": the mesh decoder's folded kernels, or "fast": the subspace decoder, a graph a fraction
     of the size and a step a fraction of the time) and ``push`` ("mesh", or "subspace": the push
-    along the fast decoder's components first, fewer tears)."""
+    along the fast decoder's components first, fewer tears). ``progress``: a bar of the export's
+    stages, its clock running through torch's trace (a minute to a few on a CPU)."""
     onnx = _require_onnx()
     path = Path(path)
     require_suffix(path, (".onnx",), "an ONNX model")
@@ -122,27 +128,43 @@ def export_onnx(animator, path: str | Path, settings: RunSettings | None = None,
     asked = changes.get("mode", None if settings is None else settings.mode)
     mode = Mode.SAMPLE if asked == Mode.SAMPLE else Mode.REGRESSION  # a str enum: the name too
     run = animator.resolve(settings, **{**changes, "mode": mode, "causal": True})
-    frame_path = FramePath(animator, run)
-    step = stream_step(frame_path)
-    shapes, noise = state_shapes(step), noise_shape(step)
-    example = _example_inputs(shapes, noise, 2, frame_path.cloth)
-    n = torch.export.Dim("characters", min=1, max=4096)
-    dynamic = (tuple({0: n} for _ in example),)  # the inputs, one tuple (GraphInputs' *inputs)
-    with torch.no_grad(), _quiet():
-        program = torch.onnx.export(
-            GraphInputs(step, list(example)),
-            tuple(torch.from_numpy(x) for x in example.values()),
-            dynamo=True,
-            input_names=list(example),
-            output_names=list(OUTPUTS) + [f"next_{name}" for name in shapes if name not in STATE],
-            dynamic_shapes=dynamic,
-            opset_version=OPSET,
-            optimize=False,  # _optimise's one pass instead: the same graph in a fraction of the time
-            verbose=False,
-        )
-        _optimise(program.model)
-    model = program.model_proto
-    bundle = animator.bundle
+    with stage_progress(EXPORT_STAGES, desc=f"ONNX export of {path.name}", enabled=progress) as stage:
+        stage(EXPORT_STAGES[0])
+        frame_path = FramePath(animator, run)
+        step = stream_step(frame_path)
+        shapes, noise = state_shapes(step), noise_shape(step)
+        example = _example_inputs(shapes, noise, 2, frame_path.cloth)
+        n = torch.export.Dim("characters", min=1, max=4096)
+        dynamic = (tuple({0: n} for _ in example),)  # the inputs, one tuple (GraphInputs' *inputs)
+        with torch.no_grad(), _quiet():
+            program = torch.onnx.export(
+                GraphInputs(step, list(example)),
+                tuple(torch.from_numpy(x) for x in example.values()),
+                dynamo=True,
+                input_names=list(example),
+                output_names=list(OUTPUTS) + [f"next_{name}" for name in shapes if name not in STATE],
+                dynamic_shapes=dynamic,
+                opset_version=OPSET,
+                optimize=False,  # _optimise's one pass instead: the same graph in a fraction of the time
+                verbose=False,
+            )
+            stage(EXPORT_STAGES[1])
+            _optimise(program.model)
+        stage(EXPORT_STAGES[2])
+        model = program.model_proto
+        for key, value in _metadata(animator.bundle, run, shapes, noise, frame_path.cloth).items():
+            entry = model.metadata_props.add()
+            entry.key, entry.value = key, value if isinstance(value, str) else strict_json(value)
+        with atomic_path(path) as tmp:
+            onnx.save_model(model, str(tmp))
+        _write_tensors(tensors, animator.bundle)
+    vertices = int(animator.bundle.template.num_vertices)
+    return OnnxExport(path, tensors, vertices, shapes, time.perf_counter() - t0, noise)
+
+
+def _metadata(bundle, run, shapes: dict, noise, cloth) -> dict:
+    """The graph's metadata (docs/export.md): what it animates and how, its state's shapes, the
+    sample mode's noise, a model across cloths' material input, and the terms of its motion."""
     meta = {
         "hrr_garment": __version__,
         "garment": bundle.garment,
@@ -165,17 +187,18 @@ def export_onnx(animator, path: str | Path, settings: RunSettings | None = None,
         meta["settle"] = run.settle
     if noise is not None:  # the white noise a frame takes per character, and the steps it is drawn in
         meta |= {"noise": list(noise), "sample_steps": run.sample_steps}
-    if frame_path.cloth is not None:  # the material input: what it holds and the cloth exported with
+    if cloth is not None:  # the material input: what it holds and the cloth exported with
         meta |= {
             "material": list(MATERIAL_FEATURES),
             "material_default": run.material.to_dict(),
             "material_range": bundle.material_range.to_dict(),
         }
-    for key, value in meta.items():
-        entry = model.metadata_props.add()
-        entry.key, entry.value = key, value if isinstance(value, str) else strict_json(value)
-    with atomic_path(path) as tmp:
-        onnx.save_model(model, str(tmp))
+    return meta
+
+
+def _write_tensors(tensors: Path, bundle) -> None:
+    """The graph's companion (atomically): the garment's faces, the joints' order and the database's
+    codes and latents, for a retrieval of an engine's own."""
     db = bundle.database
     with atomic_path(tensors) as tmp, open(tmp, "wb") as fh:
         np.savez(
@@ -187,9 +210,6 @@ def export_onnx(animator, path: str | Path, settings: RunSettings | None = None,
             database_sequence=np.asarray(db.sequence, np.int32),
             database_start=np.asarray(db.start, np.int32),
         )
-    return OnnxExport(
-        path, tensors, int(bundle.template.num_vertices), shapes, time.perf_counter() - t0, noise
-    )
 
 
 def _optimise(model) -> None:

@@ -234,11 +234,12 @@ def test_bad_requests_are_refused_with_the_reason(tmp_path, capsys):
 
 
 @pytest.mark.parametrize(
-    "flags", [["--push-body", "capsules"], ["--push-body", "visible"], [], ["--settle", "1.5"]]
+    "flags", [["--push-body", "capsules"], ["--push-body", "visible"], [], ["--settle", "1.5"], ["--quiet"]]
 )
 def test_the_command_exports_the_run_its_flags_ask(trained, tmp_path, monkeypatch, flags):
     """--push-body (with --decoder and --push) reaches the export: a request for the capsules
-    exported the visible mesh's push-out, at 60-280 x the native step's cost."""
+    exported the visible mesh's push-out, at 60-280 x the native step's cost. The export's progress
+    bar is shown unless --quiet."""
     from hrr_garment.export import onnx_model
 
     asked = {}
@@ -254,6 +255,7 @@ def test_the_command_exports_the_run_its_flags_ask(trained, tmp_path, monkeypatc
     assert asked["settle"] == (1.5 if "--settle" in flags else 0.0)
     assert asked["push_body"] == (flags[1] if flags[:1] == ["--push-body"] else None)  # None: the default
     assert asked["push_out"] is True and asked["decoder"] is None and asked["push"] is None
+    assert asked["progress"] is ("--quiet" not in flags)
 
 
 @pytest.fixture(scope="module")
