@@ -27,18 +27,18 @@ from typing import Sequence
 import numpy as np
 import torch
 
-from .._version import __version__
 from ..errors import InputError
-from ..garment.material_range import MATERIAL_FEATURES, MaterialRange, material_vector
+from ..garment.material_range import MaterialRange, material_vector
 from ..inference.frame_path import FramePath
 from ..inference.modes import Mode
 from ..inference.run_settings import DECODERS, PUSHES, RunSettings
 from ..inference.torch_step import SETTLE_STATE, STATE, noise_shape, state_shapes, stream_step
-from ..io_utils import atomic_path, refuse_inputs_as_outputs, require_suffix, strict_json
+from ..io_utils import atomic_path, refuse_inputs_as_outputs, require_suffix
 from ..models.sampler import characters_noise
-from ..motion.motion import FPS, Motion
+from ..motion.motion import Motion
 from ..motion.poses import motion_to_poses
-from ..motion.skeleton import JOINT_NAMES, NUM_JOINTS
+from ..motion.skeleton import NUM_JOINTS
+from .onnx_record import TENSORS, graph_metadata, record_metadata, tensors_path, write_tensors
 from .stage_progress import stage_progress
 
 INPUTS = ("rotations", "root")
@@ -49,15 +49,6 @@ OUTPUTS = ("vertices", "entropy", "codes") + tuple(f"next_{name}" for name in ST
 # the sample mode's graph: its white noise input after the state, and its draw state after the
 # window's (and the settling lag's, where the graph has the lag)
 NOISE = "noise"
-# what the companion npz holds (docs/export.md says how a retrieval uses them)
-TENSORS = {
-    "faces": "(F, 3) int32 the garment's triangles",
-    "joint_names": "(22,) the joints of the rotations input, in order",
-    "database_codes": "(M, G) uint8 each database window's motion code (one class of K per group)",
-    "database_latents": "(M, nodes, C) float32 the simulated garment latents of each window's last frame",
-    "database_sequence": "(M,) int32 the simulated sequence each window comes from",
-    "database_start": "(M,) int32 its first frame in that sequence",
-}
 OPSET = 18
 # what an export's progress bar names: torch's trace of the step (most of the time), its optimiser, the files
 EXPORT_STAGES = ("tracing the step", "optimising the graph", "writing")
@@ -98,12 +89,6 @@ def initial_state(shapes: dict[str, tuple[int, ...]], characters: int) -> dict[s
     """Zeros of each state input for ``characters`` starting characters (``started`` 0: every
     other state input is then read as nothing before)."""
     return {name: np.zeros((characters, *shape), np.float32) for name, shape in shapes.items()}
-
-
-def tensors_path(graph: str | Path) -> Path:
-    """The companion file of the graph ``graph``: ``<stem>.tensors.npz`` beside it."""
-    graph = Path(graph)
-    return graph.with_name(f"{graph.stem}.tensors.npz")
 
 
 def export_onnx(
@@ -152,64 +137,14 @@ def export_onnx(
             _optimise(program.model)
         stage(EXPORT_STAGES[2])
         model = program.model_proto
-        for key, value in _metadata(animator.bundle, run, shapes, noise, frame_path.cloth).items():
-            entry = model.metadata_props.add()
-            entry.key, entry.value = key, value if isinstance(value, str) else strict_json(value)
+        record_metadata(
+            model, graph_metadata(animator.bundle, run, shapes=shapes, noise=noise, cloth=frame_path.cloth)
+        )
         with atomic_path(path) as tmp:
             onnx.save_model(model, str(tmp))
-        _write_tensors(tensors, animator.bundle)
+        write_tensors(tensors, animator.bundle)
     vertices = int(animator.bundle.template.num_vertices)
     return OnnxExport(path, tensors, vertices, shapes, time.perf_counter() - t0, noise)
-
-
-def _metadata(bundle, run, shapes: dict, noise, cloth) -> dict:
-    """The graph's metadata (docs/export.md): what it animates and how, its state's shapes, the
-    sample mode's noise, a model across cloths' material input, and the terms of its motion."""
-    meta = {
-        "hrr_garment": __version__,
-        "garment": bundle.garment,
-        "content_hash": bundle.content_hash,
-        "fps": FPS,
-        "push_out": bool(run.push_out),
-        "push": run.push,
-        "push_body": run.push_body,
-        "body": run.body.name,
-        "decoder": run.decoder,
-        "vertices": int(bundle.template.num_vertices),
-        "state": {k: list(v) for k, v in shapes.items()},
-        "path": run.mode.value,
-        # the graph holds the database's simulated windows and weights learned from the motion: its
-        # terms travel with it (motion/licences.py)
-        "motion_licence": bundle.manifest.licences.statement,
-        "commercial_use": bundle.manifest.licences.commercial,
-    }
-    if run.settle > 0:  # the settling lag the graph runs (its state ``settled``)
-        meta["settle"] = run.settle
-    if noise is not None:  # the white noise a frame takes per character, and the steps it is drawn in
-        meta |= {"noise": list(noise), "sample_steps": run.sample_steps}
-    if cloth is not None:  # the material input: what it holds and the cloth exported with
-        meta |= {
-            "material": list(MATERIAL_FEATURES),
-            "material_default": run.material.to_dict(),
-            "material_range": bundle.material_range.to_dict(),
-        }
-    return meta
-
-
-def _write_tensors(tensors: Path, bundle) -> None:
-    """The graph's companion (atomically): the garment's faces, the joints' order and the database's
-    codes and latents, for a retrieval of an engine's own."""
-    db = bundle.database
-    with atomic_path(tensors) as tmp, open(tmp, "wb") as fh:
-        np.savez(
-            fh,
-            faces=bundle.template.faces.astype(np.int32),
-            joint_names=np.array(JOINT_NAMES),
-            database_codes=np.asarray(db.codes, np.uint8),
-            database_latents=np.asarray(db.latents[np.arange(len(db)), -1], np.float32),
-            database_sequence=np.asarray(db.sequence, np.int32),
-            database_start=np.asarray(db.start, np.int32),
-        )
 
 
 def _optimise(model) -> None:

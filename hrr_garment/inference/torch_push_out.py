@@ -26,7 +26,6 @@ from __future__ import annotations
 import numpy as np
 import torch
 from torch import nn
-from torch._higher_order_ops.while_loop import while_loop
 
 from .collision import PROJECTIONS, RELEASE_PASSES, PushOutSettings
 from .limb_release import RELEASED_RADIUS, limb_capsules
@@ -36,7 +35,7 @@ from .torch_capsules import (
     per_point,
     point_capsule_distance,
 )
-from .torch_ops import constant
+from .torch_ops import constant, exportable_cond, exportable_while
 from .torch_strain_limit import StrainLimitStage
 from .torch_subspace_push import SubspacePushStage
 
@@ -163,7 +162,9 @@ class PushOutStage(nn.Module):
         for r in range(self.settings.rounds):
             if r:  # the round before moved these
                 p, d, n = self._measured(p, pending, d, n, a, b, radii)
-            p, pending = _when((d < self.settings.margin).any(), self._round, (p, d, n))
+            p, pending = exportable_cond(
+                (d < self.settings.margin).any(), self._round, _unmoved, operands=(p, d, n)
+            )
         state = (torch.zeros((), dtype=torch.int64, device=p.device), p, d, n, pending)
 
         def project(k, p, d, n, pending):
@@ -171,7 +172,7 @@ class PushOutStage(nn.Module):
             projected, inside = self._projected(p, d, n, k < PROJECTIONS)
             return k + 1, projected, d, n, inside
 
-        return _loop(project, state)[1]
+        return exportable_while(_pending, project, state)[1]
 
     def _skin_push(self, p, a, b, radii, *surface) -> torch.Tensor:
         """:meth:`push` on the visible mesh, its every measure of the skin in one loop: the first
@@ -208,7 +209,7 @@ class PushOutStage(nn.Module):
                 (spread & spread_moved) | (~spread & inside),  # onnxruntime has no Where of booleans
             )
 
-        return _loop(step, state)[1]
+        return exportable_while(_pending, step, state)[1]
 
     def _projected(self, p, d, n, more: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """The points inside moved out to the margin along their normals where ``more`` projections
@@ -339,7 +340,7 @@ class PushOutStage(nn.Module):
             held = self._held_limbs(repaired, p, a, b, radii)  # (N, C)
             radii = torch.where(held[:, None], torch.full_like(radii, RELEASED_RADIUS), radii)
             operands = (p, a, b, radii, centre, vertices, pushed, out)
-            pushed, out = _when_released(held.any(), self._released, operands)
+            pushed, out = exportable_cond(held.any(), self._released, _kept, operands=operands)
         return out
 
     def _capsule_ends(
@@ -370,41 +371,15 @@ class PushOutStage(nn.Module):
         return torch.where(moved[..., None], again, pushed), torch.where(moved[..., None], limited, out)
 
 
-def _loop(step, state: tuple) -> tuple:
-    """``step`` while the last of ``state`` (a mask of points still to measure) has any: an ONNX
-    ``Loop`` when exporting, a Python loop when running."""
-
-    def pending(*state):
-        return state[-1].any()
-
-    if torch.compiler.is_compiling():
-        return while_loop(pending, step, state)
-    while bool(pending(*state)):
-        state = step(*state)
-    return state
-
-
-def _when(predicate: torch.Tensor, step, operands: tuple):
-    """``step(*operands)`` where ``predicate`` holds, else the points as they are and none moved: an
-    ONNX ``If`` when exporting, a Python branch when running (torch.cond would compile every batch
-    shape)."""
-    if torch.compiler.is_compiling():
-        return torch.cond(predicate, step, _unmoved, operands)
-    return step(*operands) if bool(predicate) else _unmoved(*operands)
+def _pending(*state) -> torch.Tensor:
+    """Whether the last of a push loop's ``state``, its mask of points still to measure, has any."""
+    return state[-1].any()
 
 
 def _unmoved(p: torch.Tensor, d: torch.Tensor, n: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
     """The branch of a round with nothing within the margin (a conditional's outputs may not alias
     its inputs)."""
     return p.clone(), torch.zeros_like(d, dtype=torch.bool)
-
-
-def _when_released(predicate: torch.Tensor, step, operands: tuple):
-    """``step(*operands)`` where a character let go of a limb, else the last push and its limit as
-    they are (an ONNX ``If`` when exporting)."""
-    if torch.compiler.is_compiling():
-        return torch.cond(predicate, step, _kept, operands)
-    return step(*operands) if bool(predicate) else operands[-2:]
 
 
 def _kept(p, a, b, radii, centre, vertices, pushed, out):

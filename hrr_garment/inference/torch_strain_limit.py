@@ -20,10 +20,9 @@ from __future__ import annotations
 import numpy as np
 import torch
 from torch import nn
-from torch._higher_order_ops.while_loop import while_loop
 
 from .strain_limit import LIMIT_TOLERANCE_M, OVER_RELAXATION
-from .torch_ops import constant
+from .torch_ops import constant, exportable_while
 
 # Rings about a tear's ends whose edges the passes measure: on the real-quick jersey model through
 # CMU 02_01 (32 characters, 60 frames), the vertices the passes moved lay at most 1 ring from those
@@ -125,11 +124,7 @@ class StrainLimitStage(nn.Module):
                 p = p.index_add(0, ends, torch.cat([corr, -corr]))
             return passes + 1, p, active & (worst > LIMIT_TOLERANCE_M)  # a character stops on its own
 
-        if torch.compiler.is_compiling():  # exporting: an ONNX Loop
-            return while_loop(limiting, one_pass, state)[1]
-        while bool(limiting(*state)):  # running (a GPU crowd): no compile per batch shape
-            state = one_pass(*state)
-        return state[1]
+        return exportable_while(limiting, one_pass, state)[1]
 
     @staticmethod
     def _lengths(p: torch.Tensor, first: torch.Tensor, second: torch.Tensor) -> tuple[torch.Tensor, ...]:
