@@ -19,6 +19,7 @@ from ..io_utils import atomic_write_text, strict_json
 from ..pipeline.make_record import content_key
 
 if TYPE_CHECKING:
+    from ..motion.motion import Motion
     from .make_run import MakeRun
 
 STEP_FRAMES = 120  # streamed frames the report times the step on (the first 10 warm it)
@@ -125,13 +126,16 @@ def _report(run: MakeRun, outputs: Path, model_key: str) -> None:
         argv += [] if run.request.progress else ["--quiet"]
         command = _call(evaluate, [*argv, "--no-plots", "--ensemble", members, "-o", folder])
         step = _step_ms(run)
-    summary = _summary(folder / "report.json", step)
+        graph = outputs / f"{run.request.character.stem}.onnx"
+        graph_step = _graph_step_ms(run, graph) if graph.exists() else None
+    summary = _summary(folder / "report.json", step, graph_step)
     atomic_write_text(outputs / "summary.json", strict_json(summary, indent=2))
     run.record.finish("report", model_key, t.seconds, {"command": "hrr-eval " + command, **summary})
     print(
         f"held-out clips: PVE / floor {_number(summary['pve_over_floor'])}, cloth inside the body "
         f"before / after the push-out {_number(summary['inside_before_pct'])} / "
         f"{_number(summary['inside_after_pct'])} %; streamed step {summary['step_ms']:.2f} ms (median)"
+        + ("" if graph_step is None else f", its ONNX graph in onnxruntime {graph_step:.2f} ms")
     )
 
 
@@ -139,24 +143,47 @@ def _number(value) -> str:
     return "n/a" if value is None else f"{value:.3g}"
 
 
-def _step_ms(run: MakeRun) -> float:
-    """The median time of one streamed frame on the character's body, over a held-out clip."""
+def _timed_clip(run: MakeRun) -> "Motion":
+    """The held-out clip the report times a step on (the dataset's first test sequence)."""
     from ..data.dataset import GarmentDataset
-    from ..inference.animator import Animator
 
     ds = GarmentDataset(run.dataset)
-    motion = ds.sequence((ds.splits.get("test") or ds.names)[0]).motion
-    animator = Animator.load(run.model)
-    stream = animator.stream(body=animator.body(run.body_path))
+    return ds.sequence((ds.splits.get("test") or ds.names)[0]).motion
+
+
+def _median_ms(push, frames: int) -> float:
+    """The median milliseconds of ``push(frame)`` over ``frames`` frames, the first 10 warming it."""
     times = []
-    for frame in range(min(STEP_FRAMES, motion.num_frames)):
+    for frame in range(frames):
         t0 = time.perf_counter()
-        stream.push(motion.slice(frame, frame + 1))
+        push(frame)
         times.append(time.perf_counter() - t0)
     return float(1000 * np.median(times[10:] or times))
 
 
-def _summary(report: Path, step_ms: float) -> dict:
+def _step_ms(run: MakeRun) -> float:
+    """The median time of one streamed frame on the character's body, over a held-out clip."""
+    from ..inference.animator import Animator
+
+    motion = _timed_clip(run)
+    animator = Animator.load(run.model)
+    stream = animator.stream(body=animator.body(run.body_path))
+    return _median_ms(lambda t: stream.push(motion.slice(t, t + 1)), min(STEP_FRAMES, motion.num_frames))
+
+
+def _graph_step_ms(run: MakeRun, graph: Path) -> float:
+    """The same clip's frames through the ONNX graph written for the character, one character in
+    onnxruntime (what an engine runs): its median milliseconds a frame."""
+    from ..export.onnx_model import OnnxStream
+    from ..motion.poses import motion_to_poses
+
+    rotations, roots = motion_to_poses(_timed_clip(run))
+    stream = OnnxStream(graph)
+    frames = min(STEP_FRAMES, len(rotations))
+    return _median_ms(lambda t: stream.push(rotations[t : t + 1], roots[t : t + 1]), frames)
+
+
+def _summary(report: Path, step_ms: float, graph_step_ms: float | None = None) -> dict:
     """The report's headline numbers for the run's own summary."""
     data = json.loads(report.read_text(encoding="utf-8"))
     try:
@@ -172,5 +199,6 @@ def _summary(report: Path, step_ms: float) -> dict:
         "inside_after_pct": metrics.get("inside_visible_pct"),
         "push_limited_pct": metrics.get("push_limited_pct"),
         "step_ms": step_ms,
+        "onnx_step_ms": graph_step_ms,  # the written graph's step in onnxruntime (None: no graph written)
         "motion_licence": data.get("model", {}).get("motion_licence", {}).get("statement"),
     }

@@ -14,6 +14,7 @@ from dataclasses import replace
 from pathlib import Path
 
 from ..body.body_file import read_body, write_body
+from ..body.skinned_body import visible_body
 from ..errors import InputError
 from ..io_utils import atomic_write_text
 from ..pipeline.make_budget import (
@@ -237,6 +238,9 @@ class MakeRun:
             print("hrr-make: the library holds out no test clips: no report")
             outputs = tuple(s for s in outputs if s != "report")
 
+        # the graph written pushes the cloth out of the character's own mesh where it has one
+        own_mesh = visible_body(read_body(self.body_path)) is not None
+
         def plan_at(rate: float) -> BudgetPlan:
             return plan_budget(
                 request.budget_s,
@@ -245,6 +249,7 @@ class MakeRun:
                 clips=(len(self.own_motions) or SHOWCASE_CLIPS) if "clips" in outputs else 0,
                 outputs=outputs,
                 shares=self.shares,
+                mesh=own_mesh,
             )
 
         budget, chosen = sized_selection(

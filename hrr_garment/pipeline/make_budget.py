@@ -49,8 +49,12 @@ class BudgetShares:
     calibration_s_per_val_frame: float = 0.19
     # training's fixed cost: the code space's contact phase and the gate's calibration
     train_fixed_s: float = 120.0
-    # the ONNX graph for the character's body (72 s for a 1,028-vertex dress on a 615-vertex body)
+    # the ONNX graph for the character's body, its push-out against the capsules (72 s for a
+    # 1,028-vertex dress on a 615-vertex body) ...
     onnx_s: float = 90.0
+    # ... or against the character's own mesh, the graph then holding the mesh's collider (182 s for
+    # that dress on that body, 2-core AMD EPYC, 2026-12-07)
+    onnx_mesh_s: float = 180.0
     # each of the character's clips: animated, exported with the character, and the preview (4 s each
     # for 4 to 12 s clips)
     clip_s: float = 10.0
@@ -114,16 +118,18 @@ def plan_budget(
     clips: int,
     shares: BudgetShares,
     outputs: tuple[str, ...] = OUTPUT_STAGES,
+    mesh: bool = False,
 ) -> BudgetPlan:
     """The plan for ``budget_s`` seconds in all (see the module docstring). ``test_frames``: the held-out
     frames the report scores (simulated as part of the data, then ``shares.ensemble`` times more for
     their truth); ``clips``: the character's clips the outputs animate; ``outputs``: the output
-    stages made (the others are not paid for)."""
+    stages made (the others are not paid for); ``mesh``: whether the character has a mesh of its own,
+    which its ONNX graph pushes the cloth out of."""
     rate = start.sim_frames_per_s
     if rate <= 0:
         raise ValueError("the simulator's measured rate must be positive")
     costs = {
-        "onnx": shares.onnx_s,
+        "onnx": shares.onnx_mesh_s if mesh else shares.onnx_s,
         "clips": shares.clip_s * clips,
         "report": test_frames * (shares.ensemble / rate + shares.report_s_per_frame),
     }

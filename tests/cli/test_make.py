@@ -120,6 +120,7 @@ def test_a_run_writes_every_output_and_its_record(made):
     assert clips, "no clip exported"
     summary = json.loads((outputs / "summary.json").read_text())
     assert summary["pve_over_floor"] > 0 and summary["step_ms"] > 0
+    assert summary["onnx_step_ms"] > 0  # the graph written, timed in onnxruntime as an engine runs it
     assert summary["motion_licence"].startswith("may ship commercially")  # procedural motion only
     record = MakeRecord.open(out)
     assert list(record.stages) == ["body", "motions", "probe", "simulate", "train", "onnx", "clips", "report"]

@@ -32,6 +32,17 @@ def test_the_estimates_fill_the_budget():
     )
 
 
+def test_a_character_with_its_own_mesh_pays_for_its_longer_export():
+    """The graph of a character with a mesh holds the mesh's collider and exports for longer: its
+    plan holds that time and still fills the budget, with less left for the data."""
+    shares = BudgetShares()
+    capsules = plan_budget(3600, START, test_frames=0, clips=1, shares=shares)
+    mesh = plan_budget(3600, START, test_frames=0, clips=1, shares=shares, mesh=True)
+    assert capsules.estimates["onnx"] == shares.onnx_s and mesh.estimates["onnx"] == shares.onnx_mesh_s
+    assert mesh.total_s == pytest.approx(3600, abs=1.0)
+    assert mesh.sim_frames < capsules.sim_frames
+
+
 def test_a_faster_simulator_buys_more_frames_and_the_same_training():
     slow = plan_budget(3600, START, test_frames=0, clips=1, shares=BudgetShares())
     fast = plan_budget(3600, MeasuredStart(START.spent, 80.0), test_frames=0, clips=1, shares=BudgetShares())
