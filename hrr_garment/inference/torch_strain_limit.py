@@ -8,8 +8,11 @@ The passes measure the edges near a tear alone: those with an end within :data:`
 of an end of an edge over its limit in any torn character. Every other edge keeps its length as
 long as none of its ends moves, and was within its limit to begin with, so the passes do what
 passes over every edge do wherever no vertex beyond those rings moved; where one did (a correction
-carried that far), the passes run again over every edge. A single character's
-passes otherwise read and scatter every edge of the mesh, at onnxruntime's cost per row.
+carried that far), they stop at that pass and the passes run again over every edge, from the start.
+A single character's passes otherwise read and scatter every edge of the mesh, at onnxruntime's
+cost per row; and each pass costs onnxruntime a few microseconds a node whatever the crowd (a
+1,046-vertex dress, one character: 22 passes near the tears, then 19 over every edge, before the
+stop).
 
 Tensors are (V, 3, N): gathers and scatter-adds of whole vertex rows, the products broadcast over
 the characters and the lengths summed a coordinate plane at a time (onnxruntime broadcasts over a
@@ -64,14 +67,14 @@ class StrainLimitStage(nn.Module):
         # ... which correct every edge over its limit at all
         near = self._near((length > limit).any(1))
         limit = torch.index_select(limit, 1, torn)
-        limited = self._passes(start, limit, self._colour_lists(near))
-        # a vertex beyond the rings moved: its other edges were not measured; all of them, again
-        # (a second loop that runs no pass where none did: a conditional would lose the torn
-        # characters' count, which the export cannot then match to the limits')
-        strayed = ((limited != start).any(1).any(1) & ~near).any()
+        limited, strayed = self._passes(start, limit, self._colour_lists(near), near=near)
+        # a vertex beyond the rings moved (the near passes stop at the first pass that moves one):
+        # its other edges were not measured; all of them, again, from the start (a second loop that
+        # runs no pass where none did: a conditional would lose the torn characters' count, which
+        # the export cannot then match to the limits')
         again = torch.where(strayed, start, limited)
         skipped = torch.where(strayed, 0, self.passes)
-        limited = self._passes(again, limit, self._colour_lists(None), skipped)
+        limited = self._passes(again, limit, self._colour_lists(None), skipped)[0]
         return pushed.index_copy(2, torn, limited).permute(2, 0, 1)
 
     def _near(self, over: torch.Tensor) -> torch.Tensor:
@@ -98,20 +101,30 @@ class StrainLimitStage(nn.Module):
             lists.append((group, first, second, torch.cat([first, second])))
         return lists
 
-    def _passes(self, p: torch.Tensor, limit: torch.Tensor, lists, start=0) -> torch.Tensor:
+    def _passes(
+        self, p: torch.Tensor, limit: torch.Tensor, lists, start=0, near: torch.Tensor | None = None
+    ) -> tuple[torch.Tensor, torch.Tensor]:
         """The passes over the colours' ``lists`` on points (V, 3, K) from ``p``, each character until
         no edge is more than :data:`LIMIT_TOLERANCE_M` over its ``limit`` (E, K), at most
-        ``self.passes`` counting from ``start`` (a scalar tensor or an int)."""
+        ``self.passes`` counting from ``start`` (a scalar tensor or an int); with ``near`` (V,), the
+        vertices the lists' edges were chosen about, stopping after the first pass that moves a vertex
+        beyond them (their passes are then done again over every edge: on a dress of 1,046 vertices,
+        one character, a correction carried past the rings on most frames, after a score of wasted
+        passes). The points, and whether the passes stopped so."""
         state = (
             torch.zeros((), dtype=torch.int64, device=p.device) + start,
             p,
             torch.ones(p.shape[2], dtype=torch.bool, device=p.device),
+            torch.zeros((), dtype=torch.bool, device=p.device),
         )
+        # the vertices beyond the rings, as floats: an exported loop's body may not close over a
+        # boolean tensor, nor on the tensor it carries (so the start is a copy)
+        beyond = None if near is None else (~near).to(p.dtype)
 
-        def limiting(passes, p, active):
-            return (passes < self.passes) & active.any()
+        def limiting(passes, p, active, strayed):
+            return (passes < self.passes) & active.any() & ~strayed
 
-        def one_pass(passes, p, active):
+        def one_pass(passes, p, active, strayed):
             worst = torch.zeros_like(active, dtype=p.dtype)
             weight = active.to(p.dtype)
             for group, first, second, ends in lists:
@@ -122,9 +135,15 @@ class StrainLimitStage(nn.Module):
                 f = 0.5 * OVER_RELAXATION * excess / torch.clamp(length, min=1e-12)
                 corr = torch.stack([f * d[:, 0], f * d[:, 1], f * d[:, 2]], 1)
                 p = p.index_add(0, ends, torch.cat([corr, -corr]))
-            return passes + 1, p, active & (worst > LIMIT_TOLERANCE_M)  # a character stops on its own
+            if beyond is None:  # (a loop's body may not return its input as it came)
+                strayed = strayed.clone()
+            else:
+                strayed = ((p != origin).any(1).any(1).to(p.dtype) * beyond).amax(0) > 0
+            # a character stops on its own
+            return passes + 1, p, active & (worst > LIMIT_TOLERANCE_M), strayed
 
-        return exportable_while(limiting, one_pass, state)[1]
+        origin = None if beyond is None else p.clone()
+        return exportable_while(limiting, one_pass, state)[1::2]
 
     @staticmethod
     def _lengths(p: torch.Tensor, first: torch.Tensor, second: torch.Tensor) -> tuple[torch.Tensor, ...]:

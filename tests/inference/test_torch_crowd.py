@@ -170,16 +170,22 @@ def test_the_torch_strain_limit_near_the_tears_limits_as_over_every_edge(animato
 
     monkeypatch.setattr(torch_strain_limit, "LIMIT_REACH", reach)
     again, near = [], []  # whether the passes over every edge ran; the vertices near the tears
+    measured = []  # the colours measured by each call of the passes near the tears
     stage_class = torch_strain_limit.StrainLimitStage
-    passes, near_of = stage_class._passes, stage_class._near
-    monkeypatch.setattr(
-        stage_class,
-        "_passes",
-        lambda self, p, limit, lists, start=0: (
-            again.append(not isinstance(start, int) and int(start) == 0)
-            or passes(self, p, limit, lists, start)
-        ),
-    )
+    passes, near_of, lengths = stage_class._passes, stage_class._near, stage_class._lengths
+
+    def counted(self, p, limit, lists, start=0, near=None):
+        again.append(not isinstance(start, int) and int(start) == 0)
+        if near is None:
+            return passes(self, p, limit, lists, start)
+        calls = []
+        with monkeypatch.context() as patch:
+            patch.setattr(stage_class, "_lengths", staticmethod(lambda *a: calls.append(1) or lengths(*a)))
+            out = passes(self, p, limit, lists, start, near)
+        measured.append((len(calls), bool(out[1]), self.colours))
+        return out
+
+    monkeypatch.setattr(stage_class, "_passes", counted)
     monkeypatch.setattr(stage_class, "_near", lambda self, over: near.append(near_of(self, over)) or near[-1])
     garment, poses = _dragged_garment(animator, every)
     limited = _pushed(animator, garment, poses, PUSH_OUT)
@@ -188,5 +194,9 @@ def test_the_torch_strain_limit_near_the_tears_limits_as_over_every_edge(animato
     assert np.abs(limited - free).max() > 1e-3  # the limit acted ...
     assert np.abs(ours - limited).max() < 2e-5  # ... and the torch stage limited alike
     assert any(again) == (reach == 0)  # the passes over every edge ran where a correction strayed
+    # the passes near the tears stop after the first that strays: with no rings about the tears, the
+    # second here (the first moved the ends of the over-long edges alone, all near), not sixty
+    for count, strayed, colours in measured:
+        assert strayed == (reach == 0) and (count == 2 * colours if strayed else count >= colours)
     if reach:
         assert 0 < float(near[0].float().mean()) < 0.6  # near the tears: a part of the cloth
