@@ -37,7 +37,7 @@ from pathlib import Path
 
 import numpy as np
 from fuzz_cases import KINDS, make_case
-from fuzz_doors import unlock
+from fuzz_door_files import unlock
 from fuzz_samples import ROOT, Case, file_digest, make_samples
 from tqdm import tqdm
 

@@ -63,14 +63,7 @@ def make_case(number: int, samples: Samples, work: Path, rng: np.random.Generato
         return _motion_case(number, kind, what, src, samples, out, rng)
     if kind == "bundle":
         what = mutate_bundle(samples.model, folder / "model", rng)
-        return Case(
-            number,
-            kind,
-            what,
-            _cli("animate", samples.native, "--model", folder / "model", "-o", out / "out.h5"),
-            out / "out.h5",
-            ["model"],
-        )
+        return _tampered_model_case(number, kind, what, samples, folder, ["model"])
     if kind == "dataset":
         src = folder / "skirt.h5"
         what = mutate_h5(
@@ -136,14 +129,7 @@ def make_case(number: int, samples: Samples, work: Path, rng: np.random.Generato
         return Case(number, kind, what, command, out / target, [src.name])
     if kind == "manifest":
         what = mutate_manifest(samples.model, folder / "model", rng)
-        return Case(
-            number,
-            kind,
-            what,
-            _cli("animate", samples.native, "--model", folder / "model", "-o", out / "out.h5"),
-            out / "out.h5",
-            ["model", "bundle.json"],
-        )
+        return _tampered_model_case(number, kind, what, samples, folder, ["model", "bundle.json"])
     if kind in DOOR_KINDS:
         doors = make_door_samples(work / "samples" / "doors", samples.model, samples.native)
         case = door_case(
@@ -172,6 +158,16 @@ def make_case(number: int, samples: Samples, work: Path, rng: np.random.Generato
     if kind == "interrupt":
         return _interrupt_case(number, samples, out, rng)
     return _output_case(number, samples, folder, rng)
+
+
+def _tampered_model_case(
+    number: int, kind: str, what: str, samples: Samples, folder: Path, names: list[str]
+) -> Case:
+    """hrr-animate with the model bundle tampered with in ``folder / "model"``: its refusal names one
+    of ``names``."""
+    out = folder / "out"
+    command = _cli("animate", samples.native, "--model", folder / "model", "-o", out / "out.h5")
+    return Case(number, kind, what, command, out / "out.h5", names)
 
 
 def _bvh_case(number: int, samples: Samples, folder: Path, rng: np.random.Generator) -> Case:
