@@ -52,13 +52,18 @@ def _character(run: MakeRun) -> Path:
 def _onnx(run: MakeRun, outputs: Path, model_key: str) -> None:
     from .export_model import _main as export_model
 
-    graph = outputs / f"{run.request.character.stem}.onnx"
+    graph = _graph_path(run, outputs)
     if run.record.current("onnx", model_key) and graph.exists():
         return
     with run.progress.stage("onnx") as t:
         argv = ["--model", run.model, "--onnx", "-o", graph, "--body", _character(run)]
         command = _call(export_model, argv + ([] if run.request.progress else ["--quiet"]))
     run.record.finish("onnx", model_key, t.seconds, {"command": "hrr-export-model " + command})
+
+
+def _graph_path(run: MakeRun, outputs: Path) -> Path:
+    """The ONNX graph the onnx stage writes for the character (and the report times)."""
+    return outputs / f"{run.request.character.stem}.onnx"
 
 
 def _showcase(run: MakeRun) -> list[tuple[str, Path]]:
@@ -125,9 +130,10 @@ def _report(run: MakeRun, outputs: Path, model_key: str) -> None:
         argv += ["--jobs", run.request.jobs] if run.request.jobs else []
         argv += [] if run.request.progress else ["--quiet"]
         command = _call(evaluate, [*argv, "--no-plots", "--ensemble", members, "-o", folder])
-        step = _step_ms(run)
-        graph = outputs / f"{run.request.character.stem}.onnx"
-        graph_step = _graph_step_ms(run, graph) if graph.exists() else None
+        motion = _timed_clip(run)
+        step = _step_ms(run, motion)
+        graph = _graph_path(run, outputs)
+        graph_step = _graph_step_ms(graph, motion) if graph.exists() else None
     summary = _summary(folder / "report.json", step, graph_step)
     atomic_write_text(outputs / "summary.json", strict_json(summary, indent=2))
     run.record.finish("report", model_key, t.seconds, {"command": "hrr-eval " + command, **summary})
@@ -161,23 +167,22 @@ def _median_ms(push, frames: int) -> float:
     return float(1000 * np.median(times[10:] or times))
 
 
-def _step_ms(run: MakeRun) -> float:
-    """The median time of one streamed frame on the character's body, over a held-out clip."""
+def _step_ms(run: MakeRun, motion: "Motion") -> float:
+    """The median time of one streamed frame on the character's body, over the held-out ``motion``."""
     from ..inference.animator import Animator
 
-    motion = _timed_clip(run)
     animator = Animator.load(run.model)
     stream = animator.stream(body=animator.body(run.body_path))
     return _median_ms(lambda t: stream.push(motion.slice(t, t + 1)), min(STEP_FRAMES, motion.num_frames))
 
 
-def _graph_step_ms(run: MakeRun, graph: Path) -> float:
+def _graph_step_ms(graph: Path, motion: "Motion") -> float:
     """The same clip's frames through the ONNX graph written for the character, one character in
     onnxruntime (what an engine runs): its median milliseconds a frame."""
     from ..export.onnx_model import OnnxStream
     from ..motion.poses import motion_to_poses
 
-    rotations, roots = motion_to_poses(_timed_clip(run))
+    rotations, roots = motion_to_poses(motion)
     stream = OnnxStream(graph)
     frames = min(STEP_FRAMES, len(rotations))
     return _median_ms(lambda t: stream.push(rotations[t : t + 1], roots[t : t + 1]), frames)
