@@ -172,7 +172,7 @@ def test_the_torch_strain_limit_near_the_tears_limits_as_over_every_edge(animato
     again, near = [], []  # whether the passes over every edge ran; the vertices near the tears
     measured = []  # the colours measured by each call of the passes near the tears
     stage_class = torch_strain_limit.StrainLimitStage
-    passes, near_of, lengths = stage_class._passes, stage_class._near, stage_class._lengths
+    passes, near_of, project = stage_class._passes, stage_class._near, stage_class._project
 
     def counted(self, p, limit, lists, start=0, near=None):
         again.append(not isinstance(start, int) and int(start) == 0)
@@ -180,7 +180,7 @@ def test_the_torch_strain_limit_near_the_tears_limits_as_over_every_edge(animato
             return passes(self, p, limit, lists, start)
         calls = []
         with monkeypatch.context() as patch:
-            patch.setattr(stage_class, "_lengths", staticmethod(lambda *a: calls.append(1) or lengths(*a)))
+            patch.setattr(stage_class, "_project", staticmethod(lambda *a: calls.append(1) or project(*a)))
             out = passes(self, p, limit, lists, start, near)
         measured.append((len(calls), bool(out[1]), self.colours))
         return out
