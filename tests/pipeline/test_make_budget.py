@@ -32,13 +32,19 @@ def test_the_estimates_fill_the_budget():
     )
 
 
-def test_a_character_with_its_own_mesh_pays_for_its_longer_export():
-    """The graph of a character with a mesh holds the mesh's collider and exports for longer: its
+def test_a_character_with_its_own_mesh_pays_for_its_longer_export_and_report():
+    """The graph of a character with a mesh holds the mesh's collider and exports for longer, and its
+    report measures the cloth inside that mesh on every frame of the model and of the truth: its
     plan holds that time and still fills the budget, with less left for the data."""
     shares = BudgetShares()
-    capsules = plan_budget(3600, START, test_frames=0, clips=1, shares=shares)
-    mesh = plan_budget(3600, START, test_frames=0, clips=1, shares=shares, mesh=True)
+    capsules = plan_budget(3600, START, test_frames=960, clips=1, shares=shares)
+    mesh = plan_budget(3600, START, test_frames=960, clips=1, shares=shares, mesh=True)
     assert capsules.estimates["onnx"] == shares.onnx_s and mesh.estimates["onnx"] == shares.onnx_mesh_s
+    # the model's frames measured, and each of the truth members' frames
+    measured = shares.report_mesh_s_per_frame + shares.ensemble * shares.report_mesh_s_per_member_frame
+    assert mesh.estimates["report"] - capsules.estimates["report"] == pytest.approx(
+        960 * (measured - shares.report_s_per_frame)
+    )
     assert mesh.total_s == pytest.approx(3600, abs=1.0)
     assert mesh.sim_frames < capsules.sim_frames
 
