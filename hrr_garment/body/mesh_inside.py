@@ -99,8 +99,9 @@ class _Batch:
 
     def winding(self) -> np.ndarray:
         """(T N,) each point's winding number: the signed crossings of its ray."""
-        lo, hi, q2 = self.lo[self.face, :2], self.hi[self.face, :2], self.q[self.point, :2]
-        shadowed = ((q2 >= lo) & (q2 <= hi)).all(1)  # in the face's own box, not only the grown one
+        shadowed = _in_boxes(
+            self.q, self.point, self.lo, self.hi, self.face
+        )  # the own box, not the grown one
         point, face = self.point[shadowed], self.face[shadowed]
         crossings = _crossings(self.q[point], self.v, self.faces[face])
         return np.bincount(point, weights=crossings, minlength=len(self.q)).round()
@@ -141,8 +142,24 @@ def _candidate_pairs(
     point = np.repeat(np.arange(len(q)), n)
     offset = np.arange(len(point)) - np.repeat(np.cumsum(n) - n, n)
     face = face_of[np.repeat(start, n) + offset]
-    inside = ((q[point] >= lo[face]) & (q[point] <= hi[face])).all(1)  # in the box, not only its cells
+    inside = _in_boxes(q, point, lo, hi, face)  # in the box, not only its cells
     return point[inside], kept[face[inside]]
+
+
+def _in_boxes(
+    q: np.ndarray, point: np.ndarray, lo: np.ndarray, hi: np.ndarray, face: np.ndarray
+) -> np.ndarray:
+    """(M,) whether each point ``q[point]`` lies in its face's box ``lo[face]``-``hi[face]`` across the
+    ray (the first two coordinates): compared a coordinate at a time on flat gathers. The pairs are
+    millions a batch of frames, and gathering their (M, 2) rows and reducing them took most of
+    hrr-eval's measure of the cloth inside a character's mesh (32 frames of a 4,324-vertex dress on anny's
+    average body: 1.14 -> 0.67 s a call)."""
+    inside = np.ones(len(point), bool)
+    for axis in range(2):
+        at = np.ascontiguousarray(q[:, axis])[point]
+        inside &= at >= np.ascontiguousarray(lo[:, axis])[face]
+        inside &= at <= np.ascontiguousarray(hi[:, axis])[face]
+    return inside
 
 
 def _edge_side(v: np.ndarray, a: np.ndarray, b: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -153,10 +170,12 @@ def _edge_side(v: np.ndarray, a: np.ndarray, b: np.ndarray, q: np.ndarray) -> tu
     of an edge (which run along it in opposite directions)."""
     swap = a > b
     start, end = np.where(swap, b, a), np.where(swap, a, b)
-    r, s = v[start, :2] - q[:, :2], v[end, :2] - q[:, :2]
-    e = r[:, 0] * s[:, 1] - r[:, 1] * s[:, 0]
-    d = s - r  # the edge, lower-numbered end first
-    tie = np.where(d[:, 1] != 0, -np.sign(d[:, 1]), np.sign(d[:, 0]))  # e + d_x e^2 - d_y e
+    # a coordinate at a time, on flat gathers (as _in_boxes: the pairs are many)
+    (vx, vy), (qx, qy) = (np.ascontiguousarray(v[:, k]) for k in (0, 1)), (q[:, 0], q[:, 1])
+    rx, ry, sx, sy = vx[start] - qx, vy[start] - qy, vx[end] - qx, vy[end] - qy
+    e = rx * sy - ry * sx
+    dx, dy = sx - rx, sy - ry  # the edge, lower-numbered end first
+    tie = np.where(dy != 0, -np.sign(dy), np.sign(dx))  # e + d_x e^2 - d_y e
     side = np.where(e != 0, np.sign(e), tie)
     flip = np.where(swap, -1.0, 1.0)
     return flip * side, flip * e
