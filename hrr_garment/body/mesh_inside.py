@@ -99,9 +99,8 @@ class _Batch:
 
     def winding(self) -> np.ndarray:
         """(T N,) each point's winding number: the signed crossings of its ray."""
-        shadowed = _in_boxes(
-            self.q, self.point, self.lo, self.hi, self.face
-        )  # the own box, not the grown one
+        # in the face's own box, not only the grown one
+        shadowed = _in_boxes(self.q, self.point, self.lo, self.hi, self.face)
         point, face = self.point[shadowed], self.face[shadowed]
         crossings = _crossings(self.q[point], self.v, self.faces[face])
         return np.bincount(point, weights=crossings, minlength=len(self.q)).round()
@@ -171,7 +170,8 @@ def _edge_side(v: np.ndarray, a: np.ndarray, b: np.ndarray, q: np.ndarray) -> tu
     swap = a > b
     start, end = np.where(swap, b, a), np.where(swap, a, b)
     # a coordinate at a time, on flat gathers (as _in_boxes: the pairs are many)
-    (vx, vy), (qx, qy) = (np.ascontiguousarray(v[:, k]) for k in (0, 1)), (q[:, 0], q[:, 1])
+    vx, vy = np.ascontiguousarray(v[:, 0]), np.ascontiguousarray(v[:, 1])
+    qx, qy = q[:, 0], q[:, 1]
     rx, ry, sx, sy = vx[start] - qx, vy[start] - qy, vx[end] - qx, vy[end] - qy
     e = rx * sy - ry * sx
     dx, dy = sx - rx, sy - ry  # the edge, lower-numbered end first

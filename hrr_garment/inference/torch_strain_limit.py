@@ -133,7 +133,8 @@ class StrainLimitStage(nn.Module):
 
         def one_pass(passes, p, active, strayed):
             weight = active.to(p.dtype)
-            # a character stopped (weight 0) moves no vertex; the others half their excess each end
+            # a character stopped (weight 0) moves no vertex; the others move each end of an edge by
+            # half its excess, over-relaxed
             share = (0.5 * OVER_RELAXATION) * weight
             excesses = [torch.zeros_like(weight)[None, None]]  # a list near the tears may be empty
             for (_, first, second, ends), allowed in zip(lists, limits):
