@@ -117,7 +117,8 @@ def onnx_runs(stages: dict, frames: np.ndarray, motion, cuts: list) -> dict:
     import onnxruntime
     import torch
 
-    from hrr_garment.export.onnx_model import OPSET, _optimise, _quiet
+    from hrr_garment.export.graph_optimiser import optimise_graph
+    from hrr_garment.export.onnx_model import OPSET, _quiet
 
     names = ["vertices", "rotations", "positions"]
     feeds = [
@@ -145,7 +146,7 @@ def onnx_runs(stages: dict, frames: np.ndarray, motion, cuts: list) -> dict:
                 optimize=False,
                 verbose=False,
             )
-            _optimise(program.model)
+            optimise_graph(program.model)
         path = folder / f"{len(runs)}.onnx"
         program.save(str(path))
         print(f"{name}: exported in {time.perf_counter() - t0:.0f} s")

@@ -38,6 +38,7 @@ from ..models.sampler import characters_noise
 from ..motion.motion import Motion
 from ..motion.poses import motion_to_poses
 from ..motion.skeleton import NUM_JOINTS
+from .graph_optimiser import optimise_graph
 from .onnx_record import TENSORS, graph_metadata, record_metadata, tensors_path, write_tensors
 from .stage_progress import stage_progress
 
@@ -130,11 +131,11 @@ def export_onnx(
                 output_names=list(OUTPUTS) + [f"next_{name}" for name in shapes if name not in STATE],
                 dynamic_shapes=dynamic,
                 opset_version=OPSET,
-                optimize=False,  # _optimise's one pass instead: the same graph in a fraction of the time
+                optimize=False,  # optimise_graph's one pass instead: the same graph in a fraction of the time
                 verbose=False,
             )
             stage(EXPORT_STAGES[1])
-            _optimise(program.model)
+            optimise_graph(program.model)
         stage(EXPORT_STAGES[2])
         model = program.model_proto
         record_metadata(
@@ -145,17 +146,6 @@ def export_onnx(
         write_tensors(tensors, animator.bundle)
     vertices = int(animator.bundle.template.num_vertices)
     return OnnxExport(path, tensors, vertices, shapes, time.perf_counter() - t0, noise)
-
-
-def _optimise(model) -> None:
-    """The exporter's own optimisation (``onnxscript.optimizer.optimize_ir``: constants folded, its
-    rewrite rules, unused nodes removed, initialisers lifted and shared, common subexpressions merged)
-    in place on the ONNX IR ``model``, one pass of it where the exporter runs two and then its fusions.
-    That took 48 of the 141 s a character's step took to export (now 16 of 97 s); the graph's
-    outputs and its step time in onnxruntime are the same (docs/export.md)."""
-    from onnxscript import optimizer
-
-    optimizer.optimize_ir(model, num_iterations=1)
 
 
 @contextmanager

@@ -22,7 +22,8 @@ import torch
 
 from ..io_utils import atomic_path, require_suffix
 from ..models.skin_collider_graph import SkinColliderGraph
-from .onnx_model import OPSET, _optimise, _quiet, _require_onnx
+from .graph_optimiser import optimise_graph
+from .onnx_model import OPSET, _quiet, _require_onnx
 
 INPUTS = ("points", "rotations", "positions")
 OUTPUTS = ("distance", "normal")
@@ -52,10 +53,10 @@ def export_skin_collider(collider, path: str | Path, *, dtype: torch.dtype = tor
             output_names=list(OUTPUTS),
             dynamic_shapes=({0: characters, 1: points}, {0: characters}, {0: characters}),
             opset_version=OPSET,
-            optimize=False,  # the step's one pass instead (onnx_model._optimise): the same graph, sooner
+            optimize=False,  # the step's one pass instead (graph_optimiser): the same graph, sooner
             verbose=False,
         )
-        _optimise(program.model)
+        optimise_graph(program.model)
     with atomic_path(path) as tmp:
         onnx.save_model(program.model_proto, str(tmp))
     return path
