@@ -49,19 +49,43 @@ class MeshTopology:
         )
 
 
+def _planes(v: np.ndarray) -> np.ndarray:
+    """(3, ..., V) the coordinate planes of vertices ``v`` (..., V, 3), each contiguous: the gathers
+    and products below run a plane at a time, where a trailing axis of three made numpy's cross
+    products and norms the evaluation's slowest part (three times faster; the same operations in the
+    same order give the same lengths and angles, bit for bit, now laid out row by row, so that a sum
+    over a frame's edges may differ in its last bits)."""
+    return np.ascontiguousarray(np.moveaxis(np.asarray(v), -1, 0))
+
+
+def _norm(x: np.ndarray, y: np.ndarray, z: np.ndarray) -> np.ndarray:
+    """|(x, y, z)|, summed as numpy's norm sums a last axis of three"""
+    return np.sqrt(x * x + y * y + z * z)
+
+
+def _cross(a: tuple, b: tuple) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """a x b of two vectors given as their three planes (numpy's cross product, term for term)"""
+    return a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]
+
+
 def edge_lengths(v: np.ndarray, edges: np.ndarray) -> np.ndarray:
     """(..., E) the lengths of ``edges`` (E, 2) of vertices ``v`` (..., V, 3)."""
-    return np.linalg.norm(v[..., edges[:, 1], :] - v[..., edges[:, 0], :], axis=-1)
+    d = [np.take(p, edges[:, 1], -1) - np.take(p, edges[:, 0], -1) for p in _planes(v)]
+    return _norm(*d)
 
 
 def dihedral_angles(v: np.ndarray, topo: MeshTopology) -> np.ndarray:
     """(..., I) unsigned angle between the normals of the two faces of each interior edge."""
-    tri = v[..., topo.faces, :]
-    n = np.cross(tri[..., 1, :] - tri[..., 0, :], tri[..., 2, :] - tri[..., 0, :])
-    n /= np.maximum(np.linalg.norm(n, axis=-1, keepdims=True), 1e-20)
-    a, b = n[..., topo.wings[:, 0], :], n[..., topo.wings[:, 1], :]
+    corners = [[np.take(p, topo.faces[:, k], -1) for p in _planes(v)] for k in range(3)]  # [corner][axis]
+    u = [corners[1][k] - corners[0][k] for k in range(3)]
+    w = [corners[2][k] - corners[0][k] for k in range(3)]
+    n = _cross(u, w)
+    size = np.maximum(_norm(*n), 1e-20)
+    n = [c / size for c in n]
+    a = [np.take(c, topo.wings[:, 0], -1) for c in n]  # np.take: C-ordered, where indexing the last
+    b = [np.take(c, topo.wings[:, 1], -1) for c in n]  # axis gives it last-axis-first (sums would differ)
     # atan2 of |a x b| and a . b: accurate for small angles, where arccos loses digits
-    return np.arctan2(np.linalg.norm(np.cross(a, b), axis=-1), (a * b).sum(-1))
+    return np.arctan2(_norm(*_cross(a, b)), a[0] * b[0] + a[1] * b[1] + a[2] * b[2])
 
 
 def rest_hinge_heights(rest: np.ndarray, topo: MeshTopology) -> np.ndarray:
