@@ -15,7 +15,9 @@ so a ray through an edge or a corner crosses the mesh exactly once (watertight).
 character's, with its eyes or clothes as separate shells) has no such integer: there
 :func:`mesh_inside` is the generalised winding number over 0.5 (Jacobson et al. 2013), every face
 tried. Inside means a winding number of magnitude 1 or more, as :func:`~.mesh_distance.winding_inside`
-says it.
+says it. Where the C kernel compiles, a closed mesh's count runs there
+(:func:`~hrr_garment.native.mesh_probe.mesh_probe`: the same crossings, the faces binned in columns
+along +x, about 30 x faster); numpy's count here is its reference and its fallback (``HRR_NATIVE=0``).
 """
 
 from __future__ import annotations
@@ -23,6 +25,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from ..native.mesh_probe import mesh_probe
 from .mesh_distance import closest_on_triangles, winding_inside
 
 # the rays' frame (the ray is its z axis): nearly level, so that a garment's shadow across the rays
@@ -59,6 +62,9 @@ def mesh_inside(
 def ray_winding_numbers(points: np.ndarray, vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     """The winding number of each point about a closed mesh, its ray's signed crossings; shapes as
     :func:`mesh_inside`'s."""
+    probed = mesh_probe(points, vertices, faces, margin=0.0)  # the kernel's count, where it compiles
+    if probed is not None:
+        return probed[0].astype(np.float64)
     return _Batch(points, vertices, faces, 0.0).winding().reshape(np.shape(points)[:-1])
 
 
@@ -209,6 +215,10 @@ def inside_deeper_than(
     :func:`mesh_inside`'s, a batch of frames at once. ``where`` (the points' shape without the last
     axis): only the points it holds are measured, the others are False."""
     closed = is_closed(faces) if closed is None else closed
+    probed = mesh_probe(points, vertices, faces, margin=max(depth, 0.0), where=where) if closed else None
+    if probed is not None:  # deeper than depth: inside, and no face within depth (none asked at 0)
+        winding, near = probed
+        return (winding != 0) & ~(near & (depth > 0))
     batch = _Batch(points, vertices, faces, depth, where)
     if closed:
         deep = np.abs(batch.winding()) > 0.5

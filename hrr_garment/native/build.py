@@ -1,8 +1,8 @@
 """The kernels' build and load: the C sources compiled on first use into the workspace cache and
 loaded with ctypes, each exported function's argument types declared (:func:`load_kernel`).
 
-The sources (``kernels.c``, ``amx_block.c``, ``window_codes.c``, ``features.c`` and
-``skin_sdf.c``, sharing ``hrr_native.h``) are compiled as one translation unit with the system C
+The sources (``kernels.c``, ``amx_block.c``, ``window_codes.c``, ``features.c``, ``skin_sdf.c``
+and ``mesh_probe.c``, sharing ``hrr_native.h``) are compiled as one translation unit with the system C
 compiler (``cc``/``gcc``, ``-O3 -march=native -fopenmp``) into the workspace cache, keyed by a hash
 of the source, the flags and the CPU, and loaded with ctypes. Without a compiler :func:`load_kernel`
 returns None and callers use the PyTorch path; ``HRR_NATIVE=0`` forces that.
@@ -25,7 +25,7 @@ from pathlib import Path
 _HERE = Path(__file__).resolve().parent
 HEADER = "hrr_native.h"  # what the sources share (helpers of kernels.c used by window_codes.c)
 # one translation unit, so shared helpers inline across files; each source includes the header
-SOURCES = ("kernels.c", "amx_block.c", "window_codes.c", "features.c", "skin_sdf.c")
+SOURCES = ("kernels.c", "amx_block.c", "window_codes.c", "features.c", "skin_sdf.c", "mesh_probe.c")
 SOURCE = "\n".join((_HERE / name).read_text() for name in SOURCES)
 _HEADER_TEXT = (_HERE / HEADER).read_text()
 
@@ -212,6 +212,8 @@ def _declare(lib: ctypes.CDLL) -> None:
     lib.hrr_skin_cells.restype = None
     lib.hrr_skin_far.argtypes = [d, d, c_double, c_double, d, c_int, d]
     lib.hrr_skin_far.restype = c_int
+    lib.hrr_mesh_probe.argtypes = [d, c_int, c_int, c_int, d, c_int, d, d, c_double, c_double, d, d, c_int]
+    lib.hrr_mesh_probe.restype = c_int
     lib.hrr_current_cpu.argtypes = []
     lib.hrr_current_cpu.restype = c_int
 

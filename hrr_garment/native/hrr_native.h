@@ -114,6 +114,7 @@ typedef struct {
 
 static void skin_columns(const SkinGrid *g, const double *posed, double margin, double cell, SkinColumns *c,
                          SkinPose *sk);
+static void skin_columns_free(SkinColumns *c);
 static int skin_far_by_column(const SkinPose *sk, double margin, const double *x);
 
 /* The signed distance and outward normal of point x to the posed skin (skin_sdf.c) */

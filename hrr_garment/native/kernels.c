@@ -1153,10 +1153,7 @@ void hrr_push_out(const void *in, int in_double, float *out, int T, int V, const
     }
     #undef FRAME_IN
     for (int k = 0; k < team_count; ++k) {
-        free(team[k].columns.start);
-        free(team[k].columns.list);
-        free(team[k].columns.face);
-        free(team[k].columns.reach);
+        skin_columns_free(&team[k].columns);
     }
     free(moved);
     free(buf);

@@ -484,7 +484,10 @@ void hrr_skin_cells(const SkinGrid *g, const double *posed, double margin, doubl
    its lower-indexed end, so two triangles sharing the edge see exactly opposite values, and a ray
    through the edge itself goes to one side of it by a fixed rule (the edge's direction): a ray
    through a shared edge crosses exactly one of the two faces, or, at a silhouette, both or
-   neither, which cancel. */
+   neither, which cancel. The function is the cross product of the ends' offsets from x, so that it
+   is exactly 0 where the ray runs through either end, however the compiler fuses its products (from
+   the lower end to x it was (t - s) x (x - s): where x is t, the fused product's rounding left it a
+   hair off 0, of either sign, and a ray through a vertex crossed its faces more or less than once). */
 static int ray_cross(const double *x, const double *const v[3], const int *c, double *hit)
 {
     double e[3];
@@ -492,7 +495,7 @@ static int ray_cross(const double *x, const double *const v[3], const int *c, do
     for (int k = 0; k < 3; k++) {  /* edge k from corner k to k + 1; its function is 0 on its line */
         const int flip = c[k] > c[(k + 1) % 3];
         const double *s = flip ? v[(k + 1) % 3] : v[k], *t = flip ? v[k] : v[(k + 1) % 3];
-        const double f = (t[1] - s[1]) * (x[2] - s[2]) - (t[2] - s[2]) * (x[1] - s[1]);
+        const double f = (s[1] - x[1]) * (t[2] - x[2]) - (s[2] - x[2]) * (t[1] - x[1]);
         const int tie = t[1] > s[1] || (t[1] == s[1] && t[2] > s[2]) ? 1 : -1;
         e[k] = flip ? -f : f;
         side[k] = (f > 0.0 ? 1 : (f < 0.0 ? -1 : tie)) * (flip ? -1 : 1);
@@ -587,45 +590,67 @@ static void skin_columns(const SkinGrid *g, const double *posed, double margin, 
     sk->ny = ny, sk->nz = nz, sk->y0 = lo[1], sk->z0 = lo[2];
 }
 
-/* Whether point x is farther than the margin from sk's skin and outside it (no need to measure it),
-   exactly: no triangle of its column comes within the margin of it (closest_bary, as the skin's
-   measure), and the winding number along the ray from x along +x, the sum of the column's
-   triangles' crossings past x (ray_cross: watertight), is 0: a closed mesh's winding number is that
-   of the far end of the ray, past the mesh, where it is 0. A point beyond the columns is farther
-   than the margin in (y, z) alone, and its ray meets nothing; a NaN point is measured. */
-static int skin_far_by_column(const SkinPose *sk, double margin, const double *x)
+/* The column of point x in sk's columns: its index, or -1 where x lies beyond them (farther than the
+   margin from every face in (y, z) alone, and its ray meets nothing), -2 where x is NaN */
+static inline long skin_column_of(const SkinPose *sk, const double *x)
 {
     const double fy = floor((x[1] - sk->y0) / sk->cell), fz = floor((x[2] - sk->z0) / sk->cell);
-    if (fy != fy || fz != fz || x[0] != x[0]) return 0;
-    if (fy < 0.0 || fz < 0.0 || fy >= sk->ny || fz >= sk->nz) return 1;
-    const long col = (long)fy * sk->nz + (long)fz;
-    /* before every box of the column along x (nothing within the margin, nothing crosses the line
-       at x's (y, z) short of x: its winding number is that of the line's far end, 0), or past every
-       one (nothing within the margin, nothing crossed past x) */
-    if (x[0] < sk->col_reach[2 * col] || x[0] > sk->col_reach[2 * col + 1]) return 1;
+    if (fy != fy || fz != fz || x[0] != x[0]) return -2;
+    if (fy < 0.0 || fz < 0.0 || fy >= sk->ny || fz >= sk->nz) return -1;
+    return (long)fy * sk->nz + (long)fz;
+}
+
+/* The faces of column col against point x: the winding number along the ray from x along +x (the
+   sum of the column's triangles' crossings past x, ray_cross: watertight), and *near = 1 where a
+   triangle comes within the margin of x (closest_bary, as the skin's measure); with `stop`, the walk
+   ends at the first such triangle (its winding number then partial). */
+static inline int skin_column_walk(const SkinPose *sk, double margin, const double *x, long col, int stop, int *near)
+{
     const int32_t *faces = sk->grid->faces;
     int winding = 0;
+    *near = 0;
     for (int e = sk->col_start[col]; e < sk->col_start[col + 1]; e++) {
         const int f = sk->col_list[e];
         const double *r = sk->col_face + (size_t)SKIN_FACE * f;
         /* past its box along +x, or beside it: neither within the margin nor crossed past x */
         if (x[0] > r[3] || x[1] < r[1] || x[1] > r[4] || x[2] < r[2] || x[2] > r[5]) continue;
         const double *a = r + 6, *b = r + 9, *d = r + 12;
-        if (x[0] >= r[0]) {
+        if (x[0] >= r[0] && !*near) {
             double bary[3], q2 = 0.0;
             closest_bary(x, a, b, d, bary);
             for (int k = 0; k < 3; k++) {
                 const double q = x[k] - (bary[0] * a[k] + bary[1] * b[k] + bary[2] * d[k]);
                 q2 += q * q;
             }
-            if (q2 <= margin * margin) return 0;
+            if (q2 <= margin * margin) {
+                *near = 1;
+                if (stop) return winding;
+            }
         }
         const double *v[3] = {a, b, d};
         double hit;
         const int cross = ray_cross(x, v, faces + 3 * f, &hit);
         if (cross && hit > x[0]) winding += cross;
     }
-    return winding == 0;
+    return winding;
+}
+
+/* Whether point x is farther than the margin from sk's skin and outside it (no need to measure it),
+   exactly: no triangle of its column comes within the margin of it, and the winding number along
+   the ray from x along +x is 0 (skin_column_walk): a closed mesh's winding number is that of the
+   far end of the ray, past the mesh, where it is 0. A point beyond the columns is far; a NaN point
+   is measured. */
+static int skin_far_by_column(const SkinPose *sk, double margin, const double *x)
+{
+    const long col = skin_column_of(sk, x);
+    if (col < 0) return col == -1;
+    /* before every box of the column along x (nothing within the margin, nothing crosses the line
+       at x's (y, z) short of x: its winding number is that of the line's far end, 0), or past every
+       one (nothing within the margin, nothing crossed past x) */
+    if (x[0] < sk->col_reach[2 * col] || x[0] > sk->col_reach[2 * col + 1]) return 1;
+    int near;
+    const int winding = skin_column_walk(sk, margin, x, col, 1, &near);
+    return !near && winding == 0;
 }
 
 /* The broad phase's answer for N points (N, 3) of one posed frame: far[i] 1 where point i is
@@ -639,9 +664,15 @@ int hrr_skin_far(const SkinGrid *g, const double *posed, double margin, double c
     skin_columns(g, posed, margin, cell, &c, &sk);
     const int ok = sk.col_start != NULL;
     for (int i = 0; ok && i < N; i++) far[i] = (uint8_t)skin_far_by_column(&sk, margin, points + 3 * i);
-    free(c.start);
-    free(c.list);
-    free(c.face);
-    free(c.reach);
+    skin_columns_free(&c);
     return ok;
+}
+
+/* frees the columns' arrays */
+static void skin_columns_free(SkinColumns *c)
+{
+    free(c->start);
+    free(c->list);
+    free(c->face);
+    free(c->reach);
 }

@@ -61,11 +61,12 @@ class BudgetShares:
     # the report's inference over the held-out frames, besides simulating their truth ensembles ...
     report_s_per_frame: float = 0.01
     # ... or, on a character with a mesh of its own, with the cloth inside that mesh measured exactly
-    # on every frame: the model's, before and after the push-out (48 s for 960 held-out frames of a
-    # 1,046-vertex dress on a 615-vertex body), and each truth member's (about 36 s for their 3,840
-    # frames; hrr-eval of the report, its ensembles cached, 92 s in all, 2-core AMD EPYC, 2026-12-07)
-    report_mesh_s_per_frame: float = 0.05
-    report_mesh_s_per_member_frame: float = 0.01
+    # on every frame (the skin posed and the C kernel's count): the model's, before and after the
+    # push-out (about 29 s for 960 held-out frames of a 1,046-vertex dress on a 615-vertex body), and
+    # each truth member's (about 15 s for their 3,840 frames; hrr-eval of the report, its ensembles
+    # cached, 47 s in all, 2-core AMD EPYC, 2026-12-07)
+    report_mesh_s_per_frame: float = 0.03
+    report_mesh_s_per_member_frame: float = 0.004
     # the least training a budget may leave, both stages together: less learns nothing worth shipping
     min_train_s: float = 120.0
 

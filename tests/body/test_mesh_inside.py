@@ -1,6 +1,8 @@
-"""Inside a mesh by signed ray crossings: the same answer as the generalised winding number on a closed
-mesh, also where a ray runs exactly through a corner or along an edge; an open mesh falls back to the
-winding number; the depth is the exact distance to the surface."""
+"""Inside a mesh by signed ray crossings, counted in numpy (the reference) and by the C kernel
+(native/mesh_probe.c, on the push-out's columns): the same answer as the generalised winding number
+on a closed mesh, also where a ray runs exactly through a corner or along an edge; an open mesh falls
+back to the winding number; the depth is the exact distance to the surface; the two counts agree on
+frames of a moving mesh, some points left out."""
 
 import numpy as np
 import pytest
@@ -45,7 +47,14 @@ def box(half: float = 0.1, splits: int = 2) -> tuple[np.ndarray, np.ndarray]:
     return unique, np.where(outward[:, None], faces, faces[:, ::-1])
 
 
-def test_the_ray_count_is_the_winding_number_on_a_closed_mesh(rng):
+@pytest.fixture(params=["1", "0"], ids=["kernel", "numpy"])
+def counted_by(request, monkeypatch):
+    """Each test of the count twice: by the C kernel (where it compiles) and by numpy's reference."""
+    monkeypatch.setenv("HRR_NATIVE", request.param)
+    return request.param
+
+
+def test_the_ray_count_is_the_winding_number_on_a_closed_mesh(rng, counted_by):
     one = box()
     turn = np.linalg.qr(rng.normal(size=(3, 3)))[0]
     # two boxes overlapping (as a posed body's limbs overlap at a bent joint): 2 where both
@@ -63,9 +72,13 @@ def test_the_ray_count_is_the_winding_number_on_a_closed_mesh(rng):
     assert np.abs(ray_winding_numbers(np.array([[0.08, 0.05, 0.0]]), *two)) == 2
 
 
-def test_a_ray_through_a_corner_or_along_an_edge_crosses_once():
+def test_a_ray_through_a_corner_or_along_an_edge_crosses_once(counted_by, rng):
     vertices, faces = box(splits=3)
-    ray = RAY_FRAME[2]  # the rays' direction in the world
+    if counted_by == "1":  # the kernel's rays run along +x: the cube turned, so that none lies on a side
+        vertices = vertices @ np.linalg.qr(rng.normal(size=(3, 3)))[0].T
+        ray = np.array([1.0, 0.0, 0.0])
+    else:
+        ray = RAY_FRAME[2]  # numpy's rays' direction in the world
     on_edges = (vertices[faces[:, 0]] + vertices[faces[:, 1]]) / 2
     for targets in (vertices, on_edges):
         for before in (0.05, 0.3):  # the point inside the cube, then outside it, its ray through the target
@@ -87,7 +100,7 @@ def test_an_open_mesh_is_the_generalised_winding_number(rng):
 
 
 @pytest.mark.parametrize("depth", [0.0, 0.005, 0.02])
-def test_inside_deeper_than_counts_the_exact_depth(depth, rng):
+def test_inside_deeper_than_counts_the_exact_depth(depth, rng, counted_by):
     vertices, faces = box()
     points = rng.uniform(-0.13, 0.13, (2000, 3))
     signed = mesh_signed_distance(points, vertices, faces)
@@ -95,3 +108,31 @@ def test_inside_deeper_than_counts_the_exact_depth(depth, rng):
     # on a side's middle, 3 mm and 8 mm in: only the deeper is more than 5 mm in
     known = np.array([[0.097, 0.01, -0.02], [0.092, 0.01, -0.02], [0.11, 0.0, 0.0], [0.0, 0.0, 0.0]])
     assert inside_deeper_than(known, vertices, faces, depth=0.005).tolist() == [False, True, False, True]
+
+
+@pytest.mark.native
+def test_the_kernel_counts_what_numpy_counts_on_frames_of_a_moving_mesh(rng, monkeypatch):
+    """Two boxes overlapping, turned and moved frame by frame (a posed body's limbs overlap at a bent
+    joint): winding numbers, the points deeper than 5 mm and those of the points ``where`` keeps, the
+    same from both counts."""
+    one = box(splits=3)
+    turn = np.linalg.qr(rng.normal(size=(3, 3)))[0]
+    rest = np.concatenate([one[0], one[0] @ turn.T * 0.8 + [0.08, 0.05, 0.0]])
+    faces = np.concatenate([one[1], one[1] + len(one[0])])
+    frames = np.stack(
+        [rest @ np.linalg.qr(rng.normal(size=(3, 3)))[0].T + rng.normal(scale=0.05, size=3) for _ in range(5)]
+    )
+    points = frames.mean(1, keepdims=True) + rng.uniform(-0.2, 0.2, (5, 4000, 3))
+    where = rng.random((5, 4000)) < 0.5
+    answers = {}
+    for native in ("1", "0"):
+        monkeypatch.setenv("HRR_NATIVE", native)
+        answers[native] = (
+            ray_winding_numbers(points, frames, faces),
+            inside_deeper_than(points, frames, faces, depth=0.005, closed=True),
+            inside_deeper_than(points, frames, faces, depth=0.005, closed=True, where=where),
+        )
+    assert 0.05 < answers["0"][1].mean() < 0.5 and (np.abs(answers["0"][0]) == 2).any()
+    for kernel, reference in zip(answers["1"], answers["0"]):
+        np.testing.assert_array_equal(kernel, reference)
+    assert not answers["1"][2][~where].any()
