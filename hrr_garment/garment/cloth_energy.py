@@ -76,7 +76,8 @@ def edge_lengths(v: np.ndarray, edges: np.ndarray) -> np.ndarray:
 
 def dihedral_angles(v: np.ndarray, topo: MeshTopology) -> np.ndarray:
     """(..., I) unsigned angle between the normals of the two faces of each interior edge."""
-    corners = [[np.take(p, topo.faces[:, k], -1) for p in _planes(v)] for k in range(3)]  # [corner][axis]
+    planes = _planes(v)
+    corners = [[np.take(p, topo.faces[:, k], -1) for p in planes] for k in range(3)]  # [corner][axis]
     u = [corners[1][k] - corners[0][k] for k in range(3)]
     w = [corners[2][k] - corners[0][k] for k in range(3)]
     n = _cross(u, w)

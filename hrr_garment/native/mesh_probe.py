@@ -31,10 +31,10 @@ def mesh_probe(
     counts in numpy)."""
     lib = load_kernel()
     shape = np.shape(points)[:-1]
+    if lib is None or int(np.prod(shape[:-1])) != int(np.prod(np.shape(vertices)[:-2])):
+        return None  # before any copy: the numpy count makes its own
     points = np.ascontiguousarray(points, np.float64).reshape(-1, *np.shape(points)[-2:])
     vertices = np.ascontiguousarray(vertices, np.float64).reshape(-1, *np.shape(vertices)[-2:])
-    if lib is None or len(points) != len(vertices):
-        return None
     faces = np.ascontiguousarray(faces, np.int32)
     frames, n, nv = points.shape[0], points.shape[1], vertices.shape[1]
     if not len(faces) or not n or not frames:
