@@ -117,7 +117,7 @@ def onnx_runs(stages: dict, frames: np.ndarray, motion, cuts: list) -> dict:
     import onnxruntime
     import torch
 
-    from hrr_garment.export.graph_optimiser import optimise_graph
+    from hrr_garment.export.graph_export import export_graph
     from hrr_garment.export.onnx_model import OPSET, _quiet
 
     names = ["vertices", "rotations", "positions"]
@@ -135,18 +135,15 @@ def onnx_runs(stages: dict, frames: np.ndarray, motion, cuts: list) -> dict:
         characters = torch.export.Dim("characters", min=1, max=4096)
         t0 = time.perf_counter()
         with torch.no_grad(), _quiet():
-            program = torch.onnx.export(
+            program = export_graph(
                 stage.eval(),
                 example,
-                dynamo=True,
                 input_names=names,
                 output_names=["pushed"],
                 dynamic_shapes=tuple({0: characters} for _ in names),
-                opset_version=OPSET,
-                optimize=False,
-                verbose=False,
+                opset=OPSET,
+                strict_first=True,  # a push-out's loops
             )
-            optimise_graph(program.model)
         path = folder / f"{len(runs)}.onnx"
         program.save(str(path))
         print(f"{name}: exported in {time.perf_counter() - t0:.0f} s")

@@ -38,7 +38,7 @@ from ..models.sampler import characters_noise
 from ..motion.motion import Motion
 from ..motion.poses import motion_to_poses
 from ..motion.skeleton import NUM_JOINTS
-from .graph_optimiser import optimise_graph
+from .graph_export import export_graph
 from .onnx_record import TENSORS, graph_metadata, record_metadata, tensors_path, write_tensors
 from .stage_progress import stage_progress
 
@@ -123,19 +123,16 @@ def export_onnx(
         n = torch.export.Dim("characters", min=1, max=4096)
         dynamic = (tuple({0: n} for _ in example),)  # the inputs, one tuple (GraphInputs' *inputs)
         with torch.no_grad(), _quiet():
-            program = torch.onnx.export(
+            program = export_graph(
                 GraphInputs(step, list(example)),
                 tuple(torch.from_numpy(x) for x in example.values()),
-                dynamo=True,
                 input_names=list(example),
                 output_names=list(OUTPUTS) + [f"next_{name}" for name in shapes if name not in STATE],
                 dynamic_shapes=dynamic,
-                opset_version=OPSET,
-                optimize=False,  # optimise_graph's one pass instead: the same graph in a fraction of the time
-                verbose=False,
+                opset=OPSET,
+                strict_first=True,  # its push-out's loops (graph_export)
+                traced=lambda: stage(EXPORT_STAGES[1]),
             )
-            stage(EXPORT_STAGES[1])
-            optimise_graph(program.model)
         stage(EXPORT_STAGES[2])
         model = program.model_proto
         record_metadata(

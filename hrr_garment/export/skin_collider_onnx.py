@@ -22,7 +22,7 @@ import torch
 
 from ..io_utils import atomic_path, require_suffix
 from ..models.skin_collider_graph import SkinColliderGraph
-from .graph_optimiser import optimise_graph
+from .graph_export import export_graph
 from .onnx_model import OPSET, _quiet, _require_onnx
 
 INPUTS = ("points", "rotations", "positions")
@@ -45,18 +45,14 @@ def export_skin_collider(collider, path: str | Path, *, dtype: torch.dtype = tor
     characters = torch.export.Dim("characters", min=1, max=4096)
     points = torch.export.Dim("points", min=1, max=1 << 22)
     with torch.no_grad(), _quiet():
-        program = torch.onnx.export(
+        program = export_graph(
             graph,
             example,
-            dynamo=True,
             input_names=list(INPUTS),
             output_names=list(OUTPUTS),
             dynamic_shapes=({0: characters, 1: points}, {0: characters}, {0: characters}),
-            opset_version=OPSET,
-            optimize=False,  # the step's one pass instead (graph_optimiser): the same graph, sooner
-            verbose=False,
+            opset=OPSET,
         )
-        optimise_graph(program.model)
     with atomic_path(path) as tmp:
         onnx.save_model(program.model_proto, str(tmp))
     return path

@@ -1,9 +1,8 @@
 """Tensor operations the exportable stream step's modules share (:mod:`.torch_step`,
 :mod:`.torch_push_out`, :mod:`.torch_subspace_push`), written in the operators ONNX has: arrays
-held as graph constants, the turn about +Y, a batched solve of symmetric positive definite
-systems (``torch.linalg.solve`` has no ONNX form), and the loops and conditionals that are ONNX
-``Loop`` and ``If`` when exporting and Python's when running (torch's own would compile every batch
-shape on a GPU crowd)."""
+held as graph constants, the turn about +Y and a batched solve of symmetric positive definite
+systems (``torch.linalg.solve`` has no ONNX form); the loops and conditionals are
+:mod:`hrr_garment.models.graph_loops`'s."""
 
 from __future__ import annotations
 
@@ -59,21 +58,3 @@ def turn_y(points: torch.Tensor, cos: torch.Tensor, sin: torch.Tensor) -> torch.
     c, s = cos.reshape(shape), sin.reshape(shape)
     x, y, z = points[..., 0], points[..., 1], points[..., 2]
     return torch.stack([c * x + s * z, y, c * z - s * x], -1)
-
-
-def exportable_while(condition, body, state: tuple) -> tuple:
-    """``body(*state)`` while ``condition(*state)`` holds: an ONNX ``Loop`` when exporting, a Python
-    loop when running."""
-    if torch.compiler.is_compiling():
-        return while_loop(condition, body, state)
-    while bool(condition(*state)):
-        state = body(*state)
-    return state
-
-
-def exportable_cond(predicate: torch.Tensor, then, otherwise, *, operands: tuple):
-    """``then(*operands)`` where ``predicate`` holds, else ``otherwise(*operands)``: an ONNX ``If``
-    when exporting (the branches' outputs may not alias their inputs), a Python branch when running."""
-    if torch.compiler.is_compiling():
-        return torch.cond(predicate, then, otherwise, operands)
-    return then(*operands) if bool(predicate) else otherwise(*operands)

@@ -27,6 +27,7 @@ import numpy as np
 import torch
 from torch import nn
 
+from ..models.graph_loops import exportable_cond, exportable_while
 from .collision import PROJECTIONS, RELEASE_PASSES, PushOutSettings
 from .limb_release import RELEASED_RADIUS, limb_capsules
 from .torch_capsules import (
@@ -35,7 +36,7 @@ from .torch_capsules import (
     per_point,
     point_capsule_distance,
 )
-from .torch_ops import constant, exportable_cond, exportable_while
+from .torch_ops import constant
 from .torch_strain_limit import StrainLimitStage
 from .torch_subspace_push import SubspacePushStage
 

@@ -25,8 +25,9 @@ import numpy as np
 import torch
 from torch import nn
 
+from ..models.graph_loops import exportable_while
 from .strain_limit import LIMIT_TOLERANCE_M, OVER_RELAXATION
-from .torch_ops import constant, exportable_while
+from .torch_ops import constant
 
 # Rings about a tear's ends whose edges the passes measure: on the real-quick jersey model through
 # CMU 02_01 (32 characters, 60 frames), the vertices the passes moved lay at most 1 ring from those

@@ -54,6 +54,7 @@ import torch
 from torch import nn
 
 from ..body.skin_collider import side_rules
+from .graph_loops import exportable_while
 from .torch_mesh import closest_in_plane, closest_on_triangles, cross, dot, pseudo_normals
 
 MAX_POINTS = 1 << 40  # the most points one query takes (a bound for the exporter)
@@ -230,20 +231,35 @@ class SkinColliderGraph(nn.Module):
         chosen = torch.cat(chosen, -1)  # (K, S)
         rest = torch.gather(rigid, 1, chosen[..., None].expand(*chosen.shape, 3)).permute(2, 0, 1)
         moves = torch.index_select(torch.cat([rot.flatten(-2), trans], -1), 0, character)  # (K, J, 12)
-        for k in range(self.settings.iterations + 1):
-            w, d = self._read(rest)  # (K, S, J), (K, S)
-            m = torch.bmm(w, moves).permute(2, 0, 1)  # (12, K, S): M(w) row by row, then t(w)
-            miss = [
-                x[i] - (m[3 * i] * rest[0] + m[3 * i + 1] * rest[1] + m[3 * i + 2] * rest[2]) - m[9 + i]
-                for i in range(3)
-            ]
-            if k < self.settings.iterations:
-                rest = rest + self.settings.step * _solve3(m, miss)
+
+        def fixed_point_step(k, rest):
+            m, miss = self._miss(x, rest, moves)[1:]
+            return k + 1, rest + self.settings.step * _solve3(m, miss)
+
+        # the steps as a loop: an exported graph holds one step's operations, not each step's (a
+        # third of a character's step's graph, and of its export's time, when unrolled)
+        start = torch.zeros((), dtype=torch.int64, device=x.device)
+        rest = exportable_while(
+            lambda k, rest: k < self.settings.iterations, fixed_point_step, (start, rest)
+        )[1]
+        d, _, miss = self._miss(x, rest, moves)
         settled = (
             torch.sqrt(miss[0] * miss[0] + miss[1] * miss[1] + miss[2] * miss[2]) < self.settings.settled_m
         )
         below = torch.clamp(-d, min=0.0)
         return rest, torch.where(settled, below, torch.zeros_like(below)), below.amax(-1)
+
+    def _miss(self, x: torch.Tensor, rest: torch.Tensor, moves: torch.Tensor) -> tuple:
+        """At rest points (3, K, S) of points ``x`` (3, K, 1) with their joints' ``moves`` (K, J, 12):
+        the rest distance (K, S), the blended move M(w) row by row then t(w) (12, K, S), and the
+        three components of x - (M(w) rest + t(w)), each (K, S)."""
+        w, d = self._read(rest)  # (K, S, J), (K, S)
+        m = torch.bmm(w, moves).permute(2, 0, 1)
+        miss = [
+            x[i] - (m[3 * i] * rest[0] + m[3 * i + 1] * rest[1] + m[3 * i + 2] * rest[2]) - m[9 + i]
+            for i in range(3)
+        ]
+        return d, m, miss
 
     def _entries(self, index: torch.Tensor) -> torch.Tensor:
         return torch.index_select(self.table.reshape(-1), 0, index.reshape(-1)).reshape(index.shape)
