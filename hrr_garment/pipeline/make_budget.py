@@ -52,9 +52,10 @@ class BudgetShares:
     # the ONNX graph for the character's body, its push-out against the capsules (72 s for a
     # 1,028-vertex dress on a 615-vertex body) ...
     onnx_s: float = 90.0
-    # ... or against the character's own mesh, the graph then holding the mesh's collider (182 s for
-    # that dress on that body, 2-core AMD EPYC, 2026-12-07)
-    onnx_mesh_s: float = 180.0
+    # ... or against the character's own mesh, the graph then holding the mesh's collider (137 s for
+    # that dress on that body, the export and its check, 2-core AMD EPYC, 2026-12-07; 182 s before
+    # the strict trace first and the collider's steps as a loop)
+    onnx_mesh_s: float = 140.0
     # each of the character's clips: animated, exported with the character, and the preview (4 s each
     # for 4 to 12 s clips)
     clip_s: float = 10.0
