@@ -6,10 +6,10 @@ Why the capture can be chosen here: the exporter tries ``torch.export``'s non-st
 and the strict one only after it fails. A step's push-out loops over lists of data-dependent length
 (the strain limit's edges near a tear, the points a round moved), and the non-strict trace of its
 loops' bodies fails on a guard between two such lengths, after a full minute on the 1,046-vertex
-dress's step on a character's own mesh (59 of that export's 273 s); the strict trace then gives the
-graph. Straight-line code (the skin collider's query alone) the non-strict trace takes, a few
-seconds sooner than the strict one, so it keeps the exporter's order. Where the strict trace fails,
-the exporter's own order runs after it.
+dress's step on a character's own mesh (59 of that export's 273 s under a profiler); the strict
+trace then gives the graph. Straight-line code (the skin collider's query alone) the non-strict
+trace takes, a few seconds sooner than the strict one, so it keeps the exporter's order. Where the
+strict trace fails, the exporter's own order runs after it.
 """
 
 from __future__ import annotations

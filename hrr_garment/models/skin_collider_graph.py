@@ -236,8 +236,8 @@ class SkinColliderGraph(nn.Module):
             m, miss = self._miss(x, rest, moves)[1:]
             return k + 1, rest + self.settings.step * _solve3(m, miss)
 
-        # the steps as a loop: an exported graph holds one step's operations, not each step's (a
-        # third of a character's step's graph, and of its export's time, when unrolled)
+        # the steps as a loop: an exported graph holds one step's operations, not each step's (unrolled,
+        # nearly a third of the operators of a step's graph on a character's mesh)
         start = torch.zeros((), dtype=torch.int64, device=x.device)
         rest = exportable_while(
             lambda k, rest: k < self.settings.iterations, fixed_point_step, (start, rest)
