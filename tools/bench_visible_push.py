@@ -118,7 +118,7 @@ def onnx_runs(stages: dict, frames: np.ndarray, motion, cuts: list) -> dict:
     import torch
 
     from hrr_garment.export.graph_export import export_graph
-    from hrr_garment.export.onnx_model import OPSET, _quiet
+    from hrr_garment.export.onnx_model import OPSET
 
     names = ["vertices", "rotations", "positions"]
     feeds = [
@@ -134,16 +134,15 @@ def onnx_runs(stages: dict, frames: np.ndarray, motion, cuts: list) -> dict:
     for name, stage in stages.items():
         characters = torch.export.Dim("characters", min=1, max=4096)
         t0 = time.perf_counter()
-        with torch.no_grad(), _quiet():
-            program = export_graph(
-                stage.eval(),
-                example,
-                input_names=names,
-                output_names=["pushed"],
-                dynamic_shapes=tuple({0: characters} for _ in names),
-                opset=OPSET,
-                strict_first=True,  # a push-out's loops
-            )
+        program = export_graph(
+            stage.eval(),
+            example,
+            input_names=names,
+            output_names=["pushed"],
+            dynamic_shapes=tuple({0: characters} for _ in names),
+            opset=OPSET,
+            strict_first=True,  # a push-out's loops
+        )
         path = folder / f"{len(runs)}.onnx"
         program.save(str(path))
         print(f"{name}: exported in {time.perf_counter() - t0:.0f} s")

@@ -14,6 +14,9 @@ strict trace fails, the exporter's own order runs after it.
 
 from __future__ import annotations
 
+import logging
+import warnings
+from contextlib import contextmanager
 from typing import Callable
 
 import torch
@@ -35,22 +38,23 @@ def export_graph(
     """The ONNX program (torch's ``ONNXProgram``, optimised) of ``module`` called on ``example``,
     its inputs and outputs named, ``dynamic_shapes`` as ``torch.export`` takes them; captured by the
     strict trace first where ``strict_first`` (a module with loops: above). ``traced`` is called
-    between torch's export and the optimisation (a progress bar's next stage). Call it under
-    ``torch.no_grad()``."""
-    program = torch.onnx.export(
-        strict_capture(module, example, dynamic_shapes) if strict_first else module,
-        example,
-        dynamo=True,
-        input_names=input_names,
-        output_names=output_names,
-        dynamic_shapes=dynamic_shapes,
-        opset_version=opset,
-        optimize=False,  # optimise_graph's one pass instead: the same graph in a fraction of the time
-        verbose=False,
-    )
-    if traced is not None:
-        traced()
-    optimise_graph(program.model)
+    between torch's export and the optimisation (a progress bar's next stage). Without gradients,
+    and without the exporter's and optimiser's own logs and warnings (:func:`_quiet`)."""
+    with torch.no_grad(), _quiet():
+        program = torch.onnx.export(
+            strict_capture(module, example, dynamic_shapes) if strict_first else module,
+            example,
+            dynamo=True,
+            input_names=input_names,
+            output_names=output_names,
+            dynamic_shapes=dynamic_shapes,
+            opset_version=opset,
+            optimize=False,  # optimise_graph's one pass instead: the same graph in a fraction of the time
+            verbose=False,
+        )
+        if traced is not None:
+            traced()
+        optimise_graph(program.model)
     return program
 
 
@@ -64,3 +68,17 @@ def strict_capture(module: torch.nn.Module, example: tuple, dynamic_shapes: tupl
         return module
     result = TorchExportStrictStrategy(verbose=False)(module, example, None, dynamic_shapes=dynamic_shapes)
     return result.exported_program if result.success and result.exported_program is not None else module
+
+
+@contextmanager
+def _quiet():
+    """Torch's exporter and its optimiser log and warn about their own internals (a missing
+    torchvision, deprecations, constant folding skipped) on every export: none of it is the user's."""
+    previous = logging.root.manager.disable
+    logging.disable(logging.WARNING)
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            yield
+    finally:
+        logging.disable(previous)

@@ -16,10 +16,7 @@ graph outputs for a search of one's own (docs/export.md). Needs the ``onnx`` ext
 from __future__ import annotations
 
 import json
-import logging
 import time
-import warnings
-from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Sequence
@@ -122,17 +119,16 @@ def export_onnx(
         example = _example_inputs(shapes, noise, 2, frame_path.cloth)
         n = torch.export.Dim("characters", min=1, max=4096)
         dynamic = (tuple({0: n} for _ in example),)  # the inputs, one tuple (GraphInputs' *inputs)
-        with torch.no_grad(), _quiet():
-            program = export_graph(
-                GraphInputs(step, list(example)),
-                tuple(torch.from_numpy(x) for x in example.values()),
-                input_names=list(example),
-                output_names=list(OUTPUTS) + [f"next_{name}" for name in shapes if name not in STATE],
-                dynamic_shapes=dynamic,
-                opset=OPSET,
-                strict_first=True,  # its push-out's loops (graph_export)
-                traced=lambda: stage(EXPORT_STAGES[1]),
-            )
+        program = export_graph(
+            GraphInputs(step, list(example)),
+            tuple(torch.from_numpy(x) for x in example.values()),
+            input_names=list(example),
+            output_names=list(OUTPUTS) + [f"next_{name}" for name in shapes if name not in STATE],
+            dynamic_shapes=dynamic,
+            opset=OPSET,
+            strict_first=True,  # its push-out's loops (graph_export)
+            traced=lambda: stage(EXPORT_STAGES[1]),
+        )
         stage(EXPORT_STAGES[2])
         model = program.model_proto
         record_metadata(
@@ -143,20 +139,6 @@ def export_onnx(
         write_tensors(tensors, animator.bundle)
     vertices = int(animator.bundle.template.num_vertices)
     return OnnxExport(path, tensors, vertices, shapes, time.perf_counter() - t0, noise)
-
-
-@contextmanager
-def _quiet():
-    """Torch's exporter and its optimiser log and warn about their own internals (a missing
-    torchvision, deprecations, constant folding skipped) on every export: none of it is the user's."""
-    previous = logging.root.manager.disable
-    logging.disable(logging.WARNING)
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            yield
-    finally:
-        logging.disable(previous)
 
 
 class GraphInputs(torch.nn.Module):

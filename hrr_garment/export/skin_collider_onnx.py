@@ -23,7 +23,7 @@ import torch
 from ..io_utils import atomic_path, require_suffix
 from ..models.skin_collider_graph import SkinColliderGraph
 from .graph_export import export_graph
-from .onnx_model import OPSET, _quiet, _require_onnx
+from .onnx_model import OPSET, _require_onnx
 
 INPUTS = ("points", "rotations", "positions")
 OUTPUTS = ("distance", "normal")
@@ -44,15 +44,14 @@ def export_skin_collider(collider, path: str | Path, *, dtype: torch.dtype = tor
     )
     characters = torch.export.Dim("characters", min=1, max=4096)
     points = torch.export.Dim("points", min=1, max=1 << 22)
-    with torch.no_grad(), _quiet():
-        program = export_graph(
-            graph,
-            example,
-            input_names=list(INPUTS),
-            output_names=list(OUTPUTS),
-            dynamic_shapes=({0: characters, 1: points}, {0: characters}, {0: characters}),
-            opset=OPSET,
-        )
+    program = export_graph(
+        graph,
+        example,
+        input_names=list(INPUTS),
+        output_names=list(OUTPUTS),
+        dynamic_shapes=({0: characters, 1: points}, {0: characters}, {0: characters}),
+        opset=OPSET,
+    )
     with atomic_path(path) as tmp:
         onnx.save_model(program.model_proto, str(tmp))
     return path

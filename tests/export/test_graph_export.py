@@ -46,16 +46,15 @@ class WithGraphBreak(torch.nn.Module):
 def _run(module: torch.nn.Module, x: np.ndarray, tmp_path) -> np.ndarray:
     n = torch.export.Dim("n", min=1, max=4096)
     example = (torch.from_numpy(x),)
-    with torch.no_grad():
-        program = export_graph(
-            module,
-            example,
-            input_names=["x"],
-            output_names=["y"],
-            dynamic_shapes=({0: n},),
-            opset=OPSET,
-            strict_first=True,
-        )
+    program = export_graph(
+        module,
+        example,
+        input_names=["x"],
+        output_names=["y"],
+        dynamic_shapes=({0: n},),
+        opset=OPSET,
+        strict_first=True,
+    )
     path = tmp_path / "graph.onnx"
     program.save(str(path))
     session = onnxruntime.InferenceSession(str(path), providers=["CPUExecutionProvider"])
