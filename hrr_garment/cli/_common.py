@@ -108,7 +108,7 @@ def add_push_option(p: argparse.ArgumentParser) -> None:
         choices=PUSH_BODIES,
         default=None,
         help="what the push-out pushes the cloth out of: visible (the mesh the viewer sees, where the body "
-        "has one: an anny body's, a character's own; default, but capsules with --push subspace) or "
+        "has one: an anny body's, a character's own; default) or "
         "capsules (the collision capsules: cheaper, but skin shows through where the mesh lies outside)",
     )
 

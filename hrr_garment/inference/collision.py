@@ -118,10 +118,9 @@ def push_out(
     push-out).
     ``body``: the body's capsules, posed by ``motion``, or :class:`PosedCapsules`, or the mesh the
     viewer sees (:class:`~.visible_push.PosedSkin`: the fractions are then of the vertices inside
-    it, and there is no subspace push). With
-    ``settings.subspace`` (:class:`~.subspace_push.SubspacePush`) each frame is first moved in the
-    garment's subspace, and the limit measures the push against the moved frame; the report's
-    "before" is the cloth as it came."""
+    it). With ``settings.subspace`` (:class:`~.subspace_push.SubspacePush`) each frame is first
+    moved in the garment's subspace (measured against the same body), and the limit measures the
+    push against the moved frame; the report's "before" is the cloth as it came."""
     settings = PUSH_OUT if settings is None else settings  # read here: the product's settings are one object
     rows = None if limits is None else limits.body_of_frame
     if rows is not None and len(rows) != len(vertices):
@@ -197,8 +196,6 @@ def _push(vertices, motion, faces, body, settings: PushOutSettings, mean, limits
     from .visible_push import PosedSkin
 
     skin = body if isinstance(body, PosedSkin) else None
-    if skin is not None and settings.subspace is not None:
-        raise ValueError("the subspace push measures capsules: push out of the visible mesh without it")
     if skin is not None:
         posed = skin.hulls
     else:
@@ -256,7 +253,7 @@ def _push(vertices, motion, faces, body, settings: PushOutSettings, mean, limits
             )
     else:
         if settings.subspace is not None:
-            vertices = settings.subspace(vertices, motion, (a, b, radii), margin)
+            vertices = settings.subspace(vertices, motion, (a, b, radii), margin, skin=skin)
         out = np.empty(vertices.shape, np.float32)
         for start in range(0, len(out), chunk):
             sl = slice(start, start + chunk)

@@ -149,8 +149,8 @@ class RunSettings:
     push: str | None = None
     # what the push-out pushes the cloth out of: "visible" (the mesh the viewer sees, where the body
     # has one: an anny body's, a character's own; the mannequin's is its capsules) or "capsules"
-    # (the 20 collision capsules: cheaper, but skin shows through where the mesh lies outside them).
-    # None: visible, but capsules with the subspace push (which measures capsules)
+    # (the 20 collision capsules: cheaper, but skin shows through where the mesh lies outside them);
+    # the subspace push measures the same body. None: visible
     push_body: str | None = None
     # the hem's swing restored on free cloth (inference/swing.py): the gain on the latents' departure
     # from their recent course, 1: as predicted. None: the model's calibrated gain in the mode auto
@@ -212,8 +212,6 @@ class RunSettings:
             raise ValueError(f"push must be one of {', '.join(PUSHES)}, got {self.push!r}")
         if self.push_body is not None and self.push_body not in PUSH_BODIES:
             raise ValueError(f"push_body must be one of {', '.join(PUSH_BODIES)}, got {self.push_body!r}")
-        if self.push_body == "visible" and self.push == "subspace":
-            raise ValueError("the subspace push measures capsules: ask for push_body='capsules' with it")
         if not isinstance(self.detail, DetailLook):
             raise TypeError(f"detail must be a DetailLook, got {type(self.detail).__name__}")
         if self.precision is not None and self.precision not in PRECISIONS:
@@ -300,7 +298,7 @@ class RunSettings:
         push = self.push or PUSHES[0]
         if push == "subspace":
             bundle.require_subspace("the subspace push")
-        push_body = self.push_body or ("capsules" if push == "subspace" else PUSH_BODIES[0])
+        push_body = self.push_body or PUSH_BODIES[0]
         swing = self.swing if self.swing is not None else bundle.swing_gain if calibrated else 1.0
         return ResolvedRun(
             mode=mode,

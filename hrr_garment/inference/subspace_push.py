@@ -26,6 +26,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import cached_property
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -33,6 +34,9 @@ from ..body.capsules import frames_signed_distance
 from ..motion.frame import body_heading
 from ..motion.motion import Motion
 from ..native.body import SubspaceMove
+
+if TYPE_CHECKING:
+    from .visible_push import PosedSkin
 
 # components the push uses: on the trained 4,156-vertex subset model (docs/decisions/0032) 32 of its
 # 128 tore as few frames as 128 (36.7 against 35.6 %), for the same error and a lower strain max
@@ -97,9 +101,13 @@ class SubspacePush:
         motion: Motion,
         capsules: tuple[np.ndarray, np.ndarray, np.ndarray],
         margin: float,
+        skin: "PosedSkin | None" = None,
     ) -> np.ndarray:
         """(T, V, 3) world vertices, their frames' ``motion`` (the body frame's heading) and posed
-        ``capsules`` (a, b (T, C, 3), radii (C,) or (T, C)) -> the moved copy, float32."""
+        ``capsules`` (a, b (T, C, 3), radii (C,) or (T, C)) -> the moved copy, float32. With ``skin``
+        (the mesh the viewer sees, posed for the same frames) the distances and normals are the
+        skin's (:meth:`~.visible_push.PosedSkin.distance`, measured within the push's reach), and
+        ``capsules`` are its hulls."""
         a, b, radii = capsules
         _, turn = body_heading(motion)  # (T, 3, 3) body frame -> world: local rows = world rows @ turn
         out = np.array(vertices, np.float64)
@@ -108,7 +116,12 @@ class SubspacePush:
         for t in range(len(out)):
             frame_radii = radii[t] if np.ndim(radii) == 2 else radii
             for _ in range(self.iterations):
-                d, n = frames_signed_distance(out[t : t + 1], a[t : t + 1], b[t : t + 1], radii=frame_radii)
+                if skin is None:
+                    d, n = frames_signed_distance(
+                        out[t : t + 1], a[t : t + 1], b[t : t + 1], radii=frame_radii
+                    )
+                else:
+                    d, n = skin.distance(out[t : t + 1], slice(t, t + 1), margin + self.clearance)
                 near = np.nonzero(d[0] < margin + self.clearance)[0]
                 if not len(near):
                     break

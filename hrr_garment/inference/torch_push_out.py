@@ -59,7 +59,10 @@ class PushOutStage(nn.Module):
     ):
         super().__init__()
         if skin is not None and settings.subspace is not None:
-            raise ValueError("the subspace push measures capsules: a visible mesh's stage goes without it")
+            raise ValueError(
+                "the torch step's subspace push measures capsules (the package's measures the skin too): "
+                "with push='subspace' in an ONNX graph or on a device, ask for push_body='capsules'"
+            )
         if limits.body_of_frame is not None:
             raise ValueError("a step's push-out stage is of one body: give it that body's limits")
         self.skin = skin  # the visible mesh's collider graph, measured instead of the capsules

@@ -211,8 +211,6 @@ def push_out_frames(
     (:mod:`hrr_garment.body.skin_envelope`), and the points within the margin of one are measured against
     the skin."""
     mean, *_, mesh, limit, subspace = steps
-    if skin is not None and subspace is not None:
-        raise ValueError("the subspace push measures capsules: it does not take the skin")
     a, b, r = capsule_arrays(*capsules)
     p = np.ascontiguousarray(points, np.float64 if np.asarray(points).dtype == np.float64 else np.float32)
     if out is None:

@@ -894,14 +894,15 @@ static __attribute__((noinline)) void subspace_move(double *p, int v0, int v1, c
    added. Returns whether there was a move to make. Called by every thread of the innermost parallel
    region (the distances shared, the solve on one); d and nrm are push_frame's scratch. */
 static int subspace_solve(const double *p, int V, const double *ca, const double *cb, const double *radii, int C,
-                          const PushMesh *m, double margin, const SubspaceArgs *sp, const double *turn, PushTeam *team,
-                          double *coef)
+                          const SkinPose *sk, const PushMesh *m, double margin, const SubspaceArgs *sp, const double *turn,
+                          PushTeam *team, double *coef)
 {
     const int k = sp->k;
     const double reach = margin + sp->clearance;
     double *d = team->buf, *nrm = d + V, *A = team->solve, *row = A + (size_t)k * k;
     if (m->patch_ptr) sdf_patches(p, m, ca, cb, radii, C, reach, d, nrm);
     else sdf_points(p, NULL, V, ca, cb, radii, C, d, nrm);
+    skin_refine(sk, p, NULL, V, reach, d, nrm);  /* against the skin: its columns were built for the reach */
     #pragma omp single
     {
         int n = 0;
@@ -937,11 +938,12 @@ static int subspace_solve(const double *p, int V, const double *ca, const double
 /* The subspace push on one frame p, `iterations` solves and moves (stopping where one has nothing
    to move), shared by the threads of the innermost parallel region. */
 static void subspace_push(double *p, int V, const double *ca, const double *cb, const double *radii, int C,
-                          const PushMesh *m, double margin, const SubspaceArgs *sp, const double *turn, PushTeam *team)
+                          const SkinPose *sk, const PushMesh *m, double margin, const SubspaceArgs *sp, const double *turn,
+                          PushTeam *team)
 {
     double *coef = team->solve + (size_t)sp->k * (sp->k + 1);
     for (int it = 0; it < sp->iterations; ++it) {
-        if (!subspace_solve(p, V, ca, cb, radii, C, m, margin, sp, turn, team, coef)) break;
+        if (!subspace_solve(p, V, ca, cb, radii, C, sk, m, margin, sp, turn, team, coef)) break;
         #pragma omp for schedule(static)
         for (int v0 = 0; v0 < V; v0 += MOVE_BLOCK)
             subspace_move(p, v0, v0 + MOVE_BLOCK < V ? v0 + MOVE_BLOCK : V, sp->blocks, sp->k, coef, turn);
@@ -966,19 +968,22 @@ static void push_and_limit(const void *in, int in_double, float *out, int V, con
         #pragma omp for schedule(static)
         for (int k = 0; k < 3 * V; ++k) p[k] = ((const float *)in)[k];
     }
-    if (sp) subspace_push(p, V, ca, cb, radii, C, m, args->margin, sp, turn, team);
-    if (s) {  /* the limit's reference: the frame as the mesh push gets it */
-        #pragma omp for schedule(static)
-        for (int k = 0; k < 3 * V; ++k) u[k] = p[k];
-    }
     if (sk && sk->cell > 0.0) {  /* the frame's broad phase against the skin, here where frames run in
-                                    parallel, its columns in the team's copy of the frame's struct */
+                                    parallel, its columns in the team's copy of the frame's struct; built
+                                    for the subspace push's reach where there is one (a column then lists
+                                    more triangles than the margin needs: the same answers) */
         #pragma omp single
         {
             team->skin = *sk;
-            skin_columns(sk->grid, sk->posed, args->margin, sk->cell, &team->columns, &team->skin);
+            skin_columns(sk->grid, sk->posed, args->margin + (sp ? sp->clearance : 0.0), sk->cell, &team->columns,
+                         &team->skin);
         }
         sk = &team->skin;
+    }
+    if (sp) subspace_push(p, V, ca, cb, radii, C, sk, m, args->margin, sp, turn, team);
+    if (s) {  /* the limit's reference: the frame as the mesh push gets it */
+        #pragma omp for schedule(static)
+        for (int k = 0; k < 3 * V; ++k) u[k] = p[k];
     }
     push_frame(p, V, ca, cb, radii, C, sk, m, args->margin, args->smooth, args->rounds, args->depth, before, after, team->buf,
                team->ints, team->flag);
@@ -1054,7 +1059,7 @@ static double *batched_subspace(const void *in, int in_double, int T, int V, con
                 int solved = 0;
                 #pragma omp parallel num_threads(1)  /* this frame's own one-thread team */
                 solved = subspace_solve(frames + t * step, V, a + (size_t)t * 3 * C, b + (size_t)t * 3 * C,
-                                        radii + (size_t)t * radii_step, C, m, args->margin, sp, turn + 9 * t, mine,
+                                        radii + (size_t)t * radii_step, C, NULL, m, args->margin, sp, turn + 9 * t, mine,
                                         coefs + (size_t)k * t);
                 active[t] = (unsigned char)solved;
             }
@@ -1123,8 +1128,9 @@ void hrr_push_out(const void *in, int in_double, float *out, int T, int V, const
         if (limit) team[k].limit = limit_scratch(limit_block + per_limit * k, limit->E);
     }
     const size_t step = (size_t)V * 3;
-    /* several frames: their subspace push batched first, where there is one (and the memory) */
-    double *moved = !shared && subspace
+    /* several frames: their subspace push batched first, where there is one (and the memory), against
+       capsules (against the skin each frame's push measures its own skin, in push_and_limit) */
+    double *moved = !shared && subspace && !skin
         ? batched_subspace(in, in_double, T, V, a, b, radii, C, radii_step, &mesh, args, subspace, turn, teams, team) : NULL;
     if (moved) {
         in = moved;

@@ -30,6 +30,15 @@ def _skirt_and_basis():
     return skirt, basis
 
 
+def _squeezed_walk():
+    """The tiny skirt and its basis, a walk, and the skirt 20 % narrower worn through it (float32):
+    into the hips."""
+    skirt, basis = _skirt_and_basis()
+    motion = synthesize("walk", 0.3, seed=2)
+    _, squeezed = squeezed_skirt(motion, 0.8, on_body=True)
+    return skirt, basis, motion, squeezed.astype(np.float32)
+
+
 def test_the_subspace_push_takes_the_cloth_out_along_the_basis_alone():
     from hrr_garment.body.capsules import DEFAULT_BODY, frames_signed_distance
     from hrr_garment.inference.subspace_push import SubspacePush
@@ -99,10 +108,7 @@ def test_the_push_out_runs_the_subspace_push_the_same_in_the_kernel_and_in_numpy
 
     if native.load_kernel() is None:
         pytest.skip("no C compiler")
-    skirt, basis = _skirt_and_basis()
-    motion = synthesize("walk", 0.3, seed=2)
-    _, squeezed = squeezed_skirt(motion, 0.8, on_body=True)
-    squeezed = squeezed.astype(np.float32)
+    skirt, basis, motion, squeezed = _squeezed_walk()
     settings = dataclasses.replace(PUSH_OUT, subspace=SubspacePush.of(basis, skirt.vertices, skirt.edges()))
     limits = EdgeLimits.of(skirt.faces, skirt.vertices)
     plain, _ = push_out(squeezed, motion, skirt.faces, limits=limits)
@@ -115,6 +121,56 @@ def test_the_push_out_runs_the_subspace_push_the_same_in_the_kernel_and_in_numpy
     monkeypatch.setattr(native, "load_kernel", lambda *args, **kwargs: None)
     reference, _ = push_out(squeezed, motion, skirt.faces, limits=limits, settings=settings)
     assert np.abs(got - reference).max() < 1e-5
+
+
+def test_against_the_visible_mesh_the_subspace_push_measures_the_skin(monkeypatch):
+    """On a body with a mesh of its own (closed, bulging past its capsules) the subspace move measures
+    the skin and takes the cloth out of it; push_out runs it the same in the kernel and in numpy, and
+    a frame alone is the same bits as in a batch."""
+    import dataclasses
+
+    from hrr_garment import native
+    from hrr_garment.body.capsules import DEFAULT_BODY
+    from hrr_garment.inference.collision import PUSH_OUT, EdgeLimits, push_out
+    from hrr_garment.inference.subspace_push import SubspacePush
+    from hrr_garment.inference.visible_push import PosedSkin, VisibleCollider
+    from tests.body.limb import BulgingMannequin
+
+    if native.load_kernel() is None:
+        pytest.skip("no C compiler")
+    skirt, basis, motion, squeezed = _squeezed_walk()
+    skin = PosedSkin.of(VisibleCollider.of(DEFAULT_BODY, BulgingMannequin(0.05).closed().skinned()), motion)
+    push = SubspacePush.of(basis, skirt.vertices, skirt.edges())
+    hulls = (skin.hulls.a, skin.hulls.b, skin.hulls.radii)
+    on_skin = push(squeezed, motion, hulls, 0.002, skin=skin)
+    on_capsules = push(squeezed, motion, (*DEFAULT_BODY.pose_motion(motion), DEFAULT_BODY.radii), 0.002)
+
+    def depth(frames):  # how deep the cloth lies inside the skin, summed over its vertices
+        return np.maximum(-skin.distance(frames.astype(np.float64), slice(None), 0.005)[0], 0.0).sum()
+
+    assert depth(on_skin) < 0.7 * depth(squeezed)
+    assert not np.array_equal(on_skin, on_capsules)  # another body measured: another move
+    settings = dataclasses.replace(PUSH_OUT, subspace=push)
+    limits = EdgeLimits.of(skirt.faces, skirt.vertices)
+    got, report = push_out(squeezed, motion, skirt.faces, body=skin, limits=limits, settings=settings)
+    mesh_alone, _ = push_out(squeezed, motion, skirt.faces, body=skin, limits=limits)
+    assert np.abs(got - mesh_alone).max() > 0.005 and report.inside_after < 0.01
+    one_skin = PosedSkin.of(skin.bodies[0], motion.slice(3, 4))
+    one, _ = push_out(
+        squeezed[3:4],
+        motion.slice(3, 4),
+        skirt.faces,
+        body=one_skin,
+        limits=limits,
+        settings=settings,
+        report=False,
+    )
+    assert np.array_equal(one[0], got[3])
+    monkeypatch.setattr(native, "load_kernel", lambda *args, **kwargs: None)
+    reference, reported = push_out(squeezed, motion, skirt.faces, body=skin, limits=limits, settings=settings)
+    assert np.abs(got - reference).max() < 1e-5 and reported.inside_after == pytest.approx(
+        report.inside_after
+    )
 
 
 def test_a_stream_with_the_subspace_push_equals_the_offline_animation_and_changes_it(animator):

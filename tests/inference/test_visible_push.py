@@ -230,8 +230,7 @@ def test_the_run_settings_choose_the_body():
 
     with pytest.raises(ValueError, match="push_body"):
         RunSettings(push_body="skin")
-    with pytest.raises(ValueError, match="subspace push measures capsules"):
-        RunSettings(push_body="visible", push="subspace")
+    assert RunSettings(push_body="visible", push="subspace").push == "subspace"  # it measures the skin too
     settings = RunSettings(push_body="capsules")
     assert settings.push_body == "capsules" and RunSettings().push_body is None
 

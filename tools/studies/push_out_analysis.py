@@ -86,6 +86,17 @@ def body_of_model(animator, visible: bool):
     return lambda motion: PosedSkin.of(collider, motion)
 
 
+def _moved(push, cloth: np.ndarray, motion, capsules: tuple, body, settings) -> np.ndarray:
+    """``cloth`` moved by the subspace ``push``, measured against ``body``: the mesh the viewer sees
+    (a ``PosedSkin``, whose hulls stand for the capsules) or the ``capsules``."""
+    from hrr_garment.inference.visible_push import PosedSkin
+
+    if isinstance(body, PosedSkin):
+        hulls = (body.hulls.a, body.hulls.b, body.hulls.radii)
+        return push(cloth, motion, hulls, settings.margin, skin=body)
+    return push(cloth, motion, capsules, settings.margin)
+
+
 def inside_pct(frames: np.ndarray, out: np.ndarray, motion, body, report) -> tuple:
     """Each frame's share of vertices more than 5 mm inside ``body`` before and after the push:
     against capsules measured here, against a mesh (a ``PosedSkin``) the push-out's own ``report``
@@ -140,8 +151,6 @@ def analyse(
     faces, rest, edges = ds.template.faces, ds.template.vertices, ds.template.edges()
     body, body_of = animator.body().body, body_of_model(animator, visible)
     subspace = animator.subspace_push if subspace_push else None
-    if subspace_push and visible:
-        raise SystemExit("--subspace-push measures the capsules: it goes without --visible")
     if subspace_push and subspace is None:
         raise SystemExit(f"{model}: no fast decoder (subspace) to push in")
     variants = [(label, settings, None) for label, settings in rows.items()]
@@ -178,7 +187,9 @@ def analyse(
         cases.append((truth_label, truth_settings, None, record.garment.astype(np.float32)))
         # the push alone (its follow included), then with its strain limit
         for label, settings, push, cloth in cases:
-            frames = cloth if push is None else push(cloth, record.motion, capsules, settings.margin)
+            frames = (
+                cloth if push is None else _moved(push, cloth, record.motion, capsules, pushed_body, settings)
+            )
             bare, _ = push_out(
                 frames,
                 record.motion,
