@@ -270,7 +270,12 @@ def _push(vertices, motion, faces, body, settings: PushOutSettings, mean, limits
                 slack=settings.stretch_slack,
             )
     if report and settings.subspace is not None:  # "before": as decoded, not after the subspace push
-        before = (measure(np.asarray(original, np.float64), slice(None))[0] < -depth).mean(1)
+        original = np.asarray(original, np.float64)
+        before = (
+            (measure(original, slice(None))[0] < -depth).mean(1)
+            if skin is None
+            else skin.deeper_inside(original, depth, margin)
+        )
     # only the frames the limit moved have a new "after" (the kernel measures them against the skin itself)
     if limits is not None and report and torn.any() and (lib is None or skin is None):
         rows = np.flatnonzero(torn)

@@ -216,6 +216,32 @@ class PosedSkin:
                 d[i, near], n[i, near] = query(points[i, near], self.rotations[t], self.positions[t])
         return d, n
 
+    def deeper_inside(self, points: np.ndarray, depth: float, margin: float) -> np.ndarray:
+        """(T,) each frame's share of points (T, V, 3) more than ``depth`` inside the skin, as
+        :meth:`distance` counts them within ``margin``, measuring only the points that deep inside a
+        hull (the hulls hold the skin, so a point that deep in the skin is that deep in them), then,
+        on a closed mesh, letting the broad phase take out those it finds outside and beyond the
+        margin (where the collider's side is wrong, as the push-out's kernel does). The push-out's
+        report of the cloth as it came where its kernel saw it only after the subspace push: a tenth
+        of :meth:`distance`'s time. Without the kernel, :meth:`distance` itself."""
+        if any(v.kernel is None for v in self.bodies):
+            return (self.distance(points, slice(None), margin)[0] < -depth).mean(1)
+        d, _ = frames_signed_distance(points, self.hulls.a, self.hulls.b, radii=self.hulls.radii)
+        share = np.zeros(len(points))
+        for t in range(len(points)):
+            deep = np.flatnonzero(d[t] < -depth)
+            if not len(deep):
+                continue
+            visible = self.bodies[self.which[t]]
+            skin = visible.kernel.query(points[t, deep], self.rotations[t], self.positions[t])[0]
+            inside = deep[skin < -depth]
+            if len(inside) and visible.closed:
+                inside = inside[
+                    ~visible.kernel.far_outside(self.skins[t], points[t, inside], margin, COLUMN_M)
+                ]
+            share[t] = len(inside) / points.shape[1]
+        return share
+
     def native(self, *, measure_after: bool = False):
         """The frames as the kernel reads them (:class:`~hrr_garment.native.skin.PosedSkins`), with
         their broad phase's column width where the mesh is closed; ``measure_after``: the kernel

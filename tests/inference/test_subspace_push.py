@@ -149,6 +149,11 @@ def test_against_the_visible_mesh_the_subspace_push_measures_the_skin(monkeypatc
         return np.maximum(-skin.distance(frames.astype(np.float64), slice(None), 0.005)[0], 0.0).sum()
 
     assert depth(on_skin) < 0.7 * depth(squeezed)
+    # the report's count of the cloth as it came: the skin's own, measured where a hull is that deep
+    counted = (skin.distance(squeezed.astype(np.float64), slice(None), 0.002)[0] < -0.005).mean(1)
+    assert counted.max() > 0.05 and np.array_equal(
+        skin.deeper_inside(squeezed.astype(np.float64), 0.005, 0.002), counted
+    )
     assert not np.array_equal(on_skin, on_capsules)  # another body measured: another move
     settings = dataclasses.replace(PUSH_OUT, subspace=push)
     limits = EdgeLimits.of(skirt.faces, skirt.vertices)
