@@ -253,7 +253,7 @@ def _push(vertices, motion, faces, body, settings: PushOutSettings, mean, limits
             )
     else:
         if settings.subspace is not None:
-            vertices = settings.subspace(vertices, motion, (a, b, radii), margin, skin=skin)
+            vertices = settings.subspace(vertices, motion, (a, b, radii) if skin is None else skin, margin)
         out = np.empty(vertices.shape, np.float32)
         for start in range(0, len(out), chunk):
             sl = slice(start, start + chunk)

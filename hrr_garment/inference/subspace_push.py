@@ -99,33 +99,36 @@ class SubspacePush:
         self,
         vertices: np.ndarray,
         motion: Motion,
-        capsules: tuple[np.ndarray, np.ndarray, np.ndarray],
+        body: "tuple[np.ndarray, np.ndarray, np.ndarray] | PosedSkin",
         margin: float,
-        skin: "PosedSkin | None" = None,
     ) -> np.ndarray:
-        """(T, V, 3) world vertices, their frames' ``motion`` (the body frame's heading) and posed
-        ``capsules`` (a, b (T, C, 3), radii (C,) or (T, C)) -> the moved copy, float32. With ``skin``
-        (the mesh the viewer sees, posed for the same frames) the distances and normals are the
-        skin's (:meth:`~.visible_push.PosedSkin.distance`, measured within the push's reach), and
-        ``capsules`` are its hulls."""
-        a, b, radii = capsules
+        """(T, V, 3) world vertices, their frames' ``motion`` (the body frame's heading) and the body
+        posed for them -> the moved copy, float32. ``body``: capsules (a, b (T, C, 3), radii (C,) or
+        (T, C)), or the mesh the viewer sees (:class:`~.visible_push.PosedSkin`: the skin's distances
+        and normals, :meth:`~.visible_push.PosedSkin.distance`, measured within the push's reach)."""
+        reach = margin + self.clearance
+        if isinstance(body, tuple):
+            a, b, radii = body
+
+            def distance(points: np.ndarray, t: int) -> tuple[np.ndarray, np.ndarray]:
+                frame_radii = radii[t] if np.ndim(radii) == 2 else radii
+                return frames_signed_distance(points, a[t : t + 1], b[t : t + 1], radii=frame_radii)
+        else:
+
+            def distance(points: np.ndarray, t: int) -> tuple[np.ndarray, np.ndarray]:
+                return body.distance(points, slice(t, t + 1), reach)
+
         _, turn = body_heading(motion)  # (T, 3, 3) body frame -> world: local rows = world rows @ turn
         out = np.array(vertices, np.float64)
         k, v = self.basis.shape[:2]
         flat = self.basis.reshape(k, -1)
         for t in range(len(out)):
-            frame_radii = radii[t] if np.ndim(radii) == 2 else radii
             for _ in range(self.iterations):
-                if skin is None:
-                    d, n = frames_signed_distance(
-                        out[t : t + 1], a[t : t + 1], b[t : t + 1], radii=frame_radii
-                    )
-                else:
-                    d, n = skin.distance(out[t : t + 1], slice(t, t + 1), margin + self.clearance)
-                near = np.nonzero(d[0] < margin + self.clearance)[0]
+                d, n = distance(out[t : t + 1], t)
+                near = np.nonzero(d[0] < reach)[0]
                 if not len(near):
                     break
-                depth = margin + self.clearance - d[0, near]
+                depth = reach - d[0, near]
                 weight = np.minimum(depth / self.clearance, 1.0)
                 jac = np.einsum("si,ksi->sk", n[0, near] @ turn[t], self.basis[:, near])  # (|S|, k)
                 weighted = jac * weight[:, None]

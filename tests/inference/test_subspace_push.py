@@ -141,8 +141,7 @@ def test_against_the_visible_mesh_the_subspace_push_measures_the_skin(monkeypatc
     skirt, basis, motion, squeezed = _squeezed_walk()
     skin = PosedSkin.of(VisibleCollider.of(DEFAULT_BODY, BulgingMannequin(0.05).closed().skinned()), motion)
     push = SubspacePush.of(basis, skirt.vertices, skirt.edges())
-    hulls = (skin.hulls.a, skin.hulls.b, skin.hulls.radii)
-    on_skin = push(squeezed, motion, hulls, 0.002, skin=skin)
+    on_skin = push(squeezed, motion, skin, 0.002)
     on_capsules = push(squeezed, motion, (*DEFAULT_BODY.pose_motion(motion), DEFAULT_BODY.radii), 0.002)
 
     def depth(frames):  # how deep the cloth lies inside the skin, summed over its vertices

@@ -86,17 +86,6 @@ def body_of_model(animator, visible: bool):
     return lambda motion: PosedSkin.of(collider, motion)
 
 
-def _moved(push, cloth: np.ndarray, motion, capsules: tuple, body, settings) -> np.ndarray:
-    """``cloth`` moved by the subspace ``push``, measured against ``body``: the mesh the viewer sees
-    (a ``PosedSkin``, whose hulls stand for the capsules) or the ``capsules``."""
-    from hrr_garment.inference.visible_push import PosedSkin
-
-    if isinstance(body, PosedSkin):
-        hulls = (body.hulls.a, body.hulls.b, body.hulls.radii)
-        return push(cloth, motion, hulls, settings.margin, skin=body)
-    return push(cloth, motion, capsules, settings.margin)
-
-
 def inside_pct(frames: np.ndarray, out: np.ndarray, motion, body, report) -> tuple:
     """Each frame's share of vertices more than 5 mm inside ``body`` before and after the push:
     against capsules measured here, against a mesh (a ``PosedSkin``) the push-out's own ``report``
@@ -175,8 +164,8 @@ def analyse(
         plain["unpushed"].append(edge_strain(anim.vertices, at_rest, edges))
         plain["simulation"].append(edge_strain(record.garment, at_rest, edges))
         unpushed_pve.append(np.linalg.norm(anim.vertices - record.garment, axis=-1).mean(1))
-        capsules = (*body.pose_motion(record.motion), body.radii)
         pushed_body = body_of(record.motion)
+        moved_in = pushed_body if visible else (*body.pose_motion(record.motion), body.radii)
         # the strain limit measures the garment as it rests on that body, as the product's push does
         common = {
             "body": pushed_body,
@@ -187,9 +176,8 @@ def analyse(
         cases.append((truth_label, truth_settings, None, record.garment.astype(np.float32)))
         # the push alone (its follow included), then with its strain limit
         for label, settings, push, cloth in cases:
-            frames = (
-                cloth if push is None else _moved(push, cloth, record.motion, capsules, pushed_body, settings)
-            )
+            # the subspace move measures the body pushed out of: the mesh the viewer sees, or the capsules
+            frames = cloth if push is None else push(cloth, record.motion, moved_in, settings.margin)
             bare, _ = push_out(
                 frames,
                 record.motion,
