@@ -49,6 +49,9 @@ class ClipLatents:
     match: np.ndarray  # (T, 2) int32
     doubt: np.ndarray  # (T,) float32
     features: np.ndarray  # (T, F) each frame's features (stage 1; the settling lag reads them)
+    # (T, nodes, C) the regression's own latents, which the mode's additions depart from (the
+    # push-out takes them back where they go into the body: .take_back); None: no regression
+    base: np.ndarray | None = None
 
 
 def clip_latents(path: FramePath, motion: Motion) -> ClipLatents:
@@ -68,6 +71,7 @@ def clip_latents(path: FramePath, motion: Motion) -> ClipLatents:
         if path.run.mode is Mode.SAMPLE:  # the draw departs from the regression, frame after frame
             latents = path.draw(features, latents)
         regression = None if choice.regression_part is None else choice.regression_part[:, -1]
+        base = None if choice.regression is None else choice.regression[:, -1]
         proposals = causal_proposals(choice.match, w) if choice.lends_folds else None
         per_frame = np.arange(t_frames)
     else:
@@ -80,6 +84,9 @@ def clip_latents(path: FramePath, motion: Motion) -> ClipLatents:
             if choice.regression_part is None
             else blend_windows(choice.regression_part, len(windows) + w - 1)[clip]
         )
+        base = None
+        if choice.regression is not None:
+            base = blend_windows(choice.regression, len(windows) + w - 1)[clip]
         proposals = offline_proposals(choice.match, t_frames, w) if choice.lends_folds else None
         per_frame = centred_windows(t_frames, w)  # the window centred on t
     return ClipLatents(
@@ -91,6 +98,7 @@ def clip_latents(path: FramePath, motion: Motion) -> ClipLatents:
         choice.match[per_frame],
         choice.doubt[per_frame].astype(np.float32),
         features[:t_frames],
+        base,
     )
 
 
@@ -148,7 +156,15 @@ def animate_clip(path: FramePath, motion: Motion) -> Animation:
     push_body = (
         character.push_body(motion, visible=path.run.push_body == "visible") if path.run.push_out else None
     )
-    vertices, report = path.push_out(vertices, motion, push_body)
+    base = None  # the regression's cloth, where the run adds to it (.take_back)
+    if (
+        path.takes_back
+        and chosen.base is not None
+        and (chosen.proposals is not None or not np.array_equal(latents, chosen.base))
+    ):
+        stood = body_frame_vertices(bundle, chosen.base, path.decoder) + character.offset
+        base = path.world(stood, motion, seen=False)
+    vertices, report = path.push_out(vertices, motion, push_body, base=base)
     return Animation(
         vertices=vertices,
         faces=bundle.template.faces,

@@ -17,7 +17,9 @@ one numbered list (:data:`STAGES`) that every driver runs in order:
 7. ``folds``: the detail mode's simulated folds (:mod:`.detail`, :mod:`.fold_track`);
 8. ``world``: the garment stood on the body (its rest offset) and taken to the world
    (:func:`~hrr_garment.motion.frame.world_vertices`);
-9. ``push_out``: the collision push-out and its strain limit (:mod:`.collision`).
+9. ``push_out``: the collision push-out and its strain limit (:mod:`.collision`), the database
+   modes' additions to the regression first taken back where they carry the cloth into the body
+   (:mod:`.take_back`).
 
 The drivers: :mod:`.clip_path` (a whole clip, offline or causal: :meth:`Animator.animate`),
 :class:`~.stream.CrowdStream` (a frame of many characters; one character:
@@ -42,6 +44,7 @@ import torch
 from ..body.measures import with_columns
 from ..motion.frame import world_vertices
 from ..motion.motion import Motion
+from . import collision
 from .collision import PushOutReport, push_out
 from .detail import add_folds
 from .gate import WindowChoice, choose_windows
@@ -179,19 +182,30 @@ class FramePath:
         return follow_over_time(folds, mean=self.smoothing)
 
     # 8. world
-    def world(self, stood: np.ndarray, motion: Motion) -> np.ndarray:
-        """Body-frame vertices stood on the body (its rest offset added) -> world vertices."""
-        return self.seen("world", world_vertices(stood, motion))
+    def world(self, stood: np.ndarray, motion: Motion, seen: bool = True) -> np.ndarray:
+        """Body-frame vertices stood on the body (its rest offset added) -> world vertices (shown
+        to the observer where ``seen``: the cloth's, not the regression's under it)."""
+        vertices = world_vertices(stood, motion)
+        return self.seen("world", vertices) if seen else vertices
 
     # 9. push-out
+    @property
+    def takes_back(self) -> bool:
+        """Whether stage 9 takes the database modes' additions back first (:mod:`.take_back`): the
+        drivers then decode the regression under them too."""
+        settings = self.push_settings if self.push_settings is not None else collision.PUSH_OUT
+        return self.run.push_out and settings.take_back and settings.subspace is None
+
     def push_out(
-        self, vertices: np.ndarray, motion: Motion, capsules, report: bool = True, limits=None
+        self, vertices: np.ndarray, motion: Motion, capsules, report: bool = True, limits=None, base=None
     ) -> tuple[np.ndarray, PushOutReport | None]:
         """World vertices (n, V, 3) pushed out of the body ``capsules`` (a BodyModel posed by
         ``motion``, :class:`~.collision.PosedCapsules`, or the mesh the viewer sees,
         :class:`~.visible_push.PosedSkin`) where the run asks for it; the report
         where ``report`` and the push-out ran. ``limits``: the strain limit's
-        (:class:`~.edge_limits.EdgeLimits`) where the frames rest on other bodies than the run's."""
+        (:class:`~.edge_limits.EdgeLimits`) where the frames rest on other bodies than the run's.
+        ``base``: the same frames' regression, world vertices, where the run adds to it: the
+        additions are taken back first where they carry the cloth into the body (:mod:`.take_back`)."""
         out = None
         if self.run.push_out:
             vertices, out = push_out(
@@ -203,6 +217,7 @@ class FramePath:
                 limits=self.push_limits if limits is None else limits,
                 settings=self.push_settings,
                 report=report,
+                base=base,
             )
         self.seen("push_out", vertices)
         return vertices, out

@@ -89,6 +89,8 @@ class LodState:
     match: np.ndarray | None = None  # (2,) that step's database match (sequence, start) or -1
     # (nodes, C) that step's share that swings as the regression (gate.WindowChoice.regression_part, or None)
     regression: np.ndarray | None = None
+    # (nodes, C) that step's regression, which the mode's additions depart from (gate.WindowChoice.regression)
+    base: np.ndarray | None = None
     since: int = 0  # the character's frame of that step
     decoder: str | None = None
     fade: DecoderFade | None = None
@@ -116,6 +118,7 @@ def crowd_latents(chars: list, lv: np.ndarray, choose, inertialize_rows) -> np.n
             c = chars[i]
             c.lod.latent, c.lod.match, c.lod.since = choice.latents[j, -1], choice.match[j], c.frames
             c.lod.regression = None if choice.regression_part is None else choice.regression_part[j, -1]
+            c.lod.base = None if choice.regression is None else choice.regression[j, -1]
             sources[i] = causal_source(choice.follows_match[j], choice.match[j], c.frames)
         if choice.continuous is not None and blending.DEPARTURE_ONLY:  # else the whole latent inertialized
             continuous = np.zeros_like(targets)
@@ -126,6 +129,30 @@ def crowd_latents(chars: list, lv: np.ndarray, choose, inertialize_rows) -> np.n
         c = chars[i]
         targets[i], sources[i] = c.lod.latent, ("held", c.lod.since)
     return inertialize_rows(targets, sources, continuous, split).astype(np.float32)
+
+
+def crowd_bases(
+    chars: list, latents: np.ndarray, names: list[str], decoders: dict, folds: bool = False
+) -> np.ndarray | None:
+    """(N, V, 3) body-frame vertices of the characters' regressions (their ``lod.base``), each through
+    its decoder ``names[i]`` (no fade: the push-out's take-back reads them, :mod:`.take_back`), or None
+    where a character has none or nothing is added to them: the crowd's ``latents`` (N, nodes, C)
+    are theirs and no ``folds`` are added."""
+    if any(c.lod.base is None for c in chars):
+        return None
+    bases = np.stack([c.lod.base for c in chars]).astype(np.float32)
+    if not folds and np.array_equal(bases, latents):
+        return None
+    import torch
+
+    out = None
+    for name in dict.fromkeys(names):
+        rows = [i for i, n in enumerate(names) if n == name]
+        with torch.no_grad():
+            decoded = decoders[name](torch.from_numpy(np.ascontiguousarray(bases[rows]))).numpy()
+        out = np.empty((len(chars), *decoded.shape[1:]), np.float32) if out is None else out
+        out[rows] = decoded
+    return out
 
 
 def crowd_decode(chars: list, latents: np.ndarray, names: list[str], decoders: dict) -> np.ndarray:

@@ -50,7 +50,7 @@ from .decoding import flush_denormals
 from .fold_track import FoldTrack, follow_folds
 from .frame_path import FramePath, with_conditions
 from .gate import frame_gates
-from .lod import crowd_decode, crowd_latents, decoder_of, levels
+from .lod import crowd_bases, crowd_decode, crowd_latents, decoder_of, levels
 from .modes import Mode
 from .run_material import cloth_columns
 from .run_settings import ResolvedRun
@@ -258,6 +258,13 @@ class CrowdStream:
         for i in teleported(keys, last, poses.root_translation, fps=poses.fps):
             self._forget(keys[i])
 
+    def _bases(self, chars: list, latents: np.ndarray, names: list[str], bodies, poses: Motion):
+        """Stage 9's regressions under the mode's additions, world vertices (:mod:`.take_back`), or
+        None where the characters' cloth is their regression."""
+        folds = self.run.mode is Mode.DETAIL
+        local = crowd_bases(chars, latents, names, decoders=self._decoders, folds=folds)
+        return None if local is None else self.path.world(bodies.stand(local), poses, seen=False)
+
     def _step_frame(self, keys: list, poses: Motion, lv: np.ndarray) -> np.ndarray:
         """The frame path's nine stages (:mod:`.frame_path`), each once for the whole crowd."""
         path, t = self.path, [time.perf_counter()]
@@ -321,7 +328,8 @@ class CrowdStream:
         limits = (
             bodies.push_limits(path.edge_limits, path.bundle.template.vertices) if self.run.push_out else None
         )
-        vertices, _ = path.push_out(vertices, poses, push_body, report=False, limits=limits)
+        base = self._bases(chars, latents, names, bodies, poses) if path.takes_back else None
+        vertices, _ = path.push_out(vertices, poses, push_body, report=False, limits=limits, base=base)
         t.append(time.perf_counter())
         for i, c in enumerate(chars):
             c.previous = (poses.global_rotations[i], poses.joint_positions[i])

@@ -242,6 +242,27 @@ class PosedSkin:
             share[t] = len(inside) / points.shape[1]
         return share
 
+    def frame_distance(self, t: int, points: np.ndarray, margin: float) -> np.ndarray:
+        """(N,) signed distances of points (N, 3) to frame ``t``'s skin as :meth:`distance` measures
+        them within ``margin``: the hulls' past the margin of every hull (they hold the skin), else
+        the skin kernel's, ``FAR_AWAY`` where the broad phase finds a point it calls nearer beyond
+        the margin and outside (on a closed mesh). Without the kernel, :meth:`distance` itself."""
+        visible = self.bodies[self.which[t]]
+        if visible.kernel is None:
+            return self.distance(points[None], np.array([t]), margin)[0][0]
+        rows, hulls = slice(t, t + 1), self.hulls
+        d, _ = frames_signed_distance(points[None], hulls.a[rows], hulls.b[rows], radii=hulls.radii[rows])
+        d = d[0]
+        near = np.flatnonzero(d < margin)
+        if len(near):
+            moves = self.moves[0][t], self.moves[1][t]
+            d[near] = visible.kernel.query_posed(points[near], *moves, self.skins[t])[0]
+            near = near[d[near] < margin]
+            if len(near) and visible.closed:
+                far = visible.kernel.far_outside(self.skins[t], points[near], margin, COLUMN_M)
+                d[near[far]] = FAR_AWAY
+        return d
+
     def native(self, *, measure_after: bool = False):
         """The frames as the kernel reads them (:class:`~hrr_garment.native.skin.PosedSkins`), with
         their broad phase's column width where the mesh is closed; ``measure_after``: the kernel

@@ -184,7 +184,7 @@ class StrainLimit(NamedTuple):
         )
 
 
-def push_out_frames(
+def push_out_frames(  # noqa: PLR0913  (the frames, their regression, the body, the steps: each its own)
     lib: ctypes.CDLL,
     points: np.ndarray,
     capsules: tuple,
@@ -194,6 +194,7 @@ def push_out_frames(
     skin: int | None = None,
     threads: int = 1,
     out: np.ndarray | None = None,
+    base: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """:func:`hrr_garment.inference.collision.push_out`'s per-frame steps in the kernel: points
     (T, V, 3) float32 or float64 (others are converted to float32), ``capsules`` (ends a, b
@@ -209,7 +210,9 @@ def push_out_frames(
     returned). ``skin``: the address of T :class:`~.skin.SkinPose` structs (:class:`~.skin.PosedSkins`),
     when the body is the skin the viewer sees; ``capsules`` then are its hulls
     (:mod:`hrr_garment.body.skin_envelope`), and the points within the margin of one are measured against
-    the skin."""
+    the skin. ``base``: (T, V, 3) the regression under a mode's additions, taken back first where
+    they carry the cloth into the body (:mod:`hrr_garment.inference.take_back`); ``before`` is then
+    of the points as they came."""
     mean, *_, mesh, limit, subspace = steps
     a, b, r = capsule_arrays(*capsules)
     p = np.ascontiguousarray(points, np.float64 if np.asarray(points).dtype == np.float64 else np.float32)
@@ -236,6 +239,10 @@ def push_out_frames(
     if rows is not None and len(rows) < limit.first_frame + t:
         raise ValueError(f"a strain limit for {len(rows)} frames, {t} from frame {limit.first_frame} pushed")
     push_args, strain_args = steps.arguments(), None if limit is None else limit.arguments()
+    if base is not None:
+        base = np.ascontiguousarray(base, np.float32)
+        if base.shape != p.shape:
+            raise ValueError(f"the regression's frames {base.shape} for points {p.shape}")
     lib.hrr_push_out(
         p.ctypes.data,
         int(p.dtype == np.float64),
@@ -256,6 +263,7 @@ def push_out_frames(
         None if subspace is None else ctypes.byref(subspace.struct),
         None if subspace is None else turn.ctypes.data,
         skin,
+        None if base is None else base.ctypes.data,
         threads,
         before.ctypes.data,
         after.ctypes.data,

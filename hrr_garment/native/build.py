@@ -131,11 +131,12 @@ def _declare(lib: ctypes.CDLL) -> None:
         d,
         d,
         d,
+        d,
         c_int,
         d,
         d,
         d,
-    ]  # PushArgs, StrainArgs, SubspaceArgs by reference; SkinPose (T,) or NULL
+    ]  # PushArgs, StrainArgs, SubspaceArgs by reference; SkinPose (T,) or NULL; base or NULL
     lib.hrr_push_out.restype = None
     lib.hrr_limit_strain.argtypes = [d, d, c_int, c_int, d, c_int, d]
     lib.hrr_limit_strain.restype = c_int

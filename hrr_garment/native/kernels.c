@@ -307,6 +307,9 @@ typedef struct {
 
 enum { MAX_REGION_RINGS = 256 };
 #define FAR_AWAY 1e30 /* the distance of a vertex whose patch no capsule comes near */
+#define TAKE_BACK_MOVED 1e-6 /* an addition no longer than this is none (take_back.MOVED_M) */
+#define TAKE_BACK_HALVINGS 3 /* a share to within an eighth of the addition (take_back.HALVINGS) */
+#define TAKE_BACK_PASSES 4 /* the shares' spread over the mesh (take_back.SPREAD_PASSES) */
 
 /* Signed distances of every vertex, each patch against only the capsules that can come within
    `reach` of it (by its bounding sphere); a patch with none gets FAR_AWAY. A capsule left out is
@@ -950,6 +953,76 @@ static void subspace_push(double *p, int V, const double *ca, const double *cb, 
     }
 }
 
+/* Point x's signed distance to the body as the push measures it within `margin`: the capsules'
+   (or hulls': they hold the skin) past the margin of every one, else, against the skin,
+   skin_measure's (the skin's distance, or the broad phase's FAR_AWAY). As PosedSkin.frame_distance
+   (hrr_garment/inference/visible_push.py). */
+static double point_distance(const double *x, const double *ca, const double *cb, const double *radii, int C,
+                             const SkinPose *sk, double margin)
+{
+    double d, nrm[3];
+    sdf_soa(x, x + 1, x + 2, NULL, 0, 1, ca, cb, radii, C, &d, nrm);  /* strided: one point, its x y z */
+    if (d >= margin || !sk) return d;
+    skin_measure(sk, margin, x, &d, nrm);
+    return d;
+}
+
+/* The take-back of hrr_garment/inference/take_back.py for one frame, before its push: each vertex
+   nearer than the margin to the body (or inside) whose addition (p - base) is not nothing gets the
+   least share of it, found by `halvings` halvings, that going back along it clears the body (where
+   base is not clear: the whole if base is the shallower, else none); the shares spread over the mesh by `passes` Jacobi passes of
+   share = max(share, mean operator . share); every vertex goes back by its share. came: the
+   fraction of the frame as it came deeper than `depth` (the report's before). d, nrm, share,
+   share2: scratch (V, 3V, V, V doubles). Called by every thread of the team. */
+static void take_back_frame(double *p, const float *base, int V, const double *ca, const double *cb, const double *radii,
+                            int C, const SkinPose *sk, const PushMesh *m, double margin, double depth, int halvings,
+                            int passes, double *d, double *nrm, double *share, double *share2, double *came)
+{
+    sdf_points(p, NULL, V, ca, cb, radii, C, d, nrm);
+    skin_refine(sk, p, NULL, V, margin, d, nrm);
+    #pragma omp single
+    {
+        int deep = 0;
+        for (int v = 0; v < V; ++v) deep += d[v] < -depth;
+        *came = (double)deep / V;
+    }
+    #pragma omp for schedule(dynamic, 16)
+    for (int v = 0; v < V; ++v) {
+        share[v] = 0.0;
+        if (!(d[v] < margin)) continue;
+        double add[3], x[3];
+        for (int k = 0; k < 3; ++k) add[k] = p[3 * v + k] - (double)base[3 * v + k];
+        if (sqrt(add[0] * add[0] + add[1] * add[1] + add[2] * add[2]) <= TAKE_BACK_MOVED) continue;
+        for (int k = 0; k < 3; ++k) x[k] = p[3 * v + k] - add[k];
+        const double under = point_distance(x, ca, cb, radii, C, sk, margin);
+        double hi = under > d[v] ? 1.0 : 0.0;  /* the regression not clear either: back where it is the shallower */
+        if (under >= margin) {
+            double lo = 0.0;
+            hi = 1.0;
+            for (int i = 0; i < halvings; ++i) {
+                const double mid = 0.5 * (lo + hi);
+                for (int k = 0; k < 3; ++k) x[k] = p[3 * v + k] - mid * add[k];
+                if (point_distance(x, ca, cb, radii, C, sk, margin) >= margin) hi = mid;
+                else lo = mid;
+            }
+        }
+        share[v] = hi;
+    }
+    for (int pass = 0; pass < passes; ++pass) {  /* each thread swaps its own pointers, alike */
+        #pragma omp for schedule(static)
+        for (int v = 0; v < V; ++v) {
+            double acc = 0.0;
+            for (int j = m->indptr[v]; j < m->indptr[v + 1]; ++j) acc += m->weights[j] * share[m->indices[j]];
+            share2[v] = acc > share[v] ? acc : share[v];
+        }
+        double *t = share; share = share2; share2 = t;
+    }
+    #pragma omp for schedule(static)
+    for (int v = 0; v < V; ++v)
+        if (share[v] > 0.0)
+            for (int k = 0; k < 3; ++k) p[3 * v + k] -= share[v] * (p[3 * v + k] - (double)base[3 * v + k]);
+}
+
 /* One frame, in (V, 3) float32, or float64 with in_double -> out float32: with sp, moved in the garment's subspace first
    (subspace_push, its body frame turned by turn); pushed as push_frame does, in float64, then with
    a strain limit s, limited against the frame as the push got it, measuring only the edges of the
@@ -958,7 +1031,8 @@ static void subspace_push(double *p, int V, const double *ca, const double *cb, 
 static void push_and_limit(const void *in, int in_double, float *out, int V, const double *ca, const double *cb,
                            const double *radii,
                            int C, const SkinPose *sk, const PushMesh *m, const PushArgs *args, const StrainArgs *s, const SubspaceArgs *sp,
-                           const double *turn, double *before, double *after, unsigned char *torn, PushTeam *team)
+                           const double *turn, const float *base, double *before, double *after,
+                           unsigned char *torn, PushTeam *team)
 {
     double *p = team->p, *u = team->u;
     if (in_double) {
@@ -980,6 +1054,10 @@ static void push_and_limit(const void *in, int in_double, float *out, int V, con
         }
         sk = &team->skin;
     }
+    double came = 0.0;
+    if (base)  /* push_frame's scratch, free until it starts: d, nrm, then two V-long rows for the shares */
+        take_back_frame(p, base, V, ca, cb, radii, C, sk, m, args->margin, args->depth, TAKE_BACK_HALVINGS, TAKE_BACK_PASSES,
+                        team->buf, team->buf + V, team->buf + 4 * (size_t)V, team->buf + 5 * (size_t)V, &came);
     if (sp) subspace_push(p, V, ca, cb, radii, C, sk, m, args->margin, sp, turn, team);
     if (s) {  /* the limit's reference: the frame as the mesh push gets it */
         #pragma omp for schedule(static)
@@ -987,6 +1065,10 @@ static void push_and_limit(const void *in, int in_double, float *out, int V, con
     }
     push_frame(p, V, ca, cb, radii, C, sk, m, args->margin, args->smooth, args->rounds, args->depth, before, after, team->buf,
                team->ints, team->flag);
+    if (base) {  /* the report's before: the frame as it came, its additions in it */
+        #pragma omp single
+        *before = came;
+    }
     if (s) {  /* push_frame ends at a barrier: the frame is pushed, team->moved lists what it moved */
         #pragma omp single
         *torn = (unsigned char)limit_one(p, u, V, s, team->moved, team->flag[3], &team->limit);
@@ -1084,14 +1166,15 @@ static double *batched_subspace(const void *in, int in_double, int T, int V, con
    the neighbour-follow (ring NULL: none); patch_ptr, patch_idx, patches: the culled distances
    (patch_ptr NULL: none). limit (NULL: none): the strain limit, each frame limited right after its
    push (torn[t]: whether frame t was; before and after are the push's). subspace (NULL: none): the
-   subspace push before the mesh push, each frame's body frame turned by turn (T, 3, 3). NaN
-   fractions when out of memory or where k > SUBSPACE_MAXK. */
+   subspace push before the mesh push, each frame's body frame turned by turn (T, 3, 3). base
+   (NULL: none): (T, V, 3) float32, the regression under a mode's additions, taken back first where
+   they carry the cloth into the body (take_back_frame; before is then of the frame as it came). NaN fractions when out of memory or where k > SUBSPACE_MAXK. */
 void hrr_push_out(const void *in, int in_double, float *out, int T, int V, const double *a, const double *b, const double *radii, int C,
                   int radii_step, const int32_t *indptr, const int32_t *indices, const double *weights,
                   const int32_t *ring, const double *ring_drop, int width, int follow, const int32_t *patch_ptr,
                   const int32_t *patch_idx, int patches, const PushArgs *args, const StrainArgs *limit,
-                  const SubspaceArgs *subspace, const double *turn, const SkinPose *skin, int threads, double *before,
-                  double *after, unsigned char *torn)
+                  const SubspaceArgs *subspace, const double *turn, const SkinPose *skin, const float *base, int threads,
+                  double *before, double *after, unsigned char *torn)
 {
     enum { MAX_TEAMS = 64, BUF = 26, SUBSPACE_MAXK = 512 };  /* BUF: push_frame's 20 V doubles, then p and u */
     if (T <= 0) return;
@@ -1130,7 +1213,7 @@ void hrr_push_out(const void *in, int in_double, float *out, int T, int V, const
     const size_t step = (size_t)V * 3;
     /* several frames: their subspace push batched first, where there is one (and the memory), against
        capsules (against the skin each frame's push measures its own skin, in push_and_limit) */
-    double *moved = !shared && subspace && !skin
+    double *moved = !shared && subspace && !skin && !base
         ? batched_subspace(in, in_double, T, V, a, b, radii, C, radii_step, &mesh, args, subspace, turn, teams, team) : NULL;
     if (moved) {
         in = moved;
@@ -1144,7 +1227,8 @@ void hrr_push_out(const void *in, int in_double, float *out, int T, int V, const
             const StrainArgs own = limit ? frame_limit(limit, t) : (StrainArgs){0};
             push_and_limit(FRAME_IN(t), in_double, out + t * step, V, a + (size_t)t * 3 * C, b + (size_t)t * 3 * C,
                            radii + (size_t)t * radii_step, C, skin ? skin + t : NULL, &mesh, args, limit ? &own : NULL, subspace,
-                           turn ? turn + 9 * t : NULL, before + t, after + t, torn + t, team);
+                           turn ? turn + 9 * t : NULL, base ? base + t * step : NULL, before + t, after + t,
+                           torn + t, team);
         }
     } else {
         #pragma omp parallel for num_threads(teams) schedule(dynamic)
@@ -1154,7 +1238,8 @@ void hrr_push_out(const void *in, int in_double, float *out, int T, int V, const
             #pragma omp parallel num_threads(1)  /* this frame's own one-thread team */
             push_and_limit(FRAME_IN(t), in_double, out + t * step, V, a + (size_t)t * 3 * C, b + (size_t)t * 3 * C,
                            radii + (size_t)t * radii_step, C, skin ? skin + t : NULL, &mesh, args, limit ? &own : NULL, subspace,
-                           turn ? turn + 9 * t : NULL, before + t, after + t, torn + t, mine);
+                           turn ? turn + 9 * t : NULL, base ? base + t * step : NULL, before + t, after + t,
+                           torn + t, mine);
         }
     }
     #undef FRAME_IN

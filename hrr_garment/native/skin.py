@@ -123,12 +123,21 @@ class SkinKernel:
         rot, trans = np.ascontiguousarray(rot[0]), np.ascontiguousarray(trans[0])
         posed = np.empty((self.vertices, 3))
         ref = ctypes.byref(self.struct)
-        lib = self.lib
-        lib.hrr_skin_pose(ref, rot.ctypes.data, trans.ctypes.data, posed.ctypes.data)
+        self.lib.hrr_skin_pose(ref, rot.ctypes.data, trans.ctypes.data, posed.ctypes.data)
+        return self.query_posed(points, rot, trans, posed)
+
+    def query_posed(
+        self, points: np.ndarray, rot: np.ndarray, trans: np.ndarray, posed: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`query` of a body already posed: the joints' moves from rest (J, 3, 3) and (J, 3)
+        and the mesh they pose (V, 3), as :meth:`pose_frames` gives them (a frame queried many times
+        poses its mesh once)."""
+        rot, trans = np.ascontiguousarray(rot, np.float64), np.ascontiguousarray(trans, np.float64)
+        posed = np.ascontiguousarray(posed, np.float64)
         p = np.ascontiguousarray(points, np.float64).reshape(-1, 3)
         distance, normal = np.empty(len(p)), np.empty((len(p), 3))
-        lib.hrr_skin_sdf(
-            ref,
+        self.lib.hrr_skin_sdf(
+            ctypes.byref(self.struct),
             rot.ctypes.data,
             trans.ctypes.data,
             posed.ctypes.data,

@@ -3,12 +3,14 @@ each stage's output agrees across them: a clip animated causally, a stream, a cr
 step (the ONNX graph's module), stage by stage; and the run request: body, precision, device and
 the exclusions are settings, old names still taken."""
 
+import dataclasses
 from collections import defaultdict
 from pathlib import Path
 
 import numpy as np
 import pytest
 
+from hrr_garment.inference import collision
 from hrr_garment.inference.animator import Animator
 from hrr_garment.inference.clip_path import animate_clip
 from hrr_garment.inference.decoding import flush_denormals
@@ -88,6 +90,11 @@ def test_every_stage_of_a_stream_and_a_crowd_equals_the_clip_animated_causally(f
     walk, spin = synthesize("walk_curve", 1.0, seed=7), synthesize("spin", 1.0, seed=2)
     settings = {"mode": mode, "swing": 1.3}
     expected = {k: _offline(animator, m, **settings) for k, m in (("walk", walk), ("spin", spin))}
+    # the push-out takes the mode's additions back on these clips (its own stage: drivers must agree)
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(collision, "PUSH_OUT", dataclasses.replace(collision.PUSH_OUT, take_back=False))
+        kept = _offline(animator, walk, **settings)["push_out"]
+    assert np.abs(kept - expected["walk"]["push_out"]).max() > 1e-4
     stream = animator.stream(**settings)
     stream.crowd.path.observe = alone = Recorder()
     crowd = animator.crowd(device="native", **settings)

@@ -28,7 +28,12 @@ With ``--subspace-push`` every setting is also run after the push in the fast de
 
 ``--visible`` pushes out of the mesh the model's body is drawn with (a character's own, an anny
 body's), as ``hrr-animate`` does on such a body, instead of its capsules. The first setting also
-pushes the simulation itself (``simulation, pushed``): what the truth asks of the push-out.
+pushes the simulation itself (``simulation, pushed``): what the truth asks of the push-out. In a
+mode that adds to the regression (hybrid, residual, detail: the default look), the push-out first
+takes the additions back where they carry the cloth into the body, as the product's does
+(:mod:`hrr_garment.inference.take_back`; not in the subspace rows, as the product's does not);
+``--no-take-back`` pushes the cloth as it came, as the product did before. ``inside_before_pct`` is
+of the cloth as it came either way.
 """
 
 from __future__ import annotations
@@ -64,6 +69,7 @@ def _timed_us(
                 mean=common["mean"],
                 limits=common["limits"],
                 report=False,
+                base=None if common.get("base") is None else common["base"][sl],
             )
             per_frame.append((time.perf_counter() - t0) / crowd)
     return 1e6 * float(np.median(per_frame)) if per_frame else float("nan")
@@ -97,6 +103,17 @@ def inside_pct(frames: np.ndarray, out: np.ndarray, motion, body, report) -> tup
     return np.full(len(frames), report.inside_before), np.full(len(frames), report.inside_after)
 
 
+def regression_under(animator, motion, mode: str | None) -> np.ndarray | None:
+    """The regression's cloth under ``mode``'s additions (offline, not pushed), or None where the
+    mode has none to take back (the regression, the sample mode, retrieval)."""
+    from hrr_garment.inference.modes import Mode
+
+    resolved = animator.resolve(None, **({"mode": mode} if mode else {}))
+    if resolved.mode not in (Mode.HYBRID, Mode.RESIDUAL, Mode.DETAIL):
+        return None
+    return animator.animate(motion, push_out=False, mode="regression").vertices
+
+
 def push_out_rows(follows: list[int], slope: float, slacks: list[float]) -> dict:
     """The push-out settings compared, by label: each follow with each slack."""
     from hrr_garment.inference.collision import PUSH_OUT
@@ -118,6 +135,7 @@ class Asked(NamedTuple):
     mode: str | None = None
     subspace_push: bool = False
     visible: bool = False
+    take_back: bool = True  # the mode's additions taken back first, as the product's push-out does
 
 
 def analyse(
@@ -158,6 +176,7 @@ def analyse(
     for name in names:
         record = ds.sequence(name)
         anim = animator.animate(record.motion, push_out=False, **({"mode": mode} if mode else {}))
+        base = regression_under(animator, record.motion, mode) if asked.take_back else None
         # strain against the garment at rest on the sequence's own body (a carried garment's edges
         # are not the template's)
         at_rest = rest if record.dressed is None else record.dressed.garment.vertices
@@ -172,12 +191,14 @@ def analyse(
             "mean": animator.smoothing,
             "limits": animator.edge_limits.on_bodies(at_rest),
         }
-        cases = [(label, settings, push, anim.vertices) for label, settings, push in variants]
-        cases.append((truth_label, truth_settings, None, record.garment.astype(np.float32)))
+        cases = [(label, settings, push, anim.vertices, base) for label, settings, push in variants]
+        cases.append((truth_label, truth_settings, None, record.garment.astype(np.float32), None))
         # the push alone (its follow included), then with its strain limit
-        for label, settings, push, cloth in cases:
-            # the subspace move measures the body pushed out of: the mesh the viewer sees, or the capsules
+        for label, settings, push, cloth, under in cases:
+            # the subspace move measures the body pushed out of: the mesh the viewer sees, or the capsules;
+            # the push-out takes back no additions before it (decision 0046)
             frames = cloth if push is None else push(cloth, record.motion, moved_in, settings.margin)
+            common["base"] = under if push is None else None
             bare, _ = push_out(
                 frames,
                 record.motion,
@@ -194,7 +215,11 @@ def analyse(
                 frames, record.motion, faces, settings=settings, report=visible, **common
             )
             before, inside = inside_pct(
-                frames, out, record.motion, pushed_body, measured if visible else None
+                cloth if push is not None else frames,
+                out,
+                record.motion,
+                pushed_body,
+                measured if visible else None,
             )
             found[label]["torn"].append(torn)
             found[label]["limited"].append(np.abs(out - bare).max((1, 2)) > 0)
@@ -205,7 +230,9 @@ def analyse(
             if label != truth_label:
                 timed = settings if push is None else dataclasses.replace(settings, subspace=push)
                 found[label]["us"].append(
-                    _timed_us(cloth, record.motion, faces, common, timed, crowd, repeat, body_of)
+                    _timed_us(
+                        cloth, record.motion, faces, common, timed, crowd, repeat, body_of
+                    )  # with its base
                 )
     report = {
         "model": model,
@@ -278,6 +305,11 @@ def main() -> None:
         help="push out of the mesh the model's body is drawn with (an anny body, a fitted character), "
         "not its capsules",
     )
+    parser.add_argument(
+        "--no-take-back",
+        action="store_true",
+        help="push the cloth as it came: the mode's additions not taken back first (the product's before)",
+    )
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args()
     report = analyse(
@@ -287,7 +319,7 @@ def main() -> None:
         push_out_rows(args.follow, args.slope, args.slack),
         args.sequences,
         (args.crowd, args.repeat),
-        Asked(args.mode, args.subspace_push, args.visible),
+        Asked(args.mode, args.subspace_push, args.visible, not args.no_take_back),
     )
     if args.json:
         print(json.dumps(report))
