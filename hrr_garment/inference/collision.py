@@ -80,9 +80,10 @@ class PushOutSettings:
     # the frames the strain limit repairs (42.9 -> 21.3 %) but leaves 4 x the cloth inside the body
     # (0.14 -> 0.63 %) where the model put it through a limb (docs/decisions/0041)
     release_limbs: bool = False
-    # a database mode's additions to the regression taken back first where they carry the cloth into
-    # the body (.take_back; the frame path then decodes the regression too): on a character's model
-    # the frames the limit repairs 45.9 -> 31.4 %, for 25 % more of a streamed step (decision 0046)
+    # the residual and detail modes' additions to the regression taken back first where they carry
+    # the cloth into the body (.take_back; the frame path then decodes the regression too): on a
+    # character's model the frames the limit repairs 45.9 -> 31.4 %, for 25 % more of a streamed
+    # step (decision 0046)
     take_back: bool = True
     # the push in the garment's subspace before the mesh push (.subspace_push; None: none), made
     # per bundle (Animator.push_settings)

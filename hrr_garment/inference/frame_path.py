@@ -17,8 +17,8 @@ one numbered list (:data:`STAGES`) that every driver runs in order:
 7. ``folds``: the detail mode's simulated folds (:mod:`.detail`, :mod:`.fold_track`);
 8. ``world``: the garment stood on the body (its rest offset) and taken to the world
    (:func:`~hrr_garment.motion.frame.world_vertices`);
-9. ``push_out``: the collision push-out and its strain limit (:mod:`.collision`), the database
-   modes' additions to the regression first taken back where they carry the cloth into the body
+9. ``push_out``: the collision push-out and its strain limit (:mod:`.collision`), the residual
+   and detail modes' additions to the regression first taken back where they carry the cloth into the body
    (:mod:`.take_back`).
 
 The drivers: :mod:`.clip_path` (a whole clip, offline or causal: :meth:`Animator.animate`),
@@ -191,7 +191,7 @@ class FramePath:
     # 9. push-out
     @property
     def takes_back(self) -> bool:
-        """Whether stage 9 takes the database modes' additions back first (:mod:`.take_back`): the
+        """Whether stage 9 takes the residual and detail modes' additions back first (:mod:`.take_back`): the
         drivers then decode the regression under them too."""
         settings = self.push_settings if self.push_settings is not None else collision.PUSH_OUT
         return self.run.push_out and settings.take_back and settings.subspace is None

@@ -45,10 +45,11 @@ class WindowChoice:
     # regression less the share of it the residual's match replaced (inference/swing.py scales its
     # departure). None: all of ``latents``, or a run without the swing's gain
     regression_part: np.ndarray | None = None
-    # (N, W or 1, nodes, C) the regression's own latents, which the database modes' additions (a
-    # retrieved window, a match's departure, its folds, and the swing and settling on them) depart
-    # from: the push-out takes them back where they carry the cloth into the body (.take_back).
-    # None: a mode without the database's additions (the regression, the sample mode) or regression
+    # (N, W or 1, nodes, C) the regression the residual and detail modes add to (a match's
+    # departure, its folds, and the swing and settling on them): the push-out takes the additions
+    # back where they carry the cloth into the body (.take_back). None: the other modes (a retrieved
+    # window is a simulation of its own, not an addition; the regression and the sample mode run as
+    # the torch step runs them)
     regression: np.ndarray | None = None
 
     def __post_init__(self) -> None:
@@ -164,12 +165,7 @@ def choose_windows(
             found, _ = db.search(enc.codes[rows], ex, None if conditions is None else conditions[rows])
         latents[rows] = db.latents[found, -frames:]
         source[rows] = np.stack([db.sequence[found], db.start[found]], 1)
-    # the hybrid's retrieved windows are additions the push-out takes back (.take_back); the regression
-    # and the sample mode run as the torch step does, on their own
-    base = enc.regression if mode is Mode.HYBRID else None
-    return WindowChoice(
-        latents, retrieved, enc.entropy, np.asarray(doubt, np.float64), source, regression=base
-    )
+    return WindowChoice(latents, retrieved, enc.entropy, np.asarray(doubt, np.float64), source)
 
 
 def frame_gates(bundle: Bundle, step, frames: np.ndarray) -> np.ndarray | None:

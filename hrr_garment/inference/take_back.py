@@ -1,11 +1,11 @@
 """The push-out's first step: what a mode adds to the regression, taken back where it carries the
 cloth into the body.
 
-The modes that borrow from the database (hybrid, residual, detail: the default look) add to the
-regression what was not made for this body in this pose: a retrieved window or a match's departure
-(another simulation's cloth, on another motion), another simulation's folds, and the swing's gain
-and the settling on them. (The regression and the sample mode run as the torch step and the ONNX
-graph run them, which have no database: nothing is taken back there.) Where that addition
+The residual and detail modes (the default look is the detail mode) add to the regression what
+was not made for this body in this pose: a match's departure (another simulation's cloth, on
+another motion), another simulation's folds, and the swing's gain and the settling on them. (A
+retrieved window is a simulation of its own, not an addition, and the regression and the sample
+mode run as the torch step and the ONNX graph run them: nothing is taken back there.) Where that addition
 takes a vertex into the body, pushing the vertex to the nearest surface tears the cloth: on a
 character's held-out walks (issue 82) the regression alone left 4-5 % of frames for the strain
 limit to repair and the default look, with its additions, 29-55 %, the torn edges' deeper ends

@@ -53,6 +53,8 @@ def test_a_version_2_bundle_loads_and_animates_as_31b4ef9_did(tmp_path, monkeypa
     assert {"memory_seconds", "resonator_hz", "regression_code"} <= set(manifest.codespace.config)
     written = read_animation_h5(DATA / "out-31b4ef9" / "auto.h5")
     monkeypatch.setattr(fold_track, "FOLD_FOLLOW", 1.0)  # its folds as the playhead gave them
+    # nothing taken back before the push, as then (decision 0046; tests/inference/test_take_back.py)
+    monkeypatch.setattr(collision, "PUSH_OUT", dataclasses.replace(collision.PUSH_OUT, take_back=False))
     limited = animator.animate(_walk())
     monkeypatch.setattr(detail, "FOLD_MAX_STRAIN", np.inf)
     unslacked = dataclasses.replace(collision.PUSH_OUT, stretch_slack=0.0)
@@ -114,13 +116,17 @@ def test_every_driver_of_the_frame_path_gives_what_it_gave_before_the_stages_wer
     crowd). Bit-identical on the machine that wrote them (an AVX2 EPYC); the tolerance is for
     other CPUs' kernels. The fold playhead never rests, as then (the crowd's spinning characters
     repeat a proposal; the rest is tested in tests/inference/test_detail.py)."""
-    from hrr_garment.inference import fold_track
+    import dataclasses
+
+    from hrr_garment.inference import collision, fold_track
     from hrr_garment.inference import stream as stream_module
     from hrr_garment.motion.poses import motion_to_poses
 
     restless = partial(fold_track.FoldTrack, rest=10**9)
     for module in (fold_track, stream_module):  # the offline track and the stream's
         monkeypatch.setattr(module, "FoldTrack", restless)
+    # nothing taken back before the push, as then (decision 0046; tests/inference/test_take_back.py)
+    monkeypatch.setattr(collision, "PUSH_OUT", dataclasses.replace(collision.PUSH_OUT, take_back=False))
 
     before = np.load(DATA / "frame-path-22a6010.npz")
     animator = Animator.load(DATA / "bundle-31b4ef9")

@@ -90,11 +90,11 @@ def test_every_stage_of_a_stream_and_a_crowd_equals_the_clip_animated_causally(f
     walk, spin = synthesize("walk_curve", 1.0, seed=7), synthesize("spin", 1.0, seed=2)
     settings = {"mode": mode, "swing": 1.3}
     expected = {k: _offline(animator, m, **settings) for k, m in (("walk", walk), ("spin", spin))}
-    # the push-out takes the mode's additions back on these clips (its own stage: drivers must agree)
-    with pytest.MonkeyPatch.context() as patch:
-        patch.setattr(collision, "PUSH_OUT", dataclasses.replace(collision.PUSH_OUT, take_back=False))
-        kept = _offline(animator, walk, **settings)["push_out"]
-    assert np.abs(kept - expected["walk"]["push_out"]).max() > 1e-4
+    if mode == "detail":  # the push-out takes its additions back on these clips: the drivers must agree
+        with pytest.MonkeyPatch.context() as patch:
+            patch.setattr(collision, "PUSH_OUT", dataclasses.replace(collision.PUSH_OUT, take_back=False))
+            kept = _offline(animator, walk, **settings)["push_out"]
+        assert np.abs(kept - expected["walk"]["push_out"]).max() > 1e-4
     stream = animator.stream(**settings)
     stream.crowd.path.observe = alone = Recorder()
     crowd = animator.crowd(device="native", **settings)

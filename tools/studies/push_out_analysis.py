@@ -29,7 +29,7 @@ With ``--subspace-push`` every setting is also run after the push in the fast de
 ``--visible`` pushes out of the mesh the model's body is drawn with (a character's own, an anny
 body's), as ``hrr-animate`` does on such a body, instead of its capsules. The first setting also
 pushes the simulation itself (``simulation, pushed``): what the truth asks of the push-out. In a
-mode that adds to the regression (hybrid, residual, detail: the default look), the push-out first
+mode that adds to the regression (residual, detail: the default look), the push-out first
 takes the additions back where they carry the cloth into the body, as the product's does
 (:mod:`hrr_garment.inference.take_back`; not in the subspace rows, as the product's does not);
 ``--no-take-back`` pushes the cloth as it came, as the product did before. ``inside_before_pct`` is
@@ -105,11 +105,11 @@ def inside_pct(frames: np.ndarray, out: np.ndarray, motion, body, report) -> tup
 
 def regression_under(animator, motion, mode: str | None) -> np.ndarray | None:
     """The regression's cloth under ``mode``'s additions (offline, not pushed), or None where the
-    mode has none to take back (the regression, the sample mode, retrieval)."""
+    mode has none to take back (all but the residual and the detail mode)."""
     from hrr_garment.inference.modes import Mode
 
     resolved = animator.resolve(None, **({"mode": mode} if mode else {}))
-    if resolved.mode not in (Mode.HYBRID, Mode.RESIDUAL, Mode.DETAIL):
+    if resolved.mode not in (Mode.RESIDUAL, Mode.DETAIL):
         return None
     return animator.animate(motion, push_out=False, mode="regression").vertices
 
