@@ -19,7 +19,9 @@ regression's own cloth), none where the addition lifted it. The shares then spre
 mesh, :data:`SPREAD_PASSES` passes of ``share = max(share, M share)`` with M the mesh's mean
 operator, so that a vertex's neighbours go back with it part of the way (taken back alone, a
 vertex stretched its edges to 2.7 x their rest length where the cloth as it came had 2.1), and
-every vertex goes back by its share. Measured:
+every vertex goes back by its share. The push-out then strain-limits the result against the cloth
+as it came, as it limits its push (against a character's capsules the spread cloth still had
+edges at 2.8 x), before it pushes. Measured:
 docs/inference.md. The push-out's kernel runs it per frame before the push
 (``hrr_garment/native/kernels.c``: take_back_frame); this module is its reference.
 

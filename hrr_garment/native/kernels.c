@@ -1055,9 +1055,19 @@ static void push_and_limit(const void *in, int in_double, float *out, int V, con
         sk = &team->skin;
     }
     double came = 0.0;
-    if (base)  /* push_frame's scratch, free until it starts: d, nrm, then two V-long rows for the shares */
+    if (base) {
+        if (s) {  /* the take-back stretches no edge past the limit either: its reference, the frame as it came */
+            #pragma omp for schedule(static)
+            for (int k = 0; k < 3 * V; ++k) u[k] = p[k];
+        }
+        /* push_frame's scratch, free until it starts: d, nrm, then two V-long rows for the shares */
         take_back_frame(p, base, V, ca, cb, radii, C, sk, m, args->margin, args->depth, TAKE_BACK_HALVINGS, TAKE_BACK_PASSES,
                         team->buf, team->buf + V, team->buf + 4 * (size_t)V, team->buf + 5 * (size_t)V, &came);
+        if (s) {
+            #pragma omp single
+            *torn = (unsigned char)limit_one(p, u, V, s, NULL, 0, &team->limit);
+        }
+    }
     if (sp) subspace_push(p, V, ca, cb, radii, C, sk, m, args->margin, sp, turn, team);
     if (s) {  /* the limit's reference: the frame as the mesh push gets it */
         #pragma omp for schedule(static)
@@ -1071,7 +1081,7 @@ static void push_and_limit(const void *in, int in_double, float *out, int V, con
     }
     if (s) {  /* push_frame ends at a barrier: the frame is pushed, team->moved lists what it moved */
         #pragma omp single
-        *torn = (unsigned char)limit_one(p, u, V, s, team->moved, team->flag[3], &team->limit);
+        *torn = (unsigned char)(limit_one(p, u, V, s, team->moved, team->flag[3], &team->limit) | (base ? *torn : 0));
     }
     #pragma omp for schedule(static)
     for (int k = 0; k < 3 * V; ++k) out[k] = (float)p[k];

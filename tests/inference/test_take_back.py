@@ -78,7 +78,7 @@ def test_the_kernel_takes_back_as_the_reference(monkeypatch, on_skin):
     frame alone (a stream's) as in the batch."""
     from hrr_garment import native
     from hrr_garment.body.capsules import DEFAULT_BODY
-    from hrr_garment.inference.collision import push_out
+    from hrr_garment.inference.collision import PUSH_OUT, push_out
     from hrr_garment.inference.edge_limits import EdgeLimits
     from hrr_garment.inference.visible_push import PosedSkin, VisibleCollider
     from tests.body.limb import BulgingMannequin
@@ -103,6 +103,14 @@ def test_the_kernel_takes_back_as_the_reference(monkeypatch, on_skin):
     frame = motion.slice(3, 4)
     one, _ = push_out(squeezed[3:4], frame, skirt.faces, body=body(frame), limits=limits, base=rest[3:4])
     np.testing.assert_array_equal(one[0], got[3])
+    # neither the take-back nor the push stretches an edge past the push's limit on the cloth as it came
+    ends = squeezed[:, limits.edges[:, 1]] - squeezed[:, limits.edges[:, 0]]
+    bound = np.maximum(
+        PUSH_OUT.max_strain * limits.rest_length,
+        np.linalg.norm(ends, axis=-1) + PUSH_OUT.stretch_slack * limits.rest_length,
+    )
+    lengths = np.linalg.norm(got[:, limits.edges[:, 1]] - got[:, limits.edges[:, 0]], axis=-1)
+    assert (lengths <= bound + 2e-5).all()
     monkeypatch.setattr(native, "load_kernel", lambda *args, **kwargs: None)
     ref, ref_report = push_out(squeezed, motion, skirt.faces, body=body(motion), limits=limits, base=rest)
     assert np.abs(got - ref).max() < 1e-5
