@@ -50,7 +50,7 @@ class ClipLatents:
     doubt: np.ndarray  # (T,) float32
     features: np.ndarray  # (T, F) each frame's features (stage 1; the settling lag reads them)
     # (T, nodes, C) the regression's own latents, which the mode's additions depart from (the
-    # push-out takes them back where they go into the body: .take_back); None: no regression
+    # push-out takes them back where they go into the body: .take_back); None: none to take back
     base: np.ndarray | None = None
 
 
@@ -71,7 +71,7 @@ def clip_latents(path: FramePath, motion: Motion) -> ClipLatents:
         if path.run.mode is Mode.SAMPLE:  # the draw departs from the regression, frame after frame
             latents = path.draw(features, latents)
         regression = None if choice.regression_part is None else choice.regression_part[:, -1]
-        base = None if choice.regression is None else choice.regression[:, -1]
+        base = None if choice.regression is None or not path.takes_back else choice.regression[:, -1]
         proposals = causal_proposals(choice.match, w) if choice.lends_folds else None
         per_frame = np.arange(t_frames)
     else:
@@ -85,7 +85,7 @@ def clip_latents(path: FramePath, motion: Motion) -> ClipLatents:
             else blend_windows(choice.regression_part, len(windows) + w - 1)[clip]
         )
         base = None
-        if choice.regression is not None:
+        if choice.regression is not None and path.takes_back:
             base = blend_windows(choice.regression, len(windows) + w - 1)[clip]
         proposals = offline_proposals(choice.match, t_frames, w) if choice.lends_folds else None
         per_frame = centred_windows(t_frames, w)  # the window centred on t
@@ -157,11 +157,7 @@ def animate_clip(path: FramePath, motion: Motion) -> Animation:
         character.push_body(motion, visible=path.run.push_body == "visible") if path.run.push_out else None
     )
     base = None  # the regression's cloth, where the run adds to it (.take_back)
-    if (
-        path.takes_back
-        and chosen.base is not None
-        and (chosen.proposals is not None or not np.array_equal(latents, chosen.base))
-    ):
+    if chosen.base is not None:
         stood = body_frame_vertices(bundle, chosen.base, path.decoder) + character.offset
         base = path.world(stood, motion, seen=False)
     vertices, report = path.push_out(vertices, motion, push_body, base=base)

@@ -89,6 +89,13 @@ class PushOutSettings:
     # per bundle (Animator.push_settings)
     subspace: "SubspacePush | None" = None
 
+    @property
+    def takes_back(self) -> bool:
+        """Whether a push with these settings takes a mode's additions back first: asked, and no
+        subspace push, which moves the cloth as it came better than it moves it taken back
+        (decision 0046)."""
+        return self.take_back and self.subspace is None
+
 
 PUSH_OUT = PushOutSettings()
 
@@ -136,8 +143,7 @@ def push_out(  # noqa: PLR0913  (the cloth, its body and how to push: each its o
     if rows is not None and len(rows) != len(vertices):
         raise ValueError(f"strain limits made for {len(rows)} frames' bodies, {len(vertices)} frames pushed")
     mean = mean_operator(faces, vertices.shape[1]) if mean is None else mean
-    # the subspace push moves the cloth as it came better than it moves it taken back (decision 0046)
-    base = None if settings.subspace is not None or not settings.take_back else base
+    base = base if settings.takes_back else None
     pushed = _push(vertices, motion, faces, body, settings, mean, limits, report, base)
     out, before, after, torn, measure = pushed
     capsules = isinstance(body, (BodyModel, PosedCapsules))  # the visible mesh has none to let go of
@@ -215,7 +221,9 @@ def _inside(points, skin, measure, settings: PushOutSettings) -> np.ndarray:
     return skin.deeper_inside(points, settings.depth, settings.margin)
 
 
-def _push(vertices, motion, faces, body, settings: PushOutSettings, mean, limits, report, base=None):  # noqa: PLR0913
+def _push(  # noqa: PLR0913  (push_out's arguments, passed on)
+    vertices, motion, faces, body, settings: PushOutSettings, mean, limits, report, base=None
+):
     """:func:`push_out`'s take-back (with ``base``), push and strain limit: the frames pushed, (T,)
     fractions inside before (of the frames as they came) and after, (T,) the frames the limit
     moved, and the measure of the frames against ``body``."""
@@ -302,8 +310,8 @@ def _push(vertices, motion, faces, body, settings: PushOutSettings, mean, limits
         if limits is not None:
             out, torn = _limited(out, vertices, limits, settings)
             torn |= took
-    # "before": as it came, not after the take-back or the subspace push (the kernel's, with a base)
-    if report and (settings.subspace is not None or base is not None) and (lib is None or base is None):
+    # "before": as it came, not after the subspace push or (in numpy: the kernel counts it) the take-back
+    if report and (settings.subspace is not None or (base is not None and lib is None)):
         before = _inside(original, skin, measure, settings)
     # only the frames the limit moved have a new "after" (the kernel measures them against the skin itself)
     if limits is not None and report and torn.any() and (lib is None or skin is None):

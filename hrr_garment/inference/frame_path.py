@@ -194,7 +194,7 @@ class FramePath:
         """Whether stage 9 takes the residual and detail modes' additions back first (:mod:`.take_back`): the
         drivers then decode the regression under them too."""
         settings = self.push_settings if self.push_settings is not None else collision.PUSH_OUT
-        return self.run.push_out and settings.take_back and settings.subspace is None
+        return self.run.push_out and settings.takes_back
 
     def push_out(
         self, vertices: np.ndarray, motion: Motion, capsules, report: bool = True, limits=None, base=None

@@ -131,28 +131,32 @@ def crowd_latents(chars: list, lv: np.ndarray, choose, inertialize_rows) -> np.n
     return inertialize_rows(targets, sources, continuous, split).astype(np.float32)
 
 
-def crowd_bases(
-    chars: list, latents: np.ndarray, names: list[str], decoders: dict, folds: bool = False
-) -> np.ndarray | None:
-    """(N, V, 3) body-frame vertices of the characters' regressions (their ``lod.base``), each through
-    its decoder ``names[i]`` (no fade: the push-out's take-back reads them, :mod:`.take_back`), or None
-    where a character has none or nothing is added to them: the crowd's ``latents`` (N, nodes, C)
-    are theirs and no ``folds`` are added."""
-    if any(c.lod.base is None for c in chars):
-        return None
-    bases = np.stack([c.lod.base for c in chars]).astype(np.float32)
-    if not folds and np.array_equal(bases, latents):
-        return None
+def _decoded(latents: np.ndarray, names: list[str], decoders: dict) -> np.ndarray:
+    """(N, V, 3) body-frame vertices: row i of ``latents`` (N, nodes, C) through the decoder
+    ``names[i]`` (a key of ``decoders``), the rows of one decoder in one batch."""
     import torch
 
+    kinds = list(dict.fromkeys(names))
+    if len(kinds) == 1:  # one decoder for all (every crowd without levels of detail): one batch, no copies
+        with torch.no_grad():
+            return decoders[kinds[0]](torch.from_numpy(latents)).numpy()
     out = None
-    for name in dict.fromkeys(names):
+    for name in kinds:
         rows = [i for i, n in enumerate(names) if n == name]
         with torch.no_grad():
-            decoded = decoders[name](torch.from_numpy(np.ascontiguousarray(bases[rows]))).numpy()
-        out = np.empty((len(chars), *decoded.shape[1:]), np.float32) if out is None else out
+            decoded = decoders[name](torch.from_numpy(np.ascontiguousarray(latents[rows]))).numpy()
+        out = np.empty((len(latents), *decoded.shape[1:]), np.float32) if out is None else out
         out[rows] = decoded
     return out
+
+
+def crowd_bases(chars: list, names: list[str], decoders: dict) -> np.ndarray | None:
+    """(N, V, 3) body-frame vertices of the characters' regressions (their ``lod.base``), each through
+    its decoder ``names[i]`` (no fade: the push-out's take-back reads them, :mod:`.take_back`), or None
+    where a character has none (a mode that adds nothing to its regression)."""
+    if any(c.lod.base is None for c in chars):
+        return None
+    return _decoded(np.stack([c.lod.base for c in chars]).astype(np.float32), names, decoders)
 
 
 def crowd_decode(chars: list, latents: np.ndarray, names: list[str], decoders: dict) -> np.ndarray:
@@ -161,19 +165,7 @@ def crowd_decode(chars: list, latents: np.ndarray, names: list[str], decoders: d
     last frame gets the change's difference cross-faded (:class:`DecoderFade`)."""
     import torch
 
-    kinds = list(dict.fromkeys(names))
-    if len(kinds) == 1:  # one decoder for all (every crowd without levels of detail): one batch, no copies
-        with torch.no_grad():
-            out = decoders[kinds[0]](torch.from_numpy(latents)).numpy()
-    else:
-        out = None
-        for name in kinds:
-            rows = [i for i, n in enumerate(names) if n == name]
-            with torch.no_grad():
-                decoded = decoders[name](torch.from_numpy(np.ascontiguousarray(latents[rows]))).numpy()
-            if out is None:
-                out = np.empty((len(chars), *decoded.shape[1:]), np.float32)
-            out[rows] = decoded
+    out = _decoded(latents, names, decoders)
     for i, c in enumerate(chars):
         state = c.lod
         if state.decoder is not None and state.decoder != names[i]:

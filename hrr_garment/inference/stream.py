@@ -258,11 +258,10 @@ class CrowdStream:
         for i in teleported(keys, last, poses.root_translation, fps=poses.fps):
             self._forget(keys[i])
 
-    def _bases(self, chars: list, latents: np.ndarray, names: list[str], bodies, poses: Motion):
+    def _bases(self, chars: list, names: list[str], bodies, poses: Motion):
         """Stage 9's regressions under the mode's additions, world vertices (:mod:`.take_back`), or
-        None where the characters' cloth is their regression."""
-        folds = self.run.mode is Mode.DETAIL
-        local = crowd_bases(chars, latents, names, decoders=self._decoders, folds=folds)
+        None where the mode adds nothing to the regression."""
+        local = crowd_bases(chars, names, decoders=self._decoders)
         return None if local is None else self.path.world(bodies.stand(local), poses, seen=False)
 
     def _step_frame(self, keys: list, poses: Motion, lv: np.ndarray) -> np.ndarray:
@@ -328,7 +327,7 @@ class CrowdStream:
         limits = (
             bodies.push_limits(path.edge_limits, path.bundle.template.vertices) if self.run.push_out else None
         )
-        base = self._bases(chars, latents, names, bodies, poses) if path.takes_back else None
+        base = self._bases(chars, names, bodies, poses) if path.takes_back else None
         vertices, _ = path.push_out(vertices, poses, push_body, report=False, limits=limits, base=base)
         t.append(time.perf_counter())
         for i, c in enumerate(chars):

@@ -230,37 +230,36 @@ class PosedSkin:
         share = np.zeros(len(points))
         for t in range(len(points)):
             deep = np.flatnonzero(d[t] < -depth)
-            if not len(deep):
-                continue
-            visible = self.bodies[self.which[t]]
-            skin = visible.kernel.query(points[t, deep], self.rotations[t], self.positions[t])[0]
-            inside = deep[skin < -depth]
-            if len(inside) and visible.closed:
-                inside = inside[
-                    ~visible.kernel.far_outside(self.skins[t], points[t, inside], margin, COLUMN_M)
-                ]
-            share[t] = len(inside) / points.shape[1]
+            if len(deep):
+                share[t] = (
+                    np.count_nonzero(self._skin_near(t, points[t, deep], margin) < -depth) / points.shape[1]
+                )
         return share
 
     def frame_distance(self, t: int, points: np.ndarray, margin: float) -> np.ndarray:
         """(N,) signed distances of points (N, 3) to frame ``t``'s skin as :meth:`distance` measures
         them within ``margin``: the hulls' past the margin of every hull (they hold the skin), else
-        the skin kernel's, ``FAR_AWAY`` where the broad phase finds a point it calls nearer beyond
-        the margin and outside (on a closed mesh). Without the kernel, :meth:`distance` itself."""
-        visible = self.bodies[self.which[t]]
-        if visible.kernel is None:
+        :meth:`_skin_near`'s. Without the kernel, :meth:`distance` itself."""
+        if self.bodies[self.which[t]].kernel is None:
             return self.distance(points[None], np.array([t]), margin)[0][0]
         rows, hulls = slice(t, t + 1), self.hulls
         d, _ = frames_signed_distance(points[None], hulls.a[rows], hulls.b[rows], radii=hulls.radii[rows])
         d = d[0]
         near = np.flatnonzero(d < margin)
         if len(near):
-            moves = self.moves[0][t], self.moves[1][t]
-            d[near] = visible.kernel.query_posed(points[near], *moves, self.skins[t])[0]
-            near = near[d[near] < margin]
-            if len(near) and visible.closed:
-                far = visible.kernel.far_outside(self.skins[t], points[near], margin, COLUMN_M)
-                d[near[far]] = FAR_AWAY
+            d[near] = self._skin_near(t, points[near], margin)
+        return d
+
+    def _skin_near(self, t: int, points: np.ndarray, margin: float) -> np.ndarray:
+        """(N,) the skin kernel's signed distances of points (N, 3) within ``margin`` of a hull of
+        frame ``t`` or inside one, ``FAR_AWAY`` where the kernel calls a point nearer than the margin
+        but the broad phase finds it beyond the margin and outside (on a closed mesh: where the
+        collider's side is wrong, as the push-out's kernel does)."""
+        visible = self.bodies[self.which[t]]
+        d = visible.kernel.query_posed(points, self.moves[0][t], self.moves[1][t], self.skins[t])[0]
+        near = np.flatnonzero(d < margin)
+        if len(near) and visible.closed:
+            d[near[visible.kernel.far_outside(self.skins[t], points[near], margin, COLUMN_M)]] = FAR_AWAY
         return d
 
     def native(self, *, measure_after: bool = False):

@@ -970,8 +970,9 @@ static double point_distance(const double *x, const double *ca, const double *cb
 /* The take-back of hrr_garment/inference/take_back.py for one frame, before its push: each vertex
    nearer than the margin to the body (or inside) whose addition (p - base) is not nothing gets the
    least share of it, found by `halvings` halvings, that going back along it clears the body (where
-   base is not clear: the whole if base is the shallower, else none); the shares spread over the mesh by `passes` Jacobi passes of
-   share = max(share, mean operator . share); every vertex goes back by its share. came: the
+   base is not clear: the whole if base is the shallower, else none); the shares spread over the
+   mesh by `passes` Jacobi passes of share = max(share, mean operator . share); every vertex goes
+   back by its share. came: the
    fraction of the frame as it came deeper than `depth` (the report's before). d, nrm, share,
    share2: scratch (V, 3V, V, V doubles). Called by every thread of the team. */
 static void take_back_frame(double *p, const float *base, int V, const double *ca, const double *cb, const double *radii,
