@@ -456,8 +456,8 @@ static inline void take_if_inside(int v, const double *d, int32_t *list, int *n,
    moved vertices' marks; the marks zero between calls) and flag (5: one per purpose, so that no
    thread can see a later value) are the team's shared scratch. */
 static void push_frame(double *p, int V, const double *ca, const double *cb, const double *radii, int C,
-                       const SkinPose *sk, const PushMesh *m, double margin, int smooth, int rounds, double depth, double *before,
-                       double *after, double *buf, int32_t *ints, int *flag)
+                       const SkinPose *sk, const PushMesh *m, double margin, int smooth, int rounds, double depth, int measured,
+                       double *before, double *after, double *buf, int32_t *ints, int *flag)
 {
     double *d = buf, *nrm = d + V, *need = nrm + 3 * (size_t)V, *req = need + V, *req2 = req + V;
     double *dir = req2 + V, *dir2 = dir + 3 * (size_t)V, *disp = dir2 + 3 * (size_t)V, *tmp = disp + 3 * (size_t)V;
@@ -466,9 +466,11 @@ static void push_frame(double *p, int V, const double *ca, const double *cb, con
     int ends[MAX_REGION_RINGS + 1];
     const int follow = m->ring ? m->follow : 0, rings = follow + smooth + 1;
     const int by_patch = m->patch_ptr && !sk;  /* the moved vertices measured again by their patches */
-    if (m->patch_ptr) sdf_patches(p, m, ca, cb, radii, C, margin, d, nrm);
-    else sdf_points(p, NULL, V, ca, cb, radii, C, d, nrm);
-    skin_refine(sk, p, NULL, V, margin, d, nrm);
+    if (!measured) {
+        if (m->patch_ptr) sdf_patches(p, m, ca, cb, radii, C, margin, d, nrm);
+        else sdf_points(p, NULL, V, ca, cb, radii, C, d, nrm);
+        skin_refine(sk, p, NULL, V, margin, d, nrm);
+    }
     #pragma omp single
     {
         int deep = 0;
@@ -979,7 +981,10 @@ static void take_back_frame(double *p, const float *base, int V, const double *c
                             int C, const SkinPose *sk, const PushMesh *m, double margin, double depth, int halvings,
                             int passes, double *d, double *nrm, double *share, double *share2, double *came)
 {
-    sdf_points(p, NULL, V, ca, cb, radii, C, d, nrm);
+    /* as push_frame's first pass: the patches' distances where there are patches (the same wherever
+       they are within the margin, all that is read of them here and by the push, which takes them) */
+    if (m->patch_ptr) sdf_patches(p, m, ca, cb, radii, C, margin, d, nrm);
+    else sdf_points(p, NULL, V, ca, cb, radii, C, d, nrm);
     skin_refine(sk, p, NULL, V, margin, d, nrm);
     #pragma omp single
     {
@@ -1056,17 +1061,35 @@ static void push_and_limit(const void *in, int in_double, float *out, int V, con
         sk = &team->skin;
     }
     double came = 0.0;
+    int measured = 0;  /* push_frame's d and nrm already hold every vertex's distance */
     if (base) {
-        if (s) {  /* the take-back stretches no edge past the limit either: its reference, the frame as it came */
-            #pragma omp for schedule(static)
-            for (int k = 0; k < 3 * V; ++k) u[k] = p[k];
-        }
-        /* push_frame's scratch, free until it starts: d, nrm, then two V-long rows for the shares */
+        /* the frame as it came: the take-back's strain limit's reference (it stretches no edge past the
+           limit either), and what tells the vertices it moved */
+        #pragma omp for schedule(static)
+        for (int k = 0; k < 3 * V; ++k) u[k] = p[k];
+        /* push_frame's scratch, free until it starts: d, nrm (as push_frame's own), then two V-long
+           rows for the shares */
         take_back_frame(p, base, V, ca, cb, radii, C, sk, m, args->margin, args->depth, TAKE_BACK_HALVINGS, TAKE_BACK_PASSES,
                         team->buf, team->buf + V, team->buf + 4 * (size_t)V, team->buf + 5 * (size_t)V, &came);
         if (s) {
             #pragma omp single
             *torn = (unsigned char)limit_one(p, u, V, s, NULL, 0, &team->limit);
+        }
+        if (!sp) {  /* the take-back measured the frame as it came: only what it (or its limit) moved is
+                       measured again for the push, as push_frame's first pass would (a subspace push
+                       moves every vertex after it) */
+            int32_t *list = team->ints + V;  /* push_frame's work list, free until it starts */
+            #pragma omp single
+            {
+                int n = 0;
+                for (int v = 0; v < V; ++v)
+                    if (p[3 * v] != u[3 * v] || p[3 * v + 1] != u[3 * v + 1] || p[3 * v + 2] != u[3 * v + 2]) list[n++] = v;
+                team->flag[2] = n;
+            }
+            const int n = team->flag[2];
+            sdf_points(p, list, n, ca, cb, radii, C, team->buf, team->buf + V);
+            skin_refine(sk, p, list, n, args->margin, team->buf, team->buf + V);
+            measured = 1;
         }
     }
     if (sp) subspace_push(p, V, ca, cb, radii, C, sk, m, args->margin, sp, turn, team);
@@ -1074,8 +1097,8 @@ static void push_and_limit(const void *in, int in_double, float *out, int V, con
         #pragma omp for schedule(static)
         for (int k = 0; k < 3 * V; ++k) u[k] = p[k];
     }
-    push_frame(p, V, ca, cb, radii, C, sk, m, args->margin, args->smooth, args->rounds, args->depth, before, after, team->buf,
-               team->ints, team->flag);
+    push_frame(p, V, ca, cb, radii, C, sk, m, args->margin, args->smooth, args->rounds, args->depth, measured, before, after,
+               team->buf, team->ints, team->flag);
     if (base) {  /* the report's before: the frame as it came, its additions in it */
         #pragma omp single
         *before = came;
