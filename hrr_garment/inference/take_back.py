@@ -23,7 +23,7 @@ every vertex goes back by its share. The push-out then strain-limits the result 
 as it came, as it limits its push (against a character's capsules the spread cloth still had
 edges at 2.8 x), before it pushes. Measured:
 docs/inference.md. The push-out's kernel runs it per frame before the push
-(``hrr_garment/native/kernels.c``: take_back_frame); this module is its reference.
+(``hrr_garment/native/push_out.c``: take_back_frame); this module is its reference.
 
 The regression's cloth is ``base``: the same frames decoded from the regression's own latents
 (:attr:`~.gate.WindowChoice.regression`), stood on the body and taken to the world as the cloth is.

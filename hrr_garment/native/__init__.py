@@ -1,6 +1,5 @@
-"""Fused C kernels (``kernels.c``, ``amx_block.c``, ``window_codes.c``, ``features.c`` and
-``skin_sdf.c`` in this folder, sharing ``hrr_native.h``), compiled on first use, and their ctypes
-glue. The ground floor of the package: it imports nothing of hrr_garment but
+"""Fused C kernels (the C sources in this folder, :mod:`.build` lists them), compiled on first use,
+and their ctypes glue. The ground floor of the package: it imports nothing of hrr_garment but
 :mod:`hrr_garment.paths` (where the compiled library is cached).
 
 - :mod:`.build`: the compiler driver, the cache and the loaded library's ctypes table
@@ -24,7 +23,7 @@ The names below are re-exported for the package's callers.
 
 from __future__ import annotations
 
-from .build import FLAGS, HEADER, SOURCE, SOURCES, load_kernel
+from .build import FLAGS, HEADERS, SOURCE, SOURCES, load_kernel
 from .decoder import PRECISIONS
 from .motion import body_to_world, causal_features, forward_kinematics
 from .panels import PANEL, pack_panels
@@ -32,7 +31,7 @@ from .threads import default_threads, pin_workers
 
 __all__ = [
     "FLAGS",
-    "HEADER",
+    "HEADERS",
     "PANEL",
     "PRECISIONS",
     "SOURCE",

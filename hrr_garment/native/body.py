@@ -1,5 +1,5 @@
 """ctypes glue of the kernels that push a garment out of the capsule body: the collision push-out
-and the push-out's strain limit, with what they take of a garment converted once (``kernels.c``;
+and the push-out's strain limit, with what they take of a garment converted once (``push_out.c``;
 library from :func:`hrr_garment.native.load_kernel`; the kernel's structs: :mod:`.kernel_structs`;
 the signed distance to the body: :mod:`.capsules`)."""
 
@@ -13,7 +13,7 @@ import numpy as np
 from .capsules import capsule_arrays
 from .kernel_structs import PushArgs, StrainArgs, SubspaceArgs
 
-MAX_SUBSPACE_COMPONENTS = 512  # SUBSPACE_MAXK in kernels.c
+MAX_SUBSPACE_COMPONENTS = 512  # SUBSPACE_MAXK in push_out.c
 
 
 class PushSteps(NamedTuple):
@@ -47,7 +47,7 @@ class SubspaceMove:
     component-major (blocks, k, 3 BLOCK), zero past the last vertex; the stretch (k, k), and the
     push's settings."""
 
-    BLOCK = 64  # kernels.c's MOVE_BLOCK
+    BLOCK = 64  # subspace_push.c's MOVE_BLOCK
 
     def __init__(
         self,

@@ -1,8 +1,10 @@
 """The kernels' build and load: the C sources compiled on first use into the workspace cache and
 loaded with ctypes, each exported function's argument types declared (:func:`load_kernel`).
 
-The sources (``kernels.c``, ``amx_block.c``, ``window_codes.c``, ``features.c``, ``skin_sdf.c``
-and ``mesh_probe.c``, sharing ``hrr_native.h``) are compiled as one translation unit with the system C
+The sources (``kernels.c``, ``push_frame.c``, ``strain_limit.c``, ``subspace_push.c``,
+``push_out.c``, ``amx_block.c``, ``window_codes.c``, ``features.c``, ``skin_sdf.c`` and
+``mesh_probe.c``, sharing ``hrr_native.h``; the push-out's four also ``push_out.h``) are compiled as
+one translation unit with the system C
 compiler (``cc``/``gcc``, ``-O3 -march=native -fopenmp``) into the workspace cache, keyed by a hash
 of the source, the flags and the CPU, and loaded with ctypes. Without a compiler :func:`load_kernel`
 returns None and callers use the PyTorch path; ``HRR_NATIVE=0`` forces that.
@@ -23,11 +25,24 @@ import warnings
 from pathlib import Path
 
 _HERE = Path(__file__).resolve().parent
-HEADER = "hrr_native.h"  # what the sources share (helpers of kernels.c used by window_codes.c)
-# one translation unit, so shared helpers inline across files; each source includes the header
-SOURCES = ("kernels.c", "amx_block.c", "window_codes.c", "features.c", "skin_sdf.c", "mesh_probe.c")
+# what the sources share (hrr_native.h: helpers of kernels.c used by window_codes.c, the skin
+# collider the push-out reads; push_out.h: the push-out's own)
+HEADERS = ("hrr_native.h", "push_out.h")
+# one translation unit, so shared helpers inline across files; each source includes its header
+SOURCES = (
+    "kernels.c",
+    "push_frame.c",
+    "strain_limit.c",
+    "subspace_push.c",
+    "push_out.c",
+    "amx_block.c",
+    "window_codes.c",
+    "features.c",
+    "skin_sdf.c",
+    "mesh_probe.c",
+)
 SOURCE = "\n".join((_HERE / name).read_text() for name in SOURCES)
-_HEADER_TEXT = (_HERE / HEADER).read_text()
+_HEADER_TEXT = "\n".join((_HERE / name).read_text() for name in HEADERS)
 
 FLAGS = [
     "-O3",

@@ -1,5 +1,5 @@
 """The capsule body as the kernels take it: its arrays checked and converted, and the signed
-distance of points to it (``kernels.c``'s ``hrr_capsule_sdf``)."""
+distance of points to it (``push_frame.c``'s ``hrr_capsule_sdf``)."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import ctypes
 
 import numpy as np
 
-MAX_CAPSULES = 64  # SDF_MAXC in kernels.c
+MAX_CAPSULES = 64  # SDF_MAXC in push_out.h
 
 
 def capsule_arrays(

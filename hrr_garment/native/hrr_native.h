@@ -1,9 +1,9 @@
-/* hrr_native.h: what the five C sources of hrr_garment/native/ share. They are compiled together
-   as one translation unit (kernels.c, amx_block.c, window_codes.c, features.c, skin_sdf.c, in that order; see
-   hrr_garment/native/__init__.py), so helpers stay static and inline across files; this header
-   declares the ones defined in kernels.c that amx_block.c and window_codes.c use (and the skin
-   collider of skin_sdf.c, which the push-out of kernels.c uses), instead of
-   relying on the order of concatenation. Include guard: every source includes it. */
+/* hrr_native.h: what the C sources of hrr_garment/native/ share. They are compiled together as one
+   translation unit (in hrr_garment/native/build.py's SOURCES order), so helpers stay static and
+   inline across files; this header declares the ones defined in kernels.c that amx_block.c and
+   window_codes.c use, and the skin collider of skin_sdf.c, which the push-out (push_frame.c,
+   push_out.c; their own header: push_out.h) reads, instead of relying on the order of
+   concatenation. Include guard: every source includes it. */
 
 #ifndef HRR_NATIVE_H
 #define HRR_NATIVE_H
@@ -55,7 +55,7 @@ typedef void (*tile_fn)(const float *restrict, int, const float *restrict, const
 static const tile_fn TILES[2][4];
 
 /* The skin collider's grid (skin_sdf.c; hrr_garment/native/skin.py builds it) and one frame of it
-   posed, as the push-out of kernels.c reads it: the joints' moves and the mesh skinned
+   posed, as the push-out reads it: the joints' moves and the mesh skinned
    (hrr_skin_pose). */
 #define SKIN_MAX_STARTS 8
 #define SKIN_TOP 4 /* skin weights per node (TOP_JOINTS) */

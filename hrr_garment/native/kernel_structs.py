@@ -1,6 +1,7 @@
-"""kernels.c's argument structs as ctypes structures (what :mod:`.body`'s push-out and strain limit
-fill in for the kernel): the push's settings, the subspace move's arrays and settings, and the
-strain limit's edge arrays and settings. Field order and types follow the C declarations."""
+"""The push-out's argument structs (``push_out.h``) as ctypes structures (what :mod:`.body`'s
+push-out and strain limit fill in for the kernel): the push's settings, the subspace move's arrays
+and settings, and the strain limit's edge arrays and settings. Field order and types follow the C
+declarations."""
 
 from __future__ import annotations
 
@@ -8,7 +9,7 @@ import ctypes
 
 
 class PushArgs(ctypes.Structure):
-    """kernels.c's PushArgs."""
+    """push_out.h's PushArgs."""
 
     _fields_ = [
         ("margin", ctypes.c_double),
@@ -19,7 +20,7 @@ class PushArgs(ctypes.Structure):
 
 
 class SubspaceArgs(ctypes.Structure):
-    """kernels.c's SubspaceArgs."""
+    """push_out.h's SubspaceArgs."""
 
     _fields_ = [
         ("basis", ctypes.c_void_p),
@@ -34,7 +35,7 @@ class SubspaceArgs(ctypes.Structure):
 
 
 class StrainArgs(ctypes.Structure):
-    """kernels.c's StrainArgs."""
+    """push_out.h's StrainArgs."""
 
     _fields_ = [
         ("edges", ctypes.c_void_p),
