@@ -196,6 +196,29 @@ static void skin_refine(const SkinPose *sk, const double *p, const int32_t *idx,
     }
 }
 
+/* Every vertex of frame p measured into d and nrm, as the push's first pass measures it: the
+   patches' distances where there are patches (the same wherever they are within the margin, all
+   that the push and the take-back read of them), the skin's near a hull. */
+static void measure_frame(const double *p, int V, const double *ca, const double *cb, const double *radii, int C,
+                          const SkinPose *sk, const PushMesh *m, double margin, double *d, double *nrm)
+{
+    if (m->patch_ptr) sdf_patches(p, m, ca, cb, radii, C, margin, d, nrm);
+    else sdf_points(p, NULL, V, ca, cb, radii, C, d, nrm);
+    skin_refine(sk, p, NULL, V, margin, d, nrm);
+}
+
+/* The fraction of the V distances d deeper than `depth` into *out, by one thread of the team (the
+   others read it after the single's barrier): a report's before or after */
+static void deep_fraction(const double *d, int V, double depth, double *out)
+{
+    #pragma omp single
+    {
+        int deep = 0;
+        for (int v = 0; v < V; ++v) deep += d[v] < -depth;
+        *out = (double)deep / V;
+    }
+}
+
 /* push_frame's projection list: vertex v appended to list (at *n) when inside, and to the moved
    vertices (at *total) the first time. */
 static inline void take_if_inside(int v, const double *d, int32_t *list, int *n, int *vmark, int32_t *moved, int *total)
@@ -229,18 +252,10 @@ static void push_frame(double *p, int V, const double *ca, const double *cb, con
     int ends[MAX_REGION_RINGS + 1];
     const int follow = m->ring ? m->follow : 0, rings = follow + smooth + 1;
     const int by_patch = m->patch_ptr && !sk;  /* the moved vertices measured again by their patches */
-    if (!measured) {
-        if (m->patch_ptr) sdf_patches(p, m, ca, cb, radii, C, margin, d, nrm);
-        else sdf_points(p, NULL, V, ca, cb, radii, C, d, nrm);
-        skin_refine(sk, p, NULL, V, margin, d, nrm);
-    }
+    if (!measured) measure_frame(p, V, ca, cb, radii, C, sk, m, margin, d, nrm);
+    deep_fraction(d, V, depth, before);
     #pragma omp single
-    {
-        int deep = 0;
-        for (int v = 0; v < V; ++v) deep += d[v] < -depth;
-        *before = (double)deep / V;
-        flag[1] = flag[3] = flag[4] = 0;
-    }
+    flag[1] = flag[3] = flag[4] = 0;
     for (int r = 0; r < rounds; ++r) {
         #pragma omp single copyprivate(ends)  /* every thread takes the region's ring counts */
         {
@@ -365,11 +380,7 @@ static void push_frame(double *p, int V, const double *ca, const double *cb, con
         sdf_points(p, list, n, ca, cb, radii, C, d, nrm);
         skin_refine(sk, p, list, n, margin, d, nrm);
     }
+    deep_fraction(d, V, depth, after);
     #pragma omp single
-    {
-        int deep = 0;
-        for (int v = 0; v < V; ++v) deep += d[v] < -depth;
-        *after = (double)deep / V;
-        for (int k = 0; k < flag[3]; ++k) vmark[moved[k]] = 0;
-    }
+    for (int k = 0; k < flag[3]; ++k) vmark[moved[k]] = 0;
 }

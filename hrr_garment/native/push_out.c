@@ -30,17 +30,8 @@ static void take_back_frame(double *p, const float *base, int V, const double *c
                             int C, const SkinPose *sk, const PushMesh *m, double margin, double depth, int halvings,
                             int passes, double *d, double *nrm, double *share, double *share2, double *came)
 {
-    /* as push_frame's first pass: the patches' distances where there are patches (the same wherever
-       they are within the margin, all that is read of them here and by the push, which takes them) */
-    if (m->patch_ptr) sdf_patches(p, m, ca, cb, radii, C, margin, d, nrm);
-    else sdf_points(p, NULL, V, ca, cb, radii, C, d, nrm);
-    skin_refine(sk, p, NULL, V, margin, d, nrm);
-    #pragma omp single
-    {
-        int deep = 0;
-        for (int v = 0; v < V; ++v) deep += d[v] < -depth;
-        *came = (double)deep / V;
-    }
+    measure_frame(p, V, ca, cb, radii, C, sk, m, margin, d, nrm);  /* as push_frame's first pass, which takes them */
+    deep_fraction(d, V, depth, came);
     #pragma omp for schedule(dynamic, 16)
     for (int v = 0; v < V; ++v) {
         share[v] = 0.0;
@@ -181,12 +172,7 @@ static void push_and_limit(const void *in, int in_double, float *out, int V, con
         const int n = team->flag[2];
         sdf_points(p, list, n, ca, cb, radii, C, d, nrm);
         skin_refine(sk, p, list, n, args->margin, d, nrm);
-        #pragma omp single
-        {
-            int deep = 0;
-            for (int v = 0; v < V; ++v) deep += d[v] < -args->depth;
-            *after = (double)deep / V;
-        }
+        deep_fraction(d, V, args->depth, after);
     }
 }
 

@@ -131,6 +131,9 @@ static void sdf_patches(const double *p, const PushMesh *m, const double *ca, co
                         int C, double reach, double *d, double *nrm);
 static void skin_refine(const SkinPose *sk, const double *p, const int32_t *idx, int n, double margin, double *d,
                         double *nrm);
+static void measure_frame(const double *p, int V, const double *ca, const double *cb, const double *radii, int C,
+                          const SkinPose *sk, const PushMesh *m, double margin, double *d, double *nrm);
+static void deep_fraction(const double *d, int V, double depth, double *out);
 static void push_frame(double *p, int V, const double *ca, const double *cb, const double *radii, int C,
                        const SkinPose *sk, const PushMesh *m, double margin, int smooth, int rounds, double depth, int measured,
                        double *before, double *after, double *buf, int32_t *ints, int *flag);
