@@ -10,7 +10,6 @@
    list idx (NULL: 0, 1, ...), point k = idx[i], writes dist[k] (negative inside) and the nearest
    capsule's outward unit normal normal[k]. Capsules outer, points inner in structure-of-arrays
    form, so the inner loop has no division and vectorises across points. */
-
 static void sdf_soa(const double *px, const double *py, const double *pz, const int32_t *idx, int i0, int n,
                     const double *ca, const double *cb, const double *radii, int C, double *dist, double *normal)
 {
@@ -184,7 +183,8 @@ static int grow_region(const PushMesh *m, int V, int rings, int seeds, int32_t *
     return hi;
 }
 
-
+/* skin_measure (push_out.h) of the entries of the list idx (NULL: 0 .. n - 1) whose distance d is
+   within the margin of a hull (sk NULL: the capsules' distances stand) */
 static void skin_refine(const SkinPose *sk, const double *p, const int32_t *idx, int n, double margin, double *d,
                         double *nrm)
 {
@@ -229,7 +229,8 @@ static inline void take_if_inside(int v, const double *d, int32_t *list, int *n,
 }
 
 /* The collision push-out of hrr_garment/inference/collision.py for one frame, the same steps:
-   distances (sdf_patches); `rounds` times: each vertex needing to move (within `margin` of the
+   distances (measure_frame; `measured`: d and nrm, buf's first 4 V doubles, hold them already);
+   `rounds` times: each vertex needing to move (within `margin` of the
    body or inside) gets need along its normal, the neighbour-follow (m->follow max-plus passes over
    the ring) raises the pushes around it, `smooth` Jacobi passes of the mean operator spread them,
    never lowering a moving vertex's push along its direction; all of it only over the region within

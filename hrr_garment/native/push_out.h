@@ -111,7 +111,7 @@ typedef struct {
    one, are measured against the skin itself (skin_point, ~3 us), but for those the frame's broad
    phase shows farther than the margin from the skin and outside it (skin_far_by_column: its
    column's triangles and a ray; most of a garment inside the hulls, which hold the skin
-   loosely): FAR_AWAY, as a patch no capsule comes near. Entries of the list idx (NULL: 0 .. n - 1). */
+   loosely): FAR_AWAY, as a patch no capsule comes near. */
 static inline void skin_measure(const SkinPose *sk, double margin, const double *x, double *d, double *nrm)
 {
     if (sk->col_start && skin_far_by_column(sk, margin, x)) {
