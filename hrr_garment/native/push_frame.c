@@ -198,13 +198,23 @@ static void skin_refine(const SkinPose *sk, const double *p, const int32_t *idx,
 
 /* Every vertex of frame p measured into d and nrm, as the push's first pass measures it: the
    patches' distances where there are patches (the same wherever they are within the margin, all
-   that the push and the take-back read of them), the skin's near a hull. */
+   that the push, the take-back and the subspace solve, whose margin is its reach, read of them),
+   the skin's near a hull. */
 static void measure_frame(const double *p, int V, const double *ca, const double *cb, const double *radii, int C,
                           const SkinPose *sk, const PushMesh *m, double margin, double *d, double *nrm)
 {
     if (m->patch_ptr) sdf_patches(p, m, ca, cb, radii, C, margin, d, nrm);
     else sdf_points(p, NULL, V, ca, cb, radii, C, d, nrm);
     skin_refine(sk, p, NULL, V, margin, d, nrm);
+}
+
+/* The n vertices of `list` measured again into d and nrm (against every capsule or hull, then the
+   skin near a hull), the others' distances left: what a push, a projection or the take-back moved */
+static void measure_listed(const double *p, const int32_t *list, int n, const double *ca, const double *cb,
+                           const double *radii, int C, const SkinPose *sk, double margin, double *d, double *nrm)
+{
+    sdf_points(p, list, n, ca, cb, radii, C, d, nrm);
+    skin_refine(sk, p, list, n, margin, d, nrm);
 }
 
 /* The fraction of the V distances d deeper than `depth` into *out, by one thread of the team (the
@@ -349,8 +359,7 @@ static void push_frame(double *p, int V, const double *ca, const double *cb, con
         if (by_patch) {
             sdf_patch_list(p, m, plist, flag[4], ca, cb, radii, C, margin, d, nrm);
         } else {
-            sdf_points(p, list, flag[1], ca, cb, radii, C, d, nrm);
-            skin_refine(sk, p, list, flag[1], margin, d, nrm);
+            measure_listed(p, list, flag[1], ca, cb, radii, C, sk, margin, d, nrm);
         }
     }
     for (int it = 0; it < 4; ++it) {
@@ -378,8 +387,7 @@ static void push_frame(double *p, int V, const double *ca, const double *cb, con
             const int v = list[i];
             for (int k = 0; k < 3; ++k) p[3 * v + k] += (margin - d[v]) * nrm[3 * v + k];
         }
-        sdf_points(p, list, n, ca, cb, radii, C, d, nrm);
-        skin_refine(sk, p, list, n, margin, d, nrm);
+        measure_listed(p, list, n, ca, cb, radii, C, sk, margin, d, nrm);
     }
     deep_fraction(d, V, depth, after);
     #pragma omp single

@@ -127,8 +127,7 @@ static void push_and_limit(const void *in, int in_double, float *out, int V, con
                 team->flag[2] = n;
             }
             const int n = team->flag[2];
-            sdf_points(p, list, n, ca, cb, radii, C, team->buf, team->buf + V);
-            skin_refine(sk, p, list, n, args->margin, team->buf, team->buf + V);
+            measure_listed(p, list, n, ca, cb, radii, C, sk, args->margin, team->buf, team->buf + V);
             measured = 1;
         }
     }
@@ -170,8 +169,7 @@ static void push_and_limit(const void *in, int in_double, float *out, int V, con
             team->flag[2] = n;
         }
         const int n = team->flag[2];
-        sdf_points(p, list, n, ca, cb, radii, C, d, nrm);
-        skin_refine(sk, p, list, n, args->margin, d, nrm);
+        measure_listed(p, list, n, ca, cb, radii, C, sk, args->margin, d, nrm);
         deep_fraction(d, V, args->depth, after);
     }
 }

@@ -125,14 +125,10 @@ static inline void skin_measure(const SkinPose *sk, double margin, const double 
 /* push_frame.c */
 static void sdf_soa(const double *px, const double *py, const double *pz, const int32_t *idx, int i0, int n,
                     const double *ca, const double *cb, const double *radii, int C, double *dist, double *normal);
-static void sdf_points(const double *p, const int32_t *idx, int n, const double *ca, const double *cb,
-                       const double *radii, int C, double *dist, double *normal);
-static void sdf_patches(const double *p, const PushMesh *m, const double *ca, const double *cb, const double *radii,
-                        int C, double reach, double *d, double *nrm);
-static void skin_refine(const SkinPose *sk, const double *p, const int32_t *idx, int n, double margin, double *d,
-                        double *nrm);
 static void measure_frame(const double *p, int V, const double *ca, const double *cb, const double *radii, int C,
                           const SkinPose *sk, const PushMesh *m, double margin, double *d, double *nrm);
+static void measure_listed(const double *p, const int32_t *list, int n, const double *ca, const double *cb,
+                           const double *radii, int C, const SkinPose *sk, double margin, double *d, double *nrm);
 static void deep_fraction(const double *d, int V, double depth, double *out);
 static void push_frame(double *p, int V, const double *ca, const double *cb, const double *radii, int C,
                        const SkinPose *sk, const PushMesh *m, double margin, int smooth, int rounds, double depth, int measured,

@@ -76,9 +76,7 @@ static int subspace_solve(const double *p, int V, const double *ca, const double
     const int k = sp->k;
     const double reach = margin + sp->clearance;
     double *d = team->buf, *nrm = d + V, *A = team->solve, *row = A + (size_t)k * k;
-    if (m->patch_ptr) sdf_patches(p, m, ca, cb, radii, C, reach, d, nrm);
-    else sdf_points(p, NULL, V, ca, cb, radii, C, d, nrm);
-    skin_refine(sk, p, NULL, V, reach, d, nrm);  /* against the skin: its columns were built for the reach */
+    measure_frame(p, V, ca, cb, radii, C, sk, m, reach, d, nrm);  /* the skin's columns were built for the reach */
     #pragma omp single
     {
         int n = 0;
