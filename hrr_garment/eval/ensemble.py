@@ -22,7 +22,9 @@ import hashlib
 import json
 import multiprocessing as mp
 import os
+from collections.abc import Iterator
 from concurrent.futures import ProcessPoolExecutor, as_completed
+from contextlib import closing
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -41,6 +43,7 @@ from ..io_utils import atomic_path, atomic_write_text
 from ..paths import workspace
 from ..sim.parts import template_hash
 from ..sim.simulator import SimSettings, SimulationExploded, simulate_garment
+from ..workers import die_with_parent, stop_pool
 
 DENSITY_STEP = 1.0e-4
 ENSEMBLE_VERSION = 1
@@ -129,6 +132,29 @@ def _simulate_member(
     return None
 
 
+def _members_simulated(tasks: dict, workers: int) -> Iterator[tuple[tuple[str, int], str | None]]:
+    """Each of ``tasks`` (member -> :func:`_simulate_member`'s arguments) simulated, as it finishes:
+    (member, why it failed or None). In ``workers`` spawned processes that die with this one and
+    are stopped at once by Ctrl-C, SIGTERM or an error here (each finished member is cached, so a
+    re-run goes on from them); in this process where one worker would do (a worker would start
+    Python and load the simulator again)."""
+    if workers <= 1:
+        for member, arguments in tasks.items():
+            yield member, _simulate_member(*arguments)
+        return
+    ctx = mp.get_context("spawn")  # Warp is not fork-safe
+    pool = ProcessPoolExecutor(workers, mp_context=ctx, initializer=die_with_parent, initargs=(os.getpid(),))
+    try:
+        futures = {pool.submit(_simulate_member, *arguments): member for member, arguments in tasks.items()}
+        for fut in as_completed(futures):
+            yield futures[fut], fut.result()
+    except BaseException:
+        stop_pool(pool)
+        raise
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)
+
+
 def _readable(path: Path) -> bool:
     try:
         np.load(path, mmap_mode="r", allow_pickle=False)
@@ -193,25 +219,22 @@ def truth_ensembles(
             f"simulating {len(missing)} ensemble member(s) of {len(records)} sequence(s) ({frames} frames; "
             f"cached in {cache})"
         )
-        ctx = mp.get_context("spawn")  # Warp is not fork-safe
+        tasks = {
+            (name, k): (
+                dressed[name][0],
+                by_name[name],
+                plan[name, k][1].to_dict(),
+                str(plan[name, k][0]),
+                (dressed[name][1] or DEFAULT_BODY, dressed[name][2]),
+            )
+            for name, k in missing
+        }
+        workers = min(jobs or os.cpu_count() or 1, len(tasks))
         with (
-            ProcessPoolExecutor(max_workers=jobs or os.cpu_count() or 1, mp_context=ctx) as pool,
             tqdm(total=frames, unit="frame", desc="ensemble truth", disable=not progress) as bar,
+            closing(_members_simulated(tasks, workers)) as simulated,  # an error here stops the pool too
         ):
-            futures = {
-                pool.submit(
-                    _simulate_member,
-                    dressed[name][0],
-                    by_name[name],
-                    plan[name, k][1].to_dict(),
-                    str(plan[name, k][0]),
-                    (dressed[name][1] or DEFAULT_BODY, dressed[name][2]),
-                ): (name, k)
-                for name, k in missing
-            }
-            for fut in as_completed(futures):
-                name, k = futures[fut]
-                reason = fut.result()
+            for (name, k), reason in simulated:
                 if reason is not None:
                     bar.write(f"ensemble member {k} of {name} rejected: {reason}")
                 bar.update(by_name[name].motion.num_frames)

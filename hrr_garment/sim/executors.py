@@ -24,7 +24,7 @@ from tqdm.auto import tqdm
 from ..body.mannequin import MANNEQUIN
 from ..garment.dressing import DressedBody
 from ..motion.motion import FPS, Motion
-from ..workers import die_with_parent
+from ..workers import die_with_parent, stop_pool
 from .config import SimSettings
 from .lead_in import lead_in_frames
 from .parts import PartResult, SequenceJob, simulate_sequence, simulate_sequences, write_part
@@ -178,7 +178,7 @@ def run_local(
     except (
         BaseException
     ):  # Ctrl-C, SIGTERM, a crash: stop the other workers now; a re-run resumes from the parts
-        _stop_workers(pool)
+        stop_pool(pool)  # their unfinished parts are simply not written
         raise
     finally:
         pool.shutdown(wait=True, cancel_futures=True)
@@ -203,16 +203,6 @@ def _run_here(
             _finish(result, rejects, bar)
     bar.close()
     return rejects
-
-
-def _stop_workers(pool: ProcessPoolExecutor) -> None:
-    """Kill a pool's workers mid-sequence (their unfinished parts are simply not written)."""
-    terminate = getattr(pool, "terminate_workers", None)  # Python 3.14
-    if terminate is not None:
-        terminate()
-        return
-    for process in list((pool._processes or {}).values()):  # noqa: SLF001 - the only handle before 3.14
-        process.kill()
 
 
 def _drain(progress_queue, bar) -> None:

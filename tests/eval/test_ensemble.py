@@ -116,6 +116,53 @@ def test_members_are_perturbed_cached_and_close(tmp_path):
     assert np.array_equal(again.members, first.members) and [f.stat().st_mtime_ns for f in files] == stamps
 
 
+ENSEMBLE_RUN = """
+import signal, sys
+import numpy as np
+from hrr_garment.data.dataset import SequenceRecord
+from hrr_garment.eval.ensemble import truth_ensembles
+from hrr_garment.garment.templates import make_garment
+from hrr_garment.motion.synth import synthesize
+from hrr_garment.sim.simulator import SimSettings
+
+signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))  # as every command unwinds on SIGTERM
+garment, motion = make_garment("skirt", 200), synthesize("walk", 20.0, seed=3)
+frames = np.zeros((motion.num_frames, garment.num_vertices, 3), np.float32)
+record = SequenceRecord("walk_000", frames, motion, {})
+config = SimSettings(substeps=5, iterations=1, settle_s=0.2, blend_s=0.2, device="cpu")
+truth_ensembles(garment, [record], config, members=2, jobs=2, cache=sys.argv[1], progress=False)
+"""
+
+
+@pytest.mark.slow  # two workers started and stopped: 10 to 20 s
+@pytest.mark.sim
+def test_a_terminated_ensemble_stops_its_workers_at_once(tmp_path):
+    """SIGTERM while two ensemble members simulate (hrr-eval's truth, 20 s of motion each): the run
+    ends within seconds and leaves no process, where its pool used to simulate every member first
+    (and a SIGKILLed one left its workers simulating)."""
+    import signal
+    import subprocess
+    import sys
+
+    from tests.sim.test_killed_build import session_processes, wait_for, workers_asked_to_die
+
+    run = subprocess.Popen(
+        [sys.executable, "-c", ENSEMBLE_RUN, str(tmp_path / "cache")],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+        start_new_session=True,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+    )
+    try:
+        assert wait_for(lambda: workers_asked_to_die(run.pid, 2), 120), session_processes(run.pid)
+        run.send_signal(signal.SIGTERM)
+        assert run.wait(timeout=10) == 143
+        assert wait_for(lambda: not session_processes(run.pid), 5), session_processes(run.pid)
+    finally:
+        subprocess.run(["pkill", "-9", "-s", str(run.pid)])
+    assert not list((tmp_path / "cache").glob("*.npy"))  # neither member finished: nothing half written
+
+
 def test_members_simulate_as_the_dataset_did_against_the_bodys_mesh_and_in_its_cloth(tmp_path, monkeypatch):
     """A member of a sequence on a body with a mesh of its own collides with that mesh, as the
     dataset's simulation did (its cache key apart from a capsule-collided member's); a sequence in
