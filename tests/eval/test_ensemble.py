@@ -144,15 +144,9 @@ def test_a_terminated_ensemble_stops_its_workers_at_once(tmp_path):
     import subprocess
     import sys
 
-    from tests.sim.test_killed_build import session_processes, wait_for, workers_asked_to_die
+    from tests.sim.test_killed_build import session_processes, started_alone, wait_for, workers_asked_to_die
 
-    run = subprocess.Popen(
-        [sys.executable, "-c", ENSEMBLE_RUN, str(tmp_path / "cache")],
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.DEVNULL,
-        start_new_session=True,
-        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
-    )
+    run = started_alone([sys.executable, "-c", ENSEMBLE_RUN, str(tmp_path / "cache")])
     try:
         assert wait_for(lambda: workers_asked_to_die(run.pid, 2), 120), session_processes(run.pid)
         run.send_signal(signal.SIGTERM)

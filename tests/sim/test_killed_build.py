@@ -39,6 +39,21 @@ def workers_asked_to_die(sid: int, count: int) -> bool:
     return ready >= count
 
 
+def started_alone(cmd: list[str]) -> subprocess.Popen:
+    """``cmd`` started in a session of its own (its process id the session's), its output dropped,
+    with SIGINT at its default (and so in its workers until die_with_parent ignores it): a runner
+    started in the background of a shell without job control (nohup, a CI script) ignores it, every
+    child inherited that, and the workers read as ready while still importing the simulator,
+    outliving the killed run by the rest of their import (past 5 s on a loaded 2-core machine)."""
+    return subprocess.Popen(
+        cmd,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+        start_new_session=True,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+    )
+
+
 def wait_for(condition, seconds: float) -> bool:
     deadline = time.monotonic() + seconds
     while time.monotonic() < deadline:
@@ -106,17 +121,7 @@ def test_a_killed_build_leaves_no_process_and_resumes(tmp_path, sig):
         "-o",
         str(out),
     ]
-    # SIGINT at its default in the build (and so in its workers until die_with_parent ignores it):
-    # a runner started in the background of a shell without job control (nohup, a CI script) ignores
-    # it, every child inherited that, and the workers read as ready while still importing the
-    # simulator, outliving the killed build by the rest of their import (past 5 s on a loaded 2-core machine)
-    build = subprocess.Popen(
-        cmd,
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.DEVNULL,
-        start_new_session=True,
-        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
-    )
+    build = started_alone(cmd)
     try:
         # two workers started and asked to die with the build, a sequence each under way
         assert wait_for(lambda: workers_asked_to_die(build.pid, 2), 120), session_processes(build.pid)
