@@ -41,7 +41,6 @@ def die_with_parent(parent_pid: int) -> None:
         os._exit(1)
 
 
-
 def stop_pool(pool) -> None:
     """Kill a process pool's workers mid-task (a ``concurrent.futures.ProcessPoolExecutor``): what
     they had not finished is simply not written. Its ``shutdown`` then returns at once."""
@@ -51,6 +50,7 @@ def stop_pool(pool) -> None:
         return
     for process in list((pool._processes or {}).values()):  # noqa: SLF001 - the only handle before 3.14
         process.kill()
+
 
 def _watch_parent(parent_pid: int) -> None:
     while os.getppid() == parent_pid:
