@@ -281,13 +281,13 @@ def _simulate_missing(
     if pending:
         if o.progress:
             where = (
-                f"{jobs} worker(s)"
+                ("in this process" if jobs == 1 else f"with {jobs} worker processes")  # executors.run_local
                 if o.executor == "local"
-                else f"Ray ({o.address or f'local, {jobs or os.cpu_count()} CPUs'})"
+                else f"on Ray ({o.address or f'local, {jobs or os.cpu_count()} CPUs'})"
             )
             where += f", batches of up to {o.batch} on {config.device}" if o.batch > 1 else ""
             print(
-                f"simulating {len(pending)} of {len(specs)} sequences with {where}; "
+                f"simulating {len(pending)} of {len(specs)} sequences {where}; "
                 f"{reused} already done (first run compiles kernels: about two minutes, cached after)"
             )
         warm_up(garment, config)
