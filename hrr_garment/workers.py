@@ -5,6 +5,9 @@ and idle, holding the caller's terminal and pipes (issue 48). Each worker calls
 :func:`die_with_parent` as it starts: on Linux the kernel sends it SIGKILL when its parent dies
 (``prctl(PR_SET_PDEATHSIG)``); elsewhere a daemon thread watches the parent's process id. The
 multiprocessing resource tracker then sees its last pipe close and exits on its own.
+
+:func:`spawned_pool` is the process pool the simulator's build and ``hrr-eval``'s truth ensembles
+run in: its workers die with their parent, and an interrupted run stops them at once.
 """
 
 from __future__ import annotations
@@ -17,7 +20,8 @@ import signal
 import sys
 import threading
 import time
-from typing import Iterator
+from concurrent.futures import ProcessPoolExecutor
+from typing import Callable, Iterator
 
 PR_SET_PDEATHSIG = 1  # linux/prctl.h
 
@@ -41,9 +45,35 @@ def die_with_parent(parent_pid: int) -> None:
         os._exit(1)
 
 
-def stop_pool(pool) -> None:
-    """Kill a process pool's workers mid-task (a ``concurrent.futures.ProcessPoolExecutor``): what
-    they had not finished is simply not written. Its ``shutdown`` then returns at once."""
+@contextlib.contextmanager
+def spawned_pool(workers: int, setup: Callable | None = None, *setup_args) -> Iterator[ProcessPoolExecutor]:
+    """A pool of ``workers`` spawned processes (a forked one would inherit this process's threads and
+    locks: the simulator is not fork-safe), each of which dies with this process
+    (:func:`die_with_parent`) and then runs ``setup(*setup_args)``. An exception inside the block
+    (Ctrl-C, SIGTERM, an error) kills the workers mid-task, so that what they had not finished is
+    simply not written; leaving the block never runs what was still queued."""
+    pool = ProcessPoolExecutor(
+        workers,
+        mp_context=multiprocessing.get_context("spawn"),
+        initializer=_start_worker,
+        initargs=(os.getpid(), setup, setup_args),
+    )
+    try:
+        yield pool
+    except BaseException:
+        _kill_workers(pool)
+        raise
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)
+
+
+def _start_worker(parent_pid: int, setup: Callable | None, setup_args: tuple) -> None:
+    die_with_parent(parent_pid)
+    if setup is not None:
+        setup(*setup_args)
+
+
+def _kill_workers(pool: ProcessPoolExecutor) -> None:
     terminate = getattr(pool, "terminate_workers", None)  # Python 3.14
     if terminate is not None:
         terminate()

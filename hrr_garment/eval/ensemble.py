@@ -20,10 +20,9 @@ from __future__ import annotations
 
 import hashlib
 import json
-import multiprocessing as mp
 import os
 from collections.abc import Iterator
-from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures import as_completed
 from contextlib import closing
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -43,7 +42,7 @@ from ..io_utils import atomic_path, atomic_write_text
 from ..paths import workspace
 from ..sim.parts import template_hash
 from ..sim.simulator import SimSettings, SimulationExploded, simulate_garment
-from ..workers import die_with_parent, stop_pool
+from ..workers import spawned_pool
 
 DENSITY_STEP = 1.0e-4
 ENSEMBLE_VERSION = 1
@@ -142,17 +141,10 @@ def _members_simulated(tasks: dict, workers: int) -> Iterator[tuple[tuple[str, i
         for member, arguments in tasks.items():
             yield member, _simulate_member(*arguments)
         return
-    ctx = mp.get_context("spawn")  # Warp is not fork-safe
-    pool = ProcessPoolExecutor(workers, mp_context=ctx, initializer=die_with_parent, initargs=(os.getpid(),))
-    try:
+    with spawned_pool(workers) as pool:
         futures = {pool.submit(_simulate_member, *arguments): member for member, arguments in tasks.items()}
         for fut in as_completed(futures):
             yield futures[fut], fut.result()
-    except BaseException:
-        stop_pool(pool)
-        raise
-    finally:
-        pool.shutdown(wait=True, cancel_futures=True)
 
 
 def _readable(path: Path) -> bool:

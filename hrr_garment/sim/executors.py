@@ -14,7 +14,7 @@ from __future__ import annotations
 import multiprocessing as mp
 import os
 import queue as queue_mod
-from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from concurrent.futures import FIRST_COMPLETED, wait
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Callable
@@ -24,7 +24,7 @@ from tqdm.auto import tqdm
 from ..body.mannequin import MANNEQUIN
 from ..garment.dressing import DressedBody
 from ..motion.motion import FPS, Motion
-from ..workers import die_with_parent, stop_pool
+from ..workers import spawned_pool
 from .config import SimSettings
 from .lead_in import lead_in_frames
 from .parts import PartResult, SequenceJob, simulate_sequence, simulate_sequences, write_part
@@ -116,9 +116,8 @@ def simulate_jobs(
 _PROGRESS = None  # in a local worker: the queue its simulated frames are counted on
 
 
-def _start_local_worker(parent_pid: int, progress_queue) -> None:
+def _start_local_worker(progress_queue) -> None:
     global _PROGRESS
-    die_with_parent(parent_pid)  # a SIGKILLed build leaves no worker behind
     _PROGRESS = progress_queue
 
 
@@ -150,15 +149,10 @@ def run_local(
         # one worker would simulate the same sequences one after another, after starting Python and
         # loading the simulator again (about 7 s of a 25 s build of the tiny preset)
         return _run_here(pending, bodies, config, execution, bar, rejects)
-    ctx = mp.get_context("spawn")  # Warp is not fork-safe
-    progress_queue = ctx.Queue()  # handed to each worker as it starts: no manager process to outlive a kill
-    pool = ProcessPoolExecutor(
-        max_workers=execution.jobs or 1,
-        mp_context=ctx,
-        initializer=_start_local_worker,
-        initargs=(os.getpid(), progress_queue),
-    )
-    try:
+    # handed to each worker as it starts: no manager process to outlive a kill
+    progress_queue = mp.get_context("spawn").Queue()
+    # Ctrl-C, SIGTERM, a crash: the other workers stopped now; a re-run resumes from the parts
+    with spawned_pool(execution.jobs, _start_local_worker, progress_queue) as pool:
         remaining = {
             pool.submit(
                 _local_worker,
@@ -175,13 +169,6 @@ def run_local(
                 for result in fut.result():  # a worker crash propagates: the finished parts are kept
                     _finish(result, rejects, bar)
         _drain(progress_queue, bar)
-    except (
-        BaseException
-    ):  # Ctrl-C, SIGTERM, a crash: stop the other workers now; a re-run resumes from the parts
-        stop_pool(pool)  # their unfinished parts are simply not written
-        raise
-    finally:
-        pool.shutdown(wait=True, cancel_futures=True)
     bar.close()
     return rejects
 
