@@ -48,6 +48,9 @@ LATER_FIELDS = {
     "material": None,
     "hold": 0,
 }
+# the procedural clips' carriage (motion/synth/posture.py): part of a procedural sequence's key, so
+# that sequences simulated on the upright clips of before are simulated again, not reused as if new
+POSTURE_VERSION = 1
 # SequenceSpec fields renamed since: each hashes under its old name, so its sequences keep their keys
 KEYED_AS = {"body_name": "body"}
 
@@ -126,6 +129,8 @@ class SequenceSpec:
         marks = sorted({m for f in (self.path, self.upper_path) if f for m in self._read_marks(f)})
         if marks:
             payload["read"] = marks
+        if self.kind != "file":  # since 2026-12-08 a procedural clip carries a drawn posture
+            payload["posture"] = POSTURE_VERSION
         return hashlib.sha256(json.dumps(payload, sort_keys=True, default=str).encode()).hexdigest()[:16]
 
 

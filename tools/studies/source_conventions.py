@@ -3,15 +3,20 @@ conventions (frame rate and filtering, floor, rest height) or the motion itself.
 
     python tools/studies/source_conventions.py --source bandai hrr_work/mocap/bandai \\
         --source cmu hrr_work/mocap/cmu-01-09 --every 3 -o hrr_work/eval/source_conventions.json
+    python tools/studies/source_conventions.py --source cmu hrr_work/mocap/cmu-01-09 --every 2 \\
+        --procedural 3 -o hrr_work/eval/carriage.json
 
 Per source, over its clips as the pipeline reads them (30 fps, retargeted, grounded): the native
 frame rate; the joints' acceleration RMS (m/s^2) and the share of their velocity's energy above
 6 Hz (high-frequency content: marker noise and filtering, not motion, lives there); the lowest sole
 point's height (share of frames within 3 cm of the floor, share more than 10 cm above it); the
 pelvis height and the root's horizontal speed; and each motion-feature group's mean magnitude
-(what the model reads). For sources recorded faster than 30 fps, the same read at their own rate
-and low-pass filtered before keeping every n-th frame (an anti-alias filter) beside the plain
-decimation the reader does, so the share that is aliased noise shows.
+(what the model reads); how the body is carried (the pelvis's pitch, the chest's lean from it and
+its turn's spread, the collars' rotation: :func:`hrr_garment.motion.synth.posture.carriage`). With
+``--procedural N``, the procedural library as a source beside them: N seeds of every kind, 4 s each,
+their carriage drawn (``--upright``: the kinds' own). For sources recorded faster than 30 fps, the
+same read at their own rate and low-pass filtered before keeping every n-th frame (an anti-alias
+filter) beside the plain decimation the reader does, so the share that is aliased noise shows.
 """
 
 from __future__ import annotations
@@ -26,6 +31,8 @@ from tqdm import tqdm
 from hrr_garment.motion.bvh import read_bvh
 from hrr_garment.motion.features import motion_features
 from hrr_garment.motion.io import load_motion
+from hrr_garment.motion.synth import KINDS, UPRIGHT, synthesize
+from hrr_garment.motion.synth.posture import carriage
 
 FPS = 30.0
 HIGH_HZ = 6.0
@@ -57,11 +64,21 @@ def anti_aliased(path: Path, native: float) -> np.ndarray:
 
 def clip_stats(path: Path) -> dict:
     native = 1.0 / read_bvh(path).frame_time
-    motion = load_motion(path)
+    row = motion_stats(load_motion(path), native)
+    if native > FPS * 1.5:
+        filtered = anti_aliased(path, native)
+        row["accel_rms_filtered"] = acceleration_rms(filtered, FPS)
+        row["high_share_filtered"] = high_frequency_share(filtered, FPS)
+    return row
+
+
+def motion_stats(motion, native: float) -> dict:
+    """A canonical clip's measures (module docstring); ``native``: its source's frame rate."""
+    held = carriage(motion)
     positions = motion.joint_positions
     lowest = motion.lowest_foot_height()
     features = motion_features(motion)
-    row = {
+    return {
         "native_fps": native,
         "frames": motion.num_frames,
         "accel_rms": acceleration_rms(positions, FPS),
@@ -76,12 +93,11 @@ def clip_stats(path: Path) -> dict:
         "feature_v": float(np.abs(features[:, 60:120]).mean()),
         "feature_t": float(np.abs(features[:, 120:123]).mean()),
         "feature_w": float(np.abs(features[:, 123]).mean()),
+        "pelvis_pitch_deg": held.pelvis_pitch,
+        "chest_lean_deg": held.chest_lean,
+        "chest_turn_sd_deg": held.chest_turn_sd,
+        "collar_deg": held.collar,
     }
-    if native > FPS * 1.5:
-        filtered = anti_aliased(path, native)
-        row["accel_rms_filtered"] = acceleration_rms(filtered, FPS)
-        row["high_share_filtered"] = high_frequency_share(filtered, FPS)
-    return row
 
 
 def summarise(rows: list[dict]) -> dict:
@@ -99,7 +115,9 @@ def summarise(rows: list[dict]) -> dict:
 
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    p.add_argument("--source", nargs=2, action="append", metavar=("NAME", "FOLDER"), required=True)
+    p.add_argument("--source", nargs=2, action="append", metavar=("NAME", "FOLDER"), default=[])
+    p.add_argument("--procedural", type=int, default=0, help="seeds of every procedural kind as a source")
+    p.add_argument("--upright", action="store_true", help="the procedural clips without a drawn carriage")
     p.add_argument("--every", type=int, default=1, help="every n-th clip of each source, in name order")
     p.add_argument("-o", "--output", type=Path, required=True)
     args = p.parse_args()
@@ -108,6 +126,12 @@ def main() -> None:
         files = sorted(Path(folder).rglob("*.bvh"))[:: args.every]
         rows = [clip_stats(f) for f in tqdm(files, desc=name)]
         report[name] = summarise(rows)
+    if args.procedural:
+        posture = UPRIGHT if args.upright else None
+        clips = [synthesize(k, 4.0, seed=s, posture=posture) for k in KINDS for s in range(args.procedural)]
+        report["procedural"] = summarise([motion_stats(m, FPS) for m in tqdm(clips, desc="procedural")])
+    if not report:
+        p.error("give at least one --source or --procedural")
     args.output.parent.mkdir(parents=True, exist_ok=True)
     args.output.write_text(json.dumps(report, indent=2))
     keys = [k for k in next(iter(report.values())) if k not in ("clips", "frames")]

@@ -10,8 +10,9 @@ from ...errors import HRRError
 from ..motion import Motion
 from .engine import build_motion
 from .kinds import KINDS
+from .posture import UPRIGHT, Posture, draw_posture
 
-__all__ = ["KINDS", "synthesize", "kind_parameters"]
+__all__ = ["KINDS", "synthesize", "kind_parameters", "Posture", "UPRIGHT"]
 
 
 def kind_parameters(kind: str) -> list[str]:
@@ -19,8 +20,12 @@ def kind_parameters(kind: str) -> list[str]:
     return list(inspect.signature(KINDS[kind]).parameters)[2:]
 
 
-def synthesize(kind: str, seconds: float = 6.0, seed: int = 0, **params: float) -> Motion:
-    """Generate a canonical motion of ``kind`` lasting ``seconds`` (30 fps)."""
+def synthesize(
+    kind: str, seconds: float = 6.0, seed: int = 0, *, posture: Posture | None = None, **params: float
+) -> Motion:
+    """Generate a canonical motion of ``kind`` lasting ``seconds`` (30 fps), its body carried as
+    ``posture`` says (default: drawn with the seed, :mod:`.posture`; ``UPRIGHT``: the kind's own
+    upright body)."""
     if kind not in KINDS:
         raise HRRError(f"unknown motion kind {kind!r}; available: {', '.join(KINDS)}")
     unknown = set(params) - set(kind_parameters(kind))
@@ -32,5 +37,6 @@ def synthesize(kind: str, seconds: float = 6.0, seed: int = 0, **params: float) 
         raise HRRError(f"seconds must be positive, got {seconds}")
     rng = np.random.default_rng([seed, sorted(KINDS).index(kind)])
     plan = KINDS[kind](rng, float(seconds), **params)
+    plan = (draw_posture(rng) if posture is None else posture).carried(plan)  # after the kind's draws
     source = f"synth:{kind}:seed={seed}" + "".join(f":{k}={v}" for k, v in sorted(params.items()))
     return build_motion(plan, source)

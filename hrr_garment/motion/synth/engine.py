@@ -132,7 +132,10 @@ def build_motion(plan: Plan, source: str) -> Motion:
     glob[:, J["neck"]] = _halfway(chest, head_rot)
     glob[:, J["head"]] = head_rot
     for side, sign in (("l", 1.0), ("r", -1.0)):
-        glob[:, J[f"{side}_collar"]] = chest
+        # the collar as the performer carries it (posture.py)
+        glob[:, J[f"{side}_collar"]] = chest @ axis_angle_to_matrix(
+            plan.collar_rotation.get(side, np.zeros(3))
+        )
         hang = rot_z(-sign * (np.pi / 2 - 0.16 - plan.arm_abduction.get(side, np.zeros(n))))
         upper = chest @ rot_x(-plan.arm_swing.get(side, np.zeros(n))) @ hang
         hinge_rest = np.array([0.0, -1.0, 0.0]) if side == "l" else np.array([0.0, 1.0, 0.0])

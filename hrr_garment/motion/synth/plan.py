@@ -54,6 +54,8 @@ class Plan:
     arm_swing: dict[str, np.ndarray] = field(default_factory=dict)  # side -> forward swing (rad)
     arm_abduction: dict[str, np.ndarray] = field(default_factory=dict)  # side -> angle from hanging (rad)
     elbow_flex: dict[str, np.ndarray] = field(default_factory=dict)  # side -> flexion (rad)
+    # side -> (3,) rotation vector of the collar from the chest
+    collar_rotation: dict[str, np.ndarray] = field(default_factory=dict)
     pad: int = 0  # frames of padding at each end, cropped from the output
     ground_y: float = 0.0
     takeoff_height: float | None = None  # pelvis height at take-off, for feet that follow the pelvis
