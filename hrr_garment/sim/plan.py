@@ -47,10 +47,8 @@ LATER_FIELDS = {
     "backward": False,
     "material": None,
     "hold": 0,
+    "posture": "upright",
 }
-# the procedural clips' carriage (motion/synth/posture.py): part of a procedural sequence's key, so
-# that sequences simulated on the upright clips of before are simulated again, not reused as if new
-POSTURE_VERSION = 1
 # SequenceSpec fields renamed since: each hashes under its old name, so its sequences keep their keys
 KEYED_AS = {"body_name": "body"}
 
@@ -78,6 +76,9 @@ class SequenceSpec:
     # the cloth it is simulated in (sim/material_plan.py); None: the build's own (SimSettings.material)
     material: Material | None = None
     hold: int = 0  # frames its last pose is held after the clip: the body stops dead (sim/augment.py)
+    # a procedural clip's carriage: "upright" (the kind's own body) or "drawn" with its seed (a
+    # preset's ``posture``, motion/synth/posture.py)
+    posture: str = "upright"
 
     @property
     def frames(self) -> int:
@@ -92,7 +93,7 @@ class SequenceSpec:
                 upper = load_file_motion(self.upper_path, self.speed, self.source_fps)
                 clip = spliced(clip, upper.slice(self.upper_start, self.upper_start + self.stop - self.start))
         else:
-            clip = synthesize(self.kind, self.seconds, seed=self.seed)
+            clip = synthesize(self.kind, self.seconds, seed=self.seed, posture=self.posture)
         if self.arm_delay:
             clip = arm_delayed(clip, "l" if self.arm_delay > 0 else "r", abs(self.arm_delay))
         if self.backward:
@@ -129,8 +130,6 @@ class SequenceSpec:
         marks = sorted({m for f in (self.path, self.upper_path) if f for m in self._read_marks(f)})
         if marks:
             payload["read"] = marks
-        if self.kind != "file":  # since 2026-12-08 a procedural clip carries a drawn posture
-            payload["posture"] = POSTURE_VERSION
         return hashlib.sha256(json.dumps(payload, sort_keys=True, default=str).encode()).hexdigest()[:16]
 
 
@@ -185,7 +184,9 @@ def plan_sequences(
     seconds = float(seconds or preset.seconds)
     counts = _kind_counts(motions) if motions else dict(preset.sequences)
     specs = [
-        SequenceSpec(f"{kind}_{i:03d}", kind, seed=preset.seed * 1000 + i, seconds=seconds)
+        SequenceSpec(
+            f"{kind}_{i:03d}", kind, seed=preset.seed * 1000 + i, seconds=seconds, posture=preset.posture
+        )
         for kind, n in counts.items()
         for i in range(n)
     ]

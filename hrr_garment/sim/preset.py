@@ -63,6 +63,9 @@ class Preset:
     # build only from motion whose source allows a sold product (CMU, procedural, the user's own):
     # entries from other sources are left out, and the build says which
     commercial_only: bool = False
+    # how the procedural clips carry the body: "upright" (the kinds' own) or "drawn" (each clip a
+    # performer's pelvis tilt, chest lean and collars drawn with its seed: motion/synth/posture.py)
+    posture: str = "upright"
 
 
 def preset_names() -> list[str]:
@@ -102,6 +105,8 @@ def load_preset(name_or_path: str) -> Preset:
     unknown = sorted(set(preset.sequences) - set(KINDS))
     if unknown:
         raise InputError(path, f"unknown motion kinds {unknown}; available: {', '.join(KINDS)}")
+    if preset.posture not in ("upright", "drawn"):
+        raise InputError(path, f"posture: {preset.posture!r} is not 'upright' or 'drawn'")
     return preset
 
 
@@ -238,6 +243,7 @@ PLAN_FIELDS = (
     "splices",
     "seed",
     "commercial_only",
+    "posture",
 )
 
 
@@ -248,4 +254,6 @@ def plan_record(preset: Preset) -> dict:
     for later in ("commercial_only", "materials"):  # added later: datasets made before record neither
         if not record[later]:
             del record[later]
+    if record["posture"] == "upright":  # added later too, at its default
+        del record["posture"]
     return json.loads(json.dumps(record))

@@ -1,7 +1,9 @@
 """A procedural clip's carriage (motion/synth/posture.py): drawn per seed about the real clips'
 (the pelvis pitched forward, the chest leaning back from it, the collars turned), added to the
-kind's own motion without changing its steps; the upright posture is the kind's body; a procedural
-sequence's key says which clips it was simulated from."""
+kind's own motion without changing its steps; upright (the default) is the kind's body; a preset
+asks for drawn postures, and its procedural sequences' keys say so while upright ones keep theirs."""
+
+import dataclasses
 
 import numpy as np
 import pytest
@@ -9,7 +11,7 @@ import pytest
 from hrr_garment.motion.skeleton import JOINT_INDEX as J
 from hrr_garment.motion.synth import UPRIGHT, Posture, synthesize
 from hrr_garment.motion.synth.posture import DEG, carriage
-from hrr_garment.sim.plan import SequenceSpec
+from hrr_garment.sim.plan import LATER_FIELDS, plan_sequences
 
 
 def _carriage(motion) -> tuple[float, float, float]:
@@ -20,7 +22,7 @@ def _carriage(motion) -> tuple[float, float, float]:
 def test_drawn_postures_are_held_as_real_performers_hold_them():
     """Over 30 walks the pelvis pitches forward and the chest leans back from it, about the real
     clips' 10 deg each, and the collars turn; upright, the kind's walk has neither."""
-    drawn = np.array([_carriage(synthesize("walk", 2.0, seed=s)) for s in range(30)])
+    drawn = np.array([_carriage(synthesize("walk", 2.0, seed=s, posture="drawn")) for s in range(30)])
     upright = np.array([_carriage(synthesize("walk", 2.0, seed=s, posture=UPRIGHT)) for s in range(30)])
     assert 6.0 < drawn[:, 0].mean() - upright[:, 0].mean() < 12.0
     assert -14.0 < drawn[:, 1].mean() - upright[:, 1].mean() < -6.0
@@ -32,7 +34,7 @@ def test_drawn_postures_are_held_as_real_performers_hold_them():
 def test_a_posture_keeps_the_kinds_steps(kind):
     """The posture is drawn after the kind's own draws: the same seed's ground path and feet, only
     the body above them carried otherwise."""
-    upright, drawn = synthesize(kind, 2.0, seed=4, posture=UPRIGHT), synthesize(kind, 2.0, seed=4)
+    upright, drawn = synthesize(kind, 2.0, seed=4), synthesize(kind, 2.0, seed=4, posture="drawn")
     ground = [0, 2]
     path = drawn.root_translation[:, ground] - upright.root_translation[:, ground]
     assert np.abs(path).max() < 1e-9
@@ -51,16 +53,24 @@ def test_a_given_posture_is_the_one_carried():
     assert pitch == pytest.approx(10.0, abs=0.5) and lean == pytest.approx(-15.0, abs=0.5)
 
 
-def test_a_procedural_sequence_is_keyed_by_its_posture_and_a_files_is_not(tmp_path, monkeypatch):
-    """Parts simulated from the upright clips of before are not taken for the carried ones: the
-    procedural key carries the posture's version, a file's is as it was."""
-    import hrr_garment.sim.plan as plan
-    from hrr_garment.motion.io import save_motion
+def test_a_preset_asks_for_drawn_postures_and_upright_sequences_keep_their_keys(tmp_path):
+    """The quick preset's procedural sequences carry drawn postures, keyed apart from upright ones
+    (parts simulated upright are not taken for them); an upright spec hashes as before the field
+    existed; a preset's unknown posture is refused naming it."""
+    from hrr_garment.errors import InputError
+    from hrr_garment.sim.preset import load_preset, plan_record
 
-    clip = tmp_path / "clip.npz"
-    save_motion(synthesize("walk", 1.0, seed=0), clip)
-    procedural = SequenceSpec(name="walk_0", kind="walk", seed=0, seconds=2.0)
-    from_file = SequenceSpec(name="clip", kind="file", path=str(clip), start=0, stop=30)
-    keys = procedural.key({}), from_file.key({})
-    monkeypatch.setattr(plan, "POSTURE_VERSION", plan.POSTURE_VERSION + 1)
-    assert procedural.key({}) != keys[0] and from_file.key({}) == keys[1]
+    quick = load_preset("quick")
+    specs = [s for s in plan_sequences(quick) if s.kind != "file"]
+    assert specs and {s.posture for s in specs} == {"drawn"} and plan_record(quick)["posture"] == "drawn"
+    assert "posture" not in plan_record(load_preset("tiny"))  # upright presets record as before
+    spec = specs[0]
+    upright = dataclasses.replace(spec, posture="upright")
+    assert spec.key({}) != upright.key({})
+    assert spec.motion().source.endswith(":posture=drawn")
+    # an upright spec hashes as before the field existed (the golden keys of tests/sim/test_material_plan.py)
+    assert LATER_FIELDS["posture"] == "upright"
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("name: bad\nvertices: 300\nseconds: 2.0\nsequences: {walk: 1}\nposture: slouched\n")
+    with pytest.raises(InputError, match="slouched"):
+        load_preset(str(bad))

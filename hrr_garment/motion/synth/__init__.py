@@ -21,11 +21,12 @@ def kind_parameters(kind: str) -> list[str]:
 
 
 def synthesize(
-    kind: str, seconds: float = 6.0, seed: int = 0, *, posture: Posture | None = None, **params: float
+    kind: str, seconds: float = 6.0, seed: int = 0, *, posture: Posture | str = UPRIGHT, **params: float
 ) -> Motion:
     """Generate a canonical motion of ``kind`` lasting ``seconds`` (30 fps), its body carried as
-    ``posture`` says (default: drawn with the seed, :mod:`.posture`; ``UPRIGHT``: the kind's own
-    upright body)."""
+    ``posture`` says: the kind's own upright body (``"upright"``, the default), ``"drawn"`` (a
+    performer's carriage drawn with the seed, :mod:`.posture`; what the presets that ask for it
+    simulate) or a given :class:`~.posture.Posture`."""
     if kind not in KINDS:
         raise HRRError(f"unknown motion kind {kind!r}; available: {', '.join(KINDS)}")
     unknown = set(params) - set(kind_parameters(kind))
@@ -37,6 +38,14 @@ def synthesize(
         raise HRRError(f"seconds must be positive, got {seconds}")
     rng = np.random.default_rng([seed, sorted(KINDS).index(kind)])
     plan = KINDS[kind](rng, float(seconds), **params)
-    plan = (draw_posture(rng) if posture is None else posture).carried(plan)  # after the kind's draws
+    drawn = isinstance(posture, str) and posture == "drawn"
+    if drawn:
+        posture = draw_posture(rng)  # after the kind's draws: the same steps, only the carriage added
+    elif isinstance(posture, str) and posture == "upright":
+        posture = UPRIGHT
+    elif not isinstance(posture, Posture):
+        raise HRRError(f"posture must be a Posture, 'upright' or 'drawn', got {posture!r}")
+    plan = posture.carried(plan)
     source = f"synth:{kind}:seed={seed}" + "".join(f":{k}={v}" for k, v in sorted(params.items()))
+    source += ":posture=drawn" if drawn else ""
     return build_motion(plan, source)
