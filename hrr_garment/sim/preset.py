@@ -20,6 +20,7 @@ from ..errors import InputError
 from ..motion.licences import SOURCES
 from ..motion.motion import FPS
 from ..motion.synth import KINDS
+from ..motion.synth.posture import POSTURES
 from ..settings import deep_merge
 from .sources import DEFAULT_NAME_PATTERN
 
@@ -105,8 +106,8 @@ def load_preset(name_or_path: str) -> Preset:
     unknown = sorted(set(preset.sequences) - set(KINDS))
     if unknown:
         raise InputError(path, f"unknown motion kinds {unknown}; available: {', '.join(KINDS)}")
-    if preset.posture not in ("upright", "drawn"):
-        raise InputError(path, f"posture: {preset.posture!r} is not 'upright' or 'drawn'")
+    if preset.posture not in POSTURES:
+        raise InputError(path, f"posture: {preset.posture!r} is not one of {', '.join(map(repr, POSTURES))}")
     return preset
 
 

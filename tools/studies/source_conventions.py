@@ -31,7 +31,7 @@ from tqdm import tqdm
 from hrr_garment.motion.bvh import read_bvh
 from hrr_garment.motion.features import motion_features
 from hrr_garment.motion.io import load_motion
-from hrr_garment.motion.synth import KINDS, UPRIGHT, synthesize
+from hrr_garment.motion.synth import KINDS, synthesize
 from hrr_garment.motion.synth.posture import carriage
 
 FPS = 30.0
@@ -127,7 +127,7 @@ def main() -> None:
         rows = [clip_stats(f) for f in tqdm(files, desc=name)]
         report[name] = summarise(rows)
     if args.procedural:
-        posture = UPRIGHT if args.upright else None
+        posture = "upright" if args.upright else "drawn"
         clips = [synthesize(k, 4.0, seed=s, posture=posture) for k in KINDS for s in range(args.procedural)]
         report["procedural"] = summarise([motion_stats(m, FPS) for m in tqdm(clips, desc="procedural")])
     if not report:

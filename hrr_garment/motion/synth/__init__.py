@@ -10,7 +10,7 @@ from ...errors import HRRError
 from ..motion import Motion
 from .engine import build_motion
 from .kinds import KINDS
-from .posture import UPRIGHT, Posture, draw_posture
+from .posture import POSTURES, UPRIGHT, Posture, draw_posture
 
 __all__ = ["KINDS", "synthesize", "kind_parameters", "Posture", "UPRIGHT"]
 
@@ -39,12 +39,11 @@ def synthesize(
     rng = np.random.default_rng([seed, sorted(KINDS).index(kind)])
     plan = KINDS[kind](rng, float(seconds), **params)
     drawn = isinstance(posture, str) and posture == "drawn"
-    if drawn:
-        posture = draw_posture(rng)  # after the kind's draws: the same steps, only the carriage added
-    elif isinstance(posture, str) and posture == "upright":
-        posture = UPRIGHT
+    if isinstance(posture, str) and posture in POSTURES:
+        # drawn after the kind's draws: the same steps, only the carriage added
+        posture = draw_posture(rng) if drawn else UPRIGHT
     elif not isinstance(posture, Posture):
-        raise HRRError(f"posture must be a Posture, 'upright' or 'drawn', got {posture!r}")
+        raise HRRError(f"posture must be a Posture or one of {POSTURES}, got {posture!r}")
     plan = posture.carried(plan)
     source = f"synth:{kind}:seed={seed}" + "".join(f":{k}={v}" for k, v in sorted(params.items()))
     source += ":posture=drawn" if drawn else ""

@@ -8,12 +8,12 @@ about the spine), and each collar is turned 13.8 deg (sd 3.0) from its rest. The
 pelvis tilt of 1.8 deg, the chest 1.0 deg forward of it, a turn of sd 2.9 deg, collars at rest. A
 model trained on upright clips put the dress's bodice into the chest of such a performer: the
 quick model decoded 7.4 % of the cloth more than 5 mm inside CMU 02_01's body where its own kinds
-of clip had 0.1-0.3 % (docs/motion.md, *Procedural motion*).
+of clip had 0.1-0.3 % (docs/motion.md, *Procedural motions*).
 
-So every clip gets a :class:`Posture` drawn from the same generator after the kind's own draws (a
-seed's steps and timing are the kind's; only the carriage is added): a constant pelvis tilt and
-chest lean with a slow sway about them, a chest turn, and a rotation of each collar, each drawn
-about the real clips' means and clipped to about their 5-95 % range.
+So a clip of a preset with ``posture: drawn`` gets a :class:`Posture` drawn from the same generator
+after the kind's own draws (a seed's steps and timing are the kind's; only the carriage is added):
+a constant pelvis tilt and chest lean with a slow sway about them, a chest turn, and a rotation of
+each collar, each drawn about the real clips' means and clipped to about their 5-95 % range.
 """
 
 from __future__ import annotations
@@ -23,10 +23,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..frame import body_heading
+from ..rotations import matrix_to_axis_angle
 from ..skeleton import JOINT_INDEX
 from .plan import Plan
 
 DEG = np.pi / 180.0
+POSTURES = ("upright", "drawn")  # the names a preset's ``posture`` and synthesize() take
 
 
 @dataclass(frozen=True)
@@ -91,22 +94,11 @@ def carriage(motion) -> Carriage:
     """``motion``'s :class:`Carriage` (any canonical clip: read, procedural or edited)."""
     glob = motion.global_rotations.astype(np.float64)
     pelvis = glob[:, JOINT_INDEX["pelvis"]]
-    heading = pelvis[:, :, 2] * np.array([1.0, 0.0, 1.0])
-    heading /= np.maximum(np.linalg.norm(heading, axis=1, keepdims=True), 1e-9)
-    pitch = np.degrees(np.arcsin(np.clip((pelvis[:, :, 1] * heading).sum(1), -1.0, 1.0)))
+    forward = body_heading(motion)[1][:, :, 2]  # the heading, level
+    pitch = np.degrees(np.arcsin(np.clip((pelvis[:, :, 1] * forward).sum(1), -1.0, 1.0)))
     chest = np.einsum("tji,tjk->tik", pelvis, glob[:, JOINT_INDEX["spine3"]])  # in the pelvis's frame
     lean = np.degrees(np.arcsin(np.clip(chest[:, 2, 1], -1.0, 1.0)))
     turn = np.degrees(np.arctan2(-chest[:, 2, 0], chest[:, 0, 0]))
-    angles = [
-        np.arccos(
-            np.clip(
-                (np.trace(motion.local_rotations[:, JOINT_INDEX[f"{s}_collar"]], axis1=1, axis2=2) - 1) / 2,
-                -1,
-                1,
-            )
-        )
-        for s in "lr"
-    ]
-    return Carriage(
-        float(pitch.mean()), float(lean.mean()), float(turn.std()), float(np.degrees(np.mean(angles)))
-    )
+    collars = motion.local_rotations[:, [JOINT_INDEX["l_collar"], JOINT_INDEX["r_collar"]]]
+    angle = np.degrees(np.linalg.norm(matrix_to_axis_angle(collars.astype(np.float64)), axis=-1))
+    return Carriage(float(pitch.mean()), float(lean.mean()), float(turn.std()), float(angle.mean()))
