@@ -97,6 +97,7 @@ def motion_stats(motion, native: float) -> dict:
         "chest_lean_deg": held.chest_lean,
         "chest_turn_sd_deg": held.chest_turn_sd,
         "collar_deg": held.collar,
+        "pelvis_turn_sd_deg": held.pelvis_turn_sd,
     }
 
 
