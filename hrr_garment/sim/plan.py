@@ -23,7 +23,6 @@ from ..motion.io import load_motion, native_frame_rate
 from ..motion.motion import FPS, Motion
 from ..motion.resample import kernel_width
 from ..motion.synth import KINDS, synthesize
-from ..motion.synth.posture import DRAWN_VERSION
 from .augment import AUGMENT_PREFIXES, SpliceSettings
 from .motion_sources import file_sources, sourced_entries
 from .preset import Preset, mirror_mode, plan_record
@@ -121,8 +120,6 @@ class SequenceSpec:
             if not (k in LATER_FIELDS and v == LATER_FIELDS[k])
         }
         payload = {"spec": spec, **extra}
-        if self.posture == "drawn":  # a drawn posture of before (without the stride's turn) is other motion
-            payload["posture_version"] = DRAWN_VERSION
         if self.kind == "file":
             payload["file_sha1"] = hashlib.sha1(Path(self.path).read_bytes()).hexdigest()
         if self.upper_path:

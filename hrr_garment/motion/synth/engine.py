@@ -71,12 +71,7 @@ def build_motion(plan: Plan, source: str) -> Motion:
     """A Plan as canonical motion: root path, pelvis, spine, arms and IK legs."""
     n = len(plan.t)
     heading = rotation_about_y(plan.yaw)
-    pelvis_rot = (
-        heading
-        @ rotation_about_y(plan.curve(plan.pelvis_turn))
-        @ rot_x(plan.curve(plan.pelvis_pitch))
-        @ rot_z(plan.curve(plan.pelvis_roll))
-    )
+    pelvis_rot = heading @ rot_x(plan.curve(plan.pelvis_pitch)) @ rot_z(plan.curve(plan.pelvis_roll))
     pelvis_y = plan.pelvis_y.copy()
     takeoff_y = plan.takeoff_height if plan.takeoff_height is not None else float(np.max(plan.pelvis_y))
     hip_off = {s: REST_OFFSETS[J[f"{s}_hip"]].astype(np.float64) for s in "lr"}

@@ -48,7 +48,6 @@ class Plan:
     feet: list[FootPlan]
     pelvis_pitch: np.ndarray | None = None  # forward lean of the pelvis (rad)
     pelvis_roll: np.ndarray | None = None  # sideways tilt (rad, +: left hip up)
-    pelvis_turn: np.ndarray | None = None  # yaw of the pelvis from the heading (rad): its turn in a stride
     spine_twist: np.ndarray | None = None  # yaw of the chest relative to the pelvis (rad)
     spine_lean: np.ndarray | None = None  # extra forward lean of the chest (rad)
     head_yaw: np.ndarray | None = None  # look direction relative to the heading (rad)

@@ -15,14 +15,10 @@ after the kind's own draws (a seed's steps and timing are the kind's; only the c
 a constant pelvis tilt and chest lean with a slow sway about them, a chest turn, and a rotation of
 each collar, each drawn about the real clips' means and clipped to about their 5-95 % range.
 
-And the stride's twist (version 2 of the drawn postures). A real walker's pelvis turns about its
-heading with the leading leg and the chest turns against it: in CMU's walks of subjects 01-09 the
-pelvis's yaw about its heading has an sd of 2-6 deg (13.8 on the shared 02_01), the chest's turn
-from the pelvis 5.6-7.8 deg, the two at a correlation of about -0.9; the kinds' walk turns the
-chest 3.2 deg from a pelvis that never turns. With that wobble smoothed out of 02_01 (every other
-joint's world rotation kept), the quick model put 3.6 % of the dress inside the body instead of
-5.2 %. A drawn posture scales the kind's own chest turn (at most a walk's, :data:`STRIDE_TWIST`)
-by 1.4-2.6 and turns the pelvis the other way by 0.3-3 times it.
+Not drawn: the stride's twist. A real walker's pelvis turns about its heading with the leading leg
+and the chest against it (:attr:`Carriage.pelvis_turn_sd` measures the first; the kinds' pelvis
+never turns); drawn as well, it made the quick model worse on real clips, not better
+(docs/decisions/0047-stride-twist-not-drawn.md).
 """
 
 from __future__ import annotations
@@ -40,9 +36,6 @@ from .plan import Plan
 
 DEG = np.pi / 180.0
 POSTURES = ("upright", "drawn")  # the names a preset's ``posture`` and synthesize() take
-# what a drawn posture is, in a simulated sequence's key: 2 since the pelvis turns in the stride
-DRAWN_VERSION = 2
-STRIDE_TWIST = 0.08  # rad: the walk's own chest turn, the most of a kind's twist a posture scales
 
 
 @dataclass(frozen=True)
@@ -56,22 +49,15 @@ class Posture:
     sway_hz: float = 0.2
     sway_phase: float = 0.0
     collars: dict[str, tuple[float, float, float]] = field(default_factory=dict)  # side -> rotation vector
-    # the stride's twist (the kind's chest turn from the pelvis, at most a walk's): the chest turns
-    # this much more of it from the pelvis, and the pelvis this much of it the other way
-    twist_gain: float = 0.0
-    pelvis_counter: float = 0.0
 
     def carried(self, plan: Plan) -> Plan:
         """``plan`` with this posture added to its curves."""
         sway = self.sway * np.sin(2 * np.pi * self.sway_hz * plan.t + self.sway_phase)
-        twist = plan.curve(plan.spine_twist)
-        stride = twist * min(1.0, STRIDE_TWIST / max(float(np.abs(twist).max()), 1e-9))
         return dataclasses.replace(
             plan,
             pelvis_pitch=plan.curve(plan.pelvis_pitch) + self.pelvis_tilt + 0.5 * sway,
-            pelvis_turn=plan.curve(plan.pelvis_turn) - self.pelvis_counter * stride,
             spine_lean=plan.curve(plan.spine_lean) + self.chest_lean - 0.5 * sway,
-            spine_twist=twist + self.twist_gain * stride + self.chest_turn,
+            spine_twist=plan.curve(plan.spine_twist) + self.chest_turn,
             collar_rotation={side: np.asarray(v, np.float64) for side, v in self.collars.items()},
         )
 
@@ -97,9 +83,6 @@ def draw_posture(rng: np.random.Generator) -> Posture:
         sway_hz=float(rng.uniform(0.1, 0.5)),
         sway_phase=float(rng.uniform(0.0, 2 * np.pi)),
         collars=collars,
-        # drawn last, so that the draws above are those of the postures before them
-        twist_gain=float(rng.uniform(0.4, 1.6)),
-        pelvis_counter=float(rng.uniform(0.3, 3.0)),
     )
 
 
