@@ -101,15 +101,15 @@ def carriage(motion) -> Carriage:
     """``motion``'s :class:`Carriage` (any canonical clip: read, procedural or edited)."""
     glob = motion.global_rotations.astype(np.float64)
     pelvis = glob[:, JOINT_INDEX["pelvis"]]
-    forward = body_heading(motion)[1][:, :, 2]  # the heading, level
+    yaw, heading = body_heading(motion)  # the pelvis's yaw and its level frame
+    forward = heading[:, :, 2]
     pitch = np.degrees(np.arcsin(np.clip((pelvis[:, :, 1] * forward).sum(1), -1.0, 1.0)))
     chest = np.einsum("tji,tjk->tik", pelvis, glob[:, JOINT_INDEX["spine3"]])  # in the pelvis's frame
     lean = np.degrees(np.arcsin(np.clip(chest[:, 2, 1], -1.0, 1.0)))
     turn = np.degrees(np.arctan2(-chest[:, 2, 0], chest[:, 0, 0]))
     collars = motion.local_rotations[:, [JOINT_INDEX["l_collar"], JOINT_INDEX["r_collar"]]]
     angle = np.degrees(np.linalg.norm(matrix_to_axis_angle(collars.astype(np.float64)), axis=-1))
-    facing = pelvis[:, :, 2]
-    yaw = np.degrees(np.unwrap(np.arctan2(facing[:, 0], facing[:, 2])))
+    yaw = np.degrees(np.unwrap(yaw))
     wobble = yaw - uniform_filter1d(yaw, min(len(yaw), 31), mode="nearest")  # less the clip's own turns
     return Carriage(
         float(pitch.mean()), float(lean.mean()), float(turn.std()), float(angle.mean()), float(wobble.std())
